@@ -1,0 +1,1 @@
+"""The MDO engine: disciplines, coupling graph, MDA, formulations, optimisers. No ROS import here."""

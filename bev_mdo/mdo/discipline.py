@@ -1,0 +1,148 @@
+"""The discipline interface: named batched inputs in, named batched outputs out.
+
+A discipline is any class with ``name``, ``inputs``, ``outputs`` and
+``compute(inputs) -> outputs`` where every value is a float64 array of shape (N,).
+It is stateless per call, so retries and duplicate instances are safe.
+
+``parameters`` lists model constants that a caller may override per point by
+sending an input column of the same name (used for sensitivities with respect
+to model parameters, e.g. ``drag_area_m2``).
+"""
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+Batch = dict[str, np.ndarray]
+
+
+class DisciplineError(ValueError):
+    """A discipline could not evaluate some points; the message names it and the inputs."""
+
+
+class Discipline:
+    """Base class for disciplines (subclassing it is optional: duck typing is enough)."""
+
+    name: str = ""
+    inputs: tuple[str, ...] = ()
+    outputs: tuple[str, ...] = ()
+    parameters: Mapping[str, float] = {}
+
+    @classmethod
+    def from_config(cls, config: Mapping[str, Any], options: Mapping[str, Any]) -> "Discipline":
+        """Build from the resolved run config; the default passes the entry's options as kwargs."""
+        return cls(**dict(options))
+
+    def compute(self, inputs: Batch) -> Batch:  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+@dataclass
+class EvalResult:
+    """Outputs of one discipline call; rows that failed hold NaN and are named in ``error``."""
+
+    outputs: Batch
+    ok: np.ndarray  # bool (N,)
+    error: str = ""
+    compute_time_s: float = 0.0
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def status(self) -> str:
+        if self.ok.all():
+            return "ok"
+        return "error"
+
+
+def load_class(spec: str) -> type:
+    """Import ``module:Class`` (or ``module.Class``) and return the class."""
+    if ":" in spec:
+        mod_name, _, cls_name = spec.partition(":")
+    else:
+        mod_name, _, cls_name = spec.rpartition(".")
+    if not mod_name or not cls_name:
+        raise ValueError(f"discipline class {spec!r} must be written 'module:Class'")
+    try:
+        module = importlib.import_module(mod_name)
+    except ImportError as exc:
+        raise ValueError(f"cannot import module {mod_name!r} for discipline class {spec!r}: {exc}") from None
+    try:
+        return getattr(module, cls_name)
+    except AttributeError:
+        raise ValueError(f"module {mod_name!r} has no class {cls_name!r}") from None
+
+
+def _batch_size(inputs: Mapping[str, np.ndarray]) -> int:
+    sizes = {np.shape(v)[0] if np.ndim(v) else 1 for v in inputs.values()}
+    if len(sizes) > 1:
+        raise DisciplineError(f"input arrays have different lengths {sorted(sizes)}")
+    return sizes.pop() if sizes else 0
+
+
+def _describe_row(inputs: Mapping[str, np.ndarray], i: int) -> str:
+    return ", ".join(f"{k}={float(v[i]):.6g}" for k, v in inputs.items())
+
+
+def run_discipline(disc: Any, inputs: Mapping[str, Any]) -> EvalResult:
+    """Validate inputs, call ``disc.compute`` on the batch and validate its outputs.
+
+    Never raises for a model failure: a batch that raises is retried point by point,
+    and every point that raises or gives NaN/Inf is marked failed with NaN outputs
+    and named (with its inputs) in ``EvalResult.error``. Missing inputs raise
+    DisciplineError because that is a wiring mistake, not a bad point.
+    """
+    import time
+
+    name = getattr(disc, "name", type(disc).__name__)
+    missing = [k for k in disc.inputs if k not in inputs]
+    if missing:
+        raise DisciplineError(f"discipline {name!r} is missing inputs {missing}")
+    allowed = set(disc.inputs) | set(getattr(disc, "parameters", {}) or {})
+    batch = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in inputs.items() if k in allowed}
+    n = _batch_size(batch)
+    t0 = time.perf_counter()
+    ok = np.ones(n, dtype=bool)
+    errors: list[str] = []
+    bad_in = ~np.all([np.isfinite(v) for v in batch.values()], axis=0) if batch else np.zeros(n, bool)
+    try:
+        if bad_in.any():
+            raise DisciplineError("non-finite inputs")
+        out = _call(disc, batch, n)
+    except Exception:
+        out = {k: np.full(n, np.nan) for k in disc.outputs}
+        for i in range(n):
+            row = {k: v[i:i + 1] for k, v in batch.items()}
+            if bad_in[i]:
+                ok[i] = False
+                errors.append(f"{name}: non-finite input at point {i} ({_describe_row(batch, i)})")
+                continue
+            try:
+                one = _call(disc, row, 1)
+            except Exception as exc:  # the model's own error text is what the user needs
+                ok[i] = False
+                errors.append(f"{name}: {type(exc).__name__}: {exc} at point {i} ({_describe_row(batch, i)})")
+                continue
+            for k in disc.outputs:
+                out[k][i] = one[k][0]
+    finite = np.all([np.isfinite(out[k]) for k in disc.outputs], axis=0) if disc.outputs else np.ones(n, bool)
+    for i in np.flatnonzero(ok & ~finite):
+        ok[i] = False
+        bad = [k for k in disc.outputs if not np.isfinite(out[k][i])]
+        errors.append(f"{name}: non-finite output {bad} at point {i} ({_describe_row(batch, i)})")
+    for k in disc.outputs:
+        out[k] = np.where(ok, out[k], np.nan)
+    return EvalResult(out, ok, "; ".join(errors), time.perf_counter() - t0)
+
+
+def _call(disc: Any, batch: Batch, n: int) -> Batch:
+    raw = disc.compute(batch)
+    out: Batch = {}
+    for k in disc.outputs:
+        if k not in raw:
+            raise DisciplineError(f"compute() did not return output {k!r}")
+        v = np.broadcast_to(np.asarray(raw[k], dtype=float), (n,)).copy()
+        out[k] = v
+    return out

@@ -1,0 +1,55 @@
+"""Entry points of the node executables (``ros2 run bev_mdo <exe>``).
+
+``python -m bev_mdo.ros.run <exe> [args]`` does the same; the wrappers in
+``<prefix>/lib/bev_mdo/`` call it that way.
+"""
+from __future__ import annotations
+
+import sys
+
+# executable -> built-in discipline name it serves (None: not a discipline node)
+DISCIPLINE_EXES = {
+    "vehicle_mass_node": "vehicle_mass",
+    "energy_node": "energy",
+    "range_node": "range",
+    "acceleration_node": "acceleration",
+    "motor_speed_node": "motor_speed",
+    "cost_node": "cost",
+}
+OTHER_EXES = ("discipline_node", "coordinator_node", "recorder_node")
+
+
+def run(exe: str, args: list[str] | None = None) -> int:
+    """Run one node executable by name."""
+    if exe in DISCIPLINE_EXES or exe == "discipline_node":
+        from bev_mdo.ros.discipline_node import main
+
+        return main(args, discipline=DISCIPLINE_EXES.get(exe))
+    if exe == "coordinator_node":
+        from bev_mdo.ros.coordinator_node import main
+
+        return main(args)
+    if exe == "recorder_node":
+        from bev_mdo.ros.recorder_node import main
+
+        return main(args)
+    print(f"unknown executable {exe!r}; known: {', '.join([*DISCIPLINE_EXES, *OTHER_EXES])}", file=sys.stderr)
+    return 2
+
+
+def _entry(exe: str):
+    def main(args: list[str] | None = None) -> int:
+        return run(exe, sys.argv[1:] if args is None else args)
+
+    main.__name__ = exe
+    return main
+
+
+for _exe in (*DISCIPLINE_EXES, *OTHER_EXES):
+    globals()[_exe] = _entry(_exe)
+
+if __name__ == "__main__":
+    if len(sys.argv) < 2:
+        print("usage: python -m bev_mdo.ros.run EXECUTABLE [args]", file=sys.stderr)
+        sys.exit(2)
+    sys.exit(run(sys.argv[1], sys.argv[2:]))
