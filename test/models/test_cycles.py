@@ -1,0 +1,106 @@
+import numpy as np
+import pytest
+
+from bev_mdo.models import cycles
+from bev_mdo.models.cycles import DriveCycle, concatenate, load_cycle, nedc, read_cycle_csv, resample
+
+
+def test_nedc_regulation_figures():
+    c = nedc()
+    assert c.duration_s == 1180.0
+    # 4 ECE-15 of 3652.5 km/h*s each plus EUDC 25037.5 km/h*s, summed by hand from R83 tables
+    assert c.distance_m == pytest.approx((4 * 3652.5 + 25037.5) / 3.6, rel=1e-12)
+    assert c.distance_m / 1000 == pytest.approx(11.013, abs=5e-4)
+    assert c.mean_speed_kmh == pytest.approx(33.6, abs=0.05)
+    assert c.max_speed_kmh == pytest.approx(120.0)
+
+
+def test_ece15_distance_close_to_regulation_1013m():
+    u = cycles.ece15()
+    assert u.duration_s == 195.0
+    assert u.distance_m == pytest.approx(1013.0, rel=2e-3)  # R83 nominal 1.013 km
+    # the four urban repeats of the NEDC each cover the same distance
+    c = nedc()
+    for k in range(4):
+        m = (c.time_s >= 195 * k) & (c.time_s <= 195 * (k + 1))
+        assert np.trapezoid(c.speed_m_s[m], c.time_s[m]) == pytest.approx(u.distance_m)
+
+
+def test_trapezoid_distance_three_samples():
+    c = DriveCycle("t", np.array([0.0, 2.0, 3.0]), np.array([0.0, 4.0, 4.0]))
+    assert c.distance_m == pytest.approx(0.5 * 2 * 4 + 4.0)
+    assert c.mean_speed_kmh == pytest.approx((8.0 / 3.0) * 3.6)
+
+
+def test_artemis_combined_is_2u_2r_1m130():
+    u, r, m = (load_cycle(n) for n in ("artemis_urban", "artemis_rural_road", "artemis_motorway_130"))
+    c = load_cycle("artemis_combined")
+    assert c.distance_m == pytest.approx(2 * u.distance_m + 2 * r.distance_m + m.distance_m)
+    assert c.duration_s == pytest.approx(2 * u.duration_s + 2 * r.duration_s + m.duration_s)
+    assert np.all(np.diff(c.time_s) > 0)
+
+
+def test_concatenate_nonzero_joint_adds_a_step():
+    a = DriveCycle("a", np.array([0.0, 1.0]), np.array([0.0, 1.0]))
+    b = DriveCycle("b", np.array([0.0, 1.0]), np.array([2.0, 0.0]))
+    c = concatenate([a, b], "ab")
+    assert list(c.time_s) == [0.0, 1.0, 2.0, 3.0]
+    assert list(c.speed_m_s) == [0.0, 1.0, 2.0, 0.0]
+
+
+@pytest.mark.parametrize("body,row", [
+    ("time_s,speed_kmh\n0,0\n1,5\n1,6\n", 4),
+    ("time_s,speed_kmh\n0,0\n1,-5\n", 3),
+    ("time_s,speed_kmh\n0,0\n1,nan\n", 3),
+    ("time_s,speed_kmh\n0,0\n1,abc\n", 3),
+    ("time,speed\n0,0\n", 1),
+])
+def test_csv_errors_name_file_and_row(tmp_path, body, row):
+    p = tmp_path / "bad_cycle.csv"
+    p.write_text(body)
+    with pytest.raises(ValueError) as e:
+        read_cycle_csv(p)
+    assert "bad_cycle.csv" in str(e.value) and f"row {row}" in str(e.value)
+
+
+def test_csv_roundtrip(tmp_path):
+    p = tmp_path / "mine.csv"
+    p.write_text("time_s,speed_kmh\n0,0\n10,36\n20,0\n")
+    c = load_cycle(str(p))
+    assert c.name == "mine" and c.distance_m == pytest.approx(100.0)
+
+
+def test_unknown_cycle_name():
+    with pytest.raises(ValueError, match="unknown drive cycle"):
+        load_cycle("ftp75")
+
+
+def test_resample_pchip_reproduces_linear_trace_and_derivatives():
+    c = DriveCycle("ramp", np.array([0.0, 10.0]), np.array([0.0, 5.0]))
+    r = resample(c, 0.5)
+    assert r.time_s[-1] == pytest.approx(10.0) and len(r.time_s) == 21
+    np.testing.assert_allclose(r.speed_m_s, 0.5 * r.time_s, atol=1e-12)
+    np.testing.assert_allclose(r.accel_m_s2, 0.5, atol=1e-12)
+    np.testing.assert_allclose(r.jerk_m_s3, 0.0, atol=1e-12)
+
+
+def test_resample_nedc_pchip_keeps_distance_and_is_cached():
+    r = resample(nedc(), 1.0, "pchip")
+    assert r.distance_m == pytest.approx(nedc().distance_m)
+    assert resample(nedc(), 1.0, "pchip") is r
+    assert np.min(r.speed_m_s) >= 0.0  # pchip is shape preserving: no undershoot at stops
+
+
+def test_resample_spline_smooths():
+    c = nedc()
+    rough = resample(c, 1.0, "spline", smoothing=0.0)
+    smooth = resample(c, 1.0, "spline", smoothing=10.0)
+    assert np.abs(smooth.jerk_m_s3).max() < np.abs(rough.jerk_m_s3).max()
+    assert smooth.distance_m == pytest.approx(c.distance_m, rel=5e-3)
+
+
+@pytest.mark.parametrize("kw,name", [({"dt_s": 0.0}, "dt_s"), ({"method": "linear"}, "interpolation"),
+                                     ({"smoothing": -1.0}, "smoothing")])
+def test_resample_bad_arguments(kw, name):
+    with pytest.raises(ValueError, match=name):
+        resample(nedc(), **kw)
