@@ -1,0 +1,281 @@
+"""Normalised first- and second-order sensitivities (thesis eqs 5-3..5-5) by batched FD.
+
+``fun(X)`` takes X of shape (N, n) (columns in the order of ``point``) and returns a
+dict of output arrays of shape (N,) (or one (N,) array, named ``"f"``). Every
+stencil is ONE call of ``fun``; steps h and 2h share that call so that Richardson
+extrapolation gives both the value and an error estimate.
+
+    S_i    = (x_i / f) * df/dx_i                     (eq 5-4)
+    S'_ij  = (x_i * x_j / f) * d2f/dx_i dx_j         (eq 5-5, diagonal included)
+
+Coupling labels for |S'_ij| (the thesis gives none numerically; chosen so that the
+Fig 5-3 values map to the Fig 5-3 labels): NC < 0.05 <= MC < 0.5 <= SC < 0.8 <= VSC.
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+BatchFun = Callable[[np.ndarray], "Mapping[str, np.ndarray] | np.ndarray"]
+
+COUPLING_THRESHOLDS = (("NC", 0.05), ("MC", 0.5), ("SC", 0.8))  # label if |s| < bound
+COUPLING_NAMES = {"NC": "no coupling", "MC": "medium coupling",
+                  "SC": "strong coupling", "VSC": "very strong coupling"}
+REL_STEP_FIRST = 1e-4
+REL_STEP_SECOND = 1e-3
+COMPLEX_STEP = 1e-20
+_CENTRAL = np.array([-1.0, 0.0, 1.0])
+_ONE_SIDED = np.array([0.0, 1.0, 2.0, 3.0])
+
+
+def coupling_label(value: float) -> str:
+    """NC / MC / SC / VSC for a normalised second-order value (module docstring)."""
+    a = abs(float(value))
+    for label, bound in COUPLING_THRESHOLDS:
+        if a < bound:
+            return label
+    return "VSC"
+
+
+@dataclass
+class Sensitivities:
+    """Result: normalised and raw derivatives per output, step and error estimates."""
+
+    names: tuple[str, ...]                      # variables differentiated (wrt)
+    point: dict[str, float]                     # full point
+    values: dict[str, float]                    # f at the point, per output
+    gradient: dict[str, np.ndarray]             # raw df/dx, (n,)
+    first: dict[str, np.ndarray]                # normalised eq 5-4, (n,)
+    first_error: dict[str, np.ndarray]          # error estimate of ``first``
+    step: np.ndarray                            # absolute step h per wrt variable
+    method: str                                 # "central" / "complex" (first order)
+    hessian: dict[str, np.ndarray] | None = None      # raw, (n, n)
+    second: dict[str, np.ndarray] | None = None       # normalised eq 5-5, (n, n)
+    second_error: dict[str, np.ndarray] | None = None
+    n_evaluations: int = 0
+    n_batches: int = 0
+    one_sided: tuple[str, ...] = field(default_factory=tuple)  # variables on a bound
+
+    def labels(self, output: str) -> np.ndarray:
+        """Coupling labels (object array (n, n)) of the second-order matrix of ``output``."""
+        if self.second is None:
+            raise ValueError("second-order sensitivities were not computed (order=1)")
+        m = self.second[_known(output, self.second, "output")]
+        return np.vectorize(coupling_label, otypes=[object])(m)
+
+
+def _known(name: str, known: Sequence[str], what: str) -> str:
+    if name not in known:
+        raise ValueError(f"unknown {what} {name!r} (known: {', '.join(known)})")
+    return name
+
+
+def _weights(offsets: np.ndarray, order: int) -> np.ndarray:
+    """FD weights on integer ``offsets`` for the derivative of ``order`` (unit step)."""
+    m = len(offsets)
+    a = np.vander(offsets, m, increasing=True).T  # a[p, k] = offsets[k]**p
+    rhs = np.zeros(m)
+    rhs[order] = float(np.prod(np.arange(1, order + 1)))
+    return np.linalg.solve(a, rhs)
+
+
+def _call(fun: BatchFun, X: np.ndarray) -> dict[str, np.ndarray]:
+    out = fun(X)
+    if not isinstance(out, Mapping):
+        out = {"f": out}
+    res = {}
+    for k, v in out.items():
+        v = np.asarray(v)
+        if v.shape != (X.shape[0],):
+            raise ValueError(f"output {k!r} has shape {v.shape}, expected ({X.shape[0]},)")
+        res[str(k)] = v
+    return res
+
+
+def _prepare(point, wrt, bounds, rel_step):
+    if not point:
+        raise ValueError("point is empty: give at least one variable")
+    all_names = tuple(point)
+    x0 = np.array([float(point[k]) for k in all_names])
+    if not np.all(np.isfinite(x0)):
+        raise ValueError(f"point has non-finite values: {dict(point)}")
+    wrt = tuple(all_names if wrt is None else wrt)
+    if not wrt:
+        raise ValueError("wrt is empty: name at least one variable")
+    for k in wrt:
+        _known(k, all_names, "variable")
+    idx = np.array([all_names.index(k) for k in wrt])
+    lo = np.full(len(all_names), -np.inf)
+    hi = np.full(len(all_names), np.inf)
+    for k, (a, b) in (bounds or {}).items():
+        j = all_names.index(_known(k, all_names, "bounded variable"))
+        lo[j], hi[j] = float(a), float(b)
+        if not lo[j] <= x0[j] <= hi[j]:
+            raise ValueError(f"point {k}={x0[j]:g} is outside its bounds [{lo[j]:g}, {hi[j]:g}]")
+    scale = np.where(np.isfinite(hi - lo), (hi - lo) * 0.1, 1.0)
+    base = np.abs(x0[idx])
+    h = rel_step * np.where(base > 0, base, np.minimum(scale[idx], 1.0))
+    # Shrink h so the (2h) stencil fits inside the bounds; go one-sided on a bound.
+    direction = np.zeros(len(wrt))
+    for a, j in enumerate(idx):
+        room_up, room_dn = hi[j] - x0[j], x0[j] - lo[j]
+        if min(room_up, room_dn) >= 2 * h[a]:
+            continue
+        if max(room_up, room_dn) >= 6 * h[a]:
+            direction[a] = 1.0 if room_up >= room_dn else -1.0
+            continue
+        h[a] = max(room_up, room_dn) / 6.0
+        direction[a] = 1.0 if room_up >= room_dn else -1.0
+        if h[a] <= 0:
+            raise ValueError(f"bounds of {wrt[a]!r} leave no room for a finite-difference step")
+    return all_names, x0, wrt, idx, h, direction
+
+
+def _normalise(f0: float, name: str, raise_zero: bool, ref: float) -> float:
+    if f0 == 0 or not np.isfinite(f0) or abs(f0) <= 1e-13 * ref:
+        if raise_zero:
+            raise ValueError(f"output {name!r} is zero at the point: normalised sensitivity undefined")
+        return np.nan
+    return f0
+
+
+def sensitivities(fun: BatchFun, point: Mapping[str, float], wrt: Sequence[str] | None = None,
+                  order: int = 1, bounds: Mapping[str, tuple[float, float]] | None = None,
+                  rel_step: float | None = None, method: str = "central",
+                  objective: str | None = None) -> Sensitivities:
+    """Normalised sensitivities of every output of ``fun`` at ``point`` w.r.t. ``wrt``.
+
+    ``method``: "central" (real FD), "complex" (complex step, first order; ``fun``
+    must accept complex X) or "auto" (complex if ``fun`` supports it, else central).
+    ``objective``: output whose zero value raises ValueError (others give NaN).
+    Order 2 evaluates the whole stencil (h and 2h) in one batch.
+    """
+    if order not in (1, 2):
+        raise ValueError(f"order must be 1 or 2, got {order!r}")
+    if method not in ("central", "complex", "auto"):
+        raise ValueError(f"method must be 'central', 'complex' or 'auto', got {method!r}")
+    if rel_step is None:
+        rel_step = REL_STEP_SECOND if order == 2 else REL_STEP_FIRST
+    if not (0 < rel_step < 0.5):
+        raise ValueError(f"rel_step must be in (0, 0.5), got {rel_step!r}")
+    all_names, x0, wrt, idx, h, direction = _prepare(point, wrt, bounds, rel_step)
+    n_eval = n_batch = 0
+    grad_c = used = None
+    if method in ("complex", "auto"):
+        grad_c, f0c, nc = _complex_step(fun, x0, idx, method == "complex")
+        if grad_c is not None:
+            used, n_eval, n_batch = "complex", nc, 1
+    if order == 2 or grad_c is None:
+        f0, g, g_err, H, H_err, ne = _real_stencil(fun, x0, idx, h, direction, order)
+        n_eval += ne
+        n_batch += 1
+    else:
+        f0, g, g_err, H, H_err = f0c, grad_c, {k: np.zeros(len(idx)) for k in grad_c}, None, None
+    if grad_c is not None:
+        g, g_err = grad_c, {k: np.zeros(len(idx)) for k in grad_c}
+    if objective is not None:
+        _known(objective, list(f0), "output")
+    xw = x0[idx]
+    first, first_err, second, second_err = {}, {}, {}, {}
+    for k in f0:
+        fn = _normalise(f0[k], k, k == objective, 1e-300)
+        first[k] = g[k] * xw / fn
+        first_err[k] = np.abs(g_err[k] * xw / fn)
+        if H is not None:
+            xx = np.outer(xw, xw)
+            second[k] = H[k] * xx / fn
+            second_err[k] = np.abs(H_err[k] * xx / fn)
+    return Sensitivities(
+        names=wrt, point=dict(zip(all_names, x0.tolist())), values=dict(f0), gradient=g,
+        first=first, first_error=first_err, step=h, method=used or "central",
+        hessian=H, second=second if H is not None else None,
+        second_error=second_err if H is not None else None,
+        n_evaluations=n_eval, n_batches=n_batch,
+        one_sided=tuple(w for w, d in zip(wrt, direction) if d != 0))
+
+
+def _complex_step(fun, x0, idx, strict):
+    n = len(idx)
+    hs = COMPLEX_STEP * np.maximum(np.abs(x0[idx]), 1.0)
+    X = np.tile(x0.astype(complex), (n + 1, 1))
+    X[np.arange(1, n + 1), idx] += 1j * hs
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", np.exceptions.ComplexWarning)
+            out = _call(fun, X)
+        ok = all(np.iscomplexobj(v) and np.all(np.isfinite(v)) for v in out.values())
+    except (TypeError, ValueError, np.exceptions.ComplexWarning) as exc:
+        if strict:
+            raise ValueError(f"complex step not supported by the model: {exc}") from None
+        return None, None, 0
+    if not ok:
+        if strict:
+            raise ValueError("complex step not supported by the model: outputs are not complex")
+        return None, None, 0
+    f0 = {k: float(v[0].real) for k, v in out.items()}
+    grad = {k: v[1:].imag / hs for k, v in out.items()}
+    return grad, f0, n + 1
+
+
+class _Stencil:
+    """Collects distinct stencil points (as integer offset tuples) for one batch."""
+
+    def __init__(self, n):
+        self.n, self.rows, self.index = n, [], {}
+
+    def add(self, offs: dict) -> int:
+        key = tuple(sorted((a, float(o)) for a, o in offs.items() if o != 0))
+        if key not in self.index:
+            self.index[key] = len(self.rows)
+            self.rows.append(key)
+        return self.index[key]
+
+
+def _real_stencil(fun, x0, idx, h, direction, order):
+    """One batch with steps h and 2h: gradient (and Hessian) + Richardson errors."""
+    n = len(idx)
+    offs = [(_CENTRAL if d == 0 else d * _ONE_SIDED) for d in direction]
+    w1 = [_weights(o, 1) for o in offs]
+    w2 = [_weights(o, 2) for o in offs]
+    st = _Stencil(n)
+    st.add({})
+    terms = []  # (kind, a, b, scale, [(row, weight)])
+    for s in (1.0, 2.0):
+        for a in range(n):
+            terms.append(("g", a, a, s, [(st.add({a: s * o}), w) for o, w in zip(offs[a], w1[a]) if w != 0]))
+            if order == 2:
+                terms.append(("H", a, a, s, [(st.add({a: s * o}), w) for o, w in zip(offs[a], w2[a]) if w != 0]))
+                for b in range(a + 1, n):
+                    rows = [(st.add({a: s * oa, b: s * ob}), wa * wb)
+                            for oa, wa in zip(offs[a], w1[a]) if wa != 0
+                            for ob, wb in zip(offs[b], w1[b]) if wb != 0]
+                    terms.append(("H", a, b, s, rows))
+    X = np.tile(x0, (len(st.rows), 1))
+    for r, key in enumerate(st.rows):
+        for a, o in key:
+            X[r, idx[a]] += o * h[a]
+    out = _call(fun, X)
+    out = {k: np.asarray(v, dtype=float) for k, v in out.items()}
+    f0 = {k: float(v[0]) for k, v in out.items()}
+    g, g_err, H, H_err = {}, {}, {}, {}
+    for k, v in out.items():
+        est = {}
+        for kind, a, b, s, rows in terms:
+            denom = (s * h[a]) * (s * h[b]) if kind == "H" else s * h[a]
+            est[(kind, a, b, s)] = sum(w * v[r] for r, w in rows) / denom
+        gh = np.array([est[("g", a, a, 1.0)] for a in range(n)])
+        g2 = np.array([est[("g", a, a, 2.0)] for a in range(n)])
+        g[k], g_err[k] = gh + (gh - g2) / 3.0, np.abs(gh - g2) / 3.0
+        if order == 2:
+            Hh, H2 = np.zeros((n, n)), np.zeros((n, n))
+            for a in range(n):
+                for b in range(a, n):
+                    Hh[a, b] = Hh[b, a] = est[("H", a, b, 1.0)]
+                    H2[a, b] = H2[b, a] = est[("H", a, b, 2.0)]
+            H[k], H_err[k] = Hh + (Hh - H2) / 3.0, np.abs(Hh - H2) / 3.0
+    if order == 1:
+        H = H_err = None
+    return f0, g, g_err, H, H_err, X.shape[0]

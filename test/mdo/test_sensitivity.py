@@ -1,0 +1,131 @@
+"""Normalised sensitivities: thesis toy examples (eqs 5-6..5-11), symmetry, labels, errors."""
+import numpy as np
+import pytest
+
+from bev_mdo.mdo.sensitivity import coupling_label, sensitivities
+
+
+def toy_linear(X):  # eq 5-6: E = 0.5 p1 + 0.5 p2
+    return {"E": 0.5 * X[:, 0] + 0.5 * X[:, 1]}
+
+
+def toy_ratio(X):  # eq 5-9: E = p1 / p2
+    return {"E": X[:, 0] / X[:, 1]}
+
+
+def test_eq_5_6_linear_toy():
+    s = sensitivities(toy_linear, {"p1": 1.0, "p2": 1.0}, order=2)
+    # By hand: dE/dp_i = 0.5, E = 1 -> S = [0.5, 0.5] (eq 5-7); all d2E = 0 (eq 5-8).
+    np.testing.assert_allclose(s.first["E"], [0.5, 0.5], atol=1e-12)
+    np.testing.assert_allclose(s.second["E"], np.zeros((2, 2)), atol=1e-10)
+
+
+def test_eq_5_9_ratio_toy():
+    s = sensitivities(toy_ratio, {"p1": 1.0, "p2": 1.0}, order=2)
+    # By hand at (1, 1), E = 1: dE/dp1 = 1/p2 = 1, dE/dp2 = -p1/p2^2 = -1 (eq 5-10);
+    # d2E/dp1^2 = 0, d2E/dp1dp2 = -1/p2^2 = -1, d2E/dp2^2 = 2 p1/p2^3 = 2 (eq 5-11).
+    np.testing.assert_allclose(s.first["E"], [1.0, -1.0], atol=1e-9)
+    np.testing.assert_allclose(s.second["E"], [[0.0, -1.0], [-1.0, 2.0]], atol=1e-8)
+    assert s.n_batches == 1
+
+
+def test_ratio_toy_off_nominal_normalisation():
+    # At (2, 4): E = 0.5; S1 = (1/4)*2/0.5 = 1, S2 = (-2/16)*4/0.5 = -1;
+    # S'12 = (-1/16)*8/0.5 = -1, S'22 = (2*2/64)*16/0.5 = 2: normalisation is scale free.
+    s = sensitivities(toy_ratio, {"p1": 2.0, "p2": 4.0}, order=2)
+    np.testing.assert_allclose(s.first["E"], [1.0, -1.0], atol=1e-8)
+    np.testing.assert_allclose(s.second["E"], [[0.0, -1.0], [-1.0, 2.0]], atol=1e-7)
+
+
+def test_complex_step_is_exact_for_ratio():
+    s = sensitivities(toy_ratio, {"p1": 1.0, "p2": 3.0}, method="complex")
+    assert s.method == "complex"
+    np.testing.assert_allclose(s.gradient["E"], [1 / 3, -1 / 9], rtol=1e-15)
+
+
+def test_auto_falls_back_to_central_when_model_is_real_only():
+    def real_only(X):
+        X = np.asarray(X, dtype=float)
+        return {"E": X[:, 0] / X[:, 1]}
+    s = sensitivities(real_only, {"p1": 1.0, "p2": 3.0}, method="auto")
+    assert s.method == "central"
+    np.testing.assert_allclose(s.gradient["E"], [1 / 3, -1 / 9], rtol=1e-8)
+    with pytest.raises(ValueError, match="complex step"):
+        sensitivities(real_only, {"p1": 1.0, "p2": 3.0}, method="complex")
+
+
+def test_second_order_symmetric_and_matches_analytic_hessian():
+    def f(X):
+        x, y, z = X.T
+        return {"f": np.exp(0.3 * x) * y ** 2 + np.sin(x * z) + 5.0}
+    p = {"x": 0.7, "y": 1.3, "z": 2.1}
+    s = sensitivities(f, p, order=2)
+    H = s.hessian["f"]
+    np.testing.assert_array_equal(H, H.T)
+    x, y, z = 0.7, 1.3, 2.1
+    e = np.exp(0.3 * x)
+    exact = np.array([
+        [0.09 * e * y ** 2 - z ** 2 * np.sin(x * z), 0.6 * e * y, np.cos(x * z) - x * z * np.sin(x * z)],
+        [0.6 * e * y, 2 * e, 0.0],
+        [np.cos(x * z) - x * z * np.sin(x * z), 0.0, -x ** 2 * np.sin(x * z)],
+    ])
+    np.testing.assert_allclose(H, exact, atol=1e-7)
+    # The Richardson error estimate is an honest (not tiny, not absurd) bound here.
+    assert np.all(np.abs(H - exact) <= 10 * s.second_error["f"] / np.outer([x, y, z], [x, y, z]) * s.values["f"] + 1e-9)
+
+
+def test_stencil_is_one_batch_and_steps_reported():
+    calls = []
+
+    def f(X):
+        calls.append(X.shape)
+        return {"f": X[:, 0] * X[:, 1] * X[:, 2] + 1}
+    s = sensitivities(f, {"a": 1.0, "b": 2.0, "c": 3.0}, order=2, rel_step=1e-3)
+    assert len(calls) == 1 and calls[0][0] == s.n_evaluations
+    np.testing.assert_allclose(s.step, [1e-3, 2e-3, 3e-3])
+    # f = abc + 1 = 7: S'_ab = 1*ab/7 = c*a*b/7 = 6/7 for each pair, 0 on the diagonal.
+    np.testing.assert_allclose(s.second["f"], 6 / 7 * (1 - np.eye(3)), atol=1e-9)
+
+
+def test_wrt_subset_holds_other_variables():
+    s = sensitivities(toy_ratio, {"p1": 2.0, "p2": 4.0}, wrt=["p2"], order=2)
+    assert s.names == ("p2",)
+    np.testing.assert_allclose(s.second["E"], [[2.0]], atol=1e-7)
+
+
+def test_point_on_bound_uses_one_sided_stencil():
+    s = sensitivities(toy_ratio, {"p1": 1.0, "p2": 1.0}, order=2, bounds={"p2": (1.0, 2.0), "p1": (0, 1)})
+    assert set(s.one_sided) == {"p1", "p2"}
+    np.testing.assert_allclose(s.second["E"], [[0.0, -1.0], [-1.0, 2.0]], atol=1e-5)
+    np.testing.assert_allclose(s.first["E"], [1.0, -1.0], atol=1e-7)
+
+
+def test_thesis_fig_5_3_values_get_thesis_labels():
+    # Fig 5-3(a) NEDC upper triangle (values, labels) as printed in the thesis.
+    pairs = [(0.0, "NC"), (-0.36, "MC"), (-0.28, "MC"), (0.28, "MC"), (-0.27, "MC"),
+             (-0.21, "MC"), (-0.88, "VSC"), (-0.69, "SC"), (-0.13, "MC"), (0.91, "VSC"),
+             (-0.18, "MC"), (-0.14, "MC"), (0.94, "VSC"), (-0.87, "VSC"), (0.20, "MC")]
+    for value, label in pairs:
+        assert coupling_label(value) == label, value
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(wrt=["p3"]), "unknown variable 'p3'"),
+    (dict(bounds={"p1": (2.0, 3.0)}), "outside its bounds"),
+    (dict(bounds={"nope": (0.0, 1.0)}), "unknown bounded variable"),
+    (dict(order=3), "order must be 1 or 2"),
+    (dict(objective="X"), "unknown output 'X'"),
+])
+def test_bad_input_is_one_line_value_error(kwargs, match):
+    with pytest.raises(ValueError, match=match) as exc:
+        sensitivities(toy_ratio, {"p1": 1.0, "p2": 1.0}, **kwargs)
+    assert "\n" not in str(exc.value)
+
+
+def test_zero_objective_raises():
+    def f(X):
+        return {"E": X[:, 0] - 1.0, "other": X[:, 0] * 0}
+    with pytest.raises(ValueError, match="'E' is zero"):
+        sensitivities(f, {"p1": 1.0}, objective="E")
+    s = sensitivities(f, {"p1": 2.0}, objective="E")
+    assert np.isnan(s.first["other"]).all()
