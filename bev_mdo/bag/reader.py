@@ -1,0 +1,231 @@
+"""Read bev_mdo bags (a rosbag2 bag directory or a bare .mcap), tolerating truncation.
+
+The file is read sequentially (mcap's StreamReader), so a bag whose writer was killed
+yields everything up to its last complete chunk; ``Bag.truncated`` and ``Bag.recovered``
+say so. Anything that is not a usable bev_mdo bag raises :class:`BagError`.
+"""
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable, Iterator
+
+from mcap.exceptions import EndOfFile, McapError
+from mcap.records import Attachment, Channel, Footer, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+
+from bev_mdo.bag.errors import BagError
+
+MAGIC = b"\x89MCAP0\r\n"
+PACKAGE = "bev_mdo_msgs"
+METADATA_NAME = "bev_mdo"
+
+
+@dataclass(frozen=True)
+class BagMessage:
+    """One recorded message (CDR bytes) with its topic, type and times (ns)."""
+
+    topic: str
+    type_name: str
+    log_time_ns: int
+    publish_time_ns: int
+    sequence: int
+    data: bytes
+    channel_id: int
+
+
+def find_mcap(path: Path) -> Path:
+    """The storage file of a bag directory (or the path itself for a file)."""
+    if not path.exists():
+        raise BagError(f"{path}: no such file or directory")
+    if path.is_file():
+        return path
+    files = sorted(path.glob("*.mcap"))
+    if not files:
+        raise BagError(f"{path}: bag directory holds no .mcap file")
+    if len(files) > 1:
+        named = [f for f in files if f.name == f"{path.name}_0.mcap"]
+        if named:
+            return named[0]
+    return files[0]
+
+
+class Bag:
+    """An opened bag: schemas, channels, metadata and attachments; messages on demand."""
+
+    def __init__(self, path, *, strict: bool = True):
+        self.path = Path(path)
+        self.mcap_path = find_mcap(self.path)
+        self.bag_dir = self.mcap_path.parent
+        self.strict = strict
+        self.schemas: dict[int, Schema] = {}
+        self.channels: dict[int, Channel] = {}
+        self.metadata: dict[str, dict[str, str]] = {}
+        self.attachments: dict[str, bytes] = {}
+        self.counts: dict[str, int] = {}
+        self.truncated = False
+        self.recovered_bytes = 0
+        self.start_ns = 0
+        self.end_ns = 0
+        self._decoders: dict[int, object] = {}
+        self._scan()
+
+    # -- scanning ------------------------------------------------------------------------
+    def _check_magic(self) -> None:
+        try:
+            with open(self.mcap_path, "rb") as f:
+                head = f.read(len(MAGIC))
+        except OSError as exc:
+            raise BagError(f"{self.mcap_path}: cannot read ({exc.strerror})") from exc
+        if not head:
+            raise BagError(f"{self.mcap_path}: empty file, not an MCAP bag")
+        if head != MAGIC[: len(head)]:
+            raise BagError(f"{self.mcap_path}: not an MCAP file (bad magic bytes)")
+        if len(head) < len(MAGIC):
+            raise BagError(f"{self.mcap_path}: truncated MCAP header")
+
+    def _records(self) -> Iterator[object]:
+        """All records in file order; sets ``truncated`` when the file ends early."""
+        with open(self.mcap_path, "rb") as f:
+            reader = StreamReader(f, skip_magic=False, validate_crcs=True)
+            try:
+                for record in reader.records:
+                    self.recovered_bytes = f.tell()
+                    yield record
+            except (EndOfFile, struct.error):  # a short read: the file ends early
+                self.truncated = True
+            except (McapError, ValueError, OSError, EOFError, KeyError, IndexError) as exc:
+                raise BagError(f"{self.mcap_path}: corrupt MCAP data after byte "
+                               f"{self.recovered_bytes} ({type(exc).__name__}: {exc})") from exc
+            except Exception as exc:  # zstd / struct errors from damaged chunks
+                raise BagError(f"{self.mcap_path}: corrupt MCAP data after byte "
+                               f"{self.recovered_bytes} ({type(exc).__name__})") from exc
+
+    def _scan(self) -> None:
+        self._check_magic()
+        saw_header = False
+        first = True
+        for record in self._records():
+            saw_header = True
+            if isinstance(record, Schema):
+                self._check_schema(record)
+                self.schemas[record.id] = record
+            elif isinstance(record, Channel):
+                self.channels[record.id] = record
+            elif isinstance(record, Metadata):
+                self.metadata[record.name] = dict(record.metadata)
+            elif isinstance(record, Attachment):
+                self.attachments[record.name] = bytes(record.data)
+            elif isinstance(record, Message):
+                topic = self._channel(record.channel_id).topic
+                self.counts[topic] = self.counts.get(topic, 0) + 1
+                self.start_ns = record.log_time if first else min(self.start_ns, record.log_time)
+                self.end_ns = max(self.end_ns, record.log_time)
+                first = False
+            elif isinstance(record, Footer):
+                break
+        if not saw_header:
+            raise BagError(f"{self.mcap_path}: truncated MCAP header")
+        if self.truncated and not self.channels and not self.metadata:
+            raise BagError(f"{self.mcap_path}: truncated, no complete record after the header")
+        for channel in self.channels.values():
+            self.counts.setdefault(channel.topic, 0)
+            if channel.message_encoding != "cdr":
+                raise BagError(f"{self.mcap_path}: topic {channel.topic} has message encoding "
+                               f"{channel.message_encoding!r}, expected 'cdr'")
+
+    def _check_schema(self, schema: Schema) -> None:
+        if schema.encoding != "ros2msg":
+            raise BagError(f"{self.mcap_path}: schema {schema.name!r} has encoding "
+                           f"{schema.encoding!r}, expected 'ros2msg'")
+        if self.strict and not schema.name.startswith(PACKAGE + "/"):
+            raise BagError(f"{self.mcap_path}: schema {schema.name} is not a {PACKAGE} type "
+                           "(not a bev_mdo recording)")
+
+    def _channel(self, channel_id: int) -> Channel:
+        try:
+            return self.channels[channel_id]
+        except KeyError:
+            raise BagError(f"{self.mcap_path}: message on unknown channel {channel_id}") from None
+
+    # -- public ----------------------------------------------------------------------------
+    @property
+    def topics(self) -> dict[str, str]:
+        """topic -> ``pkg/msg/Type``."""
+        return {c.topic: self.schemas[c.schema_id].name for c in self.channels.values()
+                if c.schema_id in self.schemas}
+
+    @property
+    def message_count(self) -> int:
+        return sum(self.counts.values())
+
+    @property
+    def file_size(self) -> int:
+        return self.mcap_path.stat().st_size
+
+    @property
+    def duration_ns(self) -> int:
+        return max(0, self.end_ns - self.start_ns)
+
+    @property
+    def info(self) -> dict[str, str]:
+        """The ``bev_mdo`` metadata record (config_yaml, version, run_id, ...)."""
+        return dict(self.metadata.get(METADATA_NAME, {}))
+
+    def messages(self, topics: Iterable[str] | None = None) -> Iterator[BagMessage]:
+        """Recorded messages in file order (per-topic order is recording order)."""
+        wanted = set(topics) if topics else None
+        for record in self._records():
+            if isinstance(record, Message):
+                channel = self._channel(record.channel_id)
+                if wanted is not None and channel.topic not in wanted:
+                    continue
+                yield BagMessage(channel.topic, self.schemas[channel.schema_id].name,
+                                 record.log_time, record.publish_time, record.sequence,
+                                 bytes(record.data), record.channel_id)
+            elif isinstance(record, Footer):
+                return
+
+    def decode(self, message: BagMessage):
+        """Decode one message with mcap-ros2-support (a dynamic object, no ROS needed)."""
+        decoder = self._decoders.get(message.channel_id)
+        if decoder is None:
+            from mcap_ros2.decoder import DecoderFactory
+
+            schema = self.schemas[self.channels[message.channel_id].schema_id]
+            decoder = DecoderFactory().decoder_for("cdr", schema)
+            if decoder is None:
+                raise BagError(f"{self.mcap_path}: cannot decode {schema.name}")
+            self._decoders[message.channel_id] = decoder
+        try:
+            return decoder(message.data)
+        except Exception as exc:
+            raise BagError(f"{self.mcap_path}: cannot decode a {message.type_name} message on "
+                           f"{message.topic} ({type(exc).__name__})") from exc
+
+    def decoded(self, topics: Iterable[str] | None = None) -> Iterator[tuple[BagMessage, object]]:
+        """(message, decoded object) pairs in file order."""
+        for message in self.messages(topics):
+            yield message, self.decode(message)
+
+    def recovery_note(self) -> str:
+        """One line saying how much of a truncated file was read ('' when complete)."""
+        if not self.truncated:
+            return ""
+        return (f"{self.mcap_path}: truncated; read {self.message_count} messages from the first "
+                f"{self.recovered_bytes} of {self.file_size} bytes (run `bev-mdo bag repair`)")
+
+
+def open_bag(path, *, strict: bool = True) -> Bag:
+    """Open a bag directory or a bare .mcap file; ``strict`` rejects non-bev_mdo schemas."""
+    return Bag(path, strict=strict)
+
+
+def read_config(bag) -> str:
+    """The run's resolved configuration (YAML text) stored in the bag ('' if none)."""
+    bag = bag if isinstance(bag, Bag) else open_bag(bag)
+    text = bag.info.get("config_yaml")
+    if text is None and "config.yaml" in bag.attachments:
+        text = bag.attachments["config.yaml"].decode("utf-8")
+    return text or ""

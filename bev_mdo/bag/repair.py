@@ -1,0 +1,90 @@
+"""Repair a truncated bag: rewrite its readable part with a summary, and a new metadata.yaml.
+
+Schemas (their recorded text), channels (with QoS and type hash), metadata records and
+attachments are kept; the original file is kept as ``<file>.bak``.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+from mcap.writer import CompressionType, Writer
+
+from bev_mdo.bag import metadata as meta
+from bev_mdo.bag.reader import Bag, open_bag
+from bev_mdo.bag.writer import CHUNK_SIZE_BYTES, PROFILE
+
+
+@dataclass
+class RepairResult:
+    """What ``repair`` did."""
+
+    bag_dir: Path
+    mcap_path: Path
+    backup_path: Path | None
+    message_count: int
+    was_truncated: bool
+    rewritten: bool
+
+
+def _topic_infos(bag: Bag) -> list[meta.TopicInfo]:
+    infos = []
+    for channel in bag.channels.values():
+        profiles = yaml.safe_load(channel.metadata.get("offered_qos_profiles", "") or "[]") or []
+        infos.append(meta.TopicInfo(channel.topic, bag.schemas[channel.schema_id].name, profiles,
+                                    channel.metadata.get("topic_type_hash", ""),
+                                    bag.counts.get(channel.topic, 0)))
+    return infos
+
+
+def _backup_path(path: Path) -> Path:
+    candidate = path.with_name(path.name + ".bak")
+    n = 1
+    while candidate.exists():
+        candidate = path.with_name(f"{path.name}.bak{n}")
+        n += 1
+    return candidate
+
+
+def _rewrite(bag: Bag, out: Path, info: dict) -> None:
+    with open(out, "wb") as stream:
+        writer = Writer(stream, chunk_size=CHUNK_SIZE_BYTES, compression=CompressionType.ZSTD)
+        writer.start(profile=PROFILE, library="bev_mdo bag repair (mcap python)")
+        for name, data in bag.metadata.items():
+            if name != "rosbag2":
+                writer.add_metadata(name, data)
+        for name, data in bag.attachments.items():
+            media = "application/yaml" if name.endswith((".yaml", ".yml")) else "application/octet-stream"
+            writer.add_attachment(0, 0, name, media, data)
+        schema_ids = {sid: writer.register_schema(s.name, s.encoding, s.data)
+                      for sid, s in bag.schemas.items()}
+        channel_ids = {cid: writer.register_channel(c.topic, c.message_encoding,
+                                                    schema_ids[c.schema_id], dict(c.metadata))
+                       for cid, c in bag.channels.items()}
+        for msg in bag.messages():
+            writer.add_message(channel_ids[msg.channel_id], msg.log_time_ns, msg.data,
+                               msg.publish_time_ns, msg.sequence)
+        writer.add_metadata("rosbag2", {"serialized_metadata": meta.serialized(info)})
+        writer.finish()
+
+
+def repair(bag_dir, *, force: bool = False) -> RepairResult:
+    """Rebuild summary and metadata.yaml of a (possibly truncated) bag directory or .mcap."""
+    bag = open_bag(bag_dir, strict=False)
+    path = bag.mcap_path
+    info = meta.bag_info(path.name, _topic_infos(bag), bag.start_ns, bag.end_ns)
+    has_yaml = (bag.bag_dir / "metadata.yaml").is_file()
+    if not bag.truncated and has_yaml and not force:
+        return RepairResult(bag.bag_dir, path, None, bag.message_count, False, False)
+    backup = None
+    if bag.truncated or force:
+        tmp = path.with_name(path.name + ".repairing")
+        _rewrite(bag, tmp, info)
+        backup = _backup_path(path)
+        os.replace(path, backup)
+        os.replace(tmp, path)
+    meta.write_metadata_yaml(bag.bag_dir, info)
+    return RepairResult(bag.bag_dir, path, backup, bag.message_count, bag.truncated,
+                        backup is not None)
