@@ -1,0 +1,165 @@
+"""One generic node that serves ANY discipline over ROS 2.
+
+It subscribes to /bev_mdo/<discipline>/request, evaluates the batch with
+`run_discipline` (bad points are isolated and named, never crash the node) and
+publishes an EvaluationResult on /bev_mdo/result echoing run id and evaluation id.
+Malformed requests are rejected, counted and logged (rate-limited). The node knows
+no physics: the discipline object comes from the run config (built-in or
+`module:Class`).
+
+Parameters: config (path to the run YAML), discipline (name in the config),
+instance (defaults to the node name), and vehicle.<key> overrides of the config's
+vehicle section.
+"""
+from __future__ import annotations
+
+import copy
+import sys
+from collections import Counter
+from typing import Any
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rcl_interfaces.msg import ParameterDescriptor
+
+from bev_mdo import __version__
+from bev_mdo.mdo.discipline import run_discipline
+from bev_mdo.ros import wire
+from bev_mdo.ros.common import INFO_QOS, INFO_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, request_topic, stamp
+from bev_mdo.ros.paths import default_config
+from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
+
+
+def build_discipline(config: dict, name: str) -> Any:
+    """The discipline named `name` in a resolved config (built-in or user class)."""
+    from bev_mdo.config import resolve_disciplines
+
+    found = [d for d in resolve_disciplines(config) if d.name == name]
+    if not found:
+        names = [d.name for d in resolve_disciplines(config)]
+        raise ValueError(f"no discipline {name!r} in the config; it has {names}")
+    return found[0]
+
+
+class DisciplineNode(Node):
+    """Serves one discipline: request in, result out, per evaluation id."""
+
+    def __init__(self, discipline: str | None = None, *, config: dict | None = None, **kwargs):
+        name_hint = discipline or "discipline"
+        super().__init__(kwargs.pop("node_name", f"{name_hint}_node"), **kwargs)
+        self.declare_parameter("config", "", ParameterDescriptor(description="path to the run config YAML"))
+        self.declare_parameter("discipline", discipline or "", ParameterDescriptor(description="discipline name"))
+        self.declare_parameter("instance", "", ParameterDescriptor(description="instance name (default: node name)"))
+        name = self.get_parameter("discipline").value
+        if not name:
+            raise ValueError("discipline_node needs -p discipline:=<name>")
+        if config is None:
+            from bev_mdo.config import load_config
+
+            config = load_config(self.get_parameter("config").value or default_config())
+        config = self._apply_overrides(config)
+        self.discipline = build_discipline(config, name)
+        self.discipline_name = name
+        self.instance = self.get_parameter("instance").value or self.get_fully_qualified_name()
+        self.counts: Counter[str] = Counter()
+        self._result_pub = self.create_publisher(EvaluationResult, RESULT_TOPIC, RESULT_QOS)
+        self._info_pub = self.create_publisher(DisciplineInfo, INFO_TOPIC, INFO_QOS)
+        self._sub = self.create_subscription(EvaluationRequest, request_topic(name), self._on_request, REQUEST_QOS)
+        self._publish_info()
+        self.get_logger().info(
+            f"serving {name!r}: inputs {list(self.discipline.inputs)} -> outputs {list(self.discipline.outputs)}"
+        )
+
+    def _apply_overrides(self, config: dict) -> dict:
+        """Declare vehicle.<key> parameters; values set on the command line override the YAML."""
+        config = copy.deepcopy(config)
+        vehicle = config.get("vehicle") or {}
+        for key, value in vehicle.items():
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                p = self.declare_parameter(f"vehicle.{key}", float(value))
+                vehicle[key] = float(p.value)
+        if vehicle:
+            from bev_mdo.models.params import validate_vehicle
+
+            config["vehicle"] = validate_vehicle(vehicle)
+        return config
+
+    def _publish_info(self) -> None:
+        d = self.discipline
+        msg = DisciplineInfo()
+        stamp(msg.header)
+        msg.discipline = self.discipline_name
+        msg.instance = self.instance
+        msg.class_name = f"{type(d).__module__}:{type(d).__name__}"
+        msg.inputs = list(d.inputs)
+        msg.outputs = list(d.outputs)
+        msg.parameters = list(getattr(d, "parameters", {}) or {})
+        msg.version = __version__
+        self._info_pub.publish(msg)
+
+    def _reject(self, req: EvaluationRequest, why: str) -> None:
+        self.counts["rejected"] += 1
+        self.get_logger().warning(
+            f"rejected request (run {req.run_id[:40]!r}, eval {req.evaluation_id}): {why}", throttle_duration_sec=2.0
+        )
+        out = EvaluationResult()
+        self._fill_header(out, req)
+        out.status = EvaluationResult.STATUS_REJECTED
+        out.error = f"{self.discipline_name}: rejected: {why}"[:1000]
+        self._result_pub.publish(out)
+
+    def _fill_header(self, out: EvaluationResult, req: EvaluationRequest) -> None:
+        stamp(out.header)
+        out.header.frame_id = req.header.frame_id
+        out.run_id = req.run_id
+        out.evaluation_id = req.evaluation_id
+        out.sequence = self.counts["answered"] + self.counts["rejected"]
+        out.discipline = self.discipline_name
+        out.instance = self.instance
+
+    def _on_request(self, req: EvaluationRequest) -> None:
+        self.counts["received"] += 1
+        if req.discipline != self.discipline_name:
+            return self._reject(req, f"addressed to {req.discipline[:40]!r}")
+        if not req.run_id or len(req.run_id) > 128:
+            return self._reject(req, "bad run id")
+        try:
+            inputs = wire.from_named_array(req.inputs)
+        except wire.WireError as exc:
+            return self._reject(req, str(exc))
+        missing = [k for k in self.discipline.inputs if k not in inputs]
+        if missing:
+            return self._reject(req, f"missing inputs {missing}")
+        result = run_discipline(self.discipline, inputs)
+        if result.error:
+            self.get_logger().warning(result.error[:500], throttle_duration_sec=2.0)
+        out = EvaluationResult()
+        self._fill_header(out, req)
+        out.status = EvaluationResult.STATUS_OK if result.ok.all() else EvaluationResult.STATUS_ERROR
+        out.error = result.error[:4000]
+        out.point_ok = wire.bool_array(result.ok)
+        wire.to_named_array(result.outputs, out.outputs)
+        out.compute_time_s = result.compute_time_s
+        self.counts["answered"] += 1
+        self._result_pub.publish(out)
+
+
+def main(args: list[str] | None = None, discipline: str | None = None) -> int:
+    """Run a discipline node until Ctrl-C / SIGTERM."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = DisciplineNode(discipline)
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ValueError as exc:
+        print(f"{discipline or 'discipline_node'}: error: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+    return 0

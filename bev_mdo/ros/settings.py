@@ -1,0 +1,70 @@
+"""The `ros:` config section: domain, discovery, timeouts. No rclpy import here.
+
+Network hygiene by default: discovery stays on this host (LOCALHOST range) and the
+domain id is the project's own. Going across hosts is an explicit opt-in
+(`discovery: static_peers | server | subnet`).
+"""
+from __future__ import annotations
+
+import os
+from typing import Any, Mapping
+
+DEFAULTS: dict[str, Any] = {
+    "domain_id": 77,
+    "discovery": "localhost",        # localhost | static_peers | server | subnet
+    "static_peers": [],              # with static_peers: addresses of the other hosts
+    "discovery_server": "",          # with server: "ip:port" of a Fast DDS discovery server
+    "timeout_s": 5.0,                # per evaluation wave before a retry
+    "retries": 3,
+    "discovery_wait_s": 20.0,        # how long to wait for every discipline to appear
+    "sign_key_file": "",             # reserved for message authentication
+}
+DISCOVERY_MODES = ("localhost", "static_peers", "server", "subnet")
+
+
+def validate_ros(section: Mapping[str, Any] | None) -> dict[str, Any]:
+    """Fill defaults and check the `ros:` section; one-line ValueError on a mistake."""
+    section = dict(section or {})
+    unknown = sorted(set(section) - set(DEFAULTS))
+    if unknown:
+        raise ValueError(f"ros: unknown keys {unknown}; known: {sorted(DEFAULTS)}")
+    out = {**DEFAULTS, **section}
+    d = out["domain_id"]
+    if not isinstance(d, int) or isinstance(d, bool) or not 0 <= d <= 232:
+        raise ValueError(f"ros.domain_id must be an integer in [0, 232], got {d!r}")
+    if out["discovery"] not in DISCOVERY_MODES:
+        raise ValueError(f"ros.discovery must be one of {list(DISCOVERY_MODES)}, got {out['discovery']!r}")
+    if out["discovery"] == "static_peers" and not out["static_peers"]:
+        raise ValueError("ros.discovery static_peers needs ros.static_peers: [address, ...]")
+    if out["discovery"] == "server" and ":" not in str(out["discovery_server"]):
+        raise ValueError("ros.discovery server needs ros.discovery_server: 'ip:port'")
+    for key in ("timeout_s", "discovery_wait_s"):
+        v = out[key]
+        if not isinstance(v, (int, float)) or not 0 < float(v) < 1e6:
+            raise ValueError(f"ros.{key} must be a positive number of seconds, got {v!r}")
+        out[key] = float(v)
+    if not isinstance(out["retries"], int) or not 0 <= out["retries"] <= 100:
+        raise ValueError(f"ros.retries must be an integer in [0, 100], got {out['retries']!r}")
+    return out
+
+
+def ros_environment(ros: Mapping[str, Any], base: Mapping[str, str] | None = None) -> dict[str, str]:
+    """The environment a bev_mdo process runs with, from a validated `ros:` section."""
+    env = dict(os.environ if base is None else base)
+    env.pop("ROS_LOCALHOST_ONLY", None)  # deprecated; it would override the range settings
+    env["ROS_DOMAIN_ID"] = str(ros["domain_id"])
+    env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    env.pop("ROS_STATIC_PEERS", None)
+    env.pop("ROS_DISCOVERY_SERVER", None)
+    mode = ros["discovery"]
+    if mode == "localhost":
+        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    elif mode == "static_peers":
+        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+        env["ROS_STATIC_PEERS"] = ";".join(str(p) for p in ros["static_peers"])
+    elif mode == "server":
+        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+        env["ROS_DISCOVERY_SERVER"] = str(ros["discovery_server"])
+    else:  # subnet: explicit opt-in to multicast discovery on the local network
+        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
+    return env

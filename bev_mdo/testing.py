@@ -1,0 +1,28 @@
+"""Helpers for tests of bev_mdo and of users' own disciplines: ROS domains and environments.
+
+Every process a test starts gets localhost-only discovery and a domain id of its own.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import zlib
+from pathlib import Path
+
+from bev_mdo.ros.settings import DEFAULTS, ros_environment
+
+REPO = Path(__file__).resolve().parents[1]
+PYTHON = sys.executable
+
+
+def domain_for(name: str) -> int:
+    """A stable ROS domain id per test module, in 100..199 (away from the default 77)."""
+    return 100 + zlib.crc32(name.encode()) % 100
+
+
+def ros_env(domain_id: int) -> dict[str, str]:
+    """Environment for a child process: localhost-only discovery on its own domain."""
+    env = ros_environment({**DEFAULTS, "domain_id": domain_id})
+    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
