@@ -43,10 +43,17 @@ def _print_table(rows: list[dict]) -> None:
         columns += [k for k in row if k not in columns and k not in skip]
     table = Table(title=f"{len(rows)} iterations")
     for col in columns:
-        table.add_column(col, justify="left" if col in ("formulation", "optimizer") else "right")
-    for row in rows:
-        table.add_row(*[_fmt(row.get(c, "")) for c in columns])
-    Console().print(table)
+        table.add_column(col, justify="left" if col in ("formulation", "optimizer") else "right",
+                         no_wrap=True)
+    cells = [[_fmt(row.get(c, "")) for c in columns] for row in rows]
+    for row in cells:
+        table.add_row(*row)
+    # full width when piped, so no column is cut (a terminal keeps its own width)
+    need = sum(max([len(c)] + [len(r[i]) for r in cells]) + 3 for i, c in enumerate(columns)) + 1
+    console = Console()
+    if not sys.stdout.isatty():
+        console = Console(file=sys.stdout, width=max(80, need))
+    console.print(table)
 
 
 def _fmt(value) -> str:

@@ -1,0 +1,188 @@
+"""A written bag reads back the same values with rosbags, mcap-ros2-support and our reader."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from .conftest import CONFIG_YAML, DESIGN, T0_NS
+
+pytest.importorskip("bev_mdo_msgs.msg")
+
+
+def _key(type_name: str, m) -> tuple:
+    """Comparable decoded values of one message (works for rclpy, rosbags and mcap objects)."""
+    if type_name.endswith("EvaluationRequest"):
+        return (m.run_id, int(m.evaluation_id), int(m.iteration), m.discipline,
+                list(m.inputs.names), [float(v) for v in m.inputs.values],
+                int(m.header.stamp.sec), int(m.header.stamp.nanosec))
+    if type_name.endswith("EvaluationResult"):
+        return (m.run_id, int(m.evaluation_id), m.discipline, int(m.status),
+                [bool(v) for v in m.point_ok], list(m.outputs.names),
+                [float(v) for v in m.outputs.values], float(m.compute_time_s))
+    return (m.run_id, int(m.iteration), m.formulation, m.optimizer, float(m.objective),
+            list(m.design.names), [float(v) for v in m.design.values],
+            [float(v) for v in m.constraints.values], float(m.max_violation), bool(m.feasible),
+            list(m.discipline_names), [int(v) for v in m.discipline_evaluations])
+
+
+def _expected(msgs, topics=None):
+    return [(t, _key(ty, m)) for t, ty, m in msgs if topics is None or t in topics]
+
+
+def test_rosbags_reads_bag_directory(synthetic_bag):
+    from rosbags.highlevel import AnyReader
+
+    bag_dir, msgs = synthetic_bag
+    got = []
+    with AnyReader([bag_dir]) as reader:
+        assert reader.message_count == len(msgs)
+        for conn, _t, raw in reader.messages():
+            got.append((conn.topic, _key(conn.msgtype, reader.deserialize(raw, conn.msgtype))))
+    assert got == _expected(msgs)
+
+
+def test_rosbags_reads_bare_mcap(synthetic_bag):
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys.msg import get_types_from_msg  # noqa: F401  (API present)
+
+    bag_dir, msgs = synthetic_bag
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([bag_dir / "run1_0.mcap"]) as reader:
+        got = [(c.topic, _key(c.msgtype, reader.deserialize(raw, c.msgtype)))
+               for c, _t, raw in reader.messages()]
+    assert got == _expected(msgs)
+    with Reader(bag_dir / "run1_0.mcap") as reader:
+        assert reader.message_count == len(msgs)
+        conns = {c.topic: c for c in reader.connections}
+        assert conns["/bev_mdo/iteration"].ext.offered_qos_profiles[0].depth == 1000
+    assert get_typestore(Stores.EMPTY) is not None
+
+
+def test_mcap_ros2_reads_values_and_times(synthetic_bag):
+    from mcap_ros2.reader import read_ros2_messages
+
+    bag_dir, msgs = synthetic_bag
+    got, times = [], []
+    for m in read_ros2_messages(str(bag_dir / "run1_0.mcap")):
+        got.append((m.channel.topic, _key(m.schema.name, m.ros_msg)))
+        times.append((m.log_time_ns, m.publish_time_ns))
+    assert got == _expected(msgs)
+    assert times == [(T0_NS + j * 1000, T0_NS + j * 1000 - 7) for j in range(len(msgs))]
+
+
+def test_mcap_layout_is_rosbag2(synthetic_bag):
+    from mcap.reader import make_reader
+
+    bag_dir, msgs = synthetic_bag
+    with open(bag_dir / "run1_0.mcap", "rb") as f:
+        reader = make_reader(f)
+        assert reader.get_header().profile == "ros2"
+        summary = reader.get_summary()
+        assert summary.statistics.message_count == len(msgs)
+        assert summary.statistics.chunk_count > 1
+        for schema in summary.schemas.values():
+            assert schema.encoding == "ros2msg"
+            assert schema.name.startswith("bev_mdo_msgs/msg/")
+        for channel in summary.channels.values():
+            assert channel.message_encoding == "cdr"
+            assert channel.metadata["topic_type_hash"].startswith("RIHS01_")
+            qos = yaml.safe_load(channel.metadata["offered_qos_profiles"])
+            assert qos[0]["reliability"] == "reliable" and qos[0]["history"] == "keep_last"
+        records = {m.name: m.metadata for m in reader.iter_metadata()}
+        inner = yaml.safe_load(records["rosbag2"]["serialized_metadata"])
+        assert inner["message_count"] == len(msgs)
+        assert records["bev_mdo"]["config_yaml"] == CONFIG_YAML
+        assert {a.name for a in reader.iter_attachments()} == {"config.yaml"}
+
+
+def test_schema_text_has_sorted_dependencies():
+    from bev_mdo.bag.schema import SEPARATOR, full_definition, type_hash
+
+    text = full_definition("bev_mdo_msgs/msg/IterationRecord")
+    parts = text.split("\n" + SEPARATOR + "\nMSG: ")
+    names = [p.split("\n", 1)[0] for p in parts[1:]]
+    # depth first, sorted at each level: NamedArray, then Header and Header's Time
+    assert names == ["bev_mdo_msgs/NamedArray", "std_msgs/Header", "builtin_interfaces/Time"]
+    assert parts[0].startswith("# Coordinator -> anyone")
+    assert type_hash("bev_mdo_msgs/msg/IterationRecord").startswith("RIHS01_")
+
+
+def test_metadata_yaml_counts(synthetic_bag):
+    bag_dir, msgs = synthetic_bag
+    info = yaml.safe_load((bag_dir / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["version"] == 9 and info["storage_identifier"] == "mcap"
+    assert info["relative_file_paths"] == ["run1_0.mcap"]
+    assert info["message_count"] == len(msgs)
+    counts = {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
+    expected: dict[str, int] = {}
+    for topic, _ty, _m in msgs:
+        expected[topic] = expected.get(topic, 0) + 1
+    assert counts == expected
+    assert info["duration"]["nanoseconds"] == (len(msgs) - 1) * 1000
+    assert info["starting_time"]["nanoseconds_since_epoch"] == T0_NS
+
+
+def test_own_reader_config_and_counts(synthetic_bag):
+    from bev_mdo import __version__
+    from bev_mdo.bag.reader import open_bag, read_config
+
+    bag_dir, msgs = synthetic_bag
+    for path in (bag_dir, bag_dir / "run1_0.mcap"):
+        bag = open_bag(path)
+        assert not bag.truncated
+        assert read_config(bag) == CONFIG_YAML
+        assert bag.info["version"] == __version__ and bag.info["run_id"] == "run-1"
+        got = [(m.topic, _key(m.type_name, obj)) for m, obj in bag.decoded()]
+        assert got == _expected(msgs)
+    only = [m.topic for m in open_bag(bag_dir).messages(["/bev_mdo/iteration"])]
+    assert only == ["/bev_mdo/iteration"] * 20
+
+
+def test_writer_refuses_existing_bag(synthetic_bag):
+    from bev_mdo.bag.errors import BagError
+    from bev_mdo.bag.writer import BagWriter
+
+    with pytest.raises(BagError, match="already exists"):
+        BagWriter(synthetic_bag[0])
+
+
+def test_history_csv_and_last_iterate(synthetic_bag, tmp_path):
+    import csv
+
+    from bev_mdo.bag.history import history, last_iterate
+
+    from .conftest import cli, design_of
+
+    bag_dir, _ = synthetic_bag
+    rows = history(bag_dir)
+    assert [r["iteration"] for r in rows] == list(range(20))
+    assert rows[7]["design"] == pytest.approx(design_of(7))
+    assert rows[7]["constraints"] == {"range_km": 307.0}
+    assert rows[3]["feasible"] is False and rows[5]["feasible"] is True
+    assert rows[4]["discipline_evaluations"] == {"vehicle_mass": 5, "energy": 5}
+    config, design, iteration = last_iterate(bag_dir)
+    assert (config, iteration) == (CONFIG_YAML, 19) and design == pytest.approx(design_of(19))
+
+    out = tmp_path / "h.csv"
+    code, _, err = cli("history", str(bag_dir), "--csv", str(out))
+    assert code == 0, err
+    table = list(csv.DictReader(out.open()))
+    assert len(table) == 20
+    assert float(table[19]["design.motor_kw"]) == design_of(19)["motor_kw"]
+    assert float(table[2]["objective"]) == 9980.0
+    assert table[0]["evaluations.energy"] == "1"
+    code, stdout, _ = cli("history", str(bag_dir))
+    assert code == 0 and "SLSQP" in stdout and "20 iterations" in stdout
+    assert set(DESIGN) <= {k.split(".", 1)[1] for k in table[0] if k.startswith("design.")}
+
+
+def test_bag_info_cli(synthetic_bag):
+    from .conftest import cli
+
+    code, out, _ = cli("bag", "info", str(synthetic_bag[0]))
+    assert code == 0
+    assert "/bev_mdo/result" in out and "40" in out and "messages:  100" in out
