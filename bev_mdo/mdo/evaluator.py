@@ -1,0 +1,93 @@
+"""The transport seam between the MDO engine and the disciplines.
+
+An evaluator runs *one wave* of discipline calls at a time::
+
+    results = evaluator.evaluate([("vehicle_mass", {"motor_kw": X0, "battery_kwh": X1}),
+                                  ("motor_speed", {"gear_ratio": X2})])
+
+Each call carries a batch (arrays of shape (N,), N may differ between calls).
+The calls of one wave are independent, so an implementation may run them
+concurrently; it returns one ``EvalResult`` per call, in call order, and never
+raises for a failed point (those rows have ``ok`` False, NaN outputs and an
+error text). ``InProcessEvaluator`` runs them here; the ROS evaluator sends
+them to the discipline nodes.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from bev_mdo.mdo.discipline import EvalResult, run_discipline
+
+
+@dataclass(frozen=True)
+class DisciplineSpec:
+    """What a discipline declares: its inputs, outputs and overridable parameters (with defaults)."""
+
+    name: str
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    parameters: Mapping[str, float] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, disc: Any) -> "DisciplineSpec":
+        name = getattr(disc, "name", "") or type(disc).__name__
+        return cls(str(name), tuple(disc.inputs), tuple(disc.outputs),
+                   dict(getattr(disc, "parameters", {}) or {}))
+
+
+Call = tuple[str, Mapping[str, np.ndarray]]
+
+
+@runtime_checkable
+class Evaluator(Protocol):
+    """Interface every transport implements (in-process here, ROS in bev_mdo.ros)."""
+
+    specs: dict[str, DisciplineSpec]   # discipline name -> declaration
+    counts: dict[str, int]             # discipline name -> points evaluated so far
+
+    def evaluate(self, calls: list[Call]) -> list[EvalResult]:
+        """Run one wave of independent batched calls; results in call order."""
+        ...
+
+    def close(self) -> None:
+        """Release resources (processes, nodes); idempotent."""
+        ...
+
+
+class InProcessEvaluator:
+    """Evaluator that calls the discipline objects directly, one after the other."""
+
+    def __init__(self, disciplines: Iterable[Any]):
+        self.disciplines = {}
+        for d in disciplines:
+            spec = DisciplineSpec.of(d)
+            if spec.name in self.disciplines:
+                raise ValueError(f"discipline name {spec.name!r} is used twice; names must be unique")
+            self.disciplines[spec.name] = d
+        self.specs = {n: DisciplineSpec.of(d) for n, d in self.disciplines.items()}
+        self.counts = {n: 0 for n in self.disciplines}
+        self.waves = 0  # number of evaluate() calls (request waves)
+
+    def evaluate(self, calls: list[Call]) -> list[EvalResult]:
+        self.waves += 1
+        results = []
+        for name, inputs in calls:
+            if name not in self.disciplines:
+                raise ValueError(f"unknown discipline {name!r}; known: {sorted(self.disciplines)}")
+            res = run_discipline(self.disciplines[name], inputs)
+            self.counts[name] += int(np.size(res.ok))
+            results.append(res)
+        return results
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self) -> "InProcessEvaluator":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

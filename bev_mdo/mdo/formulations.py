@@ -1,0 +1,271 @@
+"""MDF and IDF formulations: batched objective/constraint functions for the optimisers.
+
+Both formulations expose ``evaluate_batch(X) -> (f (N,), g (N, m), h (N, p))`` on
+physical optimiser variables, with g <= 0 feasible and h = 0 the IDF consistency
+equalities (p = 0 for MDF), and scaled scalar helpers for scipy
+(``fun``/``jac``/``ineq``/``ineq_jac``/``eq``/``eq_jac`` on u = (x - offset) / scale).
+
+Gradients are finite differences whose whole stencil (x and its n perturbed
+points) is ONE batch, i.e. one request per graph wave. Every evaluated row is
+cached, so scipy's separate fun/jac/constraint calls at one x cost nothing extra.
+
+A failed point (a discipline error, NaN, an unconverged loop) gets objective
+``FAIL_OBJECTIVE`` and every constraint ``FAIL_CONSTRAINT`` (violated); in a
+stencil, a failed perturbed point of a good base point gives a zero derivative
+in that direction (counted in ``fd_failures``).
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from bev_mdo.mdo.evaluator import Evaluator
+from bev_mdo.mdo.graph import CouplingGraph
+from bev_mdo.mdo.mda import MDA, MDAResult
+from bev_mdo.mdo.problem import Problem
+
+FAIL_OBJECTIVE = 1.0e10
+FAIL_CONSTRAINT = 1.0
+FD_SCHEMES = ("forward", "central")
+
+
+class Formulation:
+    """Common machinery: scaling, row cache, batched finite-difference stencils."""
+
+    name = ""
+
+    def __init__(self, problem: Problem, evaluator: Evaluator, *, fd_step: float = 1e-6,
+                 fd_scheme: str = "forward", eq_tolerance: float = 1e-6, cache_size: int = 50_000):
+        if not 0 < fd_step < 0.1:
+            raise ValueError(f"optimizer.fd_step {fd_step} must be in (0, 0.1) (scaled units)")
+        if fd_scheme not in FD_SCHEMES:
+            raise ValueError(f"optimizer.fd_scheme {fd_scheme!r} is unknown; allowed: {', '.join(FD_SCHEMES)}")
+        self.problem, self.evaluator = problem, evaluator
+        self.fd_step, self.fd_scheme, self.eq_tolerance = float(fd_step), fd_scheme, float(eq_tolerance)
+        self.cache_size = int(cache_size)
+        self._cache: dict[bytes, tuple[float, np.ndarray, np.ndarray, bool, str]] = {}
+        self._grad: tuple[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        self.n_points = 0      # rows actually evaluated
+        self.n_batches = 0     # evaluate_batch calls that evaluated something
+        self.n_gradients = 0
+        self.fd_failures = 0
+        self.ineq_labels = problem.constraint_labels
+        self.eq_labels: list[str] = []
+        # subclasses set: var_names, lower, upper, offset, scale, x0
+
+    # ------------------------------------------------------------ scaling
+    @property
+    def n(self) -> int:
+        return len(self.var_names)
+
+    def to_u(self, x: np.ndarray) -> np.ndarray:
+        return (np.asarray(x, dtype=float) - self.offset) / self.scale
+
+    def to_x(self, u: np.ndarray) -> np.ndarray:
+        return self.offset + self.scale * np.asarray(u, dtype=float)
+
+    @property
+    def u_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.to_u(self.lower), self.to_u(self.upper)
+
+    # ------------------------------------------------------------ batches
+    def _evaluate_rows(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[str]]:
+        raise NotImplementedError
+
+    def evaluate_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(f (N,), g (N, m), h (N, p)) at physical rows X (N, n); cached rows are not re-evaluated."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        if X.shape[1] != self.n:
+            raise ValueError(f"design batch has {X.shape[1]} columns; expected {self.n} ({self.var_names})")
+        keys = [row.tobytes() for row in X]
+        todo = list(dict.fromkeys(k for k in keys if k not in self._cache))
+        if todo:
+            rows = np.array([np.frombuffer(k) for k in todo])
+            f, g, h, ok, err = self._evaluate_rows(rows)
+            ok = ok & np.isfinite(f) & np.isfinite(g).all(axis=1) & np.isfinite(h).all(axis=1)
+            self.n_points += len(todo)
+            self.n_batches += 1
+            for i, k in enumerate(todo):
+                if ok[i]:
+                    self._cache[k] = (float(f[i]), g[i].copy(), h[i].copy(), True, "")
+                else:
+                    self._cache[k] = (FAIL_OBJECTIVE, np.full(g.shape[1], FAIL_CONSTRAINT),
+                                      np.full(h.shape[1], FAIL_CONSTRAINT), False, err[i] or "failed")
+            while len(self._cache) > self.cache_size:
+                self._cache.pop(next(iter(self._cache)))
+        got = [self._cache[k] for k in keys]
+        f = np.array([c[0] for c in got])
+        g = np.array([c[1] for c in got]).reshape(len(keys), len(self.ineq_labels))
+        h = np.array([c[2] for c in got]).reshape(len(keys), len(self.eq_labels))
+        return f, g, h
+
+    def status(self, x: np.ndarray) -> tuple[bool, str]:
+        """(ok, error text) of an evaluated physical point."""
+        c = self._cache.get(np.asarray(x, dtype=float).tobytes())
+        return (c[3], c[4]) if c else (False, "not evaluated")
+
+    def batch_fun(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(f, g) with equalities folded in as |h| - eq_tolerance <= 0, for inequality-only optimisers."""
+        f, g, h = self.evaluate_batch(X)
+        return f, np.hstack([g, np.abs(h) - self.eq_tolerance])
+
+    # ------------------------------------------------------------ scalar helpers (scaled u)
+    def values(self, u: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        f, g, h = self.evaluate_batch(self.to_x(u)[None, :])
+        return float(f[0]), g[0], h[0]
+
+    def fun(self, u: np.ndarray) -> float:
+        return self.values(u)[0] / self.problem.objective_scale
+
+    def ineq(self, u: np.ndarray) -> np.ndarray:
+        """scipy convention: >= 0 feasible."""
+        return -self.values(u)[1]
+
+    def eq(self, u: np.ndarray) -> np.ndarray:
+        return self.values(u)[2]
+
+    def jac(self, u: np.ndarray) -> np.ndarray:
+        return self.gradients(u)[0] / self.problem.objective_scale
+
+    def ineq_jac(self, u: np.ndarray) -> np.ndarray:
+        return -self.gradients(u)[1]
+
+    def eq_jac(self, u: np.ndarray) -> np.ndarray:
+        return self.gradients(u)[2]
+
+    def gradients(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(df (n,), dg (m, n), dh (p, n)) w.r.t. u; the whole stencil is one batch."""
+        u = np.asarray(u, dtype=float)
+        key = u.tobytes()
+        if self._grad is not None and self._grad[0] == key:
+            return self._grad[1]
+        self.n_gradients += 1
+        lo, hi = self.u_bounds
+        hstep = self.fd_step
+        fwd = np.where(u + hstep <= hi, hstep, -hstep)
+        eye = np.eye(self.n)
+        if self.fd_scheme == "central":
+            both = (u - hstep >= lo) & (u + hstep <= hi)
+            plus = u + eye * np.where(both, hstep, fwd)[:, None]
+            minus = np.where(both[:, None], u - eye * hstep, u[None, :])
+            U = np.vstack([u[None, :], plus, minus])
+            denom = np.where(both, 2 * hstep, fwd)
+        else:
+            plus = u + eye * fwd[:, None]
+            U = np.vstack([u[None, :], plus])
+            denom = fwd
+        f, g, h = self.evaluate_batch(self.to_x(U))
+        ok = np.array([self.status(x)[0] for x in self.to_x(U)])
+        n = self.n
+        V = np.column_stack([f, g, h])  # (rows, 1 + m + p)
+        if self.fd_scheme == "central":
+            lower_rows = np.where(both[:, None], V[1 + n:], V[0][None, :])
+            lower_ok = np.where(both, ok[1 + n:], ok[0])
+            D = (V[1:1 + n] - lower_rows) / denom[:, None]
+            good = ok[1:1 + n] & lower_ok
+        else:
+            D = (V[1:] - V[0][None, :]) / denom[:, None]
+            good = ok[1:]
+        if ok[0] and not good.all():
+            self.fd_failures += int((~good).sum())
+            D[~good] = 0.0
+        D = D.T  # (1 + m + p, n)
+        m = g.shape[1]
+        out = (D[0], D[1:1 + m], D[1 + m:])
+        self._grad = (key, out)
+        return out
+
+
+class MDF(Formulation):
+    """Multidisciplinary feasible: optimiser over design variables, a full MDA per point."""
+
+    name = "mdf"
+
+    def __init__(self, problem: Problem, evaluator: Evaluator, mda: MDA, **kw):
+        super().__init__(problem, evaluator, **kw)
+        self.mda = mda
+        self.var_names = problem.names
+        self.lower, self.upper = problem.array("lower"), problem.array("upper")
+        self.offset, self.scale = self.lower.copy(), problem.array("scale")
+        self.x0 = problem.x0()
+
+    def analyse(self, X: np.ndarray) -> MDAResult:
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        inputs = {n: X[:, j] for j, n in enumerate(self.var_names)}
+        for k, v in self.problem.parameters.items():
+            inputs[k] = np.full(len(X), v)
+        return self.mda.run(inputs)
+
+    def _evaluate_rows(self, X):
+        res = self.analyse(X)
+        f = res.values[self.problem.objective]
+        g = self.problem.g(res.values)
+        return f, g, np.zeros((len(X), 0)), res.ok, res.errors
+
+    @property
+    def mda_evaluations(self) -> int:
+        return self.mda.n_evaluations
+
+
+class IDF(Formulation):
+    """Individual discipline feasible: coupling variables become optimiser variables,
+    with equalities (target - computed) / scale = 0; all disciplines run in ONE wave."""
+
+    name = "idf"
+
+    def __init__(self, problem: Problem, evaluator: Evaluator, mda: MDA, **kw):
+        super().__init__(problem, evaluator, **kw)
+        self.mda = mda  # used once, to start from a consistent coupling point
+        self.disciplines: Sequence[str] = list(mda.specs)
+        graph = CouplingGraph((s.name, s.inputs, s.outputs) for s in mda.specs.values())
+        self.couplings = [v for v in graph.couplings if v not in problem.names]
+        dv_names = problem.names
+        start = mda.run({**{n: [x] for n, x in zip(dv_names, problem.x0())},
+                         **{k: [v] for k, v in problem.parameters.items()}})
+        y0 = np.array([start.values[c][0] if start.ok[0] else problem.coupling_guesses.get(c, 1.0)
+                       for c in self.couplings])
+        cb = problem.coupling_bounds
+        self.var_names = dv_names + self.couplings
+        self.lower = np.concatenate([problem.array("lower"), [cb.get(c, (-np.inf, np.inf))[0] for c in self.couplings]])
+        self.upper = np.concatenate([problem.array("upper"), [cb.get(c, (-np.inf, np.inf))[1] for c in self.couplings]])
+        self.coupling_scale = np.maximum(np.abs(y0), 1.0)
+        self.offset = np.concatenate([problem.array("lower"), np.zeros(len(self.couplings))])
+        self.scale = np.concatenate([problem.array("scale"), self.coupling_scale])
+        self.x0 = np.concatenate([problem.x0(), np.clip(y0, self.lower[len(dv_names):], self.upper[len(dv_names):])])
+        self.eq_labels = [f"{c} consistency" for c in self.couplings]
+
+    def _evaluate_rows(self, X):
+        N = len(X)
+        cols = {n: X[:, j] for j, n in enumerate(self.var_names)}
+        for k, v in self.problem.parameters.items():
+            cols[k] = np.full(N, v)
+        specs = self.mda.specs
+        calls = []
+        for name in self.disciplines:
+            s = specs[name]
+            inp = {v: cols[v] for v in s.inputs}
+            inp.update({p: cols[p] for p in s.parameters if p in cols})
+            calls.append((name, inp))
+        results = self.evaluator.evaluate(calls)
+        out: dict[str, np.ndarray] = dict(cols)
+        ok = np.ones(N, dtype=bool)
+        errors = [""] * N
+        for (name, _), res in zip(calls, results):
+            out.update({k: np.asarray(v, dtype=float) for k, v in res.outputs.items() if k in specs[name].outputs})
+            for i in np.flatnonzero(~np.asarray(res.ok)):
+                if ok[i]:
+                    ok[i], errors[i] = False, res.error or f"{name}: failed"
+        f = out[self.problem.objective]
+        g = self.problem.g(out)
+        n_dv = len(self.problem.names)
+        h = np.column_stack([(X[:, n_dv + k] - out[c]) / self.coupling_scale[k]
+                             for k, c in enumerate(self.couplings)]) if self.couplings else np.zeros((N, 0))
+        return f, g, h, ok, errors
+
+    @property
+    def mda_evaluations(self) -> int:
+        return self.mda.n_evaluations
+
+
+FORMULATIONS = {"mdf": MDF, "idf": IDF}

@@ -1,0 +1,147 @@
+"""Optimiser registry: scipy.optimize methods on a formulation, plus lazy plug-ins.
+
+An entry of ``OPTIMIZERS`` is either a callable ``fn(formulation, options, callback)``
+that works in scaled variables, or a ``"module:function"`` string naming a batch
+optimiser with the signature
+``minimize(batch_fun, x0, lower, upper, options, callback) -> OptimizeResult``
+where ``batch_fun(X (N, n) physical) -> (f (N,), g (N, m))`` and g <= 0 is feasible.
+``run_optimizer`` returns an OptimizeResult whose ``x`` is in physical units and calls
+``callback(x_physical)`` once per iteration.
+"""
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+from scipy.optimize import (BFGS, Bounds, NonlinearConstraint, OptimizeResult,
+                            differential_evolution, minimize)
+
+Callback = Callable[[np.ndarray], Any]
+
+
+def _cb(form, callback: Callback | None):
+    if callback is None:
+        return None
+
+    def cb(xk, *args, **kwargs):  # legacy scipy signature: (xk[, state|convergence])
+        callback(form.to_x(np.asarray(xk, dtype=float)))
+    return cb
+
+
+def _bounds(form) -> Bounds:
+    lo, hi = form.u_bounds
+    return Bounds(lo, hi)
+
+
+def _slsqp(form, options: Mapping[str, Any], callback):
+    opts = {"maxiter": 200, "ftol": 1e-10, **options}
+    cons = [{"type": "ineq", "fun": form.ineq, "jac": form.ineq_jac}] if form.ineq_labels else []
+    if form.eq_labels:
+        cons.append({"type": "eq", "fun": form.eq, "jac": form.eq_jac})
+    return minimize(form.fun, form.to_u(form.x0), jac=form.jac, bounds=_bounds(form), method="SLSQP",
+                    constraints=cons, options=opts, callback=_cb(form, callback))
+
+
+def _trust_constr(form, options, callback):
+    opts = {"maxiter": 500, "gtol": 1e-9, "xtol": 1e-10, **options}
+    cons = []
+    if form.ineq_labels:
+        cons.append(NonlinearConstraint(lambda u: -form.ineq(u), -np.inf, 0.0,
+                                        jac=lambda u: -form.ineq_jac(u), hess=BFGS()))
+    if form.eq_labels:
+        cons.append(NonlinearConstraint(form.eq, 0.0, 0.0, jac=form.eq_jac, hess=BFGS()))
+    return minimize(form.fun, form.to_u(form.x0), jac=form.jac, hess=BFGS(), bounds=_bounds(form),
+                    method="trust-constr", constraints=cons, options=opts, callback=_cb(form, callback))
+
+
+def _derivative_free(method: str):
+    def run(form, options, callback):
+        opts = {"maxiter": 2000, **options}
+        if method == "COBYLA":
+            opts = {"tol": 1e-10, "rhobeg": 0.1, **opts}
+        cons = []
+        if form.ineq_labels:
+            cons.append({"type": "ineq", "fun": form.ineq})
+        if form.eq_labels:  # COBYLA: as two inequalities
+            if method == "COBYLA":
+                cons += [{"type": "ineq", "fun": form.eq}, {"type": "ineq", "fun": lambda u: -form.eq(u)}]
+            else:
+                cons.append({"type": "eq", "fun": form.eq})
+        return minimize(form.fun, form.to_u(form.x0), bounds=_bounds(form), method=method,
+                        constraints=cons, options=opts, callback=_cb(form, callback))
+    return run
+
+
+def _differential_evolution(form, options, callback):
+    lo, hi = form.u_bounds
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        raise ValueError("differential_evolution needs finite bounds on every optimiser variable "
+                         "(with IDF give problem.coupling_bounds)")
+
+    def cols(U):
+        U = np.asarray(U, dtype=float)
+        return U[:, None] if U.ndim == 1 else U  # (n, S)
+
+    def f(U):
+        F, _, _ = form.evaluate_batch(form.to_x(cols(U).T))
+        return F / form.problem.objective_scale
+
+    def g(U):
+        return form.evaluate_batch(form.to_x(cols(U).T))[1].T
+
+    def h(U):
+        return form.evaluate_batch(form.to_x(cols(U).T))[2].T
+
+    cons = []
+    if form.ineq_labels:
+        cons.append(NonlinearConstraint(g, -np.inf, 0.0))
+    if form.eq_labels:
+        cons.append(NonlinearConstraint(h, -form.eq_tolerance, form.eq_tolerance))
+    opts = {"maxiter": 200, "popsize": 15, "tol": 1e-8, "polish": False, "rng": 0, **options}
+    opts.update(vectorized=True, updating="deferred")
+    res = differential_evolution(f, Bounds(lo, hi), constraints=cons, x0=form.to_u(form.x0),
+                                 callback=_cb(form, callback), **opts)
+    return res
+
+
+OPTIMIZERS: dict[str, Callable | str] = {
+    "SLSQP": _slsqp,
+    "trust-constr": _trust_constr,
+    "COBYQA": _derivative_free("COBYQA"),
+    "COBYLA": _derivative_free("COBYLA"),
+    "differential_evolution": _differential_evolution,
+    "chebyshev-pairwise": "bev_mdo.mdo.chebyshev_opt:minimize",
+}
+
+
+def canonical_name(name: str) -> str:
+    """Registry key for ``name`` (case-insensitive); ValueError lists the allowed names."""
+    for key in OPTIMIZERS:
+        if key.lower() == str(name).lower():
+            return key
+    raise ValueError(f"optimizer {name!r} is unknown; allowed: {', '.join(OPTIMIZERS)}")
+
+
+def _load(spec: str) -> Callable:
+    mod, _, fn = spec.partition(":")
+    try:
+        return getattr(importlib.import_module(mod), fn)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"optimizer plug-in {spec!r} is not available: {exc}") from None
+
+
+def run_optimizer(name: str, form, options: Mapping[str, Any] | None = None,
+                  callback: Callback | None = None) -> OptimizeResult:
+    """Run optimiser ``name`` on ``form``; the result's ``x`` is physical."""
+    entry = OPTIMIZERS[canonical_name(name)]
+    options = dict(options or {})
+    if isinstance(entry, str):
+        res = _load(entry)(form.batch_fun, form.x0.copy(), form.lower.copy(), form.upper.copy(),
+                           options, callback)
+        res.x = np.asarray(res.x, dtype=float)
+        return res
+    res = entry(form, options, callback)
+    res.x = form.to_x(res.x)
+    return res

@@ -1,0 +1,173 @@
+"""The optimisation problem: design variables, objective and constraints.
+
+Constraints are normalised to g <= 0: a lower bound L on output y gives
+(L - y) / s, an upper bound U gives (y - U) / s, with s = the constraint's
+``scale`` (default max(|bound|, 1)). Margins are reported in physical units
+(positive = satisfied).
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+_DV_KEYS = {"lower", "upper", "initial", "scale"}
+_CON_KEYS = {"lower", "upper", "scale"}
+PROBLEM_KEYS = {"objective", "design_variables", "constraints", "battery_sized_for_range",
+                "objective_scale", "parameters", "coupling_guesses", "coupling_bounds"}
+
+
+@dataclass(frozen=True)
+class DesignVariable:
+    name: str
+    lower: float
+    upper: float
+    initial: float
+    scale: float  # optimiser works in (x - lower) / scale; default upper - lower
+
+
+@dataclass(frozen=True)
+class Constraint:
+    name: str
+    lower: float | None = None
+    upper: float | None = None
+    scale: float | None = None
+
+    def rows(self) -> list[tuple[str, float, float]]:
+        """(kind, bound, scale) per bound: kind is 'lower' or 'upper'."""
+        out = []
+        for kind, b in (("lower", self.lower), ("upper", self.upper)):
+            if b is not None:
+                out.append((kind, b, self.scale or max(abs(b), 1.0)))
+        return out
+
+
+@dataclass
+class Problem:
+    """Validated problem section of a run config."""
+
+    objective: str
+    design_variables: list[DesignVariable]
+    constraints: list[Constraint] = field(default_factory=list)
+    objective_scale: float = 1.0
+    parameters: dict[str, float] = field(default_factory=dict)         # fixed model-parameter overrides
+    coupling_guesses: dict[str, float] = field(default_factory=dict)   # MDA loop starting values
+    coupling_bounds: dict[str, tuple[float, float]] = field(default_factory=dict)  # IDF bounds
+
+    @property
+    def names(self) -> list[str]:
+        return [d.name for d in self.design_variables]
+
+    def array(self, attr: str) -> np.ndarray:
+        return np.array([getattr(d, attr) for d in self.design_variables], dtype=float)
+
+    @property
+    def constraint_rows(self) -> list[tuple[str, str, float, float]]:
+        """(output, kind, bound, scale) for every bound, in the order of the g vector."""
+        return [(c.name, k, b, s) for c in self.constraints for k, b, s in c.rows()]
+
+    @property
+    def constraint_labels(self) -> list[str]:
+        return [f"{n} {'>=' if k == 'lower' else '<='} {b:g}" for n, k, b, _ in self.constraint_rows]
+
+    def g(self, values: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Normalised constraints (N, m), feasible where <= 0."""
+        cols = []
+        for name, kind, bound, scale in self.constraint_rows:
+            y = np.asarray(values[name], dtype=float)
+            cols.append((bound - y) / scale if kind == "lower" else (y - bound) / scale)
+        n = len(np.atleast_1d(next(iter(values.values())))) if values else 0
+        return np.column_stack(cols) if cols else np.zeros((n, 0))
+
+    def design_dict(self, x: np.ndarray) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.names, np.asarray(x, dtype=float))}
+
+    def x0(self) -> np.ndarray:
+        return self.array("initial")
+
+    @classmethod
+    def from_config(cls, section: Mapping[str, Any]) -> "Problem":
+        """Build from the ``problem`` section; ValueError names the key and the allowed values."""
+        if not isinstance(section, Mapping):
+            raise ValueError("problem: must be a mapping with objective, design_variables, constraints")
+        unknown = sorted(set(section) - PROBLEM_KEYS)
+        if unknown:
+            raise ValueError(f"problem: unknown keys {unknown}; allowed: {sorted(PROBLEM_KEYS)}")
+        obj = section.get("objective")
+        if not isinstance(obj, str) or not obj:
+            raise ValueError("problem.objective: must name one output to minimise, e.g. energy_wh_per_km")
+        dvs_raw = section.get("design_variables")
+        if not isinstance(dvs_raw, Mapping) or not dvs_raw:
+            raise ValueError("problem.design_variables: must map at least one name to {lower, upper, initial}")
+        dvs = [_design_variable(n, spec) for n, spec in dvs_raw.items()]
+        cons_raw = section.get("constraints") or {}
+        if not isinstance(cons_raw, Mapping):
+            raise ValueError("problem.constraints: must map output names to {lower and/or upper}")
+        cons = [_constraint(n, spec) for n, spec in cons_raw.items()]
+        oscale = _num(section.get("objective_scale", 1.0), "problem.objective_scale")
+        if oscale <= 0:
+            raise ValueError(f"problem.objective_scale: {oscale} must be > 0")
+        params = {str(k): _num(v, f"problem.parameters.{k}") for k, v in (section.get("parameters") or {}).items()}
+        guesses = {str(k): _num(v, f"problem.coupling_guesses.{k}")
+                   for k, v in (section.get("coupling_guesses") or {}).items()}
+        cb = {}
+        for k, v in (section.get("coupling_bounds") or {}).items():
+            if not isinstance(v, Mapping) or set(v) - {"lower", "upper"}:
+                raise ValueError(f"problem.coupling_bounds.{k}: must be {{lower, upper}}")
+            lo = _num(v.get("lower", -np.inf), f"problem.coupling_bounds.{k}.lower")
+            hi = _num(v.get("upper", np.inf), f"problem.coupling_bounds.{k}.upper")
+            if lo >= hi:
+                raise ValueError(f"problem.coupling_bounds.{k}: lower {lo:g} must be < upper {hi:g}")
+            cb[str(k)] = (lo, hi)
+        return cls(obj, dvs, cons, oscale, params, guesses, cb)
+
+
+def _num(v: Any, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ValueError(f"{where}: {v!r} must be a number")
+    if np.isnan(v):
+        raise ValueError(f"{where}: must not be NaN")
+    return float(v)
+
+
+def _design_variable(name: str, spec: Any) -> DesignVariable:
+    where = f"problem.design_variables.{name}"
+    if not isinstance(spec, Mapping):
+        raise ValueError(f"{where}: must be a mapping {{lower, upper, initial[, scale]}}")
+    unknown = sorted(set(spec) - _DV_KEYS)
+    if unknown:
+        raise ValueError(f"{where}: unknown keys {unknown}; allowed: {sorted(_DV_KEYS)}")
+    for k in ("lower", "upper"):
+        if k not in spec:
+            raise ValueError(f"{where}: missing {k!r}")
+    lo, hi = _num(spec["lower"], f"{where}.lower"), _num(spec["upper"], f"{where}.upper")
+    if not (np.isfinite(lo) and np.isfinite(hi)) or lo >= hi:
+        raise ValueError(f"{where}: bounds must be finite with lower < upper (got lower {lo:g}, upper {hi:g})")
+    x0 = _num(spec.get("initial", 0.5 * (lo + hi)), f"{where}.initial")
+    if not lo <= x0 <= hi:
+        raise ValueError(f"{where}.initial: {x0:g} is outside the bounds [{lo:g}, {hi:g}]")
+    scale = _num(spec.get("scale", hi - lo), f"{where}.scale")
+    if scale <= 0:
+        raise ValueError(f"{where}.scale: {scale:g} must be > 0")
+    return DesignVariable(str(name), lo, hi, x0, scale)
+
+
+def _constraint(name: str, spec: Any) -> Constraint:
+    where = f"problem.constraints.{name}"
+    if not isinstance(spec, Mapping) or not spec:
+        raise ValueError(f"{where}: must be a mapping with lower and/or upper")
+    unknown = sorted(set(spec) - _CON_KEYS)
+    if unknown:
+        raise ValueError(f"{where}: unknown keys {unknown}; allowed: {sorted(_CON_KEYS)}")
+    lo = _num(spec["lower"], f"{where}.lower") if "lower" in spec else None
+    hi = _num(spec["upper"], f"{where}.upper") if "upper" in spec else None
+    if lo is None and hi is None:
+        raise ValueError(f"{where}: needs lower and/or upper")
+    if lo is not None and hi is not None and lo > hi:
+        raise ValueError(f"{where}: lower {lo:g} > upper {hi:g}")
+    scale = _num(spec["scale"], f"{where}.scale") if "scale" in spec else None
+    if scale is not None and scale <= 0:
+        raise ValueError(f"{where}.scale: {scale:g} must be > 0")
+    return Constraint(str(name), lo, hi, scale)
