@@ -1,0 +1,18 @@
+"""Driving range from battery capacity and energy per km (eq 7-28) and its inverse."""
+from __future__ import annotations
+
+from .params import VEHICLE_SPECS, check_array, check_design
+
+_U = VEHICLE_SPECS["battery_usable_fraction"]
+
+
+def range_km(battery_kwh, energy_wh_per_km, usable_fraction=_U.default):
+    """Eq 7-28: range = usable x battery_kWh x 1000 / E_Wh_per_km (usable = 1 in the thesis)."""
+    f = check_array("battery_usable_fraction", usable_fraction, _U.lower, _U.upper)
+    return f * check_design("battery_kwh", battery_kwh) * 1000.0 / check_design("energy_wh_per_km", energy_wh_per_km)
+
+
+def battery_kwh_for_range(range_target_km, energy_wh_per_km, usable_fraction=_U.default):
+    """Eq 7-28 solved for the battery: kWh = range x E_Wh_per_km / (1000 x usable)."""
+    f = check_array("battery_usable_fraction", usable_fraction, _U.lower, _U.upper)
+    return check_design("range_target_km", range_target_km) * check_design("energy_wh_per_km", energy_wh_per_km) / (1000.0 * f)
