@@ -186,3 +186,21 @@ def test_bag_info_cli(synthetic_bag):
     code, out, _ = cli("bag", "info", str(synthetic_bag[0]))
     assert code == 0
     assert "/bev_mdo/result" in out and "40" in out and "messages:  100" in out
+
+
+def test_report_writes_plots_and_markdown(synthetic_bag):
+    from .conftest import cli
+
+    bag_dir, _ = synthetic_bag
+    code, out, err = cli("report", str(bag_dir))
+    assert code == 0, err
+    for name in ("convergence.png", "design.png", "discipline_time.png", "report.md"):
+        path = bag_dir / name
+        assert path.is_file() and str(path) in out
+        if name.endswith(".png"):
+            assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    md = (bag_dir / "report.md").read_text()
+    assert "| vehicle_mass | 20 |" in md        # 20 results for that discipline
+    assert "| 0.250 | 0.250 |" in md           # latency p50 | p95 from header stamps: 0.25 ms
+    assert "| motor_kw | 99 |" in md and "Best feasible objective 9810 at iteration 19" in md
+    assert CONFIG_YAML.rstrip() in md

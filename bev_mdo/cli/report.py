@@ -1,0 +1,23 @@
+"""``bev-mdo report BAG``: PNG plots and report.md written into the bag directory."""
+from __future__ import annotations
+
+import sys
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser("report", help="plots and a markdown summary of a recorded run")
+    parser.add_argument("bag", help="bag directory or .mcap file")
+    parser.add_argument("--output-dir", help="write here instead of the bag directory")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from bev_mdo.bag.reader import open_bag
+    from bev_mdo.bag.report import report
+
+    bag = open_bag(args.bag)
+    if bag.truncated:
+        print(bag.recovery_note(), file=sys.stderr)
+    for path in report(bag, args.output_dir):
+        print(path)
+    return 0

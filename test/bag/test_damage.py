@@ -1,0 +1,137 @@
+"""Truncated, corrupt and foreign bags: complete part readable, repair works, clear errors."""
+from __future__ import annotations
+
+import random
+import shutil
+
+import pytest
+
+from .conftest import cli, write_synthetic
+
+pytest.importorskip("bev_mdo_msgs.msg")
+
+
+def _decoded_iterations(bag):
+    return [(m.topic, int(obj.sequence)) for m, obj in bag.decoded()]
+
+
+@pytest.fixture
+def full(tmp_path):
+    bag_dir = tmp_path / "full"
+    write_synthetic(bag_dir, n_iterations=40, chunk_size_bytes=1500)
+    return bag_dir
+
+
+def test_truncated_file_reads_complete_prefix(full, tmp_path):
+    from bev_mdo.bag.reader import open_bag
+
+    complete = open_bag(full)
+    reference = _decoded_iterations(complete)
+    data = (full / "full_0.mcap").read_bytes()
+    last, counts = -1, {}
+    for fraction in (0.15, 0.3, 0.5, 0.7, 0.9, 0.99):
+        cut = tmp_path / f"cut_{fraction}.mcap"
+        cut.write_bytes(data[: int(len(data) * fraction)])
+        bag = open_bag(cut)
+        assert bag.truncated
+        got = _decoded_iterations(bag)
+        assert got == reference[: len(got)]            # an exact prefix, values intact
+        assert len(got) >= last                         # more file, never fewer messages
+        assert bag.message_count == len(got)
+        assert "truncated" in bag.recovery_note() and str(cut) in bag.recovery_note()
+        last = counts[fraction] = len(got)
+    assert 0 < counts[0.15] < counts[0.5] < len(reference)
+    assert counts[0.99] == len(reference)  # only the summary section was cut
+
+
+def test_repair_restores_summary_readable_by_rosbags(full):
+    from rosbags.highlevel import AnyReader
+
+    from bev_mdo.bag.reader import open_bag, read_config
+
+    mcap = full / "full_0.mcap"
+    data = mcap.read_bytes()
+    mcap.write_bytes(data[: int(len(data) * 0.6)])
+    (full / "metadata.yaml").unlink()
+    recovered = open_bag(full).message_count
+    assert 0 < recovered < 200
+
+    code, out, err = cli("bag", "repair", str(full))
+    assert code == 0, err
+    assert "repaired" in out and (full / "full_0.mcap.bak").is_file()
+    bag = open_bag(full)
+    assert not bag.truncated and bag.message_count == recovered
+    assert read_config(bag).startswith("problem:")
+    with AnyReader([full]) as reader:
+        assert reader.message_count == recovered
+        seqs = [int(reader.deserialize(raw, c.msgtype).sequence) for c, _t, raw in reader.messages()]
+    assert seqs == [s for _t, s in _decoded_iterations(open_bag(full / "full_0.mcap.bak"))]
+    # a second repair has nothing to do
+    code, out, _ = cli("bag", "repair", str(full))
+    assert code == 0 and "complete" in out
+
+
+def _std_msgs_bag(tmp_path):
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import String
+
+    from bev_mdo.bag.writer import BagWriter
+
+    bag_dir = tmp_path / "chatter"
+    with BagWriter(bag_dir) as writer:
+        writer.add_topic("/chatter", "std_msgs/msg/String")
+        writer.write("/chatter", serialize_message(String(data="hi")), 1, 1)
+    return bag_dir
+
+
+@pytest.mark.parametrize("kind,problem", [
+    ("text", "not an MCAP file"),
+    ("random", "not an MCAP file"),
+    ("empty", "empty file"),
+    ("header", "truncated MCAP header"),
+    ("garbage_after_magic", "corrupt MCAP data"),
+    ("foreign", "std_msgs/msg/String is not a bev_mdo_msgs type"),
+    ("missing", "no such file"),
+    ("empty_dir", "holds no .mcap file"),
+])
+def test_bad_input_is_one_clear_error(kind, problem, tmp_path, full):
+    from bev_mdo.bag.errors import BagError
+    from bev_mdo.bag.reader import open_bag
+
+    path = tmp_path / f"{kind}.mcap"
+    magic = (full / "full_0.mcap").read_bytes()[:8]
+    if kind == "text":
+        path.write_text("motor_kw: 80\n")
+    elif kind == "random":
+        path.write_bytes(random.Random(5).randbytes(4096))
+    elif kind == "empty":
+        path.write_bytes(b"")
+    elif kind == "header":
+        path.write_bytes((full / "full_0.mcap").read_bytes()[:30])
+    elif kind == "garbage_after_magic":
+        path.write_bytes(magic + b"\x05" + (2**40).to_bytes(8, "little") + b"x" * 64)
+    elif kind == "foreign":
+        path = _std_msgs_bag(tmp_path)
+    elif kind == "missing":
+        path = tmp_path / "nope"
+    elif kind == "empty_dir":
+        path = tmp_path / "emptydir"
+        path.mkdir()
+    with pytest.raises(BagError) as info:
+        open_bag(path)
+    assert problem in str(info.value) and str(path) in str(info.value)
+    for argv in (["history", str(path)], ["report", str(path)], ["bag", "info", str(path)]):
+        code, _out, err = cli(*argv)
+        if kind == "foreign" and argv[0] == "bag":
+            continue  # `bag info` shows any ros2 bag
+        assert code == 2, (argv, err)
+        assert err.count("\n") == 1 and problem in err and str(path) in err
+
+
+def test_bag_info_reports_truncation(full, tmp_path):
+    cut = tmp_path / "cut.mcap"
+    data = (full / "full_0.mcap").read_bytes()
+    cut.write_bytes(data[: len(data) // 2])
+    code, out, err = cli("bag", "info", str(cut))
+    assert code == 0 and "truncated" in err and "/bev_mdo/iteration" in out
+    shutil.rmtree(full)
