@@ -1,0 +1,258 @@
+"""Run-config loading: read the YAML, validate every section, resolve the disciplines.
+
+``load_config(path)`` returns a resolved dict; any problem raises a one-line
+ValueError naming the file and the key. In battery-sized-for-range mode
+``battery_kwh`` leaves the design variables (its initial value becomes the MDA
+loop's starting guess) and is produced by the ``battery_sizing`` discipline.
+"""
+from __future__ import annotations
+
+import copy
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "disciplines", "problem",
+            "formulation", "mda", "optimizer", "ros", "recording")
+ENERGY_MODELS = ("flat", "breakdown", "quasi_static")
+FORMULATIONS = ("mdf", "idf")
+MDA_DEFAULTS = {"method": "gauss_seidel", "tolerance": 1.0e-10, "max_iterations": 100, "relaxation": 1.0}
+OPTIMIZER_DEFAULTS = {"name": "SLSQP", "options": {}, "fd_step": 1.0e-6, "fd_scheme": "forward"}
+SIZED_VARIABLE = "battery_kwh"
+
+
+def load_config(path: str | Path | Mapping[str, Any]) -> dict:
+    """Read and validate a run config (a YAML path, or an already-parsed mapping)."""
+    if isinstance(path, Mapping):
+        where, raw = "<config>", copy.deepcopy(dict(path))
+    else:
+        import yaml
+
+        p = Path(path)
+        where = str(p)
+        if not p.is_file():
+            raise ValueError(f"{where}: no such config file")
+        try:
+            raw = yaml.safe_load(p.read_text())
+        except yaml.YAMLError as exc:
+            mark = getattr(exc, "problem_mark", None)
+            at = f" at line {mark.line + 1}" if mark else ""
+            raise ValueError(f"{where}: not valid YAML{at}: {getattr(exc, 'problem', exc)}") from None
+    try:
+        return _resolve(raw)
+    except ValueError as exc:
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else "invalid config"
+        raise ValueError(f"{where}: {msg}") from None
+
+
+def _resolve(raw: Any) -> dict:
+    from bev_mdo.mdo.formulations import FD_SCHEMES
+    from bev_mdo.mdo.mda import METHODS
+    from bev_mdo.mdo.optimizers import canonical_name
+    from bev_mdo.mdo.problem import Problem
+
+    if not isinstance(raw, Mapping):
+        raise ValueError("the config must be a YAML mapping of sections (name, vehicle, cycle, problem, ...)")
+    unknown = sorted(set(raw) - set(TOP_KEYS))
+    if unknown:
+        raise ValueError(f"unknown top-level keys {unknown}; allowed: {', '.join(TOP_KEYS)}")
+    cfg = dict(raw)
+    cfg.setdefault("name", "run")
+    cfg["energy_model"] = cfg.get("energy_model", "flat")
+    if cfg["energy_model"] not in ENERGY_MODELS:
+        raise ValueError(f"energy_model {cfg['energy_model']!r} is unknown; allowed: {', '.join(ENERGY_MODELS)}")
+    _validate_models(cfg)
+    cfg["formulation"] = str(cfg.get("formulation", "mdf")).lower()
+    if cfg["formulation"] not in FORMULATIONS:
+        raise ValueError(f"formulation {raw.get('formulation')!r} is unknown; allowed: {', '.join(FORMULATIONS)}")
+    cfg["mda"] = _section(cfg.get("mda"), MDA_DEFAULTS, "mda")
+    if cfg["mda"]["method"] not in METHODS:
+        raise ValueError(f"mda.method {cfg['mda']['method']!r} is unknown; allowed: {', '.join(METHODS)}")
+    cfg["optimizer"] = _section(cfg.get("optimizer"), OPTIMIZER_DEFAULTS, "optimizer")
+    cfg["optimizer"]["name"] = canonical_name(cfg["optimizer"]["name"])
+    if not isinstance(cfg["optimizer"]["options"], Mapping):
+        raise ValueError("optimizer.options must be a mapping of the optimiser's own options")
+    if cfg["optimizer"]["fd_scheme"] not in FD_SCHEMES:
+        raise ValueError(f"optimizer.fd_scheme {cfg['optimizer']['fd_scheme']!r} is unknown; allowed: "
+                         f"{', '.join(FD_SCHEMES)}")
+    for key in ("ros", "recording"):
+        if cfg.get(key) is not None and not isinstance(cfg[key], Mapping):
+            raise ValueError(f"{key} must be a mapping")
+        cfg[key] = dict(cfg.get(key) or {})
+    cfg["problem"] = _resolve_problem(cfg.get("problem"))
+    problem = Problem.from_config(cfg["problem"])
+    # numeric checks of the engine sections, by constructing the pieces once
+    _check_mda_numbers(cfg["mda"])
+    _check_against_disciplines(cfg, problem)
+    return cfg
+
+
+def _section(value: Any, defaults: Mapping[str, Any], where: str) -> dict:
+    if value is None:
+        value = {}
+    if isinstance(value, str) and where == "optimizer":
+        value = {"name": value}
+    if not isinstance(value, Mapping):
+        raise ValueError(f"{where} must be a mapping with keys {sorted(defaults)}")
+    unknown = sorted(set(value) - set(defaults))
+    if unknown:
+        raise ValueError(f"{where}: unknown keys {unknown}; allowed: {sorted(defaults)}")
+    return {**copy.deepcopy(dict(defaults)), **dict(value)}
+
+
+def _check_mda_numbers(mda: Mapping[str, Any]) -> None:
+    tol, it, w = mda["tolerance"], mda["max_iterations"], mda["relaxation"]
+    if not isinstance(tol, (int, float)) or not tol > 0:
+        raise ValueError(f"mda.tolerance {tol!r} must be a number > 0")
+    if isinstance(it, bool) or not isinstance(it, int) or it < 1:
+        raise ValueError(f"mda.max_iterations {it!r} must be an integer >= 1")
+    if not isinstance(w, (int, float)) or not 0 < w <= 2:
+        raise ValueError(f"mda.relaxation {w!r} must be in (0, 2]")
+
+
+def _validate_models(cfg: dict) -> None:
+    """Vehicle and cycle sections are checked by the models' own validators (when present)."""
+    try:
+        from bev_mdo.models import params
+    except ImportError:  # models not installed: nothing to check against
+        return
+    if "vehicle" in cfg or "cycle" in cfg:
+        try:
+            params.validate_vehicle(cfg.get("vehicle"))
+        except ValueError as exc:
+            raise ValueError(f"vehicle: {exc}") from None
+        try:
+            cfg["cycle"] = params.validate_cycle(cfg.get("cycle"))
+        except ValueError as exc:
+            raise ValueError(f"cycle: {exc}") from None
+
+
+def _resolve_problem(section: Any) -> dict:
+    if not isinstance(section, Mapping):
+        raise ValueError("problem must be a mapping with objective, design_variables and constraints")
+    prob = copy.deepcopy(dict(section))
+    sized = prob.get("battery_sized_for_range", False)
+    if not isinstance(sized, bool):
+        raise ValueError(f"problem.battery_sized_for_range {sized!r} must be true or false")
+    prob["battery_sized_for_range"] = sized
+    dvs = prob.get("design_variables")
+    if sized and isinstance(dvs, Mapping) and SIZED_VARIABLE in dvs:
+        dvs = dict(dvs)
+        spec = dvs.pop(SIZED_VARIABLE)
+        prob["design_variables"] = dvs
+        if isinstance(spec, Mapping) and "initial" in spec:
+            prob.setdefault("coupling_guesses", {}).setdefault(SIZED_VARIABLE, spec["initial"])
+    return prob
+
+
+def _check_against_disciplines(cfg: dict, problem) -> None:
+    from bev_mdo.mdo.graph import CouplingGraph
+
+    discs = resolve_disciplines(cfg)
+    specs = [(d.name, tuple(d.inputs), tuple(d.outputs)) for d in discs]
+    graph = CouplingGraph(specs)
+    produced, consumed = set(graph.producer), {v for _, i, _ in specs for v in i}
+    params = {p for d in discs for p in (getattr(d, "parameters", {}) or {})}
+    if problem.objective not in produced:
+        raise ValueError(f"problem.objective {problem.objective!r} is not produced by any discipline; "
+                         f"outputs: {sorted(produced)}")
+    for c in problem.constraints:
+        if c.name not in produced:
+            raise ValueError(f"problem.constraints.{c.name}: no discipline produces it; outputs: {sorted(produced)}")
+    for dv in problem.names:
+        if dv in produced:
+            hint = " (set problem.battery_sized_for_range: false, or drop the sizing discipline)" \
+                if dv == SIZED_VARIABLE else ""
+            raise ValueError(f"problem.design_variables.{dv}: it is also produced by discipline "
+                             f"{graph.producer[dv]!r}{hint}")
+        if dv not in consumed and dv not in params:
+            raise ValueError(f"problem.design_variables.{dv}: no discipline consumes it; inputs: {sorted(consumed)}")
+    for k in problem.parameters:
+        if k not in params and k not in consumed:
+            raise ValueError(f"problem.parameters.{k}: no discipline has this parameter; known: {sorted(params)}")
+    if cfg["problem"]["battery_sized_for_range"] and SIZED_VARIABLE not in produced:
+        raise ValueError("problem.battery_sized_for_range is true but no discipline produces battery_kwh "
+                         "(add the battery_sizing discipline)")
+    graph.check_inputs(set(problem.names) | set(problem.parameters))
+
+
+def resolve_disciplines(config: Mapping[str, Any]) -> list:
+    """Discipline objects of a run: the config's ``disciplines`` list, else the built-in defaults.
+
+    A list entry is a built-in name, or ``{name, class: "module:Class", options: {...}}``;
+    ``{name}`` without ``class`` picks the built-in of that name.
+    """
+    from bev_mdo.mdo.discipline import load_class
+
+    entries = config.get("disciplines")
+    if entries is None:
+        return list(_defaults(config))
+    if not isinstance(entries, list) or not entries:
+        raise ValueError("disciplines must be a non-empty list of names or {name, class, options} entries")
+    out, builtins = [], None
+    for k, e in enumerate(entries):
+        if isinstance(e, str):
+            e = {"name": e}
+        if not isinstance(e, Mapping) or not isinstance(e.get("name"), str):
+            raise ValueError(f"disciplines[{k}] must be a name or a mapping with a 'name'")
+        unknown = sorted(set(e) - {"name", "class", "options"})
+        if unknown:
+            raise ValueError(f"disciplines[{k}] ({e['name']}): unknown keys {unknown}; allowed: class, name, options")
+        options = e.get("options") or {}
+        if not isinstance(options, Mapping):
+            raise ValueError(f"disciplines[{k}] ({e['name']}): options must be a mapping")
+        if "class" not in e:
+            builtins = builtins if builtins is not None else {d.name: d for d in _defaults(config, all_builtins=True)}
+            if e["name"] not in builtins:
+                raise ValueError(f"disciplines[{k}]: no built-in discipline {e['name']!r}; built-ins: "
+                                 f"{sorted(builtins)} (or give class: 'module:Class')")
+            out.append(builtins[e["name"]])
+            continue
+        cls = load_class(str(e["class"]))
+        try:
+            if hasattr(cls, "from_config"):
+                disc = cls.from_config(config, options)
+            else:
+                disc = cls(**dict(options))
+        except TypeError as exc:
+            raise ValueError(f"disciplines[{k}] ({e['name']}): cannot build {e['class']}: {exc}") from None
+        for attr in ("inputs", "outputs", "compute"):
+            if not hasattr(disc, attr):
+                raise ValueError(f"disciplines[{k}] ({e['name']}): {e['class']} has no {attr!r}")
+        if getattr(disc, "name", None) != e["name"]:
+            try:
+                disc.name = e["name"]
+            except AttributeError:
+                raise ValueError(f"disciplines[{k}]: {e['class']} is named {disc.name!r}, not {e['name']!r}") from None
+        out.append(disc)
+    return out
+
+
+def _defaults(config: Mapping[str, Any], all_builtins: bool = False) -> list:
+    try:
+        from bev_mdo.disciplines import default_disciplines
+    except ImportError as exc:
+        raise ValueError(f"built-in disciplines are not available ({exc}); list disciplines with class: 'module:Class'") \
+            from None
+    if all_builtins:
+        try:
+            from bev_mdo.disciplines import builtin_disciplines
+            return list(builtin_disciplines(config))
+        except ImportError:
+            pass
+    return list(default_disciplines(config))
+
+
+def discipline_entries(config: Mapping[str, Any]) -> list[dict]:
+    """``{name, class, options}`` for every discipline of a run (what a node needs to build one)."""
+    out = []
+    for d in resolve_disciplines(config):
+        cls = type(d)
+        out.append({"name": d.name, "class": f"{cls.__module__}:{cls.__qualname__}", "options": {}})
+    if config.get("disciplines") is not None:
+        user = {(e if isinstance(e, str) else e["name"]): e for e in config["disciplines"]}
+        for o in out:
+            e = user.get(o["name"])
+            if isinstance(e, Mapping):
+                o["options"] = dict(e.get("options") or {})
+    return out

@@ -1,0 +1,189 @@
+"""Run an optimisation, or evaluate one design, from a resolved config and any evaluator.
+
+The same functions run in-process (``InProcessEvaluator``) and over ROS (the
+lead's ROS evaluator); only the evaluator differs.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bev_mdo.mdo.evaluator import Evaluator
+from bev_mdo.mdo.formulations import FORMULATIONS, Formulation
+from bev_mdo.mdo.mda import MDA
+from bev_mdo.mdo.optimizers import canonical_name, run_optimizer
+from bev_mdo.mdo.problem import Problem
+
+FEASIBILITY_TOL = 1e-6  # on normalised constraints (and IDF consistency)
+
+
+@dataclass
+class RunResult:
+    """Outcome of ``run_optimization`` (``to_dict()`` is JSON-ready)."""
+
+    formulation: str
+    optimizer: str
+    success: bool
+    message: str
+    design: dict[str, float]
+    objective_name: str
+    objective: float
+    outputs: dict[str, float]
+    constraints: dict[str, dict]
+    max_violation: float
+    feasible: bool
+    iterations: int
+    mda_evaluations: int
+    discipline_evaluations: dict[str, int]
+    points_evaluated: int
+    batches: int
+    gradients: int
+    wall_time_s: float
+    history: list[dict] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _mda(config: Mapping[str, Any], evaluator: Evaluator, problem: Problem) -> MDA:
+    m = config.get("mda", {})
+    names = _discipline_names(config, evaluator)
+    return MDA(evaluator, method=m.get("method", "gauss_seidel"), tolerance=m.get("tolerance", 1e-10),
+               max_iterations=m.get("max_iterations", 100), relaxation=m.get("relaxation", 1.0),
+               guesses=problem.coupling_guesses, disciplines=names)
+
+
+def _discipline_names(config: Mapping[str, Any], evaluator: Evaluator) -> list[str]:
+    """The config's disciplines (the evaluator may serve more); all of the evaluator's if unresolvable."""
+    try:
+        from bev_mdo.config import discipline_entries
+        return [e["name"] for e in discipline_entries(config)]
+    except ValueError:
+        return list(evaluator.specs)
+
+
+def build_formulation(config: Mapping[str, Any], evaluator: Evaluator, formulation: str | None = None) -> Formulation:
+    """The MDF or IDF formulation of a resolved config over ``evaluator``."""
+    problem = Problem.from_config(config["problem"])
+    name = (formulation or config.get("formulation", "mdf")).lower()
+    if name not in FORMULATIONS:
+        raise ValueError(f"formulation {name!r} is unknown; allowed: {', '.join(FORMULATIONS)}")
+    opt = config.get("optimizer", {})
+    return FORMULATIONS[name](problem, evaluator, _mda(config, evaluator, problem),
+                              fd_step=opt.get("fd_step", 1e-6), fd_scheme=opt.get("fd_scheme", "forward"))
+
+
+def _constraint_report(problem: Problem, values: Mapping[str, float]) -> dict[str, dict]:
+    out = {}
+    for c in problem.constraints:
+        y = float(values.get(c.name, np.nan))
+        margins = [y - c.lower] if c.lower is not None else []
+        margins += [c.upper - y] if c.upper is not None else []
+        margin = float(min(margins))
+        out[c.name] = {"value": y, "lower": c.lower, "upper": c.upper, "margin": margin,
+                       "satisfied": bool(np.isfinite(margin) and margin >= -FEASIBILITY_TOL * (c.scale or max(
+                           abs(c.lower if c.lower is not None else c.upper), 1.0)))}
+    return out
+
+
+def evaluate_design(config: Mapping[str, Any], evaluator: Evaluator, design: Mapping[str, float]) -> dict:
+    """One multidisciplinary analysis of ``design``; the JSON of ``bev-mdo evaluate``.
+
+    ``design`` holds every design variable, and may add model-parameter overrides.
+    """
+    problem = Problem.from_config(config["problem"])
+    mda = _mda(config, evaluator, problem)
+    params = {p for s in mda.specs.values() for p in s.parameters}
+    missing = [n for n in problem.names if n not in design]
+    if missing:
+        raise ValueError(f"design misses {missing}; give every design variable: {problem.names}")
+    extra = [k for k in design if k not in problem.names and k not in params]
+    if extra:
+        raise ValueError(f"unknown design names {extra}; design variables: {problem.names}, "
+                         f"parameters: {sorted(params)}")
+    inputs = {k: np.array([float(v)]) for k, v in {**problem.parameters, **design}.items()}
+    res = mda.run(inputs)
+    outputs = {v: float(res.values[v][0]) for s in mda.specs.values() for v in s.outputs}
+    cons = _constraint_report(problem, outputs)
+    ok = bool(res.ok[0])
+    return {
+        "design": {k: float(v) for k, v in design.items()},
+        "outputs": outputs,
+        "objective": {"name": problem.objective, "value": outputs.get(problem.objective, float("nan"))},
+        "constraints": cons,
+        "feasible": ok and all(c["satisfied"] for c in cons.values()),
+        "ok": ok,
+        "error": res.errors[0],
+        "mda_iterations": int(res.iterations[0]),
+    }
+
+
+def _physical_constraints(problem: Problem, g: np.ndarray) -> dict[str, float]:
+    out = {}
+    for (name, kind, bound, scale), gi in zip(problem.constraint_rows, g):
+        out[name] = float(bound - gi * scale if kind == "lower" else bound + gi * scale)
+    return out
+
+
+def run_optimization(config: Mapping[str, Any], evaluator: Evaluator, *, formulation: str | None = None,
+                     optimizer: str | None = None, x0: Mapping[str, float] | None = None,
+                     callback: Callable[[dict], Any] | None = None) -> RunResult:
+    """Optimise the config's problem through ``evaluator``; ``callback(record)`` once per iteration."""
+    t0 = time.perf_counter()
+    form = build_formulation(config, evaluator, formulation)
+    problem = form.problem
+    opt_cfg = dict(config.get("optimizer", {}))
+    opt_name = canonical_name(optimizer or opt_cfg.get("name", "SLSQP"))
+    options = dict(opt_cfg.get("options") or {}) if not optimizer or canonical_name(
+        opt_cfg.get("name", "SLSQP")) == opt_name else {}
+    if x0:
+        unknown = [k for k in x0 if k not in problem.names]
+        if unknown:
+            raise ValueError(f"x0 names {unknown} are not design variables {problem.names}")
+        for j, n in enumerate(problem.names):
+            if n in x0:
+                v = float(x0[n])
+                if not form.lower[j] <= v <= form.upper[j]:
+                    raise ValueError(f"x0 {n}={v:g} is outside the bounds [{form.lower[j]:g}, {form.upper[j]:g}]")
+                form.x0[j] = v
+    n_dv = len(problem.names)
+    history: list[dict] = []
+
+    def record(x: np.ndarray) -> dict:
+        f, g, h = form.evaluate_batch(np.asarray(x, dtype=float)[None, :])
+        ok, _ = form.status(x)
+        viol = max(float(np.max(g[0], initial=0.0)), float(np.max(np.abs(h[0]), initial=0.0)))
+        rec = {
+            "iteration": len(history), "formulation": form.name, "optimizer": opt_name,
+            "design": problem.design_dict(x[:n_dv]), "objective_name": problem.objective,
+            "objective": float(f[0]), "constraints": _physical_constraints(problem, g[0]),
+            "max_violation": viol, "feasible": bool(ok and viol <= FEASIBILITY_TOL),
+            "mda_evaluations": form.mda_evaluations, "discipline_evaluations": dict(evaluator.counts),
+            "wall_time_s": time.perf_counter() - t0,
+        }
+        history.append(rec)
+        if callback is not None:
+            callback(rec)
+        return rec
+
+    record(form.x0.copy())
+    res = run_optimizer(opt_name, form, options, lambda x: record(x))
+    x = np.asarray(res.x, dtype=float)
+    last = record(x) if not history or history[-1]["design"] != problem.design_dict(x[:n_dv]) else history[-1]
+    counts = dict(evaluator.counts)
+    mda_evals = form.mda_evaluations
+    final = evaluate_design(config, evaluator, problem.design_dict(x[:n_dv]))
+    ok, err = form.status(x)
+    return RunResult(
+        formulation=form.name, optimizer=opt_name, success=bool(res.success) and ok,
+        message=str(res.message) + (f"; final point failed: {err}" if not ok else ""),
+        design=problem.design_dict(x[:n_dv]), objective_name=problem.objective,
+        objective=float(last["objective"]), outputs=final["outputs"], constraints=final["constraints"],
+        max_violation=float(last["max_violation"]), feasible=bool(last["feasible"] and final["feasible"]),
+        iterations=int(res.get("nit", len(history) - 1) or len(history) - 1), mda_evaluations=mda_evals,
+        discipline_evaluations=counts, points_evaluated=form.n_points, batches=form.n_batches,
+        gradients=form.n_gradients, wall_time_s=time.perf_counter() - t0, history=history)
