@@ -1,0 +1,46 @@
+import pytest
+
+from bev_mdo.models.params import VEHICLE_SPECS, validate_cycle, validate_design, validate_vehicle
+
+
+def test_defaults_filled_and_in_range():
+    v = validate_vehicle({"drag_area_m2": 0.7})
+    assert v["drag_area_m2"] == 0.7
+    assert v["rolling_resistance"] == VEHICLE_SPECS["rolling_resistance"].default
+    for k, s in VEHICLE_SPECS.items():
+        assert s.lower <= s.default <= s.upper, k
+
+
+def test_unknown_name_lists_known():
+    with pytest.raises(ValueError, match="unknown vehicle parameter.*drag_aera.*known.*drag_area_m2"):
+        validate_vehicle({"drag_aera": 0.6})
+
+
+@pytest.mark.parametrize("name,value", [("drag_area_m2", -1), ("rolling_resistance", float("nan")),
+                                        ("gear_efficiency", 1.2), ("wheel_radius_m", "big")])
+def test_bad_value_names_parameter_and_range(name, value):
+    with pytest.raises(ValueError, match=rf"^{name} must be .*\[") as e:
+        validate_vehicle({name: value})
+    assert "\n" not in str(e.value)
+
+
+def test_mass_model_choice():
+    with pytest.raises(ValueError, match="mass_model"):
+        validate_vehicle({"mass_model": "heavy"})
+    assert "mass_model" not in validate_vehicle({"mass_model": "compounding"})
+
+
+def test_cycle_section():
+    assert validate_cycle({"name": "nedc"}) == {"name": "nedc", "dt_s": 1.0, "interpolation": "pchip", "smoothing": None}
+    with pytest.raises(ValueError, match="dt_s"):
+        validate_cycle({"dt_s": 0})
+    with pytest.raises(ValueError, match="interpolation"):
+        validate_cycle({"interpolation": "cubic"})
+    with pytest.raises(ValueError, match="unknown cycle key"):
+        validate_cycle({"speed": 3})
+
+
+def test_validate_design():
+    assert validate_design("motor_kw", [40, 120], 40, 120).tolist() == [40.0, 120.0]
+    with pytest.raises(ValueError, match=r"motor_kw must be in \[40, 120\]"):
+        validate_design("motor_kw", [39.9], 40, 120)
