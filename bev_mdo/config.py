@@ -202,44 +202,46 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
         if not isinstance(options, Mapping):
             raise ValueError(f"disciplines[{k}] ({e['name']}): options must be a mapping")
         if "class" not in e:
-            builtins = builtins if builtins is not None else {d.name: d for d in _defaults(config, all_builtins=True)}
+            builtins = builtins if builtins is not None else _builtins()
             if e["name"] not in builtins:
                 raise ValueError(f"disciplines[{k}]: no built-in discipline {e['name']!r}; built-ins: "
                                  f"{sorted(builtins)} (or give class: 'module:Class')")
-            out.append(builtins[e["name"]])
-            continue
-        cls = load_class(str(e["class"]))
+            cls = builtins[e["name"]]
+        else:
+            cls = load_class(str(e["class"]))
         try:
             if hasattr(cls, "from_config"):
                 disc = cls.from_config(config, options)
             else:
                 disc = cls(**dict(options))
         except TypeError as exc:
-            raise ValueError(f"disciplines[{k}] ({e['name']}): cannot build {e['class']}: {exc}") from None
+            raise ValueError(f"disciplines[{k}] ({e['name']}): cannot build {cls.__name__}: {exc}") from None
         for attr in ("inputs", "outputs", "compute"):
             if not hasattr(disc, attr):
-                raise ValueError(f"disciplines[{k}] ({e['name']}): {e['class']} has no {attr!r}")
+                raise ValueError(f"disciplines[{k}] ({e['name']}): {cls.__name__} has no {attr!r}")
         if getattr(disc, "name", None) != e["name"]:
             try:
                 disc.name = e["name"]
             except AttributeError:
-                raise ValueError(f"disciplines[{k}]: {e['class']} is named {disc.name!r}, not {e['name']!r}") from None
+                raise ValueError(f"disciplines[{k}]: {cls.__name__} is named {disc.name!r}, not {e['name']!r}") from None
         out.append(disc)
     return out
 
 
-def _defaults(config: Mapping[str, Any], all_builtins: bool = False) -> list:
+def _builtins() -> dict[str, type]:
+    try:
+        from bev_mdo.disciplines import BUILTIN
+    except ImportError as exc:
+        raise ValueError(f"built-in disciplines are not available ({exc}); give class: 'module:Class'") from None
+    return dict(BUILTIN)
+
+
+def _defaults(config: Mapping[str, Any]) -> list:
     try:
         from bev_mdo.disciplines import default_disciplines
     except ImportError as exc:
         raise ValueError(f"built-in disciplines are not available ({exc}); list disciplines with class: 'module:Class'") \
             from None
-    if all_builtins:
-        try:
-            from bev_mdo.disciplines import builtin_disciplines
-            return list(builtin_disciplines(config))
-        except ImportError:
-            pass
     return list(default_disciplines(config))
 
 
