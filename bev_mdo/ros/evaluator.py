@@ -22,23 +22,14 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from bev_mdo.mdo.discipline import EvalResult
+from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.ros import wire
 from bev_mdo.ros.common import INFO_QOS, INFO_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, request_topic, stamp
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
 
 
-class DisciplineMissing(RuntimeError):
+class DisciplineMissing(ValueError):
     """A needed discipline did not appear within the discovery wait."""
-
-
-@dataclass
-class Spec:
-    """What a discipline declared about itself (from its DisciplineInfo)."""
-
-    name: str
-    inputs: tuple[str, ...]
-    outputs: tuple[str, ...]
-    parameters: tuple[str, ...] = ()
 
 
 @dataclass
@@ -58,7 +49,7 @@ class RosEvaluator:
         self.run_id = run_id or uuid.uuid4().hex[:16]
         self.timeout_s = timeout_s
         self.retries = retries
-        self.specs: dict[str, Spec] = {}
+        self.specs: dict[str, DisciplineSpec] = {}
         self.counts: Counter[str] = Counter()      # points evaluated per discipline
         self.dropped: Counter[str] = Counter()     # other_run / stale / duplicate / malformed / mismatched
         self.retried = 0
@@ -76,7 +67,10 @@ class RosEvaluator:
 
     # -- discovery -----------------------------------------------------------------
     def _on_info(self, msg: DisciplineInfo) -> None:
-        self.specs[msg.discipline] = Spec(msg.discipline, tuple(msg.inputs), tuple(msg.outputs), tuple(msg.parameters))
+        # Parameter defaults live in the node; the engine only needs their names.
+        self.specs[msg.discipline] = DisciplineSpec(
+            msg.discipline, tuple(msg.inputs), tuple(msg.outputs), dict.fromkeys(msg.parameters, float("nan"))
+        )
 
     def _publisher(self, discipline: str):
         pub = self._publishers.get(discipline)

@@ -1,0 +1,51 @@
+"""`bev-mdo node NAME`: run one discipline node in this process (like `ros2 run bev_mdo NAME_node`)."""
+from __future__ import annotations
+
+import os
+
+from bev_mdo.cli import UsageError
+
+
+def register(sub) -> None:
+    p = sub.add_parser("node", help="run one discipline node (vehicle_mass, energy, range, acceleration, "
+                                    "motor_speed, cost, or any discipline named in the config)",
+                       description="Run one discipline as a ROS 2 node until Ctrl-C. Discovery stays on this host "
+                                   "unless the config's ros: section opts in to more.")
+    p.add_argument("name", help="discipline name, e.g. energy")
+    p.add_argument("--config", default=None, help="run config YAML (default: config/leaf_nedc.yaml)")
+    p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default: the config's ros.domain_id)")
+    p.add_argument("--instance", default="", help="instance suffix, to run several copies of one discipline")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from bev_mdo.config import load_config
+    from bev_mdo.ros.paths import default_config
+    from bev_mdo.ros.settings import ros_environment, validate_ros
+
+    path = args.config or default_config()
+    config = load_config(path)
+    names = [e["name"] for e in _entries(config)]
+    if args.name not in names:
+        raise UsageError(f"no discipline {args.name!r} in {path}; it has {names}")
+    ros = validate_ros(config.get("ros"))
+    if args.domain_id is not None:
+        ros = validate_ros({**config.get("ros", {}), "domain_id": args.domain_id})
+    env = ros_environment(ros)
+    for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER"):
+        if k in env:
+            os.environ[k] = env[k]
+        else:
+            os.environ.pop(k, None)
+    from bev_mdo.ros.discipline_node import main
+
+    node_name = f"{args.name}_node" + (f"_{args.instance}" if args.instance else "")
+    ros_args = ["--ros-args", "-p", f"config:={os.path.abspath(path)}", "-p", f"discipline:={args.name}",
+                "-r", f"__node:={node_name}"]
+    return main(ros_args, discipline=args.name)
+
+
+def _entries(config):
+    from bev_mdo.config import discipline_entries
+
+    return discipline_entries(config)

@@ -1,0 +1,210 @@
+"""`bev-mdo optimize CONFIG`: the main job.
+
+Over ROS (default) it starts one process per discipline and a recorder, runs the
+coordinator in this process, shows progress, prints the optimum beside the Nissan
+Leaf baseline, writes the bag and shuts every process down (also on Ctrl-C).
+`--transport inprocess` runs the same engine with no ROS at all.
+"""
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+import uuid
+from pathlib import Path
+
+from bev_mdo.cli import UsageError
+
+LEAF_BASELINE = {"motor_kw": 80.0, "gear_ratio": 7.94, "battery_kwh": 24.0}
+
+
+def register(sub) -> None:
+    p = sub.add_parser("optimize", help="run the distributed MDF/IDF optimisation (the main job)",
+                       description="Optimise the config's problem. Over ROS every discipline runs as its own "
+                                   "node process on this host (localhost discovery, the config's domain id).")
+    p.add_argument("config", help="run config YAML, e.g. config/leaf_nedc.yaml")
+    p.add_argument("--formulation", choices=["mdf", "idf"], default=None, help="default: the config's")
+    p.add_argument("--optimizer", default=None,
+                   help="SLSQP | trust-constr | COBYQA | COBYLA | differential_evolution | chebyshev-pairwise")
+    p.add_argument("--transport", choices=["ros", "inprocess"], default="ros")
+    p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
+    p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default: the config's ros.domain_id)")
+    p.add_argument("--bag", default=None, help="bag directory to write (default: bags/<config name>_<time>)")
+    p.add_argument("--no-record", action="store_true", help="do not record the run")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=run)
+
+
+def _progress(quiet: bool, to_stderr: bool):
+    out = sys.stderr if to_stderr else sys.stdout
+
+    def show(rec: dict) -> None:
+        if quiet:
+            return
+        rate = rec.get("mda_evaluations", 0) / max(rec.get("wall_time_s", 0.0), 1e-9)
+        print(f"iter {rec['iteration']:4d}  {rec['objective_name']} {rec['objective']:12.6f}  "
+              f"max violation {rec['max_violation']:9.3g}  {'feasible  ' if rec['feasible'] else 'infeasible'}"
+              f"  {rate:9.0f} MDA evals/s", file=out, flush=True)
+
+    return show
+
+
+def _table(result: dict, baseline: dict, out) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    t = Table(title=f"Optimum ({result['formulation'].upper()}, {result['optimizer']}) beside the Nissan Leaf")
+    t.add_column("quantity")
+    t.add_column("optimum", justify="right")
+    t.add_column("Leaf (80 kW, 7.94:1, 24 kWh)", justify="right")
+    for k, v in result["design"].items():
+        t.add_row(k, f"{v:.4f}", f"{baseline['design'].get(k, float('nan')):.4f}")
+    for k, v in result["outputs"].items():
+        if k not in result["design"]:
+            t.add_row(k, f"{v:.4f}", f"{baseline['outputs'].get(k, float('nan')):.4f}")
+    t.add_row("feasible", str(result["feasible"]), str(baseline["feasible"]))
+    Console(file=out).print(t)
+    print(f"iterations {result['iterations']}, MDA evaluations {result['mda_evaluations']}, "
+          f"evaluations per discipline {result['discipline_evaluations']}, wall time {result['wall_time_s']:.3f} s",
+          file=out)
+
+
+def run(args) -> int:
+    from bev_mdo.config import load_config
+
+    config = load_config(args.config)
+    if args.optimizer:
+        from bev_mdo.mdo.optimizers import canonical_name
+
+        canonical_name(args.optimizer)  # ValueError names the known optimizers
+    out = sys.stderr if args.json else sys.stdout
+    show = _progress(args.quiet, args.json)
+    if args.transport == "inprocess":
+        result, baseline, extra = _run_inprocess(config, args, show)
+    else:
+        result, baseline, extra = _run_ros(config, args, show)
+    if args.json:
+        print(json.dumps({**result, "baseline": baseline, **extra}, default=float, indent=2))
+    else:
+        _table(result, baseline, out)
+        for k, v in extra.items():
+            print(f"{k}: {v}", file=out)
+    return 0 if result["feasible"] else 1
+
+
+def _baseline_design(config) -> dict:
+    names = list(config["problem"]["design_variables"])
+    return {k: v for k, v in LEAF_BASELINE.items() if k in names}
+
+
+def _run_inprocess(config, args, show):
+    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.mdo.driver import evaluate_design, run_optimization
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+
+    ev = InProcessEvaluator(resolve_disciplines(config))
+    res = run_optimization(config, ev, formulation=args.formulation, optimizer=args.optimizer, callback=show)
+    out = res.to_dict()
+    out.pop("history")
+    baseline = evaluate_design(config, InProcessEvaluator(resolve_disciplines(config)), _baseline_design(config))
+    return out, baseline, {"transport": "inprocess"}
+
+
+def _run_ros(config, args, show):
+    import yaml
+
+    from bev_mdo.config import discipline_entries
+    from bev_mdo.ros.launch import Launcher, discipline_argv
+    from bev_mdo.ros.settings import ros_environment, validate_ros
+
+    ros_cfg = dict(config.get("ros") or {})
+    if args.domain_id is not None:
+        ros_cfg["domain_id"] = args.domain_id
+    ros = validate_ros(ros_cfg)
+    config = {**config, "ros": ros}
+    if args.formulation:
+        config["formulation"] = args.formulation
+    if args.optimizer:
+        config["optimizer"] = {**config.get("optimizer", {}), "name": args.optimizer}
+    env = ros_environment(ros)
+    for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER"):
+        if k in env:
+            os.environ[k] = env[k]
+        else:
+            os.environ.pop(k, None)
+    run_id = uuid.uuid4().hex[:16]
+    stamp_ = time.strftime("%Y%m%d_%H%M%S")
+    bag = Path(args.bag) if args.bag else Path("bags") / f"{config.get('name', 'run')}_{stamp_}_{run_id[:6]}"
+    logs = Path("bags") / ".logs" / run_id  # node logs and the resolved config, outside the bag
+    logs.mkdir(parents=True, exist_ok=True)
+    resolved = logs / "config.yaml"
+    resolved.write_text(yaml.safe_dump(_plain(config), sort_keys=False))
+    launcher = Launcher(env, log_dir=logs)
+    recorder = 0
+    try:
+        for entry in discipline_entries(config):
+            launcher.add(entry["name"], discipline_argv(entry["name"], str(resolved.resolve())))
+        if not args.no_record:
+            recorder = _start_recorder(launcher, bag, resolved, run_id)
+        launcher.supervise()
+        result, baseline, stats = _coordinate(config, run_id, args, show, recorder)
+    finally:
+        launcher.stop()
+    restarts = {n.label: n.restarts for n in launcher.nodes if n.restarts}
+    extra = {"transport": "ros", "run_id": run_id, "domain_id": ros["domain_id"],
+             "bag": None if args.no_record else str(bag), "logs": str(logs),
+             "dropped_messages": stats["dropped"], "retried_requests": stats["retried"], "node_restarts": restarts}
+    return result, baseline, extra
+
+
+def _start_recorder(launcher, bag: Path, resolved: Path, run_id: str) -> int:
+    """Start the recorder node if it is available; returns how many subscribers it adds per topic."""
+    import importlib.util
+    import sys as _sys
+
+    if importlib.util.find_spec("bev_mdo.ros.recorder_node") is None:
+        return 0
+    from bev_mdo.ros.recorder_node import recorder_argv
+
+    launcher.add("recorder", [_sys.executable, "-m", "bev_mdo.ros.run", "recorder_node",
+                              *recorder_argv(bag=str(bag), config=str(resolved.resolve()), run_id=run_id)])
+    return 1
+
+
+def _coordinate(config, run_id, args, show, recorder: int):
+    import rclpy
+
+    from bev_mdo.mdo.driver import evaluate_design
+    from bev_mdo.ros import coordinator_node
+
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    try:
+        res, stats = coordinator_node.run(config, run_id=run_id, formulation=args.formulation,
+                                          optimizer=args.optimizer, on_iteration=show,
+                                          recorder_subscribers=recorder, context=ctx)
+        out = res.to_dict()
+        out.pop("history")
+        node = coordinator_node.CoordinatorNode(config, run_id + "-baseline", context=ctx,
+                                                node_name="coordinator_baseline")
+        try:
+            node.evaluator.wait_for_disciplines(coordinator_node.discipline_names(config), node.discovery_wait_s)
+            baseline = evaluate_design(config, node.evaluator, _baseline_design(config))
+        finally:
+            node.evaluator.close()
+            node.destroy_node()
+        return out, baseline, stats
+    finally:
+        rclpy.shutdown(context=ctx)
+
+
+def _plain(obj):
+    """YAML-safe copy (numpy scalars to floats)."""
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if hasattr(obj, "item"):
+        return obj.item()
+    return obj

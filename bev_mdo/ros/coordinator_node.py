@@ -1,0 +1,141 @@
+"""The coordinator: hosts the engine's driver with the ROS evaluator plugged in.
+
+The same `run_optimization` runs in-process and here; only the evaluator differs.
+Each iteration is published as an IterationRecord on /bev_mdo/iteration (and so
+recorded by the recorder node).
+"""
+from __future__ import annotations
+
+import json
+import sys
+import time
+import uuid
+from typing import Any, Callable, Mapping
+
+import numpy as np
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rcl_interfaces.msg import ParameterDescriptor
+
+from bev_mdo.ros import wire
+from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC, stamp
+from bev_mdo.ros.evaluator import RosEvaluator
+from bev_mdo.ros.settings import validate_ros
+from bev_mdo_msgs.msg import IterationRecord
+
+
+def discipline_names(config: Mapping[str, Any]) -> list[str]:
+    """Names of the disciplines a run needs (from the resolved config)."""
+    from bev_mdo.config import discipline_entries
+
+    return [e["name"] for e in discipline_entries(config)]
+
+
+class CoordinatorNode(Node):
+    """Publishes iteration records and owns the ROS evaluator."""
+
+    def __init__(self, config: Mapping[str, Any], run_id: str | None = None, **kwargs):
+        super().__init__(kwargs.pop("node_name", "coordinator_node"), **kwargs)
+        self.config = config
+        ros = validate_ros(config.get("ros"))
+        self.run_id = run_id or uuid.uuid4().hex[:16]
+        self._seq = 0
+        self._iteration_pub = self.create_publisher(IterationRecord, ITERATION_TOPIC, ITERATION_QOS)
+        self.evaluator = RosEvaluator(self, run_id=self.run_id, timeout_s=ros["timeout_s"], retries=ros["retries"])
+        self.discovery_wait_s = ros["discovery_wait_s"]
+
+    @property
+    def iteration_publisher(self):
+        return self._iteration_pub
+
+    def publish_iteration(self, rec: Mapping[str, Any]) -> None:
+        """Publish one engine iteration record (the driver's callback dict)."""
+        msg = IterationRecord()
+        stamp(msg.header)
+        self._seq += 1
+        msg.run_id = self.run_id
+        msg.sequence = self._seq
+        msg.iteration = int(rec["iteration"])
+        msg.formulation = str(rec.get("formulation", ""))
+        msg.optimizer = str(rec.get("optimizer", ""))
+        wire.to_named_array({k: np.array([float(v)]) for k, v in rec["design"].items()}, msg.design)
+        msg.objective_name = str(rec.get("objective_name", ""))
+        msg.objective = float(rec["objective"])
+        wire.to_named_array({k: np.array([float(v)]) for k, v in rec.get("constraints", {}).items()},
+                            msg.constraints)
+        msg.max_violation = float(rec.get("max_violation", 0.0))
+        msg.feasible = bool(rec.get("feasible", False))
+        msg.mda_evaluations = int(rec.get("mda_evaluations", 0))
+        counts = rec.get("discipline_evaluations", {})
+        msg.discipline_names = list(counts)
+        msg.discipline_evaluations = [int(v) for v in counts.values()]
+        msg.wall_time_s = float(rec.get("wall_time_s", 0.0))
+        self._iteration_pub.publish(msg)
+
+    def wait_for_iteration_subscribers(self, n: int, wait_s: float) -> bool:
+        """Wait until `n` subscribers (e.g. the recorder) matched the iteration topic."""
+        deadline = time.monotonic() + wait_s
+        while self._iteration_pub.get_subscription_count() < n:
+            if time.monotonic() > deadline:
+                return False
+            self.evaluator._executor.spin_once(timeout_sec=0.05)
+        return True
+
+
+def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: str | None = None,
+        optimizer: str | None = None, x0: Mapping[str, float] | None = None,
+        on_iteration: Callable[[dict], None] | None = None, recorder_subscribers: int = 0,
+        context=None):
+    """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats)."""
+    from bev_mdo.mdo.driver import run_optimization
+
+    node = CoordinatorNode(config, run_id, context=context)
+    try:
+        names = discipline_names(config)
+        node.evaluator.wait_for_disciplines(names, node.discovery_wait_s, extra_subscribers=recorder_subscribers)
+        if recorder_subscribers:
+            node.wait_for_iteration_subscribers(recorder_subscribers, node.discovery_wait_s)
+
+        def callback(rec: dict) -> None:
+            node.publish_iteration(rec)
+            if on_iteration is not None:
+                on_iteration(rec)
+
+        result = run_optimization(config, node.evaluator, formulation=formulation, optimizer=optimizer,
+                                  x0=x0, callback=callback)
+        stats = {"run_id": node.run_id, "dropped": dict(node.evaluator.dropped), "retried": node.evaluator.retried}
+        return result, stats
+    finally:
+        node.evaluator.close()
+        node.destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """`ros2 run bev_mdo coordinator_node --ros-args -p config:=... [-p formulation:=idf -p optimizer:=SLSQP]`."""
+    from bev_mdo.config import load_config
+    from bev_mdo.ros.paths import default_config
+
+    rclpy.init(args=args)
+    try:
+        probe = Node("coordinator_params")
+        for name, desc in (("config", "run config YAML"), ("formulation", "mdf | idf (default: config)"),
+                           ("optimizer", "optimizer name (default: config)"), ("run_id", "run id (default: random)")):
+            probe.declare_parameter(name, "", ParameterDescriptor(description=desc))
+        p = {k: probe.get_parameter(k).value for k in ("config", "formulation", "optimizer", "run_id")}
+        probe.destroy_node()
+        config = load_config(p["config"] or default_config())
+        result, stats = run(config, run_id=p["run_id"] or None, formulation=p["formulation"] or None,
+                            optimizer=p["optimizer"] or None,
+                            on_iteration=lambda r: print(f"iter {r['iteration']:4d}  objective {r['objective']:.6g}"
+                                                         f"  max violation {r.get('max_violation', 0):.3g}"))
+        print(json.dumps({"result": result.to_dict(), **stats}, indent=2, default=float))
+        return 0
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 130
+    except ValueError as exc:
+        print(f"coordinator_node: error: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        if rclpy.ok():
+            rclpy.shutdown()

@@ -1,0 +1,139 @@
+"""Start, supervise and stop the node processes (what `ros2 launch` would do).
+
+Each discipline runs in its own process (`python -m bev_mdo.ros.run <exe>`, the same
+entry point `ros2 run bev_mdo <exe>` reaches). A supervisor thread restarts a node
+that dies while the run is on. `stop()` sends SIGINT, then SIGTERM, then SIGKILL.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping, Sequence
+
+from bev_mdo.ros.run import DISCIPLINE_EXES
+
+_BUILTIN_EXE = {v: k for k, v in DISCIPLINE_EXES.items()}
+
+
+@dataclass
+class NodeProcess:
+    """One supervised node process."""
+
+    label: str
+    argv: list[str]
+    log_path: Path | None = None
+    proc: subprocess.Popen | None = None
+    restarts: int = 0
+    restart_times: list[float] = field(default_factory=list)
+
+
+def discipline_argv(name: str, config_path: str, instance: str = "") -> list[str]:
+    """Command line of the node serving discipline `name` (built-in exe or the generic node)."""
+    exe = _BUILTIN_EXE.get(name, "discipline_node")
+    argv = [sys.executable, "-m", "bev_mdo.ros.run", exe, "--ros-args", "-p", f"config:={config_path}"]
+    if exe == "discipline_node":
+        argv += ["-p", f"discipline:={name}"]
+    node_name = f"{name}_node" + (f"_{instance}" if instance else "")
+    argv += ["-r", f"__node:={node_name}"]
+    if instance:
+        argv += ["-p", f"instance:={node_name}"]
+    return argv
+
+
+class Launcher:
+    """Runs node processes with a given environment and keeps them alive."""
+
+    def __init__(self, env: Mapping[str, str], log_dir: str | Path | None = None, max_restarts: int = 20):
+        self.env = dict(env)
+        repo = str(Path(__file__).resolve().parents[2])
+        self.env["PYTHONPATH"] = repo + os.pathsep + self.env.get("PYTHONPATH", "")
+        self.env["PYTHONUNBUFFERED"] = "1"
+        self.log_dir = Path(log_dir) if log_dir else None
+        self.max_restarts = max_restarts
+        self.nodes: list[NodeProcess] = []
+        self._lock = threading.Lock()
+        self._stopping = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def add(self, label: str, argv: Sequence[str]) -> NodeProcess:
+        """Register and start one node process."""
+        log = (self.log_dir / f"{label}.log") if self.log_dir else None
+        node = NodeProcess(label, list(argv), log)
+        self._spawn(node)
+        with self._lock:
+            self.nodes.append(node)
+        return node
+
+    def _spawn(self, node: NodeProcess) -> None:
+        if node.log_path:
+            node.log_path.parent.mkdir(parents=True, exist_ok=True)
+            out = open(node.log_path, "ab")
+        else:
+            out = subprocess.DEVNULL
+        # Own session: a Ctrl-C in the terminal reaches only us; we stop the children in order.
+        node.proc = subprocess.Popen(node.argv, env=self.env, stdout=out, stderr=subprocess.STDOUT,
+                                     stdin=subprocess.DEVNULL, start_new_session=True)
+        if out is not subprocess.DEVNULL:
+            out.close()
+
+    def supervise(self, interval_s: float = 0.1) -> None:
+        """Start the background thread that restarts nodes that die."""
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._watch, args=(interval_s,), daemon=True)
+            self._thread.start()
+
+    def _watch(self, interval_s: float) -> None:
+        while not self._stopping.wait(interval_s):
+            with self._lock:
+                for node in self.nodes:
+                    if node.proc is not None and node.proc.poll() is not None and not self._stopping.is_set():
+                        if node.restarts >= self.max_restarts:
+                            continue
+                        node.restarts += 1
+                        node.restart_times.append(time.monotonic())
+                        print(f"[launcher] {node.label} exited with {node.proc.returncode}; restarting "
+                              f"({node.restarts}/{self.max_restarts})", file=sys.stderr)
+                        self._spawn(node)
+
+    def kill(self, label: str, sig: int = signal.SIGKILL) -> int:
+        """Send a signal to a node process (for fault-injection tests); returns its pid."""
+        with self._lock:
+            node = next(n for n in self.nodes if n.label == label)
+            pid = node.proc.pid
+            node.proc.send_signal(sig)
+        return pid
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        """Stop every node: SIGINT, then SIGTERM, then SIGKILL. Idempotent."""
+        self._stopping.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        with self._lock:
+            procs = [n.proc for n in self.nodes if n.proc is not None]
+        for sig, wait in ((signal.SIGINT, timeout_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
+            alive = [p for p in procs if p.poll() is None]
+            if not alive:
+                break
+            for p in alive:
+                try:
+                    p.send_signal(sig)
+                except ProcessLookupError:
+                    pass
+            deadline = time.monotonic() + wait
+            for p in alive:
+                try:
+                    p.wait(timeout=max(0.0, deadline - time.monotonic()))
+                except subprocess.TimeoutExpired:
+                    pass
+
+    def __enter__(self) -> "Launcher":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()

@@ -1,0 +1,171 @@
+"""``recorder_node``: raw subscriptions written unchanged (CDR) to a rosbag2-compatible MCAP bag.
+
+Records a given topic list, or every topic under ``/bev_mdo/`` found by polling the graph,
+so it can record any running suite. SIGINT/SIGTERM close the bag cleanly; after a SIGKILL
+the bag is readable up to its last flushed chunk (``bev-mdo bag repair`` rebuilds the rest).
+
+Parameters: ``bag_path`` (default ``bags/<time>_record``), ``topics`` (string[]; empty: all
+under ``prefix``), ``prefix`` (``/bev_mdo/``), ``config_file`` (its text is stored as
+``config_yaml``), ``config_yaml`` (text, instead of a file), ``run_id``, ``qos_depth``
+(10000), ``discovery_period_s`` (0.5), ``flush_period_s`` (1.0).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import signal
+import sys
+import time
+from pathlib import Path
+
+import rclpy
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from bev_mdo.bag.writer import BagWriter
+
+DEFAULT_PREFIX = "/bev_mdo/"
+
+
+def message_class(type_name: str):
+    """The generated Python class of ``pkg/msg/Type`` (ImportError/AttributeError if absent)."""
+    pkg, _, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{pkg}.msg"), name)
+
+
+def default_bag_path() -> str:
+    return str(Path("bags") / time.strftime("%Y%m%d-%H%M%S_record"))
+
+
+class RecorderNode(Node):
+    """Subscribes raw to the wanted topics and writes every message to a BagWriter."""
+
+    def __init__(self, *, writer: BagWriter | None = None, node_name: str = "recorder_node",
+                 **kwargs):
+        super().__init__(node_name, **kwargs)
+        p = self.declare_parameter
+        self.bag_path = p("bag_path", default_bag_path()).value
+        self.wanted = [t for t in p("topics", [""]).value if t]
+        self.prefix = p("prefix", DEFAULT_PREFIX).value
+        config_file = p("config_file", "").value
+        config_yaml = p("config_yaml", "").value
+        run_id = p("run_id", "").value
+        self.qos_depth = int(p("qos_depth", 10000).value)
+        discovery_period_s = float(p("discovery_period_s", 0.5).value)
+        flush_period_s = float(p("flush_period_s", 1.0).value)
+        if config_file and not config_yaml:
+            config_yaml = Path(config_file).read_text(encoding="utf-8")
+        meta = {"run_id": run_id, "recorder": self.get_fully_qualified_name()}
+        if config_yaml:
+            meta["config_yaml"] = config_yaml
+        self.writer = writer or BagWriter(self.bag_path, metadata=meta)
+        self.subscriptions_by_topic: dict[str, object] = {}
+        self.received = 0
+        self.discover()
+        self.create_timer(discovery_period_s, self.discover)
+        if flush_period_s > 0:
+            self.create_timer(flush_period_s, self.writer.flush)
+        self.get_logger().info(f"recording to {self.writer.path}")
+
+    def _wants(self, topic: str) -> bool:
+        return topic in self.wanted if self.wanted else topic.startswith(self.prefix)
+
+    def discover(self) -> None:
+        """Subscribe to every wanted topic that has appeared since the last poll."""
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self.subscriptions_by_topic or not self._wants(topic) or not types:
+                continue
+            type_name = types[0]
+            try:
+                cls = message_class(type_name)
+            except (ImportError, AttributeError, ValueError):
+                self.get_logger().warning(f"skipping {topic}: no Python class for {type_name}")
+                continue
+            pubs = self.get_publishers_info_by_topic(topic)
+            transient = any(i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in pubs)
+            # Deep KEEP_LAST history: a RELIABLE KEEP_LAST publisher does not wait for a slow
+            # subscriber, it silently overwrites the oldest unacknowledged sample. The depth
+            # must cover every message that can pile up while this node is writing a chunk.
+            qos = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                             depth=self.qos_depth,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL if transient
+                             else DurabilityPolicy.VOLATILE)
+            self.writer.add_topic(topic, type_name, [i.qos_profile for i in pubs] or qos,
+                                  type_hash=_hash_of(pubs))
+            self.subscriptions_by_topic[topic] = self.create_subscription(
+                cls, topic, self._callback(topic), qos, raw=True)
+            self.get_logger().info(f"recording {topic} [{type_name}]")
+
+    def _callback(self, topic: str):
+        write = self.writer.write
+
+        def on_message(data: bytes, info) -> None:
+            received = info.get("received_timestamp") or time.time_ns()
+            published = info.get("source_timestamp") or received
+            write(topic, data, received, published, info.get("publication_sequence_number") or 0)
+            self.received += 1
+
+        return on_message
+
+    def close(self) -> None:
+        """Write summary and metadata.yaml."""
+        self.writer.close()
+
+
+def _hash_of(pubs) -> str | None:
+    for info in pubs:
+        h = getattr(info, "topic_type_hash", None)
+        if h is not None and getattr(h, "value", None):
+            return f"RIHS{int(h.version):02d}_{bytes(h.value).hex()}"
+    return None
+
+
+def parse_args(argv: list[str]) -> tuple[argparse.Namespace, list[str]]:
+    parser = argparse.ArgumentParser(prog="recorder_node", description=__doc__.splitlines()[0])
+    parser.add_argument("--output", "-o", help="bag directory (default bags/<time>_record)")
+    parser.add_argument("--topics", nargs="+", help="topics to record (default: all under /bev_mdo/)")
+    parser.add_argument("--config", help="configuration file stored in the bag")
+    parser.add_argument("--run-id", help="run id stored in the bag")
+    return parser.parse_known_args(argv)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the recorder until SIGINT/SIGTERM; returns the exit status."""
+    from rclpy.parameter import Parameter
+    from rclpy.signals import SignalHandlerOptions
+    from rclpy.utilities import remove_ros_args
+
+    argv = sys.argv[1:] if args is None else list(args)
+    ns, _rest = parse_args(remove_ros_args(["recorder_node", *argv])[1:])
+    overrides = []
+    if ns.output:
+        overrides.append(Parameter("bag_path", Parameter.Type.STRING, ns.output))
+    if ns.topics:
+        overrides.append(Parameter("topics", Parameter.Type.STRING_ARRAY, ns.topics))
+    if ns.config:
+        overrides.append(Parameter("config_file", Parameter.Type.STRING, ns.config))
+    if ns.run_id:
+        overrides.append(Parameter("run_id", Parameter.Type.STRING, ns.run_id))
+    stop = []
+    rclpy.init(args=["recorder_node", *argv], signal_handler_options=SignalHandlerOptions.NO)
+    node = None
+    old = {s: signal.signal(s, lambda *_: stop.append(1)) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        node = RecorderNode(parameter_overrides=overrides)
+        while not stop and rclpy.ok():
+            rclpy.spin_once(node, timeout_sec=0.1)
+        return 0
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
+        if node is not None:
+            node.close()
+            print(f"recorded {node.writer.message_count} messages to {node.writer.path}",
+                  file=sys.stderr)
+            node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
