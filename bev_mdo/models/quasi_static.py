@@ -1,0 +1,246 @@
+"""Quasi-static backward model (thesis chapters 2-3, discretised as eqs 6-49..6-56).
+
+On each cycle step of length h the vehicle runs at the mean speed v_bar and the step's
+acceleration a_bar (6-50, 6-51). Per step, vectorised over time x design points:
+
+    F   = 1/2 rho C_dA v_bar^2 + C_r M g + M a_bar           (2-3 / 6-53, flat road)
+    w_w = v_bar / r_w,  T_w = F r_w                          (2-1, 2-2)
+    i_g = gear_ratio, or gear_ratio_2 at v_bar >= shift speed (2-6, two-speed)
+    w_m = w_w i_g,  T_m = T_w / (i_g eta_g) driving          (2-4, 2-5)
+                    T_m = T_w eta_g / i_g braking
+    P_m = T_m w_m / eta_m (driving), T_m w_m eta_m (regen)   (2-7, 2-8 motor map)
+
+Regenerative braking (§2.3.4): the motor brakes with max(T_required, -T_max(w)) (2-25),
+none below 10 km/h, none beyond 0.7 g deceleration, none above 90 % SOC, and the charge
+current is capped at 2C; the rest is friction braking. Then the battery steps in time,
+vectorised over points: V_BT from P (2-13, 2-14), I = P / V_BT (2-11), SOC (2-9, 2-10).
+Energy (2-16, 2-17) is the sum of terminal power x h over the cycle, per km.
+
+Two-speed gearbox (§3.3.2): ``gear_count = 2`` uses ``gear_ratio_2`` above
+``shift_speed_m_s`` and applies the thesis penalty: efficiency -2 points and +20 kg
+(``two_speed_added_mass_kg``; set it to 0 if the mass discipline already adds it).
+
+Feasibility (§3.5.3) is reported, not enforced: traction torque within the envelope,
+motor speed within the limit, discharge current <= 5C and power within the battery's
+ocv^2/4R. The energy of an infeasible design is still finite (the map is clipped).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from . import battery as bt
+from .breakdown import check_points, resolve_params
+from .motor_map import DEFAULT_MAP_CSV, MotorMap, load_motor_map_csv
+from .params import VEHICLE_SPECS, ParamSpec
+
+KMH = 1.0 / 3.6
+
+PARAM_SPECS: dict[str, ParamSpec] = {
+    **{k: VEHICLE_SPECS[k] for k in ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2",
+                                     "rolling_resistance", "wheel_radius_m", "gear_efficiency",
+                                     "motor_torque_per_kw", "motor_speed_limit_rpm")},
+    "gear_count": ParamSpec(1.0, 1.0, 2.0, "-", "1 = single speed, 2 = two-speed gearbox (eq 2-6)"),
+    "gear_ratio_2": ParamSpec(4.7, 0.5, 50.0, "-", "second (high-speed) gear ratio (Table 3-2: 4.7)"),
+    "shift_speed_m_s": ParamSpec(68.1 * KMH, 0.0, 100.0, "m/s", "two-speed shift point (Table 3-2: 68.1 km/h)"),
+    "two_speed_efficiency_loss": ParamSpec(0.02, 0.0, 0.5, "-", "gear efficiency lost with two speeds (§3.3.2)"),
+    "two_speed_added_mass_kg": ParamSpec(20.0, 0.0, 500.0, "kg", "mass added by two speeds (§3.7)"),
+    "regen_min_speed_m_s": ParamSpec(10.0 * KMH, 0.0, 50.0, "m/s", "no regeneration below this (§2.3.4: 10 km/h)"),
+    "regen_max_decel_g": ParamSpec(0.7, 0.0, 5.0, "g", "friction only beyond this deceleration (§2.3.4)"),
+    "regen_max_soc": ParamSpec(0.9, 0.0, 1.0, "-", "no regeneration above this SOC (§2.3.4)"),
+    "charge_c_max": ParamSpec(bt.CHARGE_C_MAX, 0.0, 100.0, "1/h", "charge current limit in C (§2.3.4: 2C)"),
+    "discharge_c_max": ParamSpec(bt.DISCHARGE_C_MAX, 0.0, 100.0, "1/h", "discharge current limit in C (§3.5.3: 5C)"),
+    "cells_series": ParamSpec(float(bt.LEAF_CELLS_SERIES), 1.0, 1000.0, "-", "cells in series (Leaf: 96)"),
+    "initial_soc": ParamSpec(0.9, 0.05, 1.0, "-", "SOC at the start of an energy run"),
+    "final_soc": ParamSpec(0.05, 0.0, 0.9, "-", "range runs stop here (ch.3: 100 % -> 5 %)"),
+    "battery_loss_weight": ParamSpec(0.0, 0.0, 1.0, "-", "0 = terminal energy (eq 2-17); 1 = adds the "
+                                     "battery's internal I^2 R loss (energy at the open-circuit voltage)"),
+}
+
+
+@lru_cache(maxsize=1)
+def default_map() -> MotorMap:
+    """The packaged default map (bev_mdo/data/motor_map_default.csv)."""
+    return load_motor_map_csv(DEFAULT_MAP_CSV)
+
+
+@dataclass
+class QuasiStaticResult:
+    """One pass over a cycle (or repeated cycles for range), arrays of shape (N,)."""
+
+    energy_wh_per_km: np.ndarray
+    distance_m: float
+    soc_end: np.ndarray
+    motor_speed_max_rad_s: np.ndarray
+    torque_margin_nm: np.ndarray  # min over the cycle of T_max(w) - T_m when driving
+    torque_ok: np.ndarray
+    speed_ok: np.ndarray
+    current_ok: np.ndarray
+    power_ok: np.ndarray
+    regen_wh_per_km: np.ndarray  # energy returned to the battery terminals (>= 0)
+
+    @property
+    def feasible(self) -> np.ndarray:
+        return self.torque_ok & self.speed_ok & self.current_ok & self.power_ok
+
+
+@dataclass
+class _Demand:
+    dt: np.ndarray  # (K, 1)
+    p_drive_w: np.ndarray  # (K, N) electrical power when driving (>= 0), else 0
+    p_regen_w: np.ndarray  # (K, N) regenerative electrical power allowed by the speed/decel/torque rules (<= 0)
+    distance_m: float
+    speed_max: np.ndarray
+    torque_margin: np.ndarray
+    speed_limit: np.ndarray
+    steps: dict  # per-step (K, N) operating points, see operating_points()
+
+
+def _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw):
+    m = check_points("vehicle_mass_kg", vehicle_mass_kg, 100.0, 20000.0, "kg").real.astype(float)
+    n = m.shape[0]
+    ig = np.broadcast_to(check_points("gear_ratio", gear_ratio, 0.5, 50.0, "-").real.astype(float), (n,))
+    kw = np.broadcast_to(check_points("motor_kw", motor_kw, 1.0, 1000.0, "kW").real.astype(float), (n,))
+    p = {k: np.real(v).astype(float) for k, v in resolve_params(params, PARAM_SPECS, n).items()}
+    gc = np.asarray(p["gear_count"])
+    if np.any((gc != 1.0) & (gc != 2.0)):
+        raise ValueError(f"gear_count must be 1 or 2, got {gc.reshape(-1)[(gc.reshape(-1) != 1) & (gc.reshape(-1) != 2)][0]:g}")
+    return m, ig, kw, p
+
+
+def _demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> _Demand:
+    t = np.asarray(cycle.time_s, float)
+    v = np.asarray(cycle.speed_m_s, float)
+    dt = np.diff(t)[:, None]
+    v_bar = 0.5 * (v[1:] + v[:-1])[:, None]  # 6-50
+    a_bar = np.diff(v)[:, None] / dt  # 6-51
+    two = p["gear_count"] == 2.0
+    mass = m + np.where(two, p["two_speed_added_mass_kg"], 0.0)
+    eta_g = p["gear_efficiency"] - np.where(two, p["two_speed_efficiency_loss"], 0.0)
+    if np.any(eta_g <= 0):
+        raise ValueError("gear_efficiency minus two_speed_efficiency_loss must stay > 0")
+    g = p["gravity_m_s2"]
+    force = (0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v_bar ** 2
+             + p["rolling_resistance"] * mass * g + mass * a_bar)  # 2-3, 6-53
+    r_w = p["wheel_radius_m"]
+    ratio = np.where(two & (v_bar >= p["shift_speed_m_s"]), p["gear_ratio_2"], ig)  # 2-6
+    w_m = v_bar / r_w * ratio  # 2-2, 2-4
+    t_w = force * r_w  # 2-1
+    driving = force >= 0
+    t_drive = np.where(driving, t_w / (ratio * eta_g), 0.0)  # 2-5
+    t_brake = np.where(driving, 0.0, t_w * eta_g / ratio)
+    w_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0
+    t_pk = p["motor_torque_per_kw"] * kw
+    t_max = np.where(w_m <= w_lim, np.minimum(t_pk, kw * 1e3 / np.maximum(w_m, 1e-9)), 0.0)
+    allowed = (~driving) & (v_bar >= p["regen_min_speed_m_s"]) & (a_bar >= -p["regen_max_decel_g"] * g)
+    t_regen = np.where(allowed, np.maximum(t_brake, -t_max), 0.0)  # 2-25, §2.3.4 rules 2-3
+    p_el = motor_map.electrical_power_w(t_drive + t_regen, w_m, kw)  # 2-7 (one lookup)
+    margin = np.where(driving, t_max - t_drive, np.inf).min(axis=0)
+    shape = p_el.shape
+    steps = {"speed_m_s": v_bar, "accel_m_s2": a_bar, "gear_ratio": ratio, "motor_speed_rad_s": w_m,
+             "motor_torque_nm": t_drive + t_regen, "motor_torque_max_nm": t_max, "wheel_force_n": force,
+             "friction_brake_torque_nm": t_brake - t_regen, "motor_power_w": p_el}
+    steps = {k: np.broadcast_to(x, shape) for k, x in steps.items()}
+    return _Demand(dt, np.where(driving, p_el, 0.0), np.where(driving, 0.0, p_el),
+                   float(np.sum(v_bar[:, 0] * dt[:, 0])), np.broadcast_to(w_m.max(axis=0), kw.shape),
+                   margin, w_lim + 0.0 * kw, steps)
+
+
+def operating_points(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, *,
+                     motor_map: MotorMap | None = None) -> dict[str, np.ndarray]:
+    """Per-step (K, N) operating points before the battery: speed, acceleration, gear ratio,
+    motor speed/torque (regen torque after rules 1-3 of §2.3.4), envelope, wheel force,
+    friction-brake torque (at the motor shaft, <= 0) and motor electrical power."""
+    m, ig, kw, p = _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw)
+    return _demand(resampled, p, m, ig, kw, motor_map or default_map()).steps
+
+
+class _Battery:
+    """Per-point battery state stepping in time (2-9..2-15) with the §2.3.4 charge rules."""
+
+    def __init__(self, battery_kwh, p, n):
+        kwh = check_points("battery_kwh", battery_kwh, 1.0, 500.0, "kWh").real.astype(float)
+        self.pack = bt.pack_for_energy(np.broadcast_to(kwh, (n,)), p["cells_series"])
+        cap_ah = self.pack.capacity_ah
+        self.q_c = self.pack.capacity_c
+        self.i_chg_max = p["charge_c_max"] * cap_ah
+        self.i_dis_max = p["discharge_c_max"] * cap_ah
+        self.soc_max_regen = p["regen_max_soc"]
+        self.w_loss = p["battery_loss_weight"]
+        self.current_ok = np.ones(n, bool)
+        self.power_ok = np.ones(n, bool)
+
+    def step(self, soc, p_drive, p_regen, dt):
+        """Terminal power, energy drawn (J) and the new SOC after one step of ``dt`` s."""
+        p_regen = np.where(soc > self.soc_max_regen, 0.0, p_regen)  # rule 4: SOC > 90 %
+        charging = p_regen < 0
+        voc = self.pack.ocv(soc)
+        r = self.pack.resistance(soc, charging)
+        p_chg_lim = bt.power_at_current_w(-self.i_chg_max, voc, r)  # 2C charge cap
+        p_max = bt.max_discharge_power_w(voc, r)
+        self.power_ok &= p_drive <= p_max
+        power = np.minimum(p_drive, p_max) + np.maximum(p_regen, p_chg_lim)
+        i = bt.terminal_current_a(power, voc, r)  # 2-11..2-14
+        self.current_ok &= i <= self.i_dis_max * (1 + 1e-12)
+        e = (power + self.w_loss * i * i * r) * dt  # 2-17 (+ optional internal loss)
+        return power, e, bt.soc_after(soc, i, dt, self.q_c)
+
+
+def simulate(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh=24.0,
+             *, motor_map: MotorMap | None = None) -> QuasiStaticResult:
+    """One pass over the cycle from ``initial_soc``; everything per design point (N,)."""
+    m, ig, kw, p = _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw)
+    d = _demand(resampled, p, m, ig, kw, motor_map or default_map())
+    n = m.shape[0]
+    batt = _Battery(battery_kwh, p, n)
+    soc = np.broadcast_to(p["initial_soc"], (n,)).astype(float)
+    energy = np.zeros(n)
+    regen = np.zeros(n)
+    for k in range(d.dt.shape[0]):
+        power, e, soc = batt.step(soc, d.p_drive_w[k], d.p_regen_w[k], d.dt[k, 0])
+        energy += e
+        regen -= np.minimum(power, 0.0) * d.dt[k, 0]
+    km = d.distance_m / 1e3
+    return QuasiStaticResult(energy / 3600.0 / km, d.distance_m, soc, d.speed_max, d.torque_margin,
+                             d.torque_margin >= -1e-9, d.speed_max <= d.speed_limit,
+                             batt.current_ok, batt.power_ok, regen / 3600.0 / km)
+
+
+def energy_wh_per_km(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, *,
+                     battery_kwh=24.0, motor_map: MotorMap | None = None) -> np.ndarray:
+    """Battery-terminal energy per km over one cycle (eqs 2-16, 2-17), shape (N,)."""
+    return simulate(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh,
+                    motor_map=motor_map).energy_wh_per_km
+
+
+def range_by_repeated_cycle_km(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh, *,
+                               motor_map: MotorMap | None = None, max_repeats: int = 200) -> np.ndarray:
+    """Chapter-3 range: repeat the cycle from 100 % SOC until ``final_soc`` (5 %), shape (N,).
+
+    The crossing is interpolated linearly inside the step. Points still above
+    ``final_soc`` after ``max_repeats`` cycles get ``inf``."""
+    m, ig, kw, p = _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw)
+    d = _demand(resampled, p, m, ig, kw, motor_map or default_map())
+    n = m.shape[0]
+    batt = _Battery(battery_kwh, p, n)
+    soc = np.ones(n)
+    stop = np.broadcast_to(p["final_soc"], (n,))
+    rng = np.full(n, np.inf)
+    done = np.zeros(n, bool)
+    step_m = (0.5 * (resampled.speed_m_s[1:] + resampled.speed_m_s[:-1]) * d.dt[:, 0])
+    travelled = 0.0
+    for _ in range(max_repeats):
+        for k in range(d.dt.shape[0]):
+            _, _, new = batt.step(soc, d.p_drive_w[k], d.p_regen_w[k], d.dt[k, 0])
+            hit = (~done) & (new <= stop)
+            if hit.any():
+                frac = (soc[hit] - stop[hit]) / np.maximum(soc[hit] - new[hit], 1e-300)
+                rng[hit] = travelled + frac * step_m[k]
+                done |= hit
+            soc = new
+            travelled += step_m[k]
+        if done.all():
+            break
+    return rng / 1e3
