@@ -129,3 +129,43 @@ def test_zero_objective_raises():
         sensitivities(f, {"p1": 1.0}, objective="E")
     s = sensitivities(f, {"p1": 2.0}, objective="E")
     assert np.isnan(s.first["other"]).all()
+
+
+# --- CLI: bev-mdo sensitivity (needs the engine, built-in disciplines and config) ---------
+from pathlib import Path  # noqa: E402
+
+CONFIG = Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml"
+
+
+def _cli(argv):
+    pytest.importorskip("bev_mdo.mdo.driver")
+    if not CONFIG.exists():
+        pytest.skip("config/leaf_nedc.yaml not available")
+    from bev_mdo.cli import main
+    return main(["sensitivity", str(CONFIG), *argv])
+
+
+def test_cli_json_png_and_range_identity(tmp_path, capsys):
+    import json
+    png = tmp_path / "h.png"
+    rc = _cli(["--at", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--order", "2", "--json", "--png", str(png)])
+    assert rc == 0 and png.read_bytes()[:4] == b"\x89PNG"
+    d = json.loads(capsys.readouterr().out)
+    e = np.array(d["first_order"]["energy_wh_per_km"]["normalised"])
+    r = np.array(d["first_order"]["range_km"]["normalised"])
+    # range = battery * 1000 / E (eq 7-28) -> S_range = [0, 0, 1] - S_E exactly.
+    np.testing.assert_allclose(r, np.array([0, 0, 1.0]) - e, atol=1e-6)
+    assert d["n_batches"] == 1
+    # motor speed = i_g v_max / r_w (eq 7-24): S = [0, 1, 0], no coupling.
+    np.testing.assert_allclose(d["first_order"]["motor_speed_max_rad_s"]["normalised"], [0, 1, 0], atol=1e-8)
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--at", "motor_kw=200"], "outside its bounds"),
+    (["--wrt", "foo"], "unknown variable or parameter 'foo'"),
+    (["--at", "motor_kw"], "must be NAME=VALUE"),
+])
+def test_cli_bad_input_exit_2(argv, match, capsys):
+    assert _cli(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert match in err and "\n" not in err

@@ -1,0 +1,165 @@
+"""``bev-mdo sensitivity CONFIG --at k=v,... [--order 1|2] [--wrt a,b] [--json] [--png FILE]``.
+
+Normalised first-order (eq 5-4, like Table 7-2) and second-order (eq 5-5, like Table
+7-3 / Fig 5-3, with NC/MC/SC/VSC labels) sensitivities of the objective and of every
+constrained output, by batched FD through the in-process MDA: one MDA batch per stencil.
+``--wrt`` may name design variables and model parameters (sent as override columns).
+Coupling thresholds: |S'| < 0.05 NC, < 0.5 MC, < 0.8 SC, else VSC.
+"""
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("sensitivity", help="normalised 1st/2nd-order sensitivities at a design")
+    p.add_argument("config", help="run config YAML")
+    p.add_argument("--at", default="", metavar="K=V,...",
+                   help="design point (design variables default to their initial values)")
+    p.add_argument("--order", type=int, choices=(1, 2), default=2)
+    p.add_argument("--wrt", default="", metavar="NAMES",
+                   help="comma-separated design variables and/or model parameters (default: design variables)")
+    p.add_argument("--method", choices=("central", "complex", "auto"), default="central",
+                   help="first-order derivative method")
+    p.add_argument("--rel-step", type=float, default=None, help="relative FD step (default 1e-4 / 1e-3)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of tables")
+    p.add_argument("--png", metavar="FILE", help="write a heatmap PNG of the second-order matrices")
+    p.set_defaults(func=run)
+
+
+def _pairs(text: str) -> dict[str, float]:
+    out = {}
+    for item in filter(None, (s.strip() for s in text.split(","))):
+        k, sep, v = item.partition("=")
+        if not sep or not k.strip():
+            raise ValueError(f"--at item {item!r} must be NAME=VALUE")
+        try:
+            out[k.strip()] = float(v)
+        except ValueError:
+            raise ValueError(f"--at value of {k.strip()!r} is not a number: {v!r}") from None
+    return out
+
+
+def build_batch(config, evaluator):
+    """(fun, nominal point, bounds, outputs) for the MDA of ``config`` over ``evaluator``.
+
+    ``fun(X)`` takes columns in the order of the returned point (design variables, then
+    every overridable model parameter) and returns the objective and constrained outputs.
+    """
+    from bev_mdo.mdo.driver import build_formulation
+
+    form = build_formulation(config, evaluator, "mdf")
+    problem, mda = form.problem, form.mda
+    params: dict[str, float] = {}
+    for spec in mda.specs.values():
+        for k, v in spec.parameters.items():
+            params.setdefault(k, float(v))
+    params.update(problem.parameters)
+    point = {**dict(zip(problem.names, problem.x0().tolist())), **params}
+    bounds = {v.name: (v.lower, v.upper) for v in problem.design_variables}
+    outputs = [problem.objective] + [c.name for c in problem.constraints if c.name != problem.objective]
+    names = list(point)
+
+    def fun(X):
+        res = mda.run({k: X[:, j] for j, k in enumerate(names)})
+        if not np.all(res.ok):
+            bad = next(e for e, ok in zip(res.errors, res.ok) if not ok)
+            raise ValueError(f"the model failed on the FD stencil: {bad.splitlines()[0] if bad else 'NaN'}")
+        return {k: res.values[k] for k in outputs}
+    return fun, point, bounds, outputs, problem
+
+
+def run(args) -> int:
+    from bev_mdo.config import load_config, resolve_disciplines
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.mdo.sensitivity import sensitivities
+
+    cfg = load_config(args.config)
+    with InProcessEvaluator(resolve_disciplines(cfg)) as ev:
+        fun, point, bounds, outputs, problem = build_batch(cfg, ev)
+        at = _pairs(args.at)
+        for k, v in at.items():
+            if k not in point:
+                raise ValueError(f"--at: unknown name {k!r}; design variables: {', '.join(problem.names)}; "
+                                 f"parameters: {', '.join(n for n in point if n not in problem.names)}")
+            point[k] = v
+        wrt = [s.strip() for s in args.wrt.split(",") if s.strip()] or list(problem.names)
+        for k in wrt:
+            if k not in point:
+                raise ValueError(f"--wrt: unknown variable or parameter {k!r}; known: {', '.join(point)}")
+        s = sensitivities(fun, point, wrt=wrt, order=args.order, bounds=bounds,
+                          rel_step=args.rel_step, method=args.method, objective=problem.objective)
+    if args.png and s.second is not None:
+        write_heatmap(args.png, s, outputs)
+    if args.json:
+        print(json.dumps(to_dict(s, outputs), indent=2))
+    else:
+        print_tables(s, outputs)
+        if args.png and s.second is not None:
+            print(f"wrote {args.png}")
+    return 0
+
+
+def to_dict(s, outputs) -> dict:
+    d = {"wrt": list(s.names), "point": s.point, "method": s.method, "step": s.step.tolist(),
+         "n_evaluations": s.n_evaluations, "n_batches": s.n_batches, "one_sided": list(s.one_sided),
+         "values": s.values, "first_order": {}, "second_order": {}}
+    for k in outputs:
+        d["first_order"][k] = {"normalised": s.first[k].tolist(), "error": s.first_error[k].tolist(),
+                               "derivative": s.gradient[k].tolist()}
+        if s.second is not None:
+            d["second_order"][k] = {"normalised": s.second[k].tolist(), "error": s.second_error[k].tolist(),
+                                    "labels": s.labels(k).tolist()}
+    return d
+
+
+def print_tables(s, outputs, out=sys.stdout) -> None:
+    w = max(12, *(len(n) for n in s.names)) + 2
+    ow = max(len(k) for k in outputs) + 2
+    print(f"point: {', '.join(f'{k}={s.point[k]:g}' for k in s.names)}   "
+          f"({s.n_evaluations} evaluations in {s.n_batches} batch(es), method {s.method})", file=out)
+    print("\nFirst-order normalised sensitivity S_i = (x_i/f) df/dx_i  (eq 5-4)", file=out)
+    print("output".ljust(ow) + "".join(n.rjust(w) for n in s.names), file=out)
+    for k in outputs:
+        print(k.ljust(ow) + "".join(f"{v:{w}.4f}" for v in s.first[k]), file=out)
+    print("step".ljust(ow) + "".join(f"{v:{w}.3g}" for v in s.step), file=out)
+    if s.second is None:
+        return
+    print("\nSecond-order normalised sensitivity S'_ij = (x_i x_j/f) d2f/dx_i dx_j  (eq 5-5)", file=out)
+    print("labels: NC |S'|<0.05, MC <0.5, SC <0.8, VSC >=0.8 (no/medium/strong/very strong coupling)", file=out)
+    for k in outputs:
+        m, lab, err = s.second[k], s.labels(k), s.second_error[k]
+        print(f"\n{k}  (max Richardson error {np.nanmax(err):.1e})", file=out)
+        print("".ljust(w) + "".join(n.rjust(w) for n in s.names), file=out)
+        for i, n in enumerate(s.names):
+            cells = [f"{m[i, j]:.4f} {lab[i, j]}".rjust(w) if j >= i else "".rjust(w) for j in range(len(s.names))]
+            print(n.ljust(w) + "".join(cells), file=out)
+
+
+def write_heatmap(path: str, s, outputs) -> str:
+    """One annotated heatmap of the second-order matrix per output."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(outputs)
+    fig, axes = plt.subplots(1, n, figsize=(4.2 * n + 1, 4.2), squeeze=False)
+    for ax, k in zip(axes[0], outputs):
+        m = s.second[k]
+        lim = max(np.nanmax(np.abs(m)), 1e-12)
+        im = ax.imshow(m, cmap="RdBu_r", vmin=-lim, vmax=lim)
+        lab = s.labels(k)
+        for i in range(m.shape[0]):
+            for j in range(m.shape[1]):
+                ax.text(j, i, f"{m[i, j]:.2f}\n{lab[i, j]}", ha="center", va="center", fontsize=7)
+        ax.set_xticks(range(len(s.names)), s.names, rotation=45, ha="right", fontsize=7)
+        ax.set_yticks(range(len(s.names)), s.names, fontsize=7)
+        ax.set_title(k, fontsize=9)
+        fig.colorbar(im, ax=ax, shrink=0.8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
