@@ -1,0 +1,26 @@
+"""Test disciplines for fault handling: built-in range that stalls on its first call."""
+from __future__ import annotations
+
+import time
+
+from bev_mdo.disciplines import Range
+
+
+class SlowFirstRange(Range):
+    """The built-in range discipline, but the first compute() of the process sleeps `delay_s`."""
+
+    _calls = 0
+
+    @classmethod
+    def from_config(cls, config, options):
+        opts = dict(options)
+        delay = float(opts.pop("delay_s", 1.0))
+        obj = super().from_config(config, opts)
+        obj.delay_s = delay
+        return obj
+
+    def compute(self, inputs):
+        type(self)._calls += 1
+        if type(self)._calls == 1:
+            time.sleep(self.delay_s)  # deliberate: simulates a node that stalls beyond the timeout
+        return super().compute(inputs)
