@@ -3,7 +3,8 @@
 ``load_config(path)`` returns a resolved dict; any problem raises a one-line
 ValueError naming the file and the key. In battery-sized-for-range mode
 ``battery_kwh`` leaves the design variables (its initial value becomes the MDA
-loop's starting guess) and is produced by the ``battery_sizing`` discipline.
+loop's starting guess), is produced by the ``battery_sizing`` discipline, and the
+``range_km`` constraint (met by construction) becomes ``monitor: true``.
 """
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ FORMULATIONS = ("mdf", "idf")
 MDA_DEFAULTS = {"method": "gauss_seidel", "tolerance": 1.0e-10, "max_iterations": 100, "relaxation": 1.0}
 OPTIMIZER_DEFAULTS = {"name": "SLSQP", "options": {}, "fd_step": 1.0e-6, "fd_scheme": "forward"}
 SIZED_VARIABLE = "battery_kwh"
+SIZED_CONSTRAINT = "range_km"
 
 
 def load_config(path: str | Path | Mapping[str, Any]) -> dict:
@@ -142,6 +144,11 @@ def _resolve_problem(section: Any) -> dict:
         prob["design_variables"] = dvs
         if isinstance(spec, Mapping) and "initial" in spec:
             prob.setdefault("coupling_guesses", {}).setdefault(SIZED_VARIABLE, spec["initial"])
+    cons = prob.get("constraints")
+    if sized and isinstance(cons, Mapping) and isinstance(cons.get(SIZED_CONSTRAINT), Mapping):
+        # battery_sizing meets the range target exactly; as an optimiser constraint it would duplicate
+        # the consistency equality (rank-deficient in IDF), so it is only monitored
+        prob["constraints"] = {**cons, SIZED_CONSTRAINT: {**cons[SIZED_CONSTRAINT], "monitor": True}}
     return prob
 
 

@@ -77,7 +77,7 @@ class Formulation:
         """(f (N,), g (N, m), h (N, p)) at physical rows X (N, n); cached rows are not re-evaluated."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         if X.shape[1] != self.n:
-            raise ValueError(f"design batch has {X.shape[1]} columns; expected {self.n} ({self.var_names})")
+            raise ValueError(f"design batch has {X.shape[1]} columns, expected {self.n} columns ({self.var_names})")
         keys = [row.tobytes() for row in X]
         todo = list(dict.fromkeys(k for k in keys if k not in self._cache))
         if todo:

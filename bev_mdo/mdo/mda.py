@@ -3,7 +3,8 @@
 Feed-forward disciplines run wave by wave: one ``evaluator.evaluate`` call per
 wave holds every feed-forward discipline of that wave. A feedback loop is
 iterated by Gauss-Seidel (one call per discipline, in the loop's declared order)
-or Jacobi (one call per sweep, all loop disciplines together), vectorised over
+or Jacobi (one call per sweep, all loop disciplines together, after one sequential
+seeding pass from the torn-variable guesses), vectorised over
 the points still iterating. A point whose discipline fails, or whose loop does
 not converge, gets NaN outputs, ``ok`` False and an error text; nothing raises.
 """
@@ -120,15 +121,15 @@ class MDA:
     def _loop(self, comp: Sequence[str], values: dict, ok: np.ndarray, errors: list[str],
               iterations: np.ndarray, given: Mapping[str, np.ndarray]) -> None:
         outs = [v for m in comp for v in self.specs[m].outputs]
-        inside = set(outs)
-        start = self.graph.torn_inputs(comp) if self.method == "gauss_seidel" else sorted(
-            {v for m in comp for v in self.specs[m].inputs if v in inside})
         rows = np.flatnonzero(ok)
-        for v in start:
+        for v in self.graph.torn_inputs(comp):
             if v not in given:
                 values[v][rows] = self.guesses.get(v, 1.0)
-        active = rows
-        err = np.full(rows.size, np.inf)
+        if self.method == "jacobi":  # seed every loop input by one sequential pass from the torn guesses
+            for m in comp:
+                self._run([m], values, rows[ok[rows]], ok, errors)
+        active = rows[ok[rows]]
+        err = np.full(active.size, np.inf)
         for it in range(1, self.max_iterations + 1):
             if active.size == 0:
                 return

@@ -3,7 +3,8 @@
 Constraints are normalised to g <= 0: a lower bound L on output y gives
 (L - y) / s, an upper bound U gives (y - U) / s, with s = the constraint's
 ``scale`` (default max(|bound|, 1)). Margins are reported in physical units
-(positive = satisfied).
+(positive = satisfied). A constraint with ``monitor: true`` is reported but not
+optimised against (used for range in battery-sized mode, where it holds by construction).
 """
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ from typing import Any
 import numpy as np
 
 _DV_KEYS = {"lower", "upper", "initial", "scale"}
-_CON_KEYS = {"lower", "upper", "scale"}
+_CON_KEYS = {"lower", "upper", "scale", "monitor"}
 PROBLEM_KEYS = {"objective", "design_variables", "constraints", "battery_sized_for_range",
                 "objective_scale", "parameters", "coupling_guesses", "coupling_bounds"}
 
@@ -34,10 +35,13 @@ class Constraint:
     lower: float | None = None
     upper: float | None = None
     scale: float | None = None
+    monitor: bool = False  # reported with its margin, but not given to the optimiser
 
     def rows(self) -> list[tuple[str, float, float]]:
-        """(kind, bound, scale) per bound: kind is 'lower' or 'upper'."""
+        """(kind, bound, scale) per bound (kind 'lower' or 'upper'); none for a monitored constraint."""
         out = []
+        if self.monitor:
+            return out
         for kind, b in (("lower", self.lower), ("upper", self.upper)):
             if b is not None:
                 out.append((kind, b, self.scale or max(abs(b), 1.0)))
@@ -170,4 +174,7 @@ def _constraint(name: str, spec: Any) -> Constraint:
     scale = _num(spec["scale"], f"{where}.scale") if "scale" in spec else None
     if scale is not None and scale <= 0:
         raise ValueError(f"{where}.scale: {scale:g} must be > 0")
-    return Constraint(str(name), lo, hi, scale)
+    monitor = spec.get("monitor", False)
+    if not isinstance(monitor, bool):
+        raise ValueError(f"{where}.monitor: {monitor!r} must be true or false")
+    return Constraint(str(name), lo, hi, scale, monitor)

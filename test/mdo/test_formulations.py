@@ -1,0 +1,110 @@
+import numpy as np
+import pytest
+from sellar import SELLAR_OBJECTIVE, SELLAR_OPTIMUM, SELLAR_PROBLEM, Failing, SellarDis1, sellar_disciplines
+
+from bev_mdo.mdo.evaluator import InProcessEvaluator
+from bev_mdo.mdo.formulations import FAIL_CONSTRAINT, FAIL_OBJECTIVE, IDF, MDF
+from bev_mdo.mdo.mda import MDA
+from bev_mdo.mdo.optimizers import run_optimizer
+from bev_mdo.mdo.problem import Problem
+
+
+class CountingEvaluator(InProcessEvaluator):
+    """Records the batch size of every call of every wave."""
+
+    def __init__(self, discs):
+        super().__init__(discs)
+        self.log = []
+
+    def evaluate(self, calls):
+        self.log.append([(n, len(next(iter(i.values())))) for n, i in calls])
+        return super().evaluate(calls)
+
+
+def make(cls, discs=None, **kw):
+    ev = CountingEvaluator(discs or sellar_disciplines())
+    return cls(Problem.from_config(SELLAR_PROBLEM), ev, MDA(ev, tolerance=1e-13), **kw), ev
+
+
+@pytest.mark.parametrize("cls", [MDF, IDF])
+def test_sellar_slsqp_reaches_known_optimum(cls):
+    form, _ = make(cls)
+    res = run_optimizer("SLSQP", form)
+    assert res.success
+    np.testing.assert_allclose(res.x[:3], list(SELLAR_OPTIMUM.values()), atol=1e-6)
+    f, g, h = form.evaluate_batch(res.x[None])
+    assert f[0] == pytest.approx(SELLAR_OBJECTIVE, rel=1e-7)
+    assert g.max() < 1e-8 and np.abs(h).max(initial=0) < 1e-8
+
+
+def test_idf_gradient_stencil_is_one_wave_with_all_points():
+    form, ev = make(IDF)
+    u = form.to_u(form.x0)
+    ev.log.clear()
+    form.gradients(u)
+    assert len(ev.log) == 1                              # one request wave
+    assert ev.log[0] == [(n, form.n + 1) for n in ("sellar1", "sellar2", "sellar_obj")]
+
+
+def test_mdf_gradient_stencil_is_one_batch_through_the_mda():
+    form, ev = make(MDF)
+    ev.log.clear()
+    form.gradients(form.to_u(form.x0))
+    assert form.n_batches == 1 and form.n_points == form.n + 1
+    assert all(size <= form.n + 1 for wave in ev.log for _, size in wave)
+    assert ev.log[0] == [("sellar1", form.n + 1)]       # first GS step carries the whole stencil
+
+
+def test_cache_serves_fun_jac_and_constraints_at_one_point():
+    form, ev = make(IDF)
+    u = form.to_u(form.x0)
+    form.jac(u)
+    n_waves = len(ev.log)
+    form.fun(u), form.ineq(u), form.eq(u), form.ineq_jac(u), form.eq_jac(u)
+    assert len(ev.log) == n_waves
+    assert form.n_gradients == 1
+
+
+def test_gradient_matches_central_differences_and_steps_back_at_upper_bound():
+    fwd, _ = make(MDF)
+    cen, _ = make(MDF, fd_scheme="central")
+    u = fwd.to_u(np.array([3.0, 10.0, 2.0]))  # z2 at its upper bound
+    df, dg, _ = fwd.gradients(u)
+    dc, dgc, _ = cen.gradients(u)
+    np.testing.assert_allclose(df, dc, rtol=1e-4)
+    np.testing.assert_allclose(dg, dgc, rtol=1e-4, atol=1e-6)
+    assert df[1] > 0  # d obj / d z2 > 0 even though the step was taken backwards
+
+
+def test_failed_point_gets_penalty_and_violated_constraints():
+    discs = sellar_disciplines()
+    discs[0] = Failing(SellarDis1(), "x", 5.0)
+    form, _ = make(MDF, discs)
+    f, g, _ = form.evaluate_batch(np.array([[2.0, 1.0, 1.0], [2.0, 1.0, 6.0]]))
+    assert np.isfinite(f[0]) and f[0] < 100
+    assert f[1] == FAIL_OBJECTIVE and (g[1] == FAIL_CONSTRAINT).all()
+    ok, err = form.status(np.array([2.0, 1.0, 6.0]))
+    assert not ok and "sellar1" in err
+
+
+def test_optimum_beside_a_failing_region_is_still_found():
+    discs = sellar_disciplines()
+    discs[0] = Failing(SellarDis1(), "x", 0.5)  # start x=1 is inside the failing region
+    form, _ = make(MDF, discs)
+    form.x0 = np.array([5.0, 2.0, 0.4])
+    res = run_optimizer("SLSQP", form)
+    np.testing.assert_allclose(res.x, list(SELLAR_OPTIMUM.values()), atol=1e-5)
+
+
+def test_batch_rejects_wrong_width():
+    form, _ = make(MDF)
+    with pytest.raises(ValueError, match="expected 3 columns"):
+        form.evaluate_batch(np.zeros((2, 5)))
+
+
+def test_scaling_maps_bounds_to_unit_box():
+    form, _ = make(MDF)
+    lo, hi = form.u_bounds
+    np.testing.assert_allclose(lo, 0.0)
+    np.testing.assert_allclose(hi, 1.0)
+    np.testing.assert_allclose(form.to_x(form.to_u(form.x0)), form.x0)

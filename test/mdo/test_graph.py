@@ -1,0 +1,53 @@
+import pytest
+
+from bev_mdo.mdo.graph import CouplingGraph
+
+BEV = [
+    ("vehicle_mass", ("motor_kw", "battery_kwh"), ("vehicle_mass_kg",)),
+    ("energy", ("vehicle_mass_kg", "gear_ratio"), ("energy_wh_per_km",)),
+    ("range", ("energy_wh_per_km", "battery_kwh"), ("range_km",)),
+    ("acceleration", ("vehicle_mass_kg", "motor_kw", "gear_ratio"), ("accel_time_0_100_s",)),
+    ("motor_speed", ("gear_ratio",), ("motor_speed_max_rad_s",)),
+    ("cost", ("motor_kw", "battery_kwh"), ("powertrain_cost_usd",)),
+]
+
+
+def test_feed_forward_waves_follow_fig_7_17():
+    g = CouplingGraph(BEV)
+    assert g.waves == [[("vehicle_mass",), ("motor_speed",), ("cost",)],
+                       [("energy",), ("acceleration",)], [("range",)]]
+    assert g.cycles == []
+    assert g.external_inputs == ["battery_kwh", "gear_ratio", "motor_kw"]
+    assert g.couplings == ["energy_wh_per_km", "vehicle_mass_kg"]
+
+
+def test_battery_sizing_makes_one_loop_and_downstream_waits():
+    spec = [(n, i, o) for n, i, o in BEV] + [("battery_sizing", ("energy_wh_per_km",), ("battery_kwh",))]
+    g = CouplingGraph(spec)
+    assert g.cycles == [("vehicle_mass", "energy", "battery_sizing")]
+    order = [c for w in g.waves for c in w]
+    assert order.index(("vehicle_mass", "energy", "battery_sizing")) < order.index(("range",))
+    assert order.index(("vehicle_mass", "energy", "battery_sizing")) < order.index(("cost",))
+    assert g.torn_inputs(("vehicle_mass", "energy", "battery_sizing")) == ["battery_kwh"]
+
+
+def test_self_loop_is_a_cycle():
+    g = CouplingGraph([("a", ("x", "y"), ("y",))])
+    assert g.cycles == [("a",)]
+
+
+def test_output_produced_twice_is_named():
+    with pytest.raises(ValueError, match="'y' is produced by both 'a' and 'b'"):
+        CouplingGraph([("a", ("x",), ("y",)), ("b", ("x",), ("y",))])
+
+
+def test_unproduced_input_is_named():
+    g = CouplingGraph([("a", ("x", "w"), ("y",))])
+    g.check_inputs({"x", "w"})
+    with pytest.raises(ValueError, match=r"'a' needs \['w'\]"):
+        g.check_inputs({"x"})
+
+
+def test_duplicate_discipline_names_rejected():
+    with pytest.raises(ValueError, match="used twice"):
+        CouplingGraph([("a", ("x",), ("y",)), ("a", ("x",), ("z",))])
