@@ -79,6 +79,16 @@ def resolve_params(params, specs: dict[str, ParamSpec], n: int) -> dict[str, np.
     return out
 
 
+def batch_size(params, specs, *arrays) -> int:
+    """N: the common length of the design arrays and any (N,) parameter overrides."""
+    sizes = {np.size(a) for a in arrays if np.ndim(a) == 1}
+    sizes |= {np.size(params[k]) for k in specs if params and k in params and np.ndim(params[k]) == 1}
+    sizes.discard(1)
+    if len(sizes) > 1:
+        raise ValueError(f"design points and parameter arrays disagree in length: {sorted(sizes)}")
+    return sizes.pop() if sizes else 1
+
+
 def check_points(name: str, values, lower: float, upper: float, unit: str) -> np.ndarray:
     """A design/coupling batch as a 1-D array (complex kept), range-checked on its real part."""
     a = np.atleast_1d(np.asarray(values))
@@ -114,7 +124,10 @@ def energy_breakdown(resampled, params, vehicle_mass_kg, gear_ratio=None, motor_
 
     ``regenerative_recovery`` is negative (it is subtracted in the total, eq 5-21)."""
     m = check_points("vehicle_mass_kg", vehicle_mass_kg, 100.0, 20000.0, "kg")
-    p = resolve_params(params, PARAM_SPECS, m.shape[0])
+    n = batch_size(params, PARAM_SPECS, m)
+    if m.shape[0] != n:
+        m = np.broadcast_to(m, (n,))
+    p = resolve_params(params, PARAM_SPECS, n)
     mo = cycle_moments(resampled)
     x, T = mo["distance_m"], mo["duration_s"]
     # per-metre energies (J/m = N)

@@ -32,7 +32,7 @@ from functools import lru_cache
 import numpy as np
 
 from . import battery as bt
-from .breakdown import check_points, resolve_params
+from .breakdown import batch_size, check_points, resolve_params
 from .motor_map import DEFAULT_MAP_CSV, MotorMap, load_motor_map_csv
 from .params import VEHICLE_SPECS, ParamSpec
 
@@ -98,12 +98,15 @@ class _Demand:
     steps: dict  # per-step (K, N) operating points, see operating_points()
 
 
-def _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw):
+def _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh=24.0):
     m = check_points("vehicle_mass_kg", vehicle_mass_kg, 100.0, 20000.0, "kg").real.astype(float)
-    n = m.shape[0]
-    ig = np.broadcast_to(check_points("gear_ratio", gear_ratio, 0.5, 50.0, "-").real.astype(float), (n,))
-    kw = np.broadcast_to(check_points("motor_kw", motor_kw, 1.0, 1000.0, "kW").real.astype(float), (n,))
+    ig = check_points("gear_ratio", gear_ratio, 0.5, 50.0, "-").real.astype(float)
+    kw = check_points("motor_kw", motor_kw, 1.0, 1000.0, "kW").real.astype(float)
+    kwh = check_points("battery_kwh", battery_kwh, 1.0, 500.0, "kWh").real.astype(float)
+    n = batch_size(params, PARAM_SPECS, m, ig, kw, kwh)
+    m, ig, kw, kwh = (np.broadcast_to(a, (n,)) for a in (m, ig, kw, kwh))
     p = {k: np.real(v).astype(float) for k, v in resolve_params(params, PARAM_SPECS, n).items()}
+    p["battery_kwh"] = kwh
     gc = np.asarray(p["gear_count"])
     if np.any((gc != 1.0) & (gc != 2.0)):
         raise ValueError(f"gear_count must be 1 or 2, got {gc.reshape(-1)[(gc.reshape(-1) != 1) & (gc.reshape(-1) != 2)][0]:g}")
@@ -115,6 +118,8 @@ def _demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> _Demand:
     v = np.asarray(cycle.speed_m_s, float)
     dt = np.diff(t)[:, None]
     v_bar = 0.5 * (v[1:] + v[:-1])[:, None]  # 6-50
+    if not np.sum(v_bar[:, 0] * dt[:, 0]) > 0:
+        raise ValueError(f"drive cycle {getattr(cycle, 'name', '?')} has zero distance")
     a_bar = np.diff(v)[:, None] / dt  # 6-51
     two = p["gear_count"] == 2.0
     mass = m + np.where(two, p["two_speed_added_mass_kg"], 0.0)
@@ -160,9 +165,8 @@ def operating_points(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, *
 class _Battery:
     """Per-point battery state stepping in time (2-9..2-15) with the §2.3.4 charge rules."""
 
-    def __init__(self, battery_kwh, p, n):
-        kwh = check_points("battery_kwh", battery_kwh, 1.0, 500.0, "kWh").real.astype(float)
-        self.pack = bt.pack_for_energy(np.broadcast_to(kwh, (n,)), p["cells_series"])
+    def __init__(self, p, n):
+        self.pack = bt.pack_for_energy(p["battery_kwh"], p["cells_series"])
         cap_ah = self.pack.capacity_ah
         self.q_c = self.pack.capacity_c
         self.i_chg_max = p["charge_c_max"] * cap_ah
@@ -191,10 +195,10 @@ class _Battery:
 def simulate(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh=24.0,
              *, motor_map: MotorMap | None = None) -> QuasiStaticResult:
     """One pass over the cycle from ``initial_soc``; everything per design point (N,)."""
-    m, ig, kw, p = _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw)
+    m, ig, kw, p = _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh)
     d = _demand(resampled, p, m, ig, kw, motor_map or default_map())
     n = m.shape[0]
-    batt = _Battery(battery_kwh, p, n)
+    batt = _Battery(p, n)
     soc = np.broadcast_to(p["initial_soc"], (n,)).astype(float)
     energy = np.zeros(n)
     regen = np.zeros(n)
@@ -221,10 +225,10 @@ def range_by_repeated_cycle_km(resampled, params, vehicle_mass_kg, gear_ratio, m
 
     The crossing is interpolated linearly inside the step. Points still above
     ``final_soc`` after ``max_repeats`` cycles get ``inf``."""
-    m, ig, kw, p = _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw)
+    m, ig, kw, p = _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh)
     d = _demand(resampled, p, m, ig, kw, motor_map or default_map())
     n = m.shape[0]
-    batt = _Battery(battery_kwh, p, n)
+    batt = _Battery(p, n)
     soc = np.ones(n)
     stop = np.broadcast_to(p["final_soc"], (n,))
     rng = np.full(n, np.inf)

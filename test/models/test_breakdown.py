@@ -153,5 +153,11 @@ def test_bad_parameter_names_range(nedc, name, value):
 def test_bad_mass_and_shape(nedc):
     with pytest.raises(ValueError, match=r"vehicle_mass_kg must be in \["):
         bd.energy_breakdown(nedc, {}, -5.0)
-    with pytest.raises(ValueError, match="drag_area_m2 must be a scalar or an array of shape"):
+    with pytest.raises(ValueError, match="disagree in length"):
         bd.energy_breakdown(nedc, {"drag_area_m2": np.ones(3) * 0.6}, np.ones(2) * 1500)
+
+
+def test_parameter_array_with_scalar_mass_broadcasts(nedc):
+    e = bd.energy_wh_per_km(nedc, {"regen_fraction": np.array([0.0, 0.4])}, 1590.0, 8.0, 80.0)
+    assert e.shape == (2,)
+    assert e[0] > e[1]
