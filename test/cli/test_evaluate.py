@@ -1,0 +1,71 @@
+import json
+from pathlib import Path
+
+import pytest
+
+from bev_mdo.cli import main
+from bev_mdo.cli.evaluate import parse_assignments
+
+ROOT = Path(__file__).resolve().parents[2]
+LEAF = ROOT / "config" / "leaf_nedc.yaml"
+pytestmark = pytest.mark.skipif(not LEAF.exists(), reason="leaf config not written yet")
+
+
+def run(capsys, *argv):
+    code = main(["evaluate", *map(str, argv)])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_json_schema_of_the_nominal_leaf(capsys):
+    code, out, _ = run(capsys, LEAF, "--set", "motor_kw=80,gear_ratio=8", "battery_kwh=24", "--json")
+    assert code == 0
+    doc = json.loads(out)
+    assert doc["design"] == {"motor_kw": 80.0, "gear_ratio": 8.0, "battery_kwh": 24.0}
+    assert set(doc["outputs"]) >= {"vehicle_mass_kg", "energy_wh_per_km", "range_km", "accel_time_0_100_s",
+                                   "motor_speed_max_rad_s", "powertrain_cost_usd"}
+    assert doc["objective"] == {"name": "energy_wh_per_km", "value": doc["outputs"]["energy_wh_per_km"]}
+    assert set(doc["constraints"]) == {"range_km", "motor_speed_max_rad_s", "accel_time_0_100_s"}
+    for c in doc["constraints"].values():
+        assert set(c) == {"value", "lower", "upper", "margin", "satisfied"}
+    r = doc["constraints"]["range_km"]
+    assert r["margin"] == pytest.approx(r["value"] - 170.0) and r["satisfied"] is (r["margin"] >= 0)
+    assert doc["feasible"] is all(c["satisfied"] for c in doc["constraints"].values())
+
+
+def test_table_shows_outputs_margins_and_feasibility(capsys):
+    code, out, _ = run(capsys, LEAF, "--set", "gear_ratio=11")
+    assert code == 0
+    assert "motor_speed_max_rad_s" in out and "margin" in out and "feasible: NO" in out
+
+
+def test_parameter_override_changes_energy(capsys):
+    _, base, _ = run(capsys, LEAF, "--json")
+    _, more, _ = run(capsys, LEAF, "--set", "drag_area_m2=0.8", "--json")
+    assert json.loads(more)["outputs"]["energy_wh_per_km"] > json.loads(base)["outputs"]["energy_wh_per_km"]
+
+
+@pytest.mark.parametrize("argv,msg", [
+    (["--set", "motor_kw"], "--set 'motor_kw' must be NAME=VALUE"),
+    (["--set", "motor_kw=fast"], "value must be a number"),
+    (["--set", "warp=1"], "unknown design names ['warp']"),
+])
+def test_bad_input_is_one_line_exit_2(capsys, argv, msg):
+    code, _, err = run(capsys, LEAF, *argv)
+    assert code == 2 and msg in err and err.count("\n") == 1
+
+
+def test_missing_config_exit_2(capsys, tmp_path):
+    code, _, err = run(capsys, tmp_path / "nope.yaml")
+    assert code == 2 and "no such config file" in err
+
+
+def test_ros_flag_without_transport_is_a_usage_error(capsys, monkeypatch):
+    import sys
+    monkeypatch.setitem(sys.modules, "bev_mdo.ros.evaluator", None)  # as if not importable
+    code, _, err = run(capsys, LEAF, "--ros")
+    assert code == 2 and "--ros needs the ROS transport" in err
+
+
+def test_parse_assignments_merges_commas_and_spaces():
+    assert parse_assignments(["a=1,b=2", "c=-3e2", "d=4,"]) == {"a": 1.0, "b": 2.0, "c": -300.0, "d": 4.0}

@@ -1,0 +1,122 @@
+import copy
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from bev_mdo.config import discipline_entries, load_config, resolve_disciplines
+
+ROOT = Path(__file__).resolve().parent
+SELLAR = ROOT / "data" / "sellar.yaml"
+LEAF = ROOT.parent / "config" / "leaf_nedc.yaml"
+sys.path.insert(0, str(ROOT / "mdo"))  # toy disciplines: sellar:SellarDis1
+
+
+def sellar_raw():
+    return yaml.safe_load(SELLAR.read_text())
+
+
+def test_sellar_config_resolves_user_classes_and_defaults():
+    cfg = load_config(SELLAR)
+    assert [d.name for d in resolve_disciplines(cfg)] == ["sellar1", "sellar2", "sellar_obj"]
+    assert discipline_entries(cfg)[0] == {"name": "sellar1", "class": "sellar:SellarDis1", "options": {}}
+    assert cfg["optimizer"]["fd_scheme"] == "forward" and cfg["ros"] == {} and cfg["energy_model"] == "flat"
+
+
+def edit(path, value):
+    raw = sellar_raw()
+    node = raw
+    for k in path[:-1]:
+        node = node[k]
+    if value is DELETE:
+        del node[path[-1]]
+    else:
+        node[path[-1]] = value
+    return raw
+
+
+DELETE = object()
+BAD = [
+    (("colour",), "red", r"unknown top-level keys \['colour'\]"),
+    (("formulation",), "bliss", "formulation 'bliss' is unknown; allowed: mdf, idf"),
+    (("mda", "method"), "newton", "mda.method 'newton' is unknown; allowed: gauss_seidel, jacobi"),
+    (("mda", "relaxation"), 3.0, r"mda.relaxation 3.0 must be in \(0, 2\]"),
+    (("mda", "max_iterations"), 0, "mda.max_iterations 0 must be an integer >= 1"),
+    (("optimizer", "name"), "newton", "optimizer 'newton' is unknown; allowed: SLSQP"),
+    (("optimizer", "fd_scheme"), "backward", "optimizer.fd_scheme 'backward' is unknown"),
+    (("optimizer", "tol"), 1, r"optimizer: unknown keys \['tol'\]"),
+    (("energy_model",), "magic", "energy_model 'magic' is unknown; allowed: flat, breakdown, quasi_static"),
+    (("problem", "objective"), "cost", "problem.objective 'cost' is not produced by any discipline"),
+    (("problem", "constraints", "y3"), {"upper": 1}, "problem.constraints.y3: no discipline produces it"),
+    (("problem", "constraints", "y1"), {"lower": 5, "upper": 1}, "problem.constraints.y1: lower 5 > upper 1"),
+    (("problem", "design_variables", "w"), {"lower": 0, "upper": 1}, "problem.design_variables.w: no discipline consumes it"),
+    (("problem", "design_variables", "x", "lower"), 20, r"problem.design_variables.x: bounds must be finite with lower < upper \(got lower 20, upper 10\)"),
+    (("problem", "design_variables", "x", "initial"), 11, r"problem.design_variables.x.initial: 11 is outside the bounds \[0, 10\]"),
+    (("problem", "design_variables", "x", "step"), 1, r"problem.design_variables.x: unknown keys \['step'\]"),
+    (("problem", "design_variables", "x"), DELETE, r"'sellar1' needs \['x'\]"),
+    (("problem", "design_variables", "y1"), {"lower": 0, "upper": 1}, "problem.design_variables.y1: it is also produced by discipline 'sellar1'"),
+    (("disciplines", 0, "class"), "sellar:Nope", "module 'sellar' has no class 'Nope'"),
+    (("disciplines", 0, "class"), "no_such_mod_q:Nope", "cannot import module 'no_such_mod_q'"),
+    (("disciplines", 0, "options"), {"speed": 1}, r"disciplines\[0\] \(sellar1\): cannot build SellarDis1"),
+    (("disciplines", 2, "name"), "sellar1", "discipline names \\['sellar1'\\] are used twice"),
+]
+
+
+@pytest.mark.parametrize("path,value,msg", BAD, ids=[".".join(map(str, p)) for p, _, _ in BAD])
+def test_bad_config_is_one_line_naming_file_and_key(tmp_path, path, value, msg):
+    f = tmp_path / "bad.yaml"
+    f.write_text(yaml.safe_dump(edit(path, value)))
+    with pytest.raises(ValueError, match=msg) as info:
+        load_config(f)
+    text = str(info.value)
+    assert text.startswith(f"{f}: ") and "\n" not in text
+
+
+def test_missing_file_and_bad_yaml(tmp_path):
+    with pytest.raises(ValueError, match="no such config file"):
+        load_config(tmp_path / "none.yaml")
+    (tmp_path / "x.yaml").write_text("a: [1, 2\n")
+    with pytest.raises(ValueError, match="not valid YAML at line"):
+        load_config(tmp_path / "x.yaml")
+
+
+def test_mapping_input_is_not_mutated():
+    raw = sellar_raw()
+    before = copy.deepcopy(raw)
+    load_config(raw)
+    assert raw == before
+
+
+@pytest.mark.skipif(not LEAF.exists(), reason="leaf config not written yet")
+class TestLeaf:
+    def test_default_config_loads_with_builtins(self):
+        cfg = load_config(LEAF)
+        names = [d.name for d in resolve_disciplines(cfg)]
+        assert names == ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]
+        assert cfg["cycle"]["name"] == "nedc"
+
+    def test_vehicle_section_is_checked_by_the_models(self, tmp_path):
+        raw = yaml.safe_load(LEAF.read_text())
+        raw["vehicle"]["warp_drive"] = 1
+        with pytest.raises(ValueError, match="vehicle: unknown vehicle parameter"):
+            load_config(raw)
+
+    def test_battery_sized_mode_moves_battery_to_a_coupling(self):
+        raw = yaml.safe_load(LEAF.read_text())
+        raw["problem"]["battery_sized_for_range"] = True
+        cfg = load_config(raw)
+        assert list(cfg["problem"]["design_variables"]) == ["motor_kw", "gear_ratio"]
+        assert cfg["problem"]["coupling_guesses"] == {"battery_kwh": 24}
+        assert cfg["problem"]["constraints"]["range_km"]["monitor"] is True
+        assert "battery_sizing" in [d.name for d in resolve_disciplines(cfg)]
+
+    def test_builtin_listed_by_name_with_options(self):
+        raw = yaml.safe_load(LEAF.read_text())
+        raw["problem"]["battery_sized_for_range"] = True
+        raw["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost",
+                              {"name": "battery_sizing", "options": {"range_target_km": 200}}]
+        cfg = load_config(raw)
+        sizing = resolve_disciplines(cfg)[-1]
+        assert sizing.range_target_km == 200
+        assert discipline_entries(cfg)[-1]["options"] == {"range_target_km": 200}
