@@ -145,13 +145,41 @@ class DisciplineNode(Node):
         self._result_pub.publish(out)
 
 
+def serve(node: DisciplineNode, idle_s: float = 0.1, service_every: int = 64) -> None:
+    """Serve requests until the context shuts down.
+
+    Requests are taken straight from the subscription (fastwait); the node's other
+    entities (parameter services) are spun when idle and every `service_every` requests.
+    """
+    from rclpy.executors import SingleThreadedExecutor
+
+    from bev_mdo.ros.fastwait import SubscriptionWaiter
+
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    waiter = SubscriptionWaiter(node._sub, node.context)
+    served = 0
+    try:
+        while node.context.ok():
+            n = waiter.take_all(node._on_request)
+            served += n
+            if n == 0:
+                if not waiter.wait(idle_s):
+                    executor.spin_once(timeout_sec=0.0)
+            elif served >= service_every:
+                served = 0
+                executor.spin_once(timeout_sec=0.0)
+    finally:
+        executor.shutdown()
+
+
 def main(args: list[str] | None = None, discipline: str | None = None) -> int:
     """Run a discipline node until Ctrl-C / SIGTERM."""
     rclpy.init(args=args)
     node = None
     try:
         node = DisciplineNode(discipline)
-        rclpy.spin(node)
+        serve(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except ValueError as exc:

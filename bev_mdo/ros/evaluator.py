@@ -24,6 +24,7 @@ from rclpy.node import Node
 from bev_mdo.mdo.discipline import EvalResult
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.ros import wire
+from bev_mdo.ros.fastwait import SubscriptionWaiter
 from bev_mdo.ros.common import INFO_QOS, INFO_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, request_topic, stamp
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
 
@@ -64,6 +65,7 @@ class RosEvaluator:
         self._executor.add_node(node)
         self._result_sub = node.create_subscription(EvaluationResult, RESULT_TOPIC, self._on_result, RESULT_QOS)
         self._info_sub = node.create_subscription(DisciplineInfo, INFO_TOPIC, self._on_info, INFO_QOS)
+        self._waiter = SubscriptionWaiter(self._result_sub, node.context)
 
     # -- discovery -----------------------------------------------------------------
     def _on_info(self, msg: DisciplineInfo) -> None:
@@ -176,8 +178,10 @@ class RosEvaluator:
             self._send(p)
         for attempt in range(self.retries + 1):
             deadline = time.monotonic() + self.timeout_s
+            self._waiter.take_all(self._on_result)
             while self._pending and time.monotonic() < deadline:
-                self._executor.spin_once(timeout_sec=max(0.0, deadline - time.monotonic()))
+                self._waiter.wait(deadline - time.monotonic())
+                self._waiter.take_all(self._on_result)
             if not self._pending:
                 break
             if attempt < self.retries:

@@ -1,0 +1,164 @@
+"""Latency and throughput of the ROS transport (issue 4 benchmarks).
+
+  . scripts/env.sh && python bench/bench_ros.py [--n 2000] [--json FILE]
+
+Measures, on this host, every process localhost-only on its own domain:
+  1. raw rclpy ping-pong: one EvaluationRequest out, one EvaluationResult back, over topics;
+  2. latency of one full multidisciplinary evaluation (one design point, three waves,
+     six discipline processes), p50 and p99;
+  3. batched throughput: design evaluations per second with large batches;
+  4. the in-process MDA of the same point, for reference.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+DOMAIN = 61
+
+ECHO = textwrap.dedent(
+    """
+    import rclpy
+    from rclpy.node import Node
+    from bev_mdo.ros.common import REQUEST_QOS, RESULT_QOS
+    from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult
+    rclpy.init()
+    node = Node("bench_echo")
+    pub = node.create_publisher(EvaluationResult, "/bench/pong", RESULT_QOS)
+    def on(msg):
+        out = EvaluationResult(); out.run_id = msg.run_id; out.evaluation_id = msg.evaluation_id
+        out.outputs = msg.inputs
+        pub.publish(out)
+    node.create_subscription(EvaluationRequest, "/bench/ping", on, REQUEST_QOS)
+    try:
+        rclpy.spin(node)
+    except BaseException:
+        pass
+    """
+)
+
+
+def pct(a, q):
+    return float(np.percentile(np.asarray(a) * 1e6, q))
+
+
+def ping_pong(ctx, env, n):
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from bev_mdo.ros import wire
+    from bev_mdo.ros.common import REQUEST_QOS, RESULT_QOS
+    from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult
+
+    child = subprocess.Popen([sys.executable, "-c", ECHO], env=env)
+    node = Node("bench_ping", context=ctx)
+    got = []
+    pub = node.create_publisher(EvaluationRequest, "/bench/ping", REQUEST_QOS)
+    sub = node.create_subscription(EvaluationResult, "/bench/pong", lambda m: got.append(m), RESULT_QOS)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    while pub.get_subscription_count() < 1 or sub.get_publisher_count() < 1:
+        ex.spin_once(timeout_sec=0.05)
+    req = EvaluationRequest()
+    wire.to_named_array({"motor_kw": np.array([80.0]), "gear_ratio": np.array([8.0])}, req.inputs)
+    lat = []
+    for i in range(n + 50):
+        got.clear()
+        req.evaluation_id = i
+        t0 = time.perf_counter()
+        pub.publish(req)
+        while not got:
+            ex.spin_once(timeout_sec=1.0)
+        if i >= 50:
+            lat.append(time.perf_counter() - t0)
+    child.terminate()
+    child.wait()
+    ex.shutdown()
+    node.destroy_node()
+    return lat
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=2000, help="round trips / evaluations per latency figure")
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args()
+    os.environ["ROS_DOMAIN_ID"] = str(DOMAIN)
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    import rclpy
+
+    from bev_mdo.config import load_config, resolve_disciplines
+    from bev_mdo.mdo.driver import build_formulation
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
+    from bev_mdo.ros.launch import Launcher, discipline_argv
+    from bev_mdo.testing import ros_env
+
+    cfg_path = str(REPO / "config" / "leaf_nedc.yaml")
+    config = load_config(cfg_path)
+    env = ros_env(DOMAIN)
+    figures = {}
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    launcher = Launcher(env)
+    try:
+        lat = ping_pong(ctx, env, args.n)
+        figures["raw_ping_pong_us"] = {"p50": pct(lat, 50), "p99": pct(lat, 99), "n": len(lat)}
+        for name in discipline_names(config):
+            launcher.add(name, discipline_argv(name, cfg_path))
+        node = CoordinatorNode(config, context=ctx, node_name="bench_coordinator")
+        node.evaluator.wait_for_disciplines(discipline_names(config), 60.0)
+        form = build_formulation(config, node.evaluator)
+        x = form.x0[None, :]
+        for _ in range(50):
+            form.analyse(x)
+        lat = []
+        for _ in range(args.n):
+            t0 = time.perf_counter()
+            form.analyse(x)
+            lat.append(time.perf_counter() - t0)
+        figures["ros_mda_one_point_us"] = {"p50": pct(lat, 50), "p99": pct(lat, 99), "n": len(lat),
+                                           "waves": 3, "processes": len(launcher.nodes)}
+        rng = np.random.default_rng(0)
+        lo, hi = form.lower, form.upper
+        for n in (1_000, 10_000, 100_000):
+            X = lo + (hi - lo) * rng.random((n, len(lo)))
+            form.analyse(X)
+            reps = []
+            for _ in range(5):
+                t0 = time.perf_counter()
+                res = form.analyse(X)
+                reps.append(time.perf_counter() - t0)
+            assert res.ok.all()
+            figures[f"ros_batch_{n}_designs_per_s"] = n / float(np.median(reps))
+        node.evaluator.close()
+        node.destroy_node()
+        local = build_formulation(config, InProcessEvaluator(resolve_disciplines(config)))
+        lat = []
+        for _ in range(args.n):
+            t0 = time.perf_counter()
+            local.analyse(x)
+            lat.append(time.perf_counter() - t0)
+        figures["inprocess_mda_one_point_us"] = {"p50": pct(lat, 50), "p99": pct(lat, 99)}
+    finally:
+        launcher.stop()
+        rclpy.shutdown(context=ctx)
+    print(json.dumps(figures, indent=2))
+    if args.json:
+        Path(args.json).write_text(json.dumps(figures, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,41 @@
+"""A lean wait on one subscription, for the hot path of an evaluation.
+
+rclpy's executors rebuild a wait set over every entity of a node (parameter
+services included) and dispatch through coroutines on each `spin_once`; measured
+here that is about 1 ms per call, several times the DDS round trip. This waits on
+a single subscription with rcl's wait set and takes messages directly, the way
+`rclpy.wait_for_message` does. Everything else of the node is still spun by its
+executor when idle.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+
+class SubscriptionWaiter:
+    """Take every pending message of one subscription; block until one arrives."""
+
+    def __init__(self, subscription, context):
+        self.sub = subscription
+        self._ws = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, context.handle)
+
+    def take_all(self, handle: Callable) -> int:
+        """Call `handle(msg)` for every message already received; returns how many."""
+        n = 0
+        while True:
+            with self.sub.handle:
+                got = self.sub.handle.take_message(self.sub.msg_type, self.sub.raw)
+            if got is None:
+                return n
+            handle(got[0])
+            n += 1
+
+    def wait(self, timeout_s: float) -> bool:
+        """Block until a message is ready or `timeout_s` passes; True if one is ready."""
+        self._ws.clear_entities()
+        with self.sub.handle:
+            self._ws.add_subscription(self.sub.handle)
+            self._ws.wait(max(0, int(timeout_s * 1e9)))
+        return bool(self._ws.get_ready_entities("subscription"))
