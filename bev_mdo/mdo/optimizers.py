@@ -45,7 +45,8 @@ def _slsqp(form, options: Mapping[str, Any], callback):
 
 
 def _trust_constr(form, options, callback):
-    opts = {"maxiter": 500, "gtol": 1e-9, "xtol": 1e-10, **options}
+    opts = {"maxiter": 500, "gtol": 1e-10, "xtol": 1e-10, "initial_barrier_parameter": 1e-5,
+            "initial_barrier_tolerance": 1e-5, **options}  # small barrier: optima sit on bounds
     cons = []
     if form.ineq_labels:
         cons.append(NonlinearConstraint(lambda u: -form.ineq(u), -np.inf, 0.0,
@@ -61,6 +62,8 @@ def _derivative_free(method: str):
         opts = {"maxiter": 2000, **options}
         if method == "COBYLA":
             opts = {"tol": 1e-10, "rhobeg": 0.1, **opts}
+        else:
+            opts = {"initial_tr_radius": 0.1, "final_tr_radius": 1e-8, **opts}
         cons = []
         if form.ineq_labels:
             cons.append({"type": "ineq", "fun": form.ineq})

@@ -63,8 +63,8 @@ def test_every_optimizer_finds_the_mdf_optimum(config, mdf, opt):
     res = run_optimization(config, InProcessEvaluator(resolve_disciplines(config)), optimizer=opt)
     assert res.feasible
     for k, v in mdf.design.items():
-        assert res.design[k] == pytest.approx(v, rel=2e-3), k
-    assert res.objective == pytest.approx(mdf.objective, rel=1e-4)
+        assert res.design[k] == pytest.approx(v, rel=1e-4), k
+    assert res.objective == pytest.approx(mdf.objective, rel=1e-6)
 
 
 def sized_config(method="gauss_seidel"):
