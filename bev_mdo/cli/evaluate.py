@@ -41,9 +41,9 @@ def parse_assignments(items: list[str]) -> dict[str, float]:
 def _evaluator(config, use_ros: bool):
     if use_ros:
         try:
-            from bev_mdo.ros.evaluator import make_ros_evaluator
+            from bev_mdo.ros.client import make_ros_evaluator
         except ImportError:
-            raise UsageError("--ros needs the ROS transport (bev_mdo.ros.evaluator.make_ros_evaluator)") from None
+            raise UsageError("--ros needs the ROS transport (rclpy and bev_mdo_msgs)") from None
         return make_ros_evaluator(config)
     from bev_mdo.config import resolve_disciplines
     from bev_mdo.mdo.evaluator import InProcessEvaluator

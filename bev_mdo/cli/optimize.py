@@ -159,16 +159,9 @@ def _run_ros(config, args, show):
 
 
 def _start_recorder(launcher, bag: Path, resolved: Path, run_id: str) -> int:
-    """Start the recorder node if it is available; returns how many subscribers it adds per topic."""
-    import importlib.util
-    import sys as _sys
-
-    if importlib.util.find_spec("bev_mdo.ros.recorder_node") is None:
-        return 0
-    from bev_mdo.ros.recorder_node import recorder_argv
-
-    launcher.add("recorder", [_sys.executable, "-m", "bev_mdo.ros.run", "recorder_node",
-                              *recorder_argv(bag=str(bag), config=str(resolved.resolve()), run_id=run_id)])
+    """Start the recorder node; returns how many extra subscribers it adds per topic."""
+    launcher.add("recorder", [sys.executable, "-m", "bev_mdo.ros.run", "recorder_node", "--output", str(bag),
+                              "--config", str(resolved.resolve()), "--run-id", run_id])
     return 1
 
 

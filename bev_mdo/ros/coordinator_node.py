@@ -19,7 +19,7 @@ from rclpy.node import Node
 from rcl_interfaces.msg import ParameterDescriptor
 
 from bev_mdo.ros import wire
-from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC, stamp
+from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, stamp
 from bev_mdo.ros.evaluator import RosEvaluator
 from bev_mdo.ros.settings import validate_ros
 from bev_mdo_msgs.msg import IterationRecord
@@ -73,14 +73,14 @@ class CoordinatorNode(Node):
         msg.wall_time_s = float(rec.get("wall_time_s", 0.0))
         self._iteration_pub.publish(msg)
 
-    def wait_for_iteration_subscribers(self, n: int, wait_s: float) -> bool:
-        """Wait until `n` subscribers (e.g. the recorder) matched the iteration topic."""
+    def wait_for_recorder(self, n: int, wait_s: float) -> None:
+        """Wait until `n` recorders subscribed to the iteration and result topics, so nothing is lost."""
         deadline = time.monotonic() + wait_s
-        while self._iteration_pub.get_subscription_count() < n:
+        while (self._iteration_pub.get_subscription_count() < n
+               or self.count_subscribers(RESULT_TOPIC) < 1 + n):
             if time.monotonic() > deadline:
-                return False
-            self.evaluator._executor.spin_once(timeout_sec=0.05)
-        return True
+                raise ValueError(f"the recorder did not subscribe within {wait_s:g} s")
+            time.sleep(0.02)  # graph polling; matching happens in DDS threads
 
 
 def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: str | None = None,
@@ -95,7 +95,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         names = discipline_names(config)
         node.evaluator.wait_for_disciplines(names, node.discovery_wait_s, extra_subscribers=recorder_subscribers)
         if recorder_subscribers:
-            node.wait_for_iteration_subscribers(recorder_subscribers, node.discovery_wait_s)
+            node.wait_for_recorder(recorder_subscribers, node.discovery_wait_s)
 
         def callback(rec: dict) -> None:
             node.publish_iteration(rec)

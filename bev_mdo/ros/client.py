@@ -1,0 +1,62 @@
+"""A ROS evaluator for one-off use from the command line (`evaluate --ros`, `sensitivity --ros`).
+
+It joins the config's ROS domain (localhost discovery unless the config opts in to
+more), waits for every discipline of the config to be discovered, and releases its
+own rclpy context on close().
+"""
+from __future__ import annotations
+
+import os
+from typing import Any, Mapping
+
+
+def apply_ros_environment(ros: Mapping[str, Any]) -> None:
+    """Put the config's domain and discovery settings into this process's environment (before rclpy.init)."""
+    from bev_mdo.ros.settings import ros_environment
+
+    env = ros_environment(ros)
+    for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER"):
+        if k in env:
+            os.environ[k] = env[k]
+        else:
+            os.environ.pop(k, None)
+
+
+class _OwnedRosEvaluator:
+    """A RosEvaluator plus the context and node it runs on."""
+
+    def __init__(self, config: Mapping[str, Any], node_name: str):
+        import rclpy
+
+        from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
+        from bev_mdo.ros.settings import validate_ros
+
+        ros = validate_ros(config.get("ros"))
+        apply_ros_environment(ros)
+        self._ctx = rclpy.context.Context()
+        rclpy.init(context=self._ctx)
+        try:
+            self._node = CoordinatorNode(config, context=self._ctx, node_name=node_name)
+            self._inner = self._node.evaluator
+            self._inner.wait_for_disciplines(discipline_names(config), ros["discovery_wait_s"])
+        except BaseException:
+            rclpy.shutdown(context=self._ctx)
+            raise
+        self.specs = self._inner.specs
+        self.counts = self._inner.counts
+
+    def evaluate(self, calls):
+        return self._inner.evaluate(calls)
+
+    def close(self) -> None:
+        import rclpy
+
+        if self._ctx.ok():
+            self._inner.close()
+            self._node.destroy_node()
+            rclpy.shutdown(context=self._ctx)
+
+
+def make_ros_evaluator(config: Mapping[str, Any], node_name: str = "bev_mdo_client"):
+    """An evaluator over the running discipline nodes of `config` (raises naming any missing one)."""
+    return _OwnedRosEvaluator(config, node_name)
