@@ -182,6 +182,12 @@ def main(args: list[str] | None = None, discipline: str | None = None) -> int:
         serve(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception as exc:  # an rcl call racing the shutdown of a signalled context is a normal stop
+        if node is None or node.context.ok():
+            if isinstance(exc, ValueError):
+                print(f"{discipline or 'discipline_node'}: error: {exc}", file=sys.stderr)
+                return 2
+            raise
     except ValueError as exc:
         print(f"{discipline or 'discipline_node'}: error: {exc}", file=sys.stderr)
         return 2
