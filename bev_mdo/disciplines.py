@@ -3,6 +3,15 @@
 Each reads ``config["vehicle"]`` (validated by models.params), ``config["cycle"]`` and
 ``config["energy_model"]``. ``parameters`` maps the model constants a caller may override
 per point (by sending an input column of the same name) to their configured values.
+
+Topology (thesis ch.4, models/topology.py): the option ``topology`` (SM-SA | DM-DA | IWM-SA |
+IWM-DA, default SM-SA) of vehicle_mass, energy, acceleration, cost and cycle_range; every
+entry that sets it must agree, and the problem's design variables must exist in it
+(``gear_ratio`` is not one of IWM-*, ``motor_rear_kw`` not one of *-SA). Two-axle topologies
+take ``motor_rear_kw`` (and DM-DA ``gear_ratio_rear``); non-SM-SA needs energy_model
+quasi_static. The two-speed gearbox's 20 kg (``two_speed_added_mass_kg``) is added ONCE, by
+vehicle_mass; energy and cycle_range pass 0 to the quasi-static model so that mass, energy,
+range and acceleration all see the same vehicle mass.
 """
 from __future__ import annotations
 
@@ -13,6 +22,7 @@ import numpy as np
 
 from bev_mdo.mdo.discipline import Discipline
 from bev_mdo.models import acceleration, cost, flat, mass, motor_speed, range as range_model
+from bev_mdo.models import topology as topo_model
 from bev_mdo.models.cycles import load_cycle, resample
 from bev_mdo.models.params import validate_cycle, validate_vehicle, vehicle_choice
 
@@ -28,6 +38,35 @@ def _resampled(config: Mapping[str, Any]):
     return resample(load_cycle(c["name"]), c["dt_s"], c["interpolation"], c["smoothing"])
 
 
+TOPOLOGY_DISCIPLINES = ("vehicle_mass", "energy", "acceleration", "cost", "cycle_range")
+
+
+def _topology(config: Mapping[str, Any], options: Mapping[str, Any]) -> topo_model.Topology:
+    """The run's topology from the discipline options (or ``vehicle.topology`` if the vehicle
+    schema allows it); all entries must agree and the design variables must exist in it."""
+    chosen = set()
+    for e in config.get("disciplines") or []:
+        if isinstance(e, Mapping) and isinstance(e.get("options"), Mapping) and "topology" in e["options"]:
+            chosen.add(topo_model.get_topology(e["options"]["topology"]).name)
+    vt = (config.get("vehicle") or {}).get("topology")
+    if vt is not None:
+        chosen.add(topo_model.get_topology(vt).name)
+    if len(chosen) > 1:
+        raise ValueError(f"disciplines disagree on the topology: {sorted(chosen)}; set one topology for all")
+    name = options.get("topology") or (chosen.pop() if chosen else "SM-SA")
+    t = topo_model.get_topology(name)
+    dvs = ((config.get("problem") or {}).get("design_variables") or {})
+    topo_model.check_design_variables(t, list(dvs))
+    return t
+
+
+def _topology_inputs(t: topo_model.Topology, *, gear: bool = True) -> tuple[str, ...]:
+    out = ["motor_kw"] + (["gear_ratio"] if t.geared and gear else [])
+    if t.two_axles:
+        out += ["motor_rear_kw"] + (["gear_ratio_rear"] if t.geared and gear else [])
+    return tuple(out)
+
+
 class _Base(Discipline):
     """Holds the configured parameter values and merges per-point overrides."""
 
@@ -39,46 +78,71 @@ class _Base(Discipline):
 
 
 class VehicleMass(_Base):
-    """motor_kw, battery_kwh -> vehicle_mass_kg (eq 7-19 or ch.3 compounding)."""
+    """motor_kw, battery_kwh (, motor_rear_kw) -> vehicle_mass_kg (eq 7-19 or ch.3 compounding;
+    Table 4-2 motor unit of the topology; + 20 kg with a two-speed gearbox, §3.7)."""
 
     name = "vehicle_mass"
-    inputs = ("motor_kw", "battery_kwh")
     outputs = ("vehicle_mass_kg",)
     _NAMES = {"ch7": ("glider_kg", "load_kg", "motor_kg_per_kw", "motor_base_kg", "battery_kg_per_kwh"),
               "compounding": ("load_kg", "kerb_reference_kg", "reference_motor_kw", "reference_battery_kwh",
                               "mass_compounding", "motor_kg_per_kw", "motor_base_kg", "battery_kg_per_kwh")}
+    _TOPO = {"SM-SA": ("gear_count", "two_speed_added_mass_kg"), "DM-DA": ("dm_da_transmission_kg",),
+             "IWM-SA": ("iwm_mass_factor",), "IWM-DA": ("iwm_mass_factor",)}
 
-    def __init__(self, parameters: Mapping[str, float], mass_model: str = "ch7"):
+    def __init__(self, parameters: Mapping[str, float], mass_model: str = "ch7", topology: str = "SM-SA"):
         super().__init__(parameters)
         self.mass_model = mass_model
+        self.topology = topo_model.get_topology(topology)
+        self.inputs = ("motor_kw", "battery_kwh") + (("motor_rear_kw",) if self.topology.two_axles else ())
 
     @classmethod
     def from_config(cls, config, options):
         v = _vehicle(config)
         model = options.get("mass_model") or vehicle_choice(config.get("vehicle"), "mass_model")
-        return cls({k: v[k] for k in cls._NAMES[model]}, model)
+        t = _topology(config, options)
+        names = cls._NAMES[model] + tuple(k for k in cls._TOPO[t.name] if k in v)
+        if t.name != "SM-SA":
+            names += ("reference_motor_kw",)
+        return cls({k: v[k] for k in dict.fromkeys(names)}, model, t.name)
 
     def compute(self, inputs):
-        m = mass.vehicle_mass_kg(inputs["motor_kw"], inputs["battery_kwh"], self._params(inputs), self.mass_model)
+        m = topo_model.vehicle_mass_kg(self.topology, inputs["motor_kw"], inputs["battery_kwh"],
+                                       self._params(inputs), self.mass_model, inputs.get("motor_rear_kw"))
         return {"vehicle_mass_kg": m}
 
 
 class Energy(_Base):
-    """vehicle_mass_kg, gear_ratio (, motor_kw) -> energy_wh_per_km on the configured cycle."""
+    """vehicle_mass_kg, gear_ratio (, motor_kw, battery_kwh, rear motor) -> energy_wh_per_km on the
+    configured cycle (option ``cycle`` overrides it). Option ``feasibility_outputs: true`` adds
+    ``drive_torque_margin_nm`` (min over the cycle of envelope minus demand; at the motor for
+    SM-SA, at the wheels otherwise) and ``motor_speed_margin_rad_s`` (limit minus max), quasi-static only."""
 
     name = "energy"
     outputs = ("energy_wh_per_km",)
 
-    def __init__(self, parameters, resampled, energy_model: str = "flat", extra: Mapping[str, float] | None = None):
+    def __init__(self, parameters, resampled, energy_model: str = "flat", extra: Mapping[str, float] | None = None,
+                 topology: str = "SM-SA", feasibility_outputs: bool = False):
         super().__init__(parameters)
         if energy_model not in ENERGY_MODELS:
             raise ValueError(f"energy_model must be one of {list(ENERGY_MODELS)}, got {energy_model!r}")
         self.energy_model = energy_model
         self.resampled = resampled
         self.extra = dict(extra or {})  # fixed constants passed to the model, not overridable
+        self.topology = topo_model.get_topology(topology)
+        if self.topology.name != "SM-SA" and energy_model != "quasi_static":
+            raise ValueError(f"topology {self.topology.name} needs energy_model quasi_static, got {energy_model!r}")
+        if feasibility_outputs and energy_model != "quasi_static":
+            raise ValueError("energy option feasibility_outputs needs energy_model quasi_static")
+        self.feasibility_outputs = bool(feasibility_outputs)
+        if feasibility_outputs:
+            self.outputs = ("energy_wh_per_km", "drive_torque_margin_nm", "motor_speed_margin_rad_s")
         if energy_model == "flat":
             self.inputs = ("vehicle_mass_kg", "gear_ratio")
             self._fn = flat.energy_wh_per_km
+        elif energy_model == "quasi_static":
+            # battery_kwh feeds the OCV+R pack (SOC, 2C/5C limits)
+            self.inputs = ("vehicle_mass_kg", *_topology_inputs(self.topology), "battery_kwh")
+            self._fn = None
         else:
             self.inputs = ("vehicle_mass_kg", "gear_ratio", "motor_kw")
             self._fn = importlib.import_module(f"bev_mdo.models.{energy_model}").energy_wh_per_km
@@ -97,15 +161,71 @@ class Energy(_Base):
             names = tuple(dict.fromkeys([*flat.FLAT_PARAMS[:4], "gear_efficiency", "regen_fraction", *specs]))
         else:
             raise ValueError(f"energy_model must be one of {list(ENERGY_MODELS)}, got {model!r}")
-        names = [k for k in names if k in v]
+        # the two-speed mass is added by vehicle_mass (once), never here
+        names = [k for k in names if k in v and k != "two_speed_added_mass_kg"]
         extra = {k: x for k, x in v.items() if k not in names}
-        return cls({k: v[k] for k in names}, _resampled(config), model, extra)
+        if model == "quasi_static":
+            extra["two_speed_added_mass_kg"] = 0.0
+        return cls({k: v[k] for k in names}, _cycle_option(config, options), model, extra,
+                   _topology(config, options).name, bool(options.get("feasibility_outputs", False)))
+
+    def _simulate(self, inputs, p):
+        return topo_model.simulate(self.resampled, p, self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
+                                   inputs["battery_kwh"], inputs.get("gear_ratio"), inputs.get("motor_rear_kw"),
+                                   inputs.get("gear_ratio_rear"))
 
     def compute(self, inputs):
         p = {**self.extra, **self._params(inputs)}
+        if self._fn is None:
+            r = self._simulate(inputs, p)
+            out = {"energy_wh_per_km": r.energy_wh_per_km}
+            if self.feasibility_outputs:
+                out["drive_torque_margin_nm"] = np.minimum(r.torque_margin_nm, 1e9)
+                out["motor_speed_margin_rad_s"] = (np.broadcast_to(p.get("motor_speed_limit_rpm", 10500.0), (len(r.energy_wh_per_km),))
+                                                   * np.pi / 30.0 * (1.0 if self.topology.geared else p.get("iwm_speed_scale", 210 / 1099.56))
+                                                   - r.motor_speed_max_rad_s)
+            return out
         motor_kw = inputs.get("motor_kw")
         e = self._fn(self.resampled, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
         return {"energy_wh_per_km": e}
+
+
+def _cycle_option(config, options):
+    """The configured cycle, or the discipline option ``cycle`` (a name or CSV) on the same grid."""
+    if options.get("cycle") is None:
+        return _resampled(config)
+    c = validate_cycle({**(config.get("cycle") or {}), "name": options["cycle"]})
+    return resample(load_cycle(c["name"]), c["dt_s"], c["interpolation"], c["smoothing"])
+
+
+class CycleRange(Energy):
+    """Chapter-3 range (§3.5.3): repeat ``cycle`` (option, default nedc) from 100 % to 5 % SOC with
+    the quasi-static model of the topology -> ``range_<cycle>_km`` (e.g. range_nedc_km)."""
+
+    name = "cycle_range"
+
+    def __init__(self, parameters, resampled, energy_model="quasi_static", extra=None, topology="SM-SA",
+                 feasibility_outputs=False):
+        super().__init__(parameters, resampled, "quasi_static", extra, topology, False)
+        self.outputs = (f"range_{_slug(resampled.name)}_km",)
+
+    @classmethod
+    def from_config(cls, config, options):
+        opts = {"cycle": "nedc", **dict(options), "energy_model": "quasi_static"}
+        opts.pop("feasibility_outputs", None)
+        return super().from_config(config, opts)
+
+    def compute(self, inputs):
+        p = {**self.extra, **self._params(inputs)}
+        rng = topo_model.range_by_repeated_cycle_km(
+            self.resampled, p, self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"], inputs["battery_kwh"],
+            inputs.get("gear_ratio"), inputs.get("motor_rear_kw"), inputs.get("gear_ratio_rear"))
+        return {self.outputs[0]: rng}
+
+
+def _slug(name: str) -> str:
+    import re
+    return re.sub(r"[^a-z0-9]+", "_", str(name).lower()).strip("_") or "cycle"
 
 
 class Range(_Base):
@@ -126,20 +246,35 @@ class Range(_Base):
 
 
 class Acceleration(_Base):
-    """motor_kw, gear_ratio, vehicle_mass_kg -> accel_time_0_100_s (eqs 7-30 / 2-26)."""
+    """motor_kw, gear_ratio, vehicle_mass_kg (, rear motor) -> accel_time_0_100_s (eqs 7-30 / 2-26 / 4-5)
+    with every motor of the topology; SM-SA two-speed follows the eq 2-6 shift rule."""
 
     name = "acceleration"
-    inputs = ("motor_kw", "gear_ratio", "vehicle_mass_kg")
     outputs = ("accel_time_0_100_s",)
+    _TOPO = {"SM-SA": ("gear_count", "gear_ratio_2", "shift_speed_m_s", "two_speed_efficiency_loss"),
+             "DM-DA": (), "IWM-SA": ("iwm_speed_scale",), "IWM-DA": ("iwm_speed_scale",)}
+
+    def __init__(self, parameters, topology: str = "SM-SA"):
+        super().__init__(parameters)
+        self.topology = topo_model.get_topology(topology)
+        self.inputs = (*_topology_inputs(self.topology), "vehicle_mass_kg")
 
     @classmethod
     def from_config(cls, config, options):
         v = _vehicle(config)
-        return cls({k: v[k] for k in acceleration.ACCEL_PARAMS})
+        t = _topology(config, options)
+        names = acceleration.ACCEL_PARAMS + tuple(k for k in cls._TOPO[t.name] if k in v)
+        return cls({k: v[k] for k in names}, t.name)
 
     def compute(self, inputs):
-        t = acceleration.accel_time_0_100_s(inputs["motor_kw"], inputs["gear_ratio"], inputs["vehicle_mass_kg"],
-                                            self._params(inputs))
+        p = self._params(inputs)
+        if self.topology.name == "SM-SA" and np.all(np.asarray(p.get("gear_count", 1.0)) == 1.0):
+            t = acceleration.accel_time_0_100_s(inputs["motor_kw"], inputs["gear_ratio"], inputs["vehicle_mass_kg"],
+                                                {k: p[k] for k in acceleration.ACCEL_PARAMS})
+        else:
+            t = topo_model.accel_time_s(self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
+                                        inputs.get("gear_ratio"), inputs.get("motor_rear_kw"),
+                                        inputs.get("gear_ratio_rear"), p)
         return {"accel_time_0_100_s": t}
 
 
@@ -166,20 +301,34 @@ class MotorSpeed(_Base):
 
 
 class Cost(_Base):
-    """motor_kw, battery_kwh -> powertrain_cost_usd (eqs 2-21..2-24)."""
+    """motor_kw, battery_kwh (, motor_rear_kw) -> powertrain_cost_usd (eqs 2-21..2-24, Table 4-3, eq 4-4).
+    Option ``gearbox_cost_usd`` (default 0: eq 4-4 has no gearbox term)."""
 
     name = "cost"
-    inputs = ("motor_kw", "battery_kwh")
     outputs = ("powertrain_cost_usd",)
+
+    def __init__(self, parameters, topology: str = "SM-SA", gearbox_cost_usd: float = 0.0):
+        super().__init__(parameters)
+        self.topology = topo_model.get_topology(topology)
+        self.gearbox_cost_usd = float(gearbox_cost_usd)
+        if not (np.isfinite(self.gearbox_cost_usd) and self.gearbox_cost_usd >= 0):
+            raise ValueError(f"cost option gearbox_cost_usd must be >= 0, got {gearbox_cost_usd!r}")
+        self.inputs = ("motor_kw", "battery_kwh") + (("motor_rear_kw",) if self.topology.two_axles else ())
 
     @classmethod
     def from_config(cls, config, options):
-        return cls({"power_to_energy_ratio": _vehicle(config)["power_to_energy_ratio"]})
+        return cls({"power_to_energy_ratio": _vehicle(config)["power_to_energy_ratio"]},
+                   _topology(config, options).name, options.get("gearbox_cost_usd", 0.0))
 
     def compute(self, inputs):
         p = self._params(inputs)
-        return {"powertrain_cost_usd": cost.powertrain_cost_usd(inputs["motor_kw"], inputs["battery_kwh"],
-                                                                p["power_to_energy_ratio"])}
+        if self.topology.name == "SM-SA" and self.gearbox_cost_usd == 0.0:
+            c = cost.powertrain_cost_usd(inputs["motor_kw"], inputs["battery_kwh"], p["power_to_energy_ratio"])
+        else:
+            c = topo_model.powertrain_cost_usd(self.topology, inputs["motor_kw"], inputs["battery_kwh"],
+                                               inputs.get("motor_rear_kw"), p["power_to_energy_ratio"],
+                                               self.gearbox_cost_usd)
+        return {"powertrain_cost_usd": c}
 
 
 class BatterySizing(_Base):
@@ -217,6 +366,7 @@ BUILTIN: dict[str, type] = {
     "motor_speed": MotorSpeed,
     "cost": Cost,
     "battery_sizing": BatterySizing,
+    "cycle_range": CycleRange,
 }
 
 

@@ -68,3 +68,80 @@ def test_builtin_names_and_shape():
 def test_unknown_energy_model():
     with pytest.raises(ValueError, match="energy_model"):
         Energy.from_config({**load("leaf_nedc.yaml"), "energy_model": "magic"}, {})
+
+
+# ---- topologies (issue 7) -------------------------------------------------------------------
+
+def _topo_cfg(topology="SM-SA", dvs=None, **vehicle):
+    cfg = load("topologies_artemis.yaml")
+    cfg["cycle"] = {"name": "nedc", "dt_s": 1.0}
+    cfg["vehicle"].update(vehicle)
+    for e in cfg["disciplines"]:
+        e["options"]["topology"] = topology
+    if dvs is not None:
+        cfg["problem"]["design_variables"] = dvs
+    return cfg
+
+
+def test_topology_settings_must_agree_and_exist():
+    from bev_mdo.config import load_config
+
+    cfg = _topo_cfg()
+    cfg["disciplines"][0]["options"]["topology"] = "IWM-SA"
+    with pytest.raises(ValueError, match="disagree on the topology"):
+        load_config(cfg)
+    with pytest.raises(ValueError, match="topology must be one of SM-SA, DM-DA, IWM-SA, IWM-DA"):
+        load_config(_topo_cfg("HUB-4"))
+    with pytest.raises(ValueError, match="'gear_ratio' does not exist in topology IWM-SA"):
+        load_config(_topo_cfg("IWM-SA"))  # the SM-SA problem still has gear_ratio
+
+
+def test_topology_inputs():
+    cfg = _topo_cfg("DM-DA", {"motor_kw": {"lower": 20, "upper": 90}, "gear_ratio": {"lower": 4, "upper": 9},
+                              "motor_rear_kw": {"lower": 20, "upper": 90}, "gear_ratio_rear": {"lower": 4, "upper": 9},
+                              "battery_kwh": {"lower": 18, "upper": 30}})
+    d = {n: BUILTIN[n].from_config(cfg, e["options"]) for n, e in ((e["name"], e) for e in cfg["disciplines"])}
+    assert set(d["energy"].inputs) == {"vehicle_mass_kg", "motor_kw", "gear_ratio", "motor_rear_kw",
+                                       "gear_ratio_rear", "battery_kwh"}
+    assert set(d["vehicle_mass"].inputs) == {"motor_kw", "battery_kwh", "motor_rear_kw"}
+    assert d["cycle_range"].outputs == ("range_nedc_km",)
+    x = {"motor_kw": np.array([40.0]), "motor_rear_kw": np.array([40.0]), "battery_kwh": np.array([24.0]),
+         "gear_ratio": np.array([7.9]), "gear_ratio_rear": np.array([7.9])}
+    m = run_discipline(d["vehicle_mass"], x).outputs["vehicle_mass_kg"]
+    assert m[0] - 69.0 == pytest.approx(1572.6)  # Table 4-5
+    c = run_discipline(d["cost"], x).outputs["powertrain_cost_usd"]
+    assert c[0] == pytest.approx(2 * (16 * 40 + 385) + (11.1 * 4 + 221.1 + 13) * 24 + 680)
+
+
+def test_two_speed_mass_counted_once():
+    from bev_mdo.models import quasi_static as qs
+
+    two = {"gear_count": 2.0, "gear_ratio_2": 4.7, "shift_speed_m_s": 68.1 / 3.6}
+    cfg = _topo_cfg(**two)
+    d = {e["name"]: BUILTIN[e["name"]].from_config(cfg, e["options"]) for e in cfg["disciplines"]}
+    x = {"motor_kw": np.array([71.2]), "battery_kwh": np.array([22.3]), "gear_ratio": np.array([13.2])}
+    m1 = run_discipline(d["vehicle_mass"], x).outputs["vehicle_mass_kg"]
+    cfg1 = _topo_cfg()
+    m0 = run_discipline(BUILTIN["vehicle_mass"].from_config(cfg1, {}), x).outputs["vehicle_mass_kg"]
+    assert m1[0] - m0[0] == pytest.approx(20.0)
+    e = run_discipline(d["energy"], {**x, "vehicle_mass_kg": m1}).outputs["energy_wh_per_km"]
+    # independent: the quasi-static model adding its own 20 kg to the single-speed mass
+    ref = qs.energy_wh_per_km(d["energy"].resampled, {**cfg["vehicle"], **two}, m0, 13.2, 71.2, battery_kwh=22.3)
+    assert e[0] == pytest.approx(ref[0], rel=1e-12)
+    t = run_discipline(d["acceleration"], {**x, "vehicle_mass_kg": m1}).outputs["accel_time_0_100_s"]
+    t_heavier = run_discipline(d["acceleration"], {**x, "vehicle_mass_kg": m1 + 20}).outputs["accel_time_0_100_s"]
+    assert np.isfinite(t[0]) and t_heavier[0] > t[0]
+
+
+def test_quasi_static_energy_uses_battery_kwh():
+    from bev_mdo.models import quasi_static as qs
+
+    cfg = _topo_cfg()
+    d = BUILTIN["energy"].from_config(cfg, {"topology": "SM-SA"})
+    assert "battery_kwh" in d.inputs
+    x = {"vehicle_mass_kg": np.array([1590.0, 1590.0]), "motor_kw": np.array([80.0, 80.0]),
+         "gear_ratio": np.array([7.9, 7.9]), "battery_kwh": np.array([6.0, 30.0])}
+    e = run_discipline(d, x).outputs["energy_wh_per_km"]
+    ref = qs.energy_wh_per_km(d.resampled, cfg["vehicle"], 1590.0, 7.9, 80.0, battery_kwh=np.array([6.0, 30.0]))
+    np.testing.assert_allclose(e, ref, rtol=1e-12)
+    assert e[0] > e[1]  # a 6 kWh pack caps regeneration at 2C = 12 kW (§2.3.4 rule 4)

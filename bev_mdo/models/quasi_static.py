@@ -57,6 +57,13 @@ PARAM_SPECS: dict[str, ParamSpec] = {
     "final_soc": ParamSpec(0.05, 0.0, 0.9, "-", "range runs stop here (ch.3: 100 % -> 5 %)"),
     "battery_loss_weight": ParamSpec(0.0, 0.0, 1.0, "-", "0 = terminal energy (eq 2-17); 1 = adds the "
                                      "battery's internal I^2 R loss (energy at the open-circuit voltage)"),
+    # topology constants (used by topology.py; Tables 4-1..4-3, §4.3.1)
+    "dm_da_transmission_kg": ParamSpec(30.0, 0.0, 500.0, "kg", "DM-DA rear transmission mass (Table 4-1)"),
+    "iwm_mass_factor": ParamSpec(0.75, 0.1, 1.0, "-", "in-wheel motor-unit mass factor, 25 % removed (Table 4-2)"),
+    "iwm_torque_scale": ParamSpec(2.5, 0.1, 20.0, "-", "in-wheel map torque-axis factor (§4.3.1: 280 -> 700 Nm)"),
+    "iwm_speed_scale": ParamSpec(210.0 / 1099.56, 0.01, 1.0, "-", "in-wheel map speed-axis factor "
+                                 "(§4.3.1: max 1100 -> 210 rad/s; base speed 285.7 -> 54.6 rad/s, thesis 53)"),
+    "torque_split_steps": ParamSpec(11.0, 3.0, 101.0, "-", "front/rear split grid size (odd: includes 50/50)"),
 }
 
 
@@ -197,7 +204,11 @@ def simulate(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, battery_k
     """One pass over the cycle from ``initial_soc``; everything per design point (N,)."""
     m, ig, kw, p = _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh)
     d = _demand(resampled, p, m, ig, kw, motor_map or default_map())
-    n = m.shape[0]
+    return integrate_energy(d, p, m.shape[0])
+
+
+def integrate_energy(d: _Demand, p, n: int) -> QuasiStaticResult:
+    """Step the battery over a demand from ``initial_soc`` (2-9..2-17); also used by topology.py."""
     batt = _Battery(p, n)
     soc = np.broadcast_to(p["initial_soc"], (n,)).astype(float)
     energy = np.zeros(n)
@@ -227,13 +238,17 @@ def range_by_repeated_cycle_km(resampled, params, vehicle_mass_kg, gear_ratio, m
     ``final_soc`` after ``max_repeats`` cycles get ``inf``."""
     m, ig, kw, p = _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh)
     d = _demand(resampled, p, m, ig, kw, motor_map or default_map())
-    n = m.shape[0]
+    step_m = (0.5 * (resampled.speed_m_s[1:] + resampled.speed_m_s[:-1]) * d.dt[:, 0])
+    return integrate_range(d, p, m.shape[0], step_m, max_repeats)
+
+
+def integrate_range(d: _Demand, p, n: int, step_m: np.ndarray, max_repeats: int = 200) -> np.ndarray:
+    """Repeat a demand from 100 % SOC down to ``final_soc`` (ch.3 range, km); also used by topology.py."""
     batt = _Battery(p, n)
     soc = np.ones(n)
     stop = np.broadcast_to(p["final_soc"], (n,))
     rng = np.full(n, np.inf)
     done = np.zeros(n, bool)
-    step_m = (0.5 * (resampled.speed_m_s[1:] + resampled.speed_m_s[:-1]) * d.dt[:, 0])
     travelled = 0.0
     for _ in range(max_repeats):
         for k in range(d.dt.shape[0]):

@@ -1,0 +1,461 @@
+"""Powertrain topologies of thesis chapter 4: SM-SA, DM-DA, IWM-SA, IWM-DA.
+
+=========  ===========================  ==========================  =====================
+topology   motors (front + rear)        drive                        design variables
+=========  ===========================  ==========================  =====================
+SM-SA      1 (front)                    single ratio (two-speed      motor_kw, gear_ratio,
+                                        optional, §2.2.2)            battery_kwh
+DM-DA      1 + 1                        one single ratio per axle    + motor_rear_kw,
+                                                                     gear_ratio_rear
+IWM-SA     2 in-wheel (front)           direct drive, eta = 1        motor_kw, battery_kwh
+IWM-DA     2 + 2 in-wheel               direct drive, eta = 1        + motor_rear_kw
+=========  ===========================  ==========================  =====================
+
+``motor_kw`` / ``motor_rear_kw`` are the power of EACH motor of that axle (Table 4-4:
+"40 kW, 42.88 kg, 2"). Rules:
+
+* mass (Tables 4-1, 4-2, 4-4): motor unit = sum of eq 2-18 over the motors; DM-DA adds
+  ``dm_da_transmission_kg`` (30 kg); in-wheel multiplies the motor unit by
+  ``iwm_mass_factor`` (0.75, "25 % removed"). The battery is the same for every topology.
+  Table 4-4's "difference from the Leaf" is the motor-unit difference (no 1.6 compounding:
+  Table 4-5's total weights are 1521 kg + that difference), which the ``ch7`` mass model
+  reproduces; the ``compounding`` model multiplies it by 1.6.
+* cost (Table 4-3, eq 4-4): motor cost eq 2-21 per motor, pack eqs 4-2/4-3. A gearbox cost is
+  not part of eq 4-4; ``gearbox_cost_usd`` (default 0) adds one, and DM-DA's "2nd gearbox
+  + 5 %" is read as a second gearbox at 105 % of the first's cost; in-wheel keeps "As SM-SA".
+* in-wheel motor map (§4.3.1): the base map with the torque axis x ``iwm_torque_scale``
+  (2.5: 280 -> 700 Nm) and the speed axis x ``iwm_speed_scale`` (210 / 1100: max speed
+  210 rad/s, base speed 54.6 rad/s vs the thesis' 53; unit power 38.2 kW vs 38.5 kW); then
+  Fig 2-9 scaling by motor size as for the base map.
+* torque split (§4.2.1, §4.2.3): with two driven axles the wheel torque is shared at every
+  time step to minimise the electrical power: a grid of ``torque_split_steps`` front
+  fractions in [0, 1] (odd, so 50/50 is on it) evaluated on (time, N, k), the argmin, then
+  one refinement grid of 9 points around it (the coarse argmin stays a candidate, so the
+  split is never worse than any grid point, 50/50 included). Motoring torque over a motor's
+  envelope is penalised; braking torque beyond it goes to the friction brake (2-25).
+  Left/right motors of an in-wheel axle share their axle's torque equally.
+
+The battery, SOC and §2.3.4 regeneration rules 2-4 are the quasi-static model's.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from . import mass as mass_model
+from . import quasi_static as qs
+from .breakdown import check_points
+from .cost import motor_cost_usd as _motor_cost_one, pack_cost_usd
+from .motor_map import MotorMap
+
+TOPOLOGIES = ("SM-SA", "DM-DA", "IWM-SA", "IWM-DA")
+# design variables that only some topologies have (checked by check_design_variables)
+TOPOLOGY_VARIABLES = ("gear_ratio", "motor_rear_kw", "gear_ratio_rear", "gear_ratio_2", "shift_speed_m_s",
+                      "gear_count")
+KMH = 1.0 / 3.6
+V_END_M_S = 100.0 / 3.6
+_PENALTY_W_PER_NM = 1e6  # selection penalty for motoring torque over the envelope
+_CHUNK = 20000  # (time x design) rows per split-grid block, bounds memory
+_X, _W = np.polynomial.legendre.leggauss(24)
+
+
+@dataclass(frozen=True)
+class Topology:
+    name: str
+    front_motors: int
+    rear_motors: int
+    geared: bool
+
+    @property
+    def two_axles(self) -> bool:
+        return self.rear_motors > 0
+
+    @property
+    def design_variables(self) -> tuple[str, ...]:
+        out = ["motor_kw"] + (["gear_ratio"] if self.geared else []) + ["battery_kwh"]
+        if self.two_axles:
+            out += ["motor_rear_kw"] + (["gear_ratio_rear"] if self.geared else [])
+        if self.name == "SM-SA":
+            out += ["gear_ratio_2", "shift_speed_m_s"]  # two-speed (with gear_count = 2)
+        return tuple(out)
+
+
+_SPECS = {"SM-SA": Topology("SM-SA", 1, 0, True), "DM-DA": Topology("DM-DA", 1, 1, True),
+          "IWM-SA": Topology("IWM-SA", 2, 0, False), "IWM-DA": Topology("IWM-DA", 2, 2, False)}
+
+
+def get_topology(name) -> Topology:
+    """The topology named ``name``; one-line ValueError listing the allowed names."""
+    if isinstance(name, Topology):
+        return name
+    if not isinstance(name, str) or name.upper() not in _SPECS:
+        raise ValueError(f"topology must be one of {', '.join(TOPOLOGIES)}, got {name!r}")
+    return _SPECS[name.upper()]
+
+
+def check_design_variables(topology, names) -> None:
+    """ValueError if ``names`` holds a topology variable this topology does not have."""
+    t = get_topology(topology)
+    extra = [n for n in names if n in TOPOLOGY_VARIABLES and n not in t.design_variables and n != "gear_count"]
+    if extra:
+        why = "direct drive has no gearbox" if not t.geared and extra[0].startswith("gear") else \
+            "single axle" if "rear" in extra[0] else "two-speed gearbox is SM-SA only"
+        raise ValueError(f"design variable {extra[0]!r} does not exist in topology {t.name} ({why}); "
+                         f"its design variables: {', '.join(t.design_variables)}")
+
+
+# ----------------------------------------------------------------------------- mass and cost
+
+def motor_unit_mass_kg(topology, motor_kw, motor_rear_kw=None, kg_per_kw=0.532, base_kg=21.6,
+                       dm_da_transmission_kg=30.0, iwm_mass_factor=0.75):
+    """Motor(s) + transmission change, Table 4-2 (eq 2-18 per motor)."""
+    t = get_topology(topology)
+    m = t.front_motors * mass_model.motor_mass_kg(motor_kw, kg_per_kw, base_kg)
+    if t.two_axles:
+        m = m + t.rear_motors * mass_model.motor_mass_kg(_need(motor_rear_kw, "motor_rear_kw", t), kg_per_kw, base_kg)
+    if t.name == "DM-DA":
+        m = m + dm_da_transmission_kg  # Table 4-1: 30 kg added for the rear axle
+    if not t.geared:
+        m = m * iwm_mass_factor  # Table 4-1/4-2: 25 % removed
+    return m
+
+
+def vehicle_mass_kg(topology, motor_kw, battery_kwh, params: dict, mass_model_name: str = "ch7",
+                    motor_rear_kw=None):
+    """Vehicle mass of ``mass_model_name`` with the topology's motor unit (Table 4-2) in place of
+    eq 2-18, plus the two-speed gearbox mass (§3.7, 20 kg, SM-SA with gear_count = 2).
+
+    Both mass models are linear in the motor mass: ch7 adds it (factor 1), compounding
+    multiplies the change by ``mass_compounding``."""
+    p = {**{k: s.default for k, s in qs.PARAM_SPECS.items()}, **mass_model._D, **params}
+    t = get_topology(topology)
+    if t.name == "SM-SA":
+        two = np.asarray(p["gear_count"]) == 2.0
+        return (mass_model.vehicle_mass_kg(motor_kw, battery_kwh, params, mass_model_name)
+                + np.where(two, p["two_speed_added_mass_kg"], 0.0))
+    if np.any(np.asarray(p["gear_count"]) == 2.0):
+        raise ValueError(f"gear_count = 2 (two-speed gearbox) is SM-SA only, not {t.name}")
+    ref_kw = np.asarray(p["reference_motor_kw"], float) + 0.0 * np.asarray(motor_kw, float)
+    base = mass_model.vehicle_mass_kg(ref_kw, battery_kwh, params, mass_model_name)
+    unit = motor_unit_mass_kg(t, motor_kw, motor_rear_kw, p["motor_kg_per_kw"], p["motor_base_kg"],
+                              p["dm_da_transmission_kg"], p["iwm_mass_factor"])
+    ref_unit = p["motor_kg_per_kw"] * ref_kw + p["motor_base_kg"]
+    factor = 1.0 if mass_model_name == "ch7" else p["mass_compounding"]
+    return base + factor * (unit - ref_unit)
+
+
+def motor_cost_usd(topology, motor_kw, motor_rear_kw=None):
+    """Table 4-3: eq 2-21 per motor."""
+    t = get_topology(topology)
+    c = t.front_motors * _motor_cost_one(motor_kw)
+    if t.two_axles:
+        c = c + t.rear_motors * _motor_cost_one(_need(motor_rear_kw, "motor_rear_kw", t))
+    return c
+
+
+def transmission_cost_usd(topology, gearbox_cost_usd=0.0):
+    """Table 4-3 transmission column; eq 4-4 has no gearbox term, so the default is 0."""
+    t = get_topology(topology)
+    return gearbox_cost_usd * (2.05 if t.name == "DM-DA" else 1.0)  # "2nd gearbox + 5 %"
+
+
+def powertrain_cost_usd(topology, motor_kw, battery_kwh, motor_rear_kw=None, power_to_energy_ratio=4.0,
+                        gearbox_cost_usd=0.0):
+    """Eq 4-4: motors + pack (eqs 4-2, 4-3) + transmission (0 by default)."""
+    return (motor_cost_usd(topology, motor_kw, motor_rear_kw) + pack_cost_usd(battery_kwh, power_to_energy_ratio)
+            + transmission_cost_usd(topology, gearbox_cost_usd))
+
+
+def _need(x, name, t):
+    if x is None:
+        raise ValueError(f"topology {t.name} needs {name}")
+    return x
+
+
+# ----------------------------------------------------------------------------- motor maps
+
+@lru_cache(maxsize=8)
+def _in_wheel_map_cached(base: MotorMap, torque_scale: float, speed_scale: float) -> MotorMap:
+    return MotorMap(base.speed_rad_s * speed_scale, base.torque_nm * torque_scale, base.efficiency,
+                    base.reference_kw * torque_scale * speed_scale, f"{base.name}_in_wheel")
+
+
+def in_wheel_map(base: MotorMap | None = None, torque_scale: float = 2.5, speed_scale: float = 210.0 / 1099.56):
+    """§4.3.1: the base map with torque x 2.5 and speed x 210/1100 (unit power 38.2 kW)."""
+    return _in_wheel_map_cached(base or qs.default_map(), float(torque_scale), float(speed_scale))
+
+
+def electrical_power_w(motor_map: MotorMap, torque_nm, speed_rad_s, motor_kw):
+    """Fast bilinear form of ``MotorMap.electrical_power_w`` (same grid, same clipping, same
+    Fig 2-9 scaling), for the large (time, N, split) arrays of the torque split."""
+    t = np.asarray(torque_nm, float)
+    w = np.asarray(speed_rad_s, float)
+    tu = t * (motor_map.reference_kw / np.asarray(motor_kw, float))
+    if not motor_map.has_regen_rows:
+        tu = np.abs(tu)
+    tg, wg, e = motor_map.torque_nm, motor_map.speed_rad_s, motor_map.efficiency
+    fi = np.interp(np.abs(w), wg, np.arange(len(wg), dtype=float))
+    fj = np.interp(tu, tg, np.arange(len(tg), dtype=float))
+    i0 = np.minimum(fi.astype(np.intp), len(wg) - 2)
+    j0 = np.minimum(fj.astype(np.intp), len(tg) - 2)
+    a, b = fi - i0, fj - j0
+    e00, e01, e10, e11 = e[i0, j0], e[i0, j0 + 1], e[i0 + 1, j0], e[i0 + 1, j0 + 1]
+    eta = np.maximum((1 - a) * ((1 - b) * e00 + b * e01) + a * ((1 - b) * e10 + b * e11), 0.05)
+    pm = t * w
+    return np.where(pm >= 0, pm / eta, pm * eta)
+
+
+# ----------------------------------------------------------------------------- drive model
+
+@dataclass
+class _Axle:
+    count: int           # motors on the axle
+    kw: np.ndarray       # (N,) power of each motor
+    ratio: np.ndarray    # (N,)
+    eta: np.ndarray      # (N,) transmission efficiency (1 for direct drive)
+    motor_map: MotorMap
+    t_peak: np.ndarray   # (N,) peak torque of each motor
+    w_lim: float         # rad/s
+
+
+def _axles(t: Topology, p, kw_f, kw_r, ig_f, ig_r, base_map) -> list[_Axle]:
+    w_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0
+    if t.geared:
+        eta = np.broadcast_to(p["gear_efficiency"], kw_f.shape)
+        ax = [_Axle(1, kw_f, ig_f, eta, base_map, p["motor_torque_per_kw"] * kw_f, w_lim)]
+        if t.two_axles:
+            ax.append(_Axle(1, kw_r, ig_r, eta, base_map, p["motor_torque_per_kw"] * kw_r, w_lim))
+        return ax
+    ts, ss = float(np.mean(p["iwm_torque_scale"])), float(np.mean(p["iwm_speed_scale"]))
+    if np.ptp(np.atleast_1d(p["iwm_torque_scale"])) or np.ptp(np.atleast_1d(p["iwm_speed_scale"])):
+        raise ValueError("iwm_torque_scale and iwm_speed_scale must be the same for every design point")
+    m = in_wheel_map(base_map, ts, ss)
+    one, tpk = np.ones_like(kw_f), p["motor_torque_per_kw"] / ss  # 700 Nm / 38.2 kW per unit motor
+    ax = [_Axle(t.front_motors, kw_f, one, one, m, tpk * kw_f, w_lim * ss)]
+    if t.two_axles:
+        ax.append(_Axle(t.rear_motors, kw_r, one, one, m, tpk * kw_r, w_lim * ss))
+    return ax
+
+
+def _t_max(ax: _Axle, w):
+    """Per-motor envelope at motor speed ``w``: peak torque, constant power, 0 beyond w_lim."""
+    return np.where(w <= ax.w_lim, np.minimum(ax.t_peak, ax.kw * 1e3 / np.maximum(w, 1e-9)), 0.0)
+
+
+def _axle_power(ax: _Axle, tw, w, tmax, driving, allowed):
+    """Electrical power of an axle carrying wheel torque ``tw`` and its motoring overload (N m)."""
+    tm = np.where(driving, tw / (ax.count * ax.ratio * ax.eta), tw * ax.eta / (ax.count * ax.ratio))  # 2-5
+    over = np.where(driving, np.maximum(tm - tmax, 0.0), 0.0)
+    tm = np.where(driving, tm, np.where(allowed, np.maximum(tm, -tmax), 0.0))  # 2-25, rules 2-3
+    return ax.count * electrical_power_w(ax.motor_map, tm, w, ax.kw), over, tm
+
+
+def best_split(axles, tw, v, r_w, driving, allowed, steps: int = 11):
+    """Front share of wheel torque minimising electrical power per (time, design) row.
+
+    ``tw``, ``driving``, ``allowed``: (K, N); ``v``: (K, 1). Returns (share, power_w,
+    overload_nm), each (K, N). Vectorised over a (rows, N, grid) block."""
+    fr, rr = axles
+    grid = np.linspace(0.0, 1.0, int(steps))
+    delta = grid[1] - grid[0]
+    fine = np.linspace(-delta, delta, 9)
+    K, N = tw.shape
+    share = np.empty((K, N))
+    power = np.empty((K, N))
+    over = np.empty((K, N))
+    rows = max(1, _CHUNK // max(N, 1))
+    for k0 in range(0, K, rows):
+        sl = slice(k0, k0 + rows)
+        vv = v[sl][..., None]
+        twk, dk, ak = tw[sl][..., None], driving[sl][..., None], allowed[sl][..., None]
+        wf = vv / r_w * fr.ratio[None, :, None]
+        wr = vv / r_w * rr.ratio[None, :, None]
+        tmf, tmr = _t_max(_bcast(fr), wf), _t_max(_bcast(rr), wr)
+
+        def cost(s):
+            pf, of, _ = _axle_power(_bcast(fr), twk * s, wf, tmf, dk, ak)
+            pr, orr, _ = _axle_power(_bcast(rr), twk * (1.0 - s), wr, tmr, dk, ak)
+            return pf + pr, of + orr
+
+        p, o = cost(grid[None, None, :])
+        j = np.argmin(p + _PENALTY_W_PER_NM * o, axis=2)
+        s0 = grid[j]
+        s2 = np.clip(s0[..., None] + fine, 0.0, 1.0)  # fine[4] == 0: the coarse argmin stays a candidate
+        p2, o2 = cost(s2)
+        j2 = np.argmin(p2 + _PENALTY_W_PER_NM * o2, axis=2)[..., None]
+        share[sl] = np.take_along_axis(s2, j2, 2)[..., 0]
+        power[sl] = np.take_along_axis(p2, j2, 2)[..., 0]
+        over[sl] = np.take_along_axis(o2, j2, 2)[..., 0]
+    return share, power, over
+
+
+def _bcast(ax: _Axle) -> _Axle:
+    """The axle with its (N,) arrays shaped (1, N, 1) for (time, N, grid) blocks."""
+    f = (lambda a: np.asarray(a, float)[None, :, None])
+    return _Axle(ax.count, f(ax.kw), f(ax.ratio), f(ax.eta), ax.motor_map, f(ax.t_peak), ax.w_lim)
+
+
+def _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio, motor_rear_kw, gear_ratio_rear):
+    t = get_topology(topology)
+    arrays = {"vehicle_mass_kg": vehicle_mass_kg, "motor_kw": motor_kw, "battery_kwh": battery_kwh}
+    if t.geared:
+        arrays["gear_ratio"] = _need(gear_ratio, "gear_ratio", t)
+    if t.two_axles:
+        arrays["motor_rear_kw"] = _need(motor_rear_kw, "motor_rear_kw", t)
+        if t.geared:
+            arrays["gear_ratio_rear"] = _need(gear_ratio_rear, "gear_ratio_rear", t)
+    limits = {"vehicle_mass_kg": (100.0, 20000.0, "kg"), "motor_kw": (1.0, 1000.0, "kW"),
+              "battery_kwh": (1.0, 500.0, "kWh"), "gear_ratio": (0.5, 50.0, "-"),
+              "motor_rear_kw": (1.0, 1000.0, "kW"), "gear_ratio_rear": (0.5, 50.0, "-")}
+    arrays = {k: check_points(k, v, *limits[k]).real.astype(float) for k, v in arrays.items()}
+    n = max([a.shape[0] for a in arrays.values()]
+            + [np.size(params[k]) for k in qs.PARAM_SPECS if params and k in params])
+    arrays = {k: np.broadcast_to(a, (n,)).copy() if a.shape[0] in (1, n) else a for k, a in arrays.items()}
+    m, ig, kw, p = qs._inputs(params, arrays["vehicle_mass_kg"], arrays.get("gear_ratio", np.ones(n)),
+                              arrays["motor_kw"], arrays["battery_kwh"])
+    if t.name != "SM-SA" and np.any(p["gear_count"] == 2.0):
+        raise ValueError(f"gear_count = 2 (two-speed gearbox) is SM-SA only, not {t.name}")
+    return t, m, ig, kw, p, arrays.get("motor_rear_kw"), arrays.get("gear_ratio_rear")
+
+
+def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map, with_trace=False):
+    """Per-step battery demand of a topology, as the quasi-static model's ``_Demand``."""
+    if t.name == "SM-SA":
+        return qs._demand(resampled, p, m, ig, kw, base_map)
+    tt = np.asarray(resampled.time_s, float)
+    v = np.asarray(resampled.speed_m_s, float)
+    dt = np.diff(tt)[:, None]
+    v_bar = 0.5 * (v[1:] + v[:-1])[:, None]  # 6-50
+    if not np.sum(v_bar[:, 0] * dt[:, 0]) > 0:
+        raise ValueError(f"drive cycle {getattr(resampled, 'name', '?')} has zero distance")
+    a_bar = np.diff(v)[:, None] / dt  # 6-51
+    g, r_w = p["gravity_m_s2"], p["wheel_radius_m"]
+    force = 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v_bar ** 2 + p["rolling_resistance"] * m * g \
+        + m * a_bar  # 2-3
+    tw = force * r_w  # 2-1 (all driven wheels)
+    driving = force >= 0
+    allowed = (~driving) & (v_bar >= p["regen_min_speed_m_s"]) & (a_bar >= -p["regen_max_decel_g"] * g)
+    axles = _axles(t, p, kw, kw_r, ig, ig_r, base_map)
+    K, N = tw.shape
+    if t.two_axles:
+        share, p_el, _ = best_split(axles, tw, v_bar, r_w, driving, allowed, int(np.max(p["torque_split_steps"])))
+    else:
+        ax = axles[0]
+        w = v_bar / r_w * ax.ratio
+        p_el, _, _ = _axle_power(ax, tw, w, _t_max(ax, w), driving, allowed)
+        share = np.ones((K, N))
+    cap = sum(a.count * _t_max(a, v_bar / r_w * a.ratio) * a.ratio * a.eta for a in axles)  # wheel N m
+    margin = np.where(driving, cap - tw, np.inf).min(axis=0)
+    w_max = np.max([(v_bar.max() / r_w * a.ratio) for a in axles], axis=0)
+    steps = {"speed_m_s": v_bar, "accel_m_s2": a_bar, "wheel_torque_nm": tw, "front_share": share,
+             "motor_power_w": p_el}
+    steps = {k: np.broadcast_to(x, (K, N)) for k, x in steps.items()}
+    return qs._Demand(dt, np.where(driving, p_el, 0.0), np.where(driving, 0.0, p_el),
+                      float(np.sum(v_bar[:, 0] * dt[:, 0])), np.broadcast_to(w_max, (N,)), margin,
+                      axles[0].w_lim + 0.0 * kw, steps)
+
+
+def simulate(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh=24.0, gear_ratio=None,
+             motor_rear_kw=None, gear_ratio_rear=None, *, motor_map: MotorMap | None = None):
+    """One pass over the cycle (``qs.QuasiStaticResult``; SM-SA is exactly ``qs.simulate``).
+
+    For two-axle and in-wheel topologies ``torque_margin_nm`` is at the wheels (sum of the
+    motors' envelopes minus the demand) and ``motor_speed_max_rad_s`` is the fastest motor."""
+    t, m, ig, kw, p, kw_r, ig_r = _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio,
+                                           motor_rear_kw, gear_ratio_rear)
+    d = _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, motor_map or qs.default_map())
+    return qs.integrate_energy(d, p, m.shape[0])
+
+
+def energy_wh_per_km(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh=24.0, gear_ratio=None,
+                     motor_rear_kw=None, gear_ratio_rear=None, *, motor_map: MotorMap | None = None):
+    """Battery-terminal energy per km (2-16, 2-17) of a topology, shape (N,)."""
+    return simulate(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio,
+                    motor_rear_kw, gear_ratio_rear, motor_map=motor_map).energy_wh_per_km
+
+
+def range_by_repeated_cycle_km(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh,
+                               gear_ratio=None, motor_rear_kw=None, gear_ratio_rear=None, *,
+                               motor_map: MotorMap | None = None, max_repeats: int = 200):
+    """Chapter-3 range (repeat the cycle from 100 % to 5 % SOC, §3.5.3) of a topology, km (N,)."""
+    t, m, ig, kw, p, kw_r, ig_r = _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio,
+                                           motor_rear_kw, gear_ratio_rear)
+    d = _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, motor_map or qs.default_map())
+    step_m = 0.5 * (resampled.speed_m_s[1:] + resampled.speed_m_s[:-1]) * d.dt[:, 0]
+    return qs.integrate_range(d, p, m.shape[0], step_m, max_repeats)
+
+
+def operating_points(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh=24.0, gear_ratio=None,
+                     motor_rear_kw=None, gear_ratio_rear=None, *, motor_map: MotorMap | None = None) -> dict:
+    """Per-step (K, N) arrays: speed, acceleration, wheel torque, front share, motor power."""
+    t, m, ig, kw, p, kw_r, ig_r = _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio,
+                                           motor_rear_kw, gear_ratio_rear)
+    return _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, motor_map or qs.default_map()).steps
+
+
+# ----------------------------------------------------------------------------- acceleration
+
+def accel_time_s(topology, vehicle_mass_kg, motor_kw, gear_ratio=None, motor_rear_kw=None, gear_ratio_rear=None,
+                 params=None, v_end_m_s=V_END_M_S):
+    """0-100 km/h time (eqs 2-26 / 4-5): t = int M / F(v) dv with F the sum of every motor's
+    envelope at the wheels minus road load; Gauss-Legendre per segment between all envelope
+    corners (base speeds, speed limits, the two-speed shift). SM-SA single speed equals
+    ``acceleration.accel_time_0_100_s``. Two-speed uses the eq 2-6 rule (gear 2 at and above
+    the shift speed, efficiency minus the 2-point penalty). A geared motor over its speed
+    limit before ``v_end`` or a non-positive surplus force gives +inf."""
+    p = {k: s.default for k, s in qs.PARAM_SPECS.items()}
+    p.update({k: np.asarray(v, float) for k, v in (params or {}).items() if k in qs.PARAM_SPECS})
+    t, m, ig, kw, p, kw_r, ig_r = _prepare(p, topology, vehicle_mass_kg, motor_kw, 24.0, gear_ratio,
+                                           motor_rear_kw, gear_ratio_rear)
+    r_w = p["wheel_radius_m"]
+    two = (p["gear_count"] == 2.0) & (t.name == "SM-SA")
+    axles = _axles(t, p, kw, kw_r, ig, ig_r, qs.default_map())
+    if t.name == "SM-SA":
+        eta2 = p["gear_efficiency"] - np.where(two, p["two_speed_efficiency_loss"], 0.0)
+        axles[0].eta = np.broadcast_to(eta2, kw.shape)
+        ig2 = np.broadcast_to(np.where(two, p["gear_ratio_2"], ig), kw.shape)
+        v_shift = np.broadcast_to(np.where(two, p["shift_speed_m_s"], np.inf), kw.shape)
+    road = (lambda v: 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v * v
+            + p["rolling_resistance"] * m * p["gravity_m_s2"])
+
+    def force(v):  # v: (..., N)
+        f = -road(v)
+        for a in axles:
+            ratio = np.where(v >= v_shift, ig2, a.ratio) if t.name == "SM-SA" else a.ratio
+            w = v / r_w * ratio
+            f = f + a.count * _t_max(a, w) * ratio * a.eta / r_w
+        return f
+
+    corners = []
+    for a in axles:
+        w_base = a.t_peak * 0 + a.kw * 1e3 / a.t_peak
+        for ratio in ([a.ratio, ig2] if t.name == "SM-SA" else [a.ratio]):
+            corners += [w_base * r_w / ratio, a.w_lim * r_w / ratio]
+    if t.name == "SM-SA":
+        corners.append(v_shift)
+    c = np.clip(np.sort(np.stack(corners), axis=0), 0.0, v_end_m_s)  # (B, N)
+    edges = np.concatenate([np.zeros((1, c.shape[1])), c, np.full((1, c.shape[1]), v_end_m_s)])
+    lo, hi = edges[:-1], edges[1:]
+    half = 0.5 * (hi - lo)
+    v = (lo + half)[None] + half[None] * _X[:, None, None]  # (24, B+1, N)
+    f = force(v)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        total = np.sum(half * np.sum(_W[:, None, None] * m / f, axis=0), axis=0)
+    ok = _speed_ok(axles, t, two, ig, ig2 if t.name == "SM-SA" else None, v_shift if t.name == "SM-SA" else None,
+                   r_w, v_end_m_s) & np.all(f > 0, axis=(0, 1)) & (force(np.full(m.shape, v_end_m_s)) > 0)
+    return np.where(ok, total, np.inf)
+
+
+def _speed_ok(axles, t, two, ig, ig2, v_shift, r_w, v_end):
+    """Every geared motor stays within its speed limit up to ``v_end`` (gear 1 up to the shift)."""
+    ok = np.ones(np.shape(axles[0].kw), bool)
+    for a in axles:
+        if t.name == "SM-SA":
+            v1_end = np.where(two, np.minimum(v_shift, v_end), v_end)
+            ok &= a.w_lim * r_w / ig >= v1_end * (1 - 1e-12)
+            ok &= np.where(two, a.w_lim * r_w / ig2 >= v_end * (1 - 1e-12), True)
+        else:
+            ok &= a.w_lim * r_w / a.ratio >= v_end * (1 - 1e-12)
+    return ok

@@ -1,0 +1,178 @@
+"""Topologies of thesis chapter 4 (models/topology.py): mass/cost rules vs Tables 4-2..4-5,
+in-wheel map (§4.3.1), torque split, SM-SA identity with the quasi-static model, bad input."""
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from bev_mdo.models import acceleration, quasi_static as qs, topology as tp
+from bev_mdo.models.cycles import load_cycle, resample
+from bev_mdo.models.motor_map import MAX_SPEED_RAD_S
+from bev_mdo.models.params import validate_vehicle
+
+P = validate_vehicle({})
+BENCH = {"SM-SA": (80.0, None), "DM-DA": (40.0, 40.0), "IWM-SA": (40.0, None), "IWM-DA": (20.0, 20.0)}
+
+
+@pytest.fixture(scope="module")
+def nedc():
+    return resample(load_cycle("nedc"), 1.0)
+
+
+# Table 4-4: difference from the Leaf (kg) of the motor unit at the 80 kW benchmark
+@pytest.mark.parametrize("topo,diff", [("SM-SA", 0.0), ("DM-DA", 51.6), ("IWM-SA", 0.16), ("IWM-DA", 32.56)])
+def test_table_4_4_motor_unit_difference(topo, diff):
+    kw, kw_r = BENCH[topo]
+    leaf = 0.532 * 80 + 21.6  # 64.16 kg, Table 4-4 row 1
+    assert float(np.squeeze(tp.motor_unit_mass_kg(topo, kw, kw_r))) - leaf == pytest.approx(diff, abs=1e-9)
+
+
+def test_table_4_4_motor_weights():
+    assert float(np.squeeze(tp.motor_unit_mass_kg("DM-DA", 40.0, 40.0))) == pytest.approx(2 * 42.88 + 30.0)
+    assert float(np.squeeze(tp.motor_unit_mass_kg("IWM-DA", 20.0, 20.0))) == pytest.approx(0.75 * 4 * 32.24)
+
+
+# Table 4-5 total weight = kerb = ch7 vehicle mass minus load (thesis rounds to 0.1 kg / 1 kg)
+@pytest.mark.parametrize("topo,kerb,tol", [("SM-SA", 1521.0, 0.05), ("DM-DA", 1572.6, 0.05),
+                                           ("IWM-SA", 1521.0, 0.2), ("IWM-DA", 1553.6, 0.05)])
+def test_table_4_5_total_weight(topo, kerb, tol):
+    kw, kw_r = BENCH[topo]
+    m = float(np.squeeze(tp.vehicle_mass_kg(topo, kw, 24.0, P, "ch7", kw_r)))
+    assert m - P["load_kg"] == pytest.approx(kerb, abs=tol)
+
+
+def test_compounding_model_scales_the_topology_difference():
+    p = {**P, "mass_compounding": 1.6}
+    d = np.squeeze(tp.vehicle_mass_kg("DM-DA", 40.0, 24.0, p, "compounding", 40.0)
+              - tp.vehicle_mass_kg("SM-SA", 80.0, 24.0, p, "compounding"))
+    assert d == pytest.approx(1.6 * 51.6)
+
+
+def test_two_speed_mass_is_20_kg_on_sm_sa_only():
+    one = float(np.squeeze(tp.vehicle_mass_kg("SM-SA", 71.2, 22.3, P)))
+    two = float(np.squeeze(tp.vehicle_mass_kg("SM-SA", 71.2, 22.3, {**P, "gear_count": 2.0})))
+    assert two - one == pytest.approx(20.0)
+    with pytest.raises(ValueError, match="SM-SA only"):
+        tp.vehicle_mass_kg("DM-DA", 40.0, 24.0, {**P, "gear_count": 2.0}, "ch7", 40.0)
+
+
+def test_table_4_3_motor_cost_and_table_4_5_difference():
+    # Table 4-5: DM-DA 9305.3 - SM-SA 8920.3 = 385.0 US$ (the motor term of Table 4-3)
+    d = float(np.squeeze(tp.powertrain_cost_usd("DM-DA", 40.0, 24.0, 40.0) - tp.powertrain_cost_usd("SM-SA", 80.0, 24.0)))
+    assert d == pytest.approx(9305.3 - 8920.3)
+    assert float(np.squeeze(tp.motor_cost_usd("IWM-SA", 40.0))) == pytest.approx(2 * (16 * 40 + 385))
+    assert float(np.squeeze(tp.motor_cost_usd("IWM-DA", 65.0, 20.0))) == pytest.approx(2 * (16 * 65 + 385) + 2 * (16 * 20 + 385))
+
+
+def test_gearbox_cost_rule():
+    g = 400.0
+    assert tp.transmission_cost_usd("SM-SA", g) == g
+    assert tp.transmission_cost_usd("DM-DA", g) == pytest.approx(g + 1.05 * g)  # 2nd gearbox + 5 %
+    assert tp.transmission_cost_usd("IWM-DA", g) == g  # "As SM-SA"
+
+
+def test_in_wheel_map_431():
+    base = qs.default_map()
+    m = tp.in_wheel_map(base)
+    assert m.torque_nm[-1] == pytest.approx(2.5 * base.torque_nm[-1])  # 280 -> 700 Nm
+    assert m.speed_rad_s[-1] * (MAX_SPEED_RAD_S / base.speed_rad_s[-1]) == pytest.approx(210.0, rel=1e-3)
+    tpk = P["motor_torque_per_kw"] / P["iwm_speed_scale"]  # Nm per kW of an in-wheel motor
+    assert tpk * m.reference_kw == pytest.approx(700.0)
+    assert 1000.0 / tpk == pytest.approx(53.0, rel=0.04)  # base speed (thesis 53 rad/s)
+    eta_b = base.efficiency_at(100.0, 400.0, 80.0)
+    eta_w = m.efficiency_at(100.0 * 2.5, 400.0 * P["iwm_speed_scale"], m.reference_kw)
+    assert float(eta_w) == pytest.approx(float(eta_b), abs=1e-12)
+
+
+def test_fast_power_equals_motor_map():
+    rng = np.random.default_rng(3)
+    m = qs.default_map()
+    t = rng.uniform(-300, 300, 2000)
+    w = rng.uniform(0, 1200, 2000)
+    kw = rng.uniform(20, 150, 2000)
+    np.testing.assert_allclose(tp.electrical_power_w(m, t, w, kw), m.electrical_power_w(t, w, kw),
+                               rtol=1e-12, atol=1e-9)
+
+
+def _axles(kw_f, kw_r, ig_f, ig_r, topo="DM-DA"):
+    p = {**{k: np.asarray(v) for k, v in P.items()}}
+    return tp._axles(tp.get_topology(topo), p, np.atleast_1d(kw_f), np.atleast_1d(kw_r),
+                     np.atleast_1d(ig_f), np.atleast_1d(ig_r), qs.default_map())
+
+
+def _power_at(axles, share, tw, v, driving, allowed):
+    tot, over = 0.0, 0.0
+    for ax, s in zip(axles, (share, 1.0 - share)):
+        w = v / P["wheel_radius_m"] * ax.ratio
+        pw, o, _ = tp._axle_power(ax, tw * s, w, tp._t_max(ax, w), driving, allowed)
+        tot, over = tot + pw, over + o
+    return tot, over
+
+
+@settings(max_examples=60, deadline=None)
+@given(kw_f=st.floats(20, 120), kw_r=st.floats(20, 120), ig_f=st.floats(3, 9), ig_r=st.floats(3, 9),
+       topo=st.sampled_from(["DM-DA", "IWM-DA"]), seed=st.integers(0, 10_000))
+def test_split_never_worse_than_50_50(kw_f, kw_r, ig_f, ig_r, topo, seed):
+    rng = np.random.default_rng(seed)
+    ax = _axles(kw_f, kw_r, ig_f, ig_r, topo)
+    v = rng.uniform(0.5, 36.0, (40, 1))
+    tw = rng.uniform(-2500, 2500, (40, 1))
+    driving = tw >= 0
+    allowed = (~driving) & (v >= 10 / 3.6)
+    share, power, over = tp.best_split(ax, tw, v, P["wheel_radius_m"], driving, allowed, 11)
+    p50, o50 = _power_at(ax, 0.5, tw, v, driving, allowed)
+    feasible50 = o50 <= 0
+    assert np.all(power[feasible50] <= p50[feasible50] + 1e-9 * np.abs(p50[feasible50]) + 1e-9)
+    assert np.all(over <= o50 + 1e-9)  # never more overloaded either
+    ps, _ = _power_at(ax, share, tw, v, driving, allowed)  # the reported power is that of the share
+    np.testing.assert_allclose(power, ps, rtol=1e-12, atol=1e-9)
+    assert np.all((share >= 0) & (share <= 1))
+
+
+def test_split_goes_to_the_only_motor_that_can_spin():
+    # rear gear so high that the rear motor is beyond its speed limit: all torque to the front
+    ax = _axles(60.0, 60.0, 7.0, 40.0)
+    v = np.array([[20.0]])  # rear motor at 20/0.316*40 = 2532 rad/s > 1100
+    share, power, over = tp.best_split(ax, np.array([[300.0]]), v, P["wheel_radius_m"],
+                                       np.array([[True]]), np.array([[False]]), 11)
+    assert share[0, 0] == 1.0 and over[0, 0] == 0.0
+
+
+def test_sm_sa_is_the_quasi_static_model(nedc):
+    a = tp.simulate(nedc, P, "SM-SA", [1590.0, 1650.0], [80.0, 100.0], 24.0, [7.9, 6.0])
+    b = qs.simulate(nedc, P, [1590.0, 1650.0], [7.9, 6.0], [80.0, 100.0], 24.0)
+    np.testing.assert_array_equal(a.energy_wh_per_km, b.energy_wh_per_km)
+    t1 = tp.accel_time_s("SM-SA", [1590.0, 1700.0], [80.0, 60.0], [7.9, 9.0], params=P)
+    t2 = acceleration.accel_time_0_100_s(np.array([80.0, 60.0]), np.array([7.9, 9.0]), np.array([1590.0, 1700.0]), P)
+    np.testing.assert_allclose(t1, t2, rtol=1e-12)
+
+
+def test_acceleration_in_wheel_by_hand():
+    # IWM-SA 2 x 40 kW, 1590 kg: direct drive, 18.33 Nm/kW up to 54.6 rad/s, then 80 kW
+    m, r = 1590.0, P["wheel_radius_m"]
+    tpk = P["motor_torque_per_kw"] / P["iwm_speed_scale"]
+
+    def f(v):
+        w = v / r
+        t = np.where(w <= 1000 / tpk, tpk * 40, 40e3 / np.maximum(w, 1e-9))
+        return 2 * t / r - 0.5 * P["air_density_kg_m3"] * P["drag_area_m2"] * v * v - P["rolling_resistance"] * m * 9.81
+    v = np.linspace(0, 100 / 3.6, 200001)
+    y = m / f(v)
+    ref = float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(v)))
+    assert float(tp.accel_time_s("IWM-SA", m, 40.0, params=P)[0]) == pytest.approx(ref, rel=1e-5)
+
+
+def test_two_axle_energy_runs_and_regen_returns(nedc):
+    r = tp.simulate(nedc, P, "DM-DA", [1641.6], [40.0], 24.0, [7.9], [40.0], [7.9])
+    assert r.feasible.all() and r.regen_wh_per_km[0] > 0 and 50 < r.energy_wh_per_km[0] < 200
+
+
+def test_unknown_topology_and_missing_variables():
+    with pytest.raises(ValueError, match="topology must be one of SM-SA, DM-DA, IWM-SA, IWM-DA"):
+        tp.get_topology("XM-ZZ")
+    with pytest.raises(ValueError, match="'gear_ratio' does not exist in topology IWM-SA"):
+        tp.check_design_variables("IWM-SA", ["motor_kw", "gear_ratio"])
+    with pytest.raises(ValueError, match="'motor_rear_kw' does not exist in topology SM-SA"):
+        tp.check_design_variables("SM-SA", ["motor_rear_kw"])
+    with pytest.raises(ValueError, match="needs motor_rear_kw"):
+        tp.motor_cost_usd("DM-DA", 40.0)
+    tp.check_design_variables("DM-DA", ["motor_kw", "gear_ratio", "motor_rear_kw", "gear_ratio_rear", "battery_kwh"])
