@@ -14,10 +14,13 @@ vehicle section.
 from __future__ import annotations
 
 import copy
+import json
 import sys
+import time
 from collections import Counter
 from typing import Any
 
+import numpy as np
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -26,9 +29,20 @@ from rcl_interfaces.msg import ParameterDescriptor
 from bev_mdo import __version__
 from bev_mdo.mdo.discipline import run_discipline
 from bev_mdo.ros import wire
+from bev_mdo.ros.auth import Signer
 from bev_mdo.ros.common import INFO_QOS, INFO_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, request_topic, stamp
 from bev_mdo.ros.paths import default_config
+from bev_mdo.ros.settings import validate_ros
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+
+# Each node's request counters as JSON (std_msgs/String), so tests and operators can see
+# what was received, answered and rejected (by reason) without reading logs.
+# TRANSIENT_LOCAL depth 1: a late subscriber gets every node's latest counters.
+NODE_STATS_TOPIC = "/bev_mdo/node_stats"
+NODE_STATS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def build_discipline(config: dict, name: str) -> Any:
@@ -61,15 +75,34 @@ class DisciplineNode(Node):
         config = self._apply_overrides(config)
         self.discipline = build_discipline(config, name)
         self.discipline_name = name
+        self._allowed = set(self.discipline.inputs) | set(getattr(self.discipline, "parameters", {}) or {})
         self.instance = self.get_parameter("instance").value or self.get_fully_qualified_name()
         self.counts: Counter[str] = Counter()
+        self.signer = Signer.from_ros(validate_ros(config.get("ros")))
+        self._stats_pub = self.create_publisher(String, NODE_STATS_TOPIC, NODE_STATS_QOS)
+        self._stats_sent: dict[str, int] | None = None
+        self._stats_t = 0.0
         self._result_pub = self.create_publisher(EvaluationResult, RESULT_TOPIC, RESULT_QOS)
         self._info_pub = self.create_publisher(DisciplineInfo, INFO_TOPIC, INFO_QOS)
         self._sub = self.create_subscription(EvaluationRequest, request_topic(name), self._on_request, REQUEST_QOS)
         self._publish_info()
         self.get_logger().info(
             f"serving {name!r}: inputs {list(self.discipline.inputs)} -> outputs {list(self.discipline.outputs)}"
+            + ("; requests must be signed" if self.signer else "")
         )
+        self.publish_stats(force=True)
+
+    def publish_stats(self, force: bool = False, every_s: float = 0.1) -> None:
+        """Publish the counters on /bev_mdo/node_stats if they changed (at most every `every_s`)."""
+        now = time.monotonic()
+        snap = dict(self.counts)
+        if not force and (snap == self._stats_sent or now - self._stats_t < every_s):
+            return
+        msg = String()
+        msg.data = json.dumps({"discipline": self.discipline_name, "instance": self.instance, "counts": snap},
+                              sort_keys=True)
+        self._stats_pub.publish(msg)
+        self._stats_sent, self._stats_t = snap, now
 
     def _apply_overrides(self, config: dict) -> dict:
         """Declare vehicle.<key> parameters; values set on the command line override the YAML."""
@@ -98,15 +131,22 @@ class DisciplineNode(Node):
         msg.version = __version__
         self._info_pub.publish(msg)
 
-    def _reject(self, req: EvaluationRequest, why: str) -> None:
+    def _reject(self, req: EvaluationRequest, why: str, category: str = "malformed") -> None:
         self.counts["rejected"] += 1
+        self.counts[f"rejected.{category}"] += 1
         self.get_logger().warning(
-            f"rejected request (run {req.run_id[:40]!r}, eval {req.evaluation_id}): {why}", throttle_duration_sec=2.0
+            f"rejected request (run {req.run_id[:40]!r}, eval {req.evaluation_id}): {why[:200]} "
+            f"[{self.counts['rejected']} rejected so far; this log is rate-limited]", throttle_duration_sec=2.0
         )
         out = EvaluationResult()
         self._fill_header(out, req)
         out.status = EvaluationResult.STATUS_REJECTED
         out.error = f"{self.discipline_name}: rejected: {why}"[:1000]
+        self._publish(out)
+
+    def _publish(self, out: EvaluationResult) -> None:
+        if self.signer is not None:
+            self.signer.sign_result(out)
         self._result_pub.publish(out)
 
     def _fill_header(self, out: EvaluationResult, req: EvaluationRequest) -> None:
@@ -120,17 +160,33 @@ class DisciplineNode(Node):
 
     def _on_request(self, req: EvaluationRequest) -> None:
         self.counts["received"] += 1
+        if self.signer is not None:
+            why = self.signer.verify_request(req)
+            if why is not None:  # no answer at all: an unauthenticated sender learns nothing
+                self.counts["rejected"] += 1
+                self.counts[f"rejected.{why}"] += 1
+                self.get_logger().warning(
+                    f"dropped {why} request (run {req.run_id[:40]!r}, eval {req.evaluation_id}) "
+                    f"[{self.counts['rejected']} rejected so far; this log is rate-limited]",
+                    throttle_duration_sec=2.0)
+                return None
         if req.discipline != self.discipline_name:
-            return self._reject(req, f"addressed to {req.discipline[:40]!r}")
-        if not req.run_id or len(req.run_id) > 128:
-            return self._reject(req, "bad run id")
+            return self._reject(req, f"addressed to {req.discipline[:40]!r}", "wrong_discipline")
+        if not req.run_id or len(req.run_id) > 128 or not req.run_id.isprintable():
+            return self._reject(req, "bad run id", "bad_run_id")
         try:
             inputs = wire.from_named_array(req.inputs)
         except wire.WireError as exc:
-            return self._reject(req, str(exc))
+            return self._reject(req, str(exc), "malformed")
         missing = [k for k in self.discipline.inputs if k not in inputs]
         if missing:
-            return self._reject(req, f"missing inputs {missing}")
+            return self._reject(req, f"missing inputs {missing}", "missing_inputs")
+        unknown = [k for k in inputs if k not in self._allowed]
+        if unknown:
+            return self._reject(req, f"unknown inputs {unknown[:5]}", "unknown_inputs")
+        if not all(np.isfinite(v).all() for v in inputs.values()):
+            # evaluated anyway: those points fail (point_ok false, named), as in-process
+            self.counts["non_finite"] += 1
         result = run_discipline(self.discipline, inputs)
         if result.error:
             self.get_logger().warning(result.error[:500], throttle_duration_sec=2.0)
@@ -142,7 +198,7 @@ class DisciplineNode(Node):
         wire.to_named_array(result.outputs, out.outputs)
         out.compute_time_s = result.compute_time_s
         self.counts["answered"] += 1
-        self._result_pub.publish(out)
+        self._publish(out)
 
 
 def serve(node: DisciplineNode, idle_s: float = 0.1, service_every: int = 64) -> None:
@@ -164,10 +220,12 @@ def serve(node: DisciplineNode, idle_s: float = 0.1, service_every: int = 64) ->
             n = waiter.take_all(node._on_request)
             served += n
             if n == 0:
+                node.publish_stats()
                 if not waiter.wait(idle_s):
                     executor.spin_once(timeout_sec=0.0)
             elif served >= service_every:
                 served = 0
+                node.publish_stats()
                 executor.spin_once(timeout_sec=0.0)
     finally:
         executor.shutdown()

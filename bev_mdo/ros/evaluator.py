@@ -8,6 +8,12 @@ evaluation. Other-run, stale (already answered or unknown id), duplicate (a seco
 instance answering) and malformed results are dropped and counted. A wave that
 times out is re-sent (same evaluation id, attempt + 1) up to `retries` times; then
 its points fail (NaN, infeasible) with an error naming the discipline.
+
+With a shared key (``ros.sign_key_file``, see auth.py) every request is signed and
+every result verified first; unsigned, forged, expired and replayed results are
+dropped and counted under those names. Every accepted result is logged in
+``accepted`` as (evaluation id, discipline, instance, attempt sent so far), so a test
+can check that each evaluation id was accepted once, from its own discipline.
 """
 from __future__ import annotations
 
@@ -24,6 +30,7 @@ from rclpy.node import Node
 from bev_mdo.mdo.discipline import EvalResult
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.ros import wire
+from bev_mdo.ros.auth import Signer
 from bev_mdo.ros.fastwait import SubscriptionWaiter
 from bev_mdo.ros.common import INFO_QOS, INFO_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, request_topic, stamp
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
@@ -45,8 +52,16 @@ class _Pending:
 class RosEvaluator:
     """Evaluator over ROS topics; same interface as the in-process evaluator."""
 
-    def __init__(self, node: Node, *, run_id: str | None = None, timeout_s: float = 5.0, retries: int = 3):
+    def __init__(self, node: Node, *, run_id: str | None = None, timeout_s: float = 5.0, retries: int = 3,
+                 signer: Signer | None = None):
         self.node = node
+        if signer is None:  # the coordinator node carries the run config; sign if it names a key file
+            from bev_mdo.ros.settings import validate_ros
+
+            config = getattr(node, "config", None) or {}
+            signer = Signer.from_ros(validate_ros(config.get("ros"))) if config.get("ros") else None
+        self.signer = signer
+        self.accepted: list[tuple[int, str, str, int]] = []
         self.run_id = run_id or uuid.uuid4().hex[:16]
         self.timeout_s = timeout_s
         self.retries = retries
@@ -117,6 +132,11 @@ class RosEvaluator:
 
     # -- evaluation ----------------------------------------------------------------
     def _on_result(self, msg: EvaluationResult) -> None:
+        if self.signer is not None:
+            why = self.signer.verify_result(msg)
+            if why is not None:
+                self.dropped[why] += 1
+                return
         if msg.run_id != self.run_id:
             self.dropped["other_run"] += 1
             return
@@ -145,6 +165,7 @@ class RosEvaluator:
             ok = ok & np.all([np.isfinite(v) for v in outs.values()], axis=0) if outs else ok
             res = EvalResult(outs, ok, msg.error, float(msg.compute_time_s))
         self.counts[p.discipline] += p.n
+        self.accepted.append((int(msg.evaluation_id), msg.discipline, msg.instance, int(p.request.attempt)))
         del self._pending[msg.evaluation_id]
         self._answered.add(msg.evaluation_id)
         self._results[p.index] = res
@@ -157,7 +178,9 @@ class RosEvaluator:
     def _send(self, p: _Pending) -> None:
         self._seq += 1
         p.request.sequence = self._seq
-        stamp(p.request.header)
+        stamp(p.request.header)  # a retry gets a fresh stamp (and signature): it is not a replay
+        if self.signer is not None:
+            self.signer.sign_request(p.request)
         p.sent_ns = time.monotonic_ns()
         self._publisher(p.discipline).publish(p.request)
 

@@ -21,6 +21,16 @@ from bev_mdo.ros.run import DISCIPLINE_EXES
 _BUILTIN_EXE = {v: k for k, v in DISCIPLINE_EXES.items()}
 
 
+def _die_with_parent() -> None:
+    """In the child: get SIGTERM if the launcher dies (even by SIGKILL), so no node is orphaned (Linux)."""
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except OSError:
+        pass
+
+
 @dataclass
 class NodeProcess:
     """One supervised node process."""
@@ -44,6 +54,25 @@ def discipline_argv(name: str, config_path: str, instance: str = "") -> list[str
     if instance:
         argv += ["-p", f"instance:={node_name}"]
     return argv
+
+
+def _stop_procs(procs, timeout_s: float) -> None:
+    """SIGINT, then SIGTERM, then SIGKILL, waiting for each step."""
+    for sig, wait in ((signal.SIGINT, timeout_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
+        alive = [p for p in procs if p is not None and p.poll() is None]
+        if not alive:
+            break
+        for p in alive:
+            try:
+                p.send_signal(sig)
+            except ProcessLookupError:
+                pass
+        deadline = time.monotonic() + wait
+        for p in alive:
+            try:
+                p.wait(timeout=max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
 
 
 class Launcher:
@@ -78,7 +107,8 @@ class Launcher:
             out = subprocess.DEVNULL
         # Own session: a Ctrl-C in the terminal reaches only us; we stop the children in order.
         node.proc = subprocess.Popen(node.argv, env=self.env, stdout=out, stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL, start_new_session=True)
+                                     stdin=subprocess.DEVNULL, start_new_session=True,
+                                     preexec_fn=_die_with_parent)
         if out is not subprocess.DEVNULL:
             out.close()
 
@@ -101,13 +131,33 @@ class Launcher:
                               f"({node.restarts}/{self.max_restarts})", file=sys.stderr)
                         self._spawn(node)
 
-    def kill(self, label: str, sig: int = signal.SIGKILL) -> int:
-        """Send a signal to a node process (for fault-injection tests); returns its pid."""
+    def kill(self, label: str, sig: int = signal.SIGKILL, wait: bool = True) -> int:
+        """Send a signal to a node process (for fault-injection tests); returns its pid.
+
+        With `wait`, return only once that process has exited (the supervisor, which
+        needs the same lock, cannot restart it before).
+        """
         with self._lock:
-            node = next(n for n in self.nodes if n.label == label)
+            node = self.node(label)
             pid = node.proc.pid
             node.proc.send_signal(sig)
+            if wait:
+                node.proc.wait()
         return pid
+
+    def node(self, label: str) -> NodeProcess:
+        """The supervised node process with this label (KeyError if none)."""
+        for n in self.nodes:
+            if n.label == label:
+                return n
+        raise KeyError(f"no node labelled {label!r}; have {[n.label for n in self.nodes]}")
+
+    def remove(self, label: str, timeout_s: float = 5.0) -> None:
+        """Stop one node for good (it is not restarted) and forget it."""
+        with self._lock:
+            node = self.node(label)
+            self.nodes.remove(node)
+        _stop_procs([node.proc], timeout_s)
 
     def stop(self, timeout_s: float = 5.0) -> None:
         """Stop every node: SIGINT, then SIGTERM, then SIGKILL. Idempotent."""
@@ -116,21 +166,7 @@ class Launcher:
             self._thread.join(timeout=2.0)
         with self._lock:
             procs = [n.proc for n in self.nodes if n.proc is not None]
-        for sig, wait in ((signal.SIGINT, timeout_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
-            alive = [p for p in procs if p.poll() is None]
-            if not alive:
-                break
-            for p in alive:
-                try:
-                    p.send_signal(sig)
-                except ProcessLookupError:
-                    pass
-            deadline = time.monotonic() + wait
-            for p in alive:
-                try:
-                    p.wait(timeout=max(0.0, deadline - time.monotonic()))
-                except subprocess.TimeoutExpired:
-                    pass
+        _stop_procs(procs, timeout_s)
 
     def __enter__(self) -> "Launcher":
         return self

@@ -17,7 +17,8 @@ DEFAULTS: dict[str, Any] = {
     "timeout_s": 5.0,                # per evaluation wave before a retry
     "retries": 3,
     "discovery_wait_s": 20.0,        # how long to wait for every discipline to appear
-    "sign_key_file": "",             # reserved for message authentication
+    "sign_key_file": "",             # path of a shared HMAC key: sign and verify every request/result
+    "sign_window_s": 30.0,           # signed messages with a stamp further than this from now are expired
 }
 DISCOVERY_MODES = ("localhost", "static_peers", "server", "subnet")
 
@@ -38,11 +39,18 @@ def validate_ros(section: Mapping[str, Any] | None) -> dict[str, Any]:
         raise ValueError("ros.discovery static_peers needs ros.static_peers: [address, ...]")
     if out["discovery"] == "server" and ":" not in str(out["discovery_server"]):
         raise ValueError("ros.discovery server needs ros.discovery_server: 'ip:port'")
-    for key in ("timeout_s", "discovery_wait_s"):
+    for key in ("timeout_s", "discovery_wait_s", "sign_window_s"):
         v = out[key]
         if not isinstance(v, (int, float)) or not 0 < float(v) < 1e6:
             raise ValueError(f"ros.{key} must be a positive number of seconds, got {v!r}")
         out[key] = float(v)
+    key_file = out["sign_key_file"]
+    if key_file is None:
+        key_file = ""
+    if not isinstance(key_file, (str, os.PathLike)):
+        raise ValueError(f"ros.sign_key_file must be a path, got {type(key_file).__name__}")
+    # Only the (absolute) path is kept: resolved configs, logs and bags never hold the key.
+    out["sign_key_file"] = os.path.abspath(os.path.expanduser(str(key_file))) if str(key_file) else ""
     if not isinstance(out["retries"], int) or not 0 <= out["retries"] <= 100:
         raise ValueError(f"ros.retries must be an integer in [0, 100], got {out['retries']!r}")
     return out

@@ -1,0 +1,173 @@
+"""Message authentication with a shared key: HMAC-SHA256 from the standard library.
+
+The pip build of Fast DDS has no DDS-Security, so SROS2 cannot be enforced with it.
+With ``ros.sign_key_file`` set, every EvaluationRequest and EvaluationResult carries
+``signature = hex(HMAC-SHA256(key, canonical bytes))``. The canonical bytes are a
+fixed, length-prefixed encoding of every field the receiver acts on (run id,
+evaluation id, attempt, discipline, names, batch size, the float64 values as
+little-endian bytes, status / error / point_ok for results) and the header stamp.
+
+A receiver drops and counts a message that is
+- ``unsigned``: no signature;
+- ``forged``: the signature does not match (wrong key, or any signed field changed);
+- ``expired``: its stamp is further than ``window_s`` from the receiver's clock
+  (either way, so a far-future stamp cannot pre-date a replay);
+- ``replayed``: an identical signed message was already accepted within the window.
+A retry re-sends an evaluation with ``attempt + 1`` and a fresh stamp, so it has a new
+signature and is not a replay. The key itself is only ever read from the file: the
+config, logs and bags hold the path.
+"""
+from __future__ import annotations
+
+import hashlib
+import hmac
+import os
+import struct
+import time
+from collections import OrderedDict
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+MIN_KEY_BYTES = 16
+REASONS = ("unsigned", "forged", "expired", "replayed")
+_REQ_TAG = b"bev_mdo/EvaluationRequest/v1\0"
+_RES_TAG = b"bev_mdo/EvaluationResult/v1\0"
+
+
+class AuthError(ValueError):
+    """The key file is missing, unreadable or too short (the message never shows the key)."""
+
+
+def read_key(path: str | os.PathLike) -> bytes:
+    """The shared key: the file's bytes without surrounding whitespace (>= 16 bytes)."""
+    p = Path(path)
+    try:
+        key = p.read_bytes().strip()
+    except OSError as exc:
+        raise AuthError(f"ros.sign_key_file {str(p)!r}: cannot read ({exc.strerror})") from None
+    if len(key) < MIN_KEY_BYTES:
+        raise AuthError(f"ros.sign_key_file {str(p)!r}: key shorter than {MIN_KEY_BYTES} bytes")
+    return key
+
+
+def _s(out: list[bytes], text: str) -> None:
+    b = text.encode("utf-8", "surrogatepass")
+    out.append(struct.pack("<I", len(b)))
+    out.append(b)
+
+
+def _named(out: list[bytes], arr) -> None:
+    names = list(arr.names)
+    out.append(struct.pack("<I", len(names)))
+    for k in names:
+        _s(out, k)
+    out.append(struct.pack("<I", int(arr.batch_size)))
+    vals = np.asarray(arr.values, dtype="<f8").tobytes() if len(arr.values) else b""
+    out.append(struct.pack("<Q", len(vals)))
+    out.append(vals)
+
+
+def _stamp(out: list[bytes], header) -> None:
+    out.append(struct.pack("<iI", int(header.stamp.sec), int(header.stamp.nanosec)))
+    _s(out, header.frame_id)
+
+
+def request_bytes(msg) -> bytes:
+    """Canonical bytes of an EvaluationRequest (everything but the signature)."""
+    out = [_REQ_TAG]
+    _stamp(out, msg.header)
+    _s(out, msg.run_id)
+    out.append(struct.pack("<QQII", int(msg.evaluation_id), int(msg.sequence), int(msg.iteration), int(msg.attempt)))
+    _s(out, msg.discipline)
+    _named(out, msg.inputs)
+    return b"".join(out)
+
+
+def result_bytes(msg) -> bytes:
+    """Canonical bytes of an EvaluationResult (everything but the signature)."""
+    out = [_RES_TAG]
+    _stamp(out, msg.header)
+    _s(out, msg.run_id)
+    out.append(struct.pack("<QQ", int(msg.evaluation_id), int(msg.sequence)))
+    _s(out, msg.discipline)
+    _s(out, msg.instance)
+    out.append(struct.pack("<B", int(msg.status)))
+    _s(out, msg.error)
+    ok = bytes(bool(b) for b in msg.point_ok)
+    out.append(struct.pack("<I", len(ok)))
+    out.append(ok)
+    _named(out, msg.outputs)
+    out.append(struct.pack("<d", float(msg.compute_time_s)))
+    return b"".join(out)
+
+
+class Signer:
+    """Signs outgoing and verifies incoming requests and results with one shared key."""
+
+    def __init__(self, key: bytes, window_s: float = 30.0, clock_ns: Callable[[], int] = time.time_ns,
+                 max_seen: int = 1_000_000):
+        if len(key) < MIN_KEY_BYTES:
+            raise AuthError(f"key shorter than {MIN_KEY_BYTES} bytes")
+        self._key = key
+        self.window_ns = int(window_s * 1e9)
+        self._clock = clock_ns
+        self._seen: OrderedDict[tuple, int] = OrderedDict()  # accepted (kind, ids, signature) -> stamp ns
+        self._max_seen = max_seen
+
+    def __repr__(self) -> str:  # never show the key
+        return f"Signer(window_s={self.window_ns / 1e9:g})"
+
+    @classmethod
+    def from_ros(cls, ros) -> "Signer | None":
+        """A Signer from a validated `ros:` section, or None when signing is off."""
+        path = (ros or {}).get("sign_key_file") or ""
+        if not path:
+            return None
+        return cls(read_key(path), float((ros or {}).get("sign_window_s", 30.0)))
+
+    def _mac(self, data: bytes) -> str:
+        return hmac.new(self._key, data, hashlib.sha256).hexdigest()
+
+    def sign_request(self, msg) -> None:
+        msg.signature = self._mac(request_bytes(msg))
+
+    def sign_result(self, msg) -> None:
+        msg.signature = self._mac(result_bytes(msg))
+
+    def verify_request(self, msg) -> str | None:
+        """None if the request is authentic and fresh, else the reason (one of REASONS)."""
+        return self._verify(msg, request_bytes, ("req", msg.run_id, int(msg.evaluation_id), msg.discipline))
+
+    def verify_result(self, msg) -> str | None:
+        """None if the result is authentic and fresh, else the reason (one of REASONS)."""
+        return self._verify(msg, result_bytes, ("res", msg.run_id, int(msg.evaluation_id), msg.discipline))
+
+    def _verify(self, msg, encode, ids: tuple) -> str | None:
+        sig = msg.signature
+        if not sig:
+            return "unsigned"
+        if len(sig) != 64 or not hmac.compare_digest(sig, self._mac(encode(msg))):
+            return "forged"
+        t = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+        now = self._clock()
+        if abs(now - t) > self.window_ns:
+            return "expired"
+        self._prune(now)
+        key = (*ids, sig)
+        if key in self._seen:
+            return "replayed"
+        self._seen[key] = t
+        return None
+
+    def _prune(self, now: int) -> None:
+        # Entries older than the window can go: such a message would be rejected as expired.
+        # Insertion order is close to stamp order; stop at the first entry still in the window.
+        seen = self._seen
+        while seen:
+            k, t = next(iter(seen.items()))
+            if now - t > self.window_ns or len(seen) > self._max_seen:
+                seen.popitem(last=False)
+            else:
+                break

@@ -1,0 +1,148 @@
+"""Supervision and retries: discipline nodes SIGKILLed during an optimisation.
+
+Kills are placed on evaluation counts (the n-th first request sent to a discipline),
+never on timers: the request is published only after the node process has exited,
+so every kill leaves an outstanding evaluation that the coordinator must retry
+while the launcher restarts the node. Timeouts are short (config `ros:` section).
+Every accepted result is checked against an in-process evaluation of the inputs of
+the request it was matched to, so a result matched to the wrong evaluation fails.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+rclpy = pytest.importorskip("rclpy")
+
+from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
+from bev_mdo.mdo.discipline import run_discipline  # noqa: E402
+from bev_mdo.mdo.driver import run_optimization  # noqa: E402
+from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
+from bev_mdo.ros import coordinator_node, wire  # noqa: E402
+from bev_mdo.ros.evaluator import RosEvaluator  # noqa: E402
+from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
+from bev_mdo.testing import REPO, ros_env  # noqa: E402
+
+BUILTINS = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]
+KILL_AT = (2, 5, 9)  # kill before the 2nd, 5th and 9th first-attempt request to the target
+
+
+@pytest.fixture(scope="module")
+def config_path(tmp_path_factory):
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
+    # short timeout, many retries: a restart (process start + discovery) spans several retries
+    raw["ros"] = {"timeout_s": 0.3, "retries": 100, "discovery_wait_s": 60.0}
+    p = tmp_path_factory.mktemp("cfg") / "faults.yaml"
+    p.write_text(yaml.safe_dump(raw, sort_keys=False))
+    return str(p)
+
+
+@pytest.fixture(scope="module")
+def launcher(ros_domain, config_path, tmp_path_factory):
+    la = Launcher(ros_env(ros_domain), log_dir=tmp_path_factory.mktemp("logs"))
+    try:
+        for name in BUILTINS:
+            la.add(name, discipline_argv(name, config_path))
+        la.supervise(interval_s=0.02)
+        yield la
+    finally:
+        la.stop()
+
+
+@pytest.fixture(scope="module")
+def reference(config_path):
+    config = load_config(config_path)
+    return run_optimization(config, InProcessEvaluator(resolve_disciplines(config)))
+
+
+class Audit:
+    """Wraps RosEvaluator._send/_on_result: injects kills and checks every accepted result."""
+
+    def __init__(self, config, launcher=None, target=None, kill_at=()):
+        self.local = {d.name: d for d in resolve_disciplines(config)}
+        self.launcher, self.target, self.kill_at = launcher, target, set(kill_at)
+        self.first_sends = 0
+        self.kills = 0
+        self.sent: dict[int, tuple[str, dict]] = {}
+        self.checked = 0
+        self.evaluators: list[RosEvaluator] = []
+
+    def install(self, monkeypatch):
+        orig_send, orig_result = RosEvaluator._send, RosEvaluator._on_result
+        audit = self
+
+        def _send(ev, p):
+            if ev not in audit.evaluators:
+                audit.evaluators.append(ev)
+            req = p.request
+            if req.attempt == 0:
+                audit.sent[req.evaluation_id] = (p.discipline, {k: np.array(v) for k, v in
+                                                                wire.from_named_array(req.inputs).items()})
+                if p.discipline == audit.target:
+                    audit.first_sends += 1
+                    if audit.first_sends in audit.kill_at:
+                        audit.launcher.kill(audit.target)  # returns once the process is gone
+                        audit.kills += 1
+            return orig_send(ev, p)
+
+        def _on_result(ev, msg):
+            before = len(ev.accepted)
+            orig_result(ev, msg)
+            if len(ev.accepted) > before:
+                audit.check(ev, msg)
+
+        monkeypatch.setattr(RosEvaluator, "_send", _send)
+        monkeypatch.setattr(RosEvaluator, "_on_result", _on_result)
+
+    def check(self, ev, msg):
+        eid, disc, _instance, _attempt = ev.accepted[-1]
+        want_disc, inputs = self.sent[eid]
+        assert disc == want_disc == msg.discipline
+        if msg.status == msg.STATUS_REJECTED:
+            raise AssertionError(f"valid request {eid} rejected: {msg.error}")
+        local = run_discipline(self.local[disc], inputs)
+        got = wire.from_named_array(msg.outputs)
+        for k, v in local.outputs.items():
+            np.testing.assert_array_equal(np.asarray(got[k]), v, err_msg=f"eval {eid} {disc}.{k}")
+        self.checked += 1
+
+
+def _assert_same_optimum(res, ref, rel=1e-6):
+    assert res.feasible == ref.feasible
+    for k, v in ref.design.items():
+        assert res.design[k] == pytest.approx(v, rel=rel), k
+    assert res.objective == pytest.approx(ref.objective, rel=rel)
+
+
+@pytest.mark.parametrize("target", ["energy", "range"])
+def test_sigkill_a_node_three_times_gives_the_same_optimum(rclpy_context, launcher, config_path, reference,
+                                                           monkeypatch, target):
+    config = load_config(config_path)
+    audit = Audit(config, launcher, target, KILL_AT)
+    audit.install(monkeypatch)
+    restarts0 = launcher.node(target).restarts
+    res, stats = coordinator_node.run(config, context=rclpy_context)
+    assert audit.kills == 3, f"only {audit.first_sends} requests went to {target}"
+    assert launcher.node(target).restarts - restarts0 == 3
+    assert stats["retried"] >= 3  # each kill left an outstanding evaluation that was re-sent
+    _assert_same_optimum(res, reference)
+    # bookkeeping: each evaluation id accepted exactly once, and every accepted result was
+    # equal to an in-process evaluation of the request it was matched to
+    (ev,) = audit.evaluators
+    ids = [a[0] for a in ev.accepted]
+    assert len(ids) == len(set(ids)) == len(audit.sent) == audit.checked
+    assert not ev._pending
+    assert stats["dropped"].get("malformed", 0) == 0 and stats["dropped"].get("mismatched", 0) == 0
+    assert all(n.restarts == 0 for n in launcher.nodes if n.label != target and n.label not in
+               ("energy", "vehicle_mass", "range"))
+
+
+def test_undisturbed_run_is_audited_too(rclpy_context, launcher, config_path, reference, monkeypatch):
+    """Same audit without kills: the optimum equals the in-process one to 1e-12."""
+    config = load_config(config_path)
+    audit = Audit(config)
+    audit.install(monkeypatch)
+    res, stats = coordinator_node.run(config, context=rclpy_context)
+    _assert_same_optimum(res, reference, rel=1e-12)
+    assert audit.checked == len(audit.sent) > 0
