@@ -1,0 +1,32 @@
+"""``bev-mdo replay BAG [--rate R | --as-fast-as-possible] [--topics ...] [--loop]``."""
+from __future__ import annotations
+
+import sys
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser("replay", help="publish the messages of a recorded bag again")
+    parser.add_argument("bag", help="bag directory or .mcap file")
+    speed = parser.add_mutually_exclusive_group()
+    speed.add_argument("--rate", type=float, default=1.0,
+                       help="recorded timing scaled by this factor (default 1.0)")
+    speed.add_argument("--as-fast-as-possible", action="store_true", help="no timing at all")
+    parser.add_argument("--topics", nargs="+", help="only these topics")
+    parser.add_argument("--loop", action="store_true", help="start again at the end (Ctrl-C stops)")
+    parser.add_argument("--wait-subscribers", type=int, default=0, metavar="N",
+                        help="wait until each topic has N subscribers before publishing")
+    parser.add_argument("--wait-timeout", type=float, default=30.0, metavar="S",
+                        help="give up waiting for subscribers after S seconds (default 30)")
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from bev_mdo.ros.replay import replay
+
+    rate = None if args.as_fast_as_possible else args.rate
+    stats = replay(args.bag, rate=rate, topics=args.topics, loop=args.loop,
+                   wait_subscribers=args.wait_subscribers, wait_timeout_s=args.wait_timeout,
+                   log=lambda line: print(line, file=sys.stderr))
+    print(f"replayed {stats.messages} messages in {stats.seconds:.3f} s "
+          f"({stats.messages_per_s:.0f} msg/s)")
+    return 0
