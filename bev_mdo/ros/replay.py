@@ -54,8 +54,12 @@ class Replayer:
     """Publishers for the topics of one bag on a given node."""
 
     def __init__(self, node: Node, bag: Bag, topics: list[str] | None = None):
+        from rclpy.executors import SingleThreadedExecutor
+
         self.node = node
         self.bag = bag
+        self._executor = SingleThreadedExecutor(context=node.context)
+        self._executor.add_node(node)
         unknown = sorted(set(topics or []) - set(bag.topics))
         if unknown:
             raise BagError(f"{bag.mcap_path}: no topic {', '.join(unknown)} in this bag")
@@ -77,7 +81,7 @@ class Replayer:
         while any(p.get_subscription_count() < count for p in self.publishers.values()):
             if time.monotonic() > deadline:
                 return False
-            _spin(self.node, 0.05)
+            self._executor.spin_once(timeout_sec=0.05)
         return True
 
     def play(self, rate: float | None = 1.0) -> ReplayStats:
@@ -97,12 +101,6 @@ class Replayer:
     def wait_acked(self, timeout_s: float = 10.0) -> bool:
         """Wait until subscribers acknowledged everything (RELIABLE), so exiting loses nothing."""
         return all(p.wait_for_all_acked(Duration(seconds=timeout_s)) for p in self.publishers.values())
-
-
-def _spin(node: Node, timeout_s: float) -> None:
-    import rclpy
-
-    rclpy.spin_once(node, timeout_sec=timeout_s)
 
 
 def replay(path, *, rate: float | None = 1.0, topics: list[str] | None = None, loop: bool = False,
