@@ -45,6 +45,45 @@ NODE_STATS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=Hist
                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
+class NodeStatsListener:
+    """Latest counters of every discipline node (from /bev_mdo/node_stats), by instance name."""
+
+    def __init__(self, node: Node):
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.node = node
+        self.latest: dict[str, dict] = {}
+        self._sub = node.create_subscription(String, NODE_STATS_TOPIC, self._on_stats, NODE_STATS_QOS)
+        self._executor = SingleThreadedExecutor(context=node.context)
+        self._executor.add_node(node)
+
+    def _on_stats(self, msg: String) -> None:
+        d = json.loads(msg.data)
+        self.latest[d["instance"]] = d
+
+    def counts(self, discipline: str | None = None) -> Counter:
+        """Counters summed over instances (of one discipline, or of all)."""
+        total: Counter[str] = Counter()
+        for d in self.latest.values():
+            if discipline is None or d["discipline"] == discipline:
+                total.update(d["counts"])
+        return total
+
+    def wait(self, predicate, timeout_s: float) -> bool:
+        """Spin until `predicate(self)` holds; False after `timeout_s`."""
+        deadline = time.monotonic() + timeout_s
+        while not predicate(self):
+            if time.monotonic() > deadline:
+                return False
+            self._executor.spin_once(timeout_sec=0.05)
+        return True
+
+    def close(self) -> None:
+        self._executor.remove_node(self.node)
+        self._executor.shutdown()
+        self.node.destroy_subscription(self._sub)
+
+
 def build_discipline(config: dict, name: str) -> Any:
     """The discipline named `name` in a resolved config (built-in or user class)."""
     from bev_mdo.config import resolve_disciplines
