@@ -129,6 +129,12 @@ class Bag:
             raise BagError(f"{self.mcap_path}: truncated MCAP header")
         if self.truncated and not self.channels and not self.metadata:
             raise BagError(f"{self.mcap_path}: truncated, no complete record after the header")
+        # A bev_mdo recording holds our schemas; other packages' topics may be recorded beside
+        # them (the recorder takes any topic it is given), but a bag of only foreign types is not ours.
+        foreign = [s.name for s in self.schemas.values() if not s.name.startswith(PACKAGE + "/")]
+        if self.strict and foreign and len(foreign) == len(self.schemas):
+            raise BagError(f"{self.mcap_path}: schema {foreign[0]} is not a {PACKAGE} type "
+                           "(not a bev_mdo recording)")
         for channel in self.channels.values():
             self.counts.setdefault(channel.topic, 0)
             if channel.message_encoding != "cdr":
@@ -139,9 +145,6 @@ class Bag:
         if schema.encoding != "ros2msg":
             raise BagError(f"{self.mcap_path}: schema {schema.name!r} has encoding "
                            f"{schema.encoding!r}, expected 'ros2msg'")
-        if self.strict and not schema.name.startswith(PACKAGE + "/"):
-            raise BagError(f"{self.mcap_path}: schema {schema.name} is not a {PACKAGE} type "
-                           "(not a bev_mdo recording)")
 
     def _channel(self, channel_id: int) -> Channel:
         try:

@@ -73,7 +73,11 @@ def _table(result: dict, baseline: dict, out) -> None:
 def run(args) -> int:
     from bev_mdo.config import load_config
 
-    config = load_config(args.config)
+    return run_job(load_config(args.config), args)
+
+
+def run_job(config: dict, args, x0: dict | None = None) -> int:
+    """Run one optimisation of a resolved config as the CLI options say; x0 overrides the start."""
     if args.optimizer:
         from bev_mdo.mdo.optimizers import canonical_name
 
@@ -81,9 +85,9 @@ def run(args) -> int:
     out = sys.stderr if args.json else sys.stdout
     show = _progress(args.quiet, args.json)
     if args.transport == "inprocess":
-        result, baseline, extra = _run_inprocess(config, args, show)
+        result, baseline, extra = _run_inprocess(config, args, show, x0)
     else:
-        result, baseline, extra = _run_ros(config, args, show)
+        result, baseline, extra = _run_ros(config, args, show, x0)
     if args.json:
         print(json.dumps({**result, "baseline": baseline, **extra}, default=float, indent=2))
     else:
@@ -98,20 +102,21 @@ def _baseline_design(config) -> dict:
     return {k: v for k, v in LEAF_BASELINE.items() if k in names}
 
 
-def _run_inprocess(config, args, show):
+def _run_inprocess(config, args, show, x0=None):
     from bev_mdo.config import resolve_disciplines
     from bev_mdo.mdo.driver import evaluate_design, run_optimization
     from bev_mdo.mdo.evaluator import InProcessEvaluator
 
     ev = InProcessEvaluator(resolve_disciplines(config))
-    res = run_optimization(config, ev, formulation=args.formulation, optimizer=args.optimizer, callback=show)
+    res = run_optimization(config, ev, formulation=args.formulation, optimizer=args.optimizer, x0=x0,
+                           callback=show)
     out = res.to_dict()
     out.pop("history")
     baseline = evaluate_design(config, InProcessEvaluator(resolve_disciplines(config)), _baseline_design(config))
     return out, baseline, {"transport": "inprocess"}
 
 
-def _run_ros(config, args, show):
+def _run_ros(config, args, show, x0=None):
     import yaml
 
     from bev_mdo.config import discipline_entries
@@ -148,7 +153,7 @@ def _run_ros(config, args, show):
         if not args.no_record:
             recorder = _start_recorder(launcher, bag, resolved, run_id)
         launcher.supervise()
-        result, baseline, stats = _coordinate(config, run_id, args, show, recorder)
+        result, baseline, stats = _coordinate(config, run_id, args, show, recorder, x0)
     finally:
         launcher.stop()
     restarts = {n.label: n.restarts for n in launcher.nodes if n.restarts}
@@ -165,7 +170,7 @@ def _start_recorder(launcher, bag: Path, resolved: Path, run_id: str) -> int:
     return 1
 
 
-def _coordinate(config, run_id, args, show, recorder: int):
+def _coordinate(config, run_id, args, show, recorder: int, x0=None):
     import rclpy
 
     from bev_mdo.mdo.driver import evaluate_design
@@ -175,7 +180,7 @@ def _coordinate(config, run_id, args, show, recorder: int):
     rclpy.init(context=ctx)
     try:
         res, stats = coordinator_node.run(config, run_id=run_id, formulation=args.formulation,
-                                          optimizer=args.optimizer, on_iteration=show,
+                                          optimizer=args.optimizer, x0=x0, on_iteration=show,
                                           recorder_subscribers=recorder, context=ctx)
         out = res.to_dict()
         out.pop("history")

@@ -174,9 +174,11 @@ def run_optimization(config: Mapping[str, Any], evaluator: Evaluator, *, formula
     res = run_optimizer(opt_name, form, options, lambda x: record(x))
     x = np.asarray(res.x, dtype=float)
     last = record(x) if not history or history[-1]["design"] != problem.design_dict(x[:n_dv]) else history[-1]
-    counts = dict(evaluator.counts)
-    mda_evals = form.mda_evaluations
+    # The final report is one more MDA through the same evaluator; count it, so the totals
+    # equal what the disciplines actually evaluated (and what a recording holds).
     final = evaluate_design(config, evaluator, problem.design_dict(x[:n_dv]))
+    counts = dict(evaluator.counts)
+    mda_evals = form.mda_evaluations + 1
     ok, err = form.status(x)
     return RunResult(
         formulation=form.name, optimizer=opt_name, success=bool(res.success) and ok,

@@ -154,6 +154,15 @@ def main(args: list[str] | None = None) -> int:
         node = RecorderNode(parameter_overrides=overrides)
         while not stop and rclpy.ok():
             rclpy.spin_once(node, timeout_sec=0.1)
+        # Drain what already arrived before closing, so a stop does not lose the run's tail.
+        last = -1
+        while rclpy.ok() and node.received != last:
+            last = node.received
+            for _ in range(1000):
+                rclpy.spin_once(node, timeout_sec=0.02)
+                if node.received == last:
+                    break
+                last = node.received
         return 0
     finally:
         for s, handler in old.items():

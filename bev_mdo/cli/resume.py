@@ -1,0 +1,52 @@
+"""`bev-mdo resume BAG`: restart an interrupted optimisation from its last recorded iterate.
+
+The configuration comes from the bag itself (stored by the recorder), so the bag is
+all that is needed. The resumed run is recorded to a new bag.
+"""
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub) -> None:
+    p = sub.add_parser("resume", help="restart an optimisation from the last iterate recorded in a bag",
+                       description="Read the run's configuration and its last IterationRecord from BAG and "
+                                   "optimise again from that design (a truncated bag works too).")
+    p.add_argument("bag", help="bag directory or .mcap file")
+    p.add_argument("--transport", choices=["ros", "inprocess"], default="ros")
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--domain-id", type=int, default=None)
+    p.add_argument("--output", dest="out_bag", default=None, help="bag to write (default: bags/<name>_resumed_...)")
+    p.add_argument("--no-record", action="store_true")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=run)
+
+
+def resume_point(bag_path: str) -> tuple[dict, dict, int]:
+    """(resolved config, last design, its iteration) from a bag; BagError (a ValueError) if there is none."""
+    import yaml
+
+    from bev_mdo.bag.history import last_iterate
+    from bev_mdo.config import load_config
+
+    config_yaml, design, iteration = last_iterate(bag_path)
+    if not config_yaml:
+        raise ValueError(f"{bag_path}: the bag holds no configuration; cannot resume")
+    return load_config(yaml.safe_load(config_yaml)), design, iteration
+
+
+def run(args) -> int:
+    import sys
+
+    from bev_mdo.cli.optimize import run_job
+
+    config, design, iteration = resume_point(args.bag)
+    out = sys.stderr if args.json else sys.stdout
+    print(f"resuming {config.get('name', 'run')} from iteration {iteration} at "
+          + ", ".join(f"{k}={v:.6g}" for k, v in design.items()), file=out)
+    names = list(config["problem"]["design_variables"])
+    x0 = {k: v for k, v in design.items() if k in names}
+    opts = argparse.Namespace(formulation=None, optimizer=None, transport=args.transport, json=args.json,
+                              domain_id=args.domain_id, bag=args.out_bag, no_record=args.no_record,
+                              quiet=args.quiet)
+    return run_job(config, opts, x0=x0)
