@@ -1,0 +1,331 @@
+"""``bev-mdo pareto CONFIG [--topology T | --all-topologies] [--transport inprocess|ros]
+[--generations G --pop P --seed S] [--objectives a,b,c] [--out DIR]``.
+
+Thesis §4.4 (eqs 4-6..4-10): NSGA-II (pymoo) over the config's MDA, minimising energy on the
+combined Artemis cycle, 0-100 km/h time and powertrain cost subject to the problem's
+constraints (NEDC range >= 175 km, cycle torque/speed feasibility). Every generation is ONE
+batch of the whole population through the evaluator (in-process, or the discipline nodes over
+ROS). ``--topology`` / ``--all-topologies`` rewrite the ``topology`` option of the topology
+disciplines and the design variables (``TOPOLOGY_BOUNDS``; the battery keeps the config's
+bounds). Writes into ``--out`` (default ``bags/<name>_pareto_<time>/``, the run's bag
+directory; MCAP recording of the ROS traffic is the lead's wiring):
+
+* ``pareto_<TOPOLOGY>.csv``: the feasible non-dominated designs, every MDA variable;
+* ``benchmark.csv``: the 80 kW benchmark of Table 4-4 evaluated per topology beside Table 4-5;
+* ``fig_4_5_energy_accel.png``, ``fig_4_6_energy_cost.png`` (like Figs 4-5, 4-6);
+* ``summary.json``: timings, evaluations, the Table 4-6 / 4-7 style picks.
+"""
+from __future__ import annotations
+
+import copy
+import csv
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+OBJECTIVES = ("energy_wh_per_km", "accel_time_0_100_s", "powertrain_cost_usd")
+TOPOLOGY_DISCIPLINES = ("vehicle_mass", "energy", "acceleration", "cost", "cycle_range")
+# design-variable bounds per topology (motor power per motor); used when --topology changes it
+TOPOLOGY_BOUNDS = {
+    "SM-SA": {"motor_kw": (40.0, 130.0, 80.0), "gear_ratio": (4.0, 9.4, 7.9)},
+    "DM-DA": {"motor_kw": (20.0, 90.0, 40.0), "gear_ratio": (4.0, 9.4, 7.9),
+              "motor_rear_kw": (20.0, 90.0, 40.0), "gear_ratio_rear": (4.0, 9.4, 7.9)},
+    "IWM-SA": {"motor_kw": (20.0, 90.0, 40.0)},
+    "IWM-DA": {"motor_kw": (10.0, 70.0, 20.0), "motor_rear_kw": (10.0, 70.0, 20.0)},
+}
+# Table 4-4 benchmark (80 kW in total, 24 kWh) and Table 4-5 (kerb kg, 0-100 s, US$, kWh/100 km)
+BENCHMARK = {"SM-SA": {"motor_kw": 80.0, "gear_ratio": 7.9},
+             "DM-DA": {"motor_kw": 40.0, "gear_ratio": 7.9, "motor_rear_kw": 40.0, "gear_ratio_rear": 7.9},
+             "IWM-SA": {"motor_kw": 40.0}, "IWM-DA": {"motor_kw": 20.0, "motor_rear_kw": 20.0}}
+THESIS_4_5 = {"SM-SA": (1521.0, 9.9, 8920.3, 16.47), "DM-DA": (1572.6, 10.5, 9305.3, 16.64),
+              "IWM-SA": (1521.0, 11.18, 9325.7, 15.99), "IWM-DA": (1553.6, 11.47, 10108.0, 16.05)}
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("pareto", help="NSGA-II Pareto fronts of powertrain topologies (thesis ch.4)")
+    p.add_argument("config", help="run config YAML (e.g. config/topologies_artemis.yaml)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--topology", default=None, help="SM-SA, DM-DA, IWM-SA or IWM-DA (default: the config's)")
+    g.add_argument("--all-topologies", action="store_true", help="run all four topologies")
+    p.add_argument("--transport", choices=("inprocess", "ros"), default="inprocess")
+    p.add_argument("--generations", type=int, default=30)
+    p.add_argument("--pop", type=int, default=100, help="population size (one batch per generation)")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--objectives", default=",".join(OBJECTIVES), metavar="A,B,C")
+    p.add_argument("--out", default=None, help="output (bag) directory, default bags/<name>_pareto_<time>")
+    p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default: the config's)")
+    p.add_argument("--no-plots", action="store_true")
+    p.set_defaults(func=run)
+
+
+def _read_raw(path):
+    import yaml
+
+    p = Path(path)
+    if not p.is_file():
+        raise ValueError(f"{path}: no such config file")
+    raw = yaml.safe_load(p.read_text())
+    if not isinstance(raw, dict):
+        raise ValueError(f"{path}: the config must be a YAML mapping")
+    return raw
+
+
+def config_topology(raw) -> str:
+    """The topology a raw config sets on its disciplines (SM-SA if none)."""
+    from bev_mdo.models.topology import get_topology
+
+    for e in raw.get("disciplines") or []:
+        if isinstance(e, dict) and isinstance(e.get("options"), dict) and "topology" in e["options"]:
+            return get_topology(e["options"]["topology"]).name
+    return "SM-SA"
+
+
+def config_for_topology(raw, topology: str) -> dict:
+    """A copy of the raw config with every topology discipline set to ``topology`` and, if that
+    differs from the config's own, the topology's design variables (``TOPOLOGY_BOUNDS``)."""
+    from bev_mdo.models.topology import get_topology
+
+    t = get_topology(topology).name
+    cfg = copy.deepcopy(raw)
+    own = config_topology(raw)
+    entries = cfg.get("disciplines")
+    if not entries:
+        raise ValueError("the config must list its disciplines (vehicle_mass, energy, cycle_range, acceleration, cost)")
+    for k, e in enumerate(entries):
+        if isinstance(e, str):
+            e = entries[k] = {"name": e}
+        if e.get("name") in TOPOLOGY_DISCIPLINES and "class" not in e:
+            e["options"] = {**(e.get("options") or {}), "topology": t}
+    cfg["name"] = f"{raw.get('name', 'run')}_{t}"
+    if t != own:
+        dvs = dict((cfg.get("problem") or {}).get("design_variables") or {})
+        battery = dvs.get("battery_kwh", {"lower": 18.0, "upper": 30.0, "initial": 24.0})
+        new = {k: {"lower": lo, "upper": hi, "initial": x0} for k, (lo, hi, x0) in TOPOLOGY_BOUNDS[t].items()}
+        new["battery_kwh"] = battery
+        cfg.setdefault("problem", {})["design_variables"] = new
+    return cfg
+
+
+def run(args) -> int:
+    from bev_mdo.config import load_config
+    from bev_mdo.models.topology import TOPOLOGIES, get_topology
+
+    raw = _read_raw(args.config)
+    load_config(args.config)  # validates the config as written (bad topology/variable: exit 2)
+    if args.generations < 1 or args.pop < 4:
+        raise ValueError(f"--generations must be >= 1 and --pop >= 4, got {args.generations}, {args.pop}")
+    objectives = [o.strip() for o in args.objectives.split(",") if o.strip()]
+    topologies = list(TOPOLOGIES) if args.all_topologies else [
+        get_topology(args.topology).name if args.topology else config_topology(raw)]
+    configs = {t: load_config(config_for_topology(raw, t)) for t in topologies}
+    stamp = time.strftime("%Y%m%d_%H%M%S")
+    out = Path(args.out) if args.out else Path("bags") / f"{raw.get('name', 'run')}_pareto_{stamp}"
+    out.mkdir(parents=True, exist_ok=True)
+    results, bench, timing = {}, {}, {}
+    for t, cfg in configs.items():
+        print(f"{t}: NSGA-II {args.pop} x {args.generations} over {args.transport}", file=sys.stderr)
+        with _evaluator(cfg, args, out, t) as ev:
+            res, b = _run_one(cfg, ev, objectives, args, t)
+        results[t], bench[t] = res, b
+        timing[t] = {"wall_time_s": res.wall_time_s, "evaluations": res.evaluations, "batches": res.batches,
+                     "mean_generation_s": float(np.mean(res.generation_times_s)),
+                     "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12)}
+        _write_front(out / f"pareto_{t}.csv", res)
+    _write_benchmark(out / "benchmark.csv", bench)
+    picks = _picks(results, bench)
+    summary = {"config": str(args.config), "transport": args.transport, "objectives": objectives,
+               "generations": args.generations, "pop": args.pop, "seed": args.seed, "timing": timing,
+               "benchmark": bench, "picks": picks, "out": str(out)}
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+    if not args.no_plots:
+        _plots(out, results, bench, objectives)
+    for t in topologies:
+        r = results[t]
+        print(f"{t}: {len(r.X)} non-dominated designs, {r.evaluations} evaluations in {r.batches} batches, "
+              f"{timing[t]['wall_time_s']:.1f} s")
+    print(f"wrote {out}/ (pareto_*.csv, benchmark.csv, summary.json{', PNG plots' if not args.no_plots else ''})")
+    return 0
+
+
+def _run_one(cfg, evaluator, objectives, args, topology):
+    from bev_mdo.mdo.driver import build_formulation
+    from bev_mdo.mdo.pareto import run_nsga2
+
+    form = build_formulation(cfg, evaluator, "mdf")
+    res = run_nsga2(form, objectives, pop_size=args.pop, generations=args.generations, seed=args.seed,
+                    on_generation=lambda g, n, s: print(f"  gen {g}: {n} evaluations, {s:.2f} s", file=sys.stderr))
+    x = {k: v for k, v in BENCHMARK[topology].items()}
+    x["battery_kwh"] = 24.0
+    row = np.array([[x[n] for n in form.problem.names]])
+    r = form.analyse(row)
+    b = {k: float(np.asarray(v)[0]) for k, v in r.values.items()}
+    return res, b
+
+
+class _InProc:
+    def __init__(self, cfg):
+        from bev_mdo.config import resolve_disciplines
+        from bev_mdo.mdo.evaluator import InProcessEvaluator
+
+        self.ev = InProcessEvaluator(resolve_disciplines(cfg))
+
+    def __enter__(self):
+        return self.ev
+
+    def __exit__(self, *exc):
+        self.ev.close()
+
+
+class _Ros:
+    """Discipline nodes for one topology's config, and a coordinator whose RosEvaluator is used."""
+
+    def __init__(self, cfg, args, out: Path, topology: str):
+        self.cfg, self.args, self.out, self.topology = cfg, args, out, topology
+
+    def __enter__(self):
+        import rclpy
+        import yaml
+
+        from bev_mdo.config import discipline_entries
+        from bev_mdo.ros import coordinator_node
+        from bev_mdo.ros.launch import Launcher, discipline_argv
+        from bev_mdo.ros.settings import ros_environment, validate_ros
+
+        ros_cfg = dict(self.cfg.get("ros") or {})
+        if self.args.domain_id is not None:
+            ros_cfg["domain_id"] = self.args.domain_id
+        ros = validate_ros(ros_cfg)
+        cfg = {**self.cfg, "ros": ros}
+        env = ros_environment(ros)
+        for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER"):
+            if k in env:
+                os.environ[k] = env[k]
+            else:
+                os.environ.pop(k, None)
+        logs = self.out / ".logs" / self.topology
+        logs.mkdir(parents=True, exist_ok=True)
+        resolved = logs / "config.yaml"
+        resolved.write_text(yaml.safe_dump(_plain(cfg), sort_keys=False))
+        self.launcher = Launcher(env, log_dir=logs)
+        try:
+            for entry in discipline_entries(cfg):
+                self.launcher.add(entry["name"], discipline_argv(entry["name"], str(resolved.resolve())))
+            self.launcher.supervise()
+            self.ctx = rclpy.context.Context()
+            rclpy.init(context=self.ctx)
+            self.node = coordinator_node.CoordinatorNode(cfg, f"pareto-{self.topology}", context=self.ctx)
+            self.node.evaluator.wait_for_disciplines(coordinator_node.discipline_names(cfg), 60)
+        except BaseException:
+            self.__exit__()
+            raise
+        return self.node.evaluator
+
+    def __exit__(self, *exc):
+        import rclpy
+
+        node = getattr(self, "node", None)
+        if node is not None:
+            node.evaluator.close()
+            node.destroy_node()
+        if getattr(self, "ctx", None) is not None:
+            rclpy.shutdown(context=self.ctx)
+        self.launcher.stop()
+
+
+def _evaluator(cfg, args, out, topology):
+    return _Ros(cfg, args, out, topology) if args.transport == "ros" else _InProc(cfg)
+
+
+def _plain(obj):
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
+def _write_front(path: Path, res) -> None:
+    cols = list(res.names) + [o for o in res.objectives if o not in res.names]
+    cols += sorted(k for k in res.values if k not in cols)
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(cols)
+        for i in range(len(res.X)):
+            w.writerow([f"{float(res.values[c][i]):.10g}" if c in res.values else "" for c in cols])
+
+
+def _write_benchmark(path: Path, bench) -> None:
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["topology", "kerb_kg", "thesis_kerb_kg", "accel_0_100_s", "thesis_accel_s", "cost_usd",
+                    "thesis_cost_usd", "energy_kwh_100km", "thesis_energy_kwh_100km", "range_nedc_km",
+                    "torque_margin_nm"])
+        for t, b in bench.items():
+            th = THESIS_4_5[t]
+            w.writerow([t, f"{b['vehicle_mass_kg'] - 69.0:.2f}", th[0], f"{b['accel_time_0_100_s']:.2f}", th[1],
+                        f"{b['powertrain_cost_usd']:.1f}", th[2], f"{b['energy_wh_per_km'] / 10:.2f}", th[3],
+                        f"{b.get('range_nedc_km', float('nan')):.1f}", f"{b.get('drive_torque_margin_nm', float('nan')):.1f}"])
+
+
+def _picks(results, bench):
+    """Table 4-6: least energy with 0-100 no slower than the SM-SA benchmark; Table 4-7: least cost
+    with energy no more than the SM-SA benchmark's."""
+    ref = bench.get("SM-SA")
+    out = {}
+    for t, r in results.items():
+        if not len(r.X) or ref is None:
+            continue
+        v = r.values
+        e, a, c = v["energy_wh_per_km"], v["accel_time_0_100_s"], v["powertrain_cost_usd"]
+        d = {}
+        ok = a <= ref["accel_time_0_100_s"]
+        if ok.any():
+            i = int(np.flatnonzero(ok)[np.argmin(e[ok])])
+            d["table_4_6"] = {**{n: float(v[n][i]) for n in r.names}, "energy_kwh_100km": float(e[i] / 10),
+                              "change_pct": float(100 * (e[i] / ref["energy_wh_per_km"] - 1))}
+        ok = e <= ref["energy_wh_per_km"]
+        if ok.any():
+            i = int(np.flatnonzero(ok)[np.argmin(c[ok])])
+            d["table_4_7"] = {**{n: float(v[n][i]) for n in r.names}, "cost_usd": float(c[i]),
+                              "change_pct": float(100 * (c[i] / ref["powertrain_cost_usd"] - 1))}
+        out[t] = d
+    return out
+
+
+def _plots(out: Path, results, bench, objectives) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if not {"energy_wh_per_km", "accel_time_0_100_s", "powertrain_cost_usd"} <= set(objectives):
+        return
+    marks = {"SM-SA": "o", "DM-DA": "s", "IWM-SA": "^", "IWM-DA": "D"}
+    for fname, xk, yk, xl, yl, ref_k in (
+            ("fig_4_5_energy_accel.png", "accel_time_0_100_s", "energy_wh_per_km", "0-100 km/h time (s)",
+             "energy, combined Artemis (kWh/100 km)", "accel_time_0_100_s"),
+            ("fig_4_6_energy_cost.png", "energy_wh_per_km", "powertrain_cost_usd",
+             "energy, combined Artemis (kWh/100 km)", "powertrain cost (US$)", "energy_wh_per_km")):
+        fig, ax = plt.subplots(figsize=(6.4, 4.6))
+        for t, r in results.items():
+            if len(r.X):
+                x, y = r.values[xk], r.values[yk]
+                x = x / 10 if xk == "energy_wh_per_km" else x
+                y = y / 10 if yk == "energy_wh_per_km" else y
+                ax.scatter(x, y, s=14, marker=marks.get(t, "o"), label=t)
+        if "SM-SA" in bench:
+            ref = bench["SM-SA"][ref_k] / (10 if ref_k == "energy_wh_per_km" else 1)
+            ax.axvline(ref, color="k", lw=1, label="SM-SA 80 kW benchmark")
+        ax.set_xlabel(xl)
+        ax.set_ylabel(yl)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(out / fname, dpi=120)
+        plt.close(fig)

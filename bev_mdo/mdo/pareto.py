@@ -1,0 +1,153 @@
+"""Multi-objective optimisation (thesis §4.4, eqs 4-6..4-10) with pymoo's NSGA-II over the MDA.
+
+``MDAProblem`` is a vectorised pymoo ``Problem``: ``_evaluate`` sends the WHOLE population as
+ONE batch through ``formulation.analyse`` (the MDF's batched MDA over any Evaluator,
+in-process or ROS), so a generation is one wave of requests per discipline. Objectives are
+output names (minimised); constraints are the problem's (normalised, feasible where <= 0).
+A point the disciplines could not evaluate gets objectives 1e30 and constraint 1e6.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+FAILED_F = 1e30
+FAILED_G = 1e6
+
+
+def non_dominated(F: np.ndarray) -> np.ndarray:
+    """Boolean mask of the rows of F (N, m) not dominated by any other row (minimisation)."""
+    F = np.asarray(F, float)
+    le = np.all(F[:, None, :] <= F[None, :, :], axis=2)  # le[i, j]: i <= j everywhere
+    lt = np.any(F[:, None, :] < F[None, :, :], axis=2)
+    dominated = np.any(le & lt, axis=0)  # some i dominates j
+    return ~dominated
+
+
+@dataclass
+class ParetoResult:
+    """Final population and its feasible non-dominated front; everything evaluated in ``archive``."""
+
+    names: list[str]                 # design variables
+    objectives: list[str]
+    X: np.ndarray                    # (P, n) non-dominated feasible designs
+    F: np.ndarray                    # (P, m)
+    values: dict[str, np.ndarray]    # every MDA variable at the front's designs
+    archive_X: np.ndarray            # every evaluated design (E, n)
+    archive_F: np.ndarray
+    archive_cv: np.ndarray           # max normalised violation (<= 0 feasible)
+    generations: int
+    evaluations: int
+    batches: int
+    generation_times_s: list[float] = field(default_factory=list)
+    wall_time_s: float = 0.0
+
+
+def _pymoo_problem_class():
+    from pymoo.core.problem import Problem as PymooProblem
+
+    class MDAProblem(PymooProblem):
+        """Vectorised pymoo problem over a formulation's batched ``analyse`` (one batch per call)."""
+
+        def __init__(self, formulation, objectives):
+            self.form = formulation
+            self.objectives = list(objectives)
+            prob = formulation.problem
+            n_g = len(prob.constraint_rows)
+            super().__init__(n_var=len(prob.names), n_obj=len(self.objectives), n_ieq_constr=n_g,
+                             xl=prob.array("lower"), xu=prob.array("upper"))
+            self.batches = 0
+            self.evaluations = 0
+            self.batch_times_s: list[float] = []
+            self.archive: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+            self.last_values: dict[str, np.ndarray] = {}
+
+        def _evaluate(self, X, out, *args, **kwargs):
+            t0 = time.perf_counter()
+            res = self.form.analyse(X)  # the whole population, one batch
+            self.batch_times_s.append(time.perf_counter() - t0)
+            self.batches += 1
+            self.evaluations += len(X)
+            ok = np.asarray(res.ok, bool)
+            F = np.column_stack([np.asarray(res.values[o], float) for o in self.objectives])
+            G = self.form.problem.g(res.values)
+            bad = ~ok | ~np.all(np.isfinite(F), axis=1) | ~np.all(np.isfinite(G), axis=1)
+            F[bad] = FAILED_F
+            G[bad] = FAILED_G
+            out["F"] = F
+            if G.shape[1]:
+                out["G"] = G
+            cv = G.max(axis=1) if G.shape[1] else np.zeros(len(X))
+            self.archive.append((np.array(X, float), F.copy(), cv))
+            self.last_values = {k: np.asarray(v) for k, v in res.values.items()}
+
+    return MDAProblem
+
+
+def make_problem(formulation, objectives):
+    """The pymoo problem of ``formulation`` (an MDF from ``driver.build_formulation``)."""
+    prob = formulation.problem
+    missing = [o for o in objectives if o not in _outputs(formulation)]
+    if missing:
+        raise ValueError(f"objective {missing[0]!r} is not produced by any discipline; outputs: "
+                         f"{', '.join(sorted(_outputs(formulation)))}")
+    if not objectives:
+        raise ValueError("at least one objective is needed")
+    del prob
+    return _pymoo_problem_class()(formulation, objectives)
+
+
+def _outputs(formulation) -> set[str]:
+    mda = getattr(formulation, "mda", None)
+    specs = getattr(mda, "specs", {}) or {}
+    return {o for s in specs.values() for o in s.outputs}
+
+
+def run_nsga2(formulation, objectives, *, pop_size: int = 100, generations: int = 30, seed: int = 1,
+              on_generation=None) -> ParetoResult:
+    """NSGA-II (pymoo) for ``generations`` generations of ``pop_size`` designs; deterministic per seed.
+
+    ``on_generation(gen, n_evals, seconds)`` is called after every generation."""
+    from pymoo.algorithms.moo.nsga2 import NSGA2
+    from pymoo.core.callback import Callback
+    from pymoo.optimize import minimize
+
+    if pop_size < 4 or generations < 1:
+        raise ValueError(f"pop_size must be >= 4 and generations >= 1, got {pop_size}, {generations}")
+    problem = make_problem(formulation, objectives)
+    times: list[float] = []
+
+    class _CB(Callback):
+        def __init__(self):
+            super().__init__()
+            self.t = time.perf_counter()
+
+        def notify(self, algorithm):
+            now = time.perf_counter()
+            times.append(now - self.t)
+            self.t = now
+            if on_generation:
+                on_generation(algorithm.n_gen, problem.evaluations, times[-1])
+
+    t0 = time.perf_counter()
+    res = minimize(problem, NSGA2(pop_size=pop_size, eliminate_duplicates=True), ("n_gen", int(generations)),
+                   seed=int(seed), callback=_CB(), verbose=False)
+    wall = time.perf_counter() - t0
+    pop = res.pop
+    X, F = pop.get("X"), pop.get("F")
+    G = pop.get("G") if problem.n_ieq_constr else np.zeros((len(X), 0))
+    feas = np.all(G <= 0, axis=1) & np.all(F < FAILED_F, axis=1)
+    X, F = X[feas], F[feas]
+    keep = non_dominated(F) if len(F) else np.zeros(0, bool)
+    X, F = X[keep], F[keep]
+    order = np.argsort(F[:, 0]) if len(F) else np.zeros(0, int)
+    X, F = X[order], F[order]
+    values = formulation.analyse(X).values if len(X) else {}
+    aX = np.concatenate([a[0] for a in problem.archive]) if problem.archive else np.zeros((0, problem.n_var))
+    aF = np.concatenate([a[1] for a in problem.archive]) if problem.archive else np.zeros((0, problem.n_obj))
+    aC = np.concatenate([a[2] for a in problem.archive]) if problem.archive else np.zeros(0)
+    return ParetoResult(list(formulation.problem.names), list(objectives), X, F,
+                        {k: np.asarray(v) for k, v in values.items()}, aX, aF, aC, int(res.algorithm.n_gen),
+                        problem.evaluations, problem.batches, times, wall)
