@@ -265,3 +265,13 @@ def discipline_entries(config: Mapping[str, Any]) -> list[dict]:
             if isinstance(e, Mapping):
                 o["options"] = dict(e.get("options") or {})
     return out
+
+
+def discipline_names(config: Mapping[str, Any]) -> list[str]:
+    """Names of a run's disciplines, read from the config without building any discipline."""
+    entries = config.get("disciplines")
+    if entries is None:
+        from bev_mdo.disciplines import default_names
+
+        return default_names(config)
+    return [e if isinstance(e, str) else e["name"] for e in entries]

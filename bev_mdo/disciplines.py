@@ -370,9 +370,14 @@ BUILTIN: dict[str, type] = {
 }
 
 
-def default_disciplines(config: Mapping[str, Any]) -> list:
-    """The thesis' Fig 7-17 disciplines plus cost; battery sizing when the problem asks for it."""
+def default_names(config: Mapping[str, Any]) -> list[str]:
+    """Names of the default disciplines of a config (without building them)."""
     names = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]
     if (config.get("problem") or {}).get("battery_sized_for_range"):
         names.append("battery_sizing")
-    return [BUILTIN[n].from_config(config, {}) for n in names]
+    return names
+
+
+def default_disciplines(config: Mapping[str, Any]) -> list:
+    """The thesis' Fig 7-17 disciplines plus cost; battery sizing when the problem asks for it."""
+    return [BUILTIN[n].from_config(config, {}) for n in default_names(config)]

@@ -60,9 +60,9 @@ def _mda(config: Mapping[str, Any], evaluator: Evaluator, problem: Problem) -> M
 def _discipline_names(config: Mapping[str, Any], evaluator: Evaluator) -> list[str]:
     """The config's disciplines (the evaluator may serve more); all of the evaluator's if unresolvable."""
     try:
-        from bev_mdo.config import discipline_entries
-        return [e["name"] for e in discipline_entries(config)]
-    except ValueError:
+        from bev_mdo.config import discipline_names
+        return discipline_names(config)
+    except (ValueError, KeyError, TypeError):
         return list(evaluator.specs)
 
 

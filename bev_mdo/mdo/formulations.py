@@ -34,6 +34,7 @@ class Formulation:
     """Common machinery: scaling, row cache, batched finite-difference stencils."""
 
     name = ""
+    speculative_gradients = False  # set by gradient-based optimisers: evaluate a new point with its stencil
 
     def __init__(self, problem: Problem, evaluator: Evaluator, *, fd_step: float = 1e-6,
                  fd_scheme: str = "forward", eq_tolerance: float = 1e-6, cache_size: int = 50_000):
@@ -112,6 +113,11 @@ class Formulation:
 
     # ------------------------------------------------------------ scalar helpers (scaled u)
     def values(self, u: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        if self.speculative_gradients and self.status(self.to_x(u))[1] == "not evaluated":
+            # A gradient-based optimiser asks for the gradient at nearly every point it
+            # evaluates: send the point and its FD stencil as ONE batch (one request wave)
+            # instead of two. The values are identical; only the batching changes.
+            self.gradients(u)
         f, g, h = self.evaluate_batch(self.to_x(u)[None, :])
         return float(f[0]), g[0], h[0]
 

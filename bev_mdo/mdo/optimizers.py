@@ -36,6 +36,7 @@ def _bounds(form) -> Bounds:
 
 
 def _slsqp(form, options: Mapping[str, Any], callback):
+    form.speculative_gradients = True
     opts = {"maxiter": 200, "ftol": 1e-10, **options}
     cons = [{"type": "ineq", "fun": form.ineq, "jac": form.ineq_jac}] if form.ineq_labels else []
     if form.eq_labels:
@@ -45,6 +46,7 @@ def _slsqp(form, options: Mapping[str, Any], callback):
 
 
 def _trust_constr(form, options, callback):
+    form.speculative_gradients = True
     opts = {"maxiter": 500, "gtol": 1e-10, "xtol": 1e-10, "initial_barrier_parameter": 1e-5,
             "initial_barrier_tolerance": 1e-5, **options}  # small barrier: optima sit on bounds
     cons = []

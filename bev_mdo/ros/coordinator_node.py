@@ -27,9 +27,9 @@ from bev_mdo_msgs.msg import IterationRecord
 
 def discipline_names(config: Mapping[str, Any]) -> list[str]:
     """Names of the disciplines a run needs (from the resolved config)."""
-    from bev_mdo.config import discipline_entries
+    from bev_mdo.config import discipline_names as names
 
-    return [e["name"] for e in discipline_entries(config)]
+    return names(config)
 
 
 class CoordinatorNode(Node):
