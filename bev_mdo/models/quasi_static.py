@@ -17,7 +17,8 @@ vectorised over points: V_BT from P (2-13, 2-14), I = P / V_BT (2-11), SOC (2-9,
 Energy (2-16, 2-17) is the sum of terminal power x h over the cycle, per km.
 
 Two-speed gearbox (§3.3.2): ``gear_count = 2`` uses ``gear_ratio_2`` above
-``shift_speed_m_s`` and applies the thesis penalty: efficiency -2 points and +20 kg
+``shift_speed_m_s`` (eq 2-6; ``shift_strategy = 1`` instead picks, per step, the gear with the
+lower electrical power that the envelope allows) and applies the thesis penalty: efficiency -2 points and +20 kg
 (``two_speed_added_mass_kg``; set it to 0 if the mass discipline already adds it).
 
 Feasibility (§3.5.3) is reported, not enforced: traction torque within the envelope,
@@ -47,6 +48,8 @@ PARAM_SPECS: dict[str, ParamSpec] = {
     "shift_speed_m_s": ParamSpec(68.1 * KMH, 0.0, 100.0, "m/s", "two-speed shift point (Table 3-2: 68.1 km/h)"),
     "two_speed_efficiency_loss": ParamSpec(0.02, 0.0, 0.5, "-", "gear efficiency lost with two speeds (§3.3.2)"),
     "two_speed_added_mass_kg": ParamSpec(20.0, 0.0, 500.0, "kg", "mass added by two speeds (§3.7)"),
+    "shift_strategy": ParamSpec(0.0, 0.0, 1.0, "-", "two-speed gear choice: 0 = shift speed rule (eq 2-6), "
+                                "1 = per step the gear of least electrical power within the envelope"),
     "regen_min_speed_m_s": ParamSpec(10.0 * KMH, 0.0, 50.0, "m/s", "no regeneration below this (§2.3.4: 10 km/h)"),
     "regen_max_decel_g": ParamSpec(0.7, 0.0, 5.0, "g", "friction only beyond this deceleration (§2.3.4)"),
     "regen_max_soc": ParamSpec(0.9, 0.0, 1.0, "-", "no regeneration above this SOC (§2.3.4)"),
@@ -117,6 +120,9 @@ def _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh=24.0):
     gc = np.asarray(p["gear_count"])
     if np.any((gc != 1.0) & (gc != 2.0)):
         raise ValueError(f"gear_count must be 1 or 2, got {gc.reshape(-1)[(gc.reshape(-1) != 1) & (gc.reshape(-1) != 2)][0]:g}")
+    ss = np.asarray(p["shift_strategy"])
+    if np.any((ss != 0.0) & (ss != 1.0)):
+        raise ValueError("shift_strategy must be 0 (shift speed, eq 2-6) or 1 (least electrical power per step)")
     return m, ig, kw, p
 
 
@@ -138,17 +144,30 @@ def _demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> _Demand:
              + p["rolling_resistance"] * mass * g + mass * a_bar)  # 2-3, 6-53
     r_w = p["wheel_radius_m"]
     ratio = np.where(two & (v_bar >= p["shift_speed_m_s"]), p["gear_ratio_2"], ig)  # 2-6
-    w_m = v_bar / r_w * ratio  # 2-2, 2-4
     t_w = force * r_w  # 2-1
     driving = force >= 0
-    t_drive = np.where(driving, t_w / (ratio * eta_g), 0.0)  # 2-5
-    t_brake = np.where(driving, 0.0, t_w * eta_g / ratio)
     w_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0
     t_pk = p["motor_torque_per_kw"] * kw
-    t_max = np.where(w_m <= w_lim, np.minimum(t_pk, kw * 1e3 / np.maximum(w_m, 1e-9)), 0.0)
     allowed = (~driving) & (v_bar >= p["regen_min_speed_m_s"]) & (a_bar >= -p["regen_max_decel_g"] * g)
-    t_regen = np.where(allowed, np.maximum(t_brake, -t_max), 0.0)  # 2-25, §2.3.4 rules 2-3
-    p_el = motor_map.electrical_power_w(t_drive + t_regen, w_m, kw)  # 2-7 (one lookup)
+
+    def at(ratio):
+        w_m = v_bar / r_w * ratio  # 2-2, 2-4
+        t_drive = np.where(driving, t_w / (ratio * eta_g), 0.0)  # 2-5
+        t_brake = np.where(driving, 0.0, t_w * eta_g / ratio)
+        t_max = np.where(w_m <= w_lim, np.minimum(t_pk, kw * 1e3 / np.maximum(w_m, 1e-9)), 0.0)
+        t_regen = np.where(allowed, np.maximum(t_brake, -t_max), 0.0)  # 2-25, §2.3.4 rules 2-3
+        p_el = motor_map.electrical_power_w(t_drive + t_regen, w_m, kw)  # 2-7 (one lookup)
+        return w_m, t_drive, t_brake, t_max, t_regen, p_el
+
+    eff = two & (p["shift_strategy"] == 1.0)
+    if np.any(eff):  # per step the gear of least electrical power that the envelope allows
+        cost = []
+        for r in (ig, p["gear_ratio_2"]):
+            w_m, t_drive, _, t_max, _, p_el = at(np.broadcast_to(r, kw.shape))
+            cost.append(np.where((w_m <= w_lim) & (t_drive <= t_max), p_el, np.inf))
+        pick2 = (cost[1] < cost[0]) | (np.isinf(cost[0]) & np.isinf(cost[1]) & (ratio != ig))
+        ratio = np.where(eff, np.where(pick2, p["gear_ratio_2"], ig), ratio)
+    w_m, t_drive, t_brake, t_max, t_regen, p_el = at(ratio)
     margin = np.where(driving, t_max - t_drive, np.inf).min(axis=0)
     shape = p_el.shape
     steps = {"speed_m_s": v_bar, "accel_m_s2": a_bar, "gear_ratio": ratio, "motor_speed_rad_s": w_m,

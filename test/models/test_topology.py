@@ -176,3 +176,25 @@ def test_unknown_topology_and_missing_variables():
     with pytest.raises(ValueError, match="needs motor_rear_kw"):
         tp.motor_cost_usd("DM-DA", 40.0)
     tp.check_design_variables("DM-DA", ["motor_kw", "gear_ratio", "motor_rear_kw", "gear_ratio_rear", "battery_kwh"])
+
+
+ROW3 = {"gear_count": 2.0, "gear_ratio_2": 4.7, "shift_speed_m_s": 68.1 / 3.6}  # Table 3-2 row 3
+
+
+def test_efficient_shift_never_uses_more_power_per_step(nedc):
+    rule = qs.operating_points(nedc, {**P, **ROW3}, 1610.0, 13.2, 71.2)
+    eff = qs.operating_points(nedc, {**P, **ROW3, "shift_strategy": 1.0}, 1610.0, 13.2, 71.2)
+    ok = (rule["motor_speed_rad_s"] <= 1099.6) & (rule["motor_torque_nm"] <= rule["motor_torque_max_nm"] + 1e-9)
+    assert np.all(eff["motor_power_w"][ok] <= rule["motor_power_w"][ok] + 1e-9)
+    assert set(np.unique(eff["gear_ratio"])) <= {13.2, 4.7}
+    # by hand at one cruising step: the chosen gear is the one with the lower map power
+    k = int(np.argmax((rule["speed_m_s"][:, 0] > 8) & (rule["speed_m_s"][:, 0] < 15) & (rule["accel_m_s2"][:, 0] == 0)))
+    f = rule["wheel_force_n"][k, 0] * P["wheel_radius_m"]
+    eta = P["gear_efficiency"] - 0.02
+    pw = [qs.default_map().electrical_power_w(f / (g * eta), rule["speed_m_s"][k, 0] / P["wheel_radius_m"] * g, 71.2)
+          for g in (13.2, 4.7)]
+    assert eff["gear_ratio"][k, 0] == (13.2, 4.7)[int(np.argmin(pw))]
+    assert qs.energy_wh_per_km(nedc, {**P, **ROW3, "shift_strategy": 1.0}, 1610.0, 13.2, 71.2)[0] \
+        <= qs.energy_wh_per_km(nedc, {**P, **ROW3}, 1610.0, 13.2, 71.2)[0]
+    with pytest.raises(ValueError, match="shift_strategy must be 0"):
+        qs.energy_wh_per_km(nedc, {**P, **ROW3, "shift_strategy": 0.5}, 1610.0, 13.2, 71.2)
