@@ -155,7 +155,7 @@ def _run_ros(config, args, show, x0=None):
         launcher.supervise()
         result, baseline, stats = _coordinate(config, run_id, args, show, recorder, x0)
     finally:
-        launcher.stop()
+        launcher.stop(first=("recorder",))
     restarts = {n.label: n.restarts for n in launcher.nodes if n.restarts}
     extra = {"transport": "ros", "run_id": run_id, "domain_id": ros["domain_id"],
              "bag": None if args.no_record else str(bag), "logs": str(logs),

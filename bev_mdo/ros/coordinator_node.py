@@ -73,6 +73,17 @@ class CoordinatorNode(Node):
         msg.wall_time_s = float(rec.get("wall_time_s", 0.0))
         self._iteration_pub.publish(msg)
 
+    def wait_for_all_acked(self, wait_s: float) -> bool:
+        """Block until every reader (e.g. the recorder) acknowledged what we published.
+
+        A RELIABLE sample that is not yet acknowledged is lost if its publisher goes away,
+        so the coordinator waits for this before it shuts down.
+        """
+        from rclpy.duration import Duration
+
+        pubs = [self._iteration_pub, *getattr(self.evaluator, "_publishers", {}).values()]
+        return all(p.wait_for_all_acked(Duration(seconds=wait_s)) for p in pubs)
+
     def wait_for_recorder(self, n: int, wait_s: float) -> None:
         """Wait until `n` recorders subscribed to the iteration and result topics, so nothing is lost."""
         deadline = time.monotonic() + wait_s
@@ -105,6 +116,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         result = run_optimization(config, node.evaluator, formulation=formulation, optimizer=optimizer,
                                   x0=x0, callback=callback)
         stats = {"run_id": node.run_id, "dropped": dict(node.evaluator.dropped), "retried": node.evaluator.retried}
+        node.wait_for_all_acked(node.discovery_wait_s)
         return result, stats
     finally:
         node.evaluator.close()

@@ -159,13 +159,20 @@ class Launcher:
             self.nodes.remove(node)
         _stop_procs([node.proc], timeout_s)
 
-    def stop(self, timeout_s: float = 5.0) -> None:
-        """Stop every node: SIGINT, then SIGTERM, then SIGKILL. Idempotent."""
+    def stop(self, timeout_s: float = 5.0, first: tuple[str, ...] = ()) -> None:
+        """Stop every node: SIGINT, then SIGTERM, then SIGKILL. Idempotent.
+
+        Nodes labelled in `first` are stopped (and waited for) before the others: a
+        recorder drains its queue while the publishers are still alive to deliver it.
+        """
         self._stopping.set()
         if self._thread is not None:
             self._thread.join(timeout=2.0)
         with self._lock:
-            procs = [n.proc for n in self.nodes if n.proc is not None]
+            early = [n.proc for n in self.nodes if n.proc is not None and n.label in first]
+            procs = [n.proc for n in self.nodes if n.proc is not None and n.label not in first]
+        if early:
+            _stop_procs(early, timeout_s)
         _stop_procs(procs, timeout_s)
 
     def __enter__(self) -> "Launcher":

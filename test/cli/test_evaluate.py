@@ -62,9 +62,23 @@ def test_missing_config_exit_2(capsys, tmp_path):
 
 def test_ros_flag_without_transport_is_a_usage_error(capsys, monkeypatch):
     import sys
-    monkeypatch.setitem(sys.modules, "bev_mdo.ros.evaluator", None)  # as if not importable
+    monkeypatch.setitem(sys.modules, "bev_mdo.ros.client", None)  # as if not importable
     code, _, err = run(capsys, LEAF, "--ros")
     assert code == 2 and "--ros needs the ROS transport" in err
+
+
+def test_ros_flag_with_no_nodes_running_names_the_missing_disciplines(capsys, tmp_path, ros_domain):
+    pytest.importorskip("rclpy")
+    import yaml
+
+    cfg = yaml.safe_load(open(LEAF))
+    cfg["ros"] = {"domain_id": ros_domain, "discovery_wait_s": 0.5}
+    path = tmp_path / "leaf.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    code, _, err = run(capsys, path, "--ros")
+    assert code == 2 and err.count("\n") == 1
+    for name in ("vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"):
+        assert name in err
 
 
 def test_parse_assignments_merges_commas_and_spaces():
