@@ -27,6 +27,8 @@ def register(subparsers) -> None:
     p.add_argument("--rel-step", type=float, default=None, help="relative FD step (default 1e-4 / 1e-3)")
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")
     p.add_argument("--png", metavar="FILE", help="write a heatmap PNG of the second-order matrices")
+    p.add_argument("--ros", action="store_true",
+                   help="evaluate every stencil through the running discipline nodes (one request wave each)")
     p.set_defaults(func=run)
 
 
@@ -43,7 +45,7 @@ def _pairs(text: str) -> dict[str, float]:
     return out
 
 
-def build_batch(config, evaluator):
+def build_batch(config, evaluator, param_defaults=None):
     """(fun, nominal point, bounds, outputs) for the MDA of ``config`` over ``evaluator``.
 
     ``fun(X)`` takes columns in the order of the returned point (design variables, then
@@ -56,7 +58,10 @@ def build_batch(config, evaluator):
     params: dict[str, float] = {}
     for spec in mda.specs.values():
         for k, v in spec.parameters.items():
-            params.setdefault(k, float(v))
+            v = float(v)
+            if np.isnan(v) and param_defaults and k in param_defaults:
+                v = float(param_defaults[k])  # a remote declaration names parameters, not their values
+            params.setdefault(k, v)
     params.update(problem.parameters)
     point = {**dict(zip(problem.names, problem.x0().tolist())), **params}
     bounds = {v.name: (v.lower, v.upper) for v in problem.design_variables}
@@ -72,14 +77,35 @@ def build_batch(config, evaluator):
     return fun, point, bounds, outputs, problem
 
 
+class _closing:
+    """Context manager calling close() (evaluators are not all context managers)."""
+
+    def __init__(self, obj):
+        self.obj = obj
+
+    def __enter__(self):
+        return self.obj
+
+    def __exit__(self, *exc):
+        self.obj.close()
+
+
 def run(args) -> int:
     from bev_mdo.config import load_config, resolve_disciplines
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.sensitivity import sensitivities
 
     cfg = load_config(args.config)
-    with InProcessEvaluator(resolve_disciplines(cfg)) as ev:
-        fun, point, bounds, outputs, problem = build_batch(cfg, ev)
+    local = InProcessEvaluator(resolve_disciplines(cfg))
+    if args.ros:
+        from bev_mdo.ros.client import make_ros_evaluator
+
+        defaults = {k: v for spec in local.specs.values() for k, v in spec.parameters.items()}
+        ev_ctx, defaults = make_ros_evaluator(cfg, node_name="bev_mdo_sensitivity"), defaults
+    else:
+        ev_ctx, defaults = local, None
+    with _closing(ev_ctx) as ev:
+        fun, point, bounds, outputs, problem = build_batch(cfg, ev, defaults)
         at = _pairs(args.at)
         for k, v in at.items():
             if k not in point:

@@ -129,3 +129,21 @@ def test_a_user_discipline_runs_as_a_node_and_constrains_the_optimum(rclpy_conte
 def test_a_missing_discipline_is_named(rclpy_context, nodes, configs):
     with pytest.raises(DisciplineMissing, match="top_speed_absent"):
         _ros_run(rclpy_context, configs["missing"])
+
+
+def test_evaluate_and_sensitivity_over_ros_print_what_in_process_prints(nodes, configs, ros_domain, tmp_path,
+                                                                        capsys):
+    import json as _json
+
+    from bev_mdo.cli import main
+
+    raw = yaml.safe_load(Path(configs["base"]).read_text())
+    raw["ros"] = {**raw.get("ros", {}), "domain_id": ros_domain}
+    path = _write(tmp_path / "domain.yaml", raw)
+    for argv in (["evaluate", path, "--set", "motor_kw=70,gear_ratio=9,battery_kwh=22", "--json"],
+                 ["sensitivity", path, "--at", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--order", "2", "--json"]):
+        assert main(argv + ["--ros"]) == 0
+        over_ros = _json.loads(capsys.readouterr().out)
+        assert main(argv) == 0
+        local = _json.loads(capsys.readouterr().out)
+        assert over_ros == local
