@@ -39,3 +39,37 @@ class SubscriptionWaiter:
             self._ws.add_subscription(self.sub.handle)
             self._ws.wait(max(0, int(timeout_s * 1e9)))
         return bool(self._ws.get_ready_entities("subscription"))
+
+
+class MultiWaiter:
+    """The same lean path over several subscriptions (used by the recorder)."""
+
+    def __init__(self, context):
+        self._context = context
+        self._ws = None
+        self._n = -1
+
+    def take_all(self, subs_and_handlers) -> int:
+        """Take every pending message of each (subscription, handler(msg, info)); returns how many."""
+        n = 0
+        for sub, handle in subs_and_handlers:
+            while True:
+                with sub.handle:
+                    got = sub.handle.take_message(sub.msg_type, sub.raw)
+                if got is None:
+                    break
+                handle(*got)
+                n += 1
+        return n
+
+    def wait(self, subs, timeout_s: float) -> bool:
+        """Block until one of `subs` has a message or `timeout_s` passes."""
+        if len(subs) != self._n:
+            self._ws = _rclpy.WaitSet(len(subs), 0, 0, 0, 0, 0, self._context.handle)
+            self._n = len(subs)
+        self._ws.clear_entities()
+        for s in subs:
+            with s.handle:
+                self._ws.add_subscription(s.handle)
+        self._ws.wait(max(0, int(timeout_s * 1e9)))
+        return bool(self._ws.get_ready_entities("subscription"))

@@ -60,6 +60,7 @@ class RecorderNode(Node):
             meta["config_yaml"] = config_yaml
         self.writer = writer or BagWriter(self.bag_path, metadata=meta)
         self.subscriptions_by_topic: dict[str, object] = {}
+        self._handlers: dict[str, object] = {}
         self.received = 0
         self.discover()
         self.create_timer(discovery_period_s, self.discover)
@@ -92,8 +93,9 @@ class RecorderNode(Node):
                              else DurabilityPolicy.VOLATILE)
             self.writer.add_topic(topic, type_name, [i.qos_profile for i in pubs] or qos,
                                   type_hash=_hash_of(pubs))
+            self._handlers[topic] = self._callback(topic)
             self.subscriptions_by_topic[topic] = self.create_subscription(
-                cls, topic, self._callback(topic), qos, raw=True)
+                cls, topic, self._handlers[topic], qos, raw=True)
             self.get_logger().info(f"recording {topic} [{type_name}]")
 
     def _callback(self, topic: str):
@@ -107,9 +109,40 @@ class RecorderNode(Node):
 
         return on_message
 
+    def handlers(self) -> list:
+        """(subscription, handler(data, info)) of every recorded topic."""
+        return [(sub, self._handlers[t]) for t, sub in self.subscriptions_by_topic.items()]
+
+    def drain(self, quiet_s: float = 0.05, max_s: float = 10.0) -> None:
+        """Take what is still queued until nothing arrives for `quiet_s` (bounded by `max_s`)."""
+        from bev_mdo.ros.fastwait import MultiWaiter
+
+        waiter = MultiWaiter(self.context)
+        deadline = time.monotonic() + max_s
+        while time.monotonic() < deadline and self.context.ok():
+            pairs = self.handlers()
+            if waiter.take_all(pairs) == 0 and not (pairs and waiter.wait([s for s, _ in pairs], quiet_s)):
+                return
+
     def close(self) -> None:
         """Write summary and metadata.yaml."""
         self.writer.close()
+
+
+def serve_until(node: "RecorderNode", stopped, idle_s: float = 0.05) -> None:
+    """Record until stopped(): messages are taken straight from the subscriptions (fastwait);
+    the executor runs only the timers (topic discovery, flush) between batches."""
+    from bev_mdo.ros.fastwait import MultiWaiter
+
+    waiter = MultiWaiter(node.context)
+    while not stopped() and rclpy.ok():
+        pairs = node.handlers()
+        if waiter.take_all(pairs) == 0:
+            if pairs:
+                waiter.wait([s for s, _ in pairs], idle_s)
+            else:
+                rclpy.spin_once(node, timeout_sec=idle_s)
+        rclpy.spin_once(node, timeout_sec=0.0)
 
 
 def _hash_of(pubs) -> str | None:
@@ -152,17 +185,9 @@ def main(args: list[str] | None = None) -> int:
     old = {s: signal.signal(s, lambda *_: stop.append(1)) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         node = RecorderNode(parameter_overrides=overrides)
-        while not stop and rclpy.ok():
-            rclpy.spin_once(node, timeout_sec=0.1)
+        serve_until(node, lambda: bool(stop))
         # Drain what already arrived before closing, so a stop does not lose the run's tail.
-        last = -1
-        while rclpy.ok() and node.received != last:
-            last = node.received
-            for _ in range(1000):
-                rclpy.spin_once(node, timeout_sec=0.02)
-                if node.received == last:
-                    break
-                last = node.received
+        node.drain()
         return 0
     finally:
         for s, handler in old.items():
