@@ -21,7 +21,7 @@ def register(sub) -> None:
 def run(args) -> int:
     from bev_mdo.config import load_config
     from bev_mdo.ros.paths import default_config
-    from bev_mdo.ros.settings import ros_environment, validate_ros
+    from bev_mdo.ros.settings import validate_ros
 
     path = args.config or default_config()
     config = load_config(path)
@@ -31,12 +31,9 @@ def run(args) -> int:
     ros = validate_ros(config.get("ros"))
     if args.domain_id is not None:
         ros = validate_ros({**config.get("ros", {}), "domain_id": args.domain_id})
-    env = ros_environment(ros)
-    for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER"):
-        if k in env:
-            os.environ[k] = env[k]
-        else:
-            os.environ.pop(k, None)
+    from bev_mdo.ros.client import apply_ros_environment
+
+    apply_ros_environment(ros)
     from bev_mdo.ros.discipline_node import main
 
     node_name = f"{args.name}_node" + (f"_{args.instance}" if args.instance else "")

@@ -8,7 +8,6 @@ Leaf baseline, writes the bag and shuts every process down (also on Ctrl-C).
 from __future__ import annotations
 
 import json
-import os
 import sys
 import time
 import uuid
@@ -132,12 +131,10 @@ def _run_ros(config, args, show, x0=None):
         config["formulation"] = args.formulation
     if args.optimizer:
         config["optimizer"] = {**config.get("optimizer", {}), "name": args.optimizer}
+    from bev_mdo.ros.client import apply_ros_environment
+
     env = ros_environment(ros)
-    for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER"):
-        if k in env:
-            os.environ[k] = env[k]
-        else:
-            os.environ.pop(k, None)
+    apply_ros_environment(ros)
     run_id = uuid.uuid4().hex[:16]
     stamp_ = time.strftime("%Y%m%d_%H%M%S")
     bag = Path(args.bag) if args.bag else Path("bags") / f"{config.get('name', 'run')}_{stamp_}_{run_id[:6]}"

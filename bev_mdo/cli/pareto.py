@@ -20,7 +20,6 @@ from __future__ import annotations
 import copy
 import csv
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -200,12 +199,10 @@ class _Ros:
             ros_cfg["domain_id"] = self.args.domain_id
         ros = validate_ros(ros_cfg)
         cfg = {**self.cfg, "ros": ros}
+        from bev_mdo.ros.client import apply_ros_environment
+
         env = ros_environment(ros)
-        for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER"):
-            if k in env:
-                os.environ[k] = env[k]
-            else:
-                os.environ.pop(k, None)
+        apply_ros_environment(ros)
         logs = self.out / ".logs" / self.topology
         logs.mkdir(parents=True, exist_ok=True)
         resolved = logs / "config.yaml"
