@@ -43,6 +43,9 @@ from std_msgs.msg import String
 NODE_STATS_TOPIC = "/bev_mdo/node_stats"
 NODE_STATS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1,
                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# Readers keep more: samples of every node can arrive at once (a late joiner gets all of them).
+NODE_STATS_READER_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                                   depth=256, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 class NodeStatsListener:
@@ -53,13 +56,17 @@ class NodeStatsListener:
 
         self.node = node
         self.latest: dict[str, dict] = {}
-        self._sub = node.create_subscription(String, NODE_STATS_TOPIC, self._on_stats, NODE_STATS_QOS)
+        self._sub = node.create_subscription(String, NODE_STATS_TOPIC, self._on_stats, NODE_STATS_READER_QOS)
         self._executor = SingleThreadedExecutor(context=node.context)
         self._executor.add_node(node)
 
     def _on_stats(self, msg: String) -> None:
         d = json.loads(msg.data)
         self.latest[d["instance"]] = d
+
+    def seen(self, discipline: str) -> bool:
+        """True once any instance of `discipline` published its counters."""
+        return any(d["discipline"] == discipline for d in self.latest.values())
 
     def counts(self, discipline: str | None = None) -> Counter:
         """Counters summed over instances (of one discipline, or of all)."""

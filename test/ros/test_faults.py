@@ -25,7 +25,7 @@ from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
 from bev_mdo.testing import REPO, ros_env  # noqa: E402
 
 BUILTINS = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]
-KILL_AT = (2, 5, 9)  # kill before the 2nd, 5th and 9th first-attempt request to the target
+KILL_AT = (1, 3, 5)  # kill before the 1st, 3rd and 5th first-attempt request to the target
 
 
 @pytest.fixture(scope="module")

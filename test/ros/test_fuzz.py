@@ -180,7 +180,7 @@ def fuzz_main(config_path: str, total: int, per_round: int, seed: int) -> int:
     names = [d.name for d in discs]
 
     def ready(s):
-        return (all(pubs[n].get_subscription_count() >= 1 and s.counts(n) for n in names)
+        return (all(pubs[n].get_subscription_count() >= 1 and s.seen(n) for n in names)
                 and node.count_publishers(ITERATION_TOPIC) >= 1)  # a coordinator is running
     if not stats.wait(ready, 60):
         print(json.dumps({"error": "discovery", "seen": list(stats.latest)}))
