@@ -29,6 +29,17 @@ DOUBLED = ["energy", "range"]
 
 
 @pytest.fixture(scope="module")
+def ros_domain():
+    """This module's own ROS domain (84, in the 80-89 block of the fault tests), localhost discovery."""
+    with pytest.MonkeyPatch.context() as mp:
+        for k in ("ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER"):
+            mp.delenv(k, raising=False)
+        mp.setenv("ROS_DOMAIN_ID", "84")
+        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        yield 84
+
+
+@pytest.fixture(scope="module")
 def config_path(tmp_path_factory):
     raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
     raw["ros"] = {"timeout_s": 5.0, "retries": 3, "discovery_wait_s": 60.0}

@@ -29,6 +29,17 @@ KILL_AT = (1, 3, 5)  # kill before the 1st, 3rd and 5th first-attempt request to
 
 
 @pytest.fixture(scope="module")
+def ros_domain():
+    """This module's own ROS domain (81, in the 80-89 block of the fault tests), localhost discovery."""
+    with pytest.MonkeyPatch.context() as mp:
+        for k in ("ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER"):
+            mp.delenv(k, raising=False)
+        mp.setenv("ROS_DOMAIN_ID", "81")
+        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        yield 81
+
+
+@pytest.fixture(scope="module")
 def config_path(tmp_path_factory):
     raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
     # short timeout, many retries: a restart (process start + discovery) spans several retries

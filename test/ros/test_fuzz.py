@@ -237,6 +237,17 @@ BUILTINS = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "c
 
 
 @pytest.fixture(scope="module")
+def ros_domain():
+    """This module's own ROS domain (83, in the 80-89 block of the fault tests), localhost discovery."""
+    with pytest.MonkeyPatch.context() as mp:
+        for k in ("ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER"):
+            mp.delenv(k, raising=False)
+        mp.setenv("ROS_DOMAIN_ID", "83")
+        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        yield 83
+
+
+@pytest.fixture(scope="module")
 def setup(ros_domain, tmp_path_factory):
     import yaml
 
