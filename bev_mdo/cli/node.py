@@ -13,24 +13,25 @@ def register(sub) -> None:
                                    "unless the config's ros: section opts in to more.")
     p.add_argument("name", help="discipline name, e.g. energy")
     p.add_argument("--config", default=None, help="run config YAML (default: config/leaf_nedc.yaml)")
-    p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default: the config's ros.domain_id)")
     p.add_argument("--instance", default="", help="instance suffix, to run several copies of one discipline")
+    from bev_mdo.cli.ros_args import add_ros_arguments
+
+    add_ros_arguments(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from bev_mdo.config import load_config
     from bev_mdo.ros.paths import default_config
-    from bev_mdo.ros.settings import validate_ros
 
     path = args.config or default_config()
     config = load_config(path)
     names = [e["name"] for e in _entries(config)]
     if args.name not in names:
         raise UsageError(f"no discipline {args.name!r} in {path}; it has {names}")
-    ros = validate_ros(config.get("ros"))
-    if args.domain_id is not None:
-        ros = validate_ros({**config.get("ros", {}), "domain_id": args.domain_id})
+    from bev_mdo.cli.ros_args import ros_section
+
+    ros = ros_section(config, args)
     from bev_mdo.ros.client import apply_ros_environment
 
     apply_ros_environment(ros)

@@ -28,10 +28,12 @@ def register(sub) -> None:
                    help="SLSQP | trust-constr | COBYQA | COBYLA | differential_evolution | chebyshev-pairwise")
     p.add_argument("--transport", choices=["ros", "inprocess"], default="ros")
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
-    p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default: the config's ros.domain_id)")
     p.add_argument("--bag", default=None, help="bag directory to write (default: bags/<config name>_<time>)")
     p.add_argument("--no-record", action="store_true", help="do not record the run")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    from bev_mdo.cli.ros_args import add_ros_arguments
+
+    add_ros_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -120,12 +122,11 @@ def _run_ros(config, args, show, x0=None):
 
     from bev_mdo.config import discipline_entries
     from bev_mdo.ros.launch import Launcher, discipline_argv
-    from bev_mdo.ros.settings import ros_environment, validate_ros
+    from bev_mdo.ros.settings import ros_environment
 
-    ros_cfg = dict(config.get("ros") or {})
-    if args.domain_id is not None:
-        ros_cfg["domain_id"] = args.domain_id
-    ros = validate_ros(ros_cfg)
+    from bev_mdo.cli.ros_args import ros_section
+
+    ros = ros_section(config, args)
     config = {**config, "ros": ros}
     if args.formulation:
         config["formulation"] = args.formulation

@@ -15,10 +15,12 @@ def register(sub) -> None:
     p.add_argument("bag", help="bag directory or .mcap file")
     p.add_argument("--transport", choices=["ros", "inprocess"], default="ros")
     p.add_argument("--json", action="store_true")
-    p.add_argument("--domain-id", type=int, default=None)
     p.add_argument("--output", dest="out_bag", default=None, help="bag to write (default: bags/<name>_resumed_...)")
     p.add_argument("--no-record", action="store_true")
     p.add_argument("--quiet", action="store_true")
+    from bev_mdo.cli.ros_args import add_ros_arguments
+
+    add_ros_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -47,6 +49,7 @@ def run(args) -> int:
     names = list(config["problem"]["design_variables"])
     x0 = {k: v for k, v in design.items() if k in names}
     opts = argparse.Namespace(formulation=None, optimizer=None, transport=args.transport, json=args.json,
-                              domain_id=args.domain_id, bag=args.out_bag, no_record=args.no_record,
+                              domain_id=args.domain_id, discovery=args.discovery,
+                              static_peers=args.static_peers, discovery_server=args.discovery_server, bag=args.out_bag, no_record=args.no_record,
                               quiet=args.quiet)
     return run_job(config, opts, x0=x0)

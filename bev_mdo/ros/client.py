@@ -60,3 +60,4 @@ class _OwnedRosEvaluator:
 def make_ros_evaluator(config: Mapping[str, Any], node_name: str = "bev_mdo_client"):
     """An evaluator over the running discipline nodes of `config` (raises naming any missing one)."""
     return _OwnedRosEvaluator(config, node_name)
+
