@@ -11,9 +11,13 @@ from bev_mdo.testing import domain_for
 
 @pytest.fixture(scope="module")
 def ros_domain(request):
-    """Set this module's own ROS domain in os.environ (for in-process rclpy) and return it."""
-    domain = domain_for(request.module.__name__)
-    keys = ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS")
+    """Set this module's own ROS domain in os.environ (for in-process rclpy) and return it.
+
+    A module may pin its domain with a module-level ``ROS_DOMAIN = N``; otherwise it is a
+    stable hash of the module name (bev_mdo.testing.domain_for)."""
+    domain = getattr(request.module, "ROS_DOMAIN", None) or domain_for(request.module.__name__)
+    keys = ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS",
+            "ROS_DISCOVERY_SERVER")
     old = {k: os.environ.get(k) for k in keys}
     for k in keys[2:]:
         os.environ.pop(k, None)

@@ -32,15 +32,8 @@ from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult  # noqa: E402
 BUILTINS = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]
 
 
-@pytest.fixture(scope="module")
-def ros_domain():
-    """This module's own ROS domain (82, in the 80-89 block of the fault tests), localhost discovery."""
-    with pytest.MonkeyPatch.context() as mp:
-        for k in ("ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER"):
-            mp.delenv(k, raising=False)
-        mp.setenv("ROS_DOMAIN_ID", "82")
-        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        yield 82
+# This module's own ROS domain, in the 80-89 block of the fault tests (see test/conftest.py).
+ROS_DOMAIN = 82
 KEY = secrets.token_hex(32)
 
 

@@ -28,15 +28,8 @@ BUILTINS = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "c
 KILL_AT = (1, 3, 5)  # kill before the 1st, 3rd and 5th first-attempt request to the target
 
 
-@pytest.fixture(scope="module")
-def ros_domain():
-    """This module's own ROS domain (81, in the 80-89 block of the fault tests), localhost discovery."""
-    with pytest.MonkeyPatch.context() as mp:
-        for k in ("ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER"):
-            mp.delenv(k, raising=False)
-        mp.setenv("ROS_DOMAIN_ID", "81")
-        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        yield 81
+# This module's own ROS domain, in the 80-89 block of the fault tests (see test/conftest.py).
+ROS_DOMAIN = 81
 
 
 @pytest.fixture(scope="module")
