@@ -5,6 +5,10 @@ ONE batch through ``formulation.analyse`` (the MDF's batched MDA over any Evalua
 in-process or ROS), so a generation is one wave of requests per discipline. Objectives are
 output names (minimised); constraints are the problem's (normalised, feasible where <= 0).
 A point the disciplines could not evaluate gets objectives 1e30 and constraint 1e6.
+
+Every generation's feasible non-dominated set (a :class:`Front`, with every MDA variable at
+its designs, as evaluated) goes to ``on_front(front, final)``; ``bev-mdo pareto`` writes them
+to the bag as ParetoFront messages.
 """
 from __future__ import annotations
 
@@ -24,6 +28,20 @@ def non_dominated(F: np.ndarray) -> np.ndarray:
     lt = np.any(F[:, None, :] < F[None, :, :], axis=2)
     dominated = np.any(le & lt, axis=0)  # some i dominates j
     return ~dominated
+
+
+@dataclass
+class Front:
+    """The feasible non-dominated designs of one generation, sorted by the first objective."""
+
+    generation: int
+    names: list[str]                 # design variables
+    objectives: list[str]
+    X: np.ndarray                    # (P, n)
+    F: np.ndarray                    # (P, m)
+    values: dict[str, np.ndarray]    # every MDA variable at the designs, (P,) each
+    evaluations: int                 # design points evaluated so far
+    wall_time_s: float               # since the start of the run
 
 
 @dataclass
@@ -63,6 +81,8 @@ def _pymoo_problem_class():
             self.batch_times_s: list[float] = []
             self.archive: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
             self.last_values: dict[str, np.ndarray] = {}
+            self.batch_values: list[dict[str, np.ndarray]] = []
+            self._where: dict[bytes, tuple[int, int]] = {}  # design row bytes -> (batch, row)
 
         def _evaluate(self, X, out, *args, **kwargs):
             t0 = time.perf_counter()
@@ -82,6 +102,21 @@ def _pymoo_problem_class():
             cv = G.max(axis=1) if G.shape[1] else np.zeros(len(X))
             self.archive.append((np.array(X, float), F.copy(), cv))
             self.last_values = {k: np.asarray(v) for k, v in res.values.items()}
+            self.batch_values.append(self.last_values)
+            b = len(self.batch_values) - 1
+            for i, row in enumerate(np.asarray(X, float)):
+                self._where[row.tobytes()] = (b, i)
+
+        def values_at(self, X) -> dict[str, np.ndarray]:
+            """Every MDA variable at already evaluated designs ``X`` (as evaluated; no new batch)."""
+            X = np.asarray(X, float).reshape(-1, self.n_var)
+            keys = list(self.batch_values[0]) if self.batch_values else []
+            out = {k: np.empty(len(X)) for k in keys}
+            for i, row in enumerate(X):
+                b, j = self._where[row.tobytes()]
+                for k in keys:
+                    out[k][i] = self.batch_values[b][k][j]
+            return out
 
     return MDAProblem
 
@@ -105,11 +140,27 @@ def _outputs(formulation) -> set[str]:
     return {o for s in specs.values() for o in s.outputs}
 
 
+def _front(problem, pop, generation: int, wall_time_s: float) -> Front:
+    """The feasible non-dominated members of a pymoo population, sorted by the first objective."""
+    X, F = pop.get("X"), pop.get("F")
+    G = pop.get("G") if problem.n_ieq_constr else np.zeros((len(X), 0))
+    feas = np.all(G <= 0, axis=1) & np.all(F < FAILED_F, axis=1)
+    X, F = X[feas], F[feas]
+    keep = non_dominated(F) if len(F) else np.zeros(0, bool)
+    X, F = X[keep], F[keep]
+    order = np.argsort(F[:, 0], kind="stable") if len(F) else np.zeros(0, int)
+    X, F = np.array(X[order], float), np.array(F[order], float)
+    return Front(generation, list(problem.form.problem.names), list(problem.objectives), X, F,
+                 problem.values_at(X), problem.evaluations, wall_time_s)
+
+
 def run_nsga2(formulation, objectives, *, pop_size: int = 100, generations: int = 30, seed: int = 1,
-              on_generation=None) -> ParetoResult:
+              on_generation=None, on_front=None) -> ParetoResult:
     """NSGA-II (pymoo) for ``generations`` generations of ``pop_size`` designs; deterministic per seed.
 
-    ``on_generation(gen, n_evals, seconds)`` is called after every generation."""
+    ``on_generation(gen, n_evals, seconds)`` is called after every generation;
+    ``on_front(front, final)`` with every generation's :class:`Front` (``final`` True on the
+    last one, which is the result's front)."""
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.callback import Callback
     from pymoo.optimize import minimize
@@ -118,6 +169,8 @@ def run_nsga2(formulation, objectives, *, pop_size: int = 100, generations: int 
         raise ValueError(f"pop_size must be >= 4 and generations >= 1, got {pop_size}, {generations}")
     problem = make_problem(formulation, objectives)
     times: list[float] = []
+    t0 = time.perf_counter()
+    pending: list[Front] = []  # a generation's front is sent once the next one shows it was not the last
 
     class _CB(Callback):
         def __init__(self):
@@ -130,24 +183,21 @@ def run_nsga2(formulation, objectives, *, pop_size: int = 100, generations: int 
             self.t = now
             if on_generation:
                 on_generation(algorithm.n_gen, problem.evaluations, times[-1])
+            if on_front:
+                if pending:
+                    on_front(pending.pop(), False)
+                pending.append(_front(problem, algorithm.pop, int(algorithm.n_gen), now - t0))
 
-    t0 = time.perf_counter()
     res = minimize(problem, NSGA2(pop_size=pop_size, eliminate_duplicates=True), ("n_gen", int(generations)),
                    seed=int(seed), callback=_CB(), verbose=False)
     wall = time.perf_counter() - t0
-    pop = res.pop
-    X, F = pop.get("X"), pop.get("F")
-    G = pop.get("G") if problem.n_ieq_constr else np.zeros((len(X), 0))
-    feas = np.all(G <= 0, axis=1) & np.all(F < FAILED_F, axis=1)
-    X, F = X[feas], F[feas]
-    keep = non_dominated(F) if len(F) else np.zeros(0, bool)
-    X, F = X[keep], F[keep]
-    order = np.argsort(F[:, 0]) if len(F) else np.zeros(0, int)
-    X, F = X[order], F[order]
-    values = formulation.analyse(X).values if len(X) else {}
+    n_gen = len(times)  # pymoo's n_gen is one ahead once the run has terminated
+    front = _front(problem, res.pop, n_gen, wall)
+    if on_front:  # res.pop is the last generation's population: this is the pending front
+        on_front(front, True)
     aX = np.concatenate([a[0] for a in problem.archive]) if problem.archive else np.zeros((0, problem.n_var))
     aF = np.concatenate([a[1] for a in problem.archive]) if problem.archive else np.zeros((0, problem.n_obj))
     aC = np.concatenate([a[2] for a in problem.archive]) if problem.archive else np.zeros(0)
-    return ParetoResult(list(formulation.problem.names), list(objectives), X, F,
-                        {k: np.asarray(v) for k, v in values.items()}, aX, aF, aC, int(res.algorithm.n_gen),
+    return ParetoResult(list(formulation.problem.names), list(objectives), front.X, front.F,
+                        front.values, aX, aF, aC, n_gen,
                         problem.evaluations, problem.batches, times, wall)

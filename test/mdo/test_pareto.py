@@ -75,6 +75,31 @@ def test_nsga2_deterministic_per_seed():
     np.testing.assert_array_equal(a.F, b.F)
 
 
+def test_on_front_every_generation_final_is_the_result():
+    form, disc, ev = _zdt_form()
+    fronts = []
+    r = run_nsga2(form, ["f1", "f2"], pop_size=12, generations=5, seed=2,
+                  on_front=lambda f, final: fronts.append((f, final)))
+    assert [f.generation for f, _ in fronts] == [1, 2, 3, 4, 5] and r.generations == 5
+    assert [final for _, final in fronts] == [False] * 4 + [True]
+    evaluated = {row.tobytes() for row in r.archive_X}
+    for f, _ in fronts:
+        assert len(f.X) and non_dominated(f.F).all()
+        assert all(row.tobytes() in evaluated for row in f.X)  # only designs NSGA-II evaluated
+        assert np.all(f.values["s"] >= 0.2 - 1e-12)
+        np.testing.assert_array_equal(np.column_stack([f.values["x1"], f.values["x2"]]), f.X)
+        np.testing.assert_array_equal(np.column_stack([f.values["f1"], f.values["f2"]]), f.F)
+    assert [f.evaluations for f, _ in fronts] == list(np.cumsum(disc.calls[:5]))
+    last = fronts[-1][0]
+    np.testing.assert_array_equal(last.X, r.X)
+    np.testing.assert_array_equal(last.F, r.F)
+    # the front's values are the evaluated ones, equal to a fresh analysis of the same designs
+    again = form.analyse(r.X).values
+    for k in ("f1", "f2", "s"):
+        np.testing.assert_array_equal(r.values[k], again[k])
+    assert disc.calls[:5] == [12] * 5 and len(disc.calls) == 6  # the result needed no extra batch
+
+
 def test_unknown_objective():
     with pytest.raises(ValueError, match="objective 'f9' is not produced"):
         run_nsga2(_zdt_form()[0], ["f1", "f9"], pop_size=8, generations=1)
