@@ -1,7 +1,10 @@
 """Multidisciplinary analysis (MDA) of a batch of N design points.
 
-Feed-forward disciplines run wave by wave: one ``evaluator.evaluate`` call per
-wave holds every feed-forward discipline of that wave. A feedback loop is
+An acyclic (feed-forward) graph is analysed by data flow (``flow.py``): one request for the
+whole MDA when the evaluator offers it (the ROS nodes pass results from node to node), else
+one ``evaluator.evaluate`` call per wave; a discipline evaluates the points its sources
+evaluated. A graph with loops runs wave by wave: one call per wave holds every feed-forward
+discipline of that wave. A feedback loop is
 iterated by Gauss-Seidel (one call per discipline, in the loop's declared order)
 or Jacobi (one call per sweep, all loop disciplines together, after one sequential
 seeding pass from the torn-variable guesses), vectorised over
@@ -17,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bev_mdo.mdo.evaluator import Evaluator
+from bev_mdo.mdo.flow import evaluate_flow
 from bev_mdo.mdo.graph import CouplingGraph
 
 METHODS = ("gauss_seidel", "jacobi")
@@ -38,12 +42,14 @@ class MDA:
 
     ``guesses`` are starting values for loop (coupling) variables, default 1.0;
     an input column with the variable's name overrides the guess per point.
-    ``n_evaluations`` counts analysed points.
+    ``n_evaluations`` counts analysed points. ``data_flow`` False analyses an acyclic graph
+    wave by wave with the loop rule instead (a wave runs the points still good).
     """
 
     def __init__(self, evaluator: Evaluator, *, method: str = "gauss_seidel", tolerance: float = 1e-10,
                  max_iterations: int = 100, relaxation: float = 1.0,
-                 guesses: Mapping[str, float] | None = None, disciplines: Sequence[str] | None = None):
+                 guesses: Mapping[str, float] | None = None, disciplines: Sequence[str] | None = None,
+                 data_flow: bool = True):
         if method not in METHODS:
             raise ValueError(f"mda method {method!r} is unknown; allowed: {', '.join(METHODS)}")
         if not tolerance > 0:
@@ -63,6 +69,8 @@ class MDA:
         self.specs = {n: evaluator.specs[n] for n in names}
         self.graph = CouplingGraph((s.name, s.inputs, s.outputs) for s in self.specs.values())
         self.n_evaluations = 0
+        self.data_flow = bool(data_flow) and not self.graph.cycles
+        self._flow_waves = [[c[0] for c in wave] for wave in self.graph.waves]
 
     # ------------------------------------------------------------------ helpers
     def _call_inputs(self, name: str, values: dict, rows: np.ndarray) -> dict[str, np.ndarray]:
@@ -79,20 +87,25 @@ class MDA:
         calls = [(n, self._call_inputs(n, values, rows)) for n in names]
         results = self.evaluator.evaluate(calls)
         for name, res in zip(names, results):
-            good = np.asarray(res.ok, dtype=bool)
-            for v in self.specs[name].outputs:
-                new = np.asarray(res.outputs[v], dtype=float)
-                if relax and self.relaxation != 1.0:
-                    old = values[v][rows]
-                    new = np.where(np.isfinite(old), old + self.relaxation * (new - old), new)
-                values[v][rows] = new
-            if not good.all():
-                msgs = _split_errors(res.error)
-                for local in np.flatnonzero(~good):
-                    i = rows[local]
-                    if ok[i]:
-                        ok[i] = False
-                        errors[i] = msgs.get(int(local), res.error or f"{name}: failed")
+            self._store(name, res, values, rows, ok, errors, relax)
+
+    def _store(self, name: str, res, values: dict, rows: np.ndarray, ok: np.ndarray, errors: list[str],
+               relax: bool = False) -> None:
+        """Write one discipline's result for ``rows`` into ``values``; mark its failed points."""
+        good = np.asarray(res.ok, dtype=bool)
+        for v in self.specs[name].outputs:
+            new = np.asarray(res.outputs[v], dtype=float)
+            if relax and self.relaxation != 1.0:
+                old = values[v][rows]
+                new = np.where(np.isfinite(old), old + self.relaxation * (new - old), new)
+            values[v][rows] = new
+        if not good.all():
+            msgs = _split_errors(res.error)
+            for local in np.flatnonzero(~good):
+                i = rows[local]
+                if ok[i]:
+                    ok[i] = False
+                    errors[i] = msgs.get(int(local), res.error or f"{name}: failed")
 
     # --------------------------------------------------------------------- run
     def run(self, inputs: Mapping[str, np.ndarray]) -> MDAResult:
@@ -108,15 +121,29 @@ class MDA:
         errors = [""] * n
         iterations = np.zeros(n, dtype=int)
         self.n_evaluations += n
-        for wave in self.graph.waves:
-            singles = [c[0] for c in wave if not self.graph.is_cyclic(c)]
-            self._run(singles, values, np.flatnonzero(ok), ok, errors)
-            for comp in wave:
-                if self.graph.is_cyclic(comp):
-                    self._loop(comp, values, ok, errors, iterations, cols)
+        if self.data_flow:
+            self._flow(values, n, ok, errors)
+        else:
+            for wave in self.graph.waves:
+                singles = [c[0] for c in wave if not self.graph.is_cyclic(c)]
+                self._run(singles, values, np.flatnonzero(ok), ok, errors)
+                for comp in wave:
+                    if self.graph.is_cyclic(comp):
+                        self._loop(comp, values, ok, errors, iterations, cols)
         for v in self.graph.producer:
             values[v][~ok] = np.nan
         return MDAResult(values, ok, errors, iterations)
+
+    def _flow(self, values: dict, n: int, ok: np.ndarray, errors: list[str]) -> None:
+        """Feed-forward graph: one data-flow evaluation (flow.py); errors in topological order."""
+        if n == 0:
+            return
+        request = {k: v for k, v in values.items() if k not in self.graph.producer}
+        results = evaluate_flow(self.evaluator, self.specs, self._flow_waves, request, n)
+        everything = np.arange(n)
+        for wave in self._flow_waves:
+            for name in wave:
+                self._store(name, results[name], values, everything, ok, errors)
 
     def _loop(self, comp: Sequence[str], values: dict, ok: np.ndarray, errors: list[str],
               iterations: np.ndarray, given: Mapping[str, np.ndarray]) -> None:

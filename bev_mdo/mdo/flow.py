@@ -1,0 +1,133 @@
+"""Data-flow evaluation of a feed-forward graph: one request for a whole MDA.
+
+Every discipline of an acyclic graph gets the same request (the design variables and
+parameter columns of N points). A discipline takes each coupling input from the result of
+the discipline that produces it (its *source*) and every other input from the request. It
+evaluates the points that all its sources evaluated successfully; the other points are
+failed without a message of their own (the source's error names them). Error texts name
+points by their index in the whole batch.
+
+The rule is the same everywhere it runs: ``flow_by_waves`` (any evaluator, one wave per graph
+level, used in process), and the discipline nodes over ROS (one request message for the
+whole MDA, results passed from node to node). So both transports evaluate the same rows
+with the same inputs and count the same evaluations.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+import re
+from typing import Any
+
+import numpy as np
+
+from bev_mdo.mdo.discipline import EvalResult, run_discipline
+
+Upstream = Mapping[str, tuple[Mapping[str, np.ndarray], np.ndarray]]  # source -> (outputs, ok)
+
+
+def sources_of(inputs: Sequence[str], producer: Mapping[str, str], name: str) -> dict[str, str]:
+    """input -> the other discipline producing it (only inputs some other discipline produces)."""
+    return {v: producer[v] for v in inputs if v in producer and producer[v] != name}
+
+
+def flow_inputs(inputs: Sequence[str], parameters: Sequence[str], request: Mapping[str, np.ndarray],
+                upstream: Upstream, source_of: Mapping[str, str], n: int) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """(batch of the rows to evaluate, their indices) for one discipline of a data-flow request.
+
+    Raises KeyError naming an input that is neither in the request nor in a source's outputs."""
+    rows = np.ones(n, dtype=bool)
+    for s in dict.fromkeys(source_of.values()):
+        rows &= np.asarray(upstream[s][1], dtype=bool)
+    cols = {}
+    for v in inputs:
+        s = source_of.get(v)
+        cols[v] = upstream[s][0][v] if s is not None else request[v]
+    for p in parameters:
+        if p in request and p not in cols:
+            cols[p] = request[p]
+    if rows.all():
+        return cols, np.arange(n)
+    idx = np.flatnonzero(rows)
+    return {k: np.asarray(c)[idx] for k, c in cols.items()}, idx
+
+
+def scatter(res: EvalResult, idx: np.ndarray, n: int, outputs: Sequence[str]) -> EvalResult:
+    """An EvalResult over all n rows from one over the rows ``idx`` (others failed, NaN)."""
+    if idx.size == n:
+        return res
+    out = {}
+    for k in outputs:
+        full = np.full(n, np.nan)
+        full[idx] = res.outputs[k]
+        out[k] = full
+    ok = np.zeros(n, dtype=bool)
+    ok[idx] = res.ok
+    return EvalResult(out, ok, res.error, res.compute_time_s)
+
+
+def run_flow_discipline(disc: Any, request: Mapping[str, np.ndarray], upstream: Upstream,
+                        source_of: Mapping[str, str], n: int) -> tuple[EvalResult, int]:
+    """Evaluate ``disc`` for one data-flow request; returns (result over all n rows, rows evaluated)."""
+    batch, idx = flow_inputs(disc.inputs, tuple(getattr(disc, "parameters", {}) or {}), request, upstream,
+                             source_of, n)
+    if idx.size == 0:
+        return EvalResult({k: np.full(n, np.nan) for k in disc.outputs}, np.zeros(n, bool)), 0
+    res = run_discipline(disc, batch)
+    if idx.size != n:
+        res = _renumber(res, idx)
+    return scatter(res, idx, n, disc.outputs), int(idx.size)
+
+
+def rows_evaluated(source_of: Mapping[str, str], upstream: Upstream, n: int) -> int:
+    """How many rows a discipline evaluates given its sources' results (for evaluation counts)."""
+    rows = np.ones(n, dtype=bool)
+    for s in dict.fromkeys(source_of.values()):
+        rows &= np.asarray(upstream[s][1], dtype=bool)
+    return int(rows.sum())
+
+
+def flow_by_waves(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequence[str]],
+                  request: Mapping[str, np.ndarray], n: int) -> dict[str, EvalResult]:
+    """The data-flow rule over any evaluator: one ``evaluate`` call per wave of the graph."""
+    producer = {v: name for name in specs for v in specs[name].outputs}
+    results: dict[str, EvalResult] = {}
+    for wave in waves:
+        calls, plan = [], []
+        for name in wave:
+            spec = specs[name]
+            src = sources_of(spec.inputs, producer, name)
+            up = {s: (results[s].outputs, results[s].ok) for s in set(src.values())}
+            batch, idx = flow_inputs(spec.inputs, tuple(spec.parameters), request, up, src, n)
+            if idx.size == 0:
+                results[name] = EvalResult({k: np.full(n, np.nan) for k in spec.outputs}, np.zeros(n, bool))
+                continue
+            calls.append((name, batch))
+            plan.append((name, idx))
+        if not calls:
+            continue
+        for (name, idx), res in zip(plan, evaluator.evaluate(calls)):
+            res = _renumber(res, idx) if idx.size != n else res
+            results[name] = scatter(res, idx, n, specs[name].outputs)
+    return results
+
+
+def _renumber(res: EvalResult, idx: np.ndarray) -> EvalResult:
+    """Rewrite 'at point i' (index into the sub-batch) as the index into the whole batch."""
+    if not res.error:
+        return res
+    text = re.sub(r"at point (\d+)", lambda m: f"at point {idx[int(m.group(1))]}"
+                  if int(m.group(1)) < idx.size else m.group(0), res.error)
+    return EvalResult(res.outputs, res.ok, text, res.compute_time_s, res.extra)
+
+
+def evaluate_flow(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequence[str]],
+                  request: Mapping[str, np.ndarray], n: int) -> dict[str, EvalResult]:
+    """One data-flow MDA: the evaluator's own ``evaluate_flow`` (one request) when it offers one
+    and can serve these disciplines that way, else :func:`flow_by_waves`."""
+    own = getattr(evaluator, "evaluate_flow", None)
+    if own is not None:
+        order = [name for wave in waves for name in wave]
+        got = own(order, request, n)
+        if got is not None:
+            return got
+    return flow_by_waves(evaluator, specs, waves, request, n)
