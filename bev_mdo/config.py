@@ -64,6 +64,7 @@ def _resolve(raw: Any) -> dict:
     if cfg["energy_model"] not in ENERGY_MODELS:
         raise ValueError(f"energy_model {cfg['energy_model']!r} is unknown; allowed: {', '.join(ENERGY_MODELS)}")
     _validate_models(cfg)
+    _vehicle_topology_into_options(cfg)
     cfg["formulation"] = str(cfg.get("formulation", "mdf")).lower()
     if cfg["formulation"] not in FORMULATIONS:
         raise ValueError(f"formulation {raw.get('formulation')!r} is unknown; allowed: {', '.join(FORMULATIONS)}")
@@ -127,6 +128,26 @@ def _validate_models(cfg: dict) -> None:
             cfg["cycle"] = params.validate_cycle(cfg.get("cycle"))
         except ValueError as exc:
             raise ValueError(f"cycle: {exc}") from None
+
+
+def _vehicle_topology_into_options(cfg: dict) -> None:
+    """``vehicle.topology`` also becomes the ``topology`` option of every listed built-in topology
+    discipline that does not set one, so the resolved config says it where a discipline node
+    reads it (a node keeps only the numeric vehicle parameters)."""
+    t, entries = (cfg.get("vehicle") or {}).get("topology"), cfg.get("disciplines")
+    if t is None or not isinstance(entries, list):
+        return
+    from bev_mdo.disciplines import TOPOLOGY_DISCIPLINES
+
+    out = []
+    for e in entries:
+        if isinstance(e, str) and e in TOPOLOGY_DISCIPLINES:
+            e = {"name": e, "options": {"topology": t}}
+        elif (isinstance(e, Mapping) and e.get("name") in TOPOLOGY_DISCIPLINES and "class" not in e
+              and isinstance(e.get("options") or {}, Mapping)):
+            e = {**e, "options": {"topology": t, **(e.get("options") or {})}}
+        out.append(e)
+    cfg["disciplines"] = out
 
 
 def _resolve_problem(section: Any) -> dict:

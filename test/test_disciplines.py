@@ -75,9 +75,10 @@ def test_unknown_energy_model():
 def _topo_cfg(topology="SM-SA", dvs=None, **vehicle):
     cfg = load("topologies_artemis.yaml")
     cfg["cycle"] = {"name": "nedc", "dt_s": 1.0}
-    cfg["vehicle"].update(vehicle)
+    cfg["vehicle"].update(vehicle, topology=topology)  # the one topology setting
+    cfg["disciplines"] = [{"name": e} if isinstance(e, str) else e for e in cfg["disciplines"]]
     for e in cfg["disciplines"]:
-        e["options"]["topology"] = topology
+        e.setdefault("options", {})
     if dvs is not None:
         cfg["problem"]["design_variables"] = dvs
     return cfg

@@ -5,9 +5,9 @@ Thesis §4.4 (eqs 4-6..4-10): NSGA-II (pymoo) over the config's MDA, minimising 
 combined Artemis cycle, 0-100 km/h time and powertrain cost subject to the problem's
 constraints (NEDC range >= 175 km, cycle torque/speed feasibility). Every generation is ONE
 batch of the whole population through the evaluator (in-process, or the discipline nodes over
-ROS). ``--topology`` / ``--all-topologies`` rewrite the ``topology`` option of the topology
-disciplines and the design variables (``TOPOLOGY_BOUNDS``; the battery keeps the config's
-bounds). Writes into ``--out`` (default ``bags/<name>_pareto_<time>/``, the run's bag
+ROS). ``--topology`` / ``--all-topologies`` rewrite ``vehicle.topology`` (and the ``topology``
+option of any discipline that sets one) and the design variables (``TOPOLOGY_BOUNDS``; the
+battery keeps the config's bounds). Writes into ``--out`` (default ``bags/<name>_pareto_<time>/``, the run's bag
 directory; MCAP recording of the ROS traffic is the lead's wiring):
 
 * ``pareto_<TOPOLOGY>.csv``: the feasible non-dominated designs, every MDA variable;
@@ -74,9 +74,13 @@ def _read_raw(path):
 
 
 def config_topology(raw) -> str:
-    """The topology a raw config sets on its disciplines (SM-SA if none)."""
+    """The topology a raw config sets (``vehicle.topology``, else a discipline's ``topology``
+    option; SM-SA if none). load_config rejects a config where they disagree."""
     from bev_mdo.models.topology import get_topology
 
+    vehicle = raw.get("vehicle") if isinstance(raw.get("vehicle"), dict) else {}
+    if "topology" in vehicle:
+        return get_topology(vehicle["topology"]).name
     for e in raw.get("disciplines") or []:
         if isinstance(e, dict) and isinstance(e.get("options"), dict) and "topology" in e["options"]:
             return get_topology(e["options"]["topology"]).name
@@ -84,8 +88,9 @@ def config_topology(raw) -> str:
 
 
 def config_for_topology(raw, topology: str) -> dict:
-    """A copy of the raw config with every topology discipline set to ``topology`` and, if that
-    differs from the config's own, the topology's design variables (``TOPOLOGY_BOUNDS``)."""
+    """A copy of the raw config with ``vehicle.topology`` (and any discipline ``topology`` option)
+    set to ``topology`` and, if that differs from the config's own, the topology's design
+    variables (``TOPOLOGY_BOUNDS``)."""
     from bev_mdo.models.topology import get_topology
 
     t = get_topology(topology).name
@@ -94,11 +99,11 @@ def config_for_topology(raw, topology: str) -> dict:
     entries = cfg.get("disciplines")
     if not entries:
         raise ValueError("the config must list its disciplines (vehicle_mass, energy, cycle_range, acceleration, cost)")
-    for k, e in enumerate(entries):
-        if isinstance(e, str):
-            e = entries[k] = {"name": e}
-        if e.get("name") in TOPOLOGY_DISCIPLINES and "class" not in e:
-            e["options"] = {**(e.get("options") or {}), "topology": t}
+    cfg["vehicle"] = {**(cfg.get("vehicle") or {}), "topology": t}
+    for e in entries:
+        if (isinstance(e, dict) and e.get("name") in TOPOLOGY_DISCIPLINES and "class" not in e
+                and isinstance(e.get("options"), dict) and "topology" in e["options"]):
+            e["options"]["topology"] = t
     cfg["name"] = f"{raw.get('name', 'run')}_{t}"
     if t != own:
         dvs = dict((cfg.get("problem") or {}).get("design_variables") or {})

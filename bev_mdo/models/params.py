@@ -51,7 +51,10 @@ VEHICLE_SPECS: dict[str, ParamSpec] = {
     "battery_usable_fraction": ParamSpec(1.0, 0.1, 1.0, "-", "usable share of battery capacity for range"),
 }
 
-VEHICLE_CHOICES: dict[str, tuple[str, ...]] = {"mass_model": ("ch7", "compounding")}
+# topology (thesis ch.4): one setting for every topology discipline (vehicle_mass, energy,
+# cycle_range, acceleration, cost); any case, e.g. iwm-sa (models.topology.get_topology)
+VEHICLE_CHOICES: dict[str, tuple[str, ...]] = {"mass_model": ("ch7", "compounding"),
+                                               "topology": ("SM-SA", "DM-DA", "IWM-SA", "IWM-DA")}
 
 CYCLE_SPECS: dict[str, ParamSpec] = {
     "dt_s": ParamSpec(1.0, 0.01, 10.0, "s", "resampling step"),
@@ -109,7 +112,7 @@ def check_param(name: str, value: Any) -> np.ndarray | float:
 def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
     """Fill defaults, reject unknown names, range-check every numeric vehicle parameter.
 
-    Choice keys (``mass_model``) are checked but not returned; read them with
+    Choice keys (``mass_model``, ``topology``) are checked but not returned; read them with
     :func:`vehicle_choice`."""
     section = dict(section or {})
     specs = all_specs()
@@ -125,6 +128,10 @@ def vehicle_choice(section: Mapping[str, Any] | None, key: str) -> str:
     """A validated choice value from the vehicle section (first allowed value by default)."""
     allowed = VEHICLE_CHOICES[key]
     value = (section or {}).get(key, allowed[0])
+    if key == "topology":
+        from .topology import get_topology
+
+        return get_topology(value).name  # one line naming SM-SA, DM-DA, IWM-SA, IWM-DA
     if value not in allowed:
         raise ValueError(f"vehicle {key} must be one of {list(allowed)}, got {value!r}")
     return str(value)

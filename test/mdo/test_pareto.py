@@ -118,27 +118,13 @@ def _write_cfg(tmp_path, topology="SM-SA", drop=(), extra_dv=None):
 
     raw = yaml.safe_load((Path(__file__).resolve().parents[2] / "config" / "topologies_artemis.yaml").read_text())
     raw["cycle"] = {"name": "nedc", "dt_s": 1.0}  # fast
-    for e in raw["disciplines"]:
-        e["options"]["topology"] = topology
+    raw["vehicle"]["topology"] = topology
     for k in drop:
         raw["problem"]["design_variables"].pop(k)
     raw["problem"]["design_variables"].update(extra_dv or {})
     p = tmp_path / "cfg.yaml"
     p.write_text(yaml.safe_dump(raw))
     return p
-
-
-def test_cli_bad_topology_and_variable_exit_2(tmp_path, capsys):
-    p = _write_cfg(tmp_path)
-    assert _cli(["pareto", str(p), "--topology", "WHEEL-9", "--out", str(tmp_path / "o")]) == 2
-    assert "topology must be one of SM-SA, DM-DA, IWM-SA, IWM-DA" in capsys.readouterr().err
-    p = _write_cfg(tmp_path, "IWM-SA")  # the config keeps gear_ratio
-    assert _cli(["pareto", str(p), "--out", str(tmp_path / "o")]) == 2
-    err = capsys.readouterr().err
-    assert "'gear_ratio' does not exist in topology IWM-SA" in err and len(err.strip().splitlines()) == 1
-    p = _write_cfg(tmp_path, "SM-SA", extra_dv={"motor_rear_kw": {"lower": 10, "upper": 50}})
-    assert _cli(["pareto", str(p), "--out", str(tmp_path / "o")]) == 2
-    assert "'motor_rear_kw' does not exist in topology SM-SA" in capsys.readouterr().err
 
 
 def test_cli_writes_front_csv_benchmark_and_plots(tmp_path):

@@ -1,6 +1,7 @@
 import pytest
 
-from bev_mdo.models.params import VEHICLE_SPECS, validate_cycle, validate_design, validate_vehicle
+from bev_mdo.models.params import (VEHICLE_CHOICES, VEHICLE_SPECS, validate_cycle, validate_design,
+                                   validate_vehicle, vehicle_choice)
 
 
 def test_defaults_filled_and_in_range():
@@ -28,6 +29,20 @@ def test_mass_model_choice():
     with pytest.raises(ValueError, match="mass_model"):
         validate_vehicle({"mass_model": "heavy"})
     assert "mass_model" not in validate_vehicle({"mass_model": "compounding"})
+
+
+def test_topology_choice():
+    from bev_mdo.models.topology import TOPOLOGIES
+
+    assert VEHICLE_CHOICES["topology"] == TOPOLOGIES
+    for name in TOPOLOGIES:
+        assert "topology" not in validate_vehicle({"topology": name})  # checked, not a number
+        assert vehicle_choice({"topology": name.lower()}, "topology") == name  # any case, like get_topology
+    assert vehicle_choice({}, "topology") == "SM-SA"
+    for bad in ("IWM", "SM_SA", 3, None):
+        with pytest.raises(ValueError) as e:
+            validate_vehicle({"topology": bad})
+        assert str(e.value) == f"topology must be one of SM-SA, DM-DA, IWM-SA, IWM-DA, got {bad!r}"
 
 
 def test_cycle_section():

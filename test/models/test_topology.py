@@ -198,3 +198,86 @@ def test_efficient_shift_never_uses_more_power_per_step(nedc):
         <= qs.energy_wh_per_km(nedc, {**P, **ROW3}, 1610.0, 13.2, 71.2)[0]
     with pytest.raises(ValueError, match="shift_strategy must be 0"):
         qs.energy_wh_per_km(nedc, {**P, **ROW3, "shift_strategy": 0.5}, 1610.0, 13.2, 71.2)
+
+
+# ---- topology as ONE config setting (vehicle.topology) -------------------------------------
+
+def _artemis(topology=None, dvs=None, options=None):
+    """config/topologies_artemis.yaml on the NEDC (fast), with vehicle.topology and design variables set."""
+    from pathlib import Path
+
+    import yaml
+
+    raw = yaml.safe_load((Path(__file__).resolve().parents[2] / "config" / "topologies_artemis.yaml").read_text())
+    raw["cycle"] = {"name": "nedc", "dt_s": 1.0}
+    if topology is None:
+        raw["vehicle"].pop("topology")
+    else:
+        raw["vehicle"]["topology"] = topology
+    if dvs is not None:
+        raw["problem"]["design_variables"] = {k: {"lower": 1, "upper": 200} for k in dvs}
+    for k, e in enumerate(raw["disciplines"]):
+        e = raw["disciplines"][k] = {"name": e} if isinstance(e, str) else e
+        e["options"] = {**(e.get("options") or {}), **(options or {}).get(e["name"], {})}
+    return raw
+
+
+TOPO_DISCIPLINES = ("vehicle_mass", "energy", "cycle_range", "acceleration", "cost")
+DVS = {"SM-SA": ("motor_kw", "gear_ratio", "battery_kwh"), "IWM-SA": ("motor_kw", "battery_kwh"),
+       "DM-DA": ("motor_kw", "gear_ratio", "motor_rear_kw", "gear_ratio_rear", "battery_kwh"),
+       "IWM-DA": ("motor_kw", "motor_rear_kw", "battery_kwh")}
+
+
+@pytest.mark.parametrize("topo", tp.TOPOLOGIES)
+def test_vehicle_topology_is_used_by_every_topology_discipline(topo):
+    from bev_mdo.config import load_config, resolve_disciplines
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.mdo.mda import MDA
+
+    cfg = load_config(_artemis(topo.lower(), DVS[topo]))  # any case, as get_topology
+    discs = {d.name: d for d in resolve_disciplines(cfg)}
+    assert {n: discs[n].topology.name for n in TOPO_DISCIPLINES} == dict.fromkeys(TOPO_DISCIPLINES, topo)
+    # a discipline node keeps only the numeric vehicle parameters: the resolved config still says it
+    node_cfg = {**cfg, "vehicle": validate_vehicle(cfg["vehicle"])}
+    assert {d.name: d.topology.name for d in resolve_disciplines(node_cfg) if d.name in TOPO_DISCIPLINES} \
+        == dict.fromkeys(TOPO_DISCIPLINES, topo)
+    # the same numbers as the per-discipline option at the Table 4-4 benchmark (kerb = Table 4-5 + 69 kg load)
+    per_option = load_config(_artemis(None, DVS[topo], {n: {"topology": topo} for n in TOPO_DISCIPLINES}))
+    kw, kw_r = BENCH[topo]
+    x = {"motor_kw": np.array([kw]), "battery_kwh": np.array([24.0]), "gear_ratio": np.array([7.9]),
+         "motor_rear_kw": np.array([kw_r or 0.0]), "gear_ratio_rear": np.array([7.9])}
+    x = {k: v for k, v in x.items() if k in DVS[topo]}
+    a = MDA(InProcessEvaluator(resolve_disciplines(cfg))).run(x).values
+    b = MDA(InProcessEvaluator(resolve_disciplines(per_option))).run(x).values
+    assert a.keys() == b.keys()
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+    kerb = {"SM-SA": 1521.0, "DM-DA": 1572.6, "IWM-SA": 1521.16, "IWM-DA": 1553.56}[topo]
+    assert a["vehicle_mass_kg"][0] - 69.0 == pytest.approx(kerb, abs=0.01)
+
+
+def test_vehicle_topology_and_discipline_option_must_agree():
+    from bev_mdo.config import load_config
+
+    load_config(_artemis("IWM-SA", DVS["IWM-SA"], {"energy": {"topology": "iwm-sa"}}))  # agreeing: fine
+    with pytest.raises(ValueError, match=r"disagree on the topology: \['IWM-SA', 'SM-SA'\]"):
+        load_config(_artemis("IWM-SA", DVS["IWM-SA"], {"energy": {"topology": "SM-SA"}}))
+
+
+@pytest.mark.parametrize("topo,extra", [("IWM-SA", "gear_ratio"), ("IWM-DA", "gear_ratio_rear"),
+                                        ("SM-SA", "motor_rear_kw"), ("IWM-SA", "motor_rear_kw"),
+                                        ("DM-DA", "gear_ratio_2")])
+def test_vehicle_topology_rejects_a_variable_it_does_not_have(topo, extra):
+    from bev_mdo.config import load_config
+
+    with pytest.raises(ValueError, match=rf"design variable '{extra}' does not exist in topology {topo} ") as e:
+        load_config(_artemis(topo, DVS[topo] + (extra,)))
+    assert "\n" not in str(e.value)
+
+
+def test_unknown_vehicle_topology_is_one_line():
+    from bev_mdo.config import load_config
+
+    with pytest.raises(ValueError) as e:
+        load_config(_artemis("IWM-XX"))
+    assert str(e.value) == "<config>: vehicle: topology must be one of SM-SA, DM-DA, IWM-SA, IWM-DA, got 'IWM-XX'"

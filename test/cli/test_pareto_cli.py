@@ -1,0 +1,136 @@
+"""Topology as one config setting (``vehicle.topology``) and bad topology input, through the CLI:
+``bev-mdo pareto`` and ``bev-mdo optimize --transport inprocess`` exit 2 with one clear line."""
+import copy
+import csv
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from bev_mdo.cli import main
+from bev_mdo.cli.pareto import TOPOLOGY_BOUNDS, config_for_topology, config_topology
+
+ARTEMIS = Path(__file__).resolve().parents[2] / "config" / "topologies_artemis.yaml"
+DVS = {"SM-SA": ("motor_kw", "gear_ratio", "battery_kwh"), "IWM-SA": ("motor_kw", "battery_kwh"),
+       "DM-DA": ("motor_kw", "gear_ratio", "motor_rear_kw", "gear_ratio_rear", "battery_kwh"),
+       "IWM-DA": ("motor_kw", "motor_rear_kw", "battery_kwh")}
+
+
+def _raw(topology="SM-SA", dvs=None):
+    raw = yaml.safe_load(ARTEMIS.read_text())
+    raw["cycle"] = {"name": "nedc", "dt_s": 2.0}  # fast
+    raw["vehicle"]["topology"] = topology
+    if dvs is not None:
+        raw["problem"]["design_variables"] = {k: {"lower": 10, "upper": 90, "initial": 40} for k in dvs}
+    return raw
+
+
+def _write(tmp_path, raw, name="cfg.yaml"):
+    p = tmp_path / name
+    p.write_text(yaml.safe_dump(raw))
+    return p
+
+
+def _run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    err = capsys.readouterr().err
+    return code, err
+
+
+def _commands(cfg, tmp_path):
+    return (("pareto", cfg, "--out", tmp_path / "o", "--generations", "1", "--pop", "4"),
+            ("optimize", cfg, "--transport", "inprocess"))
+
+
+def test_the_shipped_config_sets_topology_once():
+    raw = yaml.safe_load(ARTEMIS.read_text())
+    assert raw["vehicle"]["topology"] == "SM-SA" and config_topology(raw) == "SM-SA"
+    assert not any(isinstance(e, dict) and "topology" in (e.get("options") or {}) for e in raw["disciplines"])
+
+
+def test_unknown_vehicle_topology_exit_2(tmp_path, capsys):
+    cfg = _write(tmp_path, _raw("WHEEL-9"))
+    for argv in _commands(cfg, tmp_path):
+        code, err = _run(capsys, *argv)
+        assert code == 2, argv
+        assert len(err.strip().splitlines()) == 1, err
+        assert f"bev-mdo {argv[0]}: error: {cfg}: vehicle: topology must be one of SM-SA, DM-DA, IWM-SA, IWM-DA, " \
+               "got 'WHEEL-9'" in err
+
+
+def test_unknown_topology_flag_exit_2(tmp_path, capsys):
+    code, err = _run(capsys, "pareto", _write(tmp_path, _raw()), "--topology", "WHEEL-9", "--out", tmp_path / "o")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "topology must be one of SM-SA, DM-DA, IWM-SA, IWM-DA, got 'WHEEL-9'" in err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("topo,extra", [("IWM-SA", "gear_ratio"), ("SM-SA", "motor_rear_kw"),
+                                        ("IWM-DA", "gear_ratio_rear"), ("IWM-SA", "motor_rear_kw")])
+def test_variable_the_topology_does_not_have_exit_2(tmp_path, capsys, topo, extra):
+    cfg = _write(tmp_path, _raw(topo, DVS[topo] + (extra,)))
+    for argv in _commands(cfg, tmp_path):
+        code, err = _run(capsys, *argv)
+        assert code == 2, argv
+        assert len(err.strip().splitlines()) == 1, err
+        assert f"design variable {extra!r} does not exist in topology {topo} (" in err
+        assert "its design variables: " in err
+
+
+def test_discipline_option_disagreeing_with_vehicle_topology_exit_2(tmp_path, capsys):
+    raw = _raw("IWM-SA", DVS["IWM-SA"])
+    raw["disciplines"][1]["options"]["topology"] = "DM-DA"  # energy
+    cfg = _write(tmp_path, raw)
+    for argv in _commands(cfg, tmp_path):
+        code, err = _run(capsys, *argv)
+        assert code == 2 and len(err.strip().splitlines()) == 1
+        assert "disciplines disagree on the topology: ['DM-DA', 'IWM-SA']" in err
+
+
+def test_config_topology_reads_vehicle_then_options():
+    assert config_topology(_raw("iwm-da")) == "IWM-DA"
+    legacy = _raw()
+    del legacy["vehicle"]["topology"]
+    assert config_topology(legacy) == "SM-SA"
+    legacy["disciplines"] = [{"name": e, "options": {"topology": "DM-DA"}} if isinstance(e, str) else
+                             {**e, "options": {**e["options"], "topology": "DM-DA"}} for e in legacy["disciplines"]]
+    assert config_topology(legacy) == "DM-DA"
+
+
+@pytest.mark.parametrize("legacy", [False, True])
+def test_config_for_topology_rewrites_the_one_setting(legacy):
+    from bev_mdo.config import load_config, resolve_disciplines
+
+    raw = _raw()
+    if legacy:  # per-discipline options, as before vehicle.topology existed: rewritten too
+        del raw["vehicle"]["topology"]
+        raw["disciplines"] = [{"name": e, "options": {"topology": "SM-SA"}} if isinstance(e, str) else
+                              {**e, "options": {**e["options"], "topology": "sm-sa"}} for e in raw["disciplines"]]
+    before = copy.deepcopy(raw)
+    for t in ("DM-DA", "IWM-SA", "SM-SA"):
+        cfg = config_for_topology(raw, t.lower())
+        assert cfg["vehicle"]["topology"] == t and config_topology(cfg) == t
+        for e in cfg["disciplines"]:
+            if isinstance(e, dict) and "topology" in (e.get("options") or {}):
+                assert legacy and e["options"]["topology"] == t
+        dvs = cfg["problem"]["design_variables"]
+        if t == "SM-SA":
+            assert dvs == raw["problem"]["design_variables"]  # the config's own problem is kept
+        else:
+            assert set(dvs) == set(TOPOLOGY_BOUNDS[t]) | {"battery_kwh"}
+        discs = {d.name: d for d in resolve_disciplines(load_config(cfg))}
+        assert {discs[n].topology.name for n in ("vehicle_mass", "energy", "cycle_range", "acceleration",
+                                                 "cost")} == {t}
+    assert raw == before  # the input is not modified
+
+
+def test_pareto_runs_the_vehicle_topology(tmp_path, capsys):
+    out = tmp_path / "o"
+    code, err = _run(capsys, "pareto", _write(tmp_path, _raw("IWM-SA", DVS["IWM-SA"])), "--generations", "1",
+                     "--pop", "4", "--no-plots", "--out", out)
+    assert code == 0, err
+    assert list(json.loads((out / "summary.json").read_text())["timing"]) == ["IWM-SA"]
+    rows = list(csv.DictReader((out / "pareto_IWM-SA.csv").open()))
+    assert rows and "gear_ratio" not in rows[0] and "motor_rear_kw" not in rows[0]
+    assert float(next(csv.DictReader((out / "benchmark.csv").open()))["kerb_kg"]) == pytest.approx(1521.16)
