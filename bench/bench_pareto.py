@@ -32,21 +32,26 @@ def _generation(cfg, evaluator, pop, seed=1):
 
 
 def bench(transport: str, pop: int, domain_id: int) -> None:
+    """As ``bev-mdo pareto`` runs it: over ROS with the recorder writing the bag (fronts, requests, results)."""
+    import uuid
+
     import yaml
 
-    from bev_mdo.cli.pareto import _InProc, _Ros, config_for_topology
+    from bev_mdo.cli.pareto import _InProcSession, _RosSession, config_for_topology
     from bev_mdo.config import load_config
     from bev_mdo.models.topology import TOPOLOGIES
 
     raw = yaml.safe_load((ROOT / "config" / "topologies_artemis.yaml").read_text())
     args = argparse.Namespace(domain_id=domain_id)
-    out = Path("/tmp") / f"bench_pareto_{os.getpid()}"
+    out = Path("/tmp") / f"bench_pareto_{os.getpid()}" / transport
     print(f"\n{transport}: one NSGA-II generation of {pop} designs (Artemis energy + NEDC range + 0-100 + cost)")
     print(f"{'topology':8s} {'gen 1 (s)':>10s} {'gen 2 (s)':>10s} {'evals/s':>9s}")
     for t in TOPOLOGIES:
         cfg = load_config(config_for_topology(copy.deepcopy(raw), t))
-        ctx = _Ros(cfg, args, out, t) if transport == "ros" else _InProc(cfg)
-        with ctx as ev:
+        run_id = uuid.uuid4().hex[:16]
+        session = _RosSession(raw, args, out / t, out / t / "bag", run_id) if transport == "ros" \
+            else _InProcSession(raw, out / t / "bag", run_id)
+        with session, session.evaluator(cfg, t) as ev:
             times, n = _generation(cfg, ev, pop)
         print(f"{t:8s} {times[0]:10.2f} {times[1]:10.2f} {pop / times[1]:9.1f}")
 

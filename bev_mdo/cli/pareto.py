@@ -7,9 +7,12 @@ constraints (NEDC range >= 175 km, cycle torque/speed feasibility). Every genera
 batch of the whole population through the evaluator (in-process, or the discipline nodes over
 ROS). ``--topology`` / ``--all-topologies`` rewrite ``vehicle.topology`` (and the ``topology``
 option of any discipline that sets one) and the design variables (``TOPOLOGY_BOUNDS``; the
-battery keeps the config's bounds). Writes into ``--out`` (default ``bags/<name>_pareto_<time>/``, the run's bag
-directory; MCAP recording of the ROS traffic is the lead's wiring):
+battery keeps the config's bounds). Writes into ``--out`` (default ``bags/<name>_pareto_<time>/``):
 
+* ``bag/``: a rosbag2 MCAP bag with one ParetoFront per generation per topology on
+  /bev_mdo/pareto_front (``final`` on the last; ``read_fronts`` reads them back). Over ROS the
+  recorder node writes it, with every request and result of the run; in process the fronts
+  are written directly;
 * ``pareto_<TOPOLOGY>.csv``: the feasible non-dominated designs, every MDA variable;
 * ``benchmark.csv``: the 80 kW benchmark of Table 4-4 evaluated per topology beside Table 4-5;
 * ``fig_4_5_energy_accel.png``, ``fig_4_6_energy_cost.png`` (like Figs 4-5, 4-6);
@@ -17,11 +20,13 @@ directory; MCAP recording of the ROS traffic is the lead's wiring):
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import csv
 import json
 import sys
 import time
+import uuid
 from pathlib import Path
 
 import numpy as np
@@ -119,31 +124,41 @@ def run(args) -> int:
     from bev_mdo.models.topology import TOPOLOGIES, get_topology
 
     raw = _read_raw(args.config)
-    load_config(args.config)  # validates the config as written (bad topology/variable: exit 2)
     if args.generations < 1 or args.pop < 4:
         raise ValueError(f"--generations must be >= 1 and --pop >= 4, got {args.generations}, {args.pop}")
+    stamp = time.strftime("%Y%m%d_%H%M%S")
+    out = Path(args.out) if args.out else Path("bags") / f"{raw.get('name', 'run')}_pareto_{stamp}"
+    bag = out / "bag"
+    if bag.exists():
+        raise ValueError(f"{bag} already exists; choose another --out")
+    load_config(args.config)  # validates the config as written (bad topology/variable: exit 2)
     objectives = [o.strip() for o in args.objectives.split(",") if o.strip()]
     topologies = list(TOPOLOGIES) if args.all_topologies else [
         get_topology(args.topology).name if args.topology else config_topology(raw)]
     configs = {t: load_config(config_for_topology(raw, t)) for t in topologies}
-    stamp = time.strftime("%Y%m%d_%H%M%S")
-    out = Path(args.out) if args.out else Path("bags") / f"{raw.get('name', 'run')}_pareto_{stamp}"
     out.mkdir(parents=True, exist_ok=True)
+    run_id = uuid.uuid4().hex[:16]
     results, bench, timing = {}, {}, {}
-    for t, cfg in configs.items():
-        print(f"{t}: NSGA-II {args.pop} x {args.generations} over {args.transport}", file=sys.stderr)
-        with _evaluator(cfg, args, out, t) as ev:
-            res, b = _run_one(cfg, ev, objectives, args, t)
-        results[t], bench[t] = res, b
-        timing[t] = {"wall_time_s": res.wall_time_s, "evaluations": res.evaluations, "batches": res.batches,
-                     "mean_generation_s": float(np.mean(res.generation_times_s)),
-                     "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12)}
-        _write_front(out / f"pareto_{t}.csv", res)
+    session = _RosSession(raw, args, out, bag, run_id) if args.transport == "ros" else _InProcSession(raw, bag, run_id)
+    with session:
+        for t, cfg in configs.items():
+            print(f"{t}: NSGA-II {args.pop} x {args.generations} over {args.transport}", file=sys.stderr)
+
+            def on_front(front, final, t=t):
+                session.sink.publish(front_message(front, run_id=run_id, topology=t, final=final))
+
+            with session.evaluator(cfg, t) as ev:
+                res, b = _run_one(cfg, ev, objectives, args, t, on_front)
+            results[t], bench[t] = res, b
+            timing[t] = {"wall_time_s": res.wall_time_s, "evaluations": res.evaluations, "batches": res.batches,
+                         "mean_generation_s": float(np.mean(res.generation_times_s)),
+                         "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12)}
+            _write_front(out / f"pareto_{t}.csv", res)
     _write_benchmark(out / "benchmark.csv", bench)
     picks = _picks(results, bench)
-    summary = {"config": str(args.config), "transport": args.transport, "objectives": objectives,
-               "generations": args.generations, "pop": args.pop, "seed": args.seed, "timing": timing,
-               "benchmark": bench, "picks": picks, "out": str(out)}
+    summary = {"config": str(args.config), "transport": args.transport, "run_id": run_id, "bag": str(bag),
+               "objectives": objectives, "generations": args.generations, "pop": args.pop, "seed": args.seed,
+               "timing": timing, "benchmark": bench, "picks": picks, "out": str(out), **session.stats}
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
     if not args.no_plots:
         _plots(out, results, bench, objectives)
@@ -151,17 +166,46 @@ def run(args) -> int:
         r = results[t]
         print(f"{t}: {len(r.X)} non-dominated designs, {r.evaluations} evaluations in {r.batches} batches, "
               f"{timing[t]['wall_time_s']:.1f} s")
-    print(f"wrote {out}/ (pareto_*.csv, benchmark.csv, summary.json{', PNG plots' if not args.no_plots else ''})")
+    print(f"wrote {out}/ (pareto_*.csv, benchmark.csv, summary.json{', PNG plots' if not args.no_plots else ''}, "
+          f"bag/ with {session.sink.published} ParetoFront messages)")
     return 0
 
 
-def _run_one(cfg, evaluator, objectives, args, topology):
+def front_message(front, **kw):
+    """A ParetoFront message of one generation's front (see bev_mdo.ros.pareto_publisher)."""
+    from bev_mdo.ros.pareto_publisher import front_message as make
+
+    return make(front, **kw)
+
+
+def read_fronts(bag_dir, topology: str | None = None) -> list[dict]:
+    """The ParetoFront messages of a bag, in recording order (no ROS needed): dicts with run_id,
+    topology, generation, final, objectives, evaluations, wall_time_s and ``designs`` (name ->
+    array, one entry per front member)."""
+    from bev_mdo.bag.reader import open_bag
+    from bev_mdo.ros.pareto_publisher import PARETO_TOPIC
+
+    fronts = []
+    for _, m in open_bag(bag_dir).decoded([PARETO_TOPIC]):
+        if topology is not None and m.topology != topology:
+            continue
+        n, names = int(m.designs.batch_size), list(m.designs.names)
+        v = np.asarray(m.designs.values, float).reshape(len(names), n) if names else np.zeros((0, n))
+        fronts.append({"run_id": m.run_id, "topology": m.topology, "generation": int(m.generation),
+                       "final": bool(m.final), "objectives": list(m.objectives),
+                       "designs": {k: v[j] for j, k in enumerate(names)},
+                       "evaluations": int(m.evaluations), "wall_time_s": float(m.wall_time_s)})
+    return fronts
+
+
+def _run_one(cfg, evaluator, objectives, args, topology, on_front=None):
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.pareto import run_nsga2
 
     form = build_formulation(cfg, evaluator, "mdf")
     res = run_nsga2(form, objectives, pop_size=args.pop, generations=args.generations, seed=args.seed,
-                    on_generation=lambda g, n, s: print(f"  gen {g}: {n} evaluations, {s:.2f} s", file=sys.stderr))
+                    on_generation=lambda g, n, s: print(f"  gen {g}: {n} evaluations, {s:.2f} s", file=sys.stderr),
+                    on_front=on_front)
     x = {k: v for k, v in BENCHMARK[topology].items()}
     x["battery_kwh"] = 24.0
     row = np.array([[x[n] for n in form.problem.names]])
@@ -184,62 +228,157 @@ class _InProc:
         self.ev.close()
 
 
-class _Ros:
-    """Discipline nodes for one topology's config, and a coordinator whose RosEvaluator is used."""
+class _InProcSession:
+    """In process: the fronts go straight into ``<out>/bag`` (BagWriter)."""
 
-    def __init__(self, cfg, args, out: Path, topology: str):
-        self.cfg, self.args, self.out, self.topology = cfg, args, out, topology
+    def __init__(self, raw, bag: Path, run_id: str):
+        import yaml
+
+        from bev_mdo.ros.pareto_publisher import BagSink
+
+        self.sink = BagSink(bag, {"run_id": run_id, "config_yaml": yaml.safe_dump(_plain(raw), sort_keys=False)})
+        self.stats = {}
+
+    def evaluator(self, cfg, topology):
+        return _InProc(cfg)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.sink.close()
+
+
+class _RosSession:
+    """Over ROS, as ``bev-mdo optimize`` does it: a recorder node writing ``<out>/bag`` for the
+    whole run, one set of discipline nodes per topology (the previous set is stopped first: the
+    nodes of two topologies answer the same topics), a coordinator (its RosEvaluator) per topology
+    and one ParetoFront publisher; the recorder is stopped first, after it acknowledged every front."""
+
+    def __init__(self, raw, args, out: Path, bag: Path, run_id: str):
+        self.raw, self.args, self.out, self.bag, self.run_id = raw, args, out, bag, run_id
+        self.stats = {"dropped_messages": {}, "retried_requests": 0}
+        self.labels: list[str] = []
+        self.launcher = self.ctx = self.sink = None
 
     def __enter__(self):
         import rclpy
         import yaml
 
-        from bev_mdo.config import discipline_entries
-        from bev_mdo.ros import coordinator_node
-        from bev_mdo.ros.launch import Launcher, discipline_argv
-        from bev_mdo.ros.settings import ros_environment, validate_ros
-
-        ros_cfg = dict(self.cfg.get("ros") or {})
-        if self.args.domain_id is not None:
-            ros_cfg["domain_id"] = self.args.domain_id
-        ros = validate_ros(ros_cfg)
-        cfg = {**self.cfg, "ros": ros}
+        from bev_mdo.cli.optimize import _start_recorder
+        from bev_mdo.cli.ros_args import ros_section
         from bev_mdo.ros.client import apply_ros_environment
+        from bev_mdo.ros.launch import Launcher
+        from bev_mdo.ros.pareto_publisher import RosSink
+        from bev_mdo.ros.settings import ros_environment
 
-        env = ros_environment(ros)
-        apply_ros_environment(ros)
-        logs = self.out / ".logs" / self.topology
-        logs.mkdir(parents=True, exist_ok=True)
-        resolved = logs / "config.yaml"
-        resolved.write_text(yaml.safe_dump(_plain(cfg), sort_keys=False))
-        self.launcher = Launcher(env, log_dir=logs)
+        self.ros = ros_section(self.raw, self.args)
+        apply_ros_environment(self.ros)
+        self.logs = self.out / ".logs"
+        self.logs.mkdir(parents=True, exist_ok=True)
+        resolved = self.logs / "config.yaml"
+        resolved.write_text(yaml.safe_dump(_plain({**self.raw, "ros": self.ros}), sort_keys=False))
+        self.launcher = Launcher(ros_environment(self.ros), log_dir=self.logs)
         try:
-            for entry in discipline_entries(cfg):
-                self.launcher.add(entry["name"], discipline_argv(entry["name"], str(resolved.resolve())))
+            self.recorder = _start_recorder(self.launcher, self.bag, resolved, self.run_id)
             self.launcher.supervise()
             self.ctx = rclpy.context.Context()
             rclpy.init(context=self.ctx)
-            self.node = coordinator_node.CoordinatorNode(cfg, f"pareto-{self.topology}", context=self.ctx)
-            self.node.evaluator.wait_for_disciplines(coordinator_node.discipline_names(cfg), 60)
+            self.sink = RosSink(self.ctx, self.run_id)
+            self.sink.wait_for_recorder(self.recorder, self.ros["discovery_wait_s"])
         except BaseException:
             self.__exit__()
             raise
-        return self.node.evaluator
+        return self
+
+    @contextlib.contextmanager
+    def evaluator(self, cfg, topology):
+        import yaml
+
+        from bev_mdo.config import discipline_entries
+        from bev_mdo.ros import coordinator_node
+        from bev_mdo.ros.launch import discipline_argv
+
+        cfg = {**cfg, "ros": self.ros}
+        wait_s = self.ros["discovery_wait_s"]
+        names = coordinator_node.discipline_names(cfg)
+        self._stop_disciplines(names, wait_s)
+        logs = self.logs / topology
+        logs.mkdir(parents=True, exist_ok=True)
+        resolved = logs / "config.yaml"
+        resolved.write_text(yaml.safe_dump(_plain(cfg), sort_keys=False))
+        for entry in discipline_entries(cfg):
+            label = f"{topology}/{entry['name']}"
+            self.launcher.add(label, discipline_argv(entry["name"], str(resolved.resolve())))
+            self.labels.append(label)
+        node = coordinator_node.CoordinatorNode(cfg, f"{self.run_id}-{topology}", context=self.ctx)
+        try:
+            node.evaluator.wait_for_disciplines(names, wait_s, extra_subscribers=self.recorder)
+            node.wait_for_recorder(self.recorder, wait_s)
+            self._wait_recorder_topics([f"{n}_node" for n in names], wait_s)
+            yield node.evaluator
+            for k, v in node.evaluator.dropped.items():
+                self.stats["dropped_messages"][k] = self.stats["dropped_messages"].get(k, 0) + v
+            self.stats["retried_requests"] += node.evaluator.retried
+            # the recorder has every request of this topology and every front so far
+            node.wait_for_all_acked(wait_s)
+            self.sink.wait_for_all_acked(wait_s)
+        finally:
+            node.evaluator.close()
+            node.destroy_node()
+
+    def _wait_recorder_topics(self, node_names, wait_s: float) -> None:
+        """Wait until the recorder's subscriptions matched every publisher these nodes have under
+        /bev_mdo/ (their results): a message published before that would be missing from the bag.
+        The recorder finds new topics by polling the graph and reports its matches on its status
+        topic; a topic's publishers in this process's graph must all be matched there."""
+        from rclpy.node import NodeNameNonExistentError
+
+        from bev_mdo.ros.common import PREFIX
+
+        node = self.sink.node
+        deadline = time.monotonic() + wait_s
+        while True:
+            missing = []
+            for n in node_names:
+                try:
+                    topics = [t for t, _ in node.get_publisher_names_and_types_by_node(n, "/")]
+                except NodeNameNonExistentError:
+                    missing.append(n)
+                    continue
+                missing += [t for t in topics if t.startswith(PREFIX + "/")
+                            and self.sink.recorder_matched.get(t, 0) < node.count_publishers(t)]
+            if not missing:
+                return
+            if time.monotonic() > deadline:
+                raise ValueError(f"the recorder did not match the publishers of {missing[0]} within {wait_s:g} s")
+            self.sink.spin(0.02)
+
+    def _stop_disciplines(self, names, wait_s: float) -> None:
+        """Stop the previous topology's discipline nodes and wait until the graph lost them."""
+        for label in self.labels:
+            self.launcher.remove(label)
+        self.labels = []
+        node_names = {f"{n}_node" for n in names}
+        deadline = time.monotonic() + wait_s
+        while node_names & set(self.sink.node.get_node_names()):
+            if time.monotonic() > deadline:
+                raise ValueError(f"discipline nodes of the previous topology still on the graph after {wait_s:g} s")
+            self.sink.spin(0.02)  # graph polling
 
     def __exit__(self, *exc):
         import rclpy
 
-        node = getattr(self, "node", None)
-        if node is not None:
-            node.evaluator.close()
-            node.destroy_node()
-        if getattr(self, "ctx", None) is not None:
-            rclpy.shutdown(context=self.ctx)
-        self.launcher.stop()
-
-
-def _evaluator(cfg, args, out, topology):
-    return _Ros(cfg, args, out, topology) if args.transport == "ros" else _InProc(cfg)
+        try:
+            if self.sink is not None:
+                self.sink.wait_for_all_acked(self.ros["discovery_wait_s"])
+                self.sink.close()
+            if self.ctx is not None:
+                rclpy.shutdown(context=self.ctx)
+        finally:
+            if self.launcher is not None:
+                self.launcher.stop(first=("recorder",))
+                self.stats["node_restarts"] = {n.label: n.restarts for n in self.launcher.nodes if n.restarts}
 
 
 def _plain(obj):

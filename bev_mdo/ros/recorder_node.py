@@ -7,12 +7,17 @@ the bag is readable up to its last flushed chunk (``bev-mdo bag repair`` rebuild
 Parameters: ``bag_path`` (default ``bags/<time>_record``), ``topics`` (string[]; empty: all
 under ``prefix``), ``prefix`` (``/bev_mdo/``), ``config_file`` (its text is stored as
 ``config_yaml``), ``config_yaml`` (text, instead of a file), ``run_id``, ``qos_depth``
-(10000), ``discovery_period_s`` (0.5), ``flush_period_s`` (1.0).
+(10000), ``discovery_period_s`` (0.5), ``flush_period_s`` (1.0), ``status_period_s`` (0.05).
+
+Status: whenever it changes, ``{"run_id", "bag", "matched": {topic: matched publishers}}`` (JSON)
+on ``/bev_mdo_recorder/status`` (TRANSIENT_LOCAL, not recorded), so a coordinator can wait
+until the recorder has matched a new node's publishers before that node's first message.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import json
 import signal
 import sys
 import time
@@ -25,6 +30,9 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from bev_mdo.bag.writer import BagWriter
 
 DEFAULT_PREFIX = "/bev_mdo/"
+STATUS_TOPIC = "/bev_mdo_recorder/status"  # outside the prefix: the status is not recorded
+STATUS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def message_class(type_name: str):
@@ -53,6 +61,7 @@ class RecorderNode(Node):
         self.qos_depth = int(p("qos_depth", 10000).value)
         discovery_period_s = float(p("discovery_period_s", 0.5).value)
         flush_period_s = float(p("flush_period_s", 1.0).value)
+        status_period_s = float(p("status_period_s", 0.05).value)
         if config_file and not config_yaml:
             config_yaml = Path(config_file).read_text(encoding="utf-8")
         meta = {"run_id": run_id, "recorder": self.get_fully_qualified_name()}
@@ -62,8 +71,15 @@ class RecorderNode(Node):
         self.subscriptions_by_topic: dict[str, object] = {}
         self._handlers: dict[str, object] = {}
         self.received = 0
+        self.run_id = run_id
+        from std_msgs.msg import String
+
+        self._status_pub = self.create_publisher(String, STATUS_TOPIC, STATUS_QOS)
+        self._status = None
         self.discover()
         self.create_timer(discovery_period_s, self.discover)
+        if status_period_s > 0:
+            self.create_timer(status_period_s, self.publish_status)
         if flush_period_s > 0:
             self.create_timer(flush_period_s, self.writer.flush)
         self.get_logger().info(f"recording to {self.writer.path}")
@@ -97,6 +113,16 @@ class RecorderNode(Node):
             self.subscriptions_by_topic[topic] = self.create_subscription(
                 cls, topic, self._handlers[topic], qos, raw=True)
             self.get_logger().info(f"recording {topic} [{type_name}]")
+
+    def publish_status(self) -> None:
+        """Publish how many publishers each recorded topic's subscription has matched, if that changed."""
+        from std_msgs.msg import String
+
+        matched = {t: sub.get_publisher_count() for t, sub in self.subscriptions_by_topic.items()}
+        if matched != self._status:
+            self._status = matched
+            self._status_pub.publish(String(data=json.dumps(
+                {"run_id": self.run_id, "bag": str(self.bag_path), "matched": matched}, sort_keys=True)))
 
     def _callback(self, topic: str):
         write = self.writer.write

@@ -112,12 +112,12 @@ def _cli(argv):
     return main(argv)
 
 
-def _write_cfg(tmp_path, topology="SM-SA", drop=(), extra_dv=None):
+def _write_cfg(tmp_path, topology="SM-SA", drop=(), extra_dv=None, dt_s=1.0):
     import yaml
     from pathlib import Path
 
     raw = yaml.safe_load((Path(__file__).resolve().parents[2] / "config" / "topologies_artemis.yaml").read_text())
-    raw["cycle"] = {"name": "nedc", "dt_s": 1.0}  # fast
+    raw["cycle"] = {"name": "nedc", "dt_s": dt_s}  # fast
     raw["vehicle"]["topology"] = topology
     for k in drop:
         raw["problem"]["design_variables"].pop(k)
@@ -125,6 +125,59 @@ def _write_cfg(tmp_path, topology="SM-SA", drop=(), extra_dv=None):
     p = tmp_path / "cfg.yaml"
     p.write_text(yaml.safe_dump(raw))
     return p
+
+
+OBJ = ("energy_wh_per_km", "accel_time_0_100_s", "powertrain_cost_usd")
+
+
+def _bag_fronts(bag):
+    """(topology, generation, final, run_id, objectives, {name: column}) of every ParetoFront, read with rosbags."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    out = []
+    with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        conns = [c for c in reader.connections if c.topic == "/bev_mdo/pareto_front"]
+        assert conns and conns[0].msgtype == "bev_mdo_msgs/msg/ParetoFront"
+        for c, _, raw in reader.messages(connections=conns):
+            m = reader.deserialize(raw, c.msgtype)
+            n, names = int(m.designs.batch_size), list(m.designs.names)
+            v = np.asarray(m.designs.values, float).reshape(len(names), n)  # column-major
+            out.append((m.topology, int(m.generation), bool(m.final), m.run_id, list(m.objectives),
+                        {k: v[j] for j, k in enumerate(names)}, int(m.evaluations)))
+    return out
+
+
+def check_bag_fronts(out, topologies, generations, pop):
+    """The bag in ``out`` holds every generation's front per topology; each is feasible and
+    non-dominated; the final one equals ``pareto_<T>.csv``. Returns the fronts."""
+    from bev_mdo.cli.pareto import read_fronts
+
+    fronts = _bag_fronts(out / "bag")
+    assert [(t, g, f) for t, g, f, *_ in fronts] == [
+        (t, g, g == generations) for t in topologies for g in range(1, generations + 1)]
+    assert len({r for _, _, _, r, *_ in fronts}) == 1  # one run id
+    summary = json.loads((out / "summary.json").read_text())
+    assert fronts[0][3] == summary["run_id"]
+    for t, g, final, _, objectives, cols, evaluations in fronts:
+        assert objectives == list(OBJ) and evaluations == g * pop
+        assert len(cols["energy_wh_per_km"]) <= pop
+        if len(cols["energy_wh_per_km"]):
+            F = np.column_stack([cols[k] for k in OBJ])
+            assert non_dominated(F).all(), (t, g)
+            assert np.all(cols["range_nedc_km"] >= 175.0), (t, g)  # feasible only
+        if final:
+            rows = list(csv.DictReader((out / f"pareto_{t}.csv").open()))
+            assert set(rows[0]) == set(cols)  # every design variable and MDA output
+            for k in cols:  # the CSV has 10 significant digits
+                np.testing.assert_allclose([float(r[k]) for r in rows], cols[k], rtol=1e-9, atol=0, err_msg=k)
+    ours = read_fronts(out / "bag")  # bev_mdo's own reader agrees with rosbags
+    assert [(f["topology"], f["generation"], f["final"]) for f in ours] == [(t, g, f) for t, g, f, *_ in fronts]
+    for f, (*_, cols, _) in zip(ours, fronts):
+        assert f["designs"].keys() == cols.keys()
+        for k in cols:
+            np.testing.assert_array_equal(f["designs"][k], cols[k])
+    return fronts
 
 
 def test_cli_writes_front_csv_benchmark_and_plots(tmp_path):
@@ -142,3 +195,20 @@ def test_cli_writes_front_csv_benchmark_and_plots(tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert s["timing"]["IWM-SA"]["batches"] == 2
     assert (out / "fig_4_5_energy_accel.png").stat().st_size > 0 and (out / "fig_4_6_energy_cost.png").exists()
+    fronts = check_bag_fronts(out, ["IWM-SA"], 2, 8)
+    assert "gear_ratio" not in fronts[-1][5] and "motor_kw" in fronts[-1][5]
+
+
+def test_cli_all_topologies_one_bag(tmp_path):
+    from bev_mdo.models.topology import TOPOLOGIES
+
+    out = tmp_path / "all"
+    cfg = _write_cfg(tmp_path, dt_s=2.0)  # the NEDC range integration is most of the time
+    assert _cli(["pareto", str(cfg), "--all-topologies", "--generations", "1", "--pop", "4",
+                 "--no-plots", "--out", str(out)]) == 0
+    fronts = check_bag_fronts(out, list(TOPOLOGIES), 1, 4)
+    final = {t: cols for t, _, f, _, _, cols, _ in fronts if f}
+    assert "motor_rear_kw" in final["DM-DA"] and "gear_ratio_rear" in final["DM-DA"]
+    assert "motor_rear_kw" in final["IWM-DA"] and "gear_ratio" not in final["IWM-DA"]
+    # the bag is not overwritten by a second run into the same directory
+    assert _cli(["pareto", str(cfg), "--generations", "1", "--pop", "4", "--out", str(out)]) == 2

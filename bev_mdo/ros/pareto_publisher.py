@@ -1,0 +1,120 @@
+"""ParetoFront messages of ``bev-mdo pareto``: built from a ``mdo.pareto.Front``, published on
+/bev_mdo/pareto_front by the coordinator side (over ROS, so the recorder writes them into the
+run's bag), or written straight into a bag with ``BagWriter`` (in process)."""
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from bev_mdo.ros.common import PREFIX, now_ns, stamp
+
+PARETO_TOPIC = f"{PREFIX}/pareto_front"
+PARETO_TYPE = "bev_mdo_msgs/msg/ParetoFront"
+# One message per generation per topology; deep enough that none is overwritten before the
+# recorder acknowledged it (a run is tens of generations, four topologies at most).
+PARETO_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=4096,
+                        durability=DurabilityPolicy.VOLATILE)
+
+
+def front_columns(front) -> dict[str, np.ndarray]:
+    """The front's columns: design variables first, then every other MDA variable by name."""
+    cols = {n: np.asarray(front.values[n], float) if n in front.values else front.X[:, j]
+            for j, n in enumerate(front.names)}
+    cols.update({k: np.asarray(front.values[k], float) for k in sorted(front.values) if k not in cols})
+    return cols
+
+
+def front_message(front, *, run_id: str, topology: str, final: bool):
+    """A ParetoFront message of one generation's front."""
+    from bev_mdo.ros import wire
+    from bev_mdo_msgs.msg import ParetoFront
+
+    msg = ParetoFront()
+    stamp(msg.header)
+    msg.run_id = run_id
+    msg.topology = topology
+    msg.generation = int(front.generation)
+    msg.final = bool(final)
+    msg.objectives = list(front.objectives)
+    wire.to_named_array(front_columns(front), msg.designs)
+    msg.evaluations = int(front.evaluations)
+    msg.wall_time_s = float(front.wall_time_s)
+    return msg
+
+
+class BagSink:
+    """In process: ParetoFront messages serialised (CDR) straight into a new bag."""
+
+    def __init__(self, bag_dir, metadata: dict[str, str]):
+        from bev_mdo.bag.writer import BagWriter
+
+        self.writer = BagWriter(bag_dir, metadata=metadata)
+        self.writer.add_topic(PARETO_TOPIC, PARETO_TYPE, PARETO_QOS)
+        self.published = 0
+
+    def publish(self, msg) -> None:
+        from rclpy.serialization import serialize_message
+
+        t = now_ns()
+        self.published += 1
+        self.writer.write(PARETO_TOPIC, serialize_message(msg), t, t, self.published)
+
+    def close(self) -> None:
+        self.writer.close()
+
+
+class RosSink:
+    """Over ROS: a small node publishing ParetoFront messages for the recorder, and following the
+    recorder's status (which publishers its subscriptions matched)."""
+
+    def __init__(self, context, run_id: str, node_name: str = "pareto_publisher"):
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+        from std_msgs.msg import String
+
+        from bev_mdo.ros.recorder_node import STATUS_QOS, STATUS_TOPIC
+        from bev_mdo_msgs.msg import ParetoFront
+
+        self.run_id = run_id
+        self.node = Node(node_name, context=context)
+        self.pub = self.node.create_publisher(ParetoFront, PARETO_TOPIC, PARETO_QOS)
+        self.recorder_matched: dict[str, int] = {}  # topic -> publishers the run's recorder matched
+        self.node.create_subscription(String, STATUS_TOPIC, self._on_status, STATUS_QOS)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.published = 0
+
+    def _on_status(self, msg) -> None:
+        status = json.loads(msg.data)
+        if status.get("run_id") == self.run_id:  # not another run's recorder
+            self.recorder_matched = dict(status.get("matched") or {})
+
+    def spin(self, timeout_s: float) -> None:
+        """Take the recorder's status messages for up to ``timeout_s``."""
+        self.executor.spin_once(timeout_sec=timeout_s)
+
+    def wait_for_recorder(self, n: int, wait_s: float) -> None:
+        """Wait until `n` recorders subscribed to the front topic (so the first front is recorded)."""
+        deadline = time.monotonic() + wait_s
+        while self.pub.get_subscription_count() < n:
+            if time.monotonic() > deadline:
+                raise ValueError(f"the recorder did not subscribe to {PARETO_TOPIC} within {wait_s:g} s")
+            self.spin(0.02)
+
+    def publish(self, msg) -> None:
+        self.published += 1
+        self.pub.publish(msg)
+
+    def wait_for_all_acked(self, wait_s: float) -> bool:
+        """Block until every reader (the recorder) acknowledged every front published."""
+        from rclpy.duration import Duration
+
+        return self.pub.wait_for_all_acked(Duration(seconds=wait_s))
+
+    def close(self) -> None:
+        self.executor.remove_node(self.node)
+        self.executor.shutdown()
+        self.node.destroy_node()

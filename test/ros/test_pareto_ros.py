@@ -1,0 +1,133 @@
+"""``bev-mdo pareto --transport ros``: the same fronts as in process (same seed), the bag the
+recorder wrote (every generation's ParetoFront, the run's requests and results), no node left."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+pytest.importorskip("rclpy")
+
+from bev_mdo.testing import PYTHON, REPO, ros_env  # noqa: E402
+
+ROS_DOMAIN = 85
+TOPOLOGY = "IWM-SA"  # not the default: the discipline nodes must get vehicle.topology too
+ARGS = ["--topology", TOPOLOGY, "--pop", "8", "--generations", "2", "--seed", "3", "--no-plots"]
+OBJ = ["energy_wh_per_km", "accel_time_0_100_s", "powertrain_cost_usd"]
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory, ros_domain):
+    """The same small NSGA-II run in process and over ROS (discipline nodes, recorder)."""
+    d = tmp_path_factory.mktemp("pareto_ros")
+    raw = yaml.safe_load((REPO / "config" / "topologies_artemis.yaml").read_text())
+    raw["cycle"] = {"name": "nedc", "dt_s": 2.0}  # fast; the NEDC range integration dominates
+    raw["ros"] = {**(raw.get("ros") or {}), "discovery_wait_s": 60.0}
+    cfg = d / "cfg.yaml"
+    cfg.write_text(yaml.safe_dump(raw))
+    env = ros_env(ros_domain)
+    out = {}
+    for transport in ("inprocess", "ros"):
+        o = d / transport
+        p = subprocess.run([PYTHON, "-m", "bev_mdo", "pareto", str(cfg), "--transport", transport,
+                            "--domain-id", str(ros_domain), "--out", str(o), *ARGS],
+                           env=env, cwd=d, capture_output=True, text=True, timeout=240)
+        assert p.returncode == 0, p.stderr[-3000:]
+        out[transport] = o
+    return out
+
+
+def _fronts(bag):
+    """Every ParetoFront of a bag, read with rosbags: (generation, final, run_id, topology, {name: column})."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    fronts = []
+    with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        conns = [c for c in reader.connections if c.topic == "/bev_mdo/pareto_front"]
+        for c, _, raw in reader.messages(connections=conns):
+            m = reader.deserialize(raw, c.msgtype)
+            names, n = list(m.designs.names), int(m.designs.batch_size)
+            v = np.asarray(m.designs.values, float).reshape(len(names), n)
+            assert list(m.objectives) == OBJ
+            fronts.append((int(m.generation), bool(m.final), m.run_id, m.topology,
+                           {k: v[j] for j, k in enumerate(names)}))
+    return fronts
+
+
+def test_front_over_ros_equals_in_process(runs):
+    ros, inproc = _fronts(runs["ros"] / "bag"), _fronts(runs["inprocess"] / "bag")
+    assert [(g, f, t) for g, f, _, t, _ in ros] == [(1, False, TOPOLOGY), (2, True, TOPOLOGY)]
+    assert [(g, f, t) for g, f, _, t, _ in inproc] == [(g, f, t) for g, f, _, t, _ in ros]
+    for (g, _, _, _, a), (_, _, _, _, b) in zip(ros, inproc):
+        assert a.keys() == b.keys() and "gear_ratio" not in a and "motor_kw" in a
+        for k in a:
+            # the evaluations are deterministic and float64 travels unchanged, so NSGA-II with the same
+            # seed must pick the same designs and see the same outputs; only the transport differs
+            np.testing.assert_allclose(a[k], b[k], rtol=1e-12, atol=0,
+                                       err_msg=f"generation {g}, {k}: the front over ROS differs from the "
+                                               f"in-process front of the same seed (rtol 1e-12)")
+    final = ros[-1][4]
+    assert len(final["energy_wh_per_km"]) >= 1
+    from bev_mdo.mdo.pareto import non_dominated
+
+    for *_, cols in ros:
+        if len(cols["energy_wh_per_km"]):
+            assert non_dominated(np.column_stack([cols[k] for k in OBJ])).all()
+            assert np.all(cols["range_nedc_km"] >= 175.0)
+    csv_ros = (runs["ros"] / f"pareto_{TOPOLOGY}.csv").read_text()
+    assert csv_ros == (runs["inprocess"] / f"pareto_{TOPOLOGY}.csv").read_text()
+
+
+def test_bag_holds_fronts_requests_and_results(runs):
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    summary = json.loads((runs["ros"] / "summary.json").read_text())
+    run_id = summary["run_id"]
+    assert summary["transport"] == "ros" and summary["node_restarts"] == {}
+    assert {r for _, _, r, _, _ in _fronts(runs["ros"] / "bag")} == {run_id}
+    requests, results = {}, set()
+    with AnyReader([runs["ros"] / "bag"], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        for c, _, raw in reader.messages():
+            if not (c.topic.endswith("request") or c.topic.endswith("result")):
+                continue
+            m = reader.deserialize(raw, c.msgtype)
+            if m.run_id != f"{run_id}-{TOPOLOGY}":
+                continue
+            if c.topic.endswith("request"):
+                # one request per discipline, or one data-flow request naming the disciplines in order
+                requests[int(m.evaluation_id)] = list(getattr(m, "flow", None) or []) or [m.discipline]
+            else:
+                results.add((int(m.evaluation_id), m.discipline))
+    assert requests, "no request of the run in the bag"
+    disciplines = {"vehicle_mass", "energy", "cycle_range", "acceleration", "cost"}
+    assert {d for ds in requests.values() for d in ds} == disciplines
+    missing = [(e, d) for e, ds in requests.items() for d in ds if (e, d) not in results]
+    assert not missing, f"requests recorded without their results: {missing}"
+    from bev_mdo.bag.reader import read_config
+
+    stored = yaml.safe_load(read_config(runs["ros"] / "bag"))  # the run's config, as given
+    assert stored["name"] == "topologies_artemis" and stored["ros"]["domain_id"] == ROS_DOMAIN
+
+
+def test_no_node_process_left(runs):
+    """Every node the command started (disciplines, recorder) ran with a path inside its --out directory."""
+    mine = str(runs["ros"])
+    left = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            cmd = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:
+            continue
+        if mine in cmd:
+            left.append((pid, cmd[:200]))
+    assert not left, left
+    logs = runs["ros"] / ".logs"
+    assert (logs / "recorder.log").is_file() and (logs / TOPOLOGY / "energy.log").is_file()
+    assert "recorded" in (logs / "recorder.log").read_text()  # it closed the bag on SIGINT
