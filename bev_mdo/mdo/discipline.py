@@ -11,6 +11,7 @@ to model parameters, e.g. ``drag_area_m2``).
 from __future__ import annotations
 
 import importlib
+import time
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
@@ -94,19 +95,17 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any]) -> EvalResult:
     and named (with its inputs) in ``EvalResult.error``. Missing inputs raise
     DisciplineError because that is a wiring mistake, not a bad point.
     """
-    import time
-
     name = getattr(disc, "name", type(disc).__name__)
     missing = [k for k in disc.inputs if k not in inputs]
     if missing:
         raise DisciplineError(f"discipline {name!r} is missing inputs {missing}")
-    allowed = set(disc.inputs) | set(getattr(disc, "parameters", {}) or {})
-    batch = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in inputs.items() if k in allowed}
+    params = getattr(disc, "parameters", None) or ()
+    batch = {k: _column(v) for k, v in inputs.items() if k in disc.inputs or k in params}
     n = _batch_size(batch)
     t0 = time.perf_counter()
     ok = np.ones(n, dtype=bool)
     errors: list[str] = []
-    bad_in = ~np.all([np.isfinite(v) for v in batch.values()], axis=0) if batch else np.zeros(n, bool)
+    bad_in = ~_finite_rows(batch.values(), n)
     try:
         if bad_in.any():
             raise DisciplineError("non-finite inputs")
@@ -127,14 +126,35 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any]) -> EvalResult:
                 continue
             for k in disc.outputs:
                 out[k][i] = one[k][0]
-    finite = np.all([np.isfinite(out[k]) for k in disc.outputs], axis=0) if disc.outputs else np.ones(n, bool)
-    for i in np.flatnonzero(ok & ~finite):
-        ok[i] = False
-        bad = [k for k in disc.outputs if not np.isfinite(out[k][i])]
-        errors.append(f"{name}: non-finite output {bad} at point {i} ({_describe_row(batch, i)})")
-    for k in disc.outputs:
-        out[k] = np.where(ok, out[k], np.nan)
+    finite = _finite_rows([out[k] for k in disc.outputs], n)
+    if not finite.all() or not ok.all():
+        for i in np.flatnonzero(ok & ~finite):
+            ok[i] = False
+            bad = [k for k in disc.outputs if not np.isfinite(out[k][i])]
+            errors.append(f"{name}: non-finite output {bad} at point {i} ({_describe_row(batch, i)})")
+        for k in disc.outputs:
+            out[k] = np.where(ok, out[k], np.nan)
     return EvalResult(out, ok, "; ".join(errors), time.perf_counter() - t0)
+
+
+def _column(v: Any) -> np.ndarray:
+    a = np.asarray(v, dtype=float)
+    return a if a.ndim == 1 else np.atleast_1d(a)
+
+
+def _finite_rows(columns, n: int) -> np.ndarray:
+    """Per row: every column finite (one pass over the sum first: the common all-finite case)."""
+    columns = list(columns)
+    if not columns:
+        return np.ones(n, dtype=bool)
+    total = columns[0]
+    with np.errstate(over="ignore", invalid="ignore"):
+        for c in columns[1:]:
+            total = total + c
+    good = np.isfinite(total)
+    if good.all():
+        return good
+    return np.all([np.isfinite(c) for c in columns], axis=0)  # a finite sum overflowed, or a real NaN/Inf
 
 
 def _call(disc: Any, batch: Batch, n: int) -> Batch:
@@ -143,6 +163,10 @@ def _call(disc: Any, batch: Batch, n: int) -> Batch:
     for k in disc.outputs:
         if k not in raw:
             raise DisciplineError(f"compute() did not return output {k!r}")
-        v = np.broadcast_to(np.asarray(raw[k], dtype=float), (n,)).copy()
+        v = np.asarray(raw[k], dtype=float)
+        if v.shape != (n,):
+            v = np.broadcast_to(v, (n,)).copy()
+        elif any(v is b or np.shares_memory(v, b) for b in batch.values()):
+            v = v.copy()  # never hand back (a view of) an input array
         out[k] = v
     return out

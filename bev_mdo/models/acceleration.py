@@ -43,17 +43,21 @@ def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V
     v_base = (1000.0 / p["motor_torque_per_kw"]) * p["wheel_radius_m"] / ig
     v_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0 * p["wheel_radius_m"] / ig
     v1 = np.minimum(v_base, v_end_m_s)
-    total = np.zeros(pk.shape)
-    for lo, hi in ((np.zeros_like(v1), v1), (v1, np.full_like(v1, v_end_m_s))):
-        half = 0.5 * (hi - lo)
-        v = (lo + half)[None, :] + half[None, :] * _X[:, None]               # (24, N)
-        f = wheel_force_n(v, pk[None, :], ig[None, :], m[None, :], {k: (x if np.ndim(x) == 0 else x[None, :]) for k, x in p.items()})
-        with np.errstate(divide="ignore"):
-            total += half * np.sum(_W[:, None] * m[None, :] / f, axis=0)   # dt = M/F dv
-    f_end = wheel_force_n(np.full_like(v1, v_end_m_s), pk, ig, m, p)
-    f_base = wheel_force_n(v1, pk, ig, m, p)
+    # One force evaluation for everything: the 24 Gauss nodes of each envelope segment
+    # (0..v1 and v1..v_end), then v_end and v1 for the feasibility check.
+    half = np.stack([0.5 * v1, 0.5 * (v_end_m_s - v1)])                          # (2, N)
+    mid = np.stack([0.5 * v1, 0.5 * (v_end_m_s + v1)])
+    v = np.concatenate([(mid[:, None, :] + half[:, None, :] * _X[None, :, None]).reshape(-1, v1.size),
+                        np.full((1, v1.size), v_end_m_s), v1[None, :]])            # (50, N)
+    pb = {k: (x if np.ndim(x) == 0 else x[None, :]) for k, x in p.items()}
+    f = wheel_force_n(v, pk[None, :], ig[None, :], m[None, :], pb)
+    nodes = len(_X)
+    with np.errstate(divide="ignore"):
+        total = (half[0] * np.sum(_W[:, None] * m[None, :] / f[:nodes], axis=0)     # dt = M/F dv
+                 + half[1] * np.sum(_W[:, None] * m[None, :] / f[nodes:2 * nodes], axis=0))
+    f_end, f_base = f[2 * nodes], f[2 * nodes + 1]
     ok = (v_lim >= v_end_m_s) & (f_end > 0) & (f_base > 0)
-    return np.where(ok, total, np.inf)
+    return np.where(ok, total, np.inf).reshape(pk.shape)
 
 
 def accel_time_0_100_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None):
