@@ -82,6 +82,9 @@ def request_bytes(msg) -> bytes:
     out.append(struct.pack("<QQII", int(msg.evaluation_id), int(msg.sequence), int(msg.iteration), int(msg.attempt)))
     _s(out, msg.discipline)
     _named(out, msg.inputs)
+    out.append(struct.pack("<I", len(msg.flow)))
+    for name in msg.flow:
+        _s(out, name)
     return b"".join(out)
 
 

@@ -17,6 +17,7 @@ PREFIX = "/bev_mdo"
 RESULT_TOPIC = f"{PREFIX}/result"
 ITERATION_TOPIC = f"{PREFIX}/iteration"
 INFO_TOPIC = f"{PREFIX}/discipline_info"
+MDA_REQUEST_TOPIC = f"{PREFIX}/mda_request"  # data flow: one request per feed-forward MDA, every node reads it
 
 
 def request_topic(discipline: str) -> str:
@@ -24,9 +25,23 @@ def request_topic(discipline: str) -> str:
     return f"{PREFIX}/{discipline}/request"
 
 
+def mda_result_topic(discipline: str) -> str:
+    """Topic on which a discipline publishes its data-flow results (read by the disciplines
+    that consume its outputs and by the coordinator)."""
+    return f"{PREFIX}/{discipline}/mda_result"
+
+
 REQUEST_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=256)
 RESULT_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1024)
 ITERATION_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1024)
+# Data-flow results are TRANSIENT_LOCAL: a consumer whose subscription matches a producer a
+# moment after the producer answered (discovery between two nodes is independent of what the
+# coordinator sees) still gets the result. The depth is small because a whole batch is one
+# message and an MDA has one result per discipline; 16 covers concurrent runs.
+MDA_RESULT_QOS = QoSProfile(
+    reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=16,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 # Late joiners (a coordinator started after the disciplines) still get every declaration.
 INFO_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=64,

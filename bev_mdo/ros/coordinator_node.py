@@ -85,10 +85,13 @@ class CoordinatorNode(Node):
         return all(p.wait_for_all_acked(Duration(seconds=wait_s)) for p in pubs)
 
     def wait_for_recorder(self, n: int, wait_s: float) -> None:
-        """Wait until `n` recorders subscribed to the iteration and result topics, so nothing is lost."""
+        """Wait until `n` recorders subscribed to the iteration and result topics (and the data-flow
+        result topics: the coordinator, the consuming disciplines and the recorders), so nothing is lost."""
         deadline = time.monotonic() + wait_s
+        readers = self.evaluator.flow_readers()
         while (self._iteration_pub.get_subscription_count() < n
-               or self.count_subscribers(RESULT_TOPIC) < 1 + n):
+               or self.count_subscribers(RESULT_TOPIC) < 1 + n
+               or any(self.count_subscribers(t) < k + n for t, k in readers.items())):
             if time.monotonic() > deadline:
                 raise ValueError(f"the recorder did not subscribe within {wait_s:g} s")
             time.sleep(0.02)  # graph polling; matching happens in DDS threads

@@ -3,6 +3,11 @@
 It subscribes to /bev_mdo/<discipline>/request, evaluates the batch with
 `run_discipline` (bad points are isolated and named, never crash the node) and
 publishes an EvaluationResult on /bev_mdo/result echoing run id and evaluation id.
+
+Data flow (one request per feed-forward MDA, mdo/flow.py): the node also reads
+/bev_mdo/mda_request and the /bev_mdo/<source>/mda_result topics of the disciplines that
+produce its coupling inputs (found from the run config), evaluates once its sources have
+answered, and publishes on its own /bev_mdo/<discipline>/mda_result.
 Malformed requests are rejected, counted and logged (rate-limited). The node knows
 no physics: the discipline object comes from the run config (built-in or
 `module:Class`).
@@ -14,10 +19,11 @@ vehicle section.
 from __future__ import annotations
 
 import copy
+import functools
 import json
 import sys
 import time
-from collections import Counter
+from collections import Counter, OrderedDict
 from typing import Any
 
 import numpy as np
@@ -27,10 +33,12 @@ from rclpy.node import Node
 from rcl_interfaces.msg import ParameterDescriptor
 
 from bev_mdo import __version__
+from bev_mdo.mdo import flow
 from bev_mdo.mdo.discipline import run_discipline
 from bev_mdo.ros import wire
 from bev_mdo.ros.auth import Signer
-from bev_mdo.ros.common import INFO_QOS, INFO_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, request_topic, stamp
+from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RESULT_QOS, REQUEST_QOS, RESULT_QOS,
+                                RESULT_TOPIC, mda_result_topic, request_topic, stamp)
 from bev_mdo.ros.paths import default_config
 from bev_mdo.ros.settings import validate_ros
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
@@ -91,15 +99,23 @@ class NodeStatsListener:
         self.node.destroy_subscription(self._sub)
 
 
+FLOW_CACHE = 64  # data-flow requests and source results kept while they wait for each other
+
+
 def build_discipline(config: dict, name: str) -> Any:
     """The discipline named `name` in a resolved config (built-in or user class)."""
+    return _build(config, name)[0]
+
+
+def _build(config: dict, name: str) -> tuple[Any, dict[str, str]]:
+    """(the discipline, output -> producing discipline over the whole config)."""
     from bev_mdo.config import resolve_disciplines
 
-    found = [d for d in resolve_disciplines(config) if d.name == name]
+    every = resolve_disciplines(config)
+    found = [d for d in every if d.name == name]
     if not found:
-        names = [d.name for d in resolve_disciplines(config)]
-        raise ValueError(f"no discipline {name!r} in the config; it has {names}")
-    return found[0]
+        raise ValueError(f"no discipline {name!r} in the config; it has {[d.name for d in every]}")
+    return found[0], {v: d.name for d in every for v in d.outputs}
 
 
 class DisciplineNode(Node):
@@ -119,8 +135,9 @@ class DisciplineNode(Node):
 
             config = load_config(self.get_parameter("config").value or default_config())
         config = self._apply_overrides(config)
-        self.discipline = build_discipline(config, name)
+        self.discipline, producer = _build(config, name)
         self.discipline_name = name
+        self.source_of = flow.sources_of(self.discipline.inputs, producer, name)  # coupling input -> source
         self._allowed = set(self.discipline.inputs) | set(getattr(self.discipline, "parameters", {}) or {})
         self.instance = self.get_parameter("instance").value or self.get_fully_qualified_name()
         self.counts: Counter[str] = Counter()
@@ -130,7 +147,19 @@ class DisciplineNode(Node):
         self._stats_t = 0.0
         self._result_pub = self.create_publisher(EvaluationResult, RESULT_TOPIC, RESULT_QOS)
         self._info_pub = self.create_publisher(DisciplineInfo, INFO_TOPIC, INFO_QOS)
-        self._sub = self.create_subscription(EvaluationRequest, request_topic(name), self._on_request, REQUEST_QOS)
+        # Raw CDR in and out (wire.py's codec): rclpy's message objects cost more than the DDS hop.
+        self._sub = self.create_subscription(EvaluationRequest, request_topic(name),
+                                             self._raw(self._on_request), REQUEST_QOS, raw=True)
+        self._mda_pub = self.create_publisher(EvaluationResult, mda_result_topic(name), MDA_RESULT_QOS)
+        self._mda_sub = self.create_subscription(EvaluationRequest, MDA_REQUEST_TOPIC,
+                                                 self._raw(self._on_mda_request), REQUEST_QOS, raw=True)
+        self._source_subs = {
+            src: self.create_subscription(EvaluationResult, mda_result_topic(src),
+                                          self._raw(functools.partial(self._on_source_result, src), result=True),
+                                          MDA_RESULT_QOS, raw=True)
+            for src in sorted(set(self.source_of.values()))}
+        self._flow_requests: OrderedDict[tuple, tuple] = OrderedDict()  # (run, eval id) -> (req, inputs, sources)
+        self._flow_results: OrderedDict[tuple, dict] = OrderedDict()    # (run, eval id) -> {source: (outs, ok)}
         self._publish_info()
         self.get_logger().info(
             f"serving {name!r}: inputs {list(self.discipline.inputs)} -> outputs {list(self.discipline.outputs)}"
@@ -175,27 +204,50 @@ class DisciplineNode(Node):
         msg.outputs = list(d.outputs)
         msg.parameters = list(getattr(d, "parameters", {}) or {})
         msg.version = __version__
+        msg.coupling_inputs = list(self.source_of)
+        msg.coupling_sources = list(self.source_of.values())
         self._info_pub.publish(msg)
 
-    def _reject(self, req: EvaluationRequest, why: str, category: str = "malformed") -> None:
+    def _raw(self, handle, result: bool = False):
+        """A raw-subscription callback: decode the CDR bytes, count what does not decode."""
+        decode = wire.decode_result if result else wire.decode_request
+
+        def on_bytes(data: bytes) -> None:
+            try:
+                msg = decode(data)
+            except wire.WireError as exc:
+                self.counts["rejected"] += 1
+                self.counts["rejected.undecodable"] += 1
+                self.get_logger().warning(f"dropped an undecodable message: {exc}", throttle_duration_sec=2.0)
+                return
+            handle(msg)
+
+        return on_bytes
+
+    def hot_subscriptions(self) -> list:
+        """(subscription, handler(data, info)) of everything served on the hot path."""
+        subs = [self._sub, self._mda_sub, *self._source_subs.values()]
+        return [(sub, lambda data, _info, f=sub.callback: f(data)) for sub in subs]
+
+    def _reject(self, req: EvaluationRequest, why: str, category: str = "malformed", pub=None) -> None:
         self.counts["rejected"] += 1
         self.counts[f"rejected.{category}"] += 1
         self.get_logger().warning(
             f"rejected request (run {req.run_id[:40]!r}, eval {req.evaluation_id}): {why[:200]} "
             f"[{self.counts['rejected']} rejected so far; this log is rate-limited]", throttle_duration_sec=2.0
         )
-        out = EvaluationResult()
+        out = wire.Result()
         self._fill_header(out, req)
         out.status = EvaluationResult.STATUS_REJECTED
         out.error = f"{self.discipline_name}: rejected: {why}"[:1000]
-        self._publish(out)
+        self._publish(out, pub)
 
-    def _publish(self, out: EvaluationResult) -> None:
+    def _publish(self, out: wire.Result, pub=None) -> None:
         if self.signer is not None:
             self.signer.sign_result(out)
-        self._result_pub.publish(out)
+        (pub or self._result_pub).publish(wire.encode_result(out))
 
-    def _fill_header(self, out: EvaluationResult, req: EvaluationRequest) -> None:
+    def _fill_header(self, out: wire.Result, req: wire.Request) -> None:
         stamp(out.header)
         out.header.frame_id = req.header.frame_id
         out.run_id = req.run_id
@@ -204,7 +256,7 @@ class DisciplineNode(Node):
         out.discipline = self.discipline_name
         out.instance = self.instance
 
-    def _on_request(self, req: EvaluationRequest) -> None:
+    def _on_request(self, req: wire.Request) -> None:
         self.counts["received"] += 1
         if self.signer is not None:
             why = self.signer.verify_request(req)
@@ -233,18 +285,101 @@ class DisciplineNode(Node):
         if not all(np.isfinite(v).all() for v in inputs.values()):
             # evaluated anyway: those points fail (point_ok false, named), as in-process
             self.counts["non_finite"] += 1
-        result = run_discipline(self.discipline, inputs)
+        self._answer(req, run_discipline(self.discipline, inputs))
+
+    def _answer(self, req: wire.Request, result, pub=None) -> None:
         if result.error:
             self.get_logger().warning(result.error[:500], throttle_duration_sec=2.0)
-        out = EvaluationResult()
+        out = wire.Result()
         self._fill_header(out, req)
         out.status = EvaluationResult.STATUS_OK if result.ok.all() else EvaluationResult.STATUS_ERROR
         out.error = result.error[:4000]
-        out.point_ok = wire.bool_array(result.ok)
-        wire.to_named_array(result.outputs, out.outputs)
+        out.point_ok = np.asarray(result.ok, dtype=bool)
+        out.outputs = wire.batch(result.outputs)
         out.compute_time_s = result.compute_time_s
         self.counts["answered"] += 1
-        self._publish(out)
+        self._publish(out, pub)
+
+    # -- data flow -----------------------------------------------------------------
+    def _authentic(self, msg, kind: str) -> bool:
+        if self.signer is None:
+            return True
+        why = (self.signer.verify_request if kind == "request" else self.signer.verify_result)(msg)
+        if why is None:
+            return True
+        self.counts["rejected"] += 1
+        self.counts[f"rejected.{why}"] += 1
+        self.get_logger().warning(
+            f"dropped {why} data-flow {kind} (run {msg.run_id[:40]!r}, eval {msg.evaluation_id}) "
+            f"[{self.counts['rejected']} rejected so far; this log is rate-limited]", throttle_duration_sec=2.0)
+        return False
+
+    def _on_mda_request(self, req: wire.Request) -> None:
+        """A data-flow request: evaluate now if no source is needed, else when the sources answered."""
+        if self.discipline_name not in req.flow:
+            return None  # an MDA without this discipline
+        self.counts["received"] += 1
+        if not self._authentic(req, "request"):
+            return None
+        if not req.run_id or len(req.run_id) > 128 or not req.run_id.isprintable():
+            return self._reject(req, "bad run id", "bad_run_id", self._mda_pub)
+        try:
+            inputs = wire.from_named_array(req.inputs)
+        except wire.WireError as exc:
+            return self._reject(req, str(exc), "malformed", self._mda_pub)
+        sources = {v: s for v, s in self.source_of.items() if s in req.flow}
+        missing = [k for k in self.discipline.inputs if k not in sources and k not in inputs]
+        if missing:
+            return self._reject(req, f"missing inputs {missing}", "missing_inputs", self._mda_pub)
+        key = (req.run_id, int(req.evaluation_id))
+        _put(self._flow_requests, key, (req, inputs, sources))
+        self._try_flow(key)
+
+    def _on_source_result(self, source: str, msg: wire.Result) -> None:
+        """A source's data-flow result: keep it for (run, evaluation id) and evaluate if it was the last."""
+        if not self._authentic(msg, "result"):
+            return
+        if msg.discipline != source:
+            self.counts["source_malformed"] += 1
+            return
+        try:
+            outputs = wire.from_named_array(msg.outputs)
+        except wire.WireError:
+            self.counts["source_malformed"] += 1
+            return
+        ok = np.asarray(msg.point_ok, dtype=bool)
+        n = int(msg.outputs.batch_size)
+        if msg.status == EvaluationResult.STATUS_REJECTED:  # nothing to evaluate downstream of it
+            outputs, ok = {}, np.zeros(0, dtype=bool)
+        elif ok.shape != (n,) or any(v not in outputs for v, s in self.source_of.items() if s == source):
+            self.counts["source_malformed"] += 1
+            return
+        key = (msg.run_id, int(msg.evaluation_id))
+        _put(self._flow_results, key, {**self._flow_results.get(key, {}), source: (outputs, ok)})
+        if key in self._flow_requests:
+            self._try_flow(key)
+
+    def _try_flow(self, key: tuple) -> None:
+        req, inputs, sources = self._flow_requests[key]
+        up = self._flow_results.get(key, {})
+        if any(s not in up for s in sources.values()):
+            return
+        del self._flow_requests[key]
+        self._flow_results.pop(key, None)
+        n = int(req.inputs.batch_size)
+        if any(up[s][1].shape != (n,) and up[s][1].size != 0 for s in sources.values()):
+            return self._reject(req, "a source answered a different number of points", "malformed", self._mda_pub)
+        up = {s: (o, ok if ok.size else np.zeros(n, bool)) for s, (o, ok) in up.items()}
+        result, _ = flow.run_flow_discipline(self.discipline, inputs, up, sources, n)
+        self._answer(req, result, self._mda_pub)
+
+
+def _put(cache: OrderedDict, key, value) -> None:
+    """Insert as newest; forget the oldest beyond FLOW_CACHE (a lost MDA is re-sent by the coordinator)."""
+    cache[key] = value
+    cache.move_to_end(key)
+    while len(cache) > FLOW_CACHE:
+        cache.popitem(last=False)
 
 
 def serve(node: DisciplineNode, idle_s: float = 0.1, service_every: int = 64) -> None:
@@ -255,19 +390,21 @@ def serve(node: DisciplineNode, idle_s: float = 0.1, service_every: int = 64) ->
     """
     from rclpy.executors import SingleThreadedExecutor
 
-    from bev_mdo.ros.fastwait import SubscriptionWaiter
+    from bev_mdo.ros.fastwait import MultiWaiter
 
     executor = SingleThreadedExecutor(context=node.context)
     executor.add_node(node)
-    waiter = SubscriptionWaiter(node._sub, node.context)
+    waiter = MultiWaiter(node.context)
+    pairs = node.hot_subscriptions()
+    subs = [s for s, _ in pairs]
     served = 0
     try:
         while node.context.ok():
-            n = waiter.take_all(node._on_request)
+            n = waiter.take_all(pairs)
             served += n
             if n == 0:
                 node.publish_stats()
-                if not waiter.wait(idle_s):
+                if not waiter.wait(subs, idle_s):
                     executor.spin_once(timeout_sec=0.0)
             elif served >= service_every:
                 served = 0

@@ -9,6 +9,12 @@ instance answering) and malformed results are dropped and counted. A wave that
 times out is re-sent (same evaluation id, attempt + 1) up to `retries` times; then
 its points fail (NaN, infeasible) with an error naming the discipline.
 
+Data flow (``evaluate_flow``, mdo/flow.py): a feed-forward MDA is ONE request on
+/bev_mdo/mda_request naming the disciplines; the nodes pass results to each other on
+/bev_mdo/<discipline>/mda_result and the coordinator collects every discipline's result
+there. It is used only when every node declared (DisciplineInfo) that it reads each coupling
+input from the same producer as the coordinator's graph; otherwise the MDA runs in waves.
+
 With a shared key (``ros.sign_key_file``, see auth.py) every request is signed and
 every result verified first; unsigned, forged, expired and replayed results are
 dropped and counted under those names. Every accepted result is logged in
@@ -27,12 +33,14 @@ import numpy as np
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
+from bev_mdo.mdo import flow
 from bev_mdo.mdo.discipline import EvalResult
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.ros import wire
 from bev_mdo.ros.auth import Signer
-from bev_mdo.ros.fastwait import SubscriptionWaiter
-from bev_mdo.ros.common import INFO_QOS, INFO_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, request_topic, stamp
+from bev_mdo.ros.fastwait import MultiWaiter
+from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC,
+                                mda_result_topic, request_topic, stamp)
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
 
 
@@ -44,9 +52,10 @@ class DisciplineMissing(ValueError):
 class _Pending:
     index: int
     discipline: str
-    request: EvaluationRequest
+    request: wire.Request
     n: int
     sent_ns: int
+    flow: bool = False
 
 
 class RosEvaluator:
@@ -72,15 +81,23 @@ class RosEvaluator:
         self.last_latency_s = 0.0
         self._next_id = 1
         self._seq = 0
-        self._pending: dict[int, _Pending] = {}
-        self._answered: set[int] = set()
+        self._pending: dict[tuple[int, str], _Pending] = {}   # (evaluation id, discipline) -> request
+        self._answered: set[tuple[int, str]] = set()
         self._results: dict[int, EvalResult] = {}
         self._publishers = {}
+        self.coupling_sources: dict[str, dict[str, str]] = {}  # discipline -> {coupling input: source}
+        self.flows = 0  # MDAs served by data flow (one request each)
+        self._flow_plans: dict[tuple, dict | None] = {}
+        self._flow_pub = None
+        self._flow_subs: dict[str, object] = {}
         self._executor = SingleThreadedExecutor(context=node.context)
         self._executor.add_node(node)
-        self._result_sub = node.create_subscription(EvaluationResult, RESULT_TOPIC, self._on_result, RESULT_QOS)
+        # Raw CDR in and out (wire.py's codec): rclpy's message objects cost more than the DDS hop.
+        self._result_sub = node.create_subscription(EvaluationResult, RESULT_TOPIC, self._on_bytes, RESULT_QOS,
+                                                    raw=True)
         self._info_sub = node.create_subscription(DisciplineInfo, INFO_TOPIC, self._on_info, INFO_QOS)
-        self._waiter = SubscriptionWaiter(self._result_sub, node.context)
+        self._waiter = MultiWaiter(node.context)
+        self._hot = [(self._result_sub, lambda data, _i: self._on_bytes(data))]
 
     # -- discovery -----------------------------------------------------------------
     def _on_info(self, msg: DisciplineInfo) -> None:
@@ -88,6 +105,42 @@ class RosEvaluator:
         self.specs[msg.discipline] = DisciplineSpec(
             msg.discipline, tuple(msg.inputs), tuple(msg.outputs), dict.fromkeys(msg.parameters, float("nan"))
         )
+        self.coupling_sources[msg.discipline] = dict(zip(msg.coupling_inputs, msg.coupling_sources))
+        self._flow_plans.clear()
+
+    def flow_plan(self, names: Sequence[str]) -> dict[str, dict[str, str]] | None:
+        """{discipline: {coupling input: source}} for a data-flow MDA of `names`, or None when some
+        node reads a coupling input from another producer than this graph's (or declared nothing)."""
+        key = tuple(sorted(names))
+        if key not in self._flow_plans:
+            plan = None
+            if all(n in self.specs for n in names):
+                producer = {v: n for n in names for v in self.specs[n].outputs}
+                plan = {n: flow.sources_of(self.specs[n].inputs, producer, n) for n in names}
+                if any(self.coupling_sources.get(n, {}).get(v) != s for n in names for v, s in plan[n].items()):
+                    plan = None
+            self._flow_plans[key] = plan
+        return self._flow_plans[key]
+
+    def flow_readers(self) -> dict[str, int]:
+        """Data-flow result topic -> how many readers it has without recorders (the coordinator and
+        the disciplines reading it), for the data flow set up by ``wait_for_disciplines``."""
+        out = {}
+        for d in self._flow_subs:
+            out[mda_result_topic(d)] = 1 + sum(d in src.values() for src in self.coupling_sources.values())
+        return out
+
+    def _flow_topics(self, names: Sequence[str]) -> None:
+        if self._flow_pub is None:
+            self._flow_pub = self.node.create_publisher(EvaluationRequest, MDA_REQUEST_TOPIC, REQUEST_QOS)
+            self._publishers[MDA_REQUEST_TOPIC] = self._flow_pub
+        for n in names:
+            if n not in self._flow_subs:
+                # VOLATILE reader: the coordinator wants only the answers to what it sends.
+                sub = self.node.create_subscription(EvaluationResult, mda_result_topic(n), self._on_bytes, RESULT_QOS,
+                                                    raw=True)
+                self._flow_subs[n] = sub
+                self._hot.append((sub, lambda data, _i: self._on_bytes(data)))
 
     def _publisher(self, discipline: str):
         pub = self._publishers.get(discipline)
@@ -129,9 +182,29 @@ class RosEvaluator:
             if time.monotonic() > deadline:
                 raise DisciplineMissing(f"result topic not matched for all of {list(names)} within {wait_s:g} s")
             self._executor.spin_once(timeout_sec=0.05)
+        if self.flow_plan(names) is None:
+            self.node.get_logger().info("data flow not offered by every node: MDAs run in waves")
+            return
+        # Data flow: every node reads the MDA request topic and we read every node's results.
+        # (Node-to-node result topics are TRANSIENT_LOCAL, so a late match there loses nothing.)
+        self._flow_topics(names)
+        while (self._flow_pub.get_subscription_count() < len(set(names)) + extra_subscribers
+               or any(self._flow_subs[n].get_publisher_count() < 1 for n in names)):
+            if time.monotonic() > deadline:
+                raise DisciplineMissing(f"data-flow topics not matched for all of {list(names)} within {wait_s:g} s")
+            self._executor.spin_once(timeout_sec=0.05)
 
     # -- evaluation ----------------------------------------------------------------
-    def _on_result(self, msg: EvaluationResult) -> None:
+    def _on_bytes(self, data: bytes) -> None:
+        try:
+            msg = wire.decode_result(data)
+        except wire.WireError:
+            self.dropped["malformed"] += 1
+            return
+        self._on_result(msg)
+
+    def _on_result(self, msg) -> None:
+        """Accept a result (wire.Result or a generated EvaluationResult) or count why it was dropped."""
         if self.signer is not None:
             why = self.signer.verify_result(msg)
             if why is not None:
@@ -140,12 +213,15 @@ class RosEvaluator:
         if msg.run_id != self.run_id:
             self.dropped["other_run"] += 1
             return
-        p = self._pending.get(msg.evaluation_id)
+        key = (int(msg.evaluation_id), msg.discipline)
+        p = self._pending.get(key)
         if p is None:
-            self.dropped["duplicate" if msg.evaluation_id in self._answered else "stale"] += 1
-            return
-        if msg.discipline != p.discipline:
-            self.dropped["mismatched"] += 1
+            if key in self._answered:
+                self.dropped["duplicate"] += 1
+            elif any(k[0] == key[0] for k in self._pending):
+                self.dropped["mismatched"] += 1  # an outstanding evaluation, answered by another discipline
+            else:
+                self.dropped["stale"] += 1
             return
         if msg.status == EvaluationResult.STATUS_REJECTED:
             res = self._failed(p, msg.error or f"{p.discipline}: request rejected")
@@ -164,10 +240,11 @@ class RosEvaluator:
             outs = {k: np.array(outputs[k]) for k in want}
             ok = ok & np.all([np.isfinite(v) for v in outs.values()], axis=0) if outs else ok
             res = EvalResult(outs, ok, msg.error, float(msg.compute_time_s))
-        self.counts[p.discipline] += p.n
+        if not p.flow:  # a data-flow MDA counts the rows each discipline evaluated at the end
+            self.counts[p.discipline] += p.n
         self.accepted.append((int(msg.evaluation_id), msg.discipline, msg.instance, int(p.request.attempt)))
-        del self._pending[msg.evaluation_id]
-        self._answered.add(msg.evaluation_id)
+        del self._pending[key]
+        self._answered.add(key)
         self._results[p.index] = res
 
     def _failed(self, p: _Pending, error: str) -> EvalResult:
@@ -182,48 +259,80 @@ class RosEvaluator:
         if self.signer is not None:
             self.signer.sign_request(p.request)
         p.sent_ns = time.monotonic_ns()
-        self._publisher(p.discipline).publish(p.request)
+        (self._flow_pub if p.flow else self._publisher(p.discipline)).publish(wire.encode_request(p.request))
 
     def evaluate(self, calls: Sequence[tuple[str, Mapping[str, np.ndarray]]], iteration: int = 0) -> list[EvalResult]:
         """Evaluate one wave: every (discipline, batch) call concurrently. Never raises for a slow node."""
         t0 = time.perf_counter()
         self._results = {}
         for i, (name, batch) in enumerate(calls):
-            req = EvaluationRequest()
-            req.run_id = self.run_id
-            req.evaluation_id = self._next_id
-            req.iteration = iteration
-            req.discipline = name
-            wire.to_named_array(batch, req.inputs)
+            req = wire.Request(self.run_id, self._next_id, name, iteration=iteration)
+            req.inputs = wire.batch(batch)
             n = int(req.inputs.batch_size)
-            self._pending[self._next_id] = p = _Pending(i, name, req, n, 0)
+            self._pending[(self._next_id, name)] = p = _Pending(i, name, req, n, 0)
             self._next_id += 1
             self._send(p)
+        self._await()
+        self.last_latency_s = time.perf_counter() - t0
+        return [self._results[i] for i in range(len(calls))]
+
+    def evaluate_flow(self, names: Sequence[str], request: Mapping[str, np.ndarray], n: int) -> dict | None:
+        """One feed-forward MDA as ONE data-flow request; None when the nodes cannot serve it that way."""
+        plan = self.flow_plan(names)
+        if plan is None:
+            return None
+        t0 = time.perf_counter()
+        self._flow_topics(names)
+        self._results = {}
+        eid = self._next_id
+        self._next_id += 1
+        req = wire.Request(self.run_id, eid, "", flow=names)
+        req.inputs = wire.batch(request)
+        first = None
+        for i, name in enumerate(names):
+            self._pending[(eid, name)] = p = _Pending(i, name, req, n, 0, flow=True)
+            first = first or p
+        self._send(first)  # one message for every discipline
+        self._await()
+        self.flows += 1
+        out = {name: self._results[i] for i, name in enumerate(names)}
+        answered = {d for e, d, _, _ in self.accepted[-len(names):] if e == eid}
+        for name in names:
+            if name in answered:
+                up = {s: (out[s].outputs, out[s].ok) for s in set(plan[name].values())}
+                self.counts[name] += flow.rows_evaluated(plan[name], up, n)
+        self.last_latency_s = time.perf_counter() - t0
+        return out
+
+    def _await(self) -> None:
+        """Wait for every pending result; re-send what times out; fail what never answers."""
         for attempt in range(self.retries + 1):
             deadline = time.monotonic() + self.timeout_s
-            self._waiter.take_all(self._on_result)
+            subs = [s for s, _ in self._hot]
+            self._waiter.take_all(self._hot)
             while self._pending and time.monotonic() < deadline:
-                self._waiter.wait(deadline - time.monotonic())
-                self._waiter.take_all(self._on_result)
+                self._waiter.wait(subs, deadline - time.monotonic())
+                self._waiter.take_all(self._hot)
             if not self._pending:
                 break
             if attempt < self.retries:
+                resend = {}
                 for p in self._pending.values():
                     self.retried += 1
+                    resend.setdefault(id(p.request), (p, []))[1].append(p.discipline)
+                for p, late in resend.values():
                     p.request.attempt = attempt + 1
                     self.node.get_logger().warning(
-                        f"no answer from {p.discipline!r} for evaluation {p.request.evaluation_id} "
+                        f"no answer from {late} for evaluation {p.request.evaluation_id} "
                         f"after {self.timeout_s:g} s; retry {attempt + 1}/{self.retries}"
                     )
                     self._send(p)
-        for eid, p in list(self._pending.items()):
+        for key, p in list(self._pending.items()):
             self._results[p.index] = self._failed(
                 p, f"{p.discipline}: no answer after {self.retries + 1} attempts of {self.timeout_s:g} s"
             )
-            del self._pending[eid]
-            self._answered.add(eid)  # a late answer is then counted as stale, never used
-        self.last_latency_s = time.perf_counter() - t0
-        return [self._results[i] for i in range(len(calls))]
+            del self._pending[key]
+            self._answered.add(key)  # a late answer is then counted as stale, never used
 
     def close(self) -> None:
         """Release the executor (the node is the caller's)."""

@@ -210,7 +210,7 @@ def test_coordinator_drops_unsigned_forged_expired_and_replayed_results(rclpy_co
             return res
 
         for eid in (1, 2, 3, 4, 5):
-            ev._pending[eid] = _Pending(eid, "vehicle_mass", _request("probe", eid), 1, 0)
+            ev._pending[(eid, "vehicle_mass")] = _Pending(eid, "vehicle_mass", _request("probe", eid), 1, 0)
         ev._on_result(result(1))
         r = result(2)
         wrong.sign_result(r)
@@ -221,7 +221,7 @@ def test_coordinator_drops_unsigned_forged_expired_and_replayed_results(rclpy_co
         r = result(4)
         good.sign_result(r)
         ev._on_result(r)  # accepted
-        ev._pending[4] = _Pending(4, "vehicle_mass", _request("probe", 4), 1, 0)
+        ev._pending[(4, "vehicle_mass")] = _Pending(4, "vehicle_mass", _request("probe", 4), 1, 0)
         ev._on_result(r)  # a replay, even though id 4 is outstanding again
         assert dict(ev.dropped) == {"unsigned": 1, "forged": 1, "expired": 1, "replayed": 1}
         assert [a[0] for a in ev.accepted] == [4]

@@ -104,8 +104,8 @@ def test_two_instances_first_valid_answer_wins_and_results_are_deterministic(rcl
         _same_iterates(res, ref)
         assert stats["dropped"].get("duplicate", 0) > 0
         assert stats["dropped"].get("malformed", 0) == 0
-        ids = [a[0] for a in ev.accepted]
-        assert len(ids) == len(set(ids))  # one accepted answer per evaluation, the other dropped
+        keys = [(a[0], a[1]) for a in ev.accepted]  # (evaluation id, discipline)
+        assert len(keys) == len(set(keys))  # one accepted answer per discipline and evaluation, the other dropped
         instances = {a[2] for a in ev.accepted if a[1] == "energy"}
         assert instances <= {"/energy_node", "energy_node_b"}
     _same_iterates(runs[0][0], runs[1][0], rel=0)

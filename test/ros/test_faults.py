@@ -1,6 +1,7 @@
 """Supervision and retries: discipline nodes SIGKILLed during an optimisation.
 
-Kills are placed on evaluation counts (the n-th first request sent to a discipline),
+Kills are placed on evaluation counts (the n-th first request sent to a discipline, a
+data-flow MDA request counting for every discipline it names),
 never on timers: the request is published only after the node process has exited,
 so every kill leaves an outstanding evaluation that the coordinator must retry
 while the launcher restarts the node. Timeouts are short (config `ros:` section).
@@ -18,6 +19,7 @@ rclpy = pytest.importorskip("rclpy")
 from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.discipline import run_discipline  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
+from bev_mdo.mdo.flow import flow_by_waves  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros import coordinator_node, wire  # noqa: E402
 from bev_mdo.ros.evaluator import RosEvaluator  # noqa: E402
@@ -68,7 +70,8 @@ class Audit:
         self.launcher, self.target, self.kill_at = launcher, target, set(kill_at)
         self.first_sends = 0
         self.kills = 0
-        self.sent: dict[int, tuple[str, dict]] = {}
+        self.sent: dict[int, tuple[list[str], dict]] = {}  # evaluation id -> (disciplines, inputs)
+        self.flow_results: dict[int, dict] = {}
         self.checked = 0
         self.evaluators: list[RosEvaluator] = []
 
@@ -81,9 +84,10 @@ class Audit:
                 audit.evaluators.append(ev)
             req = p.request
             if req.attempt == 0:
-                audit.sent[req.evaluation_id] = (p.discipline, {k: np.array(v) for k, v in
-                                                                wire.from_named_array(req.inputs).items()})
-                if p.discipline == audit.target:
+                names = list(req.flow) or [p.discipline]
+                audit.sent[req.evaluation_id] = (names, {k: np.array(v) for k, v in
+                                                         wire.from_named_array(req.inputs).items()})
+                if audit.target in names:
                     audit.first_sends += 1
                     if audit.first_sends in audit.kill_at:
                         audit.launcher.kill(audit.target)  # returns once the process is gone
@@ -99,13 +103,25 @@ class Audit:
         monkeypatch.setattr(RosEvaluator, "_send", _send)
         monkeypatch.setattr(RosEvaluator, "_on_result", _on_result)
 
+    @property
+    def expected(self) -> int:
+        """Results the audited requests ask for (one per discipline named)."""
+        return sum(len(names) for names, _ in self.sent.values())
+
     def check(self, ev, msg):
         eid, disc, _instance, _attempt = ev.accepted[-1]
-        want_disc, inputs = self.sent[eid]
-        assert disc == want_disc == msg.discipline
-        if msg.status == msg.STATUS_REJECTED:
+        names, inputs = self.sent[eid]
+        assert disc == msg.discipline and disc in names
+        if msg.status == 2:  # STATUS_REJECTED
             raise AssertionError(f"valid request {eid} rejected: {msg.error}")
-        local = run_discipline(self.local[disc], inputs)
+        if len(names) > 1:  # a data-flow MDA: compare with the same MDA run here
+            if eid not in self.flow_results:
+                ev_local = InProcessEvaluator([self.local[n] for n in names])
+                n = len(next(iter(inputs.values())))
+                self.flow_results[eid] = flow_by_waves(ev_local, ev_local.specs, [[d] for d in names], inputs, n)
+            local = self.flow_results[eid][disc]
+        else:
+            local = run_discipline(self.local[disc], inputs)
         got = wire.from_named_array(msg.outputs)
         for k, v in local.outputs.items():
             np.testing.assert_array_equal(np.asarray(got[k]), v, err_msg=f"eval {eid} {disc}.{k}")
@@ -135,8 +151,8 @@ def test_sigkill_a_node_three_times_gives_the_same_optimum(rclpy_context, launch
     # bookkeeping: each evaluation id accepted exactly once, and every accepted result was
     # equal to an in-process evaluation of the request it was matched to
     (ev,) = audit.evaluators
-    ids = [a[0] for a in ev.accepted]
-    assert len(ids) == len(set(ids)) == len(audit.sent) == audit.checked
+    keys = [(a[0], a[1]) for a in ev.accepted]  # (evaluation id, discipline)
+    assert len(keys) == len(set(keys)) == audit.expected == audit.checked
     assert not ev._pending
     assert stats["dropped"].get("malformed", 0) == 0 and stats["dropped"].get("mismatched", 0) == 0
     # no other node died during this run
@@ -150,4 +166,4 @@ def test_undisturbed_run_is_audited_too(rclpy_context, launcher, config_path, re
     audit.install(monkeypatch)
     res, stats = coordinator_node.run(config, context=rclpy_context)
     _assert_same_optimum(res, reference, rel=1e-12)
-    assert audit.checked == len(audit.sent) > 0
+    assert audit.checked == audit.expected > 0

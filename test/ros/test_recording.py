@@ -35,14 +35,24 @@ def recorded(config_path, tmp_path_factory, ros_domain):
 
 
 def _counts_and_points(messages):
-    """Per discipline: (requests, results, points requested) of one run."""
+    """Per discipline: (requests, results, points requested) of one run.
+
+    A data-flow request (/bev_mdo/mda_request) asks every discipline it names for all its
+    points; a discipline skips the points a source failed, so the count holds when every
+    point of the run succeeded (checked)."""
     req, res, pts = {}, {}, {}
     for topic, msg in messages:
-        if topic.endswith("/request"):
+        if topic == "/bev_mdo/mda_request":
+            for d in msg.flow:
+                req[d] = req.get(d, 0) + 1
+                pts[d] = pts.get(d, 0) + msg.inputs.batch_size
+        elif topic.endswith("/request"):
             req[msg.discipline] = req.get(msg.discipline, 0) + 1
             pts[msg.discipline] = pts.get(msg.discipline, 0) + msg.inputs.batch_size
-        elif topic == "/bev_mdo/result":
+        elif topic == "/bev_mdo/result" or topic.endswith("/mda_result"):
             res[msg.discipline] = res.get(msg.discipline, 0) + 1
+            if topic.endswith("/mda_result"):
+                assert all(msg.point_ok), f"a failed point in {msg.discipline}'s result: {msg.error}"
     return req, res, pts
 
 
