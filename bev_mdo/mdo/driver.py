@@ -107,9 +107,15 @@ def evaluate_design(config: Mapping[str, Any], evaluator: Evaluator, design: Map
                          f"parameters: {sorted(params)}")
     inputs = {k: np.array([float(v)]) for k, v in {**problem.parameters, **design}.items()}
     res = mda.run(inputs)
-    outputs = {v: float(res.values[v][0]) for s in mda.specs.values() for v in s.outputs}
+    values = {k: float(v[0]) for k, v in res.values.items()}
+    return design_report(problem, mda, design, values, bool(res.ok[0]), res.errors[0], int(res.iterations[0]))
+
+
+def design_report(problem: Problem, mda: MDA, design: Mapping[str, float], values: Mapping[str, float],
+                  ok: bool, error: str, mda_iterations: int) -> dict:
+    """The report of one analysed design (``values``: every MDA variable of the point)."""
+    outputs = {v: float(values[v]) for s in mda.specs.values() for v in s.outputs}
     cons = _constraint_report(problem, outputs)
-    ok = bool(res.ok[0])
     return {
         "design": {k: float(v) for k, v in design.items()},
         "outputs": outputs,
@@ -117,8 +123,8 @@ def evaluate_design(config: Mapping[str, Any], evaluator: Evaluator, design: Map
         "constraints": cons,
         "feasible": ok and all(c["satisfied"] for c in cons.values()),
         "ok": ok,
-        "error": res.errors[0],
-        "mda_iterations": int(res.iterations[0]),
+        "error": error,
+        "mda_iterations": mda_iterations,
     }
 
 
@@ -174,11 +180,18 @@ def run_optimization(config: Mapping[str, Any], evaluator: Evaluator, *, formula
     res = run_optimizer(opt_name, form, options, lambda x: record(x))
     x = np.asarray(res.x, dtype=float)
     last = record(x) if not history or history[-1]["design"] != problem.design_dict(x[:n_dv]) else history[-1]
-    # The final report is one more MDA through the same evaluator; count it, so the totals
-    # equal what the disciplines actually evaluated (and what a recording holds).
-    final = evaluate_design(config, evaluator, problem.design_dict(x[:n_dv]))
+    # The final report: MDF analysed the optimum already (its full MDA is kept); IDF's
+    # optimum is one more MDA through the same evaluator, counted, so the totals equal what
+    # the disciplines actually evaluated (and what a recording holds).
+    design = problem.design_dict(x[:n_dv])
+    seen = form.analysed(x) if hasattr(form, "analysed") else None
+    if seen is not None:
+        final = design_report(problem, form.mda, design, *seen)
+        mda_evals = form.mda_evaluations
+    else:
+        final = evaluate_design(config, evaluator, design)
+        mda_evals = form.mda_evaluations + 1
     counts = dict(evaluator.counts)
-    mda_evals = form.mda_evaluations + 1
     ok, err = form.status(x)
     return RunResult(
         formulation=form.name, optimizer=opt_name, success=bool(res.success) and ok,

@@ -195,6 +195,7 @@ class MDF(Formulation):
         self.lower, self.upper = problem.array("lower"), problem.array("upper")
         self.offset, self.scale = self.lower.copy(), problem.array("scale")
         self.x0 = problem.x0()
+        self._analysed: dict[bytes, tuple[dict[str, float], bool, str, int]] = {}
 
     def analyse(self, X: np.ndarray) -> MDAResult:
         X = np.atleast_2d(np.asarray(X, dtype=float))
@@ -203,8 +204,19 @@ class MDF(Formulation):
             inputs[k] = np.full(len(X), v)
         return self.mda.run(inputs)
 
+    def analysed(self, x: np.ndarray) -> tuple[dict[str, float], bool, str, int] | None:
+        """(every MDA variable, ok, error, loop iterations) of a recently analysed point, or None."""
+        return self._analysed.get(np.asarray(x, dtype=float).tobytes())
+
     def _evaluate_rows(self, X):
         res = self.analyse(X)
+        # Keep the full analysis of the recent rows: the final report of a run reads it
+        # instead of analysing the optimum once more.
+        for i, row in enumerate(X):
+            self._analysed[row.tobytes()] = ({k: float(v[i]) for k, v in res.values.items()}, bool(res.ok[i]),
+                                             res.errors[i], int(res.iterations[i]))
+        while len(self._analysed) > 4096:
+            self._analysed.pop(next(iter(self._analysed)))
         f = res.values[self.problem.objective]
         g = self.problem.g(res.values)
         return f, g, np.zeros((len(X), 0)), res.ok, res.errors
