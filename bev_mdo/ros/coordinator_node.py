@@ -118,7 +118,8 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
 
         result = run_optimization(config, node.evaluator, formulation=formulation, optimizer=optimizer,
                                   x0=x0, callback=callback)
-        stats = {"run_id": node.run_id, "dropped": dict(node.evaluator.dropped), "retried": node.evaluator.retried}
+        stats = {"run_id": node.run_id, "dropped": dict(node.evaluator.dropped), "retried": node.evaluator.retried,
+                 "data_flow_mdas": node.evaluator.flows}
         node.wait_for_all_acked(node.discovery_wait_s)
         return result, stats
     finally:

@@ -92,6 +92,35 @@ def test_mdf_over_ros_gives_the_in_process_iterates(rclpy_context, nodes, config
     assert ros.mda_evaluations == local.mda_evaluations
     assert ros.discipline_evaluations == local.discipline_evaluations
     assert stats["retried"] == 0
+    # every MDA was one data-flow request (the point and its FD stencil in one batch)
+    assert stats["data_flow_mdas"] == ros.batches > 0
+
+
+def test_mda_falls_back_to_waves_when_a_node_reads_a_coupling_elsewhere(rclpy_context, nodes, configs):
+    """A node whose declared coupling source differs from the coordinator's graph gets no
+    data-flow request: the MDA runs in waves, with the same values and counts."""
+    from bev_mdo.mdo.driver import build_formulation
+
+    config = load_config(configs["base"])
+    node = coordinator_node.CoordinatorNode(config, context=rclpy_context, node_name="fallback_probe")
+    try:
+        ev = node.evaluator
+        ev.wait_for_disciplines(BUILTINS, 60.0)
+        X = np.array([[80.0, 8.0, 24.0], [60.0, 5.0, 21.0], [120.0, 11.0, 30.0]])
+        flow = build_formulation(config, ev).analyse(X)
+        assert ev.flows == 1
+        ev.coupling_sources["energy"] = {"vehicle_mass_kg": "somewhere_else"}
+        ev._flow_plans.clear()
+        waves = build_formulation(config, ev).analyse(X)
+        assert ev.flows == 1  # unchanged: no data-flow request this time
+        local = build_formulation(config, InProcessEvaluator(resolve_disciplines(config))).analyse(X)
+        for res in (flow, waves):
+            assert res.ok.all()
+            for k, v in local.values.items():
+                np.testing.assert_array_equal(res.values[k], v, err_msg=k)
+    finally:
+        node.evaluator.close()
+        node.destroy_node()
 
 
 def test_idf_over_ros_reaches_the_mdf_optimum(rclpy_context, nodes, configs):
@@ -147,3 +176,63 @@ def test_evaluate_and_sensitivity_over_ros_print_what_in_process_prints(nodes, c
         assert main(argv) == 0
         local = _json.loads(capsys.readouterr().out)
         assert over_ros == local
+
+
+def test_bad_data_flow_requests_are_rejected_and_the_nodes_keep_serving(rclpy_context, nodes, configs):
+    """Missing coupling inputs, a wrong batch length and undecodable bytes on /bev_mdo/mda_request:
+    the node answers REJECTED (or counts the bytes it cannot decode) and keeps serving."""
+    from bev_mdo.mdo.driver import build_formulation
+    from bev_mdo.ros import wire
+    from bev_mdo.ros.common import MDA_REQUEST_TOPIC, MDA_RESULT_QOS, REQUEST_QOS, mda_result_topic, stamp
+    from bev_mdo.ros.discipline_node import NodeStatsListener
+    from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult
+
+    probe = rclpy.create_node("flow_fuzz_probe", context=rclpy_context)
+    got = []
+    pub = probe.create_publisher(EvaluationRequest, MDA_REQUEST_TOPIC, REQUEST_QOS)
+    sub = probe.create_subscription(EvaluationResult, mda_result_topic("energy"),
+                                    lambda data: got.append(wire.decode_result(data)), MDA_RESULT_QOS, raw=True)
+    stats = NodeStatsListener(probe)
+    try:
+        assert stats.wait(lambda s: pub.get_subscription_count() >= len(BUILTINS) and sub.get_publisher_count() >= 1
+                          and s.seen("energy"), 60.0)
+        before = stats.counts("energy")
+
+        def send(eid, flow, cols, batch_size=None):
+            req = wire.Request("flow-fuzz", eid, "", flow=flow)
+            req.inputs = wire.batch(cols)
+            if batch_size is not None:
+                req.inputs.batch_size = batch_size
+            stamp(req.header)
+            pub.publish(wire.encode_request(req))
+
+        # energy without its mass source and without vehicle_mass_kg in the inputs
+        send(1, ["energy"], {"gear_ratio": np.array([8.0])})
+        # a batch size that does not match the values
+        send(2, ["energy"], {"gear_ratio": np.array([8.0, 9.0]), "vehicle_mass_kg": np.array([1500.0, 1600.0])},
+             batch_size=3)
+        pub.publish(b"\x00\x01\x00\x00\xff\xff\xff\x7f")  # a run-id length far beyond the message
+        # a good one: energy alone, with the coupling input given
+        send(3, ["energy"], {"gear_ratio": np.array([8.0]), "vehicle_mass_kg": np.array([1500.0])})
+        assert stats.wait(lambda s: len(got) >= 3 and s.counts("energy")["rejected.undecodable"]
+                          > before["rejected.undecodable"], 30.0), (got, stats.counts("energy"))
+        by_id = {int(r.evaluation_id): r for r in got if r.run_id == "flow-fuzz"}
+        assert by_id[1].status == EvaluationResult.STATUS_REJECTED and "missing inputs" in by_id[1].error
+        assert by_id[2].status == EvaluationResult.STATUS_REJECTED
+        assert by_id[3].status == EvaluationResult.STATUS_OK and np.isfinite(by_id[3].outputs.values).all()
+        after = stats.counts("energy")
+        assert after["rejected.missing_inputs"] - before["rejected.missing_inputs"] == 1
+        assert after["rejected.malformed"] - before["rejected.malformed"] == 1
+    finally:
+        stats.close()
+        probe.destroy_node()
+    # the nodes still serve a whole data-flow MDA
+    config = load_config(configs["base"])
+    node = coordinator_node.CoordinatorNode(config, context=rclpy_context, node_name="after_fuzz")
+    try:
+        node.evaluator.wait_for_disciplines(BUILTINS, 60.0)
+        res = build_formulation(config, node.evaluator).analyse(np.array([[80.0, 8.0, 24.0]]))
+        assert res.ok.all() and node.evaluator.flows == 1
+    finally:
+        node.evaluator.close()
+        node.destroy_node()

@@ -1,0 +1,95 @@
+"""wire.py's lean CDR codec against rclpy's own serialisation of the generated messages."""
+from __future__ import annotations
+
+import array
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+pytest.importorskip("rclpy")
+
+from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
+
+from bev_mdo.ros import wire  # noqa: E402
+from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult  # noqa: E402
+
+text = st.text(st.characters(codec="utf-8", exclude_characters="\x00"), max_size=20)
+names = st.lists(st.from_regex(r"[a-z_][a-z0-9_]{0,12}", fullmatch=True), max_size=4, unique=True)
+u32 = st.integers(0, 2**32 - 1)
+u64 = st.integers(0, 2**64 - 1)
+floats = st.floats(allow_nan=False, width=64)
+
+
+@st.composite
+def columns(draw):
+    cols = draw(names)
+    n = draw(st.integers(0, 5))
+    values = draw(st.lists(floats, min_size=n * len(cols), max_size=n * len(cols)))
+    return cols, n, values
+
+
+def _fill_header(m, sec, nsec, frame):
+    m.header.stamp.sec, m.header.stamp.nanosec, m.header.frame_id = sec, nsec, frame
+
+
+@settings(max_examples=150, deadline=None)
+@given(sec=st.integers(-2**31, 2**31 - 1), nsec=u32, frame=text, run=text, eid=u64, seq=u64, it=u32, att=u32,
+       disc=text, cols=columns(), flow=st.lists(text, max_size=4), sig=text)
+def test_request_round_trips_both_ways(sec, nsec, frame, run, eid, seq, it, att, disc, cols, flow, sig):
+    m = EvaluationRequest()
+    _fill_header(m, sec, nsec, frame)
+    m.run_id, m.evaluation_id, m.sequence, m.iteration, m.attempt, m.discipline = run, eid, seq, it, att, disc
+    m.inputs.names, m.inputs.batch_size, m.inputs.values = cols[0], cols[1], array.array("d", cols[2])
+    m.flow, m.signature = flow, sig
+    d = wire.decode_request(serialize_message(m))
+    assert (d.header.stamp.sec, d.header.stamp.nanosec, d.header.frame_id) == (sec, nsec, frame)
+    assert (d.run_id, d.evaluation_id, d.sequence, d.iteration, d.attempt, d.discipline) == (run, eid, seq, it, att,
+                                                                                            disc)
+    assert (d.inputs.names, d.inputs.batch_size, d.flow, d.signature) == (cols[0], cols[1], flow, sig)
+    np.testing.assert_array_equal(d.inputs.values, cols[2])
+    assert deserialize_message(wire.encode_request(d), EvaluationRequest) == m
+
+
+@settings(max_examples=150, deadline=None)
+@given(sec=st.integers(-2**31, 2**31 - 1), nsec=u32, run=text, eid=u64, seq=u64, disc=text, inst=text,
+       status=st.integers(0, 255), err=text, ok=st.lists(st.booleans(), max_size=7), cols=columns(),
+       t=floats, sig=text)
+def test_result_round_trips_both_ways(sec, nsec, run, eid, seq, disc, inst, status, err, ok, cols, t, sig):
+    m = EvaluationResult()
+    _fill_header(m, sec, nsec, "")
+    m.run_id, m.evaluation_id, m.sequence, m.discipline, m.instance = run, eid, seq, disc, inst
+    m.status, m.error, m.point_ok = status, err, ok
+    m.outputs.names, m.outputs.batch_size, m.outputs.values = cols[0], cols[1], array.array("d", cols[2])
+    m.compute_time_s, m.signature = t, sig
+    d = wire.decode_result(serialize_message(m))
+    assert (d.run_id, d.evaluation_id, d.sequence, d.discipline, d.instance, d.status, d.error) == (
+        run, eid, seq, disc, inst, status, err)
+    assert d.point_ok.tolist() == ok and d.outputs.names == cols[0] and d.outputs.batch_size == cols[1]
+    np.testing.assert_array_equal(d.outputs.values, cols[2])
+    assert (d.compute_time_s, d.signature) == (t, sig)
+    assert deserialize_message(wire.encode_result(d), EvaluationResult) == m
+
+
+def test_a_large_batch_decodes_without_copying_each_column():
+    cols = {"a": np.arange(100_000.0), "b": -np.arange(100_000.0)}
+    req = wire.Request("run", 7, "energy")
+    req.inputs = wire.batch(cols)
+    d = wire.decode_request(wire.encode_request(req))
+    got = wire.from_named_array(d.inputs)
+    np.testing.assert_array_equal(got["b"], cols["b"])
+    assert got["a"].base is not None  # a view into the received buffer
+
+
+@pytest.mark.parametrize("cut", [0, 3, 10, 40, -9, -1])
+def test_truncated_or_foreign_bytes_raise_wire_error(cut):
+    req = wire.Request("run", 7, "energy", flow=["energy", "range"])
+    req.inputs = wire.batch({"x": np.ones(3)})
+    data = wire.encode_request(req)
+    with pytest.raises(wire.WireError):
+        wire.decode_request(data[:cut])
+    with pytest.raises(wire.WireError):
+        wire.decode_request(b"\x01\x00\x00\x00" + data[4:])  # big-endian encapsulation is not ours
+    with pytest.raises(wire.WireError):
+        wire.decode_result(data[:cut])
