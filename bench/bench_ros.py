@@ -3,9 +3,12 @@
   . scripts/env.sh && python bench/bench_ros.py [--n 2000] [--json FILE]
 
 Measures, on this host, every process localhost-only on its own domain:
-  1. raw rclpy ping-pong: one EvaluationRequest out, one EvaluationResult back, over topics;
-  2. latency of one full multidisciplinary evaluation (one design point, three waves,
-     six discipline processes), p50 and p99;
+  1. raw rclpy ping-pong: one EvaluationRequest out, one EvaluationResult back, over topics
+     (typed messages, rclpy executor), and the same exchange the way bev_mdo's hot path does
+     it (raw CDR bytes, one rcl wait set);
+  2. latency of one full multidisciplinary evaluation (one design point, one data-flow
+     request, six discipline processes), p50 and p99, and the CPU time it costs in every
+     process (the host has 2 cores: CPU per MDA, not hops, bounds the latency);
   3. batched throughput: design evaluations per second with large batches;
   4. the in-process MDA of the same point, for reference.
 """
@@ -46,6 +49,68 @@ ECHO = textwrap.dedent(
         pass
     """
 )
+
+
+LEAN_ECHO = textwrap.dedent(
+    """
+    import rclpy
+    from rclpy.node import Node
+    from bev_mdo.ros.common import REQUEST_QOS, RESULT_QOS
+    from bev_mdo.ros.fastwait import SubscriptionWaiter
+    from bev_mdo_msgs.msg import EvaluationRequest
+    rclpy.init()
+    node = Node("bench_lean_echo")
+    pub = node.create_publisher(EvaluationRequest, "/bench/lean_pong", RESULT_QOS)
+    sub = node.create_subscription(EvaluationRequest, "/bench/lean_ping", lambda m: None, REQUEST_QOS, raw=True)
+    waiter = SubscriptionWaiter(sub, node.context)
+    try:
+        while rclpy.ok():
+            if waiter.take_all(pub.publish) == 0:
+                waiter.wait(1.0)
+    except BaseException:
+        pass
+    """
+)
+
+
+def lean_ping_pong(ctx, env, n):
+    """Round trips of raw CDR bytes through one rcl wait set on each side (bev_mdo's hot path)."""
+    from rclpy.node import Node
+
+    from bev_mdo.ros import wire
+    from bev_mdo.ros.common import REQUEST_QOS, RESULT_QOS
+    from bev_mdo.ros.fastwait import SubscriptionWaiter
+    from bev_mdo_msgs.msg import EvaluationRequest
+
+    child = subprocess.Popen([sys.executable, "-c", LEAN_ECHO], env=env)
+    node = Node("bench_lean_ping", context=ctx)
+    pub = node.create_publisher(EvaluationRequest, "/bench/lean_ping", REQUEST_QOS)
+    sub = node.create_subscription(EvaluationRequest, "/bench/lean_pong", lambda m: None, RESULT_QOS, raw=True)
+    waiter = SubscriptionWaiter(sub, ctx)
+    while pub.get_subscription_count() < 1 or sub.get_publisher_count() < 1:
+        time.sleep(0.02)
+    req = wire.Request("bench", 0, "x")
+    req.inputs = wire.batch({"motor_kw": np.array([80.0]), "gear_ratio": np.array([8.0])})
+    data = wire.encode_request(req)
+    got = []
+    lat = []
+    for i in range(n + 50):
+        t0 = time.perf_counter()
+        pub.publish(data)
+        while waiter.take_all(got.append) == 0:
+            waiter.wait(1.0)
+        if i >= 50:
+            lat.append(time.perf_counter() - t0)
+    child.terminate()
+    child.wait()
+    node.destroy_node()
+    return lat
+
+
+def cpu_s(pid: int) -> float:
+    """User + system CPU seconds of a process so far (/proc/<pid>/stat)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def pct(a, q):
@@ -115,6 +180,8 @@ def main() -> int:
     try:
         lat = ping_pong(ctx, env, args.n)
         figures["raw_ping_pong_us"] = {"p50": pct(lat, 50), "p99": pct(lat, 99), "n": len(lat)}
+        lat = lean_ping_pong(ctx, env, args.n)
+        figures["lean_raw_cdr_ping_pong_us"] = {"p50": pct(lat, 50), "p99": pct(lat, 99), "n": len(lat)}
         for name in discipline_names(config):
             launcher.add(name, discipline_argv(name, cfg_path))
         node = CoordinatorNode(config, context=ctx, node_name="bench_coordinator")
@@ -124,12 +191,21 @@ def main() -> int:
         for _ in range(50):
             form.analyse(x)
         lat = []
+        pids = {n.label: n.proc.pid for n in launcher.nodes}
+        cpu0 = {k: cpu_s(p) for k, p in pids.items()} | {"coordinator": cpu_s(os.getpid())}
+        flows0 = node.evaluator.flows
         for _ in range(args.n):
             t0 = time.perf_counter()
             form.analyse(x)
             lat.append(time.perf_counter() - t0)
+        cpu1 = {k: cpu_s(p) for k, p in pids.items()} | {"coordinator": cpu_s(os.getpid())}
+        cpu = {k: (cpu1[k] - cpu0[k]) / len(lat) * 1e6 for k in cpu0}
         figures["ros_mda_one_point_us"] = {"p50": pct(lat, 50), "p99": pct(lat, 99), "n": len(lat),
-                                           "waves": 3, "processes": len(launcher.nodes)}
+                                           "data_flow_requests": node.evaluator.flows - flows0,
+                                           "processes": len(launcher.nodes),
+                                           "cpu_us_per_mda": {k: round(v) for k, v in cpu.items()},
+                                           "cpu_us_per_mda_total": round(sum(cpu.values())),
+                                           "host_cpus": os.cpu_count(), "load_average_1min": os.getloadavg()[0]}
         rng = np.random.default_rng(0)
         lo, hi = form.lower, form.upper
         for n in (1_000, 10_000, 100_000):
