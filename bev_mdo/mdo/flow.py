@@ -38,6 +38,8 @@ def flow_inputs(inputs: Sequence[str], parameters: Sequence[str], request: Mappi
     rows = np.ones(n, dtype=bool)
     for s in dict.fromkeys(source_of.values()):
         rows &= np.asarray(upstream[s][1], dtype=bool)
+    if not rows.any():
+        return {}, np.zeros(0, dtype=int)
     cols = {}
     for v in inputs:
         s = source_of.get(v)
