@@ -103,6 +103,9 @@ def result_bytes(msg) -> bytes:
     out.append(ok)
     _named(out, msg.outputs)
     out.append(struct.pack("<d", float(msg.compute_time_s)))
+    out.append(struct.pack("<I", len(msg.flow)))
+    for name in msg.flow:
+        _s(out, name)
     return b"".join(out)
 
 

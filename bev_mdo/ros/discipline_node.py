@@ -151,14 +151,16 @@ class DisciplineNode(Node):
         self._sub = self.create_subscription(EvaluationRequest, request_topic(name),
                                              self._raw(self._on_request), REQUEST_QOS, raw=True)
         self._mda_pub = self.create_publisher(EvaluationResult, mda_result_topic(name), MDA_RESULT_QOS)
-        self._mda_sub = self.create_subscription(EvaluationRequest, MDA_REQUEST_TOPIC,
-                                                 self._raw(self._on_mda_request), REQUEST_QOS, raw=True)
+        # Data flow: a discipline with sources gets the request's columns with its sources' results,
+        # so only the disciplines without sources read the request (fewer processes woken at once).
+        self._mda_sub = None if self.source_of else self.create_subscription(
+            EvaluationRequest, MDA_REQUEST_TOPIC, self._raw(self._on_mda_request), REQUEST_QOS, raw=True)
+        self._outputs_of = {s: {v for v, p in producer.items() if p == s} for s in set(self.source_of.values())}
         self._source_subs = {
             src: self.create_subscription(EvaluationResult, mda_result_topic(src),
                                           self._raw(functools.partial(self._on_source_result, src), result=True),
                                           MDA_RESULT_QOS, raw=True)
             for src in sorted(set(self.source_of.values()))}
-        self._flow_requests: OrderedDict[tuple, tuple] = OrderedDict()  # (run, eval id) -> (req, inputs, sources)
         self._flow_results: OrderedDict[tuple, dict] = OrderedDict()    # (run, eval id) -> {source: (outs, ok)}
         self._publish_info()
         self.get_logger().info(
@@ -226,7 +228,7 @@ class DisciplineNode(Node):
 
     def hot_subscriptions(self) -> list:
         """(subscription, handler(data, info)) of everything served on the hot path."""
-        subs = [self._sub, self._mda_sub, *self._source_subs.values()]
+        subs = [self._sub, *([self._mda_sub] if self._mda_sub else []), *self._source_subs.values()]
         return [(sub, lambda data, _info, f=sub.callback: f(data)) for sub in subs]
 
     def _reject(self, req: EvaluationRequest, why: str, category: str = "malformed", pub=None) -> None:
@@ -240,6 +242,8 @@ class DisciplineNode(Node):
         self._fill_header(out, req)
         out.status = EvaluationResult.STATUS_REJECTED
         out.error = f"{self.discipline_name}: rejected: {why}"[:1000]
+        if pub is not None:  # data flow: consumers learn that there is nothing to wait for
+            out.flow = list(req.flow)
         self._publish(out, pub)
 
     def _publish(self, out: wire.Result, pub=None) -> None:
@@ -287,7 +291,7 @@ class DisciplineNode(Node):
             self.counts["non_finite"] += 1
         self._answer(req, run_discipline(self.discipline, inputs))
 
-    def _answer(self, req: wire.Request, result, pub=None) -> None:
+    def _answer(self, req: wire.Request, result, pub=None, forward=None, flow_names=()) -> None:
         if result.error:
             self.get_logger().warning(result.error[:500], throttle_duration_sec=2.0)
         out = wire.Result()
@@ -295,7 +299,8 @@ class DisciplineNode(Node):
         out.status = EvaluationResult.STATUS_OK if result.ok.all() else EvaluationResult.STATUS_ERROR
         out.error = result.error[:4000]
         out.point_ok = np.asarray(result.ok, dtype=bool)
-        out.outputs = wire.batch(result.outputs)
+        out.outputs = wire.batch({**result.outputs, **forward} if forward else result.outputs)
+        out.flow = list(flow_names)
         out.compute_time_s = result.compute_time_s
         self.counts["answered"] += 1
         self._publish(out, pub)
@@ -315,7 +320,7 @@ class DisciplineNode(Node):
         return False
 
     def _on_mda_request(self, req: wire.Request) -> None:
-        """A data-flow request: evaluate now if no source is needed, else when the sources answered."""
+        """A data-flow request, read by the disciplines without sources: evaluate now."""
         if self.discipline_name not in req.flow:
             return None  # an MDA without this discipline
         self.counts["received"] += 1
@@ -327,51 +332,56 @@ class DisciplineNode(Node):
             inputs = wire.from_named_array(req.inputs)
         except wire.WireError as exc:
             return self._reject(req, str(exc), "malformed", self._mda_pub)
-        sources = {v: s for v, s in self.source_of.items() if s in req.flow}
-        missing = [k for k in self.discipline.inputs if k not in sources and k not in inputs]
-        if missing:
-            return self._reject(req, f"missing inputs {missing}", "missing_inputs", self._mda_pub)
-        key = (req.run_id, int(req.evaluation_id))
-        _put(self._flow_requests, key, (req, inputs, sources))
-        self._try_flow(key)
+        self._flow_answer(req, inputs, {}, {}, int(req.inputs.batch_size), list(req.flow))
 
     def _on_source_result(self, source: str, msg: wire.Result) -> None:
-        """A source's data-flow result: keep it for (run, evaluation id) and evaluate if it was the last."""
+        """A source's data-flow result (it carries the request's columns too): keep it for
+        (run, evaluation id) and evaluate once every source of this MDA has answered."""
+        if source not in msg.flow or self.discipline_name not in msg.flow:
+            return  # not a data-flow MDA with this discipline
         if not self._authentic(msg, "result"):
             return
         if msg.discipline != source:
             self.counts["source_malformed"] += 1
             return
         try:
-            outputs = wire.from_named_array(msg.outputs)
+            columns = wire.from_named_array(msg.outputs)
         except wire.WireError:
             self.counts["source_malformed"] += 1
             return
         ok = np.asarray(msg.point_ok, dtype=bool)
         n = int(msg.outputs.batch_size)
         if msg.status == EvaluationResult.STATUS_REJECTED:  # nothing to evaluate downstream of it
-            outputs, ok = {}, np.zeros(0, dtype=bool)
-        elif ok.shape != (n,) or any(v not in outputs for v, s in self.source_of.items() if s == source):
+            columns, ok = {}, np.zeros(0, dtype=bool)
+        elif ok.shape != (n,) or any(v not in columns for v, s in self.source_of.items() if s == source):
             self.counts["source_malformed"] += 1
             return
         key = (msg.run_id, int(msg.evaluation_id))
-        _put(self._flow_results, key, {**self._flow_results.get(key, {}), source: (outputs, ok)})
-        if key in self._flow_requests:
-            self._try_flow(key)
-
-    def _try_flow(self, key: tuple) -> None:
-        req, inputs, sources = self._flow_requests[key]
-        up = self._flow_results.get(key, {})
-        if any(s not in up for s in sources.values()):
+        got = {**self._flow_results.get(key, {}), source: (columns, ok, msg)}
+        _put(self._flow_results, key, got)
+        sources = {v: s for v, s in self.source_of.items() if s in msg.flow}
+        if any(s not in got for s in sources.values()):
             return
-        del self._flow_requests[key]
-        self._flow_results.pop(key, None)
-        n = int(req.inputs.batch_size)
-        if any(up[s][1].shape != (n,) and up[s][1].size != 0 for s in sources.values()):
-            return self._reject(req, "a source answered a different number of points", "malformed", self._mda_pub)
-        up = {s: (o, ok if ok.size else np.zeros(n, bool)) for s, (o, ok) in up.items()}
-        result, _ = flow.run_flow_discipline(self.discipline, inputs, up, sources, n)
-        self._answer(req, result, self._mda_pub)
+        del self._flow_results[key]
+        self.counts["received"] += 1
+        sizes = {o.size for _, o, _ in got.values() if o.size}
+        if len(sizes) > 1:
+            return self._reject(msg, "sources answered different numbers of points", "malformed", self._mda_pub)
+        n = sizes.pop() if sizes else 0
+        request: dict[str, np.ndarray] = {}
+        for s, (cols, _, _) in got.items():  # the request's columns, forwarded by each source
+            request.update({k: v for k, v in cols.items() if k not in self._outputs_of[s]})
+        up = {s: (cols, o if o.size else np.zeros(n, bool)) for s, (cols, o, _) in got.items()}
+        self._flow_answer(msg, request, up, sources, n, list(msg.flow))
+
+    def _flow_answer(self, req, request: dict, up: dict, sources: dict, n: int, flow_names: list[str]) -> None:
+        """Evaluate for a data-flow MDA and publish; the result forwards the request's columns."""
+        missing = [k for k in self.discipline.inputs if k not in sources and k not in request]
+        if missing and n:
+            return self._reject(req, f"missing inputs {missing}", "missing_inputs", self._mda_pub)
+        result, _ = flow.run_flow_discipline(self.discipline, request, up, sources, n)
+        forward = {k: v for k, v in request.items() if k not in result.outputs}
+        self._answer(req, result, self._mda_pub, forward=forward, flow_names=flow_names)
 
 
 def _put(cache: OrderedDict, key, value) -> None:

@@ -10,9 +10,9 @@ times out is re-sent (same evaluation id, attempt + 1) up to `retries` times; th
 its points fail (NaN, infeasible) with an error naming the discipline.
 
 Data flow (``evaluate_flow``, mdo/flow.py): a feed-forward MDA is ONE request on
-/bev_mdo/mda_request naming the disciplines; the nodes pass results to each other on
-/bev_mdo/<discipline>/mda_result and the coordinator collects every discipline's result
-there. It is used only when every node declared (DisciplineInfo) that it reads each coupling
+/bev_mdo/mda_request naming the disciplines, read by those without sources; every result
+(/bev_mdo/<discipline>/mda_result) forwards the request's columns, so a consumer needs only
+its sources' results, and the coordinator collects every discipline's result there. It is used only when every node declared (DisciplineInfo) that it reads each coupling
 input from the same producer as the coordinator's graph; otherwise the MDA runs in waves.
 
 With a shared key (``ros.sign_key_file``, see auth.py) every request is signed and
@@ -117,7 +117,8 @@ class RosEvaluator:
             if all(n in self.specs for n in names):
                 producer = {v: n for n in names for v in self.specs[n].outputs}
                 plan = {n: flow.sources_of(self.specs[n].inputs, producer, n) for n in names}
-                if any(self.coupling_sources.get(n, {}).get(v) != s for n in names for v, s in plan[n].items()):
+                # exact: a node with a declared source outside this MDA does not read the request
+                if any(self.coupling_sources.get(n, {}) != plan[n] for n in names):
                     plan = None
             self._flow_plans[key] = plan
         return self._flow_plans[key]
@@ -185,10 +186,11 @@ class RosEvaluator:
         if self.flow_plan(names) is None:
             self.node.get_logger().info("data flow not offered by every node: MDAs run in waves")
             return
-        # Data flow: every node reads the MDA request topic and we read every node's results.
-        # (Node-to-node result topics are TRANSIENT_LOCAL, so a late match there loses nothing.)
+        # Data flow: the disciplines without sources read the MDA request topic and we read every
+        # node's results. (Node-to-node result topics are TRANSIENT_LOCAL: a late match loses nothing.)
         self._flow_topics(names)
-        while (self._flow_pub.get_subscription_count() < len(set(names)) + extra_subscribers
+        roots = {n for n, src in self.flow_plan(names).items() if not src}
+        while (self._flow_pub.get_subscription_count() < len(roots) + extra_subscribers
                or any(self._flow_subs[n].get_publisher_count() < 1 for n in names)):
             if time.monotonic() > deadline:
                 raise DisciplineMissing(f"data-flow topics not matched for all of {list(names)} within {wait_s:g} s")

@@ -130,7 +130,7 @@ class Result:
     """bev_mdo_msgs/EvaluationResult, field for field (``point_ok`` a bool numpy array)."""
 
     __slots__ = ("header", "run_id", "evaluation_id", "sequence", "discipline", "instance", "status", "error",
-                 "point_ok", "outputs", "compute_time_s", "signature")
+                 "point_ok", "outputs", "compute_time_s", "flow", "signature")
 
     def __init__(self):
         self.header = Header()
@@ -139,6 +139,7 @@ class Result:
         self.point_ok = np.zeros(0, dtype=bool)
         self.outputs = Batch()
         self.compute_time_s = 0.0
+        self.flow: list[str] = []
         self.signature = ""
 
 
@@ -298,6 +299,7 @@ def encode_result(m) -> bytes:
     o.named(m.outputs)
     o.align(8)
     o.buf += _F64.pack(float(m.compute_time_s))
+    o.strings(m.flow)
     o.string(m.signature)
     return bytes(o.buf)
 
@@ -321,5 +323,6 @@ def decode_result(data: bytes) -> Result:
     i.pos += n
     m.outputs = i.named()
     m.compute_time_s = i.unpack(_F64, 8)[0]
+    m.flow = i.strings(MAX_NAMES)
     m.signature = i.string()
     return m

@@ -179,8 +179,9 @@ def test_evaluate_and_sensitivity_over_ros_print_what_in_process_prints(nodes, c
 
 
 def test_bad_data_flow_requests_are_rejected_and_the_nodes_keep_serving(rclpy_context, nodes, configs):
-    """Missing coupling inputs, a wrong batch length and undecodable bytes on /bev_mdo/mda_request:
-    the node answers REJECTED (or counts the bytes it cannot decode) and keeps serving."""
+    """Missing inputs, a wrong batch length and undecodable bytes on /bev_mdo/mda_request (read
+    by the disciplines without sources): the node answers REJECTED (or counts the bytes it
+    cannot decode) and keeps serving; a consumer of a rejected source answers no point."""
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.ros import wire
     from bev_mdo.ros.common import MDA_REQUEST_TOPIC, MDA_RESULT_QOS, REQUEST_QOS, mda_result_topic, stamp
@@ -188,15 +189,16 @@ def test_bad_data_flow_requests_are_rejected_and_the_nodes_keep_serving(rclpy_co
     from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult
 
     probe = rclpy.create_node("flow_fuzz_probe", context=rclpy_context)
-    got = []
+    got = {"vehicle_mass": [], "energy": []}
     pub = probe.create_publisher(EvaluationRequest, MDA_REQUEST_TOPIC, REQUEST_QOS)
-    sub = probe.create_subscription(EvaluationResult, mda_result_topic("energy"),
-                                    lambda data: got.append(wire.decode_result(data)), MDA_RESULT_QOS, raw=True)
+    subs = [probe.create_subscription(EvaluationResult, mda_result_topic(d),
+                                      lambda data, d=d: got[d].append(wire.decode_result(data)), MDA_RESULT_QOS,
+                                      raw=True) for d in got]
     stats = NodeStatsListener(probe)
     try:
-        assert stats.wait(lambda s: pub.get_subscription_count() >= len(BUILTINS) and sub.get_publisher_count() >= 1
-                          and s.seen("energy"), 60.0)
-        before = stats.counts("energy")
+        assert stats.wait(lambda s: all(sub.get_publisher_count() >= 1 for sub in subs) and s.seen("vehicle_mass")
+                          and pub.get_subscription_count() >= 3, 60.0)  # mass, motor_speed, cost read it
+        before = stats.counts("vehicle_mass")
 
         def send(eid, flow, cols, batch_size=None):
             req = wire.Request("flow-fuzz", eid, "", flow=flow)
@@ -206,21 +208,29 @@ def test_bad_data_flow_requests_are_rejected_and_the_nodes_keep_serving(rclpy_co
             stamp(req.header)
             pub.publish(wire.encode_request(req))
 
-        # energy without its mass source and without vehicle_mass_kg in the inputs
-        send(1, ["energy"], {"gear_ratio": np.array([8.0])})
+        # vehicle_mass without battery_kwh; energy, its consumer, then has no point to evaluate
+        send(1, ["vehicle_mass", "energy"], {"motor_kw": np.array([80.0]), "gear_ratio": np.array([8.0])})
         # a batch size that does not match the values
-        send(2, ["energy"], {"gear_ratio": np.array([8.0, 9.0]), "vehicle_mass_kg": np.array([1500.0, 1600.0])},
+        send(2, ["vehicle_mass"], {"motor_kw": np.array([80.0, 90.0]), "battery_kwh": np.array([24.0, 25.0])},
              batch_size=3)
-        pub.publish(b"\x00\x01\x00\x00\xff\xff\xff\x7f")  # a run-id length far beyond the message
-        # a good one: energy alone, with the coupling input given
-        send(3, ["energy"], {"gear_ratio": np.array([8.0]), "vehicle_mass_kg": np.array([1500.0])})
-        assert stats.wait(lambda s: len(got) >= 3 and s.counts("energy")["rejected.undecodable"]
-                          > before["rejected.undecodable"], 30.0), (got, stats.counts("energy"))
-        by_id = {int(r.evaluation_id): r for r in got if r.run_id == "flow-fuzz"}
-        assert by_id[1].status == EvaluationResult.STATUS_REJECTED and "missing inputs" in by_id[1].error
-        assert by_id[2].status == EvaluationResult.STATUS_REJECTED
-        assert by_id[3].status == EvaluationResult.STATUS_OK and np.isfinite(by_id[3].outputs.values).all()
-        after = stats.counts("energy")
+        pub.publish(b"\x00\x01\x00\x00\xff\xff\xff\x7f")  # a header cut short
+        # a good one: mass and energy, energy taking gear_ratio from mass's forwarded columns
+        send(3, ["vehicle_mass", "energy"], {"motor_kw": np.array([80.0]), "battery_kwh": np.array([24.0]),
+                                              "gear_ratio": np.array([8.0])})
+
+        def mine(d):
+            return {int(r.evaluation_id): r for r in got[d] if r.run_id == "flow-fuzz"}
+
+        assert stats.wait(lambda s: len(mine("vehicle_mass")) >= 3 and len(mine("energy")) >= 2
+                          and s.counts("vehicle_mass")["rejected.undecodable"] > before["rejected.undecodable"],
+                          30.0), (got, stats.counts("vehicle_mass"))
+        mass, energy = mine("vehicle_mass"), mine("energy")
+        assert mass[1].status == EvaluationResult.STATUS_REJECTED and "missing inputs" in mass[1].error
+        assert energy[1].point_ok.tolist() in ([], [False])  # nothing evaluated downstream of a rejection
+        assert mass[2].status == EvaluationResult.STATUS_REJECTED
+        assert mass[3].status == energy[3].status == EvaluationResult.STATUS_OK
+        assert energy[3].flow == ["vehicle_mass", "energy"] and "gear_ratio" in energy[3].outputs.names
+        after = stats.counts("vehicle_mass")
         assert after["rejected.missing_inputs"] - before["rejected.missing_inputs"] == 1
         assert after["rejected.malformed"] - before["rejected.malformed"] == 1
     finally:

@@ -55,20 +55,20 @@ def test_request_round_trips_both_ways(sec, nsec, frame, run, eid, seq, it, att,
 @settings(max_examples=150, deadline=None)
 @given(sec=st.integers(-2**31, 2**31 - 1), nsec=u32, run=text, eid=u64, seq=u64, disc=text, inst=text,
        status=st.integers(0, 255), err=text, ok=st.lists(st.booleans(), max_size=7), cols=columns(),
-       t=floats, sig=text)
-def test_result_round_trips_both_ways(sec, nsec, run, eid, seq, disc, inst, status, err, ok, cols, t, sig):
+       t=floats, flow=st.lists(text, max_size=4), sig=text)
+def test_result_round_trips_both_ways(sec, nsec, run, eid, seq, disc, inst, status, err, ok, cols, t, flow, sig):
     m = EvaluationResult()
     _fill_header(m, sec, nsec, "")
     m.run_id, m.evaluation_id, m.sequence, m.discipline, m.instance = run, eid, seq, disc, inst
     m.status, m.error, m.point_ok = status, err, ok
     m.outputs.names, m.outputs.batch_size, m.outputs.values = cols[0], cols[1], array.array("d", cols[2])
-    m.compute_time_s, m.signature = t, sig
+    m.compute_time_s, m.flow, m.signature = t, flow, sig
     d = wire.decode_result(serialize_message(m))
     assert (d.run_id, d.evaluation_id, d.sequence, d.discipline, d.instance, d.status, d.error) == (
         run, eid, seq, disc, inst, status, err)
     assert d.point_ok.tolist() == ok and d.outputs.names == cols[0] and d.outputs.batch_size == cols[1]
     np.testing.assert_array_equal(d.outputs.values, cols[2])
-    assert (d.compute_time_s, d.signature) == (t, sig)
+    assert (d.compute_time_s, d.flow, d.signature) == (t, flow, sig)
     assert deserialize_message(wire.encode_result(d), EvaluationResult) == m
 
 
