@@ -313,8 +313,8 @@ class RosEvaluator:
             subs = [s for s, _ in self._hot]
             self._waiter.take_all(self._hot)
             while self._pending and time.monotonic() < deadline:
-                self._waiter.wait(subs, deadline - time.monotonic())
-                self._waiter.take_all(self._hot)
+                if self._waiter.wait(subs, deadline - time.monotonic()):
+                    self._waiter.take_ready(self._hot)
             if not self._pending:
                 break
             if attempt < self.retries:

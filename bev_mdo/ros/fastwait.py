@@ -48,6 +48,7 @@ class MultiWaiter:
         self._context = context
         self._ws = None
         self._n = -1
+        self.ready: set[int] = set()
 
     def take_all(self, subs_and_handlers) -> int:
         """Take every pending message of each (subscription, handler(msg, info)); returns how many."""
@@ -72,4 +73,10 @@ class MultiWaiter:
             with s.handle:
                 self._ws.add_subscription(s.handle)
         self._ws.wait(max(0, int(timeout_s * 1e9)))
-        return bool(self._ws.get_ready_entities("subscription"))
+        self.ready = set(self._ws.get_ready_entities("subscription"))
+        return bool(self.ready)
+
+    def take_ready(self, subs_and_handlers) -> int:
+        """Like take_all, but only from the subscriptions the last wait() found ready."""
+        ready = self.ready
+        return self.take_all([(s, h) for s, h in subs_and_handlers if s.handle.pointer in ready])

@@ -193,63 +193,62 @@ class _Out:
             self.buf += values.tobytes()
 
 
-class _In:
-    __slots__ = ("data", "pos", "end")
+def _string(data: bytes, pos: int) -> tuple[str, int]:
+    """A CDR string at ``pos`` (aligned to 4 from the payload start); returns (text, next pos)."""
+    pos += -pos % 4  # payload offsets: ``pos`` counts from the encapsulation header, 4 bytes long
+    (n,) = _U32.unpack_from(data, pos)
+    pos += 4
+    end = pos + n
+    if end > len(data):
+        raise WireError("message truncated")
+    return (bytes(data[pos:end - 1]).decode("utf-8") if n else ""), end
 
-    def __init__(self, data: bytes):
+
+def _strings(data: bytes, pos: int, limit: int) -> tuple[list[str], int]:
+    pos += -pos % 4
+    (n,) = _U32.unpack_from(data, pos)
+    pos += 4
+    if n > limit or n * 4 > len(data) - pos:
+        raise WireError(f"sequence of {n} strings")
+    out = []
+    for _ in range(n):
+        text, pos = _string(data, pos)
+        out.append(text)
+    return out, pos
+
+
+def _header(data: bytes, pos: int) -> tuple[Header, int]:
+    sec, nsec = _STAMP.unpack_from(data, pos)
+    frame, pos = _string(data, pos + 8)
+    return Header(Stamp(sec, nsec), frame), pos
+
+
+def _named(data: bytes, pos: int) -> tuple[Batch, int]:
+    names, pos = _strings(data, pos, MAX_NAMES * 4)
+    pos += -pos % 4
+    n, count = _U32X2.unpack_from(data, pos)
+    pos += 8
+    if count:
+        pos += -pos % 8
+    if pos + 8 * count > len(data):
+        raise WireError("message truncated")
+    values = np.frombuffer(data, dtype="<f8", count=count, offset=pos)
+    return Batch(names, n, values), pos + 8 * count
+
+
+def _decoding(fn):
+    """Decode CDR bytes with ``fn(data)``; any malformation becomes WireError."""
+    def decode(data: bytes):
         if len(data) < 4 or data[:2] != b"\x00\x01":
             raise WireError("not little-endian CDR")
-        self.data, self.pos, self.end = data, 4, len(data)
-
-    def need(self, n: int) -> None:
-        if self.pos + n > self.end:
-            raise WireError("message truncated")
-
-    def align(self, n: int) -> None:
-        self.pos += -(self.pos - 4) % n
-
-    def unpack(self, st: struct.Struct, alignment: int) -> tuple:
-        self.align(alignment)
-        self.need(st.size)
-        v = st.unpack_from(self.data, self.pos)
-        self.pos += st.size
-        return v
-
-    def u32(self) -> int:
-        return self.unpack(_U32, 4)[0]
-
-    def string(self) -> str:
-        n = self.u32()
-        if n == 0:
-            return ""
-        self.need(n)
-        raw = self.data[self.pos:self.pos + n - 1]
-        self.pos += n
         try:
-            return raw.decode("utf-8")
-        except UnicodeDecodeError:
-            raise WireError("string is not UTF-8") from None
-
-    def strings(self, limit: int) -> list[str]:
-        n = self.u32()
-        if n > limit or n * 4 > self.end - self.pos:
-            raise WireError(f"sequence of {n} strings")
-        return [self.string() for _ in range(n)]
-
-    def header(self) -> Header:
-        sec, nsec = self.unpack(_STAMP, 4)
-        return Header(Stamp(sec, nsec), self.string())
-
-    def named(self) -> Batch:
-        names = self.strings(MAX_NAMES * 4)
-        n = self.u32()
-        count = self.u32()
-        if count:
-            self.align(8)
-        self.need(8 * count)
-        values = np.frombuffer(self.data, dtype="<f8", count=count, offset=self.pos)
-        self.pos += 8 * count
-        return Batch(names, n, values)
+            return fn(memoryview(data)[4:])  # offsets count from the payload, as CDR aligns
+        except WireError:
+            raise
+        except (struct.error, UnicodeDecodeError, ValueError, IndexError) as exc:
+            raise WireError(f"malformed message ({exc})") from None
+    decode.__doc__ = fn.__doc__
+    return decode
 
 
 def encode_request(m) -> bytes:
@@ -267,18 +266,19 @@ def encode_request(m) -> bytes:
     return bytes(o.buf)
 
 
+@_decoding
 def decode_request(data: bytes) -> Request:
     """A Request from CDR bytes; WireError if they are not one."""
-    i = _In(data)
     m = Request.__new__(Request)
-    m.header = i.header()
-    m.run_id = i.string()
-    m.evaluation_id, m.sequence = i.unpack(_U64X2, 8)
-    m.iteration, m.attempt = i.unpack(_U32X2, 4)
-    m.discipline = i.string()
-    m.inputs = i.named()
-    m.flow = i.strings(MAX_NAMES)
-    m.signature = i.string()
+    m.header, pos = _header(data, 0)
+    m.run_id, pos = _string(data, pos)
+    pos += -pos % 8
+    m.evaluation_id, m.sequence = _U64X2.unpack_from(data, pos)
+    m.iteration, m.attempt = _U32X2.unpack_from(data, pos + 16)
+    m.discipline, pos = _string(data, pos + 24)
+    m.inputs, pos = _named(data, pos)
+    m.flow, pos = _strings(data, pos, MAX_NAMES)
+    m.signature, pos = _string(data, pos)
     return m
 
 
@@ -304,25 +304,27 @@ def encode_result(m) -> bytes:
     return bytes(o.buf)
 
 
+@_decoding
 def decode_result(data: bytes) -> Result:
     """A Result from CDR bytes; WireError if they are not one."""
-    i = _In(data)
     m = Result.__new__(Result)
-    m.header = i.header()
-    m.run_id = i.string()
-    m.evaluation_id, m.sequence = i.unpack(_U64X2, 8)
-    m.discipline = i.string()
-    m.instance = i.string()
-    i.need(1)
-    m.status = i.data[i.pos]
-    i.pos += 1
-    m.error = i.string()
-    n = i.u32()
-    i.need(n)
-    m.point_ok = np.frombuffer(i.data, dtype=np.uint8, count=n, offset=i.pos).astype(bool)
-    i.pos += n
-    m.outputs = i.named()
-    m.compute_time_s = i.unpack(_F64, 8)[0]
-    m.flow = i.strings(MAX_NAMES)
-    m.signature = i.string()
+    m.header, pos = _header(data, 0)
+    m.run_id, pos = _string(data, pos)
+    pos += -pos % 8
+    m.evaluation_id, m.sequence = _U64X2.unpack_from(data, pos)
+    m.discipline, pos = _string(data, pos + 16)
+    m.instance, pos = _string(data, pos)
+    m.status = data[pos]
+    m.error, pos = _string(data, pos + 1)
+    pos += -pos % 4
+    (n,) = _U32.unpack_from(data, pos)
+    pos += 4
+    if pos + n > len(data):
+        raise WireError("message truncated")
+    m.point_ok = np.frombuffer(data, dtype=np.uint8, count=n, offset=pos).astype(bool)
+    m.outputs, pos = _named(data, pos + n)
+    pos += -pos % 8
+    (m.compute_time_s,) = _F64.unpack_from(data, pos)
+    m.flow, pos = _strings(data, pos + 8, MAX_NAMES)
+    m.signature, pos = _string(data, pos)
     return m
