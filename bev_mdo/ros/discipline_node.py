@@ -190,9 +190,11 @@ class DisciplineNode(Node):
                 p = self.declare_parameter(f"vehicle.{key}", float(value))
                 vehicle[key] = float(p.value)
         if vehicle:
-            from bev_mdo.models.params import validate_vehicle
+            from bev_mdo.models.params import VEHICLE_CHOICES, validate_vehicle
 
-            config["vehicle"] = validate_vehicle(vehicle)
+            # validate_vehicle returns the numeric parameters; keep the choices (mass_model, topology)
+            choices = {k: vehicle[k] for k in VEHICLE_CHOICES if k in vehicle}
+            config["vehicle"] = {**validate_vehicle(vehicle), **choices}
         return config
 
     def _publish_info(self) -> None:
@@ -409,15 +411,16 @@ def serve(node: DisciplineNode, idle_s: float = 0.1, service_every: int = 64) ->
     subs = [s for s, _ in pairs]
     served = 0
     try:
+        waiter.take_all(pairs)
         while node.context.ok():
-            n = waiter.take_all(pairs)
-            served += n
-            if n == 0:
-                node.publish_stats()
-                if not waiter.wait(subs, idle_s):
+            # rcl wait sets are level-triggered: wait() returns at once while anything is queued
+            if waiter.wait(subs, idle_s):
+                served += waiter.take_ready(pairs)
+                if served >= service_every:
+                    served = 0
+                    node.publish_stats()
                     executor.spin_once(timeout_sec=0.0)
-            elif served >= service_every:
-                served = 0
+            else:
                 node.publish_stats()
                 executor.spin_once(timeout_sec=0.0)
     finally:

@@ -8,7 +8,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from bev_mdo.testing import PYTHON, ros_env
+from bev_mdo.testing import PYTHON, REPO, ros_env
 
 rclpy = pytest.importorskip("rclpy")
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
@@ -140,4 +140,27 @@ def test_custom_message_crosses_processes(rclpy_context, ros_domain):
     finally:
         child.stdin.close()
         child.wait(timeout=30)
+        node.destroy_node()
+
+
+def test_a_node_keeps_the_vehicle_choices_of_its_config(rclpy_context):
+    """The node's vehicle.<key> parameters cover the numbers; mass_model (a choice) must survive too."""
+    import yaml
+
+    from bev_mdo.config import load_config, resolve_disciplines
+    from bev_mdo.mdo.discipline import run_discipline
+    from bev_mdo.ros.discipline_node import DisciplineNode
+
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
+    raw["vehicle"]["mass_model"] = "compounding"
+    config = load_config(raw)
+    node = DisciplineNode("vehicle_mass", config=config, context=rclpy_context, node_name="choices_probe")
+    try:
+        x = {"motor_kw": np.array([120.0]), "battery_kwh": np.array([30.0])}
+        here = {d.name: d for d in resolve_disciplines(config)}["vehicle_mass"]
+        ch7 = {d.name: d for d in resolve_disciplines(load_config(REPO / "config" / "leaf_nedc.yaml"))}
+        got = run_discipline(node.discipline, x).outputs["vehicle_mass_kg"]
+        np.testing.assert_array_equal(got, run_discipline(here, x).outputs["vehicle_mass_kg"])
+        assert got[0] != run_discipline(ch7["vehicle_mass"], x).outputs["vehicle_mass_kg"][0]
+    finally:
         node.destroy_node()
