@@ -177,8 +177,9 @@ class Bag:
         return dict(self.metadata.get(METADATA_NAME, {}))
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[BagMessage]:
-        """Recorded messages in file order (per-topic order is recording order)."""
-        wanted = set(topics) if topics else None
+        """Recorded messages in file order (per-topic order is recording order); ``topics`` None
+        means every topic, an empty list none."""
+        wanted = set(topics) if topics is not None else None
         for record in self._records():
             if isinstance(record, Message):
                 channel = self._channel(record.channel_id)

@@ -24,7 +24,8 @@ def discipline_timing(bag: Bag) -> dict[str, dict[str, list[float]]]:
     for msg, obj in bag.decoded(topics):
         key = (obj.run_id, int(obj.evaluation_id), obj.discipline)
         if msg.type_name == REQUEST_TYPE:
-            sent.setdefault(key, _stamp_ns(obj.header))
+            for d in list(getattr(obj, "flow", None) or []) or [obj.discipline]:  # a data-flow request: all of them
+                sent.setdefault((obj.run_id, int(obj.evaluation_id), d), _stamp_ns(obj.header))
             continue
         entry = out.setdefault(obj.discipline, {"compute_time_s": [], "latency_s": []})
         entry["compute_time_s"].append(float(obj.compute_time_s))

@@ -128,7 +128,8 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
 
 
 def main(args: list[str] | None = None) -> int:
-    """`ros2 run bev_mdo coordinator_node --ros-args -p config:=... [-p formulation:=idf -p optimizer:=SLSQP]`."""
+    """`ros2 run bev_mdo coordinator_node --ros-args -p config:=... [-p formulation:=idf -p optimizer:=SLSQP]
+    [-p recorders:=1]` (with a recorder started on its own, wait for it so the bag misses nothing)."""
     from bev_mdo.config import load_config
     from bev_mdo.ros.paths import default_config
 
@@ -138,11 +139,13 @@ def main(args: list[str] | None = None) -> int:
         for name, desc in (("config", "run config YAML"), ("formulation", "mdf | idf (default: config)"),
                            ("optimizer", "optimizer name (default: config)"), ("run_id", "run id (default: random)")):
             probe.declare_parameter(name, "", ParameterDescriptor(description=desc))
-        p = {k: probe.get_parameter(k).value for k in ("config", "formulation", "optimizer", "run_id")}
+        probe.declare_parameter("recorders", 0, ParameterDescriptor(
+            description="wait until this many recorder nodes subscribed before the first evaluation"))
+        p = {k: probe.get_parameter(k).value for k in ("config", "formulation", "optimizer", "run_id", "recorders")}
         probe.destroy_node()
         config = load_config(p["config"] or default_config())
         result, stats = run(config, run_id=p["run_id"] or None, formulation=p["formulation"] or None,
-                            optimizer=p["optimizer"] or None,
+                            optimizer=p["optimizer"] or None, recorder_subscribers=int(p["recorders"]),
                             on_iteration=lambda r: print(f"iter {r['iteration']:4d}  objective {r['objective']:.6g}"
                                                          f"  max violation {r.get('max_violation', 0):.3g}"))
         print(json.dumps({"result": result.to_dict(), **stats}, indent=2, default=float))

@@ -155,20 +155,31 @@ class RecorderNode(Node):
         self.writer.close()
 
 
-def serve_until(node: "RecorderNode", stopped, idle_s: float = 0.05) -> None:
-    """Record until stopped(): messages are taken straight from the subscriptions (fastwait);
-    the executor runs only the timers (topic discovery, flush) between batches."""
+def serve_until(node: "RecorderNode", stopped, idle_s: float = 0.05, timers_every_s: float = 0.02) -> None:
+    """Record until stopped(): messages are taken straight from the subscriptions that the wait
+    set found ready (fastwait); the node's own executor runs the timers (topic discovery, flush,
+    status) at most every ``timers_every_s``, not once per message (an executor spin rebuilds a
+    wait set over every entity and costs more than recording the message)."""
+    from rclpy.executors import SingleThreadedExecutor
+
     from bev_mdo.ros.fastwait import MultiWaiter
 
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
     waiter = MultiWaiter(node.context)
-    while not stopped() and rclpy.ok():
-        pairs = node.handlers()
-        if waiter.take_all(pairs) == 0:
-            if pairs:
-                waiter.wait([s for s, _ in pairs], idle_s)
-            else:
-                rclpy.spin_once(node, timeout_sec=idle_s)
-        rclpy.spin_once(node, timeout_sec=0.0)
+    next_timers = 0.0
+    try:
+        while not stopped() and rclpy.ok(context=node.context):
+            pairs = node.handlers()
+            if pairs and waiter.wait([s for s, _ in pairs], idle_s):
+                waiter.take_ready(pairs)
+            now = time.monotonic()
+            if now >= next_timers or not pairs:
+                executor.spin_once(timeout_sec=0.0 if pairs else idle_s)
+                next_timers = now + timers_every_s
+    finally:
+        executor.remove_node(node)
+        executor.shutdown()
 
 
 def _hash_of(pubs) -> str | None:

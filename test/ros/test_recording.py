@@ -122,7 +122,8 @@ def test_resume_after_the_coordinator_is_killed_reaches_the_same_optimum(config_
         # The coordinator as its own process (ros2 run bev_mdo coordinator_node); COBYLA takes dozens of
         # iterations, so it can be killed mid-run.
         proc = subprocess.Popen([PYTHON, "-m", "bev_mdo.ros.run", "coordinator_node", "--ros-args",
-                                 "-p", f"config:={config_path}", "-p", "optimizer:=COBYLA"],
+                                 "-p", f"config:={config_path}", "-p", "optimizer:=COBYLA",
+                                 "-p", "recorders:=1"],  # start evaluating once the recorder listens
                                 env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         seen = []
         for line in proc.stdout:
