@@ -139,7 +139,9 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any]) -> EvalResult:
 
 def _column(v: Any) -> np.ndarray:
     a = np.asarray(v, dtype=float)
-    return a if a.ndim == 1 else np.atleast_1d(a)
+    # compute() gets its own writable copy on every transport: a column decoded from a message
+    # is a read-only view, and in process the caller's arrays must not change under it
+    return (a if a.ndim == 1 else np.atleast_1d(a)).copy()
 
 
 def _finite_rows(columns, n: int) -> np.ndarray:

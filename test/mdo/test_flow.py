@@ -119,3 +119,35 @@ def test_a_graph_with_a_loop_is_not_analysed_by_data_flow():
 
     mda = MDA(InProcessEvaluator(sellar_disciplines()))
     assert not mda.data_flow
+
+
+class InPlace(Discipline):
+    """Scales its input in place (bad style, but it must behave the same on every transport)."""
+    name, inputs, outputs = "in_place", ("x",), ("z",)
+
+    def compute(self, inputs):
+        x = inputs["x"]
+        x *= 2.0
+        return {"z": x + 1.0}
+
+
+def test_compute_gets_writable_inputs_even_from_a_read_only_buffer():
+    from bev_mdo.mdo.discipline import run_discipline
+
+    x = np.frombuffer(np.array([1.0, 2.0]).tobytes())  # read-only, like a column decoded from a message
+    assert not x.flags.writeable
+    res = run_discipline(InPlace(), {"x": x})
+    assert res.ok.all() and res.outputs["z"].tolist() == [3.0, 5.0]
+    assert x.tolist() == [1.0, 2.0]  # the caller's buffer is untouched
+
+
+def test_a_discipline_writing_into_its_inputs_does_not_change_the_mda():
+    class Uses(Discipline):
+        name, inputs, outputs = "uses", ("x", "z"), ("w",)
+
+        def compute(self, inputs):
+            return {"w": inputs["x"] + inputs["z"]}
+
+    res = MDA(InProcessEvaluator([InPlace(), Uses()])).run({"x": np.array([1.0, 2.0])})
+    assert res.values["x"].tolist() == [1.0, 2.0]
+    assert res.values["w"].tolist() == [1.0 + 3.0, 2.0 + 5.0]
