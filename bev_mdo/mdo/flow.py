@@ -35,9 +35,7 @@ def flow_inputs(inputs: Sequence[str], parameters: Sequence[str], request: Mappi
     """(batch of the rows to evaluate, their indices) for one discipline of a data-flow request.
 
     Raises KeyError naming an input that is neither in the request nor in a source's outputs."""
-    rows = np.ones(n, dtype=bool)
-    for s in dict.fromkeys(source_of.values()):
-        rows &= np.asarray(upstream[s][1], dtype=bool)
+    rows = source_rows(source_of, upstream, n)
     if not rows.any():
         return {}, np.zeros(0, dtype=int)
     cols = {}
@@ -51,6 +49,11 @@ def flow_inputs(inputs: Sequence[str], parameters: Sequence[str], request: Mappi
         return cols, np.arange(n)
     idx = np.flatnonzero(rows)
     return {k: np.asarray(c)[idx] for k, c in cols.items()}, idx
+
+
+def _nothing(outputs: Sequence[str], n: int) -> EvalResult:
+    """The result of a discipline that evaluated none of n rows (every source failed them)."""
+    return EvalResult({k: np.full(n, np.nan) for k in outputs}, np.zeros(n, bool))
 
 
 def scatter(res: EvalResult, idx: np.ndarray, n: int, outputs: Sequence[str]) -> EvalResult:
@@ -73,19 +76,24 @@ def run_flow_discipline(disc: Any, request: Mapping[str, np.ndarray], upstream: 
     batch, idx = flow_inputs(disc.inputs, tuple(getattr(disc, "parameters", {}) or {}), request, upstream,
                              source_of, n)
     if idx.size == 0:
-        return EvalResult({k: np.full(n, np.nan) for k in disc.outputs}, np.zeros(n, bool)), 0
+        return _nothing(disc.outputs, n), 0
     res = run_discipline(disc, batch)
     if idx.size != n:
         res = _renumber(res, idx)
     return scatter(res, idx, n, disc.outputs), int(idx.size)
 
 
-def rows_evaluated(source_of: Mapping[str, str], upstream: Upstream, n: int) -> int:
-    """How many rows a discipline evaluates given its sources' results (for evaluation counts)."""
+def source_rows(source_of: Mapping[str, str], upstream: Upstream, n: int) -> np.ndarray:
+    """The rows a discipline evaluates: those every one of its sources evaluated successfully."""
     rows = np.ones(n, dtype=bool)
     for s in dict.fromkeys(source_of.values()):
         rows &= np.asarray(upstream[s][1], dtype=bool)
-    return int(rows.sum())
+    return rows
+
+
+def rows_evaluated(source_of: Mapping[str, str], upstream: Upstream, n: int) -> int:
+    """How many rows a discipline evaluates given its sources' results (for evaluation counts)."""
+    return int(source_rows(source_of, upstream, n).sum())
 
 
 def flow_by_waves(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequence[str]],
@@ -101,7 +109,7 @@ def flow_by_waves(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequ
             up = {s: (results[s].outputs, results[s].ok) for s in set(src.values())}
             batch, idx = flow_inputs(spec.inputs, tuple(spec.parameters), request, up, src, n)
             if idx.size == 0:
-                results[name] = EvalResult({k: np.full(n, np.nan) for k in spec.outputs}, np.zeros(n, bool))
+                results[name] = _nothing(spec.outputs, n)
                 continue
             calls.append((name, batch))
             plan.append((name, idx))

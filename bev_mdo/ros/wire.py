@@ -59,9 +59,6 @@ def from_named_array(msg: NamedArray) -> dict[str, np.ndarray]:
     return {k: values[j * n:(j + 1) * n] for j, k in enumerate(names)}
 
 
-def bool_array(mask: np.ndarray) -> list[bool]:
-    """A bool[] field value from a numpy mask."""
-    return [bool(b) for b in np.asarray(mask, dtype=bool)]
 
 
 # ---------------------------------------------------------------------------------------------
