@@ -150,77 +150,147 @@ def batch(columns: Mapping[str, np.ndarray]) -> Batch:
     return Batch(names, n, np.concatenate(cols) if cols else np.zeros(0))
 
 
+# Encoding. Short strings (names, ids, the flow list) repeat in every message of a run, so their
+# CDR bytes are cached; everything is appended to a list of parts and joined once. ``n`` counts
+# payload bytes (after the 4-byte encapsulation header), which is what CDR aligns to.
+_PAD = tuple(b"\x00" * k for k in range(8))
+_TEXT: dict[str, bytes] = {}
+_TEXTS: dict[tuple, bytes] = {}
+_CACHE_MAX = 4096
+
+
+def _cdr_text(s: str) -> bytes:
+    """A CDR string: u32 length (NUL included), UTF-8, NUL; the caller aligns it to 4."""
+    b = _TEXT.get(s)
+    if b is None:
+        e = s.encode("utf-8")
+        b = _U32.pack(len(e) + 1) + e + b"\x00"
+        if len(e) <= 128 and len(_TEXT) < _CACHE_MAX:
+            _TEXT[s] = b
+    return b
+
+
+def _cdr_texts(items) -> bytes:
+    """A CDR sequence of strings, laid out from a 4-aligned offset (as it always starts)."""
+    key = tuple(items)
+    b = _TEXTS.get(key)
+    if b is None:
+        out = bytearray(_U32.pack(len(key)))
+        for s in key:
+            out += _PAD[-len(out) % 4]
+            out += _cdr_text(s)
+        b = bytes(out)
+        if len(b) <= 2048 and len(_TEXTS) < _CACHE_MAX:
+            _TEXTS[key] = b
+    return b
+
+
 class _Out:
-    __slots__ = ("buf",)
+    __slots__ = ("parts", "n")
 
-    def __init__(self):
-        self.buf = bytearray(_ENCAPSULATION)
+    def __init__(self, sec: int, nanosec: int):
+        self.parts = [_ENCAPSULATION, _STAMP.pack(sec, nanosec)]  # header stamp at offset 0
+        self.n = 8
 
-    def align(self, n: int) -> None:
-        pad = -(len(self.buf) - 4) % n
-        if pad:
-            self.buf += b"\x00" * pad
+    def put(self, b: bytes, align: int) -> None:
+        pad = -self.n % align
+        self.parts.append(_PAD[pad])
+        self.parts.append(b)
+        self.n += pad + len(b)
 
-    def u32(self, v: int) -> None:
-        self.align(4)
-        self.buf += _U32.pack(v)
-
-    def string(self, s: str) -> None:
-        b = s.encode("utf-8")
-        self.u32(len(b) + 1)
-        self.buf += b
-        self.buf += b"\x00"
-
-    def strings(self, items) -> None:
-        self.u32(len(items))
-        for s in items:
-            self.string(s)
-
-    def header(self, h) -> None:
-        self.buf += _STAMP.pack(int(h.stamp.sec), int(h.stamp.nanosec))  # offset 0: aligned
-        self.string(h.frame_id)
+    def text(self, s: str) -> None:
+        self.put(_cdr_text(s), 4)
 
     def named(self, a) -> None:
-        self.strings(a.names)
-        self.u32(int(a.batch_size))
+        self.put(_cdr_texts(a.names), 4)
         values = np.ascontiguousarray(a.values, dtype="<f8")
-        self.u32(values.size)
+        self.put(_U32X2.pack(int(a.batch_size), values.size), 4)
         if values.size:
-            self.align(8)
-            self.buf += values.tobytes()
+            self.put(values.tobytes(), 8)
+
+    def done(self) -> bytes:
+        return b"".join(self.parts)
 
 
-def _string(data: bytes, pos: int) -> tuple[str, int]:
-    """A CDR string at ``pos`` (aligned to 4 from the payload start); returns (text, next pos)."""
-    pos += -pos % 4  # payload offsets: ``pos`` counts from the encapsulation header, 4 bytes long
-    (n,) = _U32.unpack_from(data, pos)
-    pos += 4
-    end = pos + n
-    if end > len(data):
-        raise WireError("message truncated")
-    return (bytes(data[pos:end - 1]).decode("utf-8") if n else ""), end
+def encode_request(m) -> bytes:
+    """CDR bytes of an EvaluationRequest (a Request or a generated message)."""
+    o = _Out(int(m.header.stamp.sec), int(m.header.stamp.nanosec))
+    o.text(m.header.frame_id)
+    o.text(m.run_id)
+    o.put(_U64X2.pack(int(m.evaluation_id), int(m.sequence)) + _U32X2.pack(int(m.iteration), int(m.attempt)), 8)
+    o.text(m.discipline)
+    o.named(m.inputs)
+    o.put(_cdr_texts(m.flow), 4)
+    o.text(m.signature)
+    return o.done()
 
 
-def _strings(data: bytes, pos: int, limit: int) -> tuple[list[str], int]:
+def encode_result(m) -> bytes:
+    """CDR bytes of an EvaluationResult (a Result or a generated message)."""
+    o = _Out(int(m.header.stamp.sec), int(m.header.stamp.nanosec))
+    o.text(m.header.frame_id)
+    o.text(m.run_id)
+    o.put(_U64X2.pack(int(m.evaluation_id), int(m.sequence)), 8)
+    o.text(m.discipline)
+    o.text(m.instance)
+    o.put(bytes((int(m.status),)), 1)
+    o.text(m.error)
+    ok = np.asarray(m.point_ok, dtype=bool)
+    o.put(_U32.pack(ok.size) + ok.tobytes(), 4)  # numpy bools are one byte, 0 or 1, as CDR's
+    o.named(m.outputs)
+    o.put(_F64.pack(float(m.compute_time_s)), 8)
+    o.put(_cdr_texts(m.flow), 4)
+    o.text(m.signature)
+    return o.done()
+
+
+# Decoding. ``data`` is a memoryview of the payload (offsets count from after the encapsulation
+# header, as CDR aligns). Sequences of strings that repeat (names, the flow list) are looked up by
+# their raw bytes instead of being decoded again.
+_SEEN: dict[bytes, list[str]] = {}
+
+
+def _string(data, pos: int) -> tuple[str, int]:
+    """A CDR string at ``pos`` (aligned to 4 here); returns (text, next pos)."""
     pos += -pos % 4
     (n,) = _U32.unpack_from(data, pos)
-    pos += 4
-    if n > limit or n * 4 > len(data) - pos:
-        raise WireError(f"sequence of {n} strings")
-    out = []
-    for _ in range(n):
-        text, pos = _string(data, pos)
-        out.append(text)
-    return out, pos
+    end = pos + 4 + n
+    if end > len(data) or (n and data[end - 1] != 0):
+        raise WireError("message truncated" if end > len(data) else "string without its NUL")
+    return (str(data[pos + 4:end - 1], "utf-8") if n else ""), end
 
 
-def _header(data: bytes, pos: int) -> tuple[Header, int]:
+def _strings(data, pos: int, limit: int) -> tuple[list[str], int]:
+    pos += -pos % 4
+    (count,) = _U32.unpack_from(data, pos)
+    if count > limit or count * 4 > len(data) - pos - 4:
+        raise WireError(f"sequence of {count} strings")
+    start, end = pos, pos + 4
+    for _ in range(count):  # find the end first: a sequence seen before is not decoded again
+        end += -end % 4
+        (n,) = _U32.unpack_from(data, end)
+        end += 4 + n
+    if end > len(data):
+        raise WireError("message truncated")
+    key = bytes(data[start:end])
+    got = _SEEN.get(key)
+    if got is None:
+        got, p = [], start + 4
+        for _ in range(count):
+            text, p = _string(data, p)
+            got.append(text)
+        if len(key) <= 2048 and len(_SEEN) < _CACHE_MAX:
+            _SEEN[key] = got
+    return list(got), end
+
+
+def _header(data, pos: int) -> tuple[Header, int]:
     sec, nsec = _STAMP.unpack_from(data, pos)
     frame, pos = _string(data, pos + 8)
     return Header(Stamp(sec, nsec), frame), pos
 
 
-def _named(data: bytes, pos: int) -> tuple[Batch, int]:
+def _named(data, pos: int) -> tuple[Batch, int]:
     names, pos = _strings(data, pos, MAX_NAMES * 4)
     pos += -pos % 4
     n, count = _U32X2.unpack_from(data, pos)
@@ -248,23 +318,8 @@ def _decoding(fn):
     return decode
 
 
-def encode_request(m) -> bytes:
-    """CDR bytes of an EvaluationRequest (a Request or a generated message)."""
-    o = _Out()
-    o.header(m.header)
-    o.string(m.run_id)
-    o.align(8)
-    o.buf += _U64X2.pack(int(m.evaluation_id), int(m.sequence))
-    o.buf += _U32X2.pack(int(m.iteration), int(m.attempt))
-    o.string(m.discipline)
-    o.named(m.inputs)
-    o.strings(m.flow)
-    o.string(m.signature)
-    return bytes(o.buf)
-
-
 @_decoding
-def decode_request(data: bytes) -> Request:
+def decode_request(data) -> Request:
     """A Request from CDR bytes; WireError if they are not one."""
     m = Request.__new__(Request)
     m.header, pos = _header(data, 0)
@@ -279,30 +334,8 @@ def decode_request(data: bytes) -> Request:
     return m
 
 
-def encode_result(m) -> bytes:
-    """CDR bytes of an EvaluationResult (a Result or a generated message)."""
-    o = _Out()
-    o.header(m.header)
-    o.string(m.run_id)
-    o.align(8)
-    o.buf += _U64X2.pack(int(m.evaluation_id), int(m.sequence))
-    o.string(m.discipline)
-    o.string(m.instance)
-    o.buf += bytes((int(m.status),))
-    o.string(m.error)
-    ok = np.asarray(m.point_ok, dtype=bool)
-    o.u32(ok.size)
-    o.buf += ok.astype(np.uint8).tobytes()
-    o.named(m.outputs)
-    o.align(8)
-    o.buf += _F64.pack(float(m.compute_time_s))
-    o.strings(m.flow)
-    o.string(m.signature)
-    return bytes(o.buf)
-
-
 @_decoding
-def decode_result(data: bytes) -> Result:
+def decode_result(data) -> Result:
     """A Result from CDR bytes; WireError if they are not one."""
     m = Result.__new__(Result)
     m.header, pos = _header(data, 0)
@@ -318,7 +351,7 @@ def decode_result(data: bytes) -> Result:
     pos += 4
     if pos + n > len(data):
         raise WireError("message truncated")
-    m.point_ok = np.frombuffer(data, dtype=np.uint8, count=n, offset=pos).astype(bool)
+    m.point_ok = np.frombuffer(data, dtype=np.uint8, count=n, offset=pos) != 0
     m.outputs, pos = _named(data, pos + n)
     pos += -pos % 8
     (m.compute_time_s,) = _F64.unpack_from(data, pos)
