@@ -76,8 +76,8 @@ def load_class(spec: str) -> type:
         raise ValueError(f"module {mod_name!r} has no class {cls_name!r}") from None
 
 
-def _batch_size(inputs: Mapping[str, np.ndarray]) -> int:
-    sizes = {np.shape(v)[0] if np.ndim(v) else 1 for v in inputs.values()}
+def _batch_size(batch: Mapping[str, np.ndarray]) -> int:
+    sizes = {v.shape[0] for v in batch.values()}  # 1-D columns (_column)
     if len(sizes) > 1:
         raise DisciplineError(f"input arrays have different lengths {sorted(sizes)}")
     return sizes.pop() if sizes else 0
@@ -103,14 +103,19 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any]) -> EvalResult:
     batch = {k: _column(v) for k, v in inputs.items() if k in disc.inputs or k in params}
     n = _batch_size(batch)
     t0 = time.perf_counter()
-    ok = np.ones(n, dtype=bool)
-    errors: list[str] = []
-    bad_in = ~_finite_rows(batch.values(), n)
+    bad_in = ~_finite_rows(list(batch.values()), n)
     try:
         if bad_in.any():
             raise DisciplineError("non-finite inputs")
         out = _call(disc, batch, n)
     except Exception:
+        out = None
+    finite = None if out is None else _finite_rows([out[k] for k in disc.outputs], n)
+    if finite is not None and finite.all():  # the common case: every point evaluated and finite
+        return EvalResult(out, finite, "", time.perf_counter() - t0)
+    ok = np.ones(n, dtype=bool)
+    errors: list[str] = []
+    if out is None:
         out = {k: np.full(n, np.nan) for k in disc.outputs}
         for i in range(n):
             row = {k: v[i:i + 1] for k, v in batch.items()}
@@ -126,7 +131,7 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any]) -> EvalResult:
                 continue
             for k in disc.outputs:
                 out[k][i] = one[k][0]
-    finite = _finite_rows([out[k] for k in disc.outputs], n)
+        finite = _finite_rows([out[k] for k in disc.outputs], n)
     if not finite.all() or not ok.all():
         for i in np.flatnonzero(ok & ~finite):
             ok[i] = False
@@ -144,19 +149,14 @@ def _column(v: Any) -> np.ndarray:
     return (a if a.ndim == 1 else np.atleast_1d(a)).copy()
 
 
-def _finite_rows(columns, n: int) -> np.ndarray:
-    """Per row: every column finite (one pass over the sum first: the common all-finite case)."""
-    columns = list(columns)
+def _finite_rows(columns: list, n: int) -> np.ndarray:
+    """Per row: every column finite."""
     if not columns:
         return np.ones(n, dtype=bool)
-    total = columns[0]
-    with np.errstate(over="ignore", invalid="ignore"):
-        for c in columns[1:]:
-            total = total + c
-    good = np.isfinite(total)
-    if good.all():
-        return good
-    return np.all([np.isfinite(c) for c in columns], axis=0)  # a finite sum overflowed, or a real NaN/Inf
+    good = np.isfinite(columns[0])
+    for c in columns[1:]:
+        good &= np.isfinite(c)
+    return good
 
 
 def _call(disc: Any, batch: Batch, n: int) -> Batch:
@@ -168,7 +168,7 @@ def _call(disc: Any, batch: Batch, n: int) -> Batch:
         v = np.asarray(raw[k], dtype=float)
         if v.shape != (n,):
             v = np.broadcast_to(v, (n,)).copy()
-        elif any(v is b or np.shares_memory(v, b) for b in batch.values()):
+        elif any(np.may_share_memory(v, b) for b in batch.values()):
             v = v.copy()  # never hand back (a view of) an input array
         out[k] = v
     return out
