@@ -1,0 +1,15 @@
+"""The ROS 2 layer: nodes, messages on the wire, recorder and launcher (it only moves data).
+
+Importing it points Fast DDS at bev_mdo's profile (``bev_mdo/data/fastdds_profile.xml``:
+reliable writers without a heartbeat piggybacked on every sample) unless the process
+environment already names a profile file; set ``FASTRTPS_DEFAULT_PROFILES_FILE`` to your own
+file to replace it. Child processes inherit the setting.
+"""
+import os
+from pathlib import Path
+
+DDS_PROFILE = Path(__file__).resolve().parents[1] / "data" / "fastdds_profile.xml"
+_PROFILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
+
+if not any(v in os.environ for v in _PROFILE_VARS) and DDS_PROFILE.is_file():
+    os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(DDS_PROFILE)
