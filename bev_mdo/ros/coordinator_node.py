@@ -51,6 +51,8 @@ class CoordinatorNode(Node):
 
     def publish_iteration(self, rec: Mapping[str, Any]) -> None:
         """Publish one engine iteration record (the driver's callback dict)."""
+        if self._iteration_pub.get_subscription_count() == 0:
+            return  # a VOLATILE topic with no reader matched: nobody would receive it
         msg = IterationRecord()
         stamp(msg.header)
         self._seq += 1

@@ -240,7 +240,8 @@ class RosEvaluator:
                 self.dropped["malformed"] += 1
                 return
             outs = {k: np.array(outputs[k]) for k in want}
-            ok = ok & np.all([np.isfinite(v) for v in outs.values()], axis=0) if outs else ok
+            for v in outs.values():
+                ok = ok & np.isfinite(v)
             res = EvalResult(outs, ok, msg.error, float(msg.compute_time_s))
         if not p.flow:  # a data-flow MDA counts the rows each discipline evaluated at the end
             self.counts[p.discipline] += p.n
@@ -311,7 +312,7 @@ class RosEvaluator:
         for attempt in range(self.retries + 1):
             deadline = time.monotonic() + self.timeout_s
             subs = [s for s, _ in self._hot]
-            self._waiter.take_all(self._hot)
+            # rcl wait sets are level-triggered: what arrived before this wait is ready at once
             while self._pending and time.monotonic() < deadline:
                 if self._waiter.wait(subs, deadline - time.monotonic()):
                     self._waiter.take_ready(self._hot)
