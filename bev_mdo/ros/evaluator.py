@@ -195,6 +195,21 @@ class RosEvaluator:
             if time.monotonic() > deadline:
                 raise DisciplineMissing(f"data-flow topics not matched for all of {list(names)} within {wait_s:g} s")
             self._executor.spin_once(timeout_sec=0.05)
+        self.warm_up(names)
+
+    def warm_up(self, names: Sequence[str], rounds: int = 2) -> None:
+        """Send `rounds` data-flow MDAs of no point through the matched graph, before any timing.
+
+        The first samples between a new writer and its readers cost more than the later ones
+        (measured: the first MDA of a run took 3.9-4.2 ms against 2.6-2.8 ms for the rest; after
+        one empty MDA 3.2-3.7 ms, after two 2.8-2.9 ms). An empty MDA evaluates nothing, so the
+        evaluation counts do not change; its results are not kept in ``accepted`` or ``flows``.
+        A recorder sees its requests and results (every request with its result, no point)."""
+        kept, flows = len(self.accepted), self.flows
+        for _ in range(rounds):
+            self.evaluate_flow(names, {}, 0)
+        del self.accepted[kept:]
+        self.flows = flows
 
     # -- evaluation ----------------------------------------------------------------
     def _on_bytes(self, data: bytes) -> None:
@@ -303,7 +318,9 @@ class RosEvaluator:
         for name in names:
             if name in answered:
                 up = {s: (out[s].outputs, out[s].ok) for s in set(plan[name].values())}
-                self.counts[name] += flow.rows_evaluated(plan[name], up, n)
+                rows = flow.rows_evaluated(plan[name], up, n)
+                if rows:
+                    self.counts[name] += rows
         self.last_latency_s = time.perf_counter() - t0
         return out
 

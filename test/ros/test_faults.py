@@ -71,6 +71,7 @@ class Audit:
         self.first_sends = 0
         self.kills = 0
         self.sent: dict[int, tuple[list[str], dict]] = {}  # evaluation id -> (disciplines, inputs)
+        self.warm_ups: set[int] = set()
         self.flow_results: dict[int, dict] = {}
         self.checked = 0
         self.evaluators: list[RosEvaluator] = []
@@ -83,7 +84,9 @@ class Audit:
             if ev not in audit.evaluators:
                 audit.evaluators.append(ev)
             req = p.request
-            if req.attempt == 0:
+            if not int(req.inputs.batch_size) and not req.inputs.names:
+                audit.warm_ups.add(req.evaluation_id)  # RosEvaluator.warm_up: an MDA of no point
+            elif req.attempt == 0:
                 names = list(req.flow) or [p.discipline]
                 audit.sent[req.evaluation_id] = (names, {k: np.array(v) for k, v in
                                                          wire.from_named_array(req.inputs).items()})
@@ -110,6 +113,9 @@ class Audit:
 
     def check(self, ev, msg):
         eid, disc, _instance, _attempt = ev.accepted[-1]
+        if eid in self.warm_ups:  # no point asked, none answered (not kept in ev.accepted)
+            assert msg.status != 2 and int(msg.outputs.batch_size) == 0 and len(msg.point_ok) == 0
+            return
         names, inputs = self.sent[eid]
         assert disc == msg.discipline and disc in names
         if msg.status == 2:  # STATUS_REJECTED
