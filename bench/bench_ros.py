@@ -6,11 +6,13 @@ Measures, on this host, every process localhost-only on its own domain:
   1. raw rclpy ping-pong: one EvaluationRequest out, one EvaluationResult back, over topics
      (typed messages, rclpy executor), and the same exchange the way bev_mdo's hot path does
      it (raw CDR bytes, one rcl wait set);
-  2. latency of one full multidisciplinary evaluation (one design point, one data-flow
+  2. the transport floor: the same data-flow message pattern through six echo processes that
+     neither decode nor compute, p50/p99 and its CPU;
+  3. latency of one full multidisciplinary evaluation (one design point, one data-flow
      request, six discipline processes), p50 and p99, and the CPU time it costs in every
      process (the host has 2 cores: CPU per MDA, not hops, bounds the latency);
-  3. batched throughput: design evaluations per second with large batches;
-  4. the in-process MDA of the same point, for reference.
+  4. batched throughput: design evaluations per second with large batches;
+  5. the in-process MDA of the same point, for reference.
 """
 from __future__ import annotations
 
@@ -107,6 +109,90 @@ def lean_ping_pong(ctx, env, n):
     return lat
 
 
+# The data-flow graph of the default problem (a discipline -> the topics it waits for; "request"
+# is the coordinator's), served by echo processes that do no decoding and no computing: what the
+# transport alone costs for one MDA on this host, to set against the full MDA.
+DAG = {"vehicle_mass": ["request"], "energy": ["vehicle_mass"], "range": ["energy", "vehicle_mass"],
+       "acceleration": ["vehicle_mass"], "motor_speed": ["request"], "cost": ["request"]}
+
+DAG_ECHO = textwrap.dedent(
+    """
+    import sys
+    import rclpy
+    from rclpy.node import Node
+    from bev_mdo.ros.common import MDA_RESULT_QOS
+    from bev_mdo.ros.fastwait import MultiWaiter
+    from bev_mdo_msgs.msg import EvaluationResult
+    name, sources = sys.argv[1], sys.argv[2].split(",")
+    rclpy.init()
+    node = Node("bench_dag_" + name)
+    pub = node.create_publisher(EvaluationResult, "/bench/dag/" + name, MDA_RESULT_QOS)
+    subs = [node.create_subscription(EvaluationResult, "/bench/dag/" + s, lambda m: None, MDA_RESULT_QOS, raw=True)
+            for s in sources]
+    got = [0]
+    def on(data, _info):  # answer once every source has answered, with the last bytes received
+        got[0] += 1
+        if got[0] == len(subs):
+            got[0] = 0
+            pub.publish(data)
+    pairs = [(s, on) for s in subs]
+    waiter = MultiWaiter(node.context)
+    try:
+        while rclpy.ok():
+            if waiter.wait(subs, 1.0):
+                waiter.take_ready(pairs)
+    except BaseException:
+        pass
+    """
+)
+
+
+def transport_floor(ctx, env, n):
+    """One MDA's message pattern through six echo processes: (latencies, CPU s per MDA per process)."""
+    from rclpy.node import Node
+
+    from bev_mdo.ros import wire
+    from bev_mdo.ros.common import MDA_RESULT_QOS
+    from bev_mdo.ros.fastwait import MultiWaiter
+    from bev_mdo_msgs.msg import EvaluationResult
+
+    children = [subprocess.Popen([sys.executable, "-c", DAG_ECHO, d, ",".join(src)], env=env) for d, src in DAG.items()]
+    node = Node("bench_dag_coordinator", context=ctx)
+    pub = node.create_publisher(EvaluationResult, "/bench/dag/request", MDA_RESULT_QOS)
+    subs = [node.create_subscription(EvaluationResult, "/bench/dag/" + d, lambda m: None, MDA_RESULT_QOS, raw=True)
+            for d in DAG]
+    roots = sum(src == ["request"] for src in DAG.values())
+    while pub.get_subscription_count() < roots or any(s.get_publisher_count() < 1 for s in subs):
+        time.sleep(0.02)
+    res = wire.Result()  # a result of the size the real ones have (one point, the request's columns forwarded)
+    res.run_id, res.discipline, res.flow = "bench", "vehicle_mass", list(DAG)
+    res.point_ok = np.ones(1, bool)
+    res.outputs = wire.batch({k: np.array([1.0]) for k in ("vehicle_mass_kg", "motor_kw", "gear_ratio", "battery_kwh")})
+    data = wire.encode_result(res)
+    count = [0]
+    pairs = [(s, lambda _d, _i: count.__setitem__(0, count[0] + 1)) for s in subs]
+    waiter = MultiWaiter(ctx)
+    pids = [c.pid for c in children] + [os.getpid()]
+    lat = []
+    for i in range(n + 100):
+        if i == 100:
+            cpu0 = [cpu_s(p) for p in pids]
+        count[0] = 0
+        t0 = time.perf_counter()
+        pub.publish(data)
+        while count[0] < len(subs):
+            if waiter.wait(subs, 1.0):
+                waiter.take_ready(pairs)
+        if i >= 100:
+            lat.append(time.perf_counter() - t0)
+    cpu = [(cpu_s(p) - c) / n for p, c in zip(pids, cpu0)]
+    for c in children:
+        c.terminate()
+        c.wait()
+    node.destroy_node()
+    return lat, cpu
+
+
 def cpu_s(pid: int) -> float:
     """CPU seconds of every thread of a process so far (/proc/<pid>/task/*/schedstat, ns exact;
     /proc/<pid>/stat counts whole clock ticks and overstates short bursts several times)."""
@@ -188,6 +274,11 @@ def main() -> int:
         figures["raw_ping_pong_us"] = {"p50": pct(lat, 50), "p99": pct(lat, 99), "n": len(lat)}
         lat = lean_ping_pong(ctx, env, args.n)
         figures["lean_raw_cdr_ping_pong_us"] = {"p50": pct(lat, 50), "p99": pct(lat, 99), "n": len(lat)}
+        lat, cpu = transport_floor(ctx, env, args.n)
+        figures["transport_floor_mda_us"] = {"p50": pct(lat, 50), "p99": pct(lat, 99), "n": len(lat),
+                                             "cpu_us_per_mda_total": round(sum(cpu) * 1e6),
+                                             "note": "the data-flow graph's messages through 6 echo processes "
+                                                     "(no decode, no compute): the transport's share"}
         for name in discipline_names(config):
             launcher.add(name, discipline_argv(name, cfg_path))
         node = CoordinatorNode(config, context=ctx, node_name="bench_coordinator")
