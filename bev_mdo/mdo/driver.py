@@ -15,7 +15,7 @@ import numpy as np
 from bev_mdo.mdo.evaluator import Evaluator
 from bev_mdo.mdo.formulations import FORMULATIONS, Formulation
 from bev_mdo.mdo.mda import MDA
-from bev_mdo.mdo.optimizers import canonical_name, run_optimizer
+from bev_mdo.mdo.optimizers import GRADIENT_BASED, canonical_name, run_optimizer
 from bev_mdo.mdo.problem import Problem
 
 FEASIBILITY_TOL = 1e-6  # on normalised constraints (and IDF consistency)
@@ -176,6 +176,10 @@ def run_optimization(config: Mapping[str, Any], evaluator: Evaluator, *, formula
             callback(rec)
         return rec
 
+    if opt_name in GRADIENT_BASED:
+        # its first step asks for the gradient at x0: x0 and its FD stencil go as ONE batch
+        # (the same points; one MDA request instead of two)
+        form.gradients(form.to_u(form.x0))
     record(form.x0.copy())
     res = run_optimizer(opt_name, form, options, lambda x: record(x))
     x = np.asarray(res.x, dtype=float)

@@ -121,6 +121,10 @@ OPTIMIZERS: dict[str, Callable | str] = {
 }
 
 
+# Optimisers whose first step needs the gradient at x0 (the driver evaluates x0 with its FD stencil).
+GRADIENT_BASED = frozenset({"SLSQP", "trust-constr"})
+
+
 def canonical_name(name: str) -> str:
     """Registry key for ``name`` (case-insensitive); ValueError lists the allowed names."""
     for key in OPTIMIZERS:

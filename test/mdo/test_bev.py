@@ -59,6 +59,29 @@ def test_run_reports_counts_history_and_iteration_records(config):
                                 "motor_speed_max_rad_s", "powertrain_cost_usd"}
 
 
+class _BatchLog(InProcessEvaluator):
+    """Counts the points of every MDA request (the data-flow MDA calls evaluate_flow once per batch)."""
+
+    def __init__(self, disciplines):
+        super().__init__(disciplines)
+        self.sizes: list[int] = []
+
+    def evaluate_flow(self, names, request, n):
+        self.sizes.append(n)
+        return None  # serve it wave by wave, as without the hook
+
+
+@pytest.mark.parametrize("opt, first", [("SLSQP", 4), ("trust-constr", 4), ("COBYLA", 1)])
+def test_x0_goes_with_its_stencil_for_gradient_based_optimizers(config, opt, first):
+    ev = _BatchLog(resolve_disciplines(config))
+    res = run_optimization(config, ev, optimizer=opt)
+    assert ev.sizes[0] == first  # x0 (+ its 3 FD points when the first step needs the gradient there)
+    if first > 1:
+        # every batch is a point with its stencil: one per gradient, and no point evaluated twice
+        assert res.batches == len(ev.sizes) == res.gradients
+        assert res.mda_evaluations == sum(ev.sizes) == 4 * res.gradients
+
+
 @pytest.mark.parametrize("opt", ["trust-constr", "COBYQA", "COBYLA", "differential_evolution"])
 def test_every_optimizer_finds_the_mdf_optimum(config, mdf, opt):
     res = run_optimization(config, InProcessEvaluator(resolve_disciplines(config)), optimizer=opt)
