@@ -290,6 +290,16 @@ def _header(data, pos: int) -> tuple[Header, int]:
     return Header(Stamp(sec, nsec), frame), pos
 
 
+def _ids(m, data) -> int:
+    """The fields both messages start with (header, run_id, evaluation_id, sequence) into ``m``;
+    returns the position after them."""
+    m.header, pos = _header(data, 0)
+    m.run_id, pos = _string(data, pos)
+    pos += -pos % 8
+    m.evaluation_id, m.sequence = _U64X2.unpack_from(data, pos)
+    return pos + 16
+
+
 def _named(data, pos: int) -> tuple[Batch, int]:
     names, pos = _strings(data, pos, MAX_NAMES * 4)
     pos += -pos % 4
@@ -322,12 +332,9 @@ def _decoding(fn):
 def decode_request(data) -> Request:
     """A Request from CDR bytes; WireError if they are not one."""
     m = Request.__new__(Request)
-    m.header, pos = _header(data, 0)
-    m.run_id, pos = _string(data, pos)
-    pos += -pos % 8
-    m.evaluation_id, m.sequence = _U64X2.unpack_from(data, pos)
-    m.iteration, m.attempt = _U32X2.unpack_from(data, pos + 16)
-    m.discipline, pos = _string(data, pos + 24)
+    pos = _ids(m, data)
+    m.iteration, m.attempt = _U32X2.unpack_from(data, pos)
+    m.discipline, pos = _string(data, pos + 8)
     m.inputs, pos = _named(data, pos)
     m.flow, pos = _strings(data, pos, MAX_NAMES)
     m.signature, pos = _string(data, pos)
@@ -338,11 +345,7 @@ def decode_request(data) -> Request:
 def decode_result(data) -> Result:
     """A Result from CDR bytes; WireError if they are not one."""
     m = Result.__new__(Result)
-    m.header, pos = _header(data, 0)
-    m.run_id, pos = _string(data, pos)
-    pos += -pos % 8
-    m.evaluation_id, m.sequence = _U64X2.unpack_from(data, pos)
-    m.discipline, pos = _string(data, pos + 16)
+    m.discipline, pos = _string(data, _ids(m, data))
     m.instance, pos = _string(data, pos)
     m.status = data[pos]
     m.error, pos = _string(data, pos + 1)
