@@ -103,16 +103,17 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any]) -> EvalResult:
     batch = {k: _column(v) for k, v in inputs.items() if k in disc.inputs or k in params}
     n = _batch_size(batch)
     t0 = time.perf_counter()
-    bad_in = ~_finite_rows(list(batch.values()), n)
+    bad_in = ~finite_rows(list(batch.values()), n)
     try:
         if bad_in.any():
             raise DisciplineError("non-finite inputs")
         out = _call(disc, batch, n)
     except Exception:
         out = None
-    finite = None if out is None else _finite_rows([out[k] for k in disc.outputs], n)
-    if finite is not None and finite.all():  # the common case: every point evaluated and finite
-        return EvalResult(out, finite, "", time.perf_counter() - t0)
+    if out is not None:
+        finite = finite_rows([out[k] for k in disc.outputs], n)
+        if finite.all():  # the common case: every point evaluated and finite
+            return EvalResult(out, finite, "", time.perf_counter() - t0)
     ok = np.ones(n, dtype=bool)
     errors: list[str] = []
     if out is None:
@@ -131,7 +132,7 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any]) -> EvalResult:
                 continue
             for k in disc.outputs:
                 out[k][i] = one[k][0]
-        finite = _finite_rows([out[k] for k in disc.outputs], n)
+        finite = finite_rows([out[k] for k in disc.outputs], n)
     if not finite.all() or not ok.all():
         for i in np.flatnonzero(ok & ~finite):
             ok[i] = False
@@ -149,7 +150,7 @@ def _column(v: Any) -> np.ndarray:
     return (a if a.ndim == 1 else np.atleast_1d(a)).copy()
 
 
-def _finite_rows(columns: list, n: int) -> np.ndarray:
+def finite_rows(columns: list, n: int) -> np.ndarray:
     """Per row: every column finite."""
     if not columns:
         return np.ones(n, dtype=bool)

@@ -34,7 +34,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from bev_mdo.mdo import flow
-from bev_mdo.mdo.discipline import EvalResult
+from bev_mdo.mdo.discipline import EvalResult, finite_rows
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.ros import wire
 from bev_mdo.ros.auth import Signer
@@ -255,8 +255,7 @@ class RosEvaluator:
                 self.dropped["malformed"] += 1
                 return
             outs = {k: np.array(outputs[k]) for k in want}
-            for v in outs.values():
-                ok = ok & np.isfinite(v)
+            ok = ok & finite_rows(list(outs.values()), p.n)
             res = EvalResult(outs, ok, msg.error, float(msg.compute_time_s))
         if not p.flow:  # a data-flow MDA counts the rows each discipline evaluated at the end
             self.counts[p.discipline] += p.n
