@@ -316,6 +316,7 @@ class _RosSession:
             node.evaluator.wait_for_disciplines(names, wait_s, extra_subscribers=self.recorder)
             node.wait_for_recorder(self.recorder, wait_s)
             self._wait_recorder_topics([f"{n}_node" for n in names], wait_s)
+            node.evaluator.warm_up(names)
             yield node.evaluator
             for k, v in node.evaluator.dropped.items():
                 self.stats["dropped_messages"][k] = self.stats["dropped_messages"].get(k, 0) + v

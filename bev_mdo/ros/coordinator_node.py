@@ -112,6 +112,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         node.evaluator.wait_for_disciplines(names, node.discovery_wait_s, extra_subscribers=recorder_subscribers)
         if recorder_subscribers:
             node.wait_for_recorder(recorder_subscribers, node.discovery_wait_s)
+        node.evaluator.warm_up(names)
 
         def callback(rec: dict) -> None:
             node.publish_iteration(rec)

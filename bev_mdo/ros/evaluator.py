@@ -195,10 +195,10 @@ class RosEvaluator:
             if time.monotonic() > deadline:
                 raise DisciplineMissing(f"data-flow topics not matched for all of {list(names)} within {wait_s:g} s")
             self._executor.spin_once(timeout_sec=0.05)
-        self.warm_up(names)
 
     def warm_up(self, names: Sequence[str], rounds: int = 2) -> None:
-        """Send `rounds` data-flow MDAs of no point through the matched graph, before any timing.
+        """Send `rounds` data-flow MDAs of no point through the matched graph, before any timing
+        (call it after every start-up wait, the recorder's included, so a recording has all of it).
 
         The first samples between a new writer and its readers cost more than the later ones
         (measured: the first MDA of a run took 3.9-4.2 ms against 2.6-2.8 ms for the rest; after
