@@ -6,8 +6,9 @@ Measures, on this host, every process localhost-only on its own domain:
   1. raw rclpy ping-pong: one EvaluationRequest out, one EvaluationResult back, over topics
      (typed messages, rclpy executor), and the same exchange the way bev_mdo's hot path does
      it (raw CDR bytes, one rcl wait set);
-  2. the transport floor: the same data-flow message pattern through six echo processes that
-     neither decode nor compute, p50/p99 and its CPU;
+  2. floors: the same data-flow message pattern through six stand-in processes that only echo
+     (the transport's share), echo and run their model, or decode + run the model + encode
+     (the least a Python node can do), p50/p99 and their CPU;
   3. latency of one full multidisciplinary evaluation (one design point, one data-flow
      request, six discipline processes), p50 and p99, and the CPU time it costs in every
      process (the host has 2 cores: CPU per MDA, not hops, bounds the latency);
@@ -110,31 +111,59 @@ def lean_ping_pong(ctx, env, n):
 
 
 # The data-flow graph of the default problem (a discipline -> the topics it waits for; "request"
-# is the coordinator's), served by echo processes that do no decoding and no computing: what the
-# transport alone costs for one MDA on this host, to set against the full MDA.
-DAG = {"vehicle_mass": ["request"], "energy": ["vehicle_mass"], "range": ["energy", "vehicle_mass"],
+# is the coordinator's), served by stand-in processes that do only part of a discipline node's work:
+#   echo    - forward the last bytes received (no decode, no model): what the transport costs;
+#   compute - the same, plus the discipline's own compute() on fixed one-point inputs;
+#   codec   - decode every source's message (wire.py), compute() on the decoded columns, encode
+#             the outputs with the forwarded columns, publish: the least any Python node can do.
+# A real node does the codec step plus the protocol (ids, validation, failed points, counters).
+DAG = {"vehicle_mass": ["request"], "energy": ["vehicle_mass"], "range": ["energy"],
        "acceleration": ["vehicle_mass"], "motor_speed": ["request"], "cost": ["request"]}
+FLOOR_MODES = ("echo", "compute", "codec")
 
 DAG_ECHO = textwrap.dedent(
     """
     import sys
+    import numpy as np
     import rclpy
     from rclpy.node import Node
+    from bev_mdo.ros import wire
     from bev_mdo.ros.common import MDA_RESULT_QOS
     from bev_mdo.ros.fastwait import MultiWaiter
     from bev_mdo_msgs.msg import EvaluationResult
-    name, sources = sys.argv[1], sys.argv[2].split(",")
+    name, sources, mode, config = sys.argv[1], sys.argv[2].split(","), sys.argv[3], sys.argv[4]
+    if mode != "echo":
+        from bev_mdo.config import load_config, resolve_disciplines
+        disc = {d.name: d for d in resolve_disciplines(load_config(config))}[name]
+        fixed = {"motor_kw": 80.0, "gear_ratio": 7.94, "battery_kwh": 24.0, "vehicle_mass_kg": 1590.0,
+                 "energy_wh_per_km": 96.5}
+        fixed = {k: np.array([fixed[k]]) for k in disc.inputs}
     rclpy.init()
     node = Node("bench_dag_" + name)
     pub = node.create_publisher(EvaluationResult, "/bench/dag/" + name, MDA_RESULT_QOS)
     subs = [node.create_subscription(EvaluationResult, "/bench/dag/" + s, lambda m: None, MDA_RESULT_QOS, raw=True)
             for s in sources]
     got = [0]
-    def on(data, _info):  # answer once every source has answered, with the last bytes received
+    columns = {}
+    def on(data, _info):  # answer once every source has answered
+        if mode == "codec":
+            msg = wire.decode_result(data)
+            columns.update(wire.from_named_array(msg.outputs))
         got[0] += 1
-        if got[0] == len(subs):
-            got[0] = 0
-            pub.publish(data)
+        if got[0] < len(subs):
+            return
+        got[0] = 0
+        if mode == "echo":
+            return pub.publish(data)
+        if mode == "compute":
+            disc.compute({k: v.copy() for k, v in fixed.items()})
+            return pub.publish(data)
+        out = disc.compute({k: columns[k].copy() for k in disc.inputs})
+        res = wire.Result()
+        res.run_id, res.evaluation_id, res.discipline, res.flow = msg.run_id, msg.evaluation_id, name, msg.flow
+        res.point_ok = np.ones(1, bool)
+        res.outputs = wire.batch({**columns, **out})
+        pub.publish(wire.encode_result(res))
     pairs = [(s, on) for s in subs]
     waiter = MultiWaiter(node.context)
     try:
@@ -147,8 +176,9 @@ DAG_ECHO = textwrap.dedent(
 )
 
 
-def transport_floor(ctx, env, n):
-    """One MDA's message pattern through six echo processes: (latencies, CPU s per MDA per process)."""
+def transport_floor(ctx, env, n, mode="echo", config=""):
+    """One MDA's message pattern through six stand-in processes doing `mode` (see DAG_ECHO):
+    (latencies, CPU s per MDA per process)."""
     from rclpy.node import Node
 
     from bev_mdo.ros import wire
@@ -156,36 +186,51 @@ def transport_floor(ctx, env, n):
     from bev_mdo.ros.fastwait import MultiWaiter
     from bev_mdo_msgs.msg import EvaluationResult
 
-    children = [subprocess.Popen([sys.executable, "-c", DAG_ECHO, d, ",".join(src)], env=env) for d, src in DAG.items()]
-    node = Node("bench_dag_coordinator", context=ctx)
+    children = [subprocess.Popen([sys.executable, "-c", DAG_ECHO, d, ",".join(src), mode, config], env=env)
+                for d, src in DAG.items()]
+    node = Node(f"bench_dag_coordinator_{mode}", context=ctx)
     pub = node.create_publisher(EvaluationResult, "/bench/dag/request", MDA_RESULT_QOS)
     subs = [node.create_subscription(EvaluationResult, "/bench/dag/" + d, lambda m: None, MDA_RESULT_QOS, raw=True)
             for d in DAG]
     roots = sum(src == ["request"] for src in DAG.values())
     while pub.get_subscription_count() < roots or any(s.get_publisher_count() < 1 for s in subs):
+        if any(c.poll() is not None for c in children):
+            raise RuntimeError(f"a {mode} stand-in process exited during discovery")
         time.sleep(0.02)
-    res = wire.Result()  # a result of the size the real ones have (one point, the request's columns forwarded)
-    res.run_id, res.discipline, res.flow = "bench", "vehicle_mass", list(DAG)
+    # The request as one result-typed message (every topic of the pattern has one type): the design
+    # variables of one point; a stand-in result has the size of a real one (its outputs and the
+    # request's columns, forwarded).
+    res = wire.Result()
+    res.run_id, res.discipline, res.flow = "bench", "request", list(DAG)
     res.point_ok = np.ones(1, bool)
-    res.outputs = wire.batch({k: np.array([1.0]) for k in ("vehicle_mass_kg", "motor_kw", "gear_ratio", "battery_kwh")})
-    data = wire.encode_result(res)
-    count = [0]
-    pairs = [(s, lambda _d, _i: count.__setitem__(0, count[0] + 1)) for s in subs]
+    res.outputs = wire.batch({"motor_kw": np.array([80.0]), "gear_ratio": np.array([7.94]),
+                              "battery_kwh": np.array([24.0])})
+    got = []
+
+    def on(data, _info):
+        got.append(wire.from_named_array(wire.decode_result(data).outputs) if mode == "codec" else data)
+
+    pairs = [(s, on) for s in subs]
     waiter = MultiWaiter(ctx)
     pids = [c.pid for c in children] + [os.getpid()]
     lat = []
     for i in range(n + 100):
         if i == 100:
             cpu0 = [cpu_s(p) for p in pids]
-        count[0] = 0
+        got.clear()
         t0 = time.perf_counter()
-        pub.publish(data)
-        while count[0] < len(subs):
-            if waiter.wait(subs, 1.0):
-                waiter.take_ready(pairs)
+        res.evaluation_id = i
+        pub.publish(wire.encode_result(res))
+        while len(got) < len(subs):
+            if not waiter.wait(subs, 5.0):
+                raise RuntimeError(f"the {mode} stand-in processes stopped answering")
+            waiter.take_ready(pairs)
         if i >= 100:
             lat.append(time.perf_counter() - t0)
     cpu = [(cpu_s(p) - c) / n for p, c in zip(pids, cpu0)]
+    if mode == "codec":  # the stand-ins computed the real thing: range from energy from mass
+        ranges = [g["range_km"][0] for g in got if "range_km" in g]
+        assert len(ranges) == 1 and 100.0 < ranges[0] < 1000.0, ranges
     for c in children:
         c.terminate()
         c.wait()
@@ -274,11 +319,15 @@ def main() -> int:
         figures["raw_ping_pong_us"] = {"p50": pct(lat, 50), "p99": pct(lat, 99), "n": len(lat)}
         lat = lean_ping_pong(ctx, env, args.n)
         figures["lean_raw_cdr_ping_pong_us"] = {"p50": pct(lat, 50), "p99": pct(lat, 99), "n": len(lat)}
-        lat, cpu = transport_floor(ctx, env, args.n)
-        figures["transport_floor_mda_us"] = {"p50": pct(lat, 50), "p99": pct(lat, 99), "n": len(lat),
-                                             "cpu_us_per_mda_total": round(sum(cpu) * 1e6),
-                                             "note": "the data-flow graph's messages through 6 echo processes "
-                                                     "(no decode, no compute): the transport's share"}
+        notes = {"echo": "the data-flow graph's messages through 6 echo processes (no decode, no compute): "
+                         "the transport's share",
+                 "compute": "the same, each process also running its discipline's compute() on fixed inputs",
+                 "codec": "each process decodes, computes on the decoded columns and encodes; no protocol "
+                          "(ids, validation, failed points): the least a Python node can do"}
+        for mode in FLOOR_MODES:
+            lat, cpu = transport_floor(ctx, env, args.n, mode, cfg_path)
+            figures[f"floor_{mode}_mda_us"] = {"p50": pct(lat, 50), "p99": pct(lat, 99), "n": len(lat),
+                                               "cpu_us_per_mda_total": round(sum(cpu) * 1e6), "note": notes[mode]}
         for name in discipline_names(config):
             launcher.add(name, discipline_argv(name, cfg_path))
         node = CoordinatorNode(config, context=ctx, node_name="bench_coordinator")
