@@ -93,6 +93,10 @@ def check_value(name: str, value: Any, lower: float, upper: float, unit: str = "
 def check_array(name: str, values: Any, lower: float, upper: float, unit: str = "") -> np.ndarray:
     """Vector form of :func:`check_value`: names the first bad element."""
     a = np.asarray(values, dtype=float)
+    if a.size == 1:  # one design point (an MDA over ROS, a line search): ~0.3 µs instead of ~4.5
+        x = a.item()
+        if math.isfinite(x) and lower <= x <= upper:
+            return a
     bad = ~(np.isfinite(a) & (a >= lower) & (a <= upper))
     if bad.any():
         u = f" {unit}" if unit and unit != "-" else ""

@@ -1,6 +1,9 @@
+import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
-from bev_mdo.models.params import (VEHICLE_CHOICES, VEHICLE_SPECS, validate_cycle, validate_design,
+from bev_mdo.models.params import (VEHICLE_CHOICES, VEHICLE_SPECS, check_array, validate_cycle, validate_design,
                                    validate_vehicle, vehicle_choice)
 
 
@@ -59,3 +62,21 @@ def test_validate_design():
     assert validate_design("motor_kw", [40, 120], 40, 120).tolist() == [40.0, 120.0]
     with pytest.raises(ValueError, match=r"motor_kw must be in \[40, 120\]"):
         validate_design("motor_kw", [39.9], 40, 120)
+
+
+def _outcome(values):
+    try:
+        return check_array("motor_kw", values, 1.0, 1000.0, "kW")
+    except ValueError as exc:
+        return str(exc)
+
+
+@given(st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([(), (1,), (1, 1)]))
+def test_check_array_one_point_agrees_with_the_batch_path(x, shape):
+    """The one-point shortcut accepts and rejects exactly what the vector check does, with its message."""
+    one = _outcome(np.full(shape, x))
+    batch = _outcome(np.array([x, x]))
+    if isinstance(batch, str):
+        assert one == batch
+    else:
+        assert not isinstance(one, str) and one.shape == shape and (one == x).all()
