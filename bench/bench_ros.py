@@ -176,7 +176,7 @@ DAG_ECHO = textwrap.dedent(
 )
 
 
-def transport_floor(ctx, env, n, mode="echo", config=""):
+def mda_floor(ctx, env, n, mode="echo", config=""):
     """One MDA's message pattern through six stand-in processes doing `mode` (see DAG_ECHO):
     (latencies, CPU s per MDA per process)."""
     from rclpy.node import Node
@@ -325,7 +325,7 @@ def main() -> int:
                  "codec": "each process decodes, computes on the decoded columns and encodes; no protocol "
                           "(ids, validation, failed points): the least a Python node can do"}
         for mode in FLOOR_MODES:
-            lat, cpu = transport_floor(ctx, env, args.n, mode, cfg_path)
+            lat, cpu = mda_floor(ctx, env, args.n, mode, cfg_path)
             figures[f"floor_{mode}_mda_us"] = {"p50": pct(lat, 50), "p99": pct(lat, 99), "n": len(lat),
                                                "cpu_us_per_mda_total": round(sum(cpu) * 1e6), "note": notes[mode]}
         for name in discipline_names(config):
