@@ -101,6 +101,11 @@ class RecorderNode(Node):
                 self.get_logger().warning(f"skipping {topic}: no Python class for {type_name}")
                 continue
             pubs = self.get_publishers_info_by_topic(topic)
+            if not pubs:
+                # Only readers known so far (the graph can show a reader before its writer): our
+                # durability must follow the publishers', or a VOLATILE reader of a TRANSIENT_LOCAL
+                # topic loses what was published before the writer matched it. Next poll.
+                continue
             transient = any(i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in pubs)
             # Deep KEEP_LAST history: a RELIABLE KEEP_LAST publisher does not wait for a slow
             # subscriber, it silently overwrites the oldest unacknowledged sample. The depth
@@ -109,7 +114,7 @@ class RecorderNode(Node):
                              depth=self.qos_depth,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL if transient
                              else DurabilityPolicy.VOLATILE)
-            self.writer.add_topic(topic, type_name, [i.qos_profile for i in pubs] or qos,
+            self.writer.add_topic(topic, type_name, [i.qos_profile for i in pubs],
                                   type_hash=_hash_of(pubs))
             self._handlers[topic] = self._callback(topic)
             self.subscriptions_by_topic[topic] = self.create_subscription(
