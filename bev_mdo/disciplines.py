@@ -26,7 +26,7 @@ from bev_mdo.models import topology as topo_model
 from bev_mdo.models.cycles import load_cycle, resample
 from bev_mdo.models.params import validate_cycle, validate_vehicle, vehicle_choice
 
-ENERGY_MODELS = ("flat", "breakdown", "quasi_static")
+ENERGY_MODELS = ("flat", "breakdown", "quasi_static", "chain")
 
 
 def _vehicle(config: Mapping[str, Any]) -> dict[str, float]:
@@ -237,12 +237,16 @@ class Range(_Base):
 
     @classmethod
     def from_config(cls, config, options):
-        return cls({"battery_usable_fraction": _vehicle(config)["battery_usable_fraction"]})
+        v = _vehicle(config)
+        out = {"battery_usable_fraction": v["battery_usable_fraction"]}
+        if config.get("energy_model") == "chain":  # wall energy -> battery energy (models/chain.py)
+            out["charger_efficiency"] = v["charger_efficiency"]
+        return cls(out)
 
     def compute(self, inputs):
         p = self._params(inputs)
-        return {"range_km": range_model.range_km(inputs["battery_kwh"], inputs["energy_wh_per_km"],
-                                                 p["battery_usable_fraction"])}
+        e = inputs["energy_wh_per_km"] * p.get("charger_efficiency", 1.0)
+        return {"range_km": range_model.range_km(inputs["battery_kwh"], e, p["battery_usable_fraction"])}
 
 
 class Acceleration(_Base):
@@ -264,13 +268,15 @@ class Acceleration(_Base):
         v = _vehicle(config)
         t = _topology(config, options)
         names = acceleration.ACCEL_PARAMS + tuple(k for k in cls._TOPO[t.name] if k in v)
+        names += tuple(k for k in v if k.startswith("road_load_"))  # coast-down road load (models/road_load.py)
         return cls({k: v[k] for k in names}, t.name)
 
     def compute(self, inputs):
         p = self._params(inputs)
         if self.topology.name == "SM-SA" and np.all(np.asarray(p.get("gear_count", 1.0)) == 1.0):
             t = acceleration.accel_time_0_100_s(inputs["motor_kw"], inputs["gear_ratio"], inputs["vehicle_mass_kg"],
-                                                {k: p[k] for k in acceleration.ACCEL_PARAMS})
+                                                {k: p[k] for k in p if k in acceleration.ACCEL_PARAMS
+                                                 or k.startswith("road_load_")})
         else:
             t = topo_model.accel_time_s(self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
                                         inputs.get("gear_ratio"), inputs.get("motor_rear_kw"),
