@@ -166,8 +166,10 @@ class Energy(_Base):
         extra = {k: x for k, x in v.items() if k not in names}
         if model == "quasi_static":
             extra["two_speed_added_mass_kg"] = 0.0
-        return cls({k: v[k] for k in names}, _cycle_option(config, options), model, extra,
+        disc = cls({k: v[k] for k in names}, _cycle_option(config, options), model, extra,
                    _topology(config, options).name, bool(options.get("feasibility_outputs", False)))
+        disc.weighted = _cycle_weights(config, options, model)
+        return disc
 
     def _simulate(self, inputs, p):
         return topo_model.simulate(self.resampled, p, self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
@@ -186,8 +188,35 @@ class Energy(_Base):
                                                    - r.motor_speed_max_rad_s)
             return out
         motor_kw = inputs.get("motor_kw")
-        e = self._fn(self.resampled, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
+        if getattr(self, "weighted", None):  # e.g. EPA combined: 0.55 UDDS + 0.45 HWFET by distance
+            e = sum(w * self._fn(r, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
+                    for w, r in self.weighted)
+        else:
+            e = self._fn(self.resampled, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
         return {"energy_wh_per_km": e}
+
+
+def _cycle_weights(config, options, model):
+    """Energy option ``cycle_weights: {cycle: distance share, ...}`` (shares summing to 1): the energy per km
+    is the distance-weighted mean over those cycles, e.g. EPA combined {epa_udds: 0.55, epa_hwfet: 0.45}."""
+    cw = options.get("cycle_weights")
+    if cw is None:
+        return None
+    if model == "quasi_static":
+        raise ValueError("energy option cycle_weights needs energy_model flat, breakdown or chain")
+    if not isinstance(cw, Mapping) or not cw:
+        raise ValueError("energy option cycle_weights must map cycle names to distance shares")
+    total = 0.0
+    out = []
+    for name, w in cw.items():
+        if isinstance(w, bool) or not isinstance(w, (int, float)) or not 0 < w <= 1:
+            raise ValueError(f"energy option cycle_weights.{name} must be a share in (0, 1], got {w!r}")
+        total += float(w)
+        c = validate_cycle({**(config.get("cycle") or {}), "name": name})
+        out.append((float(w), resample(load_cycle(c["name"]), c["dt_s"], c["interpolation"], c["smoothing"])))
+    if abs(total - 1.0) > 1e-9:
+        raise ValueError(f"energy option cycle_weights must sum to 1, got {total:g}")
+    return out
 
 
 def _cycle_option(config, options):
@@ -356,11 +385,16 @@ class BatterySizing(_Base):
         if target is None:
             raise ValueError("battery_sizing needs option range_target_km (or a range_km lower constraint)")
         range_model.check_design("range_target_km", target)
-        return cls({"battery_usable_fraction": _vehicle(config)["battery_usable_fraction"]}, float(target))
+        v = _vehicle(config)
+        params = {"battery_usable_fraction": v["battery_usable_fraction"]}
+        if config.get("energy_model") == "chain":  # wall energy -> battery energy (models/chain.py)
+            params["charger_efficiency"] = v["charger_efficiency"]
+        return cls(params, float(target))
 
     def compute(self, inputs):
         p = self._params(inputs)
-        return {"battery_kwh": range_model.battery_kwh_for_range(self.range_target_km, inputs["energy_wh_per_km"],
+        e = inputs["energy_wh_per_km"] * p.get("charger_efficiency", 1.0)
+        return {"battery_kwh": range_model.battery_kwh_for_range(self.range_target_km, e,
                                                                  p["battery_usable_fraction"])}
 
 
