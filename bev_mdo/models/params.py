@@ -121,6 +121,17 @@ def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
     section = dict(section or {})
     specs = all_specs()
     road = section.pop("road_load", None)
+    flat_road = {k: section.pop(k) for k in list(section) if k.startswith("road_load_")}
+    if flat_road:  # the resolved form a discipline node receives (see road_load.FLAT_KEYS)
+        from .road_load import ROAD_LOAD_SPECS
+
+        if road is not None:
+            raise ValueError("give road_load or its road_load_* parameters, not both")
+        names = {flat: key for key, (flat, _) in ROAD_LOAD_SPECS.items()}
+        unknown = sorted(k for k in flat_road if k not in names)
+        if unknown:
+            raise ValueError(f"unknown vehicle parameter(s) {unknown}")
+        road = {names[k]: v for k, v in flat_road.items() if not (k == "road_load_mass_kg" and v == 0)}
     chain = section.pop("parameter_set", None)
     unknown = sorted(k for k in section if k not in specs and k not in VEHICLE_CHOICES)
     if unknown:
@@ -139,7 +150,7 @@ def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
         from .road_load import validate_road_load
 
         both = sorted(k for k in ("drag_area_m2", "rolling_resistance") if k in section)
-        if both:
+        if both and not flat_road:  # the resolved form carries every parameter, defaults included
             raise ValueError(f"road_load replaces {both}: give one or the other")
         out.update(validate_road_load(road))
     return out

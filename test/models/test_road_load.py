@@ -91,3 +91,12 @@ def test_config_with_road_load_runs_through_the_disciplines(tmp_path):
         flat.energy_wh_per_km(r, V, x["vehicle_mass_kg"], x["gear_ratio"])[0], rel=1e-12)
     assert discs["acceleration"].compute(x)["accel_time_0_100_s"][0] == pytest.approx(
         acceleration.accel_time_0_100_s(x["motor_kw"], x["gear_ratio"], x["vehicle_mass_kg"], V)[0], rel=1e-12)
+
+
+def test_resolved_flat_form_validates_to_the_same_values():
+    """A discipline node receives the resolved vehicle (road_load_* keys); it must validate to the same."""
+    v = validate_vehicle({"road_load": {"a_n": 150, "b_n_per_m_s": -1.9, "c_n_per_m2_s2": 0.44}})
+    again = validate_vehicle({k: x for k, x in v.items()})
+    assert again == v
+    v2 = validate_vehicle({"road_load": {"a_n": 150, "b_n_per_m_s": 1, "c_n_per_m2_s2": 0.44, "mass_kg": 1800}})
+    assert validate_vehicle(dict(v2)) == v2
