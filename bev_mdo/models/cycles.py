@@ -27,7 +27,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator, make_smoothing_spline
 
 KMH = 1.0 / 3.6  # m/s per km/h
 MAX_GAP_S = 3600.0          # longest time between two samples of a trace
@@ -294,6 +293,8 @@ def resample(cycle: DriveCycle, dt_s: float = 1.0, method: str = DEFAULT_METHOD,
         a = np.append(np.diff(v) / np.diff(t), 0.0)
         out = Resampled(cycle.name, float(dt_s), t, v, a, np.zeros_like(v), "linear")
     else:
+        from scipy.interpolate import PchipInterpolator, make_smoothing_spline  # ~1-2 s to import: only here
+
         if method == "pchip":
             f = PchipInterpolator(cycle.time_s, cycle.speed_m_s, extrapolate=False)
         else:
