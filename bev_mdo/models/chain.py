@@ -13,7 +13,8 @@ vectorised as (moving steps, N):
    load-dependent mesh loss only: spin losses are in the coast-down road load.
 3. **Regeneration limits**: the share ``regen_axle_share`` of the braking force acts on the
    driven axle(s); of it the motor takes at most its peak torque and
-   min(rated power, ``regen_max_power_kw``); none below ``regen_min_speed_m_s``; friction
+   min(rated power, ``regen_max_power_kw``); none below ``regen_min_speed_m_s`` (for the exact
+   share of each linear step spent below it, so the result converges in the step); friction
    brakes take the rest. Regeneration stops where the losses would exceed the recovered power.
 4. **Motor + inverter** (a scalable loss model replacing the thesis' map, eqs 2-7/2-8): with
    the rated power P_r, peak torque T_pk = ``motor_torque_per_kw`` P_r, base speed
@@ -119,7 +120,7 @@ def simulate(resampled: Resampled, params, vehicle_mass_kg, gear_ratio, motor_kw
     n = max(batch_size(params, PARAM_SPECS, m, ig, kw), *(np.size(x) for x in extra.values()), 1)
     m, ig, kw = (np.broadcast_to(a, (n,)) for a in (m, ig, kw))
     p = {k: _col(v) for k, v in resolve(params, n).items()}
-    v, a, w, dur, dist = _steps(resampled)
+    v, a, w, dur, dist, v_lo, v_hi = _steps(resampled)
     M = m[None, :]
     if rl.uses_road_load(p):
         a0, a1, b, c = rl.coefficients(p)  # (1, N) or scalars already
@@ -136,8 +137,11 @@ def simulate(resampled: Resampled, params, vehicle_mass_kg, gear_ratio, motor_kw
     t_brake = np.where(driving, 0.0, p["regen_axle_share"] * force * r_w * eta / i_g)  # <= 0
     p_regen_cap = np.minimum(p_r, p["regen_max_power_kw"] * 1e3)
     t_regen_cap = np.minimum(t_pk, p_regen_cap / np.maximum(omega, 1e-9))
-    regen_ok = v >= p["regen_min_speed_m_s"]
-    t_regen = np.where(regen_ok, np.maximum(t_brake, -t_regen_cap), 0.0)
+    # share of the step spent at or above the regeneration cut-off speed (exact for a linear step)
+    v_min = p["regen_min_speed_m_s"]
+    phi = np.clip((v_hi - v_min) / np.maximum(v_hi - v_lo, 1e-12), 0.0, 1.0)
+    phi = np.where(v_lo >= v_min, 1.0, np.where(v_hi < v_min, 0.0, phi))
+    t_regen = np.where(phi > 0, np.maximum(t_brake, -t_regen_cap), 0.0)
     torque = t_drive + t_regen
     w_base = 1000.0 / p["motor_torque_per_kw"]
     tau = np.abs(torque) / t_pk
@@ -145,7 +149,8 @@ def simulate(resampled: Resampled, params, vehicle_mass_kg, gear_ratio, motor_kw
     loss = idle + p_r * p["motor_loss_copper_fraction"] * tau * tau
     p_el = torque * omega + loss
     # braking: regenerate where it returns more than idling costs; otherwise idle (friction brakes act)
-    p_el = np.where(driving, p_el, np.minimum(p_el, idle))
+    # (for the share phi of the step; the rest of the step below the cut-off speed idles)
+    p_el = np.where(driving, p_el, phi * np.minimum(p_el, idle) + (1.0 - phi) * idle)
     volt = p["battery_voltage_v"]
     r_b = np.where(p_el >= 0, p["battery_discharge_resistance_ohm"], p["battery_charge_resistance_ohm"])
     p_batt = p_el + r_b * (p_el / volt) ** 2
@@ -181,7 +186,8 @@ def _steps(r: Resampled):
     if not dist > 0:
         raise ValueError(f"drive cycle {r.name} has zero distance")
     keep = v_bar > 0
-    out = (v_bar[keep, None], a[keep, None], h[keep, None], float(t[-1] - t[0]), dist)
+    lo, hi = np.minimum(v[1:], v[:-1]), np.maximum(v[1:], v[:-1])
+    out = (v_bar[keep, None], a[keep, None], h[keep, None], float(t[-1] - t[0]), dist, lo[keep, None], hi[keep, None])
     if len(_STEPS) > 64:
         _STEPS.clear()
     _STEPS[key] = out

@@ -12,6 +12,7 @@ from bev_mdo.models.params import validate_vehicle
 
 CYCLES = ("nedc", "wltc_class3", "artemis_combined", "epa_udds", "epa_hwfet", "epa_us06")
 V = validate_vehicle({})
+CAL = validate_vehicle({"parameter_set": "epa2022_chain"})
 
 
 def _exact_nedc_moments():
@@ -52,7 +53,8 @@ def _energies(r):
     return {"flat": flat.energy_wh_per_km(r, V, m, ig),
             "breakdown": breakdown.energy_wh_per_km(r, V, m, ig, kw),
             "quasi_static": qs.energy_wh_per_km(r, V, m, ig, kw),
-            "chain": chain.energy_wh_per_km(r, {**V, "aux_power_w": 300.0, "charger_efficiency": 0.9}, m, ig, kw)}
+            "chain": chain.energy_wh_per_km(r, {**V, "aux_power_w": 300.0, "charger_efficiency": 0.9}, m, ig, kw),
+            "chain_calibrated": chain.energy_wh_per_km(r, CAL, m, ig, kw)}
 
 
 @pytest.mark.parametrize("name", CYCLES)
