@@ -120,6 +120,8 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
                       "fleet_wheel_radius_m": fl.FLEET_WHEEL_RADIUS_M, "fleet_gear_ratio": fl.FLEET_GEAR_RATIO},
         "fit": {k: {"value": float(v), "std_error": float(s), "cv_fold_std": float(sp)}
                 for k, v, s, sp in zip(f["names"], f["x"], f["se"], spread)},
+        "fixed_not_fitted": sorted(k for k in FIXED if k not in ("air_density_kg_m3", "drag_area_m2",
+                                                                   "rolling_resistance")),
         "quality": {"train_mape_pct": round(f["mape_pct"], 3),
                     f"cv_{cv['k']}fold_by_family": {k: round(v, 3) for k, v in cv["stats"].items()},
                     **({"cv_leave_one_make_out": {k: round(v, 3) for k, v in cv_make["stats"].items()}}
