@@ -100,3 +100,13 @@ def test_resolved_flat_form_validates_to_the_same_values():
     assert again == v
     v2 = validate_vehicle({"road_load": {"a_n": 150, "b_n_per_m_s": 1, "c_n_per_m2_s2": 0.44, "mass_kg": 1800}})
     assert validate_vehicle(dict(v2)) == v2
+
+
+@pytest.mark.parametrize("cycle", ["nedc", "wltc_class3"])
+def test_flat_moments_equal_direct_sum_with_road_load_on_linear_traces(cycle):
+    r = resample(load_cycle(cycle))
+    p = {**V, "road_load_a_n": 140.0, "road_load_b_n_per_m_s": -1.5, "road_load_c_n_per_m2_s2": 0.45,
+         "road_load_mass_kg": 1600.0}
+    m, ig = np.linspace(1200, 2600, 7), np.linspace(4, 11, 7)
+    np.testing.assert_allclose(flat.energy_wh_per_km(r, p, m, ig), flat.energy_wh_per_km_direct(r, p, m, ig),
+                               rtol=1e-12)
