@@ -8,7 +8,8 @@ documented assumption (``FIXED``). Uncertainty: the Gauss-Newton covariance s^2 
 model family are correlated, the spread of the parameters over the cross-validation folds is
 reported beside it. Cross-validation is k-fold by model family (``Fleet.family``): every
 family is predicted by a fit that never saw it. Run ``python -m bev_mdo.models.calibrate`` to
-refit and rewrite bev_mdo/data/parameter_sets/epa2022_chain.yaml.
+refit (``--write shipped`` rewrites bev_mdo/data/parameter_sets/epa2022_chain.yaml, ``--write FILE``
+writes elsewhere, e.g. a calibration on your own fleet file given with ``--data``).
 """
 from __future__ import annotations
 
@@ -114,7 +115,7 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
         "name": PARAMETER_SET,
         "description": "Wall-to-wheel chain (energy_model: chain) calibrated on the EPA 2022 BEV fleet "
                        "(bev_mdo/data/epa_2022_bev/train.csv), UDDS + HWFET, least squares on relative error. "
-                       "Regenerate with: python -m bev_mdo.models.calibrate",
+                       "Regenerate with: python -m bev_mdo.models.calibrate --write shipped",
         "fitted_on": {"file": "bev_mdo/data/epa_2022_bev/train.csv", "vehicles": int((~fleet.outlier).sum()),
                       "cycles": list(fl.CYCLES), "date": datetime.date.today().isoformat(),
                       "fleet_wheel_radius_m": fl.FLEET_WHEEL_RADIUS_M, "fleet_gear_ratio": fl.FLEET_GEAR_RATIO},
@@ -138,7 +139,19 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
 
 
 def main(argv=None) -> int:
-    fleet = fl.read_fleet(argv[0] if argv else None)
+    import argparse
+
+    ap = argparse.ArgumentParser(prog="python -m bev_mdo.models.calibrate",
+                                 description="Fit the chain's fleet-wide parameters and cross-validate them.")
+    ap.add_argument("--data", default=None, help="fleet CSV (default: the shipped EPA 2022 training file)")
+    ap.add_argument("--write", metavar="YAML", default=None,
+                    help=f"write the parameter set there ('shipped' = bev_mdo/data/parameter_sets/{PARAMETER_SET}.yaml)")
+    args = ap.parse_args(argv)
+    try:
+        fleet = fl.read_fleet(args.data)
+    except ValueError as exc:
+        print(f"calibrate: error: {exc}", file=sys.stderr)
+        return 2
     cycles = fl.resampled_cycles()
     f = fit(fleet, cycles=cycles)
     cv = cross_validate(fleet, 5, cycles=cycles)
@@ -147,7 +160,9 @@ def main(argv=None) -> int:
         print(f"{k:32s} {v:12.6g} +- {s:.3g}")
     print(f"train MAPE {f['mape_pct']:.2f} %; CV by family (k={cv['k']}) MAPE {cv['stats']['mean_abs_pct']:.2f} %, "
           f"leave-one-make-out MAPE {cv_make['stats']['mean_abs_pct']:.2f} %")
-    print("wrote", write_parameter_set(f, cv, cv_make, fleet))
+    if args.write:
+        path = None if args.write == "shipped" else __import__("pathlib").Path(args.write)
+        print("wrote", write_parameter_set(f, cv, cv_make, fleet, path))
     return 0
 
 
