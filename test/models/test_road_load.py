@@ -110,3 +110,12 @@ def test_flat_moments_equal_direct_sum_with_road_load_on_linear_traces(cycle):
     m, ig = np.linspace(1200, 2600, 7), np.linspace(4, 11, 7)
     np.testing.assert_allclose(flat.energy_wh_per_km(r, p, m, ig), flat.energy_wh_per_km_direct(r, p, m, ig),
                                rtol=1e-12)
+
+
+def test_topology_acceleration_with_road_load():
+    p = {**V, **_equivalent(True)}
+    a = topology.accel_time_s("DM-DA", M, KW, IG, KW, IG, V)
+    b = topology.accel_time_s("DM-DA", M, KW, IG, KW, IG, p)
+    np.testing.assert_allclose(b, a, rtol=1e-12)
+    more = {**p, "road_load_c_n_per_m2_s2": 0.8}
+    assert np.all(topology.accel_time_s("DM-DA", M, KW, IG, KW, IG, more) > b)
