@@ -18,7 +18,7 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(include=["bev_mdo", "bev_mdo.*"]),
-    package_data={"bev_mdo": ["data/drive_cycles/*", "data/*.csv", "data/*.yaml", "data/*.xml", "config/*.yaml"]},
+    package_data={"bev_mdo": ["data/drive_cycles/*", "data/epa_2022_bev/*", "data/parameter_sets/*", "data/*.csv", "data/*.yaml", "data/*.xml", "config/*.yaml"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
         ("share/" + PACKAGE, ["package.xml"]),

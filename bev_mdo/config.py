@@ -15,7 +15,7 @@ from typing import Any
 
 TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "disciplines", "problem",
             "formulation", "mda", "optimizer", "ros", "recording")
-ENERGY_MODELS = ("flat", "breakdown", "quasi_static")
+ENERGY_MODELS = ("flat", "breakdown", "quasi_static", "chain")
 FORMULATIONS = ("mdf", "idf")
 MDA_DEFAULTS = {"method": "gauss_seidel", "tolerance": 1.0e-10, "max_iterations": 100, "relaxation": 1.0}
 OPTIMIZER_DEFAULTS = {"name": "SLSQP", "options": {}, "fd_step": 1.0e-6, "fd_scheme": "forward"}
@@ -126,6 +126,10 @@ def _validate_models(cfg: dict) -> None:
             raise ValueError(f"vehicle: {exc}") from None
         try:
             cfg["cycle"] = params.validate_cycle(cfg.get("cycle"))
+            from bev_mdo.models.cycles import load_cycle, resample
+
+            c = cfg["cycle"]  # read and check the trace now: one line naming file and row
+            resample(load_cycle(c["name"]), c["dt_s"], c["interpolation"], c["smoothing"])
         except ValueError as exc:
             raise ValueError(f"cycle: {exc}") from None
 

@@ -26,7 +26,7 @@ from bev_mdo.models import topology as topo_model
 from bev_mdo.models.cycles import load_cycle, resample
 from bev_mdo.models.params import validate_cycle, validate_vehicle, vehicle_choice
 
-ENERGY_MODELS = ("flat", "breakdown", "quasi_static")
+ENERGY_MODELS = ("flat", "breakdown", "quasi_static", "chain")
 
 
 def _vehicle(config: Mapping[str, Any]) -> dict[str, float]:
@@ -166,8 +166,10 @@ class Energy(_Base):
         extra = {k: x for k, x in v.items() if k not in names}
         if model == "quasi_static":
             extra["two_speed_added_mass_kg"] = 0.0
-        return cls({k: v[k] for k in names}, _cycle_option(config, options), model, extra,
+        disc = cls({k: v[k] for k in names}, _cycle_option(config, options), model, extra,
                    _topology(config, options).name, bool(options.get("feasibility_outputs", False)))
+        disc.weighted = _cycle_weights(config, options, model)
+        return disc
 
     def _simulate(self, inputs, p):
         return topo_model.simulate(self.resampled, p, self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
@@ -186,8 +188,35 @@ class Energy(_Base):
                                                    - r.motor_speed_max_rad_s)
             return out
         motor_kw = inputs.get("motor_kw")
-        e = self._fn(self.resampled, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
+        if getattr(self, "weighted", None):  # e.g. EPA combined: 0.55 UDDS + 0.45 HWFET by distance
+            e = sum(w * self._fn(r, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
+                    for w, r in self.weighted)
+        else:
+            e = self._fn(self.resampled, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
         return {"energy_wh_per_km": e}
+
+
+def _cycle_weights(config, options, model):
+    """Energy option ``cycle_weights: {cycle: distance share, ...}`` (shares summing to 1): the energy per km
+    is the distance-weighted mean over those cycles, e.g. EPA combined {epa_udds: 0.55, epa_hwfet: 0.45}."""
+    cw = options.get("cycle_weights")
+    if cw is None:
+        return None
+    if model == "quasi_static":
+        raise ValueError("energy option cycle_weights needs energy_model flat, breakdown or chain")
+    if not isinstance(cw, Mapping) or not cw:
+        raise ValueError("energy option cycle_weights must map cycle names to distance shares")
+    total = 0.0
+    out = []
+    for name, w in cw.items():
+        if isinstance(w, bool) or not isinstance(w, (int, float)) or not 0 < w <= 1:
+            raise ValueError(f"energy option cycle_weights.{name} must be a share in (0, 1], got {w!r}")
+        total += float(w)
+        c = validate_cycle({**(config.get("cycle") or {}), "name": name})
+        out.append((float(w), resample(load_cycle(c["name"]), c["dt_s"], c["interpolation"], c["smoothing"])))
+    if abs(total - 1.0) > 1e-9:
+        raise ValueError(f"energy option cycle_weights must sum to 1, got {total:g}")
+    return out
 
 
 def _cycle_option(config, options):
@@ -237,12 +266,16 @@ class Range(_Base):
 
     @classmethod
     def from_config(cls, config, options):
-        return cls({"battery_usable_fraction": _vehicle(config)["battery_usable_fraction"]})
+        v = _vehicle(config)
+        out = {"battery_usable_fraction": v["battery_usable_fraction"]}
+        if config.get("energy_model") == "chain":  # wall energy -> battery energy (models/chain.py)
+            out["charger_efficiency"] = v["charger_efficiency"]
+        return cls(out)
 
     def compute(self, inputs):
         p = self._params(inputs)
-        return {"range_km": range_model.range_km(inputs["battery_kwh"], inputs["energy_wh_per_km"],
-                                                 p["battery_usable_fraction"])}
+        e = inputs["energy_wh_per_km"] * p.get("charger_efficiency", 1.0)
+        return {"range_km": range_model.range_km(inputs["battery_kwh"], e, p["battery_usable_fraction"])}
 
 
 class Acceleration(_Base):
@@ -264,13 +297,15 @@ class Acceleration(_Base):
         v = _vehicle(config)
         t = _topology(config, options)
         names = acceleration.ACCEL_PARAMS + tuple(k for k in cls._TOPO[t.name] if k in v)
+        names += tuple(k for k in v if k.startswith("road_load_"))  # coast-down road load (models/road_load.py)
         return cls({k: v[k] for k in names}, t.name)
 
     def compute(self, inputs):
         p = self._params(inputs)
         if self.topology.name == "SM-SA" and np.all(np.asarray(p.get("gear_count", 1.0)) == 1.0):
             t = acceleration.accel_time_0_100_s(inputs["motor_kw"], inputs["gear_ratio"], inputs["vehicle_mass_kg"],
-                                                {k: p[k] for k in acceleration.ACCEL_PARAMS})
+                                                {k: p[k] for k in p if k in acceleration.ACCEL_PARAMS
+                                                 or k.startswith("road_load_")})
         else:
             t = topo_model.accel_time_s(self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
                                         inputs.get("gear_ratio"), inputs.get("motor_rear_kw"),
@@ -350,11 +385,16 @@ class BatterySizing(_Base):
         if target is None:
             raise ValueError("battery_sizing needs option range_target_km (or a range_km lower constraint)")
         range_model.check_design("range_target_km", target)
-        return cls({"battery_usable_fraction": _vehicle(config)["battery_usable_fraction"]}, float(target))
+        v = _vehicle(config)
+        params = {"battery_usable_fraction": v["battery_usable_fraction"]}
+        if config.get("energy_model") == "chain":  # wall energy -> battery energy (models/chain.py)
+            params["charger_efficiency"] = v["charger_efficiency"]
+        return cls(params, float(target))
 
     def compute(self, inputs):
         p = self._params(inputs)
-        return {"battery_kwh": range_model.battery_kwh_for_range(self.range_target_km, inputs["energy_wh_per_km"],
+        e = inputs["energy_wh_per_km"] * p.get("charger_efficiency", 1.0)
+        return {"battery_kwh": range_model.battery_kwh_for_range(self.range_target_km, e,
                                                                  p["battery_usable_fraction"])}
 
 

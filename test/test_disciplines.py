@@ -38,10 +38,13 @@ def test_nominal_design_leaf_nedc():
                                                                           cfg["vehicle"])[0])
 
 
-def test_table75_breaks_motor_speed_limit():
-    x = chain(load("leaf_table75.yaml"), {"motor_kw": np.array([80.0]), "gear_ratio": np.array([8.0]),
-                                          "battery_kwh": np.array([24.0])})
+def test_table75_literal_wheel_radius_breaks_motor_speed_limit():
+    # Table 7-5's 0.15 m wheel radius (config/leaf_table75.yaml was removed in issue 16, docs/validation.md)
+    cfg = load("leaf_nedc.yaml")
+    cfg["vehicle"]["wheel_radius_m"] = 0.15
+    x = chain(cfg, {"motor_kw": np.array([80.0]), "gear_ratio": np.array([8.0]), "battery_kwh": np.array([24.0])})
     assert x["motor_speed_max_rad_s"][0] > 1000
+    assert not np.isfinite(x["accel_time_0_100_s"][0])  # 100 km/h is beyond the 10 500 rpm limit at 8:1
 
 
 def test_parameter_override_per_point():

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import road_load as rl
 from .params import check_design, get_params
 
 ACCEL_PARAMS = ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2", "rolling_resistance", "wheel_radius_m",
@@ -29,7 +30,10 @@ def wheel_force_n(speed_m_s, motor_kw, gear_ratio, vehicle_mass_kg, p):
     omega_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0
     torque = np.where(omega <= omega_base, t_max, 1000.0 * motor_kw / np.maximum(omega, 1e-300))
     torque = np.where(omega <= omega_lim * (1 + 1e-12), torque, 0.0)
-    road = 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v * v + p["rolling_resistance"] * vehicle_mass_kg * p["gravity_m_s2"]
+    if rl.uses_road_load(p):  # coast-down A + B v + C v^2 (road_load.py)
+        road = rl.force_n(p, v, vehicle_mass_kg)
+    else:
+        road = 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v * v + p["rolling_resistance"] * vehicle_mass_kg * p["gravity_m_s2"]
     return torque * gear_ratio * p["gear_efficiency"] / p["wheel_radius_m"] - road
 
 
@@ -40,6 +44,8 @@ def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V
     m = check_design("vehicle_mass_kg", vehicle_mass_kg)
     pk, ig, m = np.broadcast_arrays(pk, ig, m)
     p = get_params(params, ACCEL_PARAMS)
+    if rl.uses_road_load(params):
+        p.update({k: params.get(k, 0.0) for k in rl.FLAT_KEYS})
     v_base = (1000.0 / p["motor_torque_per_kw"]) * p["wheel_radius_m"] / ig
     v_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0 * p["wheel_radius_m"] / ig
     v1 = np.minimum(v_base, v_end_m_s)

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import road_load as rl
 from .params import VEHICLE_SPECS, ParamSpec
 
 J_PER_M_TO_KWH_PER_100KM = 1e5 / 3.6e6  # 1 J/m = 1/36 kWh/100 km
@@ -116,6 +117,8 @@ def cycle_moments(cycle) -> dict[str, float]:
         "v3_dt_m3_s2": float(np.sum(v_bar ** 3 * dt)),
         "accel_v_dt_m2_s2": float(np.sum(np.where(dv > 0, dv, 0.0) * v_bar)),  # a*dt = dv
         "duration_s": float(t[-1] - t[0]),
+        "v2_dt_m2_s": float(np.sum(v_bar ** 2 * dt)),
+        "moving_distance_m": distance,  # A acts while moving: A x distance
     }
 
 
@@ -131,8 +134,13 @@ def energy_breakdown(resampled, params, vehicle_mass_kg, gear_ratio=None, motor_
     mo = cycle_moments(resampled)
     x, T = mo["distance_m"], mo["duration_s"]
     # per-metre energies (J/m = N)
-    aero = 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * mo["v3_dt_m3_s2"] / x  # 5-13
-    roll = p["gravity_m_s2"] * m * p["rolling_resistance"]  # 5-14
+    if rl.uses_road_load(params):  # coast-down A + B v + C v^2 (road_load.py): C v^2 is reported as
+        a0, a1, b, c = rl.coefficients(params)  # "aerodynamic", A + B v as "rolling_resistance"
+        aero = c * mo["v3_dt_m3_s2"] / x + 0.0 * m
+        roll = a0 + a1 * m + b * mo["v2_dt_m2_s"] / x
+    else:
+        aero = 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * mo["v3_dt_m3_s2"] / x  # 5-13
+        roll = p["gravity_m_s2"] * m * p["rolling_resistance"]  # 5-14
     inertia = m * mo["accel_v_dt_m2_s2"] / x  # 5-15
     regen = inertia * p["regen_fraction"]  # 5-16
     through = aero + roll + inertia + regen

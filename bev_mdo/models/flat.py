@@ -34,7 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cycles import Resampled
+from . import road_load as rl
+from .cycles import Resampled, quadrature
 from .params import VEHICLE_SPECS, check_array, check_design
 
 FLAT_PARAMS = ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2", "rolling_resistance",
@@ -55,7 +56,18 @@ def _params(params: dict | None) -> dict:
             continue
         a = check_array(k, v, s.lower, s.upper, s.unit)
         out[k] = float(a) if a.ndim == 0 else a
+    if rl.uses_road_load(params):
+        for k in rl.FLAT_KEYS:
+            v = params.get(k, 0.0)
+            out[k] = float(v) if np.ndim(v) == 0 else np.asarray(v, float)
     return out
+
+
+def _road_key(p) -> tuple:
+    """Road constants that the cycle moments depend on (scalars only)."""
+    if rl.uses_road_load(p):
+        return ("road_load",) + tuple(float(p[k]) for k in rl.FLAT_KEYS)
+    return tuple(float(p[k]) for k in ("air_density_kg_m3", "drag_area_m2", "rolling_resistance", "gravity_m_s2"))
 
 
 def traction_force_n(speed_m_s, accel_m_s2, mass_kg, drag_area_m2, rolling_resistance,
@@ -66,13 +78,23 @@ def traction_force_n(speed_m_s, accel_m_s2, mass_kg, drag_area_m2, rolling_resis
             + rolling_resistance * mass_kg * gravity_m_s2 * np.sign(v) + mass_kg * accel_m_s2)
 
 
-def _road_terms(r: Resampled, rho, cda, cr, g):
-    """Per-sample A (force independent of mass), B (force per kg), A', B' (their rates)."""
-    v, a, j = r.speed_m_s, r.accel_m_s2, r.jerk_m_s3
+def _road_terms(r: Resampled, key: tuple):
+    """Per quadrature sample: A (force independent of mass), B (force per kg), A', B' (their
+    rates) and the sample weight (s). ``key`` is :func:`_road_key`: (rho, CdA, C_r, g) for
+    eq 7-18, or the coast-down coefficients (road_load.py) that replace its drag and rolling terms."""
+    v, a, j, w = quadrature(r)
+    if key[0] == "road_load":
+        a0, a1, b, c = rl.coefficients(dict(zip(rl.FLAT_KEYS, key[1:])))
+        moving = v > 0
+        A = np.where(moving, a0 + b * v + c * v * v, 0.0)
+        B = np.where(moving, a1, 0.0) + a
+        dA = (b + 2.0 * c * v) * a
+        return A, B, dA, j, w
+    rho, cda, cr, g = key
     A = 0.5 * rho * cda * v * np.abs(v)
     B = cr * g * np.sign(v) + a
     dA = rho * cda * np.abs(v) * a
-    return A, B, dA, j
+    return A, B, dA, j, w
 
 
 def energy_wh_per_km_direct(resampled: Resampled, params: dict | None, vehicle_mass_kg, gear_ratio,
@@ -82,14 +104,20 @@ def energy_wh_per_km_direct(resampled: Resampled, params: dict | None, vehicle_m
     m = check_design("vehicle_mass_kg", vehicle_mass_kg)
     ig = check_design("gear_ratio", gear_ratio)
     col = {k: (v if np.ndim(v) == 0 else np.asarray(v)[None, :]) for k, v in p.items()}
-    r = resampled
-    v = r.speed_m_s[:, None]
-    a = r.accel_m_s2[:, None]
-    j = r.jerk_m_s3[:, None]
+    qv, qa, qj, qw = quadrature(resampled)
+    v = qv[:, None]
+    a = qa[:, None]
+    j = qj[:, None]
+    wgt = qw[:, None] if np.ndim(qw) else qw
     M = m[None, :]
-    F = traction_force_n(v, a, M, col["drag_area_m2"], col["rolling_resistance"],
-                         col["air_density_kg_m3"], col["gravity_m_s2"])           # 7-18
-    dF = col["air_density_kg_m3"] * col["drag_area_m2"] * np.abs(v) * a + M * j
+    if rl.uses_road_load(p):                                                      # road_load.py
+        F = rl.force_n(col, v, M) + M * a
+        a0, a1, b, c = rl.coefficients(col)
+        dF = (b + 2.0 * c * v) * a + M * j
+    else:
+        F = traction_force_n(v, a, M, col["drag_area_m2"], col["rolling_resistance"],
+                             col["air_density_kg_m3"], col["gravity_m_s2"])       # 7-18
+        dF = col["air_density_kg_m3"] * col["drag_area_m2"] * np.abs(v) * a + M * j
     braking = F < 0
     eta = col["gear_efficiency"]
     e = np.where(braking, eta, 1.0 / eta)
@@ -101,8 +129,12 @@ def energy_wh_per_km_direct(resampled: Resampled, params: dict | None, vehicle_m
             + col["motor_constant_nm_a"] * omega)                                 # 7-25
     power = current * volt                                                        # 7-26
     power = np.where(braking, col["regen_fraction"] * power, power)               # 6-34
-    energy_j = power.sum(axis=0) * r.dt_s                                         # 7-27
-    distance_m = r.speed_m_s.sum() * r.dt_s
+    if np.ndim(qw):
+        energy_j = (power * wgt).sum(axis=0)                                      # 7-27
+        distance_m = float((qv * qw).sum())
+    else:
+        energy_j = power.sum(axis=0) * qw                                         # 7-27
+        distance_m = qv.sum() * qw
     return energy_j / 3.6 / distance_m
 
 
@@ -117,24 +149,26 @@ class FlatMoments:
 
 
 # moment columns: L-terms AA', AB'+A'B, BB'; R-terms A^2, 2AB, B^2; back-EMF Av, Bv; unused 0
-def moments(resampled: Resampled, air_density_kg_m3, drag_area_m2, rolling_resistance, gravity_m_s2) -> FlatMoments:
-    """Precompute the flat-model cycle moments (cached per resampled cycle and road constants)."""
-    key = (float(air_density_kg_m3), float(drag_area_m2), float(rolling_resistance), float(gravity_m_s2))
+def moments(resampled: Resampled, key: tuple) -> FlatMoments:
+    """Precompute the flat-model cycle moments (cached per resampled cycle and road constants,
+    ``key`` from :func:`_road_key`)."""
     per = _MOMENTS.get(resampled)
     if per is None:
         per = _MOMENTS[resampled] = {}
     hit = per.get(key)
     if hit is not None:
         return hit
-    A, B, dA, dB = _road_terms(resampled, *key[:2], key[2], key[3])
-    v = resampled.speed_m_s
+    A, B, dA, dB, w = _road_terms(resampled, key)
+    v = quadrature(resampled)[0]
+    w_col = w[:, None] if np.ndim(w) else w
     cols = np.stack([A * dA, A * dB + dA * B, B * dB, A * A, 2 * A * B, B * B, A * v, B * v,
-                     np.zeros_like(A)], axis=1) * resampled.dt_s
+                     np.zeros_like(A)], axis=1) * w_col
     cand = np.flatnonzero(B < 0)
     thr = -A[cand] / B[cand]
     order = np.argsort(thr, kind="stable")
     cum = np.vstack([np.zeros((1, 9)), np.cumsum(cols[cand[order]], axis=0)])
-    out = FlatMoments(float(v.sum() * resampled.dt_s), thr[order], cols.sum(axis=0), cum)
+    dist = float((v * w).sum()) if np.ndim(w) else float(v.sum() * w)
+    out = FlatMoments(dist, thr[order], cols.sum(axis=0), cum)
     per[key] = out
     return out
 
@@ -149,11 +183,12 @@ def energy_wh_per_km(resampled: Resampled, params: dict | None, vehicle_mass_kg,
     g) fall back to the direct time-series sum. ``motor_kw`` is unused (signature shared
     with the other energy models)."""
     p = _params(params)
-    if any(np.ndim(p[k]) for k in _ROAD):
+    road = rl.FLAT_KEYS if rl.uses_road_load(p) else _ROAD
+    if any(np.ndim(p[k]) for k in road):
         return energy_wh_per_km_direct(resampled, p, vehicle_mass_kg, gear_ratio)
     m = check_design("vehicle_mass_kg", vehicle_mass_kg)
     ig = check_design("gear_ratio", gear_ratio)
-    mo = moments(resampled, *(p[k] for k in ("air_density_kg_m3", "drag_area_m2", "rolling_resistance", "gravity_m_s2")))
+    mo = moments(resampled, _road_key(p))
     brk = mo.braking_cum[np.searchsorted(mo.thresholds_kg, m, side="left")]      # (N, 9)
     drv = mo.total - brk
     eta, r = p["gear_efficiency"], p["regen_fraction"]

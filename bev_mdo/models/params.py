@@ -63,7 +63,7 @@ CYCLE_SPECS: dict[str, ParamSpec] = {
 
 def _merge_specs(base: dict[str, ParamSpec]) -> dict[str, ParamSpec]:
     merged = dict(base)
-    for mod in ("bev_mdo.models.breakdown", "bev_mdo.models.quasi_static"):
+    for mod in ("bev_mdo.models.breakdown", "bev_mdo.models.quasi_static", "bev_mdo.models.chain"):
         try:
             specs = getattr(importlib.import_module(mod), "PARAM_SPECS", {})
         except ImportError:
@@ -74,7 +74,7 @@ def _merge_specs(base: dict[str, ParamSpec]) -> dict[str, ParamSpec]:
 
 
 def all_specs() -> dict[str, ParamSpec]:
-    """VEHICLE_SPECS plus PARAM_SPECS of the breakdown and quasi-static models, if present."""
+    """VEHICLE_SPECS plus PARAM_SPECS of the breakdown, quasi-static and chain models, if present."""
     return _merge_specs(VEHICLE_SPECS)
 
 
@@ -120,12 +120,40 @@ def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
     :func:`vehicle_choice`."""
     section = dict(section or {})
     specs = all_specs()
+    road = section.pop("road_load", None)
+    flat_road = {k: section.pop(k) for k in list(section) if k.startswith("road_load_")}
+    if flat_road:  # the resolved form a discipline node receives (see road_load.FLAT_KEYS)
+        from .road_load import ROAD_LOAD_SPECS
+
+        if road is not None:
+            raise ValueError("give road_load or its road_load_* parameters, not both")
+        names = {flat: key for key, (flat, _) in ROAD_LOAD_SPECS.items()}
+        unknown = sorted(k for k in flat_road if k not in names)
+        if unknown:
+            raise ValueError(f"unknown vehicle parameter(s) {unknown}")
+        road = {names[k]: v for k, v in flat_road.items() if not (k == "road_load_mass_kg" and v == 0)}
+    chain = section.pop("parameter_set", None)
     unknown = sorted(k for k in section if k not in specs and k not in VEHICLE_CHOICES)
     if unknown:
-        raise ValueError(f"unknown vehicle parameter(s) {unknown}; known: {sorted(specs) + sorted(VEHICLE_CHOICES)}")
+        raise ValueError(f"unknown vehicle parameter(s) {unknown}; known: "
+                         f"{sorted(specs) + sorted(VEHICLE_CHOICES) + ['parameter_set', 'road_load']}")
     for k in VEHICLE_CHOICES:
         vehicle_choice(section, k)
-    return {k: check_value(k, section.get(k, s.default), s.lower, s.upper, s.unit) for k, s in specs.items()}
+    extra: dict[str, float] = {}
+    if chain is not None:  # a shipped calibration: its values are defaults the section may override
+        from .chain import load_parameter_set
+
+        extra = {k: v for k, v in load_parameter_set(chain).items() if k not in section}
+    out = {k: check_value(k, section.get(k, extra.get(k, s.default)), s.lower, s.upper, s.unit)
+           for k, s in specs.items()}
+    if road is not None:
+        from .road_load import validate_road_load
+
+        both = sorted(k for k in ("drag_area_m2", "rolling_resistance") if k in section)
+        if both and not flat_road:  # the resolved form carries every parameter, defaults included
+            raise ValueError(f"road_load replaces {both}: give one or the other")
+        out.update(validate_road_load(road))
+    return out
 
 
 def vehicle_choice(section: Mapping[str, Any] | None, key: str) -> str:
@@ -142,8 +170,8 @@ def vehicle_choice(section: Mapping[str, Any] | None, key: str) -> str:
 
 
 def validate_cycle(section: Mapping[str, Any] | None) -> dict:
-    """Validate the ``cycle`` section: name, dt_s, interpolation (pchip|spline), smoothing."""
-    from .cycles import METHODS
+    """Validate the ``cycle`` section: name, dt_s, interpolation (linear|pchip|spline), smoothing."""
+    from .cycles import DEFAULT_METHOD, METHODS
 
     section = dict(section or {})
     known = {"name", "dt_s", "interpolation", "smoothing"}
@@ -155,7 +183,7 @@ def validate_cycle(section: Mapping[str, Any] | None) -> dict:
         raise ValueError(f"cycle name must be a cycle name or CSV path, got {name!r}")
     s = CYCLE_SPECS["dt_s"]
     dt = check_value("cycle dt_s", section.get("dt_s", s.default), s.lower, s.upper, s.unit)
-    method = section.get("interpolation", "pchip")
+    method = section.get("interpolation", DEFAULT_METHOD)
     if method not in METHODS:
         raise ValueError(f"cycle interpolation must be one of {list(METHODS)}, got {method!r}")
     smoothing = section.get("smoothing")

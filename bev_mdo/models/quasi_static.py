@@ -33,6 +33,7 @@ from functools import lru_cache
 import numpy as np
 
 from . import battery as bt
+from . import road_load as rl
 from .breakdown import batch_size, check_points, resolve_params
 from .motor_map import DEFAULT_MAP_CSV, MotorMap, load_motor_map_csv
 from .params import VEHICLE_SPECS, ParamSpec
@@ -117,6 +118,8 @@ def _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh=24.0):
     m, ig, kw, kwh = (np.broadcast_to(a, (n,)) for a in (m, ig, kw, kwh))
     p = {k: np.real(v).astype(float) for k, v in resolve_params(params, PARAM_SPECS, n).items()}
     p["battery_kwh"] = kwh
+    if rl.uses_road_load(params):
+        p.update({k: np.asarray(params.get(k, 0.0), float) for k in rl.FLAT_KEYS})
     gc = np.asarray(p["gear_count"])
     if np.any((gc != 1.0) & (gc != 2.0)):
         raise ValueError(f"gear_count must be 1 or 2, got {gc.reshape(-1)[(gc.reshape(-1) != 1) & (gc.reshape(-1) != 2)][0]:g}")
@@ -140,8 +143,11 @@ def _demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> _Demand:
     if np.any(eta_g <= 0):
         raise ValueError("gear_efficiency minus two_speed_efficiency_loss must stay > 0")
     g = p["gravity_m_s2"]
-    force = (0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v_bar ** 2
-             + p["rolling_resistance"] * mass * g + mass * a_bar)  # 2-3, 6-53
+    if rl.uses_road_load(p):  # coast-down A + B v + C v^2 replaces drag and rolling (road_load.py)
+        force = rl.force_n(p, v_bar, mass) + mass * a_bar
+    else:
+        force = (0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v_bar ** 2
+                 + p["rolling_resistance"] * mass * g + mass * a_bar)  # 2-3, 6-53
     r_w = p["wheel_radius_m"]
     ratio = np.where(two & (v_bar >= p["shift_speed_m_s"]), p["gear_ratio_2"], ig)  # 2-6
     t_w = force * r_w  # 2-1

@@ -332,8 +332,11 @@ def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map, with_tra
         raise ValueError(f"drive cycle {getattr(resampled, 'name', '?')} has zero distance")
     a_bar = np.diff(v)[:, None] / dt  # 6-51
     g, r_w = p["gravity_m_s2"], p["wheel_radius_m"]
-    force = 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v_bar ** 2 + p["rolling_resistance"] * m * g \
-        + m * a_bar  # 2-3
+    if qs.rl.uses_road_load(p):  # coast-down A + B v + C v^2 (road_load.py)
+        force = qs.rl.force_n(p, v_bar, m) + m * a_bar
+    else:
+        force = 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v_bar ** 2 + p["rolling_resistance"] * m * g \
+            + m * a_bar  # 2-3
     tw = force * r_w  # 2-1 (all driven wheels)
     driving = force >= 0
     allowed = (~driving) & (v_bar >= p["regen_min_speed_m_s"]) & (a_bar >= -p["regen_max_decel_g"] * g)
@@ -406,7 +409,8 @@ def accel_time_s(topology, vehicle_mass_kg, motor_kw, gear_ratio=None, motor_rea
     the shift speed, efficiency minus the 2-point penalty). A geared motor over its speed
     limit before ``v_end`` or a non-positive surplus force gives +inf."""
     p = {k: s.default for k, s in qs.PARAM_SPECS.items()}
-    p.update({k: np.asarray(v, float) for k, v in (params or {}).items() if k in qs.PARAM_SPECS})
+    p.update({k: np.asarray(v, float) for k, v in (params or {}).items()
+              if k in qs.PARAM_SPECS or k in qs.rl.FLAT_KEYS})
     t, m, ig, kw, p, kw_r, ig_r = _prepare(p, topology, vehicle_mass_kg, motor_kw, 24.0, gear_ratio,
                                            motor_rear_kw, gear_ratio_rear)
     r_w = p["wheel_radius_m"]
@@ -417,8 +421,11 @@ def accel_time_s(topology, vehicle_mass_kg, motor_kw, gear_ratio=None, motor_rea
         axles[0].eta = np.broadcast_to(eta2, kw.shape)
         ig2 = np.broadcast_to(np.where(two, p["gear_ratio_2"], ig), kw.shape)
         v_shift = np.broadcast_to(np.where(two, p["shift_speed_m_s"], np.inf), kw.shape)
-    road = (lambda v: 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v * v
-            + p["rolling_resistance"] * m * p["gravity_m_s2"])
+    if qs.rl.uses_road_load(p):
+        road = (lambda v: qs.rl.force_n(p, v, m))
+    else:
+        road = (lambda v: 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v * v
+                + p["rolling_resistance"] * m * p["gravity_m_s2"])
 
     def force(v):  # v: (..., N)
         f = -road(v)

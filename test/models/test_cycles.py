@@ -77,7 +77,7 @@ def test_unknown_cycle_name():
 
 def test_resample_pchip_reproduces_linear_trace_and_derivatives():
     c = DriveCycle("ramp", np.array([0.0, 10.0]), np.array([0.0, 5.0]))
-    r = resample(c, 0.5)
+    r = resample(c, 0.5, "pchip")
     assert r.time_s[-1] == pytest.approx(10.0) and len(r.time_s) == 21
     np.testing.assert_allclose(r.speed_m_s, 0.5 * r.time_s, atol=1e-12)
     np.testing.assert_allclose(r.accel_m_s2, 0.5, atol=1e-12)
@@ -99,7 +99,7 @@ def test_resample_spline_smooths():
     assert smooth.distance_m == pytest.approx(c.distance_m, rel=5e-3)
 
 
-@pytest.mark.parametrize("kw,name", [({"dt_s": 0.0}, "dt_s"), ({"method": "linear"}, "interpolation"),
+@pytest.mark.parametrize("kw,name", [({"dt_s": 0.0}, "dt_s"), ({"method": "cubic"}, "interpolation"),
                                      ({"smoothing": -1.0}, "smoothing")])
 def test_resample_bad_arguments(kw, name):
     with pytest.raises(ValueError, match=name):

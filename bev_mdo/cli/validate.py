@@ -1,0 +1,168 @@
+"""``bev-mdo validate [--data CSV] [--energy-model M] [--parameter-set NAME] [--png FILE] [--json]``.
+
+Runs every vehicle of a fleet file (EPA Test Car List columns, default: the shipped EPA 2022
+BEV training fleet) on UDDS and HWFET in one batch per cycle and prints predicted against
+measured wall energy per vehicle, then the mean, median, 90th-percentile and maximum absolute
+percentage error. Vehicles whose rated power cannot follow a cycle are listed as such and
+left out of the statistics; so are rows flagged as outliers in the file. ``--png`` draws a
+parity plot with the +-5 % band and the residuals against test mass and rated power.
+Models: chain (default; wall to wheel with the calibrated parameter set), flat, breakdown,
+quasi_static, topology_sm_sa (the thesis models, which stop at the battery terminals).
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+
+import numpy as np
+
+from bev_mdo.cli import UsageError
+
+DEFAULT_SET = "epa2022_chain"
+
+
+def register(subparsers) -> None:
+    from bev_mdo.models.fleet import ENERGY_MODELS
+
+    p = subparsers.add_parser("validate", help="predicted vs measured energy over a fleet of tested vehicles",
+                              description=__doc__.splitlines()[0])
+    p.add_argument("--data", metavar="CSV", default=None,
+                   help="fleet file (default: bev_mdo/data/epa_2022_bev/train.csv)")
+    p.add_argument("--energy-model", default="chain", choices=ENERGY_MODELS, help="energy model (default chain)")
+    p.add_argument("--parameter-set", default=DEFAULT_SET, metavar="NAME",
+                   help=f"shipped parameter set for the chain model (default {DEFAULT_SET}; 'none' = model defaults)")
+    p.add_argument("--png", metavar="FILE", help="write the parity and residual plots")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.set_defaults(func=run)
+
+
+def evaluate(data=None, energy_model: str = "chain", parameter_set: str | None = DEFAULT_SET) -> dict:
+    """The whole validation as a dict (what --json prints)."""
+    from bev_mdo.models import fleet as fl
+    from bev_mdo.models.chain import load_parameter_set
+
+    fleet = fl.read_fleet(data)
+    base = {}
+    if energy_model == "chain" and parameter_set and parameter_set != "none":
+        base = load_parameter_set(parameter_set)
+    pred = fl.predict(fleet, energy_model, base)
+    err = fl.abs_pct_errors(fleet, pred)
+    out_rows = []
+    scored = {}
+    for c in fl.CYCLES:
+        scored[c] = pred[c]["follows"] & ~fleet.outlier
+    for i in range(len(fleet)):
+        row = {"row": int(fleet.rows[i]), "make": fleet.make[i], "model": fleet.model[i],
+               "test_mass_kg": float(fleet.test_mass_kg[i]), "rated_power_kw": float(fleet.rated_power_kw[i]),
+               "outlier": bool(fleet.outlier[i])}
+        for c in fl.CYCLES:
+            short = c.replace("epa_", "")
+            row[f"{short}_measured_wh_per_km"] = float(fleet.measured[c][i])
+            row[f"{short}_predicted_wh_per_km"] = float(pred[c]["energy_wh_per_km"][i])
+            row[f"{short}_error_pct"] = float(err[c][i])
+            row[f"{short}_follows"] = bool(pred[c]["follows"][i])
+        out_rows.append(row)
+    both = np.concatenate([err[c][scored[c]] for c in fl.CYCLES])
+    return {"data": fleet.path, "energy_model": energy_model,
+            "parameter_set": parameter_set if energy_model == "chain" else None,
+            "vehicles": len(fleet), "rows": out_rows,
+            "not_following": [{"row": int(fleet.rows[i]), "cycle": c} for c in fl.CYCLES
+                              for i in np.flatnonzero(~pred[c]["follows"])],
+            "stats": {"udds_hwfet": fl.error_stats(both),
+                      **{c.replace("epa_", ""): fl.error_stats(err[c][scored[c]]) for c in fl.CYCLES}}}
+
+
+def run(args) -> int:
+    from bev_mdo.models.fleet import ENERGY_MODELS
+
+    if args.energy_model not in ENERGY_MODELS:
+        raise UsageError(f"--energy-model must be one of {list(ENERGY_MODELS)}")
+    report = evaluate(args.data, args.energy_model, args.parameter_set)
+    if args.png:
+        plot(report, args.png)
+    if args.json:
+        print(json.dumps(report, indent=2, allow_nan=True))
+    else:
+        print_table(report)
+    return 0
+
+
+def _f(x, nd=1):
+    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{nd}f}"
+
+
+def print_table(report: dict, file=None) -> None:
+    out = file or sys.stdout
+    ps = f", parameter set {report['parameter_set']}" if report.get("parameter_set") else ""
+    print(f"{report['data']}: {report['vehicles']} vehicles, energy model {report['energy_model']}{ps}; "
+          f"Wh/km from the wall (measured) vs predicted", file=out)
+    print(f"{'row':>4} {'make':10} {'model':34} {'kg':>6} {'kW':>5} | {'UDDS meas':>9} {'pred':>7} {'err%':>6} | "
+          f"{'HWFET meas':>10} {'pred':>7} {'err%':>6}", file=out)
+    for r in report["rows"]:
+        cells = []
+        for c, w in (("udds", 9), ("hwfet", 10)):
+            note = "" if r[f"{c}_follows"] else " CANNOT FOLLOW"
+            cells.append(f"{r[f'{c}_measured_wh_per_km']:>{w}.1f} {r[f'{c}_predicted_wh_per_km']:>7.1f} "
+                         f"{r[f'{c}_error_pct']:>+6.1f}{note}")
+        flag = " (outlier, not scored)" if r["outlier"] else ""
+        print(f"{r['row']:>4} {r['make'][:10]:10} {r['model'][:34]:34} {r['test_mass_kg']:>6.0f} "
+              f"{r['rated_power_kw']:>5.0f} | {cells[0]} | {cells[1]}{flag}", file=out)
+    for name, s in report["stats"].items():
+        print(f"{name:>11}: n={s['n']:3d}  mean |err| {_f(s['mean_abs_pct'], 2)} %  median {_f(s['median_abs_pct'], 2)} %"
+              f"  P90 {_f(s['p90_abs_pct'], 2)} %  max {_f(s['max_abs_pct'], 2)} %  mean signed {_f(s['mean_signed_pct'], 2)} %",
+              file=out)
+    if report["not_following"]:
+        print(f"{len(report['not_following'])} vehicle-cycle(s) whose rated power cannot follow the cycle "
+              f"(not scored): " + ", ".join(f"row {x['row']} {x['cycle']}" for x in report["not_following"]), file=out)
+
+
+def plot(report: dict, path: str) -> None:
+    """Parity plot with the +-5 % band, residuals against test mass and rated power."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = report["rows"]
+    fig, ax = plt.subplots(1, 3, figsize=(15, 4.8))
+    marks = {"udds": ("o", "UDDS"), "hwfet": ("s", "HWFET")}
+    lo, hi = math.inf, 0.0
+    for c, (mk, label) in marks.items():
+        ok = [r for r in rows if r[f"{c}_follows"] and not r["outlier"]]
+        bad = [r for r in rows if not (r[f"{c}_follows"] and not r["outlier"])]
+        meas = np.array([r[f"{c}_measured_wh_per_km"] for r in ok])
+        pred = np.array([r[f"{c}_predicted_wh_per_km"] for r in ok])
+        e = np.array([r[f"{c}_error_pct"] for r in ok])
+        ax[0].scatter(meas, pred, marker=mk, label=label, alpha=0.75)
+        if bad:
+            ax[0].scatter([r[f"{c}_measured_wh_per_km"] for r in bad], [r[f"{c}_predicted_wh_per_km"] for r in bad],
+                          marker="x", color="k", label=f"{label}: not scored")
+        ax[1].scatter([r["test_mass_kg"] for r in ok], e, marker=mk, label=label, alpha=0.75)
+        ax[2].scatter([r["rated_power_kw"] for r in ok], e, marker=mk, label=label, alpha=0.75)
+        if meas.size:
+            lo, hi = min(lo, meas.min(), pred.min()), max(hi, meas.max(), pred.max())
+    if not math.isfinite(lo):
+        lo, hi = 50.0, 300.0
+    x = np.array([lo * 0.95, hi * 1.05])
+    ax[0].plot(x, x, "k-", lw=1)
+    ax[0].fill_between(x, 0.95 * x, 1.05 * x, color="grey", alpha=0.2, label="+-5 %")
+    ax[0].set(xlabel="measured Wh/km (wall)", ylabel="predicted Wh/km", title="parity")
+    s = report["stats"]["udds_hwfet"]
+    ax[0].text(0.02, 0.98, f"mean |err| {_f(s['mean_abs_pct'], 2)} %\nP90 {_f(s['p90_abs_pct'], 2)} %",
+               transform=ax[0].transAxes, va="top")
+    for a, xl in ((ax[1], "test mass (kg)"), (ax[2], "rated power (kW)")):
+        a.axhspan(-5, 5, color="grey", alpha=0.2)
+        a.axhline(0, color="k", lw=1)
+        a.set(xlabel=xl, ylabel="error %", title=f"residual vs {xl.split(' (')[0]}")
+    for a in ax:
+        a.legend(loc="lower right", fontsize=8)
+        a.grid(alpha=0.3)
+    fig.suptitle(f"{report['energy_model']} on {report['data'].rsplit('/', 1)[-1]}")
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=110)
+    except OSError as exc:
+        raise ValueError(f"cannot write {path}: {exc.strerror}") from None
+    finally:
+        plt.close(fig)

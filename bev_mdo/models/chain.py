@@ -1,0 +1,219 @@
+"""Wall-to-wheel energy model ("chain"): every stage from the charging socket to the tyre.
+
+Per step of the resampled cycle (mean speed and acceleration of the step, eqs 6-50/6-51: exact
+for the distance and the kinetic energy of a piecewise-linear trace; halving the default 1 s
+step changes the energy by < 0.1 %, test/models/test_chain.py) and per design point,
+vectorised as (moving steps, N):
+
+1. **Road load and inertia** (eq 2-3 / 7-18, or the coast-down A + B v + C v^2 of
+   road_load.py): F = F_road(v) + M (1 + f_rot) a. ``rotating_mass_fraction`` f_rot is the
+   equivalent mass of the rotating parts (motor rotor through the gear, driven wheels).
+2. **Transmission** (eqs 2-4, 2-5): motor speed w = v i_g / r_w; torque T = F r_w / (i_g eta_g)
+   when driving and F r_w eta_g / i_g when braking. ``gear_efficiency`` eta_g is the
+   load-dependent mesh loss only: spin losses are in the coast-down road load.
+3. **Regeneration limits**: the share ``regen_axle_share`` of the braking force acts on the
+   driven axle(s); of it the motor takes at most its peak torque and
+   min(rated power, ``regen_max_power_kw``); none below ``regen_min_speed_m_s`` (for the exact
+   share of each linear step spent below it, so the result converges in the step); friction
+   brakes take the rest. Regeneration stops where the losses would exceed the recovered power.
+4. **Motor + inverter** (a scalable loss model replacing the thesis' map, eqs 2-7/2-8): with
+   the rated power P_r, peak torque T_pk = ``motor_torque_per_kw`` P_r, base speed
+   w_b = 1000 / ``motor_torque_per_kw`` rad/s, tau = |T| / T_pk and s = w / w_b,
+
+       P_loss = P_r (c_0 + c_w s + c_cu tau^2)     while the vehicle moves
+
+   c_0 = ``motor_loss_standby_fraction`` (inverter switching and the energised machine at no
+   load), c_w = ``motor_loss_speed_fraction`` (speed-proportional energised losses at the base
+   speed), c_cu = ``motor_loss_copper_fraction`` (copper + conduction loss at peak torque).
+   The loss is homogeneous of degree one in (P_r, T): two motors of P_r/2 sharing the torque
+   lose exactly what one motor of P_r does, so all-wheel-drive cars are one equivalent
+   machine of their combined rated power. A larger motor loses less at a given torque
+   (copper) but more at light load (c_0, c_w): the motor-size trend.
+5. **Battery** (eq 5-19/5-20 form): P_batt = P_el + R (P_el / V)^2 with
+   ``battery_discharge_resistance_ohm`` / ``battery_charge_resistance_ohm`` and
+   ``battery_voltage_v``, plus the auxiliary load ``aux_power_w`` for the whole cycle
+   (standstill included).
+6. **Charger** (wall to battery, including the battery's charge acceptance):
+   E_wall = E_batt / ``charger_efficiency``. ``energy_wh_per_km`` is E_wall per km, the figure
+   EPA measures; range (eq 7-28) uses E_batt = E_wall x charger_efficiency and
+   ``battery_usable_fraction``.
+
+A design whose motor cannot deliver the cycle's demand (torque above T_pk or power above P_r at
+any sample) still gets its energy (demand clipped to nothing; the loss is counted at the
+demanded torque) and ``follows = False`` in :func:`simulate`.
+
+The shipped calibration (``vehicle.parameter_set: epa2022_chain``) was fitted on the EPA 2022
+fleet (docs/validation.md, bev_mdo/data/parameter_sets/).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import road_load as rl
+from .cycles import Resampled
+from .params import VEHICLE_SPECS, ParamSpec
+
+PARAMETER_SET_DIR = Path(__file__).resolve().parent.parent / "data" / "parameter_sets"
+
+PARAM_SPECS: dict[str, ParamSpec] = {
+    **{k: VEHICLE_SPECS[k] for k in ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2", "rolling_resistance",
+                                     "wheel_radius_m", "gear_efficiency", "motor_torque_per_kw")},
+    "rotating_mass_fraction": ParamSpec(0.02, 0.0, 0.3, "-", "equivalent mass of rotating parts / vehicle mass"),
+    "motor_loss_standby_fraction": ParamSpec(0.002, 0.0, 0.1, "-",
+                                             "motor+inverter loss while moving at no load, / rated power (c_0)"),
+    "motor_loss_speed_fraction": ParamSpec(0.0, 0.0, 0.1, "-",
+                                           "speed-proportional motor+inverter loss at base speed, / rated power (c_w)"),
+    "motor_loss_copper_fraction": ParamSpec(0.08, 0.0, 1.0, "-",
+                                            "motor+inverter loss at peak torque, / rated power (c_cu, x tau^2)"),
+    "regen_min_speed_m_s": ParamSpec(10.0 / 3.6, 0.0, 50.0, "m/s", "no regeneration below this speed"),
+    "regen_max_power_kw": ParamSpec(150.0, 0.0, 1000.0, "kW", "regeneration power cap (battery charge limit)"),
+    "regen_axle_share": ParamSpec(1.0, 0.0, 1.0, "-", "share of the braking force on the driven axle(s) "
+                                  "(1 on a two-wheel dynamometer: the other axle stands still)"),
+    "battery_voltage_v": ParamSpec(345.0, 10.0, 1500.0, "V", "pack voltage (ch.5: 345 V)"),
+    "battery_discharge_resistance_ohm": ParamSpec(0.192, 0.0, 10.0, "ohm", "pack discharge resistance (ch.5)"),
+    "battery_charge_resistance_ohm": ParamSpec(0.216, 0.0, 10.0, "ohm", "pack charge resistance (ch.5)"),
+    "aux_power_w": ParamSpec(0.0, 0.0, 10000.0, "W", "auxiliary load while the cycle runs (12 V, cooling, HVAC)"),
+    "charger_efficiency": ParamSpec(1.0, 0.5, 1.0, "-", "wall-to-battery efficiency of a charge (1 = none)"),
+}
+FITTED = ("charger_efficiency", "aux_power_w", "motor_loss_standby_fraction", "motor_loss_copper_fraction",
+          "motor_loss_speed_fraction")
+
+
+@dataclass
+class ChainResult:
+    """Per design point (N,)."""
+
+    energy_wh_per_km: np.ndarray          # from the wall
+    battery_wh_per_km: np.ndarray         # at the battery terminals, auxiliaries included
+    wheel_wh_per_km: np.ndarray           # positive wheel work
+    regen_wh_per_km: np.ndarray           # returned to the battery (>= 0)
+    follows: np.ndarray                   # the motor delivers the cycle's torque and power
+    torque_margin_nm: np.ndarray          # min over the cycle of T_pk - T (driving)
+    power_margin_kw: np.ndarray           # min over the cycle of P_r - T w (driving)
+    distance_m: float
+
+
+def _col(x):
+    return x if np.ndim(x) == 0 else np.asarray(x, float)[None, :]
+
+
+def resolve(params, n: int) -> dict:
+    from .breakdown import resolve_params
+
+    p = {k: np.real(v).astype(float) for k, v in resolve_params(params, PARAM_SPECS, n).items()}
+    if rl.uses_road_load(params):
+        p.update({k: np.asarray(params.get(k, 0.0), float) for k in rl.FLAT_KEYS})
+    return p
+
+
+def simulate(resampled: Resampled, params, vehicle_mass_kg, gear_ratio, motor_kw) -> ChainResult:
+    """Wall-to-wheel energy of N designs on one resampled cycle (see the module doc)."""
+    from .breakdown import batch_size, check_points
+
+    m = check_points("vehicle_mass_kg", vehicle_mass_kg, 100.0, 20000.0, "kg").real.astype(float)
+    ig = check_points("gear_ratio", gear_ratio, 0.5, 50.0, "-").real.astype(float)
+    kw = check_points("motor_kw", motor_kw, 1.0, 1000.0, "kW").real.astype(float)
+    extra = {k: params[k] for k in rl.FLAT_KEYS if params and k in params and np.ndim(params[k]) == 1}
+    n = max(batch_size(params, PARAM_SPECS, m, ig, kw), *(np.size(x) for x in extra.values()), 1)
+    m, ig, kw = (np.broadcast_to(a, (n,)) for a in (m, ig, kw))
+    p = {k: _col(v) for k, v in resolve(params, n).items()}
+    v, a, w, dur, dist, v_lo, v_hi = _steps(resampled)
+    M = m[None, :]
+    if rl.uses_road_load(p):
+        a0, a1, b, c = rl.coefficients(p)  # (1, N) or scalars already
+        f_road = (a0 + a1 * M) + v * (b + c * v)
+    else:
+        f_road = 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v * v + p["rolling_resistance"] * M * p["gravity_m_s2"]
+    force = f_road + M * (1.0 + p["rotating_mass_fraction"]) * a
+    r_w, eta = p["wheel_radius_m"], p["gear_efficiency"]
+    i_g, p_r = ig[None, :], kw[None, :] * 1e3
+    omega = v * i_g / r_w
+    t_pk = p["motor_torque_per_kw"] * kw[None, :]
+    driving = force >= 0
+    t_drive = np.where(driving, force * r_w / (i_g * eta), 0.0)
+    t_brake = np.where(driving, 0.0, p["regen_axle_share"] * force * r_w * eta / i_g)  # <= 0
+    p_regen_cap = np.minimum(p_r, p["regen_max_power_kw"] * 1e3)
+    t_regen_cap = np.minimum(t_pk, p_regen_cap / np.maximum(omega, 1e-9))
+    # share of the step spent at or above the regeneration cut-off speed (exact for a linear step)
+    v_min = p["regen_min_speed_m_s"]
+    phi = np.clip((v_hi - v_min) / np.maximum(v_hi - v_lo, 1e-12), 0.0, 1.0)
+    phi = np.where(v_lo >= v_min, 1.0, np.where(v_hi < v_min, 0.0, phi))
+    t_regen = np.where(phi > 0, np.maximum(t_brake, -t_regen_cap), 0.0)
+    torque = t_drive + t_regen
+    w_base = 1000.0 / p["motor_torque_per_kw"]
+    tau = np.abs(torque) / t_pk
+    idle = p_r * (p["motor_loss_standby_fraction"] + p["motor_loss_speed_fraction"] * omega / w_base)
+    loss = idle + p_r * p["motor_loss_copper_fraction"] * tau * tau
+    p_el = torque * omega + loss
+    # braking: regenerate where it returns more than idling costs; otherwise idle (friction brakes act)
+    # (for the share phi of the step; the rest of the step below the cut-off speed idles)
+    p_el = np.where(driving, p_el, phi * np.minimum(p_el, idle) + (1.0 - phi) * idle)
+    volt = p["battery_voltage_v"]
+    r_b = np.where(p_el >= 0, p["battery_discharge_resistance_ohm"], p["battery_charge_resistance_ohm"])
+    p_batt = p_el + r_b * (p_el / volt) ** 2
+    e_batt = w[:, 0] @ p_batt + np.broadcast_to(p["aux_power_w"], (1, n))[0] * dur
+    km = dist / 1e3
+    eta_chg = np.broadcast_to(p["charger_efficiency"], (1, n))[0]
+    batt = e_batt / 3600.0 / km
+    follows_t = np.where(driving, t_pk - t_drive, np.inf).min(axis=0)
+    follows_p = np.where(driving, p_r - t_drive * omega, np.inf).min(axis=0) / 1e3
+    return ChainResult(batt / eta_chg, batt,
+                       w[:, 0] @ np.maximum(force * v, 0.0) / 3600.0 / km,
+                       -(w[:, 0] @ np.minimum(p_batt, 0.0)) / 3600.0 / km,
+                       (follows_t >= 0) & (follows_p >= -1e-9), follows_t, follows_p, dist)
+
+
+_STEPS: dict = {}
+
+
+def _steps(r: Resampled):
+    """Moving steps of a cycle: mean speed (6-50), acceleration (6-51) and length, as (K, 1)
+    columns, plus the duration and distance of the whole cycle. A piecewise-linear trace is
+    integrated exactly for distance and kinetic energy; standstill steps carry only the
+    auxiliary load (the motor is off), so they are left out of the (K, N) arrays."""
+    key = r.key()
+    hit = _STEPS.get(key)
+    if hit is not None:
+        return hit
+    t, v = np.asarray(r.time_s, float), np.asarray(r.speed_m_s, float)
+    h = np.diff(t)
+    v_bar = 0.5 * (v[1:] + v[:-1])
+    a = np.diff(v) / h
+    dist = float(np.sum(v_bar * h))
+    if not dist > 0:
+        raise ValueError(f"drive cycle {r.name} has zero distance")
+    keep = v_bar > 0
+    lo, hi = np.minimum(v[1:], v[:-1]), np.maximum(v[1:], v[:-1])
+    out = (v_bar[keep, None], a[keep, None], h[keep, None], float(t[-1] - t[0]), dist, lo[keep, None], hi[keep, None])
+    if len(_STEPS) > 64:
+        _STEPS.clear()
+    _STEPS[key] = out
+    return out
+
+
+def energy_wh_per_km(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw) -> np.ndarray:
+    """Energy from the wall per km (Wh/km), shape (N,)."""
+    return simulate(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw).energy_wh_per_km
+
+
+def parameter_set_names() -> list[str]:
+    return sorted(p.stem for p in PARAMETER_SET_DIR.glob("*.yaml"))
+
+
+def load_parameter_set(name: str) -> dict[str, float]:
+    """A shipped parameter set (bev_mdo/data/parameter_sets/<name>.yaml): its ``parameters``."""
+    import yaml
+
+    if not isinstance(name, str) or not name or "/" in name or name.startswith("."):
+        raise ValueError(f"parameter_set must be one of {parameter_set_names()}, got {name!r}")
+    path = PARAMETER_SET_DIR / f"{name}.yaml"
+    if not path.is_file():
+        raise ValueError(f"parameter_set {name!r} is unknown; shipped: {parameter_set_names()}")
+    doc = yaml.safe_load(path.read_text())
+    values = doc.get("parameters") if isinstance(doc, dict) else None
+    if not isinstance(values, dict):
+        raise ValueError(f"{path}: no 'parameters' mapping")
+    return {str(k): float(v) for k, v in values.items()}

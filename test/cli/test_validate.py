@@ -1,0 +1,130 @@
+"""``bev-mdo validate`` (issue 16 item 4): fleet table, statistics, parity plot, bad input."""
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bev_mdo.cli import main
+from bev_mdo.models import fleet as fl
+
+TRAIN = fl.DEFAULT_FLEET
+
+
+def run(capsys, *argv):
+    code = main(["validate", *map(str, argv)])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def _rows():
+    with TRAIN.open(newline="") as f:
+        return list(csv.reader(f))
+
+
+def _write(tmp_path, rows, name="fleet.csv"):
+    p = tmp_path / name
+    with p.open("w", newline="") as f:
+        csv.writer(f).writerows(rows)
+    return p
+
+
+def test_default_fleet_json(capsys):
+    code, out, _ = run(capsys, "--json")
+    assert code == 0
+    doc = json.loads(out)
+    assert doc["vehicles"] == 62 and doc["energy_model"] == "chain" and doc["parameter_set"] == "epa2022_chain"
+    s = doc["stats"]
+    assert s["udds"]["n"] == s["hwfet"]["n"] == 62 and s["udds_hwfet"]["n"] == 124
+    errs = np.array([r[f"{c}_error_pct"] for r in doc["rows"] for c in ("udds", "hwfet")])
+    assert s["udds_hwfet"]["mean_abs_pct"] == pytest.approx(np.abs(errs).mean())
+    assert s["udds_hwfet"]["p90_abs_pct"] == pytest.approx(np.percentile(np.abs(errs), 90))
+    r0 = doc["rows"][0]
+    assert r0["row"] == 2 and r0["udds_measured_wh_per_km"] == pytest.approx(133.99)
+    assert r0["udds_error_pct"] == pytest.approx(100 * (r0["udds_predicted_wh_per_km"] / 133.99 - 1))
+
+
+def test_table_and_png(capsys, tmp_path):
+    png = tmp_path / "parity.png"
+    code, out, _ = run(capsys, "--png", png)
+    assert code == 0
+    assert "udds_hwfet: n=124" in out and "P90" in out and "Mach-E RWD" in out
+    assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("model", ["flat", "breakdown", "quasi_static", "topology_sm_sa"])
+def test_every_energy_model_validates(capsys, model):
+    code, out, _ = run(capsys, "--energy-model", model, "--json")
+    doc = json.loads(out)
+    assert code == 0 and doc["energy_model"] == model and doc["parameter_set"] is None
+    assert np.isfinite(doc["stats"]["udds_hwfet"]["mean_abs_pct"])
+
+
+def test_a_vehicle_that_cannot_follow_is_reported_not_scored(capsys, tmp_path):
+    rows = _rows()
+    h = rows[0]
+    rows[1][h.index("rated_power_kw")] = "15"   # a 15 kW motor in a 2268 kg car
+    code, out, _ = run(capsys, "--data", _write(tmp_path, rows), "--json")
+    doc = json.loads(out)
+    assert code == 0
+    assert {"row": 2, "cycle": "epa_udds"} in doc["not_following"]
+    assert doc["rows"][0]["udds_follows"] is False
+    assert doc["stats"]["udds"]["n"] == 61
+    code, out, _ = run(capsys, "--data", _write(tmp_path, rows))
+    assert "CANNOT FOLLOW" in out
+
+
+def test_outlier_rows_are_not_scored(capsys, tmp_path):
+    rows = _rows()
+    rows[3][rows[0].index("flag")] = "energy inconsistent"
+    doc = json.loads(run(capsys, "--data", _write(tmp_path, rows), "--json")[1])
+    assert doc["rows"][2]["outlier"] is True and doc["stats"]["udds_hwfet"]["n"] == 122
+
+
+def _bad(tmp_path, edit):
+    rows = _rows()
+    edit(rows)
+    return _write(tmp_path, rows)
+
+
+def _set(col, value, row=1):
+    def f(rows):
+        rows[row][rows[0].index(col)] = value
+    return f
+
+
+def _rename(col, new):
+    def f(rows):
+        rows[0][rows[0].index(col)] = new
+    return f
+
+
+def _drop(col):
+    def f(rows):
+        i = rows[0].index(col)
+        for r in rows:
+            del r[i]
+    return f
+
+
+@pytest.mark.parametrize("edit,expect", [
+    (_drop("test_mass_kg"), "row 1: missing column test_mass_kg"),
+    (_rename("test_mass_kg", "test_mass_lb"), "row 1, column test_mass_lb: unknown unit (expected column test_mass_kg)"),
+    (_set("road_load_a_n", "abc", 5), "row 6, column road_load_a_n: not a number: 'abc'"),
+    (_set("test_mass_kg", "-2000", 2), "row 3, column test_mass_kg: must not be negative"),
+    (_set("udds_wh_per_km_ac", "nan", 2), "row 3, column udds_wh_per_km_ac: must be finite"),
+    (_set("reported_unit", "mpg", 4), "row 5, column reported_unit: unknown unit 'mpg'"),
+    (_set("rated_power_kw", "", 7), "row 8, column rated_power_kw: not a number: ''"),
+    (_set("road_load_b_n_per_m_s", "-40", 7), "row 8, column road_load_b_n_per_m_s: the road load"),
+])
+def test_bad_fleet_file_one_line_exit_2(capsys, tmp_path, edit, expect):
+    p = _bad(tmp_path, edit)
+    code, out, err = run(capsys, "--data", p)
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and expect in err and str(p) in err and "Traceback" not in err
+
+
+def test_missing_file_exit_2(capsys, tmp_path):
+    code, _, err = run(capsys, "--data", tmp_path / "none.csv")
+    assert code == 2 and "cannot read fleet file" in err

@@ -1,0 +1,94 @@
+"""The wall-to-wheel chain (issue 16 item 2), the fleet file and the shipped calibration (item 3)."""
+import numpy as np
+import pytest
+
+from bev_mdo.models import chain, fleet as fl
+from bev_mdo.models.cycles import load_cycle, resample
+from bev_mdo.models.params import validate_vehicle
+
+R = resample(load_cycle("epa_udds"))
+BASE = {"road_load_a_n": 150.0, "road_load_b_n_per_m_s": 1.0, "road_load_c_n_per_m2_s2": 0.4,
+        "motor_torque_per_kw": 2.0, "aux_power_w": 300.0, "charger_efficiency": 0.9}
+
+
+def e(**kw):
+    p = {**BASE, **{k: v for k, v in kw.items() if k not in ("m", "ig", "kw")}}
+    return chain.simulate(R, p, kw.get("m", 2000.0), kw.get("ig", 9.0), kw.get("kw", 150.0))
+
+
+def test_stages_move_the_energy_the_right_way():
+    ref = e().energy_wh_per_km[0]
+    assert e(charger_efficiency=0.8).energy_wh_per_km[0] == pytest.approx(ref * 0.9 / 0.8, rel=1e-12)
+    assert e(aux_power_w=600.0).energy_wh_per_km[0] > ref
+    assert e(regen_axle_share=0.5).energy_wh_per_km[0] > ref
+    assert e(regen_min_speed_m_s=10.0).energy_wh_per_km[0] > ref
+    assert e(gear_efficiency=0.9).energy_wh_per_km[0] > ref
+    assert e(battery_discharge_resistance_ohm=0.5).energy_wh_per_km[0] > ref
+    assert e(motor_loss_copper_fraction=0.2).energy_wh_per_km[0] > ref
+    assert e(motor_loss_standby_fraction=0.01).energy_wh_per_km[0] > ref
+    assert e(rotating_mass_fraction=0.1).energy_wh_per_km[0] > ref
+
+
+def test_aux_power_is_exact_per_km():
+    d = e(aux_power_w=1300.0).energy_wh_per_km[0] - e().energy_wh_per_km[0]
+    c = load_cycle("epa_udds")
+    assert d == pytest.approx(1000.0 * c.duration_s / 3600.0 / (c.distance_m / 1e3) / 0.9, rel=1e-9)
+
+
+def test_loss_model_is_homogeneous_in_rated_power():
+    """Two motors of P/2 sharing the torque lose what one motor of P loses: doubling the rated power
+    halves the copper loss at a given torque and doubles the standby loss."""
+    cu = {"motor_loss_copper_fraction": 0.1, "motor_loss_standby_fraction": 0.0}
+    sb = {"motor_loss_copper_fraction": 0.0, "motor_loss_standby_fraction": 0.004}
+    zero = {"motor_loss_copper_fraction": 0.0, "motor_loss_standby_fraction": 0.0}
+    base = {k: e(kw=k, **zero).battery_wh_per_km[0] for k in (100.0, 200.0)}
+    cu_loss = {k: e(kw=k, **cu).battery_wh_per_km[0] - base[k] for k in (100.0, 200.0)}
+    sb_loss = {k: e(kw=k, **sb).battery_wh_per_km[0] - base[k] for k in (100.0, 200.0)}
+    assert cu_loss[200.0] == pytest.approx(cu_loss[100.0] / 2, rel=0.05)  # regen share shifts slightly
+    assert sb_loss[200.0] == pytest.approx(sb_loss[100.0] * 2, rel=0.05)
+
+
+def test_a_motor_too_small_is_reported():
+    r = e(kw=np.array([150.0, 12.0]), m=np.array([2000.0, 2000.0]), ig=np.array([9.0, 9.0]))
+    assert r.follows.tolist() == [True, False]
+
+
+def test_parameter_set_is_named_by_a_config_and_overridable():
+    ps = chain.load_parameter_set("epa2022_chain")
+    v = validate_vehicle({"parameter_set": "epa2022_chain", "aux_power_w": 500.0})
+    assert v["charger_efficiency"] == pytest.approx(ps["charger_efficiency"]) and v["aux_power_w"] == 500.0
+    with pytest.raises(ValueError, match="parameter_set 'nope' is unknown"):
+        validate_vehicle({"parameter_set": "nope"})
+
+
+def test_shipped_data_is_the_shared_data():
+    import hashlib
+    from pathlib import Path
+
+    shared = Path("/work/shared/data")
+    pairs = [(fl.DEFAULT_FLEET, shared / "epa_2022_bev" / "train.csv")]
+    pairs += [(Path(chain.__file__).parent.parent / "data" / "drive_cycles" / f"epa_{c}.csv",
+               shared / "drive_cycles" / f"epa_{c}.csv") for c in ("udds", "hwfet", "us06")]
+    for ours, theirs in pairs:
+        assert ours.is_file()
+        if theirs.is_file():
+            assert hashlib.sha256(ours.read_bytes()).digest() == hashlib.sha256(theirs.read_bytes()).digest()
+
+
+def test_calibration_reproduces_the_shipped_fit():
+    """Refitting on the shipped file gives the shipped values (the fit is deterministic)."""
+    from bev_mdo.models import calibrate
+
+    f = fl.read_fleet()
+    got = calibrate.fit(f)
+    ps = chain.load_parameter_set(calibrate.PARAMETER_SET)
+    for k, x in zip(got["names"], got["x"]):
+        assert x == pytest.approx(ps[k], rel=1e-3, abs=1e-5), k
+
+
+def test_family_grouping_is_one_rule():
+    f = fl.read_fleet()
+    fam = f.family()
+    assert len(set(fam)) == 15
+    assert fam[f.model.index("Mustang Mach-E AWD")] == fam[f.model.index("Mach-E")] == "ford mach-e"
+    assert fam[f.model.index("Model Y AWD")] != fam[f.model.index("Model 3 RWD")]

@@ -1,0 +1,44 @@
+"""The main-job config on the calibrated chain (issue 16 item 7) and the energy option cycle_weights."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from bev_mdo.config import load_config, resolve_disciplines
+from bev_mdo.models import chain
+from bev_mdo.models.cycles import load_cycle, resample
+from bev_mdo.models.params import validate_vehicle
+
+ROOT = Path(__file__).resolve().parents[1]
+CFG = ROOT / "config" / "leaf_epa_combined.yaml"
+
+
+def _discs(raw):
+    return {d.name: d for d in resolve_disciplines(load_config(raw))}
+
+
+def test_energy_is_the_distance_weighted_epa_combined():
+    raw = yaml.safe_load(CFG.read_text())
+    d = _discs(raw)
+    x = {"vehicle_mass_kg": np.array([1590.0, 1700.0]), "gear_ratio": np.array([8.0, 9.0]),
+         "motor_kw": np.array([80.0, 100.0]), "battery_kwh": np.array([24.0, 24.0])}
+    e = d["energy"].compute(x)["energy_wh_per_km"]
+    v = validate_vehicle(raw["vehicle"])
+    ref = sum(w * chain.energy_wh_per_km(resample(load_cycle(c)), v, x["vehicle_mass_kg"], x["gear_ratio"],
+                                         x["motor_kw"]) for c, w in (("epa_udds", 0.55), ("epa_hwfet", 0.45)))
+    np.testing.assert_allclose(e, ref, rtol=1e-12)
+    # range from the battery energy: wall energy x charger efficiency, usable fraction 0.9
+    r = d["range"].compute({"battery_kwh": np.array([24.0]), "energy_wh_per_km": e[:1]})["range_km"][0]
+    assert r == pytest.approx(0.9 * 24000.0 / (e[0] * v["charger_efficiency"]))
+    assert v["battery_usable_fraction"] == 0.9 and v["motor_torque_per_kw"] == 3.5
+
+
+@pytest.mark.parametrize("weights,match", [({"epa_udds": 0.5, "epa_hwfet": 0.4}, "sum to 1"),
+                                           ({"epa_udds": 1.5}, "share in"),
+                                           ({"no_such_cycle": 1.0}, "unknown drive cycle")])
+def test_bad_cycle_weights_one_line(weights, match):
+    raw = yaml.safe_load(CFG.read_text())
+    raw["disciplines"][1] = {"name": "energy", "options": {"cycle_weights": weights}}
+    with pytest.raises(ValueError, match=match):
+        load_config(raw)
