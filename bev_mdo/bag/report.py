@@ -8,8 +8,23 @@ import numpy as np
 from bev_mdo.bag.history import history
 from bev_mdo.bag.reader import Bag, open_bag, read_config
 
+ANSWERS_METADATA = "bev_mdo_answers"  # MCAP metadata record of an in-process run's bag
+ANSWERS_FILE = "answers.json"         # beside the recorder node's bag over ROS
 REQUEST_TYPE = "bev_mdo_msgs/msg/EvaluationRequest"
 RESULT_TYPE = "bev_mdo_msgs/msg/EvaluationResult"
+
+
+def read_answers(bag: Bag) -> dict | None:
+    """The end-of-run answers stored with a bag (metadata record or answers.json), or None."""
+    import json
+
+    rec = bag.metadata.get(ANSWERS_METADATA)
+    if rec and "answers_json" in rec:
+        return json.loads(rec["answers_json"])
+    path = Path(bag.bag_dir or bag.mcap_path.parent) / ANSWERS_FILE
+    if path.is_file():
+        return json.loads(path.read_text(encoding="utf-8"))
+    return None
 
 
 def _stamp_ns(header) -> int:
