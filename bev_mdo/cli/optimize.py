@@ -127,7 +127,7 @@ def _run_inprocess(config, args, show, x0=None):
     out = res.to_dict()
     out.pop("history")
     baseline = evaluate_design(config, InProcessEvaluator(resolve_disciplines(config)), _baseline_design(config))
-    return out, baseline, {"transport": "inprocess", "bag": bag, "_bag_writer": writer}
+    return out, baseline, {"transport": "inprocess", **({"bag": bag} if bag else {}), "_bag_writer": writer}
 
 
 def _run_ros(config, args, show, x0=None):

@@ -6,7 +6,8 @@ The rule (docs/answers.md):
 
 * A constraint bound is **active** when its margin (distance to the limit in the constraint's own
   unit, positive = satisfied) is within ``rel_tol`` of the constraint's scale (``scale`` from the
-  config, default max(|bound|, 1)); it is **violated** when the margin is below minus that tolerance.
+  config, default max(|bound|, 1)); it is **violated** when the margin is below -1e-6 of that scale
+  (the driver's own feasibility tolerance), which takes precedence.
 * A design variable is **on a bound** when it is within ``rel_tol`` of (upper - lower) of it.
 * At an infeasible end, a variable on a bound **blocks** a violated constraint when moving the
   variable out through that bound would reduce the violation: with v(x) the violation in the
@@ -28,6 +29,7 @@ from typing import Any
 import numpy as np
 
 REL_TOL = 1e-3
+FEAS_TOL = 1e-6  # the driver's feasibility tolerance on normalised constraints (driver.FEASIBILITY_TOL)
 
 
 def _scale(c) -> float:
@@ -75,7 +77,7 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
                  "monitor": any(c.monitor for c in problem.constraints if c.name == name)}
         if not np.isfinite(v):
             violated.append({**entry, "violation": float("inf")})
-        elif v > rel_tol * scale:
+        elif v > FEAS_TOL * scale:
             violated.append({**entry, "violation": v})
         elif abs(v) <= rel_tol * scale:
             active.append(entry)
@@ -139,7 +141,7 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
 
     for e in ans["violated"]:
         op = ">=" if e["kind"] == "lower" else "<="
-        line = (f"violated: {e['name']} {op} {e['limit']:g}{u(e['unit'])} is {_num(e['value'])}{u(e['unit'])}, "
+        line = (f"violated: {e['name']} {op} {e['limit']:g}{u(e['unit'])} is {e['value']:.6g}{u(e['unit'])}, "
                 f"{'short' if e['kind'] == 'lower' else 'over'} by {_num(e['violation'])}{u(e['unit'])}")
         if e.get("monitor"):
             line += " (monitored only)"
