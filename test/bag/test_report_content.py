@@ -45,7 +45,7 @@ def infeasible_run(tmp_path_factory):
     cfg["cycle"]["name"] = "wltc_class3"
     cfg["problem"]["constraints"]["range_km"] = {"lower": 250}
     path = tmp / "wltc250.yaml"
-    path.write_text(yaml.safe_dump(cfg))
+    path.write_text(yaml.safe_dump(cfg, sort_keys=False))
     return _run(tmp, path, "wltc250")
 
 
