@@ -30,6 +30,10 @@ def test_two_objectives_write_one_plot_and_say_so(tmp_path, capsys):
     pngs = sorted(p.name for p in out.glob("*.png"))
     assert pngs == ["fig_4_6_energy_cost.png"]
     assert "fig_4_6_energy_cost.png" in said
+    # history of a Pareto bag: says what it holds instead of iterations, exit 1
+    assert main(["history", str(out / "bag")]) == 1
+    err = capsys.readouterr().err
+    assert "no iteration records" in err and "Pareto bag" in err and "ParetoFront" in err
 
 
 def test_three_objectives_every_pair_and_all_benchmarks(tmp_path, capsys):
