@@ -27,6 +27,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--optimizer", default="SLSQP")
+    ap.add_argument("--json", default=None, help="results file (default bench/results/recording.json)")
     args = ap.parse_args()
     env = ros_env(63)
     times = {"record": [], "no-record": []}
@@ -45,7 +46,9 @@ def main() -> int:
                 res = json.loads(out.stdout)
                 times[mode].append(res["wall_time_s"])
                 if mode == "record":
-                    size = sum(f.stat().st_size for f in bag.iterdir())
+                    # the bag itself (the run's directory also holds logs/ and answers.json)
+                    size = sum(f.stat().st_size for f in bag.iterdir()
+                               if f.is_file() and (f.suffix == ".mcap" or f.name == "metadata.yaml"))
                     sizes.append(size / res["mda_evaluations"])
     rec, plain = statistics.median(times["record"]), statistics.median(times["no-record"])
     figures = {"optimizer": args.optimizer, "runs": args.runs,
@@ -54,6 +57,15 @@ def main() -> int:
                "bag_bytes_per_mda_evaluation": statistics.median(sizes),
                "all_wall_s": times}
     print(json.dumps(figures, indent=2))
+    sys.path.insert(0, str(REPO / "bench"))
+    import _results
+
+    ratios = [100 * (r / p - 1) for r, p in zip(times["record"], times["no-record"])]
+    _results.write("recording", [
+        _results.figure(f"optimiser wall time over ROS, {args.optimizer}, recorded", "s", times["record"]),
+        _results.figure(f"optimiser wall time over ROS, {args.optimizer}, not recorded", "s", times["no-record"]),
+        _results.figure("recording overhead, run by run (recorded / not recorded - 1)", "%", ratios, "<= 5"),
+        _results.figure("bag size per multidisciplinary evaluation", "B", sizes)], path=args.json)
     return 0
 
 
