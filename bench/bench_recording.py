@@ -27,9 +27,10 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--optimizer", default="SLSQP")
+    ap.add_argument("--domain-id", type=int, default=63)
     ap.add_argument("--json", default=None, help="results file (default bench/results/recording.json)")
     args = ap.parse_args()
-    env = ros_env(63)
+    env = ros_env(args.domain_id)
     times = {"record": [], "no-record": []}
     sizes = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -37,7 +38,7 @@ def main() -> int:
             for mode in ("record", "no-record"):
                 bag = Path(tmp) / f"run{i}"
                 cmd = [sys.executable, "-m", "bev_mdo", "optimize", str(REPO / "config" / "leaf_nedc.yaml"),
-                       "--json", "--quiet", "--domain-id", "63", "--optimizer", args.optimizer]
+                       "--json", "--quiet", "--domain-id", str(args.domain_id), "--optimizer", args.optimizer]
                 cmd += ["--bag", str(bag)] if mode == "record" else ["--no-record"]
                 out = subprocess.run(cmd, env=env, cwd=tmp, capture_output=True, text=True, timeout=600)
                 if out.returncode != 0:

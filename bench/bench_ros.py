@@ -292,10 +292,13 @@ def ping_pong(ctx, env, n):
 
 
 def main() -> int:
+    global DOMAIN
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=2000, help="round trips / evaluations per latency figure")
     ap.add_argument("--json", default=None, help="results file (default bench/results/ros.json)")
+    ap.add_argument("--domain-id", type=int, default=None, help=f"ROS domain (default {DOMAIN})")
     args = ap.parse_args()
+    DOMAIN = args.domain_id if args.domain_id is not None else DOMAIN
     os.environ["ROS_DOMAIN_ID"] = str(DOMAIN)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     import rclpy

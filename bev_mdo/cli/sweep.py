@@ -147,6 +147,11 @@ def evaluate_batch(config, designs: dict[str, np.ndarray], transport: str = "inp
 def _evaluator(config, transport):
     from bev_mdo.cli.evaluate import _evaluator as make
 
+    if transport == "ros":
+        ros = config.get("ros") or {}
+        print(f"waiting up to {ros.get('discovery_wait_s', 20):g} s for the discipline nodes on ROS domain "
+              f"{ros.get('domain_id', 77)} ...", file=sys.stderr, flush=True)
+
     return make(config, transport == "ros")
 
 
