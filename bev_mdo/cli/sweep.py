@@ -304,11 +304,16 @@ def run_compare(args) -> int:
         t.add_column(f"design {i + 1}", justify="right")
         t.add_column(f"Δ {i + 1}−1", justify="right")
     for name, unit, v in rows:
-        cells = [f"{v[0]:.6g}"]
+        big = max(float(np.nanmax(np.abs(v))), 1.0)
+
+        def num(x, sign=""):  # round-off (below 1e-9 of the row's largest value) shows as 0
+            return "0" if abs(x) < 1e-9 * big else f"{x:{sign}.6g}"
+
+        cells = [num(v[0])]
         for i in range(1, len(given)):
             d = v[i] - v[0]
             pct = f" ({100 * d / v[0]:+.1f} %)" if v[0] not in (0.0,) and np.isfinite(v[0]) and not name.startswith("margin") else ""
-            cells += [f"{v[i]:.6g}", f"{d:+.4g}{pct}"]
+            cells += [num(v[i]), f"{num(d, '+')}{pct}" if num(d) != "0" else "0"]
         t.add_row(name, unit, *cells)
     feas = ["yes" if f else "[bold red]NO[/]" for f in result["feasible"]]
     t.add_row("feasible", "", feas[0], *[c for f in feas[1:] for c in (f, "")])
