@@ -210,7 +210,8 @@ def bench_netns(tmp: Path, n: int) -> dict:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=2000, help="evaluations per latency measurement")
-    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--json", action="store_true", help="print the raw figures as JSON")
+    ap.add_argument("--json-file", default=None, help="results file (default bench/results/faults.json)")
     ap.add_argument("--worker", metavar="CONFIG", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
@@ -223,6 +224,24 @@ def main() -> int:
         (tmp / "logs").mkdir()
         results = {"sign_verify_cpu": bench_sign(args.n), **bench_local(tmp, args.n, key),
                    "cross_namespace": bench_netns(tmp, args.n)}
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import _results
+
+    figs = [_results.figure(f"HMAC sign + verify of a request and its result (CPU), {k}", "µs", [v["median_us"]])
+            for k, v in results["sign_verify_cpu"].items()]
+    for k, what in (("same_host", "same host"), ("same_host_signed", "same host, signed"),
+                    ("cross_namespace", "across network namespaces")):
+        v = results.get(k, {})
+        if "median_us" in v:
+            figs.append(_results.figure(f"one evaluation round trip, {what}, median of {v['n']}", "µs", [v["median_us"]]))
+            figs.append(_results.figure(f"one evaluation round trip, {what}, p99 of {v['n']}", "µs", [v["p99_us"]]))
+    r = results["recovery"]
+    if "recovery_s" in r:
+        figs.append(_results.figure("recovery after SIGKILL (respawn + start-up + discovery + retry), per kill", "s",
+                                    r["recovery_s"]))
+    else:
+        figs.append(_results.figure("recovery after SIGKILL, median over kills", "s", [r["recovery_s_median"]]))
+    _results.write("faults", figs, path=args.json_file, extra={"raw": results})
     if args.json:
         print(json.dumps(results, indent=2))
         return 0

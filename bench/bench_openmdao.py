@@ -349,7 +349,7 @@ def main(argv=None) -> int:
     ap.add_argument("--ros", dest="ros", action="store_true", default=have_ros,
                     help="also run bev_mdo over ROS (default: on when rclpy imports)")
     ap.add_argument("--no-ros", dest="ros", action="store_false")
-    ap.add_argument("--json", help="write the figures to this JSON file")
+    ap.add_argument("--json", help="results file (default bench/results/openmdao.json)")
     ap.add_argument("--profile", help="cProfile 50 bev_mdo in-process runs into this .pstats file")
     ap.add_argument("--log-dir", default=None, help="node logs (default: a temp dir)")
     args = ap.parse_args(argv)
@@ -407,10 +407,18 @@ def main(argv=None) -> int:
     print(f"OpenMDAO {ref['version']}; host load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs "
           f"(timings are noisy on a shared host: compare the min column too)")
     summary["loadavg_1min"], summary["cpus"] = os.getloadavg()[0], os.cpu_count()
-    if args.json:
-        Path(args.json).write_text(json.dumps({"config": str(s.config_path), "repeat": REPEAT, "results": results,
-                                               "summary": summary}, indent=2, default=float))
-        print(f"figures written to {args.json}")
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import _results
+
+    figs = [_results.figure(f"full MDF optimisation of the default problem: {r['method']} (one run each, {REPEAT} runs)",
+                            "ms", [t * 1e3 for t in r["times_s"]]) for r in results if r.get("times_s")]
+    figs.append(_results.figure("bev_mdo in process / plain scipy SLSQP (ratio of medians)", "–",
+                                [summary["ratio_bev_inprocess_to_plain_scipy"]], "<= 1.2"))
+    if ros:
+        figs.append(_results.figure("bev_mdo over ROS / OpenMDAO in process (ratio of medians)", "–",
+                                    [summary["ratio_ros_to_openmdao"]], "<= 1.0"))
+    _results.write("openmdao", figs, path=args.json,
+                   extra={"config": str(s.config_path), "repeat": REPEAT, "results": results, "summary": summary})
     return 0
 
 

@@ -31,7 +31,7 @@ def _generation(cfg, evaluator, pop, seed=1):
     return r.generation_times_s, r.evaluations
 
 
-def bench(transport: str, pop: int, domain_id: int) -> None:
+def bench(transport: str, pop: int, domain_id: int) -> list[dict]:
     """As ``bev-mdo pareto`` runs it: over ROS with the recorder writing the bag (fronts, requests, results)."""
     import uuid
 
@@ -46,6 +46,10 @@ def bench(transport: str, pop: int, domain_id: int) -> None:
     out = Path("/tmp") / f"bench_pareto_{os.getpid()}" / transport
     print(f"\n{transport}: one NSGA-II generation of {pop} designs (Artemis energy + NEDC range + 0-100 + cost)")
     print(f"{'topology':8s} {'gen 1 (s)':>10s} {'gen 2 (s)':>10s} {'evals/s':>9s}")
+    sys.path.insert(0, str(ROOT / "bench"))
+    import _results
+
+    figs = []
     for t in TOPOLOGIES:
         cfg = load_config(config_for_topology(copy.deepcopy(raw), t))
         run_id = uuid.uuid4().hex[:16]
@@ -54,6 +58,8 @@ def bench(transport: str, pop: int, domain_id: int) -> None:
         with session, session.evaluator(cfg, t) as ev:
             times, n = _generation(cfg, ev, pop)
         print(f"{t:8s} {times[0]:10.2f} {times[1]:10.2f} {pop / times[1]:9.1f}")
+        figs.append(_results.figure(f"one NSGA-II generation of {pop} designs, {t}, {transport}", "s", [times[1]]))
+    return figs
 
 
 def two_speed_study() -> None:
@@ -109,11 +115,15 @@ def main() -> None:
     ap.add_argument("--ros", action="store_true")
     ap.add_argument("--domain-id", type=int, default=71)
     ap.add_argument("--two-speed", action="store_true")
+    ap.add_argument("--json", default=None, help="results file (default bench/results/pareto.json)")
     a = ap.parse_args()
-    bench("inprocess", a.pop, a.domain_id)
+    figs = bench("inprocess", a.pop, a.domain_id)
     if a.ros:
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-        bench("ros", a.pop, a.domain_id)
+        figs += bench("ros", a.pop, a.domain_id)
+    import _results
+
+    _results.write("pareto", figs, path=a.json)
     if a.two_speed:
         two_speed_study()
 

@@ -27,8 +27,10 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--optimizer", default="SLSQP")
+    ap.add_argument("--domain-id", type=int, default=63)
+    ap.add_argument("--json", default=None, help="results file (default bench/results/recording.json)")
     args = ap.parse_args()
-    env = ros_env(63)
+    env = ros_env(args.domain_id)
     times = {"record": [], "no-record": []}
     sizes = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -36,7 +38,7 @@ def main() -> int:
             for mode in ("record", "no-record"):
                 bag = Path(tmp) / f"run{i}"
                 cmd = [sys.executable, "-m", "bev_mdo", "optimize", str(REPO / "config" / "leaf_nedc.yaml"),
-                       "--json", "--quiet", "--domain-id", "63", "--optimizer", args.optimizer]
+                       "--json", "--quiet", "--domain-id", str(args.domain_id), "--optimizer", args.optimizer]
                 cmd += ["--bag", str(bag)] if mode == "record" else ["--no-record"]
                 out = subprocess.run(cmd, env=env, cwd=tmp, capture_output=True, text=True, timeout=600)
                 if out.returncode != 0:
@@ -45,7 +47,9 @@ def main() -> int:
                 res = json.loads(out.stdout)
                 times[mode].append(res["wall_time_s"])
                 if mode == "record":
-                    size = sum(f.stat().st_size for f in bag.iterdir())
+                    # the bag itself (the run's directory also holds logs/ and answers.json)
+                    size = sum(f.stat().st_size for f in bag.iterdir()
+                               if f.is_file() and (f.suffix == ".mcap" or f.name == "metadata.yaml"))
                     sizes.append(size / res["mda_evaluations"])
     rec, plain = statistics.median(times["record"]), statistics.median(times["no-record"])
     figures = {"optimizer": args.optimizer, "runs": args.runs,
@@ -54,6 +58,15 @@ def main() -> int:
                "bag_bytes_per_mda_evaluation": statistics.median(sizes),
                "all_wall_s": times}
     print(json.dumps(figures, indent=2))
+    sys.path.insert(0, str(REPO / "bench"))
+    import _results
+
+    ratios = [100 * (r / p - 1) for r, p in zip(times["record"], times["no-record"])]
+    _results.write("recording", [
+        _results.figure(f"optimiser wall time over ROS, {args.optimizer}, recorded", "s", times["record"]),
+        _results.figure(f"optimiser wall time over ROS, {args.optimizer}, not recorded", "s", times["no-record"]),
+        _results.figure("recording overhead, run by run (recorded / not recorded - 1)", "%", ratios, "<= 5"),
+        _results.figure("bag size per multidisciplinary evaluation", "B", sizes)], path=args.json)
     return 0
 
 

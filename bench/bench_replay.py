@@ -49,6 +49,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--iterations", type=int, default=5000)
     parser.add_argument("--no-subscriber", action="store_true", help="publish with nobody listening")
+    parser.add_argument("--json", default=None, help="results file (default bench/results/replay.json)")
     args = parser.parse_args()
     os.environ.setdefault("ROS_DOMAIN_ID", "49")
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -110,6 +111,14 @@ def main() -> int:
             print(f"subscriber received {got}/{n} (all acknowledged {acked:.3f} s after the last publish)")
         node.destroy_node()
         rclpy.shutdown(context=context)
+    sys.path.insert(0, str(ROOT / "bench"))
+    import _results
+
+    _results.write("replay", [
+        _results.figure("replay as fast as possible, publish rate", "messages/s", [stats.messages_per_s], ">= 20000"),
+        _results.figure("bag write rate", "messages/s", [n / write_s]),
+        _results.figure("read + decompress the bag", "messages/s", [n / load_s]),
+        _results.figure("bag size per message (synthetic MDF traffic)", "B", [size / n])], path=args.json)
     return 0
 
 

@@ -292,10 +292,13 @@ def ping_pong(ctx, env, n):
 
 
 def main() -> int:
+    global DOMAIN
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=2000, help="round trips / evaluations per latency figure")
-    ap.add_argument("--json", default=None)
+    ap.add_argument("--json", default=None, help="results file (default bench/results/ros.json)")
+    ap.add_argument("--domain-id", type=int, default=None, help=f"ROS domain (default {DOMAIN})")
     args = ap.parse_args()
+    DOMAIN = args.domain_id if args.domain_id is not None else DOMAIN
     os.environ["ROS_DOMAIN_ID"] = str(DOMAIN)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     import rclpy
@@ -377,8 +380,29 @@ def main() -> int:
         launcher.stop()
         rclpy.shutdown(context=ctx)
     print(json.dumps(figures, indent=2))
-    if args.json:
-        Path(args.json).write_text(json.dumps(figures, indent=2))
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import _results
+
+    figs = []
+    for key, what in (("raw_ping_pong_us", "raw rclpy ping-pong (typed messages, executor, two processes)"),
+                      ("lean_raw_cdr_ping_pong_us", "the same exchange as raw CDR bytes through one rcl wait set"),
+                      ("floor_echo_mda_us", "floor 1, transport: one data-flow MDA's messages through 6 echo processes"),
+                      ("floor_compute_mda_us", "floor 2: the same, each process also running compute()"),
+                      ("floor_codec_mda_us", "floor 3: decode + compute + encode in each process"),
+                      ("ros_mda_one_point_us", "one full MDA over ROS (1 point, 6 discipline processes)"),
+                      ("inprocess_mda_one_point_us", "one full MDA in process")):
+        if key in figures:
+            figs.append(_results.figure(f"{what}, p50 over {args.n}", "µs", [figures[key]["p50"]],
+                                        "<= 1000" if key == "ros_mda_one_point_us" else None))
+            figs.append(_results.figure(f"{what}, p99 over {args.n}", "µs", [figures[key]["p99"]]))
+    if "ros_mda_one_point_us" in figures:
+        figs.append(_results.figure("CPU one MDA over ROS costs (all processes)", "µs",
+                                    [figures["ros_mda_one_point_us"]["cpu_us_per_mda_total"]]))
+    for n in (1_000, 10_000, 100_000):
+        if f"ros_batch_{n}_designs_per_s" in figures:
+            figs.append(_results.figure(f"batched throughput over ROS, {n} points per batch (median of 5)",
+                                        "designs/s", [figures[f"ros_batch_{n}_designs_per_s"]], ">= 50000"))
+    _results.write("ros", figs, path=args.json, extra={"raw": figures})
     return 0
 
 

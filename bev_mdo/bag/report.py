@@ -8,8 +8,23 @@ import numpy as np
 from bev_mdo.bag.history import history
 from bev_mdo.bag.reader import Bag, open_bag, read_config
 
+ANSWERS_METADATA = "bev_mdo_answers"  # MCAP metadata record of an in-process run's bag
+ANSWERS_FILE = "answers.json"         # beside the recorder node's bag over ROS
 REQUEST_TYPE = "bev_mdo_msgs/msg/EvaluationRequest"
 RESULT_TYPE = "bev_mdo_msgs/msg/EvaluationResult"
+
+
+def read_answers(bag: Bag) -> dict | None:
+    """The end-of-run answers stored with a bag (metadata record or answers.json), or None."""
+    import json
+
+    rec = bag.metadata.get(ANSWERS_METADATA)
+    if rec and "answers_json" in rec:
+        return json.loads(rec["answers_json"])
+    path = Path(bag.bag_dir or bag.mcap_path.parent) / ANSWERS_FILE
+    if path.is_file():
+        return json.loads(path.read_text(encoding="utf-8"))
+    return None
 
 
 def _stamp_ns(header) -> int:
@@ -17,12 +32,16 @@ def _stamp_ns(header) -> int:
 
 
 def discipline_timing(bag: Bag) -> dict[str, dict[str, list[float]]]:
-    """Per discipline: ``compute_time_s`` of each result and request->result latency (s)."""
+    """Per discipline: ``compute_time_s`` of each result and request->result latency (s); empty
+    requests and results (the coordinator's warm-up) are left out."""
     topics = [t for t, ty in bag.topics.items() if ty in (REQUEST_TYPE, RESULT_TYPE)]
     sent: dict[tuple, int] = {}
     out: dict[str, dict[str, list[float]]] = {}
     for msg, obj in bag.decoded(topics):
         key = (obj.run_id, int(obj.evaluation_id), obj.discipline)
+        block = obj.inputs if msg.type_name == REQUEST_TYPE else obj.outputs
+        if int(block.batch_size) == 0:
+            continue  # the warm-up's empty MDAs: no point evaluated, nothing to time
         if msg.type_name == REQUEST_TYPE:
             for d in list(getattr(obj, "flow", None) or []) or [obj.discipline]:  # a data-flow request: all of them
                 sent.setdefault((obj.run_id, int(obj.evaluation_id), d), _stamp_ns(obj.header))
@@ -34,55 +53,133 @@ def discipline_timing(bag: Bag) -> dict[str, dict[str, list[float]]]:
     return out
 
 
-def _plot_convergence(rows, path: Path) -> None:
+def _iterate_markers(ax, it, y, feasible) -> None:
+    """Feasible iterates filled, infeasible ones as red crosses (both in the legend)."""
+    it, y, feasible = np.asarray(it), np.asarray(y, float), np.asarray(feasible, bool)
+    ax.plot(it, y, "-", color="C0", lw=1, alpha=0.6)
+    if feasible.any():
+        ax.plot(it[feasible], y[feasible], "o", color="C0", ms=4, label="feasible iterate")
+    if (~feasible).any():
+        ax.plot(it[~feasible], y[~feasible], "x", color="C3", ms=7, mew=1.5, label="infeasible iterate")
+
+
+def _plot_convergence(rows, path: Path, baseline: dict | None = None):
     import matplotlib.pyplot as plt
 
+    from bev_mdo.mdo.units import label
+
     it = [r["iteration"] for r in rows]
+    feas = [r["feasible"] for r in rows]
+    name = rows[0]["objective_name"] or "objective"
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
-    ax1.plot(it, [r["objective"] for r in rows], "o-", ms=3)
-    ax1.set_ylabel(rows[0]["objective_name"] or "objective")
+    _iterate_markers(ax1, it, [r["objective"] for r in rows], feas)
+    if baseline and name in baseline.get("outputs", {}):
+        ax1.axhline(baseline["outputs"][name], color="0.3", ls="-.", lw=1.2, label=f"baseline ({baseline['label']})")
+    ax1.set_ylabel(label(name))
     ax1.set_title("Objective and constraint convergence")
+    ax1.legend(fontsize=8)
     ax2.plot(it, [max(r["max_violation"], 0.0) for r in rows], "o-", ms=3, color="C3")
     ax2.set_yscale("symlog", linthresh=1e-6)
-    ax2.set_ylabel("max constraint violation")
+    ax2.set_ylabel("max constraint violation\n(normalised, –)")
     ax2.set_xlabel("iteration")
     for ax in (ax1, ax2):
         ax.grid(True, alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+    return fig
 
 
-def _plot_design(rows, path: Path) -> None:
+def _plot_design(rows, path: Path, problem=None, baseline: dict | None = None):
+    """Design-variable trajectories with their bounds drawn (a variable on its bound is seen at once)."""
     import matplotlib.pyplot as plt
 
+    from bev_mdo.mdo.units import label
+
     names = list(dict.fromkeys(n for r in rows for n in r["design"]))
-    fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(7, 1.8 * len(names) + 1),
+    if problem is not None:  # the config's order (a bag's NamedArray may hold another)
+        names = [n for n in problem.names if n in names] + [n for n in names if n not in problem.names]
+    fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(7, 1.9 * len(names) + 1),
                              squeeze=False)
     it = [r["iteration"] for r in rows]
+    feas = [r["feasible"] for r in rows]
+    dvs = {d.name: d for d in problem.design_variables} if problem is not None else {}
     for ax, name in zip(axes[:, 0], names):
-        ax.plot(it, [r["design"].get(name, np.nan) for r in rows], "o-", ms=3)
-        ax.set_ylabel(name)
+        _iterate_markers(ax, it, [r["design"].get(name, np.nan) for r in rows], feas)
+        if name in dvs:
+            d = dvs[name]
+            ax.axhline(d.lower, color="k", ls="--", lw=1, label=f"bounds [{d.lower:g}, {d.upper:g}]")
+            ax.axhline(d.upper, color="k", ls="--", lw=1)
+            pad = 0.05 * (d.upper - d.lower)
+            ax.set_ylim(d.lower - pad, d.upper + pad)
+        if baseline and name in baseline.get("design", {}):
+            ax.axhline(baseline["design"][name], color="0.3", ls="-.", lw=1.2, label=f"baseline ({baseline['label']})")
+        ax.set_ylabel(label(name), fontsize=8)
         ax.grid(True, alpha=0.3)
-    axes[0, 0].set_title("Design-variable trajectories")
+        ax.legend(fontsize=7, loc="best")
+    axes[0, 0].set_title("Design-variable trajectories (dashed: bounds)")
     axes[-1, 0].set_xlabel("iteration")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+    return fig
 
 
-def _plot_timing(timing, path: Path) -> None:
+def _plot_constraints(rows, path: Path, problem=None, baseline: dict | None = None):
+    """Each constrained output per iteration with its limit(s) drawn and the infeasible side shaded."""
+    import matplotlib.pyplot as plt
+
+    from bev_mdo.mdo.units import label
+
+    names = list(dict.fromkeys(n for r in rows for n in r["constraints"]))
+    if problem is not None:
+        order = [c.name for c in problem.constraints]
+        names = [n for n in order if n in names] + [n for n in names if n not in order]
+    if not names:
+        return None
+    fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(7, 1.9 * len(names) + 1), squeeze=False)
+    it = [r["iteration"] for r in rows]
+    feas = [r["feasible"] for r in rows]
+    cons = {c.name: c for c in problem.constraints} if problem is not None else {}
+    for ax, name in zip(axes[:, 0], names):
+        y = [r["constraints"].get(name, np.nan) for r in rows]
+        _iterate_markers(ax, it, y, feas)
+        c = cons.get(name)
+        if c is not None:
+            for kind, b in (("lower", c.lower), ("upper", c.upper)):
+                if b is None:
+                    continue
+                ax.axhline(b, color="C3", ls="--", lw=1.2, label=f"limit {'≥' if kind == 'lower' else '≤'} {b:g}")
+                lo, hi = ax.get_ylim()
+                if kind == "lower":
+                    ax.axhspan(min(lo, b), b, color="C3", alpha=0.08)
+                else:
+                    ax.axhspan(b, max(hi, b), color="C3", alpha=0.08)
+        if baseline and name in baseline.get("outputs", {}):
+            ax.axhline(baseline["outputs"][name], color="0.3", ls="-.", lw=1.2, label=f"baseline ({baseline['label']})")
+        ax.set_ylabel(label(name), fontsize=8)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7, loc="best")
+    axes[0, 0].set_title("Constrained outputs (dashed: limits; shaded: infeasible side)")
+    axes[-1, 0].set_xlabel("iteration")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return fig
+
+
+def _plot_timing(timing, path: Path):
     import matplotlib.pyplot as plt
 
     names = sorted(timing)
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
     ax1.boxplot([np.array(timing[n]["compute_time_s"]) * 1e3 for n in names], tick_labels=names)
     ax1.set_ylabel("compute time per batch (ms)")
-    ax1.set_title("Discipline compute time")
+    ax1.set_title("Discipline compute time (warm-up excluded)")
     lat = [np.array(timing[n]["latency_s"]) * 1e3 for n in names]
     if any(len(v) for v in lat):
         ax2.boxplot([v if len(v) else [np.nan] for v in lat], tick_labels=names)
-    ax2.set_ylabel("request -> result latency (ms)")
+    ax2.set_ylabel("request → result latency (ms)")
     ax2.set_title("Round trip (header stamps)")
     for ax in (ax1, ax2):
         ax.tick_params(axis="x", rotation=30)
@@ -90,6 +187,7 @@ def _plot_timing(timing, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+    return fig
 
 
 def _timing_table(timing) -> list[str]:
@@ -103,7 +201,63 @@ def _timing_table(timing) -> list[str]:
     return lines
 
 
-def _markdown(bag: Bag, rows, timing, images: list[str]) -> str:
+def _context(bag: Bag):
+    """(config, problem, final analysis, baseline) from the config stored in the bag, evaluated in
+    process; Nones where the bag has no config or it no longer loads."""
+    text = read_config(bag)
+    if not text:
+        return None, None
+    try:
+        import yaml
+
+        from bev_mdo.config import load_config
+        from bev_mdo.mdo.problem import Problem
+
+        config = load_config(yaml.safe_load(text))
+        return config, Problem.from_config(config["problem"])
+    except (ValueError, KeyError, TypeError, ImportError):
+        return None, None
+
+
+LEAF = {"motor_kw": 80.0, "gear_ratio": 7.94, "battery_kwh": 24.0}
+
+
+def _analyse(config, design: dict) -> dict | None:
+    """One in-process MDA of ``design`` (the report's mass, cost, ... of the final iterate)."""
+    try:
+        from bev_mdo.config import resolve_disciplines
+        from bev_mdo.mdo.driver import evaluate_design
+        from bev_mdo.mdo.evaluator import InProcessEvaluator
+
+        return evaluate_design(config, InProcessEvaluator(resolve_disciplines(config)), design)
+    except Exception:  # noqa: BLE001 - a report is written even if the model no longer runs
+        return None
+
+
+def _baseline(config, problem) -> dict | None:
+    names = problem.names
+    if not set(LEAF) & set(names):
+        return None
+    design = {n: LEAF.get(n, d.initial) for n, d in zip(names, problem.design_variables)}
+    res = _analyse(config, design)
+    if res is None:
+        return None
+    return {"label": "Nissan Leaf", "design": design, "outputs": res["outputs"]}
+
+
+def _answers_section(answers: dict | None) -> list[str]:
+    if not answers:
+        return []
+    head = "What holds the design" if answers.get("feasible") else "Why the end point is infeasible"
+    out = ["", f"## {head}", ""]
+    out += [f"- {line.strip()}" if not line.startswith("  ") else f"  - {line.strip()}" for line in answers["lines"]]
+    return out
+
+
+def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = None,
+              answers: dict | None = None, baseline: dict | None = None) -> str:
+    from bev_mdo.mdo.units import unit_of
+
     info = bag.info
     lines = [f"# Run report: {bag.bag_dir.name}", "",
              f"- bag file: `{bag.mcap_path.name}` ({bag.file_size} bytes, {bag.message_count} messages, "
@@ -115,22 +269,41 @@ def _markdown(bag: Bag, rows, timing, images: list[str]) -> str:
         last = rows[-1]
         feasible = [r for r in rows if r["feasible"]]
         lines += [f"- {len(rows)} iterations, formulation `{last['formulation']}`, optimizer "
-                  f"`{last['optimizer']}`, {last['mda_evaluations']} multidisciplinary evaluations", "",
-                  "## Final iterate", "", "| quantity | value |", "|---|---:|",
-                  f"| {last['objective_name'] or 'objective'} | {last['objective']:.6g} |",
-                  *[f"| {k} | {v:.6g} |" for k, v in last["design"].items()],
-                  *[f"| constraint {k} | {v:.6g} |" for k, v in last["constraints"].items()],
-                  f"| max violation | {last['max_violation']:.3g} |",
-                  f"| feasible | {last['feasible']} |"]
+                  f"`{last['optimizer']}`, {last['mda_evaluations']} multidisciplinary evaluations", ""]
+        lines += ["## Final iterate", ""]
+        base = baseline or {}
+        bcol = f" {base['label']} |" if base else ""
+        lines += [f"| quantity | unit | value |{bcol}", "|---|---|---:|" + ("---:|" if base else "")]
+
+        def row(k, v, ref):
+            extra = f" {ref:.6g} |" if base else ""
+            if base and ref is None:
+                extra = " |"
+            return f"| {k} | {unit_of(k)} | {v:.6g} |{extra}"
+
+        lines.append(row(last["objective_name"] or "objective", last["objective"],
+                         base.get("outputs", {}).get(last["objective_name"])))
+        lines += [row(k, v, base.get("design", {}).get(k)) for k, v in last["design"].items()]
+        shown = {last["objective_name"], *last["design"]}
+        if final is not None:
+            lines += [row(k, v, base.get("outputs", {}).get(k)) for k, v in final["outputs"].items() if k not in shown]
+        else:
+            lines += [row(k, v, base.get("outputs", {}).get(k)) for k, v in last["constraints"].items()]
+        lines += [f"| max violation (normalised) | – | {last['max_violation']:.3g} |" + (" |" if base else ""),
+                  f"| feasible | | {last['feasible']} |" + (" |" if base else "")]
+        if final is not None:
+            lines += ["", "Outputs other than the objective and constraints (mass, cost, ...) are the final "
+                          "iterate analysed again in process from the configuration stored in the bag."]
         if feasible:
             best = min(feasible, key=lambda r: r["objective"])
             lines += ["", f"Best feasible objective {best['objective']:.6g} at iteration {best['iteration']}."]
+        lines += _answers_section(answers)
     else:
         lines += ["", "No iteration records in this bag."]
     lines += ["", "## Topics", "", "| topic | type | messages |", "|---|---|---:|"]
     lines += [f"| {t} | {ty} | {bag.counts.get(t, 0)} |" for t, ty in sorted(bag.topics.items())]
     if timing:
-        lines += ["", "## Discipline evaluation time", "", *_timing_table(timing)]
+        lines += ["", "## Discipline evaluation time (warm-up excluded)", "", *_timing_table(timing)]
     lines += ["", "## Plots", ""] + [f"![{Path(p).stem}]({p})" for p in images]
     config = read_config(bag)
     if config:
@@ -148,14 +321,32 @@ def report(bag, out_dir=None) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     rows = history(bag)
     timing = discipline_timing(bag)
+    config, problem = _context(bag)
+    final = answers = baseline = None
+    if rows and config is not None:
+        final = _analyse(config, dict(rows[-1]["design"]))
+        baseline = _baseline(config, problem)
+        answers = read_answers(bag)
+        if answers is None:
+            from bev_mdo.mdo.active import answers_for
+
+            values = dict(final["outputs"]) if final else {}
+            values.update(rows[-1]["constraints"])
+            try:
+                answers = answers_for(config, dict(rows[-1]["design"]), values)
+            except Exception:  # noqa: BLE001
+                answers = None
     written: list[Path] = []
     if rows:
-        _plot_convergence(rows, out / "convergence.png")
-        _plot_design(rows, out / "design.png")
+        _plot_convergence(rows, out / "convergence.png", baseline)
+        _plot_design(rows, out / "design.png", problem, baseline)
         written += [out / "convergence.png", out / "design.png"]
+        if _plot_constraints(rows, out / "constraints.png", problem, baseline) is not None:
+            written.append(out / "constraints.png")
     if timing:
         _plot_timing(timing, out / "discipline_time.png")
         written.append(out / "discipline_time.png")
     md = out / "report.md"
-    md.write_text(_markdown(bag, rows, timing, [p.name for p in written]), encoding="utf-8")
+    md.write_text(_markdown(bag, rows, timing, [p.name for p in written], final, answers, baseline),
+                  encoding="utf-8")
     return written + [md]

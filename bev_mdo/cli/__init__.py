@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 # Subcommand modules in bev_mdo.cli, in the order --help lists them.
 SUBCOMMANDS = (
     "optimize", "evaluate", "node", "record", "replay", "history", "report",
-    "resume", "bag", "sensitivity", "pareto", "validate",
+    "resume", "bag", "sensitivity", "pareto", "sweep", "graph", "validate",
 )
 
 
@@ -48,10 +49,23 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("bev-mdo: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        return _closed_pipe()
     except (UsageError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         print(f"bev-mdo {args.command}: error: {msg}", file=sys.stderr)
         return 2
+
+
+def _closed_pipe() -> int:
+    """The reader of stdout went away (``bev-mdo bag info BAG | head``): stop quietly, like a
+    command killed by SIGPIPE (exit status 141), without a traceback at interpreter exit."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    return 141
 
 
 if __name__ == "__main__":  # pragma: no cover

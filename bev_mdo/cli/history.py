@@ -1,15 +1,62 @@
-"""``bev-mdo history BAG [--csv FILE]``: the optimisation history of a recorded run."""
+"""``bev-mdo history BAG [--csv FILE]``: the optimisation history of a recorded run.
+
+The table fits the terminal: columns are chosen by priority (iteration, objective, violation,
+feasibility, design variables, constraints, evaluation counts) and their headers abbreviated
+(quantity over unit); the caption names what did not fit. ``--csv`` has every column.
+A bag without iteration records says so (and what it holds instead) on stderr and exits 1.
+"""
 from __future__ import annotations
 
+import os
+import shutil
 import sys
+
+# fixed short headers (quantity, unit) for the common columns
+_SHORT = {
+    "iteration": ("iter", ""), "objective": ("objective", ""), "max_violation": ("max", "violation"),
+    "feasible": ("feasible", ""), "mda_evaluations": ("MDA", "evals"), "formulation": ("form.", ""),
+    "optimizer": ("optimizer", ""),
+    "energy_wh_per_km": ("energy", "Wh/km"), "range_km": ("range", "km"),
+    "accel_time_0_100_s": ("0-100", "s"), "motor_speed_max_rad_s": ("ω max", "rad/s"),
+    "powertrain_cost_usd": ("cost", "US$"), "vehicle_mass_kg": ("mass", "kg"),
+    "motor_kw": ("motor", "kW"), "motor_rear_kw": ("motor rear", "kW"), "gear_ratio": ("gear", "–"),
+    "gear_ratio_rear": ("gear rear", "–"), "battery_kwh": ("battery", "kWh"),
+}
+EXIT_NO_ITERATIONS = 1
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser("history", help="print the optimisation history of a bag")
+    parser = subparsers.add_parser(
+        "history", help="print the optimisation history of a bag",
+        description="The IterationRecords of a bag as a table fitted to the terminal width (every column "
+                    "with --csv). Exit status 1 if the bag holds no iteration records (a pareto bag "
+                    "holds fronts instead: use `bev-mdo report` or the CSV files beside it).")
     parser.add_argument("bag", help="bag directory or .mcap file")
     parser.add_argument("--csv", metavar="FILE", help="write the history as CSV ('-' for stdout)")
     parser.add_argument("--run-id", help="only this run id")
+    parser.add_argument("--width", type=int, default=None,
+                        help="table width in characters (default: the terminal's; all columns when piped)")
     parser.set_defaults(func=run)
+
+
+def describe_other_content(bag) -> str:
+    """What a bag without iteration records holds, in one sentence."""
+    from bev_mdo.bag.history import ITERATION_TYPE
+
+    pareto = [t for t, ty in bag.topics.items() if ty.endswith("/ParetoFront")]
+    if pareto:
+        from bev_mdo.cli.pareto import read_fronts
+
+        fronts = read_fronts(bag.bag_dir if bag.bag_dir else bag.mcap_path)
+        tops = sorted({f["topology"] for f in fronts})
+        gens = max((f["generation"] for f in fronts), default=0)
+        return (f"it is a Pareto bag: {len(fronts)} ParetoFront messages on {', '.join(pareto)} "
+                f"({len(tops)} topolog{'y' if len(tops) == 1 else 'ies'}: {', '.join(tops)}; up to generation {gens}); "
+                f"the final fronts are in the pareto_<topology>.csv files beside the bag")
+    if not bag.topics:
+        return "it holds no messages at all"
+    kinds = sorted({ty for ty in bag.topics.values() if ty != ITERATION_TYPE})
+    return f"it holds {bag.message_count} messages of {', '.join(kinds)}"
 
 
 def run(args) -> int:
@@ -20,6 +67,11 @@ def run(args) -> int:
     if bag.truncated:
         print(bag.recovery_note(), file=sys.stderr)
     rows = history(bag, run_id=args.run_id)
+    if not rows:
+        what = f" of run {args.run_id}" if args.run_id else ""
+        print(f"bev-mdo history: {args.bag}: no iteration records{what}; {describe_other_content(bag)}",
+              file=sys.stderr)
+        return EXIT_NO_ITERATIONS
     if args.csv:
         text = to_csv(rows)
         if args.csv == "-":
@@ -29,30 +81,85 @@ def run(args) -> int:
                 f.write(text)
             print(f"wrote {len(rows)} iterations to {args.csv}")
         return 0
-    _print_table(flat_rows(rows))
+    width = args.width
+    if width is None and (sys.stdout.isatty() or os.environ.get("COLUMNS")):
+        width = shutil.get_terminal_size((120, 24)).columns
+    print_table(flat_rows(rows), width=width)
     return 0
 
 
-def _print_table(rows: list[dict]) -> None:
-    from rich.console import Console
-    from rich.table import Table
+def _header(col: str) -> tuple[str, str]:
+    name = col.split(".", 1)[1] if "." in col else col
+    if name in _SHORT:
+        return _SHORT[name]
+    from bev_mdo.mdo.units import split
 
+    q, u = split(name)
+    if col.startswith("evaluations."):
+        q, u = name[:10], "evals"
+    return q[:12], u
+
+
+def _priority(col: str) -> int:
+    order = ("iteration", "objective", "max_violation", "feasible", "design.", "constraint.",
+             "mda_evaluations", "evaluations.", "formulation", "optimizer")
+    for i, p in enumerate(order):
+        if col == p or (p.endswith(".") and col.startswith(p)):
+            return i
+    return len(order)
+
+
+def choose_columns(rows: list[dict], width: int | None) -> tuple[list[str], list[str], dict]:
+    """(columns shown in table order, columns left out, {column: (header, cells)}) for a width."""
     skip = {"run_id", "sequence", "objective_name", "wall_time_s"}
     columns: list[str] = []
     for row in rows:
         columns += [k for k in row if k not in columns and k not in skip]
-    table = Table(title=f"{len(rows)} iterations")
-    for col in columns:
-        table.add_column(col, justify="left" if col in ("formulation", "optimizer") else "right",
+    # constant text columns go into the title instead
+    columns = [c for c in columns if not (c in ("formulation", "optimizer")
+                                          and len({str(r.get(c)) for r in rows}) == 1)]
+    cells = {c: [_fmt(r.get(c, "")) for r in rows] for c in columns}
+    need = {}
+    for c in columns:
+        q, u = _header(c)
+        need[c] = max([len(q), len(u)] + [len(v) for v in cells[c]]) + 3
+    if width is None:
+        return columns, [], cells
+    chosen, used = [], 1
+    for c in sorted(columns, key=lambda c: (_priority(c), columns.index(c))):
+        if used + need[c] <= width:
+            chosen.append(c)
+            used += need[c]
+    shown = [c for c in columns if c in chosen]
+    return shown, [c for c in columns if c not in chosen], cells
+
+
+def print_table(rows: list[dict], width: int | None = None, file=None) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    out = file or sys.stdout
+    shown, left, cells = choose_columns(rows, width)
+    first = rows[0]
+    title = f"{len(rows)} iterations"
+    for k in ("formulation", "optimizer"):
+        if k not in shown and first.get(k):
+            title += f", {first[k]}"
+    if first.get("objective_name"):
+        title += f"; objective = {first['objective_name']}"
+    caption = None
+    if left:
+        caption = (f"{len(left)} more column{'s' if len(left) > 1 else ''} "
+                   f"({', '.join(left)}): --csv FILE has all")
+    table = Table(title=title, caption=caption)
+    for col in shown:
+        q, u = _header(col)
+        table.add_column(f"{q}\n{u}" if u else q, justify="left" if col in ("formulation", "optimizer") else "right",
                          no_wrap=True)
-    cells = [[_fmt(row.get(c, "")) for c in columns] for row in rows]
-    for row in cells:
-        table.add_row(*row)
-    # full width when piped, so no column is cut (a terminal keeps its own width)
-    need = sum(max([len(c)] + [len(r[i]) for r in cells]) + 3 for i, c in enumerate(columns)) + 1
-    console = Console()
-    if not sys.stdout.isatty():
-        console = Console(file=sys.stdout, width=max(80, need))
+    for i in range(len(rows)):
+        table.add_row(*[cells[c][i] for c in shown])
+    total = sum(max([len(x) for x in _header(c)] + [len(v) for v in cells[c]]) + 3 for c in shown) + 1
+    console = Console(file=out, width=max(width or 0, total, 40))
     console.print(table)
 
 

@@ -43,10 +43,12 @@ def _progress(quiet: bool, to_stderr: bool):
     def show(rec: dict) -> None:
         if quiet:
             return
-        rate = rec.get("mda_evaluations", 0) / max(rec.get("wall_time_s", 0.0), 1e-9)
+        idf = rec.get("formulation") == "idf"  # IDF runs no MDA: count discipline evaluations
+        n = sum(rec.get("discipline_evaluations", {}).values()) if idf else rec.get("mda_evaluations", 0)
+        rate = n / max(rec.get("wall_time_s", 0.0), 1e-9)
         print(f"iter {rec['iteration']:4d}  {rec['objective_name']} {rec['objective']:12.6f}  "
               f"max violation {rec['max_violation']:9.3g}  {'feasible  ' if rec['feasible'] else 'infeasible'}"
-              f"  {rate:9.0f} MDA evals/s", file=out, flush=True)
+              f"  {rate:9.0f} {'discipline' if idf else 'MDA'} evals/s", file=out, flush=True)
 
     return show
 
@@ -67,8 +69,8 @@ def _table(result: dict, baseline: dict, out) -> None:
     t.add_row("feasible", str(result["feasible"]), str(baseline["feasible"]))
     Console(file=out).print(t)
     print(f"iterations {result['iterations']}, MDA evaluations {result['mda_evaluations']}, "
-          f"evaluations per discipline {result['discipline_evaluations']}, wall time {result['wall_time_s']:.3f} s",
-          file=out)
+          f"evaluations per discipline {result['discipline_evaluations']}", file=out)
+    print(f"optimiser wall time {result['wall_time_s']:.3f} s (first evaluation to optimum)", file=out)
 
 
 def run(args) -> int:
@@ -83,18 +85,26 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
         from bev_mdo.mdo.optimizers import canonical_name
 
         canonical_name(args.optimizer)  # ValueError names the known optimizers
+    t_start = time.perf_counter()
     out = sys.stderr if args.json else sys.stdout
     show = _progress(args.quiet, args.json)
     if args.transport == "inprocess":
         result, baseline, extra = _run_inprocess(config, args, show, x0)
     else:
         result, baseline, extra = _run_ros(config, args, show, x0)
+    from bev_mdo.cli import runbag  # end-of-run answers: printed, in --json, stored with the bag
+
+    runbag.finish(config, result, extra)
+    extra = {k: v for k, v in extra.items() if not k.startswith("_")}
+    extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
     if args.json:
         print(json.dumps({**result, "baseline": baseline, **extra}, default=float, indent=2))
     else:
         _table(result, baseline, out)
+        print("\n".join(runbag.answers_text(result, args.transport)), file=out)
         for k, v in extra.items():
-            print(f"{k}: {v}", file=out)
+            print(f"{k}: {v}" if k != "run_time_s" else f"run time {v:.3f} s (config loaded to this line: start-up, "
+                  "optimisation, baseline, answers, shut-down)", file=out)
     return 0 if result["feasible"] else 1
 
 
@@ -109,12 +119,15 @@ def _run_inprocess(config, args, show, x0=None):
     from bev_mdo.mdo.evaluator import InProcessEvaluator
 
     ev = InProcessEvaluator(resolve_disciplines(config))
+    from bev_mdo.cli.runbag import in_process_bag  # --bag works in process too
+
+    bag, writer, show = in_process_bag(config, args, show)
     res = run_optimization(config, ev, formulation=args.formulation, optimizer=args.optimizer, x0=x0,
                            callback=show)
     out = res.to_dict()
     out.pop("history")
     baseline = evaluate_design(config, InProcessEvaluator(resolve_disciplines(config)), _baseline_design(config))
-    return out, baseline, {"transport": "inprocess"}
+    return out, baseline, {"transport": "inprocess", **({"bag": bag} if bag else {}), "_bag_writer": writer}
 
 
 def _run_ros(config, args, show, x0=None):
@@ -139,11 +152,15 @@ def _run_ros(config, args, show, x0=None):
     run_id = uuid.uuid4().hex[:16]
     stamp_ = time.strftime("%Y%m%d_%H%M%S")
     bag = Path(args.bag) if args.bag else Path("bags") / f"{config.get('name', 'run')}_{stamp_}_{run_id[:6]}"
-    logs = Path("bags") / ".logs" / run_id  # node logs and the resolved config, outside the bag
+    logs = bag / "logs"  # node logs and the resolved config, beside the bag in the run's directory
     logs.mkdir(parents=True, exist_ok=True)
     resolved = logs / "config.yaml"
     resolved.write_text(yaml.safe_dump(_plain(config), sort_keys=False))
     launcher = Launcher(env, log_dir=logs)
+    if not args.quiet:
+        print(f"starting {len(discipline_entries(config))} discipline nodes{'' if args.no_record else ' and a recorder'}"
+              f" (domain {ros['domain_id']}); waiting up to {ros.get('discovery_wait_s', 20):g} s for them to be "
+              f"discovered ...", file=sys.stderr if args.json else sys.stdout, flush=True)
     recorder = 0
     try:
         for entry in discipline_entries(config):

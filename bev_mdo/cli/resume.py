@@ -15,7 +15,7 @@ def register(sub) -> None:
     p.add_argument("bag", help="bag directory or .mcap file")
     p.add_argument("--transport", choices=["ros", "inprocess"], default="ros")
     p.add_argument("--json", action="store_true")
-    p.add_argument("--output", dest="out_bag", default=None, help="bag to write (default: bags/<name>_resumed_...)")
+    p.add_argument("--output", dest="out_bag", default=None, help="bag to write (default: bags/<config name>_<time>_<run>, as optimize)")
     p.add_argument("--no-record", action="store_true")
     p.add_argument("--quiet", action="store_true")
     from bev_mdo.cli.ros_args import add_ros_arguments

@@ -26,7 +26,7 @@ def register(subparsers) -> None:
                    help="first-order derivative method")
     p.add_argument("--rel-step", type=float, default=None, help="relative FD step (default 1e-4 / 1e-3)")
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")
-    p.add_argument("--png", metavar="FILE", help="write a heatmap PNG of the second-order matrices")
+    p.add_argument("--png", metavar="FILE", help="write a PNG: first-order bars and (order 2) the second-order matrices")
     p.add_argument("--ros", action="store_true",
                    help="evaluate every stencil through the running discipline nodes (one request wave each)")
     p.set_defaults(func=run)
@@ -118,13 +118,13 @@ def run(args) -> int:
                 raise ValueError(f"--wrt: unknown variable or parameter {k!r}; known: {', '.join(point)}")
         s = sensitivities(fun, point, wrt=wrt, order=args.order, bounds=bounds,
                           rel_step=args.rel_step, method=args.method, objective=problem.objective)
-    if args.png and s.second is not None:
-        write_heatmap(args.png, s, outputs)
+    if args.png:
+        write_heatmap(args.png, s, outputs, cfg)
     if args.json:
         print(json.dumps(to_dict(s, outputs), indent=2))
     else:
         print_tables(s, outputs)
-        if args.png and s.second is not None:
+        if args.png:
             print(f"wrote {args.png}")
     return 0
 
@@ -165,27 +165,76 @@ def print_tables(s, outputs, out=sys.stdout) -> None:
             print(n.ljust(w) + "".join(cells), file=out)
 
 
-def write_heatmap(path: str, s, outputs) -> str:
-    """One annotated heatmap of the second-order matrix per output."""
+def _context_title(s, cfg) -> str:
+    cyc = (cfg or {}).get("cycle", {})
+    cyc = cyc.get("name", "") if isinstance(cyc, dict) else str(cyc)
+    model = (cfg or {}).get("energy_model", "")
+    point = ", ".join(f"{k}={s.point[k]:g}" for k in s.names)
+    return f"at {point}" + (f"; cycle {cyc}" if cyc else "") + (f", {model} model" if model else "")
+
+
+def write_heatmap(path: str, s, outputs, cfg=None):
+    """The sensitivity figure: a first-order bar chart (eq 5-4) and, with second order, one
+    matrix per output (eq 5-5) on ONE symmetric colour scale shared by the whole figure. Entries
+    whose magnitude is not above their Richardson error estimate are masked (grey, "≤ err"): they
+    are noise, not signal. Text is white on dark cells. The title names the point and the cycle.
+    Returns the figure (closed)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.colors import Normalize
 
+    from bev_mdo.mdo.units import label
+
+    second = s.second is not None
     n = len(outputs)
-    fig, axes = plt.subplots(1, n, figsize=(4.2 * n + 1, 4.2), squeeze=False)
-    for ax, k in zip(axes[0], outputs):
-        m = s.second[k]
-        lim = max(np.nanmax(np.abs(m)), 1e-12)
-        im = ax.imshow(m, cmap="RdBu_r", vmin=-lim, vmax=lim)
-        lab = s.labels(k)
-        for i in range(m.shape[0]):
-            for j in range(m.shape[1]):
-                ax.text(j, i, f"{m[i, j]:.2f}\n{lab[i, j]}", ha="center", va="center", fontsize=7)
-        ax.set_xticks(range(len(s.names)), s.names, rotation=45, ha="right", fontsize=7)
-        ax.set_yticks(range(len(s.names)), s.names, fontsize=7)
-        ax.set_title(k, fontsize=9)
-        fig.colorbar(im, ax=ax, shrink=0.8)
-    fig.tight_layout()
+    ncols = 2 if second and n > 1 else 1
+    nrows = 1 + (-(-n // ncols) if second else 0)
+    fig = plt.figure(figsize=(5.2 * ncols + 1.5, 4.2 + 4.0 * (nrows - 1)), layout="constrained")
+    gs = fig.add_gridspec(nrows, ncols)
+    ax = fig.add_subplot(gs[0, :])
+    width = 0.8 / max(n, 1)
+    xs = np.arange(len(s.names))
+    for k, out in enumerate(outputs):
+        vals, err = np.asarray(s.first[out], float), np.asarray(s.first_error[out], float)
+        ax.bar(xs + (k - (n - 1) / 2) * width, vals, width, yerr=np.where(np.isfinite(err), err, 0),
+               label=label(out), capsize=2)
+    ax.axhline(0, color="k", lw=0.8)
+    ax.set_xticks(xs, [label(v) for v in s.names], fontsize=8)
+    ax.set_ylabel("S = (x/f) df/dx (–)")
+    ax.set_title("first order, normalised (eq 5-4)", fontsize=9)
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize=7, loc="best")
+    if second:
+        mats = {k: np.asarray(s.second[k], float) for k in outputs}
+        errs = {k: np.asarray(s.second_error[k], float) for k in outputs}
+        signal = [np.abs(m)[np.abs(m) > np.nan_to_num(e, nan=np.inf)] for m, e in
+                  ((mats[k], errs[k]) for k in outputs)]
+        lim = max([float(np.max(v)) for v in signal if v.size] + [1e-3])
+        norm = Normalize(vmin=-lim, vmax=lim)
+        cmap = plt.get_cmap("RdBu_r").with_extremes(bad="0.85")
+        im, mat_axes = None, []
+        ticks = [label(v) for v in s.names]
+        for idx, k in enumerate(outputs):
+            ax = fig.add_subplot(gs[1 + idx // ncols, idx % ncols])
+            mat_axes.append(ax)
+            m, e = mats[k], errs[k]
+            masked = ~(np.abs(m) > np.nan_to_num(e, nan=np.inf))
+            im = ax.imshow(np.ma.masked_array(m, masked), cmap=cmap, norm=norm)
+            lab = s.labels(k)
+            for i in range(m.shape[0]):
+                for j in range(m.shape[1]):
+                    if masked[i, j]:
+                        ax.text(j, i, "≤ err", ha="center", va="center", fontsize=7, color="0.35")
+                        continue
+                    dark = abs(norm(m[i, j]) - 0.5) > 0.3
+                    ax.text(j, i, f"{m[i, j]:.3g}\n{lab[i, j]}", ha="center", va="center", fontsize=8,
+                            color="white" if dark else "black")
+            ax.set_xticks(range(len(s.names)), ticks, rotation=20, ha="right", fontsize=7)
+            ax.set_yticks(range(len(s.names)), ticks if idx % ncols == 0 else [], fontsize=7)
+            ax.set_title(f"second order (eq 5-5) of {label(k)}", fontsize=9)
+        fig.colorbar(im, ax=mat_axes, shrink=0.8, label="S'_ij (–), one scale for all matrices; grey: |S'| ≤ error")
+    fig.suptitle(f"Normalised sensitivities {_context_title(s, cfg)}", fontsize=10)
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    return path
+    return fig

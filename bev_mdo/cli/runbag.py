@@ -1,0 +1,121 @@
+"""What a run writes besides the terminal: the in-process bag and the end-of-run answers.
+
+* ``InProcessBag``: with ``--transport inprocess`` the iteration records go straight into a
+  rosbag2 MCAP bag (the same ``IterationRecord`` on ``/bev_mdo/iteration`` the recorder node
+  writes over ROS, and the run's config in the ``bev_mdo`` metadata record), so ``--bag`` works
+  on both transports and ``history``/``report``/``resume`` read either.
+* ``ANSWERS_METADATA`` / ``ANSWERS_FILE``: the answers of ``bev_mdo.mdo.active`` at the end of the
+  run. In process they are an MCAP metadata record of the bag itself; over ROS (the bag is the
+  recorder node's) they are written as ``answers.json`` into the bag directory.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any, Mapping
+
+from bev_mdo.bag.report import ANSWERS_FILE, ANSWERS_METADATA, read_answers  # noqa: F401 (re-exported)
+
+
+class InProcessBag:
+    """Iteration records of an in-process run, written as the recorder node would write them."""
+
+    def __init__(self, bag_dir: Path, config: Mapping[str, Any], run_id: str):
+        import yaml
+
+        from bev_mdo.bag.writer import BagWriter
+        from bev_mdo.cli.optimize import _plain
+        from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC
+
+        self.topic = ITERATION_TOPIC
+        self.run_id = run_id
+        self.writer = BagWriter(bag_dir, metadata={"run_id": run_id, "transport": "inprocess",
+                                                   "config_yaml": yaml.safe_dump(_plain(dict(config)),
+                                                                                 sort_keys=False)})
+        self.writer.add_topic(ITERATION_TOPIC, "bev_mdo_msgs/msg/IterationRecord", ITERATION_QOS)
+        self.seq = 0
+
+    def __call__(self, rec: Mapping[str, Any]) -> None:
+        import numpy as np
+        from rclpy.serialization import serialize_message
+
+        from bev_mdo.ros import wire
+        from bev_mdo.ros.common import stamp
+        from bev_mdo_msgs.msg import IterationRecord
+
+        msg = IterationRecord()
+        stamp(msg.header)
+        self.seq += 1
+        msg.run_id, msg.sequence, msg.iteration = self.run_id, self.seq, int(rec["iteration"])
+        msg.formulation, msg.optimizer = str(rec.get("formulation", "")), str(rec.get("optimizer", ""))
+        wire.to_named_array({k: np.array([float(v)]) for k, v in rec["design"].items()}, msg.design)
+        msg.objective_name, msg.objective = str(rec.get("objective_name", "")), float(rec["objective"])
+        wire.to_named_array({k: np.array([float(v)]) for k, v in rec.get("constraints", {}).items()},
+                            msg.constraints)
+        msg.max_violation = float(rec.get("max_violation", 0.0))
+        msg.feasible = bool(rec.get("feasible", False))
+        msg.mda_evaluations = int(rec.get("mda_evaluations", 0))
+        counts = rec.get("discipline_evaluations", {})
+        msg.discipline_names = list(counts)
+        msg.discipline_evaluations = [int(v) for v in counts.values()]
+        msg.wall_time_s = float(rec.get("wall_time_s", 0.0))
+        t = time.time_ns()
+        self.writer.write(self.topic, serialize_message(msg), t, t, self.seq)
+
+    def close(self, answers: Mapping[str, Any] | None = None) -> None:
+        if answers is not None and not self.writer.closed:
+            self.writer._mcap.add_metadata(ANSWERS_METADATA, {"answers_json": json.dumps(answers, default=float)})
+        self.writer.close()
+
+
+def write_answers(bag_dir: Path, answers: Mapping[str, Any]) -> Path:
+    """``answers.json`` beside a recorder's bag (over ROS)."""
+    path = Path(bag_dir) / ANSWERS_FILE
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(answers, default=float, indent=2) + "\n", encoding="utf-8")
+    return path
+
+
+def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
+    """The end-of-run answers (``bev_mdo.mdo.active``) for a run result dict."""
+    from bev_mdo.mdo.active import answers_for
+
+    values = {k: c["value"] for k, c in result.get("constraints", {}).items()}
+    values.update({k: v for k, v in result.get("outputs", {}).items() if k not in values})
+    return answers_for(config, result["design"], values)
+
+
+def finish(config: Mapping[str, Any], result: dict, extra: Mapping[str, Any]) -> None:
+    """Add ``result["active"]`` and store it with the run's bag (closing an in-process bag)."""
+    result["active"] = ans = answers(config, result)
+    inproc = extra.get("_bag_writer")
+    if inproc is not None:
+        inproc.close(ans)
+    elif extra.get("bag"):
+        write_answers(Path(extra["bag"]), ans)
+
+
+def answers_text(result: Mapping[str, Any], transport: str = "") -> list[str]:
+    """The answers as printed under the summary table."""
+    ans = result["active"]
+    head = "what holds the optimum:" if result.get("feasible") else "why the end point is infeasible:"
+    lines = [head] + [f"  {line}" for line in ans["lines"]]
+    if ans.get("jacobian_error"):
+        lines.append(f"  (no blocking analysis: {ans['jacobian_error']})")
+    return lines
+
+
+def in_process_bag(config: Mapping[str, Any], args, show):
+    """(bag path or None, writer or None, iteration callback) for an in-process run: a bag only with --bag."""
+    if getattr(args, "no_record", False) or not getattr(args, "bag", None):
+        return None, None, show
+    import uuid
+
+    writer = InProcessBag(Path(args.bag), config, uuid.uuid4().hex[:16])
+
+    def callback(rec):
+        writer(rec)
+        show(rec)
+
+    return str(args.bag), writer, callback

@@ -1,0 +1,321 @@
+"""``bev-mdo sweep`` and ``bev-mdo compare``: many designs as one batch.
+
+``sweep CONFIG --vary motor_kw=40:120:9 gear_ratio=6:10:5`` evaluates the full-factorial grid
+(9 x 5 = 45 designs; ``lo:hi:n`` is n evenly spaced values, ``a,b,c`` a list) as ONE batch of
+multidisciplinary analyses, in process or through the running nodes (``--transport ros``), and
+writes ``sweep.csv`` (one row per design: every design variable, every output, each constraint's
+margin, feasible, ok) and one PNG per output against the varied variables, feasible and infeasible
+points marked, constraint limits drawn. ``--list FILE.csv`` evaluates the designs listed in a CSV
+(a header of design-variable names) instead of a grid. Variables not varied keep their initial value.
+
+``compare CONFIG --design k=v,... --design k=v,...`` prints two or more designs side by side
+with every output, constraint margin and the difference of each from the first design.
+"""
+from __future__ import annotations
+
+import csv
+import itertools
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from bev_mdo.cli import UsageError
+
+
+def register(sub) -> None:
+    p = sub.add_parser("sweep", help="a grid (or list) of designs as one batch: CSV and PNG per output",
+                       description=__doc__.split("\n\n")[1])
+    p.add_argument("config", help="run config YAML")
+    p.add_argument("--vary", nargs="+", default=[], metavar="NAME=LO:HI:N",
+                   help="a design variable (or model parameter) and its values: lo:hi:n or a,b,c")
+    p.add_argument("--list", dest="list_csv", metavar="FILE.csv", help="evaluate the designs listed in this CSV")
+    p.add_argument("--set", dest="fixed", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
+                   help="fixed values for variables not varied (default: their initial value)")
+    p.add_argument("--transport", choices=["inprocess", "ros"], default="inprocess",
+                   help="ros: through the running discipline nodes (start them first)")
+    p.add_argument("--out", default="sweep", help="output directory (default ./sweep)")
+    p.add_argument("--no-plots", action="store_true")
+    p.set_defaults(func=run)
+    c = sub.add_parser("compare", help="two or more designs side by side with their differences",
+                       description=__doc__.split("\n\n")[2])
+    c.add_argument("config", help="run config YAML")
+    c.add_argument("--design", action="append", default=[], metavar="k=v,...", required=True,
+                   help="one design (repeat); variables not given take their initial value")
+    c.add_argument("--json", action="store_true")
+    c.add_argument("--transport", choices=["inprocess", "ros"], default="inprocess")
+    c.set_defaults(func=run_compare)
+
+
+def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
+    out = {}
+    for item in items:
+        name, sep, spec = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise UsageError(f"--vary {item!r} must be NAME=LO:HI:N or NAME=A,B,C")
+        try:
+            if ":" in spec:
+                parts = spec.split(":")
+                if len(parts) != 3:
+                    raise ValueError
+                lo, hi, n = float(parts[0]), float(parts[1]), int(parts[2])
+                if n < 1:
+                    raise ValueError
+                vals = np.linspace(lo, hi, n)
+            else:
+                vals = np.array([float(v) for v in spec.split(",") if v.strip()])
+        except ValueError:
+            raise UsageError(f"--vary {item!r}: values must be LO:HI:N (N >= 1 integer) or a list A,B,C") from None
+        if not vals.size:
+            raise UsageError(f"--vary {item!r}: no values")
+        out[name] = vals
+    return out
+
+
+def grid(vary: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Full factorial: every combination, the first variable varying slowest."""
+    names = list(vary)
+    combos = np.array(list(itertools.product(*[vary[n] for n in names])), dtype=float)
+    return {n: combos[:, j] for j, n in enumerate(names)}
+
+
+def read_list(path: str) -> dict[str, np.ndarray]:
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = list(csv.DictReader(f))
+    except FileNotFoundError:
+        raise UsageError(f"--list {path}: no such file") from None
+    if not rows:
+        raise UsageError(f"--list {path}: no designs (a header of names, then one row per design)")
+    out = {}
+    for k in rows[0]:
+        try:
+            out[k.strip()] = np.array([float(r[k]) for r in rows])
+        except (TypeError, ValueError):
+            raise UsageError(f"--list {path}: column {k!r} has a value that is not a number") from None
+    return out
+
+
+def evaluate_batch(config, designs: dict[str, np.ndarray], transport: str = "inprocess") -> dict:
+    """One batch of MDAs: {design: {k: array}, outputs: {k: array}, margins: {c: array},
+    feasible: bool array, ok: bool array, errors: [str]} (``designs`` may set parameters too)."""
+    from bev_mdo.mdo.driver import FEASIBILITY_TOL, _mda
+    from bev_mdo.mdo.problem import Problem
+
+    problem = Problem.from_config(config["problem"])
+    n = len(next(iter(designs.values())))
+    cols = {d.name: np.full(n, d.initial) for d in problem.design_variables}
+    cols.update({k: np.full(n, float(v)) for k, v in problem.parameters.items()})
+    evaluator = _evaluator(config, transport)
+    try:
+        mda = _mda(config, evaluator, problem)
+        params = {p for s in mda.specs.values() for p in s.parameters}
+        unknown = [k for k in designs if k not in problem.names and k not in params]
+        if unknown:
+            raise UsageError(f"unknown names {unknown}; design variables: {problem.names}, "
+                             f"parameters: {sorted(params)}")
+        for d in problem.design_variables:
+            if d.name in designs:
+                v = designs[d.name]
+                bad = v[(v < d.lower) | (v > d.upper)]
+                if bad.size:
+                    raise UsageError(f"{d.name}={bad[0]:g} is outside its bounds [{d.lower:g}, {d.upper:g}]")
+        cols.update({k: np.asarray(v, dtype=float) for k, v in designs.items()})
+        res = mda.run(cols)
+    finally:
+        evaluator.close()
+    outputs = {v: np.asarray(res.values[v], dtype=float) for s in mda.specs.values() for v in s.outputs}
+    margins, feasible = {}, np.asarray(res.ok, dtype=bool).copy()
+    for c in problem.constraints:
+        y = outputs[c.name]
+        m = np.full(n, np.inf)
+        if c.lower is not None:
+            m = np.minimum(m, y - c.lower)
+        if c.upper is not None:
+            m = np.minimum(m, c.upper - y)
+        margins[c.name] = m
+        scale = c.scale or max(abs(c.lower if c.lower is not None else c.upper), 1.0)
+        if not c.monitor:
+            feasible &= np.isfinite(m) & (m >= -FEASIBILITY_TOL * scale)
+    return {"design": {k: cols[k] for k in [*problem.names, *[k for k in designs if k not in problem.names]]},
+            "outputs": outputs, "margins": margins, "feasible": feasible, "ok": np.asarray(res.ok, bool),
+            "errors": list(res.errors), "objective": problem.objective, "problem": problem}
+
+
+def _evaluator(config, transport):
+    from bev_mdo.cli.evaluate import _evaluator as make
+
+    if transport == "ros":
+        ros = config.get("ros") or {}
+        print(f"waiting up to {ros.get('discovery_wait_s', 20):g} s for the discipline nodes on ROS domain "
+              f"{ros.get('domain_id', 77)} ...", file=sys.stderr, flush=True)
+
+    return make(config, transport == "ros")
+
+
+def write_csv(path: Path, result: dict) -> None:
+    cols = list(result["design"]) + list(result["outputs"]) + [f"margin.{k}" for k in result["margins"]]
+    n = len(result["feasible"])
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(cols + ["feasible", "ok", "error"])
+        for i in range(n):
+            row = [result["design"][k][i] for k in result["design"]] + [result["outputs"][k][i] for k in result["outputs"]]
+            row += [result["margins"][k][i] for k in result["margins"]]
+            w.writerow([f"{v:.10g}" for v in row] + [bool(result["feasible"][i]), bool(result["ok"][i]),
+                                                     result["errors"][i]])
+
+
+def plot_output(result: dict, output: str, varied: list[str], path: Path):
+    """One PNG: ``output`` against the first varied variable, one line per value of the second
+    (if any; further varied variables: one panel per value of the third is too much, they are
+    overlaid); feasible points filled, infeasible hollow red x; constraint limits dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bev_mdo.mdo.units import label
+
+    problem = result["problem"]
+    x = result["design"][varied[0]]
+    y = result["outputs"][output]
+    feas = result["feasible"]
+    fig, ax = plt.subplots(figsize=(7, 4.6))
+    groups = [(None, np.ones(len(x), bool))]
+    if len(varied) > 1:
+        second = result["design"][varied[1]]
+        groups = [(v, np.isclose(second, v)) for v in np.unique(second)]
+    cmap = plt.get_cmap("viridis")
+    for k, (v, sel) in enumerate(groups):
+        colour = cmap(k / max(len(groups) - 1, 1)) if v is not None else "C0"
+        order = np.argsort(x[sel], kind="stable")
+        xs, ys, fs = x[sel][order], y[sel][order], feas[sel][order]
+        lab = f"{label(varied[1])} = {v:g}" if v is not None else None
+        ax.plot(xs, ys, "-", color=colour, lw=1, alpha=0.7, label=lab)
+        ax.plot(xs[fs], ys[fs], "o", color=colour, ms=5)
+        ax.plot(xs[~fs], ys[~fs], "x", color="C3", ms=7, mew=1.5)
+    ax.plot([], [], "o", color="0.4", label="feasible")
+    ax.plot([], [], "x", color="C3", label="infeasible")
+    for c in problem.constraints:
+        if c.name == output:
+            for kind, b in (("lower", c.lower), ("upper", c.upper)):
+                if b is not None:
+                    ax.axhline(b, color="C3", ls="--", lw=1.2, label=f"constraint {'≥' if kind == 'lower' else '≤'} {b:g}")
+    for d in problem.design_variables:
+        if d.name == varied[0]:
+            ax.set_xlim(min(d.lower, x.min()) - 0.02 * (d.upper - d.lower), max(d.upper, x.max()) + 0.02 * (d.upper - d.lower))
+            for b in (d.lower, d.upper):
+                ax.axvline(b, color="0.3", ls=":", lw=1)
+    ax.set_xlabel(label(varied[0]))
+    ax.set_ylabel(label(output))
+    fixed = ", ".join(f"{k}={result['design'][k][0]:g}" for k in result["design"] if k not in varied)
+    ax.set_title(f"{label(output)} vs {label(varied[0])}" + (f"\n(fixed: {fixed})" if fixed else ""), fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=2 if len(groups) > 6 else 1, loc="best")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return fig, ax
+
+
+def run(args) -> int:
+    from bev_mdo.cli.evaluate import parse_assignments
+    from bev_mdo.config import load_config
+
+    config = load_config(args.config)
+    if bool(args.vary) == bool(args.list_csv):
+        raise UsageError("give either --vary NAME=LO:HI:N ... or --list FILE.csv")
+    designs = grid(parse_vary(args.vary)) if args.vary else read_list(args.list_csv)
+    varied = list(designs)
+    fixed = parse_assignments(args.fixed)
+    n = len(designs[varied[0]])
+    for k, v in fixed.items():
+        if k in designs:
+            raise UsageError(f"--set {k} is also varied")
+        designs[k] = np.full(n, v)
+    result = evaluate_batch(config, designs, args.transport)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv(out / "sweep.csv", result)
+    written = [out / "sweep.csv"]
+    if not args.no_plots:
+        for o in result["outputs"]:
+            if o in varied:
+                continue
+            p = out / f"{o}.png"
+            plot_output(result, o, varied, p)
+            written.append(p)
+    feas = result["feasible"]
+    print(f"{n} designs in one batch ({args.transport}): {int(feas.sum())} feasible, {int((~feas).sum())} infeasible, "
+          f"{int((~result['ok']).sum())} failed")
+    if feas.any():
+        obj = result["outputs"][result["objective"]]
+        i = int(np.argmin(np.where(feas, obj, np.inf)))
+        best = ", ".join(f"{k}={result['design'][k][i]:.6g}" for k in result["design"])
+        print(f"best feasible {result['objective']} = {obj[i]:.6g} at {best}")
+    for p in written:
+        print(p)
+    return 0
+
+
+def run_compare(args) -> int:
+    from bev_mdo.cli.evaluate import parse_assignments
+    from bev_mdo.config import load_config
+    from bev_mdo.mdo.units import unit_of
+
+    if len(args.design) < 2:
+        raise UsageError("give two or more --design k=v,... to compare")
+    config = load_config(args.config)
+    given = [parse_assignments([d]) for d in args.design]
+    keys = list(dict.fromkeys(k for g in given for k in g))
+    from bev_mdo.mdo.problem import Problem
+
+    problem = Problem.from_config(config["problem"])
+    init = {d.name: d.initial for d in problem.design_variables}
+    designs = {k: np.array([g.get(k, init.get(k, np.nan)) for g in given]) for k in keys}
+    if any(np.isnan(v).any() for v in designs.values()):
+        missing = [k for k, v in designs.items() if np.isnan(v).any()]
+        raise UsageError(f"{missing} must be given in every --design (they are parameters, with no initial value)")
+    result = evaluate_batch(config, designs, args.transport)
+    rows = []
+    for k, v in result["design"].items():
+        rows.append((k, unit_of(k), v))
+    for k, v in result["outputs"].items():
+        if k not in result["design"]:
+            rows.append((k, unit_of(k), v))
+    for k, v in result["margins"].items():
+        rows.append((f"margin {k}", unit_of(k), v))
+    if args.json:
+        print(json.dumps({"designs": [{name: float(v[i]) for name, _, v in rows} | {
+            "feasible": bool(result["feasible"][i]), "ok": bool(result["ok"][i])} for i in range(len(given))]},
+            indent=2))
+        return 0
+    from rich.console import Console
+    from rich.table import Table
+
+    t = Table(title=f"{len(given)} designs; differences from design 1")
+    t.add_column("quantity")
+    t.add_column("unit")
+    t.add_column("design 1", justify="right")
+    for i in range(1, len(given)):
+        t.add_column(f"design {i + 1}", justify="right")
+        t.add_column(f"Δ {i + 1}−1", justify="right")
+    for name, unit, v in rows:
+        big = max(float(np.nanmax(np.abs(v))), 1.0)
+
+        def num(x, sign=""):  # round-off (below 1e-9 of the row's largest value) shows as 0
+            return "0" if abs(x) < 1e-9 * big else f"{x:{sign}.6g}"
+
+        cells = [num(v[0])]
+        for i in range(1, len(given)):
+            d = v[i] - v[0]
+            pct = f" ({100 * d / v[0]:+.1f} %)" if v[0] not in (0.0,) and np.isfinite(v[0]) and not name.startswith("margin") else ""
+            cells += [num(v[i]), f"{num(d, '+')}{pct}" if num(d) != "0" else "0"]
+        t.add_row(name, unit, *cells)
+    feas = ["yes" if f else "[bold red]NO[/]" for f in result["feasible"]]
+    t.add_row("feasible", "", feas[0], *[c for f in feas[1:] for c in (f, "")])
+    Console(file=sys.stdout, width=max(100, 40 + 28 * len(given))).print(t)
+    return 0

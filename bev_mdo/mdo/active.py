@@ -1,0 +1,220 @@
+"""What holds a design where it is: active constraints, variables on a bound, blocking bounds.
+
+Pure functions (no ROS, no evaluation of their own unless asked through ``fd_jacobian``).
+
+The rule (docs/answers.md):
+
+* A constraint bound is **active** when its margin (distance to the limit in the constraint's own
+  unit, positive = satisfied) is within ``rel_tol`` of the constraint's scale (``scale`` from the
+  config, default max(|bound|, 1)); it is **violated** when the margin is below -1e-6 of that scale
+  (the driver's own feasibility tolerance), which takes precedence.
+* A design variable is **on a bound** when it is within ``rel_tol`` of (upper - lower) of it.
+* At an infeasible end, a variable on a bound **blocks** a violated constraint when moving the
+  variable out through that bound would reduce the violation: with v(x) the violation in the
+  constraint's unit (limit - value for a lower limit, value - limit for an upper one) and dv/dx its
+  derivative, an upper bound blocks when dv/dx < 0 and a lower bound when dv/dx > 0. The reported
+  ``rate`` is |dv/dx|: constraint units of violation removed per unit the bound would give.
+* Also at an infeasible end, an active (satisfied) constraint **conflicts** with a violated one when
+  the steepest way to reduce the violation (-grad v, in the optimiser's scaled variables, restricted
+  to the variables free to move that way) would make the active one worse.
+
+Without a Jacobian the infeasible analysis names the violated constraints and the variables on a
+bound but cannot say which bound blocks.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+REL_TOL = 1e-3
+FEAS_TOL = 1e-6  # the driver's feasibility tolerance on normalised constraints (driver.FEASIBILITY_TOL)
+
+
+def _scale(c) -> float:
+    b = c.lower if c.lower is not None else c.upper
+    return float(c.scale or max(abs(b), 1.0))
+
+
+def _limits(problem) -> list[tuple[str, str, float, float]]:
+    """(name, kind, limit, scale) for every bound of every constraint, monitored ones too."""
+    out = []
+    for c in problem.constraints:
+        for kind, b in (("lower", c.lower), ("upper", c.upper)):
+            if b is not None:
+                out.append((c.name, kind, float(b), float(c.scale or max(abs(b), 1.0))))
+    return out
+
+
+def _violation(kind: str, limit: float, value: float) -> float:
+    """Violation in the constraint's unit: > 0 violated, < 0 satisfied (minus the margin)."""
+    return limit - value if kind == "lower" else value - limit
+
+
+def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *,
+            jacobian: Mapping[str, Mapping[str, float]] | None = None, rel_tol: float = REL_TOL,
+            units: Callable[[str], str] | None = None) -> dict[str, Any]:
+    """The answers for one end point.
+
+    ``problem``: a ``bev_mdo.mdo.problem.Problem``; ``design``: its design variables; ``values``: the
+    constraint outputs at the point (extra keys are ignored); ``jacobian[output][variable]``: d output /
+    d variable in physical units (only needed for the blocking analysis of an infeasible end);
+    ``units(name)``: a unit string for a quantity (default: ``bev_mdo.mdo.units.unit_of``).
+    Returns a JSON-ready dict: ``feasible``, ``active_constraints``, ``bounds`` (variables on a
+    bound), ``violated`` (each with ``blocked_by`` and ``conflicts_with`` when a Jacobian is given)
+    and ``lines`` (the same as short sentences for the terminal).
+    """
+    from bev_mdo.mdo.units import unit_of
+
+    unit = units or unit_of
+    active, violated = [], []
+    for name, kind, limit, scale in _limits(problem):
+        y = float(values.get(name, np.nan))
+        v = _violation(kind, limit, y)
+        entry = {"name": name, "kind": kind, "limit": limit, "value": y, "margin": -v, "unit": unit(name),
+                 "scale": scale,
+                 "monitor": any(c.monitor for c in problem.constraints if c.name == name)}
+        if not np.isfinite(v):
+            violated.append({**entry, "violation": float("inf")})
+        elif v > FEAS_TOL * scale:
+            violated.append({**entry, "violation": v})
+        elif abs(v) <= rel_tol * scale:
+            active.append(entry)
+    bounds = []
+    for d in problem.design_variables:
+        x = float(design[d.name])
+        span = d.upper - d.lower
+        for kind, b in (("lower", d.lower), ("upper", d.upper)):
+            if abs(x - b) <= rel_tol * span:
+                bounds.append({"name": d.name, "kind": kind, "bound": float(b), "value": x,
+                               "margin": float(x - b if kind == "lower" else b - x), "unit": unit(d.name),
+                               "scale": float(span)})
+    if jacobian is not None:
+        on_bound = {(b["name"]): b["kind"] for b in bounds}
+        spans = {d.name: d.upper - d.lower for d in problem.design_variables}
+        for e in violated:
+            sign = 1.0 if e["kind"] == "upper" else -1.0
+            grad = {n: sign * float(jacobian.get(e["name"], {}).get(n, 0.0)) for n in problem.names}
+            e["blocked_by"] = []
+            for n, g in grad.items():
+                kind = on_bound.get(n)
+                if kind == "upper" and g < 0 or kind == "lower" and g > 0:
+                    e["blocked_by"].append({"variable": n, "bound": kind, "rate": abs(g),
+                                            "rate_unit": f"{e['unit'] or '1'} per {unit(n) or 'unit'}"})
+            e["blocked_by"].sort(key=lambda b: -b["rate"] * spans[b["variable"]])
+            # steepest descent of the violation in scaled variables, over the variables free to move
+            step = {}
+            for n, g in grad.items():
+                kind = on_bound.get(n)
+                if kind == "upper" and g < 0 or kind == "lower" and g > 0:
+                    continue
+                step[n] = -g * spans[n] ** 2  # dx = -grad_u v * span, grad_u = grad_x * span
+            e["conflicts_with"] = []
+            for a in active:
+                sa = 1.0 if a["kind"] == "upper" else -1.0
+                worse = sum(sa * float(jacobian.get(a["name"], {}).get(n, 0.0)) * dx for n, dx in step.items())
+                if worse > 0:
+                    e["conflicts_with"].append(f"{a['name']} {'>=' if a['kind'] == 'lower' else '<='} "
+                                               f"{a['limit']:g}")
+    feasible = not any(not e["monitor"] for e in violated)
+    out = {"feasible": feasible, "rel_tol": rel_tol, "active_constraints": active, "bounds": bounds,
+           "violated": violated}
+    out["lines"] = summary_lines(out)
+    return out
+
+
+def _num(v: float, scale: float | None = None) -> str:
+    """4 significant digits; a margin below 1e-6 of its scale (the optimiser's feasibility
+    tolerance) is shown as 0."""
+    if scale is not None and abs(v) < 1e-6 * scale:
+        return "0"
+    return f"{v:.4g}"
+
+
+def summary_lines(ans: Mapping[str, Any]) -> list[str]:
+    """Short sentences: what holds the design (feasible) or what is violated and what blocks."""
+    lines = []
+
+    def u(s: str) -> str:
+        return f" {s}" if s else ""
+
+    for e in ans["violated"]:
+        op = ">=" if e["kind"] == "lower" else "<="
+        line = (f"violated: {e['name']} {op} {e['limit']:g}{u(e['unit'])} is {e['value']:.6g}{u(e['unit'])}, "
+                f"{'short' if e['kind'] == 'lower' else 'over'} by {_num(e['violation'])}{u(e['unit'])}")
+        if e.get("monitor"):
+            line += " (monitored only)"
+        lines.append(line)
+        if "blocked_by" in e:
+            if e["blocked_by"]:
+                lines.append("  blocked by " + "; ".join(
+                    f"{b['variable']} on its {b['bound']} bound ({b['rate']:.3g} {b['rate_unit']})"
+                    for b in e["blocked_by"]))
+            else:
+                lines.append("  no design-variable bound blocks it")
+            if e["conflicts_with"]:
+                lines.append("  reducing it would break " + ", ".join(e["conflicts_with"]))
+    for e in ans["active_constraints"]:
+        op = ">=" if e["kind"] == "lower" else "<="
+        lines.append(f"active: {e['name']} {op} {e['limit']:g}{u(e['unit'])}, margin {_num(e['margin'], e['scale'])}{u(e['unit'])}"
+                     + (" (monitored only)" if e.get("monitor") else ""))
+    for b in ans["bounds"]:
+        lines.append(f"on its {b['kind']} bound: {b['name']} = {_num(b['value'])}{u(b['unit'])} "
+                     f"(bound {b['bound']:g}{u(b['unit'])}, margin {_num(b['margin'], b['scale'])}{u(b['unit'])})")
+    if not lines:
+        lines.append("no constraint is active and no design variable is on a bound (an interior optimum)")
+    return lines
+
+
+def fd_jacobian(config: Mapping[str, Any], design: Mapping[str, float], names: list[str] | None = None,
+                rel_step: float = 1e-6) -> dict[str, dict[str, float]]:
+    """d output / d design variable at ``design`` by one-sided finite differences, evaluated in
+    process as ONE batch (the point and its stencil); each step points into the box."""
+    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.mdo.driver import _mda
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.mdo.problem import Problem
+
+    problem = Problem.from_config(config["problem"])
+    ev = InProcessEvaluator(resolve_disciplines(config))
+    try:
+        mda = _mda(config, ev, problem)
+        x = np.array([float(design[n]) for n in problem.names])
+        steps = []
+        for d, xi in zip(problem.design_variables, x):
+            h = rel_step * (d.upper - d.lower)
+            steps.append(-h if xi + h > d.upper else h)
+        pts = np.repeat(x[None, :], len(x) + 1, axis=0)
+        for j, h in enumerate(steps):
+            pts[j + 1, j] += h
+        inputs = {k: np.full(len(pts), float(v)) for k, v in problem.parameters.items()}
+        inputs.update({n: pts[:, j] for j, n in enumerate(problem.names)})
+        res = mda.run(inputs)
+        outs = names or sorted({c.name for c in problem.constraints})
+        jac = {}
+        for o in outs:
+            col = np.asarray(res.values[o], dtype=float)
+            jac[o] = {n: float((col[j + 1] - col[0]) / steps[j]) for j, n in enumerate(problem.names)}
+        return jac
+    finally:
+        close = getattr(ev, "close", None)
+        if close:
+            close()
+
+
+def answers_for(config: Mapping[str, Any], design: Mapping[str, float], values: Mapping[str, float],
+                rel_tol: float = REL_TOL) -> dict[str, Any]:
+    """``analyse`` for a run config; an infeasible end gets the Jacobian by ``fd_jacobian`` (in process)."""
+    from bev_mdo.mdo.problem import Problem
+
+    problem = Problem.from_config(config["problem"])
+    ans = analyse(problem, design, values, rel_tol=rel_tol)
+    if ans["violated"]:
+        try:
+            jac = fd_jacobian(config, design)
+        except Exception as exc:  # a model that fails near the point: say so, keep the rest
+            ans["jacobian_error"] = f"{type(exc).__name__}: {exc}"
+        else:
+            ans = analyse(problem, design, values, jacobian=jac, rel_tol=rel_tol)
+    return ans

@@ -1,0 +1,88 @@
+#!/usr/bin/env python3
+"""Render the benchmark figures of ``bench/results/*.json`` into docs/performance.md.
+
+The section between ``<!-- bench:begin -->`` and ``<!-- bench:end -->`` is replaced by one table
+per bench (what, median and range over the runs, target, date, load) and the command that
+produced it; nothing in it is written by hand. ``--check`` exits 1 if the document is not what
+the results render to (test/test_render_bench.py runs that).
+
+    python scripts/render_bench.py [--check] [--results bench/results] [--doc docs/performance.md]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BEGIN, END = "<!-- bench:begin -->", "<!-- bench:end -->"
+
+
+def fmt(v: float) -> str:
+    a = abs(v)
+    if a >= 1e5:
+        return f"{v:,.0f}".replace(",", " ")
+    if a >= 100:
+        return f"{v:.0f}"
+    if a >= 1:
+        return f"{v:.3g}"
+    return f"{v:.3g}"
+
+
+def render(results_dir: Path) -> str:
+    docs = []
+    for p in sorted(results_dir.glob("*.json")):
+        try:
+            d = json.loads(p.read_text(encoding="utf-8"))
+        except json.JSONDecodeError as exc:
+            raise SystemExit(f"{p}: not JSON ({exc})")
+        if "figures" not in d:
+            continue
+        docs.append((p, d))
+    if not docs:
+        return "_No results yet: run the benches (they write bench/results/*.json), then this script._\n"
+    out = []
+    for p, d in docs:
+        host = d.get("host", {})
+        out += [f"### {d.get('bench', p.stem)}", "",
+                f"`{d.get('command', '')}` — {d.get('date_utc', '?')} UTC, {host.get('cpus', '?')} CPUs, "
+                f"load average {host.get('load_average_1min', '?')} at the end, Python {host.get('python', '?')}; "
+                f"file `{p.relative_to(ROOT) if p.is_relative_to(ROOT) else p}`", "",
+                "| what | median | range (runs) | unit | target |", "|---|---:|---:|---|---|"]
+        for f in d["figures"]:
+            rng = f"{fmt(f['min'])}–{fmt(f['max'])} ({len(f['runs'])})" if len(f["runs"]) > 1 else f"({len(f['runs'])})"
+            out.append(f"| {f['what']} | {fmt(f['median'])} | {rng} | {f['unit']} | {f.get('target', '')} |")
+        out.append("")
+    return "\n".join(out)
+
+
+def splice(doc: str, body: str) -> str:
+    if BEGIN not in doc or END not in doc:
+        raise SystemExit(f"the document has no {BEGIN} ... {END} section")
+    head, rest = doc.split(BEGIN, 1)
+    _, tail = rest.split(END, 1)
+    return f"{head}{BEGIN}\n{body.rstrip()}\n{END}{tail}"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--results", default=str(ROOT / "bench" / "results"))
+    ap.add_argument("--doc", default=str(ROOT / "docs" / "performance.md"))
+    ap.add_argument("--check", action="store_true", help="exit 1 if the document is stale")
+    args = ap.parse_args(argv)
+    doc_path = Path(args.doc)
+    doc = doc_path.read_text(encoding="utf-8")
+    new = splice(doc, render(Path(args.results)))
+    if args.check:
+        if new != doc:
+            print(f"{doc_path} is stale: run python scripts/render_bench.py", file=sys.stderr)
+            return 1
+        return 0
+    doc_path.write_text(new, encoding="utf-8")
+    print(f"rendered {len(list(Path(args.results).glob('*.json')))} result files into {doc_path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

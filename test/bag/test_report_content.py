@@ -1,0 +1,169 @@
+"""Report content without looking at pixels: units in axis labels, bounds and limits drawn,
+infeasible iterates marked, baseline shown, the answers (active constraints, bounds) named.
+
+Two in-process runs write real bags (``optimize --transport inprocess --bag``): the default problem
+(feasible; ends on the motor-speed and 0-100 km/h limits with the battery on its lower bound) and the
+WLTC problem with a 250 km range (infeasible; the battery on its upper bound blocks the range).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import matplotlib
+import numpy as np
+import pytest
+import yaml
+
+matplotlib.use("Agg")
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _run(tmp: Path, config_path: Path, name: str) -> tuple[int, Path, dict]:
+    import contextlib
+    import io
+
+    from bev_mdo.cli import main
+
+    bag = tmp / name
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        rc = main(["optimize", str(config_path), "--transport", "inprocess", "--bag", str(bag), "--json", "--quiet"])
+    return rc, bag, json.loads(buf.getvalue())
+
+
+@pytest.fixture(scope="module")
+def feasible_run(tmp_path_factory):
+    return _run(tmp_path_factory.mktemp("feasible"), ROOT / "config/leaf_nedc.yaml", "leaf")
+
+
+@pytest.fixture(scope="module")
+def infeasible_run(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("infeasible")
+    cfg = yaml.safe_load((ROOT / "config/leaf_nedc.yaml").read_text())
+    cfg["cycle"]["name"] = "wltc_class3"
+    cfg["problem"]["constraints"]["range_km"] = {"lower": 250}
+    path = tmp / "wltc250.yaml"
+    path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    return _run(tmp, path, "wltc250")
+
+
+def test_feasible_run_names_its_active_constraints_and_bounds(feasible_run):
+    rc, bag, out = feasible_run
+    assert rc == 0
+    act = out["active"]
+    assert {(a["name"], a["kind"]) for a in act["active_constraints"]} == {
+        ("motor_speed_max_rad_s", "upper"), ("accel_time_0_100_s", "upper")}
+    assert [(b["name"], b["kind"]) for b in act["bounds"]] == [("battery_kwh", "lower")]
+    assert act["violated"] == []
+    assert all(a["unit"] for a in act["active_constraints"])  # rad/s, s
+
+
+def test_infeasible_run_says_what_is_violated_and_which_bound_blocks(infeasible_run):
+    rc, bag, out = infeasible_run
+    assert rc == 1
+    act = out["active"]
+    viol = {v["name"]: v for v in act["violated"]}
+    assert "range_km" in viol and viol["range_km"]["violation"] > 0
+    assert viol["range_km"]["unit"] == "km"
+    blockers = [(b["variable"], b["bound"]) for b in viol["range_km"]["blocked_by"]]
+    assert ("battery_kwh", "upper") in blockers
+    assert any("battery_kwh on its upper bound" in line for line in act["lines"])
+
+
+def test_the_answers_are_stored_in_the_in_process_bag(infeasible_run):
+    from bev_mdo.bag.reader import open_bag
+    from bev_mdo.bag.report import read_answers
+
+    _, bag, out = infeasible_run
+    stored = read_answers(open_bag(bag))
+    assert stored is not None and stored["lines"] == out["active"]["lines"]
+
+
+def test_report_markdown_names_the_answers_mass_and_cost(infeasible_run, tmp_path):
+    from bev_mdo.bag.report import report
+
+    _, bag, _ = infeasible_run
+    paths = report(bag, tmp_path)
+    md = (tmp_path / "report.md").read_text()
+    assert "## Why the end point is infeasible" in md
+    assert "blocked by battery_kwh on its upper bound" in md
+    assert "| vehicle_mass_kg | kg |" in md and "| powertrain_cost_usd | US$ |" in md
+    assert {p.name for p in paths} >= {"convergence.png", "design.png", "constraints.png", "report.md"}
+
+
+def _figures(bag):
+    from bev_mdo.bag import report as rep
+    from bev_mdo.bag.history import history
+    from bev_mdo.bag.reader import open_bag
+
+    b = open_bag(bag)
+    rows = history(b)
+    config, problem = rep._context(b)
+    base = rep._baseline(config, problem)
+    return rows, problem, base, rep
+
+
+def test_design_plot_has_units_bounds_baseline_and_marks_infeasible(infeasible_run, tmp_path):
+    rows, problem, base, rep = _figures(infeasible_run[1])
+    fig = rep._plot_design(rows, tmp_path / "d.png", problem, base)
+    axes = fig.axes
+    assert [a.get_ylabel() for a in axes] == ["motor power (kW)", "gear ratio (–)", "battery capacity (kWh)"]
+    for ax, d in zip(axes, problem.design_variables):
+        ys = {round(float(l.get_ydata()[0]), 9) for l in ax.get_lines() if l.get_linestyle() == "--"}
+        assert {d.lower, d.upper} <= ys, f"bounds of {d.name} not drawn"
+        labels = [l.get_label() for l in ax.get_lines()]
+        assert "infeasible iterate" in labels and "baseline (Nissan Leaf)" in labels
+    # the battery sits on its upper bound at the end, inside the drawn limits
+    battery = axes[2]
+    assert battery.get_ylim()[1] >= 30
+
+
+def test_constraint_plot_draws_limits_with_units(feasible_run, tmp_path):
+    rows, problem, base, rep = _figures(feasible_run[1])
+    fig = rep._plot_constraints(rows, tmp_path / "c.png", problem, base)
+    by_label = {a.get_ylabel(): a for a in fig.axes}
+    assert set(by_label) == {"range (km)", "max motor speed (rad/s)", "0–100 km/h time (s)"}
+    limits = {round(float(l.get_ydata()[0]), 6) for a in fig.axes for l in a.get_lines() if l.get_linestyle() == "--"}
+    assert {170.0, 1000.0, 10.0} <= limits
+
+
+def test_convergence_plot_labels_the_objective_with_its_unit(feasible_run, tmp_path):
+    rows, problem, base, rep = _figures(feasible_run[1])
+    fig = rep._plot_convergence(rows, tmp_path / "v.png", base)
+    assert fig.axes[0].get_ylabel() == "energy consumption (Wh/km)"
+    assert "baseline (Nissan Leaf)" in [l.get_label() for l in fig.axes[0].get_lines()]
+    markers = [l for l in fig.axes[0].get_lines() if l.get_label() == "infeasible iterate"]
+    assert markers and len(markers[0].get_xdata()) == sum(not r["feasible"] for r in rows)
+
+
+def test_history_of_a_bag_without_iterations_says_what_it_holds(tmp_path, capsys):
+    from bev_mdo.bag.writer import BagWriter
+    from bev_mdo.cli import main
+
+    with BagWriter(tmp_path / "empty", metadata={"run_id": "x"}) as w:
+        w.add_topic("/bev_mdo/iteration", "bev_mdo_msgs/msg/IterationRecord")
+    rc = main(["history", str(tmp_path / "empty")])
+    err = capsys.readouterr().err
+    assert rc == 1 and "no iteration records" in err
+
+
+def test_history_table_fits_the_width_and_names_what_it_left_out(feasible_run):
+    import io
+
+    from bev_mdo.bag.history import flat_rows, history
+    from bev_mdo.cli.history import print_table
+
+    rows = flat_rows(history(feasible_run[1]))
+    for width in (80, 120, 200):
+        buf = io.StringIO()
+        print_table(rows, width=width, file=buf)
+        lines = buf.getvalue().splitlines()
+        assert max(len(l) for l in lines) <= width
+        assert any("objective" in l for l in lines)
+    buf = io.StringIO()
+    print_table(rows, width=80, file=buf)
+    assert "--csv FILE has all" in buf.getvalue()
+    # each shown column keeps its full values (no column shrunk to nothing)
+    assert "94.6349" in buf.getvalue()

@@ -1,0 +1,55 @@
+"""`--params-file` works for the nodes as docs/ros2-run.md says: the shipped example parses as a ROS
+parameters file, and a generic discipline node given only a parameters file (config + discipline)
+declares the discipline that file names."""
+from __future__ import annotations
+
+import sys
+
+import pytest
+import yaml
+
+rclpy = pytest.importorskip("rclpy")
+
+from bev_mdo.config import load_config  # noqa: E402
+from bev_mdo.ros import coordinator_node  # noqa: E402
+from bev_mdo.ros.launch import Launcher  # noqa: E402
+from bev_mdo.testing import REPO, ros_env  # noqa: E402
+
+ROS_DOMAIN = 58
+SHIPPED = REPO / "config" / "params" / "leaf_nedc_nodes.yaml"
+
+
+def test_the_shipped_parameters_file_names_declared_parameters():
+    doc = yaml.safe_load(SHIPPED.read_text())
+    assert doc["/**"]["ros__parameters"]["config"] == "config/leaf_nedc.yaml"
+    assert (REPO / doc["/**"]["ros__parameters"]["config"]).is_file()
+    assert set(doc["coordinator_node"]["ros__parameters"]) <= {"config", "formulation", "optimizer", "run_id",
+                                                                "recorders"}
+
+
+def test_a_node_started_with_only_a_parameters_file_serves_what_it_names(ros_domain, rclpy_context, tmp_path):
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
+    raw["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost",
+                          {"name": "top_speed", "class": "examples.top_speed:TopSpeed",
+                           "options": {"motor_max_speed_rad_s": 1100.0}}]
+    raw["ros"] = {"domain_id": ros_domain}
+    cfg = tmp_path / "top.yaml"
+    cfg.write_text(yaml.safe_dump(raw, sort_keys=False))
+    params = tmp_path / "params.yaml"
+    params.write_text(yaml.safe_dump({"/**": {"ros__parameters": {"config": str(cfg), "discipline": "top_speed"}}}))
+    env = ros_env(ros_domain)
+    env["PYTHONPATH"] = f"{REPO}:{env.get('PYTHONPATH', '')}"
+    la = Launcher(env, log_dir=tmp_path / "logs")
+    try:
+        node = la.add("top_speed", [sys.executable, "-m", "bev_mdo.ros.run", "discipline_node", "--ros-args",
+                                    "--params-file", str(params)])
+        coord = coordinator_node.CoordinatorNode(load_config(str(cfg)), context=rclpy_context,
+                                                 node_name="params_probe")
+        try:
+            coord.evaluator.wait_for_disciplines(["top_speed"], 60.0)
+        finally:
+            coord.evaluator.close()
+            coord.destroy_node()
+    finally:
+        la.stop()
+    assert node.restarts == 0

@@ -1,0 +1,133 @@
+"""The README's tour runs as written and prints what the README shows.
+
+Every ```console block preceded by ``<!-- readme-check -->`` is executed (its ``$ `` line, in a
+scratch directory holding a copy of config/ and examples/, like a fresh clone) and each line shown
+below it must appear in the output, in order (``...`` stands for any text; runs of spaces match
+any whitespace). ``<!-- readme-check json -->`` blocks compare the JSON shown with the JSON
+printed: the same keys, equal strings and booleans, numbers within 0.1 % (the README rounds).
+Every command of the command table and every ``bev-mdo`` subcommand the README names must exist.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+README = ROOT / "README.md"
+
+
+def blocks(text: str) -> list[tuple[str, str, list[str]]]:
+    """(mode, command, expected lines) of every checked block, in README order."""
+    out = []
+    for m in re.finditer(r"<!-- readme-check( json)? -->\s*```console\n(.*?)```", text, re.S):
+        lines = m.group(2).rstrip("\n").split("\n")
+        assert lines[0].startswith("$ "), f"a checked block must start with '$ ': {lines[0]!r}"
+        out.append(("json" if m.group(1) else "text", lines[0][2:], lines[1:]))
+    return out
+
+
+def line_pattern(line: str) -> re.Pattern:
+    parts = [re.escape(p) for p in line.strip().split("...")]
+    body = ".*".join(re.sub(r"(\\ )+", r"\\s+", p) for p in parts)
+    return re.compile(body)
+
+
+def match_in_order(expected: list[str], actual: list[str]) -> str | None:
+    """None if every expected line matches a later actual line in order, else the first that does not."""
+    k = 0
+    for line in expected:
+        if not line.strip():
+            continue
+        pat = line_pattern(line)
+        while k < len(actual) and not pat.fullmatch(actual[k].strip()):
+            k += 1
+        if k == len(actual):
+            return line
+        k += 1
+    return None
+
+
+def close(shown, got, path="") -> list[str]:
+    if isinstance(shown, dict):
+        if not isinstance(got, dict) or set(shown) != set(got):
+            return [f"{path}: keys {sorted(shown) if isinstance(shown, dict) else shown} != "
+                    f"{sorted(got) if isinstance(got, dict) else got}"]
+        return [e for k in shown for e in close(shown[k], got[k], f"{path}.{k}")]
+    if isinstance(shown, bool) or shown is None or isinstance(shown, str):
+        return [] if shown == got else [f"{path}: {shown!r} != {got!r}"]
+    if isinstance(shown, (int, float)):
+        ok = isinstance(got, (int, float)) and abs(got - shown) <= 1e-3 * max(abs(shown), 1e-9)
+        return [] if ok else [f"{path}: {shown!r} != {got!r}"]
+    return [f"{path}: unexpected {shown!r}"]
+
+
+@pytest.fixture(scope="module")
+def clone(tmp_path_factory):
+    d = tmp_path_factory.mktemp("clone")
+    for sub in ("config", "examples"):
+        shutil.copytree(ROOT / sub, d / sub)
+    return d
+
+
+def run(cmd: str, cwd: Path) -> subprocess.CompletedProcess:
+    argv = shlex.split(cmd)
+    assert argv[0] == "bev-mdo", f"checked README commands are bev-mdo commands: {cmd}"
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "COLUMNS": "", "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    env.pop("COLUMNS")
+    return subprocess.run([sys.executable, "-c", "import sys; from bev_mdo.cli import main; sys.exit(main())",
+                           *argv[1:]], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=300)
+
+
+CHECKED = blocks(README.read_text(encoding="utf-8"))
+
+
+def test_the_readme_has_checked_blocks():
+    assert len(CHECKED) >= 4  # optimize, evaluate, history, evaluate --json
+
+
+@pytest.mark.parametrize("mode,cmd,expected", CHECKED, ids=[c[1][:60] for c in CHECKED])
+def test_readme_block_runs_as_written(clone, mode, cmd, expected):
+    proc = run(cmd, clone)
+    assert proc.returncode == 0, f"{cmd}\nexit {proc.returncode}\n{proc.stderr[-2000:]}"
+    if mode == "json":
+        errors = close(json.loads("\n".join(expected)), json.loads(proc.stdout))
+        assert not errors, "\n".join(errors)
+    else:
+        missing = match_in_order(expected, proc.stdout.splitlines())
+        assert missing is None, f"{cmd}: README line not printed (in order):\n{missing}\n--- output ---\n{proc.stdout}"
+
+
+def test_the_matcher_can_fail():
+    assert match_in_order(["a ... c"], ["a b c"]) is None
+    assert match_in_order(["b", "a"], ["a", "b"]) == "a"  # order matters
+    assert match_in_order(["x 1"], ["x   2"]) == "x 1"
+    assert close({"a": 1.0}, {"a": 1.01}) and not close({"a": 1.0}, {"a": 1.0004})
+
+
+def test_every_subcommand_the_readme_names_exists():
+    from bev_mdo.cli import build_parser
+
+    text = README.read_text(encoding="utf-8")
+    named = set(re.findall(r"`bev-mdo ([a-z]+)", text))
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    assert named, "the README names no bev-mdo subcommand"
+    assert named <= set(sub.choices), f"README names unknown subcommands {named - set(sub.choices)}"
+
+
+def test_every_local_link_of_the_readme_resolves_or_is_a_known_pending_doc():
+    # docs written by other branches of this session (merged by the lead)
+    pending = {"docs/validation.md", "docs/security.md", "docs/derivatives.md", "docs/vector-variables.md",
+               "docs/user-problems.md"}
+    text = README.read_text(encoding="utf-8")
+    links = set(re.findall(r"\]\(((?:docs|config|examples|bench|scripts)/[^)#]+)", text))
+    missing = {p for p in links if not (ROOT / p).exists()} - pending
+    assert not missing, f"README links to missing files {missing}"

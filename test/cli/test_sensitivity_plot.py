@@ -1,0 +1,42 @@
+"""The sensitivity figure, inspected: first-order bars, one symmetric colour scale for every
+matrix, entries not above their error masked, readable text colour, point and cycle in the title."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from bev_mdo.cli.sensitivity import build_batch, write_heatmap
+from bev_mdo.config import load_config, resolve_disciplines
+from bev_mdo.mdo.evaluator import InProcessEvaluator
+from bev_mdo.mdo.sensitivity import sensitivities
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_sensitivity_figure(tmp_path):
+    cfg = load_config(str(ROOT / "config/leaf_nedc.yaml"))
+    fun, point, bounds, outputs, problem = build_batch(cfg, InProcessEvaluator(resolve_disciplines(cfg)))
+    point.update(motor_kw=80.0, gear_ratio=8.0, battery_kwh=24.0)
+    s = sensitivities(fun, point, wrt=list(problem.names), order=2, bounds=bounds, objective=problem.objective)
+    fig = write_heatmap(str(tmp_path / "s.png"), s, outputs, cfg)
+    title = fig._suptitle.get_text()
+    assert "motor_kw=80" in title and "cycle nedc" in title
+    bars, *mats = [a for a in fig.axes if a.get_label() != "<colorbar>"]
+    assert bars.get_title().startswith("first order")
+    assert len(bars.patches) == len(outputs) * len(problem.names)
+    images = [a.images[0] for a in mats]
+    assert len(images) == len(outputs)
+    lims = {im.get_clim() for im in images}
+    assert len(lims) == 1, "one colour scale for every matrix"
+    lo, hi = lims.pop()
+    assert lo == -hi and hi > 0
+    # motor speed is linear in the gear ratio and independent of the rest: every entry is noise
+    speed = mats[outputs.index("motor_speed_max_rad_s")]
+    assert np.ma.getmaskarray(speed.images[0].get_array()).all()
+    assert {t.get_text() for t in speed.texts} == {"≤ err"}
+    # the strongest cell (acceleration, motor-motor) is dark and labelled in white
+    acc = mats[outputs.index("accel_time_0_100_s")]
+    strongest = max(acc.texts, key=lambda t: abs(float(t.get_text().split()[0])) if t.get_text()[0] != "≤" else 0)
+    assert strongest.get_color() == "white"
+    assert (tmp_path / "s.png").stat().st_size > 1000

@@ -1,0 +1,83 @@
+"""`bev-mdo sweep` and `bev-mdo compare` in process: one batch, CSV, plots, differences."""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bev_mdo.cli import main
+from bev_mdo.cli.sweep import evaluate_batch, grid, parse_vary, plot_output
+from bev_mdo.config import load_config
+
+ROOT = Path(__file__).resolve().parents[2]
+CONFIG = str(ROOT / "config/leaf_nedc.yaml")
+
+
+def test_parse_vary_and_full_factorial():
+    v = parse_vary(["motor_kw=40:120:9", "gear_ratio=6,8"])
+    assert v["motor_kw"].tolist() == [40, 50, 60, 70, 80, 90, 100, 110, 120]
+    g = grid(v)
+    assert len(g["motor_kw"]) == 18 and g["gear_ratio"][:2].tolist() == [6, 8]
+    with pytest.raises(Exception):
+        parse_vary(["motor_kw=40:120"])
+
+
+def test_sweep_writes_csv_and_plots_and_matches_single_evaluations(tmp_path, capsys):
+    rc = main(["sweep", CONFIG, "--vary", "motor_kw=40:120:5", "gear_ratio=6:10:3", "--out", str(tmp_path)])
+    assert rc == 0
+    rows = list(csv.DictReader(open(tmp_path / "sweep.csv")))
+    assert len(rows) == 15
+    assert {"motor_kw", "gear_ratio", "battery_kwh", "energy_wh_per_km", "margin.range_km", "feasible"} <= set(rows[0])
+    # the 40 kW designs cannot reach 100 km/h in 10 s: infeasible, and marked so
+    assert all(r["feasible"] == "False" for r in rows if float(r["motor_kw"]) == 40)
+    assert any(r["feasible"] == "True" for r in rows)
+    # one row equals a one-design evaluation
+    from bev_mdo.cli.evaluate import _evaluator
+    from bev_mdo.mdo.driver import evaluate_design
+
+    cfg = load_config(CONFIG)
+    r = rows[7]
+    one = evaluate_design(cfg, _evaluator(cfg, False), {k: float(r[k]) for k in ("motor_kw", "gear_ratio", "battery_kwh")})
+    assert float(r["energy_wh_per_km"]) == pytest.approx(one["outputs"]["energy_wh_per_km"], rel=1e-9)
+    assert (tmp_path / "energy_wh_per_km.png").exists() and (tmp_path / "range_km.png").exists()
+    assert "15 designs in one batch" in capsys.readouterr().out
+
+
+def test_sweep_plot_marks_infeasible_and_draws_the_limit(tmp_path):
+    cfg = load_config(CONFIG)
+    res = evaluate_batch(cfg, grid(parse_vary(["motor_kw=40:120:5", "gear_ratio=6,8"])))
+    fig, ax = plot_output(res, "accel_time_0_100_s", ["motor_kw", "gear_ratio"], tmp_path / "a.png")
+    assert ax.get_xlabel() == "motor power (kW)" and ax.get_ylabel() == "0–100 km/h time (s)"
+    limit = [l for l in ax.get_lines() if l.get_label().startswith("constraint ≤ 10")]
+    assert limit and float(limit[0].get_ydata()[0]) == 10.0
+    crosses = [l for l in ax.get_lines() if l.get_marker() == "x" and len(l.get_xdata())]
+    assert sum(len(l.get_xdata()) for l in crosses) == int((~res["feasible"]).sum())
+
+
+def test_sweep_outside_bounds_and_unknown_names_are_user_errors(tmp_path, capsys):
+    assert main(["sweep", CONFIG, "--vary", "motor_kw=10:20:2", "--out", str(tmp_path)]) == 2
+    assert "outside its bounds" in capsys.readouterr().err
+    assert main(["sweep", CONFIG, "--vary", "wheels=1:2:2", "--out", str(tmp_path)]) == 2
+
+
+def test_sweep_from_a_list(tmp_path):
+    lst = tmp_path / "designs.csv"
+    lst.write_text("motor_kw,gear_ratio,battery_kwh\n80,7.94,24\n74.4782,9.48,20\n")
+    assert main(["sweep", CONFIG, "--list", str(lst), "--out", str(tmp_path / "o"), "--no-plots"]) == 0
+    rows = list(csv.DictReader(open(tmp_path / "o/sweep.csv")))
+    assert [float(r["battery_kwh"]) for r in rows] == [24, 20]
+
+
+def test_compare_shows_differences_from_the_first_design(capsys):
+    rc = main(["compare", CONFIG, "--design", "motor_kw=80,gear_ratio=7.94,battery_kwh=24",
+               "--design", "motor_kw=80,gear_ratio=7.94,battery_kwh=30", "--json"])
+    assert rc == 0
+    d = json.loads(capsys.readouterr().out)["designs"]
+    assert d[1]["battery_kwh"] - d[0]["battery_kwh"] == 6
+    assert d[1]["range_km"] > d[0]["range_km"] and d[1]["vehicle_mass_kg"] > d[0]["vehicle_mass_kg"]
+    rc = main(["compare", CONFIG, "--design", "motor_kw=80", "--design", "motor_kw=90"])
+    out = capsys.readouterr().out
+    assert rc == 0 and "Δ 2−1" in out and "+10 (+12.5 %)" in out

@@ -1,0 +1,66 @@
+"""The end-of-run answers (bev_mdo.mdo.active): active limits, bounds, violations, blocking bounds."""
+from __future__ import annotations
+
+import pytest
+
+from bev_mdo.mdo.active import analyse, summary_lines
+from bev_mdo.mdo.problem import Problem
+
+PROBLEM = Problem.from_config({
+    "objective": "energy_wh_per_km",
+    "design_variables": {"motor_kw": {"lower": 40, "upper": 120, "initial": 80},
+                         "battery_kwh": {"lower": 20, "upper": 30, "initial": 24}},
+    "constraints": {"range_km": {"lower": 250}, "accel_time_0_100_s": {"upper": 10}},
+})
+
+
+def test_feasible_end_names_active_limits_and_bounds_with_units():
+    a = analyse(PROBLEM, {"motor_kw": 75.0, "battery_kwh": 20.0},
+                {"range_km": 300.0, "accel_time_0_100_s": 10.0 - 1e-9})
+    assert a["feasible"] and a["violated"] == []
+    assert [(e["name"], e["kind"], e["unit"]) for e in a["active_constraints"]] == [("accel_time_0_100_s", "upper", "s")]
+    assert [(b["name"], b["kind"], b["unit"]) for b in a["bounds"]] == [("battery_kwh", "lower", "kWh")]
+    assert "active: accel_time_0_100_s <= 10 s, margin 0 s" in a["lines"]
+    assert "on its lower bound: battery_kwh = 20 kWh (bound 20 kWh, margin 0 kWh)" in a["lines"]
+
+
+def test_interior_optimum_says_so():
+    a = analyse(PROBLEM, {"motor_kw": 75.0, "battery_kwh": 25.0}, {"range_km": 300.0, "accel_time_0_100_s": 9.0})
+    assert a["lines"] == ["no constraint is active and no design variable is on a bound (an interior optimum)"]
+
+
+def test_a_margin_of_a_tenth_of_a_per_mille_is_active_but_one_per_cent_is_not():
+    a = analyse(PROBLEM, {"motor_kw": 75.0, "battery_kwh": 25.0}, {"range_km": 250.2, "accel_time_0_100_s": 9.9})
+    assert [e["name"] for e in a["active_constraints"]] == ["range_km"]
+
+
+def test_infeasible_end_names_violation_and_the_bound_that_blocks():
+    # range short by 2 km; battery on its upper bound; more battery would give more range
+    jac = {"range_km": {"motor_kw": -0.05, "battery_kwh": 8.0},
+           "accel_time_0_100_s": {"motor_kw": -0.15, "battery_kwh": 0.05}}
+    a = analyse(PROBLEM, {"motor_kw": 80.0, "battery_kwh": 30.0}, {"range_km": 248.0, "accel_time_0_100_s": 10.0},
+                jacobian=jac)
+    assert not a["feasible"]
+    (v,) = a["violated"]
+    assert v["name"] == "range_km" and v["violation"] == pytest.approx(2.0)
+    assert [(b["variable"], b["bound"]) for b in v["blocked_by"]] == [("battery_kwh", "upper")]
+    assert v["blocked_by"][0]["rate"] == pytest.approx(8.0)
+    # reducing the range violation over the free variable (less motor) slows the 0-100 time
+    assert v["conflicts_with"] == ["accel_time_0_100_s <= 10"]
+    text = "\n".join(a["lines"])
+    assert "violated: range_km >= 250 km is 248 km, short by 2 km" in text
+    assert "blocked by battery_kwh on its upper bound (8 km per kWh)" in text
+
+
+def test_a_bound_on_the_wrong_side_does_not_block():
+    jac = {"range_km": {"motor_kw": 0.0, "battery_kwh": 8.0}, "accel_time_0_100_s": {}}
+    a = analyse(PROBLEM, {"motor_kw": 80.0, "battery_kwh": 20.0}, {"range_km": 248.0, "accel_time_0_100_s": 9.0},
+                jacobian=jac)
+    assert a["violated"][0]["blocked_by"] == []
+    assert "no design-variable bound blocks it" in "\n".join(a["lines"])
+
+
+def test_without_a_jacobian_the_violation_is_still_named():
+    a = analyse(PROBLEM, {"motor_kw": 80.0, "battery_kwh": 30.0}, {"range_km": 248.0, "accel_time_0_100_s": 9.0})
+    assert "blocked_by" not in a["violated"][0]
+    assert summary_lines(a)[0].startswith("violated: range_km >= 250 km")
