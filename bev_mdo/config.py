@@ -367,6 +367,8 @@ def discipline_entries(config: Mapping[str, Any]) -> list[dict]:
             e = user.get(o["name"])
             if isinstance(e, Mapping):
                 o["options"] = dict(e.get("options") or {})
+                if e.get("class"):
+                    o["class"] = str(e["class"])  # as the user wrote it (resolved through search_path)
     return out
 
 

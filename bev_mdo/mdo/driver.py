@@ -136,7 +136,7 @@ def design_report(problem: Problem, mda: MDA, design: Mapping[str, float], value
         "design": {k: float(v) for k, v in design.items()},
         "outputs": outputs,
         "objective": {"name": problem.objective, "value": outputs.get(problem.objective, float("nan")),
-                      "sense": "max" if problem.maximize else "min"},
+                      **({"maximize": True} if problem.maximize else {})},
         "constraints": cons,
         "feasible": ok and all(c["satisfied"] for c in cons.values()),
         "ok": ok,
