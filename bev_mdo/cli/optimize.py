@@ -80,6 +80,8 @@ def _table(result: dict, baseline: dict | None, out) -> None:
     Console(file=out).print(t)
     if baseline is not None and baseline.get("error"):
         print(f"baseline {baseline['name']}: {baseline['error']}", file=out)
+    if result.get("error"):
+        print(f"the result point failed: {result['error']}", file=out)
     if not result.get("last_iterate", True):
         print(f"result: iteration {result['result_iteration']}, the best feasible point seen "
               f"(not the optimiser's last iterate, iteration {result['iterations']})", file=out)

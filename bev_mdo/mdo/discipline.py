@@ -188,9 +188,15 @@ def _call(disc: Any, batch: Batch, n: int) -> Batch:
     for k in disc.outputs:
         if k not in raw:
             raise DisciplineError(f"compute() did not return output {k!r}")
-        v = np.asarray(raw[k], dtype=float)
+        try:
+            v = np.asarray(raw[k], dtype=float)
+        except (TypeError, ValueError):
+            raise DisciplineError(f"compute() returned {k!r} as {type(raw[k]).__name__}, not numbers") from None
         if v.shape != (n,):
-            v = np.broadcast_to(v, (n,)).copy()
+            if v.size != 1:  # a scalar is broadcast over the batch; any other shape is a mistake
+                raise DisciplineError(f"compute() returned {k!r} of shape {v.shape} for a batch of {n} points; "
+                                      f"expected ({n},), one value per point")
+            v = np.broadcast_to(v.reshape(()), (n,)).copy()
         elif any(np.may_share_memory(v, b) for b in batch.values()):
             v = v.copy()  # never hand back (a view of) an input array
         out[k] = v

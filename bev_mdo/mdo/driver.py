@@ -59,6 +59,7 @@ class RunResult:
     result_iteration: int = -1        # the iteration record the result is (best feasible point seen)
     last_iterate: bool = True         # False: the result is an earlier iterate than the optimiser's last
     feasibility_tolerance: float = FEASIBILITY_TOL
+    error: str = ""                   # why the result point failed (a discipline's one line), else ''
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -246,4 +247,4 @@ def run_optimization(config: Mapping[str, Any], evaluator: Evaluator, *, formula
         discipline_evaluations=counts, points_evaluated=form.n_points, batches=form.n_batches,
         gradients=form.n_gradients, wall_time_s=time.perf_counter() - t0, history=history,
         maximize=problem.maximize, result_iteration=k, last_iterate=k == len(history) - 1,
-        feasibility_tolerance=tol)
+        feasibility_tolerance=tol, error="" if ok else (err or final.get("error", "")).split("; ")[0])

@@ -80,6 +80,7 @@ class RosEvaluator:
         self.dropped: Counter[str] = Counter()     # other_run / stale / duplicate / malformed / mismatched
         self.retried = 0
         self._probe_ids: set[int] = set()  # evaluation ids of handshake probes
+        self.unresponsive: set[str] = set()  # disciplines that let every attempt of a request time out
         self.probe_late = 0
         self.last_latency_s = 0.0
         self._next_id = 1
@@ -355,6 +356,11 @@ class RosEvaluator:
         t0 = time.perf_counter()
         self._results = {}
         for i, (name, batch) in enumerate(calls):
+            if name in self.unresponsive:
+                n = len(next(iter(batch.values()), ()))
+                self._results[i] = self._failed(_Pending(i, name, None, n, 0),
+                                                f"{name}: did not answer earlier requests (hung or gone)")
+                continue
             req = wire.Request(self.run_id, self._next_id, name, iteration=iteration)
             req.inputs = wire.batch(batch)
             n = int(req.inputs.batch_size)
@@ -368,7 +374,7 @@ class RosEvaluator:
     def evaluate_flow(self, names: Sequence[str], request: Mapping[str, np.ndarray], n: int) -> dict | None:
         """One feed-forward MDA as ONE data-flow request; None when the nodes cannot serve it that way."""
         plan = self.flow_plan(names)
-        if plan is None:
+        if plan is None or self.unresponsive.intersection(names):
             return None
         t0 = time.perf_counter()
         self._flow_topics(names)
@@ -424,6 +430,13 @@ class RosEvaluator:
             )
             del self._pending[key]
             self._answered.add(key)  # a late answer is then counted as stale, never used
+            if p.discipline not in self.unresponsive:
+                # a discipline that let every attempt time out is hung (or gone): say so once, and
+                # fail its later requests at once instead of waiting the whole timeout each time
+                self.unresponsive.add(p.discipline)
+                self.node.get_logger().error(
+                    f"discipline {p.discipline!r} did not answer within {self.retries + 1} x {self.timeout_s:g} s: "
+                    "its points fail, and so do its later requests, at once")
 
     def close(self) -> None:
         """Release the executor (the node is the caller's)."""
