@@ -103,6 +103,19 @@ def _timing_table(timing) -> list[str]:
     return lines
 
 
+def _maximized(config_yaml: str | None) -> bool:
+    """Whether the recorded config maximises its objective (problem.objective: {maximize: true})."""
+    if not config_yaml:
+        return False
+    try:
+        import yaml
+
+        obj = (yaml.safe_load(config_yaml) or {}).get("problem", {}).get("objective")
+    except Exception:  # noqa: BLE001 - a report never fails on the stored config
+        return False
+    return isinstance(obj, dict) and obj.get("maximize") is True
+
+
 def _markdown(bag: Bag, rows, timing, images: list[str]) -> str:
     info = bag.info
     lines = [f"# Run report: {bag.bag_dir.name}", "",
@@ -123,8 +136,10 @@ def _markdown(bag: Bag, rows, timing, images: list[str]) -> str:
                   f"| max violation | {last['max_violation']:.3g} |",
                   f"| feasible | {last['feasible']} |"]
         if feasible:
-            best = min(feasible, key=lambda r: r["objective"])
-            lines += ["", f"Best feasible objective {best['objective']:.6g} at iteration {best['iteration']}."]
+            sign = -1.0 if _maximized(read_config(bag)) else 1.0
+            best = min(feasible, key=lambda r: sign * r["objective"])
+            lines += ["", f"Best feasible objective {best['objective']:.6g} at iteration {best['iteration']}"
+                          f"{' (maximised)' if sign < 0 else ''}."]
     else:
         lines += ["", "No iteration records in this bag."]
     lines += ["", "## Topics", "", "| topic | type | messages |", "|---|---|---:|"]
