@@ -237,8 +237,8 @@ class RosEvaluator:
                     req.inputs = wire.batch({})
                     keys = [(eid, n) for n in names]
                     for i, n in enumerate(names):
-                        self._pending[(eid, n)] = q = _Pending(i, n, req, 0, 0, flow=True)
-                        p = p if i else q
+                        self._pending[(eid, n)] = _Pending(i, n, req, 0, 0, flow=True)
+                    p = self._pending[keys[0]]  # one message for every discipline
                 self._send(p)
                 self._wait_pending(min(interval, max(deadline - time.monotonic(), 0.0)))
                 late = [k[1] for k in keys if k in self._pending]
