@@ -424,13 +424,19 @@ class RosEvaluator:
                         f"after {self.timeout_s:g} s; retry {attempt + 1}/{self.retries}"
                     )
                     self._send(p)
+        unanswered = set(self._pending)
         for key, p in list(self._pending.items()):
             self._results[p.index] = self._failed(
                 p, f"{p.discipline}: no answer after {self.retries + 1} attempts of {self.timeout_s:g} s"
             )
             del self._pending[key]
             self._answered.add(key)  # a late answer is then counted as stale, never used
-            if p.discipline not in self.unresponsive:
+            if p.flow:  # data flow: hung only if its sources answered (else it had nothing to do)
+                srcs = set(((self.flow_plan(list(p.request.flow)) or {}).get(p.discipline) or {}).values())
+                hung = not any((key[0], s) in unanswered for s in srcs)
+            else:
+                hung = True
+            if hung and p.discipline not in self.unresponsive:
                 # a discipline that let every attempt time out is hung (or gone): say so once, and
                 # fail its later requests at once instead of waiting the whole timeout each time
                 self.unresponsive.add(p.discipline)
