@@ -9,22 +9,35 @@ loop's starting guess), is produced by the ``battery_sizing`` discipline, and th
 from __future__ import annotations
 
 import copy
+import math
+import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "disciplines", "problem",
-            "formulation", "mda", "optimizer", "ros", "recording")
+            "formulation", "mda", "optimizer", "ros", "recording", "search_path")
 ENERGY_MODELS = ("flat", "breakdown", "quasi_static", "chain")
 FORMULATIONS = ("mdf", "idf")
 MDA_DEFAULTS = {"method": "gauss_seidel", "tolerance": 1.0e-10, "max_iterations": 100, "relaxation": 1.0}
-OPTIMIZER_DEFAULTS = {"name": "SLSQP", "options": {}, "fd_step": 1.0e-6, "fd_scheme": "forward"}
+# feasibility_tolerance: largest violation of a NORMALISED constraint (problem.py: divided by its scale,
+# default max(|bound|, 1), i.e. relative to the bound, absolute below 1) and of an IDF consistency
+# equality that still counts as feasible. 1e-4 is GEMSEO's default (ineq_tolerance / eq_tolerance).
+OPTIMIZER_DEFAULTS = {"name": "SLSQP", "options": {}, "fd_step": 1.0e-6, "fd_scheme": "forward",
+                      "feasibility_tolerance": 1.0e-4}
 SIZED_VARIABLE = "battery_kwh"
 SIZED_CONSTRAINT = "range_km"
 
 
 def load_config(path: str | Path | Mapping[str, Any]) -> dict:
-    """Read and validate a run config (a YAML path, or an already-parsed mapping)."""
+    """Read and validate a run config (a YAML path, or an already-parsed mapping).
+
+    ``search_path`` (where a discipline's ``module:Class`` is looked for, before Python's own path)
+    becomes absolute: the config's own entries (relative ones against its folder), then the config
+    file's folder, then the working directory. A resolved config written elsewhere (a run's log
+    folder, a bag) keeps them, so every process of a run resolves user modules the same way.
+    """
+    base: Path | None = None
     if isinstance(path, Mapping):
         where, raw = "<config>", copy.deepcopy(dict(path))
     else:
@@ -40,7 +53,10 @@ def load_config(path: str | Path | Mapping[str, Any]) -> dict:
             mark = getattr(exc, "problem_mark", None)
             at = f" at line {mark.line + 1}" if mark else ""
             raise ValueError(f"{where}: not valid YAML{at}: {getattr(exc, 'problem', exc)}") from None
+        base = p.resolve().parent
     try:
+        if isinstance(raw, Mapping):
+            raw = {**raw, "search_path": _search_path(raw.get("search_path"), base)}
         return _resolve(raw)
     except ValueError as exc:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else "invalid config"
@@ -78,6 +94,11 @@ def _resolve(raw: Any) -> dict:
     if cfg["optimizer"]["fd_scheme"] not in FD_SCHEMES:
         raise ValueError(f"optimizer.fd_scheme {cfg['optimizer']['fd_scheme']!r} is unknown; allowed: "
                          f"{', '.join(FD_SCHEMES)}")
+    tol = cfg["optimizer"]["feasibility_tolerance"]
+    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 <= tol < 1 or math.isnan(tol):
+        raise ValueError(f"optimizer.feasibility_tolerance {tol!r} must be a number in [0, 1) "
+                         "(on normalised constraints; default 1e-4)")
+    cfg["optimizer"]["feasibility_tolerance"] = float(tol)
     for key in ("ros", "recording"):
         if cfg.get(key) is not None and not isinstance(cfg[key], Mapping):
             raise ValueError(f"{key} must be a mapping")
@@ -86,8 +107,25 @@ def _resolve(raw: Any) -> dict:
     problem = Problem.from_config(cfg["problem"])
     # numeric checks of the engine sections, by constructing the pieces once
     _check_mda_numbers(cfg["mda"])
-    _check_against_disciplines(cfg, problem)
+    params = _check_against_disciplines(cfg, problem)
+    _check_baseline(cfg, problem, params)
     return cfg
+
+
+def _search_path(given: Any, base: Path | None) -> list[str]:
+    """Absolute folders for user modules: the given ones, the config's folder, the working directory."""
+    if given is None:
+        given = []
+    if isinstance(given, str) or not isinstance(given, list) or not all(isinstance(d, str) for d in given):
+        raise ValueError("search_path must be a list of folders (relative ones count from the config's folder)")
+    out: list[str] = []
+    for d in [*given, *([str(base)] if base else []), os.getcwd()]:
+        p = Path(d).expanduser()
+        p = p if p.is_absolute() or base is None else base / p
+        s = str(p.resolve())
+        if s not in out:
+            out.append(s)
+    return out
 
 
 def _section(value: Any, defaults: Mapping[str, Any], where: str) -> dict:
@@ -169,6 +207,20 @@ def _resolve_problem(section: Any) -> dict:
         prob["design_variables"] = dvs
         if isinstance(spec, Mapping) and "initial" in spec:
             prob.setdefault("coupling_guesses", {}).setdefault(SIZED_VARIABLE, spec["initial"])
+    base = prob.get("baseline")
+    if base is not None:
+        if not isinstance(base, Mapping) or set(base) - {"name", "design"} or not isinstance(base.get("design"), Mapping):
+            raise ValueError("problem.baseline must be {name: <label>, design: {<design variable>: <value>, ...}}")
+        label = base.get("name", "baseline")
+        if not isinstance(label, str) or not label.strip():
+            raise ValueError("problem.baseline.name must be a non-empty label, e.g. 'Nissan Leaf'")
+        design = {}
+        for k, v in base["design"].items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"problem.baseline.design.{k}: {v!r} must be a finite number")
+            if not (sized and k == SIZED_VARIABLE):  # sized mode: the battery is sized, not given
+                design[str(k)] = float(v)
+        prob["baseline"] = {"name": label.strip(), "design": design}
     cons = prob.get("constraints")
     if sized and isinstance(cons, Mapping) and isinstance(cons.get(SIZED_CONSTRAINT), Mapping):
         # battery_sizing meets the range target exactly; as an optimiser constraint it would duplicate
@@ -177,7 +229,21 @@ def _resolve_problem(section: Any) -> dict:
     return prob
 
 
-def _check_against_disciplines(cfg: dict, problem) -> None:
+def _check_baseline(cfg: dict, problem, params: set[str]) -> None:
+    base = cfg["problem"].get("baseline")
+    if base is None:
+        return
+    design = base["design"]
+    missing = [n for n in problem.names if n not in design]
+    if missing:
+        raise ValueError(f"problem.baseline.design misses design variables {missing}; give every one of {problem.names}")
+    unknown = [k for k in design if k not in problem.names and k not in params]
+    if unknown:
+        raise ValueError(f"problem.baseline.design.{unknown[0]}: neither a design variable {problem.names} "
+                         "nor a discipline parameter")
+
+
+def _check_against_disciplines(cfg: dict, problem) -> set[str]:
     from bev_mdo.mdo.graph import CouplingGraph
 
     discs = resolve_disciplines(cfg)
@@ -206,6 +272,7 @@ def _check_against_disciplines(cfg: dict, problem) -> None:
         raise ValueError("problem.battery_sized_for_range is true but no discipline produces battery_kwh "
                          "(add the battery_sizing discipline)")
     graph.check_inputs(set(problem.names) | set(problem.parameters))
+    return params
 
 
 def resolve_disciplines(config: Mapping[str, Any]) -> list:
@@ -240,17 +307,32 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
                                  f"{sorted(builtins)} (or give class: 'module:Class')")
             cls = builtins[e["name"]]
         else:
-            cls = load_class(str(e["class"]))
+            try:
+                cls = load_class(str(e["class"]), config.get("search_path") or ())
+            except ValueError as exc:
+                raise ValueError(f"disciplines[{k}] ({e['name']}): {exc}") from None
         try:
             if hasattr(cls, "from_config"):
                 disc = cls.from_config(config, options)
             else:
                 disc = cls(**dict(options))
-        except TypeError as exc:
-            raise ValueError(f"disciplines[{k}] ({e['name']}): cannot build {cls.__name__}: {exc}") from None
+        except Exception as exc:  # the user's constructor: one line naming the discipline, never a traceback
+            raise ValueError(f"disciplines[{k}] ({e['name']}): cannot build {getattr(cls, '__name__', cls)}: "
+                             f"{type(exc).__name__}: {exc}") from None
         for attr in ("inputs", "outputs", "compute"):
             if not hasattr(disc, attr):
                 raise ValueError(f"disciplines[{k}] ({e['name']}): {cls.__name__} has no {attr!r}")
+        for attr in ("inputs", "outputs"):
+            names = getattr(disc, attr)
+            if isinstance(names, str) or not all(isinstance(v, str) and v for v in names):
+                raise ValueError(f"disciplines[{k}] ({e['name']}): {attr} must be a sequence of variable names, "
+                                 f"got {names!r}")
+            twice = sorted({v for v in names if list(names).count(v) > 1})
+            if twice:
+                raise ValueError(f"disciplines[{k}] ({e['name']}): {attr} name {twice} twice")
+        both = sorted(set(disc.inputs) & set(disc.outputs))
+        if both:
+            raise ValueError(f"disciplines[{k}] ({e['name']}): {both} are both inputs and outputs")
         if getattr(disc, "name", None) != e["name"]:
             try:
                 disc.name = e["name"]
@@ -289,6 +371,8 @@ def discipline_entries(config: Mapping[str, Any]) -> list[dict]:
             e = user.get(o["name"])
             if isinstance(e, Mapping):
                 o["options"] = dict(e.get("options") or {})
+                if e.get("class"):
+                    o["class"] = str(e["class"])  # as the user wrote it (resolved through search_path)
     return out
 
 

@@ -120,3 +120,71 @@ class TestLeaf:
         sizing = resolve_disciplines(cfg)[-1]
         assert sizing.range_target_km == 200
         assert discipline_entries(cfg)[-1]["options"] == {"range_target_km": 200}
+
+
+# -- user modules, baselines, duplicate names (issue 14) -----------------------------------------
+USER = ROOT / "data" / "user_modules"
+
+
+def _with_user(tmp_path, entry, constraint="w", **problem):
+    raw = sellar_raw()
+    raw["disciplines"].append(entry)
+    raw["problem"]["constraints"][constraint] = {"upper": 1e6}
+    raw["problem"].update(problem)
+    raw["search_path"] = [str(USER)]
+    f = tmp_path / "cfg.yaml"
+    f.write_text(yaml.safe_dump(raw))
+    return f
+
+
+@pytest.mark.parametrize("cls,msg", [
+    ("no_such_module_zz:X", r"disciplines\[3\] \(extra\): cannot import module 'no_such_module_zz'"),
+    ("broken_import:X", r"disciplines\[3\] \(extra\): cannot import module 'broken_import'.*licence"),
+    ("bad_disciplines:OutputTwice", r"disciplines\[3\] \(extra\): outputs name \['w'\] twice"),
+    ("bad_disciplines:BadConstructor", r"disciplines\[3\] \(extra\): cannot build BadConstructor: KeyError"),
+])
+def test_a_broken_user_discipline_is_one_line_naming_it(tmp_path, cls, msg):
+    f = _with_user(tmp_path, {"name": "extra", "class": cls})
+    with pytest.raises(ValueError, match=msg) as info:
+        load_config(f)
+    assert "\n" not in str(info.value)
+
+
+def test_a_module_next_to_the_config_resolves_from_any_working_directory(tmp_path, monkeypatch):
+    (tmp_path / "proj").mkdir()
+    (tmp_path / "proj" / "my_disc_qq.py").write_text(
+        "class D:\n    name = 'd'\n    inputs = ('z1',)\n    outputs = ('w',)\n"
+        "    def compute(self, i):\n        return {'w': i['z1']}\n")
+    raw = sellar_raw()
+    raw["disciplines"].append({"name": "d", "class": "my_disc_qq:D"})
+    raw["problem"]["constraints"]["w"] = {"upper": 1}
+    (tmp_path / "proj" / "c.yaml").write_text(yaml.safe_dump(raw))
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    cfg = load_config(tmp_path / "proj" / "c.yaml")
+    assert cfg["search_path"] == [str(tmp_path / "proj"), str(tmp_path / "elsewhere")]
+    assert type(resolve_disciplines(cfg)[-1]).__name__ == "D"
+    # a resolved config written elsewhere (a run's log folder) keeps the config's folder
+    (tmp_path / "logs").mkdir()
+    (tmp_path / "logs" / "r.yaml").write_text(yaml.safe_dump(cfg))
+    again = load_config(tmp_path / "logs" / "r.yaml")
+    assert again["search_path"][0] == str(tmp_path / "proj")
+
+
+@pytest.mark.skipif(not LEAF.exists(), reason="leaf config not written yet")
+def test_baseline_is_optional_and_validated(tmp_path):
+    assert "baseline" not in load_config(SELLAR)["problem"]
+    leaf = load_config(LEAF)["problem"]["baseline"]
+    assert leaf["design"] == {"motor_kw": 80.0, "gear_ratio": 7.94, "battery_kwh": 24.0} and "Leaf" in leaf["name"]
+    raw = yaml.safe_load(LEAF.read_text())
+    raw["problem"]["battery_sized_for_range"] = True
+    sized = load_config(raw)["problem"]["baseline"]["design"]
+    assert sized == {"motor_kw": 80.0, "gear_ratio": 7.94}  # the battery is sized, not given
+    for bad, msg in [({"design": {"z1": 1}}, r"baseline.design misses design variables \['z2', 'x'\]"),
+                     ({"design": {"z1": 1, "z2": 0, "x": 0, "q": 1}}, "baseline.design.q: neither"),
+                     ({"label": "x", "design": {}}, "problem.baseline must be"),
+                     ({"design": {"z1": "a", "z2": 0, "x": 0}}, "baseline.design.z1: 'a' must be a finite number")]:
+        raw = sellar_raw()
+        raw["problem"]["baseline"] = bad
+        with pytest.raises(ValueError, match=msg):
+            load_config(raw)

@@ -201,6 +201,20 @@ def _timing_table(timing) -> list[str]:
     return lines
 
 
+def _maximized(config_yaml: str | None) -> bool:
+    """Whether the recorded config maximises its objective (problem.objective: {maximize: true})."""
+    if not config_yaml:
+        return False
+    try:
+        import yaml
+
+        obj = (yaml.safe_load(config_yaml) or {}).get("problem", {}).get("objective")
+    except Exception:  # noqa: BLE001 - a report never fails on the stored config
+        return False
+    return isinstance(obj, dict) and obj.get("maximize") is True
+
+
+
 def _context(bag: Bag):
     """(config, problem, final analysis, baseline) from the config stored in the bag, evaluated in
     process; Nones where the bag has no config or it no longer loads."""
@@ -219,9 +233,6 @@ def _context(bag: Bag):
         return None, None
 
 
-LEAF = {"motor_kw": 80.0, "gear_ratio": 7.94, "battery_kwh": 24.0}
-
-
 def _analyse(config, design: dict) -> dict | None:
     """One in-process MDA of ``design`` (the report's mass, cost, ... of the final iterate)."""
     try:
@@ -235,14 +246,15 @@ def _analyse(config, design: dict) -> dict | None:
 
 
 def _baseline(config, problem) -> dict | None:
-    names = problem.names
-    if not set(LEAF) & set(names):
+    """The config's own ``problem.baseline`` analysed in process; None when the config names none."""
+    base = (config.get("problem") or {}).get("baseline")
+    if not base:
         return None
-    design = {n: LEAF.get(n, d.initial) for n, d in zip(names, problem.design_variables)}
+    design = {n: base["design"].get(n, d.initial) for n, d in zip(problem.names, problem.design_variables)}
     res = _analyse(config, design)
     if res is None:
         return None
-    return {"label": "Nissan Leaf", "design": design, "outputs": res["outputs"]}
+    return {"label": base["name"], "design": design, "outputs": res["outputs"]}
 
 
 def _answers_section(answers: dict | None) -> list[str]:
@@ -295,8 +307,10 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
             lines += ["", "Outputs other than the objective and constraints (mass, cost, ...) are the final "
                           "iterate analysed again in process from the configuration stored in the bag."]
         if feasible:
-            best = min(feasible, key=lambda r: r["objective"])
-            lines += ["", f"Best feasible objective {best['objective']:.6g} at iteration {best['iteration']}."]
+            sign = -1.0 if _maximized(read_config(bag)) else 1.0
+            best = min(feasible, key=lambda r: sign * r["objective"])
+            lines += ["", f"Best feasible objective {best['objective']:.6g} at iteration {best['iteration']}"
+                          f"{' (maximised)' if sign < 0 else ''}."]
         lines += _answers_section(answers)
     else:
         lines += ["", "No iteration records in this bag."]

@@ -20,6 +20,9 @@ def register(subparsers) -> None:
                    help="design values (or model-parameter overrides); also comma-separated a=1,b=2")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.add_argument("--ros", action="store_true", help="evaluate through the running discipline nodes")
+    from bev_mdo.cli.ros_args import add_ros_arguments
+
+    add_ros_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -38,13 +41,15 @@ def parse_assignments(items: list[str]) -> dict[str, float]:
     return out
 
 
-def _evaluator(config, use_ros: bool):
+def _evaluator(config, use_ros: bool, args=None):
     if use_ros:
         try:
             from bev_mdo.ros.client import make_ros_evaluator
         except ImportError:
             raise UsageError("--ros needs the ROS transport (rclpy and bev_mdo_msgs)") from None
-        return make_ros_evaluator(config)
+        from bev_mdo.cli.ros_args import ros_section
+
+        return make_ros_evaluator({**config, "ros": ros_section(config, args)})
     from bev_mdo.config import resolve_disciplines
     from bev_mdo.mdo.evaluator import InProcessEvaluator
 
@@ -60,7 +65,7 @@ def run(args) -> int:
     given = parse_assignments(args.assignments)
     problem = Problem.from_config(config["problem"])
     design = {**{d.name: d.initial for d in problem.design_variables}, **given}
-    evaluator = _evaluator(config, args.ros)
+    evaluator = _evaluator(config, args.ros, args)
     try:
         report = evaluate_design(config, evaluator, design)
     finally:

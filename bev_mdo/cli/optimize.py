@@ -1,9 +1,13 @@
 """`bev-mdo optimize CONFIG`: the main job.
 
 Over ROS (default) it starts one process per discipline and a recorder, runs the
-coordinator in this process, shows progress, prints the optimum beside the Nissan
-Leaf baseline, writes the bag and shuts every process down (also on Ctrl-C).
+coordinator in this process, shows progress, prints the optimum (beside the config's
+``problem.baseline`` when it names one, e.g. the Nissan Leaf in config/leaf_nedc.yaml),
+writes the bag and shuts every process down (also on Ctrl-C).
 `--transport inprocess` runs the same engine with no ROS at all.
+
+Exit status: 0 feasible optimum, 1 the run finished infeasible, 2 a user mistake. A finished
+run always prints its result (with ``--json``, the JSON on stdout), whatever the baseline does.
 """
 from __future__ import annotations
 
@@ -14,8 +18,6 @@ import uuid
 from pathlib import Path
 
 from bev_mdo.cli import UsageError
-
-LEAF_BASELINE = {"motor_kw": 80.0, "gear_ratio": 7.94, "battery_kwh": 24.0}
 
 
 def register(sub) -> None:
@@ -53,21 +55,38 @@ def _progress(quiet: bool, to_stderr: bool):
     return show
 
 
-def _table(result: dict, baseline: dict, out) -> None:
+def _table(result: dict, baseline: dict | None, out) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    t = Table(title=f"Optimum ({result['formulation'].upper()}, {result['optimizer']}) beside the Nissan Leaf")
+    sense = "maximised" if result.get("maximize") else "minimised"
+    title = f"Optimum ({result['formulation'].upper()}, {result['optimizer']}; {result['objective_name']} {sense})"
+    if baseline is not None:
+        title += f" beside {baseline['name']}"
+    t = Table(title=title)
     t.add_column("quantity")
     t.add_column("optimum", justify="right")
-    t.add_column("Leaf (80 kW, 7.94:1, 24 kWh)", justify="right")
+    if baseline is not None:
+        t.add_column(baseline["name"], justify="right")
+
+    def row(k, v, ref):
+        t.add_row(k, f"{v:.6g}", *([f"{ref:.6g}"] if baseline is not None else []))
+
+    bd, bo = (baseline or {}).get("design", {}), (baseline or {}).get("outputs", {})
     for k, v in result["design"].items():
-        t.add_row(k, f"{v:.4f}", f"{baseline['design'].get(k, float('nan')):.4f}")
+        row(k, v, bd.get(k, float("nan")))
     for k, v in result["outputs"].items():
         if k not in result["design"]:
-            t.add_row(k, f"{v:.4f}", f"{baseline['outputs'].get(k, float('nan')):.4f}")
-    t.add_row("feasible", str(result["feasible"]), str(baseline["feasible"]))
+            row(k, v, bo.get(k, float("nan")))
+    t.add_row("feasible", str(result["feasible"]), *([str(baseline["feasible"])] if baseline is not None else []))
     Console(file=out).print(t)
+    if baseline is not None and baseline.get("error"):
+        print(f"baseline {baseline['name']}: {baseline['error']}", file=out)
+    if result.get("error"):
+        print(f"the result point failed: {result['error']}", file=out)
+    if not result.get("last_iterate", True):
+        print(f"result: iteration {result['result_iteration']}, the best feasible point seen "
+              f"(not the optimiser's last iterate, iteration {result['iterations']})", file=out)
     print(f"iterations {result['iterations']}, MDA evaluations {result['mda_evaluations']}, "
           f"evaluations per discipline {result['discipline_evaluations']}", file=out)
     print(f"optimiser wall time {result['wall_time_s']:.3f} s (first evaluation to optimum)", file=out)
@@ -108,14 +127,26 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
     return 0 if result["feasible"] else 1
 
 
-def _baseline_design(config) -> dict:
-    names = list(config["problem"]["design_variables"])
-    return {k: v for k, v in LEAF_BASELINE.items() if k in names}
+def _baseline(config, evaluator) -> dict | None:
+    """The config's ``problem.baseline`` analysed through ``evaluator``: {name, design, outputs, feasible, ...};
+    None when the config names no baseline. A failed analysis is reported in ``error``, never raised:
+    the run's own result must not be lost to its baseline."""
+    from bev_mdo.mdo.driver import evaluate_design
+
+    base = config["problem"].get("baseline")
+    if not base:
+        return None
+    try:
+        report = evaluate_design(config, evaluator, base["design"])
+    except Exception as exc:  # noqa: BLE001 - reported beside the result
+        return {"name": base["name"], "design": dict(base["design"]), "outputs": {}, "feasible": False,
+                "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
+    return {"name": base["name"], **report}
 
 
 def _run_inprocess(config, args, show, x0=None):
     from bev_mdo.config import resolve_disciplines
-    from bev_mdo.mdo.driver import evaluate_design, run_optimization
+    from bev_mdo.mdo.driver import run_optimization
     from bev_mdo.mdo.evaluator import InProcessEvaluator
 
     ev = InProcessEvaluator(resolve_disciplines(config))
@@ -126,7 +157,7 @@ def _run_inprocess(config, args, show, x0=None):
                            callback=show)
     out = res.to_dict()
     out.pop("history")
-    baseline = evaluate_design(config, InProcessEvaluator(resolve_disciplines(config)), _baseline_design(config))
+    baseline = _baseline(config, InProcessEvaluator(resolve_disciplines(config)))
     return out, baseline, {"transport": "inprocess", **({"bag": bag} if bag else {}), "_bag_writer": writer}
 
 
@@ -140,7 +171,10 @@ def _run_ros(config, args, show, x0=None):
     from bev_mdo.cli.ros_args import ros_section
 
     ros = ros_section(config, args)
-    config = {**config, "ros": ros}
+    # the run's config keeps a domain only when the config stated one (a bag resumed later then
+    # follows the ROS convention again: flag, config, ROS_DOMAIN_ID, 77)
+    stated = (config.get("ros") or {}).get("domain_id") is not None
+    config = {**config, "ros": ros if stated else {k: v for k, v in ros.items() if k != "domain_id"}}
     if args.formulation:
         config["formulation"] = args.formulation
     if args.optimizer:
@@ -188,7 +222,6 @@ def _start_recorder(launcher, bag: Path, resolved: Path, run_id: str) -> int:
 def _coordinate(config, run_id, args, show, recorder: int, x0=None):
     import rclpy
 
-    from bev_mdo.mdo.driver import evaluate_design
     from bev_mdo.ros import coordinator_node
 
     ctx = rclpy.context.Context()
@@ -199,14 +232,19 @@ def _coordinate(config, run_id, args, show, recorder: int, x0=None):
                                           recorder_subscribers=recorder, context=ctx)
         out = res.to_dict()
         out.pop("history")
-        node = coordinator_node.CoordinatorNode(config, run_id + "-baseline", context=ctx,
-                                                node_name="coordinator_baseline")
-        try:
-            node.evaluator.wait_for_disciplines(coordinator_node.discipline_names(config), node.discovery_wait_s)
-            baseline = evaluate_design(config, node.evaluator, _baseline_design(config))
-        finally:
-            node.evaluator.close()
-            node.destroy_node()
+        baseline = None
+        if config["problem"].get("baseline"):
+            node = coordinator_node.CoordinatorNode(config, run_id + "-baseline", context=ctx,
+                                                    node_name="coordinator_baseline")
+            try:
+                node.evaluator.wait_for_disciplines(coordinator_node.discipline_names(config), node.discovery_wait_s)
+                baseline = _baseline(config, node.evaluator)
+            except Exception as exc:  # noqa: BLE001 - the run's result is printed anyway
+                baseline = {"name": config["problem"]["baseline"]["name"], "design": {}, "outputs": {},
+                            "feasible": False, "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
+            finally:
+                node.evaluator.close()
+                node.destroy_node()
         return out, baseline, stats
     finally:
         rclpy.shutdown(context=ctx)

@@ -1,4 +1,9 @@
-"""Command-line flags for joining a ROS graph; they override the config's `ros:` section."""
+"""Command-line flags for joining a ROS graph; they override the config's `ros:` section.
+
+The domain follows the ROS convention (settings.choose_domain): ``--domain-id``, else the
+config's ``ros.domain_id`` when it states one, else ``ROS_DOMAIN_ID`` of the environment, else 77.
+When the config overrides the environment, one line on stderr says so.
+"""
 from __future__ import annotations
 
 from typing import Any, Mapping
@@ -7,7 +12,8 @@ from typing import Any, Mapping
 def add_ros_arguments(parser) -> None:
     """The discovery flags shared by commands that join a ROS graph (they override the config's ros: section)."""
     g = parser.add_argument_group("ROS discovery (default: the config's ros: section; localhost only)")
-    g.add_argument("--domain-id", type=int, default=None, help="ROS domain id")
+    g.add_argument("--domain-id", type=int, default=None,
+                   help="ROS domain id (default: the config's ros.domain_id if it sets one, else ROS_DOMAIN_ID, else 77)")
     g.add_argument("--discovery", choices=["localhost", "static_peers", "server", "subnet"], default=None,
                    help="how nodes find each other; anything but localhost is an explicit opt-in to other hosts")
     g.add_argument("--static-peers", default=None, metavar="IP[,IP...]", help="with --discovery static_peers")
@@ -15,12 +21,21 @@ def add_ros_arguments(parser) -> None:
 
 
 def ros_section(config: Mapping[str, Any], args) -> dict:
-    """The validated ros: section of `config` with the command-line flags applied."""
+    """The validated ros: section of `config` with the command-line flags and the domain rule applied."""
     from bev_mdo.ros.settings import validate_ros
 
+    import sys
+
+    from bev_mdo.ros.settings import choose_domain
+
     ros = dict(config.get("ros") or {})
-    if getattr(args, "domain_id", None) is not None:
-        ros["domain_id"] = args.domain_id
+    ros["domain_id"], note = choose_domain(ros, getattr(args, "domain_id", None))
+    if note and not getattr(args, "_domain_note_shown", False):
+        print(f"bev-mdo: {note}", file=sys.stderr)
+        try:
+            args._domain_note_shown = True  # one line per command, however often the section is built
+        except AttributeError:
+            pass
     if getattr(args, "discovery", None):
         ros["discovery"] = args.discovery
     if getattr(args, "static_peers", None):

@@ -29,6 +29,9 @@ def register(subparsers) -> None:
     p.add_argument("--png", metavar="FILE", help="write a PNG: first-order bars and (order 2) the second-order matrices")
     p.add_argument("--ros", action="store_true",
                    help="evaluate every stencil through the running discipline nodes (one request wave each)")
+    from bev_mdo.cli.ros_args import add_ros_arguments
+
+    add_ros_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -100,8 +103,10 @@ def run(args) -> int:
     if args.ros:
         from bev_mdo.ros.client import make_ros_evaluator
 
+        from bev_mdo.cli.ros_args import ros_section
+
         defaults = {k: v for spec in local.specs.values() for k, v in spec.parameters.items()}
-        ev_ctx, defaults = make_ros_evaluator(cfg, node_name="bev_mdo_sensitivity"), defaults
+        ev_ctx = make_ros_evaluator({**cfg, "ros": ros_section(cfg, args)}, node_name="bev_mdo_sensitivity")
     else:
         ev_ctx, defaults = local, None
     with _closing(ev_ctx) as ev:

@@ -11,9 +11,11 @@ to model parameters, e.g. ``drag_area_m2``).
 from __future__ import annotations
 
 import importlib
+import sys
 import time
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from pathlib import Path
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -58,18 +60,36 @@ class EvalResult:
         return "error"
 
 
-def load_class(spec: str) -> type:
-    """Import ``module:Class`` (or ``module.Class``) and return the class."""
+def load_class(spec: str, search_path: Sequence[str] = ()) -> type:
+    """Import ``module:Class`` (or ``module.Class``) and return the class.
+
+    The module is looked for first in the folders of ``search_path`` (the run config's: its own
+    entries, the config file's folder, the working directory; config.py), in that order, then on
+    Python's own path. A folder is put at the front of ``sys.path`` only when it holds the module's
+    top-level package or file, so the same config resolves the same class in every process (the CLI
+    in process, and each discipline node over ROS), whatever their PYTHONPATH.
+    """
     if ":" in spec:
         mod_name, _, cls_name = spec.partition(":")
     else:
         mod_name, _, cls_name = spec.rpartition(".")
     if not mod_name or not cls_name:
         raise ValueError(f"discipline class {spec!r} must be written 'module:Class'")
+    top = mod_name.split(".")[0]
+    for folder in search_path:
+        base = Path(folder)
+        if (base / f"{top}.py").is_file() or (base / top).is_dir():
+            if str(base) not in sys.path:
+                sys.path.insert(0, str(base))
+            break
     try:
         module = importlib.import_module(mod_name)
     except ImportError as exc:
-        raise ValueError(f"cannot import module {mod_name!r} for discipline class {spec!r}: {exc}") from None
+        where = f" (looked in {', '.join(map(str, search_path))} and the Python path)" if search_path else ""
+        raise ValueError(f"cannot import module {mod_name!r} for class {spec!r}{where}: {exc}") from None
+    except Exception as exc:  # the user's module raised while importing
+        raise ValueError(f"module {mod_name!r} for class {spec!r} fails on import: "
+                         f"{type(exc).__name__}: {exc}") from None
     try:
         return getattr(module, cls_name)
     except AttributeError:
@@ -103,6 +123,8 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any]) -> EvalResult:
     batch = {k: _column(v) for k, v in inputs.items() if k in disc.inputs or k in params}
     n = _batch_size(batch)
     t0 = time.perf_counter()
+    if n == 0:  # a batch of no point (a transport's probe or warm-up): nothing to compute
+        return EvalResult({k: np.zeros(0) for k in disc.outputs}, np.zeros(0, dtype=bool))
     bad_in = ~finite_rows(list(batch.values()), n)
     try:
         if bad_in.any():
@@ -166,9 +188,15 @@ def _call(disc: Any, batch: Batch, n: int) -> Batch:
     for k in disc.outputs:
         if k not in raw:
             raise DisciplineError(f"compute() did not return output {k!r}")
-        v = np.asarray(raw[k], dtype=float)
+        try:
+            v = np.asarray(raw[k], dtype=float)
+        except (TypeError, ValueError):
+            raise DisciplineError(f"compute() returned {k!r} as {type(raw[k]).__name__}, not numbers") from None
         if v.shape != (n,):
-            v = np.broadcast_to(v, (n,)).copy()
+            if v.size != 1:  # a scalar is broadcast over the batch; any other shape is a mistake
+                raise DisciplineError(f"compute() returned {k!r} of shape {v.shape} for a batch of {n} points; "
+                                      f"expected ({n},), one value per point")
+            v = np.broadcast_to(v.reshape(()), (n,)).copy()
         elif any(np.may_share_memory(v, b) for b in batch.values()):
             v = v.copy()  # never hand back (a view of) an input array
         out[k] = v

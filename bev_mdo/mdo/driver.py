@@ -18,7 +18,18 @@ from bev_mdo.mdo.mda import MDA
 from bev_mdo.mdo.optimizers import GRADIENT_BASED, canonical_name, run_optimizer
 from bev_mdo.mdo.problem import Problem
 
-FEASIBILITY_TOL = 1e-6  # on normalised constraints (and IDF consistency)
+# Largest violation of a normalised constraint (and of an IDF consistency equality) that counts as
+# feasible; the config's optimizer.feasibility_tolerance (config.py) overrides it. Constraints are
+# normalised by their scale (default max(|bound|, 1)), so this is relative to the bound for bounds
+# of magnitude >= 1 and absolute below. 1e-4 is GEMSEO's default.
+FEASIBILITY_TOL = 1e-4
+
+
+BEST_REL_TOL = 1e-6  # an earlier feasible iterate replaces the last one only if better by more than this
+
+
+def feasibility_tolerance(config: Mapping[str, Any]) -> float:
+    return float((config.get("optimizer") or {}).get("feasibility_tolerance", FEASIBILITY_TOL))
 
 
 @dataclass
@@ -44,6 +55,11 @@ class RunResult:
     gradients: int
     wall_time_s: float
     history: list[dict] = field(default_factory=list)
+    maximize: bool = False            # the objective was maximised (objective is the quantity itself)
+    result_iteration: int = -1        # the iteration record the result is (best feasible point seen)
+    last_iterate: bool = True         # False: the result is an earlier iterate than the optimiser's last
+    feasibility_tolerance: float = FEASIBILITY_TOL
+    error: str = ""                   # why the result point failed (a discipline's one line), else ''
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -77,7 +93,7 @@ def build_formulation(config: Mapping[str, Any], evaluator: Evaluator, formulati
                               fd_step=opt.get("fd_step", 1e-6), fd_scheme=opt.get("fd_scheme", "forward"))
 
 
-def _constraint_report(problem: Problem, values: Mapping[str, float]) -> dict[str, dict]:
+def _constraint_report(problem: Problem, values: Mapping[str, float], tol: float = FEASIBILITY_TOL) -> dict[str, dict]:
     out = {}
     for c in problem.constraints:
         y = float(values.get(c.name, np.nan))
@@ -85,7 +101,7 @@ def _constraint_report(problem: Problem, values: Mapping[str, float]) -> dict[st
         margins += [c.upper - y] if c.upper is not None else []
         margin = float(min(margins))
         out[c.name] = {"value": y, "lower": c.lower, "upper": c.upper, "margin": margin,
-                       "satisfied": bool(np.isfinite(margin) and margin >= -FEASIBILITY_TOL * (c.scale or max(
+                       "satisfied": bool(np.isfinite(margin) and margin >= -tol * (c.scale or max(
                            abs(c.lower if c.lower is not None else c.upper), 1.0)))}
     return out
 
@@ -108,18 +124,20 @@ def evaluate_design(config: Mapping[str, Any], evaluator: Evaluator, design: Map
     inputs = {k: np.array([float(v)]) for k, v in {**problem.parameters, **design}.items()}
     res = mda.run(inputs)
     values = {k: float(v[0]) for k, v in res.values.items()}
-    return design_report(problem, mda, design, values, bool(res.ok[0]), res.errors[0], int(res.iterations[0]))
+    return design_report(problem, mda, design, values, bool(res.ok[0]), res.errors[0], int(res.iterations[0]),
+                         tol=feasibility_tolerance(config))
 
 
 def design_report(problem: Problem, mda: MDA, design: Mapping[str, float], values: Mapping[str, float],
-                  ok: bool, error: str, mda_iterations: int) -> dict:
+                  ok: bool, error: str, mda_iterations: int, tol: float = FEASIBILITY_TOL) -> dict:
     """The report of one analysed design (``values``: every MDA variable of the point)."""
     outputs = {v: float(values[v]) for s in mda.specs.values() for v in s.outputs}
-    cons = _constraint_report(problem, outputs)
+    cons = _constraint_report(problem, outputs, tol)
     return {
         "design": {k: float(v) for k, v in design.items()},
         "outputs": outputs,
-        "objective": {"name": problem.objective, "value": outputs.get(problem.objective, float("nan"))},
+        "objective": {"name": problem.objective, "value": outputs.get(problem.objective, float("nan")),
+                      **({"maximize": True} if problem.maximize else {})},
         "constraints": cons,
         "feasible": ok and all(c["satisfied"] for c in cons.values()),
         "ok": ok,
@@ -157,21 +175,26 @@ def run_optimization(config: Mapping[str, Any], evaluator: Evaluator, *, formula
                     raise ValueError(f"x0 {n}={v:g} is outside the bounds [{form.lower[j]:g}, {form.upper[j]:g}]")
                 form.x0[j] = v
     n_dv = len(problem.names)
+    tol = feasibility_tolerance(config)
+    sign = -1.0 if problem.maximize else 1.0  # evaluate_batch gives the minimised value
     history: list[dict] = []
+    xs: list[np.ndarray] = []  # the optimiser variables of every record (IDF: with the couplings)
 
     def record(x: np.ndarray) -> dict:
-        f, g, h = form.evaluate_batch(np.asarray(x, dtype=float)[None, :])
+        x = np.asarray(x, dtype=float)
+        f, g, h = form.evaluate_batch(x[None, :])
         ok, _ = form.status(x)
         viol = max(float(np.max(g[0], initial=0.0)), float(np.max(np.abs(h[0]), initial=0.0)))
         rec = {
             "iteration": len(history), "formulation": form.name, "optimizer": opt_name,
             "design": problem.design_dict(x[:n_dv]), "objective_name": problem.objective,
-            "objective": float(f[0]), "constraints": _physical_constraints(problem, g[0]),
-            "max_violation": viol, "feasible": bool(ok and viol <= FEASIBILITY_TOL),
+            "objective": sign * float(f[0]), "constraints": _physical_constraints(problem, g[0]),
+            "max_violation": viol, "feasible": bool(ok and viol <= tol),
             "mda_evaluations": form.mda_evaluations, "discipline_evaluations": dict(evaluator.counts),
             "wall_time_s": time.perf_counter() - t0,
         }
         history.append(rec)
+        xs.append(x.copy())
         if callback is not None:
             callback(rec)
         return rec
@@ -183,26 +206,45 @@ def run_optimization(config: Mapping[str, Any], evaluator: Evaluator, *, formula
     record(form.x0.copy())
     res = run_optimizer(opt_name, form, options, lambda x: record(x))
     x = np.asarray(res.x, dtype=float)
-    last = record(x) if not history or history[-1]["design"] != problem.design_dict(x[:n_dv]) else history[-1]
-    # The final report: MDF analysed the optimum already (its full MDA is kept); IDF's
-    # optimum is one more MDA through the same evaluator, counted, so the totals equal what
+    if not history or history[-1]["design"] != problem.design_dict(x[:n_dv]):
+        record(x)
+    # The result is the best feasible iteration record: the optimiser's last iterate, unless it is
+    # infeasible or an earlier feasible record is better by more than BEST_REL_TOL (relative; within
+    # that, the last iterate, which has converged further, is kept). With no feasible record, the
+    # last one (the run is then infeasible, exit status 1).
+    k = len(history) - 1
+    feasible = [i for i, r in enumerate(history) if r["feasible"]]
+    if feasible:
+        best = min(feasible, key=lambda i: (sign * history[i]["objective"], -i))
+        f_last, f_best = sign * history[k]["objective"], sign * history[best]["objective"]
+        if not history[k]["feasible"] or f_best < f_last - BEST_REL_TOL * max(abs(f_last), 1.0):
+            k = best
+    last, x = history[k], xs[k]
+    # The final report: MDF analysed the point already (its full MDA is kept); IDF's
+    # point is one more MDA through the same evaluator, counted, so the totals equal what
     # the disciplines actually evaluated (and what a recording holds).
     design = problem.design_dict(x[:n_dv])
     seen = form.analysed(x) if hasattr(form, "analysed") else None
     if seen is not None:
-        final = design_report(problem, form.mda, design, *seen)
+        final = design_report(problem, form.mda, design, *seen, tol=tol)
         mda_evals = form.mda_evaluations
     else:
         final = evaluate_design(config, evaluator, design)
         mda_evals = form.mda_evaluations + 1
     counts = dict(evaluator.counts)
     ok, err = form.status(x)
+    message = str(res.message) + (f"; final point failed: {err}" if not ok else "")
+    if k != len(history) - 1:
+        message += (f"; the result is iteration {k}, the best feasible point seen "
+                    f"(the last iterate, iteration {len(history) - 1}, is "
+                    f"{'worse' if history[-1]['feasible'] else 'infeasible'})")
     return RunResult(
         formulation=form.name, optimizer=opt_name, success=bool(res.success) and ok,
-        message=str(res.message) + (f"; final point failed: {err}" if not ok else ""),
-        design=problem.design_dict(x[:n_dv]), objective_name=problem.objective,
+        message=message, design=design, objective_name=problem.objective,
         objective=float(last["objective"]), outputs=final["outputs"], constraints=final["constraints"],
         max_violation=float(last["max_violation"]), feasible=bool(last["feasible"] and final["feasible"]),
-        iterations=int(res.get("nit", len(history) - 1) or len(history) - 1), mda_evaluations=mda_evals,
+        iterations=len(history) - 1, mda_evaluations=mda_evals,
         discipline_evaluations=counts, points_evaluated=form.n_points, batches=form.n_batches,
-        gradients=form.n_gradients, wall_time_s=time.perf_counter() - t0, history=history)
+        gradients=form.n_gradients, wall_time_s=time.perf_counter() - t0, history=history,
+        maximize=problem.maximize, result_iteration=k, last_iterate=k == len(history) - 1,
+        feasibility_tolerance=tol, error="" if ok else (err or final.get("error", "")).split("; ")[0])

@@ -1,6 +1,7 @@
 """MDF and IDF formulations: batched objective/constraint functions for the optimisers.
 
-Both formulations expose ``evaluate_batch(X) -> (f (N,), g (N, m), h (N, p))`` on
+Both formulations expose ``evaluate_batch(X) -> (f (N,), g (N, m), h (N, p))`` (f is the
+objective to MINIMISE: the quantity, or its negation when the problem maximises) on
 physical optimiser variables, with g <= 0 feasible and h = 0 the IDF consistency
 equalities (p = 0 for MDF), and scaled scalar helpers for scipy
 (``fun``/``jac``/``ineq``/``ineq_jac``/``eq``/``eq_jac`` on u = (x - offset) / scale).
@@ -84,6 +85,8 @@ class Formulation:
         if todo:
             rows = np.array([np.frombuffer(k) for k in todo])
             f, g, h, ok, err = self._evaluate_rows(rows)
+            if self.problem.maximize:  # the optimisers minimise: -f (the driver reports f itself)
+                f = -np.asarray(f, dtype=float)
             ok = ok & np.isfinite(f) & np.isfinite(g).all(axis=1) & np.isfinite(h).all(axis=1)
             self.n_points += len(todo)
             self.n_batches += 1

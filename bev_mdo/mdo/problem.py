@@ -17,7 +17,8 @@ import numpy as np
 _DV_KEYS = {"lower", "upper", "initial", "scale"}
 _CON_KEYS = {"lower", "upper", "scale", "monitor"}
 PROBLEM_KEYS = {"objective", "design_variables", "constraints", "battery_sized_for_range",
-                "objective_scale", "parameters", "coupling_guesses", "coupling_bounds"}
+                "objective_scale", "parameters", "coupling_guesses", "coupling_bounds", "baseline"}
+_OBJECTIVE_KEYS = {"name", "maximize"}
 
 
 @dataclass(frozen=True)
@@ -59,6 +60,7 @@ class Problem:
     parameters: dict[str, float] = field(default_factory=dict)         # fixed model-parameter overrides
     coupling_guesses: dict[str, float] = field(default_factory=dict)   # MDA loop starting values
     coupling_bounds: dict[str, tuple[float, float]] = field(default_factory=dict)  # IDF bounds
+    maximize: bool = False  # objective: {name: ..., maximize: true}; the optimisers minimise -f
 
     @property
     def names(self) -> list[str]:
@@ -99,9 +101,18 @@ class Problem:
         unknown = sorted(set(section) - PROBLEM_KEYS)
         if unknown:
             raise ValueError(f"problem: unknown keys {unknown}; allowed: {sorted(PROBLEM_KEYS)}")
-        obj = section.get("objective")
+        obj, maximize = section.get("objective"), False
+        if isinstance(obj, Mapping):
+            unknown = sorted(set(obj) - _OBJECTIVE_KEYS)
+            if unknown:
+                raise ValueError(f"problem.objective: unknown keys {unknown}; allowed: {sorted(_OBJECTIVE_KEYS)}")
+            maximize = obj.get("maximize", False)
+            if not isinstance(maximize, bool):
+                raise ValueError(f"problem.objective.maximize: {maximize!r} must be true or false")
+            obj = obj.get("name")
         if not isinstance(obj, str) or not obj:
-            raise ValueError("problem.objective: must name one output to minimise, e.g. energy_wh_per_km")
+            raise ValueError("problem.objective: must name one output (minimised), e.g. energy_wh_per_km, "
+                             "or be {name: <output>, maximize: true}")
         dvs_raw = section.get("design_variables")
         if not isinstance(dvs_raw, Mapping) or not dvs_raw:
             raise ValueError("problem.design_variables: must map at least one name to {lower, upper, initial}")
@@ -125,7 +136,7 @@ class Problem:
             if lo >= hi:
                 raise ValueError(f"problem.coupling_bounds.{k}: lower {lo:g} must be < upper {hi:g}")
             cb[str(k)] = (lo, hi)
-        return cls(obj, dvs, cons, oscale, params, guesses, cb)
+        return cls(obj, dvs, cons, oscale, params, guesses, cb, maximize)
 
 
 def _num(v: Any, where: str) -> float:

@@ -31,7 +31,11 @@ class _OwnedRosEvaluator:
         from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
         from bev_mdo.ros.settings import validate_ros
 
-        ros = validate_ros(config.get("ros"))
+        from bev_mdo.ros.settings import choose_domain
+
+        section = dict(config.get("ros") or {})
+        section["domain_id"] = choose_domain(section)[0]  # the config's if stated, else ROS_DOMAIN_ID, else 77
+        ros = validate_ros(section)
         apply_ros_environment(ros)
         self._ctx = rclpy.context.Context()
         rclpy.init(context=self._ctx)

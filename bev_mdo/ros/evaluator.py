@@ -36,6 +36,7 @@ from rclpy.node import Node
 from bev_mdo.mdo import flow
 from bev_mdo.mdo.discipline import EvalResult, finite_rows
 from bev_mdo.mdo.evaluator import DisciplineSpec
+from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.ros import wire
 from bev_mdo.ros.auth import Signer
 from bev_mdo.ros.fastwait import MultiWaiter
@@ -78,6 +79,9 @@ class RosEvaluator:
         self.counts: Counter[str] = Counter()      # points evaluated per discipline
         self.dropped: Counter[str] = Counter()     # other_run / stale / duplicate / malformed / mismatched
         self.retried = 0
+        self._probe_ids: set[int] = set()  # evaluation ids of handshake probes
+        self.unresponsive: set[str] = set()  # disciplines that let every attempt of a request time out
+        self.probe_late = 0
         self.last_latency_s = 0.0
         self._next_id = 1
         self._seq = 0
@@ -110,7 +114,8 @@ class RosEvaluator:
 
     def flow_plan(self, names: Sequence[str]) -> dict[str, dict[str, str]] | None:
         """{discipline: {coupling input: source}} for a data-flow MDA of `names`, or None when some
-        node reads a coupling input from another producer than this graph's (or declared nothing)."""
+        node reads a coupling input from another producer than this graph's (or declared nothing),
+        or when the graph has a loop (data flow serves feed-forward graphs only)."""
         key = tuple(sorted(names))
         if key not in self._flow_plans:
             plan = None
@@ -120,6 +125,8 @@ class RosEvaluator:
                 # exact: a node with a declared source outside this MDA does not read the request
                 if any(self.coupling_sources.get(n, {}) != plan[n] for n in names):
                     plan = None
+                elif CouplingGraph((n, self.specs[n].inputs, self.specs[n].outputs) for n in names).cycles:
+                    plan = None  # a loop: no node of it can start (the MDA iterates it hub and spoke)
             self._flow_plans[key] = plan
         return self._flow_plans[key]
 
@@ -183,31 +190,95 @@ class RosEvaluator:
             if time.monotonic() > deadline:
                 raise DisciplineMissing(f"result topic not matched for all of {list(names)} within {wait_s:g} s")
             self._executor.spin_once(timeout_sec=0.05)
-        if self.flow_plan(names) is None:
-            self.node.get_logger().info("data flow not offered by every node: MDAs run in waves")
-            return
-        # Data flow: the disciplines without sources read the MDA request topic and we read every
-        # node's results. (Node-to-node result topics are TRANSIENT_LOCAL: a late match loses nothing.)
-        self._flow_topics(names)
-        roots = {n for n, src in self.flow_plan(names).items() if not src}
-        while (self._flow_pub.get_subscription_count() < len(roots) + extra_subscribers
-               or any(self._flow_subs[n].get_publisher_count() < 1 for n in names)):
-            if time.monotonic() > deadline:
-                raise DisciplineMissing(f"data-flow topics not matched for all of {list(names)} within {wait_s:g} s")
-            self._executor.spin_once(timeout_sec=0.05)
+        flow_ok = self.flow_plan(names) is not None
+        if flow_ok:
+            # Data flow: the disciplines without sources read the MDA request topic and we read every
+            # node's results. (Node-to-node result topics are TRANSIENT_LOCAL: a late match loses nothing.)
+            self._flow_topics(names)
+            roots = {n for n, src in self.flow_plan(names).items() if not src}
+            while (self._flow_pub.get_subscription_count() < len(roots) + extra_subscribers
+                   or any(self._flow_subs[n].get_publisher_count() < 1 for n in names)):
+                if time.monotonic() > deadline:
+                    raise DisciplineMissing(f"data-flow topics not matched for all of {list(names)} within {wait_s:g} s")
+                self._executor.spin_once(timeout_sec=0.05)
+        self.handshake(names, max(deadline - time.monotonic(), 1.0), flow_ok)
+
+    def handshake(self, names: Sequence[str], wait_s: float = 20.0, data_flow: bool | None = None) -> None:
+        """Prove that every path a run uses delivers, before the first real request.
+
+        The graph counts above are what THIS process sees: our reader knowing a node's result
+        writer does not mean that writer knows our reader yet (each side matches the other on
+        its own discovery traffic), and a VOLATILE result published before the writer matched us
+        is lost, not late (the lost first request seen as ``no answer from ['cost'] for evaluation
+        1 after 5 s; retry 1/3`` on a loaded host). So every discipline answers one request of no
+        point (hub and spoke) and, when the MDA uses data flow, one empty data-flow MDA, re-sent
+        with a fresh evaluation id every 0.1-1 s until answered: a round trip shows both ends of
+        every topic matched. Nothing is evaluated or counted; a late answer to an earlier probe is
+        ignored (``probe_late``). Raises DisciplineMissing naming a discipline that never answers."""
+        names = list(dict.fromkeys(names))
+        if data_flow is None:
+            data_flow = self.flow_plan(names) is not None and all(n in self._flow_subs for n in names)
+        kept = len(self.accepted)
+        deadline = time.monotonic() + wait_s
+        rounds = [("request", n) for n in names] + ([("flow", None)] if data_flow else [])
+        for kind, name in rounds:
+            interval = 0.1
+            while True:
+                eid = self._next_id
+                self._next_id += 1
+                self._probe_ids.add(eid)
+                if kind == "request":
+                    req = wire.Request(self.run_id, eid, name)
+                    req.inputs = wire.batch({k: np.zeros(0) for k in self.specs[name].inputs})
+                    keys = [(eid, name)]
+                    self._pending[keys[0]] = p = _Pending(0, name, req, 0, 0)
+                else:
+                    req = wire.Request(self.run_id, eid, "", flow=names)
+                    req.inputs = wire.batch({})
+                    keys = [(eid, n) for n in names]
+                    for i, n in enumerate(names):
+                        self._pending[(eid, n)] = _Pending(i, n, req, 0, 0, flow=True)
+                    p = self._pending[keys[0]]  # one message for every discipline
+                self._send(p)
+                self._wait_pending(min(interval, max(deadline - time.monotonic(), 0.0)))
+                late = [k[1] for k in keys if k in self._pending]
+                for k in keys:
+                    self._pending.pop(k, None)
+                if not late:
+                    break
+                if time.monotonic() >= deadline:
+                    raise DisciplineMissing(f"discipline(s) {late} are matched but did not answer a probe "
+                                            f"({'data flow' if kind == 'flow' else 'request'}) within {wait_s:g} s")
+                interval = min(2 * interval, 1.0)
+        del self.accepted[kept:]
+        self._results = {}
+
+    def _wait_pending(self, seconds: float) -> None:
+        """Take results until nothing is pending or `seconds` passed (no re-send)."""
+        deadline = time.monotonic() + seconds
+        subs = [s for s, _ in self._hot]
+        while self._pending and time.monotonic() < deadline:
+            if self._waiter.wait(subs, deadline - time.monotonic()):
+                self._waiter.take_ready(self._hot)
 
     def warm_up(self, names: Sequence[str], rounds: int = 2) -> None:
-        """Send `rounds` data-flow MDAs of no point through the matched graph, before any timing
-        (call it after every start-up wait, the recorder's included, so a recording has all of it).
+        """Send `rounds` MDAs of no point through the matched graph, before any timing (call it
+        after every start-up wait, the recorder's included, so a recording has all of it).
 
         The first samples between a new writer and its readers cost more than the later ones
         (measured: the first MDA of a run took 3.9-4.2 ms against 2.6-2.8 ms for the rest; after
-        one empty MDA 3.2-3.7 ms, after two 2.8-2.9 ms). An empty MDA evaluates nothing, so the
-        evaluation counts do not change; its results are not kept in ``accepted`` or ``flows``.
-        A recorder sees its requests and results (every request with its result, no point)."""
+        one empty MDA 3.2-3.7 ms, after two 2.8-2.9 ms). The first round is the handshake (every
+        path, with short re-sends: nothing is lost to a late match); the others go the way the MDA
+        goes: one data-flow MDA for a feed-forward graph, else one wave of empty requests (a loop
+        is iterated hub and spoke; data flow cannot start a loop, so it is never tried there).
+        An empty MDA evaluates nothing, so the evaluation counts do not change; its results are
+        not kept in ``accepted`` or ``flows``. A recorder sees its requests and results."""
         kept, flows = len(self.accepted), self.flows
-        for _ in range(rounds):
-            self.evaluate_flow(names, {}, 0)
+        names = list(names)
+        self.handshake(names)
+        for _ in range(rounds - 1):
+            if self.evaluate_flow(names, {}, 0) is None:
+                self.evaluate([(n, {k: np.zeros(0) for k in self.specs[n].inputs}) for n in names])
         del self.accepted[kept:]
         self.flows = flows
 
@@ -233,7 +304,9 @@ class RosEvaluator:
         key = (int(msg.evaluation_id), msg.discipline)
         p = self._pending.get(key)
         if p is None:
-            if key in self._answered:
+            if key[0] in self._probe_ids:  # a late answer to a handshake probe (handshake())
+                self.probe_late += 1
+            elif key in self._answered:
                 self.dropped["duplicate"] += 1
             elif any(k[0] == key[0] for k in self._pending):
                 self.dropped["mismatched"] += 1  # an outstanding evaluation, answered by another discipline
@@ -283,6 +356,11 @@ class RosEvaluator:
         t0 = time.perf_counter()
         self._results = {}
         for i, (name, batch) in enumerate(calls):
+            if name in self.unresponsive:
+                n = len(next(iter(batch.values()), ()))
+                self._results[i] = self._failed(_Pending(i, name, None, n, 0),
+                                                f"{name}: did not answer earlier requests (hung or gone)")
+                continue
             req = wire.Request(self.run_id, self._next_id, name, iteration=iteration)
             req.inputs = wire.batch(batch)
             n = int(req.inputs.batch_size)
@@ -296,7 +374,7 @@ class RosEvaluator:
     def evaluate_flow(self, names: Sequence[str], request: Mapping[str, np.ndarray], n: int) -> dict | None:
         """One feed-forward MDA as ONE data-flow request; None when the nodes cannot serve it that way."""
         plan = self.flow_plan(names)
-        if plan is None:
+        if plan is None or self.unresponsive.intersection(names):
             return None
         t0 = time.perf_counter()
         self._flow_topics(names)
@@ -346,12 +424,25 @@ class RosEvaluator:
                         f"after {self.timeout_s:g} s; retry {attempt + 1}/{self.retries}"
                     )
                     self._send(p)
+        unanswered = set(self._pending)
         for key, p in list(self._pending.items()):
             self._results[p.index] = self._failed(
                 p, f"{p.discipline}: no answer after {self.retries + 1} attempts of {self.timeout_s:g} s"
             )
             del self._pending[key]
             self._answered.add(key)  # a late answer is then counted as stale, never used
+            if p.flow:  # data flow: hung only if its sources answered (else it had nothing to do)
+                srcs = set(((self.flow_plan(list(p.request.flow)) or {}).get(p.discipline) or {}).values())
+                hung = not any((key[0], s) in unanswered for s in srcs)
+            else:
+                hung = True
+            if hung and p.discipline not in self.unresponsive:
+                # a discipline that let every attempt time out is hung (or gone): say so once, and
+                # fail its later requests at once instead of waiting the whole timeout each time
+                self.unresponsive.add(p.discipline)
+                self.node.get_logger().error(
+                    f"discipline {p.discipline!r} did not answer within {self.retries + 1} x {self.timeout_s:g} s: "
+                    "its points fail, and so do its later requests, at once")
 
     def close(self) -> None:
         """Release the executor (the node is the caller's)."""

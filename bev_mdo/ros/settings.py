@@ -23,6 +23,31 @@ DEFAULTS: dict[str, Any] = {
 DISCOVERY_MODES = ("localhost", "static_peers", "server", "subnet")
 
 
+def choose_domain(section: Mapping[str, Any] | None, flag: int | None = None,
+                  environ: Mapping[str, str] | None = None) -> tuple[int | None, str | None]:
+    """The ROS convention: (domain id, one-line note or None).
+
+    A ``--domain-id`` flag wins, then a ``domain_id`` the config's ``ros:`` section states, then
+    ``ROS_DOMAIN_ID`` from the environment, then the project's default (77). The note says when
+    the config overrides a different ``ROS_DOMAIN_ID`` of the environment. A domain id that is
+    not an integer is returned as given (validate_ros names it)."""
+    env = os.environ if environ is None else environ
+    raw_env = str(env.get("ROS_DOMAIN_ID", "")).strip()
+    env_id = int(raw_env) if raw_env.isdigit() and 0 <= int(raw_env) <= 232 else None
+    if flag is not None:
+        return flag, None
+    section = section or {}
+    if section.get("domain_id") is not None:
+        d = section["domain_id"]
+        note = None
+        if env_id is not None and d != env_id:
+            note = f"ros.domain_id {d!r} of the config overrides ROS_DOMAIN_ID={raw_env} of the environment"
+        return d, note
+    if env_id is not None:
+        return env_id, None
+    return DEFAULTS["domain_id"], None
+
+
 def validate_ros(section: Mapping[str, Any] | None) -> dict[str, Any]:
     """Fill defaults and check the `ros:` section; one-line ValueError on a mistake."""
     section = dict(section or {})

@@ -1,42 +1,35 @@
 """OpenMDAO's Sellar problem as bev_mdo disciplines (known MDF optimum z=(1.9776, 0), x=0, obj 3.18339)."""
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 
-from bev_mdo.mdo.discipline import Discipline
+# The disciplines are the user-facing example's (examples/sellar/sellar_disciplines.py), the same classes.
+_EXAMPLE = str(Path(__file__).resolve().parents[2] / "examples" / "sellar")
+if _EXAMPLE not in sys.path:
+    sys.path.insert(0, _EXAMPLE)
+from sellar_disciplines import (REFERENCE_OBJECTIVE, REFERENCE_OPTIMUM, SellarDis1, SellarDis2,  # noqa: E402
+                                SellarObjective)
 
 SELLAR_OPTIMUM = {"z1": 1.97763888, "z2": 0.0, "x": 0.0}
-SELLAR_OBJECTIVE = 3.18339395
+SELLAR_OBJECTIVE = REFERENCE_OBJECTIVE
+assert SELLAR_OPTIMUM.keys() == REFERENCE_OPTIMUM.keys()
 
 
-class SellarDis1(Discipline):
-    name = "sellar1"
-    inputs = ("z1", "z2", "x", "y2")
-    outputs = ("y1",)
+class NegatedObjective:
+    """-obj, for maximisation tests (maximise -obj == minimise obj)."""
 
-    def compute(self, inputs):
-        return {"y1": inputs["z1"] ** 2 + inputs["z2"] + inputs["x"] - 0.2 * inputs["y2"]}
-
-
-class SellarDis2(Discipline):
-    name = "sellar2"
-    inputs = ("z1", "z2", "y1")
-    outputs = ("y2",)
+    name = "sellar_neg"
+    inputs = ("obj",)
+    outputs = ("neg_obj",)
 
     def compute(self, inputs):
-        return {"y2": np.sqrt(np.abs(inputs["y1"])) + inputs["z1"] + inputs["z2"]}
+        return {"neg_obj": -inputs["obj"]}
 
 
-class SellarObjective(Discipline):
-    name = "sellar_obj"
-    inputs = ("x", "z2", "y1", "y2")
-    outputs = ("obj",)
-
-    def compute(self, inputs):
-        return {"obj": inputs["x"] ** 2 + inputs["z2"] + inputs["y1"] + np.exp(-inputs["y2"])}
-
-
-class Failing(Discipline):
+class Failing:
     """Wraps a discipline; returns NaN where the input ``fail_above`` variable exceeds a threshold."""
 
     def __init__(self, inner, var, threshold):

@@ -84,8 +84,9 @@ class Audit:
             if ev not in audit.evaluators:
                 audit.evaluators.append(ev)
             req = p.request
-            if not int(req.inputs.batch_size) and not req.inputs.names:
-                audit.warm_ups.add(req.evaluation_id)  # RosEvaluator.warm_up: an MDA of no point
+            if not int(req.inputs.batch_size):
+                # RosEvaluator.handshake / warm_up: a request or an MDA of no point
+                audit.warm_ups.add(req.evaluation_id)
             elif req.attempt == 0:
                 names = list(req.flow) or [p.discipline]
                 audit.sent[req.evaluation_id] = (names, {k: np.array(v) for k, v in

@@ -1,0 +1,45 @@
+"""The ROS domain rule (issue 14, item 7): flag > the config's ros.domain_id > ROS_DOMAIN_ID > 77,
+with one line when the config overrides the environment; every command that talks ROS has --domain-id."""
+from __future__ import annotations
+
+import argparse
+
+import pytest
+
+from bev_mdo.cli import build_parser
+from bev_mdo.cli.ros_args import ros_section
+from bev_mdo.ros.settings import choose_domain
+
+
+@pytest.mark.parametrize("section,flag,env,want,noted", [
+    ({}, None, {}, 77, False),
+    ({}, None, {"ROS_DOMAIN_ID": "42"}, 42, False),
+    ({"domain_id": 42}, None, {"ROS_DOMAIN_ID": "42"}, 42, False),
+    ({"domain_id": 77}, None, {"ROS_DOMAIN_ID": "42"}, 77, True),
+    ({"domain_id": 77}, 5, {"ROS_DOMAIN_ID": "42"}, 5, False),
+    ({}, 5, {"ROS_DOMAIN_ID": "42"}, 5, False),
+    ({}, None, {"ROS_DOMAIN_ID": "not a number"}, 77, False),
+])
+def test_choose_domain(section, flag, env, want, noted):
+    got, note = choose_domain(section, flag, env)
+    assert got == want and (note is not None) == noted
+    if noted:
+        assert note == "ros.domain_id 77 of the config overrides ROS_DOMAIN_ID=42 of the environment"
+
+
+def test_ros_section_says_it_once_on_stderr(monkeypatch, capsys):
+    monkeypatch.setenv("ROS_DOMAIN_ID", "42")
+    args = argparse.Namespace(domain_id=None)
+    for _ in range(2):
+        assert ros_section({"ros": {"domain_id": 77}}, args)["domain_id"] == 77
+    assert capsys.readouterr().err.splitlines() == [
+        "bev-mdo: ros.domain_id 77 of the config overrides ROS_DOMAIN_ID=42 of the environment"]
+    assert ros_section({"ros": {}}, argparse.Namespace(domain_id=None))["domain_id"] == 42
+
+
+@pytest.mark.parametrize("command", [["optimize", "c.yaml"], ["evaluate", "c.yaml"], ["sensitivity", "c.yaml"],
+                                     ["node", "energy"], ["resume", "bag"], ["pareto", "c.yaml"], ["record"],
+                                     ["replay", "bag"]])
+def test_every_command_that_talks_ros_takes_domain_id(command):
+    args = build_parser().parse_args([*command, "--domain-id", "23"])
+    assert args.domain_id == 23

@@ -1,0 +1,65 @@
+"""Broken user disciplines for the bad-input tests (each mistake a user can make)."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+
+class OutputTwice:
+    name = "twice"
+    inputs = ("z1",)
+    outputs = ("w", "w")
+
+    def compute(self, inputs):
+        return {"w": inputs["z1"]}
+
+
+class WrongShape:
+    name = "wrong_shape"
+    inputs = ("z1", "x")
+    outputs = ("w",)
+
+    def compute(self, inputs):
+        return {"w": np.column_stack([inputs["z1"], inputs["x"]])}  # (N, 2), not (N,)
+
+
+class Raises:
+    name = "raises"
+    inputs = ("z1", "x")
+    outputs = ("w",)
+
+    def compute(self, inputs):
+        raise RuntimeError("the solver diverged")
+
+
+class ReturnsNaN:
+    name = "returns_nan"
+    inputs = ("z1", "x")
+    outputs = ("w",)
+
+    def compute(self, inputs):
+        return {"w": np.full(inputs["z1"].shape, np.nan)}
+
+
+class Hangs:
+    name = "hangs"
+    inputs = ("z1", "x")
+    outputs = ("w",)
+
+    def __init__(self, seconds=3600.0):
+        self.seconds = float(seconds)
+
+    def compute(self, inputs):
+        if inputs["z1"].size:
+            time.sleep(self.seconds)
+        return {"w": inputs["z1"]}
+
+
+class BadConstructor:
+    name = "bad_constructor"
+    inputs = ("z1",)
+    outputs = ("w",)
+
+    def __init__(self):
+        raise KeyError("licence server")
