@@ -368,7 +368,7 @@ def decode_request(data) -> Request:
     m.inputs, pos = _named(data, pos)
     m.flow, pos = _strings(data, pos, MAX_NAMES)
     m.signature, pos = _string(data, pos)
-    m.partials = pos < len(data) and data[pos] != 0
+    m.partials = data[pos] != 0
     return m
 
 
@@ -391,5 +391,5 @@ def decode_result(data) -> Result:
     (m.compute_time_s,) = _F64.unpack_from(data, pos)
     m.flow, pos = _strings(data, pos + 8, MAX_NAMES)
     m.signature, pos = _string(data, pos)
-    m.partials = _named(data, pos)[0] if pos < len(data) else Batch()
+    m.partials = _named(data, pos)[0]
     return m
