@@ -310,7 +310,8 @@ class DisciplineNode(Node):
         out.flow = list(flow_names)
         out.compute_time_s = result.compute_time_s
         if asked:
-            out.partials = wire.partials_batch(result.extra.get("partials"), int(np.size(result.ok)))
+            # a block of the batch size even without partials: downstream nodes learn it was asked
+            out.partials = wire.partials_batch(result.extra.get("partials", {}), int(np.size(result.ok)))
         self.counts["answered"] += 1
         self._publish(out, pub)
 
