@@ -10,8 +10,8 @@ run by run (the host is noisy):
 Reported per mode and transport: optimiser iterations, MDA evaluations, discipline evaluations
 (per discipline and in total), gradients, the optimum, and the wall time of the optimisation
 (RunResult.wall_time_s: median, min, max over the runs). Over ROS six discipline node processes
-(domain 31, localhost-only discovery) serve both modes; the coordinator runs here, without its
-warm-up, through the ROS evaluator. Take the shared lock for the ROS part:
+(domain 31, localhost-only discovery) serve both modes; the coordinator runs here
+(``coordinator_node.run``: data-flow MDAs, warm-up before the timed optimisation). Take the shared lock for the ROS part:
 
     flock /tmp/bev_ros.lock python bench/bench_partials.py --repeat 7 [--no-ros] [--domain-id 31]
 
@@ -74,7 +74,9 @@ def bench_ros(repeat: int, domain: int, log_dir: Path) -> dict:
         os.environ.pop(k, None)
     os.environ["ROS_DOMAIN_ID"] = str(domain)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    from bev_mdo.ros.client import make_ros_evaluator
+    import rclpy
+
+    from bev_mdo.ros import coordinator_node
     from bev_mdo.ros.launch import Launcher, discipline_argv
     from bev_mdo.testing import ros_env
 
@@ -88,21 +90,20 @@ def bench_ros(repeat: int, domain: int, log_dir: Path) -> dict:
     path.write_text(yaml.safe_dump(base, sort_keys=False))
     runs = {m: [] for m in MODES}
     retried = {m: 0 for m in MODES}
+    ctx = rclpy.context.Context()
     try:
         for d in resolve_disciplines(base):
             launcher.add(d.name, discipline_argv(d.name, str(path)))
-        for i in range(repeat + 1):
+        rclpy.init(context=ctx)
+        for i in range(repeat + 1):  # first round: discovery and first messages, not kept
             for m in MODES:
-                cfg = _config(m, domain)
-                ev = make_ros_evaluator(cfg, node_name="bench_partials")
-                try:
-                    r = run_optimization(cfg, ev)
-                    if i:
-                        runs[m].append(r)
-                        retried[m] += ev._inner.retried
-                finally:
-                    ev.close()
+                r, stats = coordinator_node.run(_config(m, domain), context=ctx)
+                if i:
+                    runs[m].append(r)
+                    retried[m] += stats["retried"]
     finally:
+        if ctx.ok():
+            rclpy.shutdown(context=ctx)
         launcher.stop()
     out = {m: {**_summary(runs[m]), "retried": retried[m]} for m in MODES}
     out["node_restarts"] = {n.label: n.restarts for n in launcher.nodes if n.restarts}
