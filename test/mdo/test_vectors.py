@@ -107,3 +107,31 @@ def test_history_csv_names_vector_elements():
     header = to_csv([{**r, "run_id": "r", "sequence": k, "log_time_ns": 0}
                      for k, r in enumerate(res.history)]).splitlines()[0].split(",")
     assert {"design.z[0]", "design.z[1]", "design.x", "constraint.con[0]", "constraint.con[1]"} <= set(header)
+
+
+GOLINSKI = ROOT / "examples" / "golinski.yaml"
+
+
+@pytest.mark.parametrize("formulation", ["mdf", "idf"])
+@pytest.mark.parametrize("derivatives", ["auto", "fd"])
+def test_golinski_speed_reducer_reaches_its_published_optimum(formulation, derivatives):
+    """W = 2994.47 at (3.5, 0.7, 17, 7.3, 7.71532, 3.35021, 5.28665) (Kodiyalam 1998, Ray 2003).
+    Tolerance: 0.01 on W (the reference has 6 digits), 1e-4 on every variable (references give 5-6)."""
+    from examples.golinski import REFERENCE
+
+    cfg = load_config(GOLINSKI)
+    cfg["optimizer"]["derivatives"] = derivatives
+    res = run_optimization(cfg, InProcessEvaluator(resolve_disciplines(cfg)), formulation=formulation)
+    assert res.success and res.feasible
+    assert res.objective == pytest.approx(REFERENCE["weight"], abs=0.01)
+    for name in ("x_shared", "x_shaft1", "x_shaft2"):
+        for i, v in enumerate(REFERENCE[name]):
+            assert res.design[f"{name}[{i}]"] == pytest.approx(v, abs=1e-4), f"{name}[{i}]"
+    assert len(res.constraints) == 11
+
+
+def test_golinski_analytic_gradient_is_one_analysis_per_gradient():
+    cfg = load_config(GOLINSKI)
+    res = run_optimization(cfg, InProcessEvaluator(resolve_disciplines(cfg)))
+    assert res.mda_evaluations == res.gradients  # every discipline has partials: no FD at all
+    assert set(res.discipline_evaluations.values()) == {res.mda_evaluations}
