@@ -20,6 +20,7 @@ from bev_mdo.testing import REPO, ros_env  # noqa: E402
 from examples.sellar_vector import REFERENCE  # noqa: E402
 
 SELLAR = REPO / "examples" / "sellar_vector.yaml"
+GOLINSKI = REPO / "examples" / "golinski.yaml"
 MDO_TESTS = REPO / "test" / "mdo"
 sys.path.insert(0, str(MDO_TESTS))  # vector_toys, for the bad discipline
 NAMES = ["sellar_dis1", "sellar_dis2", "sellar_functions"]
@@ -40,6 +41,10 @@ def configs(ros_domain, tmp_path_factory):
     bad["ros"] = {"timeout_s": 5.0, "retries": 0, "discovery_wait_s": 60.0, "domain_id": ros_domain}
     (d / "bad.yaml").write_text(yaml.safe_dump(bad, sort_keys=False))
     out["bad"] = str(d / "bad.yaml")
+    gol = yaml.safe_load(GOLINSKI.read_text())
+    gol["ros"] = raw["ros"]
+    (d / "golinski.yaml").write_text(yaml.safe_dump(gol, sort_keys=False))
+    out["golinski"] = str(d / "golinski.yaml")
     return out
 
 
@@ -50,6 +55,8 @@ def nodes(ros_domain, configs, tmp_path_factory):
     launcher = Launcher(env, log_dir=tmp_path_factory.mktemp("logs"))
     for name in NAMES:  # the nodes compute partials only when a request asks: one set serves both modes
         launcher.add(name, discipline_argv(name, configs["analytic"]))
+    for name in ("gear", "shaft1", "shaft2", "weight"):
+        launcher.add(name, discipline_argv(name, configs["golinski"]))
     yield launcher
     launcher.stop()
     for n in launcher.nodes:
@@ -82,6 +89,20 @@ def test_vector_sellar_over_ros_gives_the_in_process_iterates(ros_domain, nodes,
         assert a["objective"] == pytest.approx(b["objective"], rel=1e-12)
     assert ros.discipline_evaluations == local.discipline_evaluations
     assert retried == 0
+
+
+@pytest.mark.parametrize("formulation", ["mdf", "idf"])
+def test_golinski_over_ros_reaches_its_reference_with_the_in_process_iterates(ros_domain, nodes, configs,
+                                                                              formulation):
+    from examples.golinski import REFERENCE as GOL
+
+    cfg = load_config(configs["golinski"])
+    ros, retried = _over_ros(cfg, formulation)
+    local = run_optimization(cfg, InProcessEvaluator(resolve_disciplines(cfg)), formulation=formulation)
+    assert ros.feasible and ros.objective == pytest.approx(GOL["weight"], abs=0.01)
+    assert ros.design["x_shaft2[1]"] == pytest.approx(GOL["x_shaft2"][1], abs=1e-4)
+    assert [h["design"] for h in ros.history] == [h["design"] for h in local.history]
+    assert ros.discipline_evaluations == local.discipline_evaluations and retried == 0
 
 
 def test_a_scalar_for_a_whole_batch_is_named_in_one_line_over_ros(ros_domain, nodes, configs, tmp_path):
