@@ -171,7 +171,12 @@ def _with_partials(disc: Any, batch: Batch, res: EvalResult, n: int, t0: float) 
     if m == 0:
         part: dict = {}
     else:
-        raw = disc.compute_partials(rows)  # an exception here is the discipline's own bug: let it name itself
+        try:
+            raw = disc.compute_partials(rows)
+        except ShapeError:
+            raise
+        except Exception as exc:  # a bug of the discipline, not a bad point: one line naming it
+            raise ShapeError(f"discipline {name!r}: compute_partials() raised {type(exc).__name__}: {exc}") from None
         if getattr(disc, "partials_flat", False):
             part = raw
         else:

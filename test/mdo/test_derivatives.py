@@ -160,3 +160,14 @@ def test_check_partials_cli_exit_status_and_one_line_per_mismatch(tmp_path, caps
     assert main(["check-partials", str(SELLAR), "--at", "w=1"]) == 2
     assert "w" in capsys.readouterr().err
     assert main(["check-partials", str(LEAF)]) == 0  # the built-in BEV partials
+
+
+def test_compute_partials_that_raises_is_one_line_naming_the_discipline():
+    from examples.sellar_vector import SellarDis2
+
+    class Broken(SellarDis2):
+        def compute_partials(self, inputs):
+            raise KeyError("y3")
+
+    with pytest.raises(ShapeError, match=r"discipline 'sellar_dis2': compute_partials\(\) raised KeyError: 'y3'"):
+        run_discipline(wrap(Broken()), {"z[0]": [1.0], "z[1]": [0.0], "y1": [4.0]}, partials=True)
