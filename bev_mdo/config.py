@@ -24,7 +24,8 @@ MDA_DEFAULTS = {"method": "gauss_seidel", "tolerance": 1.0e-10, "max_iterations"
 # default max(|bound|, 1), i.e. relative to the bound, absolute below 1) and of an IDF consistency
 # equality that still counts as feasible. 1e-4 is GEMSEO's default (ineq_tolerance / eq_tolerance).
 OPTIMIZER_DEFAULTS = {"name": "SLSQP", "options": {}, "fd_step": 1.0e-6, "fd_scheme": "forward",
-                      "feasibility_tolerance": 1.0e-4}
+                      "feasibility_tolerance": 1.0e-4,
+                      "derivatives": "auto"}
 SIZED_VARIABLE = "battery_kwh"
 SIZED_CONSTRAINT = "range_km"
 
@@ -99,6 +100,11 @@ def _resolve(raw: Any) -> dict:
         raise ValueError(f"optimizer.feasibility_tolerance {tol!r} must be a number in [0, 1) "
                          "(on normalised constraints; default 1e-4)")
     cfg["optimizer"]["feasibility_tolerance"] = float(tol)
+    from bev_mdo.mdo.formulations import DERIVATIVES
+
+    if cfg["optimizer"]["derivatives"] not in DERIVATIVES:
+        raise ValueError(f"optimizer.derivatives {cfg['optimizer']['derivatives']!r} is unknown; allowed: "
+                         f"{', '.join(DERIVATIVES)}")
     for key in ("ros", "recording"):
         if cfg.get(key) is not None and not isinstance(cfg[key], Mapping):
             raise ValueError(f"{key} must be a mapping")
@@ -251,6 +257,14 @@ def _check_against_disciplines(cfg: dict, problem) -> set[str]:
     graph = CouplingGraph(specs)
     produced, consumed = set(graph.producer), {v for _, i, _ in specs for v in i}
     params = {p for d in discs for p in (getattr(d, "parameters", {}) or {})}
+    if problem.objective not in produced or any(c.name not in produced for c in problem.constraints):
+        for name in [problem.objective] + [c.name for c in problem.constraints]:
+            if name not in produced and f"{name}[0]" in produced:
+                size = sum(1 for v in produced if v.startswith(f"{name}["))
+                what = ("the objective must be a scalar; pick one element, e.g. " + f"{name}[0]"
+                        if name == problem.objective else f"add shape: {size}")
+                raise ValueError(f"problem: {name!r} is a vector of {size} elements (discipline "
+                                 f"{graph.producer[name + '[0]']!r}); {what}")
     if problem.objective not in produced:
         raise ValueError(f"problem.objective {problem.objective!r} is not produced by any discipline; "
                          f"outputs: {sorted(produced)}")
@@ -282,10 +296,11 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
     ``{name}`` without ``class`` picks the built-in of that name.
     """
     from bev_mdo.mdo.discipline import load_class
+    from bev_mdo.mdo.vectors import wrap
 
     entries = config.get("disciplines")
     if entries is None:
-        return list(_defaults(config))
+        return [wrap(d) for d in _defaults(config)]
     if not isinstance(entries, list) or not entries:
         raise ValueError("disciplines must be a non-empty list of names or {name, class, options} entries")
     out, builtins = [], None
@@ -338,7 +353,7 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
                 disc.name = e["name"]
             except AttributeError:
                 raise ValueError(f"disciplines[{k}]: {cls.__name__} is named {disc.name!r}, not {e['name']!r}") from None
-        out.append(disc)
+        out.append(wrap(disc))
     return out
 
 
@@ -363,7 +378,7 @@ def discipline_entries(config: Mapping[str, Any]) -> list[dict]:
     """``{name, class, options}`` for every discipline of a run (what a node needs to build one)."""
     out = []
     for d in resolve_disciplines(config):
-        cls = type(d)
+        cls = type(getattr(d, "inner", d))
         out.append({"name": d.name, "class": f"{cls.__module__}:{cls.__qualname__}", "options": {}})
     if config.get("disciplines") is not None:
         user = {(e if isinstance(e, str) else e["name"]): e for e in config["disciplines"]}

@@ -110,6 +110,19 @@ class VehicleMass(_Base):
                                        self._params(inputs), self.mass_model, inputs.get("motor_rear_kw"))
         return {"vehicle_mass_kg": m}
 
+    @property
+    def provides_partials(self) -> bool:  # analytic for the single-motor topology (eq 7-19 / ch.3)
+        return self.topology.name == "SM-SA"
+
+    def compute_partials(self, inputs):
+        """Eq 7-19 is linear: dM/dP = motor kg/kW, dM/dE = battery kg/kWh (x the compounding
+        factor with the ch.3 rule)."""
+        p = self._params(inputs)
+        n = len(inputs["motor_kw"])
+        factor = 1.0 if self.mass_model == "ch7" else p["mass_compounding"]
+        return {("vehicle_mass_kg", "motor_kw"): np.broadcast_to(factor * p["motor_kg_per_kw"], (n,)),
+                ("vehicle_mass_kg", "battery_kwh"): np.broadcast_to(factor * p["battery_kg_per_kwh"], (n,))}
+
 
 class Energy(_Base):
     """vehicle_mass_kg, gear_ratio (, motor_kw, battery_kwh, rear motor) -> energy_wh_per_km on the
@@ -277,6 +290,13 @@ class Range(_Base):
         e = inputs["energy_wh_per_km"] * p.get("charger_efficiency", 1.0)
         return {"range_km": range_model.range_km(inputs["battery_kwh"], e, p["battery_usable_fraction"])}
 
+    def compute_partials(self, inputs):
+        """Eq 7-28, R = f E_b 1000 / e: dR/dE_b = f 1000 / e, dR/de = -R / e."""
+        f = self._params(inputs)["battery_usable_fraction"]
+        e, b = inputs["energy_wh_per_km"], inputs["battery_kwh"]
+        return {("range_km", "battery_kwh"): f * 1000.0 / e + 0.0 * b,
+                ("range_km", "energy_wh_per_km"): -f * b * 1000.0 / (e * e)}
+
 
 class Acceleration(_Base):
     """motor_kw, gear_ratio, vehicle_mass_kg (, rear motor) -> accel_time_0_100_s (eqs 7-30 / 2-26 / 4-5)
@@ -334,6 +354,12 @@ class MotorSpeed(_Base):
         return {"motor_speed_max_rad_s": motor_speed.motor_speed_max_rad_s(
             inputs["gear_ratio"], self.max_speed_m_s, p["wheel_radius_m"])}
 
+    def compute_partials(self, inputs):
+        """Eq 7-29, w = i_g v_max / r_w: dw/di_g = v_max / r_w."""
+        rw = self._params(inputs)["wheel_radius_m"]
+        n = len(inputs["gear_ratio"])
+        return {("motor_speed_max_rad_s", "gear_ratio"): np.broadcast_to(self.max_speed_m_s / rw, (n,))}
+
 
 class Cost(_Base):
     """motor_kw, battery_kwh (, motor_rear_kw) -> powertrain_cost_usd (eqs 2-21..2-24, Table 4-3, eq 4-4).
@@ -364,6 +390,18 @@ class Cost(_Base):
                                                inputs.get("motor_rear_kw"), p["power_to_energy_ratio"],
                                                self.gearbox_cost_usd)
         return {"powertrain_cost_usd": c}
+
+    @property
+    def provides_partials(self) -> bool:  # analytic for the single-motor topology
+        return self.topology.name == "SM-SA"
+
+    def compute_partials(self, inputs):
+        """Eqs 2-21..2-24 are linear: dC/dP = 16 $/kW, dC/dE = 11.1 P/E + 221.1 + 13 $/kWh
+        (a gearbox cost is a constant)."""
+        pe = self._params(inputs)["power_to_energy_ratio"]
+        n = len(inputs["motor_kw"])
+        return {("powertrain_cost_usd", "motor_kw"): np.full(n, 16.0),
+                ("powertrain_cost_usd", "battery_kwh"): np.broadcast_to(11.1 * np.asarray(pe) + 221.1 + 13.0, (n,))}
 
 
 class BatterySizing(_Base):
@@ -396,6 +434,12 @@ class BatterySizing(_Base):
         e = inputs["energy_wh_per_km"] * p.get("charger_efficiency", 1.0)
         return {"battery_kwh": range_model.battery_kwh_for_range(self.range_target_km, e,
                                                                  p["battery_usable_fraction"])}
+
+    def compute_partials(self, inputs):
+        """Eq 7-28 inverted, E_b = R e / (1000 f): dE_b/de = R / (1000 f)."""
+        f = self._params(inputs)["battery_usable_fraction"]
+        n = len(inputs["energy_wh_per_km"])
+        return {("battery_kwh", "energy_wh_per_km"): np.broadcast_to(self.range_target_km / (1000.0 * np.asarray(f)), (n,))}
 
 
 BUILTIN: dict[str, type] = {

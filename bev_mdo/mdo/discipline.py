@@ -4,6 +4,11 @@ A discipline is any class with ``name``, ``inputs``, ``outputs`` and
 ``compute(inputs) -> outputs`` where every value is a float64 array of shape (N,).
 It is stateless per call, so retries and duplicate instances are safe.
 
+Vector variables: ``shapes = {name: size}`` (see vectors.py). Analytic partial derivatives:
+an optional ``compute_partials(inputs) -> {(output, input): array (N, out_size, in_size)}``
+next to ``compute`` (see docs/derivatives.md); ``run_discipline(..., partials=True)`` returns
+them flattened in ``EvalResult.extra["partials"]``.
+
 ``parameters`` lists model constants that a caller may override per point by
 sending an input column of the same name (used for sensitivities with respect
 to model parameters, e.g. ``drag_area_m2``).
@@ -18,6 +23,8 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+
+from bev_mdo.mdo.vectors import ShapeError, check_outputs, flat_partials, has_partials
 
 Batch = dict[str, np.ndarray]
 
@@ -107,13 +114,17 @@ def _describe_row(inputs: Mapping[str, np.ndarray], i: int) -> str:
     return ", ".join(f"{k}={float(v[i]):.6g}" for k, v in inputs.items())
 
 
-def run_discipline(disc: Any, inputs: Mapping[str, Any]) -> EvalResult:
+def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False) -> EvalResult:
     """Validate inputs, call ``disc.compute`` on the batch and validate its outputs.
 
     Never raises for a model failure: a batch that raises is retried point by point,
     and every point that raises or gives NaN/Inf is marked failed with NaN outputs
     and named (with its inputs) in ``EvalResult.error``. Missing inputs raise
-    DisciplineError because that is a wiring mistake, not a bad point.
+    DisciplineError because that is a wiring mistake, not a bad point; so does an output or
+    partial of the wrong shape (vectors.ShapeError, naming the discipline).
+
+    With ``partials`` and a discipline that provides them, ``extra["partials"]`` holds
+    {(output, input): (N,)} at the evaluated inputs (NaN on failed points).
     """
     name = getattr(disc, "name", type(disc).__name__)
     missing = [k for k in disc.inputs if k not in inputs]
@@ -130,12 +141,15 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any]) -> EvalResult:
         if bad_in.any():
             raise DisciplineError("non-finite inputs")
         out = _call(disc, batch, n)
+    except ShapeError:
+        raise
     except Exception:
         out = None
     if out is not None:
         finite = finite_rows([out[k] for k in disc.outputs], n)
         if finite.all():  # the common case: every point evaluated and finite
-            return EvalResult(out, finite, "", time.perf_counter() - t0)
+            res = EvalResult(out, finite, "", time.perf_counter() - t0)
+            return _with_partials(disc, batch, res, n, t0) if partials else res
     ok = np.ones(n, dtype=bool)
     errors: list[str] = []
     if out is None:
@@ -148,6 +162,8 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any]) -> EvalResult:
                 continue
             try:
                 one = _call(disc, row, 1)
+            except ShapeError:
+                raise
             except Exception as exc:  # the model's own error text is what the user needs
                 ok[i] = False
                 errors.append(f"{name}: {type(exc).__name__}: {exc} at point {i} ({_describe_row(batch, i)})")
@@ -162,7 +178,44 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any]) -> EvalResult:
             errors.append(f"{name}: non-finite output {bad} at point {i} ({_describe_row(batch, i)})")
         for k in disc.outputs:
             out[k] = np.where(ok, out[k], np.nan)
-    return EvalResult(out, ok, "; ".join(errors), time.perf_counter() - t0)
+    res = EvalResult(out, ok, "; ".join(errors), time.perf_counter() - t0)
+    return _with_partials(disc, batch, res, n, t0) if partials else res
+
+
+def _with_partials(disc: Any, batch: Batch, res: EvalResult, n: int, t0: float) -> EvalResult:
+    """Add the discipline's analytic partials (if it has any) at the evaluated points."""
+    if not has_partials(disc) or n == 0:
+        return res
+    name = getattr(disc, "name", type(disc).__name__)
+    good = np.asarray(res.ok, dtype=bool)
+    rows = batch if good.all() else {k: v[good] for k, v in batch.items()}
+    m = int(good.sum())
+    if m == 0:
+        part: dict = {}
+    else:
+        try:
+            raw = disc.compute_partials(rows)
+        except ShapeError:
+            raise
+        except Exception as exc:  # a bug of the discipline, not a bad point: one line naming it
+            raise ShapeError(f"discipline {name!r}: compute_partials() raised {type(exc).__name__}: {exc}") from None
+        if getattr(disc, "partials_flat", False):
+            part = raw
+        else:
+            part = flat_partials(name, raw, {}, disc.outputs, disc.inputs, m)
+    if m != n:
+        full = {}
+        for k, col in part.items():
+            c = np.full(n, np.nan)
+            c[good] = col
+            full[k] = c
+        part = full
+    bad = [k for k, c in part.items() if not np.isfinite(c[good]).all()]
+    if bad:
+        raise ShapeError(f"discipline {name!r}: partial d{bad[0][0]}/d{bad[0][1]} is not finite at an evaluated point")
+    res.extra["partials"] = part
+    res.compute_time_s = time.perf_counter() - t0
+    return res
 
 
 def _column(v: Any) -> np.ndarray:
@@ -184,20 +237,9 @@ def finite_rows(columns: list, n: int) -> np.ndarray:
 
 def _call(disc: Any, batch: Batch, n: int) -> Batch:
     raw = disc.compute(batch)
-    out: Batch = {}
-    for k in disc.outputs:
-        if k not in raw:
-            raise DisciplineError(f"compute() did not return output {k!r}")
-        try:
-            v = np.asarray(raw[k], dtype=float)
-        except (TypeError, ValueError):
-            raise DisciplineError(f"compute() returned {k!r} as {type(raw[k]).__name__}, not numbers") from None
-        if v.shape != (n,):
-            if v.size != 1:  # a scalar is broadcast over the batch; any other shape is a mistake
-                raise DisciplineError(f"compute() returned {k!r} of shape {v.shape} for a batch of {n} points; "
-                                      f"expected ({n},), one value per point")
-            v = np.broadcast_to(v.reshape(()), (n,)).copy()
-        elif any(np.may_share_memory(v, b) for b in batch.values()):
-            v = v.copy()  # never hand back (a view of) an input array
-        out[k] = v
+    name = getattr(disc, "name", type(disc).__name__)
+    out = check_outputs(name, raw, disc.outputs, {}, n, tuple(getattr(disc, "broadcast_outputs", ()) or ()))
+    for k, v in out.items():
+        if any(np.may_share_memory(v, b) for b in batch.values()):
+            out[k] = v.copy()  # never hand back (a view of) an input array
     return out

@@ -89,8 +89,27 @@ def build_formulation(config: Mapping[str, Any], evaluator: Evaluator, formulati
     if name not in FORMULATIONS:
         raise ValueError(f"formulation {name!r} is unknown; allowed: {', '.join(FORMULATIONS)}")
     opt = config.get("optimizer", {})
-    return FORMULATIONS[name](problem, evaluator, _mda(config, evaluator, problem),
-                              fd_step=opt.get("fd_step", 1e-6), fd_scheme=opt.get("fd_scheme", "forward"))
+    mda = _mda(config, evaluator, problem)
+    return FORMULATIONS[name](problem, evaluator, mda,
+                              fd_step=opt.get("fd_step", 1e-6), fd_scheme=opt.get("fd_scheme", "forward"),
+                              derivatives=derivatives_mode(config, evaluator, list(mda.specs)))
+
+
+def derivatives_mode(config: Mapping[str, Any], evaluator: Evaluator, names: list[str]) -> str:
+    """``optimizer.derivatives``: analytic | fd, or auto (the default): analytic when every
+    discipline of the run provides partials, else fd (docs/derivatives.md: a mix of analytic and
+    per-discipline finite differences is ``analytic``, chosen explicitly, because a batched
+    finite-difference stencil of whole MDAs can cost less than an analysis plus a second wave)."""
+    mode = str((config.get("optimizer") or {}).get("derivatives", "auto")).lower()
+    if mode != "auto":
+        return mode
+    flags = [getattr(evaluator.specs.get(n), "partials", None) for n in names]
+    if any(f is None for f in flags):  # a transport that does not know: ask the config's disciplines
+        from bev_mdo.config import resolve_disciplines
+        from bev_mdo.mdo.vectors import has_partials
+
+        flags = [has_partials(d) for d in resolve_disciplines(config) if d.name in names]
+    return "analytic" if flags and all(flags) else "fd"
 
 
 def _constraint_report(problem: Problem, values: Mapping[str, float], tol: float = FEASIBILITY_TOL) -> dict[str, dict]:

@@ -21,6 +21,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from bev_mdo.mdo.discipline import EvalResult, run_discipline
+from bev_mdo.mdo.vectors import has_partials
 
 
 @dataclass(frozen=True)
@@ -31,12 +32,13 @@ class DisciplineSpec:
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
     parameters: Mapping[str, float] = field(default_factory=dict)
+    partials: bool | None = None  # provides analytic partials (None: not known to this transport)
 
     @classmethod
     def of(cls, disc: Any) -> "DisciplineSpec":
         name = getattr(disc, "name", "") or type(disc).__name__
         return cls(str(name), tuple(disc.inputs), tuple(disc.outputs),
-                   dict(getattr(disc, "parameters", {}) or {}))
+                   dict(getattr(disc, "parameters", {}) or {}), has_partials(disc))
 
 
 Call = tuple[str, Mapping[str, np.ndarray]]
@@ -50,7 +52,10 @@ class Evaluator(Protocol):
     counts: dict[str, int]             # discipline name -> points evaluated so far
 
     def evaluate(self, calls: list[Call]) -> list[EvalResult]:
-        """Run one wave of independent batched calls; results in call order."""
+        """Run one wave of independent batched calls; results in call order.
+
+        Called as ``evaluate(calls, partials=True)`` it also asks each discipline for its
+        analytic partials (``EvalResult.extra["partials"]``, absent if it has none)."""
         ...
 
     def close(self) -> None:
@@ -72,13 +77,13 @@ class InProcessEvaluator:
         self.counts = {n: 0 for n in self.disciplines}
         self.waves = 0  # number of evaluate() calls (request waves)
 
-    def evaluate(self, calls: list[Call]) -> list[EvalResult]:
+    def evaluate(self, calls: list[Call], partials: bool = False) -> list[EvalResult]:
         self.waves += 1
         results = []
         for name, inputs in calls:
             if name not in self.disciplines:
                 raise ValueError(f"unknown discipline {name!r}; known: {sorted(self.disciplines)}")
-            res = run_discipline(self.disciplines[name], inputs)
+            res = run_discipline(self.disciplines[name], inputs, partials)
             self.counts[name] += int(np.size(res.ok))
             results.append(res)
         return results

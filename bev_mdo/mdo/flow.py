@@ -67,17 +67,25 @@ def scatter(res: EvalResult, idx: np.ndarray, n: int, outputs: Sequence[str]) ->
         out[k] = full
     ok = np.zeros(n, dtype=bool)
     ok[idx] = res.ok
-    return EvalResult(out, ok, res.error, res.compute_time_s)
+    extra = dict(res.extra)
+    if "partials" in extra:
+        part = {}
+        for k, col in extra["partials"].items():
+            full = np.full(n, np.nan)
+            full[idx] = col
+            part[k] = full
+        extra["partials"] = part
+    return EvalResult(out, ok, res.error, res.compute_time_s, extra)
 
 
 def run_flow_discipline(disc: Any, request: Mapping[str, np.ndarray], upstream: Upstream,
-                        source_of: Mapping[str, str], n: int) -> tuple[EvalResult, int]:
+                        source_of: Mapping[str, str], n: int, partials: bool = False) -> tuple[EvalResult, int]:
     """Evaluate ``disc`` for one data-flow request; returns (result over all n rows, rows evaluated)."""
     batch, idx = flow_inputs(disc.inputs, tuple(getattr(disc, "parameters", {}) or {}), request, upstream,
                              source_of, n)
     if idx.size == 0:
         return _nothing(disc.outputs, n), 0
-    res = run_discipline(disc, batch)
+    res = run_discipline(disc, batch, partials)
     if idx.size != n:
         res = _renumber(res, idx)
     return scatter(res, idx, n, disc.outputs), int(idx.size)
@@ -97,7 +105,7 @@ def rows_evaluated(source_of: Mapping[str, str], upstream: Upstream, n: int) -> 
 
 
 def flow_by_waves(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequence[str]],
-                  request: Mapping[str, np.ndarray], n: int) -> dict[str, EvalResult]:
+                  request: Mapping[str, np.ndarray], n: int, partials: bool = False) -> dict[str, EvalResult]:
     """The data-flow rule over any evaluator: one ``evaluate`` call per wave of the graph."""
     producer = {v: name for name in specs for v in specs[name].outputs}
     results: dict[str, EvalResult] = {}
@@ -115,7 +123,8 @@ def flow_by_waves(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequ
             plan.append((name, idx))
         if not calls:
             continue
-        for (name, idx), res in zip(plan, evaluator.evaluate(calls)):
+        got = evaluator.evaluate(calls, partials=True) if partials else evaluator.evaluate(calls)
+        for (name, idx), res in zip(plan, got):
             res = _renumber(res, idx) if idx.size != n else res
             results[name] = scatter(res, idx, n, specs[name].outputs)
     return results
@@ -131,13 +140,14 @@ def _renumber(res: EvalResult, idx: np.ndarray) -> EvalResult:
 
 
 def evaluate_flow(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequence[str]],
-                  request: Mapping[str, np.ndarray], n: int) -> dict[str, EvalResult]:
+                  request: Mapping[str, np.ndarray], n: int, partials: bool = False) -> dict[str, EvalResult]:
     """One data-flow MDA: the evaluator's own ``evaluate_flow`` (one request) when it offers one
-    and can serve these disciplines that way, else :func:`flow_by_waves`."""
+    and can serve these disciplines that way, else :func:`flow_by_waves`. With ``partials`` every
+    discipline that has analytic partials returns them with its result."""
     own = getattr(evaluator, "evaluate_flow", None)
     if own is not None:
         order = [name for wave in waves for name in wave]
-        got = own(order, request, n)
+        got = own(order, request, n, partials=True) if partials else own(order, request, n)
         if got is not None:
             return got
-    return flow_by_waves(evaluator, specs, waves, request, n)
+    return flow_by_waves(evaluator, specs, waves, request, n, partials)

@@ -6,7 +6,7 @@ physical optimiser variables, with g <= 0 feasible and h = 0 the IDF consistency
 equalities (p = 0 for MDF), and scaled scalar helpers for scipy
 (``fun``/``jac``/``ineq``/``ineq_jac``/``eq``/``eq_jac`` on u = (x - offset) / scale).
 
-Gradients are finite differences whose whole stencil (x and its n perturbed
+Gradients (``derivatives: fd``) are finite differences whose whole stencil (x and its n perturbed
 points) is ONE batch, i.e. one request per graph wave. Every evaluated row is
 cached, so scipy's separate fun/jac/constraint calls at one x cost nothing extra.
 
@@ -14,6 +14,11 @@ A failed point (a discipline error, NaN, an unconverged loop) gets objective
 ``FAIL_OBJECTIVE`` and every constraint ``FAIL_CONSTRAINT`` (violated); in a
 stencil, a failed perturbed point of a good base point gives a zero derivative
 in that direction (counted in ``fd_failures``).
+
+With ``derivatives: analytic`` the gradient at a point is assembled from the disciplines'
+partials instead (derivatives.py): one analysis of the point asking every discipline for its
+analytic partials, one wave of per-discipline finite differences for the disciplines that
+have none, then the chain rule / coupled linear solve (MDF) or the partials themselves (IDF).
 """
 from __future__ import annotations
 
@@ -21,6 +26,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from bev_mdo.mdo.derivatives import constraint_jacobian, fd_partials, idf_totals, mdf_totals
 from bev_mdo.mdo.evaluator import Evaluator
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.mda import MDA, MDAResult
@@ -29,6 +35,7 @@ from bev_mdo.mdo.problem import Problem
 FAIL_OBJECTIVE = 1.0e10
 FAIL_CONSTRAINT = 1.0
 FD_SCHEMES = ("forward", "central")
+DERIVATIVES = ("auto", "analytic", "fd")
 
 
 class Formulation:
@@ -38,7 +45,12 @@ class Formulation:
     speculative_gradients = False  # set by gradient-based optimisers: evaluate a new point with its stencil
 
     def __init__(self, problem: Problem, evaluator: Evaluator, *, fd_step: float = 1e-6,
-                 fd_scheme: str = "forward", eq_tolerance: float = 1e-6, cache_size: int = 50_000):
+                 fd_scheme: str = "forward", eq_tolerance: float = 1e-6, cache_size: int = 50_000,
+                 derivatives: str = "fd"):
+        if derivatives not in ("analytic", "fd"):
+            raise ValueError(f"optimizer.derivatives {derivatives!r} is unknown; allowed: {', '.join(DERIVATIVES)}")
+        self.derivatives = derivatives
+        self._want_partials = False
         if not 0 < fd_step < 0.1:
             raise ValueError(f"optimizer.fd_step {fd_step} must be in (0, 0.1) (scaled units)")
         if fd_scheme not in FD_SCHEMES:
@@ -150,6 +162,10 @@ class Formulation:
         if self._grad is not None and self._grad[0] == key:
             return self._grad[1]
         self.n_gradients += 1
+        if self.derivatives == "analytic":
+            out = self._assembled(u)
+            self._grad = (key, out)
+            return out
         lo, hi = self.u_bounds
         hstep = self.fd_step
         fwd = np.where(u + hstep <= hi, hstep, -hstep)
@@ -186,6 +202,34 @@ class Formulation:
         return out
 
 
+    # ------------------------------------------------------------ assembled derivatives
+    def _analyse_with_partials(self, x: np.ndarray) -> None:
+        """(Re-)evaluate the point x asking the disciplines for their partials."""
+        self._cache.pop(x.tobytes(), None)
+        self._want_partials = True
+        try:
+            self.evaluate_batch(x[None, :])
+        finally:
+            self._want_partials = False
+
+    def _assembled(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(df (n,), dg (m, n), dh (p, n)) w.r.t. u from discipline partials."""
+        x = self.to_x(u)
+        self._analyse_with_partials(x)
+        m, p = len(self.ineq_labels), len(self.eq_labels)
+        if not self.status(x)[0]:  # a failed point has no derivative
+            return np.zeros(self.n), np.zeros((m, self.n)), np.zeros((p, self.n))
+        df, dg, dh = self._totals()
+        return df * self.scale, dg * self.scale[None, :], dh * self.scale[None, :]
+
+    def _fd_rest(self, part: dict, values: dict, base_needed=()) -> dict:
+        missing = [d for d in self.mda.specs if d not in part]
+        fdp, failed = fd_partials(self.evaluator, self.mda.specs, missing, values, 1, self.fd_step,
+                                  self.fd_scheme == "central", base_needed)
+        self.fd_failures += failed
+        return {**part, **fdp}
+
+
 class MDF(Formulation):
     """Multidisciplinary feasible: optimiser over design variables, a full MDA per point."""
 
@@ -205,7 +249,20 @@ class MDF(Formulation):
         inputs = {n: X[:, j] for j, n in enumerate(self.var_names)}
         for k, v in self.problem.parameters.items():
             inputs[k] = np.full(len(X), v)
+        if self._want_partials:
+            self._last = self.mda.run(inputs, partials=True)
+            return self._last
         return self.mda.run(inputs)
+
+    def _totals(self):
+        res = self._last
+        loops = {m for c in self.mda.graph.cycles for m in c}
+        values = {k: v[:1] for k, v in res.values.items()}
+        part = self._fd_rest(dict(res.partials or {}), values, loops)
+        tot = mdf_totals(list(self.mda.graph.producer), self.var_names, part, 1)
+        df = tot[self.problem.objective][0]
+        dg = constraint_jacobian(self.problem, tot, self.var_names, 1)[0]
+        return df, dg, np.zeros((0, self.n))
 
     def analysed(self, x: np.ndarray) -> tuple[dict[str, float], bool, str, int] | None:
         """(every MDA variable, ok, error, loop iterations) of a recently analysed point, or None."""
@@ -244,12 +301,11 @@ class IDF(Formulation):
         dv_names = problem.names
         start = mda.run({**{n: [x] for n, x in zip(dv_names, problem.x0())},
                          **{k: [v] for k, v in problem.parameters.items()}})
-        y0 = np.array([start.values[c][0] if start.ok[0] else problem.coupling_guesses.get(c, 1.0)
+        y0 = np.array([start.values[c][0] if start.ok[0] else problem.coupling_guess(c)
                        for c in self.couplings])
-        cb = problem.coupling_bounds
         self.var_names = dv_names + self.couplings
-        self.lower = np.concatenate([problem.array("lower"), [cb.get(c, (-np.inf, np.inf))[0] for c in self.couplings]])
-        self.upper = np.concatenate([problem.array("upper"), [cb.get(c, (-np.inf, np.inf))[1] for c in self.couplings]])
+        self.lower = np.concatenate([problem.array("lower"), [problem.coupling_bound(c)[0] for c in self.couplings]])
+        self.upper = np.concatenate([problem.array("upper"), [problem.coupling_bound(c)[1] for c in self.couplings]])
         self.coupling_scale = np.maximum(np.abs(y0), 1.0)
         self.offset = np.concatenate([problem.array("lower"), np.zeros(len(self.couplings))])
         self.scale = np.concatenate([problem.array("scale"), self.coupling_scale])
@@ -268,7 +324,10 @@ class IDF(Formulation):
             inp = {v: cols[v] for v in s.inputs}
             inp.update({p: cols[p] for p in s.parameters if p in cols})
             calls.append((name, inp))
-        results = self.evaluator.evaluate(calls)
+        if self._want_partials:
+            results = self.evaluator.evaluate(calls, partials=True)
+        else:
+            results = self.evaluator.evaluate(calls)
         out: dict[str, np.ndarray] = dict(cols)
         ok = np.ones(N, dtype=bool)
         errors = [""] * N
@@ -282,7 +341,26 @@ class IDF(Formulation):
         n_dv = len(self.problem.names)
         h = np.column_stack([(X[:, n_dv + k] - out[c]) / self.coupling_scale[k]
                              for k, c in enumerate(self.couplings)]) if self.couplings else np.zeros((N, 0))
+        if self._want_partials:
+            self._last = (out, {name: res.extra["partials"] for (name, _), res in zip(calls, results)
+                                if "partials" in res.extra})
         return f, g, h, ok, errors
+
+    def _totals(self):
+        out, part = self._last
+        values = {k: np.asarray(v)[:1] for k, v in out.items()}
+        part = self._fd_rest(dict(part), values)
+        outputs = [v for s in self.mda.specs.values() for v in s.outputs]
+        tot = idf_totals(outputs, self.var_names, part, 1)
+        df = tot[self.problem.objective][0]
+        dg = constraint_jacobian(self.problem, tot, self.var_names, 1)[0]
+        n_dv = len(self.problem.names)
+        dh = np.zeros((len(self.couplings), self.n))
+        for k, c in enumerate(self.couplings):
+            dh[k] = -tot[c][0]
+            dh[k, n_dv + k] += 1.0
+            dh[k] /= self.coupling_scale[k]
+        return df, dg, dh
 
     @property
     def mda_evaluations(self) -> int:

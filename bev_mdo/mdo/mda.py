@@ -22,6 +22,7 @@ import numpy as np
 from bev_mdo.mdo.evaluator import Evaluator
 from bev_mdo.mdo.flow import evaluate_flow
 from bev_mdo.mdo.graph import CouplingGraph
+from bev_mdo.mdo.vectors import base_name
 
 METHODS = ("gauss_seidel", "jacobi")
 _POINT = re.compile(r"at point (\d+)")
@@ -35,6 +36,8 @@ class MDAResult:
     ok: np.ndarray          # bool (N,)
     errors: list[str]       # '' for a good point
     iterations: np.ndarray  # loop sweeps per point (0 for a feed-forward graph)
+    partials: dict[str, dict] | None = None  # run(partials=True): discipline -> {(out, in): (N,)}
+                                             # for every discipline that has analytic partials
 
 
 class MDA:
@@ -80,14 +83,24 @@ class MDA:
         return out
 
     def _run(self, names: Sequence[str], values: dict, rows: np.ndarray, ok: np.ndarray,
-             errors: list[str], relax: bool = False) -> None:
-        """One evaluate() call for ``names`` on ``rows``; writes outputs, marks failures."""
+             errors: list[str], relax: bool = False, partials: dict | None = None, store: bool = True) -> None:
+        """One evaluate() call for ``names`` on ``rows``; writes outputs, marks failures.
+        With ``partials`` (a dict) the disciplines' analytic partials are asked for and kept there."""
         if rows.size == 0 or not names:
             return
         calls = [(n, self._call_inputs(n, values, rows)) for n in names]
-        results = self.evaluator.evaluate(calls)
+        if partials is None:
+            results = self.evaluator.evaluate(calls)
+        else:
+            results = self.evaluator.evaluate(calls, partials=True)
+        n_all = len(ok)
         for name, res in zip(names, results):
-            self._store(name, res, values, rows, ok, errors, relax)
+            if store:
+                self._store(name, res, values, rows, ok, errors, relax)
+            if partials is not None and "partials" in res.extra:
+                got = partials.setdefault(name, {})
+                for k, col in res.extra["partials"].items():
+                    got.setdefault(k, np.zeros(n_all))[rows] = col
 
     def _store(self, name: str, res, values: dict, rows: np.ndarray, ok: np.ndarray, errors: list[str],
                relax: bool = False) -> None:
@@ -108,8 +121,12 @@ class MDA:
                     errors[i] = msgs.get(int(local), res.error or f"{name}: failed")
 
     # --------------------------------------------------------------------- run
-    def run(self, inputs: Mapping[str, np.ndarray]) -> MDAResult:
-        """Analyse the batch given by ``inputs`` (design variables and parameter overrides)."""
+    def run(self, inputs: Mapping[str, np.ndarray], partials: bool = False) -> MDAResult:
+        """Analyse the batch given by ``inputs`` (design variables and parameter overrides).
+
+        With ``partials`` the disciplines that have analytic partials return them at the
+        analysed point: with their result in a feed-forward graph (no extra evaluation), and
+        for a discipline inside a loop by one more call at the converged values (counted)."""
         cols = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in inputs.items()}
         n = max((c.size for c in cols.values()), default=0)
         values = {k: np.broadcast_to(c, (n,)).copy() for k, c in cols.items()}
@@ -121,29 +138,36 @@ class MDA:
         errors = [""] * n
         iterations = np.zeros(n, dtype=int)
         self.n_evaluations += n
+        part: dict | None = {} if partials else None
         if self.data_flow:
-            self._flow(values, n, ok, errors)
+            self._flow(values, n, ok, errors, part)
         else:
             for wave in self.graph.waves:
                 singles = [c[0] for c in wave if not self.graph.is_cyclic(c)]
-                self._run(singles, values, np.flatnonzero(ok), ok, errors)
+                self._run(singles, values, np.flatnonzero(ok), ok, errors, partials=part)
                 for comp in wave:
                     if self.graph.is_cyclic(comp):
                         self._loop(comp, values, ok, errors, iterations, cols)
+                        capable = [m for m in comp if self.specs[m].partials is not False]
+                        if part is not None and capable:
+                            # partials at the converged values; the outputs stay the loop's
+                            self._run(capable, values, np.flatnonzero(ok), ok, errors, partials=part, store=False)
         for v in self.graph.producer:
             values[v][~ok] = np.nan
-        return MDAResult(values, ok, errors, iterations)
+        return MDAResult(values, ok, errors, iterations, part)
 
-    def _flow(self, values: dict, n: int, ok: np.ndarray, errors: list[str]) -> None:
+    def _flow(self, values: dict, n: int, ok: np.ndarray, errors: list[str], partials: dict | None = None) -> None:
         """Feed-forward graph: one data-flow evaluation (flow.py); errors in topological order."""
         if n == 0:
             return
         request = {k: v for k, v in values.items() if k not in self.graph.producer}
-        results = evaluate_flow(self.evaluator, self.specs, self._flow_waves, request, n)
+        results = evaluate_flow(self.evaluator, self.specs, self._flow_waves, request, n, partials is not None)
         everything = np.arange(n)
         for wave in self._flow_waves:
             for name in wave:
                 self._store(name, results[name], values, everything, ok, errors)
+                if partials is not None and "partials" in results[name].extra:
+                    partials[name] = dict(results[name].extra["partials"])
 
     def _loop(self, comp: Sequence[str], values: dict, ok: np.ndarray, errors: list[str],
               iterations: np.ndarray, given: Mapping[str, np.ndarray]) -> None:
@@ -151,7 +175,7 @@ class MDA:
         rows = np.flatnonzero(ok)
         for v in self.graph.torn_inputs(comp):
             if v not in given:
-                values[v][rows] = self.guesses.get(v, 1.0)
+                values[v][rows] = self.guesses.get(v, self.guesses.get(base_name(v), 1.0))
         if self.method == "jacobi":  # seed every loop input by one sequential pass from the torn guesses
             for m in comp:
                 self._run([m], values, rows[ok[rows]], ok, errors)

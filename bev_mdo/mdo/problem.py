@@ -5,6 +5,11 @@ Constraints are normalised to g <= 0: a lower bound L on output y gives
 ``scale`` (default max(|bound|, 1)). Margins are reported in physical units
 (positive = satisfied). A constraint with ``monitor: true`` is reported but not
 optimised against (used for range in battery-sized mode, where it holds by construction).
+
+Vector variables (docs/vector-variables.md): a design variable or constraint with ``shape: k``
+stands for k scalar elements named ``name[0]`` .. ``name[k-1]``; ``lower``, ``upper``,
+``initial`` and ``scale`` are one number (every element) or a list of k numbers. The problem
+holds the elements, so everything downstream (formulations, messages, history) is scalar.
 """
 from __future__ import annotations
 
@@ -14,8 +19,10 @@ from typing import Any
 
 import numpy as np
 
-_DV_KEYS = {"lower", "upper", "initial", "scale"}
-_CON_KEYS = {"lower", "upper", "scale", "monitor"}
+from bev_mdo.mdo.vectors import base_name, expand, flat_names
+
+_DV_KEYS = {"lower", "upper", "initial", "scale", "shape"}
+_CON_KEYS = {"lower", "upper", "scale", "monitor", "shape"}
 PROBLEM_KEYS = {"objective", "design_variables", "constraints", "battery_sized_for_range",
                 "objective_scale", "parameters", "coupling_guesses", "coupling_bounds", "baseline"}
 _OBJECTIVE_KEYS = {"name", "maximize"}
@@ -61,10 +68,18 @@ class Problem:
     coupling_guesses: dict[str, float] = field(default_factory=dict)   # MDA loop starting values
     coupling_bounds: dict[str, tuple[float, float]] = field(default_factory=dict)  # IDF bounds
     maximize: bool = False  # objective: {name: ..., maximize: true}; the optimisers minimise -f
+    shapes: dict[str, int] = field(default_factory=dict)  # vector design variables / constraints -> size
 
     @property
     def names(self) -> list[str]:
         return [d.name for d in self.design_variables]
+
+    def coupling_guess(self, var: str, default: float = 1.0) -> float:
+        """Loop starting value of a coupling element (its own entry, else its vector's)."""
+        return self.coupling_guesses.get(var, self.coupling_guesses.get(base_name(var), default))
+
+    def coupling_bound(self, var: str) -> tuple[float, float]:
+        return self.coupling_bounds.get(var, self.coupling_bounds.get(base_name(var), (-np.inf, np.inf)))
 
     def array(self, attr: str) -> np.ndarray:
         return np.array([getattr(d, attr) for d in self.design_variables], dtype=float)
@@ -116,17 +131,25 @@ class Problem:
         dvs_raw = section.get("design_variables")
         if not isinstance(dvs_raw, Mapping) or not dvs_raw:
             raise ValueError("problem.design_variables: must map at least one name to {lower, upper, initial}")
-        dvs = [_design_variable(n, spec) for n, spec in dvs_raw.items()]
+        shapes: dict[str, int] = {}
+        dvs = [d for n, spec in dvs_raw.items() for d in _elements(n, spec, _design_variable, shapes,
+                                                                   "problem.design_variables")]
         cons_raw = section.get("constraints") or {}
         if not isinstance(cons_raw, Mapping):
             raise ValueError("problem.constraints: must map output names to {lower and/or upper}")
-        cons = [_constraint(n, spec) for n, spec in cons_raw.items()]
+        cons = [c for n, spec in cons_raw.items() for c in _elements(n, spec, _constraint, shapes,
+                                                                     "problem.constraints")]
         oscale = _num(section.get("objective_scale", 1.0), "problem.objective_scale")
         if oscale <= 0:
             raise ValueError(f"problem.objective_scale: {oscale} must be > 0")
         params = {str(k): _num(v, f"problem.parameters.{k}") for k, v in (section.get("parameters") or {}).items()}
-        guesses = {str(k): _num(v, f"problem.coupling_guesses.{k}")
-                   for k, v in (section.get("coupling_guesses") or {}).items()}
+        guesses = {}
+        for k, v in (section.get("coupling_guesses") or {}).items():
+            if isinstance(v, (list, tuple)):  # a vector coupling, element by element
+                for i, x in enumerate(v):
+                    guesses[f"{k}[{i}]"] = _num(x, f"problem.coupling_guesses.{k}[{i}]")
+            else:
+                guesses[str(k)] = _num(v, f"problem.coupling_guesses.{k}")
         cb = {}
         for k, v in (section.get("coupling_bounds") or {}).items():
             if not isinstance(v, Mapping) or set(v) - {"lower", "upper"}:
@@ -136,7 +159,7 @@ class Problem:
             if lo >= hi:
                 raise ValueError(f"problem.coupling_bounds.{k}: lower {lo:g} must be < upper {hi:g}")
             cb[str(k)] = (lo, hi)
-        return cls(obj, dvs, cons, oscale, params, guesses, cb, maximize)
+        return cls(obj, dvs, cons, oscale, params, guesses, cb, maximize=maximize, shapes=shapes)
 
 
 def _num(v: Any, where: str) -> float:
@@ -147,8 +170,35 @@ def _num(v: Any, where: str) -> float:
     return float(v)
 
 
-def _design_variable(name: str, spec: Any) -> DesignVariable:
-    where = f"problem.design_variables.{name}"
+def _elements(name: str, spec: Any, build, shapes: dict[str, int], section: str) -> list:
+    """One entry, or one per element of a vector (``shape: k``; per-element values from lists)."""
+    if not isinstance(spec, Mapping) or "shape" not in spec:
+        if isinstance(spec, Mapping):
+            lists = [k for k, v in spec.items() if isinstance(v, (list, tuple))]
+            if lists:
+                raise ValueError(f"{section}.{name}.{lists[0]}: a list needs shape: <number of elements>")
+        return [build(str(name), spec)]
+    where = f"{section}.{name}"
+    size = spec["shape"]
+    if isinstance(size, (list, tuple)) and len(size) == 1:
+        size = size[0]
+    if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+        raise ValueError(f"{where}.shape: {size!r} must be a positive integer (vectors only, e.g. shape: 6)")
+    if name in shapes:
+        raise ValueError(f"{where}: named twice")
+    shapes[str(name)] = size
+    per = {k: expand(v, size, f"{where}.{k}") for k, v in spec.items() if k != "shape"}
+    out = []
+    for i, flat in enumerate(flat_names(str(name), size)):
+        try:
+            out.append(build(flat, {k: v[i] for k, v in per.items()}, where=f"{where}[{i}]"))
+        except ValueError as exc:
+            raise ValueError(str(exc)) from None
+    return out
+
+
+def _design_variable(name: str, spec: Any, where: str | None = None) -> DesignVariable:
+    where = where or f"problem.design_variables.{name}"
     if not isinstance(spec, Mapping):
         raise ValueError(f"{where}: must be a mapping {{lower, upper, initial[, scale]}}")
     unknown = sorted(set(spec) - _DV_KEYS)
@@ -169,8 +219,8 @@ def _design_variable(name: str, spec: Any) -> DesignVariable:
     return DesignVariable(str(name), lo, hi, x0, scale)
 
 
-def _constraint(name: str, spec: Any) -> Constraint:
-    where = f"problem.constraints.{name}"
+def _constraint(name: str, spec: Any, where: str | None = None) -> Constraint:
+    where = where or f"problem.constraints.{name}"
     if not isinstance(spec, Mapping) or not spec:
         raise ValueError(f"{where}: must be a mapping with lower and/or upper")
     unknown = sorted(set(spec) - _CON_KEYS)

@@ -85,6 +85,7 @@ def request_bytes(msg) -> bytes:
     out.append(struct.pack("<I", len(msg.flow)))
     for name in msg.flow:
         _s(out, name)
+    out.append(struct.pack("<B", int(bool(getattr(msg, "partials", False)))))
     return b"".join(out)
 
 
@@ -106,6 +107,7 @@ def result_bytes(msg) -> bytes:
     out.append(struct.pack("<I", len(msg.flow)))
     for name in msg.flow:
         _s(out, name)
+    _named(out, msg.partials)
     return b"".join(out)
 
 

@@ -49,8 +49,8 @@ class _OwnedRosEvaluator:
         self.specs = self._inner.specs
         self.counts = self._inner.counts
 
-    def evaluate(self, calls):
-        return self._inner.evaluate(calls)
+    def evaluate(self, calls, partials: bool = False):
+        return self._inner.evaluate(calls, partials=partials)
 
     def close(self) -> None:
         import rclpy

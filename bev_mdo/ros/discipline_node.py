@@ -34,7 +34,8 @@ from rcl_interfaces.msg import ParameterDescriptor
 
 from bev_mdo import __version__
 from bev_mdo.mdo import flow
-from bev_mdo.mdo.discipline import run_discipline
+from bev_mdo.mdo.discipline import DisciplineError, run_discipline
+from bev_mdo.mdo.vectors import ShapeError
 from bev_mdo.ros import wire
 from bev_mdo.ros.auth import Signer
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RESULT_QOS, REQUEST_QOS, RESULT_QOS,
@@ -291,9 +292,13 @@ class DisciplineNode(Node):
         if not all(np.isfinite(v).all() for v in inputs.values()):
             # evaluated anyway: those points fail (point_ok false, named), as in-process
             self.counts["non_finite"] += 1
-        self._answer(req, run_discipline(self.discipline, inputs))
+        try:
+            result = run_discipline(self.discipline, inputs, bool(req.partials))
+        except (ShapeError, DisciplineError) as exc:  # the discipline's own mistake: name it, once
+            return self._reject(req, str(exc), "bad_discipline_output")
+        self._answer(req, result, asked=bool(req.partials))
 
-    def _answer(self, req: wire.Request, result, pub=None, forward=None, flow_names=()) -> None:
+    def _answer(self, req: wire.Request, result, pub=None, forward=None, flow_names=(), asked=False) -> None:
         if result.error:
             self.get_logger().warning(result.error[:500], throttle_duration_sec=2.0)
         out = wire.Result()
@@ -304,6 +309,9 @@ class DisciplineNode(Node):
         out.outputs = wire.batch({**result.outputs, **forward} if forward else result.outputs)
         out.flow = list(flow_names)
         out.compute_time_s = result.compute_time_s
+        if asked:
+            # a block of the batch size even without partials: downstream nodes learn it was asked
+            out.partials = wire.partials_batch(result.extra.get("partials", {}), int(np.size(result.ok)))
         self.counts["answered"] += 1
         self._publish(out, pub)
 
@@ -334,7 +342,7 @@ class DisciplineNode(Node):
             inputs = wire.from_named_array(req.inputs)
         except wire.WireError as exc:
             return self._reject(req, str(exc), "malformed", self._mda_pub)
-        self._flow_answer(req, inputs, {}, {}, int(req.inputs.batch_size), list(req.flow))
+        self._flow_answer(req, inputs, {}, {}, int(req.inputs.batch_size), list(req.flow), bool(req.partials))
 
     def _on_source_result(self, source: str, msg: wire.Result) -> None:
         """A source's data-flow result (it carries the request's columns too): keep it for
@@ -374,16 +382,22 @@ class DisciplineNode(Node):
         for s, (cols, _, _) in got.items():  # the request's columns, forwarded by each source
             request.update({k: v for k, v in cols.items() if k not in self._outputs_of[s]})
         up = {s: (cols, o if o.size else np.zeros(n, bool)) for s, (cols, o, _) in got.items()}
-        self._flow_answer(msg, request, up, sources, n, list(msg.flow))
+        # partials were asked for the MDA when a source's result carries a partials block of its size
+        asked = n > 0 and any(int(m.partials.batch_size) == n for _, _, m in got.values())
+        self._flow_answer(msg, request, up, sources, n, list(msg.flow), asked)
 
-    def _flow_answer(self, req, request: dict, up: dict, sources: dict, n: int, flow_names: list[str]) -> None:
+    def _flow_answer(self, req, request: dict, up: dict, sources: dict, n: int, flow_names: list[str],
+                     asked: bool = False) -> None:
         """Evaluate for a data-flow MDA and publish; the result forwards the request's columns."""
         missing = [k for k in self.discipline.inputs if k not in sources and k not in request]
         if missing and n:
             return self._reject(req, f"missing inputs {missing}", "missing_inputs", self._mda_pub)
-        result, _ = flow.run_flow_discipline(self.discipline, request, up, sources, n)
+        try:
+            result, _ = flow.run_flow_discipline(self.discipline, request, up, sources, n, asked)
+        except (ShapeError, DisciplineError) as exc:
+            return self._reject(req, str(exc), "bad_discipline_output", self._mda_pub)
         forward = {k: v for k, v in request.items() if k not in result.outputs}
-        self._answer(req, result, self._mda_pub, forward=forward, flow_names=flow_names)
+        self._answer(req, result, self._mda_pub, forward=forward, flow_names=flow_names, asked=asked)
 
 
 def _put(cache: OrderedDict, key, value) -> None:

@@ -330,6 +330,14 @@ class RosEvaluator:
             outs = {k: np.array(outputs[k]) for k in want}
             ok = ok & finite_rows(list(outs.values()), p.n)
             res = EvalResult(outs, ok, msg.error, float(msg.compute_time_s))
+            if p.request.partials:
+                try:
+                    part = wire.partials_of(msg.partials, p.n)
+                except wire.WireError:
+                    self.dropped["malformed"] += 1
+                    return
+                if part is not None:
+                    res.extra["partials"] = {k: np.array(v) for k, v in part.items()}
         if not p.flow:  # a data-flow MDA counts the rows each discipline evaluated at the end
             self.counts[p.discipline] += p.n
         self.accepted.append((int(msg.evaluation_id), msg.discipline, msg.instance, int(p.request.attempt)))
@@ -351,8 +359,10 @@ class RosEvaluator:
         p.sent_ns = time.monotonic_ns()
         (self._flow_pub if p.flow else self._publisher(p.discipline)).publish(wire.encode_request(p.request))
 
-    def evaluate(self, calls: Sequence[tuple[str, Mapping[str, np.ndarray]]], iteration: int = 0) -> list[EvalResult]:
-        """Evaluate one wave: every (discipline, batch) call concurrently. Never raises for a slow node."""
+    def evaluate(self, calls: Sequence[tuple[str, Mapping[str, np.ndarray]]], iteration: int = 0,
+                 partials: bool = False) -> list[EvalResult]:
+        """Evaluate one wave: every (discipline, batch) call concurrently. Never raises for a slow node.
+        With ``partials`` the nodes return their disciplines' analytic partials too."""
         t0 = time.perf_counter()
         self._results = {}
         for i, (name, batch) in enumerate(calls):
@@ -363,6 +373,7 @@ class RosEvaluator:
                 continue
             req = wire.Request(self.run_id, self._next_id, name, iteration=iteration)
             req.inputs = wire.batch(batch)
+            req.partials = bool(partials)
             n = int(req.inputs.batch_size)
             self._pending[(self._next_id, name)] = p = _Pending(i, name, req, n, 0)
             self._next_id += 1
@@ -371,7 +382,8 @@ class RosEvaluator:
         self.last_latency_s = time.perf_counter() - t0
         return [self._results[i] for i in range(len(calls))]
 
-    def evaluate_flow(self, names: Sequence[str], request: Mapping[str, np.ndarray], n: int) -> dict | None:
+    def evaluate_flow(self, names: Sequence[str], request: Mapping[str, np.ndarray], n: int,
+                      partials: bool = False) -> dict | None:
         """One feed-forward MDA as ONE data-flow request; None when the nodes cannot serve it that way."""
         plan = self.flow_plan(names)
         if plan is None or self.unresponsive.intersection(names):
@@ -383,6 +395,7 @@ class RosEvaluator:
         self._next_id += 1
         req = wire.Request(self.run_id, eid, "", flow=names)
         req.inputs = wire.batch(request)
+        req.partials = bool(partials)
         first = None
         for i, name in enumerate(names):
             self._pending[(eid, name)] = p = _Pending(i, name, req, n, 0, flow=True)

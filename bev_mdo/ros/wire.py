@@ -10,6 +10,7 @@ from typing import Mapping
 
 import numpy as np
 
+from bev_mdo.mdo.vectors import is_variable_name, partial_name, split_partial_name
 from bev_mdo_msgs.msg import NamedArray
 
 # Upper bounds that make a message "malformed" rather than merely large.
@@ -50,7 +51,7 @@ def from_named_array(msg: NamedArray) -> dict[str, np.ndarray]:
     if len(set(names)) != len(names):
         raise WireError("duplicate names")
     for k in names:
-        if not k or len(k) > MAX_NAME_LEN or not k.isidentifier():
+        if not k or len(k) > MAX_NAME_LEN or not is_variable_name(k):  # identifier, or a vector element x[3]
             raise WireError(f"bad variable name {k[:40]!r}")
     values = msg.values if isinstance(msg.values, np.ndarray) else (
         np.frombuffer(msg.values, dtype=np.float64) if len(msg.values) else np.zeros(0))
@@ -112,7 +113,7 @@ class Request:
     """bev_mdo_msgs/EvaluationRequest, field for field."""
 
     __slots__ = ("header", "run_id", "evaluation_id", "sequence", "iteration", "attempt", "discipline", "inputs",
-                 "flow", "signature")
+                 "flow", "signature", "partials")
 
     def __init__(self, run_id: str = "", evaluation_id: int = 0, discipline: str = "", flow=(), iteration: int = 0):
         self.header = Header()
@@ -121,13 +122,14 @@ class Request:
         self.inputs = Batch()
         self.flow = list(flow)
         self.signature = ""
+        self.partials = False
 
 
 class Result:
     """bev_mdo_msgs/EvaluationResult, field for field (``point_ok`` a bool numpy array)."""
 
     __slots__ = ("header", "run_id", "evaluation_id", "sequence", "discipline", "instance", "status", "error",
-                 "point_ok", "outputs", "compute_time_s", "flow", "signature")
+                 "point_ok", "outputs", "compute_time_s", "flow", "signature", "partials")
 
     def __init__(self):
         self.header = Header()
@@ -138,6 +140,32 @@ class Result:
         self.compute_time_s = 0.0
         self.flow: list[str] = []
         self.signature = ""
+        self.partials = Batch()
+
+
+def partials_batch(partials: Mapping[tuple[str, str], np.ndarray] | None, n: int) -> Batch:
+    """The ``partials`` block of a result: asked for (batch n, a column per partial) or not (batch 0)."""
+    if partials is None:
+        return Batch()
+    if not partials:
+        return Batch((), n, np.zeros(0))
+    return batch({partial_name(o, i): col for (o, i), col in partials.items()})
+
+
+def partials_of(block, n: int) -> dict[tuple[str, str], np.ndarray] | None:
+    """{(output, input): (n,)} from a result's ``partials`` block; None when it holds none.
+    WireError when it is malformed."""
+    if block is None or int(block.batch_size) != n or n == 0 or not len(block.names):
+        return None
+    names = list(block.names)
+    values = np.asarray(block.values, dtype=float)
+    if values.shape[0] != n * len(names) or len(set(names)) != len(names):
+        raise WireError("malformed partials")
+    try:
+        keys = [split_partial_name(k) for k in names]
+    except ValueError as exc:
+        raise WireError(str(exc)) from None
+    return {k: values[j * n:(j + 1) * n] for j, k in enumerate(keys)}
 
 
 def batch(columns: Mapping[str, np.ndarray]) -> Batch:
@@ -222,6 +250,7 @@ def encode_request(m) -> bytes:
     o.named(m.inputs)
     o.put(_cdr_texts(m.flow), 4)
     o.text(m.signature)
+    o.put(b"\x01" if m.partials else b"\x00", 1)
     return o.done()
 
 
@@ -241,6 +270,7 @@ def encode_result(m) -> bytes:
     o.put(_F64.pack(float(m.compute_time_s)), 8)
     o.put(_cdr_texts(m.flow), 4)
     o.text(m.signature)
+    o.named(m.partials)
     return o.done()
 
 
@@ -338,6 +368,7 @@ def decode_request(data) -> Request:
     m.inputs, pos = _named(data, pos)
     m.flow, pos = _strings(data, pos, MAX_NAMES)
     m.signature, pos = _string(data, pos)
+    m.partials = data[pos] != 0
     return m
 
 
@@ -360,4 +391,5 @@ def decode_result(data) -> Result:
     (m.compute_time_s,) = _F64.unpack_from(data, pos)
     m.flow, pos = _strings(data, pos + 8, MAX_NAMES)
     m.signature, pos = _string(data, pos)
+    m.partials = _named(data, pos)[0]
     return m

@@ -20,6 +20,14 @@ def config():
 
 
 @pytest.fixture(scope="module")
+def fd_config():
+    """The default problem with whole-MDA finite differences (no discipline partials)."""
+    raw = yaml.safe_load(LEAF.read_text())
+    raw.setdefault("optimizer", {})["derivatives"] = "fd"
+    return load_config(raw)
+
+
+@pytest.fixture(scope="module")
 def mdf(config):
     return run_optimization(config, InProcessEvaluator(resolve_disciplines(config)), formulation="mdf")
 
@@ -44,10 +52,10 @@ def test_optimum_is_on_the_active_constraints(mdf):
     assert mdf.objective < nominal["objective"]["value"]
 
 
-def test_run_reports_counts_history_and_iteration_records(config):
+def test_run_reports_counts_history_and_iteration_records(fd_config):
     records = []
-    ev = InProcessEvaluator(resolve_disciplines(config))
-    res = run_optimization(config, ev, callback=records.append)
+    ev = InProcessEvaluator(resolve_disciplines(fd_config))
+    res = run_optimization(fd_config, ev, callback=records.append)
     assert records == res.history and records[0]["iteration"] == 0
     assert [r["iteration"] for r in records] == list(range(len(records)))
     keys = {"iteration", "design", "objective", "constraints", "max_violation", "feasible", "formulation",
@@ -66,15 +74,15 @@ class _BatchLog(InProcessEvaluator):
         super().__init__(disciplines)
         self.sizes: list[int] = []
 
-    def evaluate_flow(self, names, request, n):
+    def evaluate_flow(self, names, request, n, partials=False):
         self.sizes.append(n)
         return None  # serve it wave by wave, as without the hook
 
 
 @pytest.mark.parametrize("opt, first", [("SLSQP", 4), ("trust-constr", 4), ("COBYLA", 1)])
-def test_x0_goes_with_its_stencil_for_gradient_based_optimizers(config, opt, first):
-    ev = _BatchLog(resolve_disciplines(config))
-    res = run_optimization(config, ev, optimizer=opt)
+def test_x0_goes_with_its_stencil_for_gradient_based_optimizers(fd_config, opt, first):
+    ev = _BatchLog(resolve_disciplines(fd_config))
+    res = run_optimization(fd_config, ev, optimizer=opt)
     assert ev.sizes[0] == first  # x0 (+ its 3 FD points when the first step needs the gradient there)
     if first > 1:
         # every batch is a point with its stencil: one per gradient, and no point evaluated twice

@@ -1,0 +1,177 @@
+"""Total derivatives from discipline partials (docs/derivatives.md).
+
+Every discipline d maps its inputs to its outputs, y_d = F_d(x, y). Its partials dF_d/d(input)
+come from its own ``compute_partials`` (analytic) or, for a discipline without one, from finite
+differences of that discipline alone (:func:`fd_partials`: one batch per gradient holding the
+stencils of every such discipline, evaluated in ONE wave through the evaluator, so a
+discipline node over ROS computes them exactly as in process).
+
+MDF (:func:`mdf_totals`), the direct method of the unified derivatives equation: with every
+discipline output y stacked,
+
+    (I - dF/dy) dy/dx = dF/dx
+
+is one linear solve per point with as many right-hand sides as design variables. For a
+feed-forward graph I - dF/dy is unit lower triangular in topological order, so this is exactly
+the chain rule; for a loop it is the linear solve over the coupled block (all couplings at once).
+
+IDF (:func:`idf_totals`): every discipline sees the design variables and the coupling targets
+directly, so the totals of its outputs are its partials, and the consistency constraints
+h = (y_target - F(x, y_target)) / s have dh/d(x, y_target) = (e_target - dF/d(x, y_target)) / s.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+Partials = dict[tuple[str, str], np.ndarray]  # (output, input) -> (N,)
+
+
+def fd_partials(evaluator: Any, specs: Mapping[str, Any], names: Sequence[str], values: Mapping[str, np.ndarray],
+                n: int, step: float = 1e-6, central: bool = False,
+                base_needed: Sequence[str] = ()) -> tuple[dict[str, Partials], int]:
+    """Finite-difference partials of the disciplines ``names`` at the N points of ``values`` (every
+    input column, (N,) each). One ``evaluator.evaluate`` call (one wave) evaluates every stencil.
+
+    The step of input v is ``step * max(|v|, 1)``. Forward differences take the discipline's
+    outputs in ``values`` as the base point, except for the disciplines in ``base_needed``
+    (inside a loop: their last outputs were computed from slightly older inputs), whose base is
+    evaluated too. Returns ({discipline: partials}, perturbed points that failed; their
+    partials are 0)."""
+    calls, plans = [], []
+    for name in names:
+        spec = specs[name]
+        ins = list(spec.inputs)
+        k = len(ins)
+        if k == 0 or n == 0:
+            continue
+        base = np.array([np.asarray(values[v], dtype=float)[:n] for v in ins])  # (k, N)
+        h = step * np.maximum(np.abs(base), 1.0)  # (k, N)
+        blocks, kinds = [], []
+        for j in range(k):
+            plus = base.copy()
+            plus[j] += h[j]
+            blocks.append(plus)
+            kinds.append(("plus", j))
+            if central:
+                minus = base.copy()
+                minus[j] -= h[j]
+                blocks.append(minus)
+                kinds.append(("minus", j))
+        with_base = (name in base_needed) and not central
+        if with_base:
+            blocks.append(base)
+            kinds.append(("base", -1))
+        stacked = np.concatenate(blocks, axis=1)  # (k, N * len(blocks))
+        batch = {v: stacked[j] for j, v in enumerate(ins)}
+        for p in spec.parameters:
+            if p in values:
+                batch[p] = np.tile(np.asarray(values[p], dtype=float)[:n], len(blocks))
+        calls.append((name, batch))
+        plans.append((name, ins, h, kinds))
+    if not calls:
+        return {}, 0
+    results = evaluator.evaluate(calls)
+    out: dict[str, Partials] = {}
+    failed = 0
+    for (name, ins, h, kinds), res in zip(plans, results):
+        outs = specs[name].outputs
+        ok = np.asarray(res.ok, dtype=bool)
+        nb = len(kinds)
+        Y = {o: np.asarray(res.outputs[o], dtype=float).reshape(nb, n) for o in outs}
+        OK = ok.reshape(nb, n)
+        pos = {kd: b for b, kd in enumerate(kinds)}
+        part: Partials = {}
+        for o in outs:
+            if ("base", -1) in pos:
+                y0, ok0 = Y[o][pos[("base", -1)]], OK[pos[("base", -1)]]
+            else:
+                y0, ok0 = np.asarray(values[o], dtype=float)[:n], np.ones(n, bool)
+            for j, v in enumerate(ins):
+                bp = pos[("plus", j)]
+                if central:
+                    bm = pos[("minus", j)]
+                    d = (Y[o][bp] - Y[o][bm]) / (2 * h[j])
+                    good = OK[bp] & OK[bm]
+                else:
+                    d = (Y[o][bp] - y0) / h[j]
+                    good = OK[bp] & ok0
+                if not good.all():
+                    failed += int((~good).sum())
+                    d = np.where(good, d, 0.0)
+                if np.any(d != 0.0):
+                    part[(o, v)] = d
+        out[name] = part
+    return out, failed
+
+
+def _index(names: Sequence[str]) -> dict[str, int]:
+    return {v: k for k, v in enumerate(names)}
+
+
+def mdf_totals(outputs: Sequence[str], design: Sequence[str], partials: Mapping[str, Partials],
+               n: int) -> dict[str, np.ndarray]:
+    """d(output)/d(design) (N, len(design)) for every discipline output, by one linear solve
+    (I - dF/dy) dy/dx = dF/dx per point. Inputs that are neither outputs nor design variables
+    (fixed parameters) are constants."""
+    yi, xi = _index(outputs), _index(design)
+    ny, nx = len(outputs), len(design)
+    A = np.zeros((n, ny, ny))
+    A[:, np.arange(ny), np.arange(ny)] = 1.0
+    B = np.zeros((n, ny, nx))
+    for part in partials.values():
+        for (o, i), col in part.items():
+            r = yi.get(o)
+            if r is None:
+                continue
+            if i in yi:
+                A[:, r, yi[i]] -= col
+            elif i in xi:
+                B[:, r, xi[i]] += col
+    dy = np.linalg.solve(A, B) if ny else B
+    return {v: dy[:, k, :] for v, k in yi.items()}
+
+
+def idf_totals(outputs: Sequence[str], variables: Sequence[str], partials: Mapping[str, Partials],
+               n: int) -> dict[str, np.ndarray]:
+    """d(output)/d(variables) (N, len(variables)) when every input of every discipline is an
+    optimiser variable or a constant (IDF): the partials themselves."""
+    xi = _index(variables)
+    out = {v: np.zeros((n, len(variables))) for v in outputs}
+    for part in partials.values():
+        for (o, i), col in part.items():
+            if o in out and i in xi:
+                out[o][:, xi[i]] += col
+    return out
+
+
+def constraint_jacobian(problem: Any, totals: Mapping[str, np.ndarray], design: Sequence[str],
+                        n: int) -> np.ndarray:
+    """d g / d vars (N, m, n_vars) of the normalised constraints g (problem.g's rows)."""
+    xi = _index(design)
+    rows = []
+    for name, kind, _bound, scale in problem.constraint_rows:
+        if name in totals:
+            d = totals[name]
+        else:  # a constraint directly on an optimiser variable
+            d = np.zeros((n, len(design)))
+            if name in xi:
+                d[:, xi[name]] = 1.0
+        rows.append((-d if kind == "lower" else d) / scale)
+    return np.stack(rows, axis=1) if rows else np.zeros((n, 0, len(design)))
+
+
+def compare_partials(analytic: Partials, fd: Partials, rtol: float = 1e-4, atol: float = 1e-8) -> list[dict]:
+    """Entries (output, input, analytic, fd, abs error, rel error, ok) at one point, worst first."""
+    rows = []
+    for key in sorted(set(analytic) | set(fd)):
+        a = float(np.asarray(analytic.get(key, 0.0)).ravel()[0])
+        f = float(np.asarray(fd.get(key, 0.0)).ravel()[0])
+        err = abs(a - f)
+        rel = err / max(abs(a), abs(f), 1e-300) if err else 0.0
+        rows.append({"output": key[0], "input": key[1], "analytic": a, "fd": f, "abs_error": err,
+                     "rel_error": rel, "ok": bool(err <= atol + rtol * max(abs(a), abs(f)))})
+    rows.sort(key=lambda r: (r["ok"], -r["rel_error"]))
+    return rows
