@@ -141,13 +141,15 @@ def _run_ros(config, args, show, x0=None):
     bag = Path(args.bag) if args.bag else Path("bags") / f"{config.get('name', 'run')}_{stamp_}_{run_id[:6]}"
     logs = Path("bags") / ".logs" / run_id  # node logs and the resolved config, outside the bag
     logs.mkdir(parents=True, exist_ok=True)
+    config = with_run_key(config, logs)
     resolved = logs / "config.yaml"
     resolved.write_text(yaml.safe_dump(_plain(config), sort_keys=False))
     launcher = Launcher(env, log_dir=logs)
     recorder = 0
     try:
         for entry in discipline_entries(config):
-            launcher.add(entry["name"], discipline_argv(entry["name"], str(resolved.resolve())))
+            launcher.add(entry["name"], discipline_argv(entry["name"], str(resolved.resolve()),
+                                                        instance=run_id[:8], run_id=run_id))
         if not args.no_record:
             recorder = _start_recorder(launcher, bag, resolved, run_id)
         launcher.supervise()
@@ -159,6 +161,20 @@ def _run_ros(config, args, show, x0=None):
              "bag": None if args.no_record else str(bag), "logs": str(logs),
              "dropped_messages": stats["dropped"], "retried_requests": stats["retried"], "node_restarts": restarts}
     return result, baseline, extra
+
+
+def with_run_key(config: dict, logs: Path) -> dict:
+    """Signing on by default: without a configured ``ros.sign_key_file`` (and unless
+    ``ros.signing: false``) a fresh random key is written to ``<logs>/sign.key`` (mode 0600,
+    outside the bag); the resolved config that the nodes and the recorder read names its path
+    only, so the key is never on a command line, in the environment or in the bag."""
+    ros = dict(config.get("ros") or {})
+    if ros.get("sign_key_file") or not ros.get("signing", True):
+        return config
+    from bev_mdo.ros.auth import new_key_file
+
+    ros["sign_key_file"] = new_key_file(logs)
+    return {**config, "ros": ros}
 
 
 def _start_recorder(launcher, bag: Path, resolved: Path, run_id: str) -> int:

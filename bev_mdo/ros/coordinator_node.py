@@ -35,14 +35,15 @@ def discipline_names(config: Mapping[str, Any]) -> list[str]:
 class CoordinatorNode(Node):
     """Publishes iteration records and owns the ROS evaluator."""
 
-    def __init__(self, config: Mapping[str, Any], run_id: str | None = None, **kwargs):
+    def __init__(self, config: Mapping[str, Any], run_id: str | None = None, signer=None, **kwargs):
         super().__init__(kwargs.pop("node_name", "coordinator_node"), **kwargs)
         self.config = config
         ros = validate_ros(config.get("ros"))
         self.run_id = run_id or uuid.uuid4().hex[:16]
         self._seq = 0
         self._iteration_pub = self.create_publisher(IterationRecord, ITERATION_TOPIC, ITERATION_QOS)
-        self.evaluator = RosEvaluator(self, run_id=self.run_id, timeout_s=ros["timeout_s"], retries=ros["retries"])
+        self.evaluator = RosEvaluator(self, run_id=self.run_id, timeout_s=ros["timeout_s"], retries=ros["retries"],
+                                      signer=signer)
         self.discovery_wait_s = ros["discovery_wait_s"]
 
     @property
@@ -73,6 +74,8 @@ class CoordinatorNode(Node):
         msg.discipline_names = list(counts)
         msg.discipline_evaluations = [int(v) for v in counts.values()]
         msg.wall_time_s = float(rec.get("wall_time_s", 0.0))
+        if self.evaluator.signer is not None:
+            self.evaluator.signer.sign_iteration(msg)
         self._iteration_pub.publish(msg)
 
     def wait_for_all_acked(self, wait_s: float) -> bool:
@@ -102,11 +105,11 @@ class CoordinatorNode(Node):
 def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: str | None = None,
         optimizer: str | None = None, x0: Mapping[str, float] | None = None,
         on_iteration: Callable[[dict], None] | None = None, recorder_subscribers: int = 0,
-        context=None):
+        context=None, signer=None):
     """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats)."""
     from bev_mdo.mdo.driver import run_optimization
 
-    node = CoordinatorNode(config, run_id, context=context)
+    node = CoordinatorNode(config, run_id, signer=signer, context=context)
     try:
         names = discipline_names(config)
         node.evaluator.wait_for_disciplines(names, node.discovery_wait_s, extra_subscribers=recorder_subscribers)
@@ -122,7 +125,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         result = run_optimization(config, node.evaluator, formulation=formulation, optimizer=optimizer,
                                   x0=x0, callback=callback)
         stats = {"run_id": node.run_id, "dropped": dict(node.evaluator.dropped), "retried": node.evaluator.retried,
-                 "data_flow_mdas": node.evaluator.flows}
+                 "data_flow_mdas": node.evaluator.flows, "refused_instances": dict(node.evaluator.refused)}
         node.wait_for_all_acked(node.discovery_wait_s)
         return result, stats
     finally:

@@ -43,8 +43,10 @@ class NodeProcess:
     restart_times: list[float] = field(default_factory=list)
 
 
-def discipline_argv(name: str, config_path: str, instance: str = "") -> list[str]:
-    """Command line of the node serving discipline `name` (built-in exe or the generic node)."""
+def discipline_argv(name: str, config_path: str, instance: str = "", run_id: str = "") -> list[str]:
+    """Command line of the node serving discipline `name` (built-in exe or the generic node).
+
+    With `run_id` the node serves only that run (and its ``<run>-...`` sub-runs)."""
     exe = _BUILTIN_EXE.get(name, "discipline_node")
     argv = [sys.executable, "-m", "bev_mdo.ros.run", exe, "--ros-args", "-p", f"config:={config_path}"]
     if exe == "discipline_node":
@@ -53,6 +55,8 @@ def discipline_argv(name: str, config_path: str, instance: str = "") -> list[str
     argv += ["-r", f"__node:={node_name}"]
     if instance:
         argv += ["-p", f"instance:={node_name}"]
+    if run_id:
+        argv += ["-p", f"run_id:={run_id}"]
     return argv
 
 
