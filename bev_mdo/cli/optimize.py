@@ -159,8 +159,17 @@ def _run_ros(config, args, show, x0=None):
     restarts = {n.label: n.restarts for n in launcher.nodes if n.restarts}
     extra = {"transport": "ros", "run_id": run_id, "domain_id": ros["domain_id"],
              "bag": None if args.no_record else str(bag), "logs": str(logs),
-             "dropped_messages": stats["dropped"], "retried_requests": stats["retried"], "node_restarts": restarts}
+             "dropped_messages": stats["dropped"], "retried_requests": stats["retried"], "node_restarts": restarts,
+             "refused_instances": stats.get("refused_instances", {}),
+             "signing": _signing(ros, config)}
     return result, baseline, extra
+
+
+def _signing(ros: dict, config: dict) -> str:
+    """How this run's messages were signed, for the summary."""
+    if ros.get("sign_key_file"):
+        return f"key file {ros['sign_key_file']}"
+    return "per-run key" if (config.get("ros") or {}).get("sign_key_file") else "off (ros.signing: false)"
 
 
 def with_run_key(config: dict, logs: Path) -> dict:

@@ -236,6 +236,10 @@ class RosEvaluator:
             if time.monotonic() > deadline:
                 raise DisciplineMissing(f"result topic not matched for all of {list(names)} within {wait_s:g} s")
             self._executor.spin_once(timeout_sec=0.05)
+        # Declarations that arrived with ours (other instances on the domain) are judged now: once
+        # the run evaluates, only the hot subscriptions are served.
+        for _ in range(16):
+            self._executor.spin_once(timeout_sec=0.0)
         if self.flow_plan(names) is None:
             self.node.get_logger().info("data flow not offered by every node: MDAs run in waves")
             return
