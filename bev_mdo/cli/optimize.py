@@ -95,6 +95,9 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
         _table(result, baseline, out)
         for k, v in extra.items():
             print(f"{k}: {v}", file=out)
+    if extra.get("recorder_failed"):
+        print(f"warning: {extra['recorder_failed']}", file=sys.stderr)
+        return 3
     return 0 if result["feasible"] else 1
 
 
@@ -139,6 +142,8 @@ def _run_ros(config, args, show, x0=None):
     run_id = uuid.uuid4().hex[:16]
     stamp_ = time.strftime("%Y%m%d_%H%M%S")
     bag = Path(args.bag) if args.bag else Path("bags") / f"{config.get('name', 'run')}_{stamp_}_{run_id[:6]}"
+    if not args.no_record:
+        check_new_bag(bag, "--bag")
     logs = Path("bags") / ".logs" / run_id  # node logs and the resolved config, outside the bag
     logs.mkdir(parents=True, exist_ok=True)
     config = with_run_key(config, logs)
@@ -156,13 +161,34 @@ def _run_ros(config, args, show, x0=None):
         result, baseline, stats = _coordinate(config, run_id, args, show, recorder, x0)
     finally:
         launcher.stop(first=("recorder",))
+    tail_s = time.monotonic() - stats["t_optimised"]  # after the optimiser: acks, baseline, shutdown
     restarts = {n.label: n.restarts for n in launcher.nodes if n.restarts}
+    recorder_failed = _recorder_failure(launcher, bag) if recorder else None
     extra = {"transport": "ros", "run_id": run_id, "domain_id": ros["domain_id"],
              "bag": None if args.no_record else str(bag), "logs": str(logs),
              "dropped_messages": stats["dropped"], "retried_requests": stats["retried"], "node_restarts": restarts,
              "refused_instances": stats.get("refused_instances", {}),
-             "signing": _signing(ros, config)}
+             "signing": _signing(ros, config), "tail_s": round(tail_s, 3)}
+    if recorder_failed:
+        extra["recorder_failed"] = recorder_failed
     return result, baseline, extra
+
+
+def _recorder_failure(launcher, bag: Path) -> str | None:
+    """None if the recorder lived to the end; else a one-line warning, after making the bag
+    readable again (its summary and metadata.yaml rebuilt from what was flushed)."""
+    node = launcher.node("recorder")
+    if node.died is None:
+        return None
+    note = f"the recorder died (exit status {node.died}) during the run; the bag holds only what it recorded before"
+    try:
+        from bev_mdo.bag.repair import repair
+
+        res = repair(bag)
+        note += f" ({res.message_count} messages, summary and metadata rebuilt)"
+    except (ValueError, OSError) as exc:
+        note += f"; the bag could not be repaired: {exc}"
+    return note
 
 
 def _signing(ros: dict, config: dict) -> str:
@@ -170,6 +196,14 @@ def _signing(ros: dict, config: dict) -> str:
     if ros.get("sign_key_file"):
         return f"key file {ros['sign_key_file']}"
     return "per-run key" if (config.get("ros") or {}).get("sign_key_file") else "off (ros.signing: false)"
+
+
+def check_new_bag(bag: Path, what: str) -> None:
+    """A bag may be written to `bag`: ValueError (exit 2) naming it if a bag or a file is there."""
+    if bag.exists() and not bag.is_dir():
+        raise ValueError(f"{what} {bag}: is a file, not a bag directory")
+    if (bag / "metadata.yaml").exists() or any(bag.glob("*.mcap")):
+        raise ValueError(f"{what} {bag}: a bag already exists there; choose a new directory")
 
 
 def with_run_key(config: dict, logs: Path) -> dict:
@@ -188,8 +222,10 @@ def with_run_key(config: dict, logs: Path) -> dict:
 
 def _start_recorder(launcher, bag: Path, resolved: Path, run_id: str) -> int:
     """Start the recorder node; returns how many extra subscribers it adds per topic."""
+    # Not restarted: a second recorder cannot reopen the bag the first one was writing (the run ends
+    # with a warning and status 3 instead, the bag repaired up to the recorder's death).
     launcher.add("recorder", [sys.executable, "-m", "bev_mdo.ros.run", "recorder_node", "--output", str(bag),
-                              "--config", str(resolved.resolve()), "--run-id", run_id])
+                              "--config", str(resolved.resolve()), "--run-id", run_id], restart=False)
     return 1
 
 

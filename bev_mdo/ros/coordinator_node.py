@@ -78,16 +78,28 @@ class CoordinatorNode(Node):
             self.evaluator.signer.sign_iteration(msg)
         self._iteration_pub.publish(msg)
 
-    def wait_for_all_acked(self, wait_s: float) -> bool:
+    def wait_for_all_acked(self, wait_s: float, slice_s: float = 0.05) -> bool:
         """Block until every reader (e.g. the recorder) acknowledged what we published.
 
         A RELIABLE sample that is not yet acknowledged is lost if its publisher goes away,
-        so the coordinator waits for this before it shuts down.
+        so the coordinator waits for this before it shuts down. The wait is taken in short
+        slices (other threads, the launcher's supervisor among them, keep running) and ends
+        for a publisher as soon as it has no matched reader; a killed reader is unmatched
+        once its participant's lease (3 s, bev_mdo's Fast DDS profile) expires, so it stalls
+        the end of a run by at most that. Returns False (and logs which topics) after `wait_s`.
         """
         from rclpy.duration import Duration
 
-        pubs = [self._iteration_pub, *getattr(self.evaluator, "_publishers", {}).values()]
-        return all(p.wait_for_all_acked(Duration(seconds=wait_s)) for p in pubs)
+        pending = [self._iteration_pub, *getattr(self.evaluator, "_publishers", {}).values()]
+        deadline = time.monotonic() + wait_s
+        while pending:
+            pending = [p for p in pending if p.get_subscription_count() > 0
+                       and not p.wait_for_all_acked(Duration(nanoseconds=int(slice_s * 1e9)))]
+            if pending and time.monotonic() > deadline:
+                self.get_logger().warning(f"not acknowledged within {wait_s:g} s on "
+                                          f"{sorted(p.topic_name for p in pending)}")
+                return False
+        return True
 
     def wait_for_recorder(self, n: int, wait_s: float) -> None:
         """Wait until `n` recorders subscribed to the iteration and result topics (and the data-flow
@@ -124,9 +136,11 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
 
         result = run_optimization(config, node.evaluator, formulation=formulation, optimizer=optimizer,
                                   x0=x0, callback=callback)
+        t_optimised = time.monotonic()
         stats = {"run_id": node.run_id, "dropped": dict(node.evaluator.dropped), "retried": node.evaluator.retried,
-                 "data_flow_mdas": node.evaluator.flows, "refused_instances": dict(node.evaluator.refused)}
-        node.wait_for_all_acked(node.discovery_wait_s)
+                 "data_flow_mdas": node.evaluator.flows, "refused_instances": dict(node.evaluator.refused),
+                 "t_optimised": t_optimised}
+        stats["all_acked"] = node.wait_for_all_acked(node.discovery_wait_s)
         return result, stats
     finally:
         node.evaluator.close()

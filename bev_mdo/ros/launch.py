@@ -41,6 +41,8 @@ class NodeProcess:
     proc: subprocess.Popen | None = None
     restarts: int = 0
     restart_times: list[float] = field(default_factory=list)
+    restart: bool = True            # False: a death is reported (``died``), never restarted
+    died: int | None = None         # exit status of a node that died and was not restarted
 
 
 def discipline_argv(name: str, config_path: str, instance: str = "", run_id: str = "") -> list[str]:
@@ -94,10 +96,10 @@ class Launcher:
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
 
-    def add(self, label: str, argv: Sequence[str]) -> NodeProcess:
-        """Register and start one node process."""
+    def add(self, label: str, argv: Sequence[str], restart: bool = True) -> NodeProcess:
+        """Register and start one node process (`restart`: whether the supervisor restarts it)."""
         log = (self.log_dir / f"{label}.log") if self.log_dir else None
-        node = NodeProcess(label, list(argv), log)
+        node = NodeProcess(label, list(argv), log, restart=restart)
         self._spawn(node)
         with self._lock:
             self.nodes.append(node)
@@ -127,6 +129,12 @@ class Launcher:
             with self._lock:
                 for node in self.nodes:
                     if node.proc is not None and node.proc.poll() is not None and not self._stopping.is_set():
+                        if not node.restart:
+                            if node.died is None:
+                                node.died = node.proc.returncode
+                                print(f"[launcher] {node.label} exited with {node.died}; not restarted",
+                                      file=sys.stderr)
+                            continue
                         if node.restarts >= self.max_restarts:
                             continue
                         node.restarts += 1
