@@ -38,13 +38,18 @@ def register(sub) -> None:
 
 
 def _progress(quiet: bool, to_stderr: bool):
+    from bev_mdo.mdo.formulations import FAIL_OBJECTIVE
+
     out = sys.stderr if to_stderr else sys.stdout
 
     def show(rec: dict) -> None:
         if quiet:
             return
         rate = rec.get("mda_evaluations", 0) / max(rec.get("wall_time_s", 0.0), 1e-9)
-        print(f"iter {rec['iteration']:4d}  {rec['objective_name']} {rec['objective']:12.6f}  "
+        # a design whose evaluation failed carries the optimiser's penalty, not an objective value
+        objective = (f"{rec['objective']:12.6f}" if abs(rec["objective"]) < FAIL_OBJECTIVE
+                     else f"{'not evaluated':>12s}")
+        print(f"iter {rec['iteration']:4d}  {rec['objective_name']} {objective}  "
               f"max violation {rec['max_violation']:9.3g}  {'feasible  ' if rec['feasible'] else 'infeasible'}"
               f"  {rate:9.0f} MDA evals/s", file=out, flush=True)
 
@@ -82,7 +87,10 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
     if args.optimizer:
         from bev_mdo.mdo.optimizers import canonical_name
 
-        canonical_name(args.optimizer)  # ValueError names the known optimizers
+        from bev_mdo.config import check_optimizer_options
+
+        # ValueError names the known optimizers, or the config's option the chosen one does not take
+        check_optimizer_options(canonical_name(args.optimizer), (config.get("optimizer") or {}).get("options") or {})
     out = sys.stderr if args.json else sys.stdout
     show = _progress(args.quiet, args.json)
     if args.transport == "inprocess":
@@ -107,17 +115,24 @@ def _baseline_design(config) -> dict:
 
 
 def _run_inprocess(config, args, show, x0=None):
+    from bev_mdo.cli.failures import NamingInProcessEvaluator
     from bev_mdo.config import resolve_disciplines
     from bev_mdo.mdo.driver import evaluate_design, run_optimization
-    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.ros.settings import validate_ros
 
-    ev = InProcessEvaluator(resolve_disciplines(config))
+    ros = validate_ros(config.get("ros"))
+    budget = ros["timeout_s"] * (ros["retries"] + 1)  # what a ROS run gives a discipline before its points fail
+    ev = NamingInProcessEvaluator(resolve_disciplines(config), timeout_s=budget)
     res = run_optimization(config, ev, formulation=args.formulation, optimizer=args.optimizer, x0=x0,
                            callback=show)
     out = res.to_dict()
     out.pop("history")
-    baseline = evaluate_design(config, InProcessEvaluator(resolve_disciplines(config)), _baseline_design(config))
-    return out, baseline, {"transport": "inprocess"}
+    baseline = evaluate_design(config, NamingInProcessEvaluator(resolve_disciplines(config), timeout_s=budget,
+                                                                errors=ev.errors), _baseline_design(config))
+    extra = {"transport": "inprocess"}
+    if ev.errors.first:
+        extra["discipline_errors"] = dict(ev.errors.first)
+    return out, baseline, extra
 
 
 def _run_ros(config, args, show, x0=None):
@@ -169,6 +184,8 @@ def _run_ros(config, args, show, x0=None):
              "dropped_messages": stats["dropped"], "retried_requests": stats["retried"], "node_restarts": restarts,
              "refused_instances": stats.get("refused_instances", {}),
              "signing": _signing(ros, config), "tail_s": round(tail_s, 3)}
+    if stats.get("discipline_errors"):
+        extra["discipline_errors"] = stats["discipline_errors"]
     if recorder_failed:
         extra["recorder_failed"] = recorder_failed
     return result, baseline, extra

@@ -76,6 +76,7 @@ class RosEvaluator:
         self.expected: dict[str, tuple[str, str]] = {}   # discipline -> (fingerprint, effective JSON)
         self.instances: dict[str, set[str]] = {}         # discipline -> accepted instance names
         self.refused: dict[str, str] = {}                # "discipline instance" -> why it was refused
+        self.first_errors: dict[str, str] = {}           # discipline -> its first error (shown once)
         self.accepted: list[tuple[int, str, str, int]] = []
         self.run_id = run_id or uuid.uuid4().hex[:16]
         self.timeout_s = timeout_s
@@ -332,12 +333,20 @@ class RosEvaluator:
             outs = {k: np.array(outputs[k]) for k in want}
             ok = ok & finite_rows(list(outs.values()), p.n)
             res = EvalResult(outs, ok, msg.error, float(msg.compute_time_s))
+        if res.error:
+            self._first_error(p.discipline, res.error)
         if not p.flow:  # a data-flow MDA counts the rows each discipline evaluated at the end
             self.counts[p.discipline] += p.n
         self.accepted.append((int(msg.evaluation_id), msg.discipline, msg.instance, int(p.request.attempt)))
         del self._pending[key]
         self._answered.add(key)
         self._results[p.index] = res
+
+    def _first_error(self, discipline: str, error: str) -> None:
+        """Name a discipline's first failure on the console (the node's log has the rest)."""
+        if discipline not in self.first_errors:
+            self.first_errors[discipline] = line = error.strip().splitlines()[0][:300]
+            self.node.get_logger().error(f"discipline {discipline!r} failed: {line}")
 
     def _failed(self, p: _Pending, error: str) -> EvalResult:
         spec = self.specs.get(p.discipline)
@@ -431,6 +440,7 @@ class RosEvaluator:
             self._results[p.index] = self._failed(
                 p, f"{p.discipline}: no answer after {self.retries + 1} attempts of {self.timeout_s:g} s"
             )
+            self._first_error(p.discipline, self._results[p.index].error)
             del self._pending[key]
             self._answered.add(key)  # a late answer is then counted as stale, never used
 
