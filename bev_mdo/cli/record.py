@@ -8,6 +8,9 @@ def register(subparsers) -> None:
     parser.add_argument("--output", "-o", help="bag directory (default bags/<time>_record)")
     parser.add_argument("--config", help="configuration file to store in the bag")
     parser.add_argument("--run-id", help="run id to store in the bag")
+    from bev_mdo.cli.ros_args import add_ros_arguments
+
+    add_ros_arguments(parser)
     parser.set_defaults(func=run)
 
 
@@ -29,4 +32,27 @@ def run(args) -> int:
         argv += ["--config", args.config]
     if args.run_id:
         argv += ["--run-id", args.run_id]
+    _join_domain(args)
     return main(argv)
+
+
+def _join_domain(args) -> None:
+    """Domain and discovery: the flags, over the --config file's ros: section (localhost by default)."""
+    from pathlib import Path
+
+    from bev_mdo.cli.ros_args import ros_section
+    from bev_mdo.ros.client import apply_ros_environment
+
+    ros = {}
+    if args.config:
+        from bev_mdo.config import load_yaml
+
+        try:
+            raw = load_yaml(Path(args.config).read_text(encoding="utf-8"))
+        except Exception as exc:  # yaml.YAMLError and friends: one line naming the file
+            raise ValueError(f"{args.config}: not valid YAML: {str(exc).splitlines()[0]}") from None
+        ros = (raw.get("ros") or {}) if isinstance(raw, dict) else {}
+    try:
+        apply_ros_environment(ros_section({"ros": ros}, args))
+    except ValueError as exc:
+        raise ValueError(f"{args.config or 'record'}: {exc}") from None

@@ -17,12 +17,20 @@ def register(subparsers) -> None:
                         help="wait until each topic has N subscribers before publishing")
     parser.add_argument("--wait-timeout", type=float, default=30.0, metavar="S",
                         help="give up waiting for subscribers after S seconds (default 30)")
+    from bev_mdo.cli.ros_args import add_ros_arguments
+
+    add_ros_arguments(parser)
     parser.set_defaults(func=run)
 
 
 def run(args) -> int:
     from bev_mdo.ros.replay import replay
 
+    from bev_mdo.cli.ros_args import ros_section
+    from bev_mdo.ros.client import apply_ros_environment
+
+    # Domain and discovery from the flags (localhost by default): a replay never goes off-host unasked.
+    apply_ros_environment(ros_section({}, args))
     rate = None if args.as_fast_as_possible else args.rate
     stats = replay(args.bag, rate=rate, topics=args.topics, loop=args.loop,
                    wait_subscribers=args.wait_subscribers, wait_timeout_s=args.wait_timeout,
