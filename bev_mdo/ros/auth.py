@@ -16,6 +16,12 @@ A receiver drops and counts a message that is
 A retry re-sends an evaluation with ``attempt + 1`` and a fresh stamp, so it has a new
 signature and is not a replay. The key itself is only ever read from the file: the
 config, logs and bags hold the path.
+
+Discipline declarations (DisciplineInfo) and iteration records (IterationRecord) are signed
+too and verified by MAC only (``unsigned`` / ``forged``; no freshness window: declarations
+are TRANSIENT_LOCAL and records are verified again offline, from a bag). ``bev-mdo optimize``
+signs by default with a fresh per-run key file (``new_key_file``, mode 0600); see
+docs/security.md for what is and is not protected.
 """
 from __future__ import annotations
 
