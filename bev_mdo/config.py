@@ -49,7 +49,7 @@ def load_config(path: str | Path | Mapping[str, Any]) -> dict:
         if not p.is_file():
             raise ValueError(f"{where}: no such config file")
         try:
-            raw = yaml.safe_load(p.read_text())
+            raw = load_yaml(p.read_text())
         except yaml.YAMLError as exc:
             mark = getattr(exc, "problem_mark", None)
             at = f" at line {mark.line + 1}" if mark else ""
@@ -62,6 +62,63 @@ def load_config(path: str | Path | Mapping[str, Any]) -> dict:
     except ValueError as exc:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else "invalid config"
         raise ValueError(f"{where}: {msg}") from None
+
+
+def _unique_key_loader():
+    import yaml
+
+    class UniqueKeyLoader(yaml.SafeLoader):
+        """yaml.SafeLoader that refuses a key given twice in one mapping (plain YAML keeps the last)."""
+
+        def construct_mapping(self, node, deep=False):
+            seen = set()
+            for key_node, _ in node.value:
+                key = self.construct_object(key_node, deep=True)
+                if isinstance(key, (str, int, float, bool)) and key in seen:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"duplicate key {key!r}", key_node.start_mark)
+                seen.add(key)
+            return super().construct_mapping(node, deep)
+
+    return UniqueKeyLoader
+
+
+def load_yaml(text: str) -> Any:
+    """Parse YAML like yaml.safe_load, but a key given twice in one mapping is an error."""
+    import yaml
+
+    return yaml.load(text, Loader=_unique_key_loader())  # noqa: S506 - a SafeLoader subclass
+
+
+# scipy solver behind each built-in optimiser: its keyword arguments are the accepted options
+_SCIPY_SOLVERS = {"SLSQP": ("scipy.optimize._minimize", "_minimize_slsqp"),
+                  "trust-constr": ("scipy.optimize._minimize", "_minimize_trustregion_constr"),
+                  "COBYLA": ("scipy.optimize._minimize", "_minimize_cobyla"),
+                  "COBYQA": ("scipy.optimize._minimize", "_minimize_cobyqa"),
+                  "differential_evolution": ("scipy.optimize", "differential_evolution")}
+_NOT_OPTIONS = {"fun", "func", "x0", "args", "jac", "hess", "hessp", "bounds", "constraints", "callback"}
+
+
+def check_optimizer_options(name: str, options: Mapping[str, Any]) -> None:
+    """ValueError naming the first key of `options` that the optimiser's scipy solver does not
+    accept (scipy itself only warns, after the nodes have started). Optimisers not backed by one
+    scipy function are not checked."""
+    import importlib
+    import inspect
+
+    where = _SCIPY_SOLVERS.get(name)
+    if where is None:
+        return
+    try:
+        fn = getattr(importlib.import_module(where[0]), where[1])
+        params = inspect.signature(fn).parameters
+    except (ImportError, AttributeError, ValueError, TypeError):
+        return
+    known = sorted(k for k, p in params.items() if k not in _NOT_OPTIONS
+                   and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY))
+    for key in options:
+        if key not in known:
+            raise ValueError(f"optimizer.options.{key}: not an option of {name}; known: {', '.join(known)}")
 
 
 def _resolve(raw: Any) -> dict:
@@ -92,6 +149,7 @@ def _resolve(raw: Any) -> dict:
     cfg["optimizer"]["name"] = canonical_name(cfg["optimizer"]["name"])
     if not isinstance(cfg["optimizer"]["options"], Mapping):
         raise ValueError("optimizer.options must be a mapping of the optimiser's own options")
+    check_optimizer_options(cfg["optimizer"]["name"], cfg["optimizer"]["options"])
     if cfg["optimizer"]["fd_scheme"] not in FD_SCHEMES:
         raise ValueError(f"optimizer.fd_scheme {cfg['optimizer']['fd_scheme']!r} is unknown; allowed: "
                          f"{', '.join(FD_SCHEMES)}")
@@ -109,6 +167,9 @@ def _resolve(raw: Any) -> dict:
         if cfg.get(key) is not None and not isinstance(cfg[key], Mapping):
             raise ValueError(f"{key} must be a mapping")
         cfg[key] = dict(cfg.get(key) or {})
+    from bev_mdo.ros.settings import validate_ros
+
+    validate_ros(cfg["ros"])  # checked here so the error names the file; the section is kept as written
     cfg["problem"] = _resolve_problem(cfg.get("problem"))
     problem = Problem.from_config(cfg["problem"])
     # numeric checks of the engine sections, by constructing the pieces once

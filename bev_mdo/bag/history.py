@@ -24,13 +24,67 @@ def _iteration_topics(bag: Bag) -> list[str]:
     return sorted(topics, key=lambda t: t != ITERATION_TOPIC)
 
 
-def history(bag, run_id: str | None = None) -> list[dict]:
-    """One dict per recorded iteration, in recording order."""
+def own_run(bag) -> str | None:
+    """The run id the recorder of this bag was started for (None for a standalone recording)."""
+    return (bag.info.get("run_id") or None) if isinstance(bag, Bag) else own_run(open_bag(bag))
+
+
+def _in_run(run_id: str, run: str) -> bool:
+    return run_id == run or run_id.startswith(run + "-")
+
+
+def signer_for(bag, key_file: str | None = None):
+    """(Signer or None, why not) for verifying the bag's records: the given key file, else the
+    ``ros.sign_key_file`` path named in the bag's stored configuration (the key itself is never
+    in the bag). (None, "") when the run was not signed."""
+    import yaml
+
+    from bev_mdo.ros.auth import AuthError, Signer, read_key
+
+    if not key_file:
+        try:
+            config = yaml.safe_load(read_config(bag) or "") or {}
+        except yaml.YAMLError:
+            config = {}
+        key_file = ((config.get("ros") or {}) if isinstance(config, dict) else {}).get("sign_key_file") or ""
+    if not key_file:
+        return None, ""
+    try:
+        return Signer(read_key(key_file)), ""
+    except AuthError as exc:
+        return None, f"cannot verify the iteration records: {exc}"
+
+
+def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file: str | None = None,
+            checks: dict | None = None) -> list[dict]:
+    """One dict per recorded iteration of ONE run, in recording order, verified when it was signed.
+
+    The run is `run_id`, else the bag's own (the run its recorder was started for); a standalone
+    recording of several runs needs `run_id` (BagError naming them), unless `all_runs`. Records of
+    a signed run are verified with its key (see ``signer_for``); unsigned and forged ones are
+    dropped. `checks`, if given, receives {"run_id", "dropped": {reason: n}, "other_runs": n,
+    "unverified": why-not or ""}.
+    """
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
+    run = run_id or own_run(bag)
+    decoded = list(bag.decoded(_iteration_topics(bag)))
+    if run is None and not all_runs:
+        runs = sorted({rec.run_id for _, rec in decoded})
+        if len(runs) > 1:
+            raise BagError(f"{bag.mcap_path}: the bag holds the iterations of {len(runs)} runs {runs}; "
+                           "choose one with --run-id")
+    signer, why_not = signer_for(bag, key_file)
+    info = {"run_id": run, "dropped": {}, "other_runs": 0, "unverified": why_not}
     rows = []
-    for msg, rec in bag.decoded(_iteration_topics(bag)):
-        if run_id is not None and rec.run_id != run_id:
+    for msg, rec in decoded:
+        if run is not None and not _in_run(rec.run_id, run):
+            info["other_runs"] += 1
             continue
+        if signer is not None:
+            why = signer.verify_iteration(_Signed(rec))
+            if why is not None:
+                info["dropped"][why] = info["dropped"].get(why, 0) + 1
+                continue
         rows.append({
             "run_id": rec.run_id,
             "iteration": int(rec.iteration),
@@ -49,7 +103,34 @@ def history(bag, run_id: str | None = None) -> list[dict]:
             "wall_time_s": float(rec.wall_time_s),
             "log_time_ns": msg.log_time_ns,
         })
+    if checks is not None:
+        checks.update(info)
     return rows
+
+
+class _Signed:
+    """A decoded record with ``signature`` even when the bag's schema predates the field."""
+
+    def __init__(self, rec):
+        self._rec = rec
+
+    def __getattr__(self, name):
+        if name == "signature":
+            return getattr(self._rec, "signature", "")
+        return getattr(self._rec, name)
+
+
+def check_note(checks: dict) -> str:
+    """One line about what history() left out or could not verify ('' if nothing)."""
+    parts = []
+    if checks.get("dropped"):
+        parts.append("dropped " + ", ".join(f"{n} {k}" for k, n in sorted(checks["dropped"].items()))
+                     + " iteration record(s)")
+    if checks.get("other_runs"):
+        parts.append(f"skipped {checks['other_runs']} record(s) of other runs")
+    if checks.get("unverified"):
+        parts.append(checks["unverified"])
+    return "; ".join(parts)
 
 
 def flat_rows(rows: list[dict]) -> list[dict]:
@@ -78,10 +159,16 @@ def to_csv(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
-def last_iterate(bag) -> tuple[str, dict[str, float], int]:
-    """(config_yaml, design of the last recorded iteration, its iteration number), for resume."""
+def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
+                 checks: dict | None = None) -> tuple[str, dict[str, float], int]:
+    """(config_yaml, design of the last verified iteration of the bag's own run, its iteration
+    number), for resume. BagError when the run was signed but its records cannot be verified."""
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
-    rows = history(bag)
+    checks = {} if checks is None else checks
+    rows = history(bag, run_id, key_file=key_file, checks=checks)
+    if checks.get("unverified"):
+        raise BagError(f"{bag.mcap_path}: {checks['unverified']}; will not resume from unverified records "
+                       "(give the key with --key-file)")
     if not rows:
         raise BagError(f"{bag.mcap_path}: no IterationRecord on {ITERATION_TOPIC}; nothing to resume")
     last = rows[-1]

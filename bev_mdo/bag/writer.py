@@ -44,6 +44,10 @@ class BagWriter:
         self.path = self.bag_dir / self.file_name
         if self.path.exists() or (self.bag_dir / "metadata.yaml").exists():
             raise BagError(f"{self.bag_dir}: bag already exists")
+        others = sorted(p.name for p in self.bag_dir.glob("*.mcap")) if self.bag_dir.is_dir() else []
+        if others:  # a bag without metadata.yaml (a killed recorder's): one metadata could not describe both
+            raise BagError(f"{self.bag_dir}: holds {', '.join(others)} already (a truncated bag? "
+                           "`bev-mdo bag repair` it); choose another directory")
         self.bag_dir.mkdir(parents=True, exist_ok=True)
         self._stream = open(self.path, "wb")
         self._mcap = Writer(self._stream, chunk_size=chunk_size_bytes,

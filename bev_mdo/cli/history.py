@@ -33,7 +33,10 @@ def register(subparsers) -> None:
                     "holds fronts instead: use `bev-mdo report` or the CSV files beside it).")
     parser.add_argument("bag", help="bag directory or .mcap file")
     parser.add_argument("--csv", metavar="FILE", help="write the history as CSV ('-' for stdout)")
-    parser.add_argument("--run-id", help="only this run id")
+    parser.add_argument("--run-id", help="this run (default: the bag's own run; needed for a recording of "
+                                         "several runs)")
+    parser.add_argument("--key-file", help="key that signed the run (default: the ros.sign_key_file named in "
+                                           "the bag's config)")
     parser.add_argument("--width", type=int, default=None,
                         help="table width in characters (default: the terminal's; all columns when piped)")
     parser.set_defaults(func=run)
@@ -66,7 +69,12 @@ def run(args) -> int:
     bag = open_bag(args.bag)
     if bag.truncated:
         print(bag.recovery_note(), file=sys.stderr)
-    rows = history(bag, run_id=args.run_id)
+    from bev_mdo.bag.history import check_note
+
+    checks: dict = {}
+    rows = history(bag, run_id=args.run_id, key_file=args.key_file, checks=checks)
+    if check_note(checks):
+        print(f"{args.bag}: {check_note(checks)}", file=sys.stderr)
     if not rows:
         what = f" of run {args.run_id}" if args.run_id else ""
         print(f"bev-mdo history: {args.bag}: no iteration records{what}; {describe_other_content(bag)}",

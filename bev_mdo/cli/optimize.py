@@ -40,6 +40,8 @@ def register(sub) -> None:
 
 
 def _progress(quiet: bool, to_stderr: bool):
+    from bev_mdo.mdo.formulations import FAIL_OBJECTIVE
+
     out = sys.stderr if to_stderr else sys.stdout
 
     def show(rec: dict) -> None:
@@ -48,7 +50,10 @@ def _progress(quiet: bool, to_stderr: bool):
         idf = rec.get("formulation") == "idf"  # IDF runs no MDA: count discipline evaluations
         n = sum(rec.get("discipline_evaluations", {}).values()) if idf else rec.get("mda_evaluations", 0)
         rate = n / max(rec.get("wall_time_s", 0.0), 1e-9)
-        print(f"iter {rec['iteration']:4d}  {rec['objective_name']} {rec['objective']:12.6f}  "
+        # a design whose evaluation failed carries the optimiser's penalty, not an objective value
+        objective = (f"{rec['objective']:12.6f}" if abs(rec["objective"]) < FAIL_OBJECTIVE
+                     else f"{'not evaluated':>12s}")
+        print(f"iter {rec['iteration']:4d}  {rec['objective_name']} {objective}  "
               f"max violation {rec['max_violation']:9.3g}  {'feasible  ' if rec['feasible'] else 'infeasible'}"
               f"  {rate:9.0f} {'discipline' if idf else 'MDA'} evals/s", file=out, flush=True)
 
@@ -103,7 +108,10 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
     if args.optimizer:
         from bev_mdo.mdo.optimizers import canonical_name
 
-        canonical_name(args.optimizer)  # ValueError names the known optimizers
+        from bev_mdo.config import check_optimizer_options
+
+        # ValueError names the known optimizers, or the config's option the chosen one does not take
+        check_optimizer_options(canonical_name(args.optimizer), (config.get("optimizer") or {}).get("options") or {})
     t_start = time.perf_counter()
     out = sys.stderr if args.json else sys.stdout
     show = _progress(args.quiet, args.json)
@@ -124,6 +132,9 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
         for k, v in extra.items():
             print(f"{k}: {v}" if k != "run_time_s" else f"run time {v:.3f} s (config loaded to this line: start-up, "
                   "optimisation, baseline, answers, shut-down)", file=out)
+    if extra.get("recorder_failed"):
+        print(f"warning: {extra['recorder_failed']}", file=sys.stderr)
+        return 3
     return 0 if result["feasible"] else 1
 
 
@@ -145,11 +156,14 @@ def _baseline(config, evaluator) -> dict | None:
 
 
 def _run_inprocess(config, args, show, x0=None):
+    from bev_mdo.cli.failures import NamingInProcessEvaluator
     from bev_mdo.config import resolve_disciplines
     from bev_mdo.mdo.driver import run_optimization
-    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.ros.settings import validate_ros
 
-    ev = InProcessEvaluator(resolve_disciplines(config))
+    ros = validate_ros(config.get("ros"))
+    budget = ros["timeout_s"] * (ros["retries"] + 1)  # what a ROS run gives a discipline before its points fail
+    ev = NamingInProcessEvaluator(resolve_disciplines(config), timeout_s=budget)
     from bev_mdo.cli.runbag import in_process_bag  # --bag works in process too
 
     bag, writer, show = in_process_bag(config, args, show)
@@ -157,8 +171,12 @@ def _run_inprocess(config, args, show, x0=None):
                            callback=show)
     out = res.to_dict()
     out.pop("history")
-    baseline = _baseline(config, InProcessEvaluator(resolve_disciplines(config)))
-    return out, baseline, {"transport": "inprocess", **({"bag": bag} if bag else {}), "_bag_writer": writer}
+    baseline = _baseline(config, NamingInProcessEvaluator(resolve_disciplines(config), timeout_s=budget,
+                                                          errors=ev.errors))
+    extra = {"transport": "inprocess", **({"bag": bag} if bag else {}), "_bag_writer": writer}
+    if ev.errors.first:
+        extra["discipline_errors"] = dict(ev.errors.first)
+    return out, baseline, extra
 
 
 def _run_ros(config, args, show, x0=None):
@@ -186,8 +204,11 @@ def _run_ros(config, args, show, x0=None):
     run_id = uuid.uuid4().hex[:16]
     stamp_ = time.strftime("%Y%m%d_%H%M%S")
     bag = Path(args.bag) if args.bag else Path("bags") / f"{config.get('name', 'run')}_{stamp_}_{run_id[:6]}"
+    if not args.no_record:
+        check_new_bag(bag, "--bag")
     logs = bag / "logs"  # node logs and the resolved config, beside the bag in the run's directory
     logs.mkdir(parents=True, exist_ok=True)
+    config = with_run_key(config, logs)
     resolved = logs / "config.yaml"
     resolved.write_text(yaml.safe_dump(_plain(config), sort_keys=False))
     launcher = Launcher(env, log_dir=logs)
@@ -198,24 +219,81 @@ def _run_ros(config, args, show, x0=None):
     recorder = 0
     try:
         for entry in discipline_entries(config):
-            launcher.add(entry["name"], discipline_argv(entry["name"], str(resolved.resolve())))
+            launcher.add(entry["name"], discipline_argv(entry["name"], str(resolved.resolve()),
+                                                        instance=run_id[:8], run_id=run_id))
         if not args.no_record:
             recorder = _start_recorder(launcher, bag, resolved, run_id)
         launcher.supervise()
         result, baseline, stats = _coordinate(config, run_id, args, show, recorder, x0)
     finally:
         launcher.stop(first=("recorder",))
+    tail_s = time.monotonic() - stats["t_optimised"]  # after the optimiser: acks, baseline, shutdown
     restarts = {n.label: n.restarts for n in launcher.nodes if n.restarts}
+    recorder_failed = _recorder_failure(launcher, bag) if recorder else None
     extra = {"transport": "ros", "run_id": run_id, "domain_id": ros["domain_id"],
              "bag": None if args.no_record else str(bag), "logs": str(logs),
-             "dropped_messages": stats["dropped"], "retried_requests": stats["retried"], "node_restarts": restarts}
+             "dropped_messages": stats["dropped"], "retried_requests": stats["retried"], "node_restarts": restarts,
+             "refused_instances": stats.get("refused_instances", {}),
+             "signing": _signing(ros, config), "tail_s": round(tail_s, 3)}
+    if stats.get("discipline_errors"):
+        extra["discipline_errors"] = stats["discipline_errors"]
+    if recorder_failed:
+        extra["recorder_failed"] = recorder_failed
     return result, baseline, extra
+
+
+def _recorder_failure(launcher, bag: Path) -> str | None:
+    """None if the recorder lived to the end; else a one-line warning, after making the bag
+    readable again (its summary and metadata.yaml rebuilt from what was flushed)."""
+    node = launcher.node("recorder")
+    if node.died is None:
+        return None
+    note = f"the recorder died (exit status {node.died}) during the run; the bag holds only what it recorded before"
+    try:
+        from bev_mdo.bag.repair import repair
+
+        res = repair(bag)
+        note += f" ({res.message_count} messages, summary and metadata rebuilt)"
+    except (ValueError, OSError) as exc:
+        note += f"; the bag could not be repaired: {exc}"
+    return note
+
+
+def _signing(ros: dict, config: dict) -> str:
+    """How this run's messages were signed, for the summary."""
+    if ros.get("sign_key_file"):
+        return f"key file {ros['sign_key_file']}"
+    return "per-run key" if (config.get("ros") or {}).get("sign_key_file") else "off (ros.signing: false)"
+
+
+def check_new_bag(bag: Path, what: str) -> None:
+    """A bag may be written to `bag`: ValueError (exit 2) naming it if a bag or a file is there."""
+    if bag.exists() and not bag.is_dir():
+        raise ValueError(f"{what} {bag}: is a file, not a bag directory")
+    if (bag / "metadata.yaml").exists() or any(bag.glob("*.mcap")):
+        raise ValueError(f"{what} {bag}: a bag already exists there; choose a new directory")
+
+
+def with_run_key(config: dict, logs: Path) -> dict:
+    """Signing on by default: without a configured ``ros.sign_key_file`` (and unless
+    ``ros.signing: false``) a fresh random key is written to ``<logs>/sign.key`` (mode 0600,
+    outside the bag); the resolved config that the nodes and the recorder read names its path
+    only, so the key is never on a command line, in the environment or in the bag."""
+    ros = dict(config.get("ros") or {})
+    if ros.get("sign_key_file") or not ros.get("signing", True):
+        return config
+    from bev_mdo.ros.auth import new_key_file
+
+    ros["sign_key_file"] = new_key_file(logs)
+    return {**config, "ros": ros}
 
 
 def _start_recorder(launcher, bag: Path, resolved: Path, run_id: str) -> int:
     """Start the recorder node; returns how many extra subscribers it adds per topic."""
+    # Not restarted: a second recorder cannot reopen the bag the first one was writing (the run ends
+    # with a warning and status 3 instead, the bag repaired up to the recorder's death).
     launcher.add("recorder", [sys.executable, "-m", "bev_mdo.ros.run", "recorder_node", "--output", str(bag),
-                              "--config", str(resolved.resolve()), "--run-id", run_id])
+                              "--config", str(resolved.resolve()), "--run-id", run_id], restart=False)
     return 1
 
 

@@ -37,17 +37,26 @@ def run(args) -> int:
 
 
 def _join_domain(args) -> None:
-    """Domain and discovery as every command that talks ROS: flags, the config's ros: section
-    (with --config), ROS_DOMAIN_ID, 77."""
+    """Domain and discovery: the flags, over the --config file's ros: section (localhost by default)."""
+    from pathlib import Path
+
     from bev_mdo.cli.ros_args import ros_section
     from bev_mdo.ros.client import apply_ros_environment
 
-    config: dict = {}
-    if getattr(args, "config", None):
-        import yaml
+    ros = {}
+    if args.config:
+        from bev_mdo.config import load_yaml
 
-        from pathlib import Path
+        try:
+            raw = load_yaml(Path(args.config).read_text(encoding="utf-8"))
+        except Exception as exc:  # yaml.YAMLError and friends: one line naming the file
+            raise ValueError(f"{args.config}: not valid YAML: {str(exc).splitlines()[0]}") from None
+        ros = (raw.get("ros") or {}) if isinstance(raw, dict) else {}
+    if "domain_id" not in ros:
+        from bev_mdo.cli.replay import _env_domain
 
-        raw = yaml.safe_load(Path(args.config).read_text()) or {}
-        config = {"ros": raw.get("ros") or {}} if isinstance(raw, dict) else {}
-    apply_ros_environment(ros_section(config, args))
+        ros = {**_env_domain(), **ros}
+    try:
+        apply_ros_environment(ros_section({"ros": ros}, args))
+    except ValueError as exc:
+        raise ValueError(f"{args.config or 'record'}: {exc}") from None

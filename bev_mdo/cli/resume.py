@@ -18,20 +18,26 @@ def register(sub) -> None:
     p.add_argument("--output", dest="out_bag", default=None, help="bag to write (default: bags/<config name>_<time>_<run>, as optimize)")
     p.add_argument("--no-record", action="store_true")
     p.add_argument("--quiet", action="store_true")
+    p.add_argument("--run-id", default=None,
+                   help="the run to resume (default: the bag's own; needed for a recording of several runs)")
+    p.add_argument("--key-file", default=None,
+                   help="key that signed the run (default: the ros.sign_key_file named in the bag's config)")
     from bev_mdo.cli.ros_args import add_ros_arguments
 
     add_ros_arguments(p)
     p.set_defaults(func=run)
 
 
-def resume_point(bag_path: str) -> tuple[dict, dict, int]:
-    """(resolved config, last design, its iteration) from a bag; BagError (a ValueError) if there is none."""
+def resume_point(bag_path: str, run_id: str | None = None, key_file: str | None = None,
+                 checks: dict | None = None) -> tuple[dict, dict, int]:
+    """(resolved config, last verified design of the bag's own run, its iteration) from a bag;
+    BagError (a ValueError) if there is none or it cannot be verified."""
     import yaml
 
     from bev_mdo.bag.history import last_iterate
     from bev_mdo.config import load_config
 
-    config_yaml, design, iteration = last_iterate(bag_path)
+    config_yaml, design, iteration = last_iterate(bag_path, run_id, key_file, checks)
     if not config_yaml:
         raise ValueError(f"{bag_path}: the bag holds no configuration; cannot resume")
     return load_config(yaml.safe_load(config_yaml)), design, iteration
@@ -42,8 +48,19 @@ def run(args) -> int:
 
     from bev_mdo.cli.optimize import run_job
 
-    config, design, iteration = resume_point(args.bag)
+    from bev_mdo.bag.history import check_note
+
+    checks: dict = {}
+    config, design, iteration = resume_point(args.bag, getattr(args, "run_id", None),
+                                             getattr(args, "key_file", None), checks)
     out = sys.stderr if args.json else sys.stdout
+    if check_note(checks):
+        print(f"{args.bag}: {check_note(checks)}", file=sys.stderr)
+    # the resumed run gets a key of its own (the old path would make the new run share the old key)
+    config.setdefault("ros", {})
+    if checks.get("run_id") and str(config["ros"].get("sign_key_file", "")).endswith(
+            f"{checks['run_id']}/sign.key"):
+        config["ros"] = {**config["ros"], "sign_key_file": ""}
     print(f"resuming {config.get('name', 'run')} from iteration {iteration} at "
           + ", ".join(f"{k}={v:.6g}" for k, v in design.items()), file=out)
     names = list(config["problem"]["design_variables"])

@@ -16,6 +16,12 @@ A receiver drops and counts a message that is
 A retry re-sends an evaluation with ``attempt + 1`` and a fresh stamp, so it has a new
 signature and is not a replay. The key itself is only ever read from the file: the
 config, logs and bags hold the path.
+
+Discipline declarations (DisciplineInfo) and iteration records (IterationRecord) are signed
+too and verified by MAC only (``unsigned`` / ``forged``; no freshness window: declarations
+are TRANSIENT_LOCAL and records are verified again offline, from a bag). ``bev-mdo optimize``
+signs by default with a fresh per-run key file (``new_key_file``, mode 0600); see
+docs/security.md for what is and is not protected.
 """
 from __future__ import annotations
 
@@ -34,10 +40,26 @@ MIN_KEY_BYTES = 16
 REASONS = ("unsigned", "forged", "expired", "replayed")
 _REQ_TAG = b"bev_mdo/EvaluationRequest/v1\0"
 _RES_TAG = b"bev_mdo/EvaluationResult/v1\0"
+_INFO_TAG = b"bev_mdo/DisciplineInfo/v1\0"
+_ITER_TAG = b"bev_mdo/IterationRecord/v1\0"
 
 
 class AuthError(ValueError):
     """The key file is missing, unreadable or too short (the message never shows the key)."""
+
+
+def new_key_file(directory: str | os.PathLike, name: str = "sign.key") -> str:
+    """Write a fresh random 32-byte key (hex) to ``directory/name``, created with mode 0600
+    (never readable by other users, not even for a moment); returns its path."""
+    import secrets
+
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    path = d / name
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    with os.fdopen(fd, "w") as f:
+        f.write(secrets.token_hex(32))
+    return str(path.resolve())
 
 
 def read_key(path: str | os.PathLike) -> bytes:
@@ -111,6 +133,49 @@ def result_bytes(msg) -> bytes:
     return b"".join(out)
 
 
+def _texts(out: list[bytes], items) -> None:
+    items = list(items)
+    out.append(struct.pack("<I", len(items)))
+    for t in items:
+        _s(out, t)
+
+
+def info_bytes(msg) -> bytes:
+    """Canonical bytes of a DisciplineInfo (everything but the signature)."""
+    out = [_INFO_TAG]
+    _stamp(out, msg.header)
+    for text in (msg.discipline, msg.instance, msg.class_name):
+        _s(out, text)
+    for seq in (msg.inputs, msg.outputs, msg.parameters):
+        _texts(out, seq)
+    _s(out, msg.version)
+    _texts(out, msg.coupling_inputs)
+    _texts(out, msg.coupling_sources)
+    for text in (msg.run_id, msg.fingerprint, msg.effective_config):
+        _s(out, text)
+    return b"".join(out)
+
+
+def iteration_bytes(msg) -> bytes:
+    """Canonical bytes of an IterationRecord (everything but the signature)."""
+    out = [_ITER_TAG]
+    _stamp(out, msg.header)
+    _s(out, msg.run_id)
+    out.append(struct.pack("<QI", int(msg.sequence), int(msg.iteration)))
+    for text in (msg.formulation, msg.optimizer):
+        _s(out, text)
+    _named(out, msg.design)
+    _s(out, msg.objective_name)
+    out.append(struct.pack("<d", float(msg.objective)))
+    _named(out, msg.constraints)
+    out.append(struct.pack("<dBQ", float(msg.max_violation), bool(msg.feasible), int(msg.mda_evaluations)))
+    _texts(out, msg.discipline_names)
+    ev = [int(v) for v in msg.discipline_evaluations]
+    out.append(struct.pack(f"<I{len(ev)}Q", len(ev), *ev))
+    out.append(struct.pack("<d", float(msg.wall_time_s)))
+    return b"".join(out)
+
+
 class Signer:
     """Signs outgoing and verifies incoming requests and results with one shared key."""
 
@@ -143,6 +208,31 @@ class Signer:
 
     def sign_result(self, msg) -> None:
         msg.signature = self._mac(result_bytes(msg))
+
+    def sign_info(self, msg) -> None:
+        msg.signature = self._mac(info_bytes(msg))
+
+    def sign_iteration(self, msg) -> None:
+        msg.signature = self._mac(iteration_bytes(msg))
+
+    def verify_info(self, msg) -> str | None:
+        """None if the declaration is authentic, else "unsigned" or "forged". No freshness window:
+        declarations are TRANSIENT_LOCAL, a late coordinator gets old ones, and a replayed
+        genuine declaration says nothing new."""
+        return self._mac_only(msg, info_bytes)
+
+    def verify_iteration(self, msg) -> str | None:
+        """None if the iteration record is authentic, else "unsigned" or "forged" (also offline,
+        on records read back from a bag: no freshness window)."""
+        return self._mac_only(msg, iteration_bytes)
+
+    def _mac_only(self, msg, encode) -> str | None:
+        sig = msg.signature
+        if not sig:
+            return "unsigned"
+        if len(sig) != 64 or not hmac.compare_digest(sig, self._mac(encode(msg))):
+            return "forged"
+        return None
 
     def verify_request(self, msg) -> str | None:
         """None if the request is authentic and fresh, else the reason (one of REASONS)."""

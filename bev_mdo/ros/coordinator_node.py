@@ -35,14 +35,15 @@ def discipline_names(config: Mapping[str, Any]) -> list[str]:
 class CoordinatorNode(Node):
     """Publishes iteration records and owns the ROS evaluator."""
 
-    def __init__(self, config: Mapping[str, Any], run_id: str | None = None, **kwargs):
+    def __init__(self, config: Mapping[str, Any], run_id: str | None = None, signer=None, **kwargs):
         super().__init__(kwargs.pop("node_name", "coordinator_node"), **kwargs)
         self.config = config
         ros = validate_ros(config.get("ros"))
         self.run_id = run_id or uuid.uuid4().hex[:16]
         self._seq = 0
         self._iteration_pub = self.create_publisher(IterationRecord, ITERATION_TOPIC, ITERATION_QOS)
-        self.evaluator = RosEvaluator(self, run_id=self.run_id, timeout_s=ros["timeout_s"], retries=ros["retries"])
+        self.evaluator = RosEvaluator(self, run_id=self.run_id, timeout_s=ros["timeout_s"], retries=ros["retries"],
+                                      signer=signer)
         self.discovery_wait_s = ros["discovery_wait_s"]
 
     @property
@@ -73,18 +74,32 @@ class CoordinatorNode(Node):
         msg.discipline_names = list(counts)
         msg.discipline_evaluations = [int(v) for v in counts.values()]
         msg.wall_time_s = float(rec.get("wall_time_s", 0.0))
+        if self.evaluator.signer is not None:
+            self.evaluator.signer.sign_iteration(msg)
         self._iteration_pub.publish(msg)
 
-    def wait_for_all_acked(self, wait_s: float) -> bool:
+    def wait_for_all_acked(self, wait_s: float, slice_s: float = 0.05) -> bool:
         """Block until every reader (e.g. the recorder) acknowledged what we published.
 
         A RELIABLE sample that is not yet acknowledged is lost if its publisher goes away,
-        so the coordinator waits for this before it shuts down.
+        so the coordinator waits for this before it shuts down. The wait is taken in short
+        slices (other threads, the launcher's supervisor among them, keep running) and ends
+        for a publisher as soon as it has no matched reader; a killed reader is unmatched
+        once its participant's lease (3 s, bev_mdo's Fast DDS profile) expires, so it stalls
+        the end of a run by at most that. Returns False (and logs which topics) after `wait_s`.
         """
         from rclpy.duration import Duration
 
-        pubs = [self._iteration_pub, *getattr(self.evaluator, "_publishers", {}).values()]
-        return all(p.wait_for_all_acked(Duration(seconds=wait_s)) for p in pubs)
+        pending = [self._iteration_pub, *getattr(self.evaluator, "_publishers", {}).values()]
+        deadline = time.monotonic() + wait_s
+        while pending:
+            pending = [p for p in pending if p.get_subscription_count() > 0
+                       and not p.wait_for_all_acked(Duration(nanoseconds=int(slice_s * 1e9)))]
+            if pending and time.monotonic() > deadline:
+                self.get_logger().warning(f"not acknowledged within {wait_s:g} s on "
+                                          f"{sorted(p.topic_name for p in pending)}")
+                return False
+        return True
 
     def wait_for_recorder(self, n: int, wait_s: float) -> None:
         """Wait until `n` recorders subscribed to the iteration and result topics (and the data-flow
@@ -102,11 +117,11 @@ class CoordinatorNode(Node):
 def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: str | None = None,
         optimizer: str | None = None, x0: Mapping[str, float] | None = None,
         on_iteration: Callable[[dict], None] | None = None, recorder_subscribers: int = 0,
-        context=None):
+        context=None, signer=None):
     """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats)."""
     from bev_mdo.mdo.driver import run_optimization
 
-    node = CoordinatorNode(config, run_id, context=context)
+    node = CoordinatorNode(config, run_id, signer=signer, context=context)
     try:
         names = discipline_names(config)
         node.evaluator.wait_for_disciplines(names, node.discovery_wait_s, extra_subscribers=recorder_subscribers)
@@ -121,9 +136,11 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
 
         result = run_optimization(config, node.evaluator, formulation=formulation, optimizer=optimizer,
                                   x0=x0, callback=callback)
+        t_optimised = time.monotonic()
         stats = {"run_id": node.run_id, "dropped": dict(node.evaluator.dropped), "retried": node.evaluator.retried,
-                 "data_flow_mdas": node.evaluator.flows}
-        node.wait_for_all_acked(node.discovery_wait_s)
+                 "data_flow_mdas": node.evaluator.flows, "refused_instances": dict(node.evaluator.refused),
+                 "t_optimised": t_optimised, "discipline_errors": dict(node.evaluator.first_errors)}
+        stats["all_acked"] = node.wait_for_all_acked(node.discovery_wait_s)
         return result, stats
     finally:
         node.evaluator.close()

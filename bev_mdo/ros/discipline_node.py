@@ -36,7 +36,7 @@ from bev_mdo import __version__
 from bev_mdo.mdo import flow
 from bev_mdo.mdo.discipline import DisciplineError, run_discipline
 from bev_mdo.mdo.vectors import ShapeError
-from bev_mdo.ros import wire
+from bev_mdo.ros import binding, wire
 from bev_mdo.ros.auth import Signer
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RESULT_QOS, REQUEST_QOS, RESULT_QOS,
                                 RESULT_TOPIC, mda_result_topic, request_topic, stamp)
@@ -128,6 +128,9 @@ class DisciplineNode(Node):
         self.declare_parameter("config", "", ParameterDescriptor(description="path to the run config YAML"))
         self.declare_parameter("discipline", discipline or "", ParameterDescriptor(description="discipline name"))
         self.declare_parameter("instance", "", ParameterDescriptor(description="instance name (default: node name)"))
+        self.declare_parameter("run_id", "", ParameterDescriptor(
+            description="serve only this run (and its <run>-... sub-runs); empty: any run whose requests "
+                        "carry this node's configuration fingerprint"))
         name = self.get_parameter("discipline").value
         if not name:
             raise ValueError("discipline_node needs -p discipline:=<name>")
@@ -138,6 +141,8 @@ class DisciplineNode(Node):
         config = self._apply_overrides(config)
         self.discipline, producer = _build(config, name)
         self.discipline_name = name
+        self.bound_run = self.get_parameter("run_id").value or ""
+        self.fingerprint, self.effective_config = binding.fingerprint(config, name)
         self.source_of = flow.sources_of(self.discipline.inputs, producer, name)  # coupling input -> source
         self._allowed = set(self.discipline.inputs) | set(getattr(self.discipline, "parameters", {}) or {})
         self.instance = self.get_parameter("instance").value or self.get_fully_qualified_name()
@@ -166,6 +171,8 @@ class DisciplineNode(Node):
         self._publish_info()
         self.get_logger().info(
             f"serving {name!r}: inputs {list(self.discipline.inputs)} -> outputs {list(self.discipline.outputs)}"
+            + f"; fingerprint {self.fingerprint}"
+            + (f"; bound to run {self.bound_run}" if self.bound_run else "; standalone")
             + ("; requests must be signed" if self.signer else "")
         )
         self.publish_stats(force=True)
@@ -211,6 +218,11 @@ class DisciplineNode(Node):
         msg.version = __version__
         msg.coupling_inputs = list(self.source_of)
         msg.coupling_sources = list(self.source_of.values())
+        msg.run_id = self.bound_run
+        msg.fingerprint = self.fingerprint
+        msg.effective_config = self.effective_config
+        if self.signer is not None:
+            self.signer.sign_info(msg)
         self._info_pub.publish(msg)
 
     def _raw(self, handle, result: bool = False):
@@ -263,7 +275,22 @@ class DisciplineNode(Node):
         out.discipline = self.discipline_name
         out.instance = self.instance
 
+    def _for_me(self, msg, source: str | None = None) -> bool:
+        """True if `msg` belongs to a run this node serves and binds this node's own fingerprint
+        (and, for a source's result, that source's too). Anything else is another run's or another
+        configuration's traffic on the shared topics: ignored without an answer, counted."""
+        if not binding.run_matches(self.bound_run, msg.run_id):
+            self.counts["ignored.other_run"] += 1
+            return False
+        want = binding.parse_tag(msg.header.frame_id) or {}
+        if want.get(self.discipline_name) != self.fingerprint or (source is not None and source not in want):
+            self.counts["ignored.fingerprint"] += 1
+            return False
+        return True
+
     def _on_request(self, req: wire.Request) -> None:
+        if not self._for_me(req):
+            return None
         self.counts["received"] += 1
         if self.signer is not None:
             why = self.signer.verify_request(req)
@@ -333,6 +360,8 @@ class DisciplineNode(Node):
         """A data-flow request, read by the disciplines without sources: evaluate now."""
         if self.discipline_name not in req.flow:
             return None  # an MDA without this discipline
+        if not self._for_me(req):
+            return None
         self.counts["received"] += 1
         if not self._authentic(req, "request"):
             return None
@@ -349,6 +378,8 @@ class DisciplineNode(Node):
         (run, evaluation id) and evaluate once every source of this MDA has answered."""
         if source not in msg.flow or self.discipline_name not in msg.flow:
             return  # not a data-flow MDA with this discipline
+        if not self._for_me(msg, source):
+            return
         if not self._authentic(msg, "result"):
             return
         if msg.discipline != source:

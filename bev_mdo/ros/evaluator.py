@@ -37,7 +37,7 @@ from bev_mdo.mdo import flow
 from bev_mdo.mdo.discipline import EvalResult, finite_rows
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.mdo.graph import CouplingGraph
-from bev_mdo.ros import wire
+from bev_mdo.ros import binding, wire
 from bev_mdo.ros.auth import Signer
 from bev_mdo.ros.fastwait import MultiWaiter
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC,
@@ -63,14 +63,21 @@ class RosEvaluator:
     """Evaluator over ROS topics; same interface as the in-process evaluator."""
 
     def __init__(self, node: Node, *, run_id: str | None = None, timeout_s: float = 5.0, retries: int = 3,
-                 signer: Signer | None = None):
+                 signer: Signer | None = None, config: Mapping | None = None):
         self.node = node
+        config = config if config is not None else (getattr(node, "config", None) or {})
         if signer is None:  # the coordinator node carries the run config; sign if it names a key file
             from bev_mdo.ros.settings import validate_ros
 
-            config = getattr(node, "config", None) or {}
             signer = Signer.from_ros(validate_ros(config.get("ros"))) if config.get("ros") else None
         self.signer = signer
+        # Binding (binding.py): the fingerprint every discipline of this run must have. Without a
+        # config (a bare evaluator in a tool) the first declared fingerprint of a discipline is taken.
+        self._config = config if config.get("problem") else None
+        self.expected: dict[str, tuple[str, str]] = {}   # discipline -> (fingerprint, effective JSON)
+        self.instances: dict[str, set[str]] = {}         # discipline -> accepted instance names
+        self.refused: dict[str, str] = {}                # "discipline instance" -> why it was refused
+        self.first_errors: dict[str, str] = {}           # discipline -> its first error (shown once)
         self.accepted: list[tuple[int, str, str, int]] = []
         self.run_id = run_id or uuid.uuid4().hex[:16]
         self.timeout_s = timeout_s
@@ -104,7 +111,44 @@ class RosEvaluator:
         self._hot = [(self._result_sub, lambda data, _i: self._on_bytes(data))]
 
     # -- discovery -----------------------------------------------------------------
+    def _expect(self, name: str) -> tuple[str, str] | None:
+        """(fingerprint, effective JSON) this run needs for discipline `name` (None: not known)."""
+        if name not in self.expected and self._config is not None:
+            try:
+                self.expected[name] = binding.fingerprint(self._config, name)
+            except ValueError:
+                return None
+        return self.expected.get(name)
+
+    def _refuse(self, msg: DisciplineInfo, why: str) -> None:
+        key = f"{msg.discipline} {msg.instance}"
+        if key not in self.refused:
+            self.refused[key] = why
+            self.dropped["refused_instance"] += 1
+            self.node.get_logger().warning(f"refused {msg.discipline!r} instance {msg.instance!r}: {why}")
+
     def _on_info(self, msg: DisciplineInfo) -> None:
+        if self.signer is not None:
+            why = self.signer.verify_info(msg)
+            if why is not None:
+                self.dropped[f"info_{why}"] += 1
+                return self._refuse(msg, f"{why} declaration")
+        if not binding.run_matches(msg.run_id, self.run_id):
+            self.dropped["info_other_run"] += 1
+            return None  # a node launched for another run: not ours, not a mismatch
+        if binding.fingerprint_of_json(msg.effective_config) != msg.fingerprint:
+            return self._refuse(msg, "fingerprint does not match its effective configuration")
+        want = self._expect(msg.discipline)
+        if want is None and self._config is None:
+            want = self.expected[msg.discipline] = (msg.fingerprint, msg.effective_config)
+        if want is None:
+            self.dropped["info_other_discipline"] += 1
+            return None  # a discipline this run does not use
+        if msg.fingerprint != want[0]:
+            return self._refuse(msg, f"fingerprint {msg.fingerprint} != {want[0]}: "
+                                     + binding.difference(want[1], msg.effective_config))
+        self.refused.pop(f"{msg.discipline} {msg.instance}", None)
+        self.instances.setdefault(msg.discipline, set()).add(msg.instance.lstrip("/"))
         # Parameter defaults live in the node; the engine only needs their names.
         self.specs[msg.discipline] = DisciplineSpec(
             msg.discipline, tuple(msg.inputs), tuple(msg.outputs), dict.fromkeys(msg.parameters, float("nan"))
@@ -173,6 +217,11 @@ class RosEvaluator:
                     n in self.specs
                     and self._publishers[n].get_subscription_count() >= 1 + extra_subscribers
                     and self.node.count_publishers(RESULT_TOPIC) >= 1
+                    and self._present(n, request_topic(n), subscriber=True)
+                    # every reader in the graph matched: with other instances (another run's, a
+                    # refused one) on the topic, the count alone could be reached without ours
+                    and self._publishers[n].get_subscription_count() >= self.node.count_subscribers(request_topic(n))
+                    and self._present(n, RESULT_TOPIC, subscriber=False)
                 )
                 if not ready:
                     out.append(n)
@@ -180,8 +229,13 @@ class RosEvaluator:
 
         while missing():
             if time.monotonic() > deadline:
+                gone = missing()
+                refused = [f"{k}: {why}" for k, why in self.refused.items() if k.split(" ")[0] in gone]
+                if refused:
+                    raise DisciplineMissing(f"discipline(s) {gone}: no instance of this run's configuration "
+                                            f"within {wait_s:g} s; refused " + " | ".join(refused))
                 raise DisciplineMissing(
-                    f"discipline(s) {missing()} not found on ROS domain within {wait_s:g} s "
+                    f"discipline(s) {gone} not found on ROS domain within {wait_s:g} s "
                     "(is each node running, with the same ROS_DOMAIN_ID and discovery settings?)"
                 )
             self._executor.spin_once(timeout_sec=0.05)
@@ -190,14 +244,24 @@ class RosEvaluator:
             if time.monotonic() > deadline:
                 raise DisciplineMissing(f"result topic not matched for all of {list(names)} within {wait_s:g} s")
             self._executor.spin_once(timeout_sec=0.05)
+        # Declarations that arrived with ours (other instances on the domain) are judged now: once
+        # the run evaluates, only the hot subscriptions are served.
+        for _ in range(16):
+            self._executor.spin_once(timeout_sec=0.0)
         flow_ok = self.flow_plan(names) is not None
-        if flow_ok:
+        if not flow_ok:
+            self.node.get_logger().info("data flow not used (a node does not offer it, or the graph has a loop): "
+                                        "MDAs run in waves")
+        else:
             # Data flow: the disciplines without sources read the MDA request topic and we read every
             # node's results. (Node-to-node result topics are TRANSIENT_LOCAL: a late match loses nothing.)
             self._flow_topics(names)
             roots = {n for n, src in self.flow_plan(names).items() if not src}
-            while (self._flow_pub.get_subscription_count() < len(roots) + extra_subscribers
-                   or any(self._flow_subs[n].get_publisher_count() < 1 for n in names)):
+            while (self._flow_pub.get_subscription_count() < max(len(roots) + extra_subscribers,
+                                                                 self.node.count_subscribers(MDA_REQUEST_TOPIC))
+                   or any(self._flow_subs[n].get_publisher_count() < 1 for n in names)
+                   or not all(self._present(n, MDA_REQUEST_TOPIC, subscriber=True) for n in roots)
+                   or not all(self._present(n, mda_result_topic(n), subscriber=False) for n in names)):
                 if time.monotonic() > deadline:
                     raise DisciplineMissing(f"data-flow topics not matched for all of {list(names)} within {wait_s:g} s")
                 self._executor.spin_once(timeout_sec=0.05)
@@ -229,11 +293,13 @@ class RosEvaluator:
                 self._probe_ids.add(eid)
                 if kind == "request":
                     req = wire.Request(self.run_id, eid, name)
+                    req.header.frame_id = self._tag([name])
                     req.inputs = wire.batch({k: np.zeros(0) for k in self.specs[name].inputs})
                     keys = [(eid, name)]
                     self._pending[keys[0]] = p = _Pending(0, name, req, 0, 0)
                 else:
                     req = wire.Request(self.run_id, eid, "", flow=names)
+                    req.header.frame_id = self._tag(names)
                     req.inputs = wire.batch({})
                     keys = [(eid, n) for n in names]
                     for i, n in enumerate(names):
@@ -260,6 +326,18 @@ class RosEvaluator:
         while self._pending and time.monotonic() < deadline:
             if self._waiter.wait(subs, deadline - time.monotonic()):
                 self._waiter.take_ready(self._hot)
+
+    def _present(self, discipline: str, topic: str, subscriber: bool) -> bool:
+        """True once an accepted instance of `discipline` is in the graph as a subscriber (publisher)
+        of `topic`: a refused instance on the same topic does not make this run ready."""
+        accepted = self.instances.get(discipline, set())
+        infos = (self.node.get_subscriptions_info_by_topic(topic) if subscriber
+                 else self.node.get_publishers_info_by_topic(topic))
+        for i in infos:
+            full = f"{i.node_namespace.rstrip('/')}/{i.node_name}".lstrip("/")
+            if full in accepted or i.node_name in accepted:
+                return True
+        return False
 
     def warm_up(self, names: Sequence[str], rounds: int = 2) -> None:
         """Send `rounds` MDAs of no point through the matched graph, before any timing (call it
@@ -293,16 +371,19 @@ class RosEvaluator:
 
     def _on_result(self, msg) -> None:
         """Accept a result (wire.Result or a generated EvaluationResult) or count why it was dropped."""
+        if msg.run_id != self.run_id:  # another run's traffic on the shared topic, not an attack
+            self.dropped["other_run"] += 1
+            return
         if self.signer is not None:
             why = self.signer.verify_result(msg)
             if why is not None:
                 self.dropped[why] += 1
                 return
-        if msg.run_id != self.run_id:
-            self.dropped["other_run"] += 1
-            return
         key = (int(msg.evaluation_id), msg.discipline)
         p = self._pending.get(key)
+        if p is not None and msg.header.frame_id != p.request.header.frame_id:
+            self.dropped["fingerprint"] += 1  # answered for another configuration than this run's
+            return
         if p is None:
             if key[0] in self._probe_ids:  # a late answer to a handshake probe (handshake())
                 self.probe_late += 1
@@ -338,6 +419,8 @@ class RosEvaluator:
                     return
                 if part is not None:
                     res.extra["partials"] = {k: np.array(v) for k, v in part.items()}
+        if res.error:
+            self._first_error(p.discipline, res.error)
         if not p.flow:  # a data-flow MDA counts the rows each discipline evaluated at the end
             self.counts[p.discipline] += p.n
         self.accepted.append((int(msg.evaluation_id), msg.discipline, msg.instance, int(p.request.attempt)))
@@ -345,10 +428,20 @@ class RosEvaluator:
         self._answered.add(key)
         self._results[p.index] = res
 
+    def _first_error(self, discipline: str, error: str) -> None:
+        """Name a discipline's first failure on the console (the node's log has the rest)."""
+        if discipline not in self.first_errors:
+            self.first_errors[discipline] = line = error.strip().splitlines()[0][:300]
+            self.node.get_logger().error(f"discipline {discipline!r} failed: {line}")
+
     def _failed(self, p: _Pending, error: str) -> EvalResult:
         spec = self.specs.get(p.discipline)
         outs = {k: np.full(p.n, np.nan) for k in (spec.outputs if spec else ())}
         return EvalResult(outs, np.zeros(p.n, bool), error)
+
+    def _tag(self, names) -> str:
+        """frame_id binding a request to this run's fingerprint of every named discipline."""
+        return binding.tag({n: (self._expect(n) or ("?", ""))[0] for n in names}, names)
 
     def _send(self, p: _Pending) -> None:
         self._seq += 1
@@ -372,6 +465,7 @@ class RosEvaluator:
                                                 f"{name}: did not answer earlier requests (hung or gone)")
                 continue
             req = wire.Request(self.run_id, self._next_id, name, iteration=iteration)
+            req.header.frame_id = self._tag([name])
             req.inputs = wire.batch(batch)
             req.partials = bool(partials)
             n = int(req.inputs.batch_size)
@@ -394,6 +488,7 @@ class RosEvaluator:
         eid = self._next_id
         self._next_id += 1
         req = wire.Request(self.run_id, eid, "", flow=names)
+        req.header.frame_id = self._tag(names)
         req.inputs = wire.batch(request)
         req.partials = bool(partials)
         first = None
@@ -442,6 +537,7 @@ class RosEvaluator:
             self._results[p.index] = self._failed(
                 p, f"{p.discipline}: no answer after {self.retries + 1} attempts of {self.timeout_s:g} s"
             )
+            self._first_error(p.discipline, self._results[p.index].error)
             del self._pending[key]
             self._answered.add(key)  # a late answer is then counted as stale, never used
             if p.flow:  # data flow: hung only if its sources answered (else it had nothing to do)

@@ -41,10 +41,14 @@ class NodeProcess:
     proc: subprocess.Popen | None = None
     restarts: int = 0
     restart_times: list[float] = field(default_factory=list)
+    restart: bool = True            # False: a death is reported (``died``), never restarted
+    died: int | None = None         # exit status of a node that died and was not restarted
 
 
-def discipline_argv(name: str, config_path: str, instance: str = "") -> list[str]:
-    """Command line of the node serving discipline `name` (built-in exe or the generic node)."""
+def discipline_argv(name: str, config_path: str, instance: str = "", run_id: str = "") -> list[str]:
+    """Command line of the node serving discipline `name` (built-in exe or the generic node).
+
+    With `run_id` the node serves only that run (and its ``<run>-...`` sub-runs)."""
     exe = _BUILTIN_EXE.get(name, "discipline_node")
     argv = [sys.executable, "-m", "bev_mdo.ros.run", exe, "--ros-args", "-p", f"config:={config_path}"]
     if exe == "discipline_node":
@@ -53,6 +57,8 @@ def discipline_argv(name: str, config_path: str, instance: str = "") -> list[str
     argv += ["-r", f"__node:={node_name}"]
     if instance:
         argv += ["-p", f"instance:={node_name}"]
+    if run_id:
+        argv += ["-p", f"run_id:={run_id}"]
     return argv
 
 
@@ -90,10 +96,10 @@ class Launcher:
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
 
-    def add(self, label: str, argv: Sequence[str]) -> NodeProcess:
-        """Register and start one node process."""
+    def add(self, label: str, argv: Sequence[str], restart: bool = True) -> NodeProcess:
+        """Register and start one node process (`restart`: whether the supervisor restarts it)."""
         log = (self.log_dir / f"{label}.log") if self.log_dir else None
-        node = NodeProcess(label, list(argv), log)
+        node = NodeProcess(label, list(argv), log, restart=restart)
         self._spawn(node)
         with self._lock:
             self.nodes.append(node)
@@ -123,6 +129,12 @@ class Launcher:
             with self._lock:
                 for node in self.nodes:
                     if node.proc is not None and node.proc.poll() is not None and not self._stopping.is_set():
+                        if not node.restart:
+                            if node.died is None:
+                                node.died = node.proc.returncode
+                                print(f"[launcher] {node.label} exited with {node.died}; not restarted",
+                                      file=sys.stderr)
+                            continue
                         if node.restarts >= self.max_restarts:
                             continue
                         node.restarts += 1

@@ -18,6 +18,7 @@ DEFAULTS: dict[str, Any] = {
     "retries": 3,
     "discovery_wait_s": 20.0,        # how long to wait for every discipline to appear
     "sign_key_file": "",             # path of a shared HMAC key: sign and verify every request/result
+    "signing": True,                 # a run launched by bev-mdo signs with a fresh per-run key (if no key file)
     "sign_window_s": 30.0,           # signed messages with a stamp further than this from now are expired
 }
 DISCOVERY_MODES = ("localhost", "static_peers", "server", "subnet")
@@ -76,6 +77,8 @@ def validate_ros(section: Mapping[str, Any] | None) -> dict[str, Any]:
         raise ValueError(f"ros.sign_key_file must be a path, got {type(key_file).__name__}")
     # Only the (absolute) path is kept: resolved configs, logs and bags never hold the key.
     out["sign_key_file"] = os.path.abspath(os.path.expanduser(str(key_file))) if str(key_file) else ""
+    if not isinstance(out["signing"], bool):
+        raise ValueError(f"ros.signing must be true or false, got {out['signing']!r}")
     if not isinstance(out["retries"], int) or not 0 <= out["retries"] <= 100:
         raise ValueError(f"ros.retries must be an integer in [0, 100], got {out['retries']!r}")
     return out

@@ -25,6 +25,7 @@ from bev_mdo.ros.common import REQUEST_QOS, request_topic, stamp  # noqa: E402
 from bev_mdo.ros.discipline_node import NodeStatsListener  # noqa: E402
 from bev_mdo.ros.evaluator import RosEvaluator, _Pending  # noqa: E402
 from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
+from bev_mdo.ros.binding import tag_for  # noqa: E402
 from bev_mdo.ros.settings import validate_ros  # noqa: E402
 from bev_mdo.testing import REPO, ros_env  # noqa: E402
 from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult  # noqa: E402
@@ -37,9 +38,13 @@ ROS_DOMAIN = 82
 KEY = secrets.token_hex(32)
 
 
+TAG = tag_for(load_config(REPO / "config" / "leaf_nedc.yaml"), ["vehicle_mass"])  # the binding nodes serve
+
+
 def _request(run_id="r1", eid=1, attempt=0, t_ns=None):
     req = EvaluationRequest()
     stamp(req.header, t_ns)
+    req.header.frame_id = TAG
     req.run_id, req.evaluation_id, req.attempt, req.discipline = run_id, eid, attempt, "vehicle_mass"
     wire.to_named_array({"motor_kw": np.array([80.0]), "battery_kwh": np.array([24.0])}, req.inputs)
     return req
@@ -205,6 +210,7 @@ def test_coordinator_drops_unsigned_forged_expired_and_replayed_results(rclpy_co
             res = EvaluationResult()
             stamp(res.header, t_ns)
             res.run_id, res.evaluation_id, res.discipline = "probe", eid, "vehicle_mass"
+            res.header.frame_id = TAG  # the echo of the request's binding
             res.point_ok = [True]
             wire.to_named_array({"vehicle_mass_kg": np.array([1500.0])}, res.outputs)
             return res

@@ -186,8 +186,10 @@ def test_bad_data_flow_requests_are_rejected_and_the_nodes_keep_serving(rclpy_co
     from bev_mdo.ros import wire
     from bev_mdo.ros.common import MDA_REQUEST_TOPIC, MDA_RESULT_QOS, REQUEST_QOS, mda_result_topic, stamp
     from bev_mdo.ros.discipline_node import NodeStatsListener
+    from bev_mdo.ros.binding import tag_for
     from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult
 
+    base_config = load_config(configs["base"])
     probe = rclpy.create_node("flow_fuzz_probe", context=rclpy_context)
     got = {"vehicle_mass": [], "energy": []}
     pub = probe.create_publisher(EvaluationRequest, MDA_REQUEST_TOPIC, REQUEST_QOS)
@@ -202,6 +204,7 @@ def test_bad_data_flow_requests_are_rejected_and_the_nodes_keep_serving(rclpy_co
 
         def send(eid, flow, cols, batch_size=None):
             req = wire.Request("flow-fuzz", eid, "", flow=flow)
+            req.header.frame_id = tag_for(base_config, flow)
             req.inputs = wire.batch(cols)
             if batch_size is not None:
                 req.inputs.batch_size = batch_size

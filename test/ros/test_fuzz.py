@@ -26,6 +26,9 @@ MIN_MESSAGES = 10_000
 
 
 # -- the fuzzer process --------------------------------------------------------------------
+_TAGS: dict[str, str] = {}  # discipline -> the frame_id binding its node serves (filled by fuzz_main)
+
+
 def _fuzz_messages(disc, rng):
     """Yield (expected node counter, EvaluationRequest) for one discipline, endlessly."""
     from bev_mdo.ros import wire
@@ -38,6 +41,7 @@ def _fuzz_messages(disc, rng):
         m = EvaluationRequest()
         stamp(m.header)
         m.run_id, m.discipline = run_id, discipline
+        m.header.frame_id = _TAGS.get(disc.name, "")
         m.evaluation_id = int(eid if eid is not None else rng.integers(1, 2**63))
         return m
 
@@ -138,6 +142,7 @@ def _huge(disc):
     m = EvaluationRequest()
     stamp(m.header)
     m.run_id, m.discipline, m.evaluation_id = "fuzz-huge", disc.name, 1
+    m.header.frame_id = _TAGS.get(disc.name, "")
     n = wire.MAX_BATCH + 1
     m.inputs.names = [disc.inputs[0]]
     m.inputs.batch_size = n
@@ -170,7 +175,11 @@ def fuzz_main(config_path: str, total: int, per_round: int, seed: int) -> int:
     from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult
 
     rng = np.random.default_rng(seed)
-    discs = resolve_disciplines(load_config(config_path))
+    from bev_mdo.ros.binding import tag_for
+
+    config = load_config(config_path)
+    discs = resolve_disciplines(config)
+    _TAGS.update({d.name: tag_for(config, [d.name]) for d in discs})
     rclpy.init()
     node = rclpy.create_node("fuzzer")
     stats = NodeStatsListener(node)

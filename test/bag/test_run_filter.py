@@ -1,0 +1,90 @@
+"""history/resume read only the bag's own run and verify its signed iteration records (issue 19)."""
+from __future__ import annotations
+
+import secrets
+
+import pytest
+import yaml
+
+pytest.importorskip("rclpy")
+
+from bev_mdo.bag.errors import BagError  # noqa: E402
+from bev_mdo.bag.history import history, last_iterate  # noqa: E402
+from bev_mdo.bag.reader import open_bag  # noqa: E402
+from bev_mdo.bag.writer import BagWriter  # noqa: E402
+from bev_mdo.ros.auth import Signer, new_key_file, read_key  # noqa: E402
+
+
+def _record(run_id, i, motor_kw):
+    from bev_mdo_msgs.msg import IterationRecord, NamedArray
+
+    rec = IterationRecord(run_id=run_id, sequence=i, iteration=i, formulation="mdf", optimizer="SLSQP",
+                          objective_name="energy_wh_per_km", objective=100.0 - i, feasible=True)
+    rec.header.stamp.sec = 1_700_000_000 + i
+    rec.design = NamedArray(names=["motor_kw"], batch_size=1, values=[motor_kw])
+    return rec
+
+
+def _bag(tmp_path, name, own_run, records, key_file=""):
+    from rclpy.serialization import serialize_message
+
+    config = yaml.safe_dump({"name": "x", "ros": {"sign_key_file": key_file}})
+    meta = {"config_yaml": config, **({"run_id": own_run} if own_run else {})}
+    with BagWriter(tmp_path / name, metadata=meta) as w:
+        w.add_topic("/bev_mdo/iteration", "bev_mdo_msgs/msg/IterationRecord")
+        for t, rec in enumerate(records):
+            w.write("/bev_mdo/iteration", serialize_message(rec), 1_700_000_000_000_000_000 + t)
+    return tmp_path / name
+
+
+def test_a_bag_of_several_runs_gives_its_own_run_verified(tmp_path):
+    key_file = new_key_file(tmp_path / "keys")
+    signer = Signer(read_key(key_file))
+    recs = []
+    for i in range(4):
+        own = _record("mine", i, 80.0 + i)
+        signer.sign_iteration(own)
+        recs.append(own)
+        recs.append(_record("theirs", i, 60.0))                 # a concurrent run's record
+        forged = _record("mine", 100 + i, 120.0)                 # forged under our id: unsigned ...
+        recs.append(forged)
+        bad = _record("mine", 200 + i, 120.0)
+        Signer(secrets.token_bytes(32)).sign_iteration(bad)      # ... or signed with another key
+        recs.append(bad)
+    tampered = _record("mine", 5, 80.0)
+    signer.sign_iteration(tampered)
+    tampered.design.values = [120.0]                             # a genuine record, changed afterwards
+    recs.append(tampered)
+    bag = _bag(tmp_path, "several", "mine", recs, key_file)
+    checks: dict = {}
+    rows = history(bag, checks=checks)
+    assert [r["design"]["motor_kw"] for r in rows] == [80.0, 81.0, 82.0, 83.0]
+    assert checks["dropped"] == {"unsigned": 4, "forged": 5} and checks["other_runs"] == 4
+    _, design, iteration = last_iterate(bag)
+    assert design == {"motor_kw": 83.0} and iteration == 3
+    # without the key the run cannot be verified: history says so, resume refuses
+    (tmp_path / "keys" / "sign.key").unlink()
+    checks = {}
+    assert len(history(bag, checks=checks)) == 13 and "cannot verify" in checks["unverified"]
+    with pytest.raises(BagError, match="will not resume from unverified records"):
+        last_iterate(bag)
+
+
+def test_a_standalone_recording_of_several_runs_needs_a_run_id(tmp_path):
+    bag = _bag(tmp_path, "standalone", None, [_record("a", 0, 80.0), _record("b", 0, 90.0)])
+    with pytest.raises(BagError, match=r"2 runs \['a', 'b'\]; choose one with --run-id"):
+        history(bag)
+    assert [r["design"]["motor_kw"] for r in history(bag, "b")] == [90.0]
+    assert len(history(bag, all_runs=True)) == 2
+    assert open_bag(bag).info.get("run_id") is None
+
+
+def test_report_reads_one_run_of_a_standalone_recording(tmp_path):
+    from bev_mdo.bag.report import report
+
+    bag = _bag(tmp_path, "standalone", None, [_record("a", 0, 80.0), _record("b", 0, 90.0), _record("b", 1, 91.0)])
+    with pytest.raises(BagError, match="choose one with --run-id"):
+        report(bag, tmp_path / "out")
+    checks: dict = {}
+    written = report(bag, tmp_path / "out", run_id="b", checks=checks)
+    assert (tmp_path / "out" / "report.md") in written and checks["other_runs"] == 1

@@ -1,0 +1,50 @@
+"""Failures named where the user looks (issue 19), in-process (no ROS): a user discipline that
+raises is named on the console with its first error and the progress line shows no penalty as
+an objective; a discipline that never returns fails after the ROS timeout budget instead of
+hanging `--transport inprocess` forever."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import yaml
+
+from bev_mdo.testing import REPO
+
+HERE = Path(__file__).resolve().parent
+
+
+def _run(tmp_path, name: str, cls: str, ros: dict) -> subprocess.CompletedProcess:
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
+    raw["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed",
+                          {"name": name, "class": f"bad_disciplines:{cls}"}]
+    raw["problem"]["constraints"][f"{name}_kw"] = {"upper": 1.0e9}
+    raw["optimizer"] = {"name": "SLSQP", "options": {"maxiter": 2}}
+    raw["ros"] = ros
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(raw, sort_keys=False))
+    env = {**os.environ, "PYTHONPATH": f"{HERE}{os.pathsep}{REPO}"}
+    return subprocess.run([sys.executable, "-m", "bev_mdo", "optimize", str(path), "--transport", "inprocess",
+                           "--json"], capture_output=True, text=True, env=env, timeout=120, cwd=tmp_path)
+
+
+def test_a_failing_discipline_is_named_and_no_penalty_is_shown_as_objective(tmp_path):
+    p = _run(tmp_path, "broken", "Broken", {})
+    assert p.returncode == 1, p.stderr[-2000:]  # infeasible: every point failed
+    named = [l for l in p.stderr.splitlines() if l.startswith("discipline 'broken' failed:")]
+    assert len(named) == 1 and "the broken model refuses every motor" in named[0], p.stderr[-2000:]
+    progress = [l for l in p.stderr.splitlines() if l.startswith("iter")]
+    assert progress and all("not evaluated" in l and "10000000000" not in l for l in progress), progress
+    out = json.loads(p.stdout)
+    assert "refuses every motor" in out["discipline_errors"]["broken"]
+
+
+def test_a_discipline_that_never_returns_fails_after_the_ros_timeout_budget(tmp_path):
+    p = _run(tmp_path, "hang", "Hang", {"timeout_s": 0.2, "retries": 1})
+    assert p.returncode == 1, p.stderr[-2000:]
+    assert "discipline 'hang' failed:" in p.stderr and "no answer within 0.4 s" in p.stderr, p.stderr[-2000:]
+    out = json.loads(p.stdout)
+    assert "treated as hung" in out["discipline_errors"]["hang"]

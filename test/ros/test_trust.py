@@ -1,0 +1,157 @@
+"""Secure by default (issue 19): forgeries on a shared domain without user-configured signing.
+
+`bev-mdo optimize` with no key configured (signing is on by default with a per-run key) runs
+beside an attacker on the same domain and host that
+- declares itself as the run's `energy` discipline (unsigned, and with a bad signature),
+- answers every data-flow request it overhears with forged energy results (80 Wh/km), and
+- publishes forged IterationRecords under the run's id (120 kW, gear 1, 30 kWh), plus records
+  of another run id, which the recorder writes into the run's bag.
+The optimum equals the in-process one; the forged results and declarations are dropped and
+counted; `history` of the bag shows only the run's own, verified records (counting what it
+dropped) and `resume` restarts from the run's own last iterate.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import threading
+
+import numpy as np
+import pytest
+import yaml
+
+rclpy = pytest.importorskip("rclpy")
+
+from bev_mdo.bag.history import history  # noqa: E402
+from bev_mdo.cli.resume import resume_point  # noqa: E402
+from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
+from bev_mdo.mdo.driver import run_optimization  # noqa: E402
+from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
+from bev_mdo.ros import binding, wire  # noqa: E402
+from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, ITERATION_QOS, ITERATION_TOPIC, MDA_REQUEST_TOPIC,  # noqa: E402
+                                MDA_RESULT_QOS, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, mda_result_topic, stamp)
+from bev_mdo.testing import PYTHON, REPO, ros_env  # noqa: E402
+from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult, IterationRecord  # noqa: E402
+
+NAMES = ["vehicle_mass", "energy", "range"]
+FORGED_DESIGN = {"motor_kw": 120.0, "gear_ratio": 1.0, "battery_kwh": 30.0}
+
+
+@pytest.fixture(scope="module")
+def config_path(tmp_path_factory):
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
+    raw["disciplines"] = list(NAMES)
+    raw["problem"]["constraints"] = {"range_km": {"lower": 210}}
+    raw["optimizer"] = {"name": "SLSQP", "options": {"maxiter": 6}}
+    raw["ros"] = {"timeout_s": 5.0, "retries": 3, "discovery_wait_s": 60.0}
+    p = tmp_path_factory.mktemp("trust") / "trust.yaml"
+    p.write_text(yaml.safe_dump(raw, sort_keys=False))
+    return str(p)
+
+
+class Attacker:
+    """Forges declarations, results and iteration records; counts what it sent."""
+
+    def __init__(self, ctx, config):
+        self.node = rclpy.create_node("attacker", context=ctx)
+        self.sent = {"results": 0, "records": 0, "other_run_records": 0}
+        self.run_ids: set[str] = set()
+        self._info = self.node.create_publisher(DisciplineInfo, INFO_TOPIC, INFO_QOS)
+        self._res = self.node.create_publisher(EvaluationResult, RESULT_TOPIC, RESULT_QOS)
+        self._mda = self.node.create_publisher(EvaluationResult, mda_result_topic("energy"), MDA_RESULT_QOS)
+        self._iter = self.node.create_publisher(IterationRecord, ITERATION_TOPIC, ITERATION_QOS)
+        self._sub = self.node.create_subscription(EvaluationRequest, MDA_REQUEST_TOPIC, self._on_request,
+                                                  REQUEST_QOS, raw=True)
+        fp, effective = binding.fingerprint(config, "energy")
+        energy = [d for d in resolve_disciplines(config) if d.name == "energy"][0]
+        for k, sig in enumerate(("", "0" * 64)):  # unsigned, then with a made-up signature
+            info = DisciplineInfo()
+            stamp(info.header)
+            info.discipline, info.instance = "energy", f"energy_node_attacker{k}"
+            info.inputs, info.outputs = list(energy.inputs), list(energy.outputs)
+            info.fingerprint, info.effective_config, info.signature = fp, effective, sig
+            self._info.publish(info)
+
+    def _on_request(self, data) -> None:
+        req = wire.decode_request(data)
+        if "energy" not in req.flow or not req.run_id or req.run_id.endswith("-baseline"):
+            return
+        self.run_ids.add(req.run_id)
+        n = int(req.inputs.batch_size)
+        out = wire.Result()
+        stamp(out.header)
+        out.header.frame_id = req.header.frame_id
+        out.run_id, out.evaluation_id, out.discipline, out.instance = req.run_id, req.evaluation_id, "energy", "x"
+        out.point_ok = np.ones(n, bool)
+        out.outputs = wire.batch({"energy_wh_per_km": np.full(n, 80.0), **wire.from_named_array(req.inputs)})
+        out.flow = list(req.flow)
+        data_out = wire.encode_result(out)
+        self._mda.publish(data_out)
+        self._res.publish(data_out)
+        self.sent["results"] += 1
+        if self.sent["records"] < 40:
+            for run_id, key in ((req.run_id, "records"), ("someone-else", "other_run_records")):
+                rec = IterationRecord()
+                stamp(rec.header)
+                rec.run_id, rec.iteration, rec.objective_name, rec.objective = run_id, 999, "energy_wh_per_km", 80.0
+                wire.to_named_array({k: np.array([v]) for k, v in FORGED_DESIGN.items()}, rec.design)
+                rec.feasible = True
+                rec.signature = "0" * 64 if self.sent[key] % 2 else ""
+                self._iter.publish(rec)
+                self.sent[key] += 1
+
+
+def test_forged_results_declarations_and_records_are_dropped_and_counted(ros_domain, config_path, tmp_path):
+    config = load_config(config_path)
+    ref = run_optimization(config, InProcessEvaluator(resolve_disciplines(config)))
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    from rclpy.executors import SingleThreadedExecutor
+
+    attacker = Attacker(ctx, config)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(attacker.node)
+    stop = threading.Event()
+    spinner = threading.Thread(target=lambda: [executor.spin_once(timeout_sec=0.05) for _ in iter(stop.is_set, True)])
+    spinner.start()
+    bag = tmp_path / "bags" / "trusted"
+    try:
+        p = subprocess.run([PYTHON, "-m", "bev_mdo", "optimize", config_path, "--domain-id", str(ros_domain),
+                            "--bag", str(bag), "--json", "--quiet"], cwd=tmp_path, env=ros_env(ros_domain),
+                           capture_output=True, text=True, timeout=300)
+    finally:
+        stop.set()
+        spinner.join()
+        executor.shutdown()
+        attacker.node.destroy_node()
+        rclpy.shutdown(context=ctx)
+    assert p.returncode == 0, p.stderr[-3000:]
+    out = json.loads(p.stdout)
+    assert out["signing"] == "per-run key"
+    assert attacker.run_ids == {out["run_id"]}
+    assert attacker.sent["results"] > 0 and attacker.sent["records"] > 0
+    # the optimum is the run's own: every forged result was dropped, and counted
+    for k, v in ref.design.items():
+        assert out["design"][k] == pytest.approx(v, rel=1e-9, abs=1e-9), k
+    dropped = out["dropped_messages"]
+    assert dropped.get("unsigned", 0) >= attacker.sent["results"]  # on /bev_mdo/result and the data-flow topic
+    assert dropped.get("info_unsigned") == 1 and dropped.get("info_forged") == 1, dropped
+    assert {k.split(" ")[1] for k in out["refused_instances"]} == {"energy_node_attacker0", "energy_node_attacker1"}
+    # the bag's history is the run's own, verified; the forgeries are counted, not shown
+    checks: dict = {}
+    rows = history(bag, checks=checks)
+    assert rows and all(r["run_id"] == out["run_id"] for r in rows)
+    assert all(r["design"] != FORGED_DESIGN and r["iteration"] != 999 for r in rows)
+    assert sum(checks["dropped"].values()) >= 2 and set(checks["dropped"]) == {"unsigned", "forged"}, checks
+    assert checks["other_runs"] >= 2 and not checks["unverified"]
+    assert rows[-1]["design"] == pytest.approx(out["design"], rel=1e-12)
+    # resume restarts from the run's own last iterate, not the forged one
+    _, design, iteration = resume_point(str(bag))
+    assert design == rows[-1]["design"] and iteration == rows[-1]["iteration"]
+    # the key never reached the bag, the logs or a command line
+    key = (tmp_path / "bags" / ".logs" / out["run_id"] / "sign.key").read_text().strip()
+    assert len(key) == 64
+    for f in [*bag.rglob("*"), *(tmp_path / "bags" / ".logs" / out["run_id"]).glob("*.log")]:
+        if f.is_file():
+            assert key.encode() not in f.read_bytes(), f
+    assert key not in p.stdout + p.stderr

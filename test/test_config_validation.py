@@ -1,0 +1,103 @@
+"""Everything is validated before any process starts (issue 19): one line naming file and key."""
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+
+import pytest
+
+from bev_mdo.bag.errors import BagError
+from bev_mdo.bag.writer import BagWriter
+from bev_mdo.config import check_optimizer_options, load_config
+from bev_mdo.testing import REPO, ros_env
+
+BASE = (REPO / "config" / "leaf_nedc.yaml").read_text()
+
+
+def _write(tmp_path, text, name="c.yaml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_a_duplicate_key_is_an_error_naming_file_line_and_key(tmp_path):
+    p = _write(tmp_path, BASE + "\nformulation: idf\n")
+    with pytest.raises(ValueError, match=rf"{p}: .*line \d+: duplicate key 'formulation'"):
+        load_config(p)
+    p = _write(tmp_path, BASE.replace("drag_area_m2: 0.6412", "drag_area_m2: 0.6412\n  drag_area_m2: 0.8"))
+    with pytest.raises(ValueError, match="duplicate key 'drag_area_m2'"):
+        load_config(p)
+
+
+def test_an_error_in_the_ros_section_names_the_file(tmp_path):
+    for bad, key in (("ros: {domain_idd: 3}", "domain_idd"), ("ros: {timeout_s: -1}", "ros.timeout_s"),
+                     ("ros: {signing: maybe}", "ros.signing")):
+        p = _write(tmp_path, BASE + "\n" + bad + "\n")
+        with pytest.raises(ValueError, match=rf"^{p}: .*{key}"):
+            load_config(p)
+
+
+def test_optimizer_options_are_checked_against_the_solver_naming_the_key(tmp_path):
+    p = _write(tmp_path, BASE.replace("options: {}", "options: {maxiterr: 3}"))
+    with pytest.raises(ValueError, match=rf"{p}: optimizer.options.maxiterr: not an option of SLSQP; known: .*maxiter"):
+        load_config(p)
+    check_optimizer_options("SLSQP", {"maxiter": 3, "ftol": 1e-9})
+    check_optimizer_options("differential_evolution", {"popsize": 5, "maxiter": 3, "polish": False})
+    with pytest.raises(ValueError, match="optimizer.options.ftol: not an option of differential_evolution"):
+        check_optimizer_options("differential_evolution", {"ftol": 1e-9})
+    with pytest.raises(ValueError, match="optimizer.options.barrier: not an option of trust-constr"):
+        check_optimizer_options("trust-constr", {"barrier": 1.0})
+
+
+def _cli(tmp_path, *argv):
+    """The CLI of this worktree (PYTHONPATH), localhost only; none of these calls may reach ROS."""
+    env = {**ros_env(66), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    return subprocess.run([sys.executable, "-m", "bev_mdo", *argv], capture_output=True, text=True, cwd=tmp_path,
+                          timeout=120, env=env)
+
+
+def test_cli_mistakes_exit_2_with_one_line_before_any_process_starts(tmp_path):
+    bag = tmp_path / "old"
+    with BagWriter(bag) as w:
+        w.add_topic("/bev_mdo/iteration", "bev_mdo_msgs/msg/IterationRecord")
+    cfg = _write(tmp_path, BASE)
+    p = _cli(tmp_path, "optimize", str(cfg), "--bag", str(bag), "--domain-id", "66")
+    assert p.returncode == 2 and p.stderr.strip().count("\n") == 0, p.stderr
+    assert "a bag already exists" in p.stderr and str(bag) in p.stderr
+    assert not (tmp_path / "bags").exists()  # refused before logs, keys or nodes
+    p = _cli(tmp_path, "optimize", str(cfg), "--optimizer", "differential_evolution", "--transport", "inprocess")
+    assert p.returncode == 0 or "not an option" not in p.stderr  # the Leaf config has no options to reject
+    bad = _write(tmp_path, BASE.replace("options: {}", "options: {ftol: 1.0e-9}"), "ftol.yaml")
+    p = _cli(tmp_path, "optimize", str(bad), "--optimizer", "differential_evolution", "--transport", "inprocess")
+    assert p.returncode == 2 and "optimizer.options.ftol: not an option of differential_evolution" in p.stderr
+
+
+def test_a_directory_holding_a_truncated_bag_is_refused_not_mislabelled(tmp_path):
+    d = tmp_path / "rec"
+    d.mkdir()
+    (d / "earlier_0.mcap").write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 64)  # a killed recorder's file
+    with pytest.raises(BagError, match="earlier_0.mcap.*bag repair"):
+        BagWriter(d)
+    assert not (d / "metadata.yaml").exists()
+    p = _cli(tmp_path, "record", "--output", str(d), "--domain-id", "66")
+    assert p.returncode == 2 and "already exists" in p.stderr
+
+
+def test_record_and_replay_join_the_given_domain_and_stay_on_this_host(monkeypatch, tmp_path):
+    from bev_mdo.cli import record
+
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET")  # restored after the test, as is:
+    monkeypatch.setenv("ROS_DOMAIN_ID", "0")
+    cfg = _write(tmp_path, BASE + "\nros: {domain_id: 61}\n")
+    args = argparse.Namespace(config=str(cfg), domain_id=None, discovery=None, static_peers=None,
+                              discovery_server=None)
+    record._join_domain(args)
+    import os
+
+    assert os.environ["ROS_DOMAIN_ID"] == "61" and os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+    args.domain_id = 62
+    record._join_domain(args)
+    assert os.environ["ROS_DOMAIN_ID"] == "62"
+    p = _cli(tmp_path, "replay", str(tmp_path / "nothing"), "--domain-id", "999")
+    assert p.returncode == 2 and "ros.domain_id" in p.stderr
