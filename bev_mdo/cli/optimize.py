@@ -208,7 +208,8 @@ def _run_ros(config, args, show, x0=None):
         check_new_bag(bag, "--bag")
     logs = bag / "logs"  # node logs and the resolved config, beside the bag in the run's directory
     logs.mkdir(parents=True, exist_ok=True)
-    config = with_run_key(config, logs)
+    # the per-run key goes beside the bag, never inside it (a bag directory is what users share)
+    config = with_run_key(config, bag.parent / ".keys" / bag.name)
     resolved = logs / "config.yaml"
     resolved.write_text(yaml.safe_dump(_plain(config), sort_keys=False))
     launcher = Launcher(env, log_dir=logs)
@@ -274,17 +275,17 @@ def check_new_bag(bag: Path, what: str) -> None:
         raise ValueError(f"{what} {bag}: a bag already exists there; choose a new directory")
 
 
-def with_run_key(config: dict, logs: Path) -> dict:
+def with_run_key(config: dict, directory: Path) -> dict:
     """Signing on by default: without a configured ``ros.sign_key_file`` (and unless
-    ``ros.signing: false``) a fresh random key is written to ``<logs>/sign.key`` (mode 0600,
-    outside the bag); the resolved config that the nodes and the recorder read names its path
+    ``ros.signing: false``) a fresh random key is written to ``<directory>/sign.key`` (mode 0600;
+    callers pass a directory outside the bag); the resolved config that the nodes and the recorder read names its path
     only, so the key is never on a command line, in the environment or in the bag."""
     ros = dict(config.get("ros") or {})
     if ros.get("sign_key_file") or not ros.get("signing", True):
         return config
     from bev_mdo.ros.auth import new_key_file
 
-    ros["sign_key_file"] = new_key_file(logs)
+    ros["sign_key_file"] = new_key_file(directory)
     return {**config, "ros": ros}
 
 

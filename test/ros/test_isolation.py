@@ -221,5 +221,7 @@ def test_concurrent_cli_runs_are_bound_to_their_run_and_signed(configs, referenc
         assert not out["node_restarts"]
     # the standalone suite of each configuration read the signed requests and answered unsigned
     assert unsigned > 0
-    for key in tmp_path.glob("bags/.logs/*/sign.key"):
+    keys = list(tmp_path.glob("bags/.keys/*/sign.key"))
+    assert len(keys) == len(outs)  # one per-run key each, beside (not inside) its bag
+    for key in keys:
         assert key.stat().st_mode & 0o077 == 0  # never readable by others

@@ -149,9 +149,11 @@ def test_forged_results_declarations_and_records_are_dropped_and_counted(ros_dom
     _, design, iteration = resume_point(str(bag))
     assert design == rows[-1]["design"] and iteration == rows[-1]["iteration"]
     # the key never reached the bag, the logs or a command line
-    key = (tmp_path / "bags" / ".logs" / out["run_id"] / "sign.key").read_text().strip()
+    key = (bag.parent / ".keys" / bag.name / "sign.key").read_text().strip()
     assert len(key) == 64
-    for f in [*bag.rglob("*"), *(tmp_path / "bags" / ".logs" / out["run_id"]).glob("*.log")]:
+    logs = list(bag.rglob("*.log"))
+    assert logs  # the node logs live in the run's directory, and must not hold the key
+    for f in [*bag.rglob("*"), *logs]:
         if f.is_file():
             assert key.encode() not in f.read_bytes(), f
     assert key not in p.stdout + p.stderr
