@@ -83,7 +83,15 @@ def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
 
     values = {k: c["value"] for k, c in result.get("constraints", {}).items()}
     values.update({k: v for k, v in result.get("outputs", {}).items() if k not in values})
-    return answers_for(config, result["design"], values)
+    # the same time budget per discipline call as the run had (a hung user discipline must not hang the answers)
+    from bev_mdo.cli.failures import TimedDiscipline
+    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.ros.settings import validate_ros
+
+    ros = validate_ros(config.get("ros"))
+    budget = ros["timeout_s"] * (ros["retries"] + 1)
+    discs = [TimedDiscipline(d, budget) for d in resolve_disciplines(config)]
+    return answers_for(config, result["design"], values, disciplines=discs)
 
 
 def finish(config: Mapping[str, Any], result: dict, extra: Mapping[str, Any]) -> None:

@@ -168,16 +168,17 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
 
 
 def fd_jacobian(config: Mapping[str, Any], design: Mapping[str, float], names: list[str] | None = None,
-                rel_step: float = 1e-6) -> dict[str, dict[str, float]]:
+                rel_step: float = 1e-6, disciplines: list | None = None) -> dict[str, dict[str, float]]:
     """d output / d design variable at ``design`` by one-sided finite differences, evaluated in
-    process as ONE batch (the point and its stencil); each step points into the box."""
+    process as ONE batch (the point and its stencil); each step points into the box.
+    ``disciplines`` (default: the config's, resolved) lets a caller pass wrapped ones (a timeout)."""
     from bev_mdo.config import resolve_disciplines
     from bev_mdo.mdo.driver import _mda
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.problem import Problem
 
     problem = Problem.from_config(config["problem"])
-    ev = InProcessEvaluator(resolve_disciplines(config))
+    ev = InProcessEvaluator(disciplines if disciplines is not None else resolve_disciplines(config))
     try:
         mda = _mda(config, ev, problem)
         x = np.array([float(design[n]) for n in problem.names])
@@ -204,7 +205,7 @@ def fd_jacobian(config: Mapping[str, Any], design: Mapping[str, float], names: l
 
 
 def answers_for(config: Mapping[str, Any], design: Mapping[str, float], values: Mapping[str, float],
-                rel_tol: float = REL_TOL) -> dict[str, Any]:
+                rel_tol: float = REL_TOL, disciplines: list | None = None) -> dict[str, Any]:
     """``analyse`` for a run config; an infeasible end gets the Jacobian by ``fd_jacobian`` (in process)."""
     from bev_mdo.mdo.problem import Problem
 
@@ -212,7 +213,7 @@ def answers_for(config: Mapping[str, Any], design: Mapping[str, float], values: 
     ans = analyse(problem, design, values, rel_tol=rel_tol)
     if ans["violated"]:
         try:
-            jac = fd_jacobian(config, design)
+            jac = fd_jacobian(config, design, disciplines=disciplines)
         except Exception as exc:  # a model that fails near the point: say so, keep the rest
             ans["jacobian_error"] = f"{type(exc).__name__}: {exc}"
         else:
