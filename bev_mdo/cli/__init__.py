@@ -11,7 +11,7 @@ import sys
 # Subcommand modules in bev_mdo.cli, in the order --help lists them.
 SUBCOMMANDS = (
     "optimize", "evaluate", "node", "record", "replay", "history", "report",
-    "resume", "bag", "sensitivity", "pareto",
+    "resume", "bag", "sensitivity", "pareto", "status",
 )
 
 
