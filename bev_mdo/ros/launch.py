@@ -197,8 +197,7 @@ class Launcher:
 def composed_argv(names: Sequence[str], config_path: str, instance: str = "", run_id: str = "") -> list[str]:
     """Command line of one process serving every discipline in `names` (composed.py)."""
     argv = [sys.executable, "-m", "bev_mdo.ros.run", "composed_node", "--ros-args", "-p", f"config:={config_path}",
-            "-p", f"disciplines:={','.join(names)}", "-r", f"__node:=composed_{'_'.join(names)[:60]}"
-            + (f"_{instance}" if instance else "")]
+            "-p", f"disciplines:={','.join(names)}"]  # no __node remap: it would rename every node
     if instance:
         argv += ["-p", f"instance:={instance}"]
     if run_id:

@@ -4,6 +4,7 @@ from __future__ import annotations
 import copy
 import os
 import signal
+import time
 
 import pytest
 import yaml
@@ -53,8 +54,13 @@ def test_two_processes_serve_six_nodes_and_the_optimum_equals_in_process(rclpy_c
     assert stats["data_flow_mdas"] > 0  # composed nodes still talk over topics, data flow included
     probe = rclpy.create_node("compose_probe", context=rclpy_context)
     try:
-        names = {n for n, _ns in probe.get_node_names_and_namespaces()}
-        assert {f"{d}_node" for d in BUILTINS} <= names  # every discipline is its own node in the graph
+        want = {f"{d}_node" for d in BUILTINS}
+        deadline = time.monotonic() + 30.0
+        while not want <= (names := {n for n, _ns in probe.get_node_names_and_namespaces()}):
+            if time.monotonic() > deadline:
+                break
+            time.sleep(0.05)  # graph discovery happens in DDS threads
+        assert want <= names, names  # every discipline is its own node in the graph
     finally:
         probe.destroy_node()
     pids = {n.proc.pid for n in launcher.nodes}
