@@ -116,9 +116,11 @@ def compose(ctx, env, reps: int, n: int) -> dict:
     setups = []
     for layout, spec in (("per_process", "none"), ("composed_one_process", "all")):
         launcher = Launcher(env)
-        for label, argv in plan_processes(names, cfg_path, instance=layout[:4], compose=spec):
+        # each layout's nodes serve only their own coordinator's run (else both sets answer every MDA)
+        run_id = f"benchpool{layout[:4]}{os.getpid()}"
+        for label, argv in plan_processes(names, cfg_path, instance=layout[:4], compose=spec, run_id=run_id):
             launcher.add(label, argv)
-        node = CoordinatorNode(config, context=ctx, node_name=f"bench_{layout}")
+        node = CoordinatorNode(config, run_id=run_id, context=ctx, node_name=f"bench_{layout}")
         setups.append((layout, launcher, node))
     try:
         forms = {}
@@ -149,6 +151,7 @@ def compose(ctx, env, reps: int, n: int) -> dict:
             if launcher:
                 ev = dict((lay, nd) for lay, _, nd in setups)[layout].evaluator
                 layouts[layout]["data_flow_mdas"] = ev.flows
+                layouts[layout]["dropped"] = dict(ev.dropped)
             print(f"{layout:22s} p50 {np.median(p50[layout]):7.0f} us [{min(p50[layout]):.0f}-{max(p50[layout]):.0f}]"
                   f"  p99 {np.median(p99[layout]):7.0f} us", flush=True)
     finally:
