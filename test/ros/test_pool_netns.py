@@ -27,6 +27,7 @@ from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
 from bev_mdo.ros.settings import ros_environment, validate_ros  # noqa: E402
 from bev_mdo.testing import REPO  # noqa: E402
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from test_netns import _ip, netns_unavailable  # noqa: E402
 
 BUILTINS = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]
