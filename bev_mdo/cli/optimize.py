@@ -173,8 +173,9 @@ def _run_ros(config, args, show, x0=None):
     recorder = 0
     try:
         names = [e["name"] for e in discipline_entries(config)]
+        args.instances_parsed = parse_instances(getattr(args, "instances", None), names)
         for label, argv in plan_processes(names, str(resolved.resolve()), run_id=run_id, instance=run_id[:8],
-                                          instances=parse_instances(getattr(args, "instances", None), names),
+                                          instances=args.instances_parsed,
                                           compose=getattr(args, "compose", None)):
             launcher.add(label, argv)
         if not args.no_record:
@@ -266,7 +267,8 @@ def _coordinate(config, run_id, args, show, recorder: int, x0=None):
     try:
         res, stats = coordinator_node.run(config, run_id=run_id, formulation=args.formulation,
                                           optimizer=args.optimizer, x0=x0, on_iteration=show,
-                                          recorder_subscribers=recorder, context=ctx)
+                                          recorder_subscribers=recorder, context=ctx,
+                                          instances=getattr(args, "instances_parsed", None))
         out = res.to_dict()
         out.pop("history")
         node = coordinator_node.CoordinatorNode(config, run_id + "-baseline", context=ctx,

@@ -204,7 +204,7 @@ def test_a_stalled_instance_has_its_share_re_sent(evaluator, launcher, paths, ro
 
 def test_optimisation_with_an_energy_pool_equals_in_process(rclpy_context, launcher, paths):
     config = load_config(paths["base"])
-    res, stats = coordinator_node.run(config, context=rclpy_context)
+    res, stats = coordinator_node.run(config, context=rclpy_context, instances={"energy": 2, "wait": 3})
     ref = run_optimization(copy.deepcopy(config), InProcessEvaluator(resolve_disciplines(config)))
     assert res.success == ref.success
     assert res.objective == ref.objective  # bitwise: the pool changes who computes, not what

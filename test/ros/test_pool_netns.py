@@ -130,7 +130,8 @@ def test_energy_pool_across_two_namespaces(netns3, nodes, config_path):
     config = load_config(config_path)
     ref = run_optimization(config, InProcessEvaluator(resolve_disciplines(config)))
     cp = subprocess.run(["ip", "netns", "exec", netns3.c, sys.executable, "-m", "bev_mdo.ros.run", "coordinator_node",
-                         "--ros-args", "-p", f"config:={config_path}", "-p", "run_id:=pool-netns"],
+                         "--ros-args", "-p", f"config:={config_path}", "-p", "run_id:=pool-netns",
+                         "-p", "instances:=energy=2"],
                         env=ns_env([A1, A2]), capture_output=True, text=True, timeout=300)
     assert cp.returncode == 0, cp.stderr[-3000:]
     lines = cp.stdout.splitlines()
