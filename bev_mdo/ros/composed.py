@@ -78,8 +78,12 @@ def main(args: list[str] | None = None) -> int:
         for key, desc in (("config", "run config YAML"),
                           ("disciplines", "comma-separated discipline names to serve in this process"),
                           ("instance", "instance suffix of every node name"), ("run_id", "serve only this run")):
-            probe.declare_parameter(key, "", ParameterDescriptor(description=desc))
+            # dynamic typing: an instance or run id of hex digits ("8469814e") parses as a number
+            probe.declare_parameter(key, "", ParameterDescriptor(description=desc, dynamic_typing=True))
         p = {k: probe.get_parameter(k).value for k in ("config", "disciplines", "instance", "run_id")}
+        p = {k: "" if v is None else (",".join(map(str, v)) if isinstance(v, (list, tuple)) else str(v))
+             for k, v in p.items()}
+
         probe.destroy_node()
         names = [n.strip() for n in str(p["disciplines"]).strip("[]").split(",") if n.strip()]
         if not names:

@@ -198,10 +198,11 @@ def composed_argv(names: Sequence[str], config_path: str, instance: str = "", ru
     """Command line of one process serving every discipline in `names` (composed.py)."""
     argv = [sys.executable, "-m", "bev_mdo.ros.run", "composed_node", "--ros-args", "-p", f"config:={config_path}",
             "-p", f"disciplines:={','.join(names)}"]  # no __node remap: it would rename every node
+    # quoted: a hex instance or run id ("8469814e", "1234") would otherwise be parsed as a number
     if instance:
-        argv += ["-p", f"instance:={instance}"]
+        argv += ["-p", f"instance:='{instance}'"]
     if run_id:
-        argv += ["-p", f"run_id:={run_id}"]
+        argv += ["-p", f"run_id:='{run_id}'"]
     return argv
 
 
