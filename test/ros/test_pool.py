@@ -214,6 +214,26 @@ def test_optimisation_with_an_energy_pool_equals_in_process(rclpy_context, launc
     assert len(energy) == 2 and all(s["points"] > 0 for s in energy.values()), energy
 
 
+def test_status_lists_live_instances_with_host_and_throughput(rclpy_context, evaluator):
+    import socket
+
+    from bev_mdo.ros.status import collect, format_table
+
+    evaluator.wait_for_instances("wait", 3, 60.0)
+    evaluator.evaluate([("wait", _batch(90))])
+    node = rclpy.create_node("pool_status", context=rclpy_context)
+    try:
+        rows = [r for r in collect(node, 1.0) if r["discipline"] == "wait"]
+    finally:
+        node.destroy_node()
+    live = {r["instance"] for r in rows if r["live"]}
+    assert {f"wait_node_w{k}" for k in range(3)} <= live, rows
+    for r in rows:
+        if r["instance"] in {f"wait_node_w{k}" for k in range(3)}:
+            assert r["host"] == socket.gethostname() and r["points"] >= 1 and r["capacity_points_per_s"] > 0
+    assert "wait_node_w0" in format_table(rows)
+
+
 def test_sigkill_mid_batch_loses_no_design(evaluator, launcher):
     live = evaluator.wait_for_instances("wait", 3, 60.0)
     batch = _batch(600, seed=5)  # 1.2 s of waiting, about 0.4 s per instance
