@@ -87,7 +87,8 @@ def test_a_directory_holding_a_truncated_bag_is_refused_not_mislabelled(tmp_path
 def test_record_and_replay_join_the_given_domain_and_stay_on_this_host(monkeypatch, tmp_path):
     from bev_mdo.cli import record
 
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET")
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET")  # restored after the test, as is:
+    monkeypatch.setenv("ROS_DOMAIN_ID", "0")
     cfg = _write(tmp_path, BASE + "\nros: {domain_id: 61}\n")
     args = argparse.Namespace(config=str(cfg), domain_id=None, discovery=None, static_peers=None,
                               discovery_server=None)

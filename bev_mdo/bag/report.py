@@ -138,15 +138,16 @@ def _markdown(bag: Bag, rows, timing, images: list[str]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def report(bag, out_dir=None) -> list[Path]:
-    """Write plots and ``report.md``; returns the written paths."""
+def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = None) -> list[Path]:
+    """Write plots and ``report.md`` of the bag's own run (or `run_id`; its iteration records
+    verified, see ``history``); returns the written paths."""
     import matplotlib
 
     matplotlib.use("Agg")
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     out = Path(out_dir) if out_dir else bag.bag_dir
     out.mkdir(parents=True, exist_ok=True)
-    rows = history(bag)
+    rows = history(bag, run_id, checks=checks)
     timing = discipline_timing(bag)
     written: list[Path] = []
     if rows:

@@ -276,6 +276,9 @@ class _RosSession:
         apply_ros_environment(self.ros)
         self.logs = self.out / ".logs"
         self.logs.mkdir(parents=True, exist_ok=True)
+        from bev_mdo.cli.optimize import with_run_key
+
+        self.ros = with_run_key({"ros": self.ros}, self.logs)["ros"]  # signed by default (docs/security.md)
         resolved = self.logs / "config.yaml"
         resolved.write_text(yaml.safe_dump(_plain({**self.raw, "ros": self.ros}), sort_keys=False))
         self.launcher = Launcher(ros_environment(self.ros), log_dir=self.logs)
@@ -309,7 +312,8 @@ class _RosSession:
         resolved.write_text(yaml.safe_dump(_plain(cfg), sort_keys=False))
         for entry in discipline_entries(cfg):
             label = f"{topology}/{entry['name']}"
-            self.launcher.add(label, discipline_argv(entry["name"], str(resolved.resolve())))
+            self.launcher.add(label, discipline_argv(entry["name"], str(resolved.resolve()),
+                                                     run_id=f"{self.run_id}-{topology}"))
             self.labels.append(label)
         node = coordinator_node.CoordinatorNode(cfg, f"{self.run_id}-{topology}", context=self.ctx)
         try:

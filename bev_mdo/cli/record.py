@@ -52,6 +52,10 @@ def _join_domain(args) -> None:
         except Exception as exc:  # yaml.YAMLError and friends: one line naming the file
             raise ValueError(f"{args.config}: not valid YAML: {str(exc).splitlines()[0]}") from None
         ros = (raw.get("ros") or {}) if isinstance(raw, dict) else {}
+    if "domain_id" not in ros:
+        from bev_mdo.cli.replay import _env_domain
+
+        ros = {**_env_domain(), **ros}
     try:
         apply_ros_environment(ros_section({"ros": ros}, args))
     except ValueError as exc:

@@ -29,8 +29,9 @@ def run(args) -> int:
     from bev_mdo.cli.ros_args import ros_section
     from bev_mdo.ros.client import apply_ros_environment
 
-    # Domain and discovery from the flags (localhost by default): a replay never goes off-host unasked.
-    apply_ros_environment(ros_section({}, args))
+    # Domain and discovery from the flags (else the environment's ROS_DOMAIN_ID; localhost by default):
+    # a replay never goes off-host unasked.
+    apply_ros_environment(ros_section({"ros": _env_domain()}, args))
     rate = None if args.as_fast_as_possible else args.rate
     stats = replay(args.bag, rate=rate, topics=args.topics, loop=args.loop,
                    wait_subscribers=args.wait_subscribers, wait_timeout_s=args.wait_timeout,
@@ -38,3 +39,11 @@ def run(args) -> int:
     print(f"replayed {stats.messages} messages in {stats.seconds:.3f} s "
           f"({stats.messages_per_s:.0f} msg/s)")
     return 0
+
+
+def _env_domain() -> dict:
+    """{"domain_id": N} from a valid ROS_DOMAIN_ID in the environment, else {} (the default domain)."""
+    import os
+
+    value = os.environ.get("ROS_DOMAIN_ID", "")
+    return {"domain_id": int(value)} if value.isdigit() else {}

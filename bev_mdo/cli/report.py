@@ -8,6 +8,7 @@ def register(subparsers) -> None:
     parser = subparsers.add_parser("report", help="plots and a markdown summary of a recorded run")
     parser.add_argument("bag", help="bag directory or .mcap file")
     parser.add_argument("--output-dir", help="write here instead of the bag directory")
+    parser.add_argument("--run-id", help="this run (default: the bag's own; needed for a recording of several runs)")
     parser.set_defaults(func=run)
 
 
@@ -18,6 +19,11 @@ def run(args) -> int:
     bag = open_bag(args.bag)
     if bag.truncated:
         print(bag.recovery_note(), file=sys.stderr)
-    for path in report(bag, args.output_dir):
+    from bev_mdo.bag.history import check_note
+
+    checks: dict = {}
+    for path in report(bag, args.output_dir, run_id=args.run_id, checks=checks):
         print(path)
+    if check_note(checks):
+        print(f"{args.bag}: {check_note(checks)}", file=sys.stderr)
     return 0

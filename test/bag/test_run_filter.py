@@ -77,3 +77,14 @@ def test_a_standalone_recording_of_several_runs_needs_a_run_id(tmp_path):
     assert [r["design"]["motor_kw"] for r in history(bag, "b")] == [90.0]
     assert len(history(bag, all_runs=True)) == 2
     assert open_bag(bag).info.get("run_id") is None
+
+
+def test_report_reads_one_run_of_a_standalone_recording(tmp_path):
+    from bev_mdo.bag.report import report
+
+    bag = _bag(tmp_path, "standalone", None, [_record("a", 0, 80.0), _record("b", 0, 90.0), _record("b", 1, 91.0)])
+    with pytest.raises(BagError, match="choose one with --run-id"):
+        report(bag, tmp_path / "out")
+    checks: dict = {}
+    written = report(bag, tmp_path / "out", run_id="b", checks=checks)
+    assert (tmp_path / "out" / "report.md") in written and checks["other_runs"] == 1
