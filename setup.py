@@ -11,7 +11,7 @@ from setuptools import find_packages, setup
 PACKAGE = "bev_mdo"
 NODES = [
     "vehicle_mass_node", "energy_node", "range_node", "acceleration_node",
-    "motor_speed_node", "cost_node", "discipline_node", "coordinator_node", "recorder_node",
+    "motor_speed_node", "cost_node", "discipline_node", "coordinator_node", "recorder_node", "composed_node",
 ]
 
 setup(

@@ -12,7 +12,7 @@ import sys
 # Subcommand modules in bev_mdo.cli, in the order --help lists them.
 SUBCOMMANDS = (
     "optimize", "evaluate", "node", "record", "replay", "history", "report",
-    "resume", "bag", "sensitivity", "pareto", "sweep", "graph", "validate", "check_partials",
+    "resume", "bag", "sensitivity", "pareto", "sweep", "graph", "validate", "check_partials", "status",
 )
 
 

@@ -33,6 +33,11 @@ def register(sub) -> None:
     p.add_argument("--bag", default=None, help="bag directory to write (default: bags/<config name>_<time>)")
     p.add_argument("--no-record", action="store_true", help="do not record the run")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--instances", default=None, metavar="N|NAME=N,...",
+                   help="ROS: run N instances of every discipline, or of the named ones; they share each batch "
+                        "(ros.pool: share) or all answer it (redundant)")
+    p.add_argument("--compose", default="none", metavar="all|none|A+B,C+D",
+                   help="ROS: run several disciplines in one process (one executor, several nodes)")
     from bev_mdo.cli.ros_args import add_ros_arguments
 
     add_ros_arguments(p)
@@ -183,7 +188,7 @@ def _run_ros(config, args, show, x0=None):
     import yaml
 
     from bev_mdo.config import discipline_entries
-    from bev_mdo.ros.launch import Launcher, discipline_argv
+    from bev_mdo.ros.launch import Launcher, parse_instances, plan_processes
     from bev_mdo.ros.settings import ros_environment
 
     from bev_mdo.cli.ros_args import ros_section
@@ -219,9 +224,12 @@ def _run_ros(config, args, show, x0=None):
               f"discovered ...", file=sys.stderr if args.json else sys.stdout, flush=True)
     recorder = 0
     try:
-        for entry in discipline_entries(config):
-            launcher.add(entry["name"], discipline_argv(entry["name"], str(resolved.resolve()),
-                                                        instance=run_id[:8], run_id=run_id))
+        names = [e["name"] for e in discipline_entries(config)]
+        args.instances_parsed = parse_instances(getattr(args, "instances", None), names)
+        for label, argv in plan_processes(names, str(resolved.resolve()), run_id=run_id, instance=run_id[:8],
+                                          instances=args.instances_parsed,
+                                          compose=getattr(args, "compose", None)):
+            launcher.add(label, argv)
         if not args.no_record:
             recorder = _start_recorder(launcher, bag, resolved, run_id)
         launcher.supervise()
@@ -236,6 +244,8 @@ def _run_ros(config, args, show, x0=None):
              "dropped_messages": stats["dropped"], "retried_requests": stats["retried"], "node_restarts": restarts,
              "refused_instances": stats.get("refused_instances", {}),
              "signing": _signing(ros, config), "tail_s": round(tail_s, 3)}
+    if stats.get("pools"):
+        extra["pools"] = stats["pools"]  # per-instance work, throughput and failures (pool.py)
     if stats.get("discipline_errors"):
         extra["discipline_errors"] = stats["discipline_errors"]
     if recorder_failed:
@@ -308,7 +318,8 @@ def _coordinate(config, run_id, args, show, recorder: int, x0=None):
     try:
         res, stats = coordinator_node.run(config, run_id=run_id, formulation=args.formulation,
                                           optimizer=args.optimizer, x0=x0, on_iteration=show,
-                                          recorder_subscribers=recorder, context=ctx)
+                                          recorder_subscribers=recorder, context=ctx,
+                                          instances=getattr(args, "instances_parsed", None))
         out = res.to_dict()
         out.pop("history")
         baseline = None

@@ -140,3 +140,20 @@ def tag_for(config: Mapping[str, Any], names) -> str:
     """The request frame_id that the nodes of `config` serve for `names` (for tools and tests)."""
     names = list(names)
     return tag({n: fingerprint(config, n)[0] for n in names}, names)
+
+
+# A share of a pooled batch (pool.py) is addressed to one instance: its entry in the tag reads
+# ``name=fingerprint@instance``. Only that instance answers; a node of an older version compares
+# the whole entry with its fingerprint and so ignores the share rather than answering it twice.
+TARGET_SEP = "@"
+
+
+def target_tag(name: str, fp: str, instance: str) -> str:
+    """The request frame_id binding a share of discipline `name` to `fp` and to one `instance`."""
+    return tag({name: f"{fp}{TARGET_SEP}{instance.lstrip('/')}"}, [name])
+
+
+def split_target(entry: str) -> tuple[str, str]:
+    """(fingerprint, target instance or '') of one tag entry."""
+    fp, _, target = entry.partition(TARGET_SEP)
+    return fp, target

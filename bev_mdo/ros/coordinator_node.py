@@ -117,7 +117,7 @@ class CoordinatorNode(Node):
 def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: str | None = None,
         optimizer: str | None = None, x0: Mapping[str, float] | None = None,
         on_iteration: Callable[[dict], None] | None = None, recorder_subscribers: int = 0,
-        context=None, signer=None):
+        context=None, signer=None, instances: Mapping[str, int] | None = None):
     """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats)."""
     from bev_mdo.mdo.driver import run_optimization
 
@@ -125,6 +125,9 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
     try:
         names = discipline_names(config)
         node.evaluator.wait_for_disciplines(names, node.discovery_wait_s, extra_subscribers=recorder_subscribers)
+        for name, count in (instances or {}).items():  # a pool starts with all its instances (pool.py)
+            if count > 1:
+                node.evaluator.wait_for_instances(name, count, node.discovery_wait_s)
         if recorder_subscribers:
             node.wait_for_recorder(recorder_subscribers, node.discovery_wait_s)
         node.evaluator.warm_up(names)
@@ -139,7 +142,8 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         t_optimised = time.monotonic()
         stats = {"run_id": node.run_id, "dropped": dict(node.evaluator.dropped), "retried": node.evaluator.retried,
                  "data_flow_mdas": node.evaluator.flows, "refused_instances": dict(node.evaluator.refused),
-                 "t_optimised": t_optimised, "discipline_errors": dict(node.evaluator.first_errors)}
+                 "t_optimised": t_optimised, "discipline_errors": dict(node.evaluator.first_errors),
+                 "pools": node.evaluator.pool_summary()}
         stats["all_acked"] = node.wait_for_all_acked(node.discovery_wait_s)
         return result, stats
     finally:
@@ -159,13 +163,17 @@ def main(args: list[str] | None = None) -> int:
         for name, desc in (("config", "run config YAML"), ("formulation", "mdf | idf (default: config)"),
                            ("optimizer", "optimizer name (default: config)"), ("run_id", "run id (default: random)")):
             probe.declare_parameter(name, "", ParameterDescriptor(description=desc))
+        probe.declare_parameter("instances", "", ParameterDescriptor(
+            description="wait for pools before the first evaluation: N or name=N[,name=N] (as --instances)"))
         probe.declare_parameter("recorders", 0, ParameterDescriptor(
             description="wait until this many recorder nodes subscribed before the first evaluation"))
-        p = {k: probe.get_parameter(k).value for k in ("config", "formulation", "optimizer", "run_id", "recorders")}
+        p = {k: probe.get_parameter(k).value
+             for k in ("config", "formulation", "optimizer", "run_id", "recorders", "instances")}
         probe.destroy_node()
         config = load_config(p["config"] or default_config())
         result, stats = run(config, run_id=p["run_id"] or None, formulation=p["formulation"] or None,
                             optimizer=p["optimizer"] or None, recorder_subscribers=int(p["recorders"]),
+                            instances=_instances(p["instances"], config),
                             on_iteration=lambda r: print(f"iter {r['iteration']:4d}  objective {r['objective']:.6g}"
                                                          f"  max violation {r.get('max_violation', 0):.3g}"))
         print(json.dumps({"result": result.to_dict(), **stats}, indent=2, default=float))
@@ -178,3 +186,12 @@ def main(args: list[str] | None = None) -> int:
     finally:
         if rclpy.ok():
             rclpy.shutdown()
+
+
+def _instances(spec: str, config) -> dict[str, int] | None:
+    """The ``instances`` parameter as {discipline: count} (None when empty)."""
+    if not spec:
+        return None
+    from bev_mdo.ros.launch import parse_instances
+
+    return parse_instances(spec, discipline_names(config))

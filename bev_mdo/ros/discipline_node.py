@@ -21,6 +21,8 @@ from __future__ import annotations
 import copy
 import functools
 import json
+import os
+import socket
 import sys
 import time
 from collections import Counter, OrderedDict
@@ -147,6 +149,7 @@ class DisciplineNode(Node):
         self._allowed = set(self.discipline.inputs) | set(getattr(self.discipline, "parameters", {}) or {})
         self.instance = self.get_parameter("instance").value or self.get_fully_qualified_name()
         self.counts: Counter[str] = Counter()
+        self.compute_s = 0.0  # time spent in compute(), summed (node stats)
         self.signer = Signer.from_ros(validate_ros(config.get("ros")))
         self._stats_pub = self.create_publisher(String, NODE_STATS_TOPIC, NODE_STATS_QOS)
         self._stats_sent: dict[str, int] | None = None
@@ -184,8 +187,10 @@ class DisciplineNode(Node):
         if not force and (snap == self._stats_sent or now - self._stats_t < every_s):
             return
         msg = String()
-        msg.data = json.dumps({"discipline": self.discipline_name, "instance": self.instance, "counts": snap},
-                              sort_keys=True)
+        msg.data = json.dumps({"discipline": self.discipline_name, "instance": self.instance, "counts": snap,
+                               # for `bev-mdo status`: where it runs and how fast it computes
+                               "host": socket.gethostname(), "pid": os.getpid(),
+                               "compute_s": round(self.compute_s, 6)}, sort_keys=True)
         self._stats_pub.publish(msg)
         self._stats_sent, self._stats_t = snap, now
 
@@ -283,8 +288,12 @@ class DisciplineNode(Node):
             self.counts["ignored.other_run"] += 1
             return False
         want = binding.parse_tag(msg.header.frame_id) or {}
-        if want.get(self.discipline_name) != self.fingerprint or (source is not None and source not in want):
+        fp, target = binding.split_target(want.get(self.discipline_name, ""))
+        if fp != self.fingerprint or (source is not None and source not in want):
             self.counts["ignored.fingerprint"] += 1
+            return False
+        if target and target != self.instance.lstrip("/"):  # a pool's share for another instance
+            self.counts["ignored.other_instance"] += 1
             return False
         return True
 
@@ -340,6 +349,8 @@ class DisciplineNode(Node):
             # a block of the batch size even without partials: downstream nodes learn it was asked
             out.partials = wire.partials_batch(result.extra.get("partials", {}), int(np.size(result.ok)))
         self.counts["answered"] += 1
+        self.counts["points"] += int(out.point_ok.shape[0])
+        self.compute_s += float(result.compute_time_s or 0.0)
         self._publish(out, pub)
 
     # -- data flow -----------------------------------------------------------------

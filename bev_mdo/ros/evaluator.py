@@ -37,7 +37,7 @@ from bev_mdo.mdo import flow
 from bev_mdo.mdo.discipline import EvalResult, finite_rows
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.mdo.graph import CouplingGraph
-from bev_mdo.ros import binding, wire
+from bev_mdo.ros import binding, pool as pools, wire
 from bev_mdo.ros.auth import Signer
 from bev_mdo.ros.fastwait import MultiWaiter
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC,
@@ -57,6 +57,9 @@ class _Pending:
     n: int
     sent_ns: int
     flow: bool = False
+    target: str = ""     # a pool's share (pool.py): the instance it is addressed to
+    start: int = -1      # a pool's share: its first row in the batch (-1: the whole batch)
+    tries: int = 0
 
 
 class RosEvaluator:
@@ -101,6 +104,13 @@ class RosEvaluator:
         self._flow_plans: dict[tuple, dict | None] = {}
         self._flow_pub = None
         self._flow_subs: dict[str, object] = {}
+        # Worker pools (pool.py): several accepted instances of a discipline share each batch.
+        self.pool_mode = pools.validate_mode((config.get("ros") or {}).get("pool", "share"))
+        self.pools: dict[str, pools.Pool] = {}
+        self._parts: dict[int, list[tuple[int, EvalResult]]] = {}  # wave index -> (first row, share result)
+        self._late: set[tuple[int, str]] = set()                  # shares taken from a failed instance
+        self._batches: dict[int, tuple[str, Mapping]] = {}        # wave index -> (discipline, batch)
+        self._info_t = time.monotonic()
         self._executor = SingleThreadedExecutor(context=node.context)
         self._executor.add_node(node)
         # Raw CDR in and out (wire.py's codec): rclpy's message objects cost more than the DDS hop.
@@ -149,6 +159,7 @@ class RosEvaluator:
                                      + binding.difference(want[1], msg.effective_config))
         self.refused.pop(f"{msg.discipline} {msg.instance}", None)
         self.instances.setdefault(msg.discipline, set()).add(msg.instance.lstrip("/"))
+        self._pool(msg.discipline).revive(msg.instance.lstrip("/"))
         # Parameter defaults live in the node; the engine only needs their names.
         self.specs[msg.discipline] = DisciplineSpec(
             msg.discipline, tuple(msg.inputs), tuple(msg.outputs), dict.fromkeys(msg.parameters, float("nan"))
@@ -171,6 +182,9 @@ class RosEvaluator:
                     plan = None
                 elif CouplingGraph((n, self.specs[n].inputs, self.specs[n].outputs) for n in names).cycles:
                     plan = None  # a loop: no node of it can start (the MDA iterates it hub and spoke)
+                # a pool shares batches in waves; its instances would each answer a data-flow MDA
+                elif self.pool_mode == "share" and any(len(self.instances.get(n, ())) > 1 for n in names):
+                    plan = None
             self._flow_plans[key] = plan
         return self._flow_plans[key]
 
@@ -387,6 +401,8 @@ class RosEvaluator:
         if p is None:
             if key[0] in self._probe_ids:  # a late answer to a handshake probe (handshake())
                 self.probe_late += 1
+            elif key in self._late:
+                self.dropped["late_share"] += 1  # answered after its share went to another instance
             elif key in self._answered:
                 self.dropped["duplicate"] += 1
             elif any(k[0] == key[0] for k in self._pending):
@@ -426,7 +442,11 @@ class RosEvaluator:
         self.accepted.append((int(msg.evaluation_id), msg.discipline, msg.instance, int(p.request.attempt)))
         del self._pending[key]
         self._answered.add(key)
-        self._results[p.index] = res
+        if p.start >= 0:
+            self._pool(p.discipline).record(p.target, p.n, (time.monotonic_ns() - p.sent_ns) * 1e-9)
+            self._parts.setdefault(p.index, []).append((p.start, res))
+        else:
+            self._results[p.index] = res
 
     def _first_error(self, discipline: str, error: str) -> None:
         """Name a discipline's first failure on the console (the node's log has the rest)."""
@@ -458,6 +478,9 @@ class RosEvaluator:
         With ``partials`` the nodes return their disciplines' analytic partials too."""
         t0 = time.perf_counter()
         self._results = {}
+        self._parts = {}
+        self._poll_info()
+        shared = False
         for i, (name, batch) in enumerate(calls):
             if name in self.unresponsive:
                 n = len(next(iter(batch.values()), ()))
@@ -469,10 +492,20 @@ class RosEvaluator:
             req.inputs = wire.batch(batch)
             req.partials = bool(partials)
             n = int(req.inputs.batch_size)
+            # a batch is shared among a pool's instances; not when partials are asked (shares carry none)
+            live = self._live(name) if n > 1 and not partials else None
+            if live and len(live) > 1:
+                shared = True
+                self._send_shares(i, name, batch, iteration, 0, n, live)
+                continue
             self._pending[(self._next_id, name)] = p = _Pending(i, name, req, n, 0)
             self._next_id += 1
             self._send(p)
-        self._await()
+        if shared:
+            self._await_pool(iteration)
+            self._join_parts()
+        else:
+            self._await()
         self.last_latency_s = time.perf_counter() - t0
         return [self._results[i] for i in range(len(calls))]
 
@@ -508,6 +541,158 @@ class RosEvaluator:
                     self.counts[name] += rows
         self.last_latency_s = time.perf_counter() - t0
         return out
+
+    # -- worker pools (pool.py) -----------------------------------------------------
+    def _pool(self, name: str) -> pools.Pool:
+        pool = self.pools.get(name)
+        if pool is None:
+            pool = self.pools[name] = pools.Pool(name)
+        return pool
+
+    def _poll_info(self, every_s: float = 0.25) -> None:
+        """Take the discipline declarations that arrived during the run (an instance that joins
+        gets work from the next batch on); at most every `every_s`, off the data-flow hot path."""
+        now = time.monotonic()
+        if now - self._info_t < every_s:
+            return
+        self._info_t = now
+        self._waiter.take_all([(self._info_sub, lambda msg, _i: self._on_info(msg))])
+
+    def _present_instances(self, name: str) -> tuple[set[str], int]:
+        """(accepted instances of `name` reading its request topic now, readers of that topic)."""
+        accepted = self.instances.get(name, set())
+        infos = self.node.get_subscriptions_info_by_topic(request_topic(name))
+        present = set()
+        for i in infos:
+            full = f"{i.node_namespace.rstrip('/')}/{i.node_name}".lstrip("/")
+            if full in accepted:
+                present.add(full)
+            elif i.node_name in accepted:
+                present.add(i.node_name)
+        return present, len(infos)
+
+    def _live(self, name: str) -> list[str] | None:
+        """The instances of `name` a batch is split among (None: send it as one request)."""
+        if self.pool_mode != "share" or len(self.instances.get(name, ())) < 2:
+            return None
+        pool = self._pool(name)
+        present, readers = self._present_instances(name)
+        live = sorted(present - pool.suspect)
+        # a reader our writer has not matched yet (one that just joined) gets work from a later batch
+        if self._publisher(name).get_subscription_count() < readers and pool.stats:
+            known = [i for i in live if pool.stat(i).shares > 0]
+            live = known or live
+        return live
+
+    def wait_for_instances(self, name: str, count: int, wait_s: float) -> list[str]:
+        """Block until `count` accepted instances of `name` read its request topic and our writer
+        matched them all (a pool ready to share); returns them. DisciplineMissing after `wait_s`."""
+        self._publisher(name)
+        deadline = time.monotonic() + wait_s
+        while True:
+            self._info_t = 0.0
+            self._poll_info()
+            present, readers = self._present_instances(name)
+            if len(present) >= count and self._publisher(name).get_subscription_count() >= readers:
+                return sorted(present)
+            if time.monotonic() > deadline:
+                raise DisciplineMissing(f"{len(present)} of {count} instances of {name!r} within {wait_s:g} s"
+                                        + (f"; refused {self.refused}" if self.refused else ""))
+            self._executor.spin_once(timeout_sec=0.05)
+
+    def _send_shares(self, index: int, name: str, batch: Mapping[str, np.ndarray], iteration: int,
+                     first: int, n: int, live: list[str], tries: int = 0) -> None:
+        """Send rows first..first+n of `batch` as one share per instance in `live`."""
+        fp = (self._expect(name) or ("?", ""))[0]
+        self._batches[index] = (name, batch)
+        for inst, a, b in self._pool(name).split(n, live):
+            req = wire.Request(self.run_id, self._next_id, name, iteration=iteration)
+            req.header.frame_id = binding.target_tag(name, fp, inst)
+            req.attempt = tries
+            req.inputs = wire.batch({k: np.asarray(v)[first + a:first + b] for k, v in batch.items()})
+            p = _Pending(index, name, req, b - a, 0, target=inst, start=first + a, tries=tries)
+            self._pending[(self._next_id, name)] = p
+            self._next_id += 1
+            self._send(p)
+
+    def _await_pool(self, iteration: int, check_s: float = 0.1) -> None:
+        """Wait for a wave holding shares. A share whose instance times out or leaves the ROS graph
+        is split again among the other live instances (new evaluation ids: a late answer to the
+        old one is dropped as ``late_share``, never used), up to ``retries`` times per row."""
+        self._batches = getattr(self, "_batches", {})
+        checked = 0.0
+        subs = [s for s, _ in self._hot]
+        while self._pending:
+            now = time.monotonic()
+            due = min(p.sent_ns * 1e-9 + self.timeout_s for p in self._pending.values())
+            if self._waiter.wait(subs, max(0.0, min(due, now + check_s) - now)):
+                self._waiter.take_ready(self._hot)
+            now = time.monotonic()
+            gone: set[tuple[str, str]] = set()
+            if now - checked >= check_s:
+                checked = now
+                for name in {p.discipline for p in self._pending.values() if p.target}:
+                    present, _ = self._present_instances(name)
+                    gone |= {(name, p.target) for p in self._pending.values()
+                             if p.discipline == name and p.target and p.target not in present}
+            for key, p in list(self._pending.items()):
+                if key not in self._pending:
+                    continue
+                late = now * 1e9 >= p.sent_ns + self.timeout_s * 1e9
+                if not late and (p.discipline, p.target) not in gone:
+                    continue
+                why = "left the ROS graph" if (p.discipline, p.target) in gone else f"no answer after {self.timeout_s:g} s"
+                if p.target:
+                    self._pool(p.discipline).fail(p.target, p.n)
+                if p.tries >= self.retries:
+                    res = self._failed(p, f"{p.discipline}: no answer after {self.retries + 1} attempts "
+                                          f"of {self.timeout_s:g} s")
+                    self._first_error(p.discipline, res.error)
+                    del self._pending[key]
+                    self._answered.add(key)
+                    if p.start >= 0:
+                        self._parts.setdefault(p.index, []).append((p.start, res))
+                    else:
+                        self._results[p.index] = res
+                    continue
+                self.retried += 1
+                if p.start < 0:  # a whole batch of a discipline without a pool: re-send as before
+                    p.tries += 1
+                    p.request.attempt = p.tries
+                    self.node.get_logger().warning(f"no answer from {[p.discipline]} for evaluation "
+                                                   f"{p.request.evaluation_id}; retry {p.tries}/{self.retries}")
+                    self._send(p)
+                    continue
+                del self._pending[key]
+                self._late.add(key)
+                live = self._live(p.discipline) or []
+                if not live:  # every instance failed: try them all again rather than give up early
+                    live = sorted(self._present_instances(p.discipline)[0]) or [p.target]
+                self.node.get_logger().warning(
+                    f"{p.discipline} instance {p.target!r} {why} holding {p.n} design(s); "
+                    f"re-sent to {live} (retry {p.tries + 1}/{self.retries})")
+                name, batch = self._batches[p.index]
+                self._send_shares(p.index, name, batch, iteration, p.start, p.n, live, tries=p.tries + 1)
+
+    def _join_parts(self) -> None:
+        """Join the shares of every pooled call in row order into one result."""
+        for index, parts in self._parts.items():
+            parts.sort(key=lambda t: t[0])
+            name = self._batches[index][0]
+            spec = self.specs.get(name)
+            keys = spec.outputs if spec else tuple(parts[0][1].outputs)
+            outs = {k: np.concatenate([np.asarray(r.outputs[k], dtype=float) for _, r in parts]) for k in keys}
+            ok = np.concatenate([np.asarray(r.ok, dtype=bool) for _, r in parts])
+            errors = list(dict.fromkeys(r.error for _, r in parts if r.error))
+            self._results[index] = EvalResult(outs, ok, "; ".join(errors),
+                                              float(sum(r.compute_time_s for _, r in parts)))
+        self._parts = {}
+        self._batches = {}
+
+    def pool_summary(self) -> dict[str, dict[str, dict]]:
+        """{discipline: {instance: work, throughput, failures}} for every discipline with a pool."""
+        return {d: {i: s.to_dict() for i, s in sorted(p.stats.items())}
+                for d, p in sorted(self.pools.items()) if any(s.shares or s.failures for s in p.stats.values())}
 
     def _await(self) -> None:
         """Wait for every pending result; re-send what times out; fail what never answers."""

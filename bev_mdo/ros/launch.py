@@ -192,3 +192,78 @@ class Launcher:
 
     def __exit__(self, *exc) -> None:
         self.stop()
+
+
+def composed_argv(names: Sequence[str], config_path: str, instance: str = "", run_id: str = "") -> list[str]:
+    """Command line of one process serving every discipline in `names` (composed.py)."""
+    argv = [sys.executable, "-m", "bev_mdo.ros.run", "composed_node", "--ros-args", "-p", f"config:={config_path}",
+            "-p", f"disciplines:={','.join(names)}"]  # no __node remap: it would rename every node
+    # quoted: a hex instance or run id ("8469814e", "1234") would otherwise be parsed as a number
+    if instance:
+        argv += ["-p", f"instance:='{instance}'"]
+    if run_id:
+        argv += ["-p", f"run_id:='{run_id}'"]
+    return argv
+
+
+def parse_instances(spec: str | None, names: Sequence[str]) -> dict[str, int]:
+    """``--instances``: ``N`` (every discipline) or ``name=N[,name=N...]`` -> {discipline: instances}."""
+    out = dict.fromkeys(names, 1)
+    if not spec:
+        return out
+    spec = str(spec).strip()
+    items = [(None, spec)] if "=" not in spec else [tuple(s.split("=", 1)) for s in spec.split(",") if s.strip()]
+    for name, count in items:
+        if name is not None and name.strip() not in out:
+            raise ValueError(f"--instances: no discipline {name.strip()!r} in the config; it has {list(names)}")
+        try:
+            k = int(count)
+        except ValueError:
+            raise ValueError(f"--instances: {count!r} is not a whole number") from None
+        if not 1 <= k <= 64:
+            raise ValueError(f"--instances: {k} is outside 1..64")
+        for n in ([name.strip()] if name is not None else names):
+            out[n] = k
+    return out
+
+
+def parse_compose(spec: str | None, names: Sequence[str]) -> list[list[str]]:
+    """``--compose``: ``none`` (a process per discipline), ``all`` (one process for all) or groups
+    ``a+b,c+d`` (each group one process; the others alone) -> list of process groups, in order."""
+    spec = (spec or "none").strip()
+    if spec == "none":
+        return [[n] for n in names]
+    if spec == "all":
+        return [list(names)]
+    groups, seen = [], set()
+    for g in spec.split(","):
+        members = [m.strip() for m in g.split("+") if m.strip()]
+        for m in members:
+            if m not in names:
+                raise ValueError(f"--compose: no discipline {m!r} in the config; it has {list(names)}")
+            if m in seen:
+                raise ValueError(f"--compose: {m!r} is in two groups")
+            seen.add(m)
+        if members:
+            groups.append(members)
+    return groups + [[n] for n in names if n not in seen]
+
+
+def plan_processes(names: Sequence[str], config_path: str, *, run_id: str = "", instance: str = "",
+                   instances: Mapping[str, int] | None = None, compose: str | None = None
+                   ) -> list[tuple[str, list[str]]]:
+    """[(label, argv)] of the discipline processes of a run. A discipline with several instances
+    (a pool) runs one process per instance, outside any composed group; the rest as composed."""
+    instances = dict(instances or {})
+    pooled = [n for n in names if instances.get(n, 1) > 1]
+    out: list[tuple[str, list[str]]] = []
+    for group in parse_compose(compose, [n for n in names if n not in pooled]):
+        if len(group) == 1:
+            out.append((group[0], discipline_argv(group[0], config_path, instance=instance, run_id=run_id)))
+        else:
+            out.append(("+".join(group), composed_argv(group, config_path, instance=instance, run_id=run_id)))
+    for n in pooled:
+        for k in range(instances[n]):
+            out.append((f"{n}#{k}", discipline_argv(n, config_path, instance=f"{instance}_{k}" if instance else str(k),
+                                                    run_id=run_id)))
+    return out

@@ -16,7 +16,7 @@ DISCIPLINE_EXES = {
     "motor_speed_node": "motor_speed",
     "cost_node": "cost",
 }
-OTHER_EXES = ("discipline_node", "coordinator_node", "recorder_node")
+OTHER_EXES = ("discipline_node", "coordinator_node", "recorder_node", "composed_node")
 
 
 def run(exe: str, args: list[str] | None = None) -> int:
@@ -27,6 +27,10 @@ def run(exe: str, args: list[str] | None = None) -> int:
         return main(args, discipline=DISCIPLINE_EXES.get(exe))
     if exe == "coordinator_node":
         from bev_mdo.ros.coordinator_node import main
+
+        return main(args)
+    if exe == "composed_node":
+        from bev_mdo.ros.composed import main
 
         return main(args)
     if exe == "recorder_node":

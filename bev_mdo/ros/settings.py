@@ -20,6 +20,7 @@ DEFAULTS: dict[str, Any] = {
     "sign_key_file": "",             # path of a shared HMAC key: sign and verify every request/result
     "signing": True,                 # a run launched by bev-mdo signs with a fresh per-run key (if no key file)
     "sign_window_s": 30.0,           # signed messages with a stamp further than this from now are expired
+    "pool": "share",                 # several instances of a discipline: share | redundant (pool.py)
 }
 DISCOVERY_MODES = ("localhost", "static_peers", "server", "subnet")
 
@@ -79,6 +80,8 @@ def validate_ros(section: Mapping[str, Any] | None) -> dict[str, Any]:
     out["sign_key_file"] = os.path.abspath(os.path.expanduser(str(key_file))) if str(key_file) else ""
     if not isinstance(out["signing"], bool):
         raise ValueError(f"ros.signing must be true or false, got {out['signing']!r}")
+    if out["pool"] not in ("share", "redundant"):
+        raise ValueError(f"ros.pool must be one of ['share', 'redundant'], got {out['pool']!r}")
     if not isinstance(out["retries"], int) or not 0 <= out["retries"] <= 100:
         raise ValueError(f"ros.retries must be an integer in [0, 100], got {out['retries']!r}")
     return out

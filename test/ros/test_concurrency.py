@@ -35,7 +35,8 @@ ROS_DOMAIN = 84
 @pytest.fixture(scope="module")
 def config_path(tmp_path_factory):
     raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
-    raw["ros"] = {"timeout_s": 5.0, "retries": 3, "discovery_wait_s": 60.0}
+    # redundancy is the explicit mode (ros.pool: redundant); by default instances share batches (test_pool.py)
+    raw["ros"] = {"timeout_s": 5.0, "retries": 3, "discovery_wait_s": 60.0, "pool": "redundant"}
     p = tmp_path_factory.mktemp("cfg") / "conc.yaml"
     p.write_text(yaml.safe_dump(raw, sort_keys=False))
     return str(p)

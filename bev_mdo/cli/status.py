@@ -1,0 +1,48 @@
+"""``bev-mdo status``: the live discipline instances on a ROS domain, with host and throughput."""
+from __future__ import annotations
+
+import json
+
+
+def register(sub) -> None:
+    from bev_mdo.cli.ros_args import add_ros_arguments
+
+    p = sub.add_parser("status", help="list the live discipline instances on the ROS domain (host, throughput)")
+    p.add_argument("config", nargs="?", default=None, help="run config YAML whose ros: section to use (optional)")
+    p.add_argument("--listen", type=float, default=2.0, metavar="S", help="seconds to listen (default 2)")
+    p.add_argument("--json", action="store_true", help="print the rows as JSON")
+    add_ros_arguments(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    import rclpy
+
+    from bev_mdo.cli.ros_args import ros_section
+    from bev_mdo.ros.client import apply_ros_environment
+    from bev_mdo.ros.status import collect, format_table
+
+    if not 0 < args.listen <= 600:
+        raise ValueError(f"--listen must be in (0, 600] seconds, got {args.listen:g}")
+    config = {}
+    if args.config:
+        from bev_mdo.config import load_config
+
+        config = load_config(args.config)
+    ros = ros_section(config, args)
+    apply_ros_environment(ros)
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx)
+    try:
+        node = rclpy.create_node("bev_mdo_status", context=ctx)
+        rows = collect(node, args.listen)
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)
+    if args.json:
+        print(json.dumps(rows, indent=2))
+    elif rows:
+        print(format_table(rows))
+    else:
+        print(f"no discipline instance on ROS domain {ros['domain_id']} (listened {args.listen:g} s)")
+    return 0

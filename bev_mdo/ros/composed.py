@@ -1,0 +1,105 @@
+"""Several discipline nodes in one process: one executor, several nodes, still talking over topics.
+
+Cheap disciplines gain nothing from a process each on a small host: every process decodes,
+computes and encodes in its own interpreter and the processes contend for the cores. Like a
+ROS 2 component container, this runs several DisciplineNode objects in one process; each keeps
+its own name, topics and declaration, so the graph, the binding, the recordings and the
+coordinator see exactly what they see with one process per discipline (intra-process messages
+still go through DDS, as rclpy has no zero-copy intra-process path).
+
+``ros2 run bev_mdo composed_node --ros-args -p config:=run.yaml -p disciplines:=vehicle_mass,energy``
+(``python -m bev_mdo.ros.run composed_node ...``; ``instance`` and ``run_id`` parameters as for the
+discipline node; each node is named ``<discipline>_node`` plus ``_<instance>`` when given).
+The launcher's ``--compose all|none|GROUPS`` starts these (launch.py: composed_argv).
+"""
+from __future__ import annotations
+
+import sys
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rcl_interfaces.msg import ParameterDescriptor
+
+from bev_mdo.ros.discipline_node import DisciplineNode
+from bev_mdo.ros.fastwait import MultiWaiter
+
+
+def make_nodes(config: dict, disciplines: list[str], instance: str = "", run_id: str = "",
+               context=None) -> list[DisciplineNode]:
+    """One DisciplineNode per discipline, sharing `config` (node names as the launcher gives them)."""
+    nodes = []
+    for name in disciplines:
+        node_name = f"{name}_node" + (f"_{instance}" if instance else "")
+        overrides = [Parameter("run_id", value=run_id)]
+        if instance:
+            overrides.append(Parameter("instance", value=node_name))
+        nodes.append(DisciplineNode(name, config=config, node_name=node_name, parameter_overrides=overrides,
+                                    context=context))
+    return nodes
+
+
+def serve_many(nodes: list[DisciplineNode], idle_s: float = 0.1, service_every: int = 64) -> None:
+    """Serve every node's hot subscriptions from one wait set (one thread), the nodes' other
+    entities (parameter services) from one executor when idle: discipline_node.serve for several."""
+    context = nodes[0].context
+    executor = SingleThreadedExecutor(context=context)
+    for node in nodes:
+        executor.add_node(node)
+    waiter = MultiWaiter(context)
+    pairs = [pair for node in nodes for pair in node.hot_subscriptions()]
+    subs = [s for s, _ in pairs]
+    served = 0
+    try:
+        waiter.take_all(pairs)
+        while context.ok():
+            if waiter.wait(subs, idle_s):
+                served += waiter.take_ready(pairs)
+                if served < service_every:
+                    continue
+                served = 0
+            for node in nodes:
+                node.publish_stats()
+            executor.spin_once(timeout_sec=0.0)
+    finally:
+        executor.shutdown()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the named disciplines in this process until Ctrl-C / SIGTERM."""
+    from bev_mdo.config import load_config
+    from bev_mdo.ros.paths import default_config
+
+    rclpy.init(args=args)
+    nodes: list[DisciplineNode] = []
+    try:
+        probe = Node("composed_params")
+        for key, desc in (("config", "run config YAML"),
+                          ("disciplines", "comma-separated discipline names to serve in this process"),
+                          ("instance", "instance suffix of every node name"), ("run_id", "serve only this run")):
+            # dynamic typing: an instance or run id of hex digits ("8469814e") parses as a number
+            probe.declare_parameter(key, "", ParameterDescriptor(description=desc, dynamic_typing=True))
+        p = {k: probe.get_parameter(k).value for k in ("config", "disciplines", "instance", "run_id")}
+        p = {k: "" if v is None else (",".join(map(str, v)) if isinstance(v, (list, tuple)) else str(v))
+             for k, v in p.items()}
+
+        probe.destroy_node()
+        names = [n.strip() for n in str(p["disciplines"]).strip("[]").split(",") if n.strip()]
+        if not names:
+            raise ValueError("composed_node needs -p disciplines:=name[,name...]")
+        config = load_config(p["config"] or default_config())
+        nodes = make_nodes(config, names, p["instance"], p["run_id"])
+        serve_many(nodes)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ValueError as exc:
+        if rclpy.ok():
+            print(f"composed_node: error: {exc}", file=sys.stderr)
+            return 2
+    finally:
+        for node in nodes:
+            node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+    return 0

@@ -1,0 +1,93 @@
+"""Live discipline instances on a ROS domain, for `bev-mdo status`.
+
+Listens for a while to the discipline declarations (/bev_mdo/discipline_info, kept for late
+joiners) and the node counters (/bev_mdo/node_stats: host, pid, points answered, compute time),
+and checks the ROS graph for who still reads its request topic. Throughput is points per second
+of compute time since the node started (its capacity) and, over the listening window, points per
+second of wall time (its current load).
+"""
+from __future__ import annotations
+
+import time
+
+from bev_mdo.ros.common import INFO_QOS, INFO_TOPIC, request_topic
+from bev_mdo.ros.discipline_node import NODE_STATS_READER_QOS, NODE_STATS_TOPIC
+
+
+def collect(node, listen_s: float = 2.0) -> list[dict]:
+    """[{discipline, instance, host, pid, live, run_id, fingerprint, points, compute_s, ...}] sorted."""
+    import json
+
+    from rclpy.executors import SingleThreadedExecutor
+    from std_msgs.msg import String
+
+    from bev_mdo_msgs.msg import DisciplineInfo
+
+    infos: dict[tuple[str, str], DisciplineInfo] = {}
+    first: dict[str, tuple[float, dict]] = {}
+    last: dict[str, tuple[float, dict]] = {}
+
+    def on_info(msg):
+        infos[(msg.discipline, msg.instance.lstrip("/"))] = msg
+
+    def on_stats(msg):
+        d = json.loads(msg.data)
+        key = str(d.get("instance", "")).lstrip("/")
+        sample = (time.monotonic(), d)
+        first.setdefault(key, sample)
+        last[key] = sample
+
+    subs = [node.create_subscription(DisciplineInfo, INFO_TOPIC, on_info, INFO_QOS),
+            node.create_subscription(String, NODE_STATS_TOPIC, on_stats, NODE_STATS_READER_QOS)]
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    try:
+        deadline = time.monotonic() + listen_s
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        rows = []
+        disciplines = {d for d, _ in infos} | {s[1].get("discipline", "") for s in last.values()}
+        for disc in sorted(x for x in disciplines if x):
+            readers = node.get_subscriptions_info_by_topic(request_topic(disc))
+            graph = {f"{r.node_namespace.rstrip('/')}/{r.node_name}".lstrip("/") for r in readers}
+            graph |= {r.node_name for r in readers}
+            names = {i for d, i in infos if d == disc} | {k for k, s in last.items() if s[1].get("discipline") == disc}
+            for inst in sorted(names):
+                info = infos.get((disc, inst))
+                t1, s1 = last.get(inst, (0.0, {}))
+                t0, s0 = first.get(inst, (0.0, {}))
+                c1, c0 = s1.get("counts", {}), s0.get("counts", {})
+                points = int(c1.get("points", 0))
+                compute_s = float(s1.get("compute_s", 0.0))
+                window = t1 - t0
+                rows.append({
+                    "discipline": disc, "instance": inst, "live": inst in graph,
+                    "host": s1.get("host", "?"), "pid": s1.get("pid"),
+                    "run_id": (info.run_id or "standalone") if info else "?",
+                    "fingerprint": info.fingerprint if info else "?",
+                    "points": points, "answered": int(c1.get("answered", 0)),
+                    "rejected": int(c1.get("rejected", 0)), "compute_s": compute_s,
+                    "capacity_points_per_s": round(points / compute_s, 1) if compute_s > 0 else None,
+                    "recent_points_per_s": (round((points - int(c0.get("points", 0))) / window, 1)
+                                            if window > 0 else None),
+                })
+        return rows
+    finally:
+        executor.remove_node(node)
+        executor.shutdown()
+        for s in subs:
+            node.destroy_subscription(s)
+
+
+def format_table(rows: list[dict]) -> str:
+    """The status rows as an aligned text table (one line per instance)."""
+    head = ("DISCIPLINE", "INSTANCE", "LIVE", "HOST", "PID", "RUN", "POINTS", "PTS/S(CPU)", "PTS/S(NOW)", "FINGERPRINT")
+    lines = [head]
+    for r in rows:
+        lines.append((r["discipline"], r["instance"], "yes" if r["live"] else "no", str(r["host"]), str(r["pid"] or "?"),
+                      r["run_id"][:16], str(r["points"]),
+                      "-" if r["capacity_points_per_s"] is None else f"{r['capacity_points_per_s']:g}",
+                      "-" if r["recent_points_per_s"] is None else f"{r['recent_points_per_s']:g}",
+                      r["fingerprint"]))
+    widths = [max(len(line[j]) for line in lines) for j in range(len(head))]
+    return "\n".join("  ".join(c.ljust(w) for c, w in zip(line, widths)).rstrip() for line in lines)

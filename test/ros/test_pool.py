@@ -1,0 +1,252 @@
+"""Worker pools over ROS: several instances of one discipline share each batch.
+
+One set of node processes serves the module: the built-ins, two energy instances and three
+instances of a test discipline whose cost is a fixed wait per design (pool_discipline.py).
+Every answer is compared bitwise with the in-process one.
+"""
+from __future__ import annotations
+
+import copy
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+rclpy = pytest.importorskip("rclpy")
+
+from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
+from bev_mdo.mdo.driver import run_optimization  # noqa: E402
+from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
+from bev_mdo.ros import coordinator_node  # noqa: E402
+from bev_mdo.ros.discipline_node import NodeStatsListener  # noqa: E402
+from bev_mdo.ros.evaluator import RosEvaluator  # noqa: E402
+from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
+from bev_mdo.testing import REPO, ros_env  # noqa: E402
+
+ROS_DOMAIN = 71
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from pool_discipline import WaitPerDesign  # noqa: E402
+
+BUILTINS = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]
+WAIT_S = 0.002
+TIMEOUT_S = 2.0
+
+
+def _raw(wait_s=WAIT_S, pool="share"):
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
+    raw["disciplines"] = BUILTINS + [{"name": "wait", "class": "pool_discipline:WaitPerDesign",
+                                      "options": {"wait_s_per_design": wait_s}}]
+    raw["ros"] = {"timeout_s": TIMEOUT_S, "retries": 3, "discovery_wait_s": 60.0, "signing": False, "pool": pool}
+    return raw
+
+
+@pytest.fixture(scope="module")
+def paths(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cfg")
+    out = {}
+    for key, raw in (("base", _raw()), ("other", _raw(wait_s=0.003)), ("redundant", _raw(pool="redundant"))):
+        out[key] = d / f"{key}.yaml"
+        out[key].write_text(yaml.safe_dump(raw, sort_keys=False))
+    return out
+
+
+def _env(domain):
+    env = ros_env(domain)
+    env["PYTHONPATH"] = f"{HERE}:{REPO}:{env['PYTHONPATH']}"
+    return env
+
+
+@pytest.fixture(scope="module")
+def launcher(ros_domain, paths, tmp_path_factory):
+    launcher = Launcher(_env(ros_domain), log_dir=tmp_path_factory.mktemp("logs"))
+    for name in BUILTINS:
+        launcher.add(name, discipline_argv(name, str(paths["base"])))
+    launcher.add("energy#1", discipline_argv("energy", str(paths["base"]), instance="e1"))
+    for k in range(3):
+        launcher.add(f"wait#{k}", discipline_argv("wait", str(paths["base"]), instance=f"w{k}"))
+    yield launcher
+    launcher.stop()
+
+
+@pytest.fixture()
+def evaluator(rclpy_context, launcher, paths):
+    node = rclpy.create_node("pool_test_coordinator", context=rclpy_context)
+    ev = RosEvaluator(node, config=load_config(paths["base"]), timeout_s=TIMEOUT_S, retries=3)
+    yield ev
+    ev.close()
+    node.destroy_node()
+
+
+def _batch(n, seed=0):
+    rng = np.random.default_rng(seed)
+    return {"motor_kw": rng.uniform(40, 120, n), "gear_ratio": rng.uniform(1, 11, n)}
+
+
+def _reference(batch):
+    return WaitPerDesign(0.0).compute(batch)["wait_value"]
+
+
+def _points(ev, name="wait"):
+    return {i: s.points for i, s in ev.pools[name].stats.items()}
+
+
+def test_batch_is_split_among_instances_and_joined_in_order(evaluator):
+    live = evaluator.wait_for_instances("wait", 3, 60.0)
+    assert len(live) == 3
+    batch = _batch(300)
+    res = evaluator.evaluate([("wait", batch)])[0]
+    assert res.ok.all(), res.error
+    assert np.array_equal(res.outputs["wait_value"], _reference(batch))  # bitwise
+    points = _points(evaluator)
+    assert sorted(points) == live and all(p >= 1 for p in points.values()) and sum(points.values()) == 300
+    shares = [a for a in evaluator.accepted if a[1] == "wait"]
+    assert len(shares) == 3 and len({a[2] for a in shares}) == 3  # one share each, from three instances
+    # a second batch is split by the measured throughput and still joins to the same answer
+    batch = _batch(500, seed=1)
+    res = evaluator.evaluate([("wait", batch), ("wait", _batch(7, seed=2))])
+    assert np.array_equal(res[0].outputs["wait_value"], _reference(batch))
+    assert np.array_equal(res[1].outputs["wait_value"], _reference(_batch(7, seed=2)))
+    assert sum(_points(evaluator).values()) == 807
+    summary = evaluator.pool_summary()["wait"]
+    assert all(s["throughput_points_per_s"] > 0 and s["failures"] == 0 for s in summary.values())
+
+
+def test_shares_go_only_to_their_instance(rclpy_context, evaluator):
+    evaluator.wait_for_instances("wait", 3, 60.0)
+    listener = NodeStatsListener(rclpy.create_node("pool_stats", context=rclpy_context))
+    try:
+        evaluator.evaluate([("wait", _batch(90))])
+        # each instance ignored the two shares addressed to the others, and answered its own
+        assert listener.wait(lambda l: l.counts("wait")["ignored.other_instance"] >= 6
+                             and l.counts("wait")["points"] >= 90, 10.0), listener.latest
+        assert evaluator.dropped["duplicate"] == 0
+    finally:
+        listener.close()
+
+
+def test_redundant_mode_sends_every_batch_to_every_instance(rclpy_context, launcher, paths):
+    node = rclpy.create_node("pool_redundant", context=rclpy_context)
+    ev = RosEvaluator(node, config=load_config(paths["redundant"]), timeout_s=TIMEOUT_S, retries=3)
+    listener = NodeStatsListener(rclpy.create_node("pool_stats_r", context=rclpy_context))
+    try:
+        ev.wait_for_instances("wait", 3, 60.0)
+        before = {i: d["counts"].get("answered", 0) for i, d in listener.latest.items()}
+        batch = _batch(20)
+        res = ev.evaluate([("wait", batch)])[0]
+        assert np.array_equal(res.outputs["wait_value"], _reference(batch))
+        assert [a[1] for a in ev.accepted] == ["wait"] and not ev.pool_summary()
+        waits = lambda l: [i for i, d in l.latest.items() if d["discipline"] == "wait"  # noqa: E731
+                           and d["counts"].get("answered", 0) > before.get(i, 0)]
+        assert listener.wait(lambda l: len(waits(l)) == 3, 10.0)  # all three answered the whole batch
+    finally:
+        listener.close()
+        ev.close()
+        node.destroy_node()
+
+
+def test_instance_with_other_configuration_is_refused_with_the_difference(evaluator, launcher, paths):
+    launcher.add("wait#other", discipline_argv("wait", str(paths["other"]), instance="wx"))
+    try:
+        evaluator.wait_for_instances("wait", 3, 60.0)
+        deadline = 200
+        while not any(k.startswith("wait ") for k in evaluator.refused) and deadline:
+            evaluator._executor.spin_once(timeout_sec=0.1)
+            deadline -= 1
+        why = [w for k, w in evaluator.refused.items() if k.startswith("wait ")]
+        assert why and "options.wait_s_per_design: 0.003 (this run: 0.002)" in why[0], evaluator.refused
+        batch = _batch(64)
+        res = evaluator.evaluate([("wait", batch)])[0]
+        assert np.array_equal(res.outputs["wait_value"], _reference(batch))
+        assert not any("wx" in i for i in _points(evaluator))  # it got no share
+    finally:
+        launcher.remove("wait#other")
+
+
+def test_joining_instance_gets_work_from_the_next_batch(evaluator, launcher, paths):
+    evaluator.wait_for_instances("wait", 3, 60.0)
+    evaluator.evaluate([("wait", _batch(60))])
+    launcher.add("wait#3", discipline_argv("wait", str(paths["base"]), instance="w3"))
+    try:
+        live = evaluator.wait_for_instances("wait", 4, 60.0)
+        batch = _batch(120, seed=3)
+        before = _points(evaluator)
+        res = evaluator.evaluate([("wait", batch)])[0]
+        assert np.array_equal(res.outputs["wait_value"], _reference(batch))
+        new = [i for i in live if "w3" in i]
+        assert new and _points(evaluator)[new[0]] - before.get(new[0], 0) >= 1
+    finally:
+        launcher.remove("wait#3")
+
+
+def test_a_stalled_instance_has_its_share_re_sent(evaluator, launcher, paths, ros_domain, tmp_path):
+    stalled = Launcher({**_env(ros_domain), "BEV_POOL_STALL_S": str(3 * TIMEOUT_S)}, log_dir=tmp_path)
+    stalled.add("wait#stall", discipline_argv("wait", str(paths["base"]), instance="ws"))
+    try:
+        live = evaluator.wait_for_instances("wait", 4, 60.0)
+        slow = [i for i in live if i.endswith("_ws")][0]
+        batch = _batch(200, seed=4)
+        res = evaluator.evaluate([("wait", batch)])[0]
+        assert res.ok.all(), res.error
+        assert np.array_equal(res.outputs["wait_value"], _reference(batch))  # nothing lost, nothing doubled
+        st = evaluator.pools["wait"].stats[slow]
+        assert st.failures == 1 and st.points == 0 and st.reassigned_points >= 1
+        assert slow in evaluator.pools["wait"].suspect and evaluator.retried >= 1
+        # the next batch goes to the others only
+        res = evaluator.evaluate([("wait", _batch(30))])[0]
+        assert res.ok.all() and evaluator.pools["wait"].stats[slow].points == 0
+    finally:
+        stalled.stop()
+
+
+def test_optimisation_with_an_energy_pool_equals_in_process(rclpy_context, launcher, paths):
+    config = load_config(paths["base"])
+    res, stats = coordinator_node.run(config, context=rclpy_context, instances={"energy": 2, "wait": 3})
+    ref = run_optimization(copy.deepcopy(config), InProcessEvaluator(resolve_disciplines(config)))
+    assert res.success == ref.success
+    assert res.objective == ref.objective  # bitwise: the pool changes who computes, not what
+    assert res.design == ref.design
+    assert stats["data_flow_mdas"] == 0  # pools run in waves (docs/scaling.md)
+    energy = stats["pools"]["energy"]
+    assert len(energy) == 2 and all(s["points"] > 0 for s in energy.values()), energy
+
+
+def test_status_lists_live_instances_with_host_and_throughput(rclpy_context, evaluator):
+    import socket
+
+    from bev_mdo.ros.status import collect, format_table
+
+    evaluator.wait_for_instances("wait", 3, 60.0)
+    evaluator.evaluate([("wait", _batch(90))])
+    node = rclpy.create_node("pool_status", context=rclpy_context)
+    try:
+        rows = [r for r in collect(node, 1.0) if r["discipline"] == "wait"]
+    finally:
+        node.destroy_node()
+    live = {r["instance"] for r in rows if r["live"]}
+    assert {f"wait_node_w{k}" for k in range(3)} <= live, rows
+    for r in rows:
+        if r["instance"] in {f"wait_node_w{k}" for k in range(3)}:
+            assert r["host"] == socket.gethostname() and r["points"] >= 1 and r["capacity_points_per_s"] > 0
+    assert "wait_node_w0" in format_table(rows)
+
+
+def test_sigkill_mid_batch_loses_no_design(evaluator, launcher):
+    live = evaluator.wait_for_instances("wait", 3, 60.0)
+    batch = _batch(600, seed=5)  # 1.2 s of waiting, about 0.4 s per instance
+    victim = "wait#1"
+    killer = threading.Timer(0.15, lambda: launcher.kill(victim))
+    killer.start()
+    try:
+        before = sum(_points(evaluator).values())
+        res = evaluator.evaluate([("wait", batch)])[0]
+    finally:
+        killer.join()
+    assert res.ok.all(), res.error
+    assert np.array_equal(res.outputs["wait_value"], _reference(batch))
+    assert sum(_points(evaluator).values()) - before == 600  # every row accepted exactly once
+    dead = [i for i in live if i.endswith("_w1")][0]
+    assert evaluator.pools["wait"].stats[dead].failures == 1

@@ -1,0 +1,78 @@
+"""Worker pools without ROS: the split of a batch among instances, throughput, suspects; launch plans."""
+from __future__ import annotations
+
+import pytest
+
+from bev_mdo.ros import binding
+from bev_mdo.ros.pool import Pool, split_rows, validate_mode
+
+
+def _cover(parts, n):
+    rows = [r for _, a, b in parts for r in range(a, b)]
+    return rows == list(range(n))
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 3, 7, 64, 1000, 1023])
+@pytest.mark.parametrize("weights", [[1.0], [1.0, 1.0], [1.0, 3.0], [5.0, 1.0, 1.0, 0.01], [1.0] * 8])
+def test_split_covers_every_row_once_in_order(n, weights):
+    names = [f"i{k}" for k in range(len(weights))]
+    parts = split_rows(n, names, weights)
+    assert _cover(parts, n)
+    if n >= len(weights):  # everyone gets at least one row, so everyone stays measured
+        assert [p[0] for p in parts] == names
+
+
+def test_split_is_proportional_to_throughput():
+    parts = split_rows(1000, ["a", "b"], [100.0, 300.0])
+    assert [(b - a) for _, a, b in parts] == [250, 750]
+
+
+def test_pool_weights_from_measured_throughput_and_suspects():
+    pool = Pool("energy")
+    for i in ("a", "b", "c"):
+        pool.revive(i)
+    assert [b - a for _, a, b in pool.split(90, ["a", "b", "c"])] == [30, 30, 30]  # nothing measured: equal
+    pool.record("a", 100, 1.0)   # 100 points/s
+    pool.record("b", 100, 0.5)   # 200 points/s; c unmeasured counts as the mean, 150
+    assert [b - a for _, a, b in pool.split(900, ["a", "b", "c"])] == [200, 400, 300]
+    pool.fail("b", 40)
+    assert "b" in pool.suspect and pool.stats["b"].failures == 1 and pool.stats["b"].reassigned_points == 40
+    pool.revive("b")  # it declared itself again
+    assert "b" not in pool.suspect
+    assert pool.stats["a"].to_dict()["throughput_points_per_s"] == 100.0
+
+
+def test_mode_is_validated():
+    assert validate_mode("redundant") == "redundant"
+    with pytest.raises(ValueError, match="ros.pool"):
+        validate_mode("shared")
+
+
+def test_target_tag_round_trip():
+    tag = binding.target_tag("energy", "0123456789abcdef", "/energy_node_1")
+    entry = binding.parse_tag(tag)["energy"]
+    assert binding.split_target(entry) == ("0123456789abcdef", "energy_node_1")
+    assert binding.split_target("0123456789abcdef") == ("0123456789abcdef", "")
+
+
+def test_launch_plan_instances_and_compose():
+    from bev_mdo.ros.launch import parse_compose, parse_instances, plan_processes
+
+    names = ["vehicle_mass", "energy", "range", "cost"]
+    assert parse_instances("energy=3", names) == {"vehicle_mass": 1, "energy": 3, "range": 1, "cost": 1}
+    assert set(parse_instances("2", names).values()) == {2}
+    for bad in ("motor=2", "energy=x", "energy=0"):
+        with pytest.raises(ValueError, match="--instances"):
+            parse_instances(bad, names)
+    assert parse_compose("all", names) == [names]
+    assert parse_compose("none", names) == [[n] for n in names]
+    assert parse_compose("vehicle_mass+range", names) == [["vehicle_mass", "range"], ["energy"], ["cost"]]
+    with pytest.raises(ValueError, match="two groups"):
+        parse_compose("range+cost,cost", names)
+    plan = plan_processes(names, "/tmp/c.yaml", run_id="r", instance="ab",
+                          instances={"energy": 2}, compose="all")
+    labels = [label for label, _ in plan]
+    assert labels == ["vehicle_mass+range+cost", "energy#0", "energy#1"]
+    composed = plan[0][1]
+    assert "composed_node" in composed and "disciplines:=vehicle_mass,range,cost" in composed
+    assert "instance:=energy_node_ab_1" in plan[2][1] and "run_id:=r" in plan[2][1]
