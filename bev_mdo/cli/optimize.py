@@ -17,7 +17,6 @@ import time
 import uuid
 from pathlib import Path
 
-from bev_mdo.cli import UsageError
 
 
 def register(sub) -> None:

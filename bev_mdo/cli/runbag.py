@@ -37,7 +37,6 @@ class InProcessBag:
         self.seq = 0
 
     def __call__(self, rec: Mapping[str, Any]) -> None:
-        import numpy as np
         from rclpy.serialization import serialize_message
 
         from bev_mdo.ros import wire
@@ -47,19 +46,7 @@ class InProcessBag:
         msg = IterationRecord()
         stamp(msg.header)
         self.seq += 1
-        msg.run_id, msg.sequence, msg.iteration = self.run_id, self.seq, int(rec["iteration"])
-        msg.formulation, msg.optimizer = str(rec.get("formulation", "")), str(rec.get("optimizer", ""))
-        wire.to_named_array({k: np.array([float(v)]) for k, v in rec["design"].items()}, msg.design)
-        msg.objective_name, msg.objective = str(rec.get("objective_name", "")), float(rec["objective"])
-        wire.to_named_array({k: np.array([float(v)]) for k, v in rec.get("constraints", {}).items()},
-                            msg.constraints)
-        msg.max_violation = float(rec.get("max_violation", 0.0))
-        msg.feasible = bool(rec.get("feasible", False))
-        msg.mda_evaluations = int(rec.get("mda_evaluations", 0))
-        counts = rec.get("discipline_evaluations", {})
-        msg.discipline_names = list(counts)
-        msg.discipline_evaluations = [int(v) for v in counts.values()]
-        msg.wall_time_s = float(rec.get("wall_time_s", 0.0))
+        wire.fill_iteration_record(msg, rec, self.run_id, self.seq)
         t = time.time_ns()
         self.writer.write(self.topic, serialize_message(msg), t, t, self.seq)
 

@@ -165,7 +165,7 @@ def check_outputs(disc_name: str, raw: Any, outputs: Sequence[str], sizes: Mappi
                     v = v[:, 0]
                 else:
                     raise ShapeError(f"discipline {disc_name!r}: output {k!r} has shape {v.shape}, expected {want} "
-                                     "(one value per point" + (f" and element" if size else "") + "; list it in "
+                                     "(one value per point" + (" and element" if size else "") + "; list it in "
                                      "broadcast_outputs to broadcast a constant on purpose)")
         out[k] = v
     return out

@@ -12,7 +12,6 @@ import time
 import uuid
 from typing import Any, Callable, Mapping
 
-import numpy as np
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -57,23 +56,7 @@ class CoordinatorNode(Node):
         msg = IterationRecord()
         stamp(msg.header)
         self._seq += 1
-        msg.run_id = self.run_id
-        msg.sequence = self._seq
-        msg.iteration = int(rec["iteration"])
-        msg.formulation = str(rec.get("formulation", ""))
-        msg.optimizer = str(rec.get("optimizer", ""))
-        wire.to_named_array({k: np.array([float(v)]) for k, v in rec["design"].items()}, msg.design)
-        msg.objective_name = str(rec.get("objective_name", ""))
-        msg.objective = float(rec["objective"])
-        wire.to_named_array({k: np.array([float(v)]) for k, v in rec.get("constraints", {}).items()},
-                            msg.constraints)
-        msg.max_violation = float(rec.get("max_violation", 0.0))
-        msg.feasible = bool(rec.get("feasible", False))
-        msg.mda_evaluations = int(rec.get("mda_evaluations", 0))
-        counts = rec.get("discipline_evaluations", {})
-        msg.discipline_names = list(counts)
-        msg.discipline_evaluations = [int(v) for v in counts.values()]
-        msg.wall_time_s = float(rec.get("wall_time_s", 0.0))
+        wire.fill_iteration_record(msg, rec, self.run_id, self._seq)
         if self.evaluator.signer is not None:
             self.evaluator.signer.sign_iteration(msg)
         self._iteration_pub.publish(msg)

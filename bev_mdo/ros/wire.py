@@ -393,3 +393,20 @@ def decode_result(data) -> Result:
     m.signature, pos = _string(data, pos)
     m.partials = _named(data, pos)[0]
     return m
+
+
+def fill_iteration_record(msg, rec: Mapping, run_id: str, sequence: int):
+    """Fill an IterationRecord (header stamped by the caller) from a driver iteration record dict."""
+    msg.run_id, msg.sequence, msg.iteration = run_id, int(sequence), int(rec["iteration"])
+    msg.formulation, msg.optimizer = str(rec.get("formulation", "")), str(rec.get("optimizer", ""))
+    to_named_array({k: np.array([float(v)]) for k, v in rec["design"].items()}, msg.design)
+    msg.objective_name, msg.objective = str(rec.get("objective_name", "")), float(rec["objective"])
+    to_named_array({k: np.array([float(v)]) for k, v in rec.get("constraints", {}).items()}, msg.constraints)
+    msg.max_violation = float(rec.get("max_violation", 0.0))
+    msg.feasible = bool(rec.get("feasible", False))
+    msg.mda_evaluations = int(rec.get("mda_evaluations", 0))
+    counts = rec.get("discipline_evaluations", {})
+    msg.discipline_names = list(counts)
+    msg.discipline_evaluations = [int(v) for v in counts.values()]
+    msg.wall_time_s = float(rec.get("wall_time_s", 0.0))
+    return msg
