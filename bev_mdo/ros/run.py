@@ -21,6 +21,9 @@ OTHER_EXES = ("discipline_node", "coordinator_node", "recorder_node", "composed_
 
 def run(exe: str, args: list[str] | None = None) -> int:
     """Run one node executable by name."""
+    if exe in DISCIPLINE_EXES or exe in OTHER_EXES:
+        # say so at once: importing rclpy, the messages and the models takes a few seconds on a small host
+        print(f"{exe}: starting (loading ROS 2 and the models)", file=sys.stderr, flush=True)
     if exe in DISCIPLINE_EXES or exe == "discipline_node":
         from bev_mdo.ros.discipline_node import main
 
