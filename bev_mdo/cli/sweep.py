@@ -168,7 +168,7 @@ def write_csv(path: Path, result: dict) -> None:
                                                      result["errors"][i]])
 
 
-def plot_output(result: dict, output: str, varied: list[str], path: Path):
+def plot_output(result: dict, output: str, varied: list[str], path: Path, baseline: dict | None = None):
     """One PNG: ``output`` against the first varied variable, one line per value of the second
     (if any; further varied variables: one panel per value of the third is too much, they are
     overlaid); feasible points filled, infeasible hollow red x; constraint limits dashed."""
@@ -197,6 +197,9 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path):
         ax.plot(xs, ys, "-", color=colour, lw=1, alpha=0.7, label=lab)
         ax.plot(xs[fs], ys[fs], "o", color=colour, ms=5)
         ax.plot(xs[~fs], ys[~fs], "x", color="C3", ms=7, mew=1.5)
+    if baseline and varied[0] in baseline["design"] and output in baseline["outputs"]:
+        ax.plot([baseline["design"][varied[0]]], [baseline["outputs"][output]], "*", color="k", ms=12,
+                label=f"baseline ({baseline['name']})")
     ax.plot([], [], "o", color="0.4", label="feasible")
     ax.plot([], [], "x", color="C3", label="infeasible")
     for c in problem.constraints:
@@ -221,6 +224,22 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path):
     return fig, ax
 
 
+def _baseline(config) -> dict | None:
+    """The config's ``problem.baseline`` analysed in process (None without one, or if it fails)."""
+    base = (config.get("problem") or {}).get("baseline")
+    if not base:
+        return None
+    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.mdo.driver import evaluate_design
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+
+    try:
+        rep = evaluate_design(config, InProcessEvaluator(resolve_disciplines(config)), base["design"])
+    except ValueError:
+        return None
+    return {"name": base["name"], "design": dict(base["design"]), "outputs": rep["outputs"]}
+
+
 def run(args) -> int:
     from bev_mdo.cli.evaluate import parse_assignments
     from bev_mdo.config import load_config
@@ -242,18 +261,20 @@ def run(args) -> int:
     write_csv(out / "sweep.csv", result)
     written = [out / "sweep.csv"]
     if not args.no_plots:
+        baseline = _baseline(config)
         for o in result["outputs"]:
             if o in varied:
                 continue
             p = out / f"{o}.png"
-            plot_output(result, o, varied, p)
+            plot_output(result, o, varied, p, baseline)
             written.append(p)
     feas = result["feasible"]
     print(f"{n} designs in one batch ({args.transport}): {int(feas.sum())} feasible, {int((~feas).sum())} infeasible, "
           f"{int((~result['ok']).sum())} failed")
     if feas.any():
         obj = result["outputs"][result["objective"]]
-        i = int(np.argmin(np.where(feas, obj, np.inf)))
+        maximize = bool(getattr(result["problem"], "maximize", False))
+        i = int(np.argmax(np.where(feas, obj, -np.inf)) if maximize else np.argmin(np.where(feas, obj, np.inf)))
         best = ", ".join(f"{k}={result['design'][k][i]:.6g}" for k in result["design"])
         print(f"best feasible {result['objective']} = {obj[i]:.6g} at {best}")
     for p in written:
