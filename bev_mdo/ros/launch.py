@@ -55,10 +55,11 @@ def discipline_argv(name: str, config_path: str, instance: str = "", run_id: str
         argv += ["-p", f"discipline:={name}"]
     node_name = f"{name}_node" + (f"_{instance}" if instance else "")
     argv += ["-r", f"__node:={node_name}"]
+    # quoted: a hex run id of digits only ("1234...") would otherwise be parsed as a number
     if instance:
-        argv += ["-p", f"instance:={node_name}"]
+        argv += ["-p", f"instance:='{node_name}'"]
     if run_id:
-        argv += ["-p", f"run_id:={run_id}"]
+        argv += ["-p", f"run_id:='{run_id}'"]
     return argv
 
 

@@ -75,4 +75,4 @@ def test_launch_plan_instances_and_compose():
     assert labels == ["vehicle_mass+range+cost", "energy#0", "energy#1"]
     composed = plan[0][1]
     assert "composed_node" in composed and "disciplines:=vehicle_mass,range,cost" in composed
-    assert "instance:=energy_node_ab_1" in plan[2][1] and "run_id:=r" in plan[2][1]
+    assert "instance:='energy_node_ab_1'" in plan[2][1] and "run_id:='r'" in plan[2][1]
