@@ -80,8 +80,8 @@ class NamingInProcessEvaluator(InProcessEvaluator):
         super().__init__(discs)
         self.errors = errors or FirstErrors()
 
-    def evaluate(self, calls):
-        results = super().evaluate(calls)
+    def evaluate(self, calls, **kw):  # kw: partials=... as InProcessEvaluator.evaluate takes it
+        results = super().evaluate(calls, **kw)
         for (name, _), res in zip(calls, results):
             if res.error:
                 self.errors.note(name, res.error)
