@@ -29,19 +29,10 @@ sys.path.insert(0, str(REPO))
 DOMAIN = 67
 
 
-def _children(pid: int) -> dict[int, str]:
-    out = {}
-    for task in Path(f"/proc/{pid}/task").iterdir():
-        for child in (task / "children").read_text().split():
-            try:
-                out[int(child)] = Path(f"/proc/{child}/cmdline").read_bytes().decode(errors="replace")
-            except OSError:
-                pass
-    return out
 
 
 def run_once(config: Path, cwd: Path, bag: Path, kill: bool) -> dict:
-    from bev_mdo.testing import ros_env
+    from bev_mdo.testing import child_processes, ros_env
 
     p = subprocess.Popen([sys.executable, "-m", "bev_mdo", "optimize", str(config), "--domain-id", str(DOMAIN),
                           "--bag", str(bag), "--json"], cwd=cwd, env=ros_env(DOMAIN), stdout=subprocess.PIPE,
@@ -49,7 +40,7 @@ def run_once(config: Path, cwd: Path, bag: Path, kill: bool) -> dict:
     killed = 0
     for line in p.stderr:
         if kill and not killed and line.startswith("iter"):
-            for pid, cmd in _children(p.pid).items():
+            for pid, cmd in child_processes(p.pid).items():
                 if "vehicle_mass_node" in cmd or "recorder_node" in cmd:
                     os.kill(pid, signal.SIGKILL)  # a child of the run this script started, by id
                     killed += 1

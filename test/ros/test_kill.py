@@ -25,7 +25,7 @@ pytest.importorskip("rclpy")
 from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
-from bev_mdo.testing import PYTHON, REPO, ros_env  # noqa: E402
+from bev_mdo.testing import PYTHON, REPO, child_processes, ros_env  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -37,15 +37,6 @@ def config_path(tmp_path_factory):
     return str(p)
 
 
-def _children(pid: int) -> dict[int, str]:
-    out = {}
-    for task in Path(f"/proc/{pid}/task").iterdir():
-        for child in (task / "children").read_text().split():
-            try:
-                out[int(child)] = Path(f"/proc/{child}/cmdline").read_bytes().decode(errors="replace")
-            except OSError:
-                pass
-    return out
 
 
 def run_cli(config_path, domain, cwd: Path, bag: Path, kill: tuple[str, ...] = ()) -> tuple[int, dict, str]:
@@ -60,7 +51,7 @@ def run_cli(config_path, domain, cwd: Path, bag: Path, kill: tuple[str, ...] = (
     for line in p.stderr:
         err_lines.append(line)
         if kill and not killed and line.startswith("iter"):
-            for pid, cmd in _children(p.pid).items():
+            for pid, cmd in child_processes(p.pid).items():
                 if any(f"{k}_node" in cmd for k in kill):
                     os.kill(pid, signal.SIGKILL)  # a child of the run we started, by its id
                     killed.append(cmd)

@@ -11,6 +11,15 @@ from bev_mdo.testing import REPO, ros_env
 pytestmark = pytest.mark.ros
 
 
+def _stop(p: subprocess.Popen) -> None:
+    p.terminate()
+    try:
+        p.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        p.wait()
+
+
 def test_a_node_announces_itself_before_loading_ros(ros_domain):
     p = subprocess.Popen([sys.executable, "-m", "bev_mdo.ros.run", "cost_node", "--ros-args", "-p",
                           f"config:={REPO / 'config' / 'leaf_nedc.yaml'}"],
@@ -18,12 +27,7 @@ def test_a_node_announces_itself_before_loading_ros(ros_domain):
     try:
         first = p.stderr.readline()
     finally:
-        p.terminate()
-        try:
-            p.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            p.kill()
-            p.wait()
+        _stop(p)
     assert first.startswith("cost_node: starting"), first
 
 
@@ -41,10 +45,5 @@ def test_a_node_bound_to_an_all_digit_run_id_serves_it(ros_domain):
             if "serving 'cost'" in line or len(lines) > 50:
                 break
     finally:
-        p.terminate()
-        try:
-            p.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            p.kill()
-            p.wait()
+        _stop(p)
     assert any("bound to run 12345678" in line for line in lines), "".join(lines)[-2000:]
