@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from bev_mdo.config import plain
+
 OBJECTIVES = ("energy_wh_per_km", "accel_time_0_100_s", "powertrain_cost_usd")
 TOPOLOGY_DISCIPLINES = ("vehicle_mass", "energy", "acceleration", "cost", "cycle_range")
 # design-variable bounds per topology (motor power per motor); used when --topology changes it
@@ -244,7 +246,7 @@ class _InProcSession:
 
         from bev_mdo.ros.pareto_publisher import BagSink
 
-        self.sink = BagSink(bag, {"run_id": run_id, "config_yaml": yaml.safe_dump(_plain(raw), sort_keys=False)})
+        self.sink = BagSink(bag, {"run_id": run_id, "config_yaml": yaml.safe_dump(plain(raw), sort_keys=False)})
         self.stats = {}
 
     def evaluator(self, cfg, topology):
@@ -288,7 +290,7 @@ class _RosSession:
 
         self.ros = with_run_key({"ros": self.ros}, self.logs)["ros"]  # signed by default (docs/security.md)
         resolved = self.logs / "config.yaml"
-        resolved.write_text(yaml.safe_dump(_plain({**self.raw, "ros": self.ros}), sort_keys=False))
+        resolved.write_text(yaml.safe_dump(plain({**self.raw, "ros": self.ros}), sort_keys=False))
         self.launcher = Launcher(ros_environment(self.ros), log_dir=self.logs)
         try:
             self.recorder = _start_recorder(self.launcher, self.bag, resolved, self.run_id)
@@ -317,7 +319,7 @@ class _RosSession:
         logs = self.logs / topology
         logs.mkdir(parents=True, exist_ok=True)
         resolved = logs / "config.yaml"
-        resolved.write_text(yaml.safe_dump(_plain(cfg), sort_keys=False))
+        resolved.write_text(yaml.safe_dump(plain(cfg), sort_keys=False))
         for entry in discipline_entries(cfg):
             label = f"{topology}/{entry['name']}"
             self.launcher.add(label, discipline_argv(entry["name"], str(resolved.resolve()),
@@ -392,16 +394,6 @@ class _RosSession:
             if self.launcher is not None:
                 self.launcher.stop(first=("recorder",))
                 self.stats["node_restarts"] = {n.label: n.restarts for n in self.launcher.nodes if n.restarts}
-
-
-def _plain(obj):
-    if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, np.generic):
-        return obj.item()
-    return obj
 
 
 def _write_front(path: Path, res) -> None:
