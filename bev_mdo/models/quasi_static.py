@@ -3,12 +3,15 @@
 On each cycle step of length h the vehicle runs at the mean speed v_bar and the step's
 acceleration a_bar (6-50, 6-51). Per step, vectorised over time x design points:
 
-    F   = 1/2 rho C_dA v_bar^2 + C_r M g + M a_bar           (2-3 / 6-53, flat road)
+    F   = 1/2 rho C_dA v_bar^2 + C_r M g + M a_bar           (2-3 / 6-53, flat road; road_load.py)
     w_w = v_bar / r_w,  T_w = F r_w                          (2-1, 2-2)
     i_g = gear_ratio, or gear_ratio_2 at v_bar >= shift speed (2-6, two-speed)
     w_m = w_w i_g,  T_m = T_w / (i_g eta_g) driving          (2-4, 2-5)
                     T_m = T_w eta_g / i_g braking
     P_m = T_m w_m / eta_m (driving), T_m w_m eta_m (regen)   (2-7, 2-8 motor map)
+
+The road load is road_load.py's, as in every model: it acts while the vehicle moves, so a
+standing step has no wheel force (it never cost energy: the motor does no work at zero speed).
 
 Regenerative braking (§2.3.4): the motor brakes with max(T_required, -T_max(w)) (2-25),
 none below 10 km/h, none beyond 0.7 g deceleration, none above 90 % SOC, and the charge

@@ -1,10 +1,10 @@
 """Road load, the one function every model uses: the thesis' eq 2-3 / 7-18 or a coast-down.
 
-:func:`road_load_n` is F_road = 1/2 rho C_dA v|v| + C_r M g sgn(v) (eq 2-3 / 7-18; rolling
-resistance acts while the vehicle moves), or, when the parameters carry coast-down coefficients,
-F_road = A + B v + C v^2 while moving (EPA target coefficients, zero at standstill).
-:func:`road_load_terms` gives the same force split as f_0(v) + f_M(v) M (and df_0/dv) for the
-models that precompute cycle moments.
+Both forms are F_road = (A0 + A1 M) sgn(v) + B v + C v|v| (:func:`coefficients`): the thesis'
+1/2 rho C_dA v|v| + C_r M g sgn(v) (rolling resistance acts while the vehicle moves), or the
+coast-down A + B v + C v^2 while moving (EPA target coefficients), zero at standstill.
+:func:`road_load_n` is the force; :func:`road_load_terms` the same force split as f_0(v) + f_M(v) M
+(with df_0/dv) for the models that precompute cycle moments.
 
 Road load as users measure it: F = A + B v + C v^2 from a coast-down (EPA target coefficients).
 
@@ -40,7 +40,13 @@ def uses_road_load(params: Mapping[str, Any] | None) -> bool:
 
 
 def coefficients(params: Mapping[str, Any]) -> tuple[Any, Any, Any, Any]:
-    """(A fixed part in N, A per kg of vehicle mass in N/kg, B, C) of a road-load parameter set."""
+    """(A0, A1, B, C) of the road load F = (A0 + A1 M) sgn(v) + B v + C v|v| (N; M in kg, v in m/s).
+
+    Coast-down: A0 = A (0 when it scales with the mass), A1 = A / mass_kg (0 when fixed), B, C.
+    Thesis (eq 2-3 / 7-18): A0 = 0, A1 = C_r g, B = 0, C = 1/2 rho C_dA."""
+    if not uses_road_load(params):
+        return (0.0, params["rolling_resistance"] * params["gravity_m_s2"], 0.0,
+                0.5 * params["air_density_kg_m3"] * params["drag_area_m2"])
     a = np.asarray(params["road_load_a_n"], float)
     m_ref = np.asarray(params.get("road_load_mass_kg", 0.0), float)
     scaled = m_ref > 0
@@ -55,24 +61,21 @@ def _scalar(x):
     return float(x) if np.ndim(x) == 0 else x
 
 
-def road_load_terms(params: Mapping[str, Any], speed_m_s) -> tuple[Any, Any, Any]:
-    """The road load at speeds ``speed_m_s`` as (f_0, f_M, df_0/dv): F_road = f_0 + f_M M (N).
-
-    Thesis (eq 2-3 / 7-18): f_0 = 1/2 rho C_dA v|v|, f_M = C_r g sgn(v). Coast-down:
-    f_0 = A_fixed + B v + C v^2 and f_M = A_per_kg while moving (v > 0), both 0 at standstill.
-    ``params`` hold the vehicle parameters (scalars or arrays broadcasting against the speed)."""
-    v = np.asarray(speed_m_s, float)
-    if uses_road_load(params):
-        a0, a1, b, c = coefficients(params)
-        moving = v > 0
-        return (np.where(moving, a0 + b * v + c * v * v, 0.0), np.where(moving, a1, 0.0), b + 2.0 * c * v)
-    rho_cda = params["air_density_kg_m3"] * params["drag_area_m2"]
-    return (0.5 * rho_cda * v * np.abs(v), params["rolling_resistance"] * params["gravity_m_s2"] * np.sign(v),
-            rho_cda * np.abs(v))
-
-
 def road_load_n(params: Mapping[str, Any], speed_m_s, mass_kg) -> np.ndarray:
-    """Road-load force (N) at ``speed_m_s`` for a vehicle of ``mass_kg`` (eq 2-3 / 7-18, or the
-    coast-down A + B v + C v^2); broadcasts speeds against designs."""
-    f0, f_m, _ = road_load_terms(params, speed_m_s)
-    return f0 + f_m * mass_kg
+    """Road-load force (N) at ``speed_m_s`` (>= 0) for a vehicle of ``mass_kg``: eq 2-3 / 7-18, or the
+    coast-down A + B v + C v^2; zero at standstill. Broadcasts speeds against designs."""
+    a0, a1, b, c = coefficients(params)
+    v = np.asarray(speed_m_s, float)
+    base = a0 + a1 * mass_kg
+    if v.size and v.min() > 0:  # moving throughout (the usual case): sgn(v) = 1, v|v| = v^2
+        return base + v * (b + c * v)
+    return base * np.sign(v) + v * (b + c * np.abs(v))
+
+
+def road_load_terms(params: Mapping[str, Any], speed_m_s) -> tuple[Any, Any, Any]:
+    """The same road load split as F_road = f_0 + f_M M, with the rate df_0/dv: (f_0, f_M, df_0/dv),
+    for the models that precompute cycle moments independent of the mass (flat.py)."""
+    a0, a1, b, c = coefficients(params)
+    v = np.asarray(speed_m_s, float)
+    s, speed = np.sign(v), np.abs(v)
+    return a0 * s + v * (b + c * speed), a1 * s, b + 2.0 * c * speed
