@@ -159,3 +159,27 @@ def test_every_allowed_edge_still_exists():
     edges = import_graph()
     gone = sorted(e for e in ALLOWED if e[2] not in edges.get((e[0], e[1]), set()))
     assert gone == [], f"remove these from ALLOWED, the import is gone: {gone}"
+
+
+def _documented_layers() -> dict[str, int]:
+    doc = (PACKAGE.parent / "docs" / "architecture.md").read_text(encoding="utf-8")
+    block = doc.split("<!-- models-layers:begin -->")[1].split("<!-- models-layers:end -->")[0]
+    layers = {}
+    for line in block.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) >= 2 and cells[0].isdigit():
+            for name in cells[1].replace("`", " ").split():
+                layers[f"bev_mdo.models.{name}"] = int(cells[0])
+    return layers
+
+
+def test_the_models_layers_match_the_imports():
+    layers = _documented_layers()
+    models = {m for m in modules() if m.startswith("bev_mdo.models.")}
+    assert set(layers) == models, f"documented but missing: {set(layers) - models}; " \
+                                  f"not documented: {models - set(layers)}"
+    upward = sorted((a, b) for a, b in import_graph() if a in layers and b in layers and layers[b] >= layers[a])
+    assert upward == [], f"imports from the same or a higher layer than docs/architecture.md says: {upward}"
+    # every layer but the ground floor uses the one below it (the table is not padded with empty floors)
+    used = {layers[b] for a, b in import_graph() if a in layers and b in layers}
+    assert used >= set(range(max(layers.values())))
