@@ -134,13 +134,12 @@ CHAIN_SPECS: dict[str, ParamSpec] = {
                                            "speed-proportional motor+inverter loss at base speed, / rated power (c_w)"),
     "motor_loss_copper_fraction": ParamSpec(0.08, 0.0, 1.0, "-",
                                             "motor+inverter loss at peak torque, / rated power (c_cu, x tau^2)"),
-    "regen_min_speed_m_s": ParamSpec(10.0 / 3.6, 0.0, 50.0, "m/s", "no regeneration below this speed"),
+    "regen_min_speed_m_s": QUASI_STATIC_SPECS["regen_min_speed_m_s"],
     "regen_max_power_kw": ParamSpec(150.0, 0.0, 1000.0, "kW", "regeneration power cap (battery charge limit)"),
     "regen_axle_share": ParamSpec(1.0, 0.0, 1.0, "-", "share of the braking force on the driven axle(s) "
                                   "(1 on a two-wheel dynamometer: the other axle stands still)"),
-    "battery_voltage_v": ParamSpec(345.0, 10.0, 1500.0, "V", "pack voltage (ch.5: 345 V)"),
-    "battery_discharge_resistance_ohm": ParamSpec(0.192, 0.0, 10.0, "ohm", "pack discharge resistance (ch.5)"),
-    "battery_charge_resistance_ohm": ParamSpec(0.216, 0.0, 10.0, "ohm", "pack charge resistance (ch.5)"),
+    **{k: BREAKDOWN_SPECS[k] for k in ("battery_voltage_v", "battery_discharge_resistance_ohm",
+                                       "battery_charge_resistance_ohm")},
     "aux_power_w": ParamSpec(0.0, 0.0, 10000.0, "W", "auxiliary load while the cycle runs (12 V, cooling, HVAC)"),
     "charger_efficiency": ParamSpec(1.0, 0.5, 1.0, "-", "wall-to-battery efficiency of a charge (1 = none)"),
 }
