@@ -105,15 +105,21 @@ def inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh=DEFAULT_BA
     return m, ig, kw, p
 
 
-def demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> Demand:
-    """Per-step battery demand of the single-motor drive (eqs 2-1..2-8, 6-50/6-51, §2.3.4 rules 1-3)."""
+def cycle_steps(cycle):
+    """(dt, v_bar, a_bar) of every step as (K, 1) columns: step length, mean speed (6-50) and
+    acceleration (6-51). ValueError for a cycle that does not move. Also used by topology.py."""
     t = np.asarray(cycle.time_s, float)
     v = np.asarray(cycle.speed_m_s, float)
     dt = np.diff(t)[:, None]
     v_bar = 0.5 * (v[1:] + v[:-1])[:, None]  # 6-50
     if not np.sum(v_bar[:, 0] * dt[:, 0]) > 0:
         raise ValueError(f"drive cycle {getattr(cycle, 'name', '?')} has zero distance")
-    a_bar = np.diff(v)[:, None] / dt  # 6-51
+    return dt, v_bar, np.diff(v)[:, None] / dt  # 6-51
+
+
+def demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> Demand:
+    """Per-step battery demand of the single-motor drive (eqs 2-1..2-8, 6-50/6-51, §2.3.4 rules 1-3)."""
+    dt, v_bar, a_bar = cycle_steps(cycle)
     two = p["gear_count"] == 2.0
     mass = m + np.where(two, p["two_speed_added_mass_kg"], 0.0)
     eta_g = p["gear_efficiency"] - np.where(two, p["two_speed_efficiency_loss"], 0.0)

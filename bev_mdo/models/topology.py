@@ -326,13 +326,7 @@ def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map, with_tra
     """Per-step battery demand of a topology, as the quasi-static model's ``Demand``."""
     if t.name == "SM-SA":
         return qs.demand(resampled, p, m, ig, kw, base_map)
-    tt = np.asarray(resampled.time_s, float)
-    v = np.asarray(resampled.speed_m_s, float)
-    dt = np.diff(tt)[:, None]
-    v_bar = 0.5 * (v[1:] + v[:-1])[:, None]  # 6-50
-    if not np.sum(v_bar[:, 0] * dt[:, 0]) > 0:
-        raise ValueError(f"drive cycle {getattr(resampled, 'name', '?')} has zero distance")
-    a_bar = np.diff(v)[:, None] / dt  # 6-51
+    dt, v_bar, a_bar = qs.cycle_steps(resampled)  # 6-50, 6-51
     g, r_w = p["gravity_m_s2"], p["wheel_radius_m"]
     force = rl.road_load_n(p, v_bar, m) + m * a_bar  # 2-3 (or the coast-down road load)
     tw = force * r_w  # 2-1 (all driven wheels)
