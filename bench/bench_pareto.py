@@ -37,7 +37,8 @@ def bench(transport: str, pop: int, domain_id: int) -> list[dict]:
 
     import yaml
 
-    from bev_mdo.cli.pareto import _InProcSession, _RosSession, config_for_topology
+    from bev_mdo.cli.pareto import _InProcSession, _RosSession
+    from bev_mdo.studies.topologies import config_for_topology
     from bev_mdo.config import load_config
     from bev_mdo.models.topology import TOPOLOGIES
 

@@ -1,22 +1,29 @@
 """Speed of ``bev-mdo validate`` (issue 16): the whole training fleet on UDDS and HWFET, one batch per
-cycle, per energy model. Three figures per model, each the median and range over ``--runs`` runs:
+cycle. Every figure is the median and range over ``--runs`` runs; the process figures of this tree and
+of ``--baseline-rev`` (e.g. main, extracted with ``git archive``) alternate run by run, so both see the
+same host load.
 
-* ``compute``: predictions + error statistics (bev_mdo.cli.validate.evaluate), cycles and
-  parameter set already loaded in the process (what a second call in one process costs);
-* ``cold_in_process``: the same with every cache cleared (reads the fleet CSV, the cycle CSVs,
-  resamples, loads the parameter set);
-* ``cli_process`` (chain only): the whole ``python -m bev_mdo validate --json`` process, start-up included.
+* ``python -c pass`` and ``python -c "import numpy"``: the floor of any Python process using numpy on
+  this host (interpreter start with the venv's site hooks, then numpy's own import).
+* ``validate process``: the whole ``python -m bev_mdo validate --json`` process, start-up included.
+* ``validate after numpy``: in a fresh process that has already imported numpy, the time of
+  ``from bev_mdo.cli import main; main(["validate", "--json"])``: everything bev_mdo adds (its imports,
+  yaml, reading the fleet, the cycles and the parameter set, the model, the JSON), output to a buffer.
+* ``compute``: predictions and statistics (bev_mdo.cli.validate.evaluate) per energy model, everything
+  already loaded in the process (what a second call costs).
 
-Writes bench/results/bench_validate.json.
+Writes bench/results/bench_validate.json (schema of bench/_results.py).
+
+    python bench/bench_validate.py [--runs 11] [--baseline-rev main] [--models chain flat ...]
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -24,61 +31,97 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
+
+import _results  # noqa: E402
 
 from bev_mdo.cli.validate import evaluate  # noqa: E402
-from bev_mdo.models import chain, cycles, fleet  # noqa: E402
+from bev_mdo.models import fleet  # noqa: E402
+
+AFTER_NUMPY = """
+import contextlib, io, json, time
+import numpy
+t0 = time.perf_counter()
+from bev_mdo.cli import main
+with contextlib.redirect_stdout(io.StringIO()):
+    code = main(["validate", "--json"])
+print(json.dumps({"ms": (time.perf_counter() - t0) * 1e3, "code": code}))
+"""
 
 
-def _clear():
-    cycles._CACHE.clear()
-    chain._STEPS.clear()
+def _process_ms(argv, pythonpath: Path) -> float:
+    env = {**os.environ, "PYTHONPATH": str(pythonpath)}
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, *argv], env=env, check=True, stdout=subprocess.DEVNULL, cwd=tempfile.gettempdir())
+    return (time.perf_counter() - t0) * 1e3
 
 
-def _stats(ts):
-    ts = np.asarray(ts) * 1e3
-    return {"median_ms": float(np.median(ts)), "min_ms": float(ts.min()), "max_ms": float(ts.max()), "runs": len(ts)}
+def _after_numpy_ms(pythonpath: Path) -> float:
+    env = {**os.environ, "PYTHONPATH": str(pythonpath)}
+    p = subprocess.run([sys.executable, "-c", AFTER_NUMPY], env=env, check=True, capture_output=True, text=True,
+                       cwd=tempfile.gettempdir())
+    out = json.loads(p.stdout.strip().splitlines()[-1])
+    assert out["code"] == 0, p.stderr
+    return out["ms"]
+
+
+def _extract(rev: str) -> Path:
+    """The bev_mdo package of git revision ``rev``, in a temporary folder (for a side-by-side baseline)."""
+    d = Path(tempfile.mkdtemp(prefix="bench_validate_"))
+    archive = subprocess.run(["git", "archive", rev, "bev_mdo"], cwd=ROOT, check=True, capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(d)], input=archive, check=True)
+    return d
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--runs", type=int, default=15)
+    ap.add_argument("--runs", type=int, default=11)
+    ap.add_argument("--baseline-rev", default=None, help="also measure the processes of this git revision")
     ap.add_argument("--models", nargs="+", default=list(fleet.ENERGY_MODELS))
     args = ap.parse_args(argv)
-    out = {"host": platform.node(), "python": platform.python_version(), "numpy": np.__version__,
-           "vehicles": len(fleet.read_fleet()), "cycles": list(fleet.CYCLES), "models": {}}
+    load_start = os.getloadavg()[0]
+    trees = {"this tree": ROOT}
+    if args.baseline_rev:
+        trees[f"{args.baseline_rev} (before)"] = _extract(args.baseline_rev)
+    proc: dict = {k: [] for k in ("pass", "numpy")}
+    for name in trees:
+        proc[("process", name)] = []
+        proc[("after_numpy", name)] = []
+    for _ in range(args.runs):  # alternate everything run by run: the same load for all
+        proc["pass"].append(_process_ms(["-c", "pass"], ROOT))
+        proc["numpy"].append(_process_ms(["-c", "import numpy"], ROOT))
+        for name, path in trees.items():
+            proc[("process", name)].append(_process_ms(["-m", "bev_mdo", "validate", "--json"], path))
+            proc[("after_numpy", name)].append(_after_numpy_ms(path))
+    figures = [
+        _results.figure("`python -c pass` (interpreter start, the venv's site hooks)", "ms", proc["pass"]),
+        _results.figure("`python -c \"import numpy\"` (the floor of any numpy process)", "ms", proc["numpy"]),
+    ]
+    for name in trees:
+        figures.append(_results.figure(f"`bev-mdo validate --json` whole process, {name}", "ms",
+                                       proc[("process", name)], "< 100"))
+    for name in trees:
+        figures.append(_results.figure(f"validate after numpy (bev_mdo imports, files, model, JSON), {name}", "ms",
+                                       proc[("after_numpy", name)], "< 100"))
+    errors = {}
     for model in args.models:
-        runs = args.runs if model in ("chain", "flat", "breakdown") else max(3, args.runs // 5)
-        evaluate(None, model)  # warm
-        warm = []
+        runs = args.runs if model in ("chain", "flat", "breakdown") else max(3, args.runs // 3)
+        rep = evaluate(None, model)  # warm
+        ts = []
         for _ in range(runs):
             t0 = time.perf_counter()
             rep = evaluate(None, model)
-            warm.append(time.perf_counter() - t0)
-        cold = []
-        for _ in range(runs):
-            _clear()
-            t0 = time.perf_counter()
-            evaluate(None, model)
-            cold.append(time.perf_counter() - t0)
-        out["models"][model] = {"compute": _stats(warm), "cold_in_process": _stats(cold),
-                                "mean_abs_pct": rep["stats"]["udds_hwfet"]["mean_abs_pct"]}
-        print(f"{model:15s} compute median {np.median(warm)*1e3:7.1f} ms [{min(warm)*1e3:.1f}, {max(warm)*1e3:.1f}]"
-              f"  cold {np.median(cold)*1e3:7.1f} ms [{min(cold)*1e3:.1f}, {max(cold)*1e3:.1f}]  ({runs} runs)",
-              flush=True)
-    if "chain" in args.models:
-        env = {**os.environ, "PYTHONPATH": str(ROOT)}
-        proc = []
-        for _ in range(max(3, args.runs // 3)):
-            t0 = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "bev_mdo", "validate", "--json"], env=env, check=True,
-                           stdout=subprocess.DEVNULL)
-            proc.append(time.perf_counter() - t0)
-        out["models"]["chain"]["cli_process"] = _stats(proc)
-        print(f"chain validate CLI process median {np.median(proc)*1e3:.0f} ms [{min(proc)*1e3:.0f}, {max(proc)*1e3:.0f}]")
-    path = ROOT / "bench" / "results" / "bench_validate.json"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(out, indent=2))
-    print("wrote", path)
+            ts.append((time.perf_counter() - t0) * 1e3)
+        errors[model] = rep["stats"]["udds_hwfet"]["mean_abs_pct"]
+        figures.append(_results.figure(f"compute, {model} model (62 vehicles x 2 cycles, in process, warm)", "ms", ts,
+                                       "< 100" if model == "chain" else None,
+                                       note=f"mean abs error {errors[model]:.2f} %"))
+    for f in figures:
+        print(f"{f['what']:95s} median {f['median']:7.1f} {f['unit']} [{f['min']:.1f}, {f['max']:.1f}]", flush=True)
+    _results.write("bench_validate", figures,
+                   extra={"vehicles": len(fleet.read_fleet()), "cycles": list(fleet.CYCLES),
+                          "numpy": np.__version__, "load_average_1min_start": round(load_start, 2),
+                          "mean_abs_pct": errors, "baseline_rev": args.baseline_rev})
 
 
 if __name__ == "__main__":

@@ -219,11 +219,9 @@ def _check_mda_numbers(mda: Mapping[str, Any]) -> None:
 
 
 def _validate_models(cfg: dict) -> None:
-    """Vehicle and cycle sections are checked by the models' own validators (when present)."""
-    try:
-        from bev_mdo.models import params
-    except ImportError:  # models not installed: nothing to check against
-        return
+    """Vehicle and cycle sections are checked by the models' own validators."""
+    from bev_mdo.models import params
+
     if "vehicle" in cfg or "cycle" in cfg:
         try:
             params.validate_vehicle(cfg.get("vehicle"))
@@ -419,19 +417,14 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
 
 
 def _builtins() -> dict[str, type]:
-    try:
-        from bev_mdo.disciplines import BUILTIN
-    except ImportError as exc:
-        raise ValueError(f"built-in disciplines are not available ({exc}); give class: 'module:Class'") from None
+    from bev_mdo.disciplines import BUILTIN
+
     return dict(BUILTIN)
 
 
 def _defaults(config: Mapping[str, Any]) -> list:
-    try:
-        from bev_mdo.disciplines import default_disciplines
-    except ImportError as exc:
-        raise ValueError(f"built-in disciplines are not available ({exc}); list disciplines with class: 'module:Class'") \
-            from None
+    from bev_mdo.disciplines import default_disciplines
+
     return list(default_disciplines(config))
 
 
@@ -460,3 +453,14 @@ def discipline_names(config: Mapping[str, Any]) -> list[str]:
 
         return default_names(config)
     return [e if isinstance(e, str) else e["name"] for e in entries]
+
+
+def plain(obj):
+    """YAML-safe copy of a config (numpy scalars to floats, tuples to lists)."""
+    if isinstance(obj, dict):
+        return {str(k): plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [plain(v) for v in obj]
+    if hasattr(obj, "item"):
+        return obj.item()
+    return obj

@@ -21,7 +21,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from bev_mdo.mdo.discipline import Discipline
-from bev_mdo.models import acceleration, cost, flat, mass, motor_speed, range as range_model
+from bev_mdo.models import acceleration, cost, flat, motor_speed, range as range_model
 from bev_mdo.models import topology as topo_model
 from bev_mdo.models.cycles import load_cycle, resample
 from bev_mdo.models.params import validate_cycle, validate_vehicle, vehicle_choice
@@ -167,10 +167,7 @@ class Energy(_Base):
         if model == "flat":
             names = flat.FLAT_PARAMS
         elif model in ENERGY_MODELS:
-            try:
-                specs = getattr(importlib.import_module(f"bev_mdo.models.{model}"), "PARAM_SPECS", {})
-            except ImportError as exc:
-                raise ValueError(f"energy_model {model!r} is not available: {exc}") from None
+            specs = getattr(importlib.import_module(f"bev_mdo.models.{model}"), "PARAM_SPECS", {})
             names = tuple(dict.fromkeys([*flat.FLAT_PARAMS[:4], "gear_efficiency", "regen_fraction", *specs]))
         else:
             raise ValueError(f"energy_model must be one of {list(ENERGY_MODELS)}, got {model!r}")

@@ -3,10 +3,24 @@ localhost-only discovery (network hygiene), set before rclpy initialises."""
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import pytest
 
 from bev_mdo.testing import domain_for
+
+HERE = Path(__file__).resolve().parent
+ROS_FIXTURES = {"ros_domain", "rclpy_context"}
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark every test that runs ROS 2 as ``ros`` (so ``-m "not ros"`` skips the ROS suite): all of
+    test/ros, and any test elsewhere that takes a ROS domain or an rclpy context (the ROS CLI tests,
+    the recorder and replay tests mark themselves)."""
+    for item in items:
+        path = Path(str(item.path)).resolve()
+        if HERE / "ros" in path.parents or ROS_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.ros)
 
 
 @pytest.fixture(scope="module")

@@ -229,7 +229,7 @@ def _context(bag: Bag):
 
         config = load_config(yaml.safe_load(text))
         return config, Problem.from_config(config["problem"])
-    except (ValueError, KeyError, TypeError, ImportError):
+    except (ValueError, KeyError, TypeError):
         return None, None
 
 

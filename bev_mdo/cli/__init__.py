@@ -1,5 +1,9 @@
 """The ``bev-mdo`` command line. One module per subcommand, each with ``register(subparsers)``.
 
+The parser is built from the light table :data:`SUBCOMMANDS`: only the module of the chosen
+subcommand is imported (so ``bev-mdo validate`` does not load rclpy, scipy or matplotlib for the
+others); the rest are listed by name and help. A subcommand module that fails to import raises.
+
 A user mistake (bad config, bad value, bad file) prints one line on stderr and exits 2.
 """
 from __future__ import annotations
@@ -9,18 +13,48 @@ import importlib
 import os
 import sys
 
-# Subcommand modules in bev_mdo.cli, in the order --help lists them.
-SUBCOMMANDS = (
-    "optimize", "evaluate", "node", "record", "replay", "history", "report",
-    "resume", "bag", "sensitivity", "pareto", "sweep", "graph", "validate", "check_partials", "status",
-)
+# command -> (module in bev_mdo.cli, help), in the order --help lists them. The module's register()
+# uses the same help (test/cli/test_cli_table.py checks it).
+SUBCOMMANDS: dict[str, tuple[str, str]] = {
+    "optimize": ("optimize", "run the distributed MDF/IDF optimisation (the main job)"),
+    "evaluate": ("evaluate", "evaluate one design through all disciplines"),
+    "node": ("node", "run one discipline node (vehicle_mass, energy, range, acceleration, motor_speed, cost, "
+                     "or any discipline named in the config)"),
+    "record": ("record", "record bev_mdo topics to a rosbag2 MCAP bag"),
+    "replay": ("replay", "publish the messages of a recorded bag again"),
+    "history": ("history", "print the optimisation history of a bag"),
+    "report": ("report", "plots and a markdown summary of a recorded run"),
+    "resume": ("resume", "restart an optimisation from the last iterate recorded in a bag"),
+    "bag": ("bag", "inspect or repair a recorded bag"),
+    "sensitivity": ("sensitivity", "normalised 1st/2nd-order sensitivities at a design"),
+    "pareto": ("pareto", "NSGA-II Pareto fronts of powertrain topologies (thesis ch.4)"),
+    "sweep": ("sweep", "a grid (or list) of designs as one batch: CSV and PNG per output"),
+    "compare": ("sweep", "two or more designs side by side with their differences"),
+    "graph": ("graph", "the coupling graph as an N² chart (PNG) and Graphviz DOT text"),
+    "validate": ("validate", "predicted vs measured energy over a fleet of tested vehicles"),
+    "check-partials": ("check_partials", "compare analytic partial derivatives with finite differences"),
+    "status": ("status", "list the live discipline instances on the ROS domain (host, throughput)"),
+}
 
 
 class UsageError(Exception):
     """A mistake by the user: reported as one line on stderr, exit status 2."""
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _chosen(argv: list[str]) -> str | None:
+    """The subcommand named in ``argv`` (its first word that is not an option), if it is one."""
+    for word in argv:
+        if word == "--":
+            return None
+        if not word.startswith("-"):
+            return word if word in SUBCOMMANDS else None
+    return None
+
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The ``bev-mdo`` parser. With ``argv``, only the subcommand it names gets its full parser
+    (its module is imported); every other subcommand is listed by name and help. Without
+    ``argv``, every module is imported and registered (the full parser, for documentation)."""
     from bev_mdo import __version__
 
     parser = argparse.ArgumentParser(
@@ -30,19 +64,22 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"bev-mdo {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for name in SUBCOMMANDS:
-        try:
-            module = importlib.import_module(f"bev_mdo.cli.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name == f"bev_mdo.cli.{name}":
-                continue  # subcommand not built yet
-            raise
-        module.register(sub)
+    chosen = _chosen(argv) if argv is not None else None
+    for command, (module, help_text) in SUBCOMMANDS.items():
+        if command in sub.choices:
+            continue  # registered with another command of its module (sweep and compare)
+        if argv is None or command == chosen or module == SUBCOMMANDS.get(chosen, ("",))[0]:
+            importlib.import_module(f"bev_mdo.cli.{module}").register(sub)
+            if command not in sub.choices:
+                raise RuntimeError(f"bev_mdo.cli.{module}.register() did not add the {command!r} subcommand")
+        else:
+            sub.add_parser(command, help=help_text, add_help=False)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)

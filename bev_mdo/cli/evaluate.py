@@ -43,10 +43,14 @@ def parse_assignments(items: list[str]) -> dict[str, float]:
 
 def _evaluator(config, use_ros: bool, args=None):
     if use_ros:
-        try:
-            from bev_mdo.ros.client import make_ros_evaluator
-        except ImportError:
+        import importlib
+
+        try:  # the ROS libraries only: a bev_mdo module that fails to import raises as it is
+            for lib in ("rclpy", "bev_mdo_msgs.msg"):
+                importlib.import_module(lib)
+        except ModuleNotFoundError:
             raise UsageError("--ros needs the ROS transport (rclpy and bev_mdo_msgs)") from None
+        from bev_mdo.ros.client import make_ros_evaluator
         from bev_mdo.cli.ros_args import ros_section
 
         return make_ros_evaluator({**config, "ros": ros_section(config, args)})

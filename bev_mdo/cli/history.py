@@ -48,7 +48,7 @@ def describe_other_content(bag) -> str:
 
     pareto = [t for t, ty in bag.topics.items() if ty.endswith("/ParetoFront")]
     if pareto:
-        from bev_mdo.cli.pareto import read_fronts
+        from bev_mdo.studies.topologies import read_fronts
 
         fronts = read_fronts(bag.bag_dir if bag.bag_dir else bag.mcap_path)
         tops = sorted({f["topology"] for f in fronts})

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 from typing import Any, Mapping
 
-from bev_mdo.bag.report import ANSWERS_FILE, ANSWERS_METADATA, read_answers  # noqa: F401 (re-exported)
+from bev_mdo.bag.report import ANSWERS_FILE, ANSWERS_METADATA
 
 
 class InProcessBag:
@@ -25,13 +25,13 @@ class InProcessBag:
         import yaml
 
         from bev_mdo.bag.writer import BagWriter
-        from bev_mdo.cli.optimize import _plain
+        from bev_mdo.config import plain
         from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC
 
         self.topic = ITERATION_TOPIC
         self.run_id = run_id
         self.writer = BagWriter(bag_dir, metadata={"run_id": run_id, "transport": "inprocess",
-                                                   "config_yaml": yaml.safe_dump(_plain(dict(config)),
+                                                   "config_yaml": yaml.safe_dump(plain(dict(config)),
                                                                                  sort_keys=False)})
         self.writer.add_topic(ITERATION_TOPIC, "bev_mdo_msgs/msg/IterationRecord", ITERATION_QOS)
         self.seq = 0

@@ -40,7 +40,7 @@ def register(subparsers) -> None:
 def evaluate(data=None, energy_model: str = "chain", parameter_set: str | None = DEFAULT_SET) -> dict:
     """The whole validation as a dict (what --json prints)."""
     from bev_mdo.models import fleet as fl
-    from bev_mdo.models.chain import load_parameter_set
+    from bev_mdo.models.params import load_parameter_set
 
     fleet = fl.read_fleet(data)
     base = {}

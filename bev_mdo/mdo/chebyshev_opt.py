@@ -21,7 +21,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 from scipy.optimize import OptimizeResult
 
-from .chebyshev import Cheb1, chebfun1, chebfun2, on_plane
+from .chebyshev import chebfun1, chebfun2, on_plane
 from .sensitivity import sensitivities
 
 DEFAULTS = {"box": 0.25, "xtol": 1e-7, "ftol": 1e-12, "ctol": 1e-8, "maxiter": 200,

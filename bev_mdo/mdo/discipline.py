@@ -58,13 +58,7 @@ class EvalResult:
     ok: np.ndarray  # bool (N,)
     error: str = ""
     compute_time_s: float = 0.0
-    extra: dict = field(default_factory=dict)
-
-    @property
-    def status(self) -> str:
-        if self.ok.all():
-            return "ok"
-        return "error"
+    extra: dict = field(default_factory=dict)  # e.g. "partials": analytic derivatives, see the module doc
 
 
 def load_class(spec: str, search_path: Sequence[str] = ()) -> type:

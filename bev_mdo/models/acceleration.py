@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import road_load as rl
-from .params import check_design, get_params
+from .common import check_design
+from .params import get_params
 
 ACCEL_PARAMS = ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2", "rolling_resistance", "wheel_radius_m",
                 "gear_efficiency", "motor_torque_per_kw", "motor_speed_limit_rpm")
@@ -30,10 +31,7 @@ def wheel_force_n(speed_m_s, motor_kw, gear_ratio, vehicle_mass_kg, p):
     omega_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0
     torque = np.where(omega <= omega_base, t_max, 1000.0 * motor_kw / np.maximum(omega, 1e-300))
     torque = np.where(omega <= omega_lim * (1 + 1e-12), torque, 0.0)
-    if rl.uses_road_load(p):  # coast-down A + B v + C v^2 (road_load.py)
-        road = rl.force_n(p, v, vehicle_mass_kg)
-    else:
-        road = 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v * v + p["rolling_resistance"] * vehicle_mass_kg * p["gravity_m_s2"]
+    road = rl.road_load_n(p, v, vehicle_mass_kg)  # eq 2-3, or the coast-down A + B v + C v^2
     return torque * gear_ratio * p["gear_efficiency"] / p["wheel_radius_m"] - road
 
 

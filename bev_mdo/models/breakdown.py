@@ -33,73 +33,16 @@ from __future__ import annotations
 import numpy as np
 
 from . import road_load as rl
-from .params import VEHICLE_SPECS, ParamSpec
+from .common import batch_size, design_points, resolve_params
+from .params import BREAKDOWN_SPECS
 
 J_PER_M_TO_KWH_PER_100KM = 1e5 / 3.6e6  # 1 J/m = 1/36 kWh/100 km
 J_PER_M_TO_WH_PER_KM = 1e3 / 3.6e3
 
-PARAM_SPECS: dict[str, ParamSpec] = {
-    **{k: VEHICLE_SPECS[k] for k in ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2",
-                                     "rolling_resistance", "gear_efficiency", "regen_fraction")},
-    "motor_efficiency": ParamSpec(0.85, 0.3, 1.0, "-", "average motor + inverter efficiency eta_m (ch.5: 85 %)"),
-    "battery_voltage_v": ParamSpec(345.0, 10.0, 1500.0, "V", "constant battery voltage (ch.5: 345 V)"),
-    "battery_discharge_resistance_ohm": ParamSpec(0.192, 0.0, 10.0, "ohm", "pack discharge resistance R_d (ch.5)"),
-    "battery_charge_resistance_ohm": ParamSpec(0.216, 0.0, 10.0, "ohm", "pack charge resistance R_c (ch.5)"),
-    "battery_loss_weight": ParamSpec(0.0, 0.0, 1.0, "-", "share of eq 5-19/5-20 battery losses in the total "
-                                     "(0 = Table 5-1, which calls them negligible; 1 = eq 5-21)"),
-}
+PARAM_SPECS = BREAKDOWN_SPECS
 
 ROWS = ("aerodynamic", "rolling_resistance", "inertia", "regenerative_recovery", "transmission_loss",
         "motor_loss", "battery_discharge_loss", "battery_charge_loss", "total")
-
-
-def resolve_params(params, specs: dict[str, ParamSpec], n: int) -> dict[str, np.ndarray]:
-    """Fill defaults and range-check; values stay scalars or (n,) arrays (complex allowed).
-
-    Names not in ``specs`` are ignored (a params dict may carry other models' constants)."""
-    params = params or {}
-    out = {}
-    for name, s in specs.items():
-        v = params.get(name, s.default)
-        try:
-            a = np.asarray(v)
-            if a.dtype.kind not in "biufc":
-                raise TypeError
-        except TypeError:
-            raise ValueError(f"{name} must be a number in [{s.lower:g}, {s.upper:g}] {s.unit}, got {v!r}") from None
-        if a.ndim > 1 or (a.ndim == 1 and a.shape[0] not in (1, n)):
-            raise ValueError(f"{name} must be a scalar or an array of shape ({n},), got shape {a.shape}")
-        re = np.real(a).astype(float)
-        bad = ~(np.isfinite(re) & (re >= s.lower) & (re <= s.upper))
-        if a.dtype.kind == "c":
-            bad |= ~np.isfinite(np.imag(a))
-        if bad.any():
-            x = re.reshape(-1)[np.flatnonzero(bad.reshape(-1))[0]]
-            raise ValueError(f"{name} must be in [{s.lower:g}, {s.upper:g}] {s.unit}, got {x:g}")
-        out[name] = a if a.dtype.kind == "c" else a.astype(float)
-    return out
-
-
-def batch_size(params, specs, *arrays) -> int:
-    """N: the common length of the design arrays and any (N,) parameter overrides."""
-    sizes = {np.size(a) for a in arrays if np.ndim(a) == 1}
-    sizes |= {np.size(params[k]) for k in specs if params and k in params and np.ndim(params[k]) == 1}
-    sizes.discard(1)
-    if len(sizes) > 1:
-        raise ValueError(f"design points and parameter arrays disagree in length: {sorted(sizes)}")
-    return sizes.pop() if sizes else 1
-
-
-def check_points(name: str, values, lower: float, upper: float, unit: str) -> np.ndarray:
-    """A design/coupling batch as a 1-D array (complex kept), range-checked on its real part."""
-    a = np.atleast_1d(np.asarray(values))
-    if a.ndim != 1 or a.dtype.kind not in "biufc":
-        raise ValueError(f"{name} must be a number or 1-D array in [{lower:g}, {upper:g}] {unit}")
-    re = np.real(a).astype(float)
-    bad = ~(np.isfinite(re) & (re >= lower) & (re <= upper))
-    if bad.any():
-        raise ValueError(f"{name} must be in [{lower:g}, {upper:g}] {unit}, got {re[bad][0]:g}")
-    return a if a.dtype.kind == "c" else a.astype(float)
 
 
 def cycle_moments(cycle) -> dict[str, float]:
@@ -126,7 +69,7 @@ def energy_breakdown(resampled, params, vehicle_mass_kg, gear_ratio=None, motor_
     """Table 5-1 rows in kWh/100 km, each of shape (N,); keys are :data:`ROWS`.
 
     ``regenerative_recovery`` is negative (it is subtracted in the total, eq 5-21)."""
-    m = check_points("vehicle_mass_kg", vehicle_mass_kg, 100.0, 20000.0, "kg")
+    m = design_points("vehicle_mass_kg", vehicle_mass_kg)
     n = batch_size(params, PARAM_SPECS, m)
     if m.shape[0] != n:
         m = np.broadcast_to(m, (n,))

@@ -19,8 +19,8 @@ import sys
 import numpy as np
 from scipy.optimize import least_squares
 
-from . import chain
 from . import fleet as fl
+from .params import PARAMETER_SET_DIR
 
 # fixed assumptions (not fitted): physical values for a 2022 BEV on a two-wheel dynamometer
 FIXED = {
@@ -109,7 +109,7 @@ def cross_validate(fleet: fl.Fleet, k: int = 5, names=None, cycles: dict | None 
 def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet, path=None) -> str:
     import yaml
 
-    path = path or chain.PARAMETER_SET_DIR / f"{PARAMETER_SET}.yaml"
+    path = path or PARAMETER_SET_DIR / f"{PARAMETER_SET}.yaml"
     spread = cv["fold_params"].std(axis=0, ddof=1) if len(cv["fold_params"]) > 1 else np.full(len(f["x"]), np.nan)
     doc = {
         "name": PARAMETER_SET,

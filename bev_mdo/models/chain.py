@@ -48,36 +48,15 @@ fleet (docs/validation.md, bev_mdo/data/parameter_sets/).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from . import road_load as rl
+from .common import batch_size, design_points, resolve_params
 from .cycles import Resampled
-from .params import VEHICLE_SPECS, ParamSpec
+from .params import CHAIN_SPECS
 
-PARAMETER_SET_DIR = Path(__file__).resolve().parent.parent / "data" / "parameter_sets"
-
-PARAM_SPECS: dict[str, ParamSpec] = {
-    **{k: VEHICLE_SPECS[k] for k in ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2", "rolling_resistance",
-                                     "wheel_radius_m", "gear_efficiency", "motor_torque_per_kw")},
-    "rotating_mass_fraction": ParamSpec(0.02, 0.0, 0.3, "-", "equivalent mass of rotating parts / vehicle mass"),
-    "motor_loss_standby_fraction": ParamSpec(0.002, 0.0, 0.1, "-",
-                                             "motor+inverter loss while moving at no load, / rated power (c_0)"),
-    "motor_loss_speed_fraction": ParamSpec(0.0, 0.0, 0.1, "-",
-                                           "speed-proportional motor+inverter loss at base speed, / rated power (c_w)"),
-    "motor_loss_copper_fraction": ParamSpec(0.08, 0.0, 1.0, "-",
-                                            "motor+inverter loss at peak torque, / rated power (c_cu, x tau^2)"),
-    "regen_min_speed_m_s": ParamSpec(10.0 / 3.6, 0.0, 50.0, "m/s", "no regeneration below this speed"),
-    "regen_max_power_kw": ParamSpec(150.0, 0.0, 1000.0, "kW", "regeneration power cap (battery charge limit)"),
-    "regen_axle_share": ParamSpec(1.0, 0.0, 1.0, "-", "share of the braking force on the driven axle(s) "
-                                  "(1 on a two-wheel dynamometer: the other axle stands still)"),
-    "battery_voltage_v": ParamSpec(345.0, 10.0, 1500.0, "V", "pack voltage (ch.5: 345 V)"),
-    "battery_discharge_resistance_ohm": ParamSpec(0.192, 0.0, 10.0, "ohm", "pack discharge resistance (ch.5)"),
-    "battery_charge_resistance_ohm": ParamSpec(0.216, 0.0, 10.0, "ohm", "pack charge resistance (ch.5)"),
-    "aux_power_w": ParamSpec(0.0, 0.0, 10000.0, "W", "auxiliary load while the cycle runs (12 V, cooling, HVAC)"),
-    "charger_efficiency": ParamSpec(1.0, 0.5, 1.0, "-", "wall-to-battery efficiency of a charge (1 = none)"),
-}
+PARAM_SPECS = CHAIN_SPECS
 FITTED = ("charger_efficiency", "aux_power_w", "motor_loss_standby_fraction", "motor_loss_copper_fraction",
           "motor_loss_speed_fraction")
 
@@ -101,8 +80,6 @@ def _col(x):
 
 
 def resolve(params, n: int) -> dict:
-    from .breakdown import resolve_params
-
     p = {k: np.real(v).astype(float) for k, v in resolve_params(params, PARAM_SPECS, n).items()}
     if rl.uses_road_load(params):
         p.update({k: np.asarray(params.get(k, 0.0), float) for k in rl.FLAT_KEYS})
@@ -111,23 +88,16 @@ def resolve(params, n: int) -> dict:
 
 def simulate(resampled: Resampled, params, vehicle_mass_kg, gear_ratio, motor_kw) -> ChainResult:
     """Wall-to-wheel energy of N designs on one resampled cycle (see the module doc)."""
-    from .breakdown import batch_size, check_points
-
-    m = check_points("vehicle_mass_kg", vehicle_mass_kg, 100.0, 20000.0, "kg").real.astype(float)
-    ig = check_points("gear_ratio", gear_ratio, 0.5, 50.0, "-").real.astype(float)
-    kw = check_points("motor_kw", motor_kw, 1.0, 1000.0, "kW").real.astype(float)
+    m = design_points("vehicle_mass_kg", vehicle_mass_kg, real=True)
+    ig = design_points("gear_ratio", gear_ratio, real=True)
+    kw = design_points("motor_kw", motor_kw, real=True)
     extra = {k: params[k] for k in rl.FLAT_KEYS if params and k in params and np.ndim(params[k]) == 1}
     n = max(batch_size(params, PARAM_SPECS, m, ig, kw), *(np.size(x) for x in extra.values()), 1)
     m, ig, kw = (np.broadcast_to(a, (n,)) for a in (m, ig, kw))
     p = {k: _col(v) for k, v in resolve(params, n).items()}
     v, a, w, dur, dist, v_lo, v_hi = _steps(resampled)
     M = m[None, :]
-    if rl.uses_road_load(p):
-        a0, a1, b, c = rl.coefficients(p)  # (1, N) or scalars already
-        f_road = (a0 + a1 * M) + v * (b + c * v)
-    else:
-        f_road = 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v * v + p["rolling_resistance"] * M * p["gravity_m_s2"]
-    force = f_road + M * (1.0 + p["rotating_mass_fraction"]) * a
+    force = rl.road_load_n(p, v, M) + M * (1.0 + p["rotating_mass_fraction"]) * a
     r_w, eta = p["wheel_radius_m"], p["gear_efficiency"]
     i_g, p_r = ig[None, :], kw[None, :] * 1e3
     omega = v * i_g / r_w
@@ -197,23 +167,3 @@ def _steps(r: Resampled):
 def energy_wh_per_km(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw) -> np.ndarray:
     """Energy from the wall per km (Wh/km), shape (N,)."""
     return simulate(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw).energy_wh_per_km
-
-
-def parameter_set_names() -> list[str]:
-    return sorted(p.stem for p in PARAMETER_SET_DIR.glob("*.yaml"))
-
-
-def load_parameter_set(name: str) -> dict[str, float]:
-    """A shipped parameter set (bev_mdo/data/parameter_sets/<name>.yaml): its ``parameters``."""
-    import yaml
-
-    if not isinstance(name, str) or not name or "/" in name or name.startswith("."):
-        raise ValueError(f"parameter_set must be one of {parameter_set_names()}, got {name!r}")
-    path = PARAMETER_SET_DIR / f"{name}.yaml"
-    if not path.is_file():
-        raise ValueError(f"parameter_set {name!r} is unknown; shipped: {parameter_set_names()}")
-    doc = yaml.safe_load(path.read_text())
-    values = doc.get("parameters") if isinstance(doc, dict) else None
-    if not isinstance(values, dict):
-        raise ValueError(f"{path}: no 'parameters' mapping")
-    return {str(k): float(v) for k, v in values.items()}

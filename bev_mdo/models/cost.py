@@ -1,7 +1,8 @@
 """Powertrain cost in US$ (eqs 2-21..2-24, long-term assumptions of the thesis' ref. [46])."""
 from __future__ import annotations
 
-from .params import VEHICLE_SPECS, check_array, check_design
+from .common import check_array, check_design
+from .params import VEHICLE_SPECS
 
 _PE = VEHICLE_SPECS["power_to_energy_ratio"]
 

@@ -138,35 +138,53 @@ def read_cycle_csv(path: str | Path) -> DriveCycle:
         raise ValueError(f"cannot read drive cycle {path}: {exc.strerror}") from None
     if not rows or [h.strip() for h in rows[0]] != ["time_s", "speed_kmh"]:
         raise ValueError(f"{path}: row 1: header must be 'time_s,speed_kmh'")
-    t, v = [], []
-    for i, row in enumerate(rows[1:], start=2):
-        if not row or all(not c.strip() for c in row):
-            continue
+    data = [(i, row) for i, row in enumerate(rows[1:], start=2) if row and any(c.strip() for c in row)]
+    # rows up to the first that is not two numbers are checked below at once; that row's own error
+    # is reported only if no earlier row fails a check (the first bad row is named, as a loop would)
+    end, broken = len(data), ""
+    for k, (_, row) in enumerate(data):
         if len(row) != 2:
-            raise ValueError(f"{path}: row {i}: expected 2 columns time_s,speed_kmh, got {len(row)}")
-        try:
-            ti, vi = float(row[0]), float(row[1])
-        except ValueError:
-            raise ValueError(f"{path}: row {i}: not a number: {','.join(row)}") from None
-        if not math.isfinite(ti):
-            raise ValueError(f"{path}: row {i}: time_s must be finite, got {row[0]}")
-        if not math.isfinite(vi) or vi < 0:
-            raise ValueError(f"{path}: row {i}: speed_kmh must be finite and >= 0, got {row[1]}")
-        if vi > MAX_SPEED_KMH:
-            raise ValueError(f"{path}: row {i}: speed_kmh {vi:g} is not plausible (> {MAX_SPEED_KMH:g} km/h)")
-        if t and ti <= t[-1]:
-            raise ValueError(f"{path}: row {i}: time_s must be strictly increasing ({ti:g} after {t[-1]:g})")
-        if t and ti - t[-1] > MAX_GAP_S:
-            raise ValueError(f"{path}: row {i}: time gap of {ti - t[-1]:g} s after {t[-1]:g} s "
-                             f"(at most {MAX_GAP_S:g} s between samples)")
-        if t and abs(vi - v[-1]) * KMH / (ti - t[-1]) > MAX_ACCEL_M_S2:
-            raise ValueError(f"{path}: row {i}: acceleration {(vi - v[-1]) * KMH / (ti - t[-1]):g} m/s^2 "
-                             f"is not plausible (|a| > {MAX_ACCEL_M_S2:g} m/s^2)")
-        t.append(ti)
-        v.append(vi)
+            end, broken = k, f"expected 2 columns time_s,speed_kmh, got {len(row)}"
+            break
+    try:
+        tv = np.array([(float(a), float(b)) for _, (a, b) in data[:end]], dtype=float).reshape(-1, 2)
+    except ValueError:
+        for k, (_, row) in enumerate(data[:end]):
+            try:
+                float(row[0]), float(row[1])
+            except ValueError:
+                end, broken = k, f"not a number: {','.join(row)}"
+                break
+        tv = np.array([(float(a), float(b)) for _, (a, b) in data[:end]], dtype=float).reshape(-1, 2)
+    t, v = tv[:, 0], tv[:, 1]
+    # every row check at once; the first row that fails any is reported, checks in this order
+    later = np.arange(len(t)) > 0  # the step checks start at the second row
+    prev_t = np.concatenate([t[:1], t[:-1]])
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        step = t - prev_t
+        accel = np.abs(v - np.concatenate([v[:1], v[:-1]])) * KMH / step
+    checks = (
+        (~np.isfinite(t), lambda k: f"time_s must be finite, got {data[k][1][0]}"),
+        (~(np.isfinite(v) & (v >= 0)), lambda k: f"speed_kmh must be finite and >= 0, got {data[k][1][1]}"),
+        (v > MAX_SPEED_KMH, lambda k: f"speed_kmh {v[k]:g} is not plausible (> {MAX_SPEED_KMH:g} km/h)"),
+        (later & ~(step > 0), lambda k: f"time_s must be strictly increasing ({t[k]:g} after {prev_t[k]:g})"),
+        (later & (step > MAX_GAP_S), lambda k: f"time gap of {step[k]:g} s after {prev_t[k]:g} s "
+                                     f"(at most {MAX_GAP_S:g} s between samples)"),
+        (later & (accel > MAX_ACCEL_M_S2), lambda k: f"acceleration {(v[k] - v[k - 1]) * KMH / step[k]:g} m/s^2 "
+                                           f"is not plausible (|a| > {MAX_ACCEL_M_S2:g} m/s^2)"),
+    )
+    bad = np.zeros(len(t), bool)
+    for mask, _ in checks:
+        bad |= mask
+    if bad.any():
+        k = int(np.argmax(bad))
+        message = next(say for mask, say in checks if mask[k])
+        raise ValueError(f"{path}: row {data[k][0]}: {message(k)}")
+    if broken:
+        raise ValueError(f"{path}: row {data[end][0]}: {broken}")
     if len(t) < 2:
         raise ValueError(f"{path}: needs at least 2 data rows, got {len(t)}")
-    c = DriveCycle(path.stem, np.array(t), np.array(v) * KMH)
+    c = DriveCycle(path.stem, t.copy(), v * KMH)
     check_trace(c, str(path))
     return c
 
@@ -286,8 +304,8 @@ def resample(cycle: DriveCycle, dt_s: float = 1.0, method: str = DEFAULT_METHOD,
                          f"{n + 1} samples (at most {MAX_SAMPLES}); use a larger dt_s")
     t = t0 + dt_s * np.arange(n + 1)
     if method == "linear":
-        t = np.union1d(t, cycle.time_s)
-        t = t[np.concatenate([[True], np.diff(t) > 1e-9 * max(1.0, dt_s)])]  # merge float near-duplicates
+        t = np.sort(np.concatenate([t, cycle.time_s]))
+        t = t[np.concatenate([[True], np.diff(t) > 1e-9 * max(1.0, dt_s)])]  # merge duplicates and float near-duplicates
         t[-1] = max(t[-1], cycle.time_s[-1])
         v = np.interp(t, cycle.time_s, cycle.speed_m_s)
         a = np.append(np.diff(v) / np.diff(t), 0.0)

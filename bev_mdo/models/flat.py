@@ -35,8 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import road_load as rl
+from .common import check_design
 from .cycles import Resampled, quadrature
-from .params import VEHICLE_SPECS, check_array, check_design
+from .params import VEHICLE_SPECS, get_params
 
 FLAT_PARAMS = ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2", "rolling_resistance",
                "wheel_radius_m", "gear_efficiency", "motor_constant_nm_a", "motor_resistance_ohm",
@@ -46,16 +47,8 @@ _ROAD = ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2", "rolling_resistanc
 
 def _params(params: dict | None) -> dict:
     """Defaults filled in and every value range-checked (scalars stay scalars)."""
-    out = {}
     params = params or {}
-    for k in FLAT_PARAMS:
-        s = VEHICLE_SPECS[k]
-        v = params.get(k, s.default)
-        if type(v) is float and s.lower <= v <= s.upper:  # fast path for plain scalars
-            out[k] = v
-            continue
-        a = check_array(k, v, s.lower, s.upper, s.unit)
-        out[k] = float(a) if a.ndim == 0 else a
+    out = get_params(params, FLAT_PARAMS)
     if rl.uses_road_load(params):
         for k in rl.FLAT_KEYS:
             v = params.get(k, 0.0)
@@ -71,11 +64,12 @@ def _road_key(p) -> tuple:
 
 
 def traction_force_n(speed_m_s, accel_m_s2, mass_kg, drag_area_m2, rolling_resistance,
-                     air_density_kg_m3=1.25, gravity_m_s2=9.81):
+                     air_density_kg_m3=VEHICLE_SPECS["air_density_kg_m3"].default,
+                     gravity_m_s2=VEHICLE_SPECS["gravity_m_s2"].default):
     """Eq 7-18: F_t = 1/2 rho CdA v|v| + C_r M g sgn(v) + M dv/dt (N)."""
-    v = np.asarray(speed_m_s, float)
-    return (0.5 * air_density_kg_m3 * drag_area_m2 * v * np.abs(v)
-            + rolling_resistance * mass_kg * gravity_m_s2 * np.sign(v) + mass_kg * accel_m_s2)
+    road = {"air_density_kg_m3": air_density_kg_m3, "drag_area_m2": drag_area_m2,
+            "rolling_resistance": rolling_resistance, "gravity_m_s2": gravity_m_s2}
+    return rl.road_load_n(road, speed_m_s, mass_kg) + mass_kg * accel_m_s2
 
 
 def _road_terms(r: Resampled, key: tuple):
@@ -84,17 +78,11 @@ def _road_terms(r: Resampled, key: tuple):
     eq 7-18, or the coast-down coefficients (road_load.py) that replace its drag and rolling terms."""
     v, a, j, w = quadrature(r)
     if key[0] == "road_load":
-        a0, a1, b, c = rl.coefficients(dict(zip(rl.FLAT_KEYS, key[1:])))
-        moving = v > 0
-        A = np.where(moving, a0 + b * v + c * v * v, 0.0)
-        B = np.where(moving, a1, 0.0) + a
-        dA = (b + 2.0 * c * v) * a
-        return A, B, dA, j, w
-    rho, cda, cr, g = key
-    A = 0.5 * rho * cda * v * np.abs(v)
-    B = cr * g * np.sign(v) + a
-    dA = rho * cda * np.abs(v) * a
-    return A, B, dA, j, w
+        road = dict(zip(rl.FLAT_KEYS, key[1:]))
+    else:
+        road = dict(zip(("air_density_kg_m3", "drag_area_m2", "rolling_resistance", "gravity_m_s2"), key))
+    f0, f_m, df0_dv = rl.road_load_terms(road, v)
+    return f0, f_m + a, df0_dv * a, j, w
 
 
 def energy_wh_per_km_direct(resampled: Resampled, params: dict | None, vehicle_mass_kg, gear_ratio,
@@ -110,14 +98,9 @@ def energy_wh_per_km_direct(resampled: Resampled, params: dict | None, vehicle_m
     j = qj[:, None]
     wgt = qw[:, None] if np.ndim(qw) else qw
     M = m[None, :]
-    if rl.uses_road_load(p):                                                      # road_load.py
-        F = rl.force_n(col, v, M) + M * a
-        a0, a1, b, c = rl.coefficients(col)
-        dF = (b + 2.0 * c * v) * a + M * j
-    else:
-        F = traction_force_n(v, a, M, col["drag_area_m2"], col["rolling_resistance"],
-                             col["air_density_kg_m3"], col["gravity_m_s2"])       # 7-18
-        dF = col["air_density_kg_m3"] * col["drag_area_m2"] * np.abs(v) * a + M * j
+    f0, f_m, df0_dv = rl.road_load_terms(col, v)                                 # road_load.py
+    F = f0 + f_m * M + M * a                                                      # 7-18
+    dF = df0_dv * a + M * j
     braking = F < 0
     eta = col["gear_efficiency"]
     e = np.where(braking, eta, 1.0 / eta)

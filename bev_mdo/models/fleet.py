@@ -230,7 +230,7 @@ def _follows(fleet: Fleet, r, p) -> np.ndarray:
     from .cycles import quadrature
 
     v, a, _, _ = quadrature(r)
-    f = rl.force_n(p, v[:, None], fleet.test_mass_kg[None, :]) + fleet.test_mass_kg[None, :] * a[:, None]
+    f = rl.road_load_n(p, v[:, None], fleet.test_mass_kg[None, :]) + fleet.test_mass_kg[None, :] * a[:, None]
     return (f * v[:, None]).max(axis=0) <= fleet.rated_power_kw * 1e3
 
 

@@ -1,37 +1,36 @@
 """Vehicle mass from motor power and battery capacity (eqs 7-19..7-21, ch.3 compounding)."""
 from __future__ import annotations
 
-import numpy as np
+from .common import check_design
+from .params import VEHICLE_SPECS
 
-from .params import VEHICLE_SPECS, check_design
-
-_D = {k: s.default for k, s in VEHICLE_SPECS.items()}
+DEFAULTS = {k: s.default for k, s in VEHICLE_SPECS.items()}  # the defaults of every vehicle parameter
 
 
-def motor_mass_kg(motor_kw, kg_per_kw=_D["motor_kg_per_kw"], base_kg=_D["motor_base_kg"]):
+def motor_mass_kg(motor_kw, kg_per_kw=DEFAULTS["motor_kg_per_kw"], base_kg=DEFAULTS["motor_base_kg"]):
     """Eq 7-20 / 2-18: M_m = 0.532 P_kW + 21.6."""
     return kg_per_kw * check_design("motor_kw", motor_kw) + base_kg
 
 
-def battery_mass_kg(battery_kwh, kg_per_kwh=_D["battery_kg_per_kwh"]):
+def battery_mass_kg(battery_kwh, kg_per_kwh=DEFAULTS["battery_kg_per_kwh"]):
     """Eq 7-21: M_b = 7.8 E_kWh."""
     return kg_per_kwh * check_design("battery_kwh", battery_kwh)
 
 
-def vehicle_mass_ch7_kg(motor_kw, battery_kwh, glider_kg=_D["glider_kg"], load_kg=_D["load_kg"],
-                        motor_kg_per_kw=_D["motor_kg_per_kw"], motor_base_kg=_D["motor_base_kg"],
-                        battery_kg_per_kwh=_D["battery_kg_per_kwh"]):
+def vehicle_mass_ch7_kg(motor_kw, battery_kwh, glider_kg=DEFAULTS["glider_kg"], load_kg=DEFAULTS["load_kg"],
+                        motor_kg_per_kw=DEFAULTS["motor_kg_per_kw"], motor_base_kg=DEFAULTS["motor_base_kg"],
+                        battery_kg_per_kwh=DEFAULTS["battery_kg_per_kwh"]):
     """Eq 7-19: M_v = M_B + M_m + M_b + M_L."""
     return (glider_kg + load_kg + motor_mass_kg(motor_kw, motor_kg_per_kw, motor_base_kg)
             + battery_mass_kg(battery_kwh, battery_kg_per_kwh))
 
 
-def kerb_mass_compounding_kg(motor_kw, battery_kwh, kerb_reference_kg=_D["kerb_reference_kg"],
-                             reference_motor_kw=_D["reference_motor_kw"],
-                             reference_battery_kwh=_D["reference_battery_kwh"],
-                             mass_compounding=_D["mass_compounding"],
-                             motor_kg_per_kw=_D["motor_kg_per_kw"], motor_base_kg=_D["motor_base_kg"],
-                             battery_kg_per_kwh=_D["battery_kg_per_kwh"]):
+def kerb_mass_compounding_kg(motor_kw, battery_kwh, kerb_reference_kg=DEFAULTS["kerb_reference_kg"],
+                             reference_motor_kw=DEFAULTS["reference_motor_kw"],
+                             reference_battery_kwh=DEFAULTS["reference_battery_kwh"],
+                             mass_compounding=DEFAULTS["mass_compounding"],
+                             motor_kg_per_kw=DEFAULTS["motor_kg_per_kw"], motor_base_kg=DEFAULTS["motor_base_kg"],
+                             battery_kg_per_kwh=DEFAULTS["battery_kg_per_kwh"]):
     """Ch.3 rule: kerb = 1521 kg + 1.6 x (powertrain mass - powertrain mass at 80 kW / 24 kWh).
 
     The powertrain mass is eq 2-18 + 2-20 (battery by eq 7-21). Note: Table 3-1's 1689 kg
@@ -44,7 +43,7 @@ def kerb_mass_compounding_kg(motor_kw, battery_kwh, kerb_reference_kg=_D["kerb_r
 def vehicle_mass_kg(motor_kw, battery_kwh, params: dict, mass_model: str = "ch7"):
     """Vehicle mass for the energy and acceleration models: ch7 (eq 7-19) or ch.3 compounding
     kerb mass plus ``load_kg``. ``params`` holds VEHICLE_SPECS names (scalars or (N,) arrays)."""
-    p = {**_D, **params}
+    p = {**DEFAULTS, **params}
     common = dict(motor_kg_per_kw=p["motor_kg_per_kw"], motor_base_kg=p["motor_base_kg"],
                   battery_kg_per_kwh=p["battery_kg_per_kwh"])
     if mass_model == "ch7":

@@ -40,9 +40,11 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
-REFERENCE_KW = 80.0  # Fig 2-9 unit motor
-TORQUE_PER_KW_NM = 3.5  # 280 Nm / 80 kW
-MAX_SPEED_RAD_S = 10500.0 * 2.0 * math.pi / 60.0  # 1099.6 rad/s, §3.3.3
+from .params import VEHICLE_SPECS
+
+REFERENCE_KW = VEHICLE_SPECS["reference_motor_kw"].default  # Fig 2-9 unit motor, 80 kW
+TORQUE_PER_KW_NM = VEHICLE_SPECS["motor_torque_per_kw"].default  # 280 Nm / 80 kW
+MAX_SPEED_RAD_S = VEHICLE_SPECS["motor_speed_limit_rpm"].default * 2.0 * math.pi / 60.0  # 1099.6 rad/s, §3.3.3
 EFFICIENCY_FLOOR = 0.05  # lookups below this are raised to it (no 0/0 at zero speed)
 DEFAULT_MAP_CSV = Path(__file__).resolve().parent.parent / "data" / "motor_map_default.csv"
 

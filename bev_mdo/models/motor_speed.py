@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .params import VEHICLE_SPECS, check_array, check_design
+from .common import check_array, check_design
+from .params import VEHICLE_SPECS
 
 
 def motor_speed_max_rad_s(gear_ratio, max_speed_m_s, wheel_radius_m=VEHICLE_SPECS["wheel_radius_m"].default):

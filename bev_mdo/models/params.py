@@ -1,12 +1,21 @@
-"""Model constants with units, defaults and physical ranges; validation of config sections."""
+"""Model constants with units, defaults and physical ranges; validation of config sections.
+
+Every model's parameters are specified here (``VEHICLE_SPECS``, the road load and the spec table of
+each model with constants of its own); a model takes its defaults from these tables and from
+nowhere else. Sits just above :mod:`common` in the models layer: it imports no model (only the
+battery constants and the cycle interpolation names, two leaf modules).
+"""
 from __future__ import annotations
 
-import importlib
-import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+
+from . import battery as bt
+from .common import check_array, check_value
+from .cycles import DEFAULT_METHOD, KMH, METHODS
 
 
 @dataclass(frozen=True)
@@ -52,7 +61,7 @@ VEHICLE_SPECS: dict[str, ParamSpec] = {
 }
 
 # topology (thesis ch.4): one setting for every topology discipline (vehicle_mass, energy,
-# cycle_range, acceleration, cost); any case, e.g. iwm-sa (models.topology.get_topology)
+# cycle_range, acceleration, cost); any case, e.g. iwm-sa (topology_name)
 VEHICLE_CHOICES: dict[str, tuple[str, ...]] = {"mass_model": ("ch7", "compounding"),
                                                "topology": ("SM-SA", "DM-DA", "IWM-SA", "IWM-DA")}
 
@@ -61,56 +70,142 @@ CYCLE_SPECS: dict[str, ParamSpec] = {
 }
 
 
-def _merge_specs(base: dict[str, ParamSpec]) -> dict[str, ParamSpec]:
-    merged = dict(base)
-    for mod in ("bev_mdo.models.breakdown", "bev_mdo.models.quasi_static", "bev_mdo.models.chain"):
-        try:
-            specs = getattr(importlib.import_module(mod), "PARAM_SPECS", {})
-        except ImportError:
-            continue
+# coast-down road load (road_load.py): section key -> (flat parameter name, spec)
+ROAD_LOAD_SPECS: dict[str, tuple[str, ParamSpec]] = {
+    "a_n": ("road_load_a_n", ParamSpec(0.0, 0.0, 5000.0, "N", "constant road-load term A")),
+    "b_n_per_m_s": ("road_load_b_n_per_m_s", ParamSpec(0.0, -100.0, 100.0, "N/(m/s)", "linear term B")),
+    "c_n_per_m2_s2": ("road_load_c_n_per_m2_s2", ParamSpec(0.0, 0.0, 5.0, "N/(m/s)^2", "quadratic term C")),
+    "mass_kg": ("road_load_mass_kg", ParamSpec(0.0, 100.0, 20000.0, "kg", "test mass of the coast-down "
+                                                                        "(A scales with M / mass_kg)")),
+}
+ROAD_LOAD_CHECK_SPEED_M_S = 70.0  # the force must stay positive from 0 to 252 km/h
+
+# chapter-5 analytic breakdown (breakdown.py)
+BREAKDOWN_SPECS: dict[str, ParamSpec] = {
+    **{k: VEHICLE_SPECS[k] for k in ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2",
+                                     "rolling_resistance", "gear_efficiency", "regen_fraction")},
+    "motor_efficiency": ParamSpec(0.85, 0.3, 1.0, "-", "average motor + inverter efficiency eta_m (ch.5: 85 %)"),
+    "battery_voltage_v": ParamSpec(345.0, 10.0, 1500.0, "V", "constant battery voltage (ch.5: 345 V)"),
+    "battery_discharge_resistance_ohm": ParamSpec(0.192, 0.0, 10.0, "ohm", "pack discharge resistance R_d (ch.5)"),
+    "battery_charge_resistance_ohm": ParamSpec(0.216, 0.0, 10.0, "ohm", "pack charge resistance R_c (ch.5)"),
+    "battery_loss_weight": ParamSpec(0.0, 0.0, 1.0, "-", "share of eq 5-19/5-20 battery losses in the total "
+                                     "(0 = Table 5-1, which calls them negligible; 1 = eq 5-21)"),
+}
+
+# quasi-static map model (quasi_static.py) and the chapter-4 topologies built on it (topology.py)
+QUASI_STATIC_SPECS: dict[str, ParamSpec] = {
+    **{k: VEHICLE_SPECS[k] for k in ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2",
+                                     "rolling_resistance", "wheel_radius_m", "gear_efficiency",
+                                     "motor_torque_per_kw", "motor_speed_limit_rpm")},
+    "gear_count": ParamSpec(1.0, 1.0, 2.0, "-", "1 = single speed, 2 = two-speed gearbox (eq 2-6)"),
+    "gear_ratio_2": ParamSpec(4.7, 0.5, 50.0, "-", "second (high-speed) gear ratio (Table 3-2: 4.7)"),
+    "shift_speed_m_s": ParamSpec(68.1 * KMH, 0.0, 100.0, "m/s", "two-speed shift point (Table 3-2: 68.1 km/h)"),
+    "two_speed_efficiency_loss": ParamSpec(0.02, 0.0, 0.5, "-", "gear efficiency lost with two speeds (§3.3.2)"),
+    "two_speed_added_mass_kg": ParamSpec(20.0, 0.0, 500.0, "kg", "mass added by two speeds (§3.7)"),
+    "shift_strategy": ParamSpec(0.0, 0.0, 1.0, "-", "two-speed gear choice: 0 = shift speed rule (eq 2-6), "
+                                "1 = per step the gear of least electrical power within the envelope"),
+    "regen_min_speed_m_s": ParamSpec(10.0 * KMH, 0.0, 50.0, "m/s", "no regeneration below this (§2.3.4: 10 km/h)"),
+    "regen_max_decel_g": ParamSpec(0.7, 0.0, 5.0, "g", "friction only beyond this deceleration (§2.3.4)"),
+    "regen_max_soc": ParamSpec(0.9, 0.0, 1.0, "-", "no regeneration above this SOC (§2.3.4)"),
+    "charge_c_max": ParamSpec(bt.CHARGE_C_MAX, 0.0, 100.0, "1/h", "charge current limit in C (§2.3.4: 2C)"),
+    "discharge_c_max": ParamSpec(bt.DISCHARGE_C_MAX, 0.0, 100.0, "1/h", "discharge current limit in C (§3.5.3: 5C)"),
+    "cells_series": ParamSpec(float(bt.LEAF_CELLS_SERIES), 1.0, 1000.0, "-", "cells in series (Leaf: 96)"),
+    "initial_soc": ParamSpec(0.9, 0.05, 1.0, "-", "SOC at the start of an energy run"),
+    "final_soc": ParamSpec(0.05, 0.0, 0.9, "-", "range runs stop here (ch.3: 100 % -> 5 %)"),
+    "battery_loss_weight": ParamSpec(0.0, 0.0, 1.0, "-", "0 = terminal energy (eq 2-17); 1 = adds the "
+                                     "battery's internal I^2 R loss (energy at the open-circuit voltage)"),
+    # topology constants (used by topology.py; Tables 4-1..4-3, §4.3.1)
+    "dm_da_transmission_kg": ParamSpec(30.0, 0.0, 500.0, "kg", "DM-DA rear transmission mass (Table 4-1)"),
+    "iwm_mass_factor": ParamSpec(0.75, 0.1, 1.0, "-", "in-wheel motor-unit mass factor, 25 % removed (Table 4-2)"),
+    "iwm_torque_scale": ParamSpec(2.5, 0.1, 20.0, "-", "in-wheel map torque-axis factor (§4.3.1: 280 -> 700 Nm)"),
+    "iwm_speed_scale": ParamSpec(210.0 / 1099.56, 0.01, 1.0, "-", "in-wheel map speed-axis factor "
+                                 "(§4.3.1: max 1100 -> 210 rad/s; base speed 285.7 -> 54.6 rad/s, thesis 53)"),
+    "torque_split_steps": ParamSpec(11.0, 3.0, 101.0, "-", "front/rear split grid size (odd: includes 50/50)"),
+}
+
+# wall-to-wheel chain (chain.py)
+CHAIN_SPECS: dict[str, ParamSpec] = {
+    **{k: VEHICLE_SPECS[k] for k in ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2", "rolling_resistance",
+                                     "wheel_radius_m", "gear_efficiency", "motor_torque_per_kw")},
+    "rotating_mass_fraction": ParamSpec(0.02, 0.0, 0.3, "-", "equivalent mass of rotating parts / vehicle mass"),
+    "motor_loss_standby_fraction": ParamSpec(0.002, 0.0, 0.1, "-",
+                                             "motor+inverter loss while moving at no load, / rated power (c_0)"),
+    "motor_loss_speed_fraction": ParamSpec(0.0, 0.0, 0.1, "-",
+                                           "speed-proportional motor+inverter loss at base speed, / rated power (c_w)"),
+    "motor_loss_copper_fraction": ParamSpec(0.08, 0.0, 1.0, "-",
+                                            "motor+inverter loss at peak torque, / rated power (c_cu, x tau^2)"),
+    "regen_min_speed_m_s": QUASI_STATIC_SPECS["regen_min_speed_m_s"],
+    "regen_max_power_kw": ParamSpec(150.0, 0.0, 1000.0, "kW", "regeneration power cap (battery charge limit)"),
+    "regen_axle_share": ParamSpec(1.0, 0.0, 1.0, "-", "share of the braking force on the driven axle(s) "
+                                  "(1 on a two-wheel dynamometer: the other axle stands still)"),
+    **{k: BREAKDOWN_SPECS[k] for k in ("battery_voltage_v", "battery_discharge_resistance_ohm",
+                                       "battery_charge_resistance_ohm")},
+    "aux_power_w": ParamSpec(0.0, 0.0, 10000.0, "W", "auxiliary load while the cycle runs (12 V, cooling, HVAC)"),
+    "charger_efficiency": ParamSpec(1.0, 0.5, 1.0, "-", "wall-to-battery efficiency of a charge (1 = none)"),
+}
+
+
+def all_specs() -> dict[str, ParamSpec]:
+    """VEHICLE_SPECS plus the constants of the breakdown, quasi-static and chain models."""
+    merged = dict(VEHICLE_SPECS)
+    for specs in (BREAKDOWN_SPECS, QUASI_STATIC_SPECS, CHAIN_SPECS):
         for k, s in specs.items():
             merged.setdefault(k, s)
     return merged
 
 
-def all_specs() -> dict[str, ParamSpec]:
-    """VEHICLE_SPECS plus PARAM_SPECS of the breakdown, quasi-static and chain models, if present."""
-    return _merge_specs(VEHICLE_SPECS)
+def validate_road_load(section: Any) -> dict[str, float]:
+    """The ``vehicle.road_load`` mapping as the flat ``road_load_*`` parameters; one-line ValueError."""
+    if not isinstance(section, Mapping):
+        raise ValueError("road_load must be a mapping {a_n, b_n_per_m_s, c_n_per_m2_s2[, mass_kg]}")
+    unknown = sorted(set(section) - set(ROAD_LOAD_SPECS))
+    if unknown:
+        raise ValueError(f"road_load: unknown key(s) {unknown}; known: {sorted(ROAD_LOAD_SPECS)}")
+    missing = [k for k in ("a_n", "b_n_per_m_s", "c_n_per_m2_s2") if k not in section]
+    if missing:
+        raise ValueError(f"road_load: missing {missing} (all of a_n, b_n_per_m_s, c_n_per_m2_s2 are needed)")
+    out = {"road_load_mass_kg": 0.0}
+    for k, (flat_name, s) in ROAD_LOAD_SPECS.items():
+        if k in section:
+            out[flat_name] = check_value(f"road_load.{k}", section[k], s.lower, s.upper, s.unit)
+    a, b, c = out["road_load_a_n"], out["road_load_b_n_per_m_s"], out["road_load_c_n_per_m2_s2"]
+    v = np.linspace(0.0, ROAD_LOAD_CHECK_SPEED_M_S, 701)
+    f = a + b * v + c * v * v
+    if f.min() <= 0.0:
+        raise ValueError(f"road_load: A + B v + C v^2 must stay > 0 up to {ROAD_LOAD_CHECK_SPEED_M_S:g} m/s; "
+                         f"it is {f.min():.4g} N at {v[np.argmin(f)]:.3g} m/s")
+    return out
 
 
-def check_value(name: str, value: Any, lower: float, upper: float, unit: str = "") -> float:
-    """Return ``value`` as float; ValueError naming ``name`` and [lower, upper] otherwise."""
-    u = f" {unit}" if unit and unit != "-" else ""
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number in [{lower:g}, {upper:g}]{u}, got {value!r}") from None
-    if not (math.isfinite(x) and lower <= x <= upper):
-        raise ValueError(f"{name} must be in [{lower:g}, {upper:g}]{u}, got {x:g}")
-    return x
+PARAMETER_SET_DIR = Path(__file__).resolve().parent.parent / "data" / "parameter_sets"
 
 
-def check_array(name: str, values: Any, lower: float, upper: float, unit: str = "") -> np.ndarray:
-    """Vector form of :func:`check_value`: names the first bad element."""
-    a = np.asarray(values, dtype=float)
-    if a.size == 1:  # one design point (an MDA over ROS, a line search): ~0.3 µs instead of ~4.5
-        x = a.item()
-        if math.isfinite(x) and lower <= x <= upper:
-            return a
-    bad = ~(np.isfinite(a) & (a >= lower) & (a <= upper))
-    if bad.any():
-        u = f" {unit}" if unit and unit != "-" else ""
-        first = a.reshape(-1)[np.flatnonzero(bad.reshape(-1))[0]]
-        raise ValueError(f"{name} must be in [{lower:g}, {upper:g}]{u}, got {first:g}")
-    return a
+def parameter_set_names() -> list[str]:
+    return sorted(p.stem for p in PARAMETER_SET_DIR.glob("*.yaml"))
 
 
-def check_param(name: str, value: Any) -> np.ndarray | float:
-    """Check a known parameter (scalar or array) against its spec."""
-    s = all_specs()[name]
-    if np.ndim(value):
-        return check_array(name, value, s.lower, s.upper, s.unit)
-    return check_value(name, value, s.lower, s.upper, s.unit)
+def load_parameter_set(name: str) -> dict[str, float]:
+    """A shipped parameter set (bev_mdo/data/parameter_sets/<name>.yaml): its ``parameters``."""
+    import yaml
+
+    if not isinstance(name, str) or not name or "/" in name or name.startswith("."):
+        raise ValueError(f"parameter_set must be one of {parameter_set_names()}, got {name!r}")
+    path = PARAMETER_SET_DIR / f"{name}.yaml"
+    if not path.is_file():
+        raise ValueError(f"parameter_set {name!r} is unknown; shipped: {parameter_set_names()}")
+    doc = yaml.load(path.read_text(), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: ~30x faster
+    values = doc.get("parameters") if isinstance(doc, dict) else None
+    if not isinstance(values, dict):
+        raise ValueError(f"{path}: no 'parameters' mapping")
+    return {str(k): float(v) for k, v in values.items()}
+
+
+def topology_name(name: Any) -> str:
+    """The canonical topology name (SM-SA, DM-DA, IWM-SA, IWM-DA) of ``name`` in any case; one-line ValueError."""
+    allowed = VEHICLE_CHOICES["topology"]
+    if not isinstance(name, str) or name.upper() not in allowed:
+        raise ValueError(f"topology must be one of {', '.join(allowed)}, got {name!r}")
+    return name.upper()
 
 
 def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
@@ -123,8 +218,6 @@ def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
     road = section.pop("road_load", None)
     flat_road = {k: section.pop(k) for k in list(section) if k.startswith("road_load_")}
     if flat_road:  # the resolved form a discipline node receives (see road_load.FLAT_KEYS)
-        from .road_load import ROAD_LOAD_SPECS
-
         if road is not None:
             raise ValueError("give road_load or its road_load_* parameters, not both")
         names = {flat: key for key, (flat, _) in ROAD_LOAD_SPECS.items()}
@@ -141,14 +234,10 @@ def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
         vehicle_choice(section, k)
     extra: dict[str, float] = {}
     if chain is not None:  # a shipped calibration: its values are defaults the section may override
-        from .chain import load_parameter_set
-
         extra = {k: v for k, v in load_parameter_set(chain).items() if k not in section}
     out = {k: check_value(k, section.get(k, extra.get(k, s.default)), s.lower, s.upper, s.unit)
            for k, s in specs.items()}
     if road is not None:
-        from .road_load import validate_road_load
-
         both = sorted(k for k in ("drag_area_m2", "rolling_resistance") if k in section)
         if both and not flat_road:  # the resolved form carries every parameter, defaults included
             raise ValueError(f"road_load replaces {both}: give one or the other")
@@ -161,9 +250,7 @@ def vehicle_choice(section: Mapping[str, Any] | None, key: str) -> str:
     allowed = VEHICLE_CHOICES[key]
     value = (section or {}).get(key, allowed[0])
     if key == "topology":
-        from .topology import get_topology
-
-        return get_topology(value).name  # one line naming SM-SA, DM-DA, IWM-SA, IWM-DA
+        return topology_name(value)  # one line naming SM-SA, DM-DA, IWM-SA, IWM-DA
     if value not in allowed:
         raise ValueError(f"vehicle {key} must be one of {list(allowed)}, got {value!r}")
     return str(value)
@@ -171,8 +258,6 @@ def vehicle_choice(section: Mapping[str, Any] | None, key: str) -> str:
 
 def validate_cycle(section: Mapping[str, Any] | None) -> dict:
     """Validate the ``cycle`` section: name, dt_s, interpolation (linear|pchip|spline), smoothing."""
-    from .cycles import DEFAULT_METHOD, METHODS
-
     section = dict(section or {})
     known = {"name", "dt_s", "interpolation", "smoothing"}
     unknown = sorted(set(section) - known)
@@ -190,28 +275,6 @@ def validate_cycle(section: Mapping[str, Any] | None) -> dict:
     if smoothing is not None:
         smoothing = check_value("cycle smoothing", smoothing, 0.0, 1e12)
     return {"name": name, "dt_s": dt, "interpolation": method, "smoothing": smoothing}
-
-
-def validate_design(name: str, values: Any, lower: float, upper: float) -> np.ndarray:
-    """Design-variable array check: finite and within [lower, upper], ValueError naming it."""
-    return check_array(name, np.atleast_1d(values), lower, upper)
-
-
-# Physical ranges for design variables and coupling variables the models accept.
-DESIGN_LIMITS: dict[str, tuple[float, float]] = {
-    "motor_kw": (1.0, 1000.0),
-    "gear_ratio": (0.5, 50.0),
-    "battery_kwh": (1.0, 500.0),
-    "vehicle_mass_kg": (100.0, 20000.0),
-    "energy_wh_per_km": (1.0, 5000.0),
-    "range_target_km": (1.0, 10000.0),
-}
-
-
-def check_design(name: str, values: Any) -> np.ndarray:
-    """Check a design or coupling variable against :data:`DESIGN_LIMITS`."""
-    lo, hi = DESIGN_LIMITS[name]
-    return validate_design(name, values, lo, hi)
 
 
 def get_params(params: Mapping[str, Any] | None, names: tuple[str, ...]) -> dict:

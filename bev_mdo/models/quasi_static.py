@@ -3,12 +3,15 @@
 On each cycle step of length h the vehicle runs at the mean speed v_bar and the step's
 acceleration a_bar (6-50, 6-51). Per step, vectorised over time x design points:
 
-    F   = 1/2 rho C_dA v_bar^2 + C_r M g + M a_bar           (2-3 / 6-53, flat road)
+    F   = 1/2 rho C_dA v_bar^2 + C_r M g + M a_bar           (2-3 / 6-53, flat road; road_load.py)
     w_w = v_bar / r_w,  T_w = F r_w                          (2-1, 2-2)
     i_g = gear_ratio, or gear_ratio_2 at v_bar >= shift speed (2-6, two-speed)
     w_m = w_w i_g,  T_m = T_w / (i_g eta_g) driving          (2-4, 2-5)
                     T_m = T_w eta_g / i_g braking
     P_m = T_m w_m / eta_m (driving), T_m w_m eta_m (regen)   (2-7, 2-8 motor map)
+
+The road load is road_load.py's, as in every model: it acts while the vehicle moves, so a
+standing step has no wheel force (it never cost energy: the motor does no work at zero speed).
 
 Regenerative braking (§2.3.4): the motor brakes with max(T_required, -T_max(w)) (2-25),
 none below 10 km/h, none beyond 0.7 g deceleration, none above 90 % SOC, and the charge
@@ -34,41 +37,12 @@ import numpy as np
 
 from . import battery as bt
 from . import road_load as rl
-from .breakdown import batch_size, check_points, resolve_params
+from .common import batch_size, design_points, resolve_params
 from .motor_map import DEFAULT_MAP_CSV, MotorMap, load_motor_map_csv
-from .params import VEHICLE_SPECS, ParamSpec
+from .params import QUASI_STATIC_SPECS, VEHICLE_SPECS
 
-KMH = 1.0 / 3.6
-
-PARAM_SPECS: dict[str, ParamSpec] = {
-    **{k: VEHICLE_SPECS[k] for k in ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2",
-                                     "rolling_resistance", "wheel_radius_m", "gear_efficiency",
-                                     "motor_torque_per_kw", "motor_speed_limit_rpm")},
-    "gear_count": ParamSpec(1.0, 1.0, 2.0, "-", "1 = single speed, 2 = two-speed gearbox (eq 2-6)"),
-    "gear_ratio_2": ParamSpec(4.7, 0.5, 50.0, "-", "second (high-speed) gear ratio (Table 3-2: 4.7)"),
-    "shift_speed_m_s": ParamSpec(68.1 * KMH, 0.0, 100.0, "m/s", "two-speed shift point (Table 3-2: 68.1 km/h)"),
-    "two_speed_efficiency_loss": ParamSpec(0.02, 0.0, 0.5, "-", "gear efficiency lost with two speeds (§3.3.2)"),
-    "two_speed_added_mass_kg": ParamSpec(20.0, 0.0, 500.0, "kg", "mass added by two speeds (§3.7)"),
-    "shift_strategy": ParamSpec(0.0, 0.0, 1.0, "-", "two-speed gear choice: 0 = shift speed rule (eq 2-6), "
-                                "1 = per step the gear of least electrical power within the envelope"),
-    "regen_min_speed_m_s": ParamSpec(10.0 * KMH, 0.0, 50.0, "m/s", "no regeneration below this (§2.3.4: 10 km/h)"),
-    "regen_max_decel_g": ParamSpec(0.7, 0.0, 5.0, "g", "friction only beyond this deceleration (§2.3.4)"),
-    "regen_max_soc": ParamSpec(0.9, 0.0, 1.0, "-", "no regeneration above this SOC (§2.3.4)"),
-    "charge_c_max": ParamSpec(bt.CHARGE_C_MAX, 0.0, 100.0, "1/h", "charge current limit in C (§2.3.4: 2C)"),
-    "discharge_c_max": ParamSpec(bt.DISCHARGE_C_MAX, 0.0, 100.0, "1/h", "discharge current limit in C (§3.5.3: 5C)"),
-    "cells_series": ParamSpec(float(bt.LEAF_CELLS_SERIES), 1.0, 1000.0, "-", "cells in series (Leaf: 96)"),
-    "initial_soc": ParamSpec(0.9, 0.05, 1.0, "-", "SOC at the start of an energy run"),
-    "final_soc": ParamSpec(0.05, 0.0, 0.9, "-", "range runs stop here (ch.3: 100 % -> 5 %)"),
-    "battery_loss_weight": ParamSpec(0.0, 0.0, 1.0, "-", "0 = terminal energy (eq 2-17); 1 = adds the "
-                                     "battery's internal I^2 R loss (energy at the open-circuit voltage)"),
-    # topology constants (used by topology.py; Tables 4-1..4-3, §4.3.1)
-    "dm_da_transmission_kg": ParamSpec(30.0, 0.0, 500.0, "kg", "DM-DA rear transmission mass (Table 4-1)"),
-    "iwm_mass_factor": ParamSpec(0.75, 0.1, 1.0, "-", "in-wheel motor-unit mass factor, 25 % removed (Table 4-2)"),
-    "iwm_torque_scale": ParamSpec(2.5, 0.1, 20.0, "-", "in-wheel map torque-axis factor (§4.3.1: 280 -> 700 Nm)"),
-    "iwm_speed_scale": ParamSpec(210.0 / 1099.56, 0.01, 1.0, "-", "in-wheel map speed-axis factor "
-                                 "(§4.3.1: max 1100 -> 210 rad/s; base speed 285.7 -> 54.6 rad/s, thesis 53)"),
-    "torque_split_steps": ParamSpec(11.0, 3.0, 101.0, "-", "front/rear split grid size (odd: includes 50/50)"),
-}
+PARAM_SPECS = QUASI_STATIC_SPECS
+DEFAULT_BATTERY_KWH = VEHICLE_SPECS["reference_battery_kwh"].default  # Leaf, 24 kWh
 
 
 @lru_cache(maxsize=1)
@@ -98,7 +72,7 @@ class QuasiStaticResult:
 
 
 @dataclass
-class _Demand:
+class Demand:
     dt: np.ndarray  # (K, 1)
     p_drive_w: np.ndarray  # (K, N) electrical power when driving (>= 0), else 0
     p_regen_w: np.ndarray  # (K, N) regenerative electrical power allowed by the speed/decel/torque rules (<= 0)
@@ -109,11 +83,13 @@ class _Demand:
     steps: dict  # per-step (K, N) operating points, see operating_points()
 
 
-def _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh=24.0):
-    m = check_points("vehicle_mass_kg", vehicle_mass_kg, 100.0, 20000.0, "kg").real.astype(float)
-    ig = check_points("gear_ratio", gear_ratio, 0.5, 50.0, "-").real.astype(float)
-    kw = check_points("motor_kw", motor_kw, 1.0, 1000.0, "kW").real.astype(float)
-    kwh = check_points("battery_kwh", battery_kwh, 1.0, 500.0, "kWh").real.astype(float)
+def inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh=DEFAULT_BATTERY_KWH):
+    """Checked design points broadcast to one length N, and the resolved parameters (real, (N,)
+    or scalar): (mass, gear ratio, motor kW, params with ``battery_kwh``). Also used by topology.py."""
+    m = design_points("vehicle_mass_kg", vehicle_mass_kg, real=True)
+    ig = design_points("gear_ratio", gear_ratio, real=True)
+    kw = design_points("motor_kw", motor_kw, real=True)
+    kwh = design_points("battery_kwh", battery_kwh, real=True)
     n = batch_size(params, PARAM_SPECS, m, ig, kw, kwh)
     m, ig, kw, kwh = (np.broadcast_to(a, (n,)) for a in (m, ig, kw, kwh))
     p = {k: np.real(v).astype(float) for k, v in resolve_params(params, PARAM_SPECS, n).items()}
@@ -129,25 +105,28 @@ def _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh=24.0):
     return m, ig, kw, p
 
 
-def _demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> _Demand:
+def cycle_steps(cycle):
+    """(dt, v_bar, a_bar) of every step as (K, 1) columns: step length, mean speed (6-50) and
+    acceleration (6-51). ValueError for a cycle that does not move. Also used by topology.py."""
     t = np.asarray(cycle.time_s, float)
     v = np.asarray(cycle.speed_m_s, float)
     dt = np.diff(t)[:, None]
     v_bar = 0.5 * (v[1:] + v[:-1])[:, None]  # 6-50
     if not np.sum(v_bar[:, 0] * dt[:, 0]) > 0:
         raise ValueError(f"drive cycle {getattr(cycle, 'name', '?')} has zero distance")
-    a_bar = np.diff(v)[:, None] / dt  # 6-51
+    return dt, v_bar, np.diff(v)[:, None] / dt  # 6-51
+
+
+def demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> Demand:
+    """Per-step battery demand of the single-motor drive (eqs 2-1..2-8, 6-50/6-51, §2.3.4 rules 1-3)."""
+    dt, v_bar, a_bar = cycle_steps(cycle)
     two = p["gear_count"] == 2.0
     mass = m + np.where(two, p["two_speed_added_mass_kg"], 0.0)
     eta_g = p["gear_efficiency"] - np.where(two, p["two_speed_efficiency_loss"], 0.0)
     if np.any(eta_g <= 0):
         raise ValueError("gear_efficiency minus two_speed_efficiency_loss must stay > 0")
     g = p["gravity_m_s2"]
-    if rl.uses_road_load(p):  # coast-down A + B v + C v^2 replaces drag and rolling (road_load.py)
-        force = rl.force_n(p, v_bar, mass) + mass * a_bar
-    else:
-        force = (0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v_bar ** 2
-                 + p["rolling_resistance"] * mass * g + mass * a_bar)  # 2-3, 6-53
+    force = rl.road_load_n(p, v_bar, mass) + mass * a_bar  # 2-3, 6-53 (or the coast-down road load)
     r_w = p["wheel_radius_m"]
     ratio = np.where(two & (v_bar >= p["shift_speed_m_s"]), p["gear_ratio_2"], ig)  # 2-6
     t_w = force * r_w  # 2-1
@@ -180,7 +159,7 @@ def _demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> _Demand:
              "motor_torque_nm": t_drive + t_regen, "motor_torque_max_nm": t_max, "wheel_force_n": force,
              "friction_brake_torque_nm": t_brake - t_regen, "motor_power_w": p_el}
     steps = {k: np.broadcast_to(x, shape) for k, x in steps.items()}
-    return _Demand(dt, np.where(driving, p_el, 0.0), np.where(driving, 0.0, p_el),
+    return Demand(dt, np.where(driving, p_el, 0.0), np.where(driving, 0.0, p_el),
                    float(np.sum(v_bar[:, 0] * dt[:, 0])), np.broadcast_to(w_m.max(axis=0), kw.shape),
                    margin, w_lim + 0.0 * kw, steps)
 
@@ -190,8 +169,8 @@ def operating_points(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, *
     """Per-step (K, N) operating points before the battery: speed, acceleration, gear ratio,
     motor speed/torque (regen torque after rules 1-3 of §2.3.4), envelope, wheel force,
     friction-brake torque (at the motor shaft, <= 0) and motor electrical power."""
-    m, ig, kw, p = _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw)
-    return _demand(resampled, p, m, ig, kw, motor_map or default_map()).steps
+    m, ig, kw, p = inputs(params, vehicle_mass_kg, gear_ratio, motor_kw)
+    return demand(resampled, p, m, ig, kw, motor_map or default_map()).steps
 
 
 class _Battery:
@@ -224,15 +203,15 @@ class _Battery:
         return power, e, bt.soc_after(soc, i, dt, self.q_c)
 
 
-def simulate(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh=24.0,
+def simulate(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh=DEFAULT_BATTERY_KWH,
              *, motor_map: MotorMap | None = None) -> QuasiStaticResult:
     """One pass over the cycle from ``initial_soc``; everything per design point (N,)."""
-    m, ig, kw, p = _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh)
-    d = _demand(resampled, p, m, ig, kw, motor_map or default_map())
+    m, ig, kw, p = inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh)
+    d = demand(resampled, p, m, ig, kw, motor_map or default_map())
     return integrate_energy(d, p, m.shape[0])
 
 
-def integrate_energy(d: _Demand, p, n: int) -> QuasiStaticResult:
+def integrate_energy(d: Demand, p, n: int) -> QuasiStaticResult:
     """Step the battery over a demand from ``initial_soc`` (2-9..2-17); also used by topology.py."""
     batt = _Battery(p, n)
     soc = np.broadcast_to(p["initial_soc"], (n,)).astype(float)
@@ -249,7 +228,7 @@ def integrate_energy(d: _Demand, p, n: int) -> QuasiStaticResult:
 
 
 def energy_wh_per_km(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, *,
-                     battery_kwh=24.0, motor_map: MotorMap | None = None) -> np.ndarray:
+                     battery_kwh=DEFAULT_BATTERY_KWH, motor_map: MotorMap | None = None) -> np.ndarray:
     """Battery-terminal energy per km over one cycle (eqs 2-16, 2-17), shape (N,)."""
     return simulate(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh,
                     motor_map=motor_map).energy_wh_per_km
@@ -261,13 +240,13 @@ def range_by_repeated_cycle_km(resampled, params, vehicle_mass_kg, gear_ratio, m
 
     The crossing is interpolated linearly inside the step. Points still above
     ``final_soc`` after ``max_repeats`` cycles get ``inf``."""
-    m, ig, kw, p = _inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh)
-    d = _demand(resampled, p, m, ig, kw, motor_map or default_map())
+    m, ig, kw, p = inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh)
+    d = demand(resampled, p, m, ig, kw, motor_map or default_map())
     step_m = (0.5 * (resampled.speed_m_s[1:] + resampled.speed_m_s[:-1]) * d.dt[:, 0])
     return integrate_range(d, p, m.shape[0], step_m, max_repeats)
 
 
-def integrate_range(d: _Demand, p, n: int, step_m: np.ndarray, max_repeats: int = 200) -> np.ndarray:
+def integrate_range(d: Demand, p, n: int, step_m: np.ndarray, max_repeats: int = 200) -> np.ndarray:
     """Repeat a demand from 100 % SOC down to ``final_soc`` (ch.3 range, km); also used by topology.py."""
     batt = _Battery(p, n)
     soc = np.ones(n)

@@ -1,7 +1,8 @@
 """Driving range from battery capacity and energy per km (eq 7-28) and its inverse."""
 from __future__ import annotations
 
-from .params import VEHICLE_SPECS, check_array, check_design
+from .common import check_array, check_design
+from .params import VEHICLE_SPECS
 
 _U = VEHICLE_SPECS["battery_usable_fraction"]
 

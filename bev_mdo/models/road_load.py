@@ -1,4 +1,12 @@
-"""Road load as users measure it: F = A + B v + C v^2 from a coast-down (EPA target coefficients).
+"""Road load, the one function every model uses: the thesis' eq 2-3 / 7-18 or a coast-down.
+
+Both forms are F_road = (A0 + A1 M) sgn(v) + B v + C v|v| (:func:`coefficients`): the thesis'
+1/2 rho C_dA v|v| + C_r M g sgn(v) (rolling resistance acts while the vehicle moves), or the
+coast-down A + B v + C v^2 while moving (EPA target coefficients), zero at standstill.
+:func:`road_load_n` is the force; :func:`road_load_terms` the same force split as f_0(v) + f_M(v) M
+(with df_0/dv) for the models that precompute cycle moments.
+
+Road load as users measure it: F = A + B v + C v^2 from a coast-down (EPA target coefficients).
 
 ``vehicle.road_load: {a_n, b_n_per_m_s, c_n_per_m2_s2[, mass_kg]}`` replaces the drag-area and
 rolling-resistance terms of the thesis' eq 2-3 / 7-18 (1/2 rho C_dA v^2 + C_r M g) in every
@@ -12,7 +20,8 @@ so an optimisation that changes the mass still sees a consistent road load; not 
 fixed. The road load acts only while the vehicle moves (v > 0).
 
 The parameters travel flat through the models as ``road_load_a_n``, ``road_load_b_n_per_m_s``,
-``road_load_c_n_per_m2_s2`` and ``road_load_mass_kg`` (0 = A fixed).
+``road_load_c_n_per_m2_s2`` and ``road_load_mass_kg`` (0 = A fixed); their specs and the
+validation of the ``vehicle.road_load`` section are in params.py.
 """
 from __future__ import annotations
 
@@ -20,40 +29,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .params import ParamSpec, check_value
+from .params import ROAD_LOAD_SPECS
 
-ROAD_LOAD_SPECS: dict[str, tuple[str, ParamSpec]] = {
-    "a_n": ("road_load_a_n", ParamSpec(0.0, 0.0, 5000.0, "N", "constant road-load term A")),
-    "b_n_per_m_s": ("road_load_b_n_per_m_s", ParamSpec(0.0, -100.0, 100.0, "N/(m/s)", "linear term B")),
-    "c_n_per_m2_s2": ("road_load_c_n_per_m2_s2", ParamSpec(0.0, 0.0, 5.0, "N/(m/s)^2", "quadratic term C")),
-    "mass_kg": ("road_load_mass_kg", ParamSpec(0.0, 100.0, 20000.0, "kg", "test mass of the coast-down "
-                                                                        "(A scales with M / mass_kg)")),
-}
 FLAT_KEYS = tuple(k for k, _ in ROAD_LOAD_SPECS.values())
-CHECK_SPEED_M_S = 70.0  # the force must stay positive from 0 to 252 km/h
-
-
-def validate_road_load(section: Any) -> dict[str, float]:
-    """The ``vehicle.road_load`` mapping as the flat ``road_load_*`` parameters; one-line ValueError."""
-    if not isinstance(section, Mapping):
-        raise ValueError("road_load must be a mapping {a_n, b_n_per_m_s, c_n_per_m2_s2[, mass_kg]}")
-    unknown = sorted(set(section) - set(ROAD_LOAD_SPECS))
-    if unknown:
-        raise ValueError(f"road_load: unknown key(s) {unknown}; known: {sorted(ROAD_LOAD_SPECS)}")
-    missing = [k for k in ("a_n", "b_n_per_m_s", "c_n_per_m2_s2") if k not in section]
-    if missing:
-        raise ValueError(f"road_load: missing {missing} (all of a_n, b_n_per_m_s, c_n_per_m2_s2 are needed)")
-    out = {"road_load_mass_kg": 0.0}
-    for k, (flat_name, s) in ROAD_LOAD_SPECS.items():
-        if k in section:
-            out[flat_name] = check_value(f"road_load.{k}", section[k], s.lower, s.upper, s.unit)
-    a, b, c = out["road_load_a_n"], out["road_load_b_n_per_m_s"], out["road_load_c_n_per_m2_s2"]
-    v = np.linspace(0.0, CHECK_SPEED_M_S, 701)
-    f = a + b * v + c * v * v
-    if f.min() <= 0.0:
-        raise ValueError(f"road_load: A + B v + C v^2 must stay > 0 up to {CHECK_SPEED_M_S:g} m/s; it is "
-                         f"{f.min():.4g} N at {v[np.argmin(f)]:.3g} m/s")
-    return out
 
 
 def uses_road_load(params: Mapping[str, Any] | None) -> bool:
@@ -62,7 +40,13 @@ def uses_road_load(params: Mapping[str, Any] | None) -> bool:
 
 
 def coefficients(params: Mapping[str, Any]) -> tuple[Any, Any, Any, Any]:
-    """(A fixed part in N, A per kg of vehicle mass in N/kg, B, C) of a road-load parameter set."""
+    """(A0, A1, B, C) of the road load F = (A0 + A1 M) sgn(v) + B v + C v|v| (N; M in kg, v in m/s).
+
+    Coast-down: A0 = A (0 when it scales with the mass), A1 = A / mass_kg (0 when fixed), B, C.
+    Thesis (eq 2-3 / 7-18): A0 = 0, A1 = C_r g, B = 0, C = 1/2 rho C_dA."""
+    if not uses_road_load(params):
+        return (0.0, params["rolling_resistance"] * params["gravity_m_s2"], 0.0,
+                0.5 * params["air_density_kg_m3"] * params["drag_area_m2"])
     a = np.asarray(params["road_load_a_n"], float)
     m_ref = np.asarray(params.get("road_load_mass_kg", 0.0), float)
     scaled = m_ref > 0
@@ -77,8 +61,21 @@ def _scalar(x):
     return float(x) if np.ndim(x) == 0 else x
 
 
-def force_n(params: Mapping[str, Any], speed_m_s, mass_kg) -> np.ndarray:
-    """Road-load force A + B v + C v^2 (N) at speeds >= 0, zero at standstill; broadcasts."""
+def road_load_n(params: Mapping[str, Any], speed_m_s, mass_kg) -> np.ndarray:
+    """Road-load force (N) at ``speed_m_s`` (>= 0) for a vehicle of ``mass_kg``: eq 2-3 / 7-18, or the
+    coast-down A + B v + C v^2; zero at standstill. Broadcasts speeds against designs."""
     a0, a1, b, c = coefficients(params)
     v = np.asarray(speed_m_s, float)
-    return np.where(v > 0, a0 + a1 * mass_kg + b * v + c * v * v, 0.0)
+    base = a0 + a1 * mass_kg
+    if v.size and v.min() > 0:  # moving throughout (the usual case): sgn(v) = 1, v|v| = v^2
+        return base + v * (b + c * v)
+    return base * np.sign(v) + v * (b + c * np.abs(v))
+
+
+def road_load_terms(params: Mapping[str, Any], speed_m_s) -> tuple[Any, Any, Any]:
+    """The same road load split as F_road = f_0 + f_M M, with the rate df_0/dv: (f_0, f_M, df_0/dv),
+    for the models that precompute cycle moments independent of the mass (flat.py)."""
+    a0, a1, b, c = coefficients(params)
+    v = np.asarray(speed_m_s, float)
+    s, speed = np.sign(v), np.abs(v)
+    return a0 * s + v * (b + c * speed), a1 * s, b + 2.0 * c * speed

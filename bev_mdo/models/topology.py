@@ -46,15 +46,16 @@ import numpy as np
 
 from . import mass as mass_model
 from . import quasi_static as qs
-from .breakdown import check_points
+from . import road_load as rl
+from .common import design_points
 from .cost import motor_cost_usd as _motor_cost_one, pack_cost_usd
 from .motor_map import MotorMap
+from .params import QUASI_STATIC_SPECS, VEHICLE_CHOICES, VEHICLE_SPECS, topology_name
 
-TOPOLOGIES = ("SM-SA", "DM-DA", "IWM-SA", "IWM-DA")
+TOPOLOGIES = VEHICLE_CHOICES["topology"]
 # design variables that only some topologies have (checked by check_design_variables)
 TOPOLOGY_VARIABLES = ("gear_ratio", "motor_rear_kw", "gear_ratio_rear", "gear_ratio_2", "shift_speed_m_s",
                       "gear_count")
-KMH = 1.0 / 3.6
 V_END_M_S = 100.0 / 3.6
 _PENALTY_W_PER_NM = 1e6  # selection penalty for motoring torque over the envelope
 _CHUNK = 20000  # (time x design) rows per split-grid block, bounds memory
@@ -90,9 +91,7 @@ def get_topology(name) -> Topology:
     """The topology named ``name``; one-line ValueError listing the allowed names."""
     if isinstance(name, Topology):
         return name
-    if not isinstance(name, str) or name.upper() not in _SPECS:
-        raise ValueError(f"topology must be one of {', '.join(TOPOLOGIES)}, got {name!r}")
-    return _SPECS[name.upper()]
+    return _SPECS[topology_name(name)]
 
 
 def check_design_variables(topology, names) -> None:
@@ -108,8 +107,13 @@ def check_design_variables(topology, names) -> None:
 
 # ----------------------------------------------------------------------------- mass and cost
 
-def motor_unit_mass_kg(topology, motor_kw, motor_rear_kw=None, kg_per_kw=0.532, base_kg=21.6,
-                       dm_da_transmission_kg=30.0, iwm_mass_factor=0.75):
+_V, _Q = VEHICLE_SPECS, QUASI_STATIC_SPECS
+
+
+def motor_unit_mass_kg(topology, motor_kw, motor_rear_kw=None, kg_per_kw=_V["motor_kg_per_kw"].default,
+                       base_kg=_V["motor_base_kg"].default,
+                       dm_da_transmission_kg=_Q["dm_da_transmission_kg"].default,
+                       iwm_mass_factor=_Q["iwm_mass_factor"].default):
     """Motor(s) + transmission change, Table 4-2 (eq 2-18 per motor)."""
     t = get_topology(topology)
     m = t.front_motors * mass_model.motor_mass_kg(motor_kw, kg_per_kw, base_kg)
@@ -129,7 +133,7 @@ def vehicle_mass_kg(topology, motor_kw, battery_kwh, params: dict, mass_model_na
 
     Both mass models are linear in the motor mass: ch7 adds it (factor 1), compounding
     multiplies the change by ``mass_compounding``."""
-    p = {**{k: s.default for k, s in qs.PARAM_SPECS.items()}, **mass_model._D, **params}
+    p = {**{k: s.default for k, s in QUASI_STATIC_SPECS.items()}, **mass_model.DEFAULTS, **params}
     t = get_topology(topology)
     if t.name == "SM-SA":
         two = np.asarray(p["gear_count"]) == 2.0
@@ -161,8 +165,8 @@ def transmission_cost_usd(topology, gearbox_cost_usd=0.0):
     return gearbox_cost_usd * (2.05 if t.name == "DM-DA" else 1.0)  # "2nd gearbox + 5 %"
 
 
-def powertrain_cost_usd(topology, motor_kw, battery_kwh, motor_rear_kw=None, power_to_energy_ratio=4.0,
-                        gearbox_cost_usd=0.0):
+def powertrain_cost_usd(topology, motor_kw, battery_kwh, motor_rear_kw=None,
+                        power_to_energy_ratio=_V["power_to_energy_ratio"].default, gearbox_cost_usd=0.0):
     """Eq 4-4: motors + pack (eqs 4-2, 4-3) + transmission (0 by default)."""
     return (motor_cost_usd(topology, motor_kw, motor_rear_kw) + pack_cost_usd(battery_kwh, power_to_energy_ratio)
             + transmission_cost_usd(topology, gearbox_cost_usd))
@@ -182,7 +186,8 @@ def _in_wheel_map_cached(base: MotorMap, torque_scale: float, speed_scale: float
                     base.reference_kw * torque_scale * speed_scale, f"{base.name}_in_wheel")
 
 
-def in_wheel_map(base: MotorMap | None = None, torque_scale: float = 2.5, speed_scale: float = 210.0 / 1099.56):
+def in_wheel_map(base: MotorMap | None = None, torque_scale: float = _Q["iwm_torque_scale"].default,
+                 speed_scale: float = _Q["iwm_speed_scale"].default):
     """§4.3.1: the base map with torque x 2.5 and speed x 210/1100 (unit power 38.2 kW)."""
     return _in_wheel_map_cached(base or qs.default_map(), float(torque_scale), float(speed_scale))
 
@@ -306,14 +311,11 @@ def _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_rati
         arrays["motor_rear_kw"] = _need(motor_rear_kw, "motor_rear_kw", t)
         if t.geared:
             arrays["gear_ratio_rear"] = _need(gear_ratio_rear, "gear_ratio_rear", t)
-    limits = {"vehicle_mass_kg": (100.0, 20000.0, "kg"), "motor_kw": (1.0, 1000.0, "kW"),
-              "battery_kwh": (1.0, 500.0, "kWh"), "gear_ratio": (0.5, 50.0, "-"),
-              "motor_rear_kw": (1.0, 1000.0, "kW"), "gear_ratio_rear": (0.5, 50.0, "-")}
-    arrays = {k: check_points(k, v, *limits[k]).real.astype(float) for k, v in arrays.items()}
+    arrays = {k: design_points(k, v, real=True) for k, v in arrays.items()}
     n = max([a.shape[0] for a in arrays.values()]
-            + [np.size(params[k]) for k in qs.PARAM_SPECS if params and k in params])
+            + [np.size(params[k]) for k in QUASI_STATIC_SPECS if params and k in params])
     arrays = {k: np.broadcast_to(a, (n,)).copy() if a.shape[0] in (1, n) else a for k, a in arrays.items()}
-    m, ig, kw, p = qs._inputs(params, arrays["vehicle_mass_kg"], arrays.get("gear_ratio", np.ones(n)),
+    m, ig, kw, p = qs.inputs(params, arrays["vehicle_mass_kg"], arrays.get("gear_ratio", np.ones(n)),
                               arrays["motor_kw"], arrays["battery_kwh"])
     if t.name != "SM-SA" and np.any(p["gear_count"] == 2.0):
         raise ValueError(f"gear_count = 2 (two-speed gearbox) is SM-SA only, not {t.name}")
@@ -321,22 +323,12 @@ def _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_rati
 
 
 def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map, with_trace=False):
-    """Per-step battery demand of a topology, as the quasi-static model's ``_Demand``."""
+    """Per-step battery demand of a topology, as the quasi-static model's ``Demand``."""
     if t.name == "SM-SA":
-        return qs._demand(resampled, p, m, ig, kw, base_map)
-    tt = np.asarray(resampled.time_s, float)
-    v = np.asarray(resampled.speed_m_s, float)
-    dt = np.diff(tt)[:, None]
-    v_bar = 0.5 * (v[1:] + v[:-1])[:, None]  # 6-50
-    if not np.sum(v_bar[:, 0] * dt[:, 0]) > 0:
-        raise ValueError(f"drive cycle {getattr(resampled, 'name', '?')} has zero distance")
-    a_bar = np.diff(v)[:, None] / dt  # 6-51
+        return qs.demand(resampled, p, m, ig, kw, base_map)
+    dt, v_bar, a_bar = qs.cycle_steps(resampled)  # 6-50, 6-51
     g, r_w = p["gravity_m_s2"], p["wheel_radius_m"]
-    if qs.rl.uses_road_load(p):  # coast-down A + B v + C v^2 (road_load.py)
-        force = qs.rl.force_n(p, v_bar, m) + m * a_bar
-    else:
-        force = 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v_bar ** 2 + p["rolling_resistance"] * m * g \
-            + m * a_bar  # 2-3
+    force = rl.road_load_n(p, v_bar, m) + m * a_bar  # 2-3 (or the coast-down road load)
     tw = force * r_w  # 2-1 (all driven wheels)
     driving = force >= 0
     allowed = (~driving) & (v_bar >= p["regen_min_speed_m_s"]) & (a_bar >= -p["regen_max_decel_g"] * g)
@@ -355,12 +347,12 @@ def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map, with_tra
     steps = {"speed_m_s": v_bar, "accel_m_s2": a_bar, "wheel_torque_nm": tw, "front_share": share,
              "motor_power_w": p_el}
     steps = {k: np.broadcast_to(x, (K, N)) for k, x in steps.items()}
-    return qs._Demand(dt, np.where(driving, p_el, 0.0), np.where(driving, 0.0, p_el),
+    return qs.Demand(dt, np.where(driving, p_el, 0.0), np.where(driving, 0.0, p_el),
                       float(np.sum(v_bar[:, 0] * dt[:, 0])), np.broadcast_to(w_max, (N,)), margin,
                       axles[0].w_lim + 0.0 * kw, steps)
 
 
-def simulate(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh=24.0, gear_ratio=None,
+def simulate(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh=qs.DEFAULT_BATTERY_KWH, gear_ratio=None,
              motor_rear_kw=None, gear_ratio_rear=None, *, motor_map: MotorMap | None = None):
     """One pass over the cycle (``qs.QuasiStaticResult``; SM-SA is exactly ``qs.simulate``).
 
@@ -372,7 +364,7 @@ def simulate(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh
     return qs.integrate_energy(d, p, m.shape[0])
 
 
-def energy_wh_per_km(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh=24.0, gear_ratio=None,
+def energy_wh_per_km(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh=qs.DEFAULT_BATTERY_KWH, gear_ratio=None,
                      motor_rear_kw=None, gear_ratio_rear=None, *, motor_map: MotorMap | None = None):
     """Battery-terminal energy per km (2-16, 2-17) of a topology, shape (N,)."""
     return simulate(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio,
@@ -390,7 +382,7 @@ def range_by_repeated_cycle_km(resampled, params, topology, vehicle_mass_kg, mot
     return qs.integrate_range(d, p, m.shape[0], step_m, max_repeats)
 
 
-def operating_points(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh=24.0, gear_ratio=None,
+def operating_points(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh=qs.DEFAULT_BATTERY_KWH, gear_ratio=None,
                      motor_rear_kw=None, gear_ratio_rear=None, *, motor_map: MotorMap | None = None) -> dict:
     """Per-step (K, N) arrays: speed, acceleration, wheel torque, front share, motor power."""
     t, m, ig, kw, p, kw_r, ig_r = _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio,
@@ -408,10 +400,10 @@ def accel_time_s(topology, vehicle_mass_kg, motor_kw, gear_ratio=None, motor_rea
     ``acceleration.accel_time_0_100_s``. Two-speed uses the eq 2-6 rule (gear 2 at and above
     the shift speed, efficiency minus the 2-point penalty). A geared motor over its speed
     limit before ``v_end`` or a non-positive surplus force gives +inf."""
-    p = {k: s.default for k, s in qs.PARAM_SPECS.items()}
+    p = {k: s.default for k, s in QUASI_STATIC_SPECS.items()}
     p.update({k: np.asarray(v, float) for k, v in (params or {}).items()
-              if k in qs.PARAM_SPECS or k in qs.rl.FLAT_KEYS})
-    t, m, ig, kw, p, kw_r, ig_r = _prepare(p, topology, vehicle_mass_kg, motor_kw, 24.0, gear_ratio,
+              if k in QUASI_STATIC_SPECS or k in rl.FLAT_KEYS})
+    t, m, ig, kw, p, kw_r, ig_r = _prepare(p, topology, vehicle_mass_kg, motor_kw, qs.DEFAULT_BATTERY_KWH, gear_ratio,
                                            motor_rear_kw, gear_ratio_rear)
     r_w = p["wheel_radius_m"]
     two = (p["gear_count"] == 2.0) & (t.name == "SM-SA")
@@ -421,14 +413,8 @@ def accel_time_s(topology, vehicle_mass_kg, motor_kw, gear_ratio=None, motor_rea
         axles[0].eta = np.broadcast_to(eta2, kw.shape)
         ig2 = np.broadcast_to(np.where(two, p["gear_ratio_2"], ig), kw.shape)
         v_shift = np.broadcast_to(np.where(two, p["shift_speed_m_s"], np.inf), kw.shape)
-    if qs.rl.uses_road_load(p):
-        road = (lambda v: qs.rl.force_n(p, v, m))
-    else:
-        road = (lambda v: 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"] * v * v
-                + p["rolling_resistance"] * m * p["gravity_m_s2"])
-
     def force(v):  # v: (..., N)
-        f = -road(v)
+        f = -rl.road_load_n(p, v, m)
         for a in axles:
             ratio = np.where(v >= v_shift, ig2, a.ratio) if t.name == "SM-SA" else a.ratio
             w = v / r_w * ratio

@@ -15,18 +15,6 @@ CONFIG_YAML = "problem:\n  objective: powertrain_cost_usd\n  design:\n    motor_
 T0_NS = 1_700_000_000_000_000_000
 
 
-def ros_env(domain_id: int) -> dict:
-    """Environment for a child process: localhost discovery and its own domain id."""
-    env = dict(os.environ)
-    env["AMENT_PREFIX_PATH"] = str(VENV)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    env["ROS_DOMAIN_ID"] = str(domain_id)
-    env["RMW_IMPLEMENTATION"] = "rmw_fastrtps_cpp"
-    env["PYTHONPATH"] = str(ROOT)
-    env["PYTHONUNBUFFERED"] = "1"
-    return env
-
-
 os.environ.setdefault("AMENT_PREFIX_PATH", str(VENV))
 
 

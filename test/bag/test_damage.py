@@ -8,7 +8,6 @@ import pytest
 
 from .conftest import cli, write_synthetic
 
-pytest.importorskip("bev_mdo_msgs.msg")
 
 
 def _decoded_iterations(bag):

@@ -1,14 +1,10 @@
 """A written bag reads back the same values with rosbags, mcap-ros2-support and our reader."""
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 import yaml
 
 from .conftest import CONFIG_YAML, DESIGN, T0_NS
-
-pytest.importorskip("bev_mdo_msgs.msg")
 
 
 def _key(type_name: str, m) -> tuple:

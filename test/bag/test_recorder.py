@@ -9,7 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import ROOT, ros_env
+from bev_mdo.testing import ros_env
+
+from .conftest import ROOT
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 DOMAIN = 43

@@ -8,7 +8,9 @@ import time
 
 import pytest
 
-from .conftest import ROOT, ros_env, write_synthetic
+from bev_mdo.testing import ros_env
+
+from .conftest import ROOT, write_synthetic
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 DOMAIN = 44
@@ -16,7 +18,7 @@ DOMAIN = 44
 
 @pytest.fixture(scope="module")
 def node():
-    rclpy = pytest.importorskip("rclpy")
+    import rclpy
     os.environ["ROS_DOMAIN_ID"] = str(DOMAIN)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     context = rclpy.context.Context()

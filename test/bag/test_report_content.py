@@ -11,11 +11,11 @@ import json
 from pathlib import Path
 
 import matplotlib
-import numpy as np
 import pytest
 import yaml
 
 matplotlib.use("Agg")
+
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -6,7 +6,6 @@ import secrets
 import pytest
 import yaml
 
-pytest.importorskip("rclpy")
 
 from bev_mdo.bag.errors import BagError  # noqa: E402
 from bev_mdo.bag.history import history, last_iterate  # noqa: E402

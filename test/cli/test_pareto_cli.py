@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from bev_mdo.cli import main
-from bev_mdo.cli.pareto import TOPOLOGY_BOUNDS, config_for_topology, config_topology
+from bev_mdo.studies.topologies import TOPOLOGY_BOUNDS, config_for_topology, config_topology
 
 ARTEMIS = Path(__file__).resolve().parents[2] / "config" / "topologies_artemis.yaml"
 DVS = {"SM-SA": ("motor_kw", "gear_ratio", "battery_kwh"), "IWM-SA": ("motor_kw", "battery_kwh"),

@@ -8,7 +8,7 @@ from pathlib import Path
 import yaml
 
 from bev_mdo.cli import main
-from bev_mdo.cli.pareto import torque_warnings
+from bev_mdo.studies.topologies import torque_warnings
 
 ARTEMIS = Path(__file__).resolve().parents[2] / "config" / "topologies_artemis.yaml"
 
@@ -37,7 +37,7 @@ def test_two_objectives_write_one_plot_and_say_so(tmp_path, capsys):
 
 
 def test_three_objectives_every_pair_and_all_benchmarks(tmp_path, capsys):
-    from bev_mdo.cli import pareto as par
+    from bev_mdo.studies import topologies as par
 
     out = tmp_path / "o"
     seen = []

@@ -5,12 +5,12 @@ import csv
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from bev_mdo.cli import main
 from bev_mdo.cli.sweep import _baseline, evaluate_batch, grid, parse_vary, plot_output
 from bev_mdo.config import load_config
+
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = str(ROOT / "config/leaf_nedc.yaml")

@@ -1,13 +1,13 @@
 """``bev-mdo validate`` (issue 16 item 4): fleet table, statistics, parity plot, bad input."""
 import csv
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from bev_mdo.cli import main
 from bev_mdo.models import fleet as fl
+
 
 TRAIN = fl.DEFAULT_FLEET
 

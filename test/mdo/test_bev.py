@@ -10,7 +10,6 @@ from bev_mdo.config import load_config, resolve_disciplines
 from bev_mdo.mdo.driver import evaluate_design, run_optimization
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 
-pytest.importorskip("bev_mdo.disciplines")
 LEAF = Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml"
 
 

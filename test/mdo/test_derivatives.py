@@ -1,7 +1,6 @@
 """Analytic partials: assembled totals (MDF solve, IDF), mixing with FD, validation, check-partials."""
 from __future__ import annotations
 
-import copy
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +12,7 @@ from bev_mdo.mdo.discipline import run_discipline
 from bev_mdo.mdo.driver import build_formulation, run_optimization
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 from bev_mdo.mdo.vectors import ShapeError, wrap
+
 
 ROOT = Path(__file__).resolve().parents[2]
 SELLAR = ROOT / "examples" / "sellar_vector.yaml"

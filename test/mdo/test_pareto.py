@@ -151,7 +151,7 @@ def _bag_fronts(bag):
 def check_bag_fronts(out, topologies, generations, pop):
     """The bag in ``out`` holds every generation's front per topology; each is feasible and
     non-dominated; the final one equals ``pareto_<T>.csv``. Returns the fronts."""
-    from bev_mdo.cli.pareto import read_fronts
+    from bev_mdo.studies.topologies import read_fronts
 
     fronts = _bag_fronts(out / "bag")
     assert [(t, g, f) for t, g, f, *_ in fronts] == [

@@ -3,7 +3,6 @@ MDF and IDF in process reach the published optimum; maximisation, the feasibilit
 the best-feasible result and the iteration count on it. (Over ROS: test/ros/test_sellar_ros.py.)"""
 from __future__ import annotations
 
-import copy
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +14,7 @@ from bev_mdo.config import load_config, resolve_disciplines
 from bev_mdo.mdo import optimizers
 from bev_mdo.mdo.driver import run_optimization
 from bev_mdo.mdo.evaluator import InProcessEvaluator
+
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "sellar"
 REF_F, REF_Z1 = 3.18339395, 1.977639

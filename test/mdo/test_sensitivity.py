@@ -138,9 +138,6 @@ CONFIG = Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml"
 
 
 def _cli(argv):
-    pytest.importorskip("bev_mdo.mdo.driver")
-    if not CONFIG.exists():
-        pytest.skip("config/leaf_nedc.yaml not available")
     from bev_mdo.cli import main
     return main(["sensitivity", str(CONFIG), *argv])
 

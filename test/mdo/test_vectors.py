@@ -1,10 +1,8 @@
 """Vector variables: declaration, flattening to name[i] columns, validation, the vector Sellar problem."""
 from __future__ import annotations
 
-import copy
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from bev_mdo.config import load_config, resolve_disciplines
@@ -13,7 +11,8 @@ from bev_mdo.mdo.driver import run_optimization
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.vectors import ShapeError, VectorDiscipline, wrap
-from examples.sellar_vector import REFERENCE, SellarDis1, SellarFunctions
+from examples.sellar_vector import REFERENCE, SellarFunctions
+
 
 ROOT = Path(__file__).resolve().parents[2]
 SELLAR = ROOT / "examples" / "sellar_vector.yaml"

@@ -4,7 +4,7 @@ import pytest
 
 from bev_mdo.models import chain, fleet as fl
 from bev_mdo.models.cycles import load_cycle, resample
-from bev_mdo.models.params import validate_vehicle
+from bev_mdo.models.params import load_parameter_set, validate_vehicle
 
 R = resample(load_cycle("epa_udds"))
 BASE = {"road_load_a_n": 150.0, "road_load_b_n_per_m_s": 1.0, "road_load_c_n_per_m2_s2": 0.4,
@@ -54,7 +54,7 @@ def test_a_motor_too_small_is_reported():
 
 
 def test_parameter_set_is_named_by_a_config_and_overridable():
-    ps = chain.load_parameter_set("epa2022_chain")
+    ps = load_parameter_set("epa2022_chain")
     v = validate_vehicle({"parameter_set": "epa2022_chain", "aux_power_w": 500.0})
     assert v["charger_efficiency"] == pytest.approx(ps["charger_efficiency"]) and v["aux_power_w"] == 500.0
     with pytest.raises(ValueError, match="parameter_set 'nope' is unknown"):
@@ -81,7 +81,7 @@ def test_calibration_reproduces_the_shipped_fit():
 
     f = fl.read_fleet()
     got = calibrate.fit(f)
-    ps = chain.load_parameter_set(calibrate.PARAMETER_SET)
+    ps = load_parameter_set(calibrate.PARAMETER_SET)
     for k, x in zip(got["names"], got["x"]):
         assert x == pytest.approx(ps[k], rel=1e-3, abs=1e-5), k
 

@@ -1,6 +1,5 @@
 """Issue 16 item 6: drive cycles integrated as the piecewise-linear traces they are, converged
 in the time step; issue 19 item 7: drive-cycle input validation."""
-import math
 
 import numpy as np
 import pytest
@@ -9,6 +8,7 @@ from bev_mdo.models import breakdown, chain, flat, quasi_static as qs
 from bev_mdo.models.cycles import (DriveCycle, _ECE15, _EUDC, load_cycle, nedc, quadrature, read_cycle_csv,
                                    resample)
 from bev_mdo.models.params import validate_vehicle
+
 
 CYCLES = ("nedc", "wltc_class3", "artemis_combined", "epa_udds", "epa_hwfet", "epa_us06")
 V = validate_vehicle({})

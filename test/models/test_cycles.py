@@ -54,13 +54,21 @@ def test_concatenate_nonzero_joint_adds_a_step():
     ("time_s,speed_kmh\n0,0\n1,nan\n", 3),
     ("time_s,speed_kmh\n0,0\n1,abc\n", 3),
     ("time,speed\n0,0\n", 1),
+    ("time_s,speed_kmh\n0,0\n\n1,600\n", 4),          # blank rows keep the file's row numbers
+    ("time_s,speed_kmh\n0,0\n5000,0\n", 3),            # gap
+    ("time_s,speed_kmh\n0,0\n1,100\n", 3),             # acceleration
+    ("time_s,speed_kmh\n0,0\ninf,1\n", 3),
+    ("time_s,speed_kmh\n0,0\n0.5,600\n1,1,2\n", 3),   # the first bad row, before a later row's column error
+    ("time_s,speed_kmh\n0,0\n1,1,2\n2,600\n", 3),
+    ("time_s,speed_kmh\n0,0\n1,x\n0,0\n", 3),
+    ("time_s,speed_kmh\n0,0\n", 0),                     # one data row: "needs at least 2 data rows"
 ])
 def test_csv_errors_name_file_and_row(tmp_path, body, row):
     p = tmp_path / "bad_cycle.csv"
     p.write_text(body)
     with pytest.raises(ValueError) as e:
         read_cycle_csv(p)
-    assert "bad_cycle.csv" in str(e.value) and f"row {row}" in str(e.value)
+    assert "bad_cycle.csv" in str(e.value) and (f"row {row}:" in str(e.value) if row else "at least 2" in str(e.value))
 
 
 def test_csv_roundtrip(tmp_path):

@@ -7,10 +7,8 @@ labels are copied from Fig 5-3 (a) NEDC and (b) Artemis; "~0" is taken as 0.
 import numpy as np
 import pytest
 
-breakdown = pytest.importorskip("bev_mdo.models.breakdown", reason="chapter-5 breakdown model (H1b) not built yet")
-cycles = pytest.importorskip("bev_mdo.models.cycles")
-
-from bev_mdo.mdo.sensitivity import sensitivities  # noqa: E402
+from bev_mdo.mdo.sensitivity import sensitivities
+from bev_mdo.models import breakdown, cycles
 
 NAMES = ["drag_area_m2", "rolling_resistance", "vehicle_mass_kg",
          "gear_efficiency", "motor_efficiency", "regen_fraction"]

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from bev_mdo.models.cycles import DriveCycle, Resampled, nedc, resample
+from bev_mdo.models.cycles import Resampled, nedc, resample
 from bev_mdo.models.flat import energy_wh_per_km, energy_wh_per_km_direct, traction_force_n
 
 P = dict(air_density_kg_m3=1.25, gravity_m_s2=9.81, drag_area_m2=0.6412, rolling_resistance=0.007,

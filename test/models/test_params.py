@@ -3,7 +3,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bev_mdo.models.params import (VEHICLE_CHOICES, VEHICLE_SPECS, check_array, validate_cycle, validate_design,
+from bev_mdo.models.common import check_array, validate_design
+from bev_mdo.models.params import (VEHICLE_CHOICES, VEHICLE_SPECS, validate_cycle,
                                    validate_vehicle, vehicle_choice)
 
 

@@ -1,6 +1,5 @@
 """Quasi-static backward model: hand-computed steps, §2.3.4 regen rules on tiny cycles,
 two-speed shifting and penalty, feasibility flags, range, properties, vectorisation."""
-import math
 
 import numpy as np
 import pytest
@@ -9,6 +8,7 @@ from hypothesis import given, settings, strategies as st
 from bev_mdo.models import quasi_static as qs
 from bev_mdo.models.cycles import DriveCycle, load_cycle, resample
 from bev_mdo.models.motor_map import max_torque_nm
+
 
 G = 9.81
 KMH = 1 / 3.6

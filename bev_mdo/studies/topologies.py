@@ -1,0 +1,229 @@
+"""The thesis' chapter-4 topology study (§4.4, Tables 4-4..4-7, Figs 4-5/4-6), without the CLI.
+
+* :func:`config_topology` / :func:`config_for_topology`: the topology a run config sets, and a copy of
+  it for another topology (``vehicle.topology``, discipline options, the topology's design variables
+  ``TOPOLOGY_BOUNDS``);
+* :func:`benchmark`: the 80 kW / 24 kWh benchmark design of Table 4-4 analysed by a formulation;
+* :func:`picks`: the Table 4-6 / 4-7 style choices from the fronts; :func:`torque_warnings`;
+* :func:`write_front`, :func:`write_benchmark` (beside Table 4-5), :func:`plot_pair`, :func:`plots`
+  (like Figs 4-5 and 4-6);
+* :func:`read_fronts`: the ParetoFront messages of a bag, without ROS.
+
+``bev-mdo pareto`` (bev_mdo/cli/pareto.py) runs NSGA-II per topology and calls these.
+"""
+from __future__ import annotations
+
+import copy
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from bev_mdo.disciplines import TOPOLOGY_DISCIPLINES
+
+# design-variable bounds per topology (motor power per motor); used when --topology changes it
+TOPOLOGY_BOUNDS = {
+    "SM-SA": {"motor_kw": (40.0, 130.0, 80.0), "gear_ratio": (4.0, 9.4, 7.9)},
+    "DM-DA": {"motor_kw": (20.0, 90.0, 40.0), "gear_ratio": (4.0, 9.4, 7.9),
+              "motor_rear_kw": (20.0, 90.0, 40.0), "gear_ratio_rear": (4.0, 9.4, 7.9)},
+    "IWM-SA": {"motor_kw": (20.0, 90.0, 40.0)},
+    "IWM-DA": {"motor_kw": (10.0, 70.0, 20.0), "motor_rear_kw": (10.0, 70.0, 20.0)},
+}
+# Table 4-4 benchmark (80 kW in total, 24 kWh) and Table 4-5 (kerb kg, 0-100 s, US$, kWh/100 km)
+BENCHMARK = {"SM-SA": {"motor_kw": 80.0, "gear_ratio": 7.9},
+             "DM-DA": {"motor_kw": 40.0, "gear_ratio": 7.9, "motor_rear_kw": 40.0, "gear_ratio_rear": 7.9},
+             "IWM-SA": {"motor_kw": 40.0}, "IWM-DA": {"motor_kw": 20.0, "motor_rear_kw": 20.0}}
+THESIS_4_5 = {"SM-SA": (1521.0, 9.9, 8920.3, 16.47), "DM-DA": (1572.6, 10.5, 9305.3, 16.64),
+              "IWM-SA": (1521.0, 11.18, 9325.7, 15.99), "IWM-DA": (1553.6, 11.47, 10108.0, 16.05)}
+
+
+def config_topology(raw) -> str:
+    """The topology a raw config sets (``vehicle.topology``, else a discipline's ``topology``
+    option; SM-SA if none). load_config rejects a config where they disagree."""
+    from bev_mdo.models.topology import get_topology
+
+    vehicle = raw.get("vehicle") if isinstance(raw.get("vehicle"), dict) else {}
+    if "topology" in vehicle:
+        return get_topology(vehicle["topology"]).name
+    for e in raw.get("disciplines") or []:
+        if isinstance(e, dict) and isinstance(e.get("options"), dict) and "topology" in e["options"]:
+            return get_topology(e["options"]["topology"]).name
+    return "SM-SA"
+
+
+def config_for_topology(raw, topology: str) -> dict:
+    """A copy of the raw config with ``vehicle.topology`` (and any discipline ``topology`` option)
+    set to ``topology`` and, if that differs from the config's own, the topology's design
+    variables (``TOPOLOGY_BOUNDS``)."""
+    from bev_mdo.models.topology import get_topology
+
+    t = get_topology(topology).name
+    cfg = copy.deepcopy(raw)
+    own = config_topology(raw)
+    entries = cfg.get("disciplines")
+    if not entries:
+        raise ValueError("the config must list its disciplines (vehicle_mass, energy, cycle_range, acceleration, cost)")
+    cfg["vehicle"] = {**(cfg.get("vehicle") or {}), "topology": t}
+    for e in entries:
+        if (isinstance(e, dict) and e.get("name") in TOPOLOGY_DISCIPLINES and "class" not in e
+                and isinstance(e.get("options"), dict) and "topology" in e["options"]):
+            e["options"]["topology"] = t
+    cfg["name"] = f"{raw.get('name', 'run')}_{t}"
+    if t != own:
+        dvs = dict((cfg.get("problem") or {}).get("design_variables") or {})
+        battery = dvs.get("battery_kwh", {"lower": 18.0, "upper": 30.0, "initial": 24.0})
+        new = {k: {"lower": lo, "upper": hi, "initial": x0} for k, (lo, hi, x0) in TOPOLOGY_BOUNDS[t].items()}
+        new["battery_kwh"] = battery
+        cfg.setdefault("problem", {})["design_variables"] = new
+    return cfg
+
+
+def benchmark(form, topology: str) -> dict[str, float]:
+    """Every MDA output at the topology's Table 4-4 benchmark design (24 kWh battery)."""
+    x = {**BENCHMARK[topology], "battery_kwh": 24.0}
+    r = form.analyse(np.array([[x[n] for n in form.problem.names]]))
+    return {k: float(np.asarray(v)[0]) for k, v in r.values.items()}
+
+
+def read_fronts(bag_dir, topology: str | None = None) -> list[dict]:
+    """The ParetoFront messages of a bag, in recording order (no ROS needed): dicts with run_id,
+    topology, generation, final, objectives, evaluations, wall_time_s and ``designs`` (name ->
+    array, one entry per front member)."""
+    from bev_mdo.bag.reader import open_bag
+    from bev_mdo.ros.pareto_publisher import PARETO_TOPIC
+
+    fronts = []
+    for _, m in open_bag(bag_dir).decoded([PARETO_TOPIC]):
+        if topology is not None and m.topology != topology:
+            continue
+        n, names = int(m.designs.batch_size), list(m.designs.names)
+        v = np.asarray(m.designs.values, float).reshape(len(names), n) if names else np.zeros((0, n))
+        fronts.append({"run_id": m.run_id, "topology": m.topology, "generation": int(m.generation),
+                       "final": bool(m.final), "objectives": list(m.objectives),
+                       "designs": {k: v[j] for j, k in enumerate(names)},
+                       "evaluations": int(m.evaluations), "wall_time_s": float(m.wall_time_s)})
+    return fronts
+
+
+def write_front(path: Path, res) -> None:
+    cols = list(res.names) + [o for o in res.objectives if o not in res.names]
+    cols += sorted(k for k in res.values if k not in cols)
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(cols)
+        for i in range(len(res.X)):
+            w.writerow([f"{float(res.values[c][i]):.10g}" if c in res.values else "" for c in cols])
+
+
+def write_benchmark(path: Path, bench) -> None:
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["topology", "kerb_kg", "thesis_kerb_kg", "accel_0_100_s", "thesis_accel_s", "cost_usd",
+                    "thesis_cost_usd", "energy_kwh_100km", "thesis_energy_kwh_100km", "range_nedc_km",
+                    "torque_margin_nm"])
+        for t, b in bench.items():
+            th = THESIS_4_5[t]
+            w.writerow([t, f"{b['vehicle_mass_kg'] - 69.0:.2f}", th[0], f"{b['accel_time_0_100_s']:.2f}", th[1],
+                        f"{b['powertrain_cost_usd']:.1f}", th[2], f"{b['energy_wh_per_km'] / 10:.2f}", th[3],
+                        f"{b.get('range_nedc_km', float('nan')):.1f}", f"{b.get('drive_torque_margin_nm', float('nan')):.1f}"])
+
+
+def picks(results, bench):
+    """Table 4-6: least energy with 0-100 no slower than the SM-SA benchmark; Table 4-7: least cost
+    with energy no more than the SM-SA benchmark's."""
+    ref = bench.get("SM-SA")
+    out = {}
+    for t, r in results.items():
+        if not len(r.X) or ref is None:
+            continue
+        v = r.values
+        e, a, c = v["energy_wh_per_km"], v["accel_time_0_100_s"], v["powertrain_cost_usd"]
+        d = {}
+        ok = a <= ref["accel_time_0_100_s"]
+        if ok.any():
+            i = int(np.flatnonzero(ok)[np.argmin(e[ok])])
+            d["table_4_6"] = {**{n: float(v[n][i]) for n in r.names}, "energy_kwh_100km": float(e[i] / 10),
+                              "change_pct": float(100 * (e[i] / ref["energy_wh_per_km"] - 1))}
+        ok = e <= ref["energy_wh_per_km"]
+        if ok.any():
+            i = int(np.flatnonzero(ok)[np.argmin(c[ok])])
+            d["table_4_7"] = {**{n: float(v[n][i]) for n in r.names}, "cost_usd": float(c[i]),
+                              "change_pct": float(100 * (c[i] / ref["powertrain_cost_usd"] - 1))}
+        out[t] = d
+    return out
+
+
+_FIGURE_NAMES = {("accel_time_0_100_s", "energy_wh_per_km"): "fig_4_5_energy_accel.png",
+                 ("energy_wh_per_km", "powertrain_cost_usd"): "fig_4_6_energy_cost.png"}
+_MARKS = {"SM-SA": "o", "DM-DA": "s", "IWM-SA": "^", "IWM-DA": "D"}
+
+
+def _axis(name: str):
+    """(scale factor, axis label) of an objective; energy in kWh/100 km as the thesis plots it."""
+    from bev_mdo.mdo.units import label
+
+    if name == "energy_wh_per_km":
+        return 0.1, "energy consumption (kWh/100 km)"
+    return 1.0, label(name)
+
+
+def plot_pair(results, bench, xk: str, yk: str, path: Path, cycle: str = ""):
+    """One Pareto projection: every topology's front and its 80 kW benchmark design (Table 4-4),
+    same marker, black edge, larger. Returns the figure (closed)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fx, xl = _axis(xk)
+    fy, yl = _axis(yk)
+    fig, ax = plt.subplots(figsize=(6.6, 4.8))
+    for k, (t, r) in enumerate(results.items()):
+        colour = f"C{k}"
+        if len(r.X):
+            ax.scatter(r.values[xk] * fx, r.values[yk] * fy, s=14, marker=_MARKS.get(t, "o"), color=colour,
+                       label=f"{t} front")
+        b = bench.get(t)
+        if b and xk in b and yk in b:
+            short = b.get("drive_torque_margin_nm", 0.0) < 0  # cannot deliver the cycle's torque
+            ax.scatter([b[xk] * fx], [b[yk] * fy], s=110, marker=_MARKS.get(t, "o"),
+                       facecolor="white" if short else colour, edgecolor=colour if short else "k", linewidth=2,
+                       zorder=5, label=f"{t} benchmark (Table 4-4)" + (", torque margin < 0" if short else ""))
+    ax.set_xlabel(xl)
+    ax.set_ylabel(yl)
+    ax.set_title(f"Pareto front projection{': ' + cycle if cycle else ''}", fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return fig
+
+
+def plots(out: Path, results, bench, objectives, cycle: str = "") -> list[Path]:
+    """A projection for every pair of objectives (the thesis' Figs 4-5 and 4-6 keep their names);
+    none for a single objective. Returns the written files."""
+    written = []
+    for i, xk in enumerate(objectives):
+        for yk in objectives[i + 1:]:
+            if (yk, xk) in _FIGURE_NAMES:
+                xk_, yk_ = yk, xk
+            else:
+                xk_, yk_ = xk, yk
+            name = _FIGURE_NAMES.get((xk_, yk_), f"pareto_{yk_}_vs_{xk_}.png")
+            plot_pair(results, bench, xk_, yk_, out / name, cycle)
+            written.append(out / name)
+    return written
+
+
+def torque_warnings(bench) -> list[str]:
+    """One line per benchmark design whose drive-torque margin is negative (it cannot deliver the
+    cycle's peak torque, so its energy and 0-100 time are not those of a feasible design)."""
+    out = []
+    for t, b in bench.items():
+        m = b.get("drive_torque_margin_nm", float("nan"))
+        if np.isfinite(m) and m < 0:
+            out.append(f"warning: the {t} benchmark design (Table 4-4) has a negative drive-torque margin "
+                       f"({m:.1f} N·m): it cannot deliver the cycle's peak torque; benchmark.csv lists it as "
+                       "the thesis does, but it is not a feasible design here")
+    return out

@@ -1,0 +1,76 @@
+"""The CLI is built from its table of subcommands: only the chosen subcommand's module is imported,
+and a subcommand module that fails to import fails loudly (no silent "not built yet")."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from bev_mdo import cli
+from bev_mdo.testing import REPO
+
+
+def _subparsers(parser):
+    return next(a for a in parser._actions if a.dest == "command")
+
+
+def test_every_table_entry_is_registered_by_its_module_with_the_same_help():
+    sub = _subparsers(cli.build_parser())  # the full parser: every module imported
+    assert list(sub.choices) == list(cli.SUBCOMMANDS)
+    helps = {a.dest: a.help for a in sub._choices_actions}
+    for command, (_, help_text) in cli.SUBCOMMANDS.items():
+        assert helps[command] == help_text, command
+
+
+def test_a_lazy_parser_lists_every_subcommand_in_table_order():
+    for argv in ([], ["--help"], ["validate"], ["compare", "x"], ["sweep"]):
+        sub = _subparsers(cli.build_parser(argv))
+        assert list(sub.choices) == list(cli.SUBCOMMANDS)
+        assert [a.dest for a in sub._choices_actions] == list(cli.SUBCOMMANDS)
+
+
+def test_the_chosen_subcommand_gets_its_full_parser():
+    args = cli.build_parser(["validate", "--json"]).parse_args(["validate", "--json"])
+    assert args.json is True and args.energy_model == "chain"
+    with pytest.raises(SystemExit):  # a placeholder would accept nothing; the real parser refuses the typo
+        cli.build_parser(["validate", "--jsn"]).parse_args(["validate", "--jsn"])
+
+
+def _imported_after(code: str) -> dict:
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=60,
+                       env={"PYTHONPATH": str(REPO), "PATH": "/usr/bin:/bin"})
+    assert p.returncode == 0, p.stderr[-2000:]
+    return json.loads(p.stdout.strip().splitlines()[-1])
+
+
+def test_only_the_chosen_module_and_no_heavy_library_is_imported():
+    seen = _imported_after(
+        "import json, sys\n"
+        "from bev_mdo.cli import build_parser\n"
+        "build_parser(['validate']).parse_args(['validate'])\n"
+        "print(json.dumps(sorted(m for m in sys.modules if m.startswith(('bev_mdo.cli.', 'rclpy', 'scipy', "
+        "'matplotlib')))))\n")
+    assert seen == ["bev_mdo.cli.validate"]
+
+
+def test_validate_runs_without_rclpy_scipy_or_matplotlib(tmp_path):
+    seen = _imported_after(
+        "import contextlib, io, json, sys\n"
+        "from bev_mdo.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    code = main(['validate'])\n"
+        "assert code == 0\n"
+        "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules} & {'rclpy', 'scipy', 'matplotlib'})))\n")
+    assert seen == []
+
+
+def test_a_subcommand_module_that_fails_to_import_fails_loudly(monkeypatch):
+    monkeypatch.setitem(sys.modules, "bev_mdo.cli.status", None)  # as if status.py were broken
+    with pytest.raises(ModuleNotFoundError, match="bev_mdo.cli.status"):
+        cli.build_parser()
+    with pytest.raises(ModuleNotFoundError, match="bev_mdo.cli.status"):
+        cli.main(["status"])
+    # other subcommands are not affected by it
+    assert cli.build_parser(["graph"]).parse_args(["graph", "c.yaml"]).config == "c.yaml"
