@@ -14,7 +14,7 @@ Sources
   original code. Its source was read to pin down the constants the papers print only in part
   (the 5x5 cross-term matrix of the polynomial functions, the engine-deck fits, the reference
   values the polynomial inputs are normalised by) and GEMSEO 6.3.3 itself was run to
-  cross-check the values of this implementation (test/examples/test_ssbj.py holds the numbers).
+  cross-check the values of this implementation (test/mdo/test_ssbj.py holds the numbers).
   This file is an independent, batched (N points at once) rewrite; no GEMSEO code is used.
 
 Reference optimum (the BLISS result, as GEMSEO documents it: ``SobieskiProblem.optimum_design``
