@@ -118,6 +118,30 @@ def polynomial_function(s, s_ref, flags, bounds):
     return 1.0 + x @ a + 0.5 * np.einsum("ni,ij,nj->n", x, A, x)
 
 
+def polynomial_gradient(s, s_ref, flags, bounds):
+    """(value (N,), d value / d s (N, k)) of :func:`polynomial_function`; the derivative is zero
+    where an input is clipped (outside 0.75..1.25 of its reference value)."""
+    s = np.atleast_2d(np.asarray(s, dtype=float))
+    k = s.shape[1]
+    s_ref = np.asarray(s_ref, dtype=float)
+    ratio = s / s_ref
+    x = np.clip(ratio, 0.75, 1.25) - 1.0
+    bounds = np.broadcast_to(np.asarray(bounds, dtype=float), (k,))
+    a = np.array([_LINEAR[f] / b for f, b in zip(flags, bounds)])
+    diag = np.array([_QUADRATIC[f] / b ** 2 for f, b in zip(flags, bounds)])
+    A = np.diag(diag)
+    for i in range(k):
+        for j in range(i + 1, k):
+            A[i, j] = A[j, i] = diag[i] * CROSS[i, j]
+    value = 1.0 + x @ a + 0.5 * np.einsum("ni,ij,nj->n", x, A, x)
+    inside = (ratio >= 0.75) & (ratio <= 1.25)
+    return value, (a + x @ A) * np.where(inside, 1.0 / s_ref, 0.0)
+
+
+def _jac(n, rows, cols):
+    return np.zeros((n, rows, cols))
+
+
 def _split_shared(x_shared):
     return tuple(x_shared[:, i] for i in range(6))  # t/c, h, M, AR, sweep, Sref
 
@@ -162,6 +186,62 @@ class Structure:
                 "y_14": np.column_stack([total_weight, fuel_weight]),
                 "g_1": g_1}
 
+    def compute_partials(self, inputs):
+        tc, _, _, ar, sweep, sref = _split_shared(inputs["x_shared"])
+        taper, wingbox = inputs["x_1"][:, 0], inputs["x_1"][:, 1]
+        lift, engine_weight = inputs["y_21"], inputs["y_31"]
+        n = len(tc)
+        half_span = 0.5 * np.sqrt(ar * sref)
+        dspan_dar, dspan_dsref = half_span / (2.0 * ar), half_span / (2.0 * sref)
+        aero_center = (1.0 + 2.0 * taper) / (3.0 * (1.0 + taper))
+        dcenter_dtaper = 1.0 / (3.0 * (1.0 + taper) ** 2)
+        _, gt = polynomial_gradient(np.column_stack([wingbox, half_span, aero_center, lift]),
+                                    [1.0, _HALF_SPAN_0, _AERO_CENTER_0, 1.0], [2, 4, 4, 3], 0.25)
+        # d twist / d (x_shared, x_1, y_21): rows of 6 + 2 + 1
+        twist_xs, twist_x1 = np.zeros((n, 6)), np.zeros((n, 2))
+        twist_xs[:, 3], twist_xs[:, 5] = gt[:, 1] * dspan_dar, gt[:, 1] * dspan_dsref
+        twist_x1[:, 0], twist_x1[:, 1] = gt[:, 2] * dcenter_dtaper, gt[:, 0]
+        twist_lift = gt[:, 3]
+        p_w, gp_w = polynomial_gradient(wingbox[:, None], [1.0], [1], [0.008])
+        coeff = (0.0051 * (lift * MAX_LOAD_FACTOR) ** 0.557 * sref ** 0.649 * ar ** 0.5 * tc ** -0.4
+                 * (1.0 + taper) ** 0.1 / np.cos(sweep * DEG) * (0.1875 * sref) ** 0.1)
+        wing_weight = coeff * p_w
+        fuel_wing = (5.0 * sref / 18.0) * (2.0 / 3.0 * tc * sref / np.sqrt(ar * sref)) * 42.5
+        fuel_xs = np.zeros((n, 6))
+        fuel_xs[:, 0], fuel_xs[:, 3], fuel_xs[:, 5] = fuel_wing / tc, -0.5 * fuel_wing / ar, 1.5 * fuel_wing / sref
+        wt_xs = fuel_xs.copy()
+        wt_xs[:, 0] += -0.4 * wing_weight / tc
+        wt_xs[:, 3] += 0.5 * wing_weight / ar
+        wt_xs[:, 4] += wing_weight * np.tan(sweep * DEG) * DEG
+        wt_xs[:, 5] += 0.749 * wing_weight / sref
+        wt_x1 = np.column_stack([0.1 * wing_weight / (1.0 + taper), coeff * gp_w[:, 0]])
+        wt_lift = 0.557 * wing_weight / lift
+        s = np.column_stack([tc, lift, wingbox, half_span, aero_center])
+        g1_xs, g1_x1, g1_lift = _jac(n, 7, 6), _jac(n, 7, 2), _jac(n, 7, 1)
+        for i in range(5):
+            _, gs = polynomial_gradient(s, [0.05, 1.0, 1.0, _HALF_SPAN_0, _AERO_CENTER_0], [4, 1, 4, 1, 1],
+                                        0.1 + 0.05 * i)
+            g1_xs[:, i, 0], g1_xs[:, i, 3], g1_xs[:, i, 5] = gs[:, 0], gs[:, 3] * dspan_dar, gs[:, 3] * dspan_dsref
+            g1_x1[:, i, 0], g1_x1[:, i, 1] = gs[:, 4] * dcenter_dtaper, gs[:, 2]
+            g1_lift[:, i, 0] = gs[:, 1]
+        g1_xs[:, 5], g1_xs[:, 6] = twist_xs, -twist_xs
+        g1_x1[:, 5], g1_x1[:, 6] = twist_x1, -twist_x1
+        g1_lift[:, 5, 0], g1_lift[:, 6, 0] = twist_lift, -twist_lift
+        y12_xs, y12_x1, y12_lift, y12_we = _jac(n, 2, 6), _jac(n, 2, 2), _jac(n, 2, 1), _jac(n, 2, 1)
+        y12_xs[:, 0], y12_xs[:, 1] = wt_xs, twist_xs
+        y12_x1[:, 0], y12_x1[:, 1] = wt_x1, twist_x1
+        y12_lift[:, 0, 0], y12_lift[:, 1, 0] = wt_lift, twist_lift
+        y12_we[:, 0, 0] = 1.0
+        y14_xs, y14_x1, y14_lift, y14_we = _jac(n, 2, 6), _jac(n, 2, 2), _jac(n, 2, 1), _jac(n, 2, 1)
+        y14_xs[:, 0], y14_xs[:, 1] = wt_xs, fuel_xs
+        y14_x1[:, 0] = wt_x1
+        y14_lift[:, 0, 0] = wt_lift
+        y14_we[:, 0, 0] = 1.0
+        return {("y_12", "x_shared"): y12_xs, ("y_12", "x_1"): y12_x1, ("y_12", "y_21"): y12_lift,
+                ("y_12", "y_31"): y12_we, ("y_14", "x_shared"): y14_xs, ("y_14", "x_1"): y14_x1,
+                ("y_14", "y_21"): y14_lift, ("y_14", "y_31"): y14_we,
+                ("g_1", "x_shared"): g1_xs, ("g_1", "x_1"): g1_x1, ("g_1", "y_21"): g1_lift}
+
 
 class Aerodynamics:
     """Discipline 2: lift, drag, lift/drag and the pressure-gradient constraint."""
@@ -187,6 +267,64 @@ class Aerodynamics:
         pgrad = polynomial_function(tc[:, None], [0.05], [1], [0.25])
         return {"y_21": total_weight.copy(), "y_23": dynamic_force * cd, "y_24": cl / cd,
                 "g_2": pgrad - PGRAD_LIMIT}
+
+    def compute_partials(self, inputs):
+        tc, h, mach, _, sweep, sref = _split_shared(inputs["x_shared"])
+        total_weight, twist = inputs["y_12"][:, 0], inputs["y_12"][:, 1]
+        esf, cf = inputs["y_32"], inputs["x_2"]
+        n = len(tc)
+        rho, speed = atmosphere(h, mach)
+        low = h < 36089.0
+        ratio = np.where(low, 1.0 - 6.875e-6 * h, 1.0)
+        drho_dh = np.where(low, 2.377e-3 * 4.2561 * ratio ** 3.2561 * -6.875e-6, -rho / 20806.7)
+        dspeed_dh = np.where(low, mach * 1116.39 * 0.5 / np.sqrt(ratio) * -6.875e-6, 0.0)
+        dspeed_dmach = speed / mach
+        q = 0.5 * rho * speed ** 2
+        dq_dh = 0.5 * drho_dh * speed ** 2 + rho * speed * dspeed_dh
+        dq_dmach = rho * speed * dspeed_dmach
+        cl = total_weight / (q * sref)
+        fo1, g_fo1 = polynomial_gradient(np.column_stack([esf, cf]), [1.0, 1.0], [1, 1], 0.25)
+        fo2, g_fo2 = polynomial_gradient(twist[:, None], [1.0], [5], [0.25])
+        cos = np.cos(sweep * DEG)
+        cd_min = MIN_DRAG_COEFFICIENT * fo1 + 3.05 * tc ** (5.0 / 3.0) * cos ** 1.5
+        den = 4.0 * np.sqrt(sweep ** 2 - 1.0) - 2.0
+        k_induced = (mach ** 2 - 1.0) * cos / den
+        base = cd_min + k_induced * cl ** 2
+        cd = fo2 * base
+        drag = q * sref * cd
+        # derivatives of (cl, cd_min, k, fo2, q*sref) by the variables: t/c, h, M, sweep, Sref, Wt, twist, ESF, Cf
+        names = ("tc", "h", "mach", "sweep", "sref", "wt", "twist", "esf", "cf")
+        dcl = {"h": -cl / q * dq_dh, "mach": -cl / q * dq_dmach, "sref": -cl / sref, "wt": 1.0 / (q * sref)}
+        dcdmin = {"tc": 3.05 * 5.0 / 3.0 * tc ** (2.0 / 3.0) * cos ** 1.5,
+                  "sweep": -3.05 * tc ** (5.0 / 3.0) * 1.5 * np.sqrt(cos) * np.sin(sweep * DEG) * DEG,
+                  "esf": MIN_DRAG_COEFFICIENT * g_fo1[:, 0], "cf": MIN_DRAG_COEFFICIENT * g_fo1[:, 1]}
+        dk = {"mach": 2.0 * mach * cos / den,
+              "sweep": (-(mach ** 2 - 1.0) * np.sin(sweep * DEG) * DEG * den
+                        - (mach ** 2 - 1.0) * cos * 4.0 * sweep / np.sqrt(sweep ** 2 - 1.0)) / den ** 2}
+        dforce = {"h": dq_dh * sref, "mach": dq_dmach * sref, "sref": q}
+        zero = np.zeros(n)
+        dcd, ddrag, dld = {}, {}, {}
+        for v in names:
+            dbase = dcdmin.get(v, zero) + dk.get(v, zero) * cl ** 2 + 2.0 * k_induced * cl * dcl.get(v, zero)
+            dcd[v] = (g_fo2[:, 0] if v == "twist" else zero) * base + fo2 * dbase
+            ddrag[v] = dforce.get(v, zero) * cd + q * sref * dcd[v]
+            dld[v] = dcl.get(v, zero) / cd - cl * dcd[v] / cd ** 2
+        shared = {"tc": 0, "h": 1, "mach": 2, "sweep": 4, "sref": 5}
+        out = {}
+        for name, d in (("y_23", ddrag), ("y_24", dld)):
+            xs = np.zeros((n, 1, 6))
+            for v, j in shared.items():
+                xs[:, 0, j] = d[v]
+            out[(name, "x_shared")] = xs
+            out[(name, "y_12")] = np.stack([d["wt"], d["twist"]], axis=1)[:, None, :]
+            out[(name, "y_32")] = d["esf"]
+            out[(name, "x_2")] = d["cf"]
+        out[("y_21", "y_12")] = np.tile([[[1.0, 0.0]]], (n, 1, 1))
+        _, g_pgrad = polynomial_gradient(tc[:, None], [0.05], [1], [0.25])
+        g2_xs = np.zeros((n, 1, 6))
+        g2_xs[:, 0, 0] = g_pgrad[:, 0]
+        out[("g_2", "x_shared")] = g2_xs
+        return out
 
 
 SFC_COEFF = (1.13238425638512, 1.53436586044561, -0.00003295564466, -0.00016378694115, -0.31623315541888,
@@ -220,6 +358,37 @@ class Propulsion:
                                temperature - TEMPERATURE_LIMIT])
         return {"y_31": engine_weight, "y_32": esf, "y_34": sfc, "g_3": g_3}
 
+    def compute_partials(self, inputs):
+        _, h, mach, _, _, _ = _split_shared(inputs["x_shared"])
+        throttle, drag = inputs["x_3"], inputs["y_23"]
+        n = len(h)
+        thrust = throttle * THROTTLE_SCALE
+        c = SFC_COEFF
+        dsfc_dmach = c[1] + 2 * c[4] * mach + 2 * h * c[5] + 2 * thrust * c[6]
+        dsfc_dh = c[2] + 2 * mach * c[5] + 2 * c[7] * h + 2 * thrust * c[8]
+        dsfc_dthrottle = (c[3] + 2 * mach * c[6] + 2 * h * c[8] + 2 * c[9] * thrust) * THROTTLE_SCALE
+        esf = drag / (3.0 * thrust)
+        desf_ddrag, desf_dthrottle = 1.0 / (3.0 * thrust), -esf / throttle
+        dwe_desf = 3.0 * REF_ENGINE_WEIGHT * 1.05 * esf ** 0.05
+        t = THROTTLE_UPPER_COEFF
+        upper = t[0] + t[1] * mach + t[2] * h + t[3] * mach ** 2 + 2 * t[4] * mach * h + t[5] * h ** 2
+        dupper_dmach = t[1] + 2 * t[3] * mach + 2 * t[4] * h
+        dupper_dh = t[2] + 2 * t[4] * mach + 2 * t[5] * h
+        _, g_temp = polynomial_gradient(np.column_stack([mach, h, throttle]), [1.6, 45000.0, 0.5], [2, 4, 2], 0.25)
+        sfc_xs = np.zeros((n, 1, 6))
+        sfc_xs[:, 0, 1], sfc_xs[:, 0, 2] = dsfc_dh, dsfc_dmach
+        g3_xs, g3_x3, g3_y23 = _jac(n, 4, 6), _jac(n, 4, 1), _jac(n, 4, 1)
+        g3_xs[:, 2, 1] = -thrust * dupper_dh / upper ** 2
+        g3_xs[:, 2, 2] = -thrust * dupper_dmach / upper ** 2
+        g3_xs[:, 3, 1], g3_xs[:, 3, 2] = g_temp[:, 1], g_temp[:, 0]
+        g3_x3[:, 0, 0], g3_x3[:, 1, 0] = desf_dthrottle, -desf_dthrottle
+        g3_x3[:, 2, 0], g3_x3[:, 3, 0] = THROTTLE_SCALE / upper, g_temp[:, 2]
+        g3_y23[:, 0, 0], g3_y23[:, 1, 0] = desf_ddrag, -desf_ddrag
+        return {("y_31", "x_3"): dwe_desf * desf_dthrottle, ("y_31", "y_23"): dwe_desf * desf_ddrag,
+                ("y_32", "x_3"): desf_dthrottle, ("y_32", "y_23"): desf_ddrag,
+                ("y_34", "x_shared"): sfc_xs, ("y_34", "x_3"): dsfc_dthrottle,
+                ("g_3", "x_shared"): g3_xs, ("g_3", "x_3"): g3_x3, ("g_3", "y_23"): g3_y23}
+
 
 class Mission:
     """Discipline 4: the Breguet range (nmi)."""
@@ -236,3 +405,22 @@ class Mission:
         with np.errstate(invalid="ignore", divide="ignore"):  # W_t <= W_f: NaN, a failed point
             log_ratio = np.log(total_weight / (total_weight - fuel_weight))
         return {"y_4": mach * inputs["y_24"] * 661.0 * sqrt_theta / inputs["y_34"] * log_ratio}
+
+    def compute_partials(self, inputs):
+        _, h, mach, _, _, _ = _split_shared(inputs["x_shared"])
+        total_weight, fuel_weight = inputs["y_14"][:, 0], inputs["y_14"][:, 1]
+        lift_drag, sfc = inputs["y_24"], inputs["y_34"]
+        n = len(h)
+        low = h < 36089.0
+        theta = np.where(low, np.abs(1.0 - 6.875e-6 * h), 0.7519)
+        factor = mach * lift_drag * 661.0 * np.sqrt(theta) / sfc
+        with np.errstate(invalid="ignore", divide="ignore"):
+            log_ratio = np.log(total_weight / (total_weight - fuel_weight))
+            empty = total_weight - fuel_weight
+        ac_range = factor * log_ratio
+        xs = np.zeros((n, 1, 6))
+        xs[:, 0, 1] = np.where(low, ac_range * 0.5 * -6.875e-6 / theta, 0.0)
+        xs[:, 0, 2] = ac_range / mach
+        w = np.stack([factor * (1.0 / total_weight - 1.0 / empty), factor / empty], axis=1)[:, None, :]
+        return {("y_4", "x_shared"): xs, ("y_4", "y_14"): w, ("y_4", "y_24"): ac_range / lift_drag,
+                ("y_4", "y_34"): -ac_range / sfc}
