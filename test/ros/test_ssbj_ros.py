@@ -1,6 +1,6 @@
 """Sobieski's SSBJ over ROS through the user-discipline interface only (examples/ssbj/): four
 discipline nodes, vector variables on the wire, a loop of three disciplines iterated hub and
-spoke. MDF and IDF over ROS give the in-process iterates to the last digit, and the reference
+spoke, analytic partials on the wire. MDF and IDF over ROS give the in-process iterates to the last digit, and the reference
 optimum (test/mdo/test_ssbj.py holds the in-process checks and the sources).
 
 The node processes get no path to examples/ssbj: each finds ``ssbj_disciplines`` relative to the
@@ -9,6 +9,7 @@ config's folder.
 from __future__ import annotations
 
 import pytest
+import yaml
 
 rclpy = pytest.importorskip("rclpy")
 
@@ -35,9 +36,15 @@ def nodes(ros_domain, tmp_path_factory):
         assert n.restarts == 0, f"{n.label} died: {n.log_path.read_text()[-2000:] if n.log_path else ''}"
 
 
-@pytest.mark.parametrize("formulation", ["mdf", "idf"])
-def test_ssbj_over_ros_gives_the_in_process_iterates_and_the_reference(rclpy_context, nodes, formulation):
-    config = load_config(EXAMPLE / f"ssbj_{formulation}.yaml")
+@pytest.mark.parametrize("formulation,derivatives", [("mdf", "analytic"), ("idf", "analytic"), ("mdf", "fd")])
+def test_ssbj_over_ros_gives_the_in_process_iterates_and_the_reference(rclpy_context, nodes, formulation,
+                                                                       derivatives):
+    """analytic: the configs' default (every discipline has partials; over ROS they travel with
+    the results); fd: batched finite-difference stencils of whole MDAs."""
+    raw = yaml.safe_load((EXAMPLE / f"ssbj_{formulation}.yaml").read_text())
+    raw["optimizer"]["derivatives"] = derivatives
+    raw["search_path"] = [str(EXAMPLE)]
+    config = load_config(raw)
     ros, stats = coordinator_node.run(config, context=rclpy_context)
     local = run_optimization(config, InProcessEvaluator(resolve_disciplines(config)))
     assert ros.feasible and ros.maximize
