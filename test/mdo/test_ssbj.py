@@ -203,7 +203,8 @@ def test_other_optimisers_that_reach_the_optimum(formulation, optimizer, rel):
 def test_mdf_with_trust_constr_does_not_reach_it_and_the_result_says_so():
     """docs/ssbj.md: trust-constr under MDF wanders infeasible for hundreds of iterations; capped at
     20 here, its result is an early feasible record far from the optimum, not the last iterate."""
-    res = _run(_config("mdf", **{"optimizer.options": {"maxiter": 20}}), optimizer="trust-constr")
+    res = _run(_config("mdf", **{"optimizer.name": "trust-constr", "optimizer.options": {"maxiter": 20}}))
+    assert res.optimizer == "trust-constr" and res.iterations == 20
     assert res.objective < 0.5 * OPTIMUM_RANGE
     assert not res.last_iterate and res.result_iteration < res.iterations
 
