@@ -47,7 +47,9 @@ Every value is a float64 array of a batch of N points: (N,) for a scalar, (N, k)
 declared in ``shapes``. Every class also has ``compute_partials`` (analytic, batched:
 {(output, input): (N, out_size, in_size)}; ``bev-mdo check-partials`` compares them with finite
 differences); the polynomial functions clip their inputs, and the partials there are the
-one-sided derivatives from inside the 0.75..1.25 band. The configs next to this file (``ssbj_mdf.yaml``, ``ssbj_idf.yaml``) name
+one-sided derivatives from inside the 0.75..1.25 band.
+
+The configs next to this file (``ssbj_mdf.yaml``, ``ssbj_idf.yaml``) name
 the classes as ``ssbj_disciplines:Structure`` (found relative to the config's folder).
 """
 from __future__ import annotations

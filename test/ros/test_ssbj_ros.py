@@ -1,7 +1,8 @@
 """Sobieski's SSBJ over ROS through the user-discipline interface only (examples/ssbj/): four
 discipline nodes, vector variables on the wire, a loop of three disciplines iterated hub and
-spoke, analytic partials on the wire. MDF and IDF over ROS give the in-process iterates to the last digit, and the reference
-optimum (test/mdo/test_ssbj.py holds the in-process checks and the sources).
+spoke, analytic partials on the wire. MDF and IDF over ROS give the in-process iterates to the
+last digit, and the reference optimum (test/mdo/test_ssbj.py holds the in-process checks and
+the sources).
 
 The node processes get no path to examples/ssbj: each finds ``ssbj_disciplines`` relative to the
 config's folder.
