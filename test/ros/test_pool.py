@@ -235,7 +235,7 @@ def test_status_lists_live_instances_with_host_and_throughput(rclpy_context, eva
     assert "wait_node_w0" in format_table(rows)
 
 
-def test_sigkill_mid_batch_loses_no_design(evaluator, launcher):
+def test_sigkill_mid_batch_loses_no_design(evaluator, launcher, paths):
     live = evaluator.wait_for_instances("wait", 3, 60.0)
     batch = _batch(600, seed=5)  # 1.2 s of waiting, about 0.4 s per instance
     victim = "wait#1"
@@ -246,6 +246,8 @@ def test_sigkill_mid_batch_loses_no_design(evaluator, launcher):
         res = evaluator.evaluate([("wait", batch)])[0]
     finally:
         killer.join()
+        launcher.remove(victim)  # a fresh w1 for the tests after this one
+        launcher.add(victim, discipline_argv("wait", str(paths["base"]), instance="w1"))
     assert res.ok.all(), res.error
     assert np.array_equal(res.outputs["wait_value"], _reference(batch))
     assert sum(_points(evaluator).values()) - before == 600  # every row accepted exactly once
