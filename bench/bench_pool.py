@@ -254,7 +254,7 @@ def energy(ctx, env, tmp: Path, reps: int, batches) -> dict:
         launcher.stop()
 
 
-def pareto(ctx, env, tmp: Path, pop: int, generations: int, counts) -> dict:
+def pareto(ctx, env, tmp: Path, pop: int, generations: int, counts, waves: bool = False) -> dict:
     """NSGA-II (run_nsga2 over the MDF MDA, as ``bev-mdo pareto`` runs it) over ROS with 1 and 2
     energy instances (every other discipline one process), and in process."""
     from bev_mdo.config import load_config, resolve_disciplines
@@ -287,13 +287,14 @@ def pareto(ctx, env, tmp: Path, pop: int, generations: int, counts) -> dict:
             if k > 1:
                 ev.wait_for_instances("energy", k, 120.0)
             ev.warm_up(names)
+            ev.pool_data_flow = not waves
         try:
             t0 = time.perf_counter()
             res = run_nsga2(build_formulation(config, ev, "mdf"), OBJECTIVES, pop_size=pop,
                             generations=generations, seed=1)
             wall = time.perf_counter() - t0
             fronts[k] = np.asarray(res.F) if hasattr(res, "F") else None
-            entry = {"energy_instances": k, "wall_s": wall, "start_up_s": t0 - t_start,
+            entry = {"energy_instances": k, "wall_s": wall, "pool_mda": "waves" if waves else "data_flow_shares", "start_up_s": t0 - t_start,
                      "load_average_1min_after": os.getloadavg()[0]}
             if node is not None:
                 entry["data_flow_mdas"] = ev.flows
@@ -319,6 +320,7 @@ def main() -> int:
     ap.add_argument("--energy-batches", default="64,128,256,512")
     ap.add_argument("--pop", type=int, default=100)
     ap.add_argument("--generations", type=int, default=30)
+    ap.add_argument("--pool-waves", action="store_true", help="pareto: MDAs with a pool in waves, not data flow")
     ap.add_argument("--pareto-instances", default="1,2", help="energy instances per run (0: in process)")
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--n", type=int, default=1000, help="MDAs per round (compose)")
@@ -336,7 +338,7 @@ def main() -> int:
 
     env = ros_env(args.domain)
     figures = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
-    figures.setdefault("hosts", {})[args.part] = figures["host"] = {"cpus": os.cpu_count(), "load_average_1min": os.getloadavg()[0],
+    figures.setdefault("hosts", {})[args.part + ("_waves" if args.pool_waves else "")] = figures["host"] = {"cpus": os.cpu_count(), "load_average_1min": os.getloadavg()[0],
                        "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime())}
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
@@ -353,8 +355,9 @@ def main() -> int:
                                            [int(b) for b in args.energy_batches.split(",")])
                 figures["energy"]["load_average_1min_after"] = os.getloadavg()[0]
             if args.part in ("pareto", "all"):
-                figures["pareto"] = pareto(ctx, env, Path(tmp), args.pop, args.generations,
-                                           [int(k) for k in args.pareto_instances.split(",")])
+                key = "pareto_waves" if args.pool_waves else "pareto"
+                figures[key] = pareto(ctx, env, Path(tmp), args.pop, args.generations,
+                                      [int(k) for k in args.pareto_instances.split(",")], args.pool_waves)
     finally:
         rclpy.shutdown(context=ctx)
     RESULTS.parent.mkdir(parents=True, exist_ok=True)

@@ -122,6 +122,9 @@ class RosEvaluator:
         self._flow_got: dict[int, dict[int, EvalResult]] = {}     # data-flow share id -> {index: result}
         self._flow_meta: dict[int, tuple[int, int, int]] = {}     # data-flow share id -> (first, stop, tries)
         self.flow_shares = 0  # data-flow requests sent as row shares of pooled MDAs
+        # False: an MDA with a pool runs in waves (only the pooled disciplines see shares; the
+        # others get the whole batch once), as before data flow with pools (docs/scaling.md)
+        self.pool_data_flow = True
         self._info_t = time.monotonic()
         self._executor = SingleThreadedExecutor(context=node.context)
         self._executor.add_node(node)
@@ -534,6 +537,8 @@ class RosEvaluator:
         self._poll_info()
         pooled = {d: live for d in names if (live := self._live(d) if n > 0 else None) and len(live) > 1}
         if pooled:
+            if not self.pool_data_flow:
+                return None
             return self._flow_shares(names, plan, request, n, bool(partials), pooled, t0)
         eid = self._next_id
         self._next_id += 1
