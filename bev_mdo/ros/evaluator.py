@@ -124,7 +124,7 @@ class RosEvaluator:
         self.flow_shares = 0  # data-flow requests sent as row shares of pooled MDAs
         # False: an MDA with a pool runs in waves (only the pooled disciplines see shares; the
         # others get the whole batch once), as before data flow with pools (docs/scaling.md)
-        self.pool_data_flow = True
+        self.pool_data_flow = (config.get("ros") or {}).get("pool_data_flow", True) is not False
         self._info_t = time.monotonic()
         self._executor = SingleThreadedExecutor(context=node.context)
         self._executor.add_node(node)

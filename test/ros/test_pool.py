@@ -36,11 +36,12 @@ WAIT_S = 0.002
 TIMEOUT_S = 2.0
 
 
-def _raw(wait_s=WAIT_S, pool="share"):
+def _raw(wait_s=WAIT_S, pool="share", pool_data_flow=True):
     raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
     raw["disciplines"] = BUILTINS + [{"name": "wait", "class": "pool_discipline:WaitPerDesign",
                                       "options": {"wait_s_per_design": wait_s}}]
-    raw["ros"] = {"timeout_s": TIMEOUT_S, "retries": 3, "discovery_wait_s": 60.0, "signing": False, "pool": pool}
+    raw["ros"] = {"timeout_s": TIMEOUT_S, "retries": 3, "discovery_wait_s": 60.0, "signing": False, "pool": pool,
+                 "pool_data_flow": pool_data_flow}
     return raw
 
 
@@ -48,7 +49,8 @@ def _raw(wait_s=WAIT_S, pool="share"):
 def paths(tmp_path_factory):
     d = tmp_path_factory.mktemp("cfg")
     out = {}
-    for key, raw in (("base", _raw()), ("other", _raw(wait_s=0.003)), ("redundant", _raw(pool="redundant"))):
+    for key, raw in (("base", _raw()), ("other", _raw(wait_s=0.003)), ("redundant", _raw(pool="redundant")),
+                     ("waves", _raw(pool_data_flow=False))):
         out[key] = d / f"{key}.yaml"
         out[key].write_text(yaml.safe_dump(raw, sort_keys=False))
     return out
@@ -325,3 +327,26 @@ def test_data_flow_share_of_a_stalled_instance_is_re_sent(evaluator, paths, ros_
         assert evaluator.retried >= 1
     finally:
         stalled.stop()
+
+
+def test_pool_data_flow_false_runs_pooled_mdas_in_waves(rclpy_context, launcher, paths):
+    config = load_config(paths["waves"])
+    names = BUILTINS + ["wait"]
+    node = rclpy.create_node("pool_waves", context=rclpy_context)
+    ev = RosEvaluator(node, config=config, timeout_s=TIMEOUT_S, retries=3)
+    try:
+        ev.wait_for_disciplines(names, 60.0)
+        ev.wait_for_instances("wait", 3, 60.0)
+        from bev_mdo.mdo.driver import build_formulation
+
+        X = _designs(30, seed=9)
+        kept = len(ev.accepted)
+        res = build_formulation(config, ev).analyse(X)
+        assert ev.flows == 0 and ev.flow_shares == 0  # no data-flow request
+        _check_equal(res, config, X)
+        # waves: one evaluation id per discipline, a pooled one split into shares
+        waits = [a for a in ev.accepted[kept:] if a[1] == "wait"]
+        assert len(waits) == 3 and len({a[0] for a in ev.accepted[kept:]}) == len(ev.accepted[kept:])
+    finally:
+        ev.close()
+        node.destroy_node()
