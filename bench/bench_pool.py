@@ -162,16 +162,173 @@ def compose(ctx, env, reps: int, n: int) -> dict:
     return {"mdas_per_round": n, "rounds": reps, "layouts": layouts}
 
 
+def _artemis(tmp: Path) -> Path:
+    raw = yaml.safe_load((REPO / "config" / "topologies_artemis.yaml").read_text())
+    raw["ros"] = {**(raw.get("ros") or {}), "signing": False, "discovery_wait_s": 120.0, "retries": 1}
+    path = tmp / "bench_pool_artemis.yaml"
+    path.write_text(yaml.safe_dump(raw, sort_keys=False))
+    return path
+
+
+def _designs(form, n: int, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    lo = np.array([d.lower for d in form.problem.design_variables])
+    hi = np.array([d.upper for d in form.problem.design_variables])
+    return lo + (hi - lo) * rng.uniform(size=(n, lo.size))
+
+
+def _set_energy_instances(launcher, ev, path: Path, k: int) -> None:
+    """Make `k` (1 or 2) energy instances live: start or stop the second one and wait for the graph."""
+    from bev_mdo.ros.launch import discipline_argv
+
+    has = any(n.label == "energy#1" for n in launcher.nodes)
+    if k == 2 and not has:
+        launcher.add("energy#1", discipline_argv("energy", str(path), instance="e1"))
+        ev.wait_for_instances("energy", 2, 120.0)
+    elif k == 1 and has:
+        launcher.remove("energy#1")
+        deadline = time.monotonic() + 60.0
+        while len(ev._present_instances("energy")[0]) > 1 and time.monotonic() < deadline:
+            ev._executor.spin_once(timeout_sec=0.05)
+        assert len(ev._live("energy") or [1]) == 1
+
+
+def energy(ctx, env, tmp: Path, reps: int, batches) -> dict:
+    """The quasi-static energy model on Artemis (CPU-bound): one batch to the energy discipline,
+    1 and 2 instances alternating per round (the second instance stopped and started between)."""
+    from bev_mdo.config import load_config, resolve_disciplines
+    from bev_mdo.mdo.driver import build_formulation
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
+    from bev_mdo.ros.launch import Launcher, discipline_argv
+
+    path = _artemis(tmp)
+    config = load_config(path)
+    names = discipline_names(config)
+    local = InProcessEvaluator(resolve_disciplines(config))
+    form = build_formulation(config, local)
+    batches_in = {}
+    for n in batches:
+        values = form.analyse(_designs(form, n, seed=n)).values
+        batches_in[n] = {k: np.asarray(values[k]) for k in local.specs["energy"].inputs}
+    launcher = Launcher(env)
+    run_id = f"benchpoolenergy{os.getpid()}"
+    launcher.add("energy", discipline_argv("energy", str(path), run_id=run_id))
+    node = CoordinatorNode(config, run_id=run_id, context=ctx, node_name="bench_pool_energy")
+    ev = node.evaluator
+    walls: dict = {(k, n): [] for k in (1, 2) for n in batches}
+    inproc: dict = {n: [] for n in batches}
+    try:
+        ev.wait_for_disciplines(["energy"], 120.0)
+        for r in range(reps):
+            for k in ((1, 2) if r % 2 == 0 else (2, 1)):
+                _set_energy_instances(launcher, ev, path, k)
+                for n in batches:
+                    ev.evaluate([("energy", batches_in[n])])  # warm (and throughput measured)
+                    t0 = time.perf_counter()
+                    res = ev.evaluate([("energy", batches_in[n])])[0]
+                    walls[(k, n)].append(time.perf_counter() - t0)
+                    assert res.ok.any(), res.error
+            for n in batches:
+                t0 = time.perf_counter()
+                local.evaluate([("energy", batches_in[n])])
+                inproc[n].append(time.perf_counter() - t0)
+        rows = []
+        for n in batches:
+            one, two = _stats(walls[(1, n)]), _stats(walls[(2, n)])
+            ref = _stats(inproc[n])
+            row = {"batch": n, "inprocess_s": ref, "one_instance_s": one, "two_instances_s": two,
+                   "speed_up": one["median"] / two["median"],
+                   "overhead_one_instance_ms": (one["median"] - ref["median"]) * 1e3,
+                   "compute_per_design_ms": ref["median"] / n * 1e3}
+            rows.append(row)
+            print(f"energy batch {n:4d}: in process {ref['median'] * 1e3:7.1f} ms  1 instance "
+                  f"{one['median'] * 1e3:7.1f} [{one['min'] * 1e3:.1f}-{one['max'] * 1e3:.1f}]  2 instances "
+                  f"{two['median'] * 1e3:7.1f} [{two['min'] * 1e3:.1f}-{two['max'] * 1e3:.1f}]  "
+                  f"speed-up {row['speed_up']:.2f}", flush=True)
+        return {"config": "config/topologies_artemis.yaml (quasi-static, Artemis combined)", "rounds": reps,
+                "rows": rows, "pools": ev.pool_summary(), "names": names}
+    finally:
+        ev.close()
+        node.destroy_node()
+        launcher.stop()
+
+
+def pareto(ctx, env, tmp: Path, pop: int, generations: int, counts, waves: bool = False) -> dict:
+    """NSGA-II (run_nsga2 over the MDF MDA, as ``bev-mdo pareto`` runs it) over ROS with 1 and 2
+    energy instances (every other discipline one process), and in process."""
+    from bev_mdo.config import load_config, resolve_disciplines
+    from bev_mdo.mdo.driver import build_formulation
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.mdo.pareto import run_nsga2
+    from bev_mdo.cli.pareto import OBJECTIVES
+    from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
+    from bev_mdo.ros.launch import Launcher, discipline_argv
+
+    path = _artemis(tmp)
+    config = load_config(path)
+    names = discipline_names(config)
+    out = {"pop": pop, "generations": generations, "runs": []}
+    fronts = {}
+    for k in counts:
+        t_start = time.perf_counter()
+        if k == 0:
+            ev, launcher, node = InProcessEvaluator(resolve_disciplines(config)), None, None
+        else:
+            launcher = Launcher(env)
+            run_id = f"benchpoolpareto{k}{os.getpid()}"
+            for name in names:
+                launcher.add(name, discipline_argv(name, str(path), run_id=run_id))
+            for j in range(1, k):
+                launcher.add(f"energy#{j}", discipline_argv("energy", str(path), instance=f"p{j}", run_id=run_id))
+            node = CoordinatorNode(config, run_id=run_id, context=ctx, node_name=f"bench_pool_pareto{k}")
+            ev = node.evaluator
+            ev.wait_for_disciplines(names, 120.0)
+            if k > 1:
+                ev.wait_for_instances("energy", k, 120.0)
+            ev.warm_up(names)
+            ev.pool_data_flow = not waves
+        try:
+            t0 = time.perf_counter()
+            res = run_nsga2(build_formulation(config, ev, "mdf"), OBJECTIVES, pop_size=pop,
+                            generations=generations, seed=1)
+            wall = time.perf_counter() - t0
+            fronts[k] = np.asarray(res.F) if hasattr(res, "F") else None
+            entry = {"energy_instances": k, "wall_s": wall, "pool_mda": "waves" if waves else "data_flow_shares", "start_up_s": t0 - t_start,
+                     "load_average_1min_after": os.getloadavg()[0]}
+            if node is not None:
+                entry["data_flow_mdas"] = ev.flows
+                entry["flow_shares"] = ev.flow_shares
+                entry["pools"] = ev.pool_summary()
+                entry["retried"] = ev.retried
+            out["runs"].append(entry)
+            print(f"pareto {pop}x{generations}, energy instances {k or 'in process'}: {wall:.1f} s", flush=True)
+        finally:
+            if node is not None:
+                ev.close()
+                node.destroy_node()
+                launcher.stop()
+    ref = fronts[counts[0]]
+    out["identical_fronts_to_first"] = sorted(k for k in fronts if np.array_equal(fronts[k], ref))
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--part", choices=["scaling", "compose", "all"], default="all")
+    ap.add_argument("--part", choices=["scaling", "compose", "energy", "pareto", "all"], default="all")
+    ap.add_argument("--domain", type=int, default=DOMAIN, help="ROS domain id")
+    ap.add_argument("--energy-batches", default="64,128,256,512")
+    ap.add_argument("--pop", type=int, default=100)
+    ap.add_argument("--generations", type=int, default=30)
+    ap.add_argument("--pool-waves", action="store_true", help="pareto: MDAs with a pool in waves, not data flow")
+    ap.add_argument("--pareto-instances", default="1,2", help="energy instances per run (0: in process)")
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--n", type=int, default=1000, help="MDAs per round (compose)")
     ap.add_argument("--wait-ms", type=float, default=1.0, help="wait per design of the test discipline")
     ap.add_argument("--instances", default="1,2,4,8")
     ap.add_argument("--batches", default="64,256,1024")
     args = ap.parse_args()
-    os.environ["ROS_DOMAIN_ID"] = str(DOMAIN)
+    os.environ["ROS_DOMAIN_ID"] = str(args.domain)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     import tempfile
 
@@ -179,9 +336,9 @@ def main() -> int:
 
     from bev_mdo.testing import ros_env
 
-    env = ros_env(DOMAIN)
+    env = ros_env(args.domain)
     figures = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
-    figures["host"] = {"cpus": os.cpu_count(), "load_average_1min": os.getloadavg()[0],
+    figures.setdefault("hosts", {})[args.part + ("_waves" if args.pool_waves else "")] = figures["host"] = {"cpus": os.cpu_count(), "load_average_1min": os.getloadavg()[0],
                        "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime())}
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
@@ -193,6 +350,14 @@ def main() -> int:
                                              [int(b) for b in args.batches.split(",")])
             if args.part in ("compose", "all"):
                 figures["compose"] = compose(ctx, env, args.reps, args.n)
+            if args.part in ("energy", "all"):
+                figures["energy"] = energy(ctx, env, Path(tmp), args.reps,
+                                           [int(b) for b in args.energy_batches.split(",")])
+                figures["energy"]["load_average_1min_after"] = os.getloadavg()[0]
+            if args.part in ("pareto", "all"):
+                key = "pareto_waves" if args.pool_waves else "pareto"
+                figures[key] = pareto(ctx, env, Path(tmp), args.pop, args.generations,
+                                      [int(k) for k in args.pareto_instances.split(",")], args.pool_waves)
     finally:
         rclpy.shutdown(context=ctx)
     RESULTS.parent.mkdir(parents=True, exist_ok=True)

@@ -53,6 +53,87 @@ def discipline_timing(bag: Bag) -> dict[str, dict[str, list[float]]]:
     return out
 
 
+def _targets(frame_id: str) -> dict[str, str]:
+    """{discipline: instance} a request addresses (a pool's share, ros/pool.py), from its binding tag
+    ``fp:<discipline>=<fingerprint>@<instance>,...``; empty for a request to any instance."""
+    if not frame_id.startswith("fp:"):
+        return {}
+    out = {}
+    for entry in frame_id[3:].split(","):
+        name, _, rest = entry.partition("=")
+        _, sep, inst = rest.partition("@")
+        if sep and inst:
+            out[name] = inst.lstrip("/")
+    return out
+
+
+def instance_work(bag: Bag) -> dict[str, dict[str, dict]]:
+    """Per discipline and instance, from the recorded requests and results (warm-up excluded):
+    ``results``, ``points`` (designs answered), ``compute_s`` (summed ``compute_time_s``),
+    ``points_per_compute_s`` (throughput while computing), ``failed_points`` (answered not ok),
+    and ``unanswered_shares`` / ``unanswered_points``: shares addressed to that instance that it never
+    answered (it stalled or died; the coordinator re-sent them to another instance)."""
+    topics = [t for t, ty in bag.topics.items() if ty in (REQUEST_TYPE, RESULT_TYPE)]
+    addressed: dict[tuple, tuple[str, int]] = {}   # (run, eval id, discipline) -> (instance, points)
+    answered: set[tuple] = set()
+    work: dict[str, dict[str, dict]] = {}
+
+    def entry(d: str, inst: str) -> dict:
+        return work.setdefault(d, {}).setdefault(inst, {"results": 0, "points": 0, "compute_s": 0.0,
+                                                        "failed_points": 0, "unanswered_shares": 0,
+                                                        "unanswered_points": 0})
+
+    for msg, obj in bag.decoded(topics):
+        block = obj.inputs if msg.type_name == REQUEST_TYPE else obj.outputs
+        n = int(block.batch_size)
+        if n == 0:
+            continue
+        if msg.type_name == REQUEST_TYPE:
+            for d, inst in _targets(obj.header.frame_id).items():
+                addressed.setdefault((obj.run_id, int(obj.evaluation_id), d), (inst, n))
+            continue
+        inst = obj.instance.lstrip("/") or "?"
+        answered.add((obj.run_id, int(obj.evaluation_id), obj.discipline, inst))
+        e = entry(obj.discipline, inst)
+        e["results"] += 1
+        e["points"] += n
+        e["compute_s"] += float(obj.compute_time_s)
+        e["failed_points"] += int(np.size(obj.point_ok) - np.count_nonzero(obj.point_ok))
+    for (run, eid, d), (inst, n) in addressed.items():
+        if (run, eid, d, inst) not in answered:
+            e = entry(d, inst)
+            e["unanswered_shares"] += 1
+            e["unanswered_points"] += n
+    for per in work.values():
+        for e in per.values():
+            e["compute_s"] = round(e["compute_s"], 6)
+            e["points_per_compute_s"] = round(e["points"] / e["compute_s"], 3) if e["compute_s"] > 0 else None
+    return work
+
+
+def _instance_table(work) -> list[str]:
+    """The per-instance table of the disciplines served by more than one instance (or with a
+    share an instance never answered)."""
+    shown = {d: per for d, per in sorted(work.items())
+             if len(per) > 1 or any(e["unanswered_shares"] for e in per.values())}
+    if not shown:
+        return []
+    lines = ["", "## Work per instance (worker pools)", "",
+             "| discipline | instance | results | points | share of points | compute (s) | points per compute s "
+             "| failed points | unanswered shares (points) |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for d, per in shown.items():
+        total = sum(e["points"] for e in per.values()) or 1
+        for inst, e in sorted(per.items()):
+            rate = f"{e['points_per_compute_s']:.1f}" if e["points_per_compute_s"] else "-"
+            lines.append(f"| {d} | {inst} | {e['results']} | {e['points']} | {100.0 * e['points'] / total:.1f} % | "
+                         f"{e['compute_s']:.3f} | {rate} | {e['failed_points']} | "
+                         f"{e['unanswered_shares']} ({e['unanswered_points']}) |")
+    lines += ["", "Unanswered shares were addressed to that instance, which never answered them (it stalled "
+                  "or left); the coordinator re-sent their designs to the other instances."]
+    return lines
+
+
 def _iterate_markers(ax, it, y, feasible) -> None:
     """Feasible iterates filled, infeasible ones as red crosses (both in the legend)."""
     it, y, feasible = np.asarray(it), np.asarray(y, float), np.asarray(feasible, bool)
@@ -318,6 +399,7 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
     lines += [f"| {t} | {ty} | {bag.counts.get(t, 0)} |" for t, ty in sorted(bag.topics.items())]
     if timing:
         lines += ["", "## Discipline evaluation time (warm-up excluded)", "", *_timing_table(timing)]
+    lines += _instance_table(instance_work(bag))
     lines += ["", "## Plots", ""] + [f"![{Path(p).stem}]({p})" for p in images]
     config = read_config(bag)
     if config:

@@ -14,6 +14,8 @@ Data flow (``evaluate_flow``, mdo/flow.py): a feed-forward MDA is ONE request on
 (/bev_mdo/<discipline>/mda_result) forwards the request's columns, so a consumer needs only
 its sources' results, and the coordinator collects every discipline's result there. It is used only when every node declared (DisciplineInfo) that it reads each coupling
 input from the same producer as the coordinator's graph; otherwise the MDA runs in waves.
+With worker pools the MDA is cut into row shares, one data-flow request each, every pooled
+discipline addressed to one of its instances (``_flow_shares``; docs/scaling.md).
 
 With a shared key (``ros.sign_key_file``, see auth.py) every request is signed and
 every result verified first; unsigned, forged, expired and replayed results are
@@ -43,6 +45,13 @@ from bev_mdo.ros.fastwait import MultiWaiter
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC,
                                 mda_result_topic, request_topic, stamp)
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
+
+
+# A data-flow share has at least this many rows. Every discipline of the MDA computes each share
+# on its own, and numpy reduces a batch of ONE row in another order than a batch of several (a
+# contiguous axis is summed pairwise): the acceleration model differs in the last bit between
+# n = 1 and n > 1. Shares of two rows or more keep the joined result bitwise the single-request one.
+FLOW_MIN_ROWS = 2
 
 
 class DisciplineMissing(ValueError):
@@ -110,6 +119,12 @@ class RosEvaluator:
         self._parts: dict[int, list[tuple[int, EvalResult]]] = {}  # wave index -> (first row, share result)
         self._late: set[tuple[int, str]] = set()                  # shares taken from a failed instance
         self._batches: dict[int, tuple[str, Mapping]] = {}        # wave index -> (discipline, batch)
+        self._flow_got: dict[int, dict[int, EvalResult]] = {}     # data-flow share id -> {index: result}
+        self._flow_meta: dict[int, tuple[int, int, int]] = {}     # data-flow share id -> (first, stop, tries)
+        self.flow_shares = 0  # data-flow requests sent as row shares of pooled MDAs
+        # False: an MDA with a pool runs in waves (only the pooled disciplines see shares; the
+        # others get the whole batch once), as before data flow with pools (docs/scaling.md)
+        self.pool_data_flow = (config.get("ros") or {}).get("pool_data_flow", True) is not False
         self._info_t = time.monotonic()
         self._executor = SingleThreadedExecutor(context=node.context)
         self._executor.add_node(node)
@@ -182,9 +197,7 @@ class RosEvaluator:
                     plan = None
                 elif CouplingGraph((n, self.specs[n].inputs, self.specs[n].outputs) for n in names).cycles:
                     plan = None  # a loop: no node of it can start (the MDA iterates it hub and spoke)
-                # a pool shares batches in waves; its instances would each answer a data-flow MDA
-                elif self.pool_mode == "share" and any(len(self.instances.get(n, ())) > 1 for n in names):
-                    plan = None
+                # with pools (share mode) a data-flow MDA is split into row shares (_flow_shares)
             self._flow_plans[key] = plan
         return self._flow_plans[key]
 
@@ -442,8 +455,11 @@ class RosEvaluator:
         self.accepted.append((int(msg.evaluation_id), msg.discipline, msg.instance, int(p.request.attempt)))
         del self._pending[key]
         self._answered.add(key)
-        if p.start >= 0:
+        if p.target:
             self._pool(p.discipline).record(p.target, p.n, (time.monotonic_ns() - p.sent_ns) * 1e-9)
+        if p.flow and p.start >= 0:  # a row share of a data-flow MDA (_flow_shares)
+            self._flow_got.setdefault(key[0], {})[p.index] = res
+        elif p.start >= 0:
             self._parts.setdefault(p.index, []).append((p.start, res))
         else:
             self._results[p.index] = res
@@ -518,6 +534,12 @@ class RosEvaluator:
         t0 = time.perf_counter()
         self._flow_topics(names)
         self._results = {}
+        self._poll_info()
+        pooled = {d: live for d in names if (live := self._live(d) if n > 0 else None) and len(live) > 1}
+        if pooled:
+            if not self.pool_data_flow:
+                return None
+            return self._flow_shares(names, plan, request, n, bool(partials), pooled, t0)
         eid = self._next_id
         self._next_id += 1
         req = wire.Request(self.run_id, eid, "", flow=names)
@@ -540,6 +562,147 @@ class RosEvaluator:
                 if rows:
                     self.counts[name] += rows
         self.last_latency_s = time.perf_counter() - t0
+        return out
+
+    # -- data flow with pools ------------------------------------------------------
+    def _flow_shares(self, names: Sequence[str], plan: Mapping[str, Mapping[str, str]],
+                     request: Mapping[str, np.ndarray], n: int, partials: bool,
+                     pooled: Mapping[str, list[str]], t0: float) -> dict:
+        """One data-flow MDA over pools: its rows are cut into shares (in proportion to the
+        throughput of the largest pool's instances), and each share is ONE data-flow request in
+        which every pooled discipline is addressed to one of its instances (the largest pool: one
+        instance per share; a smaller pool: its instances in turn). So each instance evaluates
+        its own rows, a consumer joins its sources' results of the same share as without pools,
+        and the coordinator joins every discipline's shares in row order. A share not answered
+        within the timeout, or whose instance left the graph, is re-sent whole (new evaluation id,
+        other instances) and its old answers are dropped (``late_share``)."""
+        lead = max(pooled, key=lambda d: (len(pooled[d]), d))
+        self._flow_got, self._flow_meta = {}, {}
+        for j, (inst, a, b) in enumerate(self._pool(lead).split(n, pooled[lead], min_rows=FLOW_MIN_ROWS)):
+            targets = {d: inst if d == lead else live[j % len(live)] for d, live in pooled.items()}
+            self._send_flow_share(names, request, a, b, targets, partials, 0)
+        failed = self._await_flow_shares(names, plan, request, partials)
+        out = {}
+        for i, name in enumerate(names):
+            parts = sorted((self._flow_meta[e][0], e, got[i]) for e, got in self._flow_got.items())
+            spec = self.specs.get(name)
+            keys = spec.outputs if spec else tuple(parts[0][2].outputs)
+            outs = {k: np.concatenate([np.asarray(r.outputs[k], dtype=float) for _, _, r in parts]) for k in keys}
+            ok = np.concatenate([np.asarray(r.ok, dtype=bool) for _, _, r in parts])
+            errors = [flow._renumber(r, np.arange(a, a + r.ok.size)).error for a, _, r in parts if r.error]
+            res = EvalResult(outs, ok, "; ".join(dict.fromkeys(errors)),
+                             float(sum(r.compute_time_s for _, _, r in parts)))
+            if partials and all("partials" in r.extra for _, _, r in parts):
+                pk = parts[0][2].extra["partials"].keys()
+                res.extra["partials"] = {k: np.concatenate([np.asarray(r.extra["partials"][k]) for _, _, r in parts])
+                                         for k in pk if all(k in r.extra["partials"] for _, _, r in parts)}
+            out[name] = res
+        self.flows += 1
+        for name in names:
+            if name not in failed:
+                up = {s: (out[s].outputs, out[s].ok) for s in set(plan[name].values())}
+                rows = flow.rows_evaluated(plan[name], up, n)
+                if rows:
+                    self.counts[name] += rows
+        self._flow_got, self._flow_meta = {}, {}
+        self.last_latency_s = time.perf_counter() - t0
+        return out
+
+    def _send_flow_share(self, names: Sequence[str], request: Mapping[str, np.ndarray], a: int, b: int,
+                         targets: Mapping[str, str], partials: bool, tries: int) -> None:
+        eid = self._next_id
+        self._next_id += 1
+        req = wire.Request(self.run_id, eid, "", flow=names)
+        fps = {d: (self._expect(d) or ("?", ""))[0] for d in names}
+        req.header.frame_id = binding.tag(
+            {d: f"{fp}{binding.TARGET_SEP}{targets[d]}" if d in targets else fp for d, fp in fps.items()}, names)
+        req.attempt = tries
+        req.inputs = wire.batch({k: np.asarray(v)[a:b] for k, v in request.items()})
+        req.partials = partials
+        first = None
+        for i, name in enumerate(names):
+            self._pending[(eid, name)] = p = _Pending(i, name, req, b - a, 0, flow=True, target=targets.get(name, ""),
+                                                      start=a, tries=tries)
+            first = first or p
+        self._flow_meta[eid] = (a, b, tries)
+        self.flow_shares += 1
+        self._send(first)  # one message for every discipline of the share
+        for name in names:
+            self._pending[(eid, name)].sent_ns = first.sent_ns
+
+    def _await_flow_shares(self, names: Sequence[str], plan: Mapping[str, Mapping[str, str]],
+                           request: Mapping[str, np.ndarray], partials: bool, check_s: float = 0.1) -> set[str]:
+        """Wait for the shares of a pooled data-flow MDA; re-send a share whose instance stalled or
+        left. Returns the disciplines that had rows failed for want of an answer."""
+        failed: set[str] = set()
+        checked = 0.0
+        subs = [s for s, _ in self._hot]
+        while self._pending:
+            now = time.monotonic()
+            due = min(p.sent_ns * 1e-9 + self.timeout_s for p in self._pending.values())
+            if self._waiter.wait(subs, max(0.0, min(due, now + check_s) - now)):
+                self._waiter.take_ready(self._hot)
+            now = time.monotonic()
+            gone: set[tuple[str, str]] = set()
+            if now - checked >= check_s:
+                checked = now
+                for name in {p.discipline for p in self._pending.values() if p.target}:
+                    present, _ = self._present_instances(name)
+                    gone |= {(name, p.target) for p in self._pending.values()
+                             if p.discipline == name and p.target and p.target not in present}
+            shares: dict[int, list[tuple[tuple[int, str], _Pending]]] = {}
+            for key, p in self._pending.items():
+                shares.setdefault(key[0], []).append((key, p))
+            for eid, items in shares.items():
+                late = any(now * 1e9 >= p.sent_ns + self.timeout_s * 1e9 for _, p in items)
+                lost = [p for _, p in items if (p.discipline, p.target) in gone]
+                if not late and not lost:
+                    continue
+                waiting = {p.discipline for _, p in items}
+                # to blame: an instance that left, or a pending one whose sources all answered
+                blame = {(p.discipline, p.target, p.n) for _, p in items if p.target and (
+                    (p.discipline, p.target) in gone or not set(plan[p.discipline].values()) & waiting)}
+                for d, t, k in blame:
+                    self._pool(d).fail(t, k)
+                a, b, tries = self._flow_meta[eid]
+                if tries >= self.retries:  # give up on what is missing: those rows fail, named
+                    for key, p in items:
+                        res = self._failed(p, f"{p.discipline}: no answer after {self.retries + 1} attempts "
+                                              f"of {self.timeout_s:g} s")
+                        self._first_error(p.discipline, res.error)
+                        self._flow_got.setdefault(eid, {})[p.index] = res
+                        failed.add(p.discipline)
+                        del self._pending[key]
+                        self._answered.add(key)
+                    continue
+                for key, _ in items:  # the share is re-sent whole; answers to the old one are dropped
+                    del self._pending[key]
+                    self._late.add(key)
+                for i in self._flow_got.pop(eid, {}):
+                    self._late.add((eid, names[i]))
+                del self._flow_meta[eid]
+                self.retried += 1
+                targets = {}
+                for d in {p.discipline for _, p in items if p.target} | {x for x, _ in self._targets_of(eid, items)}:
+                    live = self._live(d) or sorted(self._present_instances(d)[0])
+                    if live:
+                        targets[d] = live[(eid + tries) % len(live)]
+                why = "left the ROS graph" if lost else f"no answer after {self.timeout_s:g} s"
+                self.node.get_logger().warning(
+                    f"data-flow share {eid} (rows {a}-{b}): {sorted(f'{d}@{t}' for d, t, _ in blame)} {why}; "
+                    f"re-sent to {targets} (retry {tries + 1}/{self.retries})")
+                self._send_flow_share(names, request, a, b, targets, partials, tries + 1)
+        return failed
+
+    @staticmethod
+    def _targets_of(eid: int, items) -> set[tuple[str, str]]:
+        """(discipline, instance) of every addressed discipline of a share, from its request's tag."""
+        tag = binding.parse_tag(items[0][1].request.header.frame_id) or {}
+        out = set()
+        for d, entry in tag.items():
+            _, t = binding.split_target(entry)
+            if t:
+                out.add((d, t))
         return out
 
     # -- worker pools (pool.py) -----------------------------------------------------

@@ -81,9 +81,28 @@ class Pool:
         default = sum(measured) / len(measured) if measured else 1.0
         return [self.stat(i).throughput if self.stat(i).throughput > 0 else default for i in instances]
 
-    def split(self, n: int, instances: list[str]) -> list[tuple[str, int, int]]:
-        """[(instance, start row, stop row)] covering 0..n in order, in proportion to throughput."""
-        return split_rows(n, instances, self.weights(instances))
+    def split(self, n: int, instances: list[str], min_rows: int = 1) -> list[tuple[str, int, int]]:
+        """[(instance, start row, stop row)] covering 0..n in order, in proportion to throughput;
+        with ``min_rows`` > 1 no share is smaller than that (fewer instances get work instead,
+        the fastest first), except a batch smaller than ``min_rows``, which is one share."""
+        weights = self.weights(instances)
+        if min_rows > 1 and n >= 1:
+            keep = max(1, min(len(instances), n // min_rows))
+            best = sorted(sorted(range(len(instances)), key=lambda j: -weights[j])[:keep])
+            instances, weights = [instances[j] for j in best], [weights[j] for j in best]
+            out = split_rows(n, instances, weights)
+            sizes = [b - a for _, a, b in out]
+            for j in range(len(sizes)):  # n >= keep * min_rows: the largest can always give
+                while 0 < sizes[j] < min_rows and n >= min_rows:
+                    big = max(range(len(sizes)), key=lambda i: sizes[i])
+                    sizes[big] -= 1
+                    sizes[j] += 1
+            out, start = [], 0
+            for inst, size in zip(instances, sizes):
+                out.append((inst, start, start + size))
+                start += size
+            return out
+        return split_rows(n, instances, weights)
 
 
 def split_rows(n: int, instances: list[str], weights: list[float]) -> list[tuple[str, int, int]]:

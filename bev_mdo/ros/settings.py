@@ -21,6 +21,7 @@ DEFAULTS: dict[str, Any] = {
     "signing": True,                 # a run launched by bev-mdo signs with a fresh per-run key (if no key file)
     "sign_window_s": 30.0,           # signed messages with a stamp further than this from now are expired
     "pool": "share",                 # several instances of a discipline: share | redundant (pool.py)
+    "pool_data_flow": True,          # an MDA with a pool: data flow in row shares (true) or waves (false)
 }
 DISCOVERY_MODES = ("localhost", "static_peers", "server", "subnet")
 
@@ -80,6 +81,8 @@ def validate_ros(section: Mapping[str, Any] | None) -> dict[str, Any]:
     out["sign_key_file"] = os.path.abspath(os.path.expanduser(str(key_file))) if str(key_file) else ""
     if not isinstance(out["signing"], bool):
         raise ValueError(f"ros.signing must be true or false, got {out['signing']!r}")
+    if not isinstance(out["pool_data_flow"], bool):
+        raise ValueError(f"ros.pool_data_flow must be true or false, got {out['pool_data_flow']!r}")
     if out["pool"] not in ("share", "redundant"):
         raise ValueError(f"ros.pool must be one of ['share', 'redundant'], got {out['pool']!r}")
     if not isinstance(out["retries"], int) or not 0 <= out["retries"] <= 100:

@@ -36,11 +36,12 @@ WAIT_S = 0.002
 TIMEOUT_S = 2.0
 
 
-def _raw(wait_s=WAIT_S, pool="share"):
+def _raw(wait_s=WAIT_S, pool="share", pool_data_flow=True):
     raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
     raw["disciplines"] = BUILTINS + [{"name": "wait", "class": "pool_discipline:WaitPerDesign",
                                       "options": {"wait_s_per_design": wait_s}}]
-    raw["ros"] = {"timeout_s": TIMEOUT_S, "retries": 3, "discovery_wait_s": 60.0, "signing": False, "pool": pool}
+    raw["ros"] = {"timeout_s": TIMEOUT_S, "retries": 3, "discovery_wait_s": 60.0, "signing": False, "pool": pool,
+                 "pool_data_flow": pool_data_flow}
     return raw
 
 
@@ -48,7 +49,8 @@ def _raw(wait_s=WAIT_S, pool="share"):
 def paths(tmp_path_factory):
     d = tmp_path_factory.mktemp("cfg")
     out = {}
-    for key, raw in (("base", _raw()), ("other", _raw(wait_s=0.003)), ("redundant", _raw(pool="redundant"))):
+    for key, raw in (("base", _raw()), ("other", _raw(wait_s=0.003)), ("redundant", _raw(pool="redundant")),
+                     ("waves", _raw(pool_data_flow=False))):
         out[key] = d / f"{key}.yaml"
         out[key].write_text(yaml.safe_dump(raw, sort_keys=False))
     return out
@@ -209,7 +211,8 @@ def test_optimisation_with_an_energy_pool_equals_in_process(rclpy_context, launc
     assert res.success == ref.success
     assert res.objective == ref.objective  # bitwise: the pool changes who computes, not what
     assert res.design == ref.design
-    assert stats["data_flow_mdas"] == 0  # pools run in waves (docs/scaling.md)
+    assert stats["data_flow_mdas"] > 0  # pools run in data flow, as row shares (docs/scaling.md)
+    assert stats["retried"] == 0
     energy = stats["pools"]["energy"]
     assert len(energy) == 2 and all(s["points"] > 0 for s in energy.values()), energy
 
@@ -234,7 +237,7 @@ def test_status_lists_live_instances_with_host_and_throughput(rclpy_context, eva
     assert "wait_node_w0" in format_table(rows)
 
 
-def test_sigkill_mid_batch_loses_no_design(evaluator, launcher):
+def test_sigkill_mid_batch_loses_no_design(evaluator, launcher, paths):
     live = evaluator.wait_for_instances("wait", 3, 60.0)
     batch = _batch(600, seed=5)  # 1.2 s of waiting, about 0.4 s per instance
     victim = "wait#1"
@@ -245,8 +248,105 @@ def test_sigkill_mid_batch_loses_no_design(evaluator, launcher):
         res = evaluator.evaluate([("wait", batch)])[0]
     finally:
         killer.join()
+        launcher.remove(victim)  # a fresh w1 for the tests after this one
+        launcher.add(victim, discipline_argv("wait", str(paths["base"]), instance="w1"))
     assert res.ok.all(), res.error
     assert np.array_equal(res.outputs["wait_value"], _reference(batch))
     assert sum(_points(evaluator).values()) - before == 600  # every row accepted exactly once
     dead = [i for i in live if i.endswith("_w1")][0]
     assert evaluator.pools["wait"].stats[dead].failures == 1
+
+
+def _designs(n, seed=7):
+    rng = np.random.default_rng(seed)
+    return np.column_stack([rng.uniform(50, 120, n), rng.uniform(5, 11, n), rng.uniform(20, 40, n)])
+
+
+def _analyse_flow(ev, config, X):
+    """One MDA of the designs X over `ev`; returns (result, the evaluation ids it sent)."""
+    from bev_mdo.mdo.driver import build_formulation
+
+    first, flows = ev._next_id, ev.flows
+    res = build_formulation(config, ev).analyse(X)
+    assert ev.flows == flows + 1  # one data-flow MDA, not waves
+    return res, range(first, ev._next_id)
+
+
+def _check_equal(res, config, X):
+    from bev_mdo.mdo.driver import build_formulation
+
+    local = build_formulation(config, InProcessEvaluator(resolve_disciplines(config))).analyse(X)
+    assert np.array_equal(res.ok, local.ok)
+    for k, v in local.values.items():
+        assert np.array_equal(res.values[k], v, equal_nan=True), k  # bitwise
+
+
+def test_data_flow_mda_with_pools_is_split_into_shares(evaluator, paths):
+    config = load_config(paths["base"])
+    names = BUILTINS + ["wait"]
+    evaluator.wait_for_disciplines(names, 60.0)
+    evaluator.wait_for_instances("energy", 2, 60.0)
+    evaluator.wait_for_instances("wait", 3, 60.0)
+    assert evaluator.flow_plan(names) is not None
+    shares_before = evaluator.flow_shares
+    kept = len(evaluator.accepted)
+    X = _designs(60)
+    res, eids = _analyse_flow(evaluator, config, X)
+    assert res.ok.all(), res.errors
+    _check_equal(res, config, X)
+    # data flow: each share is ONE request answered by every discipline (waves: one id per discipline)
+    accepted = evaluator.accepted[kept:]
+    by_eid: dict[int, list] = {}
+    for eid, d, inst, _ in accepted:
+        by_eid.setdefault(eid, []).append((d, inst))
+    assert evaluator.flow_shares - shares_before == 3 == len(by_eid)  # the wait pool of 3 sets the shares
+    assert all(sorted(d for d, _ in got) == sorted(names) for got in by_eid.values()), by_eid
+    assert set(by_eid) <= set(eids)
+    # each pooled discipline's shares went to its own instances, one answer per share
+    assert len({i for got in by_eid.values() for d, i in got if d == "wait"}) == 3
+    assert len({i for got in by_eid.values() for d, i in got if d == "energy"}) == 2
+    assert evaluator.dropped["duplicate"] == 0 and evaluator.dropped["late_share"] == 0
+    assert evaluator.counts["energy"] >= 60 and evaluator.counts["wait"] >= 60
+
+
+def test_data_flow_share_of_a_stalled_instance_is_re_sent(evaluator, paths, ros_domain, tmp_path):
+    config = load_config(paths["base"])
+    names = BUILTINS + ["wait"]
+    stalled = Launcher({**_env(ros_domain), "BEV_POOL_STALL_S": str(3 * TIMEOUT_S)}, log_dir=tmp_path)
+    stalled.add("wait#stall", discipline_argv("wait", str(paths["base"]), instance="ws"))
+    try:
+        evaluator.wait_for_disciplines(names, 60.0)
+        live = evaluator.wait_for_instances("wait", 4, 60.0)
+        slow = [i for i in live if i.endswith("_ws")][0]
+        X = _designs(80, seed=8)
+        res, _ = _analyse_flow(evaluator, config, X)
+        assert res.ok.all(), res.errors
+        _check_equal(res, config, X)  # nothing lost, nothing doubled
+        st = evaluator.pools["wait"].stats[slow]
+        assert st.failures == 1 and st.points == 0 and st.reassigned_points >= 1
+        assert evaluator.retried >= 1
+    finally:
+        stalled.stop()
+
+
+def test_pool_data_flow_false_runs_pooled_mdas_in_waves(rclpy_context, launcher, paths):
+    config = load_config(paths["waves"])
+    names = BUILTINS + ["wait"]
+    node = rclpy.create_node("pool_waves", context=rclpy_context)
+    ev = RosEvaluator(node, config=config, timeout_s=TIMEOUT_S, retries=3)
+    try:
+        ev.wait_for_disciplines(names, 60.0)
+        ev.wait_for_instances("wait", 3, 60.0)
+        from bev_mdo.mdo.driver import build_formulation
+
+        X = _designs(30, seed=9)
+        kept = len(ev.accepted)
+        res = build_formulation(config, ev).analyse(X)
+        assert ev.flows == 0 and ev.flow_shares == 0  # no data-flow request
+        _check_equal(res, config, X)
+        # waves: one evaluation id per discipline, a pooled one split into shares
+        waits = [a for a in ev.accepted[kept:] if a[1] == "wait"]
+        assert len(waits) == 3 and len({a[0] for a in ev.accepted[kept:]}) == len(ev.accepted[kept:])
+    finally:
+        ev.close()
+        node.destroy_node()

@@ -5,7 +5,8 @@ The test makes three namespaces joined by a bridge that lives in the coordinator
 with addresses 10.201.0.1 and 10.201.0.2 (discipline namespaces) and 10.201.0.3 (coordinator)
 that exist only inside them, and removes all three afterwards (also on failure). Nothing has a
 route out, so no packet can reach another network. Discovery: static peers (the coordinator
-lists both discipline namespaces, each of them the coordinator). Skipped where namespaces
+lists both discipline namespaces, each of them the coordinator and the other one: data flow
+passes results from node to node). Skipped where namespaces
 cannot be made (see test_netns.py).
 """
 from __future__ import annotations
@@ -115,15 +116,19 @@ def config_path(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def nodes(netns3, config_path, tmp_path_factory):
-    la = Launcher(ns_env([AC]), log_dir=tmp_path_factory.mktemp("logs"))
+    # Data flow passes results from node to node (a pooled energy share in d2 reads vehicle_mass's
+    # result from d1), so each discipline host lists the coordinator AND the other discipline host.
+    la = Launcher(ns_env([AC, A2]), log_dir=tmp_path_factory.mktemp("logs"))
+    la2 = Launcher(ns_env([AC, A1]), log_dir=tmp_path_factory.mktemp("logs2"))
     try:
         for name in BUILTINS:  # the whole suite in d1, a second energy instance in d2
             la.add(name, ["ip", "netns", "exec", netns3.d1, *discipline_argv(name, config_path)])
-        la.add("energy#2", ["ip", "netns", "exec", netns3.d2,
-                            *discipline_argv("energy", config_path, instance="remote2")])
+        la2.add("energy#2", ["ip", "netns", "exec", netns3.d2,
+                             *discipline_argv("energy", config_path, instance="remote2")])
         yield la
     finally:
         la.stop()
+        la2.stop()
 
 
 def test_energy_pool_across_two_namespaces(netns3, nodes, config_path):

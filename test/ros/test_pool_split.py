@@ -76,3 +76,15 @@ def test_launch_plan_instances_and_compose():
     composed = plan[0][1]
     assert "composed_node" in composed and "disciplines:=vehicle_mass,range,cost" in composed
     assert "instance:='energy_node_ab_1'" in plan[2][1] and "run_id:='r'" in plan[2][1]
+
+
+def test_min_rows_keeps_every_share_at_least_that_large():
+    pool = Pool("x")
+    pool.stat("a").throughput, pool.stat("b").throughput, pool.stat("c").throughput = 10.0, 1.0, 1.0
+    for n in range(0, 40):
+        shares = pool.split(n, ["a", "b", "c"], min_rows=2)
+        assert [r for _, a, b in shares for r in range(a, b)] == list(range(n))  # in order, each row once
+        if n >= 2:
+            assert all(b - a >= 2 for _, a, b in shares), (n, shares)
+        assert len(shares) == max(1, min(3, n // 2))
+    assert pool.split(3, ["a", "b", "c"], min_rows=2) == [("a", 0, 3)]  # the fastest instance takes it
