@@ -3,7 +3,7 @@
     . scripts/env.sh && flock /tmp/bev_bench.lock flock /tmp/bev_ros.lock python bench/bench_kill_tail.py \
         [--rounds 6] [--domain-id 67] [--keep]
 
-`bev-mdo optimize config/leaf_nedc.yaml` (recorded, ros.timeout_s 1) on one domain, in rounds of four
+`bev-mdo optimize config/leaf_nedc.yaml` (recorded, ros.timeout_s 1, retries 30) on one domain, in rounds of four
 runs: undisturbed; ``killed``: vehicle_mass and the recorder SIGKILLed once the first iteration is
 printed; ``killed_late``: both SIGKILLed once the LAST iteration (that of the round's undisturbed run)
 is printed, so the kill lands at or after the optimiser's last evaluation, in the run's tail;
@@ -70,7 +70,7 @@ def main() -> int:
     args = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="bench_kill_"))
     raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
-    raw["ros"] = {"timeout_s": 1.0, "retries": 5, "discovery_wait_s": 60.0}
+    raw["ros"] = {"timeout_s": 1.0, "retries": 30, "discovery_wait_s": 60.0}  # 31 s for a restart under load
     config = tmp / "leaf.yaml"
     config.write_text(yaml.safe_dump(raw, sort_keys=False))
     runs = {"undisturbed": [], "killed": [], "killed_late": [], "reader_killed_late": []}

@@ -32,7 +32,7 @@ from bev_mdo.testing import PYTHON, REPO, child_processes, ros_env  # noqa: E402
 @pytest.fixture(scope="module")
 def config_path(tmp_path_factory):
     raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
-    raw["ros"] = {"timeout_s": 1.0, "retries": 5, "discovery_wait_s": 60.0}
+    raw["ros"] = {"timeout_s": 1.0, "retries": 30, "discovery_wait_s": 60.0}  # 31 s for a restart under load
     p = tmp_path_factory.mktemp("kill") / "kill.yaml"
     p.write_text(yaml.safe_dump(raw, sort_keys=False))
     return str(p)
@@ -92,7 +92,7 @@ def test_killing_a_reader_and_the_recorder_does_not_stall_or_loop(config_path, r
     print(f"tail after the optimisation: undisturbed {base['tail_s']:.2f} s, with the kills {out.get('tail_s')} s")
     assert rc == 3, err[-3000:]
     for k, v in ref.design.items():
-        assert out["design"][k] == pytest.approx(v, rel=1e-6), k
+        assert out["design"][k] == pytest.approx(v, rel=1e-6), (k, out.get("discipline_errors"), err[-3000:])
     assert out["node_restarts"] == {"vehicle_mass": 1}
     assert "the recorder died" in out["recorder_failed"]
     assert err.count("warning: the recorder died") == 1
