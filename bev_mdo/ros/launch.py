@@ -322,10 +322,6 @@ class OwnSuite:
             raise
         return self
 
-    @property
-    def signing(self) -> str:
-        return "per-run key" if (self.config.get("ros") or {}).get("sign_key_file") else "off"
-
     def stop(self) -> None:
         if self.launcher is not None:
             self.launcher.stop()
