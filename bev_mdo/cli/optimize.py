@@ -348,13 +348,15 @@ def _coordinate(config, run_id, args, show, recorder: int, x0=None, recorder_dea
         # end of the run evaluates nothing and never waits for a node that died late (a SIGKILLed
         # vehicle_mass after the optimiser's last evaluation stalled the baseline until its restart
         # was discovered: 8.5 s of tail in bench/bench_kill_tail.py).
-        baseline = _ros_baseline(config, run_id, ctx)
+        seen: dict = {}
+        baseline = _ros_baseline(config, run_id, ctx, seen)
         res, stats = coordinator_node.run(config, run_id=run_id, formulation=args.formulation,
                                           optimizer=args.optimizer, x0=x0, on_iteration=show,
                                           recorder_subscribers=recorder, context=ctx,
                                           instances=getattr(args, "instances_parsed", None),
                                           give_up_acks=recorder_dead)
         stats["t_acked"] = time.monotonic()  # the final acknowledgements are in (or given up)
+        _merge_baseline_stats(stats, seen)
         out = res.to_dict()
         out.pop("history")
         return out, baseline, stats
@@ -362,9 +364,29 @@ def _coordinate(config, run_id, args, show, recorder: int, x0=None, recorder_dea
         rclpy.shutdown(context=ctx)
 
 
-def _ros_baseline(config, run_id: str, ctx) -> dict | None:
+_DECLARATION_DROPS = ("refused_instance", "info_unsigned", "info_forged", "info_other_run", "info_other_discipline")
+
+
+def _merge_baseline_stats(stats: dict, seen: dict) -> None:
+    """Count what the baseline's evaluator dropped and refused as the run's: its results add up;
+    declarations are the same ones the run's evaluator judges (the larger count of the two), and an
+    instance refused by either is refused (the run's evaluator, started when everything is
+    discovered, may be ready before a foreign declaration reaches it)."""
+    if not seen:
+        return
+    dropped = dict(stats["dropped"])
+    for k, v in seen["dropped"].items():
+        dropped[k] = max(dropped.get(k, 0), v) if k in _DECLARATION_DROPS else dropped.get(k, 0) + v
+    refused = {**seen["refused"], **stats.get("refused_instances", {})}
+    dropped["refused_instance"] = len(refused) if refused else dropped.get("refused_instance", 0)
+    stats["dropped"] = {k: v for k, v in dropped.items() if v}
+    stats["refused_instances"] = refused
+
+
+def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None) -> dict | None:
     """The config's baseline analysed through the run's nodes (sub-run ``<run>-baseline``); None
-    without one. A discipline that never appears raises (the run itself could not start either)."""
+    without one. A discipline that never appears raises (the run itself could not start either).
+    `seen` gets what its evaluator dropped and refused."""
     from bev_mdo.ros import coordinator_node
     from bev_mdo.ros.evaluator import DisciplineMissing
 
@@ -381,6 +403,8 @@ def _ros_baseline(config, run_id: str, ctx) -> dict | None:
         return {"name": config["problem"]["baseline"]["name"], "design": {}, "outputs": {},
                 "feasible": False, "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
     finally:
+        if seen is not None:
+            seen.update(dropped=dict(node.evaluator.dropped), refused=dict(node.evaluator.refused))
         node.evaluator.close()
         node.destroy_node()
 
