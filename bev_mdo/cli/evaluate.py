@@ -76,7 +76,9 @@ class RosSession:
         if dropped:
             print("bev-mdo: dropped and counted: " + ", ".join(f"{k} {v}" for k, v in sorted(dropped.items())),
                   file=sys.stderr)
-        if not self.evaluator.signed:
+        if not self.evaluator.signed and self.suite is not None:
+            print("bev-mdo: note: the results were not signed (ros.signing: false)", file=sys.stderr)
+        elif not self.evaluator.signed:
             print(f"bev-mdo: note: the results were not signed (no ros.sign_key_file): any process on ROS domain "
                   f"{self.domain} could have answered; use --launch, or a key file (docs/security.md)",
                   file=sys.stderr)
