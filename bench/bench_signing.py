@@ -71,7 +71,10 @@ def main() -> int:
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--n", type=int, default=300, help="MDAs per latency figure")
     ap.add_argument("--json", default=str(REPO / "bench" / "results" / "signing.json"))
+    ap.add_argument("--domains", default="64,65", metavar="UNSIGNED,SIGNED", help="the two suites' ROS domains")
     args = ap.parse_args()
+    DOMAINS.update(zip(("unsigned", "signed"), (int(d) for d in args.domains.split(","))))
+    load = [os.getloadavg()[0]]
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     import rclpy
 
@@ -137,7 +140,8 @@ def main() -> int:
         figures["signed_over_unsigned"] = {
             k: figures["modes"]["signed"][k]["median"] / figures["modes"]["unsigned"][k]["median"]
             for k in per_round["signed"]}
-        figures["load_average_1min"] = os.getloadavg()[0]
+        load.append(os.getloadavg()[0])
+        figures["load_average_1min"] = {"start": load[0], "end": load[1]}
     finally:
         for mode in list(nodes):
             nodes[mode].evaluator.close()

@@ -32,7 +32,11 @@ def child_processes(pid: int) -> dict[int, str]:
     """The direct children of process `pid` (Linux /proc) with their command lines."""
     out = {}
     for task in Path(f"/proc/{pid}/task").iterdir():
-        for child in (task / "children").read_text().split():
+        try:
+            children = (task / "children").read_text().split()
+        except OSError:  # the thread ended since the listing (a run that is shutting down)
+            continue
+        for child in children:
             try:
                 out[int(child)] = Path(f"/proc/{child}/cmdline").read_bytes().decode(errors="replace")
             except OSError:

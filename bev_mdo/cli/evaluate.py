@@ -20,10 +20,72 @@ def register(subparsers) -> None:
                    help="design values (or model-parameter overrides); also comma-separated a=1,b=2")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.add_argument("--ros", action="store_true", help="evaluate through the running discipline nodes")
+    add_launch_argument(p)
     from bev_mdo.cli.ros_args import add_ros_arguments
 
     add_ros_arguments(p)
     p.set_defaults(func=run)
+
+
+def add_launch_argument(p) -> None:
+    p.add_argument("--launch", action="store_true",
+                   help="start the config's discipline nodes for this command and stop them after (implies --ros): "
+                        "bound to this command and signed with a fresh per-run key, as optimize does")
+
+
+class RosSession:
+    """The ROS evaluator of ``evaluate``/``sensitivity --ros`` (running nodes) or ``--launch`` (the
+    command's own nodes, signed by default, launch.OwnSuite); ``close()`` ends both and prints,
+    on stderr, what was dropped and, for unsigned results, that anyone on the domain could have
+    answered them."""
+
+    def __init__(self, config, args, node_name: str = "bev_mdo_client"):
+        import importlib
+
+        try:  # the ROS libraries only: a bev_mdo module that fails to import raises as it is
+            for lib in ("rclpy", "bev_mdo_msgs.msg"):
+                importlib.import_module(lib)
+        except ModuleNotFoundError:
+            raise UsageError("--ros needs the ROS transport (rclpy and bev_mdo_msgs)") from None
+        from bev_mdo.cli.ros_args import ros_section
+        from bev_mdo.ros.client import make_ros_evaluator
+
+        ros = ros_section(config, args)
+        self.suite = None
+        self.domain = ros["domain_id"]
+        run_id = None
+        if getattr(args, "launch", False):
+            from bev_mdo.ros.launch import OwnSuite
+
+            self.suite = OwnSuite(config, ros).start()
+            config, run_id = self.suite.config, self.suite.run_id
+        else:
+            config = {**config, "ros": ros}
+        try:
+            self.evaluator = make_ros_evaluator(config, node_name=node_name, run_id=run_id)
+        except BaseException:
+            if self.suite is not None:
+                self.suite.stop()
+            raise
+
+    def close(self, ok: bool = True) -> None:
+        try:
+            self.evaluator.close()
+        finally:
+            if self.suite is not None:
+                self.suite.stop()
+        if not ok:
+            return
+        dropped = {k: v for k, v in self.evaluator.dropped.items() if v}
+        if dropped:
+            print("bev-mdo: dropped and counted: " + ", ".join(f"{k} {v}" for k, v in sorted(dropped.items())),
+                  file=sys.stderr)
+        if not self.evaluator.signed and self.suite is not None:
+            print("bev-mdo: note: the results were not signed (ros.signing: false)", file=sys.stderr)
+        elif not self.evaluator.signed:
+            print(f"bev-mdo: note: the results were not signed (no ros.sign_key_file): any process on ROS domain "
+                  f"{self.domain} could have answered; use --launch, or a key file (docs/security.md)",
+                  file=sys.stderr)
 
 
 def parse_assignments(items: list[str]) -> dict[str, float]:
@@ -43,17 +105,7 @@ def parse_assignments(items: list[str]) -> dict[str, float]:
 
 def _evaluator(config, use_ros: bool, args=None):
     if use_ros:
-        import importlib
-
-        try:  # the ROS libraries only: a bev_mdo module that fails to import raises as it is
-            for lib in ("rclpy", "bev_mdo_msgs.msg"):
-                importlib.import_module(lib)
-        except ModuleNotFoundError:
-            raise UsageError("--ros needs the ROS transport (rclpy and bev_mdo_msgs)") from None
-        from bev_mdo.ros.client import make_ros_evaluator
-        from bev_mdo.cli.ros_args import ros_section
-
-        return make_ros_evaluator({**config, "ros": ros_section(config, args)})
+        return RosSession(config, args)
     from bev_mdo.config import resolve_disciplines
     from bev_mdo.mdo.evaluator import InProcessEvaluator
 
@@ -69,11 +121,18 @@ def run(args) -> int:
     given = parse_assignments(args.assignments)
     problem = Problem.from_config(config["problem"])
     design = {**{d.name: d.initial for d in problem.design_variables}, **given}
-    evaluator = _evaluator(config, args.ros, args)
+    use_ros = args.ros or getattr(args, "launch", False)
+    session = _evaluator(config, use_ros, args)
+    evaluator = session.evaluator if use_ros else session
+    ok = False
     try:
         report = evaluate_design(config, evaluator, design)
+        ok = True
     finally:
-        evaluator.close()
+        if use_ros:
+            session.close(ok)
+        else:
+            session.close()
     if args.json:
         print(json.dumps(report, indent=2, allow_nan=True))
     else:

@@ -232,17 +232,21 @@ def _run_ros(config, args, show, x0=None):
         if not args.no_record:
             recorder = _start_recorder(launcher, bag, resolved, run_id)
         launcher.supervise()
-        result, baseline, stats = _coordinate(config, run_id, args, show, recorder, x0)
+        result, baseline, stats = _coordinate(config, run_id, args, show, recorder, x0,
+                                              _acks_needless(launcher) if recorder else None)
     finally:
         launcher.stop(first=("recorder",))
-    tail_s = time.monotonic() - stats["t_optimised"]  # after the optimiser: acks, baseline, shutdown
+    t_end = time.monotonic()
+    tail_s = t_end - stats["t_optimised"]  # after the optimiser: final acknowledgements, shutdown
+    tail = {"acks_s": stats["t_acked"] - stats["t_optimised"], "shutdown_s": t_end - stats["t_acked"]}
     restarts = {n.label: n.restarts for n in launcher.nodes if n.restarts}
     recorder_failed = _recorder_failure(launcher, bag) if recorder else None
     extra = {"transport": "ros", "run_id": run_id, "domain_id": ros["domain_id"],
              "bag": None if args.no_record else str(bag), "logs": str(logs),
              "dropped_messages": stats["dropped"], "retried_requests": stats["retried"], "node_restarts": restarts,
              "refused_instances": stats.get("refused_instances", {}),
-             "signing": _signing(ros, config), "tail_s": round(tail_s, 3)}
+             "signing": _signing(ros, config), "tail_s": round(tail_s, 3),
+             "tail_parts_s": {k: round(v, 3) for k, v in tail.items()}}
     if stats.get("pools"):
         extra["pools"] = stats["pools"]  # per-instance work, throughput and failures (pool.py)
     if stats.get("discipline_errors"):
@@ -252,13 +256,38 @@ def _run_ros(config, args, show, x0=None):
     return result, baseline, extra
 
 
+LEASE_S = 3.0  # participant lease of bev_mdo's Fast DDS profile (bev_mdo/data/fastdds_profile.xml)
+ACK_GRACE_S = 1.0  # a live local recorder acknowledges in milliseconds (in DDS threads, not Python's)
+
+
+def _acks_needless(launcher):
+    """When the coordinator's final wait for acknowledgements may end early (they are awaited only so
+    the recorder misses nothing): at once when the recorder died, and after ACK_GRACE_S when a node
+    died within the last lease, because a killed reader never acknowledges and is matched until its
+    lease expires (stalling the end of the run up to 3 s)."""
+    started = []
+
+    def needless() -> bool:
+        if launcher.node("recorder").died is not None:
+            return True
+        now = time.monotonic()
+        if not started:
+            started.append(now)
+        return now - started[0] >= ACK_GRACE_S and launcher.died_within(LEASE_S + ACK_GRACE_S)
+
+    return needless
+
+
 def _recorder_failure(launcher, bag: Path) -> str | None:
     """None if the recorder lived to the end; else a one-line warning, after making the bag
     readable again (its summary and metadata.yaml rebuilt from what was flushed)."""
     node = launcher.node("recorder")
-    if node.died is None:
+    # died during the run (the supervisor saw it), or did not stop cleanly when told to: killed
+    # while the run was ending (after the supervisor stopped), or stuck and killed by stop()
+    status = node.died if node.died is not None else (node.proc.returncode if node.proc is not None else None)
+    if status in (0, None):
         return None
-    note = f"the recorder died (exit status {node.died}) during the run; the bag holds only what it recorded before"
+    note = f"the recorder died (exit status {status}) during the run; the bag holds only what it recorded before"
     try:
         from bev_mdo.bag.repair import repair
 
@@ -307,7 +336,7 @@ def _start_recorder(launcher, bag: Path, resolved: Path, run_id: str) -> int:
     return 1
 
 
-def _coordinate(config, run_id, args, show, recorder: int, x0=None):
+def _coordinate(config, run_id, args, show, recorder: int, x0=None, recorder_dead=None):
     import rclpy
 
     from bev_mdo.ros import coordinator_node
@@ -315,28 +344,69 @@ def _coordinate(config, run_id, args, show, recorder: int, x0=None):
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
     try:
+        # The baseline does not depend on the optimum: it is analysed BEFORE the optimisation, so the
+        # end of the run evaluates nothing and never waits for a node that died late (a SIGKILLed
+        # vehicle_mass after the optimiser's last evaluation stalled the baseline until its restart
+        # was discovered: 8.5 s of tail in bench/bench_kill_tail.py).
+        seen: dict = {}
+        baseline = _ros_baseline(config, run_id, ctx, seen)
         res, stats = coordinator_node.run(config, run_id=run_id, formulation=args.formulation,
                                           optimizer=args.optimizer, x0=x0, on_iteration=show,
                                           recorder_subscribers=recorder, context=ctx,
-                                          instances=getattr(args, "instances_parsed", None))
+                                          instances=getattr(args, "instances_parsed", None),
+                                          give_up_acks=recorder_dead)
+        stats["t_acked"] = time.monotonic()  # the final acknowledgements are in (or given up)
+        _merge_baseline_stats(stats, seen)
         out = res.to_dict()
         out.pop("history")
-        baseline = None
-        if config["problem"].get("baseline"):
-            node = coordinator_node.CoordinatorNode(config, run_id + "-baseline", context=ctx,
-                                                    node_name="coordinator_baseline")
-            try:
-                node.evaluator.wait_for_disciplines(coordinator_node.discipline_names(config), node.discovery_wait_s)
-                baseline = _baseline(config, node.evaluator)
-            except Exception as exc:  # noqa: BLE001 - the run's result is printed anyway
-                baseline = {"name": config["problem"]["baseline"]["name"], "design": {}, "outputs": {},
-                            "feasible": False, "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
-            finally:
-                node.evaluator.close()
-                node.destroy_node()
         return out, baseline, stats
     finally:
         rclpy.shutdown(context=ctx)
+
+
+_DECLARATION_DROPS = ("refused_instance", "info_unsigned", "info_forged", "info_other_run", "info_other_discipline")
+
+
+def _merge_baseline_stats(stats: dict, seen: dict) -> None:
+    """Count what the baseline's evaluator dropped and refused as the run's: its results add up;
+    declarations are the same ones the run's evaluator judges (the larger count of the two), and an
+    instance refused by either is refused (the run's evaluator, started when everything is
+    discovered, may be ready before a foreign declaration reaches it)."""
+    if not seen:
+        return
+    dropped = dict(stats["dropped"])
+    for k, v in seen["dropped"].items():
+        dropped[k] = max(dropped.get(k, 0), v) if k in _DECLARATION_DROPS else dropped.get(k, 0) + v
+    refused = {**seen["refused"], **stats.get("refused_instances", {})}
+    dropped["refused_instance"] = len(refused) if refused else dropped.get("refused_instance", 0)
+    stats["dropped"] = {k: v for k, v in dropped.items() if v}
+    stats["refused_instances"] = refused
+
+
+def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None) -> dict | None:
+    """The config's baseline analysed through the run's nodes (sub-run ``<run>-baseline``); None
+    without one. A discipline that never appears raises (the run itself could not start either).
+    `seen` gets what its evaluator dropped and refused."""
+    from bev_mdo.ros import coordinator_node
+    from bev_mdo.ros.evaluator import DisciplineMissing
+
+    if not config["problem"].get("baseline"):
+        return None
+    node = coordinator_node.CoordinatorNode(config, run_id + "-baseline", context=ctx,
+                                            node_name="coordinator_baseline")
+    try:
+        node.evaluator.wait_for_disciplines(coordinator_node.discipline_names(config), node.discovery_wait_s)
+        return _baseline(config, node.evaluator)
+    except DisciplineMissing:
+        raise
+    except Exception as exc:  # noqa: BLE001 - the run's result is printed anyway
+        return {"name": config["problem"]["baseline"]["name"], "design": {}, "outputs": {},
+                "feasible": False, "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
+    finally:
+        if seen is not None:
+            seen.update(dropped=dict(node.evaluator.dropped), refused=dict(node.evaluator.refused))
+        node.evaluator.close()
+        node.destroy_node()
 
 
 def _plain(obj):

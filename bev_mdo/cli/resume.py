@@ -43,6 +43,14 @@ def resume_point(bag_path: str, run_id: str | None = None, key_file: str | None 
     return load_config(yaml.safe_load(config_yaml)), design, iteration
 
 
+def is_per_run_key(path) -> bool:
+    """Whether `path` is a per-run key bev-mdo created for a run (``<bag's parent>/.keys/<bag name>/sign.key``,
+    optimize.with_run_key), not a key file the user configured."""
+    from pathlib import Path
+
+    return bool(path) and Path(str(path)).name == "sign.key" and Path(str(path)).parent.parent.name == ".keys"
+
+
 def run(args) -> int:
     import sys
 
@@ -58,8 +66,7 @@ def run(args) -> int:
         print(f"{args.bag}: {check_note(checks)}", file=sys.stderr)
     # the resumed run gets a key of its own (the old path would make the new run share the old key)
     config.setdefault("ros", {})
-    if checks.get("run_id") and str(config["ros"].get("sign_key_file", "")).endswith(
-            f"{checks['run_id']}/sign.key"):
+    if is_per_run_key(config["ros"].get("sign_key_file")):
         config["ros"] = {**config["ros"], "sign_key_file": ""}
     print(f"resuming {config.get('name', 'run')} from iteration {iteration} at "
           + ", ".join(f"{k}={v:.6g}" for k, v in design.items()), file=out)

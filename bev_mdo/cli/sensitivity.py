@@ -29,6 +29,9 @@ def register(subparsers) -> None:
     p.add_argument("--png", metavar="FILE", help="write a PNG: first-order bars and (order 2) the second-order matrices")
     p.add_argument("--ros", action="store_true",
                    help="evaluate every stencil through the running discipline nodes (one request wave each)")
+    from bev_mdo.cli.evaluate import add_launch_argument
+
+    add_launch_argument(p)
     from bev_mdo.cli.ros_args import add_ros_arguments
 
     add_ros_arguments(p)
@@ -81,7 +84,8 @@ def build_batch(config, evaluator, param_defaults=None):
 
 
 class _closing:
-    """Context manager calling close() (evaluators are not all context managers)."""
+    """Context manager calling close() (evaluators are not all context managers); a ROS session
+    is told whether the block ended normally (its notes are printed only then)."""
 
     def __init__(self, obj):
         self.obj = obj
@@ -89,8 +93,11 @@ class _closing:
     def __enter__(self):
         return self.obj
 
-    def __exit__(self, *exc):
-        self.obj.close()
+    def __exit__(self, exc_type, *exc):
+        if hasattr(self.obj, "suite"):
+            self.obj.close(exc_type is None)
+        else:
+            self.obj.close()
 
 
 def run(args) -> int:
@@ -100,16 +107,17 @@ def run(args) -> int:
 
     cfg = load_config(args.config)
     local = InProcessEvaluator(resolve_disciplines(cfg))
-    if args.ros:
-        from bev_mdo.ros.client import make_ros_evaluator
-
-        from bev_mdo.cli.ros_args import ros_section
+    session = None
+    if args.ros or args.launch:
+        from bev_mdo.cli.evaluate import RosSession
 
         defaults = {k: v for spec in local.specs.values() for k, v in spec.parameters.items()}
-        ev_ctx = make_ros_evaluator({**cfg, "ros": ros_section(cfg, args)}, node_name="bev_mdo_sensitivity")
+        session = RosSession(cfg, args, node_name="bev_mdo_sensitivity")
+        ev_ctx = session
     else:
         ev_ctx, defaults = local, None
     with _closing(ev_ctx) as ev:
+        ev = session.evaluator if session is not None else ev
         fun, point, bounds, outputs, problem = build_batch(cfg, ev, defaults)
         at = _pairs(args.at)
         for k, v in at.items():

@@ -25,7 +25,7 @@ def apply_ros_environment(ros: Mapping[str, Any]) -> None:
 class _OwnedRosEvaluator:
     """A RosEvaluator plus the context and node it runs on."""
 
-    def __init__(self, config: Mapping[str, Any], node_name: str):
+    def __init__(self, config: Mapping[str, Any], node_name: str, run_id: str | None = None):
         import rclpy
 
         from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
@@ -40,7 +40,7 @@ class _OwnedRosEvaluator:
         self._ctx = rclpy.context.Context()
         rclpy.init(context=self._ctx)
         try:
-            self._node = CoordinatorNode(config, context=self._ctx, node_name=node_name)
+            self._node = CoordinatorNode(config, run_id, context=self._ctx, node_name=node_name)
             self._inner = self._node.evaluator
             self._inner.wait_for_disciplines(discipline_names(config), ros["discovery_wait_s"])
         except BaseException:
@@ -48,6 +48,8 @@ class _OwnedRosEvaluator:
             raise
         self.specs = self._inner.specs
         self.counts = self._inner.counts
+        self.dropped = self._inner.dropped  # results and declarations dropped, by reason
+        self.signed = self._inner.signer is not None
 
     def evaluate(self, calls, partials: bool = False):
         return self._inner.evaluate(calls, partials=partials)
@@ -61,7 +63,8 @@ class _OwnedRosEvaluator:
             rclpy.shutdown(context=self._ctx)
 
 
-def make_ros_evaluator(config: Mapping[str, Any], node_name: str = "bev_mdo_client"):
-    """An evaluator over the running discipline nodes of `config` (raises naming any missing one)."""
-    return _OwnedRosEvaluator(config, node_name)
+def make_ros_evaluator(config: Mapping[str, Any], node_name: str = "bev_mdo_client", run_id: str | None = None):
+    """An evaluator over the running discipline nodes of `config` (raises naming any missing one);
+    `run_id`: the run the nodes were launched for (launch.OwnSuite), default a fresh one."""
+    return _OwnedRosEvaluator(config, node_name, run_id)
 

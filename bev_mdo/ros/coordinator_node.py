@@ -61,7 +61,8 @@ class CoordinatorNode(Node):
             self.evaluator.signer.sign_iteration(msg)
         self._iteration_pub.publish(msg)
 
-    def wait_for_all_acked(self, wait_s: float, slice_s: float = 0.05) -> bool:
+    def wait_for_all_acked(self, wait_s: float, slice_s: float = 0.05,
+                           give_up: Callable[[], bool] | None = None) -> bool:
         """Block until every reader (e.g. the recorder) acknowledged what we published.
 
         A RELIABLE sample that is not yet acknowledged is lost if its publisher goes away,
@@ -69,7 +70,9 @@ class CoordinatorNode(Node):
         slices (other threads, the launcher's supervisor among them, keep running) and ends
         for a publisher as soon as it has no matched reader; a killed reader is unmatched
         once its participant's lease (3 s, bev_mdo's Fast DDS profile) expires, so it stalls
-        the end of a run by at most that. Returns False (and logs which topics) after `wait_s`.
+        the end of a run by at most that. Returns False (and logs which topics) after `wait_s`,
+        or at once when `give_up()` says no reader that matters is alive (the launcher saw the
+        recorder die: waiting for its lease to expire would only stall the end of the run).
         """
         from rclpy.duration import Duration
 
@@ -78,6 +81,8 @@ class CoordinatorNode(Node):
         while pending:
             pending = [p for p in pending if p.get_subscription_count() > 0
                        and not p.wait_for_all_acked(Duration(nanoseconds=int(slice_s * 1e9)))]
+            if pending and give_up is not None and give_up():
+                return False
             if pending and time.monotonic() > deadline:
                 self.get_logger().warning(f"not acknowledged within {wait_s:g} s on "
                                           f"{sorted(p.topic_name for p in pending)}")
@@ -100,7 +105,8 @@ class CoordinatorNode(Node):
 def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: str | None = None,
         optimizer: str | None = None, x0: Mapping[str, float] | None = None,
         on_iteration: Callable[[dict], None] | None = None, recorder_subscribers: int = 0,
-        context=None, signer=None, instances: Mapping[str, int] | None = None):
+        context=None, signer=None, instances: Mapping[str, int] | None = None,
+        give_up_acks: Callable[[], bool] | None = None):
     """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats)."""
     from bev_mdo.mdo.driver import run_optimization
 
@@ -127,7 +133,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
                  "data_flow_mdas": node.evaluator.flows, "refused_instances": dict(node.evaluator.refused),
                  "t_optimised": t_optimised, "discipline_errors": dict(node.evaluator.first_errors),
                  "pools": node.evaluator.pool_summary()}
-        stats["all_acked"] = node.wait_for_all_acked(node.discovery_wait_s)
+        stats["all_acked"] = node.wait_for_all_acked(node.discovery_wait_s, give_up=give_up_acks)
         return result, stats
     finally:
         node.evaluator.close()

@@ -43,6 +43,7 @@ class NodeProcess:
     restart_times: list[float] = field(default_factory=list)
     restart: bool = True            # False: a death is reported (``died``), never restarted
     died: int | None = None         # exit status of a node that died and was not restarted
+    died_at: float | None = None    # when the supervisor saw it die (time.monotonic())
 
 
 def discipline_argv(name: str, config_path: str, instance: str = "", run_id: str = "") -> list[str]:
@@ -133,6 +134,7 @@ class Launcher:
                         if not node.restart:
                             if node.died is None:
                                 node.died = node.proc.returncode
+                                node.died_at = time.monotonic()
                                 print(f"[launcher] {node.label} exited with {node.died}; not restarted",
                                       file=sys.stderr)
                             continue
@@ -143,6 +145,13 @@ class Launcher:
                         print(f"[launcher] {node.label} exited with {node.proc.returncode}; restarting "
                               f"({node.restarts}/{self.max_restarts})", file=sys.stderr)
                         self._spawn(node)
+
+    def died_within(self, window_s: float) -> bool:
+        """Whether a supervised node died (and was restarted, or not) in the last `window_s` seconds."""
+        since = time.monotonic() - window_s
+        with self._lock:
+            return any(t >= since for n in self.nodes for t in n.restart_times) or any(
+                n.died_at is not None and n.died_at >= since for n in self.nodes)
 
     def kill(self, label: str, sig: int = signal.SIGKILL, wait: bool = True) -> int:
         """Send a signal to a node process (for fault-injection tests); returns its pid.
@@ -268,3 +277,62 @@ def plan_processes(names: Sequence[str], config_path: str, *, run_id: str = "", 
             out.append((f"{n}#{k}", discipline_argv(n, config_path, instance=f"{instance}_{k}" if instance else str(k),
                                                     run_id=run_id)))
     return out
+
+
+class OwnSuite:
+    """The config's discipline nodes started for one command (``evaluate --launch``,
+    ``sensitivity --launch``), as ``optimize`` starts them: bound to a fresh run id and, unless
+    ``ros.signing: false`` or a ``ros.sign_key_file`` is configured, signing with a fresh per-run
+    key (mode 0600) in ``work_dir/.keys`` — a path in the resolved config the nodes read, never
+    on a command line, in the environment or in a log. ``config`` (after ``start``) is the
+    resolved config the command's own evaluator must use (its key and run id included).
+    ``stop()`` stops the nodes and deletes ``work_dir`` when this object created it."""
+
+    def __init__(self, config: Mapping, ros: Mapping, work_dir: str | Path | None = None):
+        import tempfile
+        import uuid
+
+        self._own_dir = work_dir is None
+        self.work_dir = Path(work_dir or tempfile.mkdtemp(prefix="bev_mdo_suite_"))  # mkdtemp: mode 0700
+        self.run_id = uuid.uuid4().hex[:16]
+        self.config = {**config, "ros": dict(ros)}
+        self.ros = dict(ros)
+        self.launcher: Launcher | None = None
+
+    def start(self) -> "OwnSuite":
+        import yaml
+
+        from bev_mdo.cli.optimize import _plain, with_run_key
+        from bev_mdo.config import discipline_names
+        from bev_mdo.ros.settings import ros_environment
+
+        logs = self.work_dir / "logs"
+        logs.mkdir(parents=True, exist_ok=True)
+        self.config = with_run_key(self.config, self.work_dir / ".keys")
+        resolved = logs / "config.yaml"
+        resolved.write_text(yaml.safe_dump(_plain(self.config), sort_keys=False))
+        self.launcher = Launcher(ros_environment(self.ros), log_dir=logs)
+        try:
+            for label, argv in plan_processes(discipline_names(self.config), str(resolved.resolve()),
+                                              run_id=self.run_id, instance=self.run_id[:8]):
+                self.launcher.add(label, argv)
+            self.launcher.supervise()
+        except BaseException:
+            self.stop()
+            raise
+        return self
+
+    def stop(self) -> None:
+        if self.launcher is not None:
+            self.launcher.stop()
+            self.launcher = None
+        if self._own_dir:
+            import shutil
+
+            shutil.rmtree(self.work_dir, ignore_errors=True)
+
+    def __enter__(self) -> "OwnSuite":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()

@@ -27,3 +27,14 @@ class Broken:
 
     def compute(self, inputs):
         raise ValueError("the broken model refuses every motor")
+
+
+class Summed:
+    """Returns one number for the whole batch (a sum over it), not one per point."""
+
+    name = "summed"
+    inputs = ("motor_kw",)
+    outputs = ("summed_kw",)
+
+    def compute(self, inputs):
+        return {"summed_kw": float(np.sum(inputs["motor_kw"]))}

@@ -48,3 +48,12 @@ def test_a_discipline_that_never_returns_fails_after_the_ros_timeout_budget(tmp_
     assert "discipline 'hang' failed:" in p.stderr and "no answer within 0.4 s" in p.stderr, p.stderr[-2000:]
     out = json.loads(p.stdout)
     assert "treated as hung" in out["discipline_errors"]["hang"]
+
+
+def test_one_number_for_a_whole_batch_is_an_error_naming_the_discipline(tmp_path):
+    """A discipline that returns one scalar for a batch (here its sum) is not broadcast to every point."""
+    p = _run(tmp_path, "summed", "Summed", {})
+    assert p.returncode == 2 and not p.stdout.strip(), p.stderr[-2000:]
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and "discipline 'summed': output 'summed_kw' has shape ()" in lines[0], lines
+    assert "Traceback" not in p.stderr

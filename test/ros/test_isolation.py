@@ -213,7 +213,9 @@ def test_concurrent_cli_runs_are_bound_to_their_run_and_signed(configs, referenc
         outs[name] = json.loads(out)
     unsigned = 0
     for name, out in outs.items():
-        _same(out["design"], references[name].design)
+        why = {k: out.get(k) for k in ("message", "iterations", "result_iteration", "discipline_errors",
+                                       "dropped_messages", "retried_requests", "refused_instances")}
+        assert out["design"] == pytest.approx(references[name].design, rel=1e-9, abs=1e-9), (name, why)
         assert out["objective"] == pytest.approx(references[name].objective, rel=1e-9)
         assert out["signing"] == "per-run key"
         unsigned += out["dropped_messages"].get("unsigned", 0)

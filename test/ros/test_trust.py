@@ -101,9 +101,8 @@ class Attacker:
                 self.sent[key] += 1
 
 
-def test_forged_results_declarations_and_records_are_dropped_and_counted(ros_domain, config_path, tmp_path):
-    config = load_config(config_path)
-    ref = run_optimization(config, InProcessEvaluator(resolve_disciplines(config)))
+def _run_beside_attacker(config, argv, domain, cwd):
+    """Run a `bev-mdo` command while an Attacker on the same domain forges; (completed process, attacker)."""
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
     from rclpy.executors import SingleThreadedExecutor
@@ -114,21 +113,28 @@ def test_forged_results_declarations_and_records_are_dropped_and_counted(ros_dom
     stop = threading.Event()
     spinner = threading.Thread(target=lambda: [executor.spin_once(timeout_sec=0.05) for _ in iter(stop.is_set, True)])
     spinner.start()
-    bag = tmp_path / "bags" / "trusted"
     try:
-        p = subprocess.run([PYTHON, "-m", "bev_mdo", "optimize", config_path, "--domain-id", str(ros_domain),
-                            "--bag", str(bag), "--json", "--quiet"], cwd=tmp_path, env=ros_env(ros_domain),
-                           capture_output=True, text=True, timeout=300)
+        p = subprocess.run([PYTHON, "-m", "bev_mdo", *argv, "--domain-id", str(domain)], cwd=cwd,
+                           env=ros_env(domain), capture_output=True, text=True, timeout=300)
     finally:
         stop.set()
         spinner.join()
         executor.shutdown()
         attacker.node.destroy_node()
         rclpy.shutdown(context=ctx)
+    return p, attacker
+
+
+def test_forged_results_declarations_and_records_are_dropped_and_counted(ros_domain, config_path, tmp_path):
+    config = load_config(config_path)
+    ref = run_optimization(config, InProcessEvaluator(resolve_disciplines(config)))
+    bag = tmp_path / "bags" / "trusted"
+    p, attacker = _run_beside_attacker(config, ["optimize", config_path, "--bag", str(bag), "--json", "--quiet"],
+                                       ros_domain, tmp_path)
     assert p.returncode == 0, p.stderr[-3000:]
     out = json.loads(p.stdout)
     assert out["signing"] == "per-run key"
-    assert attacker.run_ids == {out["run_id"]}
+    assert attacker.run_ids == {out["run_id"]}, (attacker.sent, p.stderr[-3000:])
     assert attacker.sent["results"] > 0 and attacker.sent["records"] > 0
     # the optimum is the run's own: every forged result was dropped, and counted
     for k, v in ref.design.items():
@@ -157,3 +163,46 @@ def test_forged_results_declarations_and_records_are_dropped_and_counted(ros_dom
         if f.is_file():
             assert key.encode() not in f.read_bytes(), f
     assert key not in p.stdout + p.stderr
+
+
+@pytest.mark.parametrize("command", [
+    ["evaluate", "--set", "motor_kw=70,gear_ratio=9,battery_kwh=22", "--json"],
+    ["sensitivity", "--at", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--order", "1", "--json"],
+], ids=["evaluate", "sensitivity"])
+def test_commands_that_launch_nodes_sign_by_default(ros_domain, config_path, tmp_path, command):
+    """`evaluate --launch` and `sensitivity --launch` start their own nodes, signed with a fresh
+    per-run key (no key configured): the attacker's unsigned results and declarations are dropped
+    and counted, the answer is the in-process one, and no key or log is left behind."""
+    argv = [command[0], config_path, *command[1:]]
+    local = subprocess.run([PYTHON, "-m", "bev_mdo", *argv], cwd=tmp_path, env=ros_env(ros_domain),
+                           capture_output=True, text=True, timeout=120)
+    assert local.returncode == 0, local.stderr[-2000:]
+    p, attacker = _run_beside_attacker(load_config(config_path), [*argv, "--launch"], ros_domain, tmp_path)
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert json.loads(p.stdout) == json.loads(local.stdout)
+    assert attacker.sent["results"] > 0
+    note = [line for line in p.stderr.splitlines() if "dropped and counted" in line]
+    assert len(note) == 1, p.stderr[-3000:]
+    counts = dict(item.rsplit(" ", 1) for item in note[0].split("dropped and counted: ", 1)[1].split(", "))
+    assert int(counts.get("unsigned", 0)) >= attacker.sent["results"], counts
+    assert counts.get("info_unsigned") == "1" and counts.get("info_forged") == "1", counts
+    assert "not signed" not in p.stderr
+    assert not list(tmp_path.rglob("sign.key"))  # the per-run key lived in the command's own temporary directory
+
+
+def test_evaluate_on_running_unsigned_nodes_says_so(ros_domain, config_path, tmp_path):
+    """`evaluate --ros` talks to nodes someone else started; without a key file it cannot sign and
+    says so in one line (the answer itself is the in-process one)."""
+    from bev_mdo.ros.launch import Launcher, discipline_argv
+
+    argv = ["evaluate", config_path, "--set", "motor_kw=70,gear_ratio=9,battery_kwh=22", "--json"]
+    with Launcher(ros_env(ros_domain), log_dir=tmp_path / "logs") as la:
+        for n in NAMES:
+            la.add(n, discipline_argv(n, config_path))
+        p = subprocess.run([PYTHON, "-m", "bev_mdo", *argv, "--ros", "--domain-id", str(ros_domain)], cwd=tmp_path,
+                           env=ros_env(ros_domain), capture_output=True, text=True, timeout=120)
+    local = subprocess.run([PYTHON, "-m", "bev_mdo", *argv], cwd=tmp_path, capture_output=True, text=True,
+                           timeout=120)
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert json.loads(p.stdout) == json.loads(local.stdout)
+    assert p.stderr.count("not signed") == 1 and f"ROS domain {ros_domain}" in p.stderr, p.stderr
