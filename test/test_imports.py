@@ -19,12 +19,7 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parent.parent / "bev_mdo"
 
 # (importer, imported, "module" | "function"): edges that close the cycles still to be removed.
-ALLOWED: set[tuple[str, str, str]] = {
-    # bev_mdo/ros (being refactored by issue 15's ROS part; the lead removes these): run is the
-    # entry-point table (module-level DISCIPLINE_EXES read by launch) and imports each node's main
-    # lazily; the coordinator's main parses instances with launch.parse_instances.
-    ("bev_mdo.ros.coordinator_node", "bev_mdo.ros.launch", "function"),
-}
+ALLOWED: set[tuple[str, str, str]] = set()  # none left; add an edge here only with a reason
 
 
 def module_name(path: Path) -> str:

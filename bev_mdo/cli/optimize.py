@@ -186,7 +186,8 @@ def _run_inprocess(config, args, show, x0=None):
 def _run_ros(config, args, show, x0=None):
     import yaml
 
-    from bev_mdo.config import discipline_entries
+    from bev_mdo.config import discipline_entries, plain
+    from bev_mdo.ros.auth import with_run_key
     from bev_mdo.ros.launch import Launcher, parse_instances, plan_processes
     from bev_mdo.ros.settings import ros_environment
 
@@ -215,7 +216,7 @@ def _run_ros(config, args, show, x0=None):
     # the per-run key goes beside the bag, never inside it (a bag directory is what users share)
     config = with_run_key(config, bag.parent / ".keys" / bag.name)
     resolved = logs / "config.yaml"
-    resolved.write_text(yaml.safe_dump(_plain(config), sort_keys=False))
+    resolved.write_text(yaml.safe_dump(plain(config), sort_keys=False))
     launcher = Launcher(env, log_dir=logs)
     if not args.quiet:
         print(f"starting {len(discipline_entries(config))} discipline nodes{'' if args.no_record else ' and a recorder'}"
@@ -313,20 +314,6 @@ def check_new_bag(bag: Path, what: str) -> None:
         raise ValueError(f"{what} {bag}: a bag already exists there; choose a new directory")
 
 
-def with_run_key(config: dict, directory: Path) -> dict:
-    """Signing on by default: without a configured ``ros.sign_key_file`` (and unless
-    ``ros.signing: false``) a fresh random key is written to ``<directory>/sign.key`` (mode 0600;
-    callers pass a directory outside the bag); the resolved config that the nodes and the recorder read names its path
-    only, so the key is never on a command line, in the environment or in the bag."""
-    ros = dict(config.get("ros") or {})
-    if ros.get("sign_key_file") or not ros.get("signing", True):
-        return config
-    from bev_mdo.ros.auth import new_key_file
-
-    ros["sign_key_file"] = new_key_file(directory)
-    return {**config, "ros": ros}
-
-
 def _start_recorder(launcher, bag: Path, resolved: Path, run_id: str) -> int:
     """Start the recorder node; returns how many extra subscribers it adds per topic."""
     # Not restarted: a second recorder cannot reopen the bag the first one was writing (the run ends
@@ -409,12 +396,3 @@ def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None) -> dict | 
         node.destroy_node()
 
 
-def _plain(obj):
-    """YAML-safe copy (numpy scalars to floats)."""
-    if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if hasattr(obj, "item"):
-        return obj.item()
-    return obj

@@ -205,7 +205,7 @@ class _RosSession:
         apply_ros_environment(self.ros)
         self.logs = self.out / ".logs"
         self.logs.mkdir(parents=True, exist_ok=True)
-        from bev_mdo.cli.optimize import with_run_key
+        from bev_mdo.ros.auth import with_run_key
 
         self.ros = with_run_key({"ros": self.ros}, self.logs)["ros"]  # signed by default (docs/security.md)
         resolved = self.logs / "config.yaml"

@@ -45,7 +45,7 @@ def resume_point(bag_path: str, run_id: str | None = None, key_file: str | None 
 
 def is_per_run_key(path) -> bool:
     """Whether `path` is a per-run key bev-mdo created for a run (``<bag's parent>/.keys/<bag name>/sign.key``,
-    optimize.with_run_key), not a key file the user configured."""
+    auth.with_run_key), not a key file the user configured."""
     from pathlib import Path
 
     return bool(path) and Path(str(path)).name == "sign.key" and Path(str(path)).parent.parent.name == ".keys"

@@ -269,3 +269,15 @@ class Signer:
                 seen.popitem(last=False)
             else:
                 break
+
+
+def with_run_key(config: dict, directory: Path) -> dict:
+    """Signing on by default: without a configured ``ros.sign_key_file`` (and unless
+    ``ros.signing: false``) a fresh random key is written to ``<directory>/sign.key`` (mode 0600;
+    callers pass a directory outside the bag); the resolved config that the nodes and the recorder read names its path
+    only, so the key is never on a command line, in the environment or in the bag."""
+    ros = dict(config.get("ros") or {})
+    if ros.get("sign_key_file") or not ros.get("signing", True):
+        return config
+    ros["sign_key_file"] = new_key_file(directory)
+    return {**config, "ros": ros}

@@ -105,11 +105,6 @@ class NodeStatsListener:
 FLOW_CACHE = 64  # data-flow requests and source results kept while they wait for each other
 
 
-def build_discipline(config: dict, name: str) -> Any:
-    """The discipline named `name` in a resolved config (built-in or user class)."""
-    return _build(config, name)[0]
-
-
 def _build(config: dict, name: str) -> tuple[Any, dict[str, str]]:
     """(the discipline, output -> producing discipline over the whole config)."""
     from bev_mdo.config import resolve_disciplines
@@ -498,9 +493,6 @@ def main(args: list[str] | None = None, discipline: str | None = None) -> int:
                 print(f"{discipline or 'discipline_node'}: error: {exc}", file=sys.stderr)
                 return 2
             raise
-    except ValueError as exc:
-        print(f"{discipline or 'discipline_node'}: error: {exc}", file=sys.stderr)
-        return 2
     finally:
         if node is not None:
             node.destroy_node()

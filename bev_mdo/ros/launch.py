@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping, Sequence
 
-from bev_mdo.ros.run import DISCIPLINE_EXES
+from bev_mdo.ros.executables import DISCIPLINE_EXES
 
 _BUILTIN_EXE = {v: k for k, v in DISCIPLINE_EXES.items()}
 
@@ -302,15 +302,15 @@ class OwnSuite:
     def start(self) -> "OwnSuite":
         import yaml
 
-        from bev_mdo.cli.optimize import _plain, with_run_key
-        from bev_mdo.config import discipline_names
+        from bev_mdo.config import discipline_names, plain
+        from bev_mdo.ros.auth import with_run_key
         from bev_mdo.ros.settings import ros_environment
 
         logs = self.work_dir / "logs"
         logs.mkdir(parents=True, exist_ok=True)
         self.config = with_run_key(self.config, self.work_dir / ".keys")
         resolved = logs / "config.yaml"
-        resolved.write_text(yaml.safe_dump(_plain(self.config), sort_keys=False))
+        resolved.write_text(yaml.safe_dump(plain(self.config), sort_keys=False))
         self.launcher = Launcher(ros_environment(self.ros), log_dir=logs)
         try:
             for label, argv in plan_processes(discipline_names(self.config), str(resolved.resolve()),

@@ -7,16 +7,7 @@ from __future__ import annotations
 
 import sys
 
-# executable -> built-in discipline name it serves (None: not a discipline node)
-DISCIPLINE_EXES = {
-    "vehicle_mass_node": "vehicle_mass",
-    "energy_node": "energy",
-    "range_node": "range",
-    "acceleration_node": "acceleration",
-    "motor_speed_node": "motor_speed",
-    "cost_node": "cost",
-}
-OTHER_EXES = ("discipline_node", "coordinator_node", "recorder_node", "composed_node")
+from bev_mdo.ros.executables import DISCIPLINE_EXES, OTHER_EXES  # noqa: F401 - re-exported
 
 
 def run(exe: str, args: list[str] | None = None) -> int:
