@@ -24,7 +24,6 @@ OpenMDAO is a bench-only dependency: ``pip install -c constraints.txt -r bench/r
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import sys

@@ -11,7 +11,6 @@ import argparse
 import copy
 import os
 import sys
-import time
 from pathlib import Path
 
 import numpy as np

@@ -48,7 +48,7 @@ def ros_domain(request):
 @pytest.fixture(scope="module")
 def rclpy_context(ros_domain):
     """An initialised rclpy context for this module (domain set first)."""
-    rclpy = pytest.importorskip("rclpy")
+    import rclpy
     ctx = rclpy.context.Context()
     rclpy.init(context=ctx)
     yield ctx

@@ -5,10 +5,8 @@ from __future__ import annotations
 
 import sys
 
-import pytest
 import yaml
 
-rclpy = pytest.importorskip("rclpy")
 
 from bev_mdo.config import load_config  # noqa: E402
 from bev_mdo.ros import coordinator_node  # noqa: E402

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from examples.sellar_vector import SellarDis1, SellarDis2, SellarFunctions  # noqa: F401
+from examples.sellar_vector import SellarDis1  # noqa: F401
 
 
 class NoPartials:

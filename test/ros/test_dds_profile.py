@@ -2,7 +2,6 @@
 parsed by Fast DDS without complaint, and shipped in the installed package."""
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 import textwrap
@@ -10,7 +9,6 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("rclpy")
 
 from bev_mdo.ros import DDS_PROFILE  # noqa: E402
 from bev_mdo.testing import REPO, ros_env  # noqa: E402

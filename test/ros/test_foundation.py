@@ -10,7 +10,6 @@ import pytest
 
 from bev_mdo.testing import PYTHON, REPO, ros_env
 
-rclpy = pytest.importorskip("rclpy")
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 
 from bev_mdo.ros.executables import DISCIPLINE_EXES, OTHER_EXES  # noqa: E402

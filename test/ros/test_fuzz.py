@@ -16,7 +16,6 @@ import array
 import json
 import subprocess
 import sys
-import time
 from collections import Counter
 from pathlib import Path
 
@@ -240,7 +239,6 @@ if __name__ == "__main__":
 # -- the test --------------------------------------------------------------------------------
 import pytest  # noqa: E402
 
-rclpy = pytest.importorskip("rclpy")
 
 BUILTINS = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]
 

@@ -21,7 +21,6 @@ from pathlib import Path
 import pytest
 import yaml
 
-pytest.importorskip("rclpy")
 
 from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402

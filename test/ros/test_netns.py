@@ -18,7 +18,6 @@ import sys
 import pytest
 import yaml
 
-rclpy = pytest.importorskip("rclpy")
 
 from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402

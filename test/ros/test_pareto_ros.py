@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 import yaml
 
-pytest.importorskip("rclpy")
 
 from bev_mdo.testing import PYTHON, REPO, ros_env  # noqa: E402
 

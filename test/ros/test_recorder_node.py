@@ -3,9 +3,7 @@ from __future__ import annotations
 
 import time
 
-import pytest
 
-pytest.importorskip("rclpy")
 
 
 def _until(predicate, spin, what: str, timeout_s: float = 30.0) -> None:

@@ -4,13 +4,11 @@ from __future__ import annotations
 import json
 import signal
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
-pytest.importorskip("rclpy")
 
 from bev_mdo.testing import PYTHON, REPO, ros_env  # noqa: E402
 

@@ -7,7 +7,6 @@ import csv
 import pytest
 import yaml
 
-rclpy = pytest.importorskip("rclpy")
 
 from bev_mdo.cli import main  # noqa: E402
 from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 import yaml
 
-rclpy = pytest.importorskip("rclpy")
+import rclpy
 
 from bev_mdo.bag.history import history  # noqa: E402
 from bev_mdo.cli.resume import resume_point  # noqa: E402

@@ -4,12 +4,10 @@ differences; a discipline returning one value for a whole batch is named in one 
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import pytest
 import yaml
 
-rclpy = pytest.importorskip("rclpy")
 
 from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402

@@ -7,7 +7,6 @@ import array
 import numpy as np
 import pytest
 
-pytest.importorskip("rclpy")
 
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 
