@@ -7,9 +7,24 @@ evaluated. A graph with loops runs wave by wave: one call per wave holds every f
 discipline of that wave. A feedback loop is
 iterated by Gauss-Seidel (one call per discipline, in the loop's declared order)
 or Jacobi (one call per sweep, all loop disciplines together, after one sequential
-seeding pass from the torn-variable guesses), vectorised over
-the points still iterating. A point whose discipline fails, or whose loop does
+seeding pass from the torn-variable guesses), or Newton-Raphson (``newton``, below),
+vectorised over the points still iterating. A point whose discipline fails, or whose loop does
 not converge, gets NaN outputs, ``ok`` False and an error text; nothing raises.
+
+Newton-Raphson (``method: newton``; OpenMDAO's NewtonSolver, GEMSEO's MDANewtonRaphson) solves
+R(y) = F(y) - y = 0 over the loop's couplings y (every loop output that a loop discipline reads).
+Each step evaluates ALL loop disciplines at y in ONE ``evaluate`` call (one request wave over
+ROS) asking for their partials, assembles J = dF/dy per point and solves
+(I - J) dy = F(y) - y (batched ``np.linalg.solve`` over the points, vector couplings as their
+element columns), then y <- y + relaxation * dy. A loop discipline without analytic partials
+gets a forward finite-difference Jacobian over its coupling inputs (step 1e-7 max(|y|, 1)):
+its perturbed points travel in the same call, stacked after its base points (a transport that
+cannot tell beforehand, ROS, learns it from the first answer and sends one extra call then).
+Convergence is the Gauss-Seidel criterion applied to the fixed-point residual, max |F(y) - y| /
+max(|F(y)|, 1) <= tolerance; the loop's values are then the y of that last evaluation, so the
+partials of that call are exactly at the converged values and ``run(partials=True)`` needs no
+extra call. Before the first step, loop couplings that are neither torn (guessed) nor given
+are seeded by one sequential call per discipline producing them, in loop order.
 """
 from __future__ import annotations
 
@@ -19,12 +34,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bev_mdo.mdo.discipline import EvalResult
 from bev_mdo.mdo.evaluator import Evaluator
 from bev_mdo.mdo.flow import evaluate_flow
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.vectors import base_name
 
-METHODS = ("gauss_seidel", "jacobi")
+METHODS = ("gauss_seidel", "jacobi", "newton")
+FD_STEP = 1e-7  # relative forward-difference step of a Newton Jacobian column without analytic partials
 _POINT = re.compile(r"at point (\d+)")
 
 
@@ -73,6 +90,9 @@ class MDA:
         self.graph = CouplingGraph((s.name, s.inputs, s.outputs) for s in self.specs.values())
         self.n_evaluations = 0
         self.data_flow = bool(data_flow) and not self.graph.cycles
+        self.n_newton_calls = 0  # evaluate() calls made by Newton steps (extra FD calls included)
+        # loop disciplines a Newton step differences (no analytic partials); learnt from answers over ROS
+        self._fd_only = {n for n, s in self.specs.items() if s.partials is False}
         self._flow_waves = [[c[0] for c in wave] for wave in self.graph.waves]
 
     # ------------------------------------------------------------------ helpers
@@ -147,6 +167,9 @@ class MDA:
                 self._run(singles, values, np.flatnonzero(ok), ok, errors, partials=part)
                 for comp in wave:
                     if self.graph.is_cyclic(comp):
+                        if self.method == "newton":  # its last call's partials are at the converged values
+                            self._newton(comp, values, ok, errors, iterations, cols, part)
+                            continue
                         self._loop(comp, values, ok, errors, iterations, cols)
                         capable = [m for m in comp if self.specs[m].partials is not False]
                         if part is not None and capable:
@@ -202,6 +225,138 @@ class MDA:
             ok[i] = False
             errors[i] = (f"MDA loop {list(comp)} did not converge in {self.max_iterations} "
                          f"{self.method} iterations (relative change {e:.3g} > tolerance {self.tolerance:g})")
+
+    # ------------------------------------------------------------------ newton
+    def _newton_calls(self, names: Sequence[str], values: dict, rows: np.ndarray, unknowns: Sequence[str]):
+        """Calls for one Newton evaluation: a discipline in ``_fd_only`` gets its base points
+        followed by one block per coupling input perturbed (forward differences)."""
+        calls, plans = [], []
+        for name in names:
+            inputs = self._call_inputs(name, values, rows)
+            if name in self._fd_only:
+                pert = [v for v in self.specs[name].inputs if v in unknowns]
+                h = {v: FD_STEP * np.maximum(np.abs(inputs[v]), 1.0) for v in pert}
+                blocks = [inputs]
+                for v in pert:
+                    blocks.append({**inputs, v: inputs[v] + h[v]})
+                inputs = {k: np.concatenate([b[k] for b in blocks]) for k in inputs}
+                plans.append((pert, h))
+            else:
+                plans.append(None)
+            calls.append((name, inputs))
+        return calls, plans
+
+    def _newton(self, comp: Sequence[str], values: dict, ok: np.ndarray, errors: list[str],
+                iterations: np.ndarray, given: Mapping[str, np.ndarray], partials: dict | None) -> None:
+        """Newton-Raphson over the loop ``comp`` (module docstring); per-point status like _loop."""
+        spec_in = {m: set(self.specs[m].inputs) for m in comp}
+        outs = [v for m in comp for v in self.specs[m].outputs]
+        unknowns = [v for v in outs if any(v in spec_in[m] for m in comp)]
+        col = {v: k for k, v in enumerate(unknowns)}
+        u = len(unknowns)
+        rows = np.flatnonzero(ok)
+        torn = self.graph.torn_inputs(comp)
+        for v in torn:
+            if v not in given:
+                values[v][rows] = self.guesses.get(v, self.guesses.get(base_name(v), 1.0))
+        for m in comp:  # seed the forward couplings (one sequential call per producing discipline)
+            if any(v in col and v not in torn and v not in given for v in self.specs[m].outputs):
+                self._run([m], values, rows[ok[rows]], ok, errors)
+        active = rows[ok[rows]]
+        err = np.full(active.size, np.inf)
+        for it in range(1, self.max_iterations + 1):
+            if active.size == 0:
+                return
+            n = active.size
+            calls, plans = self._newton_calls(comp, values, active, unknowns)
+            results = self.evaluator.evaluate(calls, partials=True)
+            self.n_newton_calls += 1
+            late = [m for m, p, r in zip(comp, plans, results) if p is None and "partials" not in r.extra
+                    and np.asarray(r.ok, dtype=bool).any()]
+            if late:  # no analytic partials (learnt now): difference these from here on, this step too
+                self._fd_only.update(late)
+                extra_calls, extra_plans = self._newton_calls(late, values, active, unknowns)
+                extra = self.evaluator.evaluate(extra_calls)
+                self.n_newton_calls += 1
+                for m, p, r in zip(late, extra_plans, extra):
+                    k = comp.index(m)
+                    results[k], plans[k] = r, p
+            F = {v: values[v][active].copy() for v in outs}
+            J = np.zeros((n, u, u))
+            J_ok = np.ones(n, dtype=bool)
+            for m, plan, res in zip(comp, plans, results):
+                m_outs = self.specs[m].outputs
+                nb = 1 if plan is None else 1 + len(plan[0])
+                Y = {o: np.asarray(res.outputs[o], dtype=float).reshape(nb, n) for o in m_outs}
+                OK = np.asarray(res.ok, dtype=bool).reshape(nb, n)
+                base = EvalResult({o: Y[o][0] for o in m_outs}, OK[0], res.error)
+                ok_local, errs = np.ones(n, dtype=bool), [""] * n
+                self._store(m, base, F, np.arange(n), ok_local, errs)
+                for j in np.flatnonzero(~ok_local):
+                    if ok[active[j]]:
+                        ok[active[j]] = False
+                        errors[active[j]] = errs[j]
+                if plan is None:
+                    got = res.extra.get("partials", {})
+                    for (o, i), c in got.items():
+                        if o in col and i in col:
+                            J[:, col[o], col[i]] = c
+                    if partials is not None and "partials" in res.extra:
+                        keep = partials.setdefault(m, {})
+                        for key, c in got.items():
+                            keep.setdefault(key, np.zeros(len(ok)))[active] = c
+                else:
+                    pert, h = plan
+                    for b, v in enumerate(pert, start=1):
+                        J_ok &= OK[b]
+                        for o in m_outs:
+                            if o in col:
+                                J[:, col[o], col[v]] = (Y[o][b] - Y[o][0]) / h[v]
+            for v in outs:
+                if v not in col:  # read by no loop discipline: its value at y is final
+                    values[v][active] = F[v]
+            y = np.array([values[v][active] for v in unknowns])  # (u, n)
+            fy = np.array([F[v] for v in unknowns])
+            with np.errstate(invalid="ignore"):
+                err = np.max(np.abs(fy - y) / np.maximum(np.abs(fy), 1.0), axis=0) if u else np.zeros(n)
+            err = np.where(np.isfinite(err), err, np.inf)
+            iterations[active] = it
+            alive = ok[active]
+            done = alive & (err <= self.tolerance)
+            step = alive & ~done
+            bad_fd = step & ~J_ok
+            for j in np.flatnonzero(bad_fd):
+                ok[active[j]] = False
+                errors[active[j]] = (f"MDA loop {list(comp)}: a finite-difference Jacobian point failed "
+                                     f"in newton iteration {it}")
+            step &= J_ok
+            if step.any():
+                A = np.eye(u)[None] - J[step]
+                r = (fy - y)[:, step].T  # (k, u)
+                dy = np.full(r.shape, np.nan)
+                try:
+                    dy = np.linalg.solve(A, r[..., None])[..., 0]
+                except np.linalg.LinAlgError:  # some point singular: solve them one by one
+                    for q in range(len(A)):
+                        try:
+                            dy[q] = np.linalg.solve(A[q], r[q])
+                        except np.linalg.LinAlgError:
+                            pass
+                idx = np.flatnonzero(step)
+                good = np.isfinite(dy).all(axis=1)
+                for q in np.flatnonzero(~good):
+                    i = active[idx[q]]
+                    ok[i] = False
+                    errors[i] = (f"MDA loop {list(comp)}: singular Newton system I - dF/dy "
+                                 f"in newton iteration {it}")
+                for k, v in enumerate(unknowns):
+                    values[v][active[idx[good]]] += self.relaxation * dy[good, k]
+            keep = ok[active] & ~done
+            active, err = active[keep], err[keep]
+        for i, e in zip(active, err):
+            ok[i] = False
+            errors[i] = (f"MDA loop {list(comp)} did not converge in {self.max_iterations} "
+                         f"newton iterations (relative change {e:.3g} > tolerance {self.tolerance:g})")
 
 
 def _split_errors(text: str) -> dict[int, str]:
