@@ -220,6 +220,8 @@ class Formulation:
         if not self.status(x)[0]:  # a failed point has no derivative
             return np.zeros(self.n), np.zeros((m, self.n)), np.zeros((p, self.n))
         df, dg, dh = self._totals()
+        if self.problem.maximize:  # evaluate_batch gives the optimisers -f; its gradient too
+            df = -df
         return df * self.scale, dg * self.scale[None, :], dh * self.scale[None, :]
 
     def _fd_rest(self, part: dict, values: dict, base_needed=()) -> dict:
