@@ -10,10 +10,12 @@ run by run (the host is noisy):
 Reported per mode and transport: optimiser iterations, MDA evaluations, discipline evaluations
 (per discipline and in total), gradients, the optimum, and the wall time of the optimisation
 (RunResult.wall_time_s: median, min, max over the runs). Over ROS six discipline node processes
-(domain --domain-id, default 142, localhost-only discovery) serve both modes; the coordinator runs here
-(``coordinator_node.run``: data-flow MDAs, warm-up before the timed optimisation). Take the shared lock for the ROS part:
+(domain --domain-id, default 142, localhost-only discovery) serve both modes; the coordinator
+runs here (``coordinator_node.run``: data-flow MDAs, warm-up before the timed optimisation).
+Take the shared locks (bench, and ROS for the ROS part):
 
-    flock /tmp/bev_bench.lock flock /tmp/bev_ros.lock python bench/bench_partials.py --repeat 7 [--no-ros] [--domain-id 142]
+    flock /tmp/bev_bench.lock flock /tmp/bev_ros.lock python bench/bench_partials.py --repeat 7
+        [--no-ros] [--domain-id 142]
 
 Writes bench/results/bench_partials.json: the per-mode details as before, plus ``figures`` (the
 wall times, rendered into docs/performance.md by scripts/render_bench.py) and the 1-minute load
@@ -23,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import copy
-import json
 import os
 import statistics
 import sys

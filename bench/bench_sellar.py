@@ -29,7 +29,8 @@ Each method gets one untimed warm-up run, then ``--repeat`` timed runs, interlea
 after. It prints and writes figures (bench/results/bench_sellar.json, rendered by
 scripts/render_bench.py); it asserts nothing about time.
 
-    flock /tmp/bev_bench.lock flock /tmp/bev_ros.lock .venv/bin/python bench/bench_sellar.py --repeat 7 [--no-ros] [--domain-id 140]
+    flock /tmp/bev_bench.lock flock /tmp/bev_ros.lock .venv/bin/python bench/bench_sellar.py --repeat 7
+        [--no-ros] [--domain-id 140]
 
 OpenMDAO is a bench-only dependency: ``pip install -c constraints.txt -r bench/requirements.txt``.
 """

@@ -180,8 +180,8 @@ def test_vector_sellar_example_newton_equals_gauss_seidel():
     out = {}
     for m in ("gauss_seidel", "newton"):
         cfg = _sellar_vector(m)
-        out[m] = MDA(InProcessEvaluator(resolve_disciplines(cfg)), method=m, tolerance=1e-14 if m != "newton" else 1e-13,
-                     max_iterations=300).run(pts)
+        tol = 1e-13 if m == "newton" else 1e-14
+        out[m] = MDA(InProcessEvaluator(resolve_disciplines(cfg)), method=m, tolerance=tol, max_iterations=300).run(pts)
         assert out[m].ok.all()
     for v in ("y1", "y2", "obj", "con[0]", "con[1]"):
         np.testing.assert_allclose(out["newton"].values[v], out["gauss_seidel"].values[v], rtol=1e-10, atol=1e-12)
