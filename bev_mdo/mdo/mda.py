@@ -69,7 +69,7 @@ class MDA:
     def __init__(self, evaluator: Evaluator, *, method: str = "gauss_seidel", tolerance: float = 1e-10,
                  max_iterations: int = 100, relaxation: float = 1.0,
                  guesses: Mapping[str, float] | None = None, disciplines: Sequence[str] | None = None,
-                 data_flow: bool = True):
+                 data_flow: bool = True, warm_start: bool | str = "auto", fuse_downstream: bool = False):
         if method not in METHODS:
             raise ValueError(f"mda method {method!r} is unknown; allowed: {', '.join(METHODS)}")
         if not tolerance > 0:
@@ -78,8 +78,17 @@ class MDA:
             raise ValueError(f"mda max_iterations {max_iterations} must be >= 1")
         if not 0 < relaxation <= 2:
             raise ValueError(f"mda relaxation {relaxation} must be in (0, 2]")
+        if not isinstance(warm_start, bool) and warm_start != "auto":
+            raise ValueError(f"mda warm_start {warm_start!r} must be true, false or auto")
+        if not isinstance(fuse_downstream, bool):
+            raise ValueError(f"mda fuse_downstream {fuse_downstream!r} must be true or false")
         self.evaluator = evaluator
         self.method, self.tolerance = method, float(tolerance)
+        # auto: on for newton only (its converged couplings are exact far below the tolerance, see
+        # the module docstring), off for the fixed-point methods
+        self.warm_start = (method == "newton") if warm_start == "auto" else bool(warm_start)
+        self.fuse_downstream = bool(fuse_downstream) and method == "newton"
+        self._warm: dict[tuple, dict[str, float]] = {}  # loop -> converged couplings of the last MDA
         self.max_iterations, self.relaxation = int(max_iterations), float(relaxation)
         self.guesses = dict(guesses or {})
         names = list(disciplines) if disciplines is not None else list(evaluator.specs)
@@ -122,6 +131,17 @@ class MDA:
                 for k, col in res.extra["partials"].items():
                     got.setdefault(k, np.zeros(n_all))[rows] = col
 
+    def _store_rows(self, name: str, res, local: np.ndarray, values: dict, rows: np.ndarray, ok: np.ndarray,
+                    errors: list[str]) -> None:
+        """Like _store for the entries ``local`` of a result (error texts keep their point numbers)."""
+        msgs = _split_errors(res.error)
+        sub = EvalResult({o: np.asarray(res.outputs[o], dtype=float)[local] for o in self.specs[name].outputs},
+                         np.asarray(res.ok, dtype=bool)[local], "")
+        before = ok[rows].copy()
+        self._store(name, sub, values, rows, ok, errors)
+        for q in np.flatnonzero(before & ~ok[rows]):
+            errors[rows[q]] = msgs.get(int(local[q]), res.error or f"{name}: failed")
+
     def _store(self, name: str, res, values: dict, rows: np.ndarray, ok: np.ndarray, errors: list[str],
                relax: bool = False) -> None:
         """Write one discipline's result for ``rows`` into ``values``; mark its failed points."""
@@ -162,13 +182,16 @@ class MDA:
         if self.data_flow:
             self._flow(values, n, ok, errors, part)
         else:
-            for wave in self.graph.waves:
-                singles = [c[0] for c in wave if not self.graph.is_cyclic(c)]
+            fused: set[str] = set()  # evaluated inside a Newton loop's waves (fuse_downstream)
+            for w, wave in enumerate(self.graph.waves):
+                singles = [c[0] for c in wave if not self.graph.is_cyclic(c) and c[0] not in fused]
                 self._run(singles, values, np.flatnonzero(ok), ok, errors, partials=part)
                 for comp in wave:
                     if self.graph.is_cyclic(comp):
                         if self.method == "newton":  # its last call's partials are at the converged values
-                            self._newton(comp, values, ok, errors, iterations, cols, part)
+                            tail = self._downstream(comp, w) if self.fuse_downstream else []
+                            self._newton(comp, values, ok, errors, iterations, cols, part, tail)
+                            fused.update(tail)
                             continue
                         self._loop(comp, values, ok, errors, iterations, cols)
                         capable = [m for m in comp if self.specs[m].partials is not False]
@@ -195,14 +218,26 @@ class MDA:
     def _loop(self, comp: Sequence[str], values: dict, ok: np.ndarray, errors: list[str],
               iterations: np.ndarray, given: Mapping[str, np.ndarray]) -> None:
         outs = [v for m in comp for v in self.specs[m].outputs]
+        loop_reads = {v for m in comp for v in self.specs[m].inputs}
+        couplings = [v for v in outs if v in loop_reads]
         rows = np.flatnonzero(ok)
-        for v in self.graph.torn_inputs(comp):
+        warm = self._warm.get(tuple(comp)) if self.warm_start else None
+        for v in (couplings if warm is not None else self.graph.torn_inputs(comp)):
             if v not in given:
-                values[v][rows] = self.guesses.get(v, self.guesses.get(base_name(v), 1.0))
-        if self.method == "jacobi":  # seed every loop input by one sequential pass from the torn guesses
+                values[v][rows] = warm[v] if warm is not None else self.guesses.get(
+                    v, self.guesses.get(base_name(v), 1.0))
+        if self.method == "jacobi" and warm is None:  # seed every loop input by one sequential pass
             for m in comp:
                 self._run([m], values, rows[ok[rows]], ok, errors)
-        active = rows[ok[rows]]
+        converged: list[int] = []
+        try:
+            self._sweeps(comp, values, ok, errors, iterations, outs, rows[ok[rows]], converged)
+        finally:
+            if converged and self.warm_start:  # deterministic: the batch's first converged point
+                first = min(converged)
+                self._warm[tuple(comp)] = {v: float(values[v][first]) for v in couplings}
+
+    def _sweeps(self, comp, values, ok, errors, iterations, outs, active, converged) -> None:
         err = np.full(active.size, np.inf)
         for it in range(1, self.max_iterations + 1):
             if active.size == 0:
@@ -220,6 +255,7 @@ class MDA:
             iterations[active] = it
             alive = ok[active]
             done = alive & (err <= self.tolerance)
+            converged.extend(active[done].tolist())
             active, err = active[alive & ~done], err[alive & ~done]
         for i, e in zip(active, err):
             ok[i] = False
@@ -227,6 +263,35 @@ class MDA:
                          f"{self.method} iterations (relative change {e:.3g} > tolerance {self.tolerance:g})")
 
     # ------------------------------------------------------------------ newton
+    def _downstream(self, comp: Sequence[str], w: int) -> list[str]:
+        """Feed-forward disciplines of later waves that can run in the request wave of every
+        Newton step of ``comp`` (``fuse_downstream``): they read at least one of the loop's
+        couplings (outputs a loop discipline reads, so their value in a step is that step's y),
+        and all their other inputs are design inputs or outputs of disciplines of earlier waves
+        or of the feed-forward disciplines of wave ``w`` (already evaluated then)."""
+        g = self.graph
+        in_loop = set(comp)
+        loop_reads = {v for m in comp for v in self.specs[m].inputs}
+        couplings = {v for m in comp for v in self.specs[m].outputs if v in loop_reads}
+        ready: set[str] = set()
+        for k, wave in enumerate(g.waves[:w + 1]):
+            for c in wave:
+                if k < w or not g.is_cyclic(c):
+                    ready.update(c)
+        tail = []
+        for wave in g.waves[w + 1:]:
+            for c in wave:
+                if g.is_cyclic(c):
+                    continue
+                d = c[0]
+                src = {v: g.producer.get(v) for v in self.specs[d].inputs}
+                reads_loop = any(p in in_loop for p in src.values())
+                fits = all(p is None or (p in ready and p not in in_loop) or (p in in_loop and v in couplings)
+                           for v, p in src.items())
+                if reads_loop and fits:
+                    tail.append(d)
+        return tail
+
     def _newton_calls(self, names: Sequence[str], values: dict, rows: np.ndarray, unknowns: Sequence[str]):
         """Calls for one Newton evaluation: a discipline in ``_fd_only`` gets its base points
         followed by one block per coupling input perturbed (forward differences)."""
@@ -247,8 +312,11 @@ class MDA:
         return calls, plans
 
     def _newton(self, comp: Sequence[str], values: dict, ok: np.ndarray, errors: list[str],
-                iterations: np.ndarray, given: Mapping[str, np.ndarray], partials: dict | None) -> None:
-        """Newton-Raphson over the loop ``comp`` (module docstring); per-point status like _loop."""
+                iterations: np.ndarray, given: Mapping[str, np.ndarray], partials: dict | None,
+                tail: Sequence[str] = ()) -> None:
+        """Newton-Raphson over the loop ``comp`` (module docstring); per-point status like _loop.
+        ``tail``: downstream disciplines evaluated in every step's call (``_downstream``); a point
+        keeps their results of the step at which it converged."""
         spec_in = {m: set(self.specs[m].inputs) for m in comp}
         outs = [v for m in comp for v in self.specs[m].outputs]
         unknowns = [v for v in outs if any(v in spec_in[m] for m in comp)]
@@ -256,20 +324,41 @@ class MDA:
         u = len(unknowns)
         rows = np.flatnonzero(ok)
         torn = self.graph.torn_inputs(comp)
-        for v in torn:
-            if v not in given:
-                values[v][rows] = self.guesses.get(v, self.guesses.get(base_name(v), 1.0))
-        for m in comp:  # seed the forward couplings (one sequential call per producing discipline)
-            if any(v in col and v not in torn and v not in given for v in self.specs[m].outputs):
-                self._run([m], values, rows[ok[rows]], ok, errors)
+        warm = self._warm.get(tuple(comp)) if self.warm_start else None
+        if warm is not None:  # every coupling from the last MDA's converged values: no seeding call
+            for v in unknowns:
+                if v not in given:
+                    values[v][rows] = warm[v]
+        else:
+            for v in torn:
+                if v not in given:
+                    values[v][rows] = self.guesses.get(v, self.guesses.get(base_name(v), 1.0))
+            for m in comp:  # seed the forward couplings (one sequential call per producing discipline)
+                if any(v in col and v not in torn and v not in given for v in self.specs[m].outputs):
+                    self._run([m], values, rows[ok[rows]], ok, errors)
         active = rows[ok[rows]]
         err = np.full(active.size, np.inf)
+        converged: list[int] = []
+        try:
+            self._newton_steps(comp, values, ok, errors, iterations, partials, tail, outs, unknowns, col,
+                               active, err, converged)
+        finally:
+            if converged and self.warm_start:  # deterministic: the batch's first converged point
+                first = min(converged)
+                self._warm[tuple(comp)] = {v: float(values[v][first]) for v in unknowns}
+
+    def _newton_steps(self, comp, values, ok, errors, iterations, partials, tail, outs, unknowns, col,
+                      active, err, converged) -> None:
+        u = len(unknowns)
         for it in range(1, self.max_iterations + 1):
             if active.size == 0:
                 return
             n = active.size
             calls, plans = self._newton_calls(comp, values, active, unknowns)
-            results = self.evaluator.evaluate(calls, partials=True)
+            calls += [(d, self._call_inputs(d, values, active)) for d in tail]
+            results = list(self.evaluator.evaluate(calls, partials=True))
+            tail_results = results[len(comp):]
+            results = results[:len(comp)]
             self.n_newton_calls += 1
             late = [m for m, p, r in zip(comp, plans, results) if p is None and "partials" not in r.extra
                     and np.asarray(r.ok, dtype=bool).any()]
@@ -323,6 +412,15 @@ class MDA:
             iterations[active] = it
             alive = ok[active]
             done = alive & (err <= self.tolerance)
+            converged.extend(active[done].tolist())
+            if tail and done.any():  # the tail saw this step's y, which is the loop's result there
+                local = np.flatnonzero(done)
+                for d, res in zip(tail, tail_results):
+                    self._store_rows(d, res, local, values, active[local], ok, errors)
+                    if partials is not None and "partials" in res.extra:
+                        keep = partials.setdefault(d, {})
+                        for key, c in res.extra["partials"].items():
+                            keep.setdefault(key, np.zeros(len(ok)))[active[local]] = np.asarray(c)[local]
             step = alive & ~done
             bad_fd = step & ~J_ok
             for j in np.flatnonzero(bad_fd):
