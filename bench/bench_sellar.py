@@ -9,7 +9,10 @@
    (solve_subsystems=False)`` with a ``DirectSolver`` (OpenMDAO's default tolerances, 1e-10), the
    fair counterpart of bev_mdo's Newton MDA.
 3. bev_mdo in process: ``examples/sellar/sellar_mdf.yaml`` (Gauss-Seidel) and
-   ``sellar_mdf_newton.yaml`` (Newton-Raphson) through ``run_optimization`` with ``InProcessEvaluator``
+   ``sellar_mdf_newton.yaml`` (Newton-Raphson, warm-started, the objective fused into the Newton
+   steps' waves; ``newton_cold``: the same with ``mda.warm_start: false, fuse_downstream: false``,
+   every MDA from the guesses with a seeding call and the objective in a wave of its own)
+   through ``run_optimization`` with ``InProcessEvaluator``
    (the user-discipline interface only; the example disciplines give analytic partials, so the MDF
    gradient is assembled from them: ``optimizer.derivatives: auto``).
 4. bev_mdo over ROS: the same two configs, one node process per discipline (the same three nodes
@@ -54,7 +57,17 @@ from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 
 CONFIGS = {"gauss_seidel": REPO / "examples" / "sellar" / "sellar_mdf.yaml",
-           "newton": REPO / "examples" / "sellar" / "sellar_mdf_newton.yaml"}
+           "newton": REPO / "examples" / "sellar" / "sellar_mdf_newton.yaml",
+           "newton_cold": REPO / "examples" / "sellar" / "sellar_mdf_newton.yaml"}
+# newton_cold: the Newton example as it was before warm start and fused downstream disciplines
+# (every MDA from the coupling guesses with a seeding call, the objective in a wave of its own)
+OVERRIDES = {"newton_cold": {"warm_start": False, "fuse_downstream": False}}
+
+
+def _config(method: str) -> dict:
+    config = load_config(CONFIGS[method])
+    config["mda"].update(OVERRIDES.get(method, {}))
+    return config
 REF_F = 3.18339395
 
 
@@ -122,7 +135,7 @@ class OpenMDAO:
 
 class BevInProcess:
     def __init__(self, method: str):
-        self.method, self.config = method, load_config(CONFIGS[method])
+        self.method, self.config = method, _config(method)
         self.name = f"bev_mdo in process, {method} MDA (examples/sellar)"
 
     def once(self) -> dict:
@@ -188,7 +201,7 @@ class RosNodes:
 class BevRos:
     def __init__(self, method: str, nodes: RosNodes, domain: int):
         self.method, self.nodes = method, nodes
-        self.config = load_config(CONFIGS[method])
+        self.config = _config(method)
         self.config["ros"]["domain_id"] = domain
         self.name = f"bev_mdo over ROS, {method} MDA (3 node processes, coordinator here)"
 
@@ -215,13 +228,14 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=str(REPO / "bench" / "results" / "bench_sellar.json"))
     args = ap.parse_args(argv)
     load_before = os.getloadavg()
-    methods = [OpenMDAO("nlbgs"), OpenMDAO("newton"), BevInProcess("gauss_seidel"), BevInProcess("newton")]
+    methods = [OpenMDAO("nlbgs"), OpenMDAO("newton"), BevInProcess("gauss_seidel"), BevInProcess("newton_cold"),
+               BevInProcess("newton")]
     nodes = None
     if args.ros:
         log_dir = Path("/tmp") / f"bench_sellar_{os.getpid()}"
         log_dir.mkdir(parents=True, exist_ok=True)
         nodes = RosNodes(args.domain_id, log_dir)
-        methods += [BevRos("gauss_seidel", nodes, args.domain_id), BevRos("newton", nodes, args.domain_id)]
+        methods += [BevRos(m, nodes, args.domain_id) for m in ("gauss_seidel", "newton_cold", "newton")]
     try:
         runs: dict[str, list[dict]] = {m.name: [] for m in methods}
         for m in methods:
