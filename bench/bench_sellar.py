@@ -9,7 +9,7 @@
    (solve_subsystems=False)`` with a ``DirectSolver`` (OpenMDAO's default tolerances, 1e-10), the
    fair counterpart of bev_mdo's Newton MDA.
 3. bev_mdo in process: ``examples/sellar/sellar_mdf.yaml`` (Gauss-Seidel) and
-   ``sellar_mdf_newton.yaml`` (Newton-Raphson, warm-started, the objective fused into the Newton
+   ``sellar_mdf_newton.yaml`` (Newton-Raphson, tangent warm start, the objective fused into the Newton
    steps' waves; ``newton_cold``: the same with ``mda.warm_start: false, fuse_downstream: false``,
    every MDA from the guesses with a seeding call and the objective in a wave of its own)
    through ``run_optimization`` with ``InProcessEvaluator``

@@ -217,8 +217,10 @@ def _check_mda_numbers(mda: Mapping[str, Any]) -> None:
         raise ValueError(f"mda.max_iterations {it!r} must be an integer >= 1")
     if not isinstance(w, (int, float)) or not 0 < w <= 2:
         raise ValueError(f"mda.relaxation {w!r} must be in (0, 2]")
-    if not isinstance(mda["warm_start"], bool) and mda["warm_start"] != "auto":
-        raise ValueError(f"mda.warm_start {mda['warm_start']!r} must be true, false or auto")
+    if not isinstance(mda["warm_start"], bool) and mda["warm_start"] not in ("auto", "tangent"):
+        raise ValueError(f"mda.warm_start {mda['warm_start']!r} must be true, false, auto or tangent")
+    if mda["warm_start"] == "tangent" and mda["method"] != "newton":
+        raise ValueError(f"mda.warm_start tangent needs mda.method newton, not {mda['method']}")
     if not isinstance(mda["fuse_downstream"], bool):
         raise ValueError(f"mda.fuse_downstream {mda['fuse_downstream']!r} must be true or false")
 

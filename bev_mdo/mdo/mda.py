@@ -25,6 +25,18 @@ max(|F(y)|, 1) <= tolerance; the loop's values are then the y of that last evalu
 partials of that call are exactly at the converged values and ``run(partials=True)`` needs no
 extra call. Before the first step, loop couplings that are neither torn (guessed) nor given
 are seeded by one sequential call per discipline producing them, in loop order.
+
+Warm start (``warm_start``; ``auto``: on for newton only): a loop starts from the couplings its
+previous MDA converged to (the first converged point of that batch; a given coupling column still
+overrides), and Newton then needs no seeding call. ``tangent`` (newton) adds the first-order
+prediction y_ref + (I - J)^-1 dF/dx (x - x_ref) from the Jacobian and partials of that point's
+last step (plain warm start when a loop discipline has no analytic partials). Newton's converged
+couplings are the fixed point to far below the tolerance from any start, so results depend on the
+history only at that level; the same sequence of MDAs gives the same values bit for bit.
+``fuse_downstream`` (newton): the feed-forward disciplines that read the loop's couplings ride in
+every Newton step's call (``_downstream``); a point keeps their results of the step at which it
+converged, which are at its reported couplings: one request wave less per MDA, one evaluation of
+them per step instead of per MDA. docs/derivatives.md has the reasons and the figures.
 """
 from __future__ import annotations
 
@@ -78,8 +90,11 @@ class MDA:
             raise ValueError(f"mda max_iterations {max_iterations} must be >= 1")
         if not 0 < relaxation <= 2:
             raise ValueError(f"mda relaxation {relaxation} must be in (0, 2]")
-        if not isinstance(warm_start, bool) and warm_start != "auto":
-            raise ValueError(f"mda warm_start {warm_start!r} must be true, false or auto")
+        if not isinstance(warm_start, bool) and warm_start not in ("auto", "tangent"):
+            raise ValueError(f"mda warm_start {warm_start!r} must be true, false, auto or tangent")
+        if warm_start == "tangent" and method != "newton":
+            raise ValueError(f"mda warm_start tangent needs method newton (the tangent comes from its Jacobian), "
+                             f"not {method}")
         if not isinstance(fuse_downstream, bool):
             raise ValueError(f"mda fuse_downstream {fuse_downstream!r} must be true or false")
         self.evaluator = evaluator
@@ -87,8 +102,10 @@ class MDA:
         # auto: on for newton only (its converged couplings are exact far below the tolerance, see
         # the module docstring), off for the fixed-point methods
         self.warm_start = (method == "newton") if warm_start == "auto" else bool(warm_start)
+        self.tangent = warm_start == "tangent"  # newton: first-order prediction from the warm start
         self.fuse_downstream = bool(fuse_downstream) and method == "newton"
         self._warm: dict[tuple, dict[str, float]] = {}  # loop -> converged couplings of the last MDA
+        self._tangent: dict[tuple, tuple | None] = {}   # loop -> its tangent dy/dx there (tangent)
         self.max_iterations, self.relaxation = int(max_iterations), float(relaxation)
         self.guesses = dict(guesses or {})
         names = list(disciplines) if disciplines is not None else list(evaluator.specs)
@@ -326,9 +343,10 @@ class MDA:
         torn = self.graph.torn_inputs(comp)
         warm = self._warm.get(tuple(comp)) if self.warm_start else None
         if warm is not None:  # every coupling from the last MDA's converged values: no seeding call
+            start = self._predict(tuple(comp), values, rows)
             for v in unknowns:
                 if v not in given:
-                    values[v][rows] = warm[v]
+                    values[v][rows] = warm[v] if start is None else start[v]
         else:
             for v in torn:
                 if v not in given:
@@ -339,16 +357,54 @@ class MDA:
         active = rows[ok[rows]]
         err = np.full(active.size, np.inf)
         converged: list[int] = []
+        tangent: dict = {}
         try:
             self._newton_steps(comp, values, ok, errors, iterations, partials, tail, outs, unknowns, col,
-                               active, err, converged)
+                               active, err, converged, tangent)
         finally:
             if converged and self.warm_start:  # deterministic: the batch's first converged point
                 first = min(converged)
                 self._warm[tuple(comp)] = {v: float(values[v][first]) for v in unknowns}
+                self._tangent[tuple(comp)] = tangent.get(first)
+
+    def _predict(self, key: tuple, values: dict, rows: np.ndarray) -> dict | None:
+        """First-order prediction of the couplings at ``rows`` from the stored converged point:
+        y_ref + dy/dx (x - x_ref), dy/dx = (I - J)^-1 dF/dx at the reference (None: not available)."""
+        t = self._tangent.get(key) if self.tangent else None
+        if t is None:
+            return None
+        unknowns, xs, x_ref, S, y_ref = t
+        dx = np.array([values[x][rows] - x_ref[k] for k, x in enumerate(xs)])  # (nx, n)
+        Y = y_ref[:, None] + S @ dx if xs else np.repeat(y_ref[:, None], rows.size, axis=1)
+        if not np.isfinite(Y).all():
+            return None
+        return {v: Y[k] for k, v in enumerate(unknowns)}
+
+    def _keep_tangent(self, comp, values, results, J, active, done, converged, col, unknowns, tangent) -> None:
+        """The tangent dy/dx at the lowest converged row so far (if it converged in this step)."""
+        first = min(converged)
+        where = np.flatnonzero(active == first)
+        if not where.size or not done[where[0]]:
+            return
+        q = where[0]
+        xs = sorted({i for m in comp for i in self.specs[m].inputs if i not in col}
+                    | {p for m in comp for p in self.specs[m].parameters if p in values})
+        xi = {x: k for k, x in enumerate(xs)}
+        dF = np.zeros((len(unknowns), len(xs)))
+        for res in results:
+            for (o, i), c in res.extra.get("partials", {}).items():
+                if o in col and i in xi:
+                    dF[col[o], xi[i]] = np.asarray(c)[q]
+        try:
+            S = np.linalg.solve(np.eye(len(unknowns)) - J[q], dF)
+        except np.linalg.LinAlgError:
+            return
+        tangent.clear()
+        tangent[first] = (list(unknowns), xs, np.array([values[x][first] for x in xs]), S,
+                          np.array([values[v][first] for v in unknowns]))
 
     def _newton_steps(self, comp, values, ok, errors, iterations, partials, tail, outs, unknowns, col,
-                      active, err, converged) -> None:
+                      active, err, converged, tangent) -> None:
         u = len(unknowns)
         for it in range(1, self.max_iterations + 1):
             if active.size == 0:
@@ -413,6 +469,8 @@ class MDA:
             alive = ok[active]
             done = alive & (err <= self.tolerance)
             converged.extend(active[done].tolist())
+            if self.tangent and done.any() and all(p is None for p in plans):
+                self._keep_tangent(comp, values, results, J, active, done, converged, col, unknowns, tangent)
             if tail and done.any():  # the tail saw this step's y, which is the loop's result there
                 local = np.flatnonzero(done)
                 for d, res in zip(tail, tail_results):

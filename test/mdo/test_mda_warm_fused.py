@@ -207,7 +207,7 @@ def test_config_keys(tmp_path):
     from pathlib import Path
     root = Path(__file__).resolve().parents[2]
     cfg = load_config(root / "examples" / "sellar" / "sellar_mdf_newton.yaml")
-    assert cfg["mda"]["warm_start"] == "auto"
+    assert cfg["mda"]["warm_start"] == "tangent" and cfg["mda"]["fuse_downstream"] is True
     raw = yaml.safe_load((root / "examples" / "sellar" / "sellar_mdf.yaml").read_text())
     for key, bad in (("warm_start", "sometimes"), ("fuse_downstream", "yes")):
         raw["mda"] = {"method": "newton", key: bad}
@@ -216,3 +216,50 @@ def test_config_keys(tmp_path):
         p.write_text(yaml.safe_dump(raw))
         with pytest.raises(ValueError, match=f"mda.{key}"):
             load_config(p)
+    raw["mda"] = {"method": "gauss_seidel", "warm_start": "tangent"}
+    p.write_text(yaml.safe_dump(raw))
+    with pytest.raises(ValueError, match="mda.warm_start tangent needs mda.method newton"):
+        load_config(p)
+    raw["mda"] = {"method": "newton", "warm_start": "tangent", "fuse_downstream": True}
+    p.write_text(yaml.safe_dump(raw))
+    assert load_config(p)["mda"]["warm_start"] == "tangent"
+
+
+# ------------------------------------------------------------------ tangent prediction
+def test_tangent_warm_start_equals_cold_to_the_tolerance_in_fewer_waves_than_plain_warm():
+    pts = [_point(*p) for p in TRAJECTORY]
+    cold, _ = _sequence(pts, warm_start=False)
+    plain, _ = _sequence(pts)
+    tangent, mda = _sequence(pts, warm_start="tangent")
+    for (c, _), (t, _) in zip(cold, tangent):
+        assert t.ok.all()
+        for v in ("y1", "y2", "obj"):
+            np.testing.assert_allclose(t.values[v], c.values[v], rtol=10 * TOL, atol=10 * TOL)
+    assert sum(w for _, w in tangent) < sum(w for _, w in plain)
+    assert tangent[-1][0].iterations[0] == 1  # the same design again: the prediction is the fixed point
+    again, _ = _sequence(pts, warm_start="tangent")
+    assert [r.values["y1"][0] for r, _ in again] == [r.values["y1"][0] for r, _ in tangent]
+    # the stored tangent is dy/dx at the reference: against central differences of cold MDAs
+    unknowns, xs, x_ref, S, y_ref = mda._tangent[("sellar1", "sellar2")]
+    cold_mda = MDA(InProcessEvaluator(sellar_disciplines()), method="newton", tolerance=1e-14, warm_start=False)
+    for k, x in enumerate(xs):
+        h = 1e-5
+        hi = {n: np.array([x_ref[xs.index(n)] + (h if n == x else 0.0)]) for n in xs}
+        lo = {n: np.array([x_ref[xs.index(n)] - (h if n == x else 0.0)]) for n in xs}
+        rh, rl = cold_mda.run(hi), cold_mda.run(lo)
+        for j, v in enumerate(unknowns):
+            assert S[j, k] == pytest.approx((rh.values[v][0] - rl.values[v][0]) / (2 * h), rel=1e-6, abs=1e-8)
+
+
+def test_tangent_falls_back_to_the_plain_warm_start_without_analytic_partials_and_needs_newton():
+    from vector_toys import NoPartials
+    pts = [_point(*p) for p in TRAJECTORY[:4]]
+    discs = sellar_disciplines()
+    discs[1] = NoPartials(discs[1])
+    ev = InProcessEvaluator(discs)
+    mda = MDA(ev, method="newton", tolerance=TOL, warm_start="tangent")
+    for p in pts:
+        assert mda.run(p).ok.all()
+    assert mda._tangent[("sellar1", "sellar2")] is None and mda._warm[("sellar1", "sellar2")]
+    with pytest.raises(ValueError, match="tangent needs method newton"):
+        MDA(ev, method="gauss_seidel", warm_start="tangent")

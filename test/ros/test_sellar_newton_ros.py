@@ -53,7 +53,7 @@ def test_warm_started_fused_newton_sends_the_in_process_waves_over_ros(rclpy_con
     from bev_mdo.ros import evaluator as ros_evaluator
 
     config = load_config(CONFIG)
-    assert config["mda"]["fuse_downstream"] is True and config["mda"]["warm_start"] == "auto"
+    assert config["mda"]["fuse_downstream"] is True and config["mda"]["warm_start"] == "tangent"
     waves = {"calls": 0}
     original = ros_evaluator.RosEvaluator.evaluate
 
