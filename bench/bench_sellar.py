@@ -11,7 +11,8 @@
 3. bev_mdo in process: ``examples/sellar/sellar_mdf.yaml`` (Gauss-Seidel) and
    ``sellar_mdf_newton.yaml`` (Newton-Raphson, tangent warm start, the objective fused into the Newton
    steps' waves; ``newton_cold``: the same with ``mda.warm_start: false, fuse_downstream: false``,
-   every MDA from the guesses with a seeding call and the objective in a wave of its own)
+   every MDA from the guesses with a seeding call and the objective in a wave of its own;
+   ``newton_unfused``: the tangent warm start with the objective in a wave of its own)
    through ``run_optimization`` with ``InProcessEvaluator``
    (the user-discipline interface only; the example disciplines give analytic partials, so the MDF
    gradient is assembled from them: ``optimizer.derivatives: auto``).
@@ -58,10 +59,13 @@ from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 
 CONFIGS = {"gauss_seidel": REPO / "examples" / "sellar" / "sellar_mdf.yaml",
            "newton": REPO / "examples" / "sellar" / "sellar_mdf_newton.yaml",
-           "newton_cold": REPO / "examples" / "sellar" / "sellar_mdf_newton.yaml"}
+           "newton_cold": REPO / "examples" / "sellar" / "sellar_mdf_newton.yaml",
+           "newton_unfused": REPO / "examples" / "sellar" / "sellar_mdf_newton.yaml"}
 # newton_cold: the Newton example as it was before warm start and fused downstream disciplines
-# (every MDA from the coupling guesses with a seeding call, the objective in a wave of its own)
-OVERRIDES = {"newton_cold": {"warm_start": False, "fuse_downstream": False}}
+# (every MDA from the coupling guesses with a seeding call, the objective in a wave of its own);
+# newton_unfused: the example's tangent warm start, the objective in a wave of its own
+OVERRIDES = {"newton_cold": {"warm_start": False, "fuse_downstream": False},
+             "newton_unfused": {"fuse_downstream": False}}
 
 
 def _config(method: str) -> dict:
@@ -228,14 +232,14 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=str(REPO / "bench" / "results" / "bench_sellar.json"))
     args = ap.parse_args(argv)
     load_before = os.getloadavg()
-    methods = [OpenMDAO("nlbgs"), OpenMDAO("newton"), BevInProcess("gauss_seidel"), BevInProcess("newton_cold"),
-               BevInProcess("newton")]
+    variants = ("gauss_seidel", "newton_cold", "newton_unfused", "newton")
+    methods = [OpenMDAO("nlbgs"), OpenMDAO("newton"), *(BevInProcess(m) for m in variants)]
     nodes = None
     if args.ros:
         log_dir = Path("/tmp") / f"bench_sellar_{os.getpid()}"
         log_dir.mkdir(parents=True, exist_ok=True)
         nodes = RosNodes(args.domain_id, log_dir)
-        methods += [BevRos(m, nodes, args.domain_id) for m in ("gauss_seidel", "newton_cold", "newton")]
+        methods += [BevRos(m, nodes, args.domain_id) for m in variants]
     try:
         runs: dict[str, list[dict]] = {m.name: [] for m in methods}
         for m in methods:
