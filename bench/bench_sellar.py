@@ -9,10 +9,9 @@
    (solve_subsystems=False)`` with a ``DirectSolver`` (OpenMDAO's default tolerances, 1e-10), the
    fair counterpart of bev_mdo's Newton MDA.
 3. bev_mdo in process: ``examples/sellar/sellar_mdf.yaml`` (Gauss-Seidel) and
-   ``sellar_mdf_newton.yaml`` (Newton-Raphson, tangent warm start, the objective fused into the Newton
-   steps' waves; ``newton_cold``: the same with ``mda.warm_start: false, fuse_downstream: false``,
-   every MDA from the guesses with a seeding call and the objective in a wave of its own;
-   ``newton_unfused``: the tangent warm start with the objective in a wave of its own)
+   ``sellar_mdf_newton.yaml`` (Newton-Raphson, tangent warm start; ``newton_cold``: the same with
+   ``mda.warm_start: false``, every MDA from the guesses with a seeding call; ``newton_fused``: the
+   example with ``mda.fuse_downstream: true``, the objective in every Newton step's wave)
    through ``run_optimization`` with ``InProcessEvaluator``
    (the user-discipline interface only; the example disciplines give analytic partials, so the MDF
    gradient is assembled from them: ``optimizer.derivatives: auto``).
@@ -60,12 +59,11 @@ from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 CONFIGS = {"gauss_seidel": REPO / "examples" / "sellar" / "sellar_mdf.yaml",
            "newton": REPO / "examples" / "sellar" / "sellar_mdf_newton.yaml",
            "newton_cold": REPO / "examples" / "sellar" / "sellar_mdf_newton.yaml",
-           "newton_unfused": REPO / "examples" / "sellar" / "sellar_mdf_newton.yaml"}
-# newton_cold: the Newton example as it was before warm start and fused downstream disciplines
-# (every MDA from the coupling guesses with a seeding call, the objective in a wave of its own);
-# newton_unfused: the example's tangent warm start, the objective in a wave of its own
+           "newton_fused": REPO / "examples" / "sellar" / "sellar_mdf_newton.yaml"}
+# newton_cold: the Newton example without warm start (every MDA from the coupling guesses with a
+# seeding call); newton_fused: the example with the objective fused into the Newton steps' waves
 OVERRIDES = {"newton_cold": {"warm_start": False, "fuse_downstream": False},
-             "newton_unfused": {"fuse_downstream": False}}
+             "newton_fused": {"fuse_downstream": True}}
 
 
 def _config(method: str) -> dict:
@@ -232,7 +230,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=str(REPO / "bench" / "results" / "bench_sellar.json"))
     args = ap.parse_args(argv)
     load_before = os.getloadavg()
-    variants = ("gauss_seidel", "newton_cold", "newton_unfused", "newton")
+    variants = ("gauss_seidel", "newton_cold", "newton", "newton_fused")
     methods = [OpenMDAO("nlbgs"), OpenMDAO("newton"), *(BevInProcess(m) for m in variants)]
     nodes = None
     if args.ros:

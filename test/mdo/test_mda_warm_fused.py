@@ -207,7 +207,7 @@ def test_config_keys(tmp_path):
     from pathlib import Path
     root = Path(__file__).resolve().parents[2]
     cfg = load_config(root / "examples" / "sellar" / "sellar_mdf_newton.yaml")
-    assert cfg["mda"]["warm_start"] == "tangent" and cfg["mda"]["fuse_downstream"] is True
+    assert cfg["mda"]["warm_start"] == "tangent" and cfg["mda"]["fuse_downstream"] is False
     raw = yaml.safe_load((root / "examples" / "sellar" / "sellar_mdf.yaml").read_text())
     for key, bad in (("warm_start", "sometimes"), ("fuse_downstream", "yes")):
         raw["mda"] = {"method": "newton", key: bad}
