@@ -338,7 +338,6 @@ class MDA:
         outs = [v for m in comp for v in self.specs[m].outputs]
         unknowns = [v for v in outs if any(v in spec_in[m] for m in comp)]
         col = {v: k for k, v in enumerate(unknowns)}
-        u = len(unknowns)
         rows = np.flatnonzero(ok)
         torn = self.graph.torn_inputs(comp)
         warm = self._warm.get(tuple(comp)) if self.warm_start else None
