@@ -10,18 +10,21 @@ run by run (the host is noisy):
 Reported per mode and transport: optimiser iterations, MDA evaluations, discipline evaluations
 (per discipline and in total), gradients, the optimum, and the wall time of the optimisation
 (RunResult.wall_time_s: median, min, max over the runs). Over ROS six discipline node processes
-(domain 31, localhost-only discovery) serve both modes; the coordinator runs here
-(``coordinator_node.run``: data-flow MDAs, warm-up before the timed optimisation). Take the shared lock for the ROS part:
+(domain --domain-id, default 142, localhost-only discovery) serve both modes; the coordinator
+runs here (``coordinator_node.run``: data-flow MDAs, warm-up before the timed optimisation).
+Take the shared locks (bench, and ROS for the ROS part):
 
-    flock /tmp/bev_ros.lock python bench/bench_partials.py --repeat 7 [--no-ros] [--domain-id 31]
+    flock /tmp/bev_bench.lock flock /tmp/bev_ros.lock python bench/bench_partials.py --repeat 7
+        [--no-ros] [--domain-id 142]
 
-Writes bench/results/bench_partials.json.
+Writes bench/results/bench_partials.json: the per-mode details as before, plus ``figures`` (the
+wall times, rendered into docs/performance.md by scripts/render_bench.py) and the 1-minute load
+average before and after.
 """
 from __future__ import annotations
 
 import argparse
 import copy
-import json
 import os
 import statistics
 import sys
@@ -114,10 +117,11 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=7)
     ap.add_argument("--no-ros", dest="ros", action="store_false")
-    ap.add_argument("--domain-id", type=int, default=31)
+    ap.add_argument("--domain-id", type=int, default=142)
     ap.add_argument("--json", default=str(REPO / "bench" / "results" / "bench_partials.json"))
     args = ap.parse_args(argv)
     t0 = time.time()
+    load_before = os.getloadavg()
     result = {"problem": "config/leaf_nedc.yaml (MDF, SLSQP)", "repeat": args.repeat,
               "started_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(t0)),
               "inprocess": bench_inprocess(args.repeat)}
@@ -126,8 +130,22 @@ def main(argv=None) -> int:
 
         with tempfile.TemporaryDirectory(prefix="bench_partials_") as d:
             result["ros"] = bench_ros(args.repeat, args.domain_id, Path(d))
-    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.json).write_text(json.dumps(result, indent=2))
+    result["load_average_before"] = [round(v, 2) for v in load_before]
+    result["load_average_after"] = [round(v, 2) for v in os.getloadavg()]
+    sys.path.insert(0, str(REPO / "bench"))
+    import _results
+
+    figures = []
+    for tr, label in (("inprocess", "in process"), ("ros", "over ROS")):
+        for m in MODES:
+            s = result.get(tr, {}).get(m)
+            if s:
+                figures.append(_results.figure(
+                    f"BEV default MDF/SLSQP {label}, derivatives {m}: optimisation wall time "
+                    f"({s['iterations']} iterations, {s['mda_evaluations']} MDAs, "
+                    f"{s['discipline_evaluations_total']} discipline evaluations)", "ms",
+                    [1e3 * t for t in s["wall_time_s"]]))
+    _results.write("bench_partials", figures, path=args.json, extra=result)
     print(f"{'transport':<10} {'mode':<9} {'iter':>4} {'MDAs':>5} {'disc. evals':>11} {'grads':>5} "
           f"{'median ms':>9} {'min ms':>7} {'max ms':>7}  objective")
     for tr in ("inprocess", "ros"):

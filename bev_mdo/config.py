@@ -19,7 +19,8 @@ TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "discipli
             "formulation", "mda", "optimizer", "ros", "recording", "search_path")
 ENERGY_MODELS = ("flat", "breakdown", "quasi_static", "chain")
 FORMULATIONS = ("mdf", "idf")
-MDA_DEFAULTS = {"method": "gauss_seidel", "tolerance": 1.0e-10, "max_iterations": 100, "relaxation": 1.0}
+MDA_DEFAULTS = {"method": "gauss_seidel", "tolerance": 1.0e-10, "max_iterations": 100, "relaxation": 1.0,
+                "warm_start": "auto", "fuse_downstream": False}  # mda.py: auto = on for newton only
 # feasibility_tolerance: largest violation of a NORMALISED constraint (problem.py: divided by its scale,
 # default max(|bound|, 1), i.e. relative to the bound, absolute below 1) and of an IDF consistency
 # equality that still counts as feasible. 1e-4 is GEMSEO's default (ineq_tolerance / eq_tolerance).
@@ -216,6 +217,12 @@ def _check_mda_numbers(mda: Mapping[str, Any]) -> None:
         raise ValueError(f"mda.max_iterations {it!r} must be an integer >= 1")
     if not isinstance(w, (int, float)) or not 0 < w <= 2:
         raise ValueError(f"mda.relaxation {w!r} must be in (0, 2]")
+    if not isinstance(mda["warm_start"], bool) and mda["warm_start"] not in ("auto", "tangent"):
+        raise ValueError(f"mda.warm_start {mda['warm_start']!r} must be true, false, auto or tangent")
+    if mda["warm_start"] == "tangent" and mda["method"] != "newton":
+        raise ValueError(f"mda.warm_start tangent needs mda.method newton, not {mda['method']}")
+    if not isinstance(mda["fuse_downstream"], bool):
+        raise ValueError(f"mda.fuse_downstream {mda['fuse_downstream']!r} must be true or false")
 
 
 def _validate_models(cfg: dict) -> None:

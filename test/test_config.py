@@ -40,7 +40,7 @@ DELETE = object()
 BAD = [
     (("colour",), "red", r"unknown top-level keys \['colour'\]"),
     (("formulation",), "bliss", "formulation 'bliss' is unknown; allowed: mdf, idf"),
-    (("mda", "method"), "newton", "mda.method 'newton' is unknown; allowed: gauss_seidel, jacobi"),
+    (("mda", "method"), "broyden", "mda.method 'broyden' is unknown; allowed: gauss_seidel, jacobi, newton"),
     (("mda", "relaxation"), 3.0, r"mda.relaxation 3.0 must be in \(0, 2\]"),
     (("mda", "max_iterations"), 0, "mda.max_iterations 0 must be an integer >= 1"),
     (("optimizer", "name"), "newton", "optimizer 'newton' is unknown; allowed: SLSQP"),

@@ -70,7 +70,8 @@ def _mda(config: Mapping[str, Any], evaluator: Evaluator, problem: Problem) -> M
     names = _discipline_names(config, evaluator)
     return MDA(evaluator, method=m.get("method", "gauss_seidel"), tolerance=m.get("tolerance", 1e-10),
                max_iterations=m.get("max_iterations", 100), relaxation=m.get("relaxation", 1.0),
-               guesses=problem.coupling_guesses, disciplines=names)
+               guesses=problem.coupling_guesses, disciplines=names,
+               warm_start=m.get("warm_start", "auto"), fuse_downstream=m.get("fuse_downstream", False))
 
 
 def _discipline_names(config: Mapping[str, Any], evaluator: Evaluator) -> list[str]:

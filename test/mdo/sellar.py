@@ -28,6 +28,9 @@ class NegatedObjective:
     def compute(self, inputs):
         return {"neg_obj": -inputs["obj"]}
 
+    def compute_partials(self, inputs):  # like the example's disciplines: the same (analytic) gradient path
+        return {("neg_obj", "obj"): np.full(len(inputs["obj"]), -1.0)}
+
 
 class Failing:
     """Wraps a discipline; returns NaN where the input ``fail_above`` variable exceeds a threshold."""

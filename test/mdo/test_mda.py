@@ -102,7 +102,7 @@ def test_parameter_columns_reach_only_disciplines_that_declare_them():
     assert seen == {"p": {"x", "k"}, "q": {"y"}}
 
 
-@pytest.mark.parametrize("kw,msg", [({"method": "newton"}, "gauss_seidel, jacobi"),
+@pytest.mark.parametrize("kw,msg", [({"method": "broyden"}, "gauss_seidel, jacobi, newton"),
                                     ({"relaxation": 0.0}, r"\(0, 2\]"), ({"tolerance": -1}, "> 0"),
                                     ({"max_iterations": 0}, ">= 1")])
 def test_bad_settings_rejected(kw, msg):
