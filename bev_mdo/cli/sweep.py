@@ -108,7 +108,8 @@ def evaluate_batch(config, designs: dict[str, np.ndarray], transport: str = "inp
     n = len(next(iter(designs.values())))
     cols = {d.name: np.full(n, d.initial) for d in problem.design_variables}
     cols.update({k: np.full(n, float(v)) for k, v in problem.parameters.items()})
-    evaluator = _evaluator(config, transport)
+    session = _evaluator(config, transport)  # a RosSession over ROS (closing it reports drops), else the evaluator
+    evaluator = session.evaluator if transport == "ros" else session
     try:
         mda = _mda(config, evaluator, problem)
         params = {p for s in mda.specs.values() for p in s.parameters}
@@ -125,7 +126,7 @@ def evaluate_batch(config, designs: dict[str, np.ndarray], transport: str = "inp
         cols.update({k: np.asarray(v, dtype=float) for k, v in designs.items()})
         res = mda.run(cols)
     finally:
-        evaluator.close()
+        session.close()
     outputs = {v: np.asarray(res.values[v], dtype=float) for s in mda.specs.values() for v in s.outputs}
     margins, feasible = {}, np.asarray(res.ok, dtype=bool).copy()
     for c in problem.constraints:
