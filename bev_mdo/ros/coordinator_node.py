@@ -123,6 +123,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
 
         def callback(rec: dict) -> None:
             node.publish_iteration(rec)
+            node.evaluator.iteration = int(rec["iteration"]) + 1  # records published so far
             if on_iteration is not None:
                 on_iteration(rec)
 

@@ -98,6 +98,9 @@ class RosEvaluator:
         self.counts: Counter[str] = Counter()      # points evaluated per discipline
         self.dropped: Counter[str] = Counter()     # other_run / stale / duplicate / malformed / mismatched
         self.retried = 0
+        # the optimiser iteration the requests belong to: how many iteration records were published
+        # before them (0: the start point); the coordinator moves it on after each record
+        self.iteration = 0
         self._probe_ids: set[int] = set()  # evaluation ids of handshake probes
         self.unresponsive: set[str] = set()  # disciplines that let every attempt of a request time out
         self.probe_late = 0
@@ -488,11 +491,12 @@ class RosEvaluator:
         p.sent_ns = time.monotonic_ns()
         (self._flow_pub if p.flow else self._publisher(p.discipline)).publish(wire.encode_request(p.request))
 
-    def evaluate(self, calls: Sequence[tuple[str, Mapping[str, np.ndarray]]], iteration: int = 0,
+    def evaluate(self, calls: Sequence[tuple[str, Mapping[str, np.ndarray]]], iteration: int | None = None,
                  partials: bool = False) -> list[EvalResult]:
         """Evaluate one wave: every (discipline, batch) call concurrently. Never raises for a slow node.
         With ``partials`` the nodes return their disciplines' analytic partials too."""
         t0 = time.perf_counter()
+        iteration = self.iteration if iteration is None else int(iteration)
         self._results = {}
         self._parts = {}
         self._poll_info()
@@ -542,7 +546,7 @@ class RosEvaluator:
             return self._flow_shares(names, plan, request, n, bool(partials), pooled, t0)
         eid = self._next_id
         self._next_id += 1
-        req = wire.Request(self.run_id, eid, "", flow=names)
+        req = wire.Request(self.run_id, eid, "", flow=names, iteration=self.iteration)
         req.header.frame_id = self._tag(names)
         req.inputs = wire.batch(request)
         req.partials = bool(partials)
@@ -612,7 +616,7 @@ class RosEvaluator:
                          targets: Mapping[str, str], partials: bool, tries: int) -> None:
         eid = self._next_id
         self._next_id += 1
-        req = wire.Request(self.run_id, eid, "", flow=names)
+        req = wire.Request(self.run_id, eid, "", flow=names, iteration=self.iteration)
         fps = {d: (self._expect(d) or ("?", ""))[0] for d in names}
         req.header.frame_id = binding.tag(
             {d: f"{fp}{binding.TARGET_SEP}{targets[d]}" if d in targets else fp for d, fp in fps.items()}, names)
@@ -630,6 +634,24 @@ class RosEvaluator:
         for name in names:
             self._pending[(eid, name)].sent_ns = first.sent_ns
 
+    def _wait_shares(self, subs, checked: float, check_s: float) -> tuple[float, set[tuple[str, str]], float]:
+        """Wait for results of the pending shares until the next one times out, at most `check_s`;
+        every `check_s` also find the (discipline, instance) pairs whose instance left the ROS
+        graph. Returns (now, those pairs, the time they were last checked)."""
+        now = time.monotonic()
+        due = min(p.sent_ns * 1e-9 + self.timeout_s for p in self._pending.values())
+        if self._waiter.wait(subs, max(0.0, min(due, now + check_s) - now)):
+            self._waiter.take_ready(self._hot)
+        now = time.monotonic()
+        gone: set[tuple[str, str]] = set()
+        if now - checked >= check_s:
+            checked = now
+            for name in {p.discipline for p in self._pending.values() if p.target}:
+                present, _ = self._present_instances(name)
+                gone |= {(name, p.target) for p in self._pending.values()
+                         if p.discipline == name and p.target and p.target not in present}
+        return now, gone, checked
+
     def _await_flow_shares(self, names: Sequence[str], plan: Mapping[str, Mapping[str, str]],
                            request: Mapping[str, np.ndarray], partials: bool, check_s: float = 0.1) -> set[str]:
         """Wait for the shares of a pooled data-flow MDA; re-send a share whose instance stalled or
@@ -638,18 +660,7 @@ class RosEvaluator:
         checked = 0.0
         subs = [s for s, _ in self._hot]
         while self._pending:
-            now = time.monotonic()
-            due = min(p.sent_ns * 1e-9 + self.timeout_s for p in self._pending.values())
-            if self._waiter.wait(subs, max(0.0, min(due, now + check_s) - now)):
-                self._waiter.take_ready(self._hot)
-            now = time.monotonic()
-            gone: set[tuple[str, str]] = set()
-            if now - checked >= check_s:
-                checked = now
-                for name in {p.discipline for p in self._pending.values() if p.target}:
-                    present, _ = self._present_instances(name)
-                    gone |= {(name, p.target) for p in self._pending.values()
-                             if p.discipline == name and p.target and p.target not in present}
+            now, gone, checked = self._wait_shares(subs, checked, check_s)
             shares: dict[int, list[tuple[tuple[int, str], _Pending]]] = {}
             for key, p in self._pending.items():
                 shares.setdefault(key[0], []).append((key, p))
@@ -786,18 +797,7 @@ class RosEvaluator:
         checked = 0.0
         subs = [s for s, _ in self._hot]
         while self._pending:
-            now = time.monotonic()
-            due = min(p.sent_ns * 1e-9 + self.timeout_s for p in self._pending.values())
-            if self._waiter.wait(subs, max(0.0, min(due, now + check_s) - now)):
-                self._waiter.take_ready(self._hot)
-            now = time.monotonic()
-            gone: set[tuple[str, str]] = set()
-            if now - checked >= check_s:
-                checked = now
-                for name in {p.discipline for p in self._pending.values() if p.target}:
-                    present, _ = self._present_instances(name)
-                    gone |= {(name, p.target) for p in self._pending.values()
-                             if p.discipline == name and p.target and p.target not in present}
+            now, gone, checked = self._wait_shares(subs, checked, check_s)
             for key, p in list(self._pending.items()):
                 if key not in self._pending:
                     continue

@@ -70,6 +70,20 @@ def _check(messages, iterations, result):
     assert last.objective == pytest.approx(result["objective"], rel=1e-12)
     assert last.run_id == run and last.formulation == "mdf" and last.optimizer == "SLSQP"
     assert [m.iteration for m in iterations] == list(range(len(iterations)))
+    # a request's iteration is the number of iteration records published before it was sent, so a
+    # bag links each request to the records around it (header stamps: one clock, the coordinator's)
+    def ns(header):
+        return header.stamp.sec * 10**9 + header.stamp.nanosec
+
+    records = [ns(m.header) for m in iterations]
+    requests = [m for t, m in ours if t.endswith("request")]
+    assert max(m.iteration for m in requests) >= 1
+    for m in requests:
+        assert m.iteration <= len(records)
+        if m.iteration >= 1:
+            assert ns(m.header) >= records[m.iteration - 1]
+        if m.iteration < len(records):
+            assert ns(m.header) <= records[m.iteration]
 
 
 def test_rosbags_reads_the_bag_directory_and_the_bare_mcap(recorded):
