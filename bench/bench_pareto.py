@@ -36,7 +36,8 @@ def bench(transport: str, pop: int, domain_id: int) -> list[dict]:
 
     import yaml
 
-    from bev_mdo.cli.pareto import _InProcSession, _RosSession
+    from bev_mdo.cli.ros_args import ros_section
+    from bev_mdo.sessions import ParetoInProcessSession, ParetoRosSession
     from bev_mdo.studies.topologies import config_for_topology
     from bev_mdo.config import load_config
     from bev_mdo.models.topology import TOPOLOGIES
@@ -53,8 +54,8 @@ def bench(transport: str, pop: int, domain_id: int) -> list[dict]:
     for t in TOPOLOGIES:
         cfg = load_config(config_for_topology(copy.deepcopy(raw), t))
         run_id = uuid.uuid4().hex[:16]
-        session = _RosSession(raw, args, out / t, out / t / "bag", run_id) if transport == "ros" \
-            else _InProcSession(raw, out / t / "bag", run_id)
+        session = ParetoRosSession(raw, ros_section(raw, args), out / t, out / t / "bag", run_id) \
+            if transport == "ros" else ParetoInProcessSession(raw, out / t / "bag", run_id)
         with session, session.evaluator(cfg, t) as ev:
             times, n = _generation(cfg, ev, pop)
         print(f"{t:8s} {times[0]:10.2f} {times[1]:10.2f} {pop / times[1]:9.1f}")

@@ -188,7 +188,7 @@ def _run_ros(config, args, show, x0=None):
 
     from bev_mdo.config import discipline_entries, plain
     from bev_mdo.ros.auth import with_run_key
-    from bev_mdo.ros.launch import Launcher, parse_instances, plan_processes
+    from bev_mdo.ros.launch import Launcher, parse_instances, plan_processes, start_recorder
     from bev_mdo.ros.settings import ros_environment
 
     from bev_mdo.cli.ros_args import ros_section
@@ -231,7 +231,7 @@ def _run_ros(config, args, show, x0=None):
                                           compose=getattr(args, "compose", None)):
             launcher.add(label, argv)
         if not args.no_record:
-            recorder = _start_recorder(launcher, bag, resolved, run_id)
+            recorder = start_recorder(launcher, bag, resolved, run_id)
         launcher.supervise()
         result, baseline, stats = _coordinate(config, run_id, args, show, recorder, x0,
                                               _acks_needless(launcher) if recorder else None)
@@ -312,15 +312,6 @@ def check_new_bag(bag: Path, what: str) -> None:
         raise ValueError(f"{what} {bag}: is a file, not a bag directory")
     if (bag / "metadata.yaml").exists() or any(bag.glob("*.mcap")):
         raise ValueError(f"{what} {bag}: a bag already exists there; choose a new directory")
-
-
-def _start_recorder(launcher, bag: Path, resolved: Path, run_id: str) -> int:
-    """Start the recorder node; returns how many extra subscribers it adds per topic."""
-    # Not restarted: a second recorder cannot reopen the bag the first one was writing (the run ends
-    # with a warning and status 3 instead, the bag repaired up to the recorder's death).
-    launcher.add("recorder", [sys.executable, "-m", "bev_mdo.ros.run", "recorder_node", "--output", str(bag),
-                              "--config", str(resolved.resolve()), "--run-id", run_id], restart=False)
-    return 1
 
 
 def _coordinate(config, run_id, args, show, recorder: int, x0=None, recorder_dead=None):

@@ -336,3 +336,12 @@ class OwnSuite:
 
     def __exit__(self, *exc) -> None:
         self.stop()
+
+
+def start_recorder(launcher: Launcher, bag: Path, resolved: Path, run_id: str) -> int:
+    """Start the recorder node of a run writing `bag`; returns how many extra subscribers it adds per topic."""
+    # Not restarted: a second recorder cannot reopen the bag the first one was writing (the run ends
+    # with a warning and status 3 instead, the bag repaired up to the recorder's death).
+    launcher.add("recorder", [sys.executable, "-m", "bev_mdo.ros.run", "recorder_node", "--output", str(bag),
+                              "--config", str(resolved.resolve()), "--run-id", run_id], restart=False)
+    return 1
