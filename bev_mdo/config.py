@@ -17,7 +17,6 @@ from typing import Any
 
 TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "disciplines", "problem",
             "formulation", "mda", "optimizer", "ros", "recording", "search_path")
-ENERGY_MODELS = ("flat", "breakdown", "quasi_static", "chain")
 FORMULATIONS = ("mdf", "idf")
 MDA_DEFAULTS = {"method": "gauss_seidel", "tolerance": 1.0e-10, "max_iterations": 100, "relaxation": 1.0,
                 "warm_start": "auto", "fuse_downstream": False}  # mda.py: auto = on for newton only
@@ -136,6 +135,8 @@ def _resolve(raw: Any) -> dict:
     cfg = dict(raw)
     cfg.setdefault("name", "run")
     cfg["energy_model"] = cfg.get("energy_model", "flat")
+    from bev_mdo.disciplines import ENERGY_MODELS
+
     if cfg["energy_model"] not in ENERGY_MODELS:
         raise ValueError(f"energy_model {cfg['energy_model']!r} is unknown; allowed: {', '.join(ENERGY_MODELS)}")
     _validate_models(cfg)
