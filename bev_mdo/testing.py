@@ -42,3 +42,22 @@ def child_processes(pid: int) -> dict[int, str]:
             except OSError:
                 pass
     return out
+
+
+def example_config(path: str | Path, **changes):
+    """Load an example config (e.g. ``examples/ssbj/ssbj_mdf.yaml``) with dotted-key changes
+    (``optimizer.name="COBYQA"``) and its own folder as the search path for ``module:Class``."""
+    import yaml
+
+    from bev_mdo.config import load_config
+
+    path = Path(path)
+    raw = yaml.safe_load(path.read_text())
+    for dotted, value in changes.items():
+        node = raw
+        keys = dotted.split(".")
+        for k in keys[:-1]:
+            node = node.setdefault(k, {})
+        node[keys[-1]] = value
+    raw["search_path"] = [str(path.parent)]
+    return load_config(raw)

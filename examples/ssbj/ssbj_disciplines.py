@@ -103,6 +103,18 @@ _HALF_SPAN_0 = 0.5 * np.sqrt(5.5 * 1000.0)
 _AERO_CENTER_0 = (1.0 + 2.0 * 0.25) / (3.0 * (1.0 + 0.25))
 
 
+def _coefficients(flags, bounds, k: int):
+    """(linear a (k,), quadratic A (k, k)) of the polynomial approximation for these slope flags and bounds."""
+    bounds = np.broadcast_to(np.asarray(bounds, dtype=float), (k,))
+    a = np.array([_LINEAR[f] / b for f, b in zip(flags, bounds)])
+    diag = np.array([_QUADRATIC[f] / b ** 2 for f, b in zip(flags, bounds)])
+    A = np.diag(diag)
+    for i in range(k):
+        for j in range(i + 1, k):
+            A[i, j] = A[j, i] = diag[i] * CROSS[i, j]
+    return a, A
+
+
 def polynomial_function(s, s_ref, flags, bounds):
     """The BLISS polynomial function (NASA/TM-1998-208715, Appendix A) of a batch.
 
@@ -113,13 +125,7 @@ def polynomial_function(s, s_ref, flags, bounds):
     s = np.atleast_2d(np.asarray(s, dtype=float))
     k = s.shape[1]
     x = np.clip(s / np.asarray(s_ref, dtype=float), 0.75, 1.25) - 1.0
-    bounds = np.broadcast_to(np.asarray(bounds, dtype=float), (k,))
-    a = np.array([_LINEAR[f] / b for f, b in zip(flags, bounds)])
-    diag = np.array([_QUADRATIC[f] / b ** 2 for f, b in zip(flags, bounds)])
-    A = np.diag(diag)
-    for i in range(k):
-        for j in range(i + 1, k):
-            A[i, j] = A[j, i] = diag[i] * CROSS[i, j]
+    a, A = _coefficients(flags, bounds, k)
     return 1.0 + x @ a + 0.5 * np.einsum("ni,ij,nj->n", x, A, x)
 
 
@@ -131,13 +137,7 @@ def polynomial_gradient(s, s_ref, flags, bounds):
     s_ref = np.asarray(s_ref, dtype=float)
     ratio = s / s_ref
     x = np.clip(ratio, 0.75, 1.25) - 1.0
-    bounds = np.broadcast_to(np.asarray(bounds, dtype=float), (k,))
-    a = np.array([_LINEAR[f] / b for f, b in zip(flags, bounds)])
-    diag = np.array([_QUADRATIC[f] / b ** 2 for f, b in zip(flags, bounds)])
-    A = np.diag(diag)
-    for i in range(k):
-        for j in range(i + 1, k):
-            A[i, j] = A[j, i] = diag[i] * CROSS[i, j]
+    a, A = _coefficients(flags, bounds, k)
     value = 1.0 + x @ a + 0.5 * np.einsum("ni,ij,nj->n", x, A, x)
     inside = (ratio >= 0.75) & (ratio <= 1.25)
     return value, (a + x @ A) * np.where(inside, 1.0 / s_ref, 0.0)
@@ -194,7 +194,7 @@ class Structure:
     def compute_partials(self, inputs):
         tc, _, _, ar, sweep, sref = _split_shared(inputs["x_shared"])
         taper, wingbox = inputs["x_1"][:, 0], inputs["x_1"][:, 1]
-        lift, engine_weight = inputs["y_21"], inputs["y_31"]
+        lift = inputs["y_21"]
         n = len(tc)
         half_span = 0.5 * np.sqrt(ar * sref)
         dspan_dar, dspan_dsref = half_span / (2.0 * ar), half_span / (2.0 * sref)
@@ -296,7 +296,6 @@ class Aerodynamics:
         k_induced = (mach ** 2 - 1.0) * cos / den
         base = cd_min + k_induced * cl ** 2
         cd = fo2 * base
-        drag = q * sref * cd
         # derivatives of (cl, cd_min, k, fo2, q*sref) by the variables: t/c, h, M, sweep, Sref, Wt, twist, ESF, Cf
         names = ("tc", "h", "mach", "sweep", "sref", "wt", "twist", "esf", "cf")
         dcl = {"h": -cl / q * dq_dh, "mach": -cl / q * dq_dmach, "sref": -cl / sref, "wt": 1.0 / (q * sref)}

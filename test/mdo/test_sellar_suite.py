@@ -14,6 +14,7 @@ from bev_mdo.config import load_config, resolve_disciplines
 from bev_mdo.mdo import optimizers
 from bev_mdo.mdo.driver import run_optimization
 from bev_mdo.mdo.evaluator import InProcessEvaluator
+from bev_mdo.testing import example_config
 
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "sellar"
@@ -21,15 +22,7 @@ REF_F, REF_Z1 = 3.18339395, 1.977639
 
 
 def _config(formulation="mdf", **changes):
-    raw = yaml.safe_load((EXAMPLE / f"sellar_{formulation}.yaml").read_text())
-    for path, value in changes.items():
-        node = raw
-        keys = path.split(".")
-        for k in keys[:-1]:
-            node = node.setdefault(k, {})
-        node[keys[-1]] = value
-    raw["search_path"] = [str(EXAMPLE)]
-    return load_config(raw)
+    return example_config(EXAMPLE / f"sellar_{formulation}.yaml", **changes)
 
 
 def _run(config, **kw):

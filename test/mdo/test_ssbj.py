@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
-from bev_mdo.config import load_config, resolve_disciplines
+from bev_mdo.config import resolve_disciplines
 from bev_mdo.mdo.driver import run_optimization
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 from bev_mdo.mdo.mda import MDA
+from bev_mdo.testing import example_config
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "ssbj"
 sys.path.insert(0, str(EXAMPLE))
@@ -125,15 +125,7 @@ def test_a_batch_of_points_equals_the_points_one_by_one():
 
 
 def _config(formulation="mdf", **changes):
-    raw = yaml.safe_load((EXAMPLE / f"ssbj_{formulation}.yaml").read_text())
-    for path, value in changes.items():
-        node = raw
-        keys = path.split(".")
-        for k in keys[:-1]:
-            node = node.setdefault(k, {})
-        node[keys[-1]] = value
-    raw["search_path"] = [str(EXAMPLE)]
-    return load_config(raw)
+    return example_config(EXAMPLE / f"ssbj_{formulation}.yaml", **changes)
 
 
 def _flat(design):
