@@ -48,3 +48,15 @@ def write(name: str, figures: list[dict], command: str | None = None, path: str 
     out.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
     print(f"figures written to {out}")
     return out
+
+
+def interleaved(methods, repeat: int) -> dict[str, list]:
+    """Run each method's ``once()`` untimed once (imports, first discovery), then ``repeat`` rounds,
+    every method once per round (side by side under the same host load); name -> the rounds' results."""
+    runs = {m.name: [] for m in methods}
+    for m in methods:
+        m.once()
+    for _ in range(repeat):
+        for m in methods:
+            runs[m.name].append(m.once())
+    return runs

@@ -239,12 +239,7 @@ def main(argv=None) -> int:
         nodes = RosNodes(args.domain_id, log_dir)
         methods += [BevRos(m, nodes, args.domain_id) for m in variants]
     try:
-        runs: dict[str, list[dict]] = {m.name: [] for m in methods}
-        for m in methods:
-            m.once()  # untimed warm-up (imports, first discovery)
-        for _ in range(args.repeat):
-            for m in methods:
-                runs[m.name].append(m.once())
+        runs = _results.interleaved(methods, args.repeat)
     finally:
         if nodes is not None:
             nodes.close()

@@ -30,7 +30,9 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "bench"))
 
+import _results  # noqa: E402
 from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
@@ -143,12 +145,7 @@ def main(argv=None) -> int:
         rclpy.init(context=ctx)
         methods += [Ros(f, d, ctx) for f, d in variants]
     try:
-        runs: dict[str, list[dict]] = {m.name: [] for m in methods}
-        for m in methods:
-            m.once()  # untimed warm-up (imports, first discovery)
-        for _ in range(args.repeat):
-            for m in methods:
-                runs[m.name].append(m.once())
+        runs = _results.interleaved(methods, args.repeat)
     finally:
         if ctx is not None:
             import rclpy
