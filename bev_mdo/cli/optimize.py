@@ -96,6 +96,9 @@ def _table(result: dict, baseline: dict | None, out) -> None:
     if not result.get("last_iterate", True):
         print(f"result: iteration {result['result_iteration']}, the best feasible point seen "
               f"(not the optimiser's last iterate, iteration {result['iterations']})", file=out)
+    if result.get("fd_failures"):
+        print(f"warning: {result['fd_failures']} finite-difference point(s) failed and gave zero derivatives; "
+              "the optimiser may have stopped early (see discipline_errors)", file=out)
     print(f"iterations {result['iterations']}, MDA evaluations {result['mda_evaluations']}, "
           f"evaluations per discipline {result['discipline_evaluations']}", file=out)
     print(f"optimiser wall time {result['wall_time_s']:.3f} s (first evaluation to optimum)", file=out)

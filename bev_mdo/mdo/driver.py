@@ -60,6 +60,7 @@ class RunResult:
     last_iterate: bool = True         # False: the result is an earlier iterate than the optimiser's last
     feasibility_tolerance: float = FEASIBILITY_TOL
     error: str = ""                   # why the result point failed (a discipline's one line), else ''
+    fd_failures: int = 0              # finite-difference points that failed (each gave a zero derivative)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -267,4 +268,5 @@ def run_optimization(config: Mapping[str, Any], evaluator: Evaluator, *, formula
         discipline_evaluations=counts, points_evaluated=form.n_points, batches=form.n_batches,
         gradients=form.n_gradients, wall_time_s=time.perf_counter() - t0, history=history,
         maximize=problem.maximize, result_iteration=k, last_iterate=k == len(history) - 1,
-        feasibility_tolerance=tol, error="" if ok else (err or final.get("error", "")).split("; ")[0])
+        feasibility_tolerance=tol, error="" if ok else (err or final.get("error", "")).split("; ")[0],
+        fd_failures=int(getattr(form, "fd_failures", 0)))

@@ -111,3 +111,29 @@ def test_iterations_count_the_records():
     res = _run(_config("mdf"))
     assert res.iterations == len(res.history) - 1 == res.history[-1]["iteration"]
     assert res.last_iterate and res.result_iteration == res.iterations
+
+
+class _FailAbove:
+    """Wraps a discipline: NaN outputs where ``x`` exceeds a threshold (a region the model cannot evaluate)."""
+
+    def __init__(self, inner, threshold):
+        self.inner, self.threshold = inner, threshold
+        self.name, self.inputs, self.outputs = inner.name, inner.inputs, inner.outputs
+
+    def compute(self, inputs):
+        out = self.inner.compute(inputs)
+        bad = np.asarray(inputs["x"]) > self.threshold
+        return {k: np.where(bad, np.nan, v) for k, v in out.items()}
+
+
+def test_failed_finite_difference_points_are_counted_in_the_result():
+    """A perturbed point that fails gives a zero derivative: the result says how many did, so a run that
+    stopped early on a degraded gradient is not silent (issue 19: failures named where the user looks)."""
+    config = _config("mdf")
+    clean = _run(config)
+    assert clean.fd_failures == 0
+    discs = resolve_disciplines(config)
+    discs = [_FailAbove(d, 1.0) if d.name == "sellar1" else d for d in discs]  # start x = 1: x + h fails
+    res = run_optimization(config, InProcessEvaluator(discs))
+    assert res.fd_failures >= 1
+    assert res.to_dict()["fd_failures"] == res.fd_failures

@@ -214,7 +214,8 @@ def test_concurrent_cli_runs_are_bound_to_their_run_and_signed(configs, referenc
     unsigned = 0
     for name, out in outs.items():
         why = {k: out.get(k) for k in ("message", "iterations", "result_iteration", "discipline_errors",
-                                       "dropped_messages", "retried_requests", "refused_instances")}
+                                       "dropped_messages", "retried_requests", "refused_instances",
+                                       "fd_failures", "max_violation", "mda_evaluations")}
         assert out["design"] == pytest.approx(references[name].design, rel=1e-9, abs=1e-9), (name, why)
         assert out["objective"] == pytest.approx(references[name].objective, rel=1e-9)
         assert out["signing"] == "per-run key"
