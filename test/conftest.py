@@ -3,6 +3,8 @@ localhost-only discovery (network hygiene), set before rclpy initialises."""
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -23,6 +25,18 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.ros)
 
 
+FASTDDS = Path(sys.executable).parent / "fastdds"  # Fast DDS's own CLI, installed with the ros-jazzy wheels
+
+
+def clean_zombie_shm() -> None:
+    """Remove Fast DDS shared-memory ports and segments whose owner died (``fastdds shm clean``; it removes only
+    files whose lock no live process holds). The suite SIGKILLs nodes on purpose; a later participant on the
+    same port (the same module's domain, in this run or the next one on the host) could otherwise hang at start
+    on a zombie port (eProsima/Fast-DDS#1144, #2811)."""
+    subprocess.run([str(FASTDDS), "shm", "clean"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                   timeout=60, check=False)
+
+
 @pytest.fixture(scope="module")
 def ros_domain(request):
     """Set this module's own ROS domain in os.environ (for in-process rclpy) and return it.
@@ -37,6 +51,7 @@ def ros_domain(request):
         os.environ.pop(k, None)
     os.environ["ROS_DOMAIN_ID"] = str(domain)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    clean_zombie_shm()
     yield domain
     for k, v in old.items():
         if v is None:

@@ -266,7 +266,8 @@ class RosEvaluator:
                                             f"within {wait_s:g} s; refused " + " | ".join(refused))
                 raise DisciplineMissing(
                     f"discipline(s) {gone} not found on ROS domain within {wait_s:g} s "
-                    "(is each node running, with the same ROS_DOMAIN_ID and discovery settings?)"
+                    "(is each node running, with the same ROS_DOMAIN_ID and discovery settings? A node stuck at "
+                    "start after a crash: stale Fast DDS shared memory, run `fastdds shm clean`)"
                 )
             self._executor.spin_once(timeout_sec=0.05)
         # Our result subscription must be matched to every discipline's publisher too.
