@@ -177,17 +177,25 @@ def test_commands_that_launch_nodes_sign_by_default(ros_domain, config_path, tmp
     local = subprocess.run([PYTHON, "-m", "bev_mdo", *argv], cwd=tmp_path, env=ros_env(ros_domain),
                            capture_output=True, text=True, timeout=120)
     assert local.returncode == 0, local.stderr[-2000:]
-    p, attacker = _run_beside_attacker(load_config(config_path), [*argv, "--launch"], ros_domain, tmp_path)
-    assert p.returncode == 0, p.stderr[-3000:]
-    assert json.loads(p.stdout) == json.loads(local.stdout)
-    assert attacker.sent["results"] > 0
-    note = [line for line in p.stderr.splitlines() if "dropped and counted" in line]
-    assert len(note) == 1, p.stderr[-3000:]
-    counts = dict(item.rsplit(" ", 1) for item in note[0].split("dropped and counted: ", 1)[1].split(", "))
-    assert int(counts.get("unsigned", 0)) >= attacker.sent["results"], counts
-    assert counts.get("info_unsigned") == "1" and counts.get("info_forged") == "1", counts
-    assert "not signed" not in p.stderr
-    assert not list(tmp_path.rglob("sign.key"))  # the per-run key lived in the command's own temporary directory
+    # The command sends only a few requests, and nothing makes it wait for the attacker's reader to be
+    # matched (a late attacker rightly misses them). Every attempt must give the right answer; the
+    # attack claims need an attempt in which the attacker saw a request (at most 3 attempts).
+    attacked = 0
+    for _ in range(3):
+        p, attacker = _run_beside_attacker(load_config(config_path), [*argv, "--launch"], ros_domain, tmp_path)
+        assert p.returncode == 0, p.stderr[-3000:]
+        assert json.loads(p.stdout) == json.loads(local.stdout)
+        note = [line for line in p.stderr.splitlines() if "dropped and counted" in line]
+        assert len(note) == 1, p.stderr[-3000:]
+        counts = dict(item.rsplit(" ", 1) for item in note[0].split("dropped and counted: ", 1)[1].split(", "))
+        assert int(counts.get("unsigned", 0)) >= attacker.sent["results"], counts
+        assert counts.get("info_unsigned") == "1" and counts.get("info_forged") == "1", counts
+        assert "not signed" not in p.stderr
+        assert not list(tmp_path.rglob("sign.key"))  # the per-run key lived in the command's own temporary directory
+        attacked += attacker.sent["results"]
+        if attacked:
+            break
+    assert attacked > 0
 
 
 def test_evaluate_on_running_unsigned_nodes_says_so(ros_domain, config_path, tmp_path):
