@@ -3,10 +3,11 @@ model: least squares on relative error over the fleet file, 5-fold CV by model f
 leave-one-make-out CV (issue 16; docs/validation.md "Searching for more physics").
 
 Each candidate is a chain variant (``sim``: the shipped chain.simulate plus optional terms, all
-fleet-wide parameters, off by default) and a set of fitted parameters. ``python
-scripts/chain_candidates.py [NAME ...]`` (PYTHONPATH=. or the venv) prints train / family CV / LOMO mean absolute % error (UDDS /
-HWFET) and the full-fleet fit with Gauss-Newton standard errors. The "shipped" row must reproduce
-calibrate.py (7.81 / 7.98 / 9.16 %).
+fleet-wide parameters, off by default) and a set of fitted parameters.
+``PYTHONPATH=. python scripts/chain_candidates.py [NAME ...]`` prints train / family CV / LOMO mean
+absolute % error (UDDS / HWFET in brackets) and the full-fleet fit with Gauss-Newton standard errors
+("(BOUND)" where a parameter ends on its bound). The "shipped" row reproduces calibrate.py
+(7.81 / 7.98 / 9.16 %). A research tool, not part of the package: nothing here is shipped.
 """
 from __future__ import annotations
 
@@ -93,10 +94,12 @@ def predict(fleet, p, cycles, gear=None):
 
 
 class Candidate:
-    def __init__(self, name, fit, fixed=None, per_vehicle=None, loss="linear", f_scale=0.05, gear=None):
+    def __init__(self, name, fit, fixed=None, per_vehicle=None, loss="linear", f_scale=0.05, gear=None,
+                 family_weights=False):
         self.name, self.fitspec, self.fixed = name, dict(fit), dict(fixed or {})
         self.per_vehicle = per_vehicle  # callable(fleet, params) -> params (per-vehicle arrays)
         self.loss, self.f_scale, self.gear = loss, f_scale, gear
+        self.family_weights = family_weights  # each model family weighs the same in the fit (1/sqrt(rows))
 
     def params(self, fleet, names, x, mask=None):
         p = {**cal.FIXED, **self.fixed, **dict(zip(names, x))}
@@ -116,9 +119,16 @@ class Candidate:
         lo = np.array([self.fitspec[k][1] for k in names])
         hi = np.array([self.fitspec[k][2] for k in names])
 
+        wt = np.ones(int(mask.sum()))
+        if self.family_weights:
+            fam = np.array(fleet.family())[mask]
+            _, inv, cnt = np.unique(fam, return_inverse=True, return_counts=True)
+            wt = 1.0 / np.sqrt(cnt[inv])
+        wt = np.concatenate([wt] * len(fl.CYCLES))
+
         def res(x):
             e = self.rel(fleet, names, x, mask, cycles)
-            return np.log1p(e) if self.loss == "log" else e
+            return wt * (np.log1p(e) if self.loss == "log" else e)
 
         kw = dict(loss="soft_l1", f_scale=self.f_scale) if self.loss == "soft_l1" else {}
         out = least_squares(res, x0, bounds=(lo, hi), x_scale=np.maximum(np.abs(x0), 1e-3), diff_step=1e-6,
@@ -208,6 +218,7 @@ def candidates():
                              fixed={"regen_axle_share": 1.0, "charger_efficiency": 0.90})
     C["eta_t_r_aux"] = Candidate("eta_chg 0.90 fixed; eta_t, eta_r, aux, share 1", {"traction_efficiency": (0.9, 0.5, 1.0), "regen_efficiency": (0.8, 0.3, 1.0), "aux_power_w": (300.0, 0.0, 2000.0)},
                              fixed={"regen_axle_share": 1.0, "charger_efficiency": 0.90})
+    C["family_weights"] = Candidate("shipped, every model family weighted equally in the fit", F, family_weights=True)
     awd = lambda fleet: np.array([d in "A4P" for d in fleet.drive])
 
     def listed_gear(fleet):
@@ -233,6 +244,20 @@ def candidates():
     def rot_by_axles(fleet, p):
         return {**p, "rotating_mass_fraction": np.where(awd(fleet), 0.035, 0.02)}
     C["rot_axles"] = Candidate("rotating mass 2 % (2WD dyno) / 3.5 % (AWD, 4WD dyno)", F, per_vehicle=rot_by_axles)
+
+    def regen_by_motors(fleet, p):
+        p = dict(p)
+        one, two = p.pop("regen_share_one_motor"), p.pop("regen_share_two_motors")
+        return {**p, "regen_axle_share": np.where(awd(fleet), two, one)}
+    RM = {"charger_efficiency": F["charger_efficiency"], "regen_share_one_motor": (0.8, 0.2, 1.0),
+          "regen_share_two_motors": (0.8, 0.2, 1.0)}
+    C["regen_motors"] = Candidate("regen share by motors (F/R vs A/4/P)", RM, per_vehicle=regen_by_motors)
+    C["fw_regen_motors"] = Candidate("family weights + regen share by motors", RM, per_vehicle=regen_by_motors,
+                                     family_weights=True)
+    C["fw_eta_t_r"] = Candidate("family weights + eta_chg 0.90; eta_t, eta_r, share 1",
+                                {"traction_efficiency": (0.9, 0.5, 1.0), "regen_efficiency": (0.8, 0.3, 1.0)},
+                                fixed={"regen_axle_share": 1.0, "charger_efficiency": 0.90}, family_weights=True)
+    C["fw_soft_l1"] = Candidate("family weights + soft_l1 (f_scale 0.05)", F, loss="soft_l1", family_weights=True)
     return C
 
 
