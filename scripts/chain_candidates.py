@@ -187,79 +187,87 @@ def score(cand, fleet, cycles):
 SHIPPED_FIT = dict(cal.FIT)
 
 
+def _awd(fleet):
+    return np.array([d in "A4P" for d in fleet.drive])
+
+
+def _listed_gear(fleet):
+    """The axle_ratio column where it is plausible for a single reduction (>= 6), else the fleet's 9.0."""
+    import csv
+
+    with open(fleet.path, newline="") as f:
+        ratio = np.array([float(r["axle_ratio"]) if r["axle_ratio"].strip() else np.nan for r in csv.DictReader(f)])
+    return np.where(ratio >= 6, ratio, fl.FLEET_GEAR_RATIO)
+
+
+def _awd_standby(fleet, p):
+    """The second machine's no-load loss while moving (W, AWD only), as a per-vehicle c_0."""
+    p = dict(p)
+    extra_w = np.where(_awd(fleet), p.pop("awd_standby_w"), 0.0)
+    return {**p, "motor_loss_standby_fraction": p["motor_loss_standby_fraction"]
+            + extra_w / (fleet.rated_power_kw * 1e3)}
+
+
+def _rot_by_axles(fleet, p):
+    """What turns on the dyno: one axle (2WD dyno) or both (AWD on a 4WD dyno)."""
+    return {**p, "rotating_mass_fraction": np.where(_awd(fleet), 0.035, 0.02)}
+
+
+def _regen_by_motors(fleet, p):
+    p = dict(p)
+    one, two = p.pop("regen_share_one_motor"), p.pop("regen_share_two_motors")
+    return {**p, "regen_axle_share": np.where(_awd(fleet), two, one)}
+
+
 def candidates():
     F = SHIPPED_FIT
-    C = {}
-    C["shipped"] = Candidate("shipped", F)
+    eta_chg = {"charger_efficiency": F["charger_efficiency"]}
+    no_r = {"battery_discharge_resistance_ohm": 0.0, "battery_charge_resistance_ohm": 0.0}
+    eta_tr = {"traction_efficiency": (0.9, 0.5, 1.0), "regen_efficiency": (0.8, 0.3, 1.0)}
+    share1_chg90 = {"regen_axle_share": 1.0, "charger_efficiency": 0.90}
+    regen_m = {**eta_chg, "regen_share_one_motor": (0.8, 0.2, 1.0), "regen_share_two_motors": (0.8, 0.2, 1.0)}
+    C = {"shipped": Candidate("shipped", F)}
     # error models (same physics)
     C["log"] = Candidate("shipped, fit in log space", F, loss="log")
     C["soft_l1"] = Candidate("shipped, soft_l1 (f_scale 0.05)", F, loss="soft_l1", f_scale=0.05)
     C["soft_l1_02"] = Candidate("shipped, soft_l1 (f_scale 0.02)", F, loss="soft_l1", f_scale=0.02)
-    # J1634 recharge allocation: battery loss test-wide (65 mph CSC reference), R fitted
-    C["raf_R"] = Candidate("+ J1634 test-wide battery loss R (CSC 65 mph)", {**F, "raf_resistance_ohm": (0.1, 0.0, 3.0)},
-                           fixed={"battery_discharge_resistance_ohm": 0.0, "battery_charge_resistance_ohm": 0.0})
+    C["family_weights"] = Candidate("shipped, every model family weighted equally in the fit", F,
+                                    family_weights=True)
+    # J1634 recharge allocation: battery loss test-wide (65 mph CSC reference)
+    C["raf_R"] = Candidate("+ J1634 test-wide battery loss R (CSC 65 mph)",
+                           {**F, "raf_resistance_ohm": (0.1, 0.0, 3.0)}, fixed=no_r)
     C["raf_fixed"] = Candidate("J1634 allocation of the fixed 0.08 ohm (no per-cycle P^2 loss)", F,
-                               fixed={"battery_discharge_resistance_ohm": 0.0, "battery_charge_resistance_ohm": 0.0,
-                                      "raf_resistance_ohm": 0.08})
-    # iron loss ~ speed^n
+                               fixed={**no_r, "raf_resistance_ohm": 0.08})
+    # motor + inverter losses in torque and speed
     C["iron15"] = Candidate("+ iron loss c_fe P_r s^1.5", {**F, "iron_loss_fraction": (0.005, 0.0, 0.1)})
     C["iron2"] = Candidate("+ iron loss c_fe P_r s^2", {**F, "iron_loss_fraction": (0.005, 0.0, 0.1)},
                            fixed={"iron_loss_exponent": 2.0})
-    # inverter loss ~ current (torque)
-    C["inv"] = Candidate("+ inverter loss c_i P_r tau", {**F, "inverter_current_fraction": (0.01, 0.0, 0.2)})
-    # regen: maximum deceleration share (friction blending)
-    C["decel"] = Candidate("+ regen decel limit a_max", {**F, "regen_decel_max_m_s2": (1.0, 0.2, 3.0)})
-    C["decel_share1"] = Candidate("regen decel limit a_max, axle share 1 (dyno)", {"charger_efficiency": F["charger_efficiency"], "regen_decel_max_m_s2": (1.0, 0.2, 3.0)},
-                                  fixed={"regen_axle_share": 1.0})
-    # regen efficiency separate from traction efficiency
-    C["eta_r"] = Candidate("+ regen efficiency eta_r (share 1)", {"charger_efficiency": F["charger_efficiency"], "regen_efficiency": (0.8, 0.3, 1.0)},
-                           fixed={"regen_axle_share": 1.0})
-    C["eta_t_r"] = Candidate("eta_chg 0.90 fixed; traction eta_t, regen eta_r, share 1", {"traction_efficiency": (0.9, 0.5, 1.0), "regen_efficiency": (0.8, 0.3, 1.0)},
-                             fixed={"regen_axle_share": 1.0, "charger_efficiency": 0.90})
-    C["eta_t_r_aux"] = Candidate("eta_chg 0.90 fixed; eta_t, eta_r, aux, share 1", {"traction_efficiency": (0.9, 0.5, 1.0), "regen_efficiency": (0.8, 0.3, 1.0), "aux_power_w": (300.0, 0.0, 2000.0)},
-                             fixed={"regen_axle_share": 1.0, "charger_efficiency": 0.90})
-    C["family_weights"] = Candidate("shipped, every model family weighted equally in the fit", F, family_weights=True)
-    awd = lambda fleet: np.array([d in "A4P" for d in fleet.drive])
-
-    def listed_gear(fleet):
-        import csv
-
-        with open(fleet.path, newline="") as f:
-            ratio = np.array([float(r["axle_ratio"]) if r["axle_ratio"].strip() else np.nan for r in csv.DictReader(f)])
-        return np.where(ratio >= 6, ratio, fl.FLEET_GEAR_RATIO)
-
     C["motor_full"] = Candidate("c_0, iron c_fe s^2, c_cu all fitted, listed gear >= 6", {
         **F, "motor_loss_standby_fraction": (0.001, 0.0, 0.05), "iron_loss_fraction": (0.005, 0.0, 0.1),
-        "motor_loss_copper_fraction": (0.05, 0.0, 0.3)}, fixed={"iron_loss_exponent": 2.0}, gear=listed_gear)
-
-    # the second machine's no-load loss while moving: modelled as c_0 of a per-vehicle array
-    def awd_c0(fleet, p):
-        p = dict(p)
-        w = p.pop("awd_standby_w")
-        p["motor_loss_standby_fraction"] = p["motor_loss_standby_fraction"] + np.where(awd(fleet), w, 0.0) / (fleet.rated_power_kw * 1e3)
-        return p
-    C["awd_standby"] = Candidate("+ no-load loss of the second machine (AWD), W while moving", {**F, "awd_standby_w": (200.0, 0.0, 3000.0)},
-                                 per_vehicle=awd_c0)
-
-    def rot_by_axles(fleet, p):
-        return {**p, "rotating_mass_fraction": np.where(awd(fleet), 0.035, 0.02)}
-    C["rot_axles"] = Candidate("rotating mass 2 % (2WD dyno) / 3.5 % (AWD, 4WD dyno)", F, per_vehicle=rot_by_axles)
-
-    def regen_by_motors(fleet, p):
-        p = dict(p)
-        one, two = p.pop("regen_share_one_motor"), p.pop("regen_share_two_motors")
-        return {**p, "regen_axle_share": np.where(awd(fleet), two, one)}
-    RM = {"charger_efficiency": F["charger_efficiency"], "regen_share_one_motor": (0.8, 0.2, 1.0),
-          "regen_share_two_motors": (0.8, 0.2, 1.0)}
-    C["regen_motors"] = Candidate("regen share by motors (F/R vs A/4/P)", RM, per_vehicle=regen_by_motors)
-    C["fw_regen_motors"] = Candidate("family weights + regen share by motors", RM, per_vehicle=regen_by_motors,
-                                     family_weights=True)
-    C["fw_eta_t_r"] = Candidate("family weights + eta_chg 0.90; eta_t, eta_r, share 1",
-                                {"traction_efficiency": (0.9, 0.5, 1.0), "regen_efficiency": (0.8, 0.3, 1.0)},
-                                fixed={"regen_axle_share": 1.0, "charger_efficiency": 0.90}, family_weights=True)
+        "motor_loss_copper_fraction": (0.05, 0.0, 0.3)}, fixed={"iron_loss_exponent": 2.0}, gear=_listed_gear)
+    C["inv"] = Candidate("+ inverter loss c_i P_r tau", {**F, "inverter_current_fraction": (0.01, 0.0, 0.2)})
+    C["awd_standby"] = Candidate("+ no-load loss of the second machine (AWD), W while moving",
+                                 {**F, "awd_standby_w": (200.0, 0.0, 3000.0)}, per_vehicle=_awd_standby)
+    # regeneration: maximum deceleration (friction blending), round-trip efficiency, motors
+    C["decel"] = Candidate("+ regen decel limit a_max", {**F, "regen_decel_max_m_s2": (1.0, 0.2, 3.0)})
+    C["decel_share1"] = Candidate("regen decel limit a_max, axle share 1 (dyno)",
+                                  {**eta_chg, "regen_decel_max_m_s2": (1.0, 0.2, 3.0)},
+                                  fixed={"regen_axle_share": 1.0})
+    C["eta_r"] = Candidate("+ regen efficiency eta_r (share 1)", {**eta_chg, "regen_efficiency": (0.8, 0.3, 1.0)},
+                           fixed={"regen_axle_share": 1.0})
+    C["eta_t_r"] = Candidate("eta_chg 0.90 fixed; traction eta_t, regen eta_r, share 1", eta_tr, fixed=share1_chg90)
+    C["eta_t_r_aux"] = Candidate("eta_chg 0.90 fixed; eta_t, eta_r, aux, share 1",
+                                 {**eta_tr, "aux_power_w": (300.0, 0.0, 2000.0)}, fixed=share1_chg90)
+    C["regen_motors"] = Candidate("regen share by motors (F/R vs A/4/P)", regen_m, per_vehicle=_regen_by_motors)
+    # dynamometer
+    C["rot_axles"] = Candidate("rotating mass 2 % (2WD dyno) / 3.5 % (AWD, 4WD dyno)", F, per_vehicle=_rot_by_axles)
+    # family weights combined with the best of the above
+    C["fw_regen_motors"] = Candidate("family weights + regen share by motors", regen_m,
+                                     per_vehicle=_regen_by_motors, family_weights=True)
+    C["fw_eta_t_r"] = Candidate("family weights + eta_chg 0.90; eta_t, eta_r, share 1", eta_tr,
+                                fixed=share1_chg90, family_weights=True)
     C["fw_soft_l1"] = Candidate("family weights + soft_l1 (f_scale 0.05)", F, loss="soft_l1", family_weights=True)
     return C
-
 
 if __name__ == "__main__":
     fleet = fl.read_fleet()
