@@ -79,6 +79,9 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
+    from bev_mdo.stacks import dump_stacks_on_sigusr1
+
+    dump_stacks_on_sigusr1()
     parser = build_parser(argv)
     args = parser.parse_args(argv)
     try:

@@ -12,6 +12,9 @@ from bev_mdo.ros.executables import DISCIPLINE_EXES, OTHER_EXES  # noqa: F401 - 
 
 def run(exe: str, args: list[str] | None = None) -> int:
     """Run one node executable by name."""
+    from bev_mdo.stacks import dump_stacks_on_sigusr1
+
+    dump_stacks_on_sigusr1()
     if exe in DISCIPLINE_EXES or exe in OTHER_EXES:
         # say so at once: importing rclpy, the messages and the models takes a few seconds on a small host
         print(f"{exe}: starting (loading ROS 2 and the models)", file=sys.stderr, flush=True)

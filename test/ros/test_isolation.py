@@ -12,6 +12,7 @@ rounds stay short; the in-process references are computed once.
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import threading
 
@@ -206,10 +207,14 @@ def test_concurrent_cli_runs_are_bound_to_their_run_and_signed(configs, referenc
     for name, p in procs.items():
         try:
             out, err = p.communicate(timeout=240)
-        except subprocess.TimeoutExpired:
-            p.kill()
-            out, err = p.communicate()
-        assert p.returncode == 0, err[-3000:]
+        except subprocess.TimeoutExpired:  # where it waits: every thread's stack (bev_mdo.stacks), then kill
+            p.send_signal(signal.SIGUSR1)
+            try:
+                out, err = p.communicate(timeout=5)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                out, err = p.communicate()
+        assert p.returncode == 0, (name, err[-6000:])
         outs[name] = json.loads(out)
     unsigned = 0
     for name, out in outs.items():
