@@ -144,11 +144,7 @@ class Candidate:
         return names, out.x, se, at_bound
 
     def cv(self, fleet, cycles, groups, k):
-        uniq, counts = np.unique(groups, return_counts=True)
-        order = uniq[np.argsort(-counts, kind="stable")]
-        k = min(k, len(order))
-        fold_of = {g: i % k for i, g in enumerate(order)}
-        folds = np.array([fold_of[g] for g in groups])
+        folds, k = cal.group_folds(groups, k)  # the folds calibrate.cross_validate uses
         err = {c: np.full(len(fleet), np.nan) for c in fl.CYCLES}
         for i in range(k):
             test = folds == i

@@ -79,17 +79,23 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
             "mape_pct": float(100 * np.mean(np.abs(res.fun))), "n_residuals": n}
 
 
+def group_folds(groups, k: int) -> tuple[np.ndarray, int]:
+    """The fold of every row (groups dealt to k folds in order of size, a group never split) and the
+    number of folds, at most the number of groups."""
+    uniq, counts = np.unique(groups, return_counts=True)
+    order = uniq[np.argsort(-counts, kind="stable")]
+    k = min(k, len(order))
+    fold_of = {g: i % k for i, g in enumerate(order)}
+    return np.array([fold_of[g] for g in groups]), k
+
+
 def cross_validate(fleet: fl.Fleet, k: int = 5, names=None, cycles: dict | None = None,
                    groups: list[str] | None = None) -> dict:
     """k-fold cross-validation by group (model family by default): each fold's vehicles are
     predicted by a fit on the other folds. Families are dealt to folds in order of size."""
     cycles = cycles or fl.resampled_cycles()
     groups = groups or fleet.family()
-    uniq, counts = np.unique(groups, return_counts=True)
-    order = uniq[np.argsort(-counts, kind="stable")]
-    k = min(k, len(order))
-    fold_of = {g: i % k for i, g in enumerate(order)}
-    folds = np.array([fold_of[g] for g in groups])
+    folds, k = group_folds(groups, k)
     err = {c: np.full(len(fleet), np.nan) for c in fl.CYCLES}
     xs = []
     for i in range(k):
