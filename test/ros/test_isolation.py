@@ -193,6 +193,16 @@ def test_a_result_with_another_binding_is_dropped_and_counted(rclpy_context, con
         node.destroy_node()
 
 
+def _summary(out: str) -> str:
+    """What a failed run's JSON says about its messages (the run finished: it printed its result)."""
+    try:
+        res = json.loads(out)
+    except ValueError:
+        return "(no JSON on stdout)"
+    return json.dumps({k: res.get(k) for k in ("message", "logs", "dropped_messages", "retried_requests",
+                                                "discipline_errors", "fd_failures", "refused_instances")})
+
+
 def test_concurrent_cli_runs_are_bound_to_their_run_and_signed(configs, references, suites, ros_domain,
                                                                 tmp_path):
     """Three `bev-mdo optimize` at once on the crowded domain: each launches its own nodes (bound to its
@@ -214,7 +224,7 @@ def test_concurrent_cli_runs_are_bound_to_their_run_and_signed(configs, referenc
             except subprocess.TimeoutExpired:
                 p.kill()
                 out, err = p.communicate()
-        assert p.returncode == 0, f"{name}: exit {p.returncode}\n" + "\n".join(
+        assert p.returncode == 0, f"{name}: exit {p.returncode}\n{_summary(out)}\n" + "\n".join(
             line for line in err.splitlines() if "refused '" not in line)[-6000:]
         outs[name] = json.loads(out)
     unsigned = 0
