@@ -83,6 +83,7 @@ _STAMP = struct.Struct("<iI")
 _U64X2 = struct.Struct("<QQ")
 _U32X2 = struct.Struct("<II")
 _F64 = struct.Struct("<d")
+_U32X3 = struct.Struct("<III")
 
 
 class Stamp:
@@ -310,15 +311,13 @@ def _plain_texts(items) -> bytes:
     return bytes(out)
 
 
-_NO_ERRORS = _U32.pack(0)
+_NO_ERRORS = bytes(12)  # three empty sequences (error_points, error_reasons, error_inputs)
 
 
 def _put_errors(o: _Out, m) -> None:
     """The point-error fields (error_points, error_reasons, error_inputs) of a result."""
     points = m.error_points
-    if not len(points):  # the common case: three empty sequences
-        o.put(_NO_ERRORS, 4)
-        o.put(_NO_ERRORS, 4)
+    if not len(points):  # the common case: every point evaluated
         o.put(_NO_ERRORS, 4)
         return
     o.put(_U32.pack(len(points)) + np.asarray(points, dtype="<u4").tobytes(), 4)
@@ -445,6 +444,9 @@ def decode_result(data) -> Result:
     m.signature, pos = _string(data, pos)
     m.partials, pos = _named(data, pos)
     pos += -pos % 4
+    if len(data) - pos == 12 and _U32X3.unpack_from(data, pos) == (0, 0, 0):  # the common case: no point error
+        m.error_points, m.error_reasons, m.error_inputs = [], [], []
+        return m
     (count,) = _U32.unpack_from(data, pos)
     pos += 4
     if count > MAX_BATCH or pos + 4 * count > len(data):
