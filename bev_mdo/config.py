@@ -15,17 +15,14 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from bev_mdo.mdo.settings import MDASettings, OptimizerSettings
+
 TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "disciplines", "problem",
             "formulation", "mda", "optimizer", "ros", "recording", "search_path")
 FORMULATIONS = ("mdf", "idf")
-MDA_DEFAULTS = {"method": "gauss_seidel", "tolerance": 1.0e-10, "max_iterations": 100, "relaxation": 1.0,
-                "warm_start": "auto", "fuse_downstream": False}  # mda.py: auto = on for newton only
-# feasibility_tolerance: largest violation of a NORMALISED constraint (problem.py: divided by its scale,
-# default max(|bound|, 1), i.e. relative to the bound, absolute below 1) and of an IDF consistency
-# equality that still counts as feasible. 1e-4 is GEMSEO's default (ineq_tolerance / eq_tolerance).
-OPTIMIZER_DEFAULTS = {"name": "SLSQP", "options": {}, "fd_step": 1.0e-6, "fd_scheme": "forward",
-                      "feasibility_tolerance": 1.0e-4,
-                      "derivatives": "auto"}
+# the engine sections' defaults, defined once with their types (mdo/settings.py)
+MDA_DEFAULTS = MDASettings().as_dict()
+OPTIMIZER_DEFAULTS = OptimizerSettings().as_dict()
 SIZED_VARIABLE = "battery_kwh"
 SIZED_CONSTRAINT = "range_km"
 

@@ -1,11 +1,16 @@
-"""Sessions of a multi-run study (``bev-mdo pareto``, bench/bench_pareto.py): where its evaluators
-come from and where its ParetoFront messages go.
+"""Sessions: the "start nodes, recorder, coordinator; run; stop" sequences, out of the CLI.
 
-* ``ParetoInProcessSession``: in-process evaluators; the fronts go straight into a bag (BagSink).
-* ``ParetoRosSession``: as ``bev-mdo optimize`` runs over ROS: a recorder node writing the bag for
-  the whole session, one set of discipline nodes and one coordinator per topology, signed with a
-  per-run key by default (docs/security.md).
+* ``OptimizeRosSession``: one optimisation over ROS (``bev-mdo optimize`` and ``resume``): discipline
+  nodes (pools, composed processes) and a recorder started for the run, signed with a per-run key by
+  default (docs/security.md), the config's baseline and the run coordinated in this process, every
+  process stopped on exit (the recorder first) and what happened summarised.
+* ``ParetoInProcessSession``/``ParetoRosSession``: the sessions of a multi-run study (``bev-mdo
+  pareto``, bench/bench_pareto.py): where its evaluators come from and where its ParetoFront messages
+  go: in-process evaluators and a bag written directly (BagSink), or over ROS a recorder for the whole
+  session and one set of discipline nodes and one coordinator per topology.
 
+Both ROS sessions prepare their run directory the same way (``_prepare``: per-run key, the resolved
+config written for the nodes and the recorder) and start the recorder with ros.launch.start_recorder.
 ROS is imported only when a ROS session starts.
 """
 from __future__ import annotations
@@ -15,6 +20,232 @@ import time
 from pathlib import Path
 
 from bev_mdo.config import plain
+
+LEASE_S = 3.0  # participant lease of bev_mdo's Fast DDS profile (bev_mdo/data/fastdds_profile.xml)
+ACK_GRACE_S = 1.0  # a live local recorder acknowledges in milliseconds (in DDS threads, not Python's)
+_DECLARATION_DROPS = ("refused_instance", "info_unsigned", "info_forged", "info_other_run", "info_other_discipline")
+
+
+def _prepare(config: dict, logs: Path, key_dir: Path) -> tuple[dict, Path]:
+    """(config with its ros section signed by a per-run key unless it names its own key or signing is
+    off, the resolved config written to ``logs/config.yaml``): what nodes and recorder read."""
+    import yaml
+
+    from bev_mdo.ros.auth import with_run_key
+
+    logs.mkdir(parents=True, exist_ok=True)
+    config = with_run_key(config, key_dir)
+    resolved = logs / "config.yaml"
+    resolved.write_text(yaml.safe_dump(plain(config), sort_keys=False))
+    return config, resolved
+
+
+def analyse_baseline(config, evaluator) -> dict | None:
+    """The config's ``problem.baseline`` analysed through ``evaluator``: {name, design, outputs, feasible, ...};
+    None when the config names no baseline. A failed analysis is reported in ``error``, never raised:
+    the run's own result must not be lost to its baseline."""
+    from bev_mdo.mdo.driver import evaluate_design
+
+    base = config["problem"].get("baseline")
+    if not base:
+        return None
+    try:
+        report = evaluate_design(config, evaluator, base["design"])
+    except Exception as exc:  # noqa: BLE001 - reported beside the result
+        return {"name": base["name"], "design": dict(base["design"]), "outputs": {}, "feasible": False,
+                "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
+    return {"name": base["name"], **report}
+
+
+class OptimizeRosSession:
+    """One optimisation over ROS, as ``bev-mdo optimize`` runs it::
+
+        with OptimizeRosSession(config, ros, bag, run_id, record=True) as session:
+            result, baseline = session.run(on_iteration=show)
+        extra = session.summary()
+
+    ``config`` is the run's resolved config (its ros section as the run states it), ``ros`` the
+    effective ros section (config, flags and environment resolved: cli/ros_args.ros_section).
+    Entering writes ``<bag>/logs`` (node logs, the resolved config), keeps the per-run key beside the
+    bag (``<bag parent>/.keys/<bag name>``, never inside it: a bag directory is what users share),
+    starts one process per discipline (``instances``: pools, ``compose``: several disciplines per
+    process) and, with ``record``, the recorder; exiting stops them all, the recorder first, after
+    it acknowledged everything."""
+
+    def __init__(self, config: dict, ros: dict, bag: Path, run_id: str, *, record: bool = True,
+                 instances: dict | None = None, compose: str | None = None):
+        self.config, self.ros, self.bag, self.run_id = config, ros, Path(bag), run_id
+        self.record, self.instances, self.compose = record, instances, compose
+        self.logs = self.bag / "logs"  # node logs and the resolved config, beside the bag in the run's directory
+        self.launcher = None
+        self.recorder = 0
+        self.stats: dict = {}
+
+    def __enter__(self) -> "OptimizeRosSession":
+        from bev_mdo.config import discipline_entries
+        from bev_mdo.ros.client import apply_ros_environment
+        from bev_mdo.ros.launch import Launcher, plan_processes, start_recorder
+        from bev_mdo.ros.settings import ros_environment
+
+        env = ros_environment(self.ros)
+        apply_ros_environment(self.ros)
+        self.config, resolved = _prepare(self.config, self.logs, self.bag.parent / ".keys" / self.bag.name)
+        self.launcher = Launcher(env, log_dir=self.logs)
+        try:
+            names = [e["name"] for e in discipline_entries(self.config)]
+            for label, argv in plan_processes(names, str(resolved.resolve()), run_id=self.run_id,
+                                              instance=self.run_id[:8], instances=self.instances,
+                                              compose=self.compose):
+                self.launcher.add(label, argv)
+            if self.record:
+                self.recorder = start_recorder(self.launcher, self.bag, resolved, self.run_id)
+            self.launcher.supervise()
+        except BaseException:
+            self.launcher.stop(first=("recorder",))
+            raise
+        return self
+
+    def run(self, formulation=None, optimizer=None, x0=None, on_iteration=None) -> tuple[dict, dict | None]:
+        """(result without its history, baseline) of the run; the coordinator runs in this process."""
+        import rclpy
+
+        from bev_mdo.ros import coordinator_node
+
+        ctx = rclpy.context.Context()
+        rclpy.init(context=ctx)
+        try:
+            # The baseline does not depend on the optimum: it is analysed BEFORE the optimisation, so the
+            # end of the run evaluates nothing and never waits for a node that died late (a SIGKILLed
+            # vehicle_mass after the optimiser's last evaluation stalled the baseline until its restart
+            # was discovered: 8.5 s of tail in bench/bench_kill_tail.py).
+            seen: dict = {}
+            baseline = _ros_baseline(self.config, self.run_id, ctx, seen)
+            res, stats = coordinator_node.run(self.config, run_id=self.run_id, formulation=formulation,
+                                              optimizer=optimizer, x0=x0, on_iteration=on_iteration,
+                                              recorder_subscribers=self.recorder, context=ctx,
+                                              instances=self.instances,
+                                              give_up_acks=acks_needless(self.launcher) if self.recorder else None)
+            stats["t_acked"] = time.monotonic()  # the final acknowledgements are in (or given up)
+            merge_baseline_stats(stats, seen)
+            self.stats = stats
+            out = res.to_dict()
+            out.pop("history")
+            return out, baseline
+        finally:
+            rclpy.shutdown(context=ctx)
+
+    def __exit__(self, *exc) -> None:
+        self.launcher.stop(first=("recorder",))
+        self.t_end = time.monotonic()
+
+    def summary(self) -> dict:
+        """What the finished run did, for the CLI's result: ids, bag, drops, retries, restarts, signing,
+        the tail after the optimiser, pools, first errors, a recorder that died."""
+        stats = self.stats
+        tail_s = self.t_end - stats["t_optimised"]  # after the optimiser: final acknowledgements, shutdown
+        tail = {"acks_s": stats["t_acked"] - stats["t_optimised"], "shutdown_s": self.t_end - stats["t_acked"]}
+        restarts = {n.label: n.restarts for n in self.launcher.nodes if n.restarts}
+        recorder_failed = recorder_failure(self.launcher, self.bag) if self.recorder else None
+        extra = {"transport": "ros", "run_id": self.run_id, "domain_id": self.ros["domain_id"],
+                 "bag": str(self.bag) if self.record else None, "logs": str(self.logs),
+                 "dropped_messages": stats["dropped"], "retried_requests": stats["retried"],
+                 "node_restarts": restarts, "refused_instances": stats.get("refused_instances", {}),
+                 "signing": _signing(self.ros, self.config), "tail_s": round(tail_s, 3),
+                 "tail_parts_s": {k: round(v, 3) for k, v in tail.items()}}
+        if stats.get("pools"):
+            extra["pools"] = stats["pools"]  # per-instance work, throughput and failures (pool.py)
+        if stats.get("discipline_errors"):
+            extra["discipline_errors"] = stats["discipline_errors"]
+        if recorder_failed:
+            extra["recorder_failed"] = recorder_failed
+        return extra
+
+
+def acks_needless(launcher):
+    """When the coordinator's final wait for acknowledgements may end early (they are awaited only so
+    the recorder misses nothing): at once when the recorder died, and after ACK_GRACE_S when a node
+    died within the last lease, because a killed reader never acknowledges and is matched until its
+    lease expires (stalling the end of the run up to 3 s)."""
+    started = []
+
+    def needless() -> bool:
+        if launcher.node("recorder").died is not None:
+            return True
+        now = time.monotonic()
+        if not started:
+            started.append(now)
+        return now - started[0] >= ACK_GRACE_S and launcher.died_within(LEASE_S + ACK_GRACE_S)
+
+    return needless
+
+
+def recorder_failure(launcher, bag: Path) -> str | None:
+    """None if the recorder lived to the end; else a one-line warning, after making the bag
+    readable again (its summary and metadata.yaml rebuilt from what was flushed)."""
+    node = launcher.node("recorder")
+    # died during the run (the supervisor saw it), or did not stop cleanly when told to: killed
+    # while the run was ending (after the supervisor stopped), or stuck and killed by stop()
+    status = node.died if node.died is not None else (node.proc.returncode if node.proc is not None else None)
+    if status in (0, None):
+        return None
+    note = f"the recorder died (exit status {status}) during the run; the bag holds only what it recorded before"
+    try:
+        from bev_mdo.bag.repair import repair
+
+        res = repair(bag)
+        note += f" ({res.message_count} messages, summary and metadata rebuilt)"
+    except (ValueError, OSError) as exc:
+        note += f"; the bag could not be repaired: {exc}"
+    return note
+
+
+def _signing(ros: dict, config: dict) -> str:
+    """How this run's messages were signed, for the summary."""
+    if ros.get("sign_key_file"):
+        return f"key file {ros['sign_key_file']}"
+    return "per-run key" if (config.get("ros") or {}).get("sign_key_file") else "off (ros.signing: false)"
+
+
+def merge_baseline_stats(stats: dict, seen: dict) -> None:
+    """Count what the baseline's evaluator dropped and refused as the run's: its results add up;
+    declarations are the same ones the run's evaluator judges (the larger count of the two), and an
+    instance refused by either is refused (the run's evaluator, started when everything is
+    discovered, may be ready before a foreign declaration reaches it)."""
+    if not seen:
+        return
+    dropped = dict(stats["dropped"])
+    for k, v in seen["dropped"].items():
+        dropped[k] = max(dropped.get(k, 0), v) if k in _DECLARATION_DROPS else dropped.get(k, 0) + v
+    refused = {**seen["refused"], **stats.get("refused_instances", {})}
+    dropped["refused_instance"] = len(refused) if refused else dropped.get("refused_instance", 0)
+    stats["dropped"] = {k: v for k, v in dropped.items() if v}
+    stats["refused_instances"] = refused
+
+
+def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None) -> dict | None:
+    """The config's baseline analysed through the run's nodes (sub-run ``<run>-baseline``); None
+    without one. A discipline that never appears raises (the run itself could not start either).
+    `seen` gets what its evaluator dropped and refused."""
+    from bev_mdo.ros import coordinator_node
+    from bev_mdo.ros.evaluator import DisciplineMissing
+
+    if not config["problem"].get("baseline"):
+        return None
+    node = coordinator_node.CoordinatorNode(config, run_id + "-baseline", context=ctx,
+                                            node_name="coordinator_baseline")
+    try:
+        node.evaluator.wait_for_disciplines(coordinator_node.discipline_names(config), node.discovery_wait_s)
+        return analyse_baseline(config, node.evaluator)
+    except DisciplineMissing:
+        raise
+    except Exception as exc:  # noqa: BLE001 - the run's result is printed anyway
+        return {"name": config["problem"]["baseline"]["name"], "design": {}, "outputs": {},
+                "feasible": False, "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
+    finally:
+        if seen is not None:
+            seen.update(dropped=dict(node.evaluator.dropped), refused=dict(node.evaluator.refused))
+        node.evaluator.close()
+        node.destroy_node()
 
 
 class _InProcess:
@@ -68,7 +299,6 @@ class ParetoRosSession:
 
     def __enter__(self):
         import rclpy
-        import yaml
 
         from bev_mdo.ros.client import apply_ros_environment
         from bev_mdo.ros.launch import Launcher, start_recorder
@@ -77,12 +307,9 @@ class ParetoRosSession:
 
         apply_ros_environment(self.ros)
         self.logs = self.out / ".logs"
-        self.logs.mkdir(parents=True, exist_ok=True)
-        from bev_mdo.ros.auth import with_run_key
-
-        self.ros = with_run_key({"ros": self.ros}, self.logs)["ros"]  # signed by default (docs/security.md)
-        resolved = self.logs / "config.yaml"
-        resolved.write_text(yaml.safe_dump(plain({**self.raw, "ros": self.ros}), sort_keys=False))
+        # signed by default (docs/security.md); the key stays in the study's own .logs
+        signed, resolved = _prepare({**self.raw, "ros": self.ros}, self.logs, self.logs)
+        self.ros = signed["ros"]
         self.launcher = Launcher(ros_environment(self.ros), log_dir=self.logs)
         try:
             self.recorder = start_recorder(self.launcher, self.bag, resolved, self.run_id)

@@ -178,3 +178,47 @@ def test_the_models_layers_match_the_imports():
     # every layer but the ground floor uses the one below it (the table is not padded with empty floors)
     used = {layers[b] for a, b in import_graph() if a in layers and b in layers}
     assert used >= set(range(max(layers.values())))
+
+
+def _package_layers() -> tuple[dict[str, int], set[tuple[str, str]]]:
+    """({package or top-level module: layer}, {(importer, imported) upward imports allowed}) from the
+    package-layers block of docs/architecture.md."""
+    doc = (PACKAGE.parent / "docs" / "architecture.md").read_text(encoding="utf-8")
+    block = doc.split("<!-- package-layers:begin -->")[1].split("<!-- package-layers:end -->")[0]
+    layers, upward = {}, set()
+    for line in block.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) >= 2 and cells[0].isdigit():
+            for name in cells[1].replace("`", " ").split():
+                layers["bev_mdo" if name == "bev_mdo" else f"bev_mdo.{name}"] = int(cells[0])
+        elif line.startswith("- "):
+            head = line[2:].split(":")[0]
+            for pair in head.split(","):
+                a, b = (p.strip().strip("`") for p in pair.split("->"))
+                upward.add((f"bev_mdo.{a}", f"bev_mdo.{b}"))
+    return layers, upward
+
+
+def _unit(module: str, layers: dict[str, int]) -> str:
+    """The documented package or module a module belongs to (bev_mdo.ros.wire -> bev_mdo.ros)."""
+    parts = module.split(".")
+    for k in range(len(parts), 0, -1):
+        if ".".join(parts[:k]) in layers:
+            return ".".join(parts[:k])
+    raise AssertionError(f"{module} is in no layer of docs/architecture.md")
+
+
+def test_the_package_layers_match_the_imports():
+    layers, allowed = _package_layers()
+    assert {"bev_mdo.cli", "bev_mdo.ros", "bev_mdo.mdo", "bev_mdo.models"} <= set(layers)
+    mods = modules()
+    top = {m for m in mods if m.count(".") == 1} | {"bev_mdo"}
+    assert set(layers) == top, f"not documented: {top - set(layers)}; documented but missing: {set(layers) - top}"
+    upward = set()
+    for a, b in import_graph():
+        ua, ub = _unit(a, layers), _unit(b, layers)
+        if ua != ub and layers[ub] >= layers[ua]:
+            upward.add((a, b))
+    assert upward - allowed == set(), f"imports from the same or a higher layer than docs/architecture.md says: " \
+                                      f"{sorted(upward - allowed)}"
+    assert allowed - upward == set(), f"listed in docs/architecture.md but gone, remove them: {sorted(allowed - upward)}"

@@ -425,12 +425,14 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
         baseline = _baseline(config, problem)
         answers = read_answers(bag)
         if answers is None:
+            from bev_mdo.config import resolve_disciplines
             from bev_mdo.mdo.active import answers_for
 
             values = dict(final["outputs"]) if final else {}
             values.update(rows[-1]["constraints"])
             try:
-                answers = answers_for(config, dict(rows[-1]["design"]), values)
+                answers = answers_for(config, dict(rows[-1]["design"]), values,
+                                      lambda: resolve_disciplines(config))
             except Exception:  # noqa: BLE001
                 answers = None
     written: list[Path] = []

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 REL_TOL = 1e-3
+Disciplines = list | Callable[[], list]  # discipline objects, or a function building them
 FEAS_TOL = 1e-6  # the driver's feasibility tolerance on normalised constraints (driver.FEASIBILITY_TOL)
 
 
@@ -167,18 +168,19 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
     return lines
 
 
-def fd_jacobian(config: Mapping[str, Any], design: Mapping[str, float], names: list[str] | None = None,
-                rel_step: float = 1e-6, disciplines: list | None = None) -> dict[str, dict[str, float]]:
+def fd_jacobian(config: Mapping[str, Any], design: Mapping[str, float], disciplines: Disciplines,
+                names: list[str] | None = None, rel_step: float = 1e-6) -> dict[str, dict[str, float]]:
     """d output / d design variable at ``design`` by one-sided finite differences, evaluated in
     process as ONE batch (the point and its stencil); each step points into the box.
-    ``disciplines`` (default: the config's, resolved) lets a caller pass wrapped ones (a timeout)."""
-    from bev_mdo.config import resolve_disciplines
+    ``disciplines``: the run's discipline objects (a caller may wrap them, e.g. with a timeout), or a
+    function building them (the caller's config.resolve_disciplines: the engine does not read the
+    application config)."""
     from bev_mdo.mdo.driver import _mda
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.problem import Problem
 
     problem = Problem.from_config(config["problem"])
-    ev = InProcessEvaluator(disciplines if disciplines is not None else resolve_disciplines(config))
+    ev = InProcessEvaluator(disciplines() if callable(disciplines) else disciplines)
     try:
         mda = _mda(config, ev, problem)
         x = np.array([float(design[n]) for n in problem.names])
@@ -205,8 +207,9 @@ def fd_jacobian(config: Mapping[str, Any], design: Mapping[str, float], names: l
 
 
 def answers_for(config: Mapping[str, Any], design: Mapping[str, float], values: Mapping[str, float],
-                rel_tol: float = REL_TOL, disciplines: list | None = None) -> dict[str, Any]:
-    """``analyse`` for a run config; an infeasible end gets the Jacobian by ``fd_jacobian`` (in process)."""
+                disciplines: Disciplines, rel_tol: float = REL_TOL) -> dict[str, Any]:
+    """``analyse`` for a run config; an infeasible end gets the Jacobian by ``fd_jacobian`` (in process,
+    with ``disciplines``: a list, or a function building them, called only then)."""
     from bev_mdo.mdo.problem import Problem
 
     problem = Problem.from_config(config["problem"])

@@ -20,7 +20,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -50,15 +50,71 @@ class Discipline:
         raise NotImplementedError
 
 
+@dataclass(frozen=True)
+class PointError:
+    """Why one point of a call failed: the discipline's reason and that point's inputs.
+
+    The point's index is not part of it (it is the key of ``EvalResult.point_errors``), so a
+    result cut into shares or scattered into a larger batch is renumbered by its keys alone."""
+
+    reason: str       # e.g. "square: ValueError: x must be >= 0"
+    inputs: str = ""  # e.g. "x=-1, z=0" (empty: not known)
+
+    def text(self, point: int) -> str:
+        """The message naming the point: ``reason at point i (inputs)``."""
+        return f"{self.reason} at point {point}" + (f" ({self.inputs})" if self.inputs else "")
+
+
+PointErrors = dict[int, PointError]  # point index (into the call's batch) -> why it failed
+
+
+def error_text(point_errors: Mapping[int, PointError]) -> str:
+    """The human-readable error of a call from its point errors (in their order)."""
+    return "; ".join(e.text(i) for i, e in point_errors.items())
+
+
 @dataclass
 class EvalResult:
-    """Outputs of one discipline call; rows that failed hold NaN and are named in ``error``."""
+    """Outputs of one discipline call; rows that failed hold NaN.
+
+    A failed point is named in ``point_errors`` (its index -> why); ``error`` is the text for
+    people (logs, console, the result message), never read back. A call that failed as a whole
+    (no answer, a rejected request) has ``error`` and no point errors."""
 
     outputs: Batch
     ok: np.ndarray  # bool (N,)
     error: str = ""
     compute_time_s: float = 0.0
     extra: dict = field(default_factory=dict)  # e.g. "partials": analytic derivatives, see the module doc
+    point_errors: PointErrors = field(default_factory=dict)
+
+    def message(self, local: int, point: int, name: str) -> str:
+        """Why row ``local`` of this result failed, naming it as point ``point`` of the caller's batch."""
+        e = self.point_errors.get(local)
+        return e.text(point) if e is not None else (self.error or f"{name}: failed")
+
+    def renumbered(self, idx: np.ndarray) -> "EvalResult":
+        """The same result with row i's point errors moved to point ``idx[i]`` (a sub-batch placed
+        in a larger one); the error text follows."""
+        if not self.point_errors:
+            return self
+        pe = {int(idx[i]): e for i, e in self.point_errors.items()}
+        return EvalResult(self.outputs, self.ok, error_text(pe), self.compute_time_s, self.extra, pe)
+
+
+def join_errors(parts: Iterable[tuple[int, EvalResult]]) -> tuple[str, PointErrors]:
+    """(error text, point errors) of results over consecutive row ranges, each given with its
+    first row in the joined batch; repeated call-level texts are named once."""
+    texts: list[str] = []
+    joined: PointErrors = {}
+    for start, r in parts:
+        if r.point_errors:
+            pe = {start + i: e for i, e in r.point_errors.items()}
+            joined.update(pe)
+            texts.append(error_text(pe))
+        elif r.error:
+            texts.append(r.error)
+    return "; ".join(dict.fromkeys(texts)), joined
 
 
 def load_class(spec: str, search_path: Sequence[str] = ()) -> type:
@@ -113,7 +169,7 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False)
 
     Never raises for a model failure: a batch that raises is retried point by point,
     and every point that raises or gives NaN/Inf is marked failed with NaN outputs
-    and named (with its inputs) in ``EvalResult.error``. Missing inputs raise
+    and named (with its inputs) in ``EvalResult.point_errors``. Missing inputs raise
     DisciplineError because that is a wiring mistake, not a bad point; so does an output or
     partial of the wrong shape (vectors.ShapeError, naming the discipline).
 
@@ -145,14 +201,14 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False)
             res = EvalResult(out, finite, "", time.perf_counter() - t0)
             return _with_partials(disc, batch, res, n, t0) if partials else res
     ok = np.ones(n, dtype=bool)
-    errors: list[str] = []
+    errors: PointErrors = {}
     if out is None:
         out = {k: np.full(n, np.nan) for k in disc.outputs}
         for i in range(n):
             row = {k: v[i:i + 1] for k, v in batch.items()}
             if bad_in[i]:
                 ok[i] = False
-                errors.append(f"{name}: non-finite input at point {i} ({_describe_row(batch, i)})")
+                errors[i] = PointError(f"{name}: non-finite input", _describe_row(batch, i))
                 continue
             try:
                 one = _call(disc, row, 1)
@@ -160,7 +216,7 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False)
                 raise
             except Exception as exc:  # the model's own error text is what the user needs
                 ok[i] = False
-                errors.append(f"{name}: {type(exc).__name__}: {exc} at point {i} ({_describe_row(batch, i)})")
+                errors[i] = PointError(f"{name}: {type(exc).__name__}: {exc}", _describe_row(batch, i))
                 continue
             for k in disc.outputs:
                 out[k][i] = one[k][0]
@@ -169,10 +225,10 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False)
         for i in np.flatnonzero(ok & ~finite):
             ok[i] = False
             bad = [k for k in disc.outputs if not np.isfinite(out[k][i])]
-            errors.append(f"{name}: non-finite output {bad} at point {i} ({_describe_row(batch, i)})")
+            errors[int(i)] = PointError(f"{name}: non-finite output {bad}", _describe_row(batch, i))
         for k in disc.outputs:
             out[k] = np.where(ok, out[k], np.nan)
-    res = EvalResult(out, ok, "; ".join(errors), time.perf_counter() - t0)
+    res = EvalResult(out, ok, error_text(errors), time.perf_counter() - t0, point_errors=errors)
     return _with_partials(disc, batch, res, n, t0) if partials else res
 
 

@@ -17,19 +17,14 @@ from bev_mdo.mdo.formulations import FORMULATIONS, Formulation
 from bev_mdo.mdo.mda import MDA
 from bev_mdo.mdo.optimizers import GRADIENT_BASED, canonical_name, run_optimizer
 from bev_mdo.mdo.problem import Problem
-
-# Largest violation of a normalised constraint (and of an IDF consistency equality) that counts as
-# feasible; the config's optimizer.feasibility_tolerance (config.py) overrides it. Constraints are
-# normalised by their scale (default max(|bound|, 1)), so this is relative to the bound for bounds
-# of magnitude >= 1 and absolute below. 1e-4 is GEMSEO's default.
-FEASIBILITY_TOL = 1e-4
-
+from bev_mdo.mdo.settings import FEASIBILITY_TOL, MDASettings, OptimizerSettings
 
 BEST_REL_TOL = 1e-6  # an earlier feasible iterate replaces the last one only if better by more than this
 
 
 def feasibility_tolerance(config: Mapping[str, Any]) -> float:
-    return float((config.get("optimizer") or {}).get("feasibility_tolerance", FEASIBILITY_TOL))
+    """The resolved config's ``optimizer.feasibility_tolerance`` (mdo/settings.py: FEASIBILITY_TOL by default)."""
+    return float(OptimizerSettings.of(config["optimizer"]).feasibility_tolerance)
 
 
 @dataclass
@@ -67,33 +62,26 @@ class RunResult:
 
 
 def _mda(config: Mapping[str, Any], evaluator: Evaluator, problem: Problem) -> MDA:
-    m = config.get("mda", {})
-    names = _discipline_names(config, evaluator)
-    return MDA(evaluator, method=m.get("method", "gauss_seidel"), tolerance=m.get("tolerance", 1e-10),
-               max_iterations=m.get("max_iterations", 100), relaxation=m.get("relaxation", 1.0),
-               guesses=problem.coupling_guesses, disciplines=names,
-               warm_start=m.get("warm_start", "auto"), fuse_downstream=m.get("fuse_downstream", False))
+    m = MDASettings.of(config["mda"])
+    return MDA(evaluator, **m.as_dict(), guesses=problem.coupling_guesses, disciplines=_discipline_names(config))
 
 
-def _discipline_names(config: Mapping[str, Any], evaluator: Evaluator) -> list[str]:
-    """The config's disciplines (the evaluator may serve more); all of the evaluator's if unresolvable."""
-    try:
-        from bev_mdo.config import discipline_names
-        return discipline_names(config)
-    except (ValueError, KeyError, TypeError):
-        return list(evaluator.specs)
+def _discipline_names(config: Mapping[str, Any]) -> list[str]:
+    """The config's disciplines (the evaluator may serve more)."""
+    from bev_mdo.config import discipline_names
+
+    return discipline_names(config)
 
 
 def build_formulation(config: Mapping[str, Any], evaluator: Evaluator, formulation: str | None = None) -> Formulation:
     """The MDF or IDF formulation of a resolved config over ``evaluator``."""
     problem = Problem.from_config(config["problem"])
-    name = (formulation or config.get("formulation", "mdf")).lower()
+    name = (formulation or config["formulation"]).lower()
     if name not in FORMULATIONS:
         raise ValueError(f"formulation {name!r} is unknown; allowed: {', '.join(FORMULATIONS)}")
-    opt = config.get("optimizer", {})
+    opt = OptimizerSettings.of(config["optimizer"])
     mda = _mda(config, evaluator, problem)
-    return FORMULATIONS[name](problem, evaluator, mda,
-                              fd_step=opt.get("fd_step", 1e-6), fd_scheme=opt.get("fd_scheme", "forward"),
+    return FORMULATIONS[name](problem, evaluator, mda, fd_step=opt.fd_step, fd_scheme=opt.fd_scheme,
                               derivatives=derivatives_mode(config, evaluator, list(mda.specs)))
 
 
@@ -102,7 +90,7 @@ def derivatives_mode(config: Mapping[str, Any], evaluator: Evaluator, names: lis
     discipline of the run provides partials, else fd (docs/derivatives.md: a mix of analytic and
     per-discipline finite differences is ``analytic``, chosen explicitly, because a batched
     finite-difference stencil of whole MDAs can cost less than an analysis plus a second wave)."""
-    mode = str((config.get("optimizer") or {}).get("derivatives", "auto")).lower()
+    mode = str(OptimizerSettings.of(config["optimizer"]).derivatives).lower()
     if mode != "auto":
         return mode
     flags = [getattr(evaluator.specs.get(n), "partials", None) for n in names]
@@ -181,10 +169,10 @@ def run_optimization(config: Mapping[str, Any], evaluator: Evaluator, *, formula
     t0 = time.perf_counter()
     form = build_formulation(config, evaluator, formulation)
     problem = form.problem
-    opt_cfg = dict(config.get("optimizer", {}))
-    opt_name = canonical_name(optimizer or opt_cfg.get("name", "SLSQP"))
-    options = dict(opt_cfg.get("options") or {}) if not optimizer or canonical_name(
-        opt_cfg.get("name", "SLSQP")) == opt_name else {}
+    opt_cfg = OptimizerSettings.of(config["optimizer"])
+    opt_name = canonical_name(optimizer or opt_cfg.name)
+    # the config's options belong to the config's optimiser: another one chosen here starts from none
+    options = dict(opt_cfg.options) if not optimizer or canonical_name(opt_cfg.name) == opt_name else {}
     if x0:
         unknown = [k for k in x0 if k not in problem.names]
         if unknown:

@@ -4,8 +4,8 @@ Every discipline of an acyclic graph gets the same request (the design variables
 parameter columns of N points). A discipline takes each coupling input from the result of
 the discipline that produces it (its *source*) and every other input from the request. It
 evaluates the points that all its sources evaluated successfully; the other points are
-failed without a message of their own (the source's error names them). Error texts name
-points by their index in the whole batch.
+failed without a message of their own (the source's error names them). Point errors
+(``EvalResult.point_errors``) are keyed by the index in the whole batch.
 
 The rule is the same everywhere it runs: ``flow_by_waves`` (any evaluator, one wave per graph
 level, used in process), and the discipline nodes over ROS (one request message for the
@@ -15,7 +15,6 @@ with the same inputs and count the same evaluations.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-import re
 from typing import Any
 
 import numpy as np
@@ -75,7 +74,7 @@ def scatter(res: EvalResult, idx: np.ndarray, n: int, outputs: Sequence[str]) ->
             full[idx] = col
             part[k] = full
         extra["partials"] = part
-    return EvalResult(out, ok, res.error, res.compute_time_s, extra)
+    return EvalResult(out, ok, res.error, res.compute_time_s, extra, res.point_errors)
 
 
 def run_flow_discipline(disc: Any, request: Mapping[str, np.ndarray], upstream: Upstream,
@@ -87,7 +86,7 @@ def run_flow_discipline(disc: Any, request: Mapping[str, np.ndarray], upstream: 
         return _nothing(disc.outputs, n), 0
     res = run_discipline(disc, batch, partials)
     if idx.size != n:
-        res = _renumber(res, idx)
+        res = res.renumbered(idx)
     return scatter(res, idx, n, disc.outputs), int(idx.size)
 
 
@@ -125,18 +124,9 @@ def flow_by_waves(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequ
             continue
         got = evaluator.evaluate(calls, partials=True) if partials else evaluator.evaluate(calls)
         for (name, idx), res in zip(plan, got):
-            res = _renumber(res, idx) if idx.size != n else res
+            res = res.renumbered(idx) if idx.size != n else res
             results[name] = scatter(res, idx, n, specs[name].outputs)
     return results
-
-
-def _renumber(res: EvalResult, idx: np.ndarray) -> EvalResult:
-    """Rewrite 'at point i' (index into the sub-batch) as the index into the whole batch."""
-    if not res.error:
-        return res
-    text = re.sub(r"at point (\d+)", lambda m: f"at point {idx[int(m.group(1))]}"
-                  if int(m.group(1)) < idx.size else m.group(0), res.error)
-    return EvalResult(res.outputs, res.ok, text, res.compute_time_s, res.extra)
 
 
 def evaluate_flow(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequence[str]],

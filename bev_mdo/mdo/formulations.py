@@ -121,6 +121,10 @@ class Formulation:
         c = self._cache.get(np.asarray(x, dtype=float).tobytes())
         return (c[3], c[4]) if c else (False, "not evaluated")
 
+    def evaluated(self, x: np.ndarray) -> bool:
+        """True if the physical point ``x`` is in the cache (evaluated, well or not)."""
+        return np.asarray(x, dtype=float).tobytes() in self._cache
+
     def batch_fun(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(f, g) with equalities folded in as |h| - eq_tolerance <= 0, for inequality-only optimisers."""
         f, g, h = self.evaluate_batch(X)
@@ -128,7 +132,7 @@ class Formulation:
 
     # ------------------------------------------------------------ scalar helpers (scaled u)
     def values(self, u: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-        if self.speculative_gradients and self.status(self.to_x(u))[1] == "not evaluated":
+        if self.speculative_gradients and not self.evaluated(self.to_x(u)):
             # A gradient-based optimiser asks for the gradient at nearly every point it
             # evaluates: send the point and its FD stencil as ONE batch (one request wave)
             # instead of two. The values are identical; only the batching changes.
@@ -337,7 +341,7 @@ class IDF(Formulation):
             out.update({k: np.asarray(v, dtype=float) for k, v in res.outputs.items() if k in specs[name].outputs})
             for i in np.flatnonzero(~np.asarray(res.ok)):
                 if ok[i]:
-                    ok[i], errors[i] = False, res.error or f"{name}: failed"
+                    ok[i], errors[i] = False, res.message(int(i), int(i), name)
         f = out[self.problem.objective]
         g = self.problem.g(out)
         n_dv = len(self.problem.names)

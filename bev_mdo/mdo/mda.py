@@ -40,7 +40,6 @@ them per step instead of per MDA. docs/derivatives.md has the reasons and the fi
 """
 from __future__ import annotations
 
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -54,7 +53,6 @@ from bev_mdo.mdo.vectors import base_name
 
 METHODS = ("gauss_seidel", "jacobi", "newton")
 FD_STEP = 1e-7  # relative forward-difference step of a Newton Jacobian column without analytic partials
-_POINT = re.compile(r"at point (\d+)")
 
 
 @dataclass
@@ -150,18 +148,18 @@ class MDA:
 
     def _store_rows(self, name: str, res, local: np.ndarray, values: dict, rows: np.ndarray, ok: np.ndarray,
                     errors: list[str]) -> None:
-        """Like _store for the entries ``local`` of a result (error texts keep their point numbers)."""
-        msgs = _split_errors(res.error)
+        """Like _store for the entries ``local`` of a result."""
         sub = EvalResult({o: np.asarray(res.outputs[o], dtype=float)[local] for o in self.specs[name].outputs},
                          np.asarray(res.ok, dtype=bool)[local], "")
         before = ok[rows].copy()
         self._store(name, sub, values, rows, ok, errors)
         for q in np.flatnonzero(before & ~ok[rows]):
-            errors[rows[q]] = msgs.get(int(local[q]), res.error or f"{name}: failed")
+            errors[rows[q]] = res.message(int(local[q]), int(rows[q]), name)
 
     def _store(self, name: str, res, values: dict, rows: np.ndarray, ok: np.ndarray, errors: list[str],
-               relax: bool = False) -> None:
-        """Write one discipline's result for ``rows`` into ``values``; mark its failed points."""
+               relax: bool = False, points: np.ndarray | None = None) -> None:
+        """Write one discipline's result for ``rows`` into ``values``; mark its failed points
+        (named by ``points``, the batch's indices of ``rows``, when those are local)."""
         good = np.asarray(res.ok, dtype=bool)
         for v in self.specs[name].outputs:
             new = np.asarray(res.outputs[v], dtype=float)
@@ -170,12 +168,12 @@ class MDA:
                 new = np.where(np.isfinite(old), old + self.relaxation * (new - old), new)
             values[v][rows] = new
         if not good.all():
-            msgs = _split_errors(res.error)
+            points = rows if points is None else points
             for local in np.flatnonzero(~good):
                 i = rows[local]
                 if ok[i]:
                     ok[i] = False
-                    errors[i] = msgs.get(int(local), res.error or f"{name}: failed")
+                    errors[i] = res.message(int(local), int(points[local]), name)
 
     # --------------------------------------------------------------------- run
     def run(self, inputs: Mapping[str, np.ndarray], partials: bool = False) -> MDAResult:
@@ -433,9 +431,10 @@ class MDA:
                 nb = 1 if plan is None else 1 + len(plan[0])
                 Y = {o: np.asarray(res.outputs[o], dtype=float).reshape(nb, n) for o in m_outs}
                 OK = np.asarray(res.ok, dtype=bool).reshape(nb, n)
-                base = EvalResult({o: Y[o][0] for o in m_outs}, OK[0], res.error)
+                base = EvalResult({o: Y[o][0] for o in m_outs}, OK[0], res.error,
+                                  point_errors={j: e for j, e in res.point_errors.items() if j < n})
                 ok_local, errs = np.ones(n, dtype=bool), [""] * n
-                self._store(m, base, F, np.arange(n), ok_local, errs)
+                self._store(m, base, F, np.arange(n), ok_local, errs, points=active)
                 for j in np.flatnonzero(~ok_local):
                     if ok[active[j]]:
                         ok[active[j]] = False
@@ -512,13 +511,3 @@ class MDA:
             ok[i] = False
             errors[i] = (f"MDA loop {list(comp)} did not converge in {self.max_iterations} "
                          f"newton iterations (relative change {e:.3g} > tolerance {self.tolerance:g})")
-
-
-def _split_errors(text: str) -> dict[int, str]:
-    """Map 'at point i' messages of an EvalResult error text to local row indices."""
-    out: dict[int, str] = {}
-    for part in text.split("; "):
-        m = _POINT.search(part)
-        if m:
-            out.setdefault(int(m.group(1)), part)
-    return out

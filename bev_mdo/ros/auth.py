@@ -5,7 +5,7 @@ With ``ros.sign_key_file`` set, every EvaluationRequest and EvaluationResult car
 ``signature = hex(HMAC-SHA256(key, canonical bytes))``. The canonical bytes are a
 fixed, length-prefixed encoding of every field the receiver acts on (run id,
 evaluation id, attempt, discipline, names, batch size, the float64 values as
-little-endian bytes, status / error / point_ok for results) and the header stamp.
+little-endian bytes, status / error / point_ok / point errors for results) and the header stamp.
 
 A receiver drops and counts a message that is
 - ``unsigned``: no signature;
@@ -130,6 +130,11 @@ def result_bytes(msg) -> bytes:
     for name in msg.flow:
         _s(out, name)
     _named(out, msg.partials)
+    points = np.asarray(getattr(msg, "error_points", ()), dtype="<u4")  # a bag's older schema has none
+    out.append(struct.pack("<I", points.size))
+    out.append(points.tobytes())
+    _texts(out, getattr(msg, "error_reasons", ()))
+    _texts(out, getattr(msg, "error_inputs", ()))
     return b"".join(out)
 
 

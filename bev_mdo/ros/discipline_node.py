@@ -336,6 +336,7 @@ class DisciplineNode(Node):
         self._fill_header(out, req)
         out.status = EvaluationResult.STATUS_OK if result.ok.all() else EvaluationResult.STATUS_ERROR
         out.error = result.error[:4000]
+        wire.put_point_errors(out, result.point_errors)
         out.point_ok = np.asarray(result.ok, dtype=bool)
         out.outputs = wire.batch({**result.outputs, **forward} if forward else result.outputs)
         out.flow = list(flow_names)

@@ -36,7 +36,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from bev_mdo.mdo import flow
-from bev_mdo.mdo.discipline import EvalResult, finite_rows
+from bev_mdo.mdo.discipline import EvalResult, finite_rows, join_errors
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.ros import binding, pool as pools, wire
@@ -443,7 +443,12 @@ class RosEvaluator:
                 return
             outs = {k: np.array(outputs[k]) for k in want}
             ok = ok & finite_rows(list(outs.values()), p.n)
-            res = EvalResult(outs, ok, msg.error, float(msg.compute_time_s))
+            try:
+                why = wire.point_errors_of(msg, p.n)
+            except wire.WireError:
+                self.dropped["malformed"] += 1
+                return
+            res = EvalResult(outs, ok, msg.error, float(msg.compute_time_s), point_errors=why)
             if p.request.partials:
                 try:
                     part = wire.partials_of(msg.partials, p.n)
@@ -594,9 +599,8 @@ class RosEvaluator:
             keys = spec.outputs if spec else tuple(parts[0][2].outputs)
             outs = {k: np.concatenate([np.asarray(r.outputs[k], dtype=float) for _, _, r in parts]) for k in keys}
             ok = np.concatenate([np.asarray(r.ok, dtype=bool) for _, _, r in parts])
-            errors = [flow._renumber(r, np.arange(a, a + r.ok.size)).error for a, _, r in parts if r.error]
-            res = EvalResult(outs, ok, "; ".join(dict.fromkeys(errors)),
-                             float(sum(r.compute_time_s for _, _, r in parts)))
+            error, why = join_errors((a, r) for a, _, r in parts)
+            res = EvalResult(outs, ok, error, float(sum(r.compute_time_s for _, _, r in parts)), point_errors=why)
             if partials and all("partials" in r.extra for _, _, r in parts):
                 pk = parts[0][2].extra["partials"].keys()
                 res.extra["partials"] = {k: np.concatenate([np.asarray(r.extra["partials"][k]) for _, _, r in parts])
@@ -847,9 +851,9 @@ class RosEvaluator:
             keys = spec.outputs if spec else tuple(parts[0][1].outputs)
             outs = {k: np.concatenate([np.asarray(r.outputs[k], dtype=float) for _, r in parts]) for k in keys}
             ok = np.concatenate([np.asarray(r.ok, dtype=bool) for _, r in parts])
-            errors = list(dict.fromkeys(r.error for _, r in parts if r.error))
-            self._results[index] = EvalResult(outs, ok, "; ".join(errors),
-                                              float(sum(r.compute_time_s for _, r in parts)))
+            error, why = join_errors(parts)
+            self._results[index] = EvalResult(outs, ok, error, float(sum(r.compute_time_s for _, r in parts)),
+                                              point_errors=why)
         self._parts = {}
         self._batches = {}
 

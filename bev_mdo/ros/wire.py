@@ -10,6 +10,7 @@ from typing import Mapping
 
 import numpy as np
 
+from bev_mdo.mdo.discipline import PointError
 from bev_mdo.mdo.vectors import is_variable_name, partial_name, split_partial_name
 from bev_mdo_msgs.msg import NamedArray
 
@@ -82,6 +83,7 @@ _STAMP = struct.Struct("<iI")
 _U64X2 = struct.Struct("<QQ")
 _U32X2 = struct.Struct("<II")
 _F64 = struct.Struct("<d")
+_U32X3 = struct.Struct("<III")
 
 
 class Stamp:
@@ -129,7 +131,8 @@ class Result:
     """bev_mdo_msgs/EvaluationResult, field for field (``point_ok`` a bool numpy array)."""
 
     __slots__ = ("header", "run_id", "evaluation_id", "sequence", "discipline", "instance", "status", "error",
-                 "point_ok", "outputs", "compute_time_s", "flow", "signature", "partials")
+                 "point_ok", "outputs", "compute_time_s", "flow", "signature", "partials",
+                 "error_points", "error_reasons", "error_inputs")
 
     def __init__(self):
         self.header = Header()
@@ -141,6 +144,29 @@ class Result:
         self.flow: list[str] = []
         self.signature = ""
         self.partials = Batch()
+        self.error_points: list[int] = []
+        self.error_reasons: list[str] = []
+        self.error_inputs: list[str] = []
+
+
+MAX_REASON_LEN = 1000  # characters of one point error's reason (and of its inputs) sent
+
+
+def put_point_errors(m, point_errors: Mapping[int, PointError]) -> None:
+    """Fill a result's ``error_points/_reasons/_inputs`` from {point index: PointError}."""
+    m.error_points = [int(i) for i in point_errors]
+    m.error_reasons = [e.reason[:MAX_REASON_LEN] for e in point_errors.values()]
+    m.error_inputs = [e.inputs[:MAX_REASON_LEN] for e in point_errors.values()]
+
+
+def point_errors_of(m, n: int) -> dict[int, PointError]:
+    """{point index: PointError} of a result of n points; WireError when the fields disagree."""
+    points, reasons, inputs = list(m.error_points), list(m.error_reasons), list(m.error_inputs)
+    if not len(points) == len(reasons) == len(inputs):
+        raise WireError(f"{len(points)} error points, {len(reasons)} reasons, {len(inputs)} inputs")
+    if any(not 0 <= int(i) < n for i in points) or len(set(points)) != len(points):
+        raise WireError(f"error points outside the batch of {n} or repeated")
+    return {int(i): PointError(r, x) for i, r, x in zip(points, reasons, inputs)}
 
 
 def partials_batch(partials: Mapping[tuple[str, str], np.ndarray] | None, n: int) -> Batch:
@@ -271,7 +297,32 @@ def encode_result(m) -> bytes:
     o.put(_cdr_texts(m.flow), 4)
     o.text(m.signature)
     o.named(m.partials)
+    _put_errors(o, m)
     return o.done()
+
+
+def _plain_texts(items) -> bytes:
+    """A CDR sequence of strings from a 4-aligned offset, not cached (error texts vary)."""
+    out = bytearray(_U32.pack(len(items)))
+    for s in items:
+        out += _PAD[-len(out) % 4]
+        e = s.encode("utf-8")
+        out += _U32.pack(len(e) + 1) + e + b"\x00"
+    return bytes(out)
+
+
+_NO_ERRORS = bytes(12)  # three empty sequences (error_points, error_reasons, error_inputs)
+
+
+def _put_errors(o: _Out, m) -> None:
+    """The point-error fields (error_points, error_reasons, error_inputs) of a result."""
+    points = m.error_points
+    if not len(points):  # the common case: every point evaluated
+        o.put(_NO_ERRORS, 4)
+        return
+    o.put(_U32.pack(len(points)) + np.asarray(points, dtype="<u4").tobytes(), 4)
+    o.put(_plain_texts(list(m.error_reasons)), 4)
+    o.put(_plain_texts(list(m.error_inputs)), 4)
 
 
 # Decoding. ``data`` is a memoryview of the payload (offsets count from after the encapsulation
@@ -391,8 +442,33 @@ def decode_result(data) -> Result:
     (m.compute_time_s,) = _F64.unpack_from(data, pos)
     m.flow, pos = _strings(data, pos + 8, MAX_NAMES)
     m.signature, pos = _string(data, pos)
-    m.partials = _named(data, pos)[0]
+    m.partials, pos = _named(data, pos)
+    pos += -pos % 4
+    if len(data) - pos == 12 and _U32X3.unpack_from(data, pos) == (0, 0, 0):  # the common case: no point error
+        m.error_points, m.error_reasons, m.error_inputs = [], [], []
+        return m
+    (count,) = _U32.unpack_from(data, pos)
+    pos += 4
+    if count > MAX_BATCH or pos + 4 * count > len(data):
+        raise WireError(f"{count} error points")
+    m.error_points = np.frombuffer(data, dtype="<u4", count=count, offset=pos).tolist()
+    m.error_reasons, pos = _plain_strings(data, pos + 4 * count)
+    m.error_inputs, pos = _plain_strings(data, pos)
     return m
+
+
+def _plain_strings(data, pos: int) -> tuple[list[str], int]:
+    """A CDR sequence of strings, decoded without the name cache (error texts vary)."""
+    pos += -pos % 4
+    (count,) = _U32.unpack_from(data, pos)
+    if count * 4 > len(data) - pos - 4:
+        raise WireError(f"sequence of {count} strings")
+    pos += 4
+    out = []
+    for _ in range(count):
+        text, pos = _string(data, pos)
+        out.append(text)
+    return out, pos
 
 
 def fill_iteration_record(msg, rec: Mapping, run_id: str, sequence: int):

@@ -64,3 +64,25 @@ def test_without_a_jacobian_the_violation_is_still_named():
     a = analyse(PROBLEM, {"motor_kw": 80.0, "battery_kwh": 30.0}, {"range_km": 248.0, "accel_time_0_100_s": 9.0})
     assert "blocked_by" not in a["violated"][0]
     assert summary_lines(a)[0].startswith("violated: range_km >= 250 km")
+
+
+def test_answers_for_builds_the_disciplines_only_for_a_jacobian():
+    """The engine does not read the application config: the caller gives the disciplines, or a
+    function building them, called only when a violated end needs the Jacobian."""
+    from bev_mdo.config import load_config, resolve_disciplines
+    from bev_mdo.mdo.active import answers_for
+    from bev_mdo.testing import REPO
+
+    cfg = load_config(REPO / "config" / "leaf_nedc.yaml")
+    built = []
+
+    def build():
+        built.append(1)
+        return resolve_disciplines(cfg)
+
+    design = {"motor_kw": 80.0, "gear_ratio": 8.0, "battery_kwh": 24.0}
+    fine = {"range_km": 200.0, "accel_time_0_100_s": 9.0, "motor_speed_max_rad_s": 100.0}
+    assert answers_for(cfg, design, fine, build)["violated"] == [] and built == []
+    short = answers_for(cfg, design, {**fine, "range_km": 10.0}, build)
+    assert built == [1] and "jacobian_error" not in short
+    assert [v["name"] for v in short["violated"]] == ["range_km"]

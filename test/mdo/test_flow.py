@@ -7,45 +7,7 @@ from bev_mdo.mdo.discipline import Discipline
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 from bev_mdo.mdo.mda import MDA
 from bev_mdo.testing import REPO
-
-
-class Square(Discipline):
-    """y = x^2; fails (raises) where x < 0."""
-    name, inputs, outputs = "square", ("x",), ("y",)
-
-    def compute(self, inputs):
-        if (inputs["x"] < 0).any():
-            raise ValueError("x must be >= 0")
-        return {"y": inputs["x"] ** 2}
-
-
-class Plus(Discipline):
-    """w = y + z; NaN where z > 5."""
-    name, inputs, outputs = "plus", ("y", "z"), ("w",)
-    parameters = {"offset": 0.0}
-
-    def compute(self, inputs):
-        w = inputs["y"] + inputs["z"] + inputs.get("offset", 0.0)
-        return {"w": np.where(inputs["z"] > 5, np.nan, w)}
-
-
-class Half(Discipline):
-    name, inputs, outputs = "half", ("w",), ("v",)
-
-    def compute(self, inputs):
-        return {"v": 0.5 * inputs["w"]}
-
-
-class Side(Discipline):
-    """Independent of the others: u = 2 x."""
-    name, inputs, outputs = "side", ("x",), ("u",)
-
-    def compute(self, inputs):
-        return {"u": 2 * inputs["x"]}
-
-
-def chain():
-    return [Square(), Plus(), Half(), Side()]
+from flow_toys import chain  # test/mdo is on sys.path (conftest.py)
 
 
 X = {"x": np.array([1.0, -1.0, 2.0, 3.0, 4.0]), "z": np.array([0.0, 0.0, 9.0, 1.0, 2.0])}

@@ -94,13 +94,15 @@ def test_result_fields_are_covered():
     res = EvaluationResult()
     stamp(res.header)
     res.run_id, res.evaluation_id, res.discipline, res.instance = "r1", 3, "energy", "/energy_node"
-    res.point_ok = [True]
-    wire.to_named_array({"energy_wh_per_km": np.array([120.0])}, res.outputs)
+    res.point_ok = [True, False]
+    wire.to_named_array({"energy_wh_per_km": np.array([120.0, np.nan])}, res.outputs)
+    res.error_points, res.error_reasons, res.error_inputs = [1], ["energy: ValueError: no"], ["v=1"]
     s.sign_result(res)
-    for field, value in (("status", 1), ("error", "x"), ("point_ok", [False]), ("compute_time_s", 1.0)):
+    for field, value in (("status", 1), ("error", "x"), ("point_ok", [False, False]), ("compute_time_s", 1.0),
+                         ("error_points", [0]), ("error_reasons", ["energy: ok really"]), ("error_inputs", ["v=2"])):
         r2 = EvaluationResult()
         for f in ("header", "run_id", "evaluation_id", "discipline", "instance", "point_ok", "outputs",
-                  "signature", "status", "error", "compute_time_s"):
+                  "signature", "status", "error", "compute_time_s", "error_points", "error_reasons", "error_inputs"):
             setattr(r2, f, getattr(res, f))
         setattr(r2, field, value)
         assert s.verify_result(r2) == "forged", field

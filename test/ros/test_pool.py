@@ -117,6 +117,21 @@ def test_batch_is_split_among_instances_and_joined_in_order(evaluator):
     assert all(s["throughput_points_per_s"] > 0 and s["failures"] == 0 for s in summary.values())
 
 
+def test_failed_points_of_shares_are_named_by_their_index_in_the_batch(evaluator):
+    """Each instance numbers the rows of its own share; the joined result names the batch's points."""
+    evaluator.wait_for_instances("wait", 3, 60.0)
+    batch = _batch(300, seed=3)
+    bad = [5, 150, 299]
+    batch["gear_ratio"][bad] = np.nan
+    res = evaluator.evaluate([("wait", batch)])[0]
+    assert len({a[2] for a in evaluator.accepted if a[1] == "wait"}) > 1  # the batch was split
+    assert np.flatnonzero(~res.ok).tolist() == bad
+    assert sorted(res.point_errors) == bad
+    for i in bad:
+        assert res.point_errors[i].reason == "wait: non-finite input"
+        assert f"wait: non-finite input at point {i} (" in res.error
+
+
 def test_shares_go_only_to_their_instance(rclpy_context, evaluator):
     evaluator.wait_for_instances("wait", 3, 60.0)
     listener = NodeStatsListener(rclpy.create_node("pool_stats", context=rclpy_context))

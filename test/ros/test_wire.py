@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 
+from bev_mdo.mdo.discipline import PointError  # noqa: E402
 from bev_mdo.ros import wire  # noqa: E402
 from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult  # noqa: E402
 
@@ -54,20 +55,23 @@ def test_request_round_trips_both_ways(sec, nsec, frame, run, eid, seq, it, att,
 @settings(max_examples=150, deadline=None)
 @given(sec=st.integers(-2**31, 2**31 - 1), nsec=u32, run=text, eid=u64, seq=u64, disc=text, inst=text,
        status=st.integers(0, 255), err=text, ok=st.lists(st.booleans(), max_size=7), cols=columns(),
-       t=floats, flow=st.lists(text, max_size=4), sig=text)
-def test_result_round_trips_both_ways(sec, nsec, run, eid, seq, disc, inst, status, err, ok, cols, t, flow, sig):
+       t=floats, flow=st.lists(text, max_size=4), sig=text, why=st.lists(st.tuples(u32, text, text), max_size=4))
+def test_result_round_trips_both_ways(sec, nsec, run, eid, seq, disc, inst, status, err, ok, cols, t, flow, sig,
+                                      why):
     m = EvaluationResult()
     _fill_header(m, sec, nsec, "")
     m.run_id, m.evaluation_id, m.sequence, m.discipline, m.instance = run, eid, seq, disc, inst
     m.status, m.error, m.point_ok = status, err, ok
     m.outputs.names, m.outputs.batch_size, m.outputs.values = cols[0], cols[1], array.array("d", cols[2])
     m.compute_time_s, m.flow, m.signature = t, flow, sig
+    m.error_points, m.error_reasons, m.error_inputs = [w[0] for w in why], [w[1] for w in why], [w[2] for w in why]
     d = wire.decode_result(serialize_message(m))
     assert (d.run_id, d.evaluation_id, d.sequence, d.discipline, d.instance, d.status, d.error) == (
         run, eid, seq, disc, inst, status, err)
     assert d.point_ok.tolist() == ok and d.outputs.names == cols[0] and d.outputs.batch_size == cols[1]
     np.testing.assert_array_equal(d.outputs.values, cols[2])
     assert (d.compute_time_s, d.flow, d.signature) == (t, flow, sig)
+    assert list(zip(d.error_points, d.error_reasons, d.error_inputs)) == why
     assert deserialize_message(wire.encode_result(d), EvaluationResult) == m
 
 
@@ -92,3 +96,17 @@ def test_truncated_or_foreign_bytes_raise_wire_error(cut):
         wire.decode_request(b"\x01\x00\x00\x00" + data[4:])  # big-endian encapsulation is not ours
     with pytest.raises(wire.WireError):
         wire.decode_result(data[:cut])
+
+
+def test_point_errors_travel_as_fields_and_are_checked():
+    res = wire.Result()
+    res.point_ok = np.array([True, False, False])
+    res.outputs = wire.batch({"y": np.array([1.0, np.nan, np.nan])})
+    why = {2: PointError("square: ValueError: x must be >= 0", "x=-1"), 1: PointError("square: non-finite input")}
+    wire.put_point_errors(res, why)
+    got = wire.point_errors_of(wire.decode_result(wire.encode_result(res)), 3)
+    assert got == why and list(got) == [2, 1]  # order kept: the error text lists them in that order
+    for points, reasons in (([3], ["a"]), ([1, 1], ["a", "b"]), ([1], [])):
+        res.error_points, res.error_reasons, res.error_inputs = points, reasons, [""] * len(reasons)
+        with pytest.raises(wire.WireError):
+            wire.point_errors_of(wire.decode_result(wire.encode_result(res)), 3)

@@ -1,10 +1,10 @@
 """The end of a ROS run waits for no dead node (issue 19): when the coordinator's final wait for
-acknowledgements may stop (optimize._acks_needless) and Launcher.died_within, without processes."""
+acknowledgements may stop (sessions.acks_needless) and Launcher.died_within, without processes."""
 from __future__ import annotations
 
 import time
 
-from bev_mdo.cli import optimize
+from bev_mdo import sessions
 from bev_mdo.ros.launch import Launcher, NodeProcess
 
 
@@ -24,13 +24,13 @@ def _launcher(recorder_died=None, restarted_at=()):
 
 
 def test_the_wait_ends_at_once_when_the_recorder_is_dead():
-    assert optimize._acks_needless(_launcher(recorder_died=-9))()
+    assert sessions.acks_needless(_launcher(recorder_died=-9))()
 
 
 def test_the_wait_goes_on_while_every_node_lives(monkeypatch):
     clock = _Clock()
-    monkeypatch.setattr(optimize.time, "monotonic", clock)
-    needless = optimize._acks_needless(_launcher())
+    monkeypatch.setattr(sessions.time, "monotonic", clock)
+    needless = sessions.acks_needless(_launcher())
     for _ in range(5):
         assert not needless()
         clock.t += 10.0
@@ -38,12 +38,12 @@ def test_the_wait_goes_on_while_every_node_lives(monkeypatch):
 
 def test_a_node_that_died_within_the_lease_ends_the_wait_after_the_grace(monkeypatch):
     clock = _Clock()
-    monkeypatch.setattr(optimize.time, "monotonic", clock)
-    needless = optimize._acks_needless(_launcher(restarted_at=[clock.t - 0.5]))  # (time.monotonic is patched)
+    monkeypatch.setattr(sessions.time, "monotonic", clock)
+    needless = sessions.acks_needless(_launcher(restarted_at=[clock.t - 0.5]))  # (time.monotonic is patched)
     assert not needless()              # a live recorder gets its grace to acknowledge
-    clock.t += optimize.ACK_GRACE_S
+    clock.t += sessions.ACK_GRACE_S
     assert needless()
-    clock.t += optimize.LEASE_S + optimize.ACK_GRACE_S  # the dead reader's lease is long over: wait again
+    clock.t += sessions.LEASE_S + sessions.ACK_GRACE_S  # the dead reader's lease is long over: wait again
     assert not needless()
 
 

@@ -1,0 +1,69 @@
+"""Typed settings of a run's engine sections (``mda:``, ``optimizer:``), defaults defined once.
+
+``config.py`` validates the sections of a config against these (its ``MDA_DEFAULTS`` and
+``OPTIMIZER_DEFAULTS`` are these defaults) and fills every key in; the driver reads a resolved
+config's sections through ``MDASettings.of`` / ``OptimizerSettings.of``, which take the section as
+it is: no default is applied a second time, and a section that is not resolved (a key missing,
+one too many) raises instead of being guessed at.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+# Largest violation of a normalised constraint (and of an IDF consistency equality) that counts as
+# feasible. Constraints are normalised by their scale (default max(|bound|, 1)), so this is relative
+# to the bound for bounds of magnitude >= 1 and absolute below. 1e-4 is GEMSEO's default
+# (ineq_tolerance / eq_tolerance).
+FEASIBILITY_TOL = 1e-4
+
+
+def _of(cls, section: Mapping[str, Any] | None, where: str):
+    if not isinstance(section, Mapping):
+        raise ValueError(f"{where}: a resolved section is a mapping (load the config with config.load_config)")
+    names = [f.name for f in fields(cls)]
+    missing = [k for k in names if k not in section]
+    unknown = sorted(set(section) - set(names))
+    if missing or unknown:
+        raise ValueError(f"{where}: not a resolved section (missing {missing}, unknown {unknown}); "
+                         "load the config with config.load_config")
+    return cls(**{k: section[k] for k in names})
+
+
+@dataclass(frozen=True)
+class MDASettings:
+    """The ``mda:`` section (mda.py's MDA takes these as keywords)."""
+
+    method: str = "gauss_seidel"
+    tolerance: float = 1.0e-10
+    max_iterations: int = 100
+    relaxation: float = 1.0
+    warm_start: bool | str = "auto"   # mda.py: auto = on for newton only
+    fuse_downstream: bool = False
+
+    @classmethod
+    def of(cls, section: Mapping[str, Any] | None) -> "MDASettings":
+        return _of(cls, section, "mda")
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class OptimizerSettings:
+    """The ``optimizer:`` section."""
+
+    name: str = "SLSQP"
+    options: Mapping[str, Any] = field(default_factory=dict)
+    fd_step: float = 1.0e-6
+    fd_scheme: str = "forward"
+    feasibility_tolerance: float = FEASIBILITY_TOL
+    derivatives: str = "auto"
+
+    @classmethod
+    def of(cls, section: Mapping[str, Any] | None) -> "OptimizerSettings":
+        return _of(cls, section, "optimizer")
+
+    def as_dict(self) -> dict:
+        return asdict(self)

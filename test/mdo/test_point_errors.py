@@ -1,0 +1,57 @@
+"""Per-point errors are data (EvalResult.point_errors: point index -> PointError), never text read
+back: a failing point among several is named by its index in the caller's batch on every path
+(one call, data flow, waves, a loop on fewer rows, Newton, shares joined)."""
+import numpy as np
+import pytest
+
+from bev_mdo.mdo.discipline import EvalResult, PointError, join_errors, run_discipline
+from bev_mdo.mdo.evaluator import InProcessEvaluator
+from bev_mdo.mdo.mda import MDA
+from flow_toys import LOOP_X, Square, chain, loop  # test/mdo is on sys.path (conftest.py)
+
+X = {"x": np.array([1.0, -1.0, 2.0, 3.0, 4.0]), "z": np.array([0.0, 0.0, 9.0, 1.0, 2.0])}
+
+
+def test_one_call_names_each_failed_point_by_its_index():
+    res = run_discipline(Square(), {"x": np.array([1.0, -2.0, 3.0, -4.0])})
+    assert res.ok.tolist() == [True, False, True, False]
+    assert res.point_errors == {1: PointError("square: ValueError: x must be >= 0", "x=-2"),
+                                3: PointError("square: ValueError: x must be >= 0", "x=-4")}
+    assert res.error == ("square: ValueError: x must be >= 0 at point 1 (x=-2); "
+                         "square: ValueError: x must be >= 0 at point 3 (x=-4)")
+
+
+def test_a_renumbered_result_moves_its_point_errors_and_text():
+    res = run_discipline(Square(), {"x": np.array([1.0, -2.0])}).renumbered(np.array([5, 9]))
+    assert list(res.point_errors) == [9] and res.error == "square: ValueError: x must be >= 0 at point 9 (x=-2)"
+
+
+def test_shares_joined_keep_their_points_in_the_whole_batch():
+    a = run_discipline(Square(), {"x": np.array([-1.0, 1.0])})
+    b = run_discipline(Square(), {"x": np.array([2.0, -3.0])})
+    hung = EvalResult({"y": np.full(2, np.nan)}, np.zeros(2, bool), "square: no answer")
+    text, why = join_errors([(0, a), (2, b), (4, hung), (6, hung)])
+    assert list(why) == [0, 3] and why[3].inputs == "x=-3"
+    assert text == ("square: ValueError: x must be >= 0 at point 0 (x=-1); "
+                    "square: ValueError: x must be >= 0 at point 3 (x=-3); square: no answer")
+
+
+@pytest.mark.parametrize("data_flow", [True, False])
+def test_a_feed_forward_mda_names_points_by_batch_index(data_flow):
+    res = MDA(InProcessEvaluator(chain()), data_flow=data_flow).run(X)
+    assert res.ok.tolist() == [True, False, False, True, True]
+    assert res.errors[1] == "square: ValueError: x must be >= 0 at point 1 (x=-1)"
+    # plus evaluates 4 rows (point 1 failed upstream); its third row is the batch's point 2
+    assert res.errors[2] == "plus: non-finite output ['w'] at point 2 (y=4, z=9)"
+    assert res.errors[0] == res.errors[3] == res.errors[4] == ""
+
+
+@pytest.mark.parametrize("method", ["gauss_seidel", "jacobi", "newton"])
+def test_a_loop_on_fewer_rows_names_the_batch_point(method):
+    res = MDA(InProcessEvaluator(loop()), method=method).run(LOOP_X)
+    assert res.ok.tolist() == [False, True, False, False]
+    assert res.errors[0].startswith("pre: non-finite output ['a'] at point 0")
+    # the loop ran on rows [1, 2]: its failure at the second row is point 2 of the batch
+    assert res.errors[2] == "loop_a: ValueError: a must be <= 5 at point 2 (a=7, y2=1)", res.errors[2]
+    assert res.errors[3] == "loop_a: ValueError: a must be <= 5 at point 3 (a=8, y2=1)", res.errors[3]
+    assert res.values["y1"][1] == pytest.approx(4.0 / 3.0)
