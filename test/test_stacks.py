@@ -27,3 +27,26 @@ def test_sigusr1_prints_every_threads_stack_and_the_process_goes_on():
     out, err = p.communicate("go\n", timeout=30)
     assert p.returncode == 0 and out.strip() == "done"
     assert "waiting_here" in err and "Thread" in err
+
+
+def test_a_node_stuck_past_sigint_gets_its_stacks_dumped_before_sigterm():
+    """The launcher's stop: a process that ignores SIGINT is stuck; its stack lands in its log (stderr)
+    before SIGTERM ends it, so a hung node can be diagnosed after the run."""
+    from bev_mdo.ros.launch import _stop_procs
+
+    code = "\n".join([
+        "import signal, time",
+        "from bev_mdo.stacks import dump_stacks_on_sigusr1",
+        "dump_stacks_on_sigusr1()",
+        "signal.signal(signal.SIGINT, signal.SIG_IGN)",
+        "print('ready', flush=True)",
+        "def stuck_here():",
+        "    time.sleep(60)",
+        "stuck_here()"])
+    p = subprocess.Popen([sys.executable, "-c", code], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True)
+    assert p.stdout.readline().strip() == "ready"
+    _stop_procs([p], 0.5)
+    _, err = p.communicate(timeout=30)
+    assert p.returncode == -signal.SIGTERM
+    assert "stuck_here" in err

@@ -6,6 +6,7 @@ that dies while the run is on. `stop()` sends SIGINT, then SIGTERM, then SIGKILL
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -65,11 +66,17 @@ def discipline_argv(name: str, config_path: str, instance: str = "", run_id: str
 
 
 def _stop_procs(procs, timeout_s: float) -> None:
-    """SIGINT, then SIGTERM, then SIGKILL, waiting for each step."""
+    """SIGINT, then SIGTERM, then SIGKILL, waiting for each step. A process still alive after SIGINT is
+    stuck: it first gets SIGUSR1, so every thread's stack lands in its log (bev_mdo/stacks.py)."""
     for sig, wait in ((signal.SIGINT, timeout_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
         alive = [p for p in procs if p is not None and p.poll() is None]
         if not alive:
             break
+        if sig == signal.SIGTERM:
+            for p in alive:
+                with contextlib.suppress(ProcessLookupError):
+                    p.send_signal(signal.SIGUSR1)
+            time.sleep(0.2)
         for p in alive:
             try:
                 p.send_signal(sig)
