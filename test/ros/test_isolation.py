@@ -203,6 +203,16 @@ def _summary(out: str) -> str:
                                                 "discipline_errors", "fd_failures", "refused_instances")})
 
 
+def _unready(run_dir) -> str:
+    """The logs of the runs' nodes that never said they serve (with the stacks the launcher dumps)."""
+    out = []
+    for log in sorted(run_dir.glob("bags/*/logs/*.log")):
+        text = log.read_text(errors="replace")
+        if "serving" not in text:
+            out.append(f"--- {log.relative_to(run_dir)} (never served)\n{text[-3000:]}")
+    return "\n".join(out)
+
+
 def test_concurrent_cli_runs_are_bound_to_their_run_and_signed(configs, references, suites, ros_domain,
                                                                 tmp_path):
     """Three `bev-mdo optimize` at once on the crowded domain: each launches its own nodes (bound to its
@@ -224,7 +234,7 @@ def test_concurrent_cli_runs_are_bound_to_their_run_and_signed(configs, referenc
             except subprocess.TimeoutExpired:
                 p.kill()
                 out, err = p.communicate()
-        assert p.returncode == 0, f"{name}: exit {p.returncode}\n{_summary(out)}\n" + "\n".join(
+        assert p.returncode == 0, f"{name}: exit {p.returncode}\n{_summary(out)}\n{_unready(tmp_path)}\n" + "\n".join(
             line for line in err.splitlines() if "refused '" not in line)[-6000:]
         outs[name] = json.loads(out)
     unsigned = 0
