@@ -327,6 +327,7 @@ def main() -> int:
     ap.add_argument("--wait-ms", type=float, default=1.0, help="wait per design of the test discipline")
     ap.add_argument("--instances", default="1,2,4,8")
     ap.add_argument("--batches", default="64,256,1024")
+    ap.add_argument("--json", default=str(RESULTS), help="results file (updated: other parts are kept)")
     args = ap.parse_args()
     os.environ["ROS_DOMAIN_ID"] = str(args.domain)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -337,7 +338,8 @@ def main() -> int:
     from bev_mdo.testing import ros_env
 
     env = ros_env(args.domain)
-    figures = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
+    results = Path(args.json)
+    figures = json.loads(results.read_text()) if results.exists() else {}
     figures.setdefault("hosts", {})[args.part + ("_waves" if args.pool_waves else "")] = figures["host"] = {"cpus": os.cpu_count(), "load_average_1min": os.getloadavg()[0],
                        "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime())}
     ctx = rclpy.context.Context()
@@ -360,9 +362,9 @@ def main() -> int:
                                       [int(k) for k in args.pareto_instances.split(",")], args.pool_waves)
     finally:
         rclpy.shutdown(context=ctx)
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps(figures, indent=2))
-    print(f"wrote {RESULTS}")
+    results.parent.mkdir(parents=True, exist_ok=True)
+    results.write_text(json.dumps(figures, indent=2))
+    print(f"wrote {results}")
     return 0
 
 
