@@ -207,7 +207,8 @@ def _with_partials(disc: Any, batch: Batch, res: EvalResult, n: int, t0: float) 
             c[good] = col
             full[k] = c
         part = full
-    bad = [k for k, c in part.items() if not np.isfinite(c[good]).all()]
+    bad = [] if m == n and all_finite(part.values()) else [
+        k for k, c in part.items() if not np.isfinite(c[good]).all()]
     if bad:
         raise ShapeError(f"discipline {name!r}: partial d{bad[0][0]}/d{bad[0][1]} is not finite at an evaluated point")
     res.extra["partials"] = part

@@ -36,7 +36,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 
 from bev_mdo import __version__
 from bev_mdo.mdo import flow
-from bev_mdo.mdo.discipline import DisciplineError, run_discipline
+from bev_mdo.mdo.discipline import DisciplineError, all_finite, run_discipline
 from bev_mdo.mdo.vectors import ShapeError
 from bev_mdo.ros import binding, wire
 from bev_mdo.ros.auth import Signer
@@ -358,7 +358,7 @@ class DisciplineNode(Node):
         unknown = [k for k in inputs if k not in self._allowed]
         if unknown:
             return self._reject(req, f"unknown inputs {unknown[:5]}", "unknown_inputs")
-        if not all(np.isfinite(v).all() for v in inputs.values()):
+        if not all_finite(inputs.values()):
             # evaluated anyway: those points fail (point_ok false, named), as in-process
             self.counts["non_finite"] += 1
         try:
