@@ -170,11 +170,20 @@ def partials_of(block, n: int) -> dict[tuple[str, str], np.ndarray] | None:
     values = np.asarray(block.values, dtype=float)
     if values.shape[0] != n * len(names) or len(set(names)) != len(names):
         raise WireError("malformed partials")
-    try:
-        keys = [split_partial_name(k) for k in names]
-    except ValueError as exc:
-        raise WireError(str(exc)) from None
+    key = tuple(names)
+    keys = _PARTIAL_KEYS.get(key)
+    if keys is None:  # the same few name lists come in every result of a run
+        try:
+            keys = [split_partial_name(k) for k in names]
+        except ValueError as exc:
+            raise WireError(str(exc)) from None
+        if len(_PARTIAL_KEYS) >= 4096:
+            _PARTIAL_KEYS.clear()
+        _PARTIAL_KEYS[key] = keys
     return {k: values[j * n:(j + 1) * n] for j, k in enumerate(keys)}
+
+
+_PARTIAL_KEYS: dict[tuple, list] = {}
 
 
 def batch(columns: Mapping[str, np.ndarray]) -> Batch:
