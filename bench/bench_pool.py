@@ -10,7 +10,8 @@
    the ideal split (transport, split and join, the slowest share).
 2. compose: one full MDA of one design over ROS (the data-flow path), p50/p99, with every
    discipline in its own process, with all six composed into ONE process, and in process;
-   the three layouts measured in one run, alternating, --reps rounds of --n MDAs each.
+   the three layouts measured in one run, alternating, --reps rounds of --n MDAs each; each ROS
+   layout on a domain of its own (--domain + 1, + 2), so neither sees the other's traffic.
 Writes bench/results/bench_pool.json.
 """
 from __future__ import annotations
@@ -99,8 +100,13 @@ def scaling(ctx, env, tmp: Path, reps: int, wait_s: float, counts, batches) -> d
     return out
 
 
-def compose(ctx, env, reps: int, n: int) -> dict:
-    import rclpy  # noqa: F401
+def compose(ctx, env, reps: int, n: int, domain: int | None = None) -> dict:
+    """With ``domain``, each layout runs on a domain of its own (``domain`` + 1, + 2) with a context
+    of its own: on one shared domain every data-flow request and result of one layout is also
+    delivered to the other layout's (idle) nodes and coordinator, which inflates both."""
+    import rclpy
+
+    from bev_mdo.testing import ros_env
 
     from bev_mdo.config import load_config, resolve_disciplines
     from bev_mdo.mdo.driver import build_formulation
@@ -114,13 +120,21 @@ def compose(ctx, env, reps: int, n: int) -> dict:
     names = discipline_names(config)
     layouts = {}
     setups = []
-    for layout, spec in (("per_process", "none"), ("composed_one_process", "all")):
-        launcher = Launcher(env)
+    contexts = []
+    for k, (layout, spec) in enumerate((("per_process", "none"), ("composed_one_process", "all"))):
+        if domain is not None:
+            lctx = rclpy.context.Context()
+            rclpy.init(context=lctx, domain_id=domain + 1 + k)
+            contexts.append(lctx)
+            launcher = Launcher(ros_env(domain + 1 + k))
+        else:
+            lctx = ctx
+            launcher = Launcher(env)
         # each layout's nodes serve only their own coordinator's run (else both sets answer every MDA)
         run_id = f"benchpool{layout[:4]}{os.getpid()}"
         for label, argv in plan_processes(names, cfg_path, instance=layout[:4], compose=spec, run_id=run_id):
             launcher.add(label, argv)
-        node = CoordinatorNode(config, run_id=run_id, context=ctx, node_name=f"bench_{layout}")
+        node = CoordinatorNode(config, run_id=run_id, context=lctx, node_name=f"bench_{layout}")
         setups.append((layout, launcher, node))
     try:
         forms = {}
@@ -159,7 +173,10 @@ def compose(ctx, env, reps: int, n: int) -> dict:
             node.evaluator.close()
             node.destroy_node()
             launcher.stop()
-    return {"mdas_per_round": n, "rounds": reps, "layouts": layouts}
+        for lctx in contexts:
+            rclpy.shutdown(context=lctx)
+    return {"mdas_per_round": n, "rounds": reps, "layouts": layouts,
+            "domains": "one per layout" if domain is not None else "shared"}
 
 
 def _artemis(tmp: Path) -> Path:
@@ -327,6 +344,9 @@ def main() -> int:
     ap.add_argument("--wait-ms", type=float, default=1.0, help="wait per design of the test discipline")
     ap.add_argument("--instances", default="1,2,4,8")
     ap.add_argument("--batches", default="64,256,1024")
+    ap.add_argument("--json", default=str(RESULTS), help="results file (updated: other parts are kept)")
+    ap.add_argument("--shared-domain", action="store_true",
+                    help="compose: both layouts on --domain (as before 2026-12-02; they disturb each other)")
     args = ap.parse_args()
     os.environ["ROS_DOMAIN_ID"] = str(args.domain)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -337,7 +357,8 @@ def main() -> int:
     from bev_mdo.testing import ros_env
 
     env = ros_env(args.domain)
-    figures = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
+    results = Path(args.json)
+    figures = json.loads(results.read_text()) if results.exists() else {}
     figures.setdefault("hosts", {})[args.part + ("_waves" if args.pool_waves else "")] = figures["host"] = {"cpus": os.cpu_count(), "load_average_1min": os.getloadavg()[0],
                        "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime())}
     ctx = rclpy.context.Context()
@@ -349,7 +370,8 @@ def main() -> int:
                                              [int(k) for k in args.instances.split(",")],
                                              [int(b) for b in args.batches.split(",")])
             if args.part in ("compose", "all"):
-                figures["compose"] = compose(ctx, env, args.reps, args.n)
+                figures["compose"] = compose(ctx, env, args.reps, args.n,
+                                             None if args.shared_domain else args.domain)
             if args.part in ("energy", "all"):
                 figures["energy"] = energy(ctx, env, Path(tmp), args.reps,
                                            [int(b) for b in args.energy_batches.split(",")])
@@ -360,9 +382,9 @@ def main() -> int:
                                       [int(k) for k in args.pareto_instances.split(",")], args.pool_waves)
     finally:
         rclpy.shutdown(context=ctx)
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps(figures, indent=2))
-    print(f"wrote {RESULTS}")
+    results.parent.mkdir(parents=True, exist_ok=True)
+    results.write_text(json.dumps(figures, indent=2))
+    print(f"wrote {results}")
     return 0
 
 

@@ -186,9 +186,10 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False)
     t0 = time.perf_counter()
     if n == 0:  # a batch of no point (a transport's probe or warm-up): nothing to compute
         return EvalResult({k: np.zeros(0) for k in disc.outputs}, np.zeros(0, dtype=bool))
-    bad_in = ~finite_rows(list(batch.values()), n)
+    # the common case first: every input finite, compute() succeeds, every output finite
+    bad_in = None if all_finite(batch.values()) else ~finite_rows(list(batch.values()), n)
     try:
-        if bad_in.any():
+        if bad_in is not None and bad_in.any():
             raise DisciplineError("non-finite inputs")
         out = _call(disc, batch, n)
     except ShapeError:
@@ -196,10 +197,12 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False)
     except Exception:
         out = None
     if out is not None:
-        finite = finite_rows([out[k] for k in disc.outputs], n)
-        if finite.all():  # the common case: every point evaluated and finite
-            res = EvalResult(out, finite, "", time.perf_counter() - t0)
+        if all_finite([out[k] for k in disc.outputs]):
+            res = EvalResult(out, np.ones(n, dtype=bool), "", time.perf_counter() - t0)
             return _with_partials(disc, batch, res, n, t0) if partials else res
+        finite = finite_rows([out[k] for k in disc.outputs], n)
+    if bad_in is None:
+        bad_in = np.zeros(n, dtype=bool)
     ok = np.ones(n, dtype=bool)
     errors: PointErrors = {}
     if out is None:
@@ -260,7 +263,8 @@ def _with_partials(disc: Any, batch: Batch, res: EvalResult, n: int, t0: float) 
             c[good] = col
             full[k] = c
         part = full
-    bad = [k for k, c in part.items() if not np.isfinite(c[good]).all()]
+    bad = [] if m == n and all_finite(part.values()) else [
+        k for k, c in part.items() if not np.isfinite(c[good]).all()]
     if bad:
         raise ShapeError(f"discipline {name!r}: partial d{bad[0][0]}/d{bad[0][1]} is not finite at an evaluated point")
     res.extra["partials"] = part
@@ -273,6 +277,17 @@ def _column(v: Any) -> np.ndarray:
     # compute() gets its own writable copy on every transport: a column decoded from a message
     # is a read-only view, and in process the caller's arrays must not change under it
     return (a if a.ndim == 1 else np.atleast_1d(a)).copy()
+
+
+_isfinite, _and_all = np.isfinite, np.logical_and.reduce
+
+
+def all_finite(columns) -> bool:
+    """True when every value of every column is finite (columns of any shape)."""
+    for c in columns:
+        if not _and_all(_isfinite(c), axis=None):
+            return False
+    return True
 
 
 def finite_rows(columns: list, n: int) -> np.ndarray:
@@ -289,7 +304,13 @@ def _call(disc: Any, batch: Batch, n: int) -> Batch:
     raw = disc.compute(batch)
     name = getattr(disc, "name", type(disc).__name__)
     out = check_outputs(name, raw, disc.outputs, {}, n, tuple(getattr(disc, "broadcast_outputs", ()) or ()))
+    owned = all(b.base is None for b in batch.values())
     for k, v in out.items():
-        if any(np.may_share_memory(v, b) for b in batch.values()):
-            out[k] = v.copy()  # never hand back (a view of) an input array
+        # never hand back (a view of) an input array; two distinct arrays that each own their
+        # memory cannot overlap, which settles the common case without may_share_memory
+        if owned and v.base is None:
+            if any(v is b for b in batch.values()):
+                out[k] = v.copy()
+        elif any(np.may_share_memory(v, b) for b in batch.values()):
+            out[k] = v.copy()
     return out

@@ -95,6 +95,9 @@ def has_partials(disc: Any) -> bool:
     return callable(getattr(disc, "compute_partials", None)) and bool(getattr(disc, "provides_partials", True))
 
 
+_any_nonzero = np.logical_or.reduce  # NaN counts as nonzero, as in ``col != 0.0``
+
+
 def flat_partials(disc_name: str, raw: Any, sizes: Mapping[str, int], outputs: Sequence[str],
                   inputs: Sequence[str], n: int) -> dict[tuple[str, str], np.ndarray]:
     """Check ``compute_partials``' result and flatten it to {(output element, input element): (n,)}.
@@ -121,6 +124,14 @@ def flat_partials(disc_name: str, raw: Any, sizes: Mapping[str, int], outputs: S
                              f"of its inputs {list(inputs)}")
         so, si = sizes.get(o), sizes.get(i)
         a = np.asarray(value, dtype=float)
+        if so is None and si is None and (a.shape == (n,) or a.shape == (n, 1, 1)):
+            # scalar by scalar (the common case): the same rule as below, without the element loops
+            col = a if a.ndim == 1 else a[:, 0, 0]
+            if _any_nonzero(col, axis=None):
+                flat[(o, i)] = np.array(col)
+            elif not flat and first is None:
+                first = ((o, i), np.array(col))
+            continue
         want = (n, so or 1, si or 1)
         if a.shape == (n,) and so is None and si is None:
             a = a.reshape(want)

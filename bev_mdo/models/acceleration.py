@@ -40,7 +40,8 @@ def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V
     pk = check_design("motor_kw", motor_kw)
     ig = check_design("gear_ratio", gear_ratio)
     m = check_design("vehicle_mass_kg", vehicle_mass_kg)
-    pk, ig, m = np.broadcast_arrays(pk, ig, m)
+    if not pk.shape == ig.shape == m.shape:
+        pk, ig, m = np.broadcast_arrays(pk, ig, m)
     p = get_params(params, ACCEL_PARAMS)
     if rl.uses_road_load(params):
         p.update({k: params.get(k, 0.0) for k in rl.FLAT_KEYS})
@@ -48,17 +49,21 @@ def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V
     v_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0 * p["wheel_radius_m"] / ig
     v1 = np.minimum(v_base, v_end_m_s)
     # One force evaluation for everything: the 24 Gauss nodes of each envelope segment
-    # (0..v1 and v1..v_end), then v_end and v1 for the feasibility check.
-    half = np.stack([0.5 * v1, 0.5 * (v_end_m_s - v1)])                          # (2, N)
-    mid = np.stack([0.5 * v1, 0.5 * (v_end_m_s + v1)])
-    v = np.concatenate([(mid[:, None, :] + half[:, None, :] * _X[None, :, None]).reshape(-1, v1.size),
-                        np.full((1, v1.size), v_end_m_s), v1[None, :]])            # (50, N)
-    pb = {k: (x if np.ndim(x) == 0 else x[None, :]) for k, x in p.items()}
-    f = wheel_force_n(v, pk[None, :], ig[None, :], m[None, :], pb)
+    # (0..v1 and v1..v_end), then v_end and v1 for the feasibility check. (Filled in place:
+    # the same values as stacking the segments, with fewer temporaries on the one-point path.)
     nodes = len(_X)
+    half0, half1 = 0.5 * v1, 0.5 * (v_end_m_s - v1)
+    v = np.empty((2 * nodes + 2, v1.size))
+    v[:nodes] = half0 + half0 * _X[:, None]                                        # mid + half x
+    v[nodes:2 * nodes] = 0.5 * (v_end_m_s + v1) + half1 * _X[:, None]
+    v[2 * nodes] = v_end_m_s
+    v[2 * nodes + 1] = v1
+    pb = {k: (x if type(x) is float or np.ndim(x) == 0 else x[None, :]) for k, x in p.items()}
+    f = wheel_force_n(v, pk[None, :], ig[None, :], m[None, :], pb)
+    mrow = m[None, :]
     with np.errstate(divide="ignore"):
-        total = (half[0] * np.sum(_W[:, None] * m[None, :] / f[:nodes], axis=0)     # dt = M/F dv
-                 + half[1] * np.sum(_W[:, None] * m[None, :] / f[nodes:2 * nodes], axis=0))
+        total = (half0 * np.sum(_W[:, None] * mrow / f[:nodes], axis=0)             # dt = M/F dv
+                 + half1 * np.sum(_W[:, None] * mrow / f[nodes:2 * nodes], axis=0))
     f_end, f_base = f[2 * nodes], f[2 * nodes + 1]
     ok = (v_lim >= v_end_m_s) & (f_end > 0) & (f_base > 0)
     return np.where(ok, total, np.inf).reshape(pk.shape)

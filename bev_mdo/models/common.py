@@ -65,7 +65,14 @@ def validate_design(name: str, values: Any, lower: float, upper: float) -> np.nd
 def check_design(name: str, values: Any) -> np.ndarray:
     """Check a design or coupling variable against :data:`DESIGN_LIMITS` (a float array, at least 1-D)."""
     lo, hi, _ = DESIGN_LIMITS[name]
+    if type(values) is np.ndarray and values.ndim == 1 and values.size == 1 and values.dtype == _F64:
+        x = values.item()  # one design point (an MDA over ROS): the same array back, checked
+        if math.isfinite(x) and lo <= x <= hi:
+            return values
     return validate_design(name, values, lo, hi)
+
+
+_F64 = np.dtype(np.float64)
 
 
 def check_points(name: str, values, lower: float, upper: float, unit: str) -> np.ndarray:

@@ -108,6 +108,9 @@ def check_design_variables(topology, names) -> None:
 # ----------------------------------------------------------------------------- mass and cost
 
 _V, _Q = VEHICLE_SPECS, QUASI_STATIC_SPECS
+# the defaults every mass call starts from, built once (a dict over all specs per call was the
+# largest cost of a one-point vehicle_mass evaluation)
+_MASS_DEFAULTS = {**{k: s.default for k, s in QUASI_STATIC_SPECS.items()}, **mass_model.DEFAULTS}
 
 
 def motor_unit_mass_kg(topology, motor_kw, motor_rear_kw=None, kg_per_kw=_V["motor_kg_per_kw"].default,
@@ -133,7 +136,7 @@ def vehicle_mass_kg(topology, motor_kw, battery_kwh, params: dict, mass_model_na
 
     Both mass models are linear in the motor mass: ch7 adds it (factor 1), compounding
     multiplies the change by ``mass_compounding``."""
-    p = {**{k: s.default for k, s in QUASI_STATIC_SPECS.items()}, **mass_model.DEFAULTS, **params}
+    p = {**_MASS_DEFAULTS, **params}
     t = get_topology(topology)
     if t.name == "SM-SA":
         two = np.asarray(p["gear_count"]) == 2.0

@@ -40,9 +40,23 @@ def make_nodes(config: dict, disciplines: list[str], instance: str = "", run_id:
     return nodes
 
 
+def link_local(nodes: list[DisciplineNode]) -> None:
+    """Data flow inside the process: a node's data-flow result goes to the consumers composed with it
+    by a direct call (after it is published, so the coordinator and any recorder see the same
+    traffic), not through DDS and a decode. Their subscriptions to it stay (the graph looks the same
+    to the coordinator and to recorders) but are not read."""
+    by_name = {node.discipline_name: node for node in nodes}
+    for node in nodes:
+        node.local_sources = {s for s in set(node.source_of.values()) if s in by_name}
+        for src in sorted(node.local_sources):
+            if node not in by_name[src].local_consumers:
+                by_name[src].local_consumers.append(node)
+
+
 def serve_many(nodes: list[DisciplineNode], idle_s: float = 0.1, service_every: int = 64) -> None:
     """Serve every node's hot subscriptions from one wait set (one thread), the nodes' other
     entities (parameter services) from one executor when idle: discipline_node.serve for several."""
+    link_local(nodes)
     context = nodes[0].context
     executor = SingleThreadedExecutor(context=context)
     for node in nodes:

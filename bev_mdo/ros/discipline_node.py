@@ -36,7 +36,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 
 from bev_mdo import __version__
 from bev_mdo.mdo import flow
-from bev_mdo.mdo.discipline import DisciplineError, run_discipline
+from bev_mdo.mdo.discipline import DisciplineError, all_finite, run_discipline
 from bev_mdo.mdo.vectors import ShapeError
 from bev_mdo.ros import binding, wire
 from bev_mdo.ros.auth import Signer
@@ -104,6 +104,36 @@ class NodeStatsListener:
 
 FLOW_CACHE = 64  # data-flow requests and source results kept while they wait for each other
 
+# The last messages decoded in this process, by (decoder, bytes). Several nodes composed in one
+# process (composed.py) read the same sample (every source-less node reads the data-flow request):
+# it is decoded once. Decoding is a pure function of the bytes and nothing changes a decoded message.
+_DECODED: OrderedDict = OrderedDict()
+_DECODED_MAX = 8
+
+
+def _decode_once(decode, data: bytes):
+    key = (decode, data)
+    msg = _DECODED.get(key)
+    if msg is None:
+        msg = decode(data)  # WireError propagates: nothing is kept
+        _DECODED[key] = msg
+        if len(_DECODED) > _DECODED_MAX:
+            _DECODED.popitem(last=False)
+    return msg
+
+
+_TAGS: dict[str, dict] = {}  # frame_id -> parsed binding (a run has a handful of distinct tags)
+
+
+def _parse_tag(frame_id: str) -> dict:
+    want = _TAGS.get(frame_id)
+    if want is None:
+        want = binding.parse_tag(frame_id) or {}
+        if len(_TAGS) > 256:
+            _TAGS.clear()
+        _TAGS[frame_id] = want
+    return want
+
 
 def _build(config: dict, name: str) -> tuple[Any, dict[str, str]]:
     """(the discipline, output -> producing discipline over the whole config)."""
@@ -166,6 +196,10 @@ class DisciplineNode(Node):
                                           MDA_RESULT_QOS, raw=True)
             for src in sorted(set(self.source_of.values()))}
         self._flow_results: OrderedDict[tuple, dict] = OrderedDict()    # (run, eval id) -> {source: (outs, ok)}
+        # Composed (composed.py: link_local): nodes of this process that consume our data-flow results
+        # get them by a direct call after the publish, and sources in this process are not read from DDS.
+        self.local_consumers: list[DisciplineNode] = []
+        self.local_sources: set[str] = set()
         self._publish_info()
         self.get_logger().info(
             f"serving {name!r}: inputs {list(self.discipline.inputs)} -> outputs {list(self.discipline.outputs)}"
@@ -231,7 +265,7 @@ class DisciplineNode(Node):
 
         def on_bytes(data: bytes) -> None:
             try:
-                msg = decode(data)
+                msg = _decode_once(decode, data)
             except wire.WireError as exc:
                 self.counts["rejected"] += 1
                 self.counts["rejected.undecodable"] += 1
@@ -243,7 +277,8 @@ class DisciplineNode(Node):
 
     def hot_subscriptions(self) -> list:
         """(subscription, handler(data, info)) of everything served on the hot path."""
-        subs = [self._sub, *([self._mda_sub] if self._mda_sub else []), *self._source_subs.values()]
+        subs = [self._sub, *([self._mda_sub] if self._mda_sub else []),
+                *(sub for src, sub in self._source_subs.items() if src not in self.local_sources)]
         return [(sub, lambda data, _info, f=sub.callback: f(data)) for sub in subs]
 
     def _reject(self, req: EvaluationRequest, why: str, category: str = "malformed", pub=None) -> None:
@@ -265,6 +300,9 @@ class DisciplineNode(Node):
         if self.signer is not None:
             self.signer.sign_result(out)
         (pub or self._result_pub).publish(wire.encode_result(out))
+        if pub is not None and pub is self._mda_pub:
+            for node in self.local_consumers:  # composed: the same result, without a DDS hop and a decode
+                node._on_source_result(self.discipline_name, out)
 
     def _fill_header(self, out: wire.Result, req: wire.Request) -> None:
         stamp(out.header)
@@ -282,7 +320,7 @@ class DisciplineNode(Node):
         if not binding.run_matches(self.bound_run, msg.run_id):
             self.counts["ignored.other_run"] += 1
             return False
-        want = binding.parse_tag(msg.header.frame_id) or {}
+        want = _parse_tag(msg.header.frame_id)
         fp, target = binding.split_target(want.get(self.discipline_name, ""))
         if fp != self.fingerprint or (source is not None and source not in want):
             self.counts["ignored.fingerprint"] += 1
@@ -320,7 +358,7 @@ class DisciplineNode(Node):
         unknown = [k for k in inputs if k not in self._allowed]
         if unknown:
             return self._reject(req, f"unknown inputs {unknown[:5]}", "unknown_inputs")
-        if not all(np.isfinite(v).all() for v in inputs.values()):
+        if not all_finite(inputs.values()):
             # evaluated anyway: those points fail (point_ok false, named), as in-process
             self.counts["non_finite"] += 1
         try:

@@ -36,7 +36,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from bev_mdo.mdo import flow
-from bev_mdo.mdo.discipline import EvalResult, finite_rows, join_errors
+from bev_mdo.mdo.discipline import EvalResult, all_finite, finite_rows, join_errors
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.ros import binding, pool as pools, wire
@@ -87,6 +87,7 @@ class RosEvaluator:
         # config (a bare evaluator in a tool) the first declared fingerprint of a discipline is taken.
         self._config = config if config.get("problem") else None
         self.expected: dict[str, tuple[str, str]] = {}   # discipline -> (fingerprint, effective JSON)
+        self._tags: dict[tuple, str] = {}                # names -> their request frame_id (_tag)
         self.instances: dict[str, set[str]] = {}         # discipline -> accepted instance names
         self.refused: dict[str, str] = {}                # "discipline instance" -> why it was refused
         self.first_errors: dict[str, str] = {}           # discipline -> its first error (shown once)
@@ -442,7 +443,7 @@ class RosEvaluator:
                 self.dropped["malformed"] += 1
                 return
             outs = {k: np.array(outputs[k]) for k in want}
-            ok = ok & finite_rows(list(outs.values()), p.n)
+            ok = np.array(ok) if all_finite(outs.values()) else ok & finite_rows(list(outs.values()), p.n)
             try:
                 why = wire.point_errors_of(msg, p.n)
             except wire.WireError:
@@ -486,7 +487,14 @@ class RosEvaluator:
 
     def _tag(self, names) -> str:
         """frame_id binding a request to this run's fingerprint of every named discipline."""
-        return binding.tag({n: (self._expect(n) or ("?", ""))[0] for n in names}, names)
+        key = tuple(names)
+        tag = self._tags.get(key)
+        if tag is None:
+            fps = {n: (self._expect(n) or ("?", ""))[0] for n in names}
+            tag = binding.tag(fps, names)
+            if "?" not in fps.values():  # kept once every fingerprint is known (they do not change)
+                self._tags[key] = tag
+        return tag
 
     def _send(self, p: _Pending) -> None:
         self._seq += 1

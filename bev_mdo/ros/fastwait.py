@@ -42,21 +42,33 @@ class SubscriptionWaiter:
 
 
 class MultiWaiter:
-    """The same lean path over several subscriptions (used by the recorder)."""
+    """The same lean path over several subscriptions (the coordinator's results, a node's or a
+    composed process's hot subscriptions, the recorder). The rcl handle of each subscription is
+    looked up once (rclpy's ``handle`` property costs a Python call per use, several per message)."""
 
     def __init__(self, context):
         self._context = context
         self._ws = None
         self._n = -1
         self.ready: set[int] = set()
+        self._info: dict[int, tuple] = {}   # id(subscription) -> (subscription, rcl handle, its pointer)
+
+    def _of(self, sub) -> tuple:
+        got = self._info.get(id(sub))
+        if got is None or got[0] is not sub:
+            h = sub.handle
+            got = self._info[id(sub)] = (sub, h, h.pointer)
+        return got
 
     def take_all(self, subs_and_handlers) -> int:
         """Take every pending message of each (subscription, handler(msg, info)); returns how many."""
         n = 0
         for sub, handle in subs_and_handlers:
+            h = self._of(sub)[1]
+            msg_type, raw = sub.msg_type, sub.raw
             while True:
-                with sub.handle:
-                    got = sub.handle.take_message(sub.msg_type, sub.raw)
+                with h:
+                    got = h.take_message(msg_type, raw)
                 if got is None:
                     break
                 handle(*got)
@@ -68,15 +80,17 @@ class MultiWaiter:
         if len(subs) != self._n:
             self._ws = _rclpy.WaitSet(len(subs), 0, 0, 0, 0, 0, self._context.handle)
             self._n = len(subs)
-        self._ws.clear_entities()
+        ws = self._ws
+        ws.clear_entities()
         for s in subs:
-            with s.handle:
-                self._ws.add_subscription(s.handle)
-        self._ws.wait(max(0, int(timeout_s * 1e9)))
-        self.ready = set(self._ws.get_ready_entities("subscription"))
+            h = self._of(s)[1]
+            with h:
+                ws.add_subscription(h)
+        ws.wait(max(0, int(timeout_s * 1e9)))
+        self.ready = set(ws.get_ready_entities("subscription"))
         return bool(self.ready)
 
     def take_ready(self, subs_and_handlers) -> int:
         """Like take_all, but only from the subscriptions the last wait() found ready."""
         ready = self.ready
-        return self.take_all([(s, h) for s, h in subs_and_handlers if s.handle.pointer in ready])
+        return self.take_all([(s, h) for s, h in subs_and_handlers if self._of(s)[2] in ready])

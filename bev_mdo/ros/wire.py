@@ -20,6 +20,10 @@ MAX_NAMES = 1024
 MAX_NAME_LEN = 128
 
 
+_F8 = np.dtype("<f8")
+_GOOD_NAMES: set[tuple] = set()  # name lists that passed from_named_array's checks
+
+
 class WireError(ValueError):
     """A message does not hold a well-formed batch."""
 
@@ -47,13 +51,18 @@ def from_named_array(msg: NamedArray) -> dict[str, np.ndarray]:
     n = int(msg.batch_size)
     if n > MAX_BATCH:
         raise WireError(f"batch_size {n} exceeds {MAX_BATCH}")
-    if len(names) > MAX_NAMES:
-        raise WireError(f"{len(names)} names exceeds {MAX_NAMES}")
-    if len(set(names)) != len(names):
-        raise WireError("duplicate names")
-    for k in names:
-        if not k or len(k) > MAX_NAME_LEN or not is_variable_name(k):  # identifier, or a vector element x[3]
-            raise WireError(f"bad variable name {k[:40]!r}")
+    key = tuple(names)
+    if key not in _GOOD_NAMES:  # the same few name lists come in every message of a run
+        if len(names) > MAX_NAMES:
+            raise WireError(f"{len(names)} names exceeds {MAX_NAMES}")
+        if len(set(names)) != len(names):
+            raise WireError("duplicate names")
+        for k in names:
+            if not k or len(k) > MAX_NAME_LEN or not is_variable_name(k):  # identifier, or a vector element x[3]
+                raise WireError(f"bad variable name {k[:40]!r}")
+        if len(_GOOD_NAMES) >= 4096:
+            _GOOD_NAMES.clear()
+        _GOOD_NAMES.add(key)
     values = msg.values if isinstance(msg.values, np.ndarray) else (
         np.frombuffer(msg.values, dtype=np.float64) if len(msg.values) else np.zeros(0))
     if values.shape[0] != n * len(names):
@@ -187,17 +196,31 @@ def partials_of(block, n: int) -> dict[tuple[str, str], np.ndarray] | None:
     values = np.asarray(block.values, dtype=float)
     if values.shape[0] != n * len(names) or len(set(names)) != len(names):
         raise WireError("malformed partials")
-    try:
-        keys = [split_partial_name(k) for k in names]
-    except ValueError as exc:
-        raise WireError(str(exc)) from None
+    key = tuple(names)
+    keys = _PARTIAL_KEYS.get(key)
+    if keys is None:  # the same few name lists come in every result of a run
+        try:
+            keys = [split_partial_name(k) for k in names]
+        except ValueError as exc:
+            raise WireError(str(exc)) from None
+        if len(_PARTIAL_KEYS) >= 4096:
+            _PARTIAL_KEYS.clear()
+        _PARTIAL_KEYS[key] = keys
     return {k: values[j * n:(j + 1) * n] for j, k in enumerate(keys)}
+
+
+_PARTIAL_KEYS: dict[tuple, list] = {}
 
 
 def batch(columns: Mapping[str, np.ndarray]) -> Batch:
     """A Batch from equal-length columns (column-major values, one copy)."""
     names = list(columns)
-    cols = [np.atleast_1d(np.asarray(columns[k], dtype=np.float64)) for k in names]
+    cols = []
+    for k in names:
+        c = columns[k]
+        if type(c) is not np.ndarray or c.ndim != 1 or c.dtype != _F8:  # the usual column skips both
+            c = np.atleast_1d(np.asarray(c, dtype=np.float64))
+        cols.append(c)
     n = cols[0].shape[0] if cols else 0
     if any(c.shape != (n,) for c in cols):
         raise WireError(f"columns have different lengths: { {k: c.shape for k, c in zip(names, cols)} }")
@@ -239,66 +262,70 @@ def _cdr_texts(items) -> bytes:
     return b
 
 
-class _Out:
-    __slots__ = ("parts", "n")
+def _named_bytes(out: bytearray, a) -> None:
+    """A NamedArray appended to ``out`` (payload offsets = len(out) - 4, past the encapsulation)."""
+    out += _PAD[-(len(out) - 4) % 4]
+    out += _cdr_texts(a.names)
+    values = a.values
+    if type(values) is not np.ndarray or values.dtype != _F8 or not values.flags.c_contiguous:
+        values = np.ascontiguousarray(values, dtype="<f8")
+    out += _PAD[-(len(out) - 4) % 4]
+    out += _U32X2.pack(int(a.batch_size), values.size)
+    if values.size:
+        out += _PAD[-(len(out) - 4) % 8]
+        out += values.tobytes()
 
-    def __init__(self, sec: int, nanosec: int):
-        self.parts = [_ENCAPSULATION, _STAMP.pack(sec, nanosec)]  # header stamp at offset 0
-        self.n = 8
 
-    def put(self, b: bytes, align: int) -> None:
-        pad = -self.n % align
-        self.parts.append(_PAD[pad])
-        self.parts.append(b)
-        self.n += pad + len(b)
 
-    def text(self, s: str) -> None:
-        self.put(_cdr_text(s), 4)
-
-    def named(self, a) -> None:
-        self.put(_cdr_texts(a.names), 4)
-        values = np.ascontiguousarray(a.values, dtype="<f8")
-        self.put(_U32X2.pack(int(a.batch_size), values.size), 4)
-        if values.size:
-            self.put(values.tobytes(), 8)
-
-    def done(self) -> bytes:
-        return b"".join(self.parts)
+def _text_at(out: bytearray, s: str) -> None:
+    out += _PAD[-(len(out) - 4) % 4]
+    out += _cdr_text(s)
 
 
 def encode_request(m) -> bytes:
     """CDR bytes of an EvaluationRequest (a Request or a generated message)."""
-    o = _Out(int(m.header.stamp.sec), int(m.header.stamp.nanosec))
-    o.text(m.header.frame_id)
-    o.text(m.run_id)
-    o.put(_U64X2.pack(int(m.evaluation_id), int(m.sequence)) + _U32X2.pack(int(m.iteration), int(m.attempt)), 8)
-    o.text(m.discipline)
-    o.named(m.inputs)
-    o.put(_cdr_texts(m.flow), 4)
-    o.text(m.signature)
-    o.put(b"\x01" if m.partials else b"\x00", 1)
-    return o.done()
+    # one bytearray, aligned by its length (the payload starts after the 4-byte encapsulation)
+    out = bytearray(_ENCAPSULATION)
+    out += _STAMP.pack(int(m.header.stamp.sec), int(m.header.stamp.nanosec))
+    out += _cdr_text(m.header.frame_id)
+    _text_at(out, m.run_id)
+    out += _PAD[-(len(out) - 4) % 8]
+    out += _U64X2.pack(int(m.evaluation_id), int(m.sequence)) + _U32X2.pack(int(m.iteration), int(m.attempt))
+    _text_at(out, m.discipline)
+    _named_bytes(out, m.inputs)
+    out += _PAD[-(len(out) - 4) % 4]
+    out += _cdr_texts(m.flow)
+    _text_at(out, m.signature)
+    out += b"\x01" if m.partials else b"\x00"
+    return bytes(out)
 
 
 def encode_result(m) -> bytes:
     """CDR bytes of an EvaluationResult (a Result or a generated message)."""
-    o = _Out(int(m.header.stamp.sec), int(m.header.stamp.nanosec))
-    o.text(m.header.frame_id)
-    o.text(m.run_id)
-    o.put(_U64X2.pack(int(m.evaluation_id), int(m.sequence)), 8)
-    o.text(m.discipline)
-    o.text(m.instance)
-    o.put(bytes((int(m.status),)), 1)
-    o.text(m.error)
-    ok = np.asarray(m.point_ok, dtype=bool)
-    o.put(_U32.pack(ok.size) + ok.tobytes(), 4)  # numpy bools are one byte, 0 or 1, as CDR's
-    o.named(m.outputs)
-    o.put(_F64.pack(float(m.compute_time_s)), 8)
-    o.put(_cdr_texts(m.flow), 4)
-    o.text(m.signature)
-    o.named(m.partials)
-    _put_errors(o, m)
-    return o.done()
+    out = bytearray(_ENCAPSULATION)
+    out += _STAMP.pack(int(m.header.stamp.sec), int(m.header.stamp.nanosec))
+    out += _cdr_text(m.header.frame_id)
+    _text_at(out, m.run_id)
+    out += _PAD[-(len(out) - 4) % 8]
+    out += _U64X2.pack(int(m.evaluation_id), int(m.sequence))
+    _text_at(out, m.discipline)
+    _text_at(out, m.instance)
+    out.append(int(m.status))
+    _text_at(out, m.error)
+    ok = m.point_ok
+    if type(ok) is not np.ndarray or ok.dtype != np.bool_:
+        ok = np.asarray(ok, dtype=bool)
+    out += _PAD[-(len(out) - 4) % 4]
+    out += _U32.pack(ok.size)
+    out += ok.tobytes()  # numpy bools are one byte, 0 or 1, as CDR's
+    _named_bytes(out, m.outputs)
+    out += _PAD[-(len(out) - 4) % 8]
+    out += _F64.pack(float(m.compute_time_s))
+    out += _cdr_texts(m.flow)  # 8-aligned here, so 4-aligned
+    _text_at(out, m.signature)
+    _named_bytes(out, m.partials)
+    _put_errors(out, m)
+    return bytes(out)
 
 
 def _plain_texts(items) -> bytes:
@@ -314,15 +341,18 @@ def _plain_texts(items) -> bytes:
 _NO_ERRORS = bytes(12)  # three empty sequences (error_points, error_reasons, error_inputs)
 
 
-def _put_errors(o: _Out, m) -> None:
-    """The point-error fields (error_points, error_reasons, error_inputs) of a result."""
+def _put_errors(out: bytearray, m) -> None:
+    """The point-error fields (error_points, error_reasons, error_inputs) of a result, each 4-aligned."""
+    out += _PAD[-(len(out) - 4) % 4]
     points = m.error_points
     if not len(points):  # the common case: every point evaluated
-        o.put(_NO_ERRORS, 4)
+        out += _NO_ERRORS
         return
-    o.put(_U32.pack(len(points)) + np.asarray(points, dtype="<u4").tobytes(), 4)
-    o.put(_plain_texts(list(m.error_reasons)), 4)
-    o.put(_plain_texts(list(m.error_inputs)), 4)
+    out += _U32.pack(len(points))
+    out += np.asarray(points, dtype="<u4").tobytes()
+    out += _plain_texts(list(m.error_reasons))
+    out += _PAD[-(len(out) - 4) % 4]
+    out += _plain_texts(list(m.error_inputs))
 
 
 # Decoding. ``data`` is a memoryview of the payload (offsets count from after the encapsulation

@@ -75,3 +75,59 @@ def test_composed_node_rejects_an_unknown_discipline(ros_domain, config_path):
     argv = composed_argv(["energy", "warp_drive"], str(config_path))
     out = subprocess.run(argv, env=ros_env(ros_domain), capture_output=True, text=True, timeout=60)
     assert out.returncode == 2 and "warp_drive" in out.stderr and "Traceback" not in out.stderr, out.stderr
+
+
+def test_link_local_wires_sources_composed_in_the_same_process(config_path):
+    """Data flow inside a composed process goes by direct call: each consumer knows the sources
+    composed with it (their DDS subscriptions are not read), each producer its local consumers."""
+    from bev_mdo.ros.composed import link_local, make_nodes
+
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=0)
+    nodes = []
+    try:
+        config = load_config(config_path)
+        nodes = make_nodes(config, ["vehicle_mass", "energy", "range", "cost"], context=ctx)
+        link_local(nodes)
+        by = {n.discipline_name: n for n in nodes}
+        assert by["energy"].local_sources == {"vehicle_mass"} and by["range"].local_sources == {"energy"}
+        assert [n.discipline_name for n in by["vehicle_mass"].local_consumers] == ["energy"]
+        assert [n.discipline_name for n in by["energy"].local_consumers] == ["range"]
+        assert not by["cost"].local_sources and not by["range"].local_consumers
+        # a source's subscription stays in the graph but is not served by the wait set
+        served = {sub for n in nodes for sub, _ in n.hot_subscriptions()}
+        assert by["energy"]._source_subs["vehicle_mass"] not in served
+        assert by["range"]._source_subs["energy"] not in served
+    finally:
+        for n in nodes:
+            n.destroy_node()
+        rclpy.shutdown(context=ctx)
+
+
+def test_all_composed_and_signed_gives_the_in_process_optimum(ros_domain, rclpy_context, config_path, tmp_path):
+    """All six disciplines in one process, results passed inside it by direct call, every message
+    signed: the optimum is the in-process one, bit for bit, and nothing was dropped."""
+    from bev_mdo.ros.auth import new_key_file
+
+    raw = yaml.safe_load(config_path.read_text())
+    raw["ros"] = {**raw["ros"], "signing": True, "sign_key_file": new_key_file(tmp_path)}
+    path = tmp_path / "signed.yaml"
+    path.write_text(yaml.safe_dump(raw, sort_keys=False))
+    config = load_config(path)
+    run_id = f"allcomposed{os.getpid()}"
+    launcher = Launcher(ros_env(ros_domain), log_dir=tmp_path)
+    for label, argv in plan_processes(BUILTINS, str(path), compose="all", run_id=run_id):
+        launcher.add(label, argv)
+    try:
+        assert len(launcher.nodes) == 1
+        res, stats = coordinator_node.run(config, context=rclpy_context, run_id=run_id)
+        ref = run_optimization(copy.deepcopy(config), InProcessEvaluator(resolve_disciplines(config)))
+        assert res.objective == ref.objective and res.design == ref.design
+        assert stats["data_flow_mdas"] > 0 and stats["retried"] == 0
+        # the module's unsigned, unbound nodes share this domain and answer too: only their answers
+        # and declarations are dropped, none of ours (no forged, replayed, expired or malformed one)
+        ours = {k: v for k, v in stats["dropped"].items()
+                if k not in ("unsigned", "info_unsigned", "refused_instance", "other_run")}
+        assert not ours, stats["dropped"]
+    finally:
+        launcher.stop()
