@@ -28,9 +28,11 @@ from typing import Any
 
 import numpy as np
 
+from bev_mdo.mdo.settings import FEASIBILITY_TOL  # the run's default tolerance on normalised constraints
+
 REL_TOL = 1e-3
 Disciplines = list | Callable[[], list]  # discipline objects, or a function building them
-FEAS_TOL = 1e-6  # the driver's feasibility tolerance on normalised constraints (driver.FEASIBILITY_TOL)
+
 
 
 def _scale(c) -> float:
@@ -55,13 +57,14 @@ def _violation(kind: str, limit: float, value: float) -> float:
 
 def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *,
             jacobian: Mapping[str, Mapping[str, float]] | None = None, rel_tol: float = REL_TOL,
-            units: Callable[[str], str] | None = None) -> dict[str, Any]:
+            units: Callable[[str], str] | None = None, feas_tol: float = FEASIBILITY_TOL) -> dict[str, Any]:
     """The answers for one end point.
 
     ``problem``: a ``bev_mdo.mdo.problem.Problem``; ``design``: its design variables; ``values``: the
     constraint outputs at the point (extra keys are ignored); ``jacobian[output][variable]``: d output /
     d variable in physical units (only needed for the blocking analysis of an infeasible end);
-    ``units(name)``: a unit string for a quantity (default: ``bev_mdo.mdo.units.unit_of``).
+    ``units(name)``: a unit string for a quantity (default: ``bev_mdo.mdo.units.unit_of``);
+    ``feas_tol``: the run's feasibility tolerance (a normalised violation up to it is not "violated").
     Returns a JSON-ready dict: ``feasible``, ``active_constraints``, ``bounds`` (variables on a
     bound), ``violated`` (each with ``blocked_by`` and ``conflicts_with`` when a Jacobian is given)
     and ``lines`` (the same as short sentences for the terminal).
@@ -78,7 +81,7 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
                  "monitor": any(c.monitor for c in problem.constraints if c.name == name)}
         if not np.isfinite(v):
             violated.append({**entry, "violation": float("inf")})
-        elif v > FEAS_TOL * scale:
+        elif v > feas_tol * scale:
             violated.append({**entry, "violation": v})
         elif abs(v) <= rel_tol * scale:
             active.append(entry)
@@ -213,12 +216,13 @@ def answers_for(config: Mapping[str, Any], design: Mapping[str, float], values: 
     from bev_mdo.mdo.problem import Problem
 
     problem = Problem.from_config(config["problem"])
-    ans = analyse(problem, design, values, rel_tol=rel_tol)
+    tol = float((config.get("optimizer") or {}).get("feasibility_tolerance", FEASIBILITY_TOL))
+    ans = analyse(problem, design, values, rel_tol=rel_tol, feas_tol=tol)
     if ans["violated"]:
         try:
             jac = fd_jacobian(config, design, disciplines=disciplines)
         except Exception as exc:  # a model that fails near the point: say so, keep the rest
             ans["jacobian_error"] = f"{type(exc).__name__}: {exc}"
         else:
-            ans = analyse(problem, design, values, jacobian=jac, rel_tol=rel_tol)
+            ans = analyse(problem, design, values, jacobian=jac, rel_tol=rel_tol, feas_tol=tol)
     return ans

@@ -34,6 +34,19 @@ def test_a_margin_of_a_tenth_of_a_per_mille_is_active_but_one_per_cent_is_not():
     assert [e["name"] for e in a["active_constraints"]] == ["range_km"]
 
 
+def test_a_violation_within_the_runs_feasibility_tolerance_is_not_called_violated():
+    """The answers judge a limit with the run's tolerance (optimizer.feasibility_tolerance, default 1e-4
+    of the bound's scale), as the run's own "feasible" does: 5e-6 relative is within it, 1e-3 is not."""
+    design = {"motor_kw": 75.0, "battery_kwh": 25.0}
+    near = analyse(PROBLEM, design, {"range_km": 250.0 * (1 - 5e-6), "accel_time_0_100_s": 9.0})
+    assert near["feasible"] and near["violated"] == []
+    assert [e["name"] for e in near["active_constraints"]] == ["range_km"]
+    strict = analyse(PROBLEM, design, {"range_km": 250.0 * (1 - 5e-6), "accel_time_0_100_s": 9.0}, feas_tol=1e-6)
+    assert [e["name"] for e in strict["violated"]] == ["range_km"]
+    far = analyse(PROBLEM, design, {"range_km": 250.0 * (1 - 1e-3), "accel_time_0_100_s": 9.0})
+    assert [e["name"] for e in far["violated"]] == ["range_km"]
+
+
 def test_infeasible_end_names_violation_and_the_bound_that_blocks():
     # range short by 2 km; battery on its upper bound; more battery would give more range
     jac = {"range_km": {"motor_kw": -0.05, "battery_kwh": 8.0},
