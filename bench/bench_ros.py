@@ -255,7 +255,6 @@ def pct(a, q):
 
 
 def ping_pong(ctx, env, n):
-    import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
