@@ -61,3 +61,17 @@ def example_config(path: str | Path, **changes):
         node[keys[-1]] = value
     raw["search_path"] = [str(path.parent)]
     return load_config(raw)
+
+
+def assert_same_iterates(ros, local) -> None:
+    """The ROS run `ros` took the in-process run's path: the same iteration records (design and objective
+    to 1e-12) and the same discipline evaluations (two RunResults)."""
+    import pytest
+
+    assert len(ros.history) == len(local.history)
+    for a, b in zip(ros.history, local.history):
+        assert a["design"].keys() == b["design"].keys()
+        for k in a["design"]:
+            assert a["design"][k] == pytest.approx(b["design"][k], rel=1e-12, abs=1e-12)
+        assert a["objective"] == pytest.approx(b["objective"], rel=1e-12)
+    assert ros.discipline_evaluations == local.discipline_evaluations

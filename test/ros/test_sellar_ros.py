@@ -21,7 +21,7 @@ from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros import coordinator_node  # noqa: E402
 from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
-from bev_mdo.testing import REPO, ros_env  # noqa: E402
+from bev_mdo.testing import REPO, assert_same_iterates, ros_env  # noqa: E402
 
 EXAMPLE = REPO / "examples" / "sellar"
 USER = REPO / "test" / "data" / "user_modules"
@@ -70,12 +70,7 @@ def test_sellar_over_ros_gives_the_in_process_iterates_and_the_reference(rclpy_c
     local = _inprocess(configs[formulation])
     assert ros.feasible and ros.objective == pytest.approx(REF_F, rel=1e-7)
     assert ros.design["z1"] == pytest.approx(1.977639, abs=1e-5)
-    assert len(ros.history) == len(local.history)
-    for a, b in zip(ros.history, local.history):
-        for k in a["design"]:
-            assert a["design"][k] == pytest.approx(b["design"][k], rel=1e-12, abs=1e-12)
-        assert a["objective"] == pytest.approx(b["objective"], rel=1e-12)
-    assert ros.discipline_evaluations == local.discipline_evaluations
+    assert_same_iterates(ros, local)
     assert stats["retried"] == 0 and stats["data_flow_mdas"] == 0  # a loop: hub and spoke, nothing re-sent
 
 
