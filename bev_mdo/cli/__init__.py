@@ -78,6 +78,8 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    if argv is None:  # the `bev-mdo` process itself (not a call from Python)
+        native_output_to_stderr()
     argv = sys.argv[1:] if argv is None else list(argv)
     from bev_mdo.stacks import dump_stacks_on_sigusr1
 
@@ -85,7 +87,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser(argv)
     args = parser.parse_args(argv)
     try:
-        return int(args.func(args) or 0)
+        status = int(args.func(args) or 0)
+        sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
+        return status
     except KeyboardInterrupt:
         print("bev-mdo: interrupted", file=sys.stderr)
         return 130
@@ -95,6 +99,25 @@ def main(argv: list[str] | None = None) -> int:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         print(f"bev-mdo {args.command}: error: {msg}", file=sys.stderr)
         return 2
+
+
+def native_output_to_stderr() -> None:
+    """Keep stdout for bev-mdo's own output (``--json``, tables): native libraries write to file
+    descriptor 1 behind Python's back (Fast DDS logs its errors with std::cout, e.g.
+    ``[RTPS_TRANSPORT_SHM Error] Failed init_port``), which corrupted ``--json`` for a pipe reader.
+    File descriptor 1 is pointed at stderr; ``sys.stdout`` writes to a duplicate of the real stdout.
+    Child processes inherit descriptor 1 = stderr (the launcher sends nodes' output to their logs)."""
+    try:
+        if sys.stdout is None or sys.stdout.fileno() != 1 or sys.stderr is None or sys.stderr.fileno() != 2:
+            return
+        sys.stdout.flush()
+        real = os.dup(1)
+        os.set_inheritable(real, False)
+        os.dup2(2, 1)
+    except (OSError, ValueError, AttributeError):  # no real descriptors (embedded, closed): leave as is
+        return
+    sys.stdout = os.fdopen(real, "w", buffering=1 if os.isatty(real) else -1,
+                           encoding=sys.stdout.encoding, errors=sys.stdout.errors)
 
 
 def _closed_pipe() -> int:
