@@ -99,7 +99,7 @@ class OptimizeRosSession:
                 self.launcher.add(label, argv)
             if self.record:
                 self.recorder = start_recorder(self.launcher, self.bag, resolved, self.run_id)
-            self.launcher.supervise()
+            self.launcher.supervise(watch_hangs=True)
         except BaseException:
             self.launcher.stop(first=("recorder",))
             raise
@@ -152,10 +152,15 @@ class OptimizeRosSession:
                  "node_restarts": restarts, "refused_instances": stats.get("refused_instances", {}),
                  "signing": _signing(self.ros, self.config), "tail_s": round(tail_s, 3),
                  "tail_parts_s": {k: round(v, 3) for k, v in tail.items()}}
+        hangs = {n.label: n.hangs for n in self.launcher.nodes if n.hangs}
+        if hangs:  # restarted by the watchdog: alive but silent on the ROS graph (ros/watchdog.py)
+            extra["node_hangs"] = hangs
         if stats.get("pools"):
             extra["pools"] = stats["pools"]  # per-instance work, throughput and failures (pool.py)
         if stats.get("discipline_errors"):
             extra["discipline_errors"] = stats["discipline_errors"]
+        if stats.get("unresponsive"):  # stopped answering: the CLI warns and exits 4
+            extra["unresponsive_disciplines"] = stats["unresponsive"]
         if recorder_failed:
             extra["recorder_failed"] = recorder_failed
         return extra
@@ -313,7 +318,7 @@ class ParetoRosSession:
         self.launcher = Launcher(ros_environment(self.ros), log_dir=self.logs)
         try:
             self.recorder = start_recorder(self.launcher, self.bag, resolved, self.run_id)
-            self.launcher.supervise()
+            self.launcher.supervise(watch_hangs=True)
             self.ctx = rclpy.context.Context()
             rclpy.init(context=self.ctx)
             self.sink = RosSink(self.ctx, self.run_id)
@@ -413,3 +418,6 @@ class ParetoRosSession:
             if self.launcher is not None:
                 self.launcher.stop(first=("recorder",))
                 self.stats["node_restarts"] = {n.label: n.restarts for n in self.launcher.nodes if n.restarts}
+                hangs = {n.label: n.hangs for n in self.launcher.nodes if n.hangs}
+                if hangs:  # restarted by the watchdog (ros/watchdog.py)
+                    self.stats["node_hangs"] = hangs

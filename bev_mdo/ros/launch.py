@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 from bev_mdo.ros.executables import DISCIPLINE_EXES
+from bev_mdo.ros.watchdog import HangWatchdog, ros_node_names
 
 _BUILTIN_EXE = {v: k for k, v in DISCIPLINE_EXES.items()}
 
@@ -45,6 +46,11 @@ class NodeProcess:
     restart: bool = True            # False: a death is reported (``died``), never restarted
     died: int | None = None         # exit status of a node that died and was not restarted
     died_at: float | None = None    # when the supervisor saw it die (time.monotonic())
+    ros_names: tuple[str, ...] = ()  # the ROS node names it serves (watchdog.py)
+    spawned_at: float = 0.0         # time.monotonic() of its (re)start
+    seen: bool = False              # on the ROS graph since its (re)start
+    missing_since: float | None = None
+    hangs: int = 0                  # times the watchdog killed it as hung (each also counts as a restart)
 
 
 def discipline_argv(name: str, config_path: str, instance: str = "", run_id: str = "") -> list[str]:
@@ -104,11 +110,12 @@ class Launcher:
         self._lock = threading.Lock()
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
+        self._watchdog = None
 
     def add(self, label: str, argv: Sequence[str], restart: bool = True) -> NodeProcess:
         """Register and start one node process (`restart`: whether the supervisor restarts it)."""
         log = (self.log_dir / f"{label}.log") if self.log_dir else None
-        node = NodeProcess(label, list(argv), log, restart=restart)
+        node = NodeProcess(label, list(argv), log, restart=restart, ros_names=ros_node_names(argv))
         self._spawn(node)
         with self._lock:
             self.nodes.append(node)
@@ -120,6 +127,7 @@ class Launcher:
             out = open(node.log_path, "ab")
         else:
             out = subprocess.DEVNULL
+        node.spawned_at, node.seen, node.missing_since = time.monotonic(), False, None
         # Own session: a Ctrl-C in the terminal reaches only us; we stop the children in order.
         node.proc = subprocess.Popen(node.argv, env=self.env, stdout=out, stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, start_new_session=True,
@@ -127,11 +135,15 @@ class Launcher:
         if out is not subprocess.DEVNULL:
             out.close()
 
-    def supervise(self, interval_s: float = 0.1) -> None:
-        """Start the background thread that restarts nodes that die."""
+    def supervise(self, interval_s: float = 0.1, watch_hangs: bool = False) -> None:
+        """Start the background thread that restarts nodes that die; with `watch_hangs`, also the
+        watchdog that kills (for a restart) a node whose process lives but whose participant went
+        silent on the ROS graph (watchdog.py)."""
         if self._thread is None:
             self._thread = threading.Thread(target=self._watch, args=(interval_s,), daemon=True)
             self._thread.start()
+        if watch_hangs and self._watchdog is None:
+            self._watchdog = HangWatchdog(self, int(self.env.get("ROS_DOMAIN_ID", "0"))).start()
 
     def _watch(self, interval_s: float) -> None:
         while not self._stopping.wait(interval_s):
@@ -195,6 +207,8 @@ class Launcher:
         recorder drains its queue while the publishers are still alive to deliver it.
         """
         self._stopping.set()
+        if self._watchdog is not None:
+            self._watchdog.stop()
         if self._thread is not None:
             self._thread.join(timeout=2.0)
         with self._lock:
@@ -323,7 +337,7 @@ class OwnSuite:
             for label, argv in plan_processes(discipline_names(self.config), str(resolved.resolve()),
                                               run_id=self.run_id, instance=self.run_id[:8]):
                 self.launcher.add(label, argv)
-            self.launcher.supervise()
+            self.launcher.supervise(watch_hangs=True)
         except BaseException:
             self.stop()
             raise

@@ -1,0 +1,134 @@
+"""Restart a launched node whose process lives but whose DDS participant has gone silent.
+
+A node can hang inside the middleware while its process stays alive: Fast DDS 2.14 can deadlock
+a participant (eProsima/Fast-DDS#6502: a receive thread holding the discovery (PDP) mutex waits
+for the event thread, which waits for that mutex, when a remote endpoint is removed while a
+participant-lease check runs). We caught it with gdb on this project's three-concurrent-runs test
+under overload. Such a node never answers again, and stopping it hangs too. The launcher's
+supervisor only sees processes that exit, so it never restarts such a node.
+
+A hung participant stops announcing itself, so every other participant drops it once its lease
+(3 s in bev_mdo's profile) expires. This watchdog runs beside the supervisor, in the launching
+process, with its own small participant. It reads the ROS graph every `period_s`. If a launched
+node was on the graph and has been missing for `silent_s`, or has not appeared `start_s` after
+its process started, while its process still runs, the watchdog
+- sends SIGUSR1, so every thread's Python stack lands in the node's log (bev_mdo/stacks.py);
+- SIGKILLs the process;
+- lets the supervisor restart it.
+The coordinator's retries then reach the new process. The node's ``hangs`` counter records it,
+and the run's summary reports it.
+
+A healthy node never leaves the graph, however long it computes. If the watchdog's own
+participant hangs, its graph freezes; it then sees nothing vanish and does nothing.
+"""
+from __future__ import annotations
+
+import contextlib
+import signal
+import sys
+import threading
+import time
+from typing import Callable, Sequence
+
+SILENT_S = 7.0   # > 2 leases of bev_mdo's profile (3 s): a node dropped by discovery, and not back
+START_S = 45.0   # a node process that never reaches the graph (imports take ~20 s at load 40 here)
+
+
+def ros_node_names(argv: Sequence[str]) -> tuple[str, ...]:
+    """The ROS node names a launched process serves, read from its command line (discipline_argv,
+    composed_argv); () for a process the watchdog does not watch."""
+    args = list(argv)
+    named = [a.split(":=", 1)[1] for a in args if a.startswith("__node:=")]
+    if named:
+        return tuple(named)
+    if "composed_node" not in args:
+        return ()
+    params = {a.split(":=", 1)[0]: a.split(":=", 1)[1].strip("'") for a in args if ":=" in a}
+    suffix = f"_{params['instance']}" if params.get("instance") else ""
+    return tuple(f"{d}_node{suffix}" for d in params.get("disciplines", "").split(",") if d)
+
+
+class HangWatchdog:
+    """Watches a Launcher's nodes on the ROS graph (see the module docstring)."""
+
+    def __init__(self, launcher, domain_id: int, *, period_s: float = 0.5, silent_s: float = SILENT_S,
+                 start_s: float = START_S, graph: Callable[[], set[str]] | None = None):
+        self.launcher = launcher
+        self.domain_id = domain_id
+        self.period_s, self.silent_s, self.start_s = period_s, silent_s, start_s
+        self._graph = graph  # tests may pass their own view of the graph
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> "HangWatchdog":
+        self._thread = threading.Thread(target=self._run, name="bev_mdo.watchdog", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        """Stop watching (before the launcher stops its nodes, which then leave the graph on purpose)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=timeout_s)  # a participant that hangs in teardown is left to the daemon
+
+    def _run(self) -> None:
+        if self._graph is not None:
+            self._loop(self._graph)
+            return
+        import os
+
+        import rclpy
+
+        ctx = rclpy.context.Context()
+        rclpy.init(context=ctx, domain_id=self.domain_id)
+        node = None
+        try:
+            node = rclpy.create_node(f"launcher_watchdog_{os.getpid()}", context=ctx, enable_rosout=False,
+                                     start_parameter_services=False)
+            self._loop(lambda: set(node.get_node_names()))
+        finally:
+            with contextlib.suppress(Exception):
+                if node is not None:
+                    node.destroy_node()
+                rclpy.shutdown(context=ctx)
+
+    def _loop(self, graph: Callable[[], set[str]]) -> None:
+        while not self._stop.wait(self.period_s):
+            try:
+                names = graph()
+            except Exception:  # noqa: BLE001 - a graph query racing the shutdown of the context
+                return
+            self.check(names, time.monotonic())
+
+    def check(self, names: set[str], now: float) -> list[str]:
+        """One look at the graph: kill the hung nodes (the supervisor restarts them); their labels."""
+        hung = []
+        with self.launcher._lock:
+            if self._stop.is_set() or self.launcher._stopping.is_set():
+                return hung
+            for n in self.launcher.nodes:
+                if not n.ros_names or not n.restart or n.proc is None or n.proc.poll() is not None:
+                    continue
+                if all(name in names for name in n.ros_names):
+                    n.seen, n.missing_since = True, None
+                    continue
+                if n.seen:
+                    n.missing_since = n.missing_since or now
+                    if now - n.missing_since < self.silent_s:
+                        continue
+                    why = f"left the ROS graph {now - n.missing_since:.0f} s ago"
+                elif now - n.spawned_at >= self.start_s:
+                    why = f"has not appeared on the ROS graph {now - n.spawned_at:.0f} s after starting"
+                else:
+                    continue
+                print(f"[launcher] {n.label} {why} while its process runs: a hung middleware (Fast DDS can "
+                      f"deadlock, eProsima/Fast-DDS#6502); its stack is in its log; killed, to be restarted",
+                      file=sys.stderr)
+                with contextlib.suppress(ProcessLookupError):
+                    n.proc.send_signal(signal.SIGUSR1)
+                    time.sleep(0.3)  # the stack dump is written by the node's Python thread
+                    n.proc.kill()
+                n.hangs += 1
+                n.seen, n.missing_since = False, None
+                hung.append(n.label)
+        return hung

@@ -1,0 +1,77 @@
+"""The hang watchdog (bev_mdo/ros/watchdog.py) on a made-up graph: a launched process that left
+the ROS graph, or never reached it, is killed while it runs and restarted by the supervisor; a
+node on the graph is never touched, however long; nothing is done once the launcher stops."""
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from bev_mdo.ros.launch import Launcher, composed_argv, discipline_argv
+from bev_mdo.ros.watchdog import HangWatchdog, ros_node_names
+from bev_mdo.testing import PYTHON
+
+SLEEPER = [PYTHON, "-c", "import time; time.sleep(120)"]
+
+
+def _wait(pred, timeout_s=30.0):
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def test_node_names_are_read_from_the_command_line():
+    assert ros_node_names(discipline_argv("energy", "c.yaml", instance="ab12")) == ("energy_node_ab12",)
+    assert ros_node_names(composed_argv(["vehicle_mass", "range"], "c.yaml", instance="ab12")) == (
+        "vehicle_mass_node_ab12", "range_node_ab12")
+    assert ros_node_names(composed_argv(["energy"], "c.yaml")) == ("energy_node",)
+    assert ros_node_names(SLEEPER) == ()  # a process without a node name (the recorder) is not watched
+
+
+@pytest.fixture
+def launcher(tmp_path):
+    la = Launcher({"ROS_DOMAIN_ID": "0"}, log_dir=tmp_path)
+    yield la
+    la.stop(timeout_s=1.0)
+
+
+def test_a_node_that_leaves_the_graph_is_killed_and_restarted(launcher):
+    node = launcher.add("energy", SLEEPER + ["-r", "__node:=energy_node_x"])
+    launcher.supervise()
+    dog = HangWatchdog(launcher, 0, silent_s=7.0, start_s=45.0)
+    t0 = node.spawned_at
+    first = node.proc.pid
+    assert dog.check({"energy_node_x", "other"}, t0 + 1) == []
+    assert node.seen
+    assert dog.check({"energy_node_x"}, t0 + 1000) == []  # on the graph: never touched, however long
+    assert dog.check({"other"}, t0 + 1001) == []          # gone for less than silent_s: wait
+    assert dog.check({"other"}, t0 + 1007.9) == []
+    assert dog.check({"other"}, t0 + 1008.1) == ["energy"]
+    assert node.hangs == 1
+    assert _wait(lambda: node.restarts == 1 and node.proc.pid != first)  # the supervisor restarted it
+    assert not node.seen and node.missing_since is None  # watched afresh from its restart
+
+
+def test_a_node_that_never_appears_is_killed_after_start_s(launcher):
+    node = launcher.add("energy", SLEEPER + ["-r", "__node:=energy_node_x"])
+    dog = HangWatchdog(launcher, 0, silent_s=7.0, start_s=45.0)
+    assert dog.check(set(), node.spawned_at + 44) == []
+    assert dog.check(set(), node.spawned_at + 45) == ["energy"]
+    assert _wait(lambda: node.proc.poll() is not None)  # killed (no supervisor here: not restarted)
+
+
+def test_nothing_is_killed_once_the_launcher_stops_or_for_unwatched_nodes(launcher):
+    watched = launcher.add("energy", SLEEPER + ["-r", "__node:=energy_node_x"])
+    plain = launcher.add("recorder", SLEEPER, restart=False)
+    dog = HangWatchdog(launcher, 0, silent_s=7.0, start_s=45.0)
+    assert dog.check({"energy_node_x"}, watched.spawned_at + 1) == []
+    assert dog.check(set(), watched.spawned_at + 100) == []
+    assert dog.check(set(), watched.spawned_at + 107) == ["energy"]
+    assert plain.proc.poll() is None and plain.hangs == 0
+    launcher._stopping.set()
+    w2 = launcher.add("mass", SLEEPER + ["-r", "__node:=vehicle_mass_node_x"])
+    assert dog.check(set(), w2.spawned_at + 1000) == []
+    assert w2.proc.poll() is None
