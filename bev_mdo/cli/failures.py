@@ -80,6 +80,11 @@ class NamingInProcessEvaluator(InProcessEvaluator):
         super().__init__(discs)
         self.errors = errors or FirstErrors()
 
+    @property
+    def hung(self) -> list[str]:
+        """The disciplines that timed out and are treated as hung for the rest of the run."""
+        return sorted(d.name for d in self.disciplines.values() if getattr(d, "_hung", ""))
+
     def evaluate(self, calls, **kw):  # kw: partials=... as InProcessEvaluator.evaluate takes it
         results = super().evaluate(calls, **kw)
         for (name, _), res in zip(calls, results):

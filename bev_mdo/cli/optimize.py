@@ -139,10 +139,17 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
         for k, v in extra.items():
             print(f"{k}: {v}" if k != "run_time_s" else f"run time {v:.3f} s (config loaded to this line: start-up, "
                   "optimisation, baseline, answers, shut-down)", file=out)
+    lost = extra.get("unresponsive_disciplines")
+    if lost:  # its later evaluations all failed: the optimiser ran blind from then on
+        print(f"warning: {', '.join(lost)} stopped answering during the run (no answer within ros.timeout_s x "
+              "(ros.retries + 1)); every later evaluation of it failed, so the result is the best point "
+              "evaluated before that, not an optimum", file=sys.stderr)
     if extra.get("recorder_failed"):
         print(f"warning: {extra['recorder_failed']}", file=sys.stderr)
         return 3
-    return 0 if result["feasible"] else 1
+    if not result["feasible"]:
+        return 1
+    return 4 if lost else 0
 
 
 def _run_inprocess(config, args, show, x0=None):
@@ -167,6 +174,8 @@ def _run_inprocess(config, args, show, x0=None):
     extra = {"transport": "inprocess", **({"bag": bag} if bag else {}), "_bag_writer": writer}
     if ev.errors.first:
         extra["discipline_errors"] = dict(ev.errors.first)
+    if ev.hung:
+        extra["unresponsive_disciplines"] = ev.hung
     return out, baseline, extra
 
 

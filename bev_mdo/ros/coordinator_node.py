@@ -133,7 +133,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         stats = {"run_id": node.run_id, "dropped": dict(node.evaluator.dropped), "retried": node.evaluator.retried,
                  "data_flow_mdas": node.evaluator.flows, "refused_instances": dict(node.evaluator.refused),
                  "t_optimised": t_optimised, "discipline_errors": dict(node.evaluator.first_errors),
-                 "pools": node.evaluator.pool_summary()}
+                 "pools": node.evaluator.pool_summary(), "unresponsive": sorted(node.evaluator.unresponsive)}
         stats["all_acked"] = node.wait_for_all_acked(node.discovery_wait_s, give_up=give_up_acks)
         return result, stats
     finally:

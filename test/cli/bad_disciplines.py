@@ -18,6 +18,21 @@ class Hang:
         return {"hang_kw": np.asarray(inputs["motor_kw"])}
 
 
+class HangLater:
+    """Answers its first two calls (the start point: its MDA and the baseline), then never returns."""
+
+    name = "late"
+    inputs = ("motor_kw",)
+    outputs = ("late_kw",)
+    calls = 0
+
+    def compute(self, inputs):
+        HangLater.calls += 1
+        if HangLater.calls > 2:
+            time.sleep(3600)
+        return {"late_kw": np.asarray(inputs["motor_kw"], float)}
+
+
 class Broken:
     """Raises for every point."""
 

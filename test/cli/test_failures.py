@@ -50,6 +50,18 @@ def test_a_discipline_that_never_returns_fails_after_the_ros_timeout_budget(tmp_
     assert "treated as hung" in out["discipline_errors"]["hang"]
 
 
+def test_a_discipline_that_stops_answering_mid_run_is_not_an_optimum(tmp_path):
+    """The start point was evaluated, then the discipline hung: every later point failed, the best
+    point seen is the start. That is reported, with a warning naming the discipline and exit 4,
+    never as an optimum with exit 0."""
+    p = _run(tmp_path, "late", "HangLater", {"timeout_s": 0.2, "retries": 1})
+    assert p.returncode == 4, p.stderr[-2000:]
+    out = json.loads(p.stdout)
+    assert out["feasible"] and out["unresponsive_disciplines"] == ["late"], out
+    warned = [l for l in p.stderr.splitlines() if l.startswith("warning: late stopped answering")]
+    assert len(warned) == 1 and "not an optimum" in warned[0], p.stderr[-2000:]
+
+
 def test_one_number_for_a_whole_batch_is_an_error_naming_the_discipline(tmp_path):
     """A discipline that returns one scalar for a batch (here its sum) is not broadcast to every point."""
     p = _run(tmp_path, "summed", "Summed", {})
