@@ -247,7 +247,9 @@ def test_concurrent_cli_runs_are_bound_to_their_run_and_signed(configs, referenc
         assert out["signing"] == "per-run key"
         unsigned += out["dropped_messages"].get("unsigned", 0)
         assert any("foreign" in k for k in out["refused_instances"])
-        assert not out["node_restarts"]
+        # no node crashed; a node the watchdog found hung in the middleware (Fast DDS deadlock under
+        # overload, ros/watchdog.py) is restarted and counted in both, and the run still got its answer
+        assert out["node_restarts"] == out.get("node_hangs", {}), (name, why, out.get("node_hangs"))
     # the standalone suite of each configuration read the signed requests and answered unsigned
     assert unsigned > 0
     keys = list(tmp_path.glob("bags/.keys/*/sign.key"))
