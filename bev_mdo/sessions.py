@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 from bev_mdo.config import plain
+from bev_mdo.stacks import deadline
 
 LEASE_S = 3.0  # participant lease of bev_mdo's Fast DDS profile (bev_mdo/data/fastdds_profile.xml)
 ACK_GRACE_S = 1.0  # a live local recorder acknowledges in milliseconds (in DDS threads, not Python's)
@@ -132,7 +133,8 @@ class OptimizeRosSession:
             out.pop("history")
             return out, baseline
         finally:
-            rclpy.shutdown(context=ctx)
+            with deadline():  # a participant hung in the middleware would block here for good
+                rclpy.shutdown(context=ctx)
 
     def __exit__(self, *exc) -> None:
         self.launcher.stop(first=("recorder",))
@@ -249,8 +251,9 @@ def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None) -> dict | 
     finally:
         if seen is not None:
             seen.update(dropped=dict(node.evaluator.dropped), refused=dict(node.evaluator.refused))
-        node.evaluator.close()
-        node.destroy_node()
+        with deadline():
+            node.evaluator.close()
+            node.destroy_node()
 
 
 class _InProcess:
@@ -411,9 +414,11 @@ class ParetoRosSession:
         try:
             if self.sink is not None:
                 self.sink.wait_for_all_acked(self.ros["discovery_wait_s"])
-                self.sink.close()
-            if self.ctx is not None:
-                rclpy.shutdown(context=self.ctx)
+            with deadline():  # a participant hung in the middleware would block here for good
+                if self.sink is not None:
+                    self.sink.close()
+                if self.ctx is not None:
+                    rclpy.shutdown(context=self.ctx)
         finally:
             if self.launcher is not None:
                 self.launcher.stop(first=("recorder",))

@@ -50,3 +50,22 @@ def test_a_node_stuck_past_sigint_gets_its_stacks_dumped_before_sigterm():
     _, err = p.communicate(timeout=30)
     assert p.returncode == -signal.SIGTERM
     assert "stuck_here" in err
+
+
+def _deadline_run(body: str, seconds: float) -> subprocess.CompletedProcess:
+    code = "\n".join(["import ctypes, time", "from bev_mdo.stacks import deadline",
+                      f"with deadline({seconds}):", f"    {body}", "time.sleep(1.5)", "print('after')"])
+    return subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)
+
+
+def test_a_teardown_stuck_in_c_holding_the_gil_ends_the_process_with_its_stacks():
+    """A call blocked in C that holds Python's lock (ctypes.PyDLL keeps it: like a DDS destroy that never
+    returns) cannot be interrupted from Python; the deadline's timer thread still ends the process."""
+    p = _deadline_run("ctypes.PyDLL(None).sleep(30)", 0.5)
+    assert p.returncode == 1 and "after" not in p.stdout
+    assert "Timeout" in p.stderr and "File" in p.stderr
+
+
+def test_a_teardown_that_ends_in_time_cancels_the_deadline():
+    p = _deadline_run("time.sleep(0.1)", 0.5)
+    assert p.returncode == 0 and p.stdout.strip() == "after" and "Timeout" not in p.stderr

@@ -21,6 +21,7 @@ from bev_mdo.ros import wire
 from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, stamp
 from bev_mdo.ros.evaluator import RosEvaluator
 from bev_mdo.ros.settings import validate_ros
+from bev_mdo.stacks import deadline
 from bev_mdo_msgs.msg import IterationRecord
 
 
@@ -137,8 +138,9 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         stats["all_acked"] = node.wait_for_all_acked(node.discovery_wait_s, give_up=give_up_acks)
         return result, stats
     finally:
-        node.evaluator.close()
-        node.destroy_node()
+        with deadline():  # a participant hung in the middleware would block here for good
+            node.evaluator.close()
+            node.destroy_node()
 
 
 def main(args: list[str] | None = None) -> int:
