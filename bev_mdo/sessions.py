@@ -41,6 +41,18 @@ def _prepare(config: dict, logs: Path, key_dir: Path) -> tuple[dict, Path]:
     return config, resolved
 
 
+def key_dir_for(bag: Path) -> Path:
+    """Where a run's per-run key lives: ``<bag parent>/.keys/<bag name>`` (beside the bag, never in it).
+    A key left there by an earlier run that never wrote this bag (it failed or was stopped before its
+    recorder started) is stale: it is removed, so a re-run with the same ``--bag`` gets a fresh key
+    instead of failing on the existing file."""
+    d = bag.parent / ".keys" / bag.name
+    stale = d / "sign.key"
+    if stale.is_file() and not bag.exists():
+        stale.unlink()
+    return d
+
+
 def analyse_baseline(config, evaluator) -> dict | None:
     """The config's ``problem.baseline`` analysed through ``evaluator``: {name, design, outputs, feasible, ...};
     None when the config names no baseline. A failed analysis is reported in ``error``, never raised:
@@ -90,7 +102,7 @@ class OptimizeRosSession:
 
         env = ros_environment(self.ros)
         apply_ros_environment(self.ros)
-        self.config, resolved = _prepare(self.config, self.logs, self.bag.parent / ".keys" / self.bag.name)
+        self.config, resolved = _prepare(self.config, self.logs, key_dir_for(self.bag))
         self.launcher = Launcher(env, log_dir=self.logs)
         try:
             names = [e["name"] for e in discipline_entries(self.config)]

@@ -1,0 +1,21 @@
+"""A per-run key left by a run that never wrote its bag does not block a re-run with the same --bag."""
+from __future__ import annotations
+
+from bev_mdo.ros.auth import with_run_key
+from bev_mdo.sessions import key_dir_for
+
+
+def test_a_stale_key_of_a_bag_never_written_is_replaced(tmp_path):
+    bag = tmp_path / "bags" / "run1"
+    first = with_run_key({"ros": {}}, key_dir_for(bag))["ros"]["sign_key_file"]  # the run then failed: no bag
+    old = open(first).read()
+    again = with_run_key({"ros": {}}, key_dir_for(bag))["ros"]["sign_key_file"]  # raised FileExistsError before
+    assert again == first and open(again).read() != old  # same place, a fresh key
+
+
+def test_the_key_of_an_existing_bag_is_left_alone(tmp_path):
+    bag = tmp_path / "bags" / "run1"
+    key = with_run_key({"ros": {}}, key_dir_for(bag))["ros"]["sign_key_file"]
+    bag.mkdir(parents=True)
+    key_dir_for(bag)
+    assert open(key).read()  # still there: that bag's run (and `resume`'s check) own it
