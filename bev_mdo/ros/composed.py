@@ -53,6 +53,65 @@ def link_local(nodes: list[DisciplineNode]) -> None:
                 by_name[src].local_consumers.append(node)
 
 
+class Beside:
+    """Discipline nodes composed into the coordinator's own process (``--compose coordinator``).
+
+    The nodes are created in the coordinator's context (one DDS participant) and served from the
+    coordinator evaluator's own wait loop (one thread, no other executor): the coordinator
+    publishes a request, Fast DDS delivers it inside the process while publishing (intra-process
+    delivery), the nodes take it in the same loop, evaluate and answer. Every node keeps its name,
+    topics and declaration, so the graph and the handshake are those of any other layout. Data
+    flow between the nodes goes by direct call (``link_local``). A result goes to the coordinator
+    by direct call (``_on_result``, which checks run, id, shape and signature as for a received
+    one) when no reader outside this process has matched its topic; when one has (a recorder, a
+    consumer elsewhere), it is published and the coordinator takes it from DDS as usual, so a
+    recording holds every message it holds with any other layout.
+
+    Not served: the nodes' parameter services (no executor spins them) and requests from another
+    process's coordinator while this one is not evaluating (the nodes are served only inside the
+    coordinator's waits)."""
+
+    def __init__(self, config: dict, names: list[str], context, run_id: str = "", instance: str = ""):
+        self.nodes = make_nodes(config, list(names), instance, run_id, context=context)
+        link_local(self.nodes)
+        self._pairs: list = []
+        self._evaluator = None
+
+    def attach(self, evaluator) -> None:
+        """Serve the nodes from `evaluator`'s waits and hand their results to it (one at a time)."""
+        self.detach()
+        self._evaluator = evaluator
+        for node in self.nodes:
+            # the in-process readers of its result topics: the coordinator's, and the subscriptions of
+            # the consumers composed with it (kept in the graph, not read: link_local)
+            node.local_readers = {id(node._mda_pub): 1 + len(node.local_consumers), id(node._result_pub): 1}
+            node.local_coordinator = evaluator._on_result
+            for sub, handle in node.hot_subscriptions():
+                self._pairs.append((sub, self._with_stats(node, handle)))
+        evaluator._hot.extend(self._pairs)
+
+    @staticmethod
+    def _with_stats(node: DisciplineNode, handle):
+        def served(data, info):
+            handle(data, info)
+            node.publish_stats()  # rate-limited (node stats, `bev-mdo status`)
+        return served
+
+    def detach(self) -> None:
+        if self._evaluator is not None:
+            hot = self._evaluator._hot
+            hot[:] = [p for p in hot if all(p is not q for q in self._pairs)]
+        for node in self.nodes:
+            node.local_coordinator = None
+        self._pairs, self._evaluator = [], None
+
+    def close(self) -> None:
+        self.detach()
+        for node in self.nodes:
+            node.destroy_node()
+        self.nodes = []
+
+
 def serve_many(nodes: list[DisciplineNode], idle_s: float = 0.1, service_every: int = 64) -> None:
     """Serve every node's hot subscriptions from one wait set (one thread), the nodes' other
     entities (parameter services) from one executor when idle: discipline_node.serve for several."""

@@ -106,11 +106,14 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         optimizer: str | None = None, x0: Mapping[str, float] | None = None,
         on_iteration: Callable[[dict], None] | None = None, recorder_subscribers: int = 0,
         context=None, signer=None, instances: Mapping[str, int] | None = None,
-        give_up_acks: Callable[[], bool] | None = None):
-    """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats)."""
+        give_up_acks: Callable[[], bool] | None = None, beside=None):
+    """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats).
+    ``beside``: a composed.Beside (discipline nodes in this process and `context`) to serve."""
     from bev_mdo.mdo.driver import run_optimization
 
     node = CoordinatorNode(config, run_id, signer=signer, context=context)
+    if beside is not None:
+        beside.attach(node.evaluator)
     try:
         names = discipline_names(config)
         node.evaluator.wait_for_disciplines(names, node.discovery_wait_s, extra_subscribers=recorder_subscribers)
@@ -137,6 +140,8 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         stats["all_acked"] = node.wait_for_all_acked(node.discovery_wait_s, give_up=give_up_acks)
         return result, stats
     finally:
+        if beside is not None:
+            beside.detach()
         node.evaluator.close()
         node.destroy_node()
 

@@ -65,6 +65,18 @@ def discipline_argv(name: str, config_path: str, instance: str = "", run_id: str
     return argv
 
 
+def node_names_of(argv: Sequence[str]) -> list[str]:
+    """The ROS node names a process started with `argv` (discipline_argv, composed_argv) runs."""
+    for a in argv:
+        if a.startswith("__node:="):
+            return [a.split(":=", 1)[1]]
+    for a in argv:
+        if a.startswith("disciplines:="):
+            inst = next((b.split(":=", 1)[1].strip("'") for b in argv if b.startswith("instance:=")), "")
+            return [f"{n}_node" + (f"_{inst}" if inst else "") for n in a.split(":=", 1)[1].split(",")]
+    return []
+
+
 def _stop_procs(procs, timeout_s: float) -> None:
     """SIGINT, then SIGTERM, then SIGKILL, waiting for each step. A process still alive after SIGINT is
     stuck: it first gets SIGUSR1, so every thread's stack lands in its log (bev_mdo/stacks.py)."""
@@ -244,12 +256,27 @@ def parse_instances(spec: str | None, names: Sequence[str]) -> dict[str, int]:
     return out
 
 
+COMPOSE_COORDINATOR = "coordinator"  # --compose coordinator: every discipline (but pools) in the coordinator's process
+
+
+def beside_coordinator(compose: str | None, names: Sequence[str], instances: Mapping[str, int] | None = None
+                       ) -> list[str]:
+    """The disciplines ``--compose coordinator`` runs inside the coordinator's process (every one
+    without a pool; a pool's instances keep a process each); empty for any other ``--compose``."""
+    if (compose or "none").strip() != COMPOSE_COORDINATOR:
+        return []
+    return [n for n in names if (instances or {}).get(n, 1) <= 1]
+
+
 def parse_compose(spec: str | None, names: Sequence[str]) -> list[list[str]]:
-    """``--compose``: ``none`` (a process per discipline), ``all`` (one process for all) or groups
-    ``a+b,c+d`` (each group one process; the others alone) -> list of process groups, in order."""
+    """``--compose``: ``none`` (a process per discipline), ``all`` (one process for all), groups
+    ``a+b,c+d`` (each group one process; the others alone) or ``coordinator`` (no process: all in the
+    coordinator's, see beside_coordinator) -> list of process groups, in order."""
     spec = (spec or "none").strip()
     if spec == "none":
         return [[n] for n in names]
+    if spec == COMPOSE_COORDINATOR:  # no process: composed into the coordinator's (composed.Beside)
+        return []
     if spec == "all":
         return [list(names)]
     groups, seen = [], set()

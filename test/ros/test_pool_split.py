@@ -78,6 +78,24 @@ def test_launch_plan_instances_and_compose():
     assert "instance:='energy_node_ab_1'" in plan[2][1] and "run_id:='r'" in plan[2][1]
 
 
+def test_launch_plan_compose_coordinator_and_node_names():
+    """``--compose coordinator``: no process for the disciplines (they run in the coordinator's), a pool's
+    instances keep one each; node_names_of names the nodes any planned process runs."""
+    from bev_mdo.ros.launch import beside_coordinator, node_names_of, parse_compose, plan_processes
+
+    names = ["vehicle_mass", "energy", "range", "cost"]
+    assert parse_compose("coordinator", names) == []
+    assert beside_coordinator("coordinator", names) == names
+    assert beside_coordinator("coordinator", names, {"energy": 2, "range": 1}) == ["vehicle_mass", "range", "cost"]
+    assert beside_coordinator("all", names) == [] and beside_coordinator(None, names) == []
+    plan = plan_processes(names, "/tmp/c.yaml", instances={"energy": 2}, compose="coordinator")
+    assert [label for label, _ in plan] == ["energy#0", "energy#1"]
+    assert [node_names_of(argv) for _, argv in plan] == [["energy_node_0"], ["energy_node_1"]]
+    plan = plan_processes(names, "/tmp/c.yaml", instance="ab", compose="vehicle_mass+range")
+    assert [node_names_of(argv) for _, argv in plan] == [["vehicle_mass_node_ab", "range_node_ab"],
+                                                          ["energy_node_ab"], ["cost_node_ab"]]
+
+
 def test_min_rows_keeps_every_share_at_least_that_large():
     pool = Pool("x")
     pool.stat("a").throughput, pool.stat("b").throughput, pool.stat("c").throughput = 10.0, 1.0, 1.0
