@@ -9,9 +9,10 @@
    overhead per batch = wall time - (batch x wait / instances), i.e. what the pool costs beyond
    the ideal split (transport, split and join, the slowest share).
 2. compose: one full MDA of one design over ROS (the data-flow path), p50/p99, with every
-   discipline in its own process, with all six composed into ONE process, and in process;
-   the three layouts measured in one run, alternating, --reps rounds of --n MDAs each; each ROS
-   layout on a domain of its own (--domain + 1, + 2), so neither sees the other's traffic.
+   discipline in its own process, with all six composed into ONE process, with all six composed
+   into the coordinator's own process (--compose coordinator, composed.Beside), and in process;
+   the four layouts measured in one run, alternating, --reps rounds of --n MDAs each; each ROS
+   layout on a domain of its own (--domain + 1, + 2, + 3), so none sees another's traffic.
 Writes bench/results/bench_pool.json.
 """
 from __future__ import annotations
@@ -121,6 +122,7 @@ def compose(ctx, env, reps: int, n: int, domain: int | None = None) -> dict:
     layouts = {}
     setups = []
     contexts = []
+    load0 = os.getloadavg()[0]
     for k, (layout, spec) in enumerate((("per_process", "none"), ("composed_one_process", "all"))):
         if domain is not None:
             lctx = rclpy.context.Context()
@@ -136,6 +138,20 @@ def compose(ctx, env, reps: int, n: int, domain: int | None = None) -> dict:
             launcher.add(label, argv)
         node = CoordinatorNode(config, run_id=run_id, context=lctx, node_name=f"bench_{layout}")
         setups.append((layout, launcher, node))
+    # --compose coordinator: the six nodes in THIS process, served by the coordinator's own loop
+    from bev_mdo.ros.composed import Beside
+
+    if domain is not None:
+        lctx = rclpy.context.Context()
+        rclpy.init(context=lctx, domain_id=domain + 3)
+        contexts.append(lctx)
+    else:
+        lctx = ctx
+    run_id = f"benchpoolbesi{os.getpid()}"
+    beside = Beside(config, names, lctx, run_id=run_id)
+    node = CoordinatorNode(config, run_id=run_id, context=lctx, node_name="bench_composed_beside_coordinator")
+    beside.attach(node.evaluator)
+    setups.append(("composed_beside_coordinator", Launcher(env), node))
     try:
         forms = {}
         # the two layouts run one at a time: the other's processes are idle (blocked in a wait)
@@ -169,6 +185,7 @@ def compose(ctx, env, reps: int, n: int, domain: int | None = None) -> dict:
             print(f"{layout:22s} p50 {np.median(p50[layout]):7.0f} us [{min(p50[layout]):.0f}-{max(p50[layout]):.0f}]"
                   f"  p99 {np.median(p99[layout]):7.0f} us", flush=True)
     finally:
+        beside.close()
         for _, launcher, node in setups:
             node.evaluator.close()
             node.destroy_node()
@@ -176,6 +193,7 @@ def compose(ctx, env, reps: int, n: int, domain: int | None = None) -> dict:
         for lctx in contexts:
             rclpy.shutdown(context=lctx)
     return {"mdas_per_round": n, "rounds": reps, "layouts": layouts,
+            "load_average_1min": {"before": load0, "after": os.getloadavg()[0]},
             "domains": "one per layout" if domain is not None else "shared"}
 
 
