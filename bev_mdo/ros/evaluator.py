@@ -129,6 +129,7 @@ class RosEvaluator:
         # False: an MDA with a pool runs in waves (only the pooled disciplines see shares; the
         # others get the whole batch once), as before data flow with pools (docs/scaling.md)
         self.pool_data_flow = (config.get("ros") or {}).get("pool_data_flow", True) is not False
+        self.pool_min_rows = pools.validate_min_rows((config.get("ros") or {}).get("pool_min_rows", 1))
         self._info_t = time.monotonic()
         self._executor = SingleThreadedExecutor(context=node.context)
         self._executor.add_node(node)
@@ -596,7 +597,8 @@ class RosEvaluator:
         other instances) and its old answers are dropped (``late_share``)."""
         lead = max(pooled, key=lambda d: (len(pooled[d]), d))
         self._flow_got, self._flow_meta = {}, {}
-        for j, (inst, a, b) in enumerate(self._pool(lead).split(n, pooled[lead], min_rows=FLOW_MIN_ROWS)):
+        for j, (inst, a, b) in enumerate(self._pool(lead).split(
+                n, pooled[lead], min_rows=max(FLOW_MIN_ROWS, pools.min_rows_of(self.pool_min_rows, lead)))):
             targets = {d: inst if d == lead else live[j % len(live)] for d, live in pooled.items()}
             self._send_flow_share(names, request, a, b, targets, partials, 0)
         failed = self._await_flow_shares(names, plan, request, partials)
@@ -792,7 +794,7 @@ class RosEvaluator:
         """Send rows first..first+n of `batch` as one share per instance in `live`."""
         fp = (self._expect(name) or ("?", ""))[0]
         self._batches[index] = (name, batch)
-        for inst, a, b in self._pool(name).split(n, live):
+        for inst, a, b in self._pool(name).split(n, live, min_rows=pools.min_rows_of(self.pool_min_rows, name)):
             req = wire.Request(self.run_id, self._next_id, name, iteration=iteration)
             req.header.frame_id = binding.target_tag(name, fp, inst)
             req.attempt = tries
