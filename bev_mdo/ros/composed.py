@@ -57,15 +57,15 @@ class Beside:
     """Discipline nodes composed into the coordinator's own process (``--compose coordinator``).
 
     The nodes are created in the coordinator's context (one DDS participant) and served from the
-    coordinator evaluator's own wait loop (one thread, no other executor): the coordinator
-    publishes a request, Fast DDS delivers it inside the process while publishing (intra-process
-    delivery), the nodes take it in the same loop, evaluate and answer. Every node keeps its name,
-    topics and declaration, so the graph and the handshake are those of any other layout. Data
-    flow between the nodes goes by direct call (``link_local``). A result goes to the coordinator
-    by direct call (``_on_result``, which checks run, id, shape and signature as for a received
-    one) when no reader outside this process has matched its topic; when one has (a recorder, a
-    consumer elsewhere), it is published and the coordinator takes it from DDS as usual, so a
-    recording holds every message it holds with any other layout.
+    coordinator evaluator's own wait loop (one thread, no other executor). Every node keeps its
+    name, topics and declaration, so the graph and the handshake are those of any other layout.
+    Messages between the coordinator and these nodes go as rclcpp's intra-process communication
+    does: by direct call when no reader outside this process has matched the topic, else published
+    (and then taken from DDS as usual), so a recorder or any other reader gets every message it
+    gets with any other layout. A request goes to the nodes' handlers (``local_requests``); a result
+    to the coordinator's ``_on_result`` (which checks run, id, shape and signature as for a
+    received one); data flow between the nodes goes by direct call always (``link_local``). With
+    nobody else listening an MDA then costs no DDS write at all.
 
     Not served: the nodes' parameter services (no executor spins them) and requests from another
     process's coordinator while this one is not evaluating (the nodes are served only inside the
@@ -89,6 +89,25 @@ class Beside:
             for sub, handle in node.hot_subscriptions():
                 self._pairs.append((sub, self._with_stats(node, handle)))
         evaluator._hot.extend(self._pairs)
+        # requests: as rclcpp's intra-process communication, by direct call to the nodes of this
+        # process when no reader outside it matched the topic (else published, and taken from DDS)
+        self._local, self._by_pub = {}, {}
+        for node in self.nodes:
+            self._local.setdefault(node._sub.topic_name, []).append((node, node._on_request))
+            if node._mda_sub is not None:
+                self._local.setdefault(node._mda_sub.topic_name, []).append((node, node._on_mda_request))
+        evaluator.local_requests = self._deliver
+
+    def _deliver(self, pub, request) -> bool:
+        local = self._by_pub.get(id(pub))
+        if local is None:
+            local = self._by_pub[id(pub)] = self._local.get(pub.topic_name, [])
+        if not local or pub.get_subscription_count() > len(local):
+            return False
+        for node, handle in local:
+            handle(request)
+            node.publish_stats()
+        return True
 
     @staticmethod
     def _with_stats(node: DisciplineNode, handle):
@@ -101,6 +120,7 @@ class Beside:
         if self._evaluator is not None:
             hot = self._evaluator._hot
             hot[:] = [p for p in hot if all(p is not q for q in self._pairs)]
+            self._evaluator.local_requests = None
         for node in self.nodes:
             node.local_coordinator = None
         self._pairs, self._evaluator = [], None

@@ -57,12 +57,17 @@ def _reference(config):
     return run_optimization(copy.deepcopy(config), InProcessEvaluator(resolve_disciplines(config)))
 
 
-def test_beside_the_coordinator_gives_the_in_process_optimum_without_result_writes(rclpy_context, config_path):
+def test_beside_the_coordinator_gives_the_in_process_optimum_without_dds_writes(rclpy_context, config_path,
+                                                                                monkeypatch):
+    from bev_mdo.ros import evaluator as ros_evaluator
     from bev_mdo.ros.composed import Beside
 
     config = load_config(config_path)
     run_id = f"beside{os.getpid()}"
     beside = Beside(config, BUILTINS, rclpy_context, run_id=run_id)
+    sent = []
+    encode = ros_evaluator.wire.encode_request
+    monkeypatch.setattr(ros_evaluator.wire, "encode_request", lambda m: sent.append(m) or encode(m))
     try:
         writes = _count_publishes(beside.nodes)
         res, stats = coordinator_node.run(config, context=rclpy_context, run_id=run_id, beside=beside)
@@ -73,6 +78,7 @@ def test_beside_the_coordinator_gives_the_in_process_optimum_without_result_writ
         assert all(n.counts["answered"] > 0 for n in beside.nodes), {n.discipline_name: dict(n.counts)
                                                                       for n in beside.nodes}
         assert writes == dict.fromkeys(BUILTINS, 0), writes
+        assert sent == []  # nor did the coordinator write a request: the nodes took each by direct call
         assert beside._evaluator is None  # detached when the run ended
     finally:
         beside.close()
@@ -108,6 +114,7 @@ def test_beside_publishes_while_an_outside_reader_listens(ros_domain, rclpy_cont
         assert stats["retried"] == 0 and not stats["dropped"], stats
         assert writes["energy"] > 0  # published: someone outside listens
         assert writes["cost"] == 0    # nobody outside reads cost's results: handed over directly
+        assert energy.counts["answered"] > 0
         ex = SingleThreadedExecutor(context=other)
         ex.add_node(probe)
         deadline = time.monotonic() + 10.0
@@ -168,3 +175,19 @@ def test_recorded_run_composed_into_the_coordinator_reads_back_and_resumes(ros_d
     resumed = json.loads(_cli("resume", bag, "--json", "--quiet", "--no-record", domain=ros_domain,
                               cwd=tmp_path).stdout)
     assert resumed["objective"] == pytest.approx(ref.objective, rel=1e-6)
+
+
+def test_ros2_run_coordinator_node_with_compose_coordinator(ros_domain, config_path, tmp_path):
+    """``ros2 run bev_mdo coordinator_node --ros-args -p compose:=coordinator``: a whole run in one
+    process, the in-process optimum; a compose value it cannot serve exits 2 with one line."""
+    argv = [PYTHON, "-m", "bev_mdo.ros.run", "coordinator_node", "--ros-args", "-p", f"config:={config_path}"]
+    out = subprocess.run(argv + ["-p", "compose:=coordinator"], env=ros_env(ros_domain), cwd=tmp_path,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    got = json.loads(out.stdout[out.stdout.index("{"):])
+    ref = _reference(load_config(config_path))
+    assert got["result"]["objective"] == ref.objective and got["result"]["design"] == ref.design
+    assert got["data_flow_mdas"] > 0 and got["retried"] == 0
+    bad = subprocess.run(argv + ["-p", "compose:=all"], env=ros_env(ros_domain), cwd=tmp_path,
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "compose must be coordinator" in bad.stderr and "Traceback" not in bad.stderr
