@@ -9,9 +9,10 @@
    overhead per batch = wall time - (batch x wait / instances), i.e. what the pool costs beyond
    the ideal split (transport, split and join, the slowest share).
 2. compose: one full MDA of one design over ROS (the data-flow path), p50/p99, with every
-   discipline in its own process, with all six composed into ONE process, and in process;
-   the three layouts measured in one run, alternating, --reps rounds of --n MDAs each; each ROS
-   layout on a domain of its own (--domain + 1, + 2), so neither sees the other's traffic.
+   discipline in its own process, with all six composed into ONE process, with all six composed
+   into the coordinator's own process (--compose coordinator, composed.Beside), and in process;
+   the four layouts measured in one run, alternating, --reps rounds of --n MDAs each; each ROS
+   layout on a domain of its own (--domain + 1, + 2, + 3), so none sees another's traffic.
 Writes bench/results/bench_pool.json.
 """
 from __future__ import annotations
@@ -121,6 +122,7 @@ def compose(ctx, env, reps: int, n: int, domain: int | None = None) -> dict:
     layouts = {}
     setups = []
     contexts = []
+    load0 = os.getloadavg()[0]
     for k, (layout, spec) in enumerate((("per_process", "none"), ("composed_one_process", "all"))):
         if domain is not None:
             lctx = rclpy.context.Context()
@@ -136,6 +138,20 @@ def compose(ctx, env, reps: int, n: int, domain: int | None = None) -> dict:
             launcher.add(label, argv)
         node = CoordinatorNode(config, run_id=run_id, context=lctx, node_name=f"bench_{layout}")
         setups.append((layout, launcher, node))
+    # --compose coordinator: the six nodes in THIS process, served by the coordinator's own loop
+    from bev_mdo.ros.composed import Beside
+
+    if domain is not None:
+        lctx = rclpy.context.Context()
+        rclpy.init(context=lctx, domain_id=domain + 3)
+        contexts.append(lctx)
+    else:
+        lctx = ctx
+    run_id = f"benchpoolbesi{os.getpid()}"
+    beside = Beside(config, names, lctx, run_id=run_id)
+    node = CoordinatorNode(config, run_id=run_id, context=lctx, node_name="bench_composed_beside_coordinator")
+    beside.attach(node.evaluator)
+    setups.append(("composed_beside_coordinator", Launcher(env), node))
     try:
         forms = {}
         # the two layouts run one at a time: the other's processes are idle (blocked in a wait)
@@ -169,6 +185,7 @@ def compose(ctx, env, reps: int, n: int, domain: int | None = None) -> dict:
             print(f"{layout:22s} p50 {np.median(p50[layout]):7.0f} us [{min(p50[layout]):.0f}-{max(p50[layout]):.0f}]"
                   f"  p99 {np.median(p99[layout]):7.0f} us", flush=True)
     finally:
+        beside.close()
         for _, launcher, node in setups:
             node.evaluator.close()
             node.destroy_node()
@@ -176,6 +193,7 @@ def compose(ctx, env, reps: int, n: int, domain: int | None = None) -> dict:
         for lctx in contexts:
             rclpy.shutdown(context=lctx)
     return {"mdas_per_round": n, "rounds": reps, "layouts": layouts,
+            "load_average_1min": {"before": load0, "after": os.getloadavg()[0]},
             "domains": "one per layout" if domain is not None else "shared"}
 
 
@@ -271,9 +289,21 @@ def energy(ctx, env, tmp: Path, reps: int, batches) -> dict:
         launcher.stop()
 
 
+def _variant(token: str) -> tuple[int, bool, int]:
+    """``--pareto-variants`` item: energy instances, then ``w`` (waves) and/or ``m<N>`` (ros.pool_min_rows
+    N for energy): ``1``, ``2``, ``2w``, ``2m128``."""
+    import re
+
+    m = re.fullmatch(r"(\d+)(w?)(?:m(\d+))?", token.strip())
+    if not m:
+        raise SystemExit(f"--pareto-variants: bad item {token!r} (e.g. 1,2,2w,2m128)")
+    return int(m.group(1)), bool(m.group(2)), int(m.group(3) or 1)
+
+
 def pareto(ctx, env, tmp: Path, pop: int, generations: int, counts, waves: bool = False) -> dict:
     """NSGA-II (run_nsga2 over the MDF MDA, as ``bev-mdo pareto`` runs it) over ROS with 1 and 2
-    energy instances (every other discipline one process), and in process."""
+    energy instances (every other discipline one process), and in process. `counts` items are
+    energy instance counts, or (instances, waves, pool_min_rows) variants (_variant)."""
     from bev_mdo.config import load_config, resolve_disciplines
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.evaluator import InProcessEvaluator
@@ -287,8 +317,11 @@ def pareto(ctx, env, tmp: Path, pop: int, generations: int, counts, waves: bool 
     names = discipline_names(config)
     out = {"pop": pop, "generations": generations, "runs": []}
     fronts = {}
-    for k in counts:
+    for item in counts:
+        k, waves_k, min_rows = item if isinstance(item, tuple) else (item, waves, 1)
+        label = f"{k}{'w' if waves_k else ''}{f'm{min_rows}' if min_rows > 1 else ''}"
         t_start = time.perf_counter()
+        load_before = os.getloadavg()[0]
         if k == 0:
             ev, launcher, node = InProcessEvaluator(resolve_disciplines(config)), None, None
         else:
@@ -304,14 +337,17 @@ def pareto(ctx, env, tmp: Path, pop: int, generations: int, counts, waves: bool 
             if k > 1:
                 ev.wait_for_instances("energy", k, 120.0)
             ev.warm_up(names)
-            ev.pool_data_flow = not waves
+            ev.pool_data_flow = not waves_k
+            ev.pool_min_rows = {"energy": min_rows}
         try:
             t0 = time.perf_counter()
             res = run_nsga2(build_formulation(config, ev, "mdf"), OBJECTIVES, pop_size=pop,
                             generations=generations, seed=1)
             wall = time.perf_counter() - t0
-            fronts[k] = np.asarray(res.F) if hasattr(res, "F") else None
-            entry = {"energy_instances": k, "wall_s": wall, "pool_mda": "waves" if waves else "data_flow_shares", "start_up_s": t0 - t_start,
+            fronts[label] = np.asarray(res.F) if hasattr(res, "F") else None
+            entry = {"variant": label, "energy_instances": k, "wall_s": wall,
+                     "pool_mda": "waves" if waves_k else "data_flow_shares", "pool_min_rows": min_rows,
+                     "start_up_s": t0 - t_start, "load_average_1min_before": load_before,
                      "load_average_1min_after": os.getloadavg()[0]}
             if node is not None:
                 entry["data_flow_mdas"] = ev.flows
@@ -319,13 +355,14 @@ def pareto(ctx, env, tmp: Path, pop: int, generations: int, counts, waves: bool 
                 entry["pools"] = ev.pool_summary()
                 entry["retried"] = ev.retried
             out["runs"].append(entry)
-            print(f"pareto {pop}x{generations}, energy instances {k or 'in process'}: {wall:.1f} s", flush=True)
+            print(f"pareto {pop}x{generations}, energy instances {k or 'in process'} ({label}): {wall:.1f} s "
+                  f"load {load_before:.1f}->{os.getloadavg()[0]:.1f}", flush=True)
         finally:
             if node is not None:
                 ev.close()
                 node.destroy_node()
                 launcher.stop()
-    ref = fronts[counts[0]]
+    ref = next(iter(fronts.values()))
     out["identical_fronts_to_first"] = sorted(k for k in fronts if np.array_equal(fronts[k], ref))
     return out
 
@@ -339,6 +376,8 @@ def main() -> int:
     ap.add_argument("--generations", type=int, default=30)
     ap.add_argument("--pool-waves", action="store_true", help="pareto: MDAs with a pool in waves, not data flow")
     ap.add_argument("--pareto-instances", default="1,2", help="energy instances per run (0: in process)")
+    ap.add_argument("--pareto-variants", default=None,
+                    help="instead of --pareto-instances: runs like 1,2,2w,2m128 (w: waves, mN: pool_min_rows N)")
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--n", type=int, default=1000, help="MDAs per round (compose)")
     ap.add_argument("--wait-ms", type=float, default=1.0, help="wait per design of the test discipline")
@@ -378,10 +417,28 @@ def main() -> int:
                 figures["energy"]["load_average_1min_after"] = os.getloadavg()[0]
             if args.part in ("pareto", "all"):
                 key = "pareto_waves" if args.pool_waves else "pareto"
-                figures[key] = pareto(ctx, env, Path(tmp), args.pop, args.generations,
-                                      [int(k) for k in args.pareto_instances.split(",")], args.pool_waves)
+                if args.pareto_variants:
+                    key = "pareto_variants"
+                    runs = [_variant(t) for t in args.pareto_variants.split(",")]
+                else:
+                    runs = [int(k) for k in args.pareto_instances.split(",")]
+                figures[key] = pareto(ctx, env, Path(tmp), args.pop, args.generations, runs, args.pool_waves)
     finally:
         rclpy.shutdown(context=ctx)
+    if args.part == "compose":  # rendered into docs/performance.md (scripts/render_bench.py)
+        lay = figures["compose"]["layouts"]
+        figures["bench"] = "bench_pool compose: one full MDA (leaf_nedc, one design) over ROS, four layouts in one run"
+        figures["command"] = " ".join(["python bench/bench_pool.py", *sys.argv[1:]])
+        figures["date_utc"] = figures["host"]["date_utc"]
+        figures["host"] = {**figures["host"], "load_average_1min": round(os.getloadavg()[0], 2),
+                           "python": sys.version.split()[0]}
+        what = {"per_process": "MDA p50, a process per discipline",
+                "composed_one_process": "MDA p50, all six composed into one process (--compose all)",
+                "composed_beside_coordinator": "MDA p50, all six in the coordinator's process (--compose coordinator)",
+                "inprocess": "MDA p50, in process (no ROS)"}
+        figures["figures"] = [{"what": what[k], "unit": "us", **{x: lay[k]["p50_us"][x] for x in ("median", "min", "max", "runs")},
+                               **({"target": "<= 1000"} if k == "composed_beside_coordinator" else {})}
+                              for k in what if k in lay]
     results.parent.mkdir(parents=True, exist_ok=True)
     results.write_text(json.dumps(figures, indent=2))
     print(f"wrote {results}")

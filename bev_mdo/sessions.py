@@ -126,17 +126,25 @@ class OptimizeRosSession:
 
         ctx = rclpy.context.Context()
         rclpy.init(context=ctx)
+        beside = None
         try:
+            from bev_mdo.config import discipline_names
+            from bev_mdo.ros.composed import Beside
+            from bev_mdo.ros.launch import beside_coordinator
+
+            local = beside_coordinator(self.compose, discipline_names(self.config), self.instances)
+            if local:  # --compose coordinator: the disciplines' nodes in this process, served by its coordinator
+                beside = Beside(self.config, local, ctx, run_id=self.run_id, instance=self.run_id[:8])
             # The baseline does not depend on the optimum: it is analysed BEFORE the optimisation, so the
             # end of the run evaluates nothing and never waits for a node that died late (a SIGKILLed
             # vehicle_mass after the optimiser's last evaluation stalled the baseline until its restart
             # was discovered: 8.5 s of tail in bench/bench_kill_tail.py).
             seen: dict = {}
-            baseline = _ros_baseline(self.config, self.run_id, ctx, seen)
+            baseline = _ros_baseline(self.config, self.run_id, ctx, seen, beside=beside)
             res, stats = coordinator_node.run(self.config, run_id=self.run_id, formulation=formulation,
                                               optimizer=optimizer, x0=x0, on_iteration=on_iteration,
                                               recorder_subscribers=self.recorder, context=ctx,
-                                              instances=self.instances,
+                                              instances=self.instances, beside=beside,
                                               give_up_acks=acks_needless(self.launcher) if self.recorder else None)
             stats["t_acked"] = time.monotonic()  # the final acknowledgements are in (or given up)
             merge_baseline_stats(stats, seen)
@@ -146,6 +154,8 @@ class OptimizeRosSession:
             return out, baseline
         finally:
             with deadline():  # a participant hung in the middleware would block here for good
+                if beside is not None:
+                    beside.close()
                 rclpy.shutdown(context=ctx)
 
     def __exit__(self, *exc) -> None:
@@ -241,7 +251,7 @@ def merge_baseline_stats(stats: dict, seen: dict) -> None:
     stats["refused_instances"] = refused
 
 
-def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None) -> dict | None:
+def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None, beside=None) -> dict | None:
     """The config's baseline analysed through the run's nodes (sub-run ``<run>-baseline``); None
     without one. A discipline that never appears raises (the run itself could not start either).
     `seen` gets what its evaluator dropped and refused."""
@@ -252,6 +262,8 @@ def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None) -> dict | 
         return None
     node = coordinator_node.CoordinatorNode(config, run_id + "-baseline", context=ctx,
                                             node_name="coordinator_baseline")
+    if beside is not None:  # disciplines composed into this process (--compose coordinator)
+        beside.attach(node.evaluator)
     try:
         node.evaluator.wait_for_disciplines(coordinator_node.discipline_names(config), node.discovery_wait_s)
         return analyse_baseline(config, node.evaluator)
@@ -263,6 +275,8 @@ def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None) -> dict | 
     finally:
         if seen is not None:
             seen.update(dropped=dict(node.evaluator.dropped), refused=dict(node.evaluator.refused))
+        if beside is not None:
+            beside.detach()
         with deadline():
             node.evaluator.close()
             node.destroy_node()
@@ -311,8 +325,9 @@ class ParetoRosSession:
     nodes of two topologies answer the same topics), a coordinator (its RosEvaluator) per topology
     and one ParetoFront publisher; the recorder is stopped first, after it acknowledged every front."""
 
-    def __init__(self, raw, ros: dict, out: Path, bag: Path, run_id: str):
+    def __init__(self, raw, ros: dict, out: Path, bag: Path, run_id: str, instances: dict | None = None):
         self.raw, self.ros, self.out, self.bag, self.run_id = raw, dict(ros), out, bag, run_id
+        self.instances = {k: v for k, v in (instances or {}).items() if v > 1}  # pools (--instances), as optimize
         self.stats = {"dropped_messages": {}, "retried_requests": 0}
         self.labels: list[str] = []
         self.launcher = self.ctx = self.sink = None
@@ -347,9 +362,8 @@ class ParetoRosSession:
     def evaluator(self, cfg, topology):
         import yaml
 
-        from bev_mdo.config import discipline_entries
         from bev_mdo.ros import coordinator_node
-        from bev_mdo.ros.launch import discipline_argv
+        from bev_mdo.ros.launch import node_names_of, plan_processes
 
         cfg = {**cfg, "ros": self.ros}
         wait_s = self.ros["discovery_wait_s"]
@@ -359,16 +373,20 @@ class ParetoRosSession:
         logs.mkdir(parents=True, exist_ok=True)
         resolved = logs / "config.yaml"
         resolved.write_text(yaml.safe_dump(plain(cfg), sort_keys=False))
-        for entry in discipline_entries(cfg):
-            label = f"{topology}/{entry['name']}"
-            self.launcher.add(label, discipline_argv(entry["name"], str(resolved.resolve()),
-                                                     run_id=f"{self.run_id}-{topology}"))
-            self.labels.append(label)
+        node_names = []
+        for label, argv in plan_processes(names, str(resolved.resolve()), run_id=f"{self.run_id}-{topology}",
+                                          instances=self.instances):
+            self.launcher.add(f"{topology}/{label}", argv)
+            self.labels.append(f"{topology}/{label}")
+            node_names += node_names_of(argv)
         node = coordinator_node.CoordinatorNode(cfg, f"{self.run_id}-{topology}", context=self.ctx)
         try:
+            # a pool's instances each read their discipline's request topic: the recorder counts as one more
             node.evaluator.wait_for_disciplines(names, wait_s, extra_subscribers=self.recorder)
+            for name, count in self.instances.items():  # a pool starts with all its instances (pool.py)
+                node.evaluator.wait_for_instances(name, count, wait_s)
             node.wait_for_recorder(self.recorder, wait_s)
-            self._wait_recorder_topics([f"{n}_node" for n in names], wait_s)
+            self._wait_recorder_topics(node_names, wait_s)
             node.evaluator.warm_up(names)
             yield node.evaluator
             for k, v in node.evaluator.dropped.items():
@@ -415,7 +433,7 @@ class ParetoRosSession:
         self.labels = []
         node_names = {f"{n}_node" for n in names}
         deadline = time.monotonic() + wait_s
-        while node_names & set(self.sink.node.get_node_names()):
+        while any(g.startswith(n) for g in self.sink.node.get_node_names() for n in node_names):
             if time.monotonic() > deadline:
                 raise ValueError(f"discipline nodes of the previous topology still on the graph after {wait_s:g} s")
             self.sink.spin(0.02)  # graph polling

@@ -35,8 +35,9 @@ def register(sub) -> None:
     p.add_argument("--instances", default=None, metavar="N|NAME=N,...",
                    help="ROS: run N instances of every discipline, or of the named ones; they share each batch "
                         "(ros.pool: share) or all answer it (redundant)")
-    p.add_argument("--compose", default="none", metavar="all|none|A+B,C+D",
-                   help="ROS: run several disciplines in one process (one executor, several nodes)")
+    p.add_argument("--compose", default="none", metavar="all|none|A+B,C+D|coordinator",
+                   help="ROS: run several disciplines in one process (one executor, several nodes); "
+                        "coordinator: all of them in the coordinator's own process (docs/scaling.md)")
     from bev_mdo.cli.ros_args import add_ros_arguments
 
     add_ros_arguments(p)

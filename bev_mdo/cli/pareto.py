@@ -1,4 +1,4 @@
-"""``bev-mdo pareto CONFIG [--topology T | --all-topologies] [--transport inprocess|ros]
+"""``bev-mdo pareto CONFIG [--topology T | --all-topologies] [--transport inprocess|ros [--instances N|NAME=N]]
 [--generations G --pop P --seed S] [--objectives a,b,c] [--out DIR]``.
 
 Thesis §4.4 (eqs 4-6..4-10): NSGA-II (pymoo) over the config's MDA, minimising energy on the
@@ -47,6 +47,9 @@ def register(subparsers) -> None:
     p.add_argument("--objectives", default=",".join(OBJECTIVES), metavar="A,B,C")
     p.add_argument("--out", default=None, help="output (bag) directory, default bags/<name>_pareto_<time>")
     p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default: the config's)")
+    p.add_argument("--instances", default=None, metavar="N|NAME=N,...",
+                   help="ROS: run N instances of every discipline, or of the named ones (a pool: they share "
+                        "each population, as for optimize; docs/scaling.md)")
     p.add_argument("--no-plots", action="store_true")
     p.set_defaults(func=run)
 
@@ -76,6 +79,8 @@ def run(args) -> int:
     if bag.exists():
         raise ValueError(f"{bag} already exists; choose another --out")
     load_config(args.config)  # validates the config as written (bad topology/variable: exit 2)
+    if getattr(args, "instances", None) and args.transport != "ros":
+        raise ValueError("--instances needs --transport ros (pools of discipline nodes)")
     objectives = [o.strip() for o in args.objectives.split(",") if o.strip()]
     topologies = list(TOPOLOGIES) if args.all_topologies else [
         get_topology(args.topology).name if args.topology else study.config_topology(raw)]
@@ -87,8 +92,11 @@ def run(args) -> int:
 
     if args.transport == "ros":
         from bev_mdo.cli.ros_args import ros_section
+        from bev_mdo.config import discipline_names
+        from bev_mdo.ros.launch import parse_instances
 
-        session = sessions.ParetoRosSession(raw, ros_section(raw, args), out, bag, run_id)
+        instances = parse_instances(args.instances, discipline_names(next(iter(configs.values()))))
+        session = sessions.ParetoRosSession(raw, ros_section(raw, args), out, bag, run_id, instances=instances)
     else:
         session = sessions.ParetoInProcessSession(raw, bag, run_id)
     with session:

@@ -51,6 +51,94 @@ def link_local(nodes: list[DisciplineNode]) -> None:
         for src in sorted(node.local_sources):
             if node not in by_name[src].local_consumers:
                 by_name[src].local_consumers.append(node)
+            # An executor spinning the node (serve_many spins one for the parameter services) takes
+            # what such a subscription queued: it must not evaluate the result a second time (before
+            # this, every such spin made the consumer answer again and the coordinator count a
+            # "duplicate": 130-520 per 5000 MDAs in bench_pool's composed layout).
+            node._source_subs[src].callback = _already_served
+
+
+def _already_served(_msg) -> None:
+    """Callback of a data-flow subscription whose source is composed in the same process (link_local)."""
+
+
+class Beside:
+    """Discipline nodes composed into the coordinator's own process (``--compose coordinator``).
+
+    The nodes are created in the coordinator's context (one DDS participant) and served from the
+    coordinator evaluator's own wait loop (one thread, no other executor). Every node keeps its
+    name, topics and declaration, so the graph and the handshake are those of any other layout.
+    Messages between the coordinator and these nodes go as rclcpp's intra-process communication
+    does: by direct call when no reader outside this process has matched the topic, else published
+    (and then taken from DDS as usual), so a recorder or any other reader gets every message it
+    gets with any other layout. A request goes to the nodes' handlers (``local_requests``); a result
+    to the coordinator's ``_on_result`` (which checks run, id, shape and signature as for a
+    received one); data flow between the nodes goes by direct call always (``link_local``). With
+    nobody else listening an MDA then costs no DDS write at all.
+
+    Not served: the nodes' parameter services (no executor spins them) and requests from another
+    process's coordinator while this one is not evaluating (the nodes are served only inside the
+    coordinator's waits)."""
+
+    def __init__(self, config: dict, names: list[str], context, run_id: str = "", instance: str = ""):
+        self.nodes = make_nodes(config, list(names), instance, run_id, context=context)
+        link_local(self.nodes)
+        self._pairs: list = []
+        self._evaluator = None
+
+    def attach(self, evaluator) -> None:
+        """Serve the nodes from `evaluator`'s waits and hand their results to it (one at a time)."""
+        self.detach()
+        self._evaluator = evaluator
+        for node in self.nodes:
+            # the in-process readers of its result topics: the coordinator's, and the subscriptions of
+            # the consumers composed with it (kept in the graph, not read: link_local)
+            node.local_readers = {id(node._mda_pub): 1 + len(node.local_consumers), id(node._result_pub): 1}
+            node.local_coordinator = evaluator._on_result
+            for sub, handle in node.hot_subscriptions():
+                self._pairs.append((sub, self._with_stats(node, handle)))
+        evaluator._hot.extend(self._pairs)
+        # requests: as rclcpp's intra-process communication, by direct call to the nodes of this
+        # process when no reader outside it matched the topic (else published, and taken from DDS)
+        self._local, self._by_pub = {}, {}
+        for node in self.nodes:
+            self._local.setdefault(node._sub.topic_name, []).append((node, node._on_request))
+            if node._mda_sub is not None:
+                self._local.setdefault(node._mda_sub.topic_name, []).append((node, node._on_mda_request))
+        evaluator.local_requests = self._deliver
+
+    def _deliver(self, pub, request) -> bool:
+        local = self._by_pub.get(id(pub))
+        if local is None:
+            local = self._by_pub[id(pub)] = self._local.get(pub.topic_name, [])
+        if not local or pub.get_subscription_count() > len(local):
+            return False
+        for node, handle in local:
+            handle(request)
+            node.publish_stats()
+        return True
+
+    @staticmethod
+    def _with_stats(node: DisciplineNode, handle):
+        def served(data, info):
+            handle(data, info)
+            node.publish_stats()  # rate-limited (node stats, `bev-mdo status`)
+        return served
+
+    def detach(self) -> None:
+        if self._evaluator is not None:
+            hot = self._evaluator._hot
+            hot[:] = [p for p in hot if all(p is not q for q in self._pairs)]
+            self._evaluator.local_requests = None
+        for node in self.nodes:
+            node.local_coordinator = None
+        self._pairs, self._evaluator = [], None
+
+    def close(self) -> None:
+        self.detach()
+        for node in self.nodes:
+            node.destroy_node()
+        self.nodes = []
 
 
 def serve_many(nodes: list[DisciplineNode], idle_s: float = 0.1, service_every: int = 64) -> None:

@@ -107,11 +107,14 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         optimizer: str | None = None, x0: Mapping[str, float] | None = None,
         on_iteration: Callable[[dict], None] | None = None, recorder_subscribers: int = 0,
         context=None, signer=None, instances: Mapping[str, int] | None = None,
-        give_up_acks: Callable[[], bool] | None = None):
-    """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats)."""
+        give_up_acks: Callable[[], bool] | None = None, beside=None):
+    """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats).
+    ``beside``: a composed.Beside (discipline nodes in this process and `context`) to serve."""
     from bev_mdo.mdo.driver import run_optimization
 
     node = CoordinatorNode(config, run_id, signer=signer, context=context)
+    if beside is not None:
+        beside.attach(node.evaluator)
     try:
         names = discipline_names(config)
         node.evaluator.wait_for_disciplines(names, node.discovery_wait_s, extra_subscribers=recorder_subscribers)
@@ -138,6 +141,8 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         stats["all_acked"] = node.wait_for_all_acked(node.discovery_wait_s, give_up=give_up_acks)
         return result, stats
     finally:
+        if beside is not None:
+            beside.detach()
         with deadline():  # a participant hung in the middleware would block here for good
             node.evaluator.close()
             node.destroy_node()
@@ -145,11 +150,13 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
 
 def main(args: list[str] | None = None) -> int:
     """`ros2 run bev_mdo coordinator_node --ros-args -p config:=... [-p formulation:=idf -p optimizer:=SLSQP]
-    [-p recorders:=1]` (with a recorder started on its own, wait for it so the bag misses nothing)."""
+    [-p recorders:=1] [-p compose:=coordinator]` (with a recorder started on its own, wait for it so the bag
+    misses nothing; with compose:=coordinator the disciplines' nodes run in this process, composed.Beside)."""
     from bev_mdo.config import load_config
     from bev_mdo.ros.paths import default_config
 
     rclpy.init(args=args)
+    beside = None
     try:
         probe = Node("coordinator_params")
         for name, desc in (("config", "run config YAML"), ("formulation", "mdf | idf (default: config)"),
@@ -157,15 +164,28 @@ def main(args: list[str] | None = None) -> int:
             probe.declare_parameter(name, "", ParameterDescriptor(description=desc))
         probe.declare_parameter("instances", "", ParameterDescriptor(
             description="wait for pools before the first evaluation: N or name=N[,name=N] (as --instances)"))
+        probe.declare_parameter("compose", "", ParameterDescriptor(
+            description="coordinator: serve every discipline (but pools) from nodes in this process (--compose)"))
         probe.declare_parameter("recorders", 0, ParameterDescriptor(
             description="wait until this many recorder nodes subscribed before the first evaluation"))
         p = {k: probe.get_parameter(k).value
-             for k in ("config", "formulation", "optimizer", "run_id", "recorders", "instances")}
+             for k in ("config", "formulation", "optimizer", "run_id", "recorders", "instances", "compose")}
         probe.destroy_node()
         config = load_config(p["config"] or default_config())
-        result, stats = run(config, run_id=p["run_id"] or None, formulation=p["formulation"] or None,
+        instances = _instances(p["instances"], config)
+        run_id = p["run_id"] or uuid.uuid4().hex[:16]
+        if p["compose"] not in ("", "none", "coordinator"):
+            raise ValueError(f"compose must be coordinator or none, got {p['compose']!r} (composed_node runs groups)")
+        from bev_mdo.ros.launch import beside_coordinator
+
+        local = beside_coordinator(p["compose"], discipline_names(config), instances)
+        if local:
+            from bev_mdo.ros.composed import Beside
+
+            beside = Beside(config, local, rclpy.get_default_context(), run_id=run_id, instance=run_id[:8])
+        result, stats = run(config, run_id=run_id, formulation=p["formulation"] or None,
                             optimizer=p["optimizer"] or None, recorder_subscribers=int(p["recorders"]),
-                            instances=_instances(p["instances"], config),
+                            instances=instances, beside=beside,
                             on_iteration=lambda r: print(f"iter {r['iteration']:4d}  objective {r['objective']:.6g}"
                                                          f"  max violation {r.get('max_violation', 0):.3g}"))
         print(json.dumps({"result": result.to_dict(), **stats}, indent=2, default=float))
@@ -176,6 +196,8 @@ def main(args: list[str] | None = None) -> int:
         print(f"coordinator_node: error: {exc}", file=sys.stderr)
         return 2
     finally:
+        if beside is not None:
+            beside.close()
         if rclpy.ok():
             rclpy.shutdown()
 

@@ -200,6 +200,10 @@ class DisciplineNode(Node):
         # get them by a direct call after the publish, and sources in this process are not read from DDS.
         self.local_consumers: list[DisciplineNode] = []
         self.local_sources: set[str] = set()
+        # Composed beside the coordinator (composed.Beside): results go to it by direct call when no
+        # reader but the in-process ones (local_readers: writer id -> their number) has matched the topic.
+        self.local_coordinator = None
+        self.local_readers: dict[int, int] = {}
         self._publish_info()
         self.get_logger().info(
             f"serving {name!r}: inputs {list(self.discipline.inputs)} -> outputs {list(self.discipline.outputs)}"
@@ -299,7 +303,11 @@ class DisciplineNode(Node):
     def _publish(self, out: wire.Result, pub=None) -> None:
         if self.signer is not None:
             self.signer.sign_result(out)
-        (pub or self._result_pub).publish(wire.encode_result(out))
+        writer = pub or self._result_pub
+        if self.local_coordinator is None or writer.get_subscription_count() > self.local_readers.get(id(writer), 0):
+            writer.publish(wire.encode_result(out))
+        else:  # composed beside the coordinator, nobody else reads the topic: the result by direct call
+            self.local_coordinator(out)
         if pub is not None and pub is self._mda_pub:
             for node in self.local_consumers:  # composed: the same result, without a DDS hop and a decode
                 node._on_source_result(self.discipline_name, out)

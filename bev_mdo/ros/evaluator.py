@@ -129,6 +129,7 @@ class RosEvaluator:
         # False: an MDA with a pool runs in waves (only the pooled disciplines see shares; the
         # others get the whole batch once), as before data flow with pools (docs/scaling.md)
         self.pool_data_flow = (config.get("ros") or {}).get("pool_data_flow", True) is not False
+        self.pool_min_rows = pools.validate_min_rows((config.get("ros") or {}).get("pool_min_rows", 1))
         self._info_t = time.monotonic()
         self._executor = SingleThreadedExecutor(context=node.context)
         self._executor.add_node(node)
@@ -138,6 +139,7 @@ class RosEvaluator:
         self._info_sub = node.create_subscription(DisciplineInfo, INFO_TOPIC, self._on_info, INFO_QOS)
         self._waiter = MultiWaiter(node.context)
         self._hot = [(self._result_sub, lambda data, _i: self._on_bytes(data))]
+        self.local_requests = None  # composed.Beside: (publisher, request) -> True if delivered in process
 
     # -- discovery -----------------------------------------------------------------
     def _expect(self, name: str) -> tuple[str, str] | None:
@@ -503,7 +505,10 @@ class RosEvaluator:
         if self.signer is not None:
             self.signer.sign_request(p.request)
         p.sent_ns = time.monotonic_ns()
-        (self._flow_pub if p.flow else self._publisher(p.discipline)).publish(wire.encode_request(p.request))
+        pub = self._flow_pub if p.flow else self._publisher(p.discipline)
+        # nodes composed into this process (composed.Beside) take it by direct call when nobody else reads it
+        if self.local_requests is None or not self.local_requests(pub, p.request):
+            pub.publish(wire.encode_request(p.request))
 
     def evaluate(self, calls: Sequence[tuple[str, Mapping[str, np.ndarray]]], iteration: int | None = None,
                  partials: bool = False) -> list[EvalResult]:
@@ -596,7 +601,8 @@ class RosEvaluator:
         other instances) and its old answers are dropped (``late_share``)."""
         lead = max(pooled, key=lambda d: (len(pooled[d]), d))
         self._flow_got, self._flow_meta = {}, {}
-        for j, (inst, a, b) in enumerate(self._pool(lead).split(n, pooled[lead], min_rows=FLOW_MIN_ROWS)):
+        for j, (inst, a, b) in enumerate(self._pool(lead).split(
+                n, pooled[lead], min_rows=max(FLOW_MIN_ROWS, pools.min_rows_of(self.pool_min_rows, lead)))):
             targets = {d: inst if d == lead else live[j % len(live)] for d, live in pooled.items()}
             self._send_flow_share(names, request, a, b, targets, partials, 0)
         failed = self._await_flow_shares(names, plan, request, partials)
@@ -645,7 +651,8 @@ class RosEvaluator:
         self.flow_shares += 1
         self._send(first)  # one message for every discipline of the share
         for name in names:
-            self._pending[(eid, name)].sent_ns = first.sent_ns
+            if (eid, name) in self._pending:  # a node composed into this process may have answered already
+                self._pending[(eid, name)].sent_ns = first.sent_ns
 
     def _wait_shares(self, subs, checked: float, check_s: float) -> tuple[float, set[tuple[str, str]], float]:
         """Wait for results of the pending shares until the next one times out, at most `check_s`;
@@ -792,7 +799,7 @@ class RosEvaluator:
         """Send rows first..first+n of `batch` as one share per instance in `live`."""
         fp = (self._expect(name) or ("?", ""))[0]
         self._batches[index] = (name, batch)
-        for inst, a, b in self._pool(name).split(n, live):
+        for inst, a, b in self._pool(name).split(n, live, min_rows=pools.min_rows_of(self.pool_min_rows, name)):
             req = wire.Request(self.run_id, self._next_id, name, iteration=iteration)
             req.header.frame_id = binding.target_tag(name, fp, inst)
             req.attempt = tries

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 from bev_mdo.ros.executables import DISCIPLINE_EXES
-from bev_mdo.ros.watchdog import HangWatchdog, ros_node_names
+from bev_mdo.ros.watchdog import HangWatchdog
 
 _BUILTIN_EXE = {v: k for k, v in DISCIPLINE_EXES.items()}
 
@@ -46,7 +46,7 @@ class NodeProcess:
     restart: bool = True            # False: a death is reported (``died``), never restarted
     died: int | None = None         # exit status of a node that died and was not restarted
     died_at: float | None = None    # when the supervisor saw it die (time.monotonic())
-    ros_names: tuple[str, ...] = ()  # the ROS node names it serves (watchdog.py)
+    ros_names: tuple[str, ...] = ()  # the ROS node names it serves (node_names_of; watched by watchdog.py)
     spawned_at: float = 0.0         # time.monotonic() of its (re)start
     seen: bool = False              # on the ROS graph since its (re)start
     missing_since: float | None = None
@@ -69,6 +69,18 @@ def discipline_argv(name: str, config_path: str, instance: str = "", run_id: str
     if run_id:
         argv += ["-p", f"run_id:='{run_id}'"]
     return argv
+
+
+def node_names_of(argv: Sequence[str]) -> list[str]:
+    """The ROS node names a process started with `argv` (discipline_argv, composed_argv) runs."""
+    for a in argv:
+        if a.startswith("__node:="):
+            return [a.split(":=", 1)[1]]
+    for a in argv:
+        if a.startswith("disciplines:="):
+            inst = next((b.split(":=", 1)[1].strip("'") for b in argv if b.startswith("instance:=")), "")
+            return [f"{n}_node" + (f"_{inst}" if inst else "") for n in a.split(":=", 1)[1].split(",")]
+    return []
 
 
 def _stop_procs(procs, timeout_s: float) -> None:
@@ -115,7 +127,7 @@ class Launcher:
     def add(self, label: str, argv: Sequence[str], restart: bool = True) -> NodeProcess:
         """Register and start one node process (`restart`: whether the supervisor restarts it)."""
         log = (self.log_dir / f"{label}.log") if self.log_dir else None
-        node = NodeProcess(label, list(argv), log, restart=restart, ros_names=ros_node_names(argv))
+        node = NodeProcess(label, list(argv), log, restart=restart, ros_names=tuple(node_names_of(argv)))
         self._spawn(node)
         with self._lock:
             self.nodes.append(node)
@@ -258,12 +270,27 @@ def parse_instances(spec: str | None, names: Sequence[str]) -> dict[str, int]:
     return out
 
 
+COMPOSE_COORDINATOR = "coordinator"  # --compose coordinator: every discipline (but pools) in the coordinator's process
+
+
+def beside_coordinator(compose: str | None, names: Sequence[str], instances: Mapping[str, int] | None = None
+                       ) -> list[str]:
+    """The disciplines ``--compose coordinator`` runs inside the coordinator's process (every one
+    without a pool; a pool's instances keep a process each); empty for any other ``--compose``."""
+    if (compose or "none").strip() != COMPOSE_COORDINATOR:
+        return []
+    return [n for n in names if (instances or {}).get(n, 1) <= 1]
+
+
 def parse_compose(spec: str | None, names: Sequence[str]) -> list[list[str]]:
-    """``--compose``: ``none`` (a process per discipline), ``all`` (one process for all) or groups
-    ``a+b,c+d`` (each group one process; the others alone) -> list of process groups, in order."""
+    """``--compose``: ``none`` (a process per discipline), ``all`` (one process for all), groups
+    ``a+b,c+d`` (each group one process; the others alone) or ``coordinator`` (no process: all in the
+    coordinator's, see beside_coordinator) -> list of process groups, in order."""
     spec = (spec or "none").strip()
     if spec == "none":
         return [[n] for n in names]
+    if spec == COMPOSE_COORDINATOR:  # no process: composed into the coordinator's (composed.Beside)
+        return []
     if spec == "all":
         return [list(names)]
     groups, seen = [], set()

@@ -22,6 +22,7 @@ DEFAULTS: dict[str, Any] = {
     "sign_window_s": 30.0,           # signed messages with a stamp further than this from now are expired
     "pool": "share",                 # several instances of a discipline: share | redundant (pool.py)
     "pool_data_flow": True,          # an MDA with a pool: data flow in row shares (true) or waves (false)
+    "pool_min_rows": 1,              # smallest share of a pool's batch: N, or {discipline: N} (pool.py)
 }
 DISCOVERY_MODES = ("localhost", "static_peers", "server", "subnet")
 
@@ -83,6 +84,9 @@ def validate_ros(section: Mapping[str, Any] | None) -> dict[str, Any]:
         raise ValueError(f"ros.signing must be true or false, got {out['signing']!r}")
     if not isinstance(out["pool_data_flow"], bool):
         raise ValueError(f"ros.pool_data_flow must be true or false, got {out['pool_data_flow']!r}")
+    from bev_mdo.ros.pool import validate_min_rows
+
+    out["pool_min_rows"] = validate_min_rows(out["pool_min_rows"])
     if out["pool"] not in ("share", "redundant"):
         raise ValueError(f"ros.pool must be one of ['share', 'redundant'], got {out['pool']!r}")
     if not isinstance(out["retries"], int) or not 0 <= out["retries"] <= 100:

@@ -28,24 +28,10 @@ import signal
 import sys
 import threading
 import time
-from typing import Callable, Sequence
+from typing import Callable
 
 SILENT_S = 7.0   # > 2 leases of bev_mdo's profile (3 s): a node dropped by discovery, and not back
 START_S = 45.0   # a node process that never reaches the graph (imports take ~20 s at load 40 here)
-
-
-def ros_node_names(argv: Sequence[str]) -> tuple[str, ...]:
-    """The ROS node names a launched process serves, read from its command line (discipline_argv,
-    composed_argv); () for a process the watchdog does not watch."""
-    args = list(argv)
-    named = [a.split(":=", 1)[1] for a in args if a.startswith("__node:=")]
-    if named:
-        return tuple(named)
-    if "composed_node" not in args:
-        return ()
-    params = {a.split(":=", 1)[0]: a.split(":=", 1)[1].strip("'") for a in args if ":=" in a}
-    suffix = f"_{params['instance']}" if params.get("instance") else ""
-    return tuple(f"{d}_node{suffix}" for d in params.get("disciplines", "").split(",") if d)
 
 
 class HangWatchdog:

@@ -134,3 +134,16 @@ def test_pareto_runs_the_vehicle_topology(tmp_path, capsys):
     rows = list(csv.DictReader((out / "pareto_IWM-SA.csv").open()))
     assert rows and "gear_ratio" not in rows[0] and "motor_rear_kw" not in rows[0]
     assert float(next(csv.DictReader((out / "benchmark.csv").open()))["kerb_kg"]) == pytest.approx(1521.16)
+
+
+def test_instances_need_the_ros_transport_exit_2(tmp_path, capsys):
+    code, err = _run(capsys, "pareto", _write(tmp_path, _raw("IWM-SA", DVS["IWM-SA"])), "--instances", "energy=2",
+                     "--generations", "1", "--pop", "4", "--no-plots", "--out", tmp_path / "o")
+    assert code == 2 and "--instances needs --transport ros" in err and "Traceback" not in err, err
+
+
+def test_instances_naming_an_unknown_discipline_exit_2(tmp_path, capsys):
+    code, err = _run(capsys, "pareto", _write(tmp_path, _raw("IWM-SA", DVS["IWM-SA"])), "--transport", "ros",
+                     "--instances", "warp_drive=2", "--no-plots", "--out", tmp_path / "o")
+    assert code == 2 and "warp_drive" in err and "Traceback" not in err, err
+    assert not (tmp_path / "o" / "bag").exists()  # refused before any node or recorder started

@@ -98,6 +98,10 @@ def test_link_local_wires_sources_composed_in_the_same_process(config_path):
         served = {sub for n in nodes for sub, _ in n.hot_subscriptions()}
         assert by["energy"]._source_subs["vehicle_mass"] not in served
         assert by["range"]._source_subs["energy"] not in served
+        # nor served again by the executor that spins the nodes' services: the result came by direct call
+        before = dict(by["range"].counts)
+        by["range"]._source_subs["energy"].callback(b"any sample")
+        assert dict(by["range"].counts) == before
     finally:
         for n in nodes:
             n.destroy_node()

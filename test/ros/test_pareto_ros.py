@@ -31,10 +31,10 @@ def runs(tmp_path_factory, ros_domain):
     cfg.write_text(yaml.safe_dump(raw))
     env = ros_env(ros_domain)
     out = {}
-    for transport in ("inprocess", "ros"):
+    for transport, extra in (("inprocess", []), ("ros", []), ("ros_pool", ["--instances", "energy=2"])):
         o = d / transport
-        p = subprocess.run([PYTHON, "-m", "bev_mdo", "pareto", str(cfg), "--transport", transport,
-                            "--domain-id", str(ros_domain), "--out", str(o), *ARGS],
+        p = subprocess.run([PYTHON, "-m", "bev_mdo", "pareto", str(cfg), "--transport", transport.split("_")[0],
+                            "--domain-id", str(ros_domain), "--out", str(o), *ARGS, *extra],
                            env=env, cwd=d, capture_output=True, text=True, timeout=240)
         assert p.returncode == 0, p.stderr[-3000:]
         out[transport] = o
@@ -130,3 +130,24 @@ def test_no_node_process_left(runs):
     logs = runs["ros"] / ".logs"
     assert (logs / "recorder.log").is_file() and (logs / TOPOLOGY / "energy.log").is_file()
     assert "recorded" in (logs / "recorder.log").read_text()  # it closed the bag on SIGINT
+
+
+def test_pareto_with_an_energy_pool_gives_the_same_fronts(runs):
+    """``--instances energy=2``: two energy nodes share every population (pool.py), the fronts and the
+    CSV are those of the in-process run, and the bag shows both instances' work."""
+    from bev_mdo.bag.reader import open_bag
+    from bev_mdo.bag.report import instance_work
+
+    pool, inproc = _fronts(runs["ros_pool"] / "bag"), _fronts(runs["inprocess"] / "bag")
+    assert [(g, f) for g, f, *_ in pool] == [(g, f) for g, f, *_ in inproc]
+    for (*_, a), (*_, b) in zip(pool, inproc):
+        assert a.keys() == b.keys()
+        for k in a:
+            np.testing.assert_allclose(a[k], b[k], rtol=1e-12, atol=0, err_msg=k)
+    assert (runs["ros_pool"] / f"pareto_{TOPOLOGY}.csv").read_text() == \
+        (runs["inprocess"] / f"pareto_{TOPOLOGY}.csv").read_text()
+    work = instance_work(open_bag(runs["ros_pool"] / "bag"))
+    assert len(work["energy"]) == 2 and all(e["points"] > 0 for e in work["energy"].values()), work["energy"]
+    assert len(work["vehicle_mass"]) == 1
+    logs = runs["ros_pool"] / ".logs" / TOPOLOGY
+    assert (logs / "energy#0.log").is_file() and (logs / "energy#1.log").is_file()

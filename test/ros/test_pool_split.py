@@ -78,6 +78,24 @@ def test_launch_plan_instances_and_compose():
     assert "instance:='energy_node_ab_1'" in plan[2][1] and "run_id:='r'" in plan[2][1]
 
 
+def test_launch_plan_compose_coordinator_and_node_names():
+    """``--compose coordinator``: no process for the disciplines (they run in the coordinator's), a pool's
+    instances keep one each; node_names_of names the nodes any planned process runs."""
+    from bev_mdo.ros.launch import beside_coordinator, node_names_of, parse_compose, plan_processes
+
+    names = ["vehicle_mass", "energy", "range", "cost"]
+    assert parse_compose("coordinator", names) == []
+    assert beside_coordinator("coordinator", names) == names
+    assert beside_coordinator("coordinator", names, {"energy": 2, "range": 1}) == ["vehicle_mass", "range", "cost"]
+    assert beside_coordinator("all", names) == [] and beside_coordinator(None, names) == []
+    plan = plan_processes(names, "/tmp/c.yaml", instances={"energy": 2}, compose="coordinator")
+    assert [label for label, _ in plan] == ["energy#0", "energy#1"]
+    assert [node_names_of(argv) for _, argv in plan] == [["energy_node_0"], ["energy_node_1"]]
+    plan = plan_processes(names, "/tmp/c.yaml", instance="ab", compose="vehicle_mass+range")
+    assert [node_names_of(argv) for _, argv in plan] == [["vehicle_mass_node_ab", "range_node_ab"],
+                                                          ["energy_node_ab"], ["cost_node_ab"]]
+
+
 def test_min_rows_keeps_every_share_at_least_that_large():
     pool = Pool("x")
     pool.stat("a").throughput, pool.stat("b").throughput, pool.stat("c").throughput = 10.0, 1.0, 1.0
@@ -88,3 +106,23 @@ def test_min_rows_keeps_every_share_at_least_that_large():
             assert all(b - a >= 2 for _, a, b in shares), (n, shares)
         assert len(shares) == max(1, min(3, n // 2))
     assert pool.split(3, ["a", "b", "c"], min_rows=2) == [("a", 0, 3)]  # the fastest instance takes it
+
+
+def test_pool_min_rows_setting_and_the_split_it_gives():
+    """``ros.pool_min_rows``: a population of 100 stays whole (one share, the fastest instance) when
+    shares must hold 128 rows; 512 rows are still cut in two; per discipline or for every pool."""
+    from bev_mdo.ros.pool import min_rows_of, validate_min_rows
+    from bev_mdo.ros.settings import validate_ros
+
+    assert validate_ros({})["pool_min_rows"] == 1
+    assert validate_ros({"pool_min_rows": {"energy": 128}})["pool_min_rows"] == {"energy": 128}
+    for bad in (0, -3, 2.5, "128", True, {"energy": 0}):
+        with pytest.raises(ValueError, match="ros.pool_min_rows"):
+            validate_min_rows(bad)
+    assert min_rows_of({"energy": 128}, "energy") == 128 and min_rows_of({"energy": 128}, "range") == 1
+    assert min_rows_of(64, "range") == 64
+    pool = Pool("energy")
+    pool.stat("e0").throughput, pool.stat("e1").throughput = 70.0, 100.0
+    assert pool.split(100, ["e0", "e1"], min_rows=128) == [("e1", 0, 100)]
+    assert [(i, b - a) for i, a, b in pool.split(512, ["e0", "e1"], min_rows=128)] == [("e0", 211), ("e1", 301)]
+    assert len(pool.split(100, ["e0", "e1"], min_rows=1)) == 2  # the default: every instance gets a share

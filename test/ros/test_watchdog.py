@@ -7,8 +7,8 @@ import time
 
 import pytest
 
-from bev_mdo.ros.launch import Launcher, composed_argv, discipline_argv
-from bev_mdo.ros.watchdog import HangWatchdog, ros_node_names
+from bev_mdo.ros.launch import Launcher, composed_argv, discipline_argv, node_names_of
+from bev_mdo.ros.watchdog import HangWatchdog
 from bev_mdo.testing import PYTHON
 
 SLEEPER = [PYTHON, "-c", "import time; time.sleep(120)"]
@@ -24,11 +24,11 @@ def _wait(pred, timeout_s=30.0):
 
 
 def test_node_names_are_read_from_the_command_line():
-    assert ros_node_names(discipline_argv("energy", "c.yaml", instance="ab12")) == ("energy_node_ab12",)
-    assert ros_node_names(composed_argv(["vehicle_mass", "range"], "c.yaml", instance="ab12")) == (
-        "vehicle_mass_node_ab12", "range_node_ab12")
-    assert ros_node_names(composed_argv(["energy"], "c.yaml")) == ("energy_node",)
-    assert ros_node_names(SLEEPER) == ()  # a process without a node name (the recorder) is not watched
+    assert node_names_of(discipline_argv("energy", "c.yaml", instance="ab12")) == ["energy_node_ab12"]
+    assert node_names_of(composed_argv(["vehicle_mass", "range"], "c.yaml", instance="ab12")) == [
+        "vehicle_mass_node_ab12", "range_node_ab12"]
+    assert node_names_of(composed_argv(["energy"], "c.yaml")) == ["energy_node"]
+    assert node_names_of(SLEEPER) == []  # a process without a node name (the recorder) is not watched
 
 
 @pytest.fixture
