@@ -57,9 +57,8 @@ class CoordinatorNode(Node):
         stamp(msg.header)
         self._seq += 1
         wire.fill_iteration_record(msg, rec, self.run_id, self._seq)
-        if self.evaluator.signer is not None:
-            self.evaluator.signer.sign_iteration(msg)
-        self._iteration_pub.publish(msg)
+        signer = self.evaluator.signer
+        self._iteration_pub.publish(msg if signer is None else signer.sign_iteration(msg))  # signed: its bytes
 
     def wait_for_all_acked(self, wait_s: float, slice_s: float = 0.05,
                            give_up: Callable[[], bool] | None = None) -> bool:

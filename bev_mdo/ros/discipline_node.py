@@ -255,9 +255,7 @@ class DisciplineNode(Node):
         msg.run_id = self.bound_run
         msg.fingerprint = self.fingerprint
         msg.effective_config = self.effective_config
-        if self.signer is not None:
-            self.signer.sign_info(msg)
-        self._info_pub.publish(msg)
+        self._info_pub.publish(msg if self.signer is None else self.signer.sign_info(msg))  # signed: its bytes
 
     def _raw(self, handle, result: bool = False):
         """A raw-subscription callback: decode the CDR bytes, count what does not decode."""
@@ -297,9 +295,8 @@ class DisciplineNode(Node):
         self._publish(out, pub)
 
     def _publish(self, out: wire.Result, pub=None) -> None:
-        if self.signer is not None:
-            self.signer.sign_result(out)
-        (pub or self._result_pub).publish(wire.encode_result(out))
+        data = wire.encode_result(out) if self.signer is None else self.signer.sign_result(out)
+        (pub or self._result_pub).publish(data)
         if pub is not None and pub is self._mda_pub:
             for node in self.local_consumers:  # composed: the same result, without a DDS hop and a decode
                 node._on_source_result(self.discipline_name, out)

@@ -34,6 +34,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 
 from bev_mdo.mdo import flow
 from bev_mdo.mdo.discipline import EvalResult, all_finite, finite_rows, join_errors
@@ -135,7 +136,8 @@ class RosEvaluator:
         # Raw CDR in and out (wire.py's codec): rclpy's message objects cost more than the DDS hop.
         self._result_sub = node.create_subscription(EvaluationResult, RESULT_TOPIC, self._on_bytes, RESULT_QOS,
                                                     raw=True)
-        self._info_sub = node.create_subscription(DisciplineInfo, INFO_TOPIC, self._on_info, INFO_QOS)
+        # raw too: a signature covers the bytes as they were sent (auth.py)
+        self._info_sub = node.create_subscription(DisciplineInfo, INFO_TOPIC, self._on_info, INFO_QOS, raw=True)
         self._waiter = MultiWaiter(node.context)
         self._hot = [(self._result_sub, lambda data, _i: self._on_bytes(data))]
 
@@ -156,9 +158,15 @@ class RosEvaluator:
             self.dropped["refused_instance"] += 1
             self.node.get_logger().warning(f"refused {msg.discipline!r} instance {msg.instance!r}: {why}")
 
-    def _on_info(self, msg: DisciplineInfo) -> None:
+    def _on_info(self, data: bytes) -> None:
+        """A discipline's declaration (its CDR bytes): accept the instance, or refuse it by name."""
+        try:
+            msg = deserialize_message(data, DisciplineInfo)
+        except Exception:  # noqa: BLE001 - rclpy raises several types for bytes that are not one
+            self.dropped["info_malformed"] += 1
+            return None
         if self.signer is not None:
-            why = self.signer.verify_info(msg)
+            why = self.signer.verify_info(data)
             if why is not None:
                 self.dropped[f"info_{why}"] += 1
                 return self._refuse(msg, f"{why} declaration")
@@ -500,10 +508,9 @@ class RosEvaluator:
         self._seq += 1
         p.request.sequence = self._seq
         stamp(p.request.header)  # a retry gets a fresh stamp (and signature): it is not a replay
-        if self.signer is not None:
-            self.signer.sign_request(p.request)
+        data = wire.encode_request(p.request) if self.signer is None else self.signer.sign_request(p.request)
         p.sent_ns = time.monotonic_ns()
-        (self._flow_pub if p.flow else self._publisher(p.discipline)).publish(wire.encode_request(p.request))
+        (self._flow_pub if p.flow else self._publisher(p.discipline)).publish(data)
 
     def evaluate(self, calls: Sequence[tuple[str, Mapping[str, np.ndarray]]], iteration: int | None = None,
                  partials: bool = False) -> list[EvalResult]:
