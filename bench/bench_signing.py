@@ -114,7 +114,7 @@ def main() -> int:
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     import rclpy
 
-    from bev_mdo.config import load_config
+    from bev_mdo.config import load_config, run_settings
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.ros.auth import new_key_file
     from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
@@ -146,7 +146,7 @@ def main() -> int:
             nodes[mode] = node = CoordinatorNode(config, context=ctx, node_name=f"bench_signing_{mode}")
             assert (node.evaluator.signer is not None) == (mode == "signed")
             node.evaluator.wait_for_disciplines(discipline_names(config), 60.0)
-            forms[mode] = form = build_formulation(config, node.evaluator)
+            forms[mode] = form = build_formulation(run_settings(config), node.evaluator)
             for _ in range(30):
                 form.analyse(form.x0[None, :])
         rng = np.random.default_rng(0)

@@ -107,6 +107,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         context=None, signer=None, instances: Mapping[str, int] | None = None,
         give_up_acks: Callable[[], bool] | None = None):
     """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats)."""
+    from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import run_optimization
 
     node = CoordinatorNode(config, run_id, signer=signer, context=context)
@@ -126,7 +127,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
             if on_iteration is not None:
                 on_iteration(rec)
 
-        result = run_optimization(config, node.evaluator, formulation=formulation, optimizer=optimizer,
+        result = run_optimization(run_settings(config), node.evaluator, formulation=formulation, optimizer=optimizer,
                                   x0=x0, callback=callback)
         t_optimised = time.monotonic()
         stats = {"run_id": node.run_id, "dropped": dict(node.evaluator.dropped), "retried": node.evaluator.retried,
