@@ -113,3 +113,31 @@ def test_a_discipline_writing_into_its_inputs_does_not_change_the_mda():
     res = MDA(InProcessEvaluator([InPlace(), Uses()])).run({"x": np.array([1.0, 2.0])})
     assert res.values["x"].tolist() == [1.0, 2.0]
     assert res.values["w"].tolist() == [1.0 + 3.0, 2.0 + 5.0]
+
+
+def test_the_in_process_evaluator_serves_evaluate_flow_by_the_same_rule():
+    """evaluate_flow is part of the Evaluator protocol (issue 15): in process it is flow_by_waves,
+    the same rows, results and counts as the MDA's own wave-by-wave data flow; a loop is refused."""
+    from bev_mdo.mdo.evaluator import Evaluator
+    from sellar import sellar_disciplines
+
+    assert "evaluate_flow" in Evaluator.__dict__
+    cfg = load_config(REPO / "config" / "leaf_nedc.yaml")
+    own, ref = InProcessEvaluator(resolve_disciplines(cfg)), InProcessEvaluator(resolve_disciplines(cfg))
+    mda = MDA(ref)
+    waves = mda._flow_waves
+    names = [m for wave in waves for m in wave]
+    rng = np.random.default_rng(3)
+    request = {"motor_kw": rng.uniform(40, 120, 7), "gear_ratio": rng.uniform(5, 12, 7),
+               "battery_kwh": rng.uniform(20, 60, 7)}
+    request["motor_kw"][2] = -5.0  # a failing point, not sent downstream
+    got = own.evaluate_flow(names, request, 7)
+    want = flow.flow_by_waves(ref, ref.specs, waves, request, 7)
+    assert list(got) == names and own.counts == ref.counts and own.waves == ref.waves
+    for m in names:
+        np.testing.assert_array_equal(got[m].ok, want[m].ok)
+        for k in want[m].outputs:
+            np.testing.assert_array_equal(got[m].outputs[k], want[m].outputs[k])
+    assert not got["energy"].ok[2]
+    sellar = InProcessEvaluator(sellar_disciplines())
+    assert sellar.evaluate_flow(list(sellar.specs), {"x": np.ones(2), "z1": np.ones(2), "z2": np.ones(2)}, 2) is None
