@@ -66,7 +66,8 @@ def test_unsigned_forged_tampered_and_expired_are_named():
     req = _request()
     other.sign_request(req)
     assert s.verify_request(req) == "forged"
-    for field, value in (("evaluation_id", 2), ("run_id", "r2"), ("attempt", 1), ("discipline", "energy")):
+    for field, value in (("evaluation_id", 2), ("run_id", "r2"), ("attempt", 1), ("discipline", "energy"),
+                         ("iteration", 4), ("sequence", 12), ("partials", True), ("flow", ["energy"])):
         req = _request()
         s.sign_request(req)
         setattr(req, field, value)
