@@ -20,7 +20,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from bev_mdo.mdo.discipline import EvalResult, run_discipline
+from bev_mdo.mdo.discipline import EvalResult, readable, rejected, run_discipline, unknown_inputs
 from bev_mdo.mdo.flow import flow_by_waves
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.vectors import has_partials
@@ -85,6 +85,7 @@ class InProcessEvaluator:
         self.specs = {n: DisciplineSpec.of(d) for n, d in self.disciplines.items()}
         self.counts = {n: 0 for n in self.disciplines}
         self.waves = 0  # number of evaluate() calls (request waves)
+        self._readable = {n: readable(d) for n, d in self.disciplines.items()}
         self._flow_waves: dict[tuple, list | None] = {}  # names -> their graph's waves (None: a loop)
 
     def evaluate(self, calls: list[Call], partials: bool = False) -> list[EvalResult]:
@@ -93,7 +94,12 @@ class InProcessEvaluator:
         for name, inputs in calls:
             if name not in self.disciplines:
                 raise ValueError(f"unknown discipline {name!r}; known: {sorted(self.disciplines)}")
-            res = run_discipline(self.disciplines[name], inputs, partials)
+            unknown = unknown_inputs(self._readable[name], inputs)
+            if unknown:  # refused as a node refuses it: every point failed, named
+                n = len(next(iter(inputs.values())))
+                res = rejected(name, self.specs[name].outputs, n, f"unknown inputs {unknown[:5]}")
+            else:
+                res = run_discipline(self.disciplines[name], inputs, partials)
             self.counts[name] += int(np.size(res.ok))
             results.append(res)
         return results

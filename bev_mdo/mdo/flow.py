@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from bev_mdo.mdo.discipline import EvalResult, run_discipline
+from bev_mdo.mdo.discipline import EvalResult, rejected, run_discipline, unknown_inputs
 
 Upstream = Mapping[str, tuple[Mapping[str, np.ndarray], np.ndarray]]  # source -> (outputs, ok)
 
@@ -142,11 +142,16 @@ def evaluate_flow(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequ
                   request: Mapping[str, np.ndarray], n: int, partials: bool = False) -> dict[str, EvalResult]:
     """One data-flow MDA: the evaluator's own ``evaluate_flow`` (one request) when it offers one
     and can serve these disciplines that way, else :func:`flow_by_waves`. With ``partials`` every
-    discipline that has analytic partials returns them with its result."""
+    discipline that has analytic partials returns them with its result. A request column that no
+    discipline of the MDA reads fails every point, named (as a node refuses an unknown input)."""
+    names = [name for wave in waves for name in wave]
+    allowed = frozenset(v for m in names for v in (*specs[m].inputs, *specs[m].parameters))
+    unknown = unknown_inputs(allowed, request)
+    if unknown:  # the entry check of every transport (discipline.unknown_inputs): refused, not dropped
+        return {m: rejected(m, specs[m].outputs, n, f"unknown inputs {unknown[:5]}") for m in names}
     own = getattr(evaluator, "evaluate_flow", None)
     if own is not None:
-        order = [name for wave in waves for name in wave]
-        got = own(order, request, n, partials=True) if partials else own(order, request, n)
+        got = own(names, request, n, partials=True) if partials else own(names, request, n)
         if got is not None:
             return got
     return flow_by_waves(evaluator, specs, waves, request, n, partials)

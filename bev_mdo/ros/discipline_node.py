@@ -36,7 +36,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 
 from bev_mdo import __version__
 from bev_mdo.mdo import flow
-from bev_mdo.mdo.discipline import DisciplineError, all_finite, run_discipline
+from bev_mdo.mdo.discipline import DisciplineError, all_finite, readable, run_discipline, unknown_inputs
 from bev_mdo.mdo.vectors import ShapeError
 from bev_mdo.ros import binding, wire
 from bev_mdo.ros.auth import Signer
@@ -171,7 +171,7 @@ class DisciplineNode(Node):
         self.bound_run = self.get_parameter("run_id").value or ""
         self.fingerprint, self.effective_config = binding.fingerprint(config, name)
         self.source_of = flow.sources_of(self.discipline.inputs, producer, name)  # coupling input -> source
-        self._allowed = set(self.discipline.inputs) | set(getattr(self.discipline, "parameters", {}) or {})
+        self._allowed = readable(self.discipline)
         self.instance = self.get_parameter("instance").value or self.get_fully_qualified_name()
         self.counts: Counter[str] = Counter()
         self.compute_s = 0.0  # time spent in compute(), summed (node stats)
@@ -352,7 +352,7 @@ class DisciplineNode(Node):
         missing = [k for k in self.discipline.inputs if k not in inputs]
         if missing:
             return self._reject(req, f"missing inputs {missing}", "missing_inputs")
-        unknown = [k for k in inputs if k not in self._allowed]
+        unknown = unknown_inputs(self._allowed, inputs)  # the entry check of every transport
         if unknown:
             return self._reject(req, f"unknown inputs {unknown[:5]}", "unknown_inputs")
         if not all_finite(inputs.values()):

@@ -184,3 +184,17 @@ def test_flow_join_forgets_the_oldest_unfinished_mda_beyond_its_size():
     assert len(join) == 2
     assert join.add(("r", 1), "s2", {"b": np.ones(1)}, np.ones(1, bool), ["s1", "s2", "d"]) is None  # forgotten
     assert join.add(("r", 3), "s2", {"b": np.ones(1)}, np.ones(1, bool), ["s1", "s2", "d"]) is not None
+
+
+def test_a_data_flow_request_with_a_column_no_discipline_reads_is_refused_not_dropped():
+    """The same entry check on the data-flow path as on the wave path: named, every point failed."""
+    cfg = load_config(REPO / "config" / "leaf_nedc.yaml")
+    ev = InProcessEvaluator(resolve_disciplines(cfg))
+    mda = MDA(ev)
+    request = {"motor_kw": np.full(2, 80.0), "gear_ratio": np.full(2, 8.0), "battery_kwh": np.full(2, 24.0)}
+    assert all(r.ok.all() for r in flow.evaluate_flow(ev, ev.specs, mda._flow_waves, request, 2).values())
+    waves_before = ev.waves
+    got = flow.evaluate_flow(ev, ev.specs, mda._flow_waves, {**request, "motr_kw": np.ones(2)}, 2)
+    assert set(got) == set(ev.specs) and ev.waves == waves_before  # refused before any evaluation
+    for name, res in got.items():
+        assert not res.ok.any() and res.error == f"{name}: rejected: unknown inputs ['motr_kw']"
