@@ -20,10 +20,11 @@ sys.path.insert(0, str(ROOT))
 
 
 def _generation(cfg, evaluator, pop, seed=1):
+    from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.pareto import run_nsga2
 
-    form = build_formulation(cfg, evaluator, "mdf")
+    form = build_formulation(run_settings(cfg), evaluator, "mdf")
     r = run_nsga2(form, ["energy_wh_per_km", "accel_time_0_100_s", "powertrain_cost_usd"], pop_size=pop,
                   generations=2, seed=seed)
     # generation 1 = initial population, generation 2 = mating + survival + one batch

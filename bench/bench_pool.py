@@ -109,7 +109,7 @@ def compose(ctx, env, reps: int, n: int, domain: int | None = None) -> dict:
 
     from bev_mdo.testing import ros_env
 
-    from bev_mdo.config import load_config, resolve_disciplines
+    from bev_mdo.config import load_config, resolve_disciplines, run_settings
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
@@ -158,7 +158,7 @@ def compose(ctx, env, reps: int, n: int, domain: int | None = None) -> dict:
         for layout, launcher, node in setups:
             node.evaluator.wait_for_disciplines(names, 120.0)
             node.evaluator.warm_up(names)
-            forms[layout] = (build_formulation(config, node.evaluator), launcher)
+            forms[layout] = (build_formulation(run_settings(config), node.evaluator), launcher)
         forms["inprocess"] = (build_formulation(config, InProcessEvaluator(resolve_disciplines(config))), None)
         x = forms["inprocess"][0].x0[None, :]
         for form, _ in forms.values():
@@ -231,7 +231,7 @@ def _set_energy_instances(launcher, ev, path: Path, k: int) -> None:
 def energy(ctx, env, tmp: Path, reps: int, batches) -> dict:
     """The quasi-static energy model on Artemis (CPU-bound): one batch to the energy discipline,
     1 and 2 instances alternating per round (the second instance stopped and started between)."""
-    from bev_mdo.config import load_config, resolve_disciplines
+    from bev_mdo.config import load_config, resolve_disciplines, run_settings
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
@@ -304,7 +304,7 @@ def pareto(ctx, env, tmp: Path, pop: int, generations: int, counts, waves: bool 
     """NSGA-II (run_nsga2 over the MDF MDA, as ``bev-mdo pareto`` runs it) over ROS with 1 and 2
     energy instances (every other discipline one process), and in process. `counts` items are
     energy instance counts, or (instances, waves, pool_min_rows) variants (_variant)."""
-    from bev_mdo.config import load_config, resolve_disciplines
+    from bev_mdo.config import load_config, resolve_disciplines, run_settings
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.pareto import run_nsga2
@@ -341,7 +341,7 @@ def pareto(ctx, env, tmp: Path, pop: int, generations: int, counts, waves: bool 
             ev.pool_min_rows = {"energy": min_rows}
         try:
             t0 = time.perf_counter()
-            res = run_nsga2(build_formulation(config, ev, "mdf"), OBJECTIVES, pop_size=pop,
+            res = run_nsga2(build_formulation(run_settings(config), ev, "mdf"), OBJECTIVES, pop_size=pop,
                             generations=generations, seed=1)
             wall = time.perf_counter() - t0
             fronts[label] = np.asarray(res.F) if hasattr(res, "F") else None

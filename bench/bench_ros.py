@@ -302,7 +302,7 @@ def main() -> int:
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     import rclpy
 
-    from bev_mdo.config import load_config, resolve_disciplines
+    from bev_mdo.config import load_config, resolve_disciplines, run_settings
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
@@ -334,7 +334,7 @@ def main() -> int:
             launcher.add(name, discipline_argv(name, cfg_path))
         node = CoordinatorNode(config, context=ctx, node_name="bench_coordinator")
         node.evaluator.wait_for_disciplines(discipline_names(config), 60.0)
-        form = build_formulation(config, node.evaluator)
+        form = build_formulation(run_settings(config), node.evaluator)
         x = form.x0[None, :]
         for _ in range(50):
             form.analyse(x)

@@ -37,7 +37,11 @@ def _summary(xs: list[float]) -> dict:
 
 
 def cpu_sign_verify(n: int = 2000) -> dict:
-    """Sign + verify of a request and its result (one point, and a 10 000-point batch), CPU only."""
+    """CPU only, for a request and its result (one point, and a 10 000-point batch):
+    - ``sign_verify_*``: sign + verify the message objects, as before issue 15;
+    - ``send_receive_*``: the whole hop, signed and unsigned: encode (and sign) the bytes that are
+      published, decode them, verify. Works with the API before issue 15 (sign in place, then
+      encode) and after (the signer returns the bytes it signed), so one file measures both."""
     import secrets
 
     from bev_mdo.ros import wire
@@ -63,7 +67,32 @@ def cpu_sign_verify(n: int = 2000) -> dict:
             s.sign_result(res)
             assert s.verify_request(req) is None and s.verify_result(res) is None
         out[f"sign_verify_request_and_result_{points}_points_us"] = (time.perf_counter() - t0) / reps * 1e6
+        for signer in (None, Signer(secrets.token_bytes(32))):
+            t0 = time.perf_counter()
+            for i in range(reps):
+                req.evaluation_id = res.evaluation_id = i
+                stamp(req.header)
+                stamp(res.header)
+                for m, encode, decode in ((req, wire.encode_request, wire.decode_request),
+                                          (res, wire.encode_result, wire.decode_result)):
+                    if signer is None:
+                        data = encode(m)
+                    else:
+                        data = (signer.sign_request if m is req else signer.sign_result)(m)
+                        if data is None:  # before issue 15: signed in place, encoded by the caller
+                            data = encode(m)
+                    got = decode(data)
+                    if signer is not None:
+                        assert (signer.verify_request if m is req else signer.verify_result)(got) is None
+            mode = "unsigned" if signer is None else "signed"
+            out[f"send_receive_request_and_result_{points}_points_{mode}_us"] = (time.perf_counter() - t0) / reps * 1e6
     return out
+
+
+def cpu_only(rounds: int) -> dict:
+    """``cpu_sign_verify`` ``rounds`` times: median and range of each figure."""
+    runs = [cpu_sign_verify() for _ in range(rounds)]
+    return {k: _summary([r[k] for r in runs]) for k in runs[0]}
 
 
 def main() -> int:
@@ -72,13 +101,20 @@ def main() -> int:
     ap.add_argument("--n", type=int, default=300, help="MDAs per latency figure")
     ap.add_argument("--json", default=str(REPO / "bench" / "results" / "signing.json"))
     ap.add_argument("--domains", default="64,65", metavar="UNSIGNED,SIGNED", help="the two suites' ROS domains")
+    ap.add_argument("--cpu-only", action="store_true", help="only the CPU figures (no ROS), --rounds times")
     args = ap.parse_args()
+    if args.cpu_only:
+        figures = {"cpu": cpu_only(args.rounds), "load_average_1min": os.getloadavg()[0]}
+        print(json.dumps(figures, indent=2))
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(figures, indent=2) + "\n")
+        return 0
     DOMAINS.update(zip(("unsigned", "signed"), (int(d) for d in args.domains.split(","))))
     load = [os.getloadavg()[0]]
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     import rclpy
 
-    from bev_mdo.config import load_config
+    from bev_mdo.config import load_config, run_settings
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.ros.auth import new_key_file
     from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
@@ -110,7 +146,7 @@ def main() -> int:
             nodes[mode] = node = CoordinatorNode(config, context=ctx, node_name=f"bench_signing_{mode}")
             assert (node.evaluator.signer is not None) == (mode == "signed")
             node.evaluator.wait_for_disciplines(discipline_names(config), 60.0)
-            forms[mode] = form = build_formulation(config, node.evaluator)
+            forms[mode] = form = build_formulation(run_settings(config), node.evaluator)
             for _ in range(30):
                 form.analyse(form.x0[None, :])
         rng = np.random.default_rng(0)

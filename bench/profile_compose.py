@@ -12,7 +12,7 @@ N = int(sys.argv[2]) if len(sys.argv) > 2 else 3000
 os.environ["ROS_DOMAIN_ID"] = str(DOM); os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 import numpy as np, rclpy
 from bev_mdo.testing import ros_env
-from bev_mdo.config import load_config
+from bev_mdo.config import load_config, run_settings
 from bev_mdo.mdo.driver import build_formulation
 from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
 cfg_path = str(REPO / "config" / "leaf_nedc.yaml")
@@ -27,7 +27,7 @@ ctx = rclpy.context.Context(); rclpy.init(context=ctx)
 node = CoordinatorNode(config, run_id=run_id, context=ctx, node_name="prof_coord")
 try:
     node.evaluator.wait_for_disciplines(names, 120.0); node.evaluator.warm_up(names)
-    form = build_formulation(config, node.evaluator)
+    form = build_formulation(run_settings(config), node.evaluator)
     x = form.x0[None, :]
     for _ in range(200): form.analyse(x)
     lat = []

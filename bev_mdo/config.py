@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from bev_mdo.mdo.settings import MDASettings, OptimizerSettings
+from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
 
 TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "disciplines", "problem",
             "formulation", "mda", "optimizer", "ros", "recording", "search_path")
@@ -458,6 +458,19 @@ def discipline_names(config: Mapping[str, Any]) -> list[str]:
 
         return default_names(config)
     return [e if isinstance(e, str) else e["name"] for e in entries]
+
+
+def run_settings(config: Mapping[str, Any]) -> RunSettings:
+    """The engine's typed settings of a resolved config (``load_config``'s result), built once and
+    passed down: problem, formulation, the ``mda:``/``optimizer:`` sections, the disciplines by name
+    and whether each provides analytic partials (the driver imports nothing above the engine)."""
+    from bev_mdo.mdo.vectors import has_partials
+
+    names = tuple(discipline_names(config))
+    partials = {d.name: bool(has_partials(d)) for d in resolve_disciplines(config)}
+    return RunSettings(config["problem"], str(config["formulation"]), MDASettings.of(config["mda"]),
+                       OptimizerSettings.of(config["optimizer"]), names,
+                       {n: partials.get(n, False) for n in names})
 
 
 def plain(obj):

@@ -57,13 +57,14 @@ def analyse_baseline(config, evaluator) -> dict | None:
     """The config's ``problem.baseline`` analysed through ``evaluator``: {name, design, outputs, feasible, ...};
     None when the config names no baseline. A failed analysis is reported in ``error``, never raised:
     the run's own result must not be lost to its baseline."""
+    from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import evaluate_design
 
     base = config["problem"].get("baseline")
     if not base:
         return None
     try:
-        report = evaluate_design(config, evaluator, base["design"])
+        report = evaluate_design(run_settings(config), evaluator, base["design"])
     except Exception as exc:  # noqa: BLE001 - reported beside the result
         return {"name": base["name"], "design": dict(base["design"]), "outputs": {}, "feasible": False,
                 "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}

@@ -81,7 +81,7 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
             info["other_runs"] += 1
             continue
         if signer is not None:
-            why = signer.verify_iteration(_Signed(rec))
+            why = signer.verify_iteration(msg.data)  # the recorded bytes, as they were sent
             if why is not None:
                 info["dropped"][why] = info["dropped"].get(why, 0) + 1
                 continue
@@ -106,18 +106,6 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
     if checks is not None:
         checks.update(info)
     return rows
-
-
-class _Signed:
-    """A decoded record with ``signature`` even when the bag's schema predates the field."""
-
-    def __init__(self, rec):
-        self._rec = rec
-
-    def __getattr__(self, name):
-        if name == "signature":
-            return getattr(self._rec, "signature", "")
-        return getattr(self._rec, name)
 
 
 def check_note(checks: dict) -> str:

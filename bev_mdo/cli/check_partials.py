@@ -50,6 +50,7 @@ def check(config, at: str = "", rtol: float = 1e-4, atol: float = 1e-6, step: fl
     from bev_mdo.config import resolve_disciplines
     from bev_mdo.mdo.derivatives import compare_partials, fd_partials
     from bev_mdo.mdo.discipline import run_discipline
+    from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.vectors import ShapeError, has_partials
@@ -61,7 +62,7 @@ def check(config, at: str = "", rtol: float = 1e-4, atol: float = 1e-6, step: fl
     if unknown:
         raise ValueError(f"--discipline names {unknown}; the config has {sorted(discs)}")
     ev = InProcessEvaluator(discs.values())
-    form = build_formulation(config, ev, "mdf")
+    form = build_formulation(run_settings(config), ev, "mdf")
     problem, mda = form.problem, form.mda
     point = _point(problem, at)
     inputs = {k: np.array([v]) for k, v in {**problem.parameters, **point}.items()}

@@ -114,6 +114,7 @@ def _evaluator(config, use_ros: bool, args=None):
 
 def run(args) -> int:
     from bev_mdo.config import load_config
+    from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import evaluate_design
     from bev_mdo.mdo.problem import Problem
 
@@ -126,7 +127,7 @@ def run(args) -> int:
     evaluator = session.evaluator if use_ros else session
     ok = False
     try:
-        report = evaluate_design(config, evaluator, design)
+        report = evaluate_design(run_settings(config), evaluator, design)
         ok = True
     finally:
         if use_ros:

@@ -156,6 +156,7 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
 def _run_inprocess(config, args, show, x0=None):
     from bev_mdo.cli.failures import NamingInProcessEvaluator
     from bev_mdo.config import resolve_disciplines
+    from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import run_optimization
     from bev_mdo.ros.settings import validate_ros
     from bev_mdo.sessions import analyse_baseline
@@ -166,7 +167,7 @@ def _run_inprocess(config, args, show, x0=None):
     from bev_mdo.cli.runbag import in_process_bag  # --bag works in process too
 
     bag, writer, show = in_process_bag(config, args, show)
-    res = run_optimization(config, ev, formulation=args.formulation, optimizer=args.optimizer, x0=x0,
+    res = run_optimization(run_settings(config), ev, formulation=args.formulation, optimizer=args.optimizer, x0=x0,
                            callback=show)
     out = res.to_dict()
     out.pop("history")

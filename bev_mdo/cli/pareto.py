@@ -146,10 +146,11 @@ def front_message(front, **kw):
 
 
 def _run_one(cfg, evaluator, objectives, args, topology, on_front=None):
+    from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.pareto import run_nsga2
 
-    form = build_formulation(cfg, evaluator, "mdf")
+    form = build_formulation(run_settings(cfg), evaluator, "mdf")
     res = run_nsga2(form, objectives, pop_size=args.pop, generations=args.generations, seed=args.seed,
                     on_generation=lambda g, n, s: print(f"  gen {g}: {n} evaluations, {s:.2f} s", file=sys.stderr),
                     on_front=on_front)

@@ -57,9 +57,10 @@ def build_batch(config, evaluator, param_defaults=None):
     ``fun(X)`` takes columns in the order of the returned point (design variables, then
     every overridable model parameter) and returns the objective and constrained outputs.
     """
+    from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import build_formulation
 
-    form = build_formulation(config, evaluator, "mdf")
+    form = build_formulation(run_settings(config), evaluator, "mdf")
     problem, mda = form.problem, form.mda
     params: dict[str, float] = {}
     for spec in mda.specs.values():

@@ -101,6 +101,7 @@ def read_list(path: str) -> dict[str, np.ndarray]:
 def evaluate_batch(config, designs: dict[str, np.ndarray], transport: str = "inprocess") -> dict:
     """One batch of MDAs: {design: {k: array}, outputs: {k: array}, margins: {c: array},
     feasible: bool array, ok: bool array, errors: [str]} (``designs`` may set parameters too)."""
+    from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import FEASIBILITY_TOL, _mda
     from bev_mdo.mdo.problem import Problem
 
@@ -111,7 +112,7 @@ def evaluate_batch(config, designs: dict[str, np.ndarray], transport: str = "inp
     session = _evaluator(config, transport)  # a RosSession over ROS (closing it reports drops), else the evaluator
     evaluator = session.evaluator if transport == "ros" else session
     try:
-        mda = _mda(config, evaluator, problem)
+        mda = _mda(run_settings(config), evaluator, problem)
         params = {p for s in mda.specs.values() for p in s.parameters}
         unknown = [k for k in designs if k not in problem.names and k not in params]
         if unknown:

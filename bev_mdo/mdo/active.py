@@ -181,11 +181,12 @@ def fd_jacobian(config: Mapping[str, Any], design: Mapping[str, float], discipli
     from bev_mdo.mdo.driver import _mda
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.problem import Problem
+    from bev_mdo.mdo.settings import RunSettings
 
     problem = Problem.from_config(config["problem"])
     ev = InProcessEvaluator(disciplines() if callable(disciplines) else disciplines)
     try:
-        mda = _mda(config, ev, problem)
+        mda = _mda(RunSettings.of(config, ev), ev, problem)
         x = np.array([float(design[n]) for n in problem.names])
         steps = []
         for d, xi in zip(problem.design_variables, x):

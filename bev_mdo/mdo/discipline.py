@@ -164,6 +164,24 @@ def _describe_row(inputs: Mapping[str, np.ndarray], i: int) -> str:
     return ", ".join(f"{k}={float(v[i]):.6g}" for k, v in inputs.items())
 
 
+def readable(disc: Any) -> frozenset[str]:
+    """The names a request may give ``disc``: its inputs and its parameters."""
+    return frozenset(disc.inputs) | frozenset(getattr(disc, "parameters", None) or ())
+
+
+def unknown_inputs(allowed: frozenset[str], columns: Iterable[str]) -> list[str]:
+    """The columns of a request that a discipline does not read (``allowed``: ``readable(disc)``).
+    The entry check every transport applies the same way: a request naming one is rejected, its
+    points failed with ``<name>: rejected: unknown inputs [...]`` (over ROS by the node, in process
+    by InProcessEvaluator), never silently dropped."""
+    return [k for k in columns if k not in allowed]
+
+
+def rejected(name: str, outputs: Sequence[str], n: int, why: str) -> EvalResult:
+    """The result of a request a discipline refused: every point failed, the reason named."""
+    return EvalResult({k: np.full(n, np.nan) for k in outputs}, np.zeros(n, dtype=bool), f"{name}: rejected: {why}")
+
+
 def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False) -> EvalResult:
     """Validate inputs, call ``disc.compute`` on the batch and validate its outputs.
 

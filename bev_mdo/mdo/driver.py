@@ -17,14 +17,17 @@ from bev_mdo.mdo.formulations import FORMULATIONS, Formulation
 from bev_mdo.mdo.mda import MDA
 from bev_mdo.mdo.optimizers import GRADIENT_BASED, canonical_name, run_optimizer
 from bev_mdo.mdo.problem import Problem
-from bev_mdo.mdo.settings import FEASIBILITY_TOL, MDASettings, OptimizerSettings
+from bev_mdo.mdo.settings import FEASIBILITY_TOL, RunSettings
 
 BEST_REL_TOL = 1e-6  # an earlier feasible iterate replaces the last one only if better by more than this
 
 
-def feasibility_tolerance(config: Mapping[str, Any]) -> float:
-    """The resolved config's ``optimizer.feasibility_tolerance`` (mdo/settings.py: FEASIBILITY_TOL by default)."""
-    return float(OptimizerSettings.of(config["optimizer"]).feasibility_tolerance)
+Run = RunSettings | Mapping[str, Any]  # typed settings (config.run_settings), or a resolved config
+
+
+def feasibility_tolerance(run: Run) -> float:
+    """The run's ``optimizer.feasibility_tolerance`` (mdo/settings.py: FEASIBILITY_TOL by default)."""
+    return float(RunSettings.of(run).optimizer.feasibility_tolerance)
 
 
 @dataclass
@@ -61,44 +64,35 @@ class RunResult:
         return asdict(self)
 
 
-def _mda(config: Mapping[str, Any], evaluator: Evaluator, problem: Problem) -> MDA:
-    m = MDASettings.of(config["mda"])
-    return MDA(evaluator, **m.as_dict(), guesses=problem.coupling_guesses, disciplines=_discipline_names(config))
+def _mda(run: RunSettings, evaluator: Evaluator, problem: Problem) -> MDA:
+    return MDA(evaluator, **run.mda.as_dict(), guesses=problem.coupling_guesses, disciplines=list(run.disciplines))
 
 
-def _discipline_names(config: Mapping[str, Any]) -> list[str]:
-    """The config's disciplines (the evaluator may serve more)."""
-    from bev_mdo.config import discipline_names
-
-    return discipline_names(config)
-
-
-def build_formulation(config: Mapping[str, Any], evaluator: Evaluator, formulation: str | None = None) -> Formulation:
-    """The MDF or IDF formulation of a resolved config over ``evaluator``."""
-    problem = Problem.from_config(config["problem"])
-    name = (formulation or config["formulation"]).lower()
+def build_formulation(run: Run, evaluator: Evaluator, formulation: str | None = None) -> Formulation:
+    """The MDF or IDF formulation of a run (RunSettings or a resolved config) over ``evaluator``."""
+    run = RunSettings.of(run, evaluator)
+    problem = Problem.from_config(run.problem)
+    name = (formulation or run.formulation).lower()
     if name not in FORMULATIONS:
         raise ValueError(f"formulation {name!r} is unknown; allowed: {', '.join(FORMULATIONS)}")
-    opt = OptimizerSettings.of(config["optimizer"])
-    mda = _mda(config, evaluator, problem)
+    opt = run.optimizer
+    mda = _mda(run, evaluator, problem)
     return FORMULATIONS[name](problem, evaluator, mda, fd_step=opt.fd_step, fd_scheme=opt.fd_scheme,
-                              derivatives=derivatives_mode(config, evaluator, list(mda.specs)))
+                              derivatives=derivatives_mode(run, evaluator, list(mda.specs)))
 
 
-def derivatives_mode(config: Mapping[str, Any], evaluator: Evaluator, names: list[str]) -> str:
+def derivatives_mode(run: Run, evaluator: Evaluator, names: list[str]) -> str:
     """``optimizer.derivatives``: analytic | fd, or auto (the default): analytic when every
     discipline of the run provides partials, else fd (docs/derivatives.md: a mix of analytic and
     per-discipline finite differences is ``analytic``, chosen explicitly, because a batched
     finite-difference stencil of whole MDAs can cost less than an analysis plus a second wave)."""
-    mode = str(OptimizerSettings.of(config["optimizer"]).derivatives).lower()
+    run = RunSettings.of(run, evaluator)
+    mode = str(run.optimizer.derivatives).lower()
     if mode != "auto":
         return mode
     flags = [getattr(evaluator.specs.get(n), "partials", None) for n in names]
-    if any(f is None for f in flags):  # a transport that does not know: ask the config's disciplines
-        from bev_mdo.config import resolve_disciplines
-        from bev_mdo.mdo.vectors import has_partials
-
-        flags = [has_partials(d) for d in resolve_disciplines(config) if d.name in names]
+    # a transport that does not know (ROS): the run's settings say
+    flags = [bool(run.partials.get(n, False)) if f is None else f for n, f in zip(names, flags)]
     return "analytic" if flags and all(flags) else "fd"
 
 
@@ -115,13 +109,14 @@ def _constraint_report(problem: Problem, values: Mapping[str, float], tol: float
     return out
 
 
-def evaluate_design(config: Mapping[str, Any], evaluator: Evaluator, design: Mapping[str, float]) -> dict:
+def evaluate_design(run: Run, evaluator: Evaluator, design: Mapping[str, float]) -> dict:
     """One multidisciplinary analysis of ``design``; the JSON of ``bev-mdo evaluate``.
 
     ``design`` holds every design variable, and may add model-parameter overrides.
     """
-    problem = Problem.from_config(config["problem"])
-    mda = _mda(config, evaluator, problem)
+    run = RunSettings.of(run, evaluator)
+    problem = Problem.from_config(run.problem)
+    mda = _mda(run, evaluator, problem)
     params = {p for s in mda.specs.values() for p in s.parameters}
     missing = [n for n in problem.names if n not in design]
     if missing:
@@ -134,7 +129,7 @@ def evaluate_design(config: Mapping[str, Any], evaluator: Evaluator, design: Map
     res = mda.run(inputs)
     values = {k: float(v[0]) for k, v in res.values.items()}
     return design_report(problem, mda, design, values, bool(res.ok[0]), res.errors[0], int(res.iterations[0]),
-                         tol=feasibility_tolerance(config))
+                         tol=run.optimizer.feasibility_tolerance)
 
 
 def design_report(problem: Problem, mda: MDA, design: Mapping[str, float], values: Mapping[str, float],
@@ -162,14 +157,16 @@ def _physical_constraints(problem: Problem, g: np.ndarray) -> dict[str, float]:
     return out
 
 
-def run_optimization(config: Mapping[str, Any], evaluator: Evaluator, *, formulation: str | None = None,
+def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None = None,
                      optimizer: str | None = None, x0: Mapping[str, float] | None = None,
                      callback: Callable[[dict], Any] | None = None) -> RunResult:
-    """Optimise the config's problem through ``evaluator``; ``callback(record)`` once per iteration."""
+    """Optimise the run's problem (RunSettings, or a resolved config) through ``evaluator``;
+    ``callback(record)`` once per iteration."""
     t0 = time.perf_counter()
-    form = build_formulation(config, evaluator, formulation)
+    run = RunSettings.of(run, evaluator)
+    form = build_formulation(run, evaluator, formulation)
     problem = form.problem
-    opt_cfg = OptimizerSettings.of(config["optimizer"])
+    opt_cfg = run.optimizer
     opt_name = canonical_name(optimizer or opt_cfg.name)
     # the config's options belong to the config's optimiser: another one chosen here starts from none
     options = dict(opt_cfg.options) if not optimizer or canonical_name(opt_cfg.name) == opt_name else {}
@@ -184,7 +181,7 @@ def run_optimization(config: Mapping[str, Any], evaluator: Evaluator, *, formula
                     raise ValueError(f"x0 {n}={v:g} is outside the bounds [{form.lower[j]:g}, {form.upper[j]:g}]")
                 form.x0[j] = v
     n_dv = len(problem.names)
-    tol = feasibility_tolerance(config)
+    tol = float(opt_cfg.feasibility_tolerance)
     sign = -1.0 if problem.maximize else 1.0  # evaluate_batch gives the minimised value
     history: list[dict] = []
     xs: list[np.ndarray] = []  # the optimiser variables of every record (IDF: with the couplings)
@@ -238,7 +235,7 @@ def run_optimization(config: Mapping[str, Any], evaluator: Evaluator, *, formula
         final = design_report(problem, form.mda, design, *seen, tol=tol)
         mda_evals = form.mda_evaluations
     else:
-        final = evaluate_design(config, evaluator, design)
+        final = evaluate_design(run, evaluator, design)
         mda_evals = form.mda_evaluations + 1
     counts = dict(evaluator.counts)
     ok, err = form.status(x)

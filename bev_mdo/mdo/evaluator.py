@@ -14,13 +14,15 @@ them to the discipline nodes.
 """
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from bev_mdo.mdo.discipline import EvalResult, run_discipline
+from bev_mdo.mdo.discipline import EvalResult, readable, rejected, run_discipline, unknown_inputs
+from bev_mdo.mdo.flow import flow_by_waves
+from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.vectors import has_partials
 
 
@@ -58,6 +60,13 @@ class Evaluator(Protocol):
         analytic partials (``EvalResult.extra["partials"]``, absent if it has none)."""
         ...
 
+    def evaluate_flow(self, names: Sequence[str], request: Mapping[str, np.ndarray], n: int,
+                      partials: bool = False) -> dict[str, EvalResult] | None:
+        """One feed-forward MDA of ``names`` (topological order) over ``request`` (n rows) by the
+        data-flow rule (flow.py): {discipline: result over all n rows}; None when this transport
+        cannot serve these disciplines that way (the caller then goes wave by wave)."""
+        ...
+
     def close(self) -> None:
         """Release resources (processes, nodes); idempotent."""
         ...
@@ -76,6 +85,8 @@ class InProcessEvaluator:
         self.specs = {n: DisciplineSpec.of(d) for n, d in self.disciplines.items()}
         self.counts = {n: 0 for n in self.disciplines}
         self.waves = 0  # number of evaluate() calls (request waves)
+        self._readable = {n: readable(d) for n, d in self.disciplines.items()}
+        self._flow_waves: dict[tuple, list | None] = {}  # names -> their graph's waves (None: a loop)
 
     def evaluate(self, calls: list[Call], partials: bool = False) -> list[EvalResult]:
         self.waves += 1
@@ -83,10 +94,30 @@ class InProcessEvaluator:
         for name, inputs in calls:
             if name not in self.disciplines:
                 raise ValueError(f"unknown discipline {name!r}; known: {sorted(self.disciplines)}")
-            res = run_discipline(self.disciplines[name], inputs, partials)
+            unknown = unknown_inputs(self._readable[name], inputs)
+            if unknown:  # refused as a node refuses it: every point failed, named
+                n = len(next(iter(inputs.values())))
+                res = rejected(name, self.specs[name].outputs, n, f"unknown inputs {unknown[:5]}")
+            else:
+                res = run_discipline(self.disciplines[name], inputs, partials)
             self.counts[name] += int(np.size(res.ok))
             results.append(res)
         return results
+
+    def evaluate_flow(self, names: Sequence[str], request: Mapping[str, np.ndarray], n: int,
+                      partials: bool = False) -> dict[str, EvalResult] | None:
+        """The data-flow rule wave by wave (flow.flow_by_waves): the same rows, inputs and counts as
+        the ROS nodes' one-request data flow. None for a graph with a loop."""
+        key = tuple(names)
+        waves = self._flow_waves.get(key)
+        if waves is None:
+            graph = CouplingGraph((m, self.specs[m].inputs, self.specs[m].outputs) for m in names)
+            waves = None if any(graph.is_cyclic(c) for c in graph.components) else [
+                [c[0] for c in wave] for wave in graph.waves]
+            self._flow_waves[key] = waves
+        if waves is None:
+            return None
+        return flow_by_waves(self, {m: self.specs[m] for m in names}, waves, request, n, partials)
 
     def close(self) -> None:
         pass

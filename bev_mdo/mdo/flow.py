@@ -8,18 +8,21 @@ failed without a message of their own (the source's error names them). Point err
 (``EvalResult.point_errors``) are keyed by the index in the whole batch.
 
 The rule is the same everywhere it runs: ``flow_by_waves`` (any evaluator, one wave per graph
-level, used in process), and the discipline nodes over ROS (one request message for the
-whole MDA, results passed from node to node). So both transports evaluate the same rows
-with the same inputs and count the same evaluations.
+level, used in process: ``InProcessEvaluator.evaluate_flow``), and the discipline nodes over ROS
+(one request message for the whole MDA, results passed from node to node; a node joins its
+sources' results with ``FlowJoin`` and evaluates with ``run_flow_discipline``). So both
+transports evaluate the same rows with the same inputs and count the same evaluations.
 """
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from bev_mdo.mdo.discipline import EvalResult, run_discipline
+from bev_mdo.mdo.discipline import EvalResult, rejected, run_discipline, unknown_inputs
 
 Upstream = Mapping[str, tuple[Mapping[str, np.ndarray], np.ndarray]]  # source -> (outputs, ok)
 
@@ -139,11 +142,86 @@ def evaluate_flow(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequ
                   request: Mapping[str, np.ndarray], n: int, partials: bool = False) -> dict[str, EvalResult]:
     """One data-flow MDA: the evaluator's own ``evaluate_flow`` (one request) when it offers one
     and can serve these disciplines that way, else :func:`flow_by_waves`. With ``partials`` every
-    discipline that has analytic partials returns them with its result."""
+    discipline that has analytic partials returns them with its result. A request column that no
+    discipline of the MDA reads fails every point, named (as a node refuses an unknown input)."""
+    names = [name for wave in waves for name in wave]
+    allowed = frozenset(v for m in names for v in (*specs[m].inputs, *specs[m].parameters))
+    unknown = unknown_inputs(allowed, request)
+    if unknown:  # the entry check of every transport (discipline.unknown_inputs): refused, not dropped
+        return {m: rejected(m, specs[m].outputs, n, f"unknown inputs {unknown[:5]}") for m in names}
     own = getattr(evaluator, "evaluate_flow", None)
     if own is not None:
-        order = [name for wave in waves for name in wave]
-        got = own(order, request, n, partials=True) if partials else own(order, request, n)
+        got = own(names, request, n, partials=True) if partials else own(names, request, n)
         if got is not None:
             return got
     return flow_by_waves(evaluator, specs, waves, request, n, partials)
+
+
+class FlowError(ValueError):
+    """A source's result that cannot take part in a data-flow MDA (malformed: not kept)."""
+
+
+class SourcesDisagree(FlowError):
+    """The sources of one data-flow MDA answered different numbers of points."""
+
+
+@dataclass
+class Joined:
+    """Everything one discipline needs to evaluate its share of a data-flow MDA, once every one of
+    its sources (in that MDA) has answered: ``run_flow_discipline(disc, request, up, sources, n)``."""
+
+    request: dict[str, np.ndarray]   # the request's columns, forwarded by the sources
+    up: dict[str, tuple[Mapping[str, np.ndarray], np.ndarray]]  # source -> (outputs, ok over n rows)
+    sources: dict[str, str]          # coupling input -> its source, in this MDA
+    n: int
+    extras: dict[str, Any]           # source -> what the transport attached to its result
+
+
+class FlowJoin:
+    """The join of a discipline's sources' results, per data-flow MDA: wherever the results come
+    from (the ROS nodes' mda_result topics, or direct calls in a composed process). Keeps at most
+    ``keep`` unfinished MDAs (the oldest is forgotten: a lost MDA is re-sent by the coordinator)."""
+
+    def __init__(self, source_of: Mapping[str, str], outputs_of: Mapping[str, set[str]], keep: int = 64):
+        self.source_of = dict(source_of)   # coupling input -> source discipline
+        self.outputs_of = {s: set(v) for s, v in outputs_of.items()}  # source -> every output it produces
+        self.keep = keep
+        self._got: OrderedDict[Any, dict[str, tuple]] = OrderedDict()
+
+    def add(self, key: Any, source: str, columns: Mapping[str, np.ndarray], ok: np.ndarray,
+            flow_names: Sequence[str], rejected: bool = False, extra: Any = None, n: int | None = None
+            ) -> Joined | None:
+        """Keep ``source``'s result for the MDA ``key`` (``columns``: its outputs and the request's
+        columns it forwards, ``n`` rows each; ``rejected``: it evaluated nothing); the join once every
+        source of this discipline taking part in the MDA (``flow_names``) has answered, else None.
+        FlowError for a malformed result (not kept); SourcesDisagree when the sources' batch sizes
+        differ (the MDA is then forgotten here)."""
+        ok = np.asarray(ok, dtype=bool)
+        if rejected:  # nothing to evaluate downstream of it
+            columns, ok = {}, np.zeros(0, dtype=bool)
+        else:
+            n = len(ok) if n is None else n
+            if ok.shape != (n,) or any(v not in columns for v, s in self.source_of.items() if s == source) or any(
+                    np.shape(c) != (n,) for c in columns.values()):
+                raise FlowError(f"result of {source!r} misses a coupling column or has rows of another size")
+        got = {**self._got.get(key, {}), source: (columns, ok, extra)}
+        self._got[key] = got
+        self._got.move_to_end(key)
+        while len(self._got) > self.keep:
+            self._got.popitem(last=False)
+        sources = {v: s for v, s in self.source_of.items() if s in flow_names}
+        if any(s not in got for s in sources.values()):
+            return None
+        del self._got[key]
+        sizes = {o.size for _, o, _ in got.values() if o.size}
+        if len(sizes) > 1:
+            raise SourcesDisagree("sources answered different numbers of points")
+        n = sizes.pop() if sizes else 0
+        request: dict[str, np.ndarray] = {}
+        for s, (cols, _, _) in got.items():  # the request's columns, forwarded by each source
+            request.update({k: v for k, v in cols.items() if k not in self.outputs_of.get(s, ())})
+        up = {s: (cols, o if o.size else np.zeros(n, bool)) for s, (cols, o, _) in got.items()}
+        return Joined(request, up, sources, n, {s: x for s, (_, _, x) in got.items()})
+
+    def __len__(self) -> int:
+        return len(self._got)

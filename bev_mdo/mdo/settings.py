@@ -67,3 +67,39 @@ class OptimizerSettings:
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """What the engine needs of a run, typed and validated once: ``config.run_settings`` builds it
+    from a resolved config (the engine imports nothing above it) and the driver reads only this.
+
+    ``disciplines``: the run's disciplines by name (the evaluator may serve more); ``partials``:
+    whether each provides analytic partials (``optimizer.derivatives: auto`` needs it over a
+    transport that does not say, e.g. ROS)."""
+
+    problem: Mapping[str, Any]
+    formulation: str
+    mda: MDASettings
+    optimizer: OptimizerSettings
+    disciplines: tuple[str, ...]
+    partials: Mapping[str, bool]
+
+    @classmethod
+    def of(cls, run: "RunSettings | Mapping[str, Any]", evaluator: Any = None) -> "RunSettings":
+        """``run`` itself, or one from a resolved config and an evaluator that declares every
+        discipline's partials (the in-process one, built from ``config.resolve_disciplines``: it
+        serves exactly the run's disciplines, in their order). Over a transport that does not
+        declare them (ROS), pass ``config.run_settings(config)``: ValueError here."""
+        if isinstance(run, RunSettings):
+            return run
+        specs = dict(getattr(evaluator, "specs", None) or {})
+        entries = run.get("disciplines")
+        names = (tuple(e if isinstance(e, str) else e["name"] for e in entries) if entries is not None
+                 else tuple(specs))
+        partials = {n: getattr(specs.get(n), "partials", None) for n in names}
+        if evaluator is not None and any(p is None for p in partials.values()):
+            raise ValueError("this evaluator does not declare its disciplines' partials: pass the run's "
+                             "settings, config.run_settings(config), instead of the config")
+        return cls(run["problem"], str(run["formulation"]), MDASettings.of(run["mda"]),
+                   OptimizerSettings.of(run["optimizer"]), names, {n: bool(p) for n, p in partials.items()})

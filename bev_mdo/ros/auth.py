@@ -2,10 +2,16 @@
 
 The pip build of Fast DDS has no DDS-Security, so SROS2 cannot be enforced with it.
 With ``ros.sign_key_file`` set, every EvaluationRequest and EvaluationResult carries
-``signature = hex(HMAC-SHA256(key, canonical bytes))``. The canonical bytes are a
-fixed, length-prefixed encoding of every field the receiver acts on (run id,
-evaluation id, attempt, discipline, names, batch size, the float64 values as
-little-endian bytes, status / error / point_ok / point errors for results) and the header stamp.
+``signature = hex(HMAC-SHA256(key, the message's CDR bytes with the signature field empty))``:
+the MAC covers exactly the bytes that are sent, every field and every padding byte, and no
+second encoding of the message exists (the layout is wire.py's alone). The sender encodes once
+with the field empty, MACs, and puts the signature in (wire.encode_request/_result with ``mac``);
+the receiver blanks the field in the bytes it received and MACs those (wire.signed_bytes).
+DisciplineInfo and IterationRecord are serialised once by rclpy (with the signature empty),
+signed, and those bytes are published (rclpy leaves CDR padding bytes as it finds them, so a
+second serialisation could differ); their signature is their last field, so a receiver (or
+``bev-mdo`` reading a bag) blanks it in the received bytes the same way. This module keeps the
+key, the Signer, the freshness and replay window and the reasons.
 
 A receiver drops and counts a message that is
 - ``unsigned``: no signature;
@@ -25,23 +31,18 @@ docs/security.md for what is and is not protected.
 """
 from __future__ import annotations
 
-import hashlib
 import hmac
 import os
-import struct
 import time
 from collections import OrderedDict
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
+from bev_mdo.ros.wire import (BLANK_SIGNATURE, SIGNATURE_CHARS, encode_request, encode_result, signed,
+                              signed_bytes, unsigned_request, unsigned_result)
 
 MIN_KEY_BYTES = 16
 REASONS = ("unsigned", "forged", "expired", "replayed")
-_REQ_TAG = b"bev_mdo/EvaluationRequest/v1\0"
-_RES_TAG = b"bev_mdo/EvaluationResult/v1\0"
-_INFO_TAG = b"bev_mdo/DisciplineInfo/v1\0"
-_ITER_TAG = b"bev_mdo/IterationRecord/v1\0"
 
 
 class AuthError(ValueError):
@@ -74,111 +75,30 @@ def read_key(path: str | os.PathLike) -> bytes:
     return key
 
 
-def _s(out: list[bytes], text: str) -> None:
-    b = text.encode("utf-8", "surrogatepass")
-    out.append(struct.pack("<I", len(b)))
-    out.append(b)
+def _tail_end(data) -> int:
+    """Where the CDR of a DisciplineInfo or IterationRecord ends in ``data``: before the zero
+    padding (0-3 bytes) DDS may add. The last field, the signature string, starts 4-aligned in
+    the payload and holds 0 or 64 characters plus its NUL, so the message is 1 byte past a multiple
+    of 4 long (counting the 4-byte encapsulation)."""
+    return len(data) - (len(data) - 1) % 4
 
 
-def _named(out: list[bytes], arr) -> None:
-    names = list(arr.names)
-    out.append(struct.pack("<I", len(names)))
-    for k in names:
-        _s(out, k)
-    out.append(struct.pack("<I", int(arr.batch_size)))
-    vals = np.asarray(arr.values, dtype="<f8").tobytes() if len(arr.values) else b""
-    out.append(struct.pack("<Q", len(vals)))
-    out.append(vals)
+def _tail_signed(data) -> tuple | None:
+    """The parts of the CDR bytes of a DisciplineInfo or IterationRecord (``signature`` is their
+    last field) that its signature covers: the bytes with that field blank. None when the last field
+    is not a signature of 64 ASCII characters."""
+    end = _tail_end(data)
+    at = end - len(BLANK_SIGNATURE) - SIGNATURE_CHARS
+    if at < 4 or any(memoryview(data)[end:]):
+        return None
+    return signed_bytes(data, at, end)
 
 
-def _stamp(out: list[bytes], header) -> None:
-    out.append(struct.pack("<iI", int(header.stamp.sec), int(header.stamp.nanosec)))
-    _s(out, header.frame_id)
+def _rclpy_cdr(msg) -> bytes:
+    """CDR bytes of a generated message, by rclpy's own serializer (its one codec)."""
+    from rclpy.serialization import serialize_message
 
-
-def request_bytes(msg) -> bytes:
-    """Canonical bytes of an EvaluationRequest (everything but the signature)."""
-    out = [_REQ_TAG]
-    _stamp(out, msg.header)
-    _s(out, msg.run_id)
-    out.append(struct.pack("<QQII", int(msg.evaluation_id), int(msg.sequence), int(msg.iteration), int(msg.attempt)))
-    _s(out, msg.discipline)
-    _named(out, msg.inputs)
-    out.append(struct.pack("<I", len(msg.flow)))
-    for name in msg.flow:
-        _s(out, name)
-    out.append(struct.pack("<B", int(bool(getattr(msg, "partials", False)))))
-    return b"".join(out)
-
-
-def result_bytes(msg) -> bytes:
-    """Canonical bytes of an EvaluationResult (everything but the signature)."""
-    out = [_RES_TAG]
-    _stamp(out, msg.header)
-    _s(out, msg.run_id)
-    out.append(struct.pack("<QQ", int(msg.evaluation_id), int(msg.sequence)))
-    _s(out, msg.discipline)
-    _s(out, msg.instance)
-    out.append(struct.pack("<B", int(msg.status)))
-    _s(out, msg.error)
-    ok = bytes(bool(b) for b in msg.point_ok)
-    out.append(struct.pack("<I", len(ok)))
-    out.append(ok)
-    _named(out, msg.outputs)
-    out.append(struct.pack("<d", float(msg.compute_time_s)))
-    out.append(struct.pack("<I", len(msg.flow)))
-    for name in msg.flow:
-        _s(out, name)
-    _named(out, msg.partials)
-    points = np.asarray(getattr(msg, "error_points", ()), dtype="<u4")  # a bag's older schema has none
-    out.append(struct.pack("<I", points.size))
-    out.append(points.tobytes())
-    _texts(out, getattr(msg, "error_reasons", ()))
-    _texts(out, getattr(msg, "error_inputs", ()))
-    return b"".join(out)
-
-
-def _texts(out: list[bytes], items) -> None:
-    items = list(items)
-    out.append(struct.pack("<I", len(items)))
-    for t in items:
-        _s(out, t)
-
-
-def info_bytes(msg) -> bytes:
-    """Canonical bytes of a DisciplineInfo (everything but the signature)."""
-    out = [_INFO_TAG]
-    _stamp(out, msg.header)
-    for text in (msg.discipline, msg.instance, msg.class_name):
-        _s(out, text)
-    for seq in (msg.inputs, msg.outputs, msg.parameters):
-        _texts(out, seq)
-    _s(out, msg.version)
-    _texts(out, msg.coupling_inputs)
-    _texts(out, msg.coupling_sources)
-    for text in (msg.run_id, msg.fingerprint, msg.effective_config):
-        _s(out, text)
-    return b"".join(out)
-
-
-def iteration_bytes(msg) -> bytes:
-    """Canonical bytes of an IterationRecord (everything but the signature)."""
-    out = [_ITER_TAG]
-    _stamp(out, msg.header)
-    _s(out, msg.run_id)
-    out.append(struct.pack("<QI", int(msg.sequence), int(msg.iteration)))
-    for text in (msg.formulation, msg.optimizer):
-        _s(out, text)
-    _named(out, msg.design)
-    _s(out, msg.objective_name)
-    out.append(struct.pack("<d", float(msg.objective)))
-    _named(out, msg.constraints)
-    out.append(struct.pack("<dBQ", float(msg.max_violation), bool(msg.feasible), int(msg.mda_evaluations)))
-    _texts(out, msg.discipline_names)
-    ev = [int(v) for v in msg.discipline_evaluations]
-    out.append(struct.pack(f"<I{len(ev)}Q", len(ev), *ev))
-    out.append(struct.pack("<d", float(msg.wall_time_s)))
-    return b"".join(out)
+    return serialize_message(msg)
 
 
 class Signer:
@@ -188,7 +108,7 @@ class Signer:
                  max_seen: int = 1_000_000):
         if len(key) < MIN_KEY_BYTES:
             raise AuthError(f"key shorter than {MIN_KEY_BYTES} bytes")
-        self._key = key
+        self._hmac = hmac.new(key, digestmod="sha256")
         self.window_ns = int(window_s * 1e9)
         self._clock = clock_ns
         self._seen: OrderedDict[tuple, int] = OrderedDict()  # accepted (kind, ids, signature) -> stamp ns
@@ -205,53 +125,79 @@ class Signer:
             return None
         return cls(read_key(path), float((ros or {}).get("sign_window_s", 30.0)))
 
-    def _mac(self, data: bytes) -> str:
-        return hmac.new(self._key, data, hashlib.sha256).hexdigest()
+    def _mac(self, *parts) -> str:
+        h = self._hmac.copy()  # the key's inner and outer pads are hashed once, in __init__
+        for p in parts:
+            h.update(p)
+        return h.hexdigest()
 
-    def sign_request(self, msg) -> None:
-        msg.signature = self._mac(request_bytes(msg))
+    # -- signing: the bytes that are sent, encoded once ---------------------------------------
+    def sign_request(self, msg) -> bytes:
+        """Sign an EvaluationRequest: returns its CDR bytes to publish (``msg.signature`` is set)."""
+        return encode_request(msg, self._mac)
 
-    def sign_result(self, msg) -> None:
-        msg.signature = self._mac(result_bytes(msg))
+    def sign_result(self, msg) -> bytes:
+        """Sign an EvaluationResult: returns its CDR bytes to publish (``msg.signature`` is set)."""
+        return encode_result(msg, self._mac)
 
-    def sign_info(self, msg) -> None:
-        msg.signature = self._mac(info_bytes(msg))
+    def sign_info(self, msg) -> bytes:
+        """Sign a DisciplineInfo: returns its CDR bytes to publish (``msg.signature`` is set)."""
+        return self._sign_typed(msg)
 
-    def sign_iteration(self, msg) -> None:
-        msg.signature = self._mac(iteration_bytes(msg))
+    def sign_iteration(self, msg) -> bytes:
+        """Sign an IterationRecord: returns its CDR bytes to publish (``msg.signature`` is set)."""
+        return self._sign_typed(msg)
 
-    def verify_info(self, msg) -> str | None:
-        """None if the declaration is authentic, else "unsigned" or "forged". No freshness window:
-        declarations are TRANSIENT_LOCAL, a late coordinator gets old ones, and a replayed
-        genuine declaration says nothing new."""
-        return self._mac_only(msg, info_bytes)
+    def _sign_typed(self, msg) -> bytes:
+        # rclpy's serializer leaves CDR padding bytes as it finds them, so a message serialised
+        # twice need not give the same bytes: the bytes signed are the bytes to publish
+        msg.signature = ""
+        out = bytearray(_rclpy_cdr(msg))
+        return signed(out, len(out) - len(BLANK_SIGNATURE), msg, self._mac)
 
-    def verify_iteration(self, msg) -> str | None:
-        """None if the iteration record is authentic, else "unsigned" or "forged" (also offline,
-        on records read back from a bag: no freshness window)."""
-        return self._mac_only(msg, iteration_bytes)
+    # -- verifying: the bytes that were received, with the signature field blanked -------------
+    def verify_info(self, data) -> str | None:
+        """None if the declaration (its received CDR bytes) is authentic, else "unsigned" or
+        "forged". No freshness window: declarations are TRANSIENT_LOCAL, a late coordinator gets
+        old ones, and a replayed genuine declaration says nothing new."""
+        return self._mac_only(data)
 
-    def _mac_only(self, msg, encode) -> str | None:
-        sig = msg.signature
-        if not sig:
-            return "unsigned"
-        if len(sig) != 64 or not hmac.compare_digest(sig, self._mac(encode(msg))):
-            return "forged"
-        return None
+    def verify_iteration(self, data) -> str | None:
+        """None if the iteration record (its CDR bytes, received or read from a bag) is authentic,
+        else "unsigned" or "forged" (no freshness window: also offline)."""
+        return self._mac_only(data)
+
+    def _mac_only(self, data) -> str | None:
+        parts = _tail_signed(data)
+        end = _tail_end(data)
+        if parts is None:
+            return "unsigned" if bytes(data[end - len(BLANK_SIGNATURE):end]) == BLANK_SIGNATURE else "forged"
+        sig = bytes(data[end - SIGNATURE_CHARS - 1:end - 1])
+        return None if hmac.compare_digest(sig, self._mac(*parts).encode()) else "forged"
 
     def verify_request(self, msg) -> str | None:
-        """None if the request is authentic and fresh, else the reason (one of REASONS)."""
-        return self._verify(msg, request_bytes, ("req", msg.run_id, int(msg.evaluation_id), msg.discipline))
+        """None if the request is authentic and fresh, else the reason (one of REASONS). ``msg`` as
+        decoded by wire.decode_request (its received bytes are checked) or a message object (its
+        fields are encoded by the one codec, wire.py)."""
+        return self._verify(msg, unsigned_request, ("req", msg.run_id, int(msg.evaluation_id), msg.discipline))
 
     def verify_result(self, msg) -> str | None:
-        """None if the result is authentic and fresh, else the reason (one of REASONS)."""
-        return self._verify(msg, result_bytes, ("res", msg.run_id, int(msg.evaluation_id), msg.discipline))
+        """None if the result is authentic and fresh, else the reason (one of REASONS); ``msg`` as
+        for verify_request."""
+        return self._verify(msg, unsigned_result, ("res", msg.run_id, int(msg.evaluation_id), msg.discipline))
 
-    def _verify(self, msg, encode, ids: tuple) -> str | None:
+    def _verify(self, msg, unsigned: Callable, ids: tuple) -> str | None:
         sig = msg.signature
         if not sig:
             return "unsigned"
-        if len(sig) != 64 or not hmac.compare_digest(sig, self._mac(encode(msg))):
+        if len(sig) != SIGNATURE_CHARS or not sig.isascii():
+            return "forged"
+        raw = getattr(msg, "raw", None)
+        if raw is not None:  # as received: MAC those bytes with the signature field blanked
+            parts = signed_bytes(raw, msg.sig_at, msg.end)
+            if parts is None or not hmac.compare_digest(sig, self._mac(*parts)):
+                return "forged"
+        elif not hmac.compare_digest(sig, self._mac(unsigned(msg))):
             return "forged"
         t = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
         now = self._clock()

@@ -58,9 +58,8 @@ class CoordinatorNode(Node):
         stamp(msg.header)
         self._seq += 1
         wire.fill_iteration_record(msg, rec, self.run_id, self._seq)
-        if self.evaluator.signer is not None:
-            self.evaluator.signer.sign_iteration(msg)
-        self._iteration_pub.publish(msg)
+        signer = self.evaluator.signer
+        self._iteration_pub.publish(msg if signer is None else signer.sign_iteration(msg))  # signed: its bytes
 
     def wait_for_all_acked(self, wait_s: float, slice_s: float = 0.05,
                            give_up: Callable[[], bool] | None = None) -> bool:
@@ -110,6 +109,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         give_up_acks: Callable[[], bool] | None = None, beside=None):
     """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats).
     ``beside``: a composed.Beside (discipline nodes in this process and `context`) to serve."""
+    from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import run_optimization
 
     node = CoordinatorNode(config, run_id, signer=signer, context=context)
@@ -131,7 +131,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
             if on_iteration is not None:
                 on_iteration(rec)
 
-        result = run_optimization(config, node.evaluator, formulation=formulation, optimizer=optimizer,
+        result = run_optimization(run_settings(config), node.evaluator, formulation=formulation, optimizer=optimizer,
                                   x0=x0, callback=callback)
         t_optimised = time.monotonic()
         stats = {"run_id": node.run_id, "dropped": dict(node.evaluator.dropped), "retried": node.evaluator.retried,

@@ -36,7 +36,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 
 from bev_mdo import __version__
 from bev_mdo.mdo import flow
-from bev_mdo.mdo.discipline import DisciplineError, all_finite, run_discipline
+from bev_mdo.mdo.discipline import DisciplineError, all_finite, readable, run_discipline, unknown_inputs
 from bev_mdo.mdo.vectors import ShapeError
 from bev_mdo.ros import binding, wire
 from bev_mdo.ros.auth import Signer
@@ -171,7 +171,7 @@ class DisciplineNode(Node):
         self.bound_run = self.get_parameter("run_id").value or ""
         self.fingerprint, self.effective_config = binding.fingerprint(config, name)
         self.source_of = flow.sources_of(self.discipline.inputs, producer, name)  # coupling input -> source
-        self._allowed = set(self.discipline.inputs) | set(getattr(self.discipline, "parameters", {}) or {})
+        self._allowed = readable(self.discipline)
         self.instance = self.get_parameter("instance").value or self.get_fully_qualified_name()
         self.counts: Counter[str] = Counter()
         self.compute_s = 0.0  # time spent in compute(), summed (node stats)
@@ -195,7 +195,7 @@ class DisciplineNode(Node):
                                           self._raw(functools.partial(self._on_source_result, src), result=True),
                                           MDA_RESULT_QOS, raw=True)
             for src in sorted(set(self.source_of.values()))}
-        self._flow_results: OrderedDict[tuple, dict] = OrderedDict()    # (run, eval id) -> {source: (outs, ok)}
+        self._join = flow.FlowJoin(self.source_of, self._outputs_of, FLOW_CACHE)  # (run, eval id) -> sources' results
         # Composed (composed.py: link_local): nodes of this process that consume our data-flow results
         # get them by a direct call after the publish, and sources in this process are not read from DDS.
         self.local_consumers: list[DisciplineNode] = []
@@ -259,9 +259,7 @@ class DisciplineNode(Node):
         msg.run_id = self.bound_run
         msg.fingerprint = self.fingerprint
         msg.effective_config = self.effective_config
-        if self.signer is not None:
-            self.signer.sign_info(msg)
-        self._info_pub.publish(msg)
+        self._info_pub.publish(msg if self.signer is None else self.signer.sign_info(msg))  # signed: its bytes
 
     def _raw(self, handle, result: bool = False):
         """A raw-subscription callback: decode the CDR bytes, count what does not decode."""
@@ -301,12 +299,12 @@ class DisciplineNode(Node):
         self._publish(out, pub)
 
     def _publish(self, out: wire.Result, pub=None) -> None:
-        if self.signer is not None:
-            self.signer.sign_result(out)
         writer = pub or self._result_pub
         if self.local_coordinator is None or writer.get_subscription_count() > self.local_readers.get(id(writer), 0):
-            writer.publish(wire.encode_result(out))
+            writer.publish(wire.encode_result(out) if self.signer is None else self.signer.sign_result(out))
         else:  # composed beside the coordinator, nobody else reads the topic: the result by direct call
+            if self.signer is not None:
+                self.signer.sign_result(out)  # sets out.signature: the coordinator checks it as for a message
             self.local_coordinator(out)
         if pub is not None and pub is self._mda_pub:
             for node in self.local_consumers:  # composed: the same result, without a DDS hop and a decode
@@ -363,7 +361,7 @@ class DisciplineNode(Node):
         missing = [k for k in self.discipline.inputs if k not in inputs]
         if missing:
             return self._reject(req, f"missing inputs {missing}", "missing_inputs")
-        unknown = [k for k in inputs if k not in self._allowed]
+        unknown = unknown_inputs(self._allowed, inputs)  # the entry check of every transport
         if unknown:
             return self._reject(req, f"unknown inputs {unknown[:5]}", "unknown_inputs")
         if not all_finite(inputs.values()):
@@ -443,32 +441,23 @@ class DisciplineNode(Node):
         except wire.WireError:
             self.counts["source_malformed"] += 1
             return
-        ok = np.asarray(msg.point_ok, dtype=bool)
-        n = int(msg.outputs.batch_size)
-        if msg.status == EvaluationResult.STATUS_REJECTED:  # nothing to evaluate downstream of it
-            columns, ok = {}, np.zeros(0, dtype=bool)
-        elif ok.shape != (n,) or any(v not in columns for v, s in self.source_of.items() if s == source):
+        try:  # the one join rule (mdo/flow.py): None until every source of this MDA has answered
+            joined = self._join.add((msg.run_id, int(msg.evaluation_id)), source, columns, msg.point_ok,
+                                    msg.flow, msg.status == EvaluationResult.STATUS_REJECTED, msg,
+                                    int(msg.outputs.batch_size))
+        except flow.SourcesDisagree as exc:
+            self.counts["received"] += 1
+            return self._reject(msg, str(exc), "malformed", self._mda_pub)
+        except flow.FlowError:
             self.counts["source_malformed"] += 1
             return
-        key = (msg.run_id, int(msg.evaluation_id))
-        got = {**self._flow_results.get(key, {}), source: (columns, ok, msg)}
-        _put(self._flow_results, key, got)
-        sources = {v: s for v, s in self.source_of.items() if s in msg.flow}
-        if any(s not in got for s in sources.values()):
+        if joined is None:
             return
-        del self._flow_results[key]
         self.counts["received"] += 1
-        sizes = {o.size for _, o, _ in got.values() if o.size}
-        if len(sizes) > 1:
-            return self._reject(msg, "sources answered different numbers of points", "malformed", self._mda_pub)
-        n = sizes.pop() if sizes else 0
-        request: dict[str, np.ndarray] = {}
-        for s, (cols, _, _) in got.items():  # the request's columns, forwarded by each source
-            request.update({k: v for k, v in cols.items() if k not in self._outputs_of[s]})
-        up = {s: (cols, o if o.size else np.zeros(n, bool)) for s, (cols, o, _) in got.items()}
         # partials were asked for the MDA when a source's result carries a partials block of its size
-        asked = n > 0 and any(int(m.partials.batch_size) == n for _, _, m in got.values())
-        self._flow_answer(msg, request, up, sources, n, list(msg.flow), asked)
+        n = joined.n
+        asked = n > 0 and any(int(m.partials.batch_size) == n for m in joined.extras.values())
+        self._flow_answer(msg, joined.request, joined.up, joined.sources, n, list(msg.flow), asked)
 
     def _flow_answer(self, req, request: dict, up: dict, sources: dict, n: int, flow_names: list[str],
                      asked: bool = False) -> None:
@@ -482,14 +471,6 @@ class DisciplineNode(Node):
             return self._reject(req, str(exc), "bad_discipline_output", self._mda_pub)
         forward = {k: v for k, v in request.items() if k not in result.outputs}
         self._answer(req, result, self._mda_pub, forward=forward, flow_names=flow_names, asked=asked)
-
-
-def _put(cache: OrderedDict, key, value) -> None:
-    """Insert as newest; forget the oldest beyond FLOW_CACHE (a lost MDA is re-sent by the coordinator)."""
-    cache[key] = value
-    cache.move_to_end(key)
-    while len(cache) > FLOW_CACHE:
-        cache.popitem(last=False)
 
 
 def serve(node: DisciplineNode, idle_s: float = 0.1, service_every: int = 64) -> None:

@@ -34,11 +34,13 @@ from typing import Mapping, Sequence
 import numpy as np
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 
 from bev_mdo.mdo import flow
 from bev_mdo.mdo.discipline import EvalResult, all_finite, finite_rows, join_errors
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.mdo.graph import CouplingGraph
+from bev_mdo.mdo.ledger import Ledger
 from bev_mdo.ros import binding, pool as pools, wire
 from bev_mdo.ros.auth import Signer
 from bev_mdo.ros.fastwait import MultiWaiter
@@ -97,19 +99,17 @@ class RosEvaluator:
         self.retries = retries
         self.specs: dict[str, DisciplineSpec] = {}
         self.counts: Counter[str] = Counter()      # points evaluated per discipline
-        self.dropped: Counter[str] = Counter()     # other_run / stale / duplicate / malformed / mismatched
+        # ids, outstanding/answered/reassigned requests and why answers were dropped (mdo/ledger.py)
+        self.ledger: Ledger[_Pending] = Ledger(lambda p: p.request.header.frame_id)
+        self.dropped: Counter[str] = self.ledger.dropped  # other_run / stale / duplicate / malformed / ...
         self.retried = 0
         # the optimiser iteration the requests belong to: how many iteration records were published
         # before them (0: the start point); the coordinator moves it on after each record
         self.iteration = 0
-        self._probe_ids: set[int] = set()  # evaluation ids of handshake probes
         self.unresponsive: set[str] = set()  # disciplines that let every attempt of a request time out
-        self.probe_late = 0
         self.last_latency_s = 0.0
-        self._next_id = 1
         self._seq = 0
-        self._pending: dict[tuple[int, str], _Pending] = {}   # (evaluation id, discipline) -> request
-        self._answered: set[tuple[int, str]] = set()
+        self._pending = self.ledger.pending   # (evaluation id, discipline) -> request
         self._results: dict[int, EvalResult] = {}
         self._publishers = {}
         self.coupling_sources: dict[str, dict[str, str]] = {}  # discipline -> {coupling input: source}
@@ -121,7 +121,6 @@ class RosEvaluator:
         self.pool_mode = pools.validate_mode((config.get("ros") or {}).get("pool", "share"))
         self.pools: dict[str, pools.Pool] = {}
         self._parts: dict[int, list[tuple[int, EvalResult]]] = {}  # wave index -> (first row, share result)
-        self._late: set[tuple[int, str]] = set()                  # shares taken from a failed instance
         self._batches: dict[int, tuple[str, Mapping]] = {}        # wave index -> (discipline, batch)
         self._flow_got: dict[int, dict[int, EvalResult]] = {}     # data-flow share id -> {index: result}
         self._flow_meta: dict[int, tuple[int, int, int]] = {}     # data-flow share id -> (first, stop, tries)
@@ -136,10 +135,20 @@ class RosEvaluator:
         # Raw CDR in and out (wire.py's codec): rclpy's message objects cost more than the DDS hop.
         self._result_sub = node.create_subscription(EvaluationResult, RESULT_TOPIC, self._on_bytes, RESULT_QOS,
                                                     raw=True)
-        self._info_sub = node.create_subscription(DisciplineInfo, INFO_TOPIC, self._on_info, INFO_QOS)
+        # raw too: a signature covers the bytes as they were sent (auth.py)
+        self._info_sub = node.create_subscription(DisciplineInfo, INFO_TOPIC, self._on_info, INFO_QOS, raw=True)
         self._waiter = MultiWaiter(node.context)
         self._hot = [(self._result_sub, lambda data, _i: self._on_bytes(data))]
         self.local_requests = None  # composed.Beside: (publisher, request) -> True if delivered in process
+
+    @property
+    def probe_late(self) -> int:
+        """Late answers to readiness probes (ignored, not drops)."""
+        return self.ledger.probe_late
+
+    @property
+    def _next_id(self) -> int:  # the evaluation id the next request gets
+        return self.ledger.next_id
 
     # -- discovery -----------------------------------------------------------------
     def _expect(self, name: str) -> tuple[str, str] | None:
@@ -158,9 +167,15 @@ class RosEvaluator:
             self.dropped["refused_instance"] += 1
             self.node.get_logger().warning(f"refused {msg.discipline!r} instance {msg.instance!r}: {why}")
 
-    def _on_info(self, msg: DisciplineInfo) -> None:
+    def _on_info(self, data: bytes) -> None:
+        """A discipline's declaration (its CDR bytes): accept the instance, or refuse it by name."""
+        try:
+            msg = deserialize_message(data, DisciplineInfo)
+        except Exception:  # noqa: BLE001 - rclpy raises several types for bytes that are not one
+            self.dropped["info_malformed"] += 1
+            return None
         if self.signer is not None:
-            why = self.signer.verify_info(msg)
+            why = self.signer.verify_info(data)
             if why is not None:
                 self.dropped[f"info_{why}"] += 1
                 return self._refuse(msg, f"{why} declaration")
@@ -322,9 +337,7 @@ class RosEvaluator:
         for kind, name in rounds:
             interval = 0.1
             while True:
-                eid = self._next_id
-                self._next_id += 1
-                self._probe_ids.add(eid)
+                eid = self.ledger.new_id(probe=True)
                 if kind == "request":
                     req = wire.Request(self.run_id, eid, name)
                     req.header.frame_id = self._tag([name])
@@ -414,21 +427,8 @@ class RosEvaluator:
                 self.dropped[why] += 1
                 return
         key = (int(msg.evaluation_id), msg.discipline)
-        p = self._pending.get(key)
-        if p is not None and msg.header.frame_id != p.request.header.frame_id:
-            self.dropped["fingerprint"] += 1  # answered for another configuration than this run's
-            return
+        p = self.ledger.match(*key, msg.header.frame_id)  # None: why is counted (fingerprint, stale, ...)
         if p is None:
-            if key[0] in self._probe_ids:  # a late answer to a handshake probe (handshake())
-                self.probe_late += 1
-            elif key in self._late:
-                self.dropped["late_share"] += 1  # answered after its share went to another instance
-            elif key in self._answered:
-                self.dropped["duplicate"] += 1
-            elif any(k[0] == key[0] for k in self._pending):
-                self.dropped["mismatched"] += 1  # an outstanding evaluation, answered by another discipline
-            else:
-                self.dropped["stale"] += 1
             return
         if msg.status == EvaluationResult.STATUS_REJECTED:
             res = self._failed(p, msg.error or f"{p.discipline}: request rejected")
@@ -465,8 +465,7 @@ class RosEvaluator:
         if not p.flow:  # a data-flow MDA counts the rows each discipline evaluated at the end
             self.counts[p.discipline] += p.n
         self.accepted.append((int(msg.evaluation_id), msg.discipline, msg.instance, int(p.request.attempt)))
-        del self._pending[key]
-        self._answered.add(key)
+        self.ledger.settle(*key)
         if p.target:
             self._pool(p.discipline).record(p.target, p.n, (time.monotonic_ns() - p.sent_ns) * 1e-9)
         if p.flow and p.start >= 0:  # a row share of a data-flow MDA (_flow_shares)
@@ -502,13 +501,12 @@ class RosEvaluator:
         self._seq += 1
         p.request.sequence = self._seq
         stamp(p.request.header)  # a retry gets a fresh stamp (and signature): it is not a replay
-        if self.signer is not None:
-            self.signer.sign_request(p.request)
+        signed = None if self.signer is None else self.signer.sign_request(p.request)  # sets its signature
         p.sent_ns = time.monotonic_ns()
         pub = self._flow_pub if p.flow else self._publisher(p.discipline)
         # nodes composed into this process (composed.Beside) take it by direct call when nobody else reads it
         if self.local_requests is None or not self.local_requests(pub, p.request):
-            pub.publish(wire.encode_request(p.request))
+            pub.publish(signed if signed is not None else wire.encode_request(p.request))
 
     def evaluate(self, calls: Sequence[tuple[str, Mapping[str, np.ndarray]]], iteration: int | None = None,
                  partials: bool = False) -> list[EvalResult]:
@@ -526,7 +524,7 @@ class RosEvaluator:
                 self._results[i] = self._failed(_Pending(i, name, None, n, 0),
                                                 f"{name}: did not answer earlier requests (hung or gone)")
                 continue
-            req = wire.Request(self.run_id, self._next_id, name, iteration=iteration)
+            req = wire.Request(self.run_id, self.ledger.next_id, name, iteration=iteration)
             req.header.frame_id = self._tag([name])
             req.inputs = wire.batch(batch)
             req.partials = bool(partials)
@@ -537,8 +535,7 @@ class RosEvaluator:
                 shared = True
                 self._send_shares(i, name, batch, iteration, 0, n, live)
                 continue
-            self._pending[(self._next_id, name)] = p = _Pending(i, name, req, n, 0)
-            self._next_id += 1
+            p = self.ledger.open(self.ledger.new_id(), name, _Pending(i, name, req, n, 0))
             self._send(p)
         if shared:
             self._await_pool(iteration)
@@ -563,8 +560,7 @@ class RosEvaluator:
             if not self.pool_data_flow:
                 return None
             return self._flow_shares(names, plan, request, n, bool(partials), pooled, t0)
-        eid = self._next_id
-        self._next_id += 1
+        eid = self.ledger.new_id()
         req = wire.Request(self.run_id, eid, "", flow=names, iteration=self.iteration)
         req.header.frame_id = self._tag(names)
         req.inputs = wire.batch(request)
@@ -633,8 +629,7 @@ class RosEvaluator:
 
     def _send_flow_share(self, names: Sequence[str], request: Mapping[str, np.ndarray], a: int, b: int,
                          targets: Mapping[str, str], partials: bool, tries: int) -> None:
-        eid = self._next_id
-        self._next_id += 1
+        eid = self.ledger.new_id()
         req = wire.Request(self.run_id, eid, "", flow=names, iteration=self.iteration)
         fps = {d: (self._expect(d) or ("?", ""))[0] for d in names}
         req.header.frame_id = binding.tag(
@@ -703,14 +698,12 @@ class RosEvaluator:
                         self._first_error(p.discipline, res.error)
                         self._flow_got.setdefault(eid, {})[p.index] = res
                         failed.add(p.discipline)
-                        del self._pending[key]
-                        self._answered.add(key)
+                        self.ledger.close(key)
                     continue
                 for key, _ in items:  # the share is re-sent whole; answers to the old one are dropped
-                    del self._pending[key]
-                    self._late.add(key)
+                    self.ledger.reassign(key)
                 for i in self._flow_got.pop(eid, {}):
-                    self._late.add((eid, names[i]))
+                    self.ledger.late.add((eid, names[i]))
                 del self._flow_meta[eid]
                 self.retried += 1
                 targets = {}
@@ -800,13 +793,13 @@ class RosEvaluator:
         fp = (self._expect(name) or ("?", ""))[0]
         self._batches[index] = (name, batch)
         for inst, a, b in self._pool(name).split(n, live, min_rows=pools.min_rows_of(self.pool_min_rows, name)):
-            req = wire.Request(self.run_id, self._next_id, name, iteration=iteration)
+            eid = self.ledger.new_id()
+            req = wire.Request(self.run_id, eid, name, iteration=iteration)
             req.header.frame_id = binding.target_tag(name, fp, inst)
             req.attempt = tries
             req.inputs = wire.batch({k: np.asarray(v)[first + a:first + b] for k, v in batch.items()})
-            p = _Pending(index, name, req, b - a, 0, target=inst, start=first + a, tries=tries)
-            self._pending[(self._next_id, name)] = p
-            self._next_id += 1
+            p = self.ledger.open(eid, name, _Pending(index, name, req, b - a, 0, target=inst, start=first + a,
+                                                     tries=tries))
             self._send(p)
 
     def _await_pool(self, iteration: int, check_s: float = 0.1) -> None:
@@ -831,8 +824,7 @@ class RosEvaluator:
                     res = self._failed(p, f"{p.discipline}: no answer after {self.retries + 1} attempts "
                                           f"of {self.timeout_s:g} s")
                     self._first_error(p.discipline, res.error)
-                    del self._pending[key]
-                    self._answered.add(key)
+                    self.ledger.close(key)
                     if p.start >= 0:
                         self._parts.setdefault(p.index, []).append((p.start, res))
                     else:
@@ -846,8 +838,7 @@ class RosEvaluator:
                                                    f"{p.request.evaluation_id}; retry {p.tries}/{self.retries}")
                     self._send(p)
                     continue
-                del self._pending[key]
-                self._late.add(key)
+                self.ledger.reassign(key)
                 live = self._live(p.discipline) or []
                 if not live:  # every instance failed: try them all again rather than give up early
                     live = sorted(self._present_instances(p.discipline)[0]) or [p.target]
@@ -906,8 +897,7 @@ class RosEvaluator:
                 p, f"{p.discipline}: no answer after {self.retries + 1} attempts of {self.timeout_s:g} s"
             )
             self._first_error(p.discipline, self._results[p.index].error)
-            del self._pending[key]
-            self._answered.add(key)  # a late answer is then counted as stale, never used
+            self.ledger.close(key)  # a late answer is then dropped as a duplicate, never used
             if p.flow:  # data flow: hung only if its sources answered (else it had nothing to do)
                 srcs = set(((self.flow_plan(list(p.request.flow)) or {}).get(p.discipline) or {}).values())
                 hung = not any((key[0], s) in unanswered for s in srcs)

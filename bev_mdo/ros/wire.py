@@ -6,7 +6,7 @@ A NamedArray is column-major: the values of ``names[j]`` for all points are
 from __future__ import annotations
 
 import array
-from typing import Mapping
+from typing import Callable, Mapping
 
 import numpy as np
 
@@ -124,7 +124,7 @@ class Request:
     """bev_mdo_msgs/EvaluationRequest, field for field."""
 
     __slots__ = ("header", "run_id", "evaluation_id", "sequence", "iteration", "attempt", "discipline", "inputs",
-                 "flow", "signature", "partials")
+                 "flow", "signature", "partials", "raw", "sig_at", "end")
 
     def __init__(self, run_id: str = "", evaluation_id: int = 0, discipline: str = "", flow=(), iteration: int = 0):
         self.header = Header()
@@ -134,6 +134,7 @@ class Request:
         self.flow = list(flow)
         self.signature = ""
         self.partials = False
+        self.raw, self.sig_at, self.end = None, 0, 0  # set by decode_request: see signed_bytes
 
 
 class Result:
@@ -141,7 +142,7 @@ class Result:
 
     __slots__ = ("header", "run_id", "evaluation_id", "sequence", "discipline", "instance", "status", "error",
                  "point_ok", "outputs", "compute_time_s", "flow", "signature", "partials",
-                 "error_points", "error_reasons", "error_inputs")
+                 "error_points", "error_reasons", "error_inputs", "raw", "sig_at", "end")
 
     def __init__(self):
         self.header = Header()
@@ -156,6 +157,7 @@ class Result:
         self.error_points: list[int] = []
         self.error_reasons: list[str] = []
         self.error_inputs: list[str] = []
+        self.raw, self.sig_at, self.end = None, 0, 0  # set by decode_result: see signed_bytes
 
 
 MAX_REASON_LEN = 1000  # characters of one point error's reason (and of its inputs) sent
@@ -277,13 +279,68 @@ def _named_bytes(out: bytearray, a) -> None:
 
 
 
-def _text_at(out: bytearray, s: str) -> None:
+def _text_at(out: bytearray, s: str) -> int:
+    """A string appended to ``out`` at the next 4-aligned payload offset; returns where it starts."""
     out += _PAD[-(len(out) - 4) % 4]
+    at = len(out)
     out += _cdr_text(s)
+    return at
 
 
-def encode_request(m) -> bytes:
-    """CDR bytes of an EvaluationRequest (a Request or a generated message)."""
+# Signing covers the bytes that are sent. The signature is a string field (hex HMAC-SHA256, 64
+# characters): the message is encoded once with that field empty (``BLANK_SIGNATURE``, 5 bytes), the
+# MAC is taken over exactly those bytes, and the 69 bytes of the signed field replace the 5 blank
+# ones. 64 bytes more keep every later field's CDR alignment (4 or 8), so nothing else moves. A
+# receiver blanks the field in the bytes it received and MACs them (``signed_bytes``).
+SIGNATURE_CHARS = 64
+BLANK_SIGNATURE = _U32.pack(1) + b"\x00"
+_SIGNED_LEN = _U32.pack(SIGNATURE_CHARS + 1)
+
+
+def signed(out: bytearray, at: int, m, mac: Callable[[bytearray], str]) -> bytes:
+    """Sign ``out``, CDR bytes with a blank signature field at ``at``: MAC them, put the signature
+    in its field (and in ``m.signature``); returns the bytes to send."""
+    sig = mac(out)
+    field = _SIGNED_LEN + sig.encode("ascii") + b"\x00"
+    if len(field) != len(BLANK_SIGNATURE) + SIGNATURE_CHARS or out[at:at + len(BLANK_SIGNATURE)] != BLANK_SIGNATURE:
+        raise ValueError("a signature is 64 ASCII characters, put in a blank signature field")
+    out[at:at + len(BLANK_SIGNATURE)] = field
+    m.signature = sig
+    return bytes(out)
+
+
+def signed_bytes(data, at: int, end: int) -> tuple | None:
+    """The parts of received CDR bytes ``data[:end]`` that a signature at offset ``at`` covers: the
+    bytes with that field blanked, as (before, BLANK_SIGNATURE, after) memoryviews (no copy). ``end``
+    is where the message ends: DDS may pad what it delivers to a multiple of 4 bytes, and the
+    sender signed the message without that padding. None when the field does not hold a signature
+    of 64 ASCII characters (it cannot verify)."""
+    mv = memoryview(data)
+    stop = at + len(BLANK_SIGNATURE) + SIGNATURE_CHARS
+    if mv[at:at + 4] != _SIGNED_LEN or stop > end or mv[stop - 1] != 0:
+        return None
+    return mv[:at], BLANK_SIGNATURE, mv[stop:end]
+
+
+def unsigned_request(m) -> bytearray:
+    """The bytes a signature of EvaluationRequest ``m`` covers: its CDR with the signature blank."""
+    return _request_cdr(m, "")[0]
+
+
+def unsigned_result(m) -> bytearray:
+    """The bytes a signature of EvaluationResult ``m`` covers: its CDR with the signature blank."""
+    return _result_cdr(m, "")[0]
+
+
+def encode_request(m, mac: Callable[[bytearray], str] | None = None) -> bytes:
+    """CDR bytes of an EvaluationRequest (a Request or a generated message); signed with ``mac``
+    when given (see ``signed``)."""
+    out, at = _request_cdr(m, "" if mac else m.signature)
+    return signed(out, at, m, mac) if mac else bytes(out)
+
+
+def _request_cdr(m, signature: str) -> tuple[bytearray, int]:
+    """(CDR bytes of an EvaluationRequest with ``signature``, where the signature field starts)."""
     # one bytearray, aligned by its length (the payload starts after the 4-byte encapsulation)
     out = bytearray(_ENCAPSULATION)
     out += _STAMP.pack(int(m.header.stamp.sec), int(m.header.stamp.nanosec))
@@ -295,13 +352,20 @@ def encode_request(m) -> bytes:
     _named_bytes(out, m.inputs)
     out += _PAD[-(len(out) - 4) % 4]
     out += _cdr_texts(m.flow)
-    _text_at(out, m.signature)
+    at = _text_at(out, signature)
     out += b"\x01" if m.partials else b"\x00"
-    return bytes(out)
+    return out, at
 
 
-def encode_result(m) -> bytes:
-    """CDR bytes of an EvaluationResult (a Result or a generated message)."""
+def encode_result(m, mac: Callable[[bytearray], str] | None = None) -> bytes:
+    """CDR bytes of an EvaluationResult (a Result or a generated message); signed with ``mac``
+    when given (see ``signed``)."""
+    out, at = _result_cdr(m, "" if mac else m.signature)
+    return signed(out, at, m, mac) if mac else bytes(out)
+
+
+def _result_cdr(m, signature: str) -> tuple[bytearray, int]:
+    """(CDR bytes of an EvaluationResult with ``signature``, where the signature field starts)."""
     out = bytearray(_ENCAPSULATION)
     out += _STAMP.pack(int(m.header.stamp.sec), int(m.header.stamp.nanosec))
     out += _cdr_text(m.header.frame_id)
@@ -322,10 +386,10 @@ def encode_result(m) -> bytes:
     out += _PAD[-(len(out) - 4) % 8]
     out += _F64.pack(float(m.compute_time_s))
     out += _cdr_texts(m.flow)  # 8-aligned here, so 4-aligned
-    _text_at(out, m.signature)
+    at = _text_at(out, signature)
     _named_bytes(out, m.partials)
     _put_errors(out, m)
-    return bytes(out)
+    return out, at
 
 
 def _plain_texts(items) -> bytes:
@@ -430,7 +494,9 @@ def _decoding(fn):
         if len(data) < 4 or data[:2] != b"\x00\x01":
             raise WireError("not little-endian CDR")
         try:
-            return fn(memoryview(data)[4:])  # offsets count from the payload, as CDR aligns
+            m = fn(memoryview(data)[4:])  # offsets count from the payload, as CDR aligns
+            m.raw = data  # what a signature covers (signed_bytes)
+            return m
         except WireError:
             raise
         except (struct.error, UnicodeDecodeError, ValueError, IndexError) as exc:
@@ -448,8 +514,10 @@ def decode_request(data) -> Request:
     m.discipline, pos = _string(data, pos + 8)
     m.inputs, pos = _named(data, pos)
     m.flow, pos = _strings(data, pos, MAX_NAMES)
+    m.sig_at = pos + -pos % 4 + 4  # in the received bytes, past the encapsulation
     m.signature, pos = _string(data, pos)
     m.partials = data[pos] != 0
+    m.end = pos + 1 + 4
     return m
 
 
@@ -471,11 +539,13 @@ def decode_result(data) -> Result:
     pos += -pos % 8
     (m.compute_time_s,) = _F64.unpack_from(data, pos)
     m.flow, pos = _strings(data, pos + 8, MAX_NAMES)
+    m.sig_at = pos + -pos % 4 + 4  # in the received bytes, past the encapsulation
     m.signature, pos = _string(data, pos)
     m.partials, pos = _named(data, pos)
     pos += -pos % 4
     if len(data) - pos == 12 and _U32X3.unpack_from(data, pos) == (0, 0, 0):  # the common case: no point error
         m.error_points, m.error_reasons, m.error_inputs = [], [], []
+        m.end = pos + 12 + 4
         return m
     (count,) = _U32.unpack_from(data, pos)
     pos += 4
@@ -484,6 +554,7 @@ def decode_result(data) -> Result:
     m.error_points = np.frombuffer(data, dtype="<u4", count=count, offset=pos).tolist()
     m.error_reasons, pos = _plain_strings(data, pos + 4 * count)
     m.error_inputs, pos = _plain_strings(data, pos)
+    m.end = pos + 4
     return m
 
 

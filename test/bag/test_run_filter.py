@@ -32,7 +32,8 @@ def _bag(tmp_path, name, own_run, records, key_file=""):
     with BagWriter(tmp_path / name, metadata=meta) as w:
         w.add_topic("/bev_mdo/iteration", "bev_mdo_msgs/msg/IterationRecord")
         for t, rec in enumerate(records):
-            w.write("/bev_mdo/iteration", serialize_message(rec), 1_700_000_000_000_000_000 + t)
+            data = rec if isinstance(rec, bytes) else serialize_message(rec)  # signed: the bytes the signer gave
+            w.write("/bev_mdo/iteration", data, 1_700_000_000_000_000_000 + t)
     return tmp_path / name
 
 
@@ -42,16 +43,16 @@ def test_a_bag_of_several_runs_gives_its_own_run_verified(tmp_path):
     recs = []
     for i in range(4):
         own = _record("mine", i, 80.0 + i)
-        signer.sign_iteration(own)
-        recs.append(own)
+        recs.append(signer.sign_iteration(own))                  # signed: the bytes to publish
         recs.append(_record("theirs", i, 60.0))                 # a concurrent run's record
         forged = _record("mine", 100 + i, 120.0)                 # forged under our id: unsigned ...
         recs.append(forged)
         bad = _record("mine", 200 + i, 120.0)
-        Signer(secrets.token_bytes(32)).sign_iteration(bad)      # ... or signed with another key
-        recs.append(bad)
-    tampered = _record("mine", 5, 80.0)
-    signer.sign_iteration(tampered)
+        recs.append(Signer(secrets.token_bytes(32)).sign_iteration(bad))  # ... or signed with another key
+    from rclpy.serialization import deserialize_message
+    from bev_mdo_msgs.msg import IterationRecord
+
+    tampered = deserialize_message(signer.sign_iteration(_record("mine", 5, 80.0)), IterationRecord)
     tampered.design.values = [120.0]                             # a genuine record, changed afterwards
     recs.append(tampered)
     bag = _bag(tmp_path, "several", "mine", recs, key_file)

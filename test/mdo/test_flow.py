@@ -1,4 +1,5 @@
 """Data-flow MDA (bev_mdo.mdo.flow): which rows each discipline evaluates, error numbering, dispatch."""
+import pytest
 import numpy as np
 
 from bev_mdo.config import load_config, resolve_disciplines
@@ -113,3 +114,87 @@ def test_a_discipline_writing_into_its_inputs_does_not_change_the_mda():
     res = MDA(InProcessEvaluator([InPlace(), Uses()])).run({"x": np.array([1.0, 2.0])})
     assert res.values["x"].tolist() == [1.0, 2.0]
     assert res.values["w"].tolist() == [1.0 + 3.0, 2.0 + 5.0]
+
+
+def test_the_in_process_evaluator_serves_evaluate_flow_by_the_same_rule():
+    """evaluate_flow is part of the Evaluator protocol (issue 15): in process it is flow_by_waves,
+    the same rows, results and counts as the MDA's own wave-by-wave data flow; a loop is refused."""
+    from bev_mdo.mdo.evaluator import Evaluator
+    from sellar import sellar_disciplines
+
+    assert "evaluate_flow" in Evaluator.__dict__
+    cfg = load_config(REPO / "config" / "leaf_nedc.yaml")
+    own, ref = InProcessEvaluator(resolve_disciplines(cfg)), InProcessEvaluator(resolve_disciplines(cfg))
+    mda = MDA(ref)
+    waves = mda._flow_waves
+    names = [m for wave in waves for m in wave]
+    rng = np.random.default_rng(3)
+    request = {"motor_kw": rng.uniform(40, 120, 7), "gear_ratio": rng.uniform(5, 12, 7),
+               "battery_kwh": rng.uniform(20, 60, 7)}
+    request["motor_kw"][2] = -5.0  # a failing point, not sent downstream
+    got = own.evaluate_flow(names, request, 7)
+    want = flow.flow_by_waves(ref, ref.specs, waves, request, 7)
+    assert list(got) == names and own.counts == ref.counts and own.waves == ref.waves
+    for m in names:
+        np.testing.assert_array_equal(got[m].ok, want[m].ok)
+        for k in want[m].outputs:
+            np.testing.assert_array_equal(got[m].outputs[k], want[m].outputs[k])
+    assert not got["energy"].ok[2]
+    sellar = InProcessEvaluator(sellar_disciplines())
+    assert sellar.evaluate_flow(list(sellar.specs), {"x": np.ones(2), "z1": np.ones(2), "z2": np.ones(2)}, 2) is None
+
+
+def test_flow_join_waits_for_every_source_then_gives_the_rows_to_evaluate():
+    """The one join rule (FlowJoin) a discipline node applies to its sources' data-flow results."""
+    join = flow.FlowJoin({"mass_kg": "mass", "speed": "motor"}, {"mass": {"mass_kg"}, "motor": {"speed"}}, keep=2)
+    names = ["mass", "motor", "energy"]
+    req = {"motor_kw": np.array([1.0, 2.0, 3.0])}
+    assert join.add(("r", 1), "mass", {"mass_kg": np.array([10.0, 20.0, 30.0]), **req},
+                    np.array([True, False, True]), names) is None and len(join) == 1
+    got = join.add(("r", 1), "motor", {"speed": np.array([5.0, 6.0, 7.0]), **req}, np.array([True, True, False]),
+                   names, extra="msg")
+    assert len(join) == 0 and got.n == 3 and got.sources == {"mass_kg": "mass", "speed": "motor"}
+    assert list(got.request) == ["motor_kw"] and got.extras["motor"] == "msg"  # forwarded columns only
+    assert flow.source_rows(got.sources, got.up, got.n).tolist() == [True, False, False]
+    # a source outside this MDA is not waited for
+    only = join.add(("r", 2), "mass", {"mass_kg": np.ones(2)}, np.ones(2, bool), ["mass", "energy"])
+    assert only is not None and only.sources == {"mass_kg": "mass"}
+
+
+def test_flow_join_refuses_malformed_results_and_sources_that_disagree():
+    join = flow.FlowJoin({"a": "s1", "b": "s2"}, {"s1": {"a"}, "s2": {"b"}}, keep=2)
+    with pytest.raises(flow.FlowError):  # the coupling column is missing
+        join.add(("r", 1), "s1", {"x": np.ones(2)}, np.ones(2, bool), ["s1", "s2", "d"])
+    with pytest.raises(flow.FlowError):  # rows of another size than point_ok says
+        join.add(("r", 1), "s1", {"a": np.ones(3)}, np.ones(2, bool), ["s1", "s2", "d"], n=2)
+    assert len(join) == 0  # nothing malformed is kept
+    join.add(("r", 1), "s1", {"a": np.ones(2)}, np.ones(2, bool), ["s1", "s2", "d"])
+    with pytest.raises(flow.SourcesDisagree):
+        join.add(("r", 1), "s2", {"b": np.ones(3)}, np.ones(3, bool), ["s1", "s2", "d"])
+    # a rejected source evaluated nothing: the others decide the batch size
+    join.add(("r", 2), "s1", {}, np.zeros(0, bool), ["s1", "s2", "d"], rejected=True)
+    got = join.add(("r", 2), "s2", {"b": np.ones(2)}, np.ones(2, bool), ["s1", "s2", "d"])
+    assert got.n == 2 and not flow.source_rows(got.sources, got.up, 2).any()
+
+
+def test_flow_join_forgets_the_oldest_unfinished_mda_beyond_its_size():
+    join = flow.FlowJoin({"a": "s1", "b": "s2"}, {"s1": {"a"}, "s2": {"b"}}, keep=2)
+    for eid in (1, 2, 3):
+        join.add(("r", eid), "s1", {"a": np.ones(1)}, np.ones(1, bool), ["s1", "s2", "d"])
+    assert len(join) == 2
+    assert join.add(("r", 1), "s2", {"b": np.ones(1)}, np.ones(1, bool), ["s1", "s2", "d"]) is None  # forgotten
+    assert join.add(("r", 3), "s2", {"b": np.ones(1)}, np.ones(1, bool), ["s1", "s2", "d"]) is not None
+
+
+def test_a_data_flow_request_with_a_column_no_discipline_reads_is_refused_not_dropped():
+    """The same entry check on the data-flow path as on the wave path: named, every point failed."""
+    cfg = load_config(REPO / "config" / "leaf_nedc.yaml")
+    ev = InProcessEvaluator(resolve_disciplines(cfg))
+    mda = MDA(ev)
+    request = {"motor_kw": np.full(2, 80.0), "gear_ratio": np.full(2, 8.0), "battery_kwh": np.full(2, 24.0)}
+    assert all(r.ok.all() for r in flow.evaluate_flow(ev, ev.specs, mda._flow_waves, request, 2).values())
+    waves_before = ev.waves
+    got = flow.evaluate_flow(ev, ev.specs, mda._flow_waves, {**request, "motr_kw": np.ones(2)}, 2)
+    assert set(got) == set(ev.specs) and ev.waves == waves_before  # refused before any evaluation
+    for name, res in got.items():
+        assert not res.ok.any() and res.error == f"{name}: rejected: unknown inputs ['motr_kw']"

@@ -55,3 +55,23 @@ def test_a_loop_on_fewer_rows_names_the_batch_point(method):
     assert res.errors[2] == "loop_a: ValueError: a must be <= 5 at point 2 (a=7, y2=1)", res.errors[2]
     assert res.errors[3] == "loop_a: ValueError: a must be <= 5 at point 3 (a=8, y2=1)", res.errors[3]
     assert res.values["y1"][1] == pytest.approx(4.0 / 3.0)
+
+
+def test_an_unknown_input_is_refused_in_process_as_a_node_refuses_it():
+    """One entry check (mdo/discipline.py unknown_inputs) for every transport: a request naming a
+    column its discipline does not read fails its points with the node's words, never silently."""
+    import numpy as np
+
+    from bev_mdo.mdo.discipline import readable, unknown_inputs
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from sellar import sellar_disciplines
+
+    ev = InProcessEvaluator(sellar_disciplines())
+    name = next(iter(ev.specs))
+    inputs = {k: np.ones(3) for k in ev.specs[name].inputs}
+    assert unknown_inputs(readable(ev.disciplines[name]), inputs) == []
+    (res,) = ev.evaluate([(name, {**inputs, "not_an_input": np.ones(3)})])
+    assert not res.ok.any() and res.error == f"{name}: rejected: unknown inputs ['not_an_input']"
+    assert all(np.isnan(v).all() for v in res.outputs.values()) and ev.counts[name] == 3
+    (good,) = ev.evaluate([(name, inputs)])
+    assert good.ok.all()

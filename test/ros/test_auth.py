@@ -66,7 +66,8 @@ def test_unsigned_forged_tampered_and_expired_are_named():
     req = _request()
     other.sign_request(req)
     assert s.verify_request(req) == "forged"
-    for field, value in (("evaluation_id", 2), ("run_id", "r2"), ("attempt", 1), ("discipline", "energy")):
+    for field, value in (("evaluation_id", 2), ("run_id", "r2"), ("attempt", 1), ("discipline", "energy"),
+                         ("iteration", 4), ("sequence", 12), ("partials", True), ("flow", ["energy"])):
         req = _request()
         s.sign_request(req)
         setattr(req, field, value)
@@ -175,19 +176,15 @@ def test_unsigned_forged_expired_and_replayed_requests_are_dropped_and_counted(r
         for i in range(20):
             pub.publish(_request("attacker-run", 1000 + i))
             sent["unsigned"] += 1
-            req = _request("attacker-run", 2000 + i)
-            wrong.sign_request(req)
-            pub.publish(req)
+            # a signer returns the bytes it signed: they are what is published
+            pub.publish(wrong.sign_request(_request("attacker-run", 2000 + i)))
             sent["forged"] += 1
-            req = _request("attacker-run", 3000 + i, t_ns=time.time_ns() - 120 * 10**9)
-            good.sign_request(req)
-            pub.publish(req)
+            pub.publish(good.sign_request(_request("attacker-run", 3000 + i, t_ns=time.time_ns() - 120 * 10**9)))
             sent["expired"] += 1
-            req = _request("attacker-run", 4000 + i)
-            good.sign_request(req)
-            pub.publish(req)  # the first copy is authentic and answered
+            data = good.sign_request(_request("attacker-run", 4000 + i))
+            pub.publish(data)  # the first copy is authentic and answered
             valid += 1
-            pub.publish(req)  # the same bytes again: a replay
+            pub.publish(data)  # the same bytes again: a replay
             sent["replayed"] += 1
 
         def done(s):

@@ -15,7 +15,7 @@ import yaml
 
 import rclpy
 
-from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
+from bev_mdo.config import load_config, resolve_disciplines, run_settings  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros import coordinator_node  # noqa: E402
@@ -102,11 +102,11 @@ def test_mda_falls_back_to_waves_when_a_node_reads_a_coupling_elsewhere(rclpy_co
         ev = node.evaluator
         ev.wait_for_disciplines(BUILTINS, 60.0)
         X = np.array([[80.0, 8.0, 24.0], [60.0, 5.0, 21.0], [120.0, 11.0, 30.0]])
-        flow = build_formulation(config, ev).analyse(X)
+        flow = build_formulation(run_settings(config), ev).analyse(X)
         assert ev.flows == 1
         ev.coupling_sources["energy"] = {"vehicle_mass_kg": "somewhere_else"}
         ev._flow_plans.clear()
-        waves = build_formulation(config, ev).analyse(X)
+        waves = build_formulation(run_settings(config), ev).analyse(X)
         assert ev.flows == 1  # unchanged: no data-flow request this time
         local = build_formulation(config, InProcessEvaluator(resolve_disciplines(config))).analyse(X)
         for res in (flow, waves):
@@ -239,7 +239,7 @@ def test_bad_data_flow_requests_are_rejected_and_the_nodes_keep_serving(rclpy_co
     node = coordinator_node.CoordinatorNode(config, context=rclpy_context, node_name="after_fuzz")
     try:
         node.evaluator.wait_for_disciplines(BUILTINS, 60.0)
-        res = build_formulation(config, node.evaluator).analyse(np.array([[80.0, 8.0, 24.0]]))
+        res = build_formulation(run_settings(config), node.evaluator).analyse(np.array([[80.0, 8.0, 24.0]]))
         assert res.ok.all() and node.evaluator.flows == 1
     finally:
         node.evaluator.close()

@@ -17,7 +17,7 @@ import yaml
 
 import rclpy
 
-from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
+from bev_mdo.config import load_config, resolve_disciplines, run_settings  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros import coordinator_node  # noqa: E402
@@ -282,7 +282,7 @@ def _analyse_flow(ev, config, X):
     from bev_mdo.mdo.driver import build_formulation
 
     first, flows = ev._next_id, ev.flows
-    res = build_formulation(config, ev).analyse(X)
+    res = build_formulation(run_settings(config), ev).analyse(X)
     assert ev.flows == flows + 1  # one data-flow MDA, not waves
     return res, range(first, ev._next_id)
 
@@ -356,7 +356,7 @@ def test_pool_data_flow_false_runs_pooled_mdas_in_waves(rclpy_context, launcher,
 
         X = _designs(30, seed=9)
         kept = len(ev.accepted)
-        res = build_formulation(config, ev).analyse(X)
+        res = build_formulation(run_settings(config), ev).analyse(X)
         assert ev.flows == 0 and ev.flow_shares == 0  # no data-flow request
         _check_equal(res, config, X)
         # waves: one evaluation id per discipline, a pooled one split into shares

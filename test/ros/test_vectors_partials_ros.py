@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 
-from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
+from bev_mdo.config import load_config, resolve_disciplines, run_settings  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros.client import make_ros_evaluator  # noqa: E402
@@ -66,7 +66,7 @@ def _over_ros(cfg, formulation):
     whose data-flow MDAs a graph with a loop does not answer: issue 14 item 5, another branch)."""
     ev = make_ros_evaluator(cfg, node_name="vector_test_client")
     try:
-        return run_optimization(cfg, ev, formulation=formulation), ev._inner.retried
+        return run_optimization(run_settings(cfg), ev, formulation=formulation), ev._inner.retried
     finally:
         ev.close()
 
