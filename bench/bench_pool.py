@@ -231,7 +231,7 @@ def _set_energy_instances(launcher, ev, path: Path, k: int) -> None:
 def energy(ctx, env, tmp: Path, reps: int, batches) -> dict:
     """The quasi-static energy model on Artemis (CPU-bound): one batch to the energy discipline,
     1 and 2 instances alternating per round (the second instance stopped and started between)."""
-    from bev_mdo.config import load_config, resolve_disciplines, run_settings
+    from bev_mdo.config import load_config, resolve_disciplines
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
