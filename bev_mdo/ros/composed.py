@@ -195,10 +195,12 @@ def main(args: list[str] | None = None) -> int:
         serve_many(nodes)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except ValueError as exc:
+    except Exception as exc:  # an rcl call racing the shutdown of a signalled context is a normal stop
         if rclpy.ok():
-            print(f"composed_node: error: {exc}", file=sys.stderr)
-            return 2
+            if isinstance(exc, ValueError):
+                print(f"composed_node: error: {exc}", file=sys.stderr)
+                return 2
+            raise
     finally:
         for node in nodes:
             node.destroy_node()

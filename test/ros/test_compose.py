@@ -135,3 +135,30 @@ def test_all_composed_and_signed_gives_the_in_process_optimum(ros_domain, rclpy_
         assert not ours, stats["dropped"]
     finally:
         launcher.stop()
+
+
+def test_an_rcl_error_racing_a_signalled_shutdown_is_a_normal_stop(ros_domain, config_path, monkeypatch):
+    """SIGINT shuts the context down between the serve loop's `context.ok()` and its next rcl call, which
+    then raises RCLError ("the given context is not valid"): composed_node stops with status 0, as a
+    discipline node does, instead of a traceback and status 1 (seen once at a test's teardown)."""
+    from bev_mdo.ros import composed
+
+    def serve_until_signalled(nodes):
+        rclpy.shutdown()  # what the SIGINT handler does
+        raise RuntimeError("failed to initialize wait set: the given context is not valid")
+
+    monkeypatch.setattr(composed, "serve_many", serve_until_signalled)
+    args = ["composed_node", "--ros-args", "-p", f"config:={config_path}", "-p", "disciplines:=energy,range"]
+    assert composed.main(args) == 0
+
+
+def test_any_other_error_while_serving_still_fails_loudly(ros_domain, config_path, monkeypatch):
+    from bev_mdo.ros import composed
+
+    def broken(nodes):
+        raise RuntimeError("a real bug")
+
+    monkeypatch.setattr(composed, "serve_many", broken)
+    args = ["composed_node", "--ros-args", "-p", f"config:={config_path}", "-p", "disciplines:=energy"]
+    with pytest.raises(RuntimeError, match="a real bug"):
+        composed.main(args)
