@@ -332,6 +332,18 @@ def unsigned_result(m) -> bytearray:
     return _result_cdr(m, "")[0]
 
 
+def _head(m) -> bytearray:
+    """The start both evaluation messages share: encapsulation, header and run id, padded for the
+    uint64 ids that follow. One bytearray, aligned by its length (the payload starts after the
+    4-byte encapsulation)."""
+    out = bytearray(_ENCAPSULATION)
+    out += _STAMP.pack(int(m.header.stamp.sec), int(m.header.stamp.nanosec))
+    out += _cdr_text(m.header.frame_id)
+    _text_at(out, m.run_id)
+    out += _PAD[-(len(out) - 4) % 8]
+    return out
+
+
 def encode_request(m, mac: Callable[[bytearray], str] | None = None) -> bytes:
     """CDR bytes of an EvaluationRequest (a Request or a generated message); signed with ``mac``
     when given (see ``signed``)."""
@@ -341,12 +353,7 @@ def encode_request(m, mac: Callable[[bytearray], str] | None = None) -> bytes:
 
 def _request_cdr(m, signature: str) -> tuple[bytearray, int]:
     """(CDR bytes of an EvaluationRequest with ``signature``, where the signature field starts)."""
-    # one bytearray, aligned by its length (the payload starts after the 4-byte encapsulation)
-    out = bytearray(_ENCAPSULATION)
-    out += _STAMP.pack(int(m.header.stamp.sec), int(m.header.stamp.nanosec))
-    out += _cdr_text(m.header.frame_id)
-    _text_at(out, m.run_id)
-    out += _PAD[-(len(out) - 4) % 8]
+    out = _head(m)
     out += _U64X2.pack(int(m.evaluation_id), int(m.sequence)) + _U32X2.pack(int(m.iteration), int(m.attempt))
     _text_at(out, m.discipline)
     _named_bytes(out, m.inputs)
@@ -366,11 +373,7 @@ def encode_result(m, mac: Callable[[bytearray], str] | None = None) -> bytes:
 
 def _result_cdr(m, signature: str) -> tuple[bytearray, int]:
     """(CDR bytes of an EvaluationResult with ``signature``, where the signature field starts)."""
-    out = bytearray(_ENCAPSULATION)
-    out += _STAMP.pack(int(m.header.stamp.sec), int(m.header.stamp.nanosec))
-    out += _cdr_text(m.header.frame_id)
-    _text_at(out, m.run_id)
-    out += _PAD[-(len(out) - 4) % 8]
+    out = _head(m)
     out += _U64X2.pack(int(m.evaluation_id), int(m.sequence))
     _text_at(out, m.discipline)
     _text_at(out, m.instance)
