@@ -38,11 +38,10 @@ class HangWatchdog:
     """Watches a Launcher's nodes on the ROS graph (see the module docstring)."""
 
     def __init__(self, launcher, domain_id: int, *, period_s: float = 0.5, silent_s: float = SILENT_S,
-                 start_s: float = START_S, graph: Callable[[], set[str]] | None = None):
+                 start_s: float = START_S):
         self.launcher = launcher
         self.domain_id = domain_id
         self.period_s, self.silent_s, self.start_s = period_s, silent_s, start_s
-        self._graph = graph  # tests may pass their own view of the graph
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -58,9 +57,6 @@ class HangWatchdog:
             self._thread.join(timeout=timeout_s)  # a participant that hangs in teardown is left to the daemon
 
     def _run(self) -> None:
-        if self._graph is not None:
-            self._loop(self._graph)
-            return
         import os
 
         import rclpy
