@@ -44,6 +44,18 @@ def child_processes(pid: int) -> dict[int, str]:
     return out
 
 
+def leaf_config_file(directory: str | Path, ros: dict, name: str = "leaf.yaml") -> Path:
+    """``config/leaf_nedc.yaml`` with its ``ros:`` section replaced by `ros`, written to `directory/name`
+    (what a fault or transport test runs ``bev-mdo optimize`` or its nodes on)."""
+    import yaml
+
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
+    raw["ros"] = dict(ros)
+    path = Path(directory) / name
+    path.write_text(yaml.safe_dump(raw, sort_keys=False))
+    return path
+
+
 def example_config(path: str | Path, **changes):
     """Load an example config (e.g. ``examples/ssbj/ssbj_mdf.yaml``) with dotted-key changes
     (``optimizer.name="COBYQA"``) and its own folder as the search path for ``module:Class``."""

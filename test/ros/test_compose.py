@@ -16,7 +16,7 @@ from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros import coordinator_node  # noqa: E402
 from bev_mdo.ros.launch import Launcher, plan_processes  # noqa: E402
-from bev_mdo.testing import REPO, ros_env  # noqa: E402
+from bev_mdo.testing import leaf_config_file, ros_env  # noqa: E402
 
 ROS_DOMAIN = 72
 BUILTINS = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]
@@ -24,11 +24,8 @@ BUILTINS = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "c
 
 @pytest.fixture(scope="module")
 def config_path(tmp_path_factory):
-    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
-    raw["ros"] = {"timeout_s": 5.0, "retries": 3, "discovery_wait_s": 60.0, "signing": False}
-    path = tmp_path_factory.mktemp("cfg") / "c.yaml"
-    path.write_text(yaml.safe_dump(raw, sort_keys=False))
-    return path
+    ros = {"timeout_s": 5.0, "retries": 3, "discovery_wait_s": 60.0, "signing": False}
+    return leaf_config_file(tmp_path_factory.mktemp("cfg"), ros, "c.yaml")
 
 
 @pytest.fixture(scope="module")

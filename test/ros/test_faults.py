@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import yaml
 
 
 from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
@@ -23,7 +22,7 @@ from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros import coordinator_node, wire  # noqa: E402
 from bev_mdo.ros.evaluator import RosEvaluator  # noqa: E402
 from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
-from bev_mdo.testing import REPO, ros_env  # noqa: E402
+from bev_mdo.testing import leaf_config_file, ros_env  # noqa: E402
 
 BUILTINS = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]
 KILL_AT = (1, 3, 5)  # kill before the 1st, 3rd and 5th first-attempt request to the target
@@ -35,12 +34,9 @@ ROS_DOMAIN = 81
 
 @pytest.fixture(scope="module")
 def config_path(tmp_path_factory):
-    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
     # short timeout, many retries: a restart (process start + discovery) spans several retries
-    raw["ros"] = {"timeout_s": 0.3, "retries": 100, "discovery_wait_s": 60.0}
-    p = tmp_path_factory.mktemp("cfg") / "faults.yaml"
-    p.write_text(yaml.safe_dump(raw, sort_keys=False))
-    return str(p)
+    ros = {"timeout_s": 0.3, "retries": 100, "discovery_wait_s": 60.0}
+    return str(leaf_config_file(tmp_path_factory.mktemp("cfg"), ros, "faults.yaml"))
 
 
 @pytest.fixture(scope="module")

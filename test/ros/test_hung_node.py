@@ -17,22 +17,18 @@ import subprocess
 import time
 
 import pytest
-import yaml
 
 from bev_mdo.config import load_config, resolve_disciplines
 from bev_mdo.mdo.driver import run_optimization
 from bev_mdo.mdo.evaluator import InProcessEvaluator
-from bev_mdo.testing import PYTHON, REPO, child_processes, ros_env
+from bev_mdo.testing import PYTHON, child_processes, leaf_config_file, ros_env
 
 
 @pytest.fixture(scope="module")
 def config_path(tmp_path_factory):
-    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
     # 1 s x 90 retries: room for the lease (3 s), the watchdog's 7 s and a restart under load
-    raw["ros"] = {"timeout_s": 1.0, "retries": 90, "discovery_wait_s": 60.0}
-    p = tmp_path_factory.mktemp("hung") / "hung.yaml"
-    p.write_text(yaml.safe_dump(raw, sort_keys=False))
-    return str(p)
+    ros = {"timeout_s": 1.0, "retries": 90, "discovery_wait_s": 60.0}
+    return str(leaf_config_file(tmp_path_factory.mktemp("hung"), ros, "hung.yaml"))
 
 
 def test_a_frozen_node_is_killed_restarted_and_the_run_finds_its_optimum(config_path, ros_domain, tmp_path):

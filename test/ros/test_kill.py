@@ -19,22 +19,18 @@ import time
 from pathlib import Path
 
 import pytest
-import yaml
 
 
 from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
-from bev_mdo.testing import PYTHON, REPO, child_processes, ros_env  # noqa: E402
+from bev_mdo.testing import PYTHON, child_processes, leaf_config_file, ros_env  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def config_path(tmp_path_factory):
-    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
-    raw["ros"] = {"timeout_s": 1.0, "retries": 30, "discovery_wait_s": 60.0}  # 31 s for a restart under load
-    p = tmp_path_factory.mktemp("kill") / "kill.yaml"
-    p.write_text(yaml.safe_dump(raw, sort_keys=False))
-    return str(p)
+    ros = {"timeout_s": 1.0, "retries": 30, "discovery_wait_s": 60.0}  # 31 s for a restart under load
+    return str(leaf_config_file(tmp_path_factory.mktemp("kill"), ros, "kill.yaml"))
 
 
 
