@@ -128,17 +128,25 @@ def _run_beside_attacker(config, argv, domain, cwd):
 def test_forged_results_declarations_and_records_are_dropped_and_counted(ros_domain, config_path, tmp_path):
     config = load_config(config_path)
     ref = run_optimization(config, InProcessEvaluator(resolve_disciplines(config)))
-    bag = tmp_path / "bags" / "trusted"
-    p, attacker = _run_beside_attacker(config, ["optimize", config_path, "--bag", str(bag), "--json", "--quiet"],
-                                       ros_domain, tmp_path)
-    assert p.returncode == 0, p.stderr[-3000:]
-    out = json.loads(p.stdout)
-    assert out["signing"] == "per-run key"
+    # Every attempt must give the run's own optimum. The attack claims need an attempt in which the
+    # attacker saw the run's requests: nothing makes the run wait for a foreign reader, and the
+    # attacker's own participant can miss the run (once in CI it saw none: a Fast DDS discovery
+    # hang, issue 19, can silence a participant that stays alive). At most 3 attempts.
+    for attempt in range(3):
+        bag = tmp_path / "bags" / f"trusted{attempt}"
+        p, attacker = _run_beside_attacker(config, ["optimize", config_path, "--bag", str(bag), "--json", "--quiet"],
+                                           ros_domain, tmp_path)
+        assert p.returncode == 0, p.stderr[-3000:]
+        out = json.loads(p.stdout)
+        assert out["signing"] == "per-run key"
+        for k, v in ref.design.items():
+            assert out["design"][k] == pytest.approx(v, rel=1e-9, abs=1e-9), k
+        assert attacker.run_ids <= {out["run_id"]}, attacker.run_ids
+        if attacker.run_ids:
+            break
     assert attacker.run_ids == {out["run_id"]}, (attacker.sent, p.stderr[-3000:])
     assert attacker.sent["results"] > 0 and attacker.sent["records"] > 0
-    # the optimum is the run's own: every forged result was dropped, and counted
-    for k, v in ref.design.items():
-        assert out["design"][k] == pytest.approx(v, rel=1e-9, abs=1e-9), k
+    # the optimum is the run's own (above): every forged result was dropped, and counted
     dropped = out["dropped_messages"]
     assert dropped.get("unsigned", 0) >= attacker.sent["results"]  # on /bev_mdo/result and the data-flow topic
     assert dropped.get("info_unsigned") == 1 and dropped.get("info_forged") == 1, dropped
