@@ -332,6 +332,7 @@ class ParetoRosSession:
         self.stats = {"dropped_messages": {}, "retried_requests": 0}
         self.labels: list[str] = []
         self.launcher = self.ctx = self.sink = None
+        self.recorder = 0
 
     def __enter__(self):
         import rclpy
@@ -347,6 +348,7 @@ class ParetoRosSession:
         signed, resolved = _prepare({**self.raw, "ros": self.ros}, self.logs, self.logs)
         self.ros = signed["ros"]
         self.launcher = Launcher(ros_environment(self.ros), log_dir=self.logs)
+        self._acks_needless = acks_needless(self.launcher)
         try:
             self.recorder = start_recorder(self.launcher, self.bag, resolved, self.run_id)
             self.launcher.supervise(watch_hangs=True)
@@ -381,21 +383,24 @@ class ParetoRosSession:
             self.labels.append(f"{topology}/{label}")
             node_names += node_names_of(argv)
         node = coordinator_node.CoordinatorNode(cfg, f"{self.run_id}-{topology}", context=self.ctx)
+        # a recorder that died in an earlier topology is not waited for (the study goes on, reported at the end)
+        recorders = self.recorder if self.launcher.node("recorder").died is None else 0
         try:
             # a pool's instances each read their discipline's request topic: the recorder counts as one more
-            node.evaluator.wait_for_disciplines(names, wait_s, extra_subscribers=self.recorder)
+            node.evaluator.wait_for_disciplines(names, wait_s, extra_subscribers=recorders)
             for name, count in self.instances.items():  # a pool starts with all its instances (pool.py)
                 node.evaluator.wait_for_instances(name, count, wait_s)
-            node.wait_for_recorder(self.recorder, wait_s)
-            self._wait_recorder_topics(node_names, wait_s)
+            node.wait_for_recorder(recorders, wait_s)
+            if recorders:
+                self._wait_recorder_topics(node_names, wait_s)
             node.evaluator.warm_up(names)
             yield node.evaluator
             for k, v in node.evaluator.dropped.items():
                 self.stats["dropped_messages"][k] = self.stats["dropped_messages"].get(k, 0) + v
             self.stats["retried_requests"] += node.evaluator.retried
-            # the recorder has every request of this topology and every front so far
-            node.wait_for_all_acked(wait_s)
-            self.sink.wait_for_all_acked(wait_s)
+            # the recorder has every request of this topology and every front so far (unless it died)
+            node.wait_for_all_acked(wait_s, give_up=self._acks_needless)
+            self.sink.wait_for_all_acked(wait_s, give_up=self._acks_needless)
         finally:
             node.evaluator.close()
             node.destroy_node()
@@ -444,7 +449,7 @@ class ParetoRosSession:
 
         try:
             if self.sink is not None:
-                self.sink.wait_for_all_acked(self.ros["discovery_wait_s"])
+                self.sink.wait_for_all_acked(self.ros["discovery_wait_s"], give_up=self._acks_needless)
             with deadline():  # a participant hung in the middleware would block here for good
                 if self.sink is not None:
                     self.sink.close()
@@ -453,6 +458,9 @@ class ParetoRosSession:
         finally:
             if self.launcher is not None:
                 self.launcher.stop(first=("recorder",))
+                failed = recorder_failure(self.launcher, self.bag) if self.recorder else None
+                if failed:  # the CLI warns and exits 3, as optimize does
+                    self.stats["recorder_failed"] = failed
                 self.stats["node_restarts"] = {n.label: n.restarts for n in self.launcher.nodes if n.restarts}
                 hangs = {n.label: n.hangs for n in self.launcher.nodes if n.hangs}
                 if hangs:  # restarted by the watchdog (ros/watchdog.py)

@@ -135,6 +135,12 @@ def run(args) -> int:
         "no plots: --no-plots" if args.no_plots else "no plots: one objective has no trade-off to draw")
     print(f"wrote {out}/ (pareto_*.csv, benchmark.csv, summary.json, {what}, "
           f"bag/ with {session.sink.published} ParetoFront messages)")
+    failed = session.stats.get("recorder_failed")  # known only once the session stopped its processes
+    if failed:
+        summary["recorder_failed"] = failed
+        (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+        print(f"warning: {failed}", file=sys.stderr)
+        return 3
     return 0
 
 

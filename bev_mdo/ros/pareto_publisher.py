@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import time
+from typing import Callable
 
 import numpy as np
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -108,11 +109,18 @@ class RosSink:
         self.published += 1
         self.pub.publish(msg)
 
-    def wait_for_all_acked(self, wait_s: float) -> bool:
-        """Block until every reader (the recorder) acknowledged every front published."""
+    def wait_for_all_acked(self, wait_s: float, give_up: Callable[[], bool] | None = None,
+                           slice_s: float = 0.05) -> bool:
+        """Block until every reader (the recorder) acknowledged every front published; False after
+        `wait_s`, or at once when `give_up()` says the reader that matters is dead (a killed reader
+        stays matched until its lease expires)."""
         from rclpy.duration import Duration
 
-        return self.pub.wait_for_all_acked(Duration(seconds=wait_s))
+        deadline = time.monotonic() + wait_s
+        while not self.pub.wait_for_all_acked(Duration(nanoseconds=int(slice_s * 1e9))):
+            if (give_up is not None and give_up()) or time.monotonic() > deadline:
+                return False
+        return True
 
     def close(self) -> None:
         self.executor.remove_node(self.node)

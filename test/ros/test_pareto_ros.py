@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 from pathlib import Path
 
@@ -151,3 +152,43 @@ def test_pareto_with_an_energy_pool_gives_the_same_fronts(runs):
     assert len(work["vehicle_mass"]) == 1
     logs = runs["ros_pool"] / ".logs" / TOPOLOGY
     assert (logs / "energy#0.log").is_file() and (logs / "energy#1.log").is_file()
+
+
+def test_a_recorder_killed_mid_study_is_reported_not_waited_for(runs, ros_domain, tmp_path):
+    """SIGKILL of the recorder after the first generation (issue 19, as `optimize` does): the study
+    finishes with the in-process front, warns once, records the failure in summary.json, exits 3, and
+    leaves a bag repaired on the spot (it opens in rosbags and in mcap, without its later fronts)."""
+    from mcap.reader import make_reader
+    from rosbags.rosbag2 import Reader
+
+    from bev_mdo.testing import child_processes
+
+    out = tmp_path / "killed"
+    p = subprocess.Popen([PYTHON, "-m", "bev_mdo", "pareto", str(runs["inprocess"].parent / "cfg.yaml"),
+                          "--transport", "ros", "--domain-id", str(ros_domain), "--out", str(out), *ARGS],
+                         env=ros_env(ros_domain), cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True)
+    err, killed = [], []
+    for line in p.stderr:
+        err.append(line)
+        if not killed and line.strip().startswith("gen 1:"):
+            killed = [pid for pid, cmd in child_processes(p.pid).items() if "recorder_node" in cmd]
+            assert len(killed) == 1, child_processes(p.pid)
+            os.kill(killed[0], signal.SIGKILL)  # a child of the study we started, by its id
+    stdout = p.stdout.read()
+    p.wait(timeout=240)
+    err = "".join(err)
+    assert killed, err[-3000:]
+    assert p.returncode == 3, err[-3000:]
+    assert err.count("warning: the recorder died") == 1 and "Traceback" not in err, err[-3000:]
+    assert "wrote" in stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert "the recorder died (exit status -9)" in summary["recorder_failed"]
+    assert (out / f"pareto_{TOPOLOGY}.csv").read_text() == \
+        (runs["inprocess"] / f"pareto_{TOPOLOGY}.csv").read_text()
+    with Reader(out / "bag") as reader:
+        assert reader.message_count == sum(1 for _ in reader.messages()) > 0
+    (mcap,) = sorted((out / "bag").glob("*.mcap"))
+    with open(mcap, "rb") as f:
+        assert make_reader(f).get_summary() is not None
+    assert [(g, fin) for g, fin, *_ in _fronts(out / "bag")] in ([], [(1, False)])  # the final front is lost
