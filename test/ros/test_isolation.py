@@ -78,6 +78,10 @@ def suites(ros_domain, rclpy_context, configs, tmp_path_factory):
         for suite in (*VARIANTS, "foreign"):
             for n in NAMES:
                 la.add(f"{n}_{suite}", discipline_argv(n, configs[suite], instance=suite))
+        # as a run's own nodes are: a node whose participant goes silent while its process lives (the
+        # Fast DDS hangs of issue 19; once in CI a suite's range node vanished for every later run) is
+        # killed and restarted by the watchdog, and only such restarts are allowed (checked below)
+        la.supervise(watch_hangs=True)
         node = rclpy.create_node("wait_for_suites", context=rclpy_context)
         stats = NodeStatsListener(node)
         try:
@@ -88,7 +92,7 @@ def suites(ros_domain, rclpy_context, configs, tmp_path_factory):
         yield la
     finally:
         la.stop()
-    assert all(n.restarts == 0 for n in la.nodes)
+    assert all(n.restarts == n.hangs for n in la.nodes), [(n.label, n.restarts, n.hangs) for n in la.nodes]
 
 
 def _concurrent(configs, round_no: int) -> dict:
