@@ -44,7 +44,7 @@ class CoordinatorNode(Node):
         self._seq = 0
         self._iteration_pub = self.create_publisher(IterationRecord, ITERATION_TOPIC, ITERATION_QOS)
         self.evaluator = RosEvaluator(self, run_id=self.run_id, timeout_s=ros["timeout_s"], retries=ros["retries"],
-                                      signer=signer)
+                                      signer=signer, config=config)
         self.discovery_wait_s = ros["discovery_wait_s"]
 
     @property

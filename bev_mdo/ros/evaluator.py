@@ -69,8 +69,8 @@ class RosEvaluator:
     def __init__(self, node: Node, *, run_id: str | None = None, timeout_s: float = 5.0, retries: int = 3,
                  signer: Signer | None = None, config: Mapping | None = None):
         self.node = node
-        config = config if config is not None else (getattr(node, "config", None) or {})
-        if signer is None:  # the coordinator node carries the run config; sign if it names a key file
+        config = config or {}
+        if signer is None:  # sign if the run config names a key file
             from bev_mdo.ros.settings import validate_ros
 
             signer = Signer.from_ros(validate_ros(config.get("ros"))) if config.get("ros") else None
@@ -655,11 +655,8 @@ class RosEvaluator:
                     self._pool(d).fail(t, k)
                 if step.give_up:  # what is missing fails, named
                     for key, p in step.items:
-                        res = self._failed(p, self.policy.no_answer(p.discipline))
-                        self._first_error(p.discipline, res.error)
-                        self._shares.add(step.eid, p.index, p.start, res)
+                        self._give_up(key, p)
                         failed.add(p.discipline)
-                        self.ledger.close(key)
                     continue
                 a, b, tries = self._shares.meta[step.eid]
                 for key, _ in step.items:  # the share is re-sent whole; answers to the old one are dropped
@@ -781,13 +778,7 @@ class RosEvaluator:
                 if step.blame:
                     self._pool(p.discipline).fail(p.target, p.n)
                 if step.action == "give_up":
-                    res = self._failed(p, self.policy.no_answer(p.discipline))
-                    self._first_error(p.discipline, res.error)
-                    self.ledger.close(key)
-                    if p.start >= 0:
-                        self._shares.add(key[0], p.index, p.start, res)
-                    else:
-                        self._results[p.index] = res
+                    self._give_up(key, p)
                     continue
                 self.retried += 1
                 if step.action == "resend":  # a whole batch of a discipline without a pool: re-send as before
@@ -830,9 +821,7 @@ class RosEvaluator:
                     self._send(p)
         unanswered = dict(self._pending)
         for key, p in unanswered.items():
-            self._results[p.index] = self._failed(p, self.policy.no_answer(p.discipline))
-            self._first_error(p.discipline, self._results[p.index].error)
-            self.ledger.close(key)  # a late answer is then dropped as a duplicate, never used
+            self._give_up(key, p)
         for d in retry.hung(unanswered, self._sources_of):
             if d not in self.unresponsive:
                 # a discipline that let every attempt time out is hung (or gone): say so once, and
@@ -841,6 +830,17 @@ class RosEvaluator:
                 self.node.get_logger().error(
                     f"discipline {d!r} did not answer within {self.retries + 1} x {self.timeout_s:g} s: "
                     "its points fail, and so do its later requests, at once")
+
+    def _give_up(self, key: tuple[int, str], p: _Pending) -> None:
+        """Every attempt of `p` timed out: its points fail, named (a late answer is then dropped as a
+        duplicate, never used)."""
+        res = self._failed(p, self.policy.no_answer(p.discipline))
+        self._first_error(p.discipline, res.error)
+        self.ledger.close(key)
+        if p.start >= 0:
+            self._shares.add(key[0], p.index, p.start, res)
+        else:
+            self._results[p.index] = res
 
     def _sources_of(self, p: _Pending) -> set[str]:
         """The sources a data-flow entry's discipline reads from (none for hub and spoke)."""
