@@ -37,7 +37,7 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
 from bev_mdo.mdo import flow, retry
-from bev_mdo.mdo.discipline import EvalResult, all_finite, finite_rows
+from bev_mdo.mdo.discipline import EvalResult, all_finite, failed, finite_rows
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.ledger import Ledger
@@ -362,7 +362,6 @@ class RosEvaluator:
         del self.accepted[kept:]
         self._results = {}
 
-
     def _wait_pending(self, seconds: float) -> None:
         """Take results until nothing is pending or `seconds` passed (no re-send)."""
         self._take_until(time.monotonic() + seconds)
@@ -474,8 +473,7 @@ class RosEvaluator:
 
     def _failed(self, p: _Pending, error: str) -> EvalResult:
         spec = self.specs.get(p.discipline)
-        outs = {k: np.full(p.n, np.nan) for k in (spec.outputs if spec else ())}
-        return EvalResult(outs, np.zeros(p.n, bool), error)
+        return failed(spec.outputs if spec else (), p.n, error)
 
     def _tag(self, names) -> str:
         """frame_id binding a request to this run's fingerprint of every named discipline."""
@@ -498,7 +496,6 @@ class RosEvaluator:
         # nodes composed into this process (composed.Beside) take it by direct call when nobody else reads it
         if self.local_requests is None or not self.local_requests(pub, p.request):
             pub.publish(signed if signed is not None else wire.encode_request(p.request))
-
 
     def evaluate(self, calls: Sequence[tuple[str, Mapping[str, np.ndarray]]], iteration: int | None = None,
                  partials: bool = False) -> list[EvalResult]:
@@ -539,7 +536,6 @@ class RosEvaluator:
         self.last_latency_s = time.perf_counter() - t0
         return [self._results[i] for i in range(len(calls))]
 
-
     def evaluate_flow(self, names: Sequence[str], request: Mapping[str, np.ndarray], n: int,
                       partials: bool = False) -> dict | None:
         """One feed-forward MDA as ONE data-flow request; None when the nodes cannot serve it that way."""
@@ -574,7 +570,6 @@ class RosEvaluator:
         return out
 
     # -- data flow with pools ------------------------------------------------------
-
     def _flow_shares(self, names: Sequence[str], plan: Mapping[str, Mapping[str, str]],
                      request: Mapping[str, np.ndarray], n: int, partials: bool,
                      pooled: Mapping[str, list[str]], t0: float) -> dict:
@@ -592,17 +587,16 @@ class RosEvaluator:
                 n, pooled[lead], min_rows=max(FLOW_MIN_ROWS, pools.min_rows_of(self.pool_min_rows, lead)))):
             targets = {d: inst if d == lead else live[j % len(live)] for d, live in pooled.items()}
             self._send_flow_share(names, request, a, b, targets, partials, 0)
-        failed = self._await_flow_shares(names, plan, request, partials)
+        gave_up = self._await_flow_shares(names, plan, request, partials)
         out = {}
         for i, name in enumerate(names):
             spec = self.specs.get(name)
             out[name] = self._shares.join(i, spec.outputs if spec else None)
         self.flows += 1
-        self.counts.update(flow.rows_per_discipline(plan, out, n, [d for d in names if d not in failed]))
+        self.counts.update(flow.rows_per_discipline(plan, out, n, [d for d in names if d not in gave_up]))
         self._shares = retry.Shares()
         self.last_latency_s = time.perf_counter() - t0
         return out
-
 
     def _send_flow_share(self, names: Sequence[str], request: Mapping[str, np.ndarray], a: int, b: int,
                          targets: Mapping[str, str], partials: bool, tries: int) -> None:
@@ -622,7 +616,6 @@ class RosEvaluator:
         for p in sent[1:]:
             p.sent_ns = sent[0].sent_ns
 
-
     def _wait_shares(self, checked: float, check_s: float) -> tuple[int, set[tuple[str, str]], float]:
         """Wait for results of the pending shares until the next one times out, at most `check_s`;
         every `check_s` also find the (discipline, instance) pairs whose instance left the ROS
@@ -640,13 +633,12 @@ class RosEvaluator:
                          if p.discipline == name and p.target and p.target not in present}
         return now_ns, gone, checked
 
-
     def _await_flow_shares(self, names: Sequence[str], plan: Mapping[str, Mapping[str, str]],
                            request: Mapping[str, np.ndarray], partials: bool, check_s: float = 0.1) -> set[str]:
         """Wait for the shares of a pooled data-flow MDA; re-send a share whose instance stalled or
         left (retry.flow_share_steps decides). Returns the disciplines that had rows failed for want
         of an answer."""
-        failed: set[str] = set()
+        gave_up: set[str] = set()
         checked = 0.0
         while self._pending:
             now_ns, gone, checked = self._wait_shares(checked, check_s)
@@ -656,7 +648,7 @@ class RosEvaluator:
                 if step.give_up:  # what is missing fails, named
                     for key, p in step.items:
                         self._give_up(key, p)
-                        failed.add(p.discipline)
+                        gave_up.add(p.discipline)
                     continue
                 a, b, tries = self._shares.meta[step.eid]
                 for key, _ in step.items:  # the share is re-sent whole; answers to the old one are dropped
@@ -675,8 +667,7 @@ class RosEvaluator:
                     f"data-flow share {step.eid} (rows {a}-{b}): {sorted(f'{d}@{t}' for d, t, _ in step.blame)} "
                     f"{step.why}; re-sent to {targets} (retry {tries + 1}/{self.retries})")
                 self._send_flow_share(names, request, a, b, targets, partials, tries + 1)
-        return failed
-
+        return gave_up
 
     @staticmethod
     def _targets_of(request) -> set[tuple[str, str]]:
@@ -762,7 +753,6 @@ class RosEvaluator:
                                                      tries=tries))
             self._send(p)
 
-
     def _await_pool(self, iteration: int, check_s: float = 0.1) -> None:
         """Wait for a wave holding shares. A share whose instance times out or leaves the ROS graph
         is split again among the other live instances (new evaluation ids: a late answer to the
@@ -802,7 +792,6 @@ class RosEvaluator:
         """{discipline: {instance: work, throughput, failures}} for every discipline with a pool."""
         return {d: {i: s.to_dict() for i, s in sorted(p.stats.items())}
                 for d, p in sorted(self.pools.items()) if any(s.shares or s.failures for s in p.stats.values())}
-
 
     def _await(self) -> None:
         """Wait for every pending result; re-send what times out; fail what never answers."""
