@@ -335,15 +335,12 @@ class RosEvaluator:
             while True:
                 eid = self.ledger.new_id(probe=True)
                 if kind == "request":
-                    req = wire.Request(self.run_id, eid, name)
-                    req.header.frame_id = self._tag([name])
-                    req.inputs = wire.batch({k: np.zeros(0) for k in self.specs[name].inputs})
+                    req = self._request(eid, name, {k: np.zeros(0) for k in self.specs[name].inputs},
+                                        self._tag([name]), iteration=0)
                     keys = [(eid, name)]
                     self._pending[keys[0]] = p = _Pending(0, name, req, 0, 0)
                 else:
-                    req = wire.Request(self.run_id, eid, "", flow=names)
-                    req.header.frame_id = self._tag(names)
-                    req.inputs = wire.batch({})
+                    req = self._request(eid, "", {}, self._tag(names), flow=names, iteration=0)
                     keys = [(eid, n) for n in names]
                     for i, n in enumerate(names):
                         self._pending[(eid, n)] = _Pending(i, n, req, 0, 0, flow=True)
@@ -486,6 +483,19 @@ class RosEvaluator:
                 self._tags[key] = tag
         return tag
 
+    def _request(self, eid: int, discipline: str, batch: Mapping[str, np.ndarray], tag: str, *,
+                 flow: Sequence[str] = (), iteration: int | None = None, attempt: int = 0,
+                 partials: bool = False) -> wire.Request:
+        """A request of this run carrying `batch`, bound by `tag` (its frame_id: binding.py);
+        `discipline` empty and `flow` the MDA's disciplines for a data-flow request."""
+        req = wire.Request(self.run_id, eid, discipline, flow=flow,
+                           iteration=self.iteration if iteration is None else iteration)
+        req.header.frame_id = tag
+        req.attempt = attempt
+        req.inputs = wire.batch(batch)
+        req.partials = bool(partials)
+        return req
+
     def _send(self, p: _Pending) -> None:
         self._seq += 1
         p.request.sequence = self._seq
@@ -513,10 +523,8 @@ class RosEvaluator:
                 self._results[i] = self._failed(_Pending(i, name, None, n, 0),
                                                 f"{name}: did not answer earlier requests (hung or gone)")
                 continue
-            req = wire.Request(self.run_id, self.ledger.next_id, name, iteration=iteration)
-            req.header.frame_id = self._tag([name])
-            req.inputs = wire.batch(batch)
-            req.partials = bool(partials)
+            req = self._request(self.ledger.next_id, name, batch, self._tag([name]), iteration=iteration,
+                                partials=partials)
             n = int(req.inputs.batch_size)
             # a batch is shared among a pool's instances; not when partials are asked (shares carry none)
             live = self._live(name) if n > 1 and not partials else None
@@ -552,10 +560,7 @@ class RosEvaluator:
                 return None
             return self._flow_shares(names, plan, request, n, bool(partials), pooled, t0)
         eid = self.ledger.new_id()
-        req = wire.Request(self.run_id, eid, "", flow=names, iteration=self.iteration)
-        req.header.frame_id = self._tag(names)
-        req.inputs = wire.batch(request)
-        req.partials = bool(partials)
+        req = self._request(eid, "", request, self._tag(names), flow=names, partials=partials)
         first = None
         for i, name in enumerate(names):
             p = self.ledger.open(eid, name, _Pending(i, name, req, n, 0, flow=True))
@@ -601,13 +606,11 @@ class RosEvaluator:
     def _send_flow_share(self, names: Sequence[str], request: Mapping[str, np.ndarray], a: int, b: int,
                          targets: Mapping[str, str], partials: bool, tries: int) -> None:
         eid = self.ledger.new_id()
-        req = wire.Request(self.run_id, eid, "", flow=names, iteration=self.iteration)
         fps = {d: (self._expect(d) or ("?", ""))[0] for d in names}
-        req.header.frame_id = binding.tag(
-            {d: f"{fp}{binding.TARGET_SEP}{targets[d]}" if d in targets else fp for d, fp in fps.items()}, names)
-        req.attempt = tries
-        req.inputs = wire.batch({k: np.asarray(v)[a:b] for k, v in request.items()})
-        req.partials = partials
+        tag = binding.tag({d: f"{fp}{binding.TARGET_SEP}{targets[d]}" if d in targets else fp
+                           for d, fp in fps.items()}, names)
+        req = self._request(eid, "", {k: np.asarray(v)[a:b] for k, v in request.items()}, tag, flow=names,
+                            attempt=tries, partials=partials)
         sent = [self.ledger.open(eid, name, _Pending(i, name, req, b - a, 0, flow=True, target=targets.get(name, ""),
                                                      start=a, tries=tries)) for i, name in enumerate(names)]
         self._shares.sent(eid, a, b, tries)
@@ -745,10 +748,8 @@ class RosEvaluator:
         self._batches[index] = (name, batch)
         for inst, a, b in self._pool(name).split(n, live, min_rows=pools.min_rows_of(self.pool_min_rows, name)):
             eid = self.ledger.new_id()
-            req = wire.Request(self.run_id, eid, name, iteration=iteration)
-            req.header.frame_id = binding.target_tag(name, fp, inst)
-            req.attempt = tries
-            req.inputs = wire.batch({k: np.asarray(v)[first + a:first + b] for k, v in batch.items()})
+            req = self._request(eid, name, {k: np.asarray(v)[first + a:first + b] for k, v in batch.items()},
+                                binding.target_tag(name, fp, inst), iteration=iteration, attempt=tries)
             p = self.ledger.open(eid, name, _Pending(index, name, req, b - a, 0, target=inst, start=first + a,
                                                      tries=tries))
             self._send(p)
