@@ -107,19 +107,6 @@ def rows_evaluated(source_of: Mapping[str, str], upstream: Upstream, n: int) -> 
     return int(source_rows(source_of, upstream, n).sum())
 
 
-def rows_per_discipline(plan: Mapping[str, Mapping[str, str]], results: Mapping[str, EvalResult], n: int,
-                        names: Sequence[str]) -> dict[str, int]:
-    """{discipline: rows it evaluated} of a data-flow MDA of `n` rows, for each of `names` that
-    evaluated any (the rows all its sources evaluated: the coordinator's count after the MDA)."""
-    out = {}
-    for name in names:
-        up = {s: (results[s].outputs, results[s].ok) for s in set(plan[name].values())}
-        rows = rows_evaluated(plan[name], up, n)
-        if rows:
-            out[name] = rows
-    return out
-
-
 def flow_by_waves(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequence[str]],
                   request: Mapping[str, np.ndarray], n: int, partials: bool = False) -> dict[str, EvalResult]:
     """The data-flow rule over any evaluator: one ``evaluate`` call per wave of the graph."""
@@ -163,6 +150,19 @@ def evaluate_flow(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequ
         if got is not None:
             return got
     return flow_by_waves(evaluator, specs, waves, request, n, partials)
+
+
+def rows_per_discipline(plan: Mapping[str, Mapping[str, str]], results: Mapping[str, EvalResult], n: int,
+                        names: Sequence[str]) -> dict[str, int]:
+    """{discipline: rows it evaluated} of a data-flow MDA of `n` rows, for each of `names` that
+    evaluated any (the rows all its sources evaluated: the coordinator's count after the MDA)."""
+    out = {}
+    for name in names:
+        up = {s: (results[s].outputs, results[s].ok) for s in set(plan[name].values())}
+        rows = rows_evaluated(plan[name], up, n)
+        if rows:
+            out[name] = rows
+    return out
 
 
 class FlowError(ValueError):
