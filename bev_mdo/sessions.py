@@ -1,5 +1,8 @@
 """Sessions: the "start nodes, recorder, coordinator; run; stop" sequences, out of the CLI.
 
+* ``EvaluateRosSession``: the ROS evaluator of ``bev-mdo evaluate``/``sensitivity``/``sweep`` over ROS:
+  the running nodes of the ros section's domain, or (``launch``) the command's own nodes, signed with a
+  per-run key by default (ros.launch.OwnSuite); closing it stops them and returns the notes for the user.
 * ``OptimizeRosSession``: one optimisation over ROS (``bev-mdo optimize`` and ``resume``): discipline
   nodes (pools, composed processes) and a recorder started for the run, signed with a per-run key by
   default (docs/security.md), the config's baseline and the run coordinated in this process, every
@@ -69,6 +72,53 @@ def analyse_baseline(config, evaluator) -> dict | None:
         return {"name": base["name"], "design": dict(base["design"]), "outputs": {}, "feasible": False,
                 "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
     return {"name": base["name"], **report}
+
+
+class EvaluateRosSession:
+    """The ROS evaluator of ``evaluate``/``sensitivity``/``sweep`` over ROS (``ros``: the validated ros
+    section): the running nodes, or with ``launch`` the command's own (signed by default,
+    launch.OwnSuite). ``close(ok)`` ends both and returns, when the command ended well, the notes for
+    the user: what was dropped and, for unsigned results, that anyone on the domain could have
+    answered them."""
+
+    def __init__(self, config: dict, ros: dict, *, launch: bool = False, node_name: str = "bev_mdo_client"):
+        from bev_mdo.ros.client import make_ros_evaluator
+
+        self.suite = None
+        self.domain = ros["domain_id"]
+        run_id = None
+        if launch:
+            from bev_mdo.ros.launch import OwnSuite
+
+            self.suite = OwnSuite(config, ros).start()
+            config, run_id = self.suite.config, self.suite.run_id
+        else:
+            config = {**config, "ros": ros}
+        try:
+            self.evaluator = make_ros_evaluator(config, node_name=node_name, run_id=run_id)
+        except BaseException:
+            if self.suite is not None:
+                self.suite.stop()
+            raise
+
+    def close(self, ok: bool = True) -> list[str]:
+        try:
+            self.evaluator.close()
+        finally:
+            if self.suite is not None:
+                self.suite.stop()
+        if not ok:
+            return []
+        notes = []
+        dropped = {k: v for k, v in self.evaluator.dropped.items() if v}
+        if dropped:
+            notes.append("dropped and counted: " + ", ".join(f"{k} {v}" for k, v in sorted(dropped.items())))
+        if not self.evaluator.signed and self.suite is not None:
+            notes.append("note: the results were not signed (ros.signing: false)")
+        elif not self.evaluator.signed:
+            notes.append(f"note: the results were not signed (no ros.sign_key_file): any process on ROS domain "
+                         f"{self.domain} could have answered; use --launch, or a key file (docs/security.md)")
+        return notes
 
 
 class OptimizeRosSession:
@@ -414,35 +464,37 @@ class ParetoRosSession:
 
         from bev_mdo.ros.common import PREFIX
 
+        from bev_mdo.ros.fastwait import until
+
         node = self.sink.node
-        deadline = time.monotonic() + wait_s
-        while True:
-            missing = []
+
+        def missing() -> list[str]:
+            out = []
             for n in node_names:
                 try:
                     topics = [t for t, _ in node.get_publisher_names_and_types_by_node(n, "/")]
                 except NodeNameNonExistentError:
-                    missing.append(n)
+                    out.append(n)
                     continue
-                missing += [t for t in topics if t.startswith(PREFIX + "/")
-                            and self.sink.recorder_matched.get(t, 0) < node.count_publishers(t)]
-            if not missing:
-                return
-            if time.monotonic() > deadline:
-                raise ValueError(f"the recorder did not match the publishers of {missing[0]} within {wait_s:g} s")
-            self.sink.spin(0.02)
+                out += [t for t in topics if t.startswith(PREFIX + "/")
+                        and self.sink.recorder_matched.get(t, 0) < node.count_publishers(t)]
+            return out
+
+        if not until(lambda: not missing(), wait_s, lambda: self.sink.spin(0.02)):
+            raise ValueError(f"the recorder did not match the publishers of {(missing() or sorted(node_names))[0]} "
+                             f"within {wait_s:g} s")
 
     def _stop_disciplines(self, names, wait_s: float) -> None:
         """Stop the previous topology's discipline nodes and wait until the graph lost them."""
         for label in self.labels:
             self.launcher.remove(label)
         self.labels = []
+        from bev_mdo.ros.fastwait import until
+
         node_names = {f"{n}_node" for n in names}
-        deadline = time.monotonic() + wait_s
-        while any(g.startswith(n) for g in self.sink.node.get_node_names() for n in node_names):
-            if time.monotonic() > deadline:
-                raise ValueError(f"discipline nodes of the previous topology still on the graph after {wait_s:g} s")
-            self.sink.spin(0.02)  # graph polling
+        if not until(lambda: not any(g.startswith(n) for g in self.sink.node.get_node_names() for n in node_names),
+                     wait_s, lambda: self.sink.spin(0.02)):  # graph polling
+            raise ValueError(f"discipline nodes of the previous topology still on the graph after {wait_s:g} s")
 
     def __exit__(self, *exc):
         import rclpy

@@ -33,59 +33,27 @@ def add_launch_argument(p) -> None:
                         "bound to this command and signed with a fresh per-run key, as optimize does")
 
 
-class RosSession:
-    """The ROS evaluator of ``evaluate``/``sensitivity --ros`` (running nodes) or ``--launch`` (the
-    command's own nodes, signed by default, launch.OwnSuite); ``close()`` ends both and prints,
-    on stderr, what was dropped and, for unsigned results, that anyone on the domain could have
-    answered them."""
+def ros_session(config, args, node_name: str = "bev_mdo_client"):
+    """The ROS session (sessions.EvaluateRosSession) of ``evaluate``/``sensitivity``/``sweep`` over ROS,
+    with the command line's ros flags; UsageError when the ROS transport is not installed."""
+    import importlib
 
-    def __init__(self, config, args, node_name: str = "bev_mdo_client"):
-        import importlib
+    try:  # the ROS libraries only: a bev_mdo module that fails to import raises as it is
+        for lib in ("rclpy", "bev_mdo_msgs.msg"):
+            importlib.import_module(lib)
+    except ModuleNotFoundError:
+        raise UsageError("--ros needs the ROS transport (rclpy and bev_mdo_msgs)") from None
+    from bev_mdo.cli.ros_args import ros_section
+    from bev_mdo.sessions import EvaluateRosSession
 
-        try:  # the ROS libraries only: a bev_mdo module that fails to import raises as it is
-            for lib in ("rclpy", "bev_mdo_msgs.msg"):
-                importlib.import_module(lib)
-        except ModuleNotFoundError:
-            raise UsageError("--ros needs the ROS transport (rclpy and bev_mdo_msgs)") from None
-        from bev_mdo.cli.ros_args import ros_section
-        from bev_mdo.ros.client import make_ros_evaluator
+    return EvaluateRosSession(config, ros_section(config, args), launch=bool(getattr(args, "launch", False)),
+                              node_name=node_name)
 
-        ros = ros_section(config, args)
-        self.suite = None
-        self.domain = ros["domain_id"]
-        run_id = None
-        if getattr(args, "launch", False):
-            from bev_mdo.ros.launch import OwnSuite
 
-            self.suite = OwnSuite(config, ros).start()
-            config, run_id = self.suite.config, self.suite.run_id
-        else:
-            config = {**config, "ros": ros}
-        try:
-            self.evaluator = make_ros_evaluator(config, node_name=node_name, run_id=run_id)
-        except BaseException:
-            if self.suite is not None:
-                self.suite.stop()
-            raise
-
-    def close(self, ok: bool = True) -> None:
-        try:
-            self.evaluator.close()
-        finally:
-            if self.suite is not None:
-                self.suite.stop()
-        if not ok:
-            return
-        dropped = {k: v for k, v in self.evaluator.dropped.items() if v}
-        if dropped:
-            print("bev-mdo: dropped and counted: " + ", ".join(f"{k} {v}" for k, v in sorted(dropped.items())),
-                  file=sys.stderr)
-        if not self.evaluator.signed and self.suite is not None:
-            print("bev-mdo: note: the results were not signed (ros.signing: false)", file=sys.stderr)
-        elif not self.evaluator.signed:
-            print(f"bev-mdo: note: the results were not signed (no ros.sign_key_file): any process on ROS domain "
-                  f"{self.domain} could have answered; use --launch, or a key file (docs/security.md)",
-                  file=sys.stderr)
+def close_ros(session, ok: bool = True) -> None:
+    """End a ROS session; print its notes (drops, unsigned results) on stderr if the command ended well."""
+    for line in session.close(ok):
+        print(f"bev-mdo: {line}", file=sys.stderr)
 
 
 def parse_assignments(items: list[str]) -> dict[str, float]:
@@ -105,7 +73,7 @@ def parse_assignments(items: list[str]) -> dict[str, float]:
 
 def _evaluator(config, use_ros: bool, args=None):
     if use_ros:
-        return RosSession(config, args)
+        return ros_session(config, args)
     from bev_mdo.config import resolve_disciplines
     from bev_mdo.mdo.evaluator import InProcessEvaluator
 
@@ -131,7 +99,7 @@ def run(args) -> int:
         ok = True
     finally:
         if use_ros:
-            session.close(ok)
+            close_ros(session, ok)
         else:
             session.close()
     if args.json:

@@ -96,7 +96,9 @@ class _closing:
 
     def __exit__(self, exc_type, *exc):
         if hasattr(self.obj, "suite"):
-            self.obj.close(exc_type is None)
+            from bev_mdo.cli.evaluate import close_ros
+
+            close_ros(self.obj, exc_type is None)
         else:
             self.obj.close()
 
@@ -110,10 +112,10 @@ def run(args) -> int:
     local = InProcessEvaluator(resolve_disciplines(cfg))
     session = None
     if args.ros or args.launch:
-        from bev_mdo.cli.evaluate import RosSession
+        from bev_mdo.cli.evaluate import ros_session
 
         defaults = {k: v for spec in local.specs.values() for k, v in spec.parameters.items()}
-        session = RosSession(cfg, args, node_name="bev_mdo_sensitivity")
+        session = ros_session(cfg, args, node_name="bev_mdo_sensitivity")
         ev_ctx = session
     else:
         ev_ctx, defaults = local, None

@@ -109,7 +109,7 @@ def evaluate_batch(config, designs: dict[str, np.ndarray], transport: str = "inp
     n = len(next(iter(designs.values())))
     cols = {d.name: np.full(n, d.initial) for d in problem.design_variables}
     cols.update({k: np.full(n, float(v)) for k, v in problem.parameters.items()})
-    session = _evaluator(config, transport)  # a RosSession over ROS (closing it reports drops), else the evaluator
+    session = _evaluator(config, transport)  # an EvaluateRosSession over ROS (closing it reports drops), else the evaluator
     evaluator = session.evaluator if transport == "ros" else session
     try:
         mda = _mda(run_settings(config), evaluator, problem)
@@ -127,7 +127,12 @@ def evaluate_batch(config, designs: dict[str, np.ndarray], transport: str = "inp
         cols.update({k: np.asarray(v, dtype=float) for k, v in designs.items()})
         res = mda.run(cols)
     finally:
-        session.close()
+        if transport == "ros":
+            from bev_mdo.cli.evaluate import close_ros
+
+            close_ros(session)
+        else:
+            session.close()
     outputs = {v: np.asarray(res.values[v], dtype=float) for s in mda.specs.values() for v in s.outputs}
     margins, feasible = {}, np.asarray(res.ok, dtype=bool).copy()
     for c in problem.constraints:

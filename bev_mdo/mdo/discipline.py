@@ -177,9 +177,15 @@ def unknown_inputs(allowed: frozenset[str], columns: Iterable[str]) -> list[str]
     return [k for k in columns if k not in allowed]
 
 
+def failed(outputs: Sequence[str], n: int, error: str = "") -> EvalResult:
+    """Every point of a call failed: NaN outputs, `error` saying why (a refused request, a request
+    never answered, rows a data-flow discipline had no inputs for)."""
+    return EvalResult({k: np.full(n, np.nan) for k in outputs}, np.zeros(n, dtype=bool), error)
+
+
 def rejected(name: str, outputs: Sequence[str], n: int, why: str) -> EvalResult:
     """The result of a request a discipline refused: every point failed, the reason named."""
-    return EvalResult({k: np.full(n, np.nan) for k in outputs}, np.zeros(n, dtype=bool), f"{name}: rejected: {why}")
+    return failed(outputs, n, f"{name}: rejected: {why}")
 
 
 def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False) -> EvalResult:

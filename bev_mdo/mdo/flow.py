@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from bev_mdo.mdo.discipline import EvalResult, rejected, run_discipline, unknown_inputs
+from bev_mdo.mdo.discipline import EvalResult, failed, rejected, run_discipline, unknown_inputs
 
 Upstream = Mapping[str, tuple[Mapping[str, np.ndarray], np.ndarray]]  # source -> (outputs, ok)
 
@@ -59,11 +59,6 @@ def flow_inputs(inputs: Sequence[str], parameters: Sequence[str], request: Mappi
     return {k: np.asarray(c)[idx] for k, c in cols.items()}, idx
 
 
-def _nothing(outputs: Sequence[str], n: int) -> EvalResult:
-    """The result of a discipline that evaluated none of n rows (every source failed them)."""
-    return EvalResult({k: np.full(n, np.nan) for k in outputs}, np.zeros(n, bool))
-
-
 def scatter(res: EvalResult, idx: np.ndarray, n: int, outputs: Sequence[str]) -> EvalResult:
     """An EvalResult over all n rows from one over the rows ``idx`` (others failed, NaN)."""
     if idx.size == n:
@@ -92,7 +87,7 @@ def run_flow_discipline(disc: Any, request: Mapping[str, np.ndarray], upstream: 
     batch, idx = flow_inputs(disc.inputs, tuple(getattr(disc, "parameters", {}) or {}), request, upstream,
                              source_of, n)
     if idx.size == 0:
-        return _nothing(disc.outputs, n), 0
+        return failed(disc.outputs, n), 0
     res = run_discipline(disc, batch, partials)
     if idx.size != n:
         res = res.renumbered(idx)
@@ -125,7 +120,7 @@ def flow_by_waves(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequ
             up = {s: (results[s].outputs, results[s].ok) for s in set(src.values())}
             batch, idx = flow_inputs(spec.inputs, tuple(spec.parameters), request, up, src, n)
             if idx.size == 0:
-                results[name] = _nothing(spec.outputs, n)
+                results[name] = failed(spec.outputs, n)
                 continue
             calls.append((name, batch))
             plan.append((name, idx))
@@ -155,6 +150,19 @@ def evaluate_flow(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequ
         if got is not None:
             return got
     return flow_by_waves(evaluator, specs, waves, request, n, partials)
+
+
+def rows_per_discipline(plan: Mapping[str, Mapping[str, str]], results: Mapping[str, EvalResult], n: int,
+                        names: Sequence[str]) -> dict[str, int]:
+    """{discipline: rows it evaluated} of a data-flow MDA of `n` rows, for each of `names` that
+    evaluated any (the rows all its sources evaluated: the coordinator's count after the MDA)."""
+    out = {}
+    for name in names:
+        up = {s: (results[s].outputs, results[s].ok) for s in set(plan[name].values())}
+        rows = rows_evaluated(plan[name], up, n)
+        if rows:
+            out[name] = rows
+    return out
 
 
 class FlowError(ValueError):

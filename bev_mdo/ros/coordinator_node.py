@@ -20,6 +20,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 from bev_mdo.ros import wire
 from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, stamp
 from bev_mdo.ros.evaluator import RosEvaluator
+from bev_mdo.ros.fastwait import until
 from bev_mdo.ros.settings import validate_ros
 from bev_mdo.stacks import deadline
 from bev_mdo_msgs.msg import IterationRecord
@@ -43,7 +44,7 @@ class CoordinatorNode(Node):
         self._seq = 0
         self._iteration_pub = self.create_publisher(IterationRecord, ITERATION_TOPIC, ITERATION_QOS)
         self.evaluator = RosEvaluator(self, run_id=self.run_id, timeout_s=ros["timeout_s"], retries=ros["retries"],
-                                      signer=signer)
+                                      signer=signer, config=config)
         self.discovery_wait_s = ros["discovery_wait_s"]
 
     @property
@@ -76,7 +77,7 @@ class CoordinatorNode(Node):
         """
         from rclpy.duration import Duration
 
-        pending = [self._iteration_pub, *getattr(self.evaluator, "_publishers", {}).values()]
+        pending = [self._iteration_pub, *self.evaluator.request_publishers]
         deadline = time.monotonic() + wait_s
         while pending:
             pending = [p for p in pending if p.get_subscription_count() > 0
@@ -92,14 +93,12 @@ class CoordinatorNode(Node):
     def wait_for_recorder(self, n: int, wait_s: float) -> None:
         """Wait until `n` recorders subscribed to the iteration and result topics (and the data-flow
         result topics: the coordinator, the consuming disciplines and the recorders), so nothing is lost."""
-        deadline = time.monotonic() + wait_s
         readers = self.evaluator.flow_readers()
-        while (self._iteration_pub.get_subscription_count() < n
-               or self.count_subscribers(RESULT_TOPIC) < 1 + n
-               or any(self.count_subscribers(t) < k + n for t, k in readers.items())):
-            if time.monotonic() > deadline:
-                raise ValueError(f"the recorder did not subscribe within {wait_s:g} s")
-            time.sleep(0.02)  # graph polling; matching happens in DDS threads
+        if not until(lambda: (self._iteration_pub.get_subscription_count() >= n
+                              and self.count_subscribers(RESULT_TOPIC) >= 1 + n
+                              and all(self.count_subscribers(t) >= k + n for t, k in readers.items())),
+                     wait_s, lambda: time.sleep(0.02)):  # graph polling; matching happens in DDS threads
+            raise ValueError(f"the recorder did not subscribe within {wait_s:g} s")
 
 
 def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: str | None = None,

@@ -40,6 +40,7 @@ from bev_mdo.mdo.discipline import DisciplineError, all_finite, readable, run_di
 from bev_mdo.mdo.vectors import ShapeError
 from bev_mdo.ros import binding, wire
 from bev_mdo.ros.auth import Signer
+from bev_mdo.ros.fastwait import until
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RESULT_QOS, REQUEST_QOS, RESULT_QOS,
                                 RESULT_TOPIC, mda_result_topic, request_topic, stamp)
 from bev_mdo.ros.paths import default_config
@@ -89,12 +90,7 @@ class NodeStatsListener:
 
     def wait(self, predicate, timeout_s: float) -> bool:
         """Spin until `predicate(self)` holds; False after `timeout_s`."""
-        deadline = time.monotonic() + timeout_s
-        while not predicate(self):
-            if time.monotonic() > deadline:
-                return False
-            self._executor.spin_once(timeout_sec=0.05)
-        return True
+        return until(lambda: predicate(self), timeout_s, lambda: self._executor.spin_once(timeout_sec=0.05))
 
     def close(self) -> None:
         self._executor.remove_node(self.node)

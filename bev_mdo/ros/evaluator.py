@@ -25,10 +25,10 @@ can check that each evaluation id was accepted once, from its own discipline.
 """
 from __future__ import annotations
 
+import functools
 import time
 import uuid
 from collections import Counter
-from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -36,14 +36,14 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
-from bev_mdo.mdo import flow
-from bev_mdo.mdo.discipline import EvalResult, all_finite, finite_rows, join_errors
+from bev_mdo.mdo import flow, retry
+from bev_mdo.mdo.discipline import EvalResult, all_finite, failed, finite_rows
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.ledger import Ledger
 from bev_mdo.ros import binding, pool as pools, wire
 from bev_mdo.ros.auth import Signer
-from bev_mdo.ros.fastwait import MultiWaiter
+from bev_mdo.ros.fastwait import MultiWaiter, until
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC,
                                 mda_result_topic, request_topic, stamp)
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
@@ -60,17 +60,7 @@ class DisciplineMissing(ValueError):
     """A needed discipline did not appear within the discovery wait."""
 
 
-@dataclass
-class _Pending:
-    index: int
-    discipline: str
-    request: wire.Request
-    n: int
-    sent_ns: int
-    flow: bool = False
-    target: str = ""     # a pool's share (pool.py): the instance it is addressed to
-    start: int = -1      # a pool's share: its first row in the batch (-1: the whole batch)
-    tries: int = 0
+_Pending = retry.Sent  # an outstanding answer (mdo/retry.py); the name tests and composed.py use
 
 
 class RosEvaluator:
@@ -79,8 +69,8 @@ class RosEvaluator:
     def __init__(self, node: Node, *, run_id: str | None = None, timeout_s: float = 5.0, retries: int = 3,
                  signer: Signer | None = None, config: Mapping | None = None):
         self.node = node
-        config = config if config is not None else (getattr(node, "config", None) or {})
-        if signer is None:  # the coordinator node carries the run config; sign if it names a key file
+        config = config or {}
+        if signer is None:  # sign if the run config names a key file
             from bev_mdo.ros.settings import validate_ros
 
             signer = Signer.from_ros(validate_ros(config.get("ros"))) if config.get("ros") else None
@@ -120,10 +110,8 @@ class RosEvaluator:
         # Worker pools (pool.py): several accepted instances of a discipline share each batch.
         self.pool_mode = pools.validate_mode((config.get("ros") or {}).get("pool", "share"))
         self.pools: dict[str, pools.Pool] = {}
-        self._parts: dict[int, list[tuple[int, EvalResult]]] = {}  # wave index -> (first row, share result)
-        self._batches: dict[int, tuple[str, Mapping]] = {}        # wave index -> (discipline, batch)
-        self._flow_got: dict[int, dict[int, EvalResult]] = {}     # data-flow share id -> {index: result}
-        self._flow_meta: dict[int, tuple[int, int, int]] = {}     # data-flow share id -> (first, stop, tries)
+        self._shares = retry.Shares()                       # answers of row shares, joined in row order
+        self._batches: dict[int, tuple[str, Mapping]] = {}  # wave index -> (discipline, batch) of a pool's call
         self.flow_shares = 0  # data-flow requests sent as row shares of pooled MDAs
         # False: an MDA with a pool runs in waves (only the pooled disciplines see shares; the
         # others get the whole batch once), as before data flow with pools (docs/scaling.md)
@@ -140,6 +128,16 @@ class RosEvaluator:
         self._waiter = MultiWaiter(node.context)
         self._hot = [(self._result_sub, lambda data, _i: self._on_bytes(data))]
         self.local_requests = None  # composed.Beside: (publisher, request) -> True if delivered in process
+
+    @property
+    def policy(self) -> retry.Policy:
+        """When a request is late and how often it is re-sent (mdo/retry.py)."""
+        return retry.Policy(self.timeout_s, self.retries)
+
+    @property
+    def request_publishers(self) -> list:
+        """Every request publisher this evaluator made (one per discipline, and the data-flow one)."""
+        return list(self._publishers.values())
 
     @property
     def probe_late(self) -> int:
@@ -275,9 +273,10 @@ class RosEvaluator:
                     out.append(n)
             return out
 
-        while missing():
-            if time.monotonic() > deadline:
-                gone = missing()
+        spin = functools.partial(self._executor.spin_once, timeout_sec=0.05)
+        if not until(lambda: not missing(), wait_s, spin):
+            gone = missing()
+            if gone:
                 refused = [f"{k}: {why}" for k, why in self.refused.items() if k.split(" ")[0] in gone]
                 if refused:
                     raise DisciplineMissing(f"discipline(s) {gone}: no instance of this run's configuration "
@@ -287,12 +286,10 @@ class RosEvaluator:
                     "(is each node running, with the same ROS_DOMAIN_ID and discovery settings? A node stuck at "
                     "start after a crash: stale Fast DDS shared memory, run `fastdds shm clean`)"
                 )
-            self._executor.spin_once(timeout_sec=0.05)
         # Our result subscription must be matched to every discipline's publisher too.
-        while self._result_sub.get_publisher_count() < len(set(names)):
-            if time.monotonic() > deadline:
-                raise DisciplineMissing(f"result topic not matched for all of {list(names)} within {wait_s:g} s")
-            self._executor.spin_once(timeout_sec=0.05)
+        if not until(lambda: self._result_sub.get_publisher_count() >= len(set(names)),
+                     deadline - time.monotonic(), spin):
+            raise DisciplineMissing(f"result topic not matched for all of {list(names)} within {wait_s:g} s")
         # Declarations that arrived with ours (other instances on the domain) are judged now: once
         # the run evaluates, only the hot subscriptions are served.
         for _ in range(16):
@@ -306,14 +303,13 @@ class RosEvaluator:
             # node's results. (Node-to-node result topics are TRANSIENT_LOCAL: a late match loses nothing.)
             self._flow_topics(names)
             roots = {n for n, src in self.flow_plan(names).items() if not src}
-            while (self._flow_pub.get_subscription_count() < max(len(roots) + extra_subscribers,
-                                                                 self.node.count_subscribers(MDA_REQUEST_TOPIC))
-                   or any(self._flow_subs[n].get_publisher_count() < 1 for n in names)
-                   or not all(self._present(n, MDA_REQUEST_TOPIC, subscriber=True) for n in roots)
-                   or not all(self._present(n, mda_result_topic(n), subscriber=False) for n in names)):
-                if time.monotonic() > deadline:
-                    raise DisciplineMissing(f"data-flow topics not matched for all of {list(names)} within {wait_s:g} s")
-                self._executor.spin_once(timeout_sec=0.05)
+            if not until(lambda: (self._flow_pub.get_subscription_count()
+                                  >= max(len(roots) + extra_subscribers, self.node.count_subscribers(MDA_REQUEST_TOPIC))
+                                  and all(self._flow_subs[n].get_publisher_count() >= 1 for n in names)
+                                  and all(self._present(n, MDA_REQUEST_TOPIC, subscriber=True) for n in roots)
+                                  and all(self._present(n, mda_result_topic(n), subscriber=False) for n in names)),
+                         deadline - time.monotonic(), spin):
+                raise DisciplineMissing(f"data-flow topics not matched for all of {list(names)} within {wait_s:g} s")
         self.handshake(names, max(deadline - time.monotonic(), 1.0), flow_ok)
 
     def handshake(self, names: Sequence[str], wait_s: float = 20.0, data_flow: bool | None = None) -> None:
@@ -339,15 +335,12 @@ class RosEvaluator:
             while True:
                 eid = self.ledger.new_id(probe=True)
                 if kind == "request":
-                    req = wire.Request(self.run_id, eid, name)
-                    req.header.frame_id = self._tag([name])
-                    req.inputs = wire.batch({k: np.zeros(0) for k in self.specs[name].inputs})
+                    req = self._request(eid, name, {k: np.zeros(0) for k in self.specs[name].inputs},
+                                        self._tag([name]), iteration=0)
                     keys = [(eid, name)]
                     self._pending[keys[0]] = p = _Pending(0, name, req, 0, 0)
                 else:
-                    req = wire.Request(self.run_id, eid, "", flow=names)
-                    req.header.frame_id = self._tag(names)
-                    req.inputs = wire.batch({})
+                    req = self._request(eid, "", {}, self._tag(names), flow=names, iteration=0)
                     keys = [(eid, n) for n in names]
                     for i, n in enumerate(names):
                         self._pending[(eid, n)] = _Pending(i, n, req, 0, 0, flow=True)
@@ -368,11 +361,7 @@ class RosEvaluator:
 
     def _wait_pending(self, seconds: float) -> None:
         """Take results until nothing is pending or `seconds` passed (no re-send)."""
-        deadline = time.monotonic() + seconds
-        subs = [s for s, _ in self._hot]
-        while self._pending and time.monotonic() < deadline:
-            if self._waiter.wait(subs, deadline - time.monotonic()):
-                self._waiter.take_ready(self._hot)
+        self._take_until(time.monotonic() + seconds)
 
     def _present(self, discipline: str, topic: str, subscriber: bool) -> bool:
         """True once an accepted instance of `discipline` is in the graph as a subscriber (publisher)
@@ -468,10 +457,8 @@ class RosEvaluator:
         self.ledger.settle(*key)
         if p.target:
             self._pool(p.discipline).record(p.target, p.n, (time.monotonic_ns() - p.sent_ns) * 1e-9)
-        if p.flow and p.start >= 0:  # a row share of a data-flow MDA (_flow_shares)
-            self._flow_got.setdefault(key[0], {})[p.index] = res
-        elif p.start >= 0:
-            self._parts.setdefault(p.index, []).append((p.start, res))
+        if p.start >= 0:  # a row share (of a pool's call, or of a data-flow MDA: _flow_shares)
+            self._shares.add(key[0], p.index, p.start, res)
         else:
             self._results[p.index] = res
 
@@ -483,8 +470,7 @@ class RosEvaluator:
 
     def _failed(self, p: _Pending, error: str) -> EvalResult:
         spec = self.specs.get(p.discipline)
-        outs = {k: np.full(p.n, np.nan) for k in (spec.outputs if spec else ())}
-        return EvalResult(outs, np.zeros(p.n, bool), error)
+        return failed(spec.outputs if spec else (), p.n, error)
 
     def _tag(self, names) -> str:
         """frame_id binding a request to this run's fingerprint of every named discipline."""
@@ -496,6 +482,19 @@ class RosEvaluator:
             if "?" not in fps.values():  # kept once every fingerprint is known (they do not change)
                 self._tags[key] = tag
         return tag
+
+    def _request(self, eid: int, discipline: str, batch: Mapping[str, np.ndarray], tag: str, *,
+                 flow: Sequence[str] = (), iteration: int | None = None, attempt: int = 0,
+                 partials: bool = False) -> wire.Request:
+        """A request of this run carrying `batch`, bound by `tag` (its frame_id: binding.py);
+        `discipline` empty and `flow` the MDA's disciplines for a data-flow request."""
+        req = wire.Request(self.run_id, eid, discipline, flow=flow,
+                           iteration=self.iteration if iteration is None else iteration)
+        req.header.frame_id = tag
+        req.attempt = attempt
+        req.inputs = wire.batch(batch)
+        req.partials = bool(partials)
+        return req
 
     def _send(self, p: _Pending) -> None:
         self._seq += 1
@@ -515,7 +514,7 @@ class RosEvaluator:
         t0 = time.perf_counter()
         iteration = self.iteration if iteration is None else int(iteration)
         self._results = {}
-        self._parts = {}
+        self._shares, self._batches = retry.Shares(), {}
         self._poll_info()
         shared = False
         for i, (name, batch) in enumerate(calls):
@@ -524,10 +523,8 @@ class RosEvaluator:
                 self._results[i] = self._failed(_Pending(i, name, None, n, 0),
                                                 f"{name}: did not answer earlier requests (hung or gone)")
                 continue
-            req = wire.Request(self.run_id, self.ledger.next_id, name, iteration=iteration)
-            req.header.frame_id = self._tag([name])
-            req.inputs = wire.batch(batch)
-            req.partials = bool(partials)
+            req = self._request(self.ledger.next_id, name, batch, self._tag([name]), iteration=iteration,
+                                partials=partials)
             n = int(req.inputs.batch_size)
             # a batch is shared among a pool's instances; not when partials are asked (shares carry none)
             live = self._live(name) if n > 1 and not partials else None
@@ -539,7 +536,9 @@ class RosEvaluator:
             self._send(p)
         if shared:
             self._await_pool(iteration)
-            self._join_parts()
+            for i in self._shares.indices():  # every pooled call's shares, joined in row order
+                spec = self.specs.get(calls[i][0])
+                self._results[i] = self._shares.join(i, spec.outputs if spec else None)
         else:
             self._await()
         self.last_latency_s = time.perf_counter() - t0
@@ -561,25 +560,17 @@ class RosEvaluator:
                 return None
             return self._flow_shares(names, plan, request, n, bool(partials), pooled, t0)
         eid = self.ledger.new_id()
-        req = wire.Request(self.run_id, eid, "", flow=names, iteration=self.iteration)
-        req.header.frame_id = self._tag(names)
-        req.inputs = wire.batch(request)
-        req.partials = bool(partials)
+        req = self._request(eid, "", request, self._tag(names), flow=names, partials=partials)
         first = None
         for i, name in enumerate(names):
-            self._pending[(eid, name)] = p = _Pending(i, name, req, n, 0, flow=True)
+            p = self.ledger.open(eid, name, _Pending(i, name, req, n, 0, flow=True))
             first = first or p
         self._send(first)  # one message for every discipline
         self._await()
         self.flows += 1
         out = {name: self._results[i] for i, name in enumerate(names)}
         answered = {d for e, d, _, _ in self.accepted[-len(names):] if e == eid}
-        for name in names:
-            if name in answered:
-                up = {s: (out[s].outputs, out[s].ok) for s in set(plan[name].values())}
-                rows = flow.rows_evaluated(plan[name], up, n)
-                if rows:
-                    self.counts[name] += rows
+        self.counts.update(flow.rows_per_discipline(plan, out, n, [d for d in names if d in answered]))
         self.last_latency_s = time.perf_counter() - t0
         return out
 
@@ -594,70 +585,48 @@ class RosEvaluator:
         its own rows, a consumer joins its sources' results of the same share as without pools,
         and the coordinator joins every discipline's shares in row order. A share not answered
         within the timeout, or whose instance left the graph, is re-sent whole (new evaluation id,
-        other instances) and its old answers are dropped (``late_share``)."""
+        other instances) and its old answers are dropped (``late_share``; mdo/retry.py decides)."""
         lead = max(pooled, key=lambda d: (len(pooled[d]), d))
-        self._flow_got, self._flow_meta = {}, {}
+        self._shares = retry.Shares()
         for j, (inst, a, b) in enumerate(self._pool(lead).split(
                 n, pooled[lead], min_rows=max(FLOW_MIN_ROWS, pools.min_rows_of(self.pool_min_rows, lead)))):
             targets = {d: inst if d == lead else live[j % len(live)] for d, live in pooled.items()}
             self._send_flow_share(names, request, a, b, targets, partials, 0)
-        failed = self._await_flow_shares(names, plan, request, partials)
+        gave_up = self._await_flow_shares(names, plan, request, partials)
         out = {}
         for i, name in enumerate(names):
-            parts = sorted((self._flow_meta[e][0], e, got[i]) for e, got in self._flow_got.items())
             spec = self.specs.get(name)
-            keys = spec.outputs if spec else tuple(parts[0][2].outputs)
-            outs = {k: np.concatenate([np.asarray(r.outputs[k], dtype=float) for _, _, r in parts]) for k in keys}
-            ok = np.concatenate([np.asarray(r.ok, dtype=bool) for _, _, r in parts])
-            error, why = join_errors((a, r) for a, _, r in parts)
-            res = EvalResult(outs, ok, error, float(sum(r.compute_time_s for _, _, r in parts)), point_errors=why)
-            if partials and all("partials" in r.extra for _, _, r in parts):
-                pk = parts[0][2].extra["partials"].keys()
-                res.extra["partials"] = {k: np.concatenate([np.asarray(r.extra["partials"][k]) for _, _, r in parts])
-                                         for k in pk if all(k in r.extra["partials"] for _, _, r in parts)}
-            out[name] = res
+            out[name] = self._shares.join(i, spec.outputs if spec else None)
         self.flows += 1
-        for name in names:
-            if name not in failed:
-                up = {s: (out[s].outputs, out[s].ok) for s in set(plan[name].values())}
-                rows = flow.rows_evaluated(plan[name], up, n)
-                if rows:
-                    self.counts[name] += rows
-        self._flow_got, self._flow_meta = {}, {}
+        self.counts.update(flow.rows_per_discipline(plan, out, n, [d for d in names if d not in gave_up]))
+        self._shares = retry.Shares()
         self.last_latency_s = time.perf_counter() - t0
         return out
 
     def _send_flow_share(self, names: Sequence[str], request: Mapping[str, np.ndarray], a: int, b: int,
                          targets: Mapping[str, str], partials: bool, tries: int) -> None:
         eid = self.ledger.new_id()
-        req = wire.Request(self.run_id, eid, "", flow=names, iteration=self.iteration)
         fps = {d: (self._expect(d) or ("?", ""))[0] for d in names}
-        req.header.frame_id = binding.tag(
-            {d: f"{fp}{binding.TARGET_SEP}{targets[d]}" if d in targets else fp for d, fp in fps.items()}, names)
-        req.attempt = tries
-        req.inputs = wire.batch({k: np.asarray(v)[a:b] for k, v in request.items()})
-        req.partials = partials
-        first = None
-        for i, name in enumerate(names):
-            self._pending[(eid, name)] = p = _Pending(i, name, req, b - a, 0, flow=True, target=targets.get(name, ""),
-                                                      start=a, tries=tries)
-            first = first or p
-        self._flow_meta[eid] = (a, b, tries)
+        tag = binding.tag({d: f"{fp}{binding.TARGET_SEP}{targets[d]}" if d in targets else fp
+                           for d, fp in fps.items()}, names)
+        req = self._request(eid, "", {k: np.asarray(v)[a:b] for k, v in request.items()}, tag, flow=names,
+                            attempt=tries, partials=partials)
+        sent = [self.ledger.open(eid, name, _Pending(i, name, req, b - a, 0, flow=True, target=targets.get(name, ""),
+                                                     start=a, tries=tries)) for i, name in enumerate(names)]
+        self._shares.sent(eid, a, b, tries)
         self.flow_shares += 1
-        self._send(first)  # one message for every discipline of the share
-        for name in names:
-            if (eid, name) in self._pending:  # a node composed into this process may have answered already
-                self._pending[(eid, name)].sent_ns = first.sent_ns
+        self._send(sent[0])  # one message for every discipline of the share
+        for p in sent[1:]:
+            p.sent_ns = sent[0].sent_ns
 
-    def _wait_shares(self, subs, checked: float, check_s: float) -> tuple[float, set[tuple[str, str]], float]:
+    def _wait_shares(self, checked: float, check_s: float) -> tuple[int, set[tuple[str, str]], float]:
         """Wait for results of the pending shares until the next one times out, at most `check_s`;
         every `check_s` also find the (discipline, instance) pairs whose instance left the ROS
-        graph. Returns (now, those pairs, the time they were last checked)."""
+        graph. Returns (now in ns, those pairs, the time they were last checked)."""
         now = time.monotonic()
-        due = min(p.sent_ns * 1e-9 + self.timeout_s for p in self._pending.values())
-        if self._waiter.wait(subs, max(0.0, min(due, now + check_s) - now)):
-            self._waiter.take_ready(self._hot)
-        now = time.monotonic()
+        self._take_until(min(self.policy.due_s(self._pending.values()), now + check_s), once=True)
+        now_ns = time.monotonic_ns()
+        now = now_ns * 1e-9
         gone: set[tuple[str, str]] = set()
         if now - checked >= check_s:
             checked = now
@@ -665,63 +634,48 @@ class RosEvaluator:
                 present, _ = self._present_instances(name)
                 gone |= {(name, p.target) for p in self._pending.values()
                          if p.discipline == name and p.target and p.target not in present}
-        return now, gone, checked
+        return now_ns, gone, checked
 
     def _await_flow_shares(self, names: Sequence[str], plan: Mapping[str, Mapping[str, str]],
                            request: Mapping[str, np.ndarray], partials: bool, check_s: float = 0.1) -> set[str]:
         """Wait for the shares of a pooled data-flow MDA; re-send a share whose instance stalled or
-        left. Returns the disciplines that had rows failed for want of an answer."""
-        failed: set[str] = set()
+        left (retry.flow_share_steps decides). Returns the disciplines that had rows failed for want
+        of an answer."""
+        gave_up: set[str] = set()
         checked = 0.0
-        subs = [s for s, _ in self._hot]
         while self._pending:
-            now, gone, checked = self._wait_shares(subs, checked, check_s)
-            shares: dict[int, list[tuple[tuple[int, str], _Pending]]] = {}
-            for key, p in self._pending.items():
-                shares.setdefault(key[0], []).append((key, p))
-            for eid, items in shares.items():
-                late = any(now * 1e9 >= p.sent_ns + self.timeout_s * 1e9 for _, p in items)
-                lost = [p for _, p in items if (p.discipline, p.target) in gone]
-                if not late and not lost:
-                    continue
-                waiting = {p.discipline for _, p in items}
-                # to blame: an instance that left, or a pending one whose sources all answered
-                blame = {(p.discipline, p.target, p.n) for _, p in items if p.target and (
-                    (p.discipline, p.target) in gone or not set(plan[p.discipline].values()) & waiting)}
-                for d, t, k in blame:
+            now_ns, gone, checked = self._wait_shares(checked, check_s)
+            for step in retry.flow_share_steps(self.policy, self._pending, now_ns, gone, plan, self._shares.tries):
+                for d, t, k in step.blame:
                     self._pool(d).fail(t, k)
-                a, b, tries = self._flow_meta[eid]
-                if tries >= self.retries:  # give up on what is missing: those rows fail, named
-                    for key, p in items:
-                        res = self._failed(p, f"{p.discipline}: no answer after {self.retries + 1} attempts "
-                                              f"of {self.timeout_s:g} s")
-                        self._first_error(p.discipline, res.error)
-                        self._flow_got.setdefault(eid, {})[p.index] = res
-                        failed.add(p.discipline)
-                        self.ledger.close(key)
+                if step.give_up:  # what is missing fails, named
+                    for key, p in step.items:
+                        self._give_up(key, p)
+                        gave_up.add(p.discipline)
                     continue
-                for key, _ in items:  # the share is re-sent whole; answers to the old one are dropped
+                a, b, tries = self._shares.meta[step.eid]
+                for key, _ in step.items:  # the share is re-sent whole; answers to the old one are dropped
                     self.ledger.reassign(key)
-                for i in self._flow_got.pop(eid, {}):
-                    self.ledger.late.add((eid, names[i]))
-                del self._flow_meta[eid]
+                for i in self._shares.drop(step.eid):
+                    self.ledger.late.add((step.eid, names[i]))
                 self.retried += 1
                 targets = {}
-                for d in {p.discipline for _, p in items if p.target} | {x for x, _ in self._targets_of(eid, items)}:
+                addressed = {p.discipline for _, p in step.items if p.target} | {
+                    d for d, _ in self._targets_of(step.items[0][1].request)}
+                for d in addressed:
                     live = self._live(d) or sorted(self._present_instances(d)[0])
                     if live:
-                        targets[d] = live[(eid + tries) % len(live)]
-                why = "left the ROS graph" if lost else f"no answer after {self.timeout_s:g} s"
+                        targets[d] = retry.pick(live, step.eid, tries)
                 self.node.get_logger().warning(
-                    f"data-flow share {eid} (rows {a}-{b}): {sorted(f'{d}@{t}' for d, t, _ in blame)} {why}; "
-                    f"re-sent to {targets} (retry {tries + 1}/{self.retries})")
+                    f"data-flow share {step.eid} (rows {a}-{b}): {sorted(f'{d}@{t}' for d, t, _ in step.blame)} "
+                    f"{step.why}; re-sent to {targets} (retry {tries + 1}/{self.retries})")
                 self._send_flow_share(names, request, a, b, targets, partials, tries + 1)
-        return failed
+        return gave_up
 
     @staticmethod
-    def _targets_of(eid: int, items) -> set[tuple[str, str]]:
+    def _targets_of(request) -> set[tuple[str, str]]:
         """(discipline, instance) of every addressed discipline of a share, from its request's tag."""
-        tag = binding.parse_tag(items[0][1].request.header.frame_id) or {}
+        tag = binding.parse_tag(request.header.frame_id) or {}
         out = set()
         for d, entry in tag.items():
             _, t = binding.split_target(entry)
@@ -775,17 +729,17 @@ class RosEvaluator:
         """Block until `count` accepted instances of `name` read its request topic and our writer
         matched them all (a pool ready to share); returns them. DisciplineMissing after `wait_s`."""
         self._publisher(name)
-        deadline = time.monotonic() + wait_s
-        while True:
+
+        def ready() -> bool:
             self._info_t = 0.0
             self._poll_info()
             present, readers = self._present_instances(name)
-            if len(present) >= count and self._publisher(name).get_subscription_count() >= readers:
-                return sorted(present)
-            if time.monotonic() > deadline:
-                raise DisciplineMissing(f"{len(present)} of {count} instances of {name!r} within {wait_s:g} s"
-                                        + (f"; refused {self.refused}" if self.refused else ""))
-            self._executor.spin_once(timeout_sec=0.05)
+            return len(present) >= count and self._publisher(name).get_subscription_count() >= readers
+
+        if not until(ready, wait_s, functools.partial(self._executor.spin_once, timeout_sec=0.05)):
+            raise DisciplineMissing(f"{len(self._present_instances(name)[0])} of {count} instances of {name!r} "
+                                    f"within {wait_s:g} s" + (f"; refused {self.refused}" if self.refused else ""))
+        return sorted(self._present_instances(name)[0])
 
     def _send_shares(self, index: int, name: str, batch: Mapping[str, np.ndarray], iteration: int,
                      first: int, n: int, live: list[str], tries: int = 0) -> None:
@@ -794,10 +748,8 @@ class RosEvaluator:
         self._batches[index] = (name, batch)
         for inst, a, b in self._pool(name).split(n, live, min_rows=pools.min_rows_of(self.pool_min_rows, name)):
             eid = self.ledger.new_id()
-            req = wire.Request(self.run_id, eid, name, iteration=iteration)
-            req.header.frame_id = binding.target_tag(name, fp, inst)
-            req.attempt = tries
-            req.inputs = wire.batch({k: np.asarray(v)[first + a:first + b] for k, v in batch.items()})
+            req = self._request(eid, name, {k: np.asarray(v)[first + a:first + b] for k, v in batch.items()},
+                                binding.target_tag(name, fp, inst), iteration=iteration, attempt=tries)
             p = self.ledger.open(eid, name, _Pending(index, name, req, b - a, 0, target=inst, start=first + a,
                                                      tries=tries))
             self._send(p)
@@ -805,33 +757,22 @@ class RosEvaluator:
     def _await_pool(self, iteration: int, check_s: float = 0.1) -> None:
         """Wait for a wave holding shares. A share whose instance times out or leaves the ROS graph
         is split again among the other live instances (new evaluation ids: a late answer to the
-        old one is dropped as ``late_share``, never used), up to ``retries`` times per row."""
-        self._batches = getattr(self, "_batches", {})
+        old one is dropped as ``late_share``, never used), up to ``retries`` times per row
+        (retry.share_steps decides)."""
         checked = 0.0
-        subs = [s for s, _ in self._hot]
         while self._pending:
-            now, gone, checked = self._wait_shares(subs, checked, check_s)
-            for key, p in list(self._pending.items()):
+            now_ns, gone, checked = self._wait_shares(checked, check_s)
+            for step in retry.share_steps(self.policy, self._pending, now_ns, gone):
+                p, key = step.sent, step.key
                 if key not in self._pending:
                     continue
-                late = now * 1e9 >= p.sent_ns + self.timeout_s * 1e9
-                if not late and (p.discipline, p.target) not in gone:
-                    continue
-                why = "left the ROS graph" if (p.discipline, p.target) in gone else f"no answer after {self.timeout_s:g} s"
-                if p.target:
+                if step.blame:
                     self._pool(p.discipline).fail(p.target, p.n)
-                if p.tries >= self.retries:
-                    res = self._failed(p, f"{p.discipline}: no answer after {self.retries + 1} attempts "
-                                          f"of {self.timeout_s:g} s")
-                    self._first_error(p.discipline, res.error)
-                    self.ledger.close(key)
-                    if p.start >= 0:
-                        self._parts.setdefault(p.index, []).append((p.start, res))
-                    else:
-                        self._results[p.index] = res
+                if step.action == "give_up":
+                    self._give_up(key, p)
                     continue
                 self.retried += 1
-                if p.start < 0:  # a whole batch of a discipline without a pool: re-send as before
+                if step.action == "resend":  # a whole batch of a discipline without a pool: re-send as before
                     p.tries += 1
                     p.request.attempt = p.tries
                     self.node.get_logger().warning(f"no answer from {[p.discipline]} for evaluation "
@@ -843,25 +784,10 @@ class RosEvaluator:
                 if not live:  # every instance failed: try them all again rather than give up early
                     live = sorted(self._present_instances(p.discipline)[0]) or [p.target]
                 self.node.get_logger().warning(
-                    f"{p.discipline} instance {p.target!r} {why} holding {p.n} design(s); "
+                    f"{p.discipline} instance {p.target!r} {step.why} holding {p.n} design(s); "
                     f"re-sent to {live} (retry {p.tries + 1}/{self.retries})")
                 name, batch = self._batches[p.index]
                 self._send_shares(p.index, name, batch, iteration, p.start, p.n, live, tries=p.tries + 1)
-
-    def _join_parts(self) -> None:
-        """Join the shares of every pooled call in row order into one result."""
-        for index, parts in self._parts.items():
-            parts.sort(key=lambda t: t[0])
-            name = self._batches[index][0]
-            spec = self.specs.get(name)
-            keys = spec.outputs if spec else tuple(parts[0][1].outputs)
-            outs = {k: np.concatenate([np.asarray(r.outputs[k], dtype=float) for _, r in parts]) for k in keys}
-            ok = np.concatenate([np.asarray(r.ok, dtype=bool) for _, r in parts])
-            error, why = join_errors(parts)
-            self._results[index] = EvalResult(outs, ok, error, float(sum(r.compute_time_s for _, r in parts)),
-                                              point_errors=why)
-        self._parts = {}
-        self._batches = {}
 
     def pool_summary(self) -> dict[str, dict[str, dict]]:
         """{discipline: {instance: work, throughput, failures}} for every discipline with a pool."""
@@ -871,45 +797,58 @@ class RosEvaluator:
     def _await(self) -> None:
         """Wait for every pending result; re-send what times out; fail what never answers."""
         for attempt in range(self.retries + 1):
-            deadline = time.monotonic() + self.timeout_s
-            subs = [s for s, _ in self._hot]
-            # rcl wait sets are level-triggered: what arrived before this wait is ready at once
-            while self._pending and time.monotonic() < deadline:
-                if self._waiter.wait(subs, deadline - time.monotonic()):
-                    self._waiter.take_ready(self._hot)
+            self._take_until(time.monotonic() + self.timeout_s)
             if not self._pending:
                 break
             if attempt < self.retries:
-                resend = {}
-                for p in self._pending.values():
-                    self.retried += 1
-                    resend.setdefault(id(p.request), (p, []))[1].append(p.discipline)
-                for p, late in resend.values():
-                    p.request.attempt = attempt + 1
+                for p, late in retry.resend_round(self._pending, attempt + 1):
+                    self.retried += len(late)
+                    p.request.attempt = p.tries
                     self.node.get_logger().warning(
                         f"no answer from {late} for evaluation {p.request.evaluation_id} "
                         f"after {self.timeout_s:g} s; retry {attempt + 1}/{self.retries}"
                     )
                     self._send(p)
-        unanswered = set(self._pending)
-        for key, p in list(self._pending.items()):
-            self._results[p.index] = self._failed(
-                p, f"{p.discipline}: no answer after {self.retries + 1} attempts of {self.timeout_s:g} s"
-            )
-            self._first_error(p.discipline, self._results[p.index].error)
-            self.ledger.close(key)  # a late answer is then dropped as a duplicate, never used
-            if p.flow:  # data flow: hung only if its sources answered (else it had nothing to do)
-                srcs = set(((self.flow_plan(list(p.request.flow)) or {}).get(p.discipline) or {}).values())
-                hung = not any((key[0], s) in unanswered for s in srcs)
-            else:
-                hung = True
-            if hung and p.discipline not in self.unresponsive:
+        unanswered = dict(self._pending)
+        for key, p in unanswered.items():
+            self._give_up(key, p)
+        for d in retry.hung(unanswered, self._sources_of):
+            if d not in self.unresponsive:
                 # a discipline that let every attempt time out is hung (or gone): say so once, and
                 # fail its later requests at once instead of waiting the whole timeout each time
-                self.unresponsive.add(p.discipline)
+                self.unresponsive.add(d)
                 self.node.get_logger().error(
-                    f"discipline {p.discipline!r} did not answer within {self.retries + 1} x {self.timeout_s:g} s: "
+                    f"discipline {d!r} did not answer within {self.retries + 1} x {self.timeout_s:g} s: "
                     "its points fail, and so do its later requests, at once")
+
+    def _give_up(self, key: tuple[int, str], p: _Pending) -> None:
+        """Every attempt of `p` timed out: its points fail, named (a late answer is then dropped as a
+        duplicate, never used)."""
+        res = self._failed(p, self.policy.no_answer(p.discipline))
+        self._first_error(p.discipline, res.error)
+        self.ledger.close(key)
+        if p.start >= 0:
+            self._shares.add(key[0], p.index, p.start, res)
+        else:
+            self._results[p.index] = res
+
+    def _sources_of(self, p: _Pending) -> set[str]:
+        """The sources a data-flow entry's discipline reads from (none for hub and spoke)."""
+        return set(((self.flow_plan(list(p.request.flow)) or {}).get(p.discipline) or {}).values())
+
+    def _take_until(self, deadline: float, once: bool = False) -> None:
+        """Take results until nothing is pending or the monotonic `deadline` (s) passed (no re-send);
+        with ``once`` one wait at most. rcl wait sets are level-triggered: what arrived before this
+        wait is ready at once."""
+        subs = [s for s, _ in self._hot]
+        while self._pending:
+            left = deadline - time.monotonic()
+            if left <= 0 and not once:
+                return
+            if self._waiter.wait(subs, max(0.0, left)):
+                self._waiter.take_ready(self._hot)
+            if once:
+                return
 
     def close(self) -> None:
         """Release the executor (the node is the caller's)."""

@@ -1,4 +1,5 @@
-"""A lean wait on one subscription, for the hot path of an evaluation.
+"""Waiting: a lean wait on subscriptions for the hot path of an evaluation, and ``until``, the
+one "wait until matched or deadline" loop of ros/ (graph matching, discovery, readiness).
 
 rclpy's executors rebuild a wait set over every entity of a node (parameter
 services included) and dispatch through coroutines on each `spin_once`; measured
@@ -9,9 +10,21 @@ executor when idle.
 """
 from __future__ import annotations
 
+import time
 from typing import Callable
 
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+
+def until(ready: Callable[[], object], wait_s: float, step: Callable[[], object]) -> bool:
+    """Call `step()` (spin once, poll the graph, sleep) until `ready()` is true; False once
+    `wait_s` seconds passed without it (the caller says what was missing)."""
+    deadline = time.monotonic() + wait_s
+    while not ready():
+        if time.monotonic() > deadline:
+            return False
+        step()
+    return True
 
 
 class SubscriptionWaiter:

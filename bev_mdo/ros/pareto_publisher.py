@@ -11,6 +11,7 @@ import numpy as np
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from bev_mdo.ros.common import PREFIX, now_ns, stamp
+from bev_mdo.ros.fastwait import until
 
 PARETO_TOPIC = f"{PREFIX}/pareto_front"
 PARETO_TYPE = "bev_mdo_msgs/msg/ParetoFront"
@@ -99,11 +100,8 @@ class RosSink:
 
     def wait_for_recorder(self, n: int, wait_s: float) -> None:
         """Wait until `n` recorders subscribed to the front topic (so the first front is recorded)."""
-        deadline = time.monotonic() + wait_s
-        while self.pub.get_subscription_count() < n:
-            if time.monotonic() > deadline:
-                raise ValueError(f"the recorder did not subscribe to {PARETO_TOPIC} within {wait_s:g} s")
-            self.spin(0.02)
+        if not until(lambda: self.pub.get_subscription_count() >= n, wait_s, lambda: self.spin(0.02)):
+            raise ValueError(f"the recorder did not subscribe to {PARETO_TOPIC} within {wait_s:g} s")
 
     def publish(self, msg) -> None:
         self.published += 1

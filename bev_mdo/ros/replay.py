@@ -18,6 +18,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from bev_mdo.bag.errors import BagError
 from bev_mdo.bag.reader import Bag, BagMessage
+from bev_mdo.ros.fastwait import until
 from bev_mdo.ros.recorder_node import message_class
 
 MAX_DEPTH = 100_000
@@ -77,12 +78,8 @@ class Replayer:
 
     def wait_subscribers(self, count: int, timeout_s: float) -> bool:
         """Spin until every publisher has ``count`` subscriptions (False on timeout)."""
-        deadline = time.monotonic() + timeout_s
-        while any(p.get_subscription_count() < count for p in self.publishers.values()):
-            if time.monotonic() > deadline:
-                return False
-            self._executor.spin_once(timeout_sec=0.05)
-        return True
+        return until(lambda: all(p.get_subscription_count() >= count for p in self.publishers.values()),
+                     timeout_s, lambda: self._executor.spin_once(timeout_sec=0.05))
 
     def play(self, rate: float | None = 1.0) -> ReplayStats:
         """Publish every message once; ``rate=None`` publishes as fast as possible."""
