@@ -14,6 +14,7 @@ The launcher's ``--compose all|none|GROUPS`` starts these (launch.py: composed_a
 """
 from __future__ import annotations
 
+import functools
 import sys
 
 import rclpy
@@ -94,7 +95,7 @@ class Beside:
             # the in-process readers of its result topics: the coordinator's, and the subscriptions of
             # the consumers composed with it (kept in the graph, not read: link_local)
             node.local_readers = {id(node._mda_pub): 1 + len(node.local_consumers), id(node._result_pub): 1}
-            node.local_coordinator = evaluator._on_result
+            node.local_coordinator = functools.partial(evaluator._on_result, local=True)
             for sub, handle in node.hot_subscriptions():
                 self._pairs.append((sub, self._with_stats(node, handle)))
         evaluator._hot.extend(self._pairs)
@@ -114,7 +115,7 @@ class Beside:
         if not local or pub.get_subscription_count() > len(local):
             return False
         for node, handle in local:
-            handle(request)
+            handle(request, local=True)
             node.publish_stats()
         return True
 

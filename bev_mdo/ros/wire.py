@@ -47,6 +47,9 @@ def to_named_array(columns: Mapping[str, np.ndarray], msg: NamedArray | None = N
 
 def from_named_array(msg: NamedArray) -> dict[str, np.ndarray]:
     """Unpack a NamedArray; raise WireError when it is malformed."""
+    columns = getattr(msg, "columns", None)
+    if columns is not None and int(msg.batch_size) == msg.values_rows() and msg.names == list(columns):
+        return dict(columns)  # made in this process by batch() and not changed since: nothing to decode
     names = list(msg.names)
     n = int(msg.batch_size)
     if n > MAX_BATCH:
@@ -110,14 +113,37 @@ class Header:
 
 
 class Batch:
-    """A NamedArray as decoded by the codec: ``values`` is a float64 numpy array."""
+    """A NamedArray as decoded by the codec: ``values`` is a float64 numpy array.
 
-    __slots__ = ("names", "batch_size", "values")
+    A batch made in this process (``batch``) also keeps its ``columns`` (float64 arrays, one per
+    name) and makes ``values`` (their column-major concatenation) only when something reads
+    it, which only the encoder does: a message handed to a node or to the coordinator in the same
+    process (composed.Beside, link_local) is read by ``from_named_array`` without a concatenation or a
+    slice, and one that is published is encoded to the same bytes as before."""
 
-    def __init__(self, names=(), batch_size: int = 0, values=None):
+    __slots__ = ("names", "batch_size", "_values", "columns")
+
+    def __init__(self, names=(), batch_size: int = 0, values=None, columns=None):
         self.names = list(names)
         self.batch_size = batch_size
-        self.values = np.zeros(0) if values is None else values
+        self._values = np.zeros(0) if values is None and columns is None else values
+        self.columns = columns
+
+    @property
+    def values(self):
+        if self._values is None:
+            cols = self.columns
+            self._values = np.concatenate(list(cols.values())) if cols else np.zeros(0)
+        return self._values
+
+    def values_rows(self) -> int:
+        """Rows of the columns a batch() was made of (-1 for a decoded batch)."""
+        cols = self.columns
+        return -1 if cols is None else (next(iter(cols.values())).shape[0] if cols else 0)
+
+    @values.setter
+    def values(self, v) -> None:
+        self._values, self.columns = v, None
 
 
 class Request:
@@ -215,18 +241,22 @@ _PARTIAL_KEYS: dict[tuple, list] = {}
 
 
 def batch(columns: Mapping[str, np.ndarray]) -> Batch:
-    """A Batch from equal-length columns (column-major values, one copy)."""
+    """A Batch from equal-length columns (float64, kept as they are: a reader in this process gets
+    the caller's arrays, as the in-process evaluator passes them), concatenated column-major only
+    if the batch is encoded (Batch.values)."""
     names = list(columns)
-    cols = []
+    cols = {}
+    n = -1
     for k in names:
         c = columns[k]
         if type(c) is not np.ndarray or c.ndim != 1 or c.dtype != _F8:  # the usual column skips both
             c = np.atleast_1d(np.asarray(c, dtype=np.float64))
-        cols.append(c)
-    n = cols[0].shape[0] if cols else 0
-    if any(c.shape != (n,) for c in cols):
-        raise WireError(f"columns have different lengths: { {k: c.shape for k, c in zip(names, cols)} }")
-    return Batch(names, n, np.concatenate(cols) if cols else np.zeros(0))
+        if n < 0:
+            n = c.shape[0]
+        if c.shape != (n,):
+            raise WireError(f"columns have different lengths: { {k: np.shape(columns[k]) for k in names} }")
+        cols[k] = c
+    return Batch(names, max(n, 0), None, cols)
 
 
 # Encoding. Short strings (names, ids, the flow list) repeat in every message of a run, so their
