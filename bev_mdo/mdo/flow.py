@@ -101,15 +101,23 @@ def run_flow_discipline(disc: Any, request: Mapping[str, np.ndarray], upstream: 
 
 def source_rows(source_of: Mapping[str, str], upstream: Upstream, n: int) -> np.ndarray:
     """The rows a discipline evaluates: those every one of its sources evaluated successfully."""
-    rows = np.ones(n, dtype=bool)
+    rows = None
     for s in dict.fromkeys(source_of.values()):
-        rows &= np.asarray(upstream[s][1], dtype=bool)
-    return rows
+        ok = np.asarray(upstream[s][1], dtype=bool)
+        if rows is None and ok.shape == (n,):  # the first source's flags (a copy: rows is the caller's)
+            rows = ok.copy()
+            continue
+        if rows is None:
+            rows = np.ones(n, dtype=bool)
+        rows &= ok
+    return np.ones(n, dtype=bool) if rows is None else rows
 
 
 def rows_evaluated(source_of: Mapping[str, str], upstream: Upstream, n: int) -> int:
     """How many rows a discipline evaluates given its sources' results (for evaluation counts)."""
-    return int(source_rows(source_of, upstream, n).sum())
+    if not source_of:  # a root evaluates every row
+        return n
+    return int(np.count_nonzero(source_rows(source_of, upstream, n)))
 
 
 def flow_by_waves(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequence[str]],

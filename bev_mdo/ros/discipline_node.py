@@ -216,8 +216,10 @@ class DisciplineNode(Node):
     def publish_stats(self, force: bool = False, every_s: float = 0.1) -> None:
         """Publish the counters on /bev_mdo/node_stats if they changed (at most every `every_s`)."""
         now = time.monotonic()
+        if not force and now - self._stats_t < every_s:
+            return
         snap = dict(self.counts)
-        if not force and (snap == self._stats_sent or now - self._stats_t < every_s):
+        if not force and snap == self._stats_sent:
             return
         msg = String()
         msg.data = json.dumps({"discipline": self.discipline_name, "instance": self.instance, "counts": snap,
