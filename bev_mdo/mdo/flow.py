@@ -210,7 +210,7 @@ class FlowJoin:
         else:
             n = len(ok) if n is None else n
             if ok.shape != (n,) or any(v not in columns for v, s in self.source_of.items() if s == source) or any(
-                    np.shape(c) != (n,) for c in columns.values()):
+                    (c.shape if type(c) is np.ndarray else np.shape(c)) != (n,) for c in columns.values()):
                 raise FlowError(f"result of {source!r} misses a coupling column or has rows of another size")
         got = {**self._got.get(key, {}), source: (columns, ok, extra)}
         self._got[key] = got
