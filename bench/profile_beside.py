@@ -140,6 +140,7 @@ def main() -> int:
     ap.add_argument("--signing", default="off,on")
     ap.add_argument("--top", type=int, default=25)
     ap.add_argument("--json", default="")
+    ap.add_argument("--label", default="", help="what code was measured (in the rendered title)")
     args = ap.parse_args()
     os.environ["ROS_DOMAIN_ID"] = str(args.domain)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -151,6 +152,15 @@ def main() -> int:
         for s in args.signing.split(","):
             out["runs"].append(one(s.strip() == "on", args.domain, args.n, args.top, Path(tmp)))
     out["load_average_1min"] = {"before": load0, "after": os.getloadavg()[0]}
+    if args.label:
+        out["bench"] += f" ({args.label})"
+    out["host"] = {"cpus": os.cpu_count(), "load_average_1min": round(os.getloadavg()[0], 2),
+                   "python": sys.version.split()[0]}
+    # rendered into docs/performance.md (scripts/render_bench.py): one profiled run each, so one value
+    out["figures"] = [{"what": f"MDA p50 without the profiler, signing {'on' if r['signing'] else 'off'}"
+                               + f" (cProfile: {r['us_per_mda_under_cprofile']:.0f} us per MDA)",
+                       "unit": "us", "median": r["p50_us"], "min": r["p50_us"], "max": r["p50_us"],
+                       "runs": [r["p50_us"]]} for r in out["runs"]]
     print("load average", out["load_average_1min"])
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=2))
