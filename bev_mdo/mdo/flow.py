@@ -96,15 +96,23 @@ def run_flow_discipline(disc: Any, request: Mapping[str, np.ndarray], upstream: 
 
 def source_rows(source_of: Mapping[str, str], upstream: Upstream, n: int) -> np.ndarray:
     """The rows a discipline evaluates: those every one of its sources evaluated successfully."""
-    rows = np.ones(n, dtype=bool)
+    rows = None
     for s in dict.fromkeys(source_of.values()):
-        rows &= np.asarray(upstream[s][1], dtype=bool)
-    return rows
+        ok = np.asarray(upstream[s][1], dtype=bool)
+        if rows is None and ok.shape == (n,):  # the first source's flags (a copy: rows is the caller's)
+            rows = ok.copy()
+            continue
+        if rows is None:
+            rows = np.ones(n, dtype=bool)
+        rows &= ok
+    return np.ones(n, dtype=bool) if rows is None else rows
 
 
 def rows_evaluated(source_of: Mapping[str, str], upstream: Upstream, n: int) -> int:
     """How many rows a discipline evaluates given its sources' results (for evaluation counts)."""
-    return int(source_rows(source_of, upstream, n).sum())
+    if not source_of:  # a root evaluates every row
+        return n
+    return int(np.count_nonzero(source_rows(source_of, upstream, n)))
 
 
 def flow_by_waves(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequence[str]],
@@ -210,7 +218,7 @@ class FlowJoin:
         else:
             n = len(ok) if n is None else n
             if ok.shape != (n,) or any(v not in columns for v, s in self.source_of.items() if s == source) or any(
-                    np.shape(c) != (n,) for c in columns.values()):
+                    (c.shape if type(c) is np.ndarray else np.shape(c)) != (n,) for c in columns.values()):
                 raise FlowError(f"result of {source!r} misses a coupling column or has rows of another size")
         got = {**self._got.get(key, {}), source: (columns, ok, extra)}
         self._got[key] = got

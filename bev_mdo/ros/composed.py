@@ -4,8 +4,8 @@ Cheap disciplines gain nothing from a process each on a small host: every proces
 computes and encodes in its own interpreter and the processes contend for the cores. Like a
 ROS 2 component container, this runs several DisciplineNode objects in one process; each keeps
 its own name, topics and declaration, so the graph, the binding, the recordings and the
-coordinator see exactly what they see with one process per discipline (intra-process messages
-still go through DDS, as rclpy has no zero-copy intra-process path).
+coordinator see exactly what they see with one process per discipline (the messages between
+them still go through DDS, as rclpy has no intra-process path; but see Beside and link_local).
 
 ``ros2 run bev_mdo composed_node --ros-args -p config:=run.yaml -p disciplines:=vehicle_mass,energy``
 (``python -m bev_mdo.ros.run composed_node ...``; ``instance`` and ``run_id`` parameters as for the
@@ -14,6 +14,7 @@ The launcher's ``--compose all|none|GROUPS`` starts these (launch.py: composed_a
 """
 from __future__ import annotations
 
+import functools
 import sys
 
 import rclpy
@@ -43,7 +44,7 @@ def make_nodes(config: dict, disciplines: list[str], instance: str = "", run_id:
 def link_local(nodes: list[DisciplineNode]) -> None:
     """Data flow inside the process: a node's data-flow result goes to the consumers composed with it
     by a direct call (after it is published, so the coordinator and any recorder see the same
-    traffic), not through DDS and a decode. Their subscriptions to it stay (the graph looks the same
+    traffic), not through DDS, a decode and a signature check. Their subscriptions to it stay (the graph looks the same
     to the coordinator and to recorders) but are not read."""
     by_name = {node.discipline_name: node for node in nodes}
     for node in nodes:
@@ -72,9 +73,19 @@ class Beside:
     does: by direct call when no reader outside this process has matched the topic, else published
     (and then taken from DDS as usual), so a recorder or any other reader gets every message it
     gets with any other layout. A request goes to the nodes' handlers (``local_requests``); a result
-    to the coordinator's ``_on_result`` (which checks run, id, shape and signature as for a
-    received one); data flow between the nodes goes by direct call always (``link_local``). With
-    nobody else listening an MDA then costs no DDS write at all.
+    to the coordinator's ``_on_result``; data flow between the nodes goes by direct call always
+    (``link_local``). With nobody else listening an MDA then costs no DDS write at all.
+
+    A direct call hands over the message object with its numpy columns (``wire.batch`` keeps them;
+    nothing is concatenated, sliced or copied for the hand-over), never encoded to CDR, decoded,
+    signed or verified: those handlers get ``local=True``. Kept on that path, as for a received
+    message: run id, binding tag (fingerprints, a pool's target), evaluation id against the
+    coordinator's ledger (stale, duplicate, mismatched), discipline, batch size and column shapes,
+    point flags against non-finite outputs, per-point errors, the data-flow join's checks. Dropped
+    there, because they exist only against forgery or a corrupted wire and nothing outside this
+    process can make the call: the HMAC signature with its freshness and replay window, and the
+    codec's checks of undecodable bytes and variable names. A message that is published (a reader
+    outside matched its topic) is encoded, signed and verified exactly as in every other layout.
 
     Not served: the nodes' parameter services (no executor spins them) and requests from another
     process's coordinator while this one is not evaluating (the nodes are served only inside the
@@ -94,7 +105,7 @@ class Beside:
             # the in-process readers of its result topics: the coordinator's, and the subscriptions of
             # the consumers composed with it (kept in the graph, not read: link_local)
             node.local_readers = {id(node._mda_pub): 1 + len(node.local_consumers), id(node._result_pub): 1}
-            node.local_coordinator = evaluator._on_result
+            node.local_coordinator = functools.partial(evaluator._on_result, local=True)
             for sub, handle in node.hot_subscriptions():
                 self._pairs.append((sub, self._with_stats(node, handle)))
         evaluator._hot.extend(self._pairs)
@@ -114,7 +125,7 @@ class Beside:
         if not local or pub.get_subscription_count() > len(local):
             return False
         for node, handle in local:
-            handle(request)
+            handle(request, local=True)
             node.publish_stats()
         return True
 

@@ -212,8 +212,10 @@ class DisciplineNode(Node):
     def publish_stats(self, force: bool = False, every_s: float = 0.1) -> None:
         """Publish the counters on /bev_mdo/node_stats if they changed (at most every `every_s`)."""
         now = time.monotonic()
+        if not force and now - self._stats_t < every_s:
+            return
         snap = dict(self.counts)
-        if not force and (snap == self._stats_sent or now - self._stats_t < every_s):
+        if not force and snap == self._stats_sent:
             return
         msg = String()
         msg.data = json.dumps({"discipline": self.discipline_name, "instance": self.instance, "counts": snap,
@@ -298,13 +300,11 @@ class DisciplineNode(Node):
         writer = pub or self._result_pub
         if self.local_coordinator is None or writer.get_subscription_count() > self.local_readers.get(id(writer), 0):
             writer.publish(wire.encode_result(out) if self.signer is None else self.signer.sign_result(out))
-        else:  # composed beside the coordinator, nobody else reads the topic: the result by direct call
-            if self.signer is not None:
-                self.signer.sign_result(out)  # sets out.signature: the coordinator checks it as for a message
-            self.local_coordinator(out)
+        else:  # composed beside the coordinator, nobody else reads the topic: the result by direct call,
+            self.local_coordinator(out)  # not encoded and not signed (it never leaves the process)
         if pub is not None and pub is self._mda_pub:
             for node in self.local_consumers:  # composed: the same result, without a DDS hop and a decode
-                node._on_source_result(self.discipline_name, out)
+                node._on_source_result(self.discipline_name, out, local=True)
 
     def _fill_header(self, out: wire.Result, req: wire.Request) -> None:
         stamp(out.header)
@@ -332,11 +332,13 @@ class DisciplineNode(Node):
             return False
         return True
 
-    def _on_request(self, req: wire.Request) -> None:
+    def _on_request(self, req: wire.Request, local: bool = False) -> None:
+        """A request; ``local``: handed over by direct call in this process (composed.Beside), so its
+        signature is not checked (nothing outside the process can make that call); all else is."""
         if not self._for_me(req):
             return None
         self.counts["received"] += 1
-        if self.signer is not None:
+        if self.signer is not None and not local:
             why = self.signer.verify_request(req)
             if why is not None:  # no answer at all: an unauthenticated sender learns nothing
                 self.counts["rejected"] += 1
@@ -403,14 +405,15 @@ class DisciplineNode(Node):
             f"[{self.counts['rejected']} rejected so far; this log is rate-limited]", throttle_duration_sec=2.0)
         return False
 
-    def _on_mda_request(self, req: wire.Request) -> None:
-        """A data-flow request, read by the disciplines without sources: evaluate now."""
+    def _on_mda_request(self, req: wire.Request, local: bool = False) -> None:
+        """A data-flow request, read by the disciplines without sources: evaluate now (``local``:
+        by direct call in this process, as for _on_request)."""
         if self.discipline_name not in req.flow:
             return None  # an MDA without this discipline
         if not self._for_me(req):
             return None
         self.counts["received"] += 1
-        if not self._authentic(req, "request"):
+        if not local and not self._authentic(req, "request"):
             return None
         if not req.run_id or len(req.run_id) > 128 or not req.run_id.isprintable():
             return self._reject(req, "bad run id", "bad_run_id", self._mda_pub)
@@ -420,14 +423,15 @@ class DisciplineNode(Node):
             return self._reject(req, str(exc), "malformed", self._mda_pub)
         self._flow_answer(req, inputs, {}, {}, int(req.inputs.batch_size), list(req.flow), bool(req.partials))
 
-    def _on_source_result(self, source: str, msg: wire.Result) -> None:
+    def _on_source_result(self, source: str, msg: wire.Result, local: bool = False) -> None:
         """A source's data-flow result (it carries the request's columns too): keep it for
-        (run, evaluation id) and evaluate once every source of this MDA has answered."""
+        (run, evaluation id) and evaluate once every source of this MDA has answered (``local``: by
+        direct call from a source composed in this process, as for _on_request)."""
         if source not in msg.flow or self.discipline_name not in msg.flow:
             return  # not a data-flow MDA with this discipline
         if not self._for_me(msg, source):
             return
-        if not self._authentic(msg, "result"):
+        if not local and not self._authentic(msg, "result"):
             return
         if msg.discipline != source:
             self.counts["source_malformed"] += 1

@@ -405,12 +405,14 @@ class RosEvaluator:
             return
         self._on_result(msg)
 
-    def _on_result(self, msg) -> None:
-        """Accept a result (wire.Result or a generated EvaluationResult) or count why it was dropped."""
+    def _on_result(self, msg, local: bool = False) -> None:
+        """Accept a result (wire.Result or a generated EvaluationResult) or count why it was dropped.
+        ``local``: handed over by direct call in this process (composed.Beside), not received: its
+        signature is not checked (nothing outside the process can make that call); all else is."""
         if msg.run_id != self.run_id:  # another run's traffic on the shared topic, not an attack
             self.dropped["other_run"] += 1
             return
-        if self.signer is not None:
+        if self.signer is not None and not local:
             why = self.signer.verify_result(msg)
             if why is not None:
                 self.dropped[why] += 1
@@ -500,12 +502,13 @@ class RosEvaluator:
         self._seq += 1
         p.request.sequence = self._seq
         stamp(p.request.header)  # a retry gets a fresh stamp (and signature): it is not a replay
-        signed = None if self.signer is None else self.signer.sign_request(p.request)  # sets its signature
         p.sent_ns = time.monotonic_ns()
         pub = self._flow_pub if p.flow else self._publisher(p.discipline)
-        # nodes composed into this process (composed.Beside) take it by direct call when nobody else reads it
+        # nodes composed into this process (composed.Beside) take it by direct call when nobody else
+        # reads it: not encoded and not signed (it never leaves the process)
         if self.local_requests is None or not self.local_requests(pub, p.request):
-            pub.publish(signed if signed is not None else wire.encode_request(p.request))
+            pub.publish(wire.encode_request(p.request) if self.signer is None
+                        else self.signer.sign_request(p.request))  # sets its signature
 
     def evaluate(self, calls: Sequence[tuple[str, Mapping[str, np.ndarray]]], iteration: int | None = None,
                  partials: bool = False) -> list[EvalResult]:

@@ -47,6 +47,10 @@ def to_named_array(columns: Mapping[str, np.ndarray], msg: NamedArray | None = N
 
 def from_named_array(msg: NamedArray) -> dict[str, np.ndarray]:
     """Unpack a NamedArray; raise WireError when it is malformed."""
+    if type(msg) is Batch:
+        columns = msg.checked_columns()
+        if columns is not None:  # made in this process by batch() and not changed since: nothing to decode
+            return columns
     names = list(msg.names)
     n = int(msg.batch_size)
     if n > MAX_BATCH:
@@ -110,14 +114,48 @@ class Header:
 
 
 class Batch:
-    """A NamedArray as decoded by the codec: ``values`` is a float64 numpy array."""
+    """A NamedArray as decoded by the codec: ``values`` is a float64 numpy array.
 
-    __slots__ = ("names", "batch_size", "values")
+    A batch made in this process (``batch``) also keeps its ``columns`` (float64 arrays, one per
+    name) and makes ``values`` (their column-major concatenation) only when something reads
+    it, which only the encoder does: a message handed to a node or to the coordinator in the same
+    process (composed.Beside, link_local) is read by ``from_named_array`` without a concatenation or a
+    slice, and one that is published is encoded to the same bytes as before."""
 
-    def __init__(self, names=(), batch_size: int = 0, values=None):
+    __slots__ = ("names", "batch_size", "_values", "columns", "_made")
+
+    def __init__(self, names=(), batch_size: int = 0, values=None, columns=None):
         self.names = list(names)
         self.batch_size = batch_size
-        self.values = np.zeros(0) if values is None else values
+        self._values = _NO_VALUES if values is None and columns is None else values
+        self.columns = columns
+        self._made = (self.names, batch_size)  # what batch() checked (from_named_array: unchanged since?)
+
+    @property
+    def values(self):
+        if self._values is None:
+            cols = self.columns
+            self._values = np.concatenate(list(cols.values())) if cols else np.zeros(0)
+        return self._values
+
+    @values.setter
+    def values(self, v) -> None:
+        self._values, self.columns = v, None
+
+    def checked_columns(self) -> dict | None:
+        """The columns a batch() was made of, if its names and size were not changed since (None:
+        a decoded batch, or one changed by hand, which from_named_array checks as received)."""
+        cols = self.columns
+        if cols is None or self.names is not self._made[0] or self.batch_size != self._made[1]:
+            return None
+        return dict(cols)
+
+
+# Empty arrays every new message starts with (read-only: shared, and replaced, never written)
+_NO_VALUES = np.zeros(0)
+_NO_VALUES.flags.writeable = False
+_NO_POINTS = np.zeros(0, dtype=bool)
+_NO_POINTS.flags.writeable = False
 
 
 class Request:
@@ -148,7 +186,7 @@ class Result:
         self.header = Header()
         self.run_id, self.evaluation_id, self.sequence = "", 0, 0
         self.discipline, self.instance, self.status, self.error = "", "", 0, ""
-        self.point_ok = np.zeros(0, dtype=bool)
+        self.point_ok = _NO_POINTS
         self.outputs = Batch()
         self.compute_time_s = 0.0
         self.flow: list[str] = []
@@ -172,6 +210,8 @@ def put_point_errors(m, point_errors: Mapping[int, PointError]) -> None:
 
 def point_errors_of(m, n: int) -> dict[int, PointError]:
     """{point index: PointError} of a result of n points; WireError when the fields disagree."""
+    if not len(m.error_points) and not len(m.error_reasons) and not len(m.error_inputs):
+        return {}  # the common case: every point evaluated
     points, reasons, inputs = list(m.error_points), list(m.error_reasons), list(m.error_inputs)
     if not len(points) == len(reasons) == len(inputs):
         raise WireError(f"{len(points)} error points, {len(reasons)} reasons, {len(inputs)} inputs")
@@ -215,18 +255,22 @@ _PARTIAL_KEYS: dict[tuple, list] = {}
 
 
 def batch(columns: Mapping[str, np.ndarray]) -> Batch:
-    """A Batch from equal-length columns (column-major values, one copy)."""
+    """A Batch from equal-length columns (float64, kept as they are: a reader in this process gets
+    the caller's arrays, as the in-process evaluator passes them), concatenated column-major only
+    if the batch is encoded (Batch.values)."""
     names = list(columns)
-    cols = []
+    cols = {}
+    n = -1
     for k in names:
         c = columns[k]
         if type(c) is not np.ndarray or c.ndim != 1 or c.dtype != _F8:  # the usual column skips both
             c = np.atleast_1d(np.asarray(c, dtype=np.float64))
-        cols.append(c)
-    n = cols[0].shape[0] if cols else 0
-    if any(c.shape != (n,) for c in cols):
-        raise WireError(f"columns have different lengths: { {k: c.shape for k, c in zip(names, cols)} }")
-    return Batch(names, n, np.concatenate(cols) if cols else np.zeros(0))
+        if n < 0:
+            n = c.shape[0]
+        if c.shape != (n,):
+            raise WireError(f"columns have different lengths: { {k: np.shape(columns[k]) for k in names} }")
+        cols[k] = c
+    return Batch(names, max(n, 0), None, cols)
 
 
 # Encoding. Short strings (names, ids, the flow list) repeat in every message of a run, so their
