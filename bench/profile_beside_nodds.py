@@ -19,7 +19,7 @@ from bev_mdo.mdo.discipline import readable
 from bev_mdo.mdo.driver import build_formulation
 from bev_mdo.mdo.evaluator import InProcessEvaluator, DisciplineSpec
 from bev_mdo.mdo.ledger import Ledger
-from bev_mdo.ros import binding, pool as pools
+from bev_mdo.ros import binding
 from bev_mdo.ros.discipline_node import DisciplineNode, _build
 from bev_mdo.ros.evaluator import RosEvaluator
 from bev_mdo.ros.composed import Beside, link_local
