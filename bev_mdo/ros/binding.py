@@ -51,13 +51,10 @@ def effective_config(config: Mapping[str, Any], name: str) -> dict:
     if name not in entries:
         raise ValueError(f"no discipline {name!r} in the config; it has {sorted(entries)}")
     vehicle = dict(config.get("vehicle") or {})
-    try:
-        from bev_mdo.models.params import VEHICLE_CHOICES, validate_vehicle, vehicle_choice
+    from bev_mdo.models.params import VEHICLE_CHOICES, validate_vehicle, vehicle_choice
 
-        numeric = validate_vehicle(vehicle)
-        choices = {k: vehicle_choice(vehicle, k) for k in VEHICLE_CHOICES}
-    except ImportError:  # pragma: no cover - models always ship with the package
-        numeric, choices = vehicle, {}
+    numeric = validate_vehicle(vehicle)
+    choices = {k: vehicle_choice(vehicle, k) for k in VEHICLE_CHOICES}
     e = entries[name]
     return {
         "discipline": name,

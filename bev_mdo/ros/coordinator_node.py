@@ -47,10 +47,6 @@ class CoordinatorNode(Node):
                                       signer=signer, config=config)
         self.discovery_wait_s = ros["discovery_wait_s"]
 
-    @property
-    def iteration_publisher(self):
-        return self._iteration_pub
-
     def publish_iteration(self, rec: Mapping[str, Any]) -> None:
         """Publish one engine iteration record (the driver's callback dict)."""
         if self._iteration_pub.get_subscription_count() == 0:
