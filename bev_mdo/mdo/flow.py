@@ -148,7 +148,11 @@ def evaluate_flow(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequ
     discipline that has analytic partials returns them with its result. A request column that no
     discipline of the MDA reads fails every point, named (as a node refuses an unknown input)."""
     names = [name for wave in waves for name in wave]
-    allowed = frozenset(v for m in names for v in (*specs[m].inputs, *specs[m].parameters))
+    readable: set[str] = set()  # every name a discipline of the MDA reads (set.update: no per-name generator step)
+    for m in names:
+        readable.update(specs[m].inputs)
+        readable.update(specs[m].parameters)
+    allowed = frozenset(readable)
     unknown = unknown_inputs(allowed, request)
     if unknown:  # the entry check of every transport (discipline.unknown_inputs): refused, not dropped
         return {m: rejected(m, specs[m].outputs, n, f"unknown inputs {unknown[:5]}") for m in names}
@@ -202,6 +206,9 @@ class FlowJoin:
         self.source_of = dict(source_of)   # coupling input -> source discipline
         self.outputs_of = {s: set(v) for s, v in outputs_of.items()}  # source -> every output it produces
         self.keep = keep
+        self._coupling_of: dict[str, list[str]] = {}  # source -> the coupling inputs it feeds (checked per result)
+        for v, s in self.source_of.items():
+            self._coupling_of.setdefault(s, []).append(v)
         self._got: OrderedDict[Any, dict[str, tuple]] = OrderedDict()
 
     def add(self, key: Any, source: str, columns: Mapping[str, np.ndarray], ok: np.ndarray,
@@ -217,7 +224,7 @@ class FlowJoin:
             columns, ok = {}, np.zeros(0, dtype=bool)
         else:
             n = len(ok) if n is None else n
-            if ok.shape != (n,) or any(v not in columns for v, s in self.source_of.items() if s == source) or any(
+            if ok.shape != (n,) or any(v not in columns for v in self._coupling_of.get(source, ())) or any(
                     (c.shape if type(c) is np.ndarray else np.shape(c)) != (n,) for c in columns.values()):
                 raise FlowError(f"result of {source!r} misses a coupling column or has rows of another size")
         got = {**self._got.get(key, {}), source: (columns, ok, extra)}

@@ -49,6 +49,11 @@ from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
+# the result status constants, read once (the generated class makes each a metaclass property call)
+_STATUS_OK = EvaluationResult.STATUS_OK
+_STATUS_ERROR = EvaluationResult.STATUS_ERROR
+_STATUS_REJECTED = EvaluationResult.STATUS_REJECTED
+
 # Each node's request counters as JSON (std_msgs/String), so tests and operators can see
 # what was received, answered and rejected (by reason) without reading logs.
 # TRANSIENT_LOCAL depth 1: a late subscriber gets every node's latest counters.
@@ -290,7 +295,7 @@ class DisciplineNode(Node):
         )
         out = wire.Result()
         self._fill_header(out, req)
-        out.status = EvaluationResult.STATUS_REJECTED
+        out.status = _STATUS_REJECTED
         out.error = f"{self.discipline_name}: rejected: {why}"[:1000]
         if pub is not None:  # data flow: consumers learn that there is nothing to wait for
             out.flow = list(req.flow)
@@ -376,7 +381,7 @@ class DisciplineNode(Node):
             self.get_logger().warning(result.error[:500], throttle_duration_sec=2.0)
         out = wire.Result()
         self._fill_header(out, req)
-        out.status = EvaluationResult.STATUS_OK if result.ok.all() else EvaluationResult.STATUS_ERROR
+        out.status = _STATUS_OK if result.ok.all() else _STATUS_ERROR
         out.error = result.error[:4000]
         wire.put_point_errors(out, result.point_errors)
         out.point_ok = np.asarray(result.ok, dtype=bool)
@@ -443,7 +448,7 @@ class DisciplineNode(Node):
             return
         try:  # the one join rule (mdo/flow.py): None until every source of this MDA has answered
             joined = self._join.add((msg.run_id, int(msg.evaluation_id)), source, columns, msg.point_ok,
-                                    msg.flow, msg.status == EvaluationResult.STATUS_REJECTED, msg,
+                                    msg.flow, msg.status == _STATUS_REJECTED, msg,
                                     int(msg.outputs.batch_size))
         except flow.SourcesDisagree as exc:
             self.counts["received"] += 1

@@ -55,6 +55,8 @@ from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
 # n = 1 and n > 1. Shares of two rows or more keep the joined result bitwise the single-request one.
 FLOW_MIN_ROWS = 2
 
+_STATUS_REJECTED = EvaluationResult.STATUS_REJECTED  # read once: a metaclass property call each time
+
 
 class DisciplineMissing(ValueError):
     """A needed discipline did not appear within the discovery wait."""
@@ -421,7 +423,7 @@ class RosEvaluator:
         p = self.ledger.match(*key, msg.header.frame_id)  # None: why is counted (fingerprint, stale, ...)
         if p is None:
             return
-        if msg.status == EvaluationResult.STATUS_REJECTED:
+        if msg.status == _STATUS_REJECTED:
             res = self._failed(p, msg.error or f"{p.discipline}: request rejected")
         else:
             try:
