@@ -45,7 +45,10 @@ def launcher(ros_domain, config_path, tmp_path_factory):
     try:
         for name in BUILTINS:
             la.add(name, discipline_argv(name, config_path))
-        la.supervise(interval_s=0.02)
+        # the hang watchdog, as a run's own nodes have: a SIGKILLed peer can leave another node's participant
+        # deadlocked in Fast DDS (issue 19; once in CI motor_speed and cost stopped answering after a kill of
+        # vehicle_mass); such a node is killed and restarted, and only such extra restarts are allowed
+        la.supervise(interval_s=0.02, watch_hangs=True)
         yield la
     finally:
         la.stop()
@@ -143,11 +146,11 @@ def test_sigkill_a_node_three_times_gives_the_same_optimum(rclpy_context, launch
     config = load_config(config_path)
     audit = Audit(config, launcher, target, KILL_AT)
     audit.install(monkeypatch)
-    restarts0 = launcher.node(target).restarts
-    others0 = {n.label: n.restarts for n in launcher.nodes if n.label != target}
+    restarts0 = launcher.node(target).restarts - launcher.node(target).hangs
+    others0 = {n.label: n.restarts - n.hangs for n in launcher.nodes if n.label != target}
     res, stats = coordinator_node.run(config, context=rclpy_context)
     assert audit.kills == 3, f"only {audit.first_sends} requests went to {target}"
-    assert launcher.node(target).restarts - restarts0 == 3
+    assert launcher.node(target).restarts - launcher.node(target).hangs - restarts0 == 3
     assert stats["retried"] >= 3  # each kill left an outstanding evaluation that was re-sent
     _assert_same_optimum(res, reference)
     # bookkeeping: each evaluation id accepted exactly once, and every accepted result was
@@ -157,8 +160,8 @@ def test_sigkill_a_node_three_times_gives_the_same_optimum(rclpy_context, launch
     assert len(keys) == len(set(keys)) == audit.expected == audit.checked
     assert not ev._pending
     assert stats["dropped"].get("malformed", 0) == 0 and stats["dropped"].get("mismatched", 0) == 0
-    # no other node died during this run
-    assert {n.label: n.restarts for n in launcher.nodes if n.label != target} == others0
+    # no other node died during this run (restarts of hung nodes by the watchdog aside)
+    assert {n.label: n.restarts - n.hangs for n in launcher.nodes if n.label != target} == others0
 
 
 def test_undisturbed_run_is_audited_too(rclpy_context, launcher, config_path, reference, monkeypatch):
