@@ -10,6 +10,8 @@ the request it was matched to, so a result matched to the wrong evaluation fails
 """
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -21,11 +23,14 @@ from bev_mdo.mdo.flow import flow_by_waves  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros import coordinator_node, wire  # noqa: E402
 from bev_mdo.ros.evaluator import RosEvaluator  # noqa: E402
+from bev_mdo.ros.fastwait import until  # noqa: E402
 from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
 from bev_mdo.testing import leaf_config_file, ros_env  # noqa: E402
 
 BUILTINS = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]
 KILL_AT = (1, 3, 5)  # kill before the 1st, 3rd and 5th first-attempt request to the target
+KILL_AFTER = (1, 2, 3, 4, 5)  # kill right after each of the first 5 first-attempt requests (a run has 5)
+ROUNDS_AFTER = 4  # runs of those 5 kills each
 
 
 # This module's own ROS domain, in the 80-89 block of the fault tests (see test/conftest.py).
@@ -63,9 +68,10 @@ def reference(config_path):
 class Audit:
     """Wraps RosEvaluator._send/_on_result: injects kills and checks every accepted result."""
 
-    def __init__(self, config, launcher=None, target=None, kill_at=()):
+    def __init__(self, config, launcher=None, target=None, kill_at=(), after_send=False):
         self.local = {d.name: d for d in resolve_disciplines(config)}
         self.launcher, self.target, self.kill_at = launcher, target, set(kill_at)
+        self.after_send = after_send  # kill once the request is published (it is reaching the node)
         self.first_sends = 0
         self.kills = 0
         self.sent: dict[int, tuple[list[str], dict]] = {}  # evaluation id -> (disciplines, inputs)
@@ -92,8 +98,10 @@ class Audit:
                 if audit.target in names:
                     audit.first_sends += 1
                     if audit.first_sends in audit.kill_at:
+                        sent = orig_send(ev, p) if audit.after_send else None
                         audit.launcher.kill(audit.target)  # returns once the process is gone
                         audit.kills += 1
+                        return sent if audit.after_send else orig_send(ev, p)
             return orig_send(ev, p)
 
         def _on_result(ev, msg):
@@ -162,6 +170,34 @@ def test_sigkill_a_node_three_times_gives_the_same_optimum(rclpy_context, launch
     assert stats["dropped"].get("malformed", 0) == 0 and stats["dropped"].get("mismatched", 0) == 0
     # no other node died during this run (restarts of hung nodes by the watchdog aside)
     assert {n.label: n.restarts - n.hangs for n in launcher.nodes if n.label != target} == others0
+
+
+def test_sigkill_while_a_request_reaches_the_node_again_and_again(rclpy_context, launcher, config_path, reference,
+                                                                  monkeypatch):
+    """energy is SIGKILLed right after each request is published to it (20 times over 4 runs), so it
+    dies while the request reaches it, and every restart must answer again. With Fast DDS's
+    shared-memory transport carrying user data, some such restarts never received anything again:
+    the restarted participant reuses its predecessor's participant id, and so its shared-memory
+    port, removes the dead port's segment and creates a new one, while the other processes keep
+    writing into the removed one (eProsima/Fast-DDS#5053). The node stayed on the ROS graph, so no
+    watchdog saw it, and the run lost that discipline for good. bev_mdo's profile therefore sends
+    user data over UDP; this test fails with the shared-memory profile (docs/security.md)."""
+    config = load_config(config_path)
+    for _ in range(ROUNDS_AFTER):
+        audit = Audit(config, launcher, "energy", KILL_AFTER, after_send=True)
+        audit.install(monkeypatch)
+        restarts0 = launcher.node("energy").restarts - launcher.node("energy").hangs
+        res, stats = coordinator_node.run(config, context=rclpy_context)
+        monkeypatch.undo()  # the next round wraps the original methods again
+        assert audit.kills == len(KILL_AFTER), f"only {audit.first_sends} requests went to energy"
+        # the last kill may come after energy answered, so the run need not wait for that restart
+        assert until(lambda: launcher.node("energy").restarts - launcher.node("energy").hangs - restarts0
+                     == len(KILL_AFTER), 30.0, lambda: time.sleep(0.02))
+        _assert_same_optimum(res, reference)
+        (ev,) = audit.evaluators
+        keys = [(a[0], a[1]) for a in ev.accepted]
+        assert len(keys) == len(set(keys)) == audit.expected == audit.checked
+        assert not ev._pending
 
 
 def test_undisturbed_run_is_audited_too(rclpy_context, launcher, config_path, reference, monkeypatch):
