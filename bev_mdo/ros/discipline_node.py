@@ -201,8 +201,9 @@ class DisciplineNode(Node):
         # get them by a direct call after the publish, and sources in this process are not read from DDS.
         self.local_consumers: list[DisciplineNode] = []
         self.local_sources: set[str] = set()
-        # Composed beside the coordinator (composed.Beside): results go to it by direct call when no
-        # reader but the in-process ones (local_readers: writer id -> their number) has matched the topic.
+        # Composed beside the coordinator (composed.Beside): an answer goes to it by direct call, as the
+        # discipline's EvalResult (RosEvaluator.on_local), when no reader but the in-process ones
+        # (local_readers: writer id -> their number) has matched the topic (_direct).
         self.local_coordinator = None
         self.local_readers: dict[int, int] = {}
         self._publish_info()
