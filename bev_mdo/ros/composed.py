@@ -169,6 +169,8 @@ class Beside:
             if not (req.run_id and len(req.run_id) <= 128 and req.run_id.isprintable()
                     and all(node.unbound(req) is None for node in nodes)):
                 return False
+            if len(self._bound) > 256:  # a run has a handful of tags; sub-runs and probes add a few
+                self._bound.clear()
             self._bound.add(bound)
         n = int(req.inputs.batch_size)
         try:
