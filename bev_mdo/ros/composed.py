@@ -138,9 +138,10 @@ class Beside:
             return False
         if request.flow and self._flow(request):
             return True
-        for node, handle in local:
+        for _node, handle in local:
             handle(request, local=True)
-            node.publish_stats()
+        for node in self.nodes:  # the consumers' too (they answered by link_local's direct calls)
+            node.publish_stats()  # rate-limited
         return True
 
     def _flow(self, req) -> bool:

@@ -446,8 +446,11 @@ def test_a_whole_mda_in_one_call_keeps_the_ledger_the_counts_and_the_node_stats(
     built = _count_result_messages(monkeypatch)
     nodes0 = {nd.discipline_name: Counter(nd.counts) for nd in beside.nodes}
     counts0, kept, eid = Counter(ev.counts), len(ev.accepted), ev.ledger.next_id
+    time.sleep(0.15)  # past the node stats' rate limit (0.1 s), so this MDA's counters are published
     got = ev.evaluate_flow(ORDER, request, n, partials=True)
     want = ref.evaluate_flow(ORDER, request, n, partials=True)
+    assert {nd.discipline_name: nd._stats_sent for nd in beside.nodes} == {
+        nd.discipline_name: dict(nd.counts) for nd in beside.nodes}
     assert whole == [True] and built == [0] and writes == dict.fromkeys(BUILTINS, 0), (whole, built, writes)
     assert calls == dict.fromkeys(calls, 0), calls
     for d in ORDER:
@@ -527,6 +530,7 @@ def test_a_discipline_that_raises_in_the_direct_flow_is_rejected_by_its_node(rea
     whole = _spy_whole_mdas(monkeypatch, beside)
     n = 5
     request = _points(n, 3)
+    time.sleep(0.15)  # past the node stats' rate limit (0.1 s), so this MDA's counters are published
     got = ev.evaluate_flow(ORDER, request, n)
     want = ref.evaluate_flow([d for d in ORDER if d != "cost"], request, n)
     assert whole == [False]
@@ -538,3 +542,6 @@ def test_a_discipline_that_raises_in_the_direct_flow_is_rejected_by_its_node(rea
         assert got[d].ok.tobytes() == want[d].ok.tobytes(), d
     assert not ev.dropped and ev.retried == 0 and not ev._pending, dict(ev.dropped)
     assert writes == dict.fromkeys(BUILTINS, 0), writes
+    # every node's counters were published (node stats, `bev-mdo status`), the consumers' too
+    assert {nd.discipline_name: nd._stats_sent for nd in beside.nodes} == {
+        nd.discipline_name: dict(nd.counts) for nd in beside.nodes}
