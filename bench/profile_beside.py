@@ -114,7 +114,7 @@ def one(signing: bool, domain: int, n: int, top: int, tmp: Path) -> dict:
                            "verify_request", "verify_result", "sign_request", "sign_result", "publish",
                            "get_subscription_count", "run_discipline", "_on_result", "_on_request",
                            "_on_mda_request", "_on_source_result", "wait", "take_ready", "stamp", "batch",
-                           "from_named_array", "_for_me", "match", "settle"):
+                           "from_named_array", "_for_me", "match", "settle", "on_local", "_flow"):
                 ncalls[f"{Path(func[0]).name}:{func[2]}"] = {"per_mda": round(nc / n, 2),
                                                              "own_us_per_mda": round(tt / n * 1e6, 1),
                                                              "cum_us_per_mda": round(ct / n * 1e6, 1)}

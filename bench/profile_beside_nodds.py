@@ -5,7 +5,7 @@ design against the in-process evaluator (p10 over N MDAs, three rounds). It reac
 classes' internals (it sets the attributes their __init__ would), so it follows their changes.
 No ROS lock needed (no participant is created).
 
-  . scripts/env.sh && python bench/profile_beside_nodds.py [N] [prof] [micro]
+  . scripts/env.sh && python bench/profile_beside_nodds.py [N] [prof]
   (HARNESS_REPO=<a copy of the tree> to time another version)
 """
 import sys, time, os, cProfile, pstats
@@ -109,6 +109,9 @@ for nd in nodes:
 beside = Beside.__new__(Beside)
 beside.nodes = nodes
 beside._pairs, beside._evaluator = [], None
+if hasattr(Beside, "_flow"):  # the whole-MDA direct path (issue 18, branch i18e)
+    beside._engine = InProcessEvaluator(nd.discipline for nd in nodes)
+    beside._flows, beside._bound = {}, set()
 for nd in nodes:
     nd.hot_subscriptions = lambda: []
 beside.attach(ev)
@@ -137,50 +140,3 @@ if "prof" in sys.argv:
     for _ in range(N): form.analyse(x)
     pr.disable()
     pstats.Stats(pr).sort_stats("tottime").print_stats(35)
-
-if "micro" in sys.argv:
-    import timeit
-    from bev_mdo.ros import wire
-    cap = {}
-    real = ev._on_result
-    def grab(msg, local=False):
-        cap.setdefault(msg.discipline, msg)
-        return real(msg, local=local)
-    for nd in nodes:
-        nd.local_coordinator = lambda m, local=True: grab(m, local)
-    form.analyse(x)
-    def T(label, f, k=20000):
-        t = min(timeit.repeat(f, number=k, repeat=5)) / k * 1e6
-        print(f"{label:50s} {t:7.2f} us")
-    eng = nodes[1]
-    msg = cap["energy"]
-    T("wire.Result()", wire.Result)
-    T("wire.Request()", lambda: wire.Request("r", 1, "", flow=names))
-    T("wire.batch(4 cols)", lambda: wire.batch({"a": x[0][:1], "b": x[0][:1], "c": x[0][:1], "d": x[0][:1]}))
-    T("from_named_array", lambda: wire.from_named_array(msg.outputs))
-    T("node._for_me", lambda: eng._for_me(msg))
-    T("node.publish_stats", lambda: eng.publish_stats())
-    T("node._fill_header", lambda: eng._fill_header(wire.Result(), msg))
-    T("put_point_errors", lambda: wire.put_point_errors(msg, {}))
-    T("point_errors_of", lambda: wire.point_errors_of(msg, 1))
-    from bev_mdo.mdo.discipline import run_discipline, all_finite
-    from bev_mdo.ros.common import stamp
-    T("stamp", lambda: stamp(msg.header))
-    T("all_finite(1)", lambda: all_finite([msg.point_ok]))
-    req = {"motor_kw": np.array([80.0]), "battery_kwh": np.array([40.0]), "gear_ratio": np.array([8.0])}
-    vm = nodes[0]
-    T("run_discipline(vehicle_mass)", lambda: run_discipline(vm.discipline, req))
-    T("vm.discipline.compute", lambda: vm.discipline.compute(req))
-    def on_result():
-        ev._pending[(msg.evaluation_id, msg.discipline)] = P
-        ev.ledger.answered.discard((msg.evaluation_id, msg.discipline))
-        ev._on_result(msg, local=True)
-    from bev_mdo.ros.evaluator import _Pending
-    P = _Pending(0, "energy", wire.Request("harness", msg.evaluation_id, ""), 1, 0, flow=True)
-    P.request.header.frame_id = msg.header.frame_id
-    T("ev._on_result(local)", on_result)
-    T("ledger pending set+discard only", lambda: (ev._pending.__setitem__((msg.evaluation_id, msg.discipline), P), ev.ledger.answered.discard(1)))
-    T("publisher-count fake", lambda: eng._mda_pub.get_subscription_count())
-    T("flow.rows_evaluated", lambda: flow.rows_evaluated(eng.source_of, {"vehicle_mass": ({}, np.ones(1, bool))}, 1))
-    T("form.analyse in-process", lambda: ref.analyse(x), 2000)
-

@@ -14,7 +14,6 @@ The launcher's ``--compose all|none|GROUPS`` starts these (launch.py: composed_a
 """
 from __future__ import annotations
 
-import functools
 import sys
 
 import rclpy
@@ -23,6 +22,10 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rcl_interfaces.msg import ParameterDescriptor
 
+from bev_mdo.mdo.discipline import DisciplineError
+from bev_mdo.mdo.evaluator import InProcessEvaluator
+from bev_mdo.mdo.vectors import ShapeError
+from bev_mdo.ros import wire
 from bev_mdo.ros.discipline_node import DisciplineNode
 from bev_mdo.ros.fastwait import MultiWaiter
 
@@ -72,20 +75,25 @@ class Beside:
     Messages between the coordinator and these nodes go as rclcpp's intra-process communication
     does: by direct call when no reader outside this process has matched the topic, else published
     (and then taken from DDS as usual), so a recorder or any other reader gets every message it
-    gets with any other layout. A request goes to the nodes' handlers (``local_requests``); a result
-    to the coordinator's ``_on_result``; data flow between the nodes goes by direct call always
-    (``link_local``). With nobody else listening an MDA then costs no DDS write at all.
+    gets with any other layout. A request goes to the nodes' handlers (``local_requests``); data
+    flow between the nodes goes by direct call always (``link_local``). With nobody else listening
+    an MDA then costs no DDS write at all.
 
-    A direct call hands over the message object with its numpy columns (``wire.batch`` keeps them;
-    nothing is concatenated, sliced or copied for the hand-over), never encoded to CDR, decoded,
-    signed or verified: those handlers get ``local=True``. Kept on that path, as for a received
-    message: run id, binding tag (fingerprints, a pool's target), evaluation id against the
-    coordinator's ledger (stale, duplicate, mismatched), discipline, batch size and column shapes,
-    point flags against non-finite outputs, per-point errors, the data-flow join's checks. Dropped
-    there, because they exist only against forgery or a corrupted wire and nothing outside this
-    process can make the call: the HMAC signature with its freshness and replay window, and the
-    codec's checks of undecodable bytes and variable names. A message that is published (a reader
-    outside matched its topic) is encoded, signed and verified exactly as in every other layout.
+    A direct call never encodes, decodes, signs or verifies. A request is handed over as the message
+    object with its numpy columns (``wire.batch`` keeps them). A result is not a message at all: a
+    node hands the coordinator its ``run_discipline`` result (``DisciplineNode._direct``,
+    ``RosEvaluator.on_local``), checked once, taken as the in-process evaluator takes it. And when
+    every discipline of a data-flow MDA is a node here and none of their result topics has an
+    outside reader, the whole MDA is one call into the in-process evaluator's flow engine
+    (``_flow``): no result message is built, none is checked twice. Kept on these paths: run id,
+    binding tag (fingerprints, a pool's target), evaluation id, discipline and binding against the
+    coordinator's ledger (stale, duplicate, mismatched), ``run_discipline``'s checks (inputs, output
+    shapes, non-finite points named), the data-flow rule. Dropped, because they exist only against
+    forgery or a corrupted wire and nothing outside this process can make the call: the HMAC
+    signature with its freshness and replay window, the codec's checks of undecodable bytes and
+    variable names, and the receiver's second check of a result's shapes, flags and point errors.
+    A message that is published (a reader outside matched its topic) is encoded, signed, verified
+    and checked field by field exactly as in every other layout.
 
     Not served: the nodes' parameter services (no executor spins them) and requests from another
     process's coordinator while this one is not evaluating (the nodes are served only inside the
@@ -96,6 +104,10 @@ class Beside:
         link_local(self.nodes)
         self._pairs: list = []
         self._evaluator = None
+        # a whole data-flow MDA by one call (_flow): the flow engine over the nodes' disciplines
+        self._engine = InProcessEvaluator(node.discipline for node in self.nodes)
+        self._flows: dict[tuple, list] = {}    # the MDA's disciplines -> their nodes ([]: not all here)
+        self._bound: set[tuple[str, str]] = set()  # (run id, tag) every node checked as its own
 
     def attach(self, evaluator) -> None:
         """Serve the nodes from `evaluator`'s waits and hand their results to it (one at a time)."""
@@ -105,7 +117,7 @@ class Beside:
             # the in-process readers of its result topics: the coordinator's, and the subscriptions of
             # the consumers composed with it (kept in the graph, not read: link_local)
             node.local_readers = {id(node._mda_pub): 1 + len(node.local_consumers), id(node._result_pub): 1}
-            node.local_coordinator = functools.partial(evaluator._on_result, local=True)
+            node.local_coordinator = evaluator.on_local
             for sub, handle in node.hot_subscriptions():
                 self._pairs.append((sub, self._with_stats(node, handle)))
         evaluator._hot.extend(self._pairs)
@@ -124,8 +136,58 @@ class Beside:
             local = self._by_pub[id(pub)] = self._local.get(pub.topic_name, [])
         if not local or pub.get_subscription_count() > len(local):
             return False
-        for node, handle in local:
+        if request.flow and self._flow(request):
+            return True
+        for _node, handle in local:
             handle(request, local=True)
+        for node in self.nodes:  # the consumers' too (they answered by link_local's direct calls)
+            node.publish_stats()  # rate-limited
+        return True
+
+    def _flow(self, req) -> bool:
+        """A whole data-flow MDA in one call, when every discipline of it is a node here and no
+        reader outside this process matched any of their result topics: the MDA is evaluated by
+        the in-process evaluator's flow engine (InProcessEvaluator.evaluate_flow, mdo/flow.py: the
+        rule each node applies with its sources' results) over the nodes' own discipline objects,
+        and each node's result goes to the coordinator as an EvalResult (``on_local``), as the
+        nodes would hand it one by one, with the nodes' counters moved as theirs. Every node's
+        binding check (run, fingerprint in the request's tag) is made once per run and tag.
+        False (the nodes then take the request one by one, as messages) when any of it does not
+        hold, or when a discipline raises what a node would answer with a rejection."""
+        names = tuple(req.flow)
+        nodes = self._flows.get(names)
+        if nodes is None:
+            by_name = {node.discipline_name: node for node in self.nodes}
+            nodes = self._flows[names] = [by_name[d] for d in names] if set(names) <= set(by_name) else []
+        if not nodes:
+            return False
+        for node in nodes:
+            w = node._mda_pub
+            if w.get_subscription_count() > node.local_readers.get(id(w), 0):
+                return False
+        bound = (req.run_id, req.header.frame_id)
+        if bound not in self._bound:
+            if not (req.run_id and len(req.run_id) <= 128 and req.run_id.isprintable()
+                    and all(node.unbound(req) is None for node in nodes)):
+                return False
+            if len(self._bound) > 256:  # a run has a handful of tags; sub-runs and probes add a few
+                self._bound.clear()
+            self._bound.add(bound)
+        n = int(req.inputs.batch_size)
+        try:
+            got = self._engine.evaluate_flow(names, wire.from_named_array(req.inputs), n, bool(req.partials))
+        except (ShapeError, DisciplineError, KeyError, wire.WireError):
+            return False
+        if got is None:
+            return False
+        hand = self._evaluator.on_local
+        for node in nodes:
+            res = got[node.discipline_name]
+            node.counts["received"] += 1
+            if res.error:
+                node.get_logger().warning(res.error[:500], throttle_duration_sec=2.0)
+            node._answered(res)
+            hand(req, node.discipline_name, node.instance, res)
             node.publish_stats()
         return True
 

@@ -201,8 +201,9 @@ class DisciplineNode(Node):
         # get them by a direct call after the publish, and sources in this process are not read from DDS.
         self.local_consumers: list[DisciplineNode] = []
         self.local_sources: set[str] = set()
-        # Composed beside the coordinator (composed.Beside): results go to it by direct call when no
-        # reader but the in-process ones (local_readers: writer id -> their number) has matched the topic.
+        # Composed beside the coordinator (composed.Beside): an answer goes to it by direct call, as the
+        # discipline's EvalResult (RosEvaluator.on_local), when no reader but the in-process ones
+        # (local_readers: writer id -> their number) has matched the topic (_direct).
         self.local_coordinator = None
         self.local_readers: dict[int, int] = {}
         self._publish_info()
@@ -293,23 +294,37 @@ class DisciplineNode(Node):
             f"rejected request (run {req.run_id[:40]!r}, eval {req.evaluation_id}): {why[:200]} "
             f"[{self.counts['rejected']} rejected so far; this log is rate-limited]", throttle_duration_sec=2.0
         )
+        error = f"{self.discipline_name}: rejected: {why}"[:1000]
+        writer = pub or self._result_pub
+        consumers = self.local_consumers if pub is self._mda_pub else ()
+        direct = self._direct(writer)
+        if direct:
+            self.local_coordinator(req, self.discipline_name, self.instance, None, error)
+            if not consumers:
+                return
         out = wire.Result()
         self._fill_header(out, req)
         out.status = _STATUS_REJECTED
-        out.error = f"{self.discipline_name}: rejected: {why}"[:1000]
+        out.error = error
         if pub is not None:  # data flow: consumers learn that there is nothing to wait for
             out.flow = list(req.flow)
-        self._publish(out, pub)
+        self._send_out(out, writer, direct, consumers)
 
-    def _publish(self, out: wire.Result, pub=None) -> None:
-        writer = pub or self._result_pub
-        if self.local_coordinator is None or writer.get_subscription_count() > self.local_readers.get(id(writer), 0):
+    def _direct(self, writer) -> bool:
+        """True when composed beside the coordinator (composed.Beside) and no reader outside this
+        process (``local_readers``: writer id -> their number) matched `writer`'s topic: the answer
+        then goes to the coordinator by a direct call (``local_coordinator``), as the discipline's
+        EvalResult, never as a message (nothing encoded, signed or even built for it)."""
+        return (self.local_coordinator is not None
+                and writer.get_subscription_count() <= self.local_readers.get(id(writer), 0))
+
+    def _send_out(self, out: wire.Result, writer, direct: bool, consumers) -> None:
+        """Publish `out` (signed with a key) unless the coordinator took the answer by direct call;
+        composed consumers (link_local) get it by direct call, without a DDS hop and a decode."""
+        if not direct:
             writer.publish(wire.encode_result(out) if self.signer is None else self.signer.sign_result(out))
-        else:  # composed beside the coordinator, nobody else reads the topic: the result by direct call,
-            self.local_coordinator(out)  # not encoded and not signed (it never leaves the process)
-        if pub is not None and pub is self._mda_pub:
-            for node in self.local_consumers:  # composed: the same result, without a DDS hop and a decode
-                node._on_source_result(self.discipline_name, out, local=True)
+        for node in consumers:
+            node._on_source_result(self.discipline_name, out, local=True)
 
     def _fill_header(self, out: wire.Result, req: wire.Request) -> None:
         stamp(out.header)
@@ -324,18 +339,23 @@ class DisciplineNode(Node):
         """True if `msg` belongs to a run this node serves and binds this node's own fingerprint
         (and, for a source's result, that source's too). Anything else is another run's or another
         configuration's traffic on the shared topics: ignored without an answer, counted."""
+        why = self.unbound(msg, source)
+        if why is None:
+            return True
+        self.counts[f"ignored.{why}"] += 1
+        return False
+
+    def unbound(self, msg, source: str | None = None) -> str | None:
+        """Why `msg` is not for this node (``other_run``, ``fingerprint``, ``other_instance``), or None."""
         if not binding.run_matches(self.bound_run, msg.run_id):
-            self.counts["ignored.other_run"] += 1
-            return False
+            return "other_run"
         want = _parse_tag(msg.header.frame_id)
         fp, target = binding.split_target(want.get(self.discipline_name, ""))
         if fp != self.fingerprint or (source is not None and source not in want):
-            self.counts["ignored.fingerprint"] += 1
-            return False
+            return "fingerprint"
         if target and target != self.instance.lstrip("/"):  # a pool's share for another instance
-            self.counts["ignored.other_instance"] += 1
-            return False
-        return True
+            return "other_instance"
+        return None
 
     def _on_request(self, req: wire.Request, local: bool = False) -> None:
         """A request; ``local``: handed over by direct call in this process (composed.Beside), so its
@@ -379,6 +399,13 @@ class DisciplineNode(Node):
     def _answer(self, req: wire.Request, result, pub=None, forward=None, flow_names=(), asked=False) -> None:
         if result.error:
             self.get_logger().warning(result.error[:500], throttle_duration_sec=2.0)
+        writer = pub or self._result_pub
+        consumers = self.local_consumers if pub is self._mda_pub else ()
+        direct = self._direct(writer)
+        if direct and not consumers:  # beside the coordinator, nobody else reads it: no message at all
+            self._answered(result)
+            self.local_coordinator(req, self.discipline_name, self.instance, result)
+            return
         out = wire.Result()
         self._fill_header(out, req)
         out.status = _STATUS_OK if result.ok.all() else _STATUS_ERROR
@@ -391,10 +418,16 @@ class DisciplineNode(Node):
         if asked:
             # a block of the batch size even without partials: downstream nodes learn it was asked
             out.partials = wire.partials_batch(result.extra.get("partials", {}), int(np.size(result.ok)))
+        self._answered(result)
+        if direct:
+            self.local_coordinator(req, self.discipline_name, self.instance, result)
+        self._send_out(out, writer, direct, consumers)
+
+    def _answered(self, result) -> None:
+        """Count an answer (node stats)."""
         self.counts["answered"] += 1
-        self.counts["points"] += int(out.point_ok.shape[0])
+        self.counts["points"] += int(np.size(result.ok))
         self.compute_s += float(result.compute_time_s or 0.0)
-        self._publish(out, pub)
 
     # -- data flow -----------------------------------------------------------------
     def _authentic(self, msg, kind: str) -> bool:

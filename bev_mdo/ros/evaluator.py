@@ -407,14 +407,13 @@ class RosEvaluator:
             return
         self._on_result(msg)
 
-    def _on_result(self, msg, local: bool = False) -> None:
-        """Accept a result (wire.Result or a generated EvaluationResult) or count why it was dropped.
-        ``local``: handed over by direct call in this process (composed.Beside), not received: its
-        signature is not checked (nothing outside the process can make that call); all else is."""
+    def _on_result(self, msg) -> None:
+        """Accept a received result (wire.Result or a generated EvaluationResult), every field
+        checked (signature, ledger, shapes, finiteness, point errors), or count why it was dropped."""
         if msg.run_id != self.run_id:  # another run's traffic on the shared topic, not an attack
             self.dropped["other_run"] += 1
             return
-        if self.signer is not None and not local:
+        if self.signer is not None:
             why = self.signer.verify_result(msg)
             if why is not None:
                 self.dropped[why] += 1
@@ -453,11 +452,37 @@ class RosEvaluator:
                     return
                 if part is not None:
                     res.extra["partials"] = {k: np.array(v) for k, v in part.items()}
+        self._accept(key, p, res, msg.instance)
+
+    def on_local(self, req, discipline: str, instance: str, res: EvalResult | None, error: str = "") -> None:
+        """A result handed over by a node composed into this process (composed.Beside), never a
+        message: the node's own `run_discipline` result (``res``; None: the node rejected the
+        request, ``error`` says why) for ``req``, the request (or a data-flow source's result) it
+        answers. Nothing outside the process can make this call, so only what concerns
+        correctness is checked: run id, and the ledger's match of evaluation id, discipline and
+        binding (stale, duplicate, mismatched are counted as for a received result); the result
+        was checked once, by run_discipline, and is taken as the in-process evaluator takes it."""
+        if req.run_id != self.run_id:
+            self.dropped["other_run"] += 1
+            return
+        key = (int(req.evaluation_id), discipline)
+        p = self.ledger.match(*key, req.header.frame_id)
+        if p is None:
+            return
+        if res is None:
+            res = self._failed(p, error or f"{discipline}: request rejected")
+        elif np.shape(res.ok) != (p.n,):  # a node's answer to other rows than the ledger's (a bug)
+            self.dropped["malformed"] += 1
+            return
+        self._accept(key, p, res, instance)
+
+    def _accept(self, key: tuple[int, str], p: _Pending, res: EvalResult, instance: str) -> None:
+        """Take `res` as the answer of the ledger entry `p` (`key`): counted, logged in `accepted`."""
         if res.error:
             self._first_error(p.discipline, res.error)
         if not p.flow:  # a data-flow MDA counts the rows each discipline evaluated at the end
             self.counts[p.discipline] += p.n
-        self.accepted.append((int(msg.evaluation_id), msg.discipline, msg.instance, int(p.request.attempt)))
+        self.accepted.append((key[0], key[1], instance, int(p.request.attempt)))
         self.ledger.settle(*key)
         if p.target:
             self._pool(p.discipline).record(p.target, p.n, (time.monotonic_ns() - p.sent_ns) * 1e-9)

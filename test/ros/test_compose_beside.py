@@ -108,6 +108,37 @@ def _spy_codec(monkeypatch) -> dict:
     return calls
 
 
+def _count_result_messages(monkeypatch) -> list:
+    """Count every result message built (wire.Result) in this process; returns [count], live."""
+    from bev_mdo.ros import wire
+
+    made = [0]
+    real = wire.Result
+
+    class Counted(real):
+        __slots__ = ()
+
+        def __init__(self):
+            made[0] += 1
+            super().__init__()
+
+    monkeypatch.setattr(wire, "Result", Counted)
+    return made
+
+
+def _spy_whole_mdas(monkeypatch, beside) -> list:
+    """Record what each Beside._flow call returned (True: the whole MDA in one call)."""
+    seen = []
+    real = beside._flow
+
+    def flow(req):
+        seen.append(real(req))
+        return seen[-1]
+
+    monkeypatch.setattr(beside, "_flow", flow)
+    return seen
+
+
 def test_direct_calls_skip_the_codec_and_signing_and_match_in_process_bit_for_bit(rclpy_context, config_path,
                                                                                 monkeypatch):
     """With nobody outside the process listening, a data-flow MDA and a wave of hub-and-spoke
@@ -138,13 +169,17 @@ def test_direct_calls_skip_the_codec_and_signing_and_match_in_process_bit_for_bi
         request["battery_kwh"][5] = -1.0
         order = ["vehicle_mass", "motor_speed", "cost", "energy", "acceleration", "range"]
         calls = _spy_codec(monkeypatch)
+        built = _count_result_messages(monkeypatch)
+        whole = _spy_whole_mdas(monkeypatch, beside)
         got = ev.evaluate_flow(order, request, n)
         assert got is not None and ev.flows >= 1
         want = ref.evaluate_flow(order, request, n)
+        assert whole == [True]  # one call into the flow engine for the whole MDA
         wave = [(d, {k: request[k] for k in ev.specs[d].inputs}) for d in ("vehicle_mass", "cost", "motor_speed")]
         got_wave = ev.evaluate(wave)
         want_wave = ref.evaluate(wave)
         assert calls == dict.fromkeys(calls, 0), calls  # nothing encoded, decoded, signed or verified
+        assert built == [0], built  # no result message was even built: each node handed its EvalResult
         assert not ev.dropped, dict(ev.dropped)
         for g, w in [*((got[d], want[d]) for d in order), *zip(got_wave, want_wave)]:
             assert sorted(g.outputs) == sorted(w.outputs)
@@ -192,7 +227,9 @@ def test_an_outside_reader_gets_signed_messages_and_the_same_answer(ros_domain, 
         ev = node.evaluator
         ev.wait_for_disciplines(BUILTINS, 60.0)
         ev.warm_up(BUILTINS)
+        whole = _spy_whole_mdas(monkeypatch, beside)
         direct = ev.evaluate_flow(order, request, 2)
+        assert whole == [True]
         subs = [probe.create_subscription(EvaluationRequest, MDA_REQUEST_TOPIC, requests.append, REQUEST_QOS,
                                           raw=True),
                 probe.create_subscription(EvaluationResult, mda_result_topic("energy"), results.append, RESULT_QOS,
@@ -206,6 +243,7 @@ def test_an_outside_reader_gets_signed_messages_and_the_same_answer(ros_domain, 
             time.sleep(0.02)
         calls = _spy_codec(monkeypatch)
         published = ev.evaluate_flow(order, request, 2)
+        assert whole == [True], whole  # the request was published: the message path, node by node
         assert not ev.dropped and ev.retried == 0, (dict(ev.dropped), ev.retried)
         for d in order:
             for k in direct[d].outputs:
@@ -262,10 +300,16 @@ def test_beside_publishes_while_an_outside_reader_listens(ros_domain, rclpy_cont
             time.sleep(0.02)
         from rclpy.executors import SingleThreadedExecutor
 
-        res, stats = coordinator_node.run(config, context=rclpy_context, run_id=run_id, beside=beside)
+        import pytest as _pytest
+
+        with _pytest.MonkeyPatch.context() as mp:
+            whole = _spy_whole_mdas(mp, beside)
+            res, stats = coordinator_node.run(config, context=rclpy_context, run_id=run_id, beside=beside)
         ref = _reference(config)
         assert res.objective == ref.objective and res.design == ref.design
         assert stats["retried"] == 0 and not stats["dropped"], stats
+        # energy's result topic has a reader outside: never the whole MDA in one call, node by node
+        assert whole and not any(whole), whole
         assert writes["energy"] > 0  # published: someone outside listens
         assert writes["cost"] == 0    # nobody outside reads cost's results: handed over directly
         assert energy.counts["answered"] > 0
@@ -345,3 +389,159 @@ def test_ros2_run_coordinator_node_with_compose_coordinator(ros_domain, config_p
     bad = subprocess.run(argv + ["-p", "compose:=all"], env=ros_env(ros_domain), cwd=tmp_path,
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "compose must be coordinator" in bad.stderr and "Traceback" not in bad.stderr
+
+
+ORDER = ["vehicle_mass", "motor_speed", "cost", "energy", "acceleration", "range"]
+
+
+@pytest.fixture
+def ready(rclpy_context, config_path, request):
+    """(config, Beside with every discipline, its coordinator's evaluator after the handshake)."""
+    from bev_mdo.ros.composed import Beside
+    from bev_mdo.ros.coordinator_node import CoordinatorNode
+
+    config = load_config(config_path)
+    run_id = f"b{request.node.name[-20:]}{os.getpid()}"
+    beside = Beside(config, BUILTINS, rclpy_context, run_id=run_id)
+    node = CoordinatorNode(config, run_id=run_id, context=rclpy_context, node_name=f"c_{request.node.name[5:40]}")
+    beside.attach(node.evaluator)
+    try:
+        node.evaluator.wait_for_disciplines(BUILTINS, 60.0)
+        node.evaluator.warm_up(BUILTINS)
+        yield config, beside, node.evaluator
+    finally:
+        beside.close()
+        node.evaluator.close()
+        node.destroy_node()
+
+
+def _points(n, seed):
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    request = {"motor_kw": rng.uniform(40, 160, n), "battery_kwh": rng.uniform(20, 90, n),
+               "gear_ratio": rng.uniform(5, 12, n)}
+    request["motor_kw"][1] = np.nan   # fails in vehicle_mass and cost, so in every consumer of vehicle_mass
+    request["battery_kwh"][4] = -1.0  # fails in vehicle_mass (and on)
+    return request
+
+
+def test_a_whole_mda_in_one_call_keeps_the_ledger_the_counts_and_the_node_stats(ready, monkeypatch):
+    """The whole data-flow MDA by one call (Beside._flow) with partials asked and failing points:
+    outputs, flags, point errors and partials are the in-process evaluator's bit for bit (signing
+    is on in this config: nothing signed); the coordinator's ledger accepted one answer per
+    discipline under the MDA's evaluation id (attempt 0, from the node's instance) and counted the
+    rows each discipline evaluated as the in-process evaluator counts them; every node's counters
+    moved as for an answer of its own; no result message was built and nothing was published."""
+    import numpy as np
+    from collections import Counter
+
+    config, beside, ev = ready
+    ref = InProcessEvaluator(resolve_disciplines(config))
+    n = 7
+    request = _points(n, 11)
+    writes = _count_publishes(beside.nodes)
+    calls = _spy_codec(monkeypatch)
+    whole = _spy_whole_mdas(monkeypatch, beside)
+    built = _count_result_messages(monkeypatch)
+    nodes0 = {nd.discipline_name: Counter(nd.counts) for nd in beside.nodes}
+    counts0, kept, eid = Counter(ev.counts), len(ev.accepted), ev.ledger.next_id
+    time.sleep(0.15)  # past the node stats' rate limit (0.1 s), so this MDA's counters are published
+    got = ev.evaluate_flow(ORDER, request, n, partials=True)
+    want = ref.evaluate_flow(ORDER, request, n, partials=True)
+    assert {nd.discipline_name: nd._stats_sent for nd in beside.nodes} == {
+        nd.discipline_name: dict(nd.counts) for nd in beside.nodes}
+    assert whole == [True] and built == [0] and writes == dict.fromkeys(BUILTINS, 0), (whole, built, writes)
+    assert calls == dict.fromkeys(calls, 0), calls
+    for d in ORDER:
+        g, w = got[d], want[d]
+        assert sorted(g.outputs) == sorted(w.outputs), d
+        for k in w.outputs:
+            assert g.outputs[k].tobytes() == np.asarray(w.outputs[k], dtype=float).tobytes(), (d, k)
+        assert g.ok.tobytes() == w.ok.tobytes(), d
+        assert {i: e.reason for i, e in g.point_errors.items()} == {i: e.reason for i, e in w.point_errors.items()}
+        gp, wp = g.extra.get("partials", {}), w.extra.get("partials", {})
+        assert sorted(gp) == sorted(wp), d
+        assert all(gp[k].tobytes() == wp[k].tobytes() for k in wp), d
+    assert any(got["vehicle_mass"].extra.get("partials", {}))  # partials did come back
+    assert not got["range"].ok[1] and not got["range"].ok[4] and got["range"].ok[0]
+    instance = {nd.discipline_name: nd.instance for nd in beside.nodes}
+    assert sorted(ev.accepted[kept:]) == sorted((eid, d, instance[d], 0) for d in ORDER)
+    assert not ev._pending and not ev.dropped and ev.retried == 0
+    assert {d: ev.counts[d] - counts0[d] for d in ORDER} == {d: ref.counts[d] for d in ORDER}
+    for nd in beside.nodes:
+        moved = Counter(nd.counts)
+        moved.subtract(nodes0[nd.discipline_name])
+        assert +moved == Counter(received=1, answered=1, points=n), (nd.discipline_name, dict(moved))
+
+
+def test_direct_answers_go_through_the_ledger(ready, monkeypatch):
+    """An EvalResult handed over by direct call (RosEvaluator.on_local) is matched by the ledger
+    like a received result: a second hand-over is a duplicate, another run's is other_run, an
+    unknown evaluation id is stale, another binding is a fingerprint mismatch, a result of other
+    rows than the request's is malformed; none of them is accepted."""
+    from bev_mdo.ros import wire
+    from bev_mdo.ros.evaluator import _Pending
+
+    _config, beside, ev = ready
+    seen = []
+    real = beside._flow
+    monkeypatch.setattr(beside, "_flow", lambda req: seen.append(req) or real(req))
+    got = ev.evaluate_flow(ORDER, _points(5, 5), 5)
+    req = seen[-1]
+    energy = next(nd for nd in beside.nodes if nd.discipline_name == "energy")
+    kept = len(ev.accepted)
+    ev.on_local(req, "energy", energy.instance, got["energy"])
+    other = wire.Request("another_run", req.evaluation_id, "")
+    other.header.frame_id = req.header.frame_id
+    ev.on_local(other, "energy", energy.instance, got["energy"])
+    unknown = wire.Request(ev.run_id, 10 ** 9, "")
+    unknown.header.frame_id = req.header.frame_id
+    ev.on_local(unknown, "energy", energy.instance, got["energy"])
+    eid = ev.ledger.new_id()
+    mine = wire.Request(ev.run_id, eid, "energy")
+    mine.header.frame_id = ev._tag(["energy"])
+    ev.ledger.open(eid, "energy", _Pending(0, "energy", mine, 5, 0))
+    foreign = wire.Request(ev.run_id, eid, "energy")
+    foreign.header.frame_id = mine.header.frame_id.replace(energy.fingerprint, "0" * len(energy.fingerprint))
+    assert foreign.header.frame_id != mine.header.frame_id
+    ev.on_local(foreign, "energy", energy.instance, got["energy"])
+    ev.on_local(mine, "energy", energy.instance, ev._failed(_Pending(0, "energy", None, 2, 0), "two rows"))
+    assert dict(ev.dropped) == {"duplicate": 1, "other_run": 1, "stale": 1, "fingerprint": 1, "malformed": 1}
+    assert len(ev.accepted) == kept and (eid, "energy") in ev._pending
+    ev.on_local(mine, "energy", energy.instance, None, "energy: rejected: by hand")  # a rejection: its rows fail
+    assert ev.accepted[-1] == (eid, "energy", energy.instance, 0) and not ev._pending
+    assert ev._results[0].error == "energy: rejected: by hand" and not ev._results[0].ok.any()
+
+
+def test_a_discipline_that_raises_in_the_direct_flow_is_rejected_by_its_node(ready, monkeypatch):
+    """A discipline returning an output of the wrong shape (ShapeError, a wiring mistake) makes the
+    whole-MDA call give up; the nodes then take the request one by one, as messages, and its node
+    rejects it, named, handed to the coordinator as its error: that discipline's points fail, the
+    others are the in-process ones, nothing is dropped or re-sent, nothing published."""
+    import numpy as np
+
+    config, beside, ev = ready
+    cost = next(nd for nd in beside.nodes if nd.discipline_name == "cost")
+    monkeypatch.setattr(cost.discipline, "compute",
+                        lambda batch: {"powertrain_cost_usd": np.zeros(len(next(iter(batch.values()))) + 1)})
+    ref = InProcessEvaluator(resolve_disciplines(config))
+    writes = _count_publishes(beside.nodes)
+    whole = _spy_whole_mdas(monkeypatch, beside)
+    n = 5
+    request = _points(n, 3)
+    time.sleep(0.15)  # past the node stats' rate limit (0.1 s), so this MDA's counters are published
+    got = ev.evaluate_flow(ORDER, request, n)
+    want = ref.evaluate_flow([d for d in ORDER if d != "cost"], request, n)
+    assert whole == [False]
+    assert not got["cost"].ok.any() and "cost: rejected" in got["cost"].error, got["cost"].error
+    assert cost.counts["rejected.bad_discipline_output"] == 1
+    for d in want:
+        for k in want[d].outputs:
+            assert got[d].outputs[k].tobytes() == want[d].outputs[k].tobytes(), (d, k)
+        assert got[d].ok.tobytes() == want[d].ok.tobytes(), d
+    assert not ev.dropped and ev.retried == 0 and not ev._pending, dict(ev.dropped)
+    assert writes == dict.fromkeys(BUILTINS, 0), writes
+    # every node's counters were published (node stats, `bev-mdo status`), the consumers' too
+    assert {nd.discipline_name: nd._stats_sent for nd in beside.nodes} == {
+        nd.discipline_name: dict(nd.counts) for nd in beside.nodes}
