@@ -46,7 +46,8 @@ def config_path(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def launcher(ros_domain, config_path, tmp_path_factory):
-    la = Launcher(ros_env(ros_domain), log_dir=tmp_path_factory.mktemp("logs"))
+    # 6 x 3 kills, 20 more of energy, and any hang restarts: beyond the default limit of 20 per node
+    la = Launcher(ros_env(ros_domain), log_dir=tmp_path_factory.mktemp("logs"), max_restarts=100)
     try:
         for name in BUILTINS:
             la.add(name, discipline_argv(name, config_path))
