@@ -195,6 +195,7 @@ class Joined:
     sources: dict[str, str]          # coupling input -> its source, in this MDA
     n: int
     extras: dict[str, Any]           # source -> what the transport attached to its result
+    rejected: tuple[str, ...] = ()   # sources that rejected the request (evaluated nothing)
 
 
 class FlowJoin:
@@ -227,7 +228,7 @@ class FlowJoin:
             if ok.shape != (n,) or any(v not in columns for v in self._coupling_of.get(source, ())) or any(
                     (c.shape if type(c) is np.ndarray else np.shape(c)) != (n,) for c in columns.values()):
                 raise FlowError(f"result of {source!r} misses a coupling column or has rows of another size")
-        got = {**self._got.get(key, {}), source: (columns, ok, extra)}
+        got = {**self._got.get(key, {}), source: (columns, ok, extra, rejected)}
         self._got[key] = got
         self._got.move_to_end(key)
         while len(self._got) > self.keep:
@@ -236,15 +237,16 @@ class FlowJoin:
         if any(s not in got for s in sources.values()):
             return None
         del self._got[key]
-        sizes = {o.size for _, o, _ in got.values() if o.size}
+        sizes = {o.size for _, o, _, _ in got.values() if o.size}
         if len(sizes) > 1:
             raise SourcesDisagree("sources answered different numbers of points")
         n = sizes.pop() if sizes else 0
         request: dict[str, np.ndarray] = {}
-        for s, (cols, _, _) in got.items():  # the request's columns, forwarded by each source
+        for s, (cols, _, _, _) in got.items():  # the request's columns, forwarded by each source
             request.update({k: v for k, v in cols.items() if k not in self.outputs_of.get(s, ())})
-        up = {s: (cols, o if o.size else np.zeros(n, bool)) for s, (cols, o, _) in got.items()}
-        return Joined(request, up, sources, n, {s: x for s, (_, _, x) in got.items()})
+        up = {s: (cols, o if o.size else np.zeros(n, bool)) for s, (cols, o, _, _) in got.items()}
+        return Joined(request, up, sources, n, {s: x for s, (_, _, x, _) in got.items()},
+                      tuple(sorted(s for s, (_, _, _, r) in got.items() if r)))
 
     def __len__(self) -> int:
         return len(self._got)

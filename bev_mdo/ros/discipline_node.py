@@ -492,6 +492,11 @@ class DisciplineNode(Node):
         if joined is None:
             return
         self.counts["received"] += 1
+        if joined.rejected:  # no row to evaluate, and this node cannot know how many the request had:
+            # rejected too, named, so the coordinator fails this discipline's rows at once (as in
+            # process, where every row downstream of a rejected discipline fails), not at its timeout
+            return self._reject(msg, f"source {', '.join(joined.rejected)} rejected the request",
+                                "source_rejected", self._mda_pub)
         # partials were asked for the MDA when a source's result carries a partials block of its size
         n = joined.n
         asked = n > 0 and any(int(m.partials.batch_size) == n for m in joined.extras.values())

@@ -175,6 +175,7 @@ def test_flow_join_refuses_malformed_results_and_sources_that_disagree():
     join.add(("r", 2), "s1", {}, np.zeros(0, bool), ["s1", "s2", "d"], rejected=True)
     got = join.add(("r", 2), "s2", {"b": np.ones(2)}, np.ones(2, bool), ["s1", "s2", "d"])
     assert got.n == 2 and not flow.source_rows(got.sources, got.up, 2).any()
+    assert got.rejected == ("s1",)  # named, so the consumer can reject too rather than answer no row
 
 
 def test_flow_join_forgets_the_oldest_unfinished_mda_beyond_its_size():

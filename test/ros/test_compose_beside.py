@@ -545,3 +545,34 @@ def test_a_discipline_that_raises_in_the_direct_flow_is_rejected_by_its_node(rea
     # every node's counters were published (node stats, `bev-mdo status`), the consumers' too
     assert {nd.discipline_name: nd._stats_sent for nd in beside.nodes} == {
         nd.discipline_name: dict(nd.counts) for nd in beside.nodes}
+
+
+def test_a_source_that_rejects_fails_its_consumers_at_once(ready, monkeypatch):
+    """vehicle_mass returns outputs of the wrong shape, so its node rejects the data-flow MDA; every
+    discipline downstream of it then rejects too, naming its rejected source, and the coordinator
+    fails their rows at once, as in process. Before, they answered with no row (they cannot know the
+    request's size from a rejection), which the coordinator dropped as malformed and waited for its
+    timeout, then re-sent. The disciplines that do not read vehicle_mass are the in-process ones."""
+    import numpy as np
+
+    config, beside, ev = ready
+    vm = next(nd for nd in beside.nodes if nd.discipline_name == "vehicle_mass")
+    monkeypatch.setattr(vm.discipline, "compute", lambda batch: {
+        k: np.zeros(len(next(iter(batch.values()))) + 1) for k in vm.discipline.outputs})
+    ref = InProcessEvaluator(resolve_disciplines(config))
+    n = 5
+    request = _points(n, 3)
+    got = ev.evaluate_flow(ORDER, request, n)
+    assert not got["vehicle_mass"].ok.any() and "vehicle_mass: rejected" in got["vehicle_mass"].error
+    failed = {d for d in ORDER if d != "vehicle_mass" and not got[d].ok.any()}
+    assert {"energy", "acceleration", "range"} <= failed, failed
+    for d in failed:
+        assert "rejected the request" in got[d].error, (d, got[d].error)
+    independent = [d for d in ORDER if d != "vehicle_mass" and d not in failed]
+    want = ref.evaluate_flow(independent, {k: v for k, v in request.items()
+                                           if any(k in ref.specs[d].inputs or k in ref.specs[d].parameters
+                                                  for d in independent)}, n)
+    for d in independent:
+        for k in want[d].outputs:
+            assert got[d].outputs[k].tobytes() == want[d].outputs[k].tobytes(), (d, k)
+    assert not ev.dropped and ev.retried == 0 and not ev._pending, dict(ev.dropped)
