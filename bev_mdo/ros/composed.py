@@ -26,7 +26,7 @@ from bev_mdo.mdo.discipline import DisciplineError
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 from bev_mdo.mdo.vectors import ShapeError
 from bev_mdo.ros import wire
-from bev_mdo.ros.discipline_node import DisciplineNode
+from bev_mdo.ros.discipline_node import DisciplineNode, valid_run_id
 from bev_mdo.ros.fastwait import MultiWaiter
 
 
@@ -167,8 +167,7 @@ class Beside:
                 return False
         bound = (req.run_id, req.header.frame_id)
         if bound not in self._bound:
-            if not (req.run_id and len(req.run_id) <= 128 and req.run_id.isprintable()
-                    and all(node.unbound(req) is None for node in nodes)):
+            if not (valid_run_id(req.run_id) and all(node.unbound(req) is None for node in nodes)):
                 return False
             if len(self._bound) > 256:  # a run has a handful of tags; sub-runs and probes add a few
                 self._bound.clear()
@@ -184,8 +183,6 @@ class Beside:
         for node in nodes:
             res = got[node.discipline_name]
             node.counts["received"] += 1
-            if res.error:
-                node.get_logger().warning(res.error[:500], throttle_duration_sec=2.0)
             node._answered(res)
             hand(req, node.discipline_name, node.instance, res)
             node.publish_stats()

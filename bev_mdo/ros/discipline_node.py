@@ -147,6 +147,11 @@ def _build(config: dict, name: str) -> tuple[Any, dict[str, str]]:
     return found[0], {v: d.name for d in every for v in d.outputs}
 
 
+def valid_run_id(run_id: str) -> bool:
+    """A run id a node serves: non-empty, printable, at most 128 characters."""
+    return bool(run_id) and len(run_id) <= 128 and run_id.isprintable()
+
+
 class DisciplineNode(Node):
     """Serves one discipline: request in, result out, per evaluation id."""
 
@@ -375,7 +380,7 @@ class DisciplineNode(Node):
                 return None
         if req.discipline != self.discipline_name:
             return self._reject(req, f"addressed to {req.discipline[:40]!r}", "wrong_discipline")
-        if not req.run_id or len(req.run_id) > 128 or not req.run_id.isprintable():
+        if not valid_run_id(req.run_id):
             return self._reject(req, "bad run id", "bad_run_id")
         try:
             inputs = wire.from_named_array(req.inputs)
@@ -397,15 +402,14 @@ class DisciplineNode(Node):
         self._answer(req, result, asked=bool(req.partials))
 
     def _answer(self, req: wire.Request, result, pub=None, forward=None, flow_names=(), asked=False) -> None:
-        if result.error:
-            self.get_logger().warning(result.error[:500], throttle_duration_sec=2.0)
+        self._answered(result)
         writer = pub or self._result_pub
         consumers = self.local_consumers if pub is self._mda_pub else ()
         direct = self._direct(writer)
-        if direct and not consumers:  # beside the coordinator, nobody else reads it: no message at all
-            self._answered(result)
+        if direct:
             self.local_coordinator(req, self.discipline_name, self.instance, result)
-            return
+            if not consumers:  # beside the coordinator, nobody else reads it: no message at all
+                return
         out = wire.Result()
         self._fill_header(out, req)
         out.status = _STATUS_OK if result.ok.all() else _STATUS_ERROR
@@ -418,13 +422,12 @@ class DisciplineNode(Node):
         if asked:
             # a block of the batch size even without partials: downstream nodes learn it was asked
             out.partials = wire.partials_batch(result.extra.get("partials", {}), int(np.size(result.ok)))
-        self._answered(result)
-        if direct:
-            self.local_coordinator(req, self.discipline_name, self.instance, result)
         self._send_out(out, writer, direct, consumers)
 
     def _answered(self, result) -> None:
-        """Count an answer (node stats)."""
+        """Log the discipline's error (rate-limited) and count an answer (node stats)."""
+        if result.error:
+            self.get_logger().warning(result.error[:500], throttle_duration_sec=2.0)
         self.counts["answered"] += 1
         self.counts["points"] += int(np.size(result.ok))
         self.compute_s += float(result.compute_time_s or 0.0)
@@ -453,7 +456,7 @@ class DisciplineNode(Node):
         self.counts["received"] += 1
         if not local and not self._authentic(req, "request"):
             return None
-        if not req.run_id or len(req.run_id) > 128 or not req.run_id.isprintable():
+        if not valid_run_id(req.run_id):
             return self._reject(req, "bad run id", "bad_run_id", self._mda_pub)
         try:
             inputs = wire.from_named_array(req.inputs)
