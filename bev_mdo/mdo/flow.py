@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -198,6 +198,15 @@ class Joined:
     rejected: tuple[str, ...] = ()   # sources that rejected the request (evaluated nothing)
 
 
+class _Got(NamedTuple):
+    """One source's result kept by FlowJoin until the MDA's other sources answer."""
+
+    columns: Mapping[str, np.ndarray]
+    ok: np.ndarray
+    extra: Any
+    rejected: bool
+
+
 class FlowJoin:
     """The join of a discipline's sources' results, per data-flow MDA: wherever the results come
     from (the ROS nodes' mda_result topics, or direct calls in a composed process). Keeps at most
@@ -210,7 +219,7 @@ class FlowJoin:
         self._coupling_of: dict[str, list[str]] = {}  # source -> the coupling inputs it feeds (checked per result)
         for v, s in self.source_of.items():
             self._coupling_of.setdefault(s, []).append(v)
-        self._got: OrderedDict[Any, dict[str, tuple]] = OrderedDict()
+        self._got: OrderedDict[Any, dict[str, _Got]] = OrderedDict()
 
     def add(self, key: Any, source: str, columns: Mapping[str, np.ndarray], ok: np.ndarray,
             flow_names: Sequence[str], rejected: bool = False, extra: Any = None, n: int | None = None
@@ -228,7 +237,7 @@ class FlowJoin:
             if ok.shape != (n,) or any(v not in columns for v in self._coupling_of.get(source, ())) or any(
                     (c.shape if type(c) is np.ndarray else np.shape(c)) != (n,) for c in columns.values()):
                 raise FlowError(f"result of {source!r} misses a coupling column or has rows of another size")
-        got = {**self._got.get(key, {}), source: (columns, ok, extra, rejected)}
+        got = {**self._got.get(key, {}), source: _Got(columns, ok, extra, rejected)}
         self._got[key] = got
         self._got.move_to_end(key)
         while len(self._got) > self.keep:
@@ -237,16 +246,16 @@ class FlowJoin:
         if any(s not in got for s in sources.values()):
             return None
         del self._got[key]
-        sizes = {o.size for _, o, _, _ in got.values() if o.size}
+        sizes = {g.ok.size for g in got.values() if g.ok.size}
         if len(sizes) > 1:
             raise SourcesDisagree("sources answered different numbers of points")
         n = sizes.pop() if sizes else 0
         request: dict[str, np.ndarray] = {}
-        for s, (cols, _, _, _) in got.items():  # the request's columns, forwarded by each source
-            request.update({k: v for k, v in cols.items() if k not in self.outputs_of.get(s, ())})
-        up = {s: (cols, o if o.size else np.zeros(n, bool)) for s, (cols, o, _, _) in got.items()}
-        return Joined(request, up, sources, n, {s: x for s, (_, _, x, _) in got.items()},
-                      tuple(sorted(s for s, (_, _, _, r) in got.items() if r)))
+        for s, g in got.items():  # the request's columns, forwarded by each source
+            request.update({k: v for k, v in g.columns.items() if k not in self.outputs_of.get(s, ())})
+        up = {s: (g.columns, g.ok if g.ok.size else np.zeros(n, bool)) for s, g in got.items()}
+        return Joined(request, up, sources, n, {s: g.extra for s, g in got.items()},
+                      tuple(sorted(s for s, g in got.items() if g.rejected)))
 
     def __len__(self) -> int:
         return len(self._got)
