@@ -10,6 +10,7 @@ discipline are in flight; the depths below leave two orders of magnitude of marg
 from __future__ import annotations
 
 import time
+from typing import Callable, Iterable
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -59,3 +60,23 @@ def stamp(header, t_ns: int | None = None) -> None:
     t_ns = now_ns() if t_ns is None else t_ns
     header.stamp.sec = t_ns // 1_000_000_000
     header.stamp.nanosec = t_ns % 1_000_000_000
+
+
+def wait_acked(publishers: Iterable, wait_s: float, give_up: Callable[[], bool] | None = None,
+               slice_s: float = 0.05) -> list:
+    """Wait until every reader acknowledged what each publisher sent; returns the publishers still
+    waiting (empty: all acknowledged). A RELIABLE sample that is not acknowledged is lost if its
+    publisher goes away. The wait is taken in ``slice_s`` slices (other threads keep running), ends
+    for a publisher as soon as it has no matched reader, and stops after ``wait_s`` or at once when
+    ``give_up()`` says no reader that matters is alive (a killed reader stays matched until its lease
+    expires)."""
+    from rclpy.duration import Duration
+
+    pending = list(publishers)
+    deadline = time.monotonic() + wait_s
+    while pending:
+        pending = [p for p in pending if p.get_subscription_count() > 0
+                   and not p.wait_for_all_acked(Duration(nanoseconds=int(slice_s * 1e9)))]
+        if pending and ((give_up is not None and give_up()) or time.monotonic() > deadline):
+            break
+    return pending

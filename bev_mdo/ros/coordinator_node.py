@@ -18,7 +18,7 @@ from rclpy.node import Node
 from rcl_interfaces.msg import ParameterDescriptor
 
 from bev_mdo.ros import wire
-from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, stamp
+from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, stamp, wait_acked
 from bev_mdo.ros.evaluator import RosEvaluator
 from bev_mdo.ros.fastwait import until
 from bev_mdo.ros.settings import validate_ros
@@ -71,20 +71,11 @@ class CoordinatorNode(Node):
         or at once when `give_up()` says no reader that matters is alive (the launcher saw the
         recorder die: waiting for its lease to expire would only stall the end of the run).
         """
-        from rclpy.duration import Duration
-
-        pending = [self._iteration_pub, *self.evaluator.request_publishers]
-        deadline = time.monotonic() + wait_s
-        while pending:
-            pending = [p for p in pending if p.get_subscription_count() > 0
-                       and not p.wait_for_all_acked(Duration(nanoseconds=int(slice_s * 1e9)))]
-            if pending and give_up is not None and give_up():
-                return False
-            if pending and time.monotonic() > deadline:
-                self.get_logger().warning(f"not acknowledged within {wait_s:g} s on "
-                                          f"{sorted(p.topic_name for p in pending)}")
-                return False
-        return True
+        pending = wait_acked([self._iteration_pub, *self.evaluator.request_publishers], wait_s, give_up, slice_s)
+        if pending and not (give_up is not None and give_up()):
+            self.get_logger().warning(f"not acknowledged within {wait_s:g} s on "
+                                      f"{sorted(p.topic_name for p in pending)}")
+        return not pending
 
     def wait_for_recorder(self, n: int, wait_s: float) -> None:
         """Wait until `n` recorders subscribed to the iteration and result topics (and the data-flow

@@ -4,13 +4,12 @@ run's bag), or written straight into a bag with ``BagWriter`` (in process)."""
 from __future__ import annotations
 
 import json
-import time
 from typing import Callable
 
 import numpy as np
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from bev_mdo.ros.common import PREFIX, now_ns, stamp
+from bev_mdo.ros.common import PREFIX, now_ns, stamp, wait_acked
 from bev_mdo.ros.fastwait import until
 
 PARETO_TOPIC = f"{PREFIX}/pareto_front"
@@ -112,13 +111,7 @@ class RosSink:
         """Block until every reader (the recorder) acknowledged every front published; False after
         `wait_s`, or at once when `give_up()` says the reader that matters is dead (a killed reader
         stays matched until its lease expires)."""
-        from rclpy.duration import Duration
-
-        deadline = time.monotonic() + wait_s
-        while not self.pub.wait_for_all_acked(Duration(nanoseconds=int(slice_s * 1e9))):
-            if (give_up is not None and give_up()) or time.monotonic() > deadline:
-                return False
-        return True
+        return not wait_acked([self.pub], wait_s, give_up, slice_s)
 
     def close(self) -> None:
         self.executor.remove_node(self.node)
