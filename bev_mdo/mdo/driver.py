@@ -20,9 +20,33 @@ from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import FEASIBILITY_TOL, RunSettings
 
 BEST_REL_TOL = 1e-6  # an earlier feasible iterate replaces the last one only if better by more than this
+NOISE_VIOLATION = 1e-3  # x the feasibility tolerance: a violation this small is numerical noise
 
 
 Run = RunSettings | Mapping[str, Any]  # typed settings (config.run_settings), or a resolved config
+
+
+def pick_result(history: list[dict], sign: float, converged: bool, tol: float = FEASIBILITY_TOL) -> int:
+    """Which iteration record is the run's result: the optimiser's last iterate, unless it is
+    infeasible or an earlier feasible record is better by more than BEST_REL_TOL (relative; within
+    that, the last iterate, which has converged further, is kept). When the optimiser reports
+    convergence at a feasible last iterate, an earlier record must also be no more violated than it
+    (up to NOISE_VIOLATION x ``tol``): a point inside the feasibility tolerance buys objective with its
+    violation, so it does not displace the converged optimum. With no feasible record, the last
+    one (the run is then infeasible). ``sign``: +1 minimise, -1 maximise."""
+    k = len(history) - 1
+    feasible = [i for i, r in enumerate(history) if r["feasible"]]
+    if not feasible:
+        return k
+    last = history[k]
+    if last["feasible"] and converged:
+        noise = NOISE_VIOLATION * tol
+        feasible = [i for i in feasible if history[i]["max_violation"] <= last["max_violation"] + noise]
+    best = min(feasible, key=lambda i: (sign * history[i]["objective"], -i))
+    f_last, f_best = sign * last["objective"], sign * history[best]["objective"]
+    if not last["feasible"] or f_best < f_last - BEST_REL_TOL * max(abs(f_last), 1.0):
+        return best
+    return k
 
 
 def feasibility_tolerance(run: Run) -> float:
@@ -214,17 +238,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     x = np.asarray(res.x, dtype=float)
     if not history or history[-1]["design"] != problem.design_dict(x[:n_dv]):
         record(x)
-    # The result is the best feasible iteration record: the optimiser's last iterate, unless it is
-    # infeasible or an earlier feasible record is better by more than BEST_REL_TOL (relative; within
-    # that, the last iterate, which has converged further, is kept). With no feasible record, the
-    # last one (the run is then infeasible, exit status 1).
-    k = len(history) - 1
-    feasible = [i for i, r in enumerate(history) if r["feasible"]]
-    if feasible:
-        best = min(feasible, key=lambda i: (sign * history[i]["objective"], -i))
-        f_last, f_best = sign * history[k]["objective"], sign * history[best]["objective"]
-        if not history[k]["feasible"] or f_best < f_last - BEST_REL_TOL * max(abs(f_last), 1.0):
-            k = best
+    k = pick_result(history, sign, bool(res.success), tol)
     last, x = history[k], xs[k]
     # The final report: MDF analysed the point already (its full MDA is kept); IDF's
     # point is one more MDA through the same evaluator, counted, so the totals equal what
