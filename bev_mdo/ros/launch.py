@@ -188,10 +188,13 @@ class Launcher:
         """Send a signal to a node process (for fault-injection tests); returns its pid.
 
         With `wait`, return only once that process has exited (the supervisor, which
-        needs the same lock, cannot restart it before).
+        needs the same lock, cannot restart it before). ProcessLookupError if the node's process
+        has already exited and not yet been restarted: a signal to it would reach nothing.
         """
         with self._lock:
             node = self.node(label)
+            if node.proc.poll() is not None:
+                raise ProcessLookupError(f"{label} is not running (exited with {node.proc.returncode})")
             pid = node.proc.pid
             node.proc.send_signal(sig)
             if wait:

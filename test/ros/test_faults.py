@@ -100,6 +100,11 @@ class Audit:
                     audit.first_sends += 1
                     if audit.first_sends in audit.kill_at:
                         sent = orig_send(ev, p) if audit.after_send else None
+                        # a node may answer before the kill lands, and the next request then follows at
+                        # once: wait for the supervisor to have restarted the killed process, or this
+                        # kill would hit the dead one and count a kill that never happened
+                        target = audit.launcher.node(audit.target)
+                        assert until(lambda: target.proc.poll() is None, 30.0, lambda: time.sleep(0.005))
                         audit.launcher.kill(audit.target)  # returns once the process is gone
                         audit.kills += 1
                         return sent if audit.after_send else orig_send(ev, p)

@@ -75,3 +75,16 @@ def test_nothing_is_killed_once_the_launcher_stops_or_for_unwatched_nodes(launch
     w2 = launcher.add("mass", SLEEPER + ["-r", "__node:=vehicle_mass_node_x"])
     assert dog.check(set(), w2.spawned_at + 1000) == []
     assert w2.proc.poll() is None
+
+
+def test_kill_reaches_a_live_process_or_says_there_is_none(launcher):
+    """Launcher.kill (fault injection) on a process that already exited and is not yet restarted
+    raises instead of counting a kill that reached nothing (test_faults' kills raced the restart)."""
+    node = launcher.add("energy", SLEEPER)  # not supervised: nothing restarts it
+    first = launcher.kill("energy")
+    assert first == node.proc.pid and node.proc.returncode is not None
+    with pytest.raises(ProcessLookupError, match="energy is not running"):
+        launcher.kill("energy")
+    launcher.supervise()
+    assert _wait(lambda: node.restarts == 1 and node.proc.pid != first)
+    assert launcher.kill("energy") == node.proc.pid
