@@ -96,7 +96,7 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
     """Read and validate a fleet CSV; ValueError '<file>: row R, column C: ...' on bad input."""
     path = Path(path) if path is not None else DEFAULT_FLEET
     try:
-        with path.open(newline="") as f:
+        with path.open(newline="", encoding="utf-8-sig") as f:  # -sig: a BOM (Excel's "CSV UTF-8") is not data
             rows = list(csv.reader(f))
     except OSError as exc:
         raise ValueError(f"cannot read fleet file {path}: {exc.strerror}") from None

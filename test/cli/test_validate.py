@@ -128,3 +128,15 @@ def test_bad_fleet_file_one_line_exit_2(capsys, tmp_path, edit, expect):
 def test_missing_file_exit_2(capsys, tmp_path):
     code, _, err = run(capsys, "--data", tmp_path / "none.csv")
     assert code == 2 and "cannot read fleet file" in err
+
+
+def test_a_fleet_file_saved_by_excel_with_a_bom_and_crlf_reads_like_the_shipped_one(capsys, tmp_path):
+    """Excel's "CSV UTF-8" starts the file with a byte-order mark; it must not become part of the
+    first column's name (it was: "row 1: missing column make")."""
+    p = tmp_path / "excel.csv"
+    p.write_bytes(b"\xef\xbb\xbf" + TRAIN.read_bytes().replace(b"\n", b"\r\n"))
+    code, out, err = run(capsys, "--data", p, "--json")
+    assert code == 0, err
+    doc, ref = json.loads(out), json.loads(run(capsys, "--json")[1])
+    assert doc["vehicles"] == 62 and doc["rows"][0]["make"] == "BMW"
+    assert doc["stats"] == ref["stats"]
