@@ -105,7 +105,12 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
     if not rows:
         raise ValueError(f"{path}: empty file")
     header = [h.strip() for h in rows[0]]
-    col = {h: i for i, h in enumerate(header)}
+    col = {}
+    for i, h in enumerate(header):
+        if h in col and (h in NUMERIC or h in TEXT or h in OPTIONAL_TEXT):  # which one is meant would be a
+            # guess (the last one used to win silently); two copies of a column nobody reads do no harm
+            raise ValueError(f"{path}: row 1, column {h}: given twice (columns {col[h] + 1} and {i + 1})")
+        col.setdefault(h, i)
     for name, (_, _, required) in list(NUMERIC.items()) + [(t, (0, 0, True)) for t in TEXT]:
         if required and name not in col:
             stem = name.rsplit("_", 1)[0] if name.count("_") else name

@@ -108,6 +108,14 @@ def _drop(col):
     return f
 
 
+def _duplicate(col, value):
+    def f(rows):
+        rows[0].append(col)
+        for r in rows[1:]:
+            r.append(value)
+    return f
+
+
 @pytest.mark.parametrize("edit,expect", [
     (_drop("test_mass_kg"), "row 1: missing column test_mass_kg"),
     (_rename("test_mass_kg", "test_mass_lb"), "row 1, column test_mass_lb: unknown unit (expected column test_mass_kg)"),
@@ -117,6 +125,8 @@ def _drop(col):
     (_set("reported_unit", "mpg", 4), "row 5, column reported_unit: unknown unit 'mpg'"),
     (_set("rated_power_kw", "", 7), "row 8, column rated_power_kw: not a number: ''"),
     (_set("road_load_b_n_per_m_s", "-40", 7), "row 8, column road_load_b_n_per_m_s: the road load"),
+    # a second test_mass_kg column (e.g. pasted in lb) was read instead of the first, without a word
+    (_duplicate("test_mass_kg", "5000"), "row 1, column test_mass_kg: given twice (columns 8 and 16)"),
 ])
 def test_bad_fleet_file_one_line_exit_2(capsys, tmp_path, edit, expect):
     p = _bad(tmp_path, edit)
