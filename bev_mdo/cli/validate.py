@@ -31,7 +31,8 @@ def register(subparsers) -> None:
                    help="fleet file (default: bev_mdo/data/epa_2022_bev/train.csv)")
     p.add_argument("--energy-model", default="chain", choices=ENERGY_MODELS, help="energy model (default chain)")
     p.add_argument("--parameter-set", default=DEFAULT_SET, metavar="NAME",
-                   help=f"shipped parameter set for the chain model (default {DEFAULT_SET}; 'none' = model defaults)")
+                   help=f"parameter set for the chain model: a shipped name or a .yaml path (default {DEFAULT_SET}; "
+                        "'none' = model defaults)")
     p.add_argument("--png", metavar="FILE", help="write the parity and residual plots")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=run)
