@@ -9,7 +9,8 @@ model family are correlated, the spread of the parameters over the cross-validat
 reported beside it. Cross-validation is k-fold by model family (``Fleet.family``): every
 family is predicted by a fit that never saw it. Run ``python -m bev_mdo.models.calibrate`` to
 refit (``--write shipped`` rewrites bev_mdo/data/parameter_sets/epa2022_chain.yaml, ``--write FILE``
-writes elsewhere, e.g. a calibration on your own fleet file given with ``--data``).
+writes elsewhere, e.g. a calibration on your own fleet file given with ``--data``; a config uses it
+as ``vehicle.parameter_set: FILE``).
 """
 from __future__ import annotations
 
@@ -112,17 +113,33 @@ def cross_validate(fleet: fl.Fleet, k: int = 5, names=None, cycles: dict | None 
             "fold_params": np.array(xs)}
 
 
+def _fleet_name(fleet: fl.Fleet) -> str:
+    """The fleet file as the parameter set records it: the shipped one by its place in the repository."""
+    from pathlib import Path
+
+    p = Path(fleet.path)
+    return "bev_mdo/data/epa_2022_bev/train.csv" if p.resolve() == fl.DEFAULT_FLEET.resolve() else str(p)
+
+
 def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet, path=None) -> str:
+    """Write the parameter set: the shipped one (``path`` None) or a file whose stem is its name, with
+    the fleet file it was fitted on and the command that regenerates it."""
     import yaml
 
+    shipped = path is None
     path = path or PARAMETER_SET_DIR / f"{PARAMETER_SET}.yaml"
     spread = cv["fold_params"].std(axis=0, ddof=1) if len(cv["fold_params"]) > 1 else np.full(len(f["x"]), np.nan)
+    data = _fleet_name(fleet)
+    if data == "bev_mdo/data/epa_2022_bev/train.csv":
+        what, args = "the EPA 2022 BEV fleet (bev_mdo/data/epa_2022_bev/train.csv)", ""
+    else:
+        what, args = f"the fleet file {data}", f" --data {data}"
     doc = {
-        "name": PARAMETER_SET,
-        "description": "Wall-to-wheel chain (energy_model: chain) calibrated on the EPA 2022 BEV fleet "
-                       "(bev_mdo/data/epa_2022_bev/train.csv), UDDS + HWFET, least squares on relative error. "
-                       "Regenerate with: python -m bev_mdo.models.calibrate --write shipped",
-        "fitted_on": {"file": "bev_mdo/data/epa_2022_bev/train.csv", "vehicles": int((~fleet.outlier).sum()),
+        "name": PARAMETER_SET if shipped else path.stem,
+        "description": f"Wall-to-wheel chain (energy_model: chain) calibrated on {what}, UDDS + HWFET, least "
+                       "squares on relative error. Regenerate with: python -m bev_mdo.models.calibrate"
+                       f"{args} --write {'shipped' if shipped else path}",
+        "fitted_on": {"file": data, "vehicles": int((~fleet.outlier).sum()),
                       "cycles": list(fl.CYCLES), "date": datetime.date.today().isoformat(),
                       "fleet_wheel_radius_m": fl.FLEET_WHEEL_RADIUS_M, "fleet_gear_ratio": fl.FLEET_GEAR_RATIO},
         "fit": {k: {"value": float(v), "std_error": float(s), "cv_fold_std": float(sp)}

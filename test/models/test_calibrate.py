@@ -1,0 +1,55 @@
+"""``python -m bev_mdo.models.calibrate`` on a fleet of one's own: what it writes and that it can be used."""
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from bev_mdo.cli import main as bev_mdo
+from bev_mdo.models import calibrate
+from bev_mdo.models import fleet as fl
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _fleet(tmp_path, pick, name="mine.csv"):
+    with fl.DEFAULT_FLEET.open(newline="") as f:
+        rows = list(csv.reader(f))
+    p = tmp_path / name
+    with p.open("w", newline="") as f:
+        csv.writer(f).writerows([rows[0], *(r for r in rows[1:] if pick(r))])
+    return p
+
+
+def test_a_set_written_for_your_fleet_names_itself_and_your_file_and_runs_in_evaluate(tmp_path, capsys):
+    """--write FILE used to record name epa2022_chain and 'fitted on bev_mdo/data/epa_2022_bev/train.csv'
+    whatever --data was: a user's calibration claimed to be the shipped one."""
+    data = _fleet(tmp_path, lambda r: r[0] in ("BMW", "Ford", "KIA"))
+    out = tmp_path / "my_fleet.yaml"
+    assert calibrate.main(["--data", str(data), "--write", str(out)]) == 0
+    doc = yaml.safe_load(out.read_text())
+    assert doc["name"] == "my_fleet"
+    assert doc["fitted_on"]["file"] == str(data) and doc["fitted_on"]["vehicles"] == len(fl.read_fleet(data)) > 2
+    assert str(data) in doc["description"] and "epa_2022_bev" not in doc["description"]
+    assert f"--data {data} --write {out}" in doc["description"]
+    capsys.readouterr()
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text((ROOT / "config" / "leaf_epa_combined.yaml").read_text()
+                   .replace("parameter_set: epa2022_chain", f"parameter_set: {out}"))
+    code = bev_mdo(["evaluate", str(cfg), "--set", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--json"])
+    res = json.loads(capsys.readouterr().out)
+    assert code == 0 and res["ok"] and np.isfinite(res["outputs"]["energy_wh_per_km"])
+
+
+def test_the_shipped_set_keeps_its_name_and_file(tmp_path, monkeypatch):
+    monkeypatch.setattr(calibrate, "PARAMETER_SET_DIR", tmp_path)
+    f = {"names": tuple(calibrate.FIT), "x": np.array([0.8, 0.8]), "se": np.array([0.01, 0.01]), "mape_pct": 7.0}
+    stats = fl.error_stats(np.array([1.0, -2.0]))
+    cv = {"k": 5, "fold_params": np.full((5, 2), 0.8), "stats": stats}
+    path = calibrate.write_parameter_set(f, cv, None, fl.read_fleet(), None)
+    doc = yaml.safe_load(Path(path).read_text())
+    assert Path(path).name == "epa2022_chain.yaml" and doc["name"] == "epa2022_chain"
+    assert doc["fitted_on"]["file"] == "bev_mdo/data/epa_2022_bev/train.csv"
+    assert doc["description"].endswith("python -m bev_mdo.models.calibrate --write shipped")
