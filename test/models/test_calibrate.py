@@ -53,3 +53,57 @@ def test_the_shipped_set_keeps_its_name_and_file(tmp_path, monkeypatch):
     assert Path(path).name == "epa2022_chain.yaml" and doc["name"] == "epa2022_chain"
     assert doc["fitted_on"]["file"] == "bev_mdo/data/epa_2022_bev/train.csv"
     assert doc["description"].endswith("python -m bev_mdo.models.calibrate --write shipped")
+
+
+def _i4(r):
+    return r[0] == "BMW" and r[1].startswith("i4")
+
+
+def test_too_little_data_is_said_not_turned_into_numbers(tmp_path, capsys):
+    """One model family: the CV folds had no vehicle to fit, least_squares returned its start point
+    and 'CV by family (k=1) MAPE 7.30 %' was printed and written; all rows flagged: the start point
+    was printed as the fit (0.9 +- nan), exit 0; one vehicle: a standard error of 3e-08 from zero
+    degrees of freedom."""
+    one_family = _fleet(tmp_path, _i4, "i4.csv")
+    out = tmp_path / "i4.yaml"
+    assert calibrate.main(["--data", str(one_family), "--write", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "no CV by family" in said and "no leave-one-make-out CV" in said and "MAPE 7.30" not in said
+    assert calibrate.cross_validate(fl.read_fleet(one_family)) is None
+    quality = yaml.safe_load(out.read_text())["quality"]
+    assert quality["cv_by_family"].startswith("not possible") and not any(k.startswith("cv_1fold") for k in quality)
+
+    single = fl.read_fleet(_fleet(tmp_path, lambda r: r[2] == "FK96502" and r[3] == "0", "one.csv"))
+    got = calibrate.fit(single)
+    assert len(single) == 1 and got["n_residuals"] == 2 and np.isnan(got["se"]).all()
+
+    with fl.DEFAULT_FLEET.open(newline="") as f:
+        rows = list(csv.reader(f))
+    flag = rows[0].index("flag")
+    flagged = tmp_path / "flagged.csv"
+    with flagged.open("w", newline="") as f:
+        csv.writer(f).writerows([rows[0], *(r[:flag] + ["suspect"] + r[flag + 1:] for r in rows[1:4])])
+    assert calibrate.main(["--data", str(flagged)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no vehicle to fit (3 of 3 flagged as outliers" in err
+
+
+def test_a_vehicle_that_cannot_follow_is_left_out_of_the_fit(tmp_path, capsys):
+    """bev-mdo validate does not score it; the fit used it (a 5 kW motor in a 2.3 t car pulled the
+    charger efficiency to its bound of 1)."""
+    with fl.DEFAULT_FLEET.open(newline="") as f:
+        rows = list(csv.reader(f))
+    kw = rows[0].index("rated_power_kw")
+    keep = [r for r in rows[1:] if r[0] in ("BMW", "Ford")]
+    slow = list(keep[0])
+    slow[kw] = "5"
+    p = tmp_path / "slow.csv"
+    with p.open("w", newline="") as f:
+        csv.writer(f).writerows([rows[0], slow, *keep])
+    fleet = fl.read_fleet(p)
+    assert calibrate.usable(fleet).tolist() == [False] + [True] * len(keep)
+    ref = calibrate.fit(fl.read_fleet(_fleet(tmp_path, lambda r: r[0] in ("BMW", "Ford"), "ref.csv")))
+    got = calibrate.fit(fleet)
+    np.testing.assert_allclose(got["x"], ref["x"], rtol=1e-9)
+    assert calibrate.main(["--data", str(p)]) == 0
+    assert "1 vehicle(s) left out: the rated power cannot follow UDDS or HWFET (rows 2)" in capsys.readouterr().out
