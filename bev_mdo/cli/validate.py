@@ -17,7 +17,7 @@ import sys
 
 import numpy as np
 
-from bev_mdo.cli import UsageError
+from bev_mdo.cli import UsageError, figure_format
 
 DEFAULT_SET = "epa2022_chain"
 
@@ -162,7 +162,7 @@ def plot(report: dict, path: str) -> None:
     fig.suptitle(f"{report['energy_model']} on {report['data'].rsplit('/', 1)[-1]}")
     fig.tight_layout()
     try:
-        fig.savefig(path, dpi=110)
+        fig.savefig(path, dpi=110, format=figure_format(path))
     except OSError as exc:
         raise ValueError(f"cannot write {path}: {exc.strerror}") from None
     finally:

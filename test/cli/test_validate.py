@@ -150,3 +150,14 @@ def test_a_fleet_file_saved_by_excel_with_a_bom_and_crlf_reads_like_the_shipped_
     doc, ref = json.loads(out), json.loads(run(capsys, "--json")[1])
     assert doc["vehicles"] == 62 and doc["rows"][0]["make"] == "BMW"
     assert doc["stats"] == ref["stats"]
+
+
+def test_png_is_written_exactly_where_asked(capsys, tmp_path):
+    """matplotlib appends .png to a name without an extension: --png DIR (a directory) wrote DIR.png
+    beside it and exited 0, and --png out wrote out.png."""
+    code, out, err = run(capsys, "--png", tmp_path)
+    assert code == 2 and out == "" and err.count("\n") == 1 and "is a directory" in err
+    assert not tmp_path.with_suffix(".png").exists()
+    plain = tmp_path / "parity"
+    assert run(capsys, "--png", plain)[0] == 0
+    assert plain.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and not plain.with_suffix(".png").exists()
