@@ -97,11 +97,16 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
     path = Path(path) if path is not None else DEFAULT_FLEET
     try:
         with path.open(newline="", encoding="utf-8-sig") as f:  # -sig: a BOM (Excel's "CSV UTF-8") is not data
-            rows = list(csv.reader(f))
+            reader = csv.reader(f)
+            rows = list(reader)
     except OSError as exc:
         raise ValueError(f"cannot read fleet file {path}: {exc.strerror}") from None
     except UnicodeDecodeError:
         raise ValueError(f"{path}: not a UTF-8 text CSV") from None
+    except csv.Error as exc:  # e.g. a field beyond csv's 128 KiB limit: not a fleet table
+        raise ValueError(f"{path}: row {reader.line_num}: not a CSV table: {exc}") from None
+    if any("\x00" in c for row in rows[:1] for c in row):
+        raise ValueError(f"{path}: not a UTF-8 text CSV (NUL bytes: UTF-16 without a byte-order mark?)")
     if not rows:
         raise ValueError(f"{path}: empty file")
     header = [h.strip() for h in rows[0]]

@@ -161,3 +161,16 @@ def test_png_is_written_exactly_where_asked(capsys, tmp_path):
     plain = tmp_path / "parity"
     assert run(capsys, "--png", plain)[0] == 0
     assert plain.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and not plain.with_suffix(".png").exists()
+
+
+@pytest.mark.parametrize("content,expect", [
+    # csv's field limit raised _csv.Error out of read_fleet: a traceback
+    (lambda raw: raw.replace(b"BMW", b"B" * 200_000, 1), "row 2: not a CSV table: field larger than field limit"),
+    # UTF-16 without a BOM decodes as UTF-8 with NULs: it said "row 1: missing column rated_power_kw"
+    (lambda raw: raw.decode().encode("utf-16-le"), "not a UTF-8 text CSV (NUL bytes"),
+])
+def test_a_file_that_is_not_a_csv_table_is_one_line(capsys, tmp_path, content, expect):
+    p = tmp_path / "odd.csv"
+    p.write_bytes(content(TRAIN.read_bytes()))
+    code, out, err = run(capsys, "--data", p)
+    assert code == 2 and out == "" and err.count("\n") == 1 and expect in err and "Traceback" not in err

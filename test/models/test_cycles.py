@@ -93,6 +93,14 @@ def test_csv_not_utf8_names_the_file(tmp_path):
         read_cycle_csv(p)
 
 
+def test_csv_field_beyond_the_csv_limit_is_one_line(tmp_path):
+    """_csv.Error escaped read_cycle_csv: bev-mdo evaluate printed a traceback."""
+    p = tmp_path / "huge.csv"
+    p.write_text("time_s,speed_kmh\n0,0\n1," + "1" * 200_000 + "\n")
+    with pytest.raises(ValueError, match=r"huge\.csv: row 3: not a CSV table: field larger"):
+        read_cycle_csv(p)
+
+
 def test_unknown_cycle_name():
     with pytest.raises(ValueError, match="unknown drive cycle"):
         load_cycle("ftp75")
