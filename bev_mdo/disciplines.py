@@ -173,6 +173,9 @@ class Energy(_Base):
             raise ValueError(f"energy_model must be one of {list(ENERGY_MODELS)}, got {model!r}")
         # the two-speed mass is added by vehicle_mass (once), never here
         names = [k for k in names if k in v and k != "two_speed_added_mass_kg"]
+        # the coast-down road load is overridable per point, as in acceleration (else --set road_load_a_n=..
+        # moved the acceleration time and left the energy on the configured road load)
+        names += [k for k in v if k.startswith("road_load_")]
         extra = {k: x for k, x in v.items() if k not in names}
         if model == "quasi_static":
             extra["two_speed_added_mass_kg"] = 0.0

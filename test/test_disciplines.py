@@ -149,3 +149,28 @@ def test_quasi_static_energy_uses_battery_kwh():
     ref = qs.energy_wh_per_km(d.resampled, cfg["vehicle"], 1590.0, 7.9, 80.0, battery_kwh=np.array([6.0, 30.0]))
     np.testing.assert_allclose(e, ref, rtol=1e-12)
     assert e[0] > e[1]  # a 6 kWh pack caps regeneration at 2C = 12 kW (§2.3.4 rule 4)
+
+
+@pytest.mark.parametrize("model", ["flat", "breakdown", "quasi_static", "chain"])
+def test_a_road_load_override_per_point_reaches_the_energy_as_it_does_the_acceleration(model):
+    """The energy discipline took road_load_* as fixed constants: a per-point override (bev-mdo evaluate
+    --set road_load_a_n=500, sweep, sensitivity) moved the acceleration time and left the energy on the
+    configured road load (leaf_epa_combined: 124.67 Wh/km with A = 129 N or 500 N)."""
+    def config(a_n):
+        cfg = load("leaf_nedc.yaml")
+        cfg["energy_model"] = model
+        for k in ("drag_area_m2", "rolling_resistance"):
+            cfg["vehicle"].pop(k, None)
+        cfg["vehicle"]["road_load"] = {"a_n": a_n, "b_n_per_m_s": 1.5, "c_n_per_m2_s2": 0.385, "mass_kg": 1590.0}
+        return cfg
+
+    design = {"motor_kw": np.array([80.0, 80.0]), "gear_ratio": np.array([8.0, 8.0]),
+              "battery_kwh": np.array([24.0, 24.0])}
+    energy = next(d for d in default_disciplines(config(129.0)) if d.name == "energy")
+    assert "road_load_a_n" in energy.parameters
+    got = chain(config(129.0), {**design, "road_load_a_n": np.array([129.0, 500.0])})
+    ref = {a: chain(config(a), design) for a in (129.0, 500.0)}
+    for i, a in enumerate((129.0, 500.0)):
+        for out in ("energy_wh_per_km", "accel_time_0_100_s"):
+            assert got[out][i] == pytest.approx(ref[a][out][i], rel=1e-12), (out, a)
+    assert got["energy_wh_per_km"][1] > 1.5 * got["energy_wh_per_km"][0]
