@@ -67,6 +67,15 @@ def _topology_inputs(t: topo_model.Topology, *, gear: bool = True) -> tuple[str,
     return tuple(out)
 
 
+def _replaced_by_road_load(v: Mapping[str, float]) -> tuple[str, ...]:
+    """The constants a coast-down road load replaces (models/road_load.py): not overridable per point
+    then, since no model reads them (an override such as --set drag_area_m2=0.7 was accepted and
+    changed nothing, where the config refuses giving both)."""
+    from bev_mdo.models import road_load as rl
+
+    return ("drag_area_m2", "rolling_resistance") if rl.uses_road_load(v) else ()
+
+
 class _Base(Discipline):
     """Holds the configured parameter values and merges per-point overrides."""
 
@@ -176,6 +185,7 @@ class Energy(_Base):
         # the coast-down road load is overridable per point, as in acceleration (else --set road_load_a_n=..
         # moved the acceleration time and left the energy on the configured road load)
         names += [k for k in v if k.startswith("road_load_")]
+        names = [k for k in names if k not in _replaced_by_road_load(v)]
         extra = {k: x for k, x in v.items() if k not in names}
         if model == "quasi_static":
             extra["two_speed_added_mass_kg"] = 0.0
@@ -318,7 +328,7 @@ class Acceleration(_Base):
         t = _topology(config, options)
         names = acceleration.ACCEL_PARAMS + tuple(k for k in cls._TOPO[t.name] if k in v)
         names += tuple(k for k in v if k.startswith("road_load_"))  # coast-down road load (models/road_load.py)
-        return cls({k: v[k] for k in names}, t.name)
+        return cls({k: v[k] for k in names if k not in _replaced_by_road_load(v)}, t.name)
 
     def compute(self, inputs):
         p = self._params(inputs)

@@ -174,3 +174,15 @@ def test_a_road_load_override_per_point_reaches_the_energy_as_it_does_the_accele
         for out in ("energy_wh_per_km", "accel_time_0_100_s"):
             assert got[out][i] == pytest.approx(ref[a][out][i], rel=1e-12), (out, a)
     assert got["energy_wh_per_km"][1] > 1.5 * got["energy_wh_per_km"][0]
+
+
+def test_what_a_coast_down_replaces_is_not_overridable():
+    """With a road_load the models read no drag area or rolling coefficient: an override of either
+    (bev-mdo evaluate config/leaf_epa_combined.yaml --set ...,drag_area_m2=2) was accepted and changed
+    nothing; the config itself refuses giving both."""
+    with_rl = {d.name: d for d in default_disciplines(load("leaf_epa_combined.yaml"))}
+    thesis = {d.name: d for d in default_disciplines(load("leaf_nedc.yaml"))}
+    for name in ("energy", "acceleration"):
+        assert {"drag_area_m2", "rolling_resistance"}.isdisjoint(with_rl[name].parameters), name
+        assert "road_load_a_n" in with_rl[name].parameters
+        assert {"drag_area_m2", "rolling_resistance"} <= set(thesis[name].parameters), name

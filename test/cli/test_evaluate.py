@@ -112,3 +112,9 @@ def test_a_config_names_a_parameter_set_file_of_your_own(capsys, tmp_path):
     eta = shipped["charger_efficiency"]
     assert mine["outputs"]["energy_wh_per_km"] != pytest.approx(ref["outputs"]["energy_wh_per_km"])
     assert mine["outputs"]["energy_wh_per_km"] * 0.7 == pytest.approx(ref["outputs"]["energy_wh_per_km"] * eta)
+
+
+def test_an_override_the_road_load_replaces_is_refused(capsys):
+    code, out, err = run(capsys, ROOT / "config" / "leaf_epa_combined.yaml", "--set",
+                         "motor_kw=80,gear_ratio=8,battery_kwh=24,drag_area_m2=2")
+    assert code == 2 and out == "" and err.count("\n") == 1 and "unknown design names ['drag_area_m2']" in err
