@@ -177,7 +177,9 @@ class Energy(_Base):
             names = flat.FLAT_PARAMS
         elif model in ENERGY_MODELS:
             specs = getattr(importlib.import_module(f"bev_mdo.models.{model}"), "PARAM_SPECS", {})
-            names = tuple(dict.fromkeys([*flat.FLAT_PARAMS[:4], "gear_efficiency", "regen_fraction", *specs]))
+            # regen_fraction only where the model reads it (breakdown's specs): chain and quasi_static have
+            # their own regeneration rules, and an override of it changed nothing there
+            names = tuple(dict.fromkeys([*flat.FLAT_PARAMS[:4], "gear_efficiency", *specs]))
         else:
             raise ValueError(f"energy_model must be one of {list(ENERGY_MODELS)}, got {model!r}")
         # the two-speed mass is added by vehicle_mass (once), never here

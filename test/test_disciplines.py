@@ -186,3 +186,13 @@ def test_what_a_coast_down_replaces_is_not_overridable():
         assert {"drag_area_m2", "rolling_resistance"}.isdisjoint(with_rl[name].parameters), name
         assert "road_load_a_n" in with_rl[name].parameters
         assert {"drag_area_m2", "rolling_resistance"} <= set(thesis[name].parameters), name
+
+
+@pytest.mark.parametrize("model,reads", [("flat", True), ("breakdown", True), ("quasi_static", False), ("chain", False)])
+def test_regen_fraction_is_a_parameter_only_of_the_models_that_read_it(model, reads):
+    """chain and quasi_static have their own regeneration rules: --set regen_fraction=0 was accepted
+    on config/leaf_epa_combined.yaml and left the energy at 124.67 Wh/km."""
+    cfg = load("leaf_nedc.yaml")
+    cfg["energy_model"] = model
+    energy = next(d for d in default_disciplines(cfg) if d.name == "energy")
+    assert ("regen_fraction" in energy.parameters) is reads
