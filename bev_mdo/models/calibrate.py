@@ -191,7 +191,14 @@ def main(argv=None) -> int:
     ap.add_argument("--write", metavar="YAML", default=None,
                     help=f"write the parameter set there ('shipped' = bev_mdo/data/parameter_sets/{PARAMETER_SET}.yaml)")
     args = ap.parse_args(argv)
+    from pathlib import Path
+
+    path = None if args.write in (None, "shipped") else Path(args.write)
     try:
+        if path is not None and path.suffix.lower() not in (".yaml", ".yml"):  # checked before the fit
+            raise ValueError(f"--write {args.write}: give a .yaml file (a config names it as vehicle.parameter_set)")
+        if path is not None and path.is_dir():
+            raise ValueError(f"--write {args.write}: is a directory (give a .yaml file)")
         fleet = fl.read_fleet(args.data)
         cycles = fl.resampled_cycles()
         use = usable(fleet, cycles)
@@ -213,8 +220,11 @@ def main(argv=None) -> int:
                "no leave-one-make-out CV (one make)")
     print(f"train MAPE {f['mape_pct']:.2f} % over {f['n_residuals']} vehicle-cycles; {by_family}, {by_make}")
     if args.write:
-        path = None if args.write == "shipped" else __import__("pathlib").Path(args.write)
-        print("wrote", write_parameter_set(f, cv, cv_make, fleet, path))
+        try:
+            print("wrote", write_parameter_set(f, cv, cv_make, fleet, path))
+        except OSError as exc:
+            print(f"calibrate: error: cannot write {exc.filename or args.write}: {exc.strerror}", file=sys.stderr)
+            return 2
     return 0
 
 

@@ -107,3 +107,18 @@ def test_a_vehicle_that_cannot_follow_is_left_out_of_the_fit(tmp_path, capsys):
     np.testing.assert_allclose(got["x"], ref["x"], rtol=1e-9)
     assert calibrate.main(["--data", str(p)]) == 0
     assert "1 vehicle(s) left out: the rated power cannot follow UDDS or HWFET (rows 2)" in capsys.readouterr().out
+
+
+def test_write_is_checked_before_the_fit_and_a_failed_write_is_one_line(tmp_path, capsys):
+    """--write DIR fitted, cross-validated and then died with IsADirectoryError (a traceback);
+    --write out.txt wrote a set no config can name (parameter_set takes shipped names and .yaml paths)."""
+    data = _fleet(tmp_path, _i4, "i4.csv")
+    for bad in (tmp_path, tmp_path / "set.txt"):
+        assert calibrate.main(["--data", str(data), "--write", str(bad)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("calibrate: error: --write") and ".yaml" in err
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert calibrate.main(["--data", str(data), "--write", str(blocker / "set.yaml")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("calibrate: error: cannot write") and "Traceback" not in err
