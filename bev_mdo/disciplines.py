@@ -22,11 +22,13 @@ import numpy as np
 
 from bev_mdo.mdo.discipline import Discipline
 from bev_mdo.models import acceleration, cost, flat, motor_speed, range as range_model
+from bev_mdo.models import road_load
 from bev_mdo.models import topology as topo_model
 from bev_mdo.models.cycles import load_cycle, resample
 from bev_mdo.models.params import validate_cycle, validate_vehicle, vehicle_choice
 
 ENERGY_MODELS = ("flat", "breakdown", "quasi_static", "chain")
+_ROAD_KEYS = road_load.FLAT_KEYS
 
 
 def _vehicle(config: Mapping[str, Any]) -> dict[str, float]:
@@ -71,9 +73,7 @@ def _replaced_by_road_load(v: Mapping[str, float]) -> tuple[str, ...]:
     """The constants a coast-down road load replaces (models/road_load.py): not overridable per point
     then, since no model reads them (an override such as --set drag_area_m2=0.7 was accepted and
     changed nothing, where the config refuses giving both)."""
-    from bev_mdo.models import road_load as rl
-
-    return ("drag_area_m2", "rolling_resistance") if rl.uses_road_load(v) else ()
+    return ("drag_area_m2", "rolling_resistance") if road_load.uses_road_load(v) else ()
 
 
 class _Base(Discipline):
@@ -83,7 +83,12 @@ class _Base(Discipline):
         self.parameters = dict(parameters)
 
     def _params(self, inputs: Mapping[str, np.ndarray]) -> dict:
-        return {k: (np.asarray(inputs[k], float) if k in inputs else v) for k, v in self.parameters.items()}
+        out = {k: (np.asarray(inputs[k], float) if k in inputs else v) for k, v in self.parameters.items()}
+        if any(k in inputs for k in _ROAD_KEYS if k in self.parameters):
+            # per-point road load: the models take it as given (no spec table of theirs has it), so the
+            # config's checks are applied here (a negative A gave 80.8 Wh/km instead of an error)
+            road_load.check_values(out)
+        return out
 
 
 class VehicleMass(_Base):

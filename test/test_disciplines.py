@@ -196,3 +196,22 @@ def test_regen_fraction_is_a_parameter_only_of_the_models_that_read_it(model, re
     cfg["energy_model"] = model
     energy = next(d for d in default_disciplines(cfg) if d.name == "energy")
     assert ("regen_fraction" in energy.parameters) is reads
+
+
+@pytest.mark.parametrize("name,value,says", [
+    ("road_load_a_n", -5.0, "road_load_a_n must be in [0, 5000] N, got -5"),
+    ("road_load_mass_kg", 1.0, "road_load_mass_kg must be in [100, 20000] kg, got 1"),
+    ("road_load_b_n_per_m_s", -50.0, "road load A + B v + C v^2 must stay > 0 up to 70 m/s"),
+])
+def test_a_road_load_override_is_checked_as_the_config_is(name, value, says):
+    """Per-point road-load values reached the models unchecked: --set road_load_a_n=-5 gave 80.8 Wh/km
+    (a negative rolling force) and a changed acceleration time, where the config refuses a_n: -5."""
+    cfg = load("leaf_epa_combined.yaml")
+    ds = {d.name: d for d in default_disciplines(cfg)}
+    x = {"motor_kw": np.array([80.0, 80.0]), "gear_ratio": np.array([8.0, 8.0]),
+         "vehicle_mass_kg": np.array([1590.0, 1590.0]), name: np.array([ds["energy"].parameters[name], value])}
+    for d in ("energy", "acceleration"):
+        res = run_discipline(ds[d], x)
+        assert not res.ok[1] and says in res.error, (d, res.error)
+    ok = {**x, name: np.array([ds["energy"].parameters[name]] * 2)}
+    assert run_discipline(ds["energy"], ok).ok.all()
