@@ -110,6 +110,10 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
     if not rows:
         raise ValueError(f"{path}: empty file")
     header = [h.strip() for h in rows[0]]
+    for sep, name in ((";", "semicolons"), ("\t", "tabs")):  # e.g. Excel's "CSV" in a locale with decimal commas
+        if len(header) == 1 and sep in header[0]:
+            raise ValueError(f"{path}: row 1: the columns are separated by {name}; give a comma-separated CSV "
+                             "with '.' as the decimal point")
     col = {}
     for i, h in enumerate(header):
         if h in col and (h in NUMERIC or h in TEXT or h in OPTIONAL_TEXT):  # which one is meant would be a

@@ -174,3 +174,15 @@ def test_a_file_that_is_not_a_csv_table_is_one_line(capsys, tmp_path, content, e
     p.write_bytes(content(TRAIN.read_bytes()))
     code, out, err = run(capsys, "--data", p)
     assert code == 2 and out == "" and err.count("\n") == 1 and expect in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("sep", [";", "\t"])
+def test_a_file_separated_by_semicolons_or_tabs_says_so(capsys, tmp_path, sep):
+    """Excel's "CSV" in a locale with decimal commas separates by ';': the one-column header was
+    reported as 'row 1: missing column rated_power_kw' although the header names it."""
+    p = tmp_path / "semi.csv"
+    with p.open("w", newline="") as f:
+        csv.writer(f, delimiter=sep).writerows(_rows())
+    code, out, err = run(capsys, "--data", p)
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert "row 1: the columns are separated by" in err and "missing column" not in err
