@@ -22,11 +22,13 @@ import numpy as np
 
 from bev_mdo.mdo.discipline import Discipline
 from bev_mdo.models import acceleration, cost, flat, motor_speed, range as range_model
+from bev_mdo.models import road_load
 from bev_mdo.models import topology as topo_model
 from bev_mdo.models.cycles import load_cycle, resample
 from bev_mdo.models.params import validate_cycle, validate_vehicle, vehicle_choice
 
 ENERGY_MODELS = ("flat", "breakdown", "quasi_static", "chain")
+_ROAD_KEYS = road_load.FLAT_KEYS
 
 
 def _vehicle(config: Mapping[str, Any]) -> dict[str, float]:
@@ -67,6 +69,13 @@ def _topology_inputs(t: topo_model.Topology, *, gear: bool = True) -> tuple[str,
     return tuple(out)
 
 
+def _replaced_by_road_load(v: Mapping[str, float]) -> tuple[str, ...]:
+    """The constants a coast-down road load replaces (models/road_load.py): not overridable per point
+    then, since no model reads them (an override such as --set drag_area_m2=0.7 was accepted and
+    changed nothing, where the config refuses giving both)."""
+    return ("drag_area_m2", "rolling_resistance") if road_load.uses_road_load(v) else ()
+
+
 class _Base(Discipline):
     """Holds the configured parameter values and merges per-point overrides."""
 
@@ -74,7 +83,12 @@ class _Base(Discipline):
         self.parameters = dict(parameters)
 
     def _params(self, inputs: Mapping[str, np.ndarray]) -> dict:
-        return {k: (np.asarray(inputs[k], float) if k in inputs else v) for k, v in self.parameters.items()}
+        out = {k: (np.asarray(inputs[k], float) if k in inputs else v) for k, v in self.parameters.items()}
+        if any(k in inputs for k in _ROAD_KEYS if k in self.parameters):
+            # per-point road load: the models take it as given (no spec table of theirs has it), so the
+            # config's checks are applied here (a negative A gave 80.8 Wh/km instead of an error)
+            road_load.check_values(out)
+        return out
 
 
 class VehicleMass(_Base):
@@ -168,11 +182,17 @@ class Energy(_Base):
             names = flat.FLAT_PARAMS
         elif model in ENERGY_MODELS:
             specs = getattr(importlib.import_module(f"bev_mdo.models.{model}"), "PARAM_SPECS", {})
-            names = tuple(dict.fromkeys([*flat.FLAT_PARAMS[:4], "gear_efficiency", "regen_fraction", *specs]))
+            # regen_fraction only where the model reads it (breakdown's specs): chain and quasi_static have
+            # their own regeneration rules, and an override of it changed nothing there
+            names = tuple(dict.fromkeys([*flat.FLAT_PARAMS[:4], "gear_efficiency", *specs]))
         else:
             raise ValueError(f"energy_model must be one of {list(ENERGY_MODELS)}, got {model!r}")
         # the two-speed mass is added by vehicle_mass (once), never here
         names = [k for k in names if k in v and k != "two_speed_added_mass_kg"]
+        # the coast-down road load is overridable per point, as in acceleration (else --set road_load_a_n=..
+        # moved the acceleration time and left the energy on the configured road load)
+        names += [k for k in v if k.startswith("road_load_")]
+        names = [k for k in names if k not in _replaced_by_road_load(v)]
         extra = {k: x for k, x in v.items() if k not in names}
         if model == "quasi_static":
             extra["two_speed_added_mass_kg"] = 0.0
@@ -315,7 +335,7 @@ class Acceleration(_Base):
         t = _topology(config, options)
         names = acceleration.ACCEL_PARAMS + tuple(k for k in cls._TOPO[t.name] if k in v)
         names += tuple(k for k in v if k.startswith("road_load_"))  # coast-down road load (models/road_load.py)
-        return cls({k: v[k] for k in names}, t.name)
+        return cls({k: v[k] for k in names if k not in _replaced_by_road_load(v)}, t.name)
 
     def compute(self, inputs):
         p = self._params(inputs)

@@ -149,3 +149,69 @@ def test_quasi_static_energy_uses_battery_kwh():
     ref = qs.energy_wh_per_km(d.resampled, cfg["vehicle"], 1590.0, 7.9, 80.0, battery_kwh=np.array([6.0, 30.0]))
     np.testing.assert_allclose(e, ref, rtol=1e-12)
     assert e[0] > e[1]  # a 6 kWh pack caps regeneration at 2C = 12 kW (§2.3.4 rule 4)
+
+
+@pytest.mark.parametrize("model", ["flat", "breakdown", "quasi_static", "chain"])
+def test_a_road_load_override_per_point_reaches_the_energy_as_it_does_the_acceleration(model):
+    """The energy discipline took road_load_* as fixed constants: a per-point override (bev-mdo evaluate
+    --set road_load_a_n=500, sweep, sensitivity) moved the acceleration time and left the energy on the
+    configured road load (leaf_epa_combined: 124.67 Wh/km with A = 129 N or 500 N)."""
+    def config(a_n):
+        cfg = load("leaf_nedc.yaml")
+        cfg["energy_model"] = model
+        for k in ("drag_area_m2", "rolling_resistance"):
+            cfg["vehicle"].pop(k, None)
+        cfg["vehicle"]["road_load"] = {"a_n": a_n, "b_n_per_m_s": 1.5, "c_n_per_m2_s2": 0.385, "mass_kg": 1590.0}
+        return cfg
+
+    design = {"motor_kw": np.array([80.0, 80.0]), "gear_ratio": np.array([8.0, 8.0]),
+              "battery_kwh": np.array([24.0, 24.0])}
+    energy = next(d for d in default_disciplines(config(129.0)) if d.name == "energy")
+    assert "road_load_a_n" in energy.parameters
+    got = chain(config(129.0), {**design, "road_load_a_n": np.array([129.0, 500.0])})
+    ref = {a: chain(config(a), design) for a in (129.0, 500.0)}
+    for i, a in enumerate((129.0, 500.0)):
+        for out in ("energy_wh_per_km", "accel_time_0_100_s"):
+            assert got[out][i] == pytest.approx(ref[a][out][i], rel=1e-12), (out, a)
+    assert got["energy_wh_per_km"][1] > 1.5 * got["energy_wh_per_km"][0]
+
+
+def test_what_a_coast_down_replaces_is_not_overridable():
+    """With a road_load the models read no drag area or rolling coefficient: an override of either
+    (bev-mdo evaluate config/leaf_epa_combined.yaml --set ...,drag_area_m2=2) was accepted and changed
+    nothing; the config itself refuses giving both."""
+    with_rl = {d.name: d for d in default_disciplines(load("leaf_epa_combined.yaml"))}
+    thesis = {d.name: d for d in default_disciplines(load("leaf_nedc.yaml"))}
+    for name in ("energy", "acceleration"):
+        assert {"drag_area_m2", "rolling_resistance"}.isdisjoint(with_rl[name].parameters), name
+        assert "road_load_a_n" in with_rl[name].parameters
+        assert {"drag_area_m2", "rolling_resistance"} <= set(thesis[name].parameters), name
+
+
+@pytest.mark.parametrize("model,reads", [("flat", True), ("breakdown", True), ("quasi_static", False), ("chain", False)])
+def test_regen_fraction_is_a_parameter_only_of_the_models_that_read_it(model, reads):
+    """chain and quasi_static have their own regeneration rules: --set regen_fraction=0 was accepted
+    on config/leaf_epa_combined.yaml and left the energy at 124.67 Wh/km."""
+    cfg = load("leaf_nedc.yaml")
+    cfg["energy_model"] = model
+    energy = next(d for d in default_disciplines(cfg) if d.name == "energy")
+    assert ("regen_fraction" in energy.parameters) is reads
+
+
+@pytest.mark.parametrize("name,value,says", [
+    ("road_load_a_n", -5.0, "road_load_a_n must be in [0, 5000] N, got -5"),
+    ("road_load_mass_kg", 1.0, "road_load_mass_kg must be in [100, 20000] kg, got 1"),
+    ("road_load_b_n_per_m_s", -50.0, "road load A + B v + C v^2 must stay > 0 up to 70 m/s"),
+])
+def test_a_road_load_override_is_checked_as_the_config_is(name, value, says):
+    """Per-point road-load values reached the models unchecked: --set road_load_a_n=-5 gave 80.8 Wh/km
+    (a negative rolling force) and a changed acceleration time, where the config refuses a_n: -5."""
+    cfg = load("leaf_epa_combined.yaml")
+    ds = {d.name: d for d in default_disciplines(cfg)}
+    x = {"motor_kw": np.array([80.0, 80.0]), "gear_ratio": np.array([8.0, 8.0]),
+         "vehicle_mass_kg": np.array([1590.0, 1590.0]), name: np.array([ds["energy"].parameters[name], value])}
+    for d in ("energy", "acceleration"):
+        res = run_discipline(ds[d], x)
+        assert not res.ok[1] and says in res.error, (d, res.error)
+    ok = {**x, name: np.array([ds["energy"].parameters[name]] * 2)}
+    assert run_discipline(ds["energy"], ok).ok.all()

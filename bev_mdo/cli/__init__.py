@@ -41,6 +41,20 @@ class UsageError(Exception):
     """A mistake by the user: reported as one line on stderr, exit status 2."""
 
 
+def figure_format(path) -> str | None:
+    """The ``format`` for ``fig.savefig(path)`` of a ``--png FILE`` option, so that exactly ``path`` is
+    written: matplotlib appends ``.png`` to a name without an extension, so ``--png out`` wrote
+    ``out.png`` and ``--png DIR`` (a directory given by mistake) wrote ``DIR.png`` beside it while the
+    command reported ``out`` / ``DIR``. PNG without an extension (the option's name), else the
+    extension's format; ValueError for a directory."""
+    from pathlib import Path
+
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"cannot write {path}: it is a directory (give a file name, e.g. {p / 'plot.png'})")
+    return None if p.suffix else "png"
+
+
 def _chosen(argv: list[str]) -> str | None:
     """The subcommand named in ``argv`` (its first word that is not an option), if it is one."""
     for word in argv:

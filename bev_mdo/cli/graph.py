@@ -126,7 +126,9 @@ def plot_n2(model: dict, path: Path, title: str = ""):
                  "drives, first column: what it reads;\nbetween disciplines, above the diagonal feed-forward, "
                  "below it feedback (red)" + loops, fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    from bev_mdo.cli import figure_format
+
+    fig.savefig(path, dpi=110, format=figure_format(path))
     plt.close(fig)
     return fig
 

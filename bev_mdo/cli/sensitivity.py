@@ -251,6 +251,8 @@ def write_heatmap(path: str, s, outputs, cfg=None):
             ax.set_title(f"second order (eq 5-5) of {label(k)}", fontsize=9)
         fig.colorbar(im, ax=mat_axes, shrink=0.8, label="S'_ij (–), one scale for all matrices; grey: |S'| ≤ error")
     fig.suptitle(f"Normalised sensitivities {_context_title(s, cfg)}", fontsize=10)
-    fig.savefig(path, dpi=110)
+    from bev_mdo.cli import figure_format
+
+    fig.savefig(path, dpi=110, format=figure_format(path))
     plt.close(fig)
     return fig

@@ -17,7 +17,7 @@ import sys
 
 import numpy as np
 
-from bev_mdo.cli import UsageError
+from bev_mdo.cli import UsageError, figure_format
 
 DEFAULT_SET = "epa2022_chain"
 
@@ -31,7 +31,8 @@ def register(subparsers) -> None:
                    help="fleet file (default: bev_mdo/data/epa_2022_bev/train.csv)")
     p.add_argument("--energy-model", default="chain", choices=ENERGY_MODELS, help="energy model (default chain)")
     p.add_argument("--parameter-set", default=DEFAULT_SET, metavar="NAME",
-                   help=f"shipped parameter set for the chain model (default {DEFAULT_SET}; 'none' = model defaults)")
+                   help=f"parameter set for the chain model: a shipped name or a .yaml path (default {DEFAULT_SET}; "
+                        "'none' = model defaults)")
     p.add_argument("--png", metavar="FILE", help="write the parity and residual plots")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=run)
@@ -161,7 +162,7 @@ def plot(report: dict, path: str) -> None:
     fig.suptitle(f"{report['energy_model']} on {report['data'].rsplit('/', 1)[-1]}")
     fig.tight_layout()
     try:
-        fig.savefig(path, dpi=110)
+        fig.savefig(path, dpi=110, format=figure_format(path))
     except OSError as exc:
         raise ValueError(f"cannot write {path}: {exc.strerror}") from None
     finally:

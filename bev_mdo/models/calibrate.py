@@ -9,7 +9,8 @@ model family are correlated, the spread of the parameters over the cross-validat
 reported beside it. Cross-validation is k-fold by model family (``Fleet.family``): every
 family is predicted by a fit that never saw it. Run ``python -m bev_mdo.models.calibrate`` to
 refit (``--write shipped`` rewrites bev_mdo/data/parameter_sets/epa2022_chain.yaml, ``--write FILE``
-writes elsewhere, e.g. a calibration on your own fleet file given with ``--data``).
+writes elsewhere, e.g. a calibration on your own fleet file given with ``--data``; a config uses it
+as ``vehicle.parameter_set: FILE``).
 """
 from __future__ import annotations
 
@@ -58,18 +59,32 @@ def residuals(x: np.ndarray, names, fleet: fl.Fleet, mask: np.ndarray, cycles: d
     return np.concatenate([pred[c]["energy_wh_per_km"][mask] / fleet.measured[c][mask] - 1.0 for c in fl.CYCLES])
 
 
+def usable(fleet: fl.Fleet, cycles: dict | None = None) -> np.ndarray:
+    """The vehicles a fit may use: not flagged as outliers and able to follow every cycle with their
+    rated power (as ``bev-mdo validate`` scores them; whether a motor follows does not depend on the
+    fitted parameters)."""
+    cycles = cycles or fl.resampled_cycles()
+    pred = fl.predict(fleet, "chain", {**FIXED, **{k: v[0] for k, v in FIT.items()}}, cycles)
+    return ~fleet.outlier & np.logical_and.reduce([pred[c]["follows"] for c in fl.CYCLES])
+
+
 def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dict | None = None) -> dict:
-    """Least squares over the vehicles in ``mask`` (default: every non-outlier)."""
+    """Least squares over the vehicles in ``mask`` (default: every usable vehicle, :func:`usable`).
+    ValueError if none is left."""
     names = tuple(names or FIT)
     cycles = cycles or fl.resampled_cycles()
-    mask = ~fleet.outlier if mask is None else mask & ~fleet.outlier
+    use = usable(fleet, cycles)
+    mask = use if mask is None else mask & use
+    if not mask.any():
+        raise ValueError(f"{fleet.path}: no vehicle to fit ({int(fleet.outlier.sum())} of {len(fleet)} flagged as "
+                         f"outliers, {int((~use & ~fleet.outlier).sum())} cannot follow UDDS or HWFET)")
     x0 = np.array([FIT[k][0] for k in names])
     lo, hi = np.array([FIT[k][1] for k in names]), np.array([FIT[k][2] for k in names])
     scale = np.maximum(np.abs(x0), 1e-3)
     res = least_squares(residuals, x0, bounds=(lo, hi), args=(names, fleet, mask, cycles),
                         x_scale=scale, diff_step=1e-6, method="trf")
     n, p = res.fun.size, len(names)
-    s2 = float(res.fun @ res.fun) / max(n - p, 1)
+    s2 = float(res.fun @ res.fun) / (n - p) if n > p else np.nan  # no residual degree of freedom: unknown
     try:
         cov = s2 * np.linalg.inv(res.jac.T @ res.jac)
         se = np.sqrt(np.clip(np.diag(cov), 0, None))
@@ -90,12 +105,17 @@ def group_folds(groups, k: int) -> tuple[np.ndarray, int]:
 
 
 def cross_validate(fleet: fl.Fleet, k: int = 5, names=None, cycles: dict | None = None,
-                   groups: list[str] | None = None) -> dict:
+                   groups: list[str] | None = None) -> dict | None:
     """k-fold cross-validation by group (model family by default): each fold's vehicles are
-    predicted by a fit on the other folds. Families are dealt to folds in order of size."""
+    predicted by a fit on the other folds. Families of the usable vehicles are dealt to folds in
+    order of size. None when they are fewer than two groups: no fold would have a vehicle to fit."""
     cycles = cycles or fl.resampled_cycles()
     groups = groups or fleet.family()
-    folds, k = group_folds(groups, k)
+    idx = np.flatnonzero(usable(fleet, cycles))
+    if len({groups[i] for i in idx}) < 2:
+        return None
+    folds = np.full(len(fleet), -1)
+    folds[idx], k = group_folds([groups[i] for i in idx], k)
     err = {c: np.full(len(fleet), np.nan) for c in fl.CYCLES}
     xs = []
     for i in range(k):
@@ -105,24 +125,41 @@ def cross_validate(fleet: fl.Fleet, k: int = 5, names=None, cycles: dict | None 
         pred = fl.predict(fleet, "chain", {**FIXED, **dict(zip(f["names"], f["x"]))}, cycles)
         for c in fl.CYCLES:
             err[c][test] = 100 * (pred[c]["energy_wh_per_km"][test] / fleet.measured[c][test] - 1.0)
-    ok = ~fleet.outlier
+    ok = usable(fleet, cycles)
     all_err = np.concatenate([err[c][ok] for c in fl.CYCLES])
     return {"k": k, "folds": folds, "errors_pct": err, "stats": fl.error_stats(all_err),
             "per_cycle": {c: fl.error_stats(err[c][ok]) for c in fl.CYCLES},
             "fold_params": np.array(xs)}
 
 
+def _fleet_name(fleet: fl.Fleet) -> str:
+    """The fleet file as the parameter set records it: the shipped one by its place in the repository."""
+    from pathlib import Path
+
+    p = Path(fleet.path)
+    return "bev_mdo/data/epa_2022_bev/train.csv" if p.resolve() == fl.DEFAULT_FLEET.resolve() else str(p)
+
+
 def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet, path=None) -> str:
+    """Write the parameter set: the shipped one (``path`` None) or a file whose stem is its name, with
+    the fleet file it was fitted on and the command that regenerates it."""
     import yaml
 
+    shipped = path is None
     path = path or PARAMETER_SET_DIR / f"{PARAMETER_SET}.yaml"
-    spread = cv["fold_params"].std(axis=0, ddof=1) if len(cv["fold_params"]) > 1 else np.full(len(f["x"]), np.nan)
+    spread = (cv["fold_params"].std(axis=0, ddof=1) if cv and len(cv["fold_params"]) > 1
+              else np.full(len(f["x"]), np.nan))
+    data = _fleet_name(fleet)
+    if data == "bev_mdo/data/epa_2022_bev/train.csv":
+        what, args = "the EPA 2022 BEV fleet (bev_mdo/data/epa_2022_bev/train.csv)", ""
+    else:
+        what, args = f"the fleet file {data}", f" --data {data}"
     doc = {
-        "name": PARAMETER_SET,
-        "description": "Wall-to-wheel chain (energy_model: chain) calibrated on the EPA 2022 BEV fleet "
-                       "(bev_mdo/data/epa_2022_bev/train.csv), UDDS + HWFET, least squares on relative error. "
-                       "Regenerate with: python -m bev_mdo.models.calibrate --write shipped",
-        "fitted_on": {"file": "bev_mdo/data/epa_2022_bev/train.csv", "vehicles": int((~fleet.outlier).sum()),
+        "name": PARAMETER_SET if shipped else path.stem,
+        "description": f"Wall-to-wheel chain (energy_model: chain) calibrated on {what}, UDDS + HWFET, least "
+                       "squares on relative error. Regenerate with: python -m bev_mdo.models.calibrate"
+                       f"{args} --write {'shipped' if shipped else path}",
+        "fitted_on": {"file": data, "vehicles": int(usable(fleet).sum()),
                       "cycles": list(fl.CYCLES), "date": datetime.date.today().isoformat(),
                       "fleet_wheel_radius_m": fl.FLEET_WHEEL_RADIUS_M, "fleet_gear_ratio": fl.FLEET_GEAR_RATIO},
         "fit": {k: {"value": float(v), "std_error": float(s), "cv_fold_std": float(sp)}
@@ -130,7 +167,8 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
         "fixed_not_fitted": sorted(k for k in FIXED if k not in ("air_density_kg_m3", "drag_area_m2",
                                                                    "rolling_resistance")),
         "quality": {"train_mape_pct": round(f["mape_pct"], 3),
-                    f"cv_{cv['k']}fold_by_family": {k: round(v, 3) for k, v in cv["stats"].items()},
+                    **({f"cv_{cv['k']}fold_by_family": {k: round(v, 3) for k, v in cv["stats"].items()}}
+                       if cv else {"cv_by_family": "not possible: one model family"}),
                     **({"cv_leave_one_make_out": {k: round(v, 3) for k, v in cv_make["stats"].items()}}
                        if cv_make else {})},
         "parameters": {**{k: float(v) for k, v in FIXED.items()
@@ -153,22 +191,40 @@ def main(argv=None) -> int:
     ap.add_argument("--write", metavar="YAML", default=None,
                     help=f"write the parameter set there ('shipped' = bev_mdo/data/parameter_sets/{PARAMETER_SET}.yaml)")
     args = ap.parse_args(argv)
+    from pathlib import Path
+
+    path = None if args.write in (None, "shipped") else Path(args.write)
     try:
+        if path is not None and path.suffix.lower() not in (".yaml", ".yml"):  # checked before the fit
+            raise ValueError(f"--write {args.write}: give a .yaml file (a config names it as vehicle.parameter_set)")
+        if path is not None and path.is_dir():
+            raise ValueError(f"--write {args.write}: is a directory (give a .yaml file)")
         fleet = fl.read_fleet(args.data)
+        cycles = fl.resampled_cycles()
+        use = usable(fleet, cycles)
+        f = fit(fleet, cycles=cycles)
     except ValueError as exc:
         print(f"calibrate: error: {exc}", file=sys.stderr)
         return 2
-    cycles = fl.resampled_cycles()
-    f = fit(fleet, cycles=cycles)
+    left_out = np.flatnonzero(~use & ~fleet.outlier)
+    if left_out.size:
+        print(f"{left_out.size} vehicle(s) left out: the rated power cannot follow UDDS or HWFET (rows "
+              f"{', '.join(str(r) for r in fleet.rows[left_out])})")
     cv = cross_validate(fleet, 5, cycles=cycles)
     cv_make = cross_validate(fleet, 99, cycles=cycles, groups=[m.lower() for m in fleet.make])
     for k, v, s in zip(f["names"], f["x"], f["se"]):
         print(f"{k:32s} {v:12.6g} +- {s:.3g}")
-    print(f"train MAPE {f['mape_pct']:.2f} %; CV by family (k={cv['k']}) MAPE {cv['stats']['mean_abs_pct']:.2f} %, "
-          f"leave-one-make-out MAPE {cv_make['stats']['mean_abs_pct']:.2f} %")
+    by_family = (f"CV by family (k={cv['k']}) MAPE {cv['stats']['mean_abs_pct']:.2f} %" if cv else
+                 "no CV by family (one model family: nothing to hold out)")
+    by_make = (f"leave-one-make-out MAPE {cv_make['stats']['mean_abs_pct']:.2f} %" if cv_make else
+               "no leave-one-make-out CV (one make)")
+    print(f"train MAPE {f['mape_pct']:.2f} % over {f['n_residuals']} vehicle-cycles; {by_family}, {by_make}")
     if args.write:
-        path = None if args.write == "shipped" else __import__("pathlib").Path(args.write)
-        print("wrote", write_parameter_set(f, cv, cv_make, fleet, path))
+        try:
+            print("wrote", write_parameter_set(f, cv, cv_make, fleet, path))
+        except OSError as exc:
+            print(f"calibrate: error: cannot write {exc.filename or args.write}: {exc.strerror}", file=sys.stderr)
+            return 2
     return 0
 
 

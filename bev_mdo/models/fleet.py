@@ -96,16 +96,30 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
     """Read and validate a fleet CSV; ValueError '<file>: row R, column C: ...' on bad input."""
     path = Path(path) if path is not None else DEFAULT_FLEET
     try:
-        with path.open(newline="") as f:
-            rows = list(csv.reader(f))
+        with path.open(newline="", encoding="utf-8-sig") as f:  # -sig: a BOM (Excel's "CSV UTF-8") is not data
+            reader = csv.reader(f)
+            rows = list(reader)
     except OSError as exc:
         raise ValueError(f"cannot read fleet file {path}: {exc.strerror}") from None
     except UnicodeDecodeError:
         raise ValueError(f"{path}: not a UTF-8 text CSV") from None
+    except csv.Error as exc:  # e.g. a field beyond csv's 128 KiB limit: not a fleet table
+        raise ValueError(f"{path}: row {reader.line_num}: not a CSV table: {exc}") from None
+    if any("\x00" in c for row in rows[:1] for c in row):
+        raise ValueError(f"{path}: not a UTF-8 text CSV (NUL bytes: UTF-16 without a byte-order mark?)")
     if not rows:
         raise ValueError(f"{path}: empty file")
     header = [h.strip() for h in rows[0]]
-    col = {h: i for i, h in enumerate(header)}
+    for sep, name in ((";", "semicolons"), ("\t", "tabs")):  # e.g. Excel's "CSV" in a locale with decimal commas
+        if len(header) == 1 and sep in header[0]:
+            raise ValueError(f"{path}: row 1: the columns are separated by {name}; give a comma-separated CSV "
+                             "with '.' as the decimal point")
+    col = {}
+    for i, h in enumerate(header):
+        if h in col and (h in NUMERIC or h in TEXT or h in OPTIONAL_TEXT):  # which one is meant would be a
+            # guess (the last one used to win silently); two copies of a column nobody reads do no harm
+            raise ValueError(f"{path}: row 1, column {h}: given twice (columns {col[h] + 1} and {i + 1})")
+        col.setdefault(h, i)
     for name, (_, _, required) in list(NUMERIC.items()) + [(t, (0, 0, True)) for t in TEXT]:
         if required and name not in col:
             stem = name.rsplit("_", 1)[0] if name.count("_") else name

@@ -185,19 +185,42 @@ def parameter_set_names() -> list[str]:
 
 
 def load_parameter_set(name: str) -> dict[str, float]:
-    """A shipped parameter set (bev_mdo/data/parameter_sets/<name>.yaml): its ``parameters``."""
+    """The ``parameters`` of a parameter set: a shipped one by name (bev_mdo/data/parameter_sets/<name>.yaml),
+    or a file of your own by its path ending in .yaml/.yml (relative to the working directory, as a
+    drive-cycle CSV), e.g. what ``python -m bev_mdo.models.calibrate --data FLEET --write FILE`` wrote."""
     import yaml
 
-    if not isinstance(name, str) or not name or "/" in name or name.startswith("."):
-        raise ValueError(f"parameter_set must be one of {parameter_set_names()}, got {name!r}")
-    path = PARAMETER_SET_DIR / f"{name}.yaml"
-    if not path.is_file():
-        raise ValueError(f"parameter_set {name!r} is unknown; shipped: {parameter_set_names()}")
-    doc = yaml.load(path.read_text(), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: ~30x faster
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"parameter_set must be one of {parameter_set_names()} or a .yaml path, got {name!r}")
+    if Path(name).suffix.lower() in (".yaml", ".yml"):
+        path = Path(name).expanduser()
+        if not path.is_file():
+            raise ValueError(f"parameter_set {name!r}: no such file")
+    else:
+        if "/" in name or name.startswith("."):
+            raise ValueError(f"parameter_set must be one of {parameter_set_names()} or a .yaml path, got {name!r}")
+        path = PARAMETER_SET_DIR / f"{name}.yaml"
+        if not path.is_file():
+            raise ValueError(f"parameter_set {name!r} is unknown; shipped: {parameter_set_names()} "
+                             "(or give a .yaml path)")
+    try:
+        doc = yaml.load(path.read_text(encoding="utf-8"),
+                        Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: ~30x faster
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: not a YAML parameter set ({type(exc).__name__})") from None
     values = doc.get("parameters") if isinstance(doc, dict) else None
     if not isinstance(values, dict):
         raise ValueError(f"{path}: no 'parameters' mapping")
-    return {str(k): float(v) for k, v in values.items()}
+    specs = all_specs()
+    unknown = sorted(str(k) for k in values if k not in specs)
+    if unknown:  # a misspelt name would otherwise do nothing, silently
+        raise ValueError(f"{path}: unknown parameter(s) {unknown}")
+    out = {}
+    for k, v in values.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ValueError(f"{path}: parameters.{k} must be a number, got {v!r}")
+        out[str(k)] = float(v)
+    return out
 
 
 def topology_name(name: Any) -> str:

@@ -39,6 +39,29 @@ def uses_road_load(params: Mapping[str, Any] | None) -> bool:
     return bool(params) and "road_load_c_n_per_m2_s2" in params
 
 
+def check_values(params: Mapping[str, Any]) -> None:
+    """ValueError unless the ``road_load_*`` values in ``params`` (scalars or (N,) arrays, e.g. a per-point
+    override) are what ``vehicle.road_load`` accepts: each in its range (``road_load_mass_kg`` 0 = A fixed)
+    and A + B v + C v^2 > 0 up to ROAD_LOAD_CHECK_SPEED_M_S for every point."""
+    from .common import check_array
+    from .params import ROAD_LOAD_CHECK_SPEED_M_S
+
+    for flat, s in ROAD_LOAD_SPECS.values():
+        if flat in params:
+            x = np.asarray(params[flat], float)
+            if flat == "road_load_mass_kg":
+                x = np.where(x == 0.0, s.lower, x)  # 0: A does not scale with the mass
+            check_array(flat, x, s.lower, s.upper, s.unit)
+    if uses_road_load(params):
+        a, b, c = (np.atleast_1d(np.asarray(params.get(k, 0.0), float)) for k in FLAT_KEYS[:3])
+        v = np.linspace(0.0, ROAD_LOAD_CHECK_SPEED_M_S, 701)[:, None]
+        low = (a + b * v + c * v * v).min(axis=0)
+        if (low <= 0.0).any():
+            i = int(np.argmin(low))
+            raise ValueError(f"road load A + B v + C v^2 must stay > 0 up to {ROAD_LOAD_CHECK_SPEED_M_S:g} m/s; "
+                             f"it is {low[i]:.4g} N (A {a[i % a.size]:g}, B {b[i % b.size]:g}, C {c[i % c.size]:g})")
+
+
 def coefficients(params: Mapping[str, Any]) -> tuple[Any, Any, Any, Any]:
     """(A0, A1, B, C) of the road load F = (A0 + A1 M) sgn(v) + B v + C v|v| (N; M in kg, v in m/s).
 

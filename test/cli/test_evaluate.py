@@ -88,3 +88,33 @@ def test_ros_flag_with_no_nodes_running_names_the_missing_disciplines(capsys, tm
 
 def test_parse_assignments_merges_commas_and_spaces():
     assert parse_assignments(["a=1,b=2", "c=-3e2", "d=4,"]) == {"a": 1.0, "b": 2.0, "c": -300.0, "d": 4.0}
+
+
+def test_a_config_names_a_parameter_set_file_of_your_own(capsys, tmp_path):
+    """The calibrated chain with the user's own constants: the config names the file by its path."""
+    import yaml
+
+    from bev_mdo.models.params import load_parameter_set
+
+    shipped = load_parameter_set("epa2022_chain")
+    own = tmp_path / "mine.yaml"
+    own.write_text(yaml.safe_dump({"parameters": {**shipped, "charger_efficiency": 0.7}}))
+    text = (ROOT / "config" / "leaf_epa_combined.yaml").read_text()
+    assert "parameter_set: epa2022_chain" in text
+    cfg = tmp_path / "mine_cfg.yaml"
+    cfg.write_text(text.replace("parameter_set: epa2022_chain", f"parameter_set: {own}"))
+    design = ("--set", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--json")
+    code, out, err = run(capsys, cfg, *design)
+    assert code == 0, err
+    ref = json.loads(run(capsys, ROOT / "config" / "leaf_epa_combined.yaml", *design)[1])
+    mine = json.loads(out)
+    # only the charger differs from the shipped set's 0.825...: wall energy scales with 1 / eta
+    eta = shipped["charger_efficiency"]
+    assert mine["outputs"]["energy_wh_per_km"] != pytest.approx(ref["outputs"]["energy_wh_per_km"])
+    assert mine["outputs"]["energy_wh_per_km"] * 0.7 == pytest.approx(ref["outputs"]["energy_wh_per_km"] * eta)
+
+
+def test_an_override_the_road_load_replaces_is_refused(capsys):
+    code, out, err = run(capsys, ROOT / "config" / "leaf_epa_combined.yaml", "--set",
+                         "motor_kw=80,gear_ratio=8,battery_kwh=24,drag_area_m2=2")
+    assert code == 2 and out == "" and err.count("\n") == 1 and "unknown design names ['drag_area_m2']" in err

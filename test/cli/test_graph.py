@@ -44,3 +44,14 @@ def test_battery_sizing_makes_a_feedback_loop_shown_in_dot_and_chart(tmp_path):
     assert "battery\nsizing" in texts
     assert any(t.startswith("range_km\n≥ 170") for t in texts)
     assert (tmp_path / "n2.png").stat().st_size > 1000
+
+
+def test_png_without_extension_or_into_a_directory(tmp_path, capsys):
+    """'wrote graph' was printed while matplotlib wrote graph.png; --png DIR wrote DIR.png beside it."""
+    from bev_mdo.cli import main
+
+    plain = tmp_path / "graph"
+    assert main(["graph", str(ROOT / "config/leaf_nedc.yaml"), "--png", str(plain)]) == 0
+    assert plain.read_bytes()[:4] == b"\x89PNG" and not plain.with_suffix(".png").exists()
+    assert main(["graph", str(ROOT / "config/leaf_nedc.yaml"), "--png", str(tmp_path)]) == 2
+    assert "is a directory" in capsys.readouterr().err and not tmp_path.with_suffix(".png").exists()

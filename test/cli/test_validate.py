@@ -108,6 +108,14 @@ def _drop(col):
     return f
 
 
+def _duplicate(col, value):
+    def f(rows):
+        rows[0].append(col)
+        for r in rows[1:]:
+            r.append(value)
+    return f
+
+
 @pytest.mark.parametrize("edit,expect", [
     (_drop("test_mass_kg"), "row 1: missing column test_mass_kg"),
     (_rename("test_mass_kg", "test_mass_lb"), "row 1, column test_mass_lb: unknown unit (expected column test_mass_kg)"),
@@ -117,6 +125,8 @@ def _drop(col):
     (_set("reported_unit", "mpg", 4), "row 5, column reported_unit: unknown unit 'mpg'"),
     (_set("rated_power_kw", "", 7), "row 8, column rated_power_kw: not a number: ''"),
     (_set("road_load_b_n_per_m_s", "-40", 7), "row 8, column road_load_b_n_per_m_s: the road load"),
+    # a second test_mass_kg column (e.g. pasted in lb) was read instead of the first, without a word
+    (_duplicate("test_mass_kg", "5000"), "row 1, column test_mass_kg: given twice (columns 8 and 16)"),
 ])
 def test_bad_fleet_file_one_line_exit_2(capsys, tmp_path, edit, expect):
     p = _bad(tmp_path, edit)
@@ -128,3 +138,51 @@ def test_bad_fleet_file_one_line_exit_2(capsys, tmp_path, edit, expect):
 def test_missing_file_exit_2(capsys, tmp_path):
     code, _, err = run(capsys, "--data", tmp_path / "none.csv")
     assert code == 2 and "cannot read fleet file" in err
+
+
+def test_a_fleet_file_saved_by_excel_with_a_bom_and_crlf_reads_like_the_shipped_one(capsys, tmp_path):
+    """Excel's "CSV UTF-8" starts the file with a byte-order mark; it must not become part of the
+    first column's name (it was: "row 1: missing column make")."""
+    p = tmp_path / "excel.csv"
+    p.write_bytes(b"\xef\xbb\xbf" + TRAIN.read_bytes().replace(b"\n", b"\r\n"))
+    code, out, err = run(capsys, "--data", p, "--json")
+    assert code == 0, err
+    doc, ref = json.loads(out), json.loads(run(capsys, "--json")[1])
+    assert doc["vehicles"] == 62 and doc["rows"][0]["make"] == "BMW"
+    assert doc["stats"] == ref["stats"]
+
+
+def test_png_is_written_exactly_where_asked(capsys, tmp_path):
+    """matplotlib appends .png to a name without an extension: --png DIR (a directory) wrote DIR.png
+    beside it and exited 0, and --png out wrote out.png."""
+    code, out, err = run(capsys, "--png", tmp_path)
+    assert code == 2 and out == "" and err.count("\n") == 1 and "is a directory" in err
+    assert not tmp_path.with_suffix(".png").exists()
+    plain = tmp_path / "parity"
+    assert run(capsys, "--png", plain)[0] == 0
+    assert plain.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and not plain.with_suffix(".png").exists()
+
+
+@pytest.mark.parametrize("content,expect", [
+    # csv's field limit raised _csv.Error out of read_fleet: a traceback
+    (lambda raw: raw.replace(b"BMW", b"B" * 200_000, 1), "row 2: not a CSV table: field larger than field limit"),
+    # UTF-16 without a BOM decodes as UTF-8 with NULs: it said "row 1: missing column rated_power_kw"
+    (lambda raw: raw.decode().encode("utf-16-le"), "not a UTF-8 text CSV (NUL bytes"),
+])
+def test_a_file_that_is_not_a_csv_table_is_one_line(capsys, tmp_path, content, expect):
+    p = tmp_path / "odd.csv"
+    p.write_bytes(content(TRAIN.read_bytes()))
+    code, out, err = run(capsys, "--data", p)
+    assert code == 2 and out == "" and err.count("\n") == 1 and expect in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("sep", [";", "\t"])
+def test_a_file_separated_by_semicolons_or_tabs_says_so(capsys, tmp_path, sep):
+    """Excel's "CSV" in a locale with decimal commas separates by ';': the one-column header was
+    reported as 'row 1: missing column rated_power_kw' although the header names it."""
+    p = tmp_path / "semi.csv"
+    with p.open("w", newline="") as f:
+        csv.writer(f, delimiter=sep).writerows(_rows())
+    code, out, err = run(capsys, "--data", p)
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert "row 1: the columns are separated by" in err and "missing column" not in err

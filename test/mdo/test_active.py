@@ -99,3 +99,19 @@ def test_answers_for_builds_the_disciplines_only_for_a_jacobian():
     short = answers_for(cfg, design, {**fine, "range_km": 10.0}, build)
     assert built == [1] and "jacobian_error" not in short
     assert [v["name"] for v in short["violated"]] == ["range_km"]
+
+
+def test_a_failed_point_has_no_value_rather_than_an_infinite_shortfall():
+    """bev-mdo optimize from a start where acceleration cannot reach 100 km/h (gear ratio 1, 40 kW) said
+    'violated: range_km >= 170 km is nan km, short by inf km / no design-variable bound blocks it' for
+    every constraint, though only the point had failed."""
+    nan = float("nan")
+    jac = {"range_km": {"motor_kw": nan, "battery_kwh": nan}, "accel_time_0_100_s": {"motor_kw": nan}}
+    a = analyse(PROBLEM, {"motor_kw": 40.0, "battery_kwh": 20.0}, {"range_km": nan, "accel_time_0_100_s": nan},
+                jacobian=jac)
+    assert not a["feasible"] and [e["name"] for e in a["violated"]] == ["range_km", "accel_time_0_100_s"]
+    text = "\n".join(a["lines"])
+    assert "no value: range_km >= 250 km (the point failed)" in text
+    assert "no value: accel_time_0_100_s <= 10 s (the point failed)" in text
+    assert "nan" not in text and "inf" not in text and "blocks it" not in text
+    assert "on its lower bound: motor_kw = 40 kW" in text

@@ -78,6 +78,29 @@ def test_csv_roundtrip(tmp_path):
     assert c.name == "mine" and c.distance_m == pytest.approx(100.0)
 
 
+def test_csv_saved_by_excel_with_a_bom_and_crlf(tmp_path):
+    """Excel's "CSV UTF-8" starts with a byte-order mark; it made the header 'not time_s,speed_kmh'."""
+    p = tmp_path / "excel.csv"
+    p.write_bytes(b"\xef\xbb\xbftime_s,speed_kmh\r\n0,0\r\n10,36\r\n20,0\r\n")
+    c = load_cycle(str(p))
+    assert c.name == "excel" and c.distance_m == pytest.approx(100.0)
+
+
+def test_csv_not_utf8_names_the_file(tmp_path):
+    p = tmp_path / "latin1.csv"
+    p.write_bytes("time_s,speed_kmh\n0,0\n1,1\xe9\n".encode("latin-1"))
+    with pytest.raises(ValueError, match=r"latin1\.csv: not a UTF-8 text CSV"):
+        read_cycle_csv(p)
+
+
+def test_csv_field_beyond_the_csv_limit_is_one_line(tmp_path):
+    """_csv.Error escaped read_cycle_csv: bev-mdo evaluate printed a traceback."""
+    p = tmp_path / "huge.csv"
+    p.write_text("time_s,speed_kmh\n0,0\n1," + "1" * 200_000 + "\n")
+    with pytest.raises(ValueError, match=r"huge\.csv: row 3: not a CSV table: field larger"):
+        read_cycle_csv(p)
+
+
 def test_unknown_cycle_name():
     with pytest.raises(ValueError, match="unknown drive cycle"):
         load_cycle("ftp75")

@@ -1,0 +1,124 @@
+"""``python -m bev_mdo.models.calibrate`` on a fleet of one's own: what it writes and that it can be used."""
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from bev_mdo.cli import main as bev_mdo
+from bev_mdo.models import calibrate
+from bev_mdo.models import fleet as fl
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _fleet(tmp_path, pick, name="mine.csv"):
+    with fl.DEFAULT_FLEET.open(newline="") as f:
+        rows = list(csv.reader(f))
+    p = tmp_path / name
+    with p.open("w", newline="") as f:
+        csv.writer(f).writerows([rows[0], *(r for r in rows[1:] if pick(r))])
+    return p
+
+
+def test_a_set_written_for_your_fleet_names_itself_and_your_file_and_runs_in_evaluate(tmp_path, capsys):
+    """--write FILE used to record name epa2022_chain and 'fitted on bev_mdo/data/epa_2022_bev/train.csv'
+    whatever --data was: a user's calibration claimed to be the shipped one."""
+    data = _fleet(tmp_path, lambda r: r[0] in ("BMW", "Ford", "KIA"))
+    out = tmp_path / "my_fleet.yaml"
+    assert calibrate.main(["--data", str(data), "--write", str(out)]) == 0
+    doc = yaml.safe_load(out.read_text())
+    assert doc["name"] == "my_fleet"
+    assert doc["fitted_on"]["file"] == str(data) and doc["fitted_on"]["vehicles"] == len(fl.read_fleet(data)) > 2
+    assert str(data) in doc["description"] and "epa_2022_bev" not in doc["description"]
+    assert f"--data {data} --write {out}" in doc["description"]
+    capsys.readouterr()
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text((ROOT / "config" / "leaf_epa_combined.yaml").read_text()
+                   .replace("parameter_set: epa2022_chain", f"parameter_set: {out}"))
+    code = bev_mdo(["evaluate", str(cfg), "--set", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--json"])
+    res = json.loads(capsys.readouterr().out)
+    assert code == 0 and res["ok"] and np.isfinite(res["outputs"]["energy_wh_per_km"])
+
+
+def test_the_shipped_set_keeps_its_name_and_file(tmp_path, monkeypatch):
+    monkeypatch.setattr(calibrate, "PARAMETER_SET_DIR", tmp_path)
+    f = {"names": tuple(calibrate.FIT), "x": np.array([0.8, 0.8]), "se": np.array([0.01, 0.01]), "mape_pct": 7.0}
+    stats = fl.error_stats(np.array([1.0, -2.0]))
+    cv = {"k": 5, "fold_params": np.full((5, 2), 0.8), "stats": stats}
+    path = calibrate.write_parameter_set(f, cv, None, fl.read_fleet(), None)
+    doc = yaml.safe_load(Path(path).read_text())
+    assert Path(path).name == "epa2022_chain.yaml" and doc["name"] == "epa2022_chain"
+    assert doc["fitted_on"]["file"] == "bev_mdo/data/epa_2022_bev/train.csv"
+    assert doc["description"].endswith("python -m bev_mdo.models.calibrate --write shipped")
+
+
+def _i4(r):
+    return r[0] == "BMW" and r[1].startswith("i4")
+
+
+def test_too_little_data_is_said_not_turned_into_numbers(tmp_path, capsys):
+    """One model family: the CV folds had no vehicle to fit, least_squares returned its start point
+    and 'CV by family (k=1) MAPE 7.30 %' was printed and written; all rows flagged: the start point
+    was printed as the fit (0.9 +- nan), exit 0; one vehicle: a standard error of 3e-08 from zero
+    degrees of freedom."""
+    one_family = _fleet(tmp_path, _i4, "i4.csv")
+    out = tmp_path / "i4.yaml"
+    assert calibrate.main(["--data", str(one_family), "--write", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "no CV by family" in said and "no leave-one-make-out CV" in said and "MAPE 7.30" not in said
+    assert calibrate.cross_validate(fl.read_fleet(one_family)) is None
+    quality = yaml.safe_load(out.read_text())["quality"]
+    assert quality["cv_by_family"].startswith("not possible") and not any(k.startswith("cv_1fold") for k in quality)
+
+    single = fl.read_fleet(_fleet(tmp_path, lambda r: r[2] == "FK96502" and r[3] == "0", "one.csv"))
+    got = calibrate.fit(single)
+    assert len(single) == 1 and got["n_residuals"] == 2 and np.isnan(got["se"]).all()
+
+    with fl.DEFAULT_FLEET.open(newline="") as f:
+        rows = list(csv.reader(f))
+    flag = rows[0].index("flag")
+    flagged = tmp_path / "flagged.csv"
+    with flagged.open("w", newline="") as f:
+        csv.writer(f).writerows([rows[0], *(r[:flag] + ["suspect"] + r[flag + 1:] for r in rows[1:4])])
+    assert calibrate.main(["--data", str(flagged)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no vehicle to fit (3 of 3 flagged as outliers" in err
+
+
+def test_a_vehicle_that_cannot_follow_is_left_out_of_the_fit(tmp_path, capsys):
+    """bev-mdo validate does not score it; the fit used it (a 5 kW motor in a 2.3 t car pulled the
+    charger efficiency to its bound of 1)."""
+    with fl.DEFAULT_FLEET.open(newline="") as f:
+        rows = list(csv.reader(f))
+    kw = rows[0].index("rated_power_kw")
+    keep = [r for r in rows[1:] if r[0] in ("BMW", "Ford")]
+    slow = list(keep[0])
+    slow[kw] = "5"
+    p = tmp_path / "slow.csv"
+    with p.open("w", newline="") as f:
+        csv.writer(f).writerows([rows[0], slow, *keep])
+    fleet = fl.read_fleet(p)
+    assert calibrate.usable(fleet).tolist() == [False] + [True] * len(keep)
+    ref = calibrate.fit(fl.read_fleet(_fleet(tmp_path, lambda r: r[0] in ("BMW", "Ford"), "ref.csv")))
+    got = calibrate.fit(fleet)
+    np.testing.assert_allclose(got["x"], ref["x"], rtol=1e-9)
+    assert calibrate.main(["--data", str(p)]) == 0
+    assert "1 vehicle(s) left out: the rated power cannot follow UDDS or HWFET (rows 2)" in capsys.readouterr().out
+
+
+def test_write_is_checked_before_the_fit_and_a_failed_write_is_one_line(tmp_path, capsys):
+    """--write DIR fitted, cross-validated and then died with IsADirectoryError (a traceback);
+    --write out.txt wrote a set no config can name (parameter_set takes shipped names and .yaml paths)."""
+    data = _fleet(tmp_path, _i4, "i4.csv")
+    for bad in (tmp_path, tmp_path / "set.txt"):
+        assert calibrate.main(["--data", str(data), "--write", str(bad)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("calibrate: error: --write") and ".yaml" in err
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert calibrate.main(["--data", str(data), "--write", str(blocker / "set.yaml")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("calibrate: error: cannot write") and "Traceback" not in err
