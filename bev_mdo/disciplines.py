@@ -142,7 +142,10 @@ class Energy(_Base):
     """vehicle_mass_kg, gear_ratio (, motor_kw, battery_kwh, rear motor) -> energy_wh_per_km on the
     configured cycle (option ``cycle`` overrides it). Option ``feasibility_outputs: true`` adds
     ``drive_torque_margin_nm`` (min over the cycle of envelope minus demand; at the motor for
-    SM-SA, at the wheels otherwise) and ``motor_speed_margin_rad_s`` (limit minus max), quasi-static only."""
+    SM-SA, at the wheels otherwise) and, with quasi_static, ``motor_speed_margin_rad_s`` (limit minus
+    max) or, with chain, ``drive_power_margin_kw`` (rated power minus the largest drive power; over
+    every cycle of ``cycle_weights``): constrain them >= 0 so that an optimiser cannot pick a motor
+    that does not follow the cycle (the chain's energy of such a design is the energy of the demand)."""
 
     name = "energy"
     outputs = ("energy_wh_per_km",)
@@ -158,11 +161,12 @@ class Energy(_Base):
         self.topology = topo_model.get_topology(topology)
         if self.topology.name != "SM-SA" and energy_model != "quasi_static":
             raise ValueError(f"topology {self.topology.name} needs energy_model quasi_static, got {energy_model!r}")
-        if feasibility_outputs and energy_model != "quasi_static":
-            raise ValueError("energy option feasibility_outputs needs energy_model quasi_static")
+        if feasibility_outputs and energy_model not in ("quasi_static", "chain"):
+            raise ValueError("energy option feasibility_outputs needs energy_model quasi_static or chain")
         self.feasibility_outputs = bool(feasibility_outputs)
         if feasibility_outputs:
-            self.outputs = ("energy_wh_per_km", "drive_torque_margin_nm", "motor_speed_margin_rad_s")
+            self.outputs = ("energy_wh_per_km", "drive_torque_margin_nm",
+                            "motor_speed_margin_rad_s" if energy_model == "quasi_static" else "drive_power_margin_kw")
         if energy_model == "flat":
             self.inputs = ("vehicle_mass_kg", "gear_ratio")
             self._fn = flat.energy_wh_per_km
@@ -218,6 +222,14 @@ class Energy(_Base):
                                                    - r.motor_speed_max_rad_s)
             return out
         motor_kw = inputs.get("motor_kw")
+        if self.feasibility_outputs:  # chain: energy and the motor's margins, the tightest over the cycles
+            from bev_mdo.models import chain
+
+            runs = [(w, chain.simulate(r, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw))
+                    for w, r in (getattr(self, "weighted", None) or [(1.0, self.resampled)])]
+            return {"energy_wh_per_km": sum(w * c.energy_wh_per_km for w, c in runs),
+                    "drive_torque_margin_nm": np.minimum.reduce([c.torque_margin_nm for _, c in runs]),
+                    "drive_power_margin_kw": np.minimum.reduce([c.power_margin_kw for _, c in runs])}
         if getattr(self, "weighted", None):  # e.g. EPA combined: 0.55 UDDS + 0.45 HWFET by distance
             e = sum(w * self._fn(r, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
                     for w, r in self.weighted)
