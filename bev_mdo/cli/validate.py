@@ -71,7 +71,23 @@ def evaluate(data=None, energy_model: str = "chain", parameter_set: str | None =
             "not_following": [{"row": int(fleet.rows[i]), "cycle": c} for c in fl.CYCLES
                               for i in np.flatnonzero(~pred[c]["follows"])],
             "stats": {"udds_hwfet": fl.error_stats(both),
-                      **{c.replace("epa_", ""): fl.error_stats(err[c][scored[c]]) for c in fl.CYCLES}}}
+                      **{c.replace("epa_", ""): fl.error_stats(err[c][scored[c]]) for c in fl.CYCLES}},
+            "by_make": _by_make(fleet, err, scored)}
+
+
+def _by_make(fleet, err: dict, scored: dict) -> list[dict]:
+    """Error statistics of each make over its scored vehicle-cycles, most over-predicted first: the
+    chain's errors go by make (docs/validation.md), which the fleet-wide figures hide."""
+    from bev_mdo.models import fleet as fl
+
+    makes = np.array([m.strip().lower() for m in fleet.make])
+    out = []
+    for key in dict.fromkeys(makes):
+        e = np.concatenate([err[c][scored[c] & (makes == key)] for c in err])
+        if e.size:
+            name = next(m.strip() for m in fleet.make if m.strip().lower() == key)
+            out.append({"make": name, "vehicles": int((makes == key).sum()), **fl.error_stats(e)})
+    return sorted(out, key=lambda r: -r["mean_signed_pct"])
 
 
 def run(args) -> int:
@@ -113,6 +129,9 @@ def print_table(report: dict, file=None) -> None:
         print(f"{name:>11}: n={s['n']:3d}  mean |err| {_f(s['mean_abs_pct'], 2)} %  median {_f(s['median_abs_pct'], 2)} %"
               f"  P90 {_f(s['p90_abs_pct'], 2)} %  max {_f(s['max_abs_pct'], 2)} %  mean signed {_f(s['mean_signed_pct'], 2)} %",
               file=out)
+    if report.get("by_make") and len(report["by_make"]) > 1:
+        print("by make, both cycles (mean signed % / mean |err| %): " + ", ".join(
+            f"{r['make']} {r['mean_signed_pct']:+.1f} / {r['mean_abs_pct']:.1f}" for r in report["by_make"]), file=out)
     if report["not_following"]:
         print(f"{len(report['not_following'])} vehicle-cycle(s) whose rated power cannot follow the cycle "
               f"(not scored): " + ", ".join(f"row {x['row']} {x['cycle']}" for x in report["not_following"]), file=out)

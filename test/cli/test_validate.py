@@ -45,6 +45,29 @@ def test_default_fleet_json(capsys):
     assert r0["udds_error_pct"] == pytest.approx(100 * (r0["udds_predicted_wh_per_km"] / 133.99 - 1))
 
 
+def test_errors_by_make(capsys, tmp_path):
+    """Each make's statistics over its scored vehicle-cycles, most over-predicted first; a vehicle
+    that cannot follow is not in them (as in the fleet-wide figures)."""
+    code, out, _ = run(capsys, "--json")
+    doc = json.loads(out)
+    by = doc["by_make"]
+    assert sum(r["n"] for r in by) == doc["stats"]["udds_hwfet"]["n"]
+    signed = [r["mean_signed_pct"] for r in by]
+    assert signed == sorted(signed, reverse=True)
+    tesla = [r[f"{c}_error_pct"] for r in doc["rows"] if r["make"] == "Tesla" for c in ("udds", "hwfet")]
+    (t,) = [r for r in by if r["make"] == "Tesla"]
+    assert t["vehicles"] == 13 and t["mean_signed_pct"] == pytest.approx(np.mean(tesla))
+    assert t["mean_abs_pct"] == pytest.approx(np.mean(np.abs(tesla)))
+    rows = _rows()
+    i = next(k for k, r in enumerate(rows) if r[0] == "Tesla")
+    rows[i][rows[0].index("rated_power_kw")] = "5"  # this one cannot follow: left out of Tesla's figures
+    code, out, _ = run(capsys, "--data", _write(tmp_path, rows), "--json")
+    (t5,) = [r for r in json.loads(out)["by_make"] if r["make"] == "Tesla"]
+    assert t5["vehicles"] == 13 and t5["n"] < 26
+    code, out, _ = run(capsys)
+    assert "by make, both cycles (mean signed % / mean |err| %): Tesla +" in out
+
+
 def test_table_and_png(capsys, tmp_path):
     png = tmp_path / "parity.png"
     code, out, _ = run(capsys, "--png", png)
