@@ -66,6 +66,11 @@ def reference(config_path):
     return run_optimization(config, InProcessEvaluator(resolve_disciplines(config)))
 
 
+def _deaths(node) -> int:
+    """Restarts after the process died, not counting the watchdog's restarts of a hung node."""
+    return node.restarts - node.hangs
+
+
 class Audit:
     """Wraps RosEvaluator._send/_on_result: injects kills and checks every accepted result."""
 
@@ -160,11 +165,11 @@ def test_sigkill_a_node_three_times_gives_the_same_optimum(rclpy_context, launch
     config = load_config(config_path)
     audit = Audit(config, launcher, target, KILL_AT)
     audit.install(monkeypatch)
-    restarts0 = launcher.node(target).restarts - launcher.node(target).hangs
-    others0 = {n.label: n.restarts - n.hangs for n in launcher.nodes if n.label != target}
+    restarts0 = _deaths(launcher.node(target))
+    others0 = {n.label: _deaths(n) for n in launcher.nodes if n.label != target}
     res, stats = coordinator_node.run(config, context=rclpy_context)
     assert audit.kills == 3, f"only {audit.first_sends} requests went to {target}"
-    assert launcher.node(target).restarts - launcher.node(target).hangs - restarts0 == 3
+    assert _deaths(launcher.node(target)) - restarts0 == 3
     assert stats["retried"] >= 3  # each kill left an outstanding evaluation that was re-sent
     _assert_same_optimum(res, reference)
     # bookkeeping: each evaluation id accepted exactly once, and every accepted result was
@@ -175,7 +180,7 @@ def test_sigkill_a_node_three_times_gives_the_same_optimum(rclpy_context, launch
     assert not ev._pending
     assert stats["dropped"].get("malformed", 0) == 0 and stats["dropped"].get("mismatched", 0) == 0
     # no other node died during this run (restarts of hung nodes by the watchdog aside)
-    assert {n.label: n.restarts - n.hangs for n in launcher.nodes if n.label != target} == others0
+    assert {n.label: _deaths(n) for n in launcher.nodes if n.label != target} == others0
 
 
 def test_sigkill_while_a_request_reaches_the_node_again_and_again(rclpy_context, launcher, config_path, reference,
@@ -192,12 +197,12 @@ def test_sigkill_while_a_request_reaches_the_node_again_and_again(rclpy_context,
     for _ in range(ROUNDS_AFTER):
         audit = Audit(config, launcher, "energy", KILL_AFTER, after_send=True)
         audit.install(monkeypatch)
-        restarts0 = launcher.node("energy").restarts - launcher.node("energy").hangs
+        restarts0 = _deaths(launcher.node("energy"))
         res, stats = coordinator_node.run(config, context=rclpy_context)
         monkeypatch.undo()  # the next round wraps the original methods again
         assert audit.kills == len(KILL_AFTER), f"only {audit.first_sends} requests went to energy"
         # the last kill may come after energy answered, so the run need not wait for that restart
-        assert until(lambda: launcher.node("energy").restarts - launcher.node("energy").hangs - restarts0
+        assert until(lambda: _deaths(launcher.node("energy")) - restarts0
                      == len(KILL_AFTER), 30.0, lambda: time.sleep(0.02))
         _assert_same_optimum(res, reference)
         (ev,) = audit.evaluators
