@@ -223,12 +223,34 @@ def _check_mda_numbers(mda: Mapping[str, Any]) -> None:
         raise ValueError(f"mda.fuse_downstream {mda['fuse_downstream']!r} must be true or false")
 
 
+def _inline_parameter_set_file(cfg: dict) -> None:
+    """A parameter set named by its file (``vehicle.parameter_set: mine.yaml``) is read once, here, and
+    its values go into the vehicle section as defaults (keys given there still win), so the resolved
+    config reproduces the run alone: a bag's ``resume``, a node started in another folder or on another
+    host, the same run after the file moved or was rewritten. A shipped set stays named (it comes with
+    the package, whose version the bag records)."""
+    from pathlib import Path
+
+    from bev_mdo.models import params
+
+    v = cfg.get("vehicle")
+    name = v.get("parameter_set") if isinstance(v, Mapping) else None
+    if not isinstance(name, str) or Path(name).suffix.lower() not in (".yaml", ".yml"):
+        return
+    values = params.load_parameter_set(name)
+    replaced = ("drag_area_m2", "rolling_resistance") if "road_load" in v or any(
+        k.startswith("road_load_") for k in v) else ()  # unused beside a road load, and refused there
+    section = {k: x for k, x in v.items() if k != "parameter_set"}
+    cfg["vehicle"] = {**{k: x for k, x in values.items() if k not in section and k not in replaced}, **section}
+
+
 def _validate_models(cfg: dict) -> None:
     """Vehicle and cycle sections are checked by the models' own validators."""
     from bev_mdo.models import params
 
     if "vehicle" in cfg or "cycle" in cfg:
         try:
+            _inline_parameter_set_file(cfg)
             params.validate_vehicle(cfg.get("vehicle"))
         except ValueError as exc:
             raise ValueError(f"vehicle: {exc}") from None

@@ -186,3 +186,31 @@ def test_baseline_is_optional_and_validated(tmp_path):
         raw["problem"]["baseline"] = bad
         with pytest.raises(ValueError, match=msg):
             load_config(raw)
+
+
+def test_a_parameter_set_file_is_written_into_the_resolved_config(tmp_path, monkeypatch):
+    """vehicle.parameter_set given as a file: its values go into the resolved config (what a bag and
+    the nodes get), so the run resolves the same after the file moved or changed; keys of the section
+    still win, and a set's drag/rolling constants are dropped beside a coast-down road load."""
+    from bev_mdo.models.params import load_parameter_set, validate_vehicle
+
+    shipped = load_parameter_set("epa2022_chain")
+    own = {**shipped, "charger_efficiency": 0.9, "drag_area_m2": 0.7}
+    (tmp_path / "mine.yaml").write_text(yaml.safe_dump({"name": "mine", "parameters": own}))
+    raw = yaml.safe_load((ROOT.parent / "config" / "leaf_epa_combined.yaml").read_text())
+    raw["vehicle"]["parameter_set"] = "mine.yaml"
+    raw["vehicle"]["aux_power_w"] = 450.0
+    monkeypatch.chdir(tmp_path)
+    cfg = load_config(raw)
+    v = cfg["vehicle"]
+    assert "parameter_set" not in v and "drag_area_m2" not in v
+    assert v["charger_efficiency"] == 0.9 and v["aux_power_w"] == 450.0
+    assert v["regen_axle_share"] == shipped["regen_axle_share"]
+    resolved = validate_vehicle(copy.deepcopy(v))
+    (tmp_path / "mine.yaml").write_text(yaml.safe_dump({"name": "mine", "parameters": {**own, "charger_efficiency": 0.5}}))
+    again = load_config(copy.deepcopy(cfg))  # what resume does with the bag's config
+    assert validate_vehicle(copy.deepcopy(again["vehicle"])) == resolved
+    (tmp_path / "mine.yaml").unlink()
+    assert validate_vehicle(copy.deepcopy(load_config(copy.deepcopy(cfg))["vehicle"])) == resolved
+    with pytest.raises(ValueError, match="mine.yaml"):
+        load_config(raw)  # the file itself is needed once, when the run is configured
