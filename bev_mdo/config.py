@@ -18,7 +18,7 @@ from typing import Any
 from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
 
 TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "disciplines", "problem",
-            "formulation", "mda", "optimizer", "ros", "recording", "search_path")
+            "formulation", "mda", "optimizer", "ros", "recording", "search_path", "cycle_traces")
 FORMULATIONS = ("mdf", "idf")
 # the engine sections' defaults, defined once with their types (mdo/settings.py)
 MDA_DEFAULTS = MDASettings().as_dict()
@@ -244,6 +244,35 @@ def _inline_parameter_set_file(cfg: dict) -> None:
     cfg["vehicle"] = {**{k: x for k, x in values.items() if k not in section and k not in replaced}, **section}
 
 
+def _record_cycle_traces(cfg: dict) -> None:
+    """Every drive-cycle CSV the run names (``cycle.name``, the energy and cycle_range options ``cycle``
+    and ``cycle_weights``) is read once, here, into the resolved config's ``cycle_traces`` (path ->
+    {time_s, speed_m_s}); the models take it from there, so a bag's ``resume`` and nodes started in
+    another folder or on another host run on the same trace without the file. A trace already there
+    (a resolved config read again) is checked, not re-read."""
+    from bev_mdo.models.cycles import is_csv_cycle, load_cycle, trace_cycle, trace_record
+
+    traces = cfg.get("cycle_traces") or {}
+    if not isinstance(traces, Mapping):
+        raise ValueError("cycle_traces must map CSV paths to {time_s: [...], speed_m_s: [...]}")
+    names = [cfg["cycle"]["name"]]
+    for e in cfg.get("disciplines") or []:
+        if isinstance(e, Mapping) and e.get("name") in ("energy", "cycle_range") and not e.get("class"):
+            opts = e.get("options") or {}
+            if isinstance(opts.get("cycle"), str):
+                names.append(opts["cycle"])
+            if isinstance(opts.get("cycle_weights"), Mapping):
+                names += [str(k) for k in opts["cycle_weights"]]
+    out = {}
+    for name in dict.fromkeys(n for n in names if is_csv_cycle(n)):
+        out[name] = traces[name] if name in traces else trace_record(load_cycle(name))
+        trace_cycle(name, out[name])
+    if out:
+        cfg["cycle_traces"] = out
+    else:
+        cfg.pop("cycle_traces", None)
+
+
 def _validate_models(cfg: dict) -> None:
     """Vehicle and cycle sections are checked by the models' own validators."""
     from bev_mdo.models import params
@@ -258,8 +287,9 @@ def _validate_models(cfg: dict) -> None:
             cfg["cycle"] = params.validate_cycle(cfg.get("cycle"))
             from bev_mdo.models.cycles import load_cycle, resample
 
+            _record_cycle_traces(cfg)
             c = cfg["cycle"]  # read and check the trace now: one line naming file and row
-            resample(load_cycle(c["name"]), c["dt_s"], c["interpolation"], c["smoothing"])
+            resample(load_cycle(c["name"], cfg.get("cycle_traces")), c["dt_s"], c["interpolation"], c["smoothing"])
         except ValueError as exc:
             raise ValueError(f"cycle: {exc}") from None
 

@@ -37,7 +37,7 @@ def _vehicle(config: Mapping[str, Any]) -> dict[str, float]:
 
 def _resampled(config: Mapping[str, Any]):
     c = validate_cycle(config.get("cycle"))
-    return resample(load_cycle(c["name"]), c["dt_s"], c["interpolation"], c["smoothing"])
+    return resample(load_cycle(c["name"], config.get("cycle_traces")), c["dt_s"], c["interpolation"], c["smoothing"])
 
 
 TOPOLOGY_DISCIPLINES = ("vehicle_mass", "energy", "acceleration", "cost", "cycle_range")
@@ -255,7 +255,8 @@ def _cycle_weights(config, options, model):
             raise ValueError(f"energy option cycle_weights.{name} must be a share in (0, 1], got {w!r}")
         total += float(w)
         c = validate_cycle({**(config.get("cycle") or {}), "name": name})
-        out.append((float(w), resample(load_cycle(c["name"]), c["dt_s"], c["interpolation"], c["smoothing"])))
+        out.append((float(w), resample(load_cycle(c["name"], config.get("cycle_traces")), c["dt_s"],
+                                       c["interpolation"], c["smoothing"])))
     if abs(total - 1.0) > 1e-9:
         raise ValueError(f"energy option cycle_weights must sum to 1, got {total:g}")
     return out
@@ -266,7 +267,7 @@ def _cycle_option(config, options):
     if options.get("cycle") is None:
         return _resampled(config)
     c = validate_cycle({**(config.get("cycle") or {}), "name": options["cycle"]})
-    return resample(load_cycle(c["name"]), c["dt_s"], c["interpolation"], c["smoothing"])
+    return resample(load_cycle(c["name"], config.get("cycle_traces")), c["dt_s"], c["interpolation"], c["smoothing"])
 
 
 class CycleRange(Energy):

@@ -214,3 +214,40 @@ def test_a_parameter_set_file_is_written_into_the_resolved_config(tmp_path, monk
     assert validate_vehicle(copy.deepcopy(load_config(copy.deepcopy(cfg))["vehicle"])) == resolved
     with pytest.raises(ValueError, match="mine.yaml"):
         load_config(raw)  # the file itself is needed once, when the run is configured
+
+
+def test_drive_cycle_csvs_are_recorded_in_the_resolved_config(tmp_path, monkeypatch):
+    """Every cycle CSV a run names (cycle.name, the energy options cycle and cycle_weights) goes into
+    the resolved config's cycle_traces: the run resolves to the same energies after the files moved
+    (a bag's resume, a node on another host); a broken recorded trace is one line naming it."""
+    import numpy as np
+
+    from bev_mdo.models.cycles import DATA_DIR
+
+    for name in ("a.csv", "b.csv"):
+        (tmp_path / name).write_text((DATA_DIR / ("epa_udds.csv" if name == "a.csv" else "epa_hwfet.csv")).read_text())
+    raw = yaml.safe_load((ROOT.parent / "config" / "leaf_epa_combined.yaml").read_text())
+    raw["cycle"]["name"] = "a.csv"
+    raw["disciplines"][1]["options"] = {"cycle_weights": {"a.csv": 0.55, "b.csv": 0.45}}
+    monkeypatch.chdir(tmp_path)
+    cfg = load_config(raw)
+    assert set(cfg["cycle_traces"]) == {"a.csv", "b.csv"}
+    inputs = {"vehicle_mass_kg": np.array([1600.0]), "gear_ratio": np.array([8.0]), "motor_kw": np.array([80.0])}
+
+    def energy(c):
+        return next(d for d in resolve_disciplines(c) if d.name == "energy").compute(inputs)["energy_wh_per_km"]
+
+    before = energy(cfg)
+    stored = yaml.safe_load(yaml.safe_dump(cfg))  # as a bag or a node's config file holds it
+    for name in ("a.csv", "b.csv"):
+        (tmp_path / name).unlink()
+    again = load_config(stored)
+    assert energy(again)[0] == before[0]  # bit for bit
+    packaged = copy.deepcopy(raw)
+    packaged["cycle"]["name"], packaged["disciplines"][1]["options"] = "epa_us06", {
+        "cycle_weights": {"epa_udds": 0.55, "epa_hwfet": 0.45}}
+    assert energy(load_config(packaged))[0] == before[0]  # the same traces as the packaged cycles
+    assert "cycle_traces" not in load_config(packaged)
+    stored["cycle_traces"]["a.csv"]["speed_m_s"][3] = -1.0
+    with pytest.raises(ValueError, match=r"cycle_traces\['a.csv'\]: sample 4"):
+        load_config(stored)

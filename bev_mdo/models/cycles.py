@@ -25,6 +25,7 @@ import hashlib
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -223,6 +224,28 @@ def check_trace(cycle: DriveCycle, where: str | None = None) -> DriveCycle:
     return cycle
 
 
+def is_csv_cycle(name: str) -> bool:
+    """Whether a cycle name is a file of the user's (not a built-in or packaged cycle)."""
+    return str(name).strip().lower() not in CYCLE_NAMES
+
+
+def trace_record(cycle: DriveCycle) -> dict[str, list[float]]:
+    """A cycle as a config's ``cycle_traces`` entry (YAML and JSON keep these floats bit for bit)."""
+    return {"time_s": [float(t) for t in cycle.time_s], "speed_m_s": [float(v) for v in cycle.speed_m_s]}
+
+
+def trace_cycle(key: str, record: Any) -> DriveCycle:
+    """The cycle of a ``cycle_traces`` entry, checked as a CSV is (ValueError naming it)."""
+    where = f"cycle_traces[{key!r}]"
+    if not isinstance(record, Mapping) or set(record) != {"time_s", "speed_m_s"}:
+        raise ValueError(f"{where} must be {{time_s: [...], speed_m_s: [...]}}")
+    try:
+        t, v = (np.asarray(record[k], dtype=float) for k in ("time_s", "speed_m_s"))
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: time_s and speed_m_s must be lists of numbers") from None
+    return check_trace(DriveCycle(Path(key).stem, t, v), where)
+
+
 PACKAGED = ("artemis_urban", "artemis_rural_road", "artemis_motorway_130",
             "artemis_motorway_150", "wltc_class3", "epa_udds", "epa_hwfet", "epa_us06")
 CYCLE_NAMES = ("nedc", "artemis_combined") + PACKAGED
@@ -236,9 +259,13 @@ def artemis_combined() -> DriveCycle:
     return concatenate([u, u, r, r, m], "artemis_combined")
 
 
-def load_cycle(name_or_path: str) -> DriveCycle:
-    """A cycle by name (see ``CYCLE_NAMES``) or from a CSV path."""
+def load_cycle(name_or_path: str, traces: Mapping[str, Any] | None = None) -> DriveCycle:
+    """A cycle by name (see ``CYCLE_NAMES``) or from a CSV path; a CSV path that ``traces`` (a run
+    config's ``cycle_traces``: path -> {time_s: [...], speed_m_s: [...]}) holds is taken from there,
+    not from the file, so a resolved config reproduces its run without the file."""
     key = str(name_or_path).strip()
+    if traces and key in traces:
+        return trace_cycle(key, traces[key])
     if key.lower() == "nedc":
         return nedc()
     if key.lower() == "artemis_combined":
