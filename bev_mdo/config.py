@@ -250,7 +250,9 @@ def _record_cycle_traces(cfg: dict) -> None:
     {time_s, speed_m_s}); the models take it from there, so a bag's ``resume`` and nodes started in
     another folder or on another host run on the same trace without the file. A trace already there
     (a resolved config read again) is checked, not re-read."""
-    from bev_mdo.models.cycles import is_csv_cycle, load_cycle, trace_cycle, trace_record
+    import warnings
+
+    from bev_mdo.models.cycles import CycleNote, is_csv_cycle, load_cycle, trace_cycle, trace_record, unbalanced_note
 
     traces = cfg.get("cycle_traces") or {}
     if not isinstance(traces, Mapping):
@@ -266,7 +268,9 @@ def _record_cycle_traces(cfg: dict) -> None:
     out = {}
     for name in dict.fromkeys(n for n in names if is_csv_cycle(n)):
         out[name] = traces[name] if name in traces else trace_record(load_cycle(name))
-        trace_cycle(name, out[name])
+        note = unbalanced_note(trace_cycle(name, out[name]), name)
+        if note:
+            warnings.warn(note, CycleNote, stacklevel=2)
     if out:
         cfg["cycle_traces"] = out
     else:

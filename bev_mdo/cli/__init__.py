@@ -9,6 +9,7 @@ A user mistake (bad config, bad value, bad file) prints one line on stderr and e
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import sys
@@ -101,7 +102,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser(argv)
     args = parser.parse_args(argv)
     try:
-        status = int(args.func(args) or 0)
+        with _notes_to_stderr(args.command):
+            status = int(args.func(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
         return status
     except KeyboardInterrupt:
@@ -113,6 +115,29 @@ def main(argv: list[str] | None = None) -> int:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         print(f"bev-mdo {args.command}: error: {msg}", file=sys.stderr)
         return 2
+
+
+@contextlib.contextmanager
+def _notes_to_stderr(command: str):
+    """Notes the models raise as warnings (e.g. models.cycles.CycleNote) are printed once each as
+    ``bev-mdo <command>: note: ...`` on stderr (stdout stays the command's output)."""
+    import warnings
+
+    from bev_mdo.models.cycles import CycleNote
+
+    with warnings.catch_warnings():
+        original, seen = warnings.showwarning, set()
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            if not issubclass(category, CycleNote):
+                original(message, category, filename, lineno, file, line)
+            elif str(message) not in seen:  # the config is loaded more than once per command
+                seen.add(str(message))
+                print(f"bev-mdo {command}: note: {message}", file=sys.stderr)
+
+        warnings.showwarning = show
+        warnings.simplefilter("always", CycleNote)
+        yield
 
 
 def native_output_to_stderr() -> None:

@@ -224,6 +224,26 @@ def check_trace(cycle: DriveCycle, where: str | None = None) -> DriveCycle:
     return cycle
 
 
+class CycleNote(UserWarning):
+    """Something about a drive cycle a user should know, that is not an error (the CLI prints it
+    as a ``note:`` line on stderr)."""
+
+
+def unbalanced_note(cycle: DriveCycle, where: str, mass_kg: float = 1500.0) -> str | None:
+    """A note when the trace does not end at the speed it starts at: the car then gains (or loses)
+    kinetic energy over the trace, which a cycle from rest to rest does not, so its energy per km is
+    overstated (or understated) by up to 1/2 M (v1^2 - v0^2) per km. None below 0.1 Wh/km at
+    ``mass_kg`` (every packaged cycle starts and ends at rest)."""
+    v0, v1 = float(cycle.speed_m_s[0]), float(cycle.speed_m_s[-1])
+    wh_per_km = 0.5 * mass_kg * (v1 * v1 - v0 * v0) / 3600.0 / (cycle.distance_m / 1e3)
+    if abs(wh_per_km) < 0.1:
+        return None
+    return (f"{where} starts at {v0 / KMH:.0f} km/h and ends at {v1 / KMH:.0f} km/h: the car "
+            f"{'gains' if wh_per_km > 0 else 'loses'} kinetic energy over the trace, which a cycle from rest to rest "
+            f"does not, so energies per km on it are {'overstated' if wh_per_km > 0 else 'understated'} by up to about "
+            f"{abs(wh_per_km):.1f} Wh/km for a {mass_kg:.0f} kg car (end the trace at the speed it starts at)")
+
+
 def is_csv_cycle(name: str) -> bool:
     """Whether a cycle name is a file of the user's (not a built-in or packaged cycle)."""
     return str(name).strip().lower() not in CYCLE_NAMES

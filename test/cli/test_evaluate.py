@@ -118,3 +118,21 @@ def test_an_override_the_road_load_replaces_is_refused(capsys):
     code, out, err = run(capsys, ROOT / "config" / "leaf_epa_combined.yaml", "--set",
                          "motor_kw=80,gear_ratio=8,battery_kwh=24,drag_area_m2=2")
     assert code == 2 and out == "" and err.count("\n") == 1 and "unknown design names ['drag_area_m2']" in err
+
+
+def test_a_cycle_cut_at_speed_is_noted_on_stderr_once(capsys, tmp_path, monkeypatch):
+    import yaml
+
+    rows = (ROOT / "bev_mdo" / "data" / "drive_cycles" / "epa_hwfet.csv").read_text().splitlines()
+    seg = [rows[0]] + [f"{float(t) - 100:g},{v}" for t, v in (r.split(",") for r in rows[1:]) if 100 <= float(t) <= 400]
+    (tmp_path / "seg.csv").write_text("\n".join(seg) + "\n")
+    raw = yaml.safe_load((ROOT / "config" / "leaf_nedc.yaml").read_text())
+    raw["cycle"]["name"] = "seg.csv"
+    (tmp_path / "seg.yaml").write_text(yaml.safe_dump(raw))
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(capsys, "seg.yaml", "--json")
+    assert code == 0 and json.loads(out)["objective"]["value"] > 0
+    notes = [line for line in err.splitlines() if "note:" in line]
+    assert len(notes) == 1 and notes[0].startswith("bev-mdo evaluate: note: seg.csv starts at 78 km/h and ends at 92")
+    code, _, err = run(capsys, "seg.yaml")  # a second command in the same process notes it again
+    assert code == 0 and sum("note:" in line for line in err.splitlines()) == 1

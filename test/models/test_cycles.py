@@ -135,3 +135,18 @@ def test_resample_spline_smooths():
 def test_resample_bad_arguments(kw, name):
     with pytest.raises(ValueError, match=name):
         resample(nedc(), **kw)
+
+
+def test_a_trace_that_does_not_end_at_its_start_speed_gets_a_note():
+    """A segment cut from a log at speed gains or loses kinetic energy over the trace: the note says
+    which way energies per km are off and by about how much (1/2 M (v1^2 - v0^2) per km)."""
+    for name in cycles.CYCLE_NAMES:
+        assert cycles.unbalanced_note(load_cycle(name), name) is None
+    up = DriveCycle("up", np.array([0.0, 100.0]), np.array([10.0, 20.0]))  # 1.5 km
+    note = cycles.unbalanced_note(up, "up.csv")
+    expect = 0.5 * 1500 * (20.0**2 - 10.0**2) / 3600 / 1.5
+    assert "gains" in note and "overstated" in note and f"{expect:.1f} Wh/km" in note
+    down = DriveCycle("down", np.array([0.0, 100.0]), np.array([20.0, 10.0]))
+    assert "understated" in cycles.unbalanced_note(down, "down.csv")
+    same = DriveCycle("same", np.array([0.0, 50.0, 100.0]), np.array([15.0, 20.0, 15.0]))
+    assert cycles.unbalanced_note(same, "same.csv") is None
