@@ -118,3 +118,13 @@ def test_an_override_the_road_load_replaces_is_refused(capsys):
     code, out, err = run(capsys, ROOT / "config" / "leaf_epa_combined.yaml", "--set",
                          "motor_kw=80,gear_ratio=8,battery_kwh=24,drag_area_m2=2")
     assert code == 2 and out == "" and err.count("\n") == 1 and "unknown design names ['drag_area_m2']" in err
+
+
+def test_table_names_a_maximised_objective_as_max(capsys):
+    """SSBJ maximises its range (objective: {name: y_4, maximize: true}): the table said 'objective (min)'."""
+    code, out, _ = run(capsys, ROOT / "examples" / "ssbj" / "ssbj_mdf.yaml")
+    assert code == 0
+    row = next(line for line in out.splitlines() if "y_4" in line)
+    assert "objective (max)" in row and "(min)" not in out
+    code, out, _ = run(capsys, LEAF)
+    assert "objective (min)" in next(line for line in out.splitlines() if "energy_wh_per_km" in line)
