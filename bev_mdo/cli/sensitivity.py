@@ -173,7 +173,8 @@ def print_tables(s, outputs, out=sys.stdout) -> None:
     print("\nFirst-order normalised sensitivity S_i = (x_i/f) df/dx_i  (eq 5-4)", file=out)
     print("output".ljust(ow) + "".join(n.rjust(w) for n in s.names), file=out)
     for k in outputs:
-        print(k.ljust(ow) + "".join(f"{v:{w}.4f}" for v in s.first[k]), file=out)
+        # a leading space keeps a cell wider than the column (|S| >= 1e8 near a zero of f) apart from the last
+        print(k.ljust(ow) + "".join(f" {v:.4f}".rjust(w) for v in s.first[k]), file=out)
     print("step".ljust(ow) + "".join(f"{v:{w}.3g}" for v in s.step), file=out)
     if s.second is None:
         return
@@ -184,7 +185,7 @@ def print_tables(s, outputs, out=sys.stdout) -> None:
         print(f"\n{k}  (max Richardson error {np.nanmax(err):.1e})", file=out)
         print("".ljust(w) + "".join(n.rjust(w) for n in s.names), file=out)
         for i, n in enumerate(s.names):
-            cells = [f"{m[i, j]:.4f} {lab[i, j]}".rjust(w) if j >= i else "".rjust(w) for j in range(len(s.names))]
+            cells = [f" {m[i, j]:.4f} {lab[i, j]}".rjust(w) if j >= i else "".rjust(w) for j in range(len(s.names))]
             print(n.ljust(w) + "".join(cells), file=out)
 
 
