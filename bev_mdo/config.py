@@ -391,6 +391,10 @@ def _check_against_disciplines(cfg: dict, problem) -> set[str]:
     for c in problem.constraints:
         if c.name not in produced:
             raise ValueError(f"problem.constraints.{c.name}: no discipline produces it; outputs: {sorted(produced)}")
+    for key, names in (("coupling_guesses", problem.coupling_guesses), ("coupling_bounds", problem.coupling_bounds)):
+        for k in names:  # a name (or vector) no discipline produces would be ignored: a typo, said here
+            if k not in produced and f"{k}[0]" not in produced:
+                raise ValueError(f"problem.{key}.{k}: no discipline produces it; outputs: {sorted(produced)}")
     for dv in problem.names:
         if dv in produced:
             hint = " (set problem.battery_sized_for_range: false, or drop the sizing discipline)" \

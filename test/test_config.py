@@ -56,6 +56,12 @@ BAD = [
     (("problem", "design_variables", "x", "step"), 1, r"problem.design_variables.x: unknown keys \['step'\]"),
     (("problem", "design_variables", "x"), DELETE, r"'sellar1' needs \['x'\]"),
     (("problem", "design_variables", "y1"), {"lower": 0, "upper": 1}, "problem.design_variables.y1: it is also produced by discipline 'sellar1'"),
+    # a coupling guess or IDF bound on a name no discipline produces (a typo) was ignored without a word
+    (("problem", "coupling_guesses"), {"y_2": 1.0}, r"problem.coupling_guesses.y_2: no discipline produces it"),
+    (("problem", "coupling_bounds"), {"y1": {"lower": 0, "upper": 9}, "y3": {"lower": 0, "upper": 1}},
+     r"problem.coupling_bounds.y3: no discipline produces it"),
+    (("problem", "coupling_bounds"), {"y1[1]": {"lower": 0, "upper": 9}},
+     r"problem.coupling_bounds.y1\[1\]: no discipline produces it"),
     (("disciplines", 0, "class"), "sellar:Nope", "module 'sellar' has no class 'Nope'"),
     (("disciplines", 0, "class"), "no_such_mod_q:Nope", "cannot import module 'no_such_mod_q'"),
     (("disciplines", 0, "options"), {"speed": 1}, r"disciplines\[0\] \(sellar1\): cannot build SellarDis1"),

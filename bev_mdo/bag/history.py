@@ -161,3 +161,11 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
         raise BagError(f"{bag.mcap_path}: no IterationRecord on {ITERATION_TOPIC}; nothing to resume")
     last = rows[-1]
     return read_config(bag), dict(last["design"]), int(last["iteration"])
+
+
+def records_phrase(rows: list[dict]) -> str:
+    """'4 records (iterations 0-3)': a count of records, not of iterations; record 0 is the start, so a
+    run that ``optimize`` reports with 'iterations 3' has 4 records (saying '4 iterations' contradicted it)."""
+    first, last = rows[0].get("iteration"), rows[-1].get("iteration")
+    span = f" (iterations {first}-{last})" if first is not None and last is not None else ""
+    return f"{len(rows)} record{'s' if len(rows) != 1 else ''}{span}"

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bev_mdo.bag.history import history
+from bev_mdo.bag.history import history, records_phrase
 from bev_mdo.bag.reader import Bag, open_bag, read_config
 
 ANSWERS_METADATA = "bev_mdo_answers"  # MCAP metadata record of an in-process run's bag
@@ -361,7 +361,7 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
     if rows:
         last = rows[-1]
         feasible = [r for r in rows if r["feasible"]]
-        lines += [f"- {len(rows)} iterations, formulation `{last['formulation']}`, optimizer "
+        lines += [f"- {records_phrase(rows)}, formulation `{last['formulation']}`, optimizer "
                   f"`{last['optimizer']}`, {last['mda_evaluations']} multidisciplinary evaluations", ""]
         lines += ["## Final iterate", ""]
         base = baseline or {}

@@ -126,8 +126,9 @@ def print_table(report: dict, file=None) -> None:
     for k, v in report["design"].items():
         t.add_row(k, _fmt(v), "design")
     obj = report["objective"]["name"]
+    role = "objective (max)" if report["objective"].get("maximize") else "objective (min)"
     for k, v in report["outputs"].items():
-        t.add_row(k, _fmt(v), "objective (min)" if k == obj else "output")
+        t.add_row(k, _fmt(v), role if k == obj else "output")
     console.print(t)
     c = Table(title="constraints", show_header=True)
     for col in ("constraint", "value", "lower", "upper", "margin", "ok"):

@@ -87,7 +87,9 @@ def run(args) -> int:
         else:
             with open(args.csv, "w", encoding="utf-8") as f:
                 f.write(text)
-            print(f"wrote {len(rows)} iterations to {args.csv}")
+            from bev_mdo.bag.history import records_phrase
+
+            print(f"wrote {records_phrase(rows)} to {args.csv}")
         return 0
     width = args.width
     if width is None and (sys.stdout.isatty() or os.environ.get("COLUMNS")):
@@ -149,7 +151,9 @@ def print_table(rows: list[dict], width: int | None = None, file=None) -> None:
     out = file or sys.stdout
     shown, left, cells = choose_columns(rows, width)
     first = rows[0]
-    title = f"{len(rows)} iterations"
+    from bev_mdo.bag.history import records_phrase
+
+    title = records_phrase(rows)
     for k in ("formulation", "optimizer"):
         if k not in shown and first.get(k):
             title += f", {first[k]}"

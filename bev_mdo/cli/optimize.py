@@ -94,6 +94,8 @@ def _table(result: dict, baseline: dict | None, out) -> None:
         print(f"baseline {baseline['name']}: {baseline['error']}", file=out)
     if result.get("error"):
         print(f"the result point failed: {result['error']}", file=out)
+    elif not result.get("success", True):  # e.g. SLSQP's iteration limit: the table is not an optimum then
+        print(f"warning: {result['optimizer']} did not converge: {result['message'].split('; ')[0]}", file=out)
     if not result.get("last_iterate", True):
         print(f"result: iteration {result['result_iteration']}, the best feasible point seen "
               f"(not the optimiser's last iterate, iteration {result['iterations']})", file=out)

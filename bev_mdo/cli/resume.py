@@ -70,7 +70,10 @@ def run(args) -> int:
         config["ros"] = {**config["ros"], "sign_key_file": ""}
     print(f"resuming {config.get('name', 'run')} from iteration {iteration} at "
           + ", ".join(f"{k}={v:.6g}" for k, v in design.items()), file=out)
-    names = list(config["problem"]["design_variables"])
+    from bev_mdo.mdo.problem import Problem
+
+    # element names ('x_shared[0]', ...) for vector design variables, as the bag records them
+    names = Problem.from_config(config["problem"]).names
     x0 = {k: v for k, v in design.items() if k in names}
     opts = argparse.Namespace(formulation=None, optimizer=None, transport=args.transport, json=args.json,
                               domain_id=args.domain_id, discovery=args.discovery,

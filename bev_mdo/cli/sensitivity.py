@@ -13,6 +13,8 @@ import sys
 
 import numpy as np
 
+from bev_mdo.cli import UsageError
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("sensitivity", help="normalised 1st/2nd-order sensitivities at a design")
@@ -23,7 +25,8 @@ def register(subparsers) -> None:
     p.add_argument("--wrt", default="", metavar="NAMES",
                    help="comma-separated design variables and/or model parameters (default: design variables)")
     p.add_argument("--method", choices=("central", "complex", "auto"), default="central",
-                   help="first-order derivative method")
+                   help="first-order derivative method; the MDA passes float64 values between disciplines, "
+                        "so complex step is not available here (auto is central)")
     p.add_argument("--rel-step", type=float, default=None, help="relative FD step (default 1e-4 / 1e-3)")
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")
     p.add_argument("--png", metavar="FILE", help="write a PNG: first-order bars and (order 2) the second-order matrices")
@@ -108,6 +111,10 @@ def run(args) -> int:
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.sensitivity import sensitivities
 
+    if args.method == "complex":  # the MDA casts every input to float64 (the discipline interface)
+        raise UsageError("--method complex: the multidisciplinary analysis passes float64 values between "
+                         "disciplines (in process and over ROS), so a complex step cannot pass through it, "
+                         "whatever the disciplines; use --method central (the default)")
     cfg = load_config(args.config)
     local = InProcessEvaluator(resolve_disciplines(cfg))
     session = None
@@ -166,7 +173,8 @@ def print_tables(s, outputs, out=sys.stdout) -> None:
     print("\nFirst-order normalised sensitivity S_i = (x_i/f) df/dx_i  (eq 5-4)", file=out)
     print("output".ljust(ow) + "".join(n.rjust(w) for n in s.names), file=out)
     for k in outputs:
-        print(k.ljust(ow) + "".join(f"{v:{w}.4f}" for v in s.first[k]), file=out)
+        # a leading space keeps a cell wider than the column (|S| >= 1e8 near a zero of f) apart from the last
+        print(k.ljust(ow) + "".join(f" {v:.4f}".rjust(w) for v in s.first[k]), file=out)
     print("step".ljust(ow) + "".join(f"{v:{w}.3g}" for v in s.step), file=out)
     if s.second is None:
         return
@@ -177,7 +185,7 @@ def print_tables(s, outputs, out=sys.stdout) -> None:
         print(f"\n{k}  (max Richardson error {np.nanmax(err):.1e})", file=out)
         print("".ljust(w) + "".join(n.rjust(w) for n in s.names), file=out)
         for i, n in enumerate(s.names):
-            cells = [f"{m[i, j]:.4f} {lab[i, j]}".rjust(w) if j >= i else "".rjust(w) for j in range(len(s.names))]
+            cells = [f" {m[i, j]:.4f} {lab[i, j]}".rjust(w) if j >= i else "".rjust(w) for j in range(len(s.names))]
             print(n.ljust(w) + "".join(cells), file=out)
 
 

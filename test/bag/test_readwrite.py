@@ -169,7 +169,7 @@ def test_history_csv_and_last_iterate(synthetic_bag, tmp_path):
     assert float(table[2]["objective"]) == 9980.0
     assert table[0]["evaluations.energy"] == "1"
     code, stdout, _ = cli("history", str(bag_dir))
-    assert code == 0 and "SLSQP" in stdout and "20 iterations" in stdout
+    assert code == 0 and "SLSQP" in stdout and "20 records (iterations 0-19)" in stdout
     assert set(DESIGN) <= {k.split(".", 1)[1] for k in table[0] if k.startswith("design.")}
 
 

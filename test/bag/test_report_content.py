@@ -84,9 +84,12 @@ def test_the_answers_are_stored_in_the_in_process_bag(infeasible_run):
 def test_report_markdown_names_the_answers_mass_and_cost(infeasible_run, tmp_path):
     from bev_mdo.bag.report import report
 
-    _, bag, _ = infeasible_run
+    _, bag, out = infeasible_run
     paths = report(bag, tmp_path)
     md = (tmp_path / "report.md").read_text()
+    # optimize's 'iterations' count the records after the start (record 0): the report counts records
+    n = out["iterations"]
+    assert f"- {n + 1} records (iterations 0-{n})," in md and f"{n + 1} iterations" not in md
     assert "## Why the end point is infeasible" in md
     assert "blocked by battery_kwh on its upper bound" in md
     assert "| vehicle_mass_kg | kg |" in md and "| powertrain_cost_usd | US$ |" in md

@@ -136,3 +136,13 @@ def test_a_cycle_cut_at_speed_is_noted_on_stderr_once(capsys, tmp_path, monkeypa
     assert len(notes) == 1 and notes[0].startswith("bev-mdo evaluate: note: seg.csv starts at 78 km/h and ends at 92")
     code, _, err = run(capsys, "seg.yaml")  # a second command in the same process notes it again
     assert code == 0 and sum("note:" in line for line in err.splitlines()) == 1
+
+
+def test_table_names_a_maximised_objective_as_max(capsys):
+    """SSBJ maximises its range (objective: {name: y_4, maximize: true}): the table said 'objective (min)'."""
+    code, out, _ = run(capsys, ROOT / "examples" / "ssbj" / "ssbj_mdf.yaml")
+    assert code == 0
+    row = next(line for line in out.splitlines() if "y_4" in line)
+    assert "objective (max)" in row and "(min)" not in out
+    code, out, _ = run(capsys, LEAF)
+    assert "objective (min)" in next(line for line in out.splitlines() if "energy_wh_per_km" in line)

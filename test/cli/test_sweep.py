@@ -94,3 +94,14 @@ def test_compare_shows_differences_from_the_first_design(capsys):
     rc = main(["compare", CONFIG, "--design", "motor_kw=80", "--design", "motor_kw=90"])
     out = capsys.readouterr().out
     assert rc == 0 and "Δ 2−1" in out and "+10 (+12.5 %)" in out
+
+
+def test_compare_percent_has_the_sign_of_the_difference_for_a_negative_quantity(capsys):
+    """The aerostructure displacement is negative (-745 at the start): a rise of +8 was shown
+    '+7.99663 (-1.1 %)'; the percentage is now of |design 1|, so it has the difference's sign."""
+    aero = Path(__file__).resolve().parents[2] / "examples" / "aerostructure" / "aerostructure_mdf.yaml"
+    rc = main(["compare", str(aero), "--design", "thick_airfoils=15,thick_panels=3,sweep=25",
+               "--design", "thick_airfoils=5,thick_panels=3.2255892255892404,sweep=24.99326599326595"])
+    out = capsys.readouterr().out
+    row = next(line for line in out.splitlines() if "displ" in line)
+    assert rc == 0 and "+7.99663 (+1.1 %)" in row

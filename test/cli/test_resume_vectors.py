@@ -1,0 +1,32 @@
+"""`resume` of a problem with vector design variables starts from the recorded iterate: it kept only
+the design values whose names were the config's keys (x_2, x_3), so the elements of x_shared and x_1
+(named 'x_shared[0]', ... in the bag) were dropped and the run restarted from their initial values
+while the line above it said 'resuming ... at x_shared[0]=0.06, ...' (SSBJ, propane)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from bev_mdo.cli import main
+
+SSBJ = Path(__file__).resolve().parents[2] / "examples" / "ssbj"
+
+
+def test_resume_starts_from_every_element_of_the_recorded_design(tmp_path, capsys):
+    raw = yaml.safe_load((SSBJ / "ssbj_mdf.yaml").read_text())
+    raw["search_path"] = [str(SSBJ)]
+    raw["optimizer"]["options"] = {"maxiter": 3}
+    cfg = tmp_path / "ssbj_3.yaml"
+    cfg.write_text(yaml.safe_dump(raw))
+    from bev_mdo.bag.history import history
+
+    old, new = tmp_path / "old", tmp_path / "new"
+    assert main(["optimize", str(cfg), "--transport", "inprocess", "--bag", str(old), "--quiet"]) in (0, 1)
+    main(["resume", str(old), "--transport", "inprocess", "--output", str(new), "--quiet"])
+    capsys.readouterr()
+    last, start = history(old)[-1], history(new)[0]
+    assert set(start["design"]) == set(last["design"]) and "x_shared[1]" in start["design"]
+    for name, value in last["design"].items():
+        assert start["design"][name] == value, name
+    assert start["objective"] == last["objective"]

@@ -1,0 +1,53 @@
+"""``bev-mdo sensitivity --method complex`` can never run: the MDA casts every input to float64
+(the discipline interface), so it used to evaluate the stencil and then blame the user's model
+("complex step not supported by the model: Casting complex values to real ...") even for
+disciplines written to be complex-safe. It is now one line before anything runs that says why."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from bev_mdo.cli import main
+
+SELLAR = Path(__file__).resolve().parents[2] / "examples" / "sellar" / "sellar_mdf.yaml"
+
+
+def test_complex_method_is_refused_with_the_reason(capsys):
+    code = main(["sensitivity", str(SELLAR), "--order", "1", "--method", "complex"])
+    out = capsys.readouterr()
+    assert code == 2 and out.out == ""
+    assert "float64" in out.err and "--method central" in out.err
+    assert "not supported by the model" not in out.err
+
+
+def test_auto_still_gives_central_sensitivities(capsys):
+    code = main(["sensitivity", str(SELLAR), "--order", "1", "--method", "auto", "--json"])
+    assert code == 0 and '"method": "central"' in capsys.readouterr().out
+
+
+def test_large_sensitivities_stay_separate_columns():
+    """Near a zero of the output (propane's residuals at the equilibrium) normalised sensitivities
+    reach 1e7 and more: the 13-wide cells ran together ('2724448.5834-30810727.5305')."""
+    import io
+
+    import numpy as np
+
+    from bev_mdo.cli.sensitivity import print_tables
+    from bev_mdo.mdo.sensitivity import sensitivities
+
+    def fun(X):
+        x, y = X[:, 0], X[:, 1]
+        return {"f": 1e-6 + 3e1 * (x - 1.0) - 4e3 * (y - 2.0) ** 2 - 1e1 * (y - 2.0)}
+
+    for order in (1, 2):
+        s = sensitivities(fun, {"x": 1.0, "y": 2.0}, order=order)
+        buf = io.StringIO()
+        print_tables(s, ["f"], out=buf)
+        lines = buf.getvalue().splitlines()
+        first = next(line for line in lines if line.startswith("f "))
+        assert len(first.split()) == 3, first  # the name and one number per variable
+        assert abs(float(first.split()[1])) > 1e7
+        if order == 2:
+            row = next(line for line in lines if line.startswith("y ") and ("NC" in line or "C" in line))
+            assert len(row.split()) == 3, row  # the name, then value and label of the diagonal cell
+            row = next(line for line in lines if line.startswith("x ") and "C" in line)
+            assert len(row.split()) == 5, row  # the name, then value and label of each cell
