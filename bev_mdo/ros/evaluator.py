@@ -174,14 +174,16 @@ class RosEvaluator:
         except Exception:  # noqa: BLE001 - rclpy raises several types for bytes that are not one
             self.dropped["info_malformed"] += 1
             return None
+        if not binding.run_matches(msg.run_id, self.run_id):
+            # a node launched for another run (another job on this domain, signed with that run's key):
+            # not ours, and not a forgery either; ignoring it needs no trust in its claim
+            self.dropped["info_other_run"] += 1
+            return None
         if self.signer is not None:
             why = self.signer.verify_info(data)
             if why is not None:
                 self.dropped[f"info_{why}"] += 1
                 return self._refuse(msg, f"{why} declaration")
-        if not binding.run_matches(msg.run_id, self.run_id):
-            self.dropped["info_other_run"] += 1
-            return None  # a node launched for another run: not ours, not a mismatch
         if binding.fingerprint_of_json(msg.effective_config) != msg.fingerprint:
             return self._refuse(msg, "fingerprint does not match its effective configuration")
         want = self._expect(msg.discipline)
