@@ -90,6 +90,11 @@ def run(args) -> int:
     given = parse_assignments(args.assignments)
     problem = Problem.from_config(config["problem"])
     design = {**{d.name: d.initial for d in problem.design_variables}, **given}
+    for d in problem.design_variables:  # evaluated as given, but a user should know it is off the design space
+        v = given.get(d.name)
+        if isinstance(v, (int, float)) and not d.lower <= v <= d.upper:
+            print(f"bev-mdo evaluate: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
+                  "(evaluated as given)", file=sys.stderr)
     use_ros = args.ros or getattr(args, "launch", False)
     session = _evaluator(config, use_ros, args)
     evaluator = session.evaluator if use_ros else session

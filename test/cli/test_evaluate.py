@@ -146,3 +146,11 @@ def test_table_names_a_maximised_objective_as_max(capsys):
     assert "objective (max)" in row and "(min)" not in out
     code, out, _ = run(capsys, LEAF)
     assert "objective (min)" in next(line for line in out.splitlines() if "energy_wh_per_km" in line)
+
+
+def test_a_design_outside_the_bounds_is_evaluated_with_a_note(capsys):
+    code, out, err = run(capsys, LEAF, "--set", "motor_kw=200,gear_ratio=8", "--json")
+    assert code == 0 and json.loads(out)["design"]["motor_kw"] == 200
+    assert err.strip() == "bev-mdo evaluate: note: motor_kw = 200 is outside its bounds [40, 120] (evaluated as given)"
+    code, out, err = run(capsys, LEAF, "--set", "motor_kw=120,gear_ratio=8", "--json")
+    assert code == 0 and "note:" not in err  # on the bound is inside
