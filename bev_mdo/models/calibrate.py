@@ -68,12 +68,13 @@ def usable(fleet: fl.Fleet, cycles: dict | None = None) -> np.ndarray:
     return ~fleet.outlier & np.logical_and.reduce([pred[c]["follows"] for c in fl.CYCLES])
 
 
-def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dict | None = None) -> dict:
-    """Least squares over the vehicles in ``mask`` (default: every usable vehicle, :func:`usable`).
-    ValueError if none is left."""
+def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dict | None = None,
+        use: np.ndarray | None = None) -> dict:
+    """Least squares over the vehicles in ``mask`` (default: every usable vehicle, :func:`usable`;
+    ``use``: that mask when the caller has it already). ValueError if none is left."""
     names = tuple(names or FIT)
     cycles = cycles or fl.resampled_cycles()
-    use = usable(fleet, cycles)
+    use = usable(fleet, cycles) if use is None else use
     mask = use if mask is None else mask & use
     if not mask.any():
         raise ValueError(f"{fleet.path}: no vehicle to fit ({int(fleet.outlier.sum())} of {len(fleet)} flagged as "
@@ -105,13 +106,14 @@ def group_folds(groups, k: int) -> tuple[np.ndarray, int]:
 
 
 def cross_validate(fleet: fl.Fleet, k: int = 5, names=None, cycles: dict | None = None,
-                   groups: list[str] | None = None) -> dict | None:
+                   groups: list[str] | None = None, use: np.ndarray | None = None) -> dict | None:
     """k-fold cross-validation by group (model family by default): each fold's vehicles are
     predicted by a fit on the other folds. Families of the usable vehicles are dealt to folds in
     order of size. None when they are fewer than two groups: no fold would have a vehicle to fit."""
     cycles = cycles or fl.resampled_cycles()
     groups = groups or fleet.family()
-    idx = np.flatnonzero(usable(fleet, cycles))
+    ok = usable(fleet, cycles) if use is None else use
+    idx = np.flatnonzero(ok)
     if len({groups[i] for i in idx}) < 2:
         return None
     folds = np.full(len(fleet), -1)
@@ -120,12 +122,11 @@ def cross_validate(fleet: fl.Fleet, k: int = 5, names=None, cycles: dict | None 
     xs = []
     for i in range(k):
         test = folds == i
-        f = fit(fleet, ~test, names, cycles)
+        f = fit(fleet, ~test, names, cycles, use=ok)
         xs.append(f["x"])
         pred = fl.predict(fleet, "chain", {**FIXED, **dict(zip(f["names"], f["x"]))}, cycles)
         for c in fl.CYCLES:
             err[c][test] = 100 * (pred[c]["energy_wh_per_km"][test] / fleet.measured[c][test] - 1.0)
-    ok = usable(fleet, cycles)
     all_err = np.concatenate([err[c][ok] for c in fl.CYCLES])
     return {"k": k, "folds": folds, "errors_pct": err, "stats": fl.error_stats(all_err),
             "per_cycle": {c: fl.error_stats(err[c][ok]) for c in fl.CYCLES},
@@ -202,7 +203,7 @@ def main(argv=None) -> int:
         fleet = fl.read_fleet(args.data)
         cycles = fl.resampled_cycles()
         use = usable(fleet, cycles)
-        f = fit(fleet, cycles=cycles)
+        f = fit(fleet, cycles=cycles, use=use)
     except ValueError as exc:
         print(f"calibrate: error: {exc}", file=sys.stderr)
         return 2
@@ -210,8 +211,8 @@ def main(argv=None) -> int:
     if left_out.size:
         print(f"{left_out.size} vehicle(s) left out: the rated power cannot follow UDDS or HWFET (rows "
               f"{', '.join(str(r) for r in fleet.rows[left_out])})")
-    cv = cross_validate(fleet, 5, cycles=cycles)
-    cv_make = cross_validate(fleet, 99, cycles=cycles, groups=[m.lower() for m in fleet.make])
+    cv = cross_validate(fleet, 5, cycles=cycles, use=use)
+    cv_make = cross_validate(fleet, 99, cycles=cycles, groups=[m.lower() for m in fleet.make], use=use)
     for k, v, s in zip(f["names"], f["x"], f["se"]):
         print(f"{k:32s} {v:12.6g} +- {s:.3g}")
     by_family = (f"CV by family (k={cv['k']}) MAPE {cv['stats']['mean_abs_pct']:.2f} %" if cv else
