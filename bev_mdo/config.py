@@ -238,7 +238,7 @@ def _inline_parameter_set_file(cfg: dict) -> None:
     if not isinstance(name, str) or Path(name).suffix.lower() not in (".yaml", ".yml"):
         return
     values = params.load_parameter_set(name)
-    replaced = ("drag_area_m2", "rolling_resistance") if "road_load" in v or any(
+    replaced = params.ROAD_LOAD_REPLACES if "road_load" in v or any(
         k.startswith("road_load_") for k in v) else ()  # unused beside a road load, and refused there
     section = {k: x for k, x in v.items() if k != "parameter_set"}
     cfg["vehicle"] = {**{k: x for k, x in values.items() if k not in section and k not in replaced}, **section}

@@ -25,7 +25,7 @@ from bev_mdo.models import acceleration, cost, flat, motor_speed, range as range
 from bev_mdo.models import road_load
 from bev_mdo.models import topology as topo_model
 from bev_mdo.models.cycles import load_cycle, resample
-from bev_mdo.models.params import validate_cycle, validate_vehicle, vehicle_choice
+from bev_mdo.models.params import ROAD_LOAD_REPLACES, validate_cycle, validate_vehicle, vehicle_choice
 
 ENERGY_MODELS = ("flat", "breakdown", "quasi_static", "chain")
 _ROAD_KEYS = road_load.FLAT_KEYS
@@ -73,7 +73,7 @@ def _replaced_by_road_load(v: Mapping[str, float]) -> tuple[str, ...]:
     """The constants a coast-down road load replaces (models/road_load.py): not overridable per point
     then, since no model reads them (an override such as --set drag_area_m2=0.7 was accepted and
     changed nothing, where the config refuses giving both)."""
-    return ("drag_area_m2", "rolling_resistance") if road_load.uses_road_load(v) else ()
+    return ROAD_LOAD_REPLACES if road_load.uses_road_load(v) else ()
 
 
 class _Base(Discipline):

@@ -79,6 +79,17 @@ ROAD_LOAD_SPECS: dict[str, tuple[str, ParamSpec]] = {
                                                                         "(A scales with M / mass_kg)")),
 }
 ROAD_LOAD_CHECK_SPEED_M_S = 70.0  # the force must stay positive from 0 to 252 km/h
+ROAD_LOAD_REPLACES = ("drag_area_m2", "rolling_resistance")  # the thesis terms a coast-down replaces
+
+
+def road_load_minimum(a, b, c) -> tuple[np.ndarray, np.ndarray]:
+    """Smallest A + B v + C v^2 over 0..ROAD_LOAD_CHECK_SPEED_M_S (N) and the speed where it is (m/s),
+    per point (scalars or (N,) arrays): a coast-down must stay > 0 there (EPA's B can be negative)."""
+    a, b, c = (np.atleast_1d(np.asarray(x, float)) for x in (a, b, c))
+    v = np.linspace(0.0, ROAD_LOAD_CHECK_SPEED_M_S, 701)[:, None]
+    f = a + b * v + c * v * v
+    k = np.argmin(f, axis=0)
+    return f[k, np.arange(f.shape[1])], v[k, 0]
 
 # chapter-5 analytic breakdown (breakdown.py)
 BREAKDOWN_SPECS: dict[str, ParamSpec] = {
@@ -168,12 +179,10 @@ def validate_road_load(section: Any) -> dict[str, float]:
     for k, (flat_name, s) in ROAD_LOAD_SPECS.items():
         if k in section:
             out[flat_name] = check_value(f"road_load.{k}", section[k], s.lower, s.upper, s.unit)
-    a, b, c = out["road_load_a_n"], out["road_load_b_n_per_m_s"], out["road_load_c_n_per_m2_s2"]
-    v = np.linspace(0.0, ROAD_LOAD_CHECK_SPEED_M_S, 701)
-    f = a + b * v + c * v * v
-    if f.min() <= 0.0:
+    (low,), (at,) = road_load_minimum(out["road_load_a_n"], out["road_load_b_n_per_m_s"], out["road_load_c_n_per_m2_s2"])
+    if low <= 0.0:
         raise ValueError(f"road_load: A + B v + C v^2 must stay > 0 up to {ROAD_LOAD_CHECK_SPEED_M_S:g} m/s; "
-                         f"it is {f.min():.4g} N at {v[np.argmin(f)]:.3g} m/s")
+                         f"it is {low:.4g} N at {at:.3g} m/s")
     return out
 
 
@@ -261,7 +270,7 @@ def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
     out = {k: check_value(k, section.get(k, extra.get(k, s.default)), s.lower, s.upper, s.unit)
            for k, s in specs.items()}
     if road is not None:
-        both = sorted(k for k in ("drag_area_m2", "rolling_resistance") if k in section)
+        both = sorted(k for k in ROAD_LOAD_REPLACES if k in section)
         if both and not flat_road:  # the resolved form carries every parameter, defaults included
             raise ValueError(f"road_load replaces {both}: give one or the other")
         out.update(validate_road_load(road))

@@ -44,7 +44,7 @@ def check_values(params: Mapping[str, Any]) -> None:
     override) are what ``vehicle.road_load`` accepts: each in its range (``road_load_mass_kg`` 0 = A fixed)
     and A + B v + C v^2 > 0 up to ROAD_LOAD_CHECK_SPEED_M_S for every point."""
     from .common import check_array
-    from .params import ROAD_LOAD_CHECK_SPEED_M_S
+    from .params import ROAD_LOAD_CHECK_SPEED_M_S, road_load_minimum
 
     for flat, s in ROAD_LOAD_SPECS.values():
         if flat in params:
@@ -54,8 +54,7 @@ def check_values(params: Mapping[str, Any]) -> None:
             check_array(flat, x, s.lower, s.upper, s.unit)
     if uses_road_load(params):
         a, b, c = (np.atleast_1d(np.asarray(params.get(k, 0.0), float)) for k in FLAT_KEYS[:3])
-        v = np.linspace(0.0, ROAD_LOAD_CHECK_SPEED_M_S, 701)[:, None]
-        low = (a + b * v + c * v * v).min(axis=0)
+        low, _ = road_load_minimum(a, b, c)
         if (low <= 0.0).any():
             i = int(np.argmin(low))
             raise ValueError(f"road load A + B v + C v^2 must stay > 0 up to {ROAD_LOAD_CHECK_SPEED_M_S:g} m/s; "
