@@ -229,13 +229,11 @@ def _inline_parameter_set_file(cfg: dict) -> None:
     config reproduces the run alone: a bag's ``resume``, a node started in another folder or on another
     host, the same run after the file moved or was rewritten. A shipped set stays named (it comes with
     the package, whose version the bag records)."""
-    from pathlib import Path
-
     from bev_mdo.models import params
 
     v = cfg.get("vehicle")
     name = v.get("parameter_set") if isinstance(v, Mapping) else None
-    if not isinstance(name, str) or Path(name).suffix.lower() not in (".yaml", ".yml"):
+    if not params.is_parameter_set_file(name):
         return
     values = params.load_parameter_set(name)
     replaced = params.ROAD_LOAD_REPLACES if "road_load" in v or any(

@@ -21,7 +21,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from . import fleet as fl
-from .params import PARAMETER_SET_DIR
+from .params import PARAMETER_SET_DIR, is_parameter_set_file
 
 # fixed assumptions (not fitted): physical values for a 2022 BEV on a two-wheel dynamometer
 FIXED = {
@@ -196,7 +196,7 @@ def main(argv=None) -> int:
 
     path = None if args.write in (None, "shipped") else Path(args.write)
     try:
-        if path is not None and path.suffix.lower() not in (".yaml", ".yml"):  # checked before the fit
+        if path is not None and not is_parameter_set_file(args.write):  # checked before the fit
             raise ValueError(f"--write {args.write}: give a .yaml file (a config names it as vehicle.parameter_set)")
         if path is not None and path.is_dir():
             raise ValueError(f"--write {args.write}: is a directory (give a .yaml file)")

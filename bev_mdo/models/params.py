@@ -193,6 +193,11 @@ def parameter_set_names() -> list[str]:
     return sorted(p.stem for p in PARAMETER_SET_DIR.glob("*.yaml"))
 
 
+def is_parameter_set_file(name: Any) -> bool:
+    """Whether a parameter_set value names a file of the user's (a .yaml/.yml path), not a shipped set."""
+    return isinstance(name, str) and Path(name).suffix.lower() in (".yaml", ".yml")
+
+
 def load_parameter_set(name: str) -> dict[str, float]:
     """The ``parameters`` of a parameter set: a shipped one by name (bev_mdo/data/parameter_sets/<name>.yaml),
     or a file of your own by its path ending in .yaml/.yml (relative to the working directory, as a
@@ -201,7 +206,7 @@ def load_parameter_set(name: str) -> dict[str, float]:
 
     if not isinstance(name, str) or not name:
         raise ValueError(f"parameter_set must be one of {parameter_set_names()} or a .yaml path, got {name!r}")
-    if Path(name).suffix.lower() in (".yaml", ".yml"):
+    if is_parameter_set_file(name):
         path = Path(name).expanduser()
         if not path.is_file():
             raise ValueError(f"parameter_set {name!r}: no such file")
