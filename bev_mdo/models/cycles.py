@@ -20,7 +20,6 @@ and a cycle that moves.
 """
 from __future__ import annotations
 
-import csv
 import hashlib
 import math
 from dataclasses import dataclass
@@ -28,6 +27,8 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+
+from .common import read_csv_rows
 
 KMH = 1.0 / 3.6  # m/s per km/h
 MAX_GAP_S = 3600.0          # longest time between two samples of a trace
@@ -132,16 +133,7 @@ def concatenate(cycles: list[DriveCycle], name: str) -> DriveCycle:
 def read_cycle_csv(path: str | Path) -> DriveCycle:
     """Read a ``time_s,speed_kmh`` CSV; ValueError naming the file and row on bad data."""
     path = Path(path)
-    try:
-        with path.open(newline="", encoding="utf-8-sig") as f:  # -sig: a BOM (Excel's "CSV UTF-8") is not data
-            reader = csv.reader(f)
-            rows = list(reader)
-    except OSError as exc:
-        raise ValueError(f"cannot read drive cycle {path}: {exc.strerror}") from None
-    except UnicodeDecodeError:
-        raise ValueError(f"{path}: not a UTF-8 text CSV") from None
-    except csv.Error as exc:  # e.g. a field beyond csv's 128 KiB limit
-        raise ValueError(f"{path}: row {reader.line_num}: not a CSV table: {exc}") from None
+    rows = read_csv_rows(path, "drive cycle")
     if not rows or [h.strip() for h in rows[0]] != ["time_s", "speed_kmh"]:
         raise ValueError(f"{path}: row 1: header must be 'time_s,speed_kmh'")
     data = [(i, row) for i, row in enumerate(rows[1:], start=2) if row and any(c.strip() for c in row)]

@@ -16,12 +16,13 @@ off by 2x moves a motor's torque and regeneration limits, so a fleet-wide value 
 """
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from .common import read_csv_rows
 
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "epa_2022_bev"
 DEFAULT_FLEET = DATA_DIR / "train.csv"
@@ -95,16 +96,7 @@ class Fleet:
 def read_fleet(path: str | Path | None = None) -> Fleet:
     """Read and validate a fleet CSV; ValueError '<file>: row R, column C: ...' on bad input."""
     path = Path(path) if path is not None else DEFAULT_FLEET
-    try:
-        with path.open(newline="", encoding="utf-8-sig") as f:  # -sig: a BOM (Excel's "CSV UTF-8") is not data
-            reader = csv.reader(f)
-            rows = list(reader)
-    except OSError as exc:
-        raise ValueError(f"cannot read fleet file {path}: {exc.strerror}") from None
-    except UnicodeDecodeError:
-        raise ValueError(f"{path}: not a UTF-8 text CSV") from None
-    except csv.Error as exc:  # e.g. a field beyond csv's 128 KiB limit: not a fleet table
-        raise ValueError(f"{path}: row {reader.line_num}: not a CSV table: {exc}") from None
+    rows = read_csv_rows(path, "fleet file")
     if any("\x00" in c for row in rows[:1] for c in row):
         raise ValueError(f"{path}: not a UTF-8 text CSV (NUL bytes: UTF-16 without a byte-order mark?)")
     if not rows:
