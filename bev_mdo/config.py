@@ -265,8 +265,12 @@ def _record_cycle_traces(cfg: dict) -> None:
                 names += [str(k) for k in opts["cycle_weights"]]
     out = {}
     for name in dict.fromkeys(n for n in names if is_csv_cycle(n)):
-        out[name] = traces[name] if name in traces else trace_record(load_cycle(name))
-        note = unbalanced_note(trace_cycle(name, out[name]), name)
+        if name in traces:  # a resolved config read again: check what it holds
+            cycle, out[name] = trace_cycle(name, traces[name]), traces[name]
+        else:  # read (and checked) from the file
+            cycle = load_cycle(name)
+            out[name] = trace_record(cycle)
+        note = unbalanced_note(cycle, name)
         if note:
             warnings.warn(note, CycleNote, stacklevel=2)
     if out:
