@@ -5,13 +5,11 @@ Imports nothing from the package (numpy only), so every model module may import 
 * :func:`check_value` / :func:`check_array`: a float or array in a closed range, one-line ValueError.
 * :data:`DESIGN_LIMITS` and :func:`check_design` / :func:`design_points`: the physical ranges of the
   design and coupling variables every model accepts.
-* :func:`read_csv_rows`: the rows of a user's CSV file (fleet, drive cycle), one-line ValueError.
 * :func:`resolve_params` / :func:`batch_size`: defaults from a spec table (``params.py``), range
   checks, and the common batch length N of design arrays and (N,) parameter overrides.
 """
 from __future__ import annotations
 
-import csv
 import math
 from typing import Any, Mapping
 
@@ -130,19 +128,3 @@ def batch_size(params: Mapping[str, Any] | None, specs, *arrays) -> int:
     if len(sizes) > 1:
         raise ValueError(f"design points and parameter arrays disagree in length: {sorted(sizes)}")
     return sizes.pop() if sizes else 1
-
-
-def read_csv_rows(path, what: str) -> list[list[str]]:
-    """Every row of a user's CSV (``what``: "fleet file", "drive cycle", for the message). Read as
-    utf-8-sig: a BOM (Excel's "CSV UTF-8") is not data. One-line ValueError naming the file when it
-    cannot be read, is not UTF-8, or is not a CSV table (e.g. a field beyond csv's 128 KiB limit)."""
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as f:
-            reader = csv.reader(f)
-            return list(reader)
-    except OSError as exc:
-        raise ValueError(f"cannot read {what} {path}: {exc.strerror}") from None
-    except UnicodeDecodeError:
-        raise ValueError(f"{path}: not a UTF-8 text CSV") from None
-    except csv.Error as exc:
-        raise ValueError(f"{path}: row {reader.line_num}: not a CSV table: {exc}") from None

@@ -20,6 +20,7 @@ and a cycle that moves.
 """
 from __future__ import annotations
 
+import csv
 import hashlib
 import math
 from dataclasses import dataclass
@@ -27,8 +28,6 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
-
-from .common import read_csv_rows
 
 KMH = 1.0 / 3.6  # m/s per km/h
 MAX_GAP_S = 3600.0          # longest time between two samples of a trace
@@ -128,6 +127,23 @@ def concatenate(cycles: list[DriveCycle], name: str) -> DriveCycle:
             ts.append(t + t_end + step)
             vs.append(c.speed_m_s)
     return DriveCycle(name, np.concatenate(ts), np.concatenate(vs))
+
+
+def read_csv_rows(path, what: str) -> list[list[str]]:
+    """Every row of a user's CSV: drive cycles here, fleet files in fleet.py (``what``: "drive cycle",
+    "fleet file", for the message). Read as utf-8-sig: a BOM (Excel's "CSV UTF-8") is not data.
+    One-line ValueError naming the file when it cannot be read, is not UTF-8, or is not a CSV table
+    (e.g. a field beyond csv's 128 KiB limit)."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            reader = csv.reader(f)
+            return list(reader)
+    except OSError as exc:
+        raise ValueError(f"cannot read {what} {path}: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a UTF-8 text CSV") from None
+    except csv.Error as exc:
+        raise ValueError(f"{path}: row {reader.line_num}: not a CSV table: {exc}") from None
 
 
 def read_cycle_csv(path: str | Path) -> DriveCycle:

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import read_csv_rows
+from .cycles import read_csv_rows
 
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "epa_2022_bev"
 DEFAULT_FLEET = DATA_DIR / "train.csv"
