@@ -68,7 +68,7 @@ def check(config, at: str = "", rtol: float = 1e-4, atol: float = 1e-6, step: fl
     inputs = {k: np.array([v]) for k, v in {**problem.parameters, **point}.items()}
     res = mda.run(inputs)
     if not res.ok[0]:
-        raise ValueError(f"the analysis of the point failed: {res.errors[0]}")
+        raise ValueError(f"the analysis of the point failed: {res.messages[0]}")
     values = {k: v[:1] for k, v in res.values.items()}
     report = {"design": point, "rtol": rtol, "atol": atol, "step": step, "disciplines": [], "ok": True}
     for name in only or list(mda.specs):

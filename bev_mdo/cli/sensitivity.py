@@ -81,8 +81,8 @@ def build_batch(config, evaluator, param_defaults=None):
     def fun(X):
         res = mda.run({k: X[:, j] for j, k in enumerate(names)})
         if not np.all(res.ok):
-            bad = next(e for e, ok in zip(res.errors, res.ok) if not ok)
-            raise ValueError(f"the model failed on the FD stencil: {bad.splitlines()[0] if bad else 'NaN'}")
+            bad = next(e for e in res.errors if e is not None)
+            raise ValueError(f"the model failed on the FD stencil: {bad.message.splitlines()[0]}")
         return {k: res.values[k] for k in outputs}
     return fun, point, bounds, outputs, problem
 

@@ -148,7 +148,7 @@ def evaluate_batch(config, designs: dict[str, np.ndarray], transport: str = "inp
             feasible &= np.isfinite(m) & (m >= -FEASIBILITY_TOL * scale)
     return {"design": {k: cols[k] for k in [*problem.names, *[k for k in designs if k not in problem.names]]},
             "outputs": outputs, "margins": margins, "feasible": feasible, "ok": np.asarray(res.ok, bool),
-            "errors": list(res.errors), "objective": problem.objective, "problem": problem}
+            "errors": res.messages, "objective": problem.objective, "problem": problem}
 
 
 def _evaluator(config, transport):

@@ -280,12 +280,12 @@ class MDF(Formulation):
         # instead of analysing the optimum once more.
         for i, row in enumerate(X):
             self._analysed[row.tobytes()] = ({k: float(v[i]) for k, v in res.values.items()}, bool(res.ok[i]),
-                                             res.errors[i], int(res.iterations[i]))
+                                             res.messages[i], int(res.iterations[i]))
         while len(self._analysed) > 4096:
             self._analysed.pop(next(iter(self._analysed)))
         f = res.values[self.problem.objective]
         g = self.problem.g(res.values)
-        return f, g, np.zeros((len(X), 0)), res.ok, res.errors
+        return f, g, np.zeros((len(X), 0)), res.ok, res.messages
 
     @property
     def mda_evaluations(self) -> int:

@@ -18,9 +18,9 @@ def test_failed_point_is_not_sent_downstream_and_errors_use_batch_indices():
     ev = InProcessEvaluator(chain())
     res = MDA(ev).run(X)
     assert res.ok.tolist() == [True, False, False, True, True]
-    assert res.errors[1].startswith("square: ValueError") and "at point 1" in res.errors[1]
+    assert res.messages[1].startswith("square: ValueError") and "at point 1" in res.messages[1]
     # point 2 fails in 'plus' (third row of the 4 rows plus evaluates): named by its batch index
-    assert res.errors[2].startswith("plus: non-finite output") and "at point 2" in res.errors[2]
+    assert res.messages[2].startswith("plus: non-finite output") and "at point 2" in res.messages[2]
     # square ran every point (point 1 failed inside it); plus skipped point 1; half skipped 1 and 2;
     # side depends on nothing that failed, so it ran all five
     assert ev.counts == {"square": 5, "plus": 4, "half": 3, "side": 5}

@@ -52,7 +52,7 @@ def test_unconverged_points_fail_with_a_message_and_nan():
     res = MDA(InProcessEvaluator(sellar_disciplines()), max_iterations=2).run(POINTS)
     assert not res.ok.any()
     assert np.isnan(res.values["obj"]).all()
-    assert "did not converge in 2 gauss_seidel iterations" in res.errors[0]
+    assert "did not converge in 2 gauss_seidel iterations" in res.messages[0]
 
 
 def test_failed_point_is_reported_not_raised_and_others_survive():
@@ -61,7 +61,7 @@ def test_failed_point_is_reported_not_raised_and_others_survive():
     res = MDA(InProcessEvaluator(discs)).run(POINTS)
     assert res.ok.tolist() == [True, True, False]
     assert np.isnan(res.values["obj"][2]) and np.isfinite(res.values["obj"][:2]).all()
-    assert "sellar1" in res.errors[2] and "non-finite output" in res.errors[2]
+    assert "sellar1" in res.messages[2] and "non-finite output" in res.messages[2]
 
 
 def test_feed_forward_wave_is_one_evaluate_call():
@@ -108,3 +108,11 @@ def test_parameter_columns_reach_only_disciplines_that_declare_them():
 def test_bad_settings_rejected(kw, msg):
     with pytest.raises(ValueError, match=msg):
         MDA(InProcessEvaluator(sellar_disciplines()), **kw)
+
+
+def test_each_method_is_one_solver_class_chosen_by_name():
+    from bev_mdo.mdo.mda import METHODS, SOLVERS, LoopSolver
+    assert METHODS == ("gauss_seidel", "jacobi", "newton")
+    for name, cls in SOLVERS.items():
+        mda = MDA(InProcessEvaluator(sellar_disciplines()), method=name)
+        assert type(mda.solver) is cls and issubclass(cls, LoopSolver) and cls.name == name

@@ -33,7 +33,7 @@ def test_sellar_newton_reaches_the_gauss_seidel_fixed_point_in_few_single_call_s
         np.testing.assert_allclose(nw.values[v], gs.values[v], rtol=1e-10, atol=1e-12)
     assert (nw.iterations <= 6).all() and (nw.iterations < gs.iterations).all()
     # one seeding call (sellar1: y1 is not torn), one call per Newton step, one for the objective
-    assert mda.n_newton_calls == nw.iterations.max()
+    assert mda.solver.n_calls == nw.iterations.max()
     assert ev.waves == 1 + nw.iterations.max() + 1
 
 
@@ -47,7 +47,7 @@ def test_newton_without_analytic_partials_uses_a_finite_difference_jacobian_in_t
     gs = MDA(InProcessEvaluator(sellar_disciplines()), tolerance=1e-14, max_iterations=300).run(POINTS)
     assert res.ok.all()
     np.testing.assert_allclose(res.values["y2"], gs.values["y2"], rtol=1e-10)
-    assert mda.n_newton_calls == res.iterations.max()  # the stencil travels with the base points
+    assert mda.solver.n_calls == res.iterations.max()  # the stencil travels with the base points
     assert res.iterations.max() <= 8
 
 
@@ -73,8 +73,8 @@ def test_a_discipline_found_without_partials_is_differenced_from_its_first_answe
     mda = MDA(ev, method="newton", tolerance=1e-13)
     res = mda.run(POINTS)
     assert res.ok.all()
-    assert mda._fd_only == {"sellar2"}
-    assert mda.n_newton_calls == res.iterations.max() + 1  # one extra stencil call, on the first step
+    assert mda.solver.fd_only == {"sellar2"}
+    assert mda.solver.n_calls == res.iterations.max() + 1  # one extra stencil call, on the first step
     ref = MDA(InProcessEvaluator(sellar_disciplines()), method="newton", tolerance=1e-13).run(POINTS)
     np.testing.assert_allclose(res.values["y1"], ref.values["y1"], rtol=1e-10)
 
@@ -96,12 +96,16 @@ def test_unconverged_and_failed_points_are_per_point_like_the_other_methods():
     res = MDA(InProcessEvaluator(sellar_disciplines()), method="newton", max_iterations=2).run(POINTS)
     assert not res.ok.any()
     assert np.isnan(res.values["obj"]).all()
-    assert "did not converge in 2 newton iterations" in res.errors[0]
+    assert "did not converge in 2 newton iterations" in res.messages[0]
+    assert {(e.kind, e.discipline, e.loop) for e in res.errors} == {("not_converged", "", ("sellar1", "sellar2"))}
+    assert [e.point for e in res.errors] == [0, 1, 2, 3]
     discs = sellar_disciplines()
     discs[0] = Failing(SellarDis1(), "x", 3.0)
     res = MDA(InProcessEvaluator(discs), method="newton").run(POINTS)
     assert res.ok.tolist() == [True, True, False, True]
-    assert "sellar1" in res.errors[2] and np.isnan(res.values["y1"][2])
+    assert "sellar1" in res.messages[2] and np.isnan(res.values["y1"][2])
+    assert (res.errors[2].kind, res.errors[2].discipline, res.errors[2].point) == ("discipline", "sellar1", 2)
+    assert res.errors[0] is res.errors[1] is res.errors[3] is None
     gs = MDA(InProcessEvaluator(sellar_disciplines()), tolerance=1e-14, max_iterations=300).run(POINTS)
     np.testing.assert_allclose(res.values["y1"][[0, 1, 3]], gs.values["y1"][[0, 1, 3]], rtol=1e-9)
 
@@ -121,7 +125,8 @@ class _Flat:
 def test_a_singular_newton_system_fails_that_point_only():
     res = MDA(InProcessEvaluator([_Flat()]), method="newton", guesses={"y": 0.0}).run({"x": np.array([0.5, 1.0])})
     assert res.ok.tolist() == [True, False]
-    assert "singular Newton system" in res.errors[1]
+    assert "singular Newton system" in res.messages[1]
+    assert res.errors[1].kind == "singular" and res.errors[1].loop == ("flat",) and res.errors[1].point == 1
     assert res.values["y"][0] == pytest.approx(2.0, rel=1e-12)
 
 
@@ -201,7 +206,7 @@ def test_battery_sized_bev_loop_newton_equals_gauss_seidel():
         inputs = {**pts, **{k: np.full(3, v) for k, v in cfg["problem"].get("parameters", {}).items()}}
         res[m] = mda.run(inputs)
         assert res[m].ok.all(), res[m].errors
-    assert "energy" in mda._fd_only
+    assert "energy" in mda.solver.fd_only
     assert "battery_kwh" in res["newton"].values
     for v in res["gauss_seidel"].values:
         np.testing.assert_allclose(res["newton"].values[v], res["gauss_seidel"].values[v], rtol=1e-10, err_msg=v)

@@ -65,7 +65,7 @@ def test_warm_started_mdas_equal_cold_ones_to_the_tolerance_with_fewer_waves(fus
         assert ww == w.iterations[0] + (0 if fuse else 1)
     # the same design twice: the warm start is the fixed point, one Newton step verifies it
     assert warm[-1][0].iterations[0] <= 2
-    assert mda._warm[("sellar1", "sellar2")]["y1"] == warm[-1][0].values["y1"][0]
+    assert mda.solver.warm[("sellar1", "sellar2")]["y1"] == warm[-1][0].values["y1"][0]
 
 
 def test_warm_start_is_deterministic_and_history_dependent_only_below_the_tolerance():
@@ -88,7 +88,7 @@ def test_a_batch_starts_every_point_from_the_first_converged_point_of_the_last_m
     mda = MDA(ev, method="newton", tolerance=TOL)
     first = mda.run(batch)
     assert first.ok.tolist() == [False, True, False, True]
-    assert mda._warm[("sellar1", "sellar2")] == {"y1": first.values["y1"][1], "y2": first.values["y2"][1]}
+    assert mda.solver.warm[("sellar1", "sellar2")] == {"y1": first.values["y1"][1], "y2": first.values["y2"][1]}
     cold = MDA(InProcessEvaluator(sellar_disciplines()), method="newton", tolerance=TOL, warm_start=False)
     shifted = {k: v + 1e-3 * (k != "z2") for k, v in batch.items()}
     ref = cold.run(shifted)
@@ -103,7 +103,7 @@ def test_a_given_coupling_column_still_overrides_the_warm_start():
     mda = MDA(ev, method="newton", tolerance=TOL, max_iterations=1)
     ok = MDA(ev, method="newton", tolerance=TOL)
     ok.run(_point(1.9776, 0.0, 0.0))
-    mda._warm = dict(ok._warm)
+    mda.solver.warm = dict(ok.solver.warm)
     res = mda.run({**_point(1.9776, 0.0, 0.0), "y1": np.array([50.0]), "y2": np.array([50.0])})
     assert not res.ok[0]  # started from the given (far) couplings, not from the warm start
 
@@ -168,7 +168,7 @@ def test_fused_downstream_disciplines_are_exactly_the_unfused_results_one_wave_l
     discs[1] = _Dis2WithY3()
     m = MDA(InProcessEvaluator(discs), method="newton", fuse_downstream=True)
     w = [i for i, wave in enumerate(m.graph.waves) if any(m.graph.is_cyclic(c) for c in wave)][0]
-    assert m._downstream(("sellar1", "sellar2"), w) == ["sellar_obj"]
+    assert m.solver.downstream(("sellar1", "sellar2"), w) == ["sellar_obj"]
     res = m.run(_point(3.0, 1.0, 2.0))
     assert res.ok[0] and res.values["obj2"][0] == 2 * res.values["obj"][0]
     assert res.values["w"][0] == res.values["y2"][0] * 3 + 1
@@ -199,7 +199,7 @@ def test_a_fused_discipline_failing_before_convergence_does_not_fail_the_point_o
     discs[2] = _ObjFailsFar(ref.values["y2"][0] + 1.0)  # fails at the converged couplings too
     bad = MDA(InProcessEvaluator(discs), method="newton", fuse_downstream=True).run(
         {k: np.repeat(v, 2) for k, v in _point(3.0, 1.0, 2.0).items()})
-    assert bad.ok.tolist() == [False, False] and "sellar_obj" in bad.errors[1]
+    assert bad.ok.tolist() == [False, False] and "sellar_obj" in bad.messages[1]
     assert np.isnan(bad.values["obj"]).all() and np.isnan(bad.values["y1"]).all()
 
 
@@ -240,7 +240,7 @@ def test_tangent_warm_start_equals_cold_to_the_tolerance_in_fewer_waves_than_pla
     again, _ = _sequence(pts, warm_start="tangent")
     assert [r.values["y1"][0] for r, _ in again] == [r.values["y1"][0] for r, _ in tangent]
     # the stored tangent is dy/dx at the reference: against central differences of cold MDAs
-    unknowns, xs, x_ref, S, y_ref = mda._tangent[("sellar1", "sellar2")]
+    unknowns, xs, x_ref, S, y_ref = mda.solver.tangents[("sellar1", "sellar2")]
     cold_mda = MDA(InProcessEvaluator(sellar_disciplines()), method="newton", tolerance=1e-14, warm_start=False)
     for k, x in enumerate(xs):
         h = 1e-5
@@ -260,6 +260,6 @@ def test_tangent_falls_back_to_the_plain_warm_start_without_analytic_partials_an
     mda = MDA(ev, method="newton", tolerance=TOL, warm_start="tangent")
     for p in pts:
         assert mda.run(p).ok.all()
-    assert mda._tangent[("sellar1", "sellar2")] is None and mda._warm[("sellar1", "sellar2")]
+    assert mda.solver.tangents[("sellar1", "sellar2")] is None and mda.solver.warm[("sellar1", "sellar2")]
     with pytest.raises(ValueError, match="tangent needs method newton"):
         MDA(ev, method="gauss_seidel", warm_start="tangent")

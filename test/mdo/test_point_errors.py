@@ -40,20 +40,22 @@ def test_shares_joined_keep_their_points_in_the_whole_batch():
 def test_a_feed_forward_mda_names_points_by_batch_index(data_flow):
     res = MDA(InProcessEvaluator(chain()), data_flow=data_flow).run(X)
     assert res.ok.tolist() == [True, False, False, True, True]
-    assert res.errors[1] == "square: ValueError: x must be >= 0 at point 1 (x=-1)"
+    assert res.messages[1] == "square: ValueError: x must be >= 0 at point 1 (x=-1)"
     # plus evaluates 4 rows (point 1 failed upstream); its third row is the batch's point 2
-    assert res.errors[2] == "plus: non-finite output ['w'] at point 2 (y=4, z=9)"
-    assert res.errors[0] == res.errors[3] == res.errors[4] == ""
+    assert res.messages[2] == "plus: non-finite output ['w'] at point 2 (y=4, z=9)"
+    assert res.messages[0] == res.messages[3] == res.messages[4] == ""
+    assert [(e.discipline, e.point, e.kind) for e in res.errors if e] == [("square", 1, "discipline"),
+                                                                          ("plus", 2, "discipline")]
 
 
 @pytest.mark.parametrize("method", ["gauss_seidel", "jacobi", "newton"])
 def test_a_loop_on_fewer_rows_names_the_batch_point(method):
     res = MDA(InProcessEvaluator(loop()), method=method).run(LOOP_X)
     assert res.ok.tolist() == [False, True, False, False]
-    assert res.errors[0].startswith("pre: non-finite output ['a'] at point 0")
+    assert res.messages[0].startswith("pre: non-finite output ['a'] at point 0")
     # the loop ran on rows [1, 2]: its failure at the second row is point 2 of the batch
-    assert res.errors[2] == "loop_a: ValueError: a must be <= 5 at point 2 (a=7, y2=1)", res.errors[2]
-    assert res.errors[3] == "loop_a: ValueError: a must be <= 5 at point 3 (a=8, y2=1)", res.errors[3]
+    assert res.messages[2] == "loop_a: ValueError: a must be <= 5 at point 2 (a=7, y2=1)", res.messages[2]
+    assert res.messages[3] == "loop_a: ValueError: a must be <= 5 at point 3 (a=8, y2=1)", res.messages[3]
     assert res.values["y1"][1] == pytest.approx(4.0 / 3.0)
 
 

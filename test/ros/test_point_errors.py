@@ -66,9 +66,9 @@ def test_a_failing_point_of_a_feed_forward_mda_is_named_by_its_index(coordinator
     local = MDA(InProcessEvaluator(chain()), data_flow=data_flow).run(X)
     assert res.ok.tolist() == local.ok.tolist() == [True, False, False, True, False]
     assert res.errors == local.errors
-    assert res.errors[1] == "square: ValueError: x must be >= 0 at point 1 (x=-1)"
-    assert res.errors[4] == "square: ValueError: x must be >= 0 at point 4 (x=-4)"
-    assert res.errors[2] == "plus: non-finite output ['w'] at point 2 (y=4, z=9)"  # plus ran 4 rows
+    assert res.messages[1] == "square: ValueError: x must be >= 0 at point 1 (x=-1)"
+    assert res.messages[4] == "square: ValueError: x must be >= 0 at point 4 (x=-4)"
+    assert res.messages[2] == "plus: non-finite output ['w'] at point 2 (y=4, z=9)"  # plus ran 4 rows
 
 
 @pytest.mark.parametrize("method", ["gauss_seidel", "newton"])
@@ -77,6 +77,6 @@ def test_a_failing_point_of_a_loop_on_fewer_rows_is_named_by_its_batch_index(coo
     local = MDA(InProcessEvaluator(loop()), method=method).run(LOOP_X)
     assert res.ok.tolist() == local.ok.tolist() == [False, True, False, False]
     assert res.errors == local.errors
-    assert res.errors[2] == "loop_a: ValueError: a must be <= 5 at point 2 (a=7, y2=1)", res.errors[2]
-    assert res.errors[3] == "loop_a: ValueError: a must be <= 5 at point 3 (a=8, y2=1)", res.errors[3]
+    assert res.messages[2] == "loop_a: ValueError: a must be <= 5 at point 2 (a=7, y2=1)", res.messages[2]
+    assert res.messages[3] == "loop_a: ValueError: a must be <= 5 at point 3 (a=8, y2=1)", res.messages[3]
     np.testing.assert_allclose(res.values["y1"][1], local.values["y1"][1], rtol=1e-12)
