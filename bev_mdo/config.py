@@ -166,7 +166,7 @@ def _resolve(raw: Any) -> dict:
         if cfg.get(key) is not None and not isinstance(cfg[key], Mapping):
             raise ValueError(f"{key} must be a mapping")
         cfg[key] = dict(cfg.get(key) or {})
-    from bev_mdo.ros.settings import validate_ros
+    from bev_mdo.ros_settings import validate_ros
 
     validate_ros(cfg["ros"])  # checked here so the error names the file; the section is kept as written
     cfg["problem"] = _resolve_problem(cfg.get("problem"))

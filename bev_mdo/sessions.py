@@ -149,7 +149,7 @@ class OptimizeRosSession:
         from bev_mdo.config import discipline_entries
         from bev_mdo.ros.client import apply_ros_environment
         from bev_mdo.ros.launch import Launcher, plan_processes, start_recorder
-        from bev_mdo.ros.settings import ros_environment
+        from bev_mdo.ros_settings import ros_environment
 
         env = ros_environment(self.ros)
         apply_ros_environment(self.ros)
@@ -390,7 +390,7 @@ class ParetoRosSession:
         from bev_mdo.ros.client import apply_ros_environment
         from bev_mdo.ros.launch import Launcher, start_recorder
         from bev_mdo.ros.pareto_publisher import RosSink
-        from bev_mdo.ros.settings import ros_environment
+        from bev_mdo.ros_settings import ros_environment
 
         apply_ros_environment(self.ros)
         self.logs = self.out / ".logs"

@@ -9,7 +9,7 @@ import sys
 import zlib
 from pathlib import Path
 
-from bev_mdo.ros.settings import DEFAULTS, ros_environment
+from bev_mdo.ros_settings import DEFAULTS, ros_environment
 
 REPO = Path(__file__).resolve().parents[1]
 PYTHON = sys.executable

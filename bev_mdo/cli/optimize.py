@@ -160,7 +160,7 @@ def _run_inprocess(config, args, show, x0=None):
     from bev_mdo.config import resolve_disciplines
     from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import run_optimization
-    from bev_mdo.ros.settings import validate_ros
+    from bev_mdo.ros_settings import validate_ros
     from bev_mdo.sessions import analyse_baseline
 
     ros = validate_ros(config.get("ros"))

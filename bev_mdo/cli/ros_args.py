@@ -22,11 +22,11 @@ def add_ros_arguments(parser) -> None:
 
 def ros_section(config: Mapping[str, Any], args) -> dict:
     """The validated ros: section of `config` with the command-line flags and the domain rule applied."""
-    from bev_mdo.ros.settings import validate_ros
+    from bev_mdo.ros_settings import validate_ros
 
     import sys
 
-    from bev_mdo.ros.settings import choose_domain
+    from bev_mdo.ros_settings import choose_domain
 
     ros = dict(config.get("ros") or {})
     ros["domain_id"], note = choose_domain(ros, getattr(args, "domain_id", None))

@@ -73,7 +73,7 @@ def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
     # the same time budget per discipline call as the run had (a hung user discipline must not hang the answers)
     from bev_mdo.cli.failures import TimedDiscipline
     from bev_mdo.config import resolve_disciplines
-    from bev_mdo.ros.settings import validate_ros
+    from bev_mdo.ros_settings import validate_ros
 
     ros = validate_ros(config.get("ros"))
     budget = ros["timeout_s"] * (ros["retries"] + 1)

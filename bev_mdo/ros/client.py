@@ -12,7 +12,7 @@ from typing import Any, Mapping
 
 def apply_ros_environment(ros: Mapping[str, Any]) -> None:
     """Put the config's domain and discovery settings into this process's environment (before rclpy.init)."""
-    from bev_mdo.ros.settings import ros_environment
+    from bev_mdo.ros_settings import ros_environment
 
     env = ros_environment(ros)
     for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER"):
@@ -29,9 +29,9 @@ class _OwnedRosEvaluator:
         import rclpy
 
         from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
-        from bev_mdo.ros.settings import validate_ros
+        from bev_mdo.ros_settings import validate_ros
 
-        from bev_mdo.ros.settings import choose_domain
+        from bev_mdo.ros_settings import choose_domain
 
         section = dict(config.get("ros") or {})
         section["domain_id"] = choose_domain(section)[0]  # the config's if stated, else ROS_DOMAIN_ID, else 77

@@ -21,7 +21,7 @@ from bev_mdo.ros import wire
 from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, stamp, wait_acked
 from bev_mdo.ros.evaluator import RosEvaluator
 from bev_mdo.ros.fastwait import until
-from bev_mdo.ros.settings import validate_ros
+from bev_mdo.ros_settings import validate_ros
 from bev_mdo.stacks import deadline
 from bev_mdo_msgs.msg import IterationRecord
 

@@ -44,7 +44,7 @@ from bev_mdo.ros.fastwait import until
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RESULT_QOS, REQUEST_QOS, RESULT_QOS,
                                 RESULT_TOPIC, mda_result_topic, request_topic, stamp)
 from bev_mdo.ros.paths import default_config
-from bev_mdo.ros.settings import validate_ros
+from bev_mdo.ros_settings import validate_ros
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String

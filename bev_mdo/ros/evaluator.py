@@ -42,6 +42,7 @@ from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.ledger import Ledger
 from bev_mdo.ros import binding, pool as pools, wire
+from bev_mdo.ros_settings import validate_min_rows
 from bev_mdo.ros.auth import Signer
 from bev_mdo.ros.fastwait import MultiWaiter, until
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC,
@@ -73,7 +74,7 @@ class RosEvaluator:
         self.node = node
         config = config or {}
         if signer is None:  # sign if the run config names a key file
-            from bev_mdo.ros.settings import validate_ros
+            from bev_mdo.ros_settings import validate_ros
 
             signer = Signer.from_ros(validate_ros(config.get("ros"))) if config.get("ros") else None
         self.signer = signer
@@ -118,7 +119,7 @@ class RosEvaluator:
         # False: an MDA with a pool runs in waves (only the pooled disciplines see shares; the
         # others get the whole batch once), as before data flow with pools (docs/scaling.md)
         self.pool_data_flow = (config.get("ros") or {}).get("pool_data_flow", True) is not False
-        self.pool_min_rows = pools.validate_min_rows((config.get("ros") or {}).get("pool_min_rows", 1))
+        self.pool_min_rows = validate_min_rows((config.get("ros") or {}).get("pool_min_rows", 1))
         self._info_t = time.monotonic()
         self._executor = SingleThreadedExecutor(context=node.context)
         self._executor.add_node(node)

@@ -355,7 +355,7 @@ class OwnSuite:
 
         from bev_mdo.config import discipline_names, plain
         from bev_mdo.ros.auth import with_run_key
-        from bev_mdo.ros.settings import ros_environment
+        from bev_mdo.ros_settings import ros_environment
 
         logs = self.work_dir / "logs"
         logs.mkdir(parents=True, exist_ok=True)

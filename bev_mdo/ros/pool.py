@@ -138,19 +138,6 @@ def split_rows(n: int, instances: list[str], weights: list[float]) -> list[tuple
     return out
 
 
-def validate_min_rows(setting) -> int | dict[str, int]:
-    """``ros.pool_min_rows``: the smallest share a pool's batch is cut into, as one whole number for
-    every pool or ``{discipline: rows}``; ValueError (one line) otherwise."""
-    def rows(v, where):
-        if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= 10**6:
-            raise ValueError(f"ros.pool_min_rows{where} must be a whole number in [1, 1000000], got {v!r}")
-        return v
-
-    if isinstance(setting, dict):
-        return {str(k): rows(v, f".{k}") for k, v in setting.items()}
-    return rows(setting, "")
-
-
 def min_rows_of(setting, discipline: str) -> int:
     """The ``ros.pool_min_rows`` of one discipline (1: cut into as many shares as instances)."""
     return setting.get(discipline, 1) if isinstance(setting, dict) else int(setting)

@@ -8,7 +8,7 @@ import pytest
 
 from bev_mdo.cli import build_parser
 from bev_mdo.cli.ros_args import ros_section
-from bev_mdo.ros.settings import choose_domain
+from bev_mdo.ros_settings import choose_domain
 
 
 @pytest.mark.parametrize("section,flag,env,want,noted", [

@@ -26,7 +26,7 @@ from bev_mdo.ros.discipline_node import NodeStatsListener  # noqa: E402
 from bev_mdo.ros.evaluator import RosEvaluator, _Pending  # noqa: E402
 from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
 from bev_mdo.ros.binding import tag_for  # noqa: E402
-from bev_mdo.ros.settings import validate_ros  # noqa: E402
+from bev_mdo.ros_settings import validate_ros  # noqa: E402
 from bev_mdo.testing import REPO, ros_env  # noqa: E402
 from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult  # noqa: E402
 

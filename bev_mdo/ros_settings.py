@@ -1,4 +1,7 @@
-"""The `ros:` config section: domain, discovery, timeouts. No rclpy import here.
+"""The `ros:` config section: domain, discovery, timeouts, signing, pools. No rclpy import here.
+
+It sits in the config's layer (docs/architecture.md): ``config`` validates the section with it, and
+the ROS adapters, sessions and CLI read the validated section through it.
 
 Network hygiene by default: discovery stays on this host (LOCALHOST range) and the
 domain id is the project's own. Going across hosts is an explicit opt-in
@@ -84,8 +87,6 @@ def validate_ros(section: Mapping[str, Any] | None) -> dict[str, Any]:
         raise ValueError(f"ros.signing must be true or false, got {out['signing']!r}")
     if not isinstance(out["pool_data_flow"], bool):
         raise ValueError(f"ros.pool_data_flow must be true or false, got {out['pool_data_flow']!r}")
-    from bev_mdo.ros.pool import validate_min_rows
-
     out["pool_min_rows"] = validate_min_rows(out["pool_min_rows"])
     if out["pool"] not in ("share", "redundant"):
         raise ValueError(f"ros.pool must be one of ['share', 'redundant'], got {out['pool']!r}")
@@ -114,3 +115,16 @@ def ros_environment(ros: Mapping[str, Any], base: Mapping[str, str] | None = Non
     else:  # subnet: explicit opt-in to multicast discovery on the local network
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
     return env
+
+
+def validate_min_rows(setting) -> int | dict[str, int]:
+    """``ros.pool_min_rows``: the smallest share a pool's batch is cut into, as one whole number for
+    every pool or ``{discipline: rows}``; ValueError (one line) otherwise."""
+    def rows(v, where):
+        if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= 10**6:
+            raise ValueError(f"ros.pool_min_rows{where} must be a whole number in [1, 1000000], got {v!r}")
+        return v
+
+    if isinstance(setting, dict):
+        return {str(k): rows(v, f".{k}") for k, v in setting.items()}
+    return rows(setting, "")
