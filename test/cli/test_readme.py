@@ -1,6 +1,6 @@
-"""The README's tour runs as written and prints what the README shows.
+"""The README and the tour (docs/tour.md) run as written and print what they show.
 
-Every ```console block preceded by ``<!-- readme-check -->`` is executed (its ``$ `` line, in a
+Every ```console block of either preceded by ``<!-- readme-check -->`` is executed (its ``$ `` line, in a
 scratch directory holding a copy of config/ and examples/, like a fresh clone) and each line shown
 below it must appear in the output, in order (``...`` stands for any text; runs of spaces match
 any whitespace). ``<!-- readme-check json -->`` blocks compare the JSON shown with the JSON
@@ -22,6 +22,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / "README.md"
+TOUR = ROOT / "docs" / "tour.md"
 
 
 def blocks(text: str) -> list[tuple[str, str, list[str]]]:
@@ -87,11 +88,12 @@ def run(cmd: str, cwd: Path) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=300)
 
 
-CHECKED = blocks(README.read_text(encoding="utf-8"))
+CHECKED = [b for doc in (TOUR, README) for b in blocks(doc.read_text(encoding="utf-8"))]
 
 
-def test_the_readme_has_checked_blocks():
-    assert len(CHECKED) >= 4  # optimize, evaluate, history, evaluate --json
+def test_the_readme_and_the_tour_have_checked_blocks():
+    assert len(blocks(TOUR.read_text(encoding="utf-8"))) >= 3  # optimize, evaluate, history (tour order)
+    assert blocks(README.read_text(encoding="utf-8"))  # evaluate --json
 
 
 @pytest.mark.parametrize("mode,cmd,expected", CHECKED, ids=[c[1][:60] for c in CHECKED])
@@ -113,10 +115,10 @@ def test_the_matcher_can_fail():
     assert close({"a": 1.0}, {"a": 1.01}) and not close({"a": 1.0}, {"a": 1.0004})
 
 
-def test_every_subcommand_the_readme_names_exists():
+def test_every_subcommand_the_readme_and_the_tour_name_exists():
     from bev_mdo.cli import build_parser
 
-    text = README.read_text(encoding="utf-8")
+    text = README.read_text(encoding="utf-8") + TOUR.read_text(encoding="utf-8")
     named = set(re.findall(r"`bev-mdo ([a-z][a-z-]*)", text))
     sub = next(a for a in build_parser()._actions if a.dest == "command")
     assert named, "the README names no bev-mdo subcommand"
