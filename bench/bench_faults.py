@@ -1,4 +1,4 @@
-"""Benchmarks of issue 8: signing overhead, cross-namespace latency, recovery after a kill.
+"""Benchmarks of signing and faults: signing overhead, cross-namespace latency, recovery after a kill.
 
     . scripts/env.sh && python bench/bench_faults.py [--n 2000] [--json]
 
@@ -120,7 +120,7 @@ def _launcher(env: dict, config: str, prefix: list[str] = (), logs: Path | None 
 
 
 def _env(domain: int, peer: str | None = None) -> dict:
-    from bev_mdo.ros.settings import ros_environment, validate_ros
+    from bev_mdo.ros_settings import ros_environment, validate_ros
 
     ros = {"domain_id": domain}
     if peer:

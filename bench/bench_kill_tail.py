@@ -1,4 +1,4 @@
-"""The end of a run after a SIGKILL of a reader and of the recorder, beside an undisturbed run (issue 19).
+"""The end of a run after a SIGKILL of a reader and of the recorder, beside an undisturbed run.
 
     . scripts/env.sh && flock /tmp/bev_bench.lock flock /tmp/bev_ros.lock python bench/bench_kill_tail.py \
         [--rounds 6] [--domain-id 67] [--keep]

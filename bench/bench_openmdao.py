@@ -1,4 +1,4 @@
-"""Full MDF optimisation of the default problem, side by side in ONE run (issue 4, "Benchmarks"):
+"""Full MDF optimisation of the default problem, side by side in ONE run:
 
 1. OpenMDAO in-process: an MDF Group (one ExplicitComponent per bev_mdo discipline, wrapping
    the very same discipline objects), NonlinearBlockGS, ScipyOptimizeDriver SLSQP, the same

@@ -1,4 +1,4 @@
-"""Worker pools and composed processes (issue 18 benchmarks).
+"""Worker pools and composed processes.
 
   . scripts/env.sh && flock /tmp/bev_ros.lock python bench/bench_pool.py [--reps 3] [--part scaling|compose|all]
 

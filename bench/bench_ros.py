@@ -1,4 +1,4 @@
-"""Latency and throughput of the ROS transport (issue 4 benchmarks).
+"""Latency and throughput of the ROS transport.
 
   . scripts/env.sh && python bench/bench_ros.py [--n 2000] [--json FILE]
 

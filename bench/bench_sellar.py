@@ -1,4 +1,4 @@
-"""Sellar MDF, side by side in ONE run, methods interleaved round by round (issue 14, "Benchmark"):
+"""Sellar MDF, side by side in ONE run, methods interleaved round by round:
 
 1. OpenMDAO's own Sellar MDF in process: ``openmdao.test_suite.components.sellar_feature.SellarMDA``
    (cycle group with NonlinearBlockGS, discipline partials by FD, ExecComp objective/constraints),

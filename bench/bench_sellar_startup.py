@@ -1,4 +1,4 @@
-"""Start to result over ROS: a loop against a feed-forward graph (issue 14, item 5).
+"""Start to result over ROS: a loop against a feed-forward graph.
 
 Times the whole command a user runs, ``bev-mdo optimize CONFIG --json --no-record --quiet``
 over ROS (node processes started, discovery, the handshake, warm-up, the optimisation, the
@@ -9,7 +9,7 @@ result on stdout, every process stopped), for:
   battery_sizing: Gauss-Seidel, hub and spoke);
 - ``sellar_mdf``: examples/sellar/sellar_mdf.yaml (a loop y1 <-> y2; user disciplines).
 
-Before issue 14 a loop stalled ~40 s at start (two data-flow warm-ups no node of a loop can
+Once, a loop stalled ~40 s at start (two data-flow warm-ups no node of a loop can
 answer, each waiting timeout x (retries + 1)); now a loop is probed hub and spoke only.
 Runs are interleaved round by round (the host is noisy); median, min and max per config.
 The in-process run of each config is timed the same way, for reference. Asserts nothing.

@@ -1,4 +1,4 @@
-"""Cost of signing (on by default since issue 19) beside unsigned, on this host.
+"""Cost of signing (on by default) beside unsigned, on this host.
 
     . scripts/env.sh && flock /tmp/bev_ros.lock python bench/bench_signing.py [--rounds 5] [--n 300]
 
@@ -38,9 +38,9 @@ def _summary(xs: list[float]) -> dict:
 
 def cpu_sign_verify(n: int = 2000) -> dict:
     """CPU only, for a request and its result (one point, and a 10 000-point batch):
-    - ``sign_verify_*``: sign + verify the message objects, as before issue 15;
+    - ``sign_verify_*``: sign + verify the message objects, as the older API did;
     - ``send_receive_*``: the whole hop, signed and unsigned: encode (and sign) the bytes that are
-      published, decode them, verify. Works with the API before issue 15 (sign in place, then
+      published, decode them, verify. Works with the older API (sign in place, then
       encode) and after (the signer returns the bytes it signed), so one file measures both."""
     import secrets
 
@@ -79,7 +79,7 @@ def cpu_sign_verify(n: int = 2000) -> dict:
                         data = encode(m)
                     else:
                         data = (signer.sign_request if m is req else signer.sign_result)(m)
-                        if data is None:  # before issue 15: signed in place, encoded by the caller
+                        if data is None:  # the older API: signed in place, encoded by the caller
                             data = encode(m)
                     got = decode(data)
                     if signer is not None:

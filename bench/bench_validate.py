@@ -1,4 +1,4 @@
-"""Speed of ``bev-mdo validate`` (issue 16): the whole training fleet on UDDS and HWFET, one batch per
+"""Speed of ``bev-mdo validate``: the whole training fleet on UDDS and HWFET, one batch per
 cycle. Every figure is the median and range over ``--runs`` runs; the process figures of this tree and
 of ``--baseline-rev`` (e.g. main, extracted with ``git archive``) alternate run by run, so both see the
 same host load.

@@ -1,6 +1,6 @@
 """Size of the package: lines of bev_mdo/ros/ and of each package, the largest modules and the
-longest functions (ast), for a checkout given by --root (default: this one). Issue 15 reports it
-before and after.
+longest functions (ast), for a checkout given by --root (default: this one). Compare trees before and
+after a change with it.
 
     python bench/code_size.py [--root DIR] [--json bench/results/code_size.json] [--top 10]
 """

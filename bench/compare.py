@@ -7,7 +7,7 @@ a run's value of a figure is that file's median. Run the benches alternately on 
 (before, after, after, before, ...), under the bench lock, then:
 
     python bench/compare.py --bench "bench_ros before/after" --before b1.json b2.json \
-        --after a1.json a2.json [--match "full MDA" --match ...] --json bench/results/x.json
+        --after a1.json a2.json [--match "full MDA" --match ...] --json /tmp/before_after.json
 """
 from __future__ import annotations
 

@@ -2,8 +2,10 @@
 """Render the benchmark figures of ``bench/results/*.json`` into docs/performance.md.
 
 The section between ``<!-- bench:begin -->`` and ``<!-- bench:end -->`` is replaced by one table
-per bench (what, median and range over the runs, target, date, load) and the command that
-produced it; nothing in it is written by hand. ``--check`` exits 1 if the document is not what
+per result file (what, median and range over the runs, unit, target) with, under it, the command
+that produced it, its date and the host's load; results of a bench that does not write figures
+(``bench/_results.py``'s format) are listed after the tables with their file. Nothing in the
+section is written by hand. ``--check`` exits 1 if the document is not what
 the results render to (test/test_render_bench.py runs that).
 
     python scripts/render_bench.py [--check] [--results bench/results] [--doc docs/performance.md]
@@ -30,29 +32,36 @@ def fmt(v: float) -> str:
     return f"{v:.3g}"
 
 
+def _where(p: Path) -> str:
+    return str(p.relative_to(ROOT) if p.is_relative_to(ROOT) else p)
+
+
 def render(results_dir: Path) -> str:
-    docs = []
+    docs, other = [], []
     for p in sorted(results_dir.glob("*.json")):
         try:
             d = json.loads(p.read_text(encoding="utf-8"))
         except json.JSONDecodeError as exc:
             raise SystemExit(f"{p}: not JSON ({exc})")
-        if "figures" not in d:
-            continue
-        docs.append((p, d))
-    if not docs:
+        (docs if isinstance(d, dict) and "figures" in d else other).append((p, d))
+    if not docs and not other:
         return "_No results yet: run the benches (they write bench/results/*.json), then this script._\n"
     out = []
     for p, d in docs:
         host = d.get("host", {})
         out += [f"### {d.get('bench', p.stem)}", "",
-                f"`{d.get('command', '')}` — {d.get('date_utc', '?')} UTC, {host.get('cpus', '?')} CPUs, "
-                f"load average {host.get('load_average_1min', '?')} at the end, Python {host.get('python', '?')}; "
-                f"file `{p.relative_to(ROOT) if p.is_relative_to(ROOT) else p}`", "",
                 "| what | median | range (runs) | unit | target |", "|---|---:|---:|---|---|"]
         for f in d["figures"]:
             rng = f"{fmt(f['min'])}–{fmt(f['max'])} ({len(f['runs'])})" if len(f["runs"]) > 1 else f"({len(f['runs'])})"
             out.append(f"| {f['what']} | {fmt(f['median'])} | {rng} | {f['unit']} | {f.get('target', '')} |")
+        out += ["", f"`{d.get('command', '')}` — {d.get('date_utc', '?')} UTC, {host.get('cpus', '?')} CPUs, "
+                    f"load average {host.get('load_average_1min', '?')} at the end; `{_where(p)}`", ""]
+    if other:
+        out += ["### Results in a bench's own format", "",
+                "| file | bench | what it holds |", "|---|---|---|"]
+        for p, d in other:
+            keys = ", ".join(list(d)[:6]) if isinstance(d, dict) else type(d).__name__
+            out.append(f"| `{_where(p)}` | {d.get('bench', p.stem) if isinstance(d, dict) else p.stem} | {keys} |")
         out.append("")
     return "\n".join(out)
 

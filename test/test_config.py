@@ -127,7 +127,7 @@ class TestLeaf:
         assert discipline_entries(cfg)[-1]["options"] == {"range_target_km": 200}
 
 
-# -- user modules, baselines, duplicate names (issue 14) -----------------------------------------
+# -- user modules, baselines, duplicate names -----------------------------------------
 USER = ROOT / "data" / "user_modules"
 
 

@@ -1,4 +1,4 @@
-"""Everything is validated before any process starts (issue 19): one line naming file and key."""
+"""Everything is validated before any process starts: one line naming file and key."""
 from __future__ import annotations
 
 import argparse

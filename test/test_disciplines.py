@@ -39,7 +39,7 @@ def test_nominal_design_leaf_nedc():
 
 
 def test_table75_literal_wheel_radius_breaks_motor_speed_limit():
-    # Table 7-5's 0.15 m wheel radius (config/leaf_table75.yaml was removed in issue 16, docs/validation.md)
+    # Table 7-5's 0.15 m wheel radius (no shipped config uses it, docs/validation.md)
     cfg = load("leaf_nedc.yaml")
     cfg["vehicle"]["wheel_radius_m"] = 0.15
     x = chain(cfg, {"motor_kw": np.array([80.0]), "gear_ratio": np.array([8.0]), "battery_kwh": np.array([24.0])})
@@ -73,7 +73,7 @@ def test_unknown_energy_model():
         Energy.from_config({**load("leaf_nedc.yaml"), "energy_model": "magic"}, {})
 
 
-# ---- topologies (issue 7) -------------------------------------------------------------------
+# ---- topologies -------------------------------------------------------------------
 
 def _topo_cfg(topology="SM-SA", dvs=None, **vehicle):
     cfg = load("topologies_artemis.yaml")

@@ -1,4 +1,4 @@
-"""The main-job config on the calibrated chain (issue 16 item 7) and the energy option cycle_weights."""
+"""The main-job config on the calibrated chain and the energy option cycle_weights."""
 from pathlib import Path
 
 import numpy as np

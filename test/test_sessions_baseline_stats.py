@@ -1,4 +1,4 @@
-"""The baseline is analysed before the optimisation (issue 19, kill tail) by its own evaluator: what
+"""The baseline is analysed before the optimisation by its own evaluator: what
 that evaluator dropped and refused is the run's too (sessions.merge_baseline_stats)."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The end of a ROS run waits for no dead node (issue 19): when the coordinator's final wait for
+"""The end of a ROS run waits for no dead node: when the coordinator's final wait for
 acknowledgements may stop (sessions.acks_needless) and Launcher.died_within, without processes."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Failures named where the user looks (issue 19), for the in-process transport.
+"""Failures named where the user looks, for the in-process transport.
 
 - ``FirstErrors``: the first error of each failing discipline, printed once to the console.
 - ``TimedDiscipline``: the in-process transport's timeout, the same budget a ROS run gives a

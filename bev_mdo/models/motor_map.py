@@ -7,7 +7,7 @@ Speed is limited at 10 500 rpm for every size. Regeneration has the same efficie
 traction unless the map has negative-torque rows. Electrical power (2-7, §3.3.3):
 P_el = T w / eta when motoring, T w * eta when regenerating.
 
-Envelope (issue 3 §4): 3.5 Nm/kW constant torque up to base speed, constant power above
+Envelope: 3.5 Nm/kW constant torque up to base speed, constant power above
 it, nothing beyond max speed. The base speed is then 1000 / 3.5 = 285.7 rad/s for all sizes.
 
 Default map (an ASSUMPTION, Fig 3-2's Leaf map is not in the text): efficiency from a loss

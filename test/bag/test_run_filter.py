@@ -1,4 +1,4 @@
-"""history/resume read only the bag's own run and verify its signed iteration records (issue 19)."""
+"""history/resume read only the bag's own run and verify its signed iteration records."""
 from __future__ import annotations
 
 import secrets

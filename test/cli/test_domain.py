@@ -1,4 +1,4 @@
-"""The ROS domain rule (issue 14, item 7): flag > the config's ros.domain_id > ROS_DOMAIN_ID > 77,
+"""The ROS domain rule: flag > the config's ros.domain_id > ROS_DOMAIN_ID > 77,
 with one line when the config overrides the environment; every command that talks ROS has --domain-id."""
 from __future__ import annotations
 

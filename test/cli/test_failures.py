@@ -1,4 +1,4 @@
-"""Failures named where the user looks (issue 19), in-process (no ROS): a user discipline that
+"""Failures named where the user looks, in-process (no ROS): a user discipline that
 raises is named on the console with its first error and the progress line shows no penalty as
 an objective; a discipline that never returns fails after the ROS timeout budget instead of
 hanging `--transport inprocess` forever."""

@@ -1,5 +1,5 @@
 """stdout belongs to bev-mdo: what native libraries print (Fast DDS logs errors with std::cout)
-goes to stderr, so ``--json`` stays parseable for a pipe reader (issue 19: a Fast DDS
+goes to stderr, so ``--json`` stays parseable for a pipe reader (a Fast DDS
 ``[RTPS_TRANSPORT_SHM Error]`` line once came before a run's JSON)."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""`resume` gives the resumed run a key of its own (issue 19): the old run's per-run key file,
+"""`resume` gives the resumed run a key of its own: the old run's per-run key file,
 named in the bag's config, is used only to verify the old records, never to sign the new run."""
 from __future__ import annotations
 

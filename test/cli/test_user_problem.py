@@ -1,5 +1,5 @@
-"""User problems from the INSTALLED `bev-mdo` (no PYTHONPATH), from a clean clone-like layout
-(issue 14, items 1 and 6): the README's "Your own discipline" example as written, and the Sellar
+"""User problems from the INSTALLED `bev-mdo` (no PYTHONPATH), from a clean clone-like layout:
+the README's "Your own discipline" example as written, and the Sellar
 example from any working directory. In process (no ROS): the module rule is the same over ROS
 (test/ros/test_sellar_ros.py runs the example's nodes without a path to it)."""
 from __future__ import annotations

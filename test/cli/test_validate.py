@@ -1,4 +1,4 @@
-"""``bev-mdo validate`` (issue 16 item 4): fleet table, statistics, parity plot, bad input."""
+"""``bev-mdo validate``: fleet table, statistics, parity plot, bad input."""
 import csv
 import json
 

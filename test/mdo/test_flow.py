@@ -117,7 +117,7 @@ def test_a_discipline_writing_into_its_inputs_does_not_change_the_mda():
 
 
 def test_the_in_process_evaluator_serves_evaluate_flow_by_the_same_rule():
-    """evaluate_flow is part of the Evaluator protocol (issue 15): in process it is flow_by_waves,
+    """evaluate_flow is part of the Evaluator protocol: in process it is flow_by_waves,
     the same rows, results and counts as the MDA's own wave-by-wave data flow; a loop is refused."""
     from bev_mdo.mdo.evaluator import Evaluator
     from sellar import sellar_disciplines

@@ -128,7 +128,7 @@ class _FailAbove:
 
 def test_failed_finite_difference_points_are_counted_in_the_result():
     """A perturbed point that fails gives a zero derivative: the result says how many did, so a run that
-    stopped early on a degraded gradient is not silent (issue 19: failures named where the user looks)."""
+    stopped early on a degraded gradient is not silent (failures are named where the user looks)."""
     config = _config("mdf")
     clean = _run(config)
     assert clean.fd_failures == 0

@@ -38,7 +38,7 @@ def test_settings_are_frozen():
         MDASettings().tolerance = 1.0
 
 
-# -- RunSettings: built once in config.py, passed down (issue 15) -------------------------------------
+# -- RunSettings: built once in config.py, passed down -------------------------------------
 def test_run_settings_hold_what_the_engine_needs_and_are_frozen():
     import dataclasses
 

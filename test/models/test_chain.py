@@ -1,4 +1,4 @@
-"""The wall-to-wheel chain (issue 16 item 2), the fleet file and the shipped calibration (item 3)."""
+"""The wall-to-wheel chain, the fleet file and the shipped calibration."""
 import numpy as np
 import pytest
 

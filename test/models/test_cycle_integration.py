@@ -1,5 +1,5 @@
-"""Issue 16 item 6: drive cycles integrated as the piecewise-linear traces they are, converged
-in the time step; issue 19 item 7: drive-cycle input validation."""
+"""Drive cycles integrated as the piecewise-linear traces they are, converged
+in the time step; drive-cycle input validation."""
 
 import numpy as np
 import pytest

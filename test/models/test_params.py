@@ -50,7 +50,7 @@ def test_topology_choice():
 
 
 def test_cycle_section():
-    # default interpolation is linear since issue 16 (the NEDC is piecewise linear by regulation)
+    # default interpolation is linear (the NEDC is piecewise linear by regulation)
     assert validate_cycle({"name": "nedc"}) == {"name": "nedc", "dt_s": 1.0, "interpolation": "linear", "smoothing": None}
     with pytest.raises(ValueError, match="dt_s"):
         validate_cycle({"dt_s": 0})

@@ -1,4 +1,4 @@
-"""vehicle.road_load (issue 16 item 1): coast-down A + B v + C v^2 in every energy model and the
+"""vehicle.road_load: coast-down A + B v + C v^2 in every energy model and the
 acceleration model, equivalent to drag area + rolling resistance when the coefficients match."""
 import numpy as np
 import pytest

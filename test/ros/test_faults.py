@@ -52,7 +52,7 @@ def launcher(ros_domain, config_path, tmp_path_factory):
         for name in BUILTINS:
             la.add(name, discipline_argv(name, config_path))
         # the hang watchdog, as a run's own nodes have: a SIGKILLed peer can leave another node's participant
-        # deadlocked in Fast DDS (issue 19; once in CI motor_speed and cost stopped answering after a kill of
+        # deadlocked in Fast DDS (once in CI motor_speed and cost stopped answering after a kill of
         # vehicle_mass); such a node is killed and restarted, and only such extra restarts are allowed
         la.supervise(interval_s=0.02, watch_hangs=True)
         yield la

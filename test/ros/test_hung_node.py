@@ -1,4 +1,4 @@
-"""A node that hangs with its process alive is restarted, and the run still finds its optimum (issue 19).
+"""A node that hangs with its process alive is restarted, and the run still finds its optimum.
 
 Under overload, Fast DDS can deadlock a participant (eProsima/Fast-DDS#6502, caught with gdb in a
 node of the three-concurrent-runs test): the process lives, and the node never answers or

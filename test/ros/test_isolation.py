@@ -1,4 +1,4 @@
-"""Runs never mix (issue 19): answers come only from the run's own disciplines.
+"""Runs never mix: answers come only from the run's own disciplines.
 
 Three node suites with three different configurations (the Leaf, drag area 0.8, WLTC) and a
 fourth, foreign suite (drag area 0.9) serve one domain. Ten rounds of three concurrent
@@ -79,7 +79,7 @@ def suites(ros_domain, rclpy_context, configs, tmp_path_factory):
             for n in NAMES:
                 la.add(f"{n}_{suite}", discipline_argv(n, configs[suite], instance=suite))
         # as a run's own nodes are: a node whose participant goes silent while its process lives (the
-        # Fast DDS hangs of issue 19; once in CI a suite's range node vanished for every later run) is
+        # Fast DDS participant hangs; once in CI a suite's range node vanished for every later run) is
         # killed and restarted by the watchdog, and only such restarts are allowed (checked below)
         la.supervise(watch_hangs=True)
         node = rclpy.create_node("wait_for_suites", context=rclpy_context)

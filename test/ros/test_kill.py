@@ -1,4 +1,4 @@
-"""No stall on a dead reader or writer; a dead recorder is reported, never crash-looped (issue 19).
+"""No stall on a dead reader or writer; a dead recorder is reported, never crash-looped.
 
 `bev-mdo optimize` records the Leaf problem; once the first iteration is printed, vehicle_mass
 (a reader of the coordinator's request topics) and the recorder are SIGKILLed. The run still

@@ -1,4 +1,4 @@
-"""A node says it is starting before the slow imports (issue 17: nodes were silent for 2-3 s)."""
+"""A node says it is starting before the slow imports (they were silent for 2-3 s)."""
 from __future__ import annotations
 
 import subprocess

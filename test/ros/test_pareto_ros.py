@@ -155,7 +155,7 @@ def test_pareto_with_an_energy_pool_gives_the_same_fronts(runs):
 
 
 def test_a_recorder_killed_mid_study_is_reported_not_waited_for(runs, ros_domain, tmp_path):
-    """SIGKILL of the recorder after the first generation (issue 19, as `optimize` does): the study
+    """SIGKILL of the recorder after the first generation (as `optimize` does): the study
     finishes with the in-process front, warns once, records the failure in summary.json, exits 3, and
     leaves a bag repaired on the spot (it opens in rosbags and in mcap, without its later fronts)."""
     from mcap.reader import make_reader

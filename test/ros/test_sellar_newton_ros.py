@@ -1,6 +1,6 @@
 """Sellar MDF with the Newton-Raphson MDA (examples/sellar/sellar_mdf_newton.yaml) over ROS: the
 in-process iterates to 1e-12 and the published optimum; one request wave per Newton step, the
-partials travelling with the results (issue 14, "Loops over ROS")."""
+partials travelling with the results."""
 from __future__ import annotations
 
 import pytest

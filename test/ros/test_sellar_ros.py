@@ -1,5 +1,5 @@
 """Sellar over ROS through the user-discipline interface only (examples/sellar/), and the CLI end to
-end on a problem with no BEV variable (issue 14).
+end on a problem with no BEV variable.
 
 The node processes get NO path to examples/sellar: each finds ``sellar_disciplines`` relative to the
 config's folder, as the in-process path does. A loop graph: the start-up sends no data-flow request

@@ -1,4 +1,4 @@
-"""Signing covers the exact bytes that are sent (issue 15): the MAC of every signed message is
+"""Signing covers the exact bytes that are sent: the MAC of every signed message is
 HMAC-SHA256 over its CDR bytes with the signature field empty, so no second encoding exists, and a
 change of any byte of a sent message makes it forged (or undecodable). No ROS processes."""
 from __future__ import annotations

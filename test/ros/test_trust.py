@@ -1,4 +1,4 @@
-"""Secure by default (issue 19): forgeries on a shared domain without user-configured signing.
+"""Secure by default: forgeries on a shared domain without user-configured signing.
 
 `bev-mdo optimize` with no key configured (signing is on by default with a per-run key) runs
 beside an attacker on the same domain and host that
@@ -131,7 +131,7 @@ def test_forged_results_declarations_and_records_are_dropped_and_counted(ros_dom
     # Every attempt must give the run's own optimum. The attack claims need an attempt in which the
     # attacker saw the run's requests: nothing makes the run wait for a foreign reader, and the
     # attacker's own participant can miss the run (once in CI it saw none: a Fast DDS discovery
-    # hang, issue 19, can silence a participant that stays alive). At most 3 attempts.
+    # hang can silence a participant that stays alive). At most 3 attempts.
     for attempt in range(3):
         bag = tmp_path / "bags" / f"trusted{attempt}"
         p, attacker = _run_beside_attacker(config, ["optimize", config_path, "--bag", str(bag), "--json", "--quiet"],

@@ -63,7 +63,7 @@ def nodes(ros_domain, configs, tmp_path_factory):
 
 def _over_ros(cfg, formulation):
     """run_optimization through the nodes (the ROS evaluator of `bev-mdo evaluate --ros`; no warm-up,
-    whose data-flow MDAs a graph with a loop does not answer: issue 14 item 5, another branch)."""
+    whose data-flow MDAs a graph with a loop does not answer)."""
     ev = make_ros_evaluator(cfg, node_name="vector_test_client")
     try:
         return run_optimization(run_settings(cfg), ev, formulation=formulation), ev._inner.retried
