@@ -222,3 +222,12 @@ def test_the_package_layers_match_the_imports():
     assert upward - allowed == set(), f"imports from the same or a higher layer than docs/architecture.md says: " \
                                       f"{sorted(upward - allowed)}"
     assert allowed - upward == set(), f"listed in docs/architecture.md but gone, remove them: {sorted(allowed - upward)}"
+
+
+def test_the_floors_are_in_the_documented_order():
+    """The floors the package is built on, bottom up: the table cannot be renumbered to let an
+    upper floor's import pass (models and mdo at the bottom, then config, bag, ros, sessions, cli)."""
+    layers, _ = _package_layers()
+    floors = ["models", "mdo", "config", "bag", "ros", "sessions", "cli"]
+    got = [layers[f"bev_mdo.{f}"] for f in floors]
+    assert got == sorted(got) and len(set(got)) == len(got), dict(zip(floors, got))
