@@ -6,8 +6,12 @@ coordinator in this process, shows progress, prints the optimum (beside the conf
 writes the bag and shuts every process down (also on Ctrl-C).
 `--transport inprocess` runs the same engine with no ROS at all.
 
-Exit status: 0 feasible optimum, 1 the run finished infeasible, 2 a user mistake. A finished
-run always prints its result (with ``--json``, the JSON on stdout), whatever the baseline does.
+Every run ends with a first-order check of its result (bev_mdo/mdo/first_order.py); the verdict
+follows from it. Exit status: 0 an optimum (first-order conditions hold), or with ``--fixed-budget``
+any feasible end; 1 the run finished infeasible; 2 a user mistake; 3 the recorder failed; 4 a
+discipline stopped answering; 5 feasible but not a verified optimum (stopped before convergence, or
+no progress from the start point). A finished run always prints its result (with ``--json``, the
+JSON on stdout), whatever the baseline does.
 """
 from __future__ import annotations
 
@@ -32,6 +36,9 @@ def register(sub) -> None:
     p.add_argument("--bag", default=None, help="bag directory to write (default: bags/<config name>_<time>)")
     p.add_argument("--no-record", action="store_true", help="do not record the run")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--fixed-budget", action="store_true",
+                   help="the optimiser's limits (e.g. optimizer.options.maxiter) are the budget: a feasible end "
+                        "exits 0 even when it is not a verified optimum (the verdict still says what it is)")
     p.add_argument("--instances", default=None, metavar="N|NAME=N,...",
                    help="ROS: run N instances of every discipline, or of the named ones; they share each batch "
                         "(ros.pool: share) or all answer it (redundant)")
@@ -70,12 +77,12 @@ def _table(result: dict, baseline: dict | None, out) -> None:
     from rich.table import Table
 
     sense = "maximised" if result.get("maximize") else "minimised"
-    title = f"Optimum ({result['formulation'].upper()}, {result['optimizer']}; {result['objective_name']} {sense})"
+    title = f"Result ({result['formulation'].upper()}, {result['optimizer']}; {result['objective_name']} {sense})"
     if baseline is not None:
         title += f" beside {baseline['name']}"
     t = Table(title=title)
     t.add_column("quantity")
-    t.add_column("optimum", justify="right")
+    t.add_column("result", justify="right")
     if baseline is not None:
         t.add_column(baseline["name"], justify="right")
 
@@ -94,8 +101,8 @@ def _table(result: dict, baseline: dict | None, out) -> None:
         print(f"baseline {baseline['name']}: {baseline['error']}", file=out)
     if result.get("error"):
         print(f"the result point failed: {result['error']}", file=out)
-    elif not result.get("success", True):  # e.g. SLSQP's iteration limit: the table is not an optimum then
-        print(f"warning: {result['optimizer']} did not converge: {result['message'].split('; ')[0]}", file=out)
+    elif not result.get("optimizer_success", True):  # e.g. SLSQP's iteration limit
+        print(f"{result['optimizer']} says: {result['message'].split('; ')[0]}", file=out)
     if not result.get("last_iterate", True):
         print(f"result: iteration {result['result_iteration']}, the best feasible point seen "
               f"(not the optimiser's last iterate, iteration {result['iterations']})", file=out)
@@ -104,7 +111,40 @@ def _table(result: dict, baseline: dict | None, out) -> None:
               "the optimiser may have stopped early (see discipline_errors)", file=out)
     print(f"iterations {result['iterations']}, MDA evaluations {result['mda_evaluations']}, "
           f"evaluations per discipline {result['discipline_evaluations']}", file=out)
-    print(f"optimiser wall time {result['wall_time_s']:.3f} s (first evaluation to optimum)", file=out)
+    print(f"optimiser wall time {result['wall_time_s']:.3f} s (first evaluation to result)", file=out)
+    _verdict(result, out)
+
+
+def _verdict(result: dict, out) -> None:
+    """The first-order verdict and the active set with its multipliers (physical margins beside)."""
+    from bev_mdo.mdo.first_order import verdict_line
+    from bev_mdo.mdo.units import unit_of
+
+    fo = result["first_order"]
+    cost = fo["cost"]
+    print(f"verdict: {verdict_line(fo)}", file=out)
+    print(f"first-order check: {cost['points']} extra points in {cost['wall_time_s']:.3f} s"
+          + (" (the optimiser's last gradient reused)" if cost["points"] == 0 else ""), file=out)
+    if fo["verdict"] == "infeasible":
+        return  # the answers below say what is violated and what blocks it
+
+    def u(name: str) -> str:
+        return f" {unit_of(name)}" if unit_of(name) else ""
+
+    lines = []
+    for c in fo["active_constraints"]:
+        name = c["name"].split(" ")[0]
+        margin = result["constraints"].get(name, {}).get("margin", float("nan"))
+        lines.append(f"active: {c['name']}{u(name)}, margin {margin:.3g}{u(name)}, multiplier {c['multiplier']:.4g}")
+    for b in fo["active_bounds"]:
+        v = result["design"].get(b["name"], float("nan"))
+        lines.append(f"on its {b['kind']} bound: {b['name']} = {v:.6g}{u(b['name'])}, multiplier {b['multiplier']:.4g}")
+    for e in fo["equalities"]:
+        lines.append(f"consistency: {e['name']}, residual {e['value']:.3g}, multiplier {e['multiplier']:.4g}")
+    print("what holds the result (multipliers per unit of the scaled variables and normalised constraints):"
+          if lines else "no constraint is active and no variable is on a bound", file=out)
+    for line in lines:
+        print(f"  {line}", file=out)
 
 
 def run(args) -> int:
@@ -138,7 +178,8 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
         print(json.dumps({**result, "baseline": baseline, **extra}, default=float, indent=2))
     else:
         _table(result, baseline, out)
-        print("\n".join(runbag.answers_text(result, args.transport)), file=out)
+        if not result["feasible"]:
+            print("\n".join(runbag.answers_text(result, args.transport)), file=out)
         for k, v in extra.items():
             print(f"{k}: {v}" if k != "run_time_s" else f"run time {v:.3f} s (config loaded to this line: start-up, "
                   "optimisation, baseline, answers, shut-down)", file=out)
@@ -152,7 +193,9 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
         return 3
     if not result["feasible"]:
         return 1
-    return 4 if lost else 0
+    if lost:
+        return 4
+    return 0 if result["verdict"] == "optimum" or getattr(args, "fixed_budget", False) else 5
 
 
 def _run_inprocess(config, args, show, x0=None):

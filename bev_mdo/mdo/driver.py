@@ -12,15 +12,15 @@ from typing import Any
 
 import numpy as np
 
+from bev_mdo.mdo import first_order
 from bev_mdo.mdo.evaluator import Evaluator
 from bev_mdo.mdo.formulations import FORMULATIONS, Formulation
 from bev_mdo.mdo.mda import MDA
-from bev_mdo.mdo.optimizers import GRADIENT_BASED, canonical_name, run_optimizer
+from bev_mdo.mdo.optimizers import GRADIENT_BASED, NOISE_VIOLATION, canonical_name, run_optimizer
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import FEASIBILITY_TOL, RunSettings
 
 BEST_REL_TOL = 1e-6  # an earlier feasible iterate replaces the last one only if better by more than this
-NOISE_VIOLATION = 1e-3  # x the feasibility tolerance: a violation this small is numerical noise
 
 
 Run = RunSettings | Mapping[str, Any]  # typed settings (config.run_settings), or a resolved config
@@ -60,8 +60,8 @@ class RunResult:
 
     formulation: str
     optimizer: str
-    success: bool
-    message: str
+    success: bool                     # the first-order check verified an optimum (verdict == "optimum")
+    message: str                      # the optimiser's own message
     design: dict[str, float]
     objective_name: str
     objective: float
@@ -83,6 +83,9 @@ class RunResult:
     feasibility_tolerance: float = FEASIBILITY_TOL
     error: str = ""                   # why the result point failed (a discipline's one line), else ''
     fd_failures: int = 0              # finite-difference points that failed (each gave a zero derivative)
+    first_order: dict = field(default_factory=dict)  # first_order.check at the result point, with its cost
+    verdict: str = ""                 # first_order's verdict: optimum | stopped before convergence | ...
+    optimizer_success: bool = False   # what the optimiser itself said (scipy's success flag)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -207,6 +210,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     n_dv = len(problem.names)
     tol = float(opt_cfg.feasibility_tolerance)
     sign = -1.0 if problem.maximize else 1.0  # evaluate_batch gives the minimised value
+    form.feasibility_tolerance = tol
     history: list[dict] = []
     xs: list[np.ndarray] = []  # the optimiser variables of every record (IDF: with the couplings)
 
@@ -243,6 +247,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     # The final report: MDF analysed the point already (its full MDA is kept); IDF's
     # point is one more MDA through the same evaluator, counted, so the totals equal what
     # the disciplines actually evaluated (and what a recording holds).
+    fo = end_point_check(form, x, xs[0], tol)
     design = problem.design_dict(x[:n_dv])
     seen = form.analysed(x) if hasattr(form, "analysed") else None
     if seen is not None:
@@ -259,7 +264,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
                     f"(the last iterate, iteration {len(history) - 1}, is "
                     f"{'worse' if history[-1]['feasible'] else 'infeasible'})")
     return RunResult(
-        formulation=form.name, optimizer=opt_name, success=bool(res.success) and ok,
+        formulation=form.name, optimizer=opt_name, success=fo["verdict"] == first_order.OPTIMUM and ok,
         message=message, design=design, objective_name=problem.objective,
         objective=float(last["objective"]), outputs=final["outputs"], constraints=final["constraints"],
         max_violation=float(last["max_violation"]), feasible=bool(last["feasible"] and final["feasible"]),
@@ -268,4 +273,28 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         gradients=form.n_gradients, wall_time_s=time.perf_counter() - t0, history=history,
         maximize=problem.maximize, result_iteration=k, last_iterate=k == len(history) - 1,
         feasibility_tolerance=tol, error="" if ok else (err or final.get("error", "")).split("; ")[0],
-        fd_failures=int(getattr(form, "fd_failures", 0)))
+        fd_failures=int(getattr(form, "fd_failures", 0)), first_order=fo, verdict=fo["verdict"],
+        optimizer_success=bool(res.success))
+
+
+def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: float) -> dict:
+    """``first_order.check`` at the physical point ``x`` of ``form``, with what it cost: the gradient is
+    the optimiser's last one when it was taken there (gradient-based runs), else one batched stencil
+    (derivative-free runs). ``cost`` counts the points the check evaluated and its wall time."""
+    t0, points, batches = time.perf_counter(), form.n_points, form.n_batches
+    x = np.asarray(x, dtype=float)
+    u = form.u_of(x)
+    ok, _ = form.status(x)
+    f, g, h = form.evaluate_batch(x[None, :])
+    if ok:
+        df, dg, dh = form.gradients(u)
+        df = df / form.problem.objective_scale
+    else:  # a failed point has no derivative: its verdict is infeasible
+        df, dg, dh = np.zeros(form.n), np.zeros((g.shape[1], form.n)), np.zeros((h.shape[1], form.n))
+    lo, hi = form.u_bounds
+    fo = first_order.check(u, lo, hi, df, g[0], dg, h[0], dh, names=form.var_names,
+                           ineq_labels=form.ineq_labels, eq_labels=form.eq_labels, feasibility_tol=tol,
+                           point_ok=ok, moved=not np.array_equal(x, np.asarray(x_start, dtype=float)))
+    fo["cost"] = {"points": form.n_points - points, "batches": form.n_batches - batches,
+                  "wall_time_s": time.perf_counter() - t0}
+    return fo

@@ -66,6 +66,7 @@ class Formulation:
         self.fd_failures = 0
         self.ineq_labels = problem.constraint_labels
         self.eq_labels: list[str] = []
+        self._u_seen: dict[bytes, np.ndarray] = {}  # physical row -> the scaled u the optimiser asked for
         # subclasses set: var_names, lower, upper, offset, scale, x0
 
     # ------------------------------------------------------------ scaling
@@ -131,7 +132,18 @@ class Formulation:
         return f, np.hstack([g, np.abs(h) - self.eq_tolerance])
 
     # ------------------------------------------------------------ scalar helpers (scaled u)
+    def u_of(self, x: np.ndarray) -> np.ndarray:
+        """The scaled u an optimiser evaluated at the physical point ``x`` (bit for bit, so its cached
+        rows and gradient are reused), else ``to_u(x)``."""
+        x = np.asarray(x, dtype=float)
+        u = self._u_seen.get(x.tobytes())
+        return u.copy() if u is not None else self.to_u(x)
+
     def values(self, u: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        u = np.asarray(u, dtype=float)
+        self._u_seen[self.to_x(u).tobytes()] = u.copy()
+        while len(self._u_seen) > 4096:
+            self._u_seen.pop(next(iter(self._u_seen)))
         if self.speculative_gradients and not self.evaluated(self.to_x(u)):
             # A gradient-based optimiser asks for the gradient at nearly every point it
             # evaluates: send the point and its FD stencil as ONE batch (one request wave)
