@@ -139,6 +139,19 @@ class Formulation:
         u = self._u_seen.get(x.tobytes())
         return u.copy() if u is not None else self.to_u(x)
 
+    def best_seen(self, max_violation: float) -> np.ndarray | None:
+        """The scaled u of the lowest objective among the points an optimiser evaluated whose largest
+        violation (g and |h|) is within ``max_violation``; None if there is none."""
+        best, best_f = None, np.inf
+        for key, u in self._u_seen.items():
+            c = self._cache.get(key)
+            if c is None or not c[3]:
+                continue
+            viol = max(float(np.max(c[1], initial=0.0)), float(np.max(np.abs(c[2]), initial=0.0)))
+            if viol <= max_violation and c[0] < best_f:
+                best, best_f = u.copy(), c[0]
+        return best
+
     def values(self, u: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
         u = np.asarray(u, dtype=float)
         self._u_seen[self.to_x(u).tobytes()] = u.copy()
