@@ -36,6 +36,10 @@ def register(sub) -> None:
     p.add_argument("--bag", default=None, help="bag directory to write (default: bags/<config name>_<time>)")
     p.add_argument("--no-record", action="store_true", help="do not record the run")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--starts", type=int, default=1, metavar="N",
+                   help="optimise from N start points (a Latin hypercube over the bounds, --seed) and report the "
+                        "best and how many starts reached it (default 1: the config's initial design)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the --starts sample (default 0)")
     p.add_argument("--fixed-budget", action="store_true",
                    help="the optimiser's limits (e.g. optimizer.options.maxiter) are the budget: a feasible end "
                         "exits 0 even when it is not a verified optimum (the verdict still says what it is)")
@@ -123,6 +127,10 @@ def _verdict(result: dict, out) -> None:
     fo = result["first_order"]
     cost = fo["cost"]
     print(f"verdict: {verdict_line(fo)}", file=out)
+    if result.get("multistart"):
+        from bev_mdo.mdo.multistart import summary_line
+
+        print(summary_line(result["multistart"]), file=out)
     print(f"first-order check: {cost['points']} extra points in {cost['wall_time_s']:.3f} s"
           + (" (the optimiser's last gradient reused)" if cost["points"] == 0 else ""), file=out)
     if fo["verdict"] == "infeasible":
@@ -212,8 +220,15 @@ def _run_inprocess(config, args, show, x0=None):
     from bev_mdo.cli.runbag import in_process_bag  # --bag works in process too
 
     bag, writer, show = in_process_bag(config, args, show)
-    res = run_optimization(run_settings(config), ev, formulation=args.formulation, optimizer=args.optimizer, x0=x0,
-                           callback=show)
+    starts = _starts(args, x0)
+    if starts > 1:
+        from bev_mdo.mdo.multistart import run_starts
+
+        res = run_starts(run_settings(config), ev, starts, seed=getattr(args, "seed", 0),
+                         formulation=args.formulation, optimizer=args.optimizer, callback=show)
+    else:
+        res = run_optimization(run_settings(config), ev, formulation=args.formulation, optimizer=args.optimizer,
+                               x0=x0, callback=show)
     out = res.to_dict()
     out.pop("history")
     baseline = analyse_baseline(config, NamingInProcessEvaluator(resolve_disciplines(config), timeout_s=budget,
@@ -255,8 +270,18 @@ def _run_ros(config, args, show, x0=None):
               f" (domain {ros['domain_id']}); waiting up to {ros.get('discovery_wait_s', 20):g} s for them to be "
               f"discovered ...", file=sys.stderr if args.json else sys.stdout, flush=True)
     with session:
-        result, baseline = session.run(args.formulation, args.optimizer, x0, show)
+        result, baseline = session.run(args.formulation, args.optimizer, x0, show, starts=_starts(args, x0),
+                                       seed=getattr(args, "seed", 0))
     return result, baseline, session.summary()
+
+
+def _starts(args, x0) -> int:
+    starts = int(getattr(args, "starts", 1) or 1)
+    if starts < 1:
+        raise ValueError(f"--starts {starts}: give at least 1")
+    if starts > 1 and x0:
+        raise ValueError("--starts samples its own start points; it cannot be combined with a given start")
+    return starts
 
 
 def check_new_bag(bag: Path, what: str) -> None:

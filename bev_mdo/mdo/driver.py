@@ -20,6 +20,9 @@ from bev_mdo.mdo.optimizers import GRADIENT_BASED, NOISE_VIOLATION, canonical_na
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import FEASIBILITY_TOL, RunSettings
 
+RESTARTS = 1  # derivative-free runs that claim convergence where the first-order check fails
+RESTARTABLE = frozenset({"COBYQA", "COBYLA"})
+BUDGET_OPTIONS = frozenset({"maxiter", "maxfev"})  # a budget the user set is not overridden by a restart
 BEST_REL_TOL = 1e-6  # an earlier feasible iterate replaces the last one only if better by more than this
 
 
@@ -86,6 +89,7 @@ class RunResult:
     first_order: dict = field(default_factory=dict)  # first_order.check at the result point, with its cost
     verdict: str = ""                 # first_order's verdict: optimum | stopped before convergence | ...
     optimizer_success: bool = False   # what the optimiser itself said (scipy's success flag)
+    multistart: dict = field(default_factory=dict)  # --starts N: multistart.run_starts's summary, else {}
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -238,16 +242,27 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         # (the same points; one MDA request instead of two)
         form.gradients(form.to_u(form.x0))
     record(form.x0.copy())
-    res = run_optimizer(opt_name, form, options, lambda x: record(x))
-    x = np.asarray(res.x, dtype=float)
-    if not history or history[-1]["design"] != problem.design_dict(x[:n_dv]):
-        record(x)
-    k = pick_result(history, sign, bool(res.success), tol)
-    last, x = history[k], xs[k]
+    start = form.x0.copy()
+    for attempt in range(RESTARTS + 1):
+        res = run_optimizer(opt_name, form, options, lambda x: record(x))
+        x = np.asarray(res.x, dtype=float)
+        if not history or history[-1]["design"] != problem.design_dict(x[:n_dv]):
+            record(x)
+        k = pick_result(history, sign, bool(res.success), tol)
+        last, x = history[k], xs[k]
+        fo = end_point_check(form, x, start, tol)
+        # A derivative-free method that says it converged where the first-order conditions do not hold
+        # (its models went flat before a direction was resolved): once more from there, models rebuilt.
+        if (attempt == RESTARTS or opt_name not in RESTARTABLE or not res.success
+                or fo["verdict"] != first_order.STOPPED or set(options) & BUDGET_OPTIONS):
+            break
+        form.x0 = x.copy()
+        first_message = str(res.message)
+    if attempt:
+        res.message = f"{res.message} (restarted once after: {first_message}; first-order check failed)"
     # The final report: MDF analysed the point already (its full MDA is kept); IDF's
     # point is one more MDA through the same evaluator, counted, so the totals equal what
     # the disciplines actually evaluated (and what a recording holds).
-    fo = end_point_check(form, x, xs[0], tol)
     design = problem.design_dict(x[:n_dv])
     seen = form.analysed(x) if hasattr(form, "analysed") else None
     if seen is not None:
