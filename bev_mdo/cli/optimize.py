@@ -142,8 +142,10 @@ def _verdict(result: dict, out) -> None:
     lines = []
     for c in fo["active_constraints"]:
         name = c["name"].split(" ")[0]
-        margin = result["constraints"].get(name, {}).get("margin", float("nan"))
-        lines.append(f"active: {c['name']}{u(name)}, margin {margin:.3g}{u(name)}, multiplier {c['multiplier']:.4g}")
+        con = result["constraints"].get(name, {})
+        margin, limit = con.get("margin", float("nan")), con.get("upper", con.get("lower")) or 0.0
+        shown = "0" if abs(margin) <= 1e-6 * max(abs(limit), 1.0) else f"{margin:.3g}"  # below the noise: 0
+        lines.append(f"active: {c['name']}{u(name)}, margin {shown}{u(name)}, multiplier {c['multiplier']:.4g}")
     for b in fo["active_bounds"]:
         v = result["design"].get(b["name"], float("nan"))
         lines.append(f"on its {b['kind']} bound: {b['name']} = {v:.6g}{u(b['name'])}, multiplier {b['multiplier']:.4g}")
