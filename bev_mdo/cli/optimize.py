@@ -278,7 +278,7 @@ def _run_ros(config, args, show, x0=None):
 
 
 def _starts(args, x0) -> int:
-    starts = int(getattr(args, "starts", 1) or 1)
+    starts = int(getattr(args, "starts", 1))
     if starts < 1:
         raise ValueError(f"--starts {starts}: give at least 1")
     if starts > 1 and x0:

@@ -117,3 +117,14 @@ def test_an_optimiser_that_did_not_converge_is_said_so_beside_the_table(tmp_path
     assert "SLSQP says: Iteration limit reached" in out
     rc, out = _run("--quiet", "--no-record")
     assert rc == 0 and "says:" not in out
+
+
+def test_starts_reports_how_many_reached_the_best_point(tmp_path):
+    rc, res = _json(_sellar(tmp_path, "SLSQP", {}), "--starts", "2", "--seed", "1")
+    ms = res["multistart"]
+    assert rc == 0 and ms["starts"] == 2 and ms["seed"] == 1 and len(ms["results"]) == 2
+    assert 1 <= ms["reached_best"] <= 2 and res["verdict"] == "optimum"
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        rc = main(["optimize", CONFIG, "--transport", "inprocess", "--no-record", "--starts", "0"])
+    assert rc == 2 and "--starts 0" in err.getvalue() and "Traceback" not in err.getvalue()
