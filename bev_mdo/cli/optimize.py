@@ -172,6 +172,7 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
 
         # ValueError names the known optimizers, or the config's option the chosen one does not take
         check_optimizer_options(canonical_name(args.optimizer), (config.get("optimizer") or {}).get("options") or {})
+    _starts(args, x0)  # a bad --starts is refused before anything starts or is written
     t_start = time.perf_counter()
     out = sys.stderr if args.json else sys.stdout
     show = _progress(args.quiet, args.json)
