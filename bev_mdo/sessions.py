@@ -169,7 +169,8 @@ class OptimizeRosSession:
             raise
         return self
 
-    def run(self, formulation=None, optimizer=None, x0=None, on_iteration=None) -> tuple[dict, dict | None]:
+    def run(self, formulation=None, optimizer=None, x0=None, on_iteration=None, starts=1,
+            seed=0) -> tuple[dict, dict | None]:
         """(result without its history, baseline) of the run; the coordinator runs in this process."""
         import rclpy
 
@@ -194,6 +195,7 @@ class OptimizeRosSession:
             baseline = _ros_baseline(self.config, self.run_id, ctx, seen, beside=beside)
             res, stats = coordinator_node.run(self.config, run_id=self.run_id, formulation=formulation,
                                               optimizer=optimizer, x0=x0, on_iteration=on_iteration,
+                                              starts=starts, seed=seed,
                                               recorder_subscribers=self.recorder, context=ctx,
                                               instances=self.instances, beside=beside,
                                               give_up_acks=acks_needless(self.launcher) if self.recorder else None)

@@ -6,8 +6,12 @@ coordinator in this process, shows progress, prints the optimum (beside the conf
 writes the bag and shuts every process down (also on Ctrl-C).
 `--transport inprocess` runs the same engine with no ROS at all.
 
-Exit status: 0 feasible optimum, 1 the run finished infeasible, 2 a user mistake. A finished
-run always prints its result (with ``--json``, the JSON on stdout), whatever the baseline does.
+Every run ends with a first-order check of its result (bev_mdo/mdo/first_order.py); the verdict
+follows from it. Exit status: 0 an optimum (first-order conditions hold), or with ``--fixed-budget``
+any feasible end; 1 the run finished infeasible; 2 a user mistake; 3 the recorder failed; 4 a
+discipline stopped answering; 5 feasible but not a verified optimum (stopped before convergence, or
+no progress from the start point). A finished run always prints its result (with ``--json``, the
+JSON on stdout), whatever the baseline does.
 """
 from __future__ import annotations
 
@@ -32,6 +36,13 @@ def register(sub) -> None:
     p.add_argument("--bag", default=None, help="bag directory to write (default: bags/<config name>_<time>)")
     p.add_argument("--no-record", action="store_true", help="do not record the run")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--starts", type=int, default=1, metavar="N",
+                   help="optimise from N start points (a Latin hypercube over the bounds, --seed) and report the "
+                        "best and how many starts reached it (default 1: the config's initial design)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the --starts sample (default 0)")
+    p.add_argument("--fixed-budget", action="store_true",
+                   help="the optimiser's limits (e.g. optimizer.options.maxiter) are the budget: a feasible end "
+                        "exits 0 even when it is not a verified optimum (the verdict still says what it is)")
     p.add_argument("--instances", default=None, metavar="N|NAME=N,...",
                    help="ROS: run N instances of every discipline, or of the named ones; they share each batch "
                         "(ros.pool: share) or all answer it (redundant)")
@@ -70,12 +81,12 @@ def _table(result: dict, baseline: dict | None, out) -> None:
     from rich.table import Table
 
     sense = "maximised" if result.get("maximize") else "minimised"
-    title = f"Optimum ({result['formulation'].upper()}, {result['optimizer']}; {result['objective_name']} {sense})"
+    title = f"Result ({result['formulation'].upper()}, {result['optimizer']}; {result['objective_name']} {sense})"
     if baseline is not None:
         title += f" beside {baseline['name']}"
     t = Table(title=title)
     t.add_column("quantity")
-    t.add_column("optimum", justify="right")
+    t.add_column("result", justify="right")
     if baseline is not None:
         t.add_column(baseline["name"], justify="right")
 
@@ -94,8 +105,8 @@ def _table(result: dict, baseline: dict | None, out) -> None:
         print(f"baseline {baseline['name']}: {baseline['error']}", file=out)
     if result.get("error"):
         print(f"the result point failed: {result['error']}", file=out)
-    elif not result.get("success", True):  # e.g. SLSQP's iteration limit: the table is not an optimum then
-        print(f"warning: {result['optimizer']} did not converge: {result['message'].split('; ')[0]}", file=out)
+    elif not result.get("optimizer_success", True):  # e.g. SLSQP's iteration limit
+        print(f"{result['optimizer']} says: {result['message'].split('; ')[0]}", file=out)
     if not result.get("last_iterate", True):
         print(f"result: iteration {result['result_iteration']}, the best feasible point seen "
               f"(not the optimiser's last iterate, iteration {result['iterations']})", file=out)
@@ -104,7 +115,46 @@ def _table(result: dict, baseline: dict | None, out) -> None:
               "the optimiser may have stopped early (see discipline_errors)", file=out)
     print(f"iterations {result['iterations']}, MDA evaluations {result['mda_evaluations']}, "
           f"evaluations per discipline {result['discipline_evaluations']}", file=out)
-    print(f"optimiser wall time {result['wall_time_s']:.3f} s (first evaluation to optimum)", file=out)
+    print(f"optimiser wall time {result['wall_time_s']:.3f} s (first evaluation to result)", file=out)
+    _verdict(result, out)
+
+
+def _verdict(result: dict, out) -> None:
+    """The first-order verdict and the active set with its multipliers (physical margins beside)."""
+    from bev_mdo.mdo.first_order import verdict_line
+    from bev_mdo.mdo.units import unit_of
+
+    fo = result["first_order"]
+    cost = fo["cost"]
+    print(f"verdict: {verdict_line(fo)}", file=out)
+    if result.get("multistart"):
+        from bev_mdo.mdo.multistart import summary_line
+
+        print(summary_line(result["multistart"]), file=out)
+    print(f"first-order check: {cost['points']} extra points in {cost['wall_time_s']:.3f} s"
+          + (" (the optimiser's last gradient reused)" if cost["points"] == 0 else ""), file=out)
+    if fo["verdict"] == "infeasible":
+        return  # the answers below say what is violated and what blocks it
+
+    def u(name: str) -> str:
+        return f" {unit_of(name)}" if unit_of(name) else ""
+
+    lines = []
+    for c in fo["active_constraints"]:
+        name = c["name"].split(" ")[0]
+        con = result["constraints"].get(name, {})
+        margin, limit = con.get("margin", float("nan")), con.get("upper", con.get("lower")) or 0.0
+        shown = "0" if abs(margin) <= 1e-6 * max(abs(limit), 1.0) else f"{margin:.3g}"  # below the noise: 0
+        lines.append(f"active: {c['name']}{u(name)}, margin {shown}{u(name)}, multiplier {c['multiplier']:.4g}")
+    for b in fo["active_bounds"]:
+        v = result["design"].get(b["name"], float("nan"))
+        lines.append(f"on its {b['kind']} bound: {b['name']} = {v:.6g}{u(b['name'])}, multiplier {b['multiplier']:.4g}")
+    for e in fo["equalities"]:
+        lines.append(f"consistency: {e['name']}, residual {e['value']:.3g}, multiplier {e['multiplier']:.4g}")
+    print("what holds the result (multipliers per unit of the scaled variables and normalised constraints):"
+          if lines else "no constraint is active and no variable is on a bound", file=out)
+    for line in lines:
+        print(f"  {line}", file=out)
 
 
 def run(args) -> int:
@@ -122,6 +172,7 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
 
         # ValueError names the known optimizers, or the config's option the chosen one does not take
         check_optimizer_options(canonical_name(args.optimizer), (config.get("optimizer") or {}).get("options") or {})
+    _starts(args, x0)  # a bad --starts is refused before anything starts or is written
     t_start = time.perf_counter()
     out = sys.stderr if args.json else sys.stdout
     show = _progress(args.quiet, args.json)
@@ -138,7 +189,8 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
         print(json.dumps({**result, "baseline": baseline, **extra}, default=float, indent=2))
     else:
         _table(result, baseline, out)
-        print("\n".join(runbag.answers_text(result, args.transport)), file=out)
+        if not result["feasible"]:
+            print("\n".join(runbag.answers_text(result, args.transport)), file=out)
         for k, v in extra.items():
             print(f"{k}: {v}" if k != "run_time_s" else f"run time {v:.3f} s (config loaded to this line: start-up, "
                   "optimisation, baseline, answers, shut-down)", file=out)
@@ -152,7 +204,9 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
         return 3
     if not result["feasible"]:
         return 1
-    return 4 if lost else 0
+    if lost:
+        return 4
+    return 0 if result["verdict"] == "optimum" or getattr(args, "fixed_budget", False) else 5
 
 
 def _run_inprocess(config, args, show, x0=None):
@@ -169,8 +223,15 @@ def _run_inprocess(config, args, show, x0=None):
     from bev_mdo.cli.runbag import in_process_bag  # --bag works in process too
 
     bag, writer, show = in_process_bag(config, args, show)
-    res = run_optimization(run_settings(config), ev, formulation=args.formulation, optimizer=args.optimizer, x0=x0,
-                           callback=show)
+    starts = _starts(args, x0)
+    if starts > 1:
+        from bev_mdo.mdo.multistart import run_starts
+
+        res = run_starts(run_settings(config), ev, starts, seed=getattr(args, "seed", 0),
+                         formulation=args.formulation, optimizer=args.optimizer, callback=show)
+    else:
+        res = run_optimization(run_settings(config), ev, formulation=args.formulation, optimizer=args.optimizer,
+                               x0=x0, callback=show)
     out = res.to_dict()
     out.pop("history")
     baseline = analyse_baseline(config, NamingInProcessEvaluator(resolve_disciplines(config), timeout_s=budget,
@@ -212,8 +273,18 @@ def _run_ros(config, args, show, x0=None):
               f" (domain {ros['domain_id']}); waiting up to {ros.get('discovery_wait_s', 20):g} s for them to be "
               f"discovered ...", file=sys.stderr if args.json else sys.stdout, flush=True)
     with session:
-        result, baseline = session.run(args.formulation, args.optimizer, x0, show)
+        result, baseline = session.run(args.formulation, args.optimizer, x0, show, starts=_starts(args, x0),
+                                       seed=getattr(args, "seed", 0))
     return result, baseline, session.summary()
+
+
+def _starts(args, x0) -> int:
+    starts = int(getattr(args, "starts", 1))
+    if starts < 1:
+        raise ValueError(f"--starts {starts}: give at least 1")
+    if starts > 1 and x0:
+        raise ValueError("--starts samples its own start points; it cannot be combined with a given start")
+    return starts
 
 
 def check_new_bag(bag: Path, what: str) -> None:

@@ -172,7 +172,7 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
         lines.append(f"on its {b['kind']} bound: {b['name']} = {_num(b['value'])}{u(b['unit'])} "
                      f"(bound {b['bound']:g}{u(b['unit'])}, margin {_num(b['margin'], b['scale'])}{u(b['unit'])})")
     if not lines:
-        lines.append("no constraint is active and no design variable is on a bound (an interior optimum)")
+        lines.append("no constraint is active and no design variable is on a bound")
     return lines
 
 

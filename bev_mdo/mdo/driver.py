@@ -12,15 +12,18 @@ from typing import Any
 
 import numpy as np
 
+from bev_mdo.mdo import first_order
 from bev_mdo.mdo.evaluator import Evaluator
 from bev_mdo.mdo.formulations import FORMULATIONS, Formulation
 from bev_mdo.mdo.mda import MDA
-from bev_mdo.mdo.optimizers import GRADIENT_BASED, canonical_name, run_optimizer
+from bev_mdo.mdo.optimizers import GRADIENT_BASED, NOISE_VIOLATION, canonical_name, run_optimizer
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import FEASIBILITY_TOL, RunSettings
 
+RESTARTS = 1  # derivative-free runs that claim convergence where the first-order check fails
+RESTARTABLE = frozenset({"COBYQA", "COBYLA"})
+BUDGET_OPTIONS = frozenset({"maxiter", "maxfev"})  # a budget the user set is not overridden by a restart
 BEST_REL_TOL = 1e-6  # an earlier feasible iterate replaces the last one only if better by more than this
-NOISE_VIOLATION = 1e-3  # x the feasibility tolerance: a violation this small is numerical noise
 
 
 Run = RunSettings | Mapping[str, Any]  # typed settings (config.run_settings), or a resolved config
@@ -60,8 +63,8 @@ class RunResult:
 
     formulation: str
     optimizer: str
-    success: bool
-    message: str
+    success: bool                     # the first-order check verified an optimum (verdict == "optimum")
+    message: str                      # the optimiser's own message
     design: dict[str, float]
     objective_name: str
     objective: float
@@ -83,6 +86,10 @@ class RunResult:
     feasibility_tolerance: float = FEASIBILITY_TOL
     error: str = ""                   # why the result point failed (a discipline's one line), else ''
     fd_failures: int = 0              # finite-difference points that failed (each gave a zero derivative)
+    first_order: dict = field(default_factory=dict)  # first_order.check at the result point, with its cost
+    verdict: str = ""                 # first_order's verdict: optimum | stopped before convergence | ...
+    optimizer_success: bool = False   # what the optimiser itself said (scipy's success flag)
+    multistart: dict = field(default_factory=dict)  # --starts N: multistart.run_starts's summary, else {}
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -207,6 +214,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     n_dv = len(problem.names)
     tol = float(opt_cfg.feasibility_tolerance)
     sign = -1.0 if problem.maximize else 1.0  # evaluate_batch gives the minimised value
+    form.feasibility_tolerance = tol
     history: list[dict] = []
     xs: list[np.ndarray] = []  # the optimiser variables of every record (IDF: with the couplings)
 
@@ -234,12 +242,24 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         # (the same points; one MDA request instead of two)
         form.gradients(form.to_u(form.x0))
     record(form.x0.copy())
-    res = run_optimizer(opt_name, form, options, lambda x: record(x))
-    x = np.asarray(res.x, dtype=float)
-    if not history or history[-1]["design"] != problem.design_dict(x[:n_dv]):
-        record(x)
-    k = pick_result(history, sign, bool(res.success), tol)
-    last, x = history[k], xs[k]
+    start = form.x0.copy()
+    for attempt in range(RESTARTS + 1):
+        res = run_optimizer(opt_name, form, options, lambda x: record(x))
+        x = np.asarray(res.x, dtype=float)
+        if not history or history[-1]["design"] != problem.design_dict(x[:n_dv]):
+            record(x)
+        k = pick_result(history, sign, bool(res.success), tol)
+        last, x = history[k], xs[k]
+        fo = end_point_check(form, x, start, tol)
+        # A derivative-free method that says it converged where the first-order conditions do not hold
+        # (its models went flat before a direction was resolved): once more from there, models rebuilt.
+        if (attempt == RESTARTS or opt_name not in RESTARTABLE or not res.success
+                or fo["verdict"] != first_order.STOPPED or set(options) & BUDGET_OPTIONS):
+            break
+        form.x0 = x.copy()
+        first_message = str(res.message)
+    if attempt:
+        res.message = f"{res.message} (restarted once after: {first_message}; first-order check failed)"
     # The final report: MDF analysed the point already (its full MDA is kept); IDF's
     # point is one more MDA through the same evaluator, counted, so the totals equal what
     # the disciplines actually evaluated (and what a recording holds).
@@ -259,7 +279,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
                     f"(the last iterate, iteration {len(history) - 1}, is "
                     f"{'worse' if history[-1]['feasible'] else 'infeasible'})")
     return RunResult(
-        formulation=form.name, optimizer=opt_name, success=bool(res.success) and ok,
+        formulation=form.name, optimizer=opt_name, success=fo["verdict"] == first_order.OPTIMUM and ok,
         message=message, design=design, objective_name=problem.objective,
         objective=float(last["objective"]), outputs=final["outputs"], constraints=final["constraints"],
         max_violation=float(last["max_violation"]), feasible=bool(last["feasible"] and final["feasible"]),
@@ -268,4 +288,28 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         gradients=form.n_gradients, wall_time_s=time.perf_counter() - t0, history=history,
         maximize=problem.maximize, result_iteration=k, last_iterate=k == len(history) - 1,
         feasibility_tolerance=tol, error="" if ok else (err or final.get("error", "")).split("; ")[0],
-        fd_failures=int(getattr(form, "fd_failures", 0)))
+        fd_failures=int(getattr(form, "fd_failures", 0)), first_order=fo, verdict=fo["verdict"],
+        optimizer_success=bool(res.success))
+
+
+def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: float) -> dict:
+    """``first_order.check`` at the physical point ``x`` of ``form``, with what it cost: the gradient is
+    the optimiser's last one when it was taken there (gradient-based runs), else one batched stencil
+    (derivative-free runs). ``cost`` counts the points the check evaluated and its wall time."""
+    t0, points, batches = time.perf_counter(), form.n_points, form.n_batches
+    x = np.asarray(x, dtype=float)
+    u = form.u_of(x)
+    ok, _ = form.status(x)
+    f, g, h = form.evaluate_batch(x[None, :])
+    if ok:
+        df, dg, dh = form.gradients(u)
+        df = df / form.problem.objective_scale
+    else:  # a failed point has no derivative: its verdict is infeasible
+        df, dg, dh = np.zeros(form.n), np.zeros((g.shape[1], form.n)), np.zeros((h.shape[1], form.n))
+    lo, hi = form.u_bounds
+    fo = first_order.check(u, lo, hi, df, g[0], dg, h[0], dh, names=form.var_names,
+                           ineq_labels=form.ineq_labels, eq_labels=form.eq_labels, feasibility_tol=tol,
+                           point_ok=ok, moved=not np.array_equal(x, np.asarray(x_start, dtype=float)))
+    fo["cost"] = {"points": form.n_points - points, "batches": form.n_batches - batches,
+                  "wall_time_s": time.perf_counter() - t0}
+    return fo

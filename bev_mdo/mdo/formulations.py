@@ -66,6 +66,7 @@ class Formulation:
         self.fd_failures = 0
         self.ineq_labels = problem.constraint_labels
         self.eq_labels: list[str] = []
+        self._u_seen: dict[bytes, np.ndarray] = {}  # physical row -> the scaled u the optimiser asked for
         # subclasses set: var_names, lower, upper, offset, scale, x0
 
     # ------------------------------------------------------------ scaling
@@ -131,7 +132,31 @@ class Formulation:
         return f, np.hstack([g, np.abs(h) - self.eq_tolerance])
 
     # ------------------------------------------------------------ scalar helpers (scaled u)
+    def u_of(self, x: np.ndarray) -> np.ndarray:
+        """The scaled u an optimiser evaluated at the physical point ``x`` (bit for bit, so its cached
+        rows and gradient are reused), else ``to_u(x)``."""
+        x = np.asarray(x, dtype=float)
+        u = self._u_seen.get(x.tobytes())
+        return u.copy() if u is not None else self.to_u(x)
+
+    def best_seen(self, max_violation: float) -> np.ndarray | None:
+        """The scaled u of the lowest objective among the points an optimiser evaluated whose largest
+        violation (g and |h|) is within ``max_violation``; None if there is none."""
+        best, best_f = None, np.inf
+        for key, u in self._u_seen.items():
+            c = self._cache.get(key)
+            if c is None or not c[3]:
+                continue
+            viol = max(float(np.max(c[1], initial=0.0)), float(np.max(np.abs(c[2]), initial=0.0)))
+            if viol <= max_violation and c[0] < best_f:
+                best, best_f = u.copy(), c[0]
+        return best
+
     def values(self, u: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        u = np.asarray(u, dtype=float)
+        self._u_seen[self.to_x(u).tobytes()] = u.copy()
+        while len(self._u_seen) > 4096:
+            self._u_seen.pop(next(iter(self._u_seen)))
         if self.speculative_gradients and not self.evaluated(self.to_x(u)):
             # A gradient-based optimiser asks for the gradient at nearly every point it
             # evaluates: send the point and its FD stencil as ONE batch (one request wave)

@@ -92,7 +92,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         optimizer: str | None = None, x0: Mapping[str, float] | None = None,
         on_iteration: Callable[[dict], None] | None = None, recorder_subscribers: int = 0,
         context=None, signer=None, instances: Mapping[str, int] | None = None,
-        give_up_acks: Callable[[], bool] | None = None, beside=None):
+        give_up_acks: Callable[[], bool] | None = None, beside=None, starts: int = 1, seed: int = 0):
     """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats).
     ``beside``: a composed.Beside (discipline nodes in this process and `context`) to serve."""
     from bev_mdo.config import run_settings
@@ -117,8 +117,14 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
             if on_iteration is not None:
                 on_iteration(rec)
 
-        result = run_optimization(run_settings(config), node.evaluator, formulation=formulation, optimizer=optimizer,
-                                  x0=x0, callback=callback)
+        if starts > 1:  # --starts: every start through the same nodes, one bag
+            from bev_mdo.mdo.multistart import run_starts
+
+            result = run_starts(run_settings(config), node.evaluator, starts, seed=seed, formulation=formulation,
+                                optimizer=optimizer, callback=callback)
+        else:
+            result = run_optimization(run_settings(config), node.evaluator, formulation=formulation,
+                                      optimizer=optimizer, x0=x0, callback=callback)
         t_optimised = time.monotonic()
         stats = {"run_id": node.run_id, "dropped": dict(node.evaluator.dropped), "retried": node.evaluator.retried,
                  "data_flow_mdas": node.evaluator.flows, "refused_instances": dict(node.evaluator.refused),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 from pathlib import Path
 
 import pytest
@@ -26,9 +27,10 @@ def test_progress_rate_fits_the_formulation(formulation, rate):
     assert rc == 0
     progress = [l for l in out.splitlines() if l.startswith("iter ")]
     assert progress and all(l.endswith(rate) for l in progress)
-    assert "optimiser wall time" in out and "(first evaluation to optimum)" in out
+    assert "optimiser wall time" in out and "(first evaluation to result)" in out
     assert "run time" in out and "wall time " not in out.replace("optimiser wall time", "")
-    assert "what holds the optimum:" in out and "on its lower bound: battery_kwh" in out
+    assert "verdict: optimum (first-order conditions hold to" in out
+    assert "on its lower bound: battery_kwh = 20 kWh, multiplier" in out
 
 
 def test_bag_in_process_is_readable_by_history(tmp_path, capsys):
@@ -39,23 +41,90 @@ def test_bag_in_process_is_readable_by_history(tmp_path, capsys):
     assert csv_text.startswith("run_id,iteration") and len(csv_text.strip().splitlines()) == 7
 
 
+def _sellar(tmp_path, optimizer, options, formulation="mdf"):
+    import yaml
+
+    sellar = Path(__file__).resolve().parents[2] / "examples" / "sellar"
+    raw = yaml.safe_load((sellar / f"sellar_{formulation}.yaml").read_text())
+    raw["search_path"] = [str(sellar)]
+    raw["optimizer"].update({"name": optimizer, "options": options})
+    cfg = tmp_path / "sellar.yaml"
+    cfg.write_text(yaml.safe_dump(raw))
+    return str(cfg)
+
+
+def _json(*argv):
+    buf, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(err):
+        rc = main(["optimize", *argv, "--transport", "inprocess", "--no-record", "--json"])
+    return rc, json.loads(buf.getvalue())
+
+
+def _first_order_numbers(fo):
+    assert {"stationarity", "complementarity", "max_violation", "active_constraints", "active_bounds",
+            "equalities", "tolerance", "cost"} <= set(fo)
+    assert fo["stationarity"] > fo["tolerance"]  # the reason it is not an optimum
+
+
+def test_a_run_cut_short_is_never_an_optimum_and_exits_5(tmp_path):
+    """SLSQP stopped by maxiter: 1 printed a table titled 'Optimum' and exited 0."""
+    cfg = _sellar(tmp_path, "SLSQP", {"maxiter": 1})
+    rc, res = _json(cfg)
+    assert rc == 5 and res["verdict"] == "stopped before convergence" and not res["success"]
+    _first_order_numbers(res["first_order"])
+    assert res["first_order"]["verdict"] == res["verdict"]
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        rc = main(["optimize", cfg, "--transport", "inprocess", "--no-record", "--quiet"])
+    out = buf.getvalue()
+    assert rc == 5 and "verdict: stopped before convergence (projected gradient of the Lagrangian" in out
+    assert "Optimum" not in out and "verdict: optimum" not in out
+    # asked for a fixed budget: the same verdict, exit 0
+    rc, res = _json(cfg, "--fixed-budget")
+    assert rc == 0 and res["verdict"] == "stopped before convergence"
+
+
+@pytest.mark.parametrize("formulation", ["mdf", "idf"])
+def test_a_cobyqa_run_that_cannot_move_is_no_progress(tmp_path, formulation):
+    """COBYQA that never leaves the start point was reported as the optimum, exit 0."""
+    rc, res = _json(_sellar(tmp_path, "COBYQA", {"maxfev": 1}, formulation))
+    assert rc == 5 and res["verdict"] == "no progress from the start point" and not res["success"]
+    assert res["design"] == {"z1": 5.0, "z2": 2.0, "x": 1.0}
+    _first_order_numbers(res["first_order"])
+
+
+def test_a_verified_optimum_carries_its_multipliers(tmp_path):
+    rc, res = _json(_sellar(tmp_path, "SLSQP", {}))
+    fo = res["first_order"]
+    assert rc == 0 and res["verdict"] == "optimum" and res["success"]
+    assert fo["stationarity"] <= fo["tolerance"] and fo["complementarity"] <= fo["tolerance"]
+    assert [c["name"] for c in fo["active_constraints"]] == ["y1 >= 3.16"]
+    assert fo["active_constraints"][0]["multiplier"] > 0
+    assert {(b["name"], b["kind"]) for b in fo["active_bounds"]} == {("z2", "lower"), ("x", "lower")}
+    assert fo["cost"]["points"] == 0  # SLSQP's last gradient is reused
+
+
 def test_an_optimiser_that_did_not_converge_is_said_so_beside_the_table(tmp_path):
     """SLSQP stopped by its iteration limit (or 'Positive directional derivative for linesearch') gave
     success: false in the JSON, but the table, titled 'Optimum', and 'what holds the optimum' said
     nothing: a point short of the optimum read as the optimum (the aerostructure problem, minimised,
     maxiter 3: range 3751.37 against 3733.12)."""
-    import yaml
-
-    sellar = Path(__file__).resolve().parents[2] / "examples" / "sellar"
-    raw = yaml.safe_load((sellar / "sellar_mdf.yaml").read_text())
-    raw["search_path"] = [str(sellar)]
-    raw["optimizer"]["options"] = {"maxiter": 2}
-    cfg = tmp_path / "sellar_2.yaml"
-    cfg.write_text(yaml.safe_dump(raw))
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
-        main(["optimize", str(cfg), "--transport", "inprocess", "--no-record", "--quiet"])
+        main(["optimize", _sellar(tmp_path, "SLSQP", {"maxiter": 2}), "--transport", "inprocess", "--no-record",
+              "--quiet"])
     out = buf.getvalue()
-    assert "warning: SLSQP did not converge: Iteration limit reached" in out
+    assert "SLSQP says: Iteration limit reached" in out
     rc, out = _run("--quiet", "--no-record")
-    assert rc == 0 and "did not converge" not in out
+    assert rc == 0 and "says:" not in out
+
+
+def test_starts_reports_how_many_reached_the_best_point(tmp_path):
+    rc, res = _json(_sellar(tmp_path, "SLSQP", {}), "--starts", "2", "--seed", "1")
+    ms = res["multistart"]
+    assert rc == 0 and ms["starts"] == 2 and ms["seed"] == 1 and len(ms["results"]) == 2
+    assert 1 <= ms["reached_best"] <= 2 and res["verdict"] == "optimum"
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        rc = main(["optimize", CONFIG, "--transport", "inprocess", "--no-record", "--starts", "0"])
+    assert rc == 2 and "--starts 0" in err.getvalue() and "Traceback" not in err.getvalue()

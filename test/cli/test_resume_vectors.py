@@ -22,7 +22,8 @@ def test_resume_starts_from_every_element_of_the_recorded_design(tmp_path, capsy
     from bev_mdo.bag.history import history
 
     old, new = tmp_path / "old", tmp_path / "new"
-    assert main(["optimize", str(cfg), "--transport", "inprocess", "--bag", str(old), "--quiet"]) in (0, 1)
+    # cut short by maxiter 3: never a verified optimum (5), or infeasible (1)
+    assert main(["optimize", str(cfg), "--transport", "inprocess", "--bag", str(old), "--quiet"]) in (1, 5)
     main(["resume", str(old), "--transport", "inprocess", "--output", str(new), "--quiet"])
     capsys.readouterr()
     last, start = history(old)[-1], history(new)[0]

@@ -24,9 +24,9 @@ def test_feasible_end_names_active_limits_and_bounds_with_units():
     assert "on its lower bound: battery_kwh = 20 kWh (bound 20 kWh, margin 0 kWh)" in a["lines"]
 
 
-def test_interior_optimum_says_so():
+def test_no_active_limit_says_so_without_calling_it_an_optimum():
     a = analyse(PROBLEM, {"motor_kw": 75.0, "battery_kwh": 25.0}, {"range_km": 300.0, "accel_time_0_100_s": 9.0})
-    assert a["lines"] == ["no constraint is active and no design variable is on a bound (an interior optimum)"]
+    assert a["lines"] == ["no constraint is active and no design variable is on a bound"]
 
 
 def test_a_margin_of_a_tenth_of_a_per_mille_is_active_but_one_per_cent_is_not():

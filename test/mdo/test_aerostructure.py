@@ -159,7 +159,7 @@ def test_other_optimisers_that_reach_the_maximum(formulation, optimizer, rel):
     consistency violation of 9e-9 that buys 9e-9 of range). IDF with COBYLA did not on
     the development host (it stopped 2.6 % short, docs/aerostructure.md); not asserted either way."""
     res = _run(_config(formulation), optimizer=optimizer)
-    assert res.feasible and res.optimizer == optimizer
+    assert res.feasible and res.optimizer == optimizer and res.verdict == "optimum"
     assert res.objective == pytest.approx(aero.OPTIMUM_RANGE, rel=rel)
     assert res.design["thick_airfoils"] == pytest.approx(5.0, abs=1e-6)
 

@@ -165,7 +165,7 @@ def test_ssbj_reaches_the_reference_optimum_with_slsqp(formulation, derivatives)
     taper ratio (at its upper bound 0.4 here, 0.38757 in BLISS: the range is flat in it, +0.2 nmi)
     and the throttle (1e-4 absolute)."""
     res = _run(_config(formulation, **{"optimizer.derivatives": derivatives}))
-    assert res.feasible and res.formulation == formulation and res.maximize
+    assert res.feasible and res.formulation == formulation and res.maximize and res.verdict == "optimum"
     assert res.objective == pytest.approx(OPTIMUM_RANGE, abs=1e-3)
     assert res.objective == pytest.approx(PUBLISHED_RANGE, rel=2e-4)
     ref = _flat(ssbj.REFERENCE_DESIGN)
@@ -187,7 +187,7 @@ def test_other_optimisers_that_reach_the_optimum(formulation, optimizer, rel):
     """docs/ssbj.md: MDF with COBYQA (no gradients) and IDF with trust-constr reach it too; the
     taper ratio, on which the range is flat, to 1e-4 only."""
     res = _run(_config(formulation), optimizer=optimizer)
-    assert res.feasible and res.optimizer == optimizer
+    assert res.feasible and res.optimizer == optimizer and res.verdict == "optimum"
     assert res.objective == pytest.approx(OPTIMUM_RANGE, rel=rel)
     assert res.design["x_1[0]"] == pytest.approx(0.4, abs=1e-4)
     assert res.design["x_3"] == pytest.approx(0.1562447, abs=1e-6)
@@ -200,6 +200,7 @@ def test_mdf_with_trust_constr_does_not_reach_it_and_the_result_says_so():
     assert res.optimizer == "trust-constr" and res.iterations == 20
     assert res.objective < 0.5 * OPTIMUM_RANGE
     assert not res.last_iterate and res.result_iteration < res.iterations
+    assert res.verdict == "stopped before convergence" and not res.success
 
 
 POINTS = {  # interior points (no polynomial input at its clip edge, where the derivative has a kink)

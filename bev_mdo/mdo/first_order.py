@@ -1,0 +1,131 @@
+"""First-order (KKT) check of an optimisation's end point, and the verdict that follows from it.
+
+Pure numpy/scipy; no evaluation of its own. The caller gives the end point in the optimiser's
+scaled variables u (design variables and, under IDF, couplings, each scaled to order one), the
+minimised objective's gradient, the normalised inequalities g <= 0 (feasible) and equalities h = 0
+with their Jacobians, all in those units.
+
+The conditions (Nocedal & Wright, Numerical Optimization, 2nd ed., Theorem 12.1):
+
+* stationarity: grad f + J_g^T lam + J_h^T mu - nu_lower + nu_upper = 0 over the active set,
+  with lam, nu >= 0. The multipliers are estimated by bounded least squares over the active set
+  (scipy.optimize.lsq_linear); the residual is the **projected gradient of the Lagrangian** and its
+  largest component, relative to max(1, |grad f|), must be within ``tol``;
+* primal feasibility: the largest violation of g and |h| within the run's feasibility tolerance;
+* complementarity: max |lam_i g_i| and |nu_j (distance to bound j)| within ``tol``
+  (an inequality or bound counts as active within ``active_tol`` of its limit).
+
+Verdicts (in this order): ``infeasible`` (violation above the feasibility tolerance, or the point
+failed), ``optimum`` (the conditions hold), ``no progress from the start point`` (the end point is
+the start point), ``stopped before convergence`` (anything else).
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+FIRST_ORDER_TOL = 1e-4   # relative stationarity and complementarity that count as "the conditions hold"
+ACTIVE_TOL = 1e-4        # an inequality (normalised) or a bound (scaled units) this close to its limit is active
+
+OPTIMUM = "optimum"
+STOPPED = "stopped before convergence"
+NO_PROGRESS = "no progress from the start point"
+INFEASIBLE = "infeasible"
+VERDICTS = (OPTIMUM, STOPPED, NO_PROGRESS, INFEASIBLE)
+
+
+def check(u: np.ndarray, lower: np.ndarray, upper: np.ndarray, grad_f: np.ndarray, g: np.ndarray,
+          jac_g: np.ndarray, h: np.ndarray, jac_h: np.ndarray, *, names: Sequence[str],
+          ineq_labels: Sequence[str], eq_labels: Sequence[str], feasibility_tol: float,
+          tol: float = FIRST_ORDER_TOL, active_tol: float = ACTIVE_TOL, point_ok: bool = True,
+          moved: bool = True) -> dict:
+    """The first-order numbers and the verdict at ``u`` (JSON-ready dict; see the module doc).
+
+    ``lower``/``upper``: bounds of u (may be infinite); ``g`` (m,), ``jac_g`` (m, n), ``h`` (p,),
+    ``jac_h`` (p, n); ``moved``: False when the end point is the start point."""
+    u, lower, upper = (np.asarray(a, dtype=float) for a in (u, lower, upper))
+    grad_f = np.asarray(grad_f, dtype=float)
+    n = len(u)
+    g, h = np.asarray(g, dtype=float).reshape(-1), np.asarray(h, dtype=float).reshape(-1)
+    jac_g, jac_h = np.asarray(jac_g, dtype=float).reshape(len(g), n), np.asarray(jac_h, dtype=float).reshape(len(h), n)
+    violation = max(float(np.max(g, initial=0.0)), float(np.max(np.abs(h), initial=0.0)))
+    to_lower, to_upper = u - lower, upper - u
+    act_g = np.flatnonzero(g >= -active_tol)
+    act_lo = np.flatnonzero(np.isfinite(lower) & (to_lower <= active_tol * np.maximum(1.0, np.abs(lower))))
+    act_hi = np.flatnonzero(np.isfinite(upper) & (to_upper <= active_tol * np.maximum(1.0, np.abs(upper))))
+    act_hi = np.setdiff1d(act_hi, act_lo)  # a degenerate box: one side
+    cols = ([jac_g[i] for i in act_g] + [jac_h[k] for k in range(len(h))]
+            + [-np.eye(n)[j] for j in act_lo] + [np.eye(n)[j] for j in act_hi])
+    nonneg = [True] * len(act_g) + [False] * len(h) + [True] * (len(act_lo) + len(act_hi))
+    if cols:
+        A = np.column_stack(cols)
+        lb = np.where(nonneg, 0.0, -np.inf)
+        sol = lsq_linear(A, -grad_f, bounds=(lb, np.full(len(cols), np.inf)), method="bvls").x
+        residual = grad_f + A @ sol
+    else:
+        sol, residual = np.zeros(0), grad_f.copy()
+    ref = max(1.0, float(np.max(np.abs(grad_f), initial=0.0)))
+    stationarity = float(np.max(np.abs(residual), initial=0.0)) / ref
+    lam = sol[:len(act_g)]
+    mu = sol[len(act_g):len(act_g) + len(h)]
+    nu = sol[len(act_g) + len(h):]
+    gaps = np.concatenate([np.abs(lam * g[act_g]), np.abs(nu[:len(act_lo)] * to_lower[act_lo]),
+                           np.abs(nu[len(act_lo):] * to_upper[act_hi])])
+    complementarity = float(np.max(gaps, initial=0.0)) / ref
+    holds = bool(stationarity <= tol and complementarity <= tol)
+    if not point_ok or not violation <= feasibility_tol:
+        verdict = INFEASIBLE
+    elif holds:
+        verdict = OPTIMUM
+    elif not moved:
+        verdict = NO_PROGRESS
+    else:
+        verdict = STOPPED
+    return {
+        "verdict": verdict,
+        "conditions_hold": holds,
+        "stationarity": stationarity,
+        "complementarity": complementarity,
+        "max_violation": violation,
+        "tolerance": tol,
+        "feasibility_tolerance": feasibility_tol,
+        "active_tolerance": active_tol,
+        "gradient_norm": float(np.max(np.abs(grad_f), initial=0.0)),
+        "active_constraints": [{"name": ineq_labels[i], "value": float(g[i]), "multiplier": float(v)}
+                               for i, v in zip(act_g, lam)],
+        "equalities": [{"name": eq_labels[k], "value": float(h[k]), "multiplier": float(v)}
+                       for k, v in enumerate(mu)],
+        "active_bounds": ([{"name": names[j], "kind": "lower", "multiplier": float(v)}
+                           for j, v in zip(act_lo, nu[:len(act_lo)])]
+                          + [{"name": names[j], "kind": "upper", "multiplier": float(v)}
+                             for j, v in zip(act_hi, nu[len(act_lo):])]),
+    }
+
+
+def verdict_line(fo: dict) -> str:
+    """One line for the terminal, e.g. 'optimum (first-order conditions hold to 3.1e-09)'."""
+    v = fo["verdict"]
+    worst = max(fo["stationarity"], fo["complementarity"])
+    if v == OPTIMUM:
+        return f"optimum (first-order conditions hold to {worst:.2g}; tolerance {fo['tolerance']:g})"
+    if v == INFEASIBLE:
+        return (f"infeasible (largest violation {fo['max_violation']:.3g} > feasibility tolerance "
+                f"{fo['feasibility_tolerance']:g})")
+    return (f"{v} (projected gradient of the Lagrangian {fo['stationarity']:.3g}, complementarity "
+            f"{fo['complementarity']:.3g}; tolerance {fo['tolerance']:g})")
+
+
+def detail_lines(fo: dict) -> list[str]:
+    """The active set with its multipliers, one line each (the optimiser's scaled units)."""
+    lines = []
+    for c in fo["active_constraints"]:
+        lines.append(f"active: {c['name']} (multiplier {c['multiplier']:.4g})")
+    for b in fo["active_bounds"]:
+        lines.append(f"on its {b['kind']} bound: {b['name']} (multiplier {b['multiplier']:.4g})")
+    for e in fo["equalities"]:
+        lines.append(f"equality: {e['name']} (multiplier {e['multiplier']:.4g})")
+    if not lines:
+        lines.append("no constraint active and no variable on a bound")
+    return lines

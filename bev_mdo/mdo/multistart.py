@@ -1,0 +1,101 @@
+"""Multi-start: the same optimisation from several start points, to see whether the optimum found is
+the best on the sample (``bev-mdo optimize --starts N``).
+
+The starts are a Latin hypercube over the design variables' bounds (scipy.stats.qmc, seeded); each
+runs ``driver.run_optimization`` through the same evaluator, one after another (each run batches its
+own points and gradient stencils; the starts are not batched with each other). Every start's iteration
+records go to the callback with one running iteration number, so a bag holds them as one run.
+
+A start **reached the best point** when its result is feasible, its objective is within ``rel_tol``
+(relative) of the best feasible objective, and every design variable is within ``design_tol`` of
+its range from the best design.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+from scipy.stats import qmc
+
+from bev_mdo.mdo.driver import Run, RunResult, run_optimization
+from bev_mdo.mdo.evaluator import Evaluator
+from bev_mdo.mdo.problem import Problem
+from bev_mdo.mdo.settings import RunSettings
+
+REL_TOL = 1e-6     # objective, relative to the best
+DESIGN_TOL = 1e-3  # each design variable, as a share of its range
+
+
+def start_points(problem: Problem, starts: int, seed: int = 0) -> list[dict[str, float]]:
+    """``starts`` Latin-hypercube points over the design variables' bounds."""
+    if starts < 1:
+        raise ValueError(f"--starts {starts}: give at least 1")
+    lo, hi = problem.array("lower"), problem.array("upper")
+    unit = qmc.LatinHypercube(d=len(lo), seed=seed).random(starts)
+    return [problem.design_dict(row) for row in qmc.scale(unit, lo, hi)]
+
+
+def run_starts(run: Run, evaluator: Evaluator, starts: int, *, seed: int = 0, formulation: str | None = None,
+               optimizer: str | None = None, callback: Callable[[dict], Any] | None = None,
+               rel_tol: float = REL_TOL, design_tol: float = DESIGN_TOL) -> RunResult:
+    """The best of ``starts`` optimisations (RunResult of the best start, with the totals of all of
+    them and ``multistart`` set); one start is ``run_optimization`` as it is."""
+    t0 = time.perf_counter()
+    run = RunSettings.of(run, evaluator)
+    problem = Problem.from_config(run.problem)
+    offset = [0]
+
+    def renumbered(rec: dict) -> None:
+        if callback is not None:
+            callback({**rec, "iteration": rec["iteration"] + offset[0]})
+
+    if starts == 1:
+        return run_optimization(run, evaluator, formulation=formulation, optimizer=optimizer, callback=callback)
+    results = []
+    for x0 in start_points(problem, starts, seed):
+        res = run_optimization(run, evaluator, formulation=formulation, optimizer=optimizer, x0=x0,
+                               callback=renumbered)
+        offset[0] += len(res.history)
+        results.append((x0, res))
+    sign = -1.0 if problem.maximize else 1.0
+    feasible = [i for i, (_, r) in enumerate(results) if r.feasible]
+    pool = feasible or list(range(len(results)))
+    best_i = min(pool, key=lambda i: (sign * results[i][1].objective, i))
+    best = results[best_i][1]
+    span = problem.array("upper") - problem.array("lower")
+    xb = np.array([best.design[n] for n in problem.names])
+
+    def reached(r: RunResult) -> bool:
+        if not r.feasible or not best.feasible:
+            return False
+        x = np.array([r.design[n] for n in problem.names])
+        close_f = abs(r.objective - best.objective) <= rel_tol * max(abs(best.objective), 1e-12)
+        return bool(close_f and np.all(np.abs(x - xb) <= design_tol * span))
+
+    wall = time.perf_counter() - t0
+    best.multistart = {
+        "starts": starts, "seed": seed, "best_start": best_i, "reached_best": sum(reached(r) for _, r in results),
+        "objective_rel_tol": rel_tol, "design_tol": design_tol,
+        "designs_per_s": sum(r.points_evaluated for _, r in results) / max(wall, 1e-12),
+        "results": [{"start": i, "x0": x0, "objective": r.objective, "feasible": r.feasible, "verdict": r.verdict,
+                     "iterations": r.iterations, "reached_best": reached(r)}
+                    for i, (x0, r) in enumerate(results)],
+    }
+    for name in ("mda_evaluations", "points_evaluated", "batches", "gradients", "fd_failures"):
+        setattr(best, name, sum(getattr(r, name) for _, r in results))
+    best.discipline_evaluations = dict(evaluator.counts)
+    best.wall_time_s = wall
+    return best
+
+
+def summary_line(ms: Mapping[str, Any]) -> str:
+    """How many starts reached the best point, for the terminal."""
+    verdicts: dict[str, int] = {}
+    for r in ms["results"]:
+        verdicts[r["verdict"]] = verdicts.get(r["verdict"], 0) + 1
+    return (f"multi-start: {ms['reached_best']} of {ms['starts']} starts reached the best point (objective within "
+            f"{ms['objective_rel_tol']:g} relative, each design variable within {ms['design_tol']:g} of its range; "
+            f"Latin hypercube, seed {ms['seed']}); verdicts: "
+            + ", ".join(f"{n} {v}" for v, n in sorted(verdicts.items(), key=lambda kv: -kv[1])))

@@ -1,0 +1,97 @@
+"""The first-order check (bev_mdo.mdo.first_order) on small analytic problems with known multipliers."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bev_mdo.mdo.first_order import INFEASIBLE, NO_PROGRESS, OPTIMUM, STOPPED, check
+
+BOX = (np.zeros(2), np.ones(2))
+NAMES = ["a", "b"]
+
+
+def _check(u, grad_f, g=(), jac_g=(), h=(), jac_h=(), lower=BOX[0], upper=BOX[1], **kw):
+    m, p = len(g), len(h)
+    return check(np.asarray(u, float), lower, upper, np.asarray(grad_f, float), np.asarray(g, float),
+                 np.asarray(jac_g, float).reshape(m, 2), np.asarray(h, float), np.asarray(jac_h, float).reshape(p, 2),
+                 names=NAMES, ineq_labels=[f"g{i}" for i in range(m)], eq_labels=[f"h{i}" for i in range(p)],
+                 feasibility_tol=1e-4, **kw)
+
+
+def test_interior_minimum_has_no_active_set_and_holds():
+    # f = (a - 0.3)^2 + (b - 0.6)^2 at its minimum
+    fo = _check([0.3, 0.6], [0.0, 0.0])
+    assert fo["verdict"] == OPTIMUM and fo["conditions_hold"]
+    assert fo["active_constraints"] == [] and fo["active_bounds"] == [] and fo["equalities"] == []
+
+
+def test_active_lower_bound_gets_the_gradient_as_its_multiplier():
+    # f = (a + 1)^2 + (b - 0.5)^2 on [0, 1]^2: minimum at a = 0 (lower bound), df/da = 2
+    fo = _check([0.0, 0.5], [2.0, 0.0])
+    assert fo["verdict"] == OPTIMUM
+    assert fo["active_bounds"] == [{"name": "a", "kind": "lower", "multiplier": pytest.approx(2.0)}]
+    assert fo["stationarity"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_active_upper_bound():
+    # f = -3 b: pushes b to its upper bound with multiplier 3
+    fo = _check([0.2, 1.0], [0.0, -3.0])
+    assert fo["verdict"] == OPTIMUM
+    assert fo["active_bounds"] == [{"name": "b", "kind": "upper", "multiplier": pytest.approx(3.0)}]
+
+
+def test_active_inequality_multiplier():
+    # min a + 2 b  s.t.  g = 1 - a - b <= 0 on [0, 2]^2  -> (1, 0) with b on its lower bound:
+    # grad f = (1, 2) = lam (1, 1) + nu_b (0, 1): lam = 1, nu_b = 1
+    fo = _check([1.0, 0.0], [1.0, 2.0], g=[0.0], jac_g=[[-1.0, -1.0]], lower=np.zeros(2), upper=np.full(2, 2.0))
+    assert fo["verdict"] == OPTIMUM
+    assert fo["active_constraints"] == [{"name": "g0", "value": 0.0, "multiplier": pytest.approx(1.0)}]
+    assert fo["active_bounds"] == [{"name": "b", "kind": "lower", "multiplier": pytest.approx(1.0)}]
+
+
+def test_equality_multiplier_has_its_sign():
+    # min a^2 + b^2  s.t.  h = a + b - 1 = 0  -> (0.5, 0.5), grad f = (1, 1), mu = -1
+    fo = _check([0.5, 0.5], [1.0, 1.0], h=[0.0], jac_h=[[1.0, 1.0]])
+    assert fo["verdict"] == OPTIMUM
+    assert fo["equalities"] == [{"name": "h0", "value": 0.0, "multiplier": pytest.approx(-1.0)}]
+
+
+def test_a_multiplier_of_the_wrong_sign_is_not_an_optimum():
+    # min a + b  s.t.  a + b - 1 <= 0 at (0.5, 0.5): the constraint would need lam = -1; the minimum is (0, 0)
+    fo = _check([0.5, 0.5], [1.0, 1.0], g=[0.0], jac_g=[[1.0, 1.0]])
+    assert fo["verdict"] == STOPPED and not fo["conditions_hold"]
+    assert fo["active_constraints"][0]["multiplier"] == pytest.approx(0.0)
+    assert fo["stationarity"] == pytest.approx(1.0)
+
+
+def test_an_inactive_constraint_does_not_help():
+    # the same gradient with the constraint far from its limit: interior, not stationary
+    fo = _check([0.5, 0.5], [1.0, 1.0], g=[-0.5], jac_g=[[-1.0, -1.0]])
+    assert fo["verdict"] == STOPPED and fo["active_constraints"] == []
+
+
+def test_nearly_active_constraint_with_a_multiplier_fails_complementarity():
+    # 0.5 % inside g <= 0 but needed to balance the gradient: not a KKT point
+    fo = _check([0.5, 0.5], [1.0, 1.0], g=[-5e-5], jac_g=[[-1.0, -1.0]], tol=1e-5)
+    assert fo["active_constraints"][0]["multiplier"] == pytest.approx(1.0)
+    assert fo["complementarity"] == pytest.approx(5e-5) and fo["verdict"] == STOPPED
+
+
+def test_no_move_from_the_start_point_is_said_so():
+    fo = _check([0.5, 0.5], [1.0, 0.0], moved=False)
+    assert fo["verdict"] == NO_PROGRESS
+
+
+def test_a_start_point_that_is_the_optimum_is_an_optimum():
+    assert _check([0.3, 0.6], [0.0, 0.0], moved=False)["verdict"] == OPTIMUM
+
+
+def test_violation_above_the_feasibility_tolerance_is_infeasible_even_if_stationary():
+    fo = _check([0.5, 0.5], [1.0, 1.0], g=[1e-3], jac_g=[[-1.0, -1.0]])
+    assert fo["verdict"] == INFEASIBLE and fo["max_violation"] == pytest.approx(1e-3)
+    assert _check([0.3, 0.6], [0.0, 0.0], point_ok=False)["verdict"] == INFEASIBLE
+
+
+def test_unbounded_variables_are_never_on_a_bound():
+    fo = _check([0.0, 0.0], [0.0, 0.0], lower=np.full(2, -np.inf), upper=np.full(2, np.inf))
+    assert fo["verdict"] == OPTIMUM and fo["active_bounds"] == []
