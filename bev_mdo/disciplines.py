@@ -4,6 +4,9 @@ Each reads ``config["vehicle"]`` (validated by models.params), ``config["cycle"]
 ``config["energy_model"]``. ``parameters`` maps the model constants a caller may override
 per point (by sending an input column of the same name) to their configured values.
 
+Each declares its options once, in a dataclass ``Options`` (mdo/discipline.py ``read_options``: a key
+it does not declare is refused when the config is loaded); ``from_config`` gets an instance.
+
 Topology (thesis ch.4, models/topology.py): the option ``topology`` (SM-SA | DM-DA | IWM-SA |
 IWM-DA, default SM-SA) of vehicle_mass, energy, acceleration, cost and cycle_range; every
 entry that sets it must agree, and the problem's design variables must exist in it
@@ -16,6 +19,7 @@ range and acceleration all see the same vehicle mass.
 from __future__ import annotations
 
 import importlib
+from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
@@ -55,7 +59,7 @@ def _topology(config: Mapping[str, Any], options: Mapping[str, Any]) -> topo_mod
         chosen.add(topo_model.get_topology(vt).name)
     if len(chosen) > 1:
         raise ValueError(f"disciplines disagree on the topology: {sorted(chosen)}; set one topology for all")
-    name = options.get("topology") or (chosen.pop() if chosen else "SM-SA")
+    name = options.topology or (chosen.pop() if chosen else "SM-SA")
     t = topo_model.get_topology(name)
     dvs = ((config.get("problem") or {}).get("design_variables") or {})
     topo_model.check_design_variables(t, list(dvs))
@@ -78,6 +82,10 @@ def _replaced_by_road_load(v: Mapping[str, float]) -> tuple[str, ...]:
 
 class _Base(Discipline):
     """Holds the configured parameter values and merges per-point overrides."""
+
+    @dataclass(frozen=True)
+    class Options:  # no option unless a discipline declares its own
+        pass
 
     def __init__(self, parameters: Mapping[str, float]):
         self.parameters = dict(parameters)
@@ -103,6 +111,11 @@ class VehicleMass(_Base):
     _TOPO = {"SM-SA": ("gear_count", "two_speed_added_mass_kg"), "DM-DA": ("dm_da_transmission_kg",),
              "IWM-SA": ("iwm_mass_factor",), "IWM-DA": ("iwm_mass_factor",)}
 
+    @dataclass(frozen=True)
+    class Options:
+        mass_model: str | None = None  # ch7 | compounding (default: vehicle.mass_model)
+        topology: str | None = None    # SM-SA | DM-DA | IWM-SA | IWM-DA (default: the run's)
+
     def __init__(self, parameters: Mapping[str, float], mass_model: str = "ch7", topology: str = "SM-SA"):
         super().__init__(parameters)
         self.mass_model = mass_model
@@ -112,7 +125,9 @@ class VehicleMass(_Base):
     @classmethod
     def from_config(cls, config, options):
         v = _vehicle(config)
-        model = options.get("mass_model") or vehicle_choice(config.get("vehicle"), "mass_model")
+        model = options.mass_model or vehicle_choice(config.get("vehicle"), "mass_model")
+        if model not in cls._NAMES:
+            raise ValueError(f"vehicle_mass option mass_model must be one of {sorted(cls._NAMES)}, got {model!r}")
         t = _topology(config, options)
         names = cls._NAMES[model] + tuple(k for k in cls._TOPO[t.name] if k in v)
         if t.name != "SM-SA":
@@ -150,6 +165,14 @@ class Energy(_Base):
     name = "energy"
     outputs = ("energy_wh_per_km",)
 
+    @dataclass(frozen=True)
+    class Options:
+        energy_model: str | None = None        # default: the config's energy_model
+        cycle: str | None = None               # a cycle name or CSV (default: the config's cycle)
+        cycle_weights: Mapping[str, float] | None = None  # {cycle: distance share}, summing to 1
+        feasibility_outputs: bool = False      # add the drive torque / speed / power margins
+        topology: str | None = None
+
     def __init__(self, parameters, resampled, energy_model: str = "flat", extra: Mapping[str, float] | None = None,
                  topology: str = "SM-SA", feasibility_outputs: bool = False):
         super().__init__(parameters)
@@ -181,7 +204,7 @@ class Energy(_Base):
     @classmethod
     def from_config(cls, config, options):
         v = _vehicle(config)
-        model = options.get("energy_model") or config.get("energy_model", "flat")
+        model = options.energy_model or config.get("energy_model", "flat")
         if model == "flat":
             names = flat.FLAT_PARAMS
         elif model in ENERGY_MODELS:
@@ -201,7 +224,7 @@ class Energy(_Base):
         if model == "quasi_static":
             extra["two_speed_added_mass_kg"] = 0.0
         disc = cls({k: v[k] for k in names}, _cycle_option(config, options), model, extra,
-                   _topology(config, options).name, bool(options.get("feasibility_outputs", False)))
+                   _topology(config, options).name, _flag("energy", "feasibility_outputs", options.feasibility_outputs))
         disc.weighted = _cycle_weights(config, options, model)
         return disc
 
@@ -241,7 +264,7 @@ class Energy(_Base):
 def _cycle_weights(config, options, model):
     """Energy option ``cycle_weights: {cycle: distance share, ...}`` (shares summing to 1): the energy per km
     is the distance-weighted mean over those cycles, e.g. EPA combined {epa_udds: 0.55, epa_hwfet: 0.45}."""
-    cw = options.get("cycle_weights")
+    cw = options.cycle_weights
     if cw is None:
         return None
     if model == "quasi_static":
@@ -264,9 +287,9 @@ def _cycle_weights(config, options, model):
 
 def _cycle_option(config, options):
     """The configured cycle, or the discipline option ``cycle`` (a name or CSV) on the same grid."""
-    if options.get("cycle") is None:
+    if options.cycle is None:
         return _resampled(config)
-    c = validate_cycle({**(config.get("cycle") or {}), "name": options["cycle"]})
+    c = validate_cycle({**(config.get("cycle") or {}), "name": options.cycle})
     return resample(load_cycle(c["name"], config.get("cycle_traces")), c["dt_s"], c["interpolation"], c["smoothing"])
 
 
@@ -276,6 +299,11 @@ class CycleRange(Energy):
 
     name = "cycle_range"
 
+    @dataclass(frozen=True)
+    class Options:
+        cycle: str = "nedc"  # the cycle repeated (a name or CSV)
+        topology: str | None = None
+
     def __init__(self, parameters, resampled, energy_model="quasi_static", extra=None, topology="SM-SA",
                  feasibility_outputs=False):
         super().__init__(parameters, resampled, "quasi_static", extra, topology, False)
@@ -283,9 +311,8 @@ class CycleRange(Energy):
 
     @classmethod
     def from_config(cls, config, options):
-        opts = {"cycle": "nedc", **dict(options), "energy_model": "quasi_static"}
-        opts.pop("feasibility_outputs", None)
-        return super().from_config(config, opts)
+        return super().from_config(config, Energy.Options(energy_model="quasi_static", cycle=options.cycle,
+                                                          topology=options.topology))
 
     def compute(self, inputs):
         p = {**self.extra, **self._params(inputs)}
@@ -336,6 +363,10 @@ class Acceleration(_Base):
     outputs = ("accel_time_0_100_s",)
     _TOPO = {"SM-SA": ("gear_count", "gear_ratio_2", "shift_speed_m_s", "two_speed_efficiency_loss"),
              "DM-DA": (), "IWM-SA": ("iwm_speed_scale",), "IWM-DA": ("iwm_speed_scale",)}
+
+    @dataclass(frozen=True)
+    class Options:
+        topology: str | None = None
 
     def __init__(self, parameters, topology: str = "SM-SA"):
         super().__init__(parameters)
@@ -398,9 +429,16 @@ class Cost(_Base):
     name = "cost"
     outputs = ("powertrain_cost_usd",)
 
+    @dataclass(frozen=True)
+    class Options:
+        topology: str | None = None
+        gearbox_cost_usd: float = 0.0  # eq 4-4 has no gearbox term
+
     def __init__(self, parameters, topology: str = "SM-SA", gearbox_cost_usd: float = 0.0):
         super().__init__(parameters)
         self.topology = topo_model.get_topology(topology)
+        if isinstance(gearbox_cost_usd, bool) or not isinstance(gearbox_cost_usd, (int, float)):
+            raise ValueError(f"cost option gearbox_cost_usd must be a number, got {gearbox_cost_usd!r}")
         self.gearbox_cost_usd = float(gearbox_cost_usd)
         if not (np.isfinite(self.gearbox_cost_usd) and self.gearbox_cost_usd >= 0):
             raise ValueError(f"cost option gearbox_cost_usd must be >= 0, got {gearbox_cost_usd!r}")
@@ -409,7 +447,7 @@ class Cost(_Base):
     @classmethod
     def from_config(cls, config, options):
         return cls({"power_to_energy_ratio": _vehicle(config)["power_to_energy_ratio"]},
-                   _topology(config, options).name, options.get("gearbox_cost_usd", 0.0))
+                   _topology(config, options).name, options.gearbox_cost_usd)
 
     def compute(self, inputs):
         p = self._params(inputs)
@@ -441,13 +479,17 @@ class BatterySizing(_Base):
     inputs = ("energy_wh_per_km",)
     outputs = ("battery_kwh",)
 
+    @dataclass(frozen=True)
+    class Options:
+        range_target_km: float | None = None  # default: the problem's range_km lower constraint
+
     def __init__(self, parameters, range_target_km: float):
         super().__init__(parameters)
         self.range_target_km = float(range_target_km)
 
     @classmethod
     def from_config(cls, config, options):
-        target = options.get("range_target_km")
+        target = options.range_target_km
         if target is None:
             target = ((config.get("problem") or {}).get("constraints") or {}).get("range_km", {}).get("lower")
         if target is None:
@@ -494,4 +536,10 @@ def default_names(config: Mapping[str, Any]) -> list[str]:
 
 def default_disciplines(config: Mapping[str, Any]) -> list:
     """The thesis' Fig 7-17 disciplines plus cost; battery sizing when the problem asks for it."""
-    return [BUILTIN[n].from_config(config, {}) for n in default_names(config)]
+    return [BUILTIN[n].from_config(config, BUILTIN[n].Options()) for n in default_names(config)]
+
+
+def _flag(discipline: str, key: str, value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise ValueError(f"{discipline} option {key} must be true or false, got {value!r}")
+    return value
