@@ -173,8 +173,20 @@ def _study(args, raw) -> int:
     from bev_mdo.config import load_config
     from bev_mdo.models.topology import TOPOLOGIES, get_topology
 
+    from bev_mdo.config import discipline_names
+    from bev_mdo.disciplines import TOPOLOGY_DISCIPLINES
+
     topologies = list(TOPOLOGIES) if args.all_topologies else [get_topology(args.topology).name]
-    configs = {t: load_config(study.config_for_topology(raw, t)) for t in topologies}
+    if not set(discipline_names(load_config(args.config))) & set(TOPOLOGY_DISCIPLINES):
+        raise ValueError(f"{args.config}: --topology and --all-topologies study the BEV problem's powertrain "
+                         f"topologies; this config has none of the disciplines {', '.join(TOPOLOGY_DISCIPLINES)} "
+                         "(without them, bev-mdo pareto runs NSGA-II on the config as written)")
+    configs = {}
+    for t in topologies:
+        try:
+            configs[t] = load_config(study.config_for_topology(raw, t))
+        except ValueError as exc:  # the file and the topology, not <config>
+            raise ValueError(f"{args.config} ({t}): {str(exc).removeprefix('<config>: ')}") from None
     first = next(iter(configs.values()))
     objectives = _objectives(args, first) or [(o, False) for o in OBJECTIVES]
     for t, cfg in configs.items():

@@ -82,3 +82,12 @@ def test_bad_objectives_exit_2_before_anything_is_written(tmp_path, capsys, argv
     err = capsys.readouterr().err
     assert code == 2 and len(err.strip().splitlines()) == 1 and msg in err, err
     assert not (tmp_path / "o").exists()
+
+
+def test_the_topology_study_refuses_a_problem_without_bev_disciplines(tmp_path, capsys):
+    code = main(["pareto", str(REPO / "examples" / "sellar" / "sellar_mdf.yaml"), "--topology", "DM-DA",
+                 "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "sellar_mdf.yaml: --topology and --all-topologies study the BEV problem's powertrain topologies" in err
+    assert not (tmp_path / "o").exists()
