@@ -432,7 +432,7 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
     A list entry is a built-in name, or ``{name, class: "module:Class", options: {...}}``;
     ``{name}`` without ``class`` picks the built-in of that name.
     """
-    from bev_mdo.mdo.discipline import load_class, read_options
+    from bev_mdo.mdo.discipline import load_class, options_dict, read_options
     from bev_mdo.mdo.vectors import wrap
 
     entries = config.get("disciplines")
@@ -466,7 +466,7 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
             if hasattr(cls, "from_config"):
                 disc = cls.from_config(config, options)
             else:
-                disc = cls(**options)
+                disc = cls(**options_dict(options))
         except Exception as exc:  # the user's constructor: one line naming the discipline, never a traceback
             raise ValueError(f"disciplines[{k}] ({e['name']}): cannot build {getattr(cls, '__name__', cls)}: "
                              f"{type(exc).__name__}: {exc}") from None

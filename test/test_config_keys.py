@@ -167,3 +167,23 @@ def test_every_shipped_config_still_loads():
     assert len(files) >= 8
     for f in files:
         load_config(f)
+
+
+def test_a_class_without_from_config_may_declare_options_too(tmp_path):
+    """Options declared in a dataclass, the class built as cls(**options) with the defaults filled."""
+    (tmp_path / "plain_opts.py").write_text(
+        "from dataclasses import dataclass\n\n\nclass Plain:\n    name = 'plain'\n    inputs = ('x',)\n"
+        "    outputs = ('f',)\n\n    @dataclass\n    class Options:\n        power: float = 2.0\n"
+        "        shift: float = 0.0\n\n    def __init__(self, power, shift):\n        self.power, self.shift = power, shift\n\n"
+        "    def compute(self, inputs):\n        return {'f': inputs['x'] ** self.power + self.shift}\n")
+    raw = {"disciplines": [{"name": "plain", "class": "plain_opts:Plain", "options": {"shift": 1.5}}],
+           "search_path": [str(tmp_path)],
+           "problem": {"objective": "f", "design_variables": {"x": {"lower": 0, "upper": 1}}}}
+    from bev_mdo.config import resolve_disciplines
+
+    (disc,) = resolve_disciplines(load_config(raw))
+    inner = getattr(disc, "inner", disc)
+    assert (inner.power, inner.shift) == (2.0, 1.5)
+    raw["disciplines"][0]["options"] = {"shfit": 1.5}
+    with pytest.raises(ValueError, match=r"disciplines\[0\] \(plain\).options.shfit: unknown key; did you mean 'shift'"):
+        load_config(raw)
