@@ -35,8 +35,9 @@ OBJECTIVES = study.OBJECTIVES  # the study's default (energy, 0-100 km/h time, c
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("pareto", help="NSGA-II Pareto front of any problem with two or more objectives "
-                                             "(--topology / --all-topologies: the BEV topology study, thesis ch.4)")
+    from bev_mdo.cli import SUBCOMMANDS
+
+    p = subparsers.add_parser("pareto", help=SUBCOMMANDS["pareto"][1])
     p.add_argument("config", help="run config YAML (e.g. examples/pareto/srn.yaml, config/topologies_artemis.yaml)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--topology", default=None, help="topology study: SM-SA, DM-DA, IWM-SA or IWM-DA (BEV problem)")
