@@ -16,10 +16,12 @@ from pathlib import Path
 from typing import Any
 
 from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
+from bev_mdo.models.common import check_keys
 
 TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "disciplines", "problem",
             "formulation", "mda", "optimizer", "ros", "recording", "search_path", "cycle_traces")
 FORMULATIONS = ("mdf", "idf")
+RECORDING_KEYS = ()  # nothing reads a key of the recording section yet: any key there would do nothing
 # the engine sections' defaults, defined once with their types (mdo/settings.py)
 MDA_DEFAULTS = MDASettings().as_dict()
 OPTIMIZER_DEFAULTS = OptimizerSettings().as_dict()
@@ -97,13 +99,24 @@ _NOT_OPTIONS = {"fun", "func", "x0", "args", "jac", "hess", "hessp", "bounds", "
 
 
 def check_optimizer_options(name: str, options: Mapping[str, Any]) -> None:
-    """ValueError naming the first key of `options` that the optimiser's scipy solver does not
-    accept (scipy itself only warns, after the nodes have started). Optimisers not backed by one
-    scipy function are not checked."""
+    """ValueError naming the first key of `options` that the optimiser does not accept, with the
+    nearest one: the keyword arguments of its scipy solver (scipy itself only warns, after the nodes
+    have started), or the ``DEFAULTS`` of a plug-in module (``chebyshev-pairwise``)."""
     import importlib
     import inspect
 
+    from bev_mdo.mdo.optimizers import OPTIMIZERS
+
     where = _SCIPY_SOLVERS.get(name)
+    plugin = OPTIMIZERS.get(name)
+    if where is None and isinstance(plugin, str):
+        try:
+            defaults = getattr(importlib.import_module(plugin.partition(":")[0]), "DEFAULTS", None)
+        except ImportError:
+            defaults = None
+        if isinstance(defaults, Mapping):
+            check_keys("optimizer.options", options, defaults, of=name)
+        return
     if where is None:
         return
     try:
@@ -111,11 +124,8 @@ def check_optimizer_options(name: str, options: Mapping[str, Any]) -> None:
         params = inspect.signature(fn).parameters
     except (ImportError, AttributeError, ValueError, TypeError):
         return
-    known = sorted(k for k, p in params.items() if k not in _NOT_OPTIONS
-                   and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY))
-    for key in options:
-        if key not in known:
-            raise ValueError(f"optimizer.options.{key}: not an option of {name}; known: {', '.join(known)}")
+    known = [k for k, p in params.items() if k not in _NOT_OPTIONS and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+    check_keys("optimizer.options", options, known, of=name)
 
 
 def _resolve(raw: Any) -> dict:
@@ -126,9 +136,7 @@ def _resolve(raw: Any) -> dict:
 
     if not isinstance(raw, Mapping):
         raise ValueError("the config must be a YAML mapping of sections (name, vehicle, cycle, problem, ...)")
-    unknown = sorted(set(raw) - set(TOP_KEYS))
-    if unknown:
-        raise ValueError(f"unknown top-level keys {unknown}; allowed: {', '.join(TOP_KEYS)}")
+    check_keys("", raw, TOP_KEYS)
     cfg = dict(raw)
     cfg.setdefault("name", "run")
     cfg["energy_model"] = cfg.get("energy_model", "flat")
@@ -166,6 +174,7 @@ def _resolve(raw: Any) -> dict:
         if cfg.get(key) is not None and not isinstance(cfg[key], Mapping):
             raise ValueError(f"{key} must be a mapping")
         cfg[key] = dict(cfg.get(key) or {})
+    check_keys("recording", cfg["recording"], RECORDING_KEYS)
     from bev_mdo.ros_settings import validate_ros
 
     validate_ros(cfg["ros"])  # checked here so the error names the file; the section is kept as written
@@ -201,9 +210,7 @@ def _section(value: Any, defaults: Mapping[str, Any], where: str) -> dict:
         value = {"name": value}
     if not isinstance(value, Mapping):
         raise ValueError(f"{where} must be a mapping with keys {sorted(defaults)}")
-    unknown = sorted(set(value) - set(defaults))
-    if unknown:
-        raise ValueError(f"{where}: unknown keys {unknown}; allowed: {sorted(defaults)}")
+    check_keys(where, value, defaults)
     return {**copy.deepcopy(dict(defaults)), **dict(value)}
 
 
@@ -287,8 +294,8 @@ def _validate_models(cfg: dict) -> None:
         try:
             _inline_parameter_set_file(cfg)
             params.validate_vehicle(cfg.get("vehicle"))
-        except ValueError as exc:
-            raise ValueError(f"vehicle: {exc}") from None
+        except ValueError as exc:  # a key path (vehicle.x) says where already
+            raise ValueError(str(exc) if str(exc).startswith("vehicle.") else f"vehicle: {exc}") from None
         try:
             cfg["cycle"] = params.validate_cycle(cfg.get("cycle"))
             from bev_mdo.models.cycles import load_cycle, resample
@@ -297,7 +304,7 @@ def _validate_models(cfg: dict) -> None:
             c = cfg["cycle"]  # read and check the trace now: one line naming file and row
             resample(load_cycle(c["name"], cfg.get("cycle_traces")), c["dt_s"], c["interpolation"], c["smoothing"])
         except ValueError as exc:
-            raise ValueError(f"cycle: {exc}") from None
+            raise ValueError(str(exc) if str(exc).startswith("cycle.") else f"cycle: {exc}") from None
 
 
 def _vehicle_topology_into_options(cfg: dict) -> None:
@@ -390,6 +397,10 @@ def _check_against_disciplines(cfg: dict, problem) -> set[str]:
     if problem.objective not in produced:
         raise ValueError(f"problem.objective {problem.objective!r} is not produced by any discipline; "
                          f"outputs: {sorted(produced)}")
+    for i, (name, _) in enumerate(problem.objectives):
+        if name not in produced:
+            raise ValueError(f"problem.objectives[{i}] {name!r} is not produced by any discipline; "
+                             f"outputs: {sorted(produced)}")
     for c in problem.constraints:
         if c.name not in produced:
             raise ValueError(f"problem.constraints.{c.name}: no discipline produces it; outputs: {sorted(produced)}")
@@ -421,7 +432,7 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
     A list entry is a built-in name, or ``{name, class: "module:Class", options: {...}}``;
     ``{name}`` without ``class`` picks the built-in of that name.
     """
-    from bev_mdo.mdo.discipline import load_class
+    from bev_mdo.mdo.discipline import load_class, options_dict, read_options
     from bev_mdo.mdo.vectors import wrap
 
     entries = config.get("disciplines")
@@ -435,9 +446,7 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
             e = {"name": e}
         if not isinstance(e, Mapping) or not isinstance(e.get("name"), str):
             raise ValueError(f"disciplines[{k}] must be a name or a mapping with a 'name'")
-        unknown = sorted(set(e) - {"name", "class", "options"})
-        if unknown:
-            raise ValueError(f"disciplines[{k}] ({e['name']}): unknown keys {unknown}; allowed: class, name, options")
+        check_keys(f"disciplines[{k}] ({e['name']})", e, ("name", "class", "options"))
         options = e.get("options") or {}
         if not isinstance(options, Mapping):
             raise ValueError(f"disciplines[{k}] ({e['name']}): options must be a mapping")
@@ -452,11 +461,12 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
                 cls = load_class(str(e["class"]), config.get("search_path") or ())
             except ValueError as exc:
                 raise ValueError(f"disciplines[{k}] ({e['name']}): {exc}") from None
+        options = read_options(cls, options, f"disciplines[{k}] ({e['name']}).options")
         try:
             if hasattr(cls, "from_config"):
                 disc = cls.from_config(config, options)
             else:
-                disc = cls(**dict(options))
+                disc = cls(**options_dict(options))
         except Exception as exc:  # the user's constructor: one line naming the discipline, never a traceback
             raise ValueError(f"disciplines[{k}] ({e['name']}): cannot build {getattr(cls, '__name__', cls)}: "
                              f"{type(exc).__name__}: {exc}") from None

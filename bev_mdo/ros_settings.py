@@ -12,6 +12,8 @@ from __future__ import annotations
 import os
 from typing import Any, Mapping
 
+from bev_mdo.models.common import check_keys
+
 DEFAULTS: dict[str, Any] = {
     "domain_id": 77,
     "discovery": "localhost",        # localhost | static_peers | server | subnet
@@ -58,9 +60,7 @@ def choose_domain(section: Mapping[str, Any] | None, flag: int | None = None,
 def validate_ros(section: Mapping[str, Any] | None) -> dict[str, Any]:
     """Fill defaults and check the `ros:` section; one-line ValueError on a mistake."""
     section = dict(section or {})
-    unknown = sorted(set(section) - set(DEFAULTS))
-    if unknown:
-        raise ValueError(f"ros: unknown keys {unknown}; known: {sorted(DEFAULTS)}")
+    check_keys("ros", section, DEFAULTS)
     out = {**DEFAULTS, **section}
     d = out["domain_id"]
     if not isinstance(d, int) or isinstance(d, bool) or not 0 <= d <= 232:

@@ -15,6 +15,8 @@ Use it from a config:
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 
@@ -36,13 +38,19 @@ class TopSpeed:
         self.r_w = wheel_radius_m
         self.omega_max = motor_max_speed_rad_s
 
+    @dataclass(frozen=True)
+    class Options:
+        """The config entry's options (any other key is refused when the config is loaded)."""
+
+        motor_max_speed_rad_s: float = 1100.0
+
     @classmethod
     def from_config(cls, config, options):
-        """Take the vehicle constants from the run config; options override them."""
+        """Take the vehicle constants from the run config, the motor's speed limit from the options."""
         v = config.get("vehicle", {})
         keys = ("drag_area_m2", "rolling_resistance", "air_density_kg_m3", "gravity_m_s2", "gear_efficiency",
                 "wheel_radius_m")
-        return cls(**{k: v[k] for k in keys if k in v}, **dict(options))
+        return cls(**{k: v[k] for k in keys if k in v}, motor_max_speed_rad_s=options.motor_max_speed_rad_s)
 
     def compute(self, inputs):
         p_w = inputs["motor_kw"] * 1e3 * self.eta

@@ -5,7 +5,7 @@ import pytest
 import yaml
 
 from bev_mdo.disciplines import BUILTIN, BatterySizing, Energy, default_disciplines
-from bev_mdo.mdo.discipline import run_discipline
+from bev_mdo.mdo.discipline import read_options, run_discipline
 from bev_mdo.models.acceleration import accel_time_0_100_s
 from bev_mdo.models.cycles import nedc, resample
 from bev_mdo.models.flat import energy_wh_per_km
@@ -15,6 +15,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def load(name):
     return yaml.safe_load((ROOT / "config" / name).read_text())
+
+
+def _build(cls, config, options):
+    """A built-in discipline from a config and its options as written (checked as load_config does)."""
+    return cls.from_config(config, read_options(cls, options, f"{cls.name}.options"))
 
 
 def chain(config, x):
@@ -48,7 +53,7 @@ def test_table75_literal_wheel_radius_breaks_motor_speed_limit():
 
 
 def test_parameter_override_per_point():
-    d = Energy.from_config(load("leaf_nedc.yaml"), {})
+    d = _build(Energy, load("leaf_nedc.yaml"), {})
     assert "drag_area_m2" in d.parameters and "regen_fraction" in d.parameters
     out = d.compute({"vehicle_mass_kg": np.array([1590.0, 1590.0]), "gear_ratio": np.array([8.0, 8.0]),
                      "drag_area_m2": np.array([0.6412, 0.8])})["energy_wh_per_km"]
@@ -57,20 +62,20 @@ def test_parameter_override_per_point():
 
 def test_battery_sizing_meets_target():
     cfg = load("leaf_nedc.yaml")
-    b = BatterySizing.from_config(cfg, {})
+    b = _build(BatterySizing, cfg, {})
     kwh = b.compute({"energy_wh_per_km": np.array([100.0])})["battery_kwh"]
     assert kwh[0] == pytest.approx(17.0)  # 170 km x 100 Wh/km
 
 
 def test_builtin_names_and_shape():
     for name, cls in BUILTIN.items():
-        d = cls.from_config({**load("leaf_nedc.yaml"), "problem": {"constraints": {"range_km": {"lower": 170}}}}, {})
+        d = _build(cls, {**load("leaf_nedc.yaml"), "problem": {"constraints": {"range_km": {"lower": 170}}}}, {})
         assert d.name == name and d.outputs and d.inputs
 
 
 def test_unknown_energy_model():
     with pytest.raises(ValueError, match="energy_model"):
-        Energy.from_config({**load("leaf_nedc.yaml"), "energy_model": "magic"}, {})
+        _build(Energy, {**load("leaf_nedc.yaml"), "energy_model": "magic"}, {})
 
 
 # ---- topologies -------------------------------------------------------------------
@@ -104,7 +109,7 @@ def test_topology_inputs():
     cfg = _topo_cfg("DM-DA", {"motor_kw": {"lower": 20, "upper": 90}, "gear_ratio": {"lower": 4, "upper": 9},
                               "motor_rear_kw": {"lower": 20, "upper": 90}, "gear_ratio_rear": {"lower": 4, "upper": 9},
                               "battery_kwh": {"lower": 18, "upper": 30}})
-    d = {n: BUILTIN[n].from_config(cfg, e["options"]) for n, e in ((e["name"], e) for e in cfg["disciplines"])}
+    d = {n: _build(BUILTIN[n], cfg, e["options"]) for n, e in ((e["name"], e) for e in cfg["disciplines"])}
     assert set(d["energy"].inputs) == {"vehicle_mass_kg", "motor_kw", "gear_ratio", "motor_rear_kw",
                                        "gear_ratio_rear", "battery_kwh"}
     assert set(d["vehicle_mass"].inputs) == {"motor_kw", "battery_kwh", "motor_rear_kw"}
@@ -122,11 +127,11 @@ def test_two_speed_mass_counted_once():
 
     two = {"gear_count": 2.0, "gear_ratio_2": 4.7, "shift_speed_m_s": 68.1 / 3.6}
     cfg = _topo_cfg(**two)
-    d = {e["name"]: BUILTIN[e["name"]].from_config(cfg, e["options"]) for e in cfg["disciplines"]}
+    d = {e["name"]: _build(BUILTIN[e["name"]], cfg, e["options"]) for e in cfg["disciplines"]}
     x = {"motor_kw": np.array([71.2]), "battery_kwh": np.array([22.3]), "gear_ratio": np.array([13.2])}
     m1 = run_discipline(d["vehicle_mass"], x).outputs["vehicle_mass_kg"]
     cfg1 = _topo_cfg()
-    m0 = run_discipline(BUILTIN["vehicle_mass"].from_config(cfg1, {}), x).outputs["vehicle_mass_kg"]
+    m0 = run_discipline(_build(BUILTIN["vehicle_mass"], cfg1, {}), x).outputs["vehicle_mass_kg"]
     assert m1[0] - m0[0] == pytest.approx(20.0)
     e = run_discipline(d["energy"], {**x, "vehicle_mass_kg": m1}).outputs["energy_wh_per_km"]
     # independent: the quasi-static model adding its own 20 kg to the single-speed mass
@@ -141,7 +146,7 @@ def test_quasi_static_energy_uses_battery_kwh():
     from bev_mdo.models import quasi_static as qs
 
     cfg = _topo_cfg()
-    d = BUILTIN["energy"].from_config(cfg, {"topology": "SM-SA"})
+    d = _build(BUILTIN["energy"], cfg, {"topology": "SM-SA"})
     assert "battery_kwh" in d.inputs
     x = {"vehicle_mass_kg": np.array([1590.0, 1590.0]), "motor_kw": np.array([80.0, 80.0]),
          "gear_ratio": np.array([7.9, 7.9]), "battery_kwh": np.array([6.0, 30.0])}

@@ -28,7 +28,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "resume": ("resume", "restart an optimisation from the last iterate recorded in a bag"),
     "bag": ("bag", "inspect or repair a recorded bag"),
     "sensitivity": ("sensitivity", "normalised 1st/2nd-order sensitivities at a design"),
-    "pareto": ("pareto", "NSGA-II Pareto fronts of powertrain topologies (thesis ch.4)"),
+    "pareto": ("pareto", "NSGA-II Pareto front of any problem with two or more objectives "
+                         "(--topology / --all-topologies: the BEV topology study, thesis ch.4)"),
     "sweep": ("sweep", "a grid (or list) of designs as one batch: CSV and PNG per output"),
     "compare": ("sweep", "two or more designs side by side with their differences"),
     "graph": ("graph", "the coupling graph as an N² chart (PNG) and Graphviz DOT text"),

@@ -1,26 +1,26 @@
-"""``bev-mdo pareto CONFIG [--topology T | --all-topologies] [--transport inprocess|ros [--instances N|NAME=N]]
-[--generations G --pop P --seed S] [--objectives a,b,c] [--out DIR]``.
+"""``bev-mdo pareto CONFIG [--objectives A,B[,...]] [--transport inprocess|ros [--instances N|NAME=N]]
+[--generations G --pop P --seed S] [--out DIR] [--topology T | --all-topologies]``.
 
-Thesis §4.4 (eqs 4-6..4-10): NSGA-II (pymoo) over the config's MDA, minimising energy on the
-combined Artemis cycle, 0-100 km/h time and powertrain cost subject to the problem's
-constraints (NEDC range >= 175 km, cycle torque/speed feasibility). Every generation is ONE
-batch of the whole population through the evaluator (in-process, or the discipline nodes over
-ROS). ``--topology`` / ``--all-topologies`` rewrite ``vehicle.topology`` (and the ``topology``
-option of any discipline that sets one) and the design variables (``TOPOLOGY_BOUNDS`` of
-bev_mdo.studies.topologies, which holds the study itself: benchmark, picks, plots; the
-battery keeps the config's bounds). Writes into ``--out`` (default ``bags/<name>_pareto_<time>/``):
+NSGA-II (pymoo, mdo/pareto.py) over the config's MDA for any problem with two or more objectives:
+the config's ``problem.objectives`` (each an output name, minimised, or ``{name, maximize: true}``),
+or ``--objectives a,b`` (minimised). The problem's constraints are pymoo's inequality constraints;
+every generation is ONE batch of the whole population through the evaluator the other commands use
+(in process, or the discipline nodes over ROS). Writes into ``--out`` (default
+``bags/<name>_pareto_<time>/``):
 
-* ``bag/``: a rosbag2 MCAP bag with one ParetoFront per generation per topology on
-  /bev_mdo/pareto_front (``final`` on the last; ``read_fronts`` reads them back). Over ROS the
-  recorder node writes it, with every request and result of the run; in process the fronts
-  are written directly;
-* ``pareto_<TOPOLOGY>.csv``: the feasible non-dominated designs, every MDA variable;
-* ``benchmark.csv``: the 80 kW benchmark of Table 4-4 evaluated per topology beside Table 4-5;
-* ``fig_4_5_energy_accel.png``, ``fig_4_6_energy_cost.png`` (like Figs 4-5, 4-6);
-* ``summary.json``: timings, evaluations, the Table 4-6 / 4-7 style picks.
+* ``bag/``: a rosbag2 MCAP bag with one ParetoFront per generation on /bev_mdo/pareto_front (``final``
+  on the last). Over ROS the recorder node writes it, with every request and result of the run; in
+  process the fronts are written directly;
+* ``front.csv``: the feasible non-dominated designs, every MDA variable; ``front.json``: the same
+  designs, the objectives and the run's figures; ``front_<b>_vs_<a>.png``: one plot per pair.
+
+``--topology T`` / ``--all-topologies``: the thesis' chapter-4 topology study of the BEV problem
+(§4.4; bev_mdo.studies.topologies), per topology: ``pareto_<T>.csv``, ``benchmark.csv`` (Table 4-4
+design beside Table 4-5), ``fig_4_5_energy_accel.png``, ``fig_4_6_energy_cost.png``, ``summary.json``.
 """
 from __future__ import annotations
 
+import csv
 import json
 import sys
 import time
@@ -31,20 +31,23 @@ import numpy as np
 
 from bev_mdo.studies import topologies as study
 
-OBJECTIVES = ("energy_wh_per_km", "accel_time_0_100_s", "powertrain_cost_usd")
+OBJECTIVES = study.OBJECTIVES  # the study's default (energy, 0-100 km/h time, cost)
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("pareto", help="NSGA-II Pareto fronts of powertrain topologies (thesis ch.4)")
-    p.add_argument("config", help="run config YAML (e.g. config/topologies_artemis.yaml)")
+    from bev_mdo.cli import SUBCOMMANDS
+
+    p = subparsers.add_parser("pareto", help=SUBCOMMANDS["pareto"][1])
+    p.add_argument("config", help="run config YAML (e.g. examples/pareto/srn.yaml, config/topologies_artemis.yaml)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--topology", default=None, help="SM-SA, DM-DA, IWM-SA or IWM-DA (default: the config's)")
-    g.add_argument("--all-topologies", action="store_true", help="run all four topologies")
+    g.add_argument("--topology", default=None, help="topology study: SM-SA, DM-DA, IWM-SA or IWM-DA (BEV problem)")
+    g.add_argument("--all-topologies", action="store_true", help="topology study: all four topologies")
     p.add_argument("--transport", choices=("inprocess", "ros"), default="inprocess")
     p.add_argument("--generations", type=int, default=30)
     p.add_argument("--pop", type=int, default=100, help="population size (one batch per generation)")
     p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--objectives", default=",".join(OBJECTIVES), metavar="A,B,C")
+    p.add_argument("--objectives", default=None, metavar="A,B[,C]",
+                   help="outputs to minimise (default: the config's problem.objectives)")
     p.add_argument("--out", default=None, help="output (bag) directory, default bags/<name>_pareto_<time>")
     p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default: the config's)")
     p.add_argument("--instances", default=None, metavar="N|NAME=N,...",
@@ -55,39 +58,103 @@ def register(subparsers) -> None:
 
 
 def _read_raw(path):
-    import yaml
+    from bev_mdo.config import load_yaml
 
     p = Path(path)
     if not p.is_file():
         raise ValueError(f"{path}: no such config file")
-    raw = yaml.safe_load(p.read_text())
+    raw = load_yaml(p.read_text())
     if not isinstance(raw, dict):
         raise ValueError(f"{path}: the config must be a YAML mapping")
     return raw
 
 
+def _objectives(args, cfg) -> list[tuple[str, bool]]:
+    """(name, maximize) of the objectives: ``--objectives`` (minimised), else the config's."""
+    from bev_mdo.mdo.problem import Problem
+
+    if args.objectives is not None:
+        names = [o.strip() for o in args.objectives.split(",") if o.strip()]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ValueError(f"--objectives names {twice[0]!r} twice")
+        return [(n, False) for n in names]
+    return list(Problem.from_config(cfg["problem"]).objectives)
+
+
+def _check_objectives(objectives, cfg, where: str, least: int) -> None:
+    from bev_mdo.config import resolve_disciplines
+
+    if len(objectives) < least:
+        raise ValueError(f"{where}: pareto needs two or more objectives: list them in problem.objectives "
+                         "(e.g. [f1, {name: f2, maximize: true}]) or give --objectives a,b")
+    produced = {o for d in resolve_disciplines(cfg) for o in d.outputs}
+    for name, _ in objectives:
+        if name not in produced:
+            raise ValueError(f"{where}: objective {name!r} is not produced by any discipline; "
+                             f"outputs: {', '.join(sorted(produced))}")
+
+
 def run(args) -> int:
     from bev_mdo.config import load_config
-    from bev_mdo.models.topology import TOPOLOGIES, get_topology
 
-    raw = _read_raw(args.config)
     if args.generations < 1 or args.pop < 4:
         raise ValueError(f"--generations must be >= 1 and --pop >= 4, got {args.generations}, {args.pop}")
+    if getattr(args, "instances", None) and args.transport != "ros":
+        raise ValueError("--instances needs --transport ros (pools of discipline nodes)")
+    cfg = load_config(args.config)  # the config as written: a bad key, topology or variable exits 2 here
+    if args.topology or args.all_topologies:
+        return _study(args, _read_raw(args.config))
+    objectives = _objectives(args, cfg)
+    _check_objectives(objectives, cfg, str(args.config), 2)
+    out, bag = _out_dirs(args, cfg.get("name", "run"))
+    run_id = uuid.uuid4().hex[:16]
+    session = _session(args, cfg, out, bag, run_id, [cfg])
+    print(f"NSGA-II {args.pop} x {args.generations} over {args.transport}: "
+          f"{', '.join(n + (' (max)' if m else '') for n, m in objectives)}", file=sys.stderr)
+    with session:
+        def on_front(front, final):
+            session.sink.publish(front_message(front, run_id=run_id, topology="", final=final))
+
+        with session.evaluator(cfg, "front") as ev:
+            res = _nsga2(cfg, ev, objectives, args, on_front)
+    write_front(out / "front.csv", res)
+    doc = {"config": str(args.config), "transport": args.transport, "run_id": run_id, "bag": str(bag),
+           "objectives": [{"name": n, "maximize": m} for n, m in objectives],
+           "design_variables": list(res.names), "generations": args.generations, "pop": args.pop,
+           "seed": args.seed, "evaluations": res.evaluations, "batches": res.batches,
+           "wall_time_s": res.wall_time_s, "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12),
+           "front": [{k: float(v[i]) for k, v in res.values.items()} for i in range(len(res.X))],
+           **session.stats}
+    pngs = [] if args.no_plots else plot_front(out, res)
+    print(f"front: {len(res.X)} non-dominated feasible designs, {res.evaluations} evaluations in "
+          f"{res.batches} batches, {res.wall_time_s:.1f} s")
+    what = ", ".join(p.name for p in pngs) if pngs else "no plots: --no-plots"
+    print(f"wrote {out}/ (front.csv, front.json, {what}, bag/ with {session.sink.published} ParetoFront messages)")
+    return _finish(out / "front.json", doc, session)
+
+
+def _finish(path: Path, doc: dict, session) -> int:
+    failed = session.stats.get("recorder_failed")  # known only once the session stopped its processes
+    if failed:
+        doc["recorder_failed"] = failed
+    path.write_text(json.dumps(doc, indent=2, default=float))
+    if failed:
+        print(f"warning: {failed}", file=sys.stderr)
+        return 3
+    return 0
+
+
+def _out_dirs(args, name: str) -> tuple[Path, Path]:
     stamp = time.strftime("%Y%m%d_%H%M%S")
-    out = Path(args.out) if args.out else Path("bags") / f"{raw.get('name', 'run')}_pareto_{stamp}"
+    out = Path(args.out) if args.out else Path("bags") / f"{name}_pareto_{stamp}"
     bag = out / "bag"
     if bag.exists():
         raise ValueError(f"{bag} already exists; choose another --out")
-    load_config(args.config)  # validates the config as written (bad topology/variable: exit 2)
-    if getattr(args, "instances", None) and args.transport != "ros":
-        raise ValueError("--instances needs --transport ros (pools of discipline nodes)")
-    objectives = [o.strip() for o in args.objectives.split(",") if o.strip()]
-    topologies = list(TOPOLOGIES) if args.all_topologies else [
-        get_topology(args.topology).name if args.topology else study.config_topology(raw)]
-    configs = {t: load_config(study.config_for_topology(raw, t)) for t in topologies}
-    out.mkdir(parents=True, exist_ok=True)
-    run_id = uuid.uuid4().hex[:16]
-    results, bench, timing = {}, {}, {}
+    return out, bag
+
+
+def _session(args, raw, out: Path, bag: Path, run_id: str, configs):
     from bev_mdo import sessions
 
     if args.transport == "ros":
@@ -95,10 +162,40 @@ def run(args) -> int:
         from bev_mdo.config import discipline_names
         from bev_mdo.ros.launch import parse_instances
 
-        instances = parse_instances(args.instances, discipline_names(next(iter(configs.values()))))
-        session = sessions.ParetoRosSession(raw, ros_section(raw, args), out, bag, run_id, instances=instances)
-    else:
-        session = sessions.ParetoInProcessSession(raw, bag, run_id)
+        instances = parse_instances(args.instances, discipline_names(configs[0]))
+        out.mkdir(parents=True, exist_ok=True)
+        return sessions.ParetoRosSession(raw, ros_section(raw, args), out, bag, run_id, instances=instances)
+    out.mkdir(parents=True, exist_ok=True)
+    return sessions.ParetoInProcessSession(raw, bag, run_id)
+
+
+def _study(args, raw) -> int:
+    """The BEV topology study (thesis §4.4): one front per topology, the benchmark, the picks."""
+    from bev_mdo.config import load_config
+    from bev_mdo.models.topology import TOPOLOGIES, get_topology
+
+    from bev_mdo.config import discipline_names
+    from bev_mdo.disciplines import TOPOLOGY_DISCIPLINES
+
+    topologies = list(TOPOLOGIES) if args.all_topologies else [get_topology(args.topology).name]
+    if not set(discipline_names(load_config(args.config))) & set(TOPOLOGY_DISCIPLINES):
+        raise ValueError(f"{args.config}: --topology and --all-topologies study the BEV problem's powertrain "
+                         f"topologies; this config has none of the disciplines {', '.join(TOPOLOGY_DISCIPLINES)} "
+                         "(without them, bev-mdo pareto runs NSGA-II on the config as written)")
+    configs = {}
+    for t in topologies:
+        try:
+            configs[t] = load_config(study.config_for_topology(raw, t))
+        except ValueError as exc:  # the file and the topology, not <config>
+            raise ValueError(f"{args.config} ({t}): {str(exc).removeprefix('<config>: ')}") from None
+    first = next(iter(configs.values()))
+    objectives = _objectives(args, first) or [(o, False) for o in OBJECTIVES]
+    for t, cfg in configs.items():
+        _check_objectives(objectives, cfg, f"{args.config} ({t})", 1)
+    out, bag = _out_dirs(args, raw.get("name", "run"))
+    run_id = uuid.uuid4().hex[:16]
+    results, bench, timing = {}, {}, {}
+    session = _session(args, raw, out, bag, run_id, list(configs.values()))
     with session:
         for t, cfg in configs.items():
             print(f"{t}: NSGA-II {args.pop} x {args.generations} over {args.transport}", file=sys.stderr)
@@ -107,26 +204,26 @@ def run(args) -> int:
                 session.sink.publish(front_message(front, run_id=run_id, topology=t, final=final))
 
             with session.evaluator(cfg, t) as ev:
-                res, b = _run_one(cfg, ev, objectives, args, t, on_front)
-            results[t], bench[t] = res, b
+                res = _nsga2(cfg, ev, objectives, args, on_front, bench=(bench, t))
+            results[t] = res
             timing[t] = {"wall_time_s": res.wall_time_s, "evaluations": res.evaluations, "batches": res.batches,
                          "mean_generation_s": float(np.mean(res.generation_times_s)),
-                         "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12)}
-            study.write_front(out / f"pareto_{t}.csv", res)
+                         "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12),
+                         "design_variables": {d["name"]: [d["lower"], d["upper"]] for d in _bounds(cfg)}}
+            write_front(out / f"pareto_{t}.csv", res)
     study.write_benchmark(out / "benchmark.csv", bench)
     warnings = study.torque_warnings(bench)
     for w in warnings:
         print(w, file=sys.stderr)
-    picks = study.picks(results, bench)
+    names = [n for n, _ in objectives]
     summary = {"config": str(args.config), "transport": args.transport, "run_id": run_id, "bag": str(bag),
-               "objectives": objectives, "generations": args.generations, "pop": args.pop, "seed": args.seed,
-               "timing": timing, "benchmark": bench, "picks": picks, "out": str(out), "warnings": warnings,
-               **session.stats}
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+               "objectives": names, "generations": args.generations, "pop": args.pop, "seed": args.seed,
+               "timing": timing, "benchmark": bench, "picks": study.picks(results, bench), "out": str(out),
+               "warnings": warnings, **session.stats}
     pngs = []
     if not args.no_plots:
-        cyc = (next(iter(configs.values())).get("cycle") or {})
-        pngs = study.plots(out, results, bench, objectives, cyc.get("name", "") if isinstance(cyc, dict) else "")
+        cyc = first.get("cycle") or {}
+        pngs = study.plots(out, results, bench, names, cyc.get("name", "") if isinstance(cyc, dict) else "")
     for t in topologies:
         r = results[t]
         print(f"{t}: {len(r.X)} non-dominated designs, {r.evaluations} evaluations in {r.batches} batches, "
@@ -135,13 +232,13 @@ def run(args) -> int:
         "no plots: --no-plots" if args.no_plots else "no plots: one objective has no trade-off to draw")
     print(f"wrote {out}/ (pareto_*.csv, benchmark.csv, summary.json, {what}, "
           f"bag/ with {session.sink.published} ParetoFront messages)")
-    failed = session.stats.get("recorder_failed")  # known only once the session stopped its processes
-    if failed:
-        summary["recorder_failed"] = failed
-        (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
-        print(f"warning: {failed}", file=sys.stderr)
-        return 3
-    return 0
+    return _finish(out / "summary.json", summary, session)
+
+
+def _bounds(cfg) -> list[dict]:
+    from bev_mdo.mdo.problem import Problem
+
+    return [{"name": d.name, "lower": d.lower, "upper": d.upper} for d in Problem.from_config(cfg["problem"]).design_variables]
 
 
 def front_message(front, **kw):
@@ -151,7 +248,7 @@ def front_message(front, **kw):
     return make(front, **kw)
 
 
-def _run_one(cfg, evaluator, objectives, args, topology, on_front=None):
+def _nsga2(cfg, evaluator, objectives, args, on_front=None, bench=None):
     from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.pareto import run_nsga2
@@ -160,4 +257,46 @@ def _run_one(cfg, evaluator, objectives, args, topology, on_front=None):
     res = run_nsga2(form, objectives, pop_size=args.pop, generations=args.generations, seed=args.seed,
                     on_generation=lambda g, n, s: print(f"  gen {g}: {n} evaluations, {s:.2f} s", file=sys.stderr),
                     on_front=on_front)
-    return res, study.benchmark(form, topology)
+    if bench is not None:  # the study's benchmark design, through the same formulation
+        table, topology = bench
+        table[topology] = study.benchmark(form, topology)
+    return res
+
+
+def write_front(path: Path, res) -> None:
+    """The front's designs as CSV: design variables, objectives, then every other MDA variable."""
+    cols = list(res.names) + [o for o in res.objectives if o not in res.names]
+    cols += sorted(k for k in res.values if k not in cols)
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(cols)
+        for i in range(len(res.X)):
+            w.writerow([f"{float(res.values[c][i]):.10g}" if c in res.values else "" for c in cols])
+
+
+def plot_front(out: Path, res) -> list[Path]:
+    """One scatter plot per pair of objectives, ``front_<b>_vs_<a>.png``. Returns the files written."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bev_mdo.mdo.units import label
+
+    written = []
+    for i, xk in enumerate(res.objectives):
+        for yk in res.objectives[i + 1:]:
+            fig, ax = plt.subplots(figsize=(6.0, 4.5))
+            ax.scatter(res.values[xk], res.values[yk], s=14, color="C0",
+                       label=f"non-dominated feasible designs ({len(res.X)})")
+            ax.set_xlabel(label(xk))
+            ax.set_ylabel(label(yk))
+            ax.set_title(f"Pareto front, NSGA-II: {res.evaluations} evaluations", fontsize=10)
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=8)
+            fig.tight_layout()
+            path = out / f"front_{yk}_vs_{xk}.png"
+            fig.savefig(path, dpi=120)
+            plt.close(fig)
+            written.append(path)
+    return written

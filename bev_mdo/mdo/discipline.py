@@ -12,10 +12,17 @@ them flattened in ``EvalResult.extra["partials"]``.
 ``parameters`` lists model constants that a caller may override per point by
 sending an input column of the same name (used for sensitivities with respect
 to model parameters, e.g. ``drag_area_m2``).
+
+Options (the ``options:`` of a config entry) are declared once, and a key not declared is refused
+when the config is loaded (:func:`read_options`): a nested dataclass ``Options`` (its fields are the
+keys, ``from_config(config, options)`` gets an instance), or, for a class built from its options
+alone (no ``from_config`` of its own), the keyword parameters of its constructor.
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib
+import inspect
 import sys
 import time
 from dataclasses import dataclass, field
@@ -25,6 +32,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from bev_mdo.mdo.vectors import ShapeError, check_outputs, flat_partials, has_partials
+from bev_mdo.models.common import check_keys
 
 Batch = dict[str, np.ndarray]
 
@@ -42,12 +50,50 @@ class Discipline:
     parameters: Mapping[str, float] = {}
 
     @classmethod
-    def from_config(cls, config: Mapping[str, Any], options: Mapping[str, Any]) -> "Discipline":
-        """Build from the resolved run config; the default passes the entry's options as kwargs."""
-        return cls(**dict(options))
+    def from_config(cls, config: Mapping[str, Any], options: Any) -> "Discipline":
+        """Build from the resolved run config and the entry's options (:func:`read_options`); the
+        default passes the options to the constructor as keyword arguments."""
+        return cls(**options_dict(options))
 
     def compute(self, inputs: Batch) -> Batch:  # pragma: no cover - interface
         raise NotImplementedError
+
+
+def options_dict(options: Any) -> dict:
+    """A discipline's options as a plain dict (from an ``Options`` instance or a mapping)."""
+    return dataclasses.asdict(options) if dataclasses.is_dataclass(options) else dict(options or {})
+
+
+def _builds_from_options(cls: type) -> bool:
+    """True when ``cls`` is built by passing its options to the constructor (no from_config of its own)."""
+    own = getattr(cls, "from_config", None)
+    return own is None or getattr(own, "__func__", None) is Discipline.from_config.__func__
+
+
+def read_options(cls: type, options: Mapping[str, Any] | None, where: str) -> Any:
+    """The options of a config entry for discipline class ``cls``, refused (one-line ValueError naming
+    ``where.<key>`` and the nearest declared key) when a key is not declared:
+
+    * ``cls.Options``, a dataclass: its fields are the keys; returns an instance (defaults filled);
+    * no ``from_config`` of its own: the constructor's keyword parameters (any with ``**kwargs``);
+      returns the options as a dict;
+    * else the class declares no option, and none may be given."""
+    options = dict(options or {})
+    spec = getattr(cls, "Options", None)
+    if spec is not None and dataclasses.is_dataclass(spec):
+        check_keys(where, options, [f.name for f in dataclasses.fields(spec) if f.init])
+        return spec(**options)
+    if _builds_from_options(cls):
+        try:
+            params = inspect.signature(cls).parameters
+        except (TypeError, ValueError):
+            return options
+        if any(p.kind is p.VAR_KEYWORD for p in params.values()):
+            return options
+        check_keys(where, options, [k for k, p in params.items() if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)])
+        return options
+    check_keys(where, options, ())
+    return options
 
 
 @dataclass(frozen=True)

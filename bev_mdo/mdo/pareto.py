@@ -3,8 +3,10 @@
 ``MDAProblem`` is a vectorised pymoo ``Problem``: ``_evaluate`` sends the WHOLE population as
 ONE batch through ``formulation.analyse`` (the MDF's batched MDA over any Evaluator,
 in-process or ROS), so a generation is one wave of requests per discipline. Objectives are
-output names (minimised); constraints are the problem's (normalised, feasible where <= 0).
-A point the disciplines could not evaluate gets objectives 1e30 and constraint 1e6.
+output names, minimised, or ``(name, maximize)`` pairs (a maximised one is negated for pymoo and
+reported as itself); constraints are the problem's (normalised, feasible where <= 0), handed to
+pymoo as its inequality constraints. A point the disciplines could not evaluate gets objectives
+1e30 and constraint 1e6.
 
 Every generation's feasible non-dominated set (a :class:`Front`, with every MDA variable at
 its designs, as evaluated) goes to ``on_front(front, final)``; ``bev-mdo pareto`` writes them
@@ -38,7 +40,7 @@ class Front:
     names: list[str]                 # design variables
     objectives: list[str]
     X: np.ndarray                    # (P, n)
-    F: np.ndarray                    # (P, m)
+    F: np.ndarray                    # (P, m) the objectives as evaluated (a maximised one not negated)
     values: dict[str, np.ndarray]    # every MDA variable at the designs, (P,) each
     evaluations: int                 # design points evaluated so far
     wall_time_s: float               # since the start of the run
@@ -54,7 +56,7 @@ class ParetoResult:
     F: np.ndarray                    # (P, m)
     values: dict[str, np.ndarray]    # every MDA variable at the front's designs
     archive_X: np.ndarray            # every evaluated design (E, n)
-    archive_F: np.ndarray
+    archive_F: np.ndarray            # in pymoo's sense: a maximised objective negated, 1e30 where failed
     archive_cv: np.ndarray           # max normalised violation (<= 0 feasible)
     generations: int
     evaluations: int
@@ -71,7 +73,8 @@ def _pymoo_problem_class():
 
         def __init__(self, formulation, objectives):
             self.form = formulation
-            self.objectives = list(objectives)
+            self.objectives = [name for name, _ in objectives]
+            self.signs = np.array([-1.0 if maximize else 1.0 for _, maximize in objectives])
             prob = formulation.problem
             n_g = len(prob.constraint_rows)
             super().__init__(n_var=len(prob.names), n_obj=len(self.objectives), n_ieq_constr=n_g,
@@ -91,7 +94,7 @@ def _pymoo_problem_class():
             self.batches += 1
             self.evaluations += len(X)
             ok = np.asarray(res.ok, bool)
-            F = np.column_stack([np.asarray(res.values[o], float) for o in self.objectives])
+            F = np.column_stack([np.asarray(res.values[o], float) for o in self.objectives]) * self.signs
             G = self.form.problem.g(res.values)
             bad = ~ok | ~np.all(np.isfinite(F), axis=1) | ~np.all(np.isfinite(G), axis=1)
             F[bad] = FAILED_F
@@ -121,16 +124,20 @@ def _pymoo_problem_class():
     return MDAProblem
 
 
+def objective_pairs(objectives) -> list[tuple[str, bool]]:
+    """(name, maximize) of each objective given as a name (minimised) or a (name, maximize) pair."""
+    return [(o, False) if isinstance(o, str) else (str(o[0]), bool(o[1])) for o in objectives]
+
+
 def make_problem(formulation, objectives):
     """The pymoo problem of ``formulation`` (an MDF from ``driver.build_formulation``)."""
-    prob = formulation.problem
-    missing = [o for o in objectives if o not in _outputs(formulation)]
+    objectives = objective_pairs(objectives)
+    missing = [o for o, _ in objectives if o not in _outputs(formulation)]
     if missing:
         raise ValueError(f"objective {missing[0]!r} is not produced by any discipline; outputs: "
                          f"{', '.join(sorted(_outputs(formulation)))}")
     if not objectives:
         raise ValueError("at least one objective is needed")
-    del prob
     return _pymoo_problem_class()(formulation, objectives)
 
 
@@ -147,7 +154,7 @@ def _front(problem, pop, generation: int, wall_time_s: float) -> Front:
     feas = np.all(G <= 0, axis=1) & np.all(F < FAILED_F, axis=1)
     X, F = X[feas], F[feas]
     keep = non_dominated(F) if len(F) else np.zeros(0, bool)
-    X, F = X[keep], F[keep]
+    X, F = X[keep], F[keep] * problem.signs  # as evaluated (a maximised objective is not negated)
     order = np.argsort(F[:, 0], kind="stable") if len(F) else np.zeros(0, int)
     X, F = np.array(X[order], float), np.array(F[order], float)
     return Front(generation, list(problem.form.problem.names), list(problem.objectives), X, F,
@@ -198,6 +205,6 @@ def run_nsga2(formulation, objectives, *, pop_size: int = 100, generations: int 
     aX = np.concatenate([a[0] for a in problem.archive]) if problem.archive else np.zeros((0, problem.n_var))
     aF = np.concatenate([a[1] for a in problem.archive]) if problem.archive else np.zeros((0, problem.n_obj))
     aC = np.concatenate([a[2] for a in problem.archive]) if problem.archive else np.zeros(0)
-    return ParetoResult(list(formulation.problem.names), list(objectives), front.X, front.F,
+    return ParetoResult(list(formulation.problem.names), list(problem.objectives), front.X, front.F,
                         front.values, aX, aF, aC, n_gen,
                         problem.evaluations, problem.batches, times, wall)

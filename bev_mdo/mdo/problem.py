@@ -20,10 +20,11 @@ from typing import Any
 import numpy as np
 
 from bev_mdo.mdo.vectors import base_name, expand, flat_names
+from bev_mdo.models.common import check_keys
 
 _DV_KEYS = {"lower", "upper", "initial", "scale", "shape"}
 _CON_KEYS = {"lower", "upper", "scale", "monitor", "shape"}
-PROBLEM_KEYS = {"objective", "design_variables", "constraints", "battery_sized_for_range",
+PROBLEM_KEYS = {"objective", "objectives", "design_variables", "constraints", "battery_sized_for_range",
                 "objective_scale", "parameters", "coupling_guesses", "coupling_bounds", "baseline"}
 _OBJECTIVE_KEYS = {"name", "maximize"}
 
@@ -69,6 +70,8 @@ class Problem:
     coupling_bounds: dict[str, tuple[float, float]] = field(default_factory=dict)  # IDF bounds
     maximize: bool = False  # objective: {name: ..., maximize: true}; the optimisers minimise -f
     shapes: dict[str, int] = field(default_factory=dict)  # vector design variables / constraints -> size
+    # ``objectives: [...]`` (bev-mdo pareto): (name, maximize) of each; empty when not given
+    objectives: tuple[tuple[str, bool], ...] = ()
 
     @property
     def names(self) -> list[str]:
@@ -113,21 +116,21 @@ class Problem:
         """Build from the ``problem`` section; ValueError names the key and the allowed values."""
         if not isinstance(section, Mapping):
             raise ValueError("problem: must be a mapping with objective, design_variables, constraints")
-        unknown = sorted(set(section) - PROBLEM_KEYS)
-        if unknown:
-            raise ValueError(f"problem: unknown keys {unknown}; allowed: {sorted(PROBLEM_KEYS)}")
-        obj, maximize = section.get("objective"), False
-        if isinstance(obj, Mapping):
-            unknown = sorted(set(obj) - _OBJECTIVE_KEYS)
-            if unknown:
-                raise ValueError(f"problem.objective: unknown keys {unknown}; allowed: {sorted(_OBJECTIVE_KEYS)}")
-            maximize = obj.get("maximize", False)
-            if not isinstance(maximize, bool):
-                raise ValueError(f"problem.objective.maximize: {maximize!r} must be true or false")
-            obj = obj.get("name")
-        if not isinstance(obj, str) or not obj:
-            raise ValueError("problem.objective: must name one output (minimised), e.g. energy_wh_per_km, "
-                             "or be {name: <output>, maximize: true}")
+        check_keys("problem", section, PROBLEM_KEYS)
+        objectives = section.get("objectives")
+        if objectives is not None:
+            if not isinstance(objectives, list) or len(objectives) < 2:
+                raise ValueError("problem.objectives: must list two or more outputs, each a name or "
+                                 "{name: <output>, maximize: true}")
+            objectives = tuple(parse_objective(o, f"problem.objectives[{i}]") for i, o in enumerate(objectives))
+            twice = sorted({n for n, _ in objectives if [m for m, _ in objectives].count(n) > 1})
+            if twice:
+                raise ValueError(f"problem.objectives: {twice[0]!r} is named twice")
+        # the single-objective commands optimise ``objective``, else the first of ``objectives``
+        if "objective" in section or objectives is None:
+            obj, maximize = parse_objective(section.get("objective"), "problem.objective")
+        else:
+            obj, maximize = objectives[0]
         dvs_raw = section.get("design_variables")
         if not isinstance(dvs_raw, Mapping) or not dvs_raw:
             raise ValueError("problem.design_variables: must map at least one name to {lower, upper, initial}")
@@ -159,7 +162,23 @@ class Problem:
             if lo >= hi:
                 raise ValueError(f"problem.coupling_bounds.{k}: lower {lo:g} must be < upper {hi:g}")
             cb[str(k)] = (lo, hi)
-        return cls(obj, dvs, cons, oscale, params, guesses, cb, maximize=maximize, shapes=shapes)
+        return cls(obj, dvs, cons, oscale, params, guesses, cb, maximize=maximize, shapes=shapes,
+                   objectives=objectives or ())
+
+
+def parse_objective(value: Any, where: str) -> tuple[str, bool]:
+    """(name, maximize) of an objective entry: an output name (minimised) or {name, maximize}."""
+    maximize = False
+    if isinstance(value, Mapping):
+        check_keys(where, value, _OBJECTIVE_KEYS)
+        maximize = value.get("maximize", False)
+        if not isinstance(maximize, bool):
+            raise ValueError(f"{where}.maximize: {maximize!r} must be true or false")
+        value = value.get("name")
+    if not isinstance(value, str) or not value:
+        raise ValueError(f"{where}: must name one output (minimised), e.g. energy_wh_per_km, "
+                         "or be {name: <output>, maximize: true}")
+    return value, maximize
 
 
 def _num(v: Any, where: str) -> float:
@@ -201,9 +220,7 @@ def _design_variable(name: str, spec: Any, where: str | None = None) -> DesignVa
     where = where or f"problem.design_variables.{name}"
     if not isinstance(spec, Mapping):
         raise ValueError(f"{where}: must be a mapping {{lower, upper, initial[, scale]}}")
-    unknown = sorted(set(spec) - _DV_KEYS)
-    if unknown:
-        raise ValueError(f"{where}: unknown keys {unknown}; allowed: {sorted(_DV_KEYS)}")
+    check_keys(where, spec, _DV_KEYS)
     for k in ("lower", "upper"):
         if k not in spec:
             raise ValueError(f"{where}: missing {k!r}")
@@ -223,9 +240,7 @@ def _constraint(name: str, spec: Any, where: str | None = None) -> Constraint:
     where = where or f"problem.constraints.{name}"
     if not isinstance(spec, Mapping) or not spec:
         raise ValueError(f"{where}: must be a mapping with lower and/or upper")
-    unknown = sorted(set(spec) - _CON_KEYS)
-    if unknown:
-        raise ValueError(f"{where}: unknown keys {unknown}; allowed: {sorted(_CON_KEYS)}")
+    check_keys(where, spec, _CON_KEYS)
     lo = _num(spec["lower"], f"{where}.lower") if "lower" in spec else None
     hi = _num(spec["upper"], f"{where}.upper") if "upper" in spec else None
     if lo is None and hi is None:

@@ -7,6 +7,8 @@ Imports nothing from the package (numpy only), so every model module may import 
   design and coupling variables every model accepts.
 * :func:`resolve_params` / :func:`batch_size`: defaults from a spec table (``params.py``), range
   checks, and the common batch length N of design arrays and (N,) parameter overrides.
+* :func:`check_keys`: a mapping's keys against the known ones; the message names the key path and
+  the nearest known key (every config section and option dictionary uses it).
 """
 from __future__ import annotations
 
@@ -26,6 +28,23 @@ DESIGN_LIMITS: dict[str, tuple[float, float, str]] = {
     "energy_wh_per_km": (1.0, 5000.0, "Wh/km"),
     "range_target_km": (1.0, 10000.0, "km"),
 }
+
+
+def check_keys(where: str, given: Any, known: Any, of: str = "") -> None:
+    """One-line ValueError for the first key of ``given`` not in ``known``: ``<where>.<key>: unknown
+    key; did you mean '<nearest>'? known: ...`` (nearest by difflib). ``where`` is the key path of
+    the mapping, e.g. ``disciplines[1] (energy).options`` ("" for the top level); ``of`` names whose
+    keys they are (``unknown key of SLSQP``)."""
+    import difflib
+
+    names = sorted(str(k) for k in known)
+    for key in given:
+        if key in known:
+            continue
+        near = difflib.get_close_matches(str(key), names, n=1, cutoff=0.6)
+        hint = f"did you mean {near[0]!r}? " if near else ""
+        listed = f"known: {', '.join(names)}" if names else "none is declared"
+        raise ValueError(f"{where + '.' if where else ''}{key}: unknown key{' of ' + of if of else ''}; {hint}{listed}")
 
 
 def _unit(unit: str) -> str:

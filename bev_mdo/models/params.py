@@ -14,7 +14,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from . import battery as bt
-from .common import check_array, check_value
+from .common import check_array, check_keys, check_value
 from .cycles import DEFAULT_METHOD, KMH, METHODS
 
 
@@ -169,9 +169,7 @@ def validate_road_load(section: Any) -> dict[str, float]:
     """The ``vehicle.road_load`` mapping as the flat ``road_load_*`` parameters; one-line ValueError."""
     if not isinstance(section, Mapping):
         raise ValueError("road_load must be a mapping {a_n, b_n_per_m_s, c_n_per_m2_s2[, mass_kg]}")
-    unknown = sorted(set(section) - set(ROAD_LOAD_SPECS))
-    if unknown:
-        raise ValueError(f"road_load: unknown key(s) {unknown}; known: {sorted(ROAD_LOAD_SPECS)}")
+    check_keys("vehicle.road_load", section, ROAD_LOAD_SPECS)
     missing = [k for k in ("a_n", "b_n_per_m_s", "c_n_per_m2_s2") if k not in section]
     if missing:
         raise ValueError(f"road_load: missing {missing} (all of a_n, b_n_per_m_s, c_n_per_m2_s2 are needed)")
@@ -258,15 +256,10 @@ def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
         if road is not None:
             raise ValueError("give road_load or its road_load_* parameters, not both")
         names = {flat: key for key, (flat, _) in ROAD_LOAD_SPECS.items()}
-        unknown = sorted(k for k in flat_road if k not in names)
-        if unknown:
-            raise ValueError(f"unknown vehicle parameter(s) {unknown}")
+        check_keys("vehicle", flat_road, names)
         road = {names[k]: v for k, v in flat_road.items() if not (k == "road_load_mass_kg" and v == 0)}
     chain = section.pop("parameter_set", None)
-    unknown = sorted(k for k in section if k not in specs and k not in VEHICLE_CHOICES)
-    if unknown:
-        raise ValueError(f"unknown vehicle parameter(s) {unknown}; known: "
-                         f"{sorted(specs) + sorted(VEHICLE_CHOICES) + ['parameter_set', 'road_load']}")
+    check_keys("vehicle", section, [*specs, *VEHICLE_CHOICES, "parameter_set", "road_load"])
     for k in VEHICLE_CHOICES:
         vehicle_choice(section, k)
     extra: dict[str, float] = {}
@@ -297,9 +290,7 @@ def validate_cycle(section: Mapping[str, Any] | None) -> dict:
     """Validate the ``cycle`` section: name, dt_s, interpolation (linear|pchip|spline), smoothing."""
     section = dict(section or {})
     known = {"name", "dt_s", "interpolation", "smoothing"}
-    unknown = sorted(set(section) - known)
-    if unknown:
-        raise ValueError(f"unknown cycle key(s) {unknown}; known: {sorted(known)}")
+    check_keys("cycle", section, known)
     name = section.get("name", "nedc")
     if not isinstance(name, str) or not name:
         raise ValueError(f"cycle name must be a cycle name or CSV path, got {name!r}")

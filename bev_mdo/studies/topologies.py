@@ -1,15 +1,15 @@
 """The thesis' chapter-4 topology study (§4.4, Tables 4-4..4-7, Figs 4-5/4-6), without the CLI.
 
 * :func:`config_topology` / :func:`config_for_topology`: the topology a run config sets, and a copy of
-  it for another topology (``vehicle.topology``, discipline options, the topology's design variables
-  ``TOPOLOGY_BOUNDS``);
+  it for another topology (``vehicle.topology``, discipline options, and its design variables: the
+  config's bounds for every variable the config gives, ``TOPOLOGY_BOUNDS`` for the others);
 * :func:`benchmark`: the 80 kW / 24 kWh benchmark design of Table 4-4 analysed by a formulation;
 * :func:`picks`: the Table 4-6 / 4-7 style choices from the fronts; :func:`torque_warnings`;
-* :func:`write_front`, :func:`write_benchmark` (beside Table 4-5), :func:`plot_pair`, :func:`plots`
-  (like Figs 4-5 and 4-6);
+* :func:`write_benchmark` (beside Table 4-5), :func:`plot_pair`, :func:`plots` (like Figs 4-5 and 4-6);
 * :func:`read_fronts`: the ParetoFront messages of a bag, without ROS.
 
-``bev-mdo pareto`` (bev_mdo/cli/pareto.py) runs NSGA-II per topology and calls these.
+``bev-mdo pareto --topology T | --all-topologies`` (bev_mdo/cli/pareto.py) runs NSGA-II per topology
+and calls these.
 """
 from __future__ import annotations
 
@@ -21,7 +21,10 @@ import numpy as np
 
 from bev_mdo.disciplines import TOPOLOGY_DISCIPLINES
 
-# design-variable bounds per topology (motor power per motor); used when --topology changes it
+# the study's objectives unless the config (problem.objectives) or --objectives names others
+OBJECTIVES = ("energy_wh_per_km", "accel_time_0_100_s", "powertrain_cost_usd")
+# design-variable bounds per topology (motor power per motor): for a variable of the topology that
+# the config does not give (the rear motor of a two-axle topology studied from an SM-SA config)
 TOPOLOGY_BOUNDS = {
     "SM-SA": {"motor_kw": (40.0, 130.0, 80.0), "gear_ratio": (4.0, 9.4, 7.9)},
     "DM-DA": {"motor_kw": (20.0, 90.0, 40.0), "gear_ratio": (4.0, 9.4, 7.9),
@@ -54,7 +57,8 @@ def config_topology(raw) -> str:
 def config_for_topology(raw, topology: str) -> dict:
     """A copy of the raw config with ``vehicle.topology`` (and any discipline ``topology`` option)
     set to ``topology`` and, if that differs from the config's own, the topology's design
-    variables (``TOPOLOGY_BOUNDS``)."""
+    variables: each with the config's own bounds where the config gives it, else the study's
+    (``TOPOLOGY_BOUNDS``); a variable the topology does not have (``gear_ratio`` of IWM-*) is left out."""
     from bev_mdo.models.topology import get_topology
 
     t = get_topology(topology).name
@@ -71,9 +75,8 @@ def config_for_topology(raw, topology: str) -> dict:
     cfg["name"] = f"{raw.get('name', 'run')}_{t}"
     if t != own:
         dvs = dict((cfg.get("problem") or {}).get("design_variables") or {})
-        battery = dvs.get("battery_kwh", {"lower": 18.0, "upper": 30.0, "initial": 24.0})
-        new = {k: {"lower": lo, "upper": hi, "initial": x0} for k, (lo, hi, x0) in TOPOLOGY_BOUNDS[t].items()}
-        new["battery_kwh"] = battery
+        new = {k: dvs.get(k, {"lower": lo, "upper": hi, "initial": x0}) for k, (lo, hi, x0) in TOPOLOGY_BOUNDS[t].items()}
+        new["battery_kwh"] = dvs.get("battery_kwh", {"lower": 18.0, "upper": 30.0, "initial": 24.0})
         cfg.setdefault("problem", {})["design_variables"] = new
     return cfg
 
@@ -103,16 +106,6 @@ def read_fronts(bag_dir, topology: str | None = None) -> list[dict]:
                        "designs": {k: v[j] for j, k in enumerate(names)},
                        "evaluations": int(m.evaluations), "wall_time_s": float(m.wall_time_s)})
     return fronts
-
-
-def write_front(path: Path, res) -> None:
-    cols = list(res.names) + [o for o in res.objectives if o not in res.names]
-    cols += sorted(k for k in res.values if k not in cols)
-    with path.open("w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(cols)
-        for i in range(len(res.X)):
-            w.writerow([f"{float(res.values[c][i]):.10g}" if c in res.values else "" for c in cols])
 
 
 def write_benchmark(path: Path, bench) -> None:

@@ -119,6 +119,8 @@ def test_config_for_topology_rewrites_the_one_setting(legacy):
             assert dvs == raw["problem"]["design_variables"]  # the config's own problem is kept
         else:
             assert set(dvs) == set(TOPOLOGY_BOUNDS[t]) | {"battery_kwh"}
+            for k in set(dvs) & set(raw["problem"]["design_variables"]):  # the config's bounds are kept
+                assert dvs[k] == raw["problem"]["design_variables"][k], (t, k)
         discs = {d.name: d for d in resolve_disciplines(load_config(cfg))}
         assert {discs[n].topology.name for n in ("vehicle_mass", "energy", "cycle_range", "acceleration",
                                                  "cost")} == {t}
@@ -126,14 +128,37 @@ def test_config_for_topology_rewrites_the_one_setting(legacy):
 
 
 def test_pareto_runs_the_vehicle_topology(tmp_path, capsys):
+    """Without --topology: the config as written (its vehicle.topology), its three objectives, no study."""
     out = tmp_path / "o"
     code, err = _run(capsys, "pareto", _write(tmp_path, _raw("IWM-SA", DVS["IWM-SA"])), "--generations", "1",
                      "--pop", "4", "--no-plots", "--out", out)
     assert code == 0, err
-    assert list(json.loads((out / "summary.json").read_text())["timing"]) == ["IWM-SA"]
-    rows = list(csv.DictReader((out / "pareto_IWM-SA.csv").open()))
+    doc = json.loads((out / "front.json").read_text())
+    assert [o["name"] for o in doc["objectives"]] == ["energy_wh_per_km", "accel_time_0_100_s", "powertrain_cost_usd"]
+    assert sorted(doc["design_variables"]) == sorted(DVS["IWM-SA"])
+    rows = list(csv.DictReader((out / "front.csv").open()))
     assert rows and "gear_ratio" not in rows[0] and "motor_rear_kw" not in rows[0]
-    assert float(next(csv.DictReader((out / "benchmark.csv").open()))["kerb_kg"]) == pytest.approx(1521.16)
+    assert not (out / "benchmark.csv").exists() and not (out / "summary.json").exists()
+    assert "SM-SA" not in err and "IWM-SA" not in err  # no study, no topology label
+
+
+def test_the_topology_study_labels_each_topology_and_keeps_the_users_bounds(tmp_path, capsys):
+    raw = _raw("SM-SA")
+    raw["problem"]["design_variables"]["motor_kw"] = {"lower": 50, "upper": 110, "initial": 80}
+    out = tmp_path / "o"
+    code, err = _run(capsys, "pareto", _write(tmp_path, raw), "--topology", "DM-DA", "--generations", "1",
+                     "--pop", "4", "--no-plots", "--out", out)
+    assert code == 0, err
+    assert "DM-DA: NSGA-II 4 x 1" in err and "SM-SA" not in err
+    timing = json.loads((out / "summary.json").read_text())["timing"]
+    assert list(timing) == ["DM-DA"]
+    dvs = timing["DM-DA"]["design_variables"]
+    assert dvs["motor_kw"] == [50, 110] and dvs["gear_ratio"] == [4, 9.4] and dvs["battery_kwh"] == [18, 30]
+    assert dvs["motor_rear_kw"] == list(TOPOLOGY_BOUNDS["DM-DA"]["motor_rear_kw"][:2])  # not in the config
+    rows = list(csv.DictReader((out / "pareto_DM-DA.csv").open()))
+    assert rows and all(50 <= float(r["motor_kw"]) <= 110 for r in rows)
+    bench = next(csv.DictReader((out / "benchmark.csv").open()))
+    assert bench["topology"] == "DM-DA"
 
 
 def test_instances_need_the_ros_transport_exit_2(tmp_path, capsys):

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 from bev_mdo.disciplines import Range
 
@@ -11,12 +12,14 @@ class SlowFirstRange(Range):
 
     _calls = 0
 
+    @dataclass(frozen=True)
+    class Options:
+        delay_s: float = 1.0
+
     @classmethod
     def from_config(cls, config, options):
-        opts = dict(options)
-        delay = float(opts.pop("delay_s", 1.0))
-        obj = super().from_config(config, opts)
-        obj.delay_s = delay
+        obj = super().from_config(config, Range.Options())
+        obj.delay_s = float(options.delay_s)
         return obj
 
     def compute(self, inputs):

@@ -1,0 +1,300 @@
+"""Built-in disciplines: thin wrappers binding bev_mdo.models to named batched inputs/outputs.
+
+Each reads ``config["vehicle"]`` (validated by models.params), ``config["cycle"]`` and
+``config["energy_model"]``. ``parameters`` maps the model constants a caller may override
+per point (by sending an input column of the same name) to their configured values.
+
+Each declares its options once, in a dataclass ``Options`` (mdo/discipline.py ``read_options``: a key
+it does not declare is refused when the config is loaded); ``from_config`` gets an instance.
+
+Topology (thesis ch.4, models/topology.py): the option ``topology`` (SM-SA | DM-DA | IWM-SA |
+IWM-DA, default SM-SA) of vehicle_mass, energy, acceleration, cost and cycle_range; every
+entry that sets it must agree, and the problem's design variables must exist in it
+(``gear_ratio`` is not one of IWM-*, ``motor_rear_kw`` not one of *-SA). Two-axle topologies
+take ``motor_rear_kw`` (and DM-DA ``gear_ratio_rear``); non-SM-SA needs energy_model
+quasi_static. The two-speed gearbox's 20 kg (``two_speed_added_mass_kg``) is added ONCE, by
+vehicle_mass; energy and cycle_range pass 0 to the quasi-static model so that mass, energy,
+range and acceleration all see the same vehicle mass.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from bev_mdo.disciplines.common import (ENERGY_MODELS, TOPOLOGY_DISCIPLINES, Base, replaced_by_road_load,
+                                        resampled_cycle, run_topology, topology_inputs, vehicle_of)
+from bev_mdo.disciplines.energy import CycleRange, Energy
+from bev_mdo.models import acceleration, cost, motor_speed, range as range_model
+from bev_mdo.models import topology as topo_model
+from bev_mdo.models.params import vehicle_choice
+
+__all__ = ["ENERGY_MODELS", "TOPOLOGY_DISCIPLINES", "BUILTIN", "VehicleMass", "Energy", "CycleRange", "Range",
+           "Acceleration", "MotorSpeed", "Cost", "BatterySizing", "default_names", "default_disciplines"]
+
+
+class VehicleMass(Base):
+    """motor_kw, battery_kwh (, motor_rear_kw) -> vehicle_mass_kg (eq 7-19 or ch.3 compounding;
+    Table 4-2 motor unit of the topology; + 20 kg with a two-speed gearbox, §3.7)."""
+
+    name = "vehicle_mass"
+    outputs = ("vehicle_mass_kg",)
+    _NAMES = {"ch7": ("glider_kg", "load_kg", "motor_kg_per_kw", "motor_base_kg", "battery_kg_per_kwh"),
+              "compounding": ("load_kg", "kerb_reference_kg", "reference_motor_kw", "reference_battery_kwh",
+                              "mass_compounding", "motor_kg_per_kw", "motor_base_kg", "battery_kg_per_kwh")}
+    _TOPO = {"SM-SA": ("gear_count", "two_speed_added_mass_kg"), "DM-DA": ("dm_da_transmission_kg",),
+             "IWM-SA": ("iwm_mass_factor",), "IWM-DA": ("iwm_mass_factor",)}
+
+    @dataclass(frozen=True)
+    class Options:
+        mass_model: str | None = None  # ch7 | compounding (default: vehicle.mass_model)
+        topology: str | None = None    # SM-SA | DM-DA | IWM-SA | IWM-DA (default: the run's)
+
+    def __init__(self, parameters: Mapping[str, float], mass_model: str = "ch7", topology: str = "SM-SA"):
+        super().__init__(parameters)
+        self.mass_model = mass_model
+        self.topology = topo_model.get_topology(topology)
+        self.inputs = ("motor_kw", "battery_kwh") + (("motor_rear_kw",) if self.topology.two_axles else ())
+
+    @classmethod
+    def from_config(cls, config, options):
+        v = vehicle_of(config)
+        model = options.mass_model or vehicle_choice(config.get("vehicle"), "mass_model")
+        if model not in cls._NAMES:
+            raise ValueError(f"vehicle_mass option mass_model must be one of {sorted(cls._NAMES)}, got {model!r}")
+        t = run_topology(config, options)
+        names = cls._NAMES[model] + tuple(k for k in cls._TOPO[t.name] if k in v)
+        if t.name != "SM-SA":
+            names += ("reference_motor_kw",)
+        return cls({k: v[k] for k in dict.fromkeys(names)}, model, t.name)
+
+    def compute(self, inputs):
+        m = topo_model.vehicle_mass_kg(self.topology, inputs["motor_kw"], inputs["battery_kwh"],
+                                       self._params(inputs), self.mass_model, inputs.get("motor_rear_kw"))
+        return {"vehicle_mass_kg": m}
+
+    @property
+    def provides_partials(self) -> bool:  # analytic for the single-motor topology (eq 7-19 / ch.3)
+        return self.topology.name == "SM-SA"
+
+    def compute_partials(self, inputs):
+        """Eq 7-19 is linear: dM/dP = motor kg/kW, dM/dE = battery kg/kWh (x the compounding
+        factor with the ch.3 rule)."""
+        p = self._params(inputs)
+        n = len(inputs["motor_kw"])
+        factor = 1.0 if self.mass_model == "ch7" else p["mass_compounding"]
+        return {("vehicle_mass_kg", "motor_kw"): np.broadcast_to(factor * p["motor_kg_per_kw"], (n,)),
+                ("vehicle_mass_kg", "battery_kwh"): np.broadcast_to(factor * p["battery_kg_per_kwh"], (n,))}
+
+
+class Range(Base):
+    """battery_kwh, energy_wh_per_km -> range_km (eq 7-28)."""
+
+    name = "range"
+    inputs = ("battery_kwh", "energy_wh_per_km")
+    outputs = ("range_km",)
+
+    @classmethod
+    def from_config(cls, config, options):
+        v = vehicle_of(config)
+        out = {"battery_usable_fraction": v["battery_usable_fraction"]}
+        if config.get("energy_model") == "chain":  # wall energy -> battery energy (models/chain.py)
+            out["charger_efficiency"] = v["charger_efficiency"]
+        return cls(out)
+
+    def compute(self, inputs):
+        p = self._params(inputs)
+        e = inputs["energy_wh_per_km"] * p.get("charger_efficiency", 1.0)
+        return {"range_km": range_model.range_km(inputs["battery_kwh"], e, p["battery_usable_fraction"])}
+
+    def compute_partials(self, inputs):
+        """Eq 7-28, R = f E_b 1000 / e: dR/dE_b = f 1000 / e, dR/de = -R / e."""
+        f = self._params(inputs)["battery_usable_fraction"]
+        e, b = inputs["energy_wh_per_km"], inputs["battery_kwh"]
+        return {("range_km", "battery_kwh"): f * 1000.0 / e + 0.0 * b,
+                ("range_km", "energy_wh_per_km"): -f * b * 1000.0 / (e * e)}
+
+
+class Acceleration(Base):
+    """motor_kw, gear_ratio, vehicle_mass_kg (, rear motor) -> accel_time_0_100_s (eqs 7-30 / 2-26 / 4-5)
+    with every motor of the topology; SM-SA two-speed follows the eq 2-6 shift rule."""
+
+    name = "acceleration"
+    outputs = ("accel_time_0_100_s",)
+    _TOPO = {"SM-SA": ("gear_count", "gear_ratio_2", "shift_speed_m_s", "two_speed_efficiency_loss"),
+             "DM-DA": (), "IWM-SA": ("iwm_speed_scale",), "IWM-DA": ("iwm_speed_scale",)}
+
+    @dataclass(frozen=True)
+    class Options:
+        topology: str | None = None
+
+    def __init__(self, parameters, topology: str = "SM-SA"):
+        super().__init__(parameters)
+        self.topology = topo_model.get_topology(topology)
+        self.inputs = (*topology_inputs(self.topology), "vehicle_mass_kg")
+
+    @classmethod
+    def from_config(cls, config, options):
+        v = vehicle_of(config)
+        t = run_topology(config, options)
+        names = acceleration.ACCEL_PARAMS + tuple(k for k in cls._TOPO[t.name] if k in v)
+        names += tuple(k for k in v if k.startswith("road_load_"))  # coast-down road load (models/road_load.py)
+        return cls({k: v[k] for k in names if k not in replaced_by_road_load(v)}, t.name)
+
+    def compute(self, inputs):
+        p = self._params(inputs)
+        if self.topology.name == "SM-SA" and np.all(np.asarray(p.get("gear_count", 1.0)) == 1.0):
+            t = acceleration.accel_time_0_100_s(inputs["motor_kw"], inputs["gear_ratio"], inputs["vehicle_mass_kg"],
+                                                {k: p[k] for k in p if k in acceleration.ACCEL_PARAMS
+                                                 or k.startswith("road_load_")})
+        else:
+            t = topo_model.accel_time_s(self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
+                                        inputs.get("gear_ratio"), inputs.get("motor_rear_kw"),
+                                        inputs.get("gear_ratio_rear"), p)
+        return {"accel_time_0_100_s": t}
+
+
+class MotorSpeed(Base):
+    """gear_ratio -> motor_speed_max_rad_s over the configured cycle (eq 7-29)."""
+
+    name = "motor_speed"
+    inputs = ("gear_ratio",)
+    outputs = ("motor_speed_max_rad_s",)
+
+    def __init__(self, parameters, max_speed_m_s: float):
+        super().__init__(parameters)
+        self.max_speed_m_s = float(max_speed_m_s)
+
+    @classmethod
+    def from_config(cls, config, options):
+        return cls({"wheel_radius_m": vehicle_of(config)["wheel_radius_m"]},
+                   float(np.max(resampled_cycle(config).speed_m_s)))
+
+    def compute(self, inputs):
+        p = self._params(inputs)
+        return {"motor_speed_max_rad_s": motor_speed.motor_speed_max_rad_s(
+            inputs["gear_ratio"], self.max_speed_m_s, p["wheel_radius_m"])}
+
+    def compute_partials(self, inputs):
+        """Eq 7-29, w = i_g v_max / r_w: dw/di_g = v_max / r_w."""
+        rw = self._params(inputs)["wheel_radius_m"]
+        n = len(inputs["gear_ratio"])
+        return {("motor_speed_max_rad_s", "gear_ratio"): np.broadcast_to(self.max_speed_m_s / rw, (n,))}
+
+
+class Cost(Base):
+    """motor_kw, battery_kwh (, motor_rear_kw) -> powertrain_cost_usd (eqs 2-21..2-24, Table 4-3, eq 4-4).
+    Option ``gearbox_cost_usd`` (default 0: eq 4-4 has no gearbox term)."""
+
+    name = "cost"
+    outputs = ("powertrain_cost_usd",)
+
+    @dataclass(frozen=True)
+    class Options:
+        topology: str | None = None
+        gearbox_cost_usd: float = 0.0  # eq 4-4 has no gearbox term
+
+    def __init__(self, parameters, topology: str = "SM-SA", gearbox_cost_usd: float = 0.0):
+        super().__init__(parameters)
+        self.topology = topo_model.get_topology(topology)
+        if isinstance(gearbox_cost_usd, bool) or not isinstance(gearbox_cost_usd, (int, float)):
+            raise ValueError(f"cost option gearbox_cost_usd must be a number, got {gearbox_cost_usd!r}")
+        self.gearbox_cost_usd = float(gearbox_cost_usd)
+        if not (np.isfinite(self.gearbox_cost_usd) and self.gearbox_cost_usd >= 0):
+            raise ValueError(f"cost option gearbox_cost_usd must be >= 0, got {gearbox_cost_usd!r}")
+        self.inputs = ("motor_kw", "battery_kwh") + (("motor_rear_kw",) if self.topology.two_axles else ())
+
+    @classmethod
+    def from_config(cls, config, options):
+        return cls({"power_to_energy_ratio": vehicle_of(config)["power_to_energy_ratio"]},
+                   run_topology(config, options).name, options.gearbox_cost_usd)
+
+    def compute(self, inputs):
+        p = self._params(inputs)
+        if self.topology.name == "SM-SA" and self.gearbox_cost_usd == 0.0:
+            c = cost.powertrain_cost_usd(inputs["motor_kw"], inputs["battery_kwh"], p["power_to_energy_ratio"])
+        else:
+            c = topo_model.powertrain_cost_usd(self.topology, inputs["motor_kw"], inputs["battery_kwh"],
+                                               inputs.get("motor_rear_kw"), p["power_to_energy_ratio"],
+                                               self.gearbox_cost_usd)
+        return {"powertrain_cost_usd": c}
+
+    @property
+    def provides_partials(self) -> bool:  # analytic for the single-motor topology
+        return self.topology.name == "SM-SA"
+
+    def compute_partials(self, inputs):
+        """Eqs 2-21..2-24 are linear: dC/dP = 16 $/kW, dC/dE = 11.1 P/E + 221.1 + 13 $/kWh
+        (a gearbox cost is a constant)."""
+        pe = self._params(inputs)["power_to_energy_ratio"]
+        n = len(inputs["motor_kw"])
+        return {("powertrain_cost_usd", "motor_kw"): np.full(n, 16.0),
+                ("powertrain_cost_usd", "battery_kwh"): np.broadcast_to(11.1 * np.asarray(pe) + 221.1 + 13.0, (n,))}
+
+
+class BatterySizing(Base):
+    """energy_wh_per_km -> battery_kwh giving exactly the target range (eq 7-28 inverted)."""
+
+    name = "battery_sizing"
+    inputs = ("energy_wh_per_km",)
+    outputs = ("battery_kwh",)
+
+    @dataclass(frozen=True)
+    class Options:
+        range_target_km: float | None = None  # default: the problem's range_km lower constraint
+
+    def __init__(self, parameters, range_target_km: float):
+        super().__init__(parameters)
+        self.range_target_km = float(range_target_km)
+
+    @classmethod
+    def from_config(cls, config, options):
+        target = options.range_target_km
+        if target is None:
+            target = ((config.get("problem") or {}).get("constraints") or {}).get("range_km", {}).get("lower")
+        if target is None:
+            raise ValueError("battery_sizing needs option range_target_km (or a range_km lower constraint)")
+        range_model.check_design("range_target_km", target)
+        v = vehicle_of(config)
+        params = {"battery_usable_fraction": v["battery_usable_fraction"]}
+        if config.get("energy_model") == "chain":  # wall energy -> battery energy (models/chain.py)
+            params["charger_efficiency"] = v["charger_efficiency"]
+        return cls(params, float(target))
+
+    def compute(self, inputs):
+        p = self._params(inputs)
+        e = inputs["energy_wh_per_km"] * p.get("charger_efficiency", 1.0)
+        return {"battery_kwh": range_model.battery_kwh_for_range(self.range_target_km, e,
+                                                                 p["battery_usable_fraction"])}
+
+    def compute_partials(self, inputs):
+        """Eq 7-28 inverted, E_b = R e / (1000 f): dE_b/de = R / (1000 f)."""
+        f = self._params(inputs)["battery_usable_fraction"]
+        n = len(inputs["energy_wh_per_km"])
+        return {("battery_kwh", "energy_wh_per_km"): np.broadcast_to(self.range_target_km / (1000.0 * np.asarray(f)), (n,))}
+
+
+BUILTIN: dict[str, type] = {
+    "vehicle_mass": VehicleMass,
+    "energy": Energy,
+    "range": Range,
+    "acceleration": Acceleration,
+    "motor_speed": MotorSpeed,
+    "cost": Cost,
+    "battery_sizing": BatterySizing,
+    "cycle_range": CycleRange,
+}
+
+
+def default_names(config: Mapping[str, Any]) -> list[str]:
+    """Names of the default disciplines of a config (without building them)."""
+    names = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]
+    if (config.get("problem") or {}).get("battery_sized_for_range"):
+        names.append("battery_sizing")
+    return names
+
+
+def default_disciplines(config: Mapping[str, Any]) -> list:
+    """The thesis' Fig 7-17 disciplines plus cost; battery sizing when the problem asks for it."""
+    return [BUILTIN[n].from_config(config, BUILTIN[n].Options()) for n in default_names(config)]

@@ -1,0 +1,90 @@
+"""What the built-in disciplines share: the validated vehicle and cycle of a config, the run's
+topology (every entry that sets one must agree; the design variables must exist in it), the
+constants a coast-down road load replaces, and :class:`Base` (configured parameters merged with
+per-point overrides; no option unless a discipline declares its own ``Options``)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from bev_mdo.mdo.discipline import Discipline
+from bev_mdo.models import road_load
+from bev_mdo.models import topology as topo_model
+from bev_mdo.models.cycles import load_cycle, resample
+from bev_mdo.models.params import ROAD_LOAD_REPLACES, validate_cycle, validate_vehicle
+
+ENERGY_MODELS = ("flat", "breakdown", "quasi_static", "chain")
+ROAD_KEYS = road_load.FLAT_KEYS
+
+
+def vehicle_of(config: Mapping[str, Any]) -> dict[str, float]:
+    return validate_vehicle(config.get("vehicle"))
+
+
+def resampled_cycle(config: Mapping[str, Any]):
+    c = validate_cycle(config.get("cycle"))
+    return resample(load_cycle(c["name"], config.get("cycle_traces")), c["dt_s"], c["interpolation"], c["smoothing"])
+
+
+TOPOLOGY_DISCIPLINES = ("vehicle_mass", "energy", "acceleration", "cost", "cycle_range")
+
+
+def run_topology(config: Mapping[str, Any], options: Mapping[str, Any]) -> topo_model.Topology:
+    """The run's topology from the discipline options (or ``vehicle.topology`` if the vehicle
+    schema allows it); all entries must agree and the design variables must exist in it."""
+    chosen = set()
+    for e in config.get("disciplines") or []:
+        if isinstance(e, Mapping) and isinstance(e.get("options"), Mapping) and "topology" in e["options"]:
+            chosen.add(topo_model.get_topology(e["options"]["topology"]).name)
+    vt = (config.get("vehicle") or {}).get("topology")
+    if vt is not None:
+        chosen.add(topo_model.get_topology(vt).name)
+    if len(chosen) > 1:
+        raise ValueError(f"disciplines disagree on the topology: {sorted(chosen)}; set one topology for all")
+    name = options.topology or (chosen.pop() if chosen else "SM-SA")
+    t = topo_model.get_topology(name)
+    dvs = ((config.get("problem") or {}).get("design_variables") or {})
+    topo_model.check_design_variables(t, list(dvs))
+    return t
+
+
+def topology_inputs(t: topo_model.Topology, *, gear: bool = True) -> tuple[str, ...]:
+    out = ["motor_kw"] + (["gear_ratio"] if t.geared and gear else [])
+    if t.two_axles:
+        out += ["motor_rear_kw"] + (["gear_ratio_rear"] if t.geared and gear else [])
+    return tuple(out)
+
+
+def replaced_by_road_load(v: Mapping[str, float]) -> tuple[str, ...]:
+    """The constants a coast-down road load replaces (models/road_load.py): not overridable per point
+    then, since no model reads them (an override such as --set drag_area_m2=0.7 was accepted and
+    changed nothing, where the config refuses giving both)."""
+    return ROAD_LOAD_REPLACES if road_load.uses_road_load(v) else ()
+
+
+class Base(Discipline):
+    """Holds the configured parameter values and merges per-point overrides."""
+
+    @dataclass(frozen=True)
+    class Options:  # no option unless a discipline declares its own
+        pass
+
+    def __init__(self, parameters: Mapping[str, float]):
+        self.parameters = dict(parameters)
+
+    def _params(self, inputs: Mapping[str, np.ndarray]) -> dict:
+        out = {k: (np.asarray(inputs[k], float) if k in inputs else v) for k, v in self.parameters.items()}
+        if any(k in inputs for k in ROAD_KEYS if k in self.parameters):
+            # per-point road load: the models take it as given (no spec table of theirs has it), so the
+            # config's checks are applied here (a negative A gave 80.8 Wh/km instead of an error)
+            road_load.check_values(out)
+        return out
+
+
+
+def flag(discipline: str, key: str, value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise ValueError(f"{discipline} option {key} must be true or false, got {value!r}")
+    return value

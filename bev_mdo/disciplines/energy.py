@@ -1,0 +1,192 @@
+"""The energy disciplines: ``energy`` (energy per km on the configured cycle, or a distance-weighted
+mix of cycles, with optional feasibility margins) and ``cycle_range`` (range by repeating a cycle)."""
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from bev_mdo.disciplines.common import (ENERGY_MODELS, Base, flag, replaced_by_road_load, resampled_cycle,
+                                        run_topology, topology_inputs, vehicle_of)
+from bev_mdo.models import flat
+from bev_mdo.models import topology as topo_model
+from bev_mdo.models.cycles import load_cycle, resample
+from bev_mdo.models.params import validate_cycle
+
+
+class Energy(Base):
+    """vehicle_mass_kg, gear_ratio (, motor_kw, battery_kwh, rear motor) -> energy_wh_per_km on the
+    configured cycle (option ``cycle`` overrides it). Option ``feasibility_outputs: true`` adds
+    ``drive_torque_margin_nm`` (min over the cycle of envelope minus demand; at the motor for
+    SM-SA, at the wheels otherwise) and, with quasi_static, ``motor_speed_margin_rad_s`` (limit minus
+    max) or, with chain, ``drive_power_margin_kw`` (rated power minus the largest drive power; over
+    every cycle of ``cycle_weights``): constrain them >= 0 so that an optimiser cannot pick a motor
+    that does not follow the cycle (the chain's energy of such a design is the energy of the demand)."""
+
+    name = "energy"
+    outputs = ("energy_wh_per_km",)
+
+    @dataclass(frozen=True)
+    class Options:
+        energy_model: str | None = None        # default: the config's energy_model
+        cycle: str | None = None               # a cycle name or CSV (default: the config's cycle)
+        cycle_weights: Mapping[str, float] | None = None  # {cycle: distance share}, summing to 1
+        feasibility_outputs: bool = False      # add the drive torque / speed / power margins
+        topology: str | None = None
+
+    def __init__(self, parameters, resampled, energy_model: str = "flat", extra: Mapping[str, float] | None = None,
+                 topology: str = "SM-SA", feasibility_outputs: bool = False):
+        super().__init__(parameters)
+        if energy_model not in ENERGY_MODELS:
+            raise ValueError(f"energy_model must be one of {list(ENERGY_MODELS)}, got {energy_model!r}")
+        self.energy_model = energy_model
+        self.resampled = resampled
+        self.extra = dict(extra or {})  # fixed constants passed to the model, not overridable
+        self.topology = topo_model.get_topology(topology)
+        if self.topology.name != "SM-SA" and energy_model != "quasi_static":
+            raise ValueError(f"topology {self.topology.name} needs energy_model quasi_static, got {energy_model!r}")
+        if feasibility_outputs and energy_model not in ("quasi_static", "chain"):
+            raise ValueError("energy option feasibility_outputs needs energy_model quasi_static or chain")
+        self.feasibility_outputs = bool(feasibility_outputs)
+        if feasibility_outputs:
+            self.outputs = ("energy_wh_per_km", "drive_torque_margin_nm",
+                            "motor_speed_margin_rad_s" if energy_model == "quasi_static" else "drive_power_margin_kw")
+        if energy_model == "flat":
+            self.inputs = ("vehicle_mass_kg", "gear_ratio")
+            self._fn = flat.energy_wh_per_km
+        elif energy_model == "quasi_static":
+            # battery_kwh feeds the OCV+R pack (SOC, 2C/5C limits)
+            self.inputs = ("vehicle_mass_kg", *topology_inputs(self.topology), "battery_kwh")
+            self._fn = None
+        else:
+            self.inputs = ("vehicle_mass_kg", "gear_ratio", "motor_kw")
+            self._fn = importlib.import_module(f"bev_mdo.models.{energy_model}").energy_wh_per_km
+
+    @classmethod
+    def from_config(cls, config, options):
+        v = vehicle_of(config)
+        model = options.energy_model or config.get("energy_model", "flat")
+        if model == "flat":
+            names = flat.FLAT_PARAMS
+        elif model in ENERGY_MODELS:
+            specs = getattr(importlib.import_module(f"bev_mdo.models.{model}"), "PARAM_SPECS", {})
+            # regen_fraction only where the model reads it (breakdown's specs): chain and quasi_static have
+            # their own regeneration rules, and an override of it changed nothing there
+            names = tuple(dict.fromkeys([*flat.FLAT_PARAMS[:4], "gear_efficiency", *specs]))
+        else:
+            raise ValueError(f"energy_model must be one of {list(ENERGY_MODELS)}, got {model!r}")
+        # the two-speed mass is added by vehicle_mass (once), never here
+        names = [k for k in names if k in v and k != "two_speed_added_mass_kg"]
+        # the coast-down road load is overridable per point, as in acceleration (else --set road_load_a_n=..
+        # moved the acceleration time and left the energy on the configured road load)
+        names += [k for k in v if k.startswith("road_load_")]
+        names = [k for k in names if k not in replaced_by_road_load(v)]
+        extra = {k: x for k, x in v.items() if k not in names}
+        if model == "quasi_static":
+            extra["two_speed_added_mass_kg"] = 0.0
+        disc = cls({k: v[k] for k in names}, _cycle_option(config, options), model, extra,
+                   run_topology(config, options).name, flag("energy", "feasibility_outputs", options.feasibility_outputs))
+        disc.weighted = _cycle_weights(config, options, model)
+        return disc
+
+    def _simulate(self, inputs, p):
+        return topo_model.simulate(self.resampled, p, self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
+                                   inputs["battery_kwh"], inputs.get("gear_ratio"), inputs.get("motor_rear_kw"),
+                                   inputs.get("gear_ratio_rear"))
+
+    def compute(self, inputs):
+        p = {**self.extra, **self._params(inputs)}
+        if self._fn is None:
+            r = self._simulate(inputs, p)
+            out = {"energy_wh_per_km": r.energy_wh_per_km}
+            if self.feasibility_outputs:
+                out["drive_torque_margin_nm"] = np.minimum(r.torque_margin_nm, 1e9)
+                out["motor_speed_margin_rad_s"] = (np.broadcast_to(p.get("motor_speed_limit_rpm", 10500.0), (len(r.energy_wh_per_km),))
+                                                   * np.pi / 30.0 * (1.0 if self.topology.geared else p.get("iwm_speed_scale", 210 / 1099.56))
+                                                   - r.motor_speed_max_rad_s)
+            return out
+        motor_kw = inputs.get("motor_kw")
+        if self.feasibility_outputs:  # chain: energy and the motor's margins, the tightest over the cycles
+            from bev_mdo.models import chain
+
+            runs = [(w, chain.simulate(r, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw))
+                    for w, r in (getattr(self, "weighted", None) or [(1.0, self.resampled)])]
+            return {"energy_wh_per_km": sum(w * c.energy_wh_per_km for w, c in runs),
+                    "drive_torque_margin_nm": np.minimum.reduce([c.torque_margin_nm for _, c in runs]),
+                    "drive_power_margin_kw": np.minimum.reduce([c.power_margin_kw for _, c in runs])}
+        if getattr(self, "weighted", None):  # e.g. EPA combined: 0.55 UDDS + 0.45 HWFET by distance
+            e = sum(w * self._fn(r, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
+                    for w, r in self.weighted)
+        else:
+            e = self._fn(self.resampled, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
+        return {"energy_wh_per_km": e}
+
+
+def _cycle_weights(config, options, model):
+    """Energy option ``cycle_weights: {cycle: distance share, ...}`` (shares summing to 1): the energy per km
+    is the distance-weighted mean over those cycles, e.g. EPA combined {epa_udds: 0.55, epa_hwfet: 0.45}."""
+    cw = options.cycle_weights
+    if cw is None:
+        return None
+    if model == "quasi_static":
+        raise ValueError("energy option cycle_weights needs energy_model flat, breakdown or chain")
+    if not isinstance(cw, Mapping) or not cw:
+        raise ValueError("energy option cycle_weights must map cycle names to distance shares")
+    total = 0.0
+    out = []
+    for name, w in cw.items():
+        if isinstance(w, bool) or not isinstance(w, (int, float)) or not 0 < w <= 1:
+            raise ValueError(f"energy option cycle_weights.{name} must be a share in (0, 1], got {w!r}")
+        total += float(w)
+        c = validate_cycle({**(config.get("cycle") or {}), "name": name})
+        out.append((float(w), resample(load_cycle(c["name"], config.get("cycle_traces")), c["dt_s"],
+                                       c["interpolation"], c["smoothing"])))
+    if abs(total - 1.0) > 1e-9:
+        raise ValueError(f"energy option cycle_weights must sum to 1, got {total:g}")
+    return out
+
+
+def _cycle_option(config, options):
+    """The configured cycle, or the discipline option ``cycle`` (a name or CSV) on the same grid."""
+    if options.cycle is None:
+        return resampled_cycle(config)
+    c = validate_cycle({**(config.get("cycle") or {}), "name": options.cycle})
+    return resample(load_cycle(c["name"], config.get("cycle_traces")), c["dt_s"], c["interpolation"], c["smoothing"])
+
+
+class CycleRange(Energy):
+    """Chapter-3 range (§3.5.3): repeat ``cycle`` (option, default nedc) from 100 % to 5 % SOC with
+    the quasi-static model of the topology -> ``range_<cycle>_km`` (e.g. range_nedc_km)."""
+
+    name = "cycle_range"
+
+    @dataclass(frozen=True)
+    class Options:
+        cycle: str = "nedc"  # the cycle repeated (a name or CSV)
+        topology: str | None = None
+
+    def __init__(self, parameters, resampled, energy_model="quasi_static", extra=None, topology="SM-SA",
+                 feasibility_outputs=False):
+        super().__init__(parameters, resampled, "quasi_static", extra, topology, False)
+        self.outputs = (f"range_{_slug(resampled.name)}_km",)
+
+    @classmethod
+    def from_config(cls, config, options):
+        return super().from_config(config, Energy.Options(energy_model="quasi_static", cycle=options.cycle,
+                                                          topology=options.topology))
+
+    def compute(self, inputs):
+        p = {**self.extra, **self._params(inputs)}
+        rng = topo_model.range_by_repeated_cycle_km(
+            self.resampled, p, self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"], inputs["battery_kwh"],
+            inputs.get("gear_ratio"), inputs.get("motor_rear_kw"), inputs.get("gear_ratio_rear"))
+        return {self.outputs[0]: rng}
+
+
+def _slug(name: str) -> str:
+    import re
+    return re.sub(r"[^a-z0-9]+", "_", str(name).lower()).strip("_") or "cycle"
+
+

@@ -1,0 +1,189 @@
+"""A key a config does not declare is refused when the config is loaded: one line on stderr naming the
+file, the key path and the nearest declared key (difflib), exit 2 (docs/user-problems.md, Options)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from bev_mdo.cli import main
+from bev_mdo.config import load_config
+from bev_mdo.testing import REPO
+
+EPA = REPO / "config" / "leaf_epa_combined.yaml"
+NEDC = REPO / "config" / "leaf_nedc.yaml"
+
+
+def _write(tmp_path: Path, text: str, name: str = "c.yaml") -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def _cli(capsys, *argv) -> tuple[int, str, str]:
+    code = main([str(a) for a in argv])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_a_misspelt_builtin_option_exits_2_naming_file_key_and_suggestion(tmp_path, capsys):
+    text = EPA.read_text()
+    assert "cycle_weights:" in text
+    cfg = _write(tmp_path, text.replace("cycle_weights:", "cycle_weigths:"))
+    for argv in (("optimize", cfg, "--transport", "inprocess"), ("optimize", cfg),  # ROS: refused at load
+                 ("evaluate", cfg)):
+        code, out, err = _cli(capsys, *argv)
+        assert code == 2, argv
+        assert out == "" and len(err.strip().splitlines()) == 1, err
+        assert f"{cfg}: disciplines[1] (energy).options.cycle_weigths: unknown key; did you mean " \
+               "'cycle_weights'?" in err
+
+
+def test_an_unknown_optimizer_option_exits_2_with_the_suggestion(tmp_path, capsys):
+    cfg = _write(tmp_path, NEDC.read_text().replace("optimizer: {name: SLSQP, options: {}",
+                                                    "optimizer: {name: SLSQP, options: {maxitr: 5}"))
+    assert "maxitr" in cfg.read_text()
+    code, out, err = _cli(capsys, "optimize", cfg, "--transport", "inprocess")
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1, err
+    assert f"{cfg}: optimizer.options.maxitr: unknown key of SLSQP; did you mean 'maxiter'?" in err
+
+
+@pytest.mark.parametrize("optimizer,bad,near", [("COBYLA", "rhobegn", "rhobeg"), ("trust-constr", "gtoll", "gtol"),
+                                                ("chebyshev-pairwise", "maxiters", "maxiter")])
+def test_every_optimizer_checks_its_options(tmp_path, optimizer, bad, near):
+    raw = yaml.safe_load(NEDC.read_text())
+    raw["optimizer"] = {"name": optimizer, "options": {bad: 1}}
+    with pytest.raises(ValueError, match=rf"optimizer.options.{bad}: unknown key of {optimizer}; did you mean '{near}'"):
+        load_config(raw)
+
+
+@pytest.mark.parametrize("section,edit,path,near", [
+    ("vehicle", lambda r: r["vehicle"].update(drag_aera_m2=0.7), "vehicle.drag_aera_m2", "drag_area_m2"),
+    ("cycle", lambda r: r["cycle"].update(interpolaton="linear"), "cycle.interpolaton", "interpolation"),
+    ("mda", lambda r: r["mda"].update(tolerence=1e-9), "mda.tolerence", "tolerance"),
+    ("optimizer", lambda r: r["optimizer"].update(fd_stp=1e-6), "optimizer.fd_stp", "fd_step"),
+    ("problem", lambda r: r["problem"].update(constraint={}), "problem.constraint", "constraints"),
+    ("design variable", lambda r: r["problem"]["design_variables"]["motor_kw"].update(lowr=40),
+     "problem.design_variables.motor_kw.lowr", "lower"),
+    ("constraint", lambda r: r["problem"]["constraints"]["range_km"].update(lowwer=1),
+     "problem.constraints.range_km.lowwer", "lower"),
+    ("top level", lambda r: r.update(optimiser={}), "optimiser", "optimizer"),
+    ("ros", lambda r: r.update(ros={"domain": 3}), "ros.domain", "domain_id"),
+])
+def test_every_section_names_the_key_path_and_the_nearest_key(section, edit, path, near):
+    raw = yaml.safe_load(NEDC.read_text())
+    edit(raw)
+    with pytest.raises(ValueError, match=rf"^<config>: {path}: unknown key; did you mean '{near}'\?"):
+        load_config(raw)
+
+
+def test_options_of_a_discipline_without_options_are_refused():
+    raw = yaml.safe_load(NEDC.read_text())
+    raw["disciplines"] = ["vehicle_mass", "energy", {"name": "range", "options": {"usable": 0.9}},
+                          "acceleration", "motor_speed", "cost"]
+    with pytest.raises(ValueError, match=r"disciplines\[2\] \(range\).options.usable: unknown key; none is declared"):
+        load_config(raw)
+    raw["disciplines"][2] = "range"
+    raw["recording"] = {"compress": True}
+    with pytest.raises(ValueError, match=r"recording.compress: unknown key"):
+        load_config(raw)
+
+
+USER = '''
+from dataclasses import dataclass
+
+import numpy as np
+
+
+class Declared:
+    """A user discipline declaring its options in a dataclass."""
+
+    name = "declared"
+    inputs = ("x",)
+    outputs = ("y",)
+
+    @dataclass(frozen=True)
+    class Options:
+        gain: float = 1.0
+        offset: float = 0.0
+
+    def __init__(self, gain, offset):
+        self.gain, self.offset = gain, offset
+
+    @classmethod
+    def from_config(cls, config, options):
+        return cls(options.gain, options.offset)
+
+    def compute(self, inputs):
+        return {"y": self.gain * inputs["x"] + self.offset}
+
+
+class ByConstructor:
+    """A user discipline built as cls(**options): its keyword parameters are the options."""
+
+    name = "by_constructor"
+    inputs = ("y",)
+    outputs = ("f",)
+
+    def __init__(self, power=2.0):
+        self.power = power
+
+    def compute(self, inputs):
+        return {"f": np.abs(inputs["y"]) ** self.power}
+'''
+
+
+def _user_config(tmp_path: Path, declared: dict, by_constructor: dict) -> Path:
+    (tmp_path / "user_keys.py").write_text(USER)
+    raw = {"name": "user_keys",
+           "disciplines": [{"name": "declared", "class": "user_keys:Declared", "options": declared},
+                           {"name": "by_constructor", "class": "user_keys:ByConstructor", "options": by_constructor}],
+           "problem": {"objective": "f", "design_variables": {"x": {"lower": -1, "upper": 1, "initial": 0.5}}}}
+    return _write(tmp_path, yaml.safe_dump(raw, sort_keys=False), "user.yaml")
+
+
+def test_a_user_discipline_declares_its_options_and_gets_the_same_check(tmp_path, capsys):
+    good = _user_config(tmp_path, {"gain": 2.0, "offset": 0.5}, {"power": 2.0})
+    cfg = load_config(good)
+    from bev_mdo.config import resolve_disciplines
+
+    d = {x.name: x for x in resolve_disciplines(cfg)}
+    assert (d["declared"].inner if hasattr(d["declared"], "inner") else d["declared"]).gain == 2.0
+    for declared, by_constructor, path, near in (({"gian": 2.0}, {}, "disciplines[0] (declared).options.gian", "gain"),
+                                                  ({}, {"powr": 3}, "disciplines[1] (by_constructor).options.powr",
+                                                   "power")):
+        bad = _user_config(tmp_path, declared, by_constructor)
+        for argv in (("evaluate", bad, "--set", "x=0.1"), ("optimize", bad, "--transport", "inprocess"),
+                     ("optimize", bad)):
+            code, out, err = _cli(capsys, *argv)
+            assert code == 2, (argv, err)
+            assert out == "" and len(err.strip().splitlines()) == 1, err
+            assert f"{bad}: {path}: unknown key; did you mean '{near}'?" in err
+
+
+def test_every_shipped_config_still_loads():
+    files = sorted([*REPO.glob("config/*.yaml"), *REPO.glob("examples/**/*.yaml")])
+    assert len(files) >= 8
+    for f in files:
+        load_config(f)
+
+
+def test_a_class_without_from_config_may_declare_options_too(tmp_path):
+    """Options declared in a dataclass, the class built as cls(**options) with the defaults filled."""
+    (tmp_path / "plain_opts.py").write_text(
+        "from dataclasses import dataclass\n\n\nclass Plain:\n    name = 'plain'\n    inputs = ('x',)\n"
+        "    outputs = ('f',)\n\n    @dataclass\n    class Options:\n        power: float = 2.0\n"
+        "        shift: float = 0.0\n\n    def __init__(self, power, shift):\n        self.power, self.shift = power, shift\n\n"
+        "    def compute(self, inputs):\n        return {'f': inputs['x'] ** self.power + self.shift}\n")
+    raw = {"disciplines": [{"name": "plain", "class": "plain_opts:Plain", "options": {"shift": 1.5}}],
+           "search_path": [str(tmp_path)],
+           "problem": {"objective": "f", "design_variables": {"x": {"lower": 0, "upper": 1}}}}
+    from bev_mdo.config import resolve_disciplines
+
+    (disc,) = resolve_disciplines(load_config(raw))
+    inner = getattr(disc, "inner", disc)
+    assert (inner.power, inner.shift) == (2.0, 1.5)
+    raw["disciplines"][0]["options"] = {"shfit": 1.5}
+    with pytest.raises(ValueError, match=r"disciplines\[0\] \(plain\).options.shfit: unknown key; did you mean 'shift'"):
+        load_config(raw)
