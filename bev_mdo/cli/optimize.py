@@ -169,8 +169,13 @@ def _run_inprocess(config, args, show, x0=None):
     from bev_mdo.cli.runbag import in_process_bag  # --bag works in process too
 
     bag, writer, show = in_process_bag(config, args, show)
-    res = run_optimization(run_settings(config), ev, formulation=args.formulation, optimizer=args.optimizer, x0=x0,
-                           callback=show)
+    try:
+        res = run_optimization(run_settings(config), ev, formulation=args.formulation, optimizer=args.optimizer,
+                               x0=x0, callback=show)
+    except BaseException:  # SIGINT, SIGTERM (cli.Terminated), a failure: the bag keeps every finished iteration
+        if writer is not None:
+            writer.close()
+        raise
     out = res.to_dict()
     out.pop("history")
     baseline = analyse_baseline(config, NamingInProcessEvaluator(resolve_disciplines(config), timeout_s=budget,

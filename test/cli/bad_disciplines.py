@@ -53,3 +53,16 @@ class Summed:
 
     def compute(self, inputs):
         return {"summed_kw": float(np.sum(inputs["motor_kw"]))}
+
+
+class Quits:
+    """Calls sys.exit(3) for every point (a user script's habit)."""
+
+    name = "quits"
+    inputs = ("motor_kw",)
+    outputs = ("quits_kw",)
+
+    def compute(self, inputs):
+        import sys
+
+        sys.exit(3)
