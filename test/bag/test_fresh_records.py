@@ -160,3 +160,20 @@ def test_an_unsigned_run_says_its_records_are_unverified(tmp_path):
     checks: dict = {}
     assert len(history(bag, checks=checks)) == 2
     assert "not signed" in checks["unverified"]
+
+
+def test_replay_leaves_out_the_replayed_and_foreign_records(tmp_path, signed, rclpy_context):
+    from rclpy.node import Node
+
+    from bev_mdo.ros.replay import Replayer
+
+    key_file, signer, recs = signed
+    other = signer.sign_iteration(_record("fedcba9876543210", 2, 120.0))
+    bag = _bag(tmp_path / "replayed", [*recs[:3], recs[0], other, recs[3], recs[3]], _config(key_file))
+    node = Node("fresh_records_replay", context=rclpy_context)
+    try:
+        player = Replayer(node, open_bag(bag), None)
+        assert [m.data for m in player.messages] == recs
+        assert player.order.dropped == {"duplicate": 1, "from the past": 1, "of another run": 1}
+    finally:
+        node.destroy_node()

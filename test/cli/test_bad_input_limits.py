@@ -57,10 +57,11 @@ def _bomb(levels: int = 9) -> str:
 
 
 def test_a_yaml_alias_bomb_in_a_disciplines_options(tmp_path):
-    text = _leaf_text() + ("disciplines:\n  - vehicle_mass\n  - name: energy\n    options:\n      junk:\n"
+    text = _leaf_text() + ("disciplines:\n  - vehicle_mass\n  - range\n  - acceleration\n  - motor_speed\n"
+                           "  - name: energy\n    options:\n      junk:\n"
                            + "\n".join("  " + l for l in _bomb().splitlines()) + "\n")
     p = _bev_mdo(tmp_path, "optimize", str(_config(tmp_path, text)), "--transport", "inprocess", "--no-record")
-    _one_line_exit_2(p, "bad.yaml", "alias")
+    _one_line_exit_2(p, "bad.yaml", "aliases are expanded", "alias bomb")
 
 
 def test_deeply_nested_yaml(tmp_path):
