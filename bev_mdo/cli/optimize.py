@@ -225,5 +225,8 @@ def check_new_bag(bag: Path, what: str) -> None:
     """A bag may be written to `bag`: ValueError (exit 2) naming it if a bag or a file is there."""
     if bag.exists() and not bag.is_dir():
         raise ValueError(f"{what} {bag}: is a file, not a bag directory")
+    blocking = next((p for p in bag.parents if p.exists() and not p.is_dir()), None)
+    if blocking is not None:
+        raise ValueError(f"{what} {bag}: {blocking} is a file, not a folder")
     if (bag / "metadata.yaml").exists() or any(bag.glob("*.mcap")):
         raise ValueError(f"{what} {bag}: a bag already exists there; choose a new directory")

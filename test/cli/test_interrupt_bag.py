@@ -135,3 +135,11 @@ def test_an_interrupted_ros_optimisation_keeps_its_bag(tmp_path, sig, ros_domain
     assert status == EXIT[sig], err[-2000:]
     assert "Traceback" not in err
     _check_iterations(tmp_path / "b", printed)
+    from bev_mdo.bag.history import history
+    from bev_mdo.bag.reader import open_bag
+
+    # signed by default over ROS: the bag says so, and every record verifies with the run's key
+    assert open_bag(tmp_path / "b").metadata["bev_mdo_signing"]["signed"] == "true"
+    checks: dict = {}
+    rows = history(tmp_path / "b", checks=checks)
+    assert len(rows) >= len(printed) and checks["dropped"] == {} and checks["unverified"] == ""
