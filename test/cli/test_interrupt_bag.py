@@ -143,3 +143,24 @@ def test_an_interrupted_ros_optimisation_keeps_its_bag(tmp_path, sig, ros_domain
     checks: dict = {}
     rows = history(tmp_path / "b", checks=checks)
     assert len(rows) >= len(printed) and checks["dropped"] == {} and checks["unverified"] == ""
+
+
+def test_a_run_stopped_by_an_error_keeps_its_bag(tmp_path):
+    """A discipline whose output turns the wrong shape stops the run (exit 2, one line); the bag is
+    closed with the iterations finished before."""
+    import yaml
+
+    raw = yaml.safe_load(CONFIG.read_text())
+    raw["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed",
+                          {"name": "shape", "class": "bad_disciplines:WrongShapeLater"}]
+    raw["problem"]["constraints"]["shape_kw"] = {"upper": 1.0e9}
+    config = tmp_path / "shape.yaml"
+    config.write_text(yaml.safe_dump(raw, sort_keys=False))
+    env = {**os.environ, "PYTHONPATH": f"{Path(__file__).resolve().parent}{os.pathsep}{REPO}"}
+    p = subprocess.run([sys.executable, "-m", "bev_mdo", "optimize", str(config), "--transport", "inprocess",
+                        "--optimizer", "differential_evolution", "--bag", "b"], capture_output=True, text=True,
+                       env=env, cwd=tmp_path, timeout=300)
+    assert p.returncode == 2 and "shape" in p.stderr.strip().splitlines()[-1], p.stderr[-2000:]
+    printed = [l for l in p.stdout.splitlines() if l.startswith("iter")]
+    assert printed, p.stdout[-2000:]
+    _check_iterations(tmp_path / "b", printed)
