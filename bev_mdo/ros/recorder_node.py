@@ -10,6 +10,9 @@ under ``prefix``), ``prefix`` (``/bev_mdo/``), ``config_file`` (its text is stor
 (10000), ``discovery_period_s`` (0.5), ``flush_period_s`` (1.0), ``status_period_s`` (0.05), ``nice``
 (10: the recorder runs at a lower CPU priority than the nodes and the coordinator).
 
+Iteration records are kept once and in order, of the recorder's own run (``bag.history.RecordOrder``):
+duplicates, records from the past and of other runs are dropped and counted in its closing line.
+
 Status: whenever it changes, ``{"run_id", "bag", "matched": {topic: matched publishers}}`` (JSON)
 on ``/bev_mdo_recorder/status`` (TRANSIENT_LOCAL, not recorded), so a coordinator can wait
 until the recorder has matched a new node's publishers before that node's first message.
