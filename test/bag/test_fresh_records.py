@@ -177,3 +177,17 @@ def test_replay_leaves_out_the_replayed_and_foreign_records(tmp_path, signed, rc
         assert player.order.dropped == {"duplicate": 1, "from the past": 1, "of another run": 1}
     finally:
         node.destroy_node()
+
+
+def test_the_recorders_check_keeps_its_own_run_once_and_in_order(signed):
+    """RecordOrder is what the recorder node applies to every IterationRecord it receives."""
+    from bev_mdo.bag.history import RecordOrder
+
+    _, signer, recs = signed
+    other = signer.sign_iteration(_record("fedcba9876543210", 5, 120.0))
+    order = RecordOrder(RUN)
+    kept = [r for r in [recs[0], recs[2], recs[0], other, recs[2], recs[3], b"\x00\x01\x00\x00junk"] if order.keep(r)]
+    assert kept == [recs[0], recs[2], recs[3]]
+    assert order.dropped == {"from the past": 1, "duplicate": 1, "of another run": 1, "malformed": 1}
+    assert order.order.missing == 1
+    assert "1 iteration record(s) missing" in order.note()
