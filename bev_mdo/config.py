@@ -41,18 +41,13 @@ def load_config(path: str | Path | Mapping[str, Any]) -> dict:
     if isinstance(path, Mapping):
         where, raw = "<config>", copy.deepcopy(dict(path))
     else:
-        import yaml
+        from bev_mdo.yamlload import read_yaml_file
 
         p = Path(path)
         where = str(p)
         if not p.is_file():
             raise ValueError(f"{where}: no such config file")
-        try:
-            raw = load_yaml(p.read_text())
-        except yaml.YAMLError as exc:
-            mark = getattr(exc, "problem_mark", None)
-            at = f" at line {mark.line + 1}" if mark else ""
-            raise ValueError(f"{where}: not valid YAML{at}: {getattr(exc, 'problem', exc)}") from None
+        raw = read_yaml_file(p)  # one-line ValueErrors: binary, too big, too deep, alias bomb, bad YAML
         base = p.resolve().parent
     try:
         if isinstance(raw, Mapping):
@@ -63,30 +58,22 @@ def load_config(path: str | Path | Mapping[str, Any]) -> dict:
         raise ValueError(f"{where}: {msg}") from None
 
 
-def _unique_key_loader():
-    import yaml
-
-    class UniqueKeyLoader(yaml.SafeLoader):
-        """yaml.SafeLoader that refuses a key given twice in one mapping (plain YAML keeps the last)."""
-
-        def construct_mapping(self, node, deep=False):
-            seen = set()
-            for key_node, _ in node.value:
-                key = self.construct_object(key_node, deep=True)
-                if isinstance(key, (str, int, float, bool)) and key in seen:
-                    raise yaml.constructor.ConstructorError(
-                        None, None, f"duplicate key {key!r}", key_node.start_mark)
-                seen.add(key)
-            return super().construct_mapping(node, deep)
-
-    return UniqueKeyLoader
+def check_run_name(name: Any) -> None:
+    """A run's ``name`` becomes part of its bag and log folder names: ValueError unless it is a plain
+    name (no path separator, not '.' or '..', no control character, at most 100 characters)."""
+    bad = (not isinstance(name, str) or not name.strip() or "/" in name or "\\" in name or name in (".", "..")
+           or ".." in name or len(name) > 100 or any(ord(c) < 32 for c in name))
+    if bad:
+        raise ValueError(f"name {name!r} must be a plain run name (letters, digits, '-', '_', '.'; no path "
+                         "separator, no '..', at most 100 characters): it names the run's bag and log folders")
 
 
 def load_yaml(text: str) -> Any:
-    """Parse YAML like yaml.safe_load, but a key given twice in one mapping is an error."""
-    import yaml
+    """Parse YAML like yaml.safe_load, but a key given twice in one mapping is an error and the size,
+    nesting, aliases and list lengths are limited (bev_mdo.yamlload)."""
+    from bev_mdo.yamlload import load_yaml as load
 
-    return yaml.load(text, Loader=_unique_key_loader())  # noqa: S506 - a SafeLoader subclass
+    return load(text)
 
 
 # scipy solver behind each built-in optimiser: its keyword arguments are the accepted options
@@ -126,6 +113,11 @@ def check_optimizer_options(name: str, options: Mapping[str, Any]) -> None:
         return
     known = [k for k, p in params.items() if k not in _NOT_OPTIONS and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
     check_keys("optimizer.options", options, known, of=name)
+    for key, value in options.items():
+        default = params[key].default
+        if (isinstance(default, (int, float)) and not isinstance(default, bool)
+                and (isinstance(value, bool) or not isinstance(value, (int, float)))):
+            raise ValueError(f"optimizer.options.{key}: {value!r} is not a number ({name}'s default is {default!r})")
 
 
 def _resolve(raw: Any) -> dict:
@@ -139,6 +131,7 @@ def _resolve(raw: Any) -> dict:
     check_keys("", raw, TOP_KEYS)
     cfg = dict(raw)
     cfg.setdefault("name", "run")
+    check_run_name(cfg["name"])
     cfg["energy_model"] = cfg.get("energy_model", "flat")
     from bev_mdo.disciplines import ENERGY_MODELS
 

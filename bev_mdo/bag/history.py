@@ -33,37 +33,80 @@ def _in_run(run_id: str, run: str) -> bool:
     return run_id == run or run_id.startswith(run + "-")
 
 
-def signer_for(bag, key_file: str | None = None):
-    """(Signer or None, why not) for verifying the bag's records: the given key file, else the
-    ``ros.sign_key_file`` path named in the bag's stored configuration (the key itself is never
-    in the bag). (None, "") when the run was not signed."""
-    import yaml
+def signer_for(bag, key_file: str | None = None, no_verify: bool = False):
+    """The ``bag.signing.Verifier`` of a bag's records (BagError when its signing record and stored
+    configuration disagree; see bag/signing.py)."""
+    from bev_mdo.bag.signing import verifier
 
-    from bev_mdo.ros.auth import AuthError, Signer, read_key
+    return verifier(bag if isinstance(bag, Bag) else open_bag(bag), key_file, no_verify)
 
-    if not key_file:
+
+class Sequence:
+    """Per-run order of iteration records: each run numbers its records 1, 2, 3, ... (``sequence``, under
+    the signature). A record whose number was already seen is a ``duplicate``; one below the last is
+    ``from the past`` (a replay of an older record); both are dropped. A jump counts the records
+    ``missing`` in between (kept: nothing newer is lost)."""
+
+    def __init__(self):
+        self.last: dict[str, int] = {}
+        self.missing = 0
+
+    def check(self, run_id: str, sequence: int) -> str | None:
+        """None to keep the record, else why it is dropped ("duplicate", "from the past")."""
+        last = self.last.get(run_id)
+        if last is None:  # the run's first record: those before it (numbered from 1) are missing
+            self.last[run_id] = sequence
+            self.missing += max(0, sequence - 1)
+            return None
+        if sequence == last:
+            return "duplicate"
+        if sequence < last:
+            return "from the past"
+        self.missing += sequence - last - 1
+        self.last[run_id] = sequence
+        return None
+
+
+class RecordOrder:
+    """The recorder's check of the iteration records it is sent: of its own run only (when it has one),
+    each in order (``Sequence``); ``dropped`` counts the others by reason."""
+
+    def __init__(self, run_id: str = ""):
+        self.run_id = run_id
+        self.order = Sequence()
+        self.dropped: dict[str, int] = {}
+
+    def keep(self, data) -> bool:
+        from bev_mdo.ros.wire import WireError, iteration_order
+
         try:
-            config = yaml.safe_load(read_config(bag) or "") or {}
-        except yaml.YAMLError:
-            config = {}
-        key_file = ((config.get("ros") or {}) if isinstance(config, dict) else {}).get("sign_key_file") or ""
-    if not key_file:
-        return None, ""
-    try:
-        return Signer(read_key(key_file)), ""
-    except AuthError as exc:
-        return None, f"cannot verify the iteration records: {exc}"
+            rec = iteration_order(data)
+            why = ("of another run" if self.run_id and not _in_run(rec.run_id, self.run_id)
+                   else self.order.check(rec.run_id, int(rec.sequence)))
+        except WireError:
+            why = "malformed"
+        if why is not None:
+            self.dropped[why] = self.dropped.get(why, 0) + 1
+        return why is None
+
+    def note(self) -> str:
+        """'' or '; dropped N duplicate, ... iteration record(s), M missing'."""
+        parts = [f"{n} {k}" for k, n in sorted(self.dropped.items())]
+        text = f"; dropped {', '.join(parts)} iteration record(s)" if parts else ""
+        return text + (f"; {self.order.missing} iteration record(s) missing" if self.order.missing else "")
 
 
 def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file: str | None = None,
-            checks: dict | None = None) -> list[dict]:
+            checks: dict | None = None, no_verify: bool = False) -> list[dict]:
     """One dict per recorded iteration of ONE run, in recording order, verified when it was signed.
 
     The run is `run_id`, else the bag's own (the run its recorder was started for); a standalone
     recording of several runs needs `run_id` (BagError naming them), unless `all_runs`. Records of
-    a signed run are verified with its key (see ``signer_for``); unsigned and forged ones are
-    dropped. `checks`, if given, receives {"run_id", "dropped": {reason: n}, "other_runs": n,
-    "unverified": why-not or ""}.
+    a signed run are verified with its key (see ``bag.signing``; BagError when the bag's signing record
+    and stored config disagree); unsigned and forged ones are dropped, and so are records out of
+    order (``Sequence``). `no_verify` reads without checking signatures (the note says so).
+    `checks`, if given, receives {"run_id", "dropped": {reason: n}, "missing": n, "other_runs": n,
+    "unverified": note or ""}.
     """
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     run = run_id or own_run(bag)
@@ -73,8 +116,14 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
         if len(runs) > 1:
             raise BagError(f"{bag.mcap_path}: the bag holds the iterations of {len(runs)} runs {runs}; "
                            "choose one with --run-id")
-    signer, why_not = signer_for(bag, key_file)
-    info = {"run_id": run, "dropped": {}, "other_runs": 0, "unverified": why_not}
+    check = signer_for(bag, key_file, no_verify)
+    signer = check.signer
+    info = {"run_id": run, "dropped": {}, "missing": 0, "other_runs": 0, "unverified": check.note}
+    order = Sequence()
+
+    def drop(why: str) -> None:
+        info["dropped"][why] = info["dropped"].get(why, 0) + 1
+
     rows = []
     for msg, rec in decoded:
         if run is not None and not _in_run(rec.run_id, run):
@@ -83,8 +132,15 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
         if signer is not None:
             why = signer.verify_iteration(msg.data)  # the recorded bytes, as they were sent
             if why is not None:
-                info["dropped"][why] = info["dropped"].get(why, 0) + 1
+                drop(why)
                 continue
+        elif rec.signature and not no_verify:  # signed records in a bag that says it was not signed
+            raise BagError(f"{bag.mcap_path}: its records are signed but the bag names no key to verify them "
+                           "(was its config edited?); give the key with --key-file, or --no-verify")
+        why = order.check(rec.run_id, int(rec.sequence))
+        if why is not None:
+            drop(why)
+            continue
         rows.append({
             "run_id": rec.run_id,
             "iteration": int(rec.iteration),
@@ -103,6 +159,7 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
             "wall_time_s": float(rec.wall_time_s),
             "log_time_ns": msg.log_time_ns,
         })
+    info["missing"] = order.missing
     if checks is not None:
         checks.update(info)
     return rows
@@ -114,6 +171,8 @@ def check_note(checks: dict) -> str:
     if checks.get("dropped"):
         parts.append("dropped " + ", ".join(f"{n} {k}" for k, n in sorted(checks["dropped"].items()))
                      + " iteration record(s)")
+    if checks.get("missing"):
+        parts.append(f"{checks['missing']} iteration record(s) missing (gaps in the run's sequence numbers)")
     if checks.get("other_runs"):
         parts.append(f"skipped {checks['other_runs']} record(s) of other runs")
     if checks.get("unverified"):
@@ -148,15 +207,12 @@ def to_csv(rows: list[dict]) -> str:
 
 
 def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
-                 checks: dict | None = None) -> tuple[str, dict[str, float], int]:
+                 checks: dict | None = None, no_verify: bool = False) -> tuple[str, dict[str, float], int]:
     """(config_yaml, design of the last verified iteration of the bag's own run, its iteration
     number), for resume. BagError when the run was signed but its records cannot be verified."""
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     checks = {} if checks is None else checks
-    rows = history(bag, run_id, key_file=key_file, checks=checks)
-    if checks.get("unverified"):
-        raise BagError(f"{bag.mcap_path}: {checks['unverified']}; will not resume from unverified records "
-                       "(give the key with --key-file)")
+    rows = history(bag, run_id, key_file=key_file, checks=checks, no_verify=no_verify)
     if not rows:
         raise BagError(f"{bag.mcap_path}: no IterationRecord on {ITERATION_TOPIC}; nothing to resume")
     last = rows[-1]

@@ -407,7 +407,8 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
     return "\n".join(lines) + "\n"
 
 
-def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = None) -> list[Path]:
+def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = None, key_file: str | None = None,
+           no_verify: bool = False) -> list[Path]:
     """Write plots and ``report.md`` of the bag's own run (or `run_id`; its iteration records
     verified, see ``history``); returns the written paths."""
     import matplotlib
@@ -416,7 +417,7 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     out = Path(out_dir) if out_dir else bag.bag_dir
     out.mkdir(parents=True, exist_ok=True)
-    rows = history(bag, run_id, checks=checks)
+    rows = history(bag, run_id, checks=checks, key_file=key_file, no_verify=no_verify)
     timing = discipline_timing(bag)
     config, problem = _context(bag)
     final = answers = baseline = None

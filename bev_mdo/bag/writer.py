@@ -48,8 +48,11 @@ class BagWriter:
         if others:  # a bag without metadata.yaml (a killed recorder's): one metadata could not describe both
             raise BagError(f"{self.bag_dir}: holds {', '.join(others)} already (a truncated bag? "
                            "`bev-mdo bag repair` it); choose another directory")
-        self.bag_dir.mkdir(parents=True, exist_ok=True)
-        self._stream = open(self.path, "wb")
+        try:
+            self.bag_dir.mkdir(parents=True, exist_ok=True)
+            self._stream = open(self.path, "xb")
+        except OSError as exc:  # a file where a folder of the path should be, no permission, ...
+            raise BagError(f"{self.bag_dir}: cannot create the bag ({exc.strerror or exc})") from None
         self._mcap = Writer(self._stream, chunk_size=chunk_size_bytes,
                             compression=CompressionType.ZSTD)
         self._mcap.start(profile=PROFILE, library=f"bev_mdo {_version()} (mcap python)")
@@ -61,6 +64,11 @@ class BagWriter:
         self.closed = False
         self.metadata = {"version": _version(), **(metadata or {})}
         self._mcap.add_metadata(METADATA_NAME, {k: str(v) for k, v in self.metadata.items()})
+        if "config_yaml" in self.metadata:  # a run's bag: its signing state, under the run's key
+            from bev_mdo.bag.signing import SIGNING_METADATA, state
+
+            self._mcap.add_metadata(SIGNING_METADATA, state(self.metadata["config_yaml"],
+                                                            str(self.metadata.get("run_id", ""))))
         now = time.time_ns()
         files = dict(attachments or {})
         if "config_yaml" in self.metadata and CONFIG_ATTACHMENT not in files:

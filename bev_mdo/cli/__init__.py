@@ -43,6 +43,15 @@ class UsageError(Exception):
     """A mistake by the user: reported as one line on stderr, exit status 2."""
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised into the main thread like SIGINT's KeyboardInterrupt, so every ``finally`` and
+    ``with`` on the way out runs (a run's bag is closed with everything recorded); exit status 143."""
+
+
+def _raise_terminated(signum, frame) -> None:
+    raise Terminated()
+
+
 def figure_format(path) -> str | None:
     """The ``format`` for ``fig.savefig(path)`` of a ``--png FILE`` option, so that exactly ``path`` is
     written: matplotlib appends ``.png`` to a name without an extension, so ``--png out`` wrote
@@ -100,6 +109,19 @@ def main(argv: list[str] | None = None) -> int:
     from bev_mdo.stacks import dump_stacks_on_sigusr1
 
     dump_stacks_on_sigusr1()
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return _main(argv)
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)  # like SIGINT: unwind, close the bag, exit 143
+    try:
+        return _main(argv)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv: list[str]) -> int:
     parser = build_parser(argv)
     args = parser.parse_args(argv)
     try:
@@ -107,6 +129,9 @@ def main(argv: list[str] | None = None) -> int:
             status = int(args.func(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
         return status
+    except Terminated:
+        print("bev-mdo: terminated (SIGTERM)", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print("bev-mdo: interrupted", file=sys.stderr)
         return 130

@@ -35,11 +35,19 @@ def register(subparsers) -> None:
     parser.add_argument("--csv", metavar="FILE", help="write the history as CSV ('-' for stdout)")
     parser.add_argument("--run-id", help="this run (default: the bag's own run; needed for a recording of "
                                          "several runs)")
-    parser.add_argument("--key-file", help="key that signed the run (default: the ros.sign_key_file named in "
-                                           "the bag's config)")
+    add_verify_arguments(parser)
     parser.add_argument("--width", type=int, default=None,
                         help="table width in characters (default: the terminal's; all columns when piped)")
     parser.set_defaults(func=run)
+
+
+def add_verify_arguments(parser) -> None:
+    """--key-file and --no-verify, for every command that reads a run's iteration records."""
+    parser.add_argument("--key-file", default=None,
+                        help="key that signed the run (default: the ros.sign_key_file named in the bag's config)")
+    parser.add_argument("--no-verify", action="store_true",
+                        help="read the records without checking their signatures or the bag's signing record "
+                             "(the output says that verification is off)")
 
 
 def describe_other_content(bag) -> str:
@@ -72,7 +80,7 @@ def run(args) -> int:
     from bev_mdo.bag.history import check_note
 
     checks: dict = {}
-    rows = history(bag, run_id=args.run_id, key_file=args.key_file, checks=checks)
+    rows = history(bag, run_id=args.run_id, key_file=args.key_file, checks=checks, no_verify=args.no_verify)
     if check_note(checks):
         print(f"{args.bag}: {check_note(checks)}", file=sys.stderr)
     if not rows:

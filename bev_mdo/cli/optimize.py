@@ -224,14 +224,19 @@ def _run_inprocess(config, args, show, x0=None):
 
     bag, writer, show = in_process_bag(config, args, show)
     starts = _starts(args, x0)
-    if starts > 1:
-        from bev_mdo.mdo.multistart import run_starts
+    try:
+        if starts > 1:
+            from bev_mdo.mdo.multistart import run_starts
 
-        res = run_starts(run_settings(config), ev, starts, seed=getattr(args, "seed", 0),
-                         formulation=args.formulation, optimizer=args.optimizer, callback=show)
-    else:
-        res = run_optimization(run_settings(config), ev, formulation=args.formulation, optimizer=args.optimizer,
-                               x0=x0, callback=show)
+            res = run_starts(run_settings(config), ev, starts, seed=getattr(args, "seed", 0),
+                             formulation=args.formulation, optimizer=args.optimizer, callback=show)
+        else:
+            res = run_optimization(run_settings(config), ev, formulation=args.formulation,
+                                   optimizer=args.optimizer, x0=x0, callback=show)
+    except BaseException:  # SIGINT, SIGTERM (cli.Terminated), a failure: the bag keeps every finished iteration
+        if writer is not None:
+            writer.close()
+        raise
     out = res.to_dict()
     out.pop("history")
     baseline = analyse_baseline(config, NamingInProcessEvaluator(resolve_disciplines(config), timeout_s=budget,
@@ -291,5 +296,8 @@ def check_new_bag(bag: Path, what: str) -> None:
     """A bag may be written to `bag`: ValueError (exit 2) naming it if a bag or a file is there."""
     if bag.exists() and not bag.is_dir():
         raise ValueError(f"{what} {bag}: is a file, not a bag directory")
+    blocking = next((p for p in bag.parents if p.exists() and not p.is_dir()), None)
+    if blocking is not None:
+        raise ValueError(f"{what} {bag}: {blocking} is a file, not a folder")
     if (bag / "metadata.yaml").exists() or any(bag.glob("*.mcap")):
         raise ValueError(f"{what} {bag}: a bag already exists there; choose a new directory")

@@ -58,14 +58,19 @@ def register(subparsers) -> None:
 
 
 def _read_raw(path):
-    from bev_mdo.config import load_yaml
+    from bev_mdo.config import check_run_name
+    from bev_mdo.yamlload import read_yaml_file
 
     p = Path(path)
     if not p.is_file():
         raise ValueError(f"{path}: no such config file")
-    raw = load_yaml(p.read_text())
+    raw = read_yaml_file(p)
     if not isinstance(raw, dict):
         raise ValueError(f"{path}: the config must be a YAML mapping")
+    try:
+        check_run_name(raw.get("name", "run"))  # names the output folder: checked before anything is made
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
     return raw
 
 

@@ -9,6 +9,9 @@ def register(subparsers) -> None:
     parser.add_argument("bag", help="bag directory or .mcap file")
     parser.add_argument("--output-dir", help="write here instead of the bag directory")
     parser.add_argument("--run-id", help="this run (default: the bag's own; needed for a recording of several runs)")
+    from bev_mdo.cli.history import add_verify_arguments
+
+    add_verify_arguments(parser)
     parser.set_defaults(func=run)
 
 
@@ -22,7 +25,9 @@ def run(args) -> int:
     from bev_mdo.bag.history import check_note
 
     checks: dict = {}
-    for path in report(bag, args.output_dir, run_id=args.run_id, checks=checks):
+    paths = report(bag, args.output_dir, run_id=args.run_id, checks=checks, key_file=args.key_file,
+                   no_verify=args.no_verify)
+    for path in paths:
         print(path)
     if check_note(checks):
         print(f"{args.bag}: {check_note(checks)}", file=sys.stderr)

@@ -20,8 +20,9 @@ def register(sub) -> None:
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--run-id", default=None,
                    help="the run to resume (default: the bag's own; needed for a recording of several runs)")
-    p.add_argument("--key-file", default=None,
-                   help="key that signed the run (default: the ros.sign_key_file named in the bag's config)")
+    from bev_mdo.cli.history import add_verify_arguments
+
+    add_verify_arguments(p)
     from bev_mdo.cli.ros_args import add_ros_arguments
 
     add_ros_arguments(p)
@@ -29,18 +30,16 @@ def register(sub) -> None:
 
 
 def resume_point(bag_path: str, run_id: str | None = None, key_file: str | None = None,
-                 checks: dict | None = None) -> tuple[dict, dict, int]:
+                 checks: dict | None = None, no_verify: bool = False) -> tuple[dict, dict, int]:
     """(resolved config, last verified design of the bag's own run, its iteration) from a bag;
     BagError (a ValueError) if there is none or it cannot be verified."""
-    import yaml
-
     from bev_mdo.bag.history import last_iterate
-    from bev_mdo.config import load_config
+    from bev_mdo.config import load_config, load_yaml
 
-    config_yaml, design, iteration = last_iterate(bag_path, run_id, key_file, checks)
+    config_yaml, design, iteration = last_iterate(bag_path, run_id, key_file, checks, no_verify)
     if not config_yaml:
         raise ValueError(f"{bag_path}: the bag holds no configuration; cannot resume")
-    return load_config(yaml.safe_load(config_yaml)), design, iteration
+    return load_config(load_yaml(config_yaml)), design, iteration
 
 
 def is_per_run_key(path) -> bool:
@@ -60,7 +59,8 @@ def run(args) -> int:
 
     checks: dict = {}
     config, design, iteration = resume_point(args.bag, getattr(args, "run_id", None),
-                                             getattr(args, "key_file", None), checks)
+                                             getattr(args, "key_file", None), checks,
+                                             getattr(args, "no_verify", False))
     out = sys.stderr if args.json else sys.stdout
     if check_note(checks):
         print(f"{args.bag}: {check_note(checks)}", file=sys.stderr)

@@ -35,6 +35,9 @@ class InProcessBag:
                                                                                  sort_keys=False)})
         self.writer.add_topic(ITERATION_TOPIC, "bev_mdo_msgs/msg/IterationRecord", ITERATION_QOS)
         self.seq = 0
+        from bev_mdo.ros.auth import Signer
+
+        self.signer = Signer.from_ros(config.get("ros"))  # signed like the coordinator's when a key is configured
 
     def __call__(self, rec: Mapping[str, Any]) -> None:
         from rclpy.serialization import serialize_message
@@ -48,9 +51,13 @@ class InProcessBag:
         self.seq += 1
         wire.fill_iteration_record(msg, rec, self.run_id, self.seq)
         t = time.time_ns()
-        self.writer.write(self.topic, serialize_message(msg), t, t, self.seq)
+        data = serialize_message(msg) if self.signer is None else self.signer.sign_iteration(msg)
+        self.writer.write(self.topic, data, t, t, self.seq)
+        self.writer.flush()  # one chunk per record: even a SIGKILL keeps every finished iteration
 
     def close(self, answers: Mapping[str, Any] | None = None) -> None:
+        """Finish the bag (summary, metadata.yaml); idempotent. Called at the end of the run with the
+        answers, and on any interruption (SIGINT, SIGTERM, an exception) without them."""
         if answers is not None and not self.writer.closed:
             self.writer._mcap.add_metadata(ANSWERS_METADATA, {"answers_json": json.dumps(answers, default=float)})
         self.writer.close()

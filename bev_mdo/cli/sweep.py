@@ -16,6 +16,7 @@ from __future__ import annotations
 import csv
 import itertools
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -63,6 +64,8 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
                 lo, hi, n = float(parts[0]), float(parts[1]), int(parts[2])
                 if n < 1:
                     raise ValueError
+                if n > MAX_SWEEP_POINTS:
+                    raise UsageError(f"--vary {item!r}: {n} values; a sweep holds at most {MAX_SWEEP_POINTS} designs")
                 vals = np.linspace(lo, hi, n)
             else:
                 vals = np.array([float(v) for v in spec.split(",") if v.strip()])
@@ -74,9 +77,15 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
     return out
 
 
+MAX_SWEEP_POINTS = 1_000_000  # designs in one sweep (one batch); docs/configuration.md
+
+
 def grid(vary: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """Full factorial: every combination, the first variable varying slowest."""
     names = list(vary)
+    total = math.prod(len(vary[n]) for n in names)
+    if total > MAX_SWEEP_POINTS:
+        raise UsageError(f"--vary: a grid of {total} designs; a sweep holds at most {MAX_SWEEP_POINTS}")
     combos = np.array(list(itertools.product(*[vary[n] for n in names])), dtype=float)
     return {n: combos[:, j] for j, n in enumerate(names)}
 

@@ -370,9 +370,16 @@ def finite_rows(columns: list, n: int) -> np.ndarray:
     return good
 
 
+class DisciplineExit(RuntimeError):
+    """A discipline's compute() called sys.exit(): a failure of that discipline, not the end of the run."""
+
+
 def _call(disc: Any, batch: Batch, n: int) -> Batch:
-    raw = disc.compute(batch)
     name = getattr(disc, "name", type(disc).__name__)
+    try:
+        raw = disc.compute(batch)
+    except SystemExit as exc:  # a user model's sys.exit must not end the coordinator or a node silently
+        raise DisciplineExit(f"compute() called sys.exit({exc.code!r})") from None
     out = check_outputs(name, raw, disc.outputs, {}, n, tuple(getattr(disc, "broadcast_outputs", ()) or ()))
     owned = all(b.base is None for b in batch.values())
     for k, v in out.items():

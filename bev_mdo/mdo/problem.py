@@ -22,6 +22,7 @@ import numpy as np
 from bev_mdo.mdo.vectors import base_name, expand, flat_names
 from bev_mdo.models.common import check_keys
 
+MAX_VECTOR_ELEMENTS = 10_000  # per vector design variable or constraint (docs/vector-variables.md)
 _DV_KEYS = {"lower", "upper", "initial", "scale", "shape"}
 _CON_KEYS = {"lower", "upper", "scale", "monitor", "shape"}
 PROBLEM_KEYS = {"objective", "objectives", "design_variables", "constraints", "battery_sized_for_range",
@@ -203,6 +204,8 @@ def _elements(name: str, spec: Any, build, shapes: dict[str, int], section: str)
         size = size[0]
     if isinstance(size, bool) or not isinstance(size, int) or size < 1:
         raise ValueError(f"{where}.shape: {size!r} must be a positive integer (vectors only, e.g. shape: 6)")
+    if size > MAX_VECTOR_ELEMENTS:
+        raise ValueError(f"{where}.shape: {size} elements; a vector holds at most {MAX_VECTOR_ELEMENTS}")
     if name in shapes:
         raise ValueError(f"{where}: named twice")
     shapes[str(name)] = size

@@ -132,6 +132,10 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
                  "pools": node.evaluator.pool_summary(), "unresponsive": sorted(node.evaluator.unresponsive)}
         stats["all_acked"] = node.wait_for_all_acked(node.discovery_wait_s, give_up=give_up_acks)
         return result, stats
+    except BaseException:  # SIGINT, SIGTERM, a failure: the records published so far reach the recorder first
+        if recorder_subscribers:
+            node.wait_for_all_acked(min(node.discovery_wait_s, 5.0), give_up=give_up_acks)
+        raise
     finally:
         if beside is not None:
             beside.detach()

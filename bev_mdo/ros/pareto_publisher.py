@@ -62,6 +62,7 @@ class BagSink:
         t = now_ns()
         self.published += 1
         self.writer.write(PARETO_TOPIC, serialize_message(msg), t, t, self.published)
+        self.writer.flush()  # one chunk per front: a killed run keeps every finished generation
 
     def close(self) -> None:
         self.writer.close()

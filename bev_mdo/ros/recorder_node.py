@@ -10,6 +10,9 @@ under ``prefix``), ``prefix`` (``/bev_mdo/``), ``config_file`` (its text is stor
 (10000), ``discovery_period_s`` (0.5), ``flush_period_s`` (1.0), ``status_period_s`` (0.05), ``nice``
 (10: the recorder runs at a lower CPU priority than the nodes and the coordinator).
 
+Iteration records are kept once and in order, of the recorder's own run (``bag.history.RecordOrder``):
+duplicates, records from the past and of other runs are dropped and counted in its closing line.
+
 Status: whenever it changes, ``{"run_id", "bag", "matched": {topic: matched publishers}}`` (JSON)
 on ``/bev_mdo_recorder/status`` (TRANSIENT_LOCAL, not recorded), so a coordinator can wait
 until the recorder has matched a new node's publishers before that node's first message.
@@ -29,6 +32,7 @@ import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from bev_mdo.bag.history import ITERATION_TOPIC
 from bev_mdo.bag.writer import BagWriter
 
 DEFAULT_PREFIX = "/bev_mdo/"
@@ -74,6 +78,9 @@ class RecorderNode(Node):
         self._handlers: dict[str, object] = {}
         self.received = 0
         self.run_id = run_id
+        from bev_mdo.bag.history import RecordOrder
+
+        self.order = RecordOrder(run_id)  # iteration records: fresh and in order (bag/history.py)
         from std_msgs.msg import String
 
         self._status_pub = self.create_publisher(String, STATUS_TOPIC, STATUS_QOS)
@@ -133,8 +140,11 @@ class RecorderNode(Node):
 
     def _callback(self, topic: str):
         write = self.writer.write
+        order = self.order if topic == ITERATION_TOPIC else None
 
         def on_message(data: bytes, info) -> None:
+            if order is not None and not order.keep(data):
+                return  # a duplicate, a record from the past or of another run (counted)
             received = info.get("received_timestamp") or time.time_ns()
             published = info.get("source_timestamp") or received
             write(topic, data, received, published, info.get("publication_sequence_number") or 0)
@@ -244,7 +254,7 @@ def main(args: list[str] | None = None) -> int:
             signal.signal(s, handler)
         if node is not None:
             node.close()
-            print(f"recorded {node.writer.message_count} messages to {node.writer.path}",
+            print(f"recorded {node.writer.message_count} messages to {node.writer.path}{node.order.note()}",
                   file=sys.stderr)
             node.destroy_node()
         if rclpy.ok():

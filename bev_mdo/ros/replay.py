@@ -64,7 +64,12 @@ class Replayer:
         unknown = sorted(set(topics or []) - set(bag.topics))
         if unknown:
             raise BagError(f"{bag.mcap_path}: no topic {', '.join(unknown)} in this bag")
-        self.messages: list[BagMessage] = list(bag.messages(topics))
+        from bev_mdo.bag.history import ITERATION_TOPIC, RecordOrder
+
+        # iteration records as every reader takes them: the bag's own run, each once and in order
+        self.order = RecordOrder(bag.info.get("run_id", ""))
+        self.messages: list[BagMessage] = [m for m in bag.messages(topics)
+                                           if m.topic != ITERATION_TOPIC or self.order.keep(m.data)]
         self.publishers = {}
         by_topic = {c.topic: c for c in bag.channels.values()}
         for topic in dict.fromkeys(m.topic for m in self.messages):
@@ -118,6 +123,8 @@ def replay(path, *, rate: float | None = 1.0, topics: list[str] | None = None, l
     total = ReplayStats(0, 0.0, bag.truncated)
     try:
         player = Replayer(node, bag, topics)
+        if player.order.note():
+            log(f"{bag.mcap_path}: not replayed{player.order.note()}")
         if wait_subscribers and not player.wait_subscribers(wait_subscribers, wait_timeout_s):
             raise BagError(f"{bag.mcap_path}: fewer than {wait_subscribers} subscribers after "
                            f"{wait_timeout_s:g} s")

@@ -634,3 +634,19 @@ def fill_iteration_record(msg, rec: Mapping, run_id: str, sequence: int):
     msg.discipline_evaluations = [int(v) for v in counts.values()]
     msg.wall_time_s = float(rec.get("wall_time_s", 0.0))
     return msg
+
+
+class _Order:
+    __slots__ = ("header", "run_id", "sequence", "raw")
+
+
+@_decoding
+def iteration_order(data) -> _Order:
+    """The header, ``run_id`` and ``sequence`` of an IterationRecord's CDR bytes (the fields it starts
+    with), without decoding the rest: what the recorder checks a record's order with."""
+    m = _Order()
+    m.header, pos = _header(data, 0)
+    m.run_id, pos = _string(data, pos)
+    pos += -pos % 8
+    (m.sequence,) = struct.unpack_from("<Q", data, pos)
+    return m

@@ -53,3 +53,31 @@ class Summed:
 
     def compute(self, inputs):
         return {"summed_kw": float(np.sum(inputs["motor_kw"]))}
+
+
+class Quits:
+    """Calls sys.exit(3) for every point (a user script's habit)."""
+
+    name = "quits"
+    inputs = ("motor_kw",)
+    outputs = ("quits_kw",)
+
+    def compute(self, inputs):
+        import sys
+
+        sys.exit(3)
+
+
+class WrongShapeLater:
+    """Answers its first 60 calls, then returns an output of the wrong shape (a wiring mistake that
+    stops the run with an error, after some iterations were recorded)."""
+
+    name = "shape"
+    inputs = ("motor_kw",)
+    outputs = ("shape_kw",)
+    calls = 0
+
+    def compute(self, inputs):
+        WrongShapeLater.calls += 1
+        motor = np.asarray(inputs["motor_kw"], float)
+        return {"shape_kw": motor if WrongShapeLater.calls <= 60 else np.zeros(len(motor) + 3)}

@@ -1,0 +1,114 @@
+"""A bag's signing state, in the bag's own metadata and under the run's key.
+
+Every bag written with a run's configuration holds the MCAP metadata record ``bev_mdo_signing``:
+``signed`` ("true"/"false"), ``run_id`` and, for a signed run, ``key_fingerprint`` (a hash of
+the key, never the key), ``config_sha256`` (of the stored configuration text) and ``signature``
+(HMAC-SHA256 with the run's key over the other fields). A reader (``verifier``) checks the bag
+against it before it trusts a record: a stored configuration that names no key, or another
+key, or was edited after recording, makes the bag refused (BagError, one line) unless the user
+turns verification off explicitly (``--no-verify``), and the output then says so.
+"""
+from __future__ import annotations
+
+import hashlib
+import hmac
+import json
+from dataclasses import dataclass
+
+from bev_mdo.bag.errors import BagError
+
+SIGNING_METADATA = "bev_mdo_signing"
+NO_VERIFY_NOTE = "verification OFF (--no-verify): records are read without checking their signatures"
+
+
+def key_fingerprint(key: bytes) -> str:
+    """A short public name of a key (SHA-256 of a prefix and the key; the key cannot be recovered)."""
+    return hashlib.sha256(b"bev_mdo key fingerprint\0" + key).hexdigest()[:32]
+
+
+def config_key_file(config_yaml: str) -> str:
+    """``ros.sign_key_file`` named in a stored configuration ('' when none or unreadable)."""
+    from bev_mdo.yamlload import load_yaml
+
+    try:
+        config = load_yaml(config_yaml or "") or {}
+    except ValueError:
+        return ""
+    ros = config.get("ros") if isinstance(config, dict) else None
+    value = ros.get("sign_key_file") if isinstance(ros, dict) else None
+    return value if isinstance(value, str) else ""
+
+
+def _body_mac(key: bytes, body: dict) -> str:
+    text = json.dumps({k: v for k, v in body.items() if k != "signature"}, sort_keys=True)
+    return hmac.new(key, text.encode("utf-8"), "sha256").hexdigest()
+
+
+def state(config_yaml: str, run_id: str) -> dict[str, str]:
+    """The ``bev_mdo_signing`` record for a bag of run `run_id` with `config_yaml` stored in it
+    (the key is read from the file the configuration names; AuthError when it cannot be)."""
+    from bev_mdo.ros.auth import read_key
+
+    key_file = config_key_file(config_yaml)
+    if not key_file:
+        return {"signed": "false", "run_id": run_id}
+    key = read_key(key_file)
+    body = {"signed": "true", "run_id": run_id, "key_fingerprint": key_fingerprint(key),
+            "config_sha256": hashlib.sha256(config_yaml.encode("utf-8")).hexdigest()}
+    body["signature"] = _body_mac(key, body)
+    return body
+
+
+@dataclass
+class Verifier:
+    """How a bag's records are checked: ``signer`` (None: not verified), ``note`` (one line the
+    reader prints, '' when records are verified), ``signed`` (the run was signed)."""
+
+    signer: object | None
+    note: str
+    signed: bool
+
+
+def verifier(bag, key_file: str | None = None, no_verify: bool = False) -> Verifier:
+    """The Verifier for a bag (``bag.reader.Bag``), or BagError when the bag's signing record and its
+    stored configuration (or the given key) disagree."""
+    from bev_mdo.bag.reader import read_config
+    from bev_mdo.ros.auth import AuthError, Signer, read_key
+
+    where = bag.mcap_path
+    record = bag.metadata.get(SIGNING_METADATA)
+    config_yaml = read_config(bag)
+    stored_key_file = config_key_file(config_yaml)
+    if no_verify:
+        return Verifier(None, NO_VERIFY_NOTE, bool(record and record.get("signed") == "true"))
+    signed = record.get("signed") == "true" if record else bool(stored_key_file)
+    if record and not signed and stored_key_file and not key_file:
+        raise BagError(f"{where}: the bag's signing record says the run was not signed, but its stored config "
+                       f"names ros.sign_key_file {stored_key_file!r} (was the bag edited?); refusing it "
+                       "(--no-verify reads it unverified)")
+    if not signed:
+        why = "its signing record says so" if record else "it has no signing record and its config names no key"
+        return Verifier(None, f"records are not signed ({why}); they are read unverified", False)
+    key_file = key_file or stored_key_file
+    if not key_file:
+        raise BagError(f"{where}: the bag's signing record says its records were signed (key "
+                       f"{record.get('key_fingerprint', '?')}), but its stored config names no ros.sign_key_file "
+                       "(was the bag edited?); give the key with --key-file, or --no-verify to read it unverified")
+    try:
+        key = read_key(key_file)
+    except AuthError as exc:
+        raise BagError(f"{where}: cannot verify the iteration records: {exc} (give the key with --key-file, "
+                       "or --no-verify to read it unverified)") from None
+    if record:
+        if record.get("key_fingerprint") != key_fingerprint(key):
+            raise BagError(f"{where}: key file {key_file} is not the key this run was signed with (fingerprint "
+                           f"{key_fingerprint(key)}, the bag's signing record says {record.get('key_fingerprint')})")
+        if not hmac.compare_digest(record.get("signature", ""), _body_mac(key, record)):
+            raise BagError(f"{where}: the bag's signing record does not verify with its key (edited?); refusing it")
+        if record.get("config_sha256") != hashlib.sha256(config_yaml.encode("utf-8")).hexdigest():
+            raise BagError(f"{where}: the stored config is not the one recorded with the run (edited after "
+                           "recording?); refusing it")
+        if record.get("run_id", "") != bag.info.get("run_id", record.get("run_id", "")):
+            raise BagError(f"{where}: the bag's run id {bag.info.get('run_id')!r} is not the signed one "
+                           f"{record.get('run_id')!r}; refusing it")
+    return Verifier(Signer(key), "", True)

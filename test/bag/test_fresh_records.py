@@ -1,0 +1,193 @@
+"""Every record is fresh and in order, and a bag's signing state is its own: a captured record
+replayed, a record of another run, and a bag whose stored sign_key_file was blanked are each
+dropped and counted, or refused, by history, report and resume."""
+from __future__ import annotations
+
+import yaml
+import pytest
+
+from bev_mdo.bag.errors import BagError
+from bev_mdo.bag.history import history
+from bev_mdo.bag.reader import open_bag
+from bev_mdo.bag.writer import BagWriter
+from bev_mdo.cli import main
+from bev_mdo.ros.auth import Signer, new_key_file, read_key
+from bev_mdo.testing import REPO
+
+TOPIC = "/bev_mdo/iteration"
+RUN = "0123456789abcdef"
+
+
+def _record(run_id: str, sequence: int, motor_kw: float):
+    from bev_mdo_msgs.msg import IterationRecord, NamedArray
+
+    rec = IterationRecord(run_id=run_id, sequence=sequence, iteration=sequence - 1, formulation="mdf",
+                          optimizer="SLSQP", objective_name="energy_wh_per_km", objective=150.0 - sequence,
+                          feasible=True)
+    rec.header.stamp.sec = 1_700_000_000 + sequence
+    rec.design = NamedArray(names=["motor_kw", "gear_ratio", "battery_kwh"], batch_size=1,
+                            values=[motor_kw, 8.0, 24.0])
+    return rec
+
+
+def _config(key_file: str) -> str:
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
+    raw["ros"] = {"sign_key_file": key_file}
+    return yaml.safe_dump(raw, sort_keys=False)
+
+
+def _bag(path, records: list[bytes], config_yaml: str, run_id: str = RUN):
+    with BagWriter(path, metadata={"config_yaml": config_yaml, "run_id": run_id}) as w:
+        w.add_topic(TOPIC, "bev_mdo_msgs/msg/IterationRecord")
+        for t, data in enumerate(records):
+            w.write(TOPIC, data, 1_700_000_000_000_000_000 + t)
+    return path
+
+
+@pytest.fixture
+def signed(tmp_path):
+    """(key file, signer, the signed bytes of a run's records 1..4: motor_kw 80, 81, 82, 83)."""
+    key_file = new_key_file(tmp_path / "keys")
+    signer = Signer(read_key(key_file))
+    return key_file, signer, [signer.sign_iteration(_record(RUN, s, 79.0 + s)) for s in range(1, 5)]
+
+
+def _rewrite_config(src, dst, config_yaml: str) -> None:
+    """A copy of bag `src` at `dst` whose stored config (metadata and attachment) is `config_yaml`:
+    everything else, the signing record and the signed records included, as recorded."""
+    from mcap.writer import Writer
+
+    bag = open_bag(src)
+    dst.mkdir(parents=True)
+    with open(dst / f"{dst.name}_0.mcap", "wb") as f:
+        w = Writer(f)
+        w.start(profile="ros2", library="test")
+        for name, data in bag.metadata.items():
+            w.add_metadata(name, {**data, "config_yaml": config_yaml} if name == "bev_mdo" else data)
+        w.add_attachment(0, 0, "config.yaml", "application/yaml", config_yaml.encode())
+        schemas = {sid: w.register_schema(s.name, s.encoding, s.data) for sid, s in bag.schemas.items()}
+        channels = {cid: w.register_channel(c.topic, c.message_encoding, schemas[c.schema_id], dict(c.metadata))
+                    for cid, c in bag.channels.items()}
+        for m in bag.messages():
+            w.add_message(channels[m.channel_id], m.log_time_ns, m.data, m.publish_time_ns, m.sequence)
+        w.finish()
+
+
+def _cli(capsys, *argv) -> tuple[int, str, str]:
+    status = main(list(argv))
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+def test_a_replayed_record_is_dropped_and_counted_by_history_report_and_resume(tmp_path, signed, capsys):
+    key_file, _, recs = signed
+    # the run's records, then record 1 captured and sent again, then record 3 again (a duplicate of
+    # nothing newer: from the past), then the genuine last one arrives twice
+    bag = _bag(tmp_path / "replayed", [*recs[:3], recs[0], recs[1], recs[3], recs[3]], _config(key_file))
+    checks: dict = {}
+    rows = history(bag, checks=checks)
+    assert [r["sequence"] for r in rows] == [1, 2, 3, 4]
+    assert checks["dropped"] == {"from the past": 2, "duplicate": 1} and checks["missing"] == 0
+
+    status, out, err = _cli(capsys, "history", str(bag), "--csv", "-")
+    assert status == 0 and len(out.strip().splitlines()) == 1 + 4
+    assert "dropped 1 duplicate, 2 from the past iteration record(s)" in err
+
+    status, out, err = _cli(capsys, "report", str(bag), "--output-dir", str(tmp_path / "rep"))
+    assert status == 0 and "dropped 1 duplicate, 2 from the past" in err
+    assert "4 records (iterations 0-3)" in (tmp_path / "rep" / "report.md").read_text()
+
+    from bev_mdo.cli.resume import resume_point
+
+    checks = {}
+    _, design, iteration = resume_point(str(bag), checks=checks)
+    assert design["motor_kw"] == 83.0 and iteration == 3  # the genuine last record, not the replayed first
+    assert checks["dropped"] == {"from the past": 2, "duplicate": 1}
+
+
+def test_a_record_of_another_run_and_a_gap_are_counted(tmp_path, signed):
+    key_file, signer, recs = signed
+    other = signer.sign_iteration(_record("fedcba9876543210", 9, 120.0))  # same key, another run
+    bag = _bag(tmp_path / "mixed", [recs[0], other, recs[2], recs[3]], _config(key_file))
+    checks: dict = {}
+    rows = history(bag, checks=checks)
+    assert [r["sequence"] for r in rows] == [1, 3, 4]
+    assert checks["other_runs"] == 1 and checks["missing"] == 1 and checks["dropped"] == {}
+
+
+def test_a_bag_whose_stored_key_file_was_blanked_is_refused(tmp_path, signed, capsys):
+    key_file, _, recs = signed
+    original = _bag(tmp_path / "original", recs, _config(key_file))
+    assert open_bag(original).metadata["bev_mdo_signing"]["signed"] == "true"
+    blanked = tmp_path / "blanked"
+    _rewrite_config(original, blanked, _config(""))
+    with pytest.raises(BagError, match="signed .* names no ros.sign_key_file"):
+        history(blanked)
+    for argv in (["history", str(blanked)], ["report", str(blanked), "--output-dir", str(tmp_path / "r")],
+                 ["resume", str(blanked), "--transport", "inprocess", "--no-record"]):
+        status, out, err = _cli(capsys, *argv)
+        assert status == 2 and len(err.strip().splitlines()) == 1, (argv, err)
+        assert "names no ros.sign_key_file" in err and "--no-verify" in err
+    # the right key does not make an edited config acceptable
+    with pytest.raises(BagError, match="stored config is not the one recorded"):
+        history(blanked, key_file=key_file)
+    # turning verification off is explicit, and said
+    status, out, err = _cli(capsys, "history", str(blanked), "--no-verify", "--csv", "-")
+    assert status == 0 and len(out.strip().splitlines()) == 5 and "verification OFF" in err
+
+
+def test_a_bag_said_unsigned_whose_records_are_signed_is_refused(tmp_path, signed):
+    """Blanking the key and rewriting the signing record to 'not signed' does not turn verification off."""
+    key_file, _, recs = signed
+    bag = _bag(tmp_path / "stripped", recs, _config(""))  # no key named: the writer records "not signed"
+    assert open_bag(bag).metadata["bev_mdo_signing"]["signed"] == "false"
+    with pytest.raises(BagError, match="records are signed but the bag names no key"):
+        history(bag)
+
+
+def test_another_key_is_refused_by_fingerprint(tmp_path, signed):
+    key_file, _, recs = signed
+    bag = _bag(tmp_path / "b", recs, _config(key_file))
+    other = new_key_file(tmp_path / "other")
+    with pytest.raises(BagError, match="is not the key this run was signed with"):
+        history(bag, key_file=other)
+
+
+def test_an_unsigned_run_says_its_records_are_unverified(tmp_path):
+    from rclpy.serialization import serialize_message
+
+    bag = _bag(tmp_path / "plain", [serialize_message(_record(RUN, s, 80.0)) for s in (1, 2)], _config(""))
+    checks: dict = {}
+    assert len(history(bag, checks=checks)) == 2
+    assert "not signed" in checks["unverified"]
+
+
+def test_replay_leaves_out_the_replayed_and_foreign_records(tmp_path, signed, rclpy_context):
+    from rclpy.node import Node
+
+    from bev_mdo.ros.replay import Replayer
+
+    key_file, signer, recs = signed
+    other = signer.sign_iteration(_record("fedcba9876543210", 2, 120.0))
+    bag = _bag(tmp_path / "replayed", [*recs[:3], recs[0], other, recs[3], recs[3]], _config(key_file))
+    node = Node("fresh_records_replay", context=rclpy_context)
+    try:
+        player = Replayer(node, open_bag(bag), None)
+        assert [m.data for m in player.messages] == recs
+        assert player.order.dropped == {"duplicate": 1, "from the past": 1, "of another run": 1}
+    finally:
+        node.destroy_node()
+
+
+def test_the_recorders_check_keeps_its_own_run_once_and_in_order(signed):
+    """RecordOrder is what the recorder node applies to every IterationRecord it receives."""
+    from bev_mdo.bag.history import RecordOrder
+
+    _, signer, recs = signed
+    other = signer.sign_iteration(_record("fedcba9876543210", 5, 120.0))
+    order = RecordOrder(RUN)
+    kept = [r for r in [recs[0], recs[2], recs[0], other, recs[2], recs[3], b"\x00\x01\x00\x00junk"] if order.keep(r)]
+    assert kept == [recs[0], recs[2], recs[3]]
+    assert order.dropped == {"from the past": 1, "duplicate": 1, "of another run": 1, "malformed": 1}
+    assert order.order.missing == 1
+    assert "1 iteration record(s) missing" in order.note()
