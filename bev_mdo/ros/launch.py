@@ -22,6 +22,7 @@ from bev_mdo.ros.executables import DISCIPLINE_EXES
 from bev_mdo.ros.watchdog import HangWatchdog
 
 _BUILTIN_EXE = {v: k for k, v in DISCIPLINE_EXES.items()}
+FIRST_STOP_S = 30.0  # how long Launcher.stop gives the nodes stopped first (the recorder) after SIGINT
 
 
 def _die_with_parent() -> None:
@@ -266,8 +267,8 @@ class Launcher:
         with self._lock:
             early = [n.proc for n in self.nodes if n.proc is not None and n.label in first]
             procs = [n.proc for n in self.nodes if n.proc is not None and n.label not in first]
-        if early:
-            _stop_procs(early, timeout_s)
+        if early:  # a recorder drains its queue (up to 10 s) and closes the bag: slow on a crowded host
+            _stop_procs(early, max(timeout_s, FIRST_STOP_S))
         _stop_procs(procs, timeout_s)
 
     def __enter__(self) -> "Launcher":

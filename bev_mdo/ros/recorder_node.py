@@ -383,12 +383,13 @@ def main(args: list[str] | None = None) -> int:
         node.drain()
         return 0
     finally:
-        for s, handler in old.items():
-            signal.signal(s, handler)
-        if node is not None:
+        if node is not None:  # a second SIGINT/SIGTERM while the bag is closed must not cut it short
             node.close()
             print(f"recorded {node.writer.message_count} messages to {node.writer.path}"
                   + (f"; {node.other_run} of other runs not recorded" if node.other_run else ""), file=sys.stderr)
+        for s, handler in old.items():
+            signal.signal(s, handler)
+        if node is not None:
             node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
