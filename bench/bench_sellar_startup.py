@@ -23,7 +23,7 @@ go into the same JSON under ``concurrent`` (median, min and max over ``--repeat`
 start-up, and of the slowest run per round).
 
     .venv/bin/python bench/bench_sellar_startup.py [--repeat 5] [--domain-id 22]
-    .venv/bin/python bench/bench_sellar_startup.py --concurrent 1,4,8 --repeat 3 [--compose none,coordinator]
+    .venv/bin/python bench/bench_sellar_startup.py --concurrent 1,4,8 --repeat 1 [--append] [--compose none,coordinator]
     (take /tmp/bev_ros_tests.lock around it on a shared host)
 """
 from __future__ import annotations
@@ -83,14 +83,15 @@ def start_together(n: int, compose: str, domain: int, cwd: Path, tag: str) -> li
     out: list[dict] = [{} for _ in range(n)]
 
     def one(k: int, t0: float, p: subprocess.Popen) -> None:
-        first = None
+        first, tail = None, []
         for line in p.stderr:
             if first is None and line.startswith("iter "):
                 first = time.perf_counter() - t0
+            tail = (tail + [line.rstrip()])[-3:]
         p.wait()
         doc = json.loads(p.stdout.read() or "{}") if p.returncode == 0 else {}
         out[k] = {"startup_s": first, "wall_s": time.perf_counter() - t0, "exit": p.returncode,
-                  "objective": doc.get("objective")}
+                  "objective": doc.get("objective"), **({"stderr_tail": tail} if p.returncode else {})}
 
     threads = []
     for k in range(n):
@@ -108,7 +109,13 @@ def start_together(n: int, compose: str, domain: int, cwd: Path, tag: str) -> li
 def concurrent(args) -> int:
     counts = [int(c) for c in args.concurrent.split(",")]
     composes = args.compose.split(",")
+    path = Path(args.json)
+    doc = json.loads(path.read_text()) if path.exists() else {"bench": "bench_sellar_startup"}
     runs: dict[tuple[int, str], list[list[dict]]] = {}
+    if args.append:  # more rounds to the ones already measured (one locked command per round on a shared host)
+        for key, rounds in (doc.get("concurrent") or {}).get("raw", {}).items():
+            n, compose = key.split("|")
+            runs[(int(n), compose)] = rounds
     with tempfile.TemporaryDirectory() as d:
         for r in range(args.repeat):
             for n in counts:
@@ -131,10 +138,9 @@ def concurrent(args) -> int:
                      "slowest_per_round_s": slowest,
                      "slowest_median_s": statistics.median(slowest) if slowest else None,
                      "objectives": sorted(objectives)})
-    path = Path(args.json)
-    doc = json.loads(path.read_text()) if path.exists() else {"bench": "bench_sellar_startup"}
-    doc["concurrent"] = {"config": "config/leaf_nedc.yaml (recorded)", "repeat": args.repeat,
-                         "host_cpus": os.cpu_count(), "load_average_1min_at_end": os.getloadavg()[0], "rows": rows}
+    doc["concurrent"] = {"config": "config/leaf_nedc.yaml (recorded)", "host_cpus": os.cpu_count(),
+                         "load_average_1min_at_end": os.getloadavg()[0], "rows": rows,
+                         "raw": {f"{n}|{c}": rounds for (n, c), rounds in runs.items()}}
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(doc, indent=2))
     print(f"{'runs':>4s} {'compose':12s} {'failed':>6s} {'start-up median s':>18s} {'min':>6s} {'max':>6s} "
@@ -154,6 +160,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=str(REPO / "bench" / "results" / "bench_sellar_startup.json"))
     ap.add_argument("--concurrent", default="", help="e.g. 1,4,8: runs started together on one domain")
     ap.add_argument("--compose", default="none,coordinator", help="with --concurrent: layouts to compare")
+    ap.add_argument("--append", action="store_true", help="with --concurrent: add rounds to those in --json")
     args = ap.parse_args(argv)
     if args.concurrent:
         return concurrent(args)

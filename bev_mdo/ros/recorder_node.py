@@ -287,7 +287,7 @@ class OwnRecorder:
         if pub is not None:
             readers = self.node.get_subscriptions_info_by_topic(topic)
             names = {f"{i.node_namespace.rstrip('/')}/{i.node_name}".lstrip("/") for i in readers}
-            if self.name.lstrip("/") not in names or pub.get_subscription_count() < len(readers):
+            if str(self.name).lstrip("/") not in names or pub.get_subscription_count() < len(readers):
                 return False
             need.add(self.node.get_fully_qualified_name().lstrip("/"))
         return need <= declared
