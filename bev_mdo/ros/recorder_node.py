@@ -43,6 +43,7 @@ from bev_mdo.bag.writer import BagWriter
 from bev_mdo.ros.binding import canonical_json, fingerprint_of_json, run_matches
 
 DEFAULT_PREFIX = "/bev_mdo/"
+RECHECK_S = 0.5  # the declared publishers of a topic are read from the graph at least this often
 STATUS_TOPIC = "/bev_mdo_recorder/status"  # outside the prefix: the status is not recorded
 STATUS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -108,7 +109,7 @@ class RecorderNode(Node):
         self.binding = config_binding(config_yaml) if config_yaml else ""
         self.signer = _signer_of(config_yaml)
         self.other_run = 0  # messages of other runs, not recorded
-        self._confirmed: dict[str, tuple] = {}  # topic -> (counts seen, publisher names matched)
+        self._confirmed: dict[str, tuple] = {}  # topic -> (counts seen, publisher names matched, when)
         meta = {"run_id": run_id, "recorder": self.get_fully_qualified_name()}
         if config_yaml:
             meta["config_yaml"] = config_yaml
@@ -168,13 +169,15 @@ class RecorderNode(Node):
         """Node names of the publishers of `topic` this recorder's subscription matched: all those in
         the graph once it matched as many as the graph shows, and those confirmed before that are
         still there (a newcomer is confirmed at the next full match)."""
-        count, graph = sub.get_publisher_count(), self.count_publishers(topic)
-        seen, names = self._confirmed.get(topic, ((-1, -1), []))
-        if (count, graph) != seen:
+        count, graph, now = sub.get_publisher_count(), self.count_publishers(topic), time.monotonic()
+        seen, names, at = self._confirmed.get(topic, ((-1, -1), [], 0.0))
+        # the counts alone can stay the same while one publisher replaces another (a run's baseline
+        # coordinator, then its coordinator): the names are read again at least every RECHECK_S
+        if (count, graph) != seen or now - at >= RECHECK_S:
             infos = self.get_publishers_info_by_topic(topic)
             present = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos})
             names = present if count >= len(infos) else [n for n in names if n in present]
-            self._confirmed[topic] = ((count, graph), names)
+            self._confirmed[topic] = ((count, graph), names, now)
         return names
 
     def publish_status(self) -> None:
