@@ -132,8 +132,9 @@ class OptimizeRosSession:
     effective ros section (config, flags and environment resolved: cli/ros_args.ros_section).
     Entering writes ``<bag>/logs`` (node logs, the resolved config), keeps the per-run key beside the
     bag (``<bag parent>/.keys/<bag name>``, never inside it: a bag directory is what users share),
-    starts one process per discipline (``instances``: pools, ``compose``: several disciplines per
-    process) and, with ``record``, the recorder; exiting stops them all, the recorder first, after
+    starts the discipline nodes (a process each, or as ``compose`` says: several per process, or
+    ``coordinator``: in this process; ``instances``: pools, a process per instance) and, with
+    ``record``, the recorder; exiting stops them all, the recorder first, after
     it acknowledged everything."""
 
     def __init__(self, config: dict, ros: dict, bag: Path, run_id: str, *, record: bool = True,
