@@ -14,8 +14,17 @@ answer, each waiting timeout x (retries + 1)); now a loop is probed hub and spok
 Runs are interleaved round by round (the host is noisy); median, min and max per config.
 The in-process run of each config is timed the same way, for reference. Asserts nothing.
 
+``--concurrent 1,4,8``: start-up of N runs started together on ONE domain, each
+``bev-mdo optimize config/leaf_nedc.yaml --bag ...`` (recorded, as a user runs it), with a process per
+discipline (``--compose none``) and composed into the coordinator (``--compose coordinator``). Start-up
+is the time from starting the command to its first iteration line; every run's optimum is checked
+against the others of its round (the answer must not depend on the layout or the crowd). The figures
+go into the same JSON under ``concurrent`` (median, min and max over ``--repeat`` rounds of every run's
+start-up, and of the slowest run per round).
+
     .venv/bin/python bench/bench_sellar_startup.py [--repeat 5] [--domain-id 22]
-    (take /tmp/bev_ros.lock around it on a shared host)
+    .venv/bin/python bench/bench_sellar_startup.py --concurrent 1,4,8 --repeat 1 [--append] [--compose none,coordinator]
+    (take /tmp/bev_ros_tests.lock around it on a shared host)
 """
 from __future__ import annotations
 
@@ -62,12 +71,99 @@ def run_once(path: Path, transport: str, domain: int, cwd: Path) -> dict:
             "retried": doc.get("retried_requests", 0), "warnings": warnings}
 
 
+def start_together(n: int, compose: str, domain: int, cwd: Path, tag: str) -> list[dict]:
+    """N recorded leaf_nedc runs started at once on one domain: each one's start-up (s to its first
+    iteration line), wall time and objective."""
+    import threading
+
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env.pop("ROS_LOG_DIR", None)
+    out: list[dict] = [{} for _ in range(n)]
+
+    def one(k: int, t0: float, p: subprocess.Popen) -> None:
+        first, tail = None, []
+        for line in p.stderr:
+            if first is None and line.startswith("iter "):
+                first = time.perf_counter() - t0
+            tail = (tail + [line.rstrip()])[-3:]
+        p.wait()
+        doc = json.loads(p.stdout.read() or "{}") if p.returncode == 0 else {}
+        out[k] = {"startup_s": first, "wall_s": time.perf_counter() - t0, "exit": p.returncode,
+                  "objective": doc.get("objective"), **({"stderr_tail": tail} if p.returncode else {})}
+
+    threads = []
+    for k in range(n):
+        argv = [sys.executable, "-m", "bev_mdo", "optimize", str(REPO / "config" / "leaf_nedc.yaml"), "--json",
+                "--domain-id", str(domain), "--compose", compose, "--bag", str(cwd / "bags" / f"{tag}_{k}")]
+        t0 = time.perf_counter()
+        p = subprocess.Popen(argv, env=env, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        threads.append(threading.Thread(target=one, args=(k, t0, p)))
+        threads[-1].start()
+    for t in threads:
+        t.join(timeout=900)
+    return out
+
+
+def concurrent(args) -> int:
+    counts = [int(c) for c in args.concurrent.split(",")]
+    composes = args.compose.split(",")
+    path = Path(args.json)
+    doc = json.loads(path.read_text()) if path.exists() else {"bench": "bench_sellar_startup"}
+    runs: dict[tuple[int, str], list[list[dict]]] = {}
+    if args.append:  # more rounds to the ones already measured (one locked command per round on a shared host)
+        for key, rounds in (doc.get("concurrent") or {}).get("raw", {}).items():
+            n, compose = key.split("|")
+            runs[(int(n), compose)] = rounds
+    with tempfile.TemporaryDirectory() as d:
+        for r in range(args.repeat):
+            for n in counts:
+                for compose in composes:  # interleaved: the host is noisy
+                    rs = start_together(n, compose, args.domain_id, Path(d), f"r{r}_{n}_{compose}")
+                    runs.setdefault((n, compose), []).append(rs)
+                    ok = [x for x in rs if x["exit"] == 0]
+                    print(f"round {r}: {n} x --compose {compose}: {len(ok)}/{n} finished; start-up "
+                          f"{sorted(round(x['startup_s'], 1) for x in ok if x['startup_s'])} s", flush=True)
+    rows = []
+    for (n, compose), rounds in runs.items():
+        every = [x["startup_s"] for rs in rounds for x in rs if x["exit"] == 0 and x["startup_s"]]
+        slowest = [max(x["startup_s"] for x in rs) for rs in rounds
+                   if all(x["exit"] == 0 and x["startup_s"] for x in rs)]
+        objectives = {x["objective"] for rs in rounds for x in rs if x["exit"] == 0}
+        rows.append({"runs_together": n, "compose": compose, "rounds": len(rounds),
+                     "failed": sum(x["exit"] != 0 for rs in rounds for x in rs),
+                     "startup_s": every, "startup_median_s": statistics.median(every) if every else None,
+                     "startup_min_s": min(every, default=None), "startup_max_s": max(every, default=None),
+                     "slowest_per_round_s": slowest,
+                     "slowest_median_s": statistics.median(slowest) if slowest else None,
+                     "objectives": sorted(objectives)})
+    doc["concurrent"] = {"config": "config/leaf_nedc.yaml (recorded)", "host_cpus": os.cpu_count(),
+                         "load_average_1min_at_end": os.getloadavg()[0], "rows": rows,
+                         "raw": {f"{n}|{c}": rounds for (n, c), rounds in runs.items()}}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(doc, indent=2))
+    print(f"{'runs':>4s} {'compose':12s} {'failed':>6s} {'start-up median s':>18s} {'min':>6s} {'max':>6s} "
+          f"{'slowest (median)':>16s}  objectives")
+    for r in rows:
+        f = lambda v: f"{v:6.1f}" if v is not None else "     -"  # noqa: E731
+        print(f"{r['runs_together']:4d} {r['compose']:12s} {r['failed']:6d} {f(r['startup_median_s']):>18s} "
+              f"{f(r['startup_min_s'])} {f(r['startup_max_s'])} {f(r['slowest_median_s']):>16s}  {r['objectives']}")
+    print(f"wrote {path}")
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--domain-id", type=int, default=22)
     ap.add_argument("--json", default=str(REPO / "bench" / "results" / "bench_sellar_startup.json"))
+    ap.add_argument("--concurrent", default="", help="e.g. 1,4,8: runs started together on one domain")
+    ap.add_argument("--compose", default="none,coordinator", help="with --concurrent: layouts to compare")
+    ap.add_argument("--append", action="store_true", help="with --concurrent: add rounds to those in --json")
     args = ap.parse_args(argv)
+    if args.concurrent:
+        return concurrent(args)
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         cfgs = configs(tmp)
@@ -85,7 +181,9 @@ def main(argv=None) -> int:
                      "objective": rs[-1]["objective"], "iterations": rs[-1]["iterations"],
                      "feasible": rs[-1]["feasible"], "retried_total": sum(r["retried"] for r in rs),
                      "retry_warnings_total": sum(len(r["warnings"]) for r in rs)})
-    out = {"bench": "bench_sellar_startup", "repeat": args.repeat, "host_cpus": os.cpu_count(), "rows": rows}
+    old = json.loads(Path(args.json).read_text()) if Path(args.json).exists() else {}
+    out = {"bench": "bench_sellar_startup", "repeat": args.repeat, "host_cpus": os.cpu_count(), "rows": rows,
+           **({"concurrent": old["concurrent"]} if "concurrent" in old else {})}
     Path(args.json).parent.mkdir(parents=True, exist_ok=True)
     Path(args.json).write_text(json.dumps(out, indent=2))
     print(f"start to result of `bev-mdo optimize CONFIG --json --no-record`, {args.repeat} runs each (interleaved)")

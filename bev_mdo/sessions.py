@@ -132,8 +132,9 @@ class OptimizeRosSession:
     effective ros section (config, flags and environment resolved: cli/ros_args.ros_section).
     Entering writes ``<bag>/logs`` (node logs, the resolved config), keeps the per-run key beside the
     bag (``<bag parent>/.keys/<bag name>``, never inside it: a bag directory is what users share),
-    starts one process per discipline (``instances``: pools, ``compose``: several disciplines per
-    process) and, with ``record``, the recorder; exiting stops them all, the recorder first, after
+    starts the discipline nodes (a process each, or as ``compose`` says: several per process, or
+    ``coordinator``: in this process; ``instances``: pools, a process per instance) and, with
+    ``record``, the recorder; exiting stops them all, the recorder first, after
     it acknowledged everything."""
 
     def __init__(self, config: dict, ros: dict, bag: Path, run_id: str, *, record: bool = True,
@@ -143,26 +144,29 @@ class OptimizeRosSession:
         self.logs = self.bag / "logs"  # node logs and the resolved config, beside the bag in the run's directory
         self.launcher = None
         self.recorder = 0
+        self.recorder_binding = None
         self.stats: dict = {}
 
     def __enter__(self) -> "OptimizeRosSession":
         from bev_mdo.config import discipline_entries
         from bev_mdo.ros.client import apply_ros_environment
         from bev_mdo.ros.launch import Launcher, plan_processes, start_recorder
+        from bev_mdo.ros.recorder_node import config_binding
         from bev_mdo.ros_settings import ros_environment
 
         env = ros_environment(self.ros)
         apply_ros_environment(self.ros)
+        names = [e["name"] for e in discipline_entries(self.config)]
+        plan = dict(run_id=self.run_id, instance=self.run_id[:8], instances=self.instances, compose=self.compose)
+        plan_processes(names, "", **plan)  # a rejected --compose leaves nothing behind: checked before any file
         self.config, resolved = _prepare(self.config, self.logs, key_dir_for(self.bag))
         self.launcher = Launcher(env, log_dir=self.logs)
         try:
-            names = [e["name"] for e in discipline_entries(self.config)]
-            for label, argv in plan_processes(names, str(resolved.resolve()), run_id=self.run_id,
-                                              instance=self.run_id[:8], instances=self.instances,
-                                              compose=self.compose):
+            for label, argv in plan_processes(names, str(resolved.resolve()), **plan):
                 self.launcher.add(label, argv)
             if self.record:
                 self.recorder = start_recorder(self.launcher, self.bag, resolved, self.run_id)
+                self.recorder_binding = config_binding(resolved.read_text(encoding="utf-8"))
             self.launcher.supervise(watch_hangs=True)
         except BaseException:
             self.launcher.stop(first=("recorder",))
@@ -192,11 +196,12 @@ class OptimizeRosSession:
             # vehicle_mass after the optimiser's last evaluation stalled the baseline until its restart
             # was discovered: 8.5 s of tail in bench/bench_kill_tail.py).
             seen: dict = {}
-            baseline = _ros_baseline(self.config, self.run_id, ctx, seen, beside=beside)
+            baseline = _ros_baseline(self.config, self.run_id, ctx, seen, beside=beside, starting=self.launcher.progress)
             res, stats = coordinator_node.run(self.config, run_id=self.run_id, formulation=formulation,
                                               optimizer=optimizer, x0=x0, on_iteration=on_iteration,
                                               starts=starts, seed=seed,
                                               recorder_subscribers=self.recorder, context=ctx,
+                                              recorder_binding=self.recorder_binding, starting=self.launcher.progress,
                                               instances=self.instances, beside=beside,
                                               give_up_acks=acks_needless(self.launcher) if self.recorder else None)
             stats["t_acked"] = time.monotonic()  # the final acknowledgements are in (or given up)
@@ -304,7 +309,7 @@ def merge_baseline_stats(stats: dict, seen: dict) -> None:
     stats["refused_instances"] = refused
 
 
-def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None, beside=None) -> dict | None:
+def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None, beside=None, starting=None) -> dict | None:
     """The config's baseline analysed through the run's nodes (sub-run ``<run>-baseline``); None
     without one. A discipline that never appears raises (the run itself could not start either).
     `seen` gets what its evaluator dropped and refused."""
@@ -314,7 +319,8 @@ def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None, beside=Non
     if not config["problem"].get("baseline"):
         return None
     node = coordinator_node.CoordinatorNode(config, run_id + "-baseline", context=ctx,
-                                            node_name="coordinator_baseline")
+                                            node_name=coordinator_node.node_name_for(run_id + "-baseline"))
+    node.evaluator.starting = starting
     if beside is not None:  # disciplines composed into this process (--compose coordinator)
         beside.attach(node.evaluator)
     try:
@@ -389,9 +395,12 @@ class ParetoRosSession:
     def __enter__(self):
         import rclpy
 
+        from bev_mdo.ros.auth import Signer
         from bev_mdo.ros.client import apply_ros_environment
+        from bev_mdo.ros.coordinator_node import node_name_for
         from bev_mdo.ros.launch import Launcher, start_recorder
         from bev_mdo.ros.pareto_publisher import RosSink
+        from bev_mdo.ros.recorder_node import config_binding
         from bev_mdo.ros_settings import ros_environment
 
         apply_ros_environment(self.ros)
@@ -403,11 +412,13 @@ class ParetoRosSession:
         self._acks_needless = acks_needless(self.launcher)
         try:
             self.recorder = start_recorder(self.launcher, self.bag, resolved, self.run_id)
+            self.binding = config_binding(resolved.read_text(encoding="utf-8"))
             self.launcher.supervise(watch_hangs=True)
             self.ctx = rclpy.context.Context()
             rclpy.init(context=self.ctx)
-            self.sink = RosSink(self.ctx, self.run_id)
-            self.sink.wait_for_recorder(self.recorder, self.ros["discovery_wait_s"])
+            self.sink = RosSink(self.ctx, self.run_id, node_name_for(self.run_id, "pareto_publisher"),
+                                Signer.from_ros(self.ros), self.binding)
+            self.sink.wait_for_recorder(self.ros["discovery_wait_s"])
         except BaseException:
             self.__exit__()
             raise
@@ -418,7 +429,7 @@ class ParetoRosSession:
         import yaml
 
         from bev_mdo.ros import coordinator_node
-        from bev_mdo.ros.launch import node_names_of, plan_processes
+        from bev_mdo.ros.launch import plan_processes
 
         cfg = {**cfg, "ros": self.ros}
         wait_s = self.ros["discovery_wait_s"]
@@ -428,23 +439,21 @@ class ParetoRosSession:
         logs.mkdir(parents=True, exist_ok=True)
         resolved = logs / "config.yaml"
         resolved.write_text(yaml.safe_dump(plain(cfg), sort_keys=False))
-        node_names = []
-        for label, argv in plan_processes(names, str(resolved.resolve()), run_id=f"{self.run_id}-{topology}",
-                                          instances=self.instances):
+        sub_run = f"{self.run_id}-{topology}"
+        for label, argv in plan_processes(names, str(resolved.resolve()), run_id=sub_run, instances=self.instances):
             self.launcher.add(f"{topology}/{label}", argv)
             self.labels.append(f"{topology}/{label}")
-            node_names += node_names_of(argv)
-        node = coordinator_node.CoordinatorNode(cfg, f"{self.run_id}-{topology}", context=self.ctx)
+        node = coordinator_node.CoordinatorNode(cfg, sub_run, context=self.ctx,
+                                                node_name=coordinator_node.node_name_for(sub_run))
+        node.evaluator.starting = self.launcher.progress
         # a recorder that died in an earlier topology is not waited for (the study goes on, reported at the end)
         recorders = self.recorder if self.launcher.node("recorder").died is None else 0
         try:
-            # a pool's instances each read their discipline's request topic: the recorder counts as one more
-            node.evaluator.wait_for_disciplines(names, wait_s, extra_subscribers=recorders)
+            node.evaluator.wait_for_disciplines(names, wait_s)
             for name, count in self.instances.items():  # a pool starts with all its instances (pool.py)
                 node.evaluator.wait_for_instances(name, count, wait_s)
-            node.wait_for_recorder(recorders, wait_s)
-            if recorders:
-                self._wait_recorder_topics(node_names, wait_s)
+            if recorders:  # the study's recorder, by its declaration: it matched every topic of these nodes
+                node.wait_for_recorder(wait_s, self.binding)
             node.evaluator.warm_up(names)
             yield node.evaluator
             for k, v in node.evaluator.dropped.items():
@@ -456,35 +465,6 @@ class ParetoRosSession:
         finally:
             node.evaluator.close()
             node.destroy_node()
-
-    def _wait_recorder_topics(self, node_names, wait_s: float) -> None:
-        """Wait until the recorder's subscriptions matched every publisher these nodes have under
-        /bev_mdo/ (their results): a message published before that would be missing from the bag.
-        The recorder finds new topics by polling the graph and reports its matches on its status
-        topic; a topic's publishers in this process's graph must all be matched there."""
-        from rclpy.node import NodeNameNonExistentError
-
-        from bev_mdo.ros.common import PREFIX
-
-        from bev_mdo.ros.fastwait import until
-
-        node = self.sink.node
-
-        def missing() -> list[str]:
-            out = []
-            for n in node_names:
-                try:
-                    topics = [t for t, _ in node.get_publisher_names_and_types_by_node(n, "/")]
-                except NodeNameNonExistentError:
-                    out.append(n)
-                    continue
-                out += [t for t in topics if t.startswith(PREFIX + "/")
-                        and self.sink.recorder_matched.get(t, 0) < node.count_publishers(t)]
-            return out
-
-        if not until(lambda: not missing(), wait_s, lambda: self.sink.spin(0.02)):
-            raise ValueError(f"the recorder did not match the publishers of {(missing() or sorted(node_names))[0]} "
-                             f"within {wait_s:g} s")
 
     def _stop_disciplines(self, names, wait_s: float) -> None:
         """Stop the previous topology's discipline nodes and wait until the graph lost them."""

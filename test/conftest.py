@@ -3,8 +3,6 @@ localhost-only discovery (network hygiene), set before rclpy initialises."""
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -25,20 +23,18 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.ros)
 
 
-FASTDDS = Path(sys.executable).parent / "fastdds"  # Fast DDS's own CLI, installed with the ros-jazzy wheels
-
-
 def clean_zombie_shm() -> None:
-    """Remove Fast DDS shared-memory ports and segments whose owner died (``fastdds shm clean``; it removes only
-    files whose lock no live process holds). The suite SIGKILLs nodes on purpose; a later participant on the
-    same port (the same module's domain, in this run or the next one on the host) could otherwise hang at start
-    on a zombie port (eProsima/Fast-DDS#1144, #2811)."""
-    subprocess.run([str(FASTDDS), "shm", "clean"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                   timeout=60, check=False)
+    """Remove Fast DDS shared-memory files whose owner died (bev_mdo.ros.shm: only files whose lock no live
+    process holds). The suite SIGKILLs nodes on purpose; a later participant on the same port (the same
+    module's domain, in this run or the next one on the host) could otherwise hang at start on a zombie port
+    (eProsima/Fast-DDS#1144, #2811)."""
+    from bev_mdo.ros.shm import remove_orphans
+
+    remove_orphans()
 
 
 @pytest.fixture(scope="module")
-def ros_domain(request):
+def ros_domain(request, tmp_path_factory):
     """Set this module's own ROS domain in os.environ (for in-process rclpy) and return it.
 
     A module may pin its domain with a module-level ``ROS_DOMAIN = N``; otherwise it is a
@@ -51,6 +47,8 @@ def ros_domain(request):
         os.environ.pop(k, None)
     os.environ["ROS_DOMAIN_ID"] = str(domain)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    # this process's ROS log (and its children's, unless a run puts them in its own folder) stays out of ~/.ros/log
+    os.environ.setdefault("ROS_LOG_DIR", str(tmp_path_factory.getbasetemp() / "ros_log"))
     clean_zombie_shm()
     yield domain
     for k, v in old.items():

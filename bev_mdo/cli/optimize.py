@@ -26,7 +26,8 @@ from pathlib import Path
 def register(sub) -> None:
     p = sub.add_parser("optimize", help="run the distributed MDF/IDF optimisation (the main job)",
                        description="Optimise the config's problem. Over ROS every discipline runs as its own "
-                                   "node process on this host (localhost discovery, the config's domain id).")
+                                   "node (localhost discovery, the config's domain id), by default in this "
+                                   "command's process (--compose none: a process each).")
     p.add_argument("config", help="run config YAML, e.g. config/leaf_nedc.yaml")
     p.add_argument("--formulation", choices=["mdf", "idf"], default=None, help="default: the config's")
     p.add_argument("--optimizer", default=None,
@@ -46,9 +47,10 @@ def register(sub) -> None:
     p.add_argument("--instances", default=None, metavar="N|NAME=N,...",
                    help="ROS: run N instances of every discipline, or of the named ones; they share each batch "
                         "(ros.pool: share) or all answer it (redundant)")
-    p.add_argument("--compose", default="none", metavar="all|none|A+B,C+D|coordinator",
-                   help="ROS: run several disciplines in one process (one executor, several nodes); "
-                        "coordinator: all of them in the coordinator's own process (docs/scaling.md)")
+    p.add_argument("--compose", default="coordinator", metavar="coordinator|none|all|A+B,C+D",
+                   help="ROS: where the discipline nodes run. coordinator (default): in this command's own "
+                        "process, beside the coordinator (a pool's instances keep a process each); none: a "
+                        "process per discipline; all: one process for all; groups A+B,C+D (docs/scaling.md)")
     from bev_mdo.cli.ros_args import add_ros_arguments
 
     add_ros_arguments(p)
@@ -274,9 +276,12 @@ def _run_ros(config, args, show, x0=None):
     session = OptimizeRosSession(config, ros, bag, run_id, record=not args.no_record, instances=instances,
                                  compose=getattr(args, "compose", None))
     if not args.quiet:
-        print(f"starting {len(names)} discipline nodes{'' if args.no_record else ' and a recorder'}"
-              f" (domain {ros['domain_id']}); waiting up to {ros.get('discovery_wait_s', 20):g} s for them to be "
-              f"discovered ...", file=sys.stderr if args.json else sys.stdout, flush=True)
+        where = ("in this process (--compose coordinator; --compose none: a process each)"
+                 if getattr(args, "compose", None) == "coordinator" else "")
+        print(f"starting {len(names)} discipline nodes {where}{'' if args.no_record else ' and a recorder'}"
+              f" (domain {ros['domain_id']}); waiting while discovery makes progress (gives up after "
+              f"{ros.get('discovery_wait_s', 20):g} s without) ...", file=sys.stderr if args.json else sys.stdout,
+              flush=True)
     with session:
         result, baseline = session.run(args.formulation, args.optimizer, x0, show, starts=_starts(args, x0),
                                        seed=getattr(args, "seed", 0))

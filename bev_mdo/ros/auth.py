@@ -167,6 +167,17 @@ class Signer:
         else "unsigned" or "forged" (no freshness window: also offline)."""
         return self._mac_only(data)
 
+    def sign_declaration(self, text: str) -> str:
+        """Signature of a recorder's declaration (its JSON text; recorder_node.OwnRecorder)."""
+        return self._mac(b"recorder declaration\0", text.encode())
+
+    def verify_declaration(self, text: str, signature: str) -> str | None:
+        """None if a recorder's declaration is authentic, else "unsigned" or "forged" (MAC only,
+        as for a discipline's declaration)."""
+        if not signature:
+            return "unsigned"
+        return None if hmac.compare_digest(str(signature), self.sign_declaration(text)) else "forged"
+
     def _mac_only(self, data) -> str | None:
         parts = _tail_signed(data)
         end = _tail_end(data)

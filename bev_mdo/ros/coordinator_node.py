@@ -7,6 +7,7 @@ recorded by the recorder node).
 from __future__ import annotations
 
 import json
+import re
 import sys
 import time
 import uuid
@@ -21,9 +22,16 @@ from bev_mdo.ros import wire
 from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, stamp, wait_acked
 from bev_mdo.ros.evaluator import RosEvaluator
 from bev_mdo.ros.fastwait import until
+from bev_mdo.ros.recorder_node import OwnRecorder
 from bev_mdo.ros_settings import validate_ros
 from bev_mdo.stacks import deadline
 from bev_mdo_msgs.msg import IterationRecord
+
+
+def node_name_for(run_id: str, base: str = "coordinator") -> str:
+    """A coordinator's node name of its own (``coordinator_<run id>``): a run's recorder declares the
+    publishers it matched by node name, so two runs' coordinators must not share one."""
+    return f"{base}_" + re.sub(r"\W", "_", run_id)[:24]
 
 
 def discipline_names(config: Mapping[str, Any]) -> list[str]:
@@ -77,38 +85,67 @@ class CoordinatorNode(Node):
                                       f"{sorted(p.topic_name for p in pending)}")
         return not pending
 
-    def wait_for_recorder(self, n: int, wait_s: float) -> None:
-        """Wait until `n` recorders subscribed to the iteration and result topics (and the data-flow
-        result topics: the coordinator, the consuming disciplines and the recorders), so nothing is lost."""
-        readers = self.evaluator.flow_readers()
-        if not until(lambda: (self._iteration_pub.get_subscription_count() >= n
-                              and self.count_subscribers(RESULT_TOPIC) >= 1 + n
-                              and all(self.count_subscribers(t) >= k + n for t, k in readers.items())),
-                     wait_s, lambda: time.sleep(0.02)):  # graph polling; matching happens in DDS threads
-            raise ValueError(f"the recorder did not subscribe within {wait_s:g} s")
+    def wait_for_recorder(self, wait_s: float, binding: str | None = None) -> OwnRecorder:
+        """Wait until this run's own recorder, known by its declaration (this run id and, when
+        given, `binding`; signed with the run's key when the run signs: recorder_node.OwnRecorder),
+        reads every topic this run publishes and matched every publisher of it: the iteration and
+        request topics (ours) and the result topics (this run's disciplines). Nobody else's
+        subscriptions count. Waits while discovery makes progress (fastwait.until); ValueError once
+        nothing changed for `wait_s`."""
+        own = OwnRecorder(self, self.run_id, self.evaluator.signer, binding)
+        ev = self.evaluator
+        ours = {i for v in ev.instances.values() for i in v}
+
+        def of(topic: str) -> list[str]:  # this run's disciplines publishing on `topic`
+            return [n for n in (f"{i.node_namespace.rstrip('/')}/{i.node_name}".lstrip("/")
+                                for i in self.get_publishers_info_by_topic(topic)) if n in ours]
+
+        def missing() -> list[str]:
+            out = [p.topic_name for p in (self._iteration_pub, *ev.request_publishers)
+                   if not own.records(p.topic_name, pub=p)]
+            return out + [t for t in (RESULT_TOPIC, *ev.flow_readers())
+                          if not (of(t) and own.records(t, publishers=of(t)))]
+
+        def progress() -> tuple:
+            return (json.dumps(own.declaration, sort_keys=True), tuple(sorted(own.dropped.items())),
+                    ev.progress())
+
+        if not until(lambda: not missing(), wait_s, lambda: ev.spin(0.05), progress,
+                     lambda: f"this run's recorder on {missing()}"):
+            what = (f"declared itself but did not match {missing()}" if own.declaration else
+                    "did not declare itself" + (f" (dropped: {dict(own.dropped)})" if own.dropped else ""))
+            raise ValueError(f"the run's recorder {what}; nothing changed for {wait_s:g} s")
+        self.evaluator.dropped.update(own.dropped)
+        return own
 
 
 def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: str | None = None,
         optimizer: str | None = None, x0: Mapping[str, float] | None = None,
         on_iteration: Callable[[dict], None] | None = None, recorder_subscribers: int = 0,
         context=None, signer=None, instances: Mapping[str, int] | None = None,
-        give_up_acks: Callable[[], bool] | None = None, beside=None, starts: int = 1, seed: int = 0):
+        give_up_acks: Callable[[], bool] | None = None, beside=None, starts: int = 1, seed: int = 0,
+        recorder_binding: str | None = None, starting: Callable[[], tuple] | None = None):
     """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats).
-    ``beside``: a composed.Beside (discipline nodes in this process and `context`) to serve."""
+    ``beside``: a composed.Beside (discipline nodes in this process and `context`) to serve.
+    ``recorder_subscribers``: 1 to wait for the run's own recorder (by its declaration; with
+    ``recorder_binding``, the binding it must declare: recorder_node.config_binding), 0 not to.
+    ``starting``: start-up progress of the run's processes (launch.Launcher.progress), for the waits."""
     from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import run_optimization
 
-    node = CoordinatorNode(config, run_id, signer=signer, context=context)
+    run_id = run_id or uuid.uuid4().hex[:16]
+    node = CoordinatorNode(config, run_id, signer=signer, context=context, node_name=node_name_for(run_id))
+    node.evaluator.starting = starting
     if beside is not None:
         beside.attach(node.evaluator)
     try:
         names = discipline_names(config)
-        node.evaluator.wait_for_disciplines(names, node.discovery_wait_s, extra_subscribers=recorder_subscribers)
+        node.evaluator.wait_for_disciplines(names, node.discovery_wait_s)
         for name, count in (instances or {}).items():  # a pool starts with all its instances (pool.py)
             if count > 1:
                 node.evaluator.wait_for_instances(name, count, node.discovery_wait_s)
         if recorder_subscribers:
-            node.wait_for_recorder(recorder_subscribers, node.discovery_wait_s)
+            node.wait_for_recorder(node.discovery_wait_s, recorder_binding)
         node.evaluator.warm_up(names)
 
         def callback(rec: dict) -> None:
@@ -146,8 +183,8 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
 
 def main(args: list[str] | None = None) -> int:
     """`ros2 run bev_mdo coordinator_node --ros-args -p config:=... [-p formulation:=idf -p optimizer:=SLSQP]
-    [-p recorders:=1] [-p compose:=coordinator]` (with a recorder started on its own, wait for it so the bag
-    misses nothing; with compose:=coordinator the disciplines' nodes run in this process, composed.Beside)."""
+    [-p recorders:=1 -p run_id:=RUN] [-p compose:=coordinator]` (with a recorder started on its own for
+    the same run, ``recorder_node --run-id RUN``, wait for its declaration so the bag misses nothing; with compose:=coordinator the disciplines' nodes run in this process, composed.Beside)."""
     from bev_mdo.config import load_config
     from bev_mdo.ros.paths import default_config
 
@@ -163,7 +200,7 @@ def main(args: list[str] | None = None) -> int:
         probe.declare_parameter("compose", "", ParameterDescriptor(
             description="coordinator: serve every discipline (but pools) from nodes in this process (--compose)"))
         probe.declare_parameter("recorders", 0, ParameterDescriptor(
-            description="wait until this many recorder nodes subscribed before the first evaluation"))
+            description="1: before the first evaluation, wait for this run's recorder (recorder_node --run-id RUN)"))
         p = {k: probe.get_parameter(k).value
              for k in ("config", "formulation", "optimizer", "run_id", "recorders", "instances", "compose")}
         probe.destroy_node()

@@ -26,6 +26,7 @@ can check that each evaluation id was accepted once, from its own discipline.
 from __future__ import annotations
 
 import functools
+import sys
 import time
 import uuid
 from collections import Counter
@@ -131,6 +132,7 @@ class RosEvaluator:
         self._waiter = MultiWaiter(node.context)
         self._hot = [(self._result_sub, lambda data, _i: self._on_bytes(data))]
         self.local_requests = None  # composed.Beside: (publisher, request) -> True if delivered in process
+        self.starting = None  # start-up progress of the run's own processes (launch.Launcher.progress)
 
     @property
     def policy(self) -> retry.Policy:
@@ -252,14 +254,24 @@ class RosEvaluator:
             self._publishers[discipline] = pub
         return pub
 
-    def wait_for_disciplines(self, names: Sequence[str], wait_s: float, extra_subscribers: int = 0) -> None:
-        """Block until every named discipline declared itself and matched our topics.
+    def progress(self, names: Sequence[str] = ()) -> tuple:
+        """What start-up progress is measured by (fastwait.until): the nodes on the graph, the
+        declarations taken, the matches of our request and result topics and, with ``starting``
+        (launch.Launcher.progress), the CPU time of the run's processes not yet on the graph."""
+        pubs = self._publishers
+        return (self.starting() if self.starting is not None else (), tuple(sorted(self.node.get_node_names())), tuple(sorted(self.specs)), len(self.refused),
+                sum(len(v) for v in self.instances.values()), self._result_sub.get_publisher_count(),
+                tuple(p.get_subscription_count() for p in pubs.values()),
+                tuple(s.get_publisher_count() for s in self._flow_subs.values()))
 
-        Raises DisciplineMissing naming the ones still absent after `wait_s`.
-        """
+    def wait_for_disciplines(self, names: Sequence[str], wait_s: float, extra_subscribers: int = 0) -> None:
+        """Block until every named discipline declared itself and matched our topics, then prove
+        every path delivers (handshake). Waits as long as discovery makes progress (fastwait.until):
+        raises DisciplineMissing naming the ones still absent once nothing changed for `wait_s`.
+        `extra_subscribers`: readers of each request topic to wait for besides the discipline's (the
+        run's recorder is waited for by name instead: coordinator_node.wait_for_recorder)."""
         for n in names:
             self._publisher(n)
-        deadline = time.monotonic() + wait_s
 
         def missing() -> list[str]:
             out = []
@@ -270,7 +282,7 @@ class RosEvaluator:
                     and self.node.count_publishers(RESULT_TOPIC) >= 1
                     and self._present(n, request_topic(n), subscriber=True)
                     # every reader in the graph matched: with other instances (another run's, a
-                    # refused one) on the topic, the count alone could be reached without ours
+                    # refused one, a recorder) on the topic, a count alone could be reached without ours
                     and self._publishers[n].get_subscription_count() >= self.node.count_subscribers(request_topic(n))
                     and self._present(n, RESULT_TOPIC, subscriber=False)
                 )
@@ -279,22 +291,24 @@ class RosEvaluator:
             return out
 
         spin = functools.partial(self._executor.spin_once, timeout_sec=0.05)
-        if not until(lambda: not missing(), wait_s, spin):
+        progress = functools.partial(self.progress, names)
+        if not until(lambda: not missing(), wait_s, spin, progress,
+                     lambda: f"discipline(s) {missing()} ({len(self.specs)} of {len(names)} declared)"):
             gone = missing()
             if gone:
                 refused = [f"{k}: {why}" for k, why in self.refused.items() if k.split(" ")[0] in gone]
                 if refused:
                     raise DisciplineMissing(f"discipline(s) {gone}: no instance of this run's configuration "
-                                            f"within {wait_s:g} s; refused " + " | ".join(refused))
+                                            f"(nothing changed for {wait_s:g} s); refused " + " | ".join(refused))
                 raise DisciplineMissing(
-                    f"discipline(s) {gone} not found on ROS domain within {wait_s:g} s "
-                    "(is each node running, with the same ROS_DOMAIN_ID and discovery settings? A node stuck at "
-                    "start after a crash: stale Fast DDS shared memory, run `fastdds shm clean`)"
+                    f"discipline(s) {gone} not found on ROS domain: discovery made no progress for {wait_s:g} s "
+                    "(is each node running, with the same ROS_DOMAIN_ID and discovery settings? see its log in "
+                    "the run's logs folder; ros.discovery_wait_s sets this bound)"
                 )
         # Our result subscription must be matched to every discipline's publisher too.
-        if not until(lambda: self._result_sub.get_publisher_count() >= len(set(names)),
-                     deadline - time.monotonic(), spin):
-            raise DisciplineMissing(f"result topic not matched for all of {list(names)} within {wait_s:g} s")
+        if not until(lambda: self._result_sub.get_publisher_count() >= len(set(names)), wait_s, spin, progress,
+                     "the result topic to match every discipline"):
+            raise DisciplineMissing(f"result topic not matched for all of {list(names)}: no progress for {wait_s:g} s")
         # Declarations that arrived with ours (other instances on the domain) are judged now: once
         # the run evaluates, only the hot subscriptions are served.
         for _ in range(16):
@@ -309,13 +323,14 @@ class RosEvaluator:
             self._flow_topics(names)
             roots = {n for n, src in self.flow_plan(names).items() if not src}
             if not until(lambda: (self._flow_pub.get_subscription_count()
-                                  >= max(len(roots) + extra_subscribers, self.node.count_subscribers(MDA_REQUEST_TOPIC))
+                                  >= max(len(roots), self.node.count_subscribers(MDA_REQUEST_TOPIC))
                                   and all(self._flow_subs[n].get_publisher_count() >= 1 for n in names)
                                   and all(self._present(n, MDA_REQUEST_TOPIC, subscriber=True) for n in roots)
                                   and all(self._present(n, mda_result_topic(n), subscriber=False) for n in names)),
-                         deadline - time.monotonic(), spin):
-                raise DisciplineMissing(f"data-flow topics not matched for all of {list(names)} within {wait_s:g} s")
-        self.handshake(names, max(deadline - time.monotonic(), 1.0), flow_ok)
+                         wait_s, spin, progress, "the data-flow topics to match"):
+                raise DisciplineMissing(f"data-flow topics not matched for all of {list(names)}: no progress "
+                                        f"for {wait_s:g} s")
+        self.handshake(names, wait_s, flow_ok)
 
     def handshake(self, names: Sequence[str], wait_s: float = 20.0, data_flow: bool | None = None) -> None:
         """Prove that every path a run uses delivers, before the first real request.
@@ -328,12 +343,14 @@ class RosEvaluator:
         point (hub and spoke) and, when the MDA uses data flow, one empty data-flow MDA, re-sent
         with a fresh evaluation id every 0.1-1 s until answered: a round trip shows both ends of
         every topic matched. Nothing is evaluated or counted; a late answer to an earlier probe is
-        ignored (``probe_late``). Raises DisciplineMissing naming a discipline that never answers."""
+        ignored (``probe_late``). It waits as long as something progresses (a probe answered, the
+        graph changed) and raises DisciplineMissing naming a discipline that did not answer once
+        nothing changed for `wait_s`."""
         names = list(dict.fromkeys(names))
         if data_flow is None:
             data_flow = self.flow_plan(names) is not None and all(n in self._flow_subs for n in names)
         kept = len(self.accepted)
-        deadline = time.monotonic() + wait_s
+        last, state, shown = time.monotonic(), self.progress(names), time.monotonic()
         rounds = [("request", n) for n in names] + ([("flow", None)] if data_flow else [])
         for kind, name in rounds:
             interval = 0.1
@@ -351,15 +368,24 @@ class RosEvaluator:
                         self._pending[(eid, n)] = _Pending(i, n, req, 0, 0, flow=True)
                     p = self._pending[keys[0]]  # one message for every discipline
                 self._send(p)
-                self._wait_pending(min(interval, max(deadline - time.monotonic(), 0.0)))
+                self._wait_pending(interval)
                 late = [k[1] for k in keys if k in self._pending]
                 for k in keys:
                     self._pending.pop(k, None)
+                now = time.monotonic()
                 if not late:
+                    last = now  # an answer is progress
                     break
-                if time.monotonic() >= deadline:
+                if (s := self.progress(names)) != state:
+                    state, last = s, now
+                if now - last >= wait_s:
                     raise DisciplineMissing(f"discipline(s) {late} are matched but did not answer a probe "
-                                            f"({'data flow' if kind == 'flow' else 'request'}) within {wait_s:g} s")
+                                            f"({'data flow' if kind == 'flow' else 'request'}); nothing changed "
+                                            f"for {wait_s:g} s")
+                if now - shown >= 2.0:
+                    shown = now
+                    print(f"[start-up] waiting for {late} to answer a probe; gives up in "
+                          f"{wait_s - (now - last):.0f} s without progress", file=sys.stderr, flush=True)
                 interval = min(2 * interval, 1.0)
         del self.accepted[kept:]
         self._results = {}
@@ -760,7 +786,8 @@ class RosEvaluator:
 
     def wait_for_instances(self, name: str, count: int, wait_s: float) -> list[str]:
         """Block until `count` accepted instances of `name` read its request topic and our writer
-        matched them all (a pool ready to share); returns them. DisciplineMissing after `wait_s`."""
+        matched them all (a pool ready to share); returns them. DisciplineMissing once nothing
+        changed for `wait_s` (fastwait.until)."""
         self._publisher(name)
 
         def ready() -> bool:
@@ -769,9 +796,10 @@ class RosEvaluator:
             present, readers = self._present_instances(name)
             return len(present) >= count and self._publisher(name).get_subscription_count() >= readers
 
-        if not until(ready, wait_s, functools.partial(self._executor.spin_once, timeout_sec=0.05)):
+        if not until(ready, wait_s, functools.partial(self._executor.spin_once, timeout_sec=0.05),
+                     functools.partial(self.progress, [name]), f"{count} instances of {name!r}"):
             raise DisciplineMissing(f"{len(self._present_instances(name)[0])} of {count} instances of {name!r} "
-                                    f"within {wait_s:g} s" + (f"; refused {self.refused}" if self.refused else ""))
+                                    f"(nothing changed for {wait_s:g} s)" + (f"; refused {self.refused}" if self.refused else ""))
         return sorted(self._present_instances(name)[0])
 
     def _send_shares(self, index: int, name: str, batch: Mapping[str, np.ndarray], iteration: int,
@@ -882,6 +910,10 @@ class RosEvaluator:
                 self._waiter.take_ready(self._hot)
             if once:
                 return
+
+    def spin(self, timeout_s: float) -> None:
+        """Serve the node's callbacks (declarations, a recorder's status) for up to `timeout_s`."""
+        self._executor.spin_once(timeout_sec=timeout_s)
 
     def close(self) -> None:
         """Release the executor (the node is the caller's)."""

@@ -10,19 +10,44 @@ executor when idle.
 """
 from __future__ import annotations
 
+import sys
 import time
-from typing import Callable
+from typing import Callable, Hashable
 
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
+STARTUP_CAP = 10      # a start-up wait ends after this many times its no-progress bound, progress or not
+SHOW_AFTER_S = 2.0    # a start-up wait says what it waits for once it took this long
+SHOW_EVERY_S = 2.0
 
-def until(ready: Callable[[], object], wait_s: float, step: Callable[[], object]) -> bool:
-    """Call `step()` (spin once, poll the graph, sleep) until `ready()` is true; False once
-    `wait_s` seconds passed without it (the caller says what was missing)."""
-    deadline = time.monotonic() + wait_s
+
+def until(ready: Callable[[], object], wait_s: float, step: Callable[[], object],
+          progress: Callable[[], Hashable] | None = None, what: str | Callable[[], str] = "") -> bool:
+    """Call `step()` (spin once, poll the graph, sleep) until `ready()` is true.
+
+    Without `progress`: False once `wait_s` seconds passed without it (the caller says what was missing).
+    With `progress` (a start-up wait): `wait_s` bounds the time WITHOUT PROGRESS, not the wait. The
+    wait goes on as long as `progress()` (nodes seen, matches, declarations, probe answers) keeps
+    changing, so a host loaded by many runs starting together is waited for, and it gives up only
+    after `wait_s` seconds in which nothing changed, or after STARTUP_CAP x `wait_s` in all (a domain
+    whose graph never settles). With `what` it shows, after SHOW_AFTER_S, one line on stderr every
+    SHOW_EVERY_S: what it waits for and the seconds left before it gives up."""
+    start = last = shown = time.monotonic()
+    state = progress() if progress is not None else None
     while not ready():
-        if time.monotonic() > deadline:
+        now = time.monotonic()
+        if progress is not None:
+            s = progress()
+            if s != state:
+                state, last = s, now
+            if now - start > STARTUP_CAP * wait_s:
+                return False
+        if now - last > wait_s:
             return False
+        if what and now - start >= SHOW_AFTER_S and now - shown >= SHOW_EVERY_S:
+            shown = now
+            print(f"[start-up] waiting for {what() if callable(what) else what}; gives up in "
+                  f"{max(0.0, wait_s - (now - last)):.0f} s without progress", file=sys.stderr, flush=True)
         step()
     return True
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -21,6 +22,7 @@ from bev_mdo.ros.executables import DISCIPLINE_EXES
 from bev_mdo.ros.watchdog import HangWatchdog
 
 _BUILTIN_EXE = {v: k for k, v in DISCIPLINE_EXES.items()}
+FIRST_STOP_S = 30.0  # how long Launcher.stop gives the nodes stopped first (the recorder) after SIGINT
 
 
 def _die_with_parent() -> None:
@@ -51,6 +53,25 @@ class NodeProcess:
     seen: bool = False              # on the ROS graph since its (re)start
     missing_since: float | None = None
     hangs: int = 0                  # times the watchdog killed it as hung (each also counts as a restart)
+    cpu_ticks: int = -1             # its CPU time when last read (clock ticks; cpu_ticks())
+    cpu_changed_at: float = 0.0     # when that last changed (time.monotonic())
+
+    def busy(self, now: float, within_s: float) -> bool:
+        """Whether its process used CPU in the last `within_s` seconds (a node still importing and
+        starting on a loaded host does; one hung in the middleware does not)."""
+        ticks = cpu_ticks(self.proc.pid) if self.proc is not None else -1
+        if ticks != self.cpu_ticks:
+            self.cpu_ticks, self.cpu_changed_at = ticks, now
+        return ticks >= 0 and now - self.cpu_changed_at < within_s
+
+
+def cpu_ticks(pid: int) -> int:
+    """User + system CPU time of process `pid` in clock ticks (Linux /proc; -1 if it is gone)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_bytes().rsplit(b")", 1)[1].split()
+        return int(fields[11]) + int(fields[12])
+    except (OSError, IndexError, ValueError):
+        return -1
 
 
 def discipline_argv(name: str, config_path: str, instance: str = "", run_id: str = "") -> list[str]:
@@ -112,11 +133,20 @@ class Launcher:
     """Runs node processes with a given environment and keeps them alive."""
 
     def __init__(self, env: Mapping[str, str], log_dir: str | Path | None = None, max_restarts: int = 20):
+        from bev_mdo.ros.shm import remove_orphans
+
+        remove_orphans()  # Fast DDS files of killed processes (ours, earlier): nobody else removes them
         self.env = dict(env)
         repo = str(Path(__file__).resolve().parents[2])
         self.env["PYTHONPATH"] = repo + os.pathsep + self.env.get("PYTHONPATH", "")
         self.env["PYTHONUNBUFFERED"] = "1"
         self.log_dir = Path(log_dir) if log_dir else None
+        if self.log_dir is not None:
+            # The nodes' ROS logs go with theirs, in the run's folder, not to ~/.ros/log; so does this
+            # process's (its coordinator, the watchdog) unless ROS_LOG_DIR says otherwise: rcl reads it
+            # once, at the process's first rclpy.init, which comes after this.
+            self.env["ROS_LOG_DIR"] = str(self.log_dir.resolve() / "ros")
+            os.environ.setdefault("ROS_LOG_DIR", self.env["ROS_LOG_DIR"])
         self.max_restarts = max_restarts
         self.nodes: list[NodeProcess] = []
         self._lock = threading.Lock()
@@ -177,6 +207,14 @@ class Launcher:
                               f"({node.restarts}/{self.max_restarts})", file=sys.stderr)
                         self._spawn(node)
 
+    def progress(self) -> tuple:
+        """Start-up progress of the processes not yet on the ROS graph (``seen``, kept by the hang
+        watchdog): their restarts and CPU time. A node process still importing on a loaded host
+        is progress even before discovery shows it (fastwait.until)."""
+        with self._lock:
+            return tuple((n.label, n.restarts, cpu_ticks(n.proc.pid) if n.proc is not None else -1)
+                         for n in self.nodes if not n.seen)
+
     def died_within(self, window_s: float) -> bool:
         """Whether a supervised node died (and was restarted, or not) in the last `window_s` seconds."""
         since = time.monotonic() - window_s
@@ -229,8 +267,8 @@ class Launcher:
         with self._lock:
             early = [n.proc for n in self.nodes if n.proc is not None and n.label in first]
             procs = [n.proc for n in self.nodes if n.proc is not None and n.label not in first]
-        if early:
-            _stop_procs(early, timeout_s)
+        if early:  # a recorder drains its queue (up to 10 s) and closes the bag: slow on a crowded host
+            _stop_procs(early, max(timeout_s, FIRST_STOP_S))
         _stop_procs(procs, timeout_s)
 
     def __enter__(self) -> "Launcher":
@@ -393,6 +431,9 @@ def start_recorder(launcher: Launcher, bag: Path, resolved: Path, run_id: str) -
     """Start the recorder node of a run writing `bag`; returns how many extra subscribers it adds per topic."""
     # Not restarted: a second recorder cannot reopen the bag the first one was writing (the run ends
     # with a warning and status 3 instead, the bag repaired up to the recorder's death).
+    # a node name of its own: the coordinator knows the run's recorder by its declaration, which names it
     launcher.add("recorder", [sys.executable, "-m", "bev_mdo.ros.run", "recorder_node", "--output", str(bag),
-                              "--config", str(resolved.resolve()), "--run-id", run_id], restart=False)
+                              "--config", str(resolved.resolve()), "--run-id", run_id,
+                              "--ros-args", "-r", f"__node:=recorder_{re.sub(r'[^A-Za-z0-9_]', '_', run_id)[:24]}"],
+                 restart=False)
     return 1

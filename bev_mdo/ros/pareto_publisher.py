@@ -70,38 +70,37 @@ class BagSink:
 
 class RosSink:
     """Over ROS: a small node publishing ParetoFront messages for the recorder, and following the
-    recorder's status (which publishers its subscriptions matched)."""
+    study's own recorder by its declaration (recorder_node.OwnRecorder)."""
 
-    def __init__(self, context, run_id: str, node_name: str = "pareto_publisher"):
+    def __init__(self, context, run_id: str, node_name: str = "pareto_publisher", signer=None,
+                 binding: str | None = None):
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
-        from std_msgs.msg import String
 
-        from bev_mdo.ros.recorder_node import STATUS_QOS, STATUS_TOPIC
+        from bev_mdo.ros.recorder_node import OwnRecorder
         from bev_mdo_msgs.msg import ParetoFront
 
         self.run_id = run_id
         self.node = Node(node_name, context=context)
         self.pub = self.node.create_publisher(ParetoFront, PARETO_TOPIC, PARETO_QOS)
-        self.recorder_matched: dict[str, int] = {}  # topic -> publishers the run's recorder matched
-        self.node.create_subscription(String, STATUS_TOPIC, self._on_status, STATUS_QOS)
+        self.recorder = OwnRecorder(self.node, run_id, signer, binding)  # the study's recorder, by its declaration
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
         self.published = 0
 
-    def _on_status(self, msg) -> None:
-        status = json.loads(msg.data)
-        if status.get("run_id") == self.run_id:  # not another run's recorder
-            self.recorder_matched = dict(status.get("matched") or {})
-
     def spin(self, timeout_s: float) -> None:
-        """Take the recorder's status messages for up to ``timeout_s``."""
+        """Take the recorder's declarations for up to ``timeout_s``."""
         self.executor.spin_once(timeout_sec=timeout_s)
 
-    def wait_for_recorder(self, n: int, wait_s: float) -> None:
-        """Wait until `n` recorders subscribed to the front topic (so the first front is recorded)."""
-        if not until(lambda: self.pub.get_subscription_count() >= n, wait_s, lambda: self.spin(0.02)):
-            raise ValueError(f"the recorder did not subscribe to {PARETO_TOPIC} within {wait_s:g} s")
+    def wait_for_recorder(self, wait_s: float) -> None:
+        """Wait until the study's own recorder (its declaration) reads the front topic and matched this
+        publisher, so the first front is recorded; ValueError once nothing changed for `wait_s`."""
+        rec = self.recorder
+        if not until(lambda: rec.records(PARETO_TOPIC, pub=self.pub), wait_s, lambda: self.spin(0.02),
+                     lambda: (json.dumps(rec.declaration, sort_keys=True), tuple(sorted(self.node.get_node_names()))),
+                     f"the study's recorder on {PARETO_TOPIC}"):
+            raise ValueError(f"the study's recorder did not {'match' if rec.declaration else 'declare itself on'} "
+                             f"{PARETO_TOPIC}; nothing changed for {wait_s:g} s")
 
     def publish(self, msg) -> None:
         self.published += 1

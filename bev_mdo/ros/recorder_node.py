@@ -10,12 +10,22 @@ under ``prefix``), ``prefix`` (``/bev_mdo/``), ``config_file`` (its text is stor
 (10000), ``discovery_period_s`` (0.5), ``flush_period_s`` (1.0), ``status_period_s`` (0.05), ``nice``
 (10: the recorder runs at a lower CPU priority than the nodes and the coordinator).
 
+With a ``run_id`` it records that run only: an EvaluationRequest, EvaluationResult or
+IterationRecord of another run (its ``run_id`` is neither this one nor ``<run>-...``) is dropped
+and counted, so runs sharing a domain each get a bag of their own.
+
+Declaration: whenever it changes, the recorder declares on ``/bev_mdo_recorder/status``
+(TRANSIENT_LOCAL, not recorded) which run and binding it records and what it matched:
+``{"declaration": JSON text, "signature": hex}`` with the text
+``{"run_id", "binding", "recorder", "bag", "matched": {topic: matched publishers},
+"publishers": {topic: [node names it matched]}}``. ``binding`` is ``config_binding`` of the
+config it stores; ``recorder`` its node name. With the run's key (the config's
+``ros.sign_key_file``) the text is signed (auth.Signer.sign_declaration), as disciplines sign
+theirs. A coordinator waits for its own run's recorder by this declaration (OwnRecorder), not
+by counting subscribers, which any process on the domain adds to.
+
 Iteration records are kept once and in order, of the recorder's own run (``bag.history.RecordOrder``):
 duplicates, records from the past and of other runs are dropped and counted in its closing line.
-
-Status: whenever it changes, ``{"run_id", "bag", "matched": {topic: matched publishers}}`` (JSON)
-on ``/bev_mdo_recorder/status`` (TRANSIENT_LOCAL, not recorded), so a coordinator can wait
-until the recorder has matched a new node's publishers before that node's first message.
 """
 from __future__ import annotations
 
@@ -34,11 +44,41 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from bev_mdo.bag.history import ITERATION_TOPIC
 from bev_mdo.bag.writer import BagWriter
+from bev_mdo.ros.binding import canonical_json, fingerprint_of_json, run_matches
 
 DEFAULT_PREFIX = "/bev_mdo/"
+RECHECK_S = 0.5  # the declared publishers of a topic are read from the graph at least this often
 STATUS_TOPIC = "/bev_mdo_recorder/status"  # outside the prefix: the status is not recorded
 STATUS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+# Messages that name their run right after their header (``string run_id``): filtered by run.
+RUN_TAGGED = frozenset({"bev_mdo_msgs/msg/EvaluationRequest", "bev_mdo_msgs/msg/EvaluationResult",
+                        "bev_mdo_msgs/msg/IterationRecord"})
+
+
+def config_binding(config_yaml: str) -> str:
+    """The binding a recorder declares: the fingerprint of the config it stores in the bag (the
+    canonical JSON of the parsed YAML, binding.py), so a coordinator knows the bag holds its config."""
+    import yaml
+
+    return fingerprint_of_json(canonical_json(yaml.safe_load(config_yaml) or {}))
+
+
+def run_of(data) -> str | None:
+    """The ``run_id`` of a RUN_TAGGED message from its CDR bytes (4-byte encapsulation, the header's
+    stamp (8 bytes) and frame_id string, then run_id); None if the bytes are too short."""
+    try:
+        at = 12
+        n = int.from_bytes(data[at:at + 4], "little")
+        at = (at + 4 + n + 3) & ~3  # CDR offsets count from after the encapsulation: 4-aligned either way
+        n = int.from_bytes(data[at:at + 4], "little")
+        if n == 0 or at + 4 + n > len(data):
+            return None
+        return bytes(data[at + 4:at + 3 + n]).decode("utf-8")
+    except (ValueError, UnicodeDecodeError):
+        return None
 
 
 def message_class(type_name: str):
@@ -70,6 +110,10 @@ class RecorderNode(Node):
         status_period_s = float(p("status_period_s", 0.05).value)
         if config_file and not config_yaml:
             config_yaml = Path(config_file).read_text(encoding="utf-8")
+        self.binding = config_binding(config_yaml) if config_yaml else ""
+        self.signer = _signer_of(config_yaml)
+        self.other_run = 0  # messages of other runs, not recorded
+        self._confirmed: dict[str, tuple] = {}  # topic -> (counts seen, publisher names matched, when)
         meta = {"run_id": run_id, "recorder": self.get_fully_qualified_name()}
         if config_yaml:
             meta["config_yaml"] = config_yaml
@@ -123,28 +167,54 @@ class RecorderNode(Node):
                              else DurabilityPolicy.VOLATILE)
             self.writer.add_topic(topic, type_name, [i.qos_profile for i in pubs],
                                   type_hash=_hash_of(pubs))
-            self._handlers[topic] = self._callback(topic)
+            self._handlers[topic] = self._callback(topic, type_name)
             self.subscriptions_by_topic[topic] = self.create_subscription(
                 cls, topic, self._handlers[topic], qos, raw=True)
             self.get_logger().info(f"recording {topic} [{type_name}]")
 
+    def _publishers_matched(self, topic: str, sub) -> list[str]:
+        """Node names of the publishers of `topic` this recorder's subscription matched: all those in
+        the graph once it matched as many as the graph shows, and those confirmed before that are
+        still there (a newcomer is confirmed at the next full match)."""
+        count, graph, now = sub.get_publisher_count(), self.count_publishers(topic), time.monotonic()
+        seen, names, at = self._confirmed.get(topic, ((-1, -1), [], 0.0))
+        # the counts alone can stay the same while one publisher replaces another (a run's baseline
+        # coordinator, then its coordinator): the names are read again at least every RECHECK_S
+        if (count, graph) != seen or now - at >= RECHECK_S:
+            infos = self.get_publishers_info_by_topic(topic)
+            present = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos})
+            names = present if count >= len(infos) else [n for n in names if n in present]
+            self._confirmed[topic] = ((count, graph), names, now)
+        return names
+
     def publish_status(self) -> None:
-        """Publish how many publishers each recorded topic's subscription has matched, if that changed."""
+        """Publish the declaration (see the module doc) if what it says changed."""
         from std_msgs.msg import String
 
         matched = {t: sub.get_publisher_count() for t, sub in self.subscriptions_by_topic.items()}
-        if matched != self._status:
-            self._status = matched
-            self._status_pub.publish(String(data=json.dumps(
-                {"run_id": self.run_id, "bag": str(self.bag_path), "matched": matched}, sort_keys=True)))
+        publishers = {t: self._publishers_matched(t, sub) for t, sub in self.subscriptions_by_topic.items()}
+        if (matched, publishers) != self._status:
+            self._status = (matched, publishers)
+            text = json.dumps({"run_id": self.run_id, "binding": self.binding, "bag": str(self.bag_path),
+                               "recorder": self.get_fully_qualified_name(), "matched": matched,
+                               "publishers": publishers}, sort_keys=True)
+            sig = self.signer.sign_declaration(text) if self.signer is not None else ""
+            self._status_pub.publish(String(data=json.dumps({"declaration": text, "signature": sig})))
 
-    def _callback(self, topic: str):
+    def _callback(self, topic: str, type_name: str):
         write = self.writer.write
+        own = self.run_id
+        tagged = bool(own) and type_name in RUN_TAGGED
         order = self.order if topic == ITERATION_TOPIC else None
 
         def on_message(data: bytes, info) -> None:
+            if tagged:
+                run = run_of(data)
+                if run is None or not run_matches(own, run):
+                    self.other_run += 1
+                    return
             if order is not None and not order.keep(data):
-                return  # a duplicate, a record from the past or of another run (counted)
+                return  # a duplicate or a record from the past (counted)
             received = info.get("received_timestamp") or time.time_ns()
             published = info.get("source_timestamp") or received
             write(topic, data, received, published, info.get("publication_sequence_number") or 0)
@@ -172,6 +242,70 @@ class RecorderNode(Node):
         self.writer.close()
 
 
+class OwnRecorder:
+    """A run's own recorder as a node of the run sees it: known by its declaration (run id, binding,
+    signed with the run's key when the run signs), never by a count of subscribers, which another
+    run's recorder or any process on the domain adds to. Declarations of other runs, other bindings
+    and unsigned or forged ones are dropped and counted (``dropped``)."""
+
+    def __init__(self, node: Node, run_id: str, signer=None, binding: str | None = None):
+        from collections import Counter
+
+        from std_msgs.msg import String
+
+        self.node, self.run_id, self.signer, self.binding = node, run_id, signer, binding
+        self.declaration: dict | None = None
+        self.dropped: Counter[str] = Counter()
+        self._sub = node.create_subscription(String, STATUS_TOPIC, self._on_status, STATUS_QOS)
+
+    def _on_status(self, msg) -> None:
+        try:
+            outer = json.loads(msg.data)
+            text, sig = outer["declaration"], outer.get("signature", "")
+            decl = json.loads(text)
+            run = decl["run_id"]
+        except (ValueError, KeyError, TypeError):
+            self.dropped["recorder_malformed"] += 1
+            return
+        if not run or not run_matches(run, self.run_id):
+            self.dropped["recorder_other_run"] += 1
+            return
+        if self.signer is not None:
+            why = self.signer.verify_declaration(text, sig)
+            if why is not None:
+                self.dropped[f"recorder_{why}"] += 1
+                return
+        if self.binding is not None and decl.get("binding") != self.binding:
+            self.dropped["recorder_other_binding"] += 1
+            return
+        self.declaration = decl
+
+    @property
+    def name(self) -> str | None:
+        return (self.declaration or {}).get("recorder")
+
+    def matched(self) -> dict[str, int]:
+        """{topic: publishers} the declared recorder matched ({} before it declared itself)."""
+        return dict((self.declaration or {}).get("matched") or {})
+
+    def records(self, topic: str, pub=None, publishers=()) -> bool:
+        """Whether the declared recorder records what we need of `topic`: with our publisher `pub`,
+        the recorder reads the topic, `pub` matched every reader of it in the graph and the recorder
+        matched this node's publisher; with `publishers` (node names), it matched each of them."""
+        d = self.declaration
+        if d is None:
+            return False
+        declared = {n.lstrip("/") for n in (d.get("publishers") or {}).get(topic, ())}
+        need = {n.lstrip("/") for n in publishers}
+        if pub is not None:
+            readers = self.node.get_subscriptions_info_by_topic(topic)
+            names = {f"{i.node_namespace.rstrip('/')}/{i.node_name}".lstrip("/") for i in readers}
+            if str(self.name).lstrip("/") not in names or pub.get_subscription_count() < len(readers):
+                return False
+            need.add(self.node.get_fully_qualified_name().lstrip("/"))
+        return need <= declared
+
+
 def serve_until(node: "RecorderNode", stopped, idle_s: float = 0.05, timers_every_s: float = 0.02) -> None:
     """Record until stopped(): messages are taken straight from the subscriptions that the wait
     set found ready (fastwait); the node's own executor runs the timers (topic discovery, flush,
@@ -197,6 +331,18 @@ def serve_until(node: "RecorderNode", stopped, idle_s: float = 0.05, timers_ever
     finally:
         executor.remove_node(node)
         executor.shutdown()
+
+
+def _signer_of(config_yaml: str):
+    """The run's Signer from the stored config's ``ros.sign_key_file`` (None: not signing)."""
+    if not config_yaml:
+        return None
+    import yaml
+
+    from bev_mdo.ros.auth import Signer
+
+    ros = (yaml.safe_load(config_yaml) or {}).get("ros") or {}
+    return Signer.from_ros(ros) if ros.get("sign_key_file") else None
 
 
 def _hash_of(pubs) -> str | None:
@@ -250,12 +396,14 @@ def main(args: list[str] | None = None) -> int:
         node.drain()
         return 0
     finally:
+        if node is not None:  # a second SIGINT/SIGTERM while the bag is closed must not cut it short
+            node.close()
+            print(f"recorded {node.writer.message_count} messages to {node.writer.path}"
+                  + (f"; {node.other_run} of other runs not recorded" if node.other_run else "")
+                  + node.order.note(), file=sys.stderr)
         for s, handler in old.items():
             signal.signal(s, handler)
         if node is not None:
-            node.close()
-            print(f"recorded {node.writer.message_count} messages to {node.writer.path}{node.order.note()}",
-                  file=sys.stderr)
             node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()

@@ -11,7 +11,8 @@ A hung participant stops announcing itself, so every other participant drops it 
 (3 s in bev_mdo's profile) expires. This watchdog runs beside the supervisor, in the launching
 process, with its own small participant. It reads the ROS graph every `period_s`. If a launched
 node was on the graph and has been missing for `silent_s`, or has not appeared `start_s` after
-its process started, while its process still runs, the watchdog
+its process started and used no CPU for `silent_s` (a node still starting on a loaded host
+does), while its process still runs, the watchdog
 - sends SIGUSR1, so every thread's Python stack lands in the node's log (bev_mdo/stacks.py);
 - SIGKILLs the process;
 - lets the supervisor restart it.
@@ -89,18 +90,22 @@ class HangWatchdog:
             if self._stop.is_set() or self.launcher._stopping.is_set():
                 return hung
             for n in self.launcher.nodes:
-                if not n.ros_names or not n.restart or n.proc is None or n.proc.poll() is not None:
+                if not n.ros_names or n.proc is None or n.proc.poll() is not None:
                     continue
                 if all(name in names for name in n.ros_names):
                     n.seen, n.missing_since = True, None
+                    continue
+                if not n.restart:  # watched for Launcher.progress only (the recorder)
                     continue
                 if n.seen:
                     n.missing_since = n.missing_since or now
                     if now - n.missing_since < self.silent_s:
                         continue
                     why = f"left the ROS graph {now - n.missing_since:.0f} s ago"
-                elif now - n.spawned_at >= self.start_s:
-                    why = f"has not appeared on the ROS graph {now - n.spawned_at:.0f} s after starting"
+                elif now - n.spawned_at >= self.start_s and not n.busy(now, self.silent_s):
+                    # still using CPU: still starting (imports take minutes with eight runs starting on 2 cores)
+                    why = (f"has not appeared on the ROS graph {now - n.spawned_at:.0f} s after starting and "
+                           f"used no CPU for {self.silent_s:g} s")
                 else:
                     continue
                 print(f"[launcher] {n.label} {why} while its process runs: a hung middleware (Fast DDS can "

@@ -34,7 +34,7 @@ def config_path(tmp_path_factory):
 def test_a_frozen_node_is_killed_restarted_and_the_run_finds_its_optimum(config_path, ros_domain, tmp_path):
     config = load_config(config_path)
     ref = run_optimization(config, InProcessEvaluator(resolve_disciplines(config)))
-    p = subprocess.Popen([PYTHON, "-m", "bev_mdo", "optimize", config_path, "--domain-id", str(ros_domain),
+    p = subprocess.Popen([PYTHON, "-m", "bev_mdo", "optimize", config_path, "--compose", "none", "--domain-id", str(ros_domain),
                           "--no-record", "--json"], cwd=tmp_path, env=ros_env(ros_domain), stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)
     frozen, err_lines = [], []

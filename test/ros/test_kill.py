@@ -39,7 +39,7 @@ def run_cli(config_path, domain, cwd: Path, bag: Path, kill: tuple[str, ...] = (
             at_iteration: int = 0) -> tuple[int, dict, str]:
     """Run `bev-mdo optimize` (JSON on stdout, progress on stderr); SIGKILL the children whose command
     line names one of `kill` once the progress line of iteration `at_iteration` (0: the first) is printed."""
-    p = subprocess.Popen([PYTHON, "-m", "bev_mdo", "optimize", config_path, "--domain-id", str(domain), "--bag",
+    p = subprocess.Popen([PYTHON, "-m", "bev_mdo", "optimize", config_path, "--compose", "none", "--domain-id", str(domain), "--bag",
                           str(bag), "--json"], cwd=cwd, env=ros_env(domain), stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)
     err_lines = []

@@ -130,12 +130,13 @@ def test_resume_after_the_coordinator_is_killed_reaches_the_same_optimum(config_
         for e in discipline_entries(load_config(config_path)):
             launcher.add(e["name"], discipline_argv(e["name"], str(config_path)))
         launcher.add("recorder", [PYTHON, "-m", "bev_mdo.ros.run", "recorder_node", "--output", str(bag),
-                                  "--config", str(config_path), "--ros-args", "-p", "discovery_period_s:=0.05"])
+                                  "--config", str(config_path), "--run-id", "killed_run",
+                                  "--ros-args", "-p", "discovery_period_s:=0.05"])
         # The coordinator as its own process (ros2 run bev_mdo coordinator_node); COBYLA takes dozens of
         # iterations, so it can be killed mid-run.
         proc = subprocess.Popen([PYTHON, "-m", "bev_mdo.ros.run", "coordinator_node", "--ros-args",
                                  "-p", f"config:={config_path}", "-p", "optimizer:=COBYLA",
-                                 "-p", "recorders:=1"],  # start evaluating once the recorder listens
+                                 "-p", "recorders:=1", "-p", "run_id:=killed_run"],  # once its recorder listens
                                 env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         seen = []
         for line in proc.stdout:

@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from bev_mdo.ros.launch import Launcher, composed_argv, discipline_argv, node_names_of
+from bev_mdo.ros.launch import Launcher, composed_argv, cpu_ticks, discipline_argv, node_names_of
 from bev_mdo.ros.watchdog import HangWatchdog
 from bev_mdo.testing import PYTHON
 
@@ -55,12 +55,25 @@ def test_a_node_that_leaves_the_graph_is_killed_and_restarted(launcher):
     assert not node.seen and node.missing_since is None  # watched afresh from its restart
 
 
-def test_a_node_that_never_appears_is_killed_after_start_s(launcher):
+def test_a_node_that_never_appears_is_killed_after_start_s_once_it_uses_no_cpu(launcher):
     node = launcher.add("energy", SLEEPER + ["-r", "__node:=energy_node_x"])
     dog = HangWatchdog(launcher, 0, silent_s=7.0, start_s=45.0)
     assert dog.check(set(), node.spawned_at + 44) == []
-    assert dog.check(set(), node.spawned_at + 45) == ["energy"]
+    assert dog.check(set(), node.spawned_at + 45) == []  # its CPU time is read for the first time
+    assert dog.check(set(), node.spawned_at + 52.5) == ["energy"]  # a sleeper: no CPU for 7 s
     assert _wait(lambda: node.proc.poll() is not None)  # killed (no supervisor here: not restarted)
+
+
+def test_a_node_still_starting_on_a_loaded_host_is_not_killed(launcher):
+    node = launcher.add("energy", [PYTHON, "-c", "while True: pass", "-r", "__node:=energy_node_x"])
+    dog = HangWatchdog(launcher, 0, silent_s=7.0, start_s=45.0)
+    t = node.spawned_at + 45
+    for _ in range(5):
+        assert dog.check(set(), t) == []
+        seen = node.cpu_ticks
+        assert _wait(lambda: cpu_ticks(node.proc.pid) > seen)  # it computes between looks, as a node importing does
+        t += 8.0  # each look more than silent_s after the one before
+    assert node.proc.poll() is None and node.hangs == 0
 
 
 def test_nothing_is_killed_once_the_launcher_stops_or_for_unwatched_nodes(launcher):
