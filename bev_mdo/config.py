@@ -27,13 +27,14 @@ SIZED_VARIABLE = "battery_kwh"
 SIZED_CONSTRAINT = "range_km"
 
 
-def load_config(path: str | Path | Mapping[str, Any]) -> dict:
+def load_config(path: str | Path | Mapping[str, Any], edit=None) -> dict:
     """Read and validate a run config (a YAML path, or an already-parsed mapping).
 
     ``search_path`` (where a discipline's ``module:Class`` is looked for, before Python's own path)
     becomes absolute: the config's own entries (relative ones against its folder), then the config
     file's folder, then the working directory. A resolved config written elsewhere (a run's log
     folder, a bag) keeps them, so every process of a run resolves user modules the same way.
+    ``edit(raw) -> raw`` changes the parsed mapping before it is checked (command-line overrides).
     """
     base: Path | None = None
     if isinstance(path, Mapping):
@@ -52,6 +53,8 @@ def load_config(path: str | Path | Mapping[str, Any]) -> dict:
             at = f" at line {mark.line + 1}" if mark else ""
             raise ValueError(f"{where}: not valid YAML{at}: {getattr(exc, 'problem', exc)}") from None
         base = p.resolve().parent
+    if edit is not None and isinstance(raw, Mapping):
+        raw = edit(raw)
     try:
         if isinstance(raw, Mapping):
             raw = {**raw, "search_path": _search_path(raw.get("search_path"), base)}
