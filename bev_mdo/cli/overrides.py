@@ -72,6 +72,21 @@ def _number(text: str, flag: str, item: str) -> float:
         raise UsageError(f"{flag} {item!r}: {text!r} is not a number") from None
 
 
+def _clip_initials(dvs: dict, bounded: set[str]) -> None:
+    """A variable given new bounds (and no --initial) that its initial value is outside of starts at
+    the nearest bound; one note on stderr says so."""
+    import sys
+
+    for name in sorted(bounded):
+        e = dvs.get(name) or {}
+        x, lo, hi = e.get("initial"), e.get("lower"), e.get("upper")
+        if not all(isinstance(v, (int, float)) for v in (x, lo, hi)) or lo > hi or lo <= x <= hi:
+            continue
+        e["initial"] = min(max(x, lo), hi)
+        print(f"bev-mdo: note: {name} starts at {e['initial']:g}: its initial value {x:g} is outside "
+              f"--bound {lo:g}:{hi:g} (give --initial to choose)", file=sys.stderr)
+
+
 def apply(raw: dict, args, names: Mapping[str, list[str]]) -> dict:
     """A copy of the raw config mapping with the overrides written into its problem section."""
     raw = copy.deepcopy(dict(raw))
@@ -99,6 +114,8 @@ def apply(raw: dict, args, names: Mapping[str, list[str]]) -> dict:
         name = name.strip()
         _check(name, names["design"], "--initial", "design variables")
         dvs[name] = {**dict(dvs.get(name) or {}), "initial": _number(value.strip(), "--initial", item)}
+    _clip_initials(dvs, {i.partition("=")[0].strip() for i in getattr(args, "bound", []) or []}
+                   - {i.partition("=")[0].strip() for i in getattr(args, "initial", []) or []})
     cons = prob.get("constraints") or {}
     prob["constraints"] = cons = dict(cons)
     for item in getattr(args, "constraint", []) or []:
