@@ -38,9 +38,11 @@ def register(sub) -> None:
     p.add_argument("--compose", default="none", metavar="all|none|A+B,C+D|coordinator",
                    help="ROS: run several disciplines in one process (one executor, several nodes); "
                         "coordinator: all of them in the coordinator's own process (docs/scaling.md)")
+    from bev_mdo.cli.overrides import add_override_arguments
     from bev_mdo.cli.ros_args import add_ros_arguments
 
     add_ros_arguments(p)
+    add_override_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -108,9 +110,9 @@ def _table(result: dict, baseline: dict | None, out) -> None:
 
 
 def run(args) -> int:
-    from bev_mdo.config import load_config
+    from bev_mdo.cli import overrides
 
-    return run_job(load_config(args.config), args)
+    return run_job(overrides.load(args), args)
 
 
 def run_job(config: dict, args, x0: dict | None = None) -> int:

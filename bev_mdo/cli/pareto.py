@@ -51,6 +51,9 @@ def register(subparsers) -> None:
                    help="ROS: run N instances of every discipline, or of the named ones (a pool: they share "
                         "each population, as for optimize; docs/scaling.md)")
     p.add_argument("--no-plots", action="store_true")
+    from bev_mdo.cli.overrides import add_override_arguments
+
+    add_override_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -78,7 +81,11 @@ def run(args) -> int:
     bag = out / "bag"
     if bag.exists():
         raise ValueError(f"{bag} already exists; choose another --out")
-    load_config(args.config)  # validates the config as written (bad topology/variable: exit 2)
+    from bev_mdo.cli import overrides
+
+    if overrides.given(args):  # the command line's overrides, checked against the config as written
+        raw = overrides.apply(raw, args, overrides.known_names(load_config(args.config)))
+    load_config(args.config, edit=lambda _: raw)  # validates the config (bad topology/variable: exit 2)
     if getattr(args, "instances", None) and args.transport != "ros":
         raise ValueError("--instances needs --transport ros (pools of discipline nodes)")
     objectives = [o.strip() for o in args.objectives.split(",") if o.strip()]
