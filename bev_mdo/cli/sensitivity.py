@@ -83,6 +83,7 @@ def build_batch(config, evaluator, param_defaults=None):
             if np.isnan(v) and param_defaults and k in param_defaults:
                 v = float(param_defaults[k])  # a remote declaration names parameters, not their values
             params.setdefault(k, v)
+    own = dict(params)  # the disciplines' own values: a column equal to one is left out (below)
     params.update(problem.parameters)
     point = {**dict(zip(problem.names, problem.x0().tolist())), **params}
     bounds = {v.name: (v.lower, v.upper) for v in problem.design_variables}
@@ -90,7 +91,11 @@ def build_batch(config, evaluator, param_defaults=None):
     names = list(point)
 
     def fun(X):
-        res = mda.run({k: X[:, j] for j, k in enumerate(names)})
+        # A model parameter sent as a column is evaluated design by design (a per-row model); one that
+        # keeps the discipline's own value everywhere is left out, so the batch stays vectorised.
+        cols = {k: X[:, j] for j, k in enumerate(names)
+                if not (k in own and k not in problem.parameters and np.all(X[:, j] == own[k]))}
+        res = mda.run(cols)
         if not np.all(res.ok):
             bad = next(e for e, ok in zip(res.errors, res.ok) if not ok)
             raise ValueError(f"the model failed on the FD stencil: {bad.splitlines()[0] if bad else 'NaN'}")
