@@ -61,6 +61,15 @@ def test_sobol_with_bound_override_stays_inside_and_the_bag_records_the_effectiv
     assert recorded["problem"]["design_variables"]["motor_kw"]["upper"] == 70
 
 
+def test_report_finds_the_bag_inside_the_output_folder(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["sweep", str(CONFIG), "--doe", "halton", "--samples", "8", "--out", str(out), "--no-plots"]) == 0
+    capsys.readouterr()
+    assert main(["report", str(out)]) == 0
+    assert (out / "bag" / "report.md").is_file()
+    assert str(out / "bag" / "report.md") in capsys.readouterr().out
+
+
 def test_full_factorial_and_halton_with_plots(tmp_path):
     out = tmp_path / "full"
     assert main(["sweep", str(CONFIG), "--doe", "full", "--samples", "3", "--out", str(out), "--no-record"]) == 0
