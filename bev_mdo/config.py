@@ -29,13 +29,14 @@ SIZED_VARIABLE = "battery_kwh"
 SIZED_CONSTRAINT = "range_km"
 
 
-def load_config(path: str | Path | Mapping[str, Any]) -> dict:
+def load_config(path: str | Path | Mapping[str, Any], edit=None) -> dict:
     """Read and validate a run config (a YAML path, or an already-parsed mapping).
 
     ``search_path`` (where a discipline's ``module:Class`` is looked for, before Python's own path)
     becomes absolute: the config's own entries (relative ones against its folder), then the config
     file's folder, then the working directory. A resolved config written elsewhere (a run's log
     folder, a bag) keeps them, so every process of a run resolves user modules the same way.
+    ``edit(raw) -> raw`` changes the parsed mapping before it is checked (command-line overrides).
     """
     base: Path | None = None
     if isinstance(path, Mapping):
@@ -49,6 +50,8 @@ def load_config(path: str | Path | Mapping[str, Any]) -> dict:
             raise ValueError(f"{where}: no such config file")
         raw = read_yaml_file(p)  # one-line ValueErrors: binary, too big, too deep, alias bomb, bad YAML
         base = p.resolve().parent
+    if edit is not None and isinstance(raw, Mapping):
+        raw = edit(raw)
     try:
         if isinstance(raw, Mapping):
             raw = {**raw, "search_path": _search_path(raw.get("search_path"), base)}

@@ -27,14 +27,16 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "report": ("report", "plots and a markdown summary of a recorded run"),
     "resume": ("resume", "restart an optimisation from the last iterate recorded in a bag"),
     "bag": ("bag", "inspect or repair a recorded bag"),
-    "sensitivity": ("sensitivity", "normalised 1st/2nd-order sensitivities at a design"),
+    "sensitivity": ("sensitivity", "normalised 1st/2nd-order sensitivities at a design, or global "
+                                   "Sobol'/Morris indices over the bounds"),
     "pareto": ("pareto", "NSGA-II Pareto front of any problem with two or more objectives "
                          "(--topology / --all-topologies: the BEV topology study, thesis ch.4)"),
-    "sweep": ("sweep", "a grid (or list) of designs as one batch: CSV and PNG per output"),
+    "sweep": ("sweep", "a design of experiments, grid or list of designs as one batch: CSV, PNG, bag"),
     "compare": ("sweep", "two or more designs side by side with their differences"),
     "graph": ("graph", "the coupling graph as an N² chart (PNG) and Graphviz DOT text"),
     "validate": ("validate", "predicted vs measured energy over a fleet of tested vehicles"),
     "check-partials": ("check_partials", "compare analytic partial derivatives with finite differences"),
+    "check-totals": ("check_totals", "compare the optimiser's total derivatives with finite differences"),
     "status": ("status", "list the live discipline instances on the ROS domain (host, throughput)"),
 }
 

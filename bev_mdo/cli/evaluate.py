@@ -19,18 +19,12 @@ def register(subparsers) -> None:
     p.add_argument("--set", dest="assignments", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
                    help="design values (or model-parameter overrides); also comma-separated a=1,b=2")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    p.add_argument("--ros", action="store_true", help="evaluate through the running discipline nodes")
-    add_launch_argument(p)
-    from bev_mdo.cli.ros_args import add_ros_arguments
+    from bev_mdo.cli.overrides import add_override_arguments
+    from bev_mdo.cli.ros_args import add_transport_arguments
 
-    add_ros_arguments(p)
+    add_transport_arguments(p)
+    add_override_arguments(p)
     p.set_defaults(func=run)
-
-
-def add_launch_argument(p) -> None:
-    p.add_argument("--launch", action="store_true",
-                   help="start the config's discipline nodes for this command and stop them after (implies --ros): "
-                        "bound to this command and signed with a fresh per-run key, as optimize does")
 
 
 def ros_session(config, args, node_name: str = "bev_mdo_client"):
@@ -81,12 +75,13 @@ def _evaluator(config, use_ros: bool, args=None):
 
 
 def run(args) -> int:
-    from bev_mdo.config import load_config
+    from bev_mdo.cli import overrides
+    from bev_mdo.cli.ros_args import uses_ros
     from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import evaluate_design
     from bev_mdo.mdo.problem import Problem
 
-    config = load_config(args.config)
+    config = overrides.load(args)
     given = parse_assignments(args.assignments)
     problem = Problem.from_config(config["problem"])
     design = {**{d.name: d.initial for d in problem.design_variables}, **given}
@@ -95,7 +90,7 @@ def run(args) -> int:
         if isinstance(v, (int, float)) and not d.lower <= v <= d.upper:
             print(f"bev-mdo evaluate: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
                   "(evaluated as given)", file=sys.stderr)
-    use_ros = args.ros or getattr(args, "launch", False)
+    use_ros = uses_ros(args)
     session = _evaluator(config, use_ros, args)
     evaluator = session.evaluator if use_ros else session
     ok = False

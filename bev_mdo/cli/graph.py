@@ -122,9 +122,13 @@ def plot_n2(model: dict, path: Path, title: str = ""):
     ax.set_yticks([])
     loops = "; feedback loops: " + ", ".join("+".join(l) for l in model["loops"]) if model["loops"] else \
         "; no feedback loop (feed-forward)"
-    ax.set_title((title + "\n" if title else "") + "N² chart: row passes to column; first row: what the optimiser "
-                 "drives, first column: what it reads;\nbetween disciplines, above the diagonal feed-forward, "
-                 "below it feedback (red)" + loops, fontsize=9)
+    text = ((title + "\n" if title else "") + "N² chart: row passes to column; first row: what the optimiser "
+            "drives, first column: what it reads;\nbetween disciplines, above the diagonal feed-forward, "
+            "below it feedback (red)" + loops)
+    import textwrap
+
+    chars = int(size * 72 / (0.6 * 9))  # the figure's width in characters of the 9 pt title (DejaVu Sans)
+    ax.set_title("\n".join(textwrap.fill(line, chars) for line in text.splitlines()), fontsize=9)
     fig.tight_layout()
     from bev_mdo.cli import figure_format
 

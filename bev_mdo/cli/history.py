@@ -70,10 +70,23 @@ def describe_other_content(bag) -> str:
     return f"it holds {bag.message_count} messages of {', '.join(kinds)}"
 
 
+def bag_path(path: str) -> str:
+    """The bag of ``path``: itself, or for a run's output folder holding no .mcap file (pareto's or
+    sweep's --out) the one subfolder that holds a bag (``bag/``)."""
+    from pathlib import Path
+
+    p = Path(path)
+    if not p.is_dir() or any(p.glob("*.mcap")):
+        return path
+    inside = sorted(d for d in p.iterdir() if d.is_dir() and any(d.glob("*.mcap")))
+    return str(inside[0]) if len(inside) == 1 else path
+
+
 def run(args) -> int:
     from bev_mdo.bag.history import flat_rows, history, to_csv
     from bev_mdo.bag.reader import open_bag
 
+    args.bag = bag_path(args.bag)
     bag = open_bag(args.bag)
     if bag.truncated:
         print(bag.recovery_note(), file=sys.stderr)

@@ -51,9 +51,11 @@ def register(sub) -> None:
                    help="ROS: where the discipline nodes run. coordinator (default): in this command's own "
                         "process, beside the coordinator (a pool's instances keep a process each); none: a "
                         "process per discipline; all: one process for all; groups A+B,C+D (docs/scaling.md)")
+    from bev_mdo.cli.overrides import add_override_arguments
     from bev_mdo.cli.ros_args import add_ros_arguments
 
     add_ros_arguments(p)
+    add_override_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -160,9 +162,9 @@ def _verdict(result: dict, out) -> None:
 
 
 def run(args) -> int:
-    from bev_mdo.config import load_config
+    from bev_mdo.cli import overrides
 
-    return run_job(load_config(args.config), args)
+    return run_job(overrides.load(args), args)
 
 
 def run_job(config: dict, args, x0: dict | None = None) -> int:

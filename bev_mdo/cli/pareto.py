@@ -54,6 +54,9 @@ def register(subparsers) -> None:
                    help="ROS: run N instances of every discipline, or of the named ones (a pool: they share "
                         "each population, as for optimize; docs/scaling.md)")
     p.add_argument("--no-plots", action="store_true")
+    from bev_mdo.cli.overrides import add_override_arguments
+
+    add_override_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -107,9 +110,14 @@ def run(args) -> int:
         raise ValueError(f"--generations must be >= 1 and --pop >= 4, got {args.generations}, {args.pop}")
     if getattr(args, "instances", None) and args.transport != "ros":
         raise ValueError("--instances needs --transport ros (pools of discipline nodes)")
-    cfg = load_config(args.config)  # the config as written: a bad key, topology or variable exits 2 here
+    from bev_mdo.cli import overrides
+
+    cfg = overrides.load(args)  # a bad key, topology, variable or override exits 2 here
     if args.topology or args.all_topologies:
-        return _study(args, _read_raw(args.config))
+        raw = _read_raw(args.config)
+        if overrides.given(args):  # the command line's overrides, checked against the config as written
+            raw = overrides.apply(raw, args, overrides.known_names(load_config(args.config)))
+        return _study(args, raw)
     objectives = _objectives(args, cfg)
     _check_objectives(objectives, cfg, str(args.config), 2)
     out, bag = _out_dirs(args, cfg.get("name", "run"))

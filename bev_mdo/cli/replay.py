@@ -13,8 +13,10 @@ def register(subparsers) -> None:
     speed.add_argument("--as-fast-as-possible", action="store_true", help="no timing at all")
     parser.add_argument("--topics", nargs="+", help="only these topics")
     parser.add_argument("--loop", action="store_true", help="start again at the end (Ctrl-C stops)")
-    parser.add_argument("--wait-subscribers", type=int, default=0, metavar="N",
-                        help="wait until each topic has N subscribers before publishing")
+    parser.add_argument("--wait-subscribers", type=int, default=1, metavar="N",
+                        help="wait until each topic has N subscribers before publishing (default 1)")
+    parser.add_argument("--no-wait", dest="wait_subscribers", action="store_const", const=0,
+                        help="publish at once, whether anything subscribes or not")
     parser.add_argument("--wait-timeout", type=float, default=30.0, metavar="S",
                         help="give up waiting for subscribers after S seconds (default 30)")
     from bev_mdo.cli.ros_args import add_ros_arguments
@@ -33,6 +35,9 @@ def run(args) -> int:
     # a replay never goes off-host unasked.
     apply_ros_environment(ros_section({"ros": _env_domain()}, args))
     rate = None if args.as_fast_as_possible else args.rate
+    if args.wait_subscribers:
+        print(f"waiting up to {args.wait_timeout:g} s for {args.wait_subscribers} subscriber(s) on each topic "
+              "(--no-wait publishes at once) ...", file=sys.stderr, flush=True)
     stats = replay(args.bag, rate=rate, topics=args.topics, loop=args.loop,
                    wait_subscribers=args.wait_subscribers, wait_timeout_s=args.wait_timeout,
                    log=lambda line: print(line, file=sys.stderr))

@@ -6,6 +6,7 @@ When the config overrides the environment, one line on stderr says so.
 """
 from __future__ import annotations
 
+import argparse
 from typing import Any, Mapping
 
 
@@ -43,3 +44,22 @@ def ros_section(config: Mapping[str, Any], args) -> dict:
     if getattr(args, "discovery_server", None):
         ros["discovery_server"] = args.discovery_server
     return validate_ros(ros)
+
+
+def add_transport_arguments(parser) -> None:
+    """The transport flags of a command that evaluates designs without starting its own run of nodes
+    (evaluate, sweep, compare, sensitivity, check-totals), with the discovery flags."""
+    g = parser.add_argument_group("transport")
+    g.add_argument("--transport", choices=["inprocess", "ros"], default="inprocess",
+                   help="inprocess (default): no ROS; ros: through the discipline nodes running on the domain")
+    g.add_argument("--launch", action="store_true",
+                   help="start the config's discipline nodes for this command and stop them after (implies "
+                        "--transport ros): bound to this command and signed with a fresh per-run key, as optimize does")
+    g.add_argument("--ros", action="store_true", help=argparse.SUPPRESS)  # the old spelling of --transport ros
+    add_ros_arguments(parser)
+
+
+def uses_ros(args) -> bool:
+    """True when the command's designs go over ROS (``--transport ros``, ``--launch`` or the old ``--ros``)."""
+    return getattr(args, "transport", "inprocess") == "ros" or bool(getattr(args, "launch", False)) \
+        or bool(getattr(args, "ros", False))

@@ -21,7 +21,7 @@ from bev_mdo.bag.report import ANSWERS_FILE, ANSWERS_METADATA
 class InProcessBag:
     """Iteration records of an in-process run, written as the recorder node would write them."""
 
-    def __init__(self, bag_dir: Path, config: Mapping[str, Any], run_id: str):
+    def __init__(self, bag_dir: Path, config: Mapping[str, Any], run_id: str, transport: str = "inprocess"):
         import yaml
 
         from bev_mdo.bag.writer import BagWriter
@@ -30,7 +30,7 @@ class InProcessBag:
 
         self.topic = ITERATION_TOPIC
         self.run_id = run_id
-        self.writer = BagWriter(bag_dir, metadata={"run_id": run_id, "transport": "inprocess",
+        self.writer = BagWriter(bag_dir, metadata={"run_id": run_id, "transport": transport,
                                                    "config_yaml": yaml.safe_dump(plain(dict(config)),
                                                                                  sort_keys=False)})
         self.writer.add_topic(ITERATION_TOPIC, "bev_mdo_msgs/msg/IterationRecord", ITERATION_QOS)

@@ -1,4 +1,5 @@
-"""``bev-mdo sensitivity CONFIG --at k=v,... [--order 1|2] [--wrt a,b] [--json] [--png FILE]``.
+"""``bev-mdo sensitivity CONFIG --at k=v,... [--order 1|2] [--wrt a,b] [--json] [--png FILE]``;
+``--global sobol|morris --samples N --seed S``: global indices over the bounds (global_sensitivity.py).
 
 Normalised first-order (eq 5-4, like Table 7-2) and second-order (eq 5-5, like Table
 7-3 / Fig 5-3, with NC/MC/SC/VSC labels) sensitivities of the objective and of every
@@ -17,27 +18,37 @@ from bev_mdo.cli import UsageError
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("sensitivity", help="normalised 1st/2nd-order sensitivities at a design")
+    from bev_mdo.cli.global_sensitivity import METHODS
+    from bev_mdo.cli.overrides import add_override_arguments
+    from bev_mdo.cli.ros_args import add_transport_arguments
+
+    p = subparsers.add_parser("sensitivity", help="normalised 1st/2nd-order sensitivities at a design, or global "
+                                                  "Sobol'/Morris indices over the bounds")
     p.add_argument("config", help="run config YAML")
     p.add_argument("--at", default="", metavar="K=V,...",
-                   help="design point (design variables default to their initial values)")
+                   help="design point (design variables default to their initial values); with --global, the "
+                        "values of the variables not analysed")
     p.add_argument("--order", type=int, choices=(1, 2), default=2)
     p.add_argument("--wrt", default="", metavar="NAMES",
-                   help="comma-separated design variables and/or model parameters (default: design variables)")
+                   help="comma-separated design variables and/or model parameters (default: design variables; "
+                        "--global: design variables only)")
     p.add_argument("--method", choices=("central", "complex", "auto"), default="central",
                    help="first-order derivative method; the MDA passes float64 values between disciplines, "
                         "so complex step is not available here (auto is central)")
     p.add_argument("--rel-step", type=float, default=None, help="relative FD step (default 1e-4 / 1e-3)")
+    g = p.add_argument_group("global sensitivity (SALib) over the design variables' bounds")
+    g.add_argument("--global", dest="global_method", choices=METHODS, default=None,
+                   help="sobol: first-order and total Sobol' indices; morris: elementary-effects screening")
+    g.add_argument("--samples", type=int, default=None,
+                   help="sobol: base sample N, a power of 2, N (D + 2) designs (default 1024); "
+                        "morris: trajectories, N (D + 1) designs (default 64)")
+    g.add_argument("--seed", type=int, default=1, help="random seed of the sampling and the bootstrap")
+    g.add_argument("--conf-level", type=float, default=0.95, help="confidence level of the intervals (default 0.95)")
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")
-    p.add_argument("--png", metavar="FILE", help="write a PNG: first-order bars and (order 2) the second-order matrices")
-    p.add_argument("--ros", action="store_true",
-                   help="evaluate every stencil through the running discipline nodes (one request wave each)")
-    from bev_mdo.cli.evaluate import add_launch_argument
-
-    add_launch_argument(p)
-    from bev_mdo.cli.ros_args import add_ros_arguments
-
-    add_ros_arguments(p)
+    p.add_argument("--png", metavar="FILE", help="write a PNG: first-order bars and (order 2) the second-order "
+                                                 "matrices; --global: the indices with their intervals")
+    add_transport_arguments(p)
+    add_override_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -72,6 +83,7 @@ def build_batch(config, evaluator, param_defaults=None):
             if np.isnan(v) and param_defaults and k in param_defaults:
                 v = float(param_defaults[k])  # a remote declaration names parameters, not their values
             params.setdefault(k, v)
+    own = dict(params)  # the disciplines' own values: a column equal to one is left out (below)
     params.update(problem.parameters)
     point = {**dict(zip(problem.names, problem.x0().tolist())), **params}
     bounds = {v.name: (v.lower, v.upper) for v in problem.design_variables}
@@ -79,7 +91,11 @@ def build_batch(config, evaluator, param_defaults=None):
     names = list(point)
 
     def fun(X):
-        res = mda.run({k: X[:, j] for j, k in enumerate(names)})
+        # A model parameter sent as a column is evaluated design by design (a per-row model); one that
+        # keeps the discipline's own value everywhere is left out, so the batch stays vectorised.
+        cols = {k: X[:, j] for j, k in enumerate(names)
+                if not (k in own and k not in problem.parameters and np.all(X[:, j] == own[k]))}
+        res = mda.run(cols)
         if not np.all(res.ok):
             bad = next(e for e in res.errors if e is not None)
             raise ValueError(f"the model failed on the FD stencil: {bad.message.splitlines()[0]}")
@@ -107,7 +123,9 @@ class _closing:
 
 
 def run(args) -> int:
-    from bev_mdo.config import load_config, resolve_disciplines
+    from bev_mdo.cli import overrides
+    from bev_mdo.cli.ros_args import uses_ros
+    from bev_mdo.config import resolve_disciplines
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.sensitivity import sensitivities
 
@@ -115,10 +133,10 @@ def run(args) -> int:
         raise UsageError("--method complex: the multidisciplinary analysis passes float64 values between "
                          "disciplines (in process and over ROS), so a complex step cannot pass through it, "
                          "whatever the disciplines; use --method central (the default)")
-    cfg = load_config(args.config)
+    cfg = overrides.load(args)
     local = InProcessEvaluator(resolve_disciplines(cfg))
     session = None
-    if args.ros or args.launch:
+    if uses_ros(args):
         from bev_mdo.cli.evaluate import ros_session
 
         defaults = {k: v for spec in local.specs.values() for k, v in spec.parameters.items()}
@@ -139,10 +157,27 @@ def run(args) -> int:
         for k in wrt:
             if k not in point:
                 raise ValueError(f"--wrt: unknown variable or parameter {k!r}; known: {', '.join(point)}")
-        s = sensitivities(fun, point, wrt=wrt, order=args.order, bounds=bounds,
-                          rel_step=args.rel_step, method=args.method, objective=problem.objective)
+        if args.global_method:
+            from bev_mdo.cli import global_sensitivity as gs
+
+            samples = args.samples or (1024 if args.global_method == "sobol" else 64)
+            rep = gs.analyse(args.global_method, fun, point, bounds, wrt, outputs, samples, args.seed,
+                             args.conf_level, design=list(problem.names))
+        else:
+            s = sensitivities(fun, point, wrt=wrt, order=args.order, bounds=bounds,
+                              rel_step=args.rel_step, method=args.method, objective=problem.objective)
+    if args.global_method:
+        if args.png:
+            gs.write_plot(args.png, rep)
+        if args.json:
+            print(json.dumps(rep, indent=2))
+        else:
+            gs.print_tables(rep, sys.stdout)
+            if args.png:
+                print(f"wrote {args.png}")
+        return 0
     if args.png:
-        write_heatmap(args.png, s, outputs, cfg)
+        write_heatmap(args.png, s, outputs, cfg, {k: point[k] for k in problem.names})
     if args.json:
         print(json.dumps(to_dict(s, outputs), indent=2))
     else:
@@ -189,15 +224,17 @@ def print_tables(s, outputs, out=sys.stdout) -> None:
             print(n.ljust(w) + "".join(cells), file=out)
 
 
-def _context_title(s, cfg) -> str:
+def _context_title(s, cfg, design=None) -> str:
+    """'at <every design variable and analysed parameter>; cycle ..., ... model'."""
     cyc = (cfg or {}).get("cycle", {})
     cyc = cyc.get("name", "") if isinstance(cyc, dict) else str(cyc)
     model = (cfg or {}).get("energy_model", "")
-    point = ", ".join(f"{k}={s.point[k]:g}" for k in s.names)
+    shown = {**(design or {}), **{k: s.point[k] for k in s.names}}
+    point = ", ".join(f"{k}={v:g}" for k, v in shown.items())
     return f"at {point}" + (f"; cycle {cyc}" if cyc else "") + (f", {model} model" if model else "")
 
 
-def write_heatmap(path: str, s, outputs, cfg=None):
+def write_heatmap(path: str, s, outputs, cfg=None, design=None):
     """The sensitivity figure: a first-order bar chart (eq 5-4) and, with second order, one
     matrix per output (eq 5-5) on ONE symmetric colour scale shared by the whole figure. Entries
     whose magnitude is not above their Richardson error estimate are masked (grey, "≤ err"): they
@@ -258,7 +295,7 @@ def write_heatmap(path: str, s, outputs, cfg=None):
             ax.set_yticks(range(len(s.names)), ticks if idx % ncols == 0 else [], fontsize=7)
             ax.set_title(f"second order (eq 5-5) of {label(k)}", fontsize=9)
         fig.colorbar(im, ax=mat_axes, shrink=0.8, label="S'_ij (–), one scale for all matrices; grey: |S'| ≤ error")
-    fig.suptitle(f"Normalised sensitivities {_context_title(s, cfg)}", fontsize=10)
+    fig.suptitle(f"Normalised sensitivities {_context_title(s, cfg, design)}", fontsize=10, wrap=True)
     from bev_mdo.cli import figure_format
 
     fig.savefig(path, dpi=110, format=figure_format(path))

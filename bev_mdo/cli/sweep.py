@@ -1,12 +1,14 @@
 """``bev-mdo sweep`` and ``bev-mdo compare``: many designs as one batch.
 
-``sweep CONFIG --vary motor_kw=40:120:9 gear_ratio=6:10:5`` evaluates the full-factorial grid
-(9 x 5 = 45 designs; ``lo:hi:n`` is n evenly spaced values, ``a,b,c`` a list) as ONE batch of
-multidisciplinary analyses, in process or through the running nodes (``--transport ros``), and
-writes ``sweep.csv`` (one row per design: every design variable, every output, each constraint's
-margin, feasible, ok) and one PNG per output against the varied variables, feasible and infeasible
-points marked, constraint limits drawn. ``--list FILE.csv`` evaluates the designs listed in a CSV
-(a header of design-variable names) instead of a grid. Variables not varied keep their initial value.
+``sweep CONFIG --doe lhs|sobol|halton|full --samples N --seed S`` draws N designs over the design
+variables' bounds (scipy.stats.qmc; ``full``: N levels per variable); ``--vary motor_kw=40:120:9
+gear_ratio=6:10:5`` evaluates a full-factorial grid of given values (``lo:hi:n`` is n evenly spaced
+values, ``a,b,c`` a list); ``--list FILE.csv`` the designs listed in a CSV (a header of names).
+All designs are ONE batch of multidisciplinary analyses, in process or through the discipline
+nodes (``--transport ros``, ``--launch``), written to ``sweep.csv`` (every design variable, every
+output, each constraint's margin, feasible, ok), one PNG per output and a bag (``bag/``, one
+record per design: ``history``/``report`` read it). Variables not varied keep their initial value
+(or ``--set`` values).
 
 ``compare CONFIG --design k=v,... --design k=v,...`` prints two or more designs side by side
 with every output, constraint margin and the difference of each from the first design.
@@ -26,18 +28,27 @@ from bev_mdo.cli import UsageError
 
 
 def register(sub) -> None:
-    p = sub.add_parser("sweep", help="a grid (or list) of designs as one batch: CSV and PNG per output",
+    from bev_mdo.cli.doe import METHODS
+    from bev_mdo.cli.overrides import add_override_arguments
+    from bev_mdo.cli.ros_args import add_transport_arguments
+
+    p = sub.add_parser("sweep", help="a design of experiments, grid or list of designs as one batch: CSV, PNG, bag",
                        description=__doc__.split("\n\n")[1])
     p.add_argument("config", help="run config YAML")
+    p.add_argument("--doe", choices=METHODS, default=None,
+                   help="sample the design variables' bounds: Latin hypercube, Sobol', Halton or full factorial")
+    p.add_argument("--samples", type=int, default=64, help="--doe: number of designs (full: levels per variable)")
+    p.add_argument("--seed", type=int, default=1, help="--doe: random seed (lhs, sobol, halton)")
     p.add_argument("--vary", nargs="+", default=[], metavar="NAME=LO:HI:N",
-                   help="a design variable (or model parameter) and its values: lo:hi:n or a,b,c")
+                   help="a grid: a design variable (or model parameter) and its values: lo:hi:n or a,b,c")
     p.add_argument("--list", dest="list_csv", metavar="FILE.csv", help="evaluate the designs listed in this CSV")
     p.add_argument("--set", dest="fixed", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
                    help="fixed values for variables not varied (default: their initial value)")
-    p.add_argument("--transport", choices=["inprocess", "ros"], default="inprocess",
-                   help="ros: through the running discipline nodes (start them first)")
     p.add_argument("--out", default="sweep", help="output directory (default ./sweep)")
+    p.add_argument("--no-record", action="store_true", help="do not write the bag (OUT/bag)")
     p.add_argument("--no-plots", action="store_true")
+    add_transport_arguments(p)
+    add_override_arguments(p)
     p.set_defaults(func=run)
     c = sub.add_parser("compare", help="two or more designs side by side with their differences",
                        description=__doc__.split("\n\n")[2])
@@ -45,7 +56,7 @@ def register(sub) -> None:
     c.add_argument("--design", action="append", default=[], metavar="k=v,...", required=True,
                    help="one design (repeat); variables not given take their initial value")
     c.add_argument("--json", action="store_true")
-    c.add_argument("--transport", choices=["inprocess", "ros"], default="inprocess")
+    add_transport_arguments(c)
     c.set_defaults(func=run_compare)
 
 
@@ -107,9 +118,11 @@ def read_list(path: str) -> dict[str, np.ndarray]:
     return out
 
 
-def evaluate_batch(config, designs: dict[str, np.ndarray], transport: str = "inprocess") -> dict:
+def evaluate_batch(config, designs: dict[str, np.ndarray], args=None) -> dict:
     """One batch of MDAs: {design: {k: array}, outputs: {k: array}, margins: {c: array},
-    feasible: bool array, ok: bool array, errors: [str]} (``designs`` may set parameters too)."""
+    feasible: bool array, ok: bool array, errors: [str]} (``designs`` may set parameters too).
+    Over ROS when ``args`` say so (--transport ros, --launch)."""
+    from bev_mdo.cli.ros_args import uses_ros
     from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import FEASIBILITY_TOL, _mda
     from bev_mdo.mdo.problem import Problem
@@ -118,8 +131,9 @@ def evaluate_batch(config, designs: dict[str, np.ndarray], transport: str = "inp
     n = len(next(iter(designs.values())))
     cols = {d.name: np.full(n, d.initial) for d in problem.design_variables}
     cols.update({k: np.full(n, float(v)) for k, v in problem.parameters.items()})
-    session = _evaluator(config, transport)  # an EvaluateRosSession over ROS (closing it reports drops), else the evaluator
-    evaluator = session.evaluator if transport == "ros" else session
+    ros = args is not None and uses_ros(args)
+    session = _evaluator(config, args, ros)  # an EvaluateRosSession over ROS (closing it reports drops), else the evaluator
+    evaluator = session.evaluator if ros else session
     try:
         mda = _mda(run_settings(config), evaluator, problem)
         params = {p for s in mda.specs.values() for p in s.parameters}
@@ -136,7 +150,7 @@ def evaluate_batch(config, designs: dict[str, np.ndarray], transport: str = "inp
         cols.update({k: np.asarray(v, dtype=float) for k, v in designs.items()})
         res = mda.run(cols)
     finally:
-        if transport == "ros":
+        if ros:
             from bev_mdo.cli.evaluate import close_ros
 
             close_ros(session)
@@ -160,15 +174,17 @@ def evaluate_batch(config, designs: dict[str, np.ndarray], transport: str = "inp
             "errors": res.messages, "objective": problem.objective, "problem": problem}
 
 
-def _evaluator(config, transport):
+def _evaluator(config, args, ros: bool):
     from bev_mdo.cli.evaluate import _evaluator as make
 
-    if transport == "ros":
-        ros = config.get("ros") or {}
-        print(f"waiting up to {ros.get('discovery_wait_s', 20):g} s for the discipline nodes on ROS domain "
-              f"{ros.get('domain_id', 77)} ...", file=sys.stderr, flush=True)
+    if ros:
+        from bev_mdo.cli.ros_args import ros_section
 
-    return make(config, transport == "ros")
+        section = ros_section(config, args)
+        what = "start the discipline nodes" if getattr(args, "launch", False) else "find the discipline nodes"
+        print(f"waiting up to {section.get('discovery_wait_s', 20):g} s to {what} on ROS domain "
+              f"{section['domain_id']} ...", file=sys.stderr, flush=True)
+    return make(config, ros, args)
 
 
 def write_csv(path: Path, result: dict) -> None:
@@ -256,36 +272,66 @@ def _baseline(config) -> dict | None:
     return {"name": base["name"], "design": dict(base["design"]), "outputs": rep["outputs"]}
 
 
-def run(args) -> int:
+def designs_of(args, problem) -> dict[str, np.ndarray]:
+    """The designs the command line asks for: a DOE over the bounds of the design variables not
+    fixed with --set, a grid (--vary) or a list (--list), with the --set values as columns."""
+    from bev_mdo.cli.doe import sample
     from bev_mdo.cli.evaluate import parse_assignments
-    from bev_mdo.config import load_config
 
-    config = load_config(args.config)
-    if bool(args.vary) == bool(args.list_csv):
-        raise UsageError("give either --vary NAME=LO:HI:N ... or --list FILE.csv")
-    designs = grid(parse_vary(args.vary)) if args.vary else read_list(args.list_csv)
-    varied = list(designs)
+    if sum(map(bool, (args.doe, args.vary, args.list_csv))) != 1:
+        raise UsageError("give one of --doe METHOD --samples N, --vary NAME=LO:HI:N ... or --list FILE.csv")
     fixed = parse_assignments(args.fixed)
-    n = len(designs[varied[0]])
+    if args.doe:
+        bounds = {d.name: (d.lower, d.upper) for d in problem.design_variables if d.name not in fixed}
+        designs = sample(args.doe, bounds, args.samples, args.seed)
+    else:
+        designs = grid(parse_vary(args.vary)) if args.vary else read_list(args.list_csv)
+    n = len(next(iter(designs.values())))
     for k, v in fixed.items():
         if k in designs:
             raise UsageError(f"--set {k} is also varied")
         designs[k] = np.full(n, v)
-    result = evaluate_batch(config, designs, args.transport)
+    return designs
+
+
+def run(args) -> int:
+    from bev_mdo.cli import overrides
+    from bev_mdo.cli.doe import plot_scatter, record
+    from bev_mdo.cli.evaluate import parse_assignments
+    from bev_mdo.cli.ros_args import uses_ros
+    from bev_mdo.mdo.problem import Problem
+
+    config = overrides.load(args)
     out = Path(args.out)
+    bag = out / "bag"
+    if not args.no_record:
+        from bev_mdo.cli.optimize import check_new_bag
+
+        check_new_bag(bag, "--out")
+    designs = designs_of(args, Problem.from_config(config["problem"]))
+    fixed = parse_assignments(args.fixed)
+    varied = [k for k in designs if k not in fixed]
+    n = len(next(iter(designs.values())))
+    transport = "ros" if uses_ros(args) else "inprocess"
+    result = evaluate_batch(config, designs, args)
     out.mkdir(parents=True, exist_ok=True)
     write_csv(out / "sweep.csv", result)
     written = [out / "sweep.csv"]
+    if not args.no_record:
+        written.append(record(bag, config, result, args.doe or ("grid" if args.vary else "list"), transport))
     if not args.no_plots:
-        baseline = _baseline(config)
+        baseline = _baseline(config) if not args.doe or args.doe == "full" else None
         for o in result["outputs"]:
             if o in varied:
                 continue
             p = out / f"{o}.png"
-            plot_output(result, o, varied, p, baseline)
+            if args.doe and args.doe != "full":
+                plot_scatter(result, o, varied, p, f"{args.doe}, seed {args.seed}")
+            else:
+                plot_output(result, o, varied, p, baseline)
             written.append(p)
     feas = result["feasible"]
-    print(f"{n} designs in one batch ({args.transport}): {int(feas.sum())} feasible, {int((~feas).sum())} infeasible, "
+    print(f"{n} designs in one batch ({transport}): {int(feas.sum())} feasible, {int((~feas).sum())} infeasible, "
           f"{int((~result['ok']).sum())} failed")
     if feas.any():
         obj = result["outputs"][result["objective"]]
@@ -316,7 +362,7 @@ def run_compare(args) -> int:
     if any(np.isnan(v).any() for v in designs.values()):
         missing = [k for k, v in designs.items() if np.isnan(v).any()]
         raise UsageError(f"{missing} must be given in every --design (they are parameters, with no initial value)")
-    result = evaluate_batch(config, designs, args.transport)
+    result = evaluate_batch(config, designs, args)
     rows = []
     for k, v in result["design"].items():
         rows.append((k, unit_of(k), v))

@@ -191,7 +191,7 @@ def main(args: list[str] | None = None) -> int:
     rclpy.init(args=args)
     beside = None
     try:
-        probe = Node("coordinator_params")
+        probe = Node("coordinator_node")  # the params-file section it reads (coordinator_node:)
         for name, desc in (("config", "run config YAML"), ("formulation", "mdf | idf (default: config)"),
                            ("optimizer", "optimizer name (default: config)"), ("run_id", "run id (default: random)")):
             probe.declare_parameter(name, "", ParameterDescriptor(description=desc))

@@ -55,3 +55,19 @@ def test_png_without_extension_or_into_a_directory(tmp_path, capsys):
     assert plain.read_bytes()[:4] == b"\x89PNG" and not plain.with_suffix(".png").exists()
     assert main(["graph", str(ROOT / "config/leaf_nedc.yaml"), "--png", str(tmp_path)]) == 2
     assert "is a directory" in capsys.readouterr().err and not tmp_path.with_suffix(".png").exists()
+
+
+def test_the_title_fits_the_figure(tmp_path):
+    """The N² chart's title (three long lines) was wider than the figure for small graphs."""
+    from bev_mdo.config import load_config as load
+
+    for config in (ROOT / "examples/sensitivity/ishigami.yaml", ROOT / "examples/sellar/sellar_mdf.yaml",
+                   ROOT / "config/leaf_nedc.yaml"):
+        fig = plot_n2(coupling_model(load(config)), tmp_path / "n2.png", title="a run's coupling graph")
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        canvas = FigureCanvasAgg(fig)  # the saved figure, drawn again to measure it
+        canvas.draw()
+        renderer = canvas.get_renderer()
+        box = fig.axes[0].title.get_window_extent(renderer)
+        assert box.x0 >= 0 and box.x1 <= fig.bbox.x1 and box.y1 <= fig.bbox.y1, (config, box, fig.bbox)

@@ -51,3 +51,19 @@ def test_a_node_started_with_only_a_parameters_file_serves_what_it_names(ros_dom
     finally:
         la.stop()
     assert node.restarts == 0
+
+
+def test_the_coordinator_node_section_sets_the_coordinators_parameters(ros_domain, tmp_path):
+    """The coordinator reads its parameters under its own node name: a config named only in the
+    ``coordinator_node:`` section is the one it loads (here a missing file, so it stops at once
+    and says which file it was given)."""
+    import subprocess
+
+    missing = tmp_path / "named_in_coordinator_section.yaml"
+    params = tmp_path / "params.yaml"
+    params.write_text(yaml.safe_dump({"coordinator_node": {"ros__parameters": {"config": str(missing)}}}))
+    p = subprocess.run([sys.executable, "-m", "bev_mdo.ros.run", "coordinator_node", "--ros-args",
+                        "--params-file", str(params)], env=ros_env(ros_domain), capture_output=True, text=True,
+                       timeout=120)
+    assert p.returncode == 2, p.stderr
+    assert f"{missing}: no such config file" in p.stderr

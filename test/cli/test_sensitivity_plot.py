@@ -40,3 +40,14 @@ def test_sensitivity_figure(tmp_path):
     strongest = max(acc.texts, key=lambda t: abs(float(t.get_text().split()[0])) if t.get_text()[0] != "≤" else 0)
     assert strongest.get_color() == "white"
     assert (tmp_path / "s.png").stat().st_size > 1000
+
+
+def test_the_title_names_the_design_point_when_only_a_parameter_is_analysed(tmp_path):
+    cfg = load_config(str(ROOT / "config/leaf_nedc.yaml"))
+    fun, point, bounds, outputs, problem = build_batch(cfg, InProcessEvaluator(resolve_disciplines(cfg)))
+    param = next(k for k in point if k not in problem.names)
+    point.update(motor_kw=70.0)
+    s = sensitivities(fun, point, wrt=[param], order=1, bounds=bounds, objective=problem.objective)
+    fig = write_heatmap(str(tmp_path / "p.png"), s, outputs, cfg, {k: point[k] for k in problem.names})
+    title = fig._suptitle.get_text()
+    assert "motor_kw=70, gear_ratio=8, battery_kwh=24" in title and f"{param}=" in title

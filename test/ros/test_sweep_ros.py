@@ -56,3 +56,31 @@ def test_compare_over_ros(nodes, config, capsys):
 
     d = json.loads(capsys.readouterr().out)["designs"]
     assert d[0]["vehicle_mass_kg"] == pytest.approx(1590.0) and d[1]["motor_kw"] == 90
+
+
+def test_doe_over_ros_equals_in_process_records_its_bag_and_says_its_domain(nodes, config, ros_domain, tmp_path,
+                                                                           capsys):
+    doe = ["--doe", "sobol", "--samples", "16", "--seed", "4", "--no-plots"]
+    assert main(["sweep", str(config), *doe, "--out", str(tmp_path / "ros"), "--transport", "ros"]) == 0
+    assert f"on ROS domain {ros_domain} " in capsys.readouterr().err
+    assert main(["sweep", str(config), *doe, "--out", str(tmp_path / "local")]) == 0
+    ros, local = _rows(tmp_path / "ros/sweep.csv"), _rows(tmp_path / "local/sweep.csv")
+    assert len(ros) == 16 and ros == local
+    from bev_mdo.bag.reader import open_bag
+
+    bag = open_bag(tmp_path / "ros" / "bag")
+    assert bag.message_count == 16
+
+
+def test_check_totals_over_ros_equals_in_process(nodes, config, capsys):
+    import json
+
+    reports = []
+    for transport in ("ros", "inprocess"):
+        code = main(["check-totals", str(config), "--transport", transport, "--json"])
+        reports.append(json.loads(capsys.readouterr().out))
+        assert code == 0, reports[-1]
+    ros, local = reports
+    assert [(r["of"], r["wrt"]) for r in ros["rows"]] == [(r["of"], r["wrt"]) for r in local["rows"]]
+    for a, b in zip(ros["rows"], local["rows"]):
+        assert a["total"] == pytest.approx(b["total"], rel=1e-9, abs=1e-12), a

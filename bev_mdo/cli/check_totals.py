@@ -1,0 +1,140 @@
+"""``bev-mdo check-totals CONFIG [--formulation mdf|idf] [--at K=V,...] [--step H] [--json]``.
+
+Compares the total derivatives of the objective and of every constraint (and, under IDF, of every
+consistency equality) that the optimiser is given (the formulation's gradients: assembled from
+the disciplines' partials, or its own finite differences, as ``optimizer.derivatives`` says) with
+central finite differences of the whole formulation at one design, all finite-difference points
+in ONE batch, in process or over ROS. The design variables default to their initial values;
+under IDF the coupling variables start where one MDA of that design puts them. A total disagrees
+when |total - fd| > atol + rtol * max(|total|, |fd|). Exit status: 0 all agree, 1 some disagree or
+the point failed, 2 a user mistake.
+"""
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+
+
+def register(subparsers) -> None:
+    from bev_mdo.cli.overrides import add_override_arguments
+    from bev_mdo.cli.ros_args import add_transport_arguments
+
+    p = subparsers.add_parser("check-totals", help="compare the optimiser's total derivatives with finite differences",
+                              description=__doc__.split("\n\n")[1])
+    p.add_argument("config", help="run config YAML")
+    p.add_argument("--formulation", choices=("mdf", "idf"), default=None, help="default: the config's")
+    p.add_argument("--at", default="", metavar="K=V,...", help="design point (default: the initial values)")
+    p.add_argument("--step", type=float, default=1e-6,
+                   help="relative central-difference step: h = step * max(|x|, 1) (default 1e-6)")
+    p.add_argument("--rtol", type=float, default=1e-4, help="relative tolerance (default 1e-4)")
+    p.add_argument("--atol", type=float, default=1e-6, help="absolute tolerance (default 1e-6)")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    add_transport_arguments(p)
+    add_override_arguments(p)
+    p.set_defaults(func=run)
+
+
+def fd_stencil(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """(rows (2n, n): x + h e_i then x - h e_i, denominators (n,)); one-sided at a bound."""
+    n = len(x)
+    h = step * np.maximum(np.abs(x), 1.0)
+    up = np.where(x + h <= upper, h, 0.0)
+    down = np.where(x - h >= lower, h, 0.0)
+    eye = np.eye(n)
+    return np.vstack([x + eye * up[:, None], x - eye * down[:, None]]), up + down
+
+
+def check(form, x: np.ndarray, step: float = 1e-6, rtol: float = 1e-4, atol: float = 1e-6) -> dict:
+    """The report (JSON-ready): one row per (function, variable) with the formulation's total, the
+    finite difference and their errors. Functions: the objective (as the problem states it, not
+    negated when maximised), each constraint output (physical units), each IDF consistency."""
+    if not (0 < step < 0.1 and rtol >= 0 and atol >= 0):
+        raise ValueError("--step must be in (0, 0.1), --rtol and --atol >= 0")
+    x = np.asarray(x, dtype=float)
+    sign = -1.0 if form.problem.maximize else 1.0
+    df, dg, dh = form.gradients(form.to_u(x))  # d/du, u = (x - offset) / scale
+    if not form.status(x)[0]:
+        raise ValueError(f"the analysis of the design failed: {form.status(x)[1].splitlines()[0]}")
+    rows_x, denom = fd_stencil(x, form.lower, form.upper, step)
+    f, g, h = form.evaluate_batch(rows_x)
+    bad = [form.status(r)[1] for r in rows_x if not form.status(r)[0]]
+    n = form.n
+    # physical functions: objective, constraint outputs (g = (bound - y)/s or (y - bound)/s), consistencies
+    rows = form.problem.constraint_rows
+    gsign = np.array([(-s if kind == "lower" else s) for _, kind, _, s in rows]) if rows else np.zeros(0)
+    names = [form.problem.objective] + [lab for lab in form.ineq_labels] + list(form.eq_labels)
+    totals = np.vstack([sign * df[None, :], gsign[:, None] * dg, dh]) / form.scale[None, :]
+    vals = np.column_stack([sign * f, g * gsign[None, :], h])
+    fd = ((vals[:n] - vals[n:]) / denom[:, None]).T
+    report = {"formulation": form.name, "derivatives": form.derivatives, "point": dict(zip(form.var_names, x.tolist())),
+              "step": step, "rtol": rtol, "atol": atol, "rows": [], "ok": not bad,
+              "error": f"{len(bad)} finite-difference points failed: {bad[0].splitlines()[0]}" if bad else ""}
+    for i, fn in enumerate(names):
+        for j, v in enumerate(form.var_names):
+            a, b = float(totals[i, j]) + 0.0, float(fd[i, j]) + 0.0  # no -0 in the table
+            err = abs(a - b)
+            rel = err / max(abs(a), abs(b)) if max(abs(a), abs(b)) > 0 else 0.0
+            ok = err <= atol + rtol * max(abs(a), abs(b))
+            report["rows"].append({"of": fn, "wrt": v, "total": a, "fd": b, "abs_error": err, "rel_error": rel, "ok": ok})
+            report["ok"] &= ok
+    return report
+
+
+def _point(form, problem, text: str) -> np.ndarray:
+    from bev_mdo.cli.check_partials import _point as design_point
+
+    design = design_point(problem, text)
+    x = np.array(form.x0, dtype=float)
+    for j, name in enumerate(problem.names):
+        x[j] = design[name]
+    if form.name == "idf" and text:  # the couplings where one MDA of this design puts them
+        res = form.mda.run({**{k: [v] for k, v in design.items()}, **{k: [v] for k, v in problem.parameters.items()}})
+        if res.ok[0]:
+            for k, c in enumerate(form.couplings):
+                x[len(problem.names) + k] = res.values[c][0]
+    return x
+
+
+def run(args) -> int:
+    from bev_mdo.cli import overrides
+    from bev_mdo.cli.ros_args import uses_ros
+    from bev_mdo.cli.sensitivity import _closing
+    from bev_mdo.config import resolve_disciplines, run_settings
+    from bev_mdo.mdo.driver import build_formulation
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+
+    config = overrides.load(args)
+    if uses_ros(args):
+        from bev_mdo.cli.evaluate import ros_session
+
+        ctx = ros_session(config, args, node_name="bev_mdo_check_totals")
+    else:
+        ctx = InProcessEvaluator(resolve_disciplines(config))
+    with _closing(ctx) as session:
+        ev = session.evaluator if hasattr(session, "suite") else session
+        form = build_formulation(run_settings(config), ev, args.formulation)
+        rep = check(form, _point(form, form.problem, args.at), args.step, args.rtol, args.atol)
+    if args.json:
+        print(json.dumps(rep, indent=2))
+        return 0 if rep["ok"] else 1
+    print_table(rep, sys.stdout)
+    return 0 if rep["ok"] else 1
+
+
+def print_table(rep: dict, out) -> None:
+    print(f"total derivatives ({rep['formulation'].upper()}, {rep['derivatives']}) at "
+          f"{', '.join(f'{k}={v:g}' for k, v in rep['point'].items())}", file=out)
+    print(f"against central differences (step {rep['step']:g}; rtol {rep['rtol']:g}, atol {rep['atol']:g})", file=out)
+    wf = max(10, *(len(r["of"]) for r in rep["rows"])) + 1
+    wv = max(8, *(len(r["wrt"]) for r in rep["rows"])) + 1
+    print(f" {'of':<{wf}} {'wrt':<{wv}} {'total':>14} {'fd':>14} {'abs err':>10} {'rel err':>10}  status", file=out)
+    for r in rep["rows"]:
+        print(f" {r['of']:<{wf}} {r['wrt']:<{wv}} {r['total']:>14.8g} {r['fd']:>14.8g} {r['abs_error']:>10.3g} "
+              f"{r['rel_error']:>10.3g}  {'ok' if r['ok'] else 'DISAGREE'}", file=out)
+    if rep["error"]:
+        print(rep["error"], file=out)
+    worst = max(rep["rows"], key=lambda r: r["rel_error"])
+    print(f"largest relative error {worst['rel_error']:.3g} (d {worst['of']} / d {worst['wrt']}); "
+          + ("all totals agree with finite differences" if rep["ok"] else "some totals disagree"), file=out)

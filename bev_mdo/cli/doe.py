@@ -1,0 +1,113 @@
+"""Designs of experiments for ``bev-mdo sweep --doe``, their plots and their bag.
+
+``sample(method, bounds, n, seed)`` draws designs over the design variables' bounds with
+scipy.stats.qmc: ``lhs`` (Latin hypercube), ``sobol`` (scrambled Sobol' sequence, n a power of 2),
+``halton`` (scrambled Halton) or ``full`` (full factorial, n levels per variable: n^d designs).
+``record(bag_dir, ...)`` writes one IterationRecord per design into an MCAP bag (the run's config in
+its metadata), so ``history``/``report`` read a sweep like a run.
+"""
+from __future__ import annotations
+
+import itertools
+import time
+from pathlib import Path
+
+import numpy as np
+
+from bev_mdo.cli import UsageError
+
+METHODS = ("lhs", "sobol", "halton", "full")
+
+
+def sample(method: str, bounds: dict[str, tuple[float, float]], n: int, seed: int | None = None) -> dict[str, np.ndarray]:
+    """{name: values} of ``n`` designs (``full``: n levels per variable) within ``bounds``."""
+    from scipy.stats import qmc
+
+    names = list(bounds)
+    d = len(names)
+    if not names:
+        raise UsageError("--doe: no design variable left to vary (all are fixed with --set)")
+    if n < 1 or (method == "full" and n < 2):
+        raise UsageError(f"--samples {n}: must be >= {2 if method == 'full' else 1}")
+    lo = np.array([bounds[k][0] for k in names], dtype=float)
+    hi = np.array([bounds[k][1] for k in names], dtype=float)
+    if method == "full":
+        if n ** d > 1_000_000:
+            raise UsageError(f"--doe full --samples {n}: {n}^{d} = {n ** d} designs is too many; use lhs or sobol")
+        unit = np.array(list(itertools.product(*[np.linspace(0.0, 1.0, n)] * d)), dtype=float)
+    elif method == "lhs":
+        unit = qmc.LatinHypercube(d, rng=seed).random(n)
+    elif method == "sobol":
+        m = int(round(np.log2(n)))
+        if 2 ** m != n:
+            raise UsageError(f"--doe sobol --samples {n}: must be a power of 2 (e.g. {2 ** max(m, 0)} or "
+                             f"{2 ** (m + 1)}) to keep the sequence balanced")
+        unit = qmc.Sobol(d, scramble=True, rng=seed).random_base2(m)
+    elif method == "halton":
+        unit = qmc.Halton(d, scramble=True, rng=seed).random(n)
+    else:
+        raise UsageError(f"--doe {method!r}: allowed: {', '.join(METHODS)}")
+    X = lo + unit * (hi - lo)
+    return {k: X[:, j] for j, k in enumerate(names)}
+
+
+def plot_scatter(result: dict, output: str, varied: list[str], path: Path, method: str):
+    """One PNG: ``output`` against each varied variable (one panel each), feasible points filled,
+    infeasible red x, constraint limits dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bev_mdo.mdo.units import label
+
+    problem, y, feas = result["problem"], result["outputs"][output], result["feasible"]
+    ncols = min(len(varied), 3)
+    nrows = -(-len(varied) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(3.6 * ncols + 0.6, 3.2 * nrows + 0.6), squeeze=False,
+                             sharey=True, layout="constrained")
+    for ax, name in zip(axes.flat, varied):
+        x = result["design"][name]
+        ax.plot(x[feas], y[feas], "o", color="C0", ms=3, alpha=0.7, label="feasible")
+        ax.plot(x[~feas], y[~feas], "x", color="C3", ms=4, alpha=0.7, label="infeasible")
+        for c in problem.constraints:
+            if c.name == output:
+                for b in (c.lower, c.upper):
+                    if b is not None:
+                        ax.axhline(b, color="C3", ls="--", lw=1.0)
+        ax.set_xlabel(label(name), fontsize=8)
+        ax.grid(alpha=0.3)
+    for ax in axes.flat[len(varied):]:
+        ax.set_visible(False)
+    for row in axes:
+        row[0].set_ylabel(label(output), fontsize=8)
+    axes.flat[0].legend(fontsize=7, loc="best")
+    fig.suptitle(f"{label(output)}: {len(y)} designs ({method})", fontsize=10)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return fig
+
+
+def record(bag_dir: Path, config, result: dict, method: str, transport: str) -> Path:
+    """The sweep as a bag: one IterationRecord per design (iteration = design index, optimizer =
+    the DOE method), the effective config in the metadata."""
+    import uuid
+
+    from bev_mdo.cli.runbag import InProcessBag
+
+    bag = InProcessBag(Path(bag_dir), config, uuid.uuid4().hex[:16], transport=transport)
+    problem, n = result["problem"], len(result["feasible"])
+    t0 = time.perf_counter()
+    try:
+        for i in range(n):
+            margins = {k: float(m[i]) for k, m in result["margins"].items()}
+            violation = max([0.0] + [-m for m in margins.values() if np.isfinite(m)])
+            bag({"iteration": i, "formulation": "doe", "optimizer": method,
+                 "design": {k: float(v[i]) for k, v in result["design"].items()},
+                 "objective_name": problem.objective, "objective": float(result["outputs"][problem.objective][i]),
+                 "constraints": {c.name: float(result["outputs"][c.name][i]) for c in problem.constraints},
+                 "max_violation": violation, "feasible": bool(result["feasible"][i]), "mda_evaluations": i + 1,
+                 "wall_time_s": time.perf_counter() - t0})
+    finally:
+        bag.close()
+    return Path(bag_dir)

@@ -1,0 +1,70 @@
+"""Problem overrides from the command line (--bound, --initial, --constraint, --objective, --maximize):
+applied to the config before it is checked, recorded as the run's config, unknown names refused
+with the nearest valid one."""
+from __future__ import annotations
+
+import json
+
+import pytest
+import yaml
+
+from bev_mdo.cli import build_parser, main
+from bev_mdo.testing import REPO
+
+CONFIG = str(REPO / "config" / "leaf_nedc.yaml")
+
+
+def _optimum(capsys, *extra):
+    assert main(["optimize", CONFIG, "--transport", "inprocess", "--json", "--quiet", *extra]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_a_range_constraint_moves_the_optimum_and_the_bag_records_it(tmp_path, capsys):
+    free = _optimum(capsys, "--no-record")
+    bag = tmp_path / "bag"
+    held = _optimum(capsys, "--constraint", "range_km>=250", "--bag", str(bag))
+    assert free["outputs"]["range_km"] < 240  # the config's 170 km does not bind at 250
+    assert held["feasible"] and held["outputs"]["range_km"] >= 250 * (1 - 1e-6)
+    assert held["design"]["battery_kwh"] > free["design"]["battery_kwh"] + 1.0
+    assert held["objective"] > free["objective"]
+    from bev_mdo.bag.reader import open_bag, read_config
+
+    recorded = yaml.safe_load(read_config(open_bag(bag)))
+    assert recorded["problem"]["constraints"]["range_km"] == {"lower": 250.0}
+    assert recorded["problem"]["constraints"]["accel_time_0_100_s"] == {"upper": 10}
+
+
+@pytest.mark.parametrize("flag, value, nearest", [
+    ("--constraint", "range_kmh>=250", "range_km"),
+    ("--bound", "gear=1:9", "gear_ratio"),
+    ("--initial", "motor_kW=70", "motor_kw"),
+    ("--objective", "energy_wh_km", "energy_wh_per_km"),
+])
+def test_an_unknown_name_exits_2_with_the_nearest_one(capsys, flag, value, nearest):
+    assert main(["optimize", CONFIG, "--transport", "inprocess", "--no-record", flag, value]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"did you mean {nearest!r}" in err[0], err
+
+
+@pytest.mark.parametrize("value", ["range_km>250", "range_km>=far", "range_km"])
+def test_a_malformed_constraint_exits_2(capsys, value):
+    assert main(["evaluate", CONFIG, "--constraint", value]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--constraint" in err[0], err
+
+
+def test_objective_maximize_bound_and_initial_reach_the_evaluation(capsys):
+    assert main(["evaluate", CONFIG, "--json", "--objective", "range_km", "--maximize", "--bound", "motor_kw=50:90",
+                 "--initial", "motor_kw=60", "--constraint", "accel_time_0_100_s<=12"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["objective"]["name"] == "range_km" and rep["objective"]["maximize"] is True
+    assert rep["design"]["motor_kw"] == 60
+    assert rep["constraints"]["accel_time_0_100_s"]["upper"] == 12
+
+
+@pytest.mark.parametrize("command", ["optimize", "evaluate", "sweep", "sensitivity", "pareto", "check-totals"])
+def test_every_run_command_takes_the_overrides(command):
+    args = build_parser([command]).parse_args([command, "c.yaml", "--bound", "a=1:2", "--initial", "a=1",
+                                               "--constraint", "b>=3", "--objective", "b", "--maximize"])
+    assert (args.bound, args.initial, args.constraint, args.objective, args.maximize) == \
+        (["a=1:2"], ["a=1"], ["b>=3"], "b", True)

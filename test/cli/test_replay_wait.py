@@ -1,0 +1,35 @@
+"""`bev-mdo replay` waits for a subscriber on each topic by default (a recorder started beside it
+then misses nothing), gives up after --wait-timeout with one line, and --no-wait publishes at once."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+from bev_mdo.cli import main
+from bev_mdo.testing import REPO, ros_env
+
+
+def _bag(tmp_path):
+    out = tmp_path / "sweep"
+    assert main(["sweep", str(REPO / "config" / "leaf_nedc.yaml"), "--doe", "lhs", "--samples", "3",
+                 "--out", str(out), "--no-plots"]) == 0
+    return out / "bag"
+
+
+def _replay(bag, ros_domain, *extra):
+    return subprocess.run([sys.executable, "-m", "bev_mdo", "replay", str(bag), "--as-fast-as-possible", *extra],
+                          env=ros_env(ros_domain), capture_output=True, text=True, timeout=120)
+
+
+def test_replay_waits_by_default_and_says_so_then_gives_up(ros_domain, tmp_path):
+    p = _replay(_bag(tmp_path), ros_domain, "--wait-timeout", "0.5")
+    assert p.returncode == 2
+    err = p.stderr.strip().splitlines()
+    assert err[0].startswith("waiting up to 0.5 s for 1 subscriber(s) on each topic (--no-wait publishes at once)")
+    assert "fewer than 1 subscribers after 0.5 s" in err[-1]
+
+
+def test_no_wait_publishes_at_once(ros_domain, tmp_path):
+    p = _replay(_bag(tmp_path), ros_domain, "--no-wait")
+    assert p.returncode == 0, p.stderr
+    assert "waiting" not in p.stderr and p.stdout.startswith("replayed 3 messages")

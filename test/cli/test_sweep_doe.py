@@ -1,0 +1,93 @@
+"""`bev-mdo sweep --doe lhs|sobol|halton|full`: designs over the bounds (with --bound overrides),
+one batch, CSV, plots and a bag that `history` reads from the output folder."""
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+import yaml
+
+from bev_mdo.cli import main
+from bev_mdo.testing import REPO
+
+CONFIG = REPO / "config" / "leaf_nedc.yaml"
+BOUNDS = {"motor_kw": (40, 120), "gear_ratio": (1, 11), "battery_kwh": (20, 30)}
+
+
+def _rows(path):
+    with open(path, newline="", encoding="utf-8") as f:
+        return list(csv.DictReader(f))
+
+
+def _column(rows, name):
+    return np.array([float(r[name]) for r in rows])
+
+
+def test_lhs_fills_every_stratum_of_every_variable_once_and_records_a_bag(tmp_path, capsys):
+    out = tmp_path / "lhs"
+    assert main(["sweep", str(CONFIG), "--doe", "lhs", "--samples", "40", "--seed", "3", "--out", str(out),
+                 "--no-plots"]) == 0
+    rows = _rows(out / "sweep.csv")
+    assert len(rows) == 40
+    for name, (lo, hi) in BOUNDS.items():
+        x = _column(rows, name)
+        strata = np.floor((x - lo) / (hi - lo) * 40).astype(int)
+        assert sorted(strata) == list(range(40)), name
+    capsys.readouterr()
+    # history finds the bag inside the output folder; one record per design, in order
+    assert main(["history", str(out), "--csv", "-"]) == 0
+    records = list(csv.DictReader(capsys.readouterr().out.splitlines()))
+    assert [int(r["iteration"]) for r in records] == list(range(40))
+    for r, row in zip(records, rows):
+        assert float(r["design.motor_kw"]) == pytest.approx(float(row["motor_kw"]), rel=1e-9)
+        assert float(r["objective"]) == pytest.approx(float(row["energy_wh_per_km"]), rel=1e-9)
+
+
+def test_sobol_with_bound_override_stays_inside_and_the_bag_records_the_effective_bounds(tmp_path):
+    out = tmp_path / "sobol"
+    assert main(["sweep", str(CONFIG), "--doe", "sobol", "--samples", "32", "--bound", "motor_kw=60:70",
+                 "--set", "battery_kwh=22", "--out", str(out), "--no-plots"]) == 0
+    rows = _rows(out / "sweep.csv")
+    motor, gear, battery = (_column(rows, k) for k in ("motor_kw", "gear_ratio", "battery_kwh"))
+    assert len(rows) == 32 and motor.min() >= 60 and motor.max() <= 70
+    assert (battery == 22).all() and gear.min() >= 1 and gear.max() <= 11
+    # a scrambled Sobol' sequence of 2^5 points puts 16 in each half of every variable's range
+    assert ((motor < 65).sum(), (gear < 6).sum()) == (16, 16)
+    from bev_mdo.bag.reader import open_bag, read_config
+
+    recorded = yaml.safe_load(read_config(open_bag(out / "bag")))
+    assert recorded["problem"]["design_variables"]["motor_kw"]["lower"] == 60
+    assert recorded["problem"]["design_variables"]["motor_kw"]["upper"] == 70
+
+
+def test_report_finds_the_bag_inside_the_output_folder(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["sweep", str(CONFIG), "--doe", "halton", "--samples", "8", "--out", str(out), "--no-plots"]) == 0
+    capsys.readouterr()
+    assert main(["report", str(out)]) == 0
+    assert (out / "bag" / "report.md").is_file()
+    assert str(out / "bag" / "report.md") in capsys.readouterr().out
+
+
+def test_full_factorial_and_halton_with_plots(tmp_path):
+    out = tmp_path / "full"
+    assert main(["sweep", str(CONFIG), "--doe", "full", "--samples", "3", "--out", str(out), "--no-record"]) == 0
+    rows = _rows(out / "sweep.csv")
+    assert len(rows) == 27
+    assert sorted(set(_column(rows, "gear_ratio"))) == [1.0, 6.0, 11.0]
+    assert (out / "energy_wh_per_km.png").stat().st_size > 1000 and not (out / "bag").exists()
+    out = tmp_path / "halton"
+    assert main(["sweep", str(CONFIG), "--doe", "halton", "--samples", "20", "--out", str(out)]) == 0
+    assert len(_rows(out / "sweep.csv")) == 20 and (out / "range_km.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--doe", "sobol", "--samples", "30"], "must be a power of 2"),
+    (["--doe", "lhs", "--vary", "motor_kw=40:120:3"], "give one of"),
+    (["--doe", "lhs", "--bound", "motor_kv=40:100"], "did you mean 'motor_kw'"),
+])
+def test_bad_doe_input_is_one_line_exit_2(tmp_path, capsys, argv, message):
+    assert main(["sweep", str(CONFIG), *argv, "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
