@@ -60,14 +60,25 @@ def test_energy_and_range_equal_the_reference(topology, cycles):
 def test_coast_down_road_load_and_unreached_range(topology, cycles):
     wltc, nedc = cycles
     params, args = designs(topology, 40, seed=7)
+    args = (args[0], args[1], np.linspace(2.0, 40.0, 40), *args[3:])  # packs from 2 kWh (< 3 NEDCs) up
     params.update(road_load_a_n=120.0, road_load_b_n_per_m_s=2.0, road_load_c_n_per_m2_s2=0.4,
                   road_load_mass_kg=1500.0)
-    assert_same(tp.simulate(wltc, params, topology, *args), tp.simulate(wltc, params, topology, *args, reference=True))
-    fast = tp.range_by_repeated_cycle_km(nedc, params, topology, *args, max_repeats=3)
-    ref = tp.range_by_repeated_cycle_km(nedc, params, topology, *args, max_repeats=3, reference=True)
-    assert np.isinf(ref).any() and np.isfinite(ref).any()  # both branches: crossing found, and not
-    np.testing.assert_array_equal(np.isinf(fast), np.isinf(ref))
-    np.testing.assert_allclose(fast[np.isfinite(ref)], ref[np.isfinite(ref)], rtol=REL, atol=0)
+    fast, ref = tp.simulate(wltc, params, topology, *args), tp.simulate(wltc, params, topology, *args, reference=True)
+    np.testing.assert_array_equal(fast.power_ok, ref.power_ok)
+    # A 2 kWh pack asked for more than ocv^2/4R runs at V_BT = ocv/2 + sqrt(~0) (2-14): there an ulp
+    # of the motor map (SM-SA's reference reads it through scipy) moves the energy by ~1e-11, so the
+    # energy is compared where the battery delivers the demand.
+    ok = ref.power_ok
+    assert 0 < ok.sum() < len(ok)
+    np.testing.assert_allclose(fast.energy_wh_per_km[ok], ref.energy_wh_per_km[ok], rtol=REL, atol=0)
+    _, args = designs(topology, 40, seed=7)  # packs of 8 kWh and more: within ocv^2/4R on the NEDC
+    fast = tp.range_by_repeated_cycle_km(nedc, params, topology, *args)
+    ref = tp.range_by_repeated_cycle_km(nedc, params, topology, *args, reference=True)
+    np.testing.assert_allclose(fast, ref, rtol=REL, atol=0)
+    assert np.all(np.isfinite(ref))
+    short = tp.range_by_repeated_cycle_km(nedc, params, topology, *args, max_repeats=1)  # never reaches 5 %
+    assert np.all(np.isinf(short)) and np.all(np.isinf(
+        tp.range_by_repeated_cycle_km(nedc, params, topology, *args, max_repeats=1, reference=True)))
 
 
 def test_interp_is_numpys():
