@@ -2,8 +2,12 @@
 (energy on combined Artemis, NEDC range by repeated cycle, 0-100, cost), per topology;
 in-process, and over ROS with ``--ros`` (discipline nodes on this machine, localhost discovery).
 ``--two-speed`` prints the Table 3-2 two-speed study beside the thesis' figures.
+``--study`` times the whole ``bev-mdo pareto --all-topologies`` study (100 x 30, in process) with the
+compiled models, ``--runs`` times, and once with today's numpy loop (``reference=True``), and compares
+each topology's final-front hypervolume (common reference point: 5 % beyond the worst of both fronts).
 
     .venv/bin/python bench/bench_pareto.py [--pop 100] [--ros --domain-id 71] [--two-speed]
+    .venv/bin/python bench/bench_pareto.py --study [--runs 3] [--reference-runs 1]
 """
 from __future__ import annotations
 
@@ -17,6 +21,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
 
 
 def _generation(cfg, evaluator, pop, seed=1):
@@ -111,6 +116,76 @@ def two_speed_study() -> None:
         print(f"{label:58s} {e:7.2f} {100 * (e / e0 - 1):+6.2f}% {th:+6.2f}% {a:8.2f}")
 
 
+OBJECTIVES = ["energy_wh_per_km", "accel_time_0_100_s", "powertrain_cost_usd"]
+
+
+def _study(reference: bool, out: Path) -> tuple[float, dict]:
+    """Wall time of the in-process 4-topology study and each topology's final front (objective rows)."""
+    import csv
+    import functools
+    import time
+
+    from bev_mdo.cli import main as cli
+    from bev_mdo.models import topology as tp
+
+    saved = tp.simulate, tp.range_by_repeated_cycle_km
+    if reference:  # today's numpy loop, for the side-by-side figure only
+        tp.simulate = functools.partial(saved[0], reference=True)
+        tp.range_by_repeated_cycle_km = functools.partial(saved[1], reference=True)
+    try:
+        t0 = time.perf_counter()
+        rc = cli(["pareto", str(ROOT / "config" / "topologies_artemis.yaml"), "--all-topologies", "--no-plots",
+                  "--out", str(out)])
+        wall = time.perf_counter() - t0
+    finally:
+        tp.simulate, tp.range_by_repeated_cycle_km = saved
+    if rc != 0:
+        raise SystemExit(f"pareto study failed with exit code {rc}")
+    fronts = {}
+    for t in tp.TOPOLOGIES:
+        with open(out / f"pareto_{t}.csv", newline="") as f:
+            fronts[t] = np.array([[float(r[k]) for k in OBJECTIVES] for r in csv.DictReader(f)])
+    return wall, fronts
+
+
+def _hypervolume(front, ref_point) -> float:
+    from pymoo.indicators.hv import HV
+
+    return float(HV(ref_point=ref_point)(front))
+
+
+def study(runs: int, reference_runs: int) -> list[dict]:
+    import tempfile
+
+    sys.path.insert(0, str(ROOT / "bench"))
+    import _results
+
+    walls = {"compiled": [], "numpy loop": []}
+    fronts = {"compiled": [], "numpy loop": []}
+    with tempfile.TemporaryDirectory() as d:
+        for i in range(max(runs, reference_runs)):
+            for how, ref in (("compiled", False), ("numpy loop", True)):
+                if i < (runs if how == "compiled" else reference_runs):
+                    w, f = _study(ref, Path(d) / f"{how.replace(' ', '_')}_{i}")
+                    walls[how].append(w)
+                    fronts[how].append(f)
+                    print(f"study, {how}, run {i + 1}: {w:.1f} s", flush=True)
+    figs = [_results.figure(f"4-topology NSGA-II 100 x 30 study in process (pareto --all-topologies), {how}", "s",
+                            walls[how], target="<= 20" if how == "compiled" else None) for how in walls if walls[how]]
+    if fronts["numpy loop"]:
+        for t in fronts["compiled"][0]:
+            both = np.vstack([fr[t] for how in fronts for fr in fronts[how]])
+            ref_point = both.max(axis=0) + 0.05 * (both.max(axis=0) - both.min(axis=0))
+            hv_ref = _hypervolume(fronts["numpy loop"][0][t], ref_point)
+            change = [100.0 * (_hypervolume(fr[t], ref_point) / hv_ref - 1.0) for fr in fronts["compiled"]]
+            figs.append(_results.figure(f"{t} generation-30 front hypervolume, compiled vs numpy loop", "% change",
+                                        change, target="within 1 %"))
+    for f in figs:
+        print(f"{f['what']}: median {f['median']:.4g} {f['unit']} (range {f['min']:.4g}-{f['max']:.4g}, "
+              f"{len(f['runs'])} runs)")
+    return figs
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--pop", type=int, default=100)
@@ -118,7 +193,15 @@ def main() -> None:
     ap.add_argument("--domain-id", type=int, default=71)
     ap.add_argument("--two-speed", action="store_true")
     ap.add_argument("--json", default=None, help="results file (default bench/results/pareto.json)")
+    ap.add_argument("--study", action="store_true", help="time the full 4-topology 100 x 30 study")
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--reference-runs", type=int, default=1)
     a = ap.parse_args()
+    if a.study:
+        import _results
+
+        _results.write("pareto_study", study(a.runs, a.reference_runs), path=a.json)
+        return
     figs = bench("inprocess", a.pop, a.domain_id)
     if a.ros:
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"

@@ -1,74 +1,105 @@
-"""Benchmark: quasi-static map model (and the chapter-5 breakdown) on the 1 Hz NEDC.
+"""Benchmark: the quasi-static / topology models as the topology study calls them: energy on the
+combined Artemis cycle (1 s grid, 5,215 steps) and NEDC range by repeated cycle (100 % -> 5 % SOC),
+together, per topology, in batches of 100 and 1000; the compiled loops beside today's numpy loop
+(``reference=True``), interleaved in one process. Also the first call of a fresh process, with the
+compiled code cached on disk and cold (empty cache dir). Not a test.
 
-Run: .venv/bin/python bench/bench_quasi_static.py [N]. Prints designs/s; not a test."""
+    .venv/bin/python bench/bench_quasi_static.py [--runs 3] [--reference-runs 1] [--no-first-call]
+"""
 from __future__ import annotations
 
+import argparse
+import os
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
 
-from bev_mdo.models import breakdown, quasi_static  # noqa: E402
+from bev_mdo.models import topology as tp  # noqa: E402
 from bev_mdo.models.cycles import load_cycle, resample  # noqa: E402
 
+FIRST_CALL = """
+import time; t0 = time.perf_counter()
+from bev_mdo.models import topology as tp
+from bev_mdo.models.cycles import load_cycle, resample
+art, nedc = resample(load_cycle("artemis_combined"), 1.0), resample(load_cycle("nedc"), 1.0)
+for t, args in [("SM-SA", (1590.0, 80.0, 24.0, 7.9)), ("DM-DA", (1640.0, 40.0, 24.0, 7.9, 40.0, 7.9)),
+                ("IWM-SA", (1590.0, 40.0, 24.0, None)), ("IWM-DA", (1620.0, 20.0, 24.0, None, 20.0))]:
+    tp.simulate(art, {}, t, *args); tp.range_by_repeated_cycle_km(nedc, {}, t, *args)
+print(time.perf_counter() - t0)
+"""
 
-def best_of(fn, repeats=3):
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
+
+def designs(topology, n, rng):
+    t = tp.get_topology(topology)
+    kw = rng.uniform(40, 130, n) / (2 if t.front_motors == 2 else 1)
+    kw_r = rng.uniform(20, 65, n) if t.two_axles else None
+    ig = rng.uniform(4, 9.4, n) if t.geared else None
+    ig_r = rng.uniform(4, 9.4, n) if t.geared and t.two_axles else None
+    return (rng.uniform(1450, 1750, n), kw, rng.uniform(18, 30, n), ig, kw_r, ig_r)
 
 
-def measure(n: int, cyc, rng) -> dict:
-    m = rng.uniform(1400, 1800, n)
-    ig = rng.uniform(6, 10, n)
-    kw = rng.uniform(60, 120, n)
-    kwh = rng.uniform(20, 40, n)
-    out = {}
-    t = best_of(lambda: quasi_static.energy_wh_per_km(cyc, {}, m, ig, kw, battery_kwh=kwh))
-    out["qs_batch"] = n / t
-    out["qs_one"] = best_of(lambda: quasi_static.energy_wh_per_km(cyc, {}, 1590.0, 7.94, 80.0), repeats=5)
-    k = min(n, 100)
-    t2 = best_of(lambda: quasi_static.range_by_repeated_cycle_km(cyc, {}, m[:k], ig[:k], kw[:k], kwh[:k]), 1)
-    out["qs_range"] = k / t2
-    nb = 10 * n
-    mb = rng.uniform(1400, 1800, nb)
-    out["breakdown"] = nb / best_of(lambda: breakdown.energy_wh_per_km(cyc, {}, mb, 8.0, 80.0))
-    return out
+def designs_per_s(topology, args, art, nedc, reference):
+    t0 = time.perf_counter()
+    tp.simulate(art, {}, topology, *args, reference=reference)
+    tp.range_by_repeated_cycle_km(nedc, {}, topology, *args, reference=reference)
+    return len(args[0]) / (time.perf_counter() - t0)
+
+
+def first_call_s(cache_dir: str | None) -> float:
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    if cache_dir:
+        env["NUMBA_CACHE_DIR"] = cache_dir
+    out = subprocess.run([sys.executable, "-c", FIRST_CALL], env=env, capture_output=True, text=True, check=True)
+    return float(out.stdout.strip().splitlines()[-1])
 
 
 def main() -> None:
-    import argparse
-
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
     import _results
 
-    ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("n", nargs="?", type=int, default=1000)
-    ap.add_argument("--runs", type=int, default=3)
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--runs", type=int, default=3, help="runs of the compiled loops per batch size")
+    ap.add_argument("--reference-runs", type=int, default=1, help="runs of today's numpy loop per batch size")
+    ap.add_argument("--no-first-call", action="store_true")
     ap.add_argument("--json", default=None, help="results file (default bench/results/quasi_static.json)")
-    args = ap.parse_args()
-    n = args.n
-    cyc = resample(load_cycle("nedc"), 1.0)
+    a = ap.parse_args()
+    art, nedc = resample(load_cycle("artemis_combined"), 1.0), resample(load_cycle("nedc"), 1.0)
     rng = np.random.default_rng(0)
-    quasi_static.default_map()  # load the CSV once
-    runs = [measure(n, cyc, rng) for _ in range(max(1, args.runs))]
-    col = {k: [x[k] for x in runs] for k in runs[0]}
-    k = min(n, 100)
-    figs = [_results.figure(f"quasi-static map model energy, {n} designs on 1 Hz NEDC", "designs/s", col["qs_batch"]),
-            _results.figure("quasi-static map model energy, one design", "ms", [v * 1e3 for v in col["qs_one"]]),
-            _results.figure(f"quasi-static range by repeated NEDC (100 % -> 5 % SOC), {k} designs", "designs/s",
-                            col["qs_range"]),
-            _results.figure(f"chapter-5 breakdown energy, {10 * n} designs", "designs/s", col["breakdown"])]
-    for f in figs:
-        print(f"{f['what']}: median {f['median']:,.4g} {f['unit']} (range {f['min']:,.4g}-{f['max']:,.4g}, "
-              f"{len(f['runs'])} runs)")
-    _results.write("quasi_static", figs, path=args.json)
+    figs = []
+    for t in tp.TOPOLOGIES:
+        designs_per_s(t, designs(t, 4, rng), art, nedc, False)  # load (or compile) the compiled code
+        target = {1: {100: 1000, 1000: 2000}, 2: {100: 500, 1000: 1000}}[1 + tp.get_topology(t).two_axles]
+        for n in (100, 1000):
+            args = designs(t, n, rng)
+            runs = {"compiled": [], "numpy loop": []}
+            for i in range(max(a.runs, a.reference_runs)):  # interleaved: both see the same host load
+                if i < a.runs:
+                    runs["compiled"].append(designs_per_s(t, args, art, nedc, False))
+                if i < a.reference_runs:
+                    runs["numpy loop"].append(designs_per_s(t, args, art, nedc, True))
+            for how, r in runs.items():
+                f = _results.figure(f"{t} energy (Artemis) + NEDC range, batches of {n}, {how}", "designs/s", r,
+                                    target=f">= {target[n]}" if how == "compiled" else None)
+                figs.append(f)
+                print(f"{f['what']}: median {f['median']:,.0f} designs/s (range {f['min']:,.0f}-{f['max']:,.0f}, "
+                      f"{len(r)} runs)", flush=True)
+    if not a.no_first_call:
+        cached = [first_call_s(None) for _ in range(3)]
+        with tempfile.TemporaryDirectory() as d:
+            cold = [first_call_s(d)]
+        for what, r in (("first call of a fresh process, 4 topologies, compiled code cached", cached),
+                        ("first call of a fresh process, 4 topologies, cold compile (empty cache)", cold)):
+            f = _results.figure(what, "s", r)
+            figs.append(f)
+            print(f"{what}: median {f['median']:.2f} s (range {f['min']:.2f}-{f['max']:.2f}, {len(r)} runs)")
+    _results.write("quasi_static", figs, path=a.json)
 
 
 if __name__ == "__main__":

@@ -24,6 +24,10 @@ Two-speed gearbox (§3.3.2): ``gear_count = 2`` uses ``gear_ratio_2`` above
 lower electrical power that the envelope allows) and applies the thesis penalty: efficiency -2 points and +20 kg
 (``two_speed_added_mass_kg``; set it to 0 if the mass discipline already adds it).
 
+Speed: ``simulate`` and ``range_by_repeated_cycle_km`` run the compiled per-design loops of
+compiled.py (``fast_demand``, ``fast_energy``, ``fast_range``); ``reference=True`` runs the plain
+numpy passes (``demand``, ``integrate_energy``, ``integrate_range``) that the tests hold them to.
+
 Feasibility (§3.5.3) is reported, not enforced: traction torque within the envelope,
 motor speed within the limit, discharge current <= 5C and power within the battery's
 ocv^2/4R. The energy of an infeasible design is still finite (the map is clipped).
@@ -36,6 +40,7 @@ from functools import lru_cache
 import numpy as np
 
 from . import battery as bt
+from . import compiled
 from . import road_load as rl
 from .common import batch_size, design_points, resolve_params
 from .motor_map import DEFAULT_MAP_CSV, MotorMap, load_motor_map_csv
@@ -164,6 +169,87 @@ def demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> Demand:
                    margin, w_lim + 0.0 * kw, steps)
 
 
+@dataclass
+class FastDemand:
+    """The compiled demand: one signed battery-side power per step (>= 0 motoring, < 0 offered by
+    regeneration), (N, K), with the per-design outputs of ``Demand``."""
+
+    dt: np.ndarray  # (K,)
+    power_w: np.ndarray  # (N, K)
+    distance_m: float
+    speed_max: np.ndarray
+    torque_margin: np.ndarray
+    speed_limit: np.ndarray
+
+
+def column(x, n: int) -> np.ndarray:
+    """A scalar or (N,) value as a new contiguous, writable float (N,) array for the compiled loops
+    (one array type, so each loop compiles once)."""
+    return np.array(np.broadcast_to(np.asarray(x, float), (n,)), dtype=float)
+
+
+def map_arrays(motor_map: MotorMap) -> tuple:
+    """The motor map as the compiled loops take it (compiled.map_tuple)."""
+    return compiled.map_tuple(motor_map.speed_rad_s, motor_map.torque_nm, motor_map.efficiency,
+                              motor_map.reference_kw, motor_map.has_regen_rows)
+
+
+def road_columns(p, n: int) -> tuple:
+    """Road-load coefficients (A0, A1, B, C) of road_load.coefficients as (N,) columns."""
+    return tuple(column(x, n) for x in rl.coefficients(p))
+
+
+def fast_demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> FastDemand:
+    """``demand`` in the compiled per-design loop (compiled.single_motor_demand)."""
+    dt, v_bar, a_bar = cycle_steps(cycle)
+    n = m.shape[0]
+    two = np.broadcast_to(p["gear_count"] == 2.0, (n,))
+    mass = m + np.where(two, p["two_speed_added_mass_kg"], 0.0)
+    eta_g = p["gear_efficiency"] - np.where(two, p["two_speed_efficiency_loss"], 0.0)
+    if np.any(eta_g <= 0):
+        raise ValueError("gear_efficiency minus two_speed_efficiency_loss must stay > 0")
+    w_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0
+    c = (lambda x: column(x, n))
+    power, speed_max, margin = compiled.single_motor_demand(
+        np.array(v_bar[:, 0]), np.array(a_bar[:, 0]), c(mass), *road_columns(p, n), c(p["wheel_radius_m"]), c(ig), c(p["gear_ratio_2"]),
+        c(p["shift_speed_m_s"]), np.array(two), np.array(two & (p["shift_strategy"] == 1.0)),
+        c(eta_g), c(kw), c(p["motor_torque_per_kw"] * kw), c(w_lim), c(p["regen_min_speed_m_s"]),
+        c(-p["regen_max_decel_g"] * p["gravity_m_s2"]), map_arrays(motor_map))
+    return FastDemand(np.array(dt[:, 0]), power, float(np.sum(v_bar[:, 0] * dt[:, 0])), speed_max, margin, w_lim + 0.0 * kw)
+
+
+def _battery_columns(p, n: int) -> tuple:
+    """(cells in series, in parallel, capacity C, 2C charge current A, rule-4 SOC) as (N,) columns,
+    from the same ``_Battery`` the reference loop uses, and the cell's SOC tables."""
+    b = _Battery(p, n)
+    cell = b.pack.cell
+    return ((column(b.pack.cells_series, n), column(b.pack.cells_parallel, n), column(b.q_c, n),
+             column(b.i_chg_max, n), column(b.soc_max_regen, n)),
+            (*(np.array(x, dtype=float) for x in (cell.soc, cell.ocv_v, cell.r_discharge_ohm, cell.r_charge_ohm)),
+             *compiled.grid_table(cell.soc, cell.ocv_v)[:2],
+             *(compiled.grid_table(cell.soc, y)[2] for y in (cell.ocv_v, cell.r_discharge_ohm, cell.r_charge_ohm))), b)
+
+
+def fast_energy(d: FastDemand, p, n: int) -> QuasiStaticResult:
+    """``integrate_energy`` in the compiled per-design loop (compiled.battery_energy)."""
+    (ns, npar, q_c, i_chg, soc_max), tables, b = _battery_columns(p, n)
+    energy, regen, soc, current_ok, power_ok = compiled.battery_energy(
+        d.power_w, d.dt, column(p["initial_soc"], n), ns, npar, q_c, i_chg, column(b.i_dis_max, n), soc_max,
+        column(b.w_loss, n), *tables)
+    km = d.distance_m / 1e3
+    return QuasiStaticResult(energy / 3600.0 / km, d.distance_m, soc, d.speed_max, d.torque_margin,
+                             d.torque_margin >= -1e-9, d.speed_max <= d.speed_limit, current_ok, power_ok,
+                             regen / 3600.0 / km)
+
+
+def fast_range(d: FastDemand, p, n: int, step_m: np.ndarray, max_repeats: int = 200) -> np.ndarray:
+    """``integrate_range`` in the compiled per-design loop (compiled.battery_range_m), km (N,)."""
+    (ns, npar, q_c, i_chg, soc_max), tables, _ = _battery_columns(p, n)
+    return compiled.battery_range_m(d.power_w, d.dt, np.array(step_m, dtype=float),
+                                    column(p["final_soc"], n), int(max_repeats), ns, npar, q_c, i_chg, soc_max,
+                                    *tables) / 1e3
+
+
 def operating_points(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, *,
                      motor_map: MotorMap | None = None) -> dict[str, np.ndarray]:
     """Per-step (K, N) operating points before the battery: speed, acceleration, gear ratio,
@@ -204,11 +290,13 @@ class _Battery:
 
 
 def simulate(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh=DEFAULT_BATTERY_KWH,
-             *, motor_map: MotorMap | None = None) -> QuasiStaticResult:
-    """One pass over the cycle from ``initial_soc``; everything per design point (N,)."""
+             *, motor_map: MotorMap | None = None, reference: bool = False) -> QuasiStaticResult:
+    """One pass over the cycle from ``initial_soc``; everything per design point (N,).
+    ``reference``: the numpy passes instead of the compiled loops (same result to 1e-12)."""
     m, ig, kw, p = inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh)
-    d = demand(resampled, p, m, ig, kw, motor_map or default_map())
-    return integrate_energy(d, p, m.shape[0])
+    if reference:
+        return integrate_energy(demand(resampled, p, m, ig, kw, motor_map or default_map()), p, m.shape[0])
+    return fast_energy(fast_demand(resampled, p, m, ig, kw, motor_map or default_map()), p, m.shape[0])
 
 
 def integrate_energy(d: Demand, p, n: int) -> QuasiStaticResult:
@@ -235,15 +323,26 @@ def energy_wh_per_km(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, *
 
 
 def range_by_repeated_cycle_km(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh, *,
-                               motor_map: MotorMap | None = None, max_repeats: int = 200) -> np.ndarray:
+                               motor_map: MotorMap | None = None, max_repeats: int = 200,
+                               reference: bool = False) -> np.ndarray:
     """Chapter-3 range: repeat the cycle from 100 % SOC until ``final_soc`` (5 %), shape (N,).
 
     The crossing is interpolated linearly inside the step. Points still above
-    ``final_soc`` after ``max_repeats`` cycles get ``inf``."""
+    ``final_soc`` after ``max_repeats`` cycles get ``inf``. The demand is computed once; only
+    the battery steps through the repeats."""
     m, ig, kw, p = inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh)
-    d = demand(resampled, p, m, ig, kw, motor_map or default_map())
-    step_m = (0.5 * (resampled.speed_m_s[1:] + resampled.speed_m_s[:-1]) * d.dt[:, 0])
-    return integrate_range(d, p, m.shape[0], step_m, max_repeats)
+    step_m = step_distances_m(resampled)
+    if reference:
+        d = demand(resampled, p, m, ig, kw, motor_map or default_map())
+        return integrate_range(d, p, m.shape[0], step_m, max_repeats)
+    return fast_range(fast_demand(resampled, p, m, ig, kw, motor_map or default_map()), p, m.shape[0], step_m,
+                      max_repeats)
+
+
+def step_distances_m(resampled) -> np.ndarray:
+    """Distance of every cycle step at its mean speed (6-50), m."""
+    v = np.asarray(resampled.speed_m_s, float)
+    return 0.5 * (v[1:] + v[:-1]) * np.diff(np.asarray(resampled.time_s, float))
 
 
 def integrate_range(d: Demand, p, n: int, step_m: np.ndarray, max_repeats: int = 200) -> np.ndarray:

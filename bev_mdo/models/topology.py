@@ -44,6 +44,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from . import compiled
 from . import mass as mass_model
 from . import quasi_static as qs
 from . import road_load as rl
@@ -355,16 +356,41 @@ def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map, with_tra
                       axles[0].w_lim + 0.0 * kw, steps)
 
 
+def _fast_demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map) -> qs.FastDemand:
+    """``_demand`` in the compiled per-design loop (compiled.axle_demand; SM-SA: qs.fast_demand)."""
+    if t.name == "SM-SA":
+        return qs.fast_demand(resampled, p, m, ig, kw, base_map)
+    dt, v_bar, a_bar = qs.cycle_steps(resampled)  # 6-50, 6-51
+    n = m.shape[0]
+    axles = _axles(t, p, kw, kw_r, ig, ig_r, base_map)
+    rear = axles[-1]
+    c = (lambda x: qs.column(x, n))
+    steps = int(np.max(p["torque_split_steps"]))
+    grid = np.linspace(0.0, 1.0, steps)
+    fine = np.linspace(-(grid[1] - grid[0]), grid[1] - grid[0], 9)
+    per_axle = [(a.count, c(a.ratio), c(a.eta), c(a.kw), c(a.t_peak), c(a.w_lim)) for a in (axles[0], rear)]
+    power, speed_max, margin = compiled.axle_demand(
+        np.array(v_bar[:, 0]), np.array(a_bar[:, 0]), c(m), *qs.road_columns(p, n), c(p["wheel_radius_m"]), c(p["regen_min_speed_m_s"]),
+        c(-p["regen_max_decel_g"] * p["gravity_m_s2"]), t.two_axles, grid, fine, *per_axle[0], *per_axle[1],
+        qs.map_arrays(axles[0].motor_map))
+    return qs.FastDemand(np.array(dt[:, 0]), power, float(np.sum(v_bar[:, 0] * dt[:, 0])), speed_max, margin,
+                         axles[0].w_lim + 0.0 * kw)
+
+
 def simulate(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh=qs.DEFAULT_BATTERY_KWH, gear_ratio=None,
-             motor_rear_kw=None, gear_ratio_rear=None, *, motor_map: MotorMap | None = None):
+             motor_rear_kw=None, gear_ratio_rear=None, *, motor_map: MotorMap | None = None, reference: bool = False):
     """One pass over the cycle (``qs.QuasiStaticResult``; SM-SA is exactly ``qs.simulate``).
 
     For two-axle and in-wheel topologies ``torque_margin_nm`` is at the wheels (sum of the
-    motors' envelopes minus the demand) and ``motor_speed_max_rad_s`` is the fastest motor."""
+    motors' envelopes minus the demand) and ``motor_speed_max_rad_s`` is the fastest motor.
+    ``reference``: the numpy passes instead of the compiled loops (same result to 1e-12)."""
     t, m, ig, kw, p, kw_r, ig_r = _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio,
                                            motor_rear_kw, gear_ratio_rear)
-    d = _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, motor_map or qs.default_map())
-    return qs.integrate_energy(d, p, m.shape[0])
+    if reference:
+        d = _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, motor_map or qs.default_map())
+        return qs.integrate_energy(d, p, m.shape[0])
+    d = _fast_demand(resampled, t, p, m, ig, kw, kw_r, ig_r, motor_map or qs.default_map())
+    return qs.fast_energy(d, p, m.shape[0])
 
 
 def energy_wh_per_km(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh=qs.DEFAULT_BATTERY_KWH, gear_ratio=None,
@@ -376,13 +402,17 @@ def energy_wh_per_km(resampled, params, topology, vehicle_mass_kg, motor_kw, bat
 
 def range_by_repeated_cycle_km(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh,
                                gear_ratio=None, motor_rear_kw=None, gear_ratio_rear=None, *,
-                               motor_map: MotorMap | None = None, max_repeats: int = 200):
-    """Chapter-3 range (repeat the cycle from 100 % to 5 % SOC, §3.5.3) of a topology, km (N,)."""
+                               motor_map: MotorMap | None = None, max_repeats: int = 200, reference: bool = False):
+    """Chapter-3 range (repeat the cycle from 100 % to 5 % SOC, §3.5.3) of a topology, km (N,);
+    the demand once, then only the battery through the repeats."""
     t, m, ig, kw, p, kw_r, ig_r = _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio,
                                            motor_rear_kw, gear_ratio_rear)
-    d = _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, motor_map or qs.default_map())
-    step_m = 0.5 * (resampled.speed_m_s[1:] + resampled.speed_m_s[:-1]) * d.dt[:, 0]
-    return qs.integrate_range(d, p, m.shape[0], step_m, max_repeats)
+    step_m = qs.step_distances_m(resampled)
+    if reference:
+        d = _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, motor_map or qs.default_map())
+        return qs.integrate_range(d, p, m.shape[0], step_m, max_repeats)
+    d = _fast_demand(resampled, t, p, m, ig, kw, kw_r, ig_r, motor_map or qs.default_map())
+    return qs.fast_range(d, p, m.shape[0], step_m, max_repeats)
 
 
 def operating_points(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh=qs.DEFAULT_BATTERY_KWH, gear_ratio=None,
