@@ -135,7 +135,7 @@ def _verdict(result: dict, out) -> None:
         from bev_mdo.mdo.multistart import summary_line
 
         print(summary_line(result["multistart"]), file=out)
-    print(f"first-order check: {cost['points']} extra points in {cost['wall_time_s']:.3f} s"
+    print(f"first-order check: {cost['points']} extra point{'' if cost['points'] == 1 else 's'} in {cost['wall_time_s']:.3f} s"
           + (" (the optimiser's last gradient reused)" if cost["points"] == 0 else ""), file=out)
     if fo["verdict"] == "infeasible":
         return  # the answers below say what is violated and what blocks it

@@ -62,7 +62,8 @@ def _check(name: str, valid: list[str], flag: str, what: str) -> None:
         return
     near = difflib.get_close_matches(name, valid, n=1, cutoff=0.5)
     hint = f"; did you mean {near[0]!r}?" if near else f"; {what}: {', '.join(valid)}"
-    raise UsageError(f"{flag} {name!r}: not a {what[:-1] if what.endswith('s') else what}{hint}")
+    one = what[:-1] if what.endswith("s") else what
+    raise UsageError(f"{flag} {name!r}: not {'an' if one[0] in 'aeiou' else 'a'} {one}{hint}")
 
 
 def _number(text: str, flag: str, item: str) -> float:

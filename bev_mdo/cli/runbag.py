@@ -99,10 +99,10 @@ def finish(config: Mapping[str, Any], result: dict, extra: Mapping[str, Any]) ->
 
 
 def answers_text(result: Mapping[str, Any], transport: str = "") -> list[str]:
-    """The answers as printed under the summary table."""
+    """The answers printed under the summary table of an infeasible end (a feasible end prints the
+    first-order check's active set instead)."""
     ans = result["active"]
-    head = "what holds the optimum:" if result.get("feasible") else "why the end point is infeasible:"
-    lines = [head] + [f"  {line}" for line in ans["lines"]]
+    lines = ["why the end point is infeasible:"] + [f"  {line}" for line in ans["lines"]]
     if ans.get("jacobian_error"):
         lines.append(f"  (no blocking analysis: {ans['jacobian_error']})")
     return lines
