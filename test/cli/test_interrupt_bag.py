@@ -23,8 +23,11 @@ CONFIG = REPO / "config" / "leaf_nedc.yaml"
 
 def _start(cwd: Path, *argv: str) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": str(REPO), "PYTHONUNBUFFERED": "1"}
+    # SIGINT back to its default in the child: a suite started as a shell's background job inherits
+    # SIGINT ignored, and Python then installs no KeyboardInterrupt handler (as for Ctrl-C on a `&` job)
     return subprocess.Popen([sys.executable, "-m", "bev_mdo", *argv], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=env, cwd=cwd)
+                            stderr=subprocess.PIPE, text=True, env=env, cwd=cwd,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def _stop_after_progress(p: subprocess.Popen, sig: int, lines: int) -> tuple[int, list[str], str]:
@@ -109,7 +112,7 @@ def _fronts_in(bag: Path) -> int:
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_an_interrupted_pareto_run_keeps_its_bag(tmp_path, sig):
-    p = _start(tmp_path, "pareto", str(REPO / "config" / "topologies_artemis.yaml"), "--transport", "inprocess", "--generations", "200", "--pop", "8",
+    p = _start(tmp_path, "pareto", str(REPO / "config" / "topologies_artemis.yaml"), "--transport", "inprocess", "--generations", "100000", "--pop", "8",
                "--out", "out", "--no-plots")
     bag = tmp_path / "out" / "bag"
     while _fronts_in(bag) < 2:  # every front is flushed as it is written: wait until two are in
