@@ -1,4 +1,4 @@
-"""``bev-mdo validate [--data CSV] [--energy-model M] [--parameter-set NAME] [--png FILE] [--json]``.
+"""``bev-mdo validate [--data CSV] [--energy-model M] [--parameter-set NAME] [--pairs] [--png FILE] [--json]``.
 
 Runs every vehicle of a fleet file (EPA Test Car List columns, default: the shipped EPA 2022
 BEV training fleet) on UDDS and HWFET in one batch per cycle and prints predicted against
@@ -6,6 +6,9 @@ measured wall energy per vehicle, then the mean, median, 90th-percentile and max
 percentage error. Vehicles whose rated power cannot follow a cycle are listed as such and
 left out of the statistics; so are rows flagged as outliers in the file. ``--png`` draws a
 parity plot with the +-5 % band and the residuals against test mass and rated power.
+``--pairs`` adds the within-family pairs (bev_mdo/models/pairs.py): each pair's measured and
+predicted percentage difference per cycle, the slope of predicted on measured and the mean
+absolute difference against their targets; with ``--png`` it draws those instead of the parity plot.
 Models: chain (default; wall to wheel with the calibrated parameter set), flat, breakdown,
 quasi_static, topology_sm_sa (the thesis models, which stop at the battery terminals).
 """
@@ -33,12 +36,15 @@ def register(subparsers) -> None:
     p.add_argument("--parameter-set", default=DEFAULT_SET, metavar="NAME",
                    help=f"parameter set for the chain model: a shipped name or a .yaml path (default {DEFAULT_SET}; "
                         "'none' = model defaults)")
-    p.add_argument("--png", metavar="FILE", help="write the parity and residual plots")
+    p.add_argument("--pairs", action="store_true",
+                   help="also report within-family pairs: measured vs predicted percentage differences")
+    p.add_argument("--png", metavar="FILE", help="write the parity and residual plots (with --pairs: the pairs plot)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=run)
 
 
-def evaluate(data=None, energy_model: str = "chain", parameter_set: str | None = DEFAULT_SET) -> dict:
+def evaluate(data=None, energy_model: str = "chain", parameter_set: str | None = DEFAULT_SET,
+             pairs: bool = False) -> dict:
     """The whole validation as a dict (what --json prints)."""
     from bev_mdo.models import fleet as fl
     from bev_mdo.models.params import load_parameter_set
@@ -65,14 +71,41 @@ def evaluate(data=None, energy_model: str = "chain", parameter_set: str | None =
             row[f"{short}_follows"] = bool(pred[c]["follows"][i])
         out_rows.append(row)
     both = np.concatenate([err[c][scored[c]] for c in fl.CYCLES])
-    return {"data": fleet.path, "energy_model": energy_model,
-            "parameter_set": parameter_set if energy_model == "chain" else None,
-            "vehicles": len(fleet), "rows": out_rows,
+    report = {"data": fleet.path, "energy_model": energy_model,
+              "parameter_set": parameter_set if energy_model == "chain" else None,
+              "vehicles": len(fleet), "rows": out_rows,
             "not_following": [{"row": int(fleet.rows[i]), "cycle": c} for c in fl.CYCLES
                               for i in np.flatnonzero(~pred[c]["follows"])],
             "stats": {"udds_hwfet": fl.error_stats(both),
                       **{c.replace("epa_", ""): fl.error_stats(err[c][scored[c]]) for c in fl.CYCLES}},
-            "by_make": _by_make(fleet, err, scored)}
+              "by_make": _by_make(fleet, err, scored)}
+    if pairs:
+        report["pairs"] = _pairs(fleet, pred, scored)
+    return report
+
+
+def _pairs(fleet, pred: dict, scored: dict) -> dict:
+    """Within-family pairs per cycle: a pair counts on a cycle when both vehicles are scored there."""
+    from bev_mdo.models import fleet as fl
+    from bev_mdo.models import pairs as pr
+
+    family = fleet.family()
+    all_pairs = pr.find_pairs(family, fleet.drive, fleet.rated_power_kw, fleet.test_mass_kg, ~fleet.outlier)
+    out = {"rule": "same make and model line (Fleet.family), different drive class, rated power or test mass; "
+                   "A = earlier row, diff = 100 (E_B / E_A - 1)",
+           "slope": "least squares through the origin, predicted on measured", "families": len(set(family)),
+           "pairs": len(all_pairs)}
+    for c in fl.CYCLES:
+        ok = [(a, b) for a, b in all_pairs if scored[c][a] and scored[c][b]]
+        meas, predicted = pr.pct_diff(fleet.measured[c], ok), pr.pct_diff(pred[c]["energy_wh_per_km"], ok)
+        out[c.replace("epa_", "")] = {
+            **pr.pair_stats(meas, predicted),
+            "rows": [{"family": family[a], "a_row": int(fleet.rows[a]), "b_row": int(fleet.rows[b]),
+                      "a_model": fleet.model[a], "b_model": fleet.model[b],
+                      "a_drive": pr.drive_class(fleet.drive[a]), "b_drive": pr.drive_class(fleet.drive[b]),
+                      "measured_pct": float(m), "predicted_pct": float(p)}
+                     for (a, b), m, p in zip(ok, meas, predicted)]}
+    return out
 
 
 def _by_make(fleet, err: dict, scored: dict) -> list[dict]:
@@ -95,13 +128,15 @@ def run(args) -> int:
 
     if args.energy_model not in ENERGY_MODELS:
         raise UsageError(f"--energy-model must be one of {list(ENERGY_MODELS)}")
-    report = evaluate(args.data, args.energy_model, args.parameter_set)
+    report = evaluate(args.data, args.energy_model, args.parameter_set, pairs=args.pairs)
     if args.png:
-        plot(report, args.png)
+        plot_pairs(report, args.png) if args.pairs else plot(report, args.png)
     if args.json:
         print(json.dumps(report, indent=2, allow_nan=True))
     else:
         print_table(report)
+        if args.pairs:
+            print_pairs(report)
     return 0
 
 
@@ -179,6 +214,72 @@ def plot(report: dict, path: str) -> None:
         a.legend(loc="lower right", fontsize=8)
         a.grid(alpha=0.3)
     fig.suptitle(f"{report['energy_model']} on {report['data'].rsplit('/', 1)[-1]}")
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=110, format=figure_format(path))
+    except OSError as exc:
+        raise ValueError(f"cannot write {path}: {exc.strerror}") from None
+    finally:
+        plt.close(fig)
+
+
+def _met(flag) -> str:
+    return "-" if flag is None else ("met" if flag else "NOT met")
+
+
+def print_pairs(report: dict, file=None) -> None:
+    out = file or sys.stdout
+    pairs = report["pairs"]
+    if not pairs["pairs"]:
+        print(f"pairs: none in {report['data']} (no two rows of one model family differ in drive, "
+              f"rated power or test mass)", file=out)
+        return
+    print(f"within-family pairs ({pairs['pairs']} pairs in {pairs['families']} families; B over A, %; "
+          f"slope by least squares through the origin):", file=out)
+    print(f"{'cycle':6} {'A row':>5} {'B row':>5} {'A model':30} {'B model':30} {'meas%':>7} {'pred%':>7} "
+          f"{'diff':>6}", file=out)
+    for c in ("udds", "hwfet"):
+        for r in pairs[c]["rows"]:
+            print(f"{c:6} {r['a_row']:>5} {r['b_row']:>5} {r['a_model'][:30]:30} {r['b_model'][:30]:30} "
+                  f"{r['measured_pct']:>+7.1f} {r['predicted_pct']:>+7.1f} "
+                  f"{r['predicted_pct'] - r['measured_pct']:>+6.1f}", file=out)
+    for c in ("udds", "hwfet"):
+        s = pairs[c]
+        lo, hi = s["slope_target"]
+        print(f"pairs {c:>5}: n={s['n']:3d}  slope {_f(s['slope_through_origin'], 2)} (target {lo}-{hi}: "
+              f"{_met(s['slope_met'])})  mean |diff| {_f(s['mean_abs_diff_points'], 2)} points "
+              f"(target <= {s['mean_abs_diff_target_points']}: {_met(s['mean_abs_diff_met'])})", file=out)
+
+
+def plot_pairs(report: dict, path: str) -> None:
+    """Predicted against measured percentage difference (B over A) of each pair, one panel per
+    cycle, with y = x, the +-2.5-point band and the fitted slope through the origin."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pairs = report["pairs"]
+    fig, ax = plt.subplots(1, 2, figsize=(11, 5))
+    for a, (c, label) in zip(ax, (("udds", "UDDS"), ("hwfet", "HWFET"))):
+        s = pairs[c]
+        x = np.array([r["measured_pct"] for r in s["rows"]])
+        y = np.array([r["predicted_pct"] for r in s["rows"]])
+        span = max(5.0, float(np.abs(np.concatenate([x, y])).max()) * 1.1) if x.size else 10.0
+        line = np.array([-span, span])
+        band = s["mean_abs_diff_target_points"]
+        a.fill_between(line, line - band, line + band, color="grey", alpha=0.2, label=f"y = x +- {band} points")
+        a.plot(line, line, "k-", lw=1, label="y = x")
+        if s["slope_through_origin"] is not None:
+            a.plot(line, s["slope_through_origin"] * line, "r--", lw=1,
+                   label=f"fit through origin, slope {s['slope_through_origin']:.2f}")
+        a.scatter(x, y, alpha=0.75, label=f"{s['n']} pairs")
+        a.set(xlim=(-span, span), ylim=(-span, span), xlabel="measured difference B over A (%)",
+              ylabel="predicted difference B over A (%)",
+              title=f"{label}: mean |diff| {_f(s['mean_abs_diff_points'], 2)} points")
+        a.legend(loc="upper left", fontsize=8)
+        a.grid(alpha=0.3)
+    fig.suptitle(f"within-family pairs, {report['energy_model']} on {report['data'].rsplit('/', 1)[-1]}")
     fig.tight_layout()
     try:
         fig.savefig(path, dpi=110, format=figure_format(path))

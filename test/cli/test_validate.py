@@ -209,3 +209,51 @@ def test_a_file_separated_by_semicolons_or_tabs_says_so(capsys, tmp_path, sep):
     code, out, err = run(capsys, "--data", p)
     assert code == 2 and out == "" and err.count("\n") == 1
     assert "row 1: the columns are separated by" in err and "missing column" not in err
+
+
+def test_pairs_json_table_and_png(capsys, tmp_path):
+    """--pairs: every pair's measured and predicted difference per cycle under one key, the slope
+    and mean absolute difference recomputed from the rows, the table and the pairs plot."""
+    png = tmp_path / "pairs.png"
+    code, out, _ = run(capsys, "--pairs", "--json", "--png", png)
+    assert code == 0
+    doc = json.loads(out)
+    p = doc["pairs"]
+    assert p["pairs"] > 0 and "through the origin" in p["slope"]
+    by_row = {r["row"]: r for r in doc["rows"]}
+    for c in ("udds", "hwfet"):
+        s = p[c]
+        assert s["n"] == len(s["rows"]) == p["pairs"]  # no outlier and every vehicle follows
+        x = np.array([r["measured_pct"] for r in s["rows"]])
+        y = np.array([r["predicted_pct"] for r in s["rows"]])
+        assert s["slope_through_origin"] == pytest.approx(x @ y / (x @ x))
+        assert s["mean_abs_diff_points"] == pytest.approx(np.mean(np.abs(y - x)))
+        assert s["slope_met"] == (0.85 <= s["slope_through_origin"] <= 1.15)
+        assert s["mean_abs_diff_met"] == (s["mean_abs_diff_points"] <= 2.5)
+        r = s["rows"][0]
+        a, b = by_row[r["a_row"]], by_row[r["b_row"]]
+        assert r["a_row"] < r["b_row"] and a["make"] == b["make"]
+        assert r["measured_pct"] == pytest.approx(
+            100 * (b[f"{c}_measured_wh_per_km"] / a[f"{c}_measured_wh_per_km"] - 1))
+        assert r["predicted_pct"] == pytest.approx(
+            100 * (b[f"{c}_predicted_wh_per_km"] / a[f"{c}_predicted_wh_per_km"] - 1))
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    code, out, _ = run(capsys, "--pairs")
+    assert code == 0 and "within-family pairs" in out and "Mach-E RWD" in out
+    assert "pairs  udds: n=" in out and "pairs hwfet: n=" in out and "slope" in out and "points" in out
+    assert ("(target 0.85-1.15: met)" in out) or ("(target 0.85-1.15: NOT met)" in out)
+    assert "pairs" not in json.loads(run(capsys, "--json")[1])  # only when asked
+
+
+def test_a_fleet_without_pairs_says_so_in_one_line(capsys, tmp_path):
+    rows = _rows()
+    one_per_family = [rows[0]] + [r for r in rows[1:] if r[0] == "BMW" and r[1].startswith("MINI")] + \
+        [r for r in rows[1:] if r[1] == "R1S"]  # R1S twice, same spec: not a pair
+    p = _write(tmp_path, one_per_family)
+    code, out, err = run(capsys, "--data", p, "--pairs")
+    assert code == 0 and "Traceback" not in err
+    lines = [ln for ln in out.splitlines() if ln.startswith("pairs")]
+    assert lines == [f"pairs: none in {p} (no two rows of one model family differ in drive, rated power or test mass)"]
+    doc = json.loads(run(capsys, "--data", p, "--pairs", "--json")[1])
+    assert doc["pairs"]["pairs"] == 0 and doc["pairs"]["udds"]["n"] == 0
+    assert doc["pairs"]["udds"]["slope_through_origin"] is None
