@@ -214,13 +214,7 @@ def plot(report: dict, path: str) -> None:
         a.legend(loc="lower right", fontsize=8)
         a.grid(alpha=0.3)
     fig.suptitle(f"{report['energy_model']} on {report['data'].rsplit('/', 1)[-1]}")
-    fig.tight_layout()
-    try:
-        fig.savefig(path, dpi=110, format=figure_format(path))
-    except OSError as exc:
-        raise ValueError(f"cannot write {path}: {exc.strerror}") from None
-    finally:
-        plt.close(fig)
+    _save(fig, path)
 
 
 def _met(flag) -> str:
@@ -280,6 +274,13 @@ def plot_pairs(report: dict, path: str) -> None:
         a.legend(loc="upper left", fontsize=8)
         a.grid(alpha=0.3)
     fig.suptitle(f"within-family pairs, {report['energy_model']} on {report['data'].rsplit('/', 1)[-1]}")
+    _save(fig, path)
+
+
+def _save(fig, path) -> None:
+    """Write a figure (format from the name) and close it; an unwritable path is one ValueError."""
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     try:
         fig.savefig(path, dpi=110, format=figure_format(path))
