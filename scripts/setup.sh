@@ -19,7 +19,7 @@ hash_of() { (cd "$ROOT" && find "$@" -type f ! -name '*.pyc' ! -path '*/__pycach
 fresh() { [ -f "$STAMPS/$1" ] && [ "$(cat "$STAMPS/$1")" = "$2" ]; }
 stamp() { mkdir -p "$STAMPS"; echo "$2" > "$STAMPS/$1"; }
 
-if [ -x "$VENV/bin/python" ] && ! "$VENV/bin/python" -m pip --version >/dev/null 2>&1; then
+if [ -x "$VENV/bin/python" ] && [ ! -x "$VENV/bin/pip" ]; then
   log "$VENV has no pip (its creation was interrupted): creating it again"
   rm -rf "$VENV"
 fi
