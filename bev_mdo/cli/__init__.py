@@ -14,6 +14,8 @@ import importlib
 import os
 import sys
 
+from bev_mdo.interrupts import Terminated  # SIGTERM as an exception: every finally runs, exit 143
+
 # command -> (module in bev_mdo.cli, help), in the order --help lists them. The module's register()
 # uses the same help (test/cli/test_cli_table.py checks it).
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
@@ -45,13 +47,6 @@ class UsageError(Exception):
     """A mistake by the user: reported as one line on stderr, exit status 2."""
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised into the main thread like SIGINT's KeyboardInterrupt, so every ``finally`` and
-    ``with`` on the way out runs (a run's bag is closed with everything recorded); exit status 143."""
-
-
-def _raise_terminated(signum, frame) -> None:
-    raise Terminated()
 
 
 def figure_format(path) -> str | None:
@@ -111,16 +106,17 @@ def main(argv: list[str] | None = None) -> int:
     from bev_mdo.stacks import dump_stacks_on_sigusr1
 
     dump_stacks_on_sigusr1()
-    import signal
     import threading
+
+    from bev_mdo import interrupts
 
     if threading.current_thread() is not threading.main_thread():
         return _main(argv)
-    previous = signal.signal(signal.SIGTERM, _raise_terminated)  # like SIGINT: unwind, close the bag, exit 143
+    previous = interrupts.install()  # SIGTERM like SIGINT: unwind, close the bag, exit 143
     try:
         return _main(argv)
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        interrupts.restore(previous)
 
 
 def _main(argv: list[str]) -> int:

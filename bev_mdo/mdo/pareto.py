@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bev_mdo import interrupts
+
 FAILED_F = 1e30
 FAILED_G = 1e6
 
@@ -88,6 +90,7 @@ def _pymoo_problem_class():
             self._where: dict[bytes, tuple[int, int]] = {}  # design row bytes -> (batch, row)
 
         def _evaluate(self, X, out, *args, **kwargs):
+            interrupts.check()  # a signal pymoo's bare excepts swallowed stops the run here
             t0 = time.perf_counter()
             res = self.form.analyse(X)  # the whole population, one batch
             self.batch_times_s.append(time.perf_counter() - t0)
