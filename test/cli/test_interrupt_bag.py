@@ -30,6 +30,16 @@ def _start(cwd: Path, *argv: str) -> subprocess.Popen:
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
+def _communicate(p: subprocess.Popen) -> tuple[str, str]:
+    """(stdout, stderr) of a signalled run; a run that outlives its signal is killed, not left behind."""
+    try:
+        return p.communicate(timeout=180)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        p.communicate()
+        raise
+
+
 def _stop_after_progress(p: subprocess.Popen, sig: int, lines: int) -> tuple[int, list[str], str]:
     """Send `sig` once the run printed `lines` progress lines; (exit status, every progress line, stderr)."""
     seen = []
@@ -40,11 +50,7 @@ def _stop_after_progress(p: subprocess.Popen, sig: int, lines: int) -> tuple[int
                 break
     assert len(seen) == lines, "the run ended before it was interrupted"
     p.send_signal(sig)
-    try:
-        out, err = p.communicate(timeout=180)
-    except subprocess.TimeoutExpired:
-        p.kill()
-        raise
+    out, err = _communicate(p)
     return p.returncode, seen + [l for l in out.splitlines() if l.startswith("iter")], err
 
 
@@ -123,7 +129,7 @@ def test_an_interrupted_pareto_run_keeps_its_bag(tmp_path, sig):
             pass
     written = _fronts_in(bag)
     p.send_signal(sig)
-    _, err = p.communicate(timeout=180)
+    _, err = _communicate(p)
     assert p.returncode == EXIT[sig], err[-2000:]
     fronts = _complete_records(bag, "/bev_mdo/pareto_front")
     assert len(fronts) >= written
