@@ -36,6 +36,9 @@ def run(args) -> int:
     apply_ros_environment(ros_section({"ros": _env_domain()}, args))
     rate = None if args.as_fast_as_possible else args.rate
     if args.wait_subscribers:
+        from bev_mdo.bag.reader import open_bag
+
+        open_bag(args.bag)  # a path that is not a bag is one error line, before any word of waiting
         print(f"waiting up to {args.wait_timeout:g} s for {args.wait_subscribers} subscriber(s) on each topic "
               "(--no-wait publishes at once) ...", file=sys.stderr, flush=True)
     stats = replay(args.bag, rate=rate, topics=args.topics, loop=args.loop,
