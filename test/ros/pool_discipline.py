@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -26,9 +27,14 @@ class WaitPerDesign:
         self.overhead_s = float(overhead_s)
         self._stall_s = float(os.environ.get("BEV_POOL_STALL_S", "0") or 0)
 
+    @dataclass(frozen=True)
+    class Options:  # the keys its config entry may give (any other is refused at load)
+        wait_s_per_design: float = 0.002
+        overhead_s: float = 0.0
+
     @classmethod
     def from_config(cls, config, options):
-        return cls(**dict(options))
+        return cls(wait_s_per_design=options.wait_s_per_design, overhead_s=options.overhead_s)
 
     def compute(self, inputs):
         x, g = np.asarray(inputs["motor_kw"], float), np.asarray(inputs["gear_ratio"], float)
