@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bev_mdo.cli import UsageError
+from bev_mdo.api.errors import InputError as UsageError
 
 METHODS = ("lhs", "sobol", "halton", "full")
 
@@ -93,7 +93,7 @@ def record(bag_dir: Path, config, result: dict, method: str, transport: str) -> 
     the DOE method), the effective config in the metadata."""
     import uuid
 
-    from bev_mdo.cli.runbag import InProcessBag
+    from bev_mdo.api.runbag import InProcessBag
 
     bag = InProcessBag(Path(bag_dir), config, uuid.uuid4().hex[:16], transport=transport)
     problem, n = result["problem"], len(result["feasible"])
