@@ -1,5 +1,5 @@
 """``bev-mdo sensitivity CONFIG --at k=v,... [--order 1|2] [--wrt a,b] [--json] [--png FILE]``;
-``--global sobol|morris --samples N --seed S``: global indices over the bounds (global_sensitivity.py).
+``--global sobol|morris --samples N --seed S``: global indices over the bounds (bev_mdo.api.sensitivity).
 
 Normalised first-order (eq 5-4, like Table 7-2) and second-order (eq 5-5, like Table
 7-3 / Fig 5-3, with NC/MC/SC/VSC labels) sensitivities of the objective and of every
