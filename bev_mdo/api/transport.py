@@ -39,11 +39,6 @@ class Transport:
         return self.transport == "ros" or self.launch
 
 
-def uses_ros(args) -> bool:
-    """True when the designs go over ROS (``--transport ros``, ``--launch`` or the old ``--ros``)."""
-    return Transport.of(args).uses_ros
-
-
 def ros_section(config: Mapping[str, Any], args) -> dict:
     """The validated ros: section of `config` with the transport's settings and the domain rule applied."""
     from bev_mdo.ros_settings import choose_domain, validate_ros

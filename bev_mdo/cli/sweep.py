@@ -239,7 +239,7 @@ def run(args) -> int:
     from bev_mdo.cli import flags
     from bev_mdo.api.doe import plot_scatter, record
     from bev_mdo.cli.evaluate import parse_assignments
-    from bev_mdo.api.transport import uses_ros
+    from bev_mdo.api.transport import Transport
     from bev_mdo.mdo.problem import Problem
 
     config = flags.load_config(args)
@@ -253,7 +253,7 @@ def run(args) -> int:
     fixed = parse_assignments(args.fixed)
     varied = [k for k in designs if k not in fixed]
     n = len(next(iter(designs.values())))
-    transport = "ros" if uses_ros(args) else "inprocess"
+    transport = "ros" if Transport.of(args).uses_ros else "inprocess"
     result = evaluate_batch(config, designs, args)
     out.mkdir(parents=True, exist_ok=True)
     write_csv(out / "sweep.csv", result)
