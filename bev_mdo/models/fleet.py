@@ -109,6 +109,21 @@ class Fleet:
             out.append(f"{make.lower()} {key}")
         return out
 
+    def model_line(self) -> list[str]:
+        """Model line for within-family pairs: the :meth:`family`, split where the file gives the
+        pack voltage class and rows of one family differ in it (400 V and 800 V are two platforms,
+        e.g. Audi's e-tron SUV and e-tron GT). A refinement of the family, so both vehicles of a
+        pair always sit in one cross-validation fold."""
+        out, volts = self.family(), self.technology.get("battery_voltage_class_v")
+        if not volts:
+            return out
+        known: dict[str, set] = {}
+        for name, v in zip(out, volts):
+            if v != "unknown":
+                known.setdefault(name, set()).add(v)
+        return [f"{name} {v} V" if len(known.get(name, ())) > 1 and v != "unknown" else name
+                for name, v in zip(out, volts)]
+
     def road_load(self) -> dict[str, np.ndarray]:
         """The fleet's coast-down coefficients as road_load parameters (A fixed: the test mass is the mass)."""
         return {"road_load_a_n": self.road_load_a_n, "road_load_b_n_per_m_s": self.road_load_b_n_per_m_s,
