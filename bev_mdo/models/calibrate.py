@@ -234,6 +234,11 @@ def main(argv=None) -> int:
     by_make = (f"leave-one-make-out MAPE {cv_make['stats']['mean_abs_pct']:.2f} %" if cv_make else
                "no leave-one-make-out CV (one make)")
     print(f"train MAPE {f['mape_pct']:.2f} % over {f['n_residuals']} vehicle-cycles; {by_family}, {by_make}")
+    if cv:
+        pairs = cv_pairs(fleet, cv, use)
+        print("pairs of the CV by family: " + "; ".join(
+            f"{c.replace('epa_', '')} n={s['n']} slope {s['slope_through_origin']:.2f}, mean |diff| "
+            f"{s['mean_abs_diff_points']:.2f} points" for c, s in pairs.items() if s["n"]))
     if args.write:
         try:
             print("wrote", write_parameter_set(f, cv, cv_make, fleet, path))
