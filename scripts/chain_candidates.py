@@ -188,7 +188,7 @@ SHIPPED_FIT = dict(cal.FIT)
 
 
 def _awd(fleet):
-    return np.array([d in "A4P" for d in fleet.drive])
+    return fleet.driven_axles == 2
 
 
 def _listed_gear(fleet):
