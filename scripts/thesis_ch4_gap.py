@@ -2,7 +2,7 @@
 """Print, step by step, where the topology energies differ from the thesis' Table 4-5 (and the
 cost offset of eq 4-4): the tables of docs/thesis.md, "Chapter 4 against Table 4-5".
 
-    python scripts/thesis_ch4_gap.py
+    PYTHONPATH=. python scripts/thesis_ch4_gap.py
 """
 from bev_mdo.studies import thesis_ch4 as t4
 
@@ -33,7 +33,8 @@ def main() -> None:
         print(f"| {r['cycle']} | {r['km']:.2f} / {r['thesis_km']:.2f} | {r['kwh']:.3f} | {r['kwh_ch5_30']:.3f} | "
               f"{r['thesis_kwh']:.2f} |")
     print("\nCost at the Table 4-4 designs, US$\n")
-    print("| topology | motors, eq 2-21 | eq 4-4 | Table 4-5 | eq 4-4 - Table 4-5 | implied pack $ | implied pack kWh |")
+    print("| topology | motors, eq 2-21 | eq 4-4 | Table 4-5 | eq 4-4 - Table 4-5 | implied pack $ "
+          "| implied pack kWh |")
     print("|---|---|---|---|---|---|---|")
     for r in t4.cost_table():
         print(f"| {r['topology']} | {r['motors_usd']:.1f} | {r['eq_4_4_usd']:.1f} | {r['thesis_usd']:.1f} | "

@@ -3,7 +3,8 @@
 The benchmark designs are Table 4-4's (``topologies.BENCHMARK``, 24 kWh), on the combined Artemis
 cycle (2 urban + 2 rural + 1 motorway, §2.1.1) at its 1 s grid, with the chapter-4 config's vehicle
 (``config/topologies_artemis.yaml``: ch7 mass, r_w 0.316 m, eta_g 0.97, start at 90 % SOC). Every
-step changes ONE thing against the baseline, through public model inputs only:
+step changes ONE thing against the baseline (``regen_share`` and ``equal_split_identity`` reach into
+topology.py's per-step demand and split helpers; everything else goes through model inputs):
 
 * ``equal_split``: DM-DA / IWM-DA with every motor carrying the same torque. At the benchmark both
   axles have the same motors and ratios, so with the Fig 2-9 torque-axis scaling an equal split puts
@@ -19,7 +20,7 @@ step changes ONE thing against the baseline, through public model inputs only:
   regeneration on these cycles, ``initial_soc`` = 1 keeps rule 4 (no regeneration above 90 % SOC,
   §2.3.4) active until 10 % of the pack is used.
 
-``python scripts/thesis_ch4_gap.py`` prints the tables docs/thesis.md shows.
+``PYTHONPATH=. python scripts/thesis_ch4_gap.py`` prints the tables docs/thesis.md shows.
 """
 from __future__ import annotations
 
@@ -60,7 +61,8 @@ STEPS = (
     ("soc_100", "start at 100 % SOC (rule 4: no regen above 90 %)", {"params": {"initial_soc": 1.0}}),
     ("regen_from_0", "regeneration down to standstill (not from 10 km/h)", {"params": {"regen_min_speed_m_s": 0.0}}),
     ("battery_loss", "energy at the open-circuit voltage (adds I^2 R)", {"params": {"battery_loss_weight": 1.0}}),
-    ("drag_appendix_a", "drag area 0.29 x 2.27 m^2 (Appendix A)", {"params": {"drag_area_m2": APPENDIX_A_DRAG_AREA_M2}}),
+    ("drag_appendix_a", "drag area 0.29 x 2.27 m^2 (Appendix A)",
+     {"params": {"drag_area_m2": APPENDIX_A_DRAG_AREA_M2}}),
     ("mass_plus_5", "mass +5 % (a rotating-mass factor)", {"mass_factor": 1.05}),
     ("ch5_40", "ch.5 nominal: flat 85 % + 40 % regen + equal split", {**CH5, "regen_share": 0.4}),
     ("ch5_30", "as ch5_40 with the 30 % ch.5's Artemis column uses", {**CH5, "regen_share": 0.3}),
@@ -109,8 +111,9 @@ def energy_kwh_per_100km(topology: str, *, params=None, flat_efficiency=None, eq
                         design.get("motor_rear_kw"), design.get("gear_ratio_rear"), motor_map=motor_map, reference=True)
         return float(r.energy_wh_per_km[0]) / 10.0
     # a share of the regenerative power the rules allow (ch.5's "regenerative braking efficiency")
-    t, m, ig, kw, pp, kw_r, ig_r = tp._prepare(p, topology, mass, design["motor_kw"], BATTERY_KWH, design.get("gear_ratio"),
-                                               design.get("motor_rear_kw"), design.get("gear_ratio_rear"))
+    t, m, ig, kw, pp, kw_r, ig_r = tp._prepare(p, topology, mass, design["motor_kw"], BATTERY_KWH,
+                                               design.get("gear_ratio"), design.get("motor_rear_kw"),
+                                               design.get("gear_ratio_rear"))
     d = tp._demand(cycle(cycle_name), t, pp, m, ig, kw, kw_r, ig_r, motor_map)
     d.p_regen_w = regen_share * d.p_regen_w
     return float(qs.integrate_energy(d, pp, m.shape[0]).energy_wh_per_km[0]) / 10.0
@@ -129,7 +132,8 @@ def segment_table() -> list[dict]:
         km = cycle(name).distance_m / 1e3
         rows.append({"cycle": name, "km": km, "thesis_km": TABLE_2_2_KM[name], "thesis_kwh": thesis_kwh,
                      "kwh": energy_kwh_per_100km("SM-SA", cycle_name=name) * km / 100.0,
-                     "kwh_ch5_30": energy_kwh_per_100km("SM-SA", cycle_name=name, **step_options("ch5_30")) * km / 100.0})
+                     "kwh_ch5_30": energy_kwh_per_100km("SM-SA", cycle_name=name, **step_options("ch5_30"))
+                     * km / 100.0})
     return rows
 
 
@@ -167,7 +171,8 @@ def equal_split_identity(topology: str = "DM-DA", cycle_name: str = "nedc") -> t
     sib = {"DM-DA": "SM-SA", "IWM-DA": "IWM-SA"}[topology]
     y = BENCHMARK[sib]
     single = tp.operating_points(c, BASE_PARAMS, sib, mass, y["motor_kw"], BATTERY_KWH, y.get("gear_ratio"))
-    return float(np.sum(split[:, 0] * dt[:, 0])) / 3600.0, float(np.sum(single["motor_power_w"][:, 0] * dt[:, 0])) / 3600.0
+    return (float(np.sum(split[:, 0] * dt[:, 0])) / 3600.0,
+            float(np.sum(single["motor_power_w"][:, 0] * dt[:, 0])) / 3600.0)
 
 
 def cost_table() -> list[dict]:
@@ -178,7 +183,8 @@ def cost_table() -> list[dict]:
     for t in TOPOLOGIES:
         x = BENCHMARK[t]
         motors = float(np.asarray(tp.motor_cost_usd(t, x["motor_kw"], x.get("motor_rear_kw"))).reshape(-1)[0])
-        ours = float(np.asarray(tp.powertrain_cost_usd(t, x["motor_kw"], BATTERY_KWH, x.get("motor_rear_kw"))).reshape(-1)[0])
+        ours = tp.powertrain_cost_usd(t, x["motor_kw"], BATTERY_KWH, x.get("motor_rear_kw"))
+        ours = float(np.asarray(ours).reshape(-1)[0])
         pack = THESIS_COST[t] - motors
         rows.append({"topology": t, "motors_usd": motors, "eq_4_4_usd": ours, "thesis_usd": THESIS_COST[t],
                      "offset_usd": ours - THESIS_COST[t], "implied_pack_usd": pack,
