@@ -42,22 +42,29 @@ def _jit(**options):
     return wrap
 
 
-@_jit(inline="always")
-def _interp(x, xp, fp, table, inv_h, slopes):
-    """np.interp for one value, the same operations as numpy's C loop (clamped at both ends).
-    ``table``/``inv_h``/``slopes`` (``grid_table``) find the interval without a search and hold
-    numpy's slopes (fp[j+1] - fp[j]) / (xp[j+1] - xp[j])."""
+@_jit()
+def _locate(x, xp, table, inv_h):
+    """np.interp's interval of x on the increasing grid xp: (j, exact), the value being fp[j] when
+    ``exact`` (x clamped at either end or on a grid point), else slope_j (x - xp[j]) + fp[j].
+    ``table``/``inv_h`` (``grid_table``) find the interval without a search."""
     n = xp.shape[0]
     if x > xp[n - 1]:
-        return fp[n - 1]
+        return n - 1, True
     if x < xp[0]:
-        return fp[0]
+        return 0, True
     j = table[min(int((x - xp[0]) * inv_h), table.shape[0] - 1)]
     while j > 0 and xp[j] > x:  # guard against rounding of the table position
         j -= 1
     while j < n - 1 and xp[j + 1] <= x:  # largest j with xp[j] <= x
         j += 1
-    if j == n - 1 or xp[j] == x:
+    return j, (j == n - 1 or xp[j] == x)
+
+
+@_jit()
+def _value(j, exact, x, xp, fp, slopes):
+    """np.interp at x in the interval of ``_locate``, the same operations as numpy's C loop;
+    ``slopes`` holds numpy's (fp[j+1] - fp[j]) / (xp[j+1] - xp[j])."""
+    if exact:
         return fp[j]
     slope = slopes[j]
     r = slope * (x - xp[j]) + fp[j]
@@ -66,6 +73,13 @@ def _interp(x, xp, fp, table, inv_h, slopes):
         if math.isnan(r) and fp[j] == fp[j + 1]:
             r = fp[j]
     return r
+
+
+@_jit()
+def _interp(x, xp, fp, table, inv_h, slopes):
+    """np.interp for one value (clamped at both ends)."""
+    j, exact = _locate(x, xp, table, inv_h)
+    return _value(j, exact, x, xp, fp, slopes)
 
 
 def grid_table(xp, fp) -> tuple:
@@ -87,18 +101,21 @@ def map_tuple(wg, tg, eff, ref_kw: float, regen_rows: bool) -> tuple:
             bool(regen_rows))
 
 
-@_jit(inline="always")
+@_jit()
 def _speed_index(w, mp):
     """Fractional speed-grid position of |w| (the speed half of the bilinear lookup)."""
     return _interp(abs(w), mp[0], mp[3], mp[5], mp[6], mp[7])
 
 
-@_jit(inline="always")
-def _electrical_w(torque, w, fi, kw, mp):
+@_jit()
+def _electrical_w(torque, w, fi, scale, mp):
     """Electrical power of one motor at (T, w), eq 2-7 with the Fig 2-9 torque scaling
-    (``topology.electrical_power_w`` for one point); ``fi`` = ``_speed_index(w, mp)``."""
+    (``topology.electrical_power_w`` for one point); ``fi`` = ``_speed_index(w, mp)``, ``scale`` =
+    reference kW / motor kW. No torque: T w (0, the map not read)."""
+    if torque == 0.0:
+        return torque * w  # pm / eta and pm * eta of pm = +-0
     wg, tg, eff, it = mp[0], mp[1], mp[2], mp[4]
-    tu = torque * (mp[11] / kw)
+    tu = torque * scale
     if not mp[12]:
         tu = abs(tu)
     fj = _interp(tu, tg, it, mp[8], mp[9], mp[10])
@@ -113,7 +130,7 @@ def _electrical_w(torque, w, fi, kw, mp):
     return pm / eta if pm >= 0 else pm * eta
 
 
-@_jit(inline="always")
+@_jit()
 def _road_force_n(v, a, mass, a0, a1, b, c):
     """Road load (road_load.road_load_n) plus inertia M a (2-3, 6-53) at mean speed v >= 0."""
     base = a0 + a1 * mass
@@ -124,7 +141,7 @@ def _road_force_n(v, a, mass, a0, a1, b, c):
     return rl + mass * a
 
 
-@_jit(inline="always")
+@_jit()
 def _t_max(w, w_lim, t_peak, kw):
     """Motor envelope: peak torque, then constant power, 0 beyond the speed limit."""
     if w <= w_lim:
@@ -132,146 +149,176 @@ def _t_max(w, w_lim, t_peak, kw):
     return 0.0
 
 
-@_jit(parallel=True)
-def single_motor_demand(v, acc, mass, a0, a1, b, c, r_w, ratio1, ratio2, shift_m_s, two, best_gear, eta_g,
-                        kw, t_peak, w_lim, regen_min_m_s, decel_min, mp):
-    """SM-SA demand (``quasi_static.demand``): per step the gear (eq 2-6, or the least-power gear
-    the envelope allows), motor torque and speed, rules 1-3, the map. Returns the signed power
-    (N, K), the top motor speed (N,) and the least motoring torque margin T_max - T_m (N,)."""
-    n_pts, n_steps = mass.shape[0], v.shape[0]
-    power = np.empty((n_pts, n_steps))
-    speed_max = np.empty(n_pts)
-    margin = np.empty(n_pts)
-    for n in prange(n_pts):
-        w_top = -np.inf
-        least = np.inf
-        for k in range(n_steps):
-            force = _road_force_n(v[k], acc[k], mass[n], a0[n], a1[n], b[n], c[n])
-            t_w = force * r_w[n]  # 2-1
-            driving = force >= 0
-            allowed = (not driving) and v[k] >= regen_min_m_s[n] and acc[k] >= decel_min[n]
-            ratio = ratio2[n] if (two[n] and v[k] >= shift_m_s[n]) else ratio1[n]  # 2-6
-            if best_gear[n]:  # per step the gear of least electrical power that the envelope allows
-                cost0 = cost1 = np.inf
-                for g in range(2):
-                    r = ratio1[n] if g == 0 else ratio2[n]
-                    w_m = v[k] / r_w[n] * r
-                    t_drive = t_w / (r * eta_g[n]) if driving else 0.0
-                    tmax = _t_max(w_m, w_lim[n], t_peak[n], kw[n])
-                    t_regen = max(t_w * eta_g[n] / r, -tmax) if allowed else 0.0
-                    p_el = _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), kw[n], mp)
-                    cost = p_el if (w_m <= w_lim[n] and t_drive <= tmax) else np.inf
-                    if g == 0:
-                        cost0 = cost
-                    else:
-                        cost1 = cost
-                pick2 = cost1 < cost0 or (np.isinf(cost0) and np.isinf(cost1) and ratio != ratio1[n])
-                ratio = ratio2[n] if pick2 else ratio1[n]
-            w_m = v[k] / r_w[n] * ratio  # 2-2, 2-4
-            t_drive = t_w / (ratio * eta_g[n]) if driving else 0.0  # 2-5
-            tmax = _t_max(w_m, w_lim[n], t_peak[n], kw[n])
-            t_regen = max(t_w * eta_g[n] / ratio, -tmax) if allowed else 0.0  # 2-25
-            power[n, k] = _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), kw[n], mp)
-            w_top = max(w_top, w_m)
-            if driving:
-                least = min(least, tmax - t_drive)
-        speed_max[n] = w_top
-        margin[n] = least
-    return power, speed_max, margin
+# columns of the per-design table ``cols`` (N, len(COLUMNS)) that ``drive_demand`` takes
+COLUMNS = ("mass", "a0", "a1", "b", "c", "r_w", "regen_min_m_s", "decel_min",
+           "ratio", "eta", "kw", "scale", "t_peak", "w_lim", "count",  # front axle (SM-SA: the motor, gear 1)
+           "ratio_r", "eta_r", "kw_r", "scale_r", "t_peak_r", "w_lim_r", "count_r",  # rear axle
+           "ratio_2", "shift_m_s", "two_speed", "best_gear")  # SM-SA two-speed gearbox
+(_M, _A0, _A1, _B, _C, _RW, _VMIN, _DMIN, _RATIO, _ETA, _KW, _SCALE, _TPK, _WLIM, _COUNT) = range(15)
+_REAR = COLUMNS.index("ratio_r") - _RATIO  # offset of a rear-axle column from its front one
+_RATIO2, _SHIFT, _TWO, _BEST = (COLUMNS.index(k) for k in ("ratio_2", "shift_m_s", "two_speed", "best_gear"))
 
 
-@_jit(inline="always")
-def _axle_power(count, ratio, eta, kw, tw, w, fi, tmax, driving, allowed, mp):
-    """Electrical power of an axle carrying wheel torque ``tw`` and its motoring overload
-    (``topology._axle_power`` for one point)."""
+@_jit()
+def _single_motor_step(x, v, t_w, driving, allowed, mp):
+    """SM-SA at one step (``quasi_static.demand``): the gear (eq 2-6, or the least-power gear the
+    envelope allows), motor torque and speed, rules 2-3, the map. (power, motor speed, T_max - T_m)."""
+    ratio1, ratio2, eta_g, kw, w_lim, t_pk = x[_RATIO], x[_RATIO2], x[_ETA], x[_KW], x[_WLIM], x[_TPK]
+    ratio = ratio2 if (x[_TWO] != 0.0 and v >= x[_SHIFT]) else ratio1  # 2-6
+    if x[_BEST] != 0.0:  # per step the gear of least electrical power that the envelope allows
+        cost0 = cost1 = np.inf
+        for g in range(2):
+            r = ratio1 if g == 0 else ratio2
+            w_m = v / x[_RW] * r
+            t_drive = t_w / (r * eta_g) if driving else 0.0
+            tmax = _t_max(w_m, w_lim, t_pk, kw)
+            t_regen = max(t_w * eta_g / r, -tmax) if allowed else 0.0
+            p_el = _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), x[_SCALE], mp)
+            cost = p_el if (w_m <= w_lim and t_drive <= tmax) else np.inf
+            if g == 0:
+                cost0 = cost
+            else:
+                cost1 = cost
+        pick2 = cost1 < cost0 or (np.isinf(cost0) and np.isinf(cost1) and ratio != ratio1)
+        ratio = ratio2 if pick2 else ratio1
+    w_m = v / x[_RW] * ratio  # 2-2, 2-4
+    t_drive = t_w / (ratio * eta_g) if driving else 0.0  # 2-5
+    tmax = _t_max(w_m, w_lim, t_pk, kw)
+    t_regen = max(t_w * eta_g / ratio, -tmax) if allowed else 0.0  # 2-25
+    return _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), x[_SCALE], mp), w_m, tmax - t_drive
+
+
+@_jit()
+def _axle_power(x, o, tw, w, fi, tmax, driving, allowed, mp):
+    """Electrical power of an axle (columns from ``o``: 0 front, ``_REAR`` rear) carrying wheel
+    torque ``tw`` and its motoring overload (``topology._axle_power`` for one point)."""
+    count, ratio, eta = x[_COUNT + o], x[_RATIO + o], x[_ETA + o]
     if driving:
         tm = tw / (count * ratio * eta)  # 2-5
         over = max(tm - tmax, 0.0)
     else:
         over = 0.0
         tm = max(tw * eta / (count * ratio), -tmax) if allowed else 0.0  # 2-25, rules 2-3
-    return count * _electrical_w(tm, w, fi, kw, mp), over
+    return count * _electrical_w(tm, w, fi, x[_SCALE + o], mp), over
+
+
+@_jit()
+def _split_score(x, s, tw, wf, fif, tmf, wr, fir, tmr, driving, allowed, mp):
+    """Electrical power of both axles with the front share ``s`` of the wheel torque, and the
+    selection score (power + penalty x overload, ``topology.best_split``)."""
+    pf, of = _axle_power(x, 0, tw * s, wf, fif, tmf, driving, allowed, mp)
+    pr, orr = _axle_power(x, _REAR, tw * (1.0 - s), wr, fir, tmr, driving, allowed, mp)
+    return (pf + pr) + _PENALTY_W_PER_NM * (of + orr), pf + pr
+
+
+@_jit()
+def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power, mp):
+    """One or two driven axles at one step (``topology._demand``): with two, the front share of
+    wheel torque of least electrical power (coarse ``grid``, then ``fine`` around its argmin, the
+    first minimum as np.argmin; a fine share equal to a coarse one reuses its value). ``score`` and
+    ``power`` are scratch arrays of the grid's length. (power, top motor speed, wheel-torque margin)."""
+    wf = v / x[_RW] * x[_RATIO]
+    tmf = _t_max(wf, x[_WLIM], x[_TPK], x[_KW])
+    cap = 0.0 + x[_COUNT] * tmf * x[_RATIO] * x[_ETA]
+    fif = _speed_index(wf, mp)
+    if not two_axles:
+        p, _ = _axle_power(x, 0, t_w, wf, fif, tmf, driving, allowed, mp)
+        return p, wf, cap - t_w
+    o = _REAR
+    wr = v / x[_RW] * x[_RATIO + o]
+    tmr = _t_max(wr, x[_WLIM + o], x[_TPK + o], x[_KW + o])
+    cap = cap + x[_COUNT + o] * tmr * x[_RATIO + o] * x[_ETA + o]
+    if not (driving or allowed):  # no motor torque on either axle at any share
+        return 0.0, max(wf, wr), cap - t_w
+    fir = _speed_index(wr, mp)
+    jc = 0
+    for j in range(grid.shape[0]):
+        score[j], power[j] = _split_score(x, grid[j], t_w, wf, fif, tmf, wr, fir, tmr, driving, allowed, mp)
+        if score[j] < score[jc]:
+            jc = j
+    s0 = grid[jc]
+    best = np.inf
+    p = 0.0
+    for j in range(fine.shape[0]):
+        s = min(max(s0 + fine[j], 0.0), 1.0)
+        q = -1
+        for i in range(max(jc - 1, 0), min(jc + 2, grid.shape[0])):
+            if grid[i] == s:
+                q = i
+        if q >= 0:
+            sc, pp = score[q], power[q]
+        else:
+            sc, pp = _split_score(x, s, t_w, wf, fif, tmf, wr, fir, tmr, driving, allowed, mp)
+        if sc < best or j == 0:  # the first minimum, as np.argmin
+            best = sc
+            p = pp
+    return p, max(wf, wr), cap - t_w
 
 
 @_jit(parallel=True)
-def axle_demand(v, acc, mass, a0, a1, b, c, r_w, regen_min_m_s, decel_min, two_axles, grid, fine,
-                count_f, ratio_f, eta_f, kw_f, t_peak_f, w_lim_f, count_r, ratio_r, eta_r, kw_r, t_peak_r, w_lim_r,
-                mp):
-    """Demand of the topologies of ``topology._demand`` (one or two driven axles, one map): with two
-    axles the front share of wheel torque minimising the electrical power per step (coarse grid,
-    then the fine grid around its argmin, ``topology.best_split``). Returns the signed power (N, K),
-    the top motor speed (N,) and the least wheel-torque margin (N,)."""
-    n_pts, n_steps = mass.shape[0], v.shape[0]
+def drive_demand(v, acc, cols, single_motor, two_axles, grid, fine, mp):
+    """Per-step battery demand of every design (row of ``cols``, see ``COLUMNS``) over the steps of
+    mean speed ``v`` and acceleration ``acc``: SM-SA (``single_motor``) or one/two driven axles.
+    Returns the signed power (N, K), the top motor speed (N,) and the least motoring margin (N,):
+    T_max - T_m of the motor (SM-SA) or the axles' wheel torque capacity minus demand."""
+    n_pts, n_steps = cols.shape[0], v.shape[0]
     power = np.empty((n_pts, n_steps))
     speed_max = np.empty(n_pts)
     margin = np.empty(n_pts)
     for n in prange(n_pts):
+        x = cols[n]
+        score = np.empty(grid.shape[0])
+        scratch = np.empty(grid.shape[0])
         w_top = -np.inf
         least = np.inf
         for k in range(n_steps):
-            force = _road_force_n(v[k], acc[k], mass[n], a0[n], a1[n], b[n], c[n])
-            tw = force * r_w[n]  # 2-1, all driven wheels
+            force = _road_force_n(v[k], acc[k], x[_M], x[_A0], x[_A1], x[_B], x[_C])
+            t_w = force * x[_RW]  # 2-1, all driven wheels
             driving = force >= 0
-            allowed = (not driving) and v[k] >= regen_min_m_s[n] and acc[k] >= decel_min[n]
-            wf = v[k] / r_w[n] * ratio_f[n]
-            tmf = _t_max(wf, w_lim_f[n], t_peak_f[n], kw_f[n])
-            cap = 0.0 + count_f * tmf * ratio_f[n] * eta_f[n]
-            w_top = max(w_top, wf)
-            fif = _speed_index(wf, mp)
-            if not two_axles:
-                p, _ = _axle_power(count_f, ratio_f[n], eta_f[n], kw_f[n], tw, wf, fif, tmf, driving, allowed, mp)
+            allowed = (not driving) and v[k] >= x[_VMIN] and acc[k] >= x[_DMIN]  # rules 2-3
+            if single_motor:
+                p, w, room = _single_motor_step(x, v[k], t_w, driving, allowed, mp)
             else:
-                wr = v[k] / r_w[n] * ratio_r[n]
-                tmr = _t_max(wr, w_lim_r[n], t_peak_r[n], kw_r[n])
-                cap = cap + count_r * tmr * ratio_r[n] * eta_r[n]
-                w_top = max(w_top, wr)
-                p = 0.0
-                if driving or allowed:  # else no motor torque on either axle at any share: p = 0
-                    fir = _speed_index(wr, mp)
-                    s0 = 0.0
-                    for stage in range(2):
-                        shares = grid if stage == 0 else fine
-                        best = np.inf
-                        for j in range(shares.shape[0]):
-                            s = shares[j] if stage == 0 else min(max(s0 + shares[j], 0.0), 1.0)
-                            pf, of = _axle_power(count_f, ratio_f[n], eta_f[n], kw_f[n], tw * s, wf, fif, tmf,
-                                                 driving, allowed, mp)
-                            pr, orr = _axle_power(count_r, ratio_r[n], eta_r[n], kw_r[n], tw * (1.0 - s), wr, fir,
-                                                  tmr, driving, allowed, mp)
-                            score = (pf + pr) + _PENALTY_W_PER_NM * (of + orr)
-                            if score < best or j == 0:  # the first minimum, as np.argmin
-                                best = score
-                                s_best = s
-                                p = pf + pr
-                        s0 = s_best
+                p, w, room = _axle_step(x, v[k], t_w, driving, allowed, two_axles, grid, fine, score, scratch, mp)
             power[n, k] = p
+            w_top = max(w_top, w)
             if driving:
-                least = min(least, cap - tw)
+                least = min(least, room)
         speed_max[n] = w_top
         margin[n] = least
     return power, speed_max, margin
 
 
-@_jit(inline="always")
-def _step(soc, demand_w, dt, ns, n_par, q_c, i_chg, soc_max, s_tab, ocv_tab, rd_tab, rc_tab, s_find, s_inv, ocv_slopes, rd_slopes, rc_slopes):
-    """One battery step (``quasi_static._Battery.step``): terminal power, current, resistance,
-    whether the demand was within ocv^2/4R, and the new SOC (2-9..2-15, rule 4, 2C cap)."""
+# columns of the per-design battery table ``cols`` (N, len(BATTERY_COLUMNS)) of the battery loops
+BATTERY_COLUMNS = ("cells_series", "cells_parallel", "capacity_c", "charge_current_max_a", "regen_max_soc",
+                   "initial_soc", "discharge_current_max_a", "loss_weight", "final_soc")
+_NS, _NP, _QC, _ICHG, _SOCMAX, _SOC0, _IDIS, _WLOSS, _SOCSTOP = range(9)
+
+
+@_jit()
+def _step(soc, demand_w, dt, x, cell):
+    """One battery step (``quasi_static._Battery.step``) of the design with columns ``x``: terminal
+    power, current, resistance, whether the demand was within ocv^2/4R, and the new SOC (2-9..2-15,
+    rule 4, 2C cap). ``cell``: the cell's SOC grid, OCV, R discharge, R charge, the grid's table and
+    1/h, and the three slopes (``cell_tables``)."""
+    s_tab = cell[0]
+    ns, i_chg = x[_NS], x[_ICHG]
     p_drive = demand_w if demand_w > 0 else 0.0
-    p_regen = demand_w if (demand_w < 0 and not soc > soc_max) else 0.0  # rule 4: SOC > 90 %
-    voc = ns * _interp(soc, s_tab, ocv_tab, s_find, s_inv, ocv_slopes)
-    r = ns * (_interp(soc, s_tab, rc_tab, s_find, s_inv, rc_slopes) if p_regen < 0
-              else _interp(soc, s_tab, rd_tab, s_find, s_inv, rd_slopes)) / n_par
+    p_regen = demand_w if (demand_w < 0 and not soc > x[_SOCMAX]) else 0.0  # rule 4: SOC > 90 %
+    j, exact = _locate(soc, s_tab, cell[4], cell[5])  # one interval for the OCV and R lookups
+    voc = ns * _value(j, exact, soc, s_tab, cell[1], cell[6])
+    r = ns * (_value(j, exact, soc, s_tab, cell[3], cell[8]) if p_regen < 0
+              else _value(j, exact, soc, s_tab, cell[2], cell[7])) / x[_NP]
     p_chg_lim = (voc - (-i_chg) * r) * (-i_chg)  # 2-12 at the 2C charge cap
     p_max = voc * voc / (4.0 * r)
     power = min(p_drive, p_max) + max(p_regen, p_chg_lim)
     v_bt = 0.5 * (voc + math.sqrt(max(voc * voc - 4.0 * power * r, 0.0)))  # 2-13, 2-14
     i = power / v_bt  # 2-11
-    return power, i, r, p_drive <= p_max, soc - i * dt / q_c  # 2-9, 2-10
+    return power, i, r, p_drive <= p_max, soc - i * dt / x[_QC]  # 2-9, 2-10
 
 
 @_jit(parallel=True)
-def battery_energy(demand_w, dt, soc0, ns, n_par, q_c, i_chg, i_dis, soc_max, w_loss,
-                   s_tab, ocv_tab, rd_tab, rc_tab, s_find, s_inv, ocv_slopes, rd_slopes, rc_slopes):
+def battery_energy(demand_w, dt, cols, cell):
     """Step each design's battery over its demand (``quasi_static.integrate_energy``): energy drawn
     and returned (J, 2-16, 2-17), final SOC, and the current and power feasibility flags."""
     n_pts, n_steps = demand_w.shape
@@ -281,20 +328,20 @@ def battery_energy(demand_w, dt, soc0, ns, n_par, q_c, i_chg, i_dis, soc_max, w_
     current_ok = np.ones(n_pts, np.bool_)
     power_ok = np.ones(n_pts, np.bool_)
     for n in prange(n_pts):
-        soc = soc0[n]
+        x = cols[n]
+        soc = x[_SOC0]
         e = 0.0
         back = 0.0
         for k in range(n_steps):
-            x = demand_w[n, k]
-            if x == 0.0:  # no current, no energy, SOC unchanged
+            d = demand_w[n, k]
+            if d == 0.0:  # no current, no energy, SOC unchanged
                 continue
-            power, i, r, within, soc = _step(soc, x, dt[k], ns[n], n_par[n], q_c[n], i_chg[n], soc_max[n],
-                                             s_tab, ocv_tab, rd_tab, rc_tab, s_find, s_inv, ocv_slopes, rd_slopes, rc_slopes)
+            power, i, r, within, soc = _step(soc, d, dt[k], x, cell)
             if not within:
                 power_ok[n] = False
-            if not i <= i_dis[n] * (1 + 1e-12):
+            if not i <= x[_IDIS] * (1 + 1e-12):
                 current_ok[n] = False
-            e += (power + w_loss[n] * i * i * r) * dt[k]
+            e += (power + x[_WLOSS] * i * i * r) * dt[k]
             back -= min(power, 0.0) * dt[k]
         energy[n] = e
         regen[n] = back
@@ -303,25 +350,25 @@ def battery_energy(demand_w, dt, soc0, ns, n_par, q_c, i_chg, i_dis, soc_max, w_
 
 
 @_jit(parallel=True)
-def battery_range_m(demand_w, dt, step_m, soc_stop, max_repeats, ns, n_par, q_c, i_chg, soc_max,
-                    s_tab, ocv_tab, rd_tab, rc_tab, s_find, s_inv, ocv_slopes, rd_slopes, rc_slopes):
-    """Distance (m) from 100 % SOC to ``soc_stop`` repeating the cycle's demand
+def battery_range_m(demand_w, dt, step_m, max_repeats, cols, cell):
+    """Distance (m) from 100 % SOC to ``final_soc`` repeating the cycle's demand
     (``quasi_static.integrate_range``), the crossing interpolated inside its step; inf if the
     battery is still above after ``max_repeats`` cycles."""
     n_pts, n_steps = demand_w.shape
     out = np.full(n_pts, np.inf)
     for n in prange(n_pts):
+        x = cols[n]
+        stop = x[_SOCSTOP]
         soc = 1.0
         travelled = 0.0
         done = False
         for _ in range(max_repeats):
             for k in range(n_steps):
-                x = demand_w[n, k]
-                if x != 0.0:
-                    _, _, _, _, new = _step(soc, x, dt[k], ns[n], n_par[n], q_c[n], i_chg[n], soc_max[n],
-                                            s_tab, ocv_tab, rd_tab, rc_tab, s_find, s_inv, ocv_slopes, rd_slopes, rc_slopes)
-                    if new <= soc_stop[n]:
-                        frac = (soc - soc_stop[n]) / max(soc - new, 1e-300)
+                d = demand_w[n, k]
+                if d != 0.0:  # a step without demand leaves the SOC as it is
+                    new = _step(soc, d, dt[k], x, cell)[4]
+                    if new <= stop:
+                        frac = (soc - stop) / max(soc - new, 1e-300)
                         out[n] = travelled + frac * step_m[k]
                         done = True
                         break
@@ -330,3 +377,19 @@ def battery_range_m(demand_w, dt, step_m, soc_stop, max_repeats, ns, n_par, q_c,
             if done:
                 break
     return out
+
+
+def table(names: tuple, n: int, values: dict) -> np.ndarray:
+    """The (N, len(names)) float table of the compiled loops: each named column from a scalar or
+    an (N,) array, absent columns 0 (one array type, so each loop compiles once)."""
+    out = np.zeros((n, len(names)))
+    for k, x in values.items():
+        out[:, names.index(k)] = x
+    return out
+
+
+def cell_tables(soc, ocv_v, r_discharge_ohm, r_charge_ohm) -> tuple:
+    """A cell's tables as the battery loops take them (``_step``'s ``cell``)."""
+    tabs = tuple(np.array(x, dtype=float) for x in (soc, ocv_v, r_discharge_ohm, r_charge_ohm))
+    find, inv_h, _ = grid_table(tabs[0], tabs[1])
+    return (*tabs, find, inv_h, *(grid_table(tabs[0], y)[2] for y in tabs[1:]))
