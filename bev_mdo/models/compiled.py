@@ -14,11 +14,18 @@ functions stay as the reference the tests compare with (energy and range to 1e-1
 * Motor maps are looked up in the bilinear form of ``topology.electrical_power_w``; numpy's
   ``interp`` is re-implemented operation for operation (``_interp``).
 * Designs run in parallel over the host's cores (``prange``); each design's loop is sequential
-  and independent of the others, so results do not depend on the thread count.
+  and independent of the others, so results do not depend on the thread count. The battery
+  loop steps a group of designs side by side (``_GROUP``): one design's SOC recurrence is a chain
+  of dependent divisions and a square root that leaves the core waiting.
+* Two compiled kernels (``drive_demand`` for every topology, ``_battery`` for
+  energy and range); the per-step helpers are inlined into them (numba ``inline="always"``: in
+  these parallel loops that is several times faster than calls, and one call site each keeps the
+  compile short).
 
 Compiled code is cached next to this file (``cache=True``); where that directory is not
-writable numba uses the user cache, and where there is none the functions compile on first
-use in every process (about a few seconds, see docs/performance.md) instead of failing.
+writable numba uses the user cache (``NUMBA_CACHE_DIR`` chooses another), and where there is
+none the kernels compile on first use in every process (see docs/performance.md) instead of
+failing.
 """
 from __future__ import annotations
 
@@ -42,7 +49,7 @@ def _jit(**options):
     return wrap
 
 
-@_jit()
+@_jit(inline="always")
 def _locate(x, xp, table, inv_h):
     """np.interp's interval of x on the increasing grid xp: (j, exact), the value being fp[j] when
     ``exact`` (x clamped at either end or on a grid point), else slope_j (x - xp[j]) + fp[j].
@@ -60,7 +67,7 @@ def _locate(x, xp, table, inv_h):
     return j, (j == n - 1 or xp[j] == x)
 
 
-@_jit()
+@_jit(inline="always")
 def _value(j, exact, x, xp, fp, slopes):
     """np.interp at x in the interval of ``_locate``, the same operations as numpy's C loop;
     ``slopes`` holds numpy's (fp[j+1] - fp[j]) / (xp[j+1] - xp[j])."""
@@ -75,7 +82,7 @@ def _value(j, exact, x, xp, fp, slopes):
     return r
 
 
-@_jit()
+@_jit(inline="always")
 def _interp(x, xp, fp, table, inv_h, slopes):
     """np.interp for one value (clamped at both ends)."""
     j, exact = _locate(x, xp, table, inv_h)
@@ -101,13 +108,13 @@ def map_tuple(wg, tg, eff, ref_kw: float, regen_rows: bool) -> tuple:
             bool(regen_rows))
 
 
-@_jit()
+@_jit(inline="always")
 def _speed_index(w, mp):
     """Fractional speed-grid position of |w| (the speed half of the bilinear lookup)."""
     return _interp(abs(w), mp[0], mp[3], mp[5], mp[6], mp[7])
 
 
-@_jit()
+@_jit(inline="always")
 def _electrical_w(torque, w, fi, scale, mp):
     """Electrical power of one motor at (T, w), eq 2-7 with the Fig 2-9 torque scaling
     (``topology.electrical_power_w`` for one point); ``fi`` = ``_speed_index(w, mp)``, ``scale`` =
@@ -130,7 +137,7 @@ def _electrical_w(torque, w, fi, scale, mp):
     return pm / eta if pm >= 0 else pm * eta
 
 
-@_jit()
+@_jit(inline="always")
 def _road_force_n(v, a, mass, a0, a1, b, c):
     """Road load (road_load.road_load_n) plus inertia M a (2-3, 6-53) at mean speed v >= 0."""
     base = a0 + a1 * mass
@@ -141,7 +148,7 @@ def _road_force_n(v, a, mass, a0, a1, b, c):
     return rl + mass * a
 
 
-@_jit()
+@_jit(inline="always")
 def _t_max(w, w_lim, t_peak, kw):
     """Motor envelope: peak torque, then constant power, 0 beyond the speed limit."""
     if w <= w_lim:
@@ -159,36 +166,33 @@ _REAR = COLUMNS.index("ratio_r") - _RATIO  # offset of a rear-axle column from i
 _RATIO2, _SHIFT, _TWO, _BEST = (COLUMNS.index(k) for k in ("ratio_2", "shift_m_s", "two_speed", "best_gear"))
 
 
-@_jit()
+@_jit(inline="always")
 def _single_motor_step(x, v, t_w, driving, allowed, mp):
     """SM-SA at one step (``quasi_static.demand``): the gear (eq 2-6, or the least-power gear the
     envelope allows), motor torque and speed, rules 2-3, the map. (power, motor speed, T_max - T_m)."""
     ratio1, ratio2, eta_g, kw, w_lim, t_pk = x[_RATIO], x[_RATIO2], x[_ETA], x[_KW], x[_WLIM], x[_TPK]
     ratio = ratio2 if (x[_TWO] != 0.0 and v >= x[_SHIFT]) else ratio1  # 2-6
-    if x[_BEST] != 0.0:  # per step the gear of least electrical power that the envelope allows
-        cost0 = cost1 = np.inf
-        for g in range(2):
-            r = ratio1 if g == 0 else ratio2
-            w_m = v / x[_RW] * r
-            t_drive = t_w / (r * eta_g) if driving else 0.0
-            tmax = _t_max(w_m, w_lim, t_pk, kw)
-            t_regen = max(t_w * eta_g / r, -tmax) if allowed else 0.0
-            p_el = _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), x[_SCALE], mp)
-            cost = p_el if (w_m <= w_lim and t_drive <= tmax) else np.inf
-            if g == 0:
-                cost0 = cost
-            else:
-                cost1 = cost
-        pick2 = cost1 < cost0 or (np.isinf(cost0) and np.isinf(cost1) and ratio != ratio1)
-        ratio = ratio2 if pick2 else ratio1
-    w_m = v / x[_RW] * ratio  # 2-2, 2-4
-    t_drive = t_w / (ratio * eta_g) if driving else 0.0  # 2-5
-    tmax = _t_max(w_m, w_lim, t_pk, kw)
-    t_regen = max(t_w * eta_g / ratio, -tmax) if allowed else 0.0  # 2-25
-    return _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), x[_SCALE], mp), w_m, tmax - t_drive
+    cost0 = np.inf
+    p_el = w_m = tmax = t_drive = 0.0
+    # g = 0, 1: gear 1 and 2 when the design picks per step the gear of least electrical power
+    # that the envelope allows; g = 2: the gear used (one map lookup site, for compile time)
+    for g in range(0 if x[_BEST] != 0.0 else 2, 3):
+        r = ratio1 if g == 0 else (ratio2 if g == 1 else ratio)
+        w_m = v / x[_RW] * r  # 2-2, 2-4
+        t_drive = t_w / (r * eta_g) if driving else 0.0  # 2-5
+        tmax = _t_max(w_m, w_lim, t_pk, kw)
+        t_regen = max(t_w * eta_g / r, -tmax) if allowed else 0.0  # 2-25
+        p_el = _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), x[_SCALE], mp)
+        cost = p_el if (w_m <= w_lim and t_drive <= tmax) else np.inf
+        if g == 0:
+            cost0 = cost
+        elif g == 1:
+            pick2 = cost < cost0 or (np.isinf(cost0) and np.isinf(cost) and ratio != ratio1)
+            ratio = ratio2 if pick2 else ratio1
+    return p_el, w_m, tmax - t_drive
 
 
-@_jit()
+@_jit(inline="always")
 def _axle_power(x, o, tw, w, fi, tmax, driving, allowed, mp):
     """Electrical power of an axle (columns from ``o``: 0 front, ``_REAR`` rear) carrying wheel
     torque ``tw`` and its motoring overload (``topology._axle_power`` for one point)."""
@@ -202,57 +206,56 @@ def _axle_power(x, o, tw, w, fi, tmax, driving, allowed, mp):
     return count * _electrical_w(tm, w, fi, x[_SCALE + o], mp), over
 
 
-@_jit()
-def _split_score(x, s, tw, wf, fif, tmf, wr, fir, tmr, driving, allowed, mp):
-    """Electrical power of both axles with the front share ``s`` of the wheel torque, and the
-    selection score (power + penalty x overload, ``topology.best_split``)."""
-    pf, of = _axle_power(x, 0, tw * s, wf, fif, tmf, driving, allowed, mp)
-    pr, orr = _axle_power(x, _REAR, tw * (1.0 - s), wr, fir, tmr, driving, allowed, mp)
-    return (pf + pr) + _PENALTY_W_PER_NM * (of + orr), pf + pr
-
-
-@_jit()
+@_jit(inline="always")
 def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power, mp):
     """One or two driven axles at one step (``topology._demand``): with two, the front share of
     wheel torque of least electrical power (coarse ``grid``, then ``fine`` around its argmin, the
-    first minimum as np.argmin; a fine share equal to a coarse one reuses its value). ``score`` and
-    ``power`` are scratch arrays of the grid's length. (power, top motor speed, wheel-torque margin)."""
+    first minimum as np.argmin; a fine share equal to a coarse one reuses its value); one axle
+    carries it all (share 1). ``score`` and ``power`` are scratch arrays of the grid's length.
+    (power, top motor speed, wheel-torque margin)."""
+    o = _REAR
     wf = v / x[_RW] * x[_RATIO]
     tmf = _t_max(wf, x[_WLIM], x[_TPK], x[_KW])
     cap = 0.0 + x[_COUNT] * tmf * x[_RATIO] * x[_ETA]
+    wr = tmr = 0.0
+    if two_axles:
+        wr = v / x[_RW] * x[_RATIO + o]
+        tmr = _t_max(wr, x[_WLIM + o], x[_TPK + o], x[_KW + o])
+        cap = cap + x[_COUNT + o] * tmr * x[_RATIO + o] * x[_ETA + o]
+    w_top = max(wf, wr) if two_axles else wf
+    if not (driving or allowed):  # no motor torque on any axle at any share
+        return 0.0, w_top, cap - t_w
     fif = _speed_index(wf, mp)
-    if not two_axles:
-        p, _ = _axle_power(x, 0, t_w, wf, fif, tmf, driving, allowed, mp)
-        return p, wf, cap - t_w
-    o = _REAR
-    wr = v / x[_RW] * x[_RATIO + o]
-    tmr = _t_max(wr, x[_WLIM + o], x[_TPK + o], x[_KW + o])
-    cap = cap + x[_COUNT + o] * tmr * x[_RATIO + o] * x[_ETA + o]
-    if not (driving or allowed):  # no motor torque on either axle at any share
-        return 0.0, max(wf, wr), cap - t_w
-    fir = _speed_index(wr, mp)
+    fir = _speed_index(wr, mp) if two_axles else 0.0
+    n_coarse = grid.shape[0] if two_axles else 1
     jc = 0
-    for j in range(grid.shape[0]):
-        score[j], power[j] = _split_score(x, grid[j], t_w, wf, fif, tmf, wr, fir, tmr, driving, allowed, mp)
-        if score[j] < score[jc]:
-            jc = j
-    s0 = grid[jc]
-    best = np.inf
-    p = 0.0
-    for j in range(fine.shape[0]):
-        s = min(max(s0 + fine[j], 0.0), 1.0)
+    s0 = best = p = 0.0
+    for idx in range(n_coarse + (fine.shape[0] if two_axles else 0)):  # one evaluation site (compile time)
         q = -1
-        for i in range(max(jc - 1, 0), min(jc + 2, grid.shape[0])):
-            if grid[i] == s:
-                q = i
+        if idx < n_coarse:
+            s = grid[idx] if two_axles else 1.0
+        else:
+            s = min(max(s0 + fine[idx - n_coarse], 0.0), 1.0)
+            for i in range(max(jc - 1, 0), min(jc + 2, n_coarse)):
+                if grid[i] == s:
+                    q = i
         if q >= 0:
             sc, pp = score[q], power[q]
         else:
-            sc, pp = _split_score(x, s, t_w, wf, fif, tmf, wr, fir, tmr, driving, allowed, mp)
-        if sc < best or j == 0:  # the first minimum, as np.argmin
-            best = sc
+            pp, of = _axle_power(x, 0, t_w * s, wf, fif, tmf, driving, allowed, mp)
+            if two_axles:
+                pr, orr = _axle_power(x, o, t_w * (1.0 - s), wr, fir, tmr, driving, allowed, mp)
+                pp, of = pp + pr, of + orr
+            sc = pp + _PENALTY_W_PER_NM * of  # topology.best_split's selection score
+        if idx < n_coarse:
+            score[idx], power[idx] = sc, pp
+            if sc < score[jc]:
+                jc = idx
+            s0 = grid[jc]
             p = pp
-    return p, max(wf, wr), cap - t_w
+        elif sc < best or idx == n_coarse:  # the first minimum, as np.argmin
+            best, p = sc, pp
+    return p, w_top, cap - t_w
 
 
 @_jit(parallel=True)
@@ -295,7 +298,7 @@ BATTERY_COLUMNS = ("cells_series", "cells_parallel", "capacity_c", "charge_curre
 _NS, _NP, _QC, _ICHG, _SOCMAX, _SOC0, _IDIS, _WLOSS, _SOCSTOP = range(9)
 
 
-@_jit()
+@_jit(inline="always")
 def _step(soc, demand_w, dt, x, cell):
     """One battery step (``quasi_static._Battery.step``) of the design with columns ``x``: terminal
     power, current, resistance, whether the demand was within ocv^2/4R, and the new SOC (2-9..2-15,
@@ -317,67 +320,76 @@ def _step(soc, demand_w, dt, x, cell):
     return power, i, r, p_drive <= p_max, soc - i * dt / x[_QC]  # 2-9, 2-10
 
 
+_GROUP = 4  # designs stepped side by side in one loop: the SOC recurrence of one design is a chain
+# of dependent divisions and a square root, so one design alone leaves the core waiting
+
+
 @_jit(parallel=True)
-def battery_energy(demand_w, dt, cols, cell):
-    """Step each design's battery over its demand (``quasi_static.integrate_energy``): energy drawn
-    and returned (J, 2-16, 2-17), final SOC, and the current and power feasibility flags."""
+def _battery(demand_w, dt, step_m, max_repeats, cols, cell, to_range):
+    """The battery stepped over each design's demand: once from ``initial_soc`` (energy), or
+    from 100 % SOC repeating the cycle until ``final_soc`` (``to_range``). One kernel for both
+    (compile time). Returns energy drawn and returned (J), final SOC, the current and power
+    flags, and the distance (m, inf if not reached). Each design's steps are its own; designs of
+    a group only share the loop."""
     n_pts, n_steps = demand_w.shape
     energy = np.zeros(n_pts)
     regen = np.zeros(n_pts)
     soc_end = np.empty(n_pts)
     current_ok = np.ones(n_pts, np.bool_)
     power_ok = np.ones(n_pts, np.bool_)
-    for n in prange(n_pts):
-        x = cols[n]
-        soc = x[_SOC0]
-        e = 0.0
-        back = 0.0
-        for k in range(n_steps):
-            d = demand_w[n, k]
-            if d == 0.0:  # no current, no energy, SOC unchanged
-                continue
-            power, i, r, within, soc = _step(soc, d, dt[k], x, cell)
-            if not within:
-                power_ok[n] = False
-            if not i <= x[_IDIS] * (1 + 1e-12):
-                current_ok[n] = False
-            e += (power + x[_WLOSS] * i * i * r) * dt[k]
-            back -= min(power, 0.0) * dt[k]
-        energy[n] = e
-        regen[n] = back
-        soc_end[n] = soc
-    return energy, regen, soc_end, current_ok, power_ok
+    out = np.full(n_pts, np.inf)
+    for first in prange((n_pts + _GROUP - 1) // _GROUP):
+        n0 = first * _GROUP
+        size = min(_GROUP, n_pts - n0)
+        soc = np.empty(_GROUP)
+        active = np.zeros(_GROUP, np.bool_)
+        for g in range(size):
+            soc[g] = 1.0 if to_range else cols[n0 + g, _SOC0]
+            active[g] = True
+        left = size
+        travelled = 0.0
+        for _ in range(max_repeats if to_range else 1):
+            for k in range(n_steps):
+                for g in range(size):
+                    n = n0 + g
+                    d = demand_w[n, k]
+                    if d != 0.0 and active[g]:  # a step without demand: no current, no energy, SOC unchanged
+                        x = cols[n]
+                        power, i, r, within, new = _step(soc[g], d, dt[k], x, cell)
+                        if to_range:
+                            if new <= x[_SOCSTOP]:  # the crossing, interpolated inside its step
+                                out[n] = travelled + (soc[g] - x[_SOCSTOP]) / max(soc[g] - new, 1e-300) * step_m[k]
+                                active[g] = False
+                                left -= 1
+                        else:
+                            if not within:
+                                power_ok[n] = False
+                            if not i <= x[_IDIS] * (1 + 1e-12):
+                                current_ok[n] = False
+                            energy[n] += (power + x[_WLOSS] * i * i * r) * dt[k]  # 2-16, 2-17
+                            regen[n] -= min(power, 0.0) * dt[k]
+                        soc[g] = new
+                travelled += step_m[k]
+                if left == 0:
+                    break
+            if left == 0:
+                break
+        for g in range(size):
+            soc_end[n0 + g] = soc[g]
+    return energy, regen, soc_end, current_ok, power_ok, out
+
+def battery_energy(demand_w, dt, cols, cell) -> tuple:
+    """Step each design's battery over its demand from ``initial_soc``
+    (``quasi_static.integrate_energy``): energy drawn and returned (J, 2-16, 2-17), final SOC,
+    and the current and power feasibility flags."""
+    return _battery(demand_w, dt, np.zeros(dt.shape[0]), 1, cols, cell, False)[:5]
 
 
-@_jit(parallel=True)
-def battery_range_m(demand_w, dt, step_m, max_repeats, cols, cell):
+def battery_range_m(demand_w, dt, step_m, max_repeats: int, cols, cell) -> np.ndarray:
     """Distance (m) from 100 % SOC to ``final_soc`` repeating the cycle's demand
     (``quasi_static.integrate_range``), the crossing interpolated inside its step; inf if the
     battery is still above after ``max_repeats`` cycles."""
-    n_pts, n_steps = demand_w.shape
-    out = np.full(n_pts, np.inf)
-    for n in prange(n_pts):
-        x = cols[n]
-        stop = x[_SOCSTOP]
-        soc = 1.0
-        travelled = 0.0
-        done = False
-        for _ in range(max_repeats):
-            for k in range(n_steps):
-                d = demand_w[n, k]
-                if d != 0.0:  # a step without demand leaves the SOC as it is
-                    new = _step(soc, d, dt[k], x, cell)[4]
-                    if new <= stop:
-                        frac = (soc - stop) / max(soc - new, 1e-300)
-                        out[n] = travelled + frac * step_m[k]
-                        done = True
-                        break
-                    soc = new
-                travelled += step_m[k]
-            if done:
-                break
-    return out
-
+    return _battery(demand_w, dt, step_m, int(max_repeats), cols, cell, True)[5]
 
 def table(names: tuple, n: int, values: dict) -> np.ndarray:
     """The (N, len(names)) float table of the compiled loops: each named column from a scalar or
