@@ -14,11 +14,18 @@ functions stay as the reference the tests compare with (energy and range to 1e-1
 * Motor maps are looked up in the bilinear form of ``topology.electrical_power_w``; numpy's
   ``interp`` is re-implemented operation for operation (``_interp``).
 * Designs run in parallel over the host's cores (``prange``); each design's loop is sequential
-  and independent of the others, so results do not depend on the thread count.
+  and independent of the others, so results do not depend on the thread count. The battery
+  loop steps a group of designs side by side (``_GROUP``): one design's SOC recurrence is a chain
+  of dependent divisions and a square root that leaves the core waiting.
+* Two compiled kernels (``drive_demand`` for every topology, ``_battery`` for
+  energy and range); the per-step helpers are inlined into them (numba ``inline="always"``: in
+  these parallel loops that is several times faster than calls, and one call site each keeps the
+  compile short).
 
 Compiled code is cached next to this file (``cache=True``); where that directory is not
-writable numba uses the user cache, and where there is none the functions compile on first
-use in every process (about a few seconds, see docs/performance.md) instead of failing.
+writable numba uses the user cache (``NUMBA_CACHE_DIR`` chooses another), and where there is
+none the kernels compile on first use in every process (see docs/performance.md) instead of
+failing.
 """
 from __future__ import annotations
 
@@ -43,21 +50,28 @@ def _jit(**options):
 
 
 @_jit(inline="always")
-def _interp(x, xp, fp, table, inv_h, slopes):
-    """np.interp for one value, the same operations as numpy's C loop (clamped at both ends).
-    ``table``/``inv_h``/``slopes`` (``grid_table``) find the interval without a search and hold
-    numpy's slopes (fp[j+1] - fp[j]) / (xp[j+1] - xp[j])."""
+def _locate(x, xp, table, inv_h):
+    """np.interp's interval of x on the increasing grid xp: (j, exact), the value being fp[j] when
+    ``exact`` (x clamped at either end or on a grid point), else slope_j (x - xp[j]) + fp[j].
+    ``table``/``inv_h`` (``grid_table``) find the interval without a search."""
     n = xp.shape[0]
     if x > xp[n - 1]:
-        return fp[n - 1]
+        return n - 1, True
     if x < xp[0]:
-        return fp[0]
+        return 0, True
     j = table[min(int((x - xp[0]) * inv_h), table.shape[0] - 1)]
     while j > 0 and xp[j] > x:  # guard against rounding of the table position
         j -= 1
     while j < n - 1 and xp[j + 1] <= x:  # largest j with xp[j] <= x
         j += 1
-    if j == n - 1 or xp[j] == x:
+    return j, (j == n - 1 or xp[j] == x)
+
+
+@_jit(inline="always")
+def _value(j, exact, x, xp, fp, slopes):
+    """np.interp at x in the interval of ``_locate``, the same operations as numpy's C loop;
+    ``slopes`` holds numpy's (fp[j+1] - fp[j]) / (xp[j+1] - xp[j])."""
+    if exact:
         return fp[j]
     slope = slopes[j]
     r = slope * (x - xp[j]) + fp[j]
@@ -66,6 +80,13 @@ def _interp(x, xp, fp, table, inv_h, slopes):
         if math.isnan(r) and fp[j] == fp[j + 1]:
             r = fp[j]
     return r
+
+
+@_jit(inline="always")
+def _interp(x, xp, fp, table, inv_h, slopes):
+    """np.interp for one value (clamped at both ends)."""
+    j, exact = _locate(x, xp, table, inv_h)
+    return _value(j, exact, x, xp, fp, slopes)
 
 
 def grid_table(xp, fp) -> tuple:
@@ -94,11 +115,14 @@ def _speed_index(w, mp):
 
 
 @_jit(inline="always")
-def _electrical_w(torque, w, fi, kw, mp):
+def _electrical_w(torque, w, fi, scale, mp):
     """Electrical power of one motor at (T, w), eq 2-7 with the Fig 2-9 torque scaling
-    (``topology.electrical_power_w`` for one point); ``fi`` = ``_speed_index(w, mp)``."""
+    (``topology.electrical_power_w`` for one point); ``fi`` = ``_speed_index(w, mp)``, ``scale`` =
+    reference kW / motor kW. No torque: T w (0, the map not read)."""
+    if torque == 0.0:
+        return torque * w  # pm / eta and pm * eta of pm = +-0
     wg, tg, eff, it = mp[0], mp[1], mp[2], mp[4]
-    tu = torque * (mp[11] / kw)
+    tu = torque * scale
     if not mp[12]:
         tu = abs(tu)
     fj = _interp(tu, tg, it, mp[8], mp[9], mp[10])
@@ -132,201 +156,252 @@ def _t_max(w, w_lim, t_peak, kw):
     return 0.0
 
 
-@_jit(parallel=True)
-def single_motor_demand(v, acc, mass, a0, a1, b, c, r_w, ratio1, ratio2, shift_m_s, two, best_gear, eta_g,
-                        kw, t_peak, w_lim, regen_min_m_s, decel_min, mp):
-    """SM-SA demand (``quasi_static.demand``): per step the gear (eq 2-6, or the least-power gear
-    the envelope allows), motor torque and speed, rules 1-3, the map. Returns the signed power
-    (N, K), the top motor speed (N,) and the least motoring torque margin T_max - T_m (N,)."""
-    n_pts, n_steps = mass.shape[0], v.shape[0]
-    power = np.empty((n_pts, n_steps))
-    speed_max = np.empty(n_pts)
-    margin = np.empty(n_pts)
-    for n in prange(n_pts):
-        w_top = -np.inf
-        least = np.inf
-        for k in range(n_steps):
-            force = _road_force_n(v[k], acc[k], mass[n], a0[n], a1[n], b[n], c[n])
-            t_w = force * r_w[n]  # 2-1
-            driving = force >= 0
-            allowed = (not driving) and v[k] >= regen_min_m_s[n] and acc[k] >= decel_min[n]
-            ratio = ratio2[n] if (two[n] and v[k] >= shift_m_s[n]) else ratio1[n]  # 2-6
-            if best_gear[n]:  # per step the gear of least electrical power that the envelope allows
-                cost0 = cost1 = np.inf
-                for g in range(2):
-                    r = ratio1[n] if g == 0 else ratio2[n]
-                    w_m = v[k] / r_w[n] * r
-                    t_drive = t_w / (r * eta_g[n]) if driving else 0.0
-                    tmax = _t_max(w_m, w_lim[n], t_peak[n], kw[n])
-                    t_regen = max(t_w * eta_g[n] / r, -tmax) if allowed else 0.0
-                    p_el = _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), kw[n], mp)
-                    cost = p_el if (w_m <= w_lim[n] and t_drive <= tmax) else np.inf
-                    if g == 0:
-                        cost0 = cost
-                    else:
-                        cost1 = cost
-                pick2 = cost1 < cost0 or (np.isinf(cost0) and np.isinf(cost1) and ratio != ratio1[n])
-                ratio = ratio2[n] if pick2 else ratio1[n]
-            w_m = v[k] / r_w[n] * ratio  # 2-2, 2-4
-            t_drive = t_w / (ratio * eta_g[n]) if driving else 0.0  # 2-5
-            tmax = _t_max(w_m, w_lim[n], t_peak[n], kw[n])
-            t_regen = max(t_w * eta_g[n] / ratio, -tmax) if allowed else 0.0  # 2-25
-            power[n, k] = _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), kw[n], mp)
-            w_top = max(w_top, w_m)
-            if driving:
-                least = min(least, tmax - t_drive)
-        speed_max[n] = w_top
-        margin[n] = least
-    return power, speed_max, margin
+# columns of the per-design table ``cols`` (N, len(COLUMNS)) that ``drive_demand`` takes
+COLUMNS = ("mass", "a0", "a1", "b", "c", "r_w", "regen_min_m_s", "decel_min",
+           "ratio", "eta", "kw", "scale", "t_peak", "w_lim", "count",  # front axle (SM-SA: the motor, gear 1)
+           "ratio_r", "eta_r", "kw_r", "scale_r", "t_peak_r", "w_lim_r", "count_r",  # rear axle
+           "ratio_2", "shift_m_s", "two_speed", "best_gear")  # SM-SA two-speed gearbox
+(_M, _A0, _A1, _B, _C, _RW, _VMIN, _DMIN, _RATIO, _ETA, _KW, _SCALE, _TPK, _WLIM, _COUNT) = range(15)
+_REAR = COLUMNS.index("ratio_r") - _RATIO  # offset of a rear-axle column from its front one
+_RATIO2, _SHIFT, _TWO, _BEST = (COLUMNS.index(k) for k in ("ratio_2", "shift_m_s", "two_speed", "best_gear"))
 
 
 @_jit(inline="always")
-def _axle_power(count, ratio, eta, kw, tw, w, fi, tmax, driving, allowed, mp):
-    """Electrical power of an axle carrying wheel torque ``tw`` and its motoring overload
-    (``topology._axle_power`` for one point)."""
+def _single_motor_step(x, v, t_w, driving, allowed, mp):
+    """SM-SA at one step (``quasi_static.demand``): the gear (eq 2-6, or the least-power gear the
+    envelope allows), motor torque and speed, rules 2-3, the map. (power, motor speed, T_max - T_m)."""
+    ratio1, ratio2, eta_g, kw, w_lim, t_pk = x[_RATIO], x[_RATIO2], x[_ETA], x[_KW], x[_WLIM], x[_TPK]
+    ratio = ratio2 if (x[_TWO] != 0.0 and v >= x[_SHIFT]) else ratio1  # 2-6
+    cost0 = np.inf
+    p_el = w_m = tmax = t_drive = 0.0
+    # g = 0, 1: gear 1 and 2 when the design picks per step the gear of least electrical power
+    # that the envelope allows; g = 2: the gear used (one map lookup site, for compile time)
+    for g in range(0 if x[_BEST] != 0.0 else 2, 3):
+        r = ratio1 if g == 0 else (ratio2 if g == 1 else ratio)
+        w_m = v / x[_RW] * r  # 2-2, 2-4
+        t_drive = t_w / (r * eta_g) if driving else 0.0  # 2-5
+        tmax = _t_max(w_m, w_lim, t_pk, kw)
+        t_regen = max(t_w * eta_g / r, -tmax) if allowed else 0.0  # 2-25
+        p_el = _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), x[_SCALE], mp)
+        cost = p_el if (w_m <= w_lim and t_drive <= tmax) else np.inf
+        if g == 0:
+            cost0 = cost
+        elif g == 1:
+            pick2 = cost < cost0 or (np.isinf(cost0) and np.isinf(cost) and ratio != ratio1)
+            ratio = ratio2 if pick2 else ratio1
+    return p_el, w_m, tmax - t_drive
+
+
+@_jit(inline="always")
+def _axle_power(x, o, tw, w, fi, tmax, driving, allowed, mp):
+    """Electrical power of an axle (columns from ``o``: 0 front, ``_REAR`` rear) carrying wheel
+    torque ``tw`` and its motoring overload (``topology._axle_power`` for one point)."""
+    count, ratio, eta = x[_COUNT + o], x[_RATIO + o], x[_ETA + o]
     if driving:
         tm = tw / (count * ratio * eta)  # 2-5
         over = max(tm - tmax, 0.0)
     else:
         over = 0.0
         tm = max(tw * eta / (count * ratio), -tmax) if allowed else 0.0  # 2-25, rules 2-3
-    return count * _electrical_w(tm, w, fi, kw, mp), over
+    return count * _electrical_w(tm, w, fi, x[_SCALE + o], mp), over
+
+
+@_jit(inline="always")
+def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power, mp):
+    """One or two driven axles at one step (``topology._demand``): with two, the front share of
+    wheel torque of least electrical power (coarse ``grid``, then ``fine`` around its argmin, the
+    first minimum as np.argmin; a fine share equal to a coarse one reuses its value); one axle
+    carries it all (share 1). ``score`` and ``power`` are scratch arrays of the grid's length.
+    (power, top motor speed, wheel-torque margin)."""
+    o = _REAR
+    wf = v / x[_RW] * x[_RATIO]
+    tmf = _t_max(wf, x[_WLIM], x[_TPK], x[_KW])
+    cap = 0.0 + x[_COUNT] * tmf * x[_RATIO] * x[_ETA]
+    wr = tmr = 0.0
+    if two_axles:
+        wr = v / x[_RW] * x[_RATIO + o]
+        tmr = _t_max(wr, x[_WLIM + o], x[_TPK + o], x[_KW + o])
+        cap = cap + x[_COUNT + o] * tmr * x[_RATIO + o] * x[_ETA + o]
+    w_top = max(wf, wr) if two_axles else wf
+    if not (driving or allowed):  # no motor torque on any axle at any share
+        return 0.0, w_top, cap - t_w
+    fif = _speed_index(wf, mp)
+    fir = _speed_index(wr, mp) if two_axles else 0.0
+    n_coarse = grid.shape[0] if two_axles else 1
+    jc = 0
+    s0 = best = p = 0.0
+    for idx in range(n_coarse + (fine.shape[0] if two_axles else 0)):  # one evaluation site (compile time)
+        q = -1
+        if idx < n_coarse:
+            s = grid[idx] if two_axles else 1.0
+        else:
+            s = min(max(s0 + fine[idx - n_coarse], 0.0), 1.0)
+            for i in range(max(jc - 1, 0), min(jc + 2, n_coarse)):
+                if grid[i] == s:
+                    q = i
+        if q >= 0:
+            sc, pp = score[q], power[q]
+        else:
+            pp, of = _axle_power(x, 0, t_w * s, wf, fif, tmf, driving, allowed, mp)
+            if two_axles:
+                pr, orr = _axle_power(x, o, t_w * (1.0 - s), wr, fir, tmr, driving, allowed, mp)
+                pp, of = pp + pr, of + orr
+            sc = pp + _PENALTY_W_PER_NM * of  # topology.best_split's selection score
+        if idx < n_coarse:
+            score[idx], power[idx] = sc, pp
+            if sc < score[jc]:
+                jc = idx
+            s0 = grid[jc]
+            p = pp
+        elif sc < best or idx == n_coarse:  # the first minimum, as np.argmin
+            best, p = sc, pp
+    return p, w_top, cap - t_w
 
 
 @_jit(parallel=True)
-def axle_demand(v, acc, mass, a0, a1, b, c, r_w, regen_min_m_s, decel_min, two_axles, grid, fine,
-                count_f, ratio_f, eta_f, kw_f, t_peak_f, w_lim_f, count_r, ratio_r, eta_r, kw_r, t_peak_r, w_lim_r,
-                mp):
-    """Demand of the topologies of ``topology._demand`` (one or two driven axles, one map): with two
-    axles the front share of wheel torque minimising the electrical power per step (coarse grid,
-    then the fine grid around its argmin, ``topology.best_split``). Returns the signed power (N, K),
-    the top motor speed (N,) and the least wheel-torque margin (N,)."""
-    n_pts, n_steps = mass.shape[0], v.shape[0]
+def drive_demand(v, acc, cols, single_motor, two_axles, grid, fine, mp):
+    """Per-step battery demand of every design (row of ``cols``, see ``COLUMNS``) over the steps of
+    mean speed ``v`` and acceleration ``acc``: SM-SA (``single_motor``) or one/two driven axles.
+    Returns the signed power (N, K), the top motor speed (N,) and the least motoring margin (N,):
+    T_max - T_m of the motor (SM-SA) or the axles' wheel torque capacity minus demand."""
+    n_pts, n_steps = cols.shape[0], v.shape[0]
     power = np.empty((n_pts, n_steps))
     speed_max = np.empty(n_pts)
     margin = np.empty(n_pts)
     for n in prange(n_pts):
+        x = cols[n]
+        score = np.empty(grid.shape[0])
+        scratch = np.empty(grid.shape[0])
         w_top = -np.inf
         least = np.inf
         for k in range(n_steps):
-            force = _road_force_n(v[k], acc[k], mass[n], a0[n], a1[n], b[n], c[n])
-            tw = force * r_w[n]  # 2-1, all driven wheels
+            force = _road_force_n(v[k], acc[k], x[_M], x[_A0], x[_A1], x[_B], x[_C])
+            t_w = force * x[_RW]  # 2-1, all driven wheels
             driving = force >= 0
-            allowed = (not driving) and v[k] >= regen_min_m_s[n] and acc[k] >= decel_min[n]
-            wf = v[k] / r_w[n] * ratio_f[n]
-            tmf = _t_max(wf, w_lim_f[n], t_peak_f[n], kw_f[n])
-            cap = 0.0 + count_f * tmf * ratio_f[n] * eta_f[n]
-            w_top = max(w_top, wf)
-            fif = _speed_index(wf, mp)
-            if not two_axles:
-                p, _ = _axle_power(count_f, ratio_f[n], eta_f[n], kw_f[n], tw, wf, fif, tmf, driving, allowed, mp)
+            allowed = (not driving) and v[k] >= x[_VMIN] and acc[k] >= x[_DMIN]  # rules 2-3
+            if single_motor:
+                p, w, room = _single_motor_step(x, v[k], t_w, driving, allowed, mp)
             else:
-                wr = v[k] / r_w[n] * ratio_r[n]
-                tmr = _t_max(wr, w_lim_r[n], t_peak_r[n], kw_r[n])
-                cap = cap + count_r * tmr * ratio_r[n] * eta_r[n]
-                w_top = max(w_top, wr)
-                p = 0.0
-                if driving or allowed:  # else no motor torque on either axle at any share: p = 0
-                    fir = _speed_index(wr, mp)
-                    s0 = 0.0
-                    for stage in range(2):
-                        shares = grid if stage == 0 else fine
-                        best = np.inf
-                        for j in range(shares.shape[0]):
-                            s = shares[j] if stage == 0 else min(max(s0 + shares[j], 0.0), 1.0)
-                            pf, of = _axle_power(count_f, ratio_f[n], eta_f[n], kw_f[n], tw * s, wf, fif, tmf,
-                                                 driving, allowed, mp)
-                            pr, orr = _axle_power(count_r, ratio_r[n], eta_r[n], kw_r[n], tw * (1.0 - s), wr, fir,
-                                                  tmr, driving, allowed, mp)
-                            score = (pf + pr) + _PENALTY_W_PER_NM * (of + orr)
-                            if score < best or j == 0:  # the first minimum, as np.argmin
-                                best = score
-                                s_best = s
-                                p = pf + pr
-                        s0 = s_best
+                p, w, room = _axle_step(x, v[k], t_w, driving, allowed, two_axles, grid, fine, score, scratch, mp)
             power[n, k] = p
+            w_top = max(w_top, w)
             if driving:
-                least = min(least, cap - tw)
+                least = min(least, room)
         speed_max[n] = w_top
         margin[n] = least
     return power, speed_max, margin
 
 
+# columns of the per-design battery table ``cols`` (N, len(BATTERY_COLUMNS)) of the battery loops
+BATTERY_COLUMNS = ("cells_series", "cells_parallel", "capacity_c", "charge_current_max_a", "regen_max_soc",
+                   "initial_soc", "discharge_current_max_a", "loss_weight", "final_soc")
+_NS, _NP, _QC, _ICHG, _SOCMAX, _SOC0, _IDIS, _WLOSS, _SOCSTOP = range(9)
+
+
 @_jit(inline="always")
-def _step(soc, demand_w, dt, ns, n_par, q_c, i_chg, soc_max, s_tab, ocv_tab, rd_tab, rc_tab, s_find, s_inv, ocv_slopes, rd_slopes, rc_slopes):
-    """One battery step (``quasi_static._Battery.step``): terminal power, current, resistance,
-    whether the demand was within ocv^2/4R, and the new SOC (2-9..2-15, rule 4, 2C cap)."""
+def _step(soc, demand_w, dt, x, cell):
+    """One battery step (``quasi_static._Battery.step``) of the design with columns ``x``: terminal
+    power, current, resistance, whether the demand was within ocv^2/4R, and the new SOC (2-9..2-15,
+    rule 4, 2C cap). ``cell``: the cell's SOC grid, OCV, R discharge, R charge, the grid's table and
+    1/h, and the three slopes (``cell_tables``)."""
+    s_tab = cell[0]
+    ns, i_chg = x[_NS], x[_ICHG]
     p_drive = demand_w if demand_w > 0 else 0.0
-    p_regen = demand_w if (demand_w < 0 and not soc > soc_max) else 0.0  # rule 4: SOC > 90 %
-    voc = ns * _interp(soc, s_tab, ocv_tab, s_find, s_inv, ocv_slopes)
-    r = ns * (_interp(soc, s_tab, rc_tab, s_find, s_inv, rc_slopes) if p_regen < 0
-              else _interp(soc, s_tab, rd_tab, s_find, s_inv, rd_slopes)) / n_par
+    p_regen = demand_w if (demand_w < 0 and not soc > x[_SOCMAX]) else 0.0  # rule 4: SOC > 90 %
+    j, exact = _locate(soc, s_tab, cell[4], cell[5])  # one interval for the OCV and R lookups
+    voc = ns * _value(j, exact, soc, s_tab, cell[1], cell[6])
+    r = ns * (_value(j, exact, soc, s_tab, cell[3], cell[8]) if p_regen < 0
+              else _value(j, exact, soc, s_tab, cell[2], cell[7])) / x[_NP]
     p_chg_lim = (voc - (-i_chg) * r) * (-i_chg)  # 2-12 at the 2C charge cap
     p_max = voc * voc / (4.0 * r)
     power = min(p_drive, p_max) + max(p_regen, p_chg_lim)
     v_bt = 0.5 * (voc + math.sqrt(max(voc * voc - 4.0 * power * r, 0.0)))  # 2-13, 2-14
     i = power / v_bt  # 2-11
-    return power, i, r, p_drive <= p_max, soc - i * dt / q_c  # 2-9, 2-10
+    return power, i, r, p_drive <= p_max, soc - i * dt / x[_QC]  # 2-9, 2-10
+
+
+_GROUP = 4  # designs stepped side by side in one loop: the SOC recurrence of one design is a chain
+# of dependent divisions and a square root, so one design alone leaves the core waiting
 
 
 @_jit(parallel=True)
-def battery_energy(demand_w, dt, soc0, ns, n_par, q_c, i_chg, i_dis, soc_max, w_loss,
-                   s_tab, ocv_tab, rd_tab, rc_tab, s_find, s_inv, ocv_slopes, rd_slopes, rc_slopes):
-    """Step each design's battery over its demand (``quasi_static.integrate_energy``): energy drawn
-    and returned (J, 2-16, 2-17), final SOC, and the current and power feasibility flags."""
+def _battery(demand_w, dt, step_m, max_repeats, cols, cell, to_range):
+    """The battery stepped over each design's demand: once from ``initial_soc`` (energy), or
+    from 100 % SOC repeating the cycle until ``final_soc`` (``to_range``). One kernel for both
+    (compile time). Returns energy drawn and returned (J), final SOC, the current and power
+    flags, and the distance (m, inf if not reached). Each design's steps are its own; designs of
+    a group only share the loop."""
     n_pts, n_steps = demand_w.shape
     energy = np.zeros(n_pts)
     regen = np.zeros(n_pts)
     soc_end = np.empty(n_pts)
     current_ok = np.ones(n_pts, np.bool_)
     power_ok = np.ones(n_pts, np.bool_)
-    for n in prange(n_pts):
-        soc = soc0[n]
-        e = 0.0
-        back = 0.0
-        for k in range(n_steps):
-            x = demand_w[n, k]
-            if x == 0.0:  # no current, no energy, SOC unchanged
-                continue
-            power, i, r, within, soc = _step(soc, x, dt[k], ns[n], n_par[n], q_c[n], i_chg[n], soc_max[n],
-                                             s_tab, ocv_tab, rd_tab, rc_tab, s_find, s_inv, ocv_slopes, rd_slopes, rc_slopes)
-            if not within:
-                power_ok[n] = False
-            if not i <= i_dis[n] * (1 + 1e-12):
-                current_ok[n] = False
-            e += (power + w_loss[n] * i * i * r) * dt[k]
-            back -= min(power, 0.0) * dt[k]
-        energy[n] = e
-        regen[n] = back
-        soc_end[n] = soc
-    return energy, regen, soc_end, current_ok, power_ok
+    out = np.full(n_pts, np.inf)
+    for first in prange((n_pts + _GROUP - 1) // _GROUP):
+        n0 = first * _GROUP
+        size = min(_GROUP, n_pts - n0)
+        soc = np.empty(_GROUP)
+        active = np.zeros(_GROUP, np.bool_)
+        for g in range(size):
+            soc[g] = 1.0 if to_range else cols[n0 + g, _SOC0]
+            active[g] = True
+        left = size
+        travelled = 0.0
+        for _ in range(max_repeats if to_range else 1):
+            for k in range(n_steps):
+                for g in range(size):
+                    n = n0 + g
+                    d = demand_w[n, k]
+                    if d != 0.0 and active[g]:  # a step without demand: no current, no energy, SOC unchanged
+                        x = cols[n]
+                        power, i, r, within, new = _step(soc[g], d, dt[k], x, cell)
+                        if to_range:
+                            if new <= x[_SOCSTOP]:  # the crossing, interpolated inside its step
+                                out[n] = travelled + (soc[g] - x[_SOCSTOP]) / max(soc[g] - new, 1e-300) * step_m[k]
+                                active[g] = False
+                                left -= 1
+                        else:
+                            if not within:
+                                power_ok[n] = False
+                            if not i <= x[_IDIS] * (1 + 1e-12):
+                                current_ok[n] = False
+                            energy[n] += (power + x[_WLOSS] * i * i * r) * dt[k]  # 2-16, 2-17
+                            regen[n] -= min(power, 0.0) * dt[k]
+                        soc[g] = new
+                travelled += step_m[k]
+                if left == 0:
+                    break
+            if left == 0:
+                break
+        for g in range(size):
+            soc_end[n0 + g] = soc[g]
+    return energy, regen, soc_end, current_ok, power_ok, out
+
+def battery_energy(demand_w, dt, cols, cell) -> tuple:
+    """Step each design's battery over its demand from ``initial_soc``
+    (``quasi_static.integrate_energy``): energy drawn and returned (J, 2-16, 2-17), final SOC,
+    and the current and power feasibility flags."""
+    return _battery(demand_w, dt, np.zeros(dt.shape[0]), 1, cols, cell, False)[:5]
 
 
-@_jit(parallel=True)
-def battery_range_m(demand_w, dt, step_m, soc_stop, max_repeats, ns, n_par, q_c, i_chg, soc_max,
-                    s_tab, ocv_tab, rd_tab, rc_tab, s_find, s_inv, ocv_slopes, rd_slopes, rc_slopes):
-    """Distance (m) from 100 % SOC to ``soc_stop`` repeating the cycle's demand
+def battery_range_m(demand_w, dt, step_m, max_repeats: int, cols, cell) -> np.ndarray:
+    """Distance (m) from 100 % SOC to ``final_soc`` repeating the cycle's demand
     (``quasi_static.integrate_range``), the crossing interpolated inside its step; inf if the
     battery is still above after ``max_repeats`` cycles."""
-    n_pts, n_steps = demand_w.shape
-    out = np.full(n_pts, np.inf)
-    for n in prange(n_pts):
-        soc = 1.0
-        travelled = 0.0
-        done = False
-        for _ in range(max_repeats):
-            for k in range(n_steps):
-                x = demand_w[n, k]
-                if x != 0.0:
-                    _, _, _, _, new = _step(soc, x, dt[k], ns[n], n_par[n], q_c[n], i_chg[n], soc_max[n],
-                                            s_tab, ocv_tab, rd_tab, rc_tab, s_find, s_inv, ocv_slopes, rd_slopes, rc_slopes)
-                    if new <= soc_stop[n]:
-                        frac = (soc - soc_stop[n]) / max(soc - new, 1e-300)
-                        out[n] = travelled + frac * step_m[k]
-                        done = True
-                        break
-                    soc = new
-                travelled += step_m[k]
-            if done:
-                break
+    return _battery(demand_w, dt, step_m, int(max_repeats), cols, cell, True)[5]
+
+def table(names: tuple, n: int, values: dict) -> np.ndarray:
+    """The (N, len(names)) float table of the compiled loops: each named column from a scalar or
+    an (N,) array, absent columns 0 (one array type, so each loop compiles once)."""
+    out = np.zeros((n, len(names)))
+    for k, x in values.items():
+        out[:, names.index(k)] = x
     return out
+
+
+def cell_tables(soc, ocv_v, r_discharge_ohm, r_charge_ohm) -> tuple:
+    """A cell's tables as the battery loops take them (``_step``'s ``cell``)."""
+    tabs = tuple(np.array(x, dtype=float) for x in (soc, ocv_v, r_discharge_ohm, r_charge_ohm))
+    find, inv_h, _ = grid_table(tabs[0], tabs[1])
+    return (*tabs, find, inv_h, *(grid_table(tabs[0], y)[2] for y in tabs[1:]))

@@ -182,60 +182,61 @@ class FastDemand:
     speed_limit: np.ndarray
 
 
-def column(x, n: int) -> np.ndarray:
-    """A scalar or (N,) value as a new contiguous, writable float (N,) array for the compiled loops
-    (one array type, so each loop compiles once)."""
-    return np.array(np.broadcast_to(np.asarray(x, float), (n,)), dtype=float)
-
-
 def map_arrays(motor_map: MotorMap) -> tuple:
-    """The motor map as the compiled loops take it (compiled.map_tuple)."""
-    return compiled.map_tuple(motor_map.speed_rad_s, motor_map.torque_nm, motor_map.efficiency,
-                              motor_map.reference_kw, motor_map.has_regen_rows)
+    """The motor map as the compiled loops take it (compiled.map_tuple), built once per map."""
+    key = id(motor_map)
+    if key not in _MAP_ARRAYS or _MAP_ARRAYS[key][0] is not motor_map:
+        if len(_MAP_ARRAYS) > 16:
+            _MAP_ARRAYS.clear()
+        _MAP_ARRAYS[key] = (motor_map, compiled.map_tuple(
+            motor_map.speed_rad_s, motor_map.torque_nm, motor_map.efficiency, motor_map.reference_kw,
+            motor_map.has_regen_rows))
+    return _MAP_ARRAYS[key][1]
 
 
-def road_columns(p, n: int) -> tuple:
-    """Road-load coefficients (A0, A1, B, C) of road_load.coefficients as (N,) columns."""
-    return tuple(column(x, n) for x in rl.coefficients(p))
+_MAP_ARRAYS: dict = {}  # id -> (map, its compiled form); the map is kept so its id is not reused
+
+
+def road_columns(p) -> dict:
+    """Road-load coefficients (A0, A1, B, C) of road_load.coefficients, named as compiled.COLUMNS."""
+    return dict(zip(("a0", "a1", "b", "c"), rl.coefficients(p)))
 
 
 def fast_demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> FastDemand:
-    """``demand`` in the compiled per-design loop (compiled.single_motor_demand)."""
+    """``demand`` in the compiled per-design loop (compiled.drive_demand)."""
     dt, v_bar, a_bar = cycle_steps(cycle)
     n = m.shape[0]
     two = np.broadcast_to(p["gear_count"] == 2.0, (n,))
-    mass = m + np.where(two, p["two_speed_added_mass_kg"], 0.0)
     eta_g = p["gear_efficiency"] - np.where(two, p["two_speed_efficiency_loss"], 0.0)
     if np.any(eta_g <= 0):
         raise ValueError("gear_efficiency minus two_speed_efficiency_loss must stay > 0")
     w_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0
-    c = (lambda x: column(x, n))
-    power, speed_max, margin = compiled.single_motor_demand(
-        np.array(v_bar[:, 0]), np.array(a_bar[:, 0]), c(mass), *road_columns(p, n), c(p["wheel_radius_m"]), c(ig), c(p["gear_ratio_2"]),
-        c(p["shift_speed_m_s"]), np.array(two), np.array(two & (p["shift_strategy"] == 1.0)),
-        c(eta_g), c(kw), c(p["motor_torque_per_kw"] * kw), c(w_lim), c(p["regen_min_speed_m_s"]),
-        c(-p["regen_max_decel_g"] * p["gravity_m_s2"]), map_arrays(motor_map))
+    cols = compiled.table(compiled.COLUMNS, n, dict(
+        mass=m + np.where(two, p["two_speed_added_mass_kg"], 0.0), **road_columns(p), r_w=p["wheel_radius_m"],
+        regen_min_m_s=p["regen_min_speed_m_s"], decel_min=-p["regen_max_decel_g"] * p["gravity_m_s2"],
+        ratio=ig, eta=eta_g, kw=kw, scale=motor_map.reference_kw / kw, t_peak=p["motor_torque_per_kw"] * kw,
+        w_lim=w_lim, count=1.0, ratio_2=p["gear_ratio_2"], shift_m_s=p["shift_speed_m_s"], two_speed=two,
+        best_gear=two & (p["shift_strategy"] == 1.0)))
+    power, speed_max, margin = compiled.drive_demand(np.array(v_bar[:, 0]), np.array(a_bar[:, 0]), cols, True,
+                                                     False, np.zeros(1), np.zeros(1), map_arrays(motor_map))
     return FastDemand(np.array(dt[:, 0]), power, float(np.sum(v_bar[:, 0] * dt[:, 0])), speed_max, margin, w_lim + 0.0 * kw)
 
 
-def _battery_columns(p, n: int) -> tuple:
-    """(cells in series, in parallel, capacity C, 2C charge current A, rule-4 SOC) as (N,) columns,
-    from the same ``_Battery`` the reference loop uses, and the cell's SOC tables."""
+def battery_table(p, n: int) -> tuple:
+    """The per-design battery table (compiled.BATTERY_COLUMNS) from the same ``_Battery`` the
+    reference loop uses, and the cell's tables."""
     b = _Battery(p, n)
     cell = b.pack.cell
-    return ((column(b.pack.cells_series, n), column(b.pack.cells_parallel, n), column(b.q_c, n),
-             column(b.i_chg_max, n), column(b.soc_max_regen, n)),
-            (*(np.array(x, dtype=float) for x in (cell.soc, cell.ocv_v, cell.r_discharge_ohm, cell.r_charge_ohm)),
-             *compiled.grid_table(cell.soc, cell.ocv_v)[:2],
-             *(compiled.grid_table(cell.soc, y)[2] for y in (cell.ocv_v, cell.r_discharge_ohm, cell.r_charge_ohm))), b)
+    cols = compiled.table(compiled.BATTERY_COLUMNS, n, dict(
+        cells_series=b.pack.cells_series, cells_parallel=b.pack.cells_parallel, capacity_c=b.q_c,
+        charge_current_max_a=b.i_chg_max, regen_max_soc=b.soc_max_regen, initial_soc=p["initial_soc"],
+        discharge_current_max_a=b.i_dis_max, loss_weight=b.w_loss, final_soc=p["final_soc"]))
+    return cols, compiled.cell_tables(cell.soc, cell.ocv_v, cell.r_discharge_ohm, cell.r_charge_ohm)
 
 
 def fast_energy(d: FastDemand, p, n: int) -> QuasiStaticResult:
     """``integrate_energy`` in the compiled per-design loop (compiled.battery_energy)."""
-    (ns, npar, q_c, i_chg, soc_max), tables, b = _battery_columns(p, n)
-    energy, regen, soc, current_ok, power_ok = compiled.battery_energy(
-        d.power_w, d.dt, column(p["initial_soc"], n), ns, npar, q_c, i_chg, column(b.i_dis_max, n), soc_max,
-        column(b.w_loss, n), *tables)
+    energy, regen, soc, current_ok, power_ok = compiled.battery_energy(d.power_w, d.dt, *battery_table(p, n))
     km = d.distance_m / 1e3
     return QuasiStaticResult(energy / 3600.0 / km, d.distance_m, soc, d.speed_max, d.torque_margin,
                              d.torque_margin >= -1e-9, d.speed_max <= d.speed_limit, current_ok, power_ok,
@@ -244,10 +245,8 @@ def fast_energy(d: FastDemand, p, n: int) -> QuasiStaticResult:
 
 def fast_range(d: FastDemand, p, n: int, step_m: np.ndarray, max_repeats: int = 200) -> np.ndarray:
     """``integrate_range`` in the compiled per-design loop (compiled.battery_range_m), km (N,)."""
-    (ns, npar, q_c, i_chg, soc_max), tables, _ = _battery_columns(p, n)
-    return compiled.battery_range_m(d.power_w, d.dt, np.array(step_m, dtype=float),
-                                    column(p["final_soc"], n), int(max_repeats), ns, npar, q_c, i_chg, soc_max,
-                                    *tables) / 1e3
+    return compiled.battery_range_m(d.power_w, d.dt, np.array(step_m, dtype=float), int(max_repeats),
+                                    *battery_table(p, n)) / 1e3
 
 
 def operating_points(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, *,

@@ -363,16 +363,17 @@ def _fast_demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map) -> 
     dt, v_bar, a_bar = qs.cycle_steps(resampled)  # 6-50, 6-51
     n = m.shape[0]
     axles = _axles(t, p, kw, kw_r, ig, ig_r, base_map)
-    rear = axles[-1]
-    c = (lambda x: qs.column(x, n))
-    steps = int(np.max(p["torque_split_steps"]))
-    grid = np.linspace(0.0, 1.0, steps)
+    cols = {"mass": m, **qs.road_columns(p), "r_w": p["wheel_radius_m"], "regen_min_m_s": p["regen_min_speed_m_s"],
+            "decel_min": -p["regen_max_decel_g"] * p["gravity_m_s2"]}
+    for a, tail in zip(axles, ("", "_r")):
+        cols.update({"ratio" + tail: a.ratio, "eta" + tail: a.eta, "kw" + tail: a.kw, "t_peak" + tail: a.t_peak,
+                     "scale" + tail: a.motor_map.reference_kw / a.kw, "w_lim" + tail: a.w_lim,
+                     "count" + tail: float(a.count)})
+    grid = np.linspace(0.0, 1.0, int(np.max(p["torque_split_steps"])))
     fine = np.linspace(-(grid[1] - grid[0]), grid[1] - grid[0], 9)
-    per_axle = [(a.count, c(a.ratio), c(a.eta), c(a.kw), c(a.t_peak), c(a.w_lim)) for a in (axles[0], rear)]
-    power, speed_max, margin = compiled.axle_demand(
-        np.array(v_bar[:, 0]), np.array(a_bar[:, 0]), c(m), *qs.road_columns(p, n), c(p["wheel_radius_m"]), c(p["regen_min_speed_m_s"]),
-        c(-p["regen_max_decel_g"] * p["gravity_m_s2"]), t.two_axles, grid, fine, *per_axle[0], *per_axle[1],
-        qs.map_arrays(axles[0].motor_map))
+    power, speed_max, margin = compiled.drive_demand(
+        np.array(v_bar[:, 0]), np.array(a_bar[:, 0]), compiled.table(compiled.COLUMNS, n, cols), False, t.two_axles,
+        grid, fine, qs.map_arrays(axles[0].motor_map))
     return qs.FastDemand(np.array(dt[:, 0]), power, float(np.sum(v_bar[:, 0] * dt[:, 0])), speed_max, margin,
                          axles[0].w_lim + 0.0 * kw)
 

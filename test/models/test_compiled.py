@@ -96,3 +96,20 @@ def test_without_a_cache_directory_it_compiles_in_memory():
     scope = {}
     exec("def twice(x):\n    return 2.0 * x\n", scope)  # no source file: numba has no cache locator
     assert compiled._jit()(scope["twice"])(3.0) == 6.0
+
+
+@pytest.mark.parametrize("topology", ["SM-SA", "IWM-DA"])
+def test_a_design_does_not_depend_on_its_batch(topology, cycles):
+    """The battery steps designs in groups and the kernels split batches over threads: a design's
+    energy and range are the same, to the last bit, alone and in any batch."""
+    wltc, nedc = cycles
+    params, args = designs(topology, 11, seed=5)  # 11: groups of 4 with a short last one
+    batch = tp.simulate(wltc, params, topology, *args)
+    rng = tp.range_by_repeated_cycle_km(nedc, params, topology, *args)
+    for i in (0, 5, 10):
+        p = {k: v[i:i + 1] for k, v in params.items()}
+        one = [a if a is None else a[i:i + 1] for a in args]
+        alone = tp.simulate(wltc, p, topology, *one)
+        assert alone.energy_wh_per_km[0] == batch.energy_wh_per_km[i]
+        assert alone.soc_end[0] == batch.soc_end[i]
+        assert tp.range_by_repeated_cycle_km(nedc, p, topology, *one)[0] == rng[i]
