@@ -80,7 +80,7 @@ def _progress(quiet: bool, to_stderr: bool):
     return show
 
 
-def _table(result: dict, baseline: dict | None, out) -> None:
+def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
     from rich.console import Console
     from rich.table import Table
 
@@ -120,13 +120,16 @@ def _table(result: dict, baseline: dict | None, out) -> None:
     print(f"iterations {result['iterations']}, MDA evaluations {result['mda_evaluations']}, "
           f"evaluations per discipline {result['discipline_evaluations']}", file=out)
     print(f"optimiser wall time {result['wall_time_s']:.3f} s (first evaluation to result)", file=out)
-    _verdict(result, out)
+    _verdict(result, out, units)
 
 
-def _verdict(result: dict, out) -> None:
+def _verdict(result: dict, out, units: dict) -> None:
     """The first-order verdict and the active set with its multipliers (physical margins beside)."""
     from bev_mdo.mdo.first_order import verdict_line
-    from bev_mdo.mdo.units import unit_of
+    from bev_mdo.mdo import units as un
+
+    def unit_of(name: str) -> str:
+        return un.unit_of(name, units)
 
     fo = result["first_order"]
     cost = fo["cost"]
@@ -192,7 +195,10 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
     if args.json:
         print(json.dumps({**result, "baseline": baseline, **extra}, default=float, indent=2))
     else:
-        _table(result, baseline, out)
+        from bev_mdo.config import resolve_disciplines
+        from bev_mdo.mdo.units import run_units
+
+        _table(result, baseline, out, run_units(resolve_disciplines(config)))
         if not result["feasible"]:
             print("\n".join(runbag.answers_text(result, args.transport)), file=out)
         for k, v in extra.items():

@@ -103,6 +103,13 @@ def _check_objectives(objectives, cfg, where: str, least: int) -> None:
                              f"outputs: {', '.join(sorted(produced))}")
 
 
+def _units(cfg) -> dict:
+    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.mdo.units import run_units
+
+    return run_units(resolve_disciplines(cfg))
+
+
 def run(args) -> int:
     from bev_mdo.config import load_config
 
@@ -139,7 +146,7 @@ def run(args) -> int:
            "wall_time_s": res.wall_time_s, "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12),
            "front": [{k: float(v[i]) for k, v in res.values.items()} for i in range(len(res.X))],
            **session.stats}
-    pngs = [] if args.no_plots else plot_front(out, res)
+    pngs = [] if args.no_plots else plot_front(out, res, _units(cfg))
     print(f"front: {len(res.X)} non-dominated feasible designs, {res.evaluations} evaluations in "
           f"{res.batches} batches, {res.wall_time_s:.1f} s")
     what = ", ".join(p.name for p in pngs) if pngs else "no plots: --no-plots"
@@ -287,14 +294,17 @@ def write_front(path: Path, res) -> None:
             w.writerow([f"{float(res.values[c][i]):.10g}" if c in res.values else "" for c in cols])
 
 
-def plot_front(out: Path, res) -> list[Path]:
+def plot_front(out: Path, res, units: dict | None = None) -> list[Path]:
     """One scatter plot per pair of objectives, ``front_<b>_vs_<a>.png``. Returns the files written."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bev_mdo.mdo.units import label
+    from bev_mdo.mdo import units as un
+
+    def label(name):
+        return un.label(name, units or {})
 
     written = []
     for i, xk in enumerate(res.objectives):

@@ -128,6 +128,7 @@ def run(args) -> int:
     from bev_mdo.config import resolve_disciplines
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.sensitivity import sensitivities
+    from bev_mdo.mdo.units import run_units
 
     if args.method == "complex":  # the MDA casts every input to float64 (the discipline interface)
         raise UsageError("--method complex: the multidisciplinary analysis passes float64 values between "
@@ -135,6 +136,7 @@ def run(args) -> int:
                          "whatever the disciplines; use --method central (the default)")
     cfg = overrides.load(args)
     local = InProcessEvaluator(resolve_disciplines(cfg))
+    units = run_units(local.disciplines.values())
     session = None
     if uses_ros(args):
         from bev_mdo.cli.evaluate import ros_session
@@ -163,6 +165,7 @@ def run(args) -> int:
             samples = args.samples or (1024 if args.global_method == "sobol" else 64)
             rep = gs.analyse(args.global_method, fun, point, bounds, wrt, outputs, samples, args.seed,
                              args.conf_level, design=list(problem.names))
+            rep["units"] = {k: units[k] for k in (*wrt, *outputs) if k in units}
         else:
             s = sensitivities(fun, point, wrt=wrt, order=args.order, bounds=bounds,
                               rel_step=args.rel_step, method=args.method, objective=problem.objective)
@@ -177,7 +180,7 @@ def run(args) -> int:
                 print(f"wrote {args.png}")
         return 0
     if args.png:
-        write_heatmap(args.png, s, outputs, cfg, {k: point[k] for k in problem.names})
+        write_heatmap(args.png, s, outputs, cfg, {k: point[k] for k in problem.names}, units)
     if args.json:
         print(json.dumps(to_dict(s, outputs), indent=2))
     else:
@@ -234,7 +237,7 @@ def _context_title(s, cfg, design=None) -> str:
     return f"at {point}" + (f"; cycle {cyc}" if cyc else "") + (f", {model} model" if model else "")
 
 
-def write_heatmap(path: str, s, outputs, cfg=None, design=None):
+def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
     """The sensitivity figure: a first-order bar chart (eq 5-4) and, with second order, one
     matrix per output (eq 5-5) on ONE symmetric colour scale shared by the whole figure. Entries
     whose magnitude is not above their Richardson error estimate are masked (grey, "≤ err"): they
@@ -245,7 +248,10 @@ def write_heatmap(path: str, s, outputs, cfg=None, design=None):
     import matplotlib.pyplot as plt
     from matplotlib.colors import Normalize
 
-    from bev_mdo.mdo.units import label
+    from bev_mdo.mdo import units as un
+
+    def label(name):
+        return un.label(name, units or {})
 
     second = s.second is not None
     n = len(outputs)
