@@ -126,7 +126,7 @@ def factor(source: str, target: str) -> tuple[float, float]:
     if a == b:
         return 1.0, 0.0
     if a.dimensionality != b.dimensionality:
-        raise UnitError(f"{a:~} and {b:~} have different dimensions")
+        raise UnitError(f"{source.strip() or '1'} and {target.strip() or '1'} have different dimensions")
     q = _registry().Quantity
     zero, one = q(0.0, a).to(b).magnitude, q(1.0, a).to(b).magnitude
     return float(one - zero), float(zero)
