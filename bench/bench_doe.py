@@ -25,9 +25,9 @@ sys.path.insert(0, str(REPO / "bench"))
 
 import _results  # noqa: E402
 
-from bev_mdo.cli.doe import sample  # noqa: E402
-from bev_mdo.cli.global_sensitivity import analyse  # noqa: E402
-from bev_mdo.cli.sensitivity import build_batch  # noqa: E402
+from bev_mdo.api.doe import sample  # noqa: E402
+from bev_mdo.api.sensitivity import analyse  # noqa: E402
+from bev_mdo.api.sensitivity import build_batch  # noqa: E402
 from bev_mdo.config import load_config, resolve_disciplines, run_settings  # noqa: E402
 from bev_mdo.mdo.driver import _mda  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
@@ -76,7 +76,7 @@ def main() -> int:
     transports = {"inprocess": (local, None)}
     session = None
     if not args.no_ros:
-        from bev_mdo.cli.ros_args import ros_section
+        from bev_mdo.api.transport import ros_section
         from bev_mdo.sessions import EvaluateRosSession
 
         ns = argparse.Namespace(domain_id=args.domain_id, discovery=None, static_peers=None, discovery_server=None)

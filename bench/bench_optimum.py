@@ -7,8 +7,9 @@
    time (RunResult.wall_time_s, which includes the check), the check's own wall time and the points
    it evaluated.
 2. Multi-start (bev_mdo/mdo/multistart.py): --starts N Latin-hypercube starts with SLSQP on Sellar MDF
-   and the BEV problem, in process, one seed per repeat: designs evaluated per second (all starts'
-   points / wall time) and the share of starts that reached the best point.
+   and the BEV problem in process, and on Sellar MDF over ROS, one seed per repeat, the starts batched
+   together (lockstep.py, the default) and one after another, side by side: designs evaluated per
+   second (all starts' points / wall time) and the share of starts that reached the best point.
 
 Every case is repeated --repeat times, interleaved round by round (the host is noisy); median, min and
 max are reported. It asserts nothing about time.
@@ -30,7 +31,7 @@ sys.path.insert(0, str(REPO / "bench"))
 
 import _results  # noqa: E402
 
-from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
+from bev_mdo.config import discipline_names, load_config, resolve_disciplines, run_settings  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.mdo.multistart import run_starts  # noqa: E402
@@ -84,19 +85,34 @@ def main(argv=None) -> int:
             config["ros"]["domain_id"] = args.domain_id
             return coordinator_node.run(config, context=nodes.ctx, optimizer=optimizer)[0]
     check: dict[tuple, list[dict]] = {c: [] for c in cases}
-    multi: dict[str, list[dict]] = {c: [] for c in ("sellar_mdf", "leaf_nedc")}
+    multi_cases = [(c, t, b) for c, t in [("sellar_mdf", "inprocess"), ("leaf_nedc", "inprocess")]
+                   + ([("sellar_mdf", "ros")] if args.ros else []) for b in (True, False)]
+    multi: dict[tuple, list[dict]] = {c: [] for c in multi_cases}
     try:
         for k in range(args.repeat):
             for case in cases:
                 c, o, transport = case
                 check[case].append(_check_case(c, o, _in_process, None if transport == "inprocess" else over_ros))
-            for c in multi:
+            for case in multi:
+                c, transport, batched = case
                 config = load_config(CONFIGS[c])
+                if transport == "ros":
+                    config["ros"]["domain_id"] = args.domain_id
+                    node = coordinator_node.CoordinatorNode(config, f"bench{k}{int(batched)}", context=nodes.ctx)
+                    node.evaluator.wait_for_disciplines(discipline_names(config), node.discovery_wait_s)
+                    evaluator = node.evaluator
+                else:
+                    evaluator = _in_process(config)
                 t0 = time.perf_counter()
-                r = run_starts(config, _in_process(config), args.starts, seed=k)
-                wall = time.perf_counter() - t0
+                try:
+                    r = run_starts(run_settings(config), evaluator, args.starts, seed=k, batched=batched)
+                finally:
+                    wall = time.perf_counter() - t0
+                    if transport == "ros":
+                        node.evaluator.close()
+                        node.destroy_node()
                 ms = r.multistart
-                multi[c].append({"wall_s": wall, "designs_per_s": r.points_evaluated / wall,
+                multi[case].append({"wall_s": wall, "designs_per_s": r.points_evaluated / wall,
                                  "share_reached_best": ms["reached_best"] / ms["starts"], "objective": r.objective,
                                  "verdicts": [x["verdict"] for x in ms["results"]]})
     finally:
@@ -114,20 +130,26 @@ def main(argv=None) -> int:
         rows.append({"case": name, "optimisation_ms": opt, "check_ms": chk, "check_share_median": share,
                      "check_points": runs[-1]["check_points"], "points": runs[-1]["points"],
                      "verdicts": sorted({r["verdict"] for r in runs})})
-        figures.append(_results.figure(f"{name}: first-order check", "ms", chk["values"]))
+        figures.append(_results.figure(f"{name}: first-order check, share of the run's wall time", "%",
+                                       [100 * r["check_s"] / r["optimisation_s"] for r in runs]))
         print(f"{name:36s} {opt['median']:8.1f} ({opt['min']:6.1f}-{opt['max']:6.1f}) {chk['median']:7.2f} "
               f"({chk['min']:5.2f}-{chk['max']:5.2f}) {100 * share:6.2f}% {runs[-1]['check_points']:>8d}/"
               f"{runs[-1]['points']:<8d} {','.join(rows[-1]['verdicts'])}")
     print(f"\nmulti-start, {args.starts} starts (SLSQP, seeds 0..{args.repeat - 1})")
     mrows = []
-    for c, runs in multi.items():
+    for (c, transport, batched), runs in multi.items():
         dps, share = _stats([r["designs_per_s"] for r in runs]), _stats([r["share_reached_best"] for r in runs])
-        mrows.append({"config": c, "starts": args.starts, "designs_per_s": dps, "share_reached_best": share,
+        how = "batched" if batched else "one after another"
+        mrows.append({"config": c, "transport": transport, "batched": batched, "starts": args.starts,
+                      "designs_per_s": dps, "share_reached_best": share,
                       "wall_s": _stats([r["wall_s"] for r in runs]), "objectives": [r["objective"] for r in runs]})
-        figures.append(_results.figure(f"{c}: multi-start designs per second ({args.starts} starts)", "1/s",
-                                       dps["values"]))
-        print(f"{c:12s} designs/s {dps['median']:8.1f} ({dps['min']:.1f}-{dps['max']:.1f})  share reaching the best "
-              f"{share['median']:.2f} ({share['min']:.2f}-{share['max']:.2f})")
+        figures.append(_results.figure(f"{c} {transport}: multi-start designs per second ({args.starts} starts, {how})",
+                                       "1/s", dps["values"]))
+        if batched:
+            figures.append(_results.figure(f"{c} {transport}: share of {args.starts} starts reaching the best point",
+                                           "%", [100 * v for v in share["values"]]))
+        print(f"{c:12s} {transport:9s} {how:17s} designs/s {dps['median']:8.1f} ({dps['min']:.1f}-{dps['max']:.1f})"
+              f"  share reaching the best {share['median']:.2f} ({share['min']:.2f}-{share['max']:.2f})")
     extra = {"repeat": args.repeat, "starts": args.starts, "load_average_before": [round(v, 2) for v in load_before],
              "load_average_after": [round(v, 2) for v in load_after], "check": rows, "multistart": mrows}
     _results.write("bench_optimum", figures, path=args.json, extra=extra)

@@ -42,7 +42,7 @@ def bench(transport: str, pop: int, domain_id: int) -> list[dict]:
 
     import yaml
 
-    from bev_mdo.cli.ros_args import ros_section
+    from bev_mdo.api.transport import ros_section
     from bev_mdo.sessions import ParetoInProcessSession, ParetoRosSession
     from bev_mdo.studies.topologies import config_for_topology
     from bev_mdo.config import load_config

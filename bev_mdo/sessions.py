@@ -129,7 +129,7 @@ class OptimizeRosSession:
         extra = session.summary()
 
     ``config`` is the run's resolved config (its ros section as the run states it), ``ros`` the
-    effective ros section (config, flags and environment resolved: cli/ros_args.ros_section).
+    effective ros section (config, flags and environment resolved: api/transport.ros_section).
     Entering writes ``<bag>/logs`` (node logs, the resolved config), keeps the per-run key beside the
     bag (``<bag parent>/.keys/<bag name>``, never inside it: a bag directory is what users share),
     starts the discipline nodes (a process each, or as ``compose`` says: several per process, or

@@ -174,17 +174,21 @@ def score(cand, fleet, cycles):
 
     vals = ", ".join(f"{k} {v:.4g} +- {s:.2g}{' (BOUND)' if b else ''}" for k, v, s, b in zip(names, x, se, atb))
     a, f, lo_ = m(tr), m(fam), m(lomo)
+    pairs = cal.cv_pairs(fleet, {"errors_pct": fam}, ok)  # within-family pairs of the family CV
+    pp = " / ".join(f"slope {pairs[c]['slope_through_origin']:.3f} diff {pairs[c]['mean_abs_diff_points']:.2f} pp"
+                    for c in fl.CYCLES)
     print(f"{cand.name}: train {a[0]:.2f} | family CV {f[0]:.2f} ({f[1]:.2f} / {f[2]:.2f}) | "
-          f"LOMO {lo_[0]:.2f} ({lo_[1]:.2f} / {lo_[2]:.2f}) | {vals} | {time.time() - t0:.0f} s", flush=True)
+          f"LOMO {lo_[0]:.2f} ({lo_[1]:.2f} / {lo_[2]:.2f}) | pairs (UDDS / HWFET) {pp} | {vals} | "
+          f"{time.time() - t0:.0f} s", flush=True)
     return {"train": a, "family": f, "lomo": lo_, "x": dict(zip(names, x)), "se": dict(zip(names, se)),
-            "fam_err": fam, "lomo_err": lomo, "train_err": tr}
+            "fam_err": fam, "lomo_err": lomo, "train_err": tr, "pairs": pairs}
 
 
 SHIPPED_FIT = dict(cal.FIT)
 
 
 def _awd(fleet):
-    return np.array([d in "A4P" for d in fleet.drive])
+    return fleet.driven_axles == 2
 
 
 def _listed_gear(fleet):
@@ -202,6 +206,18 @@ def _awd_standby(fleet, p):
     extra_w = np.where(_awd(fleet), p.pop("awd_standby_w"), 0.0)
     return {**p, "motor_loss_standby_fraction": p["motor_loss_standby_fraction"]
             + extra_w / (fleet.rated_power_kw * 1e3)}
+
+
+def _awd_standby_by_motor(kinds):
+    """As _awd_standby, only for all-wheel-drive cars whose front machine (the one idling on the
+    cycles) is of one of ``kinds`` (the motor_front technology column of the fleet file)."""
+    def per_vehicle(fleet, p):
+        p = dict(p)
+        front = np.array(fleet.technology.get("motor_front", ["unknown"] * len(fleet)))
+        extra_w = np.where(_awd(fleet) & np.isin(front, kinds), p.pop("awd_standby_w"), 0.0)
+        return {**p, "motor_loss_standby_fraction": p["motor_loss_standby_fraction"]
+                + extra_w / (fleet.rated_power_kw * 1e3)}
+    return per_vehicle
 
 
 def _rot_by_axles(fleet, p):
@@ -244,6 +260,12 @@ def candidates():
     C["inv"] = Candidate("+ inverter loss c_i P_r tau", {**F, "inverter_current_fraction": (0.01, 0.0, 0.2)})
     C["awd_standby"] = Candidate("+ no-load loss of the second machine (AWD), W while moving",
                                  {**F, "awd_standby_w": (200.0, 0.0, 3000.0)}, per_vehicle=_awd_standby)
+    C["awd_standby_pmsm"] = Candidate("+ no-load loss of the second machine, AWD with a PMSM front machine",
+                                      {**F, "awd_standby_w": (200.0, 0.0, 3000.0)},
+                                      per_vehicle=_awd_standby_by_motor(["PMSM"]))
+    C["awd_standby_not_induction"] = Candidate(
+        "+ no-load loss of the second machine, AWD except an induction front machine",
+        {**F, "awd_standby_w": (200.0, 0.0, 3000.0)}, per_vehicle=_awd_standby_by_motor(["PMSM", "EESM", "unknown"]))
     # regeneration: maximum deceleration (friction blending), round-trip efficiency, motors
     C["decel"] = Candidate("+ regen decel limit a_max", {**F, "regen_decel_max_m_s2": (1.0, 0.2, 3.0)})
     C["decel_share1"] = Candidate("regen decel limit a_max, axle share 1 (dyno)",

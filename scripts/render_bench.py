@@ -58,11 +58,9 @@ def render(results_dir: Path) -> str:
                     f"load average {host.get('load_average_1min', '?')} at the end; `{_where(p)}`", ""]
     if other:
         out += ["### Results in a bench's own format", "",
-                "| file | bench | what it holds |", "|---|---|---|"]
-        for p, d in other:
-            keys = ", ".join(list(d)[:6]) if isinstance(d, dict) else type(d).__name__
-            out.append(f"| `{_where(p)}` | {d.get('bench', p.stem) if isinstance(d, dict) else p.stem} | {keys} |")
-        out.append("")
+                "Read with the bench's own docstring: " + "; ".join(
+                    f"`{_where(p)}` ({', '.join(list(d)[:4]) if isinstance(d, dict) else type(d).__name__})"
+                    for p, d in other) + ".", ""]
     return "\n".join(out)
 
 

@@ -195,7 +195,7 @@ def _package_layers() -> tuple[dict[str, int], set[tuple[str, str]]]:
             head = line[2:].split(":")[0]
             for pair in head.split(","):
                 a, b = (p.strip().strip("`") for p in pair.split("->"))
-                upward.add((f"bev_mdo.{a}", f"bev_mdo.{b}"))
+                upward.add(tuple("bev_mdo" if n == "bev_mdo" else f"bev_mdo.{n}" for n in (a, b)))
     return layers, upward
 
 

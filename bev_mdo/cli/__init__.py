@@ -14,6 +14,7 @@ import importlib
 import os
 import sys
 
+from bev_mdo.api.errors import InputError
 from bev_mdo.interrupts import Terminated  # SIGTERM as an exception: every finally runs, exit 143
 
 # command -> (module in bev_mdo.cli, help), in the order --help lists them. The module's register()
@@ -43,10 +44,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
-class UsageError(Exception):
-    """A mistake by the user: reported as one line on stderr, exit status 2."""
-
-
+# A mistake by the user: reported as one line on stderr, exit status 2 (the API's InputError).
+UsageError = InputError
 
 
 def figure_format(path) -> str | None:

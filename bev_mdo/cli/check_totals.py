@@ -18,8 +18,8 @@ import numpy as np
 
 
 def register(subparsers) -> None:
-    from bev_mdo.cli.overrides import add_override_arguments
-    from bev_mdo.cli.ros_args import add_transport_arguments
+    from bev_mdo.cli.flags import add_override_arguments
+    from bev_mdo.cli.flags import add_transport_arguments
 
     p = subparsers.add_parser("check-totals", help="compare the optimiser's total derivatives with finite differences",
                               description=__doc__.split("\n\n")[1])
@@ -98,22 +98,13 @@ def _point(form, problem, text: str) -> np.ndarray:
 
 
 def run(args) -> int:
-    from bev_mdo.cli import overrides
-    from bev_mdo.cli.ros_args import uses_ros
-    from bev_mdo.cli.sensitivity import _closing
-    from bev_mdo.config import resolve_disciplines, run_settings
+    from bev_mdo.api.transport import Evaluating
+    from bev_mdo.cli import flags
+    from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import build_formulation
-    from bev_mdo.mdo.evaluator import InProcessEvaluator
 
-    config = overrides.load(args)
-    if uses_ros(args):
-        from bev_mdo.cli.evaluate import ros_session
-
-        ctx = ros_session(config, args, node_name="bev_mdo_check_totals")
-    else:
-        ctx = InProcessEvaluator(resolve_disciplines(config))
-    with _closing(ctx) as session:
-        ev = session.evaluator if hasattr(session, "suite") else session
+    config = flags.load_config(args)
+    with Evaluating(config, args, node_name="bev_mdo_check_totals") as ev:
         form = build_formulation(run_settings(config), ev, args.formulation)
         rep = check(form, _point(form, form.problem, args.at), args.step, args.rtol, args.atol)
     if args.json:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import sys
 
-from bev_mdo.cli import UsageError
+from bev_mdo.api.errors import InputError as UsageError
 
 
 def register(subparsers) -> None:
@@ -19,35 +19,12 @@ def register(subparsers) -> None:
     p.add_argument("--set", dest="assignments", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
                    help="design values (or model-parameter overrides); also comma-separated a=1,b=2")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    from bev_mdo.cli.overrides import add_override_arguments
-    from bev_mdo.cli.ros_args import add_transport_arguments
+    from bev_mdo.cli.flags import add_override_arguments
+    from bev_mdo.cli.flags import add_transport_arguments
 
     add_transport_arguments(p)
     add_override_arguments(p)
     p.set_defaults(func=run)
-
-
-def ros_session(config, args, node_name: str = "bev_mdo_client"):
-    """The ROS session (sessions.EvaluateRosSession) of ``evaluate``/``sensitivity``/``sweep`` over ROS,
-    with the command line's ros flags; UsageError when the ROS transport is not installed."""
-    import importlib
-
-    try:  # the ROS libraries only: a bev_mdo module that fails to import raises as it is
-        for lib in ("rclpy", "bev_mdo_msgs.msg"):
-            importlib.import_module(lib)
-    except ModuleNotFoundError:
-        raise UsageError("--ros needs the ROS transport (rclpy and bev_mdo_msgs)") from None
-    from bev_mdo.cli.ros_args import ros_section
-    from bev_mdo.sessions import EvaluateRosSession
-
-    return EvaluateRosSession(config, ros_section(config, args), launch=bool(getattr(args, "launch", False)),
-                              node_name=node_name)
-
-
-def close_ros(session, ok: bool = True) -> None:
-    """End a ROS session; print its notes (drops, unsigned results) on stderr if the command ended well."""
-    for line in session.close(ok):
-        print(f"bev-mdo: {line}", file=sys.stderr)
 
 
 def parse_assignments(items: list[str]) -> dict[str, float]:
@@ -65,43 +42,12 @@ def parse_assignments(items: list[str]) -> dict[str, float]:
     return out
 
 
-def _evaluator(config, use_ros: bool, args=None):
-    if use_ros:
-        return ros_session(config, args)
-    from bev_mdo.config import resolve_disciplines
-    from bev_mdo.mdo.evaluator import InProcessEvaluator
-
-    return InProcessEvaluator(resolve_disciplines(config))
-
-
 def run(args) -> int:
-    from bev_mdo.cli import overrides
-    from bev_mdo.cli.ros_args import uses_ros
-    from bev_mdo.config import run_settings
-    from bev_mdo.mdo.driver import evaluate_design
-    from bev_mdo.mdo.problem import Problem
+    from bev_mdo.api import evaluate
+    from bev_mdo.api.transport import Transport
+    from bev_mdo.cli import flags
 
-    config = overrides.load(args)
-    given = parse_assignments(args.assignments)
-    problem = Problem.from_config(config["problem"])
-    design = {**{d.name: d.initial for d in problem.design_variables}, **given}
-    for d in problem.design_variables:  # evaluated as given, but a user should know it is off the design space
-        v = given.get(d.name)
-        if isinstance(v, (int, float)) and not d.lower <= v <= d.upper:
-            print(f"bev-mdo evaluate: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
-                  "(evaluated as given)", file=sys.stderr)
-    use_ros = uses_ros(args)
-    session = _evaluator(config, use_ros, args)
-    evaluator = session.evaluator if use_ros else session
-    ok = False
-    try:
-        report = evaluate_design(run_settings(config), evaluator, design)
-        ok = True
-    finally:
-        if use_ros:
-            close_ros(session, ok)
-        else:
-            session.close()
+    report = evaluate.design(flags.load_config(args), parse_assignments(args.assignments), Transport.of(args))
     if args.json:
         print(json.dumps(report, indent=2, allow_nan=True))
     else:

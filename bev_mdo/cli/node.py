@@ -14,7 +14,7 @@ def register(sub) -> None:
     p.add_argument("name", help="discipline name, e.g. energy")
     p.add_argument("--config", default=None, help="run config YAML (default: config/leaf_nedc.yaml)")
     p.add_argument("--instance", default="", help="instance suffix, to run several copies of one discipline")
-    from bev_mdo.cli.ros_args import add_ros_arguments
+    from bev_mdo.cli.flags import add_ros_arguments
 
     add_ros_arguments(p)
     p.set_defaults(func=run)
@@ -29,7 +29,7 @@ def run(args) -> int:
     names = [e["name"] for e in _entries(config)]
     if args.name not in names:
         raise UsageError(f"no discipline {args.name!r} in {path}; it has {names}")
-    from bev_mdo.cli.ros_args import ros_section
+    from bev_mdo.api.transport import ros_section
 
     ros = ros_section(config, args)
     from bev_mdo.ros.client import apply_ros_environment

@@ -17,9 +17,6 @@ from __future__ import annotations
 
 import json
 import sys
-import time
-import uuid
-from pathlib import Path
 
 
 
@@ -51,8 +48,8 @@ def register(sub) -> None:
                    help="ROS: where the discipline nodes run. coordinator (default): in this command's own "
                         "process, beside the coordinator (a pool's instances keep a process each); none: a "
                         "process per discipline; all: one process for all; groups A+B,C+D (docs/scaling.md)")
-    from bev_mdo.cli.overrides import add_override_arguments
-    from bev_mdo.cli.ros_args import add_ros_arguments
+    from bev_mdo.cli.flags import add_override_arguments
+    from bev_mdo.cli.flags import add_ros_arguments
 
     add_ros_arguments(p)
     add_override_arguments(p)
@@ -165,152 +162,40 @@ def _verdict(result: dict, out, units: dict) -> None:
 
 
 def run(args) -> int:
-    from bev_mdo.cli import overrides
+    from bev_mdo.cli import flags
 
-    return run_job(overrides.load(args), args)
+    return run_job(flags.load_config(args), args)
 
 
 def run_job(config: dict, args, x0: dict | None = None) -> int:
-    """Run one optimisation of a resolved config as the CLI options say; x0 overrides the start."""
-    if args.optimizer:
-        from bev_mdo.mdo.optimizers import canonical_name
+    """Run one optimisation of a resolved config as the CLI options say (x0 overrides the start),
+    print it and return the exit status."""
+    from bev_mdo.api import optimize
 
-        from bev_mdo.config import check_optimizer_options
-
-        # ValueError names the known optimizers, or the config's option the chosen one does not take
-        check_optimizer_options(canonical_name(args.optimizer), (config.get("optimizer") or {}).get("options") or {})
-    _starts(args, x0)  # a bad --starts is refused before anything starts or is written
-    t_start = time.perf_counter()
+    opts = optimize.OptimizeOptions.of(args)
+    opts.progress_to_stderr = bool(args.json)
     out = sys.stderr if args.json else sys.stdout
-    show = _progress(args.quiet, args.json)
-    if args.transport == "inprocess":
-        result, baseline, extra = _run_inprocess(config, args, show, x0)
-    else:
-        result, baseline, extra = _run_ros(config, args, show, x0)
-    from bev_mdo.cli import runbag  # end-of-run answers: printed, in --json, stored with the bag
-
-    runbag.finish(config, result, extra)
-    extra = {k: v for k, v in extra.items() if not k.startswith("_")}
-    extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
+    doc = optimize.run(config, opts, _progress(args.quiet, args.json), x0)
     if args.json:
-        print(json.dumps({**result, "baseline": baseline, **extra}, default=float, indent=2))
+        print(json.dumps(doc, default=float, indent=2))
     else:
-        from bev_mdo.config import resolve_disciplines
-        from bev_mdo.mdo.units import run_units
+        from bev_mdo.api import runbag
 
-        _table(result, baseline, out, run_units(resolve_disciplines(config)))
-        if not result["feasible"]:
-            print("\n".join(runbag.answers_text(result, args.transport)), file=out)
-        for k, v in extra.items():
-            print(f"{k}: {v}" if k != "run_time_s" else f"run time {v:.3f} s (config loaded to this line: start-up, "
-                  "optimisation, baseline, answers, shut-down)", file=out)
-    lost = extra.get("unresponsive_disciplines")
+        result = {k: v for k, v in doc.items() if k != "baseline"}
+        from bev_mdo.api.evaluate import declared_units
+
+        _table(result, doc["baseline"], out, declared_units(config))
+        if not doc["feasible"]:
+            print("\n".join(runbag.answers_text(result, doc["transport"])), file=out)
+        keys = list(doc)
+        for k in keys[keys.index("baseline") + 1:]:  # the transport's figures follow the result and baseline
+            print(f"{k}: {doc[k]}" if k != "run_time_s" else f"run time {doc[k]:.3f} s (config loaded to this line: "
+                  "start-up, optimisation, baseline, answers, shut-down)", file=out)
+    lost = doc.get("unresponsive_disciplines")
     if lost:  # its later evaluations all failed: the optimiser ran blind from then on
         print(f"warning: {', '.join(lost)} stopped answering during the run (no answer within ros.timeout_s x "
               "(ros.retries + 1)); every later evaluation of it failed, so the result is the best point "
               "evaluated before that, not an optimum", file=sys.stderr)
-    if extra.get("recorder_failed"):
-        print(f"warning: {extra['recorder_failed']}", file=sys.stderr)
-        return 3
-    if not result["feasible"]:
-        return 1
-    if lost:
-        return 4
-    return 0 if result["verdict"] == "optimum" or getattr(args, "fixed_budget", False) else 5
-
-
-def _run_inprocess(config, args, show, x0=None):
-    from bev_mdo.cli.failures import NamingInProcessEvaluator
-    from bev_mdo.config import resolve_disciplines
-    from bev_mdo.config import run_settings
-    from bev_mdo.mdo.driver import run_optimization
-    from bev_mdo.ros_settings import validate_ros
-    from bev_mdo.sessions import analyse_baseline
-
-    ros = validate_ros(config.get("ros"))
-    budget = ros["timeout_s"] * (ros["retries"] + 1)  # what a ROS run gives a discipline before its points fail
-    ev = NamingInProcessEvaluator(resolve_disciplines(config), timeout_s=budget)
-    from bev_mdo.cli.runbag import in_process_bag  # --bag works in process too
-
-    bag, writer, show = in_process_bag(config, args, show)
-    starts = _starts(args, x0)
-    try:
-        if starts > 1:
-            from bev_mdo.mdo.multistart import run_starts
-
-            res = run_starts(run_settings(config), ev, starts, seed=getattr(args, "seed", 0),
-                             formulation=args.formulation, optimizer=args.optimizer, callback=show)
-        else:
-            res = run_optimization(run_settings(config), ev, formulation=args.formulation,
-                                   optimizer=args.optimizer, x0=x0, callback=show)
-    except BaseException:  # SIGINT, SIGTERM (cli.Terminated), a failure: the bag keeps every finished iteration
-        if writer is not None:
-            writer.close()
-        raise
-    out = res.to_dict()
-    out.pop("history")
-    baseline = analyse_baseline(config, NamingInProcessEvaluator(resolve_disciplines(config), timeout_s=budget,
-                                                                 errors=ev.errors))
-    extra = {"transport": "inprocess", **({"bag": bag} if bag else {}), "_bag_writer": writer}
-    if ev.errors.first:
-        extra["discipline_errors"] = dict(ev.errors.first)
-    if ev.hung:
-        extra["unresponsive_disciplines"] = ev.hung
-    return out, baseline, extra
-
-
-def _run_ros(config, args, show, x0=None):
-    from bev_mdo.cli.ros_args import ros_section
-    from bev_mdo.config import discipline_entries
-    from bev_mdo.ros.launch import parse_instances
-    from bev_mdo.sessions import OptimizeRosSession
-
-    ros = ros_section(config, args)
-    # the run's config keeps a domain only when the config stated one (a bag resumed later then
-    # follows the ROS convention again: flag, config, ROS_DOMAIN_ID, 77)
-    stated = (config.get("ros") or {}).get("domain_id") is not None
-    config = {**config, "ros": ros if stated else {k: v for k, v in ros.items() if k != "domain_id"}}
-    if args.formulation:
-        config["formulation"] = args.formulation
-    if args.optimizer:
-        config["optimizer"] = {**config.get("optimizer", {}), "name": args.optimizer}
-    run_id = uuid.uuid4().hex[:16]
-    stamp_ = time.strftime("%Y%m%d_%H%M%S")
-    bag = Path(args.bag) if args.bag else Path("bags") / f"{config.get('name', 'run')}_{stamp_}_{run_id[:6]}"
-    if not args.no_record:
-        check_new_bag(bag, "--bag")
-    names = [e["name"] for e in discipline_entries(config)]
-    instances = parse_instances(getattr(args, "instances", None), names)
-    session = OptimizeRosSession(config, ros, bag, run_id, record=not args.no_record, instances=instances,
-                                 compose=getattr(args, "compose", None))
-    if not args.quiet:
-        where = ("in this process (--compose coordinator; --compose none: a process each)"
-                 if getattr(args, "compose", None) == "coordinator" else "")
-        print(f"starting {len(names)} discipline nodes {where}{'' if args.no_record else ' and a recorder'}"
-              f" (domain {ros['domain_id']}); waiting while discovery makes progress (gives up after "
-              f"{ros.get('discovery_wait_s', 20):g} s without) ...", file=sys.stderr if args.json else sys.stdout,
-              flush=True)
-    with session:
-        result, baseline = session.run(args.formulation, args.optimizer, x0, show, starts=_starts(args, x0),
-                                       seed=getattr(args, "seed", 0))
-    return result, baseline, session.summary()
-
-
-def _starts(args, x0) -> int:
-    starts = int(getattr(args, "starts", 1))
-    if starts < 1:
-        raise ValueError(f"--starts {starts}: give at least 1")
-    if starts > 1 and x0:
-        raise ValueError("--starts samples its own start points; it cannot be combined with a given start")
-    return starts
-
-
-def check_new_bag(bag: Path, what: str) -> None:
-    """A bag may be written to `bag`: ValueError (exit 2) naming it if a bag or a file is there."""
-    if bag.exists() and not bag.is_dir():
-        raise ValueError(f"{what} {bag}: is a file, not a bag directory")
-    blocking = next((p for p in bag.parents if p.exists() and not p.is_dir()), None)
-    if blocking is not None:
-        raise ValueError(f"{what} {bag}: {blocking} is a file, not a folder")
-    if (bag / "metadata.yaml").exists() or any(bag.glob("*.mcap")):
-        raise ValueError(f"{what} {bag}: a bag already exists there; choose a new directory")
+    if doc.get("recorder_failed"):
+        print(f"warning: {doc['recorder_failed']}", file=sys.stderr)
+    return optimize.exit_status(doc, getattr(args, "fixed_budget", False))

@@ -8,7 +8,7 @@ def register(subparsers) -> None:
     parser.add_argument("--output", "-o", help="bag directory (default bags/<time>_record)")
     parser.add_argument("--config", help="configuration file to store in the bag")
     parser.add_argument("--run-id", help="run id to store in the bag")
-    from bev_mdo.cli.ros_args import add_ros_arguments
+    from bev_mdo.cli.flags import add_ros_arguments
 
     add_ros_arguments(parser)
     parser.set_defaults(func=run)
@@ -40,7 +40,7 @@ def _join_domain(args) -> None:
     """Domain and discovery: the flags, over the --config file's ros: section (localhost by default)."""
     from pathlib import Path
 
-    from bev_mdo.cli.ros_args import ros_section
+    from bev_mdo.api.transport import ros_section
     from bev_mdo.ros.client import apply_ros_environment
 
     ros = {}

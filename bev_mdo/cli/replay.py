@@ -19,7 +19,7 @@ def register(subparsers) -> None:
                         help="publish at once, whether anything subscribes or not")
     parser.add_argument("--wait-timeout", type=float, default=30.0, metavar="S",
                         help="give up waiting for subscribers after S seconds (default 30)")
-    from bev_mdo.cli.ros_args import add_ros_arguments
+    from bev_mdo.cli.flags import add_ros_arguments
 
     add_ros_arguments(parser)
     parser.set_defaults(func=run)
@@ -28,7 +28,7 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from bev_mdo.ros.replay import replay
 
-    from bev_mdo.cli.ros_args import ros_section
+    from bev_mdo.api.transport import ros_section
     from bev_mdo.ros.client import apply_ros_environment
 
     # Domain and discovery from the flags (else the environment's ROS_DOMAIN_ID; localhost by default):

@@ -23,7 +23,7 @@ def register(sub) -> None:
     from bev_mdo.cli.history import add_verify_arguments
 
     add_verify_arguments(p)
-    from bev_mdo.cli.ros_args import add_ros_arguments
+    from bev_mdo.cli.flags import add_ros_arguments
 
     add_ros_arguments(p)
     p.set_defaults(func=run)
@@ -78,5 +78,5 @@ def run(args) -> int:
     opts = argparse.Namespace(formulation=None, optimizer=None, transport=args.transport, json=args.json,
                               domain_id=args.domain_id, discovery=args.discovery,
                               static_peers=args.static_peers, discovery_server=args.discovery_server, bag=args.out_bag, no_record=args.no_record,
-                              quiet=args.quiet)
+                              quiet=args.quiet, compose=None)
     return run_job(config, opts, x0=x0)

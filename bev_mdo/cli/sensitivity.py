@@ -1,5 +1,5 @@
 """``bev-mdo sensitivity CONFIG --at k=v,... [--order 1|2] [--wrt a,b] [--json] [--png FILE]``;
-``--global sobol|morris --samples N --seed S``: global indices over the bounds (global_sensitivity.py).
+``--global sobol|morris --samples N --seed S``: global indices over the bounds (bev_mdo.api.sensitivity).
 
 Normalised first-order (eq 5-4, like Table 7-2) and second-order (eq 5-5, like Table
 7-3 / Fig 5-3, with NC/MC/SC/VSC labels) sensitivities of the objective and of every
@@ -14,13 +14,11 @@ import sys
 
 import numpy as np
 
-from bev_mdo.cli import UsageError
-
 
 def register(subparsers) -> None:
-    from bev_mdo.cli.global_sensitivity import METHODS
-    from bev_mdo.cli.overrides import add_override_arguments
-    from bev_mdo.cli.ros_args import add_transport_arguments
+    from bev_mdo.api.sensitivity import METHODS
+    from bev_mdo.cli.flags import add_override_arguments
+    from bev_mdo.cli.flags import add_transport_arguments
 
     p = subparsers.add_parser("sensitivity", help="normalised 1st/2nd-order sensitivities at a design, or global "
                                                   "Sobol'/Morris indices over the bounds")
@@ -65,142 +63,40 @@ def _pairs(text: str) -> dict[str, float]:
     return out
 
 
-def build_batch(config, evaluator, param_defaults=None):
-    """(fun, nominal point, bounds, outputs) for the MDA of ``config`` over ``evaluator``.
-
-    ``fun(X)`` takes columns in the order of the returned point (design variables, then
-    every overridable model parameter) and returns the objective and constrained outputs.
-    """
-    from bev_mdo.config import run_settings
-    from bev_mdo.mdo.driver import build_formulation
-
-    form = build_formulation(run_settings(config), evaluator, "mdf")
-    problem, mda = form.problem, form.mda
-    params: dict[str, float] = {}
-    for spec in mda.specs.values():
-        for k, v in spec.parameters.items():
-            v = float(v)
-            if np.isnan(v) and param_defaults and k in param_defaults:
-                v = float(param_defaults[k])  # a remote declaration names parameters, not their values
-            params.setdefault(k, v)
-    own = dict(params)  # the disciplines' own values: a column equal to one is left out (below)
-    params.update(problem.parameters)
-    point = {**dict(zip(problem.names, problem.x0().tolist())), **params}
-    bounds = {v.name: (v.lower, v.upper) for v in problem.design_variables}
-    outputs = [problem.objective] + [c.name for c in problem.constraints if c.name != problem.objective]
-    names = list(point)
-
-    def fun(X):
-        # A model parameter sent as a column is evaluated design by design (a per-row model); one that
-        # keeps the discipline's own value everywhere is left out, so the batch stays vectorised.
-        cols = {k: X[:, j] for j, k in enumerate(names)
-                if not (k in own and k not in problem.parameters and np.all(X[:, j] == own[k]))}
-        res = mda.run(cols)
-        if not np.all(res.ok):
-            bad = next(e for e in res.errors if e is not None)
-            raise ValueError(f"the model failed on the FD stencil: {bad.message.splitlines()[0]}")
-        return {k: res.values[k] for k in outputs}
-    return fun, point, bounds, outputs, problem
-
-
-class _closing:
-    """Context manager calling close() (evaluators are not all context managers); a ROS session
-    is told whether the block ended normally (its notes are printed only then)."""
-
-    def __init__(self, obj):
-        self.obj = obj
-
-    def __enter__(self):
-        return self.obj
-
-    def __exit__(self, exc_type, *exc):
-        if hasattr(self.obj, "suite"):
-            from bev_mdo.cli.evaluate import close_ros
-
-            close_ros(self.obj, exc_type is None)
-        else:
-            self.obj.close()
-
-
 def run(args) -> int:
-    from bev_mdo.cli import overrides
-    from bev_mdo.cli.ros_args import uses_ros
-    from bev_mdo.config import resolve_disciplines
-    from bev_mdo.mdo.evaluator import InProcessEvaluator
-    from bev_mdo.mdo.sensitivity import sensitivities
-    from bev_mdo.mdo.units import run_units
+    from bev_mdo.api import sensitivity
+    from bev_mdo.api.transport import Transport
+    from bev_mdo.cli import flags
 
-    if args.method == "complex":  # the MDA casts every input to float64 (the discipline interface)
-        raise UsageError("--method complex: the multidisciplinary analysis passes float64 values between "
-                         "disciplines (in process and over ROS), so a complex step cannot pass through it, "
-                         "whatever the disciplines; use --method central (the default)")
-    cfg = overrides.load(args)
-    local = InProcessEvaluator(resolve_disciplines(cfg))
-    units = run_units(local.disciplines.values())
-    session = None
-    if uses_ros(args):
-        from bev_mdo.cli.evaluate import ros_session
-
-        defaults = {k: v for spec in local.specs.values() for k, v in spec.parameters.items()}
-        session = ros_session(cfg, args, node_name="bev_mdo_sensitivity")
-        ev_ctx = session
-    else:
-        ev_ctx, defaults = local, None
-    with _closing(ev_ctx) as ev:
-        ev = session.evaluator if session is not None else ev
-        fun, point, bounds, outputs, problem = build_batch(cfg, ev, defaults)
-        at = _pairs(args.at)
-        for k, v in at.items():
-            if k not in point:
-                raise ValueError(f"--at: unknown name {k!r}; design variables: {', '.join(problem.names)}; "
-                                 f"parameters: {', '.join(n for n in point if n not in problem.names)}")
-            point[k] = v
-        wrt = [s.strip() for s in args.wrt.split(",") if s.strip()] or list(problem.names)
-        for k in wrt:
-            if k not in point:
-                raise ValueError(f"--wrt: unknown variable or parameter {k!r}; known: {', '.join(point)}")
-        if args.global_method:
-            from bev_mdo.cli import global_sensitivity as gs
-
-            samples = args.samples or (1024 if args.global_method == "sobol" else 64)
-            rep = gs.analyse(args.global_method, fun, point, bounds, wrt, outputs, samples, args.seed,
-                             args.conf_level, design=list(problem.names))
-            rep["units"] = {k: units[k] for k in (*wrt, *outputs) if k in units}
-        else:
-            s = sensitivities(fun, point, wrt=wrt, order=args.order, bounds=bounds,
-                              rel_step=args.rel_step, method=args.method, objective=problem.objective)
+    cfg = flags.load_config(args)
+    wrt = [s.strip() for s in args.wrt.split(",") if s.strip()]
+    got = sensitivity.run(cfg, _pairs(args.at), wrt, Transport.of(args), global_method=args.global_method,
+                          order=args.order, rel_step=args.rel_step, method=args.method, samples=args.samples,
+                          seed=args.seed, conf_level=args.conf_level)
     if args.global_method:
+        from bev_mdo.cli import global_sensitivity as gs
+
         if args.png:
-            gs.write_plot(args.png, rep)
+            gs.write_plot(args.png, got)
         if args.json:
-            print(json.dumps(rep, indent=2))
+            print(json.dumps(got, indent=2))
         else:
-            gs.print_tables(rep, sys.stdout)
+            gs.print_tables(got, sys.stdout)
             if args.png:
                 print(f"wrote {args.png}")
         return 0
+    s, outputs, point, problem = got
     if args.png:
-        write_heatmap(args.png, s, outputs, cfg, {k: point[k] for k in problem.names}, units)
+        from bev_mdo.api.evaluate import declared_units
+
+        write_heatmap(args.png, s, outputs, cfg, {k: point[k] for k in problem.names}, declared_units(cfg))
     if args.json:
-        print(json.dumps(to_dict(s, outputs), indent=2))
+        print(json.dumps(sensitivity.to_dict(s, outputs), indent=2))
     else:
         print_tables(s, outputs)
         if args.png:
             print(f"wrote {args.png}")
     return 0
-
-
-def to_dict(s, outputs) -> dict:
-    d = {"wrt": list(s.names), "point": s.point, "method": s.method, "step": s.step.tolist(),
-         "n_evaluations": s.n_evaluations, "n_batches": s.n_batches, "one_sided": list(s.one_sided),
-         "values": s.values, "first_order": {}, "second_order": {}}
-    for k in outputs:
-        d["first_order"][k] = {"normalised": s.first[k].tolist(), "error": s.first_error[k].tolist(),
-                               "derivative": s.gradient[k].tolist()}
-        if s.second is not None:
-            d["second_order"][k] = {"normalised": s.second[k].tolist(), "error": s.second_error[k].tolist(),
-                                    "labels": s.labels(k).tolist()}
-    return d
 
 
 def print_tables(s, outputs, out=sys.stdout) -> None:

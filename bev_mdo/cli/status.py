@@ -5,7 +5,7 @@ import json
 
 
 def register(sub) -> None:
-    from bev_mdo.cli.ros_args import add_ros_arguments
+    from bev_mdo.cli.flags import add_ros_arguments
 
     p = sub.add_parser("status", help="list the live discipline instances on the ROS domain (host, throughput)")
     p.add_argument("config", nargs="?", default=None, help="run config YAML whose ros: section to use (optional)")
@@ -18,7 +18,7 @@ def register(sub) -> None:
 def run(args) -> int:
     import rclpy
 
-    from bev_mdo.cli.ros_args import ros_section
+    from bev_mdo.api.transport import ros_section
     from bev_mdo.ros.client import apply_ros_environment
     from bev_mdo.ros.status import collect, format_table
 

@@ -28,9 +28,9 @@ from bev_mdo.cli import UsageError
 
 
 def register(sub) -> None:
-    from bev_mdo.cli.doe import METHODS
-    from bev_mdo.cli.overrides import add_override_arguments
-    from bev_mdo.cli.ros_args import add_transport_arguments
+    from bev_mdo.api.doe import METHODS
+    from bev_mdo.cli.flags import add_override_arguments
+    from bev_mdo.cli.flags import add_transport_arguments
 
     p = sub.add_parser("sweep", help="a design of experiments, grid or list of designs as one batch: CSV, PNG, bag",
                        description=__doc__.split("\n\n")[1])
@@ -80,6 +80,8 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
                 vals = np.linspace(lo, hi, n)
             else:
                 vals = np.array([float(v) for v in spec.split(",") if v.strip()])
+        except UsageError:
+            raise
         except ValueError:
             raise UsageError(f"--vary {item!r}: values must be LO:HI:N (N >= 1 integer) or a list A,B,C") from None
         if not vals.size:
@@ -119,81 +121,11 @@ def read_list(path: str) -> dict[str, np.ndarray]:
 
 
 def evaluate_batch(config, designs: dict[str, np.ndarray], args=None) -> dict:
-    """One batch of MDAs: {design: {k: array}, outputs: {k: array}, margins: {c: array},
-    feasible: bool array, ok: bool array, errors: [str]} (``designs`` may set parameters too).
-    Over ROS when ``args`` say so (--transport ros, --launch)."""
-    from bev_mdo.cli.ros_args import uses_ros
-    from bev_mdo.config import run_settings
-    from bev_mdo.mdo.driver import FEASIBILITY_TOL, _mda
-    from bev_mdo.mdo.problem import Problem
+    """One batch of MDAs (bev_mdo.api.evaluate.batch), over the transport ``args`` choose."""
+    from bev_mdo.api import evaluate
+    from bev_mdo.api.transport import Transport
 
-    problem = Problem.from_config(config["problem"])
-    n = len(next(iter(designs.values())))
-    cols = {d.name: np.full(n, d.initial) for d in problem.design_variables}
-    cols.update({k: np.full(n, float(v)) for k, v in problem.parameters.items()})
-    ros = args is not None and uses_ros(args)
-    session = _evaluator(config, args, ros)  # an EvaluateRosSession over ROS (closing it reports drops), else the evaluator
-    evaluator = session.evaluator if ros else session
-    try:
-        mda = _mda(run_settings(config), evaluator, problem)
-        params = {p for s in mda.specs.values() for p in s.parameters}
-        unknown = [k for k in designs if k not in problem.names and k not in params]
-        if unknown:
-            raise UsageError(f"unknown names {unknown}; design variables: {problem.names}, "
-                             f"parameters: {sorted(params)}")
-        for d in problem.design_variables:
-            if d.name in designs:
-                v = designs[d.name]
-                bad = v[(v < d.lower) | (v > d.upper)]
-                if bad.size:
-                    raise UsageError(f"{d.name}={bad[0]:g} is outside its bounds [{d.lower:g}, {d.upper:g}]")
-        cols.update({k: np.asarray(v, dtype=float) for k, v in designs.items()})
-        res = mda.run(cols)
-    finally:
-        if ros:
-            from bev_mdo.cli.evaluate import close_ros
-
-            close_ros(session)
-        else:
-            session.close()
-    outputs = {v: np.asarray(res.values[v], dtype=float) for s in mda.specs.values() for v in s.outputs}
-    margins, feasible = {}, np.asarray(res.ok, dtype=bool).copy()
-    for c in problem.constraints:
-        y = outputs[c.name]
-        m = np.full(n, np.inf)
-        if c.lower is not None:
-            m = np.minimum(m, y - c.lower)
-        if c.upper is not None:
-            m = np.minimum(m, c.upper - y)
-        margins[c.name] = m
-        scale = c.scale or max(abs(c.lower if c.lower is not None else c.upper), 1.0)
-        if not c.monitor:
-            feasible &= np.isfinite(m) & (m >= -FEASIBILITY_TOL * scale)
-    return {"design": {k: cols[k] for k in [*problem.names, *[k for k in designs if k not in problem.names]]},
-            "outputs": outputs, "margins": margins, "feasible": feasible, "ok": np.asarray(res.ok, bool),
-            "errors": res.messages, "objective": problem.objective, "problem": problem,
-            "units": _units(config)}
-
-
-def _units(config) -> dict:
-    """{variable: declared unit} of the run's disciplines (mdo/units.py)."""
-    from bev_mdo.config import resolve_disciplines
-    from bev_mdo.mdo.units import run_units
-
-    return run_units(resolve_disciplines(config))
-
-
-def _evaluator(config, args, ros: bool):
-    from bev_mdo.cli.evaluate import _evaluator as make
-
-    if ros:
-        from bev_mdo.cli.ros_args import ros_section
-
-        section = ros_section(config, args)
-        what = "start the discipline nodes" if getattr(args, "launch", False) else "find the discipline nodes"
-        print(f"waiting up to {section.get('discovery_wait_s', 20):g} s to {what} on ROS domain "
-              f"{section['domain_id']} ...", file=sys.stderr, flush=True)
-    return make(config, ros, args)
+    return evaluate.batch(config, designs, Transport.of(args) if args is not None else None)
 
 
 def write_csv(path: Path, result: dict) -> None:
@@ -287,7 +219,7 @@ def _baseline(config) -> dict | None:
 def designs_of(args, problem) -> dict[str, np.ndarray]:
     """The designs the command line asks for: a DOE over the bounds of the design variables not
     fixed with --set, a grid (--vary) or a list (--list), with the --set values as columns."""
-    from bev_mdo.cli.doe import sample
+    from bev_mdo.api.doe import sample
     from bev_mdo.cli.evaluate import parse_assignments
 
     if sum(map(bool, (args.doe, args.vary, args.list_csv))) != 1:
@@ -307,24 +239,24 @@ def designs_of(args, problem) -> dict[str, np.ndarray]:
 
 
 def run(args) -> int:
-    from bev_mdo.cli import overrides
-    from bev_mdo.cli.doe import plot_scatter, record
+    from bev_mdo.cli import flags
+    from bev_mdo.api.doe import plot_scatter, record
     from bev_mdo.cli.evaluate import parse_assignments
-    from bev_mdo.cli.ros_args import uses_ros
+    from bev_mdo.api.transport import Transport
     from bev_mdo.mdo.problem import Problem
 
-    config = overrides.load(args)
+    config = flags.load_config(args)
     out = Path(args.out)
     bag = out / "bag"
     if not args.no_record:
-        from bev_mdo.cli.optimize import check_new_bag
+        from bev_mdo.api.optimize import check_new_bag
 
         check_new_bag(bag, "--out")
     designs = designs_of(args, Problem.from_config(config["problem"]))
     fixed = parse_assignments(args.fixed)
     varied = [k for k in designs if k not in fixed]
     n = len(next(iter(designs.values())))
-    transport = "ros" if uses_ros(args) else "inprocess"
+    transport = "ros" if Transport.of(args).uses_ros else "inprocess"
     result = evaluate_batch(config, designs, args)
     out.mkdir(parents=True, exist_ok=True)
     write_csv(out / "sweep.csv", result)

@@ -99,9 +99,9 @@ def _pairs(fleet, pred: dict, scored: dict) -> dict:
     from bev_mdo.models import fleet as fl
     from bev_mdo.models import pairs as pr
 
-    family = fleet.family()
+    family = fleet.model_line()
     all_pairs = pr.find_pairs(family, fleet.drive, fleet.rated_power_kw, fleet.test_mass_kg, ~fleet.outlier)
-    out = {"rule": "same make and model line (Fleet.family), different drive class, rated power or test mass; "
+    out = {"rule": "same make and model line (Fleet.model_line), different drive class, rated power or test mass; "
                    "A = earlier row, diff = 100 (E_B / E_A - 1)",
            "slope": "least squares through the origin, predicted on measured", "families": len(set(family)),
            "pairs": len(all_pairs)}

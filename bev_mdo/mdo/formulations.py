@@ -337,8 +337,12 @@ class IDF(Formulation):
         self.var_names = dv_names + self.couplings
         self.lower = np.concatenate([problem.array("lower"), [problem.coupling_bound(c)[0] for c in self.couplings]])
         self.upper = np.concatenate([problem.array("upper"), [problem.coupling_bound(c)[1] for c in self.couplings]])
-        self.coupling_scale = np.maximum(np.abs(y0), 1.0)
-        self.offset = np.concatenate([problem.array("lower"), np.zeros(len(self.couplings))])
+        # Couplings to order one like the design variables: from their bounds where both are given
+        # (OpenMDAO's ref0/ref), else from their value at the start (floored at 1).
+        lo_c, hi_c = self.lower[len(dv_names):], self.upper[len(dv_names):]
+        bounded = np.isfinite(lo_c) & np.isfinite(hi_c)
+        self.coupling_scale = np.where(bounded, hi_c - lo_c, np.maximum(np.abs(y0), 1.0))
+        self.offset = np.concatenate([problem.array("lower"), np.where(bounded, lo_c, 0.0)])
         self.scale = np.concatenate([problem.array("scale"), self.coupling_scale])
         self.x0 = np.concatenate([problem.x0(), np.clip(y0, self.lower[len(dv_names):], self.upper[len(dv_names):])])
         self.eq_labels = [f"{c} consistency" for c in self.couplings]

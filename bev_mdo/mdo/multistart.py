@@ -2,9 +2,12 @@
 the best on the sample (``bev-mdo optimize --starts N``).
 
 The starts are a Latin hypercube over the design variables' bounds (scipy.stats.qmc, seeded); each
-runs ``driver.run_optimization`` through the same evaluator, one after another (each run batches its
-own points and gradient stencils; the starts are not batched with each other). Every start's iteration
-records go to the callback with one running iteration number, so a bag holds them as one run.
+runs ``driver.run_optimization``, all at once, in lockstep (lockstep.py): the points every running
+start asks for at the same step go to the evaluator as one batch per discipline, so over ROS N starts
+cost about the round trips of one. Each start's rows are evaluated as they would be alone, so its
+result is the one it reaches run by itself (``batched=False`` runs them one after another, for
+comparison). Every start's iteration records go to the callback with one running iteration number,
+so a bag holds them as one run.
 
 A start **reached the best point** when its result is feasible, its objective is within ``rel_tol``
 (relative) of the best feasible objective, and every design variable is within ``design_tol`` of
@@ -21,6 +24,7 @@ from scipy.stats import qmc
 
 from bev_mdo.mdo.driver import Run, RunResult, run_optimization
 from bev_mdo.mdo.evaluator import Evaluator
+from bev_mdo.mdo.lockstep import run_lockstep
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import RunSettings
 
@@ -39,26 +43,30 @@ def start_points(problem: Problem, starts: int, seed: int = 0) -> list[dict[str,
 
 def run_starts(run: Run, evaluator: Evaluator, starts: int, *, seed: int = 0, formulation: str | None = None,
                optimizer: str | None = None, callback: Callable[[dict], Any] | None = None,
-               rel_tol: float = REL_TOL, design_tol: float = DESIGN_TOL) -> RunResult:
+               rel_tol: float = REL_TOL, design_tol: float = DESIGN_TOL, batched: bool = True) -> RunResult:
     """The best of ``starts`` optimisations (RunResult of the best start, with the totals of all of
     them and ``multistart`` set); one start is ``run_optimization`` as it is."""
     t0 = time.perf_counter()
     run = RunSettings.of(run, evaluator)
     problem = Problem.from_config(run.problem)
-    offset = [0]
-
-    def renumbered(rec: dict) -> None:
-        if callback is not None:
-            callback({**rec, "iteration": rec["iteration"] + offset[0]})
-
     if starts == 1:
         return run_optimization(run, evaluator, formulation=formulation, optimizer=optimizer, callback=callback)
-    results = []
-    for x0 in start_points(problem, starts, seed):
-        res = run_optimization(run, evaluator, formulation=formulation, optimizer=optimizer, x0=x0,
-                               callback=renumbered)
-        offset[0] += len(res.history)
-        results.append((x0, res))
+    count = [0]
+
+    def renumbered(rec: dict) -> None:  # on one thread: records in the order they were made
+        if callback is not None:
+            callback({**rec, "iteration": count[0]})
+        count[0] += 1
+
+    points = start_points(problem, starts, seed)
+    if batched:
+        def job(x0: dict[str, float]):
+            return lambda ev: run_optimization(run, ev, formulation=formulation, optimizer=optimizer, x0=x0,
+                                               callback=lambda rec: ev.emit(renumbered, rec))
+        results = list(zip(points, run_lockstep(evaluator, [job(x0) for x0 in points])))
+    else:
+        results = [(x0, run_optimization(run, evaluator, formulation=formulation, optimizer=optimizer, x0=x0,
+                                         callback=renumbered)) for x0 in points]
     sign = -1.0 if problem.maximize else 1.0
     feasible = [i for i, (_, r) in enumerate(results) if r.feasible]
     pool = feasible or list(range(len(results)))
@@ -76,7 +84,7 @@ def run_starts(run: Run, evaluator: Evaluator, starts: int, *, seed: int = 0, fo
 
     wall = time.perf_counter() - t0
     best.multistart = {
-        "starts": starts, "seed": seed, "best_start": best_i, "reached_best": sum(reached(r) for _, r in results),
+        "starts": starts, "seed": seed, "batched": batched, "best_start": best_i, "reached_best": sum(reached(r) for _, r in results),
         "objective_rel_tol": rel_tol, "design_tol": design_tol,
         "designs_per_s": sum(r.points_evaluated for _, r in results) / max(wall, 1e-12),
         "results": [{"start": i, "x0": x0, "objective": r.objective, "feasible": r.feasible, "verdict": r.verdict,

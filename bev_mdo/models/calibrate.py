@@ -133,6 +133,20 @@ def cross_validate(fleet: fl.Fleet, k: int = 5, names=None, cycles: dict | None 
             "fold_params": np.array(xs)}
 
 
+def cv_pairs(fleet: fl.Fleet, cv: dict, use: np.ndarray) -> dict:
+    """Within-family pairs (models/pairs.py) of the cross-validated predictions, per cycle: every
+    pair lies in one model line, hence in one family and fold, so both of its vehicles are
+    predicted by the same fit that saw neither."""
+    from . import pairs as pr
+
+    found = pr.find_pairs(fleet.model_line(), fleet.drive, fleet.rated_power_kw, fleet.test_mass_kg, use)
+    out = {}
+    for c in fl.CYCLES:
+        predicted = fleet.measured[c] * (1.0 + np.nan_to_num(cv["errors_pct"][c]) / 100.0)
+        out[c] = pr.pair_stats(pr.pct_diff(fleet.measured[c], found), pr.pct_diff(predicted, found))
+    return out
+
+
 def _fleet_name(fleet: fl.Fleet) -> str:
     """The fleet file as the parameter set records it: the shipped one by its place in the repository."""
     from pathlib import Path
@@ -220,6 +234,11 @@ def main(argv=None) -> int:
     by_make = (f"leave-one-make-out MAPE {cv_make['stats']['mean_abs_pct']:.2f} %" if cv_make else
                "no leave-one-make-out CV (one make)")
     print(f"train MAPE {f['mape_pct']:.2f} % over {f['n_residuals']} vehicle-cycles; {by_family}, {by_make}")
+    if cv:
+        pairs = cv_pairs(fleet, cv, use)
+        print("pairs of the CV by family: " + "; ".join(
+            f"{c.replace('epa_', '')} n={s['n']} slope {s['slope_through_origin']:.2f}, mean |diff| "
+            f"{s['mean_abs_diff_points']:.2f} points" for c, s in pairs.items() if s["n"]))
     if args.write:
         try:
             print("wrote", write_parameter_set(f, cv, cv_make, fleet, path))

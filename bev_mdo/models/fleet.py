@@ -47,6 +47,18 @@ TEXT = ("make", "model")
 OPTIONAL_TEXT = ("test_vehicle_id", "config", "drive", "reported_unit", "flag")
 UNITS = ("MPGe", "kWh/100mi")
 DRIVES = ("F", "R", "A", "4", "P")
+# optional technology columns: allowed values ('unknown' where no source gives one; the sources are in
+# technology_sources.csv beside the shipped file)
+MOTOR_TYPES = ("PMSM", "induction", "EESM", "none", "unknown")
+TECHNOLOGY = {
+    "driven_axles": ("1", "2", "unknown"),
+    "driven_axle_position": ("front", "rear", "both", "unknown"),
+    "motor_front": MOTOR_TYPES,
+    "motor_rear": MOTOR_TYPES,
+    "gear_count": ("1", "2", "unknown"),
+    "battery_voltage_class_v": ("400", "800", "unknown"),
+}
+TECHNOLOGY_SOURCES = DATA_DIR / "technology_sources.csv"
 
 
 @dataclass
@@ -67,6 +79,17 @@ class Fleet:
     gear_ratio: np.ndarray               # FLEET_GEAR_RATIO (the axle_ratio column is not used)
     gear_listed: np.ndarray              # axle_ratio given
     measured: dict = field(default_factory=dict)   # cycle -> (N,) Wh/km from the wall
+    technology: dict = field(default_factory=dict)  # column -> list of str, the TECHNOLOGY columns given
+
+    @property
+    def driven_axles(self) -> np.ndarray:
+        """1 or 2 per vehicle: the ``driven_axles`` column where given, else from the EPA drive code
+        (A/4/P all-wheel: 2; F, R or empty: 1)."""
+        col = self.technology.get("driven_axles")
+        from_drive = [2 if d in ("A", "4", "P") else 1 for d in self.drive]
+        if col is None:
+            return np.array(from_drive, float)
+        return np.array([float(c) if c != "unknown" else f for c, f in zip(col, from_drive)])
 
     def __len__(self) -> int:
         return len(self.make)
@@ -85,6 +108,21 @@ class Fleet:
             key = " ".join(tokens[:2]) if tokens and tokens[0] == "model" else (tokens[0] if tokens else "")
             out.append(f"{make.lower()} {key}")
         return out
+
+    def model_line(self) -> list[str]:
+        """Model line for within-family pairs: the :meth:`family`, split where the file gives the
+        pack voltage class and rows of one family differ in it (400 V and 800 V are two platforms,
+        e.g. Audi's e-tron SUV and e-tron GT). A refinement of the family, so both vehicles of a
+        pair always sit in one cross-validation fold."""
+        out, volts = self.family(), self.technology.get("battery_voltage_class_v")
+        if not volts:
+            return out
+        known: dict[str, set] = {}
+        for name, v in zip(out, volts):
+            if v != "unknown":
+                known.setdefault(name, set()).add(v)
+        return [f"{name} {v} V" if len(known.get(name, ())) > 1 and v != "unknown" else name
+                for name, v in zip(out, volts)]
 
     def road_load(self) -> dict[str, np.ndarray]:
         """The fleet's coast-down coefficients as road_load parameters (A fixed: the test mass is the mass)."""
@@ -160,6 +198,15 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
         drive = text["drive"][-1]
         if drive and drive not in DRIVES:
             raise ValueError(f"{path}: row {r}, column drive: unknown drive {drive!r}; known: {list(DRIVES)}")
+        for name, allowed in TECHNOLOGY.items():
+            if name in col:
+                cell = row[col[name]].strip() or "unknown"
+                if cell not in allowed:
+                    raise ValueError(f"{path}: row {r}, column {name}: {cell!r} is not one of {list(allowed)}")
+                text.setdefault(name, []).append(cell)
+        axles = text.get("driven_axles", ["unknown"])[-1]
+        if drive and axles != "unknown" and (axles == "2") != (drive in ("A", "4", "P")):
+            raise ValueError(f"{path}: row {r}, column driven_axles: {axles} contradicts drive {drive!r}")
         a, b, c = (data[k][-1] for k in ("road_load_a_n", "road_load_b_n_per_m_s", "road_load_c_n_per_m2_s2"))
         v = np.linspace(0.0, 45.0, 451)  # up to 162 km/h: beyond both cycles
         if np.min(a + b * v + c * v * v) <= 0:
@@ -173,7 +220,7 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
     return Fleet(str(path), np.array(row_no), text["make"], text["model"], text["drive"], text["flag"],
                  arr["rated_power_kw"], arr["test_mass_kg"], arr["road_load_a_n"], arr["road_load_b_n_per_m_s"],
                  arr["road_load_c_n_per_m2_s2"], np.full(len(row_no), FLEET_GEAR_RATIO), listed,
-                 {c: arr[MEASURED[c]] for c in CYCLES})
+                 {c: arr[MEASURED[c]] for c in CYCLES}, {k: text[k] for k in TECHNOLOGY if k in text})
 
 
 def fleet_params(fleet: Fleet, base: dict | None = None) -> dict:

@@ -1,8 +1,9 @@
 """Within-family pairs of a fleet: does a model move with the design as measured cars do?
 
-A pair is two vehicles of one model family (``Fleet.family``: make + model line) that differ in
-drive (two-wheel against all-wheel, front against rear), rated power or test mass; rows that
-differ only in wheels or trim (same drive, power and mass) are not a pair. Each pair is oriented
+A pair is two vehicles of one model line (``Fleet.model_line``: make + model name, split by pack
+voltage class where the file gives it) that differ in drive (two-wheel against all-wheel, front
+against rear), rated power or test mass; rows that differ only in wheels or trim (same drive,
+power and mass) are not a pair. Each pair is oriented
 in file order (A = the earlier row, B = the later one) and compared by its percentage
 difference ``100 (E_B / E_A - 1)``, measured and predicted. :func:`pair_stats` gives the slope
 of predicted on measured by least squares through the origin and the mean absolute difference

@@ -7,7 +7,7 @@ import argparse
 import pytest
 
 from bev_mdo.cli import build_parser
-from bev_mdo.cli.ros_args import ros_section
+from bev_mdo.api.transport import ros_section
 from bev_mdo.ros_settings import choose_domain
 
 

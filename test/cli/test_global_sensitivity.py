@@ -64,7 +64,7 @@ def test_g_function_morris_ranks_the_variables_by_their_a(capsys):
 
 
 def test_every_design_goes_in_one_call():
-    from bev_mdo.cli.global_sensitivity import analyse
+    from bev_mdo.api.sensitivity import analyse
 
     calls = []
 

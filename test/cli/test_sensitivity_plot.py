@@ -6,7 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bev_mdo.cli.sensitivity import build_batch, write_heatmap
+from bev_mdo.api.sensitivity import build_batch
+from bev_mdo.cli.sensitivity import write_heatmap
 from bev_mdo.config import load_config, resolve_disciplines
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 from bev_mdo.mdo.sensitivity import sensitivities

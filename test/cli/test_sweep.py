@@ -35,12 +35,11 @@ def test_sweep_writes_csv_and_plots_and_matches_single_evaluations(tmp_path, cap
     assert all(r["feasible"] == "False" for r in rows if float(r["motor_kw"]) == 40)
     assert any(r["feasible"] == "True" for r in rows)
     # one row equals a one-design evaluation
-    from bev_mdo.cli.evaluate import _evaluator
-    from bev_mdo.mdo.driver import evaluate_design
+    from bev_mdo.api import evaluate
 
     cfg = load_config(CONFIG)
     r = rows[7]
-    one = evaluate_design(cfg, _evaluator(cfg, False), {k: float(r[k]) for k in ("motor_kw", "gear_ratio", "battery_kwh")})
+    one = evaluate.design(cfg, {k: float(r[k]) for k in ("motor_kw", "gear_ratio", "battery_kwh")})
     assert float(r["energy_wh_per_km"]) == pytest.approx(one["outputs"]["energy_wh_per_km"], rel=1e-9)
     assert (tmp_path / "energy_wh_per_km.png").exists() and (tmp_path / "range_km.png").exists()
     assert "15 designs in one batch" in capsys.readouterr().out

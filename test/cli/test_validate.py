@@ -149,7 +149,7 @@ def _duplicate(col, value):
     (_set("rated_power_kw", "", 7), "row 8, column rated_power_kw: not a number: ''"),
     (_set("road_load_b_n_per_m_s", "-40", 7), "row 8, column road_load_b_n_per_m_s: the road load"),
     # a second test_mass_kg column (e.g. pasted in lb) was read instead of the first, without a word
-    (_duplicate("test_mass_kg", "5000"), "row 1, column test_mass_kg: given twice (columns 8 and 16)"),
+    (_duplicate("test_mass_kg", "5000"), "row 1, column test_mass_kg: given twice (columns 8 and 22)"),
 ])
 def test_bad_fleet_file_one_line_exit_2(capsys, tmp_path, edit, expect):
     p = _bad(tmp_path, edit)

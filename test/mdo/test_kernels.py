@@ -71,3 +71,19 @@ def test_optimisers_reach_the_published_optima_under_the_kernel(kernel):
     proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", *REACHING],
                           cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stdout[-4000:]
+
+
+ROS_REACHING = ["test/ros/test_sellar_ros.py::test_sellar_over_ros_gives_the_in_process_iterates_and_the_reference"]
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+@pytest.mark.parametrize("kernel", _chosen() or [pytest.param("none", marks=pytest.mark.skip("no known kernel"))])
+def test_optimisers_over_ros_reach_the_published_optimum_under_the_kernel(kernel):
+    """Sellar MDF and IDF with SLSQP, COBYQA, COBYLA and trust-constr over ROS (the coordinator here, the
+    discipline nodes in their own processes, every one under the kernel): the in-process iterates and
+    the published optimum."""
+    env = {**os.environ, "OPENBLAS_CORETYPE": kernel}
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", *ROS_REACHING],
+                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stdout[-4000:]

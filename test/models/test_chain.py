@@ -86,14 +86,24 @@ def test_shipped_data_is_the_shared_data():
     import hashlib
     from pathlib import Path
 
+    import csv
+
     shared = Path("/work/shared/data")
-    pairs = [(fl.DEFAULT_FLEET, shared / "epa_2022_bev" / "train.csv")]
-    pairs += [(Path(chain.__file__).parent.parent / "data" / "drive_cycles" / f"epa_{c}.csv",
-               shared / "drive_cycles" / f"epa_{c}.csv") for c in ("udds", "hwfet", "us06")]
+    pairs = [(Path(chain.__file__).parent.parent / "data" / "drive_cycles" / f"epa_{c}.csv",
+              shared / "drive_cycles" / f"epa_{c}.csv") for c in ("udds", "hwfet", "us06")]
     for ours, theirs in pairs:
         assert ours.is_file()
         if theirs.is_file():
             assert hashlib.sha256(ours.read_bytes()).digest() == hashlib.sha256(theirs.read_bytes()).digest()
+    # the fleet file: the shared columns cell for cell, plus the technology columns at the end
+    theirs = shared / "epa_2022_bev" / "train.csv"
+    with open(fl.DEFAULT_FLEET, newline="") as f:
+        ours_rows = list(csv.reader(f))
+    assert ours_rows[0][-len(fl.TECHNOLOGY):] == list(fl.TECHNOLOGY)
+    if theirs.is_file():
+        with open(theirs, newline="") as f:
+            theirs_rows = list(csv.reader(f))
+        assert [r[:-len(fl.TECHNOLOGY)] for r in ours_rows] == theirs_rows
 
 
 def test_calibration_reproduces_the_shipped_fit():

@@ -46,3 +46,47 @@ def test_no_pairs_gives_no_figures():
 
 def test_drive_classes():
     assert [pr.drive_class(d) for d in ("F", "r", "A", "4", "P", "")] == ["F", "R", "AWD", "AWD", "AWD", ""]
+
+
+def test_model_lines_refine_families_by_pack_voltage():
+    """Audi's e-tron SUV (400 V) and e-tron GT (800 V) share the name 'e-tron' but not a platform:
+    two model lines in one cross-validation family; names without a voltage conflict stay as they are."""
+    from bev_mdo.models import fleet as fl
+
+    f = fl.read_fleet()
+    family, line = f.family(), f.model_line()
+    gt = [i for i, m in enumerate(f.model) if m.endswith("e-tron GT")]
+    suv = [i for i, m in enumerate(f.model) if "quattro" in m or m == "e-tron S"]
+    assert gt and suv and {family[i] for i in gt + suv} == {"audi e-tron"}
+    assert {line[i] for i in gt} == {"audi e-tron 800 V"} and {line[i] for i in suv} == {"audi e-tron 400 V"}
+    assert all(line[i] == family[i] for i in range(len(f)) if f.make[i] != "AUDI")
+    # a model line never spans two families, so a pair's two vehicles are held out together
+    assert all(len({family[i] for i in range(len(f)) if line[i] == name}) == 1 for name in set(line))
+
+
+@pytest.fixture(scope="module")
+def family_cv_pairs():
+    from bev_mdo.models import calibrate as cal
+    from bev_mdo.models import fleet as fl
+
+    f = fl.read_fleet()
+    cycles = fl.resampled_cycles()
+    use = cal.usable(f, cycles)
+    cv = cal.cross_validate(f, 5, cycles=cycles, use=use)
+    return cv, cal.cv_pairs(f, cv, use)
+
+
+def test_pairs_of_the_family_cross_validation_of_the_training_half(family_cv_pairs):
+    """The shipped chain, 5-fold CV by family on the training half, pairs by model line. Measured
+    (docs/validation.md): UDDS slope 0.83, 4.1 pp; HWFET slope 1.00, 2.7 pp (117 -> 105 pairs: the
+    e-tron GT is no longer paired with the e-tron SUV). The HWFET slope meets the target (0.85-1.15);
+    the other three do NOT, and are pinned at today's level so that a change cannot make them worse
+    unnoticed."""
+    cv, s = family_cv_pairs
+    assert cv["stats"]["mean_abs_pct"] == pytest.approx(7.985, abs=0.02)
+    udds, hwfet = s["epa_udds"], s["epa_hwfet"]
+    assert udds["n"] == hwfet["n"] and udds["n"] > 100
+    assert hwfet["slope_met"] is True                                  # target met
+    assert 0.80 <= udds["slope_through_origin"] < pr.SLOPE_TARGET[0]   # target not met (0.83)
+    assert udds["mean_abs_diff_points"] <= 4.3                         # target 2.5 not met (4.13)
+    assert hwfet["mean_abs_diff_points"] <= 2.9                        # target 2.5 not met (2.73)

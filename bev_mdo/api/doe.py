@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bev_mdo.cli import UsageError
+from bev_mdo.api.errors import InputError
 
 METHODS = ("lhs", "sobol", "halton", "full")
 
@@ -26,27 +26,27 @@ def sample(method: str, bounds: dict[str, tuple[float, float]], n: int, seed: in
     names = list(bounds)
     d = len(names)
     if not names:
-        raise UsageError("--doe: no design variable left to vary (all are fixed with --set)")
+        raise InputError("--doe: no design variable left to vary (all are fixed with --set)")
     if n < 1 or (method == "full" and n < 2):
-        raise UsageError(f"--samples {n}: must be >= {2 if method == 'full' else 1}")
+        raise InputError(f"--samples {n}: must be >= {2 if method == 'full' else 1}")
     lo = np.array([bounds[k][0] for k in names], dtype=float)
     hi = np.array([bounds[k][1] for k in names], dtype=float)
     if method == "full":
         if n ** d > 1_000_000:
-            raise UsageError(f"--doe full --samples {n}: {n}^{d} = {n ** d} designs is too many; use lhs or sobol")
+            raise InputError(f"--doe full --samples {n}: {n}^{d} = {n ** d} designs is too many; use lhs or sobol")
         unit = np.array(list(itertools.product(*[np.linspace(0.0, 1.0, n)] * d)), dtype=float)
     elif method == "lhs":
         unit = qmc.LatinHypercube(d, rng=seed).random(n)
     elif method == "sobol":
         m = int(round(np.log2(n)))
         if 2 ** m != n:
-            raise UsageError(f"--doe sobol --samples {n}: must be a power of 2 (e.g. {2 ** max(m, 0)} or "
+            raise InputError(f"--doe sobol --samples {n}: must be a power of 2 (e.g. {2 ** max(m, 0)} or "
                              f"{2 ** (m + 1)}) to keep the sequence balanced")
         unit = qmc.Sobol(d, scramble=True, rng=seed).random_base2(m)
     elif method == "halton":
         unit = qmc.Halton(d, scramble=True, rng=seed).random(n)
     else:
-        raise UsageError(f"--doe {method!r}: allowed: {', '.join(METHODS)}")
+        raise InputError(f"--doe {method!r}: allowed: {', '.join(METHODS)}")
     X = lo + unit * (hi - lo)
     return {k: X[:, j] for j, k in enumerate(names)}
 
@@ -96,7 +96,7 @@ def record(bag_dir: Path, config, result: dict, method: str, transport: str) -> 
     the DOE method), the effective config in the metadata."""
     import uuid
 
-    from bev_mdo.cli.runbag import InProcessBag
+    from bev_mdo.api.runbag import InProcessBag
 
     bag = InProcessBag(Path(bag_dir), config, uuid.uuid4().hex[:16], transport=transport)
     problem, n = result["problem"], len(result["feasible"])

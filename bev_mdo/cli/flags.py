@@ -1,13 +1,8 @@
-"""Command-line flags for joining a ROS graph; they override the config's `ros:` section.
-
-The domain follows the ROS convention (settings.choose_domain): ``--domain-id``, else the
-config's ``ros.domain_id`` when it states one, else ``ROS_DOMAIN_ID`` of the environment, else 77.
-When the config overrides the environment, one line on stderr says so.
-"""
+"""Command-line flags shared by several commands: ROS discovery and transport (their meaning:
+bev_mdo.api.transport) and the problem overrides (bev_mdo.api.overrides)."""
 from __future__ import annotations
 
 import argparse
-from typing import Any, Mapping
 
 
 def add_ros_arguments(parser) -> None:
@@ -19,31 +14,6 @@ def add_ros_arguments(parser) -> None:
                    help="how nodes find each other; anything but localhost is an explicit opt-in to other hosts")
     g.add_argument("--static-peers", default=None, metavar="IP[,IP...]", help="with --discovery static_peers")
     g.add_argument("--discovery-server", default=None, metavar="IP:PORT", help="with --discovery server")
-
-
-def ros_section(config: Mapping[str, Any], args) -> dict:
-    """The validated ros: section of `config` with the command-line flags and the domain rule applied."""
-    from bev_mdo.ros_settings import validate_ros
-
-    import sys
-
-    from bev_mdo.ros_settings import choose_domain
-
-    ros = dict(config.get("ros") or {})
-    ros["domain_id"], note = choose_domain(ros, getattr(args, "domain_id", None))
-    if note and not getattr(args, "_domain_note_shown", False):
-        print(f"bev-mdo: {note}", file=sys.stderr)
-        try:
-            args._domain_note_shown = True  # one line per command, however often the section is built
-        except AttributeError:
-            pass
-    if getattr(args, "discovery", None):
-        ros["discovery"] = args.discovery
-    if getattr(args, "static_peers", None):
-        ros["static_peers"] = [p.strip() for p in args.static_peers.split(",") if p.strip()]
-    if getattr(args, "discovery_server", None):
-        ros["discovery_server"] = args.discovery_server
-    return validate_ros(ros)
 
 
 def add_transport_arguments(parser) -> None:
@@ -59,7 +29,21 @@ def add_transport_arguments(parser) -> None:
     add_ros_arguments(parser)
 
 
-def uses_ros(args) -> bool:
-    """True when the command's designs go over ROS (``--transport ros``, ``--launch`` or the old ``--ros``)."""
-    return getattr(args, "transport", "inprocess") == "ros" or bool(getattr(args, "launch", False)) \
-        or bool(getattr(args, "ros", False))
+def add_override_arguments(parser) -> None:
+    g = parser.add_argument_group("problem overrides (applied to the config before it is checked and recorded)")
+    g.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI",
+                   help="bounds of a design variable; LO or HI may be left out (motor_kw=:100)")
+    g.add_argument("--initial", action="append", default=[], metavar="NAME=X", help="initial value of a design variable")
+    g.add_argument("--constraint", action="append", default=[], metavar="'NAME>=X'",
+                   help="add or change a constraint on an output: 'range_km>=250' or 'accel_time_0_100_s<=9'")
+    g.add_argument("--objective", default=None, metavar="NAME", help="the output to optimise")
+    sense = g.add_mutually_exclusive_group()
+    sense.add_argument("--maximize", action="store_true", default=None, help="maximise the objective")
+    sense.add_argument("--minimize", dest="maximize", action="store_false", help="minimise the objective")
+
+
+def load_config(args, path=None) -> dict:
+    """The validated config of ``path`` (default ``args.config``) with the command line's overrides."""
+    from bev_mdo.api.overrides import from_args, load
+
+    return load(args.config if path is None else path, from_args(args))

@@ -78,7 +78,7 @@ def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
     values = {k: c["value"] for k, c in result.get("constraints", {}).items()}
     values.update({k: v for k, v in result.get("outputs", {}).items() if k not in values})
     # the same time budget per discipline call as the run had (a hung user discipline must not hang the answers)
-    from bev_mdo.cli.failures import TimedDiscipline
+    from bev_mdo.api.failures import TimedDiscipline
     from bev_mdo.config import resolve_disciplines
     from bev_mdo.ros_settings import validate_ros
 

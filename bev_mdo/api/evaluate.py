@@ -1,0 +1,84 @@
+"""Designs evaluated through every discipline: one (``design``) or a batch (``batch``), in process
+or through the discipline nodes (``Transport``). The core of ``Study.evaluate``/``Study.sweep`` and
+of ``bev-mdo evaluate``/``sweep``/``compare``."""
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from bev_mdo.api.errors import InputError
+from bev_mdo.api.transport import Evaluating
+
+
+def declared_units(config: dict) -> dict[str, str]:
+    """{variable: unit} as the run's disciplines declare them (mdo/units.py): what tables and plots print."""
+    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.mdo.units import run_units
+
+    return run_units(resolve_disciplines(config))
+
+
+def design(config: dict, given: dict[str, float], transport=None) -> dict:
+    """The report of one multidisciplinary analysis (mdo.driver.evaluate_design: design, outputs,
+    objective, constraints with margins, feasible, ok, error). Design variables not given take their
+    initial value; a value outside its bounds is evaluated as given, with a note on stderr."""
+    from bev_mdo.config import run_settings
+    from bev_mdo.mdo.driver import evaluate_design
+    from bev_mdo.mdo.problem import Problem
+
+    problem = Problem.from_config(config["problem"])
+    full = {**{d.name: d.initial for d in problem.design_variables}, **given}
+    for d in problem.design_variables:  # evaluated as given, but a user should know it is off the design space
+        v = given.get(d.name)
+        if isinstance(v, (int, float)) and not d.lower <= v <= d.upper:
+            print(f"bev-mdo evaluate: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
+                  "(evaluated as given)", file=sys.stderr)
+    with Evaluating(config, transport) as evaluator:
+        return evaluate_design(run_settings(config), evaluator, full)
+
+
+def batch(config: dict, designs: dict[str, np.ndarray], transport=None) -> dict:
+    """One batch of MDAs: {design: {k: array}, outputs: {k: array}, margins: {c: array},
+    feasible: bool array, ok: bool array, errors: [str], objective, problem, units} (``designs`` may set
+    model parameters too; variables not given keep their initial value)."""
+    from bev_mdo.config import run_settings
+    from bev_mdo.mdo.driver import FEASIBILITY_TOL, _mda
+    from bev_mdo.mdo.problem import Problem
+
+    problem = Problem.from_config(config["problem"])
+    n = len(next(iter(designs.values())))
+    cols = {d.name: np.full(n, d.initial) for d in problem.design_variables}
+    cols.update({k: np.full(n, float(v)) for k, v in problem.parameters.items()})
+    with Evaluating(config, transport, announce=True) as evaluator:
+        mda = _mda(run_settings(config), evaluator, problem)
+        params = {p for s in mda.specs.values() for p in s.parameters}
+        unknown = [k for k in designs if k not in problem.names and k not in params]
+        if unknown:
+            raise InputError(f"unknown names {unknown}; design variables: {problem.names}, "
+                             f"parameters: {sorted(params)}")
+        for d in problem.design_variables:
+            if d.name in designs:
+                v = np.asarray(designs[d.name], dtype=float)
+                bad = v[(v < d.lower) | (v > d.upper)]
+                if bad.size:
+                    raise InputError(f"{d.name}={bad[0]:g} is outside its bounds [{d.lower:g}, {d.upper:g}]")
+        cols.update({k: np.asarray(v, dtype=float) for k, v in designs.items()})
+        res = mda.run(cols)
+    outputs = {v: np.asarray(res.values[v], dtype=float) for s in mda.specs.values() for v in s.outputs}
+    margins, feasible = {}, np.asarray(res.ok, dtype=bool).copy()
+    for c in problem.constraints:
+        y = outputs[c.name]
+        m = np.full(n, np.inf)
+        if c.lower is not None:
+            m = np.minimum(m, y - c.lower)
+        if c.upper is not None:
+            m = np.minimum(m, c.upper - y)
+        margins[c.name] = m
+        scale = c.scale or max(abs(c.lower if c.lower is not None else c.upper), 1.0)
+        if not c.monitor:
+            feasible &= np.isfinite(m) & (m >= -FEASIBILITY_TOL * scale)
+    return {"design": {k: cols[k] for k in [*problem.names, *[k for k in designs if k not in problem.names]]},
+            "outputs": outputs, "margins": margins, "feasible": feasible, "ok": np.asarray(res.ok, bool),
+            "errors": res.messages, "objective": problem.objective, "problem": problem,
+            "units": declared_units(config)}

@@ -1,0 +1,167 @@
+"""One optimisation of a resolved config, in process or over ROS: the core of ``Study.optimize``
+and of ``bev-mdo optimize`` / ``resume``.
+
+Over ROS it starts one node per discipline (by default in this process, ``compose``) and a
+recorder, runs the coordinator here and shuts every process down at the end (also on Ctrl-C).
+Every run ends with a first-order check of its result (bev_mdo/mdo/first_order.py) and the
+end-of-run answers (bev_mdo/mdo/active.py), stored with the bag when there is one.
+"""
+from __future__ import annotations
+
+import time
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+
+from bev_mdo.api.errors import InputError
+from bev_mdo.api.transport import Transport
+
+
+@dataclass
+class OptimizeOptions(Transport):
+    """What a run may choose beside the config (the ``bev-mdo optimize`` flags of the same names)."""
+
+    formulation: str | None = None  # mdf | idf (default: the config's)
+    optimizer: str | None = None  # SLSQP, trust-constr, COBYQA, ... (default: the config's)
+    starts: int = 1  # >1: a Latin hypercube of start points (seed), the best end reported
+    seed: int = 0
+    bag: str | None = None  # bag directory to write (in process: only when given; ROS: a default name)
+    no_record: bool = False
+    quiet: bool = False
+    instances: str | None = None  # ROS: "N" or "NAME=N,..." instances per discipline
+    compose: str | None = "coordinator"  # ROS: where the discipline nodes run (docs/scaling.md)
+    fixed_budget: bool = False  # the verdict of a feasible end that is not a verified optimum is still ok
+    progress_to_stderr: bool = False  # ROS start-up line on stderr (the CLI's --json)
+
+
+def run(config: dict, opts: OptimizeOptions, callback=None, x0: dict | None = None) -> dict:
+    """The run's JSON document: the result (design, outputs, constraints, first_order, verdict,
+    active, ...) with ``baseline``, the transport's figures and ``run_time_s``."""
+    if opts.optimizer:
+        from bev_mdo.config import check_optimizer_options
+        from bev_mdo.mdo.optimizers import canonical_name
+
+        # ValueError names the known optimizers, or the config's option the chosen one does not take
+        check_optimizer_options(canonical_name(opts.optimizer), (config.get("optimizer") or {}).get("options") or {})
+    starts = _starts(opts, x0)  # a bad start count is refused before anything starts or is written
+    t_start = time.perf_counter()
+    show = callback or (lambda rec: None)
+    if opts.uses_ros:
+        result, baseline, extra = _run_ros(config, opts, show, x0, starts)
+    else:
+        result, baseline, extra = _run_inprocess(config, opts, show, x0, starts)
+    from bev_mdo.api import runbag  # end-of-run answers: in the result, stored with the bag
+
+    runbag.finish(config, result, extra)
+    extra = {k: v for k, v in extra.items() if not k.startswith("_")}
+    extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
+    return {**result, "baseline": baseline, **extra}
+
+
+def _run_inprocess(config, opts, show, x0, starts):
+    from bev_mdo.api.failures import NamingInProcessEvaluator
+    from bev_mdo.api.runbag import in_process_bag
+    from bev_mdo.config import resolve_disciplines, run_settings
+    from bev_mdo.mdo.driver import run_optimization
+    from bev_mdo.ros_settings import validate_ros
+    from bev_mdo.sessions import analyse_baseline
+
+    ros = validate_ros(config.get("ros"))
+    budget = ros["timeout_s"] * (ros["retries"] + 1)  # what a ROS run gives a discipline before its points fail
+    ev = NamingInProcessEvaluator(resolve_disciplines(config), timeout_s=budget)
+    bag, writer, show = in_process_bag(config, opts, show)  # a bag only when one is asked for
+    try:
+        if starts > 1:
+            from bev_mdo.mdo.multistart import run_starts
+
+            res = run_starts(run_settings(config), ev, starts, seed=opts.seed,
+                             formulation=opts.formulation, optimizer=opts.optimizer, callback=show)
+        else:
+            res = run_optimization(run_settings(config), ev, formulation=opts.formulation,
+                                   optimizer=opts.optimizer, x0=x0, callback=show)
+    except BaseException:  # SIGINT, SIGTERM, a failure: the bag keeps every finished iteration
+        if writer is not None:
+            writer.close()
+        raise
+    out = res.to_dict()
+    out.pop("history")
+    baseline = analyse_baseline(config, NamingInProcessEvaluator(resolve_disciplines(config), timeout_s=budget,
+                                                                 errors=ev.errors))
+    extra = {"transport": "inprocess", **({"bag": bag} if bag else {}), "_bag_writer": writer}
+    if ev.errors.first:
+        extra["discipline_errors"] = dict(ev.errors.first)
+    if ev.hung:
+        extra["unresponsive_disciplines"] = ev.hung
+    return out, baseline, extra
+
+
+def _run_ros(config, opts, show, x0, starts):
+    import sys
+
+    from bev_mdo.api.transport import ros_section
+    from bev_mdo.config import discipline_entries
+    from bev_mdo.ros.launch import parse_instances
+    from bev_mdo.sessions import OptimizeRosSession
+
+    ros = ros_section(config, opts)
+    # the run's config keeps a domain only when the config stated one (a bag resumed later then
+    # follows the ROS convention again: flag, config, ROS_DOMAIN_ID, 77)
+    stated = (config.get("ros") or {}).get("domain_id") is not None
+    config = {**config, "ros": ros if stated else {k: v for k, v in ros.items() if k != "domain_id"}}
+    if opts.formulation:
+        config["formulation"] = opts.formulation
+    if opts.optimizer:
+        config["optimizer"] = {**config.get("optimizer", {}), "name": opts.optimizer}
+    run_id = uuid.uuid4().hex[:16]
+    stamp_ = time.strftime("%Y%m%d_%H%M%S")
+    bag = Path(opts.bag) if opts.bag else Path("bags") / f"{config.get('name', 'run')}_{stamp_}_{run_id[:6]}"
+    if not opts.no_record:
+        check_new_bag(bag, "--bag")
+    names = [e["name"] for e in discipline_entries(config)]
+    instances = parse_instances(opts.instances, names)
+    session = OptimizeRosSession(config, ros, bag, run_id, record=not opts.no_record, instances=instances,
+                                 compose=opts.compose)
+    if not opts.quiet:
+        where = ("in this process (--compose coordinator; --compose none: a process each)"
+                 if opts.compose == "coordinator" else "")
+        print(f"starting {len(names)} discipline nodes {where}{'' if opts.no_record else ' and a recorder'}"
+              f" (domain {ros['domain_id']}); waiting while discovery makes progress (gives up after "
+              f"{ros.get('discovery_wait_s', 20):g} s without) ...",
+              file=sys.stderr if opts.progress_to_stderr else sys.stdout, flush=True)
+    with session:
+        result, baseline = session.run(opts.formulation, opts.optimizer, x0, show, starts=starts, seed=opts.seed)
+    return result, baseline, session.summary()
+
+
+def _starts(opts, x0) -> int:
+    starts = int(opts.starts)
+    if starts < 1:
+        raise InputError(f"--starts {starts}: give at least 1")
+    if starts > 1 and x0:
+        raise InputError("--starts samples its own start points; it cannot be combined with a given start")
+    return starts
+
+
+def exit_status(doc: dict, fixed_budget: bool = False) -> int:
+    """bev-mdo optimize's exit status of a run document: 0 an optimum (or, with ``fixed_budget``,
+    any feasible end); 1 infeasible; 3 the recorder failed; 4 a discipline stopped answering;
+    5 feasible but not a verified optimum."""
+    if doc.get("recorder_failed"):
+        return 3
+    if not doc["feasible"]:
+        return 1
+    if doc.get("unresponsive_disciplines"):
+        return 4
+    return 0 if doc["verdict"] == "optimum" or fixed_budget else 5
+
+
+def check_new_bag(bag: Path, what: str) -> None:
+    """A bag may be written to `bag`: InputError (exit 2) naming it if a bag or a file is there."""
+    bag = Path(bag)
+    if bag.exists() and not bag.is_dir():
+        raise InputError(f"{what} {bag}: is a file, not a bag directory")
+    blocking = next((p for p in bag.parents if p.exists() and not p.is_dir()), None)
+    if blocking is not None:
+        raise InputError(f"{what} {bag}: {blocking} is a file, not a folder")
+    if (bag / "metadata.yaml").exists() or any(bag.glob("*.mcap")):
+        raise InputError(f"{what} {bag}: a bag already exists there; choose a new directory")

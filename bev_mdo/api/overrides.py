@@ -1,0 +1,148 @@
+"""Overrides of a run config's problem, shared by the API and every command that runs designs.
+
+``Overrides`` holds them; on the command line they are ``--bound NAME=LO:HI`` (either side may be left out: ``motor_kw=:100``), ``--initial NAME=X``,
+``--constraint "NAME>=X"`` / ``"NAME<=X"``, ``--objective NAME`` and ``--maximize`` /
+``--minimize`` (``Overrides.parse``) edit the config's ``problem`` section before it is validated (load_config's
+``edit`` hook), so a run sees, checks and records exactly the effective values. An unknown name
+is an InputError naming the nearest valid one.
+"""
+from __future__ import annotations
+
+import copy
+import difflib
+import re
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+from bev_mdo.api.errors import InputError
+
+_CONSTRAINT = re.compile(r"^\s*([A-Za-z_][\w\[\]\.]*)\s*(>=|<=)\s*(\S+)\s*$")
+
+
+@dataclass
+class Overrides:
+    """Edits of a config's problem: bounds {name: (lower or None, upper or None)}, initial values,
+    constraints {output: {"lower": x} and/or {"upper": x}}, the objective and its sense."""
+
+    bounds: dict[str, tuple[float | None, float | None]] = field(default_factory=dict)
+    initial: dict[str, float] = field(default_factory=dict)
+    constraints: dict[str, dict[str, float]] = field(default_factory=dict)
+    objective: str | None = None
+    maximize: bool | None = None
+
+    def __bool__(self) -> bool:
+        return bool(self.bounds or self.initial or self.constraints or self.objective is not None
+                    or self.maximize is not None)
+
+    @classmethod
+    def parse(cls, bound=(), initial=(), constraint=(), objective=None, maximize=None) -> "Overrides":
+        """From the command line's text: ``NAME=LO:HI``, ``NAME=X``, ``'NAME>=X'`` / ``'NAME<=X'``."""
+        ov = cls(objective=objective, maximize=maximize)
+        for item in bound or []:
+            name, sep, spec = item.partition("=")
+            lo, colon, hi = spec.partition(":")
+            if not sep or not colon or not name.strip() or not (lo.strip() or hi.strip()):
+                raise InputError(f"--bound {item!r} must be NAME=LO:HI (LO or HI may be left out)")
+            old_lo, old_hi = ov.bounds.get(name.strip(), (None, None))
+            ov.bounds[name.strip()] = (_number(lo.strip(), "--bound", item) if lo.strip() else old_lo,
+                                       _number(hi.strip(), "--bound", item) if hi.strip() else old_hi)
+        for item in initial or []:
+            name, sep, value = item.partition("=")
+            if not sep or not name.strip():
+                raise InputError(f"--initial {item!r} must be NAME=X")
+            ov.initial[name.strip()] = _number(value.strip(), "--initial", item)
+        for item in constraint or []:
+            m = _CONSTRAINT.match(item)
+            if not m:
+                raise InputError(f"--constraint {item!r} must be 'NAME>=X' or 'NAME<=X'")
+            name, op, value = m.groups()
+            ov.constraints.setdefault(name, {})["lower" if op == ">=" else "upper"] = _number(value, "--constraint", item)
+        return ov
+
+
+def from_args(args) -> Overrides:
+    """The overrides of a parsed command line (add_override_arguments)."""
+    return Overrides.parse(getattr(args, "bound", None), getattr(args, "initial", None),
+                           getattr(args, "constraint", None), getattr(args, "objective", None),
+                           getattr(args, "maximize", None))
+
+
+def load(source, overrides: Overrides | None = None) -> dict:
+    """The validated config of ``source`` (a file or a mapping) with ``overrides`` applied."""
+    from bev_mdo.config import load_config
+
+    if not overrides:
+        return load_config(source)
+    names = known_names(load_config(source))  # the config as written must be valid first
+    return load_config(source, edit=lambda raw: apply(raw, overrides, names))
+
+
+def known_names(config: Mapping[str, Any]) -> dict[str, list[str]]:
+    """{design: [design-variable names], outputs: [every discipline output]} of a resolved config."""
+    from bev_mdo.config import resolve_disciplines
+
+    outputs = sorted({v for d in resolve_disciplines(config) for v in d.outputs})
+    outputs += sorted({v.split("[")[0] for v in outputs if "[" in v})
+    return {"design": list((config["problem"].get("design_variables") or {})), "outputs": outputs}
+
+
+def _check(name: str, valid: list[str], flag: str, what: str) -> None:
+    if name in valid:
+        return
+    near = difflib.get_close_matches(name, valid, n=1, cutoff=0.5)
+    hint = f"; did you mean {near[0]!r}?" if near else f"; {what}: {', '.join(valid)}"
+    one = what[:-1] if what.endswith("s") else what
+    raise InputError(f"{flag} {name!r}: not {'an' if one[0] in 'aeiou' else 'a'} {one}{hint}")
+
+
+def _number(text: str, flag: str, item: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise InputError(f"{flag} {item!r}: {text!r} is not a number") from None
+
+
+def _clip_initials(dvs: dict, bounded: set[str]) -> None:
+    """A variable given new bounds (and no --initial) that its initial value is outside of starts at
+    the nearest bound; one note on stderr says so."""
+    import sys
+
+    for name in sorted(bounded):
+        e = dvs.get(name) or {}
+        x, lo, hi = e.get("initial"), e.get("lower"), e.get("upper")
+        if not all(isinstance(v, (int, float)) for v in (x, lo, hi)) or lo > hi or lo <= x <= hi:
+            continue
+        e["initial"] = min(max(x, lo), hi)
+        print(f"bev-mdo: note: {name} starts at {e['initial']:g}: its initial value {x:g} is outside "
+              f"--bound {lo:g}:{hi:g} (give --initial to choose)", file=sys.stderr)
+
+
+def apply(raw: Mapping[str, Any], ov: Overrides, names: Mapping[str, list[str]]) -> dict:
+    """A copy of the raw config mapping with the overrides written into its problem section."""
+    raw = copy.deepcopy(dict(raw))
+    prob = raw.setdefault("problem", {})
+    if not isinstance(prob, dict):
+        return raw  # the config's own check reports it
+    dvs = prob.setdefault("design_variables", {})
+    for name, (lo, hi) in ov.bounds.items():
+        _check(name, names["design"], "--bound", "design variables")
+        entry = dict(dvs.get(name) or {})
+        entry.update({k: float(v) for k, v in (("lower", lo), ("upper", hi)) if v is not None})
+        dvs[name] = entry
+    for name, value in ov.initial.items():
+        _check(name, names["design"], "--initial", "design variables")
+        dvs[name] = {**dict(dvs.get(name) or {}), "initial": float(value)}
+    _clip_initials(dvs, set(ov.bounds) - set(ov.initial))
+    prob["constraints"] = cons = dict(prob.get("constraints") or {})
+    for name, limits in ov.constraints.items():
+        _check(name, names["outputs"], "--constraint", "outputs")
+        cons[name] = {**dict(cons.get(name) or {}), **{k: float(v) for k, v in limits.items()}}
+    if ov.objective is not None or ov.maximize is not None:
+        current = prob.get("objective")
+        old_name = current.get("name") if isinstance(current, Mapping) else current
+        old_max = bool(current.get("maximize", False)) if isinstance(current, Mapping) else False
+        if ov.objective is not None:
+            _check(ov.objective, names["outputs"], "--objective", "outputs")
+        new_max = old_max if ov.maximize is None else bool(ov.maximize)
+        prob["objective"] = {"name": ov.objective or old_name, "maximize": True} if new_max else ov.objective or old_name
+    return raw

@@ -1,0 +1,176 @@
+"""Sensitivities of the objective and every constrained output: local (normalised first and second
+order at a design, bev_mdo.mdo.sensitivity; thesis eq 5-4 and 5-5) and global over the bounds
+(SALib). The core of ``Study.sensitivity``/``Study.global_sensitivity`` and ``bev-mdo sensitivity``.
+
+Global: SALib draws the designs and estimates the indices; every design is evaluated in ONE batch (one
+evaluator call: in process, or one request wave per graph level over ROS).
+
+* ``sobol``: Saltelli's sampling of Sobol' sequences, N (D + 2) designs for D variables; first-order
+  (S1) and total (ST) Sobol' indices of every output, each with its bootstrap confidence interval.
+* ``morris``: N trajectories of D + 1 designs on a 4-level grid; mu* (the mean absolute elementary
+  effect, in the output's unit) with its confidence interval, and sigma (interactions and
+  non-linearity).
+Variables not analysed (and model parameters) keep their value at the design point (``--at``).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from bev_mdo.api.errors import InputError
+from bev_mdo.api.transport import Evaluating, Transport
+
+METHODS = ("sobol", "morris")
+
+
+def run(config: dict, at: dict | None = None, wrt: list[str] | None = None, transport=None, *,
+        global_method: str | None = None, order: int = 2, rel_step: float | None = None, method: str = "central",
+        samples: int | None = None, seed: int = 1, conf_level: float = 0.95):
+    """Local: (mdo.sensitivity.Sensitivities, outputs, point, problem); global (``global_method``
+    sobol or morris): the JSON-ready report of ``analyse``."""
+    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.mdo.sensitivity import sensitivities
+
+    if method == "complex":  # the MDA casts every input to float64 (the discipline interface)
+        raise InputError("--method complex: the multidisciplinary analysis passes float64 values between "
+                         "disciplines (in process and over ROS), so a complex step cannot pass through it, "
+                         "whatever the disciplines; use --method central (the default)")
+    defaults = None
+    if Transport.of(transport).uses_ros:  # a remote declaration names parameters, not their values
+        local = InProcessEvaluator(resolve_disciplines(config))
+        defaults = {k: v for spec in local.specs.values() for k, v in spec.parameters.items()}
+        local.close()
+    with Evaluating(config, transport, node_name="bev_mdo_sensitivity") as ev:
+        fun, point, bounds, outputs, problem = build_batch(config, ev, defaults)
+        for k, v in (at or {}).items():
+            if k not in point:
+                raise InputError(f"--at: unknown name {k!r}; design variables: {', '.join(problem.names)}; "
+                                 f"parameters: {', '.join(n for n in point if n not in problem.names)}")
+            point[k] = float(v)
+        wrt = list(wrt or []) or list(problem.names)
+        for k in wrt:
+            if k not in point:
+                raise InputError(f"--wrt: unknown variable or parameter {k!r}; known: {', '.join(point)}")
+        if global_method:
+            samples = samples or (1024 if global_method == "sobol" else 64)
+            from bev_mdo.api.evaluate import declared_units
+
+            rep = analyse(global_method, fun, point, bounds, wrt, outputs, samples, seed, conf_level,
+                          design=list(problem.names))
+            units = declared_units(config)
+            rep["units"] = {k: units[k] for k in (*wrt, *outputs) if k in units}
+            return rep
+        s = sensitivities(fun, point, wrt=wrt, order=order, bounds=bounds, rel_step=rel_step, method=method,
+                          objective=problem.objective)
+    return s, outputs, point, problem
+
+
+def to_dict(s, outputs) -> dict:
+    d = {"wrt": list(s.names), "point": s.point, "method": s.method, "step": s.step.tolist(),
+         "n_evaluations": s.n_evaluations, "n_batches": s.n_batches, "one_sided": list(s.one_sided),
+         "values": s.values, "first_order": {}, "second_order": {}}
+    for k in outputs:
+        d["first_order"][k] = {"normalised": s.first[k].tolist(), "error": s.first_error[k].tolist(),
+                               "derivative": s.gradient[k].tolist()}
+        if s.second is not None:
+            d["second_order"][k] = {"normalised": s.second[k].tolist(), "error": s.second_error[k].tolist(),
+                                    "labels": s.labels(k).tolist()}
+    return d
+
+
+def build_batch(config, evaluator, param_defaults=None):
+    """(fun, nominal point, bounds, outputs) for the MDA of ``config`` over ``evaluator``.
+
+    ``fun(X)`` takes columns in the order of the returned point (design variables, then
+    every overridable model parameter) and returns the objective and constrained outputs.
+    """
+    from bev_mdo.config import run_settings
+    from bev_mdo.mdo.driver import build_formulation
+
+    form = build_formulation(run_settings(config), evaluator, "mdf")
+    problem, mda = form.problem, form.mda
+    params: dict[str, float] = {}
+    for spec in mda.specs.values():
+        for k, v in spec.parameters.items():
+            v = float(v)
+            if np.isnan(v) and param_defaults and k in param_defaults:
+                v = float(param_defaults[k])  # a remote declaration names parameters, not their values
+            params.setdefault(k, v)
+    own = dict(params)  # the disciplines' own values: a column equal to one is left out (below)
+    params.update(problem.parameters)
+    point = {**dict(zip(problem.names, problem.x0().tolist())), **params}
+    bounds = {v.name: (v.lower, v.upper) for v in problem.design_variables}
+    outputs = [problem.objective] + [c.name for c in problem.constraints if c.name != problem.objective]
+    names = list(point)
+
+    def fun(X):
+        # A model parameter sent as a column is evaluated design by design (a per-row model); one that
+        # keeps the discipline's own value everywhere is left out, so the batch stays vectorised.
+        cols = {k: X[:, j] for j, k in enumerate(names)
+                if not (k in own and k not in problem.parameters and np.all(X[:, j] == own[k]))}
+        res = mda.run(cols)
+        if not np.all(res.ok):
+            bad = next(e for e in res.errors if e is not None)
+            raise ValueError(f"the model failed on the FD stencil: {bad.message.splitlines()[0]}")
+        return {k: res.values[k] for k in outputs}
+    return fun, point, bounds, outputs, problem
+
+
+def analyse(method: str, fun, point: dict, bounds: dict[str, tuple[float, float]], names: list[str],
+            outputs: list[str], samples: int, seed: int, conf_level: float = 0.95,
+            num_resamples: int = 1000, design: list[str] | None = None) -> dict:
+    """The indices of every output (JSON-ready). ``fun(X)`` evaluates rows of every column of
+    ``point`` and returns {output: values}; it is called once, with every design. ``design``: the
+    design variables (those not analysed are reported as fixed; default: every name of ``point``)."""
+    if method not in METHODS:
+        raise InputError(f"--global {method!r}: allowed: {', '.join(METHODS)}")
+    if not names:
+        raise InputError("--global: no design variable to analyse")
+    missing = [k for k in names if k not in bounds]
+    if missing:
+        raise InputError(f"--global: {missing[0]!r} has no bounds (only design variables can be analysed globally)")
+    if samples < 2:
+        raise InputError(f"--samples {samples}: must be >= 2")
+    if not 0 < conf_level < 1:
+        raise InputError(f"--conf-level {conf_level}: must be in (0, 1)")
+    spec = {"num_vars": len(names), "names": list(names), "bounds": [list(map(float, bounds[k])) for k in names]}
+    if method == "sobol":
+        from SALib.sample import sobol as sampler
+
+        m = int(round(np.log2(samples)))
+        if 2 ** m != samples:
+            raise InputError(f"--global sobol --samples {samples}: must be a power of 2 (e.g. {2 ** m} or "
+                             f"{2 ** (m + 1)}) for the Sobol' sequence's balance")
+        X = sampler.sample(spec, samples, calc_second_order=False, scramble=True, seed=seed)
+    else:
+        from SALib.sample import morris as sampler
+
+        X = sampler.sample(spec, samples, num_levels=4, seed=seed)
+    cols = list(point)
+    full = np.tile(np.array([point[k] for k in cols], dtype=float), (len(X), 1))
+    for j, k in enumerate(names):
+        full[:, cols.index(k)] = X[:, j]
+    values = fun(full)
+    report = {"method": method, "variables": list(names), "bounds": {k: list(bounds[k]) for k in names},
+              "fixed": {k: float(point[k]) for k in (design if design is not None else point) if k not in names},
+              "samples": samples, "seed": seed,
+              "conf_level": conf_level, "n_evaluations": int(len(X)), "outputs": {}}
+    for out in outputs:
+        y = np.asarray(values[out], dtype=float)
+        if not np.isfinite(y).all() or np.ptp(y) == 0.0:
+            report["outputs"][out] = {"constant": True}
+            continue
+        if method == "sobol":
+            from SALib.analyze import sobol
+
+            r = sobol.analyze(spec, y, calc_second_order=False, num_resamples=num_resamples,
+                              conf_level=conf_level, seed=seed)
+            report["outputs"][out] = {k: np.asarray(r[k], float).tolist() for k in ("S1", "S1_conf", "ST", "ST_conf")}
+        else:
+            from SALib.analyze import morris
+
+            r = morris.analyze(spec, X, y, num_resamples=num_resamples, conf_level=conf_level, num_levels=4, seed=seed)
+            report["outputs"][out] = {k: np.asarray(r[k], float).tolist() for k in ("mu", "mu_star", "mu_star_conf", "sigma")}
+    return report
+
+

@@ -1,0 +1,175 @@
+"""``Study``: a config (a YAML file or a mapping built in code), the changes made to its problem, and
+the runs: evaluate, optimize, sweep (a DOE, grid or list), local and global sensitivity, pareto.
+Every run goes through the same functions as the ``bev-mdo`` command of the same name; bad input
+raises InputError with the line that command prints."""
+from __future__ import annotations
+
+import functools
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any, Mapping
+
+from bev_mdo.api.errors import InputError
+from bev_mdo.api.overrides import Overrides
+from bev_mdo.api.results import (EvaluateResult, GlobalSensitivityResult, OptimizeResult, ParetoResult,
+                                 SensitivityResult, SweepResult)
+from bev_mdo.api.transport import Transport
+
+
+def _input_errors(method):
+    """A user's mistake (ValueError, a missing file) leaves as InputError with the CLI's one line."""
+    @functools.wraps(method)
+    def call(*args, **kwargs):
+        try:
+            return method(*args, **kwargs)
+        except InputError:
+            raise
+        except (ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+            text = str(exc).strip()
+            raise InputError(text.splitlines()[0] if text else type(exc).__name__) from exc
+    return call
+
+
+def _transport(transport) -> Transport:
+    return Transport(transport=transport) if isinstance(transport, str) else Transport.of(transport)
+
+
+class Study:
+    """A run config and the changes made to its problem.
+
+    ``Study("config/leaf_nedc.yaml")`` or ``Study({...})`` (the same keys as the YAML file); the
+    config is checked at once. ``bound``, ``initial``, ``constrain`` and ``objective`` change the
+    problem (like ``--bound``, ``--initial``, ``--constraint``, ``--objective``/``--maximize``) and
+    return the study, so they chain. ``config`` is the effective, checked config a run records.
+    Runs take ``transport="inprocess"`` (default), ``"ros"`` or a ``Transport`` (launch, domain_id...).
+    """
+
+    @_input_errors
+    def __init__(self, config: str | Path | Mapping[str, Any]):
+        from bev_mdo.config import load_config
+
+        self.source = str(config) if isinstance(config, (str, Path)) else "<config>"
+        self._raw = config if isinstance(config, (str, Path)) else dict(config)
+        self.overrides = Overrides()
+        self._config = load_config(self._raw)  # the config as written must be valid
+
+    @property
+    def config(self) -> dict:
+        return self._config
+
+    def _change(self, edit) -> "Study":
+        from bev_mdo.api import overrides
+
+        new = Overrides(**{k: dict(v) if isinstance(v, dict) else v for k, v in asdict(self.overrides).items()})
+        edit(new)
+        self._config = _input_errors(overrides.load)(self._raw, new)  # checked now, not at the run
+        self.overrides = new
+        return self
+
+    def bound(self, name: str, lower: float | None = None, upper: float | None = None) -> "Study":
+        """New bounds of a design variable (a side left None keeps its value)."""
+        def edit(ov):
+            lo, hi = ov.bounds.get(name, (None, None))
+            ov.bounds[name] = (lo if lower is None else float(lower), hi if upper is None else float(upper))
+        return self._change(edit)
+
+    def initial(self, name: str, value: float) -> "Study":
+        """The initial value of a design variable."""
+        return self._change(lambda ov: ov.initial.__setitem__(name, float(value)))
+
+    def constrain(self, name: str, lower: float | None = None, upper: float | None = None) -> "Study":
+        """Add or change a constraint on an output: ``lower <= name <= upper``."""
+        if lower is None and upper is None:
+            raise InputError(f"constrain {name!r}: give lower or upper")
+        limits = {k: float(v) for k, v in (("lower", lower), ("upper", upper)) if v is not None}
+        return self._change(lambda ov: ov.constraints.setdefault(name, {}).update(limits))
+
+    def objective(self, name: str | None = None, maximize: bool | None = None) -> "Study":
+        """The output to optimise and whether it is maximised (None keeps the config's)."""
+        def edit(ov):
+            ov.objective = name if name is not None else ov.objective
+            ov.maximize = maximize if maximize is not None else ov.maximize
+        return self._change(edit)
+
+    @_input_errors
+    def evaluate(self, design: Mapping[str, float] | None = None, transport="inprocess") -> EvaluateResult:
+        """One design through every discipline; variables not given take their initial value."""
+        from bev_mdo.api import evaluate
+
+        return EvaluateResult.of(evaluate.design(self.config, dict(design or {}), _transport(transport)))
+
+    @_input_errors
+    def optimize(self, formulation: str | None = None, optimizer: str | None = None, *, starts: int = 1,
+                 seed: int = 0, x0: Mapping[str, float] | None = None, bag: str | None = None, callback=None,
+                 transport="inprocess", **ros) -> OptimizeResult:
+        """Optimise the problem (``bev-mdo optimize``). ``callback(record)`` sees every iteration;
+        ``bag`` writes the run's bag there; ``ros``: OptimizeOptions' ROS settings (instances, compose,
+        no_record)."""
+        from bev_mdo.api import optimize
+
+        opts = optimize.OptimizeOptions(**asdict(_transport(transport)), formulation=formulation, optimizer=optimizer,
+                                        starts=starts, seed=seed, bag=bag, quiet=True, **ros)
+        return OptimizeResult.of(optimize.run(self.config, opts, callback, dict(x0) if x0 else None))
+
+    @_input_errors
+    def sweep(self, doe: str | None = "lhs", samples: int = 64, seed: int = 1, *,
+              designs: Mapping[str, Any] | None = None, fixed: Mapping[str, float] | None = None,
+              transport="inprocess") -> SweepResult:
+        """A batch of designs: a DOE over the bounds (``doe`` lhs, sobol, halton or full; ``samples``
+        designs, full: levels per variable), or the given ``designs`` {name: values}; ``fixed``
+        values for variables not varied (others keep their initial value)."""
+        import numpy as np
+
+        from bev_mdo.api import doe as sampling, evaluate
+        from bev_mdo.mdo.problem import Problem
+
+        fixed = {k: float(v) for k, v in (fixed or {}).items()}
+        if designs is not None:
+            cols = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in designs.items()}
+        else:
+            problem = Problem.from_config(self.config["problem"])
+            bounds = {d.name: (d.lower, d.upper) for d in problem.design_variables if d.name not in fixed}
+            cols = sampling.sample(doe, bounds, samples, seed)
+        n = len(next(iter(cols.values())))
+        cols.update({k: np.full(n, v) for k, v in fixed.items() if k not in cols})
+        r = evaluate.batch(self.config, cols, _transport(transport))
+        return SweepResult(r["design"], r["outputs"], r["margins"], r["feasible"], r["ok"], list(r["errors"]),
+                           r["objective"], bool(getattr(r["problem"], "maximize", False)))
+
+    @_input_errors
+    def sensitivity(self, at: Mapping[str, float] | None = None, wrt: list[str] | None = None, order: int = 2,
+                    rel_step: float | None = None, transport="inprocess") -> SensitivityResult:
+        """Normalised first- (and second-) order sensitivities at ``at`` (default: the initial design)
+        with respect to ``wrt`` (design variables and model parameters; default: the design variables)."""
+        from bev_mdo.api import sensitivity
+
+        s, outputs, _, _ = sensitivity.run(self.config, dict(at or {}), wrt, _transport(transport), order=order,
+                                           rel_step=rel_step)
+        return SensitivityResult.of(sensitivity.to_dict(s, outputs))
+
+    @_input_errors
+    def global_sensitivity(self, method: str = "sobol", samples: int | None = None, seed: int = 1,
+                           conf_level: float = 0.95, at: Mapping[str, float] | None = None,
+                           wrt: list[str] | None = None, transport="inprocess") -> GlobalSensitivityResult:
+        """Sobol' (first-order and total) or Morris indices over the bounds of ``wrt`` (default: every
+        design variable); the others keep their value at ``at``. ``samples``: sobol's base N (a power
+        of 2, default 1024: N (D + 2) designs), morris' trajectories (default 64)."""
+        from bev_mdo.api import sensitivity
+
+        if method not in sensitivity.METHODS:
+            raise InputError(f"--global {method!r}: allowed: {', '.join(sensitivity.METHODS)}")
+        rep = sensitivity.run(self.config, dict(at or {}), wrt, _transport(transport), global_method=method,
+                              samples=samples, seed=seed, conf_level=conf_level)
+        return GlobalSensitivityResult.of(rep)
+
+    @_input_errors
+    def pareto(self, objectives: list[str] | None = None, generations: int = 30, pop: int = 100, seed: int = 1,
+               out: str | None = None, plots: bool = False, transport="inprocess",
+               instances: str | None = None) -> ParetoResult:
+        """The NSGA-II Pareto front of ``objectives`` (minimised; default: the config's
+        ``problem.objectives``), written with its bag into ``out`` (default bags/<name>_pareto_<time>)."""
+        from bev_mdo.api import pareto
+
+        doc, _ = pareto.run(self.config, objectives, generations=generations, pop=pop, seed=seed, out=out,
+                            transport=_transport(transport), instances=instances, plots=plots, source=self.source)
+        return ParetoResult.of(doc)

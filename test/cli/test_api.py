@@ -1,0 +1,129 @@
+"""The Python API (bev_mdo.api, docs/api.md): the same optimum as the CLI, its example and its docs page
+run as written, bad input raises InputError with the CLI's line, and ``import bev_mdo`` stays light."""
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from test.cli.test_readme import match_in_order
+
+ROOT = Path(__file__).resolve().parents[2]
+ENV = {**os.environ, "PYTHONPATH": str(ROOT), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+
+
+def cli(*argv: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "bev_mdo", *argv], cwd=ROOT, env=ENV, capture_output=True,
+                          text=True, timeout=600)
+
+
+def same_optimum(api_x: dict, api_f: float, doc: dict) -> None:
+    assert api_x.keys() == doc["design"].keys()
+    for k, v in api_x.items():
+        assert v == pytest.approx(doc["design"][k], rel=1e-9, abs=1e-9), k
+    assert api_f == pytest.approx(doc["objective"], rel=1e-9)
+
+
+@pytest.mark.parametrize("config", ["config/leaf_nedc.yaml", "examples/sellar/sellar_mdf.yaml"])
+def test_the_api_optimum_is_the_cli_optimum(config):
+    from bev_mdo import Study
+
+    proc = cli("optimize", config, "--transport", "inprocess", "--json", "--no-record", "--quiet")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    doc = json.loads(proc.stdout)
+    res = Study(ROOT / config).optimize()
+    same_optimum(res.x, res.objective, doc)
+    assert res.verdict == doc["verdict"] == "optimum"
+    for name, c in doc["constraints"].items():
+        assert res.constraints[name]["value"] == pytest.approx(c["value"], rel=1e-9, abs=1e-9), name
+    assert res.first_order["verdict"] == doc["first_order"]["verdict"]
+
+
+def test_the_example_gives_the_cli_optimum_with_the_same_constraint():
+    proc = subprocess.run([sys.executable, str(ROOT / "examples" / "api" / "leaf_api.py"), "--json"], cwd=ROOT,
+                          env=ENV, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    ex = json.loads(proc.stdout)
+    ref = cli("optimize", "config/leaf_nedc.yaml", "--constraint", "range_km>=250", "--transport", "inprocess",
+              "--json", "--no-record", "--quiet")
+    assert ref.returncode == 0, ref.stderr[-2000:]
+    doc = json.loads(ref.stdout)
+    same_optimum(ex["x"], ex["objective"], doc)
+    assert doc["constraints"]["range_km"]["lower"] == 250  # the constraint was applied on both sides
+    assert doc["outputs"]["range_km"] == pytest.approx(250, rel=1e-6)
+    table = subprocess.run([sys.executable, str(ROOT / "examples" / "api" / "leaf_api.py")], cwd=ROOT, env=ENV,
+                           capture_output=True, text=True, timeout=600)
+    assert table.returncode == 0 and "verdict: optimum" in table.stdout, table.stderr[-2000:]
+
+
+def test_the_docs_page_runs_as_written(tmp_path):
+    """Every python block of docs/api.md, in order, as one script from the repository's root; the
+    text block under each must appear in what it printed, in order (``...``: anything)."""
+    text = (ROOT / "docs" / "api.md").read_text(encoding="utf-8")
+    pairs = re.findall(r"```python\n(.*?)```\s*```text\n(.*?)```", text, re.S)
+    assert len(pairs) >= 6 and len(pairs) == len(re.findall(r"```python\n", text))
+    script = tmp_path / "api_doc.py"
+    marker = "=== block ==="
+    script.write_text("\n".join(f"print({marker!r})\n{code}" for code, _ in pairs), encoding="utf-8")
+    proc = subprocess.run([sys.executable, str(script)], cwd=ROOT, env=ENV, capture_output=True, text=True,
+                          timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    printed = proc.stdout.split(marker + "\n")[1:]
+    assert len(printed) == len(pairs)
+    for (code, shown), got in zip(pairs, printed):
+        missing = match_in_order(shown.splitlines(), got.splitlines())
+        assert missing is None, f"docs/api.md block\n{code}\ndid not print {missing!r}; it printed:\n{got}"
+
+
+@pytest.mark.parametrize("edit,argv", [
+    (lambda s: s.bound("motr_kw", upper=100), ["--bound", "motr_kw=:100"]),
+    (lambda s: s.constrain("range", lower=250), ["--constraint", "range>=250"]),
+    (lambda s: s.objective("energy"), ["--objective", "energy"]),
+])
+def test_bad_input_raises_input_error_with_the_cli_line(edit, argv):
+    from bev_mdo import InputError, Study
+
+    with pytest.raises(InputError) as err:
+        edit(Study(ROOT / "config" / "leaf_nedc.yaml"))
+    proc = cli("optimize", "config/leaf_nedc.yaml", "--transport", "inprocess", "--no-record", *argv)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == f"bev-mdo optimize: error: {err.value}"
+    assert "did you mean" in str(err.value)
+
+
+def test_a_bad_config_raises_input_error():
+    from bev_mdo import InputError, Study
+
+    with pytest.raises(InputError, match="no such config file"):
+        Study(ROOT / "config" / "no_such.yaml")
+    with pytest.raises(InputError, match="samples"):
+        Study(ROOT / "config" / "leaf_nedc.yaml").sweep("sobol", samples=10)
+
+
+def test_importing_bev_mdo_and_naming_the_api_loads_no_numpy_and_no_ros():
+    code = ("import sys, bev_mdo; bev_mdo.Study; bev_mdo.OptimizeResult; "
+            "print(sorted(m for m in ('numpy', 'scipy', 'rclpy', 'bev_mdo.cli') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0 and out.stdout.strip() == "[]", out.stdout + out.stderr
+
+
+def test_results_as_tables(monkeypatch):
+    from bev_mdo import Study
+
+    study = Study(ROOT / "config" / "leaf_nedc.yaml")
+    point = study.evaluate({"motor_kw": 80, "gear_ratio": 8, "battery_kwh": 24})
+    rows = point.rows()
+    assert [r["name"] for r in rows[:3]] == ["motor_kw", "gear_ratio", "battery_kwh"]
+    assert {r["role"] for r in rows} == {"design", "output", "objective"}
+    assert point.to_dict()["outputs"]["range_km"] == point.outputs["range_km"]
+    monkeypatch.setitem(sys.modules, "pandas", None)  # as without pandas installed
+    with pytest.raises(ModuleNotFoundError, match="needs pandas"):
+        point.to_dataframe()
+    grid = study.sweep(designs={"motor_kw": [40, 80]})
+    assert [r["feasible"] for r in grid.rows()] == [False, True]  # 40 kW misses the 0-100 km/h limit
+    assert grid.best()["motor_kw"] == 80
