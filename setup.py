@@ -25,7 +25,7 @@ setup(
         ("share/" + PACKAGE + "/config", sorted(glob.glob("config/*.yaml"))),
         ("lib/" + PACKAGE, ["ros_lib/" + n for n in NODES]),
     ],
-    install_requires=["setuptools", "numpy", "scipy", "pyyaml"],
+    install_requires=["setuptools", "numpy", "scipy", "pyyaml", "pint"],
     zip_safe=True,
     maintainer="bev_mdo developers",
     maintainer_email="bev-mdo@example.org",

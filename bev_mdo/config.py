@@ -429,11 +429,13 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
     ``{name}`` without ``class`` picks the built-in of that name.
     """
     from bev_mdo.mdo.discipline import load_class, options_dict, read_options
+    from bev_mdo.mdo.units import attach_units
     from bev_mdo.mdo.vectors import wrap
 
     entries = config.get("disciplines")
     if entries is None:
-        return [wrap(d) for d in _defaults(config)]
+        out = [wrap(d) for d in _defaults(config)]
+        return attach_units(out, [d.name for d in out])
     if not isinstance(entries, list) or not entries:
         raise ValueError("disciplines must be a non-empty list of names or {name, class, options} entries")
     out, builtins = [], None
@@ -486,7 +488,7 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
             except AttributeError:
                 raise ValueError(f"disciplines[{k}]: {cls.__name__} is named {disc.name!r}, not {e['name']!r}") from None
         out.append(wrap(disc))
-    return out
+    return attach_units(out, [f"disciplines[{k}] ({d.name})" for k, d in enumerate(out)])
 
 
 def _builtins() -> dict[str, type]:

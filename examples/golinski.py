@@ -40,6 +40,8 @@ class Gear:
     name = "gear"
     inputs = ("x_shared",)
     outputs = ("w_gear", "g_gear")
+    # a vector holds one unit: x_shared mixes cm and a tooth count, so the problem is declared in numbers
+    units = dict.fromkeys(inputs + outputs, "1")
     shapes = {"x_shared": 3, "g_gear": 5}
 
     def compute(self, inputs):
@@ -81,6 +83,7 @@ class Shaft:
         self.inputs = ("x_shared", self.x)
         self.outputs = (self.w, self.g)
         self.shapes = {"x_shared": 3, self.x: 2, self.g: 3}
+        self.units = dict.fromkeys(self.inputs + self.outputs, "1")  # as Gear's
 
     def _terms(self, inputs):
         b, m, z = inputs["x_shared"].T
@@ -118,6 +121,7 @@ class Weight:
     name = "weight"
     inputs = ("w_gear", "w_shaft1", "w_shaft2")
     outputs = ("weight",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         return {"weight": inputs["w_gear"] + inputs["w_shaft1"] + inputs["w_shaft2"]}

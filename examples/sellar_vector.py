@@ -29,6 +29,7 @@ class SellarDis1:
     name = "sellar_dis1"
     inputs = ("z", "x", "y2")
     outputs = ("y1",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
     shapes = {"z": 2}
 
     def compute(self, inputs):
@@ -46,6 +47,7 @@ class SellarDis2:
     name = "sellar_dis2"
     inputs = ("z", "y1")
     outputs = ("y2",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
     shapes = {"z": 2}
 
     def compute(self, inputs):
@@ -65,6 +67,7 @@ class SellarFunctions:
     name = "sellar_functions"
     inputs = ("x", "z", "y1", "y2")
     outputs = ("obj", "con")
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
     shapes = {"z": 2, "con": 2}
 
     def compute(self, inputs):

@@ -26,6 +26,7 @@ class TopSpeed:
     name = "top_speed"
     inputs = ("motor_kw", "gear_ratio", "vehicle_mass_kg")
     outputs = ("top_speed_kmh",)
+    units = {"motor_kw": "kW", "gear_ratio": "1", "vehicle_mass_kg": "kg", "top_speed_kmh": "km/h"}
     parameters = {}
 
     def __init__(self, drag_area_m2=0.6412, rolling_resistance=0.007, air_density_kg_m3=1.25,

@@ -159,6 +159,7 @@ def test_a_module_next_to_the_config_resolves_from_any_working_directory(tmp_pat
     (tmp_path / "proj").mkdir()
     (tmp_path / "proj" / "my_disc_qq.py").write_text(
         "class D:\n    name = 'd'\n    inputs = ('z1',)\n    outputs = ('w',)\n"
+        "    units = {'z1': '1', 'w': '1'}\n"
         "    def compute(self, i):\n        return {'w': i['z1']}\n")
     raw = sellar_raw()
     raw["disciplines"].append({"name": "d", "class": "my_disc_qq:D"})

@@ -102,6 +102,7 @@ class Declared:
     name = "declared"
     inputs = ("x",)
     outputs = ("y",)
+    units = {"x": "1", "y": "1"}
 
     @dataclass(frozen=True)
     class Options:
@@ -125,6 +126,7 @@ class ByConstructor:
     name = "by_constructor"
     inputs = ("y",)
     outputs = ("f",)
+    units = {"y": "1", "f": "1"}
 
     def __init__(self, power=2.0):
         self.power = power
@@ -173,7 +175,7 @@ def test_a_class_without_from_config_may_declare_options_too(tmp_path):
     """Options declared in a dataclass, the class built as cls(**options) with the defaults filled."""
     (tmp_path / "plain_opts.py").write_text(
         "from dataclasses import dataclass\n\n\nclass Plain:\n    name = 'plain'\n    inputs = ('x',)\n"
-        "    outputs = ('f',)\n\n    @dataclass\n    class Options:\n        power: float = 2.0\n"
+        "    outputs = ('f',)\n    units = {'x': '1', 'f': '1'}\n\n    @dataclass\n    class Options:\n        power: float = 2.0\n"
         "        shift: float = 0.0\n\n    def __init__(self, power, shift):\n        self.power, self.shift = power, shift\n\n"
         "    def compute(self, inputs):\n        return {'f': inputs['x'] ** self.power + self.shift}\n")
     raw = {"disciplines": [{"name": "plain", "class": "plain_opts:Plain", "options": {"shift": 1.5}}],

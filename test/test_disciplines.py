@@ -233,18 +233,22 @@ def test_chain_feasibility_outputs_are_the_tightest_margins_over_the_cycles():
     cfg = load_config(str(Path(__file__).resolve().parents[1] / "config" / "leaf_epa_combined.yaml"))
     cfg["disciplines"][1]["options"]["feasibility_outputs"] = True
     energy = next(d for d in resolve_disciplines(cfg) if d.name == "energy")
-    assert energy.outputs == ("energy_wh_per_km", "drive_torque_margin_nm", "drive_power_margin_kw")
+    assert energy.outputs == ("energy_wh_per_km", "energy_wall_wh_per_km", "drive_torque_margin_nm",
+                              "drive_power_margin_kw")
     inputs = {"vehicle_mass_kg": np.array([1600.0, 1600.0]), "gear_ratio": np.array([8.0, 8.0]),
               "motor_kw": np.array([80.0, 12.0])}
     out = energy.compute(inputs)
     p = {**energy.extra, **energy.parameters}
     sims = [chain.simulate(resample(load_cycle(c)), p, inputs["vehicle_mass_kg"], inputs["gear_ratio"],
                            inputs["motor_kw"]) for c in ("epa_udds", "epa_hwfet")]
-    np.testing.assert_allclose(out["energy_wh_per_km"], 0.55 * sims[0].energy_wh_per_km + 0.45 * sims[1].energy_wh_per_km)
+    wall = 0.55 * sims[0].energy_wh_per_km + 0.45 * sims[1].energy_wh_per_km  # the chain's energy is the wall's
+    np.testing.assert_allclose(out["energy_wall_wh_per_km"], wall)
+    np.testing.assert_allclose(out["energy_wh_per_km"], wall * p["charger_efficiency"])  # the battery's
     np.testing.assert_allclose(out["drive_power_margin_kw"], np.minimum(sims[0].power_margin_kw, sims[1].power_margin_kw))
     np.testing.assert_allclose(out["drive_torque_margin_nm"], np.minimum(sims[0].torque_margin_nm, sims[1].torque_margin_nm))
     assert out["drive_power_margin_kw"][0] > 0 > out["drive_power_margin_kw"][1]  # 12 kW cannot follow
     assert not sims[0].follows[1] or not sims[1].follows[1]
     plain = next(d for d in resolve_disciplines(load_config(str(Path(__file__).resolve().parents[1] / "config"
                                                                       / "leaf_epa_combined.yaml"))) if d.name == "energy")
-    np.testing.assert_allclose(plain.compute(inputs)["energy_wh_per_km"], out["energy_wh_per_km"], rtol=1e-12)
+    for k in ("energy_wh_per_km", "energy_wall_wh_per_km"):
+        np.testing.assert_allclose(plain.compute(inputs)[k], out[k], rtol=1e-12)

@@ -23,14 +23,17 @@ def test_energy_is_the_distance_weighted_epa_combined():
     d = _discs(raw)
     x = {"vehicle_mass_kg": np.array([1590.0, 1700.0]), "gear_ratio": np.array([8.0, 9.0]),
          "motor_kw": np.array([80.0, 100.0]), "battery_kwh": np.array([24.0, 24.0])}
-    e = d["energy"].compute(x)["energy_wh_per_km"]
+    out = d["energy"].compute(x)
+    wall, e = out["energy_wall_wh_per_km"], out["energy_wh_per_km"]
     v = validate_vehicle(raw["vehicle"])
     ref = sum(w * chain.energy_wh_per_km(resample(load_cycle(c)), v, x["vehicle_mass_kg"], x["gear_ratio"],
                                          x["motor_kw"]) for c, w in (("epa_udds", 0.55), ("epa_hwfet", 0.45)))
-    np.testing.assert_allclose(e, ref, rtol=1e-12)
-    # range from the battery energy: wall energy x charger efficiency, usable fraction 0.9
+    np.testing.assert_allclose(wall, ref, rtol=1e-12)  # the objective: energy from the wall, as EPA measures
+    assert raw["problem"]["objective"] == "energy_wall_wh_per_km"
+    # range from the battery energy (wall energy x charger efficiency), usable fraction 0.9
+    np.testing.assert_allclose(e, wall * v["charger_efficiency"], rtol=1e-15)
     r = d["range"].compute({"battery_kwh": np.array([24.0]), "energy_wh_per_km": e[:1]})["range_km"][0]
-    assert r == pytest.approx(0.9 * 24000.0 / (e[0] * v["charger_efficiency"]))
+    assert r == pytest.approx(0.9 * 24000.0 / (wall[0] * v["charger_efficiency"]))
     assert v["battery_usable_fraction"] == 0.9 and v["motor_torque_per_kw"] == 3.5
 
 

@@ -59,7 +59,10 @@ def plot_scatter(result: dict, output: str, varied: list[str], path: Path, metho
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bev_mdo.mdo.units import label
+    from bev_mdo.mdo import units as un
+
+    def label(name):
+        return un.label(name, result.get("units") or {})
 
     problem, y, feas = result["problem"], result["outputs"][output], result["feasible"]
     ncols = min(len(varied), 3)

@@ -11,6 +11,14 @@ from bev_mdo.api.errors import InputError
 from bev_mdo.api.transport import Evaluating
 
 
+def declared_units(config: dict) -> dict[str, str]:
+    """{variable: unit} as the run's disciplines declare them (mdo/units.py): what tables and plots print."""
+    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.mdo.units import run_units
+
+    return run_units(resolve_disciplines(config))
+
+
 def design(config: dict, given: dict[str, float], transport=None) -> dict:
     """The report of one multidisciplinary analysis (mdo.driver.evaluate_design: design, outputs,
     objective, constraints with margins, feasible, ok, error). Design variables not given take their
@@ -32,7 +40,7 @@ def design(config: dict, given: dict[str, float], transport=None) -> dict:
 
 def batch(config: dict, designs: dict[str, np.ndarray], transport=None) -> dict:
     """One batch of MDAs: {design: {k: array}, outputs: {k: array}, margins: {c: array},
-    feasible: bool array, ok: bool array, errors: [str], objective, problem} (``designs`` may set
+    feasible: bool array, ok: bool array, errors: [str], objective, problem, units} (``designs`` may set
     model parameters too; variables not given keep their initial value)."""
     from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import FEASIBILITY_TOL, _mda
@@ -72,4 +80,5 @@ def batch(config: dict, designs: dict[str, np.ndarray], transport=None) -> dict:
             feasible &= np.isfinite(m) & (m >= -FEASIBILITY_TOL * scale)
     return {"design": {k: cols[k] for k in [*problem.names, *[k for k in designs if k not in problem.names]]},
             "outputs": outputs, "margins": margins, "feasible": feasible, "ok": np.asarray(res.ok, bool),
-            "errors": res.messages, "objective": problem.objective, "problem": problem}
+            "errors": res.messages, "objective": problem.objective, "problem": problem,
+            "units": declared_units(config)}

@@ -16,6 +16,7 @@ import uuid
 from pathlib import Path
 
 from bev_mdo.api.errors import InputError
+from bev_mdo.api.evaluate import declared_units
 from bev_mdo.api.transport import Transport
 
 
@@ -45,7 +46,7 @@ def run(cfg: dict, objectives: list[str] | None = None, *, generations: int = 30
            "wall_time_s": res.wall_time_s, "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12),
            "front": [{k: float(v[i]) for k, v in res.values.items()} for i in range(len(res.X))],
            **sess.stats, "out": str(out), "published": sess.sink.published,
-           "plots": [str(p) for p in plot_front(out, res)] if plots else []}
+           "plots": [str(p) for p in plot_front(out, res, declared_units(cfg))] if plots else []}
     finish(out / "front.json", doc, sess, skip=("out", "published", "plots"))
     return doc, res
 
@@ -153,14 +154,17 @@ def write_front(path: Path, res) -> None:
             w.writerow([f"{float(res.values[c][i]):.10g}" if c in res.values else "" for c in cols])
 
 
-def plot_front(out: Path, res) -> list[Path]:
+def plot_front(out: Path, res, units: dict | None = None) -> list[Path]:
     """One scatter plot per pair of objectives, ``front_<b>_vs_<a>.png``. Returns the files written."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bev_mdo.mdo.units import label
+    from bev_mdo.mdo import units as un
+
+    def label(name):
+        return un.label(name, units or {})
 
     written = []
     for i, xk in enumerate(res.objectives):

@@ -85,7 +85,9 @@ def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
     ros = validate_ros(config.get("ros"))
     budget = ros["timeout_s"] * (ros["retries"] + 1)
     discs = [TimedDiscipline(d, budget) for d in resolve_disciplines(config)]
-    return answers_for(config, result["design"], values, disciplines=discs)
+    from bev_mdo.mdo.units import run_units
+
+    return answers_for(config, result["design"], values, disciplines=discs, units=run_units(discs))
 
 
 def finish(config: Mapping[str, Any], result: dict, extra: Mapping[str, Any]) -> None:

@@ -53,8 +53,13 @@ def run(config: dict, at: dict | None = None, wrt: list[str] | None = None, tran
                 raise InputError(f"--wrt: unknown variable or parameter {k!r}; known: {', '.join(point)}")
         if global_method:
             samples = samples or (1024 if global_method == "sobol" else 64)
-            return analyse(global_method, fun, point, bounds, wrt, outputs, samples, seed, conf_level,
-                           design=list(problem.names))
+            from bev_mdo.api.evaluate import declared_units
+
+            rep = analyse(global_method, fun, point, bounds, wrt, outputs, samples, seed, conf_level,
+                          design=list(problem.names))
+            units = declared_units(config)
+            rep["units"] = {k: units[k] for k in (*wrt, *outputs) if k in units}
+            return rep
         s = sensitivities(fun, point, wrt=wrt, order=order, bounds=bounds, rel_step=rel_step, method=method,
                           objective=problem.objective)
     return s, outputs, point, problem

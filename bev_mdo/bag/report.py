@@ -144,7 +144,7 @@ def _iterate_markers(ax, it, y, feasible) -> None:
         ax.plot(it[~feasible], y[~feasible], "x", color="C3", ms=7, mew=1.5, label="infeasible iterate")
 
 
-def _plot_convergence(rows, path: Path, baseline: dict | None = None):
+def _plot_convergence(rows, path: Path, baseline: dict | None = None, units: dict | None = None):
     import matplotlib.pyplot as plt
 
     from bev_mdo.mdo.units import label
@@ -156,7 +156,7 @@ def _plot_convergence(rows, path: Path, baseline: dict | None = None):
     _iterate_markers(ax1, it, [r["objective"] for r in rows], feas)
     if baseline and name in baseline.get("outputs", {}):
         ax1.axhline(baseline["outputs"][name], color="0.3", ls="-.", lw=1.2, label=f"baseline ({baseline['label']})")
-    ax1.set_ylabel(label(name))
+    ax1.set_ylabel(label(name, units or {}))
     ax1.set_title("Objective and constraint convergence")
     ax1.legend(fontsize=8)
     ax2.plot(it, [max(r["max_violation"], 0.0) for r in rows], "o-", ms=3, color="C3")
@@ -171,7 +171,7 @@ def _plot_convergence(rows, path: Path, baseline: dict | None = None):
     return fig
 
 
-def _plot_design(rows, path: Path, problem=None, baseline: dict | None = None):
+def _plot_design(rows, path: Path, problem=None, baseline: dict | None = None, units: dict | None = None):
     """Design-variable trajectories with their bounds drawn (a variable on its bound is seen at once)."""
     import matplotlib.pyplot as plt
 
@@ -195,7 +195,7 @@ def _plot_design(rows, path: Path, problem=None, baseline: dict | None = None):
             ax.set_ylim(d.lower - pad, d.upper + pad)
         if baseline and name in baseline.get("design", {}):
             ax.axhline(baseline["design"][name], color="0.3", ls="-.", lw=1.2, label=f"baseline ({baseline['label']})")
-        ax.set_ylabel(label(name), fontsize=8)
+        ax.set_ylabel(label(name, units or {}), fontsize=8)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, loc="best")
     axes[0, 0].set_title("Design-variable trajectories (dashed: bounds)")
@@ -206,7 +206,7 @@ def _plot_design(rows, path: Path, problem=None, baseline: dict | None = None):
     return fig
 
 
-def _plot_constraints(rows, path: Path, problem=None, baseline: dict | None = None):
+def _plot_constraints(rows, path: Path, problem=None, baseline: dict | None = None, units: dict | None = None):
     """Each constrained output per iteration with its limit(s) drawn and the infeasible side shaded."""
     import matplotlib.pyplot as plt
 
@@ -238,7 +238,7 @@ def _plot_constraints(rows, path: Path, problem=None, baseline: dict | None = No
                     ax.axhspan(b, max(hi, b), color="C3", alpha=0.08)
         if baseline and name in baseline.get("outputs", {}):
             ax.axhline(baseline["outputs"][name], color="0.3", ls="-.", lw=1.2, label=f"baseline ({baseline['label']})")
-        ax.set_ylabel(label(name), fontsize=8)
+        ax.set_ylabel(label(name, units or {}), fontsize=8)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, loc="best")
     axes[0, 0].set_title("Constrained outputs (dashed: limits; shaded: infeasible side)")
@@ -314,6 +314,24 @@ def _context(bag: Bag):
         return None, None
 
 
+def _units(config) -> dict:
+    """{variable: unit} as the recorded config's disciplines declare them ({} if it no longer loads)."""
+    if config is None:
+        return {}
+    try:
+        from bev_mdo.config import resolve_disciplines
+        from bev_mdo.mdo.units import run_units
+
+        return run_units(resolve_disciplines(config))
+    except Exception:  # noqa: BLE001 - a report is written even if the model no longer loads
+        return {}
+
+
+def bag_units(bag: Bag) -> dict:
+    """{variable: unit} declared by the disciplines of the config stored in the bag ({} without one)."""
+    return _units(_context(bag)[0])
+
+
 def _analyse(config, design: dict) -> dict | None:
     """One in-process MDA of ``design`` (the report's mass, cost, ... of the final iterate)."""
     try:
@@ -348,7 +366,7 @@ def _answers_section(answers: dict | None) -> list[str]:
 
 
 def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = None,
-              answers: dict | None = None, baseline: dict | None = None) -> str:
+              answers: dict | None = None, baseline: dict | None = None, units: dict | None = None) -> str:
     from bev_mdo.mdo.units import unit_of
 
     info = bag.info
@@ -372,7 +390,7 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
             extra = f" {ref:.6g} |" if base else ""
             if base and ref is None:
                 extra = " |"
-            return f"| {k} | {unit_of(k)} | {v:.6g} |{extra}"
+            return f"| {k} | {unit_of(k, units or {})} | {v:.6g} |{extra}"
 
         lines.append(row(last["objective_name"] or "objective", last["objective"],
                          base.get("outputs", {}).get(last["objective_name"])))
@@ -421,6 +439,7 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     timing = discipline_timing(bag)
     config, problem = _context(bag)
     final = answers = baseline = None
+    units = _units(config)
     if rows and config is not None:
         final = _analyse(config, dict(rows[-1]["design"]))
         baseline = _baseline(config, problem)
@@ -433,20 +452,20 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
             values.update(rows[-1]["constraints"])
             try:
                 answers = answers_for(config, dict(rows[-1]["design"]), values,
-                                      lambda: resolve_disciplines(config))
+                                      lambda: resolve_disciplines(config), units=units)
             except Exception:  # noqa: BLE001
                 answers = None
     written: list[Path] = []
     if rows:
-        _plot_convergence(rows, out / "convergence.png", baseline)
-        _plot_design(rows, out / "design.png", problem, baseline)
+        _plot_convergence(rows, out / "convergence.png", baseline, units)
+        _plot_design(rows, out / "design.png", problem, baseline, units)
         written += [out / "convergence.png", out / "design.png"]
-        if _plot_constraints(rows, out / "constraints.png", problem, baseline) is not None:
+        if _plot_constraints(rows, out / "constraints.png", problem, baseline, units) is not None:
             written.append(out / "constraints.png")
     if timing:
         _plot_timing(timing, out / "discipline_time.png")
         written.append(out / "discipline_time.png")
     md = out / "report.md"
-    md.write_text(_markdown(bag, rows, timing, [p.name for p in written], final, answers, baseline),
+    md.write_text(_markdown(bag, rows, timing, [p.name for p in written], final, answers, baseline, units),
                   encoding="utf-8")
     return written + [md]

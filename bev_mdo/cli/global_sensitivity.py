@@ -35,7 +35,10 @@ def write_plot(path: str, rep: dict) -> None:
     import matplotlib.pyplot as plt
 
     from bev_mdo.cli import figure_format
-    from bev_mdo.mdo.units import label
+    from bev_mdo.mdo import units as un
+
+    def label(name):
+        return un.label(name, rep.get("units") or {})
 
     names, outs = rep["variables"], [k for k, r in rep["outputs"].items() if not r.get("constant")]
     keys = (("S1", "S1_conf", "first order S1"), ("ST", "ST_conf", "total ST")) if rep["method"] == "sobol" \

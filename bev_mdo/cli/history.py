@@ -11,16 +11,18 @@ import os
 import shutil
 import sys
 
-# fixed short headers (quantity, unit) for the common columns
-_SHORT = {
+# fixed headers (quantity, unit) of the record's own columns
+_FIXED = {
     "iteration": ("iter", ""), "objective": ("objective", ""), "max_violation": ("max", "violation"),
     "feasible": ("feasible", ""), "mda_evaluations": ("MDA", "evals"), "formulation": ("form.", ""),
     "optimizer": ("optimizer", ""),
-    "energy_wh_per_km": ("energy", "Wh/km"), "range_km": ("range", "km"),
-    "accel_time_0_100_s": ("0-100", "s"), "motor_speed_max_rad_s": ("ω max", "rad/s"),
-    "powertrain_cost_usd": ("cost", "US$"), "vehicle_mass_kg": ("mass", "kg"),
-    "motor_kw": ("motor", "kW"), "motor_rear_kw": ("motor rear", "kW"), "gear_ratio": ("gear", "–"),
-    "gear_ratio_rear": ("gear rear", "–"), "battery_kwh": ("battery", "kWh"),
+}
+# short quantity names of built-in variables (their units come from the disciplines' declarations)
+_SHORT = {
+    "energy_wh_per_km": "energy", "energy_wall_wh_per_km": "wall energy", "range_km": "range",
+    "accel_time_0_100_s": "0-100", "motor_speed_max_rad_s": "ω max", "powertrain_cost_usd": "cost",
+    "vehicle_mass_kg": "mass", "motor_kw": "motor", "motor_rear_kw": "motor rear", "gear_ratio": "gear",
+    "gear_ratio_rear": "gear rear", "battery_kwh": "battery",
 }
 EXIT_NO_ITERATIONS = 1
 
@@ -115,20 +117,22 @@ def run(args) -> int:
     width = args.width
     if width is None and (sys.stdout.isatty() or os.environ.get("COLUMNS")):
         width = shutil.get_terminal_size((120, 24)).columns
-    print_table(flat_rows(rows), width=width)
+    from bev_mdo.bag.report import bag_units
+
+    print_table(flat_rows(rows), width=width, units=bag_units(bag))
     return 0
 
 
-def _header(col: str) -> tuple[str, str]:
+def _header(col: str, units: dict | None = None) -> tuple[str, str]:
+    """(quantity, unit) of a column; the unit as the run's disciplines declare it."""
+    if col in _FIXED:
+        return _FIXED[col]
     name = col.split(".", 1)[1] if "." in col else col
-    if name in _SHORT:
-        return _SHORT[name]
-    from bev_mdo.mdo.units import split
-
-    q, u = split(name)
     if col.startswith("evaluations."):
-        q, u = name[:10], "evals"
-    return q[:12], u
+        return name[:10], "evals"
+    from bev_mdo.mdo.units import unit_of
+
+    return _SHORT.get(name, name)[:12], unit_of(name, units or {})
 
 
 def _priority(col: str) -> int:
@@ -140,7 +144,7 @@ def _priority(col: str) -> int:
     return len(order)
 
 
-def choose_columns(rows: list[dict], width: int | None) -> tuple[list[str], list[str], dict]:
+def choose_columns(rows: list[dict], width: int | None, units: dict | None = None) -> tuple[list[str], list[str], dict]:
     """(columns shown in table order, columns left out, {column: (header, cells)}) for a width."""
     skip = {"run_id", "sequence", "objective_name", "wall_time_s"}
     columns: list[str] = []
@@ -152,7 +156,7 @@ def choose_columns(rows: list[dict], width: int | None) -> tuple[list[str], list
     cells = {c: [_fmt(r.get(c, "")) for r in rows] for c in columns}
     need = {}
     for c in columns:
-        q, u = _header(c)
+        q, u = _header(c, units)
         need[c] = max([len(q), len(u)] + [len(v) for v in cells[c]]) + 3
     if width is None:
         return columns, [], cells
@@ -165,12 +169,13 @@ def choose_columns(rows: list[dict], width: int | None) -> tuple[list[str], list
     return shown, [c for c in columns if c not in chosen], cells
 
 
-def print_table(rows: list[dict], width: int | None = None, file=None) -> None:
+def print_table(rows: list[dict], width: int | None = None, file=None, units: dict | None = None) -> None:
+    """The history as a table; ``units``: {variable: unit} as the run's disciplines declare them."""
     from rich.console import Console
     from rich.table import Table
 
     out = file or sys.stdout
-    shown, left, cells = choose_columns(rows, width)
+    shown, left, cells = choose_columns(rows, width, units)
     first = rows[0]
     from bev_mdo.bag.history import records_phrase
 
@@ -186,12 +191,12 @@ def print_table(rows: list[dict], width: int | None = None, file=None) -> None:
                    f"({', '.join(left)}): --csv FILE has all")
     table = Table(title=title, caption=caption)
     for col in shown:
-        q, u = _header(col)
+        q, u = _header(col, units)
         table.add_column(f"{q}\n{u}" if u else q, justify="left" if col in ("formulation", "optimizer") else "right",
                          no_wrap=True)
     for i in range(len(rows)):
         table.add_row(*[cells[c][i] for c in shown])
-    total = sum(max([len(x) for x in _header(c)] + [len(v) for v in cells[c]]) + 3 for c in shown) + 1
+    total = sum(max([len(x) for x in _header(c, units)] + [len(v) for v in cells[c]]) + 3 for c in shown) + 1
     console = Console(file=out, width=max(width or 0, total, 40))
     console.print(table)
 

@@ -77,7 +77,7 @@ def _progress(quiet: bool, to_stderr: bool):
     return show
 
 
-def _table(result: dict, baseline: dict | None, out) -> None:
+def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
     from rich.console import Console
     from rich.table import Table
 
@@ -117,13 +117,16 @@ def _table(result: dict, baseline: dict | None, out) -> None:
     print(f"iterations {result['iterations']}, MDA evaluations {result['mda_evaluations']}, "
           f"evaluations per discipline {result['discipline_evaluations']}", file=out)
     print(f"optimiser wall time {result['wall_time_s']:.3f} s (first evaluation to result)", file=out)
-    _verdict(result, out)
+    _verdict(result, out, units)
 
 
-def _verdict(result: dict, out) -> None:
+def _verdict(result: dict, out, units: dict) -> None:
     """The first-order verdict and the active set with its multipliers (physical margins beside)."""
     from bev_mdo.mdo.first_order import verdict_line
-    from bev_mdo.mdo.units import unit_of
+    from bev_mdo.mdo import units as un
+
+    def unit_of(name: str) -> str:
+        return un.unit_of(name, units)
 
     fo = result["first_order"]
     cost = fo["cost"]
@@ -179,7 +182,9 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
         from bev_mdo.api import runbag
 
         result = {k: v for k, v in doc.items() if k != "baseline"}
-        _table(result, doc["baseline"], out)
+        from bev_mdo.api.evaluate import declared_units
+
+        _table(result, doc["baseline"], out, declared_units(config))
         if not doc["feasible"]:
             print("\n".join(runbag.answers_text(result, doc["transport"])), file=out)
         keys = list(doc)

@@ -87,7 +87,9 @@ def run(args) -> int:
         return 0
     s, outputs, point, problem = got
     if args.png:
-        write_heatmap(args.png, s, outputs, cfg, {k: point[k] for k in problem.names})
+        from bev_mdo.api.evaluate import declared_units
+
+        write_heatmap(args.png, s, outputs, cfg, {k: point[k] for k in problem.names}, declared_units(cfg))
     if args.json:
         print(json.dumps(sensitivity.to_dict(s, outputs), indent=2))
     else:
@@ -131,7 +133,7 @@ def _context_title(s, cfg, design=None) -> str:
     return f"at {point}" + (f"; cycle {cyc}" if cyc else "") + (f", {model} model" if model else "")
 
 
-def write_heatmap(path: str, s, outputs, cfg=None, design=None):
+def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
     """The sensitivity figure: a first-order bar chart (eq 5-4) and, with second order, one
     matrix per output (eq 5-5) on ONE symmetric colour scale shared by the whole figure. Entries
     whose magnitude is not above their Richardson error estimate are masked (grey, "≤ err"): they
@@ -142,7 +144,10 @@ def write_heatmap(path: str, s, outputs, cfg=None, design=None):
     import matplotlib.pyplot as plt
     from matplotlib.colors import Normalize
 
-    from bev_mdo.mdo.units import label
+    from bev_mdo.mdo import units as un
+
+    def label(name):
+        return un.label(name, units or {})
 
     second = s.second is not None
     n = len(outputs)

@@ -150,7 +150,10 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bev_mdo.mdo.units import label
+    from bev_mdo.mdo import units as un
+
+    def label(name):
+        return un.label(name, result.get("units") or {})
 
     problem = result["problem"]
     x = result["design"][varied[0]]
@@ -288,7 +291,7 @@ def run(args) -> int:
 def run_compare(args) -> int:
     from bev_mdo.cli.evaluate import parse_assignments
     from bev_mdo.config import load_config
-    from bev_mdo.mdo.units import unit_of
+    from bev_mdo.mdo import units as un
 
     if len(args.design) < 2:
         raise UsageError("give two or more --design k=v,... to compare")
@@ -304,6 +307,10 @@ def run_compare(args) -> int:
         missing = [k for k, v in designs.items() if np.isnan(v).any()]
         raise UsageError(f"{missing} must be given in every --design (they are parameters, with no initial value)")
     result = evaluate_batch(config, designs, args)
+
+    def unit_of(name):
+        return un.unit_of(name, result["units"])
+
     rows = []
     for k, v in result["design"].items():
         rows.append((k, unit_of(k), v))

@@ -89,7 +89,7 @@ class VehicleMass(Base):
 
 
 class Range(Base):
-    """battery_kwh, energy_wh_per_km -> range_km (eq 7-28)."""
+    """battery_kwh, energy_wh_per_km (from the battery) -> range_km (eq 7-28)."""
 
     name = "range"
     inputs = ("battery_kwh", "energy_wh_per_km")
@@ -97,16 +97,12 @@ class Range(Base):
 
     @classmethod
     def from_config(cls, config, options):
-        v = vehicle_of(config)
-        out = {"battery_usable_fraction": v["battery_usable_fraction"]}
-        if config.get("energy_model") == "chain":  # wall energy -> battery energy (models/chain.py)
-            out["charger_efficiency"] = v["charger_efficiency"]
-        return cls(out)
+        return cls({"battery_usable_fraction": vehicle_of(config)["battery_usable_fraction"]})
 
     def compute(self, inputs):
         p = self._params(inputs)
-        e = inputs["energy_wh_per_km"] * p.get("charger_efficiency", 1.0)
-        return {"range_km": range_model.range_km(inputs["battery_kwh"], e, p["battery_usable_fraction"])}
+        return {"range_km": range_model.range_km(inputs["battery_kwh"], inputs["energy_wh_per_km"],
+                                                 p["battery_usable_fraction"])}
 
     def compute_partials(self, inputs):
         """Eq 7-28, R = f E_b 1000 / e: dR/dE_b = f 1000 / e, dR/de = -R / e."""
@@ -256,16 +252,11 @@ class BatterySizing(Base):
         if target is None:
             raise ValueError("battery_sizing needs option range_target_km (or a range_km lower constraint)")
         range_model.check_design("range_target_km", target)
-        v = vehicle_of(config)
-        params = {"battery_usable_fraction": v["battery_usable_fraction"]}
-        if config.get("energy_model") == "chain":  # wall energy -> battery energy (models/chain.py)
-            params["charger_efficiency"] = v["charger_efficiency"]
-        return cls(params, float(target))
+        return cls({"battery_usable_fraction": vehicle_of(config)["battery_usable_fraction"]}, float(target))
 
     def compute(self, inputs):
         p = self._params(inputs)
-        e = inputs["energy_wh_per_km"] * p.get("charger_efficiency", 1.0)
-        return {"battery_kwh": range_model.battery_kwh_for_range(self.range_target_km, e,
+        return {"battery_kwh": range_model.battery_kwh_for_range(self.range_target_km, inputs["energy_wh_per_km"],
                                                                  p["battery_usable_fraction"])}
 
     def compute_partials(self, inputs):

@@ -64,8 +64,17 @@ def replaced_by_road_load(v: Mapping[str, float]) -> tuple[str, ...]:
     return ROAD_LOAD_REPLACES if road_load.uses_road_load(v) else ()
 
 
+# the unit of every variable a built-in discipline reads or writes (mdo/units.py)
+UNITS = {"motor_kw": "kW", "motor_rear_kw": "kW", "battery_kwh": "kWh", "gear_ratio": "1", "gear_ratio_rear": "1",
+         "vehicle_mass_kg": "kg", "energy_wh_per_km": "Wh/km", "energy_wall_wh_per_km": "Wh/km", "range_km": "km",
+         "accel_time_0_100_s": "s", "motor_speed_max_rad_s": "rad/s", "powertrain_cost_usd": "USD",
+         "drive_torque_margin_nm": "N*m", "motor_speed_margin_rad_s": "rad/s", "drive_power_margin_kw": "kW"}
+
+
 class Base(Discipline):
     """Holds the configured parameter values and merges per-point overrides."""
+
+    units = UNITS
 
     @dataclass(frozen=True)
     class Options:  # no option unless a discipline declares its own

@@ -17,8 +17,9 @@ from bev_mdo.models.params import validate_cycle
 
 
 class Energy(Base):
-    """vehicle_mass_kg, gear_ratio (, motor_kw, battery_kwh, rear motor) -> energy_wh_per_km on the
-    configured cycle (option ``cycle`` overrides it). Option ``feasibility_outputs: true`` adds
+    """vehicle_mass_kg, gear_ratio (, motor_kw, battery_kwh, rear motor) -> energy_wh_per_km, the energy
+    from the battery per km, on the configured cycle (option ``cycle`` overrides it); the chain model also
+    gives ``energy_wall_wh_per_km``, the energy from the wall (what EPA measures). Option ``feasibility_outputs: true`` adds
     ``drive_torque_margin_nm`` (min over the cycle of envelope minus demand; at the motor for
     SM-SA, at the wheels otherwise) and, with quasi_static, ``motor_speed_margin_rad_s`` (limit minus
     max) or, with chain, ``drive_power_margin_kw`` (rated power minus the largest drive power; over
@@ -50,9 +51,11 @@ class Energy(Base):
         if feasibility_outputs and energy_model not in ("quasi_static", "chain"):
             raise ValueError("energy option feasibility_outputs needs energy_model quasi_static or chain")
         self.feasibility_outputs = bool(feasibility_outputs)
+        # energy_wh_per_km is the energy from the battery (every model); chain adds the wall's
+        self.outputs = ("energy_wh_per_km",) + (("energy_wall_wh_per_km",) if energy_model == "chain" else ())
         if feasibility_outputs:
-            self.outputs = ("energy_wh_per_km", "drive_torque_margin_nm",
-                            "motor_speed_margin_rad_s" if energy_model == "quasi_static" else "drive_power_margin_kw")
+            self.outputs += ("drive_torque_margin_nm",
+                             "motor_speed_margin_rad_s" if energy_model == "quasi_static" else "drive_power_margin_kw")
         if energy_model == "flat":
             self.inputs = ("vehicle_mass_kg", "gear_ratio")
             self._fn = flat.energy_wh_per_km
@@ -113,7 +116,8 @@ class Energy(Base):
 
             runs = [(w, chain.simulate(r, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw))
                     for w, r in (getattr(self, "weighted", None) or [(1.0, self.resampled)])]
-            return {"energy_wh_per_km": sum(w * c.energy_wh_per_km for w, c in runs),
+            wall = sum(w * c.energy_wh_per_km for w, c in runs)
+            return {"energy_wh_per_km": wall * p["charger_efficiency"], "energy_wall_wh_per_km": wall,
                     "drive_torque_margin_nm": np.minimum.reduce([c.torque_margin_nm for _, c in runs]),
                     "drive_power_margin_kw": np.minimum.reduce([c.power_margin_kw for _, c in runs])}
         if getattr(self, "weighted", None):  # e.g. EPA combined: 0.55 UDDS + 0.45 HWFET by distance
@@ -121,6 +125,8 @@ class Energy(Base):
                     for w, r in self.weighted)
         else:
             e = self._fn(self.resampled, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
+        if self.energy_model == "chain":  # the chain's energy is from the wall; the battery gives E_wall x eta_chg
+            return {"energy_wh_per_km": e * p["charger_efficiency"], "energy_wall_wh_per_km": e}
         return {"energy_wh_per_km": e}
 
 
@@ -171,6 +177,7 @@ class CycleRange(Energy):
                  feasibility_outputs=False):
         super().__init__(parameters, resampled, "quasi_static", extra, topology, False)
         self.outputs = (f"range_{_slug(resampled.name)}_km",)
+        self.units = {**self.units, self.outputs[0]: "km"}
 
     @classmethod
     def from_config(cls, config, options):

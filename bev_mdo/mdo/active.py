@@ -57,13 +57,13 @@ def _violation(kind: str, limit: float, value: float) -> float:
 
 def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *,
             jacobian: Mapping[str, Mapping[str, float]] | None = None, rel_tol: float = REL_TOL,
-            units: Callable[[str], str] | None = None, feas_tol: float = FEASIBILITY_TOL) -> dict[str, Any]:
+            units: Mapping[str, str] | None = None, feas_tol: float = FEASIBILITY_TOL) -> dict[str, Any]:
     """The answers for one end point.
 
     ``problem``: a ``bev_mdo.mdo.problem.Problem``; ``design``: its design variables; ``values``: the
     constraint outputs at the point (extra keys are ignored); ``jacobian[output][variable]``: d output /
     d variable in physical units (only needed for the blocking analysis of an infeasible end);
-    ``units(name)``: a unit string for a quantity (default: ``bev_mdo.mdo.units.unit_of``);
+    ``units``: {variable: unit} as the disciplines declare them (mdo/units.py ``run_units``);
     ``feas_tol``: the run's feasibility tolerance (a normalised violation up to it is not "violated").
     Returns a JSON-ready dict: ``feasible``, ``active_constraints``, ``bounds`` (variables on a
     bound), ``violated`` (each with ``blocked_by`` and ``conflicts_with`` when a Jacobian is given)
@@ -71,7 +71,8 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
     """
     from bev_mdo.mdo.units import unit_of
 
-    unit = units or unit_of
+    def unit(name: str) -> str:
+        return unit_of(name, units or {})
     active, violated = [], []
     for name, kind, limit, scale in _limits(problem):
         y = float(values.get(name, np.nan))
@@ -216,19 +217,21 @@ def fd_jacobian(config: Mapping[str, Any], design: Mapping[str, float], discipli
 
 
 def answers_for(config: Mapping[str, Any], design: Mapping[str, float], values: Mapping[str, float],
-                disciplines: Disciplines, rel_tol: float = REL_TOL) -> dict[str, Any]:
+                disciplines: Disciplines, rel_tol: float = REL_TOL,
+                units: Mapping[str, str] | None = None) -> dict[str, Any]:
     """``analyse`` for a run config; an infeasible end gets the Jacobian by ``fd_jacobian`` (in process,
-    with ``disciplines``: a list, or a function building them, called only then)."""
+    with ``disciplines``: a list, or a function building them, called only then); ``units``: {variable: unit}
+    as the disciplines declare them (mdo/units.py ``run_units``)."""
     from bev_mdo.mdo.problem import Problem
 
     problem = Problem.from_config(config["problem"])
     tol = float((config.get("optimizer") or {}).get("feasibility_tolerance", FEASIBILITY_TOL))
-    ans = analyse(problem, design, values, rel_tol=rel_tol, feas_tol=tol)
+    ans = analyse(problem, design, values, rel_tol=rel_tol, feas_tol=tol, units=units)
     if ans["violated"]:
         try:
             jac = fd_jacobian(config, design, disciplines=disciplines)
         except Exception as exc:  # a model that fails near the point: say so, keep the rest
             ans["jacobian_error"] = f"{type(exc).__name__}: {exc}"
         else:
-            ans = analyse(problem, design, values, jacobian=jac, rel_tol=rel_tol, feas_tol=tol)
+            ans = analyse(problem, design, values, jacobian=jac, rel_tol=rel_tol, feas_tol=tol, units=units)
     return ans

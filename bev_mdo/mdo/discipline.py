@@ -9,6 +9,10 @@ an optional ``compute_partials(inputs) -> {(output, input): array (N, out_size, 
 next to ``compute`` (see docs/derivatives.md); ``run_discipline(..., partials=True)`` returns
 them flattened in ``EvalResult.extra["partials"]``.
 
+``units = {name: unit}`` declares the unit of every input and output (units.py): a consumer whose
+unit differs from the producer's gets its inputs converted on entry (``unit_conversions``, set at
+load by config.resolve_disciplines), here, on every transport.
+
 ``parameters`` lists model constants that a caller may override per point by
 sending an input column of the same name (used for sensitivities with respect
 to model parameters, e.g. ``drag_area_m2``).
@@ -47,6 +51,7 @@ class Discipline:
     name: str = ""
     inputs: tuple[str, ...] = ()
     outputs: tuple[str, ...] = ()
+    units: Mapping[str, str] = {}  # {input or output: unit}, e.g. {"range_km": "km", "gear_ratio": "1"}
     parameters: Mapping[str, float] = {}
 
     @classmethod
@@ -252,6 +257,12 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False)
         raise DisciplineError(f"discipline {name!r} is missing inputs {missing}")
     params = getattr(disc, "parameters", None) or ()
     batch = {k: _column(v) for k, v in inputs.items() if k in disc.inputs or k in params}
+    conv = getattr(disc, "unit_conversions", None)  # {input: (scale, offset)} set at load (units.py)
+    if conv:
+        for k, (scale, offset) in conv.items():
+            batch[k] *= scale  # batch columns are this call's own copies (_column)
+            if offset:
+                batch[k] += offset
     n = _batch_size(batch)
     t0 = time.perf_counter()
     if n == 0:  # a batch of no point (a transport's probe or warm-up): nothing to compute
@@ -337,6 +348,9 @@ def _with_partials(disc: Any, batch: Batch, res: EvalResult, n: int, t0: float) 
         k for k, c in part.items() if not np.isfinite(c[good]).all()]
     if bad:
         raise ShapeError(f"discipline {name!r}: partial d{bad[0][0]}/d{bad[0][1]} is not finite at an evaluated point")
+    conv = getattr(disc, "unit_conversions", None)
+    if conv:  # d out / d x in the run's unit = d out / d x in the declared unit x scale
+        part = {k: (c * conv[k[1]][0] if k[1] in conv else c) for k, c in part.items()}
     res.extra["partials"] = part
     res.compute_time_s = time.perf_counter() - t0
     return res

@@ -34,8 +34,9 @@ vectorised as (moving steps, N):
    ``battery_voltage_v``, plus the auxiliary load ``aux_power_w`` for the whole cycle
    (standstill included).
 6. **Charger** (wall to battery, including the battery's charge acceptance):
-   E_wall = E_batt / ``charger_efficiency``. ``energy_wh_per_km`` is E_wall per km, the figure
-   EPA measures; range (eq 7-28) uses E_batt = E_wall x charger_efficiency and
+   E_wall = E_batt / ``charger_efficiency``. ``ChainResult.energy_wh_per_km`` is E_wall per km, the
+   figure EPA measures (the ``energy`` discipline's ``energy_wall_wh_per_km``; its ``energy_wh_per_km``
+   is E_batt per km); range (eq 7-28) uses E_batt = E_wall x charger_efficiency and
    ``battery_usable_fraction``.
 
 A design whose motor cannot deliver the cycle's demand (torque above T_pk or power above P_r at

@@ -152,12 +152,14 @@ _MARKS = {"SM-SA": "o", "DM-DA": "s", "IWM-SA": "^", "IWM-DA": "D"}
 
 
 def _axis(name: str):
-    """(scale factor, axis label) of an objective; energy in kWh/100 km as the thesis plots it."""
-    from bev_mdo.mdo.units import label
+    """(scale factor, axis label) of an objective, in the built-in disciplines' declared unit; energy in
+    kWh/100 km as the thesis plots it."""
+    from bev_mdo.disciplines.common import UNITS
+    from bev_mdo.mdo.units import factor, label
 
     if name == "energy_wh_per_km":
-        return 0.1, "energy consumption (kWh/100 km)"
-    return 1.0, label(name)
+        return 100.0 * factor(UNITS[name], "kWh/km")[0], "battery energy (kWh/100 km)"
+    return 1.0, label(name, UNITS)
 
 
 def plot_pair(results, bench, xk: str, yk: str, path: Path, cycle: str = ""):

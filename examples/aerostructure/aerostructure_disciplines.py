@@ -40,6 +40,7 @@ class Aerodynamics:
     name = "aerodynamics"
     inputs = ("sweep", "thick_airfoils", "displ")
     outputs = ("drag", "forces", "lift")
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         s, ta, d = inputs["sweep"], inputs["thick_airfoils"], inputs["displ"]
@@ -62,6 +63,7 @@ class Structure:
     name = "structure"
     inputs = ("sweep", "thick_panels", "forces")
     outputs = ("mass", "reserve_fact", "displ")
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         s, tp, f = inputs["sweep"], inputs["thick_panels"], inputs["forces"]
@@ -84,6 +86,7 @@ class Mission:
     name = "mission"
     inputs = ("lift", "mass", "drag")
     outputs = ("range",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         return {"range": 8e11 * inputs["lift"] / (inputs["mass"] * inputs["drag"])}

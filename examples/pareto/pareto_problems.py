@@ -31,6 +31,7 @@ class ZDT1:
             raise ValueError(f"n must be an integer >= 2, got {n!r}")
         self.n = n
         self.inputs = tuple(f"x{i}" for i in range(1, n + 1))
+        self.units = dict.fromkeys(self.inputs + self.outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         x = np.column_stack([inputs[k] for k in self.inputs])
@@ -50,6 +51,7 @@ class SRN:
     name = "srn"
     inputs = ("x1", "x2")
     outputs = ("f1", "f2", "c1", "c2")
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         x1, x2 = inputs["x1"], inputs["x2"]
@@ -75,6 +77,7 @@ class TNK:
     name = "tnk"
     inputs = ("x1", "x2")
     outputs = ("f1", "f2", "c1", "c2")
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         x1, x2 = inputs["x1"], inputs["x2"]

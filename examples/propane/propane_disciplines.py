@@ -58,6 +58,7 @@ class PropaneComb1:
     name = "comb1"
     inputs = ("x_shared",)
     outputs = ("y_1",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
     shapes = {"x_shared": 4, "y_1": 2}
 
     def compute(self, inputs):
@@ -76,6 +77,7 @@ class PropaneComb2:
     name = "comb2"
     inputs = ("x_shared",)
     outputs = ("y_2",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
     shapes = {"x_shared": 4, "y_2": 2}
 
     def compute(self, inputs):
@@ -100,6 +102,7 @@ class PropaneComb3:
     name = "comb3"
     inputs = ("x_shared",)
     outputs = ("y_3",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
     shapes = {"x_shared": 4, "y_3": 3}
 
     def compute(self, inputs):
@@ -126,6 +129,7 @@ class PropaneReaction:
     name = "reaction"
     inputs = ("x_shared", "y_1", "y_2", "y_3")
     outputs = ("f_2", "f_6", "f_7", "f_9", "obj")
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
     shapes = {"x_shared": 4, "y_1": 2, "y_2": 2, "y_3": 3}
 
     @staticmethod

@@ -31,6 +31,7 @@ class SellarDis1:
     name = "sellar1"
     inputs = ("z1", "z2", "x", "y2")
     outputs = ("y1",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         return {"y1": inputs["z1"] ** 2 + inputs["z2"] + inputs["x"] - 0.2 * inputs["y2"]}
@@ -45,6 +46,7 @@ class SellarDis2:
     name = "sellar2"
     inputs = ("z1", "z2", "y1")
     outputs = ("y2",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         # |y1|: OpenMDAO's Sellar does the same, so an MDA iterate with y1 < 0 stays defined
@@ -62,6 +64,7 @@ class SellarObjective:
     name = "sellar_obj"
     inputs = ("x", "z2", "y1", "y2")
     outputs = ("obj",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         return {"obj": inputs["x"] ** 2 + inputs["z2"] + inputs["y1"] + np.exp(-inputs["y2"])}

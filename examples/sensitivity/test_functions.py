@@ -17,6 +17,7 @@ class Ishigami:
     name = "ishigami"
     inputs = ("x1", "x2", "x3")
     outputs = ("f",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
     a, b = 7.0, 0.1
 
     def compute(self, inputs):
@@ -28,6 +29,7 @@ class GFunction:
     name = "g_function"
     inputs = tuple(f"x{i + 1}" for i in range(len(G_A)))
     outputs = ("g",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         g = np.ones_like(np.asarray(inputs["x1"], dtype=float))

@@ -167,6 +167,7 @@ class Structure:
     name = "structure"
     inputs = ("x_shared", "x_1", "y_21", "y_31")
     outputs = ("y_12", "y_14", "g_1")
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
     shapes = {"x_shared": 6, "x_1": 2, "y_12": 2, "y_14": 2, "g_1": 7}
 
     def compute(self, inputs):
@@ -254,6 +255,7 @@ class Aerodynamics:
     name = "aerodynamics"
     inputs = ("x_shared", "x_2", "y_12", "y_32")
     outputs = ("y_21", "y_23", "y_24", "g_2")
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
     shapes = {"x_shared": 6, "y_12": 2}
 
     def compute(self, inputs):
@@ -344,6 +346,7 @@ class Propulsion:
     name = "propulsion"
     inputs = ("x_shared", "x_3", "y_23")
     outputs = ("y_31", "y_32", "y_34", "g_3")
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
     shapes = {"x_shared": 6, "g_3": 4}
 
     def compute(self, inputs):
@@ -400,6 +403,7 @@ class Mission:
     name = "mission"
     inputs = ("x_shared", "y_14", "y_24", "y_34")
     outputs = ("y_4",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
     shapes = {"x_shared": 6, "y_14": 2}
 
     def compute(self, inputs):

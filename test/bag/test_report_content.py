@@ -92,7 +92,7 @@ def test_report_markdown_names_the_answers_mass_and_cost(infeasible_run, tmp_pat
     assert f"- {n + 1} records (iterations 0-{n})," in md and f"{n + 1} iterations" not in md
     assert "## Why the end point is infeasible" in md
     assert "blocked by battery_kwh on its upper bound" in md
-    assert "| vehicle_mass_kg | kg |" in md and "| powertrain_cost_usd | US$ |" in md
+    assert "| vehicle_mass_kg | kg |" in md and "| powertrain_cost_usd | USD |" in md
     assert {p.name for p in paths} >= {"convergence.png", "design.png", "constraints.png", "report.md"}
 
 
@@ -105,12 +105,12 @@ def _figures(bag):
     rows = history(b)
     config, problem = rep._context(b)
     base = rep._baseline(config, problem)
-    return rows, problem, base, rep
+    return rows, problem, base, rep, rep._units(config)  # the units the disciplines declare
 
 
 def test_design_plot_has_units_bounds_baseline_and_marks_infeasible(infeasible_run, tmp_path):
-    rows, problem, base, rep = _figures(infeasible_run[1])
-    fig = rep._plot_design(rows, tmp_path / "d.png", problem, base)
+    rows, problem, base, rep, units = _figures(infeasible_run[1])
+    fig = rep._plot_design(rows, tmp_path / "d.png", problem, base, units)
     axes = fig.axes
     assert [a.get_ylabel() for a in axes] == ["motor power (kW)", "gear ratio (–)", "battery capacity (kWh)"]
     for ax, d in zip(axes, problem.design_variables):
@@ -124,8 +124,8 @@ def test_design_plot_has_units_bounds_baseline_and_marks_infeasible(infeasible_r
 
 
 def test_constraint_plot_draws_limits_with_units(feasible_run, tmp_path):
-    rows, problem, base, rep = _figures(feasible_run[1])
-    fig = rep._plot_constraints(rows, tmp_path / "c.png", problem, base)
+    rows, problem, base, rep, units = _figures(feasible_run[1])
+    fig = rep._plot_constraints(rows, tmp_path / "c.png", problem, base, units)
     by_label = {a.get_ylabel(): a for a in fig.axes}
     assert set(by_label) == {"range (km)", "max motor speed (rad/s)", "0–100 km/h time (s)"}
     limits = {round(float(l.get_ydata()[0]), 6) for a in fig.axes for l in a.get_lines() if l.get_linestyle() == "--"}
@@ -133,9 +133,9 @@ def test_constraint_plot_draws_limits_with_units(feasible_run, tmp_path):
 
 
 def test_convergence_plot_labels_the_objective_with_its_unit(feasible_run, tmp_path):
-    rows, problem, base, rep = _figures(feasible_run[1])
-    fig = rep._plot_convergence(rows, tmp_path / "v.png", base)
-    assert fig.axes[0].get_ylabel() == "energy consumption (Wh/km)"
+    rows, problem, base, rep, units = _figures(feasible_run[1])
+    fig = rep._plot_convergence(rows, tmp_path / "v.png", base, units)
+    assert fig.axes[0].get_ylabel() == "battery energy (Wh/km)"
     assert "baseline (Leaf (80 kW, 7.94:1, 24 kWh))" in [l.get_label() for l in fig.axes[0].get_lines()]
     markers = [l for l in fig.axes[0].get_lines() if l.get_label() == "infeasible iterate"]
     assert markers and len(markers[0].get_xdata()) == sum(not r["feasible"] for r in rows)

@@ -12,6 +12,7 @@ class Hang:
     name = "hang"
     inputs = ("motor_kw",)
     outputs = ("hang_kw",)
+    units = dict.fromkeys(inputs + outputs, "kW")
 
     def compute(self, inputs):
         time.sleep(3600)
@@ -24,6 +25,7 @@ class HangLater:
     name = "late"
     inputs = ("motor_kw",)
     outputs = ("late_kw",)
+    units = dict.fromkeys(inputs + outputs, "kW")
     calls = 0
 
     def compute(self, inputs):
@@ -39,6 +41,7 @@ class Broken:
     name = "broken"
     inputs = ("motor_kw",)
     outputs = ("broken_kw",)
+    units = dict.fromkeys(inputs + outputs, "kW")
 
     def compute(self, inputs):
         raise ValueError("the broken model refuses every motor")
@@ -50,6 +53,7 @@ class Summed:
     name = "summed"
     inputs = ("motor_kw",)
     outputs = ("summed_kw",)
+    units = dict.fromkeys(inputs + outputs, "kW")
 
     def compute(self, inputs):
         return {"summed_kw": float(np.sum(inputs["motor_kw"]))}
@@ -61,6 +65,7 @@ class Quits:
     name = "quits"
     inputs = ("motor_kw",)
     outputs = ("quits_kw",)
+    units = dict.fromkeys(inputs + outputs, "kW")
 
     def compute(self, inputs):
         import sys
@@ -75,6 +80,7 @@ class WrongShapeLater:
     name = "shape"
     inputs = ("motor_kw",)
     outputs = ("shape_kw",)
+    units = dict.fromkeys(inputs + outputs, "kW")
     calls = 0
 
     def compute(self, inputs):

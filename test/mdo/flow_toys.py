@@ -40,6 +40,10 @@ class Side(Discipline):
         return {"u": 2 * inputs["x"]}
 
 
+for _toy in (Square, Plus, Half, Side):
+    _toy.units = dict.fromkeys(_toy.inputs + _toy.outputs, "1")  # dimensionless
+
+
 def chain():
     return [Square(), Plus(), Half(), Side()]
 
@@ -76,3 +80,7 @@ def loop():
 
 # point 0 fails in pre; points 2 and 3 in loop_a (the loop's second and third rows); point 1 converges
 LOOP_X = {"x": np.array([-1.0, 1.0, 7.0, 8.0])}
+
+
+for _toy in (Pre, LoopA, LoopB):
+    _toy.units = dict.fromkeys(_toy.inputs + _toy.outputs, "1")  # dimensionless

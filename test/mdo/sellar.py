@@ -24,6 +24,7 @@ class NegatedObjective:
     name = "sellar_neg"
     inputs = ("obj",)
     outputs = ("neg_obj",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         return {"neg_obj": -inputs["obj"]}
@@ -38,6 +39,7 @@ class Failing:
     def __init__(self, inner, var, threshold):
         self.inner, self.var, self.threshold = inner, var, threshold
         self.name, self.inputs, self.outputs = inner.name, inner.inputs, inner.outputs
+        self.units = getattr(inner, "units", {})
 
     def compute(self, inputs):
         out = self.inner.compute(inputs)

@@ -3,8 +3,15 @@ from __future__ import annotations
 
 import pytest
 
-from bev_mdo.mdo.active import analyse, summary_lines
+from bev_mdo.disciplines.common import UNITS
+from bev_mdo.mdo import active
+from bev_mdo.mdo.active import summary_lines
 from bev_mdo.mdo.problem import Problem
+
+def analyse(*args, **kwargs):
+    """active.analyse with the built-in disciplines' declared units."""
+    return active.analyse(*args, units=UNITS, **kwargs)
+
 
 PROBLEM = Problem.from_config({
     "objective": "energy_wh_per_km",

@@ -43,6 +43,7 @@ def test_a_maximised_objective_is_reported_as_itself(tmp_path, capsys):
     """The ZDT1 front with f2 given as a maximised -f2: the same designs, -f2 reported as evaluated."""
     (tmp_path / "neg.py").write_text(
         "class Neg:\n    name = 'neg'\n    inputs = ('f2',)\n    outputs = ('minus_f2',)\n"
+        "    units = {'f2': '1', 'minus_f2': '1'}\n"
         "    def compute(self, inputs):\n        return {'minus_f2': -inputs['f2']}\n")
     raw = yaml.safe_load((EXAMPLES / "zdt1.yaml").read_text())
     raw["search_path"] = [str(EXAMPLES)]

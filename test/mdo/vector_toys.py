@@ -12,6 +12,7 @@ class NoPartials:
     def __init__(self, inner):
         self.inner = inner
         self.name, self.inputs, self.outputs = inner.name, inner.inputs, inner.outputs
+        self.units = getattr(inner, "units", {})
         self.shapes = dict(getattr(inner, "shapes", {}))
 
     def compute(self, inputs):
@@ -49,6 +50,7 @@ class ConstantOnPurpose:
     name = "constant"
     inputs = ("x",)
     outputs = ("c",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
     broadcast_outputs = ("c",)
 
     def compute(self, inputs):

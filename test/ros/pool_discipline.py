@@ -20,6 +20,7 @@ class WaitPerDesign:
     name = "wait"
     inputs = ("motor_kw", "gear_ratio")
     outputs = ("wait_value",)
+    units = {"motor_kw": "kW", "gear_ratio": "1", "wait_value": "1"}
     parameters = {}
 
     def __init__(self, wait_s_per_design: float = 0.002, overhead_s: float = 0.0):

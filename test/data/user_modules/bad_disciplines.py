@@ -10,6 +10,7 @@ class OutputTwice:
     name = "twice"
     inputs = ("z1",)
     outputs = ("w", "w")
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         return {"w": inputs["z1"]}
@@ -19,6 +20,7 @@ class WrongShape:
     name = "wrong_shape"
     inputs = ("z1", "x")
     outputs = ("w",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         return {"w": np.column_stack([inputs["z1"], inputs["x"]])}  # (N, 2), not (N,)
@@ -28,6 +30,7 @@ class Raises:
     name = "raises"
     inputs = ("z1", "x")
     outputs = ("w",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         raise RuntimeError("the solver diverged")
@@ -37,6 +40,7 @@ class ReturnsNaN:
     name = "returns_nan"
     inputs = ("z1", "x")
     outputs = ("w",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def compute(self, inputs):
         return {"w": np.full(inputs["z1"].shape, np.nan)}
@@ -46,6 +50,7 @@ class Hangs:
     name = "hangs"
     inputs = ("z1", "x")
     outputs = ("w",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def __init__(self, seconds=3600.0):
         self.seconds = float(seconds)
@@ -60,6 +65,7 @@ class BadConstructor:
     name = "bad_constructor"
     inputs = ("z1",)
     outputs = ("w",)
+    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
     def __init__(self):
         raise KeyError("licence server")
