@@ -304,7 +304,8 @@ class RosEvaluator:
                 raise DisciplineMissing(
                     f"discipline(s) {gone} not found on ROS domain: discovery made no progress for {wait_s:g} s "
                     "(is each node running, with the same ROS_DOMAIN_ID and discovery settings? see its log in "
-                    "the run's logs folder; ros.discovery_wait_s sets this bound)"
+                    "the run's logs folder; LOCALHOST discovery reaches about 32 processes per domain, "
+                    "docs/scaling.md; ros.discovery_wait_s sets this bound)"
                 )
         # Our result subscription must be matched to every discipline's publisher too.
         if not until(lambda: self._result_sub.get_publisher_count() >= len(set(names)), wait_s, spin, progress,
@@ -351,8 +352,7 @@ class RosEvaluator:
         if data_flow is None:
             data_flow = self.flow_plan(names) is not None and all(n in self._flow_subs for n in names)
         kept = len(self.accepted)
-        start = last = shown = time.monotonic()
-        state = self.progress(names)
+        start, last, state, shown = time.monotonic(), time.monotonic(), self.progress(names), time.monotonic()
         rounds = [("request", n) for n in names] + ([("flow", None)] if data_flow else [])
         for kind, name in rounds:
             interval = 0.1
@@ -381,10 +381,9 @@ class RosEvaluator:
                 if (s := self.progress(names)) != state:
                     state, last = s, now
                 if now - last >= wait_s or now - start > STARTUP_CAP * wait_s:  # as fastwait.until
+                    why = f"nothing changed for {wait_s:g} s" if now - last >= wait_s else f"{now - start:.0f} s in all"
                     raise DisciplineMissing(f"discipline(s) {late} are matched but did not answer a probe "
-                                            f"({'data flow' if kind == 'flow' else 'request'}); " + (
-                                                f"nothing changed for {wait_s:g} s" if now - last >= wait_s else
-                                                f"still unanswered after {STARTUP_CAP * wait_s:g} s"))
+                                            f"({'data flow' if kind == 'flow' else 'request'}); {why}")
                 if now - shown >= 2.0:
                     shown = now
                     print(f"[start-up] waiting for {late} to answer a probe; gives up in "
