@@ -19,11 +19,11 @@ The in-process run of each config is timed the same way, for reference. Asserts 
 discipline (``--compose none``) and composed into the coordinator (``--compose coordinator``). Start-up
 is the time from starting the command to its first iteration line; every run's optimum is checked
 against the others of its round (the answer must not depend on the layout or the crowd). The figures
-go into the same JSON under ``concurrent`` (median, min and max over ``--repeat`` rounds of every run's
-start-up, and of the slowest run per round).
+go into ``bench/results/bench_sellar_startup.json`` (median, min and max over ``--repeat`` rounds of every run's
+start-up; failed runs counted).
 
     .venv/bin/python bench/bench_sellar_startup.py [--repeat 5] [--domain-id 22]
-    .venv/bin/python bench/bench_sellar_startup.py --concurrent 1,4,8 --repeat 1 [--append] [--compose none,coordinator]
+    .venv/bin/python bench/bench_sellar_startup.py --concurrent 1,4,8 --repeat 2 [--compose none,coordinator]
     (take /tmp/bev_ros_tests.lock around it on a shared host)
 """
 from __future__ import annotations
@@ -41,6 +41,7 @@ from pathlib import Path
 import yaml
 
 REPO = Path(__file__).resolve().parents[1]
+RESULT = REPO / "bench" / "results" / "bench_sellar_startup.json"
 
 
 def configs(tmp: Path) -> dict[str, Path]:
@@ -107,49 +108,43 @@ def start_together(n: int, compose: str, domain: int, cwd: Path, tag: str) -> li
 
 
 def concurrent(args) -> int:
+    """``--concurrent``: figures (median and range of every run's start-up, per count and layout) into
+    ``bench/results/bench_sellar_startup.json`` (bench/_results.py; the one-run ``rows`` kept), rendered into
+    docs/performance.md."""
+    sys.path.insert(0, str(REPO / "bench"))
+    from _results import figure, write
+
     counts = [int(c) for c in args.concurrent.split(",")]
     composes = args.compose.split(",")
-    path = Path(args.json)
-    doc = json.loads(path.read_text()) if path.exists() else {"bench": "bench_sellar_startup"}
+    from bev_mdo.config import discipline_names, load_config
+
+    # DDS participants of one run: one per process (the disciplines' with --compose none), the recorder's, and the
+    # command's two (coordinator, hang watchdog). LOCALHOST discovery reaches 32 per domain (docs/scaling.md).
+    per_run = {"none": len(discipline_names(load_config(REPO / "config" / "leaf_nedc.yaml"))) + 3, "coordinator": 3}
+    skipped = {f"{n} x {c}": f"{n * per_run[c]} participants > 32" for n in counts for c in composes
+               if n * per_run[c] > 32}
     runs: dict[tuple[int, str], list[list[dict]]] = {}
-    if args.append:  # more rounds to the ones already measured (one locked command per round on a shared host)
-        for key, rounds in (doc.get("concurrent") or {}).get("raw", {}).items():
-            n, compose = key.split("|")
-            runs[(int(n), compose)] = rounds
     with tempfile.TemporaryDirectory() as d:
         for r in range(args.repeat):
             for n in counts:
-                for compose in composes:  # interleaved: the host is noisy
+                for compose in [c for c in composes if f"{n} x {c}" not in skipped]:  # interleaved: noisy host
                     rs = start_together(n, compose, args.domain_id, Path(d), f"r{r}_{n}_{compose}")
                     runs.setdefault((n, compose), []).append(rs)
                     ok = [x for x in rs if x["exit"] == 0]
                     print(f"round {r}: {n} x --compose {compose}: {len(ok)}/{n} finished; start-up "
                           f"{sorted(round(x['startup_s'], 1) for x in ok if x['startup_s'])} s", flush=True)
-    rows = []
+    figures, failed, objectives = [], {}, set()
     for (n, compose), rounds in runs.items():
         every = [x["startup_s"] for rs in rounds for x in rs if x["exit"] == 0 and x["startup_s"]]
-        slowest = [max(x["startup_s"] for x in rs) for rs in rounds
-                   if all(x["exit"] == 0 and x["startup_s"] for x in rs)]
-        objectives = {x["objective"] for rs in rounds for x in rs if x["exit"] == 0}
-        rows.append({"runs_together": n, "compose": compose, "rounds": len(rounds),
-                     "failed": sum(x["exit"] != 0 for rs in rounds for x in rs),
-                     "startup_s": every, "startup_median_s": statistics.median(every) if every else None,
-                     "startup_min_s": min(every, default=None), "startup_max_s": max(every, default=None),
-                     "slowest_per_round_s": slowest,
-                     "slowest_median_s": statistics.median(slowest) if slowest else None,
-                     "objectives": sorted(objectives)})
-    doc["concurrent"] = {"config": "config/leaf_nedc.yaml (recorded)", "host_cpus": os.cpu_count(),
-                         "load_average_1min_at_end": os.getloadavg()[0], "rows": rows,
-                         "raw": {f"{n}|{c}": rounds for (n, c), rounds in runs.items()}}
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(doc, indent=2))
-    print(f"{'runs':>4s} {'compose':12s} {'failed':>6s} {'start-up median s':>18s} {'min':>6s} {'max':>6s} "
-          f"{'slowest (median)':>16s}  objectives")
-    for r in rows:
-        f = lambda v: f"{v:6.1f}" if v is not None else "     -"  # noqa: E731
-        print(f"{r['runs_together']:4d} {r['compose']:12s} {r['failed']:6d} {f(r['startup_median_s']):>18s} "
-              f"{f(r['startup_min_s'])} {f(r['startup_max_s'])} {f(r['slowest_median_s']):>16s}  {r['objectives']}")
-    print(f"wrote {path}")
+        failed[f"{n} x {compose}"] = sum(x["exit"] != 0 for rs in rounds for x in rs)
+        objectives |= {x["objective"] for rs in rounds for x in rs if x["exit"] == 0}
+        if every:  # every run's start-up (s from the command to its first iteration line), over the rounds
+            figures.append(figure(f"start-up, {n} run{'s' if n > 1 else ''} together, --compose {compose}", "s",
+                                  every, note=f"{failed[f'{n} x {compose}']} of {n * len(rounds)} runs failed"))
+    single = RESULT.read_text(encoding="utf-8") if RESULT.exists() else "{}"
+    write("bench_sellar_startup", figures, extra={"rows": json.loads(single).get("rows", []),  # the one-run part, kept
+        "config": "config/leaf_nedc.yaml (recorded)", "rounds": args.repeat, "failed_runs": failed, "not_run": skipped,
+        "objectives": sorted(objectives), "raw": {f"{n}|{c}": rounds for (n, c), rounds in runs.items()}})
     return 0
 
 
@@ -157,10 +152,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--domain-id", type=int, default=22)
-    ap.add_argument("--json", default=str(REPO / "bench" / "results" / "bench_sellar_startup.json"))
+    ap.add_argument("--json", default=str(RESULT))
     ap.add_argument("--concurrent", default="", help="e.g. 1,4,8: runs started together on one domain")
     ap.add_argument("--compose", default="none,coordinator", help="with --concurrent: layouts to compare")
-    ap.add_argument("--append", action="store_true", help="with --concurrent: add rounds to those in --json")
     args = ap.parse_args(argv)
     if args.concurrent:
         return concurrent(args)
@@ -181,9 +175,9 @@ def main(argv=None) -> int:
                      "objective": rs[-1]["objective"], "iterations": rs[-1]["iterations"],
                      "feasible": rs[-1]["feasible"], "retried_total": sum(r["retried"] for r in rs),
                      "retry_warnings_total": sum(len(r["warnings"]) for r in rs)})
-    old = json.loads(Path(args.json).read_text()) if Path(args.json).exists() else {}
-    out = {"bench": "bench_sellar_startup", "repeat": args.repeat, "host_cpus": os.cpu_count(), "rows": rows,
-           **({"concurrent": old["concurrent"]} if "concurrent" in old else {})}
+    # the one-run part: rows beside the --concurrent figures of the same file (kept)
+    out = json.loads(Path(args.json).read_text(encoding="utf-8")) if Path(args.json).exists() else {}
+    out.update({"bench": "bench_sellar_startup", "repeat": args.repeat, "host_cpus": os.cpu_count(), "rows": rows})
     Path(args.json).parent.mkdir(parents=True, exist_ok=True)
     Path(args.json).write_text(json.dumps(out, indent=2))
     print(f"start to result of `bev-mdo optimize CONFIG --json --no-record`, {args.repeat} runs each (interleaved)")

@@ -9,6 +9,7 @@ raised again at the next batch.
 """
 from __future__ import annotations
 
+import contextlib
 import signal
 
 
@@ -17,15 +18,31 @@ class Terminated(KeyboardInterrupt):
 
 
 _pending: type[BaseException] | None = None
+_deferring = 0  # > 0 inside deferred(): a signal is kept and raised at the block's end
 
 
 def _handler(exc: type[BaseException]):
     def handle(signum, frame) -> None:
         global _pending
         _pending = exc
-        raise exc()
+        if not _deferring:
+            raise exc()
 
     return handle
+
+
+@contextlib.contextmanager
+def deferred():
+    """A block that a signal does not cut in two (a bag record written halfway leaves a file no reader can
+    open past it): SIGINT or SIGTERM arriving inside is raised when the block ends."""
+    global _deferring
+    _deferring += 1
+    try:
+        yield
+    finally:
+        _deferring -= 1
+        if not _deferring and _pending is not None:
+            raise _pending()
 
 
 def install() -> dict:

@@ -1,20 +1,20 @@
 """Sessions: the "start nodes, recorder, coordinator; run; stop" sequences, out of the CLI.
 
-* ``EvaluateRosSession``: the ROS evaluator of ``bev-mdo evaluate``/``sensitivity``/``sweep`` over ROS:
-  the running nodes of the ros section's domain, or (``launch``) the command's own nodes, signed with a
-  per-run key by default (ros.launch.OwnSuite); closing it stops them and returns the notes for the user.
-* ``OptimizeRosSession``: one optimisation over ROS (``bev-mdo optimize`` and ``resume``): discipline
-  nodes (pools, composed processes) and a recorder started for the run, signed with a per-run key by
-  default (docs/security.md), the config's baseline and the run coordinated in this process, every
-  process stopped on exit (the recorder first) and what happened summarised.
-* ``ParetoInProcessSession``/``ParetoRosSession``: the sessions of a multi-run study (``bev-mdo
-  pareto``, bench/bench_pareto.py): where its evaluators come from and where its ParetoFront messages
-  go: in-process evaluators and a bag written directly (BagSink), or over ROS a recorder for the whole
-  session and one set of discipline nodes and one coordinator per topology.
+* ``EvaluateRosSession``: the ROS evaluator of ``bev-mdo evaluate``/``sensitivity``/``sweep`` over ROS: the running
+  nodes of the ros section's domain, or (``launch``) the command's own nodes, signed with a per-run key by default
+  (ros.launch.OwnSuite); closing it stops them and returns the notes for the user.
+* ``OptimizeRosSession``: one optimisation over ROS (``bev-mdo optimize`` and ``resume``): discipline nodes (pools,
+  composed processes) and a recorder started for the run, signed with a per-run key by default (docs/security.md),
+  the config's baseline and the run coordinated in this process, every process stopped on exit (the recorder
+  first) and what happened summarised.
+* ``ParetoInProcessSession``/``ParetoRosSession``: the sessions of a multi-run study (``bev-mdo pareto``,
+  bench/bench_pareto.py): where its evaluators come from and where its ParetoFront messages go: in-process
+  evaluators and a bag written directly (BagSink), or over ROS a recorder for the whole session and one set of
+  discipline nodes and one coordinator per topology.
 
-Both ROS sessions prepare their run directory the same way (``_prepare``: per-run key, the resolved
-config written for the nodes and the recorder) and start the recorder with ros.launch.start_recorder.
-ROS is imported only when a ROS session starts.
+Both ROS sessions prepare their run directory the same way (``_prepare``: per-run key, the resolved config written
+for the nodes and the recorder) and start the recorder with ros.launch.start_recorder. ROS is imported only when a
+ROS session starts.
 """
 from __future__ import annotations
 
@@ -45,10 +45,9 @@ def _prepare(config: dict, logs: Path, key_dir: Path) -> tuple[dict, Path]:
 
 
 def key_dir_for(bag: Path) -> Path:
-    """Where a run's per-run key lives: ``<bag parent>/.keys/<bag name>`` (beside the bag, never in it).
-    A key left there by an earlier run that never wrote this bag (it failed or was stopped before its
-    recorder started) is stale: it is removed, so a re-run with the same ``--bag`` gets a fresh key
-    instead of failing on the existing file."""
+    """Where a run's per-run key lives: ``<bag parent>/.keys/<bag name>`` (beside the bag, never in it). A key left
+    there by an earlier run that never wrote this bag (it failed or was stopped before its recorder started) is stale:
+    it is removed, so a re-run with the same ``--bag`` gets a fresh key instead of failing on the existing file."""
     d = bag.parent / ".keys" / bag.name
     stale = d / "sign.key"
     if stale.is_file() and not bag.exists():
@@ -75,11 +74,10 @@ def analyse_baseline(config, evaluator) -> dict | None:
 
 
 class EvaluateRosSession:
-    """The ROS evaluator of ``evaluate``/``sensitivity``/``sweep`` over ROS (``ros``: the validated ros
-    section): the running nodes, or with ``launch`` the command's own (signed by default,
-    launch.OwnSuite). ``close(ok)`` ends both and returns, when the command ended well, the notes for
-    the user: what was dropped and, for unsigned results, that anyone on the domain could have
-    answered them."""
+    """The ROS evaluator of ``evaluate``/``sensitivity``/``sweep`` over ROS (``ros``: the validated ros section): the
+    running nodes, or with ``launch`` the command's own (signed by default, launch.OwnSuite). ``close(ok)`` ends both
+    and returns, when the command ended well, the notes for the user: what was dropped and, for unsigned results, that
+    anyone on the domain could have answered them."""
 
     def __init__(self, config: dict, ros: dict, *, launch: bool = False, node_name: str = "bev_mdo_client"):
         from bev_mdo.ros.client import make_ros_evaluator
@@ -249,37 +247,38 @@ class OptimizeRosSession:
 
 
 def acks_needless(launcher):
-    """When the coordinator's final wait for acknowledgements may end early (they are awaited only so
-    the recorder misses nothing): at once when the recorder died, and after ACK_GRACE_S when a node
-    died within the last lease, because a killed reader never acknowledges and is matched until its
-    lease expires (stalling the end of the run up to 3 s)."""
+    """When the coordinator's final wait for acknowledgements may end early (they are awaited only so the recorder
+    misses nothing): at once when the recorder died, and after ACK_GRACE_S when a node died within the last lease,
+    because a killed reader never acknowledges and is matched until its lease expires (up to 3 s)."""
     started = []
 
     def needless() -> bool:
         if launcher.node("recorder").died is not None:
             return True
         now = time.monotonic()
-        if not started:
-            started.append(now)
+        started[:] = started or [now]
         return now - started[0] >= ACK_GRACE_S and launcher.died_within(LEASE_S + ACK_GRACE_S)
 
     return needless
 
 
 def recorder_failure(launcher, bag: Path) -> str | None:
-    """None if the recorder lived to the end; else a one-line warning, after making the bag
-    readable again (its summary and metadata.yaml rebuilt from what was flushed)."""
-    node = launcher.node("recorder")
-    # died during the run (the supervisor saw it), or did not stop cleanly when told to: killed
-    # while the run was ending (after the supervisor stopped), or stuck and killed by stop()
+    """None if the recorder lived to the end, or closed its bag and was then killed in its ROS teardown (at nice
+    10 on a crowded host, past Launcher.stop's wait); else a one-line warning, after making the bag readable
+    again (its summary and metadata.yaml rebuilt from what was flushed)."""
+    node = launcher.node("recorder")  # died during the run (the supervisor saw it), or when told to stop
     status = node.died if node.died is not None else (node.proc.returncode if node.proc is not None else None)
     if status in (0, None):
         return None
     note = f"the recorder died (exit status {status}) during the run; the bag holds only what it recorded before"
     try:
+        from bev_mdo.bag.reader import find_mcap
         from bev_mdo.bag.repair import repair
 
+        closed = (find_mcap(bag).parent / "metadata.yaml").is_file()  # written last by the recorder's close
         res = repair(bag)
+        if closed and not res.was_truncated:  # the bag holds everything: nothing failed
+            return None
         note += f" ({res.message_count} messages, summary and metadata rebuilt)"
     except (ValueError, OSError) as exc:
         note += f"; the bag could not be repaired: {exc}"

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import faulthandler
+import math
 import signal
 import sys
 
@@ -21,25 +22,62 @@ def dump_stacks_on_sigusr1() -> None:
     faulthandler.register(signal.SIGUSR1, file=sys.__stderr__, all_threads=True)
 
 
+STARTUP_GAVE_UP_STATUS = 6
+
+
+class StartupGaveUp(ValueError):
+    """A ROS start-up wait gave up: a node or the run's recorder did not appear, match or answer while
+    nothing changed for ``ros.discovery_wait_s``, or not within 10 times that in all (ros/fastwait.py).
+    The CLI prints it on one line and exits with status 6 (STARTUP_GAVE_UP_STATUS)."""
+
+
 TEARDOWN_S = 30.0  # destroying a node and shutting a context down takes well under a second, seconds under load
+HUNG_TEARDOWN_STATUS = 128 + signal.SIGALRM  # 142: the exit status of a process whose teardown overran its bound
+
+
+def _stderr_ok() -> bool:
+    try:
+        sys.__stderr__.fileno()
+        return True
+    except (AttributeError, OSError, ValueError):
+        return False
 
 
 @contextlib.contextmanager
 def deadline(seconds: float = TEARDOWN_S):
     """The block must end within `seconds`, or the process ends: every thread's stack is printed on stderr
-    (faulthandler's ``Timeout (0:00:30)!``) and the process exits with status 1.
+    (faulthandler's ``Timeout (0:00:30)!``) and a second later the kernel ends the process with SIGALRM
+    (exit status 142, HUNG_TEARDOWN_STATUS; -14 as subprocess reports it).
 
-    For the ROS teardown of the coordinator's process: when its DDS participant is hung (a Fast DDS deadlock,
-    docs/security.md), destroying it blocks for good, with or without Python's lock, and a run would never
-    end. The launched nodes then get SIGTERM from the kernel (they die with their parent). A process-wide
-    timer (faulthandler has one): a later `deadline` replaces an earlier one."""
-    try:
-        sys.__stderr__.fileno()
-    except (AttributeError, OSError, ValueError):  # no stderr to print to: no deadline
+    For the ROS teardown of a process: when its DDS participant is hung (a Fast DDS deadlock,
+    docs/security.md), or a participant being deleted busy-waits for a discovery callback that does not
+    end (eProsima/Fast-DDS#6513), destroying it blocks for good, with or without Python's lock, and a run
+    would never end. The kernel's SIGALRM needs neither. Launched nodes then get SIGTERM from the kernel
+    (they die with their parent). Process-wide timers: a later `deadline` replaces an earlier one."""
+    if not _stderr_ok():  # no stderr to print to: no deadline
         yield
         return
-    faulthandler.dump_traceback_later(seconds, exit=True, file=sys.__stderr__)
+    import threading
+
+    main = threading.current_thread() is threading.main_thread()  # signal handlers: main thread only
+    # elsewhere faulthandler ends the process itself, with status 1
+    faulthandler.dump_traceback_later(seconds, exit=not main, file=sys.__stderr__)
+    previous = signal.signal(signal.SIGALRM, signal.SIG_DFL) if main else None
+    if main:
+        signal.alarm(math.ceil(seconds) + 1)
     try:
         yield
     finally:
+        if main:
+            signal.alarm(0)
+            signal.signal(signal.SIGALRM, previous)
         faulthandler.cancel_dump_traceback_later()
+
+
+def bound_exit(seconds: float = TEARDOWN_S) -> None:
+    """The process must be gone within `seconds` from now, its interpreter's exit included, or the kernel
+    ends it with SIGALRM (exit status 142). For the end of a `bev-mdo` process that ran ROS: after Python's
+    own exit, C++ destructors of Fast DDS run where no Python timer does (the factory's destructor waits
+    for any participant still being deleted in another thread). Main thread only."""
+    signal.signal(signal.SIGALRM, signal.SIG_DFL)
+    signal.alarm(max(1, math.ceil(seconds)))

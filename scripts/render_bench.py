@@ -49,7 +49,7 @@ def render(results_dir: Path) -> str:
     out = []
     for p, d in docs:
         host = d.get("host", {})
-        out += [f"### {d.get('bench', p.stem)}", "",
+        out += [f"### {d.get('bench', p.stem)}",
                 "| what | median | range (runs) | unit | target |", "|---|---:|---:|---|---|"]
         for f in d["figures"]:
             rng = f"{fmt(f['min'])}–{fmt(f['max'])} ({len(f['runs'])})" if len(f["runs"]) > 1 else f"({len(f['runs'])})"

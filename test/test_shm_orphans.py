@@ -41,3 +41,36 @@ def test_a_port_with_one_lock_still_held_is_kept(tmp_path):
 
 def test_a_missing_directory_is_no_error(tmp_path):
     assert remove_orphans(tmp_path / "absent") == []
+
+
+def test_a_node_the_launcher_had_to_kill_leaves_no_files(tmp_path):
+    """Launcher.stop removes the Fast DDS files of the nodes it SIGTERMed or SIGKILLed (a recorder still in its
+    ROS teardown past the stop's wait), not only the next start: a run leaves nothing of its own behind."""
+    import signal
+    import sys
+    from pathlib import Path
+
+    from bev_mdo.ros.launch import Launcher
+
+    name = f"fastrtps_bevtest{os.getpid():x}"
+    shm = Path("/dev/shm")
+    code = "\n".join([
+        "import fcntl, os, signal, time", "signal.signal(signal.SIGINT, signal.SIG_IGN)",
+        f"open('/dev/shm/{name}', 'wb').close()", f"lock = open('/dev/shm/{name}_el', 'wb')",
+        "fcntl.flock(lock, fcntl.LOCK_EX)", "t = time.time() - 60",
+        f"os.utime('/dev/shm/{name}', (t, t)); os.utime('/dev/shm/{name}_el', (t, t))",
+        "print('ready', flush=True)", "time.sleep(120)"])
+    la = Launcher({}, log_dir=tmp_path)
+    try:
+        node = la.add("stuck", [sys.executable, "-c", code], restart=False)
+        end = time.monotonic() + 60
+        while "ready" not in (tmp_path / "stuck.log").read_text() and time.monotonic() < end:
+            time.sleep(0.05)  # waiting for the child's files (a condition, bounded)
+        assert (shm / f"{name}_el").exists()
+        la.stop(timeout_s=0.5)
+        assert node.proc.returncode in (-signal.SIGUSR1, -signal.SIGTERM)  # killed by the stop (SIGINT ignored)
+        assert not (shm / name).exists() and not (shm / f"{name}_el").exists()
+    finally:
+        la.stop(timeout_s=0.5)
+        for n in (name, f"{name}_el"):
+            (shm / n).unlink(missing_ok=True)

@@ -2,6 +2,7 @@
 import signal
 import subprocess
 import sys
+import types
 
 from bev_mdo.testing import REPO
 
@@ -62,8 +63,43 @@ def test_a_teardown_stuck_in_c_holding_the_gil_ends_the_process_with_its_stacks(
     """A call blocked in C that holds Python's lock (ctypes.PyDLL keeps it: like a DDS destroy that never
     returns) cannot be interrupted from Python; the deadline's timer thread still ends the process."""
     p = _deadline_run("ctypes.PyDLL(None).sleep(30)", 0.5)
-    assert p.returncode == 1 and "after" not in p.stdout
+    assert p.returncode == -signal.SIGALRM and "after" not in p.stdout  # exit status 142 in a shell
     assert "Timeout" in p.stderr and "File" in p.stderr
+
+
+def test_an_exit_that_hangs_after_the_work_is_done_is_ended_by_the_kernel():
+    """bound_exit: the end of a bev-mdo process that ran ROS is bounded even where no Python timer runs
+    (a C++ destructor of the middleware blocking the interpreter's exit, here an atexit handler blocked
+    in C holding Python's lock): SIGALRM ends it, exit status 142."""
+    code = "\n".join(["import atexit, ctypes", "from bev_mdo.stacks import bound_exit",
+                      "atexit.register(lambda: ctypes.PyDLL(None).sleep(30))", "print('result', flush=True)",
+                      "bound_exit(1)"])
+    p = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert p.returncode == -signal.SIGALRM and p.stdout.strip() == "result"
+
+
+def test_a_process_that_exits_in_time_keeps_its_status():
+    code = "\n".join(["import sys", "from bev_mdo.stacks import bound_exit", "bound_exit(30)", "sys.exit(5)"])
+    p = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert p.returncode == 5
+
+
+def test_a_start_up_that_gives_up_is_its_own_exit_status(monkeypatch, capsys):
+    """A ROS start-up wait that gives up (a discipline or the run's recorder missing while nothing changed
+    on the graph) is not a user mistake (2): one line and exit status 6."""
+    from bev_mdo import cli
+    from bev_mdo.stacks import StartupGaveUp
+
+    def gave_up(args):
+        raise StartupGaveUp("discipline(s) ['energy'] not found on ROS domain: discovery made no progress for 20 s")
+
+    parser = cli.build_parser(["graph", "x.yaml"])
+    monkeypatch.setattr(cli, "build_parser", lambda argv: parser)
+    monkeypatch.setattr(parser, "parse_args", lambda argv: types.SimpleNamespace(command="graph", func=gave_up))
+    assert cli.main(["graph", "x.yaml"]) == 6
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["bev-mdo graph: error: discipline(s) ['energy'] not found on ROS domain: discovery made no "
+                   "progress for 20 s"]
 
 
 def test_a_teardown_that_ends_in_time_cancels_the_deadline():

@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 from typing import Any, Mapping
 
+from bev_mdo import interrupts
 from bev_mdo.bag.report import ANSWERS_FILE, ANSWERS_METADATA
 
 
@@ -26,18 +27,24 @@ class InProcessBag:
 
         from bev_mdo.bag.writer import BagWriter
         from bev_mdo.config import plain
+        from bev_mdo.ros.auth import Signer
         from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC
 
         self.topic = ITERATION_TOPIC
         self.run_id = run_id
-        self.writer = BagWriter(bag_dir, metadata={"run_id": run_id, "transport": transport,
-                                                   "config_yaml": yaml.safe_dump(plain(dict(config)),
-                                                                                 sort_keys=False)})
-        self.writer.add_topic(ITERATION_TOPIC, "bev_mdo_msgs/msg/IterationRecord", ITERATION_QOS)
         self.seq = 0
-        from bev_mdo.ros.auth import Signer
-
         self.signer = Signer.from_ros(config.get("ros"))  # signed like the coordinator's when a key is configured
+        metadata = {"run_id": run_id, "transport": transport,
+                    "config_yaml": yaml.safe_dump(plain(dict(config)), sort_keys=False)}
+        self.writer = None
+        try:
+            with interrupts.deferred():  # a signal while the bag is started: it is closed before the run stops
+                self.writer = BagWriter(bag_dir, metadata=metadata)
+                self.writer.add_topic(ITERATION_TOPIC, "bev_mdo_msgs/msg/IterationRecord", ITERATION_QOS)
+        except BaseException:
+            if self.writer is not None:
+                self.close()
+            raise
 
     def __call__(self, rec: Mapping[str, Any]) -> None:
         from rclpy.serialization import serialize_message
@@ -52,15 +59,17 @@ class InProcessBag:
         wire.fill_iteration_record(msg, rec, self.run_id, self.seq)
         t = time.time_ns()
         data = serialize_message(msg) if self.signer is None else self.signer.sign_iteration(msg)
-        self.writer.write(self.topic, data, t, t, self.seq)
-        self.writer.flush()  # one chunk per record: even a SIGKILL keeps every finished iteration
+        with interrupts.deferred():  # a record is written whole or not at all
+            self.writer.write(self.topic, data, t, t, self.seq)
+            self.writer.flush()  # one chunk per record: even a SIGKILL keeps every finished iteration
 
     def close(self, answers: Mapping[str, Any] | None = None) -> None:
         """Finish the bag (summary, metadata.yaml); idempotent. Called at the end of the run with the
         answers, and on any interruption (SIGINT, SIGTERM, an exception) without them."""
-        if answers is not None and not self.writer.closed:
-            self.writer._mcap.add_metadata(ANSWERS_METADATA, {"answers_json": json.dumps(answers, default=float)})
-        self.writer.close()
+        with interrupts.deferred():
+            if answers is not None and not self.writer.closed:
+                self.writer._mcap.add_metadata(ANSWERS_METADATA, {"answers_json": json.dumps(answers, default=float)})
+            self.writer.close()
 
 
 def write_answers(bag_dir: Path, answers: Mapping[str, Any]) -> Path:

@@ -16,6 +16,7 @@ import sys
 
 from bev_mdo.api.errors import InputError
 from bev_mdo.interrupts import Terminated  # SIGTERM as an exception: every finally runs, exit 143
+from bev_mdo.stacks import STARTUP_GAVE_UP_STATUS, StartupGaveUp
 
 # command -> (module in bev_mdo.cli, help), in the order --help lists them. The module's register()
 # uses the same help (test/cli/test_cli_table.py checks it).
@@ -99,7 +100,8 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    if argv is None:  # the `bev-mdo` process itself (not a call from Python)
+    process = argv is None  # the `bev-mdo` process itself (not a call from Python)
+    if process:
         native_output_to_stderr()
     argv = sys.argv[1:] if argv is None else list(argv)
     from bev_mdo.stacks import dump_stacks_on_sigusr1
@@ -116,6 +118,10 @@ def main(argv: list[str] | None = None) -> int:
         return _main(argv)
     finally:
         interrupts.restore(previous)
+        if process and "rclpy" in sys.modules:  # the work is done: its ROS teardown may not hang the exit
+            from bev_mdo.stacks import bound_exit
+
+            bound_exit()
 
 
 def _main(argv: list[str]) -> int:
@@ -137,7 +143,7 @@ def _main(argv: list[str]) -> int:
     except (UsageError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         print(f"bev-mdo {args.command}: error: {msg}", file=sys.stderr)
-        return 2
+        return STARTUP_GAVE_UP_STATUS if isinstance(exc, StartupGaveUp) else 2
 
 
 @contextlib.contextmanager

@@ -24,7 +24,7 @@ from bev_mdo.ros.evaluator import RosEvaluator
 from bev_mdo.ros.fastwait import until
 from bev_mdo.ros.recorder_node import OwnRecorder
 from bev_mdo.ros_settings import validate_ros
-from bev_mdo.stacks import deadline
+from bev_mdo.stacks import STARTUP_GAVE_UP_STATUS, StartupGaveUp, deadline
 from bev_mdo_msgs.msg import IterationRecord
 
 
@@ -114,7 +114,7 @@ class CoordinatorNode(Node):
                      lambda: f"this run's recorder on {missing()}"):
             what = (f"declared itself but did not match {missing()}" if own.declaration else
                     "did not declare itself" + (f" (dropped: {dict(own.dropped)})" if own.dropped else ""))
-            raise ValueError(f"the run's recorder {what}; nothing changed for {wait_s:g} s")
+            raise StartupGaveUp(f"the run's recorder {what}; nothing changed for {wait_s:g} s")
         self.evaluator.dropped.update(own.dropped)
         return own
 
@@ -227,7 +227,7 @@ def main(args: list[str] | None = None) -> int:
         return 130
     except ValueError as exc:
         print(f"coordinator_node: error: {exc}", file=sys.stderr)
-        return 2
+        return STARTUP_GAVE_UP_STATUS if isinstance(exc, StartupGaveUp) else 2
     finally:
         if beside is not None:
             beside.close()

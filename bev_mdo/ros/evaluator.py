@@ -45,7 +45,8 @@ from bev_mdo.mdo.ledger import Ledger
 from bev_mdo.ros import binding, pool as pools, wire
 from bev_mdo.ros_settings import validate_min_rows
 from bev_mdo.ros.auth import Signer
-from bev_mdo.ros.fastwait import MultiWaiter, until
+from bev_mdo.ros.fastwait import STARTUP_CAP, MultiWaiter, until
+from bev_mdo.stacks import StartupGaveUp
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC,
                                 mda_result_topic, request_topic, stamp)
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
@@ -60,8 +61,8 @@ FLOW_MIN_ROWS = 2
 _STATUS_REJECTED = EvaluationResult.STATUS_REJECTED  # read once: a metaclass property call each time
 
 
-class DisciplineMissing(ValueError):
-    """A needed discipline did not appear within the discovery wait."""
+class DisciplineMissing(StartupGaveUp):
+    """A needed discipline did not appear, match or answer within the discovery wait."""
 
 
 _Pending = retry.Sent  # an outstanding answer (mdo/retry.py); the name tests and composed.py use
@@ -303,7 +304,8 @@ class RosEvaluator:
                 raise DisciplineMissing(
                     f"discipline(s) {gone} not found on ROS domain: discovery made no progress for {wait_s:g} s "
                     "(is each node running, with the same ROS_DOMAIN_ID and discovery settings? see its log in "
-                    "the run's logs folder; ros.discovery_wait_s sets this bound)"
+                    "the run's logs folder; LOCALHOST discovery reaches about 32 processes per domain, "
+                    "docs/scaling.md; ros.discovery_wait_s sets this bound)"
                 )
         # Our result subscription must be matched to every discipline's publisher too.
         if not until(lambda: self._result_sub.get_publisher_count() >= len(set(names)), wait_s, spin, progress,
@@ -350,7 +352,7 @@ class RosEvaluator:
         if data_flow is None:
             data_flow = self.flow_plan(names) is not None and all(n in self._flow_subs for n in names)
         kept = len(self.accepted)
-        last, state, shown = time.monotonic(), self.progress(names), time.monotonic()
+        start, last, state, shown = time.monotonic(), time.monotonic(), self.progress(names), time.monotonic()
         rounds = [("request", n) for n in names] + ([("flow", None)] if data_flow else [])
         for kind, name in rounds:
             interval = 0.1
@@ -378,10 +380,10 @@ class RosEvaluator:
                     break
                 if (s := self.progress(names)) != state:
                     state, last = s, now
-                if now - last >= wait_s:
+                if now - last >= wait_s or now - start > STARTUP_CAP * wait_s:  # as fastwait.until
+                    why = f"nothing changed for {wait_s:g} s" if now - last >= wait_s else f"{now - start:.0f} s in all"
                     raise DisciplineMissing(f"discipline(s) {late} are matched but did not answer a probe "
-                                            f"({'data flow' if kind == 'flow' else 'request'}); nothing changed "
-                                            f"for {wait_s:g} s")
+                                            f"({'data flow' if kind == 'flow' else 'request'}); {why}")
                 if now - shown >= 2.0:
                     shown = now
                     print(f"[start-up] waiting for {late} to answer a probe; gives up in "

@@ -270,6 +270,11 @@ class Launcher:
         if early:  # a recorder drains its queue (up to 10 s) and closes the bag: slow on a crowded host
             _stop_procs(early, max(timeout_s, FIRST_STOP_S))
         _stop_procs(procs, timeout_s)
+        from bev_mdo.ros.shm import remove_orphans
+
+        # a node SIGTERMed or SIGKILLed above (a recorder still in its ROS teardown 30 s after SIGINT, seen
+        # stuck destroying a publisher on a crowded host) leaves its Fast DDS files: removed now, not at the next start
+        remove_orphans()
 
     def __enter__(self) -> "Launcher":
         return self

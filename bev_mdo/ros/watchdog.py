@@ -45,6 +45,7 @@ class HangWatchdog:
         self.period_s, self.silent_s, self.start_s = period_s, silent_s, start_s
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._ctx = self._node = None  # the watchdog's own ROS context and node (stop() destroys them)
 
     def start(self) -> "HangWatchdog":
         self._thread = threading.Thread(target=self._run, name="bev_mdo.watchdog", daemon=True)
@@ -52,28 +53,41 @@ class HangWatchdog:
         return self
 
     def stop(self, timeout_s: float = 2.0) -> None:
-        """Stop watching (before the launcher stops its nodes, which then leave the graph on purpose)."""
+        """Stop watching (before the launcher stops its nodes, which then leave the graph on purpose),
+        then destroy the watchdog's participant in this thread, within stacks.deadline. Left to the
+        watching thread (a daemon), a teardown still running when the process exits meets Fast DDS's
+        own destructors there: a participant being deleted waits for its discovery callbacks by
+        busy-spinning (eProsima/Fast-DDS#6513: std::condition_variable on a glibc without
+        pthread_cond_clockwait, as in the pip wheels), and the factory's destructor then waits on it
+        for good. A watching thread that does not end (its participant hung in the middleware) is
+        left; the process's exit is bounded (stacks.bound_exit)."""
         self._stop.set()
         if self._thread is not None:
-            self._thread.join(timeout=timeout_s)  # a participant that hangs in teardown is left to the daemon
+            self._thread.join(timeout=timeout_s)
+            if self._thread.is_alive():
+                return
+        node, ctx, self._node, self._ctx = self._node, self._ctx, None, None
+        if ctx is None:
+            return
+        import rclpy
+
+        from bev_mdo.stacks import deadline
+
+        with deadline(), contextlib.suppress(Exception):
+            if node is not None:
+                node.destroy_node()
+            rclpy.shutdown(context=ctx)
 
     def _run(self) -> None:
         import os
 
         import rclpy
 
-        ctx = rclpy.context.Context()
+        self._ctx = ctx = rclpy.context.Context()
         rclpy.init(context=ctx, domain_id=self.domain_id)
-        node = None
-        try:
-            node = rclpy.create_node(f"launcher_watchdog_{os.getpid()}", context=ctx, enable_rosout=False,
-                                     start_parameter_services=False)
-            self._loop(lambda: set(node.get_node_names()))
-        finally:
-            with contextlib.suppress(Exception):
-                if node is not None:
-                    node.destroy_node()
-                rclpy.shutdown(context=ctx)
+        self._node = node = rclpy.create_node(f"launcher_watchdog_{os.getpid()}", context=ctx,
+                                              enable_rosout=False, start_parameter_services=False)
+        self._loop(lambda: set(node.get_node_names()))  # torn down by stop(), in the caller's thread
 
     def _loop(self, graph: Callable[[], set[str]]) -> None:
         while not self._stop.wait(self.period_s):

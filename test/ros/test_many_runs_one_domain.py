@@ -88,8 +88,6 @@ def _shm_orphans(before: set[str]) -> list[str]:
     return out
 
 
-@pytest.mark.skip(reason="one of the eight runs hung at 92 % CPU for over 5 min in a clean-clone CI run "
-                         "(passed in the run before and 3 of 3 by hand); kept out of CI until the hang is found")
 def test_eight_runs_of_four_configs_on_one_domain_each_record_only_their_own(ros_domain, tmp_path):
     configs, references = {}, {}
     for name, change in VARIANTS.items():

@@ -101,3 +101,13 @@ def test_kill_reaches_a_live_process_or_says_there_is_none(launcher):
     launcher.supervise()
     assert _wait(lambda: node.restarts == 1 and node.proc.pid != first)
     assert launcher.kill("energy") == node.proc.pid
+
+
+def test_stop_destroys_the_watchdogs_participant_in_the_callers_thread(launcher, ros_domain):
+    """Not left to the watching (daemon) thread: a participant still being deleted there when the process
+    exits meets Fast DDS's destructors (the factory's waits on it), and a finished run never ended."""
+    dog = HangWatchdog(launcher, ros_domain, period_s=0.05).start()
+    assert _wait(lambda: dog._node is not None)
+    ctx = dog._ctx
+    dog.stop()
+    assert not dog._thread.is_alive() and not ctx.ok() and dog._ctx is None
