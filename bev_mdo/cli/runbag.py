@@ -35,21 +35,21 @@ class InProcessBag:
                                                                                  sort_keys=False)})
         self.writer.add_topic(ITERATION_TOPIC, "bev_mdo_msgs/msg/IterationRecord", ITERATION_QOS)
         self.seq = 0
-        from bev_mdo.ros.auth import Signer
+        from bev_mdo.protocol.signing import Signer
 
         self.signer = Signer.from_ros(config.get("ros"))  # signed like the coordinator's when a key is configured
 
     def __call__(self, rec: Mapping[str, Any]) -> None:
         from rclpy.serialization import serialize_message
 
-        from bev_mdo.ros import wire
+        from bev_mdo import protocol
         from bev_mdo.ros.common import stamp
         from bev_mdo_msgs.msg import IterationRecord
 
         msg = IterationRecord()
         stamp(msg.header)
         self.seq += 1
-        wire.fill_iteration_record(msg, rec, self.run_id, self.seq)
+        protocol.fill_iteration_record(msg, rec, self.run_id, self.seq)
         t = time.time_ns()
         data = serialize_message(msg) if self.signer is None else self.signer.sign_iteration(msg)
         self.writer.write(self.topic, data, t, t, self.seq)

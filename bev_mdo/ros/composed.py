@@ -25,7 +25,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 from bev_mdo.mdo.discipline import DisciplineError
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 from bev_mdo.mdo.vectors import ShapeError
-from bev_mdo.ros import wire
+from bev_mdo import protocol
 from bev_mdo.ros.discipline_node import DisciplineNode, valid_run_id
 from bev_mdo.ros.fastwait import MultiWaiter
 
@@ -80,7 +80,7 @@ class Beside:
     an MDA then costs no DDS write at all.
 
     A direct call never encodes, decodes, signs or verifies. A request is handed over as the message
-    object with its numpy columns (``wire.batch`` keeps them). A result is not a message at all: a
+    object, its columns one NamedArray (``protocol.batch``). A result is not a message at all: a
     node hands the coordinator its ``run_discipline`` result (``DisciplineNode._direct``,
     ``RosEvaluator.on_local``), checked once, taken as the in-process evaluator takes it. And when
     every discipline of a data-flow MDA is a node here and none of their result topics has an
@@ -174,8 +174,8 @@ class Beside:
             self._bound.add(bound)
         n = int(req.inputs.batch_size)
         try:
-            got = self._engine.evaluate_flow(names, wire.from_named_array(req.inputs), n, bool(req.partials))
-        except (ShapeError, DisciplineError, KeyError, wire.WireError):
+            got = self._engine.evaluate_flow(names, protocol.from_named_array(req.inputs), n, bool(req.partials))
+        except (ShapeError, DisciplineError, KeyError, protocol.WireError):
             return False
         if got is None:
             return False
