@@ -17,7 +17,7 @@ input from the same producer as the coordinator's graph; otherwise the MDA runs 
 With worker pools the MDA is cut into row shares, one data-flow request each, every pooled
 discipline addressed to one of its instances (``_flow_shares``; docs/scaling.md).
 
-With a shared key (``ros.sign_key_file``, see auth.py) every request is signed and
+With a shared key (``ros.sign_key_file``, see protocol/signing.py) every request is signed and
 every result verified first; unsigned, forged, expired and replayed results are
 dropped and counted under those names. Every accepted result is logged in
 ``accepted`` as (evaluation id, discipline, instance, attempt sent so far), so a test
@@ -128,7 +128,7 @@ class RosEvaluator:
         # Raw CDR in and out (the protocol's generated codec): rclpy's message objects cost more than the DDS hop.
         self._result_sub = node.create_subscription(EvaluationResult, RESULT_TOPIC, self._on_bytes, RESULT_QOS,
                                                     raw=True)
-        # raw too: a signature covers the bytes as they were sent (auth.py)
+        # raw too: a signature covers the bytes as they were sent (protocol/signing.py)
         self._info_sub = node.create_subscription(DisciplineInfo, INFO_TOPIC, self._on_info, INFO_QOS, raw=True)
         self._waiter = MultiWaiter(node.context)
         self._hot = [(self._result_sub, lambda data, _i: self._on_bytes(data))]
