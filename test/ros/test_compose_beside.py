@@ -67,7 +67,7 @@ def test_beside_the_coordinator_gives_the_in_process_optimum_without_dds_writes(
     beside = Beside(config, BUILTINS, rclpy_context, run_id=run_id)
     sent = []
     encode = ros_evaluator.protocol.encode_request
-    monkeypatch.setattr(ros_evaluator.wire, "encode_request", lambda m: sent.append(m) or encode(m))
+    monkeypatch.setattr(ros_evaluator.protocol, "encode_request", lambda m: sent.append(m) or encode(m))
     try:
         writes = _count_publishes(beside.nodes)
         res, stats = coordinator_node.run(config, context=rclpy_context, run_id=run_id, beside=beside)
