@@ -114,7 +114,7 @@ def lean_ping_pong(ctx, env, n):
 # is the coordinator's), served by stand-in processes that do only part of a discipline node's work:
 #   echo    - forward the last bytes received (no decode, no model): what the transport costs;
 #   compute - the same, plus the discipline's own compute() on fixed one-point inputs;
-#   codec   - decode every source's message (protocol.py), compute() on the decoded columns, encode
+#   codec   - decode every source's message (bev_mdo.protocol), compute() on the decoded columns, encode
 #             the outputs with the forwarded columns, publish: the least any Python node can do.
 # A real node does the codec step plus the protocol (ids, validation, failed points, counters).
 DAG = {"vehicle_mass": ["request"], "energy": ["vehicle_mass"], "range": ["energy"],

@@ -169,26 +169,43 @@ _ARRAY_DTYPES = {"bool": np.bool_, "uint8": np.uint8, "uint32": np.uint32, "uint
 def new(cls, **fields):
     """A message of generated class ``cls`` with the given fields, every other field at its default
     (0, "", empty sequences, nested messages new); the defaults follow the generated field list."""
-    values = {}
-    for fname, desc in STORE.fielddefs[cls.__msgtype__][1]:
-        if fname in fields:
-            continue
-        values[fname] = _default(desc)
-    values.update(fields)
-    return cls(**values)
+    made = _MAKERS.get(cls)
+    if made is None:
+        defaults = [(fname, _default(desc)) for fname, desc in STORE.fielddefs[cls.__msgtype__][1]]
+        made = _MAKERS[cls] = ({f: d for f, d in defaults if not callable(d)},
+                               [(f, d) for f, d in defaults if callable(d)])
+    values, makers = made
+    msg = object.__new__(cls)  # the dataclass's __init__ would only assign these, one by one
+    d = msg.__dict__
+    d.update(values)
+    for fname, make in makers:
+        d[fname] = make()
+    d.update(fields)
+    return msg
+
+
+_MAKERS: dict[type, list] = {}
+
+
+def _empty(dtype) -> np.ndarray:
+    """A shared empty array (read-only: a field holding it is replaced, never written into)."""
+    a = np.zeros(0, dtype=dtype)
+    a.flags.writeable = False
+    return a
 
 
 def _default(desc):
+    """The default of a field: a value (immutable) or a function that makes one (a new list or message)."""
     kind = desc[0]
     if kind == 2:  # a nested message
-        return new(STORE.types[desc[1]])
+        nested = STORE.types[desc[1]]
+        return lambda: new(nested)
     if kind == 1:  # a primitive
-        base = desc[1][0]
-        return _DEFAULTS.get(base, 0)
+        return _DEFAULTS.get(desc[1][0], 0)
     sub = desc[1][0]
     if sub[0] == 1 and sub[1][0] in _ARRAY_DTYPES:
-        return np.zeros(0, dtype=_ARRAY_DTYPES[sub[1][0]])
-    return []
+        return _empty(_ARRAY_DTYPES[sub[1][0]])
+    return list
 
 
 def to_protocol(msg):
