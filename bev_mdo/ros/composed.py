@@ -17,7 +17,7 @@ from __future__ import annotations
 import sys
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rcl_interfaces.msg import ParameterDescriptor
@@ -26,8 +26,7 @@ from bev_mdo.mdo.discipline import DisciplineError
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 from bev_mdo.mdo.vectors import ShapeError
 from bev_mdo import protocol
-from bev_mdo.ros.discipline_node import DisciplineNode, valid_run_id
-from bev_mdo.ros.fastwait import MultiWaiter
+from bev_mdo.ros.discipline_node import DisciplineNode, serve, valid_run_id
 
 
 def make_nodes(config: dict, disciplines: list[str], instance: str = "", run_id: str = "",
@@ -212,30 +211,10 @@ class Beside:
 
 
 def serve_many(nodes: list[DisciplineNode], idle_s: float = 0.1, service_every: int = 64) -> None:
-    """Serve every node's hot subscriptions from one wait set (one thread), the nodes' other
-    entities (parameter services) from one executor when idle: discipline_node.serve for several."""
+    """Serve the nodes composed in this process: linked for data flow (link_local), then the one serve
+    loop (discipline_node.serve) over all of them."""
     link_local(nodes)
-    context = nodes[0].context
-    executor = SingleThreadedExecutor(context=context)
-    for node in nodes:
-        executor.add_node(node)
-    waiter = MultiWaiter(context)
-    pairs = [pair for node in nodes for pair in node.hot_subscriptions()]
-    subs = [s for s, _ in pairs]
-    served = 0
-    try:
-        waiter.take_all(pairs)
-        while context.ok():
-            if waiter.wait(subs, idle_s):
-                served += waiter.take_ready(pairs)
-                if served < service_every:
-                    continue
-                served = 0
-            for node in nodes:
-                node.publish_stats()
-            executor.spin_once(timeout_sec=0.0)
-    finally:
-        executor.shutdown()
+    serve(nodes, idle_s, service_every)
 
 
 def main(args: list[str] | None = None) -> int:

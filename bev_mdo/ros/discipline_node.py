@@ -520,35 +520,39 @@ class DisciplineNode(Node):
         self._answer(req, result, self._mda_pub, forward=forward, flow_names=flow_names, asked=asked)
 
 
-def serve(node: DisciplineNode, idle_s: float = 0.1, service_every: int = 64) -> None:
-    """Serve requests until the context shuts down.
+def serve(nodes: "DisciplineNode | list[DisciplineNode]", idle_s: float = 0.1, service_every: int = 64) -> None:
+    """Serve requests until the context shuts down: the one serve loop, for a standalone node and for
+    the nodes composed in one process (composed.serve_many links them first).
 
-    Requests are taken straight from the subscription (fastwait); the node's other
-    entities (parameter services) are spun when idle and every `service_every` requests.
+    Every node's hot subscriptions are taken straight from one wait set (fastwait, one thread); the
+    nodes' other entities (parameter services) are spun by one executor when idle and every
+    `service_every` requests.
     """
     from rclpy.executors import SingleThreadedExecutor
 
     from bev_mdo.ros.fastwait import MultiWaiter
 
-    executor = SingleThreadedExecutor(context=node.context)
-    executor.add_node(node)
-    waiter = MultiWaiter(node.context)
-    pairs = node.hot_subscriptions()
+    nodes = [nodes] if isinstance(nodes, DisciplineNode) else list(nodes)
+    context = nodes[0].context
+    executor = SingleThreadedExecutor(context=context)
+    for node in nodes:
+        executor.add_node(node)
+    waiter = MultiWaiter(context)
+    pairs = [pair for node in nodes for pair in node.hot_subscriptions()]
     subs = [s for s, _ in pairs]
     served = 0
     try:
         waiter.take_all(pairs)
-        while node.context.ok():
+        while context.ok():
             # rcl wait sets are level-triggered: wait() returns at once while anything is queued
             if waiter.wait(subs, idle_s):
                 served += waiter.take_ready(pairs)
-                if served >= service_every:
-                    served = 0
-                    node.publish_stats()
-                    executor.spin_once(timeout_sec=0.0)
-            else:
+                if served < service_every:
+                    continue
+                served = 0
+            for node in nodes:
                 node.publish_stats()
-                executor.spin_once(timeout_sec=0.0)
+            executor.spin_once(timeout_sec=0.0)
     finally:
         executor.shutdown()
 
