@@ -1,4 +1,4 @@
-"""protocol.py's lean CDR codec against rclpy's own serialisation of the generated messages."""
+"""The protocol's generated CDR codec against rclpy's own serialisation of the generated messages."""
 from __future__ import annotations
 
 import array
