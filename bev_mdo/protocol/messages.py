@@ -65,6 +65,20 @@ Header = STORE.types["std_msgs/msg/Header"]
 Time = STORE.types["builtin_interfaces/msg/Time"]
 
 
+class _Lookup:
+    """What the generated functions are handed as ``typestore``: a nested type's compiled functions
+    by a plain dict lookup (``Typestore.get_msgdef`` checks and fills its cache on every call, and the
+    generated code calls it once per nested message field). Every nested type is compiled up front."""
+
+    __slots__ = ("get_msgdef", "max_sequence_length")
+
+    def __init__(self, store):
+        for name in list(store.fielddefs):
+            store.get_msgdef(name)
+        self.get_msgdef = store.cache.__getitem__
+        self.max_sequence_length = store.max_sequence_length
+
+
 class _Codec:
     """The compiled CDR functions of one type (what ``Typestore.serialize_cdr`` looks up per call)."""
 
@@ -76,6 +90,7 @@ class _Codec:
         self.getsize, self.serialize, self.deserialize = d.getsize_cdr, d.serialize_cdr_le, d.deserialize_cdr_le
 
 
+_LOOKUP = _Lookup(STORE)
 _CODECS: dict[type, _Codec] = {}
 _BY_NAME: dict[str, _Codec] = {}
 
@@ -104,9 +119,9 @@ def encode(msg) -> bytearray:
 
 
 def _encode(c: _Codec, msg) -> bytearray:
-    out = bytearray(4 + c.getsize(0, msg, STORE))
+    out = bytearray(4 + c.getsize(0, msg, _LOOKUP))
     out[:4] = _ENCAPSULATION
-    c.serialize(memoryview(out)[4:], 0, msg, STORE)
+    c.serialize(memoryview(out)[4:], 0, msg, _LOOKUP)
     return out
 
 
@@ -118,7 +133,7 @@ def decode(data, cls):
     if len(data) < 4 or data[0] != 0 or data[1] != 1:
         raise WireError("not little-endian CDR")
     try:
-        msg, pos = c.deserialize(memoryview(data)[4:], 0, c.cls, STORE)
+        msg, pos = c.deserialize(memoryview(data)[4:], 0, c.cls, _LOOKUP)
     except (SerdeError, struct.error, UnicodeDecodeError, ValueError, IndexError, TypeError) as exc:
         raise WireError(f"malformed {c.typename.rsplit('/', 1)[-1]} ({exc})") from None
     if pos + 4 > len(data):
@@ -147,7 +162,7 @@ def field_offset(msg, field: str) -> int:
         fields = [f[0] for f in STORE.fielddefs[typename][1]]
         k = fields.index(field)
         c = _BEFORE[(typename, field)] = _prefix_codec(typename, fields[k - 1]) if k else None
-    pos = c.getsize(0, msg, STORE) if c is not None else 0
+    pos = c.getsize(0, msg, _LOOKUP) if c is not None else 0
     return 4 + pos + (-pos % 4)
 
 
