@@ -521,13 +521,9 @@ class DisciplineNode(Node):
 
 
 def serve(nodes: "DisciplineNode | list[DisciplineNode]", idle_s: float = 0.1, service_every: int = 64) -> None:
-    """Serve requests until the context shuts down: the one serve loop, for a standalone node and for
-    the nodes composed in one process (composed.serve_many links them first).
-
-    Every node's hot subscriptions are taken straight from one wait set (fastwait, one thread); the
-    nodes' other entities (parameter services) are spun by one executor when idle and every
-    `service_every` requests.
-    """
+    """The one serve loop, until the context shuts down, of a standalone node or of the nodes composed in
+    one process (composed.serve_many): hot subscriptions are taken from one wait set (fastwait), other
+    entities (parameter services) spun by one executor when idle and every `service_every` requests."""
     from rclpy.executors import SingleThreadedExecutor
 
     from bev_mdo.ros.fastwait import MultiWaiter
