@@ -5,8 +5,26 @@ small wrappers into <prefix>/lib/bev_mdo/ through data_files: that is where
 `ros2 run bev_mdo <exe>` looks (ament_index: share/ament_index/resource_index/packages/bev_mdo).
 """
 import glob
+import os
+import shutil
 
 from setuptools import find_packages, setup
+from setuptools.command.build_py import build_py
+
+MSG_DIR = os.path.join("msg_defs", "msg")
+
+
+class BuildPyWithMessages(build_py):
+    """Ship the .msg files inside the package (bev_mdo/protocol/msg/): bev_mdo.protocol generates
+    its message types from them at import, with or without the source tree or a ROS build."""
+
+    def run(self):
+        super().run()
+        target = os.path.join(self.build_lib, "bev_mdo", "protocol", "msg")
+        os.makedirs(target, exist_ok=True)
+        for path in sorted(glob.glob(os.path.join(MSG_DIR, "*.msg"))):
+            shutil.copy(path, target)
+
 
 PACKAGE = "bev_mdo"
 NODES = [
@@ -26,7 +44,8 @@ setup(
         ("lib/" + PACKAGE, ["ros_lib/" + n for n in NODES]),
     ],
     install_requires=["setuptools", "numpy", "scipy", "pyyaml", "pint"],
-    zip_safe=True,
+    cmdclass={"build_py": BuildPyWithMessages},
+    zip_safe=False,
     maintainer="bev_mdo developers",
     maintainer_email="bev-mdo@example.org",
     description="Distributed MDO of BEV powertrains over ROS 2",

@@ -52,8 +52,8 @@ def _pct(xs: list[float]) -> dict:
 
 # -- 1. signing, CPU only -----------------------------------------------------------------
 def bench_sign(n: int) -> dict:
-    from bev_mdo.ros import wire
-    from bev_mdo.ros.auth import Signer
+    from bev_mdo import protocol
+    from bev_mdo.protocol.signing import Signer
     from bev_mdo.ros.common import stamp
     from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult
 
@@ -62,9 +62,9 @@ def bench_sign(n: int) -> dict:
         s = Signer(secrets.token_bytes(32))
         req, res = EvaluationRequest(), EvaluationResult()
         req.run_id, req.discipline = "bench", "energy"
-        wire.to_named_array({"vehicle_mass_kg": np.full(batch, 1500.0), "gear_ratio": np.full(batch, 8.0)}, req.inputs)
+        protocol.to_named_array({"vehicle_mass_kg": np.full(batch, 1500.0), "gear_ratio": np.full(batch, 8.0)}, req.inputs)
         res.run_id, res.discipline, res.point_ok = "bench", "energy", [True] * batch
-        wire.to_named_array({"energy_wh_per_km": np.full(batch, 120.0)}, res.outputs)
+        protocol.to_named_array({"energy_wh_per_km": np.full(batch, 120.0)}, res.outputs)
         times = []
         for i in range(n):
             req.evaluation_id = res.evaluation_id = i + 1

@@ -80,7 +80,7 @@ def lean_ping_pong(ctx, env, n):
     """Round trips of raw CDR bytes through one rcl wait set on each side (bev_mdo's hot path)."""
     from rclpy.node import Node
 
-    from bev_mdo.ros import wire
+    from bev_mdo import protocol
     from bev_mdo.ros.common import REQUEST_QOS, RESULT_QOS
     from bev_mdo.ros.fastwait import SubscriptionWaiter
     from bev_mdo_msgs.msg import EvaluationRequest
@@ -92,9 +92,9 @@ def lean_ping_pong(ctx, env, n):
     waiter = SubscriptionWaiter(sub, ctx)
     while pub.get_subscription_count() < 1 or sub.get_publisher_count() < 1:
         time.sleep(0.02)
-    req = wire.Request("bench", 0, "x")
-    req.inputs = wire.batch({"motor_kw": np.array([80.0]), "gear_ratio": np.array([8.0])})
-    data = wire.encode_request(req)
+    req = protocol.request("bench", 0, "x")
+    req.inputs = protocol.batch({"motor_kw": np.array([80.0]), "gear_ratio": np.array([8.0])})
+    data = protocol.encode_request(req)
     got = []
     lat = []
     for i in range(n + 50):
@@ -114,7 +114,7 @@ def lean_ping_pong(ctx, env, n):
 # is the coordinator's), served by stand-in processes that do only part of a discipline node's work:
 #   echo    - forward the last bytes received (no decode, no model): what the transport costs;
 #   compute - the same, plus the discipline's own compute() on fixed one-point inputs;
-#   codec   - decode every source's message (wire.py), compute() on the decoded columns, encode
+#   codec   - decode every source's message (bev_mdo.protocol), compute() on the decoded columns, encode
 #             the outputs with the forwarded columns, publish: the least any Python node can do.
 # A real node does the codec step plus the protocol (ids, validation, failed points, counters).
 DAG = {"vehicle_mass": ["request"], "energy": ["vehicle_mass"], "range": ["energy"],
@@ -127,7 +127,7 @@ DAG_ECHO = textwrap.dedent(
     import numpy as np
     import rclpy
     from rclpy.node import Node
-    from bev_mdo.ros import wire
+    from bev_mdo import protocol
     from bev_mdo.ros.common import MDA_RESULT_QOS
     from bev_mdo.ros.fastwait import MultiWaiter
     from bev_mdo_msgs.msg import EvaluationResult
@@ -147,8 +147,8 @@ DAG_ECHO = textwrap.dedent(
     columns = {}
     def on(data, _info):  # answer once every source has answered
         if mode == "codec":
-            msg = wire.decode_result(data)
-            columns.update(wire.from_named_array(msg.outputs))
+            msg = protocol.decode_result(data)
+            columns.update(protocol.from_named_array(msg.outputs))
         got[0] += 1
         if got[0] < len(subs):
             return
@@ -159,11 +159,11 @@ DAG_ECHO = textwrap.dedent(
             disc.compute({k: v.copy() for k, v in fixed.items()})
             return pub.publish(data)
         out = disc.compute({k: columns[k].copy() for k in disc.inputs})
-        res = wire.Result()
+        res = protocol.result()
         res.run_id, res.evaluation_id, res.discipline, res.flow = msg.run_id, msg.evaluation_id, name, msg.flow
         res.point_ok = np.ones(1, bool)
-        res.outputs = wire.batch({**columns, **out})
-        pub.publish(wire.encode_result(res))
+        res.outputs = protocol.batch({**columns, **out})
+        pub.publish(protocol.encode_result(res))
     pairs = [(s, on) for s in subs]
     waiter = MultiWaiter(node.context)
     try:
@@ -181,7 +181,7 @@ def mda_floor(ctx, env, n, mode="echo", config=""):
     (latencies, CPU s per MDA per process)."""
     from rclpy.node import Node
 
-    from bev_mdo.ros import wire
+    from bev_mdo import protocol
     from bev_mdo.ros.common import MDA_RESULT_QOS
     from bev_mdo.ros.fastwait import MultiWaiter
     from bev_mdo_msgs.msg import EvaluationResult
@@ -200,15 +200,15 @@ def mda_floor(ctx, env, n, mode="echo", config=""):
     # The request as one result-typed message (every topic of the pattern has one type): the design
     # variables of one point; a stand-in result has the size of a real one (its outputs and the
     # request's columns, forwarded).
-    res = wire.Result()
+    res = protocol.result()
     res.run_id, res.discipline, res.flow = "bench", "request", list(DAG)
     res.point_ok = np.ones(1, bool)
-    res.outputs = wire.batch({"motor_kw": np.array([80.0]), "gear_ratio": np.array([7.94]),
+    res.outputs = protocol.batch({"motor_kw": np.array([80.0]), "gear_ratio": np.array([7.94]),
                               "battery_kwh": np.array([24.0])})
     got = []
 
     def on(data, _info):
-        got.append(wire.from_named_array(wire.decode_result(data).outputs) if mode == "codec" else data)
+        got.append(protocol.from_named_array(protocol.decode_result(data).outputs) if mode == "codec" else data)
 
     pairs = [(s, on) for s in subs]
     waiter = MultiWaiter(ctx)
@@ -220,7 +220,7 @@ def mda_floor(ctx, env, n, mode="echo", config=""):
         got.clear()
         t0 = time.perf_counter()
         res.evaluation_id = i
-        pub.publish(wire.encode_result(res))
+        pub.publish(protocol.encode_result(res))
         while len(got) < len(subs):
             if not waiter.wait(subs, 5.0):
                 raise RuntimeError(f"the {mode} stand-in processes stopped answering")
@@ -258,7 +258,7 @@ def ping_pong(ctx, env, n):
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from bev_mdo.ros import wire
+    from bev_mdo import protocol
     from bev_mdo.ros.common import REQUEST_QOS, RESULT_QOS
     from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult
 
@@ -272,7 +272,7 @@ def ping_pong(ctx, env, n):
     while pub.get_subscription_count() < 1 or sub.get_publisher_count() < 1:
         ex.spin_once(timeout_sec=0.05)
     req = EvaluationRequest()
-    wire.to_named_array({"motor_kw": np.array([80.0]), "gear_ratio": np.array([8.0])}, req.inputs)
+    protocol.to_named_array({"motor_kw": np.array([80.0]), "gear_ratio": np.array([8.0])}, req.inputs)
     lat = []
     for i in range(n + 50):
         got.clear()

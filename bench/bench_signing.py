@@ -44,19 +44,19 @@ def cpu_sign_verify(n: int = 2000) -> dict:
       encode) and after (the signer returns the bytes it signed), so one file measures both."""
     import secrets
 
-    from bev_mdo.ros import wire
-    from bev_mdo.ros.auth import Signer
+    from bev_mdo import protocol
+    from bev_mdo.protocol.signing import Signer
     from bev_mdo.ros.common import stamp
 
     out = {}
     for points in (1, 10_000):
         s = Signer(secrets.token_bytes(32))
-        req = wire.Request("bench", 1, "energy")
-        req.inputs = wire.batch({k: np.ones(points) for k in ("vehicle_mass_kg", "gear_ratio", "motor_kw")})
-        res = wire.Result()
+        req = protocol.request("bench", 1, "energy")
+        req.inputs = protocol.batch({k: np.ones(points) for k in ("vehicle_mass_kg", "gear_ratio", "motor_kw")})
+        res = protocol.result()
         res.run_id, res.discipline = "bench", "energy"
         res.point_ok = np.ones(points, bool)
-        res.outputs = wire.batch({"energy_wh_per_km": np.ones(points)})
+        res.outputs = protocol.batch({"energy_wh_per_km": np.ones(points)})
         reps = n if points == 1 else max(20, n // 50)
         t0 = time.perf_counter()
         for i in range(reps):
@@ -73,8 +73,8 @@ def cpu_sign_verify(n: int = 2000) -> dict:
                 req.evaluation_id = res.evaluation_id = i
                 stamp(req.header)
                 stamp(res.header)
-                for m, encode, decode in ((req, wire.encode_request, wire.decode_request),
-                                          (res, wire.encode_result, wire.decode_result)):
+                for m, encode, decode in ((req, protocol.encode_request, protocol.decode_request),
+                                          (res, protocol.encode_result, protocol.decode_result)):
                     if signer is None:
                         data = encode(m)
                     else:
@@ -116,7 +116,7 @@ def main() -> int:
 
     from bev_mdo.config import load_config, run_settings
     from bev_mdo.mdo.driver import build_formulation
-    from bev_mdo.ros.auth import new_key_file
+    from bev_mdo.protocol.signing import new_key_file
     from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
     from bev_mdo.ros.launch import Launcher, discipline_argv
     from bev_mdo.testing import ros_env

@@ -35,7 +35,7 @@ def _prepare(config: dict, logs: Path, key_dir: Path) -> tuple[dict, Path]:
     off, the resolved config written to ``logs/config.yaml``): what nodes and recorder read."""
     import yaml
 
-    from bev_mdo.ros.auth import with_run_key
+    from bev_mdo.protocol.signing import with_run_key
 
     logs.mkdir(parents=True, exist_ok=True)
     config = with_run_key(config, key_dir)
@@ -394,7 +394,7 @@ class ParetoRosSession:
     def __enter__(self):
         import rclpy
 
-        from bev_mdo.ros.auth import Signer
+        from bev_mdo.protocol.signing import Signer
         from bev_mdo.ros.client import apply_ros_environment
         from bev_mdo.ros.coordinator_node import node_name_for
         from bev_mdo.ros.launch import Launcher, start_recorder

@@ -49,7 +49,7 @@ if ! fresh msgs "$h"; then
   stamp msgs "$h"
 fi
 
-h=$(hash_of setup.py setup.cfg package.xml resource ros_lib config bev_mdo)
+h=$(hash_of setup.py setup.cfg package.xml resource ros_lib config bev_mdo msg_defs/msg)
 if ! fresh pkg "$h"; then
   log "installing bev_mdo into the venv"
   quiet_pip install -q --no-deps --no-build-isolation --force-reinstall "$ROOT" >/dev/null

@@ -1,7 +1,7 @@
 """A per-run key left by a run that never wrote its bag does not block a re-run with the same --bag."""
 from __future__ import annotations
 
-from bev_mdo.ros.auth import with_run_key
+from bev_mdo.protocol.signing import with_run_key
 from bev_mdo.sessions import key_dir_for
 
 

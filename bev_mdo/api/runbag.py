@@ -27,7 +27,7 @@ class InProcessBag:
 
         from bev_mdo.bag.writer import BagWriter
         from bev_mdo.config import plain
-        from bev_mdo.ros.auth import Signer
+        from bev_mdo.protocol.signing import Signer
         from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC
 
         self.topic = ITERATION_TOPIC
@@ -49,14 +49,14 @@ class InProcessBag:
     def __call__(self, rec: Mapping[str, Any]) -> None:
         from rclpy.serialization import serialize_message
 
-        from bev_mdo.ros import wire
+        from bev_mdo import protocol
         from bev_mdo.ros.common import stamp
         from bev_mdo_msgs.msg import IterationRecord
 
         msg = IterationRecord()
         stamp(msg.header)
         self.seq += 1
-        wire.fill_iteration_record(msg, rec, self.run_id, self.seq)
+        protocol.fill_iteration_record(msg, rec, self.run_id, self.seq)
         t = time.time_ns()
         data = serialize_message(msg) if self.signer is None else self.signer.sign_iteration(msg)
         with interrupts.deferred():  # a record is written whole or not at all

@@ -77,10 +77,10 @@ class RecordOrder:
         self.dropped: dict[str, int] = {}
 
     def keep(self, data) -> bool:
-        from bev_mdo.ros.wire import WireError, iteration_order
+        from bev_mdo.protocol import WireError, head
 
         try:
-            rec = iteration_order(data)
+            rec = head(data, "IterationRecord", "sequence")  # the fields up to sequence: no full decode
             why = ("of another run" if self.run_id and not _in_run(rec.run_id, self.run_id)
                    else self.order.check(rec.run_id, int(rec.sequence)))
         except WireError:

@@ -192,21 +192,36 @@ class Bag:
                 return
 
     def decode(self, message: BagMessage):
-        """Decode one message with mcap-ros2-support (a dynamic object, no ROS needed)."""
+        """Decode one message: bev_mdo's own with the protocol's generated codec when the bag's schema
+        is the protocol's definition, any other with mcap-ros2-support from the bag's schema (a dynamic
+        object). No ROS needed either way."""
         decoder = self._decoders.get(message.channel_id)
         if decoder is None:
-            from mcap_ros2.decoder import DecoderFactory
-
-            schema = self.schemas[self.channels[message.channel_id].schema_id]
-            decoder = DecoderFactory().decoder_for("cdr", schema)
-            if decoder is None:
-                raise BagError(f"{self.mcap_path}: cannot decode {schema.name}")
-            self._decoders[message.channel_id] = decoder
+            decoder = self._decoders[message.channel_id] = self._decoder(message.channel_id)
         try:
             return decoder(message.data)
         except Exception as exc:
             raise BagError(f"{self.mcap_path}: cannot decode a {message.type_name} message on "
                            f"{message.topic} ({type(exc).__name__})") from exc
+
+    def _decoder(self, channel_id: int):
+        from bev_mdo.bag.schema import full_definition
+        from bev_mdo.protocol import messages
+
+        schema = self.schemas[self.channels[channel_id].schema_id]
+        if schema.name.split("/")[0] == messages.PACKAGE:
+            try:
+                same = full_definition(schema.name) == schema.data.decode("utf-8")
+            except (BagError, UnicodeDecodeError):
+                same = False
+            if same:
+                return lambda data, name=schema.name: messages.decode(data, name)
+        from mcap_ros2.decoder import DecoderFactory
+
+        decoder = DecoderFactory().decoder_for("cdr", schema)
+        if decoder is None:
+            raise BagError(f"{self.mcap_path}: cannot decode {schema.name}")
+        return decoder
 
     def decoded(self, topics: Iterable[str] | None = None) -> Iterator[tuple[BagMessage, object]]:
         """(message, decoded object) pairs in file order."""

@@ -1,7 +1,9 @@
 """ros2msg schema text, type hashes and QoS YAML, as rosbag2 (Jazzy) writes them into MCAP.
 
-Message definitions come from the installed ``share/<pkg>/msg/<Type>.msg`` files found
-through ``AMENT_PREFIX_PATH`` (falling back to the running interpreter's prefix).
+bev_mdo's own messages come from the protocol (the .msg files shipped in the package, and the type
+hashes rosbags computes from them, equal to rosidl's); other types (std_msgs/Header, ...) from the
+installed ``share/<pkg>/msg/<Type>.msg`` files found through ``AMENT_PREFIX_PATH`` (falling back
+to the running interpreter's prefix).
 """
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from bev_mdo.bag.errors import BagError
+from bev_mdo.protocol import messages
 
 SEPARATOR = "=" * 80
 PRIMITIVES = frozenset(
@@ -54,6 +57,9 @@ def share_file(type_name: str, suffix: str) -> Path:
 @lru_cache(maxsize=None)
 def msg_text(type_name: str) -> str:
     """The .msg text of a type, unchanged."""
+    pkg, name = split_type(type_name)
+    if pkg == messages.PACKAGE:
+        return messages.msg_text(name)
     return share_file(type_name, ".msg").read_text(encoding="utf-8")
 
 
@@ -94,8 +100,11 @@ def full_definition(type_name: str) -> str:
 
 @lru_cache(maxsize=None)
 def type_hash(type_name: str) -> str:
-    """``RIHS01_...`` hash of a type from its installed type-description JSON ('' if absent)."""
+    """``RIHS01_...`` hash of a type: of bev_mdo's own from the protocol, of another from its
+    installed type-description JSON ('' if absent)."""
     pkg, name = split_type(type_name)
+    if pkg == messages.PACKAGE:
+        return messages.STORE.hash_rihs01(messages.type_name(name))
     try:
         data = json.loads(share_file(type_name, ".json").read_text(encoding="utf-8"))
     except (BagError, ValueError):

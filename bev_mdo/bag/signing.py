@@ -47,7 +47,7 @@ def _body_mac(key: bytes, body: dict) -> str:
 def state(config_yaml: str, run_id: str) -> dict[str, str]:
     """The ``bev_mdo_signing`` record for a bag of run `run_id` with `config_yaml` stored in it
     (the key is read from the file the configuration names; AuthError when it cannot be)."""
-    from bev_mdo.ros.auth import read_key
+    from bev_mdo.protocol.signing import read_key
 
     key_file = config_key_file(config_yaml)
     if not key_file:
@@ -73,7 +73,7 @@ def verifier(bag, key_file: str | None = None, no_verify: bool = False) -> Verif
     """The Verifier for a bag (``bag.reader.Bag``), or BagError when the bag's signing record and its
     stored configuration (or the given key) disagree."""
     from bev_mdo.bag.reader import read_config
-    from bev_mdo.ros.auth import AuthError, Signer, read_key
+    from bev_mdo.protocol.signing import AuthError, Signer, read_key
 
     where = bag.mcap_path
     record = bag.metadata.get(SIGNING_METADATA)

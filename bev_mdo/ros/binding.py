@@ -15,7 +15,7 @@ a hub-and-spoke request, every discipline of the flow for a data-flow MDA). A no
 only if its own entry is there and equals its own fingerprint; its result echoes the
 request's ``frame_id``, and the coordinator accepts a result only when that echo equals what
 it sent. A data-flow consumer uses a source's result only if the echoed map holds its own
-fingerprint. With signing (auth.py) the frame_id is covered by the signature.
+fingerprint. With signing (protocol/signing.py) the frame_id is covered by the signature.
 """
 from __future__ import annotations
 

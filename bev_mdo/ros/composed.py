@@ -17,7 +17,7 @@ from __future__ import annotations
 import sys
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rcl_interfaces.msg import ParameterDescriptor
@@ -25,9 +25,8 @@ from rcl_interfaces.msg import ParameterDescriptor
 from bev_mdo.mdo.discipline import DisciplineError
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 from bev_mdo.mdo.vectors import ShapeError
-from bev_mdo.ros import wire
-from bev_mdo.ros.discipline_node import DisciplineNode, valid_run_id
-from bev_mdo.ros.fastwait import MultiWaiter
+from bev_mdo import protocol
+from bev_mdo.ros.discipline_node import DisciplineNode, serve, valid_run_id
 
 
 def make_nodes(config: dict, disciplines: list[str], instance: str = "", run_id: str = "",
@@ -80,7 +79,7 @@ class Beside:
     an MDA then costs no DDS write at all.
 
     A direct call never encodes, decodes, signs or verifies. A request is handed over as the message
-    object with its numpy columns (``wire.batch`` keeps them). A result is not a message at all: a
+    object, its columns one NamedArray (``protocol.batch``). A result is not a message at all: a
     node hands the coordinator its ``run_discipline`` result (``DisciplineNode._direct``,
     ``RosEvaluator.on_local``), checked once, taken as the in-process evaluator takes it. And when
     every discipline of a data-flow MDA is a node here and none of their result topics has an
@@ -174,8 +173,8 @@ class Beside:
             self._bound.add(bound)
         n = int(req.inputs.batch_size)
         try:
-            got = self._engine.evaluate_flow(names, wire.from_named_array(req.inputs), n, bool(req.partials))
-        except (ShapeError, DisciplineError, KeyError, wire.WireError):
+            got = self._engine.evaluate_flow(names, protocol.from_named_array(req.inputs), n, bool(req.partials))
+        except (ShapeError, DisciplineError, KeyError, protocol.WireError):
             return False
         if got is None:
             return False
@@ -212,30 +211,10 @@ class Beside:
 
 
 def serve_many(nodes: list[DisciplineNode], idle_s: float = 0.1, service_every: int = 64) -> None:
-    """Serve every node's hot subscriptions from one wait set (one thread), the nodes' other
-    entities (parameter services) from one executor when idle: discipline_node.serve for several."""
+    """Serve the nodes composed in this process: linked for data flow (link_local), then the one serve
+    loop (discipline_node.serve) over all of them."""
     link_local(nodes)
-    context = nodes[0].context
-    executor = SingleThreadedExecutor(context=context)
-    for node in nodes:
-        executor.add_node(node)
-    waiter = MultiWaiter(context)
-    pairs = [pair for node in nodes for pair in node.hot_subscriptions()]
-    subs = [s for s, _ in pairs]
-    served = 0
-    try:
-        waiter.take_all(pairs)
-        while context.ok():
-            if waiter.wait(subs, idle_s):
-                served += waiter.take_ready(pairs)
-                if served < service_every:
-                    continue
-                served = 0
-            for node in nodes:
-                node.publish_stats()
-            executor.spin_once(timeout_sec=0.0)
-    finally:
-        executor.shutdown()
+    serve(nodes, idle_s, service_every)
 
 
 def main(args: list[str] | None = None) -> int:

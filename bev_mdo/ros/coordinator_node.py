@@ -18,7 +18,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rcl_interfaces.msg import ParameterDescriptor
 
-from bev_mdo.ros import wire
+from bev_mdo import protocol
 from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, stamp, wait_acked
 from bev_mdo.ros.evaluator import RosEvaluator
 from bev_mdo.ros.fastwait import until
@@ -62,7 +62,7 @@ class CoordinatorNode(Node):
         msg = IterationRecord()
         stamp(msg.header)
         self._seq += 1
-        wire.fill_iteration_record(msg, rec, self.run_id, self._seq)
+        protocol.fill_iteration_record(msg, rec, self.run_id, self._seq)
         signer = self.evaluator.signer
         self._iteration_pub.publish(msg if signer is None else signer.sign_iteration(msg))  # signed: its bytes
 

@@ -38,8 +38,9 @@ from bev_mdo import __version__
 from bev_mdo.mdo import flow
 from bev_mdo.mdo.discipline import DisciplineError, all_finite, readable, run_discipline, unknown_inputs
 from bev_mdo.mdo.vectors import ShapeError
-from bev_mdo.ros import binding, wire
-from bev_mdo.ros.auth import Signer
+from bev_mdo import protocol
+from bev_mdo.ros import binding
+from bev_mdo.protocol.signing import Signer
 from bev_mdo.ros.fastwait import until
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RESULT_QOS, REQUEST_QOS, RESULT_QOS,
                                 RESULT_TOPIC, mda_result_topic, request_topic, stamp)
@@ -187,7 +188,7 @@ class DisciplineNode(Node):
         self._stats_t = 0.0
         self._result_pub = self.create_publisher(EvaluationResult, RESULT_TOPIC, RESULT_QOS)
         self._info_pub = self.create_publisher(DisciplineInfo, INFO_TOPIC, INFO_QOS)
-        # Raw CDR in and out (wire.py's codec): rclpy's message objects cost more than the DDS hop.
+        # Raw CDR in and out (the protocol's generated codec): rclpy's message objects cost more than the DDS hop.
         self._sub = self.create_subscription(EvaluationRequest, request_topic(name),
                                              self._raw(self._on_request), REQUEST_QOS, raw=True)
         self._mda_pub = self.create_publisher(EvaluationResult, mda_result_topic(name), MDA_RESULT_QOS)
@@ -272,12 +273,12 @@ class DisciplineNode(Node):
 
     def _raw(self, handle, result: bool = False):
         """A raw-subscription callback: decode the CDR bytes, count what does not decode."""
-        decode = wire.decode_result if result else wire.decode_request
+        decode = protocol.decode_result if result else protocol.decode_request
 
         def on_bytes(data: bytes) -> None:
             try:
                 msg = _decode_once(decode, data)
-            except wire.WireError as exc:
+            except protocol.WireError as exc:
                 self.counts["rejected"] += 1
                 self.counts["rejected.undecodable"] += 1
                 self.get_logger().warning(f"dropped an undecodable message: {exc}", throttle_duration_sec=2.0)
@@ -307,7 +308,7 @@ class DisciplineNode(Node):
             self.local_coordinator(req, self.discipline_name, self.instance, None, error)
             if not consumers:
                 return
-        out = wire.Result()
+        out = protocol.result()
         self._fill_header(out, req)
         out.status = _STATUS_REJECTED
         out.error = error
@@ -323,15 +324,15 @@ class DisciplineNode(Node):
         return (self.local_coordinator is not None
                 and writer.get_subscription_count() <= self.local_readers.get(id(writer), 0))
 
-    def _send_out(self, out: wire.Result, writer, direct: bool, consumers) -> None:
+    def _send_out(self, out: protocol.EvaluationResult, writer, direct: bool, consumers) -> None:
         """Publish `out` (signed with a key) unless the coordinator took the answer by direct call;
         composed consumers (link_local) get it by direct call, without a DDS hop and a decode."""
         if not direct:
-            writer.publish(wire.encode_result(out) if self.signer is None else self.signer.sign_result(out))
+            writer.publish(protocol.encode_result(out) if self.signer is None else self.signer.sign_result(out))
         for node in consumers:
             node._on_source_result(self.discipline_name, out, local=True)
 
-    def _fill_header(self, out: wire.Result, req: wire.Request) -> None:
+    def _fill_header(self, out: protocol.EvaluationResult, req: protocol.EvaluationRequest) -> None:
         stamp(out.header)
         out.header.frame_id = req.header.frame_id
         out.run_id = req.run_id
@@ -362,7 +363,7 @@ class DisciplineNode(Node):
             return "other_instance"
         return None
 
-    def _on_request(self, req: wire.Request, local: bool = False) -> None:
+    def _on_request(self, req: protocol.EvaluationRequest, local: bool = False) -> None:
         """A request; ``local``: handed over by direct call in this process (composed.Beside), so its
         signature is not checked (nothing outside the process can make that call); all else is."""
         if not self._for_me(req):
@@ -383,8 +384,8 @@ class DisciplineNode(Node):
         if not valid_run_id(req.run_id):
             return self._reject(req, "bad run id", "bad_run_id")
         try:
-            inputs = wire.from_named_array(req.inputs)
-        except wire.WireError as exc:
+            inputs = protocol.from_named_array(req.inputs)
+        except protocol.WireError as exc:
             return self._reject(req, str(exc), "malformed")
         missing = [k for k in self.discipline.inputs if k not in inputs]
         if missing:
@@ -401,7 +402,7 @@ class DisciplineNode(Node):
             return self._reject(req, str(exc), "bad_discipline_output")
         self._answer(req, result, asked=bool(req.partials))
 
-    def _answer(self, req: wire.Request, result, pub=None, forward=None, flow_names=(), asked=False) -> None:
+    def _answer(self, req: protocol.EvaluationRequest, result, pub=None, forward=None, flow_names=(), asked=False) -> None:
         self._answered(result)
         writer = pub or self._result_pub
         consumers = self.local_consumers if pub is self._mda_pub else ()
@@ -410,18 +411,18 @@ class DisciplineNode(Node):
             self.local_coordinator(req, self.discipline_name, self.instance, result)
             if not consumers:  # beside the coordinator, nobody else reads it: no message at all
                 return
-        out = wire.Result()
+        out = protocol.result()
         self._fill_header(out, req)
         out.status = _STATUS_OK if result.ok.all() else _STATUS_ERROR
         out.error = result.error[:4000]
-        wire.put_point_errors(out, result.point_errors)
+        protocol.put_point_errors(out, result.point_errors)
         out.point_ok = np.asarray(result.ok, dtype=bool)
-        out.outputs = wire.batch({**result.outputs, **forward} if forward else result.outputs)
+        out.outputs = protocol.batch({**result.outputs, **forward} if forward else result.outputs)
         out.flow = list(flow_names)
         out.compute_time_s = result.compute_time_s
         if asked:
             # a block of the batch size even without partials: downstream nodes learn it was asked
-            out.partials = wire.partials_batch(result.extra.get("partials", {}), int(np.size(result.ok)))
+            out.partials = protocol.partials_batch(result.extra.get("partials", {}), int(np.size(result.ok)))
         self._send_out(out, writer, direct, consumers)
 
     def _answered(self, result) -> None:
@@ -446,7 +447,7 @@ class DisciplineNode(Node):
             f"[{self.counts['rejected']} rejected so far; this log is rate-limited]", throttle_duration_sec=2.0)
         return False
 
-    def _on_mda_request(self, req: wire.Request, local: bool = False) -> None:
+    def _on_mda_request(self, req: protocol.EvaluationRequest, local: bool = False) -> None:
         """A data-flow request, read by the disciplines without sources: evaluate now (``local``:
         by direct call in this process, as for _on_request)."""
         if self.discipline_name not in req.flow:
@@ -459,12 +460,12 @@ class DisciplineNode(Node):
         if not valid_run_id(req.run_id):
             return self._reject(req, "bad run id", "bad_run_id", self._mda_pub)
         try:
-            inputs = wire.from_named_array(req.inputs)
-        except wire.WireError as exc:
+            inputs = protocol.from_named_array(req.inputs)
+        except protocol.WireError as exc:
             return self._reject(req, str(exc), "malformed", self._mda_pub)
         self._flow_answer(req, inputs, {}, {}, int(req.inputs.batch_size), list(req.flow), bool(req.partials))
 
-    def _on_source_result(self, source: str, msg: wire.Result, local: bool = False) -> None:
+    def _on_source_result(self, source: str, msg: protocol.EvaluationResult, local: bool = False) -> None:
         """A source's data-flow result (it carries the request's columns too): keep it for
         (run, evaluation id) and evaluate once every source of this MDA has answered (``local``: by
         direct call from a source composed in this process, as for _on_request)."""
@@ -478,8 +479,8 @@ class DisciplineNode(Node):
             self.counts["source_malformed"] += 1
             return
         try:
-            columns = wire.from_named_array(msg.outputs)
-        except wire.WireError:
+            columns = protocol.from_named_array(msg.outputs)
+        except protocol.WireError:
             self.counts["source_malformed"] += 1
             return
         try:  # the one join rule (mdo/flow.py): None until every source of this MDA has answered
@@ -519,35 +520,35 @@ class DisciplineNode(Node):
         self._answer(req, result, self._mda_pub, forward=forward, flow_names=flow_names, asked=asked)
 
 
-def serve(node: DisciplineNode, idle_s: float = 0.1, service_every: int = 64) -> None:
-    """Serve requests until the context shuts down.
-
-    Requests are taken straight from the subscription (fastwait); the node's other
-    entities (parameter services) are spun when idle and every `service_every` requests.
-    """
+def serve(nodes: "DisciplineNode | list[DisciplineNode]", idle_s: float = 0.1, service_every: int = 64) -> None:
+    """The one serve loop, until the context shuts down, of a standalone node or of the nodes composed in
+    one process (composed.serve_many): hot subscriptions are taken from one wait set (fastwait), other
+    entities (parameter services) spun by one executor when idle and every `service_every` requests."""
     from rclpy.executors import SingleThreadedExecutor
 
     from bev_mdo.ros.fastwait import MultiWaiter
 
-    executor = SingleThreadedExecutor(context=node.context)
-    executor.add_node(node)
-    waiter = MultiWaiter(node.context)
-    pairs = node.hot_subscriptions()
+    nodes = [nodes] if isinstance(nodes, DisciplineNode) else list(nodes)
+    context = nodes[0].context
+    executor = SingleThreadedExecutor(context=context)
+    for node in nodes:
+        executor.add_node(node)
+    waiter = MultiWaiter(context)
+    pairs = [pair for node in nodes for pair in node.hot_subscriptions()]
     subs = [s for s, _ in pairs]
     served = 0
     try:
         waiter.take_all(pairs)
-        while node.context.ok():
+        while context.ok():
             # rcl wait sets are level-triggered: wait() returns at once while anything is queued
             if waiter.wait(subs, idle_s):
                 served += waiter.take_ready(pairs)
-                if served >= service_every:
-                    served = 0
-                    node.publish_stats()
-                    executor.spin_once(timeout_sec=0.0)
-            else:
+                if served < service_every:
+                    continue
+                served = 0
+            for node in nodes:
                 node.publish_stats()
-                executor.spin_once(timeout_sec=0.0)
+            executor.spin_once(timeout_sec=0.0)
     finally:
         executor.shutdown()
 

@@ -17,7 +17,7 @@ input from the same producer as the coordinator's graph; otherwise the MDA runs 
 With worker pools the MDA is cut into row shares, one data-flow request each, every pooled
 discipline addressed to one of its instances (``_flow_shares``; docs/scaling.md).
 
-With a shared key (``ros.sign_key_file``, see auth.py) every request is signed and
+With a shared key (``ros.sign_key_file``, see protocol/signing.py) every request is signed and
 every result verified first; unsigned, forged, expired and replayed results are
 dropped and counted under those names. Every accepted result is logged in
 ``accepted`` as (evaluation id, discipline, instance, attempt sent so far), so a test
@@ -42,9 +42,10 @@ from bev_mdo.mdo.discipline import EvalResult, all_finite, failed, finite_rows
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.ledger import Ledger
-from bev_mdo.ros import binding, pool as pools, wire
+from bev_mdo import protocol
+from bev_mdo.ros import binding, pool as pools
 from bev_mdo.ros_settings import validate_min_rows
-from bev_mdo.ros.auth import Signer
+from bev_mdo.protocol.signing import Signer
 from bev_mdo.ros.fastwait import STARTUP_CAP, MultiWaiter, until
 from bev_mdo.stacks import StartupGaveUp
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC,
@@ -125,10 +126,10 @@ class RosEvaluator:
         self._info_t = time.monotonic()
         self._executor = SingleThreadedExecutor(context=node.context)
         self._executor.add_node(node)
-        # Raw CDR in and out (wire.py's codec): rclpy's message objects cost more than the DDS hop.
+        # Raw CDR in and out (the protocol's generated codec): rclpy's message objects cost more than the DDS hop.
         self._result_sub = node.create_subscription(EvaluationResult, RESULT_TOPIC, self._on_bytes, RESULT_QOS,
                                                     raw=True)
-        # raw too: a signature covers the bytes as they were sent (auth.py)
+        # raw too: a signature covers the bytes as they were sent (protocol/signing.py)
         self._info_sub = node.create_subscription(DisciplineInfo, INFO_TOPIC, self._on_info, INFO_QOS, raw=True)
         self._waiter = MultiWaiter(node.context)
         self._hot = [(self._result_sub, lambda data, _i: self._on_bytes(data))]
@@ -432,14 +433,14 @@ class RosEvaluator:
     # -- evaluation ----------------------------------------------------------------
     def _on_bytes(self, data: bytes) -> None:
         try:
-            msg = wire.decode_result(data)
-        except wire.WireError:
+            msg = protocol.decode_result(data)
+        except protocol.WireError:
             self.dropped["malformed"] += 1
             return
         self._on_result(msg)
 
     def _on_result(self, msg) -> None:
-        """Accept a received result (wire.Result or a generated EvaluationResult), every field
+        """Accept a received result (protocol.EvaluationResult or a generated EvaluationResult), every field
         checked (signature, ledger, shapes, finiteness, point errors), or count why it was dropped."""
         if msg.run_id != self.run_id:  # another run's traffic on the shared topic, not an attack
             self.dropped["other_run"] += 1
@@ -457,8 +458,8 @@ class RosEvaluator:
             res = self._failed(p, msg.error or f"{p.discipline}: request rejected")
         else:
             try:
-                outputs = wire.from_named_array(msg.outputs)
-            except wire.WireError:
+                outputs = protocol.from_named_array(msg.outputs)
+            except protocol.WireError:
                 self.dropped["malformed"] += 1
                 return
             spec = self.specs.get(p.discipline)
@@ -470,15 +471,15 @@ class RosEvaluator:
             outs = {k: np.array(outputs[k]) for k in want}
             ok = np.array(ok) if all_finite(outs.values()) else ok & finite_rows(list(outs.values()), p.n)
             try:
-                why = wire.point_errors_of(msg, p.n)
-            except wire.WireError:
+                why = protocol.point_errors_of(msg, p.n)
+            except protocol.WireError:
                 self.dropped["malformed"] += 1
                 return
             res = EvalResult(outs, ok, msg.error, float(msg.compute_time_s), point_errors=why)
             if p.request.partials:
                 try:
-                    part = wire.partials_of(msg.partials, p.n)
-                except wire.WireError:
+                    part = protocol.partials_of(msg.partials, p.n)
+                except protocol.WireError:
                     self.dropped["malformed"] += 1
                     return
                 if part is not None:
@@ -545,14 +546,14 @@ class RosEvaluator:
 
     def _request(self, eid: int, discipline: str, batch: Mapping[str, np.ndarray], tag: str, *,
                  flow: Sequence[str] = (), iteration: int | None = None, attempt: int = 0,
-                 partials: bool = False) -> wire.Request:
+                 partials: bool = False) -> protocol.EvaluationRequest:
         """A request of this run carrying `batch`, bound by `tag` (its frame_id: binding.py);
         `discipline` empty and `flow` the MDA's disciplines for a data-flow request."""
-        req = wire.Request(self.run_id, eid, discipline, flow=flow,
+        req = protocol.request(self.run_id, eid, discipline, flow=flow,
                            iteration=self.iteration if iteration is None else iteration)
         req.header.frame_id = tag
         req.attempt = attempt
-        req.inputs = wire.batch(batch)
+        req.inputs = protocol.batch(batch)
         req.partials = bool(partials)
         return req
 
@@ -565,7 +566,7 @@ class RosEvaluator:
         # nodes composed into this process (composed.Beside) take it by direct call when nobody else
         # reads it: not encoded and not signed (it never leaves the process)
         if self.local_requests is None or not self.local_requests(pub, p.request):
-            pub.publish(wire.encode_request(p.request) if self.signer is None
+            pub.publish(protocol.encode_request(p.request) if self.signer is None
                         else self.signer.sign_request(p.request))  # sets its signature
 
     def evaluate(self, calls: Sequence[tuple[str, Mapping[str, np.ndarray]]], iteration: int | None = None,

@@ -397,7 +397,7 @@ class OwnSuite:
         import yaml
 
         from bev_mdo.config import discipline_names, plain
-        from bev_mdo.ros.auth import with_run_key
+        from bev_mdo.protocol.signing import with_run_key
         from bev_mdo.ros_settings import ros_environment
 
         logs = self.work_dir / "logs"

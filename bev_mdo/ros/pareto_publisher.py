@@ -30,7 +30,7 @@ def front_columns(front) -> dict[str, np.ndarray]:
 
 def front_message(front, *, run_id: str, topology: str, final: bool):
     """A ParetoFront message of one generation's front."""
-    from bev_mdo.ros import wire
+    from bev_mdo import protocol
     from bev_mdo_msgs.msg import ParetoFront
 
     msg = ParetoFront()
@@ -40,7 +40,7 @@ def front_message(front, *, run_id: str, topology: str, final: bool):
     msg.generation = int(front.generation)
     msg.final = bool(final)
     msg.objectives = list(front.objectives)
-    wire.to_named_array(front_columns(front), msg.designs)
+    protocol.to_named_array(front_columns(front), msg.designs)
     msg.evaluations = int(front.evaluations)
     msg.wall_time_s = float(front.wall_time_s)
     return msg

@@ -67,17 +67,13 @@ def config_binding(config_yaml: str) -> str:
 
 
 def run_of(data) -> str | None:
-    """The ``run_id`` of a RUN_TAGGED message from its CDR bytes (4-byte encapsulation, the header's
-    stamp (8 bytes) and frame_id string, then run_id); None if the bytes are too short."""
+    """The ``run_id`` of a RUN_TAGGED message from its CDR bytes (each of them starts with a header and
+    its run id, so the fields up to ``run_id`` of one of them decode it); None if the bytes do not hold one."""
+    from bev_mdo import protocol
+
     try:
-        at = 12
-        n = int.from_bytes(data[at:at + 4], "little")
-        at = (at + 4 + n + 3) & ~3  # CDR offsets count from after the encapsulation: 4-aligned either way
-        n = int.from_bytes(data[at:at + 4], "little")
-        if n == 0 or at + 4 + n > len(data):
-            return None
-        return bytes(data[at + 4:at + 3 + n]).decode("utf-8")
-    except (ValueError, UnicodeDecodeError):
+        return protocol.head(data, "EvaluationRequest", "run_id").run_id or None
+    except protocol.WireError:
         return None
 
 
@@ -339,7 +335,7 @@ def _signer_of(config_yaml: str):
         return None
     import yaml
 
-    from bev_mdo.ros.auth import Signer
+    from bev_mdo.protocol.signing import Signer
 
     ros = (yaml.safe_load(config_yaml) or {}).get("ros") or {}
     return Signer.from_ros(ros) if ros.get("sign_key_file") else None

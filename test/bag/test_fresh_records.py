@@ -11,7 +11,7 @@ from bev_mdo.bag.history import history
 from bev_mdo.bag.reader import open_bag
 from bev_mdo.bag.writer import BagWriter
 from bev_mdo.cli import main
-from bev_mdo.ros.auth import Signer, new_key_file, read_key
+from bev_mdo.protocol.signing import Signer, new_key_file, read_key
 from bev_mdo.testing import REPO
 
 TOPIC = "/bev_mdo/iteration"

@@ -11,7 +11,7 @@ from bev_mdo.bag.errors import BagError  # noqa: E402
 from bev_mdo.bag.history import history, last_iterate  # noqa: E402
 from bev_mdo.bag.reader import open_bag  # noqa: E402
 from bev_mdo.bag.writer import BagWriter  # noqa: E402
-from bev_mdo.ros.auth import Signer, new_key_file, read_key  # noqa: E402
+from bev_mdo.protocol.signing import Signer, new_key_file, read_key  # noqa: E402
 
 
 def _record(run_id, i, motor_kw):

@@ -2,7 +2,7 @@
 named in the bag's config, is used only to verify the old records, never to sign the new run."""
 from __future__ import annotations
 
-from bev_mdo.ros.auth import with_run_key
+from bev_mdo.protocol.signing import with_run_key
 from bev_mdo.cli.resume import is_per_run_key
 
 

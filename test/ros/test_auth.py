@@ -19,8 +19,9 @@ import rclpy
 from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
-from bev_mdo.ros import coordinator_node, wire  # noqa: E402
-from bev_mdo.ros.auth import AuthError, Signer, read_key  # noqa: E402
+from bev_mdo import protocol  # noqa: E402
+from bev_mdo.ros import coordinator_node  # noqa: E402
+from bev_mdo.protocol.signing import AuthError, Signer, read_key  # noqa: E402
 from bev_mdo.ros.common import REQUEST_QOS, request_topic, stamp  # noqa: E402
 from bev_mdo.ros.discipline_node import NodeStatsListener  # noqa: E402
 from bev_mdo.ros.evaluator import RosEvaluator, _Pending  # noqa: E402
@@ -46,7 +47,7 @@ def _request(run_id="r1", eid=1, attempt=0, t_ns=None):
     stamp(req.header, t_ns)
     req.header.frame_id = TAG
     req.run_id, req.evaluation_id, req.attempt, req.discipline = run_id, eid, attempt, "vehicle_mass"
-    wire.to_named_array({"motor_kw": np.array([80.0]), "battery_kwh": np.array([24.0])}, req.inputs)
+    protocol.to_named_array({"motor_kw": np.array([80.0]), "battery_kwh": np.array([24.0])}, req.inputs)
     return req
 
 
@@ -96,7 +97,7 @@ def test_result_fields_are_covered():
     stamp(res.header)
     res.run_id, res.evaluation_id, res.discipline, res.instance = "r1", 3, "energy", "/energy_node"
     res.point_ok = [True, False]
-    wire.to_named_array({"energy_wh_per_km": np.array([120.0, np.nan])}, res.outputs)
+    protocol.to_named_array({"energy_wh_per_km": np.array([120.0, np.nan])}, res.outputs)
     res.error_points, res.error_reasons, res.error_inputs = [1], ["energy: ValueError: no"], ["v=1"]
     s.sign_result(res)
     for field, value in (("status", 1), ("error", "x"), ("point_ok", [False, False]), ("compute_time_s", 1.0),
@@ -211,7 +212,7 @@ def test_coordinator_drops_unsigned_forged_expired_and_replayed_results(rclpy_co
             res.run_id, res.evaluation_id, res.discipline = "probe", eid, "vehicle_mass"
             res.header.frame_id = TAG  # the echo of the request's binding
             res.point_ok = [True]
-            wire.to_named_array({"vehicle_mass_kg": np.array([1500.0])}, res.outputs)
+            protocol.to_named_array({"vehicle_mass_kg": np.array([1500.0])}, res.outputs)
             return res
 
         for eid in (1, 2, 3, 4, 5):

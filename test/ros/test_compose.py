@@ -108,7 +108,7 @@ def test_link_local_wires_sources_composed_in_the_same_process(config_path):
 def test_all_composed_and_signed_gives_the_in_process_optimum(ros_domain, rclpy_context, config_path, tmp_path):
     """All six disciplines in one process, results passed inside it by direct call, every message
     signed: the optimum is the in-process one, bit for bit, and nothing was dropped."""
-    from bev_mdo.ros.auth import new_key_file
+    from bev_mdo.protocol.signing import new_key_file
 
     raw = yaml.safe_load(config_path.read_text())
     raw["ros"] = {**raw["ros"], "signing": True, "sign_key_file": new_key_file(tmp_path)}

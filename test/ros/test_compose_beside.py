@@ -27,7 +27,7 @@ BUILTINS = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "c
 
 @pytest.fixture(scope="module")
 def config_path(tmp_path_factory):
-    from bev_mdo.ros.auth import new_key_file
+    from bev_mdo.protocol.signing import new_key_file
 
     d = tmp_path_factory.mktemp("cfg")
     raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
@@ -66,8 +66,8 @@ def test_beside_the_coordinator_gives_the_in_process_optimum_without_dds_writes(
     run_id = f"beside{os.getpid()}"
     beside = Beside(config, BUILTINS, rclpy_context, run_id=run_id)
     sent = []
-    encode = ros_evaluator.wire.encode_request
-    monkeypatch.setattr(ros_evaluator.wire, "encode_request", lambda m: sent.append(m) or encode(m))
+    encode = ros_evaluator.protocol.encode_request
+    monkeypatch.setattr(ros_evaluator.protocol, "encode_request", lambda m: sent.append(m) or encode(m))
     try:
         writes = _count_publishes(beside.nodes)
         res, stats = coordinator_node.run(config, context=rclpy_context, run_id=run_id, beside=beside)
@@ -86,7 +86,9 @@ def test_beside_the_coordinator_gives_the_in_process_optimum_without_dds_writes(
 
 def _spy_codec(monkeypatch) -> dict:
     """Count every CDR encode/decode and every HMAC sign/verify of requests and results."""
-    from bev_mdo.ros import auth, discipline_node, evaluator as ros_evaluator, wire
+    from bev_mdo.protocol import signing as auth
+    from bev_mdo import protocol
+    from bev_mdo.ros import discipline_node, evaluator as ros_evaluator
 
     calls = {k: 0 for k in ("encode_request", "encode_result", "decode_request", "decode_result",
                             "sign_request", "sign_result", "verify_request", "verify_result")}
@@ -100,29 +102,26 @@ def _spy_codec(monkeypatch) -> dict:
 
         monkeypatch.setattr(owner, attr or name, counted)
 
-    assert ros_evaluator.wire is wire and discipline_node.wire is wire
+    assert ros_evaluator.protocol is protocol and discipline_node.protocol is protocol
     for name in ("encode_request", "encode_result", "decode_request", "decode_result"):
-        spy(wire, name)
+        spy(protocol, name)
     for name in ("sign_request", "sign_result", "verify_request", "verify_result"):
         spy(auth.Signer, name)
     return calls
 
 
 def _count_result_messages(monkeypatch) -> list:
-    """Count every result message built (wire.Result) in this process; returns [count], live."""
-    from bev_mdo.ros import wire
+    """Count every result message built (protocol.result) in this process; returns [count], live."""
+    from bev_mdo import protocol
 
     made = [0]
-    real = wire.Result
+    real = protocol.result
 
-    class Counted(real):
-        __slots__ = ()
+    def counted():
+        made[0] += 1
+        return real()
 
-        def __init__(self):
-            made[0] += 1
-            super().__init__()
-
-    monkeypatch.setattr(wire, "Result", Counted)
+    monkeypatch.setattr(protocol, "result", counted)
     return made
 
 
@@ -204,8 +203,8 @@ def test_an_outside_reader_gets_signed_messages_and_the_same_answer(ros_domain, 
     import numpy as np
     from rclpy.executors import SingleThreadedExecutor
 
-    from bev_mdo.ros import wire
-    from bev_mdo.ros.auth import Signer, read_key
+    from bev_mdo import protocol
+    from bev_mdo.protocol.signing import Signer, read_key
     from bev_mdo.ros.common import MDA_REQUEST_TOPIC, REQUEST_QOS, RESULT_QOS, mda_result_topic
     from bev_mdo.ros.composed import Beside
     from bev_mdo.ros.coordinator_node import CoordinatorNode
@@ -257,8 +256,8 @@ def test_an_outside_reader_gets_signed_messages_and_the_same_answer(ros_domain, 
         ex.shutdown()
         seen = dict(calls)  # before this test's own checks below (they go through the same Signer methods)
         signer = Signer(read_key(config["ros"]["sign_key_file"]))
-        req = wire.decode_request(requests[-1])
-        res = wire.decode_result(results[-1])
+        req = protocol.decode_request(requests[-1])
+        res = protocol.decode_result(results[-1])
         assert req.run_id == run_id and res.run_id == run_id and res.discipline == "energy"
         assert len(req.signature) == 64 and signer.verify_request(req) is None
         assert len(res.signature) == 64 and signer.verify_result(res) is None
@@ -480,7 +479,7 @@ def test_direct_answers_go_through_the_ledger(ready, monkeypatch):
     like a received result: a second hand-over is a duplicate, another run's is other_run, an
     unknown evaluation id is stale, another binding is a fingerprint mismatch, a result of other
     rows than the request's is malformed; none of them is accepted."""
-    from bev_mdo.ros import wire
+    from bev_mdo import protocol
     from bev_mdo.ros.evaluator import _Pending
 
     _config, beside, ev = ready
@@ -492,17 +491,17 @@ def test_direct_answers_go_through_the_ledger(ready, monkeypatch):
     energy = next(nd for nd in beside.nodes if nd.discipline_name == "energy")
     kept = len(ev.accepted)
     ev.on_local(req, "energy", energy.instance, got["energy"])
-    other = wire.Request("another_run", req.evaluation_id, "")
+    other = protocol.request("another_run", req.evaluation_id, "")
     other.header.frame_id = req.header.frame_id
     ev.on_local(other, "energy", energy.instance, got["energy"])
-    unknown = wire.Request(ev.run_id, 10 ** 9, "")
+    unknown = protocol.request(ev.run_id, 10 ** 9, "")
     unknown.header.frame_id = req.header.frame_id
     ev.on_local(unknown, "energy", energy.instance, got["energy"])
     eid = ev.ledger.new_id()
-    mine = wire.Request(ev.run_id, eid, "energy")
+    mine = protocol.request(ev.run_id, eid, "energy")
     mine.header.frame_id = ev._tag(["energy"])
     ev.ledger.open(eid, "energy", _Pending(0, "energy", mine, 5, 0))
-    foreign = wire.Request(ev.run_id, eid, "energy")
+    foreign = protocol.request(ev.run_id, eid, "energy")
     foreign.header.frame_id = mine.header.frame_id.replace(energy.fingerprint, "0" * len(energy.fingerprint))
     assert foreign.header.frame_id != mine.header.frame_id
     ev.on_local(foreign, "energy", energy.instance, got["energy"])

@@ -178,7 +178,7 @@ def test_bad_data_flow_requests_are_rejected_and_the_nodes_keep_serving(rclpy_co
     by the disciplines without sources): the node answers REJECTED (or counts the bytes it
     cannot decode) and keeps serving; a consumer of a rejected source answers no point."""
     from bev_mdo.mdo.driver import build_formulation
-    from bev_mdo.ros import wire
+    from bev_mdo import protocol
     from bev_mdo.ros.common import MDA_REQUEST_TOPIC, MDA_RESULT_QOS, REQUEST_QOS, mda_result_topic, stamp
     from bev_mdo.ros.discipline_node import NodeStatsListener
     from bev_mdo.ros.binding import tag_for
@@ -189,7 +189,7 @@ def test_bad_data_flow_requests_are_rejected_and_the_nodes_keep_serving(rclpy_co
     got = {"vehicle_mass": [], "energy": []}
     pub = probe.create_publisher(EvaluationRequest, MDA_REQUEST_TOPIC, REQUEST_QOS)
     subs = [probe.create_subscription(EvaluationResult, mda_result_topic(d),
-                                      lambda data, d=d: got[d].append(wire.decode_result(data)), MDA_RESULT_QOS,
+                                      lambda data, d=d: got[d].append(protocol.decode_result(data)), MDA_RESULT_QOS,
                                       raw=True) for d in got]
     stats = NodeStatsListener(probe)
     try:
@@ -198,13 +198,13 @@ def test_bad_data_flow_requests_are_rejected_and_the_nodes_keep_serving(rclpy_co
         before = stats.counts("vehicle_mass")
 
         def send(eid, flow, cols, batch_size=None):
-            req = wire.Request("flow-fuzz", eid, "", flow=flow)
+            req = protocol.request("flow-fuzz", eid, "", flow=flow)
             req.header.frame_id = tag_for(base_config, flow)
-            req.inputs = wire.batch(cols)
+            req.inputs = protocol.batch(cols)
             if batch_size is not None:
                 req.inputs.batch_size = batch_size
             stamp(req.header)
-            pub.publish(wire.encode_request(req))
+            pub.publish(protocol.encode_request(req))
 
         # vehicle_mass without battery_kwh; energy, its consumer, then has no point to evaluate
         send(1, ["vehicle_mass", "energy"], {"motor_kw": np.array([80.0]), "gear_ratio": np.array([8.0])})

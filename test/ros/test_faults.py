@@ -21,7 +21,8 @@ from bev_mdo.mdo.discipline import run_discipline  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.flow import flow_by_waves  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
-from bev_mdo.ros import coordinator_node, wire  # noqa: E402
+from bev_mdo import protocol  # noqa: E402
+from bev_mdo.ros import coordinator_node  # noqa: E402
 from bev_mdo.ros.evaluator import RosEvaluator  # noqa: E402
 from bev_mdo.ros.fastwait import until  # noqa: E402
 from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
@@ -100,7 +101,7 @@ class Audit:
             elif req.attempt == 0:
                 names = list(req.flow) or [p.discipline]
                 audit.sent[req.evaluation_id] = (names, {k: np.array(v) for k, v in
-                                                         wire.from_named_array(req.inputs).items()})
+                                                         protocol.from_named_array(req.inputs).items()})
                 if audit.target in names:
                     audit.first_sends += 1
                     if audit.first_sends in audit.kill_at:
@@ -146,7 +147,7 @@ class Audit:
             local = self.flow_results[eid][disc]
         else:
             local = run_discipline(self.local[disc], inputs)
-        got = wire.from_named_array(msg.outputs)
+        got = protocol.from_named_array(msg.outputs)
         for k, v in local.outputs.items():
             np.testing.assert_array_equal(np.asarray(got[k]), v, err_msg=f"eval {eid} {disc}.{k}")
         self.checked += 1

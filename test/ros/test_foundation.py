@@ -13,7 +13,7 @@ from bev_mdo.testing import PYTHON, REPO, ros_env
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 
 from bev_mdo.ros.executables import DISCIPLINE_EXES, OTHER_EXES  # noqa: E402
-from bev_mdo.ros import wire  # noqa: E402
+from bev_mdo import protocol  # noqa: E402
 from bev_mdo_msgs.msg import (  # noqa: E402
     DisciplineInfo, EvaluationRequest, EvaluationResult, IterationRecord, NamedArray,
 )
@@ -46,24 +46,24 @@ def _sample_messages():
     req.iteration = 3
     req.attempt = 1
     req.discipline = "energy"
-    wire.to_named_array({"vehicle_mass_kg": np.array([1500.0, 1600.0]), "gear_ratio": np.array([8.0, 9.5])},
+    protocol.to_named_array({"vehicle_mass_kg": np.array([1500.0, 1600.0]), "gear_ratio": np.array([8.0, 9.5])},
                         req.inputs)
     res = EvaluationResult()
     res.run_id, res.evaluation_id, res.discipline, res.instance = "run-1", 42, "energy", "/energy_node"
     res.status = EvaluationResult.STATUS_ERROR
     res.error = "energy: non-finite output at point 1"
     res.point_ok = [True, False]
-    wire.to_named_array({"energy_wh_per_km": np.array([120.5, np.nan])}, res.outputs)
+    protocol.to_named_array({"energy_wh_per_km": np.array([120.5, np.nan])}, res.outputs)
     res.compute_time_s = 1.5e-5
     it = IterationRecord()
     it.run_id, it.iteration, it.formulation, it.optimizer = "run-1", 5, "mdf", "SLSQP"
-    wire.to_named_array({"motor_kw": np.array([80.0])}, it.design)
+    protocol.to_named_array({"motor_kw": np.array([80.0])}, it.design)
     it.objective_name, it.objective, it.max_violation, it.feasible = "energy_wh_per_km", 110.25, 0.0, True
     it.discipline_names, it.discipline_evaluations = ["energy", "range"], [10, 12]
     info = DisciplineInfo()
     info.discipline, info.inputs, info.outputs, info.parameters = "range", ["a_kw"], ["b_km"], ["c_m2"]
     na = NamedArray()
-    wire.to_named_array({"x": np.arange(3.0), "y": -np.arange(3.0)}, na)
+    protocol.to_named_array({"x": np.arange(3.0), "y": -np.arange(3.0)}, na)
     return [req, res, it, info, na]
 
 
@@ -73,7 +73,7 @@ def test_every_message_round_trips_through_serialization(msg):
     for field in msg.get_fields_and_field_types():
         a, b = getattr(msg, field), getattr(back, field)
         if isinstance(a, NamedArray):
-            da, db = wire.from_named_array(a), wire.from_named_array(b)
+            da, db = protocol.from_named_array(a), protocol.from_named_array(b)
             assert list(da) == list(db)
             for k in da:
                 np.testing.assert_array_equal(da[k], db[k])
@@ -86,14 +86,14 @@ def test_every_message_round_trips_through_serialization(msg):
 def test_named_array_rejects_malformed_batches():
     bad = NamedArray()
     bad.names, bad.batch_size, bad.values = ["a", "b"], 3, [1.0, 2.0]
-    with pytest.raises(wire.WireError, match="values"):
-        wire.from_named_array(bad)
+    with pytest.raises(protocol.WireError, match="values"):
+        protocol.from_named_array(bad)
     bad.names, bad.batch_size, bad.values = ["a", "a"], 1, [1.0, 2.0]
-    with pytest.raises(wire.WireError, match="duplicate"):
-        wire.from_named_array(bad)
+    with pytest.raises(protocol.WireError, match="duplicate"):
+        protocol.from_named_array(bad)
     bad.names, bad.batch_size, bad.values = ["not a name!"], 1, [1.0]
-    with pytest.raises(wire.WireError, match="bad variable name"):
-        wire.from_named_array(bad)
+    with pytest.raises(protocol.WireError, match="bad variable name"):
+        protocol.from_named_array(bad)
 
 
 PUBLISHER = textwrap.dedent(

@@ -30,7 +30,7 @@ _TAGS: dict[str, str] = {}  # discipline -> the frame_id binding its node serves
 
 def _fuzz_messages(disc, rng):
     """Yield (expected node counter, EvaluationRequest) for one discipline, endlessly."""
-    from bev_mdo.ros import wire
+    from bev_mdo import protocol
     from bev_mdo.ros.common import stamp
     from bev_mdo_msgs.msg import EvaluationRequest
 
@@ -56,7 +56,7 @@ def _fuzz_messages(disc, rng):
     @kind
     def wrong_length():
         m = req()
-        wire.to_named_array(good_cols(3), m.inputs)
+        protocol.to_named_array(good_cols(3), m.inputs)
         m.inputs.batch_size = int(rng.choice([0, 2, 4, 7]))
         return "rejected.malformed", m
 
@@ -73,7 +73,7 @@ def _fuzz_messages(disc, rng):
         m = req()
         cols = good_cols()
         cols[f"bogus_{int(rng.integers(1000))}"] = np.ones(2)
-        wire.to_named_array(cols, m.inputs)
+        protocol.to_named_array(cols, m.inputs)
         return "rejected.unknown_inputs", m
 
     @kind
@@ -81,7 +81,7 @@ def _fuzz_messages(disc, rng):
         m = req()
         cols = good_cols()
         cols.pop(ins[int(rng.integers(len(ins)))])
-        wire.to_named_array(cols, m.inputs)
+        protocol.to_named_array(cols, m.inputs)
         return "rejected.missing_inputs", m
 
     @kind
@@ -103,13 +103,13 @@ def _fuzz_messages(disc, rng):
     @kind
     def garbage_run_id():
         m = req(run_id=rng.choice(["", "x" * 500, "bad\x07id", "\n\t"]))
-        wire.to_named_array(good_cols(), m.inputs)
+        protocol.to_named_array(good_cols(), m.inputs)
         return "rejected.bad_run_id", m
 
     @kind
     def wrong_discipline():
         m = req(discipline=rng.choice(["", "nope", "\u2603" * 50, "energy" if disc.name != "energy" else "cost"]))
-        wire.to_named_array(good_cols(), m.inputs)
+        protocol.to_named_array(good_cols(), m.inputs)
         return "rejected.wrong_discipline", m
 
     @kind
@@ -117,13 +117,13 @@ def _fuzz_messages(disc, rng):
         m = req(run_id=f"fuzz-other-{int(rng.integers(1000))}")
         cols = good_cols()
         cols[ins[0]][int(rng.integers(2))] = rng.choice([np.nan, np.inf, -np.inf])
-        wire.to_named_array(cols, m.inputs)
+        protocol.to_named_array(cols, m.inputs)
         return "non_finite", m
 
     @kind
     def stale_or_other_run():  # well formed: answered, and dropped by every coordinator
         m = req(run_id=f"fuzz-other-{int(rng.integers(1000))}", eid=int(rng.integers(1, 50)))
-        wire.to_named_array(good_cols(1), m.inputs)
+        protocol.to_named_array(good_cols(1), m.inputs)
         return "answered", m
 
     weights = np.array([3, 2, 2, 2, 2, 1, 1, 1, 1, 1], float)
@@ -134,7 +134,7 @@ def _fuzz_messages(disc, rng):
 
 def _huge(disc):
     """A request whose values array really is huge (> MAX_BATCH points)."""
-    from bev_mdo.ros import wire
+    from bev_mdo import protocol
     from bev_mdo.ros.common import stamp
     from bev_mdo_msgs.msg import EvaluationRequest
 
@@ -142,7 +142,7 @@ def _huge(disc):
     stamp(m.header)
     m.run_id, m.discipline, m.evaluation_id = "fuzz-huge", disc.name, 1
     m.header.frame_id = _TAGS.get(disc.name, "")
-    n = wire.MAX_BATCH + 1
+    n = protocol.MAX_BATCH + 1
     m.inputs.names = [disc.inputs[0]]
     m.inputs.batch_size = n
     m.inputs.values = array.array("d", np.ones(n).tobytes())

@@ -25,7 +25,8 @@ import rclpy
 from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
-from bev_mdo.ros import coordinator_node, wire  # noqa: E402
+from bev_mdo import protocol  # noqa: E402
+from bev_mdo.ros import coordinator_node  # noqa: E402
 from bev_mdo.ros.binding import tag_for  # noqa: E402
 from bev_mdo.ros.discipline_node import NodeStatsListener  # noqa: E402
 from bev_mdo.ros.evaluator import RosEvaluator, _Pending  # noqa: E402
@@ -169,16 +170,16 @@ def test_a_result_with_another_binding_is_dropped_and_counted(rclpy_context, con
     ev = RosEvaluator(node, run_id="probe", config=config)
     try:
         def request(eid):
-            req = wire.Request("probe", eid, "vehicle_mass")
+            req = protocol.request("probe", eid, "vehicle_mass")
             req.header.frame_id = ev._tag(["vehicle_mass"])
             return req
 
         def result(eid, frame_id):
-            res = wire.Result()
+            res = protocol.result()
             res.header.frame_id = frame_id
             res.run_id, res.evaluation_id, res.discipline, res.instance = "probe", eid, "vehicle_mass", "x"
             res.point_ok = np.ones(1, bool)
-            res.outputs = wire.batch({"vehicle_mass_kg": np.array([1500.0])})
+            res.outputs = protocol.batch({"vehicle_mass_kg": np.array([1500.0])})
             return res
 
         assert ev._tag(["vehicle_mass"]) == tag_for(config, ["vehicle_mass"])

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import pytest
 from rclpy.serialization import serialize_message
 
-from bev_mdo.ros.auth import Signer
+from bev_mdo.protocol.signing import Signer
 from bev_mdo.ros.recorder_node import OwnRecorder, config_binding, run_of
 
 KEY, OTHER_KEY = b"k" * 32, b"o" * 32

@@ -13,40 +13,41 @@ import pytest
 from rclpy.serialization import deserialize_message  # noqa: E402
 
 from bev_mdo.mdo.discipline import PointError  # noqa: E402
-from bev_mdo.ros import auth, wire  # noqa: E402
-from bev_mdo.ros.auth import Signer  # noqa: E402
+from bev_mdo.protocol import signing as auth  # noqa: E402
+from bev_mdo import protocol  # noqa: E402
+from bev_mdo.protocol.signing import Signer  # noqa: E402
 from bev_mdo.ros.common import stamp  # noqa: E402
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult, IterationRecord  # noqa: E402
 
 KEY = secrets.token_bytes(32)
 
 
-def _request() -> wire.Request:
-    req = wire.Request("run-1", 7, "energy", flow=["vehicle_mass", "energy"], iteration=3)
+def _request() -> protocol.EvaluationRequest:
+    req = protocol.request("run-1", 7, "energy", flow=["vehicle_mass", "energy"], iteration=3)
     stamp(req.header)
     req.header.frame_id = "energy=0123456789abcdef"
     req.attempt, req.sequence, req.partials = 1, 11, True
-    req.inputs = wire.batch({"vehicle_mass_kg": np.array([1500.0, 1600.0]), "motor_kw": np.array([80.0, 90.0])})
+    req.inputs = protocol.batch({"vehicle_mass_kg": np.array([1500.0, 1600.0]), "motor_kw": np.array([80.0, 90.0])})
     return req
 
 
-def _result() -> wire.Result:
-    res = wire.Result()
+def _result() -> protocol.EvaluationResult:
+    res = protocol.result()
     stamp(res.header)
     res.header.frame_id = "energy=0123456789abcdef"
     res.run_id, res.evaluation_id, res.sequence, res.discipline, res.instance = "run-1", 7, 5, "energy", "/energy_node"
     res.status, res.error = 1, "energy: ValueError: no at point 1"
     res.point_ok = np.array([True, False])
-    res.outputs = wire.batch({"energy_wh_per_km": np.array([120.0, -1.0])})  # no NaN: rclpy messages compare by ==
+    res.outputs = protocol.batch({"energy_wh_per_km": np.array([120.0, -1.0])})  # no NaN: rclpy messages compare by ==
     res.compute_time_s, res.flow = 0.25, ["vehicle_mass", "energy"]
-    res.partials = wire.partials_batch({("energy_wh_per_km", "motor_kw"): np.array([0.5, 0.0])}, 2)
-    wire.put_point_errors(res, {1: PointError("energy: ValueError: no", "motor_kw=90")})
+    res.partials = protocol.partials_batch({("energy_wh_per_km", "motor_kw"): np.array([0.5, 0.0])}, 2)
+    protocol.put_point_errors(res, {1: PointError("energy: ValueError: no", "motor_kw=90")})
     return res
 
 
 def _typed(kind: str, m):
-    """The generated rclpy message with the fields of a wire.Request/Result ``m``, signature empty."""
-    data = (wire.encode_request if kind == "request" else wire.encode_result)(m)
+    """The generated rclpy message with the fields of a protocol.EvaluationRequest/Result ``m``, signature empty."""
+    data = (protocol.encode_request if kind == "request" else protocol.encode_result)(m)
     msg = deserialize_message(data, EvaluationRequest if kind == "request" else EvaluationResult)
     msg.signature = ""
     return msg
@@ -66,9 +67,9 @@ def _record() -> IterationRecord:
     msg = IterationRecord()
     stamp(msg.header)
     msg.run_id, msg.sequence, msg.iteration, msg.formulation, msg.optimizer = "run-1", 4, 3, "mdf", "SLSQP"
-    wire.to_named_array({"motor_kw": np.array([80.0])}, msg.design)
+    protocol.to_named_array({"motor_kw": np.array([80.0])}, msg.design)
     msg.objective_name, msg.objective = "powertrain_cost_usd", 9000.5
-    wire.to_named_array({"range_km": np.array([150.0])}, msg.constraints)
+    protocol.to_named_array({"range_km": np.array([150.0])}, msg.constraints)
     msg.max_violation, msg.feasible, msg.mda_evaluations = 0.0, True, 42
     msg.discipline_names, msg.discipline_evaluations = ["energy"], [42]
     msg.wall_time_s = 1.5
@@ -85,9 +86,9 @@ def test_the_mac_is_over_the_sent_cdr_bytes_with_the_signature_empty(kind):
     m = _request() if kind == "request" else _result()
     sent = (Signer(KEY).sign_request if kind == "request" else Signer(KEY).sign_result)(m)
     assert len(m.signature) == 64
-    decoded = (wire.decode_request if kind == "request" else wire.decode_result)(sent)
-    at = decoded.sig_at
-    blank = sent[:at] + wire.BLANK_SIGNATURE + sent[at + 69:]  # the bytes as sent, signature emptied
+    decoded = (protocol.decode_request if kind == "request" else protocol.decode_result)(sent)
+    at = auth.signature_at(decoded)
+    blank = sent[:at] + auth.BLANK_SIGNATURE + sent[at + 69:]  # the bytes as sent, signature emptied
     assert m.signature == _hmac(blank) and decoded.signature == m.signature
     assert sent[at + 4:at + 68].decode() == m.signature
     # those bytes are the message's CDR: rclpy reads them as the same message, signature empty
@@ -100,7 +101,7 @@ def test_the_mac_is_over_the_sent_cdr_bytes_with_the_signature_empty(kind):
 def test_declarations_and_records_are_signed_over_the_bytes_published(make):
     msg = make()
     sent = (Signer(KEY).sign_info if make is _info else Signer(KEY).sign_iteration)(msg)
-    blank = sent[:-69] + wire.BLANK_SIGNATURE  # the signature is these messages' last field
+    blank = sent[:-69] + auth.BLANK_SIGNATURE  # the signature is these messages' last field
     assert msg.signature == _hmac(blank) and sent[-65:-1].decode() == msg.signature
     assert deserialize_message(sent, type(msg)) == msg
     msg.signature = ""
@@ -111,7 +112,7 @@ def test_declarations_and_records_are_signed_over_the_bytes_published(make):
 
 
 def test_auth_holds_no_encoder_of_its_own():
-    """The message layout is wire.py's alone: auth.py neither packs bytes nor names a message field."""
+    """The message layout is the generated codec's alone: signing.py neither packs bytes nor names a message field."""
     import inspect
 
     src = inspect.getsource(auth)
@@ -126,7 +127,7 @@ def test_a_flipped_byte_in_any_field_of_a_sent_message_is_forged(kind):
     m = _request() if kind == "request" else _result()
     signer = Signer(KEY)
     sent = (signer.sign_request if kind == "request" else signer.sign_result)(m)
-    decode = wire.decode_request if kind == "request" else wire.decode_result
+    decode = protocol.decode_request if kind == "request" else protocol.decode_result
     verify = signer.verify_request if kind == "request" else signer.verify_result
     forged, undecodable = set(), set()
     for i in range(len(sent)):
@@ -134,7 +135,7 @@ def test_a_flipped_byte_in_any_field_of_a_sent_message_is_forged(kind):
         bad[i] ^= 0x01
         try:
             msg = decode(bytes(bad))
-        except wire.WireError:  # a length, a NUL, the encapsulation: dropped as malformed
+        except protocol.WireError:  # a length, a NUL, the encapsulation: dropped as malformed
             undecodable.add(i)
             continue
         why = verify(msg)
@@ -143,7 +144,7 @@ def test_a_flipped_byte_in_any_field_of_a_sent_message_is_forged(kind):
     assert len(forged) + len(undecodable) == len(sent)
     # every byte of the stamp, of the float64 values, of the signature and of the ids decodes, and is forged
     columns = m.inputs.values if kind == "request" else m.outputs.values
-    at = decode(sent).sig_at
+    at = auth.signature_at(decode(sent))
     for start, size in ((4, 8), (sent.index(columns.tobytes()), columns.nbytes), (at + 4, 64),
                         (sent.index(b"run-1\x00"), 5)):
         assert set(range(start, start + size)) <= forged, (start, size)
@@ -171,7 +172,7 @@ def test_zero_padding_dds_adds_to_a_sent_message_still_verifies(make):
     m = make()
     if make in (_request, _result):
         sent = (signer.sign_request if make is _request else signer.sign_result)(m)
-        decode = wire.decode_request if make is _request else wire.decode_result
+        decode = protocol.decode_request if make is _request else protocol.decode_result
         verify = signer.verify_request if make is _request else signer.verify_result
         pad = -len(sent) % 4 or 4  # padding to the next multiple of 4 (a whole word when aligned)
         assert verify(decode(sent + bytes(pad))) is None

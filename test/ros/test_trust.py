@@ -28,7 +28,8 @@ from bev_mdo.cli.resume import resume_point  # noqa: E402
 from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
-from bev_mdo.ros import binding, wire  # noqa: E402
+from bev_mdo import protocol  # noqa: E402
+from bev_mdo.ros import binding  # noqa: E402
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, ITERATION_QOS, ITERATION_TOPIC, MDA_REQUEST_TOPIC,  # noqa: E402
                                 MDA_RESULT_QOS, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, mda_result_topic, stamp)
 from bev_mdo.testing import PYTHON, REPO, ros_env  # noqa: E402
@@ -74,19 +75,19 @@ class Attacker:
             self._info.publish(info)
 
     def _on_request(self, data) -> None:
-        req = wire.decode_request(data)
+        req = protocol.decode_request(data)
         if "energy" not in req.flow or not req.run_id or req.run_id.endswith("-baseline"):
             return
         self.run_ids.add(req.run_id)
         n = int(req.inputs.batch_size)
-        out = wire.Result()
+        out = protocol.result()
         stamp(out.header)
         out.header.frame_id = req.header.frame_id
         out.run_id, out.evaluation_id, out.discipline, out.instance = req.run_id, req.evaluation_id, "energy", "x"
         out.point_ok = np.ones(n, bool)
-        out.outputs = wire.batch({"energy_wh_per_km": np.full(n, 80.0), **wire.from_named_array(req.inputs)})
+        out.outputs = protocol.batch({"energy_wh_per_km": np.full(n, 80.0), **protocol.from_named_array(req.inputs)})
         out.flow = list(req.flow)
-        data_out = wire.encode_result(out)
+        data_out = protocol.encode_result(out)
         self._mda.publish(data_out)
         self._res.publish(data_out)
         self.sent["results"] += 1
@@ -95,7 +96,7 @@ class Attacker:
                 rec = IterationRecord()
                 stamp(rec.header)
                 rec.run_id, rec.iteration, rec.objective_name, rec.objective = run_id, 999, "energy_wh_per_km", 80.0
-                wire.to_named_array({k: np.array([v]) for k, v in FORGED_DESIGN.items()}, rec.design)
+                protocol.to_named_array({k: np.array([v]) for k, v in FORGED_DESIGN.items()}, rec.design)
                 rec.feasible = True
                 rec.signature = "0" * 64 if self.sent[key] % 2 else ""
                 self._iter.publish(rec)

@@ -1,4 +1,4 @@
-"""wire.py's lean CDR codec against rclpy's own serialisation of the generated messages."""
+"""The protocol's generated CDR codec against rclpy's own serialisation of the generated messages."""
 from __future__ import annotations
 
 import array
@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 
 from bev_mdo.mdo.discipline import PointError  # noqa: E402
-from bev_mdo.ros import wire  # noqa: E402
+from bev_mdo import protocol  # noqa: E402
 from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult  # noqa: E402
 
 text = st.text(st.characters(codec="utf-8", exclude_characters="\x00"), max_size=20)
@@ -43,13 +43,13 @@ def test_request_round_trips_both_ways(sec, nsec, frame, run, eid, seq, it, att,
     m.run_id, m.evaluation_id, m.sequence, m.iteration, m.attempt, m.discipline = run, eid, seq, it, att, disc
     m.inputs.names, m.inputs.batch_size, m.inputs.values = cols[0], cols[1], array.array("d", cols[2])
     m.flow, m.signature = flow, sig
-    d = wire.decode_request(serialize_message(m))
+    d = protocol.decode_request(serialize_message(m))
     assert (d.header.stamp.sec, d.header.stamp.nanosec, d.header.frame_id) == (sec, nsec, frame)
     assert (d.run_id, d.evaluation_id, d.sequence, d.iteration, d.attempt, d.discipline) == (run, eid, seq, it, att,
                                                                                             disc)
     assert (d.inputs.names, d.inputs.batch_size, d.flow, d.signature) == (cols[0], cols[1], flow, sig)
     np.testing.assert_array_equal(d.inputs.values, cols[2])
-    assert deserialize_message(wire.encode_request(d), EvaluationRequest) == m
+    assert deserialize_message(protocol.encode_request(d), EvaluationRequest) == m
 
 
 @settings(max_examples=150, deadline=None)
@@ -65,48 +65,48 @@ def test_result_round_trips_both_ways(sec, nsec, run, eid, seq, disc, inst, stat
     m.outputs.names, m.outputs.batch_size, m.outputs.values = cols[0], cols[1], array.array("d", cols[2])
     m.compute_time_s, m.flow, m.signature = t, flow, sig
     m.error_points, m.error_reasons, m.error_inputs = [w[0] for w in why], [w[1] for w in why], [w[2] for w in why]
-    d = wire.decode_result(serialize_message(m))
+    d = protocol.decode_result(serialize_message(m))
     assert (d.run_id, d.evaluation_id, d.sequence, d.discipline, d.instance, d.status, d.error) == (
         run, eid, seq, disc, inst, status, err)
     assert d.point_ok.tolist() == ok and d.outputs.names == cols[0] and d.outputs.batch_size == cols[1]
     np.testing.assert_array_equal(d.outputs.values, cols[2])
     assert (d.compute_time_s, d.flow, d.signature) == (t, flow, sig)
     assert list(zip(d.error_points, d.error_reasons, d.error_inputs)) == why
-    assert deserialize_message(wire.encode_result(d), EvaluationResult) == m
+    assert deserialize_message(protocol.encode_result(d), EvaluationResult) == m
 
 
 def test_a_large_batch_decodes_without_copying_each_column():
     cols = {"a": np.arange(100_000.0), "b": -np.arange(100_000.0)}
-    req = wire.Request("run", 7, "energy")
-    req.inputs = wire.batch(cols)
-    d = wire.decode_request(wire.encode_request(req))
-    got = wire.from_named_array(d.inputs)
+    req = protocol.request("run", 7, "energy")
+    req.inputs = protocol.batch(cols)
+    d = protocol.decode_request(protocol.encode_request(req))
+    got = protocol.from_named_array(d.inputs)
     np.testing.assert_array_equal(got["b"], cols["b"])
     assert got["a"].base is not None  # a view into the received buffer
 
 
 @pytest.mark.parametrize("cut", [0, 3, 10, 40, -9, -1])
 def test_truncated_or_foreign_bytes_raise_wire_error(cut):
-    req = wire.Request("run", 7, "energy", flow=["energy", "range"])
-    req.inputs = wire.batch({"x": np.ones(3)})
-    data = wire.encode_request(req)
-    with pytest.raises(wire.WireError):
-        wire.decode_request(data[:cut])
-    with pytest.raises(wire.WireError):
-        wire.decode_request(b"\x01\x00\x00\x00" + data[4:])  # big-endian encapsulation is not ours
-    with pytest.raises(wire.WireError):
-        wire.decode_result(data[:cut])
+    req = protocol.request("run", 7, "energy", flow=["energy", "range"])
+    req.inputs = protocol.batch({"x": np.ones(3)})
+    data = protocol.encode_request(req)
+    with pytest.raises(protocol.WireError):
+        protocol.decode_request(data[:cut])
+    with pytest.raises(protocol.WireError):
+        protocol.decode_request(b"\x01\x00\x00\x00" + data[4:])  # big-endian encapsulation is not ours
+    with pytest.raises(protocol.WireError):
+        protocol.decode_result(data[:cut])
 
 
 def test_point_errors_travel_as_fields_and_are_checked():
-    res = wire.Result()
+    res = protocol.result()
     res.point_ok = np.array([True, False, False])
-    res.outputs = wire.batch({"y": np.array([1.0, np.nan, np.nan])})
+    res.outputs = protocol.batch({"y": np.array([1.0, np.nan, np.nan])})
     why = {2: PointError("square: ValueError: x must be >= 0", "x=-1"), 1: PointError("square: non-finite input")}
-    wire.put_point_errors(res, why)
-    got = wire.point_errors_of(wire.decode_result(wire.encode_result(res)), 3)
+    protocol.put_point_errors(res, why)
+    got = protocol.point_errors_of(protocol.decode_result(protocol.encode_result(res)), 3)
     assert got == why and list(got) == [2, 1]  # order kept: the error text lists them in that order
     for points, reasons in (([3], ["a"]), ([1, 1], ["a", "b"]), ([1], [])):
         res.error_points, res.error_reasons, res.error_inputs = points, reasons, [""] * len(reasons)
-        with pytest.raises(wire.WireError):
-            wire.point_errors_of(wire.decode_result(wire.encode_result(res)), 3)
+        with pytest.raises(protocol.WireError):
+            protocol.point_errors_of(protocol.decode_result(protocol.encode_result(res)), 3)

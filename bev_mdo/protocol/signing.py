@@ -1,16 +1,15 @@
 """Message authentication with a shared key: HMAC-SHA256 from the standard library.
 
 The pip build of Fast DDS has no DDS-Security, so SROS2 cannot be enforced with it.
-With ``ros.sign_key_file`` set, every EvaluationRequest and EvaluationResult carries
-``signature = hex(HMAC-SHA256(key, the message's CDR bytes with the signature field empty))``:
-the MAC covers exactly the bytes that are sent, every field and every padding byte, and no
-second encoding of the message exists (the layout is wire.py's alone). The sender encodes once
-with the field empty, MACs, and puts the signature in (wire.encode_request/_result with ``mac``);
-the receiver blanks the field in the bytes it received and MACs those (wire.signed_bytes).
-DisciplineInfo and IterationRecord are serialised once by rclpy (with the signature empty),
-signed, and those bytes are published (rclpy leaves CDR padding bytes as it finds them, so a
-second serialisation could differ); their signature is their last field, so a receiver (or
-``bev-mdo`` reading a bag) blanks it in the received bytes the same way. This module keeps the
+With ``ros.sign_key_file`` set, every message bev_mdo signs (EvaluationRequest, EvaluationResult,
+DisciplineInfo, IterationRecord) carries ``signature = hex(HMAC-SHA256(key, the message's CDR
+bytes with the signature field empty))``: the MAC covers exactly the bytes that are sent, every
+field and every padding byte, and there is no second encoding of the message (the layout is the
+.msg files', through the generated codec of messages.py). The sender encodes once with the field
+empty, MACs, and puts the signature in; 64 characters more keep every later field's CDR alignment
+(4 or 8), so nothing else moves. The receiver blanks the field in the bytes it received and MACs
+those. Where the field starts comes from the generated size function of the fields before it
+(``messages.field_offset``). This module keeps the
 key, the Signer, the freshness and replay window and the reasons.
 
 A receiver drops and counts a message that is
@@ -38,10 +37,13 @@ from collections import OrderedDict
 from pathlib import Path
 from typing import Callable
 
-from bev_mdo.ros.wire import (BLANK_SIGNATURE, SIGNATURE_CHARS, encode_request, encode_result, signed,
-                              signed_bytes, unsigned_request, unsigned_result)
+from bev_mdo.protocol.messages import (DisciplineInfo, IterationRecord, WireError, decode, encode, field_offset,
+                                       to_protocol)
 
 MIN_KEY_BYTES = 16
+SIGNATURE_CHARS = 64
+BLANK_SIGNATURE = (1).to_bytes(4, "little") + b"\x00"  # a CDR string of length 0: u32 1, NUL
+_SIGNED_LEN = (SIGNATURE_CHARS + 1).to_bytes(4, "little")
 REASONS = ("unsigned", "forged", "expired", "replayed")
 
 
@@ -75,30 +77,32 @@ def read_key(path: str | os.PathLike) -> bytes:
     return key
 
 
-def _tail_end(data) -> int:
-    """Where the CDR of a DisciplineInfo or IterationRecord ends in ``data``: before the zero
-    padding (0-3 bytes) DDS may add. The last field, the signature string, starts 4-aligned in
-    the payload and holds 0 or 64 characters plus its NUL, so the message is 1 byte past a multiple
-    of 4 long (counting the 4-byte encapsulation)."""
-    return len(data) - (len(data) - 1) % 4
-
-
-def _tail_signed(data) -> tuple | None:
-    """The parts of the CDR bytes of a DisciplineInfo or IterationRecord (``signature`` is their
-    last field) that its signature covers: the bytes with that field blank. None when the last field
-    is not a signature of 64 ASCII characters."""
-    end = _tail_end(data)
-    at = end - len(BLANK_SIGNATURE) - SIGNATURE_CHARS
-    if at < 4 or any(memoryview(data)[end:]):
+def signed_bytes(data, at: int, end: int) -> tuple | None:
+    """The parts of received CDR bytes ``data[:end]`` that a signature at offset ``at`` covers: the
+    bytes with that field blanked, as (before, BLANK_SIGNATURE, after) memoryviews (no copy). ``end``
+    is where the message ends: DDS may pad what it delivers to a multiple of 4 bytes, and the
+    sender signed the message without that padding. None when the field does not hold a signature
+    of 64 ASCII characters (it cannot verify)."""
+    mv = memoryview(data)
+    stop = at + len(BLANK_SIGNATURE) + SIGNATURE_CHARS
+    if mv[at:at + 4] != _SIGNED_LEN or stop > end or mv[stop - 1] != 0:
         return None
-    return signed_bytes(data, at, end)
+    return mv[:at], BLANK_SIGNATURE, mv[stop:end]
 
 
-def _rclpy_cdr(msg) -> bytes:
-    """CDR bytes of a generated message, by rclpy's own serializer (its one codec)."""
-    from rclpy.serialization import serialize_message
+def signature_at(msg) -> int:
+    """Where the signature field of a message starts in its CDR bytes (encapsulation included)."""
+    return field_offset(msg, "signature")
 
-    return serialize_message(msg)
+
+def unsigned_bytes(msg) -> bytearray:
+    """The bytes a signature of ``msg`` covers: its CDR with the signature field empty."""
+    sig = msg.signature
+    msg.signature = ""
+    try:
+        return encode(msg)
+    finally:
+        msg.signature = sig
 
 
 class Signer:
@@ -134,38 +138,43 @@ class Signer:
     # -- signing: the bytes that are sent, encoded once ---------------------------------------
     def sign_request(self, msg) -> bytes:
         """Sign an EvaluationRequest: returns its CDR bytes to publish (``msg.signature`` is set)."""
-        return encode_request(msg, self._mac)
+        return self._sign(msg)
 
     def sign_result(self, msg) -> bytes:
         """Sign an EvaluationResult: returns its CDR bytes to publish (``msg.signature`` is set)."""
-        return encode_result(msg, self._mac)
+        return self._sign(msg)
 
     def sign_info(self, msg) -> bytes:
         """Sign a DisciplineInfo: returns its CDR bytes to publish (``msg.signature`` is set)."""
-        return self._sign_typed(msg)
+        return self._sign(msg)
 
     def sign_iteration(self, msg) -> bytes:
         """Sign an IterationRecord: returns its CDR bytes to publish (``msg.signature`` is set)."""
-        return self._sign_typed(msg)
+        return self._sign(msg)
 
-    def _sign_typed(self, msg) -> bytes:
-        # rclpy's serializer leaves CDR padding bytes as it finds them, so a message serialised
-        # twice need not give the same bytes: the bytes signed are the bytes to publish
-        msg.signature = ""
-        out = bytearray(_rclpy_cdr(msg))
-        return signed(out, len(out) - len(BLANK_SIGNATURE), msg, self._mac)
+    def _sign(self, msg) -> bytes:
+        own = to_protocol(msg)  # a message of another codec (rclpy's classes) is read field by field
+        own.signature = ""
+        out = encode(own)
+        at = signature_at(own)
+        sig = self._mac(out)
+        if out[at:at + len(BLANK_SIGNATURE)] != BLANK_SIGNATURE:
+            raise ValueError("the signature field is not where the generated layout puts it")
+        out[at:at + len(BLANK_SIGNATURE)] = _SIGNED_LEN + sig.encode("ascii") + b"\x00"
+        msg.signature = own.signature = sig
+        return bytes(out)
 
     # -- verifying: the bytes that were received, with the signature field blanked -------------
     def verify_info(self, data) -> str | None:
         """None if the declaration (its received CDR bytes) is authentic, else "unsigned" or
         "forged". No freshness window: declarations are TRANSIENT_LOCAL, a late coordinator gets
         old ones, and a replayed genuine declaration says nothing new."""
-        return self._mac_only(data)
+        return self._mac_only(data, DisciplineInfo)
 
     def verify_iteration(self, data) -> str | None:
         """None if the iteration record (its CDR bytes, received or read from a bag) is authentic,
         else "unsigned" or "forged" (no freshness window: also offline)."""
-        return self._mac_only(data)
+        return self._mac_only(data, IterationRecord)
 
     def sign_declaration(self, text: str) -> str:
         """Signature of a recorder's declaration (its JSON text; recorder_node.OwnRecorder)."""
@@ -178,26 +187,17 @@ class Signer:
             return "unsigned"
         return None if hmac.compare_digest(str(signature), self.sign_declaration(text)) else "forged"
 
-    def _mac_only(self, data) -> str | None:
-        parts = _tail_signed(data)
-        end = _tail_end(data)
-        if parts is None:
-            return "unsigned" if bytes(data[end - len(BLANK_SIGNATURE):end]) == BLANK_SIGNATURE else "forged"
-        sig = bytes(data[end - SIGNATURE_CHARS - 1:end - 1])
-        return None if hmac.compare_digest(sig, self._mac(*parts).encode()) else "forged"
+    def _mac_only(self, data, cls) -> str | None:
+        try:
+            msg = decode(data, cls)
+        except WireError:
+            return "forged"
+        if any(memoryview(data)[msg.end:]):  # DDS pads with zeros only
+            return "forged"
+        return self._mac_check(msg)
 
-    def verify_request(self, msg) -> str | None:
-        """None if the request is authentic and fresh, else the reason (one of REASONS). ``msg`` as
-        decoded by wire.decode_request (its received bytes are checked) or a message object (its
-        fields are encoded by the one codec, wire.py)."""
-        return self._verify(msg, unsigned_request, ("req", msg.run_id, int(msg.evaluation_id), msg.discipline))
-
-    def verify_result(self, msg) -> str | None:
-        """None if the result is authentic and fresh, else the reason (one of REASONS); ``msg`` as
-        for verify_request."""
-        return self._verify(msg, unsigned_result, ("res", msg.run_id, int(msg.evaluation_id), msg.discipline))
-
-    def _verify(self, msg, unsigned: Callable, ids: tuple) -> str | None:
+    def _mac_check(self, msg) -> str | None:
+        """None if the signature of a message verifies, else "unsigned" or "forged"."""
         sig = msg.signature
         if not sig:
             return "unsigned"
@@ -205,11 +205,29 @@ class Signer:
             return "forged"
         raw = getattr(msg, "raw", None)
         if raw is not None:  # as received: MAC those bytes with the signature field blanked
-            parts = signed_bytes(raw, msg.sig_at, msg.end)
+            parts = signed_bytes(raw, signature_at(msg), msg.end)
             if parts is None or not hmac.compare_digest(sig, self._mac(*parts)):
                 return "forged"
-        elif not hmac.compare_digest(sig, self._mac(unsigned(msg))):
+        elif not hmac.compare_digest(sig, self._mac(unsigned_bytes(to_protocol(msg)))):
             return "forged"
+        return None
+
+    def verify_request(self, msg) -> str | None:
+        """None if the request is authentic and fresh, else the reason (one of REASONS). ``msg`` as
+        decoded by messages.decode (its received bytes are checked) or a message object (its
+        fields are encoded by the generated codec)."""
+        return self._verify(msg, ("req", msg.run_id, int(msg.evaluation_id), msg.discipline))
+
+    def verify_result(self, msg) -> str | None:
+        """None if the result is authentic and fresh, else the reason (one of REASONS); ``msg`` as
+        for verify_request."""
+        return self._verify(msg, ("res", msg.run_id, int(msg.evaluation_id), msg.discipline))
+
+    def _verify(self, msg, ids: tuple) -> str | None:
+        why = self._mac_check(msg)
+        if why is not None:
+            return why
+        sig = msg.signature
         t = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
         now = self._clock()
         if abs(now - t) > self.window_ns:
