@@ -1,5 +1,6 @@
 """A bag is complete up to the last finished iteration, whatever stops the run: SIGINT (exit 130) and
-SIGTERM (exit 143) during an in-process or ROS optimisation and during `pareto` leave a bag that
+SIGTERM (exit 143) during an in-process (differential evolution, the Chebyshev-proxy pairwise optimiser)
+or ROS optimisation and during `pareto` and `sweep` leave a bag that
 rosbags and mcap open without repair, with one record per finished iteration. Only SIGKILL leaves a
 bag that needs `bev-mdo bag repair`, which then recovers every finished iteration.
 
@@ -82,10 +83,10 @@ def _check_iterations(bag: Path, printed: list[str]) -> None:
     assert [int(r.iteration) for r in recs] == list(range(len(recs)))
 
 
+@pytest.mark.parametrize("optimizer", ["differential_evolution", "chebyshev-pairwise"])
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
-def test_an_interrupted_in_process_optimisation_keeps_its_bag(tmp_path, sig):
-    p = _start(tmp_path, "optimize", str(CONFIG), "--transport", "inprocess", "--optimizer",
-               "differential_evolution", "--bag", "b")
+def test_an_interrupted_in_process_optimisation_keeps_its_bag(tmp_path, sig, optimizer):
+    p = _start(tmp_path, "optimize", str(CONFIG), "--transport", "inprocess", "--optimizer", optimizer, "--bag", "b")
     status, printed, err = _stop_after_progress(p, sig, 3)
     assert status == EXIT[sig], err[-2000:]
     assert "Traceback" not in err
