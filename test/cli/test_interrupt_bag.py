@@ -155,9 +155,7 @@ def test_an_interrupted_ros_optimisation_keeps_its_bag(tmp_path, sig, ros_domain
     assert len(rows) >= len(printed) and checks["dropped"] == {} and checks["unverified"] == ""
 
 
-def test_a_run_stopped_by_an_error_keeps_its_bag(tmp_path):
-    """A discipline whose output turns the wrong shape stops the run (exit 2, one line); the bag is
-    closed with the iterations finished before."""
+def _shape_config(tmp_path: Path) -> Path:
     import yaml
 
     raw = yaml.safe_load(CONFIG.read_text())
@@ -166,12 +164,34 @@ def test_a_run_stopped_by_an_error_keeps_its_bag(tmp_path):
     raw["problem"]["constraints"]["shape_kw"] = {"upper": 1.0e9}
     config = tmp_path / "shape.yaml"
     config.write_text(yaml.safe_dump(raw, sort_keys=False))
+    return config
+
+
+def test_a_run_stopped_by_an_error_keeps_its_bag(tmp_path):
+    """A discipline whose output turns the wrong shape stops the run (exit 2, one line); the bag is
+    closed with the iterations finished before."""
+    config = _shape_config(tmp_path)
     env = {**os.environ, "PYTHONPATH": f"{Path(__file__).resolve().parent}{os.pathsep}{REPO}"}
     p = subprocess.run([sys.executable, "-m", "bev_mdo", "optimize", str(config), "--transport", "inprocess",
                         "--optimizer", "differential_evolution", "--bag", "b"], capture_output=True, text=True,
                        env=env, cwd=tmp_path, timeout=300)
     assert p.returncode == 2 and "shape" in p.stderr.strip().splitlines()[-1], p.stderr[-2000:]
     printed = [l for l in p.stdout.splitlines() if l.startswith("iter")]
+    assert printed, p.stdout[-2000:]
+    _check_iterations(tmp_path / "b", printed)
+
+
+def test_a_discipline_failing_over_ros_keeps_the_bag_of_every_iteration(tmp_path, ros_domain):
+    """Over ROS the same discipline's node rejects the malformed answers: its points fail, named, the run
+    ends with its result (exit 1: the result point failed) and the recorder's bag holds every iteration."""
+    config = _shape_config(tmp_path)
+    env = {**os.environ, "PYTHONPATH": f"{Path(__file__).resolve().parent}{os.pathsep}{REPO}"}
+    p = subprocess.run([sys.executable, "-m", "bev_mdo", "optimize", str(config), "--optimizer",
+                        "differential_evolution", "--bag", "b", "--domain-id", str(ros_domain)],
+                       capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
+    assert p.returncode == 1 and "Traceback" not in p.stderr, p.stderr[-2000:]
+    assert "discipline 'shape' failed" in p.stderr and "has shape" in p.stderr
+    printed = [l for l in p.stdout.splitlines() if l.startswith("iter ")]  # not the closing "iterations N" line
     assert printed, p.stdout[-2000:]
     _check_iterations(tmp_path / "b", printed)
 
