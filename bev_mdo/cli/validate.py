@@ -1,14 +1,17 @@
-"""``bev-mdo validate [--data CSV] [--energy-model M] [--parameter-set NAME] [--pairs] [--png FILE] [--json]``.
+"""``bev-mdo validate [--data CSV] [--energy-model M] [--parameter-set NAME] [--pairs] [--plot DIR] [--json]``.
 
 Runs every vehicle of a fleet file (EPA Test Car List columns, default: the shipped EPA 2022
 BEV training fleet) on UDDS and HWFET in one batch per cycle and prints predicted against
 measured wall energy per vehicle, then the mean, median, 90th-percentile and maximum absolute
 percentage error. Vehicles whose rated power cannot follow a cycle are listed as such and
-left out of the statistics; so are rows flagged as outliers in the file. ``--png`` draws a
-parity plot with the +-5 % band and the residuals against test mass and rated power.
+left out of the statistics; so are rows flagged as outliers in the file.
 ``--pairs`` adds the within-family pairs (bev_mdo/models/pairs.py): each pair's measured and
 predicted percentage difference per cycle, the slope of predicted on measured and the mean
-absolute difference against their targets; with ``--png`` it draws those instead of the parity plot.
+absolute difference against their targets. Every run puts the model beside two references on the
+same rows (bev_mdo/models/baselines.py): the 3-constant baseline, cross-validated by family, and
+FASTSim 2.1.5 with its defaults (shipped results). ``--plot DIR`` writes the parity and residual
+plot and, with ``--pairs``, the pairs of each cycle as arrows from one variant to the other
+(bev_mdo/cli/validate_plots.py).
 Models: chain (default; wall to wheel with the calibrated parameter set), flat, breakdown,
 quasi_static, topology_sm_sa (the thesis models, which stop at the battery terminals).
 """
@@ -20,7 +23,7 @@ import sys
 
 import numpy as np
 
-from bev_mdo.cli import UsageError, figure_format
+from bev_mdo.cli import UsageError
 
 DEFAULT_SET = "epa2022_chain"
 
@@ -48,7 +51,8 @@ def register(subparsers) -> None:
                         "'none' = model defaults)")
     p.add_argument("--pairs", action="store_true",
                    help="also report within-family pairs: measured vs predicted percentage differences")
-    p.add_argument("--png", metavar="FILE", help="write the parity and residual plots (with --pairs: the pairs plot)")
+    p.add_argument("--plot", metavar="DIR", help="write parity.png (parity and residuals) into DIR, with --pairs also "
+                   "pairs_udds.png and pairs_hwfet.png (each pair an arrow from variant A to B, every model column)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=run)
 
@@ -91,7 +95,54 @@ def evaluate(data=None, energy_model: str = "chain", parameter_set: str | None =
               "by_make": _by_make(fleet, err, scored)}
     if pairs:
         report["pairs"] = _pairs(fleet, pred, scored)
+    report["reference"] = _reference(fleet, energy_model, pred, scored, out_rows, report.get("pairs"))
     return report
+
+
+REFERENCE = {"baseline3": "3-constant baseline a + b mass + c road-load work per cycle, each family predicted by "
+                          "constants fitted on the other folds (5-fold by family)",
+             "fastsim": "FASTSim 2.1.5 with its defaults (bev_mdo/data/epa_2022_bev/fastsim_2.1.5.csv, "
+                        "scripts/fastsim_baseline.py)"}
+
+
+def _reference(fleet, energy_model: str, pred: dict, scored: dict, out_rows: list, pairs: dict | None) -> dict:
+    """The model beside the 3-constant baseline and FASTSim on the same rows (models/baselines.py);
+    adds each row's baseline and FASTSim prediction to ``out_rows`` (None where there is none)."""
+    from bev_mdo.models import baselines as bl
+    from bev_mdo.models import fleet as fl
+    from bev_mdo.models import pairs as pr
+
+    use = ~fleet.outlier & np.logical_and.reduce([scored[c] for c in fl.CYCLES])
+    columns = {energy_model: {c: np.where(scored[c], pred[c]["energy_wh_per_km"], np.nan) for c in fl.CYCLES},
+               "baseline3": bl.three_constant_cv(fleet, use)}
+    fastsim = bl.read_fastsim(fleet)
+    if fastsim is None:
+        status = f"unavailable: {bl.FASTSIM_CSV} is missing"
+    elif not any(np.isfinite(fastsim[c]).any() for c in fl.CYCLES):
+        status = "unavailable: FASTSim was not run on this fleet file (scripts/fastsim_baseline.py --data CSV)"
+    else:
+        status = "available"
+        columns["fastsim"] = fastsim
+    for r, i in zip(out_rows, range(len(fleet))):
+        for c in fl.CYCLES:
+            short = c.replace("epa_", "")
+            for name in ("baseline3", "fastsim"):
+                v = columns[name][c][i] if name in columns else math.nan
+                r[f"{short}_{name}_wh_per_km"] = float(v) if math.isfinite(v) else None
+    out = {"columns": {energy_model: compared(energy_model), **REFERENCE}, "fastsim": status,
+           "same_rows": bl.reference_table(fleet, columns)}
+    if pairs is not None:
+        index = {int(row): i for i, row in enumerate(fleet.rows)}
+        out["pairs"] = {}
+        for name in [n for n in ("baseline3", "fastsim") if n in columns]:
+            out["pairs"][name] = {}
+            for c in fl.CYCLES:
+                short = c.replace("epa_", "")
+                ok = [(index[r["a_row"]], index[r["b_row"]]) for r in pairs[short]["rows"]]
+                ok = [(a, b) for a, b in ok if np.isfinite(columns[name][c][[a, b]]).all()]
+                out["pairs"][name][short] = pr.pair_stats(pr.pct_diff(fleet.measured[c], ok),
+                                                          pr.pct_diff(columns[name][c], ok))
+    return out
 
 
 def _pairs(fleet, pred: dict, scored: dict) -> dict:
@@ -139,14 +190,17 @@ def run(args) -> int:
     if args.energy_model not in ENERGY_MODELS:
         raise UsageError(f"--energy-model must be one of {list(ENERGY_MODELS)}")
     report = evaluate(args.data, args.energy_model, args.parameter_set, pairs=args.pairs)
-    if args.png:
-        plot_pairs(report, args.png) if args.pairs else plot(report, args.png)
+    if args.plot:
+        from bev_mdo.cli.validate_plots import write_all
+
+        write_all(report, args.plot)
     if args.json:
         print(json.dumps(report, indent=2, allow_nan=True))
     else:
         print_table(report)
         if args.pairs:
             print_pairs(report)
+        print_reference(report)
     return 0
 
 
@@ -182,51 +236,6 @@ def print_table(report: dict, file=None) -> None:
               f"(not scored): " + ", ".join(f"row {x['row']} {x['cycle']}" for x in report["not_following"]), file=out)
 
 
-def plot(report: dict, path: str) -> None:
-    """Parity plot with the +-5 % band, residuals against test mass and rated power."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    rows = report["rows"]
-    fig, ax = plt.subplots(1, 3, figsize=(15, 4.8))
-    marks = {"udds": ("o", "UDDS"), "hwfet": ("s", "HWFET")}
-    lo, hi = math.inf, 0.0
-    for c, (mk, label) in marks.items():
-        ok = [r for r in rows if r[f"{c}_follows"] and not r["outlier"]]
-        bad = [r for r in rows if not (r[f"{c}_follows"] and not r["outlier"])]
-        meas = np.array([r[f"{c}_measured_wh_per_km"] for r in ok])
-        pred = np.array([r[f"{c}_predicted_wh_per_km"] for r in ok])
-        e = np.array([r[f"{c}_error_pct"] for r in ok])
-        ax[0].scatter(meas, pred, marker=mk, label=label, alpha=0.75)
-        if bad:
-            ax[0].scatter([r[f"{c}_measured_wh_per_km"] for r in bad], [r[f"{c}_predicted_wh_per_km"] for r in bad],
-                          marker="x", color="k", label=f"{label}: not scored")
-        ax[1].scatter([r["test_mass_kg"] for r in ok], e, marker=mk, label=label, alpha=0.75)
-        ax[2].scatter([r["rated_power_kw"] for r in ok], e, marker=mk, label=label, alpha=0.75)
-        if meas.size:
-            lo, hi = min(lo, meas.min(), pred.min()), max(hi, meas.max(), pred.max())
-    if not math.isfinite(lo):
-        lo, hi = 50.0, 300.0
-    x = np.array([lo * 0.95, hi * 1.05])
-    ax[0].plot(x, x, "k-", lw=1)
-    ax[0].fill_between(x, 0.95 * x, 1.05 * x, color="grey", alpha=0.2, label="+-5 %")
-    ax[0].set(xlabel="measured wall energy (Wh/km)", title="parity",
-              ylabel=f"predicted {'wall' if report['energy_model'] == 'chain' else 'battery'} energy (Wh/km)")
-    s = report["stats"]["udds_hwfet"]
-    ax[0].text(0.02, 0.98, f"mean |err| {_f(s['mean_abs_pct'], 2)} %\nP90 {_f(s['p90_abs_pct'], 2)} %",
-               transform=ax[0].transAxes, va="top")
-    for a, xl in ((ax[1], "test mass (kg)"), (ax[2], "rated power (kW)")):
-        a.axhspan(-5, 5, color="grey", alpha=0.2)
-        a.axhline(0, color="k", lw=1)
-        a.set(xlabel=xl, ylabel="error %", title=f"residual vs {xl.split(' (')[0]}")
-    for a in ax:
-        a.legend(loc="lower right", fontsize=8)
-        a.grid(alpha=0.3)
-    fig.suptitle(f"{report['energy_model']} on {report['data'].rsplit('/', 1)[-1]}")
-    _save(fig, path)
-
 
 def _met(flag) -> str:
     return "-" if flag is None else ("met" if flag else "NOT met")
@@ -256,46 +265,15 @@ def print_pairs(report: dict, file=None) -> None:
               f"(target <= {s['mean_abs_diff_target_points']}: {_met(s['mean_abs_diff_met'])})", file=out)
 
 
-def plot_pairs(report: dict, path: str) -> None:
-    """Predicted against measured percentage difference (B over A) of each pair, one panel per
-    cycle, with y = x, the +-2.5-point band and the fitted slope through the origin."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    pairs = report["pairs"]
-    fig, ax = plt.subplots(1, 2, figsize=(11, 5))
-    for a, (c, label) in zip(ax, (("udds", "UDDS"), ("hwfet", "HWFET"))):
-        s = pairs[c]
-        x = np.array([r["measured_pct"] for r in s["rows"]])
-        y = np.array([r["predicted_pct"] for r in s["rows"]])
-        span = max(5.0, float(np.abs(np.concatenate([x, y])).max()) * 1.1) if x.size else 10.0
-        line = np.array([-span, span])
-        band = s["mean_abs_diff_target_points"]
-        a.fill_between(line, line - band, line + band, color="grey", alpha=0.2, label=f"y = x +- {band} points")
-        a.plot(line, line, "k-", lw=1, label="y = x")
-        if s["slope_through_origin"] is not None:
-            a.plot(line, s["slope_through_origin"] * line, "r--", lw=1,
-                   label=f"fit through origin, slope {s['slope_through_origin']:.2f}")
-        a.scatter(x, y, alpha=0.75, label=f"{s['n']} pairs")
-        a.set(xlim=(-span, span), ylim=(-span, span), xlabel="measured difference B over A (%)",
-              ylabel="predicted difference B over A (%)",
-              title=f"{label}: mean |diff| {_f(s['mean_abs_diff_points'], 2)} points")
-        a.legend(loc="upper left", fontsize=8)
-        a.grid(alpha=0.3)
-    fig.suptitle(f"within-family pairs, {report['energy_model']} on {report['data'].rsplit('/', 1)[-1]}")
-    _save(fig, path)
-
-
-def _save(fig, path) -> None:
-    """Write a figure (format from the name) and close it; an unwritable path is one ValueError."""
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    try:
-        fig.savefig(path, dpi=110, format=figure_format(path))
-    except OSError as exc:
-        raise ValueError(f"cannot write {path}: {exc.strerror}") from None
-    finally:
-        plt.close(fig)
+def print_reference(report: dict, file=None) -> None:
+    """The model beside the 3-constant baseline and FASTSim, per cycle, on the rows every column scores."""
+    out = file or sys.stdout
+    ref = report["reference"]
+    names = [n for n in ref["same_rows"]["udds"] if n not in ("rows", "pairs")]
+    print(f"beside the references, same rows (FASTSim: {ref['fastsim']}); MAPE %, pair slope, pair mean |diff| "
+          "points:", file=out)
+    for c in ("udds", "hwfet"):
+        t = ref["same_rows"][c]
+        cells = "; ".join(f"{n} {_f(t[n]['mape_pct'], 2)} / {_f(t[n]['pair_slope'], 2)} / "
+                          f"{_f(t[n]['pair_mad_points'], 2)}" for n in names)
+        print(f"{c:>6} ({t['rows']} rows, {t['pairs']} pairs): {cells}", file=out)

@@ -68,12 +68,14 @@ def test_errors_by_make(capsys, tmp_path):
     assert "by make, both cycles (mean signed % / mean |err| %): Tesla +" in out
 
 
-def test_table_and_png(capsys, tmp_path):
-    png = tmp_path / "parity.png"
-    code, out, _ = run(capsys, "--png", png)
+def test_table_and_parity_plot(capsys, tmp_path):
+    plots = tmp_path / "new" / "plots"  # created
+    code, out, _ = run(capsys, "--plot", plots)
     assert code == 0
     assert "udds_hwfet: n=124" in out and "P90" in out and "Mach-E RWD" in out
+    png = plots / "parity.png"
     assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in plots.iterdir()) == ["parity.png"]  # the pairs plots only with --pairs
 
 
 @pytest.mark.parametrize("model", ["flat", "breakdown", "quasi_static", "topology_sm_sa"])
@@ -175,15 +177,13 @@ def test_a_fleet_file_saved_by_excel_with_a_bom_and_crlf_reads_like_the_shipped_
     assert doc["stats"] == ref["stats"]
 
 
-def test_png_is_written_exactly_where_asked(capsys, tmp_path):
-    """matplotlib appends .png to a name without an extension: --png DIR (a directory) wrote DIR.png
-    beside it and exited 0, and --png out wrote out.png."""
-    code, out, err = run(capsys, "--png", tmp_path)
-    assert code == 2 and out == "" and err.count("\n") == 1 and "is a directory" in err
-    assert not tmp_path.with_suffix(".png").exists()
-    plain = tmp_path / "parity"
-    assert run(capsys, "--png", plain)[0] == 0
-    assert plain.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and not plain.with_suffix(".png").exists()
+def test_plot_into_a_file_is_one_line_exit_2(capsys, tmp_path):
+    """--plot takes a folder; an existing file given by mistake is named and left alone."""
+    f = tmp_path / "parity.png"
+    f.write_bytes(b"mine")
+    code, out, err = run(capsys, "--plot", f)
+    assert code == 2 and err.count("\n") == 1 and "not a directory" in err and str(f) in err
+    assert "Traceback" not in err and f.read_bytes() == b"mine"
 
 
 @pytest.mark.parametrize("content,expect", [
@@ -214,8 +214,7 @@ def test_a_file_separated_by_semicolons_or_tabs_says_so(capsys, tmp_path, sep):
 def test_pairs_json_table_and_png(capsys, tmp_path):
     """--pairs: every pair's measured and predicted difference per cycle under one key, the slope
     and mean absolute difference recomputed from the rows, the table and the pairs plot."""
-    png = tmp_path / "pairs.png"
-    code, out, _ = run(capsys, "--pairs", "--json", "--png", png)
+    code, out, _ = run(capsys, "--pairs", "--json", "--plot", tmp_path)
     assert code == 0
     doc = json.loads(out)
     p = doc["pairs"]
@@ -237,7 +236,8 @@ def test_pairs_json_table_and_png(capsys, tmp_path):
             100 * (b[f"{c}_measured_wh_per_km"] / a[f"{c}_measured_wh_per_km"] - 1))
         assert r["predicted_pct"] == pytest.approx(
             100 * (b[f"{c}_predicted_wh_per_km"] / a[f"{c}_predicted_wh_per_km"] - 1))
-    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    for name in ("parity.png", "pairs_udds.png", "pairs_hwfet.png"):
+        assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     code, out, _ = run(capsys, "--pairs")
     assert code == 0 and "within-family pairs" in out and "Mach-E RWD" in out
     assert "pairs  udds: n=" in out and "pairs hwfet: n=" in out and "slope" in out and "points" in out
@@ -257,3 +257,29 @@ def test_a_fleet_without_pairs_says_so_in_one_line(capsys, tmp_path):
     doc = json.loads(run(capsys, "--data", p, "--pairs", "--json")[1])
     assert doc["pairs"]["pairs"] == 0 and doc["pairs"]["udds"]["n"] == 0
     assert doc["pairs"]["udds"]["slope_through_origin"] is None
+
+
+def test_the_model_is_beside_the_baseline_and_fastsim_on_the_same_rows(capsys, tmp_path):
+    """Every run: the model, the held-out 3-constant baseline and FASTSim 2.1.5 (shipped results),
+    per cycle on the rows all of them score, with MAPE and pair metrics; each row carries the two
+    reference predictions. A fleet FASTSim was not run on says so and keeps the other two."""
+    doc = json.loads(run(capsys, "--json")[1])
+    ref = doc["reference"]
+    assert ref["fastsim"] == "available" and set(ref["columns"]) == {"chain", "baseline3", "fastsim"}
+    for c in ("udds", "hwfet"):
+        t = ref["same_rows"][c]
+        assert t["rows"] == 62 and t["pairs"] == 105
+        for name in ("chain", "baseline3", "fastsim"):
+            assert np.isfinite([t[name]["mape_pct"], t[name]["pair_slope"], t[name]["pair_mad_points"]]).all()
+        errs = [abs(r[f"{c}_predicted_wh_per_km"] / r[f"{c}_measured_wh_per_km"] - 1) for r in doc["rows"]]
+        assert t["chain"]["mape_pct"] == pytest.approx(100 * np.mean(errs))
+        errs = [abs(r[f"{c}_baseline3_wh_per_km"] / r[f"{c}_measured_wh_per_km"] - 1) for r in doc["rows"]]
+        assert t["baseline3"]["mape_pct"] == pytest.approx(100 * np.mean(errs))
+    out = run(capsys)[1]
+    assert "beside the references, same rows (FASTSim: available)" in out and "baseline3 " in out
+    rows = _rows()
+    rows[1][1] = "Renamed"  # not a row FASTSim ran
+    only = _write(tmp_path, [rows[0], rows[1]] + [r for r in rows[2:] if r[0] == "Ford"])
+    doc = json.loads(run(capsys, "--data", only, "--json")[1])
+    assert doc["reference"]["fastsim"].startswith("unavailable: FASTSim was not run on this fleet file")
+    assert set(doc["reference"]["same_rows"]["udds"]) == {"rows", "pairs", "chain", "baseline3"}

@@ -1,0 +1,128 @@
+"""Reference columns for a fleet validation: the 3-constant baseline and FASTSim 2.1.5's results.
+
+* **3-constant baseline**: per cycle, ``E = a + b M + c W_road`` (Wh/km from the wall), with M the
+  test mass (kg) and W_road the road-load work per km on that cycle (Wh/km, the coast-down
+  A + B v + C v^2 integrated over the cycle). Fitted per cycle with ``numpy.linalg.lstsq`` on the
+  relative error (each row divided by its measured energy) on the training folds only of a
+  family-grouped k-fold split (:func:`family_folds`, the rule of ``calibrate.group_folds``): every
+  vehicle is predicted by constants that never saw its family.
+* **FASTSim 2.1.5 with its defaults**: read from ``fastsim_2.1.5.csv`` beside the shipped fleet
+  file, written by ``scripts/fastsim_baseline.py`` (which needs FASTSim; reading does not). Rows are
+  matched by CSV row, make and model; a fleet file FASTSim was not run on gets no FASTSim figures.
+
+:func:`reference_table` scores any set of such columns on the same rows: per cycle, the rows every
+column scores, their mean absolute % error and the within-family pair metrics (models/pairs.py).
+Pure numpy.
+"""
+from __future__ import annotations
+
+import csv
+import math
+
+import numpy as np
+
+from . import fleet as fl
+from . import pairs as pr
+
+FASTSIM_CSV = fl.DATA_DIR / "fastsim_2.1.5.csv"
+FOLDS = 5
+
+
+def family_folds(fleet: fl.Fleet, use: np.ndarray, k: int = FOLDS) -> np.ndarray:
+    """Fold of every row (-1 where ``use`` is False): the families of the used rows dealt to k folds
+    in order of size, a family never split (the same split as ``calibrate.cross_validate``)."""
+    groups = fleet.family()
+    idx = np.flatnonzero(use)
+    uniq, counts = np.unique([groups[i] for i in idx], return_counts=True)
+    order = uniq[np.argsort(-counts, kind="stable")]
+    k = min(k, len(order))
+    fold_of = {g: i % k for i, g in enumerate(order)}
+    folds = np.full(len(fleet), -1)
+    folds[idx] = [fold_of[groups[i]] for i in idx]
+    return folds
+
+
+def road_load_wh_per_km(fleet: fl.Fleet, cycles: dict | None = None) -> dict[str, np.ndarray]:
+    """Per cycle, each vehicle's road-load work per km (Wh/km): sum of F_road v dt over the distance."""
+    from . import road_load as rl
+    from .cycles import quadrature
+
+    cycles = cycles or fl.resampled_cycles()
+    p = fl.fleet_params(fleet)
+    out = {}
+    for name, r in cycles.items():
+        v, _, _, w = quadrature(r)
+        w = np.broadcast_to(w, v.shape)
+        f = rl.road_load_n(p, v[:, None], fleet.test_mass_kg[None, :])
+        out[name] = (w[:, None] * f * v[:, None]).sum(0) / float((w * v).sum()) / 3.6  # N -> Wh/km
+    return out
+
+
+def three_constant_cv(fleet: fl.Fleet, use: np.ndarray, cycles: dict | None = None,
+                      k: int = FOLDS) -> dict[str, np.ndarray]:
+    """Held-out predictions of the 3-constant baseline, {cycle: (N,) Wh/km}, NaN where ``use`` is
+    False. A row's prediction comes from constants fitted on the other folds only."""
+    use = np.asarray(use, bool)
+    folds = family_folds(fleet, use, k)
+    work = road_load_wh_per_km(fleet, cycles)
+    out = {}
+    for c in fl.CYCLES:
+        X = np.column_stack([np.ones(len(fleet)), fleet.test_mass_kg, work[c]])
+        y = fleet.measured[c]
+        pred = np.full(len(fleet), np.nan)
+        for i in range(folds.max() + 1):
+            test, train = folds == i, use & (folds != i)
+            if not train.any():
+                continue
+            coef = np.linalg.lstsq(X[train] / y[train, None], np.ones(int(train.sum())), rcond=None)[0]
+            pred[test] = X[test] @ coef
+        out[c] = pred
+    return out
+
+
+def read_fastsim(fleet: fl.Fleet, path=None) -> dict[str, np.ndarray] | None:
+    """FASTSim's wall energy per cycle for the fleet's rows, {cycle: (N,) Wh/km}, NaN where the file
+    has no such row (matched by row, make and model) or FASTSim could not follow the trace; None
+    when the file is absent."""
+    path = path or FASTSIM_CSV
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
+    except OSError:
+        return None
+    by_key = {(int(r["row"]), r["make"], r["model"]): r for r in rows}
+    out = {}
+    for c in fl.CYCLES:
+        short = c.replace("epa_", "")
+        e = np.full(len(fleet), np.nan)
+        for i in range(len(fleet)):
+            r = by_key.get((int(fleet.rows[i]), fleet.make[i], fleet.model[i]))
+            if r is not None and r[f"{short}_trace_met"] == "yes":
+                e[i] = float(r[f"{short}_wh_per_km_ac"])
+        out[c] = e
+    return out
+
+
+def reference_table(fleet: fl.Fleet, columns: dict[str, dict], scored: dict[str, dict] | None = None) -> dict:
+    """Score ``columns`` ({name: {cycle: (N,) predicted Wh/km}}) on the same rows: per cycle, the
+    non-outlier rows where every column has a finite prediction (and ``scored[name][cycle]`` where
+    given). Returns {cycle: {"rows": n, "pairs": n, name: {"mape_pct", "pair_slope", "pair_mad_points"}}}."""
+    scored = scored or {}
+    found = pr.find_pairs(fleet.model_line(), fleet.drive, fleet.rated_power_kw, fleet.test_mass_kg, ~fleet.outlier)
+    out = {}
+    for c in fl.CYCLES:
+        ok = ~fleet.outlier
+        for name, col in columns.items():
+            ok = ok & np.isfinite(col[c])
+            if name in scored:
+                ok = ok & scored[name][c]
+        both = [(a, b) for a, b in found if ok[a] and ok[b]]
+        meas = pr.pct_diff(fleet.measured[c], both)
+        cell = {"rows": int(ok.sum()), "pairs": len(both)}
+        for name, col in columns.items():
+            err = 100.0 * np.abs(col[c][ok] / fleet.measured[c][ok] - 1.0)
+            s = pr.pair_stats(meas, pr.pct_diff(col[c], both))
+            cell[name] = {"mape_pct": float(err.mean()) if err.size else math.nan,
+                          "pair_slope": s["slope_through_origin"], "pair_mad_points": s["mean_abs_diff_points"]}
+        out[c.replace("epa_", "")] = cell
+    return out

@@ -1,0 +1,91 @@
+"""The reference columns of a validation: the 3-constant baseline (held out by family) and FASTSim's
+shipped results, scored on the same rows."""
+import numpy as np
+import pytest
+
+from bev_mdo.models import baselines as bl
+from bev_mdo.models import calibrate as cal
+from bev_mdo.models import fleet as fl
+
+
+@pytest.fixture(scope="module")
+def fleet():
+    return fl.read_fleet()
+
+
+def test_folds_are_the_calibration_split(fleet):
+    """The baseline is held out on the same family folds as the chain's cross-validation."""
+    use = ~fleet.outlier
+    folds = bl.family_folds(fleet, use)
+    assert (folds == cal.group_folds(fleet.family(), bl.FOLDS)[0]).all()
+    fam = np.array(fleet.family())
+    for g in set(fam):  # a family never split
+        assert len(set(folds[fam == g])) == 1
+
+
+def test_baseline_is_fitted_only_on_training_folds(fleet):
+    """Changing a row's measured energy does not move its own prediction nor any of its fold, and
+    does move the other folds' (so the check can fail)."""
+    use = ~fleet.outlier
+    folds = bl.family_folds(fleet, use)
+    before = bl.three_constant_cv(fleet, use)
+    i = 0
+    for c in fl.CYCLES:
+        fleet.measured[c] = fleet.measured[c].copy()
+        fleet.measured[c][i] *= 1.5
+    try:
+        after = bl.three_constant_cv(fleet, use)
+    finally:
+        for c in fl.CYCLES:
+            fleet.measured[c][i] /= 1.5
+    same = folds == folds[i]
+    for c in fl.CYCLES:
+        assert np.array_equal(after[c][same], before[c][same])
+        assert not np.allclose(after[c][~same], before[c][~same], rtol=1e-6, atol=0)
+
+
+def test_baseline_is_a_plus_b_mass_plus_c_road_load(fleet):
+    """A fleet whose energies are exactly a + b M + c W_road is predicted exactly out of fold."""
+    use = ~fleet.outlier
+    work = bl.road_load_wh_per_km(fleet)
+    saved = {c: fleet.measured[c] for c in fl.CYCLES}
+    try:
+        for c in fl.CYCLES:
+            fleet.measured[c] = 20.0 + 0.03 * fleet.test_mass_kg + 1.4 * work[c]
+        pred = bl.three_constant_cv(fleet, use)
+        for c in fl.CYCLES:
+            np.testing.assert_allclose(pred[c], fleet.measured[c], rtol=1e-9)
+    finally:
+        fleet.measured.update(saved)
+    # the road-load work: a constant 100 N force alone costs 100 N x 1 km = 27.78 Wh/km on any cycle
+    flat = fl.Fleet(fleet.path, fleet.rows[:1], fleet.make[:1], fleet.model[:1], fleet.drive[:1], fleet.flag[:1],
+                    fleet.rated_power_kw[:1], fleet.test_mass_kg[:1], np.array([100.0]), np.zeros(1), np.zeros(1),
+                    fleet.gear_ratio[:1], fleet.gear_listed[:1], {})
+    for c, w in bl.road_load_wh_per_km(flat).items():
+        assert w[0] == pytest.approx(100.0 / 3.6, rel=1e-9), c
+
+
+def test_fastsim_results_match_the_fleet_rows(fleet, tmp_path):
+    e = bl.read_fastsim(fleet)
+    for c in fl.CYCLES:
+        assert np.isfinite(e[c]).all()  # every row of the shipped fleet, trace met
+        ratio = e[c] / fleet.measured[c]
+        assert 0.6 < ratio.min() and ratio.max() < 1.6  # same quantity (wall energy), same units
+    assert bl.read_fastsim(fleet, tmp_path / "absent.csv") is None
+    other = fl.read_fleet()
+    other.model[0] = "Not Run By FASTSim"
+    assert np.isnan(bl.read_fastsim(other)["epa_udds"][0]) and np.isfinite(bl.read_fastsim(other)["epa_udds"][1])
+
+
+def test_reference_table_scores_every_column_on_the_same_rows(fleet):
+    use = ~fleet.outlier
+    base = bl.three_constant_cv(fleet, use)
+    hole = {c: base[c].copy() for c in fl.CYCLES}
+    hole["epa_udds"][3] = np.nan  # a column without a prediction for row 3 removes row 3 for all
+    t = bl.reference_table(fleet, {"measured": dict(fleet.measured), "baseline3": base, "holed": hole})
+    assert t["udds"]["rows"] == len(fleet) - 1 and t["hwfet"]["rows"] == len(fleet)
+    for c in ("udds", "hwfet"):
+        assert t[c]["measured"]["mape_pct"] == 0 and t[c]["measured"]["pair_slope"] == pytest.approx(1.0)
+        assert t[c]["measured"]["pair_mad_points"] == 0
+    assert t["hwfet"]["holed"] == t["hwfet"]["baseline3"]
+    assert t["udds"]["pairs"] < t["hwfet"]["pairs"]  # the pairs of row 3 dropped on UDDS only
