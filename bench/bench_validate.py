@@ -11,10 +11,13 @@ same host load.
   yaml, reading the fleet, the cycles and the parameter set, the model, the JSON), output to a buffer.
 * ``compute``: predictions and statistics (bev_mdo.cli.validate.evaluate) per energy model, everything
   already loaded in the process (what a second call costs).
+* the accuracy table (``tables`` in the JSON; rendered into docs/performance.md and
+  docs/validation.md): per model, held-out-style MAPE and within-family pair metrics on UDDS and
+  HWFET, on the same rows for every column (:func:`accuracy_table`). Deterministic: computed once.
 
 Writes bench/results/bench_validate.json (schema of bench/_results.py).
 
-    python bench/bench_validate.py [--runs 11] [--baseline-rev main] [--models chain flat ...]
+    python bench/bench_validate.py [--runs 11] [--baseline-rev main] [--models chain quasi_static ...]
 """
 from __future__ import annotations
 
@@ -36,7 +39,20 @@ sys.path.insert(0, str(ROOT / "bench"))
 import _results  # noqa: E402
 
 from bev_mdo.cli.validate import evaluate  # noqa: E402
+from bev_mdo.models import baselines  # noqa: E402
+from bev_mdo.models import calibrate  # noqa: E402
 from bev_mdo.models import fleet  # noqa: E402
+
+# how each column's predictions are held out from the rows they are scored on
+HELD_OUT = {
+    "chain": "epa2022_chain refitted per fold, 5-fold by family (calibrate.cross_validate)",
+    "flat": "thesis defaults, nothing fitted to the fleet",
+    "breakdown": "thesis defaults, nothing fitted to the fleet",
+    "quasi_static": "thesis defaults, nothing fitted to the fleet",
+    "topology_sm_sa": "thesis defaults, nothing fitted to the fleet",
+    "baseline3": "a + b mass + c road-load work per cycle, fitted on the other folds (same split)",
+    "fastsim": "FASTSim 2.1.5 defaults, nothing fitted (shipped fastsim_2.1.5.csv)",
+}
 
 AFTER_NUMPY = """
 import contextlib, io, json, time
@@ -73,11 +89,53 @@ def _extract(rev: str) -> Path:
     return d
 
 
+def accuracy_table(models=tuple(fleet.ENERGY_MODELS)) -> dict:
+    """Held-out MAPE and pair metrics per model and cycle, every column on the same rows: the
+    non-outlier vehicles that follow both cycles in every model (models/baselines.py)."""
+    f = fleet.read_fleet()
+    cycles = fleet.resampled_cycles()
+    use = calibrate.usable(f, cycles)
+    columns, scored = {}, {}
+    for m in models:
+        if m == "chain":
+            cv = calibrate.cross_validate(f, cycles=cycles, use=use)
+            columns[m] = {c: f.measured[c] * (1.0 + cv["errors_pct"][c] / 100.0) for c in fleet.CYCLES}
+        else:
+            pred = fleet.predict(f, m, {}, cycles)
+            columns[m] = {c: pred[c]["energy_wh_per_km"] for c in fleet.CYCLES}
+            scored[m] = {c: pred[c]["follows"] for c in fleet.CYCLES}
+    columns["baseline3"] = baselines.three_constant_cv(f, use, cycles)
+    columns["fastsim"] = baselines.read_fastsim(f)
+    for name in columns:
+        scored[name] = {c: scored.get(name, {}).get(c, np.ones(len(f), bool)) & use for c in fleet.CYCLES}
+    t = baselines.reference_table(f, columns, scored)
+    head = ["model", "held out how", "UDDS+HWFET MAPE %"]
+    for c in ("udds", "hwfet"):
+        head += [f"{c.upper()} MAPE %", f"{c.upper()} pair slope", f"{c.upper()} pair mean abs diff (points)"]
+    rows = []
+    for name in columns:
+        n = t["udds"]["rows"] + t["hwfet"]["rows"]
+        row = [name, HELD_OUT[name], _num((t["udds"][name]["mape_pct"] * t["udds"]["rows"] +
+                                           t["hwfet"][name]["mape_pct"] * t["hwfet"]["rows"]) / n)]
+        for c in ("udds", "hwfet"):
+            cell = t[c][name]
+            row += [_num(cell["mape_pct"]), _num(cell["pair_slope"]), _num(cell["pair_mad_points"])]
+        rows.append(row)
+    title = (f"Held-out accuracy on {f.path.rsplit('/', 1)[-1]}: same {t['udds']['rows']} rows (UDDS) / "
+             f"{t['hwfet']['rows']} (HWFET), {t['udds']['pairs']} / {t['hwfet']['pairs']} within-family pairs; "
+             "pair targets: slope 0.85-1.15, mean abs diff <= 2.5 points")
+    return {"title": title, "columns": head, "rows": rows, "by_cycle": t}
+
+
+def _num(x):
+    return None if x is None or not np.isfinite(x) else round(float(x), 2)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=11)
     ap.add_argument("--baseline-rev", default=None, help="also measure the processes of this git revision")
-    ap.add_argument("--models", nargs="+", default=list(fleet.ENERGY_MODELS))
+    ap.add_argument("--models", nargs="+", default=["chain", "quasi_static"], help="models whose compute is timed")
     args = ap.parse_args(argv)
     load_start = os.getloadavg()[0]
     trees = {"this tree": ROOT}
@@ -116,12 +174,18 @@ def main(argv=None):
         figures.append(_results.figure(f"compute, {model} model (62 vehicles x 2 cycles, in process, warm)", "ms", ts,
                                        "< 100" if model == "chain" else None,
                                        note=f"mean abs error {errors[model]:.2f} %"))
+    table = accuracy_table()
+    print(table["title"])
+    for row in table["rows"]:
+        print(" | ".join("-" if v is None else str(v) for v in row))
     for f in figures:
         print(f"{f['what']:95s} median {f['median']:7.1f} {f['unit']} [{f['min']:.1f}, {f['max']:.1f}]", flush=True)
     _results.write("bench_validate", figures,
                    extra={"vehicles": len(fleet.read_fleet()), "cycles": list(fleet.CYCLES),
                           "numpy": np.__version__, "load_average_1min_start": round(load_start, 2),
-                          "mean_abs_pct": errors, "baseline_rev": args.baseline_rev})
+                          "mean_abs_pct": errors, "baseline_rev": args.baseline_rev,
+                          "tables": [{k: table[k] for k in ("title", "columns", "rows")}],
+                          "held_out": table["by_cycle"]})
 
 
 if __name__ == "__main__":

@@ -31,3 +31,20 @@ def test_render_shows_median_range_target_and_command(tmp_path):
     assert "| thing per second | 2 | 1–3 (3) | designs/s | >= 1 |" in text
     assert "`python bench/demo.py --runs 3`" in text
     assert json.loads((res / "demo.json").read_text())["figures"][0]["median"] == 2.0
+
+
+def test_tables_render_under_the_figures_and_into_the_tables_doc(tmp_path):
+    res = tmp_path / "results"
+    table = {"title": "accuracy", "columns": ["model", "how", "MAPE %"], "rows": [["a", "fit", 7.0], ["b", "none", None]]}
+    _results.write("demo", [_results.figure("x", "ms", [1.0])], command="python bench/demo.py",
+                   path=res / "demo.json", extra={"tables": [table]})
+    perf, tables = tmp_path / "perf.md", tmp_path / "validation.md"
+    perf.write_text(f"{render_bench.BEGIN}\n{render_bench.END}\n")
+    tables.write_text("# V\n<!-- bench-tables:demo:begin -->\nold\n<!-- bench-tables:demo:end -->\ntail\n")
+    argv = ["--results", str(res), "--doc", str(perf), "--tables-doc", str(tables)]
+    assert render_bench.main(argv + ["--check"]) == 1
+    assert render_bench.main(argv) == 0 and render_bench.main(argv + ["--check"]) == 0
+    for doc in (perf, tables):
+        text = doc.read_text()
+        assert "**accuracy**" in text and "| a | fit | 7.00 |" in text and "| b | none | - |" in text
+    assert "old" not in tables.read_text() and tables.read_text().endswith("tail\n")

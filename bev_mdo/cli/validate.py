@@ -67,7 +67,8 @@ def evaluate(data=None, energy_model: str = "chain", parameter_set: str | None =
     base = {}
     if energy_model == "chain" and parameter_set and parameter_set != "none":
         base = load_parameter_set(parameter_set)
-    pred = fl.predict(fleet, energy_model, base)
+    cycles = fl.resampled_cycles()
+    pred = fl.predict(fleet, energy_model, base, cycles)
     err = fl.abs_pct_errors(fleet, pred)
     out_rows = []
     scored = {}
@@ -95,7 +96,7 @@ def evaluate(data=None, energy_model: str = "chain", parameter_set: str | None =
               "by_make": _by_make(fleet, err, scored)}
     if pairs:
         report["pairs"] = _pairs(fleet, pred, scored)
-    report["reference"] = _reference(fleet, energy_model, pred, scored, out_rows, report.get("pairs"))
+    report["reference"] = _reference(fleet, energy_model, pred, scored, out_rows, report.get("pairs"), cycles)
     return report
 
 
@@ -105,7 +106,8 @@ REFERENCE = {"baseline3": "3-constant baseline a + b mass + c road-load work per
                         "scripts/fastsim_baseline.py)"}
 
 
-def _reference(fleet, energy_model: str, pred: dict, scored: dict, out_rows: list, pairs: dict | None) -> dict:
+def _reference(fleet, energy_model: str, pred: dict, scored: dict, out_rows: list, pairs: dict | None,
+               cycles: dict) -> dict:
     """The model beside the 3-constant baseline and FASTSim on the same rows (models/baselines.py);
     adds each row's baseline and FASTSim prediction to ``out_rows`` (None where there is none)."""
     from bev_mdo.models import baselines as bl
@@ -114,7 +116,7 @@ def _reference(fleet, energy_model: str, pred: dict, scored: dict, out_rows: lis
 
     use = ~fleet.outlier & np.logical_and.reduce([scored[c] for c in fl.CYCLES])
     columns = {energy_model: {c: np.where(scored[c], pred[c]["energy_wh_per_km"], np.nan) for c in fl.CYCLES},
-               "baseline3": bl.three_constant_cv(fleet, use)}
+               "baseline3": bl.three_constant_cv(fleet, use, cycles)}
     fastsim = bl.read_fastsim(fleet)
     if fastsim is None:
         status = f"unavailable: {bl.FASTSIM_CSV} is missing"

@@ -43,18 +43,18 @@ def family_folds(fleet: fl.Fleet, use: np.ndarray, k: int = FOLDS) -> np.ndarray
 
 
 def road_load_wh_per_km(fleet: fl.Fleet, cycles: dict | None = None) -> dict[str, np.ndarray]:
-    """Per cycle, each vehicle's road-load work per km (Wh/km): sum of F_road v dt over the distance."""
-    from . import road_load as rl
+    """Per cycle, each vehicle's road-load work per km (Wh/km): the coast-down force A + B v + C v^2
+    (acting while moving) times the distance, over the distance, from the cycle's speed moments."""
     from .cycles import quadrature
 
     cycles = cycles or fl.resampled_cycles()
-    p = fl.fleet_params(fleet)
     out = {}
     for name, r in cycles.items():
         v, _, _, w = quadrature(r)
-        w = np.broadcast_to(w, v.shape)
-        f = rl.road_load_n(p, v[:, None], fleet.test_mass_kg[None, :])
-        out[name] = (w[:, None] * f * v[:, None]).sum(0) / float((w * v).sum()) / 3.6  # N -> Wh/km
+        dist = float(np.sum(w * v))
+        m2, m3 = float(np.sum(w * v**2)) / dist, float(np.sum(w * v**3)) / dist
+        out[name] = (fleet.road_load_a_n + fleet.road_load_b_n_per_m_s * m2
+                     + fleet.road_load_c_n_per_m2_s2 * m3) / 3.6  # N -> Wh/km
     return out
 
 
