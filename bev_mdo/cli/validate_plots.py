@@ -101,6 +101,8 @@ def plot_pair_arrows(report: dict, cycle: str, path) -> None:
         if ref is not None:
             columns.append((label, name, ref))
     fig, axes = plt.subplots(1, len(columns), figsize=(5.2 * len(columns), 5.0), squeeze=False)
+    families = list(dict.fromkeys(p["family"] for p in pairs))
+    colour = {f: plt.get_cmap("tab20")(i % 20) for i, f in enumerate(families)}
     lo, hi = math.inf, 0.0
     for ax, (label, key, stats) in zip(axes[0], columns):
         n = 0
@@ -111,7 +113,7 @@ def plot_pair_arrows(report: dict, cycle: str, path) -> None:
             if ya is None or yb is None:
                 continue
             ax.annotate("", xy=(xb, yb), xytext=(xa, ya),
-                        arrowprops={"arrowstyle": "->", "color": "tab:blue", "alpha": 0.6, "lw": 1})
+                        arrowprops={"arrowstyle": "->", "color": colour[p["family"]], "alpha": 0.7, "lw": 1})
             lo, hi = min(lo, xa, xb, ya, yb), max(hi, xa, xb, ya, yb)
             n += 1
         ax.set_title(f"{label}: {n} pairs\nslope {_f(stats['slope_through_origin'], 2)}, "
@@ -124,7 +126,10 @@ def plot_pair_arrows(report: dict, cycle: str, path) -> None:
         ax.set(xlim=lim, ylim=lim, xlabel="measured wall energy (Wh/km)", ylabel="predicted energy (Wh/km)")
         ax.set_aspect("equal")
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper left", fontsize=8)
+    for f in families:  # one colour per model line
+        axes[0][0].plot([], [], color=colour[f], label=f)
+    for ax in axes[0]:
+        ax.legend(loc="upper left", fontsize=7 if ax is axes[0][0] else 8)
     fig.suptitle(f"within-family pairs on {cycle.upper()}, arrow from variant A to variant B "
                  f"({report['data'].rsplit('/', 1)[-1]})")
     _save(fig, path)
