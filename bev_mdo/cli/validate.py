@@ -279,3 +279,6 @@ def print_reference(report: dict, file=None) -> None:
         cells = "; ".join(f"{n} {_f(t[n]['mape_pct'], 2)} / {_f(t[n]['pair_slope'], 2)} / "
                           f"{_f(t[n]['pair_mad_points'], 2)}" for n in names)
         print(f"{c:>6} ({t['rows']} rows, {t['pairs']} pairs): {cells}", file=out)
+    print(f"  ({report['energy_model']}: as above, not refitted (a parameter set fitted on these rows is in-sample); "
+          "baseline3: held out, 5 folds by family; fastsim: its defaults, nothing fitted; held-out figures of "
+          "every model: bench/bench_validate.py, docs/validation.md)", file=out)
