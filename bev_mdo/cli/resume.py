@@ -54,8 +54,10 @@ def run(args) -> int:
 
     from bev_mdo.cli.optimize import run_job
 
+    from bev_mdo.api.transport import Transport
     from bev_mdo.bag.history import check_note
 
+    Transport.of(args).refuse_attach("resume")  # before the bag is read
     checks: dict = {}
     config, design, iteration = resume_point(args.bag, getattr(args, "run_id", None),
                                              getattr(args, "key_file", None), checks,
@@ -74,8 +76,6 @@ def run(args) -> int:
     # element names ('x_shared[0]', ...) for vector design variables, as the bag records them
     names = Problem.from_config(config["problem"]).names
     x0 = {k: v for k, v in design.items() if k in names}
-    from bev_mdo.api.transport import Transport
-
     opts = argparse.Namespace(**vars(Transport.of(args)), formulation=None, optimizer=None, json=args.json,
                               bag=args.out_bag, no_record=args.no_record, quiet=args.quiet, compose=None)
     return run_job(config, opts, x0=x0)

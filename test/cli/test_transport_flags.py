@@ -71,6 +71,7 @@ def test_the_api_has_the_same_default():
     (["evaluate", CONFIG, "--transport", "inprocess", "--attach"], "cannot be combined with --transport inprocess"),
     (["optimize", CONFIG, "--attach", "--no-record"], "optimize --attach: optimize runs its own discipline nodes"),
     (["pareto", CONFIG, "--attach"], "pareto --attach: pareto runs its own discipline nodes"),
+    (["resume", "no_such_bag", "--attach"], "resume --attach: resume runs its own discipline nodes"),
 ])
 def test_attach_where_it_cannot_apply_is_one_line_exit_2(argv, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # nothing may be written, anywhere
