@@ -5,10 +5,11 @@
 names, bev_mdo.cli.flags). Its one default, for every command and every ``Study`` run, is ``ros`` with
 the command's own discipline nodes: started for the call on its domain, bound to it by a fresh run id
 and signed with a per-run key, stopped after. ``attach`` uses the nodes already running on the domain
-instead (``ros2 run``, ``bev-mdo node``); ``inprocess`` runs the same disciplines with no ROS. The domain follows the
-ROS convention (settings.choose_domain): ``domain_id``, else the config's ``ros.domain_id`` when it
-states one, else ``ROS_DOMAIN_ID`` of the environment, else 77; when the config overrides the
-environment, one line on stderr says so.
+instead (``ros2 run``, ``bev-mdo node``); ``inprocess`` runs the same disciplines with no ROS.
+
+The domain follows the ROS convention (settings.choose_domain): ``domain_id``, else the config's
+``ros.domain_id`` when it states one, else ``ROS_DOMAIN_ID`` of the environment, else 77; when the
+config overrides the environment, one line on stderr says so.
 """
 from __future__ import annotations
 
