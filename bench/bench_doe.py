@@ -2,7 +2,7 @@
 
 1. DOE designs/s: a Latin hypercube of --designs designs over the bounds, analysed as ONE batch
    (the MDA of ``bev-mdo sweep --doe``) in process and over ROS (the config's six discipline nodes,
-   started once for the bench on --domain-id, localhost-only, signed as ``--launch`` does; their
+   started once for the bench on --domain-id, localhost-only, signed as a command's own nodes are; their
    start-up is not timed). Each run draws a new hypercube (seed = run number).
 2. A Sobol' analysis with N = 1,024 (``bev-mdo sensitivity --global sobol --samples 1024``: N (D + 2)
    = 5,120 designs in one batch, then SALib's estimates with 1,000 bootstrap resamples for the four

@@ -135,7 +135,7 @@ def _study(reference: bool, out: Path) -> tuple[float, dict]:
     try:
         t0 = time.perf_counter()
         rc = cli(["pareto", str(ROOT / "config" / "topologies_artemis.yaml"), "--all-topologies", "--no-plots",
-                  "--out", str(out)])
+                  "--transport", "inprocess", "--out", str(out)])
         wall = time.perf_counter() - t0
     finally:
         tp.simulate, tp.range_by_repeated_cycle_km = saved

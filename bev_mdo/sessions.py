@@ -1,7 +1,7 @@
 """Sessions: the "start nodes, recorder, coordinator; run; stop" sequences, out of the CLI.
 
 * ``EvaluateRosSession``: the ROS evaluator of ``bev-mdo evaluate``/``sensitivity``/``sweep`` over ROS: the running
-  nodes of the ros section's domain, or (``launch``) the command's own nodes, signed with a per-run key by default
+  nodes of the ros section's domain (``--attach``), or (``launch``) the command's own nodes, signed with a per-run key by default
   (ros.launch.OwnSuite); closing it stops them and returns the notes for the user.
 * ``OptimizeRosSession``: one optimisation over ROS (``bev-mdo optimize`` and ``resume``): discipline nodes (pools,
   composed processes) and a recorder started for the run, signed with a per-run key by default (docs/security.md),
@@ -115,7 +115,7 @@ class EvaluateRosSession:
             notes.append("note: the results were not signed (ros.signing: false)")
         elif not self.evaluator.signed:
             notes.append(f"note: the results were not signed (no ros.sign_key_file): any process on ROS domain "
-                         f"{self.domain} could have answered; use --launch, or a key file (docs/security.md)")
+                         f"{self.domain} could have answered; run without --attach, or use a key file (docs/security.md)")
         return notes
 
 

@@ -32,7 +32,7 @@ def test_a_misspelt_builtin_option_exits_2_naming_file_key_and_suggestion(tmp_pa
     assert "cycle_weights:" in text
     cfg = _write(tmp_path, text.replace("cycle_weights:", "cycle_weigths:"))
     for argv in (("optimize", cfg, "--transport", "inprocess"), ("optimize", cfg),  # ROS: refused at load
-                 ("evaluate", cfg)):
+                 ("evaluate", cfg, "--transport", "inprocess")):
         code, out, err = _cli(capsys, *argv)
         assert code == 2, argv
         assert out == "" and len(err.strip().splitlines()) == 1, err
@@ -156,7 +156,8 @@ def test_a_user_discipline_declares_its_options_and_gets_the_same_check(tmp_path
                                                   ({}, {"powr": 3}, "disciplines[1] (by_constructor).options.powr",
                                                    "power")):
         bad = _user_config(tmp_path, declared, by_constructor)
-        for argv in (("evaluate", bad, "--set", "x=0.1"), ("optimize", bad, "--transport", "inprocess"),
+        for argv in (("evaluate", bad, "--set", "x=0.1", "--transport", "inprocess"),
+                     ("optimize", bad, "--transport", "inprocess"),
                      ("optimize", bad)):
             code, out, err = _cli(capsys, *argv)
             assert code == 2, (argv, err)

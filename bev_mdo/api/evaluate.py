@@ -19,7 +19,7 @@ def declared_units(config: dict) -> dict[str, str]:
     return run_units(resolve_disciplines(config))
 
 
-def design(config: dict, given: dict[str, float], transport=None) -> dict:
+def design(config: dict, given: dict[str, float], transport) -> dict:
     """The report of one multidisciplinary analysis (mdo.driver.evaluate_design: design, outputs,
     objective, constraints with margins, feasible, ok, error). Design variables not given take their
     initial value; a value outside its bounds is evaluated as given, with a note on stderr."""
@@ -38,7 +38,7 @@ def design(config: dict, given: dict[str, float], transport=None) -> dict:
         return evaluate_design(run_settings(config), evaluator, full)
 
 
-def batch(config: dict, designs: dict[str, np.ndarray], transport=None) -> dict:
+def batch(config: dict, designs: dict[str, np.ndarray], transport) -> dict:
     """One batch of MDAs: {design: {k: array}, outputs: {k: array}, margins: {c: array},
     feasible: bool array, ok: bool array, errors: [str], objective, problem, units} (``designs`` may set
     model parameters too; variables not given keep their initial value)."""

@@ -43,6 +43,7 @@ def run(config: dict, opts: OptimizeOptions, callback=None, x0: dict | None = No
 
         # ValueError names the known optimizers, or the config's option the chosen one does not take
         check_optimizer_options(canonical_name(opts.optimizer), (config.get("optimizer") or {}).get("options") or {})
+    opts.refuse_attach("optimize")
     starts = _starts(opts, x0)  # a bad start count is refused before anything starts or is written
     t_start = time.perf_counter()
     show = callback or (lambda rec: None)

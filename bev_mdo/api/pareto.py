@@ -54,6 +54,7 @@ def run(cfg: dict, objectives: list[str] | None = None, *, generations: int = 30
 def check_sizes(generations: int, pop: int, instances, transport) -> None:
     if generations < 1 or pop < 4:
         raise InputError(f"--generations must be >= 1 and --pop >= 4, got {generations}, {pop}")
+    Transport.of(transport).refuse_attach("pareto")
     if instances and Transport.of(transport).transport != "ros":
         raise InputError("--instances needs --transport ros (pools of discipline nodes)")
 

@@ -13,7 +13,7 @@ from bev_mdo.api.errors import InputError
 from bev_mdo.api.overrides import Overrides
 from bev_mdo.api.results import (EvaluateResult, GlobalSensitivityResult, OptimizeResult, ParetoResult,
                                  SensitivityResult, SweepResult)
-from bev_mdo.api.transport import Transport
+from bev_mdo.api.transport import DEFAULT_TRANSPORT, Transport
 
 
 def _input_errors(method):
@@ -30,10 +30,6 @@ def _input_errors(method):
     return call
 
 
-def _transport(transport) -> Transport:
-    return Transport(transport=transport) if isinstance(transport, str) else Transport.of(transport)
-
-
 class Study:
     """A run config and the changes made to its problem.
 
@@ -41,7 +37,9 @@ class Study:
     config is checked at once. ``bound``, ``initial``, ``constrain`` and ``objective`` change the
     problem (like ``--bound``, ``--initial``, ``--constraint``, ``--objective``/``--maximize``) and
     return the study, so they chain. ``config`` is the effective, checked config a run records.
-    Runs take ``transport="inprocess"`` (default), ``"ros"`` or a ``Transport`` (launch, domain_id...).
+    Runs take ``transport="ros"`` (the default of every run and every ``bev-mdo`` command: the config's
+    discipline nodes started for the run and stopped after), ``"inprocess"`` (no ROS) or a ``Transport``
+    (``attach`` to the nodes already running, ``domain_id``, ``discovery``...).
     """
 
     @_input_errors
@@ -92,29 +90,29 @@ class Study:
         return self._change(edit)
 
     @_input_errors
-    def evaluate(self, design: Mapping[str, float] | None = None, transport="inprocess") -> EvaluateResult:
+    def evaluate(self, design: Mapping[str, float] | None = None, transport=DEFAULT_TRANSPORT) -> EvaluateResult:
         """One design through every discipline; variables not given take their initial value."""
         from bev_mdo.api import evaluate
 
-        return EvaluateResult.of(evaluate.design(self.config, dict(design or {}), _transport(transport)))
+        return EvaluateResult.of(evaluate.design(self.config, dict(design or {}), Transport.of(transport)))
 
     @_input_errors
     def optimize(self, formulation: str | None = None, optimizer: str | None = None, *, starts: int = 1,
                  seed: int = 0, x0: Mapping[str, float] | None = None, bag: str | None = None, callback=None,
-                 transport="inprocess", **ros) -> OptimizeResult:
+                 transport=DEFAULT_TRANSPORT, **ros) -> OptimizeResult:
         """Optimise the problem (``bev-mdo optimize``). ``callback(record)`` sees every iteration;
         ``bag`` writes the run's bag there; ``ros``: OptimizeOptions' ROS settings (instances, compose,
         no_record)."""
         from bev_mdo.api import optimize
 
-        opts = optimize.OptimizeOptions(**asdict(_transport(transport)), formulation=formulation, optimizer=optimizer,
+        opts = optimize.OptimizeOptions(**asdict(Transport.of(transport)), formulation=formulation, optimizer=optimizer,
                                         starts=starts, seed=seed, bag=bag, quiet=True, **ros)
         return OptimizeResult.of(optimize.run(self.config, opts, callback, dict(x0) if x0 else None))
 
     @_input_errors
     def sweep(self, doe: str | None = "lhs", samples: int = 64, seed: int = 1, *,
               designs: Mapping[str, Any] | None = None, fixed: Mapping[str, float] | None = None,
-              transport="inprocess") -> SweepResult:
+              transport=DEFAULT_TRANSPORT) -> SweepResult:
         """A batch of designs: a DOE over the bounds (``doe`` lhs, sobol, halton or full; ``samples``
         designs, full: levels per variable), or the given ``designs`` {name: values}; ``fixed``
         values for variables not varied (others keep their initial value)."""
@@ -132,25 +130,25 @@ class Study:
             cols = sampling.sample(doe, bounds, samples, seed)
         n = len(next(iter(cols.values())))
         cols.update({k: np.full(n, v) for k, v in fixed.items() if k not in cols})
-        r = evaluate.batch(self.config, cols, _transport(transport))
+        r = evaluate.batch(self.config, cols, Transport.of(transport))
         return SweepResult(r["design"], r["outputs"], r["margins"], r["feasible"], r["ok"], list(r["errors"]),
                            r["objective"], bool(getattr(r["problem"], "maximize", False)))
 
     @_input_errors
     def sensitivity(self, at: Mapping[str, float] | None = None, wrt: list[str] | None = None, order: int = 2,
-                    rel_step: float | None = None, transport="inprocess") -> SensitivityResult:
+                    rel_step: float | None = None, transport=DEFAULT_TRANSPORT) -> SensitivityResult:
         """Normalised first- (and second-) order sensitivities at ``at`` (default: the initial design)
         with respect to ``wrt`` (design variables and model parameters; default: the design variables)."""
         from bev_mdo.api import sensitivity
 
-        s, outputs, _, _ = sensitivity.run(self.config, dict(at or {}), wrt, _transport(transport), order=order,
+        s, outputs, _, _ = sensitivity.run(self.config, dict(at or {}), wrt, Transport.of(transport), order=order,
                                            rel_step=rel_step)
         return SensitivityResult.of(sensitivity.to_dict(s, outputs))
 
     @_input_errors
     def global_sensitivity(self, method: str = "sobol", samples: int | None = None, seed: int = 1,
                            conf_level: float = 0.95, at: Mapping[str, float] | None = None,
-                           wrt: list[str] | None = None, transport="inprocess") -> GlobalSensitivityResult:
+                           wrt: list[str] | None = None, transport=DEFAULT_TRANSPORT) -> GlobalSensitivityResult:
         """Sobol' (first-order and total) or Morris indices over the bounds of ``wrt`` (default: every
         design variable); the others keep their value at ``at``. ``samples``: sobol's base N (a power
         of 2, default 1024: N (D + 2) designs), morris' trajectories (default 64)."""
@@ -158,18 +156,18 @@ class Study:
 
         if method not in sensitivity.METHODS:
             raise InputError(f"--global {method!r}: allowed: {', '.join(sensitivity.METHODS)}")
-        rep = sensitivity.run(self.config, dict(at or {}), wrt, _transport(transport), global_method=method,
+        rep = sensitivity.run(self.config, dict(at or {}), wrt, Transport.of(transport), global_method=method,
                               samples=samples, seed=seed, conf_level=conf_level)
         return GlobalSensitivityResult.of(rep)
 
     @_input_errors
     def pareto(self, objectives: list[str] | None = None, generations: int = 30, pop: int = 100, seed: int = 1,
-               out: str | None = None, plots: bool = False, transport="inprocess",
+               out: str | None = None, plots: bool = False, transport=DEFAULT_TRANSPORT,
                instances: str | None = None) -> ParetoResult:
         """The NSGA-II Pareto front of ``objectives`` (minimised; default: the config's
         ``problem.objectives``), written with its bag into ``out`` (default bags/<name>_pareto_<time>)."""
         from bev_mdo.api import pareto
 
         doc, _ = pareto.run(self.config, objectives, generations=generations, pop=pop, seed=seed, out=out,
-                            transport=_transport(transport), instances=instances, plots=plots, source=self.source)
+                            transport=Transport.of(transport), instances=instances, plots=plots, source=self.source)
         return ParetoResult.of(doc)

@@ -1,10 +1,15 @@
 """Where designs are evaluated: in this process, or through the discipline nodes of a ROS domain.
 
-``Transport`` holds the choice and the ROS discovery settings (the ``--transport``, ``--launch``,
-``--domain-id``, ``--discovery``... flags of the CLI carry the same names). The domain follows the
-ROS convention (settings.choose_domain): ``domain_id``, else the config's ``ros.domain_id`` when it
-states one, else ``ROS_DOMAIN_ID`` of the environment, else 77; when the config overrides the
-environment, one line on stderr says so.
+``Transport`` holds the choice and the ROS discovery settings (the ``--transport``, ``--attach``,
+``--domain-id``, ``--discovery``... flags of every CLI command that evaluates designs carry the same
+names, bev_mdo.cli.flags). Its one default, for every command and every ``Study`` run, is ``ros`` with
+the command's own discipline nodes: started for the call on its domain, bound to it by a fresh run id
+and signed with a per-run key, stopped after. ``attach`` uses the nodes already running on the domain
+instead (``ros2 run``, ``bev-mdo node``); ``inprocess`` runs the same disciplines with no ROS.
+
+The domain follows the ROS convention (settings.choose_domain): ``domain_id``, else the config's
+``ros.domain_id`` when it states one, else ``ROS_DOMAIN_ID`` of the environment, else 77; when the
+config overrides the environment, one line on stderr says so.
 """
 from __future__ import annotations
 
@@ -15,10 +20,14 @@ from typing import Any, Mapping
 from bev_mdo.api.errors import InputError
 
 
+TRANSPORTS = ("ros", "inprocess")
+DEFAULT_TRANSPORT = "ros"
+
+
 @dataclass
 class Transport:
-    transport: str = "inprocess"  # or "ros"
-    launch: bool = False  # start the config's discipline nodes for this call (implies ros)
+    transport: str = DEFAULT_TRANSPORT  # "ros" or "inprocess"
+    attach: bool = False  # ros: the nodes already running on the domain, not the call's own
     domain_id: int | None = None
     discovery: str | None = None  # localhost (default), static_peers, server, subnet
     static_peers: str | None = None  # "IP[,IP...]"
@@ -27,16 +36,25 @@ class Transport:
     @classmethod
     def of(cls, obj) -> "Transport":
         """The transport settings of a parsed command line (or any object with these attributes)."""
-        t = cls(**{f.name: getattr(obj, f.name) for f in fields(cls) if hasattr(obj, f.name)})
-        if getattr(obj, "ros", False):  # the old spelling of --transport ros
-            t.transport = "ros"
-        return t
+        if isinstance(obj, str):
+            return cls(transport=obj)
+        return cls(**{f.name: getattr(obj, f.name) for f in fields(cls) if hasattr(obj, f.name)})
 
     @property
     def uses_ros(self) -> bool:
-        if self.transport not in ("inprocess", "ros"):
-            raise InputError(f"transport {self.transport!r}: allowed: inprocess, ros")
-        return self.transport == "ros" or self.launch
+        if self.transport not in TRANSPORTS:
+            raise InputError(f"transport {self.transport!r}: allowed: {', '.join(TRANSPORTS)}")
+        if self.attach and self.transport != "ros":
+            raise InputError("--attach uses the discipline nodes running on the ROS domain: "
+                             "it cannot be combined with --transport inprocess")
+        return self.transport == "ros"
+
+    def refuse_attach(self, command: str) -> None:
+        """InputError for a command that must start its own nodes (a run bound to its recorder and key)."""
+        if self.uses_ros and self.attach:
+            raise InputError(f"{command} --attach: {command} runs its own discipline nodes, bound to its run and "
+                             "recorder; --attach is for evaluate, sweep, compare, sensitivity and check-totals (an "
+                             "optimisation over nodes you started: ros2 run bev_mdo coordinator_node, docs/ros2-run.md)")
 
 
 def ros_section(config: Mapping[str, Any], args) -> dict:
@@ -69,10 +87,11 @@ def ros_session(config, transport, node_name: str = "bev_mdo_client"):
         for lib in ("rclpy", "bev_mdo_msgs.msg"):
             importlib.import_module(lib)
     except ModuleNotFoundError:
-        raise InputError("--ros needs the ROS transport (rclpy and bev_mdo_msgs)") from None
+        raise InputError("--transport ros needs the ROS transport (rclpy and bev_mdo_msgs); "
+                         "--transport inprocess runs without it") from None
     from bev_mdo.sessions import EvaluateRosSession
 
-    return EvaluateRosSession(config, ros_section(config, transport), launch=bool(getattr(transport, "launch", False)),
+    return EvaluateRosSession(config, ros_section(config, transport), launch=not Transport.of(transport).attach,
                               node_name=node_name)
 
 
@@ -92,7 +111,7 @@ class Evaluating:
         if self.ros:
             if announce:
                 section = ros_section(config, transport)
-                what = "start the discipline nodes" if getattr(transport, "launch", False) else "find the discipline nodes"
+                what = "find the discipline nodes" if Transport.of(transport).attach else "start the discipline nodes"
                 print(f"waiting up to {section.get('discovery_wait_s', 20):g} s to {what} on ROS domain "
                       f"{section['domain_id']} ...", file=sys.stderr, flush=True)
             self.session = ros_session(config, transport, node_name)

@@ -1,4 +1,4 @@
-"""``bev-mdo evaluate CONFIG --set motor_kw=80 gear_ratio=8 battery_kwh=24 [--json] [--ros]``.
+"""``bev-mdo evaluate CONFIG --set motor_kw=80 gear_ratio=8 battery_kwh=24 [--json] [--transport ros|inprocess] [--attach]``.
 
 Evaluates one design through every discipline (one multidisciplinary analysis)
 and prints each output, the objective, every constraint with its margin, and

@@ -2,8 +2,6 @@
 bev_mdo.api.transport) and the problem overrides (bev_mdo.api.overrides)."""
 from __future__ import annotations
 
-import argparse
-
 
 def add_ros_arguments(parser) -> None:
     """The discovery flags shared by commands that join a ROS graph (they override the config's ros: section)."""
@@ -17,15 +15,19 @@ def add_ros_arguments(parser) -> None:
 
 
 def add_transport_arguments(parser) -> None:
-    """The transport flags of a command that evaluates designs without starting its own run of nodes
-    (evaluate, sweep, compare, sensitivity, check-totals), with the discovery flags."""
+    """The transport flags of every command that evaluates designs (optimize, resume, evaluate, sweep,
+    compare, sensitivity, check-totals, pareto), with the discovery flags; their meaning and their one
+    default: bev_mdo.api.transport.Transport."""
+    from bev_mdo.api.transport import DEFAULT_TRANSPORT, TRANSPORTS
+
     g = parser.add_argument_group("transport")
-    g.add_argument("--transport", choices=["inprocess", "ros"], default="inprocess",
-                   help="inprocess (default): no ROS; ros: through the discipline nodes running on the domain")
-    g.add_argument("--launch", action="store_true",
-                   help="start the config's discipline nodes for this command and stop them after (implies "
-                        "--transport ros): bound to this command and signed with a fresh per-run key, as optimize does")
-    g.add_argument("--ros", action="store_true", help=argparse.SUPPRESS)  # the old spelling of --transport ros
+    g.add_argument("--transport", choices=TRANSPORTS, default=DEFAULT_TRANSPORT,
+                   help="ros (default): the config's discipline nodes, started for this command on its domain "
+                        "and stopped after, signed with a per-run key; inprocess: the same disciplines in this "
+                        "process, no ROS")
+    g.add_argument("--attach", action="store_true",
+                   help="ROS: use the discipline nodes already running on the domain (ros2 run, bev-mdo node) "
+                        "instead of starting this command's own")
     add_ros_arguments(parser)
 
 

@@ -29,7 +29,6 @@ def register(sub) -> None:
     p.add_argument("--formulation", choices=["mdf", "idf"], default=None, help="default: the config's")
     p.add_argument("--optimizer", default=None,
                    help="SLSQP | trust-constr | COBYQA | COBYLA | differential_evolution | chebyshev-pairwise")
-    p.add_argument("--transport", choices=["ros", "inprocess"], default="ros")
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     p.add_argument("--bag", default=None, help="bag directory to write (default: bags/<config name>_<time>)")
     p.add_argument("--no-record", action="store_true", help="do not record the run")
@@ -48,10 +47,9 @@ def register(sub) -> None:
                    help="ROS: where the discipline nodes run. coordinator (default): in this command's own "
                         "process, beside the coordinator (a pool's instances keep a process each); none: a "
                         "process per discipline; all: one process for all; groups A+B,C+D (docs/scaling.md)")
-    from bev_mdo.cli.flags import add_override_arguments
-    from bev_mdo.cli.flags import add_ros_arguments
+    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
 
-    add_ros_arguments(p)
+    add_transport_arguments(p)
     add_override_arguments(p)
     p.set_defaults(func=run)
 

@@ -1,4 +1,4 @@
-"""``bev-mdo pareto CONFIG [--objectives A,B[,...]] [--transport inprocess|ros [--instances N|NAME=N]]
+"""``bev-mdo pareto CONFIG [--objectives A,B[,...]] [--transport ros|inprocess] [--instances N|NAME=N]
 [--generations G --pop P --seed S] [--out DIR] [--topology T | --all-topologies]``.
 
 NSGA-II (bev_mdo.api.pareto) over the config's MDA for any problem with two or more objectives:
@@ -33,20 +33,19 @@ def register(subparsers) -> None:
     g = p.add_mutually_exclusive_group()
     g.add_argument("--topology", default=None, help="topology study: SM-SA, DM-DA, IWM-SA or IWM-DA (BEV problem)")
     g.add_argument("--all-topologies", action="store_true", help="topology study: all four topologies")
-    p.add_argument("--transport", choices=("inprocess", "ros"), default="inprocess")
     p.add_argument("--generations", type=int, default=30)
     p.add_argument("--pop", type=int, default=100, help="population size (one batch per generation)")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--objectives", default=None, metavar="A,B[,C]",
                    help="outputs to minimise (default: the config's problem.objectives)")
     p.add_argument("--out", default=None, help="output (bag) directory, default bags/<name>_pareto_<time>")
-    p.add_argument("--domain-id", type=int, default=None, help="ROS domain id (default: the config's)")
     p.add_argument("--instances", default=None, metavar="N|NAME=N,...",
                    help="ROS: run N instances of every discipline, or of the named ones (a pool: they share "
                         "each population, as for optimize; docs/scaling.md)")
     p.add_argument("--no-plots", action="store_true")
-    from bev_mdo.cli.flags import add_override_arguments
+    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
 
+    add_transport_arguments(p)
     add_override_arguments(p)
     p.set_defaults(func=run)
 

@@ -13,7 +13,6 @@ def register(sub) -> None:
                        description="Read the run's configuration and its last IterationRecord from BAG and "
                                    "optimise again from that design (a truncated bag works too).")
     p.add_argument("bag", help="bag directory or .mcap file")
-    p.add_argument("--transport", choices=["ros", "inprocess"], default="ros")
     p.add_argument("--json", action="store_true")
     p.add_argument("--output", dest="out_bag", default=None, help="bag to write (default: bags/<config name>_<time>_<run>, as optimize)")
     p.add_argument("--no-record", action="store_true")
@@ -23,9 +22,9 @@ def register(sub) -> None:
     from bev_mdo.cli.history import add_verify_arguments
 
     add_verify_arguments(p)
-    from bev_mdo.cli.flags import add_ros_arguments
+    from bev_mdo.cli.flags import add_transport_arguments
 
-    add_ros_arguments(p)
+    add_transport_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -55,8 +54,10 @@ def run(args) -> int:
 
     from bev_mdo.cli.optimize import run_job
 
+    from bev_mdo.api.transport import Transport
     from bev_mdo.bag.history import check_note
 
+    Transport.of(args).refuse_attach("resume")  # before the bag is read
     checks: dict = {}
     config, design, iteration = resume_point(args.bag, getattr(args, "run_id", None),
                                              getattr(args, "key_file", None), checks,
@@ -75,8 +76,6 @@ def run(args) -> int:
     # element names ('x_shared[0]', ...) for vector design variables, as the bag records them
     names = Problem.from_config(config["problem"]).names
     x0 = {k: v for k, v in design.items() if k in names}
-    opts = argparse.Namespace(formulation=None, optimizer=None, transport=args.transport, json=args.json,
-                              domain_id=args.domain_id, discovery=args.discovery,
-                              static_peers=args.static_peers, discovery_server=args.discovery_server, bag=args.out_bag, no_record=args.no_record,
-                              quiet=args.quiet, compose=None)
+    opts = argparse.Namespace(**vars(Transport.of(args)), formulation=None, optimizer=None, json=args.json,
+                              bag=args.out_bag, no_record=args.no_record, quiet=args.quiet, compose=None)
     return run_job(config, opts, x0=x0)

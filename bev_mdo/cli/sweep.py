@@ -4,8 +4,9 @@
 variables' bounds (scipy.stats.qmc; ``full``: N levels per variable); ``--vary motor_kw=40:120:9
 gear_ratio=6:10:5`` evaluates a full-factorial grid of given values (``lo:hi:n`` is n evenly spaced
 values, ``a,b,c`` a list); ``--list FILE.csv`` the designs listed in a CSV (a header of names).
-All designs are ONE batch of multidisciplinary analyses, in process or through the discipline
-nodes (``--transport ros``, ``--launch``), written to ``sweep.csv`` (every design variable, every
+All designs are ONE batch of multidisciplinary analyses, through the config's discipline nodes
+started for the command (default), the nodes already running (``--attach``) or in process
+(``--transport inprocess``), written to ``sweep.csv`` (every design variable, every
 output, each constraint's margin, feasible, ok), one PNG per output and a bag (``bag/``, one
 record per design: ``history``/``report`` read it). Variables not varied keep their initial value
 (or ``--set`` values).
@@ -120,12 +121,13 @@ def read_list(path: str) -> dict[str, np.ndarray]:
     return out
 
 
-def evaluate_batch(config, designs: dict[str, np.ndarray], args=None) -> dict:
-    """One batch of MDAs (bev_mdo.api.evaluate.batch), over the transport ``args`` choose."""
+def evaluate_batch(config, designs: dict[str, np.ndarray], args) -> dict:
+    """One batch of MDAs (bev_mdo.api.evaluate.batch), over the transport ``args`` choose (parsed
+    flags, a Transport or its name)."""
     from bev_mdo.api import evaluate
     from bev_mdo.api.transport import Transport
 
-    return evaluate.batch(config, designs, Transport.of(args) if args is not None else None)
+    return evaluate.batch(config, designs, Transport.of(args))
 
 
 def write_csv(path: Path, result: dict) -> None:

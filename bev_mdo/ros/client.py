@@ -1,4 +1,4 @@
-"""A ROS evaluator for one-off use from the command line (`evaluate --ros`, `sensitivity --ros`).
+"""A ROS evaluator for one-off use from the command line (`evaluate`, `sensitivity`, `sweep`, `check-totals`).
 
 It joins the config's ROS domain (localhost discovery unless the config opts in to
 more), waits for every discipline of the config to be discovered, and releases its

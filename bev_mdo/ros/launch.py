@@ -374,8 +374,8 @@ def plan_processes(names: Sequence[str], config_path: str, *, run_id: str = "", 
 
 
 class OwnSuite:
-    """The config's discipline nodes started for one command (``evaluate --launch``,
-    ``sensitivity --launch``), as ``optimize`` starts them: bound to a fresh run id and, unless
+    """The config's discipline nodes started for one command (``evaluate``, ``sweep``,
+    ``sensitivity``, ``check-totals`` over ROS without ``--attach``), as ``optimize`` starts them: bound to a fresh run id and, unless
     ``ros.signing: false`` or a ``ros.sign_key_file`` is configured, signing with a fresh per-run
     key (mode 0600) in ``work_dir/.keys`` — a path in the resolved config the nodes read, never
     on a command line, in the environment or in a log. ``config`` (after ``start``) is the

@@ -15,7 +15,7 @@ from bev_mdo import Study
 CONFIG = Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml"
 
 study = Study(CONFIG).constrain("range_km", lower=250)  # like --constraint "range_km>=250"
-result = study.optimize()  # in process; transport="ros" runs the discipline nodes
+result = study.optimize(transport="inprocess")  # no ROS; the default, "ros", runs the discipline nodes
 if "--json" in sys.argv:
     print(json.dumps({"x": result.x, "objective": result.objective, "verdict": result.verdict}))
 else:

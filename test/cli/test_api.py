@@ -36,7 +36,7 @@ def test_the_api_optimum_is_the_cli_optimum(config):
     proc = cli("optimize", config, "--transport", "inprocess", "--json", "--no-record", "--quiet")
     assert proc.returncode == 0, proc.stderr[-2000:]
     doc = json.loads(proc.stdout)
-    res = Study(ROOT / config).optimize()
+    res = Study(ROOT / config).optimize(transport="inprocess")
     same_optimum(res.x, res.objective, doc)
     assert res.verdict == doc["verdict"] == "optimum"
     for name, c in doc["constraints"].items():
@@ -102,7 +102,7 @@ def test_a_bad_config_raises_input_error():
     with pytest.raises(InputError, match="no such config file"):
         Study(ROOT / "config" / "no_such.yaml")
     with pytest.raises(InputError, match="samples"):
-        Study(ROOT / "config" / "leaf_nedc.yaml").sweep("sobol", samples=10)
+        Study(ROOT / "config" / "leaf_nedc.yaml").sweep("sobol", samples=10, transport="inprocess")
 
 
 def test_importing_bev_mdo_and_naming_the_api_loads_no_numpy_and_no_ros():
@@ -116,7 +116,7 @@ def test_results_as_tables(monkeypatch):
     from bev_mdo import Study
 
     study = Study(ROOT / "config" / "leaf_nedc.yaml")
-    point = study.evaluate({"motor_kw": 80, "gear_ratio": 8, "battery_kwh": 24})
+    point = study.evaluate({"motor_kw": 80, "gear_ratio": 8, "battery_kwh": 24}, transport="inprocess")
     rows = point.rows()
     assert [r["name"] for r in rows[:3]] == ["motor_kw", "gear_ratio", "battery_kwh"]
     assert {r["role"] for r in rows} == {"design", "output", "objective"}
@@ -124,6 +124,6 @@ def test_results_as_tables(monkeypatch):
     monkeypatch.setitem(sys.modules, "pandas", None)  # as without pandas installed
     with pytest.raises(ModuleNotFoundError, match="needs pandas"):
         point.to_dataframe()
-    grid = study.sweep(designs={"motor_kw": [40, 80]})
+    grid = study.sweep(designs={"motor_kw": [40, 80]}, transport="inprocess")
     assert [r["feasible"] for r in grid.rows()] == [False, True]  # 40 kW misses the 0-100 km/h limit
     assert grid.best()["motor_kw"] == 80

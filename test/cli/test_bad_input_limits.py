@@ -90,7 +90,8 @@ def test_a_run_name_that_leaves_bags_is_refused_and_nothing_is_left(tmp_path, na
 def test_pareto_refuses_a_run_name_that_leaves_bags(tmp_path):
     work = tmp_path / "work"
     work.mkdir()
-    p = _bev_mdo(work, "pareto", str(_config(tmp_path, name="../escaped")), "--generations", "1", "--pop", "4")
+    p = _bev_mdo(work, "pareto", str(_config(tmp_path, name="../escaped")), "--generations", "1", "--pop", "4",
+                 "--transport", "inprocess")
     _one_line_exit_2(p, "name")
     assert os.listdir(work) == [] and sorted(os.listdir(tmp_path)) == ["bad.yaml", "work"]
 
@@ -112,10 +113,10 @@ def test_a_400_digit_number(tmp_path):
 
 def test_a_sweep_of_a_billion_points(tmp_path):
     p = _bev_mdo(tmp_path, "sweep", str(REPO / "config" / "leaf_nedc.yaml"), "--vary", "motor_kw=40:120:1000000000",
-                 "--no-plots")
+                 "--no-plots", "--transport", "inprocess")
     _one_line_exit_2(p, "at most")
     p = _bev_mdo(tmp_path, "sweep", str(REPO / "config" / "leaf_nedc.yaml"), "--vary", "motor_kw=40:120:1000",
-                 "gear_ratio=2:10:1000", "battery_kwh=20:30:1000", "--no-plots")
+                 "gear_ratio=2:10:1000", "battery_kwh=20:30:1000", "--no-plots", "--transport", "inprocess")
     _one_line_exit_2(p, "at most")
 
 

@@ -15,7 +15,7 @@ VARS = ("z1", "z2", "x")
 
 
 def _report(capsys, config, *extra) -> dict:
-    code = main(["check-totals", str(config), "--json", *extra])
+    code = main(["check-totals", str(config), "--json", "--transport", "inprocess", *extra])
     rep = json.loads(capsys.readouterr().out)
     assert code == (0 if rep["ok"] else 1)
     return rep
@@ -94,6 +94,6 @@ def test_a_wrong_partial_shows_as_a_disagreeing_total(capsys, monkeypatch):
         return p
 
     monkeypatch.setattr(sellar_disciplines.SellarDis1, "compute_partials", wrong)
-    assert main(["check-totals", str(SELLAR / "sellar_mdf.yaml")]) == 1
+    assert main(["check-totals", str(SELLAR / "sellar_mdf.yaml"), "--transport", "inprocess"]) == 1
     out = capsys.readouterr().out
     assert "DISAGREE" in out and "some totals disagree" in out

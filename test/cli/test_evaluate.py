@@ -11,7 +11,11 @@ LEAF = ROOT / "config" / "leaf_nedc.yaml"
 
 
 def run(capsys, *argv):
-    code = main(["evaluate", *map(str, argv)])
+    """``bev-mdo evaluate ARGV``, in process unless ARGV chooses ROS (--transport, --attach)."""
+    argv = [*map(str, argv)]
+    if not {"--transport", "--attach"} & set(argv):
+        argv += ["--transport", "inprocess"]
+    code = main(["evaluate", *argv])
     out = capsys.readouterr()
     return code, out.out, out.err
 
@@ -59,28 +63,29 @@ def test_missing_config_exit_2(capsys, tmp_path):
     assert code == 2 and "no such config file" in err
 
 
-def test_ros_flag_without_transport_is_a_usage_error(capsys, monkeypatch):
+@pytest.mark.parametrize("flags", [["--transport", "ros"], ["--attach"]])
+def test_ros_without_rclpy_is_a_usage_error(capsys, monkeypatch, flags):
     import sys
     monkeypatch.setitem(sys.modules, "rclpy", None)  # as if rclpy were not installed
-    code, _, err = run(capsys, LEAF, "--ros")
-    assert code == 2 and "--ros needs the ROS transport" in err
+    code, _, err = run(capsys, LEAF, *flags)
+    assert code == 2 and "--transport ros needs the ROS transport" in err and "--transport inprocess" in err
 
 
 def test_a_broken_bev_mdo_module_is_not_reported_as_a_missing_transport(capsys, monkeypatch):
     import sys
     monkeypatch.setitem(sys.modules, "bev_mdo.ros.client", None)  # our own module fails to import
     with pytest.raises(ModuleNotFoundError, match="bev_mdo.ros.client"):
-        run(capsys, LEAF, "--ros")
+        run(capsys, LEAF, "--attach")
 
 
-def test_ros_flag_with_no_nodes_running_names_the_missing_disciplines(capsys, tmp_path, ros_domain):
+def test_attach_with_no_nodes_running_names_the_missing_disciplines(capsys, tmp_path, ros_domain):
     import yaml
 
     cfg = yaml.safe_load(open(LEAF))
     cfg["ros"] = {"domain_id": ros_domain, "discovery_wait_s": 0.5}
     path = tmp_path / "leaf.yaml"
     path.write_text(yaml.safe_dump(cfg))
-    code, _, err = run(capsys, path, "--ros")
+    code, _, err = run(capsys, path, "--attach")
     assert code == 6 and err.count("\n") == 1  # start-up gave up (documented exit 6), one line
     for name in ("vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"):
         assert name in err

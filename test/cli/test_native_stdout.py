@@ -29,13 +29,13 @@ def test_native_writes_to_descriptor_1_go_to_stderr_and_print_to_stdout():
 
 def test_fast_dds_errors_do_not_corrupt_json(ros_domain, tmp_path):
     """A profile file Fast DDS cannot parse makes it print two XMLPARSER errors on std::cout in
-    every process; `evaluate --launch --json` still prints one JSON document on stdout."""
+    every process; `evaluate --json` over ROS (its own nodes) still prints one JSON document on stdout."""
     bad = tmp_path / "bad_profile.xml"
     bad.write_text("<bad")
     env = ros_env(ros_domain)
     env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(bad)
-    p = subprocess.run([PYTHON, "-m", "bev_mdo", "evaluate", str(REPO / "config" / "leaf_nedc.yaml"), "--launch",
-                        "--json", "--domain-id", str(ros_domain)], cwd=tmp_path, env=env, capture_output=True,
+    p = subprocess.run([PYTHON, "-m", "bev_mdo", "evaluate", str(REPO / "config" / "leaf_nedc.yaml"),
+                        "--transport", "ros", "--json", "--domain-id", str(ros_domain)], cwd=tmp_path, env=env, capture_output=True,
                        text=True, timeout=300)
     assert p.returncode == 0, p.stderr[-3000:]
     assert "XMLPARSER" in p.stderr  # the native error was printed, on stderr

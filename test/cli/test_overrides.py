@@ -48,13 +48,13 @@ def test_an_unknown_name_exits_2_with_the_nearest_one(capsys, flag, value, neare
 
 @pytest.mark.parametrize("value", ["range_km>250", "range_km>=far", "range_km"])
 def test_a_malformed_constraint_exits_2(capsys, value):
-    assert main(["evaluate", CONFIG, "--constraint", value]) == 2
+    assert main(["evaluate", CONFIG, "--transport", "inprocess", "--constraint", value]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--constraint" in err[0], err
 
 
 def test_objective_maximize_bound_and_initial_reach_the_evaluation(capsys):
-    assert main(["evaluate", CONFIG, "--json", "--objective", "range_km", "--maximize", "--bound", "motor_kw=50:90",
+    assert main(["evaluate", CONFIG, "--transport", "inprocess", "--json", "--objective", "range_km", "--maximize", "--bound", "motor_kw=50:90",
                  "--initial", "motor_kw=60", "--constraint", "accel_time_0_100_s<=12"]) == 0
     rep = json.loads(capsys.readouterr().out)
     assert rep["objective"]["name"] == "range_km" and rep["objective"]["maximize"] is True

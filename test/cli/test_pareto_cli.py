@@ -39,7 +39,7 @@ def _run(capsys, *argv):
 
 
 def _commands(cfg, tmp_path):
-    return (("pareto", cfg, "--out", tmp_path / "o", "--generations", "1", "--pop", "4"),
+    return (("pareto", cfg, "--out", tmp_path / "o", "--generations", "1", "--pop", "4", "--transport", "inprocess"),
             ("optimize", cfg, "--transport", "inprocess"))
 
 
@@ -60,7 +60,8 @@ def test_unknown_vehicle_topology_exit_2(tmp_path, capsys):
 
 
 def test_unknown_topology_flag_exit_2(tmp_path, capsys):
-    code, err = _run(capsys, "pareto", _write(tmp_path, _raw()), "--topology", "WHEEL-9", "--out", tmp_path / "o")
+    code, err = _run(capsys, "pareto", _write(tmp_path, _raw()), "--topology", "WHEEL-9", "--out", tmp_path / "o",
+                     "--transport", "inprocess")
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert "topology must be one of SM-SA, DM-DA, IWM-SA, IWM-DA, got 'WHEEL-9'" in err
     assert not (tmp_path / "o").exists()
@@ -131,7 +132,7 @@ def test_pareto_runs_the_vehicle_topology(tmp_path, capsys):
     """Without --topology: the config as written (its vehicle.topology), its three objectives, no study."""
     out = tmp_path / "o"
     code, err = _run(capsys, "pareto", _write(tmp_path, _raw("IWM-SA", DVS["IWM-SA"])), "--generations", "1",
-                     "--pop", "4", "--no-plots", "--out", out)
+                     "--pop", "4", "--no-plots", "--out", out, "--transport", "inprocess")
     assert code == 0, err
     doc = json.loads((out / "front.json").read_text())
     assert [o["name"] for o in doc["objectives"]] == ["energy_wh_per_km", "accel_time_0_100_s", "powertrain_cost_usd"]
@@ -147,7 +148,7 @@ def test_the_topology_study_labels_each_topology_and_keeps_the_users_bounds(tmp_
     raw["problem"]["design_variables"]["motor_kw"] = {"lower": 50, "upper": 110, "initial": 80}
     out = tmp_path / "o"
     code, err = _run(capsys, "pareto", _write(tmp_path, raw), "--topology", "DM-DA", "--generations", "1",
-                     "--pop", "4", "--no-plots", "--out", out)
+                     "--pop", "4", "--no-plots", "--out", out, "--transport", "inprocess")
     assert code == 0, err
     assert "DM-DA: NSGA-II 4 x 1" in err and "SM-SA" not in err
     timing = json.loads((out / "summary.json").read_text())["timing"]
@@ -163,7 +164,7 @@ def test_the_topology_study_labels_each_topology_and_keeps_the_users_bounds(tmp_
 
 def test_instances_need_the_ros_transport_exit_2(tmp_path, capsys):
     code, err = _run(capsys, "pareto", _write(tmp_path, _raw("IWM-SA", DVS["IWM-SA"])), "--instances", "energy=2",
-                     "--generations", "1", "--pop", "4", "--no-plots", "--out", tmp_path / "o")
+                     "--generations", "1", "--pop", "4", "--no-plots", "--out", tmp_path / "o", "--transport", "inprocess")
     assert code == 2 and "--instances needs --transport ros" in err and "Traceback" not in err, err
 
 

@@ -24,7 +24,7 @@ def _cfg(tmp_path):
 def test_two_objectives_write_one_plot_and_say_so(tmp_path, capsys):
     out = tmp_path / "o"
     rc = main(["pareto", str(_cfg(tmp_path)), "--out", str(out), "--generations", "1", "--pop", "8",
-               "--objectives", "energy_wh_per_km,powertrain_cost_usd", "--topology", "SM-SA"])
+               "--objectives", "energy_wh_per_km,powertrain_cost_usd", "--topology", "SM-SA", "--transport", "inprocess"])
     assert rc == 0
     said = capsys.readouterr().out
     pngs = sorted(p.name for p in out.glob("*.png"))
@@ -51,7 +51,7 @@ def test_three_objectives_every_pair_and_all_benchmarks(tmp_path, capsys):
     par.plot_pair = spy
     try:
         rc = main(["pareto", str(_cfg(tmp_path)), "--out", str(out), "--generations", "1", "--pop", "8",
-                   "--topology", "IWM-SA"])
+                   "--topology", "IWM-SA", "--transport", "inprocess"])
     finally:
         par.plot_pair = orig
     assert rc == 0

@@ -12,7 +12,7 @@ from bev_mdo.testing import REPO, ros_env
 def _bag(tmp_path):
     out = tmp_path / "sweep"
     assert main(["sweep", str(REPO / "config" / "leaf_nedc.yaml"), "--doe", "lhs", "--samples", "3",
-                 "--out", str(out), "--no-plots"]) == 0
+                 "--out", str(out), "--no-plots", "--transport", "inprocess"]) == 0
     return out / "bag"
 
 

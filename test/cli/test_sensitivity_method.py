@@ -12,7 +12,7 @@ SELLAR = Path(__file__).resolve().parents[2] / "examples" / "sellar" / "sellar_m
 
 
 def test_complex_method_is_refused_with_the_reason(capsys):
-    code = main(["sensitivity", str(SELLAR), "--order", "1", "--method", "complex"])
+    code = main(["sensitivity", str(SELLAR), "--transport", "inprocess", "--order", "1", "--method", "complex"])
     out = capsys.readouterr()
     assert code == 2 and out.out == ""
     assert "float64" in out.err and "--method central" in out.err
@@ -20,7 +20,7 @@ def test_complex_method_is_refused_with_the_reason(capsys):
 
 
 def test_auto_still_gives_central_sensitivities(capsys):
-    code = main(["sensitivity", str(SELLAR), "--order", "1", "--method", "auto", "--json"])
+    code = main(["sensitivity", str(SELLAR), "--transport", "inprocess", "--order", "1", "--method", "auto", "--json"])
     assert code == 0 and '"method": "central"' in capsys.readouterr().out
 
 

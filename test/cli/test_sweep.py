@@ -26,7 +26,8 @@ def test_parse_vary_and_full_factorial():
 
 
 def test_sweep_writes_csv_and_plots_and_matches_single_evaluations(tmp_path, capsys):
-    rc = main(["sweep", CONFIG, "--vary", "motor_kw=40:120:5", "gear_ratio=6:10:3", "--out", str(tmp_path)])
+    rc = main(["sweep", CONFIG, "--vary", "motor_kw=40:120:5", "gear_ratio=6:10:3", "--out", str(tmp_path),
+               "--transport", "inprocess"])
     assert rc == 0
     rows = list(csv.DictReader(open(tmp_path / "sweep.csv")))
     assert len(rows) == 15
@@ -39,7 +40,7 @@ def test_sweep_writes_csv_and_plots_and_matches_single_evaluations(tmp_path, cap
 
     cfg = load_config(CONFIG)
     r = rows[7]
-    one = evaluate.design(cfg, {k: float(r[k]) for k in ("motor_kw", "gear_ratio", "battery_kwh")})
+    one = evaluate.design(cfg, {k: float(r[k]) for k in ("motor_kw", "gear_ratio", "battery_kwh")}, "inprocess")
     assert float(r["energy_wh_per_km"]) == pytest.approx(one["outputs"]["energy_wh_per_km"], rel=1e-9)
     assert (tmp_path / "energy_wh_per_km.png").exists() and (tmp_path / "range_km.png").exists()
     assert "15 designs in one batch" in capsys.readouterr().out
@@ -47,7 +48,7 @@ def test_sweep_writes_csv_and_plots_and_matches_single_evaluations(tmp_path, cap
 
 def test_sweep_plot_marks_infeasible_and_draws_the_limit(tmp_path):
     cfg = load_config(CONFIG)
-    res = evaluate_batch(cfg, grid(parse_vary(["motor_kw=40:120:5", "gear_ratio=6,8"])))
+    res = evaluate_batch(cfg, grid(parse_vary(["motor_kw=40:120:5", "gear_ratio=6,8"])), "inprocess")
     fig, ax = plot_output(res, "accel_time_0_100_s", ["motor_kw", "gear_ratio"], tmp_path / "a.png")
     assert ax.get_xlabel() == "motor power (kW)" and ax.get_ylabel() == "0–100 km/h time (s)"
     limit = [l for l in ax.get_lines() if l.get_label().startswith("constraint ≤ 10")]
@@ -60,7 +61,7 @@ def test_sweep_plot_shows_the_configs_baseline(tmp_path):
     cfg = load_config(CONFIG)
     base = _baseline(cfg)
     assert base["name"] == cfg["problem"]["baseline"]["name"]
-    res = evaluate_batch(cfg, grid(parse_vary(["motor_kw=40:120:5", "gear_ratio=6,8"])))
+    res = evaluate_batch(cfg, grid(parse_vary(["motor_kw=40:120:5", "gear_ratio=6,8"])), "inprocess")
     fig, ax = plot_output(res, "energy_wh_per_km", ["motor_kw", "gear_ratio"], tmp_path / "e.png", base)
     star = [l for l in ax.get_lines() if l.get_label() == f"baseline ({base['name']})"]
     assert star and star[0].get_xdata()[0] == 80.0
@@ -70,27 +71,28 @@ def test_sweep_plot_shows_the_configs_baseline(tmp_path):
 
 
 def test_sweep_outside_bounds_and_unknown_names_are_user_errors(tmp_path, capsys):
-    assert main(["sweep", CONFIG, "--vary", "motor_kw=10:20:2", "--out", str(tmp_path)]) == 2
+    assert main(["sweep", CONFIG, "--vary", "motor_kw=10:20:2", "--out", str(tmp_path), "--transport", "inprocess"]) == 2
     assert "outside its bounds" in capsys.readouterr().err
-    assert main(["sweep", CONFIG, "--vary", "wheels=1:2:2", "--out", str(tmp_path)]) == 2
+    assert main(["sweep", CONFIG, "--vary", "wheels=1:2:2", "--out", str(tmp_path), "--transport", "inprocess"]) == 2
 
 
 def test_sweep_from_a_list(tmp_path):
     lst = tmp_path / "designs.csv"
     lst.write_text("motor_kw,gear_ratio,battery_kwh\n80,7.94,24\n74.4782,9.48,20\n")
-    assert main(["sweep", CONFIG, "--list", str(lst), "--out", str(tmp_path / "o"), "--no-plots"]) == 0
+    assert main(["sweep", CONFIG, "--list", str(lst), "--out", str(tmp_path / "o"), "--no-plots",
+                 "--transport", "inprocess"]) == 0
     rows = list(csv.DictReader(open(tmp_path / "o/sweep.csv")))
     assert [float(r["battery_kwh"]) for r in rows] == [24, 20]
 
 
 def test_compare_shows_differences_from_the_first_design(capsys):
     rc = main(["compare", CONFIG, "--design", "motor_kw=80,gear_ratio=7.94,battery_kwh=24",
-               "--design", "motor_kw=80,gear_ratio=7.94,battery_kwh=30", "--json"])
+               "--design", "motor_kw=80,gear_ratio=7.94,battery_kwh=30", "--json", "--transport", "inprocess"])
     assert rc == 0
     d = json.loads(capsys.readouterr().out)["designs"]
     assert d[1]["battery_kwh"] - d[0]["battery_kwh"] == 6
     assert d[1]["range_km"] > d[0]["range_km"] and d[1]["vehicle_mass_kg"] > d[0]["vehicle_mass_kg"]
-    rc = main(["compare", CONFIG, "--design", "motor_kw=80", "--design", "motor_kw=90"])
+    rc = main(["compare", CONFIG, "--design", "motor_kw=80", "--design", "motor_kw=90", "--transport", "inprocess"])
     out = capsys.readouterr().out
     assert rc == 0 and "Δ 2−1" in out and "+10 (+12.5 %)" in out
 
@@ -100,7 +102,8 @@ def test_compare_percent_has_the_sign_of_the_difference_for_a_negative_quantity(
     '+7.99663 (-1.1 %)'; the percentage is now of |design 1|, so it has the difference's sign."""
     aero = Path(__file__).resolve().parents[2] / "examples" / "aerostructure" / "aerostructure_mdf.yaml"
     rc = main(["compare", str(aero), "--design", "thick_airfoils=15,thick_panels=3,sweep=25",
-               "--design", "thick_airfoils=5,thick_panels=3.2255892255892404,sweep=24.99326599326595"])
+               "--design", "thick_airfoils=5,thick_panels=3.2255892255892404,sweep=24.99326599326595",
+               "--transport", "inprocess"])
     out = capsys.readouterr().out
     row = next(line for line in out.splitlines() if "displ" in line)
     assert rc == 0 and "+7.99663 (+1.1 %)" in row

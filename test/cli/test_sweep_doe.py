@@ -12,6 +12,7 @@ from bev_mdo.cli import main
 from bev_mdo.testing import REPO
 
 CONFIG = REPO / "config" / "leaf_nedc.yaml"
+SWEEP = ("sweep", str(CONFIG), "--transport", "inprocess")  # in process
 BOUNDS = {"motor_kw": (40, 120), "gear_ratio": (1, 11), "battery_kwh": (20, 30)}
 
 
@@ -26,7 +27,7 @@ def _column(rows, name):
 
 def test_lhs_fills_every_stratum_of_every_variable_once_and_records_a_bag(tmp_path, capsys):
     out = tmp_path / "lhs"
-    assert main(["sweep", str(CONFIG), "--doe", "lhs", "--samples", "40", "--seed", "3", "--out", str(out),
+    assert main([*SWEEP, "--doe", "lhs", "--samples", "40", "--seed", "3", "--out", str(out),
                  "--no-plots"]) == 0
     rows = _rows(out / "sweep.csv")
     assert len(rows) == 40
@@ -46,7 +47,7 @@ def test_lhs_fills_every_stratum_of_every_variable_once_and_records_a_bag(tmp_pa
 
 def test_sobol_with_bound_override_stays_inside_and_the_bag_records_the_effective_bounds(tmp_path):
     out = tmp_path / "sobol"
-    assert main(["sweep", str(CONFIG), "--doe", "sobol", "--samples", "32", "--bound", "motor_kw=60:70",
+    assert main([*SWEEP, "--doe", "sobol", "--samples", "32", "--bound", "motor_kw=60:70",
                  "--set", "battery_kwh=22", "--out", str(out), "--no-plots"]) == 0
     rows = _rows(out / "sweep.csv")
     motor, gear, battery = (_column(rows, k) for k in ("motor_kw", "gear_ratio", "battery_kwh"))
@@ -63,7 +64,7 @@ def test_sobol_with_bound_override_stays_inside_and_the_bag_records_the_effectiv
 
 def test_report_finds_the_bag_inside_the_output_folder(tmp_path, capsys):
     out = tmp_path / "run"
-    assert main(["sweep", str(CONFIG), "--doe", "halton", "--samples", "8", "--out", str(out), "--no-plots"]) == 0
+    assert main([*SWEEP, "--doe", "halton", "--samples", "8", "--out", str(out), "--no-plots"]) == 0
     capsys.readouterr()
     assert main(["report", str(out)]) == 0
     assert (out / "bag" / "report.md").is_file()
@@ -72,13 +73,13 @@ def test_report_finds_the_bag_inside_the_output_folder(tmp_path, capsys):
 
 def test_full_factorial_and_halton_with_plots(tmp_path):
     out = tmp_path / "full"
-    assert main(["sweep", str(CONFIG), "--doe", "full", "--samples", "3", "--out", str(out), "--no-record"]) == 0
+    assert main([*SWEEP, "--doe", "full", "--samples", "3", "--out", str(out), "--no-record"]) == 0
     rows = _rows(out / "sweep.csv")
     assert len(rows) == 27
     assert sorted(set(_column(rows, "gear_ratio"))) == [1.0, 6.0, 11.0]
     assert (out / "energy_wh_per_km.png").stat().st_size > 1000 and not (out / "bag").exists()
     out = tmp_path / "halton"
-    assert main(["sweep", str(CONFIG), "--doe", "halton", "--samples", "20", "--out", str(out)]) == 0
+    assert main([*SWEEP, "--doe", "halton", "--samples", "20", "--out", str(out)]) == 0
     assert len(_rows(out / "sweep.csv")) == 20 and (out / "range_km.png").stat().st_size > 1000
 
 
@@ -88,6 +89,6 @@ def test_full_factorial_and_halton_with_plots(tmp_path):
     (["--doe", "lhs", "--bound", "motor_kv=40:100"], "did you mean 'motor_kw'"),
 ])
 def test_bad_doe_input_is_one_line_exit_2(tmp_path, capsys, argv, message):
-    assert main(["sweep", str(CONFIG), *argv, "--out", str(tmp_path / "x")]) == 2
+    assert main([*SWEEP, *argv, "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err

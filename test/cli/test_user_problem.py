@@ -63,10 +63,10 @@ def test_the_sellar_example_runs_from_any_working_directory(clone, tmp_path):
     doc = json.loads(p.stdout)
     assert doc["objective"] == pytest.approx(3.18339395, rel=1e-7) and doc["baseline"] is None
     assert doc["iterations"] == doc["result_iteration"]
-    e = _bev("evaluate", cfg, "--set", "z1=1.977639,z2=0,x=0", "--json", cwd=tmp_path)
+    e = _bev("evaluate", cfg, "--set", "z1=1.977639,z2=0,x=0", "--json", "--transport", "inprocess", cwd=tmp_path)
     assert e.returncode == 0, e.stderr
     assert json.loads(e.stdout)["objective"]["value"] == pytest.approx(3.18339395, rel=1e-6)
-    s = _bev("sensitivity", cfg, "--order", "1", "--json", cwd=tmp_path)
+    s = _bev("sensitivity", cfg, "--order", "1", "--json", "--transport", "inprocess", cwd=tmp_path)
     assert s.returncode == 0, s.stderr
     assert set(json.loads(s.stdout)["first_order"]) == {"obj", "y1", "y2"}
 

@@ -108,8 +108,9 @@ def test_unknown_objective():
 # ---- CLI -------------------------------------------------------------------------------------
 
 def _cli(argv):
+    """``bev-mdo ARGV``, in process."""
     from bev_mdo.cli import main
-    return main(argv)
+    return main([*argv, "--transport", "inprocess"])
 
 
 def _write_cfg(tmp_path, topology="SM-SA", drop=(), extra_dv=None, dt_s=1.0):

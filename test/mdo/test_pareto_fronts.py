@@ -18,7 +18,7 @@ from pareto_fronts import EXAMPLES, POP, RUNS, check_front
 
 
 def _pareto(capsys, config, out, *extra):
-    code = main(["pareto", str(config), "--out", str(out), *map(str, extra)])
+    code = main(["pareto", str(config), "--out", str(out), "--transport", "inprocess", *map(str, extra)])
     cap = capsys.readouterr()
     assert code == 0, cap.err
     return cap
@@ -79,7 +79,8 @@ def test_sellar_with_objectives_on_the_command_line(tmp_path, capsys):
     ([], "pareto needs two or more objectives: list them in problem.objectives"),
 ])
 def test_bad_objectives_exit_2_before_anything_is_written(tmp_path, capsys, argv, msg):
-    code = main(["pareto", str(REPO / "examples" / "sellar" / "sellar_mdf.yaml"), "--out", str(tmp_path / "o"), *argv])
+    code = main(["pareto", str(REPO / "examples" / "sellar" / "sellar_mdf.yaml"), "--out", str(tmp_path / "o"),
+                 "--transport", "inprocess", *argv])
     err = capsys.readouterr().err
     assert code == 2 and len(err.strip().splitlines()) == 1 and msg in err, err
     assert not (tmp_path / "o").exists()
@@ -87,7 +88,7 @@ def test_bad_objectives_exit_2_before_anything_is_written(tmp_path, capsys, argv
 
 def test_the_topology_study_refuses_a_problem_without_bev_disciplines(tmp_path, capsys):
     code = main(["pareto", str(REPO / "examples" / "sellar" / "sellar_mdf.yaml"), "--topology", "DM-DA",
-                 "--out", str(tmp_path / "o")])
+                 "--out", str(tmp_path / "o"), "--transport", "inprocess"])
     err = capsys.readouterr().err
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert "sellar_mdf.yaml: --topology and --all-topologies study the BEV problem's powertrain topologies" in err

@@ -139,7 +139,7 @@ CONFIG = Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml"
 
 def _cli(argv):
     from bev_mdo.cli import main
-    return main(["sensitivity", str(CONFIG), *argv])
+    return main(["sensitivity", str(CONFIG), "--transport", "inprocess", *argv])
 
 
 def test_cli_json_png_and_range_identity(tmp_path, capsys):

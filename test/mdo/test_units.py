@@ -60,7 +60,7 @@ def _config(tmp_path, module: str, dist: str, scale: str):
 
 
 def _evaluate(capsys, path):
-    assert main(["evaluate", str(path), "--json"]) == 0
+    assert main(["evaluate", str(path), "--json", "--transport", "inprocess"]) == 0
     return json.loads(capsys.readouterr().out)
 
 
@@ -90,7 +90,7 @@ def test_the_partials_of_a_converted_input_are_per_unit_of_the_producer(tmp_path
 
 def test_seconds_into_kilometres_are_refused_at_load_in_one_line(tmp_path, capsys):
     path = _config(tmp_path, "trip_s", "s", "1.0")
-    assert main(["evaluate", str(path)]) == 2
+    assert main(["evaluate", str(path), "--transport", "inprocess"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1, err
     assert "trip.dist [s] -> fuel.dist [km]" in err and "different dimensions" in err
@@ -100,7 +100,7 @@ def test_a_variable_without_a_unit_is_refused_at_load(tmp_path, capsys):
     path = _config(tmp_path, "trip_none", "km", "1.0")
     mod = tmp_path / "trip_none" / "trip_none.py"
     mod.write_text(mod.read_text().replace('"mass_kg": "lb"', ""))
-    assert main(["evaluate", str(path)]) == 2
+    assert main(["evaluate", str(path), "--transport", "inprocess"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "disciplines[1] (fuel): no unit declared for ['mass_kg']" in err
 
@@ -108,7 +108,8 @@ def test_a_variable_without_a_unit_is_refused_at_load(tmp_path, capsys):
 def test_table_units_come_from_the_declarations_not_the_names(tmp_path, capsys):
     """mass_kg is declared in lb, dist in m: the compare table prints those, whatever the names say."""
     path = _config(tmp_path, "trip_t", "m", "1000.0")
-    assert main(["compare", str(path), "--design", "speed_kmh=50", "--design", "speed_kmh=60"]) == 0
+    assert main(["compare", str(path), "--design", "speed_kmh=50", "--design", "speed_kmh=60",
+                 "--transport", "inprocess"]) == 0
     rows = {line.split("│")[1].strip(): line.split("│")[2].strip()
             for line in capsys.readouterr().out.splitlines() if line.count("│") > 3}
     assert rows["mass_kg"] == "lb" and rows["dist"] == "m" and rows["fuel_l"] == "l"

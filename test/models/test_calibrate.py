@@ -38,7 +38,8 @@ def test_a_set_written_for_your_fleet_names_itself_and_your_file_and_runs_in_eva
     cfg = tmp_path / "cfg.yaml"
     cfg.write_text((ROOT / "config" / "leaf_epa_combined.yaml").read_text()
                    .replace("parameter_set: epa2022_chain", f"parameter_set: {out}"))
-    code = bev_mdo(["evaluate", str(cfg), "--set", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--json"])
+    code = bev_mdo(["evaluate", str(cfg), "--set", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--json",
+                    "--transport", "inprocess"])
     res = json.loads(capsys.readouterr().out)
     assert code == 0 and res["ok"] and np.isfinite(res["outputs"]["energy_wh_per_km"])
 

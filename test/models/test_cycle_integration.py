@@ -113,7 +113,7 @@ def test_cli_bad_cycle_exits_2_with_one_line(tmp_path, capsys):
     cfg = (root / "config" / "leaf_nedc.yaml").read_text().replace("name: nedc", f"name: {bad}")
     cp = tmp_path / "cfg.yaml"
     cp.write_text(cfg)
-    code = main(["evaluate", str(cp)])
+    code = main(["evaluate", str(cp), "--transport", "inprocess"])
     err = capsys.readouterr().err
     assert code == 2
     assert err.count("\n") == 1 and "gap.csv: row 4: time gap" in err and "Traceback" not in err

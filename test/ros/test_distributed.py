@@ -166,9 +166,9 @@ def test_evaluate_and_sensitivity_over_ros_print_what_in_process_prints(nodes, c
     path = _write(tmp_path / "domain.yaml", raw)
     for argv in (["evaluate", path, "--set", "motor_kw=70,gear_ratio=9,battery_kwh=22", "--json"],
                  ["sensitivity", path, "--at", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--order", "2", "--json"]):
-        assert main(argv + ["--ros"]) == 0
+        assert main(argv + ["--attach"]) == 0  # the nodes of the fixture
         over_ros = _json.loads(capsys.readouterr().out)
-        assert main(argv) == 0
+        assert main(argv + ["--transport", "inprocess"]) == 0
         local = _json.loads(capsys.readouterr().out)
         assert over_ros == local
 

@@ -1,5 +1,5 @@
-"""`bev-mdo sweep --transport ros` and `compare --transport ros`: the grid as ONE batch through the
-running discipline nodes gives what the in-process sweep gives."""
+"""`bev-mdo sweep --attach` and `compare --attach`: the grid as ONE batch through the running
+discipline nodes gives what the in-process sweep gives."""
 from __future__ import annotations
 
 import csv
@@ -18,8 +18,9 @@ def _rows(path):
 
 def test_sweep_over_ros_equals_in_process(leaf_nodes, leaf_config, tmp_path):
     vary = ["--vary", "motor_kw=40:120:5", "gear_ratio=6:10:3"]
-    assert main(["sweep", str(leaf_config), *vary, "--out", str(tmp_path / "ros"), "--transport", "ros", "--no-plots"]) == 0
-    assert main(["sweep", str(leaf_config), *vary, "--out", str(tmp_path / "local"), "--no-plots"]) == 0
+    assert main(["sweep", str(leaf_config), *vary, "--out", str(tmp_path / "ros"), "--attach", "--no-plots"]) == 0
+    assert main(["sweep", str(leaf_config), *vary, "--out", str(tmp_path / "local"), "--no-plots",
+                 "--transport", "inprocess"]) == 0
     ros, local = _rows(tmp_path / "ros/sweep.csv"), _rows(tmp_path / "local/sweep.csv")
     assert len(ros) == len(local) == 15
     for a, b in zip(ros, local):
@@ -27,7 +28,7 @@ def test_sweep_over_ros_equals_in_process(leaf_nodes, leaf_config, tmp_path):
 
 
 def test_compare_over_ros(leaf_nodes, leaf_config, capsys):
-    rc = main(["compare", str(leaf_config), "--transport", "ros", "--json",
+    rc = main(["compare", str(leaf_config), "--attach", "--json",
                "--design", "motor_kw=80,gear_ratio=7.94,battery_kwh=24", "--design", "motor_kw=90"])
     assert rc == 0
     import json
@@ -39,9 +40,9 @@ def test_compare_over_ros(leaf_nodes, leaf_config, capsys):
 def test_doe_over_ros_equals_in_process_records_its_bag_and_says_its_domain(leaf_nodes, leaf_config, ros_domain, tmp_path,
                                                                            capsys):
     doe = ["--doe", "sobol", "--samples", "16", "--seed", "4", "--no-plots"]
-    assert main(["sweep", str(leaf_config), *doe, "--out", str(tmp_path / "ros"), "--transport", "ros"]) == 0
+    assert main(["sweep", str(leaf_config), *doe, "--out", str(tmp_path / "ros"), "--attach"]) == 0
     assert f"on ROS domain {ros_domain} " in capsys.readouterr().err
-    assert main(["sweep", str(leaf_config), *doe, "--out", str(tmp_path / "local")]) == 0
+    assert main(["sweep", str(leaf_config), *doe, "--out", str(tmp_path / "local"), "--transport", "inprocess"]) == 0
     ros, local = _rows(tmp_path / "ros/sweep.csv"), _rows(tmp_path / "local/sweep.csv")
     assert len(ros) == 16 and ros == local
     from bev_mdo.bag.reader import open_bag
@@ -54,8 +55,8 @@ def test_check_totals_over_ros_equals_in_process(leaf_nodes, leaf_config, capsys
     import json
 
     reports = []
-    for transport in ("ros", "inprocess"):
-        code = main(["check-totals", str(leaf_config), "--transport", transport, "--json"])
+    for transport in (["--attach"], ["--transport", "inprocess"]):
+        code = main(["check-totals", str(leaf_config), *transport, "--json"])
         reports.append(json.loads(capsys.readouterr().out))
         assert code == 0, reports[-1]
     ros, local = reports

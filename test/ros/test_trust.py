@@ -188,19 +188,19 @@ def test_forged_results_declarations_and_records_are_dropped_and_counted(ros_dom
     ["sensitivity", "--at", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--order", "1", "--json"],
 ], ids=["evaluate", "sensitivity"])
 def test_commands_that_launch_nodes_sign_by_default(ros_domain, config_path, tmp_path, command):
-    """`evaluate --launch` and `sensitivity --launch` start their own nodes, signed with a fresh
+    """`evaluate` and `sensitivity` over ROS (the default) start their own nodes, signed with a fresh
     per-run key (no key configured): the attacker's unsigned results and declarations are dropped
     and counted, the answer is the in-process one, and no key or log is left behind."""
     argv = [command[0], config_path, *command[1:]]
-    local = subprocess.run([PYTHON, "-m", "bev_mdo", *argv], cwd=tmp_path, env=ros_env(ros_domain),
-                           capture_output=True, text=True, timeout=120)
+    local = subprocess.run([PYTHON, "-m", "bev_mdo", *argv, "--transport", "inprocess"], cwd=tmp_path,
+                           env=ros_env(ros_domain), capture_output=True, text=True, timeout=120)
     assert local.returncode == 0, local.stderr[-2000:]
     # The command sends only a few requests, and nothing makes it wait for the attacker's reader to be
     # matched (a late attacker rightly misses them). Every attempt must give the right answer; the
     # attack claims need an attempt in which the attacker saw a request (at most 3 attempts).
     attacked = 0
     for _ in range(3):
-        p, attacker = _run_beside_attacker(load_config(config_path), [*argv, "--launch"], ros_domain, tmp_path)
+        p, attacker = _run_beside_attacker(load_config(config_path), argv, ros_domain, tmp_path)
         assert p.returncode == 0, p.stderr[-3000:]
         assert json.loads(p.stdout) == json.loads(local.stdout)
         note = [line for line in p.stderr.splitlines() if "dropped and counted" in line]
@@ -217,7 +217,7 @@ def test_commands_that_launch_nodes_sign_by_default(ros_domain, config_path, tmp
 
 
 def test_evaluate_on_running_unsigned_nodes_says_so(ros_domain, config_path, tmp_path):
-    """`evaluate --ros` talks to nodes someone else started; without a key file it cannot sign and
+    """`evaluate --attach` talks to nodes someone else started; without a key file it cannot sign and
     says so in one line (the answer itself is the in-process one)."""
     from bev_mdo.ros.launch import Launcher, discipline_argv
 
@@ -225,10 +225,10 @@ def test_evaluate_on_running_unsigned_nodes_says_so(ros_domain, config_path, tmp
     with Launcher(ros_env(ros_domain), log_dir=tmp_path / "logs") as la:
         for n in NAMES:
             la.add(n, discipline_argv(n, config_path))
-        p = subprocess.run([PYTHON, "-m", "bev_mdo", *argv, "--ros", "--domain-id", str(ros_domain)], cwd=tmp_path,
+        p = subprocess.run([PYTHON, "-m", "bev_mdo", *argv, "--attach", "--domain-id", str(ros_domain)], cwd=tmp_path,
                            env=ros_env(ros_domain), capture_output=True, text=True, timeout=120)
-    local = subprocess.run([PYTHON, "-m", "bev_mdo", *argv], cwd=tmp_path, capture_output=True, text=True,
-                           timeout=120)
+    local = subprocess.run([PYTHON, "-m", "bev_mdo", *argv, "--transport", "inprocess"], cwd=tmp_path,
+                           capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr[-3000:]
     assert json.loads(p.stdout) == json.loads(local.stdout)
     assert p.stderr.count("not signed") == 1 and f"ROS domain {ros_domain}" in p.stderr, p.stderr

@@ -62,7 +62,7 @@ def nodes(ros_domain, configs, tmp_path_factory):
 
 
 def _over_ros(cfg, formulation):
-    """run_optimization through the nodes (the ROS evaluator of `bev-mdo evaluate --ros`; no warm-up,
+    """run_optimization through the nodes (the ROS evaluator of `bev-mdo evaluate --attach`; no warm-up,
     whose data-flow MDAs a graph with a loop does not answer)."""
     ev = make_ros_evaluator(cfg, node_name="vector_test_client")
     try:

@@ -1,0 +1,81 @@
+"""One set of transport flags, with one default, for every command that evaluates designs, and the
+same default in the Python API (``Study``): over ROS, through the command's own discipline nodes."""
+from __future__ import annotations
+
+import inspect
+
+import pytest
+
+from bev_mdo.cli import build_parser, main
+from bev_mdo.testing import REPO
+
+EVALUATING = {"optimize", "resume", "evaluate", "sweep", "compare", "sensitivity", "check-totals", "pareto"}
+TRANSPORT_DESTS = ("transport", "attach", "domain_id", "discovery", "static_peers", "discovery_server")
+CONFIG = str(REPO / "config" / "leaf_nedc.yaml")
+
+
+def _required(command: str) -> list[str]:
+    """What a command needs besides its options, to parse."""
+    return {"resume": ["bag"], "compare": ["c.yaml", "--design", "a=1"]}.get(command, ["c.yaml"])
+
+
+def _subparsers() -> dict:
+    return next(a for a in build_parser()._actions if a.dest == "command").choices
+
+
+def _transport_options(parser) -> dict:
+    """{dest: (option strings, choices, default, nargs, const)} of the parser's transport options."""
+    return {a.dest: (tuple(a.option_strings), tuple(a.choices or ()), a.default, a.nargs, a.const)
+            for a in parser._actions if a.dest in TRANSPORT_DESTS}
+
+
+def test_exactly_the_design_evaluating_commands_take_the_transport_flags():
+    with_transport = {name for name, p in _subparsers().items() if "transport" in _transport_options(p)}
+    assert with_transport == EVALUATING
+
+
+def test_every_design_evaluating_command_has_the_same_transport_options_and_default():
+    subs = _subparsers()
+    reference = _transport_options(subs["optimize"])
+    assert set(reference) == set(TRANSPORT_DESTS)
+    assert reference["transport"][:3] == (("--transport",), ("ros", "inprocess"), "ros")
+    assert reference["attach"][0] == ("--attach",) and reference["attach"][2] is False
+    for name in sorted(EVALUATING):
+        assert _transport_options(subs[name]) == reference, name
+        args = build_parser([name]).parse_args([name, *_required(name)])
+        assert (args.transport, args.attach) == ("ros", False), name
+
+
+@pytest.mark.parametrize("command", sorted(EVALUATING))
+@pytest.mark.parametrize("old", ["--ros", "--launch"])
+def test_the_old_spellings_are_gone(command, old, capsys):
+    with pytest.raises(SystemExit) as exc:
+        build_parser([command]).parse_args([command, *_required(command), old])
+    assert exc.value.code == 2
+    assert f"unrecognized arguments: {old}" in capsys.readouterr().err
+
+
+def test_the_api_has_the_same_default():
+    from bev_mdo import Study, Transport
+    from bev_mdo.api.optimize import OptimizeOptions
+
+    assert (Transport().transport, Transport().attach) == ("ros", False)
+    assert Transport.of(None) == Transport() and OptimizeOptions().transport == "ros"
+    runs = ("evaluate", "optimize", "sweep", "sensitivity", "global_sensitivity", "pareto")
+    for name in runs:
+        default = inspect.signature(getattr(Study, name)).parameters["transport"].default
+        assert Transport.of(default) == Transport(), name
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["evaluate", CONFIG, "--transport", "inprocess", "--attach"], "cannot be combined with --transport inprocess"),
+    (["optimize", CONFIG, "--attach", "--no-record"], "optimize --attach: optimize runs its own discipline nodes"),
+    (["pareto", CONFIG, "--attach"], "pareto --attach: pareto runs its own discipline nodes"),
+    (["resume", "no_such_bag", "--attach"], "resume --attach: resume runs its own discipline nodes"),
+])
+def test_attach_where_it_cannot_apply_is_one_line_exit_2(argv, message, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # nothing may be written, anywhere
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+    assert list(tmp_path.iterdir()) == []
