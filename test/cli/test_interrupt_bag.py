@@ -214,3 +214,26 @@ def test_a_sweep_interrupted_while_it_records_keeps_a_readable_bag(tmp_path, sig
     recs = _complete_records(tmp_path / "o" / "bag", "/bev_mdo/iteration")
     assert len(recs) < 100000  # stopped part way (maybe before its first record): what was written, kept
     assert [int(r.iteration) for r in recs] == list(range(len(recs)))
+
+
+@pytest.mark.parametrize("transport", ["inprocess", pytest.param("ros", marks=pytest.mark.ros)])
+def test_an_exception_in_the_coordinator_keeps_the_bag(tmp_path, transport, request):
+    """The optimiser (coordinator side, not a discipline) raises after three iterations
+    (coordinator_fault.py): the run ends with one line naming the error, exit status 7, and a bag that opens
+    without repair with the start point and the three finished iterations; over ROS the recorder's bag."""
+    import re
+
+    where = ["--transport", "inprocess"] if transport == "inprocess" else \
+        ["--domain-id", str(request.getfixturevalue("ros_domain"))]
+    here = Path(__file__).resolve().parent
+    env = {**os.environ, "PYTHONPATH": f"{here}{os.pathsep}{REPO}"}
+    p = subprocess.run([sys.executable, str(here / "coordinator_fault.py"), "optimize", str(CONFIG), "--optimizer",
+                        "failing-after-3", "--bag", "b", *where], capture_output=True, text=True, env=env,
+                       cwd=tmp_path, timeout=600)
+    assert p.returncode == 7 and "Traceback" not in p.stderr, p.stderr[-2000:]
+    assert re.fullmatch(r"bev-mdo optimize: error: RuntimeError: the failing-after-3 optimiser fails on purpose "
+                        r"\(raised at coordinator_fault\.py:\d+\)", p.stderr.strip().splitlines()[-1]), p.stderr[-2000:]
+    printed = [l for l in p.stdout.splitlines() if l.startswith("iter ")]
+    assert len(printed) == 4, p.stdout[-2000:]  # the start point and three iterations
+    _check_iterations(tmp_path / "b", printed)
+    assert len(_complete_records(tmp_path / "b", "/bev_mdo/iteration")) == len(printed)  # published before printed
