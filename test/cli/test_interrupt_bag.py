@@ -219,7 +219,7 @@ def test_a_sweep_interrupted_while_it_records_keeps_a_readable_bag(tmp_path, sig
 @pytest.mark.parametrize("transport", ["inprocess", pytest.param("ros", marks=pytest.mark.ros)])
 def test_an_exception_in_the_coordinator_keeps_the_bag(tmp_path, transport, request):
     """The optimiser (coordinator side, not a discipline) raises after three iterations
-    (coordinator_fault.py): the run ends with one line naming the error, exit status 7, and a bag that opens
+    (fault_optimizers.py): the run ends with one line naming the error, exit status 7, and a bag that opens
     without repair with the start point and the three finished iterations; over ROS the recorder's bag."""
     import re
 
@@ -227,12 +227,12 @@ def test_an_exception_in_the_coordinator_keeps_the_bag(tmp_path, transport, requ
         ["--domain-id", str(request.getfixturevalue("ros_domain"))]
     here = Path(__file__).resolve().parent
     env = {**os.environ, "PYTHONPATH": f"{here}{os.pathsep}{REPO}"}
-    p = subprocess.run([sys.executable, str(here / "coordinator_fault.py"), "optimize", str(CONFIG), "--optimizer",
+    p = subprocess.run([sys.executable, str(here / "fault_optimizers.py"), "optimize", str(CONFIG), "--optimizer",
                         "failing-after-3", "--bag", "b", *where], capture_output=True, text=True, env=env,
                        cwd=tmp_path, timeout=600)
     assert p.returncode == 7 and "Traceback" not in p.stderr, p.stderr[-2000:]
     assert re.fullmatch(r"bev-mdo optimize: error: RuntimeError: the failing-after-3 optimiser fails on purpose "
-                        r"\(raised at coordinator_fault\.py:\d+\)", p.stderr.strip().splitlines()[-1]), p.stderr[-2000:]
+                        r"\(raised at fault_optimizers\.py:\d+\)", p.stderr.strip().splitlines()[-1]), p.stderr[-2000:]
     printed = [l for l in p.stdout.splitlines() if l.startswith("iter ")]
     assert len(printed) == 4, p.stdout[-2000:]  # the start point and three iterations
     _check_iterations(tmp_path / "b", printed)
