@@ -237,3 +237,26 @@ def test_an_exception_in_the_coordinator_keeps_the_bag(tmp_path, transport, requ
     assert len(printed) == 4, p.stdout[-2000:]  # the start point and three iterations
     _check_iterations(tmp_path / "b", printed)
     assert len(_complete_records(tmp_path / "b", "/bev_mdo/iteration")) == len(printed)  # published before printed
+
+
+def test_an_in_process_bag_on_a_full_disk_ends_nothing_but_the_bag(tmp_path):
+    """In process the bag writer is the run's own recorder: when its disk fills up after three records
+    (full_disk.py), the run goes on to its result, warns once naming the bag, and exits 3 (the recorder failed,
+    as over ROS); the bag holds the three records, and `bev-mdo bag repair` makes it open in rosbags and mcap."""
+    from bev_mdo.bag.reader import open_bag
+    from bev_mdo.cli import main
+
+    here = Path(__file__).resolve().parent
+    env = {**os.environ, "PYTHONPATH": f"{here}{os.pathsep}{REPO}"}
+    p = subprocess.run([sys.executable, str(here / "full_disk.py"), "3", "optimize", str(CONFIG), "--transport",
+                        "inprocess", "--bag", "b"], capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300)
+    assert p.returncode == 3 and "Traceback" not in p.stderr and "Exception ignored" not in p.stderr, p.stderr[-2000:]
+    assert [l for l in p.stderr.splitlines() if l.startswith("warning:")] == [
+        "warning: writing the bag b failed at iteration 3 (No space left on device); it holds the iterations before, "
+        "and `bev-mdo bag repair b` makes it whole"]
+    printed = [l for l in p.stdout.splitlines() if l.startswith("iter ")]
+    assert len(printed) > 4 and "verdict: optimum" in p.stdout, p.stdout[-2000:]  # the run went on to its end
+    assert open_bag(tmp_path / "b").truncated
+    assert main(["bag", "repair", str(tmp_path / "b")]) == 0
+    _check_iterations(tmp_path / "b", printed[:3])
+    assert len(_complete_records(tmp_path / "b", "/bev_mdo/iteration")) == 3
