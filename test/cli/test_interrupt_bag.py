@@ -260,3 +260,35 @@ def test_an_in_process_bag_on_a_full_disk_ends_nothing_but_the_bag(tmp_path):
     assert main(["bag", "repair", str(tmp_path / "b")]) == 0
     _check_iterations(tmp_path / "b", printed[:3])
     assert len(_complete_records(tmp_path / "b", "/bev_mdo/iteration")) == 3
+
+
+def _on_disk(bag: Path, topic: str) -> int:
+    """Messages on `topic` in the complete chunks of a bag being written (a recorder's holds other topics too)."""
+    from bev_mdo.bag.errors import BagError
+    from bev_mdo.bag.reader import open_bag
+
+    try:
+        return open_bag(bag).counts.get(topic, 0) if bag.is_dir() and any(bag.glob("*.mcap")) else 0
+    except BagError:  # the header is still being written
+        return 0
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_an_interrupted_ros_pareto_run_keeps_the_recorders_bag(tmp_path, sig, ros_domain):
+    """Over ROS the fronts are the recorder's: stopped once two are on disk, the run stops its recorder, which
+    closes the bag with every front it received, in order, readable without repair."""
+    p = _start(tmp_path, "pareto", str(REPO / "config" / "topologies_artemis.yaml"), "--transport", "ros",
+               "--domain-id", str(ros_domain), "--generations", "100000", "--pop", "8", "--out", "out", "--no-plots")
+    bag = tmp_path / "out" / "bag"
+    while _on_disk(bag, "/bev_mdo/pareto_front") < 2:  # the recorder flushes every second: two fronts on disk
+        assert p.poll() is None, p.communicate()[1][-2000:]
+        try:
+            p.wait(timeout=0.05)
+        except subprocess.TimeoutExpired:
+            pass
+    p.send_signal(sig)
+    _, err = _communicate(p)
+    assert p.returncode == EXIT[sig] and "Traceback" not in err, err[-2000:]
+    fronts = _complete_records(bag, "/bev_mdo/pareto_front")
+    assert len(fronts) >= 2
+    assert [int(f.generation) for f in fronts] == list(range(1, len(fronts) + 1))
