@@ -137,9 +137,10 @@ def test_an_interrupted_pareto_run_keeps_its_bag(tmp_path, sig):
     assert [int(f.generation) for f in fronts] == list(range(1, len(fronts) + 1))
 
 
+@pytest.mark.parametrize("optimizer", ["differential_evolution", "chebyshev-pairwise"])
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
-def test_an_interrupted_ros_optimisation_keeps_its_bag(tmp_path, sig, ros_domain):
-    p = _start(tmp_path, "optimize", str(CONFIG), "--optimizer", "differential_evolution", "--bag", "b",
+def test_an_interrupted_ros_optimisation_keeps_its_bag(tmp_path, sig, optimizer, ros_domain):
+    p = _start(tmp_path, "optimize", str(CONFIG), "--optimizer", optimizer, "--bag", "b",
                "--domain-id", str(ros_domain))
     status, printed, err = _stop_after_progress(p, sig, 3)
     assert status == EXIT[sig], err[-2000:]
