@@ -263,23 +263,23 @@ def acks_needless(launcher):
 
 
 def recorder_failure(launcher, bag: Path) -> str | None:
-    """None if the recorder lived to the end, or closed its bag and was then killed in its ROS teardown (at nice
-    10 on a crowded host, past Launcher.stop's wait); else a one-line warning, after making the bag readable
-    again (its summary and metadata.yaml rebuilt from what was flushed)."""
-    node = launcher.node("recorder")  # died during the run (the supervisor saw it), or when told to stop
-    status = node.died if node.died is not None else (node.proc.returncode if node.proc is not None else None)
-    if status in (0, None):
+    """None if the recorder lived to the end, or closed its bag and was then killed in its ROS teardown (past
+    Launcher.stop's wait); else a one-line warning, after making the bag readable again (summary and metadata rebuilt)."""
+    node = launcher.node("recorder")
+    during = node.died is not None  # ended during the run (the supervisor saw it): failed, even SIGTERMed with exit 0
+    status = node.died if during else (node.proc.returncode if node.proc is not None else None)
+    if not during and status in (0, None):
         return None
-    note = f"the recorder died (exit status {status}) during the run; the bag holds only what it recorded before"
+    note = f"the recorder {'died' if status else 'stopped'} (exit status {status}) during the run; the bag holds only what it recorded before"
     try:
         from bev_mdo.bag.reader import find_mcap
         from bev_mdo.bag.repair import repair
-
         closed = (find_mcap(bag).parent / "metadata.yaml").is_file()  # written last by the recorder's close
         res = repair(bag)
-        if closed and not res.was_truncated:  # the bag holds everything: nothing failed
+        whole = closed and not res.was_truncated
+        if whole and not during:  # the bag holds everything: nothing failed
             return None
-        note += f" ({res.message_count} messages, summary and metadata rebuilt)"
+        note += f" ({res.message_count} messages, {'closed by the recorder' if whole else 'summary and metadata rebuilt'})"
     except (ValueError, OSError) as exc:
         note += f"; the bag could not be repaired: {exc}"
     return note

@@ -24,22 +24,39 @@ def _bag(tmp_path, closed: bool):
     return bag_dir
 
 
-def _launcher(status: int) -> Launcher:
+def _launcher(status: int, during: bool) -> Launcher:
+    """A launcher whose recorder ended with `status`: during the run (seen by its supervisor), or when the run's
+    end stopped it (the supervisor is stopped first: only the process's return code tells)."""
     la = Launcher({})
-    la.nodes = [NodeProcess("recorder", [], restart=False, died=status)]
+    node = NodeProcess("recorder", [], restart=False, died=status if during else None)
+    node.proc = type("Ended", (), {"returncode": status})()
+    la.nodes = [node]
     return la
 
 
 def test_a_recorder_killed_after_it_closed_its_bag_is_no_failure(tmp_path):
     bag = _bag(tmp_path, closed=True)
-    assert sessions.recorder_failure(_launcher(-15), bag) is None
+    assert sessions.recorder_failure(_launcher(-15, during=False), bag) is None
 
 
 def test_a_recorder_killed_before_it_closed_its_bag_is_one_warning_and_the_bag_is_repaired(tmp_path):
     from bev_mdo.bag.reader import open_bag
 
     bag = _bag(tmp_path, closed=False)
-    note = sessions.recorder_failure(_launcher(-9), bag)
+    note = sessions.recorder_failure(_launcher(-9, during=True), bag)
     assert note.startswith("the recorder died (exit status -9) during the run") and "metadata rebuilt" in note
     repaired = open_bag(bag, strict=False)
     assert not repaired.truncated and repaired.message_count == 3
+
+
+def test_a_recorder_that_ended_cleanly_during_the_run_is_one_warning(tmp_path):
+    """SIGTERMed mid-run, a recorder closes its bag and exits 0: the bag is whole, but holds nothing recorded
+    after that, so the run is told (status 3), not silently complete; the bag is left as the recorder closed it."""
+    bag = _bag(tmp_path, closed=True)
+    note = sessions.recorder_failure(_launcher(0, during=True), bag)
+    assert note.startswith("the recorder stopped (exit status 0) during the run") and "closed by the recorder" in note
+    assert not list(bag.glob("*.bak*"))
+
+
+def test_a_recorder_that_exited_0_when_told_to_stop_is_no_failure(tmp_path):
+    assert sessions.recorder_failure(_launcher(0, during=False), _bag(tmp_path, closed=True)) is None

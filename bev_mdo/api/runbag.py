@@ -37,6 +37,7 @@ class InProcessBag:
         metadata = {"run_id": run_id, "transport": transport,
                     "config_yaml": yaml.safe_dump(plain(dict(config)), sort_keys=False)}
         self.writer = None
+        self.failed = None  # why the bag could no longer be written (e.g. a full disk): the run goes on without it
         try:
             with interrupts.deferred():  # a signal while the bag is started: it is closed before the run stops
                 self.writer = BagWriter(bag_dir, metadata=metadata)
@@ -47,6 +48,8 @@ class InProcessBag:
             raise
 
     def __call__(self, rec: Mapping[str, Any]) -> None:
+        if self.failed:
+            return
         from rclpy.serialization import serialize_message
 
         from bev_mdo import protocol
@@ -59,13 +62,21 @@ class InProcessBag:
         protocol.fill_iteration_record(msg, rec, self.run_id, self.seq)
         t = time.time_ns()
         data = serialize_message(msg) if self.signer is None else self.signer.sign_iteration(msg)
-        with interrupts.deferred():  # a record is written whole or not at all
-            self.writer.write(self.topic, data, t, t, self.seq)
-            self.writer.flush()  # one chunk per record: even a SIGKILL keeps every finished iteration
+        try:
+            with interrupts.deferred():  # a record is written whole or not at all
+                self.writer.write(self.topic, data, t, t, self.seq)
+                self.writer.flush()  # one chunk per record: even a SIGKILL keeps every finished iteration
+        except OSError as exc:  # like a recorder that died over ROS: the run ends with its result, exit status 3
+            self.writer.abandon()
+            bag = self.writer.bag_dir
+            self.failed = (f"writing the bag {bag} failed at iteration {rec['iteration']} ({exc.strerror or exc}); it "
+                           f"holds the iterations before, and `bev-mdo bag repair {bag}` makes it whole")
 
     def close(self, answers: Mapping[str, Any] | None = None) -> None:
         """Finish the bag (summary, metadata.yaml); idempotent. Called at the end of the run with the
         answers, and on any interruption (SIGINT, SIGTERM, an exception) without them."""
+        if self.failed:  # abandoned when its write failed
+            return
         with interrupts.deferred():
             if answers is not None and not self.writer.closed:
                 self.writer._mcap.add_metadata(ANSWERS_METADATA, {"answers_json": json.dumps(answers, default=float)})
@@ -99,12 +110,15 @@ def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
     return answers_for(config, result["design"], values, disciplines=discs, units=run_units(discs))
 
 
-def finish(config: Mapping[str, Any], result: dict, extra: Mapping[str, Any]) -> None:
-    """Add ``result["active"]`` and store it with the run's bag (closing an in-process bag)."""
+def finish(config: Mapping[str, Any], result: dict, extra: dict) -> None:
+    """Add ``result["active"]`` and store it with the run's bag (closing an in-process bag; one whose writing
+    failed adds ``recorder_failed`` to ``extra``)."""
     result["active"] = ans = answers(config, result)
     inproc = extra.get("_bag_writer")
     if inproc is not None:
         inproc.close(ans)
+        if inproc.failed:
+            extra["recorder_failed"] = inproc.failed
     elif extra.get("bag"):
         write_answers(Path(extra["bag"]), ans)
 

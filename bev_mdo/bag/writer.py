@@ -138,6 +138,15 @@ class BagWriter:
         self._stream.close()
         meta.write_metadata_yaml(self.bag_dir, info)
 
+    def abandon(self) -> None:
+        """Close the file without its summary, after a write failed (e.g. a full disk): the complete chunks stay
+        readable and ``bev-mdo bag repair`` makes the bag whole. Idempotent."""
+        self.closed = True
+        try:
+            self._stream.close()
+        except OSError:  # what was still buffered cannot be written either
+            pass
+
     def __enter__(self):
         return self
 

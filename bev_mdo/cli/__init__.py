@@ -144,6 +144,22 @@ def _main(argv: list[str]) -> int:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         print(f"bev-mdo {args.command}: error: {msg}", file=sys.stderr)
         return STARTUP_GAVE_UP_STATUS if isinstance(exc, StartupGaveUp) else 2
+    except Exception as exc:  # noqa: BLE001 - the run itself failed (e.g. its optimiser raised): one line, named
+        print(f"bev-mdo {args.command}: error: {_named(exc)}", file=sys.stderr)
+        return RUN_FAILED_STATUS
+
+
+RUN_FAILED_STATUS = 7  # an unexpected error stopped the command (a bag is closed with every finished iteration)
+
+
+def _named(exc: BaseException) -> str:
+    """One line for an unexpected error: its type, the first line of its message and where it was raised."""
+    import traceback
+
+    msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    frames = traceback.extract_tb(exc.__traceback__)
+    where = f" (raised at {os.path.basename(frames[-1].filename)}:{frames[-1].lineno})" if frames else ""
+    return f"{type(exc).__name__}{': ' + msg if msg else ''}{where}"
 
 
 @contextlib.contextmanager

@@ -10,8 +10,8 @@ Every run ends with a first-order check of its result (bev_mdo/mdo/first_order.p
 follows from it. Exit status: 0 an optimum (first-order conditions hold), or with ``--fixed-budget``
 any feasible end; 1 the run finished infeasible; 2 a user mistake; 3 the recorder failed; 4 a
 discipline stopped answering; 5 feasible but not a verified optimum (stopped before convergence, or
-no progress from the start point). A finished run always prints its result (with ``--json``, the
-JSON on stdout), whatever the baseline does.
+no progress from the start point); 7 an unexpected error stopped the run (one line names it). A
+finished run always prints its result (with ``--json``, the JSON on stdout), whatever the baseline does.
 """
 from __future__ import annotations
 

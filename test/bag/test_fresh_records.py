@@ -105,14 +105,28 @@ def test_a_replayed_record_is_dropped_and_counted_by_history_report_and_resume(t
     assert checks["dropped"] == {"from the past": 2, "duplicate": 1}
 
 
-def test_a_record_of_another_run_and_a_gap_are_counted(tmp_path, signed):
+def test_a_record_of_another_run_and_a_gap_are_counted_by_history_report_and_resume(tmp_path, signed, capsys):
     key_file, signer, recs = signed
-    other = signer.sign_iteration(_record("fedcba9876543210", 9, 120.0))  # same key, another run
+    other = signer.sign_iteration(_record("fedcba9876543210", 9, 120.0))  # same key, another run, the latest
     bag = _bag(tmp_path / "mixed", [recs[0], other, recs[2], recs[3]], _config(key_file))
     checks: dict = {}
     rows = history(bag, checks=checks)
     assert [r["sequence"] for r in rows] == [1, 3, 4]
     assert checks["other_runs"] == 1 and checks["missing"] == 1 and checks["dropped"] == {}
+    said = "1 iteration record(s) missing (gaps in the run's sequence numbers); skipped 1 record(s) of other runs"
+
+    status, out, err = _cli(capsys, "history", str(bag), "--csv", "-")
+    assert status == 0 and len(out.strip().splitlines()) == 1 + 3 and said in err
+    status, out, err = _cli(capsys, "report", str(bag), "--output-dir", str(tmp_path / "rep"))
+    assert status == 0 and said in err
+    assert "3 records (iterations 0-3)" in (tmp_path / "rep" / "report.md").read_text()
+
+    from bev_mdo.cli.resume import resume_point
+
+    checks = {}
+    _, design, iteration = resume_point(str(bag), checks=checks)
+    assert design["motor_kw"] == 83.0 and iteration == 3  # this run's last record, not the other run's
+    assert checks["other_runs"] == 1 and checks["missing"] == 1
 
 
 def test_a_bag_whose_stored_key_file_was_blanked_is_refused(tmp_path, signed, capsys):

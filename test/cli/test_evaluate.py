@@ -74,8 +74,9 @@ def test_ros_without_rclpy_is_a_usage_error(capsys, monkeypatch, flags):
 def test_a_broken_bev_mdo_module_is_not_reported_as_a_missing_transport(capsys, monkeypatch):
     import sys
     monkeypatch.setitem(sys.modules, "bev_mdo.ros.client", None)  # our own module fails to import
-    with pytest.raises(ModuleNotFoundError, match="bev_mdo.ros.client"):
-        run(capsys, LEAF, "--attach")
+    code, _, err = run(capsys, LEAF, "--attach")  # an unexpected error: one line naming it, exit status 7
+    assert code == 7 and "needs the ROS transport" not in err
+    assert err.startswith("bev-mdo evaluate: error: ModuleNotFoundError: ") and "bev_mdo.ros.client" in err
 
 
 def test_attach_with_no_nodes_running_names_the_missing_disciplines(capsys, tmp_path, ros_domain):

@@ -137,9 +137,10 @@ def test_an_interrupted_pareto_run_keeps_its_bag(tmp_path, sig):
     assert [int(f.generation) for f in fronts] == list(range(1, len(fronts) + 1))
 
 
+@pytest.mark.parametrize("optimizer", ["differential_evolution", "chebyshev-pairwise"])
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
-def test_an_interrupted_ros_optimisation_keeps_its_bag(tmp_path, sig, ros_domain):
-    p = _start(tmp_path, "optimize", str(CONFIG), "--optimizer", "differential_evolution", "--bag", "b",
+def test_an_interrupted_ros_optimisation_keeps_its_bag(tmp_path, sig, optimizer, ros_domain):
+    p = _start(tmp_path, "optimize", str(CONFIG), "--optimizer", optimizer, "--bag", "b",
                "--domain-id", str(ros_domain))
     status, printed, err = _stop_after_progress(p, sig, 3)
     assert status == EXIT[sig], err[-2000:]
@@ -214,3 +215,81 @@ def test_a_sweep_interrupted_while_it_records_keeps_a_readable_bag(tmp_path, sig
     recs = _complete_records(tmp_path / "o" / "bag", "/bev_mdo/iteration")
     assert len(recs) < 100000  # stopped part way (maybe before its first record): what was written, kept
     assert [int(r.iteration) for r in recs] == list(range(len(recs)))
+
+
+@pytest.mark.parametrize("transport", ["inprocess", pytest.param("ros", marks=pytest.mark.ros)])
+def test_an_exception_in_the_coordinator_keeps_the_bag(tmp_path, transport, request):
+    """The optimiser (coordinator side, not a discipline) raises after three iterations
+    (fault_optimizers.py): the run ends with one line naming the error, exit status 7, and a bag that opens
+    without repair with the start point and the three finished iterations; over ROS the recorder's bag."""
+    import re
+
+    where = ["--transport", "inprocess"] if transport == "inprocess" else \
+        ["--domain-id", str(request.getfixturevalue("ros_domain"))]
+    here = Path(__file__).resolve().parent
+    env = {**os.environ, "PYTHONPATH": f"{here}{os.pathsep}{REPO}"}
+    p = subprocess.run([sys.executable, str(here / "fault_optimizers.py"), "optimize", str(CONFIG), "--optimizer",
+                        "failing-after-3", "--bag", "b", *where], capture_output=True, text=True, env=env,
+                       cwd=tmp_path, timeout=600)
+    assert p.returncode == 7 and "Traceback" not in p.stderr, p.stderr[-2000:]
+    assert re.fullmatch(r"bev-mdo optimize: error: RuntimeError: the failing-after-3 optimiser fails on purpose "
+                        r"\(raised at fault_optimizers\.py:\d+\)", p.stderr.strip().splitlines()[-1]), p.stderr[-2000:]
+    printed = [l for l in p.stdout.splitlines() if l.startswith("iter ")]
+    assert len(printed) == 4, p.stdout[-2000:]  # the start point and three iterations
+    _check_iterations(tmp_path / "b", printed)
+    assert len(_complete_records(tmp_path / "b", "/bev_mdo/iteration")) == len(printed)  # published before printed
+
+
+def test_an_in_process_bag_on_a_full_disk_ends_nothing_but_the_bag(tmp_path):
+    """In process the bag writer is the run's own recorder: when its disk fills up after three records
+    (full_disk.py), the run goes on to its result, warns once naming the bag, and exits 3 (the recorder failed,
+    as over ROS); the bag holds the three records, and `bev-mdo bag repair` makes it open in rosbags and mcap."""
+    from bev_mdo.bag.reader import open_bag
+    from bev_mdo.cli import main
+
+    here = Path(__file__).resolve().parent
+    env = {**os.environ, "PYTHONPATH": f"{here}{os.pathsep}{REPO}"}
+    p = subprocess.run([sys.executable, str(here / "full_disk.py"), "3", "optimize", str(CONFIG), "--transport",
+                        "inprocess", "--bag", "b"], capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300)
+    assert p.returncode == 3 and "Traceback" not in p.stderr and "Exception ignored" not in p.stderr, p.stderr[-2000:]
+    assert [l for l in p.stderr.splitlines() if l.startswith("warning:")] == [
+        "warning: writing the bag b failed at iteration 3 (No space left on device); it holds the iterations before, "
+        "and `bev-mdo bag repair b` makes it whole"]
+    printed = [l for l in p.stdout.splitlines() if l.startswith("iter ")]
+    assert len(printed) > 4 and "verdict: optimum" in p.stdout, p.stdout[-2000:]  # the run went on to its end
+    assert open_bag(tmp_path / "b").truncated
+    assert main(["bag", "repair", str(tmp_path / "b")]) == 0
+    _check_iterations(tmp_path / "b", printed[:3])
+    assert len(_complete_records(tmp_path / "b", "/bev_mdo/iteration")) == 3
+
+
+def _on_disk(bag: Path, topic: str) -> int:
+    """Messages on `topic` in the complete chunks of a bag being written (a recorder's holds other topics too)."""
+    from bev_mdo.bag.errors import BagError
+    from bev_mdo.bag.reader import open_bag
+
+    try:
+        return open_bag(bag).counts.get(topic, 0) if bag.is_dir() and any(bag.glob("*.mcap")) else 0
+    except BagError:  # the header is still being written
+        return 0
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_an_interrupted_ros_pareto_run_keeps_the_recorders_bag(tmp_path, sig, ros_domain):
+    """Over ROS the fronts are the recorder's: stopped once two are on disk, the run stops its recorder, which
+    closes the bag with every front it received, in order, readable without repair."""
+    p = _start(tmp_path, "pareto", str(REPO / "config" / "topologies_artemis.yaml"), "--transport", "ros",
+               "--domain-id", str(ros_domain), "--generations", "100000", "--pop", "8", "--out", "out", "--no-plots")
+    bag = tmp_path / "out" / "bag"
+    while _on_disk(bag, "/bev_mdo/pareto_front") < 2:  # the recorder flushes every second: two fronts on disk
+        assert p.poll() is None, p.communicate()[1][-2000:]
+        try:
+            p.wait(timeout=0.05)
+        except subprocess.TimeoutExpired:
+            pass
+    p.send_signal(sig)
+    _, err = _communicate(p)
+    assert p.returncode == EXIT[sig] and "Traceback" not in err, err[-2000:]
+    fronts = _complete_records(bag, "/bev_mdo/pareto_front")
+    assert len(fronts) >= 2
+    assert [int(f.generation) for f in fronts] == list(range(1, len(fronts) + 1))

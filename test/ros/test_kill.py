@@ -15,6 +15,7 @@ import json
 import os
 import signal
 import subprocess
+import threading
 import time
 from pathlib import Path
 
@@ -106,3 +107,80 @@ def test_killing_a_reader_and_the_recorder_does_not_stall_or_loop(config_path, r
     assert err.count("warning: the recorder died") == 1 and "Traceback" not in err
     _opens_without_repair(tmp_path / "late")
     assert late["tail_s"] < 60
+
+
+def _iterations_on_disk(bag: Path) -> int:
+    """Iteration records in the complete chunks of a bag being written (0 before its first chunk is on disk)."""
+    from bev_mdo.bag.errors import BagError
+    from bev_mdo.bag.reader import open_bag
+
+    try:
+        return open_bag(bag).counts.get("/bev_mdo/iteration", 0) if any(bag.glob("*.mcap")) else 0
+    except BagError:
+        return 0
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
+def test_a_recorder_stopped_mid_run_is_named_and_its_bag_holds_what_it_wrote(config_path, ros_domain, tmp_path, sig):
+    """The run's recorder is SIGTERMed (it closes its bag and exits 0) or SIGKILLed while the optimiser waits
+    after its second iteration (test/cli/fault_optimizers.py, waiting-after-2) with three records on disk; the
+    optimiser then goes on. The run ends with its result, one warning naming the stopped recorder and exit status
+    3; the bag opens in rosbags and mcap as it is (after SIGKILL the run repaired it on the spot), holding the
+    iteration records up to the last one the recorder wrote, in order, as the run printed them, and no later one."""
+    from rosbags.highlevel import AnyReader
+
+    cli_tests = Path(__file__).resolve().parents[1] / "cli"
+    env = {**ros_env(ros_domain), "PYTHONPATH": f"{cli_tests}{os.pathsep}{ros_env(ros_domain)['PYTHONPATH']}"}
+    bag = tmp_path / "b"
+    p = subprocess.Popen([PYTHON, str(cli_tests / "fault_optimizers.py"), "optimize", config_path, "--optimizer",
+                          "waiting-after-2", "--domain-id", str(ros_domain), "--bag", str(bag), "--json"],
+                         cwd=tmp_path, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    try:
+        err_lines = []
+        for line in p.stderr:  # progress on stderr (--json): up to the second iteration, where the optimiser waits
+            err_lines.append(line)
+            if line.startswith("iter    2"):
+                break
+        assert err_lines and err_lines[-1].startswith("iter    2"), "".join(err_lines)[-3000:]
+        while _iterations_on_disk(bag) < 3:  # the start point and two iterations flushed by the recorder
+            assert p.poll() is None
+            try:
+                p.wait(timeout=0.05)
+            except subprocess.TimeoutExpired:
+                pass
+        (recorder,) = [pid for pid, cmd in child_processes(p.pid).items() if "recorder_node" in cmd]
+        os.kill(recorder, sig)  # a child of the run we started, by its id
+        for line in p.stderr:  # the run's supervisor saw the recorder end (during the run, not at its end)
+            err_lines.append(line)
+            if line.startswith("[launcher] recorder exited"):
+                break
+        p.stdin.write("go\n")
+        p.stdin.close()
+        bound = threading.Timer(300, p.kill)  # a run that hangs is ended, and then fails below
+        bound.start()
+        rest = p.stderr.read()  # what was read line by line stays read: not communicate()
+        out = p.stdout.read()
+        p.wait()
+        bound.cancel()
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    err = "".join(err_lines) + rest
+    assert p.returncode == 3 and "Traceback" not in err, err[-3000:]
+    status = 0 if sig == signal.SIGTERM else -signal.SIGKILL
+    assert err.count("warning: the recorder") == 1 and f"(exit status {status}) during the run" in err, err[-3000:]
+    doc = json.loads(out)
+    assert doc["iterations"] == 4 and "the recorder" in doc["recorder_failed"]
+    printed = [float(l.split()[3]) for l in err.splitlines() if l.startswith("iter ")]
+    assert len(printed) == 5  # the start point and four iterations
+    _opens_without_repair(bag)
+    with AnyReader([bag]) as reader:
+        conns = [c for c in reader.connections if c.topic == "/bev_mdo/iteration"]
+        recs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=conns)]
+    # the three records on disk when it stopped; no more were published before (the optimiser waited) and the
+    # two after went to no recorder
+    assert len(recs) == 3
+    assert [int(r.sequence) for r in recs] == list(range(1, len(recs) + 1))
+    assert [float(r.objective) for r in recs] == pytest.approx(printed[:len(recs)], abs=1e-6)
