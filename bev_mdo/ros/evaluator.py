@@ -212,33 +212,29 @@ class RosEvaluator(StartupWaits, Orchestrator):
             res = self._failed(p, msg.error or f"{p.discipline}: request rejected")
         else:
             try:
-                outputs = protocol.from_named_array(msg.outputs)
+                res = self._result_of(msg, p)
             except protocol.WireError:
                 self.dropped["malformed"] += 1
                 return
-            spec = self.specs.get(p.discipline)
-            want = spec.outputs if spec else tuple(outputs)
-            ok = np.asarray(msg.point_ok, dtype=bool)
-            if any(k not in outputs for k in want) or int(msg.outputs.batch_size) != p.n or ok.shape != (p.n,):
-                self.dropped["malformed"] += 1
-                return
-            outs = {k: np.array(outputs[k]) for k in want}
-            ok = np.array(ok) if all_finite(outs.values()) else ok & finite_rows(list(outs.values()), p.n)
-            try:
-                why = protocol.point_errors_of(msg, p.n)
-            except protocol.WireError:
-                self.dropped["malformed"] += 1
-                return
-            res = EvalResult(outs, ok, msg.error, float(msg.compute_time_s), point_errors=why)
-            if p.request.partials:
-                try:
-                    part = protocol.partials_of(msg.partials, p.n)
-                except protocol.WireError:
-                    self.dropped["malformed"] += 1
-                    return
-                if part is not None:
-                    res.extra["partials"] = {k: np.array(v) for k, v in part.items()}
         self._accept(key, p, res, msg.instance)
+
+    def _result_of(self, msg, p: retry.Sent) -> EvalResult:
+        """The EvalResult a received answer to `p` holds; WireError if any field does not fit `p`."""
+        outputs = protocol.from_named_array(msg.outputs)
+        spec = self.specs.get(p.discipline)
+        want = spec.outputs if spec else tuple(outputs)
+        ok = np.asarray(msg.point_ok, dtype=bool)
+        if any(k not in outputs for k in want) or int(msg.outputs.batch_size) != p.n or ok.shape != (p.n,):
+            raise protocol.WireError("outputs or rows do not fit the request")
+        outs = {k: np.array(outputs[k]) for k in want}
+        ok = np.array(ok) if all_finite(outs.values()) else ok & finite_rows(list(outs.values()), p.n)
+        why = protocol.point_errors_of(msg, p.n)
+        res = EvalResult(outs, ok, msg.error, float(msg.compute_time_s), point_errors=why)
+        if p.request.partials:
+            part = protocol.partials_of(msg.partials, p.n)
+            if part is not None:
+                res.extra["partials"] = {k: np.array(v) for k, v in part.items()}
+        return res
 
     def on_local(self, req, discipline: str, instance: str, res: EvalResult | None, error: str = "") -> None:
         """A result handed over by a node composed into this process (composed.Beside), never a
