@@ -45,9 +45,7 @@ from bev_mdo.ros_settings import validate_min_rows
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
 
 _STATUS_REJECTED = EvaluationResult.STATUS_REJECTED  # read once: a metaclass property call each time
-
-
-_Pending = retry.Sent  # an outstanding answer (mdo/retry.py); the name tests and composed.py use
+_Pending = retry.Sent  # an outstanding answer (mdo/retry.py), by the name the tests use
 
 
 class RosEvaluator(StartupWaits, Orchestrator):
@@ -98,8 +96,6 @@ class RosEvaluator(StartupWaits, Orchestrator):
     def request_publishers(self) -> list:
         """Every request publisher this evaluator made (one per discipline, and the data-flow one)."""
         return list(self._publishers.values())
-
-
 
     # -- discovery -----------------------------------------------------------------
     def _expect(self, name: str) -> tuple[str, str] | None:
