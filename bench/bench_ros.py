@@ -59,17 +59,17 @@ LEAN_ECHO = textwrap.dedent(
     import rclpy
     from rclpy.node import Node
     from bev_mdo.ros.common import REQUEST_QOS, RESULT_QOS
-    from bev_mdo.ros.fastwait import SubscriptionWaiter
+    from bev_mdo.ros.fastwait import MultiWaiter
     from bev_mdo_msgs.msg import EvaluationRequest
     rclpy.init()
     node = Node("bench_lean_echo")
     pub = node.create_publisher(EvaluationRequest, "/bench/lean_pong", RESULT_QOS)
     sub = node.create_subscription(EvaluationRequest, "/bench/lean_ping", lambda m: None, REQUEST_QOS, raw=True)
-    waiter = SubscriptionWaiter(sub, node.context)
+    waiter, hot = MultiWaiter(node.context), [(sub, lambda data, _info: pub.publish(data))]
     try:
         while rclpy.ok():
-            if waiter.take_all(pub.publish) == 0:
-                waiter.wait(1.0)
+            if waiter.take_all(hot) == 0:
+                waiter.wait([sub], 1.0)
     except BaseException:
         pass
     """
@@ -82,26 +82,26 @@ def lean_ping_pong(ctx, env, n):
 
     from bev_mdo import protocol
     from bev_mdo.ros.common import REQUEST_QOS, RESULT_QOS
-    from bev_mdo.ros.fastwait import SubscriptionWaiter
+    from bev_mdo.ros.fastwait import MultiWaiter
     from bev_mdo_msgs.msg import EvaluationRequest
 
     child = subprocess.Popen([sys.executable, "-c", LEAN_ECHO], env=env)
     node = Node("bench_lean_ping", context=ctx)
     pub = node.create_publisher(EvaluationRequest, "/bench/lean_ping", REQUEST_QOS)
     sub = node.create_subscription(EvaluationRequest, "/bench/lean_pong", lambda m: None, RESULT_QOS, raw=True)
-    waiter = SubscriptionWaiter(sub, ctx)
+    waiter, hot = MultiWaiter(ctx), [(sub, lambda data, _info: got.append(data))]
+    got = []
     while pub.get_subscription_count() < 1 or sub.get_publisher_count() < 1:
         time.sleep(0.02)
     req = protocol.request("bench", 0, "x")
     req.inputs = protocol.batch({"motor_kw": np.array([80.0]), "gear_ratio": np.array([8.0])})
     data = protocol.encode_request(req)
-    got = []
     lat = []
     for i in range(n + 50):
         t0 = time.perf_counter()
         pub.publish(data)
-        while waiter.take_all(got.append) == 0:
-            waiter.wait(1.0)
+        while waiter.take_all(hot) == 0:
+            waiter.wait([sub], 1.0)
         if i >= 50:
             lat.append(time.perf_counter() - t0)
     child.terminate()

@@ -54,7 +54,7 @@ def discipline_timing(bag: Bag) -> dict[str, dict[str, list[float]]]:
 
 
 def _targets(frame_id: str) -> dict[str, str]:
-    """{discipline: instance} a request addresses (a pool's share, ros/pool.py), from its binding tag
+    """{discipline: instance} a request addresses (a pool's share, mdo/pool.py), from its binding tag
     ``fp:<discipline>=<fingerprint>@<instance>,...``; empty for a request to any instance."""
     if not frame_id.startswith("fp:"):
         return {}

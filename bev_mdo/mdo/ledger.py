@@ -15,8 +15,8 @@ discipline (or, for a data-flow MDA, one id for all the disciplines of the MDA: 
   without an answer (a later one is dropped as a duplicate too); ``reassign``: taken from its
   instance and re-sent under a new id (a later answer to the old one is a ``late_share``).
 
-The ROS evaluator (ros/evaluator.py) keeps one per run; the run id check (``other_run``) and the
-signature check come before ``match`` there, in the transport.
+The orchestrator (orchestrator.py) keeps one per run; the run id check (``other_run``) and the
+signature check come before ``match``, in the transport (ros/evaluator.py).
 """
 from __future__ import annotations
 

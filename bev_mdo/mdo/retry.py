@@ -1,8 +1,8 @@
 """When to re-send, to whom, and when to give up: the timing decisions of a distributed
 evaluation, independent of any transport (no ROS import; tested in milliseconds).
 
-The ROS evaluator (ros/evaluator.py) sends, receives and waits; what it does when an answer is
-late comes from here, as data it then carries out:
+The orchestrator (orchestrator.py) sends, receives and waits through its transport; what it does
+when an answer is late comes from here, as data it then carries out:
 - ``Sent``: one outstanding answer, the entry the ledger (ledger.py) keeps per (evaluation id,
   discipline): the request, its rows, when it was sent, the instance it is addressed to;
 - ``Policy``: ``ros.timeout_s`` and ``ros.retries``: which entries are overdue (``late``), when
@@ -11,7 +11,7 @@ late comes from here, as data it then carries out:
   re-sent whole, each request once (a data-flow request is ONE message for its disciplines);
 - ``hung``: after the last try, which disciplines let every attempt time out (a data-flow
   discipline only if all its sources answered: else it had nothing to do);
-- ``share_steps``: a pool's shares (pool.py in ros/) in a wave: a late share, or one whose
+- ``share_steps``: a pool's shares (pool.py) in a wave: a late share, or one whose
   instance left, is re-sent (a whole batch: the same request again) or re-split among the other
   instances (``reshare``), or, after the last try, given up;
 - ``flow_share_steps``: the row shares of a pooled data-flow MDA: a share with a late or lost

@@ -10,10 +10,13 @@ No rclpy import here.
 """
 from __future__ import annotations
 
+import re
 import struct
+import threading
 from pathlib import Path
 
 import numpy as np
+import rosbags.serde.cdr as _cdr
 from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -24,6 +27,7 @@ MSG_DIR = next((d for d in (_HERE / "msg", _HERE.parents[1] / "msg_defs" / "msg"
 
 
 _ENCAPSULATION = b"\x00\x01\x00\x00"  # CDR_LE
+_rosbags_compile = _cdr.compile_lines
 
 
 class WireError(ValueError):
@@ -65,16 +69,113 @@ Header = STORE.types["std_msgs/msg/Header"]
 Time = STORE.types["builtin_interfaces/msg/Time"]
 
 
+# -- string sequences (a batch's column names, an MDA's disciplines) through a cache ---------------------
+# rosbags' generated code sizes, packs and unpacks a string[] field item by item: some 30 strings per
+# evaluation message, most of its cost, the same few lists in every message of a run. The generated
+# text is kept but for those loops, which call these three helpers instead; the bytes are the same.
+# A sequence's count is always at a multiple of 4 (CDR), so its bytes from there are those of the list.
+_STRING_BYTES: dict[tuple, bytes] = {}  # tuple of strings -> their CDR bytes (count included)
+_STRING_LISTS: dict[tuple, tuple] = {}  # (count, first 64 bytes after it) -> (the bytes after the count, strings)
+_STRINGS_MAX = 4096  # entries of each (a run has a few dozen lists; point errors' reasons vary)
+_U32 = struct.Struct("<I")
+
+
+def _string_bytes(items) -> bytes:
+    key = tuple(items)
+    got = _STRING_BYTES.get(key)
+    if got is None:
+        out = bytearray(_U32.pack(len(key)))
+        for item in key:
+            out += b"\0" * (-len(out) % 4)
+            data = item.encode()
+            out += _U32.pack(len(data) + 1) + data + b"\0"
+        if len(_STRING_BYTES) >= _STRINGS_MAX:
+            _STRING_BYTES.clear()
+        got = _STRING_BYTES[key] = bytes(out)
+    return got
+
+
+def _size_strings(pos: int, items) -> int:
+    """The generated size function's step over a string[] field: `pos` after it (from its count)."""
+    return pos + len(_string_bytes(items))
+
+
+def _put_strings(rawdata, pos: int, items) -> int:
+    """The generated serialiser's step over a string[] field (from its count): `pos` after it."""
+    data = _string_bytes(items)
+    end = pos + len(data)
+    rawdata[pos:end] = data
+    return end
+
+
+def _get_strings(rawdata, pos: int, size: int) -> tuple[list, int]:
+    """The generated deserialiser's step over the `size` strings of a string[] field (after its count,
+    which it has checked): (the strings, `pos` after them). Bytes equal to a list seen before (found by
+    their first 64 bytes, then compared whole) are that list; others are checked as rosbags checks
+    each string (length within the bytes, terminated) and decoded."""
+    head = (size, bytes(rawdata[pos:pos + 64]))
+    seen = _STRING_LISTS.get(head)
+    if seen is not None and rawdata[pos:pos + len(seen[0])] == seen[0]:
+        return list(seen[1]), pos + len(seen[0])
+    start, n, got = pos, len(rawdata), []
+    unpack = _U32.unpack_from
+    for _ in range(size):
+        pos = (pos + 3) & -4
+        length = unpack(rawdata, pos)[0]
+        end = pos + 4 + length
+        if length < 1 or end > n or rawdata[end - 1] != 0:
+            raise SerdeError(f"Invalid string of length {length} at offset {pos}.")
+        got.append(bytes(rawdata[pos + 4:end - 1]).decode())
+        pos = end
+    if len(_STRING_LISTS) >= _STRINGS_MAX:
+        _STRING_LISTS.clear()
+    _STRING_LISTS[head] = (bytes(rawdata[start:pos]), tuple(got))
+    return got, pos
+
+
+_STRING_LOOPS = (  # (rosbags' generated loop over a string[] field, the call that replaces it)
+    (re.compile(r"^( +)pos \+= 4\n\1for val in (message\.\w+):\n\1  pos = \(pos \+ 4 - 1\) & -4\n"
+                r"\1  pos \+= 4 \+ len\(val\.encode\(\)\) \+ 1\n", re.M),
+     r"\1pos = _size_strings(pos, \2)\n"),
+    (re.compile(r"^( +)pack_int32_le\(rawdata, pos, len\(val\)\)\n\1pos \+= 4\n\1for item in val:\n"
+                r"\1  bval = memoryview\(item\.encode\(\)\)\n\1  length = len\(bval\) \+ 1\n"
+                r"\1  pos = \(pos \+ 4 - 1\) & -4\n\1  pack_int32_le\(rawdata, pos, length\)\n\1  pos \+= 4\n"
+                r"\1  rawdata\[pos:pos \+ length - 1\] = bval\n\1  pos \+= length\n", re.M),
+     r"\1pos = _put_strings(rawdata, pos, val)\n"),
+    (re.compile(r"^( +)value = \[\]\n\1for _ in range\(size\):\n\1  pos = \(pos \+ 4 - 1\) & -4\n"
+                r"\1  length = unpack_uint32_le\(rawdata, pos\)\[0\]\n"
+                r"\1  check_string\(rawdata, pos, length, cdr=True\)\n"
+                r"\1  value\.append\(bytes\(rawdata\[pos \+ 4:pos \+ 4 \+ length - 1\]\)\.decode\(\)\)\n"
+                r"\1  pos \+= 4 \+ length\n", re.M),
+     r"\1value, pos = _get_strings(rawdata, pos, size)\n"),
+)
+
+
+def _compile_lines(lines):
+    """rosbags' compile step, its string[] loops replaced by the cached helpers above."""
+    text = "\n".join(lines) + "\n"
+    for loop, call in _STRING_LOOPS:
+        text = loop.sub(call, text)
+    module = _rosbags_compile([text])
+    module._size_strings, module._put_strings, module._get_strings = _size_strings, _put_strings, _get_strings
+    return module
+
+
 class _Lookup:
     """What the generated functions are handed as ``typestore``: a nested type's compiled functions
     by a plain dict lookup (``Typestore.get_msgdef`` checks and fills its cache on every call, and the
-    generated code calls it once per nested message field). Every nested type is compiled up front."""
+    generated code calls it once per nested message field). Every nested type is compiled up front,
+    with its string[] loops through the cache above."""
 
     __slots__ = ("get_msgdef", "max_sequence_length")
 
     def __init__(self, store):
-        for name in list(store.fielddefs):
-            store.get_msgdef(name)
+        _cdr.compile_lines = _compile_lines
+        try:
+            for name in list(store.fielddefs):
+                store.get_msgdef(name)
+        finally:
+            _cdr.compile_lines = _rosbags_compile
         self.get_msgdef = store.cache.__getitem__
         self.max_sequence_length = store.max_sequence_length
 
@@ -118,7 +219,33 @@ def encode(msg) -> bytearray:
         return _encode(c, _convert(msg, c.typename))
 
 
+class _Scratch(threading.local):
+    """A zeroed buffer per thread that a message is serialised into without sizing it first (the
+    generated size function walks the whole message again); a message that does not fit is sized
+    and serialised the usual way."""
+
+    def __init__(self):
+        self.buf = memoryview(bytearray(1 << 16))
+
+
+_SCRATCH = _Scratch()
+
+
 def _encode(c: _Codec, msg) -> bytearray:
+    scratch = _SCRATCH.buf
+    try:
+        end = c.serialize(scratch, 0, msg, _LOOKUP)
+    except (ValueError, IndexError, struct.error):  # it does not fit
+        end = -1
+    except BaseException:
+        scratch[:] = bytes(len(scratch))  # partly written: zeroed again (padding is never written)
+        raise
+    if end >= 0:
+        out = bytearray(_ENCAPSULATION)
+        out += scratch[:end]
+        scratch[:end] = bytes(end)
+        return out
+    scratch[:] = bytes(len(scratch))
     out = bytearray(4 + c.getsize(0, msg, _LOOKUP))
     out[:4] = _ENCAPSULATION
     c.serialize(memoryview(out)[4:], 0, msg, _LOOKUP)

@@ -19,6 +19,7 @@ fingerprint. With signing (protocol/signing.py) the frame_id is covered by the s
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 from typing import Any, Mapping
@@ -92,8 +93,9 @@ def tag(expected: Mapping[str, str], names) -> str:
     return PREFIX + ",".join(f"{n}={expected[n]}" for n in names)
 
 
+@functools.lru_cache(maxsize=256)  # a run has a handful of distinct tags; a node parses one per message
 def parse_tag(frame_id: str) -> dict[str, str] | None:
-    """{discipline: fingerprint} from a frame_id; None if it holds no binding."""
+    """{discipline: fingerprint} from a frame_id; None if it holds no binding (the dict is shared: read it only)."""
     if not frame_id.startswith(PREFIX):
         return None
     out = {}

@@ -48,6 +48,15 @@ INFO_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=64,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
+# Each node's request counters as JSON (std_msgs/String), so tests and operators can see
+# what was received, answered and rejected (by reason) without reading logs.
+# TRANSIENT_LOCAL depth 1: a late subscriber gets every node's latest counters.
+NODE_STATS_TOPIC = f"{PREFIX}/node_stats"
+NODE_STATS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# Readers keep more: samples of every node can arrive at once (a late joiner gets all of them).
+NODE_STATS_READER_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                                   depth=256, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def now_ns() -> int:

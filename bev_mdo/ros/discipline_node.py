@@ -41,68 +41,18 @@ from bev_mdo.mdo.vectors import ShapeError
 from bev_mdo import protocol
 from bev_mdo.ros import binding
 from bev_mdo.protocol.signing import Signer
-from bev_mdo.ros.fastwait import until
-from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RESULT_QOS, REQUEST_QOS, RESULT_QOS,
-                                RESULT_TOPIC, mda_result_topic, request_topic, stamp)
+from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RESULT_QOS, NODE_STATS_QOS,
+                                NODE_STATS_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, mda_result_topic,
+                                request_topic, stamp)
 from bev_mdo.ros.paths import default_config
 from bev_mdo.ros_settings import validate_ros
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 # the result status constants, read once (the generated class makes each a metaclass property call)
 _STATUS_OK = EvaluationResult.STATUS_OK
 _STATUS_ERROR = EvaluationResult.STATUS_ERROR
 _STATUS_REJECTED = EvaluationResult.STATUS_REJECTED
-
-# Each node's request counters as JSON (std_msgs/String), so tests and operators can see
-# what was received, answered and rejected (by reason) without reading logs.
-# TRANSIENT_LOCAL depth 1: a late subscriber gets every node's latest counters.
-NODE_STATS_TOPIC = "/bev_mdo/node_stats"
-NODE_STATS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1,
-                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
-# Readers keep more: samples of every node can arrive at once (a late joiner gets all of them).
-NODE_STATS_READER_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                                   depth=256, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-
-class NodeStatsListener:
-    """Latest counters of every discipline node (from /bev_mdo/node_stats), by instance name."""
-
-    def __init__(self, node: Node):
-        from rclpy.executors import SingleThreadedExecutor
-
-        self.node = node
-        self.latest: dict[str, dict] = {}
-        self._sub = node.create_subscription(String, NODE_STATS_TOPIC, self._on_stats, NODE_STATS_READER_QOS)
-        self._executor = SingleThreadedExecutor(context=node.context)
-        self._executor.add_node(node)
-
-    def _on_stats(self, msg: String) -> None:
-        d = json.loads(msg.data)
-        self.latest[d["instance"]] = d
-
-    def seen(self, discipline: str) -> bool:
-        """True once any instance of `discipline` published its counters."""
-        return any(d["discipline"] == discipline for d in self.latest.values())
-
-    def counts(self, discipline: str | None = None) -> Counter:
-        """Counters summed over instances (of one discipline, or of all)."""
-        total: Counter[str] = Counter()
-        for d in self.latest.values():
-            if discipline is None or d["discipline"] == discipline:
-                total.update(d["counts"])
-        return total
-
-    def wait(self, predicate, timeout_s: float) -> bool:
-        """Spin until `predicate(self)` holds; False after `timeout_s`."""
-        return until(lambda: predicate(self), timeout_s, lambda: self._executor.spin_once(timeout_sec=0.05))
-
-    def close(self) -> None:
-        self._executor.remove_node(self.node)
-        self._executor.shutdown()
-        self.node.destroy_subscription(self._sub)
-
 
 FLOW_CACHE = 64  # data-flow requests and source results kept while they wait for each other
 
@@ -122,19 +72,6 @@ def _decode_once(decode, data: bytes):
         if len(_DECODED) > _DECODED_MAX:
             _DECODED.popitem(last=False)
     return msg
-
-
-_TAGS: dict[str, dict] = {}  # frame_id -> parsed binding (a run has a handful of distinct tags)
-
-
-def _parse_tag(frame_id: str) -> dict:
-    want = _TAGS.get(frame_id)
-    if want is None:
-        want = binding.parse_tag(frame_id) or {}
-        if len(_TAGS) > 256:
-            _TAGS.clear()
-        _TAGS[frame_id] = want
-    return want
 
 
 def _build(config: dict, name: str) -> tuple[Any, dict[str, str]]:
@@ -300,21 +237,7 @@ class DisciplineNode(Node):
             f"rejected request (run {req.run_id[:40]!r}, eval {req.evaluation_id}): {why[:200]} "
             f"[{self.counts['rejected']} rejected so far; this log is rate-limited]", throttle_duration_sec=2.0
         )
-        error = f"{self.discipline_name}: rejected: {why}"[:1000]
-        writer = pub or self._result_pub
-        consumers = self.local_consumers if pub is self._mda_pub else ()
-        direct = self._direct(writer)
-        if direct:
-            self.local_coordinator(req, self.discipline_name, self.instance, None, error)
-            if not consumers:
-                return
-        out = protocol.result()
-        self._fill_header(out, req)
-        out.status = _STATUS_REJECTED
-        out.error = error
-        if pub is not None:  # data flow: consumers learn that there is nothing to wait for
-            out.flow = list(req.flow)
-        self._send_out(out, writer, direct, consumers)
+        self._reply(req, None, f"{self.discipline_name}: rejected: {why}"[:1000], pub)
 
     def _direct(self, writer) -> bool:
         """True when composed beside the coordinator (composed.Beside) and no reader outside this
@@ -324,15 +247,18 @@ class DisciplineNode(Node):
         return (self.local_coordinator is not None
                 and writer.get_subscription_count() <= self.local_readers.get(id(writer), 0))
 
-    def _send_out(self, out: protocol.EvaluationResult, writer, direct: bool, consumers) -> None:
-        """Publish `out` (signed with a key) unless the coordinator took the answer by direct call;
+    def _reply(self, req, result, error: str = "", pub=None, forward=None, flow_names=None, asked=False) -> None:
+        """Answer `req` with the discipline's `result` (None: a rejection saying `error`) on `pub` (data
+        flow) or the result topic, signed with a key, unless the coordinator takes it by direct call;
         composed consumers (link_local) get it by direct call, without a DDS hop and a decode."""
-        if not direct:
-            writer.publish(protocol.encode_result(out) if self.signer is None else self.signer.sign_result(out))
-        for node in consumers:
-            node._on_source_result(self.discipline_name, out, local=True)
-
-    def _fill_header(self, out: protocol.EvaluationResult, req: protocol.EvaluationRequest) -> None:
+        writer = pub or self._result_pub
+        consumers = self.local_consumers if pub is self._mda_pub else ()
+        direct = self._direct(writer)
+        if direct:
+            self.local_coordinator(req, self.discipline_name, self.instance, result, error)
+            if not consumers:  # beside the coordinator, nobody else reads it: no message at all
+                return
+        out = protocol.result()
         stamp(out.header)
         out.header.frame_id = req.header.frame_id
         out.run_id = req.run_id
@@ -340,6 +266,26 @@ class DisciplineNode(Node):
         out.sequence = self.counts["answered"] + self.counts["rejected"]
         out.discipline = self.discipline_name
         out.instance = self.instance
+        if result is None:
+            out.status = _STATUS_REJECTED
+            out.error = error
+            if pub is not None:  # data flow: consumers learn that there is nothing to wait for
+                out.flow = list(req.flow)
+        else:
+            out.status = _STATUS_OK if result.ok.all() else _STATUS_ERROR
+            out.error = result.error[:4000]
+            protocol.put_point_errors(out, result.point_errors)
+            out.point_ok = np.asarray(result.ok, dtype=bool)
+            out.outputs = protocol.batch({**result.outputs, **forward} if forward else result.outputs)
+            out.flow = list(flow_names or ())
+            out.compute_time_s = result.compute_time_s
+            if asked:
+                # a block of the batch size even without partials: downstream nodes learn it was asked
+                out.partials = protocol.partials_batch(result.extra.get("partials", {}), int(np.size(result.ok)))
+        if not direct:
+            writer.publish(protocol.encode_result(out) if self.signer is None else self.signer.sign_result(out))
+        for node in consumers:
+            node._on_source_result(self.discipline_name, out, local=True)
 
     def _for_me(self, msg, source: str | None = None) -> bool:
         """True if `msg` belongs to a run this node serves and binds this node's own fingerprint
@@ -355,7 +301,7 @@ class DisciplineNode(Node):
         """Why `msg` is not for this node (``other_run``, ``fingerprint``, ``other_instance``), or None."""
         if not binding.run_matches(self.bound_run, msg.run_id):
             return "other_run"
-        want = _parse_tag(msg.header.frame_id)
+        want = binding.parse_tag(msg.header.frame_id) or {}
         fp, target = binding.split_target(want.get(self.discipline_name, ""))
         if fp != self.fingerprint or (source is not None and source not in want):
             return "fingerprint"
@@ -369,16 +315,8 @@ class DisciplineNode(Node):
         if not self._for_me(req):
             return None
         self.counts["received"] += 1
-        if self.signer is not None and not local:
-            why = self.signer.verify_request(req)
-            if why is not None:  # no answer at all: an unauthenticated sender learns nothing
-                self.counts["rejected"] += 1
-                self.counts[f"rejected.{why}"] += 1
-                self.get_logger().warning(
-                    f"dropped {why} request (run {req.run_id[:40]!r}, eval {req.evaluation_id}) "
-                    f"[{self.counts['rejected']} rejected so far; this log is rate-limited]",
-                    throttle_duration_sec=2.0)
-                return None
+        if not local and not self._authentic(req, "request"):  # no answer: an unauthenticated sender learns nothing
+            return None
         if req.discipline != self.discipline_name:
             return self._reject(req, f"addressed to {req.discipline[:40]!r}", "wrong_discipline")
         if not valid_run_id(req.run_id):
@@ -402,28 +340,9 @@ class DisciplineNode(Node):
             return self._reject(req, str(exc), "bad_discipline_output")
         self._answer(req, result, asked=bool(req.partials))
 
-    def _answer(self, req: protocol.EvaluationRequest, result, pub=None, forward=None, flow_names=(), asked=False) -> None:
+    def _answer(self, req, result, pub=None, forward=None, flow_names=(), asked=False) -> None:
         self._answered(result)
-        writer = pub or self._result_pub
-        consumers = self.local_consumers if pub is self._mda_pub else ()
-        direct = self._direct(writer)
-        if direct:
-            self.local_coordinator(req, self.discipline_name, self.instance, result)
-            if not consumers:  # beside the coordinator, nobody else reads it: no message at all
-                return
-        out = protocol.result()
-        self._fill_header(out, req)
-        out.status = _STATUS_OK if result.ok.all() else _STATUS_ERROR
-        out.error = result.error[:4000]
-        protocol.put_point_errors(out, result.point_errors)
-        out.point_ok = np.asarray(result.ok, dtype=bool)
-        out.outputs = protocol.batch({**result.outputs, **forward} if forward else result.outputs)
-        out.flow = list(flow_names)
-        out.compute_time_s = result.compute_time_s
-        if asked:
-            # a block of the batch size even without partials: downstream nodes learn it was asked
-            out.partials = protocol.partials_batch(result.extra.get("partials", {}), int(np.size(result.ok)))
-        self._send_out(out, writer, direct, consumers)
+        self._reply(req, result, "", pub, forward, flow_names, asked)
 
     def _answered(self, result) -> None:
         """Log the discipline's error (rate-limited) and count an answer (node stats)."""
@@ -435,15 +354,17 @@ class DisciplineNode(Node):
 
     # -- data flow -----------------------------------------------------------------
     def _authentic(self, msg, kind: str) -> bool:
+        """True unless the run signs and `msg` (a `kind`: request, data-flow request or result) is not
+        signed right: then it is counted and logged (rate-limited)."""
         if self.signer is None:
             return True
-        why = (self.signer.verify_request if kind == "request" else self.signer.verify_result)(msg)
+        why = (self.signer.verify_result if kind.endswith("result") else self.signer.verify_request)(msg)
         if why is None:
             return True
         self.counts["rejected"] += 1
         self.counts[f"rejected.{why}"] += 1
         self.get_logger().warning(
-            f"dropped {why} data-flow {kind} (run {msg.run_id[:40]!r}, eval {msg.evaluation_id}) "
+            f"dropped {why} {kind} (run {msg.run_id[:40]!r}, eval {msg.evaluation_id}) "
             f"[{self.counts['rejected']} rejected so far; this log is rate-limited]", throttle_duration_sec=2.0)
         return False
 
@@ -455,7 +376,7 @@ class DisciplineNode(Node):
         if not self._for_me(req):
             return None
         self.counts["received"] += 1
-        if not local and not self._authentic(req, "request"):
+        if not local and not self._authentic(req, "data-flow request"):
             return None
         if not valid_run_id(req.run_id):
             return self._reject(req, "bad run id", "bad_run_id", self._mda_pub)
@@ -473,7 +394,7 @@ class DisciplineNode(Node):
             return  # not a data-flow MDA with this discipline
         if not self._for_me(msg, source):
             return
-        if not local and not self._authentic(msg, "result"):
+        if not local and not self._authentic(msg, "data-flow result"):
             return
         if msg.discipline != source:
             self.counts["source_malformed"] += 1

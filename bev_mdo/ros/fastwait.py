@@ -4,7 +4,7 @@ one "wait until matched or deadline" loop of ros/ (graph matching, discovery, re
 rclpy's executors rebuild a wait set over every entity of a node (parameter
 services included) and dispatch through coroutines on each `spin_once`; measured
 here that is about 1 ms per call, several times the DDS round trip. This waits on
-a single subscription with rcl's wait set and takes messages directly, the way
+the hot subscriptions with one rcl wait set and takes messages directly, the way
 `rclpy.wait_for_message` does. Everything else of the node is still spun by its
 executor when idle.
 """
@@ -52,36 +52,9 @@ def until(ready: Callable[[], object], wait_s: float, step: Callable[[], object]
     return True
 
 
-class SubscriptionWaiter:
-    """Take every pending message of one subscription; block until one arrives."""
-
-    def __init__(self, subscription, context):
-        self.sub = subscription
-        self._ws = _rclpy.WaitSet(1, 0, 0, 0, 0, 0, context.handle)
-
-    def take_all(self, handle: Callable) -> int:
-        """Call `handle(msg)` for every message already received; returns how many."""
-        n = 0
-        while True:
-            with self.sub.handle:
-                got = self.sub.handle.take_message(self.sub.msg_type, self.sub.raw)
-            if got is None:
-                return n
-            handle(got[0])
-            n += 1
-
-    def wait(self, timeout_s: float) -> bool:
-        """Block until a message is ready or `timeout_s` passes; True if one is ready."""
-        self._ws.clear_entities()
-        with self.sub.handle:
-            self._ws.add_subscription(self.sub.handle)
-            self._ws.wait(max(0, int(timeout_s * 1e9)))
-        return bool(self._ws.get_ready_entities("subscription"))
-
-
 class MultiWaiter:
-    """The same lean path over several subscriptions (the coordinator's results, a node's or a
-    composed process's hot subscriptions, the recorder). The rcl handle of each subscription is
+    """The lean path of the hot subscriptions (the coordinator's results, a node's or a composed
+    process's, the recorder's): messages taken from one rcl wait set, without an executor. The rcl handle of each subscription is
     looked up once (rclpy's ``handle`` property costs a Python call per use, several per message)."""
 
     def __init__(self, context):

@@ -8,16 +8,16 @@ second of wall time (its current load).
 """
 from __future__ import annotations
 
+import json
 import time
+from collections import Counter
 
-from bev_mdo.ros.common import INFO_QOS, INFO_TOPIC, request_topic
-from bev_mdo.ros.discipline_node import NODE_STATS_READER_QOS, NODE_STATS_TOPIC
+from bev_mdo.ros.common import INFO_QOS, INFO_TOPIC, NODE_STATS_READER_QOS, NODE_STATS_TOPIC, request_topic
+from bev_mdo.ros.fastwait import until
 
 
 def collect(node, listen_s: float = 2.0) -> list[dict]:
     """[{discipline, instance, host, pid, live, run_id, fingerprint, points, compute_s, ...}] sorted."""
-    import json
-
     from rclpy.executors import SingleThreadedExecutor
     from std_msgs.msg import String
 
@@ -91,3 +91,42 @@ def format_table(rows: list[dict]) -> str:
                       r["fingerprint"]))
     widths = [max(len(line[j]) for line in lines) for j in range(len(head))]
     return "\n".join("  ".join(c.ljust(w) for c, w in zip(line, widths)).rstrip() for line in lines)
+
+
+class NodeStatsListener:
+    """Latest counters of every discipline node (from /bev_mdo/node_stats), by instance name."""
+
+    def __init__(self, node):
+        from rclpy.executors import SingleThreadedExecutor
+        from std_msgs.msg import String
+
+        self.node = node
+        self.latest: dict[str, dict] = {}
+        self._sub = node.create_subscription(String, NODE_STATS_TOPIC, self._on_stats, NODE_STATS_READER_QOS)
+        self._executor = SingleThreadedExecutor(context=node.context)
+        self._executor.add_node(node)
+
+    def _on_stats(self, msg) -> None:
+        d = json.loads(msg.data)
+        self.latest[d["instance"]] = d
+
+    def seen(self, discipline: str) -> bool:
+        """True once any instance of `discipline` published its counters."""
+        return any(d["discipline"] == discipline for d in self.latest.values())
+
+    def counts(self, discipline: str | None = None) -> Counter:
+        """Counters summed over instances (of one discipline, or of all)."""
+        total: Counter[str] = Counter()
+        for d in self.latest.values():
+            if discipline is None or d["discipline"] == discipline:
+                total.update(d["counts"])
+        return total
+
+    def wait(self, predicate, timeout_s: float) -> bool:
+        """Spin until `predicate(self)` holds; False after `timeout_s`."""
+        return until(lambda: predicate(self), timeout_s, lambda: self._executor.spin_once(timeout_sec=0.05))
+
+    def close(self) -> None:
+        self._executor.remove_node(self.node)
+        self._executor.shutdown()
+        self.node.destroy_subscription(self._sub)

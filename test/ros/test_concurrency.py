@@ -19,7 +19,7 @@ from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros import coordinator_node  # noqa: E402
-from bev_mdo.ros.discipline_node import NodeStatsListener  # noqa: E402
+from bev_mdo.ros.status import NodeStatsListener  # noqa: E402
 from bev_mdo.ros.evaluator import RosEvaluator  # noqa: E402
 from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
 from bev_mdo.testing import REPO, ros_env  # noqa: E402

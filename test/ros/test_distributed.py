@@ -180,7 +180,7 @@ def test_bad_data_flow_requests_are_rejected_and_the_nodes_keep_serving(rclpy_co
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo import protocol
     from bev_mdo.ros.common import MDA_REQUEST_TOPIC, MDA_RESULT_QOS, REQUEST_QOS, mda_result_topic, stamp
-    from bev_mdo.ros.discipline_node import NodeStatsListener
+    from bev_mdo.ros.status import NodeStatsListener
     from bev_mdo.ros.binding import tag_for
     from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult
 

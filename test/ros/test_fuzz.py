@@ -170,7 +170,7 @@ def fuzz_main(config_path: str, total: int, per_round: int, seed: int) -> int:
     import rclpy
     from bev_mdo.config import load_config, resolve_disciplines
     from bev_mdo.ros.common import ITERATION_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, request_topic
-    from bev_mdo.ros.discipline_node import NodeStatsListener
+    from bev_mdo.ros.status import NodeStatsListener
     from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult
 
     rng = np.random.default_rng(seed)

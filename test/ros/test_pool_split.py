@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 
 from bev_mdo.ros import binding
-from bev_mdo.ros.pool import Pool, split_rows, validate_mode
+from bev_mdo.mdo.pool import Pool, split_rows, validate_mode
 
 
 def _cover(parts, n):
@@ -111,7 +111,7 @@ def test_min_rows_keeps_every_share_at_least_that_large():
 def test_pool_min_rows_setting_and_the_split_it_gives():
     """``ros.pool_min_rows``: a population of 100 stays whole (one share, the fastest instance) when
     shares must hold 128 rows; 512 rows are still cut in two; per discipline or for every pool."""
-    from bev_mdo.ros.pool import min_rows_of
+    from bev_mdo.mdo.pool import min_rows_of
     from bev_mdo.ros_settings import validate_min_rows, validate_ros
 
     assert validate_ros({})["pool_min_rows"] == 1

@@ -1,7 +1,7 @@
 """Worker pools: several live instances of one discipline share each batch.
 
 No rclpy import here: the split, the throughput estimate and the per-instance counters are
-plain Python, used by the ROS evaluator (evaluator.py) and tested without ROS.
+plain Python, used by the orchestrator (orchestrator.py) and tested without ROS.
 
 A batch of ``n`` designs sent to a discipline with ``k`` live instances is cut into ``k``
 contiguous row ranges, sized in proportion to each instance's measured throughput (points per

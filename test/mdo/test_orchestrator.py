@@ -1,0 +1,137 @@
+"""The orchestration of a distributed evaluation (mdo/orchestrator.py) over a transport in memory:
+what is sent, re-sent, shared among a pool's instances and given up, with no ROS. Milliseconds: a
+timeout of 0 makes every unanswered request late at once, so nothing here waits."""
+from __future__ import annotations
+
+import logging
+import time
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from bev_mdo.mdo.evaluator import DisciplineSpec, InProcessEvaluator
+from bev_mdo.mdo.orchestrator import Orchestrator
+
+from flow_toys import Half, Plus, Side, Square  # noqa: E402 - test/mdo is on the path (conftest)
+
+
+class MemoryTransport(Orchestrator):
+    """Requests go into a list; each wait answers them with the disciplines in this process, but
+    not those of a ``silent`` discipline or instance (a hung node)."""
+
+    def __init__(self, disciplines, *, silent=(), instances=None, **kw):
+        super().__init__(run_id="run", timeout_s=0.0, **kw)
+        self.engine = InProcessEvaluator(disciplines)
+        self.specs = {n: DisciplineSpec(s.name, s.inputs, s.outputs) for n, s in self.engine.specs.items()}
+        self.coupling_sources = {n: {} for n in self.specs}
+        self.silent = set(silent)
+        self.instances = instances or {}  # discipline -> its instances (a pool when two or more)
+        self.outbox: list = []
+        self.sent = 0
+        self.log = logging.getLogger("test_orchestrator")
+
+    def _request(self, eid, discipline, batch, tag, *, flow=(), iteration=None, attempt=0, partials=False):
+        n = len(next(iter(batch.values()), ()))
+        return SimpleNamespace(evaluation_id=eid, discipline=discipline, batch=batch, attempt=attempt,
+                               partials=partials, flow=list(flow), header=SimpleNamespace(frame_id=tag),
+                               inputs=SimpleNamespace(batch_size=n))
+
+    def _tag(self, names, targets=None):
+        return ",".join(f"{n}@{(targets or {}).get(n, '')}" for n in names)
+
+    def _send(self, p):
+        p.sent_ns = time.monotonic_ns()
+        self.sent += 1
+        self.outbox.append((p.request, p.target))
+
+    def _take_until(self, deadline, once=False):
+        outbox, self.outbox = self.outbox, []
+        for req, target in outbox:
+            name = req.discipline
+            if name in self.silent or target in self.silent:
+                continue
+            p = self.ledger.match(req.evaluation_id, name, req.header.frame_id)
+            if p is not None:
+                res = self.engine.evaluate([(name, req.batch)])[0]
+                self._accept((req.evaluation_id, name), p, res, target or f"{name}_node")
+
+    def _live(self, name):
+        got = [i for i in self.instances.get(name, ()) if i not in self._pool(name).suspect]
+        return got if len(self.instances.get(name, ())) > 1 else None
+
+    def _present_instances(self, name):
+        return set(self.instances.get(name, ())), len(self.instances.get(name, ()))
+
+    def _poll_info(self):
+        pass
+
+
+X = np.array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0])
+
+
+def test_a_wave_gives_the_in_process_results_and_counts():
+    ev = MemoryTransport([Square(), Side()], retries=2)
+    got = ev.evaluate([("square", {"x": X}), ("side", {"x": X[:2]})])
+    want = InProcessEvaluator([Square(), Side()]).evaluate([("square", {"x": X}), ("side", {"x": X[:2]})])
+    for g, w in zip(got, want):
+        assert all(np.array_equal(g.outputs[k], w.outputs[k]) for k in w.outputs) and np.array_equal(g.ok, w.ok)
+    assert ev.counts == {"square": 6, "side": 2} and ev.retried == 0 and ev.sent == 2
+    assert sorted(d for _, d, _, _ in ev.accepted) == ["side", "square"]
+
+
+def test_a_silent_discipline_is_re_sent_then_its_points_fail_named_and_it_is_not_asked_again():
+    ev = MemoryTransport([Square(), Side()], silent={"side"}, retries=2)
+    sq, side = ev.evaluate([("square", {"x": X}), ("side", {"x": X})])
+    assert sq.ok.all() and not side.ok.any() and np.isnan(side.outputs["u"]).all()
+    assert "side: no answer after 3 attempts" in side.error
+    assert ev.retried == 2 and ev.sent == 4 and ev.unresponsive == {"side"}
+    sent = ev.sent
+    (again,) = ev.evaluate([("side", {"x": X})])
+    assert not again.ok.any() and "did not answer earlier requests" in again.error and ev.sent == sent
+    assert ev.dropped["duplicate"] == 0  # nothing answered late
+
+
+def test_a_data_flow_mda_is_one_request_with_the_wave_by_wave_results():
+    discs = [Square(), Plus(), Half()]
+    ev = MemoryTransport(discs, retries=1)
+    names = ["square", "plus", "half"]
+    assert ev.flow_plan(names) is None and ev.evaluate_flow(names, {"x": X, "z": X}, len(X)) is None  # declared none
+    ev.coupling_sources = {"square": {}, "plus": {"y": "square"}, "half": {"w": "plus"}}  # as the nodes declare
+    ev._flow_plans.clear()  # what a new declaration does (the ROS transport's _on_info)
+    assert ev.flow_plan(names) == ev.coupling_sources
+    # the memory transport answers each discipline of the request on its own: give it the
+    # request's columns and the sources' outputs, as a node gets them with its sources' results
+    engine = ev.engine
+
+    def take(deadline, once=False):
+        outbox, ev.outbox = ev.outbox, []
+        for req, _ in outbox:
+            got = engine.evaluate_flow(req.flow, req.batch, req.inputs.batch_size)
+            for d in req.flow:
+                p = ev.ledger.match(req.evaluation_id, d, req.header.frame_id)
+                ev._accept((req.evaluation_id, d), p, got[d], f"{d}_node")
+
+    ev._take_until = take
+    request = {"x": X, "z": X}
+    out = ev.evaluate_flow(names, request, len(X))
+    ref = InProcessEvaluator(discs)
+    want = ref.evaluate_flow(names, request, len(X))
+    assert ev.sent == 1 and ev.flows == 1 and dict(ev.counts) == ref.counts
+    for d in names:
+        assert all(np.array_equal(out[d].outputs[k], want[d].outputs[k], equal_nan=True) for k in want[d].outputs)
+        assert np.array_equal(out[d].ok, want[d].ok)
+
+
+@pytest.mark.parametrize("silent", [set(), {"b"}])
+def test_a_pool_shares_a_batch_and_a_silent_instance_s_rows_go_to_the_others(silent):
+    ev = MemoryTransport([Square()], silent=silent, instances={"square": ["a", "b", "c"]}, retries=3)
+    (res,) = ev.evaluate([("square", {"x": X})])
+    assert res.ok.all() and np.array_equal(res.outputs["y"], X ** 2)  # joined in row order
+    summary = ev.pool_summary()["square"]
+    assert sum(s["points"] for s in summary.values()) == len(X)
+    if silent:
+        assert summary["b"]["failures"] == 1 and summary["b"]["points"] == 0 and ev.retried >= 1
+        assert "b" in ev.pools["square"].suspect
+    else:
+        assert {i: s["shares"] for i, s in summary.items()} == {"a": 1, "b": 1, "c": 1} and ev.retried == 0
