@@ -288,13 +288,13 @@ def main(argv=None) -> int:
 def _progress(label: str):
     def say(i, k, held_out):
         shown = ", ".join(held_out[:3]) + (f" (+{len(held_out) - 3})" if len(held_out) > 3 else "")
-        print(f"  {label} fold {i + 1}/{k}: fitting without {shown}", file=sys.stderr, flush=True)
+        print(f"  {label} fold {i + 1}/{k}: fitting without {shown}", flush=True)
     return say
 
 
 def run(args) -> int:
     """Fit, cross-validate by model family and by make, print, and write the set if asked (exit 0; 2 on
-    bad input). Progress goes to stderr."""
+    bad input, one line on stderr). Progress (one line per fold) goes to stdout as the results do."""
     path = None if args.write in (None, "shipped") else Path(args.write)
     model = args.model
     try:
@@ -305,11 +305,11 @@ def run(args) -> int:
         fleet = fl.read_fleet(args.data)
         cycles = fl.resampled_cycles()
         use = usable(fleet, cycles)
-        print(f"fitting {model} on {int(use.sum())} vehicles of {fleet.path}", file=sys.stderr, flush=True)
         f = fit(fleet, cycles=cycles, use=use, model=model)
     except ValueError as exc:
         print(f"calibrate: error: {exc}", file=sys.stderr)
         return 2
+    print(f"fitted {model} on {int(use.sum())} vehicles of {fleet.path}; cross-validating", flush=True)
     left_out = np.flatnonzero(~use & ~fleet.outlier)
     if left_out.size:
         print(f"{left_out.size} vehicle(s) left out: the rated power cannot follow UDDS or HWFET (rows "

@@ -130,7 +130,7 @@ def test_write_is_checked_before_the_fit_and_a_failed_write_is_one_line(tmp_path
 
 
 def test_bev_mdo_calibrate_fits_the_quasi_static_loss_model_and_writes_its_provenance(tmp_path, capsys):
-    """``bev-mdo calibrate --model quasi_static`` on two makes: progress per fold on stderr, a set
+    """``bev-mdo calibrate --model quasi_static`` on two makes: progress per fold, a set
     with the fit date, the data file's hash, both cross-validations (MAPE, median of the folds, pairs)
     and parameters a config can use."""
     import datetime
@@ -139,7 +139,7 @@ def test_bev_mdo_calibrate_fits_the_quasi_static_loss_model_and_writes_its_prove
     out = tmp_path / "qs.yaml"
     assert bev_mdo(["calibrate", "--model", "quasi_static", "--data", str(data), "--write", str(out)]) == 0
     got = capsys.readouterr()
-    assert "make fold 1/2: fitting without" in got.err and "family fold 1/" in got.err
+    assert "make fold 1/2: fitting without" in got.out and "family fold 1/" in got.out and not got.err
     assert "leave-one-make-out MAPE" in got.out and "pairs of the CV by make" in got.out
     doc = yaml.safe_load(out.read_text())
     assert doc["fitted_on"]["date"] == datetime.date.today().isoformat()
