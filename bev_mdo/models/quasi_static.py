@@ -9,11 +9,14 @@ acceleration a_bar (6-50, 6-51). Per step, vectorised over time x design points:
     w_m = w_w i_g,  T_m = T_w / (i_g eta_g) driving          (2-4, 2-5)
                     T_m = T_w eta_g / i_g braking
     P_m = T_m w_m / eta_m (driving), T_m w_m eta_m (regen)   (2-7, 2-8 motor map)
+    or, with ``motor_loss_model = 1``, P_m = T_m w_m + L(T_m, w_m, P) on ``driven_axles`` equal
+    machines (loss_model.py, the fleet-calibrated set epa2022_quasi_static)
 
 The road load is road_load.py's, as in every model: it acts while the vehicle moves, so a
 standing step has no wheel force (it never cost energy: the motor does no work at zero speed).
 
-Regenerative braking (§2.3.4): the motor brakes with max(T_required, -T_max(w)) (2-25),
+Regenerative braking (§2.3.4): the motor brakes with max(share T_required, -T_max(w)) (2-25;
+``regen_axle_share``, 1 in the thesis),
 none below 10 km/h, none beyond 0.7 g deceleration, none above 90 % SOC, and the charge
 current is capped at 2C; the rest is friction braking. Then the battery steps in time,
 vectorised over points: V_BT from P (2-13, 2-14), I = P / V_BT (2-11), SOC (2-9, 2-10).
@@ -164,6 +167,7 @@ def demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> Demand:
         t_max = np.where(w_m <= w_lim, np.minimum(t_pk, kw * 1e3 / np.maximum(w_m, 1e-9)), 0.0)
         t_regen = np.where(allowed, np.maximum(t_brake * share, -t_max), 0.0)  # 2-25, §2.3.4 rules 2-3
         if loss_model:  # driven_axles equal machines of P / n sharing the torque, + the second axle's drag
+            # (with the map two machines of P / 2 are one of P, Fig 2-9: driven_axles changes nothing)
             p_el = (axles * motor_map.electrical_power_w((t_drive + t_regen) / axles, w_m, kw / axles)
                     + np.where(v_bar > 0, (axles - 1.0) * p["second_axle_drag_w"], 0.0))
         else:
@@ -327,15 +331,10 @@ def simulate(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, battery_k
     ``reference``: the numpy passes instead of the compiled loops (same result to 1e-12)."""
     m, ig, kw, p = inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh)
     model = drive_model(p, motor_map)
-    if reference or not compiled_supports(p, model):
+    if reference:
         return integrate_energy(demand(resampled, p, m, ig, kw, model), p, m.shape[0])
     return fast_energy(fast_demand(resampled, p, m, ig, kw, model), p, m.shape[0])
 
-
-def compiled_supports(p, model) -> bool:
-    """Whether the compiled loops cover this batch: every loss model, and the map with one driven axle
-    (with the map, ``driven_axles`` is not modelled: two machines of P/2 are one of P by Fig 2-9)."""
-    return isinstance(model, LossModel) or bool(np.all(p["driven_axles"] == 1.0))
 
 
 def integrate_energy(d: Demand, p, n: int) -> QuasiStaticResult:
@@ -372,7 +371,7 @@ def range_by_repeated_cycle_km(resampled, params, vehicle_mass_kg, gear_ratio, m
     m, ig, kw, p = inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh)
     step_m = step_distances_m(resampled)
     model = drive_model(p, motor_map)
-    if reference or not compiled_supports(p, model):
+    if reference:
         return integrate_range(demand(resampled, p, m, ig, kw, model), p, m.shape[0], step_m, max_repeats)
     return fast_range(fast_demand(resampled, p, m, ig, kw, model), p, m.shape[0], step_m, max_repeats)
 

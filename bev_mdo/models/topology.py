@@ -397,7 +397,7 @@ def simulate(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh
     t, m, ig, kw, p, kw_r, ig_r = _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio,
                                            motor_rear_kw, gear_ratio_rear)
     model = qs.drive_model(p, motor_map)
-    if reference or not qs.compiled_supports(p, model):
+    if reference:
         d = _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, model)
         return qs.integrate_energy(d, p, m.shape[0])
     d = _fast_demand(resampled, t, p, m, ig, kw, kw_r, ig_r, model)
@@ -420,7 +420,7 @@ def range_by_repeated_cycle_km(resampled, params, topology, vehicle_mass_kg, mot
                                            motor_rear_kw, gear_ratio_rear)
     step_m = qs.step_distances_m(resampled)
     model = qs.drive_model(p, motor_map)
-    if reference or not qs.compiled_supports(p, model):
+    if reference:
         d = _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, model)
         return qs.integrate_range(d, p, m.shape[0], step_m, max_repeats)
     d = _fast_demand(resampled, t, p, m, ig, kw, kw_r, ig_r, model)
