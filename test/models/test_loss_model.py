@@ -68,8 +68,9 @@ def test_compiled_loss_model_equals_the_reference(topology, udds):
     args = (rng.uniform(900, 2800, n), kw, rng.uniform(20, 100, n), rng.uniform(4, 11, n) if t.geared else None,
             rng.uniform(20, 300, n) if t.two_axles else None,
             rng.uniform(4, 11, n) if t.geared and t.two_axles else None)
-    params = {**LOSSY, "loss_size_exponent": 0.3, "loss_inverter_w_per_nm": 1.5, "regen_axle_share": rng.uniform(0.5, 1, n),
-              "initial_soc": rng.uniform(0.5, 0.95, n), "motor_torque_per_kw": 2.0}
+    params = {**LOSSY, "loss_size_exponent": 0.3, "loss_inverter_w_per_nm": 1.5,
+              "regen_axle_share": rng.uniform(0.5, 1, n), "initial_soc": rng.uniform(0.5, 0.95, n),
+              "motor_torque_per_kw": 2.0}
     if t.name == "SM-SA":
         params.update(driven_axles=rng.choice([1.0, 2.0], n), second_axle_drag_w=rng.uniform(0, 300, n),
                       gear_count=rng.choice([1.0, 2.0], n), shift_strategy=rng.choice([0.0, 1.0], n))
