@@ -98,11 +98,3 @@ class LossModel:
         return (self.copper_w_per_nm2, self.inverter_w_per_nm, self.iron_w_s_per_rad,
                 self.friction_w_s2_per_rad2, self.constant_w, self.size_exponent)
 
-
-def thesis_default() -> LossModel:
-    """The default map's own loss model (motor_map.py) with Fig 2-9's scaling (e = 1) and no
-    inverter conduction term: the starting point of the calibration."""
-    from . import motor_map as mm
-
-    return LossModel(mm.LOSS_COPPER_W_PER_NM2, 0.0, mm.LOSS_IRON_W_S_PER_RAD, mm.LOSS_EDDY_W_S2_PER_RAD2,
-                     mm.LOSS_CONST_W, 1.0, mm.REFERENCE_KW, "thesis_default_loss_model")
