@@ -39,6 +39,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "compare": ("sweep", "two or more designs side by side with their differences"),
     "graph": ("graph", "the coupling graph as an N² chart (PNG) and Graphviz DOT text"),
     "validate": ("validate", "predicted vs measured energy over a fleet of tested vehicles"),
+    "calibrate": ("calibrate", "fit a model's fleet-wide parameters to a fleet of measured cars, cross-validated "
+                               "by family and by make"),
     "check-partials": ("check_partials", "compare analytic partial derivatives with finite differences"),
     "check-totals": ("check_totals", "compare the optimiser's total derivatives with finite differences"),
     "status": ("status", "list the live discipline instances on the ROS domain (host, throughput)"),

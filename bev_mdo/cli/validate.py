@@ -12,8 +12,10 @@ same rows (bev_mdo/models/baselines.py): the 3-constant baseline, cross-validate
 FASTSim 2.1.5 with its defaults (shipped results). ``--plot DIR`` writes the parity and residual
 plot and, with ``--pairs``, the pairs of each cycle as arrows from one variant to the other
 (bev_mdo/cli/validate_plots.py).
-Models: chain (default; wall to wheel with the calibrated parameter set), flat, breakdown,
-quasi_static, topology_sm_sa (the thesis models, which stop at the battery terminals).
+Models: chain (default; wall to wheel with the calibrated parameter set), flat, breakdown (the
+thesis models, which stop at the battery terminals), quasi_static, topology_sm_sa (the thesis'
+model with its motor written as losses and calibrated to the fleet, from the wall; with
+``--parameter-set thesis`` as published, at the battery terminals).
 """
 from __future__ import annotations
 
@@ -26,14 +28,19 @@ import numpy as np
 from bev_mdo.cli import UsageError
 
 DEFAULT_SET = "epa2022_chain"
+# the calibrated set each model is validated with unless --parameter-set names another ('none': defaults)
+DEFAULT_SETS = {"chain": DEFAULT_SET, "quasi_static": "epa2022_quasi_static", "topology_sm_sa": "epa2022_quasi_static"}
 
 
-def compared(energy_model: str) -> str:
+def compared(energy_model: str, base: dict | None = None) -> str:
     """What validate compares: the measured figure is EPA's energy from the wall; the chain predicts the
     same quantity (a run's energy_wall_wh_per_km), the thesis models the energy from the battery
     (energy_wh_per_km), which leaves out the charger's loss."""
     if energy_model == "chain":
         return "measured wall energy (EPA, AC recharge) vs predicted wall energy (energy_wall_wh_per_km)"
+    if base and "charger_efficiency" in base:
+        return ("measured wall energy (EPA, AC recharge) vs predicted wall energy (energy_wh_per_km / the "
+                "parameter set's charger_efficiency)")
     return ("measured wall energy (EPA, AC recharge) vs predicted battery energy (energy_wh_per_km: "
             f"{energy_model} stops at the battery terminals, no charger loss)")
 
@@ -46,9 +53,10 @@ def register(subparsers) -> None:
     p.add_argument("--data", metavar="CSV", default=None,
                    help="fleet file (default: bev_mdo/data/epa_2022_bev/train.csv)")
     p.add_argument("--energy-model", default="chain", choices=ENERGY_MODELS, help="energy model (default chain)")
-    p.add_argument("--parameter-set", default=DEFAULT_SET, metavar="NAME",
-                   help=f"parameter set for the chain model: a shipped name or a .yaml path (default {DEFAULT_SET}; "
-                        "'none' = model defaults)")
+    p.add_argument("--parameter-set", default=None, metavar="NAME",
+                   help="parameter set of the chain, quasi_static and topology_sm_sa models: a shipped name or a .yaml "
+                        f"path (default {DEFAULT_SET} for chain, {DEFAULT_SETS['quasi_static']} for the other two; "
+                        "'thesis' = the thesis' constants, 'none' = model defaults)")
     p.add_argument("--pairs", action="store_true",
                    help="also report within-family pairs: measured vs predicted percentage differences")
     p.add_argument("--plot", metavar="DIR", help="write parity.png (parity and residuals) into DIR, with --pairs also "
@@ -57,7 +65,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def evaluate(data=None, energy_model: str = "chain", parameter_set: str | None = DEFAULT_SET,
+def evaluate(data=None, energy_model: str = "chain", parameter_set: str | None = None,
              pairs: bool = False) -> dict:
     """The whole validation as a dict (what --json prints)."""
     from bev_mdo.models import fleet as fl
@@ -65,7 +73,8 @@ def evaluate(data=None, energy_model: str = "chain", parameter_set: str | None =
 
     fleet = fl.read_fleet(data)
     base = {}
-    if energy_model == "chain" and parameter_set and parameter_set != "none":
+    parameter_set = DEFAULT_SETS.get(energy_model) if parameter_set is None else parameter_set
+    if energy_model in DEFAULT_SETS and parameter_set and parameter_set != "none":
         base = load_parameter_set(parameter_set)
     cycles = fl.resampled_cycles()
     pred = fl.predict(fleet, energy_model, base, cycles)
@@ -86,8 +95,8 @@ def evaluate(data=None, energy_model: str = "chain", parameter_set: str | None =
             row[f"{short}_follows"] = bool(pred[c]["follows"][i])
         out_rows.append(row)
     both = np.concatenate([err[c][scored[c]] for c in fl.CYCLES])
-    report = {"data": fleet.path, "energy_model": energy_model, "compared": compared(energy_model),
-              "parameter_set": parameter_set if energy_model == "chain" else None,
+    report = {"data": fleet.path, "energy_model": energy_model, "compared": compared(energy_model, base),
+              "parameter_set": parameter_set if energy_model in DEFAULT_SETS else None,
               "vehicles": len(fleet), "rows": out_rows,
             "not_following": [{"row": int(fleet.rows[i]), "cycle": c} for c in fl.CYCLES
                               for i in np.flatnonzero(~pred[c]["follows"])],

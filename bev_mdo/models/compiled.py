@@ -114,11 +114,27 @@ def _speed_index(w, mp):
     return _interp(abs(w), mp[0], mp[3], mp[5], mp[6], mp[7])
 
 
+def loss_tuple(coefficients=None) -> np.ndarray:
+    """A loss model (``loss_model.LossModel.as_tuple``) as the compiled loops take it: [1, k_cu,
+    k_inv, k_fe, k_fr, P_0, e]; [0, ...] = the map."""
+    if coefficients is None:
+        return np.zeros(7)
+    return np.array([1.0, *coefficients], dtype=float)
+
+
 @_jit(inline="always")
-def _electrical_w(torque, w, fi, scale, mp):
+def _electrical_w(torque, w, fi, scale, mp, loss):
     """Electrical power of one motor at (T, w), eq 2-7 with the Fig 2-9 torque scaling
     (``topology.electrical_power_w`` for one point); ``fi`` = ``_speed_index(w, mp)``, ``scale`` =
-    reference kW / motor kW. No torque: T w (0, the map not read)."""
+    reference kW / motor kW. No torque: T w (0, the map not read). With a loss model (``loss[0]``
+    = 1) T w plus its loss while turning (``loss_model.LossModel.electrical_power_w``)."""
+    if loss[0] != 0.0:
+        aw = abs(w)
+        extra = 0.0
+        if aw > 0:
+            extra = (loss[1] * torque * torque * scale + loss[2] * abs(torque)
+                     + (loss[3] * aw + loss[4] * aw * aw + loss[5]) / scale ** loss[6])
+        return torque * w + extra
     if torque == 0.0:
         return torque * w  # pm / eta and pm * eta of pm = +-0
     wg, tg, eff, it = mp[0], mp[1], mp[2], mp[4]
@@ -160,16 +176,20 @@ def _t_max(w, w_lim, t_peak, kw):
 COLUMNS = ("mass", "a0", "a1", "b", "c", "r_w", "regen_min_m_s", "decel_min",
            "ratio", "eta", "kw", "scale", "t_peak", "w_lim", "count",  # front axle (SM-SA: the motor, gear 1)
            "ratio_r", "eta_r", "kw_r", "scale_r", "t_peak_r", "w_lim_r", "count_r",  # rear axle
-           "ratio_2", "shift_m_s", "two_speed", "best_gear")  # SM-SA two-speed gearbox
+           "ratio_2", "shift_m_s", "two_speed", "best_gear",  # SM-SA two-speed gearbox
+           "regen_share", "axles", "axle_drag_w")  # share of braking the motors take; SM-SA machines, drag
 (_M, _A0, _A1, _B, _C, _RW, _VMIN, _DMIN, _RATIO, _ETA, _KW, _SCALE, _TPK, _WLIM, _COUNT) = range(15)
 _REAR = COLUMNS.index("ratio_r") - _RATIO  # offset of a rear-axle column from its front one
-_RATIO2, _SHIFT, _TWO, _BEST = (COLUMNS.index(k) for k in ("ratio_2", "shift_m_s", "two_speed", "best_gear"))
+_RATIO2, _SHIFT, _TWO, _BEST, _SHARE, _AXLES, _DRAG = (COLUMNS.index(k) for k in (
+    "ratio_2", "shift_m_s", "two_speed", "best_gear", "regen_share", "axles", "axle_drag_w"))
 
 
 @_jit(inline="always")
-def _single_motor_step(x, v, t_w, driving, allowed, mp):
+def _single_motor_step(x, v, t_w, driving, allowed, mp, loss):
     """SM-SA at one step (``quasi_static.demand``): the gear (eq 2-6, or the least-power gear the
-    envelope allows), motor torque and speed, rules 2-3, the map. (power, motor speed, T_max - T_m)."""
+    envelope allows), motor torque and speed, rules 2-3, the map (or the loss model, on ``axles``
+    equal machines plus the second axle's drag). (power, motor speed, T_max - T_m)."""
+    axles = x[_AXLES]
     ratio1, ratio2, eta_g, kw, w_lim, t_pk = x[_RATIO], x[_RATIO2], x[_ETA], x[_KW], x[_WLIM], x[_TPK]
     ratio = ratio2 if (x[_TWO] != 0.0 and v >= x[_SHIFT]) else ratio1  # 2-6
     cost0 = np.inf
@@ -181,8 +201,12 @@ def _single_motor_step(x, v, t_w, driving, allowed, mp):
         w_m = v / x[_RW] * r  # 2-2, 2-4
         t_drive = t_w / (r * eta_g) if driving else 0.0  # 2-5
         tmax = _t_max(w_m, w_lim, t_pk, kw)
-        t_regen = max(t_w * eta_g / r, -tmax) if allowed else 0.0  # 2-25
-        p_el = _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), x[_SCALE], mp)
+        t_regen = max(t_w * eta_g / r * x[_SHARE], -tmax) if allowed else 0.0  # 2-25
+        if loss[0] != 0.0:
+            p_el = axles * _electrical_w((t_drive + t_regen) / axles, w_m, 0.0, x[_SCALE], mp, loss)
+            p_el = p_el + ((axles - 1.0) * x[_DRAG] if v > 0 else 0.0)
+        else:
+            p_el = _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), x[_SCALE], mp, loss)
         cost = p_el if (w_m <= w_lim and t_drive <= tmax) else np.inf
         if g == 0:
             cost0 = cost
@@ -193,7 +217,7 @@ def _single_motor_step(x, v, t_w, driving, allowed, mp):
 
 
 @_jit(inline="always")
-def _axle_power(x, o, tw, w, fi, tmax, driving, allowed, mp):
+def _axle_power(x, o, tw, w, fi, tmax, driving, allowed, mp, loss):
     """Electrical power of an axle (columns from ``o``: 0 front, ``_REAR`` rear) carrying wheel
     torque ``tw`` and its motoring overload (``topology._axle_power`` for one point)."""
     count, ratio, eta = x[_COUNT + o], x[_RATIO + o], x[_ETA + o]
@@ -202,12 +226,12 @@ def _axle_power(x, o, tw, w, fi, tmax, driving, allowed, mp):
         over = max(tm - tmax, 0.0)
     else:
         over = 0.0
-        tm = max(tw * eta / (count * ratio), -tmax) if allowed else 0.0  # 2-25, rules 2-3
-    return count * _electrical_w(tm, w, fi, x[_SCALE + o], mp), over
+        tm = max(tw * eta / (count * ratio) * x[_SHARE], -tmax) if allowed else 0.0  # 2-25, rules 2-3
+    return count * _electrical_w(tm, w, fi, x[_SCALE + o], mp, loss), over
 
 
 @_jit(inline="always")
-def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power, mp):
+def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power, mp, loss):
     """One or two driven axles at one step (``topology._demand``): with two, the front share of
     wheel torque of least electrical power (coarse ``grid``, then ``fine`` around its argmin, the
     first minimum as np.argmin; a fine share equal to a coarse one reuses its value); one axle
@@ -223,7 +247,8 @@ def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power,
         tmr = _t_max(wr, x[_WLIM + o], x[_TPK + o], x[_KW + o])
         cap = cap + x[_COUNT + o] * tmr * x[_RATIO + o] * x[_ETA + o]
     w_top = max(wf, wr) if two_axles else wf
-    if not (driving or allowed):  # no motor torque on any axle at any share
+    if not (driving or allowed) and loss[0] == 0.0:  # no motor torque on any axle at any share (a loss
+        # model's idle motors still lose)
         return 0.0, w_top, cap - t_w
     fif = _speed_index(wf, mp)
     fir = _speed_index(wr, mp) if two_axles else 0.0
@@ -242,9 +267,9 @@ def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power,
         if q >= 0:
             sc, pp = score[q], power[q]
         else:
-            pp, of = _axle_power(x, 0, t_w * s, wf, fif, tmf, driving, allowed, mp)
+            pp, of = _axle_power(x, 0, t_w * s, wf, fif, tmf, driving, allowed, mp, loss)
             if two_axles:
-                pr, orr = _axle_power(x, o, t_w * (1.0 - s), wr, fir, tmr, driving, allowed, mp)
+                pr, orr = _axle_power(x, o, t_w * (1.0 - s), wr, fir, tmr, driving, allowed, mp, loss)
                 pp, of = pp + pr, of + orr
             sc = pp + _PENALTY_W_PER_NM * of  # topology.best_split's selection score
         if idx < n_coarse:
@@ -259,11 +284,12 @@ def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power,
 
 
 @_jit(parallel=True)
-def drive_demand(v, acc, cols, single_motor, two_axles, grid, fine, mp):
+def drive_demand(v, acc, cols, single_motor, two_axles, grid, fine, mp, loss):
     """Per-step battery demand of every design (row of ``cols``, see ``COLUMNS``) over the steps of
     mean speed ``v`` and acceleration ``acc``: SM-SA (``single_motor``) or one/two driven axles.
     Returns the signed power (N, K), the top motor speed (N,) and the least motoring margin (N,):
-    T_max - T_m of the motor (SM-SA) or the axles' wheel torque capacity minus demand."""
+    T_max - T_m of the motor (SM-SA) or the axles' wheel torque capacity minus demand. ``loss``:
+    ``loss_tuple`` (the map when its first entry is 0)."""
     n_pts, n_steps = cols.shape[0], v.shape[0]
     power = np.empty((n_pts, n_steps))
     speed_max = np.empty(n_pts)
@@ -280,9 +306,10 @@ def drive_demand(v, acc, cols, single_motor, two_axles, grid, fine, mp):
             driving = force >= 0
             allowed = (not driving) and v[k] >= x[_VMIN] and acc[k] >= x[_DMIN]  # rules 2-3
             if single_motor:
-                p, w, room = _single_motor_step(x, v[k], t_w, driving, allowed, mp)
+                p, w, room = _single_motor_step(x, v[k], t_w, driving, allowed, mp, loss)
             else:
-                p, w, room = _axle_step(x, v[k], t_w, driving, allowed, two_axles, grid, fine, score, scratch, mp)
+                p, w, room = _axle_step(x, v[k], t_w, driving, allowed, two_axles, grid, fine, score, scratch, mp,
+                                        loss)
             power[n, k] = p
             w_top = max(w_top, w)
             if driving:

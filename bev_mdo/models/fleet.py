@@ -265,11 +265,13 @@ def predict(fleet: Fleet, model: str = "chain", base: dict | None = None, cycles
             from . import topology
 
             q = {**p, "initial_soc": 0.9}
+            if q.get("motor_loss_model", 0.0) == 1.0:  # with the map two machines of P/2 are one of P
+                q["driven_axles"] = fleet.driven_axles
             if model == "quasi_static":
                 res = qs.simulate(r, q, m, ig, kw, np.full(len(fleet), FLEET_BATTERY_KWH))
             else:
                 res = topology.simulate(r, q, "SM-SA", m, kw, np.full(len(fleet), FLEET_BATTERY_KWH), ig)
-            e = res.energy_wh_per_km
+            e = res.energy_wh_per_km / q.get("charger_efficiency", 1.0)  # from the wall when the set has one
             follows = follows & res.torque_ok
         else:
             raise ValueError(f"energy model must be one of {list(ENERGY_MODELS)}, got {model!r}")

@@ -132,6 +132,26 @@ QUASI_STATIC_SPECS: dict[str, ParamSpec] = {
     "iwm_speed_scale": ParamSpec(210.0 / 1099.56, 0.01, 1.0, "-", "in-wheel map speed-axis factor "
                                  "(§4.3.1: max 1100 -> 210 rad/s; base speed 285.7 -> 54.6 rad/s, thesis 53)"),
     "torque_split_steps": ParamSpec(11.0, 3.0, 101.0, "-", "front/rear split grid size (odd: includes 50/50)"),
+    # the motor written as its losses (loss_model.py) instead of the map; defaults: the default map's own
+    # loss model (motor_map.py) with Fig 2-9's size scaling
+    "motor_loss_model": ParamSpec(0.0, 0.0, 1.0, "-", "0 = efficiency map scaled by Fig 2-9 (the thesis), "
+                                  "1 = the loss model of loss_model.py with the loss_* coefficients"),
+    "loss_copper_w_per_nm2": ParamSpec(0.085, 0.0, 10.0, "W/(N*m)^2", "copper loss k_cu T^2 at the reference "
+                                       "80 kW, x 80/P (eqs 6-21, 6-27)"),
+    "loss_inverter_w_per_nm": ParamSpec(0.0, 0.0, 100.0, "W/(N*m)", "inverter conduction loss k_inv |T| "
+                                        "(current ~ torque, eq 6-21)"),
+    "loss_iron_w_s_per_rad": ParamSpec(2.5, 0.0, 100.0, "W*s/rad", "iron (hysteresis) loss k_fe w at 80 kW"),
+    "loss_friction_w_s2_per_rad2": ParamSpec(1.6e-3, 0.0, 1.0, "W*s^2/rad^2", "friction and windage loss "
+                                             "k_fr w^2 at 80 kW (eq 6-18: b w_m)"),
+    "loss_constant_w": ParamSpec(300.0, 0.0, 10000.0, "W", "inverter switching/idle loss while turning, at 80 kW"),
+    "loss_size_exponent": ParamSpec(1.0, 0.0, 2.0, "-", "iron, friction and constant losses x (P/80 kW)^e "
+                                    "(1 = Fig 2-9's scaling)"),
+    "driven_axles": ParamSpec(1.0, 1.0, 2.0, "-", "1, or 2: the rated power on two equal machines sharing the "
+                              "torque (all-wheel drive of the single-motor model)"),
+    "second_axle_drag_w": ParamSpec(0.0, 0.0, 5000.0, "W", "gear and bearing drag of a second driven axle "
+                                    "while moving"),
+    "regen_axle_share": ParamSpec(1.0, 0.0, 1.0, "-", "share of the braking force the motor(s) may take "
+                                  "(the rest is friction braking; 1 = the thesis' rules only)"),
 }
 
 # wall-to-wheel chain (chain.py)

@@ -9,11 +9,14 @@ acceleration a_bar (6-50, 6-51). Per step, vectorised over time x design points:
     w_m = w_w i_g,  T_m = T_w / (i_g eta_g) driving          (2-4, 2-5)
                     T_m = T_w eta_g / i_g braking
     P_m = T_m w_m / eta_m (driving), T_m w_m eta_m (regen)   (2-7, 2-8 motor map)
+    or, with ``motor_loss_model = 1``, P_m = T_m w_m + L(T_m, w_m, P) on ``driven_axles`` equal
+    machines (loss_model.py, the fleet-calibrated set epa2022_quasi_static)
 
 The road load is road_load.py's, as in every model: it acts while the vehicle moves, so a
 standing step has no wheel force (it never cost energy: the motor does no work at zero speed).
 
-Regenerative braking (§2.3.4): the motor brakes with max(T_required, -T_max(w)) (2-25),
+Regenerative braking (§2.3.4): the motor brakes with max(share T_required, -T_max(w)) (2-25;
+``regen_axle_share``, 1 in the thesis),
 none below 10 km/h, none beyond 0.7 g deceleration, none above 90 % SOC, and the charge
 current is capped at 2C; the rest is friction braking. Then the battery steps in time,
 vectorised over points: V_BT from P (2-13, 2-14), I = P / V_BT (2-11), SOC (2-9, 2-10).
@@ -43,6 +46,7 @@ from . import battery as bt
 from . import compiled
 from . import road_load as rl
 from .common import batch_size, design_points, resolve_params
+from .loss_model import LossModel
 from .motor_map import DEFAULT_MAP_CSV, MotorMap, load_motor_map_csv
 from .params import QUASI_STATIC_SPECS, VEHICLE_SPECS
 
@@ -54,6 +58,17 @@ DEFAULT_BATTERY_KWH = VEHICLE_SPECS["reference_battery_kwh"].default  # Leaf, 24
 def default_map() -> MotorMap:
     """The packaged default map (bev_mdo/data/motor_map_default.csv)."""
     return load_motor_map_csv(DEFAULT_MAP_CSV)
+
+
+def drive_model(p, motor_map: MotorMap | None = None) -> MotorMap | LossModel:
+    """The motor of a batch: ``motor_map`` when given, else the loss model (loss_model.py) when the
+    parameters ask for it (``motor_loss_model = 1``), else the packaged map."""
+    if motor_map is not None:
+        return motor_map
+    flag = np.atleast_1d(np.asarray(p["motor_loss_model"], float))
+    if np.any((flag != 0.0) & (flag != 1.0)) or np.ptp(flag):
+        raise ValueError("motor_loss_model must be 0 (map) or 1 (loss model), the same for every design point")
+    return LossModel.from_params(p) if flag[0] == 1.0 else default_map()
 
 
 @dataclass
@@ -136,6 +151,11 @@ def demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> Demand:
     ratio = np.where(two & (v_bar >= p["shift_speed_m_s"]), p["gear_ratio_2"], ig)  # 2-6
     t_w = force * r_w  # 2-1
     driving = force >= 0
+    share = p["regen_axle_share"]  # the rest of the braking force is friction
+    loss_model = isinstance(motor_map, LossModel)
+    axles = p["driven_axles"]
+    if np.any((axles != 1.0) & (axles != 2.0)):
+        raise ValueError("driven_axles must be 1 or 2")
     w_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0
     t_pk = p["motor_torque_per_kw"] * kw
     allowed = (~driving) & (v_bar >= p["regen_min_speed_m_s"]) & (a_bar >= -p["regen_max_decel_g"] * g)
@@ -145,8 +165,13 @@ def demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> Demand:
         t_drive = np.where(driving, t_w / (ratio * eta_g), 0.0)  # 2-5
         t_brake = np.where(driving, 0.0, t_w * eta_g / ratio)
         t_max = np.where(w_m <= w_lim, np.minimum(t_pk, kw * 1e3 / np.maximum(w_m, 1e-9)), 0.0)
-        t_regen = np.where(allowed, np.maximum(t_brake, -t_max), 0.0)  # 2-25, §2.3.4 rules 2-3
-        p_el = motor_map.electrical_power_w(t_drive + t_regen, w_m, kw)  # 2-7 (one lookup)
+        t_regen = np.where(allowed, np.maximum(t_brake * share, -t_max), 0.0)  # 2-25, §2.3.4 rules 2-3
+        if loss_model:  # driven_axles equal machines of P / n sharing the torque, + the second axle's drag
+            # (with the map two machines of P / 2 are one of P, Fig 2-9: driven_axles changes nothing)
+            p_el = (axles * motor_map.electrical_power_w((t_drive + t_regen) / axles, w_m, kw / axles)
+                    + np.where(v_bar > 0, (axles - 1.0) * p["second_axle_drag_w"], 0.0))
+        else:
+            p_el = motor_map.electrical_power_w(t_drive + t_regen, w_m, kw)  # 2-7 (one lookup)
         return w_m, t_drive, t_brake, t_max, t_regen, p_el
 
     eff = two & (p["shift_strategy"] == 1.0)
@@ -164,7 +189,7 @@ def demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> Demand:
              "motor_torque_nm": t_drive + t_regen, "motor_torque_max_nm": t_max, "wheel_force_n": force,
              "friction_brake_torque_nm": t_brake - t_regen, "motor_power_w": p_el}
     steps = {k: np.broadcast_to(x, shape) for k, x in steps.items()}
-    return Demand(dt, np.where(driving, p_el, 0.0), np.where(driving, 0.0, p_el),
+    return Demand(dt, np.where(p_el > 0, p_el, 0.0), np.where(p_el > 0, 0.0, p_el),  # drawn / offered
                    float(np.sum(v_bar[:, 0] * dt[:, 0])), np.broadcast_to(w_m.max(axis=0), kw.shape),
                    margin, w_lim + 0.0 * kw, steps)
 
@@ -180,6 +205,14 @@ class FastDemand:
     speed_max: np.ndarray
     torque_margin: np.ndarray
     speed_limit: np.ndarray
+
+
+def motor_arrays(model) -> tuple:
+    """(map tuple, loss tuple) of a map or a loss model as ``compiled.drive_demand`` takes them (a loss
+    model comes with the default map's tuple, which it does not read)."""
+    if isinstance(model, LossModel):
+        return map_arrays(default_map()), compiled.loss_tuple(model.as_tuple())
+    return map_arrays(model), compiled.loss_tuple()
 
 
 def map_arrays(motor_map: MotorMap) -> tuple:
@@ -211,14 +244,18 @@ def fast_demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> FastDemand:
     if np.any(eta_g <= 0):
         raise ValueError("gear_efficiency minus two_speed_efficiency_loss must stay > 0")
     w_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0
+    lossy = isinstance(motor_map, LossModel)
+    axles = p["driven_axles"]
     cols = compiled.table(compiled.COLUMNS, n, dict(
         mass=m + np.where(two, p["two_speed_added_mass_kg"], 0.0), **road_columns(p), r_w=p["wheel_radius_m"],
         regen_min_m_s=p["regen_min_speed_m_s"], decel_min=-p["regen_max_decel_g"] * p["gravity_m_s2"],
-        ratio=ig, eta=eta_g, kw=kw, scale=motor_map.reference_kw / kw, t_peak=p["motor_torque_per_kw"] * kw,
+        ratio=ig, eta=eta_g, kw=kw, t_peak=p["motor_torque_per_kw"] * kw,
+        scale=motor_map.reference_kw / (kw / axles) if lossy else motor_map.reference_kw / kw,  # as demand()
         w_lim=w_lim, count=1.0, ratio_2=p["gear_ratio_2"], shift_m_s=p["shift_speed_m_s"], two_speed=two,
-        best_gear=two & (p["shift_strategy"] == 1.0)))
+        best_gear=two & (p["shift_strategy"] == 1.0), regen_share=p["regen_axle_share"],
+        axles=axles if lossy else 1.0, axle_drag_w=p["second_axle_drag_w"]))
     power, speed_max, margin = compiled.drive_demand(np.array(v_bar[:, 0]), np.array(a_bar[:, 0]), cols, True,
-                                                     False, np.zeros(1), np.zeros(1), map_arrays(motor_map))
+                                                     False, np.zeros(1), np.zeros(1), *motor_arrays(motor_map))
     return FastDemand(np.array(dt[:, 0]), power, float(np.sum(v_bar[:, 0] * dt[:, 0])), speed_max, margin, w_lim + 0.0 * kw)
 
 
@@ -255,7 +292,7 @@ def operating_points(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, *
     motor speed/torque (regen torque after rules 1-3 of §2.3.4), envelope, wheel force,
     friction-brake torque (at the motor shaft, <= 0) and motor electrical power."""
     m, ig, kw, p = inputs(params, vehicle_mass_kg, gear_ratio, motor_kw)
-    return demand(resampled, p, m, ig, kw, motor_map or default_map()).steps
+    return demand(resampled, p, m, ig, kw, drive_model(p, motor_map)).steps
 
 
 class _Battery:
@@ -293,9 +330,11 @@ def simulate(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, battery_k
     """One pass over the cycle from ``initial_soc``; everything per design point (N,).
     ``reference``: the numpy passes instead of the compiled loops (same result to 1e-12)."""
     m, ig, kw, p = inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh)
+    model = drive_model(p, motor_map)
     if reference:
-        return integrate_energy(demand(resampled, p, m, ig, kw, motor_map or default_map()), p, m.shape[0])
-    return fast_energy(fast_demand(resampled, p, m, ig, kw, motor_map or default_map()), p, m.shape[0])
+        return integrate_energy(demand(resampled, p, m, ig, kw, model), p, m.shape[0])
+    return fast_energy(fast_demand(resampled, p, m, ig, kw, model), p, m.shape[0])
+
 
 
 def integrate_energy(d: Demand, p, n: int) -> QuasiStaticResult:
@@ -331,11 +370,10 @@ def range_by_repeated_cycle_km(resampled, params, vehicle_mass_kg, gear_ratio, m
     the battery steps through the repeats."""
     m, ig, kw, p = inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh)
     step_m = step_distances_m(resampled)
+    model = drive_model(p, motor_map)
     if reference:
-        d = demand(resampled, p, m, ig, kw, motor_map or default_map())
-        return integrate_range(d, p, m.shape[0], step_m, max_repeats)
-    return fast_range(fast_demand(resampled, p, m, ig, kw, motor_map or default_map()), p, m.shape[0], step_m,
-                      max_repeats)
+        return integrate_range(demand(resampled, p, m, ig, kw, model), p, m.shape[0], step_m, max_repeats)
+    return fast_range(fast_demand(resampled, p, m, ig, kw, model), p, m.shape[0], step_m, max_repeats)
 
 
 def step_distances_m(resampled) -> np.ndarray:

@@ -50,6 +50,7 @@ from . import quasi_static as qs
 from . import road_load as rl
 from .common import design_points
 from .cost import motor_cost_usd as _motor_cost_one, pack_cost_usd
+from .loss_model import LossModel
 from .motor_map import MotorMap
 from .params import QUASI_STATIC_SPECS, VEHICLE_CHOICES, VEHICLE_SPECS, topology_name
 
@@ -192,13 +193,17 @@ def _in_wheel_map_cached(base: MotorMap, torque_scale: float, speed_scale: float
 
 def in_wheel_map(base: MotorMap | None = None, torque_scale: float = _Q["iwm_torque_scale"].default,
                  speed_scale: float = _Q["iwm_speed_scale"].default):
-    """§4.3.1: the base map with torque x 2.5 and speed x 210/1100 (unit power 38.2 kW)."""
+    """§4.3.1: the base map (or loss model) with torque x 2.5 and speed x 210/1100 (unit power 38.2 kW)."""
+    if isinstance(base, LossModel):
+        return base.scaled(torque_scale, speed_scale)
     return _in_wheel_map_cached(base or qs.default_map(), float(torque_scale), float(speed_scale))
 
 
 def electrical_power_w(motor_map: MotorMap, torque_nm, speed_rad_s, motor_kw):
     """Fast bilinear form of ``MotorMap.electrical_power_w`` (same grid, same clipping, same
-    Fig 2-9 scaling), for the large (time, N, split) arrays of the torque split."""
+    Fig 2-9 scaling), for the large (time, N, split) arrays of the torque split (or a loss model's)."""
+    if isinstance(motor_map, LossModel):
+        return motor_map.electrical_power_w(torque_nm, speed_rad_s, motor_kw)
     t = np.asarray(torque_nm, float)
     w = np.asarray(speed_rad_s, float)
     tu = t * (motor_map.reference_kw / np.asarray(motor_kw, float))
@@ -227,24 +232,26 @@ class _Axle:
     motor_map: MotorMap
     t_peak: np.ndarray   # (N,) peak torque of each motor
     w_lim: float         # rad/s
+    regen_share: np.ndarray | float = 1.0  # share of the braking torque the motors may take
 
 
 def _axles(t: Topology, p, kw_f, kw_r, ig_f, ig_r, base_map) -> list[_Axle]:
     w_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0
+    share = np.broadcast_to(p["regen_axle_share"], kw_f.shape)
     if t.geared:
         eta = np.broadcast_to(p["gear_efficiency"], kw_f.shape)
-        ax = [_Axle(1, kw_f, ig_f, eta, base_map, p["motor_torque_per_kw"] * kw_f, w_lim)]
+        ax = [_Axle(1, kw_f, ig_f, eta, base_map, p["motor_torque_per_kw"] * kw_f, w_lim, share)]
         if t.two_axles:
-            ax.append(_Axle(1, kw_r, ig_r, eta, base_map, p["motor_torque_per_kw"] * kw_r, w_lim))
+            ax.append(_Axle(1, kw_r, ig_r, eta, base_map, p["motor_torque_per_kw"] * kw_r, w_lim, share))
         return ax
     ts, ss = float(np.mean(p["iwm_torque_scale"])), float(np.mean(p["iwm_speed_scale"]))
     if np.ptp(np.atleast_1d(p["iwm_torque_scale"])) or np.ptp(np.atleast_1d(p["iwm_speed_scale"])):
         raise ValueError("iwm_torque_scale and iwm_speed_scale must be the same for every design point")
     m = in_wheel_map(base_map, ts, ss)
     one, tpk = np.ones_like(kw_f), p["motor_torque_per_kw"] / ss  # 700 Nm / 38.2 kW per unit motor
-    ax = [_Axle(t.front_motors, kw_f, one, one, m, tpk * kw_f, w_lim * ss)]
+    ax = [_Axle(t.front_motors, kw_f, one, one, m, tpk * kw_f, w_lim * ss, share)]
     if t.two_axles:
-        ax.append(_Axle(t.rear_motors, kw_r, one, one, m, tpk * kw_r, w_lim * ss))
+        ax.append(_Axle(t.rear_motors, kw_r, one, one, m, tpk * kw_r, w_lim * ss, share))
     return ax
 
 
@@ -257,7 +264,7 @@ def _axle_power(ax: _Axle, tw, w, tmax, driving, allowed):
     """Electrical power of an axle carrying wheel torque ``tw`` and its motoring overload (N m)."""
     tm = np.where(driving, tw / (ax.count * ax.ratio * ax.eta), tw * ax.eta / (ax.count * ax.ratio))  # 2-5
     over = np.where(driving, np.maximum(tm - tmax, 0.0), 0.0)
-    tm = np.where(driving, tm, np.where(allowed, np.maximum(tm, -tmax), 0.0))  # 2-25, rules 2-3
+    tm = np.where(driving, tm, np.where(allowed, np.maximum(tm * ax.regen_share, -tmax), 0.0))  # 2-25, rules 2-3
     return ax.count * electrical_power_w(ax.motor_map, tm, w, ax.kw), over, tm
 
 
@@ -303,7 +310,8 @@ def best_split(axles, tw, v, r_w, driving, allowed, steps: int = 11):
 def _bcast(ax: _Axle) -> _Axle:
     """The axle with its (N,) arrays shaped (1, N, 1) for (time, N, grid) blocks."""
     f = (lambda a: np.asarray(a, float)[None, :, None])
-    return _Axle(ax.count, f(ax.kw), f(ax.ratio), f(ax.eta), ax.motor_map, f(ax.t_peak), ax.w_lim)
+    return _Axle(ax.count, f(ax.kw), f(ax.ratio), f(ax.eta), ax.motor_map, f(ax.t_peak), ax.w_lim,
+                 f(np.broadcast_to(ax.regen_share, np.shape(ax.kw))))
 
 
 def _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio, motor_rear_kw, gear_ratio_rear):
@@ -351,7 +359,7 @@ def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map, with_tra
     steps = {"speed_m_s": v_bar, "accel_m_s2": a_bar, "wheel_torque_nm": tw, "front_share": share,
              "motor_power_w": p_el}
     steps = {k: np.broadcast_to(x, (K, N)) for k, x in steps.items()}
-    return qs.Demand(dt, np.where(driving, p_el, 0.0), np.where(driving, 0.0, p_el),
+    return qs.Demand(dt, np.where(p_el > 0, p_el, 0.0), np.where(p_el > 0, 0.0, p_el),  # drawn / offered
                       float(np.sum(v_bar[:, 0] * dt[:, 0])), np.broadcast_to(w_max, (N,)), margin,
                       axles[0].w_lim + 0.0 * kw, steps)
 
@@ -364,7 +372,8 @@ def _fast_demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map) -> 
     n = m.shape[0]
     axles = _axles(t, p, kw, kw_r, ig, ig_r, base_map)
     cols = {"mass": m, **qs.road_columns(p), "r_w": p["wheel_radius_m"], "regen_min_m_s": p["regen_min_speed_m_s"],
-            "decel_min": -p["regen_max_decel_g"] * p["gravity_m_s2"]}
+            "decel_min": -p["regen_max_decel_g"] * p["gravity_m_s2"], "regen_share": p["regen_axle_share"],
+            "axles": 1.0}
     for a, tail in zip(axles, ("", "_r")):
         cols.update({"ratio" + tail: a.ratio, "eta" + tail: a.eta, "kw" + tail: a.kw, "t_peak" + tail: a.t_peak,
                      "scale" + tail: a.motor_map.reference_kw / a.kw, "w_lim" + tail: a.w_lim,
@@ -373,7 +382,7 @@ def _fast_demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map) -> 
     fine = np.linspace(-(grid[1] - grid[0]), grid[1] - grid[0], 9)
     power, speed_max, margin = compiled.drive_demand(
         np.array(v_bar[:, 0]), np.array(a_bar[:, 0]), compiled.table(compiled.COLUMNS, n, cols), False, t.two_axles,
-        grid, fine, qs.map_arrays(axles[0].motor_map))
+        grid, fine, *qs.motor_arrays(axles[0].motor_map))
     return qs.FastDemand(np.array(dt[:, 0]), power, float(np.sum(v_bar[:, 0] * dt[:, 0])), speed_max, margin,
                          axles[0].w_lim + 0.0 * kw)
 
@@ -387,10 +396,11 @@ def simulate(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh
     ``reference``: the numpy passes instead of the compiled loops (same result to 1e-12)."""
     t, m, ig, kw, p, kw_r, ig_r = _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio,
                                            motor_rear_kw, gear_ratio_rear)
+    model = qs.drive_model(p, motor_map)
     if reference:
-        d = _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, motor_map or qs.default_map())
+        d = _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, model)
         return qs.integrate_energy(d, p, m.shape[0])
-    d = _fast_demand(resampled, t, p, m, ig, kw, kw_r, ig_r, motor_map or qs.default_map())
+    d = _fast_demand(resampled, t, p, m, ig, kw, kw_r, ig_r, model)
     return qs.fast_energy(d, p, m.shape[0])
 
 
@@ -409,10 +419,11 @@ def range_by_repeated_cycle_km(resampled, params, topology, vehicle_mass_kg, mot
     t, m, ig, kw, p, kw_r, ig_r = _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio,
                                            motor_rear_kw, gear_ratio_rear)
     step_m = qs.step_distances_m(resampled)
+    model = qs.drive_model(p, motor_map)
     if reference:
-        d = _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, motor_map or qs.default_map())
+        d = _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, model)
         return qs.integrate_range(d, p, m.shape[0], step_m, max_repeats)
-    d = _fast_demand(resampled, t, p, m, ig, kw, kw_r, ig_r, motor_map or qs.default_map())
+    d = _fast_demand(resampled, t, p, m, ig, kw, kw_r, ig_r, model)
     return qs.fast_range(d, p, m.shape[0], step_m, max_repeats)
 
 
@@ -421,7 +432,7 @@ def operating_points(resampled, params, topology, vehicle_mass_kg, motor_kw, bat
     """Per-step (K, N) arrays: speed, acceleration, wheel torque, front share, motor power."""
     t, m, ig, kw, p, kw_r, ig_r = _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio,
                                            motor_rear_kw, gear_ratio_rear)
-    return _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, motor_map or qs.default_map()).steps
+    return _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, qs.drive_model(p, motor_map)).steps
 
 
 # ----------------------------------------------------------------------------- acceleration

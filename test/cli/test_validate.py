@@ -82,7 +82,8 @@ def test_table_and_parity_plot(capsys, tmp_path):
 def test_every_energy_model_validates(capsys, model):
     code, out, _ = run(capsys, "--energy-model", model, "--json")
     doc = json.loads(out)
-    assert code == 0 and doc["energy_model"] == model and doc["parameter_set"] is None
+    calibrated = "epa2022_quasi_static" if model in ("quasi_static", "topology_sm_sa") else None
+    assert code == 0 and doc["energy_model"] == model and doc["parameter_set"] == calibrated
     assert np.isfinite(doc["stats"]["udds_hwfet"]["mean_abs_pct"])
 
 

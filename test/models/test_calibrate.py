@@ -1,5 +1,6 @@
 """``python -m bev_mdo.models.calibrate`` on a fleet of one's own: what it writes and that it can be used."""
 import csv
+import hashlib
 import json
 from pathlib import Path
 
@@ -48,12 +49,16 @@ def test_the_shipped_set_keeps_its_name_and_file(tmp_path, monkeypatch):
     monkeypatch.setattr(calibrate, "PARAMETER_SET_DIR", tmp_path)
     f = {"names": tuple(calibrate.FIT), "x": np.array([0.8, 0.8]), "se": np.array([0.01, 0.01]), "mape_pct": 7.0}
     stats = fl.error_stats(np.array([1.0, -2.0]))
-    cv = {"k": 5, "fold_params": np.full((5, 2), 0.8), "stats": stats}
-    path = calibrate.write_parameter_set(f, cv, None, fl.read_fleet(), None)
+    fleet = fl.read_fleet()
+    cv = {"k": 5, "fold_params": np.full((5, 2), 0.8), "stats": stats, "fold_mape_pct": np.full(5, 7.0),
+          "errors_pct": {c: np.zeros(len(fleet)) for c in fl.CYCLES}}
+    path = calibrate.write_parameter_set(f, cv, None, fleet, None)
     doc = yaml.safe_load(Path(path).read_text())
     assert Path(path).name == "epa2022_chain.yaml" and doc["name"] == "epa2022_chain"
     assert doc["fitted_on"]["file"] == "bev_mdo/data/epa_2022_bev/train.csv"
     assert doc["description"].endswith("python -m bev_mdo.models.calibrate --write shipped")
+    assert doc["fitted_on"]["sha256"] == hashlib.sha256(fl.DEFAULT_FLEET.read_bytes()).hexdigest()
+    assert doc["quality"]["cv_5fold_by_family"]["fold_median_mape_pct"] == 7.0
 
 
 def _i4(r):
@@ -123,3 +128,27 @@ def test_write_is_checked_before_the_fit_and_a_failed_write_is_one_line(tmp_path
     assert calibrate.main(["--data", str(data), "--write", str(blocker / "set.yaml")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("calibrate: error: cannot write") and "Traceback" not in err
+
+
+def test_bev_mdo_calibrate_fits_the_quasi_static_loss_model_and_writes_its_provenance(tmp_path, capsys):
+    """``bev-mdo calibrate --model quasi_static`` on two makes: progress per fold, a set
+    with the fit date, the data file's hash, both cross-validations (MAPE, median of the folds, pairs)
+    and parameters a config can use."""
+    import datetime
+
+    data = _fleet(tmp_path, lambda r: r[0] in ("BMW", "KIA"))
+    out = tmp_path / "qs.yaml"
+    assert bev_mdo(["calibrate", "--model", "quasi_static", "--data", str(data), "--write", str(out)]) == 0
+    got = capsys.readouterr()
+    assert "make fold 1/2: fitting without" in got.out and "family fold 1/" in got.out and not got.err
+    assert "leave-one-make-out MAPE" in got.out and "pairs of the CV by make" in got.out
+    doc = yaml.safe_load(out.read_text())
+    assert doc["fitted_on"]["date"] == datetime.date.today().isoformat()
+    assert doc["fitted_on"]["sha256"] == hashlib.sha256(data.read_bytes()).hexdigest()
+    make = doc["quality"]["cv_leave_one_make_out"]
+    assert make["mean_abs_pct"] > 0 and make["fold_median_mape_pct"] > 0 and make["pairs"]["udds"]["n"] > 0
+    assert doc["parameters"]["motor_loss_model"] == 1.0 and set(calibrate.QS_FIT) <= set(doc["parameters"])
+    assert "bev-mdo calibrate --model quasi_static" in doc["description"]
+    from bev_mdo.models.params import validate_vehicle
+
+    assert validate_vehicle({"parameter_set": str(out)})["motor_loss_model"] == 1.0

@@ -1,0 +1,17 @@
+"""``bev-mdo calibrate``: fit a model's fleet-wide parameters to measured cars and write the set."""
+from __future__ import annotations
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser("calibrate", help="fit a model's fleet-wide parameters to a fleet of measured "
+                                                     "cars, cross-validated by family and by make")
+    from bev_mdo.models.calibrate import add_arguments
+
+    add_arguments(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from bev_mdo.models import calibrate
+
+    return calibrate.run(args)
