@@ -99,9 +99,34 @@ class RunConfig(Mapping):
         return self.data["name"]
 
     @property
+    def baseline(self) -> dict | None:
+        """``problem.baseline`` ({name, design}), or None."""
+        return self.data["problem"].get("baseline")
+
+    @property
     def names(self) -> tuple[str, ...]:
         """The run's disciplines by name, in their order."""
         return self.settings.disciplines
+
+    def with_ros(self, section: Mapping[str, Any]) -> "RunConfig":
+        """The same run with another ``ros:`` section (checked; nothing else is parsed again)."""
+        from dataclasses import replace
+
+        from bev_mdo.ros_settings import validate_ros
+
+        return replace(self, data={**self.data, "ros": dict(section)}, ros=validate_ros(section))
+
+    def with_sections(self, **sections: Any) -> "RunConfig":
+        """Another run config: this one's with whole sections replaced (``formulation="idf"``), loaded."""
+        return RunConfig.load({**self.data, **sections})
+
+    def with_run_key(self, directory: Path) -> "RunConfig":
+        """The same run signed with a fresh per-run key (``protocol.signing.with_run_key``), unless its
+        ``ros:`` section names its own key or turns signing off."""
+        from bev_mdo.protocol.signing import with_run_key
+
+        keyed = with_run_key(self.data, directory)
+        return self if keyed is self.data else self.with_ros(keyed["ros"])
 
     def entries(self) -> list[dict]:
         """``{name, class, options}`` of every discipline (what a node needs to build one)."""
@@ -200,10 +225,10 @@ def _resolve(raw: Any) -> RunConfig:
     discs = tuple(resolve_disciplines(cfg))
     params = check_against_disciplines(cfg, problem, discs)
     check_baseline(cfg, problem, params)
-    return RunConfig(cfg, problem, discs, ros, _settings(cfg, discs))
+    return RunConfig(cfg, problem, discs, ros, _settings(cfg, problem, discs))
 
 
-def _settings(config: dict, discs) -> RunSettings:
+def _settings(config: dict, problem: Problem, discs) -> RunSettings:
     """The engine's typed settings: problem, formulation, the ``mda:``/``optimizer:`` sections, the
     disciplines by name and whether each provides analytic partials (the driver imports nothing
     above the engine)."""
@@ -213,7 +238,7 @@ def _settings(config: dict, discs) -> RunSettings:
     partials = {d.name: bool(has_partials(d)) for d in discs}
     return RunSettings(config["problem"], str(config["formulation"]), MDASettings.of(config["mda"]),
                        OptimizerSettings.of(config["optimizer"]), names,
-                       {n: partials.get(n, False) for n in names})
+                       {n: partials.get(n, False) for n in names}, parsed_problem=problem)
 
 
 def run_settings(config: RunConfig | Mapping[str, Any]) -> RunSettings:

@@ -75,15 +75,17 @@ class RosEvaluator:
     def __init__(self, node: Node, *, run_id: str | None = None, timeout_s: float = 5.0, retries: int = 3,
                  signer: Signer | None = None, config: Mapping | None = None):
         self.node = node
-        config = config or {}
-        if signer is None:  # sign if the run config names a key file
-            from bev_mdo.ros_settings import validate_ros
+        if config:  # the run's config, parsed once (config.RunConfig)
+            from bev_mdo.config import RunConfig
 
-            signer = Signer.from_ros(validate_ros(config.get("ros"))) if config.get("ros") else None
+            config = RunConfig.of(config)
+        ros = config.ros if config else {}
+        if signer is None:  # sign if the run config names a key file
+            signer = Signer.from_ros(ros) if config else None
         self.signer = signer
         # Binding (binding.py): the fingerprint every discipline of this run must have. Without a
         # config (a bare evaluator in a tool) the first declared fingerprint of a discipline is taken.
-        self._config = config if config.get("problem") else None
+        self._config = config or None
         self.expected: dict[str, tuple[str, str]] = {}   # discipline -> (fingerprint, effective JSON)
         self._tags: dict[tuple, str] = {}                # names -> their request frame_id (_tag)
         self.instances: dict[str, set[str]] = {}         # discipline -> accepted instance names
@@ -114,15 +116,15 @@ class RosEvaluator:
         self._flow_pub = None
         self._flow_subs: dict[str, object] = {}
         # Worker pools (pool.py): several accepted instances of a discipline share each batch.
-        self.pool_mode = pools.validate_mode((config.get("ros") or {}).get("pool", "share"))
+        self.pool_mode = pools.validate_mode(ros.get("pool", "share"))
         self.pools: dict[str, pools.Pool] = {}
         self._shares = retry.Shares()                       # answers of row shares, joined in row order
         self._batches: dict[int, tuple[str, Mapping]] = {}  # wave index -> (discipline, batch) of a pool's call
         self.flow_shares = 0  # data-flow requests sent as row shares of pooled MDAs
         # False: an MDA with a pool runs in waves (only the pooled disciplines see shares; the
         # others get the whole batch once), as before data flow with pools (docs/scaling.md)
-        self.pool_data_flow = (config.get("ros") or {}).get("pool_data_flow", True) is not False
-        self.pool_min_rows = validate_min_rows((config.get("ros") or {}).get("pool_min_rows", 1))
+        self.pool_data_flow = ros.get("pool_data_flow", True) is not False
+        self.pool_min_rows = validate_min_rows(ros.get("pool_min_rows", 1))
         self._info_t = time.monotonic()
         self._executor = SingleThreadedExecutor(context=node.context)
         self._executor.add_node(node)
