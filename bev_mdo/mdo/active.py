@@ -183,8 +183,7 @@ def fd_jacobian(config: Any, design: Mapping[str, float], disciplines: Disciplin
     process as ONE batch (the point and its stencil); each step points into the box. ``config``: the
     run's ``RunSettings``, or a resolved config.
     ``disciplines``: the run's discipline objects (a caller may wrap them, e.g. with a timeout), or a
-    function building them (the caller's config.resolve_disciplines: the engine does not read the
-    application config)."""
+    function building them (the engine does not read the application config)."""
     from bev_mdo.mdo.driver import _mda
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.settings import RunSettings
@@ -220,9 +219,10 @@ def fd_jacobian(config: Any, design: Mapping[str, float], disciplines: Disciplin
 def answers_for(config: Any, design: Mapping[str, float], values: Mapping[str, float],
                 disciplines: Disciplines, rel_tol: float = REL_TOL,
                 units: Mapping[str, str] | None = None) -> dict[str, Any]:
-    """``analyse`` for a run (its ``RunSettings``, or a resolved config); an infeasible end gets the Jacobian by ``fd_jacobian`` (in process,
-    with ``disciplines``: a list, or a function building them, called only then); ``units``: {variable: unit}
-    as the disciplines declare them (mdo/units.py ``run_units``)."""
+    """``analyse`` for a run (its ``RunSettings``, or a resolved config); an infeasible end gets the
+    Jacobian by ``fd_jacobian`` (in process, with ``disciplines``: a list, or a function building them,
+    called only then); ``units``: {variable: unit} as the disciplines declare them (mdo/units.py
+    ``run_units``)."""
     from bev_mdo.mdo.problem import Problem
     from bev_mdo.mdo.settings import RunSettings
 
