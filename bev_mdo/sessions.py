@@ -22,7 +22,7 @@ import contextlib
 import time
 from pathlib import Path
 
-from bev_mdo.config import plain
+from bev_mdo.config import RunConfig, plain
 from bev_mdo.stacks import deadline
 
 LEASE_S = 3.0  # participant lease of bev_mdo's Fast DDS profile (bev_mdo/data/fastdds_profile.xml)
@@ -30,7 +30,7 @@ ACK_GRACE_S = 1.0  # a live local recorder acknowledges in milliseconds (in DDS 
 _DECLARATION_DROPS = ("refused_instance", "info_unsigned", "info_forged", "info_other_run", "info_other_discipline")
 
 
-def _prepare(config: dict, logs: Path, key_dir: Path) -> tuple[dict, Path]:
+def _prepare(config, logs: Path, key_dir: Path) -> tuple:
     """(config with its ros section signed by a per-run key unless it names its own key or signing is
     off, the resolved config written to ``logs/config.yaml``): what nodes and recorder read."""
     import yaml
@@ -38,7 +38,7 @@ def _prepare(config: dict, logs: Path, key_dir: Path) -> tuple[dict, Path]:
     from bev_mdo.protocol.signing import with_run_key
 
     logs.mkdir(parents=True, exist_ok=True)
-    config = with_run_key(config, key_dir)
+    config = config.with_run_key(key_dir) if isinstance(config, RunConfig) else with_run_key(config, key_dir)
     resolved = logs / "config.yaml"
     resolved.write_text(yaml.safe_dump(plain(config), sort_keys=False))
     return config, resolved
@@ -59,14 +59,14 @@ def analyse_baseline(config, evaluator) -> dict | None:
     """The config's ``problem.baseline`` analysed through ``evaluator``: {name, design, outputs, feasible, ...};
     None when the config names no baseline. A failed analysis is reported in ``error``, never raised:
     the run's own result must not be lost to its baseline."""
-    from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import evaluate_design
 
-    base = config["problem"].get("baseline")
+    config = RunConfig.of(config)
+    base = config.baseline
     if not base:
         return None
     try:
-        report = evaluate_design(run_settings(config), evaluator, base["design"])
+        report = evaluate_design(config.settings, evaluator, base["design"])
     except Exception as exc:  # noqa: BLE001 - reported beside the result
         return {"name": base["name"], "design": dict(base["design"]), "outputs": {}, "feasible": False,
                 "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
@@ -91,7 +91,7 @@ class EvaluateRosSession:
             self.suite = OwnSuite(config, ros).start()
             config, run_id = self.suite.config, self.suite.run_id
         else:
-            config = {**config, "ros": ros}
+            config = RunConfig.of(config).with_ros(ros)
         try:
             self.evaluator = make_ros_evaluator(config, node_name=node_name, run_id=run_id)
         except BaseException:
@@ -137,7 +137,7 @@ class OptimizeRosSession:
 
     def __init__(self, config: dict, ros: dict, bag: Path, run_id: str, *, record: bool = True,
                  instances: dict | None = None, compose: str | None = None):
-        self.config, self.ros, self.bag, self.run_id = config, ros, Path(bag), run_id
+        self.config, self.ros, self.bag, self.run_id = RunConfig.of(config), ros, Path(bag), run_id
         self.record, self.instances, self.compose = record, instances, compose
         self.logs = self.bag / "logs"  # node logs and the resolved config, beside the bag in the run's directory
         self.launcher = None
@@ -146,7 +146,6 @@ class OptimizeRosSession:
         self.stats: dict = {}
 
     def __enter__(self) -> "OptimizeRosSession":
-        from bev_mdo.config import discipline_entries
         from bev_mdo.ros.client import apply_ros_environment
         from bev_mdo.ros.launch import Launcher, plan_processes, start_recorder
         from bev_mdo.ros.recorder_node import config_binding
@@ -154,7 +153,7 @@ class OptimizeRosSession:
 
         env = ros_environment(self.ros)
         apply_ros_environment(self.ros)
-        names = [e["name"] for e in discipline_entries(self.config)]
+        names = list(self.config.names)
         plan = dict(run_id=self.run_id, instance=self.run_id[:8], instances=self.instances, compose=self.compose)
         plan_processes(names, "", **plan)  # a rejected --compose leaves nothing behind: checked before any file
         self.config, resolved = _prepare(self.config, self.logs, key_dir_for(self.bag))
@@ -182,11 +181,10 @@ class OptimizeRosSession:
         rclpy.init(context=ctx)
         beside = None
         try:
-            from bev_mdo.config import discipline_names
             from bev_mdo.ros.composed import Beside
             from bev_mdo.ros.launch import beside_coordinator
 
-            local = beside_coordinator(self.compose, discipline_names(self.config), self.instances)
+            local = beside_coordinator(self.compose, list(self.config.names), self.instances)
             if local:  # --compose coordinator: the disciplines' nodes in this process, served by its coordinator
                 beside = Beside(self.config, local, ctx, run_id=self.run_id, instance=self.run_id[:8])
             # The baseline does not depend on the optimum: it is analysed BEFORE the optimisation, so the
@@ -285,11 +283,11 @@ def recorder_failure(launcher, bag: Path) -> str | None:
     return note
 
 
-def _signing(ros: dict, config: dict) -> str:
+def _signing(ros: dict, config: RunConfig) -> str:
     """How this run's messages were signed, for the summary."""
     if ros.get("sign_key_file"):
         return f"key file {ros['sign_key_file']}"
-    return "per-run key" if (config.get("ros") or {}).get("sign_key_file") else "off (ros.signing: false)"
+    return "per-run key" if config.ros.get("sign_key_file") else "off (ros.signing: false)"
 
 
 def merge_baseline_stats(stats: dict, seen: dict) -> None:
@@ -315,7 +313,7 @@ def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None, beside=Non
     from bev_mdo.ros import coordinator_node
     from bev_mdo.ros.evaluator import DisciplineMissing
 
-    if not config["problem"].get("baseline"):
+    if not config.baseline:
         return None
     node = coordinator_node.CoordinatorNode(config, run_id + "-baseline", context=ctx,
                                             node_name=coordinator_node.node_name_for(run_id + "-baseline"))
@@ -323,12 +321,12 @@ def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None, beside=Non
     if beside is not None:  # disciplines composed into this process (--compose coordinator)
         beside.attach(node.evaluator)
     try:
-        node.evaluator.wait_for_disciplines(coordinator_node.discipline_names(config), node.discovery_wait_s)
+        node.evaluator.wait_for_disciplines(list(config.names), node.discovery_wait_s)
         return analyse_baseline(config, node.evaluator)
     except DisciplineMissing:
         raise
     except Exception as exc:  # noqa: BLE001 - the run's result is printed anyway
-        return {"name": config["problem"]["baseline"]["name"], "design": {}, "outputs": {},
+        return {"name": config.baseline["name"], "design": {}, "outputs": {},
                 "feasible": False, "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
     finally:
         if seen is not None:
@@ -344,10 +342,9 @@ class _InProcess:
     """The in-process evaluator of one topology, closed on exit."""
 
     def __init__(self, cfg):
-        from bev_mdo.config import resolve_disciplines
         from bev_mdo.mdo.evaluator import InProcessEvaluator
 
-        self.ev = InProcessEvaluator(resolve_disciplines(cfg))
+        self.ev = InProcessEvaluator(RunConfig.of(cfg).disciplines)
 
     def __enter__(self):
         return self.ev
@@ -430,9 +427,9 @@ class ParetoRosSession:
         from bev_mdo.ros import coordinator_node
         from bev_mdo.ros.launch import plan_processes
 
-        cfg = {**cfg, "ros": self.ros}
+        cfg = RunConfig.of(cfg).with_ros(self.ros)
         wait_s = self.ros["discovery_wait_s"]
-        names = coordinator_node.discipline_names(cfg)
+        names = list(cfg.names)
         self._stop_disciplines(names, wait_s)
         logs = self.logs / topology
         logs.mkdir(parents=True, exist_ok=True)

@@ -11,23 +11,23 @@ from bev_mdo.api.errors import InputError
 from bev_mdo.api.transport import Evaluating
 
 
-def declared_units(config: dict) -> dict[str, str]:
+def declared_units(config) -> dict[str, str]:
     """{variable: unit} as the run's disciplines declare them (mdo/units.py): what tables and plots print."""
-    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.config import RunConfig
     from bev_mdo.mdo.units import run_units
 
-    return run_units(resolve_disciplines(config))
+    return run_units(RunConfig.of(config).disciplines)
 
 
-def design(config: dict, given: dict[str, float], transport) -> dict:
+def design(config, given: dict[str, float], transport) -> dict:
     """The report of one multidisciplinary analysis (mdo.driver.evaluate_design: design, outputs,
     objective, constraints with margins, feasible, ok, error). Design variables not given take their
     initial value; a value outside its bounds is evaluated as given, with a note on stderr."""
-    from bev_mdo.config import run_settings
+    from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import evaluate_design
-    from bev_mdo.mdo.problem import Problem
 
-    problem = Problem.from_config(config["problem"])
+    config = RunConfig.of(config)
+    problem = config.problem
     full = {**{d.name: d.initial for d in problem.design_variables}, **given}
     for d in problem.design_variables:  # evaluated as given, but a user should know it is off the design space
         v = given.get(d.name)
@@ -35,23 +35,23 @@ def design(config: dict, given: dict[str, float], transport) -> dict:
             print(f"bev-mdo evaluate: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
                   "(evaluated as given)", file=sys.stderr)
     with Evaluating(config, transport) as evaluator:
-        return evaluate_design(run_settings(config), evaluator, full)
+        return evaluate_design(config.settings, evaluator, full)
 
 
-def batch(config: dict, designs: dict[str, np.ndarray], transport) -> dict:
+def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
     """One batch of MDAs: {design: {k: array}, outputs: {k: array}, margins: {c: array},
     feasible: bool array, ok: bool array, errors: [str], objective, problem, units} (``designs`` may set
     model parameters too; variables not given keep their initial value)."""
-    from bev_mdo.config import run_settings
+    from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import FEASIBILITY_TOL, _mda
-    from bev_mdo.mdo.problem import Problem
 
-    problem = Problem.from_config(config["problem"])
+    config = RunConfig.of(config)
+    problem = config.problem
     n = len(next(iter(designs.values())))
     cols = {d.name: np.full(n, d.initial) for d in problem.design_variables}
     cols.update({k: np.full(n, float(v)) for k, v in problem.parameters.items()})
     with Evaluating(config, transport, announce=True) as evaluator:
-        mda = _mda(run_settings(config), evaluator, problem)
+        mda = _mda(config.settings, evaluator, problem)
         params = {p for s in mda.specs.values() for p in s.parameters}
         unknown = [k for k in designs if k not in problem.names and k not in params]
         if unknown:

@@ -34,15 +34,19 @@ class OptimizeOptions(Transport):
     progress_to_stderr: bool = False  # ROS start-up line on stderr (the CLI's --json)
 
 
-def run(config: dict, opts: OptimizeOptions, callback=None, x0: dict | None = None) -> dict:
+def run(config, opts: OptimizeOptions, callback=None, x0: dict | None = None) -> dict:
     """The run's JSON document: the result (design, outputs, constraints, first_order, verdict,
-    active, ...) with ``baseline``, the transport's figures and ``run_time_s``."""
+    active, ...) with ``baseline``, the transport's figures and ``run_time_s``; ``config``: a
+    ``RunConfig`` (a plain config mapping is loaded first)."""
+    from bev_mdo.config import RunConfig
+
+    config = RunConfig.of(config)
     if opts.optimizer:
         from bev_mdo.config import check_optimizer_options
         from bev_mdo.mdo.optimizers import canonical_name
 
         # ValueError names the known optimizers, or the config's option the chosen one does not take
-        check_optimizer_options(canonical_name(opts.optimizer), (config.get("optimizer") or {}).get("options") or {})
+        check_optimizer_options(canonical_name(opts.optimizer), config.settings.optimizer.options)
     opts.refuse_attach("optimize")
     starts = _starts(opts, x0)  # a bad start count is refused before anything starts or is written
     t_start = time.perf_counter()
@@ -62,23 +66,21 @@ def run(config: dict, opts: OptimizeOptions, callback=None, x0: dict | None = No
 def _run_inprocess(config, opts, show, x0, starts):
     from bev_mdo.api.failures import NamingInProcessEvaluator
     from bev_mdo.api.runbag import in_process_bag
-    from bev_mdo.config import resolve_disciplines, run_settings
     from bev_mdo.mdo.driver import run_optimization
-    from bev_mdo.ros_settings import validate_ros
     from bev_mdo.sessions import analyse_baseline
 
-    ros = validate_ros(config.get("ros"))
+    ros = config.ros
     budget = ros["timeout_s"] * (ros["retries"] + 1)  # what a ROS run gives a discipline before its points fail
-    ev = NamingInProcessEvaluator(resolve_disciplines(config), timeout_s=budget)
+    ev = NamingInProcessEvaluator(config.disciplines, timeout_s=budget)
     bag, writer, show = in_process_bag(config, opts, show)  # a bag only when one is asked for
     try:
         if starts > 1:
             from bev_mdo.mdo.multistart import run_starts
 
-            res = run_starts(run_settings(config), ev, starts, seed=opts.seed,
+            res = run_starts(config.settings, ev, starts, seed=opts.seed,
                              formulation=opts.formulation, optimizer=opts.optimizer, callback=show)
         else:
-            res = run_optimization(run_settings(config), ev, formulation=opts.formulation,
+            res = run_optimization(config.settings, ev, formulation=opts.formulation,
                                    optimizer=opts.optimizer, x0=x0, callback=show)
     except BaseException:  # SIGINT, SIGTERM, a failure: the bag keeps every finished iteration
         if writer is not None:
@@ -86,7 +88,7 @@ def _run_inprocess(config, opts, show, x0, starts):
         raise
     out = res.to_dict()
     out.pop("history")
-    baseline = analyse_baseline(config, NamingInProcessEvaluator(resolve_disciplines(config), timeout_s=budget,
+    baseline = analyse_baseline(config, NamingInProcessEvaluator(config.disciplines, timeout_s=budget,
                                                                  errors=ev.errors))
     extra = {"transport": "inprocess", **({"bag": bag} if bag else {}), "_bag_writer": writer}
     if ev.errors.first:
@@ -100,25 +102,25 @@ def _run_ros(config, opts, show, x0, starts):
     import sys
 
     from bev_mdo.api.transport import ros_section
-    from bev_mdo.config import discipline_entries
     from bev_mdo.ros.launch import parse_instances
     from bev_mdo.sessions import OptimizeRosSession
 
     ros = ros_section(config, opts)
     # the run's config keeps a domain only when the config stated one (a bag resumed later then
     # follows the ROS convention again: flag, config, ROS_DOMAIN_ID, 77)
-    stated = (config.get("ros") or {}).get("domain_id") is not None
-    config = {**config, "ros": ros if stated else {k: v for k, v in ros.items() if k != "domain_id"}}
-    if opts.formulation:
-        config["formulation"] = opts.formulation
-    if opts.optimizer:
-        config["optimizer"] = {**config.get("optimizer", {}), "name": opts.optimizer}
+    stated = config["ros"].get("domain_id") is not None
+    config = config.with_ros(ros if stated else {k: v for k, v in ros.items() if k != "domain_id"})
+    if opts.formulation or opts.optimizer:  # what the run records: the formulation and optimiser it ran
+        engine = {"formulation": opts.formulation} if opts.formulation else {}
+        if opts.optimizer:
+            engine["optimizer"] = {**config["optimizer"], "name": opts.optimizer}
+        config = config.with_sections(**engine)
     run_id = uuid.uuid4().hex[:16]
     stamp_ = time.strftime("%Y%m%d_%H%M%S")
-    bag = Path(opts.bag) if opts.bag else Path("bags") / f"{config.get('name', 'run')}_{stamp_}_{run_id[:6]}"
+    bag = Path(opts.bag) if opts.bag else Path("bags") / f"{config.name}_{stamp_}_{run_id[:6]}"
     if not opts.no_record:
         check_new_bag(bag, "--bag")
-    names = [e["name"] for e in discipline_entries(config)]
+    names = list(config.names)
     instances = parse_instances(opts.instances, names)
     session = OptimizeRosSession(config, ros, bag, run_id, record=not opts.no_record, instances=instances,
                                  compose=opts.compose)

@@ -67,21 +67,22 @@ def from_args(args) -> Overrides:
                            getattr(args, "maximize", None))
 
 
-def load(source, overrides: Overrides | None = None) -> dict:
-    """The validated config of ``source`` (a file or a mapping) with ``overrides`` applied."""
-    from bev_mdo.config import load_config
+def load(source, overrides: Overrides | None = None):
+    """The validated config (``RunConfig``) of ``source`` (a file or a mapping) with ``overrides`` applied."""
+    from bev_mdo.config import RunConfig
 
+    written = RunConfig.load(source)  # the config as written must be valid first
     if not overrides:
-        return load_config(source)
-    names = known_names(load_config(source))  # the config as written must be valid first
-    return load_config(source, edit=lambda raw: apply(raw, overrides, names))
+        return written
+    names = known_names(written)
+    return RunConfig.load(source, edit=lambda raw: apply(raw, overrides, names))
 
 
-def known_names(config: Mapping[str, Any]) -> dict[str, list[str]]:
-    """{design: [design-variable names], outputs: [every discipline output]} of a resolved config."""
-    from bev_mdo.config import resolve_disciplines
+def known_names(config) -> dict[str, list[str]]:
+    """{design: [design-variable names], outputs: [every discipline output]} of a ``RunConfig``."""
+    from bev_mdo.config import RunConfig
 
-    outputs = sorted({v for d in resolve_disciplines(config) for v in d.outputs})
+    outputs = sorted({v for d in RunConfig.of(config).disciplines for v in d.outputs})
     outputs += sorted({v.split("[")[0] for v in outputs if "[" in v})
     return {"design": list((config["problem"].get("design_variables") or {})), "outputs": outputs}
 

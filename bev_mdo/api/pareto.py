@@ -20,16 +20,19 @@ from bev_mdo.api.evaluate import declared_units
 from bev_mdo.api.transport import Transport
 
 
-def run(cfg: dict, objectives: list[str] | None = None, *, generations: int = 30, pop: int = 100, seed: int = 1,
+def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop: int = 100, seed: int = 1,
         out: str | None = None, transport=None, instances: str | None = None, plots: bool = True,
         source: str = "<config>", on_generation=None) -> tuple[dict, object]:
     """(the front.json document, mdo.pareto's result) of one NSGA-II run; ``objectives``: outputs to
     minimise (default: the config's ``problem.objectives``)."""
+    from bev_mdo.config import RunConfig
+
+    cfg = RunConfig.of(cfg)
     transport = Transport.of(transport)
     check_sizes(generations, pop, instances, transport)
     objs = objectives_of(objectives, cfg)
     check_objectives(objs, cfg, source, 2)
-    out, bag = out_dirs(out, cfg.get("name", "run"))
+    out, bag = out_dirs(out, cfg.name)
     run_id = uuid.uuid4().hex[:16]
     sess = session(transport, instances, cfg, out, bag, run_id, [cfg])
     with sess:
@@ -61,23 +64,23 @@ def check_sizes(generations: int, pop: int, instances, transport) -> None:
 
 def objectives_of(names: list[str] | None, cfg) -> list[tuple[str, bool]]:
     """(name, maximize) of the objectives: ``names`` (minimised), else the config's."""
-    from bev_mdo.mdo.problem import Problem
+    from bev_mdo.config import RunConfig
 
     if names is not None:
         twice = sorted({n for n in names if list(names).count(n) > 1})
         if twice:
             raise InputError(f"--objectives names {twice[0]!r} twice")
         return [(n, False) for n in names]
-    return list(Problem.from_config(cfg["problem"]).objectives)
+    return list(RunConfig.of(cfg).problem.objectives)
 
 
 def check_objectives(objectives, cfg, where: str, least: int) -> None:
-    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.config import RunConfig
 
     if len(objectives) < least:
         raise InputError(f"{where}: pareto needs two or more objectives: list them in problem.objectives "
                          "(e.g. [f1, {name: f2, maximize: true}]) or give --objectives a,b")
-    produced = {o for d in resolve_disciplines(cfg) for o in d.outputs}
+    produced = {o for d in RunConfig.of(cfg).disciplines for o in d.outputs}
     for name, _ in objectives:
         if name not in produced:
             raise InputError(f"{where}: objective {name!r} is not produced by any discipline; "
@@ -128,11 +131,11 @@ def nsga2(cfg, evaluator, objectives, pop: int, generations: int, seed: int, on_
           on_generation=None):
     """mdo.pareto.run_nsga2 over the MDF formulation of ``cfg``; ``bench=(table, topology)`` adds the
     topology study's benchmark design to ``table``."""
-    from bev_mdo.config import run_settings
+    from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.pareto import run_nsga2
 
-    form = build_formulation(run_settings(cfg), evaluator, "mdf")
+    form = build_formulation(RunConfig.of(cfg).settings, evaluator, "mdf")
     res = run_nsga2(form, objectives, pop_size=pop, generations=generations, seed=seed,
                     on_generation=on_generation or (lambda g, n, s: None), on_front=on_front)
     if bench is not None:  # the study's benchmark design, through the same formulation

@@ -99,15 +99,14 @@ def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
     values.update({k: v for k, v in result.get("outputs", {}).items() if k not in values})
     # the same time budget per discipline call as the run had (a hung user discipline must not hang the answers)
     from bev_mdo.api.failures import TimedDiscipline
-    from bev_mdo.config import resolve_disciplines
-    from bev_mdo.ros_settings import validate_ros
+    from bev_mdo.config import RunConfig
 
-    ros = validate_ros(config.get("ros"))
-    budget = ros["timeout_s"] * (ros["retries"] + 1)
-    discs = [TimedDiscipline(d, budget) for d in resolve_disciplines(config)]
+    config = RunConfig.of(config)
+    budget = config.ros["timeout_s"] * (config.ros["retries"] + 1)
+    discs = [TimedDiscipline(d, budget) for d in config.disciplines]
     from bev_mdo.mdo.units import run_units
 
-    return answers_for(config, result["design"], values, disciplines=discs, units=run_units(discs))
+    return answers_for(config.settings, result["design"], values, disciplines=discs, units=run_units(discs))
 
 
 def finish(config: Mapping[str, Any], result: dict, extra: dict) -> None:

@@ -22,14 +22,16 @@ from bev_mdo.api.transport import Evaluating, Transport
 METHODS = ("sobol", "morris")
 
 
-def run(config: dict, at: dict | None = None, wrt: list[str] | None = None, transport=None, *,
+def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=None, *,
         global_method: str | None = None, order: int = 2, rel_step: float | None = None, method: str = "central",
         samples: int | None = None, seed: int = 1, conf_level: float = 0.95):
     """Local: (mdo.sensitivity.Sensitivities, outputs, point, problem); global (``global_method``
     sobol or morris): the JSON-ready report of ``analyse``."""
-    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.config import RunConfig
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.sensitivity import sensitivities
+
+    config = RunConfig.of(config)
 
     if method == "complex":  # the MDA casts every input to float64 (the discipline interface)
         raise InputError("--method complex: the multidisciplinary analysis passes float64 values between "
@@ -37,7 +39,7 @@ def run(config: dict, at: dict | None = None, wrt: list[str] | None = None, tran
                          "whatever the disciplines; use --method central (the default)")
     defaults = None
     if Transport.of(transport).uses_ros:  # a remote declaration names parameters, not their values
-        local = InProcessEvaluator(resolve_disciplines(config))
+        local = InProcessEvaluator(config.disciplines)
         defaults = {k: v for spec in local.specs.values() for k, v in spec.parameters.items()}
         local.close()
     with Evaluating(config, transport, node_name="bev_mdo_sensitivity") as ev:
@@ -84,10 +86,10 @@ def build_batch(config, evaluator, param_defaults=None):
     ``fun(X)`` takes columns in the order of the returned point (design variables, then
     every overridable model parameter) and returns the objective and constrained outputs.
     """
-    from bev_mdo.config import run_settings
+    from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import build_formulation
 
-    form = build_formulation(run_settings(config), evaluator, "mdf")
+    form = build_formulation(RunConfig.of(config).settings, evaluator, "mdf")
     problem, mda = form.problem, form.mda
     params: dict[str, float] = {}
     for spec in mda.specs.values():

@@ -44,15 +44,16 @@ class Study:
 
     @_input_errors
     def __init__(self, config: str | Path | Mapping[str, Any]):
-        from bev_mdo.config import load_config
+        from bev_mdo.config import RunConfig
 
         self.source = str(config) if isinstance(config, (str, Path)) else "<config>"
         self._raw = config if isinstance(config, (str, Path)) else dict(config)
         self.overrides = Overrides()
-        self._config = load_config(self._raw)  # the config as written must be valid
+        self._config = RunConfig.load(self._raw)  # the config as written must be valid
 
     @property
-    def config(self) -> dict:
+    def config(self):
+        """The effective config (``RunConfig``: typed parts; as a mapping, the resolved dict)."""
         return self._config
 
     def _change(self, edit) -> "Study":
@@ -119,13 +120,12 @@ class Study:
         import numpy as np
 
         from bev_mdo.api import doe as sampling, evaluate
-        from bev_mdo.mdo.problem import Problem
 
         fixed = {k: float(v) for k, v in (fixed or {}).items()}
         if designs is not None:
             cols = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in designs.items()}
         else:
-            problem = Problem.from_config(self.config["problem"])
+            problem = self.config.problem
             bounds = {d.name: (d.lower, d.upper) for d in problem.design_variables if d.name not in fixed}
             cols = sampling.sample(doe, bounds, samples, seed)
         n = len(next(iter(cols.values())))

@@ -116,10 +116,10 @@ class Evaluating:
                       f"{section['domain_id']} ...", file=sys.stderr, flush=True)
             self.session = ros_session(config, transport, node_name)
         else:
-            from bev_mdo.config import resolve_disciplines
+            from bev_mdo.config import RunConfig
             from bev_mdo.mdo.evaluator import InProcessEvaluator
 
-            self.session = InProcessEvaluator(resolve_disciplines(config))
+            self.session = InProcessEvaluator(RunConfig.of(config).disciplines)
 
     def __enter__(self):
         return self.session.evaluator if self.ros else self.session

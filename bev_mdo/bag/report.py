@@ -305,11 +305,10 @@ def _context(bag: Bag):
     try:
         import yaml
 
-        from bev_mdo.config import load_config
-        from bev_mdo.mdo.problem import Problem
+        from bev_mdo.config import RunConfig
 
-        config = load_config(yaml.safe_load(text))
-        return config, Problem.from_config(config["problem"])
+        config = RunConfig.load(yaml.safe_load(text))
+        return config, config.problem
     except (ValueError, KeyError, TypeError):
         return None, None
 
@@ -319,10 +318,9 @@ def _units(config) -> dict:
     if config is None:
         return {}
     try:
-        from bev_mdo.config import resolve_disciplines
         from bev_mdo.mdo.units import run_units
 
-        return run_units(resolve_disciplines(config))
+        return run_units(config.disciplines)
     except Exception:  # noqa: BLE001 - a report is written even if the model no longer loads
         return {}
 
@@ -335,18 +333,17 @@ def bag_units(bag: Bag) -> dict:
 def _analyse(config, design: dict) -> dict | None:
     """One in-process MDA of ``design`` (the report's mass, cost, ... of the final iterate)."""
     try:
-        from bev_mdo.config import resolve_disciplines
         from bev_mdo.mdo.driver import evaluate_design
         from bev_mdo.mdo.evaluator import InProcessEvaluator
 
-        return evaluate_design(config, InProcessEvaluator(resolve_disciplines(config)), design)
+        return evaluate_design(config.settings, InProcessEvaluator(config.disciplines), design)
     except Exception:  # noqa: BLE001 - a report is written even if the model no longer runs
         return None
 
 
 def _baseline(config, problem) -> dict | None:
     """The config's own ``problem.baseline`` analysed in process; None when the config names none."""
-    base = (config.get("problem") or {}).get("baseline")
+    base = config.baseline
     if not base:
         return None
     design = {n: base["design"].get(n, d.initial) for n, d in zip(problem.names, problem.design_variables)}
@@ -445,14 +442,13 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
         baseline = _baseline(config, problem)
         answers = read_answers(bag)
         if answers is None:
-            from bev_mdo.config import resolve_disciplines
             from bev_mdo.mdo.active import answers_for
 
             values = dict(final["outputs"]) if final else {}
             values.update(rows[-1]["constraints"])
             try:
-                answers = answers_for(config, dict(rows[-1]["design"]), values,
-                                      lambda: resolve_disciplines(config), units=units)
+                answers = answers_for(config.settings, dict(rows[-1]["design"]), values,
+                                      config.disciplines, units=units)
             except Exception:  # noqa: BLE001
                 answers = None
     written: list[Path] = []

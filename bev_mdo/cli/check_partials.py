@@ -47,22 +47,22 @@ def _point(problem, text: str) -> dict[str, float]:
 def check(config, at: str = "", rtol: float = 1e-4, atol: float = 1e-6, step: float = 1e-6,
           only: list[str] | None = None) -> dict:
     """The report of ``bev-mdo check-partials`` (JSON-ready)."""
-    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.config import RunConfig
     from bev_mdo.mdo.derivatives import compare_partials, fd_partials
     from bev_mdo.mdo.discipline import run_discipline
-    from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.vectors import ShapeError, has_partials
 
     if not (rtol >= 0 and atol >= 0 and 0 < step < 0.1):
         raise ValueError("--rtol and --atol must be >= 0 and --step in (0, 0.1)")
-    discs = {d.name: d for d in resolve_disciplines(config)}
+    config = RunConfig.of(config)
+    discs = {d.name: d for d in config.disciplines}
     unknown = [n for n in (only or []) if n not in discs]
     if unknown:
         raise ValueError(f"--discipline names {unknown}; the config has {sorted(discs)}")
     ev = InProcessEvaluator(discs.values())
-    form = build_formulation(run_settings(config), ev, "mdf")
+    form = build_formulation(config.settings, ev, "mdf")
     problem, mda = form.problem, form.mda
     point = _point(problem, at)
     inputs = {k: np.array([v]) for k, v in {**problem.parameters, **point}.items()}
@@ -108,9 +108,9 @@ def check(config, at: str = "", rtol: float = 1e-4, atol: float = 1e-6, step: fl
 
 
 def run(args) -> int:
-    from bev_mdo.config import load_config
+    from bev_mdo.config import RunConfig
 
-    config = load_config(args.config)
+    config = RunConfig.load(args.config)
     only = [s.strip() for s in args.discipline.split(",") if s.strip()] or None
     rep = check(config, args.at, args.rtol, args.atol, args.step, only)
     if args.json:

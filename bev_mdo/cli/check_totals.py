@@ -100,12 +100,11 @@ def _point(form, problem, text: str) -> np.ndarray:
 def run(args) -> int:
     from bev_mdo.api.transport import Evaluating
     from bev_mdo.cli import flags
-    from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import build_formulation
 
     config = flags.load_config(args)
     with Evaluating(config, args, node_name="bev_mdo_check_totals") as ev:
-        form = build_formulation(run_settings(config), ev, args.formulation)
+        form = build_formulation(config.settings, ev, args.formulation)
         rep = check(form, _point(form, form.problem, args.at), args.step, args.rtol, args.atol)
     if args.json:
         print(json.dumps(rep, indent=2))

@@ -44,8 +44,8 @@ def add_override_arguments(parser) -> None:
     sense.add_argument("--minimize", dest="maximize", action="store_false", help="minimise the objective")
 
 
-def load_config(args, path=None) -> dict:
-    """The validated config of ``path`` (default ``args.config``) with the command line's overrides."""
+def load_config(args, path=None):
+    """The validated config (``RunConfig``) of ``path`` (default ``args.config``) with the command line's overrides."""
     from bev_mdo.api.overrides import from_args, load
 
     return load(args.config if path is None else path, from_args(args))

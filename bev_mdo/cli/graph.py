@@ -27,12 +27,11 @@ def register(sub) -> None:
 
 def coupling_model(config) -> dict:
     """{order: [optimizer, disciplines...], edges: {(a, b): [vars]}, loops: [[names]], external: {...}}."""
-    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.config import RunConfig
     from bev_mdo.mdo.graph import CouplingGraph
-    from bev_mdo.mdo.problem import Problem
 
-    problem = Problem.from_config(config["problem"])
-    discs = resolve_disciplines(config)
+    config = RunConfig.of(config)
+    problem, discs = config.problem, config.disciplines
     specs = [(d.name, tuple(d.inputs), tuple(d.outputs)) for d in discs]
     g = CouplingGraph(specs)
     order = [n for comp in g.components for n in comp]
@@ -55,7 +54,7 @@ def coupling_model(config) -> dict:
     unused = {n: [v for v in g.outputs[n] if v not in consumed] for n in order}
     return {"order": [OPT] + order, "edges": edges, "loops": [list(c) for c in g.cycles],
             "objective": problem.objective, "constraints": [c.name for c in problem.constraints],
-            "design_variables": problem.names, "parameters": params, "formulation": config.get("formulation", "mdf"),
+            "design_variables": problem.names, "parameters": params, "formulation": config.settings.formulation,
             "limits": {c.name: " ".join(x for x in ((f"≥ {c.lower:g}" if c.lower is not None else ""),
                                                     (f"≤ {c.upper:g}" if c.upper is not None else "")) if x)
                        for c in problem.constraints},
@@ -138,13 +137,13 @@ def plot_n2(model: dict, path: Path, title: str = ""):
 
 
 def run(args) -> int:
-    from bev_mdo.config import load_config
+    from bev_mdo.config import RunConfig
 
-    config = load_config(args.config)
+    config = RunConfig.load(args.config)
     model = coupling_model(config)
-    dot = to_dot(model, config.get("name", "bev_mdo"))
+    dot = to_dot(model, config.name)
     if args.png:
-        plot_n2(model, Path(args.png), title=f"{config.get('name', '')}: coupling graph")
+        plot_n2(model, Path(args.png), title=f"{config.name}: coupling graph")
         print(f"wrote {args.png}", file=sys.stderr)
     if args.dot and args.dot != "-":
         Path(args.dot).write_text(dot, encoding="utf-8")

@@ -21,12 +21,12 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from bev_mdo.config import load_config
+    from bev_mdo.config import RunConfig
     from bev_mdo.ros.paths import default_config
 
     path = args.config or default_config()
-    config = load_config(path)
-    names = [e["name"] for e in _entries(config)]
+    config = RunConfig.load(path)
+    names = list(config.names)
     if args.name not in names:
         raise UsageError(f"no discipline {args.name!r} in {path}; it has {names}")
     from bev_mdo.api.transport import ros_section
@@ -40,10 +40,4 @@ def run(args) -> int:
     node_name = f"{args.name}_node" + (f"_{args.instance}" if args.instance else "")
     ros_args = ["--ros-args", "-p", f"config:={os.path.abspath(path)}", "-p", f"discipline:={args.name}",
                 "-r", f"__node:={node_name}"]
-    return main(ros_args, discipline=args.name)
-
-
-def _entries(config):
-    from bev_mdo.config import discipline_entries
-
-    return discipline_entries(config)
+    return main(ros_args, discipline=args.name, config=config)

@@ -71,7 +71,7 @@ def run(args) -> int:
     from bev_mdo.api import pareto
     from bev_mdo.api.transport import Transport
     from bev_mdo.cli import flags
-    from bev_mdo.config import load_config
+    from bev_mdo.config import RunConfig
 
     pareto.check_sizes(args.generations, args.pop, getattr(args, "instances", None), args)
     cfg = flags.load_config(args)  # a bad key, topology, variable or override exits 2 here
@@ -81,8 +81,8 @@ def run(args) -> int:
         raw = _read_raw(args.config)
         ov = overrides.from_args(args)
         if ov:  # the command line's overrides, checked against the config as written
-            raw = overrides.apply(raw, ov, overrides.known_names(load_config(args.config)))
-        return _study(args, raw)
+            raw = overrides.apply(raw, ov, overrides.known_names(RunConfig.load(args.config)))
+        return _study(args, raw, cfg)
     names = None if args.objectives is None else [o.strip() for o in args.objectives.split(",") if o.strip()]
     objs = pareto.objectives_of(names, cfg)
     pareto.check_objectives(objs, cfg, str(args.config), 2)
@@ -109,24 +109,23 @@ def _failed(doc: dict) -> int:
     return 0
 
 
-def _study(args, raw) -> int:
-    """The BEV topology study (thesis §4.4): one front per topology, the benchmark, the picks."""
+def _study(args, raw, written) -> int:
+    """The BEV topology study (thesis §4.4): one front per topology, the benchmark, the picks;
+    ``written``: the config's RunConfig."""
     from bev_mdo.api import pareto
-    from bev_mdo.config import load_config
+    from bev_mdo.config import RunConfig
+    from bev_mdo.disciplines import TOPOLOGY_DISCIPLINES
     from bev_mdo.models.topology import TOPOLOGIES, get_topology
 
-    from bev_mdo.config import discipline_names
-    from bev_mdo.disciplines import TOPOLOGY_DISCIPLINES
-
     topologies = list(TOPOLOGIES) if args.all_topologies else [get_topology(args.topology).name]
-    if not set(discipline_names(load_config(args.config))) & set(TOPOLOGY_DISCIPLINES):
+    if not set(written.names) & set(TOPOLOGY_DISCIPLINES):
         raise ValueError(f"{args.config}: --topology and --all-topologies study the BEV problem's powertrain "
                          f"topologies; this config has none of the disciplines {', '.join(TOPOLOGY_DISCIPLINES)} "
                          "(without them, bev-mdo pareto runs NSGA-II on the config as written)")
     configs = {}
     for t in topologies:
         try:
-            configs[t] = load_config(study.config_for_topology(raw, t))
+            configs[t] = RunConfig.load(study.config_for_topology(raw, t))
         except ValueError as exc:  # the file and the topology, not <config>
             raise ValueError(f"{args.config} ({t}): {str(exc).removeprefix('<config>: ')}") from None
     first = next(iter(configs.values()))
@@ -180,6 +179,4 @@ def _study(args, raw) -> int:
 
 
 def _bounds(cfg) -> list[dict]:
-    from bev_mdo.mdo.problem import Problem
-
-    return [{"name": d.name, "lower": d.lower, "upper": d.upper} for d in Problem.from_config(cfg["problem"]).design_variables]
+    return [{"name": d.name, "lower": d.lower, "upper": d.upper} for d in cfg.problem.design_variables]

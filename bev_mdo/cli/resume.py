@@ -29,16 +29,16 @@ def register(sub) -> None:
 
 
 def resume_point(bag_path: str, run_id: str | None = None, key_file: str | None = None,
-                 checks: dict | None = None, no_verify: bool = False) -> tuple[dict, dict, int]:
-    """(resolved config, last verified design of the bag's own run, its iteration) from a bag;
+                 checks: dict | None = None, no_verify: bool = False) -> tuple:
+    """(the run's RunConfig, last verified design of the bag's own run, its iteration) from a bag;
     BagError (a ValueError) if there is none or it cannot be verified."""
     from bev_mdo.bag.history import last_iterate
-    from bev_mdo.config import load_config, load_yaml
+    from bev_mdo.config import RunConfig, load_yaml
 
     config_yaml, design, iteration = last_iterate(bag_path, run_id, key_file, checks, no_verify)
     if not config_yaml:
         raise ValueError(f"{bag_path}: the bag holds no configuration; cannot resume")
-    return load_config(load_yaml(config_yaml)), design, iteration
+    return RunConfig.load(load_yaml(config_yaml)), design, iteration
 
 
 def is_per_run_key(path) -> bool:
@@ -52,10 +52,10 @@ def is_per_run_key(path) -> bool:
 def run(args) -> int:
     import sys
 
-    from bev_mdo.cli.optimize import run_job
-
     from bev_mdo.api.transport import Transport
     from bev_mdo.bag.history import check_note
+    from bev_mdo.cli.optimize import run_job
+    from bev_mdo.config import RunConfig
 
     Transport.of(args).refuse_attach("resume")  # before the bag is read
     checks: dict = {}
@@ -66,15 +66,13 @@ def run(args) -> int:
     if check_note(checks):
         print(f"{args.bag}: {check_note(checks)}", file=sys.stderr)
     # the resumed run gets a key of its own (the old path would make the new run share the old key)
-    config.setdefault("ros", {})
+    config = RunConfig.of(config)
     if is_per_run_key(config["ros"].get("sign_key_file")):
-        config["ros"] = {**config["ros"], "sign_key_file": ""}
-    print(f"resuming {config.get('name', 'run')} from iteration {iteration} at "
+        config = config.with_ros({**config["ros"], "sign_key_file": ""})
+    print(f"resuming {config.name} from iteration {iteration} at "
           + ", ".join(f"{k}={v:.6g}" for k, v in design.items()), file=out)
-    from bev_mdo.mdo.problem import Problem
-
     # element names ('x_shared[0]', ...) for vector design variables, as the bag records them
-    names = Problem.from_config(config["problem"]).names
+    names = config.problem.names
     x0 = {k: v for k, v in design.items() if k in names}
     opts = argparse.Namespace(**vars(Transport.of(args)), formulation=None, optimizer=None, json=args.json,
                               bag=args.out_bag, no_record=args.no_record, quiet=args.quiet, compose=None)

@@ -26,9 +26,9 @@ def run(args) -> int:
         raise ValueError(f"--listen must be in (0, 600] seconds, got {args.listen:g}")
     config = {}
     if args.config:
-        from bev_mdo.config import load_config
+        from bev_mdo.config import RunConfig
 
-        config = load_config(args.config)
+        config = RunConfig.load(args.config)
     ros = ros_section(config, args)
     apply_ros_environment(ros)
     ctx = rclpy.context.Context()

@@ -204,15 +204,16 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
 
 def _baseline(config) -> dict | None:
     """The config's ``problem.baseline`` analysed in process (None without one, or if it fails)."""
-    base = (config.get("problem") or {}).get("baseline")
-    if not base:
-        return None
-    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import evaluate_design
     from bev_mdo.mdo.evaluator import InProcessEvaluator
 
+    config = RunConfig.of(config)
+    base = config.baseline
+    if not base:
+        return None
     try:
-        rep = evaluate_design(config, InProcessEvaluator(resolve_disciplines(config)), base["design"])
+        rep = evaluate_design(config.settings, InProcessEvaluator(config.disciplines), base["design"])
     except ValueError:
         return None
     return {"name": base["name"], "design": dict(base["design"]), "outputs": rep["outputs"]}
@@ -245,7 +246,6 @@ def run(args) -> int:
     from bev_mdo.api.doe import plot_scatter, record
     from bev_mdo.cli.evaluate import parse_assignments
     from bev_mdo.api.transport import Transport
-    from bev_mdo.mdo.problem import Problem
 
     config = flags.load_config(args)
     out = Path(args.out)
@@ -254,7 +254,7 @@ def run(args) -> int:
         from bev_mdo.api.optimize import check_new_bag
 
         check_new_bag(bag, "--out")
-    designs = designs_of(args, Problem.from_config(config["problem"]))
+    designs = designs_of(args, config.problem)
     fixed = parse_assignments(args.fixed)
     varied = [k for k in designs if k not in fixed]
     n = len(next(iter(designs.values())))
@@ -292,17 +292,15 @@ def run(args) -> int:
 
 def run_compare(args) -> int:
     from bev_mdo.cli.evaluate import parse_assignments
-    from bev_mdo.config import load_config
+    from bev_mdo.config import RunConfig
     from bev_mdo.mdo import units as un
 
     if len(args.design) < 2:
         raise UsageError("give two or more --design k=v,... to compare")
-    config = load_config(args.config)
+    config = RunConfig.load(args.config)
     given = [parse_assignments([d]) for d in args.design]
     keys = list(dict.fromkeys(k for g in given for k in g))
-    from bev_mdo.mdo.problem import Problem
-
-    problem = Problem.from_config(config["problem"])
+    problem = config.problem
     init = {d.name: d.initial for d in problem.design_variables}
     designs = {k: np.array([g.get(k, init.get(k, np.nan)) for g in given]) for k in keys}
     if any(np.isnan(v).any() for v in designs.values()):

@@ -177,22 +177,22 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
     return lines
 
 
-def fd_jacobian(config: Mapping[str, Any], design: Mapping[str, float], disciplines: Disciplines,
+def fd_jacobian(config: Any, design: Mapping[str, float], disciplines: Disciplines,
                 names: list[str] | None = None, rel_step: float = 1e-6) -> dict[str, dict[str, float]]:
     """d output / d design variable at ``design`` by one-sided finite differences, evaluated in
-    process as ONE batch (the point and its stencil); each step points into the box.
+    process as ONE batch (the point and its stencil); each step points into the box. ``config``: the
+    run's ``RunSettings``, or a resolved config.
     ``disciplines``: the run's discipline objects (a caller may wrap them, e.g. with a timeout), or a
-    function building them (the caller's config.resolve_disciplines: the engine does not read the
-    application config)."""
+    function building them (the engine does not read the application config)."""
     from bev_mdo.mdo.driver import _mda
     from bev_mdo.mdo.evaluator import InProcessEvaluator
-    from bev_mdo.mdo.problem import Problem
     from bev_mdo.mdo.settings import RunSettings
 
-    problem = Problem.from_config(config["problem"])
     ev = InProcessEvaluator(disciplines() if callable(disciplines) else disciplines)
     try:
-        mda = _mda(RunSettings.of(config, ev), ev, problem)
+        run = RunSettings.of(config, ev)
+        problem = run.optimisation_problem()
+        mda = _mda(run, ev, problem)
         x = np.array([float(design[n]) for n in problem.names])
         steps = []
         for d, xi in zip(problem.design_variables, x):
@@ -216,16 +216,21 @@ def fd_jacobian(config: Mapping[str, Any], design: Mapping[str, float], discipli
             close()
 
 
-def answers_for(config: Mapping[str, Any], design: Mapping[str, float], values: Mapping[str, float],
+def answers_for(config: Any, design: Mapping[str, float], values: Mapping[str, float],
                 disciplines: Disciplines, rel_tol: float = REL_TOL,
                 units: Mapping[str, str] | None = None) -> dict[str, Any]:
-    """``analyse`` for a run config; an infeasible end gets the Jacobian by ``fd_jacobian`` (in process,
-    with ``disciplines``: a list, or a function building them, called only then); ``units``: {variable: unit}
-    as the disciplines declare them (mdo/units.py ``run_units``)."""
+    """``analyse`` for a run (its ``RunSettings``, or a resolved config); an infeasible end gets the
+    Jacobian by ``fd_jacobian`` (in process, with ``disciplines``: a list, or a function building them,
+    called only then); ``units``: {variable: unit} as the disciplines declare them (mdo/units.py
+    ``run_units``)."""
     from bev_mdo.mdo.problem import Problem
+    from bev_mdo.mdo.settings import RunSettings
 
-    problem = Problem.from_config(config["problem"])
-    tol = float((config.get("optimizer") or {}).get("feasibility_tolerance", FEASIBILITY_TOL))
+    if isinstance(config, RunSettings):
+        problem, tol = config.optimisation_problem(), float(config.optimizer.feasibility_tolerance)
+    else:
+        problem = Problem.from_config(config["problem"])
+        tol = float((config.get("optimizer") or {}).get("feasibility_tolerance", FEASIBILITY_TOL))
     ans = analyse(problem, design, values, rel_tol=rel_tol, feas_tol=tol, units=units)
     if ans["violated"]:
         try:

@@ -102,7 +102,7 @@ def _mda(run: RunSettings, evaluator: Evaluator, problem: Problem) -> MDA:
 def build_formulation(run: Run, evaluator: Evaluator, formulation: str | None = None) -> Formulation:
     """The MDF or IDF formulation of a run (RunSettings or a resolved config) over ``evaluator``."""
     run = RunSettings.of(run, evaluator)
-    problem = Problem.from_config(run.problem)
+    problem = run.optimisation_problem()
     name = (formulation or run.formulation).lower()
     if name not in FORMULATIONS:
         raise ValueError(f"formulation {name!r} is unknown; allowed: {', '.join(FORMULATIONS)}")
@@ -146,7 +146,7 @@ def evaluate_design(run: Run, evaluator: Evaluator, design: Mapping[str, float])
     ``design`` holds every design variable, and may add model-parameter overrides.
     """
     run = RunSettings.of(run, evaluator)
-    problem = Problem.from_config(run.problem)
+    problem = run.optimisation_problem()
     mda = _mda(run, evaluator, problem)
     params = {p for s in mda.specs.values() for p in s.parameters}
     missing = [n for n in problem.names if n not in design]

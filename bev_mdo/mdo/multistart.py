@@ -48,7 +48,7 @@ def run_starts(run: Run, evaluator: Evaluator, starts: int, *, seed: int = 0, fo
     them and ``multistart`` set); one start is ``run_optimization`` as it is."""
     t0 = time.perf_counter()
     run = RunSettings.of(run, evaluator)
-    problem = Problem.from_config(run.problem)
+    problem = run.optimisation_problem()
     if starts == 1:
         return run_optimization(run, evaluator, formulation=formulation, optimizer=optimizer, callback=callback)
     count = [0]

@@ -84,6 +84,13 @@ class RunSettings:
     optimizer: OptimizerSettings
     disciplines: tuple[str, ...]
     partials: Mapping[str, bool]
+    parsed_problem: Any = field(default=None, compare=False, repr=False)  # the Problem of ``problem``, if built
+
+    def optimisation_problem(self):
+        """The ``Problem`` of ``problem``: the one the config built at load, else built here."""
+        from bev_mdo.mdo.problem import Problem
+
+        return self.parsed_problem if self.parsed_problem is not None else Problem.from_config(self.problem)
 
     @classmethod
     def of(cls, run: "RunSettings | Mapping[str, Any]", evaluator: Any = None) -> "RunSettings":

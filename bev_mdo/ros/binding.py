@@ -46,9 +46,10 @@ def _canon(obj: Any) -> Any:
 def effective_config(config: Mapping[str, Any], name: str) -> dict:
     """What decides discipline `name`'s answers under `config` (see the module doc)."""
     from bev_mdo import __version__
-    from bev_mdo.config import discipline_entries
+    from bev_mdo.config import RunConfig, discipline_entries
 
-    entries = {e["name"]: e for e in discipline_entries(config)}
+    listed = config.entries() if isinstance(config, RunConfig) else discipline_entries(config)
+    entries = {e["name"]: e for e in listed}
     if name not in entries:
         raise ValueError(f"no discipline {name!r} in the config; it has {sorted(entries)}")
     vehicle = dict(config.get("vehicle") or {})

@@ -28,21 +28,20 @@ class _OwnedRosEvaluator:
     def __init__(self, config: Mapping[str, Any], node_name: str, run_id: str | None = None):
         import rclpy
 
-        from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
-        from bev_mdo.ros_settings import validate_ros
-
+        from bev_mdo.config import RunConfig
+        from bev_mdo.ros.coordinator_node import CoordinatorNode
         from bev_mdo.ros_settings import choose_domain
 
-        section = dict(config.get("ros") or {})
-        section["domain_id"] = choose_domain(section)[0]  # the config's if stated, else ROS_DOMAIN_ID, else 77
-        ros = validate_ros(section)
+        config = RunConfig.of(config)
+        # the domain the config states, else ROS_DOMAIN_ID, else 77
+        ros = {**config.ros, "domain_id": choose_domain(config["ros"])[0]}
         apply_ros_environment(ros)
         self._ctx = rclpy.context.Context()
         rclpy.init(context=self._ctx)
         try:
             self._node = CoordinatorNode(config, run_id, context=self._ctx, node_name=node_name)
             self._inner = self._node.evaluator
-            self._inner.wait_for_disciplines(discipline_names(config), ros["discovery_wait_s"])
+            self._inner.wait_for_disciplines(list(config.names), ros["discovery_wait_s"])
         except BaseException:
             rclpy.shutdown(context=self._ctx)
             raise

@@ -29,9 +29,12 @@ from bev_mdo import protocol
 from bev_mdo.ros.discipline_node import DisciplineNode, serve, valid_run_id
 
 
-def make_nodes(config: dict, disciplines: list[str], instance: str = "", run_id: str = "",
+def make_nodes(config, disciplines: list[str], instance: str = "", run_id: str = "",
                context=None) -> list[DisciplineNode]:
     """One DisciplineNode per discipline, sharing `config` (node names as the launcher gives them)."""
+    from bev_mdo.config import RunConfig
+
+    config = RunConfig.of(config)
     nodes = []
     for name in disciplines:
         node_name = f"{name}_node" + (f"_{instance}" if instance else "")
@@ -98,7 +101,7 @@ class Beside:
     process's coordinator while this one is not evaluating (the nodes are served only inside the
     coordinator's waits)."""
 
-    def __init__(self, config: dict, names: list[str], context, run_id: str = "", instance: str = ""):
+    def __init__(self, config, names: list[str], context, run_id: str = "", instance: str = ""):
         self.nodes = make_nodes(config, list(names), instance, run_id, context=context)
         link_local(self.nodes)
         self._pairs: list = []
@@ -219,7 +222,7 @@ def serve_many(nodes: list[DisciplineNode], idle_s: float = 0.1, service_every: 
 
 def main(args: list[str] | None = None) -> int:
     """Run the named disciplines in this process until Ctrl-C / SIGTERM."""
-    from bev_mdo.config import load_config
+    from bev_mdo.config import RunConfig
     from bev_mdo.ros.paths import default_config
 
     rclpy.init(args=args)
@@ -239,7 +242,7 @@ def main(args: list[str] | None = None) -> int:
         names = [n.strip() for n in str(p["disciplines"]).strip("[]").split(",") if n.strip()]
         if not names:
             raise ValueError("composed_node needs -p disciplines:=name[,name...]")
-        config = load_config(p["config"] or default_config())
+        config = RunConfig.load(p["config"] or default_config())
         nodes = make_nodes(config, names, p["instance"], p["run_id"])
         serve_many(nodes)
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -23,7 +23,6 @@ from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, sta
 from bev_mdo.ros.evaluator import RosEvaluator
 from bev_mdo.ros.fastwait import until
 from bev_mdo.ros.recorder_node import OwnRecorder
-from bev_mdo.ros_settings import validate_ros
 from bev_mdo.stacks import STARTUP_GAVE_UP_STATUS, StartupGaveUp, deadline
 from bev_mdo_msgs.msg import IterationRecord
 
@@ -35,19 +34,21 @@ def node_name_for(run_id: str, base: str = "coordinator") -> str:
 
 
 def discipline_names(config: Mapping[str, Any]) -> list[str]:
-    """Names of the disciplines a run needs (from the resolved config)."""
-    from bev_mdo.config import discipline_names as names
+    """Names of the disciplines a run needs (a RunConfig's, or read from a resolved config)."""
+    from bev_mdo.config import RunConfig, discipline_names as names
 
-    return names(config)
+    return list(config.names) if isinstance(config, RunConfig) else names(config)
 
 
 class CoordinatorNode(Node):
     """Publishes iteration records and owns the ROS evaluator."""
 
     def __init__(self, config: Mapping[str, Any], run_id: str | None = None, signer=None, **kwargs):
+        from bev_mdo.config import RunConfig
+
         super().__init__(kwargs.pop("node_name", "coordinator_node"), **kwargs)
-        self.config = config
-        ros = validate_ros(config.get("ros"))
+        self.config = config = RunConfig.of(config)
+        ros = config.ros
         self.run_id = run_id or uuid.uuid4().hex[:16]
         self._seq = 0
         self._iteration_pub = self.create_publisher(IterationRecord, ITERATION_TOPIC, ITERATION_QOS)
@@ -130,16 +131,17 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
     ``recorder_subscribers``: 1 to wait for the run's own recorder (by its declaration; with
     ``recorder_binding``, the binding it must declare: recorder_node.config_binding), 0 not to.
     ``starting``: start-up progress of the run's processes (launch.Launcher.progress), for the waits."""
-    from bev_mdo.config import run_settings
+    from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import run_optimization
 
+    config = RunConfig.of(config)
     run_id = run_id or uuid.uuid4().hex[:16]
     node = CoordinatorNode(config, run_id, signer=signer, context=context, node_name=node_name_for(run_id))
     node.evaluator.starting = starting
     if beside is not None:
         beside.attach(node.evaluator)
     try:
-        names = discipline_names(config)
+        names = list(config.names)
         node.evaluator.wait_for_disciplines(names, node.discovery_wait_s)
         for name, count in (instances or {}).items():  # a pool starts with all its instances (pool.py)
             if count > 1:
@@ -157,10 +159,10 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         if starts > 1:  # --starts: every start through the same nodes, one bag
             from bev_mdo.mdo.multistart import run_starts
 
-            result = run_starts(run_settings(config), node.evaluator, starts, seed=seed, formulation=formulation,
+            result = run_starts(config.settings, node.evaluator, starts, seed=seed, formulation=formulation,
                                 optimizer=optimizer, callback=callback)
         else:
-            result = run_optimization(run_settings(config), node.evaluator, formulation=formulation,
+            result = run_optimization(config.settings, node.evaluator, formulation=formulation,
                                       optimizer=optimizer, x0=x0, callback=callback)
         t_optimised = time.monotonic()
         stats = {"run_id": node.run_id, "dropped": dict(node.evaluator.dropped), "retried": node.evaluator.retried,
@@ -185,7 +187,7 @@ def main(args: list[str] | None = None) -> int:
     """`ros2 run bev_mdo coordinator_node --ros-args -p config:=... [-p formulation:=idf -p optimizer:=SLSQP]
     [-p recorders:=1 -p run_id:=RUN] [-p compose:=coordinator]` (with a recorder started on its own for
     the same run, ``recorder_node --run-id RUN``, wait for its declaration so the bag misses nothing; with compose:=coordinator the disciplines' nodes run in this process, composed.Beside)."""
-    from bev_mdo.config import load_config
+    from bev_mdo.config import RunConfig
     from bev_mdo.ros.paths import default_config
 
     rclpy.init(args=args)
@@ -204,14 +206,14 @@ def main(args: list[str] | None = None) -> int:
         p = {k: probe.get_parameter(k).value
              for k in ("config", "formulation", "optimizer", "run_id", "recorders", "instances", "compose")}
         probe.destroy_node()
-        config = load_config(p["config"] or default_config())
+        config = RunConfig.load(p["config"] or default_config())
         instances = _instances(p["instances"], config)
         run_id = p["run_id"] or uuid.uuid4().hex[:16]
         if p["compose"] not in ("", "none", "coordinator"):
             raise ValueError(f"compose must be coordinator or none, got {p['compose']!r} (composed_node runs groups)")
         from bev_mdo.ros.launch import beside_coordinator
 
-        local = beside_coordinator(p["compose"], discipline_names(config), instances)
+        local = beside_coordinator(p["compose"], list(config.names), instances)
         if local:
             from bev_mdo.ros.composed import Beside
 

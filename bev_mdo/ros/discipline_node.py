@@ -45,7 +45,6 @@ from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RES
                                 NODE_STATS_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, mda_result_topic,
                                 request_topic, stamp)
 from bev_mdo.ros.paths import default_config
-from bev_mdo.ros_settings import validate_ros
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
 from std_msgs.msg import String
 
@@ -74,11 +73,12 @@ def _decode_once(decode, data: bytes):
     return msg
 
 
-def _build(config: dict, name: str) -> tuple[Any, dict[str, str]]:
-    """(the discipline, output -> producing discipline over the whole config)."""
-    from bev_mdo.config import resolve_disciplines
+def _build(config, name: str) -> tuple[Any, dict[str, str]]:
+    """(the discipline, output -> producing discipline over the whole config): a RunConfig's disciplines,
+    or those of a node's own config (vehicle.<key> parameters set on its command line)."""
+    from bev_mdo.config import RunConfig, resolve_disciplines
 
-    every = resolve_disciplines(config)
+    every = config.disciplines if isinstance(config, RunConfig) else resolve_disciplines(config)
     found = [d for d in every if d.name == name]
     if not found:
         raise ValueError(f"no discipline {name!r} in the config; it has {[d.name for d in every]}")
@@ -105,11 +105,11 @@ class DisciplineNode(Node):
         name = self.get_parameter("discipline").value
         if not name:
             raise ValueError("discipline_node needs -p discipline:=<name>")
-        if config is None:
-            from bev_mdo.config import load_config
+        from bev_mdo.config import RunConfig
 
-            config = load_config(self.get_parameter("config").value or default_config())
-        config = self._apply_overrides(config)
+        run_config = RunConfig.of(config if config is not None else
+                                  self.get_parameter("config").value or default_config())
+        config = self._apply_overrides(run_config)
         self.discipline, producer = _build(config, name)
         self.discipline_name = name
         self.bound_run = self.get_parameter("run_id").value or ""
@@ -119,7 +119,7 @@ class DisciplineNode(Node):
         self.instance = self.get_parameter("instance").value or self.get_fully_qualified_name()
         self.counts: Counter[str] = Counter()
         self.compute_s = 0.0  # time spent in compute(), summed (node stats)
-        self.signer = Signer.from_ros(validate_ros(config.get("ros")))
+        self.signer = Signer.from_ros(run_config.ros)
         self._stats_pub = self.create_publisher(String, NODE_STATS_TOPIC, NODE_STATS_QOS)
         self._stats_sent: dict[str, int] | None = None
         self._stats_t = 0.0
@@ -174,14 +174,19 @@ class DisciplineNode(Node):
         self._stats_pub.publish(msg)
         self._stats_sent, self._stats_t = snap, now
 
-    def _apply_overrides(self, config: dict) -> dict:
-        """Declare vehicle.<key> parameters; values set on the command line override the YAML."""
-        config = copy.deepcopy(config)
+    def _apply_overrides(self, run_config):
+        """Declare vehicle.<key> parameters; values set on the command line override the YAML: the
+        run's config when none changes a value, else a config of this node's own (a dict)."""
+        config = copy.deepcopy(run_config.data)
         vehicle = config.get("vehicle") or {}
+        changed = False
         for key, value in vehicle.items():
             if isinstance(value, (int, float)) and not isinstance(value, bool):
                 p = self.declare_parameter(f"vehicle.{key}", float(value))
+                changed = changed or float(p.value) != float(value)
                 vehicle[key] = float(p.value)
+        if not changed:
+            return run_config
         if vehicle:
             from bev_mdo.models.params import VEHICLE_CHOICES, validate_vehicle
 
@@ -474,12 +479,13 @@ def serve(nodes: "DisciplineNode | list[DisciplineNode]", idle_s: float = 0.1, s
         executor.shutdown()
 
 
-def main(args: list[str] | None = None, discipline: str | None = None) -> int:
-    """Run a discipline node until Ctrl-C / SIGTERM."""
+def main(args: list[str] | None = None, discipline: str | None = None, config=None) -> int:
+    """Run a discipline node until Ctrl-C / SIGTERM (``config``: the run's RunConfig, else the
+    ``config`` parameter's file is loaded)."""
     rclpy.init(args=args)
     node = None
     try:
-        node = DisciplineNode(discipline)
+        node = DisciplineNode(discipline, config=config)
         serve(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

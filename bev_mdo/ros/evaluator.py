@@ -54,8 +54,11 @@ class RosEvaluator(StartupWaits, Orchestrator):
 
     def __init__(self, node: Node, *, run_id: str | None = None, timeout_s: float = 5.0, retries: int = 3,
                  signer: Signer | None = None, config: Mapping | None = None):
-        config = config or {}
-        ros = config.get("ros") or {}
+        if config:  # the run's config, parsed once (config.RunConfig)
+            from bev_mdo.config import RunConfig
+
+            config = RunConfig.of(config)
+        ros = config.ros if config else {}
         super().__init__(run_id=run_id or uuid.uuid4().hex[:16], timeout_s=timeout_s, retries=retries,
                          pool_mode=ros.get("pool", "share"),
                          # False: an MDA with a pool runs in waves (docs/scaling.md)
@@ -63,14 +66,12 @@ class RosEvaluator(StartupWaits, Orchestrator):
                          pool_min_rows=validate_min_rows(ros.get("pool_min_rows", 1)))
         self.node = node
         self.log = node.get_logger()
-        if signer is None and ros:  # sign if the run config names a key file
-            from bev_mdo.ros_settings import validate_ros
-
-            signer = Signer.from_ros(validate_ros(ros))
+        if signer is None and config:  # sign if the run config names a key file
+            signer = Signer.from_ros(ros)
         self.signer = signer
         # Binding (binding.py): the fingerprint every discipline of this run must have. Without a
         # config (a bare evaluator in a tool) the first declared fingerprint of a discipline is taken.
-        self._config = config if config.get("problem") else None
+        self._config = config or None
         self.expected: dict[str, tuple[str, str]] = {}   # discipline -> (fingerprint, effective JSON)
         self._tags: dict[tuple, str] = {}                # names -> their request frame_id (_tag)
         self.instances: dict[str, set[str]] = {}         # discipline -> accepted instance names

@@ -389,25 +389,26 @@ class OwnSuite:
         self._own_dir = work_dir is None
         self.work_dir = Path(work_dir or tempfile.mkdtemp(prefix="bev_mdo_suite_"))  # mkdtemp: mode 0700
         self.run_id = uuid.uuid4().hex[:16]
-        self.config = {**config, "ros": dict(ros)}
+        from bev_mdo.config import RunConfig
+
+        self.config = RunConfig.of(config).with_ros(ros)
         self.ros = dict(ros)
         self.launcher: Launcher | None = None
 
     def start(self) -> "OwnSuite":
         import yaml
 
-        from bev_mdo.config import discipline_names, plain
-        from bev_mdo.protocol.signing import with_run_key
+        from bev_mdo.config import plain
         from bev_mdo.ros_settings import ros_environment
 
         logs = self.work_dir / "logs"
         logs.mkdir(parents=True, exist_ok=True)
-        self.config = with_run_key(self.config, self.work_dir / ".keys")
+        self.config = self.config.with_run_key(self.work_dir / ".keys")
         resolved = logs / "config.yaml"
         resolved.write_text(yaml.safe_dump(plain(self.config), sort_keys=False))
         self.launcher = Launcher(ros_environment(self.ros), log_dir=logs)
         try:
-            for label, argv in plan_processes(discipline_names(self.config), str(resolved.resolve()),
+            for label, argv in plan_processes(list(self.config.names), str(resolved.resolve()),
                                               run_id=self.run_id, instance=self.run_id[:8]):
                 self.launcher.add(label, argv)
             self.launcher.supervise(watch_hangs=True)

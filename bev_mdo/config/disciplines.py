@@ -1,0 +1,181 @@
+"""A run's disciplines: built from the config's ``disciplines`` list (or the built-in defaults),
+checked against the problem, named and listed for the nodes that serve them."""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from bev_mdo.config.sections import SIZED_VARIABLE
+from bev_mdo.models.common import check_keys
+
+
+def check_baseline(cfg: dict, problem, params: set[str]) -> None:
+    base = cfg["problem"].get("baseline")
+    if base is None:
+        return
+    design = base["design"]
+    missing = [n for n in problem.names if n not in design]
+    if missing:
+        raise ValueError(f"problem.baseline.design misses design variables {missing}; give every one of {problem.names}")
+    unknown = [k for k in design if k not in problem.names and k not in params]
+    if unknown:
+        raise ValueError(f"problem.baseline.design.{unknown[0]}: neither a design variable {problem.names} "
+                         "nor a discipline parameter")
+
+
+def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
+    """The problem against the run's disciplines: what they produce and consume; their parameters."""
+    from bev_mdo.mdo.graph import CouplingGraph
+
+    specs = [(d.name, tuple(d.inputs), tuple(d.outputs)) for d in discs]
+    graph = CouplingGraph(specs)
+    produced, consumed = set(graph.producer), {v for _, i, _ in specs for v in i}
+    params = {p for d in discs for p in (getattr(d, "parameters", {}) or {})}
+    if problem.objective not in produced or any(c.name not in produced for c in problem.constraints):
+        for name in [problem.objective] + [c.name for c in problem.constraints]:
+            if name not in produced and f"{name}[0]" in produced:
+                size = sum(1 for v in produced if v.startswith(f"{name}["))
+                what = ("the objective must be a scalar; pick one element, e.g. " + f"{name}[0]"
+                        if name == problem.objective else f"add shape: {size}")
+                raise ValueError(f"problem: {name!r} is a vector of {size} elements (discipline "
+                                 f"{graph.producer[name + '[0]']!r}); {what}")
+    if problem.objective not in produced:
+        raise ValueError(f"problem.objective {problem.objective!r} is not produced by any discipline; "
+                         f"outputs: {sorted(produced)}")
+    for i, (name, _) in enumerate(problem.objectives):
+        if name not in produced:
+            raise ValueError(f"problem.objectives[{i}] {name!r} is not produced by any discipline; "
+                             f"outputs: {sorted(produced)}")
+    for c in problem.constraints:
+        if c.name not in produced:
+            raise ValueError(f"problem.constraints.{c.name}: no discipline produces it; outputs: {sorted(produced)}")
+    for key, names in (("coupling_guesses", problem.coupling_guesses), ("coupling_bounds", problem.coupling_bounds)):
+        for k in names:  # a name (or vector) no discipline produces would be ignored: a typo, said here
+            if k not in produced and f"{k}[0]" not in produced:
+                raise ValueError(f"problem.{key}.{k}: no discipline produces it; outputs: {sorted(produced)}")
+    for dv in problem.names:
+        if dv in produced:
+            hint = " (set problem.battery_sized_for_range: false, or drop the sizing discipline)" \
+                if dv == SIZED_VARIABLE else ""
+            raise ValueError(f"problem.design_variables.{dv}: it is also produced by discipline "
+                             f"{graph.producer[dv]!r}{hint}")
+        if dv not in consumed and dv not in params:
+            raise ValueError(f"problem.design_variables.{dv}: no discipline consumes it; inputs: {sorted(consumed)}")
+    for k in problem.parameters:
+        if k not in params and k not in consumed:
+            raise ValueError(f"problem.parameters.{k}: no discipline has this parameter; known: {sorted(params)}")
+    if cfg["problem"]["battery_sized_for_range"] and SIZED_VARIABLE not in produced:
+        raise ValueError("problem.battery_sized_for_range is true but no discipline produces battery_kwh "
+                         "(add the battery_sizing discipline)")
+    graph.check_inputs(set(problem.names) | set(problem.parameters))
+    return params
+
+
+def resolve_disciplines(config: Mapping[str, Any]) -> list:
+    """Discipline objects of a run: the config's ``disciplines`` list, else the built-in defaults.
+
+    A list entry is a built-in name, or ``{name, class: "module:Class", options: {...}}``;
+    ``{name}`` without ``class`` picks the built-in of that name.
+    """
+    from bev_mdo.mdo.discipline import load_class, options_dict, read_options
+    from bev_mdo.mdo.units import attach_units
+    from bev_mdo.mdo.vectors import wrap
+
+    entries = config.get("disciplines")
+    if entries is None:
+        out = [wrap(d) for d in _defaults(config)]
+        return attach_units(out, [d.name for d in out])
+    if not isinstance(entries, list) or not entries:
+        raise ValueError("disciplines must be a non-empty list of names or {name, class, options} entries")
+    out, builtins = [], None
+    for k, e in enumerate(entries):
+        if isinstance(e, str):
+            e = {"name": e}
+        if not isinstance(e, Mapping) or not isinstance(e.get("name"), str):
+            raise ValueError(f"disciplines[{k}] must be a name or a mapping with a 'name'")
+        check_keys(f"disciplines[{k}] ({e['name']})", e, ("name", "class", "options"))
+        options = e.get("options") or {}
+        if not isinstance(options, Mapping):
+            raise ValueError(f"disciplines[{k}] ({e['name']}): options must be a mapping")
+        if "class" not in e:
+            builtins = builtins if builtins is not None else _builtins()
+            if e["name"] not in builtins:
+                raise ValueError(f"disciplines[{k}]: no built-in discipline {e['name']!r}; built-ins: "
+                                 f"{sorted(builtins)} (or give class: 'module:Class')")
+            cls = builtins[e["name"]]
+        else:
+            try:
+                cls = load_class(str(e["class"]), config.get("search_path") or ())
+            except ValueError as exc:
+                raise ValueError(f"disciplines[{k}] ({e['name']}): {exc}") from None
+        options = read_options(cls, options, f"disciplines[{k}] ({e['name']}).options")
+        try:
+            if hasattr(cls, "from_config"):
+                disc = cls.from_config(config, options)
+            else:
+                disc = cls(**options_dict(options))
+        except Exception as exc:  # the user's constructor: one line naming the discipline, never a traceback
+            raise ValueError(f"disciplines[{k}] ({e['name']}): cannot build {getattr(cls, '__name__', cls)}: "
+                             f"{type(exc).__name__}: {exc}") from None
+        for attr in ("inputs", "outputs", "compute"):
+            if not hasattr(disc, attr):
+                raise ValueError(f"disciplines[{k}] ({e['name']}): {cls.__name__} has no {attr!r}")
+        for attr in ("inputs", "outputs"):
+            names = getattr(disc, attr)
+            if isinstance(names, str) or not all(isinstance(v, str) and v for v in names):
+                raise ValueError(f"disciplines[{k}] ({e['name']}): {attr} must be a sequence of variable names, "
+                                 f"got {names!r}")
+            twice = sorted({v for v in names if list(names).count(v) > 1})
+            if twice:
+                raise ValueError(f"disciplines[{k}] ({e['name']}): {attr} name {twice} twice")
+        both = sorted(set(disc.inputs) & set(disc.outputs))
+        if both:
+            raise ValueError(f"disciplines[{k}] ({e['name']}): {both} are both inputs and outputs")
+        if getattr(disc, "name", None) != e["name"]:
+            try:
+                disc.name = e["name"]
+            except AttributeError:
+                raise ValueError(f"disciplines[{k}]: {cls.__name__} is named {disc.name!r}, not {e['name']!r}") from None
+        out.append(wrap(disc))
+    return attach_units(out, [f"disciplines[{k}] ({d.name})" for k, d in enumerate(out)])
+
+
+def _builtins() -> dict[str, type]:
+    from bev_mdo.disciplines import BUILTIN
+
+    return dict(BUILTIN)
+
+
+def _defaults(config: Mapping[str, Any]) -> list:
+    from bev_mdo.disciplines import default_disciplines
+
+    return list(default_disciplines(config))
+
+
+def discipline_entries(config: Mapping[str, Any], discs=None) -> list[dict]:
+    """``{name, class, options}`` for every discipline of a run (what a node needs to build one);
+    ``discs``: the run's disciplines already built (``RunConfig.disciplines``)."""
+    out = []
+    for d in resolve_disciplines(config) if discs is None else discs:
+        cls = type(getattr(d, "inner", d))
+        out.append({"name": d.name, "class": f"{cls.__module__}:{cls.__qualname__}", "options": {}})
+    if config.get("disciplines") is not None:
+        user = {(e if isinstance(e, str) else e["name"]): e for e in config["disciplines"]}
+        for o in out:
+            e = user.get(o["name"])
+            if isinstance(e, Mapping):
+                o["options"] = dict(e.get("options") or {})
+                if e.get("class"):
+                    o["class"] = str(e["class"])  # as the user wrote it (resolved through search_path)
+    return out
+
+
+def discipline_names(config: Mapping[str, Any]) -> list[str]:
+    """Names of a run's disciplines, read from the config without building any discipline."""
+    entries = config.get("disciplines")
+    if entries is None:
+        from bev_mdo.disciplines import default_names
+
+        return default_names(config)
+    return [e if isinstance(e, str) else e["name"] for e in entries]
+

@@ -1,0 +1,259 @@
+"""Loading a run config: read the YAML, validate every section once, resolve the disciplines.
+
+``RunConfig.load(path)`` is the one parse of a run config: the resolved config as a plain dict
+(``data``, what a run's log folder and bag record, and what ``load`` reads back the same), the
+``Problem``, the run's disciplines built once, the ``ros:`` section with its defaults, and the
+engine's ``RunSettings``. Code downstream takes the ``RunConfig``; a function given a plain
+mapping instead loads it once with ``RunConfig.of``. Any problem raises a one-line ValueError
+naming the file and the key. In battery-sized-for-range mode ``battery_kwh`` leaves the design
+variables (its initial value becomes the MDA loop's starting guess), is produced by the
+``battery_sizing`` discipline, and the ``range_km`` constraint (met by construction) becomes
+``monitor: true``.
+"""
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from bev_mdo.config.disciplines import (check_against_disciplines, check_baseline, discipline_entries,
+                                        discipline_names, resolve_disciplines)
+from bev_mdo.config.sections import (check_mda_numbers, check_optimizer_options, resolve_problem, search_path,
+                                     engine_section, validate_models, vehicle_topology_into_options)
+from bev_mdo.mdo.problem import Problem
+from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
+from bev_mdo.models.common import check_keys
+
+TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "disciplines", "problem",
+            "formulation", "mda", "optimizer", "ros", "recording", "search_path", "cycle_traces")
+FORMULATIONS = ("mdf", "idf")
+RECORDING_KEYS = ()  # nothing reads a key of the recording section yet: any key there would do nothing
+# the engine sections' defaults, defined once with their types (mdo/settings.py)
+MDA_DEFAULTS = MDASettings().as_dict()
+OPTIMIZER_DEFAULTS = OptimizerSettings().as_dict()
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class RunConfig(Mapping):
+    """A run config, validated once: read its typed parts, not the dictionary.
+
+    ``data``: the resolved config as a plain dict (recorded in the run's log folder and bag; treat
+    it as read-only); ``problem``: the ``Problem``; ``disciplines``: the run's discipline objects in
+    their order (built once, at load); ``ros``: the ``ros:`` section with its defaults filled in;
+    ``settings``: what the engine reads (problem, formulation, ``mda:``, ``optimizer:``, the
+    disciplines by name and whether each has analytic partials). As a read-only mapping it is
+    ``data`` (``config["vehicle"]``), for the discipline classes and other code that takes a
+    config's sections as written.
+    """
+
+    data: dict
+    problem: Problem
+    disciplines: tuple
+    ros: dict
+    settings: RunSettings
+
+    @classmethod
+    def load(cls, source: str | Path | Mapping[str, Any], edit=None) -> "RunConfig":
+        """Read and validate a run config: a YAML path, or an already-parsed mapping (a resolved
+        one, e.g. read back from a bag, loads to the same config).
+
+        ``search_path`` (where a discipline's ``module:Class`` is looked for, before Python's own
+        path) becomes absolute: the config's own entries (relative ones against its folder), then
+        the config file's folder, then the working directory. A resolved config written elsewhere
+        (a run's log folder, a bag) keeps them, so every process of a run resolves user modules the
+        same way. ``edit(raw) -> raw`` changes the parsed mapping before it is checked
+        (command-line overrides).
+        """
+        base: Path | None = None
+        if isinstance(source, Mapping):
+            where, raw = "<config>", copy.deepcopy(dict(source))
+        else:
+            from bev_mdo.yamlload import read_yaml_file
+
+            p = Path(source)
+            where = str(p)
+            if not p.is_file():
+                raise ValueError(f"{where}: no such config file")
+            raw = read_yaml_file(p)  # one-line ValueErrors: binary, too big, too deep, alias bomb, bad YAML
+            base = p.resolve().parent
+        if edit is not None and isinstance(raw, Mapping):
+            raw = edit(raw)
+        try:
+            if isinstance(raw, Mapping):
+                raw = {**raw, "search_path": search_path(raw.get("search_path"), base)}
+            return _resolve(raw)
+        except ValueError as exc:
+            msg = str(exc).strip().splitlines()[0] if str(exc).strip() else "invalid config"
+            raise ValueError(f"{where}: {msg}") from None
+
+    @classmethod
+    def of(cls, config: "RunConfig | Mapping[str, Any]") -> "RunConfig":
+        """``config`` itself, or a plain mapping (a config dict) loaded once."""
+        return config if isinstance(config, RunConfig) else cls.load(config)
+
+    @property
+    def name(self) -> str:
+        return self.data["name"]
+
+    @property
+    def baseline(self) -> dict | None:
+        """``problem.baseline`` ({name, design}), or None."""
+        return self.data["problem"].get("baseline")
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The run's disciplines by name, in their order."""
+        return self.settings.disciplines
+
+    def with_ros(self, section: Mapping[str, Any]) -> "RunConfig":
+        """The same run with another ``ros:`` section (checked; nothing else is parsed again)."""
+        from dataclasses import replace
+
+        from bev_mdo.ros_settings import validate_ros
+
+        return replace(self, data={**self.data, "ros": dict(section)}, ros=validate_ros(section))
+
+    def with_sections(self, **sections: Any) -> "RunConfig":
+        """Another run config: this one's with whole sections replaced (``formulation="idf"``), loaded."""
+        return RunConfig.load({**self.data, **sections})
+
+    def with_run_key(self, directory: Path) -> "RunConfig":
+        """The same run signed with a fresh per-run key (``protocol.signing.with_run_key``), unless its
+        ``ros:`` section names its own key or turns signing off."""
+        from bev_mdo.protocol.signing import with_run_key
+
+        keyed = with_run_key(self.data, directory)
+        return self if keyed is self.data else self.with_ros(keyed["ros"])
+
+    def entries(self) -> list[dict]:
+        """``{name, class, options}`` of every discipline (what a node needs to build one)."""
+        return discipline_entries(self.data, self.disciplines)
+
+    def __getitem__(self, key: str) -> Any:
+        return self.data[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.data)
+
+    def __len__(self) -> int:
+        return len(self.data)
+
+    def __repr__(self) -> str:
+        return f"RunConfig(name={self.name!r}, disciplines={list(self.names)})"
+
+
+def load_config(path: str | Path | Mapping[str, Any], edit=None) -> dict:
+    """The resolved config of ``RunConfig.load(path, edit)`` as a plain dict (``.data``)."""
+    return RunConfig.load(path, edit).data
+
+
+def check_run_name(name: Any) -> None:
+    """A run's ``name`` becomes part of its bag and log folder names: ValueError unless it is a plain
+    name (no path separator, not '.' or '..', no control character, at most 100 characters)."""
+    bad = (not isinstance(name, str) or not name.strip() or "/" in name or "\\" in name or name in (".", "..")
+           or ".." in name or len(name) > 100 or any(ord(c) < 32 for c in name))
+    if bad:
+        raise ValueError(f"name {name!r} must be a plain run name (letters, digits, '-', '_', '.'; no path "
+                         "separator, no '..', at most 100 characters): it names the run's bag and log folders")
+
+
+def load_yaml(text: str) -> Any:
+    """Parse YAML like yaml.safe_load, but a key given twice in one mapping is an error and the size,
+    nesting, aliases and list lengths are limited (bev_mdo.yamlload)."""
+    from bev_mdo.yamlload import load_yaml as load
+
+    return load(text)
+
+
+def _resolve(raw: Any) -> RunConfig:
+    from bev_mdo.mdo.formulations import FD_SCHEMES
+    from bev_mdo.mdo.mda import METHODS
+    from bev_mdo.mdo.optimizers import canonical_name
+
+    if not isinstance(raw, Mapping):
+        raise ValueError("the config must be a YAML mapping of sections (name, vehicle, cycle, problem, ...)")
+    check_keys("", raw, TOP_KEYS)
+    cfg = dict(raw)
+    cfg.setdefault("name", "run")
+    check_run_name(cfg["name"])
+    cfg["energy_model"] = cfg.get("energy_model", "flat")
+    from bev_mdo.disciplines import ENERGY_MODELS
+
+    if cfg["energy_model"] not in ENERGY_MODELS:
+        raise ValueError(f"energy_model {cfg['energy_model']!r} is unknown; allowed: {', '.join(ENERGY_MODELS)}")
+    validate_models(cfg)
+    vehicle_topology_into_options(cfg)
+    cfg["formulation"] = str(cfg.get("formulation", "mdf")).lower()
+    if cfg["formulation"] not in FORMULATIONS:
+        raise ValueError(f"formulation {raw.get('formulation')!r} is unknown; allowed: {', '.join(FORMULATIONS)}")
+    cfg["mda"] = engine_section(cfg.get("mda"), MDA_DEFAULTS, "mda")
+    if cfg["mda"]["method"] not in METHODS:
+        raise ValueError(f"mda.method {cfg['mda']['method']!r} is unknown; allowed: {', '.join(METHODS)}")
+    cfg["optimizer"] = engine_section(cfg.get("optimizer"), OPTIMIZER_DEFAULTS, "optimizer")
+    cfg["optimizer"]["name"] = canonical_name(cfg["optimizer"]["name"])
+    if not isinstance(cfg["optimizer"]["options"], Mapping):
+        raise ValueError("optimizer.options must be a mapping of the optimiser's own options")
+    check_optimizer_options(cfg["optimizer"]["name"], cfg["optimizer"]["options"])
+    if cfg["optimizer"]["fd_scheme"] not in FD_SCHEMES:
+        raise ValueError(f"optimizer.fd_scheme {cfg['optimizer']['fd_scheme']!r} is unknown; allowed: "
+                         f"{', '.join(FD_SCHEMES)}")
+    tol = cfg["optimizer"]["feasibility_tolerance"]
+    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 <= tol < 1 or math.isnan(tol):
+        raise ValueError(f"optimizer.feasibility_tolerance {tol!r} must be a number in [0, 1) "
+                         "(on normalised constraints; default 1e-4)")
+    cfg["optimizer"]["feasibility_tolerance"] = float(tol)
+    from bev_mdo.mdo.formulations import DERIVATIVES
+
+    if cfg["optimizer"]["derivatives"] not in DERIVATIVES:
+        raise ValueError(f"optimizer.derivatives {cfg['optimizer']['derivatives']!r} is unknown; allowed: "
+                         f"{', '.join(DERIVATIVES)}")
+    for key in ("ros", "recording"):
+        if cfg.get(key) is not None and not isinstance(cfg[key], Mapping):
+            raise ValueError(f"{key} must be a mapping")
+        cfg[key] = dict(cfg.get(key) or {})
+    check_keys("recording", cfg["recording"], RECORDING_KEYS)
+    from bev_mdo.ros_settings import validate_ros
+
+    ros = validate_ros(cfg["ros"])  # checked here so the error names the file; the section is kept as written
+    cfg["problem"] = resolve_problem(cfg.get("problem"))
+    problem = Problem.from_config(cfg["problem"])
+    # numeric checks of the engine sections, by constructing the pieces once
+    check_mda_numbers(cfg["mda"])
+    discs = tuple(resolve_disciplines(cfg))
+    params = check_against_disciplines(cfg, problem, discs)
+    check_baseline(cfg, problem, params)
+    return RunConfig(cfg, problem, discs, ros, _settings(cfg, problem, discs))
+
+
+def _settings(config: dict, problem: Problem, discs) -> RunSettings:
+    """The engine's typed settings: problem, formulation, the ``mda:``/``optimizer:`` sections, the
+    disciplines by name and whether each provides analytic partials (the driver imports nothing
+    above the engine)."""
+    from bev_mdo.mdo.vectors import has_partials
+
+    names = tuple(discipline_names(config))
+    partials = {d.name: bool(has_partials(d)) for d in discs}
+    return RunSettings(config["problem"], str(config["formulation"]), MDASettings.of(config["mda"]),
+                       OptimizerSettings.of(config["optimizer"]), names,
+                       {n: partials.get(n, False) for n in names}, parsed_problem=problem)
+
+
+def run_settings(config: RunConfig | Mapping[str, Any]) -> RunSettings:
+    """The engine's typed settings of a run config (``RunConfig.of(config).settings``)."""
+    return RunConfig.of(config).settings
+
+
+def plain(obj):
+    """YAML-safe copy of a config (numpy scalars to floats, tuples to lists)."""
+    if isinstance(obj, RunConfig):
+        return plain(obj.data)
+    if isinstance(obj, dict):
+        return {str(k): plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [plain(v) for v in obj]
+    if hasattr(obj, "item"):
+        return obj.item()
+    return obj

@@ -1,0 +1,243 @@
+"""Checks of a run config's sections, one at a time (``load._resolve`` runs them in order).
+
+The optimiser's options against its solver's keyword arguments, the search path, the engine
+sections against their typed defaults, the vehicle and cycle against the models' validators
+(a parameter-set file and drive-cycle CSVs are read once, into the resolved config), the
+vehicle topology into the topology disciplines' options, and the problem section (battery
+sized for range, baseline). Every problem is a one-line ValueError naming the key.
+"""
+from __future__ import annotations
+
+import copy
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from bev_mdo.models.common import check_keys
+
+SIZED_VARIABLE = "battery_kwh"
+SIZED_CONSTRAINT = "range_km"
+
+
+# scipy solver behind each built-in optimiser: its keyword arguments are the accepted options
+_SCIPY_SOLVERS = {"SLSQP": ("scipy.optimize._minimize", "_minimize_slsqp"),
+                  "trust-constr": ("scipy.optimize._minimize", "_minimize_trustregion_constr"),
+                  "COBYLA": ("scipy.optimize._minimize", "_minimize_cobyla"),
+                  "COBYQA": ("scipy.optimize._minimize", "_minimize_cobyqa"),
+                  "differential_evolution": ("scipy.optimize", "differential_evolution")}
+_NOT_OPTIONS = {"fun", "func", "x0", "args", "jac", "hess", "hessp", "bounds", "constraints", "callback"}
+
+
+def check_optimizer_options(name: str, options: Mapping[str, Any]) -> None:
+    """ValueError naming the first key of `options` that the optimiser does not accept, with the
+    nearest one: the keyword arguments of its scipy solver (scipy itself only warns, after the nodes
+    have started), or the ``DEFAULTS`` of a plug-in module (``chebyshev-pairwise``)."""
+    import importlib
+    import inspect
+
+    from bev_mdo.mdo.optimizers import OPTIMIZERS
+
+    where = _SCIPY_SOLVERS.get(name)
+    plugin = OPTIMIZERS.get(name)
+    if where is None and isinstance(plugin, str):
+        try:
+            defaults = getattr(importlib.import_module(plugin.partition(":")[0]), "DEFAULTS", None)
+        except ImportError:
+            defaults = None
+        if isinstance(defaults, Mapping):
+            check_keys("optimizer.options", options, defaults, of=name)
+        return
+    if where is None:
+        return
+    try:
+        fn = getattr(importlib.import_module(where[0]), where[1])
+        params = inspect.signature(fn).parameters
+    except (ImportError, AttributeError, ValueError, TypeError):
+        return
+    known = [k for k, p in params.items() if k not in _NOT_OPTIONS and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+    check_keys("optimizer.options", options, known, of=name)
+    for key, value in options.items():
+        default = params[key].default
+        if (isinstance(default, (int, float)) and not isinstance(default, bool)
+                and (isinstance(value, bool) or not isinstance(value, (int, float)))):
+            raise ValueError(f"optimizer.options.{key}: {value!r} is not a number ({name}'s default is {default!r})")
+
+
+
+def search_path(given: Any, base: Path | None) -> list[str]:
+    """Absolute folders for user modules: the given ones, the config's folder, the working directory."""
+    if given is None:
+        given = []
+    if isinstance(given, str) or not isinstance(given, list) or not all(isinstance(d, str) for d in given):
+        raise ValueError("search_path must be a list of folders (relative ones count from the config's folder)")
+    out: list[str] = []
+    for d in [*given, *([str(base)] if base else []), os.getcwd()]:
+        p = Path(d).expanduser()
+        p = p if p.is_absolute() or base is None else base / p
+        s = str(p.resolve())
+        if s not in out:
+            out.append(s)
+    return out
+
+
+def engine_section(value: Any, defaults: Mapping[str, Any], where: str) -> dict:
+    if value is None:
+        value = {}
+    if isinstance(value, str) and where == "optimizer":
+        value = {"name": value}
+    if not isinstance(value, Mapping):
+        raise ValueError(f"{where} must be a mapping with keys {sorted(defaults)}")
+    check_keys(where, value, defaults)
+    return {**copy.deepcopy(dict(defaults)), **dict(value)}
+
+
+def check_mda_numbers(mda: Mapping[str, Any]) -> None:
+    tol, it, w = mda["tolerance"], mda["max_iterations"], mda["relaxation"]
+    if not isinstance(tol, (int, float)) or not tol > 0:
+        raise ValueError(f"mda.tolerance {tol!r} must be a number > 0")
+    if isinstance(it, bool) or not isinstance(it, int) or it < 1:
+        raise ValueError(f"mda.max_iterations {it!r} must be an integer >= 1")
+    if not isinstance(w, (int, float)) or not 0 < w <= 2:
+        raise ValueError(f"mda.relaxation {w!r} must be in (0, 2]")
+    if not isinstance(mda["warm_start"], bool) and mda["warm_start"] not in ("auto", "tangent"):
+        raise ValueError(f"mda.warm_start {mda['warm_start']!r} must be true, false, auto or tangent")
+    if mda["warm_start"] == "tangent" and mda["method"] != "newton":
+        raise ValueError(f"mda.warm_start tangent needs mda.method newton, not {mda['method']}")
+    if not isinstance(mda["fuse_downstream"], bool):
+        raise ValueError(f"mda.fuse_downstream {mda['fuse_downstream']!r} must be true or false")
+
+def _inline_parameter_set_file(cfg: dict) -> None:
+    """A parameter set named by its file (``vehicle.parameter_set: mine.yaml``) is read once, here, and
+    its values go into the vehicle section as defaults (keys given there still win), so the resolved
+    config reproduces the run alone: a bag's ``resume``, a node started in another folder or on another
+    host, the same run after the file moved or was rewritten. A shipped set stays named (it comes with
+    the package, whose version the bag records)."""
+    from bev_mdo.models import params
+
+    v = cfg.get("vehicle")
+    name = v.get("parameter_set") if isinstance(v, Mapping) else None
+    if not params.is_parameter_set_file(name):
+        return
+    values = params.load_parameter_set(name)
+    replaced = params.ROAD_LOAD_REPLACES if "road_load" in v or any(
+        k.startswith("road_load_") for k in v) else ()  # unused beside a road load, and refused there
+    section = {k: x for k, x in v.items() if k != "parameter_set"}
+    cfg["vehicle"] = {**{k: x for k, x in values.items() if k not in section and k not in replaced}, **section}
+
+
+def _record_cycle_traces(cfg: dict) -> None:
+    """Every drive-cycle CSV the run names (``cycle.name``, the energy and cycle_range options ``cycle``
+    and ``cycle_weights``) is read once, here, into the resolved config's ``cycle_traces`` (path ->
+    {time_s, speed_m_s}); the models take it from there, so a bag's ``resume`` and nodes started in
+    another folder or on another host run on the same trace without the file. A trace already there
+    (a resolved config read again) is checked, not re-read."""
+    import warnings
+
+    from bev_mdo.models.cycles import CycleNote, is_csv_cycle, load_cycle, trace_cycle, trace_record, unbalanced_note
+
+    traces = cfg.get("cycle_traces") or {}
+    if not isinstance(traces, Mapping):
+        raise ValueError("cycle_traces must map CSV paths to {time_s: [...], speed_m_s: [...]}")
+    names = [cfg["cycle"]["name"]]
+    for e in cfg.get("disciplines") or []:
+        if isinstance(e, Mapping) and e.get("name") in ("energy", "cycle_range") and not e.get("class"):
+            opts = e.get("options") or {}
+            if isinstance(opts.get("cycle"), str):
+                names.append(opts["cycle"])
+            if isinstance(opts.get("cycle_weights"), Mapping):
+                names += [str(k) for k in opts["cycle_weights"]]
+    out = {}
+    for name in dict.fromkeys(n for n in names if is_csv_cycle(n)):
+        if name in traces:  # a resolved config read again: check what it holds
+            cycle, out[name] = trace_cycle(name, traces[name]), traces[name]
+        else:  # read (and checked) from the file
+            cycle = load_cycle(name)
+            out[name] = trace_record(cycle)
+        note = unbalanced_note(cycle, name)
+        if note:
+            warnings.warn(note, CycleNote, stacklevel=2)
+    if out:
+        cfg["cycle_traces"] = out
+    else:
+        cfg.pop("cycle_traces", None)
+
+
+def validate_models(cfg: dict) -> None:
+    """Vehicle and cycle sections are checked by the models' own validators."""
+    from bev_mdo.models import params
+
+    if "vehicle" in cfg or "cycle" in cfg:
+        try:
+            _inline_parameter_set_file(cfg)
+            params.validate_vehicle(cfg.get("vehicle"))
+        except ValueError as exc:  # a key path (vehicle.x) says where already
+            raise ValueError(str(exc) if str(exc).startswith("vehicle.") else f"vehicle: {exc}") from None
+        try:
+            cfg["cycle"] = params.validate_cycle(cfg.get("cycle"))
+            from bev_mdo.models.cycles import load_cycle, resample
+
+            _record_cycle_traces(cfg)
+            c = cfg["cycle"]  # read and check the trace now: one line naming file and row
+            resample(load_cycle(c["name"], cfg.get("cycle_traces")), c["dt_s"], c["interpolation"], c["smoothing"])
+        except ValueError as exc:
+            raise ValueError(str(exc) if str(exc).startswith("cycle.") else f"cycle: {exc}") from None
+
+
+def vehicle_topology_into_options(cfg: dict) -> None:
+    """``vehicle.topology`` also becomes the ``topology`` option of every listed built-in topology
+    discipline that does not set one, so the resolved config says it where a discipline node
+    reads it (a node keeps only the numeric vehicle parameters)."""
+    t, entries = (cfg.get("vehicle") or {}).get("topology"), cfg.get("disciplines")
+    if t is None or not isinstance(entries, list):
+        return
+    from bev_mdo.disciplines import TOPOLOGY_DISCIPLINES
+
+    out = []
+    for e in entries:
+        if isinstance(e, str) and e in TOPOLOGY_DISCIPLINES:
+            e = {"name": e, "options": {"topology": t}}
+        elif (isinstance(e, Mapping) and e.get("name") in TOPOLOGY_DISCIPLINES and "class" not in e
+              and isinstance(e.get("options") or {}, Mapping)):
+            e = {**e, "options": {"topology": t, **(e.get("options") or {})}}
+        out.append(e)
+    cfg["disciplines"] = out
+
+
+def resolve_problem(section: Any) -> dict:
+    if not isinstance(section, Mapping):
+        raise ValueError("problem must be a mapping with objective, design_variables and constraints")
+    prob = copy.deepcopy(dict(section))
+    sized = prob.get("battery_sized_for_range", False)
+    if not isinstance(sized, bool):
+        raise ValueError(f"problem.battery_sized_for_range {sized!r} must be true or false")
+    prob["battery_sized_for_range"] = sized
+    dvs = prob.get("design_variables")
+    if sized and isinstance(dvs, Mapping) and SIZED_VARIABLE in dvs:
+        dvs = dict(dvs)
+        spec = dvs.pop(SIZED_VARIABLE)
+        prob["design_variables"] = dvs
+        if isinstance(spec, Mapping) and "initial" in spec:
+            prob.setdefault("coupling_guesses", {}).setdefault(SIZED_VARIABLE, spec["initial"])
+    base = prob.get("baseline")
+    if base is not None:
+        if not isinstance(base, Mapping) or set(base) - {"name", "design"} or not isinstance(base.get("design"), Mapping):
+            raise ValueError("problem.baseline must be {name: <label>, design: {<design variable>: <value>, ...}}")
+        label = base.get("name", "baseline")
+        if not isinstance(label, str) or not label.strip():
+            raise ValueError("problem.baseline.name must be a non-empty label, e.g. 'Nissan Leaf'")
+        design = {}
+        for k, v in base["design"].items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"problem.baseline.design.{k}: {v!r} must be a finite number")
+            if not (sized and k == SIZED_VARIABLE):  # sized mode: the battery is sized, not given
+                design[str(k)] = float(v)
+        prob["baseline"] = {"name": label.strip(), "design": design}
+    cons = prob.get("constraints")
+    if sized and isinstance(cons, Mapping) and isinstance(cons.get(SIZED_CONSTRAINT), Mapping):
+        # battery_sizing meets the range target exactly; as an optimiser constraint it would duplicate
+        # the consistency equality (rank-deficient in IDF), so it is only monitored
+        prob["constraints"] = {**cons, SIZED_CONSTRAINT: {**cons[SIZED_CONSTRAINT], "monitor": True}}
+    return prob
+
