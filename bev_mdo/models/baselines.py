@@ -4,7 +4,7 @@
   test mass (kg) and W_road the road-load work per km on that cycle (Wh/km, the coast-down
   A + B v + C v^2 integrated over the cycle). Fitted per cycle with ``numpy.linalg.lstsq`` on the
   relative error (each row divided by its measured energy) on the training folds only of a
-  family-grouped k-fold split (:func:`family_folds`, the rule of ``calibrate.group_folds``): every
+  family-grouped k-fold split (:func:`family_folds`, the rule of ``fleet.group_folds``): every
   vehicle is predicted by constants that never saw its family.
 * **FASTSim 2.1.5 with its defaults**: read from ``fastsim_2.1.5.csv`` beside the shipped fleet
   file, written by ``scripts/fastsim_baseline.py`` (which needs FASTSim; reading does not). Rows are
@@ -33,12 +33,8 @@ def family_folds(fleet: fl.Fleet, use: np.ndarray, k: int = FOLDS) -> np.ndarray
     in order of size, a family never split (the same split as ``calibrate.cross_validate``)."""
     groups = fleet.family()
     idx = np.flatnonzero(use)
-    uniq, counts = np.unique([groups[i] for i in idx], return_counts=True)
-    order = uniq[np.argsort(-counts, kind="stable")]
-    k = min(k, len(order))
-    fold_of = {g: i % k for i, g in enumerate(order)}
     folds = np.full(len(fleet), -1)
-    folds[idx] = [fold_of[groups[i]] for i in idx]
+    folds[idx] = fl.group_folds([groups[i] for i in idx], k)[0]
     return folds
 
 

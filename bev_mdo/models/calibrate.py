@@ -22,6 +22,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from . import fleet as fl
+from .fleet import group_folds  # noqa: F401 - the fold rule, also used by models/baselines.py and scripts
 from .params import PARAMETER_SET_DIR, is_parameter_set_file
 
 # fixed assumptions (not fitted): physical values for a 2022 BEV on a two-wheel dynamometer
@@ -128,16 +129,6 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
         se = np.full(p, np.nan)
     return {"names": names, "x": res.x, "se": se, "rms_rel": float(np.sqrt(s2)), "success": bool(res.success),
             "mape_pct": float(100 * np.mean(np.abs(res.fun))), "n_residuals": n}
-
-
-def group_folds(groups, k: int) -> tuple[np.ndarray, int]:
-    """The fold of every row (groups dealt to k folds in order of size, a group never split) and the
-    number of folds, at most the number of groups."""
-    uniq, counts = np.unique(groups, return_counts=True)
-    order = uniq[np.argsort(-counts, kind="stable")]
-    k = min(k, len(order))
-    fold_of = {g: i % k for i, g in enumerate(order)}
-    return np.array([fold_of[g] for g in groups]), k
 
 
 def cross_validate(fleet: fl.Fleet, k: int = 5, names=None, cycles: dict | None = None,

@@ -304,3 +304,13 @@ def error_stats(errors_pct: np.ndarray) -> dict:
     return {"n": int(a.size), "mean_abs_pct": float(a.mean()), "median_abs_pct": float(np.median(a)),
             "p90_abs_pct": float(np.percentile(a, 90)), "max_abs_pct": float(a.max()),
             "mean_signed_pct": float(e.mean())}
+
+
+def group_folds(groups, k: int) -> tuple[np.ndarray, int]:
+    """The fold of every row (groups dealt to k folds in order of size, a group never split) and the
+    number of folds, at most the number of groups."""
+    uniq, counts = np.unique(groups, return_counts=True)
+    order = uniq[np.argsort(-counts, kind="stable")]
+    k = min(k, len(order))
+    fold_of = {g: i % k for i, g in enumerate(order)}
+    return np.array([fold_of[g] for g in groups]), k
