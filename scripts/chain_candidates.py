@@ -1,6 +1,6 @@
 """Candidate physics for the wall-to-wheel chain, scored exactly as calibrate.py scores the shipped
 model: least squares on relative error over the fleet file, 5-fold CV by model family and
-leave-one-make-out CV (docs/validation.md "Searching for more physics").
+leave-one-make-out CV (docs/validation.md "Limits: what was tried and the ceiling").
 
 Each candidate is a chain variant (``sim``: the shipped chain.simulate plus optional terms, all
 fleet-wide parameters, off by default) and a set of fitted parameters.

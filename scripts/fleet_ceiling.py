@@ -1,4 +1,4 @@
-"""How far can ANY model of the fleet file's columns go? (docs/validation.md "Fourth pass")
+"""How far can ANY model of the fleet file's columns go? (docs/validation.md "Ceiling of the level: any model of these columns")
 
 The 5 % target is a cross-validated mean absolute error with fleet-wide parameters, judged on unseen
 model families. This script scores, with the same family-grouped 5-fold CV and leave-one-make-out

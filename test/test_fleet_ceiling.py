@@ -1,4 +1,4 @@
-"""scripts/fleet_ceiling.py (docs/validation.md "Fourth pass"): its work features split the wheel work
+"""scripts/fleet_ceiling.py (docs/validation.md "Ceiling of the level: any model of these columns"): its work features split the wheel work
 consistently, and its linear and ridge scorers recover a relation that is there."""
 import importlib.util
 from pathlib import Path
