@@ -298,7 +298,7 @@ def run(args) -> int:
         use = usable(fleet, cycles)
         f = fit(fleet, cycles=cycles, use=use, model=model)
     except ValueError as exc:
-        print(f"calibrate: error: {exc}", file=sys.stderr)
+        print(f"bev-mdo calibrate: error: {exc}", file=sys.stderr)
         return 2
     print(f"fitted {model} on {int(use.sum())} vehicles of {fleet.path}; cross-validating", flush=True)
     left_out = np.flatnonzero(~use & ~fleet.outlier)
@@ -325,7 +325,7 @@ def run(args) -> int:
         try:
             print("wrote", write_parameter_set(f, cv, cv_make, fleet, path, model))
         except OSError as exc:
-            print(f"calibrate: error: cannot write {exc.filename or args.write}: {exc.strerror}", file=sys.stderr)
+            print(f"bev-mdo calibrate: error: cannot write {exc.filename or args.write}: {exc.strerror}", file=sys.stderr)
             return 2
     return 0
 
