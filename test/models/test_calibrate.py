@@ -122,12 +122,12 @@ def test_write_is_checked_before_the_fit_and_a_failed_write_is_one_line(tmp_path
     for bad in (tmp_path, tmp_path / "set.txt"):
         assert calibrate.main(["--data", str(data), "--write", str(bad)]) == 2
         err = capsys.readouterr().err
-        assert err.count("\n") == 1 and err.startswith("calibrate: error: --write") and ".yaml" in err
+        assert err.count("\n") == 1 and err.startswith("bev-mdo calibrate: error: --write") and ".yaml" in err
     blocker = tmp_path / "file"
     blocker.write_text("")
     assert calibrate.main(["--data", str(data), "--write", str(blocker / "set.yaml")]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("calibrate: error: cannot write") and "Traceback" not in err
+    assert err.count("\n") == 1 and err.startswith("bev-mdo calibrate: error: cannot write") and "Traceback" not in err
 
 
 def test_bev_mdo_calibrate_fits_the_quasi_static_loss_model_and_writes_its_provenance(tmp_path, capsys):
