@@ -101,7 +101,7 @@ def _run_ros(config, opts, show, x0, starts):
 
     from bev_mdo.api.transport import ros_section
     from bev_mdo.config import discipline_entries
-    from bev_mdo.ros.launch import parse_instances
+    from bev_mdo.processes import parse_instances
     from bev_mdo.sessions import OptimizeRosSession
 
     ros = ros_section(config, opts)

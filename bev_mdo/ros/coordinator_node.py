@@ -209,7 +209,7 @@ def main(args: list[str] | None = None) -> int:
         run_id = p["run_id"] or uuid.uuid4().hex[:16]
         if p["compose"] not in ("", "none", "coordinator"):
             raise ValueError(f"compose must be coordinator or none, got {p['compose']!r} (composed_node runs groups)")
-        from bev_mdo.ros.launch import beside_coordinator
+        from bev_mdo.processes import beside_coordinator
 
         local = beside_coordinator(p["compose"], discipline_names(config), instances)
         if local:
@@ -239,6 +239,6 @@ def _instances(spec: str, config) -> dict[str, int] | None:
     """The ``instances`` parameter as {discipline: count} (None when empty)."""
     if not spec:
         return None
-    from bev_mdo.ros.launch import parse_instances
+    from bev_mdo.processes import parse_instances
 
     return parse_instances(spec, discipline_names(config))

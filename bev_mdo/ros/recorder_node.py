@@ -44,7 +44,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from bev_mdo.bag.history import ITERATION_TOPIC
 from bev_mdo.bag.writer import BagWriter
-from bev_mdo.ros.binding import canonical_json, fingerprint_of_json, run_matches
+from bev_mdo.binding import canonical_json, fingerprint_of_json, run_matches
 
 DEFAULT_PREFIX = "/bev_mdo/"
 RECHECK_S = 0.5  # the declared publishers of a topic are read from the graph at least this often
