@@ -150,7 +150,7 @@ class OptimizeRosSession:
         from bev_mdo.config import discipline_entries
         from bev_mdo.launcher import Launcher, start_recorder
         from bev_mdo.ros.client import apply_ros_environment
-        from bev_mdo.ros.recorder_node import config_binding
+        from bev_mdo.binding import config_binding
         from bev_mdo.ros_settings import ros_environment
 
         env = ros_environment(self.ros)
@@ -399,7 +399,7 @@ class ParetoRosSession:
         from bev_mdo.ros.coordinator_node import node_name_for
         from bev_mdo.launcher import Launcher, start_recorder
         from bev_mdo.ros.pareto_publisher import RosSink
-        from bev_mdo.ros.recorder_node import config_binding
+        from bev_mdo.binding import config_binding
         from bev_mdo.ros_settings import ros_environment
 
         apply_ros_environment(self.ros)

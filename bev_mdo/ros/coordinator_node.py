@@ -128,7 +128,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
     """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats).
     ``beside``: a composed.Beside (discipline nodes in this process and `context`) to serve.
     ``recorder_subscribers``: 1 to wait for the run's own recorder (by its declaration; with
-    ``recorder_binding``, the binding it must declare: recorder_node.config_binding), 0 not to.
+    ``recorder_binding``, the binding it must declare: binding.config_binding), 0 not to.
     ``starting``: start-up progress of the run's processes (launch.Launcher.progress), for the waits."""
     from bev_mdo.config import run_settings
     from bev_mdo.mdo.driver import run_optimization
