@@ -111,7 +111,8 @@ def latency_worker(config_path: str, n: int) -> dict:
 
 
 def _launcher(env: dict, config: str, prefix: list[str] = (), logs: Path | None = None):
-    from bev_mdo.ros.launch import Launcher, discipline_argv
+    from bev_mdo.launcher import Launcher
+    from bev_mdo.processes import discipline_argv
 
     la = Launcher(env, log_dir=logs)
     la.add("vehicle_mass", [*prefix, *discipline_argv("vehicle_mass", config)])

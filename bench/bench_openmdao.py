@@ -295,7 +295,8 @@ def run_bev_ros(s: Setup, log_dir: Path) -> dict:
     import rclpy
 
     from bev_mdo.ros import coordinator_node
-    from bev_mdo.ros.launch import Launcher, discipline_argv
+    from bev_mdo.launcher import Launcher
+    from bev_mdo.processes import discipline_argv
     from bev_mdo.testing import ros_env
 
     env = ros_env(ROS_DOMAIN)

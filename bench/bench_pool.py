@@ -55,7 +55,8 @@ def scaling(ctx, env, tmp: Path, reps: int, wait_s: float, counts, batches) -> d
 
     from bev_mdo.config import load_config
     from bev_mdo.ros.evaluator import RosEvaluator
-    from bev_mdo.ros.launch import Launcher, discipline_argv
+    from bev_mdo.launcher import Launcher
+    from bev_mdo.processes import discipline_argv
 
     path = _config(tmp, wait_s)
     config = load_config(path)
@@ -113,7 +114,8 @@ def compose(ctx, env, reps: int, n: int, domain: int | None = None) -> dict:
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
-    from bev_mdo.ros.launch import Launcher, plan_processes
+    from bev_mdo.launcher import Launcher
+    from bev_mdo.processes import plan_processes
 
     cfg_path = str(REPO / "config" / "leaf_nedc.yaml")
     config = load_config(cfg_path)
@@ -214,7 +216,7 @@ def _designs(form, n: int, seed: int = 0) -> np.ndarray:
 
 def _set_energy_instances(launcher, ev, path: Path, k: int) -> None:
     """Make `k` (1 or 2) energy instances live: start or stop the second one and wait for the graph."""
-    from bev_mdo.ros.launch import discipline_argv
+    from bev_mdo.processes import discipline_argv
 
     has = any(n.label == "energy#1" for n in launcher.nodes)
     if k == 2 and not has:
@@ -235,7 +237,8 @@ def energy(ctx, env, tmp: Path, reps: int, batches) -> dict:
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
-    from bev_mdo.ros.launch import Launcher, discipline_argv
+    from bev_mdo.launcher import Launcher
+    from bev_mdo.processes import discipline_argv
 
     path = _artemis(tmp)
     config = load_config(path)
@@ -310,7 +313,8 @@ def pareto(ctx, env, tmp: Path, pop: int, generations: int, counts, waves: bool 
     from bev_mdo.mdo.pareto import run_nsga2
     from bev_mdo.cli.pareto import OBJECTIVES
     from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
-    from bev_mdo.ros.launch import Launcher, discipline_argv
+    from bev_mdo.launcher import Launcher
+    from bev_mdo.processes import discipline_argv
 
     path = _artemis(tmp)
     config = load_config(path)

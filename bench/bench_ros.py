@@ -306,7 +306,8 @@ def main() -> int:
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
-    from bev_mdo.ros.launch import Launcher, discipline_argv
+    from bev_mdo.launcher import Launcher
+    from bev_mdo.processes import discipline_argv
     from bev_mdo.testing import ros_env
 
     cfg_path = str(REPO / "config" / "leaf_nedc.yaml")

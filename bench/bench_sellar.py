@@ -159,7 +159,8 @@ class RosNodes:
         import yaml
 
         from bev_mdo.ros import evaluator as ros_evaluator
-        from bev_mdo.ros.launch import Launcher, discipline_argv
+        from bev_mdo.launcher import Launcher
+        from bev_mdo.processes import discipline_argv
         from bev_mdo.testing import ros_env
 
         env = ros_env(domain)

@@ -118,7 +118,8 @@ def main() -> int:
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.protocol.signing import new_key_file
     from bev_mdo.ros.coordinator_node import CoordinatorNode, discipline_names
-    from bev_mdo.ros.launch import Launcher, discipline_argv
+    from bev_mdo.launcher import Launcher
+    from bev_mdo.processes import discipline_argv
     from bev_mdo.testing import ros_env
 
     tmp = Path(tempfile.mkdtemp(prefix="bench_signing_"))

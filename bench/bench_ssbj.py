@@ -129,7 +129,8 @@ def main(argv=None) -> int:
     if args.ros:
         import rclpy
 
-        from bev_mdo.ros.launch import Launcher, discipline_argv
+        from bev_mdo.launcher import Launcher
+        from bev_mdo.processes import discipline_argv
         from bev_mdo.testing import ros_env
 
         env = ros_env(args.domain_id)

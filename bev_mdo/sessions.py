@@ -2,7 +2,7 @@
 
 * ``EvaluateRosSession``: the ROS evaluator of ``bev-mdo evaluate``/``sensitivity``/``sweep`` over ROS: the running
   nodes of the ros section's domain (``--attach``), or (``launch``) the command's own nodes, signed with a per-run key by default
-  (ros.launch.OwnSuite); closing it stops them and returns the notes for the user.
+  (launcher.OwnSuite); closing it stops them and returns the notes for the user.
 * ``OptimizeRosSession``: one optimisation over ROS (``bev-mdo optimize`` and ``resume``): discipline nodes (pools,
   composed processes) and a recorder started for the run, signed with a per-run key by default (docs/security.md),
   the config's baseline and the run coordinated in this process, every process stopped on exit (the recorder
@@ -13,7 +13,7 @@
   discipline nodes and one coordinator per topology.
 
 Both ROS sessions prepare their run directory the same way (``_prepare``: per-run key, the resolved config written
-for the nodes and the recorder) and start the recorder with ros.launch.start_recorder. ROS is imported only when a
+for the nodes and the recorder) and start the recorder with launcher.start_recorder. ROS is imported only when a
 ROS session starts.
 """
 from __future__ import annotations
@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 from bev_mdo.config import RunConfig, plain
+from bev_mdo.processes import beside_coordinator, plan_processes
 from bev_mdo.stacks import deadline
 
 LEASE_S = 3.0  # participant lease of bev_mdo's Fast DDS profile (bev_mdo/data/fastdds_profile.xml)
@@ -86,7 +87,7 @@ class EvaluateRosSession:
         self.domain = ros["domain_id"]
         run_id = None
         if launch:
-            from bev_mdo.ros.launch import OwnSuite
+            from bev_mdo.launcher import OwnSuite
 
             self.suite = OwnSuite(config, ros).start()
             config, run_id = self.suite.config, self.suite.run_id
@@ -146,9 +147,9 @@ class OptimizeRosSession:
         self.stats: dict = {}
 
     def __enter__(self) -> "OptimizeRosSession":
+        from bev_mdo.launcher import Launcher, start_recorder
         from bev_mdo.ros.client import apply_ros_environment
-        from bev_mdo.ros.launch import Launcher, plan_processes, start_recorder
-        from bev_mdo.ros.recorder_node import config_binding
+        from bev_mdo.binding import config_binding
         from bev_mdo.ros_settings import ros_environment
 
         env = ros_environment(self.ros)
@@ -182,7 +183,6 @@ class OptimizeRosSession:
         beside = None
         try:
             from bev_mdo.ros.composed import Beside
-            from bev_mdo.ros.launch import beside_coordinator
 
             local = beside_coordinator(self.compose, list(self.config.names), self.instances)
             if local:  # --compose coordinator: the disciplines' nodes in this process, served by its coordinator
@@ -394,9 +394,9 @@ class ParetoRosSession:
         from bev_mdo.protocol.signing import Signer
         from bev_mdo.ros.client import apply_ros_environment
         from bev_mdo.ros.coordinator_node import node_name_for
-        from bev_mdo.ros.launch import Launcher, start_recorder
+        from bev_mdo.launcher import Launcher, start_recorder
         from bev_mdo.ros.pareto_publisher import RosSink
-        from bev_mdo.ros.recorder_node import config_binding
+        from bev_mdo.binding import config_binding
         from bev_mdo.ros_settings import ros_environment
 
         apply_ros_environment(self.ros)
@@ -425,7 +425,6 @@ class ParetoRosSession:
         import yaml
 
         from bev_mdo.ros import coordinator_node
-        from bev_mdo.ros.launch import plan_processes
 
         cfg = RunConfig.of(cfg).with_ros(self.ros)
         wait_s = self.ros["discovery_wait_s"]

@@ -24,11 +24,11 @@ def pytest_collection_modifyitems(config, items):
 
 
 def clean_zombie_shm() -> None:
-    """Remove Fast DDS shared-memory files whose owner died (bev_mdo.ros.shm: only files whose lock no live
+    """Remove Fast DDS shared-memory files whose owner died (bev_mdo.shm: only files whose lock no live
     process holds). The suite SIGKILLs nodes on purpose; a later participant on the same port (the same
     module's domain, in this run or the next one on the host) could otherwise hang at start on a zombie port
     (eProsima/Fast-DDS#1144, #2811)."""
-    from bev_mdo.ros.shm import remove_orphans
+    from bev_mdo.shm import remove_orphans
 
     remove_orphans()
 

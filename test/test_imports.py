@@ -200,7 +200,7 @@ def _package_layers() -> tuple[dict[str, int], set[tuple[str, str]]]:
 
 
 def _unit(module: str, layers: dict[str, int]) -> str:
-    """The documented package or module a module belongs to (bev_mdo.ros.launch -> bev_mdo.ros)."""
+    """The documented package or module a module belongs to (bev_mdo.ros.evaluator -> bev_mdo.ros)."""
     parts = module.split(".")
     for k in range(len(parts), 0, -1):
         if ".".join(parts[:k]) in layers:

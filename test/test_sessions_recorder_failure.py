@@ -4,7 +4,7 @@ host, SIGTERM after Launcher.stop's wait) did not fail the run; one killed befor
 from __future__ import annotations
 
 from bev_mdo import sessions
-from bev_mdo.ros.launch import Launcher, NodeProcess
+from bev_mdo.launcher import Launcher, NodeProcess
 
 
 def _bag(tmp_path, closed: bool):

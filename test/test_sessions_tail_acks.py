@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 
 from bev_mdo import sessions
-from bev_mdo.ros.launch import Launcher, NodeProcess
+from bev_mdo.launcher import Launcher, NodeProcess
 
 
 class _Clock:

@@ -5,7 +5,7 @@ import fcntl
 import os
 import time
 
-from bev_mdo.ros.shm import remove_orphans
+from bev_mdo.shm import remove_orphans
 
 
 def _files(d, *names, age_s=60.0):
@@ -50,7 +50,7 @@ def test_a_node_the_launcher_had_to_kill_leaves_no_files(tmp_path):
     import sys
     from pathlib import Path
 
-    from bev_mdo.ros.launch import Launcher
+    from bev_mdo.launcher import Launcher
 
     name = f"fastrtps_bevtest{os.getpid():x}"
     shm = Path("/dev/shm")

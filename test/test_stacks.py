@@ -33,7 +33,7 @@ def test_sigusr1_prints_every_threads_stack_and_the_process_goes_on():
 def test_a_node_stuck_past_sigint_gets_its_stacks_dumped_before_sigterm():
     """The launcher's stop: a process that ignores SIGINT is stuck; its stack lands in its log (stderr)
     before SIGTERM ends it, so a hung node can be diagnosed after the run."""
-    from bev_mdo.ros.launch import _stop_procs
+    from bev_mdo.launcher import _stop_procs
 
     code = "\n".join([
         "import signal, time",

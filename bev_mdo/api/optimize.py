@@ -102,7 +102,7 @@ def _run_ros(config, opts, show, x0, starts):
     import sys
 
     from bev_mdo.api.transport import ros_section
-    from bev_mdo.ros.launch import parse_instances
+    from bev_mdo.processes import parse_instances
     from bev_mdo.sessions import OptimizeRosSession
 
     ros = ros_section(config, opts)

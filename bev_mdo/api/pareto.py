@@ -111,7 +111,7 @@ def session(transport, instances, raw, out: Path, bag: Path, run_id: str, config
     if Transport.of(transport).transport == "ros":
         from bev_mdo.api.transport import ros_section
         from bev_mdo.config import discipline_names
-        from bev_mdo.ros.launch import parse_instances
+        from bev_mdo.processes import parse_instances
 
         parsed = parse_instances(instances, discipline_names(configs[0]))
         out.mkdir(parents=True, exist_ok=True)

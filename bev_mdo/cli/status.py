@@ -20,7 +20,7 @@ def run(args) -> int:
 
     from bev_mdo.api.transport import ros_section
     from bev_mdo.ros.client import apply_ros_environment
-    from bev_mdo.ros.status import collect, format_table
+    from bev_mdo.ros.status import collect
 
     if not 0 < args.listen <= 600:
         raise ValueError(f"--listen must be in (0, 600] seconds, got {args.listen:g}")
@@ -46,3 +46,17 @@ def run(args) -> int:
     else:
         print(f"no discipline instance on ROS domain {ros['domain_id']} (listened {args.listen:g} s)")
     return 0
+
+
+def format_table(rows: list[dict]) -> str:
+    """The status rows as an aligned text table (one line per instance)."""
+    head = ("DISCIPLINE", "INSTANCE", "LIVE", "HOST", "PID", "RUN", "POINTS", "PTS/S(CPU)", "PTS/S(NOW)", "FINGERPRINT")
+    lines = [head]
+    for r in rows:
+        lines.append((r["discipline"], r["instance"], "yes" if r["live"] else "no", str(r["host"]), str(r["pid"] or "?"),
+                      r["run_id"][:16], str(r["points"]),
+                      "-" if r["capacity_points_per_s"] is None else f"{r['capacity_points_per_s']:g}",
+                      "-" if r["recent_points_per_s"] is None else f"{r['recent_points_per_s']:g}",
+                      r["fingerprint"]))
+    widths = [max(len(line[j]) for line in lines) for j in range(len(head))]
+    return "\n".join("  ".join(c.ljust(w) for c, w in zip(line, widths)).rstrip() for line in lines)

@@ -302,6 +302,20 @@ def head(data, name: str, last: str):
     return decode(data, _prefix_codec(type_name(name), last).cls)
 
 
+# Messages that name their run right after their header (``string run_id``): filtered by run.
+RUN_TAGGED = frozenset({"bev_mdo_msgs/msg/EvaluationRequest", "bev_mdo_msgs/msg/EvaluationResult",
+                        "bev_mdo_msgs/msg/IterationRecord"})
+
+
+def run_of(data) -> str | None:
+    """The ``run_id`` of a RUN_TAGGED message from its CDR bytes (each of them starts with a header and
+    its run id, so the fields up to ``run_id`` of one of them decode it); None if the bytes do not hold one."""
+    try:
+        return head(data, "EvaluationRequest", "run_id").run_id or None
+    except WireError:
+        return None
+
+
 # -- new messages, every field at its default (rosbags' dataclasses take every field) -------------------
 _DEFAULTS = {"string": "", "bool": False, "float32": 0.0, "float64": 0.0}
 _ARRAY_DTYPES = {"bool": np.bool_, "uint8": np.uint8, "uint32": np.uint32, "uint64": np.uint64,

@@ -10,7 +10,7 @@ them still go through DDS, as rclpy has no intra-process path; but see Beside an
 ``ros2 run bev_mdo composed_node --ros-args -p config:=run.yaml -p disciplines:=vehicle_mass,energy``
 (``python -m bev_mdo.ros.run composed_node ...``; ``instance`` and ``run_id`` parameters as for the
 discipline node; each node is named ``<discipline>_node`` plus ``_<instance>`` when given).
-The launcher's ``--compose all|none|GROUPS`` starts these (launch.py: composed_argv).
+The launcher's ``--compose all|none|GROUPS`` starts these (processes.py: composed_argv).
 """
 from __future__ import annotations
 

@@ -129,7 +129,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
     """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats).
     ``beside``: a composed.Beside (discipline nodes in this process and `context`) to serve.
     ``recorder_subscribers``: 1 to wait for the run's own recorder (by its declaration; with
-    ``recorder_binding``, the binding it must declare: recorder_node.config_binding), 0 not to.
+    ``recorder_binding``, the binding it must declare: binding.config_binding), 0 not to.
     ``starting``: start-up progress of the run's processes (launch.Launcher.progress), for the waits."""
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import run_optimization
@@ -211,7 +211,7 @@ def main(args: list[str] | None = None) -> int:
         run_id = p["run_id"] or uuid.uuid4().hex[:16]
         if p["compose"] not in ("", "none", "coordinator"):
             raise ValueError(f"compose must be coordinator or none, got {p['compose']!r} (composed_node runs groups)")
-        from bev_mdo.ros.launch import beside_coordinator
+        from bev_mdo.processes import beside_coordinator
 
         local = beside_coordinator(p["compose"], list(config.names), instances)
         if local:
@@ -241,6 +241,6 @@ def _instances(spec: str, config) -> dict[str, int] | None:
     """The ``instances`` parameter as {discipline: count} (None when empty)."""
     if not spec:
         return None
-    from bev_mdo.ros.launch import parse_instances
+    from bev_mdo.processes import parse_instances
 
     return parse_instances(spec, discipline_names(config))

@@ -39,7 +39,7 @@ from bev_mdo.mdo import flow
 from bev_mdo.mdo.discipline import DisciplineError, all_finite, readable, run_discipline, unknown_inputs
 from bev_mdo.mdo.vectors import ShapeError
 from bev_mdo import protocol
-from bev_mdo.ros import binding
+from bev_mdo import binding
 from bev_mdo.protocol.signing import Signer
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RESULT_QOS, NODE_STATS_QOS,
                                 NODE_STATS_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, mda_result_topic,

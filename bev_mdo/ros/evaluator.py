@@ -36,7 +36,7 @@ from bev_mdo.mdo.discipline import EvalResult, all_finite, finite_rows
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.mdo.orchestrator import Orchestrator
 from bev_mdo.protocol.signing import Signer
-from bev_mdo.ros import binding
+from bev_mdo import binding
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC,
                                 mda_result_topic, request_topic, stamp)
 from bev_mdo.ros.fastwait import MultiWaiter

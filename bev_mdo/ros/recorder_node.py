@@ -18,7 +18,7 @@ Declaration: whenever it changes, the recorder declares on ``/bev_mdo_recorder/s
 (TRANSIENT_LOCAL, not recorded) which run and binding it records and what it matched:
 ``{"declaration": JSON text, "signature": hex}`` with the text
 ``{"run_id", "binding", "recorder", "bag", "matched": {topic: matched publishers},
-"publishers": {topic: [node names it matched]}}``. ``binding`` is ``config_binding`` of the
+"publishers": {topic: [node names it matched]}}``. ``binding`` is ``binding.config_binding`` of the
 config it stores; ``recorder`` its node name. With the run's key (the config's
 ``ros.sign_key_file``) the text is signed (auth.Signer.sign_declaration), as disciplines sign
 theirs. A coordinator waits for its own run's recorder by this declaration (OwnRecorder), not
@@ -44,37 +44,14 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from bev_mdo.bag.history import ITERATION_TOPIC
 from bev_mdo.bag.writer import BagWriter
-from bev_mdo.ros.binding import canonical_json, fingerprint_of_json, run_matches
+from bev_mdo.binding import config_binding, run_matches
+from bev_mdo.protocol.messages import RUN_TAGGED, run_of
 
 DEFAULT_PREFIX = "/bev_mdo/"
 RECHECK_S = 0.5  # the declared publishers of a topic are read from the graph at least this often
 STATUS_TOPIC = "/bev_mdo_recorder/status"  # outside the prefix: the status is not recorded
 STATUS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-
-# Messages that name their run right after their header (``string run_id``): filtered by run.
-RUN_TAGGED = frozenset({"bev_mdo_msgs/msg/EvaluationRequest", "bev_mdo_msgs/msg/EvaluationResult",
-                        "bev_mdo_msgs/msg/IterationRecord"})
-
-
-def config_binding(config_yaml: str) -> str:
-    """The binding a recorder declares: the fingerprint of the config it stores in the bag (the
-    canonical JSON of the parsed YAML, binding.py), so a coordinator knows the bag holds its config."""
-    import yaml
-
-    return fingerprint_of_json(canonical_json(yaml.safe_load(config_yaml) or {}))
-
-
-def run_of(data) -> str | None:
-    """The ``run_id`` of a RUN_TAGGED message from its CDR bytes (each of them starts with a header and
-    its run id, so the fields up to ``run_id`` of one of them decode it); None if the bytes do not hold one."""
-    from bev_mdo import protocol
-
-    try:
-        return protocol.head(data, "EvaluationRequest", "run_id").run_id or None
-    except protocol.WireError:
-        return None
 
 
 def message_class(type_name: str):

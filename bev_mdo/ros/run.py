@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import sys
 
-from bev_mdo.ros.executables import DISCIPLINE_EXES, OTHER_EXES  # noqa: F401 - re-exported
+from bev_mdo.processes import DISCIPLINE_EXES, OTHER_EXES
 
 
 def run(exe: str, args: list[str] | None = None) -> int:

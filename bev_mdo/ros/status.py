@@ -79,20 +79,6 @@ def collect(node, listen_s: float = 2.0) -> list[dict]:
             node.destroy_subscription(s)
 
 
-def format_table(rows: list[dict]) -> str:
-    """The status rows as an aligned text table (one line per instance)."""
-    head = ("DISCIPLINE", "INSTANCE", "LIVE", "HOST", "PID", "RUN", "POINTS", "PTS/S(CPU)", "PTS/S(NOW)", "FINGERPRINT")
-    lines = [head]
-    for r in rows:
-        lines.append((r["discipline"], r["instance"], "yes" if r["live"] else "no", str(r["host"]), str(r["pid"] or "?"),
-                      r["run_id"][:16], str(r["points"]),
-                      "-" if r["capacity_points_per_s"] is None else f"{r['capacity_points_per_s']:g}",
-                      "-" if r["recent_points_per_s"] is None else f"{r['recent_points_per_s']:g}",
-                      r["fingerprint"]))
-    widths = [max(len(line[j]) for line in lines) for j in range(len(head))]
-    return "\n".join("  ".join(c.ljust(w) for c, w in zip(line, widths)).rstrip() for line in lines)
-
-
 class NodeStatsListener:
     """Latest counters of every discipline node (from /bev_mdo/node_stats), by instance name."""
 

@@ -10,7 +10,7 @@ import yaml
 
 from bev_mdo.config import load_config  # noqa: E402
 from bev_mdo.ros import coordinator_node  # noqa: E402
-from bev_mdo.ros.launch import Launcher  # noqa: E402
+from bev_mdo.launcher import Launcher  # noqa: E402
 from bev_mdo.testing import REPO, ros_env  # noqa: E402
 
 ROS_DOMAIN = 58

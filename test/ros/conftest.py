@@ -5,7 +5,8 @@ from __future__ import annotations
 import pytest
 import yaml
 
-from bev_mdo.ros.launch import Launcher, discipline_argv
+from bev_mdo.launcher import Launcher
+from bev_mdo.processes import discipline_argv
 from bev_mdo.testing import REPO, ros_env
 
 LEAF_DISCIPLINES = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]

@@ -25,8 +25,9 @@ from bev_mdo.protocol.signing import AuthError, Signer, read_key  # noqa: E402
 from bev_mdo.ros.common import REQUEST_QOS, request_topic, stamp  # noqa: E402
 from bev_mdo.ros.status import NodeStatsListener  # noqa: E402
 from bev_mdo.ros.evaluator import RosEvaluator, _Pending  # noqa: E402
-from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
-from bev_mdo.ros.binding import tag_for  # noqa: E402
+from bev_mdo.launcher import Launcher  # noqa: E402
+from bev_mdo.processes import discipline_argv  # noqa: E402
+from bev_mdo.binding import tag_for  # noqa: E402
 from bev_mdo.ros_settings import validate_ros  # noqa: E402
 from bev_mdo.testing import REPO, ros_env  # noqa: E402
 from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult  # noqa: E402

@@ -15,7 +15,8 @@ from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros import coordinator_node  # noqa: E402
-from bev_mdo.ros.launch import Launcher, plan_processes  # noqa: E402
+from bev_mdo.launcher import Launcher  # noqa: E402
+from bev_mdo.processes import plan_processes  # noqa: E402
 from bev_mdo.testing import leaf_config_file, ros_env  # noqa: E402
 
 ROS_DOMAIN = 72
@@ -67,7 +68,7 @@ def test_two_processes_serve_six_nodes_and_the_optimum_equals_in_process(rclpy_c
 def test_composed_node_rejects_an_unknown_discipline(ros_domain, config_path):
     import subprocess
 
-    from bev_mdo.ros.launch import composed_argv
+    from bev_mdo.processes import composed_argv
 
     argv = composed_argv(["energy", "warp_drive"], str(config_path))
     out = subprocess.run(argv, env=ros_env(ros_domain), capture_output=True, text=True, timeout=60)

@@ -21,7 +21,8 @@ from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros import coordinator_node  # noqa: E402
 from bev_mdo.ros.status import NodeStatsListener  # noqa: E402
 from bev_mdo.ros.evaluator import RosEvaluator  # noqa: E402
-from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
+from bev_mdo.launcher import Launcher  # noqa: E402
+from bev_mdo.processes import discipline_argv  # noqa: E402
 from bev_mdo.testing import REPO, ros_env  # noqa: E402
 
 BUILTINS = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]

@@ -20,7 +20,8 @@ from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros import coordinator_node  # noqa: E402
 from bev_mdo.ros.evaluator import DisciplineMissing  # noqa: E402
-from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
+from bev_mdo.launcher import Launcher  # noqa: E402
+from bev_mdo.processes import discipline_argv  # noqa: E402
 from bev_mdo.testing import REPO, assert_same_iterates, ros_env  # noqa: E402
 
 BASE = REPO / "config" / "leaf_nedc.yaml"
@@ -181,7 +182,7 @@ def test_bad_data_flow_requests_are_rejected_and_the_nodes_keep_serving(rclpy_co
     from bev_mdo import protocol
     from bev_mdo.ros.common import MDA_REQUEST_TOPIC, MDA_RESULT_QOS, REQUEST_QOS, mda_result_topic, stamp
     from bev_mdo.ros.status import NodeStatsListener
-    from bev_mdo.ros.binding import tag_for
+    from bev_mdo.binding import tag_for
     from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult
 
     base_config = load_config(configs["base"])

@@ -12,7 +12,7 @@ from bev_mdo.testing import PYTHON, REPO, ros_env
 
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 
-from bev_mdo.ros.executables import DISCIPLINE_EXES, OTHER_EXES  # noqa: E402
+from bev_mdo.processes import DISCIPLINE_EXES, OTHER_EXES  # noqa: E402
 from bev_mdo import protocol  # noqa: E402
 from bev_mdo_msgs.msg import (  # noqa: E402
     DisciplineInfo, EvaluationRequest, EvaluationResult, IterationRecord, NamedArray,

@@ -174,7 +174,7 @@ def fuzz_main(config_path: str, total: int, per_round: int, seed: int) -> int:
     from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult
 
     rng = np.random.default_rng(seed)
-    from bev_mdo.ros.binding import tag_for
+    from bev_mdo.binding import tag_for
 
     config = load_config(config_path)
     discs = resolve_disciplines(config)
@@ -251,7 +251,8 @@ ROS_DOMAIN = 83
 def setup(ros_domain, tmp_path_factory):
     import yaml
 
-    from bev_mdo.ros.launch import Launcher, discipline_argv
+    from bev_mdo.launcher import Launcher
+    from bev_mdo.processes import discipline_argv
     from bev_mdo.testing import REPO, ros_env
 
     d = tmp_path_factory.mktemp("fuzz")

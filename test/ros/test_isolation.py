@@ -27,10 +27,11 @@ from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo import protocol  # noqa: E402
 from bev_mdo.ros import coordinator_node  # noqa: E402
-from bev_mdo.ros.binding import tag_for  # noqa: E402
+from bev_mdo.binding import tag_for  # noqa: E402
 from bev_mdo.ros.status import NodeStatsListener  # noqa: E402
 from bev_mdo.ros.evaluator import RosEvaluator, _Pending  # noqa: E402
-from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
+from bev_mdo.launcher import Launcher  # noqa: E402
+from bev_mdo.processes import discipline_argv  # noqa: E402
 from bev_mdo.testing import PYTHON, REPO, ros_env  # noqa: E402
 
 NAMES = ["vehicle_mass", "energy", "range"]

@@ -34,7 +34,7 @@ def test_a_node_announces_itself_before_loading_ros(ros_domain):
 def test_a_node_bound_to_an_all_digit_run_id_serves_it(ros_domain):
     """A run id of hex digits that happen to be decimal ("12345678") reaches the node as a string
     (an unquoted -p run_id:=12345678 was parsed as an integer and the node died)."""
-    from bev_mdo.ros.launch import discipline_argv
+    from bev_mdo.processes import discipline_argv
 
     argv = discipline_argv("cost", str(REPO / "config" / "leaf_nedc.yaml"), run_id="12345678")
     p = subprocess.Popen(argv, env=ros_env(ros_domain), stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)

@@ -8,8 +8,10 @@ from types import SimpleNamespace
 import pytest
 from rclpy.serialization import serialize_message
 
+from bev_mdo.binding import config_binding
+from bev_mdo.protocol.messages import run_of
 from bev_mdo.protocol.signing import Signer
-from bev_mdo.ros.recorder_node import OwnRecorder, config_binding, run_of
+from bev_mdo.ros.recorder_node import OwnRecorder
 
 KEY, OTHER_KEY = b"k" * 32, b"o" * 32
 BINDING = config_binding("problem: {a: 1}\n")

@@ -12,7 +12,8 @@ from bev_mdo.config import load_config
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 from bev_mdo.mdo.mda import MDA
 from bev_mdo.ros import coordinator_node
-from bev_mdo.ros.launch import Launcher, discipline_argv
+from bev_mdo.launcher import Launcher
+from bev_mdo.processes import discipline_argv
 from bev_mdo.testing import REPO, ros_env
 
 TOYS = REPO / "test" / "mdo"

@@ -23,7 +23,8 @@ from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros import coordinator_node  # noqa: E402
 from bev_mdo.ros.status import NodeStatsListener  # noqa: E402
 from bev_mdo.ros.evaluator import RosEvaluator  # noqa: E402
-from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
+from bev_mdo.launcher import Launcher  # noqa: E402
+from bev_mdo.processes import discipline_argv  # noqa: E402
 from bev_mdo.testing import REPO, ros_env  # noqa: E402
 
 ROS_DOMAIN = 71
@@ -235,7 +236,8 @@ def test_optimisation_with_an_energy_pool_equals_in_process(rclpy_context, launc
 def test_status_lists_live_instances_with_host_and_throughput(rclpy_context, evaluator):
     import socket
 
-    from bev_mdo.ros.status import collect, format_table
+    from bev_mdo.cli.status import format_table
+    from bev_mdo.ros.status import collect
 
     evaluator.wait_for_instances("wait", 3, 60.0)
     evaluator.evaluate([("wait", _batch(90))])

@@ -23,7 +23,8 @@ import yaml
 from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
-from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
+from bev_mdo.launcher import Launcher  # noqa: E402
+from bev_mdo.processes import discipline_argv  # noqa: E402
 from bev_mdo.ros_settings import ros_environment, validate_ros  # noqa: E402
 from bev_mdo.testing import REPO  # noqa: E402
 

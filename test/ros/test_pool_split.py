@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from bev_mdo.ros import binding
+from bev_mdo import binding
 from bev_mdo.mdo.pool import Pool, split_rows, validate_mode
 
 
@@ -56,7 +56,7 @@ def test_target_tag_round_trip():
 
 
 def test_launch_plan_instances_and_compose():
-    from bev_mdo.ros.launch import parse_compose, parse_instances, plan_processes
+    from bev_mdo.processes import parse_compose, parse_instances, plan_processes
 
     names = ["vehicle_mass", "energy", "range", "cost"]
     assert parse_instances("energy=3", names) == {"vehicle_mass": 1, "energy": 3, "range": 1, "cost": 1}
@@ -81,7 +81,7 @@ def test_launch_plan_instances_and_compose():
 def test_launch_plan_compose_coordinator_and_node_names():
     """``--compose coordinator``: no process for the disciplines (they run in the coordinator's), a pool's
     instances keep one each; node_names_of names the nodes any planned process runs."""
-    from bev_mdo.ros.launch import beside_coordinator, node_names_of, parse_compose, plan_processes
+    from bev_mdo.processes import beside_coordinator, node_names_of, parse_compose, plan_processes
 
     names = ["vehicle_mass", "energy", "range", "cost"]
     assert parse_compose("coordinator", names) == []

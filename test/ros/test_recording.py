@@ -121,7 +121,8 @@ def test_resume_after_the_coordinator_is_killed_reaches_the_same_optimum(config_
                                                                          recorded):
     from bev_mdo.bag.history import last_iterate
     from bev_mdo.config import discipline_entries, load_config
-    from bev_mdo.ros.launch import Launcher, discipline_argv
+    from bev_mdo.launcher import Launcher
+    from bev_mdo.processes import discipline_argv
 
     bag = tmp_path / "killed"
     env = ros_env(ros_domain)

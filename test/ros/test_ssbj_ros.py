@@ -17,7 +17,8 @@ from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros import coordinator_node  # noqa: E402
-from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
+from bev_mdo.launcher import Launcher  # noqa: E402
+from bev_mdo.processes import discipline_argv  # noqa: E402
 from bev_mdo.testing import REPO, assert_same_iterates, ros_env  # noqa: E402
 
 EXAMPLE = REPO / "examples" / "ssbj"

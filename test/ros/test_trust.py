@@ -29,7 +29,7 @@ from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo import protocol  # noqa: E402
-from bev_mdo.ros import binding  # noqa: E402
+from bev_mdo import binding  # noqa: E402
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, ITERATION_QOS, ITERATION_TOPIC, MDA_REQUEST_TOPIC,  # noqa: E402
                                 MDA_RESULT_QOS, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, mda_result_topic, stamp)
 from bev_mdo.testing import PYTHON, REPO, ros_env  # noqa: E402
@@ -219,7 +219,8 @@ def test_commands_that_launch_nodes_sign_by_default(ros_domain, config_path, tmp
 def test_evaluate_on_running_unsigned_nodes_says_so(ros_domain, config_path, tmp_path):
     """`evaluate --attach` talks to nodes someone else started; without a key file it cannot sign and
     says so in one line (the answer itself is the in-process one)."""
-    from bev_mdo.ros.launch import Launcher, discipline_argv
+    from bev_mdo.launcher import Launcher
+    from bev_mdo.processes import discipline_argv
 
     argv = ["evaluate", config_path, "--set", "motor_kw=70,gear_ratio=9,battery_kwh=22", "--json"]
     with Launcher(ros_env(ros_domain), log_dir=tmp_path / "logs") as la:

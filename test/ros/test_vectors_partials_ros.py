@@ -13,7 +13,8 @@ from bev_mdo.config import load_config, resolve_disciplines, run_settings  # noq
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.ros.client import make_ros_evaluator  # noqa: E402
-from bev_mdo.ros.launch import Launcher, discipline_argv  # noqa: E402
+from bev_mdo.launcher import Launcher  # noqa: E402
+from bev_mdo.processes import discipline_argv  # noqa: E402
 from bev_mdo.testing import REPO, assert_same_iterates, ros_env  # noqa: E402
 from examples.sellar_vector import REFERENCE  # noqa: E402
 

@@ -7,7 +7,8 @@ import time
 
 import pytest
 
-from bev_mdo.ros.launch import Launcher, composed_argv, cpu_ticks, discipline_argv, node_names_of
+from bev_mdo.launcher import Launcher, cpu_ticks
+from bev_mdo.processes import composed_argv, discipline_argv, node_names_of
 from bev_mdo.ros.watchdog import HangWatchdog
 from bev_mdo.testing import PYTHON
 

@@ -157,3 +157,11 @@ def split_target(entry: str) -> tuple[str, str]:
     """(fingerprint, target instance or '') of one tag entry."""
     fp, _, target = entry.partition(TARGET_SEP)
     return fp, target
+
+
+def config_binding(config_yaml: str) -> str:
+    """The binding a recorder declares: the fingerprint of the config it stores in the bag (the
+    canonical JSON of the parsed YAML), so a coordinator knows the bag holds its config."""
+    import yaml
+
+    return fingerprint_of_json(canonical_json(yaml.safe_load(config_yaml) or {}))

@@ -1,0 +1,141 @@
+"""Which node processes a run starts, as command lines: the node executables (``ros2 run bev_mdo
+<exe>``), one discipline's or a composed group's argv, the ROS node names an argv runs, and the
+``--instances``/``--compose`` plans. Plain Python (no rclpy): the launcher, the sessions, the API and
+the coordinator (for ``--compose coordinator``) read it.
+"""
+from __future__ import annotations
+
+import sys
+from typing import Mapping, Sequence
+
+# executable -> built-in discipline name it serves (None: not a discipline node)
+DISCIPLINE_EXES = {
+    "vehicle_mass_node": "vehicle_mass",
+    "energy_node": "energy",
+    "range_node": "range",
+    "acceleration_node": "acceleration",
+    "motor_speed_node": "motor_speed",
+    "cost_node": "cost",
+}
+OTHER_EXES = ("discipline_node", "coordinator_node", "recorder_node", "composed_node")
+_BUILTIN_EXE = {v: k for k, v in DISCIPLINE_EXES.items()}
+
+
+def discipline_argv(name: str, config_path: str, instance: str = "", run_id: str = "") -> list[str]:
+    """Command line of the node serving discipline `name` (built-in exe or the generic node).
+
+    With `run_id` the node serves only that run (and its ``<run>-...`` sub-runs)."""
+    exe = _BUILTIN_EXE.get(name, "discipline_node")
+    argv = [sys.executable, "-m", "bev_mdo.ros.run", exe, "--ros-args", "-p", f"config:={config_path}"]
+    if exe == "discipline_node":
+        argv += ["-p", f"discipline:={name}"]
+    node_name = f"{name}_node" + (f"_{instance}" if instance else "")
+    argv += ["-r", f"__node:={node_name}"]
+    # quoted: a hex run id of digits only ("1234...") would otherwise be parsed as a number
+    if instance:
+        argv += ["-p", f"instance:='{node_name}'"]
+    if run_id:
+        argv += ["-p", f"run_id:='{run_id}'"]
+    return argv
+
+
+def node_names_of(argv: Sequence[str]) -> list[str]:
+    """The ROS node names a process started with `argv` (discipline_argv, composed_argv) runs."""
+    for a in argv:
+        if a.startswith("__node:="):
+            return [a.split(":=", 1)[1]]
+    for a in argv:
+        if a.startswith("disciplines:="):
+            inst = next((b.split(":=", 1)[1].strip("'") for b in argv if b.startswith("instance:=")), "")
+            return [f"{n}_node" + (f"_{inst}" if inst else "") for n in a.split(":=", 1)[1].split(",")]
+    return []
+
+
+def composed_argv(names: Sequence[str], config_path: str, instance: str = "", run_id: str = "") -> list[str]:
+    """Command line of one process serving every discipline in `names` (composed.py)."""
+    argv = [sys.executable, "-m", "bev_mdo.ros.run", "composed_node", "--ros-args", "-p", f"config:={config_path}",
+            "-p", f"disciplines:={','.join(names)}"]  # no __node remap: it would rename every node
+    # quoted: a hex instance or run id ("8469814e", "1234") would otherwise be parsed as a number
+    if instance:
+        argv += ["-p", f"instance:='{instance}'"]
+    if run_id:
+        argv += ["-p", f"run_id:='{run_id}'"]
+    return argv
+
+
+def parse_instances(spec: str | None, names: Sequence[str]) -> dict[str, int]:
+    """``--instances``: ``N`` (every discipline) or ``name=N[,name=N...]`` -> {discipline: instances}."""
+    out = dict.fromkeys(names, 1)
+    if not spec:
+        return out
+    spec = str(spec).strip()
+    items = [(None, spec)] if "=" not in spec else [tuple(s.split("=", 1)) for s in spec.split(",") if s.strip()]
+    for name, count in items:
+        if name is not None and name.strip() not in out:
+            raise ValueError(f"--instances: no discipline {name.strip()!r} in the config; it has {list(names)}")
+        try:
+            k = int(count)
+        except ValueError:
+            raise ValueError(f"--instances: {count!r} is not a whole number") from None
+        if not 1 <= k <= 64:
+            raise ValueError(f"--instances: {k} is outside 1..64")
+        for n in ([name.strip()] if name is not None else names):
+            out[n] = k
+    return out
+
+
+COMPOSE_COORDINATOR = "coordinator"  # --compose coordinator: every discipline (but pools) in the coordinator's process
+
+
+def beside_coordinator(compose: str | None, names: Sequence[str], instances: Mapping[str, int] | None = None
+                       ) -> list[str]:
+    """The disciplines ``--compose coordinator`` runs inside the coordinator's process (every one
+    without a pool; a pool's instances keep a process each); empty for any other ``--compose``."""
+    if (compose or "none").strip() != COMPOSE_COORDINATOR:
+        return []
+    return [n for n in names if (instances or {}).get(n, 1) <= 1]
+
+
+def parse_compose(spec: str | None, names: Sequence[str]) -> list[list[str]]:
+    """``--compose``: ``none`` (a process per discipline), ``all`` (one process for all), groups
+    ``a+b,c+d`` (each group one process; the others alone) or ``coordinator`` (no process: all in the
+    coordinator's, see beside_coordinator) -> list of process groups, in order."""
+    spec = (spec or "none").strip()
+    if spec == "none":
+        return [[n] for n in names]
+    if spec == COMPOSE_COORDINATOR:  # no process: composed into the coordinator's (composed.Beside)
+        return []
+    if spec == "all":
+        return [list(names)]
+    groups, seen = [], set()
+    for g in spec.split(","):
+        members = [m.strip() for m in g.split("+") if m.strip()]
+        for m in members:
+            if m not in names:
+                raise ValueError(f"--compose: no discipline {m!r} in the config; it has {list(names)}")
+            if m in seen:
+                raise ValueError(f"--compose: {m!r} is in two groups")
+            seen.add(m)
+        if members:
+            groups.append(members)
+    return groups + [[n] for n in names if n not in seen]
+
+
+def plan_processes(names: Sequence[str], config_path: str, *, run_id: str = "", instance: str = "",
+                   instances: Mapping[str, int] | None = None, compose: str | None = None
+                   ) -> list[tuple[str, list[str]]]:
+    """[(label, argv)] of the discipline processes of a run. A discipline with several instances
+    (a pool) runs one process per instance, outside any composed group; the rest as composed."""
+    instances = dict(instances or {})
+    pooled = [n for n in names if instances.get(n, 1) > 1]
+    out: list[tuple[str, list[str]]] = []
+    for group in parse_compose(compose, [n for n in names if n not in pooled]):
+        if len(group) == 1:
+            out.append((group[0], discipline_argv(group[0], config_path, instance=instance, run_id=run_id)))
+        else:
+            out.append(("+".join(group), composed_argv(group, config_path, instance=instance, run_id=run_id)))
+    for n in pooled:
+        for k in range(instances[n]):
+            out.append((f"{n}#{k}", discipline_argv(n, config_path, instance=f"{instance}_{k}" if instance else str(k),
+                                                    run_id=run_id)))
+    return out
