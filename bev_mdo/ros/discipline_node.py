@@ -74,11 +74,8 @@ def _decode_once(decode, data: bytes):
 
 
 def _build(config, name: str) -> tuple[Any, dict[str, str]]:
-    """(the discipline, output -> producing discipline over the whole config): a RunConfig's disciplines,
-    or those of a node's own config (vehicle.<key> parameters set on its command line)."""
-    from bev_mdo.config import RunConfig, resolve_disciplines
-
-    every = config.disciplines if isinstance(config, RunConfig) else resolve_disciplines(config)
+    """(the discipline, output -> producing discipline over the whole RunConfig)."""
+    every = config.disciplines
     found = [d for d in every if d.name == name]
     if not found:
         raise ValueError(f"no discipline {name!r} in the config; it has {[d.name for d in every]}")
@@ -176,7 +173,7 @@ class DisciplineNode(Node):
 
     def _apply_overrides(self, run_config):
         """Declare vehicle.<key> parameters; values set on the command line override the YAML: the
-        run's config when none changes a value, else a config of this node's own (a dict)."""
+        run's config when none changes a value, else a RunConfig of this node's own."""
         config = copy.deepcopy(run_config.data)
         vehicle = config.get("vehicle") or {}
         changed = False
@@ -193,7 +190,7 @@ class DisciplineNode(Node):
             # validate_vehicle returns the numeric parameters; keep the choices (mass_model, topology)
             choices = {k: vehicle[k] for k in VEHICLE_CHOICES if k in vehicle}
             config["vehicle"] = {**validate_vehicle(vehicle), **choices}
-        return config
+        return type(run_config).load(config)
 
     def _publish_info(self) -> None:
         d = self.discipline

@@ -163,3 +163,28 @@ def test_a_node_keeps_the_vehicle_choices_of_its_config(rclpy_context):
         assert got[0] != run_discipline(ch7["vehicle_mass"], x).outputs["vehicle_mass_kg"][0]
     finally:
         node.destroy_node()
+
+
+def test_a_vehicle_parameter_set_on_the_nodes_command_line_changes_what_it_computes(rclpy_context):
+    """-p vehicle.glider_kg:=... makes a config of the node's own: its mass answers and its fingerprint
+    follow the new value, and the run's config is left as it was."""
+    from rclpy.parameter import Parameter
+
+    from bev_mdo.config import RunConfig
+    from bev_mdo.mdo.discipline import run_discipline
+    from bev_mdo.ros.discipline_node import DisciplineNode
+
+    config = RunConfig.load(REPO / "config" / "leaf_nedc.yaml")
+    plain_node = DisciplineNode("vehicle_mass", config=config, context=rclpy_context, node_name="glider_plain")
+    heavy = DisciplineNode("vehicle_mass", config=config, context=rclpy_context, node_name="glider_heavy",
+                           parameter_overrides=[Parameter("vehicle.glider_kg", value=1369.64)])
+    try:
+        x = {"motor_kw": np.array([80.0]), "battery_kwh": np.array([24.0])}
+        base = run_discipline(plain_node.discipline, x).outputs["vehicle_mass_kg"][0]
+        got = run_discipline(heavy.discipline, x).outputs["vehicle_mass_kg"][0]
+        assert got == pytest.approx(base + 100.0, rel=1e-12)
+        assert heavy.fingerprint != plain_node.fingerprint
+        assert config["vehicle"]["glider_kg"] == 1269.64
+    finally:
+        heavy.destroy_node()
+        plain_node.destroy_node()
