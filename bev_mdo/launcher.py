@@ -54,6 +54,7 @@ class NodeProcess:
     hangs: int = 0                  # times the watchdog killed it as hung (each also counts as a restart)
     cpu_ticks: int = -1             # its CPU time when last read (clock ticks; cpu_ticks())
     cpu_changed_at: float = 0.0     # when that last changed (time.monotonic())
+    frozen: bool = False            # found stopped (SIGSTOP, state T) when the launcher stopped it: killed at once
 
     def busy(self, now: float, within_s: float) -> bool:
         """Whether its process used CPU in the last `within_s` seconds (a node still importing and
@@ -62,6 +63,14 @@ class NodeProcess:
         if ticks != self.cpu_ticks:
             self.cpu_ticks, self.cpu_changed_at = ticks, now
         return ticks >= 0 and now - self.cpu_changed_at < within_s
+
+
+def process_state(pid: int) -> str:
+    """The state letter of process `pid` (Linux /proc: R, S, D, T stopped, Z, ...; '' if it is gone)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_bytes().rsplit(b")", 1)[1].split()[0].decode()
+    except (OSError, IndexError):
+        return ""
 
 
 def cpu_ticks(pid: int) -> int:
@@ -234,6 +243,11 @@ class Launcher:
         if self._thread is not None:
             self._thread.join(timeout=2.0)
         with self._lock:
+            for n in self.nodes:  # a frozen process cannot take SIGINT or SIGTERM: killed now, not waited for
+                if n.proc is not None and n.proc.poll() is None and process_state(n.proc.pid) == "T":
+                    n.frozen = True
+                    with contextlib.suppress(ProcessLookupError):
+                        n.proc.kill()
             early = [n.proc for n in self.nodes if n.proc is not None and n.label in first]
             procs = [n.proc for n in self.nodes if n.proc is not None and n.label not in first]
         if early:  # a recorder drains its queue (up to 10 s) and closes the bag: slow on a crowded host

@@ -268,7 +268,9 @@ def recorder_failure(launcher, bag: Path) -> str | None:
     status = node.died if during else (node.proc.returncode if node.proc is not None else None)
     if not during and status in (0, None):
         return None
-    note = f"the recorder {'died' if status else 'stopped'} (exit status {status}) during the run; the bag holds only what it recorded before"
+    note = (f"the recorder {'died' if status else 'stopped'} (exit status {status}) during the run" if not node.frozen else
+            "the recorder was frozen (its process stopped, e.g. by SIGSTOP) at the end of the run and was killed")
+    note += "; the bag holds only what it recorded before"
     try:
         from bev_mdo.bag.reader import find_mcap
         from bev_mdo.bag.repair import repair

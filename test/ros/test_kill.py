@@ -23,6 +23,7 @@ import pytest
 
 
 from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
+from bev_mdo.launcher import process_state  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
 from bev_mdo.testing import PYTHON, child_processes, leaf_config_file, ros_env  # noqa: E402
@@ -120,13 +121,23 @@ def _iterations_on_disk(bag: Path) -> int:
         return 0
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
+def _wait_for(pred, timeout_s: float = 30.0) -> bool:
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(0.02)
+    return False
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL, signal.SIGSTOP], ids=["SIGTERM", "SIGKILL", "SIGSTOP"])
 def test_a_recorder_stopped_mid_run_is_named_and_its_bag_holds_what_it_wrote(config_path, ros_domain, tmp_path, sig):
     """The run's recorder is SIGTERMed (it closes its bag and exits 0) or SIGKILLed while the optimiser waits
     after its second iteration (test/cli/fault_optimizers.py, waiting-after-2) with three records on disk; the
     optimiser then goes on. The run ends with its result, one warning naming the stopped recorder and exit status
     3; the bag opens in rosbags and mcap as it is (after SIGKILL the run repaired it on the spot), holding the
-    iteration records up to the last one the recorder wrote, in order, as the run printed them, and no later one."""
+    iteration records up to the last one the recorder wrote, in order, as the run printed them, and no later one.
+    A recorder frozen by SIGSTOP is found stopped when the run ends, killed at once and named as frozen."""
     from rosbags.highlevel import AnyReader
 
     cli_tests = Path(__file__).resolve().parents[1] / "cli"
@@ -151,10 +162,13 @@ def test_a_recorder_stopped_mid_run_is_named_and_its_bag_holds_what_it_wrote(con
                 pass
         (recorder,) = [pid for pid, cmd in child_processes(p.pid).items() if "recorder_node" in cmd]
         os.kill(recorder, sig)  # a child of the run we started, by its id
-        for line in p.stderr:  # the run's supervisor saw the recorder end (during the run, not at its end)
-            err_lines.append(line)
-            if line.startswith("[launcher] recorder exited"):
-                break
+        if sig == signal.SIGSTOP:
+            assert _wait_for(lambda: process_state(recorder) == "T")
+        else:
+            for line in p.stderr:  # the run's supervisor saw the recorder end (during the run, not at its end)
+                err_lines.append(line)
+                if line.startswith("[launcher] recorder exited"):
+                    break
         p.stdin.write("go\n")
         p.stdin.close()
         bound = threading.Timer(300, p.kill)  # a run that hangs is ended, and then fails below
@@ -169,8 +183,9 @@ def test_a_recorder_stopped_mid_run_is_named_and_its_bag_holds_what_it_wrote(con
             p.wait()
     err = "".join(err_lines) + rest
     assert p.returncode == 3 and "Traceback" not in err, err[-3000:]
-    status = 0 if sig == signal.SIGTERM else -signal.SIGKILL
-    assert err.count("warning: the recorder") == 1 and f"(exit status {status}) during the run" in err, err[-3000:]
+    said = {signal.SIGTERM: "(exit status 0) during the run", signal.SIGKILL: f"(exit status {-signal.SIGKILL}) during the run",
+            signal.SIGSTOP: "the recorder was frozen (its process stopped, e.g. by SIGSTOP) at the end of the run"}[sig]
+    assert err.count("warning: the recorder") == 1 and said in err, err[-3000:]
     doc = json.loads(out)
     assert doc["iterations"] == 4 and "the recorder" in doc["recorder_failed"]
     printed = [float(l.split()[3]) for l in err.splitlines() if l.startswith("iter ")]
