@@ -40,17 +40,24 @@ FIXED = {
     "battery_discharge_resistance_ohm": 0.08,  # ~75 kWh 400 V pack (96s of 1 mOhm-class cells, x0.8 paralleling)
     "battery_charge_resistance_ohm": 0.08,
     "air_density_kg_m3": 1.2, "drag_area_m2": 0.6412, "rolling_resistance": 0.007,  # unused: road load given
+    "induction_loss_fraction": 0.015,    # §2.2.3: induction machines 1-2 % less efficient (fitted: a one-make term)
 }
-# fitted: name -> (initial, lower, upper). Two parameters: the overall wall-to-battery efficiency and
-# the regenerated share of braking. The light-load motor+inverter loss c_0 (the motor-size trend) fitted
-# as a third parameter gives 0.00025 +- 0.0004 of rated power, indistinguishable from 0; it is fixed
+# fitted: name -> (initial, lower, upper). Three parameters: the overall wall-to-battery efficiency, the
+# regenerated share of braking and the extra gear loss of a two-speed gearbox (the fleet's gear_count
+# column; the chain does not shift, it only charges the loss). The two-speed loss fits at about 4x the
+# thesis' 2 %: it carries what the one two-speed platform (Taycan / e-tron GT) loses beyond the fleet,
+# not the gearbox alone (docs/validation.md). The induction machines' extra loss is fixed at the thesis'
+# value (FIXED): fitted, it went to 11 % from the one make whose traction machines are all induction.
+# The light-load motor+inverter loss c_0 (the motor-size trend) fitted
+# as a further parameter gives 0.00025 +- 0.0004 of rated power, indistinguishable from 0; it is fixed
 # above at 0.001, inside that band and the best of {0, 0.001, 0.002} in the family-grouped CV. The
 # copper-loss coefficient, the auxiliary power, the speed loss and the rotating mass are not
-# identifiable beside the two either (fitted too, each went to a bound while the CV error stayed
+# identifiable beside these either (fitted too, each went to a bound while the CV error stayed
 # within 7.5-8.4 %, docs/validation.md), so they are fixed at physical values above.
 FIT = {
     "charger_efficiency": (0.90, 0.70, 1.0),
     "regen_axle_share": (0.8, 0.2, 1.0),
+    "two_speed_efficiency_loss": (0.02, 0.0, 0.3),  # cars with gear_count 2 (§3.3.2 assumes 0.02)
 }
 PARAMETER_SET = "epa2022_chain"
 

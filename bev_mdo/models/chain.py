@@ -29,6 +29,10 @@ vectorised as (moving steps, N):
    lose exactly what one motor of P_r does, so all-wheel-drive cars are one equivalent
    machine of their combined rated power. A larger motor loses less at a given torque
    (copper) but more at light load (c_0, c_w): the motor-size trend.
+   Technology (per design point, the fleet file's columns): ``induction_machine_share`` of the
+   machines are induction machines, which lose ``induction_loss_fraction`` of the shaft power more
+   (rotor copper; §2.2.3: 1-2 % less efficient); with ``gear_count`` 2 the gear efficiency drops by
+   ``two_speed_efficiency_loss`` (§3.3.2; the chain does not shift, it only charges the loss).
 5. **Battery** (eq 5-19/5-20 form): P_batt = P_el + R (P_el / V)^2 with
    ``battery_discharge_resistance_ohm`` / ``battery_charge_resistance_ohm`` and
    ``battery_voltage_v``, plus the auxiliary load ``aux_power_w`` for the whole cycle
@@ -99,7 +103,11 @@ def simulate(resampled: Resampled, params, vehicle_mass_kg, gear_ratio, motor_kw
     v, a, w, dur, dist, v_lo, v_hi = _steps(resampled)
     M = m[None, :]
     force = rl.road_load_n(p, v, M) + M * (1.0 + p["rotating_mass_fraction"]) * a
-    r_w, eta = p["wheel_radius_m"], p["gear_efficiency"]
+    gc = np.asarray(p["gear_count"])
+    if np.any((gc != 1.0) & (gc != 2.0)):
+        raise ValueError("gear_count must be 1 or 2")
+    # a two-speed gearbox and its clutch lose two_speed_efficiency_loss more (§3.3.2, as quasi_static.py)
+    r_w, eta = p["wheel_radius_m"], p["gear_efficiency"] - np.where(gc == 2.0, p["two_speed_efficiency_loss"], 0.0)
     i_g, p_r = ig[None, :], kw[None, :] * 1e3
     omega = v * i_g / r_w
     t_pk = p["motor_torque_per_kw"] * kw[None, :]
@@ -118,6 +126,8 @@ def simulate(resampled: Resampled, params, vehicle_mass_kg, gear_ratio, motor_kw
     tau = np.abs(torque) / t_pk
     idle = p_r * (p["motor_loss_standby_fraction"] + p["motor_loss_speed_fraction"] * omega / w_base)
     loss = idle + p_r * p["motor_loss_copper_fraction"] * tau * tau
+    # induction machines: rotor copper (slip) loss ~ shaft power (§2.2.3: 1-2 % below synchronous machines)
+    loss = loss + p["induction_loss_fraction"] * p["induction_machine_share"] * np.abs(torque * omega)
     p_el = torque * omega + loss
     # braking: regenerate where it returns more than idling costs; otherwise idle (friction brakes act)
     # (for the share phi of the step; the rest of the step below the cut-off speed idles)

@@ -91,6 +91,20 @@ class Fleet:
             return np.array(from_drive, float)
         return np.array([float(c) if c != "unknown" else f for c, f in zip(col, from_drive)])
 
+    def technology_params(self) -> dict[str, np.ndarray]:
+        """The technology columns as the chain's per-vehicle inputs: ``gear_count`` (2 where the file
+        says 2, else 1) and ``induction_machine_share`` (induction machines over the machines the file
+        names; an ``unknown`` machine counts as synchronous, no column as none)."""
+        gears = self.technology.get("gear_count", ["unknown"] * len(self))
+        machines = zip(self.technology.get("motor_front", ["unknown"] * len(self)),
+                       self.technology.get("motor_rear", ["unknown"] * len(self)))
+        share = []
+        for pair in machines:
+            named = [m for m in pair if m != "none"]
+            share.append(sum(m == "induction" for m in named) / max(len(named), 1))
+        return {"gear_count": np.array([2.0 if g == "2" else 1.0 for g in gears]),
+                "induction_machine_share": np.array(share)}
+
     def __len__(self) -> int:
         return len(self.make)
 
@@ -248,7 +262,7 @@ def predict(fleet: Fleet, model: str = "chain", base: dict | None = None, cycles
         if model == "chain":
             from . import chain
 
-            res = chain.simulate(r, p, m, ig, kw)
+            res = chain.simulate(r, {**p, **fleet.technology_params()}, m, ig, kw)
             out[name] = {"energy_wh_per_km": res.energy_wh_per_km, "follows": res.follows}
             continue
         follows = _follows(fleet, r, p)

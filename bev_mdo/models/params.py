@@ -172,6 +172,12 @@ CHAIN_SPECS: dict[str, ParamSpec] = {
     **{k: BREAKDOWN_SPECS[k] for k in ("battery_voltage_v", "battery_discharge_resistance_ohm",
                                        "battery_charge_resistance_ohm")},
     "aux_power_w": ParamSpec(0.0, 0.0, 10000.0, "W", "auxiliary load while the cycle runs (12 V, cooling, HVAC)"),
+    # technology: the car's machines and gearbox (fleet file columns) and what each costs
+    **{k: QUASI_STATIC_SPECS[k] for k in ("gear_count", "two_speed_efficiency_loss")},
+    "induction_machine_share": ParamSpec(0.0, 0.0, 1.0, "-", "share of the car's traction machines that are "
+                                         "induction machines (0 = all synchronous)"),
+    "induction_loss_fraction": ParamSpec(0.015, 0.0, 0.2, "-", "extra loss of an induction machine per unit of "
+                                         "shaft power, rotor copper (§2.2.3: 1-2 % less efficient)"),
     "charger_efficiency": ParamSpec(1.0, 0.5, 1.0, "-", "wall-to-battery efficiency of a charge (1 = none)"),
 }
 

@@ -47,10 +47,11 @@ def test_a_set_written_for_your_fleet_names_itself_and_your_file_and_runs_in_eva
 
 def test_the_shipped_set_keeps_its_name_and_file(tmp_path, monkeypatch):
     monkeypatch.setattr(calibrate, "PARAMETER_SET_DIR", tmp_path)
-    f = {"names": tuple(calibrate.FIT), "x": np.array([0.8, 0.8]), "se": np.array([0.01, 0.01]), "mape_pct": 7.0}
+    p = len(calibrate.FIT)
+    f = {"names": tuple(calibrate.FIT), "x": np.full(p, 0.05), "se": np.full(p, 0.01), "mape_pct": 7.0}
     stats = fl.error_stats(np.array([1.0, -2.0]))
     fleet = fl.read_fleet()
-    cv = {"k": 5, "fold_params": np.full((5, 2), 0.8), "stats": stats, "fold_mape_pct": np.full(5, 7.0),
+    cv = {"k": 5, "fold_params": np.full((5, p), 0.05), "stats": stats, "fold_mape_pct": np.full(5, 7.0),
           "errors_pct": {c: np.zeros(len(fleet)) for c in fl.CYCLES}}
     path = calibrate.write_parameter_set(f, cv, None, fleet, None)
     doc = yaml.safe_load(Path(path).read_text())
