@@ -29,6 +29,29 @@ def test_stages_move_the_energy_the_right_way():
     assert e(rotating_mass_fraction=0.1).energy_wh_per_km[0] > ref
 
 
+def test_technology_terms_are_off_for_a_single_speed_synchronous_car_and_cost_energy_otherwise():
+    ref = e().energy_wh_per_km[0]
+    # a single-speed car with synchronous machines: the technology losses do not apply
+    assert e(two_speed_efficiency_loss=0.2, induction_loss_fraction=0.2).energy_wh_per_km[0] == ref
+    two = e(gear_count=2.0, two_speed_efficiency_loss=0.02).energy_wh_per_km[0]
+    assert two == pytest.approx(e(gear_efficiency=0.95).energy_wh_per_km[0], rel=1e-12)  # 0.97 - 0.02
+    half = e(induction_machine_share=0.5, induction_loss_fraction=0.02).energy_wh_per_km[0]
+    full = e(induction_machine_share=1.0, induction_loss_fraction=0.02).energy_wh_per_km[0]
+    assert ref < half < full
+    with pytest.raises(ValueError, match="gear_count must be 1 or 2"):
+        e(gear_count=1.5)
+
+
+def test_the_fleet_files_technology_columns_as_chain_inputs():
+    f = fl.read_fleet()
+    t = f.technology_params()
+    by_model = {(mk, md): (g, s) for mk, md, g, s in zip(f.make, f.model, t["gear_count"], t["induction_machine_share"])}
+    assert by_model[("Tesla", "Model 3 Long Range AWD")] == (1.0, 0.5)   # induction front, PMSM rear
+    assert {s for (mk, md), (g, s) in by_model.items() if mk == "Porsche"} == {0.0}
+    assert {g for (mk, md), (g, s) in by_model.items() if mk == "Porsche"} == {2.0}
+    assert sum(s == 1.0 for s in t["induction_machine_share"]) == 6   # the e-tron SUVs: all induction
+
+
 def test_aux_power_is_exact_per_km():
     d = e(aux_power_w=1300.0).energy_wh_per_km[0] - e().energy_wh_per_km[0]
     c = load_cycle("epa_udds")

@@ -77,19 +77,19 @@ def family_cv_pairs():
 
 
 def test_pairs_of_the_family_cross_validation_of_the_training_half(family_cv_pairs):
-    """The shipped chain, 5-fold CV by family on the training half, pairs by model line. Measured
-    (docs/validation.md): UDDS slope 0.83, 4.1 pp; HWFET slope 1.00, 2.7 pp (117 -> 105 pairs: the
-    e-tron GT is no longer paired with the e-tron SUV). The HWFET slope meets the target (0.85-1.15);
-    the other three do NOT, and are pinned at today's level so that a change cannot make them worse
-    unnoticed."""
+    """The shipped chain (with its technology terms), 5-fold CV by family on the training half, pairs
+    by model line. Measured (docs/validation.md): MAPE 6.23 %; UDDS slope 0.84, 3.9 pp; HWFET slope
+    1.00, 2.8 pp (105 pairs: the e-tron GT is not paired with the e-tron SUV). The HWFET slope meets
+    the target (0.85-1.15); the other three do NOT, and are pinned at today's level so that a change
+    cannot make them worse unnoticed."""
     cv, s = family_cv_pairs
-    assert cv["stats"]["mean_abs_pct"] == pytest.approx(7.985, abs=0.02)
+    assert cv["stats"]["mean_abs_pct"] == pytest.approx(6.23, abs=0.02)
     udds, hwfet = s["epa_udds"], s["epa_hwfet"]
     assert udds["n"] == hwfet["n"] and udds["n"] > 100
     assert hwfet["slope_met"] is True                                  # target met
-    assert 0.80 <= udds["slope_through_origin"] < pr.SLOPE_TARGET[0]   # target not met (0.83)
-    assert udds["mean_abs_diff_points"] <= 4.3                         # target 2.5 not met (4.13)
-    assert hwfet["mean_abs_diff_points"] <= 2.9                        # target 2.5 not met (2.73)
+    assert 0.80 <= udds["slope_through_origin"] < pr.SLOPE_TARGET[0]   # target not met (0.84)
+    assert udds["mean_abs_diff_points"] <= 4.1                         # target 2.5 not met (3.90)
+    assert hwfet["mean_abs_diff_points"] <= 2.9                        # target 2.5 not met (2.76)
 
 
 @pytest.fixture(scope="module")
