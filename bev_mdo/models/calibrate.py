@@ -82,6 +82,9 @@ QS_FIT = {
     "charger_efficiency": (0.90, 0.70, 1.0),
     "regen_axle_share": (0.8, 0.2, 1.0),
     "second_axle_drag_w": (100.0, 0.0, 2000.0),  # all-wheel drive: the second axle's drag while moving
+    # cars with gear_count 2 shift as the thesis' two-speed box (eq 2-6, Table 3-2: 4.7 above 68.1 km/h)
+    # and lose this much gear efficiency (§3.3.2 assumes 0.02; fitted ~0.08, as the chain's: the platform)
+    "two_speed_efficiency_loss": (0.02, 0.0, 0.3),
 }
 # model -> (energy model of fleet.predict, fixed, fitted, shipped parameter set)
 MODELS = {"chain": ("chain", FIXED, FIT, PARAMETER_SET),

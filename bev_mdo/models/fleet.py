@@ -281,6 +281,7 @@ def predict(fleet: Fleet, model: str = "chain", base: dict | None = None, cycles
             q = {**p, "initial_soc": 0.9}
             if q.get("motor_loss_model", 0.0) == 1.0:  # with the map two machines of P/2 are one of P
                 q["driven_axles"] = fleet.driven_axles
+                q["gear_count"] = fleet.technology_params()["gear_count"]  # the thesis' two-speed box (eq 2-6)
             if model == "quasi_static":
                 res = qs.simulate(r, q, m, ig, kw, np.full(len(fleet), FLEET_BATTERY_KWH))
             else:

@@ -106,20 +106,20 @@ def make_cv_quasi_static():
 
 @pytest.mark.slow
 def test_quasi_static_loss_model_held_out_by_make(make_cv_quasi_static):
-    """The thesis' model with its motor written as losses, fitted as ``bev-mdo calibrate --model
-    quasi_static`` does, each make predicted by a fit that never saw it (9 folds). Measured
-    (docs/validation.md): MAPE 8.80 % over all folds' vehicles, median of the folds 7.18 % (target
-    <= 8 %); pairs UDDS slope 0.853, 4.35 points; HWFET slope 1.005, 2.84 points. The thesis' model
-    as published: 45.6 %, slopes 1.75 / 1.92, 16.1 / 15.9 points. The slopes meet their target
-    (0.85-1.15; the UDDS one by a hair, so it is held at 0.83 here); the differences do not (2.5) and
-    are pinned near today's level: a regression fails."""
+    """The thesis' model with its motor written as losses and the fleet's two-speed cars shifting
+    (eq 2-6), fitted as ``bev-mdo calibrate --model quasi_static`` does, each make predicted by a fit
+    that never saw it (9 folds). Measured (docs/validation.md): MAPE 6.76 % over all folds' vehicles,
+    median of the folds 4.98 % (target <= 8 %); pairs UDDS slope 0.84, 4.07 points; HWFET slope 0.994,
+    2.77 points. The thesis' model as published: 45.6 %, slopes 1.75 / 1.92, 16.1 / 15.9 points. The
+    HWFET slope meets its target (0.85-1.15), the UDDS one misses it by 0.01 and is held at 0.83 here;
+    the differences do not (2.5) and are pinned near today's level: a regression fails."""
     cv, s = make_cv_quasi_static
     assert cv["k"] == 9
-    assert cv["stats"]["mean_abs_pct"] <= 9.1
+    assert cv["stats"]["mean_abs_pct"] <= 7.0
     assert np.median(cv["fold_mape_pct"]) <= 8.0                           # level target met (fold median)
     udds, hwfet = s["epa_udds"], s["epa_hwfet"]
     assert udds["n"] == hwfet["n"] == 105
-    assert 0.83 <= udds["slope_through_origin"] <= pr.SLOPE_TARGET[1]     # 0.853
-    assert hwfet["slope_met"] is True                                      # 1.005
-    assert udds["mean_abs_diff_points"] <= 4.6                             # 4.35, target 2.5 not met
-    assert hwfet["mean_abs_diff_points"] <= 3.1                            # 2.84, target 2.5 not met
+    assert 0.83 <= udds["slope_through_origin"] <= pr.SLOPE_TARGET[1]     # 0.84: target 0.85 not met
+    assert hwfet["slope_met"] is True                                      # 0.994
+    assert udds["mean_abs_diff_points"] <= 4.3                             # 4.07, target 2.5 not met
+    assert hwfet["mean_abs_diff_points"] <= 2.95                           # 2.77, target 2.5 not met
