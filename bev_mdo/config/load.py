@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from bev_mdo.config.disciplines import (check_against_disciplines, check_baseline, discipline_entries,
+from bev_mdo.config.disciplines import (check_against_disciplines, discipline_entries,
                                         discipline_names, resolve_disciplines)
 from bev_mdo.config.sections import (check_mda_numbers, check_optimizer_options, resolve_problem, search_path,
                                      engine_section, validate_models, vehicle_topology_into_options)
@@ -224,7 +224,8 @@ def _resolve(raw: Any) -> RunConfig:
     check_mda_numbers(cfg["mda"])
     discs = tuple(resolve_disciplines(cfg))
     params = check_against_disciplines(cfg, problem, discs)
-    check_baseline(cfg, problem, params)
+    if cfg["problem"].get("baseline") is not None:
+        problem.check_design(cfg["problem"]["baseline"]["design"], params, "problem.baseline.design")
     return RunConfig(cfg, problem, discs, ros, _settings(cfg, problem, discs))
 
 
