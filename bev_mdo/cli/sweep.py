@@ -223,7 +223,7 @@ def designs_of(args, problem) -> dict[str, np.ndarray]:
     """The designs the command line asks for: a DOE over the bounds of the design variables not
     fixed with --set, a grid (--vary) or a list (--list), with the --set values as columns."""
     from bev_mdo.api.doe import sample
-    from bev_mdo.cli.evaluate import parse_assignments
+    from bev_mdo.cli.flags import parse_assignments
 
     if sum(map(bool, (args.doe, args.vary, args.list_csv))) != 1:
         raise UsageError("give one of --doe METHOD --samples N, --vary NAME=LO:HI:N ... or --list FILE.csv")
@@ -244,7 +244,7 @@ def designs_of(args, problem) -> dict[str, np.ndarray]:
 def run(args) -> int:
     from bev_mdo.cli import flags
     from bev_mdo.api.doe import plot_scatter, record
-    from bev_mdo.cli.evaluate import parse_assignments
+    from bev_mdo.cli.flags import parse_assignments
     from bev_mdo.api.transport import Transport
 
     config = flags.load_config(args)
@@ -291,14 +291,14 @@ def run(args) -> int:
 
 
 def run_compare(args) -> int:
-    from bev_mdo.cli.evaluate import parse_assignments
+    from bev_mdo.cli.flags import parse_assignments
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo import units as un
 
     if len(args.design) < 2:
         raise UsageError("give two or more --design k=v,... to compare")
     config = RunConfig.load(args.config)
-    given = [parse_assignments([d]) for d in args.design]
+    given = [parse_assignments(d, "--design") for d in args.design]
     keys = list(dict.fromkeys(k for g in given for k in g))
     problem = config.problem
     init = {d.name: d.initial for d in problem.design_variables}
