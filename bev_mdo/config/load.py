@@ -160,14 +160,6 @@ def check_run_name(name: Any) -> None:
                          "separator, no '..', at most 100 characters): it names the run's bag and log folders")
 
 
-def load_yaml(text: str) -> Any:
-    """Parse YAML like yaml.safe_load, but a key given twice in one mapping is an error and the size,
-    nesting, aliases and list lengths are limited (bev_mdo.yamlload)."""
-    from bev_mdo.yamlload import load_yaml as load
-
-    return load(text)
-
-
 def _resolve(raw: Any) -> RunConfig:
     from bev_mdo.mdo.formulations import FD_SCHEMES
     from bev_mdo.mdo.mda import METHODS
