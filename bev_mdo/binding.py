@@ -84,11 +84,6 @@ def fingerprint(config: Mapping[str, Any], name: str) -> tuple[str, str]:
     return fingerprint_of_json(text), text
 
 
-def fingerprints(config: Mapping[str, Any], names) -> dict[str, tuple[str, str]]:
-    """{name: (fingerprint, canonical JSON)} for every named discipline."""
-    return {n: fingerprint(config, n) for n in names}
-
-
 def tag(expected: Mapping[str, str], names) -> str:
     """The request frame_id binding `names` to their expected fingerprints."""
     return PREFIX + ",".join(f"{n}={expected[n]}" for n in names)

@@ -56,18 +56,19 @@ def key_dir_for(bag: Path) -> Path:
     return d
 
 
-def analyse_baseline(config, evaluator) -> dict | None:
-    """The config's ``problem.baseline`` analysed through ``evaluator``: {name, design, outputs, feasible, ...};
-    None when the config names no baseline. A failed analysis is reported in ``error``, never raised:
-    the run's own result must not be lost to its baseline."""
+def analyse_baseline(config, evaluator=None) -> dict | None:
+    """The config's ``problem.baseline`` analysed through ``evaluator`` (default: in process): {name, design,
+    outputs, feasible, ...}; None when the config names no baseline. A failed analysis is reported in ``error``
+    (with no outputs), never raised: the run's own result must not be lost to its baseline."""
     from bev_mdo.mdo.driver import evaluate_design
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
 
     config = RunConfig.of(config)
     base = config.baseline
     if not base:
         return None
     try:
-        report = evaluate_design(config.settings, evaluator, base["design"])
+        report = evaluate_design(config.settings, evaluator or InProcessEvaluator(config.disciplines), base["design"])
     except Exception as exc:  # noqa: BLE001 - reported beside the result
         return {"name": base["name"], "design": dict(base["design"]), "outputs": {}, "feasible": False,
                 "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}

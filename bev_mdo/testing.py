@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 import zlib
 from pathlib import Path
 
@@ -26,6 +27,17 @@ def ros_env(domain_id: int) -> dict[str, str]:
     env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
     env["PYTHONUNBUFFERED"] = "1"
     return env
+
+
+def wait_until(predicate, timeout_s: float = 30.0, step=None, every_s: float = 0.02) -> bool:
+    """Call `predicate` until it is true (True) or `timeout_s` passed (False); in between `step()`
+    (e.g. spin an executor once) or a sleep of `every_s`. Tests wait for conditions, not for time."""
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        if time.monotonic() >= deadline:
+            return False
+        step() if step is not None else time.sleep(every_s)
+    return True
 
 
 def child_processes(pid: int) -> dict[int, str]:

@@ -6,6 +6,7 @@ import os
 import time
 
 from bev_mdo.shm import remove_orphans
+from bev_mdo.testing import wait_until
 
 
 def _files(d, *names, age_s=60.0):
@@ -63,9 +64,7 @@ def test_a_node_the_launcher_had_to_kill_leaves_no_files(tmp_path):
     la = Launcher({}, log_dir=tmp_path)
     try:
         node = la.add("stuck", [sys.executable, "-c", code], restart=False)
-        end = time.monotonic() + 60
-        while "ready" not in (tmp_path / "stuck.log").read_text() and time.monotonic() < end:
-            time.sleep(0.05)  # waiting for the child's files (a condition, bounded)
+        wait_until(lambda: "ready" in (tmp_path / "stuck.log").read_text(), 60)  # the child's files are made
         assert (shm / f"{name}_el").exists()
         la.stop(timeout_s=0.5)
         assert node.proc.returncode in (-signal.SIGUSR1, -signal.SIGTERM)  # killed by the stop (SIGINT ignored)

@@ -165,66 +165,39 @@ def _plot_convergence(rows, path: Path, baseline: dict | None = None, units: dic
     ax2.set_xlabel("iteration")
     for ax in (ax1, ax2):
         ax.grid(True, alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return fig
+    return _saved(fig, path)
 
 
 def _plot_design(rows, path: Path, problem=None, baseline: dict | None = None, units: dict | None = None):
     """Design-variable trajectories with their bounds drawn (a variable on its bound is seen at once)."""
-    import matplotlib.pyplot as plt
-
-    from bev_mdo.mdo.units import label
-
     names = list(dict.fromkeys(n for r in rows for n in r["design"]))
     if problem is not None:  # the config's order (a bag's NamedArray may hold another)
         names = [n for n in problem.names if n in names] + [n for n in names if n not in problem.names]
-    fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(7, 1.9 * len(names) + 1),
-                             squeeze=False)
-    it = [r["iteration"] for r in rows]
-    feas = [r["feasible"] for r in rows]
     dvs = {d.name: d for d in problem.design_variables} if problem is not None else {}
-    for ax, name in zip(axes[:, 0], names):
-        _iterate_markers(ax, it, [r["design"].get(name, np.nan) for r in rows], feas)
+
+    def bounds(ax, name):
         if name in dvs:
             d = dvs[name]
             ax.axhline(d.lower, color="k", ls="--", lw=1, label=f"bounds [{d.lower:g}, {d.upper:g}]")
             ax.axhline(d.upper, color="k", ls="--", lw=1)
             pad = 0.05 * (d.upper - d.lower)
             ax.set_ylim(d.lower - pad, d.upper + pad)
-        if baseline and name in baseline.get("design", {}):
-            ax.axhline(baseline["design"][name], color="0.3", ls="-.", lw=1.2, label=f"baseline ({baseline['label']})")
-        ax.set_ylabel(label(name, units or {}), fontsize=8)
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7, loc="best")
-    axes[0, 0].set_title("Design-variable trajectories (dashed: bounds)")
-    axes[-1, 0].set_xlabel("iteration")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return fig
+
+    return _stacked(rows, "design", names, bounds, baseline, units, path,
+                    "Design-variable trajectories (dashed: bounds)")
 
 
 def _plot_constraints(rows, path: Path, problem=None, baseline: dict | None = None, units: dict | None = None):
     """Each constrained output per iteration with its limit(s) drawn and the infeasible side shaded."""
-    import matplotlib.pyplot as plt
-
-    from bev_mdo.mdo.units import label
-
     names = list(dict.fromkeys(n for r in rows for n in r["constraints"]))
     if problem is not None:
         order = [c.name for c in problem.constraints]
         names = [n for n in order if n in names] + [n for n in names if n not in order]
     if not names:
         return None
-    fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(7, 1.9 * len(names) + 1), squeeze=False)
-    it = [r["iteration"] for r in rows]
-    feas = [r["feasible"] for r in rows]
     cons = {c.name: c for c in problem.constraints} if problem is not None else {}
-    for ax, name in zip(axes[:, 0], names):
-        y = [r["constraints"].get(name, np.nan) for r in rows]
-        _iterate_markers(ax, it, y, feas)
+
+    def limits(ax, name):
         c = cons.get(name)
         if c is not None:
             for kind, b in (("lower", c.lower), ("upper", c.upper)):
@@ -236,13 +209,38 @@ def _plot_constraints(rows, path: Path, problem=None, baseline: dict | None = No
                     ax.axhspan(min(lo, b), b, color="C3", alpha=0.08)
                 else:
                     ax.axhspan(b, max(hi, b), color="C3", alpha=0.08)
-        if baseline and name in baseline.get("outputs", {}):
-            ax.axhline(baseline["outputs"][name], color="0.3", ls="-.", lw=1.2, label=f"baseline ({baseline['label']})")
+
+    return _stacked(rows, "constraints", names, limits, baseline, units, path,
+                    "Constrained outputs (dashed: limits; shaded: infeasible side)")
+
+
+def _stacked(rows, key: str, names, draw_limits, baseline, units, path: Path, title: str):
+    """One panel per name: the iterates of ``row[key][name]``, what `draw_limits(ax, name)` draws, and the
+    baseline's value (its design for "design", its outputs otherwise)."""
+    import matplotlib.pyplot as plt
+
+    from bev_mdo.mdo.units import label
+
+    fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(7, 1.9 * len(names) + 1), squeeze=False)
+    it = [r["iteration"] for r in rows]
+    feas = [r["feasible"] for r in rows]
+    base = (baseline or {}).get("design" if key == "design" else "outputs", {})
+    for ax, name in zip(axes[:, 0], names):
+        _iterate_markers(ax, it, [r[key].get(name, np.nan) for r in rows], feas)
+        draw_limits(ax, name)
+        if name in base:
+            ax.axhline(base[name], color="0.3", ls="-.", lw=1.2, label=f"baseline ({baseline['label']})")
         ax.set_ylabel(label(name, units or {}), fontsize=8)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, loc="best")
-    axes[0, 0].set_title("Constrained outputs (dashed: limits; shaded: infeasible side)")
+    axes[0, 0].set_title(title)
     axes[-1, 0].set_xlabel("iteration")
+    return _saved(fig, path)
+
+
+def _saved(fig, path: Path):
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -265,10 +263,7 @@ def _plot_timing(timing, path: Path):
     for ax in (ax1, ax2):
         ax.tick_params(axis="x", rotation=30)
         ax.grid(True, alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return fig
+    return _saved(fig, path)
 
 
 def _timing_table(timing) -> list[str]:

@@ -99,9 +99,6 @@ class BagWriter:
         self._topics[topic] = meta.TopicInfo(topic, full_type, profiles, digest)
         return channel_id
 
-    def has_topic(self, topic: str) -> bool:
-        return topic in self._channels
-
     def write(self, topic: str, cdr: bytes, log_time_ns: int, publish_time_ns: int | None = None,
               sequence: int = 0) -> None:
         """Append one serialized (CDR) message on a registered topic."""

@@ -5,13 +5,7 @@ from __future__ import annotations
 def register(subparsers) -> None:
     parser = subparsers.add_parser("calibrate", help="fit a model's fleet-wide parameters to a fleet of measured "
                                                      "cars, cross-validated by family and by make")
-    from bev_mdo.models.calibrate import add_arguments
+    from bev_mdo.models.calibrate import add_arguments, run
 
     add_arguments(parser)
     parser.set_defaults(func=run)
-
-
-def run(args) -> int:
-    from bev_mdo.models import calibrate
-
-    return calibrate.run(args)

@@ -30,10 +30,10 @@ def register(subparsers) -> None:
 
 
 def _point(problem, text: str) -> dict[str, float]:
-    from bev_mdo.cli.sensitivity import _pairs
+    from bev_mdo.cli.flags import parse_assignments
 
     point = dict(zip(problem.names, problem.x0().tolist()))
-    for k, v in _pairs(text).items():
+    for k, v in parse_assignments(text, "--at").items():
         if k in point:
             point[k] = v
         elif k in problem.shapes and f"{k}[0]" in point:

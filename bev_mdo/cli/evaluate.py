@@ -9,8 +9,6 @@ from __future__ import annotations
 import json
 import sys
 
-from bev_mdo.api.errors import InputError as UsageError
-
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("evaluate", help="evaluate one design through all disciplines",
@@ -27,27 +25,12 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def parse_assignments(items: list[str]) -> dict[str, float]:
-    """``["a=1,b=2", "c=3"]`` -> {a: 1.0, b: 2.0, c: 3.0}; UsageError on a malformed item."""
-    out: dict[str, float] = {}
-    for item in items:
-        for part in filter(None, (s.strip() for s in item.split(","))):
-            name, sep, value = part.partition("=")
-            if not sep or not name.strip():
-                raise UsageError(f"--set {part!r} must be NAME=VALUE, e.g. motor_kw=80")
-            try:
-                out[name.strip()] = float(value)
-            except ValueError:
-                raise UsageError(f"--set {name.strip()}={value!r}: value must be a number") from None
-    return out
-
-
 def run(args) -> int:
     from bev_mdo.api import evaluate
     from bev_mdo.api.transport import Transport
     from bev_mdo.cli import flags
 
-    report = evaluate.design(flags.load_config(args), parse_assignments(args.assignments), Transport.of(args))
+    report = evaluate.design(flags.load_config(args), flags.parse_assignments(args.assignments), Transport.of(args))
     if args.json:
         print(json.dumps(report, indent=2, allow_nan=True))
     else:

@@ -44,6 +44,24 @@ def add_override_arguments(parser) -> None:
     sense.add_argument("--minimize", dest="maximize", action="store_false", help="minimise the objective")
 
 
+def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, float]:
+    """``["a=1,b=2", "c=3"]`` (or one such string) -> {a: 1.0, b: 2.0, c: 3.0}: the NAME=VALUE lists of
+    --set, --design and --at; an InputError naming `flag` on a malformed item."""
+    from bev_mdo.api.errors import InputError
+
+    out: dict[str, float] = {}
+    for item in [items] if isinstance(items, str) else items:
+        for part in filter(None, (s.strip() for s in item.split(","))):
+            name, sep, value = part.partition("=")
+            if not sep or not name.strip():
+                raise InputError(f"{flag} {part!r} must be NAME=VALUE, e.g. motor_kw=80")
+            try:
+                out[name.strip()] = float(value)
+            except ValueError:
+                raise InputError(f"{flag} {name.strip()}={value!r}: value must be a number") from None
+    return out
+
+
 def load_config(args, path=None):
     """The validated config (``RunConfig``) of ``path`` (default ``args.config``) with the command line's overrides."""
     from bev_mdo.api.overrides import from_args, load

@@ -45,7 +45,7 @@ def _join_domain(args) -> None:
 
     ros = {}
     if args.config:
-        from bev_mdo.config import load_yaml
+        from bev_mdo.yamlload import load_yaml
 
         try:
             raw = load_yaml(Path(args.config).read_text(encoding="utf-8"))

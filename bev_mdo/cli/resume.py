@@ -33,7 +33,8 @@ def resume_point(bag_path: str, run_id: str | None = None, key_file: str | None 
     """(the run's RunConfig, last verified design of the bag's own run, its iteration) from a bag;
     BagError (a ValueError) if there is none or it cannot be verified."""
     from bev_mdo.bag.history import last_iterate
-    from bev_mdo.config import RunConfig, load_yaml
+    from bev_mdo.config import RunConfig
+    from bev_mdo.yamlload import load_yaml
 
     config_yaml, design, iteration = last_iterate(bag_path, run_id, key_file, checks, no_verify)
     if not config_yaml:

@@ -50,19 +50,6 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _pairs(text: str) -> dict[str, float]:
-    out = {}
-    for item in filter(None, (s.strip() for s in text.split(","))):
-        k, sep, v = item.partition("=")
-        if not sep or not k.strip():
-            raise ValueError(f"--at item {item!r} must be NAME=VALUE")
-        try:
-            out[k.strip()] = float(v)
-        except ValueError:
-            raise ValueError(f"--at value of {k.strip()!r} is not a number: {v!r}") from None
-    return out
-
-
 def run(args) -> int:
     from bev_mdo.api import sensitivity
     from bev_mdo.api.transport import Transport
@@ -70,7 +57,7 @@ def run(args) -> int:
 
     cfg = flags.load_config(args)
     wrt = [s.strip() for s in args.wrt.split(",") if s.strip()]
-    got = sensitivity.run(cfg, _pairs(args.at), wrt, Transport.of(args), global_method=args.global_method,
+    got = sensitivity.run(cfg, flags.parse_assignments(args.at, "--at"), wrt, Transport.of(args), global_method=args.global_method,
                           order=args.order, rel_step=args.rel_step, method=args.method, samples=args.samples,
                           seed=args.seed, conf_level=args.conf_level)
     if args.global_method:

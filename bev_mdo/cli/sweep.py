@@ -202,28 +202,11 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
     return fig, ax
 
 
-def _baseline(config) -> dict | None:
-    """The config's ``problem.baseline`` analysed in process (None without one, or if it fails)."""
-    from bev_mdo.config import RunConfig
-    from bev_mdo.mdo.driver import evaluate_design
-    from bev_mdo.mdo.evaluator import InProcessEvaluator
-
-    config = RunConfig.of(config)
-    base = config.baseline
-    if not base:
-        return None
-    try:
-        rep = evaluate_design(config.settings, InProcessEvaluator(config.disciplines), base["design"])
-    except ValueError:
-        return None
-    return {"name": base["name"], "design": dict(base["design"]), "outputs": rep["outputs"]}
-
-
 def designs_of(args, problem) -> dict[str, np.ndarray]:
     """The designs the command line asks for: a DOE over the bounds of the design variables not
     fixed with --set, a grid (--vary) or a list (--list), with the --set values as columns."""
     from bev_mdo.api.doe import sample
-    from bev_mdo.cli.evaluate import parse_assignments
+    from bev_mdo.cli.flags import parse_assignments
 
     if sum(map(bool, (args.doe, args.vary, args.list_csv))) != 1:
         raise UsageError("give one of --doe METHOD --samples N, --vary NAME=LO:HI:N ... or --list FILE.csv")
@@ -244,7 +227,7 @@ def designs_of(args, problem) -> dict[str, np.ndarray]:
 def run(args) -> int:
     from bev_mdo.cli import flags
     from bev_mdo.api.doe import plot_scatter, record
-    from bev_mdo.cli.evaluate import parse_assignments
+    from bev_mdo.cli.flags import parse_assignments
     from bev_mdo.api.transport import Transport
 
     config = flags.load_config(args)
@@ -266,7 +249,10 @@ def run(args) -> int:
     if not args.no_record:
         written.append(record(bag, config, result, args.doe or ("grid" if args.vary else "list"), transport))
     if not args.no_plots:
-        baseline = _baseline(config) if not args.doe or args.doe == "full" else None
+        from bev_mdo.sessions import analyse_baseline
+
+        # the config's baseline, analysed in process (a failed one has no outputs and is not drawn)
+        baseline = analyse_baseline(config) if not args.doe or args.doe == "full" else None
         for o in result["outputs"]:
             if o in varied:
                 continue
@@ -291,14 +277,14 @@ def run(args) -> int:
 
 
 def run_compare(args) -> int:
-    from bev_mdo.cli.evaluate import parse_assignments
+    from bev_mdo.cli.flags import parse_assignments
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo import units as un
 
     if len(args.design) < 2:
         raise UsageError("give two or more --design k=v,... to compare")
     config = RunConfig.load(args.config)
-    given = [parse_assignments([d]) for d in args.design]
+    given = [parse_assignments(d, "--design") for d in args.design]
     keys = list(dict.fromkeys(k for g in given for k in g))
     problem = config.problem
     init = {d.name: d.initial for d in problem.design_variables}

@@ -9,20 +9,6 @@ from bev_mdo.config.sections import SIZED_VARIABLE
 from bev_mdo.models.common import check_keys
 
 
-def check_baseline(cfg: dict, problem, params: set[str]) -> None:
-    base = cfg["problem"].get("baseline")
-    if base is None:
-        return
-    design = base["design"]
-    missing = [n for n in problem.names if n not in design]
-    if missing:
-        raise ValueError(f"problem.baseline.design misses design variables {missing}; give every one of {problem.names}")
-    unknown = [k for k in design if k not in problem.names and k not in params]
-    if unknown:
-        raise ValueError(f"problem.baseline.design.{unknown[0]}: neither a design variable {problem.names} "
-                         "nor a discipline parameter")
-
-
 def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
     """The problem against the run's disciplines: what they produce and consume; their parameters."""
     from bev_mdo.mdo.graph import CouplingGraph

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from bev_mdo.config.disciplines import (check_against_disciplines, check_baseline, discipline_entries,
+from bev_mdo.config.disciplines import (check_against_disciplines, discipline_entries,
                                         discipline_names, resolve_disciplines)
 from bev_mdo.config.sections import (check_mda_numbers, check_optimizer_options, resolve_problem, search_path,
                                      engine_section, validate_models, vehicle_topology_into_options)
@@ -160,14 +160,6 @@ def check_run_name(name: Any) -> None:
                          "separator, no '..', at most 100 characters): it names the run's bag and log folders")
 
 
-def load_yaml(text: str) -> Any:
-    """Parse YAML like yaml.safe_load, but a key given twice in one mapping is an error and the size,
-    nesting, aliases and list lengths are limited (bev_mdo.yamlload)."""
-    from bev_mdo.yamlload import load_yaml as load
-
-    return load(text)
-
-
 def _resolve(raw: Any) -> RunConfig:
     from bev_mdo.mdo.formulations import FD_SCHEMES
     from bev_mdo.mdo.mda import METHODS
@@ -224,7 +216,8 @@ def _resolve(raw: Any) -> RunConfig:
     check_mda_numbers(cfg["mda"])
     discs = tuple(resolve_disciplines(cfg))
     params = check_against_disciplines(cfg, problem, discs)
-    check_baseline(cfg, problem, params)
+    if cfg["problem"].get("baseline") is not None:
+        problem.check_design(cfg["problem"]["baseline"]["design"], params, "problem.baseline.design")
     return RunConfig(cfg, problem, discs, ros, _settings(cfg, problem, discs))
 
 

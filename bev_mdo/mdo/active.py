@@ -35,11 +35,6 @@ Disciplines = list | Callable[[], list]  # discipline objects, or a function bui
 
 
 
-def _scale(c) -> float:
-    b = c.lower if c.lower is not None else c.upper
-    return float(c.scale or max(abs(b), 1.0))
-
-
 def _limits(problem) -> list[tuple[str, str, float, float]]:
     """(name, kind, limit, scale) for every bound of every constraint, monitored ones too."""
     out = []

@@ -307,30 +307,3 @@ def sensitivity_surface(p: Cheb2, n: int = 101):
     xs, ys, F = p.grid(n, n)
     _, _, Fxy = p.deriv(1, 1).grid(n, n)
     return xs, ys, np.outer(xs, ys) * Fxy / F
-
-
-def save_sensitivity_png(path: str, p, names=("x", "y"), output: str = "f") -> str:
-    """PNG like Figs 7-14..7-16: 1-D proxy -> value and S(x); 2-D -> S'_xy surface and contours."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    if isinstance(p, Cheb1):
-        fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.6))
-        xs, s = sensitivity_curve(p)
-        a1.plot(xs, p(xs)); a1.set_xlabel(names[0]); a1.set_ylabel(output)
-        a2.plot(xs, s); a2.set_xlabel(names[0]); a2.set_ylabel(f"S({names[0]})")
-    else:
-        fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
-        xs, ys, S = sensitivity_surface(p)
-        m = a1.contourf(xs, ys, S.T, 20, cmap="RdBu_r")
-        fig.colorbar(m, ax=a1, label=f"S'({names[0]}, {names[1]})")
-        _, _, F = p.grid(101, 101)
-        cs = a2.contour(xs, ys, F.T, 15)
-        a2.clabel(cs, fontsize=7)
-        for a, t in ((a1, "second-order cross sensitivity"), (a2, f"{output} contours")):
-            a.set_xlabel(names[0]); a.set_ylabel(names[1]); a.set_title(t)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path

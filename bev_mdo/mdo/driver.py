@@ -148,14 +148,7 @@ def evaluate_design(run: Run, evaluator: Evaluator, design: Mapping[str, float])
     run = RunSettings.of(run, evaluator)
     problem = run.optimisation_problem()
     mda = _mda(run, evaluator, problem)
-    params = {p for s in mda.specs.values() for p in s.parameters}
-    missing = [n for n in problem.names if n not in design]
-    if missing:
-        raise ValueError(f"design misses {missing}; give every design variable: {problem.names}")
-    extra = [k for k in design if k not in problem.names and k not in params]
-    if extra:
-        raise ValueError(f"unknown design names {extra}; design variables: {problem.names}, "
-                         f"parameters: {sorted(params)}")
+    problem.check_design(design, {p for s in mda.specs.values() for p in s.parameters})
     inputs = {k: np.array([float(v)]) for k, v in {**problem.parameters, **design}.items()}
     res = mda.run(inputs)
     values = {k: float(v[0]) for k, v in res.values.items()}

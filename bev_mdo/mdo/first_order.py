@@ -33,7 +33,6 @@ OPTIMUM = "optimum"
 STOPPED = "stopped before convergence"
 NO_PROGRESS = "no progress from the start point"
 INFEASIBLE = "infeasible"
-VERDICTS = (OPTIMUM, STOPPED, NO_PROGRESS, INFEASIBLE)
 
 
 def check(u: np.ndarray, lower: np.ndarray, upper: np.ndarray, grad_f: np.ndarray, g: np.ndarray,
@@ -115,17 +114,3 @@ def verdict_line(fo: dict) -> str:
                 f"{fo['feasibility_tolerance']:g})")
     return (f"{v} (projected gradient of the Lagrangian {fo['stationarity']:.3g}, complementarity "
             f"{fo['complementarity']:.3g}; tolerance {fo['tolerance']:g})")
-
-
-def detail_lines(fo: dict) -> list[str]:
-    """The active set with its multipliers, one line each (the optimiser's scaled units)."""
-    lines = []
-    for c in fo["active_constraints"]:
-        lines.append(f"active: {c['name']} (multiplier {c['multiplier']:.4g})")
-    for b in fo["active_bounds"]:
-        lines.append(f"on its {b['kind']} bound: {b['name']} (multiplier {b['multiplier']:.4g})")
-    for e in fo["equalities"]:
-        lines.append(f"equality: {e['name']} (multiplier {e['multiplier']:.4g})")
-    if not lines:
-        lines.append("no constraint active and no variable on a bound")
-    return lines

@@ -66,7 +66,6 @@ class Orchestrator:
         # before them (0: the start point); the coordinator moves it on after each record
         self.iteration = 0
         self.unresponsive: set[str] = set()  # disciplines that let every attempt of a request time out
-        self.last_latency_s = 0.0
         self._results: dict[int, EvalResult] = {}
         self.coupling_sources: dict[str, dict[str, str]] = {}  # discipline -> {coupling input: source}
         self.flows = 0  # MDAs served by data flow (one request each)
@@ -121,7 +120,6 @@ class Orchestrator:
                  partials: bool = False) -> list[EvalResult]:
         """Evaluate one wave: every (discipline, batch) call concurrently. Never raises for a slow node.
         With ``partials`` the nodes return their disciplines' analytic partials too."""
-        t0 = time.perf_counter()
         iteration = self.iteration if iteration is None else int(iteration)
         self._results = {}
         self._shares, self._batches = retry.Shares(), {}
@@ -151,7 +149,6 @@ class Orchestrator:
                 self._results[i] = self._shares.join(i, spec.outputs if spec else None)
         else:
             self._await()
-        self.last_latency_s = time.perf_counter() - t0
         return [self._results[i] for i in range(len(calls))]
 
     def evaluate_flow(self, names: Sequence[str], request: Mapping[str, np.ndarray], n: int,
@@ -160,7 +157,6 @@ class Orchestrator:
         plan = self.flow_plan(names)
         if plan is None or self.unresponsive.intersection(names):
             return None
-        t0 = time.perf_counter()
         self._flow_topics(names)
         self._results = {}
         self._poll_info()
@@ -168,7 +164,7 @@ class Orchestrator:
         if pooled:
             if not self.pool_data_flow:
                 return None
-            return self._flow_shares(names, plan, request, n, bool(partials), pooled, t0)
+            return self._flow_shares(names, plan, request, n, bool(partials), pooled)
         eid = self.ledger.new_id()
         req = self._request(eid, "", request, self._tag(names), flow=names, partials=partials)
         first = None
@@ -181,7 +177,6 @@ class Orchestrator:
         out = {name: self._results[i] for i, name in enumerate(names)}
         answered = {d for e, d, _, _ in self.accepted[-len(names):] if e == eid}
         self.counts.update(flow.rows_per_discipline(plan, out, n, [d for d in names if d in answered]))
-        self.last_latency_s = time.perf_counter() - t0
         return out
 
     def _flow_topics(self, names: Sequence[str]) -> None:
@@ -334,7 +329,7 @@ class Orchestrator:
     # -- data flow with pools ------------------------------------------------------
     def _flow_shares(self, names: Sequence[str], plan: Mapping[str, Mapping[str, str]],
                      request: Mapping[str, np.ndarray], n: int, partials: bool,
-                     pooled: Mapping[str, list[str]], t0: float) -> dict:
+                     pooled: Mapping[str, list[str]]) -> dict:
         """One data-flow MDA over pools: its rows are cut into shares (in proportion to the
         throughput of the largest pool's instances), and each share is ONE data-flow request in
         which every pooled discipline is addressed to one of its instances (the largest pool: one
@@ -357,7 +352,6 @@ class Orchestrator:
         self.flows += 1
         self.counts.update(flow.rows_per_discipline(plan, out, n, [d for d in names if d not in gave_up]))
         self._shares, self._share_targets = retry.Shares(), {}
-        self.last_latency_s = time.perf_counter() - t0
         return out
 
     def _send_flow_share(self, names: Sequence[str], request: Mapping[str, np.ndarray], a: int, b: int,

@@ -112,6 +112,18 @@ class Problem:
     def x0(self) -> np.ndarray:
         return self.array("initial")
 
+    def check_design(self, design: Mapping[str, Any], params, where: str = "design") -> None:
+        """ValueError unless `design` gives every design variable and otherwise only names in `params`
+        (the disciplines' parameters, which a design may override); `where` names it in the message."""
+        missing = [n for n in self.names if n not in design]
+        if missing:
+            raise ValueError(f"{where} misses design variables {missing}; give every one of {self.names}")
+        unknown = [k for k in design if k not in self.names and k not in params]
+        if unknown:
+            raise ValueError(f"{where}.{unknown[0]}: neither a design variable nor a discipline parameter "
+                             f"(unknown design names {unknown}; design variables: {self.names}, "
+                             f"parameters: {sorted(params)})")
+
     @classmethod
     def from_config(cls, section: Mapping[str, Any]) -> "Problem":
         """Build from the ``problem`` section; ValueError names the key and the allowed values."""

@@ -22,8 +22,6 @@ import numpy as np
 BatchFun = Callable[[np.ndarray], "Mapping[str, np.ndarray] | np.ndarray"]
 
 COUPLING_THRESHOLDS = (("NC", 0.05), ("MC", 0.5), ("SC", 0.8))  # label if |s| < bound
-COUPLING_NAMES = {"NC": "no coupling", "MC": "medium coupling",
-                  "SC": "strong coupling", "VSC": "very strong coupling"}
 REL_STEP_FIRST = 1e-4
 REL_STEP_SECOND = 1e-3
 COMPLEX_STEP = 1e-20

@@ -4,7 +4,7 @@ from pathlib import Path
 import pytest
 
 from bev_mdo.cli import main
-from bev_mdo.cli.evaluate import parse_assignments
+from bev_mdo.cli.flags import parse_assignments
 
 ROOT = Path(__file__).resolve().parents[2]
 LEAF = ROOT / "config" / "leaf_nedc.yaml"

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from bev_mdo.testing import REPO
+from bev_mdo.testing import REPO, wait_until
 
 EXIT = {signal.SIGINT: 130, signal.SIGTERM: 143}
 CONFIG = REPO / "config" / "leaf_nedc.yaml"
@@ -201,13 +201,9 @@ def test_a_discipline_failing_over_ros_keeps_the_bag_of_every_iteration(tmp_path
 def test_a_sweep_interrupted_while_it_records_keeps_a_readable_bag(tmp_path, sig):
     """`sweep` writes its bag after the batch (one record per design): stopped while it writes, the bag is
     closed with the designs written so far, in order, and opens without repair."""
-    import time
-
     p = _start(tmp_path, "sweep", str(CONFIG), "--doe", "lhs", "--samples", "100000", "--no-plots",
                "--transport", "inprocess", "--out", "o")
-    end = time.monotonic() + 300
-    while not list((tmp_path / "o" / "bag").glob("*.mcap")) and p.poll() is None and time.monotonic() < end:
-        time.sleep(0.05)  # waiting for the bag to be started (a condition, bounded)
+    wait_until(lambda: list((tmp_path / "o" / "bag").glob("*.mcap")) or p.poll() is not None, 300)  # the bag started
     assert p.poll() is None, "the sweep ended before it was interrupted"
     p.send_signal(sig)
     _out, err = _communicate(p)

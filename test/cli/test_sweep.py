@@ -8,8 +8,9 @@ from pathlib import Path
 import pytest
 
 from bev_mdo.cli import main
-from bev_mdo.cli.sweep import _baseline, evaluate_batch, grid, parse_vary, plot_output
+from bev_mdo.cli.sweep import evaluate_batch, grid, parse_vary, plot_output
 from bev_mdo.config import load_config
+from bev_mdo.sessions import analyse_baseline
 
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -59,7 +60,7 @@ def test_sweep_plot_marks_infeasible_and_draws_the_limit(tmp_path):
 
 def test_sweep_plot_shows_the_configs_baseline(tmp_path):
     cfg = load_config(CONFIG)
-    base = _baseline(cfg)
+    base = analyse_baseline(cfg)
     assert base["name"] == cfg["problem"]["baseline"]["name"]
     res = evaluate_batch(cfg, grid(parse_vary(["motor_kw=40:120:5", "gear_ratio=6,8"])), "inprocess")
     fig, ax = plot_output(res, "energy_wh_per_km", ["motor_kw", "gear_ratio"], tmp_path / "e.png", base)
@@ -67,7 +68,7 @@ def test_sweep_plot_shows_the_configs_baseline(tmp_path):
     assert star and star[0].get_xdata()[0] == 80.0
     assert star[0].get_ydata()[0] == pytest.approx(base["outputs"]["energy_wh_per_km"])
     no_base = dict(cfg, problem={k: v for k, v in cfg["problem"].items() if k != "baseline"})
-    assert _baseline(no_base) is None
+    assert analyse_baseline(no_base) is None
 
 
 def test_sweep_outside_bounds_and_unknown_names_are_user_errors(tmp_path, capsys):

@@ -3,8 +3,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from bev_mdo.mdo.chebyshev import (Cheb2, chebfun1, chebfun2, chebpts2, on_plane,
-                                    save_sensitivity_png, sensitivity_curve,
+from bev_mdo.mdo.chebyshev import (Cheb2, chebfun1, chebfun2, chebpts2, on_plane, sensitivity_curve,
                                     sensitivity_surface, vals2coeffs)
 
 
@@ -85,12 +84,6 @@ def test_sensitivity_surfaces_of_ratio():
     np.testing.assert_allclose(s, 1.0, atol=1e-10)
     _, _, S = sensitivity_surface(chebfun2(lambda P: P[:, 0] / P[:, 1], (1, 2), (1, 3)))
     np.testing.assert_allclose(S, -1.0, atol=1e-7)
-
-
-def test_png_written(tmp_path):
-    p = chebfun2(lambda P: P[:, 0] * P[:, 1] ** 2, (1, 2), (1, 3))
-    out = save_sensitivity_png(str(tmp_path / "s.png"), p, ("mass_kg", "gear_eff"))
-    assert open(out, "rb").read(8) == b"\x89PNG\r\n\x1a\n"
 
 
 def test_on_plane_holds_other_variables():

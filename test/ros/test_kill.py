@@ -26,7 +26,7 @@ from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
 from bev_mdo.launcher import process_state  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
-from bev_mdo.testing import PYTHON, child_processes, leaf_config_file, ros_env  # noqa: E402
+from bev_mdo.testing import PYTHON, child_processes, leaf_config_file, ros_env, wait_until  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -121,15 +121,6 @@ def _iterations_on_disk(bag: Path) -> int:
         return 0
 
 
-def _wait_for(pred, timeout_s: float = 30.0) -> bool:
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        if pred():
-            return True
-        time.sleep(0.02)
-    return False
-
-
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL, signal.SIGSTOP], ids=["SIGTERM", "SIGKILL", "SIGSTOP"])
 def test_a_recorder_stopped_mid_run_is_named_and_its_bag_holds_what_it_wrote(config_path, ros_domain, tmp_path, sig):
     """The run's recorder is SIGTERMed (it closes its bag and exits 0) or SIGKILLed while the optimiser waits
@@ -163,7 +154,7 @@ def test_a_recorder_stopped_mid_run_is_named_and_its_bag_holds_what_it_wrote(con
         (recorder,) = [pid for pid, cmd in child_processes(p.pid).items() if "recorder_node" in cmd]
         os.kill(recorder, sig)  # a child of the run we started, by its id
         if sig == signal.SIGSTOP:
-            assert _wait_for(lambda: process_state(recorder) == "T")
+            assert wait_until(lambda: process_state(recorder) == "T")
         else:
             for line in p.stderr:  # the run's supervisor saw the recorder end (during the run, not at its end)
                 err_lines.append(line)

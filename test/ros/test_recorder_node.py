@@ -1,16 +1,7 @@
 """The recorder subscribes to a topic only once its publishers are known, with their durability."""
 from __future__ import annotations
 
-import time
-
-
-
-
-def _until(predicate, spin, what: str, timeout_s: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not predicate():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        spin()
+from bev_mdo.testing import wait_until
 
 
 def test_a_topic_seen_first_through_its_reader_is_recorded_with_its_publishers_durability(rclpy_context, tmp_path):
@@ -35,19 +26,20 @@ def test_a_topic_seen_first_through_its_reader_is_recorded_with_its_publishers_d
     try:
         # the consumer comes first: the graph has the topic but no publisher
         other.create_subscription(String, topic, lambda m: None, latched)
-        _until(lambda: topic in dict(recorder.get_topic_names_and_types()), lambda: ex.spin_once(0.02),
-               "the reader on the graph")
+        assert wait_until(lambda: topic in dict(recorder.get_topic_names_and_types()), step=lambda: ex.spin_once(0.02)), \
+            "timed out waiting for the reader on the graph"
         recorder.discover()
         assert topic not in recorder.subscriptions_by_topic, "subscribed before any publisher was known"
         # the publisher answers before the recorder subscribes (a warm-up result, say)
         pub = other.create_publisher(String, topic, latched)
         pub.publish(String(data="first"))
-        _until(lambda: recorder.get_publishers_info_by_topic(topic), lambda: ex.spin_once(0.02),
-               "the publisher on the graph")
+        assert wait_until(lambda: recorder.get_publishers_info_by_topic(topic), step=lambda: ex.spin_once(0.02)), \
+            "timed out waiting for the publisher on the graph"
         recorder.discover()
         sub = recorder.subscriptions_by_topic[topic]
         assert sub.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
-        _until(lambda: recorder.received >= 1, lambda: ex.spin_once(0.02), "the earlier message")
+        assert wait_until(lambda: recorder.received >= 1, step=lambda: ex.spin_once(0.02)), \
+            "timed out waiting for the earlier message"
         assert recorder.received == 1
     finally:
         ex.shutdown()

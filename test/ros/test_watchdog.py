@@ -3,25 +3,14 @@ the ROS graph, or never reached it, is killed while it runs and restarted by the
 node on the graph is never touched, however long; nothing is done once the launcher stops."""
 from __future__ import annotations
 
-import time
-
 import pytest
 
 from bev_mdo.launcher import Launcher, cpu_ticks
 from bev_mdo.processes import composed_argv, discipline_argv, node_names_of
 from bev_mdo.ros.watchdog import HangWatchdog
-from bev_mdo.testing import PYTHON
+from bev_mdo.testing import PYTHON, wait_until
 
 SLEEPER = [PYTHON, "-c", "import time; time.sleep(120)"]
-
-
-def _wait(pred, timeout_s=30.0):
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        if pred():
-            return True
-        time.sleep(0.05)
-    return False
 
 
 def test_node_names_are_read_from_the_command_line():
@@ -52,7 +41,7 @@ def test_a_node_that_leaves_the_graph_is_killed_and_restarted(launcher):
     assert dog.check({"other"}, t0 + 1007.9) == []
     assert dog.check({"other"}, t0 + 1008.1) == ["energy"]
     assert node.hangs == 1
-    assert _wait(lambda: node.restarts == 1 and node.proc.pid != first)  # the supervisor restarted it
+    assert wait_until(lambda: node.restarts == 1 and node.proc.pid != first)  # the supervisor restarted it
     assert not node.seen and node.missing_since is None  # watched afresh from its restart
 
 
@@ -62,12 +51,12 @@ def test_a_node_that_never_appears_is_killed_after_start_s_once_it_uses_no_cpu(l
     # time, and a process still importing between them is rightly "busy" (a clean-clone CI run saw that)
     node = launcher.add("energy", [PYTHON, "-c", f"import pathlib, time; pathlib.Path({str(asleep)!r}).touch(); "
                                    "time.sleep(120)", "-r", "__node:=energy_node_x"])
-    assert _wait(asleep.exists)
+    assert wait_until(asleep.exists)
     dog = HangWatchdog(launcher, 0, silent_s=7.0, start_s=45.0)
     assert dog.check(set(), node.spawned_at + 44) == []
     assert dog.check(set(), node.spawned_at + 45) == []  # its CPU time is read for the first time
     assert dog.check(set(), node.spawned_at + 52.5) == ["energy"]  # a sleeper: no CPU for 7 s
-    assert _wait(lambda: node.proc.poll() is not None)  # killed (no supervisor here: not restarted)
+    assert wait_until(lambda: node.proc.poll() is not None)  # killed (no supervisor here: not restarted)
 
 
 def test_a_node_still_starting_on_a_loaded_host_is_not_killed(launcher):
@@ -77,7 +66,7 @@ def test_a_node_still_starting_on_a_loaded_host_is_not_killed(launcher):
     for _ in range(5):
         assert dog.check(set(), t) == []
         seen = node.cpu_ticks
-        assert _wait(lambda: cpu_ticks(node.proc.pid) > seen)  # it computes between looks, as a node importing does
+        assert wait_until(lambda: cpu_ticks(node.proc.pid) > seen)  # it computes between looks, as a node importing does
         t += 8.0  # each look more than silent_s after the one before
     assert node.proc.poll() is None and node.hangs == 0
 
@@ -105,7 +94,7 @@ def test_kill_reaches_a_live_process_or_says_there_is_none(launcher):
     with pytest.raises(ProcessLookupError, match="energy is not running"):
         launcher.kill("energy")
     launcher.supervise()
-    assert _wait(lambda: node.restarts == 1 and node.proc.pid != first)
+    assert wait_until(lambda: node.restarts == 1 and node.proc.pid != first)
     assert launcher.kill("energy") == node.proc.pid
 
 
@@ -113,7 +102,7 @@ def test_stop_destroys_the_watchdogs_participant_in_the_callers_thread(launcher,
     """Not left to the watching (daemon) thread: a participant still being deleted there when the process
     exits meets Fast DDS's destructors (the factory's waits on it), and a finished run never ended."""
     dog = HangWatchdog(launcher, ros_domain, period_s=0.05).start()
-    assert _wait(lambda: dog._node is not None)
+    assert wait_until(lambda: dog._node is not None)
     ctx = dog._ctx
     dog.stop()
     assert not dog._thread.is_alive() and not ctx.ok() and dog._ctx is None
