@@ -9,14 +9,14 @@
 3. Plain scipy SLSQP on the monolithic model (the discipline computes chained directly, no
    engine), same scaling, scipy's own forward differences (eps = the same scaled step).
 4. bev_mdo over ROS (``--ros``, default when rclpy imports): six discipline node processes
-   (domain 60, localhost-only discovery), the coordinator in this process; the time is
+   (domain --domain-id, default 60, localhost-only discovery), the coordinator in this process; the time is
    RunResult.wall_time_s (discovery excluded).
 
 Startup is excluded everywhere: each method gets one untimed warm-up run, then ``--repeat``
 timed runs of the optimisation call only; the median is reported. This is a bench: it prints
 figures and asserts nothing about time.
 
-    /work/main/.venv/bin/python bench/bench_openmdao.py [--repeat 5] [--no-ros] [--json FILE]
+    /work/main/.venv/bin/python bench/bench_openmdao.py [--repeat 5] [--no-ros] [--domain-id 60] [--json FILE]
     (optional: --profile FILE.pstats to cProfile the bev_mdo in-process runs)
 
 OpenMDAO is a bench-only dependency: ``pip install -c constraints.txt -r bench/requirements.txt``.
@@ -337,7 +337,7 @@ def _fmt_design(d: dict) -> str:
 
 
 def main(argv=None) -> int:
-    global REPEAT
+    global REPEAT, ROS_DOMAIN
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--config", default=str(CONFIG))
     ap.add_argument("--repeat", type=int, default=11)
@@ -349,11 +349,13 @@ def main(argv=None) -> int:
     ap.add_argument("--ros", dest="ros", action="store_true", default=have_ros,
                     help="also run bev_mdo over ROS (default: on when rclpy imports)")
     ap.add_argument("--no-ros", dest="ros", action="store_false")
+    ap.add_argument("--domain-id", type=int, default=ROS_DOMAIN, help=f"ROS domain (default {ROS_DOMAIN})")
     ap.add_argument("--json", help="results file (default bench/results/openmdao.json)")
     ap.add_argument("--profile", help="cProfile 50 bev_mdo in-process runs into this .pstats file")
     ap.add_argument("--log-dir", default=None, help="node logs (default: a temp dir)")
     args = ap.parse_args(argv)
     REPEAT = max(1, args.repeat)
+    ROS_DOMAIN = args.domain_id
 
     s = Setup(Path(args.config))
     results = [run_openmdao(s, nlbgs=True), run_bev_inprocess(s, args.profile), run_plain_scipy(s),

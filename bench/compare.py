@@ -8,6 +8,9 @@ a run's value of a figure is that file's median. Run the benches alternately on 
 
     python bench/compare.py --bench "bench_ros before/after" --before b1.json b2.json \
         --after a1.json a2.json [--match "full MDA" --match ...] --json /tmp/before_after.json
+
+``--append`` adds the table to the --json file if it exists (several benches in one file): each
+row then starts with its --bench title, and the file's title lists them all.
 """
 from __future__ import annotations
 
@@ -53,7 +56,7 @@ def compare(before: list[Path], after: list[Path], match: list[str]) -> list[dic
     return rows
 
 
-def main() -> None:
+def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bench", required=True, help="the table's title")
     ap.add_argument("--before", nargs="+", type=Path, required=True)
@@ -61,12 +64,21 @@ def main() -> None:
     ap.add_argument("--match", action="append", default=[], help="keep only figures containing this (repeatable)")
     ap.add_argument("--command", default="", help="how the runs were made (shown with the table)")
     ap.add_argument("--json", type=Path, required=True)
-    args = ap.parse_args()
+    ap.add_argument("--append", action="store_true", help="add to --json if it exists, rows named by --bench")
+    args = ap.parse_args(argv)
     figures = compare(args.before, args.after, args.match)
     if not figures:
         raise SystemExit("no figure is in both sets (or none matches --match)")
     _, loads = _runs(args.before + args.after)
-    doc = {"bench": args.bench, "command": args.command, "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
+    title, command = args.bench, args.command
+    if args.append:
+        figures = [dict(f, what=f"{args.bench}: {f['what']}") for f in figures]
+        if args.json.exists():
+            old = json.loads(args.json.read_text(encoding="utf-8"))
+            title, command = f"{old['bench']}; {title}", "; ".join(c for c in (old["command"], command) if c)
+            figures = old["figures"] + figures
+            loads += [old["host"]["load_average_1min"]] if old["host"]["load_average_1min"] is not None else []
+    doc = {"bench": title, "command": command, "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
            "host": {"cpus": os.cpu_count(), "load_average_1min": max(loads) if loads else None,
                     "python": platform.python_version()},
            "figures": figures}
