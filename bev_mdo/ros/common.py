@@ -103,6 +103,19 @@ def type_name(msg_type) -> str:
     return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
 
 
+def run_type(topic: str) -> str | None:
+    """The message type this project's nodes use on `topic` (None: not one of its topics)."""
+    if not topic.startswith(PREFIX + "/"):
+        return None
+    last = topic.rsplit("/", 1)[-1]
+    named = {"iteration": "IterationRecord", "result": "EvaluationResult", "mda_result": "EvaluationResult",
+             "request": "EvaluationRequest", "mda_request": "EvaluationRequest", "discipline_info": "DisciplineInfo",
+             "pareto_front": "ParetoFront"}
+    if last == "node_stats":
+        return "std_msgs/msg/String"
+    return f"bev_mdo_msgs/msg/{named[last]}" if last in named else None
+
+
 _SQUATTERS: set[tuple[str, bool]] = set()  # (node, reads) of the squatters this process has named
 
 

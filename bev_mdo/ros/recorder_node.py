@@ -46,7 +46,7 @@ from bev_mdo.bag.history import ITERATION_TOPIC
 from bev_mdo.bag.writer import BagWriter
 from bev_mdo.binding import config_binding, run_matches
 from bev_mdo.protocol.messages import RUN_TAGGED, run_of
-from bev_mdo.ros.common import endpoints, node_of
+from bev_mdo.ros.common import endpoints, node_of, run_type
 
 DEFAULT_PREFIX = "/bev_mdo/"
 RECHECK_S = 0.5  # the declared publishers of a topic are read from the graph at least this often
@@ -119,8 +119,11 @@ class RecorderNode(Node):
         for topic, types in self.get_topic_names_and_types():
             if topic in self.subscriptions_by_topic or not self._wants(topic) or not types:
                 continue
-            # the run's own type: a squatter publishing another type on the topic does not choose it
-            type_name = next((t for t in types if t.startswith("bev_mdo_msgs/")), types[0])
+            # a topic of this project is recorded with its own type, once a publisher of it is there: a
+            # squatter publishing another type on the topic (even before the run's) does not choose it
+            type_name = run_type(topic) or types[0]
+            if type_name not in types:
+                continue
             try:
                 cls = message_class(type_name)
             except (ImportError, AttributeError, ValueError):
