@@ -8,7 +8,8 @@ All designs are ONE batch of multidisciplinary analyses, through the config's di
 started for the command (default), the nodes already running (``--attach``) or in process
 (``--transport inprocess``), written to ``sweep.csv`` (every design variable, every
 output, each constraint's margin, feasible, ok), one PNG per output and a bag (``bag/``, one
-record per design: ``history``/``report`` read it). Variables not varied keep their initial value
+record per design: ``history``/``report`` read it; written as soon as the batch is done, so a sweep
+stopped before that has no bag). Variables not varied keep their initial value
 (or ``--set`` values).
 
 ``compare CONFIG --design k=v,... --design k=v,...`` prints two or more designs side by side
@@ -244,10 +245,10 @@ def run(args) -> int:
     transport = "ros" if Transport.of(args).uses_ros else "inprocess"
     result = evaluate_batch(config, designs, args)
     out.mkdir(parents=True, exist_ok=True)
-    write_csv(out / "sweep.csv", result)
     written = [out / "sweep.csv"]
-    if not args.no_record:
+    if not args.no_record:  # the bag first: whatever stops the command after the batch, the batch is recorded
         written.append(record(bag, config, result, args.doe or ("grid" if args.vary else "list"), transport))
+    write_csv(out / "sweep.csv", result)
     if not args.no_plots:
         from bev_mdo.sessions import analyse_baseline
 

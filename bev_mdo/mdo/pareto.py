@@ -170,7 +170,8 @@ def run_nsga2(formulation, objectives, *, pop_size: int = 100, generations: int 
 
     ``on_generation(gen, n_evals, seconds)`` is called after every generation;
     ``on_front(front, final)`` with every generation's :class:`Front` (``final`` True on the
-    last one, which is the result's front)."""
+    last one, which is the result's front). Whatever stops the run (a signal, an error), every
+    finished generation's front has gone to ``on_front``."""
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.callback import Callback
     from pymoo.optimize import minimize
@@ -191,15 +192,20 @@ def run_nsga2(formulation, objectives, *, pop_size: int = 100, generations: int 
             now = time.perf_counter()
             times.append(now - self.t)
             self.t = now
-            if on_generation:
-                on_generation(algorithm.n_gen, problem.evaluations, times[-1])
             if on_front:
                 if pending:
                     on_front(pending.pop(), False)
                 pending.append(_front(problem, algorithm.pop, int(algorithm.n_gen), now - t0))
+            if on_generation:
+                on_generation(algorithm.n_gen, problem.evaluations, times[-1])
 
-    res = minimize(problem, NSGA2(pop_size=pop_size, eliminate_duplicates=True), ("n_gen", int(generations)),
-                   seed=int(seed), callback=_CB(), verbose=False)
+    try:
+        res = minimize(problem, NSGA2(pop_size=pop_size, eliminate_duplicates=True), ("n_gen", int(generations)),
+                       seed=int(seed), callback=_CB(), verbose=False)
+    except BaseException:  # stopped: the last finished generation's front is not the result's, but it is kept
+        if on_front and pending:
+            on_front(pending.pop(), False)
+        raise
     wall = time.perf_counter() - t0
     n_gen = len(times)  # pymoo's n_gen is one ahead once the run has terminated
     front = _front(problem, res.pop, n_gen, wall)

@@ -89,3 +89,54 @@ def wait_acked(publishers: Iterable, wait_s: float, give_up: Callable[[], bool] 
         if pending and ((give_up is not None and give_up()) or time.monotonic() > deadline):
             break
     return pending
+
+
+def node_of(info) -> str:
+    """The node of a graph endpoint (TopicEndpointInfo) as ``namespace/name``, without the leading ``/``."""
+    return f"{info.node_namespace.rstrip('/')}/{info.node_name}".lstrip("/")
+
+
+def type_name(msg_type) -> str:
+    """``package/msg/Name`` of a message class (or that string itself), as the graph names a topic's type."""
+    if isinstance(msg_type, str):
+        return msg_type
+    return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
+
+
+def run_type(topic: str) -> str | None:
+    """The message type this project's nodes use on `topic` (None: not one of its topics)."""
+    if not topic.startswith(PREFIX + "/"):
+        return None
+    last = topic.rsplit("/", 1)[-1]
+    named = {"iteration": "IterationRecord", "result": "EvaluationResult", "mda_result": "EvaluationResult",
+             "request": "EvaluationRequest", "mda_request": "EvaluationRequest", "discipline_info": "DisciplineInfo",
+             "pareto_front": "ParetoFront"}
+    if last == "node_stats":
+        return "std_msgs/msg/String"
+    return f"bev_mdo_msgs/msg/{named[last]}" if last in named else None
+
+
+_SQUATTERS: set[tuple[str, bool]] = set()  # (node, reads) of the squatters this process has named
+
+
+def endpoints(node, topic: str, msg_type, subscriber: bool = True, warn: bool = False) -> list:
+    """The readers (``subscriber``) or writers of `topic` in the graph that use the type `msg_type`.
+
+    An endpoint of another type (a process squatting on the run's topic) never matches ours: DDS
+    matches only endpoints of one type, so it neither receives nor sends this run's messages. It is
+    left out (a count of all endpoints would wait for it forever) and, with ``warn``, the first topic
+    a squatting node is found on is named in one line on stderr, once per process."""
+    import sys
+
+    want = type_name(msg_type)
+    infos = node.get_subscriptions_info_by_topic(topic) if subscriber else node.get_publishers_info_by_topic(topic)
+    same = []
+    for info in infos:
+        if info.topic_type == want:
+            same.append(info)
+        elif warn and (key := (node_of(info), subscriber)) not in _SQUATTERS:
+            _SQUATTERS.add(key)
+            print(f"warning: node '{key[0]}' {'reads' if subscriber else 'publishes on'} {topic} as "
+                  f"{info.topic_type}, not {want}: it cannot exchange messages with this run (ignored)",
+                  file=sys.stderr, flush=True)
+    return same

@@ -9,6 +9,7 @@ from typing import Callable
 import numpy as np
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from bev_mdo import interrupts
 from bev_mdo.ros.common import PREFIX, now_ns, stamp, wait_acked
 from bev_mdo.ros.fastwait import until
 
@@ -60,9 +61,10 @@ class BagSink:
         from rclpy.serialization import serialize_message
 
         t = now_ns()
-        self.published += 1
-        self.writer.write(PARETO_TOPIC, serialize_message(msg), t, t, self.published)
-        self.writer.flush()  # one chunk per front: a killed run keeps every finished generation
+        with interrupts.deferred():  # a front is written whole or not at all
+            self.writer.write(PARETO_TOPIC, serialize_message(msg), t, t, self.published + 1)
+            self.writer.flush()  # one chunk per front: a killed run keeps every finished generation
+            self.published += 1
 
     def close(self) -> None:
         self.writer.close()

@@ -46,6 +46,7 @@ from bev_mdo.bag.history import ITERATION_TOPIC
 from bev_mdo.bag.writer import BagWriter
 from bev_mdo.binding import config_binding, run_matches
 from bev_mdo.protocol.messages import RUN_TAGGED, run_of
+from bev_mdo.ros.common import endpoints, node_of, run_type
 
 DEFAULT_PREFIX = "/bev_mdo/"
 RECHECK_S = 0.5  # the declared publishers of a topic are read from the graph at least this often
@@ -118,13 +119,17 @@ class RecorderNode(Node):
         for topic, types in self.get_topic_names_and_types():
             if topic in self.subscriptions_by_topic or not self._wants(topic) or not types:
                 continue
-            type_name = types[0]
+            # a topic of this project is recorded with its own type, once a publisher of it is there: a
+            # squatter publishing another type on the topic (even before the run's) does not choose it
+            type_name = run_type(topic) or types[0]
+            if type_name not in types:
+                continue
             try:
                 cls = message_class(type_name)
             except (ImportError, AttributeError, ValueError):
                 self.get_logger().warning(f"skipping {topic}: no Python class for {type_name}")
                 continue
-            pubs = self.get_publishers_info_by_topic(topic)
+            pubs = endpoints(self, topic, type_name, subscriber=False)
             if not pubs:
                 # Only readers known so far (the graph can show a reader before its writer): our
                 # durability must follow the publishers', or a VOLATILE reader of a TRANSIENT_LOCAL
@@ -154,7 +159,7 @@ class RecorderNode(Node):
         # the counts alone can stay the same while one publisher replaces another (a run's baseline
         # coordinator, then its coordinator): the names are read again at least every RECHECK_S
         if (count, graph) != seen or now - at >= RECHECK_S:
-            infos = self.get_publishers_info_by_topic(topic)
+            infos = endpoints(self, topic, sub.msg_type, subscriber=False)  # those that can match
             present = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos})
             names = present if count >= len(infos) else [n for n in names if n in present]
             self._confirmed[topic] = ((count, graph), names, now)
@@ -271,8 +276,8 @@ class OwnRecorder:
         declared = {n.lstrip("/") for n in (d.get("publishers") or {}).get(topic, ())}
         need = {n.lstrip("/") for n in publishers}
         if pub is not None:
-            readers = self.node.get_subscriptions_info_by_topic(topic)
-            names = {f"{i.node_namespace.rstrip('/')}/{i.node_name}".lstrip("/") for i in readers}
+            readers = endpoints(self.node, topic, pub.msg_type, warn=True)  # a squatter never matches
+            names = {node_of(i) for i in readers}
             if str(self.name).lstrip("/") not in names or pub.get_subscription_count() < len(readers):
                 return False
             need.add(self.node.get_fully_qualified_name().lstrip("/"))

@@ -17,9 +17,10 @@ from typing import Sequence
 import numpy as np
 
 from bev_mdo.mdo import retry
-from bev_mdo.ros.common import MDA_REQUEST_TOPIC, RESULT_TOPIC, mda_result_topic, request_topic
+from bev_mdo.ros.common import MDA_REQUEST_TOPIC, RESULT_TOPIC, endpoints, mda_result_topic, node_of, request_topic
 from bev_mdo.ros.fastwait import STARTUP_CAP, until
 from bev_mdo.stacks import StartupGaveUp
+from bev_mdo_msgs.msg import EvaluationRequest, EvaluationResult
 
 
 class DisciplineMissing(StartupGaveUp):
@@ -57,8 +58,9 @@ class StartupWaits:
                     and self.node.count_publishers(RESULT_TOPIC) >= 1
                     and self._present(n, request_topic(n), subscriber=True)
                     # every reader in the graph matched: with other instances (another run's, a
-                    # refused one, a recorder) on the topic, a count alone could be reached without ours
-                    and self._publishers[n].get_subscription_count() >= self.node.count_subscribers(request_topic(n))
+                    # refused one, a recorder) on the topic, a count alone could be reached without ours;
+                    # a reader of another type (a squatter) can never match, and is not waited for
+                    and self._publishers[n].get_subscription_count() >= self._readers(request_topic(n))
                     and self._present(n, RESULT_TOPIC, subscriber=False)
                 )
                 if not ready:
@@ -99,7 +101,7 @@ class StartupWaits:
             self._flow_topics(names)
             roots = {n for n, src in self.flow_plan(names).items() if not src}
             if not until(lambda: (self._flow_pub.get_subscription_count()
-                                  >= max(len(roots), self.node.count_subscribers(MDA_REQUEST_TOPIC))
+                                  >= max(len(roots), self._readers(MDA_REQUEST_TOPIC))
                                   and all(self._flow_subs[n].get_publisher_count() >= 1 for n in names)
                                   and all(self._present(n, MDA_REQUEST_TOPIC, subscriber=True) for n in roots)
                                   and all(self._present(n, mda_result_topic(n), subscriber=False) for n in names)),
@@ -175,14 +177,18 @@ class StartupWaits:
         of `topic`: a refused instance on the same topic does not make this run ready."""
         return bool(self._present_on(discipline, topic, subscriber)[0])
 
+    def _readers(self, topic: str) -> int:
+        """Readers of request topic `topic` in the graph that can match our writer (its type)."""
+        return len(endpoints(self.node, topic, EvaluationRequest, warn=True))
+
     def _present_on(self, discipline: str, topic: str, subscriber: bool = True) -> tuple[set[str], int]:
-        """(accepted instances of `discipline` subscribed to (publishing on) `topic`, all of them)."""
+        """(accepted instances of `discipline` subscribed to (publishing on) `topic`, all of them of its type:
+        requests are read, results published)."""
         accepted = self.instances.get(discipline, set())
-        infos = (self.node.get_subscriptions_info_by_topic(topic) if subscriber
-                 else self.node.get_publishers_info_by_topic(topic))
+        infos = endpoints(self.node, topic, EvaluationRequest if subscriber else EvaluationResult, subscriber, True)
         present = set()
         for i in infos:
-            full = f"{i.node_namespace.rstrip('/')}/{i.node_name}".lstrip("/")
+            full = node_of(i)
             if full in accepted:
                 present.add(full)
             elif i.node_name in accepted:

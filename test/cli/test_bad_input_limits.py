@@ -64,6 +64,34 @@ def test_a_yaml_alias_bomb_in_a_disciplines_options(tmp_path):
     _one_line_exit_2(p, "bad.yaml", "aliases are expanded", "alias bomb")
 
 
+def _ros_limits():
+    resource.setrlimit(resource.RLIMIT_AS, (ROS_MEMORY_BYTES, ROS_MEMORY_BYTES))
+
+
+ROS_MEMORY_BYTES = 4 * 1024 ** 3  # a ROS process maps more address space than a plain one
+
+
+@pytest.mark.parametrize("argv", [["optimize", "CONFIG", "--bag", "b"], ["node", "energy", "--config", "CONFIG"]],
+                         ids=["optimize", "node"])
+def test_a_yaml_alias_bomb_in_a_disciplines_options_over_ros(tmp_path, ros_domain, argv):
+    """Over ROS (a run that launches its nodes, and a discipline node started by hand) the same bomb is refused
+    before anything starts: one line, exit 2, within 4 GB and 120 s; nothing written."""
+    from bev_mdo.testing import ros_env
+
+    text = _leaf_text() + ("disciplines:\n  - vehicle_mass\n  - range\n  - acceleration\n  - motor_speed\n"
+                           "  - name: energy\n    options:\n      junk:\n"
+                           + "\n".join("  " + l for l in _bomb().splitlines()) + "\n")
+    config = str(_config(tmp_path, text))
+    work = tmp_path / "work"
+    work.mkdir()
+    env = {**ros_env(ros_domain), "PYTHONPATH": f"{HERE}{os.pathsep}{REPO}"}
+    p = subprocess.run([sys.executable, "-m", "bev_mdo", *[config if a == "CONFIG" else a for a in argv],
+                        "--domain-id", str(ros_domain)], capture_output=True, text=True, env=env, timeout=120,
+                       cwd=work, preexec_fn=_ros_limits)
+    _one_line_exit_2(p, "bad.yaml", "aliases are expanded", "alias bomb")
+    assert os.listdir(work) == []
+
+
 def test_deeply_nested_yaml(tmp_path):
     text = _leaf_text() + "recording: " + "[" * 5000 + "]" * 5000 + "\n"
     p = _bev_mdo(tmp_path, "optimize", str(_config(tmp_path, text)), "--transport", "inprocess", "--no-record")

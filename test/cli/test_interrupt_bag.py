@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from bev_mdo.testing import REPO, wait_until
+from bev_mdo.testing import REPO
 
 EXIT = {signal.SIGINT: 130, signal.SIGTERM: 143}
 CONFIG = REPO / "config" / "leaf_nedc.yaml"
@@ -31,10 +31,10 @@ def _start(cwd: Path, *argv: str) -> subprocess.Popen:
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
-def _communicate(p: subprocess.Popen) -> tuple[str, str]:
+def _communicate(p: subprocess.Popen, timeout_s: float = 180) -> tuple[str, str]:
     """(stdout, stderr) of a signalled run; a run that outlives its signal is killed, not left behind."""
     try:
-        return p.communicate(timeout=180)
+        return p.communicate(timeout=timeout_s)
     except subprocess.TimeoutExpired:
         p.kill()
         p.communicate()
@@ -197,20 +197,109 @@ def test_a_discipline_failing_over_ros_keeps_the_bag_of_every_iteration(tmp_path
     _check_iterations(tmp_path / "b", printed)
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
-def test_a_sweep_interrupted_while_it_records_keeps_a_readable_bag(tmp_path, sig):
-    """`sweep` writes its bag after the batch (one record per design): stopped while it writes, the bag is
-    closed with the designs written so far, in order, and opens without repair."""
-    p = _start(tmp_path, "sweep", str(CONFIG), "--doe", "lhs", "--samples", "100000", "--no-plots",
-               "--transport", "inprocess", "--out", "o")
-    wait_until(lambda: list((tmp_path / "o" / "bag").glob("*.mcap")) or p.poll() is not None, 300)  # the bag started
-    assert p.poll() is None, "the sweep ended before it was interrupted"
+TRANSPORTS = ["inprocess", pytest.param("ros", marks=pytest.mark.ros)]
+
+
+def _where(transport: str, request) -> list[str]:
+    if transport == "inprocess":
+        return ["--transport", "inprocess"]
+    return ["--transport", "ros", "--domain-id", str(request.getfixturevalue("ros_domain"))]
+
+
+def _fault_run(cwd: Path, point: str, *argv: str) -> subprocess.Popen:
+    """`bev-mdo` stopped at a known point by fault_runs.py (paused waiting on stdin, or failing)."""
+    here = Path(__file__).resolve().parent
+    env = {**os.environ, "PYTHONPATH": f"{here}{os.pathsep}{REPO}", "PYTHONUNBUFFERED": "1"}
+    return subprocess.Popen([sys.executable, str(here / "fault_runs.py"), point, *argv], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=cwd,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+
+
+def _signal_when_paused(p: subprocess.Popen, sig: int) -> tuple[int, str, dict[int, str]]:
+    """Send `sig` once the run printed `paused`; (exit status, stderr, the run's children when it paused)."""
+    from bev_mdo.testing import child_processes
+
+    for line in p.stdout:
+        if line.strip() == "paused":
+            break
+    else:
+        _, err = _communicate(p)
+        raise AssertionError(f"the run ended before it paused: {err[-2000:]}")
+    children = child_processes(p.pid)
     p.send_signal(sig)
-    _out, err = _communicate(p)
-    assert p.returncode == EXIT[sig] and "Traceback" not in err, err[-2000:]
+    _, err = _communicate(p)
+    return p.returncode, err, children
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_sweep_interrupted_while_it_records_keeps_a_readable_bag(tmp_path, sig, transport, request):
+    """`sweep` records its batch once it is done, one record per design: stopped once three designs are in the
+    bag (fault_runs.py pauses it there), it exits 130/143 with a bag that holds exactly those three, in
+    order, and opens without repair."""
+    p = _fault_run(tmp_path, "pause-after-3-records", "sweep", str(CONFIG), "--doe", "lhs", "--samples", "8",
+                   "--no-plots", "--out", "o", *_where(transport, request))
+    status, err, _ = _signal_when_paused(p, sig)
+    assert status == EXIT[sig] and "Traceback" not in err, err[-2000:]
     recs = _complete_records(tmp_path / "o" / "bag", "/bev_mdo/iteration")
-    assert len(recs) < 100000  # stopped part way (maybe before its first record): what was written, kept
-    assert [int(r.iteration) for r in recs] == list(range(len(recs)))
+    assert [int(r.iteration) for r in recs] == [0, 1, 2]
+    assert [int(r.sequence) for r in recs] == [1, 2, 3]
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_sweep_interrupted_in_its_batch_stops_its_nodes_and_leaves_no_bag(tmp_path, sig, transport, request):
+    """Stopped while its batch is evaluated (over ROS: with its discipline nodes up), a sweep has finished no
+    batch: it exits 130/143 without a traceback, writes no bag and leaves none of its processes behind."""
+    p = _fault_run(tmp_path, "pause-in-batch", "sweep", str(CONFIG), "--doe", "lhs", "--samples", "8",
+                   "--no-plots", "--out", "o", *_where(transport, request))
+    status, err, children = _signal_when_paused(p, sig)
+    assert status == EXIT[sig] and "Traceback" not in err, err[-2000:]
+    assert not (tmp_path / "o" / "bag").exists()
+    if transport == "ros":
+        assert any("_node" in cmd for cmd in children.values()), children  # the nodes were up when it paused
+    left = [cmd for pid, cmd in children.items() if Path(f"/proc/{pid}").exists()]
+    assert not left, left
+
+
+def _fault_run_to_end(cwd: Path, point: str, *argv: str) -> subprocess.CompletedProcess:
+    p = _fault_run(cwd, point, *argv)
+    out, err = _communicate(p, 600)
+    return subprocess.CompletedProcess(p.args, p.returncode, out, err)
+
+
+def _one_error_line(p: subprocess.CompletedProcess, command: str) -> None:
+    """Exit status 7 and the last line of stderr names the coordinator's error, where it was raised; no traceback."""
+    import re
+
+    assert p.returncode == 7 and "Traceback" not in p.stderr, p.stderr[-2000:]
+    lines = p.stderr.strip().splitlines()
+    assert re.fullmatch(rf"bev-mdo {command}: error: RuntimeError: the coordinator fails on purpose "
+                        r"\(raised at fault_runs\.py:\d+\)", lines[-1]), p.stderr[-2000:]
+    assert [l for l in lines if "error" in l.lower()] == [lines[-1]], p.stderr[-2000:]
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_an_exception_in_the_pareto_coordinator_keeps_the_bag(tmp_path, transport, request):
+    """The coordinator raises once generation 3 is done (fault_runs.py): exit status 7, one line, and a bag
+    that opens without repair with the fronts of generations 1, 2 and 3 (over ROS: the recorder's bag)."""
+    p = _fault_run_to_end(tmp_path, "fail-after-generation-3", "pareto", str(REPO / "config" / "topologies_artemis.yaml"),
+                          "--generations", "20", "--pop", "8", "--out", "out", "--no-plots", *_where(transport, request))
+    _one_error_line(p, "pareto")
+    fronts = _complete_records(tmp_path / "out" / "bag", "/bev_mdo/pareto_front")
+    assert [int(f.generation) for f in fronts] == [1, 2, 3]
+    assert not any(f.final for f in fronts)
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_an_exception_in_the_sweep_coordinator_after_its_batch_keeps_the_bag(tmp_path, transport, request):
+    """The coordinator raises once the batch is done, as it writes the CSV (fault_runs.py): exit status 7, one
+    line, and a bag that opens without repair with one record per design of the finished batch."""
+    p = _fault_run_to_end(tmp_path, "fail-after-batch", "sweep", str(CONFIG), "--doe", "lhs", "--samples", "8",
+                          "--no-plots", "--out", "o", *_where(transport, request))
+    _one_error_line(p, "sweep")
+    recs = _complete_records(tmp_path / "o" / "bag", "/bev_mdo/iteration")
+    assert [int(r.iteration) for r in recs] == list(range(8))
 
 
 @pytest.mark.parametrize("transport", ["inprocess", pytest.param("ros", marks=pytest.mark.ros)])

@@ -27,8 +27,10 @@ class FakeNode:
     def create_subscription(self, _type, _topic, handler, _qos):
         self.handler = handler
 
-    def get_subscriptions_info_by_topic(self, topic):
-        return [SimpleNamespace(node_namespace="/", node_name=n) for n in self.readers.get(topic, [])]
+    def get_subscriptions_info_by_topic(self, topic):  # a reader "name:type" has that type, else the run's
+        return [SimpleNamespace(node_namespace="/", node_name=n.split(":")[0],
+                                topic_type=n.split(":")[1] if ":" in n else "bev_mdo_msgs/msg/IterationRecord")
+                for n in self.readers.get(topic, [])]
 
     def get_fully_qualified_name(self):
         return "/coordinator_r1"
@@ -70,7 +72,9 @@ def test_readers_count_only_when_the_declared_recorder_is_among_them_and_matched
     topic = "/bev_mdo/iteration"
     node = FakeNode({topic: ["stranger", "recorder_other_run"]})
     own = OwnRecorder(node, "r1", None, None)
-    pub = SimpleNamespace(get_subscription_count=lambda: 2)
+    from bev_mdo_msgs.msg import IterationRecord
+
+    pub = SimpleNamespace(get_subscription_count=lambda: 2, msg_type=IterationRecord)
     assert not own.records(topic, pub=pub)  # no declaration yet: two readers say nothing
     _declare(node)
     assert not own.records(topic, pub=pub)  # declared, but not reading this topic in our graph
@@ -78,6 +82,8 @@ def test_readers_count_only_when_the_declared_recorder_is_among_them_and_matched
     assert not own.records(topic, pub=pub)  # our writer matched 2 of the 3 readers
     pub.get_subscription_count = lambda: 3
     assert own.records(topic, pub=pub)
+    node.readers[topic].append("squatter:std_msgs/msg/String")
+    assert own.records(topic, pub=pub)  # a reader of another type can never match: it is not waited for
     _declare(node, publishers={topic: []})  # the recorder has not matched our publisher yet
     assert not own.records(topic, pub=pub)
 
