@@ -10,6 +10,8 @@ domain id is the project's own. Going across hosts is an explicit opt-in
 from __future__ import annotations
 
 import os
+import tempfile
+from pathlib import Path
 from typing import Any, Mapping
 
 from bev_mdo.models.common import check_keys
@@ -104,6 +106,10 @@ def ros_environment(ros: Mapping[str, Any], base: Mapping[str, str] | None = Non
     env.pop("ROS_STATIC_PEERS", None)
     env.pop("ROS_DISCOVERY_SERVER", None)
     mode = ros["discovery"]
+    if env.get("FASTRTPS_DEFAULT_PROFILES_FILE", "").startswith(str(_PROFILE_DIR)):  # ours (any domain)
+        del env["FASTRTPS_DEFAULT_PROFILES_FILE"]
+    if mode in ("localhost", "static_peers") and not env.get("FASTRTPS_DEFAULT_PROFILES_FILE"):  # a user's own wins
+        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(localhost_peers_profile(int(ros["domain_id"])))
     if mode == "localhost":
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     elif mode == "static_peers":
@@ -115,6 +121,40 @@ def ros_environment(ros: Mapping[str, Any], base: Mapping[str, str] | None = Non
     else:  # subnet: explicit opt-in to multicast discovery on the local network
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
     return env
+
+
+# With the LOCALHOST range, rmw_fastrtps announces a participant to 127.0.0.1 at the discovery ports of
+# participant ids 0-31 only (maxInitialPeersRange = 32): two processes of one domain whose ids are both 32
+# or more never discover each other (measured: of 40 processes, ids 32-40 each saw 32 of the 40 nodes).
+# A process takes the first free id, and Fast DDS tries 100 ids past the first (mutation_tries), so
+# the profile below lists 127.0.0.1 at the ports of ids 32-119 as initial peers, each with its port
+# (RTPS 9.6.1.1: 7400 + 250 * domain + 10 + 2 * id; ports past 65535 do not exist).
+LOCALHOST_PEER_IDS = range(32, 120)
+_PROFILE_DIR = Path(tempfile.gettempdir()) / f"bev_mdo_fastdds_{os.getuid()}"
+
+
+def localhost_peers_profile(domain_id: int) -> Path:
+    """The Fast DDS XML profile (FASTRTPS_DEFAULT_PROFILES_FILE) that makes a process of `domain_id`
+    announce itself to 127.0.0.1 at the discovery ports of participant ids 32-119 as well, so up
+    to about 100 processes of one domain on one host all find each other; written once per domain."""
+    base = 7400 + 250 * domain_id + 10
+    peers = "".join(f"<locator><udpv4><address>127.0.0.1</address><port>{base + 2 * i}</port></udpv4></locator>"
+                    for i in LOCALHOST_PEER_IDS if base + 2 * i <= 65535)
+    text = ('<?xml version="1.0" encoding="UTF-8"?>\n'
+            '<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"><profiles>\n'
+            '<participant profile_name="bev_mdo_localhost_peers" is_default_profile="true"><rtps><builtin>'
+            f"<initialPeersList>{peers}</initialPeersList></builtin></rtps></participant>\n</profiles></dds>\n")
+    path = _PROFILE_DIR / f"localhost_peers_domain{domain_id}.xml"
+    try:
+        if path.read_text(encoding="utf-8") == text:
+            return path
+    except OSError:
+        pass
+    _PROFILE_DIR.mkdir(mode=0o700, exist_ok=True)
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")  # several runs start at once: replaced whole
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+    return path
 
 
 def validate_min_rows(setting) -> int | dict[str, int]:
