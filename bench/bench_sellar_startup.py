@@ -145,6 +145,7 @@ def concurrent(args) -> int:
             n, c = key.split("|")
             runs[(int(n), c)] = rounds + runs.get((int(n), c), [])
     figures, failed, objectives = [], {}, set()
+    runs = dict(sorted(runs.items()))  # by count, then layout
     for (n, compose), rounds in runs.items():
         every = [x["startup_s"] for rs in rounds for x in rs if x["exit"] == 0 and x["startup_s"]]
         failed[f"{n} x {compose}"] = sum(x["exit"] != 0 for rs in rounds for x in rs)
@@ -153,7 +154,9 @@ def concurrent(args) -> int:
             figures.append(figure(f"start-up, {n} run{'s' if n > 1 else ''} together, --compose {compose}", "s",
                                   every, note=f"{failed[f'{n} x {compose}']} of {n * len(rounds)} runs failed"))
     single = RESULT.read_text(encoding="utf-8") if RESULT.exists() else "{}"
-    write("bench_sellar_startup", figures, extra={"rows": json.loads(single).get("rows", []),  # the one-run part, kept
+    command = (f"python bench/bench_sellar_startup.py --concurrent N --compose LAYOUT --repeat 1 --domain-id {args.domain_id} "
+               "--append, one call per count, layout and round" if args.append else None)
+    write("bench_sellar_startup", figures, command=command, extra={"rows": json.loads(single).get("rows", []),  # the one-run part, kept
         "config": "config/leaf_nedc.yaml (recorded)",
         "rounds": {f"{n} x {c}": len(rounds) for (n, c), rounds in runs.items()}, "failed_runs": failed,
         "objectives": sorted(objectives), "raw": {f"{n}|{c}": rounds for (n, c), rounds in runs.items()}})
