@@ -24,7 +24,8 @@ start-up; failed runs counted).
 
     .venv/bin/python bench/bench_sellar_startup.py [--repeat 5] [--domain-id 22]
     .venv/bin/python bench/bench_sellar_startup.py --concurrent 1,4,8 --repeat 2 [--compose none,coordinator]
-    (take /tmp/bev_ros_tests.lock around it on a shared host)
+    (take /tmp/bev_ros_tests.lock around it on a shared host; ``--append`` adds this call's rounds to
+    those already in the results file, so each round can run under the lock on its own)
 """
 from __future__ import annotations
 
@@ -42,6 +43,7 @@ import yaml
 
 REPO = Path(__file__).resolve().parents[1]
 RESULT = REPO / "bench" / "results" / "bench_sellar_startup.json"
+ROUND_TIMEOUT_S = 300.0  # a round of runs started together is stopped after this
 
 
 def configs(tmp: Path) -> dict[str, Path]:
@@ -82,6 +84,7 @@ def start_together(n: int, compose: str, domain: int, cwd: Path, tag: str) -> li
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env.pop("ROS_LOG_DIR", None)
     out: list[dict] = [{} for _ in range(n)]
+    load = round(os.getloadavg()[0], 2)  # the host's load as the round starts
 
     def one(k: int, t0: float, p: subprocess.Popen) -> None:
         first, tail = None, []
@@ -91,10 +94,10 @@ def start_together(n: int, compose: str, domain: int, cwd: Path, tag: str) -> li
             tail = (tail + [line.rstrip()])[-3:]
         p.wait()
         doc = json.loads(p.stdout.read() or "{}") if p.returncode == 0 else {}
-        out[k] = {"startup_s": first, "wall_s": time.perf_counter() - t0, "exit": p.returncode,
+        out[k] = {"startup_s": first, "wall_s": time.perf_counter() - t0, "exit": p.returncode, "load_1min": load,
                   "objective": doc.get("objective"), **({"stderr_tail": tail} if p.returncode else {})}
 
-    threads = []
+    threads, procs = [], []
     for k in range(n):
         argv = [sys.executable, "-m", "bev_mdo", "optimize", str(REPO / "config" / "leaf_nedc.yaml"), "--json",
                 "--domain-id", str(domain), "--compose", compose, "--bag", str(cwd / "bags" / f"{tag}_{k}")]
@@ -102,8 +105,19 @@ def start_together(n: int, compose: str, domain: int, cwd: Path, tag: str) -> li
         p = subprocess.Popen(argv, env=env, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         threads.append(threading.Thread(target=one, args=(k, t0, p)))
         threads[-1].start()
+        procs.append(p)
+    deadline = time.monotonic() + ROUND_TIMEOUT_S
     for t in threads:
-        t.join(timeout=900)
+        t.join(timeout=max(0.0, deadline - time.monotonic()))
+    for p in procs:  # a run still going after the bound is stopped (SIGTERM: it stops its nodes) and counts as failed
+        if p.poll() is None:
+            p.terminate()
+            try:
+                p.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                p.kill()
+    for t in threads:
+        t.join()
     return out
 
 
@@ -116,24 +130,22 @@ def concurrent(args) -> int:
 
     counts = [int(c) for c in args.concurrent.split(",")]
     composes = args.compose.split(",")
-    from bev_mdo.config import discipline_names, load_config
-
-    # DDS participants of one run: one per process (the disciplines' with --compose none), the recorder's, and the
-    # command's two (coordinator, hang watchdog). LOCALHOST discovery reaches 32 per domain (docs/scaling.md).
-    per_run = {"none": len(discipline_names(load_config(REPO / "config" / "leaf_nedc.yaml"))) + 3, "coordinator": 3}
-    skipped = {f"{n} x {c}": f"{n * per_run[c]} participants > 32" for n in counts for c in composes
-               if n * per_run[c] > 32}
     runs: dict[tuple[int, str], list[list[dict]]] = {}
     with tempfile.TemporaryDirectory() as d:
         for r in range(args.repeat):
             for n in counts:
-                for compose in [c for c in composes if f"{n} x {c}" not in skipped]:  # interleaved: noisy host
+                for compose in composes:  # interleaved: noisy host
                     rs = start_together(n, compose, args.domain_id, Path(d), f"r{r}_{n}_{compose}")
                     runs.setdefault((n, compose), []).append(rs)
                     ok = [x for x in rs if x["exit"] == 0]
                     print(f"round {r}: {n} x --compose {compose}: {len(ok)}/{n} finished; start-up "
                           f"{sorted(round(x['startup_s'], 1) for x in ok if x['startup_s'])} s", flush=True)
+    if args.append and RESULT.exists():  # the rounds of earlier calls first
+        for key, rounds in json.loads(RESULT.read_text(encoding="utf-8")).get("raw", {}).items():
+            n, c = key.split("|")
+            runs[(int(n), c)] = rounds + runs.get((int(n), c), [])
     figures, failed, objectives = [], {}, set()
+    runs = dict(sorted(runs.items()))  # by count, then layout
     for (n, compose), rounds in runs.items():
         every = [x["startup_s"] for rs in rounds for x in rs if x["exit"] == 0 and x["startup_s"]]
         failed[f"{n} x {compose}"] = sum(x["exit"] != 0 for rs in rounds for x in rs)
@@ -142,8 +154,11 @@ def concurrent(args) -> int:
             figures.append(figure(f"start-up, {n} run{'s' if n > 1 else ''} together, --compose {compose}", "s",
                                   every, note=f"{failed[f'{n} x {compose}']} of {n * len(rounds)} runs failed"))
     single = RESULT.read_text(encoding="utf-8") if RESULT.exists() else "{}"
-    write("bench_sellar_startup", figures, extra={"rows": json.loads(single).get("rows", []),  # the one-run part, kept
-        "config": "config/leaf_nedc.yaml (recorded)", "rounds": args.repeat, "failed_runs": failed, "not_run": skipped,
+    command = (f"python bench/bench_sellar_startup.py --concurrent N --compose LAYOUT --repeat 1 --domain-id {args.domain_id} "
+               "--append, one call per count, layout and round" if args.append else None)
+    write("bench_sellar_startup", figures, command=command, extra={"rows": json.loads(single).get("rows", []),  # the one-run part, kept
+        "config": "config/leaf_nedc.yaml (recorded)",
+        "rounds": {f"{n} x {c}": len(rounds) for (n, c), rounds in runs.items()}, "failed_runs": failed,
         "objectives": sorted(objectives), "raw": {f"{n}|{c}": rounds for (n, c), rounds in runs.items()}})
     return 0
 
@@ -155,6 +170,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=str(RESULT))
     ap.add_argument("--concurrent", default="", help="e.g. 1,4,8: runs started together on one domain")
     ap.add_argument("--compose", default="none,coordinator", help="with --concurrent: layouts to compare")
+    ap.add_argument("--append", action="store_true", help="with --concurrent: keep the rounds already in the results file")
     args = ap.parse_args(argv)
     if args.concurrent:
         return concurrent(args)

@@ -10,6 +10,8 @@ domain id is the project's own. Going across hosts is an explicit opt-in
 from __future__ import annotations
 
 import os
+import tempfile
+from pathlib import Path
 from typing import Any, Mapping
 
 from bev_mdo.models.common import check_keys
@@ -104,6 +106,12 @@ def ros_environment(ros: Mapping[str, Any], base: Mapping[str, str] | None = Non
     env.pop("ROS_STATIC_PEERS", None)
     env.pop("ROS_DISCOVERY_SERVER", None)
     mode = ros["discovery"]
+    # bev_mdo's profile, with the initial peers of the domain on one host (a profile the user names wins)
+    profile = env.get("FASTRTPS_DEFAULT_PROFILES_FILE", "")
+    if "FASTDDS_DEFAULT_PROFILES_FILE" not in env and (not profile or profile == str(DDS_PROFILE)
+                                                      or profile.startswith(str(_PROFILE_DIR))):
+        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(localhost_peers_profile(int(ros["domain_id"])) if mode in (
+            "localhost", "static_peers") else DDS_PROFILE)
     if mode == "localhost":
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     elif mode == "static_peers":
@@ -115,6 +123,51 @@ def ros_environment(ros: Mapping[str, Any], base: Mapping[str, str] | None = Non
     else:  # subnet: explicit opt-in to multicast discovery on the local network
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
     return env
+
+
+# bev_mdo's Fast DDS profile (its reasons are in the file): bev_mdo.ros.DDS_PROFILE, the default it sets on
+# import (named here too: importing bev_mdo.ros from the config's layer would be upside down)
+DDS_PROFILE = Path(__file__).resolve().parent / "data" / "fastdds_profile.xml"
+# With the LOCALHOST range, rmw_fastrtps announces a participant to 127.0.0.1 at the discovery ports of
+# participant ids 0-31 only (maxInitialPeersRange = 32): two processes of one domain whose ids are both 32
+# or more never discover each other (measured: of 40 processes, ids 32-40 each saw 32 of the 40 nodes).
+# A process takes the first free id, and Fast DDS tries 100 ids past the first (mutation_tries), so
+# the per-domain profile below adds 127.0.0.1 at the ports of ids 32-119 as initial peers, each with
+# its port (RTPS 9.6.1.1: 7400 + 250 * domain + 10 + 2 * id; ports past 65535 do not exist).
+LOCALHOST_PEER_IDS = range(32, 120)
+_PROFILE_DIR = Path(tempfile.gettempdir()) / f"bev_mdo_fastdds_{os.getuid()}"
+
+
+def localhost_peers_profile(domain_id: int) -> Path:
+    """bev_mdo's Fast DDS profile (DDS_PROFILE) plus 127.0.0.1 at the discovery ports of participant
+    ids 32-119 of `domain_id` as initial peers, so up to about 100 processes of one domain on one
+    host all find each other; written once per domain under the temp directory."""
+    import xml.etree.ElementTree as ET
+
+    ns = "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"
+    ET.register_namespace("", ns)
+    root = ET.fromstring(DDS_PROFILE.read_text(encoding="utf-8"))
+    builtin = root.find(f"{{{ns}}}participant/{{{ns}}}rtps/{{{ns}}}builtin")
+    peers = ET.SubElement(builtin, f"{{{ns}}}initialPeersList")
+    base = 7400 + 250 * domain_id + 10
+    for i in LOCALHOST_PEER_IDS:
+        if base + 2 * i <= 65535:
+            udp = ET.SubElement(ET.SubElement(peers, f"{{{ns}}}locator"), f"{{{ns}}}udpv4")
+            ET.SubElement(udp, f"{{{ns}}}address").text = "127.0.0.1"
+            ET.SubElement(udp, f"{{{ns}}}port").text = str(base + 2 * i)
+    text = (f'<?xml version="1.0" encoding="UTF-8"?>\n<!-- {DDS_PROFILE} with initial peers for domain '
+            f'{domain_id} (bev_mdo/ros_settings.py, localhost_peers_profile) -->\n' + ET.tostring(root, encoding="unicode"))
+    path = _PROFILE_DIR / f"localhost_peers_domain{domain_id}.xml"
+    try:
+        if path.read_text(encoding="utf-8") == text:
+            return path
+    except OSError:
+        pass
+    _PROFILE_DIR.mkdir(mode=0o700, exist_ok=True)
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")  # several runs start at once: replaced whole
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+    return path
 
 
 def validate_min_rows(setting) -> int | dict[str, int]:

@@ -15,7 +15,8 @@ def apply_ros_environment(ros: Mapping[str, Any]) -> None:
     from bev_mdo.ros_settings import ros_environment
 
     env = ros_environment(ros)
-    for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER"):
+    for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER",
+              "FASTRTPS_DEFAULT_PROFILES_FILE"):
         if k in env:
             os.environ[k] = env[k]
         else:

@@ -80,8 +80,8 @@ class StartupWaits:
                 raise DisciplineMissing(
                     f"discipline(s) {gone} not found on ROS domain: discovery made no progress for {wait_s:g} s "
                     "(is each node running, with the same ROS_DOMAIN_ID and discovery settings? see its log in "
-                    "the run's logs folder; LOCALHOST discovery reaches about 32 processes per domain, "
-                    "docs/scaling.md; ros.discovery_wait_s sets this bound)"
+                    "the run's logs folder; the limits of one domain are in docs/scaling.md; "
+                    "ros.discovery_wait_s sets this bound)"
                 )
         # Our result subscription must be matched to every discipline's publisher too.
         if not until(lambda: self._result_sub.get_publisher_count() >= len(set(names)), wait_s, spin, progress,

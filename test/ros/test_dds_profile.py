@@ -64,6 +64,18 @@ def test_profile_is_used_and_fast_dds_parses_it(ros_domain):
     assert _complaints(out) == ""  # a profile Fast DDS cannot read is logged as "[XMLPARSER Error] ..."
 
 
+def test_the_profile_with_a_domains_localhost_peers_is_parsed(ros_domain):
+    """The profile every bev_mdo process of a run gets (bev_mdo's plus the initial peers of the
+    domain's participant ids from 32, ros_settings.localhost_peers_profile): Fast DDS reads it."""
+    from bev_mdo.ros_settings import ros_environment, validate_ros
+
+    env = ros_environment(validate_ros({"domain_id": ros_domain}), base=_env(ros_domain))
+    out = _run(env)
+    assert out.returncode == 0, out.stderr
+    assert _profile(out).endswith(f"localhost_peers_domain{ros_domain}.xml")
+    assert _complaints(out) == ""
+
+
 def test_a_profile_the_user_names_is_kept(ros_domain, tmp_path):
     mine = tmp_path / "mine.xml"
     mine.write_text('<?xml version="1.0" encoding="UTF-8"?>\n'
