@@ -125,8 +125,7 @@ def ros_environment(ros: Mapping[str, Any], base: Mapping[str, str] | None = Non
     return env
 
 
-# bev_mdo's Fast DDS profile (its reasons are in the file): bev_mdo.ros.DDS_PROFILE, the default it sets on
-# import (named here too: importing bev_mdo.ros from the config's layer would be upside down)
+# bev_mdo's Fast DDS profile (its reasons are in the file): the default bev_mdo.ros sets on import
 DDS_PROFILE = Path(__file__).resolve().parent / "data" / "fastdds_profile.xml"
 # With the LOCALHOST range, rmw_fastrtps announces a participant to 127.0.0.1 at the discovery ports of
 # participant ids 0-31 only (maxInitialPeersRange = 32): two processes of one domain whose ids are both 32

@@ -6,9 +6,8 @@ environment already names a profile file; set ``FASTRTPS_DEFAULT_PROFILES_FILE``
 file to replace it. Child processes inherit the setting.
 """
 import os
-from pathlib import Path
 
-DDS_PROFILE = Path(__file__).resolve().parents[1] / "data" / "fastdds_profile.xml"
+from bev_mdo.ros_settings import DDS_PROFILE
 _PROFILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 
 if not any(v in os.environ for v in _PROFILE_VARS) and DDS_PROFILE.is_file():
