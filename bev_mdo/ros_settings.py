@@ -23,7 +23,7 @@ DEFAULTS: dict[str, Any] = {
     "discovery_server": "",          # with server: "ip:port" of a Fast DDS discovery server
     "timeout_s": 5.0,                # per evaluation wave before a retry
     "retries": 3,
-    "discovery_wait_s": 20.0,        # start-up gives up after this long without progress (fastwait.until)
+    "discovery_wait_s": 60.0,        # start-up gives up after this long without progress (fastwait.until)
     "sign_key_file": "",             # path of a shared HMAC key: sign and verify every request/result
     "signing": True,                 # a run launched by bev-mdo signs with a fresh per-run key (if no key file)
     "sign_window_s": 30.0,           # signed messages with a stamp further than this from now are expired

@@ -284,11 +284,13 @@ class OwnRecorder:
         return need <= declared
 
 
-def serve_until(node: "RecorderNode", stopped, idle_s: float = 0.05, timers_every_s: float = 0.02) -> None:
+def serve_until(node: "RecorderNode", stopped, idle_s: float = 0.05, timers_every_s: float = 0.02,
+                nice: int = 0) -> None:
     """Record until stopped(): messages are taken straight from the subscriptions that the wait
     set found ready (fastwait); the node's own executor runs the timers (topic discovery, flush,
     status) at most every ``timers_every_s``, not once per message (an executor spin rebuilds a
-    wait set over every entity and costs more than recording the message)."""
+    wait set over every entity and costs more than recording the message). With ``nice`` > 0 the
+    process lowers its priority by that much once it recorded its first message."""
     from rclpy.executors import SingleThreadedExecutor
 
     from bev_mdo.ros.fastwait import MultiWaiter
@@ -302,6 +304,9 @@ def serve_until(node: "RecorderNode", stopped, idle_s: float = 0.05, timers_ever
             pairs = node.handlers()
             if pairs and waiter.wait([s for s, _ in pairs], idle_s):
                 waiter.take_ready(pairs)
+                if nice > 0 and node.writer.message_count:
+                    os.nice(nice)
+                    nice = 0
             now = time.monotonic()
             if now >= next_timers or not pairs:
                 executor.spin_once(timeout_sec=0.0 if pairs else idle_s)
@@ -364,12 +369,12 @@ def main(args: list[str] | None = None) -> int:
     try:
         node = RecorderNode(parameter_overrides=overrides)
         # The recorder yields the CPU to the run it records (on a 2-core host it otherwise adds
-        # ~10 % to the MDA latency); its subscription queues are deep, so it catches up in the
-        # gaps, and it drains what is queued before it closes the bag.
+        # ~10 % to the MDA latency) once the run's first message arrived; through start-up (discovery,
+        # matching, its declaration, which the run waits for) it keeps the priority of the run's other
+        # processes, else a host loaded by many runs starting together starves it. Its subscription
+        # queues are deep, so it catches up in the gaps, and it drains what is queued before it closes the bag.
         nice = int(node.declare_parameter("nice", 10).value)
-        if nice > 0:
-            os.nice(nice)
-        serve_until(node, lambda: bool(stop))
+        serve_until(node, lambda: bool(stop), nice=nice)
         # Drain what already arrived before closing, so a stop does not lose the run's tail.
         node.drain()
         return 0
