@@ -8,6 +8,8 @@ functions stay as the reference the tests compare with (energy and range to 1e-1
 
 * The demand of a design is one signed power per step: ``>= 0`` motoring (drawn from the
   battery), ``< 0`` regenerating (offered to it; the battery applies rule 4 and the 2C cap).
+* A step's demand depends on its (mean speed, acceleration) alone, so it is computed once per
+  distinct pair of the cycle (``quasi_static.step_pairs``) and the battery reads each step's.
 * Range steps only the battery over the range cycle's precomputed demand, cycle after cycle,
   and stops each design at its own crossing of ``final_soc``; steps with zero demand leave the
   battery as it is (no current, no energy) and are skipped.
@@ -60,10 +62,11 @@ def _locate(x, xp, table, inv_h):
     if x < xp[0]:
         return 0, True
     j = table[min(int((x - xp[0]) * inv_h), table.shape[0] - 1)]
-    while j > 0 and xp[j] > x:  # guard against rounding of the table position
-        j -= 1
-    while j < n - 1 and xp[j + 1] <= x:  # largest j with xp[j] <= x
-        j += 1
+    # The table position is x's to a few ulps and a table cell (h) is half the least spacing, so
+    # x's interval is the table's or one of its neighbours: one step down or up, as selects (no
+    # loop: the split's evaluation loops stay vectorisable)
+    j = j - 1 if (j > 0 and xp[j] > x) else j
+    j = j + 1 if (j < n - 1 and xp[j + 1] <= x) else j  # largest j with xp[j] <= x
     return j, (j == n - 1 or xp[j] == x)
 
 
@@ -231,12 +234,21 @@ def _axle_power(x, o, tw, w, fi, tmax, driving, allowed, mp, loss):
 
 
 @_jit(inline="always")
+def _split_power(x, o, s, t_w, w, fi, tmax, driving, allowed, mp, loss):
+    """Power and score of one front share ``s`` (front axle at ``s``, rear at ``1 - s``)."""
+    pp, of = _axle_power(x, 0, t_w * s, w[0], fi[0], tmax[0], driving, allowed, mp, loss)
+    pr, orr = _axle_power(x, o, t_w * (1.0 - s), w[1], fi[1], tmax[1], driving, allowed, mp, loss)
+    pp, of = pp + pr, of + orr
+    return pp, pp + _PENALTY_W_PER_NM * of  # topology.best_split's selection score
+
+
+@_jit(inline="always")
 def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power, mp, loss):
     """One or two driven axles at one step (``topology._demand``): with two, the front share of
     wheel torque of least electrical power (coarse ``grid``, then ``fine`` around its argmin, the
     first minimum as np.argmin; a fine share equal to a coarse one reuses its value); one axle
-    carries it all (share 1). ``score`` and ``power`` are scratch arrays of the grid's length.
-    (power, top motor speed, wheel-torque margin)."""
+    carries it all (share 1). ``score`` and ``power``: scratch of the grid's plus ``fine``'s
+    length. (power, top motor speed, wheel-torque margin)."""
     o = _REAR
     wf = v / x[_RW] * x[_RATIO]
     tmf = _t_max(wf, x[_WLIM], x[_TPK], x[_KW])
@@ -250,44 +262,45 @@ def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power,
     if not (driving or allowed) and loss[0] == 0.0:  # no motor torque on any axle at any share (a loss
         # model's idle motors still lose)
         return 0.0, w_top, cap - t_w
+    if t_w == 0.0 and (loss[0] == 0.0 or v == 0.0):  # standing (or no wheel torque): no torque at any
+        # share, and no idle loss without speed: every share's power is 0
+        return 0.0, w_top, cap - t_w
     fif = _speed_index(wf, mp)
-    fir = _speed_index(wr, mp) if two_axles else 0.0
-    n_coarse = grid.shape[0] if two_axles else 1
+    if not two_axles:
+        return _axle_power(x, 0, t_w, wf, fif, tmf, driving, allowed, mp, loss)[0], w_top, cap - t_w
+    w, fi, tmax = (wf, wr), (fif, _speed_index(wr, mp)), (tmf, tmr)
+    n_coarse = grid.shape[0]
+    for i in range(n_coarse):
+        power[i], score[i] = _split_power(x, o, grid[i], t_w, w, fi, tmax, driving, allowed, mp, loss)
     jc = 0
-    s0 = best = p = 0.0
-    for idx in range(n_coarse + (fine.shape[0] if two_axles else 0)):  # one evaluation site (compile time)
+    for i in range(1, n_coarse):  # the first minimum, as np.argmin
+        if score[i] < score[jc]:
+            jc = i
+    s0 = grid[jc]
+    n_fine = fine.shape[0]
+    for i in range(n_fine):
+        s = min(max(s0 + fine[i], 0.0), 1.0)
         q = -1
-        if idx < n_coarse:
-            s = grid[idx] if two_axles else 1.0
-        else:
-            s = min(max(s0 + fine[idx - n_coarse], 0.0), 1.0)
-            for i in range(max(jc - 1, 0), min(jc + 2, n_coarse)):
-                if grid[i] == s:
-                    q = i
+        for c in range(max(jc - 1, 0), min(jc + 2, n_coarse)):  # a fine share equal to a coarse one
+            if grid[c] == s:
+                q = c
         if q >= 0:
-            sc, pp = score[q], power[q]
+            power[n_coarse + i], score[n_coarse + i] = power[q], score[q]
         else:
-            pp, of = _axle_power(x, 0, t_w * s, wf, fif, tmf, driving, allowed, mp, loss)
-            if two_axles:
-                pr, orr = _axle_power(x, o, t_w * (1.0 - s), wr, fir, tmr, driving, allowed, mp, loss)
-                pp, of = pp + pr, of + orr
-            sc = pp + _PENALTY_W_PER_NM * of  # topology.best_split's selection score
-        if idx < n_coarse:
-            score[idx], power[idx] = sc, pp
-            if sc < score[jc]:
-                jc = idx
-            s0 = grid[jc]
-            p = pp
-        elif sc < best or idx == n_coarse:  # the first minimum, as np.argmin
-            best, p = sc, pp
-    return p, w_top, cap - t_w
+            power[n_coarse + i], score[n_coarse + i] = _split_power(x, o, s, t_w, w, fi, tmax, driving, allowed, mp,
+                                                                    loss)
+    jf = n_coarse
+    for i in range(n_coarse + 1, n_coarse + n_fine):
+        if score[i] < score[jf]:
+            jf = i
+    return power[jf], w_top, cap - t_w
 
 
 @_jit(parallel=True)
 def drive_demand(v, acc, cols, single_motor, two_axles, grid, fine, mp, loss):
-    """Per-step battery demand of every design (row of ``cols``, see ``COLUMNS``) over the steps of
-    mean speed ``v`` and acceleration ``acc``: SM-SA (``single_motor``) or one/two driven axles.
-    Returns the signed power (N, K), the top motor speed (N,) and the least motoring margin (N,):
+    """Battery demand of every design (row of ``cols``, see ``COLUMNS``) at each (mean speed ``v``,
+    acceleration ``acc``) pair (``quasi_static.step_pairs``): SM-SA (``single_motor``) or one/two
+    driven axles. Returns the signed power (N, U), the top motor speed (N,) and the least motoring margin (N,):
     T_max - T_m of the motor (SM-SA) or the axles' wheel torque capacity minus demand. ``loss``:
     ``loss_tuple`` (the map when its first entry is 0)."""
     n_pts, n_steps = cols.shape[0], v.shape[0]
@@ -296,8 +309,8 @@ def drive_demand(v, acc, cols, single_motor, two_axles, grid, fine, mp, loss):
     margin = np.empty(n_pts)
     for n in prange(n_pts):
         x = cols[n]
-        score = np.empty(grid.shape[0])
-        scratch = np.empty(grid.shape[0])
+        score = np.empty(grid.shape[0] + fine.shape[0])
+        scratch = np.empty(grid.shape[0] + fine.shape[0])
         w_top = -np.inf
         least = np.inf
         for k in range(n_steps):
@@ -352,13 +365,14 @@ _GROUP = 4  # designs stepped side by side in one loop: the SOC recurrence of on
 
 
 @_jit(parallel=True)
-def _battery(demand_w, dt, step_m, max_repeats, cols, cell, to_range):
-    """The battery stepped over each design's demand: once from ``initial_soc`` (energy), or
+def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range):
+    """The battery stepped over each design's demand (step k's in column ``step_pair[k]``): once
+    from ``initial_soc`` (energy), or
     from 100 % SOC repeating the cycle until ``final_soc`` (``to_range``). One kernel for both
     (compile time). Returns energy drawn and returned (J), final SOC, the current and power
     flags, and the distance (m, inf if not reached). Each design's steps are its own; designs of
     a group only share the loop."""
-    n_pts, n_steps = demand_w.shape
+    n_pts, n_steps = demand_w.shape[0], step_pair.shape[0]
     energy = np.zeros(n_pts)
     regen = np.zeros(n_pts)
     soc_end = np.empty(n_pts)
@@ -379,7 +393,7 @@ def _battery(demand_w, dt, step_m, max_repeats, cols, cell, to_range):
             for k in range(n_steps):
                 for g in range(size):
                     n = n0 + g
-                    d = demand_w[n, k]
+                    d = demand_w[n, step_pair[k]]
                     if d != 0.0 and active[g]:  # a step without demand: no current, no energy, SOC unchanged
                         x = cols[n]
                         power, i, r, within, new = _step(soc[g], d, dt[k], x, cell)
@@ -405,18 +419,18 @@ def _battery(demand_w, dt, step_m, max_repeats, cols, cell, to_range):
             soc_end[n0 + g] = soc[g]
     return energy, regen, soc_end, current_ok, power_ok, out
 
-def battery_energy(demand_w, dt, cols, cell) -> tuple:
+def battery_energy(demand_w, step_pair, dt, cols, cell) -> tuple:
     """Step each design's battery over its demand from ``initial_soc``
     (``quasi_static.integrate_energy``): energy drawn and returned (J, 2-16, 2-17), final SOC,
     and the current and power feasibility flags."""
-    return _battery(demand_w, dt, np.zeros(dt.shape[0]), 1, cols, cell, False)[:5]
+    return _battery(demand_w, step_pair, dt, np.zeros(dt.shape[0]), 1, cols, cell, False)[:5]
 
 
-def battery_range_m(demand_w, dt, step_m, max_repeats: int, cols, cell) -> np.ndarray:
+def battery_range_m(demand_w, step_pair, dt, step_m, max_repeats: int, cols, cell) -> np.ndarray:
     """Distance (m) from 100 % SOC to ``final_soc`` repeating the cycle's demand
     (``quasi_static.integrate_range``), the crossing interpolated inside its step; inf if the
     battery is still above after ``max_repeats`` cycles."""
-    return _battery(demand_w, dt, step_m, int(max_repeats), cols, cell, True)[5]
+    return _battery(demand_w, step_pair, dt, step_m, int(max_repeats), cols, cell, True)[5]
 
 def table(names: tuple, n: int, values: dict) -> np.ndarray:
     """The (N, len(names)) float table of the compiled loops: each named column from a scalar or

@@ -365,7 +365,7 @@ def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map, with_tra
 
 
 def _fast_demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map) -> qs.FastDemand:
-    """``_demand`` in the compiled per-design loop (compiled.axle_demand; SM-SA: qs.fast_demand)."""
+    """``_demand`` in the compiled per-design loop (compiled.drive_demand; SM-SA: qs.fast_demand)."""
     if t.name == "SM-SA":
         return qs.fast_demand(resampled, p, m, ig, kw, base_map)
     dt, v_bar, a_bar = qs.cycle_steps(resampled)  # 6-50, 6-51
@@ -380,11 +380,11 @@ def _fast_demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map) -> 
                      "count" + tail: float(a.count)})
     grid = np.linspace(0.0, 1.0, int(np.max(p["torque_split_steps"])))
     fine = np.linspace(-(grid[1] - grid[0]), grid[1] - grid[0], 9)
-    power, speed_max, margin = compiled.drive_demand(
-        np.array(v_bar[:, 0]), np.array(a_bar[:, 0]), compiled.table(compiled.COLUMNS, n, cols), False, t.two_axles,
-        grid, fine, *qs.motor_arrays(axles[0].motor_map))
-    return qs.FastDemand(np.array(dt[:, 0]), power, float(np.sum(v_bar[:, 0] * dt[:, 0])), speed_max, margin,
-                         axles[0].w_lim + 0.0 * kw)
+    v_pair, a_pair, step_pair = qs.step_pairs(v_bar, a_bar)
+    power, speed_max, margin = compiled.drive_demand(v_pair, a_pair, compiled.table(compiled.COLUMNS, n, cols), False,
+                                                     t.two_axles, grid, fine, *qs.motor_arrays(axles[0].motor_map))
+    return qs.FastDemand(np.array(dt[:, 0]), power, step_pair, float(np.sum(v_bar[:, 0] * dt[:, 0])), speed_max,
+                         margin, axles[0].w_lim + 0.0 * kw)
 
 
 def simulate(resampled, params, topology, vehicle_mass_kg, motor_kw, battery_kwh=qs.DEFAULT_BATTERY_KWH, gear_ratio=None,
