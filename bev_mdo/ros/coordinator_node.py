@@ -19,7 +19,7 @@ from rclpy.node import Node
 from rcl_interfaces.msg import ParameterDescriptor
 
 from bev_mdo import protocol
-from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, stamp, wait_acked
+from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, endpoints, stamp, wait_acked
 from bev_mdo.ros.evaluator import RosEvaluator
 from bev_mdo.ros.fastwait import until
 from bev_mdo.ros.recorder_node import OwnRecorder
@@ -86,6 +86,20 @@ class CoordinatorNode(Node):
                                       f"{sorted(p.topic_name for p in pending)}")
         return not pending
 
+    def _match_counts(self, own: OwnRecorder, topics) -> str:
+        """What a recorder wait saw of this run's writers on `topics`, for its give-up line: per topic,
+        the writers in the graph the recorder matched, and the readers in the graph our writer matched."""
+        out = []
+        for p in (self._iteration_pub, *self.evaluator.request_publishers):
+            t = p.topic_name
+            if t not in topics:
+                continue
+            writers = endpoints(self, t, p.msg_type, subscriber=False)
+            readers = endpoints(self, t, p.msg_type)
+            out.append(f"{t}: recorder matched {own.matched().get(t, 0)} of {len(writers)} writers, ours "
+                       f"{p.get_subscription_count()} of {len(readers)} readers")
+        return "; ".join(out)
+
     def wait_for_recorder(self, wait_s: float, binding: str | None = None) -> OwnRecorder:
         """Wait until this run's own recorder, known by its declaration (this run id and, when
         given, `binding`; signed with the run's key when the run signs: recorder_node.OwnRecorder),
@@ -113,7 +127,7 @@ class CoordinatorNode(Node):
 
         if not until(lambda: not missing(), wait_s, lambda: ev.spin(0.05), progress,
                      lambda: f"this run's recorder on {missing()}"):
-            what = (f"declared itself but did not match {missing()}" if own.declaration else
+            what = (f"declared itself but did not match {missing()} ({self._match_counts(own, missing())})" if own.declaration else
                     "did not declare itself" + (f" (dropped: {dict(own.dropped)})" if own.dropped else ""))
             raise StartupGaveUp(f"the run's recorder {what}; nothing changed for {wait_s:g} s")
         self.evaluator.dropped.update(own.dropped)
