@@ -258,6 +258,12 @@ class OwnRecorder:
             return
         self.declaration = decl
 
+    def writers_matched(self) -> str:
+        """How many writers of the recorders' status topic in the graph our reader matched, for a give-up line."""
+        from std_msgs.msg import String
+
+        return f"{self._sub.get_publisher_count()} of {len(endpoints(self.node, STATUS_TOPIC, String, subscriber=False))} writers"
+
     @property
     def name(self) -> str | None:
         return (self.declaration or {}).get("recorder")
