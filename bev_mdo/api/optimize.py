@@ -129,7 +129,7 @@ def _run_ros(config, opts, show, x0, starts):
                  if opts.compose == "coordinator" else "")
         print(f"starting {len(names)} discipline nodes {where}{'' if opts.no_record else ' and a recorder'}"
               f" (domain {ros['domain_id']}); waiting while discovery makes progress (gives up after "
-              f"{ros.get('discovery_wait_s', 60):g} s without) ...",
+              f"{ros['discovery_wait_s']:g} s without) ...",
               file=sys.stderr if opts.progress_to_stderr else sys.stdout, flush=True)
     with session:
         result, baseline = session.run(opts.formulation, opts.optimizer, x0, show, starts=starts, seed=opts.seed)

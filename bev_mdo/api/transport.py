@@ -112,7 +112,7 @@ class Evaluating:
             if announce:
                 section = ros_section(config, transport)
                 what = "find the discipline nodes" if Transport.of(transport).attach else "start the discipline nodes"
-                print(f"waiting up to {section.get('discovery_wait_s', 60):g} s to {what} on ROS domain "
+                print(f"waiting up to {section['discovery_wait_s']:g} s to {what} on ROS domain "
                       f"{section['domain_id']} ...", file=sys.stderr, flush=True)
             self.session = ros_session(config, transport, node_name)
         else:

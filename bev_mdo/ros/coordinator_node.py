@@ -129,9 +129,7 @@ class CoordinatorNode(Node):
                      lambda: f"this run's recorder on {missing()}"):
             what = (f"declared itself but did not match {missing()} ({self._match_counts(own, missing())})" if own.declaration else
                     "did not declare itself" + (f" (dropped: {dict(own.dropped)})" if own.dropped else "")
-                    + f" (its status topic: our reader matched {own.writers_matched()}; this run's recorder "
-                    f"{'is' if any(self.run_id[:16] in n for n in self.get_node_names() if n.startswith('recorder_')) else 'is not'}"
-                    " on this process's ROS graph)")
+                    + f" ({own.undeclared()})")
             raise StartupGaveUp(f"the run's recorder {what}; nothing changed for {wait_s:g} s")
         self.evaluator.dropped.update(own.dropped)
         return own

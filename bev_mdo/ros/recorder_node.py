@@ -258,11 +258,16 @@ class OwnRecorder:
             return
         self.declaration = decl
 
-    def writers_matched(self) -> str:
-        """How many writers of the recorders' status topic in the graph our reader matched, for a give-up line."""
+    def undeclared(self) -> str:
+        """What a node waiting for a declaration that never came sees, for its give-up line: how many
+        writers of the recorders' status topic in the graph its reader matched, and whether a recorder
+        of this run (named ``recorder_<run id>``) is on its ROS graph at all."""
         from std_msgs.msg import String
 
-        return f"{self._sub.get_publisher_count()} of {len(endpoints(self.node, STATUS_TOPIC, String, subscriber=False))} writers"
+        writers = endpoints(self.node, STATUS_TOPIC, String, subscriber=False)
+        here = any(n.startswith("recorder_") and self.run_id[:16] in n for n in self.node.get_node_names())
+        return (f"its status topic: our reader matched {self._sub.get_publisher_count()} of {len(writers)} writers; "
+                f"this run's recorder is {'' if here else 'not '}on this process's ROS graph")
 
     @property
     def name(self) -> str | None:
