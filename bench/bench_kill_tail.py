@@ -3,7 +3,8 @@
     . scripts/env.sh && flock /tmp/bev_bench.lock flock /tmp/bev_ros.lock python bench/bench_kill_tail.py \
         [--rounds 6] [--domain-id 67] [--keep]
 
-`bev-mdo optimize config/leaf_nedc.yaml` (recorded, ros.timeout_s 1, retries 30) on one domain, in rounds of four
+`bev-mdo optimize config/leaf_nedc.yaml --compose none` (recorded, a process per discipline, ros.timeout_s 1,
+retries 30) on one domain, in rounds of four
 runs: undisturbed; ``killed``: vehicle_mass and the recorder SIGKILLed once the first iteration is
 printed; ``killed_late``: both SIGKILLed once the LAST iteration (that of the round's undisturbed run)
 is printed, so the kill lands at or after the optimiser's last evaluation, in the run's tail;
@@ -44,7 +45,7 @@ def run_once(config: Path, cwd: Path, bag: Path, kill: bool, domain: int = DOMAI
     from bev_mdo.testing import child_processes, ros_env
 
     p = subprocess.Popen([sys.executable, "-m", "bev_mdo", "optimize", str(config), "--domain-id", str(domain),
-                          "--bag", str(bag), "--json"], cwd=cwd, env=ros_env(domain), stdout=subprocess.PIPE,
+                          "--compose", "none", "--bag", str(bag), "--json"], cwd=cwd, env=ros_env(domain), stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)
     killed = 0
     err = []
