@@ -75,7 +75,7 @@ class CoordinatorNode(Node):
         so the coordinator waits for this before it shuts down. The wait is taken in short
         slices (other threads, the launcher's supervisor among them, keep running) and ends
         for a publisher as soon as it has no matched reader; a killed reader is unmatched
-        once its participant's lease (3 s, bev_mdo's Fast DDS profile) expires, so it stalls
+        once its participant's lease (12 s, bev_mdo's Fast DDS profile) expires, so it stalls
         the end of a run by at most that. Returns False (and logs which topics) after `wait_s`,
         or at once when `give_up()` says no reader that matters is alive (the launcher saw the
         recorder die: waiting for its lease to expire would only stall the end of the run).

@@ -8,7 +8,7 @@ under overload. Such a node never answers again, and stopping it hangs too. The 
 supervisor only sees processes that exit, so it never restarts such a node.
 
 A hung participant stops announcing itself, so every other participant drops it once its lease
-(3 s in bev_mdo's profile) expires. This watchdog runs beside the supervisor, in the launching
+(12 s in bev_mdo's profile) expires. This watchdog runs beside the supervisor, in the launching
 process, with its own small participant. It reads the ROS graph every `period_s`. If a launched
 node was on the graph and has been missing for `silent_s`, or has not appeared `start_s` after
 its process started and used no CPU for `silent_s` (a node still starting on a loaded host
@@ -31,7 +31,7 @@ import threading
 import time
 from typing import Callable
 
-SILENT_S = 7.0   # > 2 leases of bev_mdo's profile (3 s): a node dropped by discovery, and not back
+SILENT_S = 7.0   # a node dropped by discovery (its 12 s lease over) and not back: 7 announcements missed
 START_S = 45.0   # a node process that never reaches the graph (imports take ~20 s at load 40 here)
 
 
