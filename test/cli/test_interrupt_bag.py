@@ -12,6 +12,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import pytest
@@ -51,8 +52,23 @@ def _stop_after_progress(p: subprocess.Popen, sig: int, lines: int) -> tuple[int
                 break
     assert len(seen) == lines, "the run ended before it was interrupted"
     p.send_signal(sig)
-    out, err = _communicate(p)
-    return p.returncode, seen + [l for l in out.splitlines() if l.startswith("iter")], err
+    # The rest through the same file object: the loop above may have buffered more lines than it
+    # took, which communicate() (it reads the raw pipes) would drop, and with them iterations the
+    # bag holds. stderr is drained beside it; a run that outlives its signal is killed and fails.
+    err: list[str] = []
+    drain = threading.Thread(target=lambda: err.append(p.stderr.read()), daemon=True)
+    drain.start()
+    killer = threading.Timer(180, p.kill)
+    killer.start()
+    try:
+        out = p.stdout.read()
+        drain.join()
+        p.wait()
+    finally:
+        outlived = not killer.is_alive()
+        killer.cancel()
+    assert not outlived, "the run did not end within 180 s of its signal"
+    return p.returncode, seen + [l for l in out.splitlines() if l.startswith("iter")], err[0]
 
 
 def _complete_records(bag: Path, topic: str) -> list:
