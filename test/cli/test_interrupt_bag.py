@@ -33,13 +33,24 @@ def _start(cwd: Path, *argv: str) -> subprocess.Popen:
 
 
 def _communicate(p: subprocess.Popen, timeout_s: float = 180) -> tuple[str, str]:
-    """(stdout, stderr) of a signalled run; a run that outlives its signal is killed, not left behind."""
+    """(stdout, stderr) of a signalled run; a run that outlives its signal is killed, not left behind.
+    Read through the file objects, not with communicate(): that reads the raw pipes and drops lines
+    a caller's iteration over p.stdout already buffered (and with them iterations the bag holds)."""
+    err: list[str] = []
+    drain = threading.Thread(target=lambda: err.append(p.stderr.read()), daemon=True)
+    drain.start()
+    killer = threading.Timer(timeout_s, p.kill)
+    killer.start()
     try:
-        return p.communicate(timeout=timeout_s)
-    except subprocess.TimeoutExpired:
-        p.kill()
-        p.communicate()
-        raise
+        out = p.stdout.read()
+        drain.join()
+        p.wait()
+    finally:
+        outlived = not killer.is_alive()
+        killer.cancel()
+    if outlived:
+        raise subprocess.TimeoutExpired(p.args, timeout_s)
+    return out, err[0]
 
 
 def _stop_after_progress(p: subprocess.Popen, sig: int, lines: int) -> tuple[int, list[str], str]:
@@ -52,23 +63,8 @@ def _stop_after_progress(p: subprocess.Popen, sig: int, lines: int) -> tuple[int
                 break
     assert len(seen) == lines, "the run ended before it was interrupted"
     p.send_signal(sig)
-    # The rest through the same file object: the loop above may have buffered more lines than it
-    # took, which communicate() (it reads the raw pipes) would drop, and with them iterations the
-    # bag holds. stderr is drained beside it; a run that outlives its signal is killed and fails.
-    err: list[str] = []
-    drain = threading.Thread(target=lambda: err.append(p.stderr.read()), daemon=True)
-    drain.start()
-    killer = threading.Timer(180, p.kill)
-    killer.start()
-    try:
-        out = p.stdout.read()
-        drain.join()
-        p.wait()
-    finally:
-        outlived = not killer.is_alive()
-        killer.cancel()
-    assert not outlived, "the run did not end within 180 s of its signal"
-    return p.returncode, seen + [l for l in out.splitlines() if l.startswith("iter")], err[0]
+    out, err = _communicate(p)
+    return p.returncode, seen + [l for l in out.splitlines() if l.startswith("iter")], err
 
 
 def _complete_records(bag: Path, topic: str) -> list:
