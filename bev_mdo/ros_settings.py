@@ -137,6 +137,34 @@ LOCALHOST_PEER_IDS = range(32, 120)
 _PROFILE_DIR = Path(tempfile.gettempdir()) / f"bev_mdo_fastdds_{os.getuid()}"
 
 
+FASTDDS_DEFAULT_LEASE_S = 20.0  # Fast DDS's participant lease when a profile sets none
+
+
+def participant_lease_s(env: Mapping[str, str] | None = None) -> float:
+    """The participant lease of the Fast DDS profile a process started with `env` (default: this one's)
+    reads: the file FASTDDS_/FASTRTPS_DEFAULT_PROFILES_FILE names, else bev_mdo's own; Fast DDS's
+    default (20 s) when that profile sets none, is unreadable, or sets an infinite lease."""
+    import xml.etree.ElementTree as ET
+
+    env = os.environ if env is None else env
+    path = env.get("FASTDDS_DEFAULT_PROFILES_FILE") or env.get("FASTRTPS_DEFAULT_PROFILES_FILE") or str(DDS_PROFILE)
+    try:
+        root = ET.parse(path).getroot()
+    except (OSError, ET.ParseError):
+        return FASTDDS_DEFAULT_LEASE_S
+    local = {el: el.tag.rsplit("}", 1)[-1] for el in root.iter()}
+    parts = [el for el, tag in local.items() if tag == "participant"]
+    part = next((el for el in parts if el.get("is_default_profile") == "true"), parts[0] if parts else None)
+    lease = next((el for el in (part.iter() if part is not None else ()) if local[el] == "leaseDuration"), None)
+    if lease is None:
+        return FASTDDS_DEFAULT_LEASE_S
+    fields = {local[el]: (el.text or "").strip() for el in lease}
+    try:
+        return float(fields.get("sec", 0) or 0) + float(fields.get("nanosec", 0) or 0) / 1e9
+    except ValueError:  # DURATION_INFINITY and the like
+        return FASTDDS_DEFAULT_LEASE_S
+
+
 def localhost_peers_profile(domain_id: int) -> Path:
     """bev_mdo's Fast DDS profile (DDS_PROFILE) plus 127.0.0.1 at the discovery ports of participant
     ids 32-119 of `domain_id` as initial peers, so up to about 100 processes of one domain on one

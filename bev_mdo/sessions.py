@@ -24,9 +24,9 @@ from pathlib import Path
 
 from bev_mdo.config import RunConfig, plain
 from bev_mdo.processes import beside_coordinator, plan_processes
+from bev_mdo.ros_settings import participant_lease_s
 from bev_mdo.stacks import deadline
 
-LEASE_S = 12.0  # participant lease of bev_mdo's Fast DDS profile (bev_mdo/data/fastdds_profile.xml)
 ACK_GRACE_S = 1.0  # a live local recorder acknowledges in milliseconds (in DDS threads, not Python's)
 _DECLARATION_DROPS = ("refused_instance", "info_unsigned", "info_forged", "info_other_run", "info_other_discipline")
 
@@ -248,7 +248,9 @@ class OptimizeRosSession:
 def acks_needless(launcher):
     """When the coordinator's final wait for acknowledgements may end early (they are awaited only so the recorder
     misses nothing): at once when the recorder died, and after ACK_GRACE_S when a node died within the last lease,
-    because a killed reader never acknowledges and is matched until its lease expires (up to LEASE_S)."""
+    because a killed reader never acknowledges and is matched until its participant lease expires (the lease of
+    the Fast DDS profile in use: ros_settings.participant_lease_s)."""
+    lease_s = participant_lease_s()
     started = []
 
     def needless() -> bool:
@@ -256,7 +258,7 @@ def acks_needless(launcher):
             return True
         now = time.monotonic()
         started[:] = started or [now]
-        return now - started[0] >= ACK_GRACE_S and launcher.died_within(LEASE_S + ACK_GRACE_S)
+        return now - started[0] >= ACK_GRACE_S and launcher.died_within(lease_s + ACK_GRACE_S)
 
     return needless
 

@@ -8,7 +8,7 @@ under overload. Such a node never answers again, and stopping it hangs too. The 
 supervisor only sees processes that exit, so it never restarts such a node.
 
 A hung participant stops announcing itself, so every other participant drops it once its lease
-(12 s in bev_mdo's profile) expires. This watchdog runs beside the supervisor, in the launching
+(set in bev_mdo's Fast DDS profile) expires. This watchdog runs beside the supervisor, in the launching
 process, with its own small participant. It reads the ROS graph every `period_s`. If a launched
 node was on the graph and has been missing for `silent_s`, or has not appeared `start_s` after
 its process started and used no CPU for `silent_s` (a node still starting on a loaded host
