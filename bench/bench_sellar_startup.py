@@ -151,11 +151,13 @@ def concurrent(args) -> int:
         failed[f"{n} x {compose}"] = sum(x["exit"] != 0 for rs in rounds for x in rs)
         objectives |= {x["objective"] for rs in rounds for x in rs if x["exit"] == 0}
         if every:  # every run's start-up (s from the command to its first iteration line), over the rounds
-            figures.append(figure(f"start-up, {n} run{'s' if n > 1 else ''} together, --compose {compose}", "s",
+            figures.append(figure(f"start-up, {n} run{'s' if n > 1 else ''} together, --compose {compose} "
+                                  f"({failed[f'{n} x {compose}']} of {n * len(rounds)} failed)", "s",
                                   every, note=f"{failed[f'{n} x {compose}']} of {n * len(rounds)} runs failed"))
     single = RESULT.read_text(encoding="utf-8") if RESULT.exists() else "{}"
-    command = (f"python bench/bench_sellar_startup.py --concurrent N --compose LAYOUT --repeat 1 --domain-id {args.domain_id} "
-               "--append, one call per count, layout and round" if args.append else None)
+    command = (f"python bench/bench_sellar_startup.py --concurrent {args.concurrent} --compose {args.compose} "
+               f"--repeat {args.repeat} --domain-id {args.domain_id}"
+               + (" --append (after the calls whose rounds it kept)" if args.append else ""))
     write("bench_sellar_startup", figures, command=command, extra={"rows": json.loads(single).get("rows", []),  # the one-run part, kept
         "config": "config/leaf_nedc.yaml (recorded)",
         "rounds": {f"{n} x {c}": len(rounds) for (n, c), rounds in runs.items()}, "failed_runs": failed,
