@@ -150,10 +150,10 @@ def concurrent(args) -> int:
         every = [x["startup_s"] for rs in rounds for x in rs if x["exit"] == 0 and x["startup_s"]]
         failed[f"{n} x {compose}"] = sum(x["exit"] != 0 for rs in rounds for x in rs)
         objectives |= {x["objective"] for rs in rounds for x in rs if x["exit"] == 0}
+        lost = f"{failed[f'{n} x {compose}']} of {n * len(rounds)}"
         if every:  # every run's start-up (s from the command to its first iteration line), over the rounds
-            figures.append(figure(f"start-up, {n} run{'s' if n > 1 else ''} together, --compose {compose} "
-                                  f"({failed[f'{n} x {compose}']} of {n * len(rounds)} failed)", "s",
-                                  every, note=f"{failed[f'{n} x {compose}']} of {n * len(rounds)} runs failed"))
+            figures.append(figure(f"start-up, {n} run{'s' if n > 1 else ''} together, --compose {compose} ({lost} failed)",
+                                  "s", every, note=f"{lost} runs failed"))
     single = RESULT.read_text(encoding="utf-8") if RESULT.exists() else "{}"
     command = (f"python bench/bench_sellar_startup.py --concurrent {args.concurrent} --compose {args.compose} "
                f"--repeat {args.repeat} --domain-id {args.domain_id}"
