@@ -28,7 +28,6 @@ from bev_mdo.ros_settings import participant_lease_s
 from bev_mdo.stacks import deadline
 
 ACK_GRACE_S = 1.0  # a live local recorder acknowledges in milliseconds (in DDS threads, not Python's)
-_DECLARATION_DROPS = ("refused_instance", "info_unsigned", "info_forged", "info_other_run", "info_other_discipline")
 
 
 def _prepare(config, logs: Path, key_dir: Path) -> tuple:
@@ -191,22 +190,27 @@ class OptimizeRosSession:
             # The baseline does not depend on the optimum: it is analysed BEFORE the optimisation, so the
             # end of the run evaluates nothing and never waits for a node that died late (a SIGKILLed
             # vehicle_mass after the optimiser's last evaluation stalled the baseline until its restart
-            # was discovered: 8.5 s of tail in bench/bench_kill_tail.py).
-            seen: dict = {}
-            baseline = _ros_baseline(self.config, self.run_id, ctx, seen, beside=beside, starting=self.launcher.progress)
+            # was discovered: 8.5 s of tail in bench/bench_kill_tail.py). It goes through the run's own
+            # node as the sub-run ``<run>-baseline``: no second node to discover, nor to tear down mid-run
+            # (on a crowded host that teardown hung in the middleware past its bound).
+            baseline = {}
+
+            def analyse(evaluator) -> None:
+                with evaluator.sub_run("baseline"):
+                    baseline["value"] = analyse_baseline(self.config, evaluator)
+
             res, stats = coordinator_node.run(self.config, run_id=self.run_id, formulation=formulation,
                                               optimizer=optimizer, x0=x0, on_iteration=on_iteration,
                                               starts=starts, seed=seed,
                                               recorder_subscribers=self.recorder, context=ctx,
                                               recorder_binding=self.recorder_binding, starting=self.launcher.progress,
-                                              instances=self.instances, beside=beside,
+                                              instances=self.instances, beside=beside, before=analyse,
                                               give_up_acks=acks_needless(self.launcher) if self.recorder else None)
             stats["t_acked"] = time.monotonic()  # the final acknowledgements are in (or given up)
-            merge_baseline_stats(stats, seen)
             self.stats = stats
             out = res.to_dict()
             out.pop("history")
-            return out, baseline
+            return out, baseline.get("value")
         finally:
             with deadline():  # a participant hung in the middleware would block here for good
                 if beside is not None:
@@ -293,54 +297,6 @@ def _signing(ros: dict, config: RunConfig) -> str:
     if ros.get("sign_key_file"):
         return f"key file {ros['sign_key_file']}"
     return "per-run key" if config.ros.get("sign_key_file") else "off (ros.signing: false)"
-
-
-def merge_baseline_stats(stats: dict, seen: dict) -> None:
-    """Count what the baseline's evaluator dropped and refused as the run's: its results add up;
-    declarations are the same ones the run's evaluator judges (the larger count of the two), and an
-    instance refused by either is refused (the run's evaluator, started when everything is
-    discovered, may be ready before a foreign declaration reaches it)."""
-    if not seen:
-        return
-    dropped = dict(stats["dropped"])
-    for k, v in seen["dropped"].items():
-        dropped[k] = max(dropped.get(k, 0), v) if k in _DECLARATION_DROPS else dropped.get(k, 0) + v
-    refused = {**seen["refused"], **stats.get("refused_instances", {})}
-    dropped["refused_instance"] = len(refused) if refused else dropped.get("refused_instance", 0)
-    stats["dropped"] = {k: v for k, v in dropped.items() if v}
-    stats["refused_instances"] = refused
-
-
-def _ros_baseline(config, run_id: str, ctx, seen: dict | None = None, beside=None, starting=None) -> dict | None:
-    """The config's baseline analysed through the run's nodes (sub-run ``<run>-baseline``); None
-    without one. A discipline that never appears raises (the run itself could not start either).
-    `seen` gets what its evaluator dropped and refused."""
-    from bev_mdo.ros import coordinator_node
-    from bev_mdo.ros.evaluator import DisciplineMissing
-
-    if not config.baseline:
-        return None
-    node = coordinator_node.CoordinatorNode(config, run_id + "-baseline", context=ctx,
-                                            node_name=coordinator_node.node_name_for(run_id + "-baseline"))
-    node.evaluator.starting = starting
-    if beside is not None:  # disciplines composed into this process (--compose coordinator)
-        beside.attach(node.evaluator)
-    try:
-        node.evaluator.wait_for_disciplines(list(config.names), node.discovery_wait_s)
-        return analyse_baseline(config, node.evaluator)
-    except DisciplineMissing:
-        raise
-    except Exception as exc:  # noqa: BLE001 - the run's result is printed anyway
-        return {"name": config.baseline["name"], "design": {}, "outputs": {},
-                "feasible": False, "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
-    finally:
-        if seen is not None:
-            seen.update(dropped=dict(node.evaluator.dropped), refused=dict(node.evaluator.refused))
-        if beside is not None:
-            beside.detach()
-        with deadline():
-            node.evaluator.close()
-            node.destroy_node()
 
 
 class _InProcess:

@@ -26,6 +26,8 @@ A transport subclass provides:
 """
 from __future__ import annotations
 
+import contextlib
+import copy
 import time
 from collections import Counter
 from typing import Mapping, Sequence
@@ -43,6 +45,10 @@ from bev_mdo.mdo.ledger import Ledger
 # contiguous axis is summed pairwise): the acceleration model differs in the last bit between
 # n = 1 and n > 1. Shares of two rows or more keep the joined result bitwise the single-request one.
 FLOW_MIN_ROWS = 2
+
+
+# What a run reports of its own evaluations; a sub-run through the same evaluator leaves it as it was.
+_RUN_COUNTERS = ("counts", "first_errors", "accepted", "retried", "unresponsive", "flows", "flow_shares")
 
 
 class Orchestrator:
@@ -81,6 +87,22 @@ class Orchestrator:
         # others get the whole batch once), as before data flow with pools (docs/scaling.md)
         self.pool_data_flow = pool_data_flow
         self.pool_min_rows = pool_min_rows
+
+    @contextlib.contextmanager
+    def sub_run(self, suffix: str):
+        """Evaluate as the derived run ``<run>-<suffix>`` (the baseline, through the run's own nodes):
+        its requests carry that run id, which the run's nodes serve, and only its answers are taken.
+        Afterwards the run id is the run's again, and what the run reports of its own evaluations
+        (points, retries, data-flow MDAs, errors, unresponsive disciplines) is as it was before;
+        answers dropped and instances refused meanwhile count as the run's."""
+        saved = {k: copy.copy(getattr(self, k)) for k in _RUN_COUNTERS}
+        run_id, self.run_id = self.run_id, f"{self.run_id}-{suffix}"
+        try:
+            yield self
+        finally:
+            self.run_id = run_id
+            for k, v in saved.items():
+                setattr(self, k, v)
 
     @property
     def policy(self) -> retry.Policy:

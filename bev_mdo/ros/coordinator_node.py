@@ -140,12 +140,15 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         on_iteration: Callable[[dict], None] | None = None, recorder_subscribers: int = 0,
         context=None, signer=None, instances: Mapping[str, int] | None = None,
         give_up_acks: Callable[[], bool] | None = None, beside=None, starts: int = 1, seed: int = 0,
-        recorder_binding: str | None = None, starting: Callable[[], tuple] | None = None):
+        recorder_binding: str | None = None, starting: Callable[[], tuple] | None = None,
+        before: Callable[[RosEvaluator], None] | None = None):
     """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats).
     ``beside``: a composed.Beside (discipline nodes in this process and `context`) to serve.
     ``recorder_subscribers``: 1 to wait for the run's own recorder (by its declaration; with
     ``recorder_binding``, the binding it must declare: binding.config_binding), 0 not to.
-    ``starting``: start-up progress of the run's processes (launch.Launcher.progress), for the waits."""
+    ``starting``: start-up progress of the run's processes (launch.Launcher.progress), for the waits.
+    ``before``: called with the evaluator once every discipline is there, before the recorder wait and
+    the optimisation (the baseline, analysed as a sub-run through the same node: sessions.py)."""
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import run_optimization
 
@@ -161,6 +164,8 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         for name, count in (instances or {}).items():  # a pool starts with all its instances (pool.py)
             if count > 1:
                 node.evaluator.wait_for_instances(name, count, node.discovery_wait_s)
+        if before is not None:
+            before(node.evaluator)
         if recorder_subscribers:
             node.wait_for_recorder(node.discovery_wait_s, recorder_binding)
         node.evaluator.warm_up(names)

@@ -135,3 +135,32 @@ def test_a_pool_shares_a_batch_and_a_silent_instance_s_rows_go_to_the_others(sil
         assert "b" in ev.pools["square"].suspect
     else:
         assert {i: s["shares"] for i, s in summary.items()} == {"a": 1, "b": 1, "c": 1} and ev.retried == 0
+
+
+def test_a_sub_run_carries_its_own_run_id_and_leaves_the_runs_counts_as_they_were():
+    ev = MemoryTransport([Square(), Side()], silent={"side"}, retries=1)
+    ev.evaluate([("square", {"x": X})])
+    before = {k: (dict(v) if isinstance(v, dict) else set(v) if isinstance(v, set) else list(v)
+                  if isinstance(v, list) else v)
+              for k, v in ((k, getattr(ev, k)) for k in ("counts", "first_errors", "accepted", "retried",
+                                                          "unresponsive", "flows"))}
+    with ev.sub_run("baseline") as sub:
+        assert sub is ev and ev.run_id == "run-baseline"
+        sq, side = ev.evaluate([("square", {"x": X}), ("side", {"x": X})])
+        assert sq.ok.all() and not side.ok.any()
+        assert ev.retried == 1 and ev.unresponsive == {"side"} and "side" in ev.first_errors
+        assert ev.counts["square"] == 2 * len(X)
+        ev.dropped["other_run"] += 1  # what the transport counts for a foreign answer meanwhile
+    assert ev.run_id == "run"
+    assert {k: getattr(ev, k) for k in before} == before
+    assert ev.counts == {"square": len(X)} and ev.retried == 0 and not ev.unresponsive
+    assert ev.dropped["other_run"] == 1  # drops are the run's: the same nodes and topics
+
+
+def test_a_sub_run_ended_by_an_exception_restores_the_run():
+    ev = MemoryTransport([Square()], retries=1)
+    with pytest.raises(KeyboardInterrupt):
+        with ev.sub_run("baseline"):
+            ev.evaluate([("square", {"x": X})])
+            raise KeyboardInterrupt
+    assert ev.run_id == "run" and not ev.counts and not ev.accepted
