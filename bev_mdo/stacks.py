@@ -53,7 +53,9 @@ def deadline(seconds: float = TEARDOWN_S):
     docs/security.md), or a participant being deleted busy-waits for a discovery callback that does not
     end (eProsima/Fast-DDS#6513), destroying it blocks for good, with or without Python's lock, and a run
     would never end. The kernel's SIGALRM needs neither. Launched nodes then get SIGTERM from the kernel
-    (they die with their parent). Process-wide timers: a later `deadline` replaces an earlier one."""
+    (they die with their parent), which their Python handler takes only between C calls: their own
+    teardown is bounded the same way, or a node hung in it outlives its run (seen: 20 minutes in
+    ``destroy_publisher`` after a crowded start-up). Process-wide timers: a later `deadline` replaces an earlier one."""
     if not _stderr_ok():  # no stderr to print to: no deadline
         yield
         return

@@ -254,8 +254,11 @@ def main(args: list[str] | None = None) -> int:
                 return 2
             raise
     finally:
-        for node in nodes:
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
+        from bev_mdo.stacks import deadline
+
+        with deadline():  # as discipline_node.main: a teardown hung in Fast DDS must not outlive the run
+            for node in nodes:
+                node.destroy_node()
+            if rclpy.ok():
+                rclpy.shutdown()
     return 0

@@ -34,12 +34,11 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rcl_interfaces.msg import ParameterDescriptor
 
-from bev_mdo import __version__
+from bev_mdo import __version__, binding, protocol
+from bev_mdo.stacks import deadline
 from bev_mdo.mdo import flow
 from bev_mdo.mdo.discipline import DisciplineError, all_finite, readable, run_discipline, unknown_inputs
 from bev_mdo.mdo.vectors import ShapeError
-from bev_mdo import protocol
-from bev_mdo import binding
 from bev_mdo.protocol.signing import Signer
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RESULT_QOS, NODE_STATS_QOS,
                                 NODE_STATS_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, mda_result_topic,
@@ -487,14 +486,15 @@ def main(args: list[str] | None = None, discipline: str | None = None, config=No
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as exc:  # an rcl call racing the shutdown of a signalled context is a normal stop
-        if node is None or node.context.ok():
+        if rclpy.ok():  # the node may not exist yet: a SIGTERM during its start-up
             if isinstance(exc, ValueError):
                 print(f"{discipline or 'discipline_node'}: error: {exc}", file=sys.stderr)
                 return 2
             raise
-    finally:
-        if node is not None:
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
+    finally:  # bounded: an orphan's SIGTERM cannot reach Python while Fast DDS blocks (stacks.deadline)
+        with deadline():
+            if node is not None:
+                node.destroy_node()
+            if rclpy.ok():
+                rclpy.shutdown()
     return 0

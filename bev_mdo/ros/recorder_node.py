@@ -397,10 +397,13 @@ def main(args: list[str] | None = None) -> int:
                   + node.order.note(), file=sys.stderr)
         for s, handler in old.items():
             signal.signal(s, handler)
-        if node is not None:
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
+        from bev_mdo.stacks import deadline
+
+        with deadline():  # the bag is closed above; a teardown hung in Fast DDS must not outlive the run
+            if node is not None:
+                node.destroy_node()
+            if rclpy.ok():
+                rclpy.shutdown()
 
 
 if __name__ == "__main__":

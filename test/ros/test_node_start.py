@@ -47,3 +47,37 @@ def test_a_node_bound_to_an_all_digit_run_id_serves_it(ros_domain):
     finally:
         _stop(p)
     assert any("bound to run 12345678" in line for line in lines), "".join(lines)[-2000:]
+
+
+def test_a_node_whose_teardown_hangs_in_c_ends_at_its_bound(ros_domain):
+    """A node told to stop (SIGTERM: what the kernel sends a launched node whose parent died) whose
+    teardown blocks in C, holding Python's lock as a Fast DDS destroy that never returns does, ends at
+    its teardown bound (here 1 s) with every thread's stack on stderr, instead of living on alone."""
+    import signal
+
+    code = "\n".join([
+        "import ctypes, functools, sys",
+        "import bev_mdo.ros.discipline_node as dn",
+        "from bev_mdo import stacks",
+        "dn.deadline = functools.partial(stacks.deadline, 1.0)",
+        "dn.DisciplineNode.destroy_node = lambda self: ctypes.PyDLL(None).sleep(120)",
+        "_serve = dn.serve",  # says when the node is built and serving (a SIGTERM before ends it at once)
+        "dn.serve = lambda node: (print('in serve', file=sys.stderr, flush=True), _serve(node))",
+        f"sys.exit(dn.main(['--ros-args', '-p', 'config:={REPO / 'config' / 'leaf_nedc.yaml'}'], discipline='cost'))"])
+    p = subprocess.Popen([sys.executable, "-c", code], cwd=REPO, env=ros_env(ros_domain), stderr=subprocess.PIPE,
+                         stdout=subprocess.DEVNULL, text=True)
+    lines = []
+    try:
+        for line in p.stderr:
+            lines.append(line)
+            if line.startswith("in serve") or len(lines) > 50:
+                break
+        p.send_signal(signal.SIGTERM)
+        rest = p.communicate(timeout=60)[1]
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert lines and lines[-1].startswith("in serve"), "".join(lines)[-2000:]
+    assert p.returncode == -signal.SIGALRM, (p.returncode, rest[-2000:])
+    assert "Timeout" in rest and "<lambda>" in rest  # the stack of the blocked teardown
