@@ -1,8 +1,8 @@
 """``recorder_node``: raw subscriptions written unchanged (CDR) to a rosbag2-compatible MCAP bag.
 
 Records a given topic list, or every topic under ``/bev_mdo/`` found by polling the graph,
-so it can record any running suite. SIGINT/SIGTERM close the bag cleanly; after a SIGKILL
-the bag is readable up to its last flushed chunk (``bev-mdo bag repair`` rebuilds the rest).
+so it can record any running suite. SIGINT/SIGTERM close the bag cleanly; after a SIGKILL the bag
+holds every chunk closed (after each iteration record, and every ``flush_period_s``): ``bag repair``.
 
 Parameters: ``bag_path`` (default ``bags/<time>_record``), ``topics`` (string[]; empty: all
 under ``prefix``), ``prefix`` (``/bev_mdo/``), ``config_file`` (its text is stored as
@@ -197,6 +197,8 @@ class RecorderNode(Node):
             published = info.get("source_timestamp") or received
             write(topic, data, received, published, info.get("publication_sequence_number") or 0)
             self.received += 1
+            if order is not None:  # one chunk per iteration record, as the in-process writer: a SIGKILL (or a
+                self.writer.flush()  # flush timer starved on a busy host) keeps every iteration recorded
 
         return on_message
 
