@@ -148,9 +148,12 @@ class Launcher:
         else:
             out = subprocess.DEVNULL
         node.spawned_at, node.seen, node.missing_since = time.monotonic(), False, None
-        # Own session: a Ctrl-C in the terminal reaches only us; we stop the children in order.
+        # Own process group, so a Ctrl-C in the terminal reaches only us and we stop the children in
+        # order; but our session, so the kernel's CPU scheduler (autogroups, one per session) weighs a
+        # run's nodes with its command: a session per node gave each node the share of a whole run, and
+        # eight commands started from one session starved against their 64 nodes (docs/scaling.md).
         node.proc = subprocess.Popen(node.argv, env=self.env, stdout=out, stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL, start_new_session=True,
+                                     stdin=subprocess.DEVNULL, process_group=0,
                                      preexec_fn=_die_with_parent)
         if out is not subprocess.DEVNULL:
             out.close()
