@@ -44,6 +44,15 @@ import yaml
 REPO = Path(__file__).resolve().parents[1]
 RESULT = REPO / "bench" / "results" / "bench_sellar_startup.json"
 ROUND_TIMEOUT_S = 300.0  # a round of runs started together is stopped after this
+RUN_ADDRESS_SPACE = 4 << 30  # bytes of address space each process of a run may map (a load test is bounded)
+
+
+def _bounded() -> None:
+    """In a run's command (its nodes inherit it): the address-space bound. Nothing else changes: the
+    command stays in the bench's session, as runs started from one shell do (docs/scaling.md)."""
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_AS, (RUN_ADDRESS_SPACE, RUN_ADDRESS_SPACE))
 
 
 def configs(tmp: Path) -> dict[str, Path]:
@@ -102,7 +111,8 @@ def start_together(n: int, compose: str, domain: int, cwd: Path, tag: str) -> li
         argv = [sys.executable, "-m", "bev_mdo", "optimize", str(REPO / "config" / "leaf_nedc.yaml"), "--json",
                 "--domain-id", str(domain), "--compose", compose, "--bag", str(cwd / "bags" / f"{tag}_{k}")]
         t0 = time.perf_counter()
-        p = subprocess.Popen(argv, env=env, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        p = subprocess.Popen(argv, env=env, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             preexec_fn=_bounded)
         threads.append(threading.Thread(target=one, args=(k, t0, p)))
         threads[-1].start()
         procs.append(p)
