@@ -19,7 +19,8 @@ from rclpy.node import Node
 from rcl_interfaces.msg import ParameterDescriptor
 
 from bev_mdo import protocol
-from bev_mdo.ros.common import ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, endpoints, stamp, wait_acked
+from bev_mdo.ros.common import (ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, endpoints, mda_result_topic, stamp,
+                                wait_acked)
 from bev_mdo.ros.evaluator import RosEvaluator
 from bev_mdo.ros.fastwait import until
 from bev_mdo.ros.recorder_node import OwnRecorder
@@ -109,17 +110,18 @@ class CoordinatorNode(Node):
         nothing changed for `wait_s`."""
         own = OwnRecorder(self, self.run_id, self.evaluator.signer, binding)
         ev = self.evaluator
-        ours = {i for v in ev.instances.values() for i in v}
-
-        def of(topic: str) -> list[str]:  # this run's disciplines publishing on `topic`
-            return [n for n in (f"{i.node_namespace.rstrip('/')}/{i.node_name}".lstrip("/")
-                                for i in self.get_publishers_info_by_topic(topic)) if n in ours]
+        # who must have been matched on each result topic: every accepted instance of this run (each
+        # publishes on the result topic; a data-flow topic has its discipline's instances), not those
+        # this process's graph happens to show yet, which may be fewer than the recorder must read
+        writers = {RESULT_TOPIC: {i for v in ev.instances.values() for i in v}}
+        for d, v in ev.instances.items():
+            writers[mda_result_topic(d)] = set(v)
 
         def missing() -> list[str]:
             out = [p.topic_name for p in (self._iteration_pub, *ev.request_publishers)
                    if not own.records(p.topic_name, pub=p)]
             return out + [t for t in (RESULT_TOPIC, *ev.flow_readers())
-                          if not (of(t) and own.records(t, publishers=of(t)))]
+                          if not (writers.get(t) and own.records(t, publishers=writers[t]))]
 
         def progress() -> tuple:
             return (json.dumps(own.declaration, sort_keys=True), tuple(sorted(own.dropped.items())),
