@@ -65,7 +65,7 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | None = None) ->
 
 def _run_inprocess(config, opts, show, x0, starts):
     from bev_mdo.api.failures import NamingInProcessEvaluator
-    from bev_mdo.api.runbag import in_process_bag
+    from bev_mdo.api.runbag import in_process_bag, noting_interrupts
     from bev_mdo.mdo.driver import run_optimization
     from bev_mdo.sessions import analyse_baseline
 
@@ -73,19 +73,20 @@ def _run_inprocess(config, opts, show, x0, starts):
     budget = ros["timeout_s"] * (ros["retries"] + 1)  # what a ROS run gives a discipline before its points fail
     ev = NamingInProcessEvaluator(config.disciplines, timeout_s=budget)
     bag, writer, show = in_process_bag(config, opts, show)  # a bag only when one is asked for
-    try:
-        if starts > 1:
-            from bev_mdo.mdo.multistart import run_starts
+    with noting_interrupts(bag):
+        try:
+            if starts > 1:
+                from bev_mdo.mdo.multistart import run_starts
 
-            res = run_starts(config.settings, ev, starts, seed=opts.seed,
-                             formulation=opts.formulation, optimizer=opts.optimizer, callback=show)
-        else:
-            res = run_optimization(config.settings, ev, formulation=opts.formulation,
-                                   optimizer=opts.optimizer, x0=x0, callback=show)
-    except BaseException:  # SIGINT, SIGTERM, a failure: the bag keeps every finished iteration
-        if writer is not None:
-            writer.close()
-        raise
+                res = run_starts(config.settings, ev, starts, seed=opts.seed,
+                                 formulation=opts.formulation, optimizer=opts.optimizer, callback=show)
+            else:
+                res = run_optimization(config.settings, ev, formulation=opts.formulation,
+                                       optimizer=opts.optimizer, x0=x0, callback=show)
+        except BaseException:  # SIGINT, SIGTERM, a failure: the bag keeps every finished iteration
+            if writer is not None:
+                writer.close()
+            raise
     out = res.to_dict()
     out.pop("history")
     baseline = analyse_baseline(config, NamingInProcessEvaluator(config.disciplines, timeout_s=budget,
@@ -101,6 +102,7 @@ def _run_inprocess(config, opts, show, x0, starts):
 def _run_ros(config, opts, show, x0, starts):
     import sys
 
+    from bev_mdo.api.runbag import noting_interrupts
     from bev_mdo.api.transport import ros_section
     from bev_mdo.processes import parse_instances
     from bev_mdo.sessions import OptimizeRosSession
@@ -131,7 +133,7 @@ def _run_ros(config, opts, show, x0, starts):
               f" (domain {ros['domain_id']}); waiting while discovery makes progress (gives up after "
               f"{ros['discovery_wait_s']:g} s without) ...",
               file=sys.stderr if opts.progress_to_stderr else sys.stdout, flush=True)
-    with session:
+    with noting_interrupts(None if opts.no_record else bag), session:
         result, baseline = session.run(opts.formulation, opts.optimizer, x0, show, starts=starts, seed=opts.seed)
     return result, baseline, session.summary()
 

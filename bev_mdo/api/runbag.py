@@ -10,6 +10,7 @@
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import time
 from pathlib import Path
@@ -130,6 +131,33 @@ def answers_text(result: Mapping[str, Any], transport: str = "") -> list[str]:
     if ans.get("jacobian_error"):
         lines.append(f"  (no blocking analysis: {ans['jacobian_error']})")
     return lines
+
+
+def interrupted_note(bag) -> str:
+    """What an interrupted run's bag holds, for the line after ``bev-mdo: interrupted``."""
+    from bev_mdo.bag.history import ITERATION_TOPIC
+    from bev_mdo.bag.reader import open_bag
+
+    try:
+        records = sum(1 for _ in open_bag(bag).messages([ITERATION_TOPIC]))
+    except Exception:  # noqa: BLE001 - no file yet (stopped before the recorder wrote one), or unreadable
+        return f"bag {bag}: no iteration record (stopped before the first)"
+    if not records:
+        return f"bag {bag}: no iteration record (stopped before the first)"
+    return (f"bag {bag}: {records} iteration record{'' if records == 1 else 's'}, every finished iteration "
+            f"(bev-mdo history {bag}; bev-mdo resume {bag} goes on from the last)")
+
+
+@contextlib.contextmanager
+def noting_interrupts(bag):
+    """Around a run and the closing of its bag (outermost: closing can raise the signal again): a SIGINT
+    or SIGTERM leaving it carries ``interrupted_note`` (the CLI prints it under its ``interrupted`` line)."""
+    try:
+        yield
+    except KeyboardInterrupt as exc:
+        if bag is not None:
+            exc.add_note(interrupted_note(bag))
+        raise
 
 
 def in_process_bag(config: Mapping[str, Any], args, show):

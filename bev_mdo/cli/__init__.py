@@ -134,12 +134,12 @@ def _main(argv: list[str]) -> int:
             status = int(args.func(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
         return status
-    except Terminated:
-        print("bev-mdo: terminated (SIGTERM)", file=sys.stderr)
-        return 143
-    except KeyboardInterrupt:
-        print("bev-mdo: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:  # SIGINT, or Terminated (SIGTERM); the notes say where the bag is
+        terminated = isinstance(exc, Terminated)
+        print("bev-mdo: terminated (SIGTERM)" if terminated else "bev-mdo: interrupted", file=sys.stderr)
+        for note in getattr(exc, "__notes__", ()):
+            print(f"bev-mdo: {note}", file=sys.stderr)
+        return 143 if terminated else 130
     except BrokenPipeError:
         return _closed_pipe()
     except (UsageError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:

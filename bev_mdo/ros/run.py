@@ -11,7 +11,16 @@ from bev_mdo.processes import DISCIPLINE_EXES, OTHER_EXES
 
 
 def run(exe: str, args: list[str] | None = None) -> int:
-    """Run one node executable by name."""
+    """Run one node executable by name. A SIGINT that lands while it is still loading (its run stopped
+    during start-up) ends it with one line and status 130, not a traceback through the imports."""
+    try:
+        return _run(exe, args)
+    except KeyboardInterrupt:
+        print(f"{exe}: interrupted", file=sys.stderr, flush=True)
+        return 130
+
+
+def _run(exe: str, args: list[str] | None = None) -> int:
     from bev_mdo.stacks import dump_stacks_on_sigusr1
 
     dump_stacks_on_sigusr1()

@@ -86,13 +86,16 @@ def _complete_records(bag: Path, topic: str) -> list:
     return msgs
 
 
-def _check_iterations(bag: Path, printed: list[str]) -> None:
+def _check_iterations(bag: Path, printed: list[str], err: str | None = None) -> None:
     recs = _complete_records(bag, "/bev_mdo/iteration")
     # one record per finished iteration, numbered from 1 without gaps; a record is written just
     # before its progress line is printed, so a signal between the two leaves one more record
     assert len(printed) <= len(recs) <= len(printed) + 1, (len(printed), len(recs))
     assert [int(r.sequence) for r in recs] == list(range(1, len(recs) + 1))
     assert [int(r.iteration) for r in recs] == list(range(len(recs)))
+    if err is not None:  # the last line says where the bag is and what it holds
+        assert err.strip().splitlines()[-1].startswith(
+            f"bev-mdo: bag {bag.name}: {len(recs)} iteration records, every finished iteration"), err[-2000:]
 
 
 @pytest.mark.parametrize("optimizer", ["differential_evolution", "chebyshev-pairwise"])
@@ -102,7 +105,7 @@ def test_an_interrupted_in_process_optimisation_keeps_its_bag(tmp_path, sig, opt
     status, printed, err = _stop_after_progress(p, sig, 3)
     assert status == EXIT[sig], err[-2000:]
     assert "Traceback" not in err
-    _check_iterations(tmp_path / "b", printed)
+    _check_iterations(tmp_path / "b", printed, err)
 
 
 def test_a_sigkilled_in_process_bag_is_repaired_with_every_finished_iteration(tmp_path):
@@ -157,7 +160,7 @@ def test_an_interrupted_ros_optimisation_keeps_its_bag(tmp_path, sig, optimizer,
     status, printed, err = _stop_after_progress(p, sig, 3)
     assert status == EXIT[sig], err[-2000:]
     assert "Traceback" not in err
-    _check_iterations(tmp_path / "b", printed)
+    _check_iterations(tmp_path / "b", printed, err)
     from bev_mdo.bag.history import history
     from bev_mdo.bag.reader import open_bag
 

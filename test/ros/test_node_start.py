@@ -81,3 +81,26 @@ def test_a_node_whose_teardown_hangs_in_c_ends_at_its_bound(ros_domain):
     assert lines and lines[-1].startswith("in serve"), "".join(lines)[-2000:]
     assert p.returncode == -signal.SIGALRM, (p.returncode, rest[-2000:])
     assert "Timeout" in rest and "<lambda>" in rest  # the stack of the blocked teardown
+
+
+# A SIGINT to the process itself the moment the recorder's module is imported: the signal lands inside
+# the imports, as when a run is stopped while its nodes are still loading (eight runs on two cores).
+_INTERRUPTED_IMPORT = """
+import os, signal, sys
+class Hook:
+    def find_spec(self, name, path=None, target=None):
+        if name == 'bev_mdo.ros.recorder_node':
+            os.kill(os.getpid(), signal.SIGINT)
+        return None
+sys.meta_path.insert(0, Hook())
+from bev_mdo.ros.run import run
+sys.exit(run('recorder_node', []))
+"""
+
+
+def test_a_node_interrupted_while_loading_ends_with_one_line(ros_domain, tmp_path):
+    p = subprocess.run([sys.executable, "-c", _INTERRUPTED_IMPORT], env=ros_env(ros_domain), cwd=tmp_path,
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 130 and "Traceback" not in p.stderr, p.stderr[-2000:]
+    assert p.stderr.strip().splitlines() == ["recorder_node: starting (loading ROS 2 and the models)",
+                                             "recorder_node: interrupted"]
