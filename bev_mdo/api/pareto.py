@@ -25,6 +25,7 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
         source: str = "<config>", on_generation=None) -> tuple[dict, object]:
     """(the front.json document, mdo.pareto's result) of one NSGA-II run; ``objectives``: outputs to
     minimise (default: the config's ``problem.objectives``)."""
+    from bev_mdo.api.runbag import noting_interrupts
     from bev_mdo.config import RunConfig
 
     cfg = RunConfig.of(cfg)
@@ -35,7 +36,7 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
     out, bag = out_dirs(out, cfg.name)
     run_id = uuid.uuid4().hex[:16]
     sess = session(transport, instances, cfg, out, bag, run_id, [cfg])
-    with sess:
+    with noting_interrupts(bag, "front"), sess:
         def on_front(front, final):
             sess.sink.publish(front_message(front, run_id=run_id, topology="", final=final))
 

@@ -133,30 +133,36 @@ def answers_text(result: Mapping[str, Any], transport: str = "") -> list[str]:
     return lines
 
 
-def interrupted_note(bag) -> str:
-    """What an interrupted run's bag holds, for the line after ``bev-mdo: interrupted``."""
-    from bev_mdo.bag.history import ITERATION_TOPIC
+def interrupted_note(bag, kind: str = "iteration") -> str:
+    """What an interrupted run's bag holds, for the line after ``bev-mdo: interrupted``: its iteration
+    records (``optimize``) or its Pareto fronts (``kind="front"``, ``pareto``)."""
     from bev_mdo.bag.reader import open_bag
 
+    if kind == "front":
+        from bev_mdo.ros.pareto_publisher import PARETO_TOPIC as topic
+        noun, holds = "Pareto front", "one per finished generation"
+    else:
+        from bev_mdo.bag.history import ITERATION_TOPIC as topic
+        noun, holds = "iteration record", (f"every finished iteration (bev-mdo history {bag}; bev-mdo resume {bag} "
+                                           "goes on from the last)")
     try:
-        records = sum(1 for _ in open_bag(bag).messages([ITERATION_TOPIC]))
+        records = sum(1 for _ in open_bag(bag).messages([topic]))
     except Exception:  # noqa: BLE001 - no file yet (stopped before the recorder wrote one), or unreadable
-        return f"bag {bag}: no iteration record (stopped before the first)"
+        records = 0
     if not records:
-        return f"bag {bag}: no iteration record (stopped before the first)"
-    return (f"bag {bag}: {records} iteration record{'' if records == 1 else 's'}, every finished iteration "
-            f"(bev-mdo history {bag}; bev-mdo resume {bag} goes on from the last)")
+        return f"bag {bag}: no {noun} (stopped before the first)"
+    return f"bag {bag}: {records} {noun}{'' if records == 1 else 's'}, {holds}"
 
 
 @contextlib.contextmanager
-def noting_interrupts(bag):
+def noting_interrupts(bag, kind: str = "iteration"):
     """Around a run and the closing of its bag (outermost: closing can raise the signal again): a SIGINT
     or SIGTERM leaving it carries ``interrupted_note`` (the CLI prints it under its ``interrupted`` line)."""
     try:
         yield
     except KeyboardInterrupt as exc:
         if bag is not None:
-            exc.add_note(interrupted_note(bag))
+            exc.add_note(interrupted_note(bag, kind))
         raise
 
 

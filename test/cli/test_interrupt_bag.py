@@ -150,6 +150,8 @@ def test_an_interrupted_pareto_run_keeps_its_bag(tmp_path, sig):
     fronts = _complete_records(bag, "/bev_mdo/pareto_front")
     assert len(fronts) >= written
     assert [int(f.generation) for f in fronts] == list(range(1, len(fronts) + 1))
+    last = err.strip().splitlines()[-1]  # where the bag is and what it holds
+    assert last == f"bev-mdo: bag {Path('out') / 'bag'}: {len(fronts)} Pareto fronts, one per finished generation", err[-2000:]
 
 
 @pytest.mark.parametrize("optimizer", ["differential_evolution", "chebyshev-pairwise"])
