@@ -12,39 +12,40 @@ from bev_mdo.processes import DISCIPLINE_EXES, OTHER_EXES
 
 def run(exe: str, args: list[str] | None = None) -> int:
     """Run one node executable by name. A SIGINT that lands while it is still loading (its run stopped
-    during start-up) ends it with one line and status 130, not a traceback through the imports."""
-    try:
-        return _run(exe, args)
-    except KeyboardInterrupt:
-        print(f"{exe}: interrupted", file=sys.stderr, flush=True)
-        return 130
-
-
-def _run(exe: str, args: list[str] | None = None) -> int:
+    during start-up) ends it with one line and status 130, not a traceback through the imports; once
+    loaded, the node's own main handles its signals."""
     from bev_mdo.stacks import dump_stacks_on_sigusr1
 
     dump_stacks_on_sigusr1()
+    try:
+        main = _load(exe)
+    except KeyboardInterrupt:
+        print(f"{exe}: interrupted", file=sys.stderr, flush=True)
+        return 130
+    if main is None:
+        print(f"unknown executable {exe!r}; known: {', '.join([*DISCIPLINE_EXES, *OTHER_EXES])}", file=sys.stderr)
+        return 2
+    return main(args)
+
+
+def _load(exe: str):
+    """The main(args) of executable `exe` (None: no such executable), its modules imported."""
     if exe in DISCIPLINE_EXES or exe in OTHER_EXES:
         # say so at once: importing rclpy, the messages and the models takes a few seconds on a small host
         print(f"{exe}: starting (loading ROS 2 and the models)", file=sys.stderr, flush=True)
     if exe in DISCIPLINE_EXES or exe == "discipline_node":
         from bev_mdo.ros.discipline_node import main
 
-        return main(args, discipline=DISCIPLINE_EXES.get(exe))
+        return lambda args: main(args, discipline=DISCIPLINE_EXES.get(exe))
     if exe == "coordinator_node":
         from bev_mdo.ros.coordinator_node import main
-
-        return main(args)
-    if exe == "composed_node":
+    elif exe == "composed_node":
         from bev_mdo.ros.composed import main
-
-        return main(args)
-    if exe == "recorder_node":
+    elif exe == "recorder_node":
         from bev_mdo.ros.recorder_node import main
-
-        return main(args)
-    print(f"unknown executable {exe!r}; known: {', '.join([*DISCIPLINE_EXES, *OTHER_EXES])}", file=sys.stderr)
-    return 2
+    else:
+        return None
+    return main
 
 
 def _entry(exe: str):
