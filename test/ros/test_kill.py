@@ -40,7 +40,10 @@ def config_path(tmp_path_factory):
 def run_cli(config_path, domain, cwd: Path, bag: Path, kill: tuple[str, ...] = (),
             at_iteration: int = 0) -> tuple[int, dict, str]:
     """Run `bev-mdo optimize` (JSON on stdout, progress on stderr); SIGKILL the children whose command
-    line names one of `kill` once the progress line of iteration `at_iteration` (0: the first) is printed."""
+    line names one of `kill` once the progress line of iteration `at_iteration` (0: the first) is printed;
+    the recorder's only once it also has an iteration record on disk (a record printed can still be on its
+    way to the recorder: the kill waits for that condition, never for a time). The JSON then gets
+    `records_on_disk_at_kill`."""
     p = subprocess.Popen([PYTHON, "-m", "bev_mdo", "optimize", config_path, "--compose", "none", "--domain-id", str(domain), "--bag",
                           str(bag), "--json"], cwd=cwd, env=ros_env(domain), stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)
@@ -50,17 +53,25 @@ def run_cli(config_path, domain, cwd: Path, bag: Path, kill: tuple[str, ...] = (
     for line in p.stderr:
         err_lines.append(line)
         if kill and not killed and line.startswith("iter") and int(line.split()[1]) >= at_iteration:
-            for pid, cmd in child_processes(p.pid).items():
-                if any(f"{k}_node" in cmd for k in kill):
-                    os.kill(pid, signal.SIGKILL)  # a child of the run we started, by its id
-                    killed.append(cmd)
+            # the readers at once; the recorder once it has an iteration record on disk
+            for names in ([k for k in kill if k != "recorder"], [k for k in kill if k == "recorder"]):
+                if names == ["recorder"]:
+                    assert wait_until(lambda: _iterations_on_disk(bag) >= 1, 120.0), "no iteration record on disk"
+                    on_disk = _iterations_on_disk(bag)
+                for pid, cmd in child_processes(p.pid).items():
+                    if any(f"{k}_node" in cmd for k in names):
+                        os.kill(pid, signal.SIGKILL)  # a child of the run we started, by its id
+                        killed.append(cmd)
             assert len(killed) == len(kill), killed
         if time.monotonic() > deadline:
             p.kill()
             break
     out = p.stdout.read()
     p.wait(timeout=60)
-    return p.returncode, (json.loads(out) if out.strip() else {}), "".join(err_lines)
+    result = json.loads(out) if out.strip() else {}
+    if "recorder" in kill:
+        result["records_on_disk_at_kill"] = on_disk
+    return p.returncode, result, "".join(err_lines)
 
 
 def _opens_without_repair(bag: Path) -> int:
@@ -96,6 +107,7 @@ def test_killing_a_reader_and_the_recorder_does_not_stall_or_loop(config_path, r
     assert "not restarted" in err and "BagError" not in err and "Traceback" not in err
     _opens_without_repair(tmp_path / "calm")
     _opens_without_repair(tmp_path / "killed")
+    assert _iterations_on_disk(tmp_path / "killed") >= out["records_on_disk_at_kill"] >= 1  # none lost by the repair
     assert out["tail_s"] < 60  # bounded (the figure itself is measured in bench)
     # killed at the last iteration: in the tail, after (or during) the optimiser's last evaluation
     rc, late, err = run_cli(config_path, ros_domain, tmp_path, tmp_path / "late", kill=("vehicle_mass", "recorder"),
@@ -107,6 +119,7 @@ def test_killing_a_reader_and_the_recorder_does_not_stall_or_loop(config_path, r
     assert late["baseline"]["ok"] and late["baseline"]["outputs"] == base["baseline"]["outputs"]
     assert err.count("warning: the recorder died") == 1 and "Traceback" not in err
     _opens_without_repair(tmp_path / "late")
+    assert _iterations_on_disk(tmp_path / "late") >= late["records_on_disk_at_kill"] >= 1
     assert late["tail_s"] < 60
 
 
