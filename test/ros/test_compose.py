@@ -39,8 +39,19 @@ def launcher(ros_domain, config_path, tmp_path_factory):
     yield launcher
     launcher.stop()
     for n in launcher.nodes:
-        assert n.restarts == 0 and n.proc.returncode in (0, -signal.SIGINT), (
-            n.log_path.read_text()[-2000:] if n.log_path else n.label)
+        log = n.log_path.read_text() if n.log_path else n.label
+        assert n.restarts == 0 and (n.proc.returncode in (0, -signal.SIGINT) or _hung_in_dds_teardown(log)), log[-2000:]
+
+
+def _hung_in_dds_teardown(log: str) -> bool:
+    """The node served, took the SIGINT and was still inside rcl's node teardown when the launcher dumped its
+    stack (SIGUSR1) and killed it: Fast DDS's entity deletion can hang (bev_mdo/stacks.py, seen once in CI
+    in `destroy_node`). Bounded by the launcher and harmless to the run; anything else (a traceback, a
+    restart, a hang while serving) still fails the fixture."""
+    dump = log.rsplit("Current thread", 1)[-1] if "Current thread" in log else ""
+    top = dump.splitlines()[1:2]
+    return ("Traceback" not in log and bool(top) and "rclpy" in top[0]
+            and any(f in top[0] for f in ("destroy_node", "shutdown")))
 
 
 def test_two_processes_serve_six_nodes_and_the_optimum_equals_in_process(rclpy_context, launcher, config_path):
