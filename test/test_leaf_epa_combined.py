@@ -45,3 +45,32 @@ def test_bad_cycle_weights_one_line(weights, match):
     raw["disciplines"][1] = {"name": "energy", "options": {"cycle_weights": weights}}
     with pytest.raises(ValueError, match=match):
         load_config(raw)
+
+
+def test_quasi_static_runs_the_epa_combined_problem_from_the_wall():
+    """The same problem on the thesis' quasi-static model calibrated to the fleet (epa2022_quasi_static):
+    the energy is the distance-weighted mix of the two cycles' quasi-static runs, the wall's is the
+    battery's over the set's charger efficiency, and the margins are the tightest over both cycles."""
+    from bev_mdo.models import topology
+
+    raw = yaml.safe_load(CFG.read_text())
+    raw["energy_model"] = "quasi_static"
+    raw["vehicle"]["parameter_set"] = "epa2022_quasi_static"
+    raw["disciplines"][1]["options"]["feasibility_outputs"] = True
+    energy = _discs(raw)["energy"]
+    x = {"vehicle_mass_kg": np.array([1590.0, 1700.0]), "gear_ratio": np.array([8.0, 9.0]),
+         "motor_kw": np.array([80.0, 100.0]), "battery_kwh": np.array([24.0, 30.0])}
+    out = energy.compute(x)
+    p = {**energy.extra, **energy._params(x)}
+    assert 0.7 < p["charger_efficiency"] < 0.9  # the fitted set's, not the default 1
+    runs = {c: topology.simulate(resample(load_cycle(c)), p, topology.get_topology("SM-SA"), x["vehicle_mass_kg"],
+                                 x["motor_kw"], x["battery_kwh"], x["gear_ratio"]) for c in ("epa_udds", "epa_hwfet")}
+    e = 0.55 * runs["epa_udds"].energy_wh_per_km + 0.45 * runs["epa_hwfet"].energy_wh_per_km
+    np.testing.assert_allclose(out["energy_wh_per_km"], e, rtol=1e-12)
+    np.testing.assert_allclose(out["energy_wall_wh_per_km"], e / p["charger_efficiency"], rtol=1e-15)
+    np.testing.assert_array_equal(out["drive_torque_margin_nm"], np.minimum(runs["epa_udds"].torque_margin_nm,
+                                                                            runs["epa_hwfet"].torque_margin_nm))
+    fastest = np.maximum(runs["epa_udds"].motor_speed_max_rad_s, runs["epa_hwfet"].motor_speed_max_rad_s)
+    assert np.all(out["motor_speed_margin_rad_s"] < 10500 * np.pi / 30) and np.all(fastest > 0)
+    np.testing.assert_allclose(out["motor_speed_margin_rad_s"] + fastest,
+                               np.full(2, p.get("motor_speed_limit_rpm", 10500.0) * np.pi / 30), rtol=1e-12)

@@ -3,7 +3,8 @@
 - ``FirstErrors``: the first error of each failing discipline, printed once to the console.
 - ``TimedDiscipline``: the in-process transport's timeout, the same budget a ROS run gives a
   discipline before its points fail (``ros.timeout_s`` x (``ros.retries`` + 1)). A compute() that
-  does not return within it is interrupted (SIGALRM, main thread only) and the discipline counts
+  does not return within it is interrupted (SIGALRM, main thread only; a discipline's ``prepare()``, its
+  one-time work such as compiling a model, runs before the first call, untimed) and the discipline counts
   as hung for the rest of the run: its points fail at once with an error naming it, as a ROS node
   that never answers fails every request.
 - ``NamingInProcessEvaluator``: the in-process evaluator reporting first errors.
@@ -44,6 +45,7 @@ class TimedDiscipline:
         self._disc = disc
         self._timeout_s = float(timeout_s)
         self._hung = ""
+        self._prepared = False
 
     def __getattr__(self, name):  # name, inputs, outputs, parameters, ... of the wrapped discipline
         return getattr(self._disc, name)
@@ -51,6 +53,9 @@ class TimedDiscipline:
     def compute(self, inputs):
         if self._hung:
             raise DisciplineTimeout(self._hung)
+        if not self._prepared:  # one-time work (e.g. compiling a model) is not a hang: done before the clock starts
+            self._prepared = True
+            getattr(self._disc, "prepare", lambda: None)()
         if threading.current_thread() is not threading.main_thread():
             return self._disc.compute(inputs)
 

@@ -15,11 +15,15 @@ from bev_mdo.models import topology as topo_model
 from bev_mdo.models.cycles import load_cycle, resample
 from bev_mdo.models.params import validate_cycle
 
+WALL_MODELS = ("chain", "quasi_static")  # the models that know the charger: energy_wall_wh_per_km
+
 
 class Energy(Base):
     """vehicle_mass_kg, gear_ratio (, motor_kw, battery_kwh, rear motor) -> energy_wh_per_km, the energy
-    from the battery per km, on the configured cycle (option ``cycle`` overrides it); the chain model also
-    gives ``energy_wall_wh_per_km``, the energy from the wall (what EPA measures). Option ``feasibility_outputs: true`` adds
+    from the battery per km, on the configured cycle (option ``cycle`` overrides it, option ``cycle_weights``
+    mixes cycles by distance); the chain and quasi-static models also give ``energy_wall_wh_per_km``, the energy
+    from the wall (what EPA measures: the battery's over ``charger_efficiency``, 1 in the thesis' parameters).
+    Option ``feasibility_outputs: true`` adds
     ``drive_torque_margin_nm`` (min over the cycle of envelope minus demand; at the motor for
     SM-SA, at the wheels otherwise) and, with quasi_static, ``motor_speed_margin_rad_s`` (limit minus
     max) or, with chain, ``drive_power_margin_kw`` (rated power minus the largest drive power; over
@@ -51,8 +55,8 @@ class Energy(Base):
         if feasibility_outputs and energy_model not in ("quasi_static", "chain"):
             raise ValueError("energy option feasibility_outputs needs energy_model quasi_static or chain")
         self.feasibility_outputs = bool(feasibility_outputs)
-        # energy_wh_per_km is the energy from the battery (every model); chain adds the wall's
-        self.outputs = ("energy_wh_per_km",) + (("energy_wall_wh_per_km",) if energy_model == "chain" else ())
+        # energy_wh_per_km is the energy from the battery (every model); chain and quasi_static add the wall's
+        self.outputs = ("energy_wh_per_km",) + (("energy_wall_wh_per_km",) if energy_model in WALL_MODELS else ())
         if feasibility_outputs:
             self.outputs += ("drive_torque_margin_nm",
                              "motor_speed_margin_rad_s" if energy_model == "quasi_static" else "drive_power_margin_kw")
@@ -94,21 +98,27 @@ class Energy(Base):
         disc.weighted = _cycle_weights(config, options, model)
         return disc
 
-    def _simulate(self, inputs, p):
-        return topo_model.simulate(self.resampled, p, self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
+    def prepare(self) -> None:
+        """One-time work before the first call, outside any timeout: the quasi-static model's compiled loops."""
+        if self.energy_model == "quasi_static":
+            topo_model.warm_up()
+
+    def _simulate(self, inputs, p, resampled=None):
+        return topo_model.simulate(self.resampled if resampled is None else resampled, p, self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
                                    inputs["battery_kwh"], inputs.get("gear_ratio"), inputs.get("motor_rear_kw"),
                                    inputs.get("gear_ratio_rear"))
 
     def compute(self, inputs):
         p = {**self.extra, **self._params(inputs)}
-        if self._fn is None:
-            r = self._simulate(inputs, p)
-            out = {"energy_wh_per_km": r.energy_wh_per_km}
+        if self._fn is None:  # quasi_static: the battery's energy (2-16, 2-17), the tightest margins over the cycles
+            runs = [(w, self._simulate(inputs, p, r)) for w, r in (getattr(self, "weighted", None) or [(1.0, None)])]
+            e = sum(w * r.energy_wh_per_km for w, r in runs) if len(runs) > 1 else runs[0][1].energy_wh_per_km
+            out = {"energy_wh_per_km": e, "energy_wall_wh_per_km": e / p.get("charger_efficiency", 1.0)}
             if self.feasibility_outputs:
-                out["drive_torque_margin_nm"] = np.minimum(r.torque_margin_nm, 1e9)
-                out["motor_speed_margin_rad_s"] = (np.broadcast_to(p.get("motor_speed_limit_rpm", 10500.0), (len(r.energy_wh_per_km),))
+                out["drive_torque_margin_nm"] = np.minimum(np.minimum.reduce([r.torque_margin_nm for _, r in runs]), 1e9)
+                out["motor_speed_margin_rad_s"] = (np.broadcast_to(p.get("motor_speed_limit_rpm", 10500.0), (len(e),))
                                                    * np.pi / 30.0 * (1.0 if self.topology.geared else p.get("iwm_speed_scale", 210 / 1099.56))
-                                                   - r.motor_speed_max_rad_s)
+                                                   - np.maximum.reduce([r.motor_speed_max_rad_s for _, r in runs]))
             return out
         motor_kw = inputs.get("motor_kw")
         if self.feasibility_outputs:  # chain: energy and the motor's margins, the tightest over the cycles
@@ -136,8 +146,6 @@ def _cycle_weights(config, options, model):
     cw = options.cycle_weights
     if cw is None:
         return None
-    if model == "quasi_static":
-        raise ValueError("energy option cycle_weights needs energy_model flat, breakdown or chain")
     if not isinstance(cw, Mapping) or not cw:
         raise ValueError("energy option cycle_weights must map cycle names to distance shares")
     total = 0.0

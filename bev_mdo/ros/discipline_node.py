@@ -8,9 +8,8 @@ Data flow (one request per feed-forward MDA, mdo/flow.py): the node also reads
 /bev_mdo/mda_request and the /bev_mdo/<source>/mda_result topics of the disciplines that
 produce its coupling inputs (found from the run config), evaluates once its sources have
 answered, and publishes on its own /bev_mdo/<discipline>/mda_result.
-Malformed requests are rejected, counted and logged (rate-limited). The node knows
-no physics: the discipline object comes from the run config (built-in or
-`module:Class`).
+Malformed requests are rejected, counted and logged (rate-limited). The node knows no physics:
+the discipline object comes from the run config (built-in or `module:Class`).
 
 Parameters: config (path to the run YAML), discipline (name in the config),
 instance (defaults to the node name), and vehicle.<key> overrides of the config's
@@ -73,11 +72,12 @@ def _decode_once(decode, data: bytes):
 
 
 def _build(config, name: str) -> tuple[Any, dict[str, str]]:
-    """(the discipline, output -> producing discipline over the whole RunConfig)."""
+    """(the discipline, prepared: its one-time work done; output -> producing discipline in the RunConfig)."""
     every = config.disciplines
     found = [d for d in every if d.name == name]
     if not found:
         raise ValueError(f"no discipline {name!r} in the config; it has {[d.name for d in every]}")
+    getattr(found[0], "prepare", lambda: None)()  # e.g. compiling a model: before serving, not in a timed call
     return found[0], {v: d.name for d in every for v in d.outputs}
 
 

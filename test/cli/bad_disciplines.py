@@ -87,3 +87,23 @@ class WrongShapeLater:
         WrongShapeLater.calls += 1
         motor = np.asarray(inputs["motor_kw"], float)
         return {"shape_kw": motor if WrongShapeLater.calls <= 60 else np.zeros(len(motor) + 3)}
+
+
+class SlowStart:
+    """Its one-time work (e.g. compiling a model) takes longer than the timeout budget, done by prepare() or
+    else by the first call, as a numba model compiles on its first call; every later call is quick."""
+
+    name = "slow_start"
+    inputs = ("motor_kw",)
+    outputs = ("slow_start_kw",)
+    units = dict.fromkeys(inputs + outputs, "kW")
+    ready = False
+
+    def prepare(self):
+        time.sleep(8.0)
+        self.ready = True
+
+    def compute(self, inputs):
+        if not self.ready:
+            self.prepare()
+        return {"slow_start_kw": np.asarray(inputs["motor_kw"])}

@@ -71,3 +71,13 @@ def test_one_number_for_a_whole_batch_is_an_error_naming_the_discipline(tmp_path
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "discipline 'summed': output 'summed_kw' has shape ()" in lines[0], lines
     assert "Traceback" not in p.stderr
+
+
+def test_a_discipline_slow_to_prepare_is_not_taken_for_a_hung_one(tmp_path):
+    """A discipline's prepare() (its one-time work, such as the quasi-static model's compile after an install)
+    runs before its first call, outside the timeout budget: 8 s against a budget of 6 s is not a hang."""
+    p = _run(tmp_path, "slow_start", "SlowStart", {"timeout_s": 3.0, "retries": 1})
+    assert p.returncode in (0, 5), p.stderr[-2000:]  # an optimum, or feasible at maxiter 2: never 1 or 4 (hung)
+    out = json.loads(p.stdout)
+    assert out["feasible"] and not out.get("discipline_errors") and not out.get("unresponsive_disciplines"), out
+    assert "failed" not in p.stderr, p.stderr[-2000:]
