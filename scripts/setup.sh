@@ -55,7 +55,7 @@ if ! fresh pkg "$h"; then
   quiet_pip install -q --no-deps --no-build-isolation --force-reinstall "$ROOT" >/dev/null
   "$VENV/bin/python" -c "import bev_mdo" || { log "bev_mdo did not install"; exit 1; }
   log "compiling the quasi-static model's loops once (numba, cached beside the package; about a minute)"
-  "$VENV/bin/python" -c "from bev_mdo.models.topology import warm_up; warm_up()" \
+  "$VENV/bin/python" -c "from bev_mdo.disciplines.energy import warm_up; warm_up()" \
     || { log "compiling the quasi-static model failed"; exit 1; }
   rm -rf "$ROOT/build" "$ROOT"/*.egg-info
   stamp pkg "$h"

@@ -101,7 +101,7 @@ class Energy(Base):
     def prepare(self) -> None:
         """One-time work before the first call, outside any timeout: the quasi-static model's compiled loops."""
         if self.energy_model == "quasi_static":
-            topo_model.warm_up()
+            warm_up()
 
     def _simulate(self, inputs, p, resampled=None):
         return topo_model.simulate(self.resampled if resampled is None else resampled, p, self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
@@ -205,3 +205,27 @@ def _slug(name: str) -> str:
     return re.sub(r"[^a-z0-9]+", "_", str(name).lower()).strip("_") or "cycle"
 
 
+def warm_up() -> float:
+    """Compile (or load from numba's on-disk cache) every compiled loop of the quasi-static and topology models:
+    energy and range of each topology, with the packaged motor map and with the loss model, on a 3-step cycle.
+    Returns the seconds taken: about a minute on a small host the first time after an install, a fraction of a
+    second once cached. ``scripts/setup.sh`` runs it after installing; ``Energy.prepare`` before the first call."""
+    import sys
+    import threading
+    import time
+
+    from bev_mdo.models.cycles import DriveCycle
+
+    start = time.perf_counter()
+    note = threading.Timer(3.0, lambda: print("note: compiling the quasi-static model's loops (numba), once after an "
+                                              "install: about a minute on a small host", file=sys.stderr, flush=True))
+    note.daemon = True
+    note.start()
+    cycle = resample(DriveCycle("warm_up", np.array([0.0, 1.0, 2.0, 3.0]), np.array([0.0, 2.0, 2.0, 0.0])), 1.0)
+    args = tuple(np.array([x]) for x in (1500.0, 80.0, 24.0, 8.0, 40.0, 8.0))  # mass, kW, kWh, ratio, rear kW, ratio
+    for loss_model in (0.0, 1.0):
+        for t in topo_model.TOPOLOGIES:
+            topo_model.simulate(cycle, {"motor_loss_model": loss_model}, t, *args)
+            topo_model.range_by_repeated_cycle_km(cycle, {"motor_loss_model": loss_model}, t, *args, max_repeats=1)
+    note.cancel()
+    return time.perf_counter() - start

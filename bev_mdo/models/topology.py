@@ -497,32 +497,3 @@ def _speed_ok(axles, t, two, ig, ig2, v_shift, r_w, v_end):
         else:
             ok &= a.w_lim * r_w / a.ratio >= v_end * (1 - 1e-12)
     return ok
-
-
-def warm_up() -> float:
-    """Compile (or load from numba's on-disk cache) every compiled loop the quasi-static and topology
-    models use: energy and range of each topology, with the packaged motor map and with the loss model, on
-    a three-step cycle. Returns the seconds taken: about a minute per kernel set on a small host the first
-    time after an install, a fraction of a second once cached. ``scripts/setup.sh`` runs it after installing,
-    and a discipline runs it before its first timed call (``Energy.prepare``), so a compile is never taken
-    for a hung discipline."""
-    import sys
-    import threading
-    import time
-
-    from bev_mdo.models.cycles import DriveCycle, resample
-
-    start = time.perf_counter()
-    note = threading.Timer(3.0, lambda: print("note: compiling the quasi-static model's loops (numba), once after an "
-                                              "install: about a minute on a small host", file=sys.stderr, flush=True))
-    note.daemon = True
-    note.start()
-    cycle = resample(DriveCycle("warm_up", np.array([0.0, 1.0, 2.0, 3.0]), np.array([0.0, 2.0, 2.0, 0.0])), 1.0)
-    one = np.ones(1)
-    args = (1500.0 * one, 80.0 * one, 24.0 * one, 8.0 * one, 40.0 * one, 8.0 * one)  # mass, kW, kWh, ratios
-    for loss_model in (0.0, 1.0):
-        for t in TOPOLOGIES:
-            simulate(cycle, {"motor_loss_model": loss_model}, t, *args)
-            range_by_repeated_cycle_km(cycle, {"motor_loss_model": loss_model}, t, *args, max_repeats=1)
-    note.cancel()
-    return time.perf_counter() - start
