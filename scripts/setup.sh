@@ -54,7 +54,7 @@ if ! fresh pkg "$h"; then
   log "installing bev_mdo into the venv"
   quiet_pip install -q --no-deps --no-build-isolation --force-reinstall "$ROOT" >/dev/null
   "$VENV/bin/python" -c "import bev_mdo" || { log "bev_mdo did not install"; exit 1; }
-  log "compiling the quasi-static model's loops once (numba, cached beside the package; about a minute)"
+  # the quasi-static model's numba loops, compiled once and cached beside the package (it says so if that is slow)
   "$VENV/bin/python" -c "from bev_mdo.disciplines.energy import warm_up; warm_up()" \
     || { log "compiling the quasi-static model failed"; exit 1; }
   rm -rf "$ROOT/build" "$ROOT"/*.egg-info
