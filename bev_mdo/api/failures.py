@@ -16,6 +16,7 @@ import sys
 import threading
 from typing import Any
 
+from bev_mdo.mdo.discipline import prepare
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 
 
@@ -55,7 +56,7 @@ class TimedDiscipline:
             raise DisciplineTimeout(self._hung)
         if not self._prepared:  # one-time work (e.g. compiling a model) is not a hang: done before the clock starts
             self._prepared = True
-            getattr(self._disc, "prepare", lambda: None)()
+            prepare(self._disc)
         if threading.current_thread() is not threading.main_thread():
             return self._disc.compute(inputs)
 

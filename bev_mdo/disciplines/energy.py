@@ -12,7 +12,7 @@ from bev_mdo.disciplines.common import (ENERGY_MODELS, Base, flag, replaced_by_r
                                         run_topology, topology_inputs, vehicle_of)
 from bev_mdo.models import flat
 from bev_mdo.models import topology as topo_model
-from bev_mdo.models.cycles import load_cycle, resample
+from bev_mdo.models.cycles import DriveCycle, load_cycle, resample
 from bev_mdo.models.params import validate_cycle
 
 WALL_MODELS = ("chain", "quasi_static")  # the models that know the charger: energy_wall_wh_per_km
@@ -103,16 +103,20 @@ class Energy(Base):
         if self.energy_model == "quasi_static":
             warm_up()
 
-    def _simulate(self, inputs, p, resampled=None):
-        return topo_model.simulate(self.resampled if resampled is None else resampled, p, self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
+    def _cycles(self):
+        """[(distance share, resampled cycle)]: those of option cycle_weights, else the one cycle."""
+        return getattr(self, "weighted", None) or [(1.0, self.resampled)]
+
+    def _simulate(self, inputs, p, resampled):
+        return topo_model.simulate(resampled, p, self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
                                    inputs["battery_kwh"], inputs.get("gear_ratio"), inputs.get("motor_rear_kw"),
                                    inputs.get("gear_ratio_rear"))
 
     def compute(self, inputs):
         p = {**self.extra, **self._params(inputs)}
         if self._fn is None:  # quasi_static: the battery's energy (2-16, 2-17), the tightest margins over the cycles
-            runs = [(w, self._simulate(inputs, p, r)) for w, r in (getattr(self, "weighted", None) or [(1.0, None)])]
-            e = sum(w * r.energy_wh_per_km for w, r in runs) if len(runs) > 1 else runs[0][1].energy_wh_per_km
+            runs = [(w, self._simulate(inputs, p, r)) for w, r in self._cycles()]
+            e = sum(w * r.energy_wh_per_km for w, r in runs)  # one cycle: 0 + 1.0 x, the same bits
             out = {"energy_wh_per_km": e, "energy_wall_wh_per_km": e / p.get("charger_efficiency", 1.0)}
             if self.feasibility_outputs:
                 out["drive_torque_margin_nm"] = np.minimum(np.minimum.reduce([r.torque_margin_nm for _, r in runs]), 1e9)
@@ -125,16 +129,14 @@ class Energy(Base):
             from bev_mdo.models import chain
 
             runs = [(w, chain.simulate(r, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw))
-                    for w, r in (getattr(self, "weighted", None) or [(1.0, self.resampled)])]
+                    for w, r in self._cycles()]
             wall = sum(w * c.energy_wh_per_km for w, c in runs)
             return {"energy_wh_per_km": wall * p["charger_efficiency"], "energy_wall_wh_per_km": wall,
                     "drive_torque_margin_nm": np.minimum.reduce([c.torque_margin_nm for _, c in runs]),
                     "drive_power_margin_kw": np.minimum.reduce([c.power_margin_kw for _, c in runs])}
-        if getattr(self, "weighted", None):  # e.g. EPA combined: 0.55 UDDS + 0.45 HWFET by distance
-            e = sum(w * self._fn(r, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
-                    for w, r in self.weighted)
-        else:
-            e = self._fn(self.resampled, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
+        # e.g. EPA combined: 0.55 UDDS + 0.45 HWFET by distance (one cycle: 0 + 1.0 x, the same bits)
+        e = sum(w * self._fn(r, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
+                for w, r in self._cycles())
         if self.energy_model == "chain":  # the chain's energy is from the wall; the battery gives E_wall x eta_chg
             return {"energy_wh_per_km": e * p["charger_efficiency"], "energy_wall_wh_per_km": e}
         return {"energy_wh_per_km": e}
@@ -213,8 +215,6 @@ def warm_up() -> float:
     import sys
     import threading
     import time
-
-    from bev_mdo.models.cycles import DriveCycle
 
     start = time.perf_counter()
     note = threading.Timer(3.0, lambda: print("note: compiling the quasi-static model's loops (numba), once after an "

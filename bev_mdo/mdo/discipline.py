@@ -60,8 +60,17 @@ class Discipline:
         default passes the options to the constructor as keyword arguments."""
         return cls(**options_dict(options))
 
+    def prepare(self) -> None:
+        """Optional one-time work (compiling a model, loading a table), run by :func:`prepare`."""
+
     def compute(self, inputs: Batch) -> Batch:  # pragma: no cover - interface
         raise NotImplementedError
+
+
+def prepare(disc: Any) -> None:
+    """Run a discipline's optional ``prepare()`` once, before its first timed call in process and before a
+    node serves it, so that a slow start (a model compiling) is not taken for a hang."""
+    getattr(disc, "prepare", lambda: None)()
 
 
 def options_dict(options: Any) -> dict:

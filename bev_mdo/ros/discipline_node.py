@@ -36,7 +36,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 from bev_mdo import __version__, binding, protocol
 from bev_mdo.stacks import deadline
 from bev_mdo.mdo import flow
-from bev_mdo.mdo.discipline import DisciplineError, all_finite, readable, run_discipline, unknown_inputs
+from bev_mdo.mdo.discipline import DisciplineError, all_finite, prepare, readable, run_discipline, unknown_inputs
 from bev_mdo.mdo.vectors import ShapeError
 from bev_mdo.protocol.signing import Signer
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RESULT_QOS, NODE_STATS_QOS,
@@ -77,7 +77,7 @@ def _build(config, name: str) -> tuple[Any, dict[str, str]]:
     found = [d for d in every if d.name == name]
     if not found:
         raise ValueError(f"no discipline {name!r} in the config; it has {[d.name for d in every]}")
-    getattr(found[0], "prepare", lambda: None)()  # e.g. compiling a model: before serving, not in a timed call
+    prepare(found[0])  # e.g. compiling a model: before serving, not in a timed call
     return found[0], {v: d.name for d in every for v in d.outputs}
 
 
