@@ -239,7 +239,8 @@ def test_drive_cycle_csvs_are_recorded_in_the_resolved_config(tmp_path, monkeypa
     monkeypatch.chdir(tmp_path)
     cfg = load_config(raw)
     assert set(cfg["cycle_traces"]) == {"a.csv", "b.csv"}
-    inputs = {"vehicle_mass_kg": np.array([1600.0]), "gear_ratio": np.array([8.0]), "motor_kw": np.array([80.0])}
+    inputs = {"vehicle_mass_kg": np.array([1600.0]), "gear_ratio": np.array([8.0]), "motor_kw": np.array([80.0]),
+              "battery_kwh": np.array([24.0])}
 
     def energy(c):
         return next(d for d in resolve_disciplines(c) if d.name == "energy").compute(inputs)["energy_wh_per_km"]
@@ -258,3 +259,23 @@ def test_drive_cycle_csvs_are_recorded_in_the_resolved_config(tmp_path, monkeypa
     stored["cycle_traces"]["a.csv"]["speed_m_s"][3] = -1.0
     with pytest.raises(ValueError, match=r"cycle_traces\['a.csv'\]: sample 4"):
         load_config(stored)
+
+
+def test_a_parameter_set_fitted_for_another_energy_model_is_refused(tmp_path, monkeypatch):
+    """A set written by bev-mdo calibrate records the model it was fitted for; on another model its
+    constants mean nothing (the chain's on the quasi-static model: 77 % over the fleet), so the config
+    says so in one line. A set not tied to a model (the thesis', a hand-written file) is taken."""
+    raw = yaml.safe_load((ROOT.parent / "config" / "leaf_epa_combined.yaml").read_text())
+    raw["vehicle"]["parameter_set"] = "epa2022_chain"
+    with pytest.raises(ValueError, match=r"^<config>: vehicle.parameter_set 'epa2022_chain' was fitted for "
+                                         r"energy_model chain, not quasi_static$"):
+        load_config(copy.deepcopy(raw))
+    mine = tmp_path / "mine.yaml"
+    mine.write_text((ROOT.parent / "bev_mdo" / "data" / "parameter_sets" / "epa2022_chain.yaml").read_text())
+    raw["vehicle"]["parameter_set"] = str(mine)
+    with pytest.raises(ValueError, match="was fitted for energy_model chain"):
+        load_config(copy.deepcopy(raw))
+    raw["energy_model"] = "chain"
+    assert load_config(copy.deepcopy(raw))["vehicle"]["charger_efficiency"] > 0.8  # the file's, inlined
+    raw["vehicle"]["parameter_set"], raw["energy_model"] = "thesis", "quasi_static"
+    assert load_config(copy.deepcopy(raw))["energy_model"] == "quasi_static"

@@ -1,3 +1,4 @@
+import copy
 from pathlib import Path
 
 import numpy as np
@@ -214,7 +215,8 @@ def test_a_road_load_override_is_checked_as_the_config_is(name, value, says):
     cfg = load("leaf_epa_combined.yaml")
     ds = {d.name: d for d in default_disciplines(cfg)}
     x = {"motor_kw": np.array([80.0, 80.0]), "gear_ratio": np.array([8.0, 8.0]),
-         "vehicle_mass_kg": np.array([1590.0, 1590.0]), name: np.array([ds["energy"].parameters[name], value])}
+         "vehicle_mass_kg": np.array([1590.0, 1590.0]), "battery_kwh": np.array([24.0, 24.0]),
+         name: np.array([ds["energy"].parameters[name], value])}
     for d in ("energy", "acceleration"):
         res = run_discipline(ds[d], x)
         assert not res.ok[1] and says in res.error, (d, res.error)
@@ -230,7 +232,9 @@ def test_chain_feasibility_outputs_are_the_tightest_margins_over_the_cycles():
     from bev_mdo.models import chain
     from bev_mdo.models.cycles import load_cycle, resample
 
-    cfg = load_config(str(Path(__file__).resolve().parents[1] / "config" / "leaf_epa_combined.yaml"))
+    raw = yaml.safe_load((Path(__file__).resolve().parents[1] / "config" / "leaf_epa_combined.yaml").read_text())
+    raw["energy_model"], raw["vehicle"]["parameter_set"] = "chain", "epa2022_chain"  # the shipped config's on the chain
+    cfg = load_config(copy.deepcopy(raw))
     cfg["disciplines"][1]["options"]["feasibility_outputs"] = True
     energy = next(d for d in resolve_disciplines(cfg) if d.name == "energy")
     assert energy.outputs == ("energy_wh_per_km", "energy_wall_wh_per_km", "drive_torque_margin_nm",
@@ -248,7 +252,6 @@ def test_chain_feasibility_outputs_are_the_tightest_margins_over_the_cycles():
     np.testing.assert_allclose(out["drive_torque_margin_nm"], np.minimum(sims[0].torque_margin_nm, sims[1].torque_margin_nm))
     assert out["drive_power_margin_kw"][0] > 0 > out["drive_power_margin_kw"][1]  # 12 kW cannot follow
     assert not sims[0].follows[1] or not sims[1].follows[1]
-    plain = next(d for d in resolve_disciplines(load_config(str(Path(__file__).resolve().parents[1] / "config"
-                                                                      / "leaf_epa_combined.yaml"))) if d.name == "energy")
+    plain = next(d for d in resolve_disciplines(load_config(raw)) if d.name == "energy")
     for k in ("energy_wh_per_km", "energy_wall_wh_per_km"):
         np.testing.assert_allclose(plain.compute(inputs)[k], out[k], rtol=1e-12)

@@ -1,4 +1,5 @@
-"""The main-job config on the calibrated chain and the energy option cycle_weights."""
+"""The EPA-combined config on the calibrated quasi-static model, on the calibrated chain, and the energy
+option cycle_weights."""
 from pathlib import Path
 
 import numpy as np
@@ -18,46 +19,19 @@ def _discs(raw):
     return {d.name: d for d in resolve_disciplines(load_config(raw))}
 
 
-def test_energy_is_the_distance_weighted_epa_combined():
-    raw = yaml.safe_load(CFG.read_text())
-    d = _discs(raw)
-    x = {"vehicle_mass_kg": np.array([1590.0, 1700.0]), "gear_ratio": np.array([8.0, 9.0]),
-         "motor_kw": np.array([80.0, 100.0]), "battery_kwh": np.array([24.0, 24.0])}
-    out = d["energy"].compute(x)
-    wall, e = out["energy_wall_wh_per_km"], out["energy_wh_per_km"]
-    v = validate_vehicle(raw["vehicle"])
-    ref = sum(w * chain.energy_wh_per_km(resample(load_cycle(c)), v, x["vehicle_mass_kg"], x["gear_ratio"],
-                                         x["motor_kw"]) for c, w in (("epa_udds", 0.55), ("epa_hwfet", 0.45)))
-    np.testing.assert_allclose(wall, ref, rtol=1e-12)  # the objective: energy from the wall, as EPA measures
-    assert raw["problem"]["objective"] == "energy_wall_wh_per_km"
-    # range from the battery energy (wall energy x charger efficiency), usable fraction 0.9
-    np.testing.assert_allclose(e, wall * v["charger_efficiency"], rtol=1e-15)
-    r = d["range"].compute({"battery_kwh": np.array([24.0]), "energy_wh_per_km": e[:1]})["range_km"][0]
-    assert r == pytest.approx(0.9 * 24000.0 / (wall[0] * v["charger_efficiency"]))
-    assert v["battery_usable_fraction"] == 0.9 and v["motor_torque_per_kw"] == 3.5
-
-
-@pytest.mark.parametrize("weights,match", [({"epa_udds": 0.5, "epa_hwfet": 0.4}, "sum to 1"),
-                                           ({"epa_udds": 1.5}, "share in"),
-                                           ({"no_such_cycle": 1.0}, "unknown drive cycle")])
-def test_bad_cycle_weights_one_line(weights, match):
-    raw = yaml.safe_load(CFG.read_text())
-    raw["disciplines"][1] = {"name": "energy", "options": {"cycle_weights": weights}}
-    with pytest.raises(ValueError, match=match):
-        load_config(raw)
-
-
-def test_quasi_static_runs_the_epa_combined_problem_from_the_wall():
-    """The same problem on the thesis' quasi-static model calibrated to the fleet (epa2022_quasi_static):
-    the energy is the distance-weighted mix of the two cycles' quasi-static runs, the wall's is the
-    battery's over the set's charger efficiency, and the margins are the tightest over both cycles."""
+def test_energy_is_the_distance_weighted_epa_combined_from_the_wall():
+    """The shipped config: the thesis' quasi-static model calibrated to the fleet (epa2022_quasi_static).
+    The energy is the distance-weighted mix of the two cycles' quasi-static runs, the wall's is the
+    battery's over the set's charger efficiency, the margins are the tightest over both cycles, and
+    range uses the battery energy and the usable fraction."""
     from bev_mdo.models import topology
 
     raw = yaml.safe_load(CFG.read_text())
-    raw["energy_model"] = "quasi_static"
-    raw["vehicle"]["parameter_set"] = "epa2022_quasi_static"
+    assert raw["energy_model"] == "quasi_static" and raw["vehicle"]["parameter_set"] == "epa2022_quasi_static"
+    assert raw["problem"]["objective"] == "energy_wall_wh_per_km"  # the energy from the wall, as EPA measures
     raw["disciplines"][1]["options"]["feasibility_outputs"] = True
-    energy = _discs(raw)["energy"]
+    d = _discs(raw)
+    energy = d["energy"]
     x = {"vehicle_mass_kg": np.array([1590.0, 1700.0]), "gear_ratio": np.array([8.0, 9.0]),
          "motor_kw": np.array([80.0, 100.0]), "battery_kwh": np.array([24.0, 30.0])}
     out = energy.compute(x)
@@ -74,3 +48,37 @@ def test_quasi_static_runs_the_epa_combined_problem_from_the_wall():
     assert np.all(out["motor_speed_margin_rad_s"] < 10500 * np.pi / 30) and np.all(fastest > 0)
     np.testing.assert_allclose(out["motor_speed_margin_rad_s"] + fastest,
                                np.full(2, p.get("motor_speed_limit_rpm", 10500.0) * np.pi / 30), rtol=1e-12)
+    r = d["range"].compute({"battery_kwh": np.array([24.0]), "energy_wh_per_km": out["energy_wh_per_km"][:1]})
+    assert r["range_km"][0] == pytest.approx(0.9 * 24000.0 / e[0])
+    v = validate_vehicle(raw["vehicle"])
+    assert v["battery_usable_fraction"] == 0.9 and v["motor_torque_per_kw"] == 3.5
+
+
+def test_the_chain_runs_the_epa_combined_problem_from_the_wall():
+    """The same problem on the calibrated wall-to-wheel chain (epa2022_chain): the wall energy is the
+    distance-weighted mix of the chain's, the battery's is the wall's times the charger efficiency."""
+    raw = yaml.safe_load(CFG.read_text())
+    raw["energy_model"] = "chain"
+    raw["vehicle"]["parameter_set"] = "epa2022_chain"
+    d = _discs(raw)
+    x = {"vehicle_mass_kg": np.array([1590.0, 1700.0]), "gear_ratio": np.array([8.0, 9.0]),
+         "motor_kw": np.array([80.0, 100.0]), "battery_kwh": np.array([24.0, 24.0])}
+    out = d["energy"].compute(x)
+    wall, e = out["energy_wall_wh_per_km"], out["energy_wh_per_km"]
+    v = validate_vehicle(raw["vehicle"])
+    ref = sum(w * chain.energy_wh_per_km(resample(load_cycle(c)), v, x["vehicle_mass_kg"], x["gear_ratio"],
+                                         x["motor_kw"]) for c, w in (("epa_udds", 0.55), ("epa_hwfet", 0.45)))
+    np.testing.assert_allclose(wall, ref, rtol=1e-12)
+    np.testing.assert_allclose(e, wall * v["charger_efficiency"], rtol=1e-15)
+    r = d["range"].compute({"battery_kwh": np.array([24.0]), "energy_wh_per_km": e[:1]})["range_km"][0]
+    assert r == pytest.approx(0.9 * 24000.0 / (wall[0] * v["charger_efficiency"]))
+
+
+@pytest.mark.parametrize("weights,match", [({"epa_udds": 0.5, "epa_hwfet": 0.4}, "sum to 1"),
+                                           ({"epa_udds": 1.5}, "share in"),
+                                           ({"no_such_cycle": 1.0}, "unknown drive cycle")])
+def test_bad_cycle_weights_one_line(weights, match):
+    raw = yaml.safe_load(CFG.read_text())
+    raw["disciplines"][1] = {"name": "energy", "options": {"cycle_weights": weights}}
+    with pytest.raises(ValueError, match=match):
+        load_config(raw)

@@ -12,10 +12,11 @@ same rows (bev_mdo/models/baselines.py): the 3-constant baseline, cross-validate
 FASTSim 2.1.5 with its defaults (shipped results). ``--plot DIR`` writes the parity and residual
 plot and, with ``--pairs``, the pairs of each cycle as arrows from one variant to the other
 (bev_mdo/cli/validate_plots.py).
-Models: chain (default; wall to wheel with the calibrated parameter set), flat, breakdown (the
-thesis models, which stop at the battery terminals), quasi_static, topology_sm_sa (the thesis'
-model with its motor written as losses and calibrated to the fleet, from the wall; with
-``--parameter-set thesis`` as published, at the battery terminals).
+Models: quasi_static (default) and topology_sm_sa (the thesis' model with its motor written as
+losses and calibrated to the fleet, from the wall; with ``--parameter-set thesis`` as published, at
+the battery terminals), chain (wall to wheel with its calibrated parameter set), flat, breakdown
+(the thesis models, which stop at the battery terminals). The default is the model with the lowest
+held-out error (docs/validation.md).
 """
 from __future__ import annotations
 
@@ -27,9 +28,10 @@ import numpy as np
 
 from bev_mdo.cli import UsageError
 
-DEFAULT_SET = "epa2022_chain"
+DEFAULT_MODEL = "quasi_static"
 # the calibrated set each model is validated with unless --parameter-set names another ('none': defaults)
-DEFAULT_SETS = {"chain": DEFAULT_SET, "quasi_static": "epa2022_quasi_static", "topology_sm_sa": "epa2022_quasi_static"}
+DEFAULT_SETS = {"chain": "epa2022_chain", "quasi_static": "epa2022_quasi_static",
+                "topology_sm_sa": "epa2022_quasi_static"}
 
 
 def compared(energy_model: str, base: dict | None = None) -> str:
@@ -52,10 +54,11 @@ def register(subparsers) -> None:
                               description=__doc__.splitlines()[0])
     p.add_argument("--data", metavar="CSV", default=None,
                    help="fleet file (default: bev_mdo/data/epa_2022_bev/train.csv)")
-    p.add_argument("--energy-model", default="chain", choices=ENERGY_MODELS, help="energy model (default chain)")
+    p.add_argument("--energy-model", default=DEFAULT_MODEL, choices=ENERGY_MODELS,
+                   help=f"energy model (default {DEFAULT_MODEL})")
     p.add_argument("--parameter-set", default=None, metavar="NAME",
                    help="parameter set of the chain, quasi_static and topology_sm_sa models: a shipped name or a .yaml "
-                        f"path (default {DEFAULT_SET} for chain, {DEFAULT_SETS['quasi_static']} for the other two; "
+                        f"path (default {DEFAULT_SETS['chain']} for chain, {DEFAULT_SETS['quasi_static']} for the other two; "
                         "'thesis' = the thesis' constants, 'none' = model defaults)")
     p.add_argument("--pairs", action="store_true",
                    help="also report within-family pairs: measured vs predicted percentage differences")
@@ -65,17 +68,21 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def evaluate(data=None, energy_model: str = "chain", parameter_set: str | None = None,
+def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | None = None,
              pairs: bool = False) -> dict:
     """The whole validation as a dict (what --json prints)."""
     from bev_mdo.models import fleet as fl
-    from bev_mdo.models.params import load_parameter_set
+    from bev_mdo.models.params import load_parameter_set, parameter_set_model
 
     fleet = fl.read_fleet(data)
     base = {}
     parameter_set = DEFAULT_SETS.get(energy_model) if parameter_set is None else parameter_set
     if energy_model in DEFAULT_SETS and parameter_set and parameter_set != "none":
         base = load_parameter_set(parameter_set)
+        fitted = parameter_set_model(parameter_set)
+        if fitted and DEFAULT_SETS.get(fitted) != DEFAULT_SETS[energy_model]:  # topology_sm_sa runs quasi_static's
+            raise ValueError(f"parameter set {parameter_set!r} was fitted for energy model {fitted}, not "
+                             f"{energy_model}: give --energy-model {fitted}")
     cycles = fl.resampled_cycles()
     pred = fl.predict(fleet, energy_model, base, cycles)
     err = fl.abs_pct_errors(fleet, pred)

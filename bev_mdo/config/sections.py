@@ -108,6 +108,20 @@ def check_mda_numbers(mda: Mapping[str, Any]) -> None:
     if not isinstance(mda["fuse_downstream"], bool):
         raise ValueError(f"mda.fuse_downstream {mda['fuse_downstream']!r} must be true or false")
 
+
+def _check_parameter_set_model(cfg: dict) -> None:
+    """A parameter set fitted for one energy model (its ``energy_model``, written by ``bev-mdo
+    calibrate``) is refused on another: the chain's constants mean nothing to the quasi-static model."""
+    from bev_mdo.models import params
+
+    v = cfg.get("vehicle")
+    name = v.get("parameter_set") if isinstance(v, Mapping) else None
+    fitted = params.parameter_set_model(name) if name is not None else None
+    if fitted and fitted != cfg.get("energy_model"):
+        raise ValueError(f"vehicle.parameter_set {name!r} was fitted for energy_model {fitted}, "
+                         f"not {cfg.get('energy_model')}")
+
+
 def _inline_parameter_set_file(cfg: dict) -> None:
     """A parameter set named by its file (``vehicle.parameter_set: mine.yaml``) is read once, here, and
     its values go into the vehicle section as defaults (keys given there still win), so the resolved
@@ -170,6 +184,7 @@ def validate_models(cfg: dict) -> None:
 
     if "vehicle" in cfg or "cycle" in cfg:
         try:
+            _check_parameter_set_model(cfg)
             _inline_parameter_set_file(cfg)
             params.validate_vehicle(cfg.get("vehicle"))
         except ValueError as exc:  # a key path (vehicle.x) says where already

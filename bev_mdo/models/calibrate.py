@@ -243,6 +243,7 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
     use = usable(fleet)
     doc = {
         "name": set_name if shipped else path.stem,
+        "energy_model": model,  # what it was fitted for: bev-mdo validate refuses it on another model
         "description": description,
         "fitted_on": {"file": data, "sha256": hashlib.sha256(Path(fleet.path).read_bytes()).hexdigest(),
                       "vehicles": int(use.sum()),

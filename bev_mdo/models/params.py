@@ -226,6 +226,17 @@ def load_parameter_set(name: str) -> dict[str, float]:
     """The ``parameters`` of a parameter set: a shipped one by name (bev_mdo/data/parameter_sets/<name>.yaml),
     or a file of your own by its path ending in .yaml/.yml (relative to the working directory, as a
     drive-cycle CSV), e.g. what ``python -m bev_mdo.models.calibrate --data FLEET --write FILE`` wrote."""
+    return _read_parameter_set(name)[0]
+
+
+def parameter_set_model(name: str) -> str | None:
+    """The energy model a parameter set was fitted for (its ``energy_model``; ``bev-mdo calibrate``
+    writes it), or None for a set that is not tied to one (the thesis' constants, a hand-written file)."""
+    model = _read_parameter_set(name)[1]
+    return model if isinstance(model, str) else None
+
+
+def _read_parameter_set(name: str) -> tuple[dict[str, float], Any]:
     import yaml
 
     if not isinstance(name, str) or not name:
@@ -258,7 +269,7 @@ def load_parameter_set(name: str) -> dict[str, float]:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise ValueError(f"{path}: parameters.{k} must be a number, got {v!r}")
         out[str(k)] = float(v)
-    return out
+    return out, doc.get("energy_model")
 
 
 def topology_name(name: Any) -> str:

@@ -33,7 +33,7 @@ def test_a_lazy_parser_lists_every_subcommand_in_table_order():
 
 def test_the_chosen_subcommand_gets_its_full_parser():
     args = cli.build_parser(["validate", "--json"]).parse_args(["validate", "--json"])
-    assert args.json is True and args.energy_model == "chain"
+    assert args.json is True and args.energy_model == "quasi_static"
     with pytest.raises(SystemExit):  # a placeholder would accept nothing; the real parser refuses the typo
         cli.build_parser(["validate", "--jsn"]).parse_args(["validate", "--jsn"])
 
@@ -55,15 +55,18 @@ def test_only_the_chosen_module_and_no_heavy_library_is_imported():
     assert seen == ["bev_mdo.cli.validate"]
 
 
-def test_validate_runs_without_rclpy_scipy_or_matplotlib(tmp_path):
+@pytest.mark.parametrize("model,heavy", [("chain", []), ("quasi_static", ["scipy"])])
+def test_validate_runs_without_rclpy_scipy_or_matplotlib(tmp_path, model, heavy):
+    """The chain needs none of them; the default quasi_static model's compiled loops need numba, and
+    numba imports scipy (to check its version, and for its own typing when it loads the loops)."""
     seen = _imported_after(
         "import contextlib, io, json, sys\n"
         "from bev_mdo.cli import main\n"
         "with contextlib.redirect_stdout(io.StringIO()):\n"
-        "    code = main(['validate'])\n"
+        f"    code = main(['validate', '--energy-model', '{model}'])\n"
         "assert code == 0\n"
         "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules} & {'rclpy', 'scipy', 'matplotlib'})))\n")
-    assert seen == []
+    assert seen == heavy
 
 
 def test_a_subcommand_module_that_fails_to_import_fails_loudly(monkeypatch):

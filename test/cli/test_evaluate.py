@@ -97,24 +97,24 @@ def test_parse_assignments_merges_commas_and_spaces():
 
 
 def test_a_config_names_a_parameter_set_file_of_your_own(capsys, tmp_path):
-    """The calibrated chain with the user's own constants: the config names the file by its path."""
+    """The calibrated model with the user's own constants: the config names the file by its path."""
     import yaml
 
     from bev_mdo.models.params import load_parameter_set
 
-    shipped = load_parameter_set("epa2022_chain")
+    shipped = load_parameter_set("epa2022_quasi_static")
     own = tmp_path / "mine.yaml"
     own.write_text(yaml.safe_dump({"parameters": {**shipped, "charger_efficiency": 0.7}}))
     text = (ROOT / "config" / "leaf_epa_combined.yaml").read_text()
-    assert "parameter_set: epa2022_chain" in text
+    assert "parameter_set: epa2022_quasi_static" in text
     cfg = tmp_path / "mine_cfg.yaml"
-    cfg.write_text(text.replace("parameter_set: epa2022_chain", f"parameter_set: {own}"))
+    cfg.write_text(text.replace("parameter_set: epa2022_quasi_static", f"parameter_set: {own}"))
     design = ("--set", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--json")
     code, out, err = run(capsys, cfg, *design)
     assert code == 0, err
     ref = json.loads(run(capsys, ROOT / "config" / "leaf_epa_combined.yaml", *design)[1])
     mine = json.loads(out)
-    # only the charger differs from the shipped set's 0.825...: wall energy scales with 1 / eta
+    # only the charger differs from the shipped set's (0.81): wall energy scales with 1 / eta
     eta = shipped["charger_efficiency"]
     wall = "energy_wall_wh_per_km"
     assert mine["outputs"][wall] != pytest.approx(ref["outputs"][wall])

@@ -37,8 +37,11 @@ def test_a_set_written_for_your_fleet_names_itself_and_your_file_and_runs_in_eva
     assert f"--data {data} --write {out}" in doc["description"]
     capsys.readouterr()
     cfg = tmp_path / "cfg.yaml"
-    cfg.write_text((ROOT / "config" / "leaf_epa_combined.yaml").read_text()
-                   .replace("parameter_set: epa2022_chain", f"parameter_set: {out}"))
+    text = (ROOT / "config" / "leaf_epa_combined.yaml").read_text()
+    assert "parameter_set: epa2022_quasi_static" in text and "energy_model: quasi_static" in text
+    assert doc["energy_model"] == "chain"  # what it was fitted for (calibrate's default model)
+    cfg.write_text(text.replace("parameter_set: epa2022_quasi_static", f"parameter_set: {out}")
+                   .replace("energy_model: quasi_static", "energy_model: chain"))
     code = bev_mdo(["evaluate", str(cfg), "--set", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--json",
                     "--transport", "inprocess"])
     res = json.loads(capsys.readouterr().out)
