@@ -84,7 +84,7 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
             raise ValueError(f"parameter set {parameter_set!r} was fitted for energy model {fitted}, not "
                              f"{energy_model}: give --energy-model {fitted}")
     cycles = fl.resampled_cycles()
-    pred = fl.predict(fleet, energy_model, base, cycles)
+    pred = fl.predict(fleet, energy_model, base, cycles, reference=True)  # one batch: numba's load would cost 0.7 s
     err = fl.abs_pct_errors(fleet, pred)
     out_rows = []
     scored = {}

@@ -252,8 +252,11 @@ def resampled_cycles(dt_s: float = 1.0) -> dict:
     return {c: resample(load_cycle(c), dt_s) for c in CYCLES}
 
 
-def predict(fleet: Fleet, model: str = "chain", base: dict | None = None, cycles: dict | None = None) -> dict:
-    """{cycle: {"energy_wh_per_km": (N,), "follows": (N,) bool}} for every vehicle, one batch per cycle."""
+def predict(fleet: Fleet, model: str = "chain", base: dict | None = None, cycles: dict | None = None,
+            reference: bool = False) -> dict:
+    """{cycle: {"energy_wh_per_km": (N,), "follows": (N,) bool}} for every vehicle, one batch per cycle.
+    ``reference``: the quasi-static models' numpy passes instead of their compiled loops (equal to
+    1e-12; faster for one batch in a fresh process, which then never loads numba)."""
     cycles = cycles or resampled_cycles()
     p = fleet_params(fleet, base)
     out = {}
@@ -283,9 +286,10 @@ def predict(fleet: Fleet, model: str = "chain", base: dict | None = None, cycles
                 q["driven_axles"] = fleet.driven_axles
                 q["gear_count"] = fleet.technology_params()["gear_count"]  # the thesis' two-speed box (eq 2-6)
             if model == "quasi_static":
-                res = qs.simulate(r, q, m, ig, kw, np.full(len(fleet), FLEET_BATTERY_KWH))
+                res = qs.simulate(r, q, m, ig, kw, np.full(len(fleet), FLEET_BATTERY_KWH), reference=reference)
             else:
-                res = topology.simulate(r, q, "SM-SA", m, kw, np.full(len(fleet), FLEET_BATTERY_KWH), ig)
+                res = topology.simulate(r, q, "SM-SA", m, kw, np.full(len(fleet), FLEET_BATTERY_KWH), ig,
+                                        reference=reference)
             e = res.energy_wh_per_km / q.get("charger_efficiency", 1.0)  # from the wall when the set has one
             follows = follows & res.torque_ok
         else:

@@ -38,7 +38,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import RegularGridInterpolator
 
 from .params import VEHICLE_SPECS
 
@@ -87,7 +86,7 @@ class MotorMap:
     efficiency: np.ndarray  # shape (len(speed_rad_s), len(torque_nm))
     reference_kw: float = REFERENCE_KW
     name: str = "map"
-    _interp: RegularGridInterpolator = field(init=False, repr=False)
+    _interp: object = field(init=False, repr=False)  # scipy's RegularGridInterpolator
 
     def __post_init__(self):
         w = np.asarray(self.speed_rad_s, float)
@@ -101,6 +100,8 @@ class MotorMap:
             raise ValueError(f"motor map {self.name}: efficiency must be in (0, 1] on the full grid")
         if not (math.isfinite(self.reference_kw) and 1.0 <= self.reference_kw <= 1000.0):
             raise ValueError(f"motor map {self.name}: reference_kw must be in [1, 1000] kW")
+        from scipy.interpolate import RegularGridInterpolator  # 0.35 s to import: only for a map
+
         object.__setattr__(self, "_interp", RegularGridInterpolator((w, t), e, method="linear"))
 
     @property

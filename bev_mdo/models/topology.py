@@ -44,15 +44,16 @@ from functools import lru_cache
 
 import numpy as np
 
-from . import compiled
 from . import mass as mass_model
 from . import quasi_static as qs
+from .quasi_static import compiled  # loaded lazily there
 from . import road_load as rl
 from .common import design_points
 from .cost import motor_cost_usd as _motor_cost_one, pack_cost_usd
 from .loss_model import LossModel
 from .motor_map import MotorMap
 from .params import QUASI_STATIC_SPECS, VEHICLE_CHOICES, VEHICLE_SPECS, topology_name
+from .quasi_static import compiled  # numba, loaded lazily there
 
 TOPOLOGIES = VEHICLE_CHOICES["topology"]
 # design variables that only some topologies have (checked by check_design_variables)

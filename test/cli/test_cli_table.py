@@ -55,18 +55,17 @@ def test_only_the_chosen_module_and_no_heavy_library_is_imported():
     assert seen == ["bev_mdo.cli.validate"]
 
 
-@pytest.mark.parametrize("model,heavy", [("chain", []), ("quasi_static", ["scipy"])])
-def test_validate_runs_without_rclpy_scipy_or_matplotlib(tmp_path, model, heavy):
-    """The chain needs none of them; the default quasi_static model's compiled loops need numba, and
-    numba imports scipy (to check its version, and for its own typing when it loads the loops)."""
+def test_validate_runs_without_rclpy_scipy_or_matplotlib(tmp_path):
+    """Nor numba: the default quasi_static model runs its numpy passes for the one fleet batch."""
     seen = _imported_after(
         "import contextlib, io, json, sys\n"
         "from bev_mdo.cli import main\n"
         "with contextlib.redirect_stdout(io.StringIO()):\n"
-        f"    code = main(['validate', '--energy-model', '{model}'])\n"
+        "    code = main(['validate'])\n"
         "assert code == 0\n"
-        "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules} & {'rclpy', 'scipy', 'matplotlib'})))\n")
-    assert seen == heavy
+        "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules} & {'rclpy', 'scipy', 'matplotlib', "
+        "'numba'})))\n")
+    assert seen == []
 
 
 def test_a_subcommand_module_that_fails_to_import_fails_loudly(monkeypatch):
