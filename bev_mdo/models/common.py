@@ -149,18 +149,16 @@ def batch_size(params: Mapping[str, Any] | None, specs, *arrays) -> int:
     return sizes.pop() if sizes else 1
 
 
-def lazy_module(name: str):
-    """The module ``name``, executed on its first attribute access (importlib.util.LazyLoader): the
-    compiled loops' numba import and cache load (0.7 s) are paid only by a process that runs them,
-    not by one that imports the models and runs their numpy passes (``bev-mdo validate``)."""
-    import importlib.util
-    import sys
+class LazyModule:
+    """The module ``name``, imported on its first attribute access: the compiled loops' numba import and
+    cache load (0.7 s) are paid only by a process that runs them, not by one that imports the models and
+    runs their numpy passes (``bev-mdo validate``). Each access goes through importlib (a dictionary
+    lookup once imported), whose import lock makes a first access from two threads safe."""
 
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.find_spec(name)
-    spec.loader = importlib.util.LazyLoader(spec.loader)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    def __init__(self, name: str):
+        self._name = name
+
+    def __getattr__(self, attr: str):
+        import importlib
+
+        return getattr(importlib.import_module(self._name), attr)

@@ -44,12 +44,12 @@ import numpy as np
 
 from . import battery as bt
 from . import road_load as rl
-from .common import batch_size, design_points, lazy_module, resolve_params
+from .common import LazyModule, batch_size, design_points, resolve_params
 from .loss_model import LossModel
 from .motor_map import DEFAULT_MAP_CSV, MotorMap, load_motor_map_csv
 from .params import QUASI_STATIC_SPECS, VEHICLE_SPECS
 
-compiled = lazy_module(f"{__package__}.compiled")  # numba, loaded when a compiled loop first runs
+compiled = LazyModule(f"{__package__}.compiled")  # numba, loaded when a compiled loop first runs
 
 PARAM_SPECS = QUASI_STATIC_SPECS
 DEFAULT_BATTERY_KWH = VEHICLE_SPECS["reference_battery_kwh"].default  # Leaf, 24 kWh
