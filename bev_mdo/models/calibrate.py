@@ -232,7 +232,7 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
         what, args = f"the fleet file {data}", f" --data {data}"
     if model == "chain":
         description = (f"Wall-to-wheel chain (energy_model: chain) calibrated on {what}, UDDS + HWFET, least "
-                       "squares on relative error. Regenerate with: python -m bev_mdo.models.calibrate"
+                       "squares on relative error. Regenerate with: python -m bev_mdo.models.calibrate --model chain"
                        f"{args} --write {'shipped' if shipped else path}")
     else:
         description = (f"The thesis' quasi-static model (and the topologies on it) with its motor written as "
@@ -270,9 +270,9 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
 
 def add_arguments(ap) -> None:
     """The options of ``bev-mdo calibrate`` (and ``python -m bev_mdo.models.calibrate``)."""
-    ap.add_argument("--model", default="chain", choices=list(MODELS),
-                    help="chain (wall-to-wheel chain) or quasi_static (the thesis' model with its motor written as "
-                         "losses; the topologies use the same set)")
+    ap.add_argument("--model", default="quasi_static", choices=list(MODELS),
+                    help="quasi_static (default: the thesis' model with its motor written as losses; the topologies "
+                         "use the same set) or chain (wall-to-wheel chain)")
     ap.add_argument("--data", default=None, help="fleet CSV (default: the shipped EPA 2022 training file)")
     ap.add_argument("--write", metavar="YAML", default=None,
                     help="write the parameter set there ('shipped' = bev_mdo/data/parameter_sets/<model's set>.yaml)")

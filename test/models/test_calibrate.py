@@ -29,7 +29,7 @@ def test_a_set_written_for_your_fleet_names_itself_and_your_file_and_runs_in_eva
     whatever --data was: a user's calibration claimed to be the shipped one."""
     data = _fleet(tmp_path, lambda r: r[0] in ("BMW", "Ford", "KIA"))
     out = tmp_path / "my_fleet.yaml"
-    assert calibrate.main(["--data", str(data), "--write", str(out)]) == 0
+    assert calibrate.main(["--model", "chain", "--data", str(data), "--write", str(out)]) == 0
     doc = yaml.safe_load(out.read_text())
     assert doc["name"] == "my_fleet"
     assert doc["fitted_on"]["file"] == str(data) and doc["fitted_on"]["vehicles"] == len(fl.read_fleet(data)) > 2
@@ -39,7 +39,7 @@ def test_a_set_written_for_your_fleet_names_itself_and_your_file_and_runs_in_eva
     cfg = tmp_path / "cfg.yaml"
     text = (ROOT / "config" / "leaf_epa_combined.yaml").read_text()
     assert "parameter_set: epa2022_quasi_static" in text and "energy_model: quasi_static" in text
-    assert doc["energy_model"] == "chain"  # what it was fitted for (calibrate's default model)
+    assert doc["energy_model"] == "chain"  # what it was fitted for
     cfg.write_text(text.replace("parameter_set: epa2022_quasi_static", f"parameter_set: {out}")
                    .replace("energy_model: quasi_static", "energy_model: chain"))
     code = bev_mdo(["evaluate", str(cfg), "--set", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--json",
@@ -60,7 +60,7 @@ def test_the_shipped_set_keeps_its_name_and_file(tmp_path, monkeypatch):
     doc = yaml.safe_load(Path(path).read_text())
     assert Path(path).name == "epa2022_chain.yaml" and doc["name"] == "epa2022_chain"
     assert doc["fitted_on"]["file"] == "bev_mdo/data/epa_2022_bev/train.csv"
-    assert doc["description"].endswith("python -m bev_mdo.models.calibrate --write shipped")
+    assert doc["description"].endswith("python -m bev_mdo.models.calibrate --model chain --write shipped")
     assert doc["fitted_on"]["sha256"] == hashlib.sha256(fl.DEFAULT_FLEET.read_bytes()).hexdigest()
     assert doc["quality"]["cv_5fold_by_family"]["fold_median_mape_pct"] == 7.0
 
@@ -76,7 +76,7 @@ def test_too_little_data_is_said_not_turned_into_numbers(tmp_path, capsys):
     degrees of freedom."""
     one_family = _fleet(tmp_path, _i4, "i4.csv")
     out = tmp_path / "i4.yaml"
-    assert calibrate.main(["--data", str(one_family), "--write", str(out)]) == 0
+    assert calibrate.main(["--model", "chain", "--data", str(one_family), "--write", str(out)]) == 0
     said = capsys.readouterr().out
     assert "no CV by family" in said and "no leave-one-make-out CV" in said and "MAPE 7.30" not in said
     assert calibrate.cross_validate(fl.read_fleet(one_family)) is None
@@ -93,7 +93,7 @@ def test_too_little_data_is_said_not_turned_into_numbers(tmp_path, capsys):
     flagged = tmp_path / "flagged.csv"
     with flagged.open("w", newline="") as f:
         csv.writer(f).writerows([rows[0], *(r[:flag] + ["suspect"] + r[flag + 1:] for r in rows[1:4])])
-    assert calibrate.main(["--data", str(flagged)]) == 2
+    assert calibrate.main(["--model", "chain", "--data", str(flagged)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no vehicle to fit (3 of 3 flagged as outliers" in err
 
@@ -115,7 +115,7 @@ def test_a_vehicle_that_cannot_follow_is_left_out_of_the_fit(tmp_path, capsys):
     ref = calibrate.fit(fl.read_fleet(_fleet(tmp_path, lambda r: r[0] in ("BMW", "Ford"), "ref.csv")))
     got = calibrate.fit(fleet)
     np.testing.assert_allclose(got["x"], ref["x"], rtol=1e-9)
-    assert calibrate.main(["--data", str(p)]) == 0
+    assert calibrate.main(["--model", "chain", "--data", str(p)]) == 0
     assert "1 vehicle(s) left out: the rated power cannot follow UDDS or HWFET (rows 2)" in capsys.readouterr().out
 
 
@@ -124,29 +124,30 @@ def test_write_is_checked_before_the_fit_and_a_failed_write_is_one_line(tmp_path
     --write out.txt wrote a set no config can name (parameter_set takes shipped names and .yaml paths)."""
     data = _fleet(tmp_path, _i4, "i4.csv")
     for bad in (tmp_path, tmp_path / "set.txt"):
-        assert calibrate.main(["--data", str(data), "--write", str(bad)]) == 2
+        assert calibrate.main(["--model", "chain", "--data", str(data), "--write", str(bad)]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and err.startswith("bev-mdo calibrate: error: --write") and ".yaml" in err
     blocker = tmp_path / "file"
     blocker.write_text("")
-    assert calibrate.main(["--data", str(data), "--write", str(blocker / "set.yaml")]) == 2
+    assert calibrate.main(["--model", "chain", "--data", str(data), "--write", str(blocker / "set.yaml")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("bev-mdo calibrate: error: cannot write") and "Traceback" not in err
 
 
 def test_bev_mdo_calibrate_fits_the_quasi_static_loss_model_and_writes_its_provenance(tmp_path, capsys):
-    """``bev-mdo calibrate --model quasi_static`` on two makes: progress per fold, a set
-    with the fit date, the data file's hash, both cross-validations (MAPE, median of the folds, pairs)
-    and parameters a config can use."""
+    """``bev-mdo calibrate`` (its default model, quasi_static, as validate's) on two makes: progress per
+    fold, a set with the model it was fitted for, the fit date, the data file's hash, both
+    cross-validations (MAPE, median of the folds, pairs) and parameters a config can use."""
     import datetime
 
     data = _fleet(tmp_path, lambda r: r[0] in ("BMW", "KIA"))
     out = tmp_path / "qs.yaml"
-    assert bev_mdo(["calibrate", "--model", "quasi_static", "--data", str(data), "--write", str(out)]) == 0
+    assert bev_mdo(["calibrate", "--data", str(data), "--write", str(out)]) == 0
     got = capsys.readouterr()
     assert "make fold 1/2: fitting without" in got.out and "family fold 1/" in got.out and not got.err
     assert "leave-one-make-out MAPE" in got.out and "pairs of the CV by make" in got.out
     doc = yaml.safe_load(out.read_text())
+    assert doc["energy_model"] == "quasi_static"
     assert doc["fitted_on"]["date"] == datetime.date.today().isoformat()
     assert doc["fitted_on"]["sha256"] == hashlib.sha256(data.read_bytes()).hexdigest()
     make = doc["quality"]["cv_leave_one_make_out"]
