@@ -30,14 +30,12 @@ from bev_mdo.models import pairs as pr
 
 
 def couples(fleet: fl.Fleet) -> list[tuple[int, int]]:
-    """Every (a, b), a < b, of usable rows in one model line with the same drive class, rated power
-    and test mass: what :func:`pairs.find_pairs` leaves out."""
-    line, n = fleet.model_line(), len(fleet)
-    spec = [(pr.drive_class(fleet.drive[i]), round(float(fleet.rated_power_kw[i]), 3),
-             round(float(fleet.test_mass_kg[i]), 3)) for i in range(n)]
-    ok = ~fleet.outlier
-    return [(a, b) for a in range(n) for b in range(a + 1, n)
-            if ok[a] and ok[b] and line[a] == line[b] and spec[a] == spec[b]]
+    """Every (a, b), a < b, of usable rows in one model line that :func:`pairs.find_pairs` leaves out:
+    the same drive class, rated power and test mass."""
+    line, ok = fleet.model_line(), ~fleet.outlier
+    pairs = set(pr.find_pairs(line, fleet.drive, fleet.rated_power_kw, fleet.test_mass_kg, ok))
+    return [(a, b) for a in range(len(fleet)) for b in range(a + 1, len(fleet))
+            if ok[a] and ok[b] and line[a] == line[b] and (a, b) not in pairs]
 
 
 def perfect_model(measured_pct: np.ndarray, scatter_pct: np.ndarray) -> dict:

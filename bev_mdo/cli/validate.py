@@ -72,15 +72,15 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
              pairs: bool = False) -> dict:
     """The whole validation as a dict (what --json prints)."""
     from bev_mdo.models import fleet as fl
-    from bev_mdo.models.params import load_parameter_set, parameter_set_model
+    from bev_mdo.models.params import fitted_for_another_model, load_parameter_set
 
     fleet = fl.read_fleet(data)
     base = {}
     parameter_set = DEFAULT_SETS.get(energy_model) if parameter_set is None else parameter_set
     if energy_model in DEFAULT_SETS and parameter_set and parameter_set != "none":
         base = load_parameter_set(parameter_set)
-        fitted = parameter_set_model(parameter_set)
-        if fitted and DEFAULT_SETS.get(fitted) != DEFAULT_SETS[energy_model]:  # topology_sm_sa runs quasi_static's
+        fitted = fitted_for_another_model(parameter_set, energy_model)
+        if fitted:
             raise ValueError(f"parameter set {parameter_set!r} was fitted for energy model {fitted}, not "
                              f"{energy_model}: give --energy-model {fitted}")
     cycles = fl.resampled_cycles()

@@ -116,8 +116,8 @@ def _check_parameter_set_model(cfg: dict) -> None:
 
     v = cfg.get("vehicle")
     name = v.get("parameter_set") if isinstance(v, Mapping) else None
-    fitted = params.parameter_set_model(name) if name is not None else None
-    if fitted and fitted != cfg.get("energy_model"):
+    fitted = params.fitted_for_another_model(name, cfg.get("energy_model")) if name is not None else None
+    if fitted:
         raise ValueError(f"vehicle.parameter_set {name!r} was fitted for energy_model {fitted}, "
                          f"not {cfg.get('energy_model')}")
 

@@ -46,7 +46,6 @@ import numpy as np
 
 from . import mass as mass_model
 from . import quasi_static as qs
-from .quasi_static import compiled  # loaded lazily there
 from . import road_load as rl
 from .common import design_points
 from .cost import motor_cost_usd as _motor_cost_one, pack_cost_usd
