@@ -92,6 +92,8 @@ def main() -> None:
             if n == 1000:
                 runs["compiled, per CPU-second of the process"] = cpu
             for how, r in runs.items():
+                if not r:  # --reference-runs 0
+                    continue
                 f = _results.figure(f"{t} energy (Artemis) + NEDC range, batches of {n}, {how}",
                                     "designs/CPU-s" if "CPU" in how else "designs/s", r,
                                     target=f">= {target[n]}" if how == "compiled" else None)

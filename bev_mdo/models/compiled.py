@@ -14,7 +14,8 @@ functions stay as the reference the tests compare with (energy and range to 1e-1
   and stops each design at its own crossing of ``final_soc``; steps with zero demand leave the
   battery as it is (no current, no energy) and are skipped.
 * Motor maps are looked up in the bilinear form of ``topology.electrical_power_w``; numpy's
-  ``interp`` is re-implemented operation for operation (``_interp``).
+  ``interp`` is re-implemented operation for operation (``_interp``), without branches on where
+  x falls (the split's lookups jump from share to share).
 * Designs run in parallel over the host's cores (``prange``); each design's loop is sequential
   and independent of the others, so results do not depend on the thread count. The battery
   loop steps a group of designs side by side (``_GROUP``): one design's SOC recurrence is a chain
@@ -63,32 +64,44 @@ def _locate(x, xp, table, inv_h):
         return 0, True
     j = table[min(int((x - xp[0]) * inv_h), table.shape[0] - 1)]
     # The table position is x's to a few ulps and a table cell (h) is half the least spacing, so
-    # x's interval is the table's or one of its neighbours: one step down or up, as selects (no
-    # loop: the split's evaluation loops stay vectorisable)
+    # x's interval is the table's or one of its neighbours: one step down or up (no search loop)
     j = j - 1 if (j > 0 and xp[j] > x) else j
     j = j + 1 if (j < n - 1 and xp[j + 1] <= x) else j  # largest j with xp[j] <= x
     return j, (j == n - 1 or xp[j] == x)
 
 
 @_jit(inline="always")
+def _locate_map(x, xp, table, inv_h):
+    """``_locate`` without branches, for the motor map's lookups: their x jumps from call to call
+    (the split's shares), so a branch on x's place in its table cell would be mispredicted. The
+    battery's SOC moves slowly and keeps ``_locate``, where the branches are predicted and cheaper."""
+    n = xp.shape[0]
+    xc = min(max(x, xp[0]), xp[n - 1])  # np.interp clamps: fp[0] below the grid, fp[n-1] above
+    j = table[min(int((xc - xp[0]) * inv_h), table.shape[0] - 1)]
+    j -= int(j > 0) & int(xp[j] > xc)
+    j += int(j < n - 1) & int(xp[min(j + 1, n - 1)] <= xc)  # largest j with xp[j] <= x
+    return j, (j == n - 1) | (xp[j] == xc)
+
+
+@_jit(inline="always")
 def _value(j, exact, x, xp, fp, slopes):
     """np.interp at x in the interval of ``_locate``, the same operations as numpy's C loop;
-    ``slopes`` holds numpy's (fp[j+1] - fp[j]) / (xp[j+1] - xp[j])."""
-    if exact:
-        return fp[j]
-    slope = slopes[j]
-    r = slope * (x - xp[j]) + fp[j]
-    if math.isnan(r):
-        r = slope * (x - xp[j + 1]) + fp[j + 1]
-        if math.isnan(r) and fp[j] == fp[j + 1]:
-            r = fp[j]
-    return r
+    ``slopes`` holds numpy's (fp[j+1] - fp[j]) / (xp[j+1] - xp[j]). The exact case is a select,
+    not a branch."""
+    i = min(j, slopes.shape[0] - 1)
+    slope = slopes[i]
+    r = slope * (x - xp[i]) + fp[i]
+    if math.isnan(r) and not exact:
+        r = slope * (x - xp[i + 1]) + fp[i + 1]
+        if math.isnan(r) and fp[i] == fp[i + 1]:
+            r = fp[i]
+    return fp[j] if exact else r
 
 
 @_jit(inline="always")
 def _interp(x, xp, fp, table, inv_h, slopes):
     """np.interp for one value (clamped at both ends)."""
-    j, exact = _locate(x, xp, table, inv_h)
+    j, exact = _locate_map(x, xp, table, inv_h)
     return _value(j, exact, x, xp, fp, slopes)
 
 
@@ -220,24 +233,32 @@ def _single_motor_step(x, v, t_w, driving, allowed, mp, loss):
 
 
 @_jit(inline="always")
-def _axle_power(x, o, tw, w, fi, tmax, driving, allowed, mp, loss):
-    """Electrical power of an axle (columns from ``o``: 0 front, ``_REAR`` rear) carrying wheel
-    torque ``tw`` and its motoring overload (``topology._axle_power`` for one point)."""
+def _axle(x, o):
+    """An axle's constants (columns from ``o``: 0 front, ``_REAR`` rear) as the split reads them,
+    read once per step: count, count x ratio, count x ratio x eta (2-5), eta, motor scale."""
     count, ratio, eta = x[_COUNT + o], x[_RATIO + o], x[_ETA + o]
-    if driving:
-        tm = tw / (count * ratio * eta)  # 2-5
-        over = max(tm - tmax, 0.0)
-    else:
-        over = 0.0
-        tm = max(tw * eta / (count * ratio) * x[_SHARE], -tmax) if allowed else 0.0  # 2-25, rules 2-3
-    return count * _electrical_w(tm, w, fi, x[_SCALE + o], mp, loss), over
+    return count, count * ratio, count * ratio * eta, eta, x[_SCALE + o]
 
 
 @_jit(inline="always")
-def _split_power(x, o, s, t_w, w, fi, tmax, driving, allowed, mp, loss):
+def _axle_power(ax, share, tw, w, fi, tmax, driving, allowed, mp, loss):
+    """Electrical power of an axle (``_axle``) carrying wheel torque ``tw`` and its motoring
+    overload (``topology._axle_power`` for one point)."""
+    count, cr, cre, eta, scale = ax
+    if driving:
+        tm = tw / cre  # 2-5
+        over = max(tm - tmax, 0.0)
+    else:
+        over = 0.0
+        tm = max(tw * eta / cr * share, -tmax) if allowed else 0.0  # 2-25, rules 2-3
+    return count * _electrical_w(tm, w, fi, scale, mp, loss), over
+
+
+@_jit(inline="always")
+def _split_power(axf, axr, share, s, t_w, w, fi, tmax, driving, allowed, mp, loss):
     """Power and score of one front share ``s`` (front axle at ``s``, rear at ``1 - s``)."""
-    pp, of = _axle_power(x, 0, t_w * s, w[0], fi[0], tmax[0], driving, allowed, mp, loss)
-    pr, orr = _axle_power(x, o, t_w * (1.0 - s), w[1], fi[1], tmax[1], driving, allowed, mp, loss)
+    pp, of = _axle_power(axf, share, t_w * s, w[0], fi[0], tmax[0], driving, allowed, mp, loss)
+    pr, orr = _axle_power(axr, share, t_w * (1.0 - s), w[1], fi[1], tmax[1], driving, allowed, mp, loss)
     pp, of = pp + pr, of + orr
     return pp, pp + _PENALTY_W_PER_NM * of  # topology.best_split's selection score
 
@@ -266,16 +287,17 @@ def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power,
         # share, and no idle loss without speed: every share's power is 0
         return 0.0, w_top, cap - t_w
     fif = _speed_index(wf, mp)
+    axf, share = _axle(x, 0), x[_SHARE]
     if not two_axles:
-        return _axle_power(x, 0, t_w, wf, fif, tmf, driving, allowed, mp, loss)[0], w_top, cap - t_w
+        return _axle_power(axf, share, t_w, wf, fif, tmf, driving, allowed, mp, loss)[0], w_top, cap - t_w
+    axr = _axle(x, o)
     w, fi, tmax = (wf, wr), (fif, _speed_index(wr, mp)), (tmf, tmr)
     n_coarse = grid.shape[0]
     for i in range(n_coarse):
-        power[i], score[i] = _split_power(x, o, grid[i], t_w, w, fi, tmax, driving, allowed, mp, loss)
+        power[i], score[i] = _split_power(axf, axr, share, grid[i], t_w, w, fi, tmax, driving, allowed, mp, loss)
     jc = 0
     for i in range(1, n_coarse):  # the first minimum, as np.argmin
-        if score[i] < score[jc]:
-            jc = i
+        jc = i if score[i] < score[jc] else jc
     s0 = grid[jc]
     n_fine = fine.shape[0]
     for i in range(n_fine):
@@ -287,12 +309,11 @@ def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power,
         if q >= 0:
             power[n_coarse + i], score[n_coarse + i] = power[q], score[q]
         else:
-            power[n_coarse + i], score[n_coarse + i] = _split_power(x, o, s, t_w, w, fi, tmax, driving, allowed, mp,
-                                                                    loss)
+            power[n_coarse + i], score[n_coarse + i] = _split_power(axf, axr, share, s, t_w, w, fi, tmax, driving,
+                                                                    allowed, mp, loss)
     jf = n_coarse
     for i in range(n_coarse + 1, n_coarse + n_fine):
-        if score[i] < score[jf]:
-            jf = i
+        jf = i if score[i] < score[jf] else jf
     return power[jf], w_top, cap - t_w
 
 
