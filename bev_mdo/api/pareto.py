@@ -36,6 +36,8 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
     out, bag = out_dirs(out, cfg.name)
     run_id = uuid.uuid4().hex[:16]
     sess = session(transport, instances, cfg, out, bag, run_id, [cfg])
+    from bev_mdo.ros.pareto_publisher import front_message  # loaded by the session already
+
     with noting_interrupts(bag, "front"), sess:
         def on_front(front, final):
             sess.sink.publish(front_message(front, run_id=run_id, topology="", final=final))
@@ -58,8 +60,9 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
 def check_sizes(generations: int, pop: int, instances, transport) -> None:
     if generations < 1 or pop < 4:
         raise InputError(f"--generations must be >= 1 and --pop >= 4, got {generations}, {pop}")
-    Transport.of(transport).refuse_attach("pareto")
-    if instances and Transport.of(transport).transport != "ros":
+    transport = Transport.of(transport)
+    transport.refuse_attach("pareto")
+    if instances and transport.transport != "ros":
         raise InputError("--instances needs --transport ros (pools of discipline nodes)")
 
 
@@ -121,13 +124,6 @@ def session(transport, instances, raw, out: Path, bag: Path, run_id: str, config
     return sessions.ParetoInProcessSession(raw, bag, run_id)
 
 
-def front_message(front, **kw):
-    """A ParetoFront message of one generation's front (see bev_mdo.ros.pareto_publisher)."""
-    from bev_mdo.ros.pareto_publisher import front_message as make
-
-    return make(front, **kw)
-
-
 def nsga2(cfg, evaluator, objectives, pop: int, generations: int, seed: int, on_front=None, bench=None,
           on_generation=None):
     """mdo.pareto.run_nsga2 over the MDF formulation of ``cfg``; ``bench=(table, topology)`` adds the
@@ -145,7 +141,6 @@ def nsga2(cfg, evaluator, objectives, pop: int, generations: int, seed: int, on_
         table, topology = bench
         table[topology] = study.benchmark(form, topology)
     return res
-
 
 
 def write_front(path: Path, res) -> None:
