@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bev_mdo.api.evaluate import batch as evaluate_batch  # one batch of MDAs over the transport args choose
 from bev_mdo.cli import UsageError
 
 
@@ -120,15 +121,6 @@ def read_list(path: str) -> dict[str, np.ndarray]:
         except (TypeError, ValueError):
             raise UsageError(f"--list {path}: column {k!r} has a value that is not a number") from None
     return out
-
-
-def evaluate_batch(config, designs: dict[str, np.ndarray], args) -> dict:
-    """One batch of MDAs (bev_mdo.api.evaluate.batch), over the transport ``args`` choose (parsed
-    flags, a Transport or its name)."""
-    from bev_mdo.api import evaluate
-    from bev_mdo.api.transport import Transport
-
-    return evaluate.batch(config, designs, Transport.of(args))
 
 
 def write_csv(path: Path, result: dict) -> None:
