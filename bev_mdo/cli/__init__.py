@@ -53,10 +53,8 @@ UsageError = InputError
 
 def figure_format(path) -> str | None:
     """The ``format`` for ``fig.savefig(path)`` of a ``--png FILE`` option, so that exactly ``path`` is
-    written: matplotlib appends ``.png`` to a name without an extension, so ``--png out`` wrote
-    ``out.png`` and ``--png DIR`` (a directory given by mistake) wrote ``DIR.png`` beside it while the
-    command reported ``out`` / ``DIR``. PNG without an extension (the option's name), else the
-    extension's format; ValueError for a directory."""
+    written (matplotlib would append ``.png`` to a name without an extension): PNG for such a name,
+    else None (the extension's format); ValueError for a directory."""
     from pathlib import Path
 
     p = Path(path)
