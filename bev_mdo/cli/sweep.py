@@ -32,8 +32,7 @@ from bev_mdo.cli import UsageError
 
 def register(sub) -> None:
     from bev_mdo.api.doe import METHODS
-    from bev_mdo.cli.flags import add_override_arguments
-    from bev_mdo.cli.flags import add_transport_arguments
+    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
 
     p = sub.add_parser("sweep", help="a design of experiments, grid or list of designs as one batch: CSV, PNG, bag",
                        description=__doc__.split("\n\n")[1])
@@ -195,9 +194,9 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
     return fig, ax
 
 
-def designs_of(args, problem) -> dict[str, np.ndarray]:
-    """The designs the command line asks for: a DOE over the bounds of the design variables not
-    fixed with --set, a grid (--vary) or a list (--list), with the --set values as columns."""
+def designs_of(args, problem) -> tuple[dict[str, np.ndarray], list[str]]:
+    """(the designs the command line asks for, the names varied): a DOE over the bounds of the design
+    variables not fixed with --set, a grid (--vary) or a list (--list), with the --set values as columns."""
     from bev_mdo.api.doe import sample
     from bev_mdo.cli.flags import parse_assignments
 
@@ -209,19 +208,18 @@ def designs_of(args, problem) -> dict[str, np.ndarray]:
         designs = sample(args.doe, bounds, args.samples, args.seed)
     else:
         designs = grid(parse_vary(args.vary)) if args.vary else read_list(args.list_csv)
-    n = len(next(iter(designs.values())))
+    n, varied = len(next(iter(designs.values()))), list(designs)
     for k, v in fixed.items():
         if k in designs:
             raise UsageError(f"--set {k} is also varied")
         designs[k] = np.full(n, v)
-    return designs
+    return designs, varied
 
 
 def run(args) -> int:
-    from bev_mdo.cli import flags
     from bev_mdo.api.doe import plot_scatter, record
-    from bev_mdo.cli.flags import parse_assignments
     from bev_mdo.api.transport import Transport
+    from bev_mdo.cli import flags
 
     config = flags.load_config(args)
     out = Path(args.out)
@@ -230,9 +228,7 @@ def run(args) -> int:
         from bev_mdo.api.optimize import check_new_bag
 
         check_new_bag(bag, "--out")
-    designs = designs_of(args, config.problem)
-    fixed = parse_assignments(args.fixed)
-    varied = [k for k in designs if k not in fixed]
+    designs, varied = designs_of(args, config.problem)
     n = len(next(iter(designs.values())))
     transport = "ros" if Transport.of(args).uses_ros else "inprocess"
     result = evaluate_batch(config, designs, args)
@@ -282,22 +278,17 @@ def run_compare(args) -> int:
     problem = config.problem
     init = {d.name: d.initial for d in problem.design_variables}
     designs = {k: np.array([g.get(k, init.get(k, np.nan)) for g in given]) for k in keys}
-    if any(np.isnan(v).any() for v in designs.values()):
-        missing = [k for k, v in designs.items() if np.isnan(v).any()]
+    missing = [k for k, v in designs.items() if np.isnan(v).any()]
+    if missing:
         raise UsageError(f"{missing} must be given in every --design (they are parameters, with no initial value)")
     result = evaluate_batch(config, designs, args)
 
     def unit_of(name):
         return un.unit_of(name, result["units"])
 
-    rows = []
-    for k, v in result["design"].items():
-        rows.append((k, unit_of(k), v))
-    for k, v in result["outputs"].items():
-        if k not in result["design"]:
-            rows.append((k, unit_of(k), v))
-    for k, v in result["margins"].items():
-        rows.append((f"margin {k}", unit_of(k), v))
+    named = {**result["design"], **{k: v for k, v in result["outputs"].items() if k not in result["design"]}}
+    rows = [(k, unit_of(k), v) for k, v in named.items()]
+    rows += [(f"margin {k}", unit_of(k), v) for k, v in result["margins"].items()]
     if args.json:
         print(json.dumps({"designs": [{name: float(v[i]) for name, _, v in rows} | {
             "feasible": bool(result["feasible"][i]), "ok": bool(result["ok"][i])} for i in range(len(given))]},
