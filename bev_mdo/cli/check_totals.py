@@ -18,8 +18,7 @@ import numpy as np
 
 
 def register(subparsers) -> None:
-    from bev_mdo.cli.flags import add_override_arguments
-    from bev_mdo.cli.flags import add_transport_arguments
+    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
 
     p = subparsers.add_parser("check-totals", help="compare the optimiser's total derivatives with finite differences",
                               description=__doc__.split("\n\n")[1])

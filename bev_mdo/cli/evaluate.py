@@ -17,8 +17,7 @@ def register(subparsers) -> None:
     p.add_argument("--set", dest="assignments", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
                    help="design values (or model-parameter overrides); also comma-separated a=1,b=2")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    from bev_mdo.cli.flags import add_override_arguments
-    from bev_mdo.cli.flags import add_transport_arguments
+    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
 
     add_transport_arguments(p)
     add_override_arguments(p)

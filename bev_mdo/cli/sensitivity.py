@@ -17,8 +17,7 @@ import numpy as np
 
 def register(subparsers) -> None:
     from bev_mdo.api.sensitivity import METHODS
-    from bev_mdo.cli.flags import add_override_arguments
-    from bev_mdo.cli.flags import add_transport_arguments
+    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
 
     p = subparsers.add_parser("sensitivity", help="normalised 1st/2nd-order sensitivities at a design, or global "
                                                   "Sobol'/Morris indices over the bounds")
