@@ -156,16 +156,9 @@ def write_front(path: Path, res) -> None:
 
 def plot_front(out: Path, res, units: dict | None = None) -> list[Path]:
     """One scatter plot per pair of objectives, ``front_<b>_vs_<a>.png``. Returns the files written."""
-    import matplotlib
+    from bev_mdo.api.evaluate import pyplot_and_label
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from bev_mdo.mdo import units as un
-
-    def label(name):
-        return un.label(name, units or {})
-
+    plt, label = pyplot_and_label(units)
     written = []
     for i, xk in enumerate(res.objectives):
         for yk in res.objectives[i + 1:]:

@@ -29,17 +29,10 @@ def print_tables(rep: dict, out) -> None:
 def write_plot(path: str, rep: dict) -> None:
     """Bars of the indices of every output with their confidence intervals; the title names the
     bounds, the fixed values, N and the seed."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    from bev_mdo.api.evaluate import pyplot_and_label
     from bev_mdo.cli import figure_format
-    from bev_mdo.mdo import units as un
 
-    def label(name):
-        return un.label(name, rep.get("units") or {})
-
+    plt, label = pyplot_and_label(rep.get("units"))
     names, outs = rep["variables"], [k for k, r in rep["outputs"].items() if not r.get("constant")]
     keys = (("S1", "S1_conf", "first order S1"), ("ST", "ST_conf", "total ST")) if rep["method"] == "sobol" \
         else (("mu_star", "mu_star_conf", "mu* (output unit)"), ("sigma", None, "sigma (output unit)"))

@@ -125,16 +125,11 @@ def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
     whose magnitude is not above their Richardson error estimate are masked (grey, "≤ err"): they
     are noise, not signal. Text is white on dark cells. The title names the point and the cycle.
     Returns the figure (closed)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.colors import Normalize
 
-    from bev_mdo.mdo import units as un
+    from bev_mdo.api.evaluate import pyplot_and_label
 
-    def label(name):
-        return un.label(name, units or {})
-
+    plt, label = pyplot_and_label(units)
     second = s.second is not None
     n = len(outputs)
     ncols = 2 if second and n > 1 else 1

@@ -139,16 +139,9 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
     """One PNG: ``output`` against the first varied variable, one line per value of the second
     (if any; further varied variables: one panel per value of the third is too much, they are
     overlaid); feasible points filled, infeasible hollow red x; constraint limits dashed."""
-    import matplotlib
+    from bev_mdo.api.evaluate import pyplot_and_label
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from bev_mdo.mdo import units as un
-
-    def label(name):
-        return un.label(name, result.get("units") or {})
-
+    plt, label = pyplot_and_label(result.get("units"))
     problem = result["problem"]
     x = result["design"][varied[0]]
     y = result["outputs"][output]
