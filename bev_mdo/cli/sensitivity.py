@@ -67,7 +67,7 @@ def run(args) -> int:
         if args.json:
             print(json.dumps(got, indent=2))
         else:
-            gs.print_tables(got, sys.stdout)
+            gs.print_tables(got)
             if args.png:
                 print(f"wrote {args.png}")
         return 0
