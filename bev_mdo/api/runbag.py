@@ -148,16 +148,16 @@ def noting_interrupts(bag, kind: str = "iteration"):
         raise
 
 
-def in_process_bag(config: Mapping[str, Any], args, show):
+def in_process_bag(config: Mapping[str, Any], opts, show):
     """(bag path or None, writer or None, iteration callback) for an in-process run: a bag only with --bag."""
-    if getattr(args, "no_record", False) or not getattr(args, "bag", None):
+    if opts.no_record or not opts.bag:
         return None, None, show
     import uuid
 
-    writer = InProcessBag(Path(args.bag), config, uuid.uuid4().hex[:16])
+    writer = InProcessBag(Path(opts.bag), config, uuid.uuid4().hex[:16])
 
     def callback(rec):
         writer(rec)
         show(rec)
 
-    return str(args.bag), writer, callback
+    return str(opts.bag), writer, callback

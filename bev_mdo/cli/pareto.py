@@ -55,7 +55,7 @@ def run(args) -> int:
     from bev_mdo.api.transport import Transport
     from bev_mdo.cli import flags
 
-    pareto.check_sizes(args.generations, args.pop, getattr(args, "instances", None), args)
+    pareto.check_sizes(args.generations, args.pop, args.instances, args)
     cfg = flags.load_config(args)  # a bad file, key, name, topology, variable or override exits 2 here
     names = None if args.objectives is None else [o.strip() for o in args.objectives.split(",") if o.strip()]
     if args.topology or args.all_topologies:
@@ -72,7 +72,7 @@ def run(args) -> int:
     print(f"NSGA-II {args.pop} x {args.generations} over {args.transport}: "
           f"{', '.join(n + (' (max)' if m else '') for n, m in objs)}", file=sys.stderr)
     doc, res = pareto.run(cfg, names, generations=args.generations, pop=args.pop, seed=args.seed, out=args.out,
-                          transport=Transport.of(args), instances=getattr(args, "instances", None),
+                          transport=Transport.of(args), instances=args.instances,
                           plots=not args.no_plots, source=str(args.config), on_generation=_generation)
     print(f"front: {len(res.X)} non-dominated feasible designs, {res.evaluations} evaluations in "
           f"{res.batches} batches, {res.wall_time_s:.1f} s")
@@ -118,7 +118,7 @@ def _study(args, raw, written, names) -> int:
     out, bag = pareto.out_dirs(args.out, raw.get("name", "run"))
     run_id = uuid.uuid4().hex[:16]
     results, bench, timing = {}, {}, {}
-    session = pareto.session(args, getattr(args, "instances", None), raw, out, bag, run_id, list(configs.values()))
+    session = pareto.session(args, args.instances, raw, out, bag, run_id, list(configs.values()))
     from bev_mdo.ros.pareto_publisher import front_message  # loaded by the session already
 
     with session:
