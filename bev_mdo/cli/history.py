@@ -85,15 +85,14 @@ def bag_path(path: str) -> str:
 
 
 def run(args) -> int:
-    from bev_mdo.bag.history import flat_rows, history, to_csv
+    from bev_mdo.bag.history import check_note, flat_rows, history, records_phrase, to_csv
     from bev_mdo.bag.reader import open_bag
+    from bev_mdo.bag.report import bag_units
 
     args.bag = bag_path(args.bag)
     bag = open_bag(args.bag)
     if bag.truncated:
         print(bag.recovery_note(), file=sys.stderr)
-    from bev_mdo.bag.history import check_note
-
     checks: dict = {}
     rows = history(bag, run_id=args.run_id, key_file=args.key_file, checks=checks, no_verify=args.no_verify)
     if check_note(checks):
@@ -110,15 +109,11 @@ def run(args) -> int:
         else:
             with open(args.csv, "w", encoding="utf-8") as f:
                 f.write(text)
-            from bev_mdo.bag.history import records_phrase
-
             print(f"wrote {records_phrase(rows)} to {args.csv}")
         return 0
     width = args.width
     if width is None and (sys.stdout.isatty() or os.environ.get("COLUMNS")):
         width = shutil.get_terminal_size((120, 24)).columns
-    from bev_mdo.bag.report import bag_units
-
     print_table(flat_rows(rows), width=width, units=bag_units(bag))
     return 0
 
@@ -173,11 +168,11 @@ def print_table(rows: list[dict], width: int | None = None, file=None, units: di
     from rich.console import Console
     from rich.table import Table
 
+    from bev_mdo.bag.history import records_phrase
+
     out = file or sys.stdout
     shown, left, cells, used = choose_columns(rows, width, units)
     first = rows[0]
-    from bev_mdo.bag.history import records_phrase
-
     title = records_phrase(rows)
     for k in ("formulation", "optimizer"):
         if k not in shown and first.get(k):

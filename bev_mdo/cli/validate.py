@@ -121,9 +121,7 @@ def _reference(fleet, energy_model: str, pred: dict, scored: dict, out_rows: lis
                cycles: dict) -> dict:
     """The model beside the 3-constant baseline and FASTSim on the same rows (models/baselines.py);
     adds each row's baseline and FASTSim prediction to ``out_rows`` (None where there is none)."""
-    from bev_mdo.models import baselines as bl
-    from bev_mdo.models import fleet as fl
-    from bev_mdo.models import pairs as pr
+    from bev_mdo.models import baselines as bl, fleet as fl, pairs as pr
 
     use = ~fleet.outlier & np.logical_and.reduce([scored[c] for c in fl.CYCLES])
     columns = {energy_model: {c: np.where(scored[c], pred[c]["energy_wh_per_km"], np.nan) for c in fl.CYCLES},
@@ -160,8 +158,7 @@ def _reference(fleet, energy_model: str, pred: dict, scored: dict, out_rows: lis
 
 def _pairs(fleet, pred: dict, scored: dict) -> dict:
     """Within-family pairs per cycle: a pair counts on a cycle when both vehicles are scored there."""
-    from bev_mdo.models import fleet as fl
-    from bev_mdo.models import pairs as pr
+    from bev_mdo.models import fleet as fl, pairs as pr
 
     family = fleet.model_line()
     all_pairs = pr.find_pairs(family, fleet.drive, fleet.rated_power_kw, fleet.test_mass_kg, ~fleet.outlier)
