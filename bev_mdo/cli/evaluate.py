@@ -41,12 +41,12 @@ def _fmt(v) -> str:
     return "-" if v is None else f"{v:.6g}"
 
 
-def print_table(report: dict, file=None) -> None:
-    """Readable tables of design, outputs and constraints (rich when available)."""
+def print_table(report: dict) -> None:
+    """Readable tables of design, outputs and constraints."""
     from rich.console import Console
     from rich.table import Table
 
-    console = Console(file=file or sys.stdout, width=100)
+    console = Console(file=sys.stdout, width=100)
     t = Table(title="design and outputs", show_header=True)
     t.add_column("variable")
     t.add_column("value", justify="right")
