@@ -17,10 +17,10 @@ import numpy as np
 
 def register(subparsers) -> None:
     from bev_mdo.api.sensitivity import METHODS
+    from bev_mdo.cli import SUBCOMMANDS
     from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
 
-    p = subparsers.add_parser("sensitivity", help="normalised 1st/2nd-order sensitivities at a design, or global "
-                                                  "Sobol'/Morris indices over the bounds")
+    p = subparsers.add_parser("sensitivity", help=SUBCOMMANDS["sensitivity"][1])
     p.add_argument("config", help="run config YAML")
     p.add_argument("--at", default="", metavar="K=V,...",
                    help="design point (design variables default to their initial values); with --global, the "
