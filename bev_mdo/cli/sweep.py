@@ -71,10 +71,8 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
             raise UsageError(f"--vary {item!r} must be NAME=LO:HI:N or NAME=A,B,C")
         try:
             if ":" in spec:
-                parts = spec.split(":")
-                if len(parts) != 3:
-                    raise ValueError
-                lo, hi, n = float(parts[0]), float(parts[1]), int(parts[2])
+                lo, hi, n = spec.split(":")  # a ValueError unless it has three parts
+                lo, hi, n = float(lo), float(hi), int(n)
                 if n < 1:
                     raise ValueError
                 if n > MAX_SWEEP_POINTS:
