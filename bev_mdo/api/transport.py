@@ -84,8 +84,8 @@ class Evaluating:
     unsigned results, printed on stderr only when the block ended normally)."""
 
     def __init__(self, config, transport, node_name: str = "bev_mdo_client", announce: bool = False):
-        transport = Transport.of(transport)
-        self.ros = transport.uses_ros
+        how = Transport.of(transport)  # ros_section gets ``transport`` itself: its domain note shows once per command
+        self.ros = how.uses_ros
         if not self.ros:
             from bev_mdo.config import RunConfig
             from bev_mdo.mdo.evaluator import InProcessEvaluator
@@ -94,7 +94,7 @@ class Evaluating:
             return
         if announce:
             section = ros_section(config, transport)
-            what = "find the discipline nodes" if transport.attach else "start the discipline nodes"
+            what = "find the discipline nodes" if how.attach else "start the discipline nodes"
             print(f"waiting up to {section['discovery_wait_s']:g} s to {what} on ROS domain "
                   f"{section['domain_id']} ...", file=sys.stderr, flush=True)
         import importlib
@@ -107,7 +107,7 @@ class Evaluating:
                              "--transport inprocess runs without it") from None
         from bev_mdo.sessions import EvaluateRosSession
 
-        self.session = EvaluateRosSession(config, ros_section(config, transport), launch=not transport.attach,
+        self.session = EvaluateRosSession(config, ros_section(config, transport), launch=not how.attach,
                                           node_name=node_name)
 
     def __enter__(self):
