@@ -54,16 +54,9 @@ def sample(method: str, bounds: dict[str, tuple[float, float]], n: int, seed: in
 def plot_scatter(result: dict, output: str, varied: list[str], path: Path, method: str):
     """One PNG: ``output`` against each varied variable (one panel each), feasible points filled,
     infeasible red x, constraint limits dashed."""
-    import matplotlib
+    from bev_mdo.api.evaluate import pyplot_and_label
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from bev_mdo.mdo import units as un
-
-    def label(name):
-        return un.label(name, result.get("units") or {})
-
+    plt, label = pyplot_and_label(result.get("units"))
     problem, y, feas = result["problem"], result["outputs"][output], result["feasible"]
     ncols = min(len(varied), 3)
     nrows = -(-len(varied) // ncols)

@@ -19,6 +19,22 @@ def declared_units(config) -> dict[str, str]:
     return run_units(RunConfig.of(config).disciplines)
 
 
+def pyplot_and_label(units: dict | None):
+    """(matplotlib.pyplot on the file-only Agg backend, ``label(name)``: a variable's axis label with
+    its unit as ``units`` declares it) for the plots of the runs."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bev_mdo.mdo import units as un
+
+    def label(name: str) -> str:
+        return un.label(name, units or {})
+
+    return plt, label
+
+
 def design(config, given: dict[str, float], transport) -> dict:
     """The report of one multidisciplinary analysis (mdo.driver.evaluate_design: design, outputs,
     objective, constraints with margins, feasible, ok, error). Design variables not given take their

@@ -23,16 +23,15 @@ from bev_mdo.mdo.evaluator import InProcessEvaluator
 class FirstErrors:
     """Remembers (and prints once) the first error of each discipline."""
 
-    def __init__(self, out=None):
+    def __init__(self):
         self.first: dict[str, str] = {}
-        self._out = out
 
     def note(self, discipline: str, error: str) -> None:
         if not error or discipline in self.first:
             return
         line = error.strip().splitlines()[0][:300]
         self.first[discipline] = line
-        print(f"discipline {discipline!r} failed: {line}", file=self._out or sys.stderr, flush=True)
+        print(f"discipline {discipline!r} failed: {line}", file=sys.stderr, flush=True)
 
 
 class DisciplineTimeout(Exception):

@@ -1,10 +1,10 @@
 """Overrides of a run config's problem, shared by the API and every command that runs designs.
 
-``Overrides`` holds them; on the command line they are ``--bound NAME=LO:HI`` (either side may be left out: ``motor_kw=:100``), ``--initial NAME=X``,
-``--constraint "NAME>=X"`` / ``"NAME<=X"``, ``--objective NAME`` and ``--maximize`` /
-``--minimize`` (``Overrides.parse``) edit the config's ``problem`` section before it is validated (load_config's
-``edit`` hook), so a run sees, checks and records exactly the effective values. An unknown name
-is an InputError naming the nearest valid one.
+``Overrides`` holds them; on the command line (``from_args``) they are ``--bound NAME=LO:HI`` (either
+side may be left out: ``motor_kw=:100``), ``--initial NAME=X``, ``--constraint "NAME>=X"`` / ``"NAME<=X"``,
+``--objective NAME`` and ``--maximize`` / ``--minimize``. They edit the config's ``problem`` section
+before it is validated (load_config's ``edit`` hook), so a run sees, checks and records exactly the
+effective values. An unknown name is an InputError naming the nearest valid one.
 """
 from __future__ import annotations
 
@@ -34,37 +34,31 @@ class Overrides:
         return bool(self.bounds or self.initial or self.constraints or self.objective is not None
                     or self.maximize is not None)
 
-    @classmethod
-    def parse(cls, bound=(), initial=(), constraint=(), objective=None, maximize=None) -> "Overrides":
-        """From the command line's text: ``NAME=LO:HI``, ``NAME=X``, ``'NAME>=X'`` / ``'NAME<=X'``."""
-        ov = cls(objective=objective, maximize=maximize)
-        for item in bound or []:
-            name, sep, spec = item.partition("=")
-            lo, colon, hi = spec.partition(":")
-            if not sep or not colon or not name.strip() or not (lo.strip() or hi.strip()):
-                raise InputError(f"--bound {item!r} must be NAME=LO:HI (LO or HI may be left out)")
-            old_lo, old_hi = ov.bounds.get(name.strip(), (None, None))
-            ov.bounds[name.strip()] = (_number(lo.strip(), "--bound", item) if lo.strip() else old_lo,
-                                       _number(hi.strip(), "--bound", item) if hi.strip() else old_hi)
-        for item in initial or []:
-            name, sep, value = item.partition("=")
-            if not sep or not name.strip():
-                raise InputError(f"--initial {item!r} must be NAME=X")
-            ov.initial[name.strip()] = _number(value.strip(), "--initial", item)
-        for item in constraint or []:
-            m = _CONSTRAINT.match(item)
-            if not m:
-                raise InputError(f"--constraint {item!r} must be 'NAME>=X' or 'NAME<=X'")
-            name, op, value = m.groups()
-            ov.constraints.setdefault(name, {})["lower" if op == ">=" else "upper"] = _number(value, "--constraint", item)
-        return ov
-
 
 def from_args(args) -> Overrides:
-    """The overrides of a parsed command line (add_override_arguments)."""
-    return Overrides.parse(getattr(args, "bound", None), getattr(args, "initial", None),
-                           getattr(args, "constraint", None), getattr(args, "objective", None),
-                           getattr(args, "maximize", None))
+    """The overrides of a parsed command line (add_override_arguments), from its text: ``NAME=LO:HI``,
+    ``NAME=X``, ``'NAME>=X'`` / ``'NAME<=X'``, the objective and its sense."""
+    ov = Overrides(objective=getattr(args, "objective", None), maximize=getattr(args, "maximize", None))
+    for item in getattr(args, "bound", None) or []:
+        name, sep, spec = (part.strip() for part in item.partition("="))
+        lo, colon, hi = (part.strip() for part in spec.partition(":"))
+        if not sep or not colon or not name or not (lo or hi):
+            raise InputError(f"--bound {item!r} must be NAME=LO:HI (LO or HI may be left out)")
+        old_lo, old_hi = ov.bounds.get(name, (None, None))
+        ov.bounds[name] = (_number(lo, "--bound", item) if lo else old_lo,
+                           _number(hi, "--bound", item) if hi else old_hi)
+    for item in getattr(args, "initial", None) or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise InputError(f"--initial {item!r} must be NAME=X")
+        ov.initial[name.strip()] = _number(value.strip(), "--initial", item)
+    for item in getattr(args, "constraint", None) or []:
+        m = _CONSTRAINT.match(item)
+        if not m:
+            raise InputError(f"--constraint {item!r} must be 'NAME>=X' or 'NAME<=X'")
+        name, op, value = m.groups()
+        ov.constraints.setdefault(name, {})["lower" if op == ">=" else "upper"] = _number(value, "--constraint", item)
+    return ov
 
 
 def load(source, overrides: Overrides | None = None):

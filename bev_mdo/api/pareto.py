@@ -36,6 +36,8 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
     out, bag = out_dirs(out, cfg.name)
     run_id = uuid.uuid4().hex[:16]
     sess = session(transport, instances, cfg, out, bag, run_id, [cfg])
+    from bev_mdo.ros.pareto_publisher import front_message  # loaded by the session already
+
     with noting_interrupts(bag, "front"), sess:
         def on_front(front, final):
             sess.sink.publish(front_message(front, run_id=run_id, topology="", final=final))
@@ -58,8 +60,9 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
 def check_sizes(generations: int, pop: int, instances, transport) -> None:
     if generations < 1 or pop < 4:
         raise InputError(f"--generations must be >= 1 and --pop >= 4, got {generations}, {pop}")
-    Transport.of(transport).refuse_attach("pareto")
-    if instances and Transport.of(transport).transport != "ros":
+    transport = Transport.of(transport)
+    transport.refuse_attach("pareto")
+    if instances and transport.transport != "ros":
         raise InputError("--instances needs --transport ros (pools of discipline nodes)")
 
 
@@ -121,13 +124,6 @@ def session(transport, instances, raw, out: Path, bag: Path, run_id: str, config
     return sessions.ParetoInProcessSession(raw, bag, run_id)
 
 
-def front_message(front, **kw):
-    """A ParetoFront message of one generation's front (see bev_mdo.ros.pareto_publisher)."""
-    from bev_mdo.ros.pareto_publisher import front_message as make
-
-    return make(front, **kw)
-
-
 def nsga2(cfg, evaluator, objectives, pop: int, generations: int, seed: int, on_front=None, bench=None,
           on_generation=None):
     """mdo.pareto.run_nsga2 over the MDF formulation of ``cfg``; ``bench=(table, topology)`` adds the
@@ -147,7 +143,6 @@ def nsga2(cfg, evaluator, objectives, pop: int, generations: int, seed: int, on_
     return res
 
 
-
 def write_front(path: Path, res) -> None:
     """The front's designs as CSV: design variables, objectives, then every other MDA variable."""
     cols = list(res.names) + [o for o in res.objectives if o not in res.names]
@@ -161,16 +156,9 @@ def write_front(path: Path, res) -> None:
 
 def plot_front(out: Path, res, units: dict | None = None) -> list[Path]:
     """One scatter plot per pair of objectives, ``front_<b>_vs_<a>.png``. Returns the files written."""
-    import matplotlib
+    from bev_mdo.api.evaluate import pyplot_and_label
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from bev_mdo.mdo import units as un
-
-    def label(name):
-        return un.label(name, units or {})
-
+    plt, label = pyplot_and_label(units)
     written = []
     for i, xk in enumerate(res.objectives):
         for yk in res.objectives[i + 1:]:

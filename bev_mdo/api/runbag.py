@@ -84,29 +84,19 @@ class InProcessBag:
             self.writer.close()
 
 
-def write_answers(bag_dir: Path, answers: Mapping[str, Any]) -> Path:
-    """``answers.json`` beside a recorder's bag (over ROS)."""
-    path = Path(bag_dir) / ANSWERS_FILE
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(answers, default=float, indent=2) + "\n", encoding="utf-8")
-    return path
-
-
 def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
-    """The end-of-run answers (``bev_mdo.mdo.active``) for a run result dict."""
+    """The end-of-run answers (``bev_mdo.mdo.active``) for a run result dict, with the same time budget
+    per discipline call as the run had (a hung user discipline must not hang the answers)."""
+    from bev_mdo.api.failures import TimedDiscipline
+    from bev_mdo.config import RunConfig
     from bev_mdo.mdo.active import answers_for
+    from bev_mdo.mdo.units import run_units
 
     values = {k: c["value"] for k, c in result.get("constraints", {}).items()}
     values.update({k: v for k, v in result.get("outputs", {}).items() if k not in values})
-    # the same time budget per discipline call as the run had (a hung user discipline must not hang the answers)
-    from bev_mdo.api.failures import TimedDiscipline
-    from bev_mdo.config import RunConfig
-
     config = RunConfig.of(config)
     budget = config.ros["timeout_s"] * (config.ros["retries"] + 1)
     discs = [TimedDiscipline(d, budget) for d in config.disciplines]
-    from bev_mdo.mdo.units import run_units
-
     return answers_for(config.settings, result["design"], values, disciplines=discs, units=run_units(discs))
 
 
@@ -119,18 +109,10 @@ def finish(config: Mapping[str, Any], result: dict, extra: dict) -> None:
         inproc.close(ans)
         if inproc.failed:
             extra["recorder_failed"] = inproc.failed
-    elif extra.get("bag"):
-        write_answers(Path(extra["bag"]), ans)
-
-
-def answers_text(result: Mapping[str, Any], transport: str = "") -> list[str]:
-    """The answers printed under the summary table of an infeasible end (a feasible end prints the
-    first-order check's active set instead)."""
-    ans = result["active"]
-    lines = ["why the end point is infeasible:"] + [f"  {line}" for line in ans["lines"]]
-    if ans.get("jacobian_error"):
-        lines.append(f"  (no blocking analysis: {ans['jacobian_error']})")
-    return lines
+    elif extra.get("bag"):  # over ROS: answers.json beside the recorder's bag
+        path = Path(extra["bag"]) / ANSWERS_FILE
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(ans, default=float, indent=2) + "\n", encoding="utf-8")
 
 
 def interrupted_note(bag, kind: str = "iteration") -> str:
@@ -166,16 +148,16 @@ def noting_interrupts(bag, kind: str = "iteration"):
         raise
 
 
-def in_process_bag(config: Mapping[str, Any], args, show):
+def in_process_bag(config: Mapping[str, Any], opts, show):
     """(bag path or None, writer or None, iteration callback) for an in-process run: a bag only with --bag."""
-    if getattr(args, "no_record", False) or not getattr(args, "bag", None):
+    if opts.no_record or not opts.bag:
         return None, None, show
     import uuid
 
-    writer = InProcessBag(Path(args.bag), config, uuid.uuid4().hex[:16])
+    writer = InProcessBag(Path(opts.bag), config, uuid.uuid4().hex[:16])
 
     def callback(rec):
         writer(rec)
         show(rec)
 
-    return str(args.bag), writer, callback
+    return str(opts.bag), writer, callback

@@ -81,11 +81,9 @@ def to_dict(s, outputs) -> dict:
 
 
 def build_batch(config, evaluator, param_defaults=None):
-    """(fun, nominal point, bounds, outputs) for the MDA of ``config`` over ``evaluator``.
-
-    ``fun(X)`` takes columns in the order of the returned point (design variables, then
-    every overridable model parameter) and returns the objective and constrained outputs.
-    """
+    """(fun, nominal point, bounds, outputs, problem) for the MDA of ``config`` over ``evaluator``.
+    ``fun(X)`` takes columns in the order of the returned point (design variables, then every
+    overridable model parameter) and returns the objective and constrained outputs."""
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import build_formulation
 

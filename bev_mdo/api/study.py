@@ -4,6 +4,7 @@ Every run goes through the same functions as the ``bev-mdo`` command of the same
 raises InputError with the line that command prints."""
 from __future__ import annotations
 
+import copy
 import functools
 from dataclasses import asdict
 from pathlib import Path
@@ -59,7 +60,7 @@ class Study:
     def _change(self, edit) -> "Study":
         from bev_mdo.api import overrides
 
-        new = Overrides(**{k: dict(v) if isinstance(v, dict) else v for k, v in asdict(self.overrides).items()})
+        new = copy.deepcopy(self.overrides)
         edit(new)
         self._config = _input_errors(overrides.load)(self._raw, new)  # checked now, not at the run
         self.overrides = new

@@ -78,54 +78,44 @@ def ros_section(config: Mapping[str, Any], args) -> dict:
     return validate_ros(ros)
 
 
-def ros_session(config, transport, node_name: str = "bev_mdo_client"):
-    """The ROS session (sessions.EvaluateRosSession) of evaluate/sensitivity/sweep over ROS;
-    InputError when the ROS transport is not installed."""
-    import importlib
-
-    try:  # the ROS libraries only: a bev_mdo module that fails to import raises as it is
-        for lib in ("rclpy", "bev_mdo_msgs.msg"):
-            importlib.import_module(lib)
-    except ModuleNotFoundError:
-        raise InputError("--transport ros needs the ROS transport (rclpy and bev_mdo_msgs); "
-                         "--transport inprocess runs without it") from None
-    from bev_mdo.sessions import EvaluateRosSession
-
-    return EvaluateRosSession(config, ros_section(config, transport), launch=not Transport.of(transport).attach,
-                              node_name=node_name)
-
-
-def close_ros(session, ok: bool = True) -> None:
-    """End a ROS session; print its notes (drops, unsigned results) on stderr if the call ended well."""
-    for line in session.close(ok):
-        print(f"bev-mdo: {line}", file=sys.stderr)
-
-
 class Evaluating:
     """``with Evaluating(config, transport) as ev:`` the evaluator of ``config`` on the transport
-    (in process, or an EvaluateRosSession's), closed at the end (a ROS session's notes printed
-    only when the block ended normally)."""
+    (in process, or an EvaluateRosSession's), closed at the end (a ROS session's notes, drops and
+    unsigned results, printed on stderr only when the block ended normally)."""
 
     def __init__(self, config, transport, node_name: str = "bev_mdo_client", announce: bool = False):
-        self.ros = Transport.of(transport).uses_ros
-        if self.ros:
-            if announce:
-                section = ros_section(config, transport)
-                what = "find the discipline nodes" if Transport.of(transport).attach else "start the discipline nodes"
-                print(f"waiting up to {section['discovery_wait_s']:g} s to {what} on ROS domain "
-                      f"{section['domain_id']} ...", file=sys.stderr, flush=True)
-            self.session = ros_session(config, transport, node_name)
-        else:
+        how = Transport.of(transport)  # ros_section gets ``transport`` itself: its domain note shows once per command
+        self.ros = how.uses_ros
+        if not self.ros:
             from bev_mdo.config import RunConfig
             from bev_mdo.mdo.evaluator import InProcessEvaluator
 
             self.session = InProcessEvaluator(RunConfig.of(config).disciplines)
+            return
+        if announce:
+            section = ros_section(config, transport)
+            what = "find the discipline nodes" if how.attach else "start the discipline nodes"
+            print(f"waiting up to {section['discovery_wait_s']:g} s to {what} on ROS domain "
+                  f"{section['domain_id']} ...", file=sys.stderr, flush=True)
+        import importlib
+
+        try:  # the ROS libraries only: a bev_mdo module that fails to import raises as it is
+            for lib in ("rclpy", "bev_mdo_msgs.msg"):
+                importlib.import_module(lib)
+        except ModuleNotFoundError:
+            raise InputError("--transport ros needs the ROS transport (rclpy and bev_mdo_msgs); "
+                             "--transport inprocess runs without it") from None
+        from bev_mdo.sessions import EvaluateRosSession
+
+        self.session = EvaluateRosSession(config, ros_section(config, transport), launch=not how.attach,
+                                          node_name=node_name)
 
     def __enter__(self):
         return self.session.evaluator if self.ros else self.session
 
     def __exit__(self, exc_type, *exc):
-        if self.ros:
-            close_ros(self.session, exc_type is None)
-        else:
+        if not self.ros:
             self.session.close()
+            return
+        for line in self.session.close(exc_type is None):
+            print(f"bev-mdo: {line}", file=sys.stderr)

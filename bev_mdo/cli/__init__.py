@@ -13,10 +13,12 @@ import contextlib
 import importlib
 import os
 import sys
+import threading
 
+from bev_mdo import interrupts
 from bev_mdo.api.errors import InputError
 from bev_mdo.interrupts import Terminated  # SIGTERM as an exception: every finally runs, exit 143
-from bev_mdo.stacks import STARTUP_GAVE_UP_STATUS, StartupGaveUp
+from bev_mdo.stacks import STARTUP_GAVE_UP_STATUS, StartupGaveUp, bound_exit, dump_stacks_on_sigusr1
 
 # command -> (module in bev_mdo.cli, help), in the order --help lists them. The module's register()
 # uses the same help (test/cli/test_cli_table.py checks it).
@@ -53,10 +55,8 @@ UsageError = InputError
 
 def figure_format(path) -> str | None:
     """The ``format`` for ``fig.savefig(path)`` of a ``--png FILE`` option, so that exactly ``path`` is
-    written: matplotlib appends ``.png`` to a name without an extension, so ``--png out`` wrote
-    ``out.png`` and ``--png DIR`` (a directory given by mistake) wrote ``DIR.png`` beside it while the
-    command reported ``out`` / ``DIR``. PNG without an extension (the option's name), else the
-    extension's format; ValueError for a directory."""
+    written (matplotlib would append ``.png`` to a name without an extension): PNG for such a name,
+    else None (the extension's format); ValueError for a directory."""
     from pathlib import Path
 
     p = Path(path)
@@ -106,13 +106,7 @@ def main(argv: list[str] | None = None) -> int:
     if process:
         native_output_to_stderr()
     argv = sys.argv[1:] if argv is None else list(argv)
-    from bev_mdo.stacks import dump_stacks_on_sigusr1
-
     dump_stacks_on_sigusr1()
-    import threading
-
-    from bev_mdo import interrupts
-
     if threading.current_thread() is not threading.main_thread():
         return _main(argv)
     previous = interrupts.install()  # SIGTERM like SIGINT: unwind, close the bag, exit 143
@@ -121,8 +115,6 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         interrupts.restore(previous)
         if process and "rclpy" in sys.modules:  # the work is done: its ROS teardown may not hang the exit
-            from bev_mdo.stacks import bound_exit
-
             bound_exit()
 
 

@@ -17,8 +17,7 @@ def register(subparsers) -> None:
     p.add_argument("--set", dest="assignments", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
                    help="design values (or model-parameter overrides); also comma-separated a=1,b=2")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    from bev_mdo.cli.flags import add_override_arguments
-    from bev_mdo.cli.flags import add_transport_arguments
+    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
 
     add_transport_arguments(p)
     add_override_arguments(p)
@@ -42,12 +41,12 @@ def _fmt(v) -> str:
     return "-" if v is None else f"{v:.6g}"
 
 
-def print_table(report: dict, file=None) -> None:
-    """Readable tables of design, outputs and constraints (rich when available)."""
+def print_table(report: dict) -> None:
+    """Readable tables of design, outputs and constraints."""
     from rich.console import Console
     from rich.table import Table
 
-    console = Console(file=file or sys.stdout, width=100)
+    console = Console(file=sys.stdout, width=100)
     t = Table(title="design and outputs", show_header=True)
     t.add_column("variable")
     t.add_column("value", justify="right")

@@ -62,8 +62,8 @@ def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, 
     return out
 
 
-def load_config(args, path=None):
-    """The validated config (``RunConfig``) of ``path`` (default ``args.config``) with the command line's overrides."""
+def load_config(args):
+    """The validated config (``RunConfig``) of ``args.config`` with the command line's overrides."""
     from bev_mdo.api.overrides import from_args, load
 
-    return load(args.config if path is None else path, from_args(args))
+    return load(args.config, from_args(args))

@@ -4,42 +4,35 @@ from __future__ import annotations
 import numpy as np
 
 
-def print_tables(rep: dict, out) -> None:
+def print_tables(rep: dict) -> None:
     names = rep["variables"]
     w = max(12, *(len(n) for n in names)) + 2
     fixed = rep["fixed"]
     print(f"global sensitivity ({rep['method']}, N = {rep['samples']}, seed {rep['seed']}, "
-          f"{rep['n_evaluations']} designs in one batch, {100 * rep['conf_level']:g} % confidence)", file=out)
-    print("over " + ", ".join(f"{k} in [{lo:g}, {hi:g}]" for k, (lo, hi) in rep["bounds"].items()), file=out)
+          f"{rep['n_evaluations']} designs in one batch, {100 * rep['conf_level']:g} % confidence)")
+    print("over " + ", ".join(f"{k} in [{lo:g}, {hi:g}]" for k, (lo, hi) in rep["bounds"].items()))
     if fixed:
-        print("fixed at " + ", ".join(f"{k}={v:g}" for k, v in fixed.items()), file=out)
+        print("fixed at " + ", ".join(f"{k}={v:g}" for k, v in fixed.items()))
     keys = (("S1", "S1_conf"), ("ST", "ST_conf")) if rep["method"] == "sobol" else (("mu_star", "mu_star_conf"), ("sigma", None))
     for out_name, r in rep["outputs"].items():
-        print(f"\n{out_name}", file=out)
+        print(f"\n{out_name}")
         if r.get("constant"):
-            print("  constant over these bounds (or not finite): no indices", file=out)
+            print("  constant over these bounds (or not finite): no indices")
             continue
-        print("".ljust(10) + "".join(n.rjust(w) for n in names), file=out)
+        print("".ljust(10) + "".join(n.rjust(w) for n in names))
         for key, conf in keys:
             cells = [f" {v:.4g}" + (f" ±{c:.2g}" if conf else "") for v, c in
                      zip(r[key], r[conf] if conf else [0] * len(names))]
-            print(key.ljust(10) + "".join(c.rjust(w) for c in cells), file=out)
+            print(key.ljust(10) + "".join(c.rjust(w) for c in cells))
 
 
 def write_plot(path: str, rep: dict) -> None:
     """Bars of the indices of every output with their confidence intervals; the title names the
     bounds, the fixed values, N and the seed."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    from bev_mdo.api.evaluate import pyplot_and_label
     from bev_mdo.cli import figure_format
-    from bev_mdo.mdo import units as un
 
-    def label(name):
-        return un.label(name, rep.get("units") or {})
-
+    plt, label = pyplot_and_label(rep.get("units"))
     names, outs = rep["variables"], [k for k, r in rep["outputs"].items() if not r.get("constant")]
     keys = (("S1", "S1_conf", "first order S1"), ("ST", "ST_conf", "total ST")) if rep["method"] == "sobol" \
         else (("mu_star", "mu_star_conf", "mu* (output unit)"), ("sigma", None, "sigma (output unit)"))

@@ -85,15 +85,14 @@ def bag_path(path: str) -> str:
 
 
 def run(args) -> int:
-    from bev_mdo.bag.history import flat_rows, history, to_csv
+    from bev_mdo.bag.history import check_note, flat_rows, history, records_phrase, to_csv
     from bev_mdo.bag.reader import open_bag
+    from bev_mdo.bag.report import bag_units
 
     args.bag = bag_path(args.bag)
     bag = open_bag(args.bag)
     if bag.truncated:
         print(bag.recovery_note(), file=sys.stderr)
-    from bev_mdo.bag.history import check_note
-
     checks: dict = {}
     rows = history(bag, run_id=args.run_id, key_file=args.key_file, checks=checks, no_verify=args.no_verify)
     if check_note(checks):
@@ -110,15 +109,11 @@ def run(args) -> int:
         else:
             with open(args.csv, "w", encoding="utf-8") as f:
                 f.write(text)
-            from bev_mdo.bag.history import records_phrase
-
             print(f"wrote {records_phrase(rows)} to {args.csv}")
         return 0
     width = args.width
     if width is None and (sys.stdout.isatty() or os.environ.get("COLUMNS")):
         width = shutil.get_terminal_size((120, 24)).columns
-    from bev_mdo.bag.report import bag_units
-
     print_table(flat_rows(rows), width=width, units=bag_units(bag))
     return 0
 
@@ -144,8 +139,9 @@ def _priority(col: str) -> int:
     return len(order)
 
 
-def choose_columns(rows: list[dict], width: int | None, units: dict | None = None) -> tuple[list[str], list[str], dict]:
-    """(columns shown in table order, columns left out, {column: (header, cells)}) for a width."""
+def choose_columns(rows: list[dict], width: int | None, units: dict | None = None) -> tuple[list, list, dict, int]:
+    """(columns shown in table order, columns left out, {column: cells}, the width they take) for a
+    width (None: every column)."""
     skip = {"run_id", "sequence", "objective_name", "wall_time_s"}
     columns: list[str] = []
     for row in rows:
@@ -158,15 +154,13 @@ def choose_columns(rows: list[dict], width: int | None, units: dict | None = Non
     for c in columns:
         q, u = _header(c, units)
         need[c] = max([len(q), len(u)] + [len(v) for v in cells[c]]) + 3
-    if width is None:
-        return columns, [], cells
     chosen, used = [], 1
     for c in sorted(columns, key=lambda c: (_priority(c), columns.index(c))):
-        if used + need[c] <= width:
+        if width is None or used + need[c] <= width:
             chosen.append(c)
             used += need[c]
     shown = [c for c in columns if c in chosen]
-    return shown, [c for c in columns if c not in chosen], cells
+    return shown, [c for c in columns if c not in chosen], cells, used
 
 
 def print_table(rows: list[dict], width: int | None = None, file=None, units: dict | None = None) -> None:
@@ -174,11 +168,11 @@ def print_table(rows: list[dict], width: int | None = None, file=None, units: di
     from rich.console import Console
     from rich.table import Table
 
-    out = file or sys.stdout
-    shown, left, cells = choose_columns(rows, width, units)
-    first = rows[0]
     from bev_mdo.bag.history import records_phrase
 
+    out = file or sys.stdout
+    shown, left, cells, used = choose_columns(rows, width, units)
+    first = rows[0]
     title = records_phrase(rows)
     for k in ("formulation", "optimizer"):
         if k not in shown and first.get(k):
@@ -196,8 +190,7 @@ def print_table(rows: list[dict], width: int | None = None, file=None, units: di
                          no_wrap=True)
     for i in range(len(rows)):
         table.add_row(*[cells[c][i] for c in shown])
-    total = sum(max([len(x) for x in _header(c, units)] + [len(v) for v in cells[c]]) + 3 for c in shown) + 1
-    console = Console(file=out, width=max(width or 0, total, 40))
+    console = Console(file=out, width=max(width or 0, used, 40))
     console.print(table)
 
 

@@ -3,12 +3,11 @@ from __future__ import annotations
 
 import os
 
-from bev_mdo.cli import UsageError
+from bev_mdo.cli import SUBCOMMANDS, UsageError
 
 
 def register(sub) -> None:
-    p = sub.add_parser("node", help="run one discipline node (vehicle_mass, energy, range, acceleration, "
-                                    "motor_speed, cost, or any discipline named in the config)",
+    p = sub.add_parser("node", help=SUBCOMMANDS["node"][1],
                        description="Run one discipline as a ROS 2 node until Ctrl-C. Discovery stays on this host "
                                    "unless the config's ros: section opts in to more.")
     p.add_argument("name", help="discipline name, e.g. energy")

@@ -19,7 +19,6 @@ import json
 import sys
 
 
-
 def register(sub) -> None:
     p = sub.add_parser("optimize", help="run the distributed MDF/IDF optimisation (the main job)",
                        description="Optimise the config's problem. Over ROS every discipline runs as its own "
@@ -121,10 +120,7 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
 def _verdict(result: dict, out, units: dict) -> None:
     """The first-order verdict and the active set with its multipliers (physical margins beside)."""
     from bev_mdo.mdo.first_order import verdict_line
-    from bev_mdo.mdo import units as un
-
-    def unit_of(name: str) -> str:
-        return un.unit_of(name, units)
+    from bev_mdo.mdo.units import unit_of
 
     fo = result["first_order"]
     cost = fo["cost"]
@@ -138,8 +134,8 @@ def _verdict(result: dict, out, units: dict) -> None:
     if fo["verdict"] == "infeasible":
         return  # the answers below say what is violated and what blocks it
 
-    def u(name: str) -> str:
-        return f" {unit_of(name)}" if unit_of(name) else ""
+    def u(name: str) -> str:  # " kW", or "" for a quantity without a unit
+        return f" {unit_of(name, units)}" if unit_of(name, units) else ""
 
     lines = []
     for c in fo["active_constraints"]:
@@ -177,14 +173,15 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
     if args.json:
         print(json.dumps(doc, default=float, indent=2))
     else:
-        from bev_mdo.api import runbag
-
-        result = {k: v for k, v in doc.items() if k != "baseline"}
         from bev_mdo.api.evaluate import declared_units
 
+        result = {k: v for k, v in doc.items() if k != "baseline"}
         _table(result, doc["baseline"], out, declared_units(config))
-        if not doc["feasible"]:
-            print("\n".join(runbag.answers_text(result, doc["transport"])), file=out)
+        if not doc["feasible"]:  # a feasible end printed the first-order check's active set instead
+            ans = result["active"]
+            print("why the end point is infeasible:", *[f"  {line}" for line in ans["lines"]], sep="\n", file=out)
+            if ans.get("jacobian_error"):
+                print(f"  (no blocking analysis: {ans['jacobian_error']})", file=out)
         keys = list(doc)
         for k in keys[keys.index("baseline") + 1:]:  # the transport's figures follow the result and baseline
             print(f"{k}: {doc[k]}" if k != "run_time_s" else f"run time {doc[k]:.3f} s (config loaded to this line: "
@@ -196,4 +193,4 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
               "evaluated before that, not an optimum", file=sys.stderr)
     if doc.get("recorder_failed"):
         print(f"warning: {doc['recorder_failed']}", file=sys.stderr)
-    return optimize.exit_status(doc, getattr(args, "fixed_budget", False))
+    return optimize.exit_status(doc, opts.fixed_budget)

@@ -50,46 +50,29 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _read_raw(path):
-    from bev_mdo.config import check_run_name
-    from bev_mdo.yamlload import read_yaml_file
-
-    p = Path(path)
-    if not p.is_file():
-        raise ValueError(f"{path}: no such config file")
-    raw = read_yaml_file(p)
-    if not isinstance(raw, dict):
-        raise ValueError(f"{path}: the config must be a YAML mapping")
-    try:
-        check_run_name(raw.get("name", "run"))  # names the output folder: checked before anything is made
-    except ValueError as exc:
-        raise ValueError(f"{path}: {exc}") from None
-    return raw
-
-
 def run(args) -> int:
     from bev_mdo.api import pareto
     from bev_mdo.api.transport import Transport
     from bev_mdo.cli import flags
-    from bev_mdo.config import RunConfig
 
-    pareto.check_sizes(args.generations, args.pop, getattr(args, "instances", None), args)
-    cfg = flags.load_config(args)  # a bad key, topology, variable or override exits 2 here
+    pareto.check_sizes(args.generations, args.pop, args.instances, args)
+    cfg = flags.load_config(args)  # a bad file, key, name, topology, variable or override exits 2 here
+    names = None if args.objectives is None else [o.strip() for o in args.objectives.split(",") if o.strip()]
     if args.topology or args.all_topologies:
         from bev_mdo.api import overrides
+        from bev_mdo.yamlload import read_yaml_file
 
-        raw = _read_raw(args.config)
+        raw = read_yaml_file(Path(args.config))
         ov = overrides.from_args(args)
         if ov:  # the command line's overrides, checked against the config as written
-            raw = overrides.apply(raw, ov, overrides.known_names(RunConfig.load(args.config)))
-        return _study(args, raw, cfg)
-    names = None if args.objectives is None else [o.strip() for o in args.objectives.split(",") if o.strip()]
+            raw = overrides.apply(raw, ov, overrides.known_names(cfg))
+        return _study(args, raw, cfg, names)
     objs = pareto.objectives_of(names, cfg)
     pareto.check_objectives(objs, cfg, str(args.config), 2)
     print(f"NSGA-II {args.pop} x {args.generations} over {args.transport}: "
           f"{', '.join(n + (' (max)' if m else '') for n, m in objs)}", file=sys.stderr)
     doc, res = pareto.run(cfg, names, generations=args.generations, pop=args.pop, seed=args.seed, out=args.out,
-                          transport=Transport.of(args), instances=getattr(args, "instances", None),
+                          transport=Transport.of(args), instances=args.instances,
                           plots=not args.no_plots, source=str(args.config), on_generation=_generation)
     print(f"front: {len(res.X)} non-dominated feasible designs, {res.evaluations} evaluations in "
           f"{res.batches} batches, {res.wall_time_s:.1f} s")
@@ -109,9 +92,9 @@ def _failed(doc: dict) -> int:
     return 0
 
 
-def _study(args, raw, written) -> int:
+def _study(args, raw, written, names) -> int:
     """The BEV topology study (thesis §4.4): one front per topology, the benchmark, the picks;
-    ``written``: the config's RunConfig."""
+    ``written``: the config's RunConfig; ``names``: the --objectives (None: the config's)."""
     from bev_mdo.api import pareto
     from bev_mdo.config import RunConfig
     from bev_mdo.disciplines import TOPOLOGY_DISCIPLINES
@@ -129,20 +112,21 @@ def _study(args, raw, written) -> int:
         except ValueError as exc:  # the file and the topology, not <config>
             raise ValueError(f"{args.config} ({t}): {str(exc).removeprefix('<config>: ')}") from None
     first = next(iter(configs.values()))
-    names = None if args.objectives is None else [o.strip() for o in args.objectives.split(",") if o.strip()]
     objectives = pareto.objectives_of(names, first) or [(o, False) for o in OBJECTIVES]
     for t, cfg in configs.items():
         pareto.check_objectives(objectives, cfg, f"{args.config} ({t})", 1)
     out, bag = pareto.out_dirs(args.out, raw.get("name", "run"))
     run_id = uuid.uuid4().hex[:16]
     results, bench, timing = {}, {}, {}
-    session = pareto.session(args, getattr(args, "instances", None), raw, out, bag, run_id, list(configs.values()))
+    session = pareto.session(args, args.instances, raw, out, bag, run_id, list(configs.values()))
+    from bev_mdo.ros.pareto_publisher import front_message  # loaded by the session already
+
     with session:
         for t, cfg in configs.items():
             print(f"{t}: NSGA-II {args.pop} x {args.generations} over {args.transport}", file=sys.stderr)
 
             def on_front(front, final, t=t):
-                session.sink.publish(pareto.front_message(front, run_id=run_id, topology=t, final=final))
+                session.sink.publish(front_message(front, run_id=run_id, topology=t, final=final))
 
             with session.evaluator(cfg, t) as ev:
                 res = pareto.nsga2(cfg, ev, objectives, args.pop, args.generations, args.seed, on_front,
@@ -151,7 +135,7 @@ def _study(args, raw, written) -> int:
             timing[t] = {"wall_time_s": res.wall_time_s, "evaluations": res.evaluations, "batches": res.batches,
                          "mean_generation_s": float(np.mean(res.generation_times_s)),
                          "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12),
-                         "design_variables": {d["name"]: [d["lower"], d["upper"]] for d in _bounds(cfg)}}
+                         "design_variables": {d.name: [d.lower, d.upper] for d in cfg.problem.design_variables}}
             pareto.write_front(out / f"pareto_{t}.csv", res)
     study.write_benchmark(out / "benchmark.csv", bench)
     warnings = study.torque_warnings(bench)
@@ -177,6 +161,3 @@ def _study(args, raw, written) -> int:
     pareto.finish(out / "summary.json", summary, session)
     return _failed(summary)
 
-
-def _bounds(cfg) -> list[dict]:
-    return [{"name": d.name, "lower": d.lower, "upper": d.upper} for d in cfg.problem.design_variables]

@@ -1,6 +1,8 @@
 """``bev-mdo record [--topics ...] [--output BAG] [--config CONFIG]``: run the recorder node."""
 from __future__ import annotations
 
+from pathlib import Path
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser("record", help="record bev_mdo topics to a rosbag2 MCAP bag")
@@ -15,8 +17,6 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from pathlib import Path
-
     from bev_mdo.ros.recorder_node import main
 
     argv = []
@@ -38,8 +38,6 @@ def run(args) -> int:
 
 def _join_domain(args) -> None:
     """Domain and discovery: the flags, over the --config file's ros: section (localhost by default)."""
-    from pathlib import Path
-
     from bev_mdo.api.transport import ros_section
     from bev_mdo.ros.client import apply_ros_environment
 

@@ -26,10 +26,9 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from bev_mdo.ros.replay import replay
-
     from bev_mdo.api.transport import ros_section
     from bev_mdo.ros.client import apply_ros_environment
+    from bev_mdo.ros.replay import replay
 
     # Domain and discovery from the flags (else the environment's ROS_DOMAIN_ID; localhost by default):
     # a replay never goes off-host unasked.

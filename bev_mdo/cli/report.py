@@ -16,6 +16,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    from bev_mdo.bag.history import check_note
     from bev_mdo.bag.reader import open_bag
     from bev_mdo.bag.report import report
     from bev_mdo.cli.history import bag_path
@@ -24,8 +25,6 @@ def run(args) -> int:
     bag = open_bag(args.bag)
     if bag.truncated:
         print(bag.recovery_note(), file=sys.stderr)
-    from bev_mdo.bag.history import check_note
-
     checks: dict = {}
     paths = report(bag, args.output_dir, run_id=args.run_id, checks=checks, key_file=args.key_file,
                    no_verify=args.no_verify)

@@ -60,9 +60,7 @@ def run(args) -> int:
 
     Transport.of(args).refuse_attach("resume")  # before the bag is read
     checks: dict = {}
-    config, design, iteration = resume_point(args.bag, getattr(args, "run_id", None),
-                                             getattr(args, "key_file", None), checks,
-                                             getattr(args, "no_verify", False))
+    config, design, iteration = resume_point(args.bag, args.run_id, args.key_file, checks, args.no_verify)
     out = sys.stderr if args.json else sys.stdout
     if check_note(checks):
         print(f"{args.bag}: {check_note(checks)}", file=sys.stderr)

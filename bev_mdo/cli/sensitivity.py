@@ -17,11 +17,10 @@ import numpy as np
 
 def register(subparsers) -> None:
     from bev_mdo.api.sensitivity import METHODS
-    from bev_mdo.cli.flags import add_override_arguments
-    from bev_mdo.cli.flags import add_transport_arguments
+    from bev_mdo.cli import SUBCOMMANDS
+    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
 
-    p = subparsers.add_parser("sensitivity", help="normalised 1st/2nd-order sensitivities at a design, or global "
-                                                  "Sobol'/Morris indices over the bounds")
+    p = subparsers.add_parser("sensitivity", help=SUBCOMMANDS["sensitivity"][1])
     p.add_argument("config", help="run config YAML")
     p.add_argument("--at", default="", metavar="K=V,...",
                    help="design point (design variables default to their initial values); with --global, the "
@@ -68,7 +67,7 @@ def run(args) -> int:
         if args.json:
             print(json.dumps(got, indent=2))
         else:
-            gs.print_tables(got, sys.stdout)
+            gs.print_tables(got)
             if args.png:
                 print(f"wrote {args.png}")
         return 0
@@ -126,16 +125,11 @@ def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
     whose magnitude is not above their Richardson error estimate are masked (grey, "≤ err"): they
     are noise, not signal. Text is white on dark cells. The title names the point and the cycle.
     Returns the figure (closed)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.colors import Normalize
 
-    from bev_mdo.mdo import units as un
+    from bev_mdo.api.evaluate import pyplot_and_label
 
-    def label(name):
-        return un.label(name, units or {})
-
+    plt, label = pyplot_and_label(units)
     second = s.second is not None
     n = len(outputs)
     ncols = 2 if second and n > 1 else 1

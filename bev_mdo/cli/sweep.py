@@ -26,13 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
+from bev_mdo.api.evaluate import batch as evaluate_batch  # one batch of MDAs over the transport args choose
 from bev_mdo.cli import UsageError
 
 
 def register(sub) -> None:
     from bev_mdo.api.doe import METHODS
-    from bev_mdo.cli.flags import add_override_arguments
-    from bev_mdo.cli.flags import add_transport_arguments
+    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
 
     p = sub.add_parser("sweep", help="a design of experiments, grid or list of designs as one batch: CSV, PNG, bag",
                        description=__doc__.split("\n\n")[1])
@@ -71,10 +71,8 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
             raise UsageError(f"--vary {item!r} must be NAME=LO:HI:N or NAME=A,B,C")
         try:
             if ":" in spec:
-                parts = spec.split(":")
-                if len(parts) != 3:
-                    raise ValueError
-                lo, hi, n = float(parts[0]), float(parts[1]), int(parts[2])
+                lo, hi, n = spec.split(":")  # a ValueError unless it has three parts
+                lo, hi, n = float(lo), float(hi), int(n)
                 if n < 1:
                     raise ValueError
                 if n > MAX_SWEEP_POINTS:
@@ -122,15 +120,6 @@ def read_list(path: str) -> dict[str, np.ndarray]:
     return out
 
 
-def evaluate_batch(config, designs: dict[str, np.ndarray], args) -> dict:
-    """One batch of MDAs (bev_mdo.api.evaluate.batch), over the transport ``args`` choose (parsed
-    flags, a Transport or its name)."""
-    from bev_mdo.api import evaluate
-    from bev_mdo.api.transport import Transport
-
-    return evaluate.batch(config, designs, Transport.of(args))
-
-
 def write_csv(path: Path, result: dict) -> None:
     cols = list(result["design"]) + list(result["outputs"]) + [f"margin.{k}" for k in result["margins"]]
     n = len(result["feasible"])
@@ -148,16 +137,9 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
     """One PNG: ``output`` against the first varied variable, one line per value of the second
     (if any; further varied variables: one panel per value of the third is too much, they are
     overlaid); feasible points filled, infeasible hollow red x; constraint limits dashed."""
-    import matplotlib
+    from bev_mdo.api.evaluate import pyplot_and_label
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from bev_mdo.mdo import units as un
-
-    def label(name):
-        return un.label(name, result.get("units") or {})
-
+    plt, label = pyplot_and_label(result.get("units"))
     problem = result["problem"]
     x = result["design"][varied[0]]
     y = result["outputs"][output]
@@ -203,9 +185,9 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
     return fig, ax
 
 
-def designs_of(args, problem) -> dict[str, np.ndarray]:
-    """The designs the command line asks for: a DOE over the bounds of the design variables not
-    fixed with --set, a grid (--vary) or a list (--list), with the --set values as columns."""
+def designs_of(args, problem) -> tuple[dict[str, np.ndarray], list[str]]:
+    """(the designs the command line asks for, the names varied): a DOE over the bounds of the design
+    variables not fixed with --set, a grid (--vary) or a list (--list), with the --set values as columns."""
     from bev_mdo.api.doe import sample
     from bev_mdo.cli.flags import parse_assignments
 
@@ -217,19 +199,18 @@ def designs_of(args, problem) -> dict[str, np.ndarray]:
         designs = sample(args.doe, bounds, args.samples, args.seed)
     else:
         designs = grid(parse_vary(args.vary)) if args.vary else read_list(args.list_csv)
-    n = len(next(iter(designs.values())))
+    n, varied = len(next(iter(designs.values()))), list(designs)
     for k, v in fixed.items():
         if k in designs:
             raise UsageError(f"--set {k} is also varied")
         designs[k] = np.full(n, v)
-    return designs
+    return designs, varied
 
 
 def run(args) -> int:
-    from bev_mdo.cli import flags
     from bev_mdo.api.doe import plot_scatter, record
-    from bev_mdo.cli.flags import parse_assignments
     from bev_mdo.api.transport import Transport
+    from bev_mdo.cli import flags
 
     config = flags.load_config(args)
     out = Path(args.out)
@@ -238,9 +219,7 @@ def run(args) -> int:
         from bev_mdo.api.optimize import check_new_bag
 
         check_new_bag(bag, "--out")
-    designs = designs_of(args, config.problem)
-    fixed = parse_assignments(args.fixed)
-    varied = [k for k in designs if k not in fixed]
+    designs, varied = designs_of(args, config.problem)
     n = len(next(iter(designs.values())))
     transport = "ros" if Transport.of(args).uses_ros else "inprocess"
     result = evaluate_batch(config, designs, args)
@@ -290,22 +269,17 @@ def run_compare(args) -> int:
     problem = config.problem
     init = {d.name: d.initial for d in problem.design_variables}
     designs = {k: np.array([g.get(k, init.get(k, np.nan)) for g in given]) for k in keys}
-    if any(np.isnan(v).any() for v in designs.values()):
-        missing = [k for k, v in designs.items() if np.isnan(v).any()]
+    missing = [k for k, v in designs.items() if np.isnan(v).any()]
+    if missing:
         raise UsageError(f"{missing} must be given in every --design (they are parameters, with no initial value)")
     result = evaluate_batch(config, designs, args)
 
     def unit_of(name):
         return un.unit_of(name, result["units"])
 
-    rows = []
-    for k, v in result["design"].items():
-        rows.append((k, unit_of(k), v))
-    for k, v in result["outputs"].items():
-        if k not in result["design"]:
-            rows.append((k, unit_of(k), v))
-    for k, v in result["margins"].items():
-        rows.append((f"margin {k}", unit_of(k), v))
+    named = {**result["design"], **{k: v for k, v in result["outputs"].items() if k not in result["design"]}}
+    rows = [(k, unit_of(k), v) for k, v in named.items()]
+    rows += [(f"margin {k}", unit_of(k), v) for k, v in result["margins"].items()]
     if args.json:
         print(json.dumps({"designs": [{name: float(v[i]) for name, _, v in rows} | {
             "feasible": bool(result["feasible"][i]), "ok": bool(result["ok"][i])} for i in range(len(given))]},

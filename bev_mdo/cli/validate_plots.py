@@ -83,7 +83,6 @@ def plot(report: dict, path: str) -> None:
     _save(fig, path)
 
 
-
 def plot_pair_arrows(report: dict, cycle: str, path) -> None:
     """One panel per model column: every pair of the cycle as an arrow from (measured A, predicted A)
     to (measured B, predicted B), Wh/km, with y = x; the title gives the pair slope and mean
