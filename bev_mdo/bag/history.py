@@ -6,6 +6,7 @@ import io
 
 from bev_mdo.bag.errors import BagError
 from bev_mdo.bag.reader import Bag, open_bag, read_config
+from bev_mdo.bag.signing import verifier
 
 ITERATION_TOPIC = "/bev_mdo/iteration"
 ITERATION_TYPE = "bev_mdo_msgs/msg/IterationRecord"
@@ -31,14 +32,6 @@ def own_run(bag) -> str | None:
 
 def _in_run(run_id: str, run: str) -> bool:
     return run_id == run or run_id.startswith(run + "-")
-
-
-def signer_for(bag, key_file: str | None = None, no_verify: bool = False):
-    """The ``bag.signing.Verifier`` of a bag's records (BagError when its signing record and stored
-    configuration disagree; see bag/signing.py)."""
-    from bev_mdo.bag.signing import verifier
-
-    return verifier(bag if isinstance(bag, Bag) else open_bag(bag), key_file, no_verify)
 
 
 class Sequence:
@@ -116,7 +109,7 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
         if len(runs) > 1:
             raise BagError(f"{bag.mcap_path}: the bag holds the iterations of {len(runs)} runs {runs}; "
                            "choose one with --run-id")
-    check = signer_for(bag, key_file, no_verify)
+    check = verifier(bag, key_file, no_verify)
     signer = check.signer
     info = {"run_id": run, "dropped": {}, "missing": 0, "other_runs": 0, "unverified": check.note}
     order = Sequence()
@@ -211,7 +204,6 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
     """(config_yaml, design of the last verified iteration of the bag's own run, its iteration
     number), for resume. BagError when the run was signed but its records cannot be verified."""
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
-    checks = {} if checks is None else checks
     rows = history(bag, run_id, key_file=key_file, checks=checks, no_verify=no_verify)
     if not rows:
         raise BagError(f"{bag.mcap_path}: no IterationRecord on {ITERATION_TOPIC}; nothing to resume")
@@ -221,7 +213,7 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
 
 def records_phrase(rows: list[dict]) -> str:
     """'4 records (iterations 0-3)': a count of records, not of iterations; record 0 is the start, so a
-    run that ``optimize`` reports with 'iterations 3' has 4 records (saying '4 iterations' contradicted it)."""
+    run that ``optimize`` reports with 'iterations 3' has 4 records."""
     first, last = rows[0].get("iteration"), rows[-1].get("iteration")
     span = f" (iterations {first}-{last})" if first is not None and last is not None else ""
     return f"{len(rows)} record{'s' if len(rows) != 1 else ''}{span}"

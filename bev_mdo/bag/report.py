@@ -1,6 +1,7 @@
 """PNG plots and a markdown summary of a recorded run, written into the bag directory."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -16,12 +17,10 @@ RESULT_TYPE = "bev_mdo_msgs/msg/EvaluationResult"
 
 def read_answers(bag: Bag) -> dict | None:
     """The end-of-run answers stored with a bag (metadata record or answers.json), or None."""
-    import json
-
     rec = bag.metadata.get(ANSWERS_METADATA)
     if rec and "answers_json" in rec:
         return json.loads(rec["answers_json"])
-    path = Path(bag.bag_dir or bag.mcap_path.parent) / ANSWERS_FILE
+    path = bag.bag_dir / ANSWERS_FILE
     if path.is_file():
         return json.loads(path.read_text(encoding="utf-8"))
     return None
@@ -290,10 +289,9 @@ def _maximized(config_yaml: str | None) -> bool:
     return isinstance(obj, dict) and obj.get("maximize") is True
 
 
-
 def _context(bag: Bag):
-    """(config, problem, final analysis, baseline) from the config stored in the bag, evaluated in
-    process; Nones where the bag has no config or it no longer loads."""
+    """(config, problem) from the config stored in the bag; Nones where the bag has no config or it
+    no longer loads."""
     text = read_config(bag)
     if not text:
         return None, None
@@ -379,9 +377,7 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
         lines += [f"| quantity | unit | value |{bcol}", "|---|---|---:|" + ("---:|" if base else "")]
 
         def row(k, v, ref):
-            extra = f" {ref:.6g} |" if base else ""
-            if base and ref is None:
-                extra = " |"
+            extra = (" |" if ref is None else f" {ref:.6g} |") if base else ""
             return f"| {k} | {unit_of(k, units or {})} | {v:.6g} |{extra}"
 
         lines.append(row(last["objective_name"] or "objective", last["objective"],
