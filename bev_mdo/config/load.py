@@ -19,8 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from bev_mdo.config.disciplines import (check_against_disciplines, discipline_entries,
-                                        discipline_names, resolve_disciplines)
+from bev_mdo.config.disciplines import check_against_disciplines, discipline_entries, resolve_disciplines
 from bev_mdo.config.sections import (check_mda_numbers, check_optimizer_options, resolve_problem, search_path,
                                      engine_section, validate_models, vehicle_topology_into_options)
 from bev_mdo.mdo.problem import Problem
@@ -227,11 +226,9 @@ def _settings(config: dict, problem: Problem, discs) -> RunSettings:
     above the engine)."""
     from bev_mdo.mdo.vectors import has_partials
 
-    names = tuple(discipline_names(config))
-    partials = {d.name: bool(has_partials(d)) for d in discs}
     return RunSettings(config["problem"], str(config["formulation"]), MDASettings.of(config["mda"]),
-                       OptimizerSettings.of(config["optimizer"]), names,
-                       {n: partials.get(n, False) for n in names}, parsed_problem=problem)
+                       OptimizerSettings.of(config["optimizer"]), tuple(d.name for d in discs),
+                       {d.name: bool(has_partials(d)) for d in discs}, parsed_problem=problem)
 
 
 def run_settings(config: RunConfig | Mapping[str, Any]) -> RunSettings:

@@ -65,7 +65,6 @@ def check_optimizer_options(name: str, options: Mapping[str, Any]) -> None:
             raise ValueError(f"optimizer.options.{key}: {value!r} is not a number ({name}'s default is {default!r})")
 
 
-
 def search_path(given: Any, base: Path | None) -> list[str]:
     """Absolute folders for user modules: the given ones, the config's folder, the working directory."""
     if given is None:
@@ -109,9 +108,14 @@ def check_mda_numbers(mda: Mapping[str, Any]) -> None:
         raise ValueError(f"mda.fuse_downstream {mda['fuse_downstream']!r} must be true or false")
 
 
-def _check_parameter_set_model(cfg: dict) -> None:
-    """A parameter set fitted for one energy model (its ``energy_model``, written by ``bev-mdo
-    calibrate``) is refused on another: the chain's constants mean nothing to the quasi-static model."""
+def _parameter_set(cfg: dict) -> None:
+    """``vehicle.parameter_set``: a set fitted for one energy model (its ``energy_model``, written by
+    ``bev-mdo calibrate``) is refused on another (the chain's constants mean nothing to the
+    quasi-static model). A set named by its file (``mine.yaml``) is read once, here, and its values
+    go into the vehicle section as defaults (keys given there still win), so the resolved config
+    reproduces the run alone: a bag's ``resume``, a node started in another folder or on another
+    host, the same run after the file moved or was rewritten. A shipped set stays named (it comes
+    with the package, whose version the bag records)."""
     from bev_mdo.models import params
 
     v = cfg.get("vehicle")
@@ -120,18 +124,6 @@ def _check_parameter_set_model(cfg: dict) -> None:
     if fitted:
         raise ValueError(f"vehicle.parameter_set {name!r} was fitted for energy_model {fitted}, "
                          f"not {cfg.get('energy_model')}")
-
-
-def _inline_parameter_set_file(cfg: dict) -> None:
-    """A parameter set named by its file (``vehicle.parameter_set: mine.yaml``) is read once, here, and
-    its values go into the vehicle section as defaults (keys given there still win), so the resolved
-    config reproduces the run alone: a bag's ``resume``, a node started in another folder or on another
-    host, the same run after the file moved or was rewritten. A shipped set stays named (it comes with
-    the package, whose version the bag records)."""
-    from bev_mdo.models import params
-
-    v = cfg.get("vehicle")
-    name = v.get("parameter_set") if isinstance(v, Mapping) else None
     if not params.is_parameter_set_file(name):
         return
     values = params.load_parameter_set(name)
@@ -184,18 +176,16 @@ def validate_models(cfg: dict) -> None:
 
     if "vehicle" in cfg or "cycle" in cfg:
         try:
-            _check_parameter_set_model(cfg)
-            _inline_parameter_set_file(cfg)
+            _parameter_set(cfg)
             params.validate_vehicle(cfg.get("vehicle"))
         except ValueError as exc:  # a key path (vehicle.x) says where already
             raise ValueError(str(exc) if str(exc).startswith("vehicle.") else f"vehicle: {exc}") from None
         try:
             cfg["cycle"] = params.validate_cycle(cfg.get("cycle"))
-            from bev_mdo.models.cycles import load_cycle, resample
+            from bev_mdo.disciplines.common import resampled_cycle
 
             _record_cycle_traces(cfg)
-            c = cfg["cycle"]  # read and check the trace now: one line naming file and row
-            resample(load_cycle(c["name"], cfg.get("cycle_traces")), c["dt_s"], c["interpolation"], c["smoothing"])
+            resampled_cycle(cfg)  # read and check the trace now: one line naming file and row
         except ValueError as exc:
             raise ValueError(str(exc) if str(exc).startswith("cycle.") else f"cycle: {exc}") from None
 
