@@ -10,6 +10,7 @@ from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
+from bev_mdo import __version__
 from bev_mdo.bag import metadata as meta
 from bev_mdo.bag import schema
 from bev_mdo.bag.errors import BagError
@@ -18,12 +19,6 @@ PROFILE = "ros2"
 METADATA_NAME = "bev_mdo"  # MCAP metadata record holding config_yaml, version, run_id, ...
 CONFIG_ATTACHMENT = "config.yaml"
 CHUNK_SIZE_BYTES = 256 * 1024  # uncompressed; modest so a crash loses little
-
-
-def _version() -> str:
-    from bev_mdo import __version__
-
-    return __version__
 
 
 class BagWriter:
@@ -50,14 +45,14 @@ class BagWriter:
             self._stream = open(self.path, "xb")
         except OSError as exc:  # a file where a folder of the path should be, no permission, ...
             raise BagError(f"{self.bag_dir}: cannot create the bag ({exc.strerror or exc})") from None
-        self._mcap = mcap_writer(self._stream, f"bev_mdo {_version()} (mcap python)", chunk_size_bytes)
+        self._mcap = mcap_writer(self._stream, f"bev_mdo {__version__} (mcap python)", chunk_size_bytes)
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._topics: dict[str, meta.TopicInfo] = {}
         self._start_ns: int | None = None
         self._end_ns = 0
         self.closed = False
-        self.metadata = {"version": _version(), **(metadata or {})}
+        self.metadata = {"version": __version__, **(metadata or {})}
         self._mcap.add_metadata(METADATA_NAME, {k: str(v) for k, v in self.metadata.items()})
         if "config_yaml" in self.metadata:  # a run's bag: its signing state, under the run's key
             from bev_mdo.bag.signing import SIGNING_METADATA, state
