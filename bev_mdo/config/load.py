@@ -1,21 +1,13 @@
-"""Loading a run config: read the YAML, validate every section once, resolve the disciplines.
-
-``RunConfig.load(path)`` is the one parse of a run config: the resolved config as a plain dict
-(``data``, what a run's log folder and bag record, and what ``load`` reads back the same), the
-``Problem``, the run's disciplines built once, the ``ros:`` section with its defaults, and the
-engine's ``RunSettings``. Code downstream takes the ``RunConfig``; a function given a plain
-mapping instead loads it once with ``RunConfig.of``. Any problem raises a one-line ValueError
-naming the file and the key. In battery-sized-for-range mode ``battery_kwh`` leaves the design
-variables (its initial value becomes the MDA loop's starting guess), is produced by the
-``battery_sizing`` discipline, and the ``range_km`` constraint (met by construction) becomes
-``monitor: true``.
+"""Loading a run config (``RunConfig.load``): read the YAML, validate every section once, build the
+run's disciplines. Code downstream takes the ``RunConfig``; a function given a plain mapping loads
+it once with ``RunConfig.of``. Any problem raises a one-line ValueError naming the file and the key.
 """
 from __future__ import annotations
 
 import copy
 import math
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -109,8 +101,6 @@ class RunConfig(Mapping):
 
     def with_ros(self, section: Mapping[str, Any]) -> "RunConfig":
         """The same run with another ``ros:`` section (checked; nothing else is parsed again)."""
-        from dataclasses import replace
-
         from bev_mdo.ros_settings import validate_ros
 
         return replace(self, data={**self.data, "ros": dict(section)}, ros=validate_ros(section))
@@ -160,9 +150,11 @@ def check_run_name(name: Any) -> None:
 
 
 def _resolve(raw: Any) -> RunConfig:
-    from bev_mdo.mdo.formulations import FD_SCHEMES
+    from bev_mdo.disciplines import ENERGY_MODELS
+    from bev_mdo.mdo.formulations import DERIVATIVES, FD_SCHEMES
     from bev_mdo.mdo.mda import METHODS
     from bev_mdo.mdo.optimizers import canonical_name
+    from bev_mdo.ros_settings import validate_ros
 
     if not isinstance(raw, Mapping):
         raise ValueError("the config must be a YAML mapping of sections (name, vehicle, cycle, problem, ...)")
@@ -171,8 +163,6 @@ def _resolve(raw: Any) -> RunConfig:
     cfg.setdefault("name", "run")
     check_run_name(cfg["name"])
     cfg["energy_model"] = cfg.get("energy_model", "flat")
-    from bev_mdo.disciplines import ENERGY_MODELS
-
     if cfg["energy_model"] not in ENERGY_MODELS:
         raise ValueError(f"energy_model {cfg['energy_model']!r} is unknown; allowed: {', '.join(ENERGY_MODELS)}")
     validate_models(cfg)
@@ -196,8 +186,6 @@ def _resolve(raw: Any) -> RunConfig:
         raise ValueError(f"optimizer.feasibility_tolerance {tol!r} must be a number in [0, 1) "
                          "(on normalised constraints; default 1e-4)")
     cfg["optimizer"]["feasibility_tolerance"] = float(tol)
-    from bev_mdo.mdo.formulations import DERIVATIVES
-
     if cfg["optimizer"]["derivatives"] not in DERIVATIVES:
         raise ValueError(f"optimizer.derivatives {cfg['optimizer']['derivatives']!r} is unknown; allowed: "
                          f"{', '.join(DERIVATIVES)}")
@@ -206,8 +194,6 @@ def _resolve(raw: Any) -> RunConfig:
             raise ValueError(f"{key} must be a mapping")
         cfg[key] = dict(cfg.get(key) or {})
     check_keys("recording", cfg["recording"], RECORDING_KEYS)
-    from bev_mdo.ros_settings import validate_ros
-
     ros = validate_ros(cfg["ros"])  # checked here so the error names the file; the section is kept as written
     cfg["problem"] = resolve_problem(cfg.get("problem"))
     problem = Problem.from_config(cfg["problem"])

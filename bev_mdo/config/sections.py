@@ -1,10 +1,6 @@
-"""Checks of a run config's sections, one at a time (``load._resolve`` runs them in order).
-
-The optimiser's options against its solver's keyword arguments, the search path, the engine
-sections against their typed defaults, the vehicle and cycle against the models' validators
-(a parameter-set file and drive-cycle CSVs are read once, into the resolved config), the
-vehicle topology into the topology disciplines' options, and the problem section (battery
-sized for range, baseline). Every problem is a one-line ValueError naming the key.
+"""Checks of a run config's sections, one at a time (``load._resolve`` runs them in order); a
+parameter-set file and drive-cycle CSVs are read once, into the resolved config. Every problem is a
+one-line ValueError naming the key.
 """
 from __future__ import annotations
 
@@ -211,6 +207,9 @@ def vehicle_topology_into_options(cfg: dict) -> None:
 
 
 def resolve_problem(section: Any) -> dict:
+    """The problem section. Battery sized for range: ``battery_kwh`` leaves the design variables (its
+    initial value becomes the MDA loop's starting guess; the ``battery_sizing`` discipline produces it)
+    and the ``range_km`` constraint, met by construction, becomes ``monitor: true``."""
     if not isinstance(section, Mapping):
         raise ValueError("problem must be a mapping with objective, design_variables and constraints")
     prob = copy.deepcopy(dict(section))
