@@ -57,10 +57,11 @@ def topology_inputs(t: topo_model.Topology) -> tuple[str, ...]:
     return tuple(out)
 
 
-def replaced_by_road_load(v: Mapping[str, float]) -> tuple[str, ...]:
-    """The constants a coast-down road load replaces (models/road_load.py): not overridable per point
-    then, since no model reads them."""
-    return ROAD_LOAD_REPLACES if road_load.uses_road_load(v) else ()
+def overridable(v: Mapping[str, float], names) -> list[str]:
+    """``names`` and the coast-down road load's constants (models/road_load.py), less the constants a
+    road load replaces: no model reads those then, so they are not overridable per point."""
+    replaced = ROAD_LOAD_REPLACES if road_load.uses_road_load(v) else ()
+    return [k for k in [*names, *(k for k in v if k.startswith("road_load_"))] if k not in replaced]
 
 
 # the unit of every variable a built-in discipline reads or writes (mdo/units.py)

@@ -8,7 +8,7 @@ from typing import Mapping
 
 import numpy as np
 
-from bev_mdo.disciplines.common import (ENERGY_MODELS, Base, flag, replaced_by_road_load, resampled_cycle,
+from bev_mdo.disciplines.common import (ENERGY_MODELS, Base, flag, overridable, resampled_cycle,
                                         run_topology, topology_inputs, vehicle_of)
 from bev_mdo.models import flat
 from bev_mdo.models import topology as topo_model
@@ -83,10 +83,7 @@ class Energy(Base):
         else:
             raise ValueError(f"energy_model must be one of {list(ENERGY_MODELS)}, got {model!r}")
         # the two-speed mass is added by vehicle_mass (once), never here
-        names = [k for k in names if k in v and k != "two_speed_added_mass_kg"]
-        # the coast-down road load is overridable per point, as in acceleration
-        names += [k for k in v if k.startswith("road_load_")]
-        names = [k for k in names if k not in replaced_by_road_load(v)]
+        names = overridable(v, [k for k in names if k in v and k != "two_speed_added_mass_kg"])
         extra = {k: x for k, x in v.items() if k not in names}
         if model == "quasi_static":
             extra["two_speed_added_mass_kg"] = 0.0
