@@ -113,26 +113,19 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
     signer = check.signer
     info = {"run_id": run, "dropped": {}, "missing": 0, "other_runs": 0, "unverified": check.note}
     order = Sequence()
-
-    def drop(why: str) -> None:
-        info["dropped"][why] = info["dropped"].get(why, 0) + 1
-
     rows = []
     for msg, rec in decoded:
         if run is not None and not _in_run(rec.run_id, run):
             info["other_runs"] += 1
             continue
-        if signer is not None:
-            why = signer.verify_iteration(msg.data)  # the recorded bytes, as they were sent
-            if why is not None:
-                drop(why)
-                continue
-        elif rec.signature and not no_verify:  # signed records in a bag that says it was not signed
+        if signer is None and rec.signature and not no_verify:  # signed records in a bag that says it was not signed
             raise BagError(f"{bag.mcap_path}: its records are signed but the bag names no key to verify them "
                            "(was its config edited?); give the key with --key-file, or --no-verify")
-        why = order.check(rec.run_id, int(rec.sequence))
+        # dropped: a record that does not verify (the recorded bytes, as they were sent), then one out of order
+        why = ((signer.verify_iteration(msg.data) if signer is not None else None)
+               or order.check(rec.run_id, int(rec.sequence)))
         if why is not None:
-            drop(why)
+            info["dropped"][why] = info["dropped"].get(why, 0) + 1
             continue
         rows.append({
             "run_id": rec.run_id,
