@@ -12,22 +12,16 @@ ITERATION_TOPIC = "/bev_mdo/iteration"
 ITERATION_TYPE = "bev_mdo_msgs/msg/IterationRecord"
 
 
-def named(block, point: int = 0) -> dict[str, float]:
-    """One point of a decoded NamedArray (column-major) as {name: value}."""
+def named(block) -> dict[str, float]:
+    """The first point of a decoded NamedArray (column-major) as {name: value}."""
     n = int(block.batch_size) or 1
     values = list(block.values)
-    return {name: float(values[j * n + point]) for j, name in enumerate(block.names)
-            if j * n + point < len(values)}
+    return {name: float(values[j * n]) for j, name in enumerate(block.names) if j * n < len(values)}
 
 
 def _iteration_topics(bag: Bag) -> list[str]:
     topics = [t for t, ty in bag.topics.items() if ty == ITERATION_TYPE]
     return sorted(topics, key=lambda t: t != ITERATION_TOPIC)
-
-
-def own_run(bag) -> str | None:
-    """The run id the recorder of this bag was started for (None for a standalone recording)."""
-    return (bag.info.get("run_id") or None) if isinstance(bag, Bag) else own_run(open_bag(bag))
 
 
 def _in_run(run_id: str, run: str) -> bool:
@@ -102,7 +96,7 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
     "unverified": note or ""}.
     """
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
-    run = run_id or own_run(bag)
+    run = run_id or bag.info.get("run_id") or None  # the run the bag's recorder was started for, if any
     decoded = list(bag.decoded(_iteration_topics(bag)))
     if run is None and not all_runs:
         runs = sorted({rec.run_id for _, rec in decoded})
