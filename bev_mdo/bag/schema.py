@@ -72,8 +72,7 @@ def dependencies(type_name: str) -> set[str]:
             continue
         if "/" not in base:
             base = "std_msgs/Header" if base == "Header" else f"{pkg}/{base}"
-        dep_pkg, dep_name = split_type(base)
-        deps.add(f"{dep_pkg}/{dep_name}")
+        deps.add("/".join(split_type(base)))
     return deps
 
 
