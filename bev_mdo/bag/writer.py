@@ -14,6 +14,7 @@ from bev_mdo import __version__
 from bev_mdo.bag import metadata as meta
 from bev_mdo.bag import schema
 from bev_mdo.bag.errors import BagError
+from bev_mdo.bag.signing import SIGNING_METADATA, state
 
 PROFILE = "ros2"
 METADATA_NAME = "bev_mdo"  # MCAP metadata record holding config_yaml, version, run_id, ...
@@ -55,8 +56,6 @@ class BagWriter:
         self.metadata = {"version": __version__, **(metadata or {})}
         self._mcap.add_metadata(METADATA_NAME, {k: str(v) for k, v in self.metadata.items()})
         if "config_yaml" in self.metadata:  # a run's bag: its signing state, under the run's key
-            from bev_mdo.bag.signing import SIGNING_METADATA, state
-
             self._mcap.add_metadata(SIGNING_METADATA, state(self.metadata["config_yaml"],
                                                             str(self.metadata.get("run_id", ""))))
             now = time.time_ns()
