@@ -5,9 +5,11 @@ import json
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from bev_mdo.bag.history import history, records_phrase
 from bev_mdo.bag.reader import Bag, open_bag, read_config
+from bev_mdo.mdo.units import label, run_units, unit_of
 
 ANSWERS_METADATA = "bev_mdo_answers"  # MCAP metadata record of an in-process run's bag
 ANSWERS_FILE = "answers.json"         # beside the recorder node's bag over ROS
@@ -146,8 +148,6 @@ def _iterate_markers(ax, it, y, feasible) -> None:
 def _plot_convergence(rows, path: Path, baseline: dict | None = None, units: dict | None = None):
     import matplotlib.pyplot as plt
 
-    from bev_mdo.mdo.units import label
-
     it = [r["iteration"] for r in rows]
     feas = [r["feasible"] for r in rows]
     name = rows[0]["objective_name"] or "objective"
@@ -218,8 +218,6 @@ def _stacked(rows, key: str, names, draw_limits, baseline, units, path: Path, ti
     baseline's value (its design for "design", its outputs otherwise)."""
     import matplotlib.pyplot as plt
 
-    from bev_mdo.mdo.units import label
-
     fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(7, 1.9 * len(names) + 1), squeeze=False)
     it = [r["iteration"] for r in rows]
     feas = [r["feasible"] for r in rows]
@@ -281,8 +279,6 @@ def _maximized(config_yaml: str | None) -> bool:
     if not config_yaml:
         return False
     try:
-        import yaml
-
         obj = (yaml.safe_load(config_yaml) or {}).get("problem", {}).get("objective")
     except Exception:  # noqa: BLE001 - a report never fails on the stored config
         return False
@@ -296,8 +292,6 @@ def _context(bag: Bag):
     if not text:
         return None, None
     try:
-        import yaml
-
         from bev_mdo.config import RunConfig
 
         config = RunConfig.load(yaml.safe_load(text))
@@ -311,8 +305,6 @@ def _units(config) -> dict:
     if config is None:
         return {}
     try:
-        from bev_mdo.mdo.units import run_units
-
         return run_units(config.disciplines)
     except Exception:  # noqa: BLE001 - a report is written even if the model no longer loads
         return {}
@@ -357,8 +349,6 @@ def _answers_section(answers: dict | None) -> list[str]:
 
 def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = None,
               answers: dict | None = None, baseline: dict | None = None, units: dict | None = None) -> str:
-    from bev_mdo.mdo.units import unit_of
-
     info = bag.info
     lines = [f"# Run report: {bag.bag_dir.name}", "",
              f"- bag file: `{bag.mcap_path.name}` ({bag.file_size} bytes, {bag.message_count} messages, "

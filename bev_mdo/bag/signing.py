@@ -17,7 +17,6 @@ from dataclasses import dataclass
 
 from bev_mdo.bag.errors import BagError
 from bev_mdo.bag.reader import read_config
-from bev_mdo.protocol.signing import AuthError, Signer, read_key
 from bev_mdo.yamlload import load_yaml
 
 SIGNING_METADATA = "bev_mdo_signing"
@@ -48,6 +47,8 @@ def _body_mac(key: bytes, body: dict) -> str:
 def state(config_yaml: str, run_id: str) -> dict[str, str]:
     """The ``bev_mdo_signing`` record for a bag of run `run_id` with `config_yaml` stored in it
     (the key is read from the file the configuration names; AuthError when it cannot be)."""
+    from bev_mdo.protocol.signing import read_key  # the protocol's message store: loaded when a key is used
+
     key_file = config_key_file(config_yaml)
     if not key_file:
         return {"signed": "false", "run_id": run_id}
@@ -71,6 +72,8 @@ class Verifier:
 def verifier(bag, key_file: str | None = None, no_verify: bool = False) -> Verifier:
     """The Verifier for a bag (``bag.reader.Bag``), or BagError when the bag's signing record and its
     stored configuration (or the given key) disagree."""
+    from bev_mdo.protocol.signing import AuthError, Signer, read_key
+
     where = bag.mcap_path
     record = bag.metadata.get(SIGNING_METADATA)
     config_yaml = read_config(bag)

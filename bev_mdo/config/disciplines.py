@@ -6,6 +6,9 @@ from collections.abc import Mapping
 from typing import Any
 
 from bev_mdo.config.sections import SIZED_VARIABLE
+from bev_mdo.mdo.discipline import load_class, options_dict, read_options
+from bev_mdo.mdo.units import attach_units
+from bev_mdo.mdo.vectors import wrap
 from bev_mdo.models.common import check_keys
 
 
@@ -63,9 +66,6 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
     ``{name}`` without ``class`` picks the built-in of that name.
     """
     from bev_mdo.disciplines import BUILTIN, default_disciplines
-    from bev_mdo.mdo.discipline import load_class, options_dict, read_options
-    from bev_mdo.mdo.units import attach_units
-    from bev_mdo.mdo.vectors import wrap
 
     entries = config.get("disciplines")
     if entries is None:

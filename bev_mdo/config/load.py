@@ -16,7 +16,9 @@ from bev_mdo.config.sections import (check_mda_numbers, check_optimizer_options,
                                      engine_section, validate_models, vehicle_topology_into_options)
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
+from bev_mdo.mdo.vectors import has_partials
 from bev_mdo.models.common import check_keys
+from bev_mdo.ros_settings import validate_ros
 
 TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "disciplines", "problem",
             "formulation", "mda", "optimizer", "ros", "recording", "search_path", "cycle_traces")
@@ -101,8 +103,6 @@ class RunConfig(Mapping):
 
     def with_ros(self, section: Mapping[str, Any]) -> "RunConfig":
         """The same run with another ``ros:`` section (checked; nothing else is parsed again)."""
-        from bev_mdo.ros_settings import validate_ros
-
         return replace(self, data={**self.data, "ros": dict(section)}, ros=validate_ros(section))
 
     def with_sections(self, **sections: Any) -> "RunConfig":
@@ -154,7 +154,6 @@ def _resolve(raw: Any) -> RunConfig:
     from bev_mdo.mdo.formulations import DERIVATIVES, FD_SCHEMES
     from bev_mdo.mdo.mda import METHODS
     from bev_mdo.mdo.optimizers import canonical_name
-    from bev_mdo.ros_settings import validate_ros
 
     if not isinstance(raw, Mapping):
         raise ValueError("the config must be a YAML mapping of sections (name, vehicle, cycle, problem, ...)")
@@ -210,8 +209,6 @@ def _settings(config: dict, problem: Problem, discs) -> RunSettings:
     """The engine's typed settings: problem, formulation, the ``mda:``/``optimizer:`` sections, the
     disciplines by name and whether each provides analytic partials (the driver imports nothing
     above the engine)."""
-    from bev_mdo.mdo.vectors import has_partials
-
     return RunSettings(config["problem"], str(config["formulation"]), MDASettings.of(config["mda"]),
                        OptimizerSettings.of(config["optimizer"]), tuple(d.name for d in discs),
                        {d.name: bool(has_partials(d)) for d in discs}, parsed_problem=problem)

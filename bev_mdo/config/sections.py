@@ -5,13 +5,18 @@ one-line ValueError naming the key.
 from __future__ import annotations
 
 import copy
+import importlib
+import inspect
 import math
 import os
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from bev_mdo.models import params
 from bev_mdo.models.common import check_keys
+from bev_mdo.models.cycles import CycleNote, is_csv_cycle, load_cycle, trace_cycle, trace_record, unbalanced_note
 
 SIZED_VARIABLE = "battery_kwh"
 SIZED_CONSTRAINT = "range_km"
@@ -30,9 +35,6 @@ def check_optimizer_options(name: str, options: Mapping[str, Any]) -> None:
     """ValueError naming the first key of `options` that the optimiser does not accept, with the
     nearest one: the keyword arguments of its scipy solver (scipy itself only warns, after the nodes
     have started), or the ``DEFAULTS`` of a plug-in module (``chebyshev-pairwise``)."""
-    import importlib
-    import inspect
-
     from bev_mdo.mdo.optimizers import OPTIMIZERS
 
     where = _SCIPY_SOLVERS.get(name)
@@ -112,8 +114,6 @@ def _parameter_set(cfg: dict) -> None:
     reproduces the run alone: a bag's ``resume``, a node started in another folder or on another
     host, the same run after the file moved or was rewritten. A shipped set stays named (it comes
     with the package, whose version the bag records)."""
-    from bev_mdo.models import params
-
     v = cfg.get("vehicle")
     name = v.get("parameter_set") if isinstance(v, Mapping) else None
     fitted = params.fitted_for_another_model(name, cfg.get("energy_model")) if name is not None else None
@@ -135,10 +135,6 @@ def _record_cycle_traces(cfg: dict) -> None:
     {time_s, speed_m_s}); the models take it from there, so a bag's ``resume`` and nodes started in
     another folder or on another host run on the same trace without the file. A trace already there
     (a resolved config read again) is checked, not re-read."""
-    import warnings
-
-    from bev_mdo.models.cycles import CycleNote, is_csv_cycle, load_cycle, trace_cycle, trace_record, unbalanced_note
-
     traces = cfg.get("cycle_traces") or {}
     if not isinstance(traces, Mapping):
         raise ValueError("cycle_traces must map CSV paths to {time_s: [...], speed_m_s: [...]}")
@@ -168,8 +164,6 @@ def _record_cycle_traces(cfg: dict) -> None:
 
 def validate_models(cfg: dict) -> None:
     """Vehicle and cycle sections are checked by the models' own validators."""
-    from bev_mdo.models import params
-
     if "vehicle" in cfg or "cycle" in cfg:
         try:
             _parameter_set(cfg)

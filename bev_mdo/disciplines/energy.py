@@ -3,6 +3,10 @@ mix of cycles, with optional feasibility margins) and ``cycle_range`` (range by 
 from __future__ import annotations
 
 import importlib
+import re
+import sys
+import threading
+import time
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -187,7 +191,6 @@ class CycleRange(Energy):
 
 
 def _slug(name: str) -> str:
-    import re
     return re.sub(r"[^a-z0-9]+", "_", str(name).lower()).strip("_") or "cycle"
 
 
@@ -196,10 +199,6 @@ def warm_up() -> float:
     energy and range of each topology, with the packaged motor map and with the loss model, on a 3-step cycle.
     Returns the seconds taken: about a minute on a small host the first time after an install, a fraction of a
     second once cached. ``scripts/setup.sh`` runs it after installing; ``Energy.prepare`` before the first call."""
-    import sys
-    import threading
-    import time
-
     start = time.perf_counter()
     note = threading.Timer(3.0, lambda: print("note: compiling the quasi-static model's loops (numba), once after an "
                                               "install: about a minute on a small host", file=sys.stderr, flush=True))

@@ -12,6 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from bev_mdo.disciplines import TOPOLOGY_DISCIPLINES
+from bev_mdo.disciplines.common import UNITS
+from bev_mdo.mdo.units import factor, label
+from bev_mdo.models.topology import get_topology
 
 # the study's objectives unless the config (problem.objectives) or --objectives names others
 OBJECTIVES = ("energy_wh_per_km", "accel_time_0_100_s", "powertrain_cost_usd")
@@ -35,8 +38,6 @@ THESIS_4_5 = {"SM-SA": (1521.0, 9.9, 8920.3, 16.47), "DM-DA": (1572.6, 10.5, 930
 def config_topology(raw) -> str:
     """The topology a raw config sets (``vehicle.topology``, else a discipline's ``topology``
     option; SM-SA if none). load_config rejects a config where they disagree."""
-    from bev_mdo.models.topology import get_topology
-
     vehicle = raw.get("vehicle") if isinstance(raw.get("vehicle"), dict) else {}
     if "topology" in vehicle:
         return get_topology(vehicle["topology"]).name
@@ -51,8 +52,6 @@ def config_for_topology(raw, topology: str) -> dict:
     set to ``topology`` and, if that differs from the config's own, the topology's design
     variables: each with the config's own bounds where the config gives it, else the study's
     (``TOPOLOGY_BOUNDS``); a variable the topology does not have (``gear_ratio`` of IWM-*) is left out."""
-    from bev_mdo.models.topology import get_topology
-
     t = get_topology(topology).name
     cfg = copy.deepcopy(raw)
     own = config_topology(raw)
@@ -144,9 +143,6 @@ _MARKS = {"SM-SA": "o", "DM-DA": "s", "IWM-SA": "^", "IWM-DA": "D"}
 def _axis(name: str):
     """(scale factor, axis label) of an objective, in the built-in disciplines' declared unit; energy in
     kWh/100 km as the thesis plots it."""
-    from bev_mdo.disciplines.common import UNITS
-    from bev_mdo.mdo.units import factor, label
-
     if name == "energy_wh_per_km":
         return 100.0 * factor(UNITS[name], "kWh/km")[0], "battery energy (kWh/100 km)"
     return 1.0, label(name, UNITS)
