@@ -19,11 +19,6 @@ def named(block) -> dict[str, float]:
     return {name: float(values[j * n]) for j, name in enumerate(block.names) if j * n < len(values)}
 
 
-def _iteration_topics(bag: Bag) -> list[str]:
-    topics = [t for t, ty in bag.topics.items() if ty == ITERATION_TYPE]
-    return sorted(topics, key=lambda t: t != ITERATION_TOPIC)
-
-
 def _in_run(run_id: str, run: str) -> bool:
     return run_id == run or run_id.startswith(run + "-")
 
@@ -97,7 +92,7 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
     """
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     run = run_id or bag.info.get("run_id") or None  # the run the bag's recorder was started for, if any
-    decoded = list(bag.decoded(_iteration_topics(bag)))
+    decoded = list(bag.decoded([t for t, ty in bag.topics.items() if ty == ITERATION_TYPE]))
     if run is None and not all_runs:
         runs = sorted({rec.run_id for _, rec in decoded})
         if len(runs) > 1:

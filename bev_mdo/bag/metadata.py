@@ -71,11 +71,10 @@ def serialized(info: dict) -> str:
     return yaml.safe_dump(info, default_flow_style=False, sort_keys=False).strip()
 
 
-def write_metadata_yaml(bag_dir: Path, info: dict) -> Path:
+def write_metadata_yaml(bag_dir: Path, info: dict) -> None:
     """Write ``<bag_dir>/metadata.yaml`` atomically."""
     path = Path(bag_dir) / "metadata.yaml"
     tmp = path.with_suffix(".yaml.tmp")
     tmp.write_text(yaml.safe_dump({"rosbag2_bagfile_information": info},
                                   default_flow_style=False, sort_keys=False), encoding="utf-8")
     os.replace(tmp, path)
-    return path
