@@ -6,39 +6,21 @@ import io
 
 from bev_mdo.bag.errors import BagError
 from bev_mdo.bag.reader import Bag, open_bag, read_config
+from bev_mdo.bag.signing import verifier
 
 ITERATION_TOPIC = "/bev_mdo/iteration"
 ITERATION_TYPE = "bev_mdo_msgs/msg/IterationRecord"
 
 
-def named(block, point: int = 0) -> dict[str, float]:
-    """One point of a decoded NamedArray (column-major) as {name: value}."""
+def named(block) -> dict[str, float]:
+    """The first point of a decoded NamedArray (column-major) as {name: value}."""
     n = int(block.batch_size) or 1
     values = list(block.values)
-    return {name: float(values[j * n + point]) for j, name in enumerate(block.names)
-            if j * n + point < len(values)}
-
-
-def _iteration_topics(bag: Bag) -> list[str]:
-    topics = [t for t, ty in bag.topics.items() if ty == ITERATION_TYPE]
-    return sorted(topics, key=lambda t: t != ITERATION_TOPIC)
-
-
-def own_run(bag) -> str | None:
-    """The run id the recorder of this bag was started for (None for a standalone recording)."""
-    return (bag.info.get("run_id") or None) if isinstance(bag, Bag) else own_run(open_bag(bag))
+    return {name: float(values[j * n]) for j, name in enumerate(block.names) if j * n < len(values)}
 
 
 def _in_run(run_id: str, run: str) -> bool:
     return run_id == run or run_id.startswith(run + "-")
-
-
-def signer_for(bag, key_file: str | None = None, no_verify: bool = False):
-    """The ``bag.signing.Verifier`` of a bag's records (BagError when its signing record and stored
-    configuration disagree; see bag/signing.py)."""
-    from bev_mdo.bag.signing import verifier
-
-    return verifier(bag if isinstance(bag, Bag) else open_bag(bag), key_file, no_verify)
 
 
 class Sequence:
@@ -109,37 +91,30 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
     "unverified": note or ""}.
     """
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
-    run = run_id or own_run(bag)
-    decoded = list(bag.decoded(_iteration_topics(bag)))
+    run = run_id or bag.info.get("run_id") or None  # the run the bag's recorder was started for, if any
+    decoded = list(bag.decoded([t for t, ty in bag.topics.items() if ty == ITERATION_TYPE]))
     if run is None and not all_runs:
         runs = sorted({rec.run_id for _, rec in decoded})
         if len(runs) > 1:
             raise BagError(f"{bag.mcap_path}: the bag holds the iterations of {len(runs)} runs {runs}; "
                            "choose one with --run-id")
-    check = signer_for(bag, key_file, no_verify)
+    check = verifier(bag, key_file, no_verify)
     signer = check.signer
     info = {"run_id": run, "dropped": {}, "missing": 0, "other_runs": 0, "unverified": check.note}
     order = Sequence()
-
-    def drop(why: str) -> None:
-        info["dropped"][why] = info["dropped"].get(why, 0) + 1
-
     rows = []
     for msg, rec in decoded:
         if run is not None and not _in_run(rec.run_id, run):
             info["other_runs"] += 1
             continue
-        if signer is not None:
-            why = signer.verify_iteration(msg.data)  # the recorded bytes, as they were sent
-            if why is not None:
-                drop(why)
-                continue
-        elif rec.signature and not no_verify:  # signed records in a bag that says it was not signed
+        if signer is None and rec.signature and not no_verify:  # signed records in a bag that says it was not signed
             raise BagError(f"{bag.mcap_path}: its records are signed but the bag names no key to verify them "
                            "(was its config edited?); give the key with --key-file, or --no-verify")
-        why = order.check(rec.run_id, int(rec.sequence))
+        # dropped: a record that does not verify (the recorded bytes, as they were sent), then one out of order
+        why = ((signer.verify_iteration(msg.data) if signer is not None else None)
+               or order.check(rec.run_id, int(rec.sequence)))
         if why is not None:
-            drop(why)
+            info["dropped"][why] = info["dropped"].get(why, 0) + 1
             continue
         rows.append({
             "run_id": rec.run_id,
@@ -211,7 +186,6 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
     """(config_yaml, design of the last verified iteration of the bag's own run, its iteration
     number), for resume. BagError when the run was signed but its records cannot be verified."""
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
-    checks = {} if checks is None else checks
     rows = history(bag, run_id, key_file=key_file, checks=checks, no_verify=no_verify)
     if not rows:
         raise BagError(f"{bag.mcap_path}: no IterationRecord on {ITERATION_TOPIC}; nothing to resume")
@@ -221,7 +195,7 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
 
 def records_phrase(rows: list[dict]) -> str:
     """'4 records (iterations 0-3)': a count of records, not of iterations; record 0 is the start, so a
-    run that ``optimize`` reports with 'iterations 3' has 4 records (saying '4 iterations' contradicted it)."""
+    run that ``optimize`` reports with 'iterations 3' has 4 records."""
     first, last = rows[0].get("iteration"), rows[-1].get("iteration")
     span = f" (iterations {first}-{last})" if first is not None and last is not None else ""
     return f"{len(rows)} record{'s' if len(rows) != 1 else ''}{span}"

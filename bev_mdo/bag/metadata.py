@@ -26,8 +26,7 @@ def qos_yaml(profiles: list[dict]) -> str:
     return yaml.safe_dump(profiles, default_flow_style=False, sort_keys=False) if profiles else ""
 
 
-def bag_info(file_name: str, topics: list[TopicInfo], start_ns: int, end_ns: int,
-             custom_data: dict[str, str] | None = None) -> dict:
+def bag_info(file_name: str, topics: list[TopicInfo], start_ns: int, end_ns: int) -> dict:
     """The ``rosbag2_bagfile_information`` mapping for one storage file."""
     count = sum(t.message_count for t in topics)
     start_ns = start_ns if count else 0
@@ -62,7 +61,7 @@ def bag_info(file_name: str, topics: list[TopicInfo], start_ns: int, end_ns: int
                 "message_count": count,
             }
         ],
-        "custom_data": dict(custom_data) if custom_data else None,
+        "custom_data": None,
         "ros_distro": "jazzy",
     }
 
@@ -72,11 +71,10 @@ def serialized(info: dict) -> str:
     return yaml.safe_dump(info, default_flow_style=False, sort_keys=False).strip()
 
 
-def write_metadata_yaml(bag_dir: Path, info: dict) -> Path:
+def write_metadata_yaml(bag_dir: Path, info: dict) -> None:
     """Write ``<bag_dir>/metadata.yaml`` atomically."""
     path = Path(bag_dir) / "metadata.yaml"
     tmp = path.with_suffix(".yaml.tmp")
     tmp.write_text(yaml.safe_dump({"rosbag2_bagfile_information": info},
                                   default_flow_style=False, sort_keys=False), encoding="utf-8")
     os.replace(tmp, path)
-    return path

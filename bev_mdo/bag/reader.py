@@ -44,11 +44,8 @@ def find_mcap(path: Path) -> Path:
     files = sorted(path.glob("*.mcap"))
     if not files:
         raise BagError(f"{path}: bag directory holds no .mcap file")
-    if len(files) > 1:
-        named = [f for f in files if f.name == f"{path.name}_0.mcap"]
-        if named:
-            return named[0]
-    return files[0]
+    own = path / f"{path.name}_0.mcap"  # the writer's own file first, when there are several
+    return own if own in files else files[0]
 
 
 class Bag:
@@ -105,11 +102,12 @@ class Bag:
     def _scan(self) -> None:
         self._check_magic()
         saw_header = False
-        first = True
         for record in self._records():
             saw_header = True
             if isinstance(record, Schema):
-                self._check_schema(record)
+                if record.encoding != "ros2msg":
+                    raise BagError(f"{self.mcap_path}: schema {record.name!r} has encoding "
+                                   f"{record.encoding!r}, expected 'ros2msg'")
                 self.schemas[record.id] = record
             elif isinstance(record, Channel):
                 self.channels[record.id] = record
@@ -119,10 +117,9 @@ class Bag:
                 self.attachments[record.name] = bytes(record.data)
             elif isinstance(record, Message):
                 topic = self._channel(record.channel_id).topic
-                self.counts[topic] = self.counts.get(topic, 0) + 1
-                self.start_ns = record.log_time if first else min(self.start_ns, record.log_time)
+                self.start_ns = min(self.start_ns, record.log_time) if self.counts else record.log_time
                 self.end_ns = max(self.end_ns, record.log_time)
-                first = False
+                self.counts[topic] = self.counts.get(topic, 0) + 1
             elif isinstance(record, Footer):
                 break
         if not saw_header:
@@ -140,11 +137,6 @@ class Bag:
             if channel.message_encoding != "cdr":
                 raise BagError(f"{self.mcap_path}: topic {channel.topic} has message encoding "
                                f"{channel.message_encoding!r}, expected 'cdr'")
-
-    def _check_schema(self, schema: Schema) -> None:
-        if schema.encoding != "ros2msg":
-            raise BagError(f"{self.mcap_path}: schema {schema.name!r} has encoding "
-                           f"{schema.encoding!r}, expected 'ros2msg'")
 
     def _channel(self, channel_id: int) -> Channel:
         try:

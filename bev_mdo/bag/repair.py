@@ -10,11 +10,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
-from mcap.writer import CompressionType, Writer
 
 from bev_mdo.bag import metadata as meta
 from bev_mdo.bag.reader import Bag, open_bag
-from bev_mdo.bag.writer import CHUNK_SIZE_BYTES, PROFILE
+from bev_mdo.bag.writer import mcap_writer
 
 
 @dataclass
@@ -50,8 +49,7 @@ def _backup_path(path: Path) -> Path:
 
 def _rewrite(bag: Bag, out: Path, info: dict) -> None:
     with open(out, "wb") as stream:
-        writer = Writer(stream, chunk_size=CHUNK_SIZE_BYTES, compression=CompressionType.ZSTD)
-        writer.start(profile=PROFILE, library="bev_mdo bag repair (mcap python)")
+        writer = mcap_writer(stream, "bev_mdo bag repair (mcap python)")
         for name, data in bag.metadata.items():
             if name != "rosbag2":
                 writer.add_metadata(name, data)

@@ -1,12 +1,15 @@
 """PNG plots and a markdown summary of a recorded run, written into the bag directory."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from bev_mdo.bag.history import history, records_phrase
 from bev_mdo.bag.reader import Bag, open_bag, read_config
+from bev_mdo.mdo.units import label, run_units, unit_of
 
 ANSWERS_METADATA = "bev_mdo_answers"  # MCAP metadata record of an in-process run's bag
 ANSWERS_FILE = "answers.json"         # beside the recorder node's bag over ROS
@@ -16,12 +19,10 @@ RESULT_TYPE = "bev_mdo_msgs/msg/EvaluationResult"
 
 def read_answers(bag: Bag) -> dict | None:
     """The end-of-run answers stored with a bag (metadata record or answers.json), or None."""
-    import json
-
     rec = bag.metadata.get(ANSWERS_METADATA)
     if rec and "answers_json" in rec:
         return json.loads(rec["answers_json"])
-    path = Path(bag.bag_dir or bag.mcap_path.parent) / ANSWERS_FILE
+    path = bag.bag_dir / ANSWERS_FILE
     if path.is_file():
         return json.loads(path.read_text(encoding="utf-8"))
     return None
@@ -147,8 +148,6 @@ def _iterate_markers(ax, it, y, feasible) -> None:
 def _plot_convergence(rows, path: Path, baseline: dict | None = None, units: dict | None = None):
     import matplotlib.pyplot as plt
 
-    from bev_mdo.mdo.units import label
-
     it = [r["iteration"] for r in rows]
     feas = [r["feasible"] for r in rows]
     name = rows[0]["objective_name"] or "objective"
@@ -219,8 +218,6 @@ def _stacked(rows, key: str, names, draw_limits, baseline, units, path: Path, ti
     baseline's value (its design for "design", its outputs otherwise)."""
     import matplotlib.pyplot as plt
 
-    from bev_mdo.mdo.units import label
-
     fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(7, 1.9 * len(names) + 1), squeeze=False)
     it = [r["iteration"] for r in rows]
     feas = [r["feasible"] for r in rows]
@@ -282,24 +279,19 @@ def _maximized(config_yaml: str | None) -> bool:
     if not config_yaml:
         return False
     try:
-        import yaml
-
         obj = (yaml.safe_load(config_yaml) or {}).get("problem", {}).get("objective")
     except Exception:  # noqa: BLE001 - a report never fails on the stored config
         return False
     return isinstance(obj, dict) and obj.get("maximize") is True
 
 
-
 def _context(bag: Bag):
-    """(config, problem, final analysis, baseline) from the config stored in the bag, evaluated in
-    process; Nones where the bag has no config or it no longer loads."""
+    """(config, problem) from the config stored in the bag; Nones where the bag has no config or it
+    no longer loads."""
     text = read_config(bag)
     if not text:
         return None, None
     try:
-        import yaml
-
         from bev_mdo.config import RunConfig
 
         config = RunConfig.load(yaml.safe_load(text))
@@ -313,8 +305,6 @@ def _units(config) -> dict:
     if config is None:
         return {}
     try:
-        from bev_mdo.mdo.units import run_units
-
         return run_units(config.disciplines)
     except Exception:  # noqa: BLE001 - a report is written even if the model no longer loads
         return {}
@@ -359,8 +349,6 @@ def _answers_section(answers: dict | None) -> list[str]:
 
 def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = None,
               answers: dict | None = None, baseline: dict | None = None, units: dict | None = None) -> str:
-    from bev_mdo.mdo.units import unit_of
-
     info = bag.info
     lines = [f"# Run report: {bag.bag_dir.name}", "",
              f"- bag file: `{bag.mcap_path.name}` ({bag.file_size} bytes, {bag.message_count} messages, "
@@ -379,9 +367,7 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
         lines += [f"| quantity | unit | value |{bcol}", "|---|---|---:|" + ("---:|" if base else "")]
 
         def row(k, v, ref):
-            extra = f" {ref:.6g} |" if base else ""
-            if base and ref is None:
-                extra = " |"
+            extra = (" |" if ref is None else f" {ref:.6g} |") if base else ""
             return f"| {k} | {unit_of(k, units or {})} | {v:.6g} |{extra}"
 
         lines.append(row(last["objective_name"] or "objective", last["objective"],

@@ -26,13 +26,6 @@ PRIMITIVES = frozenset(
 INFINITE = {"sec": 9223372036, "nsec": 854775807}
 
 
-def _prefixes() -> list[Path]:
-    env = os.environ.get("AMENT_PREFIX_PATH", "")
-    paths = [Path(p) for p in env.split(os.pathsep) if p]
-    paths.append(Path(sys.prefix))
-    return paths
-
-
 def split_type(type_name: str) -> tuple[str, str]:
     """``pkg/msg/Type`` or ``pkg/Type`` -> (pkg, Type)."""
     parts = type_name.split("/")
@@ -46,7 +39,8 @@ def split_type(type_name: str) -> tuple[str, str]:
 def share_file(type_name: str, suffix: str) -> Path:
     """The installed ``share/<pkg>/msg/<Type><suffix>`` file of a message type."""
     pkg, name = split_type(type_name)
-    for prefix in _prefixes():
+    prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p] + [sys.prefix]
+    for prefix in map(Path, prefixes):
         path = prefix / "share" / pkg / "msg" / f"{name}{suffix}"
         if path.is_file():
             return path
@@ -78,8 +72,7 @@ def dependencies(type_name: str) -> set[str]:
             continue
         if "/" not in base:
             base = "std_msgs/Header" if base == "Header" else f"{pkg}/{base}"
-        dep_pkg, dep_name = split_type(base)
-        deps.add(f"{dep_pkg}/{dep_name}")
+        deps.add("/".join(split_type(base)))
     return deps
 
 

@@ -16,6 +16,8 @@ import json
 from dataclasses import dataclass
 
 from bev_mdo.bag.errors import BagError
+from bev_mdo.bag.reader import read_config
+from bev_mdo.yamlload import load_yaml
 
 SIGNING_METADATA = "bev_mdo_signing"
 NO_VERIFY_NOTE = "verification OFF (--no-verify): records are read without checking their signatures"
@@ -28,8 +30,6 @@ def key_fingerprint(key: bytes) -> str:
 
 def config_key_file(config_yaml: str) -> str:
     """``ros.sign_key_file`` named in a stored configuration ('' when none or unreadable)."""
-    from bev_mdo.yamlload import load_yaml
-
     try:
         config = load_yaml(config_yaml or "") or {}
     except ValueError:
@@ -47,7 +47,7 @@ def _body_mac(key: bytes, body: dict) -> str:
 def state(config_yaml: str, run_id: str) -> dict[str, str]:
     """The ``bev_mdo_signing`` record for a bag of run `run_id` with `config_yaml` stored in it
     (the key is read from the file the configuration names; AuthError when it cannot be)."""
-    from bev_mdo.protocol.signing import read_key
+    from bev_mdo.protocol.signing import read_key  # the protocol's message store: loaded when a key is used
 
     key_file = config_key_file(config_yaml)
     if not key_file:
@@ -72,7 +72,6 @@ class Verifier:
 def verifier(bag, key_file: str | None = None, no_verify: bool = False) -> Verifier:
     """The Verifier for a bag (``bag.reader.Bag``), or BagError when the bag's signing record and its
     stored configuration (or the given key) disagree."""
-    from bev_mdo.bag.reader import read_config
     from bev_mdo.protocol.signing import AuthError, Signer, read_key
 
     where = bag.mcap_path

@@ -10,20 +10,16 @@ from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
+from bev_mdo import __version__
 from bev_mdo.bag import metadata as meta
 from bev_mdo.bag import schema
 from bev_mdo.bag.errors import BagError
+from bev_mdo.bag.signing import SIGNING_METADATA, state
 
 PROFILE = "ros2"
 METADATA_NAME = "bev_mdo"  # MCAP metadata record holding config_yaml, version, run_id, ...
 CONFIG_ATTACHMENT = "config.yaml"
 CHUNK_SIZE_BYTES = 256 * 1024  # uncompressed; modest so a crash loses little
-
-
-def _version() -> str:
-    from bev_mdo import __version__
-
-    return __version__
 
 
 class BagWriter:
@@ -34,13 +30,10 @@ class BagWriter:
     attached as ``config.yaml``. Use as a context manager or call ``close()``.
     """
 
-    def __init__(self, bag_dir, *, storage_name: str | None = None,
-                 metadata: dict[str, str] | None = None,
-                 attachments: dict[str, bytes] | None = None,
+    def __init__(self, bag_dir, *, metadata: dict[str, str] | None = None,
                  chunk_size_bytes: int = CHUNK_SIZE_BYTES):
         self.bag_dir = Path(bag_dir)
-        name = storage_name or self.bag_dir.name
-        self.file_name = f"{name}_0.mcap"
+        self.file_name = f"{self.bag_dir.name}_0.mcap"
         self.path = self.bag_dir / self.file_name
         if self.path.exists() or (self.bag_dir / "metadata.yaml").exists():
             raise BagError(f"{self.bag_dir}: bag already exists")
@@ -53,29 +46,21 @@ class BagWriter:
             self._stream = open(self.path, "xb")
         except OSError as exc:  # a file where a folder of the path should be, no permission, ...
             raise BagError(f"{self.bag_dir}: cannot create the bag ({exc.strerror or exc})") from None
-        self._mcap = Writer(self._stream, chunk_size=chunk_size_bytes,
-                            compression=CompressionType.ZSTD)
-        self._mcap.start(profile=PROFILE, library=f"bev_mdo {_version()} (mcap python)")
+        self._mcap = mcap_writer(self._stream, f"bev_mdo {__version__} (mcap python)", chunk_size_bytes)
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._topics: dict[str, meta.TopicInfo] = {}
         self._start_ns: int | None = None
         self._end_ns = 0
         self.closed = False
-        self.metadata = {"version": _version(), **(metadata or {})}
+        self.metadata = {"version": __version__, **(metadata or {})}
         self._mcap.add_metadata(METADATA_NAME, {k: str(v) for k, v in self.metadata.items()})
         if "config_yaml" in self.metadata:  # a run's bag: its signing state, under the run's key
-            from bev_mdo.bag.signing import SIGNING_METADATA, state
-
             self._mcap.add_metadata(SIGNING_METADATA, state(self.metadata["config_yaml"],
                                                             str(self.metadata.get("run_id", ""))))
-        now = time.time_ns()
-        files = dict(attachments or {})
-        if "config_yaml" in self.metadata and CONFIG_ATTACHMENT not in files:
-            files[CONFIG_ATTACHMENT] = self.metadata["config_yaml"].encode("utf-8")
-        for att_name, data in files.items():
-            media = "application/yaml" if att_name.endswith((".yaml", ".yml")) else "application/octet-stream"
-            self._mcap.add_attachment(now, now, att_name, media, bytes(data))
+            now = time.time_ns()
+            self._mcap.add_attachment(now, now, CONFIG_ATTACHMENT, "application/yaml",
+                                      self.metadata["config_yaml"].encode("utf-8"))
         self._stream.flush()
 
     # -- topics and messages -------------------------------------------------------------
@@ -119,17 +104,12 @@ class BagWriter:
     def message_count(self) -> int:
         return sum(t.message_count for t in self._topics.values())
 
-    def info(self) -> dict:
-        """The rosbag2 metadata of what was written so far."""
-        return meta.bag_info(self.file_name, list(self._topics.values()),
-                             self._start_ns or 0, self._end_ns)
-
     def close(self) -> None:
         """Write the ``rosbag2`` record, the MCAP summary and ``metadata.yaml``."""
         if self.closed:
             return
         self.closed = True
-        info = self.info()
+        info = meta.bag_info(self.file_name, list(self._topics.values()), self._start_ns or 0, self._end_ns)
         self._mcap.add_metadata("rosbag2", {"serialized_metadata": meta.serialized(info)})
         self._mcap.finish()
         self._stream.close()
@@ -149,6 +129,13 @@ class BagWriter:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def mcap_writer(stream, library: str, chunk_size_bytes: int = CHUNK_SIZE_BYTES) -> Writer:
+    """A started MCAP writer of bev_mdo's bags: ros2 profile, zstd-compressed chunks."""
+    writer = Writer(stream, chunk_size=chunk_size_bytes, compression=CompressionType.ZSTD)
+    writer.start(profile=PROFILE, library=library)
+    return writer
 
 
 def _qos_list(qos) -> list[dict]:

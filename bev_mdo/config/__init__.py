@@ -3,10 +3,9 @@ session and node takes. ``load``: the loading and the top-level checks; ``sectio
 section's checks; ``disciplines``: the run's disciplines built, checked against the problem and
 listed for the nodes."""
 from bev_mdo.config.disciplines import discipline_entries, discipline_names, resolve_disciplines
-from bev_mdo.config.load import (MDA_DEFAULTS, OPTIMIZER_DEFAULTS, TOP_KEYS, RunConfig, check_run_name, load_config,
-                                 plain, run_settings)
-from bev_mdo.config.sections import SIZED_CONSTRAINT, SIZED_VARIABLE, check_optimizer_options
+from bev_mdo.config.load import (MDA_DEFAULTS, OPTIMIZER_DEFAULTS, RunConfig, check_run_name, load_config, plain,
+                                 run_settings)
+from bev_mdo.config.sections import check_optimizer_options
 
-__all__ = ["MDA_DEFAULTS", "OPTIMIZER_DEFAULTS", "SIZED_CONSTRAINT", "SIZED_VARIABLE", "TOP_KEYS", "RunConfig",
-           "check_optimizer_options", "check_run_name", "discipline_entries", "discipline_names", "load_config",
-           "plain", "resolve_disciplines", "run_settings"]
+__all__ = ["MDA_DEFAULTS", "OPTIMIZER_DEFAULTS", "RunConfig", "check_optimizer_options", "check_run_name",
+           "discipline_entries", "discipline_names", "load_config", "plain", "resolve_disciplines", "run_settings"]

@@ -6,6 +6,9 @@ from collections.abc import Mapping
 from typing import Any
 
 from bev_mdo.config.sections import SIZED_VARIABLE
+from bev_mdo.mdo.discipline import load_class, options_dict, read_options
+from bev_mdo.mdo.units import attach_units
+from bev_mdo.mdo.vectors import wrap
 from bev_mdo.models.common import check_keys
 
 
@@ -17,14 +20,13 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
     graph = CouplingGraph(specs)
     produced, consumed = set(graph.producer), {v for _, i, _ in specs for v in i}
     params = {p for d in discs for p in (getattr(d, "parameters", {}) or {})}
-    if problem.objective not in produced or any(c.name not in produced for c in problem.constraints):
-        for name in [problem.objective] + [c.name for c in problem.constraints]:
-            if name not in produced and f"{name}[0]" in produced:
-                size = sum(1 for v in produced if v.startswith(f"{name}["))
-                what = ("the objective must be a scalar; pick one element, e.g. " + f"{name}[0]"
-                        if name == problem.objective else f"add shape: {size}")
-                raise ValueError(f"problem: {name!r} is a vector of {size} elements (discipline "
-                                 f"{graph.producer[name + '[0]']!r}); {what}")
+    for name in [problem.objective] + [c.name for c in problem.constraints]:
+        if name not in produced and f"{name}[0]" in produced:
+            size = sum(1 for v in produced if v.startswith(f"{name}["))
+            what = ("the objective must be a scalar; pick one element, e.g. " + f"{name}[0]"
+                    if name == problem.objective else f"add shape: {size}")
+            raise ValueError(f"problem: {name!r} is a vector of {size} elements (discipline "
+                             f"{graph.producer[name + '[0]']!r}); {what}")
     if problem.objective not in produced:
         raise ValueError(f"problem.objective {problem.objective!r} is not produced by any discipline; "
                          f"outputs: {sorted(produced)}")
@@ -63,17 +65,15 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
     A list entry is a built-in name, or ``{name, class: "module:Class", options: {...}}``;
     ``{name}`` without ``class`` picks the built-in of that name.
     """
-    from bev_mdo.mdo.discipline import load_class, options_dict, read_options
-    from bev_mdo.mdo.units import attach_units
-    from bev_mdo.mdo.vectors import wrap
+    from bev_mdo.disciplines import BUILTIN, default_disciplines
 
     entries = config.get("disciplines")
     if entries is None:
-        out = [wrap(d) for d in _defaults(config)]
+        out = [wrap(d) for d in default_disciplines(config)]
         return attach_units(out, [d.name for d in out])
     if not isinstance(entries, list) or not entries:
         raise ValueError("disciplines must be a non-empty list of names or {name, class, options} entries")
-    out, builtins = [], None
+    out = []
     for k, e in enumerate(entries):
         if isinstance(e, str):
             e = {"name": e}
@@ -84,11 +84,10 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
         if not isinstance(options, Mapping):
             raise ValueError(f"disciplines[{k}] ({e['name']}): options must be a mapping")
         if "class" not in e:
-            builtins = builtins if builtins is not None else _builtins()
-            if e["name"] not in builtins:
+            if e["name"] not in BUILTIN:
                 raise ValueError(f"disciplines[{k}]: no built-in discipline {e['name']!r}; built-ins: "
-                                 f"{sorted(builtins)} (or give class: 'module:Class')")
-            cls = builtins[e["name"]]
+                                 f"{sorted(BUILTIN)} (or give class: 'module:Class')")
+            cls = BUILTIN[e["name"]]
         else:
             try:
                 cls = load_class(str(e["class"]), config.get("search_path") or ())
@@ -126,18 +125,6 @@ def resolve_disciplines(config: Mapping[str, Any]) -> list:
     return attach_units(out, [f"disciplines[{k}] ({d.name})" for k, d in enumerate(out)])
 
 
-def _builtins() -> dict[str, type]:
-    from bev_mdo.disciplines import BUILTIN
-
-    return dict(BUILTIN)
-
-
-def _defaults(config: Mapping[str, Any]) -> list:
-    from bev_mdo.disciplines import default_disciplines
-
-    return list(default_disciplines(config))
-
-
 def discipline_entries(config: Mapping[str, Any], discs=None) -> list[dict]:
     """``{name, class, options}`` for every discipline of a run (what a node needs to build one);
     ``discs``: the run's disciplines already built (``RunConfig.disciplines``)."""
@@ -164,4 +151,3 @@ def discipline_names(config: Mapping[str, Any]) -> list[str]:
 
         return default_names(config)
     return [e if isinstance(e, str) else e["name"] for e in entries]
-

@@ -1,31 +1,24 @@
-"""Loading a run config: read the YAML, validate every section once, resolve the disciplines.
-
-``RunConfig.load(path)`` is the one parse of a run config: the resolved config as a plain dict
-(``data``, what a run's log folder and bag record, and what ``load`` reads back the same), the
-``Problem``, the run's disciplines built once, the ``ros:`` section with its defaults, and the
-engine's ``RunSettings``. Code downstream takes the ``RunConfig``; a function given a plain
-mapping instead loads it once with ``RunConfig.of``. Any problem raises a one-line ValueError
-naming the file and the key. In battery-sized-for-range mode ``battery_kwh`` leaves the design
-variables (its initial value becomes the MDA loop's starting guess), is produced by the
-``battery_sizing`` discipline, and the ``range_km`` constraint (met by construction) becomes
-``monitor: true``.
+"""Loading a run config (``RunConfig.load``): read the YAML, validate every section once, build the
+run's disciplines. Code downstream takes the ``RunConfig``; a function given a plain mapping loads
+it once with ``RunConfig.of``. Any problem raises a one-line ValueError naming the file and the key.
 """
 from __future__ import annotations
 
 import copy
 import math
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from bev_mdo.config.disciplines import (check_against_disciplines, discipline_entries,
-                                        discipline_names, resolve_disciplines)
+from bev_mdo.config.disciplines import check_against_disciplines, discipline_entries, resolve_disciplines
 from bev_mdo.config.sections import (check_mda_numbers, check_optimizer_options, resolve_problem, search_path,
                                      engine_section, validate_models, vehicle_topology_into_options)
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
+from bev_mdo.mdo.vectors import has_partials
 from bev_mdo.models.common import check_keys
+from bev_mdo.ros_settings import validate_ros
 
 TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "disciplines", "problem",
             "formulation", "mda", "optimizer", "ros", "recording", "search_path", "cycle_traces")
@@ -110,10 +103,6 @@ class RunConfig(Mapping):
 
     def with_ros(self, section: Mapping[str, Any]) -> "RunConfig":
         """The same run with another ``ros:`` section (checked; nothing else is parsed again)."""
-        from dataclasses import replace
-
-        from bev_mdo.ros_settings import validate_ros
-
         return replace(self, data={**self.data, "ros": dict(section)}, ros=validate_ros(section))
 
     def with_sections(self, **sections: Any) -> "RunConfig":
@@ -161,7 +150,8 @@ def check_run_name(name: Any) -> None:
 
 
 def _resolve(raw: Any) -> RunConfig:
-    from bev_mdo.mdo.formulations import FD_SCHEMES
+    from bev_mdo.disciplines import ENERGY_MODELS
+    from bev_mdo.mdo.formulations import DERIVATIVES, FD_SCHEMES
     from bev_mdo.mdo.mda import METHODS
     from bev_mdo.mdo.optimizers import canonical_name
 
@@ -172,8 +162,6 @@ def _resolve(raw: Any) -> RunConfig:
     cfg.setdefault("name", "run")
     check_run_name(cfg["name"])
     cfg["energy_model"] = cfg.get("energy_model", "flat")
-    from bev_mdo.disciplines import ENERGY_MODELS
-
     if cfg["energy_model"] not in ENERGY_MODELS:
         raise ValueError(f"energy_model {cfg['energy_model']!r} is unknown; allowed: {', '.join(ENERGY_MODELS)}")
     validate_models(cfg)
@@ -197,8 +185,6 @@ def _resolve(raw: Any) -> RunConfig:
         raise ValueError(f"optimizer.feasibility_tolerance {tol!r} must be a number in [0, 1) "
                          "(on normalised constraints; default 1e-4)")
     cfg["optimizer"]["feasibility_tolerance"] = float(tol)
-    from bev_mdo.mdo.formulations import DERIVATIVES
-
     if cfg["optimizer"]["derivatives"] not in DERIVATIVES:
         raise ValueError(f"optimizer.derivatives {cfg['optimizer']['derivatives']!r} is unknown; allowed: "
                          f"{', '.join(DERIVATIVES)}")
@@ -207,8 +193,6 @@ def _resolve(raw: Any) -> RunConfig:
             raise ValueError(f"{key} must be a mapping")
         cfg[key] = dict(cfg.get(key) or {})
     check_keys("recording", cfg["recording"], RECORDING_KEYS)
-    from bev_mdo.ros_settings import validate_ros
-
     ros = validate_ros(cfg["ros"])  # checked here so the error names the file; the section is kept as written
     cfg["problem"] = resolve_problem(cfg.get("problem"))
     problem = Problem.from_config(cfg["problem"])
@@ -225,13 +209,9 @@ def _settings(config: dict, problem: Problem, discs) -> RunSettings:
     """The engine's typed settings: problem, formulation, the ``mda:``/``optimizer:`` sections, the
     disciplines by name and whether each provides analytic partials (the driver imports nothing
     above the engine)."""
-    from bev_mdo.mdo.vectors import has_partials
-
-    names = tuple(discipline_names(config))
-    partials = {d.name: bool(has_partials(d)) for d in discs}
     return RunSettings(config["problem"], str(config["formulation"]), MDASettings.of(config["mda"]),
-                       OptimizerSettings.of(config["optimizer"]), names,
-                       {n: partials.get(n, False) for n in names}, parsed_problem=problem)
+                       OptimizerSettings.of(config["optimizer"]), tuple(d.name for d in discs),
+                       {d.name: bool(has_partials(d)) for d in discs}, parsed_problem=problem)
 
 
 def run_settings(config: RunConfig | Mapping[str, Any]) -> RunSettings:

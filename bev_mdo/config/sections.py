@@ -1,21 +1,22 @@
-"""Checks of a run config's sections, one at a time (``load._resolve`` runs them in order).
-
-The optimiser's options against its solver's keyword arguments, the search path, the engine
-sections against their typed defaults, the vehicle and cycle against the models' validators
-(a parameter-set file and drive-cycle CSVs are read once, into the resolved config), the
-vehicle topology into the topology disciplines' options, and the problem section (battery
-sized for range, baseline). Every problem is a one-line ValueError naming the key.
+"""Checks of a run config's sections, one at a time (``load._resolve`` runs them in order); a
+parameter-set file and drive-cycle CSVs are read once, into the resolved config. Every problem is a
+one-line ValueError naming the key.
 """
 from __future__ import annotations
 
 import copy
+import importlib
+import inspect
 import math
 import os
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from bev_mdo.models import params
 from bev_mdo.models.common import check_keys
+from bev_mdo.models.cycles import CycleNote, is_csv_cycle, load_cycle, trace_cycle, trace_record, unbalanced_note
 
 SIZED_VARIABLE = "battery_kwh"
 SIZED_CONSTRAINT = "range_km"
@@ -34,9 +35,6 @@ def check_optimizer_options(name: str, options: Mapping[str, Any]) -> None:
     """ValueError naming the first key of `options` that the optimiser does not accept, with the
     nearest one: the keyword arguments of its scipy solver (scipy itself only warns, after the nodes
     have started), or the ``DEFAULTS`` of a plug-in module (``chebyshev-pairwise``)."""
-    import importlib
-    import inspect
-
     from bev_mdo.mdo.optimizers import OPTIMIZERS
 
     where = _SCIPY_SOLVERS.get(name)
@@ -63,7 +61,6 @@ def check_optimizer_options(name: str, options: Mapping[str, Any]) -> None:
         if (isinstance(default, (int, float)) and not isinstance(default, bool)
                 and (isinstance(value, bool) or not isinstance(value, (int, float)))):
             raise ValueError(f"optimizer.options.{key}: {value!r} is not a number ({name}'s default is {default!r})")
-
 
 
 def search_path(given: Any, base: Path | None) -> list[str]:
@@ -109,29 +106,20 @@ def check_mda_numbers(mda: Mapping[str, Any]) -> None:
         raise ValueError(f"mda.fuse_downstream {mda['fuse_downstream']!r} must be true or false")
 
 
-def _check_parameter_set_model(cfg: dict) -> None:
-    """A parameter set fitted for one energy model (its ``energy_model``, written by ``bev-mdo
-    calibrate``) is refused on another: the chain's constants mean nothing to the quasi-static model."""
-    from bev_mdo.models import params
-
+def _parameter_set(cfg: dict) -> None:
+    """``vehicle.parameter_set``: a set fitted for one energy model (its ``energy_model``, written by
+    ``bev-mdo calibrate``) is refused on another (the chain's constants mean nothing to the
+    quasi-static model). A set named by its file (``mine.yaml``) is read once, here, and its values
+    go into the vehicle section as defaults (keys given there still win), so the resolved config
+    reproduces the run alone: a bag's ``resume``, a node started in another folder or on another
+    host, the same run after the file moved or was rewritten. A shipped set stays named (it comes
+    with the package, whose version the bag records)."""
     v = cfg.get("vehicle")
     name = v.get("parameter_set") if isinstance(v, Mapping) else None
     fitted = params.fitted_for_another_model(name, cfg.get("energy_model")) if name is not None else None
     if fitted:
         raise ValueError(f"vehicle.parameter_set {name!r} was fitted for energy_model {fitted}, "
                          f"not {cfg.get('energy_model')}")
-
-
-def _inline_parameter_set_file(cfg: dict) -> None:
-    """A parameter set named by its file (``vehicle.parameter_set: mine.yaml``) is read once, here, and
-    its values go into the vehicle section as defaults (keys given there still win), so the resolved
-    config reproduces the run alone: a bag's ``resume``, a node started in another folder or on another
-    host, the same run after the file moved or was rewritten. A shipped set stays named (it comes with
-    the package, whose version the bag records)."""
-    from bev_mdo.models import params
-
-    v = cfg.get("vehicle")
-    name = v.get("parameter_set") if isinstance(v, Mapping) else None
     if not params.is_parameter_set_file(name):
         return
     values = params.load_parameter_set(name)
@@ -147,10 +135,6 @@ def _record_cycle_traces(cfg: dict) -> None:
     {time_s, speed_m_s}); the models take it from there, so a bag's ``resume`` and nodes started in
     another folder or on another host run on the same trace without the file. A trace already there
     (a resolved config read again) is checked, not re-read."""
-    import warnings
-
-    from bev_mdo.models.cycles import CycleNote, is_csv_cycle, load_cycle, trace_cycle, trace_record, unbalanced_note
-
     traces = cfg.get("cycle_traces") or {}
     if not isinstance(traces, Mapping):
         raise ValueError("cycle_traces must map CSV paths to {time_s: [...], speed_m_s: [...]}")
@@ -180,22 +164,18 @@ def _record_cycle_traces(cfg: dict) -> None:
 
 def validate_models(cfg: dict) -> None:
     """Vehicle and cycle sections are checked by the models' own validators."""
-    from bev_mdo.models import params
-
     if "vehicle" in cfg or "cycle" in cfg:
         try:
-            _check_parameter_set_model(cfg)
-            _inline_parameter_set_file(cfg)
+            _parameter_set(cfg)
             params.validate_vehicle(cfg.get("vehicle"))
         except ValueError as exc:  # a key path (vehicle.x) says where already
             raise ValueError(str(exc) if str(exc).startswith("vehicle.") else f"vehicle: {exc}") from None
         try:
             cfg["cycle"] = params.validate_cycle(cfg.get("cycle"))
-            from bev_mdo.models.cycles import load_cycle, resample
+            from bev_mdo.disciplines.common import resampled_cycle
 
             _record_cycle_traces(cfg)
-            c = cfg["cycle"]  # read and check the trace now: one line naming file and row
-            resample(load_cycle(c["name"], cfg.get("cycle_traces")), c["dt_s"], c["interpolation"], c["smoothing"])
+            resampled_cycle(cfg)  # read and check the trace now: one line naming file and row
         except ValueError as exc:
             raise ValueError(str(exc) if str(exc).startswith("cycle.") else f"cycle: {exc}") from None
 
@@ -221,6 +201,9 @@ def vehicle_topology_into_options(cfg: dict) -> None:
 
 
 def resolve_problem(section: Any) -> dict:
+    """The problem section. Battery sized for range: ``battery_kwh`` leaves the design variables (its
+    initial value becomes the MDA loop's starting guess; the ``battery_sizing`` discipline produces it)
+    and the ``range_km`` constraint, met by construction, becomes ``monitor: true``."""
     if not isinstance(section, Mapping):
         raise ValueError("problem must be a mapping with objective, design_variables and constraints")
     prob = copy.deepcopy(dict(section))

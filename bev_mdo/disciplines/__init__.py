@@ -23,7 +23,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from bev_mdo.disciplines.common import (ENERGY_MODELS, TOPOLOGY_DISCIPLINES, Base, replaced_by_road_load,
+from bev_mdo.disciplines.common import (ENERGY_MODELS, TOPOLOGY_DISCIPLINES, Base, overridable,
                                         resampled_cycle, run_topology, topology_inputs, vehicle_of)
 from bev_mdo.disciplines.energy import CycleRange, Energy
 from bev_mdo.models import acceleration, cost, motor_speed, range as range_model
@@ -135,8 +135,7 @@ class Acceleration(Base):
         v = vehicle_of(config)
         t = run_topology(config, options)
         names = acceleration.ACCEL_PARAMS + tuple(k for k in cls._TOPO[t.name] if k in v)
-        names += tuple(k for k in v if k.startswith("road_load_"))  # coast-down road load (models/road_load.py)
-        return cls({k: v[k] for k in names if k not in replaced_by_road_load(v)}, t.name)
+        return cls({k: v[k] for k in overridable(v, names)}, t.name)
 
     def compute(self, inputs):
         p = self._params(inputs)

@@ -16,15 +16,15 @@ from bev_mdo.models.cycles import load_cycle, resample
 from bev_mdo.models.params import ROAD_LOAD_REPLACES, validate_cycle, validate_vehicle
 
 ENERGY_MODELS = ("flat", "breakdown", "quasi_static", "chain")
-ROAD_KEYS = road_load.FLAT_KEYS
 
 
 def vehicle_of(config: Mapping[str, Any]) -> dict[str, float]:
     return validate_vehicle(config.get("vehicle"))
 
 
-def resampled_cycle(config: Mapping[str, Any]):
-    c = validate_cycle(config.get("cycle"))
+def resampled_cycle(config: Mapping[str, Any], name: str | None = None):
+    """The config's cycle on its grid; another cycle (``name``: a cycle name or CSV) on the same grid."""
+    c = validate_cycle(config.get("cycle") if name is None else {**(config.get("cycle") or {}), "name": name})
     return resample(load_cycle(c["name"], config.get("cycle_traces")), c["dt_s"], c["interpolation"], c["smoothing"])
 
 
@@ -50,18 +50,18 @@ def run_topology(config: Mapping[str, Any], options: Mapping[str, Any]) -> topo_
     return t
 
 
-def topology_inputs(t: topo_model.Topology, *, gear: bool = True) -> tuple[str, ...]:
-    out = ["motor_kw"] + (["gear_ratio"] if t.geared and gear else [])
+def topology_inputs(t: topo_model.Topology) -> tuple[str, ...]:
+    out = ["motor_kw"] + (["gear_ratio"] if t.geared else [])
     if t.two_axles:
-        out += ["motor_rear_kw"] + (["gear_ratio_rear"] if t.geared and gear else [])
+        out += ["motor_rear_kw"] + (["gear_ratio_rear"] if t.geared else [])
     return tuple(out)
 
 
-def replaced_by_road_load(v: Mapping[str, float]) -> tuple[str, ...]:
-    """The constants a coast-down road load replaces (models/road_load.py): not overridable per point
-    then, since no model reads them (an override such as --set drag_area_m2=0.7 was accepted and
-    changed nothing, where the config refuses giving both)."""
-    return ROAD_LOAD_REPLACES if road_load.uses_road_load(v) else ()
+def overridable(v: Mapping[str, float], names) -> list[str]:
+    """``names`` and the coast-down road load's constants (models/road_load.py), less the constants a
+    road load replaces: no model reads those then, so they are not overridable per point."""
+    replaced = ROAD_LOAD_REPLACES if road_load.uses_road_load(v) else ()
+    return [k for k in [*names, *(k for k in v if k.startswith("road_load_"))] if k not in replaced]
 
 
 # the unit of every variable a built-in discipline reads or writes (mdo/units.py)
@@ -85,12 +85,11 @@ class Base(Discipline):
 
     def _params(self, inputs: Mapping[str, np.ndarray]) -> dict:
         out = {k: (np.asarray(inputs[k], float) if k in inputs else v) for k, v in self.parameters.items()}
-        if any(k in inputs for k in ROAD_KEYS if k in self.parameters):
+        if any(k in inputs for k in road_load.FLAT_KEYS if k in self.parameters):
             # per-point road load: the models take it as given (no spec table of theirs has it), so the
-            # config's checks are applied here (a negative A gave 80.8 Wh/km instead of an error)
+            # config's checks are applied here
             road_load.check_values(out)
         return out
-
 
 
 def flag(discipline: str, key: str, value: Any) -> bool:

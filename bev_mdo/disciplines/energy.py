@@ -3,17 +3,20 @@ mix of cycles, with optional feasibility margins) and ``cycle_range`` (range by 
 from __future__ import annotations
 
 import importlib
+import re
+import sys
+import threading
+import time
 from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
 
-from bev_mdo.disciplines.common import (ENERGY_MODELS, Base, flag, replaced_by_road_load, resampled_cycle,
+from bev_mdo.disciplines.common import (ENERGY_MODELS, Base, flag, overridable, resampled_cycle,
                                         run_topology, topology_inputs, vehicle_of)
 from bev_mdo.models import flat
 from bev_mdo.models import topology as topo_model
-from bev_mdo.models.cycles import DriveCycle, load_cycle, resample
-from bev_mdo.models.params import validate_cycle
+from bev_mdo.models.cycles import DriveCycle, resample
 
 WALL_MODELS = ("chain", "quasi_static")  # the models that know the charger: energy_wall_wh_per_km
 
@@ -55,7 +58,6 @@ class Energy(Base):
         if feasibility_outputs and energy_model not in ("quasi_static", "chain"):
             raise ValueError("energy option feasibility_outputs needs energy_model quasi_static or chain")
         self.feasibility_outputs = bool(feasibility_outputs)
-        # energy_wh_per_km is the energy from the battery (every model); chain and quasi_static add the wall's
         self.outputs = ("energy_wh_per_km",) + (("energy_wall_wh_per_km",) if energy_model in WALL_MODELS else ())
         if feasibility_outputs:
             self.outputs += ("drive_torque_margin_nm",
@@ -80,20 +82,16 @@ class Energy(Base):
         elif model in ENERGY_MODELS:
             specs = getattr(importlib.import_module(f"bev_mdo.models.{model}"), "PARAM_SPECS", {})
             # regen_fraction only where the model reads it (breakdown's specs): chain and quasi_static have
-            # their own regeneration rules, and an override of it changed nothing there
+            # their own regeneration rules
             names = tuple(dict.fromkeys([*flat.FLAT_PARAMS[:4], "gear_efficiency", *specs]))
         else:
             raise ValueError(f"energy_model must be one of {list(ENERGY_MODELS)}, got {model!r}")
         # the two-speed mass is added by vehicle_mass (once), never here
-        names = [k for k in names if k in v and k != "two_speed_added_mass_kg"]
-        # the coast-down road load is overridable per point, as in acceleration (else --set road_load_a_n=..
-        # moved the acceleration time and left the energy on the configured road load)
-        names += [k for k in v if k.startswith("road_load_")]
-        names = [k for k in names if k not in replaced_by_road_load(v)]
+        names = overridable(v, [k for k in names if k in v and k != "two_speed_added_mass_kg"])
         extra = {k: x for k, x in v.items() if k not in names}
         if model == "quasi_static":
             extra["two_speed_added_mass_kg"] = 0.0
-        disc = cls({k: v[k] for k in names}, _cycle_option(config, options), model, extra,
+        disc = cls({k: v[k] for k in names}, resampled_cycle(config, options.cycle), model, extra,
                    run_topology(config, options).name, flag("energy", "feasibility_outputs", options.feasibility_outputs))
         disc.weighted = _cycle_weights(config, options, model)
         return disc
@@ -156,20 +154,10 @@ def _cycle_weights(config, options, model):
         if isinstance(w, bool) or not isinstance(w, (int, float)) or not 0 < w <= 1:
             raise ValueError(f"energy option cycle_weights.{name} must be a share in (0, 1], got {w!r}")
         total += float(w)
-        c = validate_cycle({**(config.get("cycle") or {}), "name": name})
-        out.append((float(w), resample(load_cycle(c["name"], config.get("cycle_traces")), c["dt_s"],
-                                       c["interpolation"], c["smoothing"])))
+        out.append((float(w), resampled_cycle(config, name)))
     if abs(total - 1.0) > 1e-9:
         raise ValueError(f"energy option cycle_weights must sum to 1, got {total:g}")
     return out
-
-
-def _cycle_option(config, options):
-    """The configured cycle, or the discipline option ``cycle`` (a name or CSV) on the same grid."""
-    if options.cycle is None:
-        return resampled_cycle(config)
-    c = validate_cycle({**(config.get("cycle") or {}), "name": options.cycle})
-    return resample(load_cycle(c["name"], config.get("cycle_traces")), c["dt_s"], c["interpolation"], c["smoothing"])
 
 
 class CycleRange(Energy):
@@ -203,7 +191,6 @@ class CycleRange(Energy):
 
 
 def _slug(name: str) -> str:
-    import re
     return re.sub(r"[^a-z0-9]+", "_", str(name).lower()).strip("_") or "cycle"
 
 
@@ -212,10 +199,6 @@ def warm_up() -> float:
     energy and range of each topology, with the packaged motor map and with the loss model, on a 3-step cycle.
     Returns the seconds taken: about a minute on a small host the first time after an install, a fraction of a
     second once cached. ``scripts/setup.sh`` runs it after installing; ``Energy.prepare`` before the first call."""
-    import sys
-    import threading
-    import time
-
     start = time.perf_counter()
     note = threading.Timer(3.0, lambda: print("note: compiling the quasi-static model's loops (numba), once after an "
                                               "install: about a minute on a small host", file=sys.stderr, flush=True))

@@ -1,15 +1,7 @@
-"""The thesis' chapter-4 topology study (§4.4, Tables 4-4..4-7, Figs 4-5/4-6), without the CLI.
-
-* :func:`config_topology` / :func:`config_for_topology`: the topology a run config sets, and a copy of
-  it for another topology (``vehicle.topology``, discipline options, and its design variables: the
-  config's bounds for every variable the config gives, ``TOPOLOGY_BOUNDS`` for the others);
-* :func:`benchmark`: the 80 kW / 24 kWh benchmark design of Table 4-4 analysed by a formulation;
-* :func:`picks`: the Table 4-6 / 4-7 style choices from the fronts; :func:`torque_warnings`;
-* :func:`write_benchmark` (beside Table 4-5), :func:`plot_pair`, :func:`plots` (like Figs 4-5 and 4-6);
-* :func:`read_fronts`: the ParetoFront messages of a bag, without ROS.
-
-``bev-mdo pareto --topology T | --all-topologies`` (bev_mdo/cli/pareto.py) runs NSGA-II per topology
-and calls these.
+"""The thesis' chapter-4 topology study (§4.4, Tables 4-4..4-7, Figs 4-5/4-6), without the CLI: a run
+config for each topology, the Table 4-4 benchmark designs analysed, the Table 4-6 / 4-7 picks from the
+fronts, the plots, and the ParetoFront messages of a bag read without ROS. ``bev-mdo pareto --topology T
+| --all-topologies`` (bev_mdo/cli/pareto.py) runs NSGA-II per topology and calls these.
 """
 from __future__ import annotations
 
@@ -20,6 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from bev_mdo.disciplines import TOPOLOGY_DISCIPLINES
+from bev_mdo.disciplines.common import UNITS
+from bev_mdo.mdo.units import factor, label
+from bev_mdo.models.topology import get_topology
 
 # the study's objectives unless the config (problem.objectives) or --objectives names others
 OBJECTIVES = ("energy_wh_per_km", "accel_time_0_100_s", "powertrain_cost_usd")
@@ -43,8 +38,6 @@ THESIS_4_5 = {"SM-SA": (1521.0, 9.9, 8920.3, 16.47), "DM-DA": (1572.6, 10.5, 930
 def config_topology(raw) -> str:
     """The topology a raw config sets (``vehicle.topology``, else a discipline's ``topology``
     option; SM-SA if none). load_config rejects a config where they disagree."""
-    from bev_mdo.models.topology import get_topology
-
     vehicle = raw.get("vehicle") if isinstance(raw.get("vehicle"), dict) else {}
     if "topology" in vehicle:
         return get_topology(vehicle["topology"]).name
@@ -59,8 +52,6 @@ def config_for_topology(raw, topology: str) -> dict:
     set to ``topology`` and, if that differs from the config's own, the topology's design
     variables: each with the config's own bounds where the config gives it, else the study's
     (``TOPOLOGY_BOUNDS``); a variable the topology does not have (``gear_ratio`` of IWM-*) is left out."""
-    from bev_mdo.models.topology import get_topology
-
     t = get_topology(topology).name
     cfg = copy.deepcopy(raw)
     own = config_topology(raw)
@@ -132,16 +123,14 @@ def picks(results, bench):
         v = r.values
         e, a, c = v["energy_wh_per_km"], v["accel_time_0_100_s"], v["powertrain_cost_usd"]
         d = {}
-        ok = a <= ref["accel_time_0_100_s"]
-        if ok.any():
-            i = int(np.flatnonzero(ok)[np.argmin(e[ok])])
-            d["table_4_6"] = {**{n: float(v[n][i]) for n in r.names}, "energy_kwh_100km": float(e[i] / 10),
-                              "change_pct": float(100 * (e[i] / ref["energy_wh_per_km"] - 1))}
-        ok = e <= ref["energy_wh_per_km"]
-        if ok.any():
-            i = int(np.flatnonzero(ok)[np.argmin(c[ok])])
-            d["table_4_7"] = {**{n: float(v[n][i]) for n in r.names}, "cost_usd": float(c[i]),
-                              "change_pct": float(100 * (c[i] / ref["powertrain_cost_usd"] - 1))}
+        # (table, the designs allowed, the quantity minimised, its column and divisor, its benchmark value)
+        for key, ok, y, column, per, base in (
+                ("table_4_6", a <= ref["accel_time_0_100_s"], e, "energy_kwh_100km", 10, ref["energy_wh_per_km"]),
+                ("table_4_7", e <= ref["energy_wh_per_km"], c, "cost_usd", 1, ref["powertrain_cost_usd"])):
+            if ok.any():
+                i = int(np.flatnonzero(ok)[np.argmin(y[ok])])
+                d[key] = {**{n: float(v[n][i]) for n in r.names}, column: float(y[i] / per),
+                          "change_pct": float(100 * (y[i] / base - 1))}
         out[t] = d
     return out
 
@@ -154,9 +143,6 @@ _MARKS = {"SM-SA": "o", "DM-DA": "s", "IWM-SA": "^", "IWM-DA": "D"}
 def _axis(name: str):
     """(scale factor, axis label) of an objective, in the built-in disciplines' declared unit; energy in
     kWh/100 km as the thesis plots it."""
-    from bev_mdo.disciplines.common import UNITS
-    from bev_mdo.mdo.units import factor, label
-
     if name == "energy_wh_per_km":
         return 100.0 * factor(UNITS[name], "kWh/km")[0], "battery energy (kWh/100 km)"
     return 1.0, label(name, UNITS)
@@ -201,12 +187,9 @@ def plots(out: Path, results, bench, objectives, cycle: str = "") -> list[Path]:
     written = []
     for i, xk in enumerate(objectives):
         for yk in objectives[i + 1:]:
-            if (yk, xk) in _FIGURE_NAMES:
-                xk_, yk_ = yk, xk
-            else:
-                xk_, yk_ = xk, yk
-            name = _FIGURE_NAMES.get((xk_, yk_), f"pareto_{yk_}_vs_{xk_}.png")
-            plot_pair(results, bench, xk_, yk_, out / name, cycle)
+            x, y = (yk, xk) if (yk, xk) in _FIGURE_NAMES else (xk, yk)  # the thesis' axes
+            name = _FIGURE_NAMES.get((x, y), f"pareto_{y}_vs_{x}.png")
+            plot_pair(results, bench, x, y, out / name, cycle)
             written.append(out / name)
     return written
 
