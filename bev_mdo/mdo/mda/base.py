@@ -158,7 +158,7 @@ class LoopSolver:
     first converged point; a given coupling column still overrides). ``warm`` holds them per loop."""
 
     name: ClassVar[str] = ""
-    warm_start_values: ClassVar[tuple] = (True, False, "auto")
+    auto_warm_start: ClassVar[bool] = False  # what ``warm_start: auto`` means for this method
 
     def __init__(self, calls: Calls, graph: CouplingGraph, *, tolerance: float = 1e-10,
                  max_iterations: int = 100, relaxation: float = 1.0, guesses: Mapping[str, float] | None = None,
@@ -169,13 +169,10 @@ class LoopSolver:
             raise ValueError(f"mda max_iterations {max_iterations} must be >= 1")
         if not 0 < relaxation <= 2:
             raise ValueError(f"mda relaxation {relaxation} must be in (0, 2]")
-        if isinstance(warm_start, bool) or warm_start == "auto":
-            pass
-        elif warm_start == "tangent":
-            if "tangent" not in self.warm_start_values:
-                raise ValueError(f"mda warm_start tangent needs method newton (the tangent comes from its "
-                                 f"Jacobian), not {self.name}")
-        else:
+        if warm_start == "tangent" and self.name != "newton":
+            raise ValueError(f"mda warm_start tangent needs method newton (the tangent comes from its "
+                             f"Jacobian), not {self.name}")
+        if not (isinstance(warm_start, bool) or warm_start in ("auto", "tangent")):
             raise ValueError(f"mda warm_start {warm_start!r} must be true, false, auto or tangent")
         if not isinstance(fuse_downstream, bool):
             raise ValueError(f"mda fuse_downstream {fuse_downstream!r} must be true or false")
@@ -186,8 +183,6 @@ class LoopSolver:
         self.warm_start = self.auto_warm_start if warm_start == "auto" else bool(warm_start)
         self.fuse_downstream = False
         self.warm: dict[tuple, dict[str, float]] = {}  # loop -> converged couplings of the last MDA
-
-    auto_warm_start: ClassVar[bool] = False  # what ``warm_start: auto`` means for this method
 
     def guess(self, v: str) -> float:
         """The starting value of a torn coupling (a vector element falls back to its base name)."""

@@ -42,7 +42,6 @@ FD_STEP = 1e-7  # relative forward-difference step of a Jacobian column without 
 
 class Newton(LoopSolver):
     name = "newton"
-    warm_start_values = (True, False, "auto", "tangent")
     auto_warm_start = True  # its converged couplings are exact far below the tolerance
 
     def __init__(self, calls, graph, *, warm_start="auto", fuse_downstream=False, **settings):
