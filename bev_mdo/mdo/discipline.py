@@ -347,12 +347,7 @@ def _with_partials(disc: Any, batch: Batch, res: EvalResult, n: int, t0: float) 
         else:
             part = flat_partials(name, raw, {}, disc.outputs, disc.inputs, m)
     if m != n:
-        full = {}
-        for k, col in part.items():
-            c = np.full(n, np.nan)
-            c[good] = col
-            full[k] = c
-        part = full
+        part = {k: spread(col, good, n) for k, col in part.items()}
     bad = [] if m == n and all_finite(part.values()) else [
         k for k, c in part.items() if not np.isfinite(c[good]).all()]
     if bad:
@@ -363,6 +358,13 @@ def _with_partials(disc: Any, batch: Batch, res: EvalResult, n: int, t0: float) 
     res.extra["partials"] = part
     res.compute_time_s = time.perf_counter() - t0
     return res
+
+
+def spread(col: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray:
+    """A column over n rows holding ``col`` at ``rows`` (indices or a mask) and NaN elsewhere."""
+    full = np.full(n, np.nan)
+    full[rows] = col
+    return full
 
 
 def _column(v: Any) -> np.ndarray:
