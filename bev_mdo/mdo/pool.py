@@ -96,18 +96,13 @@ class Pool:
             keep = max(1, min(len(instances), n // min_rows))
             best = sorted(sorted(range(len(instances)), key=lambda j: -weights[j])[:keep])
             instances, weights = [instances[j] for j in best], [weights[j] for j in best]
-            out = split_rows(n, instances, weights)
-            sizes = [b - a for _, a, b in out]
+            sizes = [b - a for _, a, b in split_rows(n, instances, weights)]
             for j in range(len(sizes)):  # n >= keep * min_rows: the largest can always give
                 while 0 < sizes[j] < min_rows and n >= min_rows:
                     big = max(range(len(sizes)), key=lambda i: sizes[i])
                     sizes[big] -= 1
                     sizes[j] += 1
-            out, start = [], 0
-            for inst, size in zip(instances, sizes):
-                out.append((inst, start, start + size))
-                start += size
-            return out
+            return _ranges(instances, sizes)
         return split_rows(n, instances, weights)
 
 
@@ -130,6 +125,11 @@ def split_rows(n: int, instances: list[str], weights: list[float]) -> list[tuple
             if sizes[j] == 0:
                 sizes[max(range(k), key=lambda i: sizes[i])] -= 1
                 sizes[j] = 1
+    return _ranges(instances, sizes)
+
+
+def _ranges(instances: list[str], sizes: list[int]) -> list[tuple[str, int, int]]:
+    """[(instance, start row, stop row)] of consecutive ranges of ``sizes`` rows; empty ones left out."""
     out, start = [], 0
     for inst, size in zip(instances, sizes):
         if size > 0:
