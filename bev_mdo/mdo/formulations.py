@@ -230,21 +230,20 @@ class Formulation:
         self._grad = (key, out)
         return out
 
-
     # ------------------------------------------------------------ assembled derivatives
-    def _analyse_with_partials(self, x: np.ndarray) -> None:
-        """(Re-)evaluate the point x asking the disciplines for their partials."""
-        self._cache.pop(x.tobytes(), None)
+    @property
+    def mda_evaluations(self) -> int:
+        return self.mda.n_evaluations
+
+    def _assembled(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(df (n,), dg (m, n), dh (p, n)) w.r.t. u from discipline partials."""
+        x = self.to_x(u)
+        self._cache.pop(x.tobytes(), None)  # (re-)evaluate x asking the disciplines for their partials
         self._want_partials = True
         try:
             self.evaluate_batch(x[None, :])
         finally:
             self._want_partials = False
-
-    def _assembled(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(df (n,), dg (m, n), dh (p, n)) w.r.t. u from discipline partials."""
-        x = self.to_x(u)
-        self._analyse_with_partials(x)
         m, p = len(self.ineq_labels), len(self.eq_labels)
         if not self.status(x)[0]:  # a failed point has no derivative
             return np.zeros(self.n), np.zeros((m, self.n)), np.zeros((p, self.n))
@@ -311,10 +310,6 @@ class MDF(Formulation):
         f = res.values[self.problem.objective]
         g = self.problem.g(res.values)
         return f, g, np.zeros((len(X), 0)), res.ok, res.messages
-
-    @property
-    def mda_evaluations(self) -> int:
-        return self.mda.n_evaluations
 
 
 class IDF(Formulation):
@@ -396,10 +391,6 @@ class IDF(Formulation):
             dh[k, n_dv + k] += 1.0
             dh[k] /= self.coupling_scale[k]
         return df, dg, dh
-
-    @property
-    def mda_evaluations(self) -> int:
-        return self.mda.n_evaluations
 
 
 FORMULATIONS = {"mdf": MDF, "idf": IDF}

@@ -122,11 +122,10 @@ def _prepare(point, wrt, bounds, rel_step):
         room_up, room_dn = hi[j] - x0[j], x0[j] - lo[j]
         if min(room_up, room_dn) >= 2 * h[a]:
             continue
+        direction[a] = 1.0 if room_up >= room_dn else -1.0
         if max(room_up, room_dn) >= 6 * h[a]:
-            direction[a] = 1.0 if room_up >= room_dn else -1.0
             continue
         h[a] = max(room_up, room_dn) / 6.0
-        direction[a] = 1.0 if room_up >= room_dn else -1.0
         if h[a] <= 0:
             raise ValueError(f"bounds of {wrt[a]!r} leave no room for a finite-difference step")
     return all_names, x0, wrt, idx, h, direction
@@ -171,8 +170,8 @@ def sensitivities(fun: BatchFun, point: Mapping[str, float], wrt: Sequence[str] 
         n_eval += ne
         n_batch += 1
     else:
-        f0, g, g_err, H, H_err = f0c, grad_c, {k: np.zeros(len(idx)) for k in grad_c}, None, None
-    if grad_c is not None:
+        f0, H, H_err = f0c, None, None
+    if grad_c is not None:  # the complex-step gradient is exact to rounding
         g, g_err = grad_c, {k: np.zeros(len(idx)) for k in grad_c}
     if objective is not None:
         _known(objective, list(f0), "output")
