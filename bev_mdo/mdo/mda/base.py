@@ -109,30 +109,23 @@ class Calls:
                 keep_partials(partials, name, res.extra["partials"], rows, len(b.ok))
 
     def store(self, name: str, res: EvalResult, b: Batch, rows: np.ndarray, relaxation: float = 1.0,
-              points: np.ndarray | None = None) -> None:
-        """Write one discipline's result for ``rows`` into ``b``; mark its failed points (named by
-        ``points``, the batch's indices of ``rows``, when ``b`` is local to a solver step)."""
-        good = np.asarray(res.ok, dtype=bool)
+              points: np.ndarray | None = None, local: np.ndarray | None = None) -> None:
+        """Write one discipline's result (its entries ``local``, default all) for ``rows`` into
+        ``b``; mark its failed points (named by ``points``, the batch's indices of ``rows``, when
+        ``b`` is local to a solver step)."""
+        sel = slice(None) if local is None else local
+        good = np.asarray(res.ok, dtype=bool)[sel]
         for v in self.specs[name].outputs:
-            new = np.asarray(res.outputs[v], dtype=float)
+            new = np.asarray(res.outputs[v], dtype=float)[sel]
             if relaxation != 1.0:
                 old = b.values[v][rows]
                 new = np.where(np.isfinite(old), old + relaxation * (new - old), new)
             b.values[v][rows] = new
         if not good.all():
             points = rows if points is None else points
-            for local in np.flatnonzero(~good):
-                b.fail(rows[local], "discipline", res.message(int(local), int(points[local]), name), name)
-
-    def store_rows(self, name: str, res: EvalResult, local: np.ndarray, b: Batch, rows: np.ndarray) -> None:
-        """Like ``store`` for the entries ``local`` of a result."""
-        sub = EvalResult({o: np.asarray(res.outputs[o], dtype=float)[local] for o in self.specs[name].outputs},
-                         np.asarray(res.ok, dtype=bool)[local], "")
-        before = b.ok[rows].copy()
-        self.store(name, sub, b, rows)
-        for q in np.flatnonzero(before & ~b.ok[rows]):
-            b.errors[rows[q]] = MDAError(name, int(rows[q]), "discipline",
-                                         res.message(int(local[q]), int(rows[q]), name))
+            for j in np.flatnonzero(~good):
+                entry = j if local is None else local[j]
+                b.fail(rows[j], "discipline", res.message(int(entry), int(points[j]), name), name)
 
 
 def keep_partials(partials: dict, name: str, got: Mapping, rows: np.ndarray, n_all: int,

@@ -209,7 +209,7 @@ class Newton(LoopSolver):
             if tail and done.any():  # the tail saw this step's y, which is the loop's result there
                 local = np.flatnonzero(done)
                 for d, res in zip(tail, tail_results):
-                    self.calls.store_rows(d, res, local, b, active[local])
+                    self.calls.store(d, res, b, active[local], local=local)
                     if b.partials is not None and "partials" in res.extra:
                         keep_partials(b.partials, d, res.extra["partials"], active[local], len(b.ok), local)
             step = alive & ~done
