@@ -32,13 +32,9 @@ class ShapeError(ValueError):
     """A discipline returned an output or a partial of the wrong shape (a wiring mistake, not a bad point)."""
 
 
-def element(name: str, i: int) -> str:
-    return f"{name}[{i}]"
-
-
 def flat_names(name: str, size: int | None) -> list[str]:
     """The scalar columns of a variable: [name] for a scalar, name[0]..name[size-1] for a vector."""
-    return [name] if size is None else [element(name, i) for i in range(int(size))]
+    return [name] if size is None else [f"{name}[{i}]" for i in range(int(size))]
 
 
 def base_name(flat: str) -> str:
