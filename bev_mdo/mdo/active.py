@@ -129,8 +129,8 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
 
     for e in ans["violated"]:
         op = ">=" if e["kind"] == "lower" else "<="
-        if not np.isfinite(e["value"]):  # a failed point: there is no value to be short of the limit by, and
-            # its Jacobian is NaN, so "no bound blocks it" would be a guess (it said "is nan km, short by inf km")
+        if not np.isfinite(e["value"]):  # a failed point: no value to be short of the limit by, and its
+            # Jacobian is NaN, so "no bound blocks it" would be a guess
             lines.append(f"no value: {e['name']} {op} {e['limit']:g}{u(e['unit'])} (the point failed)"
                          + (" (monitored only)" if e.get("monitor") else ""))
             continue

@@ -18,9 +18,7 @@ sending an input column of the same name (used for sensitivities with respect
 to model parameters, e.g. ``drag_area_m2``).
 
 Options (the ``options:`` of a config entry) are declared once, and a key not declared is refused
-when the config is loaded (:func:`read_options`): a nested dataclass ``Options`` (its fields are the
-keys, ``from_config(config, options)`` gets an instance), or, for a class built from its options
-alone (no ``from_config`` of its own), the keyword parameters of its constructor.
+when the config is loaded (:func:`read_options`).
 """
 from __future__ import annotations
 

@@ -84,7 +84,7 @@ class Orchestrator:
         self._batches: dict[int, tuple[str, Mapping]] = {}  # wave index -> (discipline, batch) of a pool's call
         self.flow_shares = 0  # data-flow requests sent as row shares of pooled MDAs
         # False: an MDA with a pool runs in waves (only the pooled disciplines see shares; the
-        # others get the whole batch once), as before data flow with pools (docs/scaling.md)
+        # others get the whole batch once; docs/scaling.md)
         self.pool_data_flow = pool_data_flow
         self.pool_min_rows = pool_min_rows
 
@@ -133,7 +133,6 @@ class Orchestrator:
                     plan = None
                 elif CouplingGraph((n, self.specs[n].inputs, self.specs[n].outputs) for n in names).cycles:
                     plan = None  # a loop: no node of it can start (the MDA iterates it hub and spoke)
-                # with pools (share mode) a data-flow MDA is split into row shares (_flow_shares)
             self._flow_plans[key] = plan
         return self._flow_plans[key]
 

@@ -16,13 +16,10 @@ An instance whose share times out, or that leaves the ROS graph while it holds a
 itself again (a restarted node publishes a fresh DisciplineInfo).
 
 Modes (``ros.pool``): ``share`` (default) splits batches; ``redundant`` sends every batch to
-every instance and keeps the first valid answer (the behaviour before pools).
+every instance and keeps the first valid answer.
 
-``ros.pool_min_rows`` (default 1): no share is cut smaller than this many rows; a batch of fewer
-than twice as many goes whole to the fastest instance. A model with a large cost per call (the
-quasi-static energy model: ~0.23 s per call and ~1.8 ms per design on this host) gains nothing
-from shares whose rows cost less than the call itself: rows >= per-call cost / per-row cost
-(docs/scaling.md).
+``ros.pool_min_rows`` (default 1): no share is cut smaller than this many rows, for a model whose
+cost per call outweighs its cost per row (docs/scaling.md).
 """
 from __future__ import annotations
 
