@@ -348,12 +348,7 @@ class IDF(Formulation):
         for k, v in self.problem.parameters.items():
             cols[k] = np.full(N, v)
         specs = self.mda.specs
-        calls = []
-        for name in self.disciplines:
-            s = specs[name]
-            inp = {v: cols[v] for v in s.inputs}
-            inp.update({p: cols[p] for p in s.parameters if p in cols})
-            calls.append((name, inp))
+        calls = [(name, self.mda.calls.inputs(name, cols, slice(None))) for name in self.disciplines]
         if self._want_partials:
             results = self.evaluator.evaluate(calls, partials=True)
         else:

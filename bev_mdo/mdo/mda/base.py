@@ -85,7 +85,8 @@ class Calls:
         self.evaluator = evaluator
         self.specs = specs
 
-    def inputs(self, name: str, values: dict, rows: np.ndarray) -> dict[str, np.ndarray]:
+    def inputs(self, name: str, values: dict, rows: np.ndarray | slice) -> dict[str, np.ndarray]:
+        """The columns of ``values`` discipline ``name`` reads (inputs, and parameters given), at ``rows``."""
         spec = self.specs[name]
         out = {v: values[v][rows] for v in spec.inputs}
         out.update({p: values[p][rows] for p in spec.parameters if p in values})
