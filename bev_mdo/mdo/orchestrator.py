@@ -187,11 +187,8 @@ class Orchestrator:
             return self._flow_shares(names, plan, request, n, bool(partials), pooled)
         eid = self.ledger.new_id()
         req = self._request(eid, "", request, self._tag(names), flow=names, partials=partials)
-        first = None
-        for i, name in enumerate(names):
-            p = self.ledger.open(eid, name, retry.Sent(i, name, req, n, 0, flow=True))
-            first = first or p
-        self._send(first)  # one message for every discipline
+        sent = [self.ledger.open(eid, name, retry.Sent(i, name, req, n, 0, flow=True)) for i, name in enumerate(names)]
+        self._send(sent[0])  # one message for every discipline
         self._await()
         self.flows += 1
         out = {name: self._results[i] for i, name in enumerate(names)}
