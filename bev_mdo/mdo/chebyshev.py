@@ -54,11 +54,8 @@ def _from_unit(t, a, b):
 
 
 def _tail_small(c: np.ndarray, axis: int, tol: float) -> bool:
-    scale = np.max(np.abs(c))
-    if scale == 0:
-        return True
     tail = np.take(c, [-3, -2, -1], axis=axis)
-    return bool(np.max(np.abs(tail)) <= tol * scale)
+    return bool(np.max(np.abs(tail)) <= tol * np.max(np.abs(c)))
 
 
 def _chop(c: np.ndarray, tol: float) -> np.ndarray:

@@ -37,14 +37,8 @@ def flow_inputs(inputs: Sequence[str], parameters: Sequence[str], request: Mappi
     """(batch of the rows to evaluate, their indices) for one discipline of a data-flow request.
 
     Raises KeyError naming an input that is neither in the request nor in a source's outputs."""
-    if source_of:
-        rows = source_rows(source_of, upstream, n)
-        if not rows.any():
-            return {}, np.zeros(0, dtype=int)
-        every = rows.all()
-    elif n:  # no source: every row (the graph's roots)
-        every = True
-    else:
+    rows = source_rows(source_of, upstream, n)
+    if not rows.any():
         return {}, np.zeros(0, dtype=int)
     cols = {}
     for v in inputs:
@@ -53,7 +47,7 @@ def flow_inputs(inputs: Sequence[str], parameters: Sequence[str], request: Mappi
     for p in parameters:
         if p in request and p not in cols:
             cols[p] = request[p]
-    if every:
+    if rows.all():
         return cols, np.arange(n)
     idx = np.flatnonzero(rows)
     return {k: np.asarray(c)[idx] for k, c in cols.items()}, idx
