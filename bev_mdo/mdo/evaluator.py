@@ -120,9 +120,3 @@ class InProcessEvaluator:
 
     def close(self) -> None:
         pass
-
-    def __enter__(self) -> "InProcessEvaluator":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
