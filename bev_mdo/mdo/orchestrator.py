@@ -110,11 +110,6 @@ class Orchestrator:
         return retry.Policy(self.timeout_s, self.retries)
 
     @property
-    def probe_late(self) -> int:
-        """Late answers to readiness probes (ignored, not drops)."""
-        return self.ledger.probe_late
-
-    @property
     def _next_id(self) -> int:  # the evaluation id the next request gets
         return self.ledger.next_id
 
