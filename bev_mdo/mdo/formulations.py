@@ -122,10 +122,6 @@ class Formulation:
         c = self._cache.get(np.asarray(x, dtype=float).tobytes())
         return (c[3], c[4]) if c else (False, "not evaluated")
 
-    def evaluated(self, x: np.ndarray) -> bool:
-        """True if the physical point ``x`` is in the cache (evaluated, well or not)."""
-        return np.asarray(x, dtype=float).tobytes() in self._cache
-
     def batch_fun(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(f, g) with equalities folded in as |h| - eq_tolerance <= 0, for inequality-only optimisers."""
         f, g, h = self.evaluate_batch(X)
@@ -157,7 +153,7 @@ class Formulation:
         self._u_seen[self.to_x(u).tobytes()] = u.copy()
         while len(self._u_seen) > 4096:
             self._u_seen.pop(next(iter(self._u_seen)))
-        if self.speculative_gradients and not self.evaluated(self.to_x(u)):
+        if self.speculative_gradients and self.to_x(u).tobytes() not in self._cache:
             # A gradient-based optimiser asks for the gradient at nearly every point it
             # evaluates: send the point and its FD stencil as ONE batch (one request wave)
             # instead of two. The values are identical; only the batching changes.
