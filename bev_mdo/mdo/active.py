@@ -127,18 +127,20 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
     def u(s: str) -> str:
         return f" {s}" if s else ""
 
+    def limit(e: Mapping[str, Any]) -> str:
+        return f"{e['name']} {'>=' if e['kind'] == 'lower' else '<='} {e['limit']:g}{u(e['unit'])}"
+
+    def monitored(e: Mapping[str, Any]) -> str:
+        return " (monitored only)" if e.get("monitor") else ""
+
     for e in ans["violated"]:
-        op = ">=" if e["kind"] == "lower" else "<="
         if not np.isfinite(e["value"]):  # a failed point: no value to be short of the limit by, and its
             # Jacobian is NaN, so "no bound blocks it" would be a guess
-            lines.append(f"no value: {e['name']} {op} {e['limit']:g}{u(e['unit'])} (the point failed)"
-                         + (" (monitored only)" if e.get("monitor") else ""))
+            lines.append(f"no value: {limit(e)} (the point failed){monitored(e)}")
             continue
-        line = (f"violated: {e['name']} {op} {e['limit']:g}{u(e['unit'])} is {e['value']:.6g}{u(e['unit'])}, "
-                f"{'short' if e['kind'] == 'lower' else 'over'} by {_num(e['violation'])}{u(e['unit'])}")
-        if e.get("monitor"):
-            line += " (monitored only)"
-        lines.append(line)
+        lines.append(f"violated: {limit(e)} is {e['value']:.6g}{u(e['unit'])}, "
+                     f"{'short' if e['kind'] == 'lower' else 'over'} by {_num(e['violation'])}{u(e['unit'])}"
+                     + monitored(e))
         if "blocked_by" in e:
             if e["blocked_by"]:
                 lines.append("  blocked by " + "; ".join(
@@ -149,9 +151,7 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
             if e["conflicts_with"]:
                 lines.append("  reducing it would break " + ", ".join(e["conflicts_with"]))
     for e in ans["active_constraints"]:
-        op = ">=" if e["kind"] == "lower" else "<="
-        lines.append(f"active: {e['name']} {op} {e['limit']:g}{u(e['unit'])}, margin {_num(e['margin'], e['scale'])}{u(e['unit'])}"
-                     + (" (monitored only)" if e.get("monitor") else ""))
+        lines.append(f"active: {limit(e)}, margin {_num(e['margin'], e['scale'])}{u(e['unit'])}{monitored(e)}")
     for b in ans["bounds"]:
         lines.append(f"on its {b['kind']} bound: {b['name']} = {_num(b['value'])}{u(b['unit'])} "
                      f"(bound {b['bound']:g}{u(b['unit'])}, margin {_num(b['margin'], b['scale'])}{u(b['unit'])})")
