@@ -36,12 +36,7 @@ Disciplines = list | Callable[[], list]  # discipline objects, or a function bui
 
 def _limits(problem) -> list[tuple[str, str, float, float]]:
     """(name, kind, limit, scale) for every bound of every constraint, monitored ones too."""
-    out = []
-    for c in problem.constraints:
-        for kind, b in (("lower", c.lower), ("upper", c.upper)):
-            if b is not None:
-                out.append((c.name, kind, float(b), float(c.scale or max(abs(b), 1.0))))
-    return out
+    return [(c.name, kind, float(b), float(s)) for c in problem.constraints for kind, b, s in c.rows(monitored=True)]
 
 
 def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *,

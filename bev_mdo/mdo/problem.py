@@ -47,15 +47,13 @@ class Constraint:
     scale: float | None = None
     monitor: bool = False  # reported with its margin, but not given to the optimiser
 
-    def rows(self) -> list[tuple[str, float, float]]:
-        """(kind, bound, scale) per bound (kind 'lower' or 'upper'); none for a monitored constraint."""
-        out = []
-        if self.monitor:
-            return out
-        for kind, b in (("lower", self.lower), ("upper", self.upper)):
-            if b is not None:
-                out.append((kind, b, self.scale or max(abs(b), 1.0)))
-        return out
+    def rows(self, monitored: bool = False) -> list[tuple[str, float, float]]:
+        """(kind, bound, scale) per bound (kind 'lower' or 'upper'); none for a monitored constraint
+        unless ``monitored``."""
+        if self.monitor and not monitored:
+            return []
+        return [(kind, b, self.scale or max(abs(b), 1.0))
+                for kind, b in (("lower", self.lower), ("upper", self.upper)) if b is not None]
 
 
 @dataclass
