@@ -195,6 +195,21 @@ class LoopSolver:
         self.warm[tuple(comp)] = {v: float(b.values[v][first]) for v in couplings}
         return first
 
+    def check(self, b: Batch, active: np.ndarray, new: np.ndarray, old: np.ndarray, it: int,
+              converged: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """After iteration ``it`` of the points ``active``: (relative change max |new - old| /
+        max(|new|, 1) over the loop's values, inf where not finite; the points still good; those
+        converged, appended to ``converged``)."""
+        with np.errstate(invalid="ignore"):
+            rel = np.abs(new - old) / np.maximum(np.abs(new), 1.0)
+            err = np.max(rel, axis=0) if len(new) else np.zeros(active.size)
+        err = np.where(np.isfinite(err), err, np.inf)
+        b.iterations[active] = it
+        alive = b.ok[active]
+        done = alive & (err <= self.tolerance)
+        converged.extend(active[done].tolist())
+        return err, alive, done
+
     def not_converged(self, comp: Sequence[str], b: Batch, active: np.ndarray, err: np.ndarray) -> None:
         for i, e in zip(active, err):
             b.fail(i, "not_converged", f"MDA loop {list(comp)} did not converge in {self.max_iterations} "

@@ -182,13 +182,11 @@ class Newton(LoopSolver):
         return F, J, J_ok
 
     def _steps(self, comp, b: Batch, tail, outs, unknowns, active, converged, tangent) -> None:
-        u = len(unknowns)
         col = {v: k for k, v in enumerate(unknowns)}
         err = np.full(active.size, np.inf)
         for it in range(1, self.max_iterations + 1):
             if active.size == 0:
                 return
-            n = active.size
             results, plans, tail_results = self._evaluate(comp, tail, b, active, unknowns)
             F, J, J_ok = self._assemble(comp, b, active, results, plans, outs, col)
             for v in outs:
@@ -196,13 +194,7 @@ class Newton(LoopSolver):
                     b.values[v][active] = F[v]
             y = np.array([b.values[v][active] for v in unknowns])  # (u, n)
             fy = np.array([F[v] for v in unknowns])
-            with np.errstate(invalid="ignore"):
-                err = np.max(np.abs(fy - y) / np.maximum(np.abs(fy), 1.0), axis=0) if u else np.zeros(n)
-            err = np.where(np.isfinite(err), err, np.inf)
-            b.iterations[active] = it
-            alive = b.ok[active]
-            done = alive & (err <= self.tolerance)
-            converged.extend(active[done].tolist())
+            err, alive, done = self.check(b, active, fy, y, it, converged)
             if self.tangent and done.any() and all(p is None for p in plans):
                 keep_tangent(self.specs, comp, b.values, results, J, active, done, converged, col, unknowns,
                              tangent)
