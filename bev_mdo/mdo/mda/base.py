@@ -197,9 +197,8 @@ class LoopSolver:
 
     def check(self, b: Batch, active: np.ndarray, new: np.ndarray, old: np.ndarray, it: int,
               converged: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """After iteration ``it`` of the points ``active``: (relative change max |new - old| /
-        max(|new|, 1) over the loop's values, inf where not finite; the points still good; those
-        converged, appended to ``converged``)."""
+        """After iteration ``it``: (relative change max |new - old| / max(|new|, 1) per point, inf if
+        not finite; the points still good; those converged, also appended to ``converged``)."""
         with np.errstate(invalid="ignore"):
             rel = np.abs(new - old) / np.maximum(np.abs(new), 1.0)
             err = np.max(rel, axis=0) if len(new) else np.zeros(active.size)
