@@ -34,20 +34,9 @@ REL_TOL = 1e-3
 Disciplines = list | Callable[[], list]  # discipline objects, or a function building them
 
 
-
 def _limits(problem) -> list[tuple[str, str, float, float]]:
     """(name, kind, limit, scale) for every bound of every constraint, monitored ones too."""
-    out = []
-    for c in problem.constraints:
-        for kind, b in (("lower", c.lower), ("upper", c.upper)):
-            if b is not None:
-                out.append((c.name, kind, float(b), float(c.scale or max(abs(b), 1.0))))
-    return out
-
-
-def _violation(kind: str, limit: float, value: float) -> float:
-    """Violation in the constraint's unit: > 0 violated, < 0 satisfied (minus the margin)."""
-    return limit - value if kind == "lower" else value - limit
+    return [(c.name, kind, float(b), float(s)) for c in problem.constraints for kind, b, s in c.rows(monitored=True)]
 
 
 def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *,
@@ -71,7 +60,7 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
     active, violated = [], []
     for name, kind, limit, scale in _limits(problem):
         y = float(values.get(name, np.nan))
-        v = _violation(kind, limit, y)
+        v = limit - y if kind == "lower" else y - limit  # in the constraint's unit: > 0 violated
         entry = {"name": name, "kind": kind, "limit": limit, "value": y, "margin": -v, "unit": unit(name),
                  "scale": scale,
                  "monitor": any(c.monitor for c in problem.constraints if c.name == name)}
@@ -96,20 +85,14 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
         for e in violated:
             sign = 1.0 if e["kind"] == "upper" else -1.0
             grad = {n: sign * float(jacobian.get(e["name"], {}).get(n, 0.0)) for n in problem.names}
-            e["blocked_by"] = []
-            for n, g in grad.items():
-                kind = on_bound.get(n)
-                if kind == "upper" and g < 0 or kind == "lower" and g > 0:
-                    e["blocked_by"].append({"variable": n, "bound": kind, "rate": abs(g),
-                                            "rate_unit": f"{e['unit'] or '1'} per {unit(n) or 'unit'}"})
+            blocking = [n for n, g in grad.items()
+                        if g < 0 and on_bound.get(n) == "upper" or g > 0 and on_bound.get(n) == "lower"]
+            e["blocked_by"] = [{"variable": n, "bound": on_bound[n], "rate": abs(grad[n]),
+                                "rate_unit": f"{e['unit'] or '1'} per {unit(n) or 'unit'}"} for n in blocking]
             e["blocked_by"].sort(key=lambda b: -b["rate"] * spans[b["variable"]])
             # steepest descent of the violation in scaled variables, over the variables free to move
-            step = {}
-            for n, g in grad.items():
-                kind = on_bound.get(n)
-                if kind == "upper" and g < 0 or kind == "lower" and g > 0:
-                    continue
-                step[n] = -g * spans[n] ** 2  # dx = -grad_u v * span, grad_u = grad_x * span
+            # (dx = -grad_u v * span, grad_u = grad_x * span)
+            step = {n: -g * spans[n] ** 2 for n, g in grad.items() if n not in blocking}
             e["conflicts_with"] = []
             for a in active:
                 sa = 1.0 if a["kind"] == "upper" else -1.0
@@ -139,18 +122,20 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
     def u(s: str) -> str:
         return f" {s}" if s else ""
 
+    def limit(e: Mapping[str, Any]) -> str:
+        return f"{e['name']} {'>=' if e['kind'] == 'lower' else '<='} {e['limit']:g}{u(e['unit'])}"
+
+    def monitored(e: Mapping[str, Any]) -> str:
+        return " (monitored only)" if e.get("monitor") else ""
+
     for e in ans["violated"]:
-        op = ">=" if e["kind"] == "lower" else "<="
-        if not np.isfinite(e["value"]):  # a failed point: there is no value to be short of the limit by, and
-            # its Jacobian is NaN, so "no bound blocks it" would be a guess (it said "is nan km, short by inf km")
-            lines.append(f"no value: {e['name']} {op} {e['limit']:g}{u(e['unit'])} (the point failed)"
-                         + (" (monitored only)" if e.get("monitor") else ""))
+        if not np.isfinite(e["value"]):  # a failed point: no value to be short of the limit by, and its
+            # Jacobian is NaN, so "no bound blocks it" would be a guess
+            lines.append(f"no value: {limit(e)} (the point failed){monitored(e)}")
             continue
-        line = (f"violated: {e['name']} {op} {e['limit']:g}{u(e['unit'])} is {e['value']:.6g}{u(e['unit'])}, "
-                f"{'short' if e['kind'] == 'lower' else 'over'} by {_num(e['violation'])}{u(e['unit'])}")
-        if e.get("monitor"):
-            line += " (monitored only)"
-        lines.append(line)
+        lines.append(f"violated: {limit(e)} is {e['value']:.6g}{u(e['unit'])}, "
+                     f"{'short' if e['kind'] == 'lower' else 'over'} by {_num(e['violation'])}{u(e['unit'])}"
+                     + monitored(e))
         if "blocked_by" in e:
             if e["blocked_by"]:
                 lines.append("  blocked by " + "; ".join(
@@ -161,9 +146,7 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
             if e["conflicts_with"]:
                 lines.append("  reducing it would break " + ", ".join(e["conflicts_with"]))
     for e in ans["active_constraints"]:
-        op = ">=" if e["kind"] == "lower" else "<="
-        lines.append(f"active: {e['name']} {op} {e['limit']:g}{u(e['unit'])}, margin {_num(e['margin'], e['scale'])}{u(e['unit'])}"
-                     + (" (monitored only)" if e.get("monitor") else ""))
+        lines.append(f"active: {limit(e)}, margin {_num(e['margin'], e['scale'])}{u(e['unit'])}{monitored(e)}")
     for b in ans["bounds"]:
         lines.append(f"on its {b['kind']} bound: {b['name']} = {_num(b['value'])}{u(b['unit'])} "
                      f"(bound {b['bound']:g}{u(b['unit'])}, margin {_num(b['margin'], b['scale'])}{u(b['unit'])})")
@@ -206,9 +189,7 @@ def fd_jacobian(config: Any, design: Mapping[str, float], disciplines: Disciplin
             jac[o] = {n: float((col[j + 1] - col[0]) / steps[j]) for j, n in enumerate(problem.names)}
         return jac
     finally:
-        close = getattr(ev, "close", None)
-        if close:
-            close()
+        ev.close()
 
 
 def answers_for(config: Any, design: Mapping[str, float], values: Mapping[str, float],

@@ -54,11 +54,8 @@ def _from_unit(t, a, b):
 
 
 def _tail_small(c: np.ndarray, axis: int, tol: float) -> bool:
-    scale = np.max(np.abs(c))
-    if scale == 0:
-        return True
     tail = np.take(c, [-3, -2, -1], axis=axis)
-    return bool(np.max(np.abs(tail)) <= tol * scale)
+    return bool(np.max(np.abs(tail)) <= tol * np.max(np.abs(c)))
 
 
 def _chop(c: np.ndarray, tol: float) -> np.ndarray:
@@ -243,13 +240,12 @@ class Cheb2:
         if not feas.any():
             return None
         order = np.flatnonzero(feas)[np.argsort(fc[feas])]
-        starts, chosen = [], []
+        chosen = []  # the best candidates, each 5 % of the box away from the others
         span = np.array([bx - ax, by - ay])
         for i in order:
             if all(np.max(np.abs(cand[i] - cand[j]) / span) > 0.05 for j in chosen):
                 chosen.append(i)
-                starts.append(cand[i])
-            if len(starts) >= n_starts:
+            if len(chosen) >= n_starts:
                 break
         best = (cand[order[0]], fc[order[0]])
         gx, gy = self.deriv(1, 0), self.deriv(0, 1)
@@ -265,7 +261,7 @@ class Cheb2:
                                                    float(g.deriv(0, 1)(p[0], p[1]))]))}
                 for g in constraints]
         bounds = [(ax, bx), (ay, by)]
-        for p0 in starts:
+        for p0 in cand[chosen]:
             method = "SLSQP" if cons else "L-BFGS-B"
             opts = {"ftol": 1e-15, "maxiter": 200} if cons else {"ftol": 1e-15, "gtol": 1e-13, "maxiter": 500}
             r = minimize(obj, p0, jac=jac, bounds=bounds, constraints=cons, method=method, options=opts)

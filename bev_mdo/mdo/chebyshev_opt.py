@@ -111,9 +111,8 @@ def _restore_on_segment(ev, x, y, o):
         if k != "f":
             cuts += [t for t in p.roots() if t > 0]
     for t in sorted(set(cuts), reverse=True):
-        z = x + t * (y - x)
         if all(float(p(t)) <= o["ctol"] for k, p in prox.items() if k != "f"):
-            return z
+            return x + t * (y - x)
     return None
 
 

@@ -49,55 +49,44 @@ def fd_partials(evaluator: Any, specs: Mapping[str, Any], names: Sequence[str], 
             continue
         base = np.array([np.asarray(values[v], dtype=float)[:n] for v in ins])  # (k, N)
         h = step * np.maximum(np.abs(base), 1.0)  # (k, N)
-        blocks, kinds = [], []
+        blocks = []  # per input j: x + h_j (forward), or x + h_j then x - h_j (central)
         for j in range(k):
-            plus = base.copy()
-            plus[j] += h[j]
-            blocks.append(plus)
-            kinds.append(("plus", j))
-            if central:
-                minus = base.copy()
-                minus[j] -= h[j]
-                blocks.append(minus)
-                kinds.append(("minus", j))
+            for sign in ((1.0, -1.0) if central else (1.0,)):
+                shifted = base.copy()
+                shifted[j] += sign * h[j]
+                blocks.append(shifted)
         with_base = (name in base_needed) and not central
-        if with_base:
+        if with_base:  # the last block
             blocks.append(base)
-            kinds.append(("base", -1))
         stacked = np.concatenate(blocks, axis=1)  # (k, N * len(blocks))
         batch = {v: stacked[j] for j, v in enumerate(ins)}
         for p in spec.parameters:
             if p in values:
                 batch[p] = np.tile(np.asarray(values[p], dtype=float)[:n], len(blocks))
         calls.append((name, batch))
-        plans.append((name, ins, h, kinds))
+        plans.append((name, ins, h, len(blocks), with_base))
     if not calls:
         return {}, 0
     results = evaluator.evaluate(calls)
     out: dict[str, Partials] = {}
     failed = 0
-    for (name, ins, h, kinds), res in zip(plans, results):
+    for (name, ins, h, nb, with_base), res in zip(plans, results):
         outs = specs[name].outputs
-        ok = np.asarray(res.ok, dtype=bool)
-        nb = len(kinds)
         Y = {o: np.asarray(res.outputs[o], dtype=float).reshape(nb, n) for o in outs}
-        OK = ok.reshape(nb, n)
-        pos = {kd: b for b, kd in enumerate(kinds)}
+        OK = np.asarray(res.ok, dtype=bool).reshape(nb, n)
         part: Partials = {}
         for o in outs:
-            if ("base", -1) in pos:
-                y0, ok0 = Y[o][pos[("base", -1)]], OK[pos[("base", -1)]]
+            if with_base:
+                y0, ok0 = Y[o][-1], OK[-1]
             else:
                 y0, ok0 = np.asarray(values[o], dtype=float)[:n], np.ones(n, bool)
             for j, v in enumerate(ins):
-                bp = pos[("plus", j)]
                 if central:
-                    bm = pos[("minus", j)]
-                    d = (Y[o][bp] - Y[o][bm]) / (2 * h[j])
-                    good = OK[bp] & OK[bm]
+                    d = (Y[o][2 * j] - Y[o][2 * j + 1]) / (2 * h[j])
+                    good = OK[2 * j] & OK[2 * j + 1]
                 else:
-                    d = (Y[o][bp] - y0) / h[j]
-                    good = OK[bp] & ok0
+                    d = (Y[o][j] - y0) / h[j]
+                    good = OK[j] & ok0
                 if not good.all():
                     failed += int((~good).sum())
                     d = np.where(good, d, 0.0)

@@ -18,9 +18,7 @@ sending an input column of the same name (used for sensitivities with respect
 to model parameters, e.g. ``drag_area_m2``).
 
 Options (the ``options:`` of a config entry) are declared once, and a key not declared is refused
-when the config is loaded (:func:`read_options`): a nested dataclass ``Options`` (its fields are the
-keys, ``from_config(config, options)`` gets an instance), or, for a class built from its options
-alone (no ``from_config`` of its own), the keyword parameters of its constructor.
+when the config is loaded (:func:`read_options`).
 """
 from __future__ import annotations
 
@@ -347,12 +345,7 @@ def _with_partials(disc: Any, batch: Batch, res: EvalResult, n: int, t0: float) 
         else:
             part = flat_partials(name, raw, {}, disc.outputs, disc.inputs, m)
     if m != n:
-        full = {}
-        for k, col in part.items():
-            c = np.full(n, np.nan)
-            c[good] = col
-            full[k] = c
-        part = full
+        part = {k: spread(col, good, n) for k, col in part.items()}
     bad = [] if m == n and all_finite(part.values()) else [
         k for k, c in part.items() if not np.isfinite(c[good]).all()]
     if bad:
@@ -363,6 +356,13 @@ def _with_partials(disc: Any, batch: Batch, res: EvalResult, n: int, t0: float) 
     res.extra["partials"] = part
     res.compute_time_s = time.perf_counter() - t0
     return res
+
+
+def spread(col: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray:
+    """A column over n rows holding ``col`` at ``rows`` (indices or a mask) and NaN elsewhere."""
+    full = np.full(n, np.nan)
+    full[rows] = col
+    return full
 
 
 def _column(v: Any) -> np.ndarray:

@@ -237,7 +237,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     record(form.x0.copy())
     start = form.x0.copy()
     for attempt in range(RESTARTS + 1):
-        res = run_optimizer(opt_name, form, options, lambda x: record(x))
+        res = run_optimizer(opt_name, form, options, record)
         x = np.asarray(res.x, dtype=float)
         if not history or history[-1]["design"] != problem.design_dict(x[:n_dv]):
             record(x)
@@ -281,7 +281,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         gradients=form.n_gradients, wall_time_s=time.perf_counter() - t0, history=history,
         maximize=problem.maximize, result_iteration=k, last_iterate=k == len(history) - 1,
         feasibility_tolerance=tol, error="" if ok else (err or final.get("error", "")).split("; ")[0],
-        fd_failures=int(getattr(form, "fd_failures", 0)), first_order=fo, verdict=fo["verdict"],
+        fd_failures=form.fd_failures, first_order=fo, verdict=fo["verdict"],
         optimizer_success=bool(res.success))
 
 

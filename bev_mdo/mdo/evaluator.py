@@ -76,13 +76,13 @@ class InProcessEvaluator:
     """Evaluator that calls the discipline objects directly, one after the other."""
 
     def __init__(self, disciplines: Iterable[Any]):
-        self.disciplines = {}
+        self.disciplines, self.specs = {}, {}
         for d in disciplines:
             spec = DisciplineSpec.of(d)
-            if spec.name in self.disciplines:
+            if spec.name in self.specs:
                 raise ValueError(f"discipline name {spec.name!r} is used twice; names must be unique")
             self.disciplines[spec.name] = d
-        self.specs = {n: DisciplineSpec.of(d) for n, d in self.disciplines.items()}
+            self.specs[spec.name] = spec
         self.counts = {n: 0 for n in self.disciplines}
         self.waves = 0  # number of evaluate() calls (request waves)
         self._readable = {n: readable(d) for n, d in self.disciplines.items()}
@@ -112,8 +112,7 @@ class InProcessEvaluator:
         waves = self._flow_waves.get(key)
         if waves is None:
             graph = CouplingGraph((m, self.specs[m].inputs, self.specs[m].outputs) for m in names)
-            waves = None if any(graph.is_cyclic(c) for c in graph.components) else [
-                [c[0] for c in wave] for wave in graph.waves]
+            waves = None if graph.cycles else [[c[0] for c in wave] for wave in graph.waves]
             self._flow_waves[key] = waves
         if waves is None:
             return None
@@ -121,9 +120,3 @@ class InProcessEvaluator:
 
     def close(self) -> None:
         pass
-
-    def __enter__(self) -> "InProcessEvaluator":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

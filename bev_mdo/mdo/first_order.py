@@ -44,8 +44,7 @@ def check(u: np.ndarray, lower: np.ndarray, upper: np.ndarray, grad_f: np.ndarra
 
     ``lower``/``upper``: bounds of u (may be infinite); ``g`` (m,), ``jac_g`` (m, n), ``h`` (p,),
     ``jac_h`` (p, n); ``moved``: False when the end point is the start point."""
-    u, lower, upper = (np.asarray(a, dtype=float) for a in (u, lower, upper))
-    grad_f = np.asarray(grad_f, dtype=float)
+    u, lower, upper, grad_f = (np.asarray(a, dtype=float) for a in (u, lower, upper, grad_f))
     n = len(u)
     g, h = np.asarray(g, dtype=float).reshape(-1), np.asarray(h, dtype=float).reshape(-1)
     jac_g, jac_h = np.asarray(jac_g, dtype=float).reshape(len(g), n), np.asarray(jac_h, dtype=float).reshape(len(h), n)

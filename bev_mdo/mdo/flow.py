@@ -22,7 +22,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from bev_mdo.mdo.discipline import EvalResult, failed, rejected, run_discipline, unknown_inputs
+from bev_mdo.mdo.discipline import EvalResult, failed, rejected, run_discipline, spread, unknown_inputs
 
 Upstream = Mapping[str, tuple[Mapping[str, np.ndarray], np.ndarray]]  # source -> (outputs, ok)
 
@@ -37,14 +37,8 @@ def flow_inputs(inputs: Sequence[str], parameters: Sequence[str], request: Mappi
     """(batch of the rows to evaluate, their indices) for one discipline of a data-flow request.
 
     Raises KeyError naming an input that is neither in the request nor in a source's outputs."""
-    if source_of:
-        rows = source_rows(source_of, upstream, n)
-        if not rows.any():
-            return {}, np.zeros(0, dtype=int)
-        every = rows.all()
-    elif n:  # no source: every row (the graph's roots)
-        every = True
-    else:
+    rows = source_rows(source_of, upstream, n)
+    if not rows.any():
         return {}, np.zeros(0, dtype=int)
     cols = {}
     for v in inputs:
@@ -53,7 +47,7 @@ def flow_inputs(inputs: Sequence[str], parameters: Sequence[str], request: Mappi
     for p in parameters:
         if p in request and p not in cols:
             cols[p] = request[p]
-    if every:
+    if rows.all():
         return cols, np.arange(n)
     idx = np.flatnonzero(rows)
     return {k: np.asarray(c)[idx] for k, c in cols.items()}, idx
@@ -63,21 +57,12 @@ def scatter(res: EvalResult, idx: np.ndarray, n: int, outputs: Sequence[str]) ->
     """An EvalResult over all n rows from one over the rows ``idx`` (others failed, NaN)."""
     if idx.size == n:
         return res
-    out = {}
-    for k in outputs:
-        full = np.full(n, np.nan)
-        full[idx] = res.outputs[k]
-        out[k] = full
+    out = {k: spread(res.outputs[k], idx, n) for k in outputs}
     ok = np.zeros(n, dtype=bool)
     ok[idx] = res.ok
     extra = dict(res.extra)
     if "partials" in extra:
-        part = {}
-        for k, col in extra["partials"].items():
-            full = np.full(n, np.nan)
-            full[idx] = col
-            part[k] = full
-        extra["partials"] = part
+        extra["partials"] = {k: spread(col, idx, n) for k, col in extra["partials"].items()}
     return EvalResult(out, ok, res.error, res.compute_time_s, extra, res.point_errors)
 
 
@@ -96,23 +81,10 @@ def run_flow_discipline(disc: Any, request: Mapping[str, np.ndarray], upstream: 
 
 def source_rows(source_of: Mapping[str, str], upstream: Upstream, n: int) -> np.ndarray:
     """The rows a discipline evaluates: those every one of its sources evaluated successfully."""
-    rows = None
-    for s in dict.fromkeys(source_of.values()):
-        ok = np.asarray(upstream[s][1], dtype=bool)
-        if rows is None and ok.shape == (n,):  # the first source's flags (a copy: rows is the caller's)
-            rows = ok.copy()
-            continue
-        if rows is None:
-            rows = np.ones(n, dtype=bool)
-        rows &= ok
-    return np.ones(n, dtype=bool) if rows is None else rows
-
-
-def rows_evaluated(source_of: Mapping[str, str], upstream: Upstream, n: int) -> int:
-    """How many rows a discipline evaluates given its sources' results (for evaluation counts)."""
-    if not source_of:  # a root evaluates every row
-        return n
-    return int(np.count_nonzero(source_rows(source_of, upstream, n)))
+    rows = np.ones(n, dtype=bool)  # a root evaluates every row
+    for s in set(source_of.values()):
+        rows &= np.asarray(upstream[s][1], dtype=bool)
+    return rows
 
 
 def flow_by_waves(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequence[str]],
@@ -148,11 +120,7 @@ def evaluate_flow(evaluator: Any, specs: Mapping[str, Any], waves: Sequence[Sequ
     discipline that has analytic partials returns them with its result. A request column that no
     discipline of the MDA reads fails every point, named (as a node refuses an unknown input)."""
     names = [name for wave in waves for name in wave]
-    readable: set[str] = set()  # every name a discipline of the MDA reads (set.update: no per-name generator step)
-    for m in names:
-        readable.update(specs[m].inputs)
-        readable.update(specs[m].parameters)
-    allowed = frozenset(readable)
+    allowed = frozenset().union(*(specs[m].inputs for m in names), *(specs[m].parameters for m in names))
     unknown = unknown_inputs(allowed, request)
     if unknown:  # the entry check of every transport (discipline.unknown_inputs): refused, not dropped
         return {m: rejected(m, specs[m].outputs, n, f"unknown inputs {unknown[:5]}") for m in names}
@@ -171,7 +139,7 @@ def rows_per_discipline(plan: Mapping[str, Mapping[str, str]], results: Mapping[
     out = {}
     for name in names:
         up = {s: (results[s].outputs, results[s].ok) for s in set(plan[name].values())}
-        rows = rows_evaluated(plan[name], up, n)
+        rows = int(np.count_nonzero(source_rows(plan[name], up, n)))
         if rows:
             out[name] = rows
     return out

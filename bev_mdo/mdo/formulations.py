@@ -122,10 +122,6 @@ class Formulation:
         c = self._cache.get(np.asarray(x, dtype=float).tobytes())
         return (c[3], c[4]) if c else (False, "not evaluated")
 
-    def evaluated(self, x: np.ndarray) -> bool:
-        """True if the physical point ``x`` is in the cache (evaluated, well or not)."""
-        return np.asarray(x, dtype=float).tobytes() in self._cache
-
     def batch_fun(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(f, g) with equalities folded in as |h| - eq_tolerance <= 0, for inequality-only optimisers."""
         f, g, h = self.evaluate_batch(X)
@@ -157,7 +153,7 @@ class Formulation:
         self._u_seen[self.to_x(u).tobytes()] = u.copy()
         while len(self._u_seen) > 4096:
             self._u_seen.pop(next(iter(self._u_seen)))
-        if self.speculative_gradients and not self.evaluated(self.to_x(u)):
+        if self.speculative_gradients and self.to_x(u).tobytes() not in self._cache:
             # A gradient-based optimiser asks for the gradient at nearly every point it
             # evaluates: send the point and its FD stencil as ONE batch (one request wave)
             # instead of two. The values are identical; only the batching changes.
@@ -230,21 +226,20 @@ class Formulation:
         self._grad = (key, out)
         return out
 
-
     # ------------------------------------------------------------ assembled derivatives
-    def _analyse_with_partials(self, x: np.ndarray) -> None:
-        """(Re-)evaluate the point x asking the disciplines for their partials."""
-        self._cache.pop(x.tobytes(), None)
+    @property
+    def mda_evaluations(self) -> int:
+        return self.mda.n_evaluations
+
+    def _assembled(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(df (n,), dg (m, n), dh (p, n)) w.r.t. u from discipline partials."""
+        x = self.to_x(u)
+        self._cache.pop(x.tobytes(), None)  # (re-)evaluate x asking the disciplines for their partials
         self._want_partials = True
         try:
             self.evaluate_batch(x[None, :])
         finally:
             self._want_partials = False
-
-    def _assembled(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(df (n,), dg (m, n), dh (p, n)) w.r.t. u from discipline partials."""
-        x = self.to_x(u)
-        self._analyse_with_partials(x)
         m, p = len(self.ineq_labels), len(self.eq_labels)
         if not self.status(x)[0]:  # a failed point has no derivative
             return np.zeros(self.n), np.zeros((m, self.n)), np.zeros((p, self.n))
@@ -312,10 +307,6 @@ class MDF(Formulation):
         g = self.problem.g(res.values)
         return f, g, np.zeros((len(X), 0)), res.ok, res.messages
 
-    @property
-    def mda_evaluations(self) -> int:
-        return self.mda.n_evaluations
-
 
 class IDF(Formulation):
     """Individual discipline feasible: coupling variables become optimiser variables,
@@ -353,12 +344,7 @@ class IDF(Formulation):
         for k, v in self.problem.parameters.items():
             cols[k] = np.full(N, v)
         specs = self.mda.specs
-        calls = []
-        for name in self.disciplines:
-            s = specs[name]
-            inp = {v: cols[v] for v in s.inputs}
-            inp.update({p: cols[p] for p in s.parameters if p in cols})
-            calls.append((name, inp))
+        calls = [(name, self.mda.calls.inputs(name, cols, slice(None))) for name in self.disciplines]
         if self._want_partials:
             results = self.evaluator.evaluate(calls, partials=True)
         else:
@@ -396,10 +382,6 @@ class IDF(Formulation):
             dh[k, n_dv + k] += 1.0
             dh[k] /= self.coupling_scale[k]
         return df, dg, dh
-
-    @property
-    def mda_evaluations(self) -> int:
-        return self.mda.n_evaluations
 
 
 FORMULATIONS = {"mdf": MDF, "idf": IDF}

@@ -75,10 +75,8 @@ class CouplingGraph:
                 level[c] = 1 + max((depth(d) for d in deps[c]), default=-1)
             return level[c]
 
-        for c in range(ncomp):
-            depth(c)
         first = [min(idx[m] for m in comps[c]) for c in range(ncomp)]
-        order = sorted(range(ncomp), key=lambda c: (level[c], first[c]))
+        order = sorted(range(ncomp), key=lambda c: (depth(c), first[c]))
         self.components = [tuple(comps[c]) for c in order]
         nwaves = 1 + max(level, default=-1)
         self.waves = [[tuple(comps[c]) for c in order if level[c] == w] for w in range(nwaves)]

@@ -2,18 +2,12 @@
 
 A coordinator sends requests, each with an evaluation id (unique in its run) addressed to one
 discipline (or, for a data-flow MDA, one id for all the disciplines of the MDA: one entry per
-(id, discipline)), and accepts at most one answer per entry. The ledger holds that bookkeeping:
-- ``new_id``: the next evaluation id (probes, requests and retries all draw from it);
-- ``open``: an entry outstanding for (id, discipline); ``binding_of(entry)`` is the binding its
-  answer must echo (the ROS evaluator: the request's frame_id, which names the fingerprints);
-- ``match``: the outstanding entry an answer belongs to, or None with the reason counted in
-  ``dropped`` (``fingerprint``: answered for another binding; ``late_share``: a share that was
-  given to another instance; ``duplicate``: answered already; ``mismatched``: an outstanding
-  evaluation answered by another discipline; ``stale``: nothing of the kind outstanding) or, for a
-  late answer to a readiness probe, in ``probe_late``;
-- ``settle``: the entry answered (a second answer is then a duplicate); ``close``: given up
-  without an answer (a later one is dropped as a duplicate too); ``reassign``: taken from its
-  instance and re-sent under a new id (a later answer to the old one is a ``late_share``).
+(id, discipline)), and accepts at most one answer per entry. ``binding_of(entry)`` is the binding
+an answer must echo (the ROS evaluator: the request's frame_id, which names the fingerprints).
+An answer ``match`` refuses is counted in ``dropped`` by reason: ``fingerprint`` (another
+binding), ``late_share`` (a share given to another instance), ``duplicate`` (answered or given up
+already), ``mismatched`` (an outstanding evaluation answered by another discipline) or ``stale``
+(nothing of the kind outstanding); a late answer to a readiness probe only in ``probe_late``.
 
 The orchestrator (orchestrator.py) keeps one per run; the run id check (``other_run``) and the
 signature check come before ``match``, in the transport (ros/evaluator.py).

@@ -110,9 +110,7 @@ class LockstepEvaluator:
                     while self._live and len(self._pending) < self._live:
                         self._cond.wait(0.2)  # a timeout, so a signal reaches this thread promptly
                     batch, self._pending = self._pending, []
-                    records, self._records = self._records, []
-                for callback, record in records:
-                    callback(record)
+                self.drain_records()  # every live job waits for its request now: none adds a record
                 if not batch:
                     if not self._live:
                         return
@@ -132,6 +130,7 @@ class LockstepEvaluator:
             raise
 
     def drain_records(self) -> None:
+        """Emit the queued records, in the order they were made."""
         with self._cond:
             records, self._records = self._records, []
         for callback, record in records:

@@ -16,6 +16,7 @@ its range from the best design.
 from __future__ import annotations
 
 import time
+from collections import Counter
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -100,9 +101,7 @@ def run_starts(run: Run, evaluator: Evaluator, starts: int, *, seed: int = 0, fo
 
 def summary_line(ms: Mapping[str, Any]) -> str:
     """How many starts reached the best point, for the terminal."""
-    verdicts: dict[str, int] = {}
-    for r in ms["results"]:
-        verdicts[r["verdict"]] = verdicts.get(r["verdict"], 0) + 1
+    verdicts = Counter(r["verdict"] for r in ms["results"])
     return (f"multi-start: {ms['reached_best']} of {ms['starts']} starts reached the best point (objective within "
             f"{ms['objective_rel_tol']:g} relative, each design variable within {ms['design_tol']:g} of its range; "
             f"Latin hypercube, seed {ms['seed']}); verdicts: "

@@ -33,11 +33,6 @@ def _cb(form, callback: Callback | None):
     return cb
 
 
-def _bounds(form) -> Bounds:
-    lo, hi = form.u_bounds
-    return Bounds(lo, hi)
-
-
 LINESEARCH_FAILED = 8  # SLSQP: "Positive directional derivative for linesearch"
 SLSQP_RESTARTS = 2
 
@@ -53,7 +48,7 @@ def _slsqp(form, options: Mapping[str, Any], callback):
         cons.append({"type": "eq", "fun": form.eq, "jac": form.eq_jac})
     u, notes, nit = form.to_u(form.x0), [], 0
     for attempt in range(SLSQP_RESTARTS + 1):
-        res = minimize(form.fun, u, jac=form.jac, bounds=_bounds(form), method="SLSQP",
+        res = minimize(form.fun, u, jac=form.jac, bounds=Bounds(*form.u_bounds), method="SLSQP",
                        constraints=cons, options=opts, callback=_cb(form, callback))
         nit += int(res.get("nit", 0))
         if res.status != LINESEARCH_FAILED or attempt == SLSQP_RESTARTS or np.array_equal(res.x, u):
@@ -77,7 +72,7 @@ def _trust_constr(form, options, callback):
                                         jac=lambda u: -form.ineq_jac(u), hess=BFGS()))
     if form.eq_labels:
         cons.append(NonlinearConstraint(form.eq, 0.0, 0.0, jac=form.eq_jac, hess=BFGS()))
-    return minimize(form.fun, form.to_u(form.x0), jac=form.jac, hess=BFGS(), bounds=_bounds(form),
+    return minimize(form.fun, form.to_u(form.x0), jac=form.jac, hess=BFGS(), bounds=Bounds(*form.u_bounds),
                     method="trust-constr", constraints=cons, options=opts, callback=_cb(form, callback))
 
 
@@ -106,7 +101,7 @@ def _derivative_free(method: str):
             else:
                 cons.append({"type": "eq", "fun": form.eq})
         u0 = form.to_u(form.x0)
-        res = minimize(form.fun, u0, bounds=_bounds(form), method=method, constraints=cons, options=opts,
+        res = minimize(form.fun, u0, bounds=Bounds(*form.u_bounds), method=method, constraints=cons, options=opts,
                        callback=_cb(form, callback))
         if method == "COBYQA" and np.array_equal(res.x, u0) and "maxfev" not in options and "maxiter" not in options:
             # COBYQA returns its best point among those within its feasibility_tol (absolute, 1.5e-8); on
@@ -115,7 +110,7 @@ def _derivative_free(method: str):
             # violation the driver treats as noise; the first-order check judges where it ends.
             best = form.best_seen(NOISE_VIOLATION * getattr(form, "feasibility_tolerance", FEASIBILITY_TOL))
             if best is not None and not np.array_equal(best, u0):
-                again = minimize(form.fun, best, bounds=_bounds(form), method=method, constraints=cons,
+                again = minimize(form.fun, best, bounds=Bounds(*form.u_bounds), method=method, constraints=cons,
                                  options=opts, callback=_cb(form, callback))
                 again.message = f"{again.message} (restarted from the best point seen after: {res.message})"
                 again.nfev = int(again.get("nfev", 0)) + int(res.get("nfev", 0))
@@ -151,9 +146,8 @@ def _differential_evolution(form, options, callback):
         cons.append(NonlinearConstraint(h, -form.eq_tolerance, form.eq_tolerance))
     opts = {"maxiter": 200, "popsize": 15, "tol": 1e-8, "polish": False, "rng": 0, **options}
     opts.update(vectorized=True, updating="deferred")
-    res = differential_evolution(f, Bounds(lo, hi), constraints=cons, x0=form.to_u(form.x0),
-                                 callback=_cb(form, callback), **opts)
-    return res
+    return differential_evolution(f, Bounds(lo, hi), constraints=cons, x0=form.to_u(form.x0),
+                                  callback=_cb(form, callback), **opts)
 
 
 OPTIMIZERS: dict[str, Callable | str] = {

@@ -84,7 +84,7 @@ class Orchestrator:
         self._batches: dict[int, tuple[str, Mapping]] = {}  # wave index -> (discipline, batch) of a pool's call
         self.flow_shares = 0  # data-flow requests sent as row shares of pooled MDAs
         # False: an MDA with a pool runs in waves (only the pooled disciplines see shares; the
-        # others get the whole batch once), as before data flow with pools (docs/scaling.md)
+        # others get the whole batch once; docs/scaling.md)
         self.pool_data_flow = pool_data_flow
         self.pool_min_rows = pool_min_rows
 
@@ -110,11 +110,6 @@ class Orchestrator:
         return retry.Policy(self.timeout_s, self.retries)
 
     @property
-    def probe_late(self) -> int:
-        """Late answers to readiness probes (ignored, not drops)."""
-        return self.ledger.probe_late
-
-    @property
     def _next_id(self) -> int:  # the evaluation id the next request gets
         return self.ledger.next_id
 
@@ -133,7 +128,6 @@ class Orchestrator:
                     plan = None
                 elif CouplingGraph((n, self.specs[n].inputs, self.specs[n].outputs) for n in names).cycles:
                     plan = None  # a loop: no node of it can start (the MDA iterates it hub and spoke)
-                # with pools (share mode) a data-flow MDA is split into row shares (_flow_shares)
             self._flow_plans[key] = plan
         return self._flow_plans[key]
 
@@ -167,8 +161,7 @@ class Orchestrator:
         if shared:
             self._await_pool(iteration)
             for i in self._shares.indices():  # every pooled call's shares, joined in row order
-                spec = self.specs.get(calls[i][0])
-                self._results[i] = self._shares.join(i, spec.outputs if spec else None)
+                self._results[i] = self._join(i, calls[i][0])
         else:
             self._await()
         return [self._results[i] for i in range(len(calls))]
@@ -189,11 +182,8 @@ class Orchestrator:
             return self._flow_shares(names, plan, request, n, bool(partials), pooled)
         eid = self.ledger.new_id()
         req = self._request(eid, "", request, self._tag(names), flow=names, partials=partials)
-        first = None
-        for i, name in enumerate(names):
-            p = self.ledger.open(eid, name, retry.Sent(i, name, req, n, 0, flow=True))
-            first = first or p
-        self._send(first)  # one message for every discipline
+        sent = [self.ledger.open(eid, name, retry.Sent(i, name, req, n, 0, flow=True)) for i, name in enumerate(names)]
+        self._send(sent[0])  # one message for every discipline
         self._await()
         self.flows += 1
         out = {name: self._results[i] for i, name in enumerate(names)}
@@ -214,7 +204,12 @@ class Orchestrator:
         self.ledger.settle(*key)
         if p.target:
             self._pool(p.discipline).record(p.target, p.n, (time.monotonic_ns() - p.sent_ns) * 1e-9)
-        if p.start >= 0:  # a row share (of a pool's call, or of a data-flow MDA: _flow_shares)
+        self._place(key, p, res)
+
+    def _place(self, key: tuple[int, str], p: retry.Sent, res: EvalResult) -> None:
+        """Keep `res` as the result of `p`: a row share's (of a pool's call, or of a data-flow MDA:
+        _flow_shares) until its shares are joined, else the call's."""
+        if p.start >= 0:
             self._shares.add(key[0], p.index, p.start, res)
         else:
             self._results[p.index] = res
@@ -228,6 +223,11 @@ class Orchestrator:
     def _failed(self, p: retry.Sent, error: str) -> EvalResult:
         spec = self.specs.get(p.discipline)
         return failed(spec.outputs if spec else (), p.n, error)
+
+    def _join(self, index: int, name: str) -> EvalResult:
+        """The answered shares of call `index` (discipline `name`) joined in row order."""
+        spec = self.specs.get(name)
+        return self._shares.join(index, spec.outputs if spec else None)
 
     # -- retries -------------------------------------------------------------------
     def _await(self) -> None:
@@ -263,10 +263,7 @@ class Orchestrator:
         res = self._failed(p, self.policy.no_answer(p.discipline))
         self._first_error(p.discipline, res.error)
         self.ledger.close(key)
-        if p.start >= 0:
-            self._shares.add(key[0], p.index, p.start, res)
-        else:
-            self._results[p.index] = res
+        self._place(key, p, res)
 
     def _sources_of(self, p: retry.Sent) -> set[str]:
         """The sources a data-flow entry's discipline reads from (none for hub and spoke)."""
@@ -367,10 +364,7 @@ class Orchestrator:
             targets = {d: inst if d == lead else live[j % len(live)] for d, live in pooled.items()}
             self._send_flow_share(names, request, a, b, targets, partials, 0)
         gave_up = self._await_flow_shares(names, plan, request, partials)
-        out = {}
-        for i, name in enumerate(names):
-            spec = self.specs.get(name)
-            out[name] = self._shares.join(i, spec.outputs if spec else None)
+        out = {name: self._join(i, name) for i, name in enumerate(names)}
         self.flows += 1
         self.counts.update(flow.rows_per_discipline(plan, out, n, [d for d in names if d not in gave_up]))
         self._shares, self._share_targets = retry.Shares(), {}

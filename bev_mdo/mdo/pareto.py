@@ -83,17 +83,13 @@ def _pymoo_problem_class():
                              xl=prob.array("lower"), xu=prob.array("upper"))
             self.batches = 0
             self.evaluations = 0
-            self.batch_times_s: list[float] = []
             self.archive: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-            self.last_values: dict[str, np.ndarray] = {}
             self.batch_values: list[dict[str, np.ndarray]] = []
             self._where: dict[bytes, tuple[int, int]] = {}  # design row bytes -> (batch, row)
 
         def _evaluate(self, X, out, *args, **kwargs):
             interrupts.check()  # a signal pymoo's bare excepts swallowed stops the run here
-            t0 = time.perf_counter()
             res = self.form.analyse(X)  # the whole population, one batch
-            self.batch_times_s.append(time.perf_counter() - t0)
             self.batches += 1
             self.evaluations += len(X)
             ok = np.asarray(res.ok, bool)
@@ -107,8 +103,7 @@ def _pymoo_problem_class():
                 out["G"] = G
             cv = G.max(axis=1) if G.shape[1] else np.zeros(len(X))
             self.archive.append((np.array(X, float), F.copy(), cv))
-            self.last_values = {k: np.asarray(v) for k, v in res.values.items()}
-            self.batch_values.append(self.last_values)
+            self.batch_values.append({k: np.asarray(v) for k, v in res.values.items()})
             b = len(self.batch_values) - 1
             for i, row in enumerate(np.asarray(X, float)):
                 self._where[row.tobytes()] = (b, i)

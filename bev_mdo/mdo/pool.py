@@ -16,13 +16,10 @@ An instance whose share times out, or that leaves the ROS graph while it holds a
 itself again (a restarted node publishes a fresh DisciplineInfo).
 
 Modes (``ros.pool``): ``share`` (default) splits batches; ``redundant`` sends every batch to
-every instance and keeps the first valid answer (the behaviour before pools).
+every instance and keeps the first valid answer.
 
-``ros.pool_min_rows`` (default 1): no share is cut smaller than this many rows; a batch of fewer
-than twice as many goes whole to the fastest instance. A model with a large cost per call (the
-quasi-static energy model: ~0.23 s per call and ~1.8 ms per design on this host) gains nothing
-from shares whose rows cost less than the call itself: rows >= per-call cost / per-row cost
-(docs/scaling.md).
+``ros.pool_min_rows`` (default 1): no share is cut smaller than this many rows, for a model whose
+cost per call outweighs its cost per row (docs/scaling.md).
 """
 from __future__ import annotations
 
@@ -96,18 +93,13 @@ class Pool:
             keep = max(1, min(len(instances), n // min_rows))
             best = sorted(sorted(range(len(instances)), key=lambda j: -weights[j])[:keep])
             instances, weights = [instances[j] for j in best], [weights[j] for j in best]
-            out = split_rows(n, instances, weights)
-            sizes = [b - a for _, a, b in out]
+            sizes = [b - a for _, a, b in split_rows(n, instances, weights)]
             for j in range(len(sizes)):  # n >= keep * min_rows: the largest can always give
                 while 0 < sizes[j] < min_rows and n >= min_rows:
                     big = max(range(len(sizes)), key=lambda i: sizes[i])
                     sizes[big] -= 1
                     sizes[j] += 1
-            out, start = [], 0
-            for inst, size in zip(instances, sizes):
-                out.append((inst, start, start + size))
-                start += size
-            return out
+            return _ranges(instances, sizes)
         return split_rows(n, instances, weights)
 
 
@@ -130,6 +122,11 @@ def split_rows(n: int, instances: list[str], weights: list[float]) -> list[tuple
             if sizes[j] == 0:
                 sizes[max(range(k), key=lambda i: sizes[i])] -= 1
                 sizes[j] = 1
+    return _ranges(instances, sizes)
+
+
+def _ranges(instances: list[str], sizes: list[int]) -> list[tuple[str, int, int]]:
+    """[(instance, start row, stop row)] of consecutive ranges of ``sizes`` rows; empty ones left out."""
     out, start = [], 0
     for inst, size in zip(instances, sizes):
         if size > 0:

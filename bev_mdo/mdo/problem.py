@@ -47,15 +47,13 @@ class Constraint:
     scale: float | None = None
     monitor: bool = False  # reported with its margin, but not given to the optimiser
 
-    def rows(self) -> list[tuple[str, float, float]]:
-        """(kind, bound, scale) per bound (kind 'lower' or 'upper'); none for a monitored constraint."""
-        out = []
-        if self.monitor:
-            return out
-        for kind, b in (("lower", self.lower), ("upper", self.upper)):
-            if b is not None:
-                out.append((kind, b, self.scale or max(abs(b), 1.0)))
-        return out
+    def rows(self, monitored: bool = False) -> list[tuple[str, float, float]]:
+        """(kind, bound, scale) per bound (kind 'lower' or 'upper'); none for a monitored constraint
+        unless ``monitored``."""
+        if self.monitor and not monitored:
+            return []
+        return [(kind, b, self.scale or max(abs(b), 1.0))
+                for kind, b in (("lower", self.lower), ("upper", self.upper)) if b is not None]
 
 
 @dataclass
@@ -209,7 +207,7 @@ def _elements(name: str, spec: Any, build, shapes: dict[str, int], section: str)
             lists = [k for k, v in spec.items() if isinstance(v, (list, tuple))]
             if lists:
                 raise ValueError(f"{section}.{name}.{lists[0]}: a list needs shape: <number of elements>")
-        return [build(str(name), spec)]
+        return [build(str(name), spec, f"{section}.{name}")]
     where = f"{section}.{name}"
     size = spec["shape"]
     if isinstance(size, (list, tuple)) and len(size) == 1:
@@ -231,8 +229,7 @@ def _elements(name: str, spec: Any, build, shapes: dict[str, int], section: str)
     return out
 
 
-def _design_variable(name: str, spec: Any, where: str | None = None) -> DesignVariable:
-    where = where or f"problem.design_variables.{name}"
+def _design_variable(name: str, spec: Any, where: str) -> DesignVariable:
     if not isinstance(spec, Mapping):
         raise ValueError(f"{where}: must be a mapping {{lower, upper, initial[, scale]}}")
     check_keys(where, spec, _DV_KEYS)
@@ -251,8 +248,7 @@ def _design_variable(name: str, spec: Any, where: str | None = None) -> DesignVa
     return DesignVariable(str(name), lo, hi, x0, scale)
 
 
-def _constraint(name: str, spec: Any, where: str | None = None) -> Constraint:
-    where = where or f"problem.constraints.{name}"
+def _constraint(name: str, spec: Any, where: str) -> Constraint:
     if not isinstance(spec, Mapping) or not spec:
         raise ValueError(f"{where}: must be a mapping with lower and/or upper")
     check_keys(where, spec, _CON_KEYS)

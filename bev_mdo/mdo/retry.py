@@ -2,22 +2,11 @@
 evaluation, independent of any transport (no ROS import; tested in milliseconds).
 
 The orchestrator (orchestrator.py) sends, receives and waits through its transport; what it does
-when an answer is late comes from here, as data it then carries out:
-- ``Sent``: one outstanding answer, the entry the ledger (ledger.py) keeps per (evaluation id,
-  discipline): the request, its rows, when it was sent, the instance it is addressed to;
-- ``Policy``: ``ros.timeout_s`` and ``ros.retries``: which entries are overdue (``late``), when
-  the next one will be (``due_s``), whether the tries are spent, and the failure text;
-- ``resend_round``: a wave (hub and spoke, or a data-flow MDA without pools) that timed out is
-  re-sent whole, each request once (a data-flow request is ONE message for its disciplines);
-- ``hung``: after the last try, which disciplines let every attempt time out (a data-flow
-  discipline only if all its sources answered: else it had nothing to do);
-- ``share_steps``: a pool's shares (pool.py) in a wave: a late share, or one whose
-  instance left, is re-sent (a whole batch: the same request again) or re-split among the other
-  instances (``reshare``), or, after the last try, given up;
-- ``flow_share_steps``: the row shares of a pooled data-flow MDA: a share with a late or lost
-  entry is re-sent whole, and the instances to blame are those that left or that had all their
-  sources' answers and still did not answer; ``pick``: the instance a re-sent share goes to;
-- ``Shares``: the answers of row shares, joined in row order into one result (``join_rows``).
+when an answer is late comes from here, as data it then carries out: ``Sent`` is the entry the
+ledger (ledger.py) keeps per (evaluation id, discipline), ``Policy`` holds ``ros.timeout_s`` and
+``ros.retries``, and ``resend_round`` (a whole wave), ``share_steps`` (a pool's shares) and
+``flow_share_steps`` (the row shares of a pooled data-flow MDA) decide what a late or lost entry
+becomes; ``Shares`` joins the answers of row shares in row order.
 """
 from __future__ import annotations
 
@@ -207,12 +196,9 @@ class Shares:
         self.meta.pop(eid, None)
         return list(self.got.pop(eid, {}))
 
-    def parts(self, index: int) -> list[tuple[int, EvalResult]]:
-        return [got[index] for got in self.got.values() if index in got]
-
     def join(self, index: int, keys: Sequence[str] | None = None) -> EvalResult:
         """Every answered share of call `index`, joined in row order."""
-        return join_rows(self.parts(index), keys)
+        return join_rows([got[index] for got in self.got.values() if index in got], keys)
 
     def indices(self) -> set[int]:
         return {i for got in self.got.values() for i in got}

@@ -122,11 +122,10 @@ def _prepare(point, wrt, bounds, rel_step):
         room_up, room_dn = hi[j] - x0[j], x0[j] - lo[j]
         if min(room_up, room_dn) >= 2 * h[a]:
             continue
+        direction[a] = 1.0 if room_up >= room_dn else -1.0
         if max(room_up, room_dn) >= 6 * h[a]:
-            direction[a] = 1.0 if room_up >= room_dn else -1.0
             continue
         h[a] = max(room_up, room_dn) / 6.0
-        direction[a] = 1.0 if room_up >= room_dn else -1.0
         if h[a] <= 0:
             raise ValueError(f"bounds of {wrt[a]!r} leave no room for a finite-difference step")
     return all_names, x0, wrt, idx, h, direction
@@ -171,8 +170,8 @@ def sensitivities(fun: BatchFun, point: Mapping[str, float], wrt: Sequence[str] 
         n_eval += ne
         n_batch += 1
     else:
-        f0, g, g_err, H, H_err = f0c, grad_c, {k: np.zeros(len(idx)) for k in grad_c}, None, None
-    if grad_c is not None:
+        f0, H, H_err = f0c, None, None
+    if grad_c is not None:  # the complex-step gradient is exact to rounding
         g, g_err = grad_c, {k: np.zeros(len(idx)) for k in grad_c}
     if objective is not None:
         _known(objective, list(f0), "output")
@@ -218,45 +217,34 @@ def _complex_step(fun, x0, idx, strict):
     return grad, f0, n + 1
 
 
-class _Stencil:
-    """Collects distinct stencil points (as integer offset tuples) for one batch."""
-
-    def __init__(self, n):
-        self.n, self.rows, self.index = n, [], {}
-
-    def add(self, offs: dict) -> int:
-        key = tuple(sorted((a, float(o)) for a, o in offs.items() if o != 0))
-        if key not in self.index:
-            self.index[key] = len(self.rows)
-            self.rows.append(key)
-        return self.index[key]
-
-
 def _real_stencil(fun, x0, idx, h, direction, order):
     """One batch with steps h and 2h: gradient (and Hessian) + Richardson errors."""
     n = len(idx)
     offs = [(_CENTRAL if d == 0 else d * _ONE_SIDED) for d in direction]
     w1 = [_weights(o, 1) for o in offs]
     w2 = [_weights(o, 2) for o in offs]
-    st = _Stencil(n)
-    st.add({})
+    points: dict[tuple, int] = {}  # distinct stencil points (offset tuples) -> their row in the batch
+
+    def add(shift: dict) -> int:
+        return points.setdefault(tuple(sorted((a, float(o)) for a, o in shift.items() if o != 0)), len(points))
+
+    add({})
     terms = []  # (kind, a, b, scale, [(row, weight)])
     for s in (1.0, 2.0):
         for a in range(n):
-            terms.append(("g", a, a, s, [(st.add({a: s * o}), w) for o, w in zip(offs[a], w1[a]) if w != 0]))
+            terms.append(("g", a, a, s, [(add({a: s * o}), w) for o, w in zip(offs[a], w1[a]) if w != 0]))
             if order == 2:
-                terms.append(("H", a, a, s, [(st.add({a: s * o}), w) for o, w in zip(offs[a], w2[a]) if w != 0]))
+                terms.append(("H", a, a, s, [(add({a: s * o}), w) for o, w in zip(offs[a], w2[a]) if w != 0]))
                 for b in range(a + 1, n):
-                    rows = [(st.add({a: s * oa, b: s * ob}), wa * wb)
+                    rows = [(add({a: s * oa, b: s * ob}), wa * wb)
                             for oa, wa in zip(offs[a], w1[a]) if wa != 0
                             for ob, wb in zip(offs[b], w1[b]) if wb != 0]
                     terms.append(("H", a, b, s, rows))
-    X = np.tile(x0, (len(st.rows), 1))
-    for r, key in enumerate(st.rows):
+    X = np.tile(x0, (len(points), 1))
+    for r, key in enumerate(points):
         for a, o in key:
             X[r, idx[a]] += o * h[a]
-    out = _call(fun, X)
-    out = {k: np.asarray(v, dtype=float) for k, v in out.items()}
+    out = {k: np.asarray(v, dtype=float) for k, v in _call(fun, X).items()}
     f0 = {k: float(v[0]) for k, v in out.items()}
     g, g_err, H, H_err = {}, {}, {}, {}
     for k, v in out.items():

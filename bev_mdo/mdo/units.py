@@ -18,6 +18,8 @@ from collections.abc import Iterable, Mapping
 from functools import lru_cache
 from typing import Any
 
+from bev_mdo.mdo.vectors import base_name
+
 DIMENSIONLESS = ("", "1", "-")
 
 # display names of built-in variables (the unit always comes from the declaration)
@@ -74,17 +76,12 @@ def check_unit(unit: Any, where: str) -> str:
     return unit.strip()
 
 
-def _base(name: str) -> str:
-    i = name.find("[")
-    return name[:i] if i > 0 else name
-
-
 def declared(disc: Any) -> dict[str, str]:
     """{variable: unit} of a discipline's inputs and outputs (vector elements take their base's)."""
     units = getattr(disc, "units", None) or {}
     out = {}
     for v in (*disc.inputs, *disc.outputs):
-        u = units.get(v, units.get(_base(v)))
+        u = units.get(v, units.get(base_name(v)))
         if u is not None:
             out[v] = u
     return out
@@ -98,10 +95,10 @@ def check_declared(disc: Any, where: str) -> dict[str, str]:
     got = declared(disc)
     missing = [v for v in (*disc.inputs, *disc.outputs) if v not in got]
     if missing:
-        names = list(dict.fromkeys(_base(v) for v in missing))
+        names = list(dict.fromkeys(base_name(v) for v in missing))
         raise UnitError(f"{where}: no unit declared for {names}; give the discipline units = "
                         f"{{'{names[0]}': ..., ...}} (a unit such as 'kW', or '1' for a dimensionless variable)")
-    return {v: check_unit(u, f"{where}.units.{_base(v)}") for v, u in got.items()}
+    return {v: check_unit(u, f"{where}.units.{base_name(v)}") for v, u in got.items()}
 
 
 def run_units(disciplines: Iterable[Any]) -> dict[str, str]:

@@ -32,13 +32,9 @@ class ShapeError(ValueError):
     """A discipline returned an output or a partial of the wrong shape (a wiring mistake, not a bad point)."""
 
 
-def element(name: str, i: int) -> str:
-    return f"{name}[{i}]"
-
-
 def flat_names(name: str, size: int | None) -> list[str]:
     """The scalar columns of a variable: [name] for a scalar, name[0]..name[size-1] for a vector."""
-    return [name] if size is None else [element(name, i) for i in range(int(size))]
+    return [name] if size is None else [f"{name}[{i}]" for i in range(int(size))]
 
 
 def base_name(flat: str) -> str:
@@ -212,7 +208,8 @@ class VectorDiscipline:
             raise AttributeError(attr)
         return getattr(self.inner, attr)
 
-    def _pack(self, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    def _pack(self, inputs: Mapping[str, np.ndarray]) -> tuple[dict[str, np.ndarray], int]:
+        """(the inner discipline's batch, with its vectors as (N, size) arrays; N)."""
         out = {}
         for k in self.base_inputs:
             size = self.sizes.get(k)
@@ -220,11 +217,10 @@ class VectorDiscipline:
         for p in self.parameters:
             if p in inputs:
                 out[p] = inputs[p]
-        return out
+        return out, len(next(iter(inputs.values()))) if inputs else 0
 
     def compute(self, inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-        batch = self._pack(inputs)
-        n = len(next(iter(inputs.values()))) if inputs else 0
+        batch, n = self._pack(inputs)
         raw = check_outputs(self.name, self.inner.compute(batch), self.base_outputs, self.sizes, n,
                             tuple(getattr(self.inner, "broadcast_outputs", ()) or ()))
         out = {}
@@ -239,8 +235,7 @@ class VectorDiscipline:
 
     def compute_partials(self, inputs: Mapping[str, np.ndarray]) -> dict[tuple[str, str], np.ndarray]:
         """Flat partials {(output element, input element): (N,)} (already checked)."""
-        batch = self._pack(inputs)
-        n = len(next(iter(inputs.values()))) if inputs else 0
+        batch, n = self._pack(inputs)
         return flat_partials(self.name, self.inner.compute_partials(batch), self.sizes, self.base_outputs,
                              self.base_inputs, n)
 

@@ -85,7 +85,8 @@ class Calls:
         self.evaluator = evaluator
         self.specs = specs
 
-    def inputs(self, name: str, values: dict, rows: np.ndarray) -> dict[str, np.ndarray]:
+    def inputs(self, name: str, values: dict, rows: np.ndarray | slice) -> dict[str, np.ndarray]:
+        """The columns of ``values`` discipline ``name`` reads (inputs, and parameters given), at ``rows``."""
         spec = self.specs[name]
         out = {v: values[v][rows] for v in spec.inputs}
         out.update({p: values[p][rows] for p in spec.parameters if p in values})
@@ -109,30 +110,23 @@ class Calls:
                 keep_partials(partials, name, res.extra["partials"], rows, len(b.ok))
 
     def store(self, name: str, res: EvalResult, b: Batch, rows: np.ndarray, relaxation: float = 1.0,
-              points: np.ndarray | None = None) -> None:
-        """Write one discipline's result for ``rows`` into ``b``; mark its failed points (named by
-        ``points``, the batch's indices of ``rows``, when ``b`` is local to a solver step)."""
-        good = np.asarray(res.ok, dtype=bool)
+              points: np.ndarray | None = None, local: np.ndarray | None = None) -> None:
+        """Write one discipline's result (its entries ``local``, default all) for ``rows`` into
+        ``b``; mark its failed points (named by ``points``, the batch's indices of ``rows``, when
+        ``b`` is local to a solver step)."""
+        sel = slice(None) if local is None else local
+        good = np.asarray(res.ok, dtype=bool)[sel]
         for v in self.specs[name].outputs:
-            new = np.asarray(res.outputs[v], dtype=float)
+            new = np.asarray(res.outputs[v], dtype=float)[sel]
             if relaxation != 1.0:
                 old = b.values[v][rows]
                 new = np.where(np.isfinite(old), old + relaxation * (new - old), new)
             b.values[v][rows] = new
         if not good.all():
             points = rows if points is None else points
-            for local in np.flatnonzero(~good):
-                b.fail(rows[local], "discipline", res.message(int(local), int(points[local]), name), name)
-
-    def store_rows(self, name: str, res: EvalResult, local: np.ndarray, b: Batch, rows: np.ndarray) -> None:
-        """Like ``store`` for the entries ``local`` of a result."""
-        sub = EvalResult({o: np.asarray(res.outputs[o], dtype=float)[local] for o in self.specs[name].outputs},
-                         np.asarray(res.ok, dtype=bool)[local], "")
-        before = b.ok[rows].copy()
-        self.store(name, sub, b, rows)
-        for q in np.flatnonzero(before & ~b.ok[rows]):
-            b.errors[rows[q]] = MDAError(name, int(rows[q]), "discipline",
-                                         res.message(int(local[q]), int(rows[q]), name))
+            for j in np.flatnonzero(~good):
+                entry = j if local is None else local[j]
+                b.fail(rows[j], "discipline", res.message(int(entry), int(points[j]), name), name)
 
 
 def keep_partials(partials: dict, name: str, got: Mapping, rows: np.ndarray, n_all: int,
@@ -158,7 +152,7 @@ class LoopSolver:
     first converged point; a given coupling column still overrides). ``warm`` holds them per loop."""
 
     name: ClassVar[str] = ""
-    warm_start_values: ClassVar[tuple] = (True, False, "auto")
+    auto_warm_start: ClassVar[bool] = False  # what ``warm_start: auto`` means for this method
 
     def __init__(self, calls: Calls, graph: CouplingGraph, *, tolerance: float = 1e-10,
                  max_iterations: int = 100, relaxation: float = 1.0, guesses: Mapping[str, float] | None = None,
@@ -169,13 +163,10 @@ class LoopSolver:
             raise ValueError(f"mda max_iterations {max_iterations} must be >= 1")
         if not 0 < relaxation <= 2:
             raise ValueError(f"mda relaxation {relaxation} must be in (0, 2]")
-        if isinstance(warm_start, bool) or warm_start == "auto":
-            pass
-        elif warm_start == "tangent":
-            if "tangent" not in self.warm_start_values:
-                raise ValueError(f"mda warm_start tangent needs method newton (the tangent comes from its "
-                                 f"Jacobian), not {self.name}")
-        else:
+        if warm_start == "tangent" and self.name != "newton":
+            raise ValueError(f"mda warm_start tangent needs method newton (the tangent comes from its "
+                             f"Jacobian), not {self.name}")
+        if not (isinstance(warm_start, bool) or warm_start in ("auto", "tangent")):
             raise ValueError(f"mda warm_start {warm_start!r} must be true, false, auto or tangent")
         if not isinstance(fuse_downstream, bool):
             raise ValueError(f"mda fuse_downstream {fuse_downstream!r} must be true or false")
@@ -186,8 +177,6 @@ class LoopSolver:
         self.warm_start = self.auto_warm_start if warm_start == "auto" else bool(warm_start)
         self.fuse_downstream = False
         self.warm: dict[tuple, dict[str, float]] = {}  # loop -> converged couplings of the last MDA
-
-    auto_warm_start: ClassVar[bool] = False  # what ``warm_start: auto`` means for this method
 
     def guess(self, v: str) -> float:
         """The starting value of a torn coupling (a vector element falls back to its base name)."""
@@ -205,6 +194,20 @@ class LoopSolver:
         first = min(converged)
         self.warm[tuple(comp)] = {v: float(b.values[v][first]) for v in couplings}
         return first
+
+    def check(self, b: Batch, active: np.ndarray, new: np.ndarray, old: np.ndarray, it: int,
+              converged: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """After iteration ``it``: (relative change max |new - old| / max(|new|, 1) per point, inf if
+        not finite; the points still good; those converged, also appended to ``converged``)."""
+        with np.errstate(invalid="ignore"):
+            rel = np.abs(new - old) / np.maximum(np.abs(new), 1.0)
+            err = np.max(rel, axis=0) if len(new) else np.zeros(active.size)
+        err = np.where(np.isfinite(err), err, np.inf)
+        b.iterations[active] = it
+        alive = b.ok[active]
+        done = alive & (err <= self.tolerance)
+        converged.extend(active[done].tolist())
+        return err, alive, done
 
     def not_converged(self, comp: Sequence[str], b: Batch, active: np.ndarray, err: np.ndarray) -> None:
         for i, e in zip(active, err):

@@ -50,12 +50,6 @@ class FixedPoint(LoopSolver):
             old = np.array([b.values[v][active] for v in outs])
             self.sweep(comp, b, active)
             new = np.array([b.values[v][active] for v in outs])
-            with np.errstate(invalid="ignore"):
-                err = np.max(np.abs(new - old) / np.maximum(np.abs(new), 1.0), axis=0)
-            err = np.where(np.isfinite(err), err, np.inf)
-            b.iterations[active] = it
-            alive = b.ok[active]
-            done = alive & (err <= self.tolerance)
-            converged.extend(active[done].tolist())
+            err, alive, done = self.check(b, active, new, old, it, converged)
             active, err = active[alive & ~done], err[alive & ~done]
         self.not_converged(comp, b, active, err)

@@ -42,7 +42,6 @@ FD_STEP = 1e-7  # relative forward-difference step of a Jacobian column without 
 
 class Newton(LoopSolver):
     name = "newton"
-    warm_start_values = (True, False, "auto", "tangent")
     auto_warm_start = True  # its converged couplings are exact far below the tolerance
 
     def __init__(self, calls, graph, *, warm_start="auto", fuse_downstream=False, **settings):
@@ -183,13 +182,11 @@ class Newton(LoopSolver):
         return F, J, J_ok
 
     def _steps(self, comp, b: Batch, tail, outs, unknowns, active, converged, tangent) -> None:
-        u = len(unknowns)
         col = {v: k for k, v in enumerate(unknowns)}
         err = np.full(active.size, np.inf)
         for it in range(1, self.max_iterations + 1):
             if active.size == 0:
                 return
-            n = active.size
             results, plans, tail_results = self._evaluate(comp, tail, b, active, unknowns)
             F, J, J_ok = self._assemble(comp, b, active, results, plans, outs, col)
             for v in outs:
@@ -197,20 +194,14 @@ class Newton(LoopSolver):
                     b.values[v][active] = F[v]
             y = np.array([b.values[v][active] for v in unknowns])  # (u, n)
             fy = np.array([F[v] for v in unknowns])
-            with np.errstate(invalid="ignore"):
-                err = np.max(np.abs(fy - y) / np.maximum(np.abs(fy), 1.0), axis=0) if u else np.zeros(n)
-            err = np.where(np.isfinite(err), err, np.inf)
-            b.iterations[active] = it
-            alive = b.ok[active]
-            done = alive & (err <= self.tolerance)
-            converged.extend(active[done].tolist())
+            err, alive, done = self.check(b, active, fy, y, it, converged)
             if self.tangent and done.any() and all(p is None for p in plans):
                 keep_tangent(self.specs, comp, b.values, results, J, active, done, converged, col, unknowns,
                              tangent)
             if tail and done.any():  # the tail saw this step's y, which is the loop's result there
                 local = np.flatnonzero(done)
                 for d, res in zip(tail, tail_results):
-                    self.calls.store_rows(d, res, local, b, active[local])
+                    self.calls.store(d, res, b, active[local], local=local)
                     if b.partials is not None and "partials" in res.extra:
                         keep_partials(b.partials, d, res.extra["partials"], active[local], len(b.ok), local)
             step = alive & ~done
