@@ -71,15 +71,16 @@ def _locate(x, xp, table, inv_h):
 
 
 @_jit(inline="always")
-def _locate_map(x, xp, table, inv_h):
-    """``_locate`` without branches, for the motor map's lookups: their x jumps from call to call
+def _locate_map(x, xp, table, inv_h, lo, hi):
+    """``_locate`` for the motor map's lookups, without branches: their x jumps from call to call
     (the split's shares), so a branch on x's place in its table cell would be mispredicted. The
-    battery's SOC moves slowly and keeps ``_locate``, where the branches are predicted and cheaper."""
+    step down or up reads the cell's interval bounds ``lo``/``hi`` (``grid_table``), loaded beside
+    its interval, not after it. The battery's SOC moves slowly and keeps ``_locate``, whose branches
+    are predicted and cheaper there."""
     n = xp.shape[0]
     xc = min(max(x, xp[0]), xp[n - 1])  # np.interp clamps: fp[0] below the grid, fp[n-1] above
-    j = table[min(int((xc - xp[0]) * inv_h), table.shape[0] - 1)]
-    j -= int(j > 0) & int(xp[j] > xc)
-    j += int(j < n - 1) & int(xp[min(j + 1, n - 1)] <= xc)  # largest j with xp[j] <= x
+    m = min(int((xc - xp[0]) * inv_h), table.shape[0] - 1)
+    j = table[m] - int(xc < lo[m]) + int(xc >= hi[m])  # largest j with xp[j] <= x
     return j, (j == n - 1) | (xp[j] == xc)
 
 
@@ -99,25 +100,27 @@ def _value(j, exact, x, xp, fp, slopes):
 
 
 @_jit(inline="always")
-def _interp(x, xp, fp, table, inv_h, slopes):
-    """np.interp for one value (clamped at both ends)."""
-    j, exact = _locate_map(x, xp, table, inv_h)
+def _interp(x, xp, fp, table, inv_h, slopes, lo, hi):
+    """np.interp for one value (clamped at both ends); the grid's tables from ``grid_table``."""
+    j, exact = _locate_map(x, xp, table, inv_h, lo, hi)
     return _value(j, exact, x, xp, fp, slopes)
 
 
 def grid_table(xp, fp) -> tuple:
-    """(table, inv_h, slopes) for ``_interp`` of ``fp`` on the increasing grid ``xp``: table[m] is
-    the interval that holds xp[0] + m h, with h half the smallest spacing."""
+    """(table, inv_h, slopes, lo, hi) for ``_interp`` of ``fp`` on the increasing grid ``xp``:
+    table[m] is the interval that holds xp[0] + m h, with h half the smallest spacing, and lo[m],
+    hi[m] that interval's ends (hi inf for the last grid point)."""
     xp, fp = np.asarray(xp, float), np.asarray(fp, float)
     h = 0.5 * float(np.min(np.diff(xp)))
     m = int(np.ceil((xp[-1] - xp[0]) / h)) + 2
-    table = np.searchsorted(xp, xp[0] + h * np.arange(m), side="right") - 1
-    return np.clip(table, 0, len(xp) - 1).astype(np.int64), 1.0 / h, np.diff(fp) / np.diff(xp)
+    table = np.clip(np.searchsorted(xp, xp[0] + h * np.arange(m), side="right") - 1, 0, len(xp) - 1).astype(np.int64)
+    return table, 1.0 / h, np.diff(fp) / np.diff(xp), xp[table], np.append(xp, np.inf)[table + 1]
 
 
 def map_tuple(wg, tg, eff, ref_kw: float, regen_rows: bool) -> tuple:
     """The motor map as the compiled loops take it: (speed grid, torque grid, efficiency, speed
-    indices, torque indices, speed table, 1/h, slopes, torque table, 1/h, slopes, unit kW, regen rows)."""
+    indices, torque indices, the speed grid's ``grid_table`` (5), the torque grid's (5), unit kW,
+    regen rows)."""
     wg, tg = np.array(wg, dtype=float), np.array(tg, dtype=float)
     iw, it = np.arange(len(wg), dtype=float), np.arange(len(tg), dtype=float)
     return (wg, tg, np.array(eff, dtype=float), iw, it, *grid_table(wg, iw), *grid_table(tg, it), float(ref_kw),
@@ -127,7 +130,7 @@ def map_tuple(wg, tg, eff, ref_kw: float, regen_rows: bool) -> tuple:
 @_jit(inline="always")
 def _speed_index(w, mp):
     """Fractional speed-grid position of |w| (the speed half of the bilinear lookup)."""
-    return _interp(abs(w), mp[0], mp[3], mp[5], mp[6], mp[7])
+    return _interp(abs(w), mp[0], mp[3], mp[5], mp[6], mp[7], mp[8], mp[9])
 
 
 def loss_tuple(coefficients=None) -> np.ndarray:
@@ -155,9 +158,9 @@ def _electrical_w(torque, w, fi, scale, mp, loss):
         return torque * w  # pm / eta and pm * eta of pm = +-0
     wg, tg, eff, it = mp[0], mp[1], mp[2], mp[4]
     tu = torque * scale
-    if not mp[12]:
+    if not mp[16]:
         tu = abs(tu)
-    fj = _interp(tu, tg, it, mp[8], mp[9], mp[10])
+    fj = _interp(tu, tg, it, mp[10], mp[11], mp[12], mp[13], mp[14])
     i0 = min(int(fi), wg.shape[0] - 2)
     j0 = min(int(fj), tg.shape[0] - 2)
     a = fi - i0
@@ -465,5 +468,5 @@ def table(names: tuple, n: int, values: dict) -> np.ndarray:
 def cell_tables(soc, ocv_v, r_discharge_ohm, r_charge_ohm) -> tuple:
     """A cell's tables as the battery loops take them (``_step``'s ``cell``)."""
     tabs = tuple(np.array(x, dtype=float) for x in (soc, ocv_v, r_discharge_ohm, r_charge_ohm))
-    find, inv_h, _ = grid_table(tabs[0], tabs[1])
+    find, inv_h = grid_table(tabs[0], tabs[1])[:2]
     return (*tabs, find, inv_h, *(grid_table(tabs[0], y)[2] for y in tabs[1:]))

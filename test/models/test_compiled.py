@@ -81,14 +81,16 @@ def test_coast_down_road_load_and_unreached_range(topology, cycles):
         tp.range_by_repeated_cycle_km(nedc, params, topology, *args, max_repeats=1, reference=True)))
 
 
-def test_interp_is_numpys():
+@pytest.mark.parametrize("grid", ["random", "on cell edges"])
+def test_interp_is_numpys(grid):
     rng = np.random.default_rng(3)
-    xp = np.cumsum(rng.uniform(0.01, 2.0, 30))
-    fp = rng.normal(size=30)
-    table, inv_h, slopes = compiled.grid_table(xp, fp)
+    # a random grid, and one like the motor map's torque grid, whose points fall on the table's cell edges
+    xp = np.cumsum(rng.uniform(0.01, 2.0, 30)) if grid == "random" else np.array([0.0, 5, 10, 20, 30, 45, 60, 80])
+    fp = rng.normal(size=xp.size)
     x = np.concatenate([rng.uniform(xp[0] - 1, xp[-1] + 1, 2000), xp, np.nextafter(xp, np.inf),
                         np.nextafter(xp, -np.inf)])
-    got = np.array([compiled._interp(v, xp, fp, table, inv_h, slopes) for v in x])
+    tables = compiled.grid_table(xp, fp)
+    got = np.array([compiled._interp(v, xp, fp, *tables) for v in x])
     np.testing.assert_array_equal(got, np.interp(x, xp, fp))
 
 
