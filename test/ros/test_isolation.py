@@ -219,15 +219,15 @@ def _unready(run_dir) -> str:
     return "\n".join(out)
 
 
-def test_concurrent_cli_runs_are_bound_to_their_run_and_signed(configs, references, suites, ros_domain,
-                                                                tmp_path):
-    """Three `bev-mdo optimize` at once on the crowded domain: each launches its own nodes (bound to its
-    run id, signing with a fresh per-run key) and prints its own optimum. The standalone suites of the
-    same configurations answer too, unsigned: those answers are dropped and counted."""
+def _cli_trio(configs, references, ros_domain, cwd) -> dict:
+    """Three `bev-mdo optimize` at once, one per configuration, each checked: its own optimum, signed with
+    its own per-run key (beside its bag, readable by no one else), no node crashed, and only the
+    standalone suites' unbound nodes refused. Returns each run's JSON."""
+    cwd.mkdir()
     env = ros_env(ros_domain)
     procs = {name: subprocess.Popen(
         [PYTHON, "-m", "bev_mdo", "optimize", configs[name], "--domain-id", str(ros_domain), "--no-record",
-         "--json", "--quiet"], cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+         "--json", "--quiet"], cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         for name in VARIANTS}
     outs = {}
     for name, p in procs.items():
@@ -240,10 +240,9 @@ def test_concurrent_cli_runs_are_bound_to_their_run_and_signed(configs, referenc
             except subprocess.TimeoutExpired:
                 p.kill()
                 out, err = p.communicate()
-        assert p.returncode == 0, f"{name}: exit {p.returncode}\n{_summary(out)}\n{_unready(tmp_path)}\n" + "\n".join(
+        assert p.returncode == 0, f"{name}: exit {p.returncode}\n{_summary(out)}\n{_unready(cwd)}\n" + "\n".join(
             line for line in err.splitlines() if "refused '" not in line)[-6000:]
         outs[name] = json.loads(out)
-    unsigned = 0
     for name, out in outs.items():
         why = {k: out.get(k) for k in ("message", "iterations", "result_iteration", "discipline_errors",
                                        "dropped_messages", "retried_requests", "refused_instances",
@@ -251,7 +250,6 @@ def test_concurrent_cli_runs_are_bound_to_their_run_and_signed(configs, referenc
         assert out["design"] == pytest.approx(references[name].design, rel=1e-9, abs=1e-9), (name, why)
         assert out["objective"] == pytest.approx(references[name].objective, rel=1e-9)
         assert out["signing"] == "per-run key"
-        unsigned += out["dropped_messages"].get("unsigned", 0)
         # the other runs' own nodes (bound to their run, signing with its key) are another job's, ignored
         # and counted as info_other_run; only the standalone suites' unbound nodes are refused (they were
         # reported as 'forged declaration' before, alarming a user who runs two jobs on one domain)
@@ -260,14 +258,32 @@ def test_concurrent_cli_runs_are_bound_to_their_run_and_signed(configs, referenc
         # no node crashed; a node the watchdog found hung in the middleware (Fast DDS deadlock under
         # overload, ros/watchdog.py) is restarted and counted in both, and the run still got its answer
         assert out["node_restarts"] == out.get("node_hangs", {}), (name, why, out.get("node_hangs"))
-    # the foreign suite (another config under the same names) is refused by name where it was seen. One run
-    # of three once ended without having seen it (a clean-clone CI run); the suspect, not proven, is the 34
-    # participants on this domain, over the 32 that localhost discovery reaches (docs/scaling.md)
-    assert any(any("foreign" in k for k in out["refused_instances"]) for out in outs.values()), (
-        {n: sorted(o["refused_instances"]) for n, o in outs.items()})
-    # the standalone suite of each configuration read the signed requests and answered unsigned
-    assert unsigned > 0
-    keys = list(tmp_path.glob("bags/.keys/*/sign.key"))
+    keys = list(cwd.glob("bags/.keys/*/sign.key"))
     assert len(keys) == len(outs)  # one per-run key each, beside (not inside) its bag
     for key in keys:
         assert key.stat().st_mode & 0o077 == 0  # never readable by others
+    return outs
+
+
+def test_concurrent_cli_runs_are_bound_to_their_run_and_signed(configs, references, suites, ros_domain,
+                                                                tmp_path):
+    """Three `bev-mdo optimize` at once on the crowded domain: each launches its own nodes (bound to its
+    run id, signing with a fresh per-run key) and prints its own optimum. The standalone suites of the
+    same configurations answer too, unsigned: those answers are dropped and counted, and the foreign
+    suite is refused by name.
+
+    Whether a standalone suite hears a run at all is a race between discovery and the run's end: a run
+    takes 10-150 ms once its own nodes serve, and in 18 runs on this host 4 heard no standalone answer;
+    once in CI none of three did. So up to three trios run, each checked in full (_cli_trio), until the
+    suites were heard; the drop and the refusal must then be there."""
+    attempts = []
+    for attempt in range(3):
+        outs = _cli_trio(configs, references, ros_domain, tmp_path / f"trio{attempt}")
+        unsigned = sum(out["dropped_messages"].get("unsigned", 0) for out in outs.values())
+        foreign = [n for n, out in outs.items() if any("foreign" in k for k in out["refused_instances"])]
+        attempts.append({n: (o["dropped_messages"], sorted(o["refused_instances"])) for n, o in outs.items()})
+        if unsigned > 0 and foreign:
+            break
+    # the standalone suite of a configuration read the signed requests and answered unsigned: dropped,
+    # counted; and the foreign suite (another config under the same names) was refused where it was seen
+    assert unsigned > 0 and foreign, attempts
