@@ -76,6 +76,41 @@ def deadline(seconds: float = TEARDOWN_S):
         faulthandler.cancel_dump_traceback_later()
 
 
+_deferred: list | None = None  # teardowns left for the process's exit (defer_teardowns); None: run them at once
+
+
+def defer_teardowns() -> None:
+    """From now on, `teardown` leaves its work for this process's exit (atexit, main thread), after the
+    command has printed its result: for the `bev-mdo` process, whose exit `bound_exit` bounds. A
+    participant hung in the middleware then costs the exit status (142), not the printed result."""
+    global _deferred
+    if _deferred is None:
+        import atexit
+
+        _deferred = []
+        atexit.register(_run_deferred)
+
+
+def _run_deferred() -> None:
+    if not _deferred:
+        return
+    with deadline(TEARDOWN_S):  # a hang prints every stack, as at once; then the rest of the exit is bounded again
+        while _deferred:
+            with contextlib.suppress(Exception):
+                _deferred.pop()()
+    bound_exit(TEARDOWN_S)
+
+
+def teardown(close) -> None:
+    """Run `close`, the ROS teardown of a participant whose work is done, within `deadline`; or, after
+    `defer_teardowns`, at the process's exit."""
+    if _deferred is not None:
+        _deferred.append(close)
+        return
+    with deadline(), contextlib.suppress(Exception):
+        close()
+
+
 def bound_exit(seconds: float = TEARDOWN_S) -> None:
     """The process must be gone within `seconds` from now, its interpreter's exit included, or the kernel
     ends it with SIGALRM (exit status 142). For the end of a `bev-mdo` process that ran ROS: after Python's

@@ -18,7 +18,7 @@ import threading
 from bev_mdo import interrupts
 from bev_mdo.api.errors import InputError
 from bev_mdo.interrupts import Terminated  # SIGTERM as an exception: every finally runs, exit 143
-from bev_mdo.stacks import STARTUP_GAVE_UP_STATUS, StartupGaveUp, bound_exit, dump_stacks_on_sigusr1
+from bev_mdo.stacks import STARTUP_GAVE_UP_STATUS, StartupGaveUp, bound_exit, defer_teardowns, dump_stacks_on_sigusr1
 
 # command -> (module in bev_mdo.cli, help), in the order --help lists them. The module's register()
 # uses the same help (test/cli/test_cli_table.py checks it).
@@ -110,6 +110,8 @@ def main(argv: list[str] | None = None) -> int:
     if threading.current_thread() is not threading.main_thread():
         return _main(argv)
     previous = interrupts.install()  # SIGTERM like SIGINT: unwind, close the bag, exit 143
+    if process:  # the launcher watchdog's participant goes at exit: a hang there cannot eat the result
+        defer_teardowns()
     try:
         return _main(argv)
     finally:

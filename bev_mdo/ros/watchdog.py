@@ -54,7 +54,8 @@ class HangWatchdog:
 
     def stop(self, timeout_s: float = 2.0) -> None:
         """Stop watching (before the launcher stops its nodes, which then leave the graph on purpose),
-        then destroy the watchdog's participant in this thread, within stacks.deadline. Left to the
+        then destroy the watchdog's participant in this thread, within stacks.deadline (in the `bev-mdo`
+        process at its exit, after the result is printed: stacks.teardown). Left to the
         watching thread (a daemon), a teardown still running when the process exits meets Fast DDS's
         own destructors there: a participant being deleted waits for its discovery callbacks by
         busy-spinning (eProsima/Fast-DDS#6513: std::condition_variable on a glibc without
@@ -71,12 +72,14 @@ class HangWatchdog:
             return
         import rclpy
 
-        from bev_mdo.stacks import deadline
+        from bev_mdo.stacks import teardown
 
-        with deadline(), contextlib.suppress(Exception):
+        def close():
             if node is not None:
                 node.destroy_node()
             rclpy.shutdown(context=ctx)
+
+        teardown(close)
 
     def _run(self) -> None:
         import os
