@@ -133,10 +133,11 @@ def test_eight_runs_of_four_configs_on_one_domain_each_record_only_their_own(ros
             # the one failure allowed: a participant hung in the middleware at the process's exit (a Fast DDS
             # deadlock under this load, once in a local run of this test), after the result was printed
             # (stacks.defer_teardowns): bounded by SIGALRM, its stacks show the deferred teardown
-            hung_at_exit = p.returncode == -signal.SIGALRM and "_run_deferred" in err and out.strip()
+            hung_at_exit = p.returncode == -signal.SIGALRM and "_run_deferred" in err and bool(out.strip())
             assert p.returncode == 0 or hung_at_exit, f"{run}: exit {p.returncode}\n{err[-4000:]}"
             outs[run] = json.loads(out)
-            hung += [run] if hung_at_exit else []
+            if hung_at_exit:
+                hung.append(run)
     finally:
         for _, p in procs.values():
             if p.poll() is None:
