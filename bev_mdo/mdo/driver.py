@@ -215,7 +215,8 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         x = np.asarray(x, dtype=float)
         f, g, h = form.evaluate_batch(x[None, :])
         ok, _ = form.status(x)
-        viol = max(float(np.max(g[0], initial=0.0)), float(np.max(np.abs(h[0]), initial=0.0)))
+        viol = max(float(np.max(g[0], initial=0.0)), float(np.max(np.abs(h[0]), initial=0.0)),
+                   form.bound_violation(x))  # a point outside the bounds is not feasible
         rec = {
             "iteration": len(history), "formulation": form.name, "optimizer": opt_name,
             "design": problem.design_dict(x[:n_dv]), "objective_name": problem.objective,

@@ -35,6 +35,15 @@ NO_PROGRESS = "no progress from the start point"
 INFEASIBLE = "infeasible"
 
 
+def bound_violation(u: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> float:
+    """How far ``u`` lies outside [lower, upper], in the units of ``active_tol`` (scaled, over
+    max(1, |bound|)); 0 inside. An optimiser may step there (trust-constr, COBYLA), but such a point
+    is not feasible."""
+    u, lower, upper = (np.asarray(a, dtype=float) for a in (u, lower, upper))
+    out = np.concatenate([(lower - u) / np.maximum(1.0, np.abs(lower)), (u - upper) / np.maximum(1.0, np.abs(upper))])
+    return float(np.max(out[np.isfinite(out)], initial=0.0))
+
+
 def check(u: np.ndarray, lower: np.ndarray, upper: np.ndarray, grad_f: np.ndarray, g: np.ndarray,
           jac_g: np.ndarray, h: np.ndarray, jac_h: np.ndarray, *, names: Sequence[str],
           ineq_labels: Sequence[str], eq_labels: Sequence[str], feasibility_tol: float,
@@ -48,7 +57,8 @@ def check(u: np.ndarray, lower: np.ndarray, upper: np.ndarray, grad_f: np.ndarra
     n = len(u)
     g, h = np.asarray(g, dtype=float).reshape(-1), np.asarray(h, dtype=float).reshape(-1)
     jac_g, jac_h = np.asarray(jac_g, dtype=float).reshape(len(g), n), np.asarray(jac_h, dtype=float).reshape(len(h), n)
-    violation = max(float(np.max(g, initial=0.0)), float(np.max(np.abs(h), initial=0.0)))
+    violation = max(float(np.max(g, initial=0.0)), float(np.max(np.abs(h), initial=0.0)),
+                    bound_violation(u, lower, upper))
     to_lower, to_upper = u - lower, upper - u
     act_g = np.flatnonzero(g >= -active_tol)
     act_lo = np.flatnonzero(np.isfinite(lower) & (to_lower <= active_tol * np.maximum(1.0, np.abs(lower))))

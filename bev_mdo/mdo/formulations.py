@@ -26,6 +26,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from bev_mdo.mdo import first_order
 from bev_mdo.mdo.derivatives import constraint_jacobian, fd_partials, idf_totals, mdf_totals
 from bev_mdo.mdo.evaluator import Evaluator
 from bev_mdo.mdo.graph import CouplingGraph
@@ -135,15 +136,21 @@ class Formulation:
         u = self._u_seen.get(x.tobytes())
         return u.copy() if u is not None else self.to_u(x)
 
+    def bound_violation(self, x: np.ndarray) -> float:
+        """How far the physical point ``x`` lies outside its bounds (first_order.bound_violation, in
+        scaled units); 0 inside. A point outside the bounds is never feasible."""
+        return first_order.bound_violation(self.to_u(x), *self.u_bounds)
+
     def best_seen(self, max_violation: float) -> np.ndarray | None:
         """The scaled u of the lowest objective among the points an optimiser evaluated whose largest
-        violation (g and |h|) is within ``max_violation``; None if there is none."""
+        violation (g, |h| and the bounds) is within ``max_violation``; None if there is none."""
         best, best_f = None, np.inf
         for key, u in self._u_seen.items():
             c = self._cache.get(key)
             if c is None or not c[3]:
                 continue
-            viol = max(float(np.max(c[1], initial=0.0)), float(np.max(np.abs(c[2]), initial=0.0)))
+            viol = max(float(np.max(c[1], initial=0.0)), float(np.max(np.abs(c[2]), initial=0.0)),
+                       self.bound_violation(np.frombuffer(key)))
             if viol <= max_violation and c[0] < best_f:
                 best, best_f = u.copy(), c[0]
         return best

@@ -1,4 +1,5 @@
 """mdo.driver.pick_result: which iteration record a run reports."""
+import pytest
 from bev_mdo.mdo.driver import pick_result
 
 
@@ -38,3 +39,31 @@ def test_a_gain_within_the_relative_tolerance_keeps_the_last_iterate():
 def test_no_feasible_record_gives_the_last():
     h = _h((5.0, 0.1), (4.0, 0.2))
     assert pick_result(h, 1.0, converged=True) == 1
+
+
+def test_a_point_an_optimiser_evaluated_outside_the_bounds_is_never_the_result(monkeypatch):
+    """trust-constr may step outside the bounds; such a record is infeasible (its bound violation
+    counts), so the better objective it bought there does not displace the optimum inside."""
+    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.mdo import driver
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.testing import example_config
+    from test_multistart import REF_F, SELLAR
+
+    config = example_config(SELLAR)
+    inner = driver.run_optimizer
+
+    def stepping_out(name, form, options, record):
+        outside = form.x0.copy()
+        outside[:3] = [2.3, -1.0, 0.0]  # z2 below its bound 0: y1 >= 3.16 holds and obj is 2.69 (optimum 3.18)
+        record(outside)
+        return inner(name, form, options, record)
+
+    monkeypatch.setattr(driver, "run_optimizer", stepping_out)
+    res = driver.run_optimization(config, InProcessEvaluator(resolve_disciplines(config)))
+    out = res.history[1]
+    assert out["objective"] < REF_F - 0.4  # better than the optimum, and the constraints hold there:
+    assert out["constraints"]["y1"] >= 3.16 and out["constraints"]["y2"] <= 24
+    assert not out["feasible"] and out["max_violation"] == pytest.approx(0.1)  # 1 of z2's range of 10
+    assert res.objective == pytest.approx(REF_F, rel=1e-6) and res.verdict == "optimum"
+    assert res.design["z2"] >= 0 and res.result_iteration != 1

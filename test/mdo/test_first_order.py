@@ -95,3 +95,11 @@ def test_violation_above_the_feasibility_tolerance_is_infeasible_even_if_station
 def test_unbounded_variables_are_never_on_a_bound():
     fo = _check([0.0, 0.0], [0.0, 0.0], lower=np.full(2, -np.inf), upper=np.full(2, np.inf))
     assert fo["verdict"] == OPTIMUM and fo["active_bounds"] == []
+
+
+def test_a_point_outside_its_bounds_is_infeasible_however_stationary():
+    # f = (a + 1)^2 + (b - 0.5)^2 stepped to a = -0.2, below its lower bound 0: stationary with the bound
+    # "active", but outside it by 0.2 (scaled), more than the feasibility tolerance
+    fo = _check([-0.2, 0.5], [1.6, 0.0])
+    assert fo["verdict"] == INFEASIBLE and fo["max_violation"] == pytest.approx(0.2)
+    assert _check([-1e-6, 0.5], [2.0, 0.0])["verdict"] == OPTIMUM  # within the tolerance: on the bound
