@@ -50,7 +50,8 @@ def key_dir_for(bag: Path) -> Path:
     it is removed, so a re-run with the same ``--bag`` gets a fresh key instead of failing on the existing file."""
     d = bag.parent / ".keys" / bag.name
     stale = d / "sign.key"
-    if stale.is_file() and not bag.exists():
+    written = (bag / "metadata.yaml").exists() or any(bag.glob("*.mcap"))  # a stopped start-up leaves logs/ only
+    if stale.is_file() and not written:
         stale.unlink()
     return d
 

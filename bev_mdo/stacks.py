@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import faulthandler
 import math
+import os
 import signal
 import sys
 
@@ -94,10 +95,16 @@ def defer_teardowns() -> None:
 def _run_deferred() -> None:
     if not _deferred:
         return
-    with deadline(TEARDOWN_S):  # a hang prints every stack, as at once; then the rest of the exit is bounded again
-        while _deferred:
-            with contextlib.suppress(Exception):
-                _deferred.pop()()
+    try:
+        with deadline(TEARDOWN_S):  # a hang prints every stack, as at once; then the rest of the exit is bounded again
+            while _deferred:
+                with contextlib.suppress(Exception):
+                    _deferred.pop()()
+    except KeyboardInterrupt:  # Ctrl-C during the teardown at exit: the result is out; leave now, as interrupted
+        print("bev-mdo: interrupted", file=sys.stderr, flush=True)
+        with contextlib.suppress(Exception):
+            sys.stdout.flush()
+        os._exit(130)  # an exception here would only be printed by atexit, and the status kept
     bound_exit(TEARDOWN_S)
 
 

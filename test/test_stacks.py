@@ -67,6 +67,14 @@ def test_a_teardown_stuck_in_c_holding_the_gil_ends_the_process_with_its_stacks(
     assert "Timeout" in p.stderr and "File" in p.stderr
 
 
+def test_ctrl_c_during_the_deferred_teardown_exits_130_without_a_traceback():
+    """SIGINT while the watchdog's participant is destroyed at exit (after the result) once printed an
+    atexit traceback and kept exit status 0."""
+    p = _deferred_run("(os.kill(os.getpid(), signal.SIGINT), time.sleep(5))")
+    assert p.returncode == 130 and p.stdout.strip() == "result"
+    assert "Traceback" not in p.stderr and "interrupted" in p.stderr
+
+
 def test_an_exit_that_hangs_after_the_work_is_done_is_ended_by_the_kernel():
     """bound_exit: the end of a bev-mdo process that ran ROS is bounded even where no Python timer runs
     (a C++ destructor of the middleware blocking the interpreter's exit, here an atexit handler blocked
@@ -109,7 +117,7 @@ def test_a_teardown_that_ends_in_time_cancels_the_deadline():
 
 def _deferred_run(close: str) -> subprocess.CompletedProcess:
     """A `bev-mdo`-like process: teardowns deferred, one handed over, the result printed, exit status 5."""
-    code = "\n".join(["import ctypes, sys, time", "from bev_mdo import stacks", "stacks.TEARDOWN_S = 1.0",
+    code = "\n".join(["import ctypes, os, signal, sys, time", "from bev_mdo import stacks", "stacks.TEARDOWN_S = 1.0",
                       "stacks.defer_teardowns()", f"stacks.teardown(lambda: {close})",
                       "print('result', flush=True)", "sys.exit(5)"])
     return subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)

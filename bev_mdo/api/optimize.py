@@ -127,9 +127,9 @@ def _run_ros(config, opts, show, x0, starts):
     session = OptimizeRosSession(config, ros, bag, run_id, record=not opts.no_record, instances=instances,
                                  compose=opts.compose)
     if not opts.quiet:
-        where = ("in this process (--compose coordinator; --compose none: a process each)"
+        where = (" in this process (--compose coordinator; --compose none: a process each)"
                  if opts.compose == "coordinator" else "")
-        print(f"starting {len(names)} discipline nodes {where}{'' if opts.no_record else ' and a recorder'}"
+        print(f"starting {len(names)} discipline nodes{where}{'' if opts.no_record else ' and a recorder'}"
               f" (domain {ros['domain_id']}); waiting while discovery makes progress (gives up after "
               f"{ros['discovery_wait_s']:g} s without) ...",
               file=sys.stderr if opts.progress_to_stderr else sys.stdout, flush=True)

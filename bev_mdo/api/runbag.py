@@ -127,6 +127,10 @@ def interrupted_note(bag, kind: str = "iteration") -> str:
         from bev_mdo.bag.history import ITERATION_TOPIC as topic
         noun, holds = "iteration record", (f"every finished iteration (bev-mdo history {bag}; bev-mdo resume {bag} "
                                            "goes on from the last)")
+    if not any(Path(bag).glob("*.mcap")):  # stopped before the recorder opened its file: no bag to name
+        logs = Path(bag) / "logs"
+        return (f"no bag was written (stopped before the recorder started)"
+                + (f"; the nodes' logs are in {logs}" if logs.is_dir() else ""))
     try:
         records = sum(1 for _ in open_bag(bag).messages([topic]))
     except Exception:  # noqa: BLE001 - no file yet (stopped before the recorder wrote one), or unreadable

@@ -395,3 +395,15 @@ def test_an_interrupted_ros_pareto_run_keeps_the_recorders_bag(tmp_path, sig, ro
     fronts = _complete_records(bag, "/bev_mdo/pareto_front")
     assert len(fronts) >= 2
     assert [int(f.generation) for f in fronts] == list(range(1, len(fronts) + 1))
+
+
+def test_a_run_stopped_before_its_recorder_started_names_no_bag(tmp_path):
+    """Stopped during start-up, the run's directory holds the nodes' logs only: the note said
+    "bag DIR: no iteration record", and `history DIR` then failed on the bag it named."""
+    from bev_mdo.api.runbag import interrupted_note
+
+    bag = tmp_path / "bags" / "run1"
+    (bag / "logs").mkdir(parents=True)
+    note = interrupted_note(bag)
+    assert note.startswith("no bag was written") and str(bag / "logs") in note
+    assert interrupted_note(tmp_path / "never").startswith("no bag was written")
