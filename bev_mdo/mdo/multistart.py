@@ -68,12 +68,9 @@ def run_starts(run: Run, evaluator: Evaluator, starts: int, *, seed: int = 0, fo
     else:
         results = [(x0, run_optimization(run, evaluator, formulation=formulation, optimizer=optimizer, x0=x0,
                                          callback=renumbered)) for x0 in points]
-    sign = -1.0 if problem.maximize else 1.0
-    feasible = [i for i, (_, r) in enumerate(results) if r.feasible]
-    pool = feasible or list(range(len(results)))
-    best_i = min(pool, key=lambda i: (sign * results[i][1].objective, i))
-    best = results[best_i][1]
     span = problem.array("upper") - problem.array("lower")
+    best_i = _best_start([r for _, r in results], -1.0 if problem.maximize else 1.0, span, problem.names, design_tol)
+    best = results[best_i][1]
     xb = np.array([best.design[n] for n in problem.names])
 
     def reached(r: RunResult) -> bool:
@@ -97,6 +94,25 @@ def run_starts(run: Run, evaluator: Evaluator, starts: int, *, seed: int = 0, fo
     best.discipline_evaluations = dict(evaluator.counts)
     best.wall_time_s = wall
     return best
+
+
+def _best_start(results: list[RunResult], sign: float, span: np.ndarray, names: list[str],
+                design_tol: float) -> int:
+    """The start whose result is the run's: the best feasible objective; where several starts reached that
+    point (each design variable within ``design_tol`` of its range), the least violated of them. One that
+    stopped inside the feasibility tolerance but past an active constraint buys a little objective with its
+    violation and does not stand for the point the others reached exactly (driver.pick_result's rule
+    within one run). With no feasible result, the best objective of all."""
+    def objective(i: int) -> tuple[float, int]:
+        return sign * results[i].objective, i
+
+    feasible = [i for i, r in enumerate(results) if r.feasible]
+    best = min(feasible or range(len(results)), key=objective)
+    if not feasible:
+        return best
+    x = np.array([[r.design[n] for n in names] for r in results])
+    same = [i for i in feasible if np.all(np.abs(x[i] - x[best]) <= design_tol * span)]
+    return min(same, key=lambda i: (results[i].max_violation, *objective(i)))
 
 
 def summary_line(ms: Mapping[str, Any]) -> str:
