@@ -130,15 +130,21 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
     scale = np.maximum(np.abs(x0), 1e-3)
     res = least_squares(residuals, x0, bounds=(lo, hi), args=(names, fleet, mask, cycles, model),
                         x_scale=scale, diff_step=1e-6, method="trf")
-    n, p = res.fun.size, len(names)
+    # a parameter no vehicle of the data moves (e.g. the two-speed loss in a fleet of single-speed cars)
+    # is not determined: it stays at its start value, with no standard error, and the others' errors
+    # come from the determined columns alone (the full J^T J is singular)
+    norms = np.linalg.norm(res.jac * scale, axis=0)
+    determined = norms > 1e-9 * max(float(norms.max(initial=0.0)), 1e-300)
+    n, p = res.fun.size, int(determined.sum())
     s2 = float(res.fun @ res.fun) / (n - p) if n > p else np.nan  # no residual degree of freedom: unknown
+    se = np.full(len(names), np.nan)
     try:
-        cov = s2 * np.linalg.inv(res.jac.T @ res.jac)
-        se = np.sqrt(np.clip(np.diag(cov), 0, None))
+        jd = res.jac[:, determined]
+        se[determined] = np.sqrt(np.clip(np.diag(s2 * np.linalg.inv(jd.T @ jd)), 0, None))
     except np.linalg.LinAlgError:
-        se = np.full(p, np.nan)
-    return {"names": names, "x": res.x, "se": se, "rms_rel": float(np.sqrt(s2)), "success": bool(res.success),
-            "mape_pct": float(100 * np.mean(np.abs(res.fun))), "n_residuals": n}
+        pass
+    return {"names": names, "x": res.x, "se": se, "determined": determined, "rms_rel": float(np.sqrt(s2)),
+            "success": bool(res.success), "mape_pct": float(100 * np.mean(np.abs(res.fun))), "n_residuals": n}
 
 
 def cross_validate(fleet: fl.Fleet, k: int = 5, names=None, cycles: dict | None = None,
@@ -249,8 +255,10 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
                       "vehicles": int(use.sum()),
                       "cycles": list(fl.CYCLES), "date": datetime.date.today().isoformat(),
                       "fleet_wheel_radius_m": fl.FLEET_WHEEL_RADIUS_M, "fleet_gear_ratio": fl.FLEET_GEAR_RATIO},
-        "fit": {k: {"value": float(v), "std_error": float(s), "cv_fold_std": float(sp)}
-                for k, v, s, sp in zip(f["names"], f["x"], f["se"], spread)},
+        "fit": {k: ({"value": float(v), "std_error": float(s), "cv_fold_std": float(sp)} if d else
+                    {"value": float(v), "not_determined": "no vehicle of the data moves it: its start value"})
+                for k, v, s, sp, d in zip(f["names"], f["x"], f["se"], spread,
+                                          f.get("determined", np.ones(len(f["x"]), bool)))},
         "fixed_not_fitted": sorted(k for k in fixed if k not in ("air_density_kg_m3", "drag_area_m2",
                                                                    "rolling_resistance")),
         "quality": {"train_mape_pct": round(f["mape_pct"], 3),
@@ -319,8 +327,12 @@ def run(args) -> int:
     cv = cross_validate(fleet, 5, cycles=cycles, use=use, model=model, progress=_progress("family"))
     cv_make = cross_validate(fleet, 99, cycles=cycles, groups=[m.lower() for m in fleet.make], use=use, model=model,
                              progress=_progress("make"))
-    for k, v, s in zip(f["names"], f["x"], f["se"]):
-        print(f"{k:32s} {v:12.6g} +- {s:.3g}")
+    for k, v, s, d in zip(f["names"], f["x"], f["se"], f["determined"]):
+        print(f"{k:32s} {v:12.6g} " + (f"+- {s:.3g}" if d else "not determined: no vehicle of the data moves it "
+                                                             "(left at its start value)"))
+    if f["n_residuals"] <= int(f["determined"].sum()):
+        print(f"warning: {f['n_residuals']} measured values for {int(f['determined'].sum())} fitted parameters: "
+              "the fit passes through the data and its standard errors are unknown", file=sys.stderr)
     by_family = (f"CV by family (k={cv['k']}) MAPE {cv['stats']['mean_abs_pct']:.2f} %" if cv else
                  "no CV by family (one model family: nothing to hold out)")
     by_make = (f"leave-one-make-out MAPE {cv_make['stats']['mean_abs_pct']:.2f} % (median of folds "

@@ -157,3 +157,22 @@ def test_bev_mdo_calibrate_fits_the_quasi_static_loss_model_and_writes_its_prove
     from bev_mdo.models.params import validate_vehicle
 
     assert validate_vehicle({"parameter_set": str(out)})["motor_loss_model"] == 1.0
+
+
+def test_a_parameter_no_vehicle_moves_is_said_not_determined_and_the_others_keep_their_errors(tmp_path, capsys):
+    """A fleet with no two-speed car: the two-speed loss has a zero column in the Jacobian, J^T J was
+    singular and every parameter was printed and written '+- nan'."""
+    data = _fleet(tmp_path, lambda r: r[0] in ("BMW", "KIA"))
+    fleet = fl.read_fleet(data)
+    assert not (fleet.technology_params()["gear_count"] == 2).any()
+    got = calibrate.fit(fleet, model="quasi_static")
+    i = got["names"].index("two_speed_efficiency_loss")
+    assert not got["determined"][i] and np.isnan(got["se"][i])
+    others = np.delete(got["se"], i)
+    assert np.isfinite(others).all() and (others > 0).all()
+    out = tmp_path / "qs.yaml"
+    assert bev_mdo(["calibrate", "--data", str(data), "--write", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "two_speed_efficiency_loss" in said and "not determined" in said and "nan" not in said
+    entry = yaml.safe_load(out.read_text())["fit"]["two_speed_efficiency_loss"]
+    assert "std_error" not in entry and entry["not_determined"].startswith("no vehicle")
