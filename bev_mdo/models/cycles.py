@@ -22,7 +22,9 @@ from __future__ import annotations
 
 import csv
 import hashlib
+import itertools
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
@@ -30,6 +32,8 @@ from typing import Any, Mapping
 import numpy as np
 
 KMH = 1.0 / 3.6  # m/s per km/h
+MAX_CSV_ROWS = 1_000_000     # a user's CSV, read whole: 48 h at 5.8 Hz (the reader holds ~0.5 GB of rows then)
+MAX_CSV_BYTES = 32 * 2**20
 MAX_GAP_S = 3600.0          # longest time between two samples of a trace
 MAX_DURATION_S = 172800.0   # 48 h: bounds the resampled grid (1.7e7 samples at 0.01 s)
 MAX_SPEED_KMH = 500.0       # faster than any road vehicle
@@ -135,9 +139,16 @@ def read_csv_rows(path, what: str) -> list[list[str]]:
     One-line ValueError naming the file when it cannot be read, is not UTF-8, or is not a CSV table
     (e.g. a field beyond csv's 128 KiB limit)."""
     try:
+        size = os.stat(path).st_size
+        if size > MAX_CSV_BYTES:
+            raise ValueError(f"{path}: {size:,} bytes, more than a {what} may be ({MAX_CSV_BYTES:,} bytes, "
+                             f"{MAX_CSV_ROWS:,} rows)")
         with open(path, newline="", encoding="utf-8-sig") as f:
             reader = csv.reader(f)
-            return list(reader)
+            rows = list(itertools.islice(reader, MAX_CSV_ROWS + 1))  # memory bounded before any check
+        if len(rows) > MAX_CSV_ROWS:
+            raise ValueError(f"{path}: more than {MAX_CSV_ROWS:,} rows, more than a {what} may have")
+        return rows
     except OSError as exc:
         raise ValueError(f"cannot read {what} {path}: {exc.strerror}") from None
     except UnicodeDecodeError:

@@ -101,6 +101,21 @@ def test_csv_field_beyond_the_csv_limit_is_one_line(tmp_path):
         read_cycle_csv(p)
 
 
+def test_a_csv_too_long_or_too_big_is_refused_before_its_rows_fill_memory(tmp_path, monkeypatch):
+    """A valid 3,000,000-row trace (52 MB) was read whole and took 1.6 GB, then a MemoryError (exit 7)
+    under a memory limit; the 48 h bound applies only after reading, and a trace may be sampled finely."""
+    monkeypatch.setattr(cycles, "MAX_CSV_ROWS", 100)
+    p = tmp_path / "long.csv"
+    p.write_text("time_s,speed_kmh\n" + "".join(f"{0.05 * i:.2f},10\n" for i in range(100)))
+    with pytest.raises(ValueError, match=r"long\.csv: more than 100 rows, more than a drive cycle may have"):
+        read_cycle_csv(p)
+    p.write_text("time_s,speed_kmh\n" + "".join(f"{0.05 * i:.2f},10\n" for i in range(99)))
+    assert len(read_cycle_csv(p).time_s) == 99
+    monkeypatch.setattr(cycles, "MAX_CSV_BYTES", 100)
+    with pytest.raises(ValueError, match=r"long\.csv: \d+ bytes, more than a drive cycle may be \(100 bytes"):
+        read_cycle_csv(p)
+
+
 def test_unknown_cycle_name():
     with pytest.raises(ValueError, match="unknown drive cycle"):
         load_cycle("ftp75")
