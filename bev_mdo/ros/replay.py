@@ -126,8 +126,9 @@ def replay(path, *, rate: float | None = 1.0, topics: list[str] | None = None, l
         if player.order.note():
             log(f"{bag.mcap_path}: not replayed{player.order.note()}")
         if wait_subscribers and not player.wait_subscribers(wait_subscribers, wait_timeout_s):
-            raise BagError(f"{bag.mcap_path}: fewer than {wait_subscribers} subscribers after "
-                           f"{wait_timeout_s:g} s")
+            short = [t for t, p in player.publishers.items() if p.get_subscription_count() < wait_subscribers]
+            raise BagError(f"{bag.mcap_path}: fewer than {wait_subscribers} subscriber(s) on {', '.join(short)} after "
+                           f"{wait_timeout_s:g} s (--no-wait publishes anyway)")
         while True:
             stats = player.play(rate)
             total.messages += stats.messages

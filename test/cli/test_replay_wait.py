@@ -26,7 +26,7 @@ def test_replay_waits_by_default_and_says_so_then_gives_up(ros_domain, tmp_path)
     assert p.returncode == 2
     err = p.stderr.strip().splitlines()
     assert err[0].startswith("waiting up to 0.5 s for 1 subscriber(s) on each topic (--no-wait publishes at once)")
-    assert "fewer than 1 subscribers after 0.5 s" in err[-1]
+    assert "fewer than 1 subscriber(s) on /bev_mdo/" in err[-1] and "after 0.5 s" in err[-1]  # names the topics
 
 
 def test_no_wait_publishes_at_once(ros_domain, tmp_path):
