@@ -109,7 +109,8 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
             continue
         if signer is None and rec.signature and not no_verify:  # signed records in a bag that says it was not signed
             raise BagError(f"{bag.mcap_path}: its records are signed but the bag names no key to verify them "
-                           "(was its config edited?); give the key with --key-file, or --no-verify")
+                           "and none was given or found beside it (was its config edited?); give the key with "
+                           "--key-file, or --no-verify")
         # dropped: a record that does not verify (the recorded bytes, as they were sent), then one out of order
         why = ((signer.verify_iteration(msg.data) if signer is not None else None)
                or order.check(rec.run_id, int(rec.sequence)))

@@ -14,7 +14,7 @@ from bev_mdo import __version__
 from bev_mdo.bag import metadata as meta
 from bev_mdo.bag import schema
 from bev_mdo.bag.errors import BagError
-from bev_mdo.bag.signing import SIGNING_METADATA, state
+from bev_mdo.bag.signing import SIGNING_METADATA, keep_run_key, state
 
 PROFILE = "ros2"
 METADATA_NAME = "bev_mdo"  # MCAP metadata record holding config_yaml, version, run_id, ...
@@ -58,6 +58,7 @@ class BagWriter:
         if "config_yaml" in self.metadata:  # a run's bag: its signing state, under the run's key
             self._mcap.add_metadata(SIGNING_METADATA, state(self.metadata["config_yaml"],
                                                             str(self.metadata.get("run_id", ""))))
+            keep_run_key(self.bag_dir, self.metadata["config_yaml"])  # where readers find the key: outside the bag
             now = time.time_ns()
             self._mcap.add_attachment(now, now, CONFIG_ATTACHMENT, "application/yaml",
                                       self.metadata["config_yaml"].encode("utf-8"))

@@ -46,7 +46,8 @@ def register(subparsers) -> None:
 def add_verify_arguments(parser) -> None:
     """--key-file and --no-verify, for every command that reads a run's iteration records."""
     parser.add_argument("--key-file", default=None,
-                        help="key that signed the run (default: the ros.sign_key_file named in the bag's config)")
+                        help="key that signed the run (default: the run's key beside the bag, "
+                             "<bag's parent>/.keys/<bag name>/sign.key; a key path stored in the bag is not trusted)")
     parser.add_argument("--no-verify", action="store_true",
                         help="read the records without checking their signatures or the bag's signing record "
                              "(the output says that verification is off)")
