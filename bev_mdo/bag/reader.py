@@ -2,7 +2,10 @@
 
 The file is read sequentially (mcap's StreamReader), so a bag whose writer was killed
 yields everything up to its last complete chunk; ``Bag.truncated`` and ``Bag.recovered``
-say so. Anything that is not a usable bev_mdo bag raises :class:`BagError`.
+say so. A file whose footer is not followed by exactly the closing magic bytes (cut a few bytes
+short, or with bytes appended) is damaged the same way: other readers (rosbags, mcap's indexed
+reader) refuse it, so it is reported and ``bev-mdo bag repair`` rewrites it. Anything that is not
+a usable bev_mdo bag raises :class:`BagError`.
 """
 from __future__ import annotations
 
@@ -62,6 +65,7 @@ class Bag:
         self.attachments: dict[str, bytes] = {}
         self.counts: dict[str, int] = {}
         self.truncated = False
+        self.damage = ""  # what is wrong with the end of a file whose records are all there
         self.recovered_bytes = 0
         self.start_ns = 0
         self.end_ns = 0
@@ -121,6 +125,7 @@ class Bag:
                 self.end_ns = max(self.end_ns, record.log_time)
                 self.counts[topic] = self.counts.get(topic, 0) + 1
             elif isinstance(record, Footer):
+                self._check_end(self.recovered_bytes)
                 break
         if not saw_header:
             raise BagError(f"{self.mcap_path}: truncated MCAP header")
@@ -137,6 +142,25 @@ class Bag:
             if channel.message_encoding != "cdr":
                 raise BagError(f"{self.mcap_path}: topic {channel.topic} has message encoding "
                                f"{channel.message_encoding!r}, expected 'cdr'")
+
+    def _check_end(self, footer_end: int) -> None:
+        """After the footer a complete file holds the magic bytes and nothing more."""
+        try:
+            with open(self.mcap_path, "rb") as f:
+                f.seek(footer_end)
+                tail = f.read(len(MAGIC) + 1)
+        except OSError as exc:
+            raise BagError(f"{self.mcap_path}: cannot read ({exc.strerror})") from exc
+        if tail == MAGIC:
+            return
+        if len(tail) > len(MAGIC) and tail[:len(MAGIC)] == MAGIC:
+            extra = self.file_size - footer_end - len(MAGIC)
+            self.damage = f"{extra} byte(s) after the end of the MCAP data"
+        elif len(tail) < len(MAGIC) and MAGIC.startswith(tail):
+            self.damage = f"truncated: the closing magic bytes are cut short ({len(tail)} of {len(MAGIC)})"
+        else:
+            self.damage = "the closing magic bytes after the footer are invalid"
+        self.truncated = True
 
     def _channel(self, channel_id: int) -> Channel:
         try:
@@ -224,7 +248,7 @@ class Bag:
         """One line saying how much of a truncated file was read ('' when complete)."""
         if not self.truncated:
             return ""
-        return (f"{self.mcap_path}: truncated; read {self.message_count} messages from the first "
+        return (f"{self.mcap_path}: {self.damage or 'truncated'}; read {self.message_count} messages from the first "
                 f"{self.recovered_bytes} of {self.file_size} bytes (run `bev-mdo bag repair`)")
 
 

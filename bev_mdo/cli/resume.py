@@ -32,11 +32,17 @@ def resume_point(bag_path: str, run_id: str | None = None, key_file: str | None 
                  checks: dict | None = None, no_verify: bool = False) -> tuple:
     """(the run's RunConfig, last verified design of the bag's own run, its iteration) from a bag;
     BagError (a ValueError) if there is none or it cannot be verified."""
+    import sys
+
     from bev_mdo.bag.history import last_iterate
+    from bev_mdo.bag.reader import open_bag
     from bev_mdo.config import RunConfig
     from bev_mdo.yamlload import load_yaml
 
-    config_yaml, design, iteration = last_iterate(bag_path, run_id, key_file, checks, no_verify)
+    bag = open_bag(bag_path)
+    if bag.truncated:  # resumed from what was read, as history and report do
+        print(bag.recovery_note(), file=sys.stderr)
+    config_yaml, design, iteration = last_iterate(bag, run_id, key_file, checks, no_verify)
     if not config_yaml:
         raise ValueError(f"{bag_path}: the bag holds no configuration; cannot resume")
     return RunConfig.load(load_yaml(config_yaml)), design, iteration

@@ -134,3 +134,37 @@ def test_bag_info_reports_truncation(full, tmp_path):
     code, out, err = cli("bag", "info", str(cut))
     assert code == 0 and "truncated" in err and "/bev_mdo/iteration" in out
     shutil.rmtree(full)
+
+
+@pytest.mark.parametrize("damage,said", [
+    (lambda data: data[:-5], "closing magic bytes are cut short (3 of 8)"),
+    (lambda data: data[:-1], "closing magic bytes are cut short (7 of 8)"),
+    (lambda data: data + b"\x00" * 17, "17 byte(s) after the end of the MCAP data"),
+    (lambda data: data[:-8] + b"MCAPMCAP", "closing magic bytes after the footer are invalid"),
+], ids=["5_bytes_short", "1_byte_short", "bytes_appended", "bad_end_magic"])
+def test_a_damaged_end_is_noted_and_repaired(damage, said, full):
+    """A file whose records are all there but whose end is not footer + magic is not complete: rosbags and
+    mcap's indexed reader refuse it, so the readers note it and `bag repair` rewrites it."""
+    from mcap.reader import make_reader
+    from rosbags.highlevel import AnyReader
+
+    from bev_mdo.bag.reader import open_bag
+
+    mcap = full / "full_0.mcap"
+    total = open_bag(full).message_count
+    mcap.write_bytes(damage(mcap.read_bytes()))
+    bag = open_bag(full)
+    assert bag.truncated and bag.message_count == total and said in bag.recovery_note()
+    for argv in (["history", str(full), "--csv", "-"], ["bag", "info", str(full)],
+                 ["report", str(full), "--output-dir", str(full.parent / "rep")]):
+        code, _out, err = cli(*argv)
+        assert code == 0 and said in err and "bag repair" in err, (argv, err)
+    _code, _out, err = cli("resume", str(full), "--transport", "inprocess", "--no-record")
+    assert said in err  # noted before anything else (the synthetic config itself cannot be resumed)
+    code, out, err = cli("bag", "repair", str(full))
+    assert code == 0 and "repaired" in out and (full / "full_0.mcap.bak").is_file(), (out, err)
+    assert not open_bag(full).truncated
+    with AnyReader([full]) as reader:
+        assert reader.message_count == total
+    with open(mcap, "rb") as f:
+        assert sum(1 for _ in make_reader(f).iter_messages()) == total
