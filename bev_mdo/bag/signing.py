@@ -116,7 +116,7 @@ def _found_key(bag, key_file: str | None) -> tuple[str, str]:
         return key_file, f"key file {key_file}"
     place = run_key_path(bag.bag_dir)
     if place.is_symlink() or place.exists():
-        return str(place), f"the run's key {place}"
+        return str(place), f"key file {place} (the run's key beside the bag)"
     return "", ""
 
 
@@ -157,12 +157,12 @@ def verifier(bag, key_file: str | None = None, no_verify: bool = False) -> Verif
                        "or --no-verify to read it unverified)") from None
     if not record:
         if config_yaml:  # a run's bag: its writer stored its signing state beside its config
-            raise BagError(f"{where}: there is {whose}, but the bag has no signing record (was it removed?); "
-                           "refusing it (--no-verify reads it unverified)")
+            raise BagError(f"{where}: the bag has no signing record (was it removed?), though {whose} should "
+                           "verify it; refusing it (--no-verify reads it unverified)")
         return Verifier(Signer(key), "", True)  # a standalone recording: no config, each record is verified
     if not signed:
-        raise BagError(f"{where}: there is {whose}, but the bag's signing record says the run was not signed "
-                       "(was the bag edited?); refusing it (--no-verify reads it unverified)")
+        raise BagError(f"{where}: the bag's signing record says the run was not signed, though {whose} should "
+                       "verify it (was the bag edited?); refusing it (--no-verify reads it unverified)")
     if record.get("key_fingerprint") != key_fingerprint(key):
         raise BagError(f"{where}: {whose} is not the key this run was signed with (fingerprint "
                        f"{key_fingerprint(key)}, the bag's signing record says {record.get('key_fingerprint')})")
