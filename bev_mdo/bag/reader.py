@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Iterable, Iterator
 
 from mcap.exceptions import EndOfFile, McapError
-from mcap.records import Attachment, Channel, Footer, Message, Metadata, Schema
+from mcap.records import Attachment, Channel, DataEnd, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
 from bev_mdo.bag.errors import BagError
@@ -90,25 +90,35 @@ class Bag:
         """All records in file order; sets ``truncated`` when the file ends early."""
         with open(self.mcap_path, "rb") as f:
             reader = StreamReader(f, skip_magic=False, validate_crcs=True)
+            data_ended = False  # past DataEnd: only the summary (copies and indexes) is left
             try:
                 for record in reader.records:
                     self.recovered_bytes = f.tell()
+                    data_ended = data_ended or isinstance(record, DataEnd)
                     yield record
-            except (EndOfFile, struct.error):  # a short read: the file ends early
+            except (EndOfFile, struct.error):  # a short read: the file ends early (or a summary length is damaged)
                 self.truncated = True
-            except (McapError, ValueError, OSError, EOFError, KeyError, IndexError) as exc:
-                raise BagError(f"{self.mcap_path}: corrupt MCAP data after byte "
-                               f"{self.recovered_bytes} ({type(exc).__name__}: {exc})") from exc
-            except Exception as exc:  # zstd / struct errors from damaged chunks
-                raise BagError(f"{self.mcap_path}: corrupt MCAP data after byte "
-                               f"{self.recovered_bytes} ({type(exc).__name__})") from exc
+                if data_ended:
+                    self.damage = "truncated or damaged in the summary after the messages"
+            except Exception as exc:  # noqa: BLE001 - zstd / struct / decode errors from damaged bytes
+                if not data_ended:
+                    detail = f": {exc}" if isinstance(exc, (McapError, ValueError, OSError, EOFError, KeyError,
+                                                            IndexError)) else ""
+                    raise BagError(f"{self.mcap_path}: corrupt MCAP data after byte "
+                                   f"{self.recovered_bytes} ({type(exc).__name__}{detail})") from exc
+                self.truncated = True  # every message was read: noted, and `bag repair` rewrites the summary
+                self.damage = f"damaged in the summary after the messages ({type(exc).__name__})"
 
     def _scan(self) -> None:
         self._check_magic()
-        saw_header = False
+        saw_header = summary = False
         for record in self._records():
             saw_header = True
-            if isinstance(record, Schema):
+            if isinstance(record, DataEnd):
+                summary = True  # its schemas and channels repeat the data section's: those are the ones read
+            elif summary and isinstance(record, (Schema, Channel)):
+                continue
+            elif isinstance(record, Schema):
                 if record.encoding != "ros2msg":
                     raise BagError(f"{self.mcap_path}: schema {record.name!r} has encoding "
                                    f"{record.encoding!r}, expected 'ros2msg'")
