@@ -40,7 +40,8 @@ def bound_violation(u: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> floa
     max(1, |bound|)); 0 inside. An optimiser may step there (trust-constr, COBYLA), but such a point
     is not feasible."""
     u, lower, upper = (np.asarray(a, dtype=float) for a in (u, lower, upper))
-    out = np.concatenate([(lower - u) / np.maximum(1.0, np.abs(lower)), (u - upper) / np.maximum(1.0, np.abs(upper))])
+    with np.errstate(invalid="ignore"):  # an infinite bound: inf / inf, dropped below
+        out = np.concatenate([(lower - u) / np.maximum(1.0, np.abs(lower)), (u - upper) / np.maximum(1.0, np.abs(upper))])
     return float(np.max(out[np.isfinite(out)], initial=0.0))
 
 
