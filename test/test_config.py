@@ -50,6 +50,10 @@ BAD = [
     (("problem", "objective"), "cost", "problem.objective 'cost' is not produced by any discipline"),
     (("problem", "constraints", "y3"), {"upper": 1}, "problem.constraints.y3: no discipline produces it"),
     (("problem", "constraints", "y1"), {"lower": 5, "upper": 1}, "problem.constraints.y1: lower 5 > upper 1"),
+    # an infinite limit was accepted: every margin came out inf ("short by inf km") with numpy warnings
+    (("problem", "constraints", "y1"), {"upper": float("inf")}, "problem.constraints.y1.upper: inf must be finite"),
+    (("problem", "constraints", "y1"), {"lower": float("-inf")}, "problem.constraints.y1.lower: -inf must be finite"),
+    (("problem", "constraints", "y1"), {"upper": 1, "scale": float("inf")}, "problem.constraints.y1.scale: inf must be finite"),
     (("problem", "design_variables", "w"), {"lower": 0, "upper": 1}, "problem.design_variables.w: no discipline consumes it"),
     (("problem", "design_variables", "x", "lower"), 20, r"problem.design_variables.x: bounds must be finite with lower < upper \(got lower 20, upper 10\)"),
     (("problem", "design_variables", "x", "initial"), 11, r"problem.design_variables.x.initial: 11 is outside the bounds \[0, 10\]"),

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 import difflib
+import math
 import re
 from dataclasses import dataclass, field
 from typing import Any, Mapping
@@ -92,9 +93,12 @@ def _check(name: str, valid: list[str], flag: str, what: str) -> None:
 
 def _number(text: str, flag: str, item: str) -> float:
     try:
-        return float(text)
+        x = float(text)
     except ValueError:
         raise InputError(f"{flag} {item!r}: {text!r} is not a number") from None
+    if not math.isfinite(x):  # nan, inf, 1e400: a limit nothing can meet or violate by a finite amount
+        raise InputError(f"{flag} {item!r}: {text!r} must be finite")
+    return x
 
 
 def _clip_initials(dvs: dict, bounded: set[str]) -> None:

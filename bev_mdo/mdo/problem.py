@@ -153,7 +153,7 @@ class Problem:
             raise ValueError("problem.constraints: must map output names to {lower and/or upper}")
         cons = [c for n, spec in cons_raw.items() for c in _elements(n, spec, _constraint, shapes,
                                                                      "problem.constraints")]
-        oscale = _num(section.get("objective_scale", 1.0), "problem.objective_scale")
+        oscale = _finite(section.get("objective_scale", 1.0), "problem.objective_scale")
         if oscale <= 0:
             raise ValueError(f"problem.objective_scale: {oscale} must be > 0")
         params = {str(k): _num(v, f"problem.parameters.{k}") for k, v in (section.get("parameters") or {}).items()}
@@ -200,6 +200,14 @@ def _num(v: Any, where: str) -> float:
     return float(v)
 
 
+def _finite(v: Any, where: str) -> float:
+    """A number that is neither NaN nor infinite (a limit or scale of inf would make every margin inf)."""
+    x = _num(v, where)
+    if not np.isfinite(x):
+        raise ValueError(f"{where}: {x:g} must be finite")
+    return x
+
+
 def _elements(name: str, spec: Any, build, shapes: dict[str, int], section: str) -> list:
     """One entry, or one per element of a vector (``shape: k``; per-element values from lists)."""
     if not isinstance(spec, Mapping) or "shape" not in spec:
@@ -242,7 +250,7 @@ def _design_variable(name: str, spec: Any, where: str) -> DesignVariable:
     x0 = _num(spec.get("initial", 0.5 * (lo + hi)), f"{where}.initial")
     if not lo <= x0 <= hi:
         raise ValueError(f"{where}.initial: {x0:g} is outside the bounds [{lo:g}, {hi:g}]")
-    scale = _num(spec.get("scale", hi - lo), f"{where}.scale")
+    scale = _finite(spec.get("scale", hi - lo), f"{where}.scale")
     if scale <= 0:
         raise ValueError(f"{where}.scale: {scale:g} must be > 0")
     return DesignVariable(str(name), lo, hi, x0, scale)
@@ -252,13 +260,13 @@ def _constraint(name: str, spec: Any, where: str) -> Constraint:
     if not isinstance(spec, Mapping) or not spec:
         raise ValueError(f"{where}: must be a mapping with lower and/or upper")
     check_keys(where, spec, _CON_KEYS)
-    lo = _num(spec["lower"], f"{where}.lower") if "lower" in spec else None
-    hi = _num(spec["upper"], f"{where}.upper") if "upper" in spec else None
+    lo = _finite(spec["lower"], f"{where}.lower") if "lower" in spec else None
+    hi = _finite(spec["upper"], f"{where}.upper") if "upper" in spec else None
     if lo is None and hi is None:
         raise ValueError(f"{where}: needs lower and/or upper")
     if lo is not None and hi is not None and lo > hi:
         raise ValueError(f"{where}: lower {lo:g} > upper {hi:g}")
-    scale = _num(spec["scale"], f"{where}.scale") if "scale" in spec else None
+    scale = _finite(spec["scale"], f"{where}.scale") if "scale" in spec else None
     if scale is not None and scale <= 0:
         raise ValueError(f"{where}.scale: {scale:g} must be > 0")
     monitor = spec.get("monitor", False)

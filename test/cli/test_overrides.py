@@ -53,6 +53,16 @@ def test_a_malformed_constraint_exits_2(capsys, value):
     assert len(err) == 1 and "--constraint" in err[0], err
 
 
+@pytest.mark.parametrize("flag, value", [("--constraint", "range_km>=inf"), ("--constraint", "range_km<=-inf"),
+                                         ("--constraint", "range_km>=1e400"), ("--bound", "motor_kw=50:inf"),
+                                         ("--initial", "motor_kw=nan")])
+def test_a_limit_that_is_not_finite_exits_2(capsys, flag, value):
+    # range_km>=inf was run: numpy warnings, then "short by inf km" and exit 1
+    assert main(["optimize", CONFIG, "--transport", "inprocess", "--no-record", flag, value]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and flag in err[0] and "must be finite" in err[0], err
+
+
 def test_objective_maximize_bound_and_initial_reach_the_evaluation(capsys):
     assert main(["evaluate", CONFIG, "--transport", "inprocess", "--json", "--objective", "range_km", "--maximize", "--bound", "motor_kw=50:90",
                  "--initial", "motor_kw=60", "--constraint", "accel_time_0_100_s<=12"]) == 0
