@@ -8,6 +8,7 @@ import sys
 import numpy as np
 
 from bev_mdo.api.errors import InputError
+from bev_mdo.api.overrides import finite_values
 from bev_mdo.api.transport import Evaluating
 
 
@@ -42,6 +43,7 @@ def design(config, given: dict[str, float], transport) -> dict:
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import evaluate_design
 
+    finite_values(given)
     config = RunConfig.of(config)
     problem = config.problem
     full = {**{d.name: d.initial for d in problem.design_variables}, **given}
@@ -61,6 +63,7 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import FEASIBILITY_TOL, _mda
 
+    finite_values(designs)
     config = RunConfig.of(config)
     problem = config.problem
     n = len(next(iter(designs.values())))

@@ -62,6 +62,24 @@ def from_args(args) -> Overrides:
     return ov
 
 
+def finite_values(values: Mapping[str, Any], where: str = "") -> None:
+    """InputError naming the first design variable or parameter of ``values`` whose value (a number or
+    an array of numbers) is NaN or infinite: the one check of every design a user gives (--set, --design,
+    --at, --vary, --list; Study.evaluate, sweep, sensitivity). Such a value was evaluated to NaN outputs,
+    or sent in a batch whose rows came back NaN, instead of being refused. ``where``: the flag, if any."""
+    import numpy as np
+
+    for name, value in values.items():
+        try:
+            a = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(f"{where + ' ' if where else ''}{name}={value!r}: must be a number") from None
+        bad = a[~np.isfinite(a)]
+        if bad.size:
+            raise InputError(f"{where + ' ' if where else ''}{name}={bad.flat[0]:g}: a design value must be "
+                             "a finite number")
+
+
 def load(source, overrides: Overrides | None = None):
     """The validated config (``RunConfig``) of ``source`` (a file or a mapping) with ``overrides`` applied."""
     from bev_mdo.config import RunConfig

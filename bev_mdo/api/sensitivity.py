@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from bev_mdo.api.errors import InputError
+from bev_mdo.api.overrides import finite_values
 from bev_mdo.api.transport import Evaluating, Transport
 
 METHODS = ("sobol", "morris")
@@ -32,6 +33,7 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
     from bev_mdo.mdo.sensitivity import sensitivities
 
     config = RunConfig.of(config)
+    finite_values(at or {}, "--at")
 
     if method == "complex":  # the MDA casts every input to float64 (the discipline interface)
         raise InputError("--method complex: the multidisciplinary analysis passes float64 values between "

@@ -48,6 +48,7 @@ def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, 
     """``["a=1,b=2", "c=3"]`` (or one such string) -> {a: 1.0, b: 2.0, c: 3.0}: the NAME=VALUE lists of
     --set, --design and --at; an InputError naming `flag` on a malformed item."""
     from bev_mdo.api.errors import InputError
+    from bev_mdo.api.overrides import finite_values
 
     out: dict[str, float] = {}
     for item in [items] if isinstance(items, str) else items:
@@ -59,6 +60,7 @@ def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, 
                 out[name.strip()] = float(value)
             except ValueError:
                 raise InputError(f"{flag} {name.strip()}={value!r}: value must be a number") from None
+    finite_values(out, flag)
     return out
 
 

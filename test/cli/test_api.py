@@ -96,6 +96,19 @@ def test_bad_input_raises_input_error_with_the_cli_line(edit, argv):
     assert "did you mean" in str(err.value)
 
 
+@pytest.mark.parametrize("run", [
+    lambda s: s.evaluate({"motor_kw": float("nan")}, transport="inprocess"),  # it returned NaN outputs
+    lambda s: s.sweep(designs={"motor_kw": [80.0, float("inf")]}, transport="inprocess"),
+    lambda s: s.sweep(designs={"motor_kw": [80.0]}, fixed={"battery_kwh": float("nan")}, transport="inprocess"),
+    lambda s: s.sensitivity(at={"motor_kw": float("-inf")}, order=1, transport="inprocess"),
+])
+def test_a_design_value_that_is_not_finite_raises_input_error(run):
+    from bev_mdo import InputError, Study
+
+    with pytest.raises(InputError, match=r"=-?(nan|inf): a design value must be a finite number"):
+        run(Study(ROOT / "config" / "leaf_nedc.yaml"))
+
+
 def test_a_bad_config_raises_input_error():
     from bev_mdo import InputError, Study
 

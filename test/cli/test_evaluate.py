@@ -52,6 +52,11 @@ def test_parameter_override_changes_energy(capsys):
     (["--set", "motor_kw"], "--set 'motor_kw' must be NAME=VALUE"),
     (["--set", "motor_kw=fast"], "value must be a number"),
     (["--set", "warp=1"], "unknown design names ['warp']"),
+    # a value that is not finite was evaluated "as given" (a note that it is outside its bounds, exit 1)
+    (["--set", "motor_kw=nan"], "--set motor_kw=nan: a design value must be a finite number"),
+    (["--set", "motor_kw=inf"], "--set motor_kw=inf: a design value must be a finite number"),
+    (["--set", "motor_kw=1e400"], "--set motor_kw=inf: a design value must be a finite number"),
+    (["--set", "drag_area_m2=-inf"], "--set drag_area_m2=-inf: a design value must be a finite number"),
 ])
 def test_bad_input_is_one_line_exit_2(capsys, argv, msg):
     code, _, err = run(capsys, LEAF, *argv)

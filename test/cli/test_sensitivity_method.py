@@ -51,3 +51,10 @@ def test_large_sensitivities_stay_separate_columns():
             assert len(row.split()) == 3, row  # the name, then value and label of the diagonal cell
             row = next(line for line in lines if line.startswith("x ") and "C" in line)
             assert len(row.split()) == 5, row  # the name, then value and label of each cell
+
+
+def test_a_point_that_is_not_finite_is_one_line_naming_it(capsys):
+    # it was refused with a line that printed the whole point, every parameter of every discipline
+    code = main(["sensitivity", str(SELLAR), "--transport", "inprocess", "--order", "1", "--at", "z1=nan"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err == ["bev-mdo sensitivity: error: --at z1=nan: a design value must be a finite number"]

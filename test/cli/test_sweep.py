@@ -77,6 +77,20 @@ def test_sweep_outside_bounds_and_unknown_names_are_user_errors(tmp_path, capsys
     assert main(["sweep", CONFIG, "--vary", "wheels=1:2:2", "--out", str(tmp_path), "--transport", "inprocess"]) == 2
 
 
+@pytest.mark.parametrize("command, argv, named", [
+    ("sweep", ["--vary", "motor_kw=nan:120:3"], "motor_kw=nan"),  # its NaN rows were written, exit 0
+    ("sweep", ["--vary", "motor_kw=80,inf"], "motor_kw=inf"),
+    ("sweep", ["--vary", "motor_kw=80:90:2", "--set", "battery_kwh=nan"], "--set battery_kwh=nan"),
+    # the NaN was read as "not given": "must be given in every --design (they are parameters ...)"
+    ("compare", ["--design", "motor_kw=nan", "--design", "motor_kw=80"], "--design motor_kw=nan"),
+])
+def test_a_design_value_that_is_not_finite_is_a_user_error(tmp_path, capsys, command, argv, named):
+    out = ["--out", str(tmp_path), "--no-record", "--no-plots"] if command == "sweep" else []
+    assert main([command, CONFIG, *argv, *out, "--transport", "inprocess"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{named}: a design value must be a finite number" in err[0], err
+
+
 def test_sweep_from_a_list(tmp_path):
     lst = tmp_path / "designs.csv"
     lst.write_text("motor_kw,gear_ratio,battery_kwh\n80,7.94,24\n74.4782,9.48,20\n")
