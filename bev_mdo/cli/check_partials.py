@@ -10,9 +10,9 @@ mistake. Disciplines without partials are listed as "finite differences" (nothin
 """
 from __future__ import annotations
 
-import json
-
 import numpy as np
+
+from bev_mdo.api import jsontext
 
 
 def register(subparsers) -> None:
@@ -111,7 +111,7 @@ def run(args) -> int:
     only = [s.strip() for s in args.discipline.split(",") if s.strip()] or None
     rep = check(config, args.at, args.rtol, args.atol, args.step, only)
     if args.json:
-        print(json.dumps(rep, indent=2))
+        print(jsontext.dumps(rep))
         return 0 if rep["ok"] else 1
     print(f"partials at {', '.join(f'{k}={v:g}' for k, v in rep['design'].items())} "
           f"(central differences, step {args.step:g}; rtol {args.rtol:g}, atol {args.atol:g})")

@@ -11,9 +11,9 @@ the point failed, 2 a user mistake.
 """
 from __future__ import annotations
 
-import json
-
 import numpy as np
+
+from bev_mdo.api import jsontext
 
 
 def register(subparsers) -> None:
@@ -105,7 +105,7 @@ def run(args) -> int:
         form = build_formulation(config.settings, ev, args.formulation)
         rep = check(form, _point(form, form.problem, args.at), args.step, args.rtol, args.atol)
     if args.json:
-        print(json.dumps(rep, indent=2))
+        print(jsontext.dumps(rep))
     else:
         print_table(rep)
     return 0 if rep["ok"] else 1

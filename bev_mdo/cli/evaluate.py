@@ -6,8 +6,9 @@ feasibility. Design variables not given take their ``initial`` value.
 """
 from __future__ import annotations
 
-import json
 import sys
+
+from bev_mdo.api import jsontext
 
 
 def register(subparsers) -> None:
@@ -31,7 +32,7 @@ def run(args) -> int:
 
     report = evaluate.design(flags.load_config(args), flags.parse_assignments(args.assignments), Transport.of(args))
     if args.json:
-        print(json.dumps(report, indent=2, allow_nan=True))
+        print(jsontext.dumps(report))
     else:
         print_table(report)
     return 0 if report["ok"] else 1

@@ -15,8 +15,9 @@ finished run always prints its result (with ``--json``, the JSON on stdout), wha
 """
 from __future__ import annotations
 
-import json
 import sys
+
+from bev_mdo.api import jsontext
 
 
 def register(sub) -> None:
@@ -171,7 +172,7 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
     out = sys.stderr if args.json else sys.stdout
     doc = optimize.run(config, opts, _progress(args.quiet, args.json), x0)
     if args.json:
-        print(json.dumps(doc, default=float, indent=2))
+        print(jsontext.dumps(doc))
     else:
         from bev_mdo.api.evaluate import declared_units
 

@@ -9,10 +9,11 @@ Coupling thresholds: |S'| < 0.05 NC, < 0.5 MC, < 0.8 SC, else VSC.
 """
 from __future__ import annotations
 
-import json
 import sys
 
 import numpy as np
+
+from bev_mdo.api import jsontext
 
 
 def register(subparsers) -> None:
@@ -65,7 +66,7 @@ def run(args) -> int:
         if args.png:
             gs.write_plot(args.png, got)
         if args.json:
-            print(json.dumps(got, indent=2))
+            print(jsontext.dumps(got))
         else:
             gs.print_tables(got)
             if args.png:
@@ -77,7 +78,7 @@ def run(args) -> int:
 
         write_heatmap(args.png, s, outputs, cfg, {k: point[k] for k in problem.names}, declared_units(cfg))
     if args.json:
-        print(json.dumps(sensitivity.to_dict(s, outputs), indent=2))
+        print(jsontext.dumps(sensitivity.to_dict(s, outputs)))
     else:
         print_tables(s, outputs)
         if args.png:

@@ -1,7 +1,7 @@
 """``bev-mdo status``: the live discipline instances on a ROS domain, with host and throughput."""
 from __future__ import annotations
 
-import json
+from bev_mdo.api import jsontext
 
 
 def register(sub) -> None:
@@ -40,7 +40,7 @@ def run(args) -> int:
     finally:
         rclpy.shutdown(context=ctx)
     if args.json:
-        print(json.dumps(rows, indent=2))
+        print(jsontext.dumps(rows))
     elif rows:
         print(format_table(rows))
     else:

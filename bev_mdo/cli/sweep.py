@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import csv
 import itertools
-import json
 import math
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from bev_mdo.api import jsontext
 from bev_mdo.api.evaluate import batch as evaluate_batch  # one batch of MDAs over the transport args choose
 from bev_mdo.cli import UsageError
 
@@ -281,9 +281,8 @@ def run_compare(args) -> int:
     rows = [(k, unit_of(k), v) for k, v in named.items()]
     rows += [(f"margin {k}", unit_of(k), v) for k, v in result["margins"].items()]
     if args.json:
-        print(json.dumps({"designs": [{name: float(v[i]) for name, _, v in rows} | {
-            "feasible": bool(result["feasible"][i]), "ok": bool(result["ok"][i])} for i in range(len(given))]},
-            indent=2))
+        print(jsontext.dumps({"designs": [{name: float(v[i]) for name, _, v in rows} | {
+            "feasible": bool(result["feasible"][i]), "ok": bool(result["ok"][i])} for i in range(len(given))]}))
         return 0
     from rich.console import Console
     from rich.table import Table

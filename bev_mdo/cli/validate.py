@@ -20,10 +20,11 @@ held-out error (docs/validation.md).
 """
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
+
+from bev_mdo.api import jsontext
 
 DEFAULT_MODEL = "quasi_static"
 # the calibrated set each model is validated with unless --parameter-set names another ('none': defaults)
@@ -201,7 +202,7 @@ def run(args) -> int:
 
         write_all(report, args.plot)
     if args.json:
-        print(json.dumps(report, indent=2, allow_nan=True))
+        print(jsontext.dumps(report))
     else:
         print_table(report)
         if args.pairs:

@@ -128,3 +128,29 @@ def test_starts_reports_how_many_reached_the_best_point(tmp_path):
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
         rc = main(["optimize", CONFIG, "--transport", "inprocess", "--no-record", "--starts", "0"])
     assert rc == 2 and "--starts 0" in err.getvalue() and "Traceback" not in err.getvalue()
+
+
+def _strict_json(text: str):
+    """JSON as RFC 8259 has it: a bare NaN or Infinity (which Python writes and jq refuses) fails."""
+    def refuse(word):
+        raise AssertionError(f"{word} in the --json output")
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_json_of_a_run_whose_every_point_failed_is_strict_with_null(tmp_path):
+    """The default=float of optimize --json wrote a failed point's outputs as bare NaN."""
+    import yaml
+
+    sellar = Path(__file__).resolve().parents[2] / "examples" / "sellar"
+    raw = yaml.safe_load((sellar / "sellar_mdf.yaml").read_text())
+    raw["search_path"] = [str(sellar), str(Path(__file__).resolve().parents[1] / "data" / "user_modules")]
+    raw["disciplines"].append({"name": "raises", "class": "bad_disciplines:Raises"})
+    raw["problem"]["constraints"]["w"] = {"upper": 1.0e6}
+    raw["optimizer"]["options"] = {"maxiter": 1}
+    cfg = tmp_path / "sellar.yaml"
+    cfg.write_text(yaml.safe_dump(raw))
+    buf, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(err):
+        rc = main(["optimize", str(cfg), "--transport", "inprocess", "--no-record", "--json"])
+    doc = _strict_json(buf.getvalue())
+    assert rc == 1 and not doc["feasible"] and doc["outputs"]["w"] is None, doc["outputs"]
