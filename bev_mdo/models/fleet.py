@@ -175,6 +175,7 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
     data = {k: [] for k in NUMERIC}
     text = {k: [] for k in TEXT + OPTIONAL_TEXT}
     row_no = []
+    seen: dict = {}
     for r, row in enumerate(rows[1:], start=2):
         if not row or all(not c.strip() for c in row):
             continue
@@ -226,6 +227,7 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
         if np.min(a + b * v + c * v * v) <= 0:
             raise ValueError(f"{path}: row {r}, column road_load_b_n_per_m_s: the road load A + B v + C v^2 "
                              f"turns non-positive below 45 m/s")
+        _check_once(path, r, row, text, seen)
         row_no.append(r)
     if not row_no:
         raise ValueError(f"{path}: no vehicles (only a header)")
@@ -235,6 +237,23 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
                  arr["rated_power_kw"], arr["test_mass_kg"], arr["road_load_a_n"], arr["road_load_b_n_per_m_s"],
                  arr["road_load_c_n_per_m2_s2"], np.full(len(row_no), FLEET_GEAR_RATIO), listed,
                  {c: arr[MEASURED[c]] for c in CYCLES}, {k: text[k] for k in TECHNOLOGY if k in text})
+
+
+def _check_once(path, r: int, row: list[str], text: dict, seen: dict) -> None:
+    """ValueError if row ``r`` repeats an earlier row (every cell the same) or an earlier row's vehicle test
+    (test_vehicle_id and config): it was counted twice, weighted twice in a fit and paired with itself."""
+    cells = tuple(c.strip() for c in row)
+    if cells in seen:
+        raise ValueError(f"{path}: row {r}: repeats row {seen[cells]} (the same vehicle listed twice); "
+                         "remove one of them")
+    seen[cells] = r
+    vid, cfg = text["test_vehicle_id"][-1], text["config"][-1]
+    if vid:
+        key = ("test", vid, cfg)
+        if key in seen:
+            raise ValueError(f"{path}: row {r}: test_vehicle_id {vid} with config {cfg or '(empty)'} is also "
+                             f"row {seen[key]} (one vehicle test listed twice, with different values); keep one")
+        seen[key] = r
 
 
 def fleet_params(fleet: Fleet, base: dict | None = None) -> dict:

@@ -144,6 +144,15 @@ def _duplicate(col, value):
     return f
 
 
+def _append_copy(row, change=None):
+    def f(rows):
+        copy = list(rows[row])
+        if change:
+            copy[rows[0].index(change[0])] = change[1]
+        rows.append(copy)
+    return f
+
+
 @pytest.mark.parametrize("edit,expect", [
     (_drop("test_mass_kg"), "row 1: missing column test_mass_kg"),
     (_rename("test_mass_kg", "test_mass_lb"), "row 1, column test_mass_lb: unknown unit (expected column test_mass_kg)"),
@@ -155,6 +164,9 @@ def _duplicate(col, value):
     (_set("road_load_b_n_per_m_s", "-40", 7), "row 8, column road_load_b_n_per_m_s: the road load"),
     # a second test_mass_kg column (e.g. pasted in lb) was read instead of the first, without a word
     (_duplicate("test_mass_kg", "5000"), "row 1, column test_mass_kg: given twice (columns 8 and 22)"),
+    # a row listed twice was counted twice, weighted twice by calibrate and paired with its copy
+    (_append_copy(4), "row 64: repeats row 5 (the same vehicle listed twice)"),
+    (_append_copy(4, ("udds_wh_per_km_ac", "150.0")), "row 64: test_vehicle_id FK96493 with config 1 is also row 5"),
 ])
 def test_bad_fleet_file_one_line_exit_2(capsys, tmp_path, edit, expect):
     p = _bad(tmp_path, edit)

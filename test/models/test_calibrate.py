@@ -107,6 +107,7 @@ def test_a_vehicle_that_cannot_follow_is_left_out_of_the_fit(tmp_path, capsys):
     keep = [r for r in rows[1:] if r[0] in ("BMW", "Ford")]
     slow = list(keep[0])
     slow[kw] = "5"
+    slow[rows[0].index("test_vehicle_id")] += "-5kW"  # another vehicle test: the same one twice is refused
     p = tmp_path / "slow.csv"
     with p.open("w", newline="") as f:
         csv.writer(f).writerows([rows[0], slow, *keep])
@@ -176,3 +177,15 @@ def test_a_parameter_no_vehicle_moves_is_said_not_determined_and_the_others_keep
     assert "two_speed_efficiency_loss" in said and "not determined" in said and "nan" not in said
     entry = yaml.safe_load(out.read_text())["fit"]["two_speed_efficiency_loss"]
     assert "std_error" not in entry and entry["not_determined"].startswith("no vehicle")
+
+
+def test_a_vehicle_listed_twice_is_refused_not_fitted_twice(tmp_path, capsys):
+    """A row appended twice was fitted with double weight (and paired with its copy)."""
+    with fl.DEFAULT_FLEET.open(newline="") as f:
+        rows = list(csv.reader(f))
+    p = tmp_path / "twice.csv"
+    with p.open("w", newline="") as f:
+        csv.writer(f).writerows([*rows, rows[3]])
+    assert bev_mdo(["calibrate", "--model", "chain", "--data", str(p)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"row {len(rows) + 1}: repeats row 4" in err[0], err
