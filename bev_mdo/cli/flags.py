@@ -56,6 +56,8 @@ def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, 
             name, sep, value = part.partition("=")
             if not sep or not name.strip():
                 raise InputError(f"{flag} {part!r} must be NAME=VALUE, e.g. motor_kw=80")
+            if name.strip() in out:  # the last one used to win silently
+                raise InputError(f"{flag} {name.strip()}: given twice ({out[name.strip()]:g} and {value.strip()})")
             try:
                 out[name.strip()] = float(value)
             except ValueError:

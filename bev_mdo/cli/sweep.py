@@ -86,6 +86,8 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
             raise UsageError(f"--vary {item!r}: values must be LO:HI:N (N >= 1 integer) or a list A,B,C") from None
         if not vals.size:
             raise UsageError(f"--vary {item!r}: no values")
+        if name in out:  # the last one used to win silently
+            raise UsageError(f"--vary {name}: given twice")
         out[name] = vals
     return out
 

@@ -57,6 +57,9 @@ def test_parameter_override_changes_energy(capsys):
     (["--set", "motor_kw=inf"], "--set motor_kw=inf: a design value must be a finite number"),
     (["--set", "motor_kw=1e400"], "--set motor_kw=inf: a design value must be a finite number"),
     (["--set", "drag_area_m2=-inf"], "--set drag_area_m2=-inf: a design value must be a finite number"),
+    # the last one used to win silently
+    (["--set", "motor_kw=70,motor_kw=80"], "--set motor_kw: given twice (70 and 80)"),
+    (["--set", "motor_kw=70", "gear_ratio=8", "motor_kw=80"], "--set motor_kw: given twice (70 and 80)"),
 ])
 def test_bad_input_is_one_line_exit_2(capsys, argv, msg):
     code, _, err = run(capsys, LEAF, *argv)

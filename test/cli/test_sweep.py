@@ -24,6 +24,8 @@ def test_parse_vary_and_full_factorial():
     assert len(g["motor_kw"]) == 18 and g["gear_ratio"][:2].tolist() == [6, 8]
     with pytest.raises(Exception):
         parse_vary(["motor_kw=40:120"])
+    with pytest.raises(Exception, match="--vary motor_kw: given twice"):  # the last one used to win
+        parse_vary(["motor_kw=40:120:3", "motor_kw=50,60"])
 
 
 def test_sweep_writes_csv_and_plots_and_matches_single_evaluations(tmp_path, capsys):
