@@ -53,6 +53,8 @@ def _unit(unit: str) -> str:
 
 def check_value(name: str, value: Any, lower: float, upper: float, unit: str = "") -> float:
     """Return ``value`` as float; ValueError naming ``name`` and [lower, upper] otherwise."""
+    if isinstance(value, (bool, np.bool_)):  # YAML's true is 1 to float(): glider_kg: true was read as 1 kg
+        raise ValueError(f"{name} must be a number in [{lower:g}, {upper:g}]{_unit(unit)}, got {str(value).lower()} (a bool)")
     try:
         x = float(value)
     except (TypeError, ValueError):

@@ -29,6 +29,13 @@ def test_bad_value_names_parameter_and_range(name, value):
     assert "\n" not in str(e.value)
 
 
+@pytest.mark.parametrize("name", ["glider_kg", "battery_usable_fraction"])
+def test_a_yaml_bool_is_not_a_number(name):
+    # float(True) is 1: glider_kg: true was read as 1 kg, battery_usable_fraction: true as 1.0 (accepted)
+    with pytest.raises(ValueError, match=rf"^{name} must be a number in \[.*\].*, got true \(a bool\)$"):
+        validate_vehicle({name: True})
+
+
 def test_mass_model_choice():
     with pytest.raises(ValueError, match="mass_model"):
         validate_vehicle({"mass_model": "heavy"})
