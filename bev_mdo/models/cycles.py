@@ -244,8 +244,8 @@ def check_trace(cycle: DriveCycle, where: str | None = None) -> DriveCycle:
 
 
 class CycleNote(UserWarning):
-    """Something about a drive cycle a user should know, that is not an error (the CLI prints it
-    as a ``note:`` line on stderr)."""
+    """Something about a drive cycle (or a fleet file) a user should know, that is not an error (the CLI
+    prints it as a ``note:`` line on stderr)."""
 
 
 def unbalanced_note(cycle: DriveCycle, where: str, mass_kg: float = 1500.0) -> str | None:

@@ -240,8 +240,9 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
 
 
 def _check_once(path, r: int, row: list[str], text: dict, seen: dict) -> None:
-    """ValueError if row ``r`` repeats an earlier row (every cell the same) or an earlier row's vehicle test
-    (test_vehicle_id and config): it was counted twice, weighted twice in a fit and paired with itself."""
+    """ValueError if row ``r`` repeats an earlier row (every cell the same: it was counted twice, weighted
+    twice in a fit and paired with itself); a note if it repeats an earlier row's test_vehicle_id and
+    config with other values."""
     cells = tuple(c.strip() for c in row)
     if cells in seen:
         raise ValueError(f"{path}: row {r}: repeats row {seen[cells]} (the same vehicle listed twice); "
@@ -250,9 +251,14 @@ def _check_once(path, r: int, row: list[str], text: dict, seen: dict) -> None:
     vid, cfg = text["test_vehicle_id"][-1], text["config"][-1]
     if vid:
         key = ("test", vid, cfg)
-        if key in seen:
-            raise ValueError(f"{path}: row {r}: test_vehicle_id {vid} with config {cfg or '(empty)'} is also "
-                             f"row {seen[key]} (one vehicle test listed twice, with different values); keep one")
+        if key in seen:  # a note, not a refusal: EPA may list one tested vehicle under two model names
+            import warnings
+
+            from .cycles import CycleNote
+
+            warnings.warn(f"{path}: row {r}: test_vehicle_id {vid} with config {cfg or '(empty)'} is also row "
+                          f"{seen[key]}, with other values; both are used (remove one if it is the same test)",
+                          CycleNote, stacklevel=3)
         seen[key] = r
 
 

@@ -166,13 +166,20 @@ def _append_copy(row, change=None):
     (_duplicate("test_mass_kg", "5000"), "row 1, column test_mass_kg: given twice (columns 8 and 22)"),
     # a row listed twice was counted twice, weighted twice by calibrate and paired with its copy
     (_append_copy(4), "row 64: repeats row 5 (the same vehicle listed twice)"),
-    (_append_copy(4, ("udds_wh_per_km_ac", "150.0")), "row 64: test_vehicle_id FK96493 with config 1 is also row 5"),
 ])
 def test_bad_fleet_file_one_line_exit_2(capsys, tmp_path, edit, expect):
     p = _bad(tmp_path, edit)
     code, out, err = run(capsys, "--data", p)
     assert code == 2 and out == ""
     assert err.count("\n") == 1 and expect in err and str(p) in err and "Traceback" not in err
+
+
+def test_one_vehicle_test_listed_twice_with_other_values_is_noted(capsys, tmp_path):
+    """Not refused (EPA may list one tested vehicle under two model names), but not silent either."""
+    p = _bad(tmp_path, _append_copy(4, ("udds_wh_per_km_ac", "150.0")))
+    code, out, err = run(capsys, "--data", p)
+    assert code == 0, err
+    assert "note: " in err and "row 64: test_vehicle_id FK96493 with config 1 is also row 5" in err, err
 
 
 def test_missing_file_exit_2(capsys, tmp_path):
