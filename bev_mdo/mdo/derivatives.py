@@ -30,16 +30,18 @@ Partials = dict[tuple[str, str], np.ndarray]  # (output, input) -> (N,)
 
 
 def fd_partials(evaluator: Any, specs: Mapping[str, Any], names: Sequence[str], values: Mapping[str, np.ndarray],
-                n: int, step: float = 1e-6, central: bool = False,
-                base_needed: Sequence[str] = ()) -> tuple[dict[str, Partials], int]:
+                n: int, step: float = 1e-6, central: bool = False, base_needed: Sequence[str] = (),
+                base_outputs: Mapping[str, np.ndarray] | None = None) -> tuple[dict[str, Partials], int]:
     """Finite-difference partials of the disciplines ``names`` at the N points of ``values`` (every
     input column, (N,) each). One ``evaluator.evaluate`` call (one wave) evaluates every stencil.
 
     The step of input v is ``step * max(|v|, 1)``. Forward differences take the discipline's
     outputs in ``values`` as the base point, except for the disciplines in ``base_needed``
     (inside a loop: their last outputs were computed from slightly older inputs), whose base is
-    evaluated too. Returns ({discipline: partials}, perturbed points that failed; their
-    partials are 0)."""
+    evaluated too. ``base_outputs``: the base outputs where an output's name in ``values`` is another
+    discipline's input at another value (IDF: a coupling's target beside what its discipline computed).
+    Returns ({discipline: partials}, perturbed points that failed; their partials are 0)."""
+    base_outputs = values if base_outputs is None else base_outputs
     calls, plans = [], []
     for name in names:
         spec = specs[name]
@@ -79,7 +81,7 @@ def fd_partials(evaluator: Any, specs: Mapping[str, Any], names: Sequence[str], 
             if with_base:
                 y0, ok0 = Y[o][-1], OK[-1]
             else:
-                y0, ok0 = np.asarray(values[o], dtype=float)[:n], np.ones(n, bool)
+                y0, ok0 = np.asarray(base_outputs[o], dtype=float)[:n], np.ones(n, bool)
             for j, v in enumerate(ins):
                 if central:
                     d = (Y[o][2 * j] - Y[o][2 * j + 1]) / (2 * h[j])

@@ -255,10 +255,10 @@ class Formulation:
             df = -df
         return df * self.scale, dg * self.scale[None, :], dh * self.scale[None, :]
 
-    def _fd_rest(self, part: dict, values: dict, base_needed=()) -> dict:
+    def _fd_rest(self, part: dict, values: dict, base_needed=(), base_outputs=None) -> dict:
         missing = [d for d in self.mda.specs if d not in part]
         fdp, failed = fd_partials(self.evaluator, self.mda.specs, missing, values, 1, self.fd_step,
-                                  self.fd_scheme == "central", base_needed)
+                                  self.fd_scheme == "central", base_needed, base_outputs)
         self.fd_failures += failed
         return {**part, **fdp}
 
@@ -370,14 +370,16 @@ class IDF(Formulation):
         h = np.column_stack([(X[:, n_dv + k] - out[c]) / self.coupling_scale[k]
                              for k, c in enumerate(self.couplings)]) if self.couplings else np.zeros((N, 0))
         if self._want_partials:
-            self._last = (out, {name: res.extra["partials"] for (name, _), res in zip(calls, results)
-                                if "partials" in res.extra})
+            self._last = (cols, out, {name: res.extra["partials"] for (name, _), res in zip(calls, results)
+                                      if "partials" in res.extra})
         return f, g, h, ok, errors
 
     def _totals(self):
-        out, part = self._last
-        values = {k: np.asarray(v)[:1] for k, v in out.items()}
-        part = self._fd_rest(dict(part), values)
+        cols, out, part = self._last
+        # the disciplines ran at the couplings' targets (cols), not at what the others computed (out):
+        # their finite differences step from the targets, from the outputs computed there
+        inputs = {k: np.asarray(v)[:1] for k, v in cols.items()}
+        part = self._fd_rest(dict(part), inputs, base_outputs={k: np.asarray(v)[:1] for k, v in out.items()})
         outputs = [v for s in self.mda.specs.values() for v in s.outputs]
         tot = idf_totals(outputs, self.var_names, part, 1)
         df = tot[self.problem.objective][0]

@@ -108,3 +108,39 @@ def test_scaling_maps_bounds_to_unit_box():
     np.testing.assert_allclose(lo, 0.0)
     np.testing.assert_allclose(hi, 1.0)
     np.testing.assert_allclose(form.to_x(form.to_u(form.x0)), form.x0)
+
+
+class _NoPartials:
+    """A discipline seen without its compute_partials: its partials come from finite differences."""
+
+    def __init__(self, inner):
+        self.inner, self.name, self.inputs, self.outputs = inner, inner.name, inner.inputs, inner.outputs
+        self.units = getattr(inner, "units", {})
+
+    def compute(self, inputs):
+        return self.inner.compute(inputs)
+
+
+def test_idf_totals_mixing_analytic_and_fd_partials_hold_away_from_consistency():
+    """IDF with derivatives: analytic, one discipline without partials: its finite differences stepped from
+    the coupling values the others computed, not from the targets it ran at, so away from consistency
+    d y1 / d y2 was off by (y2 computed - y2 target) / h (a Bolt problem: -32617 against -1.41)."""
+    discs = sellar_disciplines()
+    discs[0] = _NoPartials(discs[0])
+    ev = InProcessEvaluator(discs)
+    form = IDF(Problem.from_config(SELLAR_PROBLEM), ev, MDA(ev, tolerance=1e-13), derivatives="analytic")
+    x = np.array([3.0, 2.0, 1.0, 5.0, 4.0])  # z1, z2, x, then the targets y1, y2: far from consistent
+    assert form.var_names[3:] == ["y1", "y2"]
+    _, _, h = form.evaluate_batch(x[None])
+    assert np.abs(h).max() > 0.1
+    u = form.to_u(x)
+    df, dg, dh = form.gradients(u)
+    step = 1e-6
+    for j in range(form.n):
+        up, down = u.copy(), u.copy()
+        up[j] += step
+        down[j] -= step
+        (fu, gu, hu), (fd, gd, hd) = (form.evaluate_batch(form.to_x(v)[None]) for v in (up, down))
+        np.testing.assert_allclose(df[j] * form.problem.objective_scale, (fu - fd)[0] / (2 * step), rtol=1e-5, atol=1e-7)
+        np.testing.assert_allclose(dg[:, j], (gu - gd)[0] / (2 * step), rtol=1e-5, atol=1e-7)
+        np.testing.assert_allclose(dh[:, j], (hu - hd)[0] / (2 * step), rtol=1e-5, atol=1e-7)
