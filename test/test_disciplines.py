@@ -123,6 +123,28 @@ def test_topology_inputs():
     assert c[0] == pytest.approx(2 * (16 * 40 + 385) + (11.1 * 4 + 221.1 + 13) * 24 + 680)
 
 
+def test_dm_da_motor_speed_is_the_faster_of_its_two_geared_motors():
+    """motor_speed read gear_ratio only: under DM-DA a rear ratio of 9.4 (the rear motor at ~1,040 rad/s on
+    US06) passed a 922 rad/s limit. An in-wheel topology has no ratio to constrain: refused."""
+    dvs = {"motor_kw": {"lower": 20, "upper": 90}, "gear_ratio": {"lower": 4, "upper": 9},
+           "motor_rear_kw": {"lower": 20, "upper": 90}, "gear_ratio_rear": {"lower": 4, "upper": 12},
+           "battery_kwh": {"lower": 18, "upper": 30}}
+    cfg = _topo_cfg("DM-DA", dvs)
+    d = _build(BUILTIN["motor_speed"], cfg, {})
+    assert d.inputs == ("gear_ratio", "gear_ratio_rear")
+    x = {"gear_ratio": np.array([6.0, 8.0]), "gear_ratio_rear": np.array([9.4, 7.0])}
+    w = run_discipline(d, x).outputs["motor_speed_max_rad_s"]
+    v_max = d.max_speed_m_s / 0.316
+    np.testing.assert_allclose(w, [9.4 * v_max, 8.0 * v_max])
+    part = d.compute_partials(x)
+    np.testing.assert_allclose(part[("motor_speed_max_rad_s", "gear_ratio")], [0.0, v_max])
+    np.testing.assert_allclose(part[("motor_speed_max_rad_s", "gear_ratio_rear")], [v_max, 0.0])
+    assert _build(BUILTIN["motor_speed"], _topo_cfg(), {}).inputs == ("gear_ratio",)  # SM-SA as before
+    iwm = _topo_cfg("IWM-SA", {"motor_kw": {"lower": 20, "upper": 90}, "battery_kwh": {"lower": 18, "upper": 30}})
+    with pytest.raises(ValueError, match="motor_speed: topology IWM-SA has no gear ratio"):
+        _build(BUILTIN["motor_speed"], iwm, {})
+
+
 def test_two_speed_mass_counted_once():
     from bev_mdo.models import quasi_static as qs
 

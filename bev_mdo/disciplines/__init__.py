@@ -151,31 +151,48 @@ class Acceleration(Base):
 
 
 class MotorSpeed(Base):
-    """gear_ratio -> motor_speed_max_rad_s over the configured cycle (eq 7-29)."""
+    """gear_ratio (DM-DA: and gear_ratio_rear) -> motor_speed_max_rad_s over the configured cycle (eq 7-29):
+    the faster of the topology's geared motors. An in-wheel topology has no gear: refused."""
 
     name = "motor_speed"
-    inputs = ("gear_ratio",)
     outputs = ("motor_speed_max_rad_s",)
 
-    def __init__(self, parameters, max_speed_m_s: float):
+    @dataclass(frozen=True)
+    class Options:
+        topology: str | None = None
+
+    def __init__(self, parameters, max_speed_m_s: float, topology: str = "SM-SA"):
         super().__init__(parameters)
         self.max_speed_m_s = float(max_speed_m_s)
+        t = topo_model.get_topology(topology)
+        if not t.geared:
+            raise ValueError(f"motor_speed: topology {t.name} has no gear ratio (its motors turn with the wheels); "
+                             "constrain energy's motor_speed_margin_rad_s (options: {feasibility_outputs: true})")
+        self.inputs = ("gear_ratio", "gear_ratio_rear") if t.two_axles else ("gear_ratio",)
 
     @classmethod
     def from_config(cls, config, options):
         return cls({"wheel_radius_m": vehicle_of(config)["wheel_radius_m"]},
-                   float(np.max(resampled_cycle(config).speed_m_s)))
+                   float(np.max(resampled_cycle(config).speed_m_s)), run_topology(config, options).name)
+
+    def _ratio(self, inputs) -> np.ndarray:
+        ig = np.asarray(inputs["gear_ratio"], float)
+        return np.maximum(ig, inputs["gear_ratio_rear"]) if "gear_ratio_rear" in self.inputs else ig
 
     def compute(self, inputs):
         p = self._params(inputs)
         return {"motor_speed_max_rad_s": motor_speed.motor_speed_max_rad_s(
-            inputs["gear_ratio"], self.max_speed_m_s, p["wheel_radius_m"])}
+            self._ratio(inputs), self.max_speed_m_s, p["wheel_radius_m"])}
 
     def compute_partials(self, inputs):
-        """Eq 7-29, w = i_g v_max / r_w: dw/di_g = v_max / r_w."""
+        """Eq 7-29, w = i_g v_max / r_w: dw/di_g = v_max / r_w, for the motor with the larger ratio."""
         rw = self._params(inputs)["wheel_radius_m"]
-        n = len(inputs["gear_ratio"])
-        return {("motor_speed_max_rad_s", "gear_ratio"): np.broadcast_to(self.max_speed_m_s / rw, (n,))}
+        slope = np.broadcast_to(self.max_speed_m_s / rw, (len(inputs["gear_ratio"]),))
+        if "gear_ratio_rear" not in self.inputs:
+            return {("motor_speed_max_rad_s", "gear_ratio"): slope}
+        front = np.asarray(inputs["gear_ratio"], float) >= inputs["gear_ratio_rear"]
+        return {("motor_speed_max_rad_s", "gear_ratio"): np.where(front, slope, 0.0),
+                ("motor_speed_max_rad_s", "gear_ratio_rear"): np.where(front, 0.0, slope)}
 
 
 class Cost(Base):

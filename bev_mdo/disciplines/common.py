@@ -28,7 +28,7 @@ def resampled_cycle(config: Mapping[str, Any], name: str | None = None):
     return resample(load_cycle(c["name"], config.get("cycle_traces")), c["dt_s"], c["interpolation"], c["smoothing"])
 
 
-TOPOLOGY_DISCIPLINES = ("vehicle_mass", "energy", "acceleration", "cost", "cycle_range")
+TOPOLOGY_DISCIPLINES = ("vehicle_mass", "energy", "acceleration", "cost", "cycle_range", "motor_speed")
 
 
 def run_topology(config: Mapping[str, Any], options: Mapping[str, Any]) -> topo_model.Topology:
