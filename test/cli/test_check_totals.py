@@ -97,3 +97,10 @@ def test_a_wrong_partial_shows_as_a_disagreeing_total(capsys, monkeypatch):
     assert main(["check-totals", str(SELLAR / "sellar_mdf.yaml"), "--transport", "inprocess"]) == 1
     out = capsys.readouterr().out
     assert "DISAGREE" in out and "some totals disagree" in out
+
+
+def test_idf_with_bounded_couplings_is_checked_at_the_point_its_gradient_evaluated(capsys):
+    """propane IDF: scaling's round trip moved a bounded coupling by 4.4e-16, the check looked the other
+    point up in the cache and stopped with 'the analysis of the design failed: not evaluated' (exit 2)."""
+    rep = _report(capsys, REPO / "examples" / "propane" / "propane_idf.yaml")
+    assert rep["formulation"] == "idf" and rep["ok"] and not rep["error"], rep["error"]
