@@ -128,6 +128,18 @@ def test_config_for_topology_rewrites_the_one_setting(legacy):
     assert raw == before  # the input is not modified
 
 
+def test_a_baseline_of_the_configs_own_topology_is_left_out_of_another_topologys_problem():
+    """pareto --topology DM-DA on a config with an SM-SA baseline stopped: 'problem.baseline.design misses
+    design variables ['motor_rear_kw', 'gear_ratio_rear']' (exit 2)."""
+    from bev_mdo.config import load_config
+
+    raw = _raw()
+    raw["problem"]["baseline"] = {"name": "mine", "design": {"motor_kw": 80, "gear_ratio": 7.9, "battery_kwh": 24}}
+    assert "baseline" not in config_for_topology(raw, "DM-DA")["problem"]
+    load_config(config_for_topology(raw, "DM-DA"))
+    assert config_for_topology(raw, "SM-SA")["problem"]["baseline"]["name"] == "mine"  # its own topology: kept
+
+
 def test_pareto_runs_the_vehicle_topology(tmp_path, capsys):
     """Without --topology: the config as written (its vehicle.topology), its three objectives, no study."""
     out = tmp_path / "o"
