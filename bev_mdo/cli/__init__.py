@@ -75,13 +75,20 @@ def _chosen(argv: list[str]) -> str | None:
     return None
 
 
+class _Parser(argparse.ArgumentParser):
+    """A usage mistake is one line on stderr, as every other user mistake (exit 2), naming --help."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     """The ``bev-mdo`` parser. With ``argv``, only the subcommand it names gets its full parser
     (its module is imported); every other subcommand is listed by name and help. Without
     ``argv``, every module is imported and registered (the full parser, for documentation)."""
     from bev_mdo import __version__
 
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="bev-mdo",
         description="Distributed MDO of battery-electric-vehicle powertrains over ROS 2.",
     )

@@ -76,3 +76,13 @@ def test_a_subcommand_module_that_fails_to_import_fails_loudly(monkeypatch):
         cli.main(["status"])
     # other subcommands are not affected by it
     assert cli.build_parser(["graph"]).parse_args(["graph", "c.yaml"]).config == "c.yaml"
+
+
+@pytest.mark.parametrize("argv", [["optimize", "c.yaml", "--domain-id", "abc"], ["optimize", "c.yaml", "--formulation", "xyz"],
+                                  ["optimize"], ["nosuch"]])
+def test_a_usage_mistake_is_one_line_naming_help(argv, capsys):
+    """argparse printed the whole usage (14 lines for optimize) where every other mistake is one line."""
+    with pytest.raises(SystemExit) as exc:
+        cli.main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1 and "error: " in err and "--help)" in err, err
