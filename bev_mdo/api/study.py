@@ -31,6 +31,26 @@ def _input_errors(method):
     return call
 
 
+def _mapping(value, what: str) -> dict:
+    """A {name: value} argument as a dict; InputError for anything else (a list of values, a number)."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise InputError(f"{what} must be a mapping of names to values, got {type(value).__name__}")
+    return dict(value)
+
+
+def _names(value, what: str) -> list[str] | None:
+    """A list of names (one name, or "a,b" as the CLI writes it, is taken too); InputError otherwise."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        return [v.strip() for v in value.split(",") if v.strip()]
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+        raise InputError(f"{what} must be a list of names, got {value!r}")
+    return list(value)
+
+
 class Study:
     """A run config and the changes made to its problem.
 
@@ -47,6 +67,8 @@ class Study:
     def __init__(self, config: str | Path | Mapping[str, Any]):
         from bev_mdo.config import RunConfig
 
+        if not isinstance(config, (str, Path, Mapping)):
+            raise InputError(f"a study's config is a YAML file or a mapping, got {type(config).__name__}")
         self.source = str(config) if isinstance(config, (str, Path)) else "<config>"
         self._raw = config if isinstance(config, (str, Path)) else dict(config)
         self.overrides = Overrides()
@@ -92,11 +114,12 @@ class Study:
         return self._change(edit)
 
     @_input_errors
+    @_input_errors
     def evaluate(self, design: Mapping[str, float] | None = None, transport=DEFAULT_TRANSPORT) -> EvaluateResult:
         """One design through every discipline; variables not given take their initial value."""
         from bev_mdo.api import evaluate
 
-        return EvaluateResult.of(evaluate.design(self.config, dict(design or {}), Transport.of(transport)))
+        return EvaluateResult.of(evaluate.design(self.config, _mapping(design, "design"), Transport.of(transport)))
 
     @_input_errors
     def optimize(self, formulation: str | None = None, optimizer: str | None = None, *, starts: int = 1,
@@ -122,9 +145,12 @@ class Study:
 
         from bev_mdo.api import doe as sampling, evaluate
 
-        fixed = {k: float(v) for k, v in (fixed or {}).items()}
+        fixed = {k: float(v) for k, v in _mapping(fixed, "fixed").items()}
         if designs is not None:
-            cols = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in designs.items()}
+            cols = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in _mapping(designs, "designs").items()}
+            if not cols or len({c.shape for c in cols.values()}) != 1 or next(iter(cols.values())).ndim != 1:
+                raise InputError("designs: give every variable's values as one list, all of the same length "
+                                 f"(got {', '.join(f'{k}: {c.shape[0] if c.ndim == 1 else c.shape}' for k, c in cols.items())})")
         else:
             problem = self.config.problem
             bounds = {d.name: (d.lower, d.upper) for d in problem.design_variables if d.name not in fixed}
@@ -142,7 +168,7 @@ class Study:
         with respect to ``wrt`` (design variables and model parameters; default: the design variables)."""
         from bev_mdo.api import sensitivity
 
-        s, outputs, _, _ = sensitivity.run(self.config, dict(at or {}), wrt, Transport.of(transport), order=order,
+        s, outputs, _, _ = sensitivity.run(self.config, _mapping(at, "at"), _names(wrt, "wrt"), Transport.of(transport), order=order,
                                            rel_step=rel_step)
         return SensitivityResult.of(sensitivity.to_dict(s, outputs))
 
@@ -157,7 +183,7 @@ class Study:
 
         if method not in sensitivity.METHODS:
             raise InputError(f"--global {method!r}: allowed: {', '.join(sensitivity.METHODS)}")
-        rep = sensitivity.run(self.config, dict(at or {}), wrt, Transport.of(transport), global_method=method,
+        rep = sensitivity.run(self.config, _mapping(at, "at"), _names(wrt, "wrt"), Transport.of(transport), global_method=method,
                               samples=samples, seed=seed, conf_level=conf_level)
         return GlobalSensitivityResult.of(rep)
 
@@ -169,6 +195,6 @@ class Study:
         ``problem.objectives``), written with its bag into ``out`` (default bags/<name>_pareto_<time>)."""
         from bev_mdo.api import pareto
 
-        doc, _ = pareto.run(self.config, objectives, generations=generations, pop=pop, seed=seed, out=out,
+        doc, _ = pareto.run(self.config, _names(objectives, "objectives"), generations=generations, pop=pop, seed=seed, out=out,
                             transport=Transport.of(transport), instances=instances, plots=plots, source=self.source)
         return ParetoResult.of(doc)

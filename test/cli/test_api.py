@@ -118,6 +118,30 @@ def test_a_bad_config_raises_input_error():
         Study(ROOT / "config" / "leaf_nedc.yaml").sweep("sobol", samples=10, transport="inprocess")
 
 
+@pytest.mark.parametrize("run,said", [
+    (lambda s: s.evaluate([100, 7, 60], transport="inprocess"), "design must be a mapping"),  # TypeError before
+    (lambda s: s.sweep(designs={"motor_kw": [110, 120], "gear_ratio": [6]}, transport="inprocess"),
+     "all of the same length"),  # broadcast silently, then IndexError in rows()
+    (lambda s: s.global_sensitivity("morris", samples=4, wrt=["motor_kw", 3], transport="inprocess"),
+     "wrt must be a list of names"),
+])
+def test_arguments_of_the_wrong_kind_raise_input_error(run, said):
+    from bev_mdo import InputError, Study
+
+    with pytest.raises(InputError, match=said):
+        run(Study(ROOT / "config" / "leaf_nedc.yaml"))
+    with pytest.raises(InputError, match="a study's config is a YAML file or a mapping, got int"):
+        Study(42)
+
+
+def test_one_name_is_taken_where_a_list_of_names_is_asked():
+    """wrt="motor_kw" was iterated by character ("unknown variable or parameter 'm'")."""
+    from bev_mdo import Study
+
+    r = Study(ROOT / "config" / "leaf_nedc.yaml").sensitivity(wrt="motor_kw", order=1, transport="inprocess")
+    assert list(r.wrt) == ["motor_kw"]
+
+
 def test_importing_bev_mdo_and_naming_the_api_loads_no_numpy_and_no_ros():
     code = ("import sys, bev_mdo; bev_mdo.Study; bev_mdo.OptimizeResult; "
             "print(sorted(m for m in ('numpy', 'scipy', 'rclpy', 'bev_mdo.cli') if m in sys.modules))")
