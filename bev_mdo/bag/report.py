@@ -384,10 +384,13 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
             lines += ["", "Outputs other than the objective and constraints (mass, cost, ...) are the final "
                           "iterate analysed again in process from the configuration stored in the bag."]
         if feasible:
+            from bev_mdo.mdo.driver import BEST_REL_TOL, pick_result
+
             sign = -1.0 if _maximized(read_config(bag)) else 1.0
-            best = min(feasible, key=lambda r: sign * r["objective"])
+            best = rows[pick_result(rows, sign, converged=False)]  # the run's own rule for its result
             lines += ["", f"Best feasible objective {best['objective']:.6g} at iteration {best['iteration']}"
-                          f"{' (maximised)' if sign < 0 else ''}."]
+                          f"{' (maximised)' if sign < 0 else ''} (an earlier iterate counts only if better by more "
+                          f"than {BEST_REL_TOL:g} relative, as for the run's result)."]
         lines += _answers_section(answers)
     else:
         lines += ["", "No iteration records in this bag."]
