@@ -66,13 +66,23 @@ def composed_argv(names: Sequence[str], config_path: str, instance: str = "", ru
 def parse_instances(spec: str | None, names: Sequence[str]) -> dict[str, int]:
     """``--instances``: ``N`` (every discipline) or ``name=N[,name=N...]`` -> {discipline: instances}."""
     out = dict.fromkeys(names, 1)
-    if not spec:
+    if spec is None:
         return out
     spec = str(spec).strip()
+    if not spec:
+        raise ValueError("--instances '': give N (every discipline) or NAME=N[,NAME=N...]")
     items = [(None, spec)] if "=" not in spec else [tuple(s.split("=", 1)) for s in spec.split(",") if s.strip()]
-    for name, count in items:
+    seen: dict[str, str] = {}
+    for item in items:
+        if len(item) != 2:
+            raise ValueError(f"--instances {spec!r}: give N (every discipline) or NAME=N[,NAME=N...], not both")
+        name, count = item
         if name is not None and name.strip() not in out:
             raise ValueError(f"--instances: no discipline {name.strip()!r} in the config; it has {list(names)}")
+        if name is not None and name.strip() in seen:  # the last one used to win silently
+            raise ValueError(f"--instances {name.strip()}: given twice ({seen[name.strip()]} and {count.strip()})")
+        if name is not None:
+            seen[name.strip()] = count.strip()
         try:
             k = int(count)
         except ValueError:
@@ -100,7 +110,9 @@ def parse_compose(spec: str | None, names: Sequence[str]) -> list[list[str]]:
     """``--compose``: ``none`` (a process per discipline), ``all`` (one process for all), groups
     ``a+b,c+d`` (each group one process; the others alone) or ``coordinator`` (no process: all in the
     coordinator's, see beside_coordinator) -> list of process groups, in order."""
-    spec = (spec or "none").strip()
+    spec = "none" if spec is None else spec.strip()
+    if not spec:  # an empty --compose used to run as none
+        raise ValueError("--compose '': give coordinator, none, all or groups A+B,C+D")
     if spec == "none":
         return [[n] for n in names]
     if spec == COMPOSE_COORDINATOR:  # no process: composed into the coordinator's (composed.Beside)

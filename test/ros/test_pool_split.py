@@ -126,3 +126,17 @@ def test_pool_min_rows_setting_and_the_split_it_gives():
     assert pool.split(100, ["e0", "e1"], min_rows=128) == [("e1", 0, 100)]
     assert [(i, b - a) for i, a, b in pool.split(512, ["e0", "e1"], min_rows=128)] == [("e0", 211), ("e1", 301)]
     assert len(pool.split(100, ["e0", "e1"], min_rows=1)) == 2  # the default: every instance gets a share
+
+
+def test_a_discipline_given_twice_or_an_empty_spec_is_refused():
+    """``--instances energy=2,energy=3`` used to keep the last, ``--compose ""`` to run as none."""
+    from bev_mdo.processes import parse_compose, parse_instances
+
+    names = ["vehicle_mass", "energy", "range", "cost"]
+    for bad, why in (("energy=2,energy=3", "energy: given twice"), ("", "give N"), ("2,energy=3", "not both")):
+        with pytest.raises(ValueError, match=why):
+            parse_instances(bad, names)
+    for bad in ("", "  "):
+        with pytest.raises(ValueError, match="--compose '': give coordinator, none, all or groups"):
+            parse_compose(bad, names)
+    assert parse_instances(None, names) == dict.fromkeys(names, 1)
