@@ -48,6 +48,7 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | None = None) ->
         # ValueError names the known optimizers, or the config's option the chosen one does not take
         check_optimizer_options(canonical_name(opts.optimizer), config.settings.optimizer.options)
     opts.refuse_attach("optimize")
+    _refuse_ros_only(opts)
     starts = _starts(opts, x0)  # a bad start count is refused before anything starts or is written
     t_start = time.perf_counter()
     show = callback or (lambda rec: None)
@@ -124,18 +125,47 @@ def _run_ros(config, opts, show, x0, starts):
         check_new_bag(bag, "--bag")
     names = list(config.names)
     instances = parse_instances(opts.instances, names)
+    where = _where(names, instances, opts.compose)  # a rejected --compose is refused before this line prints
     session = OptimizeRosSession(config, ros, bag, run_id, record=not opts.no_record, instances=instances,
                                  compose=opts.compose)
     if not opts.quiet:
-        where = (" in this process (--compose coordinator; --compose none: a process each)"
-                 if opts.compose == "coordinator" else "")
-        print(f"starting {len(names)} discipline nodes{where}{'' if opts.no_record else ' and a recorder'}"
+        print(f"starting {where}{'' if opts.no_record else ' and a recorder'}"
               f" (domain {ros['domain_id']}); waiting while discovery makes progress (gives up after "
               f"{ros['discovery_wait_s']:g} s without) ...",
               file=sys.stderr if opts.progress_to_stderr else sys.stdout, flush=True)
     with noting_interrupts(None if opts.no_record else bag), session:
         result, baseline = session.run(opts.formulation, opts.optimizer, x0, show, starts=starts, seed=opts.seed)
     return result, baseline, session.summary()
+
+
+def _refuse_ros_only(opts) -> None:
+    """InputError naming the ROS-only options given to an in-process run (they used to be ignored silently);
+    ``compose`` counts as given when it is not the default."""
+    if opts.uses_ros:
+        return
+    given = [flag for flag, value in (("--compose", None if opts.compose == "coordinator" else opts.compose),
+                                      ("--instances", opts.instances), ("--domain-id", opts.domain_id),
+                                      ("--discovery", opts.discovery), ("--static-peers", opts.static_peers),
+                                      ("--discovery-server", opts.discovery_server)) if value is not None]
+    if given:
+        raise InputError(f"{', '.join(given)} cannot be combined with --transport inprocess (it starts no ROS nodes)")
+
+
+def _where(names, instances: dict, compose: str | None) -> str:
+    """What the start-up line says runs where: the nodes in this process (--compose coordinator), and the
+    processes started for the others (a pool's instances: one each). ValueError on a bad --compose."""
+    from bev_mdo.processes import beside_coordinator, node_names_of, plan_processes
+
+    local = beside_coordinator(compose, names, instances)
+    plan = plan_processes(names, "", instances=instances, compose=compose)
+    started = sum(len(node_names_of(argv)) for _, argv in plan)
+    parts = [f"{len(local)} in this process, --compose coordinator"] if local else []
+    if plan:
+        pools = ", ".join(f"{n} x{k}" for n, k in instances.items() if k > 1)
+        parts.append(f"{started} in {len(plan)} other process{'es' if len(plan) > 1 else ''}"
+                     + ("" if compose == "coordinator" else f", --compose {compose or 'none'}")
+                     + (f", a process per pool instance: {pools}" if pools else ""))
+    return f"{len(local) + started} discipline nodes ({'; '.join(parts)})"
 
 
 def _starts(opts, x0) -> int:

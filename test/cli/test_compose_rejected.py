@@ -18,3 +18,15 @@ def test_a_rejected_compose_leaves_nothing_behind(tmp_path, compose):
                        capture_output=True, text=True, cwd=tmp_path, timeout=120, env=env)
     assert p.returncode == 2 and "--compose" in p.stderr and "Traceback" not in p.stderr, p.stderr
     assert [q.relative_to(tmp_path) for q in tmp_path.rglob("*")] == [], "logs or a key were written"
+
+
+@pytest.mark.parametrize("compose", ["energy+nosuch", ""])
+def test_a_rejected_compose_says_nothing_before_its_error(tmp_path, monkeypatch, capsys, compose):
+    """The "starting 6 discipline nodes ..." line used to print before the error; --compose "" ran as none."""
+    from bev_mdo.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["optimize", str(REPO / "config" / "leaf_nedc.yaml"), "--compose", compose, "--domain-id", "66"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1 and "--compose" in err, (out, err)
+    assert list(tmp_path.iterdir()) == []

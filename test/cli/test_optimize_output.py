@@ -154,3 +154,27 @@ def test_json_of_a_run_whose_every_point_failed_is_strict_with_null(tmp_path):
         rc = main(["optimize", str(cfg), "--transport", "inprocess", "--no-record", "--json"])
     doc = _strict_json(buf.getvalue())
     assert rc == 1 and not doc["feasible"] and doc["outputs"]["w"] is None, doc["outputs"]
+
+
+def test_the_start_up_line_says_what_runs_where_with_pools(monkeypatch, tmp_path):
+    """With --instances the line said "6 discipline nodes in this process" while the pool ran apart."""
+    from bev_mdo import sessions
+    from bev_mdo.api.errors import InputError
+
+    class Stop:
+        def __init__(self, *args, **kwargs):
+            pass
+
+        def __enter__(self):
+            raise InputError("stopped by the test before any node starts")
+
+        def __exit__(self, *exc):
+            return False
+
+    monkeypatch.setattr(sessions, "OptimizeRosSession", Stop)
+    monkeypatch.chdir(tmp_path)
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert main(["optimize", CONFIG, "--no-record", "--domain-id", "206", "--instances", "energy=2"]) == 2
+    assert buf.getvalue().startswith("starting 7 discipline nodes (5 in this process, --compose coordinator; "
+                                     "2 in 2 other processes, a process per pool instance: energy x2) (domain 206)")

@@ -79,3 +79,15 @@ def test_attach_where_it_cannot_apply_is_one_line_exit_2(argv, message, capsys, 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("flags", [["--compose", "none"], ["--instances", "2"], ["--domain-id", "300"],
+                                   ["--compose", "all", "--instances", "energy=2"]])
+def test_ros_only_optimize_flags_with_inprocess_are_one_line_exit_2(flags, capsys, tmp_path, monkeypatch):
+    """They were ignored silently (and --domain-id 300, refused over ROS, accepted)."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["optimize", CONFIG, "--transport", "inprocess", *flags]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    named = [f for f in flags if f.startswith("--")]
+    assert len(err) == 1 and f"{', '.join(named)} cannot be combined with --transport inprocess" in err[0], err
+    assert list(tmp_path.iterdir()) == []
