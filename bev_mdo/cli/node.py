@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import re
 
 from bev_mdo.cli import SUBCOMMANDS, UsageError
 
@@ -12,7 +13,8 @@ def register(sub) -> None:
                                    "unless the config's ros: section opts in to more.")
     p.add_argument("name", help="discipline name, e.g. energy")
     p.add_argument("--config", default=None, help="run config YAML (default: config/leaf_nedc.yaml)")
-    p.add_argument("--instance", default="", help="instance suffix, to run several copies of one discipline")
+    p.add_argument("--instance", default="",
+                   help="instance suffix (letters, digits, _), to run several copies of one discipline")
     from bev_mdo.cli.flags import add_ros_arguments
 
     add_ros_arguments(p)
@@ -23,6 +25,9 @@ def run(args) -> int:
     from bev_mdo.config import RunConfig
     from bev_mdo.ros.paths import default_config
 
+    if args.instance and not re.fullmatch(r"[A-Za-z0-9_]+", args.instance):  # it becomes part of the node name
+        raise UsageError(f"--instance {args.instance!r}: use only letters, digits and _ "
+                         "(it becomes part of the ROS node name)")
     path = args.config or default_config()
     config = RunConfig.load(path)
     names = list(config.names)

@@ -104,3 +104,13 @@ def test_a_node_interrupted_while_loading_ends_with_one_line(ros_domain, tmp_pat
     assert p.returncode == 130 and "Traceback" not in p.stderr, p.stderr[-2000:]
     assert p.stderr.strip().splitlines() == ["recorder_node: starting (loading ROS 2 and the models)",
                                              "recorder_node: interrupted"]
+
+
+@pytest.mark.parametrize("instance", ["a b", "a-b", "x/y", "é"])
+def test_an_instance_name_a_node_name_cannot_hold_is_one_line_exit_2(instance, capsys):
+    """It used to reach rcl as a remap rule and stop with a raw RCLError, exit 7."""
+    from bev_mdo.cli import main
+
+    assert main(["node", "energy", "--instance", instance, "--config", str(REPO / "config" / "leaf_nedc.yaml")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "use only letters, digits and _" in err[0], err
