@@ -140,3 +140,24 @@ def endpoints(node, topic: str, msg_type, subscriber: bool = True, warn: bool = 
                   f"{info.topic_type}, not {want}: it cannot exchange messages with this run (ignored)",
                   file=sys.stderr, flush=True)
     return same
+
+
+def declare(node, name: str, default, description: str = "", whole_as_text: bool = False):
+    """The value of parameter `name` of `node`, declared with `default` (its type) and `description`. A
+    value of another type (``-p``, a parameters file) is a ValueError naming the parameter, the value, its
+    type and the type expected, not rclpy's traceback; a whole number for a DOUBLE is that number (and
+    with `whole_as_text`, for a STRING its digits: ``instances:=2``)."""
+    from rcl_interfaces.msg import ParameterDescriptor
+    from rclpy.parameter import Parameter
+
+    desc = ParameterDescriptor(description=description, dynamic_typing=True)  # the type is checked here
+    value = node.declare_parameter(name, default, desc).value
+    kind, want = (Parameter.Type.from_parameter_value(v).name for v in (value, default))
+    if kind == want:
+        return value
+    if (kind, want) == ("INTEGER", "DOUBLE") or (kind, want, whole_as_text) == ("INTEGER", "STRING", True):
+        return float(value) if want == "DOUBLE" else str(value)
+    quote = f" (quote it: -p \"{name}:='{value}'\")" if want == "STRING" and kind in ("INTEGER", "DOUBLE", "BOOL") else ""
+    shown = list(value) if kind.endswith("_ARRAY") else value
+    raise ValueError(f"parameter {name}: {shown!r} is {kind}, expected {want}{quote}")
+

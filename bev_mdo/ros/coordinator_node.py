@@ -16,11 +16,10 @@ from typing import Any, Callable, Mapping
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rcl_interfaces.msg import ParameterDescriptor
 
 from bev_mdo import protocol
-from bev_mdo.ros.common import (ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, endpoints, mda_result_topic, stamp,
-                                wait_acked)
+from bev_mdo.ros.common import (ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, declare, endpoints, mda_result_topic,
+                                stamp, wait_acked)
 from bev_mdo.ros.evaluator import RosEvaluator
 from bev_mdo.ros.fastwait import until
 from bev_mdo.ros.recorder_node import OwnRecorder
@@ -216,23 +215,17 @@ def main(args: list[str] | None = None) -> int:
     beside = None
     try:
         probe = Node("coordinator_node")  # the params-file section it reads (coordinator_node:)
-        for name, desc in (("config", "run config YAML"), ("formulation", "mdf | idf (default: config)"),
-                           ("optimizer", "optimizer name (default: config)"), ("run_id", "run id (default: random)")):
-            probe.declare_parameter(name, "", ParameterDescriptor(description=desc))
-        probe.declare_parameter("instances", "", ParameterDescriptor(
-            description="wait for pools before the first evaluation: N or name=N[,name=N] (as --instances)"))
-        probe.declare_parameter("compose", "", ParameterDescriptor(
-            description="coordinator: serve every discipline (but pools) from nodes in this process (--compose)"))
-        probe.declare_parameter("recorders", 0, ParameterDescriptor(
-            description="1: before the first evaluation, wait for this run's recorder (recorder_node --run-id RUN)"))
-        p = {k: probe.get_parameter(k).value
-             for k in ("config", "formulation", "optimizer", "run_id", "recorders", "instances", "compose")}
+        p = {k: declare(probe, k, default, desc, whole_as_text=k == "instances") for k, default, desc in (
+            ("config", "", "run config YAML"), ("formulation", "", "mdf | idf (default: config)"),
+            ("optimizer", "", "optimizer name (default: config)"), ("run_id", "", "run id (default: random)"),
+            ("recorders", 0, "1: before the first evaluation, wait for this run's recorder (recorder_node --run-id RUN)"),
+            ("instances", "", "wait for pools before the first evaluation: N or name=N[,name=N] (as --instances)"),
+            ("compose", "", "coordinator: serve every discipline (but pools) from nodes in this process (--compose)"))}
         probe.destroy_node()
         config = RunConfig.load(p["config"] or default_config())
+        _check_static(config, p)  # a mistake in them is said at once, not after the discovery wait
         instances = _instances(p["instances"], config)
         run_id = p["run_id"] or uuid.uuid4().hex[:16]
-        if p["compose"] not in ("", "none", "coordinator"):
-            raise ValueError(f"compose must be coordinator or none, got {p['compose']!r} (composed_node runs groups)")
         from bev_mdo.processes import beside_coordinator
 
         local = beside_coordinator(p["compose"], list(config.names), instances)
@@ -257,6 +250,22 @@ def main(args: list[str] | None = None) -> int:
             beside.close()
         if rclpy.ok():
             rclpy.shutdown()
+
+
+def _check_static(config, p: Mapping[str, Any]) -> None:
+    """ValueError naming a bad formulation, optimizer, recorders or compose parameter."""
+    from bev_mdo.config import check_optimizer_options
+    from bev_mdo.config.load import FORMULATIONS
+    from bev_mdo.mdo.optimizers import canonical_name
+
+    if p["formulation"] and p["formulation"].lower() not in FORMULATIONS:
+        raise ValueError(f"formulation {p['formulation']!r} is unknown; allowed: {', '.join(FORMULATIONS)}")
+    if p["optimizer"]:  # names the known optimizers, or the config's option the chosen one does not take
+        check_optimizer_options(canonical_name(p["optimizer"]), config.settings.optimizer.options)
+    if p["recorders"] not in (0, 1):
+        raise ValueError(f"recorders must be 0 or 1 (wait for this run's recorder), got {p['recorders']}")
+    if p["compose"] not in ("", "none", "coordinator"):
+        raise ValueError(f"compose must be coordinator or none, got {p['compose']!r} (composed_node runs groups)")
 
 
 def _instances(spec: str, config) -> dict[str, int] | None:

@@ -31,7 +31,6 @@ import numpy as np
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rcl_interfaces.msg import ParameterDescriptor
 
 from bev_mdo import __version__, binding, protocol
 from bev_mdo.stacks import deadline
@@ -40,7 +39,7 @@ from bev_mdo.mdo.discipline import DisciplineError, all_finite, prepare, readabl
 from bev_mdo.mdo.vectors import ShapeError
 from bev_mdo.protocol.signing import Signer
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RESULT_QOS, NODE_STATS_QOS,
-                                NODE_STATS_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, mda_result_topic,
+                                NODE_STATS_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, declare, mda_result_topic,
                                 request_topic, stamp)
 from bev_mdo.ros.paths import default_config
 from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult
@@ -92,27 +91,25 @@ class DisciplineNode(Node):
     def __init__(self, discipline: str | None = None, *, config: dict | None = None, **kwargs):
         name_hint = discipline or "discipline"
         super().__init__(kwargs.pop("node_name", f"{name_hint}_node"), **kwargs)
-        self.declare_parameter("config", "", ParameterDescriptor(description="path to the run config YAML"))
-        self.declare_parameter("discipline", discipline or "", ParameterDescriptor(description="discipline name"))
-        self.declare_parameter("instance", "", ParameterDescriptor(description="instance name (default: node name)"))
-        self.declare_parameter("run_id", "", ParameterDescriptor(
-            description="serve only this run (and its <run>-... sub-runs); empty: any run whose requests "
-                        "carry this node's configuration fingerprint"))
-        name = self.get_parameter("discipline").value
+        p = {k: declare(self, k, default, desc) for k, default, desc in (
+            ("config", "", "path to the run config YAML"), ("discipline", discipline or "", "discipline name"),
+            ("instance", "", "instance name (default: node name)"),
+            ("run_id", "", "serve only this run (and its <run>-... sub-runs); empty: any run whose requests "
+                           "carry this node's configuration fingerprint"))}
+        name = p["discipline"]
         if not name:
             raise ValueError("discipline_node needs -p discipline:=<name>")
         from bev_mdo.config import RunConfig
 
-        run_config = RunConfig.of(config if config is not None else
-                                  self.get_parameter("config").value or default_config())
+        run_config = RunConfig.of(config if config is not None else p["config"] or default_config())
         config = self._apply_overrides(run_config)
         self.discipline, producer = _build(config, name)
         self.discipline_name = name
-        self.bound_run = self.get_parameter("run_id").value or ""
+        self.bound_run = p["run_id"]
         self.fingerprint, self.effective_config = binding.fingerprint(config, name)
         self.source_of = flow.sources_of(self.discipline.inputs, producer, name)  # coupling input -> source
         self._allowed = readable(self.discipline)
-        self.instance = self.get_parameter("instance").value or self.get_fully_qualified_name()
+        self.instance = p["instance"] or self.get_fully_qualified_name()
         self.counts: Counter[str] = Counter()
         self.compute_s = 0.0  # time spent in compute(), summed (node stats)
         self.signer = Signer.from_ros(run_config.ros)
@@ -178,9 +175,9 @@ class DisciplineNode(Node):
         changed = False
         for key, value in vehicle.items():
             if isinstance(value, (int, float)) and not isinstance(value, bool):
-                p = self.declare_parameter(f"vehicle.{key}", float(value))
-                changed = changed or float(p.value) != float(value)
-                vehicle[key] = float(p.value)
+                given = declare(self, f"vehicle.{key}", float(value))  # a whole number is taken for a DOUBLE
+                changed = changed or given != float(value)
+                vehicle[key] = given
         if not changed:
             return run_config
         if vehicle:

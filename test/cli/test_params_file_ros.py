@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import sys
 
+import pytest
 import yaml
 
 
@@ -67,3 +68,40 @@ def test_the_coordinator_node_section_sets_the_coordinators_parameters(ros_domai
                        timeout=120)
     assert p.returncode == 2, p.stderr
     assert f"{missing}: no such config file" in p.stderr
+
+
+def _coordinator(ros_domain, *ros_args, cwd=REPO, timeout=120):
+    import subprocess
+
+    return subprocess.run([sys.executable, "-m", "bev_mdo.ros.run", "coordinator_node", "--ros-args", *ros_args],
+                          env=ros_env(ros_domain), capture_output=True, text=True, timeout=timeout, cwd=cwd)
+
+
+def _said_once(p, *words):
+    """Exit 2 with one error line (after the node's 'starting' line), naming `words`, no traceback."""
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr[-3000:]
+    assert len(lines) <= 2 and all(w in lines[-1] for w in words), lines
+
+
+@pytest.mark.parametrize("param, words", [("formulation:=xdf", ["formulation 'xdf' is unknown", "mdf, idf"]),
+                                          ("optimizer:=FOO", ["optimizer 'FOO' is unknown", "SLSQP"]),
+                                          ("recorders:=2", ["recorders must be 0 or 1"])])
+def test_a_bad_static_parameter_is_refused_before_the_discovery_wait(ros_domain, tmp_path, param, words):
+    """They were checked after the wait for the disciplines (exit 6 after ros.discovery_wait_s)."""
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
+    raw["ros"] = {"domain_id": ros_domain, "discovery_wait_s": 600.0}
+    cfg = tmp_path / "slow.yaml"
+    cfg.write_text(yaml.safe_dump(raw))
+    _said_once(_coordinator(ros_domain, "-p", f"config:={cfg}", "-p", param, timeout=300), *words)
+
+
+@pytest.mark.parametrize("text, words", [
+    ("recorders: one", ["parameter recorders: 'one' is STRING, expected INTEGER"]),
+    ("config: 42", ["parameter config: 42 is INTEGER, expected STRING", "quote it"]),
+    ("optimizer: [1, 2]", ["parameter optimizer: [1, 2] is INTEGER_ARRAY, expected STRING"])])
+def test_a_parameter_of_the_wrong_type_is_one_line_exit_2(ros_domain, tmp_path, text, words):
+    """rclpy's InvalidParameterTypeException stopped the coordinator with a 26-line traceback, exit 1."""
+    params = tmp_path / "params.yaml"
+    params.write_text(f"coordinator_node:\n  ros__parameters:\n    {text}\n")
+    _said_once(_coordinator(ros_domain, "--params-file", str(params), cwd=tmp_path), *words)

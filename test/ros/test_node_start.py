@@ -114,3 +114,33 @@ def test_an_instance_name_a_node_name_cannot_hold_is_one_line_exit_2(instance, c
     assert main(["node", "energy", "--instance", instance, "--config", str(REPO / "config" / "leaf_nedc.yaml")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "use only letters, digits and _" in err[0], err
+
+
+@pytest.mark.parametrize("param, words", [
+    ("vehicle.drag_area_m2:=big", "parameter vehicle.drag_area_m2: 'big' is STRING, expected DOUBLE"),
+    ("config:=42", "parameter config: 42 is INTEGER, expected STRING (quote it"),
+    ("instance:=[1,2]", "parameter instance: [1, 2] is INTEGER_ARRAY, expected STRING")])
+def test_a_parameter_of_the_wrong_type_is_one_line_exit_2(ros_domain, param, words):
+    """rclpy's InvalidParameterTypeException stopped the node with a 26-line traceback, exit 1."""
+    p = subprocess.run([sys.executable, "-m", "bev_mdo.ros.run", "energy_node", "--ros-args", "-p",
+                        f"config:={REPO / 'config' / 'leaf_nedc.yaml'}", "-p", param],
+                       env=ros_env(ros_domain), capture_output=True, text=True, timeout=120)
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and "Traceback" not in p.stderr and len(lines) <= 2, p.stderr[-3000:]
+    assert words in lines[-1], lines
+
+
+def test_a_whole_number_for_a_vehicle_value_is_that_number(ros_domain):
+    """-p vehicle.drag_area_m2:=1 (an INTEGER to ROS) is 1.0, not a type error."""
+    p = subprocess.Popen([sys.executable, "-m", "bev_mdo.ros.run", "energy_node", "--ros-args", "-p",
+                          f"config:={REPO / 'config' / 'leaf_nedc.yaml'}", "-p", "vehicle.drag_area_m2:=1"],
+                         env=ros_env(ros_domain), stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+    lines = []
+    try:
+        for line in p.stderr:  # ends when the node dies; the node says "serving ..." once it is up
+            lines.append(line)
+            if "serving 'energy'" in line or len(lines) > 50:
+                break
+    finally:
+        _stop(p)
+    assert any("serving 'energy'" in line for line in lines), "".join(lines)[-2000:]
