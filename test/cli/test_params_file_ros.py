@@ -84,6 +84,36 @@ def _said_once(p, *words):
     assert len(lines) <= 2 and all(w in lines[-1] for w in words), lines
 
 
+def test_a_p_after_the_shipped_file_overrides_it(ros_domain):
+    """docs/ros2-run.md: "A -p given after the file overrides it". The shipped file's coordinator section
+    used to come after its /** section, and rclpy applies sections in that order (a -p joins /**)."""
+    import rclpy
+    from rclpy.node import Node
+
+    def params(*args):
+        ctx = rclpy.context.Context()
+        rclpy.init(args=["x", "--ros-args", *args], context=ctx)
+        try:
+            node = Node("coordinator_node", context=ctx)
+            got = {k: node.declare_parameter(k, d).value for k, d in
+                   (("optimizer", ""), ("formulation", ""), ("recorders", 0), ("run_id", ""), ("config", ""))}
+            node.destroy_node()
+            return got
+        finally:
+            rclpy.shutdown(context=ctx)
+
+    shipped = params("--params-file", str(SHIPPED))
+    assert shipped == {"optimizer": "SLSQP", "formulation": "mdf", "recorders": 1, "run_id": "by_hand",
+                       "config": "config/leaf_nedc.yaml"}
+    later = params("--params-file", str(SHIPPED), "-p", "optimizer:=COBYLA", "-p", "formulation:=idf",
+                   "-p", "recorders:=0", "-p", "run_id:=mine", "-p", "config:=other.yaml")
+    assert later == {"optimizer": "COBYLA", "formulation": "idf", "recorders": 0, "run_id": "mine",
+                     "config": "other.yaml"}
+    # the coordinator itself runs with the later -p: an optimiser it does not know is refused at once
+    p = _coordinator(ros_domain, "--params-file", str(SHIPPED), "-p", "optimizer:=NOSUCH")
+    _said_once(p, "optimizer 'NOSUCH' is unknown")
+
+
 @pytest.mark.parametrize("param, words", [("formulation:=xdf", ["formulation 'xdf' is unknown", "mdf, idf"]),
                                           ("optimizer:=FOO", ["optimizer 'FOO' is unknown", "SLSQP"]),
                                           ("recorders:=2", ["recorders must be 0 or 1"])])
