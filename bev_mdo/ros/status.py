@@ -3,8 +3,9 @@
 Listens for a while to the discipline declarations (/bev_mdo/discipline_info, kept for late
 joiners) and the node counters (/bev_mdo/node_stats: host, pid, points answered, compute time),
 and checks the ROS graph for who still reads its request topic. Throughput is points per second
-of compute time since the node started (its capacity) and, over the listening window, points per
-second of wall time (its current load).
+of compute time since the node started (its capacity) and the points answered while we listened per
+second of the listening window (its current load: 0 for an idle node; the first counters a node sends
+are its latest, kept for late joiners, so they are its count when the window opened).
 """
 from __future__ import annotations
 
@@ -24,8 +25,8 @@ def collect(node, listen_s: float = 2.0) -> list[dict]:
     from bev_mdo_msgs.msg import DisciplineInfo
 
     infos: dict[tuple[str, str], DisciplineInfo] = {}
-    first: dict[str, tuple[float, dict]] = {}
-    last: dict[str, tuple[float, dict]] = {}
+    first: dict[str, dict] = {}  # instance -> the first and the last counters it sent while we listened
+    last: dict[str, dict] = {}
 
     def on_info(msg):
         infos[(msg.discipline, msg.instance.lstrip("/"))] = msg
@@ -33,9 +34,8 @@ def collect(node, listen_s: float = 2.0) -> list[dict]:
     def on_stats(msg):
         d = json.loads(msg.data)
         key = str(d.get("instance", "")).lstrip("/")
-        sample = (time.monotonic(), d)
-        first.setdefault(key, sample)
-        last[key] = sample
+        first.setdefault(key, d)
+        last[key] = d
 
     subs = [node.create_subscription(DisciplineInfo, INFO_TOPIC, on_info, INFO_QOS),
             node.create_subscription(String, NODE_STATS_TOPIC, on_stats, NODE_STATS_READER_QOS)]
@@ -46,20 +46,18 @@ def collect(node, listen_s: float = 2.0) -> list[dict]:
         while time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
         rows = []
-        disciplines = {d for d, _ in infos} | {s[1].get("discipline", "") for s in last.values()}
+        disciplines = {d for d, _ in infos} | {s.get("discipline", "") for s in last.values()}
         for disc in sorted(x for x in disciplines if x):
             readers = node.get_subscriptions_info_by_topic(request_topic(disc))
             graph = {f"{r.node_namespace.rstrip('/')}/{r.node_name}".lstrip("/") for r in readers}
             graph |= {r.node_name for r in readers}
-            names = {i for d, i in infos if d == disc} | {k for k, s in last.items() if s[1].get("discipline") == disc}
+            names = {i for d, i in infos if d == disc} | {k for k, s in last.items() if s.get("discipline") == disc}
             for inst in sorted(names):
                 info = infos.get((disc, inst))
-                t1, s1 = last.get(inst, (0.0, {}))
-                t0, s0 = first.get(inst, (0.0, {}))
+                s1, s0 = last.get(inst, {}), first.get(inst, {})
                 c1, c0 = s1.get("counts", {}), s0.get("counts", {})
                 points = int(c1.get("points", 0))
                 compute_s = float(s1.get("compute_s", 0.0))
-                window = t1 - t0
                 rows.append({
                     "discipline": disc, "instance": inst, "live": inst in graph,
                     "host": s1.get("host", "?"), "pid": s1.get("pid"),
@@ -68,8 +66,8 @@ def collect(node, listen_s: float = 2.0) -> list[dict]:
                     "points": points, "answered": int(c1.get("answered", 0)),
                     "rejected": int(c1.get("rejected", 0)), "compute_s": compute_s,
                     "capacity_points_per_s": round(points / compute_s, 1) if compute_s > 0 else None,
-                    "recent_points_per_s": (round((points - int(c0.get("points", 0))) / window, 1)
-                                            if window > 0 else None),
+                    "recent_points_per_s": (round((points - int(c0.get("points", 0))) / listen_s, 1)
+                                            if inst in last else None),  # None: it sent no counters
                 })
         return rows
     finally:

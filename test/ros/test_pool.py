@@ -254,6 +254,28 @@ def test_status_lists_live_instances_with_host_and_throughput(rclpy_context, eva
     assert "wait_node_w0" in format_table(rows)
 
 
+def test_status_load_is_points_in_the_listening_window_per_second_of_it(rclpy_context, evaluator):
+    """PTS/S(NOW) divided by the time between the first and last counters seen, so an idle instance (one
+    sample) showed "-", not 0, and a burst was spread over less than the window (docs/scaling.md)."""
+    from bev_mdo.ros.status import collect
+
+    evaluator.wait_for_instances("wait", 3, 60.0)
+    live = {f"wait_node_w{k}" for k in range(3)}
+    node = rclpy.create_node("pool_status_window", context=rclpy_context)
+    try:
+        idle = [r for r in collect(node, 0.5) if r["instance"] in live]
+        burst = threading.Timer(1.0, lambda: evaluator.evaluate([("wait", _batch(90))]))
+        burst.start()  # 90 points inside a 4 s window, after the window opened
+        try:
+            busy = [r for r in collect(node, 4.0) if r["instance"] in live]
+        finally:
+            burst.join()
+    finally:
+        node.destroy_node()
+    assert len(idle) == 3 and all(r["recent_points_per_s"] == 0.0 for r in idle), idle
+    assert sum(r["recent_points_per_s"] for r in busy) == pytest.approx(90 / 4.0, abs=0.2), busy
+
+
 def test_sigkill_mid_batch_loses_no_design(evaluator, launcher, paths):
     live = evaluator.wait_for_instances("wait", 3, 60.0)
     batch = _batch(600, seed=5)  # 1.2 s of waiting, about 0.4 s per instance
