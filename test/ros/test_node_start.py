@@ -37,16 +37,22 @@ def test_a_node_bound_to_an_all_digit_run_id_serves_it(ros_domain):
     from bev_mdo.processes import discipline_argv
 
     argv = discipline_argv("cost", str(REPO / "config" / "leaf_nedc.yaml"), run_id="12345678")
+    lines = _until_serving(argv, ros_domain, "cost")
+    assert any("bound to run 12345678" in line for line in lines), "".join(lines)[-2000:]
+
+
+def _until_serving(argv, ros_domain, name: str) -> list[str]:
+    """The node's stderr lines until it serves `name` (or dies, or 50 lines); the node is then stopped."""
     p = subprocess.Popen(argv, env=ros_env(ros_domain), stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
     lines = []
     try:
         for line in p.stderr:  # ends when the node dies; the node says "serving ..." once it is up
             lines.append(line)
-            if "serving 'cost'" in line or len(lines) > 50:
+            if f"serving '{name}'" in line or len(lines) > 50:
                 break
     finally:
         _stop(p)
-    assert any("bound to run 12345678" in line for line in lines), "".join(lines)[-2000:]
+    return lines
 
 
 def test_a_node_whose_teardown_hangs_in_c_ends_at_its_bound(ros_domain):
@@ -132,15 +138,7 @@ def test_a_parameter_of_the_wrong_type_is_one_line_exit_2(ros_domain, param, wor
 
 def test_a_whole_number_for_a_vehicle_value_is_that_number(ros_domain):
     """-p vehicle.drag_area_m2:=1 (an INTEGER to ROS) is 1.0, not a type error."""
-    p = subprocess.Popen([sys.executable, "-m", "bev_mdo.ros.run", "energy_node", "--ros-args", "-p",
-                          f"config:={REPO / 'config' / 'leaf_nedc.yaml'}", "-p", "vehicle.drag_area_m2:=1"],
-                         env=ros_env(ros_domain), stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
-    lines = []
-    try:
-        for line in p.stderr:  # ends when the node dies; the node says "serving ..." once it is up
-            lines.append(line)
-            if "serving 'energy'" in line or len(lines) > 50:
-                break
-    finally:
-        _stop(p)
+    lines = _until_serving([sys.executable, "-m", "bev_mdo.ros.run", "energy_node", "--ros-args", "-p",
+                            f"config:={REPO / 'config' / 'leaf_nedc.yaml'}", "-p", "vehicle.drag_area_m2:=1"],
+                           ros_domain, "energy")
     assert any("serving 'energy'" in line for line in lines), "".join(lines)[-2000:]
