@@ -6,6 +6,7 @@ all that is needed. The resumed run is recorded to a new bag.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 
 def register(sub) -> None:
@@ -65,6 +66,10 @@ def run(args) -> int:
     from bev_mdo.config import RunConfig
 
     Transport.of(args).refuse_attach("resume")  # before the bag is read
+    if args.out_bag and not args.no_record:  # named by its own flag (optimize's check says --bag)
+        from bev_mdo.api.optimize import check_new_bag
+
+        check_new_bag(Path(args.out_bag), "--output")
     checks: dict = {}
     config, design, iteration = resume_point(args.bag, args.run_id, args.key_file, checks, args.no_verify)
     out = sys.stderr if args.json else sys.stdout

@@ -31,3 +31,14 @@ def test_resume_starts_from_every_element_of_the_recorded_design(tmp_path, capsy
     for name, value in last["design"].items():
         assert start["design"][name] == value, name
     assert start["objective"] == last["objective"]
+
+
+def test_resume_names_its_own_flag_when_the_output_bag_exists(tmp_path, capsys):
+    """resume --output X said '--bag X: a bag already exists there' (optimize's flag)."""
+    old = tmp_path / "old"
+    assert main(["optimize", str(SSBJ.parents[1] / "config" / "leaf_nedc.yaml"), "--transport", "inprocess",
+                 "--bag", str(old), "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["resume", str(old), "--transport", "inprocess", "--output", str(old), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"--output {old}: a bag already exists there" in err and "--bag" not in err, err
