@@ -46,7 +46,7 @@ from bev_mdo.bag.history import ITERATION_TOPIC
 from bev_mdo.bag.writer import BagWriter
 from bev_mdo.binding import config_binding, run_matches
 from bev_mdo.protocol.messages import RUN_TAGGED, run_of
-from bev_mdo.ros.common import endpoints, node_of, run_type
+from bev_mdo.ros.common import declare, endpoints, node_of, run_type
 
 DEFAULT_PREFIX = "/bev_mdo/"
 RECHECK_S = 0.5  # the declared publishers of a topic are read from the graph at least this often
@@ -71,17 +71,19 @@ class RecorderNode(Node):
     def __init__(self, *, writer: BagWriter | None = None, node_name: str = "recorder_node",
                  **kwargs):
         super().__init__(node_name, **kwargs)
-        p = self.declare_parameter
-        self.bag_path = p("bag_path", default_bag_path()).value
-        self.wanted = [t for t in p("topics", [""]).value if t]
-        self.prefix = p("prefix", DEFAULT_PREFIX).value
-        config_file = p("config_file", "").value
-        config_yaml = p("config_yaml", "").value
-        run_id = p("run_id", "").value
-        self.qos_depth = int(p("qos_depth", 10000).value)
-        discovery_period_s = float(p("discovery_period_s", 0.5).value)
-        flush_period_s = float(p("flush_period_s", 1.0).value)
-        status_period_s = float(p("status_period_s", 0.05).value)
+        def p(name, default):  # a value of the wrong type is one line (ValueError), not rclpy's traceback
+            return declare(self, name, default)
+
+        self.bag_path = p("bag_path", default_bag_path())
+        self.wanted = [t for t in p("topics", [""]) if t]
+        self.prefix = p("prefix", DEFAULT_PREFIX)
+        config_file = p("config_file", "")
+        config_yaml = p("config_yaml", "")
+        run_id = p("run_id", "")
+        self.qos_depth = int(p("qos_depth", 10000))
+        discovery_period_s = float(p("discovery_period_s", 0.5))
+        flush_period_s = float(p("flush_period_s", 1.0))
+        status_period_s = float(p("status_period_s", 0.05))
         if config_file and not config_yaml:
             config_yaml = Path(config_file).read_text(encoding="utf-8")
         self.binding = config_binding(config_yaml) if config_yaml else ""
@@ -380,7 +382,11 @@ def main(args: list[str] | None = None) -> int:
     node = None
     old = {s: signal.signal(s, lambda *_: stop.append(1)) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        node = RecorderNode(parameter_overrides=overrides)
+        try:
+            node = RecorderNode(parameter_overrides=overrides)
+        except ValueError as exc:
+            print(f"recorder_node: error: {exc}", file=sys.stderr)
+            return 2
         # The recorder yields the CPU to the run it records (on a 2-core host it otherwise adds
         # ~10 % to the MDA latency) once the run's first message arrived; through start-up (discovery,
         # matching, its declaration, which the run waits for) it keeps the priority of the run's other

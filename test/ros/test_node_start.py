@@ -136,6 +136,15 @@ def test_a_parameter_of_the_wrong_type_is_one_line_exit_2(ros_domain, param, wor
     assert words in lines[-1], lines
 
 
+def test_a_recorder_parameter_of_the_wrong_type_is_one_line_exit_2(ros_domain, tmp_path):
+    p = subprocess.run([sys.executable, "-m", "bev_mdo.ros.run", "recorder_node", "--output", str(tmp_path / "b"),
+                        "--ros-args", "-p", "qos_depth:=deep"],
+                       env=ros_env(ros_domain), capture_output=True, text=True, timeout=120)
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and "Traceback" not in p.stderr and len(lines) <= 2, p.stderr[-3000:]  # "starting", the error
+    assert "recorder_node: error: parameter qos_depth: 'deep' is STRING, expected INTEGER" in lines[-1], lines
+
+
 def test_a_whole_number_for_a_vehicle_value_is_that_number(ros_domain):
     """-p vehicle.drag_area_m2:=1 (an INTEGER to ROS) is 1.0, not a type error."""
     lines = _until_serving([sys.executable, "-m", "bev_mdo.ros.run", "energy_node", "--ros-args", "-p",
