@@ -106,7 +106,7 @@ def beside_coordinator(compose: str | None, names: Sequence[str], instances: Map
     return [n for n in names if (instances or {}).get(n, 1) <= 1]
 
 
-def parse_compose(spec: str | None, names: Sequence[str]) -> list[list[str]]:
+def parse_compose(spec: str | None, names: Sequence[str], pooled: Sequence[str] = ()) -> list[list[str]]:
     """``--compose``: ``none`` (a process per discipline), ``all`` (one process for all), groups
     ``a+b,c+d`` (each group one process; the others alone) or ``coordinator`` (no process: all in the
     coordinator's, see beside_coordinator) -> list of process groups, in order."""
@@ -123,6 +123,9 @@ def parse_compose(spec: str | None, names: Sequence[str]) -> list[list[str]]:
     for g in spec.split(","):
         members = [m.strip() for m in g.split("+") if m.strip()]
         for m in members:
+            if m in pooled:
+                raise ValueError(f"--compose: {m!r} runs as a pool (--instances), a process per instance; "
+                                 "it cannot be in a group")
             if m not in names:
                 raise ValueError(f"--compose: no discipline {m!r} in the config; it has {list(names)}")
             if m in seen:
@@ -141,7 +144,7 @@ def plan_processes(names: Sequence[str], config_path: str, *, run_id: str = "", 
     instances = dict(instances or {})
     pooled = [n for n in names if instances.get(n, 1) > 1]
     out: list[tuple[str, list[str]]] = []
-    for group in parse_compose(compose, [n for n in names if n not in pooled]):
+    for group in parse_compose(compose, [n for n in names if n not in pooled], pooled):
         if len(group) == 1:
             out.append((group[0], discipline_argv(group[0], config_path, instance=instance, run_id=run_id)))
         else:

@@ -30,3 +30,14 @@ def test_a_rejected_compose_says_nothing_before_its_error(tmp_path, monkeypatch,
     out, err = capsys.readouterr()
     assert out == "" and len(err.strip().splitlines()) == 1 and "--compose" in err, (out, err)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_pooled_discipline_in_a_group_is_named_as_pooled(tmp_path, monkeypatch, capsys):
+    """--instances energy=2 --compose energy+range said "no discipline 'energy' in the config"."""
+    from bev_mdo.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["optimize", str(REPO / "config" / "leaf_nedc.yaml"), "--instances", "energy=2", "--compose",
+                 "energy+range", "--domain-id", "66"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "'energy' runs as a pool (--instances)" in err[0], err
