@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import sys
 
-from bev_mdo.api import jsontext
+from bev_mdo import jsontext
 
 
 def register(sub) -> None:

@@ -13,7 +13,7 @@ import sys
 
 import numpy as np
 
-from bev_mdo.api import jsontext
+from bev_mdo import jsontext
 
 
 def register(subparsers) -> None:

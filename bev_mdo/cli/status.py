@@ -1,7 +1,7 @@
 """``bev-mdo status``: the live discipline instances on a ROS domain, with host and throughput."""
 from __future__ import annotations
 
-from bev_mdo.api import jsontext
+from bev_mdo import jsontext
 
 
 def register(sub) -> None:

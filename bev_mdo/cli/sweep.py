@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bev_mdo.api import jsontext
+from bev_mdo import jsontext
 from bev_mdo.api.evaluate import batch as evaluate_batch  # one batch of MDAs over the transport args choose
 from bev_mdo.cli import UsageError
 

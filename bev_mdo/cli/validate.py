@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from bev_mdo.api import jsontext
+from bev_mdo import jsontext
 
 DEFAULT_MODEL = "quasi_static"
 # the calibrated set each model is validated with unless --parameter-set names another ('none': defaults)

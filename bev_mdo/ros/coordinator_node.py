@@ -17,7 +17,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
-from bev_mdo import protocol
+from bev_mdo import jsontext, protocol
 from bev_mdo.ros.common import (ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, declare, endpoints, mda_result_topic,
                                 stamp, wait_acked)
 from bev_mdo.ros.evaluator import RosEvaluator
@@ -238,7 +238,7 @@ def main(args: list[str] | None = None) -> int:
                             instances=instances, beside=beside,
                             on_iteration=lambda r: print(f"iter {r['iteration']:4d}  objective {r['objective']:.6g}"
                                                          f"  max violation {r.get('max_violation', 0):.3g}"))
-        print(json.dumps({"result": result.to_dict(), **stats}, indent=2, default=float))
+        print(jsontext.dumps({"result": result.to_dict(), **stats}))  # strict JSON: NaN as null
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):
         return 130
