@@ -97,5 +97,5 @@ def assert_same_iterates(ros, local) -> None:
         assert a["design"].keys() == b["design"].keys()
         for k in a["design"]:
             assert a["design"][k] == pytest.approx(b["design"][k], rel=1e-12, abs=1e-12)
-        assert a["objective"] == pytest.approx(b["objective"], rel=1e-12)
+        assert a["objective"] == pytest.approx(b["objective"], rel=1e-12, nan_ok=True)  # NaN: a failed point
     assert ros.discipline_evaluations == local.discipline_evaluations

@@ -65,8 +65,8 @@ def _progress(quiet: bool, to_stderr: bool):
         idf = rec.get("formulation") == "idf"  # IDF runs no MDA: count discipline evaluations
         n = sum(rec.get("discipline_evaluations", {}).values()) if idf else rec.get("mda_evaluations", 0)
         rate = n / max(rec.get("wall_time_s", 0.0), 1e-9)
-        # a design whose evaluation failed carries the optimiser's penalty, not an objective value
-        objective = (f"{rec['objective']:12.6f}" if abs(rec["objective"]) < FAIL_OBJECTIVE
+        # a design whose evaluation failed has no objective value (NaN in its record)
+        objective = (f"{rec['objective']:12.6f}" if abs(rec["objective"]) < FAIL_OBJECTIVE  # False for NaN
                      else f"{'not evaluated':>12s}")
         print(f"iter {rec['iteration']:4d}  {rec['objective_name']} {objective}  "
               f"max violation {rec['max_violation']:9.3g}  {'feasible  ' if rec['feasible'] else 'infeasible'}"

@@ -103,8 +103,9 @@ def _best_start(results: list[RunResult], sign: float, span: np.ndarray, names: 
     stopped inside the feasibility tolerance but past an active constraint buys a little objective with its
     violation and does not stand for the point the others reached exactly (driver.pick_result's rule
     within one run). With no feasible result, the best objective of all."""
-    def objective(i: int) -> tuple[float, int]:
-        return sign * results[i].objective, i
+    def objective(i: int) -> tuple[float, int]:  # a failed end (NaN) last
+        f = sign * results[i].objective
+        return (f if f == f else float("inf")), i
 
     feasible = [i for i, r in enumerate(results) if r.feasible]
     best = min(feasible or range(len(results)), key=objective)

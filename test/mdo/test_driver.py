@@ -67,3 +67,32 @@ def test_a_point_an_optimiser_evaluated_outside_the_bounds_is_never_the_result(m
     assert not out["feasible"] and out["max_violation"] == pytest.approx(0.1)  # 1 of z2's range of 10
     assert res.objective == pytest.approx(REF_F, rel=1e-6) and res.verdict == "optimum"
     assert res.design["z2"] >= 0 and res.result_iteration != 1
+
+
+def test_a_failed_point_is_recorded_without_values_not_with_the_optimisers_penalty(monkeypatch):
+    """history showed a failed iteration as objective 1e+10 and its constraints as the penalty turned
+    back into units (a 720 K motor, a 0 m/s top speed) that never happened."""
+    import math
+
+    from sellar import Failing, SellarDis1, SellarDis2, SellarObjective
+
+    from bev_mdo.mdo import driver
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.testing import example_config
+    from test_multistart import REF_F, SELLAR
+
+    inner = driver.run_optimizer
+
+    def via_a_failing_point(name, form, options, record):
+        bad = form.x0.copy()
+        bad[2] = 9.0  # x above the threshold: dis1 gives NaN there
+        record(bad)
+        return inner(name, form, options, record)
+
+    monkeypatch.setattr(driver, "run_optimizer", via_a_failing_point)
+    ev = InProcessEvaluator([Failing(SellarDis1(), "x", 8.0), SellarDis2(), SellarObjective()])
+    res = driver.run_optimization(example_config(SELLAR), ev)
+    failed = res.history[1]
+    assert math.isnan(failed["objective"]) and all(math.isnan(v) for v in failed["constraints"].values())
+    assert not failed["feasible"] and failed["max_violation"] > 0
+    assert res.objective == pytest.approx(REF_F, rel=1e-6) and res.verdict == "optimum"
