@@ -265,7 +265,9 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False)
     params = getattr(disc, "parameters", None) or ()
     batch = {k: _column(v) for k, v in inputs.items() if k in disc.inputs or k in params}
     conv = getattr(disc, "unit_conversions", None)  # {input: (scale, offset)} set at load (units.py)
+    shown = batch  # what an error names: the run's values, in the run's units
     if conv:
+        shown = {k: v.copy() if k in conv else v for k, v in batch.items()}
         for k, (scale, offset) in conv.items():
             batch[k] *= scale  # batch columns are this call's own copies (_column)
             if offset:
@@ -299,7 +301,7 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False)
             row = {k: v[i:i + 1] for k, v in batch.items()}
             if bad_in[i]:
                 ok[i] = False
-                errors[i] = PointError(f"{name}: non-finite input", _describe_row(batch, i))
+                errors[i] = PointError(f"{name}: non-finite input", _describe_row(shown, i))
                 continue
             try:
                 one = _call(disc, row, 1)
@@ -307,7 +309,7 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False)
                 raise
             except Exception as exc:  # the model's own error text is what the user needs
                 ok[i] = False
-                errors[i] = PointError(f"{name}: {type(exc).__name__}: {exc}", _describe_row(batch, i))
+                errors[i] = PointError(f"{name}: {type(exc).__name__}: {exc}", _describe_row(shown, i))
                 continue
             for k in disc.outputs:
                 out[k][i] = one[k][0]
@@ -316,7 +318,7 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False)
         for i in np.flatnonzero(ok & ~finite):
             ok[i] = False
             bad = [k for k in disc.outputs if not np.isfinite(out[k][i])]
-            errors[int(i)] = PointError(f"{name}: non-finite output {bad}", _describe_row(batch, i))
+            errors[int(i)] = PointError(f"{name}: non-finite output {bad}", _describe_row(shown, i))
         for k in disc.outputs:
             out[k] = np.where(ok, out[k], np.nan)
     res = EvalResult(out, ok, error_text(errors), time.perf_counter() - t0, point_errors=errors)

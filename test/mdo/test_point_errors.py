@@ -77,3 +77,21 @@ def test_an_unknown_input_is_refused_in_process_as_a_node_refuses_it():
     assert all(np.isnan(v).all() for v in res.outputs.values()) and ev.counts[name] == 3
     (good,) = ev.evaluate([(name, inputs)])
     assert good.ok.all()
+
+
+def test_a_failed_point_is_named_by_the_runs_values_not_the_converted_ones():
+    """A discipline taking a speed in km/h from a run in m/s failed with 'vmax_m_s=142.81' for 39.67 m/s:
+    the converted value under the run's name and no unit."""
+
+    class Hot:
+        name, inputs, outputs = "hot", ("vmax_m_s",), ("t",)
+        unit_conversions = {"vmax_m_s": (3.6, 0.0)}  # set at load when the units differ (mdo/units.py)
+
+        def compute(self, inputs):
+            if (inputs["vmax_m_s"] > 100.0).any():  # km/h here
+                raise RuntimeError("too fast")
+            return {"t": inputs["vmax_m_s"]}
+
+    res = run_discipline(Hot(), {"vmax_m_s": np.array([10.0, 39.67])})
+    assert list(res.ok) == [True, False] and res.outputs["t"][0] == pytest.approx(36.0)
+    assert "vmax_m_s=39.67" in res.error and "142.8" not in res.error, res.error
