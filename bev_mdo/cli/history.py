@@ -62,11 +62,13 @@ def describe_other_content(bag) -> str:
         from bev_mdo.studies.topologies import read_fronts
 
         fronts = read_fronts(bag.bag_dir if bag.bag_dir else bag.mcap_path)
-        tops = sorted({f["topology"] for f in fronts})
+        tops = sorted({f["topology"] for f in fronts if f["topology"]})
         gens = max((f["generation"] for f in fronts), default=0)
+        where = (f"{len(tops)} topolog{'y' if len(tops) == 1 else 'ies'}: {', '.join(tops)}; " if tops else "")
+        files = ("pareto_<topology>.csv files" if tops else "front.csv") + " beside the bag (when the run finished)"
         return (f"it is a Pareto bag: {len(fronts)} ParetoFront messages on {', '.join(pareto)} "
-                f"({len(tops)} topolog{'y' if len(tops) == 1 else 'ies'}: {', '.join(tops)}; up to generation {gens}); "
-                f"the final fronts are in the pareto_<topology>.csv files beside the bag")
+                f"({where}up to generation {gens}); the final fronts are in the {files}, every generation's "
+                "in the bag (bev-mdo report)")
     if not bag.topics:
         return "it holds no messages at all"
     kinds = sorted({ty for ty in bag.topics.values() if ty != ITERATION_TYPE})

@@ -70,6 +70,12 @@ def test_sellar_with_objectives_on_the_command_line(tmp_path, capsys):
     assert len(F) and non_dominated(F).all()
     assert all(r["y1"] >= 3.16 and r["y2"] <= 24 for r in doc["front"])  # the problem's constraints hold
     assert "NSGA-II 12 x 5 over inprocess: obj, y1" in cap.err
+    # history names the front.csv it wrote, not the topology study's pareto_<topology>.csv (and no empty topology)
+    from bev_mdo.cli import main
+
+    assert main(["history", str(out / "bag")]) == 1
+    err = capsys.readouterr().err
+    assert "the final fronts are in the front.csv beside the bag" in err and "topolog" not in err, err
 
 
 @pytest.mark.parametrize("argv,msg", [
