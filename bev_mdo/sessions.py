@@ -48,10 +48,11 @@ def key_dir_for(bag: Path) -> Path:
     """Where a run's per-run key lives: ``<bag parent>/.keys/<bag name>`` (beside the bag, never in it). A key left
     there by an earlier run that never wrote this bag (it failed or was stopped before its recorder started) is stale:
     it is removed, so a re-run with the same ``--bag`` gets a fresh key instead of failing on the existing file."""
+    from bev_mdo.bag.reader import holds_bag
+
     d = bag.parent / ".keys" / bag.name
     stale = d / "sign.key"
-    written = (bag / "metadata.yaml").exists() or any(bag.glob("*.mcap"))  # a stopped start-up leaves logs/ only
-    if stale.is_file() and not written:
+    if stale.is_file() and not holds_bag(bag):
         stale.unlink()
     return d
 

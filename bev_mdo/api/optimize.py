@@ -198,5 +198,7 @@ def check_new_bag(bag: Path, what: str) -> None:
     blocking = next((p for p in bag.parents if p.exists() and not p.is_dir()), None)
     if blocking is not None:
         raise InputError(f"{what} {bag}: {blocking} is a file, not a folder")
-    if (bag / "metadata.yaml").exists() or any(bag.glob("*.mcap")):
+    from bev_mdo.bag.reader import holds_bag
+
+    if holds_bag(bag):
         raise InputError(f"{what} {bag}: a bag already exists there; choose a new directory")

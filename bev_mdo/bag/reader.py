@@ -38,6 +38,13 @@ class BagMessage:
     channel_id: int
 
 
+def holds_bag(directory) -> bool:
+    """Whether a bag was written in `directory`: its metadata.yaml or an .mcap file (a run stopped before
+    its recorder started leaves the nodes' logs/ only)."""
+    d = Path(directory)
+    return (d / "metadata.yaml").exists() or any(d.glob("*.mcap"))
+
+
 def find_mcap(path: Path) -> Path:
     """The storage file of a bag directory (or the path itself for a file)."""
     if not path.exists():

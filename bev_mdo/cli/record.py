@@ -21,7 +21,9 @@ def run(args) -> int:
 
     argv = []
     if args.output:
-        if (Path(args.output) / "metadata.yaml").exists() or list(Path(args.output).glob("*.mcap")):
+        from bev_mdo.bag.reader import holds_bag
+
+        if holds_bag(args.output):
             raise ValueError(f"{args.output}: bag already exists")
         argv += ["--output", args.output]
     if args.topics:
