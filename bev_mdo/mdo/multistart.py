@@ -71,14 +71,12 @@ def run_starts(run: Run, evaluator: Evaluator, starts: int, *, seed: int = 0, fo
     span = problem.array("upper") - problem.array("lower")
     best_i = _best_start([r for _, r in results], -1.0 if problem.maximize else 1.0, span, problem.names, design_tol)
     best = results[best_i][1]
-    xb = np.array([best.design[n] for n in problem.names])
 
     def reached(r: RunResult) -> bool:
         if not r.feasible or not best.feasible:
             return False
-        x = np.array([r.design[n] for n in problem.names])
         close_f = abs(r.objective - best.objective) <= rel_tol * max(abs(best.objective), 1e-12)
-        return bool(close_f and np.all(np.abs(x - xb) <= design_tol * span))
+        return close_f and _same_point(r, best, problem.names, span, design_tol)
 
     wall = time.perf_counter() - t0
     best.multistart = {
@@ -111,9 +109,13 @@ def _best_start(results: list[RunResult], sign: float, span: np.ndarray, names: 
     best = min(feasible or range(len(results)), key=objective)
     if not feasible:
         return best
-    x = np.array([[r.design[n] for n in names] for r in results])
-    same = [i for i in feasible if np.all(np.abs(x[i] - x[best]) <= design_tol * span)]
+    same = [i for i in feasible if _same_point(results[i], results[best], names, span, design_tol)]
     return min(same, key=lambda i: (results[i].max_violation, *objective(i)))
+
+
+def _same_point(a: RunResult, b: RunResult, names: list[str], span: np.ndarray, design_tol: float) -> bool:
+    """Each design variable of the two results within ``design_tol`` of its range (``span``)."""
+    return bool(np.all(np.abs(np.array([a.design[n] - b.design[n] for n in names])) <= design_tol * span))
 
 
 def summary_line(ms: Mapping[str, Any]) -> str:
