@@ -120,7 +120,10 @@ def _deferred_run(close: str) -> subprocess.CompletedProcess:
     code = "\n".join(["import ctypes, os, signal, sys, time", "from bev_mdo import stacks", "stacks.TEARDOWN_S = 1.0",
                       "stacks.defer_teardowns()", f"stacks.teardown(lambda: {close})",
                       "print('result', flush=True)", "sys.exit(5)"])
-    return subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)
+    # SIGINT back to its default in the child: a suite started as a background job inherits SIGINT ignored,
+    # and Python then installs no KeyboardInterrupt handler (as for Ctrl-C on a `&` job)
+    return subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60,
+                          preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def test_a_deferred_teardown_runs_at_exit_after_the_result_and_keeps_the_status():
