@@ -1,4 +1,5 @@
-"""The text of every ``--json`` output: strict JSON (RFC 8259) that any parser reads.
+"""The text of every ``--json`` output and every JSON file bev_mdo writes (``answers.json``, ``front.json``,
+``summary.json``, the bag's answers record): strict JSON (RFC 8259) that any parser reads.
 
 Python's json writes NaN and Infinity as bare words, which are not JSON (jq, JavaScript, most
 parsers refuse the whole document). A number that is not finite (a failed evaluation's outputs, a
@@ -9,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 from typing import Any
 
 
@@ -29,3 +31,8 @@ def strict(obj: Any) -> Any:
 def dumps(obj: Any, indent: int | None = 2) -> str:
     """Strict JSON text of ``obj``: non-finite numbers as null (never NaN or Infinity)."""
     return json.dumps(strict(obj), indent=indent, allow_nan=False, default=lambda o: strict(float(o)))
+
+
+def write(path: str | Path, obj: Any) -> None:
+    """Write ``obj`` to the file ``path`` as strict JSON (``dumps``), ending in a newline."""
+    Path(path).write_text(dumps(obj) + "\n", encoding="utf-8")

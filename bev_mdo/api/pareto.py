@@ -10,11 +10,11 @@ unless ``plots=False``, one ``front_<b>_vs_<a>.png`` per pair of objectives.
 from __future__ import annotations
 
 import csv
-import json
 import time
 import uuid
 from pathlib import Path
 
+from bev_mdo import jsontext
 from bev_mdo.api.errors import InputError
 from bev_mdo.api.evaluate import declared_units
 from bev_mdo.api.transport import Transport
@@ -96,8 +96,7 @@ def finish(path: Path, doc: dict, sess, skip=()) -> None:
     failed = sess.stats.get("recorder_failed")  # known only once the session stopped its processes
     if failed:
         doc["recorder_failed"] = failed
-    path.write_text(json.dumps({k: v for k, v in doc.items() if k not in skip},
-                               indent=2, default=float))
+    jsontext.write(path, {k: v for k, v in doc.items() if k not in skip})
 
 
 def out_dirs(out: str | None, name: str) -> tuple[Path, Path]:

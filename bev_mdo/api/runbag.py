@@ -11,12 +11,11 @@
 from __future__ import annotations
 
 import contextlib
-import json
 import time
 from pathlib import Path
 from typing import Any, Mapping
 
-from bev_mdo import interrupts
+from bev_mdo import interrupts, jsontext
 from bev_mdo.bag.report import ANSWERS_FILE, ANSWERS_METADATA
 
 
@@ -80,7 +79,7 @@ class InProcessBag:
             return
         with interrupts.deferred():
             if answers is not None and not self.writer.closed:
-                self.writer._mcap.add_metadata(ANSWERS_METADATA, {"answers_json": json.dumps(answers, default=float)})
+                self.writer._mcap.add_metadata(ANSWERS_METADATA, {"answers_json": jsontext.dumps(answers, None)})
             self.writer.close()
 
 
@@ -112,7 +111,7 @@ def finish(config: Mapping[str, Any], result: dict, extra: dict) -> None:
     elif extra.get("bag"):  # over ROS: answers.json beside the recorder's bag
         path = Path(extra["bag"]) / ANSWERS_FILE
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(ans, default=float, indent=2) + "\n", encoding="utf-8")
+        jsontext.write(path, ans)
 
 
 def interrupted_note(bag, kind: str = "iteration") -> str:
