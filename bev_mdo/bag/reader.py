@@ -45,15 +45,23 @@ def holds_bag(directory) -> bool:
     return (d / "metadata.yaml").exists() or any(d.glob("*.mcap"))
 
 
-def find_mcap(path: Path) -> Path:
-    """The storage file of a bag directory (or the path itself for a file)."""
+def find_mcap(path) -> Path:
+    """The storage file of a bag, the one resolver of every command that reads a bag: the bag's
+    directory, its .mcap file itself, or a run's output folder (pareto's or sweep's ``--out``)
+    holding no .mcap file but exactly one subfolder that does (``bag/``)."""
+    path = Path(path)
     if not path.exists():
         raise BagError(f"{path}: no such file or directory")
     if path.is_file():
         return path
     files = sorted(path.glob("*.mcap"))
     if not files:
-        raise BagError(f"{path}: bag directory holds no .mcap file")
+        inside = sorted(d for d in path.iterdir() if d.is_dir() and any(d.glob("*.mcap")))
+        if len(inside) == 1:
+            return find_mcap(inside[0])
+        raise BagError(f"{path}: holds no .mcap file" + (
+            f" but {len(inside)} bags ({', '.join(d.name for d in inside)}): name one" if inside else
+            " (give a bag directory, its .mcap file or a run's output folder with one bag in it)"))
     own = path / f"{path.name}_0.mcap"  # the writer's own file first, when there are several
     return own if own in files else files[0]
 

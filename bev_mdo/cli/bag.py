@@ -3,16 +3,18 @@ from __future__ import annotations
 
 import sys
 
+from bev_mdo.cli.flags import add_bag_argument
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser("bag", help="inspect or repair a recorded bag")
     sub = parser.add_subparsers(dest="bag_command", metavar="ACTION")
     sub.required = True
     info = sub.add_parser("info", help="topics, message counts and duration of a bag")
-    info.add_argument("bag", help="bag directory or .mcap file")
+    add_bag_argument(info)
     info.set_defaults(func=run)
     rep = sub.add_parser("repair", help="rebuild summary and metadata.yaml of a truncated bag")
-    rep.add_argument("bag", help="bag directory or .mcap file")
+    add_bag_argument(rep)
     rep.add_argument("--force", action="store_true", help="rewrite even a complete bag")
     rep.set_defaults(func=run)
 

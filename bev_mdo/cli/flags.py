@@ -3,6 +3,12 @@ bev_mdo.api.transport) and the problem overrides (bev_mdo.api.overrides)."""
 from __future__ import annotations
 
 
+def add_bag_argument(parser) -> None:
+    """The BAG of every command that reads one (bag info/repair, history, report, replay, resume); what it
+    may name is bev_mdo.bag.reader.find_mcap's."""
+    parser.add_argument("bag", help="bag directory, its .mcap file, or a run's output folder holding one bag")
+
+
 def add_ros_arguments(parser) -> None:
     """The discovery flags shared by commands that join a ROS graph (they override the config's ros: section)."""
     g = parser.add_argument_group("ROS discovery (default: the config's ros: section; localhost only)")

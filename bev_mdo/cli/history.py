@@ -11,6 +11,8 @@ import os
 import shutil
 import sys
 
+from bev_mdo.cli.flags import add_bag_argument
+
 # fixed headers (quantity, unit) of the record's own columns
 _FIXED = {
     "iteration": ("iter", ""), "objective": ("objective", ""), "max_violation": ("max", "violation"),
@@ -33,7 +35,7 @@ def register(subparsers) -> None:
         description="The IterationRecords of a bag as a table fitted to the terminal width (every column "
                     "with --csv). Exit status 1 if the bag holds no iteration records (a pareto bag "
                     "holds fronts instead: use `bev-mdo report` or the CSV files beside it).")
-    parser.add_argument("bag", help="bag directory or .mcap file")
+    add_bag_argument(parser)
     parser.add_argument("--csv", metavar="FILE", help="write the history as CSV ('-' for stdout)")
     parser.add_argument("--run-id", help="this run (default: the bag's own run; needed for a recording of "
                                          "several runs)")
@@ -75,24 +77,11 @@ def describe_other_content(bag) -> str:
     return f"it holds {bag.message_count} messages of {', '.join(kinds)}"
 
 
-def bag_path(path: str) -> str:
-    """The bag of ``path``: itself, or for a run's output folder holding no .mcap file (pareto's or
-    sweep's --out) the one subfolder that holds a bag (``bag/``)."""
-    from pathlib import Path
-
-    p = Path(path)
-    if not p.is_dir() or any(p.glob("*.mcap")):
-        return path
-    inside = sorted(d for d in p.iterdir() if d.is_dir() and any(d.glob("*.mcap")))
-    return str(inside[0]) if len(inside) == 1 else path
-
-
 def run(args) -> int:
     from bev_mdo.bag.history import check_note, flat_rows, history, records_phrase, to_csv
     from bev_mdo.bag.reader import open_bag
     from bev_mdo.bag.report import bag_units
 
-    args.bag = bag_path(args.bag)
     bag = open_bag(args.bag)
     if bag.truncated:
         print(bag.recovery_note(), file=sys.stderr)

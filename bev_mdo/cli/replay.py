@@ -3,10 +3,12 @@ from __future__ import annotations
 
 import sys
 
+from bev_mdo.cli.flags import add_bag_argument
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser("replay", help="publish the messages of a recorded bag again")
-    parser.add_argument("bag", help="bag directory or .mcap file")
+    add_bag_argument(parser)
     speed = parser.add_mutually_exclusive_group()
     speed.add_argument("--rate", type=float, default=1.0,
                        help="recorded timing scaled by this factor (default 1.0)")

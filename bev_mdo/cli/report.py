@@ -3,10 +3,12 @@ from __future__ import annotations
 
 import sys
 
+from bev_mdo.cli.flags import add_bag_argument
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser("report", help="plots and a markdown summary of a recorded run")
-    parser.add_argument("bag", help="bag directory or .mcap file, or a run's output folder with a bag in it")
+    add_bag_argument(parser)
     parser.add_argument("--output-dir", help="write here instead of the bag directory")
     parser.add_argument("--run-id", help="this run (default: the bag's own; needed for a recording of several runs)")
     from bev_mdo.cli.history import add_verify_arguments
@@ -19,9 +21,7 @@ def run(args) -> int:
     from bev_mdo.bag.history import check_note
     from bev_mdo.bag.reader import open_bag
     from bev_mdo.bag.report import report
-    from bev_mdo.cli.history import bag_path
 
-    args.bag = bag_path(args.bag)  # a run's output folder: the bag inside it
     bag = open_bag(args.bag)
     if bag.truncated:
         print(bag.recovery_note(), file=sys.stderr)

@@ -8,12 +8,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from bev_mdo.cli.flags import add_bag_argument
+
 
 def register(sub) -> None:
     p = sub.add_parser("resume", help="restart an optimisation from the last iterate recorded in a bag",
                        description="Read the run's configuration and its last IterationRecord from BAG and "
                                    "optimise again from that design (a truncated bag works too).")
-    p.add_argument("bag", help="bag directory or .mcap file")
+    add_bag_argument(p)
     p.add_argument("--json", action="store_true")
     p.add_argument("--output", dest="out_bag", default=None, help="bag to write (default: bags/<config name>_<time>_<run>, as optimize)")
     p.add_argument("--no-record", action="store_true")
