@@ -20,10 +20,11 @@ def add_ros_arguments(parser) -> None:
     g.add_argument("--discovery-server", default=None, metavar="IP:PORT", help="with --discovery server")
 
 
-def add_transport_arguments(parser) -> None:
+def add_transport_arguments(parser, attach: bool = True) -> None:
     """The transport flags of every command that evaluates designs (optimize, resume, evaluate, sweep,
     compare, sensitivity, check-totals, pareto), with the discovery flags; their meaning and their one
-    default: bev_mdo.api.transport.Transport."""
+    default: bev_mdo.api.transport.Transport. ``attach=False``: a command that always starts its own
+    nodes (optimize, resume, pareto: bound to their run and recorder) does not offer ``--attach``."""
     from bev_mdo.api.transport import DEFAULT_TRANSPORT, TRANSPORTS
 
     g = parser.add_argument_group("transport")
@@ -31,19 +32,24 @@ def add_transport_arguments(parser) -> None:
                    help="ros (default): the config's discipline nodes, started for this command on its domain "
                         "and stopped after, signed with a per-run key; inprocess: the same disciplines in this "
                         "process, no ROS")
-    g.add_argument("--attach", action="store_true",
-                   help="ROS: use the discipline nodes already running on the domain (ros2 run, bev-mdo node) "
-                        "instead of starting this command's own")
+    if attach:
+        g.add_argument("--attach", action="store_true",
+                       help="ROS: use the discipline nodes already running on the domain (ros2 run, bev-mdo node) "
+                            "instead of starting this command's own")
     add_ros_arguments(parser)
 
 
-def add_override_arguments(parser) -> None:
+def add_override_arguments(parser, single_objective: bool = True) -> None:
+    """The problem overrides; ``single_objective=False`` (pareto: its objectives are --objectives, its
+    population is sampled over the bounds) leaves out --initial, --objective and --maximize/--minimize."""
     g = parser.add_argument_group("problem overrides (applied to the config before it is checked and recorded)")
     g.add_argument("--bound", action="append", default=[], metavar="NAME=LO:HI",
                    help="bounds of a design variable; LO or HI may be left out (motor_kw=:100)")
-    g.add_argument("--initial", action="append", default=[], metavar="NAME=X", help="initial value of a design variable")
     g.add_argument("--constraint", action="append", default=[], metavar="'NAME>=X'",
                    help="add or change a constraint on an output: 'range_km>=250' or 'accel_time_0_100_s<=9'")
+    if not single_objective:
+        return
+    g.add_argument("--initial", action="append", default=[], metavar="NAME=X", help="initial value of a design variable")
     g.add_argument("--objective", default=None, metavar="NAME", help="the output to optimise")
     sense = g.add_mutually_exclusive_group()
     sense.add_argument("--maximize", action="store_true", default=None, help="maximise the objective")

@@ -49,7 +49,7 @@ def register(sub) -> None:
                         "process per discipline; all: one process for all; groups A+B,C+D (docs/scaling.md)")
     from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
 
-    add_transport_arguments(p)
+    add_transport_arguments(p, attach=False)
     add_override_arguments(p)
     p.set_defaults(func=run)
 

@@ -45,8 +45,8 @@ def register(subparsers) -> None:
     p.add_argument("--no-plots", action="store_true")
     from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
 
-    add_transport_arguments(p)
-    add_override_arguments(p)
+    add_transport_arguments(p, attach=False)
+    add_override_arguments(p, single_objective=False)
     p.set_defaults(func=run)
 
 

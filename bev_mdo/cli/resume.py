@@ -27,7 +27,7 @@ def register(sub) -> None:
     add_verify_arguments(p)
     from bev_mdo.cli.flags import add_transport_arguments
 
-    add_transport_arguments(p)
+    add_transport_arguments(p, attach=False)
     p.set_defaults(func=run)
 
 
@@ -67,7 +67,6 @@ def run(args) -> int:
     from bev_mdo.cli.optimize import run_job
     from bev_mdo.config import RunConfig
 
-    Transport.of(args).refuse_attach("resume")  # before the bag is read
     if args.out_bag and not args.no_record:  # named by its own flag (optimize's check says --bag)
         from bev_mdo.api.optimize import check_new_bag
 
