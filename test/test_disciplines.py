@@ -53,6 +53,32 @@ def test_table75_literal_wheel_radius_breaks_motor_speed_limit():
     assert not np.isfinite(x["accel_time_0_100_s"][0])  # 100 km/h is beyond the 10 500 rpm limit at 8:1
 
 
+@pytest.mark.parametrize("topology, design", [
+    ("SM-SA", {"motor_kw": 80.0, "gear_ratio": 13.0}),
+    ("DM-DA", {"motor_kw": 40.0, "gear_ratio": 7.9, "motor_rear_kw": 40.0, "gear_ratio_rear": 13.0})])
+def test_an_infinite_acceleration_time_is_a_failed_point_for_every_optimiser(topology, design):
+    """A gear over-speeding its motor before 100 km/h (the rear one under DM-DA) gives +inf from the model;
+    the discipline marks the point failed, so a gradient optimiser gets FAIL_OBJECTIVE (1e10) and NSGA-II
+    drops the point, the same on every topology: no optimiser is ever given inf."""
+    from bev_mdo.config import RunConfig
+    from bev_mdo.mdo.driver import build_formulation
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.mdo.formulations import FAIL_CONSTRAINT, FAIL_OBJECTIVE
+    from bev_mdo.studies.topologies import config_for_topology
+
+    raw = config_for_topology(load("topologies_artemis.yaml"), topology)
+    dvs = raw["problem"]["design_variables"]
+    dvs["gear_ratio_rear" if topology == "DM-DA" else "gear_ratio"]["upper"] = 14.0
+    cfg = RunConfig.load(raw)
+    form = build_formulation(cfg.settings, InProcessEvaluator(cfg.disciplines), "mdf")
+    X = np.array([[{**design, "battery_kwh": 24.0}[n] for n in form.problem.names]])
+    f, g, _ = form.evaluate_batch(X)
+    ok, error = form.status(X[0])
+    assert f[0] == FAIL_OBJECTIVE and np.all(g == FAIL_CONSTRAINT) and not ok
+    assert not form.analyse(X).ok[0]  # what mdo.pareto's NSGA-II problem reads (FAILED_F, FAILED_G)
+    assert "acceleration: non-finite output ['accel_time_0_100_s']" in error
+
+
 def test_parameter_override_per_point():
     d = _build(Energy, load("leaf_nedc.yaml"), {})
     assert "drag_area_m2" in d.parameters and "regen_fraction" in d.parameters
