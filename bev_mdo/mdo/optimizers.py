@@ -72,6 +72,8 @@ def _trust_constr(form, options, callback):
                                         jac=lambda u: -form.ineq_jac(u), hess=BFGS()))
     if form.eq_labels:
         cons.append(NonlinearConstraint(form.eq, 0.0, 0.0, jac=form.eq_jac, hess=BFGS()))
+    # bounds not keep_feasible: it ends infeasible on Golinski, SSBJ MDF and propane IDF; a point outside
+    # the bounds is evaluated but counts as violated (first_order.bound_violation), never the result
     return minimize(form.fun, form.to_u(form.x0), jac=form.jac, hess=BFGS(), bounds=Bounds(*form.u_bounds),
                     method="trust-constr", constraints=cons, options=opts, callback=_cb(form, callback))
 
