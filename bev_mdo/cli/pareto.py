@@ -10,7 +10,8 @@ generation on /bev_mdo/pareto_front, ``final`` on the last), ``front.csv``, ``fr
 
 ``--topology T`` / ``--all-topologies``: the thesis' chapter-4 topology study of the BEV problem
 (§4.4; bev_mdo.studies.topologies), per topology: ``pareto_<T>.csv``, ``benchmark.csv`` (Table 4-4
-design beside Table 4-5), ``fig_4_5_energy_accel.png``, ``fig_4_6_energy_cost.png``, ``summary.json``.
+design, beside Table 4-5 for the thesis vehicle), ``fig_4_5_energy_accel.png``, ``fig_4_6_energy_cost.png``,
+``summary.json``.
 """
 from __future__ import annotations
 
@@ -137,7 +138,7 @@ def _study(args, raw, written, names) -> int:
                          "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12),
                          "design_variables": {d.name: [d.lower, d.upper] for d in cfg.problem.design_variables}}
             pareto.write_front(out / f"pareto_{t}.csv", res)
-    study.write_benchmark(out / "benchmark.csv", bench)
+    study.write_benchmark(out / "benchmark.csv", bench, configs)
     warnings = study.torque_warnings(bench)
     for w in warnings:
         print(w, file=sys.stderr)

@@ -185,3 +185,28 @@ def test_instances_naming_an_unknown_discipline_exit_2(tmp_path, capsys):
                      "--instances", "warp_drive=2", "--no-plots", "--out", tmp_path / "o")
     assert code == 2 and "warp_drive" in err and "Traceback" not in err, err
     assert not (tmp_path / "o" / "bag").exists()  # refused before any node or recorder started
+
+
+@pytest.mark.parametrize("change, thesis", [({}, True), ({"load_kg": 300.0, "glider_kg": 2100.0}, False),
+                                            ({"drag_area_m2": 1.2}, False), ({"cycle": "nedc"}, False)])
+def test_benchmark_csv_compares_with_table_4_5_only_for_the_thesis_vehicle(change, thesis, tmp_path):
+    """benchmark.csv put Table 4-5's Leaf (thesis_*) beside any vehicle's benchmark design, and took
+    the kerb mass as the vehicle mass less the Leaf's 69 kg load."""
+    from bev_mdo.config import RunConfig
+    from bev_mdo.studies.topologies import THESIS_4_5, write_benchmark
+
+    raw = yaml.safe_load(ARTEMIS.read_text())
+    if "cycle" in change:
+        raw["cycle"] = {"name": change.pop("cycle"), "dt_s": 1.0}
+    raw["vehicle"].update(change)
+    configs = {t: RunConfig.load(config_for_topology(raw, t)) for t in ("SM-SA", "DM-DA")}
+    bench = {t: {"vehicle_mass_kg": 1600.0, "accel_time_0_100_s": 9.5, "powertrain_cost_usd": 9000.0,
+                 "energy_wh_per_km": 140.0} for t in configs}
+    write_benchmark(tmp_path / "benchmark.csv", bench, configs)
+    rows = list(csv.DictReader((tmp_path / "benchmark.csv").open()))
+    assert [r["topology"] for r in rows] == ["SM-SA", "DM-DA"]
+    assert float(rows[0]["kerb_kg"]) == pytest.approx(1600.0 - change.get("load_kg", 69.0))
+    assert any(k.startswith("thesis_") for k in rows[0]) == thesis
+    if thesis:
+        assert float(rows[1]["thesis_kerb_kg"]) == THESIS_4_5["DM-DA"][0]
+        assert float(rows[1]["thesis_accel_s"]) == THESIS_4_5["DM-DA"][1]
