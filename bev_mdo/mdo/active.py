@@ -6,8 +6,8 @@ The rule (docs/answers.md):
 
 * A constraint bound is **active** when its margin (distance to the limit in the constraint's own
   unit, positive = satisfied) is within ``rel_tol`` of the constraint's scale (``scale`` from the
-  config, default max(|bound|, 1)); it is **violated** when the margin is below -1e-6 of that scale
-  (the driver's own feasibility tolerance), which takes precedence.
+  config, default max(|bound|, 1)); it is **violated** when the margin is below -feasibility_tolerance of that scale
+  (the driver's own test, default 1e-4), which takes precedence.
 * A design variable is **on a bound** when it is within ``rel_tol`` of (upper - lower) of it.
 * At an infeasible end, a variable on a bound **blocks** a violated constraint when moving the
   variable out through that bound would reduce the violation: with v(x) the violation in the
