@@ -133,3 +133,12 @@ def test_every_local_link_of_the_readme_resolves_or_is_a_known_pending_doc():
     links = set(re.findall(r"\]\(((?:docs|config|examples|bench|scripts)/[^)#]+)", text))
     missing = {p for p in links if not (ROOT / p).exists()} - pending
     assert not missing, f"README links to missing files {missing}"
+
+
+def test_the_readme_configuration_block_is_a_valid_run_config(clone):
+    # "A run is one YAML file": the block, copied as it is, loads and evaluates (its disciplines included)
+    block = re.search(r"## Configuration.*?```yaml\n(.*?)```", README.read_text(encoding="utf-8"), re.S).group(1)
+    (clone / "readme_config.yaml").write_text(block, encoding="utf-8")
+    proc = run("bev-mdo evaluate readme_config.yaml --set motor_kw=80 --transport inprocess --json", clone)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "top_speed_kmh" in json.loads(proc.stdout)["outputs"]
