@@ -8,6 +8,8 @@ end-of-run answers (bev_mdo/mdo/active.py), stored with the bag when there is on
 """
 from __future__ import annotations
 
+import shutil
+import tempfile
 import time
 import uuid
 from dataclasses import dataclass
@@ -123,6 +125,10 @@ def _run_ros(config, opts, show, x0, starts):
     bag = Path(opts.bag) if opts.bag else Path("bags") / f"{config.name}_{stamp_}_{run_id[:6]}"
     if not opts.no_record:
         check_new_bag(bag, "--bag")
+    scratch = None
+    if opts.no_record and not opts.bag:  # nothing to keep: the logs and the per-run key go in a private temporary
+        scratch = Path(tempfile.mkdtemp(prefix="bev_mdo_run_"))  # directory (mode 0700), removed after a run that ended
+        bag = scratch / bag.name
     names = list(config.names)
     instances = parse_instances(opts.instances, names)
     where = _where(names, instances, opts.compose)  # a rejected --compose is refused before this line prints
@@ -135,7 +141,11 @@ def _run_ros(config, opts, show, x0, starts):
               file=sys.stderr if opts.progress_to_stderr else sys.stdout, flush=True)
     with noting_interrupts(None if opts.no_record else bag), session:
         result, baseline = session.run(opts.formulation, opts.optimizer, x0, show, starts=starts, seed=opts.seed)
-    return result, baseline, session.summary()
+    extra = session.summary()
+    if scratch is not None:  # (left in place, for its logs, when the run raised)
+        shutil.rmtree(scratch, ignore_errors=True)
+        del extra["logs"]
+    return result, baseline, extra
 
 
 def _refuse_ros_only(opts) -> None:

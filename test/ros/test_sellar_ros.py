@@ -148,6 +148,7 @@ def test_a_config_domain_overrides_the_environment_and_says_so(ros_domain, tmp_p
     p = _cli("optimize", cfg, "--json", "--no-record", env_domain=other, cwd=tmp_path)
     assert p.returncode == 0, p.stderr[-2000:]
     assert json.loads(p.stdout)["domain_id"] == ros_domain
+    assert not (tmp_path / "bags").exists() and "logs" not in json.loads(p.stdout)  # --no-record keeps nothing
     notes = [ln for ln in p.stderr.splitlines() if "overrides" in ln]
     assert notes == [f"bev-mdo: ros.domain_id {ros_domain} of the config overrides ROS_DOMAIN_ID={other} "
                      "of the environment"]
