@@ -49,6 +49,11 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | None = None) ->
 
         # ValueError names the known optimizers, or the config's option the chosen one does not take
         check_optimizer_options(canonical_name(opts.optimizer), config.settings.optimizer.options)
+    if opts.formulation or opts.optimizer:  # what the run records (in process too): the formulation and
+        engine = {"formulation": opts.formulation} if opts.formulation else {}  # optimiser it ran, for resume
+        if opts.optimizer:
+            engine["optimizer"] = {**config["optimizer"], "name": opts.optimizer}
+        config = config.with_sections(**engine)
     opts.refuse_attach("optimize")
     _refuse_ros_only(opts)
     starts = _starts(opts, x0)  # a bad start count is refused before anything starts or is written
@@ -115,11 +120,6 @@ def _run_ros(config, opts, show, x0, starts):
     # follows the ROS convention again: flag, config, ROS_DOMAIN_ID, 77)
     stated = config["ros"].get("domain_id") is not None
     config = config.with_ros(ros if stated else {k: v for k, v in ros.items() if k != "domain_id"})
-    if opts.formulation or opts.optimizer:  # what the run records: the formulation and optimiser it ran
-        engine = {"formulation": opts.formulation} if opts.formulation else {}
-        if opts.optimizer:
-            engine["optimizer"] = {**config["optimizer"], "name": opts.optimizer}
-        config = config.with_sections(**engine)
     run_id = uuid.uuid4().hex[:16]
     stamp_ = time.strftime("%Y%m%d_%H%M%S")
     bag = Path(opts.bag) if opts.bag else Path("bags") / f"{config.name}_{stamp_}_{run_id[:6]}"

@@ -42,3 +42,20 @@ def test_resume_names_its_own_flag_when_the_output_bag_exists(tmp_path, capsys):
     assert main(["resume", str(old), "--transport", "inprocess", "--output", str(old), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert f"--output {old}: a bag already exists there" in err and "--bag" not in err, err
+
+
+def test_resume_goes_on_with_the_formulation_and_optimizer_the_run_used(tmp_path, capsys):
+    """An in-process run's bag stored the config's formulation and optimiser, not those of --formulation and
+    --optimizer (a ROS run's did), so resuming a COBYLA IDF run went on with the config's SLSQP MDF."""
+    from bev_mdo.bag.history import history
+
+    raw = yaml.safe_load((SSBJ.parents[1] / "config" / "leaf_nedc.yaml").read_text())
+    raw["optimizer"]["options"] = {"maxiter": 10}
+    cfg = tmp_path / "leaf_10.yaml"
+    cfg.write_text(yaml.safe_dump(raw))
+    old, new = tmp_path / "old", tmp_path / "new"
+    main(["optimize", str(cfg), "--transport", "inprocess", "--bag", str(old), "--quiet",
+          "--optimizer", "COBYLA", "--formulation", "idf"])
+    main(["resume", str(old), "--transport", "inprocess", "--output", str(new), "--quiet"])
+    capsys.readouterr()
+    assert {(r["formulation"], r["optimizer"]) for r in history(old) + history(new)} == {("idf", "COBYLA")}
