@@ -96,13 +96,13 @@ def record(bag_dir: Path, config, result: dict, method: str, transport: str) -> 
     t0 = time.perf_counter()
     try:
         for i in range(n):
-            margins = {k: float(m[i]) for k, m in result["margins"].items()}
-            violation = max([0.0] + [-m for m in margins.values() if np.isfinite(m)])
+            violation = float(result["violation"][i])  # normalised, as in an optimisation's records (nan: failed)
             bag({"iteration": i, "formulation": "doe", "optimizer": method,
                  "design": {k: float(v[i]) for k, v in result["design"].items()},
                  "objective_name": problem.objective, "objective": float(result["outputs"][problem.objective][i]),
                  "constraints": {c.name: float(result["outputs"][c.name][i]) for c in problem.constraints},
-                 "max_violation": violation, "feasible": bool(result["feasible"][i]), "mda_evaluations": i + 1,
+                 "max_violation": violation if np.isfinite(violation) else float("nan"),
+                 "feasible": bool(result["feasible"][i]), "mda_evaluations": i + 1,
                  "wall_time_s": time.perf_counter() - t0})
     finally:
         bag.close()

@@ -57,11 +57,11 @@ def design(config, given: dict[str, float], transport) -> dict:
 
 
 def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
-    """One batch of MDAs: {design: {k: array}, outputs: {k: array}, margins: {c: array},
-    feasible: bool array, ok: bool array, errors: [str], objective, problem, units} (``designs`` may set
-    model parameters too; variables not given keep their initial value)."""
+    """One batch of MDAs: {design: {k: array}, outputs: {k: array}, margins: {c: array}, violation: the
+    largest normalised violation (inf: failed), feasible: bool array, ok: bool array, errors: [str], objective,
+    problem, units} (``designs`` may set model parameters too; variables not given keep their initial value)."""
     from bev_mdo.config import RunConfig
-    from bev_mdo.mdo.driver import FEASIBILITY_TOL, _mda
+    from bev_mdo.mdo.driver import _mda, feasibility_tolerance
 
     finite_values(designs)
     config = RunConfig.of(config)
@@ -85,7 +85,7 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
         cols.update({k: np.asarray(v, dtype=float) for k, v in designs.items()})
         res = mda.run(cols)
     outputs = {v: np.asarray(res.values[v], dtype=float) for s in mda.specs.values() for v in s.outputs}
-    margins, feasible = {}, np.asarray(res.ok, dtype=bool).copy()
+    margins, violation = {}, np.where(res.ok, 0.0, np.inf)
     for c in problem.constraints:
         y = outputs[c.name]
         m = np.full(n, np.inf)
@@ -94,10 +94,12 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
         if c.upper is not None:
             m = np.minimum(m, c.upper - y)
         margins[c.name] = m
-        scale = c.scale or max(abs(c.lower if c.lower is not None else c.upper), 1.0)
-        if not c.monitor:
-            feasible &= np.isfinite(m) & (m >= -FEASIBILITY_TOL * scale)
+        for kind, b, scale in c.rows():  # normalised as the optimiser's constraints (and its feasibility rule)
+            v = ((b - y) if kind == "lower" else (y - b)) / scale
+            violation = np.maximum(violation, np.where(np.isfinite(v), v, np.inf))
+    feasible = violation <= feasibility_tolerance(config.settings)
     return {"design": {k: cols[k] for k in [*problem.names, *[k for k in designs if k not in problem.names]]},
-            "outputs": outputs, "margins": margins, "feasible": feasible, "ok": np.asarray(res.ok, bool),
+            "outputs": outputs, "margins": margins, "violation": violation, "feasible": feasible,
+            "ok": np.asarray(res.ok, bool),
             "errors": res.messages, "objective": problem.objective, "problem": problem,
             "units": declared_units(config)}

@@ -124,3 +124,26 @@ def test_compare_percent_has_the_sign_of_the_difference_for_a_negative_quantity(
     out = capsys.readouterr().out
     row = next(line for line in out.splitlines() if "displ" in line)
     assert rc == 0 and "+7.99663 (+1.1 %)" in row
+
+
+def test_sweep_bag_records_the_normalised_violation_and_the_configs_tolerance(tmp_path, capsys):
+    """The sweep's bag recorded the largest violation in the constraints' own units (61.8 for 61.8 km
+    short of range beside seconds and rad/s), which history and report show as an optimisation's
+    normalised one; and a sweep judged feasibility with the default tolerance, not the config's."""
+    import yaml
+
+    from bev_mdo.bag.history import history
+
+    raw = yaml.safe_load(Path(CONFIG).read_text())
+    raw["optimizer"]["feasibility_tolerance"] = 1e-9
+    raw["problem"]["constraints"]["accel_time_0_100_s"] = {"upper": 9.856 * (1 - 1e-6)}  # 80 kW, 8:1
+    cfg = tmp_path / "tight.yaml"
+    cfg.write_text(yaml.safe_dump(raw))
+    assert main(["sweep", str(cfg), "--vary", "motor_kw=40,80", "--out", str(tmp_path / "s"), "--no-plots",
+                 "--transport", "inprocess"]) == 0
+    capsys.readouterr()
+    recs = history(tmp_path / "s" / "bag")
+    lim = raw["problem"]["constraints"]["accel_time_0_100_s"]["upper"]
+    for r in recs:
+        assert r["max_violation"] == pytest.approx((r["constraints"]["accel_time_0_100_s"] - lim) / lim, rel=1e-9)
+    assert [r["feasible"] for r in recs] == [False, False]  # 80 kW is 1e-6 over, beyond a tolerance of 1e-9
