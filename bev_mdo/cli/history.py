@@ -34,7 +34,7 @@ def register(subparsers) -> None:
         "history", help="print the optimisation history of a bag",
         description="The IterationRecords of a bag as a table fitted to the terminal width (every column "
                     "with --csv). Exit status 1 if the bag holds no iteration records (a pareto bag "
-                    "holds fronts instead: use `bev-mdo report` or the CSV files beside it).")
+                    "holds fronts instead: the CSV files beside it).")
     add_bag_argument(parser)
     parser.add_argument("--csv", metavar="FILE", help="write the history as CSV ('-' for stdout)")
     parser.add_argument("--run-id", help="this run (default: the bag's own run; needed for a recording of "
@@ -70,7 +70,7 @@ def describe_other_content(bag) -> str:
         files = ("pareto_<topology>.csv files" if tops else "front.csv") + " beside the bag (when the run finished)"
         return (f"it is a Pareto bag: {len(fronts)} ParetoFront messages on {', '.join(pareto)} "
                 f"({where}up to generation {gens}); the final fronts are in the {files}, every generation's "
-                "in the bag (bev-mdo report)")
+                "in the bag (not shown by bev-mdo report)")
     if not bag.topics:
         return "it holds no messages at all"
     kinds = sorted({ty for ty in bag.topics.values() if ty != ITERATION_TYPE})

@@ -34,6 +34,8 @@ def test_two_objectives_write_one_plot_and_say_so(tmp_path, capsys):
     assert main(["history", str(out / "bag")]) == 1
     err = capsys.readouterr().err
     assert "no iteration records" in err and "Pareto bag" in err and "ParetoFront" in err
+    # it named `bev-mdo report` for every generation's front, which report does not show
+    assert "(bev-mdo report)" not in err and "not shown by bev-mdo report" in err
 
 
 def test_three_objectives_every_pair_and_all_benchmarks(tmp_path, capsys):
