@@ -38,6 +38,33 @@ def test_an_error_in_the_ros_section_names_the_file(tmp_path):
             load_config(p)
 
 
+@pytest.mark.parametrize("bad, key", [
+    ("vehicle: 5", "vehicle must be a mapping"), ("cycle: nedc", "cycle must be a mapping"),
+    ("disciplines: energy", "disciplines must be a list"),
+    ("disciplines: [{name: energy, options: 5}]", r"disciplines\[0\] \(energy\): options must be a mapping"),
+    ("problem: {coupling_guesses: 5}", "problem.coupling_guesses: must be a mapping"),
+    ("problem: {parameters: [1]}", "problem.parameters: must be a mapping"),
+    ("problem: {coupling_bounds: 5}", "problem.coupling_bounds: must be a mapping")])
+def test_a_section_of_the_wrong_kind_is_one_line_not_a_type_error(tmp_path, bad, key):
+    """They were TypeError/AttributeError deep in the loader: exit 7 'an unexpected error' for a config mistake."""
+    import yaml
+
+    raw, extra = yaml.safe_load(BASE), yaml.safe_load(bad)
+    for k, v in extra.items():
+        raw[k] = {**raw[k], **v} if k == "problem" else v
+    p = _write(tmp_path, yaml.safe_dump(raw))
+    with pytest.raises(ValueError, match=rf"^{p}: {key}"):
+        load_config(p)
+
+
+def test_a_non_numeric_fd_step_exits_2(tmp_path, capsys):
+    from bev_mdo.cli import main
+
+    p = _write(tmp_path, BASE.replace("fd_step: 1.0e-6", "fd_step: small"))
+    assert main(["check-totals", str(p), "--transport", "inprocess"]) == 2
+    assert "optimizer.fd_step 'small' must be in (0, 0.1)" in capsys.readouterr().err
+
+
 def test_optimizer_options_are_checked_against_the_solver_naming_the_key(tmp_path):
     p = _write(tmp_path, BASE.replace("options: {}", "options: {maxiterr: 3}"))
     with pytest.raises(ValueError, match=rf"{p}: optimizer.options.maxiterr: unknown key of SLSQP; did you mean 'maxiter'\? known: .*maxiter"):

@@ -161,6 +161,10 @@ def _resolve(raw: Any) -> RunConfig:
     cfg = dict(raw)
     cfg.setdefault("name", "run")
     check_run_name(cfg["name"])
+    for key in ("vehicle", "cycle", "disciplines", "ros", "recording"):  # one line, not a TypeError further in
+        kind = "list" if key == "disciplines" else "mapping"
+        if cfg.get(key) is not None and not isinstance(cfg[key], list if kind == "list" else Mapping):
+            raise ValueError(f"{key} must be a {kind}")
     cfg["energy_model"] = cfg.get("energy_model", "flat")
     if cfg["energy_model"] not in ENERGY_MODELS:
         raise ValueError(f"energy_model {cfg['energy_model']!r} is unknown; allowed: {', '.join(ENERGY_MODELS)}")
@@ -189,8 +193,6 @@ def _resolve(raw: Any) -> RunConfig:
         raise ValueError(f"optimizer.derivatives {cfg['optimizer']['derivatives']!r} is unknown; allowed: "
                          f"{', '.join(DERIVATIVES)}")
     for key in ("ros", "recording"):
-        if cfg.get(key) is not None and not isinstance(cfg[key], Mapping):
-            raise ValueError(f"{key} must be a mapping")
         cfg[key] = dict(cfg.get(key) or {})
     check_keys("recording", cfg["recording"], RECORDING_KEYS)
     ros = validate_ros(cfg["ros"])  # checked here so the error names the file; the section is kept as written

@@ -141,7 +141,7 @@ def _record_cycle_traces(cfg: dict) -> None:
     names = [cfg["cycle"]["name"]]
     for e in cfg.get("disciplines") or []:
         if isinstance(e, Mapping) and e.get("name") in ("energy", "cycle_range") and not e.get("class"):
-            opts = e.get("options") or {}
+            opts = e.get("options") if isinstance(e.get("options"), Mapping) else {}  # else refused later
             if isinstance(opts.get("cycle"), str):
                 names.append(opts["cycle"])
             if isinstance(opts.get("cycle_weights"), Mapping):

@@ -52,8 +52,8 @@ class Formulation:
             raise ValueError(f"optimizer.derivatives {derivatives!r} is unknown; allowed: {', '.join(DERIVATIVES)}")
         self.derivatives = derivatives
         self._want_partials = False
-        if not 0 < fd_step < 0.1:
-            raise ValueError(f"optimizer.fd_step {fd_step} must be in (0, 0.1) (scaled units)")
+        if not isinstance(fd_step, (int, float)) or not 0 < fd_step < 0.1:  # 'x' was a TypeError (exit 7)
+            raise ValueError(f"optimizer.fd_step {fd_step!r} must be in (0, 0.1) (scaled units)")
         if fd_scheme not in FD_SCHEMES:
             raise ValueError(f"optimizer.fd_scheme {fd_scheme!r} is unknown; allowed: {', '.join(FD_SCHEMES)}")
         self.problem, self.evaluator = problem, evaluator

@@ -156,6 +156,9 @@ class Problem:
         oscale = _finite(section.get("objective_scale", 1.0), "problem.objective_scale")
         if oscale <= 0:
             raise ValueError(f"problem.objective_scale: {oscale} must be > 0")
+        for key in ("parameters", "coupling_guesses", "coupling_bounds"):
+            if not isinstance(section.get(key) or {}, Mapping):
+                raise ValueError(f"problem.{key}: must be a mapping of variable names")
         params = {str(k): _num(v, f"problem.parameters.{k}") for k, v in (section.get("parameters") or {}).items()}
         guesses = {}
         for k, v in (section.get("coupling_guesses") or {}).items():
