@@ -55,8 +55,9 @@ def register(subparsers) -> None:
     p.add_argument("--energy-model", default=DEFAULT_MODEL, choices=ENERGY_MODELS,
                    help=f"energy model (default {DEFAULT_MODEL})")
     p.add_argument("--parameter-set", default=None, metavar="NAME",
-                   help="parameter set of the chain, quasi_static and topology_sm_sa models: a shipped name or a .yaml "
-                        f"path (default {DEFAULT_SETS['chain']} for chain, {DEFAULT_SETS['quasi_static']} for the other two; "
+                   help="parameter set of the model: a shipped name or a .yaml path (default "
+                        f"{DEFAULT_SETS['chain']} for chain, {DEFAULT_SETS['quasi_static']} for quasi_static and "
+                        "topology_sm_sa, none for flat and breakdown; "
                         "'thesis' = the thesis' constants, 'none' = model defaults)")
     p.add_argument("--pairs", action="store_true",
                    help="also report within-family pairs: measured vs predicted percentage differences")
@@ -75,7 +76,7 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
     fleet = fl.read_fleet(data)
     base = {}
     parameter_set = DEFAULT_SETS.get(energy_model) if parameter_set is None else parameter_set
-    if energy_model in DEFAULT_SETS and parameter_set and parameter_set != "none":
+    if parameter_set and parameter_set != "none":  # any model's (flat, breakdown: only when given)
         base = load_parameter_set(parameter_set)
         fitted = fitted_for_another_model(parameter_set, energy_model)
         if fitted:
@@ -99,7 +100,7 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
         out_rows.append(row)
     both = np.concatenate([err[c][scored[c]] for c in fl.CYCLES])
     report = {"data": fleet.path, "energy_model": energy_model, "compared": compared(energy_model, base),
-              "parameter_set": parameter_set if energy_model in DEFAULT_SETS else None,
+              "parameter_set": parameter_set,
               "vehicles": len(fleet), "rows": out_rows,
             "not_following": [{"row": int(fleet.rows[i]), "cycle": c} for c in fl.CYCLES
                               for i in np.flatnonzero(~pred[c]["follows"])],

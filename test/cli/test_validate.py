@@ -317,3 +317,8 @@ def test_a_parameter_set_fitted_for_another_model_is_one_line_exit_2(capsys):
     assert code == 0 and json.loads(out)["parameter_set"] == "thesis"  # not tied to one model
     code, out, _ = run(capsys, "--energy-model", "topology_sm_sa", "--parameter-set", "epa2022_quasi_static", "--json")
     assert code == 0 and json.loads(out)["parameter_set"] == "epa2022_quasi_static"  # SM-SA is the quasi-static model
+    # flat and breakdown ignored --parameter-set without a word (the JSON said parameter_set: null)
+    code, out, err = run(capsys, "--energy-model", "flat", "--parameter-set", "epa2022_quasi_static")
+    assert code == 2 and "fitted for energy model quasi_static, not flat" in err
+    code, out, _ = run(capsys, "--energy-model", "flat", "--parameter-set", "thesis", "--json")
+    assert code == 0 and json.loads(out)["parameter_set"] == "thesis"
