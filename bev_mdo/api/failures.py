@@ -50,12 +50,16 @@ class TimedDiscipline:
     def __getattr__(self, name):  # name, inputs, outputs, parameters, ... of the wrapped discipline
         return getattr(self._disc, name)
 
+    def prepare(self) -> None:
+        """One-time work (e.g. compiling a model), once: not a hang, done before the clock starts."""
+        if not self._prepared:
+            self._prepared = True
+            prepare(self._disc)
+
     def compute(self, inputs):
         if self._hung:
             raise DisciplineTimeout(self._hung)
-        if not self._prepared:  # one-time work (e.g. compiling a model) is not a hang: done before the clock starts
-            self._prepared = True
-            prepare(self._disc)
+        self.prepare()
         if threading.current_thread() is not threading.main_thread():
             return self._disc.compute(inputs)
 

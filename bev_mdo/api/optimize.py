@@ -80,6 +80,8 @@ def _run_inprocess(config, opts, show, x0, starts):
     ros = config.ros
     budget = ros["timeout_s"] * (ros["retries"] + 1)  # what a ROS run gives a discipline before its points fail
     ev = NamingInProcessEvaluator(config.disciplines, timeout_s=budget)
+    for d in ev.disciplines.values():  # one-time work (numba's compile) before the optimiser's clock, as over ROS
+        d.prepare()
     bag, writer, show = in_process_bag(config, opts, show)  # a bag only when one is asked for
     with noting_interrupts(bag):
         try:
