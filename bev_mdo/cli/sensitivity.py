@@ -26,7 +26,7 @@ def register(subparsers) -> None:
     p.add_argument("--at", default="", metavar="K=V,...",
                    help="design point (design variables default to their initial values); with --global, the "
                         "values of the variables not analysed")
-    p.add_argument("--order", type=int, choices=(1, 2), default=2)
+    p.add_argument("--order", type=int, choices=(1, 2), default=None, help="local: 1 or 2 (default 2)")
     p.add_argument("--wrt", default="", metavar="NAMES",
                    help="comma-separated design variables and/or model parameters (default: design variables; "
                         "--global: design variables only)")
@@ -40,8 +40,8 @@ def register(subparsers) -> None:
     g.add_argument("--samples", type=int, default=None,
                    help="sobol: base sample N, a power of 2, N (D + 2) designs (default 1024); "
                         "morris: trajectories, N (D + 1) designs (default 64)")
-    g.add_argument("--seed", type=int, default=1, help="random seed of the sampling and the bootstrap")
-    g.add_argument("--conf-level", type=float, default=0.95, help="confidence level of the intervals (default 0.95)")
+    g.add_argument("--seed", type=int, default=None, help="random seed of the sampling and the bootstrap (default 1)")
+    g.add_argument("--conf-level", type=float, default=None, help="confidence level of the intervals (default 0.95)")
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")
     p.add_argument("--png", metavar="FILE", help="write a PNG: first-order bars and (order 2) the second-order "
                                                  "matrices; --global: the indices with their intervals")
@@ -53,13 +53,21 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from bev_mdo.api import sensitivity
     from bev_mdo.api.transport import Transport
+    from bev_mdo.api.errors import InputError
     from bev_mdo.cli import flags
 
+    glob = ("samples", "seed", "conf_level")  # a flag of the other kind was ignored without a word
+    wrong = [f"--{k.replace('_', '-')}" for k in (("order", "rel_step") if args.global_method else glob)
+             if getattr(args, k) is not None]
+    if wrong:
+        raise InputError(f"{', '.join(wrong)}: " + ("local sensitivities only (without --global)"
+                                                    if args.global_method else "needs --global sobol|morris"))
     cfg = flags.load_config(args)
     wrt = [s.strip() for s in args.wrt.split(",") if s.strip()]
     got = sensitivity.run(cfg, flags.parse_assignments(args.at, "--at"), wrt, Transport.of(args), global_method=args.global_method,
-                          order=args.order, rel_step=args.rel_step, method=args.method, samples=args.samples,
-                          seed=args.seed, conf_level=args.conf_level)
+                          order=args.order or 2, rel_step=args.rel_step, method=args.method, samples=args.samples,
+                          seed=1 if args.seed is None else args.seed,
+                          conf_level=0.95 if args.conf_level is None else args.conf_level)
     if args.global_method:
         from bev_mdo.cli import global_sensitivity as gs
 

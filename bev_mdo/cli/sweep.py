@@ -39,8 +39,9 @@ def register(sub) -> None:
     p.add_argument("config", help="run config YAML")
     p.add_argument("--doe", choices=METHODS, default=None,
                    help="sample the design variables' bounds: Latin hypercube, Sobol', Halton or full factorial")
-    p.add_argument("--samples", type=int, default=64, help="--doe: number of designs (full: levels per variable)")
-    p.add_argument("--seed", type=int, default=1, help="--doe: random seed (lhs, sobol, halton)")
+    p.add_argument("--samples", type=int, default=None,
+                   help="--doe: number of designs (full: levels per variable; default 64)")
+    p.add_argument("--seed", type=int, default=None, help="--doe: random seed (lhs, sobol, halton; default 1)")
     p.add_argument("--vary", nargs="+", default=[], metavar="NAME=LO:HI:N",
                    help="a grid: a design variable (or model parameter) and its values: lo:hi:n or a,b,c")
     p.add_argument("--list", dest="list_csv", metavar="FILE.csv", help="evaluate the designs listed in this CSV")
@@ -195,6 +196,9 @@ def designs_of(args, problem) -> tuple[dict[str, np.ndarray], list[str]]:
 
     if sum(map(bool, (args.doe, args.vary, args.list_csv))) != 1:
         raise UsageError("give one of --doe METHOD --samples N, --vary NAME=LO:HI:N ... or --list FILE.csv")
+    if not args.doe and (args.samples, args.seed) != (None, None):  # they were ignored without a word
+        raise UsageError("--samples and --seed go with --doe (--vary and --list evaluate the designs they give)")
+    args.samples, args.seed = 64 if args.samples is None else args.samples, 1 if args.seed is None else args.seed
     fixed = parse_assignments(args.fixed)
     if args.doe:
         bounds = {d.name: (d.lower, d.upper) for d in problem.design_variables if d.name not in fixed}

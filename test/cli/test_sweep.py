@@ -147,3 +147,12 @@ def test_sweep_bag_records_the_normalised_violation_and_the_configs_tolerance(tm
     for r in recs:
         assert r["max_violation"] == pytest.approx((r["constraints"]["accel_time_0_100_s"] - lim) / lim, rel=1e-9)
     assert [r["feasible"] for r in recs] == [False, False]  # 80 kW is 1e-6 over, beyond a tolerance of 1e-9
+
+
+@pytest.mark.parametrize("argv", [["--vary", "motor_kw=40:120:3", "--seed", "5"], ["--vary", "motor_kw=40:120:3",
+                                  "--samples", "7"]])
+def test_seed_and_samples_without_doe_are_refused_not_ignored(tmp_path, capsys, argv):
+    assert main(["sweep", CONFIG, *argv, "--out", str(tmp_path / "o"), "--transport", "inprocess"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--samples and --seed go with --doe" in err[0], err
+    assert not (tmp_path / "o").exists()
