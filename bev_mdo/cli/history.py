@@ -82,6 +82,8 @@ def run(args) -> int:
     from bev_mdo.bag.reader import open_bag
     from bev_mdo.bag.report import bag_units
 
+    if args.width is not None and args.width < 40:  # narrower than any table: a blank line and exit 0 before
+        raise ValueError(f"--width {args.width}: the table needs at least 40 characters")
     bag = open_bag(args.bag)
     if bag.truncated:
         print(bag.recovery_note(), file=sys.stderr)

@@ -170,3 +170,11 @@ def test_history_table_fits_the_width_and_names_what_it_left_out(feasible_run):
     assert "--csv FILE has all" in buf.getvalue()
     # each shown column keeps its full values (no column shrunk to nothing)
     assert "98.4312" in buf.getvalue()  # the NEDC optimum (exact cycle integration)
+
+
+def test_history_refuses_a_width_no_table_fits(feasible_run, capsys):
+    """--width 0 printed a blank line and exited 0."""
+    from bev_mdo.cli import main
+
+    assert main(["history", str(feasible_run[1]), "--width", "0"]) == 2
+    assert "--width 0: the table needs at least 40 characters" in capsys.readouterr().err
