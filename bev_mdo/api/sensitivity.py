@@ -56,6 +56,10 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
             if k not in point:
                 raise InputError(f"--wrt: unknown variable or parameter {k!r}; known: {', '.join(point)}")
         if global_method:
+            varied = [k for k in (at or {}) if k in wrt]  # their --at values were ignored without a word
+            if varied:
+                raise InputError(f"--at {', '.join(varied)}: varied over the bounds by --global; --at fixes only "
+                                 "the variables not in --wrt")
             samples = samples or (1024 if global_method == "sobol" else 64)
             from bev_mdo.api.evaluate import declared_units
 

@@ -106,6 +106,7 @@ def test_on_the_bev_problem_gear_ratio_and_motor_power_rank_as_locally(capsys):
     (["--order", "1", "--seed", "3"], "--seed: needs --global sobol|morris"),
     (["--samples", "8", "--conf-level", "0.5"], "--samples, --conf-level: needs --global sobol|morris"),
     (["--global", "morris", "--order", "1"], "--order: local sensitivities only (without --global)"),
+    (["--global", "morris", "--at", "motor_kw=60"], "--at motor_kw: varied over the bounds by --global"),
 ])
 def test_bad_global_input_is_one_line_exit_2(capsys, argv, message):
     assert main(["sensitivity", str(REPO / "config" / "leaf_nedc.yaml"), "--transport", "inprocess", *argv]) == 2
