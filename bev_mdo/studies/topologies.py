@@ -52,7 +52,7 @@ def config_for_topology(raw, topology: str) -> dict:
     set to ``topology`` and, if that differs from the config's own, the topology's design
     variables: each with the config's own bounds where the config gives it, else the study's
     (``TOPOLOGY_BOUNDS``); a variable the topology does not have (``gear_ratio`` of IWM-*) is left out, and
-    so is a ``problem.baseline`` that lacks one of the new topology's variables."""
+    so is a ``problem.baseline`` that lacks one of the new topology's variables or gives one it does not have."""
     t = get_topology(topology).name
     cfg = copy.deepcopy(raw)
     own = config_topology(raw)
@@ -71,8 +71,9 @@ def config_for_topology(raw, topology: str) -> dict:
         new["battery_kwh"] = dvs.get("battery_kwh", {"lower": 18.0, "upper": 30.0, "initial": 24.0})
         cfg.setdefault("problem", {})["design_variables"] = new
         base = cfg["problem"].get("baseline")
-        if isinstance(base, dict) and set(new) - set(base.get("design") or {}):
-            del cfg["problem"]["baseline"]  # a design of the config's own topology: not one of this one
+        given = set((base.get("design") or {}) if isinstance(base, dict) else ())
+        if isinstance(base, dict) and (set(new) - given or (set(dvs) - set(new)) & given):
+            del cfg["problem"]["baseline"]  # a design of the config's own topology (IWM-*: with its gear_ratio)
     return cfg
 
 

@@ -140,6 +140,18 @@ def test_a_baseline_of_the_configs_own_topology_is_left_out_of_another_topologys
     assert config_for_topology(raw, "SM-SA")["problem"]["baseline"]["name"] == "mine"  # its own topology: kept
 
 
+def test_a_geared_baseline_is_left_out_of_an_in_wheel_topologys_problem():
+    """pareto --topology IWM-SA on a config with an SM-SA baseline stopped: 'problem.baseline.design.gear_ratio:
+    neither a design variable nor a discipline parameter' (the baseline has every IWM-SA variable, and one more)."""
+    from bev_mdo.config import load_config
+
+    raw = _raw()
+    raw["problem"]["baseline"] = {"name": "mine", "design": {"motor_kw": 80, "gear_ratio": 7.9, "battery_kwh": 24}}
+    for topology in ("IWM-SA", "IWM-DA"):
+        assert "baseline" not in config_for_topology(raw, topology)["problem"]
+        load_config(config_for_topology(raw, topology))
+
+
 def test_pareto_runs_the_vehicle_topology(tmp_path, capsys):
     """Without --topology: the config as written (its vehicle.topology), its three objectives, no study."""
     out = tmp_path / "o"
