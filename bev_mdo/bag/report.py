@@ -387,10 +387,13 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
             from bev_mdo.mdo.driver import BEST_REL_TOL, pick_result
 
             sign = -1.0 if _maximized(read_config(bag)) else 1.0
-            best = rows[pick_result(rows, sign, converged=False)]  # the run's own rule for its result
+            # the run's result where the bag stores its design (the rule's 'converged' is not recorded)
+            at = [r for r in rows if r["feasible"] and r["design"] == (answers or {}).get("result_design")]
+            best = at[-1] if at else rows[pick_result(rows, sign, converged=False)]
             lines += ["", f"Best feasible objective {best['objective']:.6g} at iteration {best['iteration']}"
-                          f"{' (maximised)' if sign < 0 else ''} (an earlier iterate counts only if better by more "
-                          f"than {BEST_REL_TOL:g} relative, as for the run's result)."]
+                          f"{' (maximised)' if sign < 0 else ''} (" + ("the run's result)." if at else
+                          f"an earlier iterate counts only if better by more than {BEST_REL_TOL:g} relative, "
+                          "as for the run's result).")]
         lines += _answers_section(answers)
     else:
         lines += ["", "No iteration records in this bag."]

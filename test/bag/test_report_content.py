@@ -178,3 +178,24 @@ def test_history_refuses_a_width_no_table_fits(feasible_run, capsys):
 
     assert main(["history", str(feasible_run[1]), "--width", "0"]) == 2
     assert "--width 0: the table needs at least 40 characters" in capsys.readouterr().err
+
+
+def test_report_names_the_runs_result(tmp_path):
+    """A converged run's result is its last iterate unless an earlier one is better and no more violated
+    (driver.pick_result). Golinski with COBYLA converges at iteration 52 (violation 3e-15); the report read
+    the records without knowing the run converged and said 'Best feasible objective 2994.45 at iteration 17',
+    an iterate 6e-6 better that buys it with a 1.2e-5 violation. The bag now stores the result's design."""
+    import contextlib
+    import io
+
+    from bev_mdo.bag.report import report
+    from bev_mdo.cli import main
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        main(["optimize", str(ROOT / "examples/golinski.yaml"), "--optimizer", "COBYLA", "--transport", "inprocess",
+              "--bag", str(tmp_path / "bag"), "--json", "--quiet"])
+    out = json.loads(buf.getvalue())
+    report(tmp_path / "bag", tmp_path)
+    md = (tmp_path / "report.md").read_text()
+    assert f"Best feasible objective {out['objective']:.6g} at iteration {out['result_iteration']} (" in md
