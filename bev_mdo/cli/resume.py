@@ -85,6 +85,14 @@ def run(args) -> int:
     # element names ('x_shared[0]', ...) for vector design variables, as the bag records them
     names = config.problem.names
     x0 = {k: v for k, v in design.items() if k in names}
+    # an optimiser may end a little outside a bound (COBYLA, trust-constr: within the feasibility tolerance);
+    # the resumed run starts on the bound instead of refusing its start point
+    lo, hi = (dict(zip(names, config.problem.array(side))) for side in ("lower", "upper"))
+    moved = {k: min(max(v, lo[k]), hi[k]) for k, v in x0.items() if not lo[k] <= v <= hi[k]}
+    if moved:
+        print("starting on the bound of " + ", ".join(f"{k} ({x0[k]:.6g} -> {v:.6g})" for k, v in moved.items()),
+              file=out)
+        x0.update(moved)
     opts = argparse.Namespace(**vars(Transport.of(args)), formulation=None, optimizer=None, json=args.json,
                               bag=args.out_bag, no_record=args.no_record, quiet=args.quiet, compose=None)
     return run_job(config, opts, x0=x0)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 import yaml
 
 from bev_mdo.cli import main
@@ -59,3 +60,19 @@ def test_resume_goes_on_with_the_formulation_and_optimizer_the_run_used(tmp_path
     main(["resume", str(old), "--transport", "inprocess", "--output", str(new), "--quiet"])
     capsys.readouterr()
     assert {(r["formulation"], r["optimizer"]) for r in history(old) + history(new)} == {("idf", "COBYLA")}
+
+
+def test_resume_from_an_iterate_just_outside_a_bound_starts_on_the_bound(tmp_path, capsys):
+    """COBYLA ends Sellar MDF at z2=-5e-08, below its bound 0 (within the feasibility tolerance, so its
+    result); resume refused that start: 'x0 z2=-5e-08 is outside the bounds [0, 10]' (exit 2)."""
+    from bev_mdo.bag.history import history
+
+    cfg = SSBJ.parents[0] / "sellar" / "sellar_mdf.yaml"
+    old, new = tmp_path / "old", tmp_path / "new"
+    main(["optimize", str(cfg), "--optimizer", "COBYLA", "--transport", "inprocess", "--bag", str(old), "--quiet"])
+    if not history(old)[-1]["design"]["z2"] < 0:  # the case: the bag's last iterate lies outside [0, 10]
+        pytest.skip("COBYLA ended inside the bounds on this host")
+    capsys.readouterr()
+    assert main(["resume", str(old), "--transport", "inprocess", "--output", str(new), "--quiet"]) != 2
+    assert "starting on the bound of z2" in capsys.readouterr().out
+    assert history(new)[0]["design"]["z2"] == 0.0
