@@ -165,6 +165,11 @@ def test_dm_da_motor_speed_is_the_faster_of_its_two_geared_motors():
     part = d.compute_partials(x)
     np.testing.assert_allclose(part[("motor_speed_max_rad_s", "gear_ratio")], [0.0, v_max])
     np.testing.assert_allclose(part[("motor_speed_max_rad_s", "gear_ratio_rear")], [v_max, 0.0])
+    # equal ratios (the study's DM-DA start, 7.9 and 7.9): check-partials' central differences see half each;
+    # all to the front motor made `bev-mdo check-partials` at the config's start say DISAGREE (exit 1)
+    tie = d.compute_partials({"gear_ratio": np.array([7.9]), "gear_ratio_rear": np.array([7.9])})
+    np.testing.assert_allclose([tie[("motor_speed_max_rad_s", k)][0] for k in ("gear_ratio", "gear_ratio_rear")],
+                               [v_max / 2, v_max / 2])
     assert _build(BUILTIN["motor_speed"], _topo_cfg(), {}).inputs == ("gear_ratio",)  # SM-SA as before
     iwm = _topo_cfg("IWM-SA", {"motor_kw": {"lower": 20, "upper": 90}, "battery_kwh": {"lower": 18, "upper": 30}})
     with pytest.raises(ValueError, match="motor_speed: topology IWM-SA has no gear ratio"):

@@ -190,9 +190,11 @@ class MotorSpeed(Base):
         slope = np.broadcast_to(self.max_speed_m_s / rw, (len(inputs["gear_ratio"]),))
         if "gear_ratio_rear" not in self.inputs:
             return {("motor_speed_max_rad_s", "gear_ratio"): slope}
-        front = np.asarray(inputs["gear_ratio"], float) >= inputs["gear_ratio_rear"]
-        return {("motor_speed_max_rad_s", "gear_ratio"): np.where(front, slope, 0.0),
-                ("motor_speed_max_rad_s", "gear_ratio_rear"): np.where(front, 0.0, slope)}
+        ig, ig_rear = np.asarray(inputs["gear_ratio"], float), np.asarray(inputs["gear_ratio_rear"], float)
+        # equal ratios (the topology study's start point) are a kink: half to each, as central differences see it
+        front = np.where(ig > ig_rear, 1.0, np.where(ig < ig_rear, 0.0, 0.5))
+        return {("motor_speed_max_rad_s", "gear_ratio"): front * slope,
+                ("motor_speed_max_rad_s", "gear_ratio_rear"): (1.0 - front) * slope}
 
 
 class Cost(Base):
