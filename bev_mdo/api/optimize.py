@@ -151,16 +151,9 @@ def _run_ros(config, opts, show, x0, starts):
 
 
 def _refuse_ros_only(opts) -> None:
-    """InputError naming the ROS-only options given to an in-process run (they used to be ignored silently);
-    ``compose`` counts as given when it is not the default."""
-    if opts.uses_ros:
-        return
-    given = [flag for flag, value in (("--compose", None if opts.compose == "coordinator" else opts.compose),
-                                      ("--instances", opts.instances), ("--domain-id", opts.domain_id),
-                                      ("--discovery", opts.discovery), ("--static-peers", opts.static_peers),
-                                      ("--discovery-server", opts.discovery_server)) if value is not None]
-    if given:
-        raise InputError(f"{', '.join(given)} cannot be combined with --transport inprocess (it starts no ROS nodes)")
+    """Transport.refuse_ros_only with optimize's own ROS flags; ``compose`` counts as given when it is not the default."""
+    opts.refuse_ros_only((("--compose", None if opts.compose == "coordinator" else opts.compose),
+                          ("--instances", opts.instances)))
 
 
 def _where(names, instances: dict, compose: str | None) -> str:

@@ -64,6 +64,7 @@ def check_sizes(generations: int, pop: int, instances, transport) -> None:
     transport.refuse_attach("pareto")
     if instances and transport.transport != "ros":
         raise InputError("--instances needs --transport ros (pools of discipline nodes)")
+    transport.refuse_ros_only()  # --domain-id, --discovery, ... were ignored silently
 
 
 def objectives_of(names: list[str] | None, cfg) -> list[tuple[str, bool]]:

@@ -49,6 +49,17 @@ class Transport:
                              "it cannot be combined with --transport inprocess")
         return self.transport == "ros"
 
+    def refuse_ros_only(self, own: tuple = ()) -> None:
+        """InputError naming the ROS-only flags given to an in-process run (they would be ignored silently):
+        the discovery flags and the command's ``own`` (flag, value) pairs; None is not given."""
+        if self.uses_ros:
+            return
+        given = [flag for flag, value in (*own, ("--domain-id", self.domain_id), ("--discovery", self.discovery),
+                                          ("--static-peers", self.static_peers),
+                                          ("--discovery-server", self.discovery_server)) if value is not None]
+        if given:
+            raise InputError(f"{', '.join(given)} cannot be combined with --transport inprocess (it starts no ROS nodes)")
+
     def refuse_attach(self, command: str) -> None:
         """InputError for a command that must start its own nodes (a run bound to its recorder and key)."""
         if self.uses_ros and self.attach:

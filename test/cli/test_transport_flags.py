@@ -112,3 +112,13 @@ def test_ros_only_optimize_flags_with_inprocess_are_one_line_exit_2(flags, capsy
     named = [f for f in flags if f.startswith("--")]
     assert len(err) == 1 and f"{', '.join(named)} cannot be combined with --transport inprocess" in err[0], err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_ros_only_pareto_flags_with_inprocess_are_one_line_exit_2(capsys, tmp_path, monkeypatch):
+    """optimize refused them; pareto ran and ignored --domain-id and --discovery silently."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["pareto", str(REPO / "config" / "topologies_artemis.yaml"), "--transport", "inprocess", "--domain-id", "300", "--discovery", "localhost",
+                 "--generations", "1", "--pop", "4", "--no-plots", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--domain-id, --discovery cannot be combined with --transport inprocess" in err[0], err
+    assert list(tmp_path.iterdir()) == []
