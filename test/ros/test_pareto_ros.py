@@ -35,7 +35,8 @@ def runs(tmp_path_factory, ros_domain):
     for transport, extra in (("inprocess", []), ("ros", []), ("ros_pool", ["--instances", "energy=2"])):
         o = d / transport
         p = subprocess.run([PYTHON, "-m", "bev_mdo", "pareto", str(cfg), "--transport", transport.split("_")[0],
-                            "--domain-id", str(ros_domain), "--out", str(o), *ARGS, *extra],
+                            *(["--domain-id", str(ros_domain)] if transport != "inprocess" else []),
+                            "--out", str(o), *ARGS, *extra],
                            env=env, cwd=d, capture_output=True, text=True, timeout=240)
         assert p.returncode == 0, p.stderr[-3000:]
         out[transport] = o
