@@ -1,6 +1,8 @@
 """A per-run key left by a run that never wrote its bag does not block a re-run with the same --bag."""
 from __future__ import annotations
 
+import os
+
 from bev_mdo.protocol.signing import with_run_key
 from bev_mdo.sessions import key_dir_for
 
@@ -31,3 +33,8 @@ def test_a_key_of_a_start_up_stopped_before_the_recorder_is_replaced(tmp_path):
     old = open(first).read()
     again = with_run_key({"ros": {}}, key_dir_for(bag))["ros"]["sign_key_file"]
     assert again == first and open(again).read() != old
+
+
+def test_a_per_run_key_is_readable_by_its_owner_only(tmp_path):
+    key = with_run_key({"ros": {}}, key_dir_for(tmp_path / "bags" / "run1"))["ros"]["sign_key_file"]
+    assert open(key).read() and os.stat(key).st_mode & 0o077 == 0

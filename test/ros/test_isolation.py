@@ -227,7 +227,8 @@ def _cli_trio(configs, references, ros_domain, cwd) -> dict:
     env = ros_env(ros_domain)
     procs = {name: subprocess.Popen(
         [PYTHON, "-m", "bev_mdo", "optimize", configs[name], "--domain-id", str(ros_domain), "--no-record",
-         "--json", "--quiet"], cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+         "--bag", f"bags/{name}", "--json", "--quiet"],  # --no-record with --bag: its logs and key kept there
+        cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         for name in VARIANTS}
     outs = {}
     for name, p in procs.items():
