@@ -70,7 +70,7 @@ def run_once(path: Path, transport: str, domain: int, cwd: Path) -> dict:
     env["PYTHONPATH"] = str(REPO) + os.pathsep + env.get("PYTHONPATH", "")
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     argv = [sys.executable, "-m", "bev_mdo", "optimize", str(path), "--json", "--quiet", "--no-record",
-            "--transport", transport, "--domain-id", str(domain)]
+            "--transport", transport, *(["--domain-id", str(domain)] if transport == "ros" else [])]
     t0 = time.perf_counter()
     p = subprocess.run(argv, env=env, cwd=cwd, capture_output=True, text=True, timeout=600)
     wall = time.perf_counter() - t0

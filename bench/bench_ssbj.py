@@ -99,7 +99,8 @@ def _cli(repeat: int, domain: int) -> list[dict]:
         for f, t in cases:
             t0 = time.perf_counter()
             p = subprocess.run([sys.executable, "-m", "bev_mdo", "optimize", str(EXAMPLE / f"ssbj_{f}.yaml"),
-                                "--transport", t, "--domain-id", str(domain), "--json", "--no-record", "--quiet"],
+                                "--transport", t, *(["--domain-id", str(domain)] if t == "ros" else []),
+                                "--json", "--no-record", "--quiet"],
                                env=env, capture_output=True, text=True, timeout=600)
             wall = time.perf_counter() - t0
             doc = json.loads(p.stdout) if p.returncode == 0 else {}
