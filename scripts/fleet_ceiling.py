@@ -134,7 +134,7 @@ def main(argv=None) -> int:
     print("model (mean absolute % error over UDDS + HWFET)            family CV   LOMO CV   note")
     cv_f = cal.cross_validate(fleet)["stats"]["mean_abs_pct"]
     cv_m = cal.cross_validate(fleet, 99, groups=lower)["stats"]["mean_abs_pct"]
-    print(f"{'shipped chain (2 fitted parameters)':58s} {cv_f:8.2f} {cv_m:9.2f}")
+    print(f"{f'shipped chain ({len(cal.FIT)} fitted parameters)':58s} {cv_f:8.2f} {cv_m:9.2f}")
 
     y_k, f_k = y[rows], {k: v[rows] for k, v in feats.items()}
     fold_k, lomo_k, fam_k = fold2[rows], lomo2[rows], fam2[rows]
