@@ -98,6 +98,7 @@ class Evaluating:
         how = Transport.of(transport)  # ros_section gets ``transport`` itself: its domain note shows once per command
         self.ros = how.uses_ros
         if not self.ros:
+            how.refuse_ros_only()  # --domain-id, --discovery, ... would be ignored in process
             from bev_mdo.config import RunConfig
             from bev_mdo.mdo.evaluator import InProcessEvaluator
 

@@ -122,3 +122,16 @@ def test_ros_only_pareto_flags_with_inprocess_are_one_line_exit_2(capsys, tmp_pa
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--domain-id, --discovery cannot be combined with --transport inprocess" in err[0], err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("argv", [["evaluate", CONFIG], ["sweep", CONFIG, "--vary", "motor_kw=60:80:2"],
+                                  ["compare", CONFIG, "--design", "motor_kw=70", "--design", "motor_kw=80"],
+                                  ["sensitivity", CONFIG, "--order", "1"], ["check-totals", CONFIG]],
+                         ids=lambda a: a[0])
+def test_ros_only_flags_with_inprocess_are_one_line_exit_2_for_every_evaluating_command(argv, capsys, tmp_path,
+                                                                                        monkeypatch):
+    """They ran in process and ignored --domain-id silently (optimize and pareto refused it)."""
+    monkeypatch.chdir(tmp_path)
+    assert main([*argv, "--transport", "inprocess", "--domain-id", "300"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--domain-id cannot be combined with --transport inprocess" in err[0], err
