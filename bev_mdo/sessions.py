@@ -25,7 +25,7 @@ from pathlib import Path
 from bev_mdo.config import RunConfig, plain
 from bev_mdo.processes import beside_coordinator, plan_processes
 from bev_mdo.ros_settings import participant_lease_s
-from bev_mdo.stacks import deadline
+from bev_mdo.stacks import teardown
 
 ACK_GRACE_S = 1.0  # a live local recorder acknowledges in milliseconds (in DDS threads, not Python's)
 
@@ -214,10 +214,14 @@ class OptimizeRosSession:
             out.pop("history")
             return out, baseline.get("value")
         finally:
-            with deadline():  # a participant hung in the middleware would block here for good
+            def close():
                 if beside is not None:
                     beside.close()
                 rclpy.shutdown(context=ctx)
+
+            # bounded (a participant hung in the middleware would block here for good); in the CLI left for the
+            # exit, after the result is printed (a composed node's destroy_node hung there under load)
+            teardown(close)
 
     def __exit__(self, *exc) -> None:
         self.launcher.stop(first=("recorder",))
@@ -442,11 +446,15 @@ class ParetoRosSession:
         try:
             if self.sink is not None:
                 self.sink.wait_for_all_acked(self.ros["discovery_wait_s"], give_up=self._acks_needless)
-            with deadline():  # a participant hung in the middleware would block here for good
-                if self.sink is not None:
-                    self.sink.close()
-                if self.ctx is not None:
-                    rclpy.shutdown(context=self.ctx)
+            sink, ctx = self.sink, self.ctx
+
+            def close():
+                if sink is not None:
+                    sink.close()
+                if ctx is not None:
+                    rclpy.shutdown(context=ctx)
+
+            teardown(close)  # bounded; in the CLI left for the exit, after the fronts are written
         finally:
             if self.launcher is not None:
                 self.launcher.stop(first=("recorder",))

@@ -99,7 +99,7 @@ def _run_deferred() -> None:
         with deadline(TEARDOWN_S):  # a hang prints every stack, as at once; then the rest of the exit is bounded again
             while _deferred:
                 with contextlib.suppress(Exception):
-                    _deferred.pop()()
+                    _deferred.pop(0)()  # in the order they were left: a node before its context
     except KeyboardInterrupt:  # Ctrl-C during the teardown at exit: the result is out; leave now, as interrupted
         print("bev-mdo: interrupted", file=sys.stderr, flush=True)
         with contextlib.suppress(Exception):

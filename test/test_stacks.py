@@ -115,10 +115,10 @@ def test_a_teardown_that_ends_in_time_cancels_the_deadline():
     assert p.returncode == 0 and p.stdout.strip() == "after" and "Timeout" not in p.stderr
 
 
-def _deferred_run(close: str) -> subprocess.CompletedProcess:
-    """A `bev-mdo`-like process: teardowns deferred, one handed over, the result printed, exit status 5."""
+def _deferred_run(*closes: str) -> subprocess.CompletedProcess:
+    """A `bev-mdo`-like process: teardowns deferred, each handed over, the result printed, exit status 5."""
     code = "\n".join(["import ctypes, os, signal, sys, time", "from bev_mdo import stacks", "stacks.TEARDOWN_S = 1.0",
-                      "stacks.defer_teardowns()", f"stacks.teardown(lambda: {close})",
+                      "stacks.defer_teardowns()", *(f"stacks.teardown(lambda: {c})" for c in closes),
                       "print('result', flush=True)", "sys.exit(5)"])
     # SIGINT back to its default in the child: a suite started as a background job inherits SIGINT ignored,
     # and Python then installs no KeyboardInterrupt handler (as for Ctrl-C on a `&` job)
@@ -129,6 +129,13 @@ def _deferred_run(close: str) -> subprocess.CompletedProcess:
 def test_a_deferred_teardown_runs_at_exit_after_the_result_and_keeps_the_status():
     p = _deferred_run("print('closed', flush=True)")
     assert p.returncode == 5 and p.stdout.split() == ["result", "closed"]
+
+
+def test_deferred_teardowns_run_in_the_order_they_were_left():
+    """A coordinator's node is left before the context it lives in is shut down: at the exit they go in
+    that order, as they would have gone at once."""
+    p = _deferred_run("print('node', flush=True)", "print('context', flush=True)")
+    assert p.returncode == 5 and p.stdout.split() == ["result", "node", "context"]
 
 
 def test_a_deferred_teardown_that_hangs_costs_the_exit_status_not_the_result():

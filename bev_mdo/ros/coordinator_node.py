@@ -23,7 +23,7 @@ from bev_mdo.ros.common import (ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, de
 from bev_mdo.ros.evaluator import RosEvaluator
 from bev_mdo.ros.fastwait import until
 from bev_mdo.ros.recorder_node import OwnRecorder
-from bev_mdo.stacks import STARTUP_GAVE_UP_STATUS, StartupGaveUp, deadline
+from bev_mdo.stacks import STARTUP_GAVE_UP_STATUS, StartupGaveUp, teardown
 from bev_mdo_msgs.msg import IterationRecord
 
 
@@ -199,9 +199,11 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
     finally:
         if beside is not None:
             beside.detach()
-        with deadline():  # a participant hung in the middleware would block here for good
+        def close():
             node.evaluator.close()
             node.destroy_node()
+
+        teardown(close)  # bounded; in the CLI left for the exit, after the result is printed
 
 
 def main(args: list[str] | None = None) -> int:
