@@ -374,6 +374,34 @@ def test_recorded_run_composed_into_the_coordinator_reads_back_and_resumes(ros_d
     assert resumed["objective"] == pytest.approx(ref.objective, rel=1e-6)
 
 
+def test_a_teardown_that_hangs_after_the_run_costs_the_exit_status_not_the_result(ros_domain, config_path, tmp_path):
+    """Under eight runs on one domain a composed node's destroy_node hung in Fast DDS after the run had
+    finished, and the run printed nothing before the teardown's bound ended it. The teardown is left for
+    the exit: the result is out first, then the hang is bounded (every stack, SIGALRM)."""
+    import signal
+
+    raw = yaml.safe_load(config_path.read_text())
+    raw["ros"] = {**raw["ros"], "domain_id": ros_domain}
+    raw["ros"].pop("sign_key_file")
+    cfg = tmp_path / "leaf.yaml"
+    cfg.write_text(yaml.safe_dump(raw, sort_keys=False))
+    code = "\n".join([
+        "import ctypes, sys", "from bev_mdo import stacks", "from bev_mdo.ros import composed",
+        "stacks.TEARDOWN_S = 3.0",
+        "composed.Beside.close = lambda self: ctypes.PyDLL(None).sleep(120)  # a destroy hung in the middleware",
+        "from bev_mdo.cli import main",
+        f"sys.argv = ['bev-mdo', 'optimize', {str(cfg)!r}, '--compose', 'coordinator', '--json', '--quiet', "
+        "'--no-record']",
+        "sys.exit(main())"])
+    out = subprocess.run([PYTHON, "-c", code], env=ros_env(ros_domain), cwd=tmp_path, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == -signal.SIGALRM, (out.returncode, out.stderr[-3000:])
+    assert "Timeout" in out.stderr and "_run_deferred" in out.stderr  # the hang, at the exit, with its stacks
+    result = json.loads(out.stdout)
+    ref = _reference(load_config(cfg))
+    assert result["objective"] == ref.objective and result["design"] == ref.design
+
+
 def test_ros2_run_coordinator_node_with_compose_coordinator(ros_domain, config_path, tmp_path):
     """``ros2 run bev_mdo coordinator_node --ros-args -p compose:=coordinator``: a whole run in one
     process, the in-process optimum; a compose value it cannot serve exits 2 with one line."""
