@@ -48,13 +48,9 @@ INFO_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=64,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-# A reader's history is one queue for every writer of the topic: each node declares once, so a reader
-# must hold the declarations of every node on the domain that arrive before it takes them (with the
-# writers' 64, a coordinator matching 100 nodes at once kept the last 64 and could lose its own).
-INFO_READER_QOS = QoSProfile(
-    reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1024,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+# Declaration readers (disciplines', recorders'): a history is one queue for all writers, each declares once
+DECLARATION_READER_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1024,
+                                    durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # Each node's request counters as JSON (std_msgs/String), so tests and operators can see
 # what was received, answered and rejected (by reason) without reading logs.
 # TRANSIENT_LOCAL depth 1: a late subscriber gets every node's latest counters.

@@ -199,11 +199,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
     finally:
         if beside is not None:
             beside.detach()
-        def close():
-            node.evaluator.close()
-            node.destroy_node()
-
-        teardown(close)  # bounded; in the CLI left for the exit, after the result is printed
+        teardown(lambda: (node.evaluator.close(), node.destroy_node()))  # bounded; in the CLI at exit, after the result
 
 
 def main(args: list[str] | None = None) -> int:

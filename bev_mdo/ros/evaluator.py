@@ -37,8 +37,8 @@ from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.mdo.orchestrator import Orchestrator
 from bev_mdo.protocol.signing import Signer
 from bev_mdo import binding
-from bev_mdo.ros.common import (INFO_READER_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC,
-                                mda_result_topic, request_topic, stamp)
+from bev_mdo.ros.common import (DECLARATION_READER_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, REQUEST_QOS, RESULT_QOS,
+                                RESULT_TOPIC, mda_result_topic, request_topic, stamp)
 from bev_mdo.ros.fastwait import MultiWaiter
 from bev_mdo.ros.startup import DisciplineMissing, StartupWaits  # noqa: F401 - DisciplineMissing re-exported
 from bev_mdo.ros_settings import validate_min_rows
@@ -87,7 +87,8 @@ class RosEvaluator(StartupWaits, Orchestrator):
         self._result_sub = node.create_subscription(EvaluationResult, RESULT_TOPIC, self._on_bytes, RESULT_QOS,
                                                     raw=True)
         # raw too: a signature covers the bytes as they were sent (protocol/signing.py)
-        self._info_sub = node.create_subscription(DisciplineInfo, INFO_TOPIC, self._on_info, INFO_READER_QOS, raw=True)
+        self._info_sub = node.create_subscription(DisciplineInfo, INFO_TOPIC, self._on_info, DECLARATION_READER_QOS,
+                                                  raw=True)
         self._waiter = MultiWaiter(node.context)
         self._hot = [(self._result_sub, lambda data, _i: self._on_bytes(data))]
         self.local_requests = None  # composed.Beside: (publisher, request) -> True if delivered in process

@@ -46,19 +46,13 @@ from bev_mdo.bag.history import ITERATION_TOPIC
 from bev_mdo.bag.writer import BagWriter
 from bev_mdo.binding import config_binding, run_matches
 from bev_mdo.protocol.messages import RUN_TAGGED, run_of
-from bev_mdo.ros.common import declare, endpoints, node_of, run_type
+from bev_mdo.ros.common import DECLARATION_READER_QOS, declare, endpoints, node_of, run_type
 
 DEFAULT_PREFIX = "/bev_mdo/"
 RECHECK_S = 0.5  # the declared publishers of a topic are read from the graph at least this often
 STATUS_TOPIC = "/bev_mdo_recorder/status"  # outside the prefix: the status is not recorded
 STATUS_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST, depth=1,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-# A reader keeps far more: its history is one queue for every recorder on the domain, so with depth 1 a
-# declaration of another run arriving before the coordinator took its own recorder's overwrote it, and a
-# recorder declares again only when its matches change (eight runs on one domain: a run gave up after
-# 60 s, "declared itself but did not match ['/bev_mdo/result']").
-STATUS_READER_QOS = QoSProfile(reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
-                               depth=1024, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def message_class(type_name: str):
@@ -244,7 +238,7 @@ class OwnRecorder:
         self.node, self.run_id, self.signer, self.binding = node, run_id, signer, binding
         self.declaration: dict | None = None
         self.dropped: Counter[str] = Counter()
-        self._sub = node.create_subscription(String, STATUS_TOPIC, self._on_status, STATUS_READER_QOS)
+        self._sub = node.create_subscription(String, STATUS_TOPIC, self._on_status, DECLARATION_READER_QOS)
 
     def _on_status(self, msg) -> None:
         try:

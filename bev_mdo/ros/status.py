@@ -13,7 +13,8 @@ import json
 import time
 from collections import Counter
 
-from bev_mdo.ros.common import INFO_READER_QOS, INFO_TOPIC, NODE_STATS_READER_QOS, NODE_STATS_TOPIC, request_topic
+from bev_mdo.ros.common import (DECLARATION_READER_QOS, INFO_TOPIC, NODE_STATS_READER_QOS, NODE_STATS_TOPIC,
+                                request_topic)
 from bev_mdo.ros.fastwait import until
 
 
@@ -37,7 +38,7 @@ def collect(node, listen_s: float = 2.0) -> list[dict]:
         first.setdefault(key, d)
         last[key] = d
 
-    subs = [node.create_subscription(DisciplineInfo, INFO_TOPIC, on_info, INFO_READER_QOS),
+    subs = [node.create_subscription(DisciplineInfo, INFO_TOPIC, on_info, DECLARATION_READER_QOS),
             node.create_subscription(String, NODE_STATS_TOPIC, on_stats, NODE_STATS_READER_QOS)]
     executor = SingleThreadedExecutor(context=node.context)
     executor.add_node(node)
