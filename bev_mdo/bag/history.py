@@ -182,16 +182,51 @@ def to_csv(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
+def maximized(config_yaml: str | None) -> bool:
+    """Whether the recorded config maximises its objective (problem.objective: {maximize: true})."""
+    import yaml
+
+    try:
+        obj = (yaml.safe_load(config_yaml or "") or {}).get("problem", {}).get("objective")
+    except Exception:  # noqa: BLE001 - a reader never fails on the stored config
+        return False
+    return isinstance(obj, dict) and obj.get("maximize") is True
+
+
+def headline(rows: list[dict], sign: float = 1.0) -> int:
+    """The record that stands for the run: an optimisation's last iterate; a sweep's (formulation ``doe``,
+    its records in no order) best design: the best feasible objective, else the least violated (a failed
+    design, violation nan, last). ``sign``: +1 minimise, -1 maximise."""
+    if not rows or rows[-1].get("formulation") != "doe":
+        return len(rows) - 1
+
+    def rank(i):
+        r = rows[i]
+        v = r["max_violation"] if r["max_violation"] == r["max_violation"] else float("inf")
+        return (0, sign * r["objective"]) if r["feasible"] else (1, v)
+    return min(range(len(rows)), key=rank)
+
+
 def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
                  checks: dict | None = None, no_verify: bool = False) -> tuple[str, dict[str, float], int]:
-    """(config_yaml, design of the last verified iteration of the bag's own run, its iteration
-    number), for resume. BagError when the run was signed but its records cannot be verified."""
+    """(config_yaml, design of the last verified iteration of the bag's own run, or of a sweep's best
+    design (``headline``; `checks` then gets "sweep": ``sweep_phrase``), its iteration number), for
+    resume. BagError when the run was signed but its records cannot be verified."""
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     rows = history(bag, run_id, key_file=key_file, checks=checks, no_verify=no_verify)
     if not rows:
         raise BagError(f"{bag.mcap_path}: no IterationRecord on {ITERATION_TOPIC}; nothing to resume")
-    last = rows[-1]
-    return read_config(bag), dict(last["design"]), int(last["iteration"])
+    config = read_config(bag)
+    row = rows[headline(rows, -1.0 if maximized(config) else 1.0)]
+    if checks is not None and row["formulation"] == "doe":
+        checks["sweep"] = sweep_phrase(row, len(rows))
+    return config, dict(row["design"]), int(row["iteration"])
+
+
+def sweep_phrase(row: dict, n: int) -> str:
+    """"the sweep's best design (design 3 of 8)", or its least violated one."""
+    return (f"the sweep's {'best' if row['feasible'] else 'least violated'} design "
+            f"(design {row['iteration']} of {n})")
 
 
 def records_phrase(rows: list[dict]) -> str:

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from bev_mdo.bag.history import history, records_phrase
+from bev_mdo.bag.history import headline, history, maximized, records_phrase, sweep_phrase
 from bev_mdo.bag.reader import Bag, open_bag, read_config
 from bev_mdo.mdo.units import label, run_units, unit_of
 
@@ -274,17 +274,6 @@ def _timing_table(timing) -> list[str]:
     return lines
 
 
-def _maximized(config_yaml: str | None) -> bool:
-    """Whether the recorded config maximises its objective (problem.objective: {maximize: true})."""
-    if not config_yaml:
-        return False
-    try:
-        obj = (yaml.safe_load(config_yaml) or {}).get("problem", {}).get("objective")
-    except Exception:  # noqa: BLE001 - a report never fails on the stored config
-        return False
-    return isinstance(obj, dict) and obj.get("maximize") is True
-
-
 def _context(bag: Bag):
     """(config, problem) from the config stored in the bag; Nones where the bag has no config or it
     no longer loads."""
@@ -338,17 +327,18 @@ def _baseline(config, problem) -> dict | None:
     return {"label": base["name"], "design": design, "outputs": res["outputs"]}
 
 
-def _answers_section(answers: dict | None) -> list[str]:
+def _answers_section(answers: dict | None, point: str = "the end point") -> list[str]:
     if not answers:
         return []
-    head = "What holds the design" if answers.get("feasible") else "Why the end point is infeasible"
+    head = "What holds the design" if answers.get("feasible") else f"Why {point} is infeasible"
     out = ["", f"## {head}", ""]
     out += [f"- {line.strip()}" if not line.startswith("  ") else f"  - {line.strip()}" for line in answers["lines"]]
     return out
 
 
 def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = None,
-              answers: dict | None = None, baseline: dict | None = None, units: dict | None = None) -> str:
+              answers: dict | None = None, baseline: dict | None = None, units: dict | None = None,
+              k: int = -1) -> str:
     info = bag.info
     lines = [f"# Run report: {bag.bag_dir.name}", "",
              f"- bag file: `{bag.mcap_path.name}` ({bag.file_size} bytes, {bag.message_count} messages, "
@@ -357,11 +347,12 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
     if bag.truncated:
         lines.append(f"- **truncated**: {bag.recovery_note()}")
     if rows:
-        last = rows[-1]
-        feasible = [r for r in rows if r["feasible"]]
+        last, sweep = rows[k], rows[-1]["formulation"] == "doe"
+        feasible = [r for r in rows if r["feasible"]] if not sweep else []  # a sweep's headline is its best
         lines += [f"- {records_phrase(rows)}, formulation `{last['formulation']}`, optimizer "
-                  f"`{last['optimizer']}`, {last['mda_evaluations']} multidisciplinary evaluations", ""]
-        lines += ["## Final iterate", ""]
+                  f"`{last['optimizer']}`, {rows[-1]['mda_evaluations']} multidisciplinary evaluations", ""]
+        point = "the end point" if not sweep else sweep_phrase(last, len(rows))
+        lines += ["## Final iterate" if not sweep else f"## The {point[4:]}", ""]
         base = baseline or {}
         bcol = f" {base['label']} |" if base else ""
         lines += [f"| quantity | unit | value |{bcol}", "|---|---|---:|" + ("---:|" if base else "")]
@@ -381,12 +372,13 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
         lines += [f"| max violation (normalised) | – | {last['max_violation']:.3g} |" + (" |" if base else ""),
                   f"| feasible | | {last['feasible']} |" + (" |" if base else "")]
         if final is not None:
-            lines += ["", "Outputs other than the objective and constraints (mass, cost, ...) are the final "
-                          "iterate analysed again in process from the configuration stored in the bag."]
+            lines += ["", "Outputs other than the objective and constraints (mass, cost, ...) are "
+                          f"{'the final iterate' if not sweep else 'this design'} analysed again in process "
+                          "from the configuration stored in the bag."]
         if feasible:
             from bev_mdo.mdo.driver import BEST_REL_TOL, pick_result
 
-            sign = -1.0 if _maximized(read_config(bag)) else 1.0
+            sign = -1.0 if maximized(read_config(bag)) else 1.0
             # the run's result where the bag stores its design (the rule's 'converged' is not recorded)
             at = [r for r in rows if r["feasible"] and r["design"] == (answers or {}).get("result_design")]
             best = at[-1] if at else rows[pick_result(rows, sign, converged=False)]
@@ -394,7 +386,7 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
                           f"{' (maximised)' if sign < 0 else ''} (" + ("the run's result)." if at else
                           f"an earlier iterate counts only if better by more than {BEST_REL_TOL:g} relative, "
                           "as for the run's result).")]
-        lines += _answers_section(answers)
+        lines += _answers_section(answers, point)
     else:
         lines += ["", "No iteration records in this bag."]
     lines += ["", "## Topics", "", "| topic | type | messages |", "|---|---|---:|"]
@@ -424,17 +416,18 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     config, problem = _context(bag)
     final = answers = baseline = None
     units = _units(config)
+    k = headline(rows, -1.0 if maximized(read_config(bag)) else 1.0)  # a sweep's best design, else the last
     if rows and config is not None:
-        final = _analyse(config, dict(rows[-1]["design"]))
+        final = _analyse(config, dict(rows[k]["design"]))
         baseline = _baseline(config, problem)
         answers = read_answers(bag)
         if answers is None:
             from bev_mdo.mdo.active import answers_for
 
             values = dict(final["outputs"]) if final else {}
-            values.update(rows[-1]["constraints"])
+            values.update(rows[k]["constraints"])
             try:
-                answers = answers_for(config.settings, dict(rows[-1]["design"]), values,
+                answers = answers_for(config.settings, dict(rows[k]["design"]), values,
                                       config.disciplines, units=units)
             except Exception:  # noqa: BLE001
                 answers = None
@@ -449,6 +442,6 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
         _plot_timing(timing, out / "discipline_time.png")
         written.append(out / "discipline_time.png")
     md = out / "report.md"
-    md.write_text(_markdown(bag, rows, timing, [p.name for p in written], final, answers, baseline, units),
+    md.write_text(_markdown(bag, rows, timing, [p.name for p in written], final, answers, baseline, units, k),
                   encoding="utf-8")
     return written + [md]

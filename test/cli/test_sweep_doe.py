@@ -92,3 +92,39 @@ def test_bad_doe_input_is_one_line_exit_2(tmp_path, capsys, argv, message):
     assert main([*SWEEP, *argv, "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err
+
+
+def test_report_and_resume_of_a_sweep_start_from_its_best_design_not_its_last(tmp_path, capsys):
+    """A sweep's records are in no order: its report heads with, and resume starts from, the best feasible
+    design (here the second of four; the last is infeasible)."""
+    from bev_mdo.cli.resume import resume_point
+
+    lst = tmp_path / "designs.csv"
+    lst.write_text("motor_kw,gear_ratio,battery_kwh\n80,7.94,24\n74.4782,9.48,20\n90,8,22\n60,5,30\n")
+    out = tmp_path / "o"
+    assert main(["sweep", str(CONFIG), "--list", str(lst), "--out", str(out), "--no-plots",
+                 "--transport", "inprocess"]) == 0
+    checks: dict = {}
+    _, design, iteration = resume_point(str(out / "bag"), checks=checks)
+    assert (iteration, design["battery_kwh"]) == (1, 20.0)
+    assert checks["sweep"] == "the sweep's best design (design 1 of 4)"
+    capsys.readouterr()
+    assert main(["report", str(out)]) == 0
+    md = (out / "bag" / "report.md").read_text()
+    assert "## The sweep's best design (design 1 of 4)" in md and "## Final iterate" not in md
+    assert "| battery_kwh | kWh | 20 |" in md
+
+
+def test_a_sweeps_headline_is_the_best_feasible_else_the_least_violated_failed_last():
+    from bev_mdo.bag.history import headline
+
+    def rec(objective, violation, feasible):
+        return {"formulation": "doe", "objective": objective, "max_violation": violation, "feasible": feasible}
+
+    rows = [rec(5.0, 0.0, True), rec(3.0, 0.0, True), rec(1.0, 0.2, False), rec(9.0, 0.0, True)]
+    assert (headline(rows), headline(rows, -1.0)) == (1, 3)
+    rows = [rec(1.0, float("nan"), False), rec(2.0, 0.3, False), rec(0.5, 0.1, False)]
+    assert headline(rows) == 2
+    rows = rows[::-1]
+    assert headline(rows) == 0
+    assert headline([{**r, "formulation": "MDF"} for r in rows]) == 2  # an optimisation: its last record
