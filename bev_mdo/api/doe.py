@@ -51,6 +51,23 @@ def sample(method: str, bounds: dict[str, tuple[float, float]], n: int, seed: in
     return {k: X[:, j] for j, k in enumerate(names)}
 
 
+def batch(problem, doe: str | None, samples: int, seed: int | None, given: dict | None,
+          fixed: dict[str, float], fixed_flag: str = "fixed") -> dict[str, np.ndarray]:
+    """The designs of a sweep, {name: values}: the ``given`` columns (a grid or a list), else a ``doe``
+    over the bounds of the design variables not ``fixed``; the ``fixed`` values as constant columns.
+    InputError for no design, or a name both given and fixed (``fixed_flag`` names that input)."""
+    if given is None:
+        given = sample(doe, {d.name: (d.lower, d.upper) for d in problem.design_variables if d.name not in fixed},
+                       samples, seed)
+    if not given or not len(next(iter(given.values()))):
+        raise InputError("no design to evaluate: give each varied name at least one value")
+    n = len(next(iter(given.values())))
+    for k, v in fixed.items():
+        if k in given:
+            raise InputError(f"{fixed_flag} {k} is also varied")
+    return {**given, **{k: np.full(n, v) for k, v in fixed.items()}}
+
+
 def plot_scatter(result: dict, output: str, varied: list[str], path: Path, method: str):
     """One PNG: ``output`` against each varied variable (one panel each), feasible points filled,
     infeasible red x, constraint limits dashed."""

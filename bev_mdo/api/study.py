@@ -146,17 +146,13 @@ class Study:
         from bev_mdo.api import doe as sampling, evaluate
 
         fixed = {k: float(v) for k, v in _mapping(fixed, "fixed").items()}
+        cols = None
         if designs is not None:
             cols = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in _mapping(designs, "designs").items()}
-            if not cols or len({c.shape for c in cols.values()}) != 1 or next(iter(cols.values())).ndim != 1:
+            if len({c.shape for c in cols.values()}) > 1 or any(c.ndim != 1 for c in cols.values()):
                 raise InputError("designs: give every variable's values as one list, all of the same length "
                                  f"(got {', '.join(f'{k}: {c.shape[0] if c.ndim == 1 else c.shape}' for k, c in cols.items())})")
-        else:
-            problem = self.config.problem
-            bounds = {d.name: (d.lower, d.upper) for d in problem.design_variables if d.name not in fixed}
-            cols = sampling.sample(doe, bounds, samples, seed)
-        n = len(next(iter(cols.values())))
-        cols.update({k: np.full(n, v) for k, v in fixed.items() if k not in cols})
+        cols = sampling.batch(self.config.problem, doe, samples, seed, cols, fixed)
         r = evaluate.batch(self.config, cols, Transport.of(transport))
         return SweepResult(r["design"], r["outputs"], r["margins"], r["feasible"], r["ok"], list(r["errors"]),
                            r["objective"], bool(getattr(r["problem"], "maximize", False)))

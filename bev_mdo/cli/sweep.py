@@ -191,7 +191,7 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
 def designs_of(args, problem) -> tuple[dict[str, np.ndarray], list[str]]:
     """(the designs the command line asks for, the names varied): a DOE over the bounds of the design
     variables not fixed with --set, a grid (--vary) or a list (--list), with the --set values as columns."""
-    from bev_mdo.api.doe import sample
+    from bev_mdo.api.doe import batch
     from bev_mdo.cli.flags import parse_assignments
 
     if sum(map(bool, (args.doe, args.vary, args.list_csv))) != 1:
@@ -199,18 +199,10 @@ def designs_of(args, problem) -> tuple[dict[str, np.ndarray], list[str]]:
     if not args.doe and (args.samples, args.seed) != (None, None):  # they were ignored without a word
         raise UsageError("--samples and --seed go with --doe (--vary and --list evaluate the designs they give)")
     args.samples, args.seed = 64 if args.samples is None else args.samples, 1 if args.seed is None else args.seed
+    given = None if args.doe else grid(parse_vary(args.vary)) if args.vary else read_list(args.list_csv)
     fixed = parse_assignments(args.fixed)
-    if args.doe:
-        bounds = {d.name: (d.lower, d.upper) for d in problem.design_variables if d.name not in fixed}
-        designs = sample(args.doe, bounds, args.samples, args.seed)
-    else:
-        designs = grid(parse_vary(args.vary)) if args.vary else read_list(args.list_csv)
-    n, varied = len(next(iter(designs.values()))), list(designs)
-    for k, v in fixed.items():
-        if k in designs:
-            raise UsageError(f"--set {k} is also varied")
-        designs[k] = np.full(n, v)
-    return designs, varied
+    designs = batch(problem, args.doe, args.samples, args.seed, given, fixed, "--set")
+    return designs, [k for k in designs if k not in fixed]
 
 
 def run(args) -> int:

@@ -122,6 +122,10 @@ def test_a_bad_config_raises_input_error():
     (lambda s: s.evaluate([100, 7, 60], transport="inprocess"), "design must be a mapping"),  # TypeError before
     (lambda s: s.sweep(designs={"motor_kw": [110, 120], "gear_ratio": [6]}, transport="inprocess"),
      "all of the same length"),  # broadcast silently, then IndexError in rows()
+    (lambda s: s.sweep(designs={"motor_kw": [80, 90]}, fixed={"motor_kw": 70}, transport="inprocess"),
+     "fixed motor_kw is also varied"),  # the fixed value was dropped without a word
+    (lambda s: s.sweep(designs={"motor_kw": []}, transport="inprocess"), "no design to evaluate"),  # empty result
+    (lambda s: s.sweep(designs={}, transport="inprocess"), "no design to evaluate"),
     (lambda s: s.global_sensitivity("morris", samples=4, wrt=["motor_kw", 3], transport="inprocess"),
      "wrt must be a list of names"),
 ])
