@@ -69,7 +69,11 @@ def validate_ros(section: Mapping[str, Any] | None) -> dict[str, Any]:
         raise ValueError(f"ros.domain_id must be an integer in [0, 232], got {d!r}")
     if out["discovery"] not in DISCOVERY_MODES:
         raise ValueError(f"ros.discovery must be one of {list(DISCOVERY_MODES)}, got {out['discovery']!r}")
-    if out["discovery"] == "static_peers" and not out["static_peers"]:
+    peers = out["static_peers"]
+    if not isinstance(peers, list) or not all(isinstance(a, str) and a and not set(a) & set("; \t,") for a in peers):
+        # a string was joined letter by letter into ROS_STATIC_PEERS ('1;0;.;0;...')
+        raise ValueError(f"ros.static_peers must be a list of addresses, e.g. ['10.0.0.2'], got {peers!r}")
+    if out["discovery"] == "static_peers" and not peers:
         raise ValueError("ros.discovery static_peers needs ros.static_peers: [address, ...]")
     if out["discovery"] == "server" and ":" not in str(out["discovery_server"]):
         raise ValueError("ros.discovery server needs ros.discovery_server: 'ip:port'")

@@ -128,3 +128,12 @@ def test_record_and_replay_join_the_given_domain_and_stay_on_this_host(monkeypat
     assert os.environ["ROS_DOMAIN_ID"] == "62"
     p = _cli(tmp_path, "replay", str(tmp_path / "nothing"), "--domain-id", "999")
     assert p.returncode == 2 and "ros.domain_id" in p.stderr
+
+
+@pytest.mark.parametrize("peers", ["10.200.0.2", [10], ["10.200.0.2;10.200.0.3"], [""]])
+def test_static_peers_must_be_a_list_of_addresses(peers):
+    """A string was joined letter by letter into ROS_STATIC_PEERS ('1;0;.;2;...'), a number as '10'."""
+    from bev_mdo.ros_settings import validate_ros
+
+    with pytest.raises(ValueError, match="ros.static_peers must be a list of addresses"):
+        validate_ros({"discovery": "static_peers", "static_peers": peers})

@@ -86,6 +86,10 @@ def ros_section(config: Mapping[str, Any], args) -> dict:
         ros["static_peers"] = [p.strip() for p in args.static_peers.split(",") if p.strip()]
     if getattr(args, "discovery_server", None):
         ros["discovery_server"] = args.discovery_server
+    for flag, mode in (("static_peers", "static_peers"), ("discovery_server", "server")):
+        if getattr(args, flag, None) and ros.get("discovery") != mode:  # it was ignored without a word
+            raise InputError(f"--{flag.replace('_', '-')} goes with --discovery {mode} "
+                             f"(discovery is {ros.get('discovery', 'localhost')!r})")
     return validate_ros(ros)
 
 

@@ -90,6 +90,10 @@ def test_the_api_has_the_same_default():
     (["optimize", CONFIG, "--attach", "--no-record"], "unrecognized arguments: --attach"),
     (["pareto", CONFIG, "--attach"], "unrecognized arguments: --attach"),
     (["resume", "no_such_bag", "--attach"], "unrecognized arguments: --attach"),
+    # ignored without a word over ROS (the run stayed on localhost discovery)
+    (["evaluate", CONFIG, "--static-peers", "10.200.0.2"], "--static-peers goes with --discovery static_peers"),
+    (["sweep", CONFIG, "--doe", "lhs", "--discovery", "subnet", "--discovery-server", "10.200.0.1:11811"],
+     "--discovery-server goes with --discovery server (discovery is 'subnet')"),
 ])
 def test_attach_where_it_cannot_apply_is_one_line_exit_2(argv, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # nothing may be written, anywhere
