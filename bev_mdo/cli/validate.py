@@ -281,7 +281,9 @@ def print_reference(report: dict) -> None:
         t = ref["same_rows"][c]
         cells = "; ".join(f"{n} {_f(t[n]['mape_pct'], 2)} / {_f(t[n]['pair_slope'], 2)} / "
                           f"{_f(t[n]['pair_mad_points'], 2)}" for n in names)
-        print(f"{c:>6} ({t['rows']} rows, {t['pairs']} pairs): {cells}")
+        print(f"{c:>6} ({t['rows']} rows, {t['pairs']} pairs): {cells}" if t["rows"] else
+              f"{c:>6}: no row that every column predicts (baseline3 is held out by family: a row needs 3 "
+              "or more rows of other families)")
     print(f"  ({report['energy_model']}: as above, not refitted (a parameter set fitted on these rows is in-sample); "
           "baseline3: held out, 5 folds by family; fastsim: its defaults, nothing fitted; held-out figures of "
           "every model: bench/bench_validate.py, docs/validation.md)")

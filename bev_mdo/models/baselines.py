@@ -57,7 +57,8 @@ def road_load_wh_per_km(fleet: fl.Fleet, cycles: dict | None = None) -> dict[str
 def three_constant_cv(fleet: fl.Fleet, use: np.ndarray, cycles: dict | None = None,
                       k: int = FOLDS) -> dict[str, np.ndarray]:
     """Held-out predictions of the 3-constant baseline, {cycle: (N,) Wh/km}, NaN where ``use`` is
-    False. A row's prediction comes from constants fitted on the other folds only."""
+    False or the other folds' rows do not fix the 3 constants. A row's prediction comes from constants
+    fitted on the other folds only."""
     use = np.asarray(use, bool)
     folds = family_folds(fleet, use, k)
     work = road_load_wh_per_km(fleet, cycles)
@@ -68,9 +69,10 @@ def three_constant_cv(fleet: fl.Fleet, use: np.ndarray, cycles: dict | None = No
         pred = np.full(len(fleet), np.nan)
         for i in range(folds.max() + 1):
             test, train = folds == i, use & (folds != i)
-            if not train.any():
+            A = X[train] / y[train, None]
+            if np.linalg.matrix_rank(A) < X.shape[1]:  # the rows do not fix 3 constants (lstsq answers anyway)
                 continue
-            coef = np.linalg.lstsq(X[train] / y[train, None], np.ones(int(train.sum())), rcond=None)[0]
+            coef = np.linalg.lstsq(A, np.ones(int(train.sum())), rcond=None)[0]
             pred[test] = X[test] @ coef
         out[c] = pred
     return out

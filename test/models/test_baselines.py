@@ -119,3 +119,17 @@ def test_the_benchmark_table_has_every_model_column():
         for name in names:
             cell = doc["held_out"][c][name]
             assert all(isinstance(cell[k], float) for k in ("mape_pct", "pair_slope", "pair_mad_points"))
+
+
+def test_no_baseline_from_fewer_rows_than_constants(fleet):
+    """Three constants from two training rows is no fit: those rows are not predicted (lstsq had returned
+    its minimum-norm answer, shown as the baseline's MAPE)."""
+    fam = np.array(fleet.family())
+    first, second = sorted(set(fam))[:2]
+    use = np.zeros(len(fleet), bool)
+    use[np.flatnonzero(fam == first)[:2]] = use[np.flatnonzero(fam == second)[:2]] = True
+    pred = bl.three_constant_cv(fleet, use)
+    assert all(np.isnan(pred[c]).all() for c in fl.CYCLES)
+    use[fam == second] = True  # all six rows of the second family (two masses, three road loads)
+    pred = bl.three_constant_cv(fleet, use)
+    assert all(np.isfinite(pred[c][use & (fam == first)]).all() for c in fl.CYCLES)
