@@ -137,3 +137,14 @@ def test_static_peers_must_be_a_list_of_addresses(peers):
 
     with pytest.raises(ValueError, match="ros.static_peers must be a list of addresses"):
         validate_ros({"discovery": "static_peers", "static_peers": peers})
+
+
+@pytest.mark.parametrize("bounds, said", [
+    ("{lower: 1, upper: 1.0e+308, initial: 8}", r"gear_ratio: bounds \[1, 1e\+308\] reach outside \[0.5, 50\]"),
+    ("{lower: 0.1, upper: 11, initial: 8}", r"gear_ratio: bounds \[0.1, 11\] reach outside \[0.5, 50\]")])
+def test_bounds_outside_what_the_models_accept_are_refused_on_load(tmp_path, bounds, said):
+    """The optimiser probed inside them and every model refused the point: with [1, 1e308] SLSQP stopped
+    at the start ('no progress') and called gear_ratio = 8 'on its lower bound'."""
+    p = _write(tmp_path, BASE.replace("gear_ratio:  {lower: 1,  upper: 11,  initial: 8}", f"gear_ratio: {bounds}"))
+    with pytest.raises(ValueError, match=said):
+        load_config(p)

@@ -9,7 +9,7 @@ from bev_mdo.config.sections import SIZED_VARIABLE
 from bev_mdo.mdo.discipline import load_class, options_dict, read_options
 from bev_mdo.mdo.units import attach_units
 from bev_mdo.mdo.vectors import wrap
-from bev_mdo.models.common import check_keys
+from bev_mdo.models.common import DESIGN_LIMITS, check_keys
 
 
 def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
@@ -49,6 +49,14 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
                              f"{graph.producer[dv]!r}{hint}")
         if dv not in consumed and dv not in params:
             raise ValueError(f"problem.design_variables.{dv}: no discipline consumes it; inputs: {sorted(consumed)}")
+        builtin = [d.name for d in discs if dv in d.inputs and type(d).__module__.startswith("bev_mdo.disciplines")]
+        if dv in DESIGN_LIMITS and builtin:  # the models refuse a point outside it: the optimiser's probes would fail
+            lo, hi, unit = DESIGN_LIMITS[dv]
+            spec = next(d for d in problem.design_variables if d.name == dv)
+            if spec.lower < lo or spec.upper > hi:
+                raise ValueError(f"problem.design_variables.{dv}: bounds [{spec.lower:g}, {spec.upper:g}] reach outside "
+                                 f"[{lo:g}, {hi:g}]{' ' + unit if unit != '-' else ''}, where discipline {builtin[0]!r} "
+                                 "accepts it")
     for k in problem.parameters:
         if k not in params and k not in consumed:
             raise ValueError(f"problem.parameters.{k}: no discipline has this parameter; known: {sorted(params)}")

@@ -215,7 +215,7 @@ def _artemis(topology=None, dvs=None, options=None):
     else:
         raw["vehicle"]["topology"] = topology
     if dvs is not None:
-        raw["problem"]["design_variables"] = {k: {"lower": 1, "upper": 200} for k in dvs}
+        raw["problem"]["design_variables"] = {k: {"lower": 1, "upper": 50} for k in dvs}
     for k, e in enumerate(raw["disciplines"]):
         e = raw["disciplines"][k] = {"name": e} if isinstance(e, str) else e
         e["options"] = {**(e.get("options") or {}), **(options or {}).get(e["name"], {})}
