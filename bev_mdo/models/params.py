@@ -149,7 +149,7 @@ QUASI_STATIC_SPECS: dict[str, ParamSpec] = {
     "driven_axles": ParamSpec(1.0, 1.0, 2.0, "-", "1, or 2: the rated power on two equal machines sharing the "
                               "torque (all-wheel drive of the single-motor model)"),
     "second_axle_drag_w": ParamSpec(0.0, 0.0, 5000.0, "W", "gear and bearing drag of a second driven axle "
-                                    "while moving"),
+                                    "while moving (driven_axles 2, or DM-DA)"),
     "regen_axle_share": ParamSpec(1.0, 0.0, 1.0, "-", "share of the braking force the motor(s) may take "
                                   "(the rest is friction braking; 1 = the thesis' rules only)"),
 }

@@ -11,31 +11,24 @@ IWM-SA     2 in-wheel (front)           direct drive, eta = 1        motor_kw, b
 IWM-DA     2 + 2 in-wheel               direct drive, eta = 1        + motor_rear_kw
 =========  ===========================  ==========================  =====================
 
-``motor_kw`` / ``motor_rear_kw`` are the power of EACH motor of that axle (Table 4-4:
-"40 kW, 42.88 kg, 2"). Rules:
+``motor_kw`` / ``motor_rear_kw`` are the power of EACH motor of that axle (Table 4-4: "40 kW, 42.88 kg,
+2"). The battery, SOC and §2.3.4 regeneration rules 2-4 are the quasi-static model's. Rules:
 
 * mass (Tables 4-1, 4-2, 4-4): motor unit = sum of eq 2-18 over the motors; DM-DA adds
-  ``dm_da_transmission_kg`` (30 kg); in-wheel multiplies the motor unit by
-  ``iwm_mass_factor`` (0.75, "25 % removed"). The battery is the same for every topology.
-  Table 4-4's "difference from the Leaf" is the motor-unit difference (no 1.6 compounding:
-  Table 4-5's total weights are 1521 kg + that difference), which the ``ch7`` mass model
-  reproduces; the ``compounding`` model multiplies it by 1.6.
-* cost (Table 4-3, eq 4-4): motor cost eq 2-21 per motor, pack eqs 4-2/4-3. A gearbox cost is
-  not part of eq 4-4; ``gearbox_cost_usd`` (default 0) adds one, and DM-DA's "2nd gearbox
-  + 5 %" is read as a second gearbox at 105 % of the first's cost; in-wheel keeps "As SM-SA".
-* in-wheel motor map (§4.3.1): the base map with the torque axis x ``iwm_torque_scale``
-  (2.5: 280 -> 700 Nm) and the speed axis x ``iwm_speed_scale`` (210 / 1100: max speed
-  210 rad/s, base speed 54.6 rad/s vs the thesis' 53; unit power 38.2 kW vs 38.5 kW); then
-  Fig 2-9 scaling by motor size as for the base map.
-* torque split (§4.2.1, §4.2.3): with two driven axles the wheel torque is shared at every
-  time step to minimise the electrical power: a grid of ``torque_split_steps`` front
-  fractions in [0, 1] (odd, so 50/50 is on it) evaluated on (time, N, k), the argmin, then
-  one refinement grid of 9 points around it (the coarse argmin stays a candidate, so the
-  split is never worse than any grid point, 50/50 included). Motoring torque over a motor's
-  envelope is penalised; braking torque beyond it goes to the friction brake (2-25).
-  Left/right motors of an in-wheel axle share their axle's torque equally.
-
-The battery, SOC and §2.3.4 regeneration rules 2-4 are the quasi-static model's.
+  ``dm_da_transmission_kg`` (30 kg); in-wheel x ``iwm_mass_factor`` (0.75, "25 % removed"). Table 4-4's
+  "difference from the Leaf" is the motor-unit difference (Table 4-5 = 1521 kg + it: the ``ch7`` mass
+  model; ``compounding`` multiplies it by 1.6). The battery is the same for every topology.
+* cost (Table 4-3, eq 4-4): motor cost eq 2-21 per motor, pack eqs 4-2/4-3; ``gearbox_cost_usd`` (default
+  0, not in eq 4-4) adds a gearbox, DM-DA's "2nd gearbox + 5 %" a second at 105 %; in-wheel "As SM-SA".
+* in-wheel motor map (§4.3.1): the base map with the torque axis x ``iwm_torque_scale`` (2.5: 280 -> 700
+  Nm) and the speed axis x ``iwm_speed_scale`` (210 / 1100: base speed 54.6 rad/s vs the thesis' 53;
+  unit power 38.2 kW vs 38.5 kW); then Fig 2-9 scaling by motor size as for the base map.
+* torque split (§4.2.1, §4.2.3): with two driven axles the wheel torque is shared at every time step
+  to minimise the electrical power: ``torque_split_steps`` front fractions in [0, 1] (odd: 50/50 is one),
+  the argmin, then 9 points around it (never worse than any grid point). Motoring torque over a
+  motor's envelope is penalised; braking torque beyond it goes to the friction brake (2-25). Left/right
+  motors of an in-wheel axle share their axle's torque equally. DM-DA's second geared axle drags
+  ``second_axle_drag_w`` while moving, as the quasi-static model's all-wheel drive.
 """
 from __future__ import annotations
 
@@ -334,6 +327,11 @@ def _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_rati
     return t, m, ig, kw, p, arrays.get("motor_rear_kw"), arrays.get("gear_ratio_rear")
 
 
+def _axle_drag_w(t: Topology, p, v):
+    """DM-DA's second axle drag while moving (``second_axle_drag_w``; 0 for the other topologies)."""
+    return np.where(v > 0, np.asarray(p["second_axle_drag_w"], float), 0.0) if t.name == "DM-DA" else 0.0
+
+
 def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map, with_trace=False):
     """Per-step battery demand of a topology, as the quasi-static model's ``Demand``."""
     if t.name == "SM-SA":
@@ -348,6 +346,7 @@ def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map, with_tra
     K, N = tw.shape
     if t.two_axles:
         share, p_el, _ = best_split(axles, tw, v_bar, r_w, driving, allowed, int(np.max(p["torque_split_steps"])))
+        p_el = p_el + _axle_drag_w(t, p, v_bar)
     else:
         ax = axles[0]
         w = v_bar / r_w * ax.ratio
@@ -383,6 +382,7 @@ def _fast_demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map) -> 
     v_pair, a_pair, step_pair = qs.step_pairs(v_bar, a_bar)
     power, speed_max, margin = compiled.drive_demand(v_pair, a_pair, compiled.table(compiled.COLUMNS, n, cols), False,
                                                      t.two_axles, grid, fine, *qs.motor_arrays(axles[0].motor_map))
+    power = power + np.transpose(_axle_drag_w(t, p, v_pair[:, None]))  # (N, U) as the power
     return qs.FastDemand(np.array(dt[:, 0]), power, step_pair, float(np.sum(v_bar[:, 0] * dt[:, 0])), speed_max,
                          margin, axles[0].w_lim + 0.0 * kw)
 

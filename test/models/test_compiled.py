@@ -29,6 +29,8 @@ def designs(topology, n, seed):
     if t.name == "SM-SA":
         params.update(gear_count=rng.choice([1.0, 2.0], n), shift_strategy=rng.choice([0.0, 1.0], n),
                       gear_ratio_2=rng.uniform(2.5, 6, n), shift_speed_m_s=rng.uniform(8, 25, n))
+    if t.name == "DM-DA":
+        params["second_axle_drag_w"] = rng.uniform(0, 300, n)
     return params, args
 
 
