@@ -1,9 +1,6 @@
-"""A ROS evaluator for one-off use from the command line (`evaluate`, `sensitivity`, `sweep`, `check-totals`).
-
-It joins the config's ROS domain (localhost discovery unless the config opts in to
-more), waits for every discipline of the config to be discovered, and releases its
-own rclpy context on close().
-"""
+"""A ROS evaluator for one-off use from the command line (`evaluate`, `sensitivity`, `sweep`, `check-totals`): it
+joins the config's ROS domain (localhost discovery unless the config opts in to more), waits for every discipline
+of the config to be discovered, and releases its own rclpy context on close()."""
 from __future__ import annotations
 
 import os
@@ -25,6 +22,8 @@ def apply_ros_environment(ros: Mapping[str, Any]) -> None:
 
 class _OwnedRosEvaluator:
     """A RosEvaluator plus the context and node it runs on."""
+
+    closed = False
 
     def __init__(self, config: Mapping[str, Any], node_name: str, run_id: str | None = None):
         import rclpy
@@ -55,12 +54,14 @@ class _OwnedRosEvaluator:
         return self._inner.evaluate(calls, partials=partials)
 
     def close(self) -> None:
+        """Bounded, in the CLI at the exit (stacks.teardown): a participant hung in Fast DDS held a sweep."""
         import rclpy
 
-        if self._ctx.ok():
-            self._inner.close()
-            self._node.destroy_node()
-            rclpy.shutdown(context=self._ctx)
+        from bev_mdo.stacks import teardown
+
+        if self._ctx.ok() and not self.closed:
+            self.closed, inner, node, ctx = True, self._inner, self._node, self._ctx
+            teardown(lambda: (inner.close(), node.destroy_node(), rclpy.shutdown(context=ctx)))
 
 
 def make_ros_evaluator(config: Mapping[str, Any], node_name: str = "bev_mdo_client", run_id: str | None = None):

@@ -18,6 +18,7 @@ import rclpy
 from bev_mdo.config import load_config, resolve_disciplines
 from bev_mdo.mdo.driver import run_optimization
 from bev_mdo.mdo.evaluator import InProcessEvaluator
+from bev_mdo.mdo.mda import MDA
 from bev_mdo.ros import coordinator_node
 from bev_mdo.testing import PYTHON, REPO, ros_env
 
@@ -400,6 +401,34 @@ def test_a_teardown_that_hangs_after_the_run_costs_the_exit_status_not_the_resul
     result = json.loads(out.stdout)
     ref = _reference(load_config(cfg))
     assert result["objective"] == ref.objective and result["design"] == ref.design
+
+
+def test_a_hung_teardown_after_an_evaluate_costs_the_exit_status_not_the_answer(ros_domain, config_path, tmp_path):
+    """``evaluate``/``sweep``/``sensitivity`` over ROS closed their client participant unbounded: a destroy hung
+    in Fast DDS held the command for good (a sweep interrupted in its batch outlived its SIGINT by minutes in a
+    suite run). It goes the optimiser's way now: left for the exit, after the answer, and bounded there."""
+    import signal
+
+    raw = yaml.safe_load(config_path.read_text())
+    raw["ros"] = {**raw["ros"], "domain_id": ros_domain}
+    raw["ros"].pop("sign_key_file")
+    cfg = tmp_path / "leaf.yaml"
+    cfg.write_text(yaml.safe_dump(raw, sort_keys=False))
+    code = "\n".join([
+        "import ctypes, sys", "from bev_mdo import stacks", "from bev_mdo.ros import evaluator",
+        "stacks.TEARDOWN_S = 3.0",
+        "evaluator.RosEvaluator.close = lambda self: ctypes.PyDLL(None).sleep(120)  # a destroy hung in the middleware",
+        "from bev_mdo.cli import main",
+        f"sys.argv = ['bev-mdo', 'evaluate', {str(cfg)!r}, '--json']",
+        "sys.exit(main())"])
+    out = subprocess.run([PYTHON, "-c", code], env=ros_env(ros_domain), cwd=tmp_path, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == -signal.SIGALRM, (out.returncode, out.stderr[-3000:])
+    assert "Timeout" in out.stderr and "_run_deferred" in out.stderr  # the hang, at the exit, with its stacks
+    answer = json.loads(out.stdout)
+    mda = InProcessEvaluator(resolve_disciplines(load_config(cfg)))
+    assert answer["ok"] and answer["outputs"]["energy_wh_per_km"] == pytest.approx(
+        float(MDA(mda).run({k: [v] for k, v in answer["design"].items()}).values["energy_wh_per_km"][0]), rel=1e-12)
 
 
 def test_ros2_run_coordinator_node_with_compose_coordinator(ros_domain, config_path, tmp_path):
