@@ -375,10 +375,10 @@ def test_recorded_run_composed_into_the_coordinator_reads_back_and_resumes(ros_d
     assert resumed["objective"] == pytest.approx(ref.objective, rel=1e-6)
 
 
-def test_a_teardown_that_hangs_after_the_run_costs_the_exit_status_not_the_result(ros_domain, config_path, tmp_path):
-    """Under eight runs on one domain a composed node's destroy_node hung in Fast DDS after the run had
-    finished, and the run printed nothing before the teardown's bound ended it. The teardown is left for
-    the exit: the result is out first, then the hang is bounded (every stack, SIGALRM)."""
+def _with_a_hung_teardown(ros_domain, config_path, tmp_path, hang: str, *argv: str) -> tuple[dict, object]:
+    """(the JSON answer, the config) of `bev-mdo <argv> CONFIG`-style run whose ``hang`` (module.Class of a
+    close) sleeps as a destroy hung in the middleware does; the run must end by the teardown's bound
+    (3 s here), at the exit, with every stack printed and SIGALRM."""
     import signal
 
     raw = yaml.safe_load(config_path.read_text())
@@ -386,20 +386,26 @@ def test_a_teardown_that_hangs_after_the_run_costs_the_exit_status_not_the_resul
     raw["ros"].pop("sign_key_file")
     cfg = tmp_path / "leaf.yaml"
     cfg.write_text(yaml.safe_dump(raw, sort_keys=False))
+    module, cls = hang.split(".")
     code = "\n".join([
-        "import ctypes, sys", "from bev_mdo import stacks", "from bev_mdo.ros import composed",
-        "stacks.TEARDOWN_S = 3.0",
-        "composed.Beside.close = lambda self: ctypes.PyDLL(None).sleep(120)  # a destroy hung in the middleware",
-        "from bev_mdo.cli import main",
-        f"sys.argv = ['bev-mdo', 'optimize', {str(cfg)!r}, '--compose', 'coordinator', '--json', '--quiet', "
-        "'--no-record']",
+        "import ctypes, sys", "from bev_mdo import stacks", f"from bev_mdo.ros import {module}",
+        "stacks.TEARDOWN_S = 3.0", f"{hang}.close = lambda self: ctypes.PyDLL(None).sleep(120)",
+        "from bev_mdo.cli import main", f"sys.argv = ['bev-mdo', {argv[0]!r}, {str(cfg)!r}, *{list(argv[1:])!r}]",
         "sys.exit(main())"])
     out = subprocess.run([PYTHON, "-c", code], env=ros_env(ros_domain), cwd=tmp_path, capture_output=True,
                          text=True, timeout=300)
     assert out.returncode == -signal.SIGALRM, (out.returncode, out.stderr[-3000:])
     assert "Timeout" in out.stderr and "_run_deferred" in out.stderr  # the hang, at the exit, with its stacks
-    result = json.loads(out.stdout)
-    ref = _reference(load_config(cfg))
+    return json.loads(out.stdout), load_config(cfg)
+
+
+def test_a_teardown_that_hangs_after_the_run_costs_the_exit_status_not_the_result(ros_domain, config_path, tmp_path):
+    """Under eight runs on one domain a composed node's destroy_node hung in Fast DDS after the run had
+    finished, and the run printed nothing before the teardown's bound ended it. The teardown is left for
+    the exit: the result is out first, then the hang is bounded (every stack, SIGALRM)."""
+    result, config = _with_a_hung_teardown(ros_domain, config_path, tmp_path, "composed.Beside", "optimize",
+                                           "--compose", "coordinator", "--json", "--quiet", "--no-record")
+    ref = _reference(config)
     assert result["objective"] == ref.objective and result["design"] == ref.design
 
 
@@ -407,28 +413,11 @@ def test_a_hung_teardown_after_an_evaluate_costs_the_exit_status_not_the_answer(
     """``evaluate``/``sweep``/``sensitivity`` over ROS closed their client participant unbounded: a destroy hung
     in Fast DDS held the command for good (a sweep interrupted in its batch outlived its SIGINT by minutes in a
     suite run). It goes the optimiser's way now: left for the exit, after the answer, and bounded there."""
-    import signal
-
-    raw = yaml.safe_load(config_path.read_text())
-    raw["ros"] = {**raw["ros"], "domain_id": ros_domain}
-    raw["ros"].pop("sign_key_file")
-    cfg = tmp_path / "leaf.yaml"
-    cfg.write_text(yaml.safe_dump(raw, sort_keys=False))
-    code = "\n".join([
-        "import ctypes, sys", "from bev_mdo import stacks", "from bev_mdo.ros import evaluator",
-        "stacks.TEARDOWN_S = 3.0",
-        "evaluator.RosEvaluator.close = lambda self: ctypes.PyDLL(None).sleep(120)  # a destroy hung in the middleware",
-        "from bev_mdo.cli import main",
-        f"sys.argv = ['bev-mdo', 'evaluate', {str(cfg)!r}, '--json']",
-        "sys.exit(main())"])
-    out = subprocess.run([PYTHON, "-c", code], env=ros_env(ros_domain), cwd=tmp_path, capture_output=True,
-                         text=True, timeout=300)
-    assert out.returncode == -signal.SIGALRM, (out.returncode, out.stderr[-3000:])
-    assert "Timeout" in out.stderr and "_run_deferred" in out.stderr  # the hang, at the exit, with its stacks
-    answer = json.loads(out.stdout)
-    mda = InProcessEvaluator(resolve_disciplines(load_config(cfg)))
-    assert answer["ok"] and answer["outputs"]["energy_wh_per_km"] == pytest.approx(
-        float(MDA(mda).run({k: [v] for k, v in answer["design"].items()}).values["energy_wh_per_km"][0]), rel=1e-12)
+    answer, config = _with_a_hung_teardown(ros_domain, config_path, tmp_path, "evaluator.RosEvaluator", "evaluate",
+                                           "--json")
+    at = {k: [v] for k, v in answer["design"].items()}
+    ref = MDA(InProcessEvaluator(resolve_disciplines(config))).run(at).values["energy_wh_per_km"][0]
+    assert answer["ok"] and answer["outputs"]["energy_wh_per_km"] == pytest.approx(float(ref), rel=1e-12)
 
 
 def test_ros2_run_coordinator_node_with_compose_coordinator(ros_domain, config_path, tmp_path):
