@@ -282,8 +282,8 @@ def print_reference(report: dict) -> None:
         cells = "; ".join(f"{n} {_f(t[n]['mape_pct'], 2)} / {_f(t[n]['pair_slope'], 2)} / "
                           f"{_f(t[n]['pair_mad_points'], 2)}" for n in names)
         print(f"{c:>6} ({t['rows']} rows, {t['pairs']} pairs): {cells}" if t["rows"] else
-              f"{c:>6}: no row that every column predicts (baseline3 is held out by family: a row needs 3 "
-              "or more rows of other families)")
+              f"{c:>6}: no row that every column predicts (baseline3 is held out by family: a row needs rows "
+              "of other families that fix its 3 constants)")
     print(f"  ({report['energy_model']}: as above, not refitted (a parameter set fitted on these rows is in-sample); "
           "baseline3: held out, 5 folds by family; fastsim: its defaults, nothing fitted; held-out figures of "
           "every model: bench/bench_validate.py, docs/validation.md)")
