@@ -59,9 +59,9 @@ def batch(problem, doe: str | None, samples: int, seed: int | None, given: dict 
     if given is None:
         given = sample(doe, {d.name: (d.lower, d.upper) for d in problem.design_variables if d.name not in fixed},
                        samples, seed)
-    if not given or not len(next(iter(given.values()))):
+    n = len(next(iter(given.values()))) if given else 0
+    if not n:
         raise InputError("no design to evaluate: give each varied name at least one value")
-    n = len(next(iter(given.values())))
     for k, v in fixed.items():
         if k in given:
             raise InputError(f"{fixed_flag} {k} is also varied")
