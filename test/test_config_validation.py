@@ -148,3 +148,25 @@ def test_bounds_outside_what_the_models_accept_are_refused_on_load(tmp_path, bou
     p = _write(tmp_path, BASE.replace("gear_ratio:  {lower: 1,  upper: 11,  initial: 8}", f"gear_ratio: {bounds}"))
     with pytest.raises(ValueError, match=said):
         load_config(p)
+
+
+def test_an_output_named_as_another_disciplines_parameter_is_refused(tmp_path):
+    """A user's discipline producing `load_kg` was evaluated, and vehicle_mass kept its configured 69 kg:
+    a parameter comes from the config or the design, so the coupling was silently not there."""
+    (tmp_path / "cooling.py").write_text(
+        "import numpy as np\n"
+        "class Cooling:\n"
+        "    name = 'cooling'\n"
+        "    inputs = ('battery_kwh', 'energy_wh_per_km')\n"
+        "    outputs = ('load_kg',)\n"
+        "    units = {'battery_kwh': 'kWh', 'energy_wh_per_km': 'Wh/km', 'load_kg': 'kg'}\n"
+        "    def compute(self, inputs):\n"
+        "        return {'load_kg': 69.0 + 0.8 * inputs['battery_kwh'] + 0.3 * inputs['energy_wh_per_km']}\n")
+    p = _write(tmp_path, BASE + "disciplines: [vehicle_mass, energy, range, acceleration, motor_speed, cost,\n"
+               "  {name: cooling, class: 'cooling:Cooling'}]\n")
+    with pytest.raises(ValueError, match=r"discipline 'cooling' produces 'load_kg', a parameter of discipline "
+                                         r"'vehicle_mass', which would ignore it"):
+        load_config(p)
+    (tmp_path / "cooling2.py").write_text((tmp_path / "cooling.py").read_text().replace("load_kg", "cooling_kg"))
+    p.write_text(p.read_text().replace("cooling:Cooling", "cooling2:Cooling"))
+    load_config(p)  # renamed, it is an output of its own (no discipline reads it) and the config loads

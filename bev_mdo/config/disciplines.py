@@ -20,6 +20,12 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
     graph = CouplingGraph(specs)
     produced, consumed = set(graph.producer), {v for _, i, _ in specs for v in i}
     params = {p for d in discs for p in (getattr(d, "parameters", {}) or {})}
+    for d in discs:  # a parameter comes from the config or the design, never from another discipline
+        taken = sorted(set(getattr(d, "parameters", {}) or {}) & produced - set(d.inputs) - set(d.outputs))
+        if taken:
+            raise ValueError(f"discipline {graph.producer[taken[0]]!r} produces {taken[0]!r}, a parameter of discipline "
+                             f"{d.name!r}, which would ignore it (a parameter is not a coupling variable): rename the "
+                             "output, or give that discipline an input of this name")
     for name in [problem.objective] + [c.name for c in problem.constraints]:
         if name not in produced and f"{name}[0]" in produced:
             size = sum(1 for v in produced if v.startswith(f"{name}["))
