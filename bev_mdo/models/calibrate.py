@@ -85,6 +85,10 @@ QS_FIT = {
     # cars with gear_count 2 shift as the thesis' two-speed box (eq 2-6, Table 3-2: 4.7 above 68.1 km/h)
     # and lose this much gear efficiency (§3.3.2 assumes 0.02; fitted ~0.08, as the chain's: the platform)
     "two_speed_efficiency_loss": (0.02, 0.0, 0.3),
+    # wound-rotor machines (EESM, the fleet's motor_front / motor_rear columns) excite their rotor field
+    # while turning: a loss per kW of their rated power. Starts at 0, where a fit without any EESM car
+    # (one make has them) leaves it: no evidence, no loss
+    "excitation_loss_w_per_kw": (0.0, 0.0, 20.0),
 }
 # model -> (energy model of fleet.predict, fixed, fitted, shipped parameter set)
 MODELS = {"chain": ("chain", FIXED, FIT, PARAMETER_SET),
@@ -127,7 +131,7 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
                          f"outliers, {int((~use & ~fleet.outlier).sum())} cannot follow UDDS or HWFET)")
     x0 = np.array([bounds[k][0] for k in names])
     lo, hi = np.array([bounds[k][1] for k in names]), np.array([bounds[k][2] for k in names])
-    scale = np.maximum(np.abs(x0), 1e-3)
+    scale = np.where(x0 != 0, np.abs(x0), (hi - lo) / 20)  # a parameter starting at 0: a twentieth of its range
     res = least_squares(residuals, x0, bounds=(lo, hi), args=(names, fleet, mask, cycles, model),
                         x_scale=scale, diff_step=1e-6, method="trf")
     # a parameter no vehicle of the data moves (e.g. the two-speed loss in a fleet of single-speed cars)

@@ -196,18 +196,18 @@ COLUMNS = ("mass", "a0", "a1", "b", "c", "r_w", "regen_min_m_s", "decel_min",
            "ratio", "eta", "kw", "scale", "t_peak", "w_lim", "count",  # front axle (SM-SA: the motor, gear 1)
            "ratio_r", "eta_r", "kw_r", "scale_r", "t_peak_r", "w_lim_r", "count_r",  # rear axle
            "ratio_2", "shift_m_s", "two_speed", "best_gear",  # SM-SA two-speed gearbox
-           "regen_share", "axles", "axle_drag_w")  # share of braking the motors take; SM-SA machines, drag
+           "regen_share", "axles", "moving_load_w")  # share of braking the motors take; SM-SA machines, load
 (_M, _A0, _A1, _B, _C, _RW, _VMIN, _DMIN, _RATIO, _ETA, _KW, _SCALE, _TPK, _WLIM, _COUNT) = range(15)
 _REAR = COLUMNS.index("ratio_r") - _RATIO  # offset of a rear-axle column from its front one
-_RATIO2, _SHIFT, _TWO, _BEST, _SHARE, _AXLES, _DRAG = (COLUMNS.index(k) for k in (
-    "ratio_2", "shift_m_s", "two_speed", "best_gear", "regen_share", "axles", "axle_drag_w"))
+_RATIO2, _SHIFT, _TWO, _BEST, _SHARE, _AXLES, _LOAD = (COLUMNS.index(k) for k in (
+    "ratio_2", "shift_m_s", "two_speed", "best_gear", "regen_share", "axles", "moving_load_w"))
 
 
 @_jit(inline="always")
 def _single_motor_step(x, v, t_w, driving, allowed, mp, loss):
     """SM-SA at one step (``quasi_static.demand``): the gear (eq 2-6, or the least-power gear the
     envelope allows), motor torque and speed, rules 2-3, the map (or the loss model, on ``axles``
-    equal machines plus the second axle's drag). (power, motor speed, T_max - T_m)."""
+    equal machines plus the loads while moving). (power, motor speed, T_max - T_m)."""
     axles = x[_AXLES]
     ratio1, ratio2, eta_g, kw, w_lim, t_pk = x[_RATIO], x[_RATIO2], x[_ETA], x[_KW], x[_WLIM], x[_TPK]
     ratio = ratio2 if (x[_TWO] != 0.0 and v >= x[_SHIFT]) else ratio1  # 2-6
@@ -223,9 +223,9 @@ def _single_motor_step(x, v, t_w, driving, allowed, mp, loss):
         t_regen = max(t_w * eta_g / r * x[_SHARE], -tmax) if allowed else 0.0  # 2-25
         if loss[0] != 0.0:
             p_el = axles * _electrical_w((t_drive + t_regen) / axles, w_m, 0.0, x[_SCALE], mp, loss)
-            p_el = p_el + ((axles - 1.0) * x[_DRAG] if v > 0 else 0.0)
         else:
             p_el = _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), x[_SCALE], mp, loss)
+        p_el = p_el + (x[_LOAD] if v > 0 else 0.0)  # quasi_static.moving_load_w
         cost = p_el if (w_m <= w_lim and t_drive <= tmax) else np.inf
         if g == 0:
             cost0 = cost

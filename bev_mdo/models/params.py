@@ -150,6 +150,10 @@ QUASI_STATIC_SPECS: dict[str, ParamSpec] = {
                               "torque (all-wheel drive of the single-motor model)"),
     "second_axle_drag_w": ParamSpec(0.0, 0.0, 5000.0, "W", "gear and bearing drag of a second driven axle "
                                     "while moving (driven_axles 2, or DM-DA)"),
+    "excitation_loss_w_per_kw": ParamSpec(0.0, 0.0, 20.0, "W/kW", "rotor field excitation of wound-rotor "
+                                          "synchronous machines (EESM) while turning, per kW of their rated power"),
+    "wound_rotor_machine_share": ParamSpec(0.0, 0.0, 1.0, "-", "share of the rated power in wound-rotor "
+                                           "synchronous machines (EESM), which excite their rotor field"),
     "regen_axle_share": ParamSpec(1.0, 0.0, 1.0, "-", "share of the braking force the motor(s) may take "
                                   "(the rest is friction braking; 1 = the thesis' rules only)"),
 }

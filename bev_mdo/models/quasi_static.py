@@ -138,6 +138,14 @@ def cycle_steps(cycle):
     return dt, v_bar, np.diff(v)[:, None] / dt  # 6-51
 
 
+def moving_load_w(p, kw, axles) -> np.ndarray:
+    """Electrical load of the loss model while the car moves, per design (W): a second driven axle's
+    drag, and the rotor field of wound-rotor machines (EESM: a permanent-magnet or induction machine
+    has no such term; the fleet's EESM cars fit it at about 1 W per kW, docs/validation.md)."""
+    return ((axles - 1.0) * p["second_axle_drag_w"]
+            + p["excitation_loss_w_per_kw"] * p["wound_rotor_machine_share"] * kw)
+
+
 def demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> Demand:
     """Per-step battery demand of the single-motor drive (eqs 2-1..2-8, 6-50/6-51, §2.3.4 rules 1-3)."""
     dt, v_bar, a_bar = cycle_steps(cycle)
@@ -167,12 +175,12 @@ def demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> Demand:
         t_brake = np.where(driving, 0.0, t_w * eta_g / ratio)
         t_max = np.where(w_m <= w_lim, np.minimum(t_pk, kw * 1e3 / np.maximum(w_m, 1e-9)), 0.0)
         t_regen = np.where(allowed, np.maximum(t_brake * share, -t_max), 0.0)  # 2-25, §2.3.4 rules 2-3
-        if loss_model:  # driven_axles equal machines of P / n sharing the torque, + the second axle's drag
+        if loss_model:  # driven_axles equal machines of P / n sharing the torque, + the loads while moving
             # (with the map two machines of P / 2 are one of P, Fig 2-9: driven_axles changes nothing)
-            p_el = (axles * motor_map.electrical_power_w((t_drive + t_regen) / axles, w_m, kw / axles)
-                    + np.where(v_bar > 0, (axles - 1.0) * p["second_axle_drag_w"], 0.0))
+            p_el = axles * motor_map.electrical_power_w((t_drive + t_regen) / axles, w_m, kw / axles)
         else:
             p_el = motor_map.electrical_power_w(t_drive + t_regen, w_m, kw)  # 2-7 (one lookup)
+        p_el = p_el + np.where(v_bar > 0, moving_load_w(p, kw, axles if loss_model else 1.0), 0.0)
         return w_m, t_drive, t_brake, t_max, t_regen, p_el
 
     eff = two & (p["shift_strategy"] == 1.0)
@@ -266,7 +274,7 @@ def fast_demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> FastDemand:
         scale=motor_map.reference_kw / (kw / axles) if lossy else motor_map.reference_kw / kw,  # as demand()
         w_lim=w_lim, count=1.0, ratio_2=p["gear_ratio_2"], shift_m_s=p["shift_speed_m_s"], two_speed=two,
         best_gear=two & (p["shift_strategy"] == 1.0), regen_share=p["regen_axle_share"],
-        axles=axles if lossy else 1.0, axle_drag_w=p["second_axle_drag_w"]))
+        axles=axles if lossy else 1.0, moving_load_w=moving_load_w(p, kw, axles if lossy else 1.0)))
     v_pair, a_pair, step_pair = step_pairs(v_bar, a_bar)
     power, speed_max, margin = compiled.drive_demand(v_pair, a_pair, cols, True, False, np.zeros(1), np.zeros(1),
                                                      *motor_arrays(motor_map))

@@ -28,7 +28,8 @@ IWM-DA     2 + 2 in-wheel               direct drive, eta = 1        + motor_rea
   the argmin, then 9 points around it (never worse than any grid point). Motoring torque over a
   motor's envelope is penalised; braking torque beyond it goes to the friction brake (2-25). Left/right
   motors of an in-wheel axle share their axle's torque equally. DM-DA's second geared axle drags
-  ``second_axle_drag_w`` while moving, as the quasi-static model's all-wheel drive.
+  ``second_axle_drag_w`` while moving, as the quasi-static model's all-wheel drive; wound-rotor machines
+  excite their field (``excitation_loss_w_per_kw`` x ``wound_rotor_machine_share`` x the rated power).
 """
 from __future__ import annotations
 
@@ -327,9 +328,11 @@ def _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_rati
     return t, m, ig, kw, p, arrays.get("motor_rear_kw"), arrays.get("gear_ratio_rear")
 
 
-def _axle_drag_w(t: Topology, p, v):
-    """DM-DA's second axle drag while moving (``second_axle_drag_w``; 0 for the other topologies)."""
-    return np.where(v > 0, np.asarray(p["second_axle_drag_w"], float), 0.0) if t.name == "DM-DA" else 0.0
+def _moving_load_w(t: Topology, p, v, axles):
+    """The loads while moving (``qs.moving_load_w``): DM-DA's second axle drag and the wound-rotor
+    machines' field on the topology's total rated power (0 without them)."""
+    rated = sum(a.count * a.kw for a in axles)
+    return np.where(v > 0, qs.moving_load_w(p, rated, 2.0 if t.name == "DM-DA" else 1.0), 0.0)
 
 
 def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map, with_trace=False):
@@ -346,12 +349,12 @@ def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map, with_tra
     K, N = tw.shape
     if t.two_axles:
         share, p_el, _ = best_split(axles, tw, v_bar, r_w, driving, allowed, int(np.max(p["torque_split_steps"])))
-        p_el = p_el + _axle_drag_w(t, p, v_bar)
     else:
         ax = axles[0]
         w = v_bar / r_w * ax.ratio
         p_el, _, _ = _axle_power(ax, tw, w, _t_max(ax, w), driving, allowed)
         share = np.ones((K, N))
+    p_el = p_el + _moving_load_w(t, p, v_bar, axles)
     cap = sum(a.count * _t_max(a, v_bar / r_w * a.ratio) * a.ratio * a.eta for a in axles)  # wheel N m
     margin = np.where(driving, cap - tw, np.inf).min(axis=0)
     w_max = np.max([(v_bar.max() / r_w * a.ratio) for a in axles], axis=0)
@@ -382,7 +385,7 @@ def _fast_demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map) -> 
     v_pair, a_pair, step_pair = qs.step_pairs(v_bar, a_bar)
     power, speed_max, margin = compiled.drive_demand(v_pair, a_pair, compiled.table(compiled.COLUMNS, n, cols), False,
                                                      t.two_axles, grid, fine, *qs.motor_arrays(axles[0].motor_map))
-    power = power + np.transpose(_axle_drag_w(t, p, v_pair[:, None]))  # (N, U) as the power
+    power = power + np.transpose(_moving_load_w(t, p, v_pair[:, None], axles))  # (N, U) as the power
     return qs.FastDemand(np.array(dt[:, 0]), power, step_pair, float(np.sum(v_bar[:, 0] * dt[:, 0])), speed_max,
                          margin, axles[0].w_lim + 0.0 * kw)
 

@@ -50,6 +50,8 @@ def test_the_fleet_files_technology_columns_as_chain_inputs():
     assert {s for (mk, md), (g, s) in by_model.items() if mk == "Porsche"} == {0.0}
     assert {g for (mk, md), (g, s) in by_model.items() if mk == "Porsche"} == {2.0}
     assert sum(s == 1.0 for s in t["induction_machine_share"]) == 6   # the e-tron SUVs: all induction
+    wound = [(mk, s) for mk, s in zip(f.make, t["wound_rotor_machine_share"]) if s]  # i4 and iX: EESM
+    assert {mk for mk, _ in wound} == {"BMW"} and len(wound) == 10 and {s for _, s in wound} == {1.0}
 
 
 def test_aux_power_is_exact_per_km():

@@ -31,6 +31,7 @@ def designs(topology, n, seed):
                       gear_ratio_2=rng.uniform(2.5, 6, n), shift_speed_m_s=rng.uniform(8, 25, n))
     if t.name == "DM-DA":
         params["second_axle_drag_w"] = rng.uniform(0, 300, n)
+    params.update(excitation_loss_w_per_kw=rng.uniform(0, 3, n), wound_rotor_machine_share=rng.uniform(0, 1, n))
     return params, args
 
 

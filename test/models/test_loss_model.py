@@ -31,6 +31,15 @@ def test_two_machines_of_half_the_power_lose_what_one_loses_under_figure_2_9_sca
     km = float(np.sum(0.5 * (udds.speed_m_s[1:] + udds.speed_m_s[:-1]) * np.diff(udds.time_s))) / 1e3
     # 200 W while moving, at the battery terminals (eq 2-17)
     np.testing.assert_allclose(drag.energy_wh_per_km - two, 200.0 * moving_h / km, rtol=1e-9)
+    # a wound rotor's field: 1.5 W per kW of the rated power while moving, on one machine or two
+    for axles in (1.0, 2.0):
+        base = {**LOSSY, "driven_axles": axles}
+        field = qs.simulate(udds, {**base, "excitation_loss_w_per_kw": 1.5, "wound_rotor_machine_share": 1.0},
+                            m, ig, kw).energy_wh_per_km
+        np.testing.assert_allclose(field - two, 1.5 * np.array(kw) * moving_h / km, rtol=1e-9)
+    half_wound = qs.simulate(udds, {**LOSSY, "excitation_loss_w_per_kw": 1.5, "wound_rotor_machine_share": 0.5},
+                             m, ig, kw).energy_wh_per_km
+    np.testing.assert_allclose(half_wound - one, 0.75 * np.array(kw) * moving_h / km, rtol=1e-9)
 
 
 def test_the_default_coefficients_are_the_default_map(udds):
@@ -75,6 +84,8 @@ def test_compiled_loss_model_equals_the_reference(topology, udds):
     if t.name == "SM-SA":
         params.update(driven_axles=rng.choice([1.0, 2.0], n), second_axle_drag_w=rng.uniform(0, 300, n),
                       gear_count=rng.choice([1.0, 2.0], n), shift_strategy=rng.choice([0.0, 1.0], n))
+    params.update(excitation_loss_w_per_kw=rng.uniform(0, 3, n), wound_rotor_machine_share=rng.choice([0.0, 0.5, 1.0], n),
+                  second_axle_drag_w=rng.uniform(0, 300, n))
     fast = tp.simulate(udds, params, topology, *args)
     ref = tp.simulate(udds, params, topology, *args, reference=True)
     for name in ("energy_wh_per_km", "regen_wh_per_km", "soc_end", "motor_speed_max_rad_s", "torque_margin_nm"):

@@ -93,6 +93,34 @@ def test_pairs_of_the_family_cross_validation_of_the_training_half(family_cv_pai
 
 
 @pytest.fixture(scope="module")
+def family_cv_quasi_static():
+    from bev_mdo.models import calibrate as cal
+    from bev_mdo.models import fleet as fl
+
+    f = fl.read_fleet()
+    cycles = fl.resampled_cycles()
+    use = cal.usable(f, cycles)
+    cv = cal.cross_validate(f, 5, cycles=cycles, use=use, model="quasi_static")
+    return cv, cal.cv_pairs(f, cv, use)
+
+
+@pytest.mark.slow
+def test_quasi_static_loss_model_held_out_by_family(family_cv_quasi_static):
+    """The default model (``epa2022_quasi_static``: the motor as losses, the two-speed cars shifting, the
+    wound-rotor machines' field), 5-fold CV by family as ``bev-mdo calibrate`` runs it. Measured
+    (docs/validation.md): MAPE 5.58 % (target <= 6 %); pairs UDDS slope 0.856, 3.72 points; HWFET slope
+    0.996, 2.76 points. Both slopes meet 0.85-1.15 (UDDS at 0.835 without the field's loss); the
+    differences do not (2.5) and are pinned near today's level: a regression fails."""
+    cv, s = family_cv_quasi_static
+    assert cv["stats"]["mean_abs_pct"] <= 6.0                              # 5.58
+    udds, hwfet = s["epa_udds"], s["epa_hwfet"]
+    assert udds["n"] == hwfet["n"] == 105
+    assert udds["slope_met"] is True and hwfet["slope_met"] is True        # 0.856, 0.996
+    assert udds["mean_abs_diff_points"] <= 3.9                             # 3.72, target 2.5 not met
+    assert hwfet["mean_abs_diff_points"] <= 2.9                            # 2.76, target 2.5 not met
+
+
+@pytest.fixture(scope="module")
 def make_cv_quasi_static():
     from bev_mdo.models import calibrate as cal
     from bev_mdo.models import fleet as fl
@@ -106,20 +134,21 @@ def make_cv_quasi_static():
 
 @pytest.mark.slow
 def test_quasi_static_loss_model_held_out_by_make(make_cv_quasi_static):
-    """The thesis' model with its motor written as losses and the fleet's two-speed cars shifting
-    (eq 2-6), fitted as ``bev-mdo calibrate --model quasi_static`` does, each make predicted by a fit
-    that never saw it (9 folds). Measured (docs/validation.md): MAPE 6.76 % over all folds' vehicles,
-    median of the folds 4.98 % (target <= 8 %); pairs UDDS slope 0.84, 4.07 points; HWFET slope 0.994,
-    2.77 points. The thesis' model as published: 45.6 %, slopes 1.75 / 1.92, 16.1 / 15.9 points. The
-    HWFET slope meets its target (0.85-1.15), the UDDS one misses it by 0.01 and is held at 0.83 here;
-    the differences do not (2.5) and are pinned near today's level: a regression fails."""
+    """The thesis' model with its motor written as losses, the fleet's two-speed cars shifting (eq 2-6)
+    and the wound-rotor machines' field, fitted as ``bev-mdo calibrate --model quasi_static`` does, each
+    make predicted by a fit that never saw it (9 folds; without BMW no car has a wound rotor and its
+    loss stays 0). Measured (docs/validation.md): MAPE 6.70 % over all folds' vehicles, median of the
+    folds 5.69 % (target <= 8 %); pairs UDDS slope 0.846, 4.09 points; HWFET slope 0.997, 2.78 points.
+    The thesis' model as published: 45.6 %, slopes 1.75 / 1.92, 16.1 / 15.9 points. The HWFET slope
+    meets its target (0.85-1.15), the UDDS one misses it by 0.004 and is held at 0.83 here; the
+    differences do not (2.5) and are pinned near today's level: a regression fails."""
     cv, s = make_cv_quasi_static
     assert cv["k"] == 9
     assert cv["stats"]["mean_abs_pct"] <= 7.0
     assert np.median(cv["fold_mape_pct"]) <= 8.0                           # level target met (fold median)
     udds, hwfet = s["epa_udds"], s["epa_hwfet"]
     assert udds["n"] == hwfet["n"] == 105
-    assert 0.83 <= udds["slope_through_origin"] <= pr.SLOPE_TARGET[1]     # 0.84: target 0.85 not met
-    assert hwfet["slope_met"] is True                                      # 0.994
-    assert udds["mean_abs_diff_points"] <= 4.3                             # 4.07, target 2.5 not met
-    assert hwfet["mean_abs_diff_points"] <= 2.95                           # 2.77, target 2.5 not met
+    assert 0.83 <= udds["slope_through_origin"] <= pr.SLOPE_TARGET[1]     # 0.846: target 0.85 not met
+    assert hwfet["slope_met"] is True                                      # 0.997
+    assert udds["mean_abs_diff_points"] <= 4.3                             # 4.09, target 2.5 not met
+    assert hwfet["mean_abs_diff_points"] <= 2.95                           # 2.78, target 2.5 not met

@@ -152,8 +152,8 @@ def test_dm_da_on_two_equal_machines_is_the_quasi_static_all_wheel_drive(nedc):
     and the drag fitted to the fleet's AWD cars is DM-DA's too (it was missing: 2.7 % less on the UDDS)."""
     from bev_mdo.models.params import load_parameter_set
 
-    p = {**P, **load_parameter_set("epa2022_quasi_static")}
-    assert p["second_axle_drag_w"] > 100
+    p = {**P, **load_parameter_set("epa2022_quasi_static"), "wound_rotor_machine_share": np.array([0.0, 1.0, 0.5])}
+    assert p["second_axle_drag_w"] > 100 and p["excitation_loss_w_per_kw"] > 0.5
     m, kw, ig = np.array([1800.0, 2300.0, 2100.0]), np.array([150.0, 300.0, 220.0]), np.array([9.0, 9.7, 8.2])
     dm = tp.simulate(nedc, p, "DM-DA", m, kw / 2, 60.0, ig, kw / 2, ig)
     awd = qs.simulate(nedc, {**p, "driven_axles": 2.0}, m, ig, kw, 60.0)
