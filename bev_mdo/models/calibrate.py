@@ -136,9 +136,21 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
                         x_scale=scale, diff_step=1e-6, method="trf")
     # a parameter no vehicle of the data moves (e.g. the two-speed loss in a fleet of single-speed cars)
     # is not determined: it stays at its start value, with no standard error, and the others' errors
-    # come from the determined columns alone (the full J^T J is singular)
+    # come from the determined columns alone (the full J^T J is singular). One the fit presses against a
+    # bound is at that bound, held there like a fixed value, without a standard error (whether the data
+    # move it is asked of the residuals one step inside the bound: TRF may zero an active bound's column)
     norms = np.linalg.norm(res.jac * scale, axis=0)
     determined = norms > 1e-9 * max(float(norms.max(initial=0.0)), 1e-300)
+    at_bound = [None] * len(names)
+    for j in range(len(names)):
+        side = "lower" if res.x[j] - lo[j] <= 1e-6 * (hi[j] - lo[j]) else \
+            "upper" if hi[j] - res.x[j] <= 1e-6 * (hi[j] - lo[j]) else None
+        if side:
+            probe = res.x.copy()
+            probe[j] += (1e-3 if side == "lower" else -1e-3) * (hi[j] - lo[j])
+            moved = np.abs(residuals(probe, names, fleet, mask, cycles, model) - res.fun).max() > 1e-12
+            at_bound[j], determined[j] = (side if moved else None), False
+            res.x[j] = (lo[j] if side == "lower" else hi[j]) if moved else res.x[j]
     n, p = res.fun.size, int(determined.sum())
     s2 = float(res.fun @ res.fun) / (n - p) if n > p else np.nan  # no residual degree of freedom: unknown
     se = np.full(len(names), np.nan)
@@ -147,7 +159,8 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
         se[determined] = np.sqrt(np.clip(np.diag(s2 * np.linalg.inv(jd.T @ jd)), 0, None))
     except np.linalg.LinAlgError:
         pass
-    return {"names": names, "x": res.x, "se": se, "determined": determined, "rms_rel": float(np.sqrt(s2)),
+    return {"names": names, "x": res.x, "se": se, "determined": determined, "at_bound": at_bound,
+            "rms_rel": float(np.sqrt(s2)),
             "success": bool(res.success), "mape_pct": float(100 * np.mean(np.abs(res.fun))), "n_residuals": n}
 
 
@@ -260,9 +273,11 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
                       "cycles": list(fl.CYCLES), "date": datetime.date.today().isoformat(),
                       "fleet_wheel_radius_m": fl.FLEET_WHEEL_RADIUS_M, "fleet_gear_ratio": fl.FLEET_GEAR_RATIO},
         "fit": {k: ({"value": float(v), "std_error": float(s), "cv_fold_std": float(sp)} if d else
+                    {"value": float(v), "at_bound": b} if b else
                     {"value": float(v), "not_determined": "no vehicle of the data moves it: its start value"})
-                for k, v, s, sp, d in zip(f["names"], f["x"], f["se"], spread,
-                                          f.get("determined", np.ones(len(f["x"]), bool)))},
+                for k, v, s, sp, d, b in zip(f["names"], f["x"], f["se"], spread,
+                                             f.get("determined", np.ones(len(f["x"]), bool)),
+                                             f.get("at_bound", [None] * len(f["x"])))},
         "fixed_not_fitted": sorted(k for k in fixed if k not in ("air_density_kg_m3", "drag_area_m2",
                                                                    "rolling_resistance")),
         "quality": {"train_mape_pct": round(f["mape_pct"], 3),
@@ -331,9 +346,9 @@ def run(args) -> int:
     cv = cross_validate(fleet, 5, cycles=cycles, use=use, model=model, progress=_progress("family"))
     cv_make = cross_validate(fleet, 99, cycles=cycles, groups=[m.lower() for m in fleet.make], use=use, model=model,
                              progress=_progress("make"))
-    for k, v, s, d in zip(f["names"], f["x"], f["se"], f["determined"]):
-        print(f"{k:32s} {v:12.6g} " + (f"+- {s:.3g}" if d else "not determined: no vehicle of the data moves it "
-                                                             "(left at its start value)"))
+    for k, v, s, d, b in zip(f["names"], f["x"], f["se"], f["determined"], f["at_bound"]):
+        print(f"{k:32s} {v:12.6g} " + (f"+- {s:.3g}" if d else f"at its {b} bound (the data press it there)" if b
+                                       else "not determined: no vehicle of the data moves it (left at its start value)"))
     if f["n_residuals"] <= int(f["determined"].sum()):
         print(f"warning: {f['n_residuals']} measured values for {int(f['determined'].sum())} fitted parameters: "
               "the fit passes through the data and its standard errors are unknown", file=sys.stderr)

@@ -179,6 +179,24 @@ def test_a_parameter_no_vehicle_moves_is_said_not_determined_and_the_others_keep
     assert "std_error" not in entry and entry["not_determined"].startswith("no vehicle")
 
 
+def test_a_parameter_pressed_against_its_bound_is_said_at_the_bound_not_undetermined(tmp_path, capsys, monkeypatch):
+    """TRF zeroes the Jacobian column of an active bound: a parameter the data pressed against its bound
+    was printed and written 'not determined: no vehicle of the data moves it (left at its start value)'."""
+    data = _fleet(tmp_path, lambda r: r[0] in ("BMW", "KIA"))
+    chain = calibrate.MODELS["chain"]
+    monkeypatch.setitem(calibrate.MODELS, "chain", (*chain[:2], {**chain[2], "regen_axle_share": (0.5, 0.2, 0.6)},
+                                                    chain[3]))
+    got = calibrate.fit(fl.read_fleet(data), model="chain")
+    i = got["names"].index("regen_axle_share")
+    assert got["at_bound"][i] == "upper" and got["x"][i] == 0.6 and np.isnan(got["se"][i])
+    assert got["at_bound"][got["names"].index("two_speed_efficiency_loss")] is None  # no two-speed car: undetermined
+    out = tmp_path / "chain.yaml"
+    assert bev_mdo(["calibrate", "--model", "chain", "--data", str(data), "--write", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "regen_axle_share" in said and "at its upper bound" in said
+    assert yaml.safe_load(out.read_text())["fit"]["regen_axle_share"] == {"value": 0.6, "at_bound": "upper"}
+
+
 def test_a_vehicle_listed_twice_is_refused_not_fitted_twice(tmp_path, capsys):
     """A row appended twice was fitted with double weight (and paired with its copy)."""
     with fl.DEFAULT_FLEET.open(newline="") as f:
