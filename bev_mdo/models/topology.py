@@ -27,9 +27,8 @@ IWM-DA     2 + 2 in-wheel               direct drive, eta = 1        + motor_rea
   to minimise the electrical power: ``torque_split_steps`` front fractions in [0, 1] (odd: 50/50 is one),
   the argmin, then 9 points around it (never worse than any grid point). Motoring torque over a
   motor's envelope is penalised; braking torque beyond it goes to the friction brake (2-25). Left/right
-  motors of an in-wheel axle share their axle's torque equally. DM-DA's second geared axle drags
-  ``second_axle_drag_w`` while moving, as the quasi-static model's all-wheel drive; wound-rotor machines
-  excite their field (``excitation_loss_w_per_kw`` x ``wound_rotor_machine_share`` x the rated power).
+  motors of an in-wheel axle share their axle's torque equally. The loads while moving are the
+  quasi-static model's (``qs.moving_load_w``): DM-DA's second axle drag, the wound-rotor machines' field.
 """
 from __future__ import annotations
 
@@ -329,10 +328,8 @@ def _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_rati
 
 
 def _moving_load_w(t: Topology, p, v, axles):
-    """The loads while moving (``qs.moving_load_w``): DM-DA's second axle drag and the wound-rotor
-    machines' field on the topology's total rated power (0 without them)."""
-    rated = sum(a.count * a.kw for a in axles)
-    return np.where(v > 0, qs.moving_load_w(p, rated, 2.0 if t.name == "DM-DA" else 1.0), 0.0)
+    """``qs.moving_load_w`` while moving, on the topology's total rated power (DM-DA: two axles)."""
+    return np.where(v > 0, qs.moving_load_w(p, sum(a.count * a.kw for a in axles), 1.0 + (t.name == "DM-DA")), 0.0)
 
 
 def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map, with_trace=False):

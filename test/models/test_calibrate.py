@@ -29,9 +29,10 @@ def test_a_set_written_for_your_fleet_names_itself_and_your_file_and_runs_in_eva
     whatever --data was: a user's calibration claimed to be the shipped one."""
     data = _fleet(tmp_path, lambda r: r[0] in ("BMW", "Ford", "KIA"))
     out = tmp_path / "my_fleet.yaml"
+    out.write_text("an older set\n")
     assert calibrate.main(["--model", "chain", "--data", str(data), "--write", str(out)]) == 0
     doc = yaml.safe_load(out.read_text())
-    assert doc["name"] == "my_fleet"
+    assert doc["name"] == "my_fleet" and not list(tmp_path.glob(".*.tmp"))  # replaced whole, nothing left beside
     assert doc["fitted_on"]["file"] == str(data) and doc["fitted_on"]["vehicles"] == len(fl.read_fleet(data)) > 2
     assert str(data) in doc["description"] and "epa_2022_bev" not in doc["description"]
     assert f"--data {data} --write {out}" in doc["description"]
