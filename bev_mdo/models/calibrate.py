@@ -133,8 +133,16 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
     x0 = np.array([bounds[k][0] for k in names])
     lo, hi = np.array([bounds[k][1] for k in names]), np.array([bounds[k][2] for k in names])
     scale = np.where(x0 != 0, np.abs(x0), (hi - lo) / 20)  # a parameter starting at 0: a twentieth of its range
-    res = least_squares(residuals, x0, bounds=(lo, hi), args=(names, fleet, mask, cycles, model),
-                        x_scale=scale, diff_step=1e-6, method="trf")
+    def solve(start):
+        return least_squares(residuals, start, bounds=(lo, hi), args=(names, fleet, mask, cycles, model),
+                             x_scale=scale, diff_step=1e-6, method="trf")
+
+    res = solve(x0)
+    pinned = (res.x - lo <= 1e-6 * (hi - lo)) | (hi - res.x <= 1e-6 * (hi - lo))
+    if pinned.any():  # TRF's steps shrink on a bound and can stall there (one BLAS kernel did, 0.4 % off the
+        # least cost): solved again from a twentieth of the range inside, the better of the two is kept
+        again = solve(np.where(pinned, np.clip(res.x, lo + (hi - lo) / 20, hi - (hi - lo) / 20), res.x))
+        res = again if again.cost < res.cost * (1 - 1e-9) else res
     # a parameter no vehicle of the data moves (e.g. the two-speed loss in a fleet of single-speed cars)
     # is not determined: it stays at its start value, with no standard error, and the others' errors
     # come from the determined columns alone (the full J^T J is singular). One the fit presses against a
