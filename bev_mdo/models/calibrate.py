@@ -139,7 +139,7 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
 
     res = solve(x0)
     pinned = (res.x - lo <= 1e-6 * (hi - lo)) | (hi - res.x <= 1e-6 * (hi - lo))
-    if pinned.any():  # TRF's steps shrink on a bound and can stall there (one BLAS kernel did, 0.4 % off the
+    if pinned.any():  # TRF's steps shrink on a bound and can stall there (one BLAS kernel did, 1.2 % above the
         # least cost): solved again from a twentieth of the range inside, the better of the two is kept
         again = solve(np.where(pinned, np.clip(res.x, lo + (hi - lo) / 20, hi - (hi - lo) / 20), res.x))
         res = again if again.cost < res.cost * (1 - 1e-9) else res
