@@ -170,3 +170,12 @@ def test_an_output_named_as_another_disciplines_parameter_is_refused(tmp_path):
     (tmp_path / "cooling2.py").write_text((tmp_path / "cooling.py").read_text().replace("load_kg", "cooling_kg"))
     p.write_text(p.read_text().replace("cooling:Cooling", "cooling2:Cooling"))
     load_config(p)  # renamed, it is an output of its own (no discipline reads it) and the config loads
+
+
+@pytest.mark.parametrize("value", ["[1, 2]", "{a: 1}", "3"])
+def test_a_description_that_is_not_text_is_refused(tmp_path, value):
+    import re
+
+    p = _write(tmp_path, re.sub(r"description: >\n(  .*\n)+", f"description: {value}\n", BASE))
+    with pytest.raises(ValueError, match="description must be text"):
+        load_config(p)

@@ -161,6 +161,8 @@ def _resolve(raw: Any) -> RunConfig:
     cfg = dict(raw)
     cfg.setdefault("name", "run")
     check_run_name(cfg["name"])
+    if cfg.get("description") is not None and not isinstance(cfg["description"], str):
+        raise ValueError(f"description must be text, got {type(cfg['description']).__name__}")
     for key in ("vehicle", "cycle", "disciplines", "ros", "recording"):  # one line, not a TypeError further in
         kind = "list" if key == "disciplines" else "mapping"
         if cfg.get(key) is not None and not isinstance(cfg[key], list if kind == "list" else Mapping):
