@@ -179,3 +179,12 @@ def test_a_description_that_is_not_text_is_refused(tmp_path, value):
     p = _write(tmp_path, re.sub(r"description: >\n(  .*\n)+", f"description: {value}\n", BASE))
     with pytest.raises(ValueError, match="description must be text"):
         load_config(p)
+
+
+def test_a_fixed_parameter_naming_a_disciplines_output_is_refused(tmp_path):
+    """problem.parameters: {vehicle_mass_kg: 1500} loaded, and every model ran at the computed 1590 kg."""
+    p = _write(tmp_path, BASE.replace("  battery_sized_for_range: false\n",
+                                      "  battery_sized_for_range: false\n  parameters: {vehicle_mass_kg: 1500}\n"))
+    with pytest.raises(ValueError, match=r"problem.parameters.vehicle_mass_kg: it is produced by discipline "
+                                         r"'vehicle_mass', which a fixed value cannot replace"):
+        load_config(p)

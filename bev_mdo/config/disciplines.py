@@ -64,6 +64,9 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
                                  f"[{lo:g}, {hi:g}]{' ' + unit if unit != '-' else ''}, where discipline {builtin[0]!r} "
                                  "accepts it")
     for k in problem.parameters:
+        if k in produced:  # the flow takes a produced variable from its producer: the value would be ignored
+            raise ValueError(f"problem.parameters.{k}: it is produced by discipline {graph.producer[k]!r}, "
+                             "which a fixed value cannot replace (drop that discipline, or write your own without it)")
         if k not in params and k not in consumed:
             raise ValueError(f"problem.parameters.{k}: no discipline has this parameter; known: {sorted(params)}")
     if cfg["problem"]["battery_sized_for_range"] and SIZED_VARIABLE not in produced:
