@@ -137,8 +137,11 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
         return least_squares(residuals, start, bounds=(lo, hi), args=(names, fleet, mask, cycles, model),
                              x_scale=scale, diff_step=1e-6, method="trf")
 
+    def bound_side(x):  # per parameter: -1 on its lower bound, +1 on its upper, 0 inside
+        return np.where(x - lo <= 1e-6 * (hi - lo), -1, np.where(hi - x <= 1e-6 * (hi - lo), 1, 0))
+
     res = solve(x0)
-    pinned = (res.x - lo <= 1e-6 * (hi - lo)) | (hi - res.x <= 1e-6 * (hi - lo))
+    pinned = bound_side(res.x) != 0
     if pinned.any():  # TRF's steps shrink on a bound and can stall there (one BLAS kernel did, 1.2 % above the
         # least cost): solved again from a twentieth of the range inside, the better of the two is kept
         again = solve(np.where(pinned, np.clip(res.x, lo + (hi - lo) / 20, hi - (hi - lo) / 20), res.x))
@@ -151,15 +154,14 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
     norms = np.linalg.norm(res.jac * scale, axis=0)
     determined = norms > 1e-9 * max(float(norms.max(initial=0.0)), 1e-300)
     at_bound = [None] * len(names)
-    for j in range(len(names)):
-        side = "lower" if res.x[j] - lo[j] <= 1e-6 * (hi[j] - lo[j]) else \
-            "upper" if hi[j] - res.x[j] <= 1e-6 * (hi[j] - lo[j]) else None
-        if side:
-            probe = res.x.copy()
-            probe[j] += (1e-3 if side == "lower" else -1e-3) * (hi[j] - lo[j])
-            moved = np.abs(residuals(probe, names, fleet, mask, cycles, model) - res.fun).max() > 1e-12
-            at_bound[j], determined[j] = (side if moved else None), False
-            res.x[j] = (lo[j] if side == "lower" else hi[j]) if moved else res.x[j]
+    sides = bound_side(res.x)
+    for j in np.flatnonzero(sides):
+        probe = res.x.copy()
+        probe[j] -= sides[j] * 1e-3 * (hi[j] - lo[j])
+        determined[j] = False
+        if np.abs(residuals(probe, names, fleet, mask, cycles, model) - res.fun).max() > 1e-12:  # the data move it
+            at_bound[j] = "lower" if sides[j] < 0 else "upper"
+            res.x[j] = lo[j] if sides[j] < 0 else hi[j]
     n, p = res.fun.size, int(determined.sum())
     s2 = float(res.fun @ res.fun) / (n - p) if n > p else np.nan  # no residual degree of freedom: unknown
     se = np.full(len(names), np.nan)

@@ -97,11 +97,11 @@ class Fleet:
         the file names) and ``wound_rotor_machine_share`` (the quasi-static model's: EESM machines over
         the machines named). An ``unknown`` machine counts as permanent-magnet, no column as none."""
         gears = self.technology.get("gear_count", ["unknown"] * len(self))
-        machines = list(zip(self.technology.get("motor_front", ["unknown"] * len(self)),
-                            self.technology.get("motor_rear", ["unknown"] * len(self))))
+        named = [[m for m in pair if m != "none"] for pair in zip(
+            self.technology.get("motor_front", ["unknown"] * len(self)),
+            self.technology.get("motor_rear", ["unknown"] * len(self)))]
 
         def share(kind):
-            named = [[m for m in pair if m != "none"] for pair in machines]
             return np.array([sum(m == kind for m in n) / max(len(n), 1) for n in named])
 
         return {"gear_count": np.array([2.0 if g == "2" else 1.0 for g in gears]),
