@@ -32,7 +32,10 @@ vectorised as (moving steps, N):
    Technology (per design point, the fleet file's columns): ``induction_machine_share`` of the
    machines are induction machines, which lose ``induction_loss_fraction`` of the shaft power more
    (rotor copper; §2.2.3: 1-2 % less efficient); with ``gear_count`` 2 the gear efficiency drops by
-   ``two_speed_efficiency_loss`` (§3.3.2; the chain does not shift, it only charges the loss).
+   ``two_speed_efficiency_loss`` (§3.3.2; the chain does not shift, it only charges the loss); with
+   ``driven_axles`` 2 (all-wheel drive) the second axle's gear and bearing drag ``second_axle_drag_w``
+   is drawn while the car moves, as in the quasi-static model (the machines' losses need no second
+   term: two of P_r/2 lose what one of P_r does).
 5. **Battery** (eq 5-19/5-20 form): P_batt = P_el + R (P_el / V)^2 with
    ``battery_discharge_resistance_ohm`` / ``battery_charge_resistance_ohm`` and
    ``battery_voltage_v``, plus the auxiliary load ``aux_power_w`` for the whole cycle
@@ -124,7 +127,12 @@ def simulate(resampled: Resampled, params, vehicle_mass_kg, gear_ratio, motor_kw
     torque = t_drive + t_regen
     w_base = 1000.0 / p["motor_torque_per_kw"]
     tau = np.abs(torque) / t_pk
-    idle = p_r * (p["motor_loss_standby_fraction"] + p["motor_loss_speed_fraction"] * omega / w_base)
+    axles = np.asarray(p["driven_axles"])
+    if np.any((axles != 1.0) & (axles != 2.0)):
+        raise ValueError("driven_axles must be 1 or 2")
+    # all-wheel drive: the second axle's gear and bearing drag while moving (as quasi_static.py's)
+    idle = (p_r * (p["motor_loss_standby_fraction"] + p["motor_loss_speed_fraction"] * omega / w_base)
+            + (axles - 1.0) * p["second_axle_drag_w"])
     loss = idle + p_r * p["motor_loss_copper_fraction"] * tau * tau
     # induction machines: rotor copper (slip) loss ~ shaft power (§2.2.3: 1-2 % below synchronous machines)
     loss = loss + p["induction_loss_fraction"] * p["induction_machine_share"] * np.abs(torque * omega)

@@ -92,8 +92,8 @@ class Fleet:
         return np.array([float(c) if c != "unknown" else f for c, f in zip(col, from_drive)])
 
     def technology_params(self) -> dict[str, np.ndarray]:
-        """The technology columns as the models' per-vehicle inputs: ``gear_count`` (2 where the file
-        says 2, else 1), ``induction_machine_share`` (the chain's: induction machines over the machines
+        """The technology columns as the models' per-vehicle inputs: ``driven_axles``, ``gear_count`` (2
+        where the file says 2, else 1), ``induction_machine_share`` (the chain's: induction machines over the machines
         the file names) and ``wound_rotor_machine_share`` (the quasi-static model's: EESM machines over
         the machines named). An ``unknown`` machine counts as permanent-magnet, no column as none."""
         gears = self.technology.get("gear_count", ["unknown"] * len(self))
@@ -104,7 +104,8 @@ class Fleet:
         def share(kind):
             return np.array([sum(m == kind for m in n) / max(len(n), 1) for n in named])
 
-        return {"gear_count": np.array([2.0 if g == "2" else 1.0 for g in gears]),
+        return {"driven_axles": self.driven_axles,
+                "gear_count": np.array([2.0 if g == "2" else 1.0 for g in gears]),
                 "induction_machine_share": share("induction"), "wound_rotor_machine_share": share("EESM")}
 
     def __len__(self) -> int:
@@ -310,10 +311,8 @@ def predict(fleet: Fleet, model: str = "chain", base: dict | None = None, cycles
 
             q = {**p, "initial_soc": 0.9}
             if q.get("motor_loss_model", 0.0) == 1.0:  # with the map two machines of P/2 are one of P
-                q["driven_axles"] = fleet.driven_axles
-                tech = fleet.technology_params()
-                q["gear_count"] = tech["gear_count"]  # the thesis' two-speed box (eq 2-6)
-                q["wound_rotor_machine_share"] = tech["wound_rotor_machine_share"]  # their field's loss
+                tech = fleet.technology_params()  # axles, the thesis' two-speed box (eq 2-6), the field's loss
+                q.update({k: tech[k] for k in ("driven_axles", "gear_count", "wound_rotor_machine_share")})
             if model == "quasi_static":
                 res = qs.simulate(r, q, m, ig, kw, np.full(len(fleet), FLEET_BATTERY_KWH), reference=reference)
             else:

@@ -177,7 +177,8 @@ CHAIN_SPECS: dict[str, ParamSpec] = {
                                        "battery_charge_resistance_ohm")},
     "aux_power_w": ParamSpec(0.0, 0.0, 10000.0, "W", "auxiliary load while the cycle runs (12 V, cooling, HVAC)"),
     # technology: the car's machines and gearbox (fleet file columns) and what each costs
-    **{k: QUASI_STATIC_SPECS[k] for k in ("gear_count", "two_speed_efficiency_loss")},
+    **{k: QUASI_STATIC_SPECS[k] for k in ("gear_count", "two_speed_efficiency_loss", "driven_axles",
+                                          "second_axle_drag_w")},
     "induction_machine_share": ParamSpec(0.0, 0.0, 1.0, "-", "share of the car's traction machines that are "
                                          "induction machines (0 = all synchronous)"),
     "induction_loss_fraction": ParamSpec(0.015, 0.0, 0.2, "-", "extra loss of an induction machine per unit of "

@@ -116,7 +116,10 @@ def test_a_vehicle_that_cannot_follow_is_left_out_of_the_fit(tmp_path, capsys):
     assert calibrate.usable(fleet).tolist() == [False] + [True] * len(keep)
     ref = calibrate.fit(fl.read_fleet(_fleet(tmp_path, lambda r: r[0] in ("BMW", "Ford"), "ref.csv")))
     got = calibrate.fit(fleet)
-    np.testing.assert_allclose(got["x"], ref["x"], rtol=1e-9)
+    # the same fit to its stopping tolerance: the second axle's drag (s.e. above its value) moves by 5e-7
+    # between the two batch sizes' last bits; the slow car pulled the charger efficiency by 19 %
+    np.testing.assert_allclose(got["x"], ref["x"], rtol=1e-5)
+    assert got["x"][list(got["names"]).index("two_speed_efficiency_loss")] == calibrate.FIT["two_speed_efficiency_loss"][0]
     assert calibrate.main(["--model", "chain", "--data", str(p)]) == 0
     assert "1 vehicle(s) left out: the rated power cannot follow UDDS or HWFET (rows 2)" in capsys.readouterr().out
 

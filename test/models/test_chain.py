@@ -42,9 +42,26 @@ def test_technology_terms_are_off_for_a_single_speed_synchronous_car_and_cost_en
         e(gear_count=1.5)
 
 
+def test_a_second_driven_axle_draws_its_drag_while_the_car_moves():
+    """All-wheel drive (driven_axles 2) adds second_axle_drag_w at the battery for every moving second,
+    braking included (the regeneration rule compares two powers that both carry it), nothing at a
+    standstill; one driven axle ignores it. Without pack resistance the cost is exact."""
+    lossless = {"battery_discharge_resistance_ohm": 0.0, "battery_charge_resistance_ohm": 0.0}
+    one = e(**lossless, second_axle_drag_w=200.0).energy_wh_per_km[0]
+    assert one == e(**lossless).energy_wh_per_km[0]
+    two = e(**lossless, driven_axles=2.0, second_axle_drag_w=200.0).energy_wh_per_km[0]
+    t, v = np.asarray(R.time_s, float), np.asarray(R.speed_m_s, float)
+    moving_h = np.diff(t)[(v[1:] + v[:-1]) > 0].sum() / 3600.0
+    km = np.sum(np.diff(t) * (v[1:] + v[:-1]) / 2.0) / 1e3
+    assert two - one == pytest.approx(200.0 * moving_h / km / 0.9, rel=1e-9)
+    with pytest.raises(ValueError, match="driven_axles must be 1 or 2"):
+        e(driven_axles=1.5)
+
+
 def test_the_fleet_files_technology_columns_as_chain_inputs():
     f = fl.read_fleet()
     t = f.technology_params()
+    assert np.array_equal(t["driven_axles"], f.driven_axles) and set(t["driven_axles"]) == {1.0, 2.0}
     by_model = {(mk, md): (g, s) for mk, md, g, s in zip(f.make, f.model, t["gear_count"], t["induction_machine_share"])}
     assert by_model[("Tesla", "Model 3 Long Range AWD")] == (1.0, 0.5)   # induction front, PMSM rear
     assert {s for (mk, md), (g, s) in by_model.items() if mk == "Porsche"} == {0.0}

@@ -77,19 +77,19 @@ def family_cv_pairs():
 
 
 def test_pairs_of_the_family_cross_validation_of_the_training_half(family_cv_pairs):
-    """The shipped chain (with its technology terms), 5-fold CV by family on the training half, pairs
-    by model line. Measured (docs/validation.md): MAPE 6.23 %; UDDS slope 0.84, 3.9 pp; HWFET slope
-    1.00, 2.8 pp (105 pairs: the e-tron GT is not paired with the e-tron SUV). The HWFET slope meets
-    the target (0.85-1.15); the other three do NOT, and are pinned at today's level so that a change
-    cannot make them worse unnoticed."""
+    """The shipped chain (with its technology terms and the second axle's drag), 5-fold CV by family on
+    the training half, pairs by model line. Measured (docs/validation.md): MAPE 6.26 %; UDDS slope 0.87,
+    3.73 pp; HWFET slope 1.01, 2.79 pp (105 pairs: the e-tron GT is not paired with the e-tron SUV).
+    Both slopes meet the target (0.85-1.15; the UDDS one was 0.84 without the drag); the mean
+    differences do NOT (2.5), and are pinned at today's level so that a change cannot make them worse
+    unnoticed."""
     cv, s = family_cv_pairs
-    assert cv["stats"]["mean_abs_pct"] == pytest.approx(6.23, abs=0.02)
+    assert cv["stats"]["mean_abs_pct"] == pytest.approx(6.26, abs=0.02)
     udds, hwfet = s["epa_udds"], s["epa_hwfet"]
     assert udds["n"] == hwfet["n"] and udds["n"] > 100
-    assert hwfet["slope_met"] is True                                  # target met
-    assert 0.80 <= udds["slope_through_origin"] < pr.SLOPE_TARGET[0]   # target not met (0.84)
-    assert udds["mean_abs_diff_points"] <= 4.1                         # target 2.5 not met (3.90)
-    assert hwfet["mean_abs_diff_points"] <= 2.9                        # target 2.5 not met (2.76)
+    assert udds["slope_met"] is True and hwfet["slope_met"] is True    # 0.868, 1.010
+    assert udds["mean_abs_diff_points"] <= 3.9                         # target 2.5 not met (3.73)
+    assert hwfet["mean_abs_diff_points"] <= 2.9                        # target 2.5 not met (2.79)
 
 
 @pytest.fixture(scope="module")
