@@ -188,3 +188,16 @@ def test_a_fixed_parameter_naming_a_disciplines_output_is_refused(tmp_path):
     with pytest.raises(ValueError, match=r"problem.parameters.vehicle_mass_kg: it is produced by discipline "
                                          r"'vehicle_mass', which a fixed value cannot replace"):
         load_config(p)
+
+
+@pytest.mark.parametrize("line, said", [
+    ("driven_axles: 1.5", "driven_axles must be 1 or 2, got 1.5"),
+    ("gear_count: 2.5", "gear_count must be 1 or 2, got 2.5"),
+    ("motor_loss_model: 0.5", "motor_loss_model must be 0 or 1, got 0.5"),
+    ("torque_split_steps: 10.5", r"torque_split_steps must be an integer in \[3, 101\], got 10.5")])
+def test_a_count_or_a_switch_that_is_not_a_whole_number_is_refused_on_load(tmp_path, line, said):
+    """driven_axles: 1.5 loaded and quasi_static's compiled loops ran 1.5 machines of P / 1.5 (an optimum
+    between one and two axles); torque_split_steps: 10.5 was truncated to a grid of 10."""
+    p = _write(tmp_path, BASE.replace("  drag_area_m2: 0.6412", f"  drag_area_m2: 0.6412\n  {line}"))
+    with pytest.raises(ValueError, match=rf"^{p}: .*{said}"):
+        load_config(p)

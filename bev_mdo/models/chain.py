@@ -106,9 +106,7 @@ def simulate(resampled: Resampled, params, vehicle_mass_kg, gear_ratio, motor_kw
     v, a, w, dur, dist, v_lo, v_hi = _steps(resampled)
     M = m[None, :]
     force = rl.road_load_n(p, v, M) + M * (1.0 + p["rotating_mass_fraction"]) * a
-    gc = np.asarray(p["gear_count"])
-    if np.any((gc != 1.0) & (gc != 2.0)):
-        raise ValueError("gear_count must be 1 or 2")
+    gc = np.asarray(p["gear_count"])  # 1 or 2, and driven_axles 1 or 2 (checked with the parameters)
     # a two-speed gearbox and its clutch lose two_speed_efficiency_loss more (§3.3.2, as quasi_static.py)
     r_w, eta = p["wheel_radius_m"], p["gear_efficiency"] - np.where(gc == 2.0, p["two_speed_efficiency_loss"], 0.0)
     i_g, p_r = ig[None, :], kw[None, :] * 1e3
@@ -127,12 +125,9 @@ def simulate(resampled: Resampled, params, vehicle_mass_kg, gear_ratio, motor_kw
     torque = t_drive + t_regen
     w_base = 1000.0 / p["motor_torque_per_kw"]
     tau = np.abs(torque) / t_pk
-    axles = np.asarray(p["driven_axles"])
-    if np.any((axles != 1.0) & (axles != 2.0)):
-        raise ValueError("driven_axles must be 1 or 2")
     # all-wheel drive: the second axle's gear and bearing drag while moving (as quasi_static.py's)
     idle = (p_r * (p["motor_loss_standby_fraction"] + p["motor_loss_speed_fraction"] * omega / w_base)
-            + (axles - 1.0) * p["second_axle_drag_w"])
+            + (p["driven_axles"] - 1.0) * p["second_axle_drag_w"])
     loss = idle + p_r * p["motor_loss_copper_fraction"] * tau * tau
     # induction machines: rotor copper (slip) loss ~ shaft power (§2.2.3: 1-2 % below synchronous machines)
     loss = loss + p["induction_loss_fraction"] * p["induction_machine_share"] * np.abs(torque * omega)

@@ -51,16 +51,24 @@ def _unit(unit: str) -> str:
     return f" {unit}" if unit and unit != "-" else ""
 
 
-def check_value(name: str, value: Any, lower: float, upper: float, unit: str = "") -> float:
-    """Return ``value`` as float; ValueError naming ``name`` and [lower, upper] otherwise."""
+def allowed(lower: float, upper: float, unit: str = "", integer: bool = False) -> str:
+    """What a value must be, as error messages say it: ``in [0.5, 1]``, ``1 or 2``, ``an integer in [3, 101]``."""
+    if integer and upper - lower <= 2:
+        return " or ".join(f"{v:g}" for v in np.arange(lower, upper + 1))
+    return f"{'an integer ' if integer else ''}in [{lower:g}, {upper:g}]{_unit(unit)}"
+
+
+def check_value(name: str, value: Any, lower: float, upper: float, unit: str = "", integer: bool = False) -> float:
+    """Return ``value`` as float; ValueError naming ``name`` and [lower, upper] otherwise (``integer``: a
+    count or a switch, whole numbers only)."""
     if isinstance(value, (bool, np.bool_)):  # YAML's true is 1 to float(): glider_kg: true was read as 1 kg
-        raise ValueError(f"{name} must be a number in [{lower:g}, {upper:g}]{_unit(unit)}, got {str(value).lower()} (a bool)")
+        raise ValueError(f"{name} must be a number {allowed(lower, upper, unit, integer)}, got {str(value).lower()} (a bool)")
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number in [{lower:g}, {upper:g}]{_unit(unit)}, got {value!r}") from None
-    if not (math.isfinite(x) and lower <= x <= upper):
-        raise ValueError(f"{name} must be in [{lower:g}, {upper:g}]{_unit(unit)}, got {x:g}")
+        raise ValueError(f"{name} must be a number {allowed(lower, upper, unit, integer)}, got {value!r}") from None
+    if not (math.isfinite(x) and lower <= x <= upper) or (integer and x != round(x)):
+        raise ValueError(f"{name} must be {allowed(lower, upper, unit, integer)}, got {x:g}")
     return x
 
 
@@ -127,16 +135,18 @@ def resolve_params(params: Mapping[str, Any] | None, specs: Mapping[str, Any], n
             if a.dtype.kind not in "biufc":
                 raise TypeError
         except TypeError:
-            raise ValueError(f"{name} must be a number in [{s.lower:g}, {s.upper:g}] {s.unit}, got {v!r}") from None
+            raise ValueError(f"{name} must be a number {allowed(s.lower, s.upper, s.unit, s.integer)}, got {v!r}") from None
         if a.ndim > 1 or (a.ndim == 1 and a.shape[0] not in (1, n)):
             raise ValueError(f"{name} must be a scalar or an array of shape ({n},), got shape {a.shape}")
         re = np.real(a).astype(float)
         bad = ~(np.isfinite(re) & (re >= s.lower) & (re <= s.upper))
+        if s.integer:  # a count or a switch
+            bad |= re != np.round(re)
         if a.dtype.kind == "c":
             bad |= ~np.isfinite(np.imag(a))
         if bad.any():
             x = re.reshape(-1)[np.flatnonzero(bad.reshape(-1))[0]]
-            raise ValueError(f"{name} must be in [{s.lower:g}, {s.upper:g}] {s.unit}, got {x:g}")
+            raise ValueError(f"{name} must be {allowed(s.lower, s.upper, s.unit, s.integer)}, got {x:g}")
         out[name] = a if a.dtype.kind == "c" else a.astype(float)
     return out
 

@@ -20,13 +20,15 @@ from .cycles import DEFAULT_METHOD, KMH, METHODS
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """One model constant: default value, allowed closed range [lower, upper], unit, meaning."""
+    """One model constant: default value, allowed closed range [lower, upper], unit, meaning, and
+    whether only whole numbers are allowed (a count or a switch)."""
 
     default: float
     lower: float
     upper: float
     unit: str
     description: str
+    integer: bool = False
 
 
 # Leaf glider: kerb 1521 kg (Appendix A) minus the eq 7-20/7-21 powertrain at 80 kW / 24 kWh
@@ -108,13 +110,15 @@ QUASI_STATIC_SPECS: dict[str, ParamSpec] = {
     **{k: VEHICLE_SPECS[k] for k in ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2",
                                      "rolling_resistance", "wheel_radius_m", "gear_efficiency",
                                      "motor_torque_per_kw", "motor_speed_limit_rpm")},
-    "gear_count": ParamSpec(1.0, 1.0, 2.0, "-", "1 = single speed, 2 = two-speed gearbox (eq 2-6)"),
+    "gear_count": ParamSpec(1.0, 1.0, 2.0, "-", "1 = single speed, 2 = two-speed gearbox (eq 2-6)",
+                            integer=True),
     "gear_ratio_2": ParamSpec(4.7, 0.5, 50.0, "-", "second (high-speed) gear ratio (Table 3-2: 4.7)"),
     "shift_speed_m_s": ParamSpec(68.1 * KMH, 0.0, 100.0, "m/s", "two-speed shift point (Table 3-2: 68.1 km/h)"),
     "two_speed_efficiency_loss": ParamSpec(0.02, 0.0, 0.5, "-", "gear efficiency lost with two speeds (§3.3.2)"),
     "two_speed_added_mass_kg": ParamSpec(20.0, 0.0, 500.0, "kg", "mass added by two speeds (§3.7)"),
     "shift_strategy": ParamSpec(0.0, 0.0, 1.0, "-", "two-speed gear choice: 0 = shift speed rule (eq 2-6), "
-                                "1 = per step the gear of least electrical power within the envelope"),
+                                "1 = per step the gear of least electrical power within the envelope",
+                                integer=True),
     "regen_min_speed_m_s": ParamSpec(10.0 * KMH, 0.0, 50.0, "m/s", "no regeneration below this (§2.3.4: 10 km/h)"),
     "regen_max_decel_g": ParamSpec(0.7, 0.0, 5.0, "g", "friction only beyond this deceleration (§2.3.4)"),
     "regen_max_soc": ParamSpec(0.9, 0.0, 1.0, "-", "no regeneration above this SOC (§2.3.4)"),
@@ -131,11 +135,13 @@ QUASI_STATIC_SPECS: dict[str, ParamSpec] = {
     "iwm_torque_scale": ParamSpec(2.5, 0.1, 20.0, "-", "in-wheel map torque-axis factor (§4.3.1: 280 -> 700 Nm)"),
     "iwm_speed_scale": ParamSpec(210.0 / 1099.56, 0.01, 1.0, "-", "in-wheel map speed-axis factor "
                                  "(§4.3.1: max 1100 -> 210 rad/s; base speed 285.7 -> 54.6 rad/s, thesis 53)"),
-    "torque_split_steps": ParamSpec(11.0, 3.0, 101.0, "-", "front/rear split grid size (odd: includes 50/50)"),
+    "torque_split_steps": ParamSpec(11.0, 3.0, 101.0, "-", "front/rear split grid size (odd: includes 50/50)",
+                                    integer=True),
     # the motor written as its losses (loss_model.py) instead of the map; defaults: the default map's own
     # loss model (motor_map.py) with Fig 2-9's size scaling
     "motor_loss_model": ParamSpec(0.0, 0.0, 1.0, "-", "0 = efficiency map scaled by Fig 2-9 (the thesis), "
-                                  "1 = the loss model of loss_model.py with the loss_* coefficients"),
+                                  "1 = the loss model of loss_model.py with the loss_* coefficients",
+                                  integer=True),
     "loss_copper_w_per_nm2": ParamSpec(0.085, 0.0, 10.0, "W/(N*m)^2", "copper loss k_cu T^2 at the reference "
                                        "80 kW, x 80/P (eqs 6-21, 6-27)"),
     "loss_inverter_w_per_nm": ParamSpec(0.0, 0.0, 100.0, "W/(N*m)", "inverter conduction loss k_inv |T| "
@@ -147,7 +153,7 @@ QUASI_STATIC_SPECS: dict[str, ParamSpec] = {
     "loss_size_exponent": ParamSpec(1.0, 0.0, 2.0, "-", "iron, friction and constant losses x (P/80 kW)^e "
                                     "(1 = Fig 2-9's scaling)"),
     "driven_axles": ParamSpec(1.0, 1.0, 2.0, "-", "1, or 2: the rated power on two equal machines sharing the "
-                              "torque (all-wheel drive of the single-motor model)"),
+                              "torque (all-wheel drive of the single-motor model)", integer=True),
     "second_axle_drag_w": ParamSpec(0.0, 0.0, 5000.0, "W", "gear and bearing drag of a second driven axle "
                                     "while moving (driven_axles 2, or DM-DA)"),
     "excitation_loss_w_per_kw": ParamSpec(0.0, 0.0, 20.0, "W/kW", "rotor field excitation of wound-rotor "
@@ -309,7 +315,7 @@ def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
     extra: dict[str, float] = {}
     if chain is not None:  # a shipped calibration: its values are defaults the section may override
         extra = {k: v for k, v in load_parameter_set(chain).items() if k not in section}
-    out = {k: check_value(k, section.get(k, extra.get(k, s.default)), s.lower, s.upper, s.unit)
+    out = {k: check_value(k, section.get(k, extra.get(k, s.default)), s.lower, s.upper, s.unit, s.integer)
            for k, s in specs.items()}
     if road is not None:
         both = sorted(k for k in ROAD_LOAD_REPLACES if k in section)

@@ -170,6 +170,10 @@ def test_range_rises_with_battery_at_fixed_mass(nedc, kwh, dk):
 
 @pytest.mark.parametrize("kw,match", [
     (dict(params={"gear_count": 1.5}), "gear_count must be 1 or 2"),
+    # the compiled loops ran 1.5 axles (machines of P / 1.5) and a grid of 10 for 10.5, silently
+    (dict(params={"driven_axles": 1.5, "motor_loss_model": 1.0}), "driven_axles must be 1 or 2, got 1.5"),
+    (dict(params={"torque_split_steps": 10.5}), r"torque_split_steps must be an integer in \[3, 101\], got 10.5"),
+    (dict(params={"shift_strategy": np.array([0.0, 0.5])}), "shift_strategy must be 0 or 1, got 0.5"),
     (dict(params={"wheel_radius_m": 0.0}), r"wheel_radius_m must be in \["),
     (dict(params={"regen_max_soc": np.nan}), r"regen_max_soc must be in \["),
     (dict(mass=-1.0), r"vehicle_mass_kg must be in \["),
