@@ -35,6 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bev_mdo.models import fleet as fl  # noqa: E402
+from bev_mdo.models.baselines import FASTSIM_INPUTS  # noqa: E402
 
 N_PER_LBF = 4.4482216152605
 M_S_PER_MPH = 0.44704
@@ -97,6 +98,8 @@ def main(argv=None) -> int:
     for i in range(len(fleet)):
         veh = build_vehicle(fsr, fleet, i)
         out = {"row": int(fleet.rows[i]), "make": fleet.make[i], "model": fleet.model[i],
+               **{k: getattr(fleet, k)[i] if k == "drive" else repr(float(getattr(fleet, k)[i]))
+                  for k in FASTSIM_INPUTS},  # what the row was run on: read_fastsim matches them
                "drag_coef": f"{veh.drag_coef:.6f}", "wheel_rr_coef": f"{veh.wheel_rr_coef:.6f}"}
         for name, cyc in cycles.items():
             sd = fsr.RustSimDrive(cyc, veh)
@@ -113,7 +116,9 @@ def main(argv=None) -> int:
     with open(args.out, "w", newline="", encoding="utf-8") as f:
         f.write(f"# FASTSim {fastsim.__version__} with its defaults (scripts/fastsim_baseline.py) on {shown};\n"
                 f"# vehicles built as FASTSim's vehicle import builds a BEV; wall energy = battery_kwh_per_mi / chg_eff "
-                f"({veh.chg_eff}); pack {BATTERY_KWH} kWh, ess_max_kw {ESS_KW_PER_MOTOR_KW} x rated power\n")
+                f"({veh.chg_eff}); pack {BATTERY_KWH} kWh, ess_max_kw {ESS_KW_PER_MOTOR_KW} x rated power\n"
+                "# the fleet file's inputs FASTSim was run on (drive, rated power, test mass, A, B, C) are kept per row:\n"
+                "# a fleet row whose inputs differ gets no FASTSim figure\n")
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)

@@ -134,7 +134,9 @@ def _reference(fleet, energy_model: str, pred: dict, scored: dict, out_rows: lis
     elif not any(np.isfinite(fastsim[c]).any() for c in fl.CYCLES):
         status = "unavailable: FASTSim was not run on this fleet file (scripts/fastsim_baseline.py --data CSV)"
     else:
-        status = "available"
+        run = int(np.logical_or.reduce([np.isfinite(fastsim[c]) for c in fl.CYCLES]).sum())
+        status = "available" if run == len(fleet) else (
+            f"run on {run} of {len(fleet)} rows (the others are not in its file or their inputs differ)")
         columns["fastsim"] = fastsim
     for r, i in zip(out_rows, range(len(fleet))):
         for c in fl.CYCLES:

@@ -8,7 +8,8 @@
   vehicle is predicted by constants that never saw its family.
 * **FASTSim 2.1.5 with its defaults**: read from ``fastsim_2.1.5.csv`` beside the shipped fleet
   file, written by ``scripts/fastsim_baseline.py`` (which needs FASTSim; reading does not). Rows are
-  matched by CSV row, make and model; a fleet file FASTSim was not run on gets no FASTSim figures.
+  matched by CSV row, make and model, and must hold the inputs FASTSim was run on (drive, rated power,
+  test mass, A, B, C, kept in the file): a fleet row FASTSim was not run on gets no FASTSim figure.
 
 :func:`reference_table` scores any set of such columns on the same rows: per cycle, the rows every
 column scores, their mean absolute % error and the within-family pair metrics (models/pairs.py).
@@ -25,6 +26,9 @@ from . import fleet as fl
 from . import pairs as pr
 
 FASTSIM_CSV = fl.DATA_DIR / "fastsim_2.1.5.csv"
+# the fleet columns FASTSim's vehicle is built from (scripts/fastsim_baseline.py), kept per row in its file
+FASTSIM_INPUTS = ("drive", "rated_power_kw", "test_mass_kg", "road_load_a_n", "road_load_b_n_per_m_s",
+                  "road_load_c_n_per_m2_s2")
 FOLDS = 5
 
 
@@ -80,8 +84,9 @@ def three_constant_cv(fleet: fl.Fleet, use: np.ndarray, cycles: dict | None = No
 
 def read_fastsim(fleet: fl.Fleet, path=None) -> dict[str, np.ndarray] | None:
     """FASTSim's wall energy per cycle for the fleet's rows, {cycle: (N,) Wh/km}, NaN where the file
-    has no such row (matched by row, make and model) or FASTSim could not follow the trace; None
-    when the file is absent."""
+    has no such row (matched by row, make and model), the row's inputs differ from those FASTSim was
+    run on (:data:`FASTSIM_INPUTS`: a user's edited copy of the shipped file) or FASTSim could not
+    follow the trace; None when the file is absent."""
     path = path or FASTSIM_CSV
     try:
         with open(path, newline="", encoding="utf-8") as f:
@@ -89,15 +94,15 @@ def read_fastsim(fleet: fl.Fleet, path=None) -> dict[str, np.ndarray] | None:
     except OSError:
         return None
     by_key = {(int(r["row"]), r["make"], r["model"]): r for r in rows}
+    found = [by_key.get((int(fleet.rows[i]), fleet.make[i], fleet.model[i])) for i in range(len(fleet))]
+    run_on = [r is not None and r["drive"] == fleet.drive[i] and all(
+        math.isclose(float(r[k]), float(getattr(fleet, k)[i]), rel_tol=1e-9) for k in FASTSIM_INPUTS[1:])
+        for i, r in enumerate(found)]
     out = {}
     for c in fl.CYCLES:
         short = c.replace("epa_", "")
-        e = np.full(len(fleet), np.nan)
-        for i in range(len(fleet)):
-            r = by_key.get((int(fleet.rows[i]), fleet.make[i], fleet.model[i]))
-            if r is not None and r[f"{short}_trace_met"] == "yes":
-                e[i] = float(r[f"{short}_wh_per_km_ac"])
-        out[c] = e
+        out[c] = np.array([float(r[f"{short}_wh_per_km_ac"]) if ok and r[f"{short}_trace_met"] == "yes" else np.nan
+                           for r, ok in zip(found, run_on)])
     return out
 
 

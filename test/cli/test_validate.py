@@ -305,6 +305,11 @@ def test_the_model_is_beside_the_baseline_and_fastsim_on_the_same_rows(capsys, t
     doc = json.loads(run(capsys, "--data", only, "--json")[1])
     assert doc["reference"]["fastsim"].startswith("unavailable: FASTSim was not run on this fleet file")
     assert set(doc["reference"]["same_rows"]["udds"]) == {"rows", "pairs", "quasi_static", "baseline3"}
+    rows = _rows()
+    rows[4][rows[0].index("road_load_c_n_per_m2_s2")] = "0.2"  # an edited copy: FASTSim ran the original row
+    doc = json.loads(run(capsys, "--data", _write(tmp_path, rows), "--json")[1])
+    assert doc["reference"]["fastsim"].startswith("run on 61 of 62 rows")
+    assert doc["reference"]["same_rows"]["udds"]["rows"] == 61
 
 
 def test_a_parameter_set_fitted_for_another_model_is_one_line_exit_2(capsys):

@@ -89,6 +89,18 @@ def test_fastsim_results_match_the_fleet_rows(fleet, tmp_path):
     assert np.isnan(bl.read_fastsim(other)["epa_udds"][0]) and np.isfinite(bl.read_fastsim(other)["epa_udds"][1])
 
 
+@pytest.mark.parametrize("column, value", [("road_load_c_n_per_m2_s2", 0.2), ("test_mass_kg", 1900.0),
+                                           ("rated_power_kw", 150.0), ("drive", "F")])
+def test_a_row_fastsim_was_not_run_on_gets_no_fastsim_figure(column, value):
+    """A user's copy of the shipped fleet file with one row's input changed (same row, make and model)
+    was scored against FASTSim's figure for the original row."""
+    edited = fl.read_fleet()
+    getattr(edited, column)[3] = value
+    e = bl.read_fastsim(edited)
+    for c in fl.CYCLES:
+        assert np.isnan(e[c][3]) and np.isfinite(np.delete(e[c], 3)).all()
+
+
 def test_reference_table_scores_every_column_on_the_same_rows(fleet):
     use = ~fleet.outlier
     base = bl.three_constant_cv(fleet, use)
