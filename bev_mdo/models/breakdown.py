@@ -37,7 +37,6 @@ from .common import batch_size, design_points, resolve_params
 from .params import BREAKDOWN_SPECS
 
 J_PER_M_TO_KWH_PER_100KM = 1e5 / 3.6e6  # 1 J/m = 1/36 kWh/100 km
-J_PER_M_TO_WH_PER_KM = 1e3 / 3.6e3
 
 PARAM_SPECS = BREAKDOWN_SPECS
 

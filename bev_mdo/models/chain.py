@@ -65,8 +65,6 @@ from .cycles import Resampled
 from .params import CHAIN_SPECS
 
 PARAM_SPECS = CHAIN_SPECS
-FITTED = ("charger_efficiency", "aux_power_w", "motor_loss_standby_fraction", "motor_loss_copper_fraction",
-          "motor_loss_speed_fraction")
 
 
 @dataclass

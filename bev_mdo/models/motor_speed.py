@@ -14,7 +14,3 @@ def motor_speed_max_rad_s(gear_ratio, max_speed_m_s, wheel_radius_m=VEHICLE_SPEC
     rw = check_array("wheel_radius_m", wheel_radius_m, s.lower, s.upper, s.unit)
     v = check_array("max_speed_m_s", max_speed_m_s, 0.0, 150.0, "m/s")
     return ig * v / rw
-
-
-def rpm_to_rad_s(rpm):
-    return np.asarray(rpm, float) * (2 * np.pi / 60.0)

@@ -332,7 +332,7 @@ def _moving_load_w(t: Topology, p, v, axles):
     return np.where(v > 0, qs.moving_load_w(p, sum(a.count * a.kw for a in axles), 1.0 + (t.name == "DM-DA")), 0.0)
 
 
-def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map, with_trace=False):
+def _demand(resampled, t: Topology, p, m, ig, kw, kw_r, ig_r, base_map):
     """Per-step battery demand of a topology, as the quasi-static model's ``Demand``."""
     if t.name == "SM-SA":
         return qs.demand(resampled, p, m, ig, kw, base_map)
