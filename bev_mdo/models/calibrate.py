@@ -61,7 +61,7 @@ FIT = {
     "charger_efficiency": (0.90, 0.70, 1.0),
     "regen_axle_share": (0.8, 0.2, 1.0),
     "two_speed_efficiency_loss": (0.02, 0.0, 0.3),  # cars with gear_count 2 (§3.3.2 assumes 0.02)
-    "second_axle_drag_w": (100.0, 0.0, 2000.0),  # driven_axles 2: the second axle's drag while moving
+    "second_axle_drag_w": (0.0, 0.0, 2000.0),  # driven_axles 2: the second axle's drag while moving (as QS_FIT)
 }
 PARAMETER_SET = "epa2022_chain"
 
@@ -85,7 +85,9 @@ QS_FIXED = {
 QS_FIT = {
     "charger_efficiency": (0.90, 0.70, 1.0),
     "regen_axle_share": (0.8, 0.2, 1.0),
-    "second_axle_drag_w": (100.0, 0.0, 2000.0),  # all-wheel drive: the second axle's drag while moving
+    # all-wheel drive: the second axle's drag while moving; starts at 0, where a fleet without AWD cars
+    # leaves it (as the field's loss below)
+    "second_axle_drag_w": (0.0, 0.0, 2000.0),
     # cars with gear_count 2 shift as the thesis' two-speed box (eq 2-6, Table 3-2: 4.7 above 68.1 km/h)
     # and lose this much gear efficiency (§3.3.2 assumes 0.02; fitted ~0.08, as the chain's: the platform)
     "two_speed_efficiency_loss": (0.02, 0.0, 0.3),
@@ -356,6 +358,14 @@ def _progress(label: str):
     return say
 
 
+def _to_its_error(value: float, se: float) -> str:
+    """The value to one digit below its standard error's first (36 +- 115, 0.843 +- 0.0132): more
+    digits are noise, and would differ between BLAS kernels for a weakly determined parameter."""
+    if not np.isfinite(se) or se <= 0:
+        return f"{value:.6g}"
+    return f"{value:.{max(0, 1 - int(np.floor(np.log10(se))))}f}"
+
+
 def run(args) -> int:
     """Fit, cross-validate by model family and by make, print, and write the set if asked (exit 0; 2 on
     bad input, one line on stderr). Progress (one line per fold) goes to stdout as the results do."""
@@ -382,8 +392,9 @@ def run(args) -> int:
     cv_make = cross_validate(fleet, 99, cycles=cycles, groups=[m.lower() for m in fleet.make], use=use, model=model,
                              progress=_progress("make"))
     for k, v, s, d, b in zip(f["names"], f["x"], f["se"], f["determined"], f["at_bound"]):
-        print(f"{k:32s} {v:12.6g} " + (f"+- {s:.3g}" if d else f"at its {b} bound (the data press it there)" if b
-                                       else "not determined: no vehicle of the data moves it (left at its start value)"))
+        print(f"{k:32s} " + (f"{_to_its_error(v, s):>12s} +- {s:.3g}" if d else f"{v:12.6g} " + (
+            f"at its {b} bound (the data press it there)" if b else
+            "not determined: no vehicle of the data moves it (left at its start value)")))
     if f["n_residuals"] <= int(f["determined"].sum()):
         print(f"warning: {f['n_residuals']} measured values for {int(f['determined'].sum())} fitted parameters: "
               "the fit passes through the data and its standard errors are unknown", file=sys.stderr)

@@ -183,6 +183,25 @@ def test_a_parameter_no_vehicle_moves_is_said_not_determined_and_the_others_keep
     assert "std_error" not in entry and entry["not_determined"].startswith("no vehicle")
 
 
+@pytest.mark.parametrize("model", ["chain", "quasi_static"])
+def test_a_fleet_without_all_wheel_drive_leaves_the_second_axles_drag_at_zero(tmp_path, model):
+    """No AWD car, no evidence of a second axle's drag, so no drag: it started at 100 W and a set fitted
+    on two-wheel-drive cars charged an AWD design 100 W that no data supported."""
+    fleet = fl.read_fleet(_fleet(tmp_path, lambda r: r[4] in ("F", "R")))
+    assert (fleet.driven_axles == 1).all()
+    got = calibrate.fit(fleet, model=model)
+    i = got["names"].index("second_axle_drag_w")
+    assert got["x"][i] == 0.0 and not got["determined"][i]
+
+
+def test_a_fitted_value_is_printed_to_its_standard_errors_precision():
+    """Six digits of a drag of 36 +- 115 W differed between OpenBLAS kernels (35.7981 / 35.798)."""
+    assert calibrate._to_its_error(35.798008, 114.76) == "36"
+    assert calibrate._to_its_error(0.84282, 0.0132) == "0.843"
+    assert calibrate._to_its_error(150.4896, 9.9) == "150.5"
+    assert calibrate._to_its_error(0.9, float("nan")) == "0.9"
+
+
 def test_a_parameter_pressed_against_its_bound_is_said_at_the_bound_not_undetermined(tmp_path, capsys, monkeypatch):
     """TRF zeroes the Jacobian column of an active bound: a parameter the data pressed against its bound
     was printed and written 'not determined: no vehicle of the data moves it (left at its start value)'."""
