@@ -24,7 +24,7 @@ from scipy.optimize import OptimizeResult, least_squares
 
 from . import fleet as fl
 from .fleet import group_folds  # noqa: F401 - the fold rule, also used by models/baselines.py and scripts
-from .params import PARAMETER_SET_DIR, is_parameter_set_file
+from .params import CHAIN_SPECS, PARAMETER_SET_DIR, QUASI_STATIC_SPECS, all_specs, is_parameter_set_file
 
 # fixed assumptions (not fitted): physical values for a 2022 BEV on a two-wheel dynamometer
 FIXED = {
@@ -61,7 +61,7 @@ FIT = {
     "charger_efficiency": (0.90, 0.70, 1.0),
     "regen_axle_share": (0.8, 0.2, 1.0),
     "two_speed_efficiency_loss": (0.02, 0.0, 0.3),  # cars with gear_count 2 (§3.3.2 assumes 0.02)
-    "second_axle_drag_w": (0.0, 0.0, 2000.0),  # driven_axles 2: the second axle's drag while moving (as QS_FIT)
+    "second_axle_drag_w": (100.0, 0.0, 2000.0),  # driven_axles 2: the second axle's drag while moving (as QS_FIT)
 }
 PARAMETER_SET = "epa2022_chain"
 
@@ -85,16 +85,14 @@ QS_FIXED = {
 QS_FIT = {
     "charger_efficiency": (0.90, 0.70, 1.0),
     "regen_axle_share": (0.8, 0.2, 1.0),
-    # all-wheel drive: the second axle's drag while moving; starts at 0, where a fleet without AWD cars
-    # leaves it (as the field's loss below)
-    "second_axle_drag_w": (0.0, 0.0, 2000.0),
+    "second_axle_drag_w": (100.0, 0.0, 2000.0),  # all-wheel drive: the second axle's drag while moving
     # cars with gear_count 2 shift as the thesis' two-speed box (eq 2-6, Table 3-2: 4.7 above 68.1 km/h)
     # and lose this much gear efficiency (§3.3.2 assumes 0.02; fitted ~0.08, as the chain's: the platform)
     "two_speed_efficiency_loss": (0.02, 0.0, 0.3),
     # wound-rotor machines (EESM, the fleet's motor_front / motor_rear columns) excite their rotor field
-    # while turning: a loss per kW of their rated power. Starts at 0, where a fit without any EESM car
-    # (one make has them) leaves it: no evidence, no loss
-    "excitation_loss_w_per_kw": (0.0, 0.0, 20.0),
+    # while turning: a loss per kW of their rated power. A fit without any EESM car (one make has them)
+    # leaves it at the model's default, 0: no evidence, no loss
+    "excitation_loss_w_per_kw": (1.0, 0.0, 20.0),
 }
 # model -> (energy model of fleet.predict, fixed, fitted, shipped parameter set)
 MODELS = {"chain": ("chain", FIXED, FIT, PARAMETER_SET),
@@ -145,14 +143,17 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
         return residuals(x, names, fleet, mask, cycles, model)
 
     # a parameter no vehicle of the data moves (e.g. the two-speed loss in a fleet of single-speed cars) is
-    # left out of the solve at its start value: TRF would wander along its zero column, how far depending
-    # on the last bits of the others
+    # left out of the solve (TRF would wander along its zero column, how far depending on the last bits of
+    # the others) at the model's own default: the thesis' value, or 0 for a loss no car showed (no
+    # evidence, no loss). The solve starts inside the bounds: started on one, TRF stalls there
     f0 = at(x0, slice(None))
     step = 1e-3 * (hi - lo)
     free = np.array([np.abs(at(x0[j] + step[j] if x0[j] + step[j] <= hi[j] else x0[j] - step[j], [j]) - f0).max()
                      > 1e-12 for j in range(len(names))])
     if not free.any():
         raise ValueError(f"{fleet.path}: none of {', '.join(names)} moves the energy of the vehicles to fit")
+    specs = {**all_specs(), **(CHAIN_SPECS if model == "chain" else QUASI_STATIC_SPECS)}
+    x0 = np.where(free, x0, [specs[k].default for k in names])
 
     def solve(start):
         r = least_squares(at, start[free], bounds=(lo[free], hi[free]), args=(free,), x_scale=scale[free],
@@ -170,7 +171,7 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
         # least cost): solved again from a twentieth of the range inside, the better of the two is kept
         again = solve(np.where(pinned, np.clip(res.x, lo + (hi - lo) / 20, hi - (hi - lo) / 20), res.x))
         res = again if again.cost < res.cost * (1 - 1e-9) else res
-    # a parameter no vehicle moves is not determined: it stays at its start value, with no standard
+    # a parameter no vehicle moves is not determined: it stays at the model's default, with no standard
     # error, and the others' errors come from the determined columns alone (the full J^T J is singular;
     # its column is zero, as may be a column too small to count). One the fit presses against a
     # bound is at that bound, held there like a fixed value, without a standard error (whether the data
@@ -309,7 +310,7 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
                       "fleet_wheel_radius_m": fl.FLEET_WHEEL_RADIUS_M, "fleet_gear_ratio": fl.FLEET_GEAR_RATIO},
         "fit": {k: ({"value": float(v), "std_error": float(s), "cv_fold_std": float(sp)} if d else
                     {"value": float(v), "at_bound": b} if b else
-                    {"value": float(v), "not_determined": "no vehicle of the data moves it: its start value"})
+                    {"value": float(v), "not_determined": "no vehicle of the data moves it: the model's default"})
                 for k, v, s, sp, d, b in zip(f["names"], f["x"], f["se"], spread,
                                              f.get("determined", np.ones(len(f["x"]), bool)),
                                              f.get("at_bound", [None] * len(f["x"])))},
@@ -394,7 +395,7 @@ def run(args) -> int:
     for k, v, s, d, b in zip(f["names"], f["x"], f["se"], f["determined"], f["at_bound"]):
         print(f"{k:32s} " + (f"{_to_its_error(v, s):>12s} +- {s:.3g}" if d else f"{v:12.6g} " + (
             f"at its {b} bound (the data press it there)" if b else
-            "not determined: no vehicle of the data moves it (left at its start value)")))
+            "not determined: no vehicle of the data moves it (left at the model's default)")))
     if f["n_residuals"] <= int(f["determined"].sum()):
         print(f"warning: {f['n_residuals']} measured values for {int(f['determined'].sum())} fitted parameters: "
               "the fit passes through the data and its standard errors are unknown", file=sys.stderr)
