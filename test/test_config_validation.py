@@ -201,3 +201,17 @@ def test_a_count_or_a_switch_that_is_not_a_whole_number_is_refused_on_load(tmp_p
     p = _write(tmp_path, BASE.replace("  drag_area_m2: 0.6412", f"  drag_area_m2: 0.6412\n  {line}"))
     with pytest.raises(ValueError, match=rf"^{p}: .*{said}"):
         load_config(p)
+
+
+@pytest.mark.parametrize("topology", ["DM-DA", "IWM-SA", "IWM-DA"])
+@pytest.mark.parametrize("key, what", [("driven_axles", "the single-motor drive on two axles"),
+                                       ("gear_count", "a two-speed gearbox")])
+def test_an_sm_sa_only_setting_on_another_topology_is_refused_on_load(topology, key, what):
+    """driven_axles: 2 loaded with every topology and only SM-SA read it (DM-DA has two axles by design,
+    the in-wheel topologies their own motors); gear_count: 2 loaded and failed at every point."""
+    import yaml
+
+    raw = yaml.safe_load((REPO / "config" / "topologies_artemis.yaml").read_text())
+    raw["vehicle"].update({"topology": topology, key: 2})
+    with pytest.raises(ValueError, match=rf"vehicle.{key}: 2 \({what}\) is SM-SA only, not {topology}"):
+        load_config(raw)

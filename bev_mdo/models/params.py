@@ -317,6 +317,10 @@ def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
         extra = {k: v for k, v in load_parameter_set(chain).items() if k not in section}
     out = {k: check_value(k, section.get(k, extra.get(k, s.default)), s.lower, s.upper, s.unit, s.integer)
            for k, s in specs.items()}
+    topology = vehicle_choice(section, "topology")
+    for k, what in (("gear_count", "a two-speed gearbox"), ("driven_axles", "the single-motor drive on two axles")):
+        if out[k] == 2.0 and topology != "SM-SA":  # DM-DA has two axles by design, the in-wheel ones their motors
+            raise ValueError(f"vehicle.{k}: 2 ({what}) is SM-SA only, not {topology}")
     if road is not None:
         both = sorted(k for k in ROAD_LOAD_REPLACES if k in section)
         if both and not flat_road:  # the resolved form carries every parameter, defaults included
