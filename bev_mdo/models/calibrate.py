@@ -137,19 +137,24 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
     lo, hi = np.array([bounds[k][1] for k in names]), np.array([bounds[k][2] for k in names])
     scale = np.where(x0 != 0, np.abs(x0), (hi - lo) / 20)  # a parameter starting at 0: a twentieth of its range
 
-    def at(z, free):  # residuals with the parameters ``free`` at z and the others at their start
+    step = 1e-3 * (hi - lo)
+
+    def at(z, free):  # residuals with the parameters ``free`` at z and the others at x0
         x = x0.copy()
         x[free] = z
         return residuals(x, names, fleet, mask, cycles, model)
+
+    def moves(x, fx, j):  # the data move parameter j: the residuals change a thousandth of its range inside x
+        probe = x.copy()
+        probe[j] += step[j] if x[j] + step[j] <= hi[j] else -step[j]
+        return np.abs(residuals(probe, names, fleet, mask, cycles, model) - fx).max() > 1e-12
 
     # a parameter no vehicle of the data moves (e.g. the two-speed loss in a fleet of single-speed cars) is
     # left out of the solve (TRF would wander along its zero column, how far depending on the last bits of
     # the others) at the model's own default: the thesis' value, or 0 for a loss no car showed (no
     # evidence, no loss). The solve starts inside the bounds: started on one, TRF stalls there
-    f0 = at(x0, slice(None))
-    step = 1e-3 * (hi - lo)
-    free = np.array([np.abs(at(x0[j] + step[j] if x0[j] + step[j] <= hi[j] else x0[j] - step[j], [j]) - f0).max()
-                     > 1e-12 for j in range(len(names))])
+    f0 = residuals(x0, names, fleet, mask, cycles, model)
+    free = np.array([moves(x0, f0, j) for j in range(len(names))])
     if not free.any():
         raise ValueError(f"{fleet.path}: none of {', '.join(names)} moves the energy of the vehicles to fit")
     specs = {**all_specs(), **(CHAIN_SPECS if model == "chain" else QUASI_STATIC_SPECS)}
@@ -181,10 +186,8 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
     at_bound = [None] * len(names)
     sides = bound_side(res.x)
     for j in np.flatnonzero(sides):
-        probe = res.x.copy()
-        probe[j] -= sides[j] * 1e-3 * (hi[j] - lo[j])
         determined[j] = False
-        if np.abs(residuals(probe, names, fleet, mask, cycles, model) - res.fun).max() > 1e-12:  # the data move it
+        if moves(res.x, res.fun, j):  # one step inside the bound
             at_bound[j] = "lower" if sides[j] < 0 else "upper"
             res.x[j] = lo[j] if sides[j] < 0 else hi[j]
     n, p = res.fun.size, int(determined.sum())
