@@ -70,6 +70,9 @@ VEHICLE_CHOICES: dict[str, tuple[str, ...]] = {"mass_model": ("ch7", "compoundin
 CYCLE_SPECS: dict[str, ParamSpec] = {
     "dt_s": ParamSpec(1.0, 0.01, 10.0, "s", "resampling step"),
 }
+# the single motor's options, SM-SA only (DM-DA has two axles by design, the in-wheel topologies their
+# motors); refused with 2 on the other topologies at config load and at model entry (topology.py)
+SM_SA_ONLY = {"gear_count": "a two-speed gearbox", "driven_axles": "the single-motor drive on two axles"}
 
 
 # coast-down road load (road_load.py): section key -> (flat parameter name, spec)
@@ -318,8 +321,8 @@ def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
     out = {k: check_value(k, section.get(k, extra.get(k, s.default)), s.lower, s.upper, s.unit, s.integer)
            for k, s in specs.items()}
     topology = vehicle_choice(section, "topology")
-    for k, what in (("gear_count", "a two-speed gearbox"), ("driven_axles", "the single-motor drive on two axles")):
-        if out[k] == 2.0 and topology != "SM-SA":  # DM-DA has two axles by design, the in-wheel ones their motors
+    for k, what in SM_SA_ONLY.items():
+        if out[k] == 2.0 and topology != "SM-SA":
             raise ValueError(f"vehicle.{k}: 2 ({what}) is SM-SA only, not {topology}")
     if road is not None:
         both = sorted(k for k in ROAD_LOAD_REPLACES if k in section)

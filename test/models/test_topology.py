@@ -162,6 +162,17 @@ def test_dm_da_on_two_equal_machines_is_the_quasi_static_all_wheel_drive(nedc):
     assert (dm.energy_wh_per_km > bare.energy_wh_per_km * 1.01).all()
 
 
+@pytest.mark.parametrize("topo, rear", [("DM-DA", ([40.0], [7.9])), ("IWM-SA", ()), ("IWM-DA", ([20.0],))])
+@pytest.mark.parametrize("key", ["driven_axles", "gear_count"])
+def test_an_sm_sa_only_option_is_refused_at_model_entry(nedc, topo, rear, key):
+    """driven_axles: 2 reached DM-DA and the in-wheel topologies through a direct call and was ignored
+    (the energy equal to the last bit with 1 and 2); config load already refused it."""
+    with pytest.raises(ValueError, match=rf"^{key} = 2 \(.*\) is SM-SA only, not {topo}$"):
+        tp.simulate(nedc, {**P, key: 2.0}, topo, [1641.6], [40.0], 24.0, [7.9], *rear)
+    with pytest.raises(ValueError, match=f"^{key} = 2 .* not {topo}$"):
+        tp.vehicle_mass_kg(topo, 40.0, 24.0, {**P, key: 2.0}, "ch7", *(rear[0] if rear else ()))
+
+
 def test_acceleration_in_wheel_by_hand():
     # IWM-SA 2 x 40 kW, 1590 kg: direct drive, 18.33 Nm/kW up to 54.6 rad/s, then 80 kW
     m, r = 1590.0, P["wheel_radius_m"]
