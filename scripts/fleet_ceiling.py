@@ -132,8 +132,8 @@ def main(argv=None) -> int:
     feats = work_features(fleet, cycles)
 
     print("model (mean absolute % error over UDDS + HWFET)            family CV   LOMO CV   note")
-    cv_f = cal.cross_validate(fleet)["stats"]["mean_abs_pct"]
-    cv_m = cal.cross_validate(fleet, 99, groups=lower)["stats"]["mean_abs_pct"]
+    cv_f = cal.cross_validate(fleet, model="chain")["stats"]["mean_abs_pct"]
+    cv_m = cal.cross_validate(fleet, 99, groups=lower, model="chain")["stats"]["mean_abs_pct"]
     print(f"{f'shipped chain ({len(cal.FIT)} fitted parameters)':58s} {cv_f:8.2f} {cv_m:9.2f}")
 
     y_k, f_k = y[rows], {k: v[rows] for k, v in feats.items()}
@@ -149,7 +149,7 @@ def main(argv=None) -> int:
     print(f"{'best of %d linear subsets (picked on family CV: optimistic)' % len(subsets):58s} "
           f"{best[0]:8.2f} {best[1]:9.2f}   {'+'.join(best[2][3:])}")
 
-    base = {**cal.FIXED, **dict(zip(*(lambda f: (f["names"], f["x"]))(cal.fit(fleet))))}
+    base = {**cal.FIXED, **dict(zip(*(lambda f: (f["names"], f["x"]))(cal.fit(fleet, model="chain"))))}
     pred = fl.predict(fleet, "chain", base, cycles)
     p0 = both([pred[c]["energy_wh_per_km"] for c in fl.CYCLES])[rows]
     m, kw = fleet.test_mass_kg, fleet.rated_power_kw

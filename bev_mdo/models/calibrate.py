@@ -105,8 +105,7 @@ def _spec(model: str):
     return MODELS[model]
 
 
-def residuals(x: np.ndarray, names, fleet: fl.Fleet, mask: np.ndarray, cycles: dict,
-              model: str = "chain") -> np.ndarray:
+def residuals(x: np.ndarray, names, fleet: fl.Fleet, mask: np.ndarray, cycles: dict, model: str) -> np.ndarray:
     energy_model, fixed, _, _ = _spec(model)
     pred = fl.predict(fleet, energy_model, {**fixed, **dict(zip(names, x))}, cycles)
     return np.concatenate([pred[c]["energy_wh_per_km"][mask] / fleet.measured[c][mask] - 1.0 for c in fl.CYCLES])
@@ -122,7 +121,7 @@ def usable(fleet: fl.Fleet, cycles: dict | None = None) -> np.ndarray:
 
 
 def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dict | None = None,
-        use: np.ndarray | None = None, model: str = "chain") -> dict:
+        use: np.ndarray | None = None, *, model: str) -> dict:
     """Least squares over the vehicles in ``mask`` (default: every usable vehicle, :func:`usable`;
     ``use``: that mask when the caller has it already). ValueError if none is left."""
     _, _, bounds, _ = _spec(model)
@@ -204,7 +203,7 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
 
 
 def cross_validate(fleet: fl.Fleet, k: int = 5, names=None, cycles: dict | None = None,
-                   groups: list[str] | None = None, use: np.ndarray | None = None, model: str = "chain",
+                   groups: list[str] | None = None, use: np.ndarray | None = None, *, model: str,
                    progress=None) -> dict | None:
     """k-fold cross-validation by group (model family by default): each fold's vehicles are
     predicted by a fit on the other folds. Families of the usable vehicles are dealt to folds in
@@ -273,8 +272,8 @@ def _scores(cv: dict, fleet: fl.Fleet, use: np.ndarray) -> dict:
                       for c, s in pairs.items()}}
 
 
-def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet, path=None,
-                        model: str = "chain") -> str:
+def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet, path=None, *,
+                        model: str) -> str:
     """Write the parameter set: the shipped one (``path`` None) or a file whose stem is its name, with
     the fleet file it was fitted on (and its SHA-256), the date, the cross-validation figures and the
     command that regenerates it."""
@@ -415,7 +414,7 @@ def run(args) -> int:
                 f"{s['mean_abs_diff_points']:.2f} points" for k, s in pairs.items() if s["n"]))
     if args.write:
         try:
-            print("wrote", write_parameter_set(f, cv, cv_make, fleet, path, model))
+            print("wrote", write_parameter_set(f, cv, cv_make, fleet, path, model=model))
         except OSError as exc:
             print(f"bev-mdo calibrate: error: cannot write {exc.filename or args.write}: {exc.strerror}", file=sys.stderr)
             return 2

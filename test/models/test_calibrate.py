@@ -58,7 +58,7 @@ def test_the_shipped_set_keeps_its_name_and_file(tmp_path, monkeypatch):
     fleet = fl.read_fleet()
     cv = {"k": 5, "fold_params": np.full((5, p), 0.05), "stats": stats, "fold_mape_pct": np.full(5, 7.0),
           "errors_pct": {c: np.zeros(len(fleet)) for c in fl.CYCLES}}
-    path = calibrate.write_parameter_set(f, cv, None, fleet, None)
+    path = calibrate.write_parameter_set(f, cv, None, fleet, None, model="chain")
     doc = yaml.safe_load(Path(path).read_text())
     assert Path(path).name == "epa2022_chain.yaml" and doc["name"] == "epa2022_chain"
     assert doc["fitted_on"]["file"] == "bev_mdo/data/epa_2022_bev/train.csv"
@@ -81,12 +81,12 @@ def test_too_little_data_is_said_not_turned_into_numbers(tmp_path, capsys):
     assert calibrate.main(["--model", "chain", "--data", str(one_family), "--write", str(out)]) == 0
     said = capsys.readouterr().out
     assert "no CV by family" in said and "no leave-one-make-out CV" in said and "MAPE 7.30" not in said
-    assert calibrate.cross_validate(fl.read_fleet(one_family)) is None
+    assert calibrate.cross_validate(fl.read_fleet(one_family), model="chain") is None
     quality = yaml.safe_load(out.read_text())["quality"]
     assert quality["cv_by_family"].startswith("not possible") and not any(k.startswith("cv_1fold") for k in quality)
 
     single = fl.read_fleet(_fleet(tmp_path, lambda r: r[2] == "FK96502" and r[3] == "0", "one.csv"))
-    got = calibrate.fit(single)
+    got = calibrate.fit(single, model="chain")
     assert len(single) == 1 and got["n_residuals"] == 2 and np.isnan(got["se"]).all()
 
     with fl.DEFAULT_FLEET.open(newline="") as f:
@@ -115,8 +115,8 @@ def test_a_vehicle_that_cannot_follow_is_left_out_of_the_fit(tmp_path, capsys):
         csv.writer(f).writerows([rows[0], slow, *keep])
     fleet = fl.read_fleet(p)
     assert calibrate.usable(fleet).tolist() == [False] + [True] * len(keep)
-    ref = calibrate.fit(fl.read_fleet(_fleet(tmp_path, lambda r: r[0] in ("BMW", "Ford"), "ref.csv")))
-    got = calibrate.fit(fleet)
+    ref = calibrate.fit(fl.read_fleet(_fleet(tmp_path, lambda r: r[0] in ("BMW", "Ford"), "ref.csv")), model="chain")
+    got = calibrate.fit(fleet, model="chain")
     # the same fit to its stopping tolerance: the second axle's drag (s.e. above its value) moves by 5e-7
     # between the two batch sizes' last bits; the slow car pulled the charger efficiency by 19 %
     np.testing.assert_allclose(got["x"], ref["x"], rtol=1e-5)

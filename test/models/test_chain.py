@@ -153,7 +153,7 @@ def test_calibration_reproduces_the_shipped_fit():
     from bev_mdo.models import calibrate
 
     f = fl.read_fleet()
-    got = calibrate.fit(f)
+    got = calibrate.fit(f, model="chain")
     ps = load_parameter_set(calibrate.PARAMETER_SET)
     for k, x in zip(got["names"], got["x"]):
         assert x == pytest.approx(ps[k], rel=1e-3, abs=1e-5), k

@@ -72,7 +72,7 @@ def family_cv_pairs():
     f = fl.read_fleet()
     cycles = fl.resampled_cycles()
     use = cal.usable(f, cycles)
-    cv = cal.cross_validate(f, 5, cycles=cycles, use=use)
+    cv = cal.cross_validate(f, 5, cycles=cycles, use=use, model="chain")
     return cv, cal.cv_pairs(f, cv, use)
 
 
