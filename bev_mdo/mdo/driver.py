@@ -218,13 +218,14 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         viol = max(float(np.max(g[0], initial=0.0)), float(np.max(np.abs(h[0]), initial=0.0)),
                    form.bound_violation(x))  # a point outside the bounds is not feasible
         cons = _physical_constraints(problem, g[0])
-        if not ok:  # the optimiser saw its penalty; the record says the point has no values (not 1e10, 720 K)
+        if not ok:  # the optimiser saw its penalty; the record says the point has no values (not 1e10, 720 K),
+            # and no violation (NaN, as a sweep's failed design)
             cons = dict.fromkeys(cons, float("nan"))
         rec = {
             "iteration": len(history), "formulation": form.name, "optimizer": opt_name,
             "design": problem.design_dict(x[:n_dv]), "objective_name": problem.objective,
             "objective": sign * float(f[0]) if ok else float("nan"), "constraints": cons,
-            "max_violation": viol, "feasible": bool(ok and viol <= tol),
+            "max_violation": viol if ok else float("nan"), "feasible": bool(ok and viol <= tol),
             "mda_evaluations": form.mda_evaluations, "discipline_evaluations": dict(evaluator.counts),
             "wall_time_s": time.perf_counter() - t0,
         }
