@@ -150,6 +150,18 @@ def test_bounds_outside_what_the_models_accept_are_refused_on_load(tmp_path, bou
         load_config(p)
 
 
+def test_a_baseline_the_models_cannot_evaluate_is_refused_on_load(tmp_path):
+    """A baseline with gear_ratio 70 loaded; the run then printed a baseline column of NaN and three
+    discipline errors beside the optimum. A baseline outside the design variables' bounds stays allowed."""
+    base = BASE.replace("design: {motor_kw: 80, gear_ratio: 7.94, battery_kwh: 24}",
+                        "design: {motor_kw: 80, gear_ratio: GR, battery_kwh: 24}")
+    assert "gear_ratio: GR" in base
+    with pytest.raises(ValueError, match=r"problem.baseline.design.gear_ratio: 70 is outside \[0.5, 50\], where "
+                                         "discipline 'energy' accepts it$"):
+        load_config(_write(tmp_path, base.replace("GR", "70")))
+    assert load_config(_write(tmp_path, base.replace("GR", "12")))["problem"]["baseline"]["design"]["gear_ratio"] == 12
+
+
 def test_an_output_named_as_another_disciplines_parameter_is_refused(tmp_path):
     """A user's discipline producing `load_kg` was evaluated, and vehicle_mass kept its configured 69 kg:
     a parameter comes from the config or the design, so the coupling was silently not there."""

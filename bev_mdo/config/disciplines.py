@@ -58,11 +58,14 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
         builtin = [d.name for d in discs if dv in d.inputs and type(d).__module__.startswith("bev_mdo.disciplines")]
         if dv in DESIGN_LIMITS and builtin:  # the models refuse a point outside it: the optimiser's probes would fail
             lo, hi, unit = DESIGN_LIMITS[dv]
+            where = f"[{lo:g}, {hi:g}]{' ' + unit if unit != '-' else ''}, where discipline {builtin[0]!r} accepts it"
             spec = next(d for d in problem.design_variables if d.name == dv)
             if spec.lower < lo or spec.upper > hi:
-                raise ValueError(f"problem.design_variables.{dv}: bounds [{spec.lower:g}, {spec.upper:g}] reach outside "
-                                 f"[{lo:g}, {hi:g}]{' ' + unit if unit != '-' else ''}, where discipline {builtin[0]!r} "
-                                 "accepts it")
+                raise ValueError(f"problem.design_variables.{dv}: bounds [{spec.lower:g}, {spec.upper:g}] reach "
+                                 f"outside {where}")
+            value = ((cfg["problem"].get("baseline") or {}).get("design") or {}).get(dv, lo)
+            if not lo <= value <= hi:  # it would be shown as a column of NaN beside the result
+                raise ValueError(f"problem.baseline.design.{dv}: {value:g} is outside {where}")
     for k in problem.parameters:
         if k in produced:  # the flow takes a produced variable from its producer: the value would be ignored
             raise ValueError(f"problem.parameters.{k}: it is produced by discipline {graph.producer[k]!r}, "
