@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import copy
 import functools
+import math
+import numbers
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any, Mapping
@@ -38,6 +40,19 @@ def _mapping(value, what: str) -> dict:
     if not isinstance(value, Mapping):
         raise InputError(f"{what} must be a mapping of names to values, got {type(value).__name__}")
     return dict(value)
+
+
+def _number(value, what: str) -> float:
+    """A finite number (not a bool, a string or a list); InputError naming ``what`` otherwise."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise InputError(f"{what} must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _name(value, what: str) -> str:
+    if not isinstance(value, str):
+        raise InputError(f"{what} must be a name, got {value!r}")
+    return value
 
 
 def _names(value, what: str) -> list[str] | None:
@@ -90,30 +105,39 @@ class Study:
 
     def bound(self, name: str, lower: float | None = None, upper: float | None = None) -> "Study":
         """New bounds of a design variable (a side left None keeps its value)."""
+        new = {k: _number(v, f"bound {_name(name, 'bound: the design variable')!r}: {k}")
+               for k, v in (("lower", lower), ("upper", upper)) if v is not None}
+
         def edit(ov):
             lo, hi = ov.bounds.get(name, (None, None))
-            ov.bounds[name] = (lo if lower is None else float(lower), hi if upper is None else float(upper))
+            ov.bounds[name] = (new.get("lower", lo), new.get("upper", hi))
         return self._change(edit)
 
     def initial(self, name: str, value: float) -> "Study":
         """The initial value of a design variable."""
-        return self._change(lambda ov: ov.initial.__setitem__(name, float(value)))
+        x = _number(value, f"initial {_name(name, 'initial: the design variable')!r}")
+        return self._change(lambda ov: ov.initial.__setitem__(name, x))
 
     def constrain(self, name: str, lower: float | None = None, upper: float | None = None) -> "Study":
         """Add or change a constraint on an output: ``lower <= name <= upper``."""
         if lower is None and upper is None:
             raise InputError(f"constrain {name!r}: give lower or upper")
-        limits = {k: float(v) for k, v in (("lower", lower), ("upper", upper)) if v is not None}
+        limits = {k: _number(v, f"constrain {_name(name, 'constrain: the output')!r}: {k}")
+                  for k, v in (("lower", lower), ("upper", upper)) if v is not None}
         return self._change(lambda ov: ov.constraints.setdefault(name, {}).update(limits))
 
     def objective(self, name: str | None = None, maximize: bool | None = None) -> "Study":
         """The output to optimise and whether it is maximised (None keeps the config's)."""
+        if name is not None:
+            _name(name, "objective: the output")
+        if maximize is not None and maximize not in (True, False):  # a numpy bool too; 'no' is not False
+            raise InputError(f"objective: maximize must be True or False, got {maximize!r}")
+
         def edit(ov):
             ov.objective = name if name is not None else ov.objective
-            ov.maximize = maximize if maximize is not None else ov.maximize
+            ov.maximize = bool(maximize) if maximize is not None else ov.maximize
         return self._change(edit)
 
-    @_input_errors
     @_input_errors
     def evaluate(self, design: Mapping[str, float] | None = None, transport=DEFAULT_TRANSPORT) -> EvaluateResult:
         """One design through every discipline; variables not given take their initial value."""

@@ -128,6 +128,16 @@ def test_a_bad_config_raises_input_error():
     (lambda s: s.sweep(designs={}, transport="inprocess"), "no design to evaluate"),
     (lambda s: s.global_sensitivity("morris", samples=4, wrt=["motor_kw", 3], transport="inprocess"),
      "wrt must be a list of names"),
+    # the problem's changes: a ValueError or TypeError of float(), and maximize read by truthiness ('no' maximised)
+    (lambda s: s.bound("motor_kw", upper="abc"), r"^bound 'motor_kw': upper must be a finite number, got 'abc'$"),
+    (lambda s: s.bound("motor_kw", upper=[1, 2]), "upper must be a finite number, got \\[1, 2\\]"),
+    (lambda s: s.bound("motor_kw", lower=True), "lower must be a finite number, got True"),  # taken as 1
+    (lambda s: s.bound("motor_kw", lower=float("nan")), "lower must be a finite number, got nan"),
+    (lambda s: s.initial("motor_kw", None), r"^initial 'motor_kw' must be a finite number, got None$"),
+    (lambda s: s.constrain("range_km", lower="abc"), "constrain 'range_km': lower must be a finite number"),
+    (lambda s: s.objective(3), "objective: the output must be a name, got 3"),
+    (lambda s: s.objective("range_km", maximize="no"), "maximize must be True or False, got 'no'"),
+    (lambda s: s.objective("range_km", maximize=2), "maximize must be True or False, got 2"),
 ])
 def test_arguments_of_the_wrong_kind_raise_input_error(run, said):
     from bev_mdo import InputError, Study
