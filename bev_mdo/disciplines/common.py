@@ -84,12 +84,8 @@ class Base(Discipline):
         self.parameters = dict(parameters)
 
     def _params(self, inputs: Mapping[str, np.ndarray]) -> dict:
-        out = {k: (np.asarray(inputs[k], float) if k in inputs else v) for k, v in self.parameters.items()}
-        if any(k in inputs for k in road_load.FLAT_KEYS if k in self.parameters):
-            # per-point road load: the models take it as given (no spec table of theirs has it), so the
-            # config's checks are applied here
-            road_load.check_values(out)
-        return out
+        # a per-point road load is checked by the models (road_load.checked), as every other parameter
+        return {k: (np.asarray(inputs[k], float) if k in inputs else v) for k, v in self.parameters.items()}
 
 
 def flag(discipline: str, key: str, value: Any) -> bool:

@@ -42,9 +42,7 @@ def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V
     m = check_design("vehicle_mass_kg", vehicle_mass_kg)
     if not pk.shape == ig.shape == m.shape:
         pk, ig, m = np.broadcast_arrays(pk, ig, m)
-    p = get_params(params, ACCEL_PARAMS)
-    if rl.uses_road_load(params):
-        p.update({k: params.get(k, 0.0) for k in rl.FLAT_KEYS})
+    p = {**get_params(params, ACCEL_PARAMS), **rl.checked(params)}
     v_base = (1000.0 / p["motor_torque_per_kw"]) * p["wheel_radius_m"] / ig
     v_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0 * p["wheel_radius_m"] / ig
     v1 = np.minimum(v_base, v_end_m_s)

@@ -77,7 +77,7 @@ def energy_breakdown(resampled, params, vehicle_mass_kg, gear_ratio=None, motor_
     x, T = mo["distance_m"], mo["duration_s"]
     # per-metre energies (J/m = N)
     if rl.uses_road_load(params):  # coast-down A + B v + C v^2 (road_load.py): C v^2 is reported as
-        a0, a1, b, c = rl.coefficients(params)  # "aerodynamic", A + B v as "rolling_resistance"
+        a0, a1, b, c = rl.coefficients(rl.checked(params))  # "aerodynamic", A + B v as "rolling_resistance"
         aero = c * mo["v3_dt_m3_s2"] / x + 0.0 * m
         roll = a0 + a1 * m + b * mo["v2_dt_m2_s"] / x
     else:

@@ -86,10 +86,8 @@ def _col(x):
 
 
 def resolve(params, n: int) -> dict:
-    p = {k: np.real(v).astype(float) for k, v in resolve_params(params, PARAM_SPECS, n).items()}
-    if rl.uses_road_load(params):
-        p.update({k: np.asarray(params.get(k, 0.0), float) for k in rl.FLAT_KEYS})
-    return p
+    return {**{k: np.real(v).astype(float) for k, v in resolve_params(params, PARAM_SPECS, n).items()},
+            **rl.checked(params)}
 
 
 def simulate(resampled: Resampled, params, vehicle_mass_kg, gear_ratio, motor_kw) -> ChainResult:

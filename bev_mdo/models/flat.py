@@ -48,12 +48,7 @@ _ROAD = ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2", "rolling_resistanc
 def _params(params: dict | None) -> dict:
     """Defaults filled in and every value range-checked (scalars stay scalars)."""
     params = params or {}
-    out = get_params(params, FLAT_PARAMS)
-    if rl.uses_road_load(params):
-        for k in rl.FLAT_KEYS:
-            v = params.get(k, 0.0)
-            out[k] = float(v) if np.ndim(v) == 0 else np.asarray(v, float)
-    return out
+    return {**get_params(params, FLAT_PARAMS), **rl.checked(params)}
 
 
 def _road_key(p) -> tuple:

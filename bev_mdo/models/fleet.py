@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .cycles import read_csv_rows
+from .params import ROAD_LOAD_CHECK_SPEED_M_S, road_load_minimum
 
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "epa_2022_bev"
 DEFAULT_FLEET = DATA_DIR / "train.csv"
@@ -226,10 +227,10 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
         if drive and axles != "unknown" and (axles == "2") != (drive in ("A", "4", "P")):
             raise ValueError(f"{path}: row {r}, column driven_axles: {axles} contradicts drive {drive!r}")
         a, b, c = (data[k][-1] for k in ("road_load_a_n", "road_load_b_n_per_m_s", "road_load_c_n_per_m2_s2"))
-        v = np.linspace(0.0, 45.0, 451)  # up to 162 km/h: beyond both cycles
-        if np.min(a + b * v + c * v * v) <= 0:
+        (low,), (at,) = road_load_minimum(a, b, c)  # as vehicle.road_load and every model check it
+        if low <= 0:
             raise ValueError(f"{path}: row {r}, column road_load_b_n_per_m_s: the road load A + B v + C v^2 "
-                             f"turns non-positive below 45 m/s")
+                             f"is {low:.4g} N at {at:.3g} m/s (it must stay > 0 up to {ROAD_LOAD_CHECK_SPEED_M_S:g} m/s)")
         _check_once(path, r, row, text, seen)
         row_no.append(r)
     if not row_no:

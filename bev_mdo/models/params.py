@@ -90,11 +90,15 @@ ROAD_LOAD_REPLACES = ("drag_area_m2", "rolling_resistance")  # the thesis terms 
 def road_load_minimum(a, b, c) -> tuple[np.ndarray, np.ndarray]:
     """Smallest A + B v + C v^2 over 0..ROAD_LOAD_CHECK_SPEED_M_S (N) and the speed where it is (m/s),
     per point (scalars or (N,) arrays): a coast-down must stay > 0 there (EPA's B can be negative)."""
-    a, b, c = (np.atleast_1d(np.asarray(x, float)) for x in (a, b, c))
-    v = np.linspace(0.0, ROAD_LOAD_CHECK_SPEED_M_S, 701)[:, None]
+    a, b, c = np.broadcast_arrays(*(np.atleast_1d(np.asarray(x, float)) for x in (a, b, c)))
+    # C >= 0: the smallest value is at 0, at the top speed, or at the vertex -B / 2C between them
+    vertex = np.divide(-b, 2.0 * c, out=np.zeros_like(b), where=c > 0)
+    v = np.stack([np.zeros_like(a), np.full_like(a, ROAD_LOAD_CHECK_SPEED_M_S),
+                  np.clip(vertex, 0.0, ROAD_LOAD_CHECK_SPEED_M_S)])
     f = a + b * v + c * v * v
     k = np.argmin(f, axis=0)
-    return f[k, np.arange(f.shape[1])], v[k, 0]
+    cols = np.arange(a.shape[0])
+    return f[k, cols], v[k, cols]
 
 # chapter-5 analytic breakdown (breakdown.py)
 BREAKDOWN_SPECS: dict[str, ParamSpec] = {

@@ -115,8 +115,7 @@ def inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh=DEFAULT_BA
     m, ig, kw, kwh = (np.broadcast_to(a, (n,)) for a in (m, ig, kw, kwh))
     p = {k: np.real(v).astype(float) for k, v in resolve_params(params, PARAM_SPECS, n).items()}
     p["battery_kwh"] = kwh
-    if rl.uses_road_load(params):
-        p.update({k: np.asarray(params.get(k, 0.0), float) for k in rl.FLAT_KEYS})
+    p.update(rl.checked(params))
     return m, ig, kw, p
 
 

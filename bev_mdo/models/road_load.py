@@ -61,6 +61,18 @@ def check_values(params: Mapping[str, Any]) -> None:
                              f"it is {low[i]:.4g} N (A {a[i % a.size]:g}, B {b[i % b.size]:g}, C {c[i % c.size]:g})")
 
 
+def checked(params: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The coast-down values in ``params`` as a model takes them (scalars or (N,) arrays; the keys left
+    out are 0), checked as ``vehicle.road_load`` is (:func:`check_values`); {} without a coast-down.
+    Every model reads them through here: a NaN A crashed the compiled loops, a negative one gave a
+    negative energy."""
+    if not uses_road_load(params):
+        return {}
+    out = {k: _scalar(np.asarray(params.get(k, 0.0), float)) for k in FLAT_KEYS}
+    check_values(out)
+    return out
+
+
 def coefficients(params: Mapping[str, Any]) -> tuple[Any, Any, Any, Any]:
     """(A0, A1, B, C) of the road load F = (A0 + A1 M) sgn(v) + B v + C v|v| (N; M in kg, v in m/s).
 

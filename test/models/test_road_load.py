@@ -119,3 +119,42 @@ def test_topology_acceleration_with_road_load():
     np.testing.assert_allclose(b, a, rtol=1e-12)
     more = {**p, "road_load_c_n_per_m2_s2": 0.8}
     assert np.all(topology.accel_time_s("DM-DA", M, KW, IG, KW, IG, more) > b)
+
+
+NEDC = resample(load_cycle("nedc"), 1.0)
+MODEL_CALLS = {
+    "quasi_static": lambda p: qs.simulate(NEDC, p, 1500.0, 8.0, 80.0),
+    "quasi_static reference": lambda p: qs.simulate(NEDC, p, 1500.0, 8.0, 80.0, reference=True),
+    "IWM-DA": lambda p: topology.simulate(NEDC, p, "IWM-DA", 1500.0, 40.0, 24.0, motor_rear_kw=40.0),
+    "flat": lambda p: flat.energy_wh_per_km(NEDC, p, 1500.0, 8.0),
+    "chain": lambda p: chain.energy_wh_per_km(NEDC, p, 1500.0, 8.0, 80.0),
+    "acceleration": lambda p: acceleration.accel_time_0_100_s(80.0, 8.0, 1500.0, p),
+    "breakdown": lambda p: breakdown.energy_breakdown(NEDC, p, 1500.0),
+}
+
+
+@pytest.mark.parametrize("model", MODEL_CALLS)
+@pytest.mark.parametrize("bad, said", [
+    ({"road_load_a_n": np.nan}, r"road_load_a_n must be in \[0, 5000\] N, got nan"),  # the compiled loops crashed
+    ({"road_load_c_n_per_m2_s2": np.inf}, "road_load_c_n_per_m2_s2 must be in .* got inf"),  # 2170 Wh/km
+    ({"road_load_a_n": -500.0}, "road_load_a_n must be in .* got -500"),  # -1.6 Wh/km, chain -82
+    ({"road_load_a_n": [150.0, 20.0], "road_load_b_n_per_m_s": -10.0}, "must stay > 0 up to 70 m/s; it is -42.5 N"),
+    ({"road_load_mass_kg": -5.0}, "road_load_mass_kg must be in"),  # taken as "A fixed"
+])
+def test_a_road_load_is_checked_by_every_model_called_directly(model, bad, said):
+    """Only the config path checked the coast-down: called directly, a NaN A crashed the process
+    (segmentation fault in the compiled loops) and a negative one gave a negative energy."""
+    p = {"road_load_a_n": 150.0, "road_load_b_n_per_m_s": 0.3, "road_load_c_n_per_m2_s2": 0.4, **bad}
+    with pytest.raises(ValueError, match=said):
+        MODEL_CALLS[model](p)
+    good = {"road_load_a_n": 150.0, "road_load_b_n_per_m_s": 0.3, "road_load_c_n_per_m2_s2": 0.4, "road_load_mass_kg": 1500.0}
+    assert np.all(np.isfinite(getattr(MODEL_CALLS[model](good), "energy_wh_per_km", 1.0)))
+
+
+def test_the_smallest_road_load_is_exact():
+    """A + B v + C v^2 at its vertex -B / 2C (it was read off a 701-speed grid), at 0 or at 70 m/s."""
+    from bev_mdo.models.params import road_load_minimum
+
+    low, at = road_load_minimum([100.0, 100.0, 100.0], [-4.0, 1.0, -1.0], [0.04, 0.4, 0.0])
+    np.testing.assert_allclose(low, [0.0, 100.0, 30.0], atol=1e-12)
+    np.testing.assert_allclose(at, [50.0, 0.0, 70.0])
