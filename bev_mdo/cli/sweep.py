@@ -76,6 +76,8 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
                 lo, hi, n = float(lo), float(hi), int(n)
                 if n < 1:
                     raise ValueError
+                if n == 1 and lo != hi:  # linspace gives LO alone: HI was dropped without a word
+                    raise UsageError(f"--vary {item!r}: one value between {lo:g} and {hi:g}; give N >= 2, or LO:LO:1")
                 if n > MAX_SWEEP_POINTS:
                     raise UsageError(f"--vary {item!r}: {n} values; a sweep holds at most {MAX_SWEEP_POINTS} designs")
                 vals = np.linspace(lo, hi, n)
@@ -107,20 +109,28 @@ def grid(vary: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 
 def read_list(path: str) -> dict[str, np.ndarray]:
+    """A header of names, then one row of numbers per design; UsageError naming the row and column."""
     try:
         with open(path, newline="", encoding="utf-8") as f:
-            rows = list(csv.DictReader(f))
+            rows = [r for r in csv.reader(f) if any(c.strip() for c in r)]
     except FileNotFoundError:
         raise UsageError(f"--list {path}: no such file") from None
-    if not rows:
+    if len(rows) < 2:
         raise UsageError(f"--list {path}: no designs (a header of names, then one row per design)")
-    out = {}
-    for k in rows[0]:
-        try:
-            out[k.strip()] = np.array([float(r[k]) for r in rows])
-        except (TypeError, ValueError):
-            raise UsageError(f"--list {path}: column {k!r} has a value that is not a number") from None
-    return out
+    names = [c.strip() for c in rows[0]]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if "" in names or twice:  # the last column of a name used to win silently
+        raise UsageError(f"--list {path}: the header " + (f"names {twice[0]!r} twice" if twice else "has an empty name"))
+    values = np.empty((len(rows) - 1, len(names)))
+    for i, row in enumerate(rows[1:]):
+        if len(row) != len(names):
+            raise UsageError(f"--list {path}: design {i + 1} has {len(row)} values for {len(names)} names")
+        for j, cell in enumerate(row):
+            try:
+                values[i, j] = float(cell)
+            except ValueError:
+                raise UsageError(f"--list {path}: design {i + 1}, column {names[j]!r}: {cell.strip()!r} is not a number") from None
+    return {n: values[:, j] for j, n in enumerate(names)}
 
 
 def write_csv(path: Path, result: dict) -> None:

@@ -26,6 +26,9 @@ def test_parse_vary_and_full_factorial():
         parse_vary(["motor_kw=40:120"])
     with pytest.raises(Exception, match="--vary motor_kw: given twice"):  # the last one used to win
         parse_vary(["motor_kw=40:120:3", "motor_kw=50,60"])
+    with pytest.raises(Exception, match="one value between 60 and 150; give N >= 2"):  # 150 was dropped
+        parse_vary(["motor_kw=60:150:1"])
+    assert parse_vary(["motor_kw=60:60:1"])["motor_kw"].tolist() == [60]
 
 
 def test_sweep_writes_csv_and_plots_and_matches_single_evaluations(tmp_path, capsys):
@@ -100,6 +103,23 @@ def test_sweep_from_a_list(tmp_path):
                  "--transport", "inprocess"]) == 0
     rows = list(csv.DictReader(open(tmp_path / "o/sweep.csv")))
     assert [float(r["battery_kwh"]) for r in rows] == [24, 20]
+
+
+@pytest.mark.parametrize("text, said", [
+    ("motor_kw,motor_kw\n100,90\n", "the header names 'motor_kw' twice"),  # 90 was swept, 100 dropped
+    ("motor_kw,gear_ratio\n100,9,5\n", "design 1 has 3 values for 2 names"),  # "column None ..."
+    ("motor_kw,gear_ratio\n100,9\n90\n", "design 2 has 1 values for 2 names"),
+    ("motor_kw,gear_ratio\n100,fast\n", "design 1, column 'gear_ratio': 'fast' is not a number"),
+    ("motor_kw,\n100,9\n", "the header has an empty name"),
+    ("motor_kw,gear_ratio\n", "no designs"),
+])
+def test_a_malformed_list_is_one_line_naming_the_design_and_column(tmp_path, capsys, text, said):
+    lst = tmp_path / "designs.csv"
+    lst.write_text(text)
+    assert main(["sweep", CONFIG, "--list", str(lst), "--out", str(tmp_path / "o"), "--no-plots", "--no-record",
+                 "--transport", "inprocess"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"--list {lst}: {said}" in err[0], err
 
 
 def test_compare_shows_differences_from_the_first_design(capsys):
