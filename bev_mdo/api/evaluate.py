@@ -56,6 +56,13 @@ def design(config, given: dict[str, float], transport) -> dict:
         return evaluate_design(config.settings, evaluator, full)
 
 
+def check_names(names, problem, params) -> None:
+    """InputError unless every name is a design variable or one of the disciplines' ``params``."""
+    unknown = [k for k in names if k not in problem.names and k not in params]
+    if unknown:
+        raise InputError(f"unknown names {unknown}; design variables: {problem.names}, parameters: {sorted(params)}")
+
+
 def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
     """One batch of MDAs: {design: {k: array}, outputs: {k: array}, margins: {c: array}, violation: the
     largest normalised violation (inf: failed), feasible: bool array, ok: bool array, errors: [str], objective,
@@ -71,11 +78,7 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
     cols.update({k: np.full(n, float(v)) for k, v in problem.parameters.items()})
     with Evaluating(config, transport, announce=True) as evaluator:
         mda = _mda(config.settings, evaluator, problem)
-        params = {p for s in mda.specs.values() for p in s.parameters}
-        unknown = [k for k in designs if k not in problem.names and k not in params]
-        if unknown:
-            raise InputError(f"unknown names {unknown}; design variables: {problem.names}, "
-                             f"parameters: {sorted(params)}")
+        check_names(designs, problem, {p for s in mda.specs.values() for p in s.parameters})
         for d in problem.design_variables:
             if d.name in designs:
                 v = np.asarray(designs[d.name], dtype=float)

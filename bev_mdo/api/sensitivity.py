@@ -52,9 +52,11 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
                                  f"parameters: {', '.join(n for n in point if n not in problem.names)}")
             point[k] = float(v)
         wrt = list(wrt or []) or list(problem.names)
-        for k in wrt:
+        for i, k in enumerate(wrt):
             if k not in point:
                 raise InputError(f"--wrt: unknown variable or parameter {k!r}; known: {', '.join(point)}")
+            if k in wrt[:i]:  # its rows and columns were printed twice
+                raise InputError(f"--wrt: {k!r} named twice")
         if global_method:
             varied = [k for k in (at or {}) if k in wrt]  # their --at values were ignored without a word
             if varied:

@@ -265,6 +265,7 @@ def run(args) -> int:
 
 
 def run_compare(args) -> int:
+    from bev_mdo.api.evaluate import check_names
     from bev_mdo.cli.flags import parse_assignments
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo import units as un
@@ -277,6 +278,7 @@ def run_compare(args) -> int:
     problem = config.problem
     init = {d.name: d.initial for d in problem.design_variables}
     designs = {k: np.array([g.get(k, init.get(k, np.nan)) for g in given]) for k in keys}
+    check_names(keys, problem, {p for d in config.disciplines for p in (getattr(d, "parameters", None) or {})})
     missing = [k for k, v in designs.items() if np.isnan(v).any()]
     if missing:
         raise UsageError(f"{missing} must be given in every --design (they are parameters, with no initial value)")

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from bev_mdo.cli import main
 
 SELLAR = Path(__file__).resolve().parents[2] / "examples" / "sellar" / "sellar_mdf.yaml"
@@ -58,3 +60,11 @@ def test_a_point_that_is_not_finite_is_one_line_naming_it(capsys):
     code = main(["sensitivity", str(SELLAR), "--transport", "inprocess", "--order", "1", "--at", "z1=nan"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and err == ["bev-mdo sensitivity: error: --at z1=nan: a design value must be a finite number"]
+
+
+@pytest.mark.parametrize("extra", [["--order", "1"], ["--global", "morris", "--samples", "4"]])
+def test_a_variable_named_twice_in_wrt_is_one_line(capsys, extra):
+    """Its rows and columns were printed twice."""
+    code = main(["sensitivity", str(SELLAR), "--transport", "inprocess", "--wrt", "z1,x,z1", *extra])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err == ["bev-mdo sensitivity: error: --wrt: 'z1' named twice"]

@@ -122,6 +122,13 @@ def test_a_malformed_list_is_one_line_naming_the_design_and_column(tmp_path, cap
     assert len(err) == 1 and f"--list {lst}: {said}" in err[0], err
 
 
+def test_a_name_mistyped_in_one_compare_design_is_said_unknown(capsys):
+    """It was called a parameter with no initial value that must be given in every --design."""
+    assert main(["compare", CONFIG, "--design", "motor_kw=100", "--design", "motr_kw=90", "--transport", "inprocess"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown names ['motr_kw']; design variables: ['motor_kw'," in err[0], err
+
+
 def test_compare_shows_differences_from_the_first_design(capsys):
     rc = main(["compare", CONFIG, "--design", "motor_kw=80,gear_ratio=7.94,battery_kwh=24",
                "--design", "motor_kw=80,gear_ratio=7.94,battery_kwh=30", "--json", "--transport", "inprocess"])
