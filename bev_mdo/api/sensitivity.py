@@ -117,9 +117,10 @@ def build_batch(config, evaluator, param_defaults=None):
         cols = {k: X[:, j] for j, k in enumerate(names)
                 if not (k in own and k not in problem.parameters and np.all(X[:, j] == own[k]))}
         res = mda.run(cols)
-        if not np.all(res.ok):
+        if not np.all(res.ok):  # the run failed, not the user's input (a global sample has no stencil)
             bad = next(e for e in res.errors if e is not None)
-            raise ValueError(f"the model failed on the FD stencil: {bad.message.splitlines()[0]}")
+            raise RuntimeError(f"the model failed at {int((~np.asarray(res.ok)).sum())} of the {len(X)} points "
+                               f"evaluated, first: {bad.message.splitlines()[0]}")
         return {k: res.values[k] for k in outputs}
     return fun, point, bounds, outputs, problem
 

@@ -107,3 +107,20 @@ def test_in_process_optimize_prepares_the_disciplines_before_the_optimiser_start
     monkeypatch.setattr(driver, "run_optimization", spy)
     Study(raw).optimize(transport="inprocess")
     assert seen == [True]
+
+
+def test_a_global_sensitivity_whose_model_fails_says_where_not_a_stencil(tmp_path):
+    """It said 'the model failed on the FD stencil' (a Sobol' sample has none) and exit 2, the status of
+    a user's mistake."""
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
+    raw["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed",
+                          {"name": "broken", "class": "bad_disciplines:Broken"}]
+    raw["problem"]["constraints"]["broken_kw"] = {"upper": 1.0e9}
+    path = tmp_path / "broken.yaml"
+    path.write_text(yaml.safe_dump(raw, sort_keys=False))
+    env = {**os.environ, "PYTHONPATH": f"{HERE}{os.pathsep}{REPO}"}
+    p = subprocess.run([sys.executable, "-m", "bev_mdo", "sensitivity", str(path), "--global", "morris", "--samples", "4",
+                        "--transport", "inprocess"], capture_output=True, text=True, env=env, timeout=120, cwd=tmp_path)
+    err = p.stderr.strip().splitlines()
+    assert p.returncode == 7 and len(err) == 1, p.stderr[-2000:]
+    assert "the model failed at 16 of the 16 points evaluated, first: broken:" in err[0] and "stencil" not in err[0]
