@@ -74,6 +74,10 @@ def check_value(name: str, value: Any, lower: float, upper: float, unit: str = "
 
 def check_array(name: str, values: Any, lower: float, upper: float, unit: str = "") -> np.ndarray:
     """Vector form of :func:`check_value`: names the first bad element."""
+    given = np.asarray(values)
+    if given.dtype.kind not in "iufc":  # float() read True as 1 and "1500" as 1500, and None as nan
+        shown = repr(given.reshape(-1).tolist()[0]) if given.size == 1 else ("an array of " + {"b": "bools", "U": "strings", "S": "bytes"}.get(given.dtype.kind, "objects"))
+        raise ValueError(f"{name} must be a number in [{lower:g}, {upper:g}]{_unit(unit)}, got {shown}")
     a = np.asarray(values, dtype=float)
     if a.size == 1:  # one design point (an MDA over ROS, a line search): ~0.3 µs instead of ~4.5
         x = a.item()
@@ -107,7 +111,7 @@ _F64 = np.dtype(np.float64)
 def check_points(name: str, values, lower: float, upper: float, unit: str) -> np.ndarray:
     """A design/coupling batch as a 1-D array (complex kept), range-checked on its real part."""
     a = np.atleast_1d(np.asarray(values))
-    if a.ndim != 1 or a.dtype.kind not in "biufc":
+    if a.ndim != 1 or a.dtype.kind not in "iufc":  # a bool is not a design value (True was a ratio of 1)
         raise ValueError(f"{name} must be a number or 1-D array in [{lower:g}, {upper:g}] {unit}")
     re = np.real(a).astype(float)
     bad = ~(np.isfinite(re) & (re >= lower) & (re <= upper))
@@ -132,7 +136,7 @@ def resolve_params(params: Mapping[str, Any] | None, specs: Mapping[str, Any], n
         v = params.get(name, s.default)
         try:
             a = np.asarray(v)
-            if a.dtype.kind not in "biufc":
+            if a.dtype.kind not in "iufc":  # a bool is not a parameter value (drag_area_m2: True was 1 m^2)
                 raise TypeError
         except TypeError:
             raise ValueError(f"{name} must be a number {allowed(s.lower, s.upper, s.unit, s.integer)}, got {v!r}") from None

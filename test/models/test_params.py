@@ -36,6 +36,25 @@ def test_a_yaml_bool_is_not_a_number(name):
         validate_vehicle({name: True})
 
 
+@pytest.mark.parametrize("value, shown", [(True, "True"), ("1500", "'1500'"), (None, "None"), (["1500", "1600"], "an array of strings")])
+@pytest.mark.parametrize("call", ["flat", "range", "acceleration", "cost", "mass", "quasi_static", "chain", "parameter"])
+def test_a_bool_or_a_string_is_not_a_design_value(call, value, shown):
+    """float() read True as 1 and "1500" as 1500: gear_ratio=True gave 154.9 Wh/km (a ratio of 1),
+    range_km(True, 150) 6.67 km, flat's mass "1500" 96.8 Wh/km, drag_area_m2=True 1 m^2 in every model."""
+    from bev_mdo.models import acceleration, chain, cost, cycles, flat, mass, quasi_static, range as rg
+
+    r = cycles.resample(cycles.nedc(), 1.0)
+    calls = {"flat": lambda v: flat.energy_wh_per_km(r, None, v, 8.0), "range": lambda v: rg.range_km(24.0, v),
+             "acceleration": lambda v: acceleration.accel_time_0_100_s(v, 8.0, 1500.0),
+             "cost": lambda v: cost.motor_cost_usd(v), "mass": lambda v: mass.vehicle_mass_ch7_kg(80.0, v),
+             "quasi_static": lambda v: quasi_static.simulate(r, None, 1500.0, v, 80.0),
+             "chain": lambda v: chain.energy_wh_per_km(r, None, v, 8.0, 80.0),
+             "parameter": lambda v: flat.energy_wh_per_km(r, {"drag_area_m2": v}, 1500.0, 8.0)}
+    with pytest.raises(ValueError, match="must be a number") as e:
+        calls[call](value)
+    assert "\n" not in str(e.value) and (call in ("quasi_static", "chain") or str(e.value).endswith(f"got {shown}"))
+
+
 def test_mass_model_choice():
     with pytest.raises(ValueError, match="mass_model"):
         validate_vehicle({"mass_model": "heavy"})
