@@ -91,7 +91,9 @@ def check_array(name: str, values: Any, lower: float, upper: float, unit: str = 
 
 
 def validate_design(name: str, values: Any, lower: float, upper: float) -> np.ndarray:
-    """Design-variable array check: finite and within [lower, upper], ValueError naming it."""
+    """Design-variable array check: a number or 1-D batch, finite and within [lower, upper], ValueError naming it."""
+    if np.ndim(values) > 1:  # a batch is one axis: a (2, 2) battery gave a (2, 2) range
+        raise ValueError(f"{name} must be a number or a 1-D array, got shape {np.shape(values)}")
     return check_array(name, np.atleast_1d(values), lower, upper)
 
 

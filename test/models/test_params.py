@@ -108,3 +108,12 @@ def test_check_array_one_point_agrees_with_the_batch_path(x, shape):
         assert one == batch
     else:
         assert not isinstance(one, str) and one.shape == shape and (one == x).all()
+
+
+def test_a_design_batch_is_one_axis():
+    """range_km of a (2, 2) battery returned a (2, 2) range."""
+    from bev_mdo.models import range as rg
+
+    with pytest.raises(ValueError, match=r"^battery_kwh must be a number or a 1-D array, got shape \(2, 2\)$"):
+        rg.range_km(np.full((2, 2), 24.0), 150.0)
+    assert rg.range_km([24.0, 30.0], 150.0).shape == (2,)
