@@ -75,6 +75,13 @@ CYCLE_SPECS: dict[str, ParamSpec] = {
 SM_SA_ONLY = {"gear_count": "a two-speed gearbox", "driven_axles": "the single-motor drive on two axles"}
 
 
+def check_sm_sa_only(topology: str, values: Mapping[str, Any], where: str = "") -> None:
+    """ValueError if ``values`` set an :data:`SM_SA_ONLY` option to 2 on a topology other than SM-SA."""
+    for k, what in SM_SA_ONLY.items():
+        if topology != "SM-SA" and np.any(np.asarray(values.get(k, 1.0)) == 2.0):
+            raise ValueError(f"{where}{k}: 2 ({what}) is SM-SA only, not {topology}")
+
+
 # coast-down road load (road_load.py): section key -> (flat parameter name, spec)
 ROAD_LOAD_SPECS: dict[str, tuple[str, ParamSpec]] = {
     "a_n": ("road_load_a_n", ParamSpec(0.0, 0.0, 5000.0, "N", "constant road-load term A")),
@@ -325,9 +332,7 @@ def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
     out = {k: check_value(k, section.get(k, extra.get(k, s.default)), s.lower, s.upper, s.unit, s.integer)
            for k, s in specs.items()}
     topology = vehicle_choice(section, "topology")
-    for k, what in SM_SA_ONLY.items():
-        if out[k] == 2.0 and topology != "SM-SA":
-            raise ValueError(f"vehicle.{k}: 2 ({what}) is SM-SA only, not {topology}")
+    check_sm_sa_only(topology, out, "vehicle.")
     if road is not None:
         both = sorted(k for k in ROAD_LOAD_REPLACES if k in section)
         if both and not flat_road:  # the resolved form carries every parameter, defaults included

@@ -44,7 +44,7 @@ from .common import design_points
 from .cost import motor_cost_usd as _motor_cost_one, pack_cost_usd
 from .loss_model import LossModel
 from .motor_map import MotorMap
-from .params import QUASI_STATIC_SPECS, SM_SA_ONLY, VEHICLE_CHOICES, VEHICLE_SPECS, topology_name
+from .params import QUASI_STATIC_SPECS, VEHICLE_CHOICES, VEHICLE_SPECS, check_sm_sa_only, topology_name
 from .quasi_static import compiled  # numba, loaded lazily there
 
 TOPOLOGIES = VEHICLE_CHOICES["topology"]
@@ -137,7 +137,7 @@ def vehicle_mass_kg(topology, motor_kw, battery_kwh, params: dict, mass_model_na
         two = np.asarray(p["gear_count"]) == 2.0
         return (mass_model.vehicle_mass_kg(motor_kw, battery_kwh, params, mass_model_name)
                 + np.where(two, p["two_speed_added_mass_kg"], 0.0))
-    _sm_sa_only(t, p)
+    check_sm_sa_only(t.name, p)  # as config load does
     ref_kw = np.asarray(p["reference_motor_kw"], float) + 0.0 * np.asarray(motor_kw, float)
     base = mass_model.vehicle_mass_kg(ref_kw, battery_kwh, params, mass_model_name)
     unit = motor_unit_mass_kg(t, motor_kw, motor_rear_kw, p["motor_kg_per_kw"], p["motor_base_kg"],
@@ -321,15 +321,8 @@ def _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_rati
     arrays = {k: np.broadcast_to(a, (n,)).copy() if a.shape[0] in (1, n) else a for k, a in arrays.items()}
     m, ig, kw, p = qs.inputs(params, arrays["vehicle_mass_kg"], arrays.get("gear_ratio", np.ones(n)),
                               arrays["motor_kw"], arrays["battery_kwh"])
-    _sm_sa_only(t, p)
+    check_sm_sa_only(t.name, p)  # as config load does
     return t, m, ig, kw, p, arrays.get("motor_rear_kw"), arrays.get("gear_ratio_rear")
-
-
-def _sm_sa_only(t: Topology, p) -> None:
-    """Refuses the single motor's options (``params.SM_SA_ONLY``) on another topology, as config load does."""
-    for k, what in SM_SA_ONLY.items():
-        if t.name != "SM-SA" and np.any(np.asarray(p.get(k, 1.0)) == 2.0):
-            raise ValueError(f"{k} = 2 ({what}) is SM-SA only, not {t.name}")
 
 
 def _moving_load_w(t: Topology, p, v, axles):

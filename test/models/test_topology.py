@@ -167,9 +167,9 @@ def test_dm_da_on_two_equal_machines_is_the_quasi_static_all_wheel_drive(nedc):
 def test_an_sm_sa_only_option_is_refused_at_model_entry(nedc, topo, rear, key):
     """driven_axles: 2 reached DM-DA and the in-wheel topologies through a direct call and was ignored
     (the energy equal to the last bit with 1 and 2); config load already refused it."""
-    with pytest.raises(ValueError, match=rf"^{key} = 2 \(.*\) is SM-SA only, not {topo}$"):
+    with pytest.raises(ValueError, match=rf"^{key}: 2 \(.*\) is SM-SA only, not {topo}$"):
         tp.simulate(nedc, {**P, key: 2.0}, topo, [1641.6], [40.0], 24.0, [7.9], *rear)
-    with pytest.raises(ValueError, match=f"^{key} = 2 .* not {topo}$"):
+    with pytest.raises(ValueError, match=f"^{key}: 2 .* not {topo}$"):
         tp.vehicle_mass_kg(topo, 40.0, 24.0, {**P, key: 2.0}, "ch7", *(rear[0] if rear else ()))
 
 
