@@ -16,7 +16,7 @@ import sys
 import threading
 from typing import Any
 
-from bev_mdo.mdo.discipline import prepare
+from bev_mdo.mdo.discipline import first_error_line, prepare
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 
 
@@ -29,7 +29,7 @@ class FirstErrors:
     def note(self, discipline: str, error: str) -> None:
         if not error or discipline in self.first:
             return
-        line = error.strip().splitlines()[0][:300]
+        line = first_error_line(error)
         self.first[discipline] = line
         print(f"discipline {discipline!r} failed: {line}", file=sys.stderr, flush=True)
 

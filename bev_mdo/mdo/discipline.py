@@ -235,6 +235,16 @@ def unknown_inputs(allowed: frozenset[str], columns: Iterable[str]) -> list[str]
     return [k for k in columns if k not in allowed]
 
 
+def first_error_line(error: str, limit: int = 300) -> str:
+    """The line that names a discipline's failure on the console: the error's first line, cut at the
+    last whole point's message ("; " parts) within ``limit`` characters, not inside a word."""
+    line = error.strip().splitlines()[0] if error.strip() else ""
+    if len(line) <= limit:
+        return line
+    cut = line.rfind("; ", 0, limit)
+    return (line[:cut] if cut > 0 else line[:limit]) + " ..."
+
+
 def failed(outputs: Sequence[str], n: int, error: str = "") -> EvalResult:
     """Every point of a call failed: NaN outputs, `error` saying why (a refused request, a request
     never answered, rows a data-flow discipline had no inputs for)."""

@@ -35,7 +35,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from bev_mdo.mdo import flow, pool as pools, retry
-from bev_mdo.mdo.discipline import EvalResult, failed
+from bev_mdo.mdo.discipline import EvalResult, failed, first_error_line
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.ledger import Ledger
@@ -217,7 +217,7 @@ class Orchestrator:
     def _first_error(self, discipline: str, error: str) -> None:
         """Name a discipline's first failure on the console (the node's log has the rest)."""
         if discipline not in self.first_errors:
-            self.first_errors[discipline] = line = error.strip().splitlines()[0][:300]
+            self.first_errors[discipline] = line = first_error_line(error)
             self.log.error(f"discipline {discipline!r} failed: {line}")
 
     def _failed(self, p: retry.Sent, error: str) -> EvalResult:
