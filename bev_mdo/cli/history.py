@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import shutil
 import sys
+from pathlib import Path
 
 from bev_mdo.cli.flags import add_bag_argument
 
@@ -97,6 +98,11 @@ def run(args) -> int:
               file=sys.stderr)
         return EXIT_NO_ITERATIONS
     if args.csv:
+        target = Path(args.csv).resolve()
+        if args.csv != "-" and target.parent == bag.bag_dir.resolve() and (
+                target.suffix == ".mcap" or target.name == "metadata.yaml"):
+            # it replaced the .mcap or metadata.yaml it had just read, and the bag was lost
+            raise ValueError(f"--csv {args.csv}: that is the bag's own {target.name}; write the CSV elsewhere")
         text = to_csv(rows)
         if args.csv == "-":
             sys.stdout.write(text)

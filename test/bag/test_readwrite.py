@@ -199,3 +199,19 @@ def test_report_writes_plots_and_markdown(synthetic_bag):
     # guessed from the name (motor_kw)
     assert "| motor_kw |  | 99 |" in md and "Best feasible objective 9810 at iteration 19" in md
     assert CONFIG_YAML.rstrip() in md
+
+
+@pytest.mark.parametrize("name", ["{mcap}", "metadata.yaml"])
+def test_history_does_not_write_its_csv_over_the_bag_it_read(synthetic_bag, name):
+    """history BAG --csv BAG/BAG_0.mcap printed 'wrote 20 records' and the bag was lost (not an MCAP file)."""
+    from bev_mdo.bag.reader import find_mcap
+
+    from .conftest import cli
+
+    bag_dir, _ = synthetic_bag
+    target = bag_dir / name.format(mcap=find_mcap(bag_dir).name)
+    before = target.read_bytes()
+    code, _, err = cli("history", str(bag_dir), "--csv", str(target))
+    assert code == 2 and f"that is the bag's own {target.name}; write the CSV elsewhere" in err
+    assert target.read_bytes() == before
+    assert cli("history", str(bag_dir), "--csv", str(bag_dir / "history.csv"))[0] == 0  # beside it, as report's files
