@@ -52,7 +52,7 @@ def find_mcap(path) -> Path:
     path = Path(path)
     if not path.exists():
         raise BagError(f"{path}: no such file or directory")
-    if path.is_file():
+    if not path.is_dir():  # a file, or a device such as /dev/null: its header says whether it is a bag
         return path
     files = sorted(path.glob("*.mcap"))
     if not files:

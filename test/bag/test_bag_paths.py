@@ -54,3 +54,10 @@ def test_a_folder_of_several_bags_or_none_is_one_line(cmd, out_folder):
     shutil.rmtree(out_folder / "bag2")
     rc, out, err = _run(cmd + [str(out_folder)])
     assert rc == 2 and err.count("\n") == 1 and "holds no .mcap file" in err, err
+
+
+@pytest.mark.parametrize("cmd", [c for c in EVERY if c != ["replay"]], ids=lambda c: " ".join(c[:2]))
+def test_a_device_that_is_not_a_bag_is_one_line(cmd):
+    """/dev/null (neither a file nor a folder) gave exit 7, 'NotADirectoryError ... (raised at pathlib.py)'."""
+    rc, _, err = _run(cmd + ["/dev/null"])
+    assert rc == 2 and err.strip().splitlines() == [err.strip()] and "/dev/null: empty file, not an MCAP bag" in err
