@@ -75,6 +75,8 @@ def describe_other_content(bag) -> str:
     if not bag.topics:
         return "it holds no messages at all"
     kinds = sorted({ty for ty in bag.topics.values() if ty != ITERATION_TYPE})
+    if not kinds:  # every message an iteration record, none of the run asked for ('... messages of ' ended it)
+        return f"its {bag.message_count} messages are iteration records of other runs (bev-mdo bag info lists them)"
     return f"it holds {bag.message_count} messages of {', '.join(kinds)}"
 
 

@@ -89,3 +89,13 @@ def test_report_reads_one_run_of_a_standalone_recording(tmp_path):
     checks: dict = {}
     written = report(bag, tmp_path / "out", run_id="b", checks=checks)
     assert (tmp_path / "out" / "report.md") in written and checks["other_runs"] == 1
+
+
+def test_history_of_a_run_the_bag_does_not_hold_says_whose_records_it_has(tmp_path, capsys):
+    """The line ended mid-sentence: 'it holds 2 messages of '."""
+    from bev_mdo.cli import main
+
+    bag = _bag(tmp_path, "standalone", None, [_record("a", 0, 80.0), _record("b", 0, 90.0)])
+    assert main(["history", str(bag), "--run-id", "deadbeef"]) == 1
+    assert ("no iteration records of run deadbeef; its 2 messages are iteration records of other runs "
+            "(bev-mdo bag info lists them)") in capsys.readouterr().err
