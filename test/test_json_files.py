@@ -33,7 +33,7 @@ def test_front_and_summary_json_are_strict(tmp_path):
 def test_answers_json_beside_a_ros_bag_is_strict(tmp_path, monkeypatch):
     """api.runbag.finish wrote answers.json with json.dumps(default=float): NaN, Infinity."""
     from bev_mdo.api import runbag
-    from bev_mdo.bag.report import ANSWERS_FILE
+    from bev_mdo.bag.history import ANSWERS_FILE
 
     monkeypatch.setattr(runbag, "answers", lambda config, result: FAILED_ANSWERS)
     runbag.finish({}, {}, {"bag": str(tmp_path / "bag")})
@@ -46,7 +46,7 @@ def test_answers_record_of_an_in_process_bag_is_strict(tmp_path):
     pytest.importorskip("rclpy")
     from bev_mdo.api.runbag import InProcessBag
     from bev_mdo.bag.reader import open_bag
-    from bev_mdo.bag.report import ANSWERS_METADATA
+    from bev_mdo.bag.history import ANSWERS_METADATA
 
     bag = InProcessBag(tmp_path / "bag", {"name": "t"}, "run1")
     bag.close(FAILED_ANSWERS)

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from bev_mdo import interrupts, jsontext
-from bev_mdo.bag.report import ANSWERS_FILE, ANSWERS_METADATA
+from bev_mdo.bag.history import ANSWERS_FILE, ANSWERS_METADATA
 
 
 class InProcessBag:

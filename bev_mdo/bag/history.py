@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 
 from bev_mdo.bag.errors import BagError
 from bev_mdo.bag.reader import Bag, open_bag, read_config
@@ -10,6 +11,8 @@ from bev_mdo.bag.signing import verifier
 
 ITERATION_TOPIC = "/bev_mdo/iteration"
 ITERATION_TYPE = "bev_mdo_msgs/msg/IterationRecord"
+ANSWERS_METADATA = "bev_mdo_answers"  # MCAP metadata record of an in-process run's bag
+ANSWERS_FILE = "answers.json"         # beside the recorder node's bag over ROS
 
 
 def named(block) -> dict[str, float]:
@@ -193,10 +196,27 @@ def maximized(config_yaml: str | None) -> bool:
     return isinstance(obj, dict) and obj.get("maximize") is True
 
 
-def headline(rows: list[dict], sign: float = 1.0) -> int:
-    """The record that stands for the run: an optimisation's last iterate; a sweep's (formulation ``doe``,
-    its records in no order) best design: the best feasible objective, else the least violated (a failed
-    design, violation nan, last). ``sign``: +1 minimise, -1 maximise."""
+def read_answers(bag: Bag) -> dict | None:
+    """The end-of-run answers stored with a bag (metadata record or answers.json), or None."""
+    rec = bag.metadata.get(ANSWERS_METADATA)
+    if rec and "answers_json" in rec:
+        return json.loads(rec["answers_json"])
+    path = bag.bag_dir / ANSWERS_FILE
+    if path.is_file():
+        return json.loads(path.read_text(encoding="utf-8"))
+    return None
+
+
+def headline(rows: list[dict], sign: float = 1.0, answers: dict | None = None) -> int:
+    """The record that stands for the run: a finished optimisation's result (the last feasible record at
+    the ``result_design`` its stored ``answers`` name: with ``--starts``, or an earlier best point, it is
+    not the last record), else its last iterate; a sweep's (formulation ``doe``, its records in no order)
+    best design: the best feasible objective, else the least violated (a failed design, violation nan,
+    last). ``sign``: +1 minimise, -1 maximise."""
+    result = (answers or {}).get("result_design")
+    at = [i for i, r in enumerate(rows) if result and r["feasible"] and r["design"] == result]
+    if at:
+        return at[-1]
     if not rows or rows[-1].get("formulation") != "doe":
         return len(rows) - 1
 
@@ -217,7 +237,10 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
     if not rows:
         raise BagError(f"{bag.mcap_path}: no IterationRecord on {ITERATION_TOPIC}; nothing to resume")
     config = read_config(bag)
-    row = rows[headline(rows, -1.0 if maximized(config) else 1.0)]
+    k = headline(rows, -1.0 if maximized(config) else 1.0, read_answers(bag))
+    row = rows[k]
+    if checks is not None and k != len(rows) - 1 and row["formulation"] != "doe":
+        checks["result"] = f"the run's result (iteration {row['iteration']}, not its last record)"
     if checks is not None and row["formulation"] == "doe":
         checks["sweep"] = sweep_phrase(row, len(rows))
     return config, dict(row["design"]), int(row["iteration"])

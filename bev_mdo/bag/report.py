@@ -7,25 +7,12 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from bev_mdo.bag.history import headline, history, maximized, records_phrase, sweep_phrase
+from bev_mdo.bag.history import headline, history, maximized, read_answers, records_phrase, sweep_phrase
 from bev_mdo.bag.reader import Bag, open_bag, read_config
 from bev_mdo.mdo.units import label, run_units, unit_of
 
-ANSWERS_METADATA = "bev_mdo_answers"  # MCAP metadata record of an in-process run's bag
-ANSWERS_FILE = "answers.json"         # beside the recorder node's bag over ROS
 REQUEST_TYPE = "bev_mdo_msgs/msg/EvaluationRequest"
 RESULT_TYPE = "bev_mdo_msgs/msg/EvaluationResult"
-
-
-def read_answers(bag: Bag) -> dict | None:
-    """The end-of-run answers stored with a bag (metadata record or answers.json), or None."""
-    rec = bag.metadata.get(ANSWERS_METADATA)
-    if rec and "answers_json" in rec:
-        return json.loads(rec["answers_json"])
-    path = bag.bag_dir / ANSWERS_FILE
-    if path.is_file():
-        return json.loads(path.read_text(encoding="utf-8"))
-    return None
 
 
 def _stamp_ns(header) -> int:
@@ -351,8 +338,10 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
         feasible = [r for r in rows if r["feasible"]] if not sweep else []  # a sweep's headline is its best
         lines += [f"- {records_phrase(rows)}, formulation `{last['formulation']}`, optimizer "
                   f"`{last['optimizer']}`, {rows[-1]['mda_evaluations']} multidisciplinary evaluations", ""]
-        point = "the end point" if not sweep else sweep_phrase(last, len(rows))
-        lines += ["## Final iterate" if not sweep else f"## The {point[4:]}", ""]
+        result = not sweep and k % len(rows) != len(rows) - 1  # the stored result is not the last record
+        point = (sweep_phrase(last, len(rows)) if sweep else f"the run's result (iteration {last['iteration']})"
+                 if result else "the end point")
+        lines += [f"## The {point[4:]}" if sweep or result else "## Final iterate", ""]
         base = baseline or {}
         bcol = f" {base['label']} |" if base else ""
         lines += [f"| quantity | unit | value |{bcol}", "|---|---|---:|" + ("---:|" if base else "")]
@@ -416,11 +405,11 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     config, problem = _context(bag)
     final = answers = baseline = None
     units = _units(config)
-    k = headline(rows, -1.0 if maximized(read_config(bag)) else 1.0)  # a sweep's best design, else the last
+    answers = read_answers(bag)
+    k = headline(rows, -1.0 if maximized(read_config(bag)) else 1.0, answers)  # the result, a sweep's best, the last
     if rows and config is not None:
         final = _analyse(config, dict(rows[k]["design"]))
         baseline = _baseline(config, problem)
-        answers = read_answers(bag)
         if answers is None:
             from bev_mdo.mdo.active import answers_for
 

@@ -1,5 +1,6 @@
-"""`bev-mdo resume BAG`: restart an interrupted optimisation from its last recorded iterate, or
-optimise from the best design of a sweep's bag.
+"""`bev-mdo resume BAG`: restart an interrupted optimisation from its last recorded iterate, a finished
+one from its result (with --starts, or an earlier best point, not its last record), or optimise from
+the best design of a sweep's bag.
 
 The configuration comes from the bag itself (stored by the recorder), so the bag is
 all that is needed. The resumed run is recorded to a new bag.
@@ -15,8 +16,9 @@ from bev_mdo.cli.flags import add_bag_argument
 def register(sub) -> None:
     p = sub.add_parser("resume", help="restart an optimisation from the last iterate recorded in a bag",
                        description="Read the run's configuration and its last IterationRecord from BAG and "
-                                   "optimise again from that design (a truncated bag works too); from "
-                                   "a sweep's bag, optimise from its best design (feasible, else least violated).")
+                                   "optimise again from that design (a truncated bag works too); from a "
+                                   "finished run's bag, from its result; from a sweep's bag, from its best "
+                                   "design (feasible, else least violated).")
     add_bag_argument(p)
     p.add_argument("--json", action="store_true")
     p.add_argument("--output", dest="out_bag", default=None, help="bag to write (default: bags/<config name>_<time>_<run>, as optimize)")
@@ -82,7 +84,7 @@ def run(args) -> int:
     config = RunConfig.of(config)
     if is_per_run_key(config["ros"].get("sign_key_file")):
         config = config.with_ros({**config["ros"], "sign_key_file": ""})
-    print(f"resuming {config.name} from {checks.get('sweep') or f'iteration {iteration}'} at "
+    print(f"resuming {config.name} from {checks.get('sweep') or checks.get('result') or f'iteration {iteration}'} at "
           + ", ".join(f"{k}={v:.6g}" for k, v in design.items()), file=out)
     # element names ('x_shared[0]', ...) for vector design variables, as the bag records them
     names = config.problem.names

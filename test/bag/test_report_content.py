@@ -74,7 +74,7 @@ def test_infeasible_run_says_what_is_violated_and_which_bound_blocks(infeasible_
 
 def test_the_answers_are_stored_in_the_in_process_bag(infeasible_run):
     from bev_mdo.bag.reader import open_bag
-    from bev_mdo.bag.report import read_answers
+    from bev_mdo.bag.history import read_answers
 
     _, bag, out = infeasible_run
     stored = read_answers(open_bag(bag))

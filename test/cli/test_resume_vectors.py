@@ -20,14 +20,16 @@ def test_resume_starts_from_every_element_of_the_recorded_design(tmp_path, capsy
     raw["optimizer"]["options"] = {"maxiter": 3}
     cfg = tmp_path / "ssbj_3.yaml"
     cfg.write_text(yaml.safe_dump(raw))
-    from bev_mdo.bag.history import history
+    from bev_mdo.bag.history import history, last_iterate
 
     old, new = tmp_path / "old", tmp_path / "new"
     # cut short by maxiter 3: never a verified optimum (5), or infeasible (1)
     assert main(["optimize", str(cfg), "--transport", "inprocess", "--bag", str(old), "--quiet"]) in (1, 5)
     main(["resume", str(old), "--transport", "inprocess", "--output", str(new), "--quiet"])
     capsys.readouterr()
-    last, start = history(old)[-1], history(new)[0]
+    _, design, k = last_iterate(old)  # the record resume names: the run's result (maxiter cut it short)
+    last, start = next(r for r in history(old) if r["iteration"] == k), history(new)[0]
+    assert last["design"] == design
     assert set(start["design"]) == set(last["design"]) and "x_shared[1]" in start["design"]
     for name, value in last["design"].items():
         assert start["design"][name] == value, name
@@ -48,7 +50,7 @@ def test_resume_names_its_own_flag_when_the_output_bag_exists(tmp_path, capsys):
 def test_resume_goes_on_with_the_formulation_and_optimizer_the_run_used(tmp_path, capsys):
     """An in-process run's bag stored the config's formulation and optimiser, not those of --formulation and
     --optimizer (a ROS run's did), so resuming a COBYLA IDF run went on with the config's SLSQP MDF."""
-    from bev_mdo.bag.history import history
+    from bev_mdo.bag.history import history, last_iterate
 
     raw = yaml.safe_load((SSBJ.parents[1] / "config" / "leaf_nedc.yaml").read_text())
     raw["optimizer"]["options"] = {"maxiter": 10}
@@ -65,7 +67,7 @@ def test_resume_goes_on_with_the_formulation_and_optimizer_the_run_used(tmp_path
 def test_resume_from_an_iterate_just_outside_a_bound_starts_on_the_bound(tmp_path, capsys):
     """COBYLA ends Sellar MDF at z2=-5e-08, below its bound 0 (within the feasibility tolerance, so its
     result); resume refused that start: 'x0 z2=-5e-08 is outside the bounds [0, 10]' (exit 2)."""
-    from bev_mdo.bag.history import history
+    from bev_mdo.bag.history import history, last_iterate
 
     cfg = SSBJ.parents[0] / "sellar" / "sellar_mdf.yaml"
     old, new = tmp_path / "old", tmp_path / "new"
