@@ -207,3 +207,6 @@ def check_new_bag(bag: Path, what: str) -> None:
 
     if holds_bag(bag):
         raise InputError(f"{what} {bag}: a bag already exists there; choose a new directory")
+    inner = next((d for d in (bag.iterdir() if bag.is_dir() else ()) if d.is_dir() and holds_bag(d)), None)
+    if inner is not None:  # a run's output folder (sweep's, pareto's): its readers would take the new bag
+        raise InputError(f"{what} {bag}: a run's output folder, its bag in {inner.name}/; choose a new directory")

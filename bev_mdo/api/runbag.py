@@ -158,6 +158,10 @@ def in_process_bag(config: Mapping[str, Any], opts, show):
         return None, None, show
     import uuid
 
+    from bev_mdo.api.optimize import check_new_bag
+
+    check_new_bag(Path(opts.bag), "--bag")  # as over ROS (the writer refused only a bag in the folder itself)
+
     writer = InProcessBag(Path(opts.bag), config, uuid.uuid4().hex[:16])
 
     def callback(rec):

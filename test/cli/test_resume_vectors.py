@@ -47,6 +47,20 @@ def test_resume_names_its_own_flag_when_the_output_bag_exists(tmp_path, capsys):
     assert f"--output {old}: a bag already exists there" in err and "--bag" not in err, err
 
 
+def test_a_run_is_not_recorded_into_a_sweeps_output_folder(tmp_path, capsys):
+    """optimize --bag and resume --output took a sweep's --out folder and wrote a second bag beside its
+    bag/; bag info and history of the folder then read the new 2-record bag and the sweep was hidden."""
+    leaf = str(SSBJ.parents[1] / "config" / "leaf_nedc.yaml")
+    out = tmp_path / "sweep"
+    assert main(["sweep", leaf, "--vary", "motor_kw=70,90", "--out", str(out), "--no-plots", "--transport", "inprocess"]) == 0
+    capsys.readouterr()
+    assert main(["optimize", leaf, "--transport", "inprocess", "--bag", str(out), "--quiet"]) == 2
+    assert f"--bag {out}: a run's output folder, its bag in bag/; choose a new directory" in capsys.readouterr().err
+    assert main(["resume", str(out), "--transport", "inprocess", "--output", str(out), "--quiet"]) == 2
+    assert f"--output {out}: a run's output folder" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir() if p.suffix == ".mcap") == []
+
+
 def test_resume_goes_on_with_the_formulation_and_optimizer_the_run_used(tmp_path, capsys):
     """An in-process run's bag stored the config's formulation and optimiser, not those of --formulation and
     --optimizer (a ROS run's did), so resuming a COBYLA IDF run went on with the config's SLSQP MDF."""
