@@ -26,6 +26,7 @@ class RepairResult:
     message_count: int
     was_truncated: bool
     rewritten: bool
+    metadata_written: bool = False  # metadata.yaml was missing or did not describe the bag
 
 
 def _topic_infos(bag: Bag) -> list[meta.TopicInfo]:
@@ -73,8 +74,8 @@ def repair(bag_dir, *, force: bool = False) -> RepairResult:
     bag = open_bag(bag_dir, strict=False)
     path = bag.mcap_path
     info = meta.bag_info(path.name, _topic_infos(bag), bag.start_ns, bag.end_ns)
-    has_yaml = (bag.bag_dir / "metadata.yaml").is_file()
-    if not bag.truncated and has_yaml and not force:
+    good_yaml = _describes(bag.bag_dir / "metadata.yaml", path.name, bag.message_count)
+    if not bag.truncated and good_yaml and not force:
         return RepairResult(bag.bag_dir, path, None, bag.message_count, False, False)
     backup = None
     if bag.truncated or force:
@@ -85,4 +86,14 @@ def repair(bag_dir, *, force: bool = False) -> RepairResult:
         os.replace(tmp, path)
     meta.write_metadata_yaml(bag.bag_dir, info)
     return RepairResult(bag.bag_dir, path, backup, bag.message_count, bag.truncated,
-                        backup is not None)
+                        backup is not None, not good_yaml)
+
+
+def _describes(path: Path, file_name: str, message_count: int) -> bool:
+    """Whether ``path`` is a metadata.yaml of this bag: it names its file and its message count (a
+    garbage one, or one naming another file, was taken as 'checked' and rosbags could not open the bag)."""
+    try:
+        info = yaml.safe_load(path.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+        return file_name in info["relative_file_paths"] and int(info["message_count"]) == message_count
+    except (OSError, yaml.YAMLError, TypeError, KeyError, ValueError):
+        return False

@@ -25,7 +25,8 @@ def run(args) -> int:
 
         result = repair(args.bag, force=args.force)
         if not result.rewritten and not result.was_truncated:
-            print(f"{result.mcap_path}: complete; metadata.yaml checked ({result.message_count} messages)")
+            done = "written (it was missing or did not describe the bag)" if result.metadata_written else "checked"
+            print(f"{result.mcap_path}: complete; metadata.yaml {done} ({result.message_count} messages)")
         else:
             print(f"{result.mcap_path}: repaired, {result.message_count} messages kept; "
                   f"original kept as {result.backup_path}")

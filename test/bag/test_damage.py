@@ -70,6 +70,24 @@ def test_repair_restores_summary_readable_by_rosbags(full):
     assert code == 0 and "complete" in out
 
 
+@pytest.mark.parametrize("text", ["not: [valid", "rosbag2_bagfile_information: {}", None])
+def test_a_metadata_yaml_that_does_not_describe_the_bag_is_written_again(full, text):
+    """A garbage metadata.yaml, or one naming another file, got 'complete; metadata.yaml checked' and
+    stayed, and rosbags could not open the bag."""
+    from rosbags.highlevel import AnyReader
+
+    from bev_mdo.bag.reader import open_bag
+
+    good = (full / "metadata.yaml").read_text()
+    (full / "metadata.yaml").write_text(good.replace("full_0.mcap", "other_0.mcap") if text is None else text)
+    code, out, err = cli("bag", "repair", str(full))
+    assert code == 0 and "complete; metadata.yaml written (it was missing or did not describe the bag)" in out, (out, err)
+    with AnyReader([full]) as reader:
+        assert reader.message_count == open_bag(full).message_count
+    code, out, _ = cli("bag", "repair", str(full))
+    assert code == 0 and "complete; metadata.yaml checked" in out
+
+
 def _std_msgs_bag(tmp_path):
     from rclpy.serialization import serialize_message
     from std_msgs.msg import String
