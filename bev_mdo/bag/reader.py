@@ -69,8 +69,10 @@ def find_mcap(path) -> Path:
 class Bag:
     """An opened bag: schemas, channels, metadata and attachments; messages on demand."""
 
-    def __init__(self, path, *, strict: bool = True):
+    def __init__(self, path, *, strict: bool = True, salvage: bool = False):
         self.path = Path(path)
+        self.salvage = salvage  # `bag repair`: a damaged chunk is skipped, not the end of what is read
+        self.skipped: list[int] = []  # byte offsets after the chunks skipped
         self.mcap_path = find_mcap(self.path)
         self.bag_dir = self.mcap_path.parent
         self.strict = strict
@@ -104,25 +106,35 @@ class Bag:
     def _records(self) -> Iterator[object]:
         """All records in file order; sets ``truncated`` when the file ends early."""
         with open(self.mcap_path, "rb") as f:
-            reader = StreamReader(f, skip_magic=False, validate_crcs=True)
             data_ended = False  # past DataEnd: only the summary (copies and indexes) is left
-            try:
-                for record in reader.records:
-                    self.recovered_bytes = f.tell()
-                    data_ended = data_ended or isinstance(record, DataEnd)
-                    yield record
-            except (EndOfFile, struct.error):  # a short read: the file ends early (or a summary length is damaged)
-                self.truncated = True
-                if data_ended:
-                    self.damage = "truncated or damaged in the summary after the messages"
-            except Exception as exc:  # noqa: BLE001 - zstd / struct / decode errors from damaged bytes
-                if not data_ended:
-                    detail = f": {exc}" if isinstance(exc, (McapError, ValueError, OSError, EOFError, KeyError,
-                                                            IndexError)) else ""
-                    raise BagError(f"{self.mcap_path}: corrupt MCAP data after byte "
-                                   f"{self.recovered_bytes} ({type(exc).__name__}{detail})") from exc
-                self.truncated = True  # every message was read: noted, and `bag repair` rewrites the summary
-                self.damage = f"damaged in the summary after the messages ({type(exc).__name__})"
+            skipped, at = [], None
+            while True:
+                reader = StreamReader(f, skip_magic=at is not None, validate_crcs=True)
+                try:
+                    for record in reader.records:
+                        self.recovered_bytes = f.tell()
+                        data_ended = data_ended or isinstance(record, DataEnd)
+                        yield record
+                except (EndOfFile, struct.error):  # a short read: the file ends early (or a summary length is damaged)
+                    self.truncated = True
+                    if data_ended:
+                        self.damage = "truncated or damaged in the summary after the messages"
+                except Exception as exc:  # noqa: BLE001 - zstd / struct / decode errors from damaged bytes
+                    if not data_ended and self.salvage and f.tell() > max(self.recovered_bytes, at or 0):
+                        at = f.tell()  # past the damaged record (a chunk is read whole before it is checked)
+                        skipped.append(at)
+                        self.truncated, self.skipped = True, skipped
+                        self.damage = (f"{len(skipped)} damaged record(s) skipped (ending at byte(s) "
+                                       f"{', '.join(map(str, skipped))})")
+                        continue  # the records after it, each checked as before
+                    if not data_ended:
+                        detail = f": {exc}" if isinstance(exc, (McapError, ValueError, OSError, EOFError, KeyError,
+                                                                IndexError)) else ""
+                        raise BagError(f"{self.mcap_path}: corrupt MCAP data after byte "
+                                       f"{self.recovered_bytes} ({type(exc).__name__}{detail})") from exc
+                    self.truncated = True  # every message was read: noted, and `bag repair` rewrites the summary
+                    self.damage = f"damaged in the summary after the messages ({type(exc).__name__})"
+                break
 
     def _scan(self) -> None:
         self._check_magic()
@@ -277,9 +289,10 @@ class Bag:
                 f"{self.recovered_bytes} of {self.file_size} bytes (run `bev-mdo bag repair`)")
 
 
-def open_bag(path, *, strict: bool = True) -> Bag:
-    """Open a bag directory or a bare .mcap file; ``strict`` rejects non-bev_mdo schemas."""
-    return Bag(path, strict=strict)
+def open_bag(path, *, strict: bool = True, salvage: bool = False) -> Bag:
+    """Open a bag directory or a bare .mcap file; ``strict`` rejects non-bev_mdo schemas; ``salvage``
+    (for ``bag repair``) reads on past a damaged chunk."""
+    return Bag(path, strict=strict, salvage=salvage)
 
 
 def read_config(bag) -> str:

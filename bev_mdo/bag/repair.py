@@ -27,6 +27,7 @@ class RepairResult:
     was_truncated: bool
     rewritten: bool
     metadata_written: bool = False  # metadata.yaml was missing or did not describe the bag
+    skipped: str = ""  # the damaged records left out, when there were some
 
 
 def _topic_infos(bag: Bag) -> list[meta.TopicInfo]:
@@ -71,7 +72,7 @@ def _rewrite(bag: Bag, out: Path, info: dict) -> None:
 
 def repair(bag_dir, *, force: bool = False) -> RepairResult:
     """Rebuild summary and metadata.yaml of a (possibly truncated) bag directory or .mcap."""
-    bag = open_bag(bag_dir, strict=False)
+    bag = open_bag(bag_dir, strict=False, salvage=True)
     path = bag.mcap_path
     info = meta.bag_info(path.name, _topic_infos(bag), bag.start_ns, bag.end_ns)
     good_yaml = _describes(bag.bag_dir / "metadata.yaml", path.name, bag.message_count)
@@ -86,7 +87,7 @@ def repair(bag_dir, *, force: bool = False) -> RepairResult:
         os.replace(tmp, path)
     meta.write_metadata_yaml(bag.bag_dir, info)
     return RepairResult(bag.bag_dir, path, backup, bag.message_count, bag.truncated,
-                        backup is not None, not good_yaml)
+                        backup is not None, not good_yaml, bag.damage if bag.skipped else "")
 
 
 def _describes(path: Path, file_name: str, message_count: int) -> bool:

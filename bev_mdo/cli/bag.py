@@ -29,7 +29,7 @@ def run(args) -> int:
             print(f"{result.mcap_path}: complete; metadata.yaml {done} ({result.message_count} messages)")
         else:
             print(f"{result.mcap_path}: repaired, {result.message_count} messages kept; "
-                  f"original kept as {result.backup_path}")
+                  f"{result.skipped + '; ' if result.skipped else ''}original kept as {result.backup_path}")
         return 0
     from bev_mdo.bag.reader import open_bag
 

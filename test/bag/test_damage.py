@@ -222,3 +222,38 @@ def test_damage_in_the_summary_after_the_messages_loses_no_message(full):
     assert not open_bag(full).truncated
     with AnyReader([full]) as reader:
         assert reader.message_count == whole.message_count
+
+
+def test_repair_reads_on_past_a_damaged_chunk(full):
+    """One flipped byte inside a chunk made every reader and `bag repair` refuse the whole bag, though the
+    chunks before and after it were intact. The readers still refuse it (its records cannot be trusted);
+    repair keeps every message of the other chunks."""
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader
+    from rosbags.highlevel import AnyReader
+
+    from bev_mdo.bag.reader import open_bag
+
+    mcap = full / "full_0.mcap"
+    reference = _decoded_iterations(open_bag(full))
+    data = mcap.read_bytes()
+    with open(mcap, "rb") as f:
+        reader, chunks, start = StreamReader(f, skip_magic=False, emit_chunks=True), [], 8
+        for record in reader.records:
+            if isinstance(record, Chunk):
+                chunks.append((start, f.tell(), record.message_end_time))
+            start = f.tell()
+    assert len(chunks) >= 4
+    begin, end, _ = chunks[len(chunks) // 2]
+    damaged = bytearray(data)
+    damaged[end - 20] ^= 0xFF  # inside the middle chunk's records
+    mcap.write_bytes(bytes(damaged))
+    code, _, err = cli("bag", "info", str(full))
+    assert code == 2 and "corrupt MCAP data" in err
+    code, out, err = cli("bag", "repair", str(full))
+    assert code == 0 and f"1 damaged record(s) skipped (ending at byte(s) {end})" in out, (out, err)
+    kept = _decoded_iterations(open_bag(full))
+    assert 0 < len(kept) < len(reference) and kept[-1] == reference[-1]  # the chunks after it too
+    assert all(k in reference for k in kept)
+    with AnyReader([full]) as rosbags_reader:
+        assert rosbags_reader.message_count == len(kept)
