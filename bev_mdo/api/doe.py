@@ -108,8 +108,9 @@ def record(bag_dir: Path, config, result: dict, method: str, transport: str) -> 
 
     from bev_mdo.api.runbag import InProcessBag
 
-    bag = InProcessBag(Path(bag_dir), config, uuid.uuid4().hex[:16], transport=transport)
     problem, n = result["problem"], len(result["feasible"])
+    # the count it will hold: a bag cut short (a signal while it is written) is said to be part of the sweep
+    bag = InProcessBag(Path(bag_dir), config, uuid.uuid4().hex[:16], transport=transport, designs=str(n))
     t0 = time.perf_counter()
     try:
         for i in range(n):

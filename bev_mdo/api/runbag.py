@@ -22,7 +22,8 @@ from bev_mdo.bag.history import ANSWERS_FILE, ANSWERS_METADATA
 class InProcessBag:
     """Iteration records of an in-process run, written as the recorder node would write them."""
 
-    def __init__(self, bag_dir: Path, config: Mapping[str, Any], run_id: str, transport: str = "inprocess"):
+    def __init__(self, bag_dir: Path, config: Mapping[str, Any], run_id: str, transport: str = "inprocess",
+                 **metadata_extra: str):
         import yaml
 
         from bev_mdo.bag.writer import BagWriter
@@ -35,7 +36,7 @@ class InProcessBag:
         self.seq = 0
         self.signer = Signer.from_ros(config.get("ros"))  # signed like the coordinator's when a key is configured
         metadata = {"run_id": run_id, "transport": transport,
-                    "config_yaml": yaml.safe_dump(plain(dict(config)), sort_keys=False)}
+                    "config_yaml": yaml.safe_dump(plain(dict(config)), sort_keys=False), **metadata_extra}
         self.writer = None
         self.failed = None  # why the bag could no longer be written (e.g. a full disk): the run goes on without it
         try:

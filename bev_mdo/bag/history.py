@@ -91,7 +91,7 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
     and stored config disagree); unsigned and forged ones are dropped, and so are records out of
     order (``Sequence``). `no_verify` reads without checking signatures (the note says so).
     `checks`, if given, receives {"run_id", "dropped": {reason: n}, "missing": n, "other_runs": n,
-    "unverified": note or ""}.
+    "unverified": note or ""} and, for a sweep's bag cut short, "unfinished": note.
     """
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     run = run_id or bag.info.get("run_id") or None  # the run the bag's recorder was started for, if any
@@ -139,6 +139,9 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
             "log_time_ns": msg.log_time_ns,
         })
     info["missing"] = order.missing
+    planned = int(bag.info.get("designs") or 0)  # a sweep's bag names its count of designs
+    if rows and rows[-1]["formulation"] == "doe" and len(rows) < planned:
+        info["unfinished"] = f"the sweep's bag holds {len(rows)} of its {planned} designs (it was stopped while written)"
     if checks is not None:
         checks.update(info)
     return rows
@@ -156,6 +159,8 @@ def check_note(checks: dict) -> str:
         parts.append(f"skipped {checks['other_runs']} record(s) of other runs")
     if checks.get("unverified"):
         parts.append(checks["unverified"])
+    if checks.get("unfinished"):
+        parts.append(checks["unfinished"])
     return "; ".join(parts)
 
 

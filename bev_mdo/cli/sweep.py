@@ -20,6 +20,7 @@ from __future__ import annotations
 import csv
 import itertools
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -134,9 +135,12 @@ def read_list(path: str) -> dict[str, np.ndarray]:
 
 
 def write_csv(path: Path, result: dict) -> None:
+    """``sweep.csv``, whole or not at all: written beside and renamed (a signal while it was written left
+    part of the rows under the final name, with nothing to say so)."""
     cols = list(result["design"]) + list(result["outputs"]) + [f"margin.{k}" for k in result["margins"]]
     n = len(result["feasible"])
-    with open(path, "w", newline="", encoding="utf-8") as f:
+    part = path.with_name(path.name + ".part")
+    with open(part, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
         w.writerow(cols + ["feasible", "ok", "error"])
         for i in range(n):
@@ -144,6 +148,7 @@ def write_csv(path: Path, result: dict) -> None:
             row += [result["margins"][k][i] for k in result["margins"]]
             w.writerow([f"{v:.10g}" for v in row] + [bool(result["feasible"][i]), bool(result["ok"][i]),
                                                      result["errors"][i]])
+    os.replace(part, path)
 
 
 def plot_output(result: dict, output: str, varied: list[str], path: Path, baseline: dict | None = None):
