@@ -167,7 +167,7 @@ def _pairs(fleet, pred: dict, scored: dict) -> dict:
     family = fleet.model_line()
     all_pairs = pr.find_pairs(family, fleet.drive, fleet.rated_power_kw, fleet.test_mass_kg, ~fleet.outlier)
     out = {"rule": "same make and model line (Fleet.model_line), different drive class, rated power or test mass; "
-                   "A = earlier row, diff = 100 (E_B / E_A - 1)",
+                   "A = earlier row, diff = 200 (E_B - E_A) / (E_A + E_B)",
            "slope": "least squares through the origin, predicted on measured", "families": len(set(family)),
            "pairs": len(all_pairs)}
     for c in fl.CYCLES:

@@ -254,10 +254,9 @@ def test_pairs_json_table_and_png(capsys, tmp_path):
         r = s["rows"][0]
         a, b = by_row[r["a_row"]], by_row[r["b_row"]]
         assert r["a_row"] < r["b_row"] and a["make"] == b["make"]
-        assert r["measured_pct"] == pytest.approx(
-            100 * (b[f"{c}_measured_wh_per_km"] / a[f"{c}_measured_wh_per_km"] - 1))
-        assert r["predicted_pct"] == pytest.approx(
-            100 * (b[f"{c}_predicted_wh_per_km"] / a[f"{c}_predicted_wh_per_km"] - 1))
+        for kind in ("measured", "predicted"):  # percent of the pair's mean
+            ea, eb = a[f"{c}_{kind}_wh_per_km"], b[f"{c}_{kind}_wh_per_km"]
+            assert r[f"{kind}_pct"] == pytest.approx(200 * (eb - ea) / (ea + eb))
     for name in ("parity.png", "pairs_udds.png", "pairs_hwfet.png"):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     code, out, _ = run(capsys, "--pairs")

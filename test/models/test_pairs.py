@@ -19,14 +19,28 @@ def test_pairs_need_one_family_and_a_different_drive_power_or_mass():
     assert pr.find_pairs(["a", "b"], ["R", "R"], [1.0, 2.0], [1.0, 2.0]) == []
 
 
+def test_the_pair_figures_do_not_depend_on_the_row_order():
+    """100 (E_B / E_A - 1), A the earlier row, moved the held-out slope and mean difference by up to 0.3
+    points when the same fleet's rows were reversed (UDDS 0.857 / 3.68 against 0.878 / 3.40)."""
+    rng = np.random.default_rng(3)
+    measured, predicted = rng.uniform(100, 220, 12), rng.uniform(100, 220, 12)
+    pairs = [(a, b) for a in range(12) for b in range(a + 1, 12) if (a + b) % 3 == 0]
+    swapped = [(b, a) for a, b in pairs]
+    assert pr.pct_diff(measured, swapped) == pytest.approx(-pr.pct_diff(measured, pairs))
+    one = pr.pair_stats(pr.pct_diff(measured, pairs), pr.pct_diff(predicted, pairs))
+    other = pr.pair_stats(pr.pct_diff(measured, swapped), pr.pct_diff(predicted, swapped))
+    assert one["slope_through_origin"] == pytest.approx(other["slope_through_origin"], rel=1e-12)
+    assert one["mean_abs_diff_points"] == pytest.approx(other["mean_abs_diff_points"], rel=1e-12)
+
+
 def test_percentage_difference_slope_and_mean_abs_diff_by_hand():
     pairs = [(0, 1), (0, 2), (1, 2)]
     measured = np.array([100.0, 110.0, 120.0])
     predicted = np.array([200.0, 216.0, 224.0])
     x = pr.pct_diff(measured, pairs)
     y = pr.pct_diff(predicted, pairs)
-    assert x == pytest.approx([10.0, 20.0, 100 * (120 / 110 - 1)])
-    assert y == pytest.approx([8.0, 12.0, 100 * (224 / 216 - 1)])
+    assert x == pytest.approx([200 * 10 / 210, 200 * 20 / 220, 200 * 10 / 230])  # percent of the pair's mean
+    assert y == pytest.approx([200 * 16 / 416, 200 * 24 / 424, 200 * 8 / 440])
     s = pr.pair_stats([10.0, 20.0], [8.0, 12.0])
     # slope through the origin: (10*8 + 20*12) / (10^2 + 20^2) = 320 / 500
     assert s["n"] == 2 and s["slope_through_origin"] == pytest.approx(0.64)
@@ -87,9 +101,9 @@ def test_pairs_of_the_family_cross_validation_of_the_training_half(family_cv_pai
     assert cv["stats"]["mean_abs_pct"] == pytest.approx(6.26, abs=0.02)
     udds, hwfet = s["epa_udds"], s["epa_hwfet"]
     assert udds["n"] == hwfet["n"] and udds["n"] > 100
-    assert udds["slope_met"] is True and hwfet["slope_met"] is True    # 0.868, 1.010
-    assert udds["mean_abs_diff_points"] <= 3.9                         # target 2.5 not met (3.73)
-    assert hwfet["mean_abs_diff_points"] <= 2.9                        # target 2.5 not met (2.79)
+    assert udds["slope_met"] is True and hwfet["slope_met"] is True    # 0.873, 1.007
+    assert udds["mean_abs_diff_points"] <= 3.7                         # target 2.5 not met (3.54)
+    assert hwfet["mean_abs_diff_points"] <= 2.8                        # target 2.5 not met (2.67)
 
 
 @pytest.fixture(scope="module")
@@ -108,16 +122,16 @@ def family_cv_quasi_static():
 def test_quasi_static_loss_model_held_out_by_family(family_cv_quasi_static):
     """The default model (``epa2022_quasi_static``: the motor as losses, the two-speed cars shifting, the
     wound-rotor machines' field), 5-fold CV by family as ``bev-mdo calibrate`` runs it. Measured
-    (docs/validation.md): MAPE 5.58 % (target <= 6 %); pairs UDDS slope 0.856, 3.72 points; HWFET slope
-    0.996, 2.76 points. Both slopes meet 0.85-1.15 (UDDS at 0.835 without the field's loss); the
+    (docs/validation.md): MAPE 5.58 % (target <= 6 %); pairs UDDS slope 0.869, 3.55 points; HWFET slope
+    0.995, 2.65 points. Both slopes meet 0.85-1.15 (UDDS at 0.835 without the field's loss); the
     differences do not (2.5) and are pinned near today's level: a regression fails."""
     cv, s = family_cv_quasi_static
     assert cv["stats"]["mean_abs_pct"] <= 6.0                              # 5.58
     udds, hwfet = s["epa_udds"], s["epa_hwfet"]
     assert udds["n"] == hwfet["n"] == 105
-    assert udds["slope_met"] is True and hwfet["slope_met"] is True        # 0.856, 0.996
-    assert udds["mean_abs_diff_points"] <= 3.9                             # 3.72, target 2.5 not met
-    assert hwfet["mean_abs_diff_points"] <= 2.9                            # 2.76, target 2.5 not met
+    assert udds["slope_met"] is True and hwfet["slope_met"] is True        # 0.869, 0.995
+    assert udds["mean_abs_diff_points"] <= 3.7                             # 3.55, target 2.5 not met
+    assert hwfet["mean_abs_diff_points"] <= 2.8                            # 2.65, target 2.5 not met
 
 
 @pytest.fixture(scope="module")
@@ -138,9 +152,9 @@ def test_quasi_static_loss_model_held_out_by_make(make_cv_quasi_static):
     and the wound-rotor machines' field, fitted as ``bev-mdo calibrate --model quasi_static`` does, each
     make predicted by a fit that never saw it (9 folds; without BMW no car has a wound rotor and its
     loss stays 0). Measured (docs/validation.md): MAPE 6.70 % over all folds' vehicles, median of the
-    folds 5.69 % (target <= 8 %); pairs UDDS slope 0.846, 4.09 points; HWFET slope 0.997, 2.78 points.
-    The thesis' model as published: 45.6 %, slopes 1.75 / 1.92, 16.1 / 15.9 points. The HWFET slope
-    meets its target (0.85-1.15), the UDDS one misses it by 0.004 and is held at 0.83 here; the
+    folds 5.69 % (target <= 8 %); pairs UDDS slope 0.860, 3.91 points; HWFET slope 0.997, 2.68 points.
+    The thesis' model as published: 45.6 %, slopes 1.70 / 1.83, 14.4 / 14.0 points. Both slopes meet
+    their target (0.85-1.15; the UDDS one by 0.010, 0.846 under the percentage of the earlier row); the
     differences do not (2.5) and are pinned near today's level: a regression fails."""
     cv, s = make_cv_quasi_static
     assert cv["k"] == 9
@@ -148,7 +162,6 @@ def test_quasi_static_loss_model_held_out_by_make(make_cv_quasi_static):
     assert np.median(cv["fold_mape_pct"]) <= 8.0                           # level target met (fold median)
     udds, hwfet = s["epa_udds"], s["epa_hwfet"]
     assert udds["n"] == hwfet["n"] == 105
-    assert 0.83 <= udds["slope_through_origin"] <= pr.SLOPE_TARGET[1]     # 0.846: target 0.85 not met
-    assert hwfet["slope_met"] is True                                      # 0.997
-    assert udds["mean_abs_diff_points"] <= 4.3                             # 4.09, target 2.5 not met
-    assert hwfet["mean_abs_diff_points"] <= 2.95                           # 2.78, target 2.5 not met
+    assert udds["slope_met"] is True and hwfet["slope_met"] is True        # 0.860, 0.997
+    assert udds["mean_abs_diff_points"] <= 4.1                             # 3.91, target 2.5 not met
+    assert hwfet["mean_abs_diff_points"] <= 2.85                           # 2.68, target 2.5 not met
