@@ -7,9 +7,10 @@
   family-grouped k-fold split (:func:`family_folds`, the rule of ``fleet.group_folds``): every
   vehicle is predicted by constants that never saw its family.
 * **FASTSim 2.1.5 with its defaults**: read from ``fastsim_2.1.5.csv`` beside the shipped fleet
-  file, written by ``scripts/fastsim_baseline.py`` (which needs FASTSim; reading does not). Rows are
-  matched by CSV row, make and model, and must hold the inputs FASTSim was run on (drive, rated power,
-  test mass, A, B, C, kept in the file): a fleet row FASTSim was not run on gets no FASTSim figure.
+  file, written by ``scripts/fastsim_baseline.py`` (which needs FASTSim; reading does not). A fleet
+  row is matched to a run by its make, model and the inputs FASTSim was run on (drive, rated power,
+  test mass, A, B, C, kept in the file), wherever it sits in the file: a row FASTSim was not run on
+  gets no FASTSim figure.
 
 :func:`reference_table` scores any set of such columns on the same rows: per cycle, the rows every
 column scores, their mean absolute % error and the within-family pair metrics (models/pairs.py).
@@ -84,20 +85,25 @@ def three_constant_cv(fleet: fl.Fleet, use: np.ndarray, cycles: dict | None = No
 
 def read_fastsim(fleet: fl.Fleet, path=None) -> dict[str, np.ndarray] | None:
     """FASTSim's wall energy per cycle for the fleet's rows, {cycle: (N,) Wh/km}, NaN where the file
-    has no such row (matched by row, make and model), the row's inputs differ from those FASTSim was
-    run on (:data:`FASTSIM_INPUTS`: a user's edited copy of the shipped file) or FASTSim could not
-    follow the trace; None when the file is absent."""
+    has no run of that vehicle (the same make, model and :data:`FASTSIM_INPUTS`, wherever the row is in
+    the file: a reordered or partial copy keeps its figures, an edited row loses its own) or FASTSim could
+    not follow the trace; None when the file is absent."""
     path = path or FASTSIM_CSV
     try:
         with open(path, newline="", encoding="utf-8") as f:
             rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
     except OSError:
         return None
-    by_key = {(int(r["row"]), r["make"], r["model"]): r for r in rows}
-    found = [by_key.get((int(fleet.rows[i]), fleet.make[i], fleet.model[i])) for i in range(len(fleet))]
-    run_on = [r is not None and r["drive"] == fleet.drive[i] and all(
-        math.isclose(float(r[k]), float(getattr(fleet, k)[i]), rel_tol=1e-9) for k in FASTSIM_INPUTS[1:])
-        for i, r in enumerate(found)]
+    runs: dict[tuple[str, str], list[dict]] = {}
+    for r in rows:  # matched by the vehicle, not the row number (it moved with a reordered copy)
+        runs.setdefault((r["make"], r["model"]), []).append(r)
+
+    def same(r, i):
+        return r["drive"] == fleet.drive[i] and all(
+            math.isclose(float(r[k]), float(getattr(fleet, k)[i]), rel_tol=1e-9) for k in FASTSIM_INPUTS[1:])
+    found = [next((r for r in runs.get((fleet.make[i], fleet.model[i]), []) if same(r, i)), None)
+             for i in range(len(fleet))]
+    run_on = [r is not None for r in found]
     out = {}
     for c in fl.CYCLES:
         short = c.replace("epa_", "")

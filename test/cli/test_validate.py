@@ -299,9 +299,8 @@ def test_the_model_is_beside_the_baseline_and_fastsim_on_the_same_rows(capsys, t
     out = run(capsys)[1]
     assert "beside the references, same rows (FASTSim: available)" in out and "baseline3 " in out
     rows = _rows()
-    rows[1][1] = "Renamed"  # not a row FASTSim ran
-    only = _write(tmp_path, [rows[0], rows[1]] + [r for r in rows[2:] if r[0] == "Ford"])
-    doc = json.loads(run(capsys, "--data", only, "--json")[1])
+    ford = [r[:1] + [f"Renamed {r[1]}"] + r[2:] for r in rows[1:] if r[0] == "Ford"]  # vehicles FASTSim never ran
+    doc = json.loads(run(capsys, "--data", _write(tmp_path, [rows[0]] + ford), "--json")[1])
     assert doc["reference"]["fastsim"].startswith("unavailable: FASTSim was not run on this fleet file")
     assert set(doc["reference"]["same_rows"]["udds"]) == {"rows", "pairs", "quasi_static", "baseline3"}
     rows = _rows()

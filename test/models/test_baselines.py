@@ -89,6 +89,25 @@ def test_fastsim_results_match_the_fleet_rows(fleet, tmp_path):
     assert np.isnan(bl.read_fastsim(other)["epa_udds"][0]) and np.isfinite(bl.read_fastsim(other)["epa_udds"][1])
 
 
+def test_fastsim_figures_follow_the_vehicle_not_the_row_number(tmp_path):
+    """A reversed or partial copy of the shipped file lost FASTSim's figures: rows were matched by their
+    row number ('unavailable: FASTSim was not run on this fleet file'; a 4-make subset: 23 of 36 rows)."""
+    import csv
+
+    with fl.DEFAULT_FLEET.open(newline="") as f:
+        rows = list(csv.reader(f))
+    shipped = bl.read_fastsim(fl.read_fleet())
+    for name, body in (("reversed.csv", rows[:0:-1]), ("tesla.csv", [r for r in rows[1:] if r[0] == "Tesla"])):
+        path = tmp_path / name
+        with path.open("w", newline="") as f:
+            csv.writer(f).writerows([rows[0], *body])
+        copy = fl.read_fleet(path)
+        got = bl.read_fastsim(copy)
+        for c in fl.CYCLES:
+            want = [shipped[c][int(r) - 2] for r in [rows.index(b) + 1 for b in body]]
+            assert np.isfinite(got[c]).all() and got[c] == pytest.approx(want, rel=0, abs=0)
+
+
 @pytest.mark.parametrize("column, value", [("road_load_c_n_per_m2_s2", 0.2), ("test_mass_kg", 1900.0),
                                            ("rated_power_kw", 150.0), ("drive", "F")])
 def test_a_row_fastsim_was_not_run_on_gets_no_fastsim_figure(column, value):
