@@ -26,6 +26,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from bev_mdo import interrupts
 from bev_mdo.mdo import first_order
 from bev_mdo.mdo.derivatives import constraint_jacobian, fd_partials, idf_totals, mdf_totals
 from bev_mdo.mdo.evaluator import Evaluator
@@ -96,6 +97,7 @@ class Formulation:
             raise ValueError(f"design batch has {X.shape[1]} columns, expected {self.n} columns ({self.var_names})")
         keys = [row.tobytes() for row in X]
         todo = list(dict.fromkeys(k for k in keys if k not in self._cache))
+        interrupts.check()  # a SIGINT or SIGTERM that code below swallowed stops the run here (every optimiser)
         if todo:
             rows = np.array([np.frombuffer(k) for k in todo])
             f, g, h, ok, err = self._evaluate_rows(rows)
