@@ -292,10 +292,12 @@ def _read_parameter_set(name: str) -> tuple[dict[str, float], Any]:
     if unknown:  # a misspelt name would otherwise do nothing, silently
         raise ValueError(f"{path}: unknown parameter(s) {unknown}")
     out = {}
-    for k, v in values.items():
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise ValueError(f"{path}: parameters.{k} must be a number, got {v!r}")
-        out[str(k)] = float(v)
+    for k, v in values.items():  # each in its range, as a config's vehicle section (validate took 0.1 and 1.9)
+        s = specs[k]
+        try:
+            out[str(k)] = check_value(str(k), v, s.lower, s.upper, s.unit, s.integer)
+        except ValueError as exc:
+            raise ValueError(f"{path}: parameters.{exc}") from None
     return out, doc.get("energy_model")
 
 

@@ -117,3 +117,17 @@ def test_a_design_batch_is_one_axis():
     with pytest.raises(ValueError, match=r"^battery_kwh must be a number or a 1-D array, got shape \(2, 2\)$"):
         rg.range_km(np.full((2, 2), 24.0), 150.0)
     assert rg.range_km([24.0, 30.0], 150.0).shape == (2,)
+
+
+@pytest.mark.parametrize("value, said", [(0.1, "must be in [0.5, 1], got 0.1"), (1.9, "must be in [0.5, 1], got 1.9"),
+                                         (True, "must be a number in [0.5, 1], got true (a bool)")])
+def test_a_parameter_set_file_is_range_checked_on_load(tmp_path, value, said):
+    """validate --parameter-set took charger_efficiency 0.1 (a 1352 % error) and 1.9 (wall energy below
+    the battery's), which a config refused."""
+    from bev_mdo.models.params import load_parameter_set
+
+    path = tmp_path / "mine.yaml"
+    path.write_text(f"name: mine\nenergy_model: quasi_static\nparameters:\n  charger_efficiency: {str(value).lower()}\n")
+    with pytest.raises(ValueError) as e:
+        load_parameter_set(str(path))
+    assert str(e.value) == f"{path}: parameters.charger_efficiency {said}"
