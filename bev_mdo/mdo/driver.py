@@ -16,7 +16,8 @@ from bev_mdo.mdo import first_order
 from bev_mdo.mdo.evaluator import Evaluator
 from bev_mdo.mdo.formulations import FORMULATIONS, Formulation
 from bev_mdo.mdo.mda import MDA
-from bev_mdo.mdo.optimizers import GRADIENT_BASED, NOISE_VIOLATION, canonical_name, run_optimizer
+from bev_mdo.mdo.optimizers import (GRADIENT_BASED, NOISE_VIOLATION, canonical_name, check_finite_bounds,
+                                    run_optimizer)
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import FEASIBILITY_TOL, RunSettings
 
@@ -194,6 +195,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     opt_name = canonical_name(optimizer or opt_cfg.name)
     # the config's options belong to the config's optimiser: another one chosen here starts from none
     options = dict(opt_cfg.options) if not optimizer or canonical_name(opt_cfg.name) == opt_name else {}
+    check_finite_bounds(opt_name, form)  # before the start point is evaluated and printed as iteration 0
     if x0:
         unknown = [k for k in x0 if k not in problem.names]
         if unknown:

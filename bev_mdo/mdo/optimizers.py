@@ -121,11 +121,22 @@ def _derivative_free(method: str):
     return run
 
 
-def _differential_evolution(form, options, callback):
+# optimisers that sample the whole box: every optimiser variable needs finite bounds
+FINITE_BOUNDS = frozenset({"differential_evolution", "chebyshev-pairwise"})
+
+
+def check_finite_bounds(name: str, form) -> None:
+    """ValueError, before anything is evaluated, when optimiser ``name`` samples the box and a variable of
+    ``form`` has no finite bound (IDF's coupling variables without ``problem.coupling_bounds``)."""
     lo, hi = form.u_bounds
-    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
-        raise ValueError("differential_evolution needs finite bounds on every optimiser variable "
+    if name in FINITE_BOUNDS and not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+        raise ValueError(f"{name} needs finite bounds on every optimiser variable "
                          "(with IDF give problem.coupling_bounds)")
+
+
+def _differential_evolution(form, options, callback):
+    check_finite_bounds("differential_evolution", form)
+    lo, hi = form.u_bounds
 
     def cols(U):
         U = np.asarray(U, dtype=float)

@@ -144,3 +144,21 @@ def test_an_optimum_the_check_verifies_is_kept_when_the_optimiser_does_not_say_i
     assert past["feasible"] and 2e-5 <= past["max_violation"] <= 8e-5 and past["objective"] < REF_F - 1e-5
     assert res.result_iteration == len(res.history) - 1 and res.verdict == "optimum"
     assert res.objective == pytest.approx(REF_F, rel=1e-6)
+
+
+@pytest.mark.parametrize("optimizer", ["differential_evolution", "chebyshev-pairwise"])
+def test_an_optimiser_that_needs_a_box_is_refused_before_iteration_0(optimizer):
+    """IDF with chebyshev-pairwise printed 'iter 0 ...' and then failed: IDF's coupling variables have no
+    bounds unless problem.coupling_bounds gives them, which a sampling optimiser needs."""
+    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.mdo import driver
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.testing import example_config
+    from test_multistart import SELLAR
+
+    config = example_config(SELLAR)
+    seen = []
+    with pytest.raises(ValueError, match=f"^{optimizer} needs finite bounds on every optimiser variable"):
+        driver.run_optimization(config, InProcessEvaluator(resolve_disciplines(config)), formulation="idf",
+                                optimizer=optimizer, callback=seen.append)
+    assert seen == []
