@@ -57,17 +57,15 @@ def run(args) -> int:
     from bev_mdo.cli import flags
 
     pareto.check_sizes(args.generations, args.pop, args.instances, args)
-    cfg = flags.load_config(args)  # a bad file, key, name, topology, variable or override exits 2 here
     names = None if args.objectives is None else [o.strip() for o in args.objectives.split(",") if o.strip()]
     if args.topology or args.all_topologies:
         from bev_mdo.api import overrides
+        from bev_mdo.config import RunConfig
         from bev_mdo.yamlload import read_yaml_file
 
-        raw = read_yaml_file(Path(args.config))
-        ov = overrides.from_args(args)
-        if ov:  # the command line's overrides, checked against the config as written
-            raw = overrides.apply(raw, ov, overrides.known_names(cfg))
-        return _study(args, raw, cfg, names)
+        raw = read_yaml_file(Path(args.config))  # the overrides go to each topology's problem (_study)
+        return _study(args, raw, RunConfig.load(raw), names, overrides.from_args(args))
+    cfg = flags.load_config(args)  # a bad file, key, name, topology, variable or override exits 2 here
     objs = pareto.objectives_of(names, cfg)
     pareto.check_objectives(objs, cfg, str(args.config), 2)
     print(f"NSGA-II {args.pop} x {args.generations} over {args.transport}: "
@@ -93,9 +91,22 @@ def _failed(doc: dict) -> int:
     return 0
 
 
-def _study(args, raw, written, names) -> int:
+def _only(ov, variables: set[str]):
+    """The overrides with the bounds and initial values of ``variables`` only (one topology's)."""
+    import copy
+
+    kept = copy.deepcopy(ov)
+    kept.bounds = {k: v for k, v in ov.bounds.items() if k in variables}
+    kept.initial = {k: v for k, v in ov.initial.items() if k in variables}
+    return kept
+
+
+def _study(args, raw, written, names, ov) -> int:
     """The BEV topology study (thesis §4.4): one front per topology, the benchmark, the picks;
-    ``written``: the config's RunConfig; ``names``: the --objectives (None: the config's)."""
+    ``written``: the config's RunConfig; ``names``: the --objectives (None: the config's); ``ov``: the
+    command line's overrides, applied to each topology's problem (DM-DA's motor_rear_kw can be bounded;
+    a variable one topology lacks, IWM's gear_ratio, is bounded where it exists, and a name no studied
+    topology has is refused)."""
     from bev_mdo.api import pareto
     from bev_mdo.config import RunConfig
     from bev_mdo.disciplines import TOPOLOGY_DISCIPLINES
@@ -106,12 +117,24 @@ def _study(args, raw, written, names) -> int:
         raise ValueError(f"{args.config}: --topology and --all-topologies study the BEV problem's powertrain "
                          f"topologies; this config has none of the disciplines {', '.join(TOPOLOGY_DISCIPLINES)} "
                          "(without them, bev-mdo pareto runs NSGA-II on the config as written)")
-    configs = {}
+    from bev_mdo.api import overrides
+
+    configs, own = {}, {}
     for t in topologies:
         try:
-            configs[t] = RunConfig.load(study.config_for_topology(raw, t))
+            ct = study.config_for_topology(raw, t)
+            own[t] = set(ct["problem"]["design_variables"])
+            if ov:
+                known = overrides.known_names(RunConfig.load(ct))
+                ct = overrides.apply(ct, _only(ov, own[t]) if len(topologies) > 1 else ov, known)
+            configs[t] = RunConfig.load(ct)
         except ValueError as exc:  # the file and the topology, not <config>
             raise ValueError(f"{args.config} ({t}): {str(exc).removeprefix('<config>: ')}") from None
+    for flag, named in (("--bound", ov.bounds), ("--initial", ov.initial)):
+        nowhere = sorted(set(named) - set().union(*own.values()))
+        if nowhere:
+            raise ValueError(f"{flag} {nowhere[0]!r}: not a design variable of any studied topology; "
+                             f"they have {sorted(set().union(*own.values()))}")
     first = next(iter(configs.values()))
     objectives = pareto.objectives_of(names, first) or [(o, False) for o in OBJECTIVES]
     for t, cfg in configs.items():

@@ -186,6 +186,30 @@ def test_the_topology_study_labels_each_topology_and_keeps_the_users_bounds(tmp_
     assert bench["topology"] == "DM-DA"
 
 
+def test_the_command_lines_bounds_go_to_each_studied_topology(tmp_path, capsys):
+    """--bound was checked against the config as written (SM-SA): motor_rear_kw, a DM-DA variable, was
+    refused as 'not a design variable', and gear_ratio with --topology IWM-SA was dropped with the
+    variable, without a word."""
+    cfg = _write(tmp_path, _raw("SM-SA"))
+    study = ("--generations", "1", "--pop", "4", "--no-plots", "--transport", "inprocess")
+    code, err = _run(capsys, "pareto", cfg, "--topology", "DM-DA", "--bound", "motor_rear_kw=30:40", "--out",
+                     tmp_path / "dm", *study)
+    assert code == 0, err
+    assert json.loads((tmp_path / "dm" / "summary.json").read_text())["timing"]["DM-DA"]["design_variables"][
+        "motor_rear_kw"] == [30, 40]
+    code, err = _run(capsys, "pareto", cfg, "--topology", "IWM-SA", "--bound", "gear_ratio=5:6", "--out",
+                     tmp_path / "iwm", *study)
+    assert code == 2 and "(IWM-SA): --bound 'gear_ratio': not a design variable" in err
+    code, err = _run(capsys, "pareto", cfg, "--all-topologies", "--bound", "gear_ratio=5:6", "--out", tmp_path / "all",
+                     *study)
+    assert code == 0, err
+    timing = json.loads((tmp_path / "all" / "summary.json").read_text())["timing"]
+    assert [timing[t]["design_variables"].get("gear_ratio") for t in ("SM-SA", "DM-DA", "IWM-SA", "IWM-DA")] == [
+        [5, 6], [5, 6], None, None]
+    code, err = _run(capsys, "pareto", cfg, "--all-topologies", "--bound", "motr_kw=5:6", "--out", tmp_path / "x", *study)
+    assert code == 2 and "--bound 'motr_kw': not a design variable of any studied topology" in err
+
+
 def test_instances_need_the_ros_transport_exit_2(tmp_path, capsys):
     code, err = _run(capsys, "pareto", _write(tmp_path, _raw("IWM-SA", DVS["IWM-SA"])), "--instances", "energy=2",
                      "--generations", "1", "--pop", "4", "--no-plots", "--out", tmp_path / "o", "--transport", "inprocess")
