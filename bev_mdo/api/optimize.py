@@ -126,6 +126,8 @@ def _run_ros(config, opts, show, x0, starts):
     stamp_ = time.strftime("%Y%m%d_%H%M%S")
     bag = Path(opts.bag) if opts.bag else Path("bags") / f"{config.name}_{stamp_}_{run_id[:6]}"
     if not opts.no_record:
+        from bev_mdo.api.runbag import check_new_bag
+
         check_new_bag(bag, "--bag")
     scratch = None
     if opts.no_record and not opts.bag:  # nothing to keep: the logs and the per-run key go in a private temporary
@@ -193,20 +195,3 @@ def exit_status(doc: dict, fixed_budget: bool = False) -> int:
     if doc.get("unresponsive_disciplines"):
         return 4
     return 0 if doc["verdict"] == "optimum" or fixed_budget else 5
-
-
-def check_new_bag(bag: Path, what: str) -> None:
-    """A bag may be written to `bag`: InputError (exit 2) naming it if a bag or a file is there."""
-    bag = Path(bag)
-    if bag.exists() and not bag.is_dir():
-        raise InputError(f"{what} {bag}: is a file, not a bag directory")
-    blocking = next((p for p in bag.parents if p.exists() and not p.is_dir()), None)
-    if blocking is not None:
-        raise InputError(f"{what} {bag}: {blocking} is a file, not a folder")
-    from bev_mdo.bag.reader import holds_bag
-
-    if holds_bag(bag):
-        raise InputError(f"{what} {bag}: a bag already exists there; choose a new directory")
-    inner = next((d for d in (bag.iterdir() if bag.is_dir() else ()) if d.is_dir() and holds_bag(d)), None)
-    if inner is not None:  # a run's output folder (sweep's, pareto's): its readers would take the new bag
-        raise InputError(f"{what} {bag}: a run's output folder, its bag in {inner.name}/; choose a new directory")

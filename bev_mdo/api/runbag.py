@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from bev_mdo import interrupts, jsontext
+from bev_mdo.api.errors import InputError
 from bev_mdo.bag.history import ANSWERS_FILE, ANSWERS_METADATA
 
 
@@ -159,8 +160,6 @@ def in_process_bag(config: Mapping[str, Any], opts, show):
         return None, None, show
     import uuid
 
-    from bev_mdo.api.optimize import check_new_bag
-
     check_new_bag(Path(opts.bag), "--bag")  # as over ROS (the writer refused only a bag in the folder itself)
 
     writer = InProcessBag(Path(opts.bag), config, uuid.uuid4().hex[:16])
@@ -170,3 +169,20 @@ def in_process_bag(config: Mapping[str, Any], opts, show):
         show(rec)
 
     return str(opts.bag), writer, callback
+
+
+def check_new_bag(bag: Path, what: str) -> None:
+    """A bag may be written to `bag`: InputError (exit 2) naming it if a bag or a file is there."""
+    bag = Path(bag)
+    if bag.exists() and not bag.is_dir():
+        raise InputError(f"{what} {bag}: is a file, not a bag directory")
+    blocking = next((p for p in bag.parents if p.exists() and not p.is_dir()), None)
+    if blocking is not None:
+        raise InputError(f"{what} {bag}: {blocking} is a file, not a folder")
+    from bev_mdo.bag.reader import holds_bag
+
+    if holds_bag(bag):
+        raise InputError(f"{what} {bag}: a bag already exists there; choose a new directory")
+    inner = next((d for d in (bag.iterdir() if bag.is_dir() else ()) if d.is_dir() and holds_bag(d)), None)
+    if inner is not None:  # a run's output folder (sweep's, pareto's): its readers would take the new bag
+        raise InputError(f"{what} {bag}: a run's output folder, its bag in {inner.name}/; choose a new directory")

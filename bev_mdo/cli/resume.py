@@ -72,7 +72,7 @@ def run(args) -> int:
     from bev_mdo.config import RunConfig
 
     if args.out_bag and not args.no_record:  # named by its own flag (optimize's check says --bag)
-        from bev_mdo.api.optimize import check_new_bag
+        from bev_mdo.api.runbag import check_new_bag
 
         check_new_bag(Path(args.out_bag), "--output")
     checks: dict = {}

@@ -229,7 +229,7 @@ def run(args) -> int:
     out = Path(args.out)
     bag = out / "bag"
     if not args.no_record:
-        from bev_mdo.api.optimize import check_new_bag
+        from bev_mdo.api.runbag import check_new_bag
 
         check_new_bag(bag, "--out")
     designs, varied = designs_of(args, config.problem)
