@@ -111,11 +111,12 @@ def grid(vary: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 def read_list(path: str) -> dict[str, np.ndarray]:
     """A header of names, then one row of numbers per design; UsageError naming the row and column."""
-    try:
-        with open(path, newline="", encoding="utf-8") as f:
-            rows = [r for r in csv.reader(f) if any(c.strip() for c in r)]
-    except FileNotFoundError:
-        raise UsageError(f"--list {path}: no such file") from None
+    from bev_mdo.models.cycles import read_csv_rows
+
+    try:  # the reader of every user CSV (size-bounded, UTF-8 with or without BOM, one-line errors)
+        rows = [r for r in read_csv_rows(path, "design list") if any(c.strip() for c in r)]
+    except ValueError as exc:
+        raise UsageError(f"--list: {exc}") from None
     if len(rows) < 2:
         raise UsageError(f"--list {path}: no designs (a header of names, then one row per design)")
     names = [c.strip() for c in rows[0]]
