@@ -101,6 +101,7 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
         if len(runs) > 1:
             raise BagError(f"{bag.mcap_path}: the bag holds the iterations of {len(runs)} runs {runs}; "
                            "choose one with --run-id")
+    is_design = design_names(read_config(bag))
     check = verifier(bag, key_file, no_verify)
     signer = check.signer
     info = {"run_id": run, "dropped": {}, "missing": 0, "other_runs": 0, "unverified": check.note}
@@ -120,13 +121,16 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
         if why is not None:
             info["dropped"][why] = info["dropped"].get(why, 0) + 1
             continue
+        values = named(rec.design)
         rows.append({
             "run_id": rec.run_id,
             "iteration": int(rec.iteration),
             "sequence": int(rec.sequence),
             "formulation": rec.formulation,
             "optimizer": rec.optimizer,
-            "design": named(rec.design),
+            "design": {k: v for k, v in values.items() if is_design(k)},
+            **({"couplings": {k: v for k, v in values.items() if not is_design(k)}}
+               if rec.formulation == "idf" else {}),
             "objective_name": rec.objective_name,
             "objective": float(rec.objective),
             "constraints": named(rec.constraints),
@@ -169,8 +173,9 @@ def flat_rows(rows: list[dict]) -> list[dict]:
     flat = []
     for row in rows:
         out = {k: v for k, v in row.items()
-               if k not in ("design", "constraints", "discipline_evaluations", "log_time_ns")}
+               if k not in ("design", "couplings", "constraints", "discipline_evaluations", "log_time_ns")}
         out.update({f"design.{k}": v for k, v in row["design"].items()})
+        out.update({f"coupling.{k}": v for k, v in row.get("couplings", {}).items()})
         out.update({f"constraint.{k}": v for k, v in row["constraints"].items()})
         out.update({f"evaluations.{k}": v for k, v in row["discipline_evaluations"].items()})
         flat.append(out)
@@ -188,6 +193,22 @@ def to_csv(rows: list[dict]) -> str:
     writer.writeheader()
     writer.writerows(flat)
     return buf.getvalue()
+
+
+def design_names(config_yaml: str | None):
+    """Whether a recorded variable name is a design variable of the stored config (``x[2]``: of ``x``);
+    an IDF record holds its couplings too. Without a readable config, every name is."""
+    import yaml
+
+    from bev_mdo.config.sections import resolve_problem
+
+    try:  # as the run read it: a battery sized for range is a coupling
+        dvs = resolve_problem((yaml.safe_load(config_yaml or "") or {}).get("problem")).get("design_variables")
+    except Exception:  # noqa: BLE001 - a reader never fails on the stored config
+        dvs = None
+    if not isinstance(dvs, dict) or not dvs:
+        return lambda name: True
+    return lambda name: name in dvs or name.split("[", 1)[0] in dvs
 
 
 def maximized(config_yaml: str | None) -> bool:
@@ -234,7 +255,7 @@ def headline(rows: list[dict], sign: float = 1.0, answers: dict | None = None) -
 
 def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
                  checks: dict | None = None, no_verify: bool = False) -> tuple[str, dict[str, float], int]:
-    """(config_yaml, design of the last verified iteration of the bag's own run, or of a sweep's best
+    """(config_yaml, design (IDF: and couplings) of the last verified iteration of the bag's own run, or of a sweep's best
     design (``headline``; `checks` then gets "sweep": ``sweep_phrase``), its iteration number), for
     resume. BagError when the run was signed but its records cannot be verified."""
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
@@ -248,7 +269,7 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
         checks["result"] = f"the run's result (iteration {row['iteration']}, not its last record)"
     if checks is not None and row["formulation"] == "doe":
         checks["sweep"] = sweep_phrase(row, len(rows))
-    return config, dict(row["design"]), int(row["iteration"])
+    return config, {**row["design"], **row.get("couplings", {})}, int(row["iteration"])
 
 
 def sweep_phrase(row: dict, n: int) -> str:

@@ -87,11 +87,16 @@ def run(args) -> int:
     print(f"resuming {config.name} from {checks.get('sweep') or checks.get('result') or f'iteration {iteration}'} at "
           + ", ".join(f"{k}={v:.6g}" for k, v in design.items()), file=out)
     # element names ('x_shared[0]', ...) for vector design variables, as the bag records them
-    names = config.problem.names
+    problem = config.problem
+    names = problem.names
     x0 = {k: v for k, v in design.items() if k in names}
+    if str(config["formulation"]).lower() == "idf":  # IDF goes on from the couplings it held, too
+        x0.update({k: v for k, v in design.items() if k not in names})
     # an optimiser may end a little outside a bound (COBYLA, trust-constr: within the feasibility tolerance);
     # the resumed run starts on the bound instead of refusing its start point
-    lo, hi = (dict(zip(names, config.problem.array(side))) for side in ("lower", "upper"))
+    lo, hi = (dict(zip(names, problem.array(side))) for side in ("lower", "upper"))
+    for k in set(x0) - set(names):
+        lo[k], hi[k] = problem.coupling_bound(k)
     moved = {k: min(max(v, lo[k]), hi[k]) for k, v in x0.items() if not lo[k] <= v <= hi[k]}
     if moved:
         print("starting on the bound of " + ", ".join(f"{k} ({x0[k]:.6g} -> {v:.6g})" for k, v in moved.items()),

@@ -196,17 +196,20 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     # the config's options belong to the config's optimiser: another one chosen here starts from none
     options = dict(opt_cfg.options) if not optimizer or canonical_name(opt_cfg.name) == opt_name else {}
     check_finite_bounds(opt_name, form)  # before the start point is evaluated and printed as iteration 0
-    if x0:
-        unknown = [k for k in x0 if k not in problem.names]
+    n_dv = len(problem.names)
+    if x0:  # design variables; with IDF also its couplings (a resumed record's), else consistent ones
+        unknown = [k for k in x0 if k not in form.var_names]
         if unknown:
-            raise ValueError(f"x0 names {unknown} are not design variables {problem.names}")
-        for j, n in enumerate(problem.names):
+            raise ValueError(f"x0 names {unknown} are not design variables {problem.names}"
+                             + (f" or couplings {form.var_names[n_dv:]}" if len(form.var_names) > n_dv else ""))
+        for j, n in enumerate(form.var_names):
             if n in x0:
                 v = float(x0[n])
                 if not form.lower[j] <= v <= form.upper[j]:
                     raise ValueError(f"x0 {n}={v:g} is outside the bounds [{form.lower[j]:g}, {form.upper[j]:g}]")
                 form.x0[j] = v
-    n_dv = len(problem.names)
+        if hasattr(form, "start_at") and not any(n in x0 for n in form.var_names[n_dv:]):
+            form.start_at(form.x0[:n_dv])
     tol = float(opt_cfg.feasibility_tolerance)
     sign = -1.0 if problem.maximize else 1.0  # evaluate_batch gives the minimised value
     form.feasibility_tolerance = tol
@@ -231,6 +234,8 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
             "mda_evaluations": form.mda_evaluations, "discipline_evaluations": dict(evaluator.counts),
             "wall_time_s": time.perf_counter() - t0,
         }
+        if len(form.var_names) > n_dv:  # IDF: the couplings the optimiser holds (a resume starts from them)
+            rec["couplings"] = dict(zip(form.var_names[n_dv:], map(float, x[n_dv:])))
         history.append(rec)
         xs.append(x.copy())
         if callback is not None:

@@ -330,10 +330,7 @@ class IDF(Formulation):
         graph = CouplingGraph((s.name, s.inputs, s.outputs) for s in mda.specs.values())
         self.couplings = [v for v in graph.couplings if v not in problem.names]
         dv_names = problem.names
-        start = mda.run({**{n: [x] for n, x in zip(dv_names, problem.x0())},
-                         **{k: [v] for k, v in problem.parameters.items()}})
-        y0 = np.array([start.values[c][0] if start.ok[0] else problem.coupling_guess(c)
-                       for c in self.couplings])
+        y0 = self._consistent(problem.x0())
         self.var_names = dv_names + self.couplings
         self.lower = np.concatenate([problem.array("lower"), [problem.coupling_bound(c)[0] for c in self.couplings]])
         self.upper = np.concatenate([problem.array("upper"), [problem.coupling_bound(c)[1] for c in self.couplings]])
@@ -346,6 +343,21 @@ class IDF(Formulation):
         self.scale = np.concatenate([problem.array("scale"), self.coupling_scale])
         self.x0 = np.concatenate([problem.x0(), np.clip(y0, self.lower[len(dv_names):], self.upper[len(dv_names):])])
         self.eq_labels = [f"{c} consistency" for c in self.couplings]
+
+    def _consistent(self, design: np.ndarray) -> np.ndarray:
+        """The couplings an MDA gives at ``design`` (their guesses where it fails)."""
+        problem = self.problem
+        start = self.mda.run({**{n: [x] for n, x in zip(problem.names, design)},
+                              **{k: [v] for k, v in problem.parameters.items()}})
+        return np.array([start.values[c][0] if start.ok[0] else problem.coupling_guess(c) for c in self.couplings])
+
+    def start_at(self, design: np.ndarray) -> None:
+        """Start from ``design`` with the couplings consistent there, as the config's initial design
+        starts: a start given by the caller (``x0``: resume, ``--starts``) is not made infeasible by
+        couplings computed at another point."""
+        n_dv = len(self.problem.names)
+        y0 = self._consistent(np.asarray(design, dtype=float))
+        self.x0 = np.concatenate([design, np.clip(y0, self.lower[n_dv:], self.upper[n_dv:])])
 
     def _evaluate_rows(self, X):
         N = len(X)

@@ -163,7 +163,9 @@ def fill_iteration_record(msg, rec: Mapping, run_id: str, sequence: int):
     """Fill an IterationRecord (header stamped by the caller) from a driver iteration record dict."""
     msg.run_id, msg.sequence, msg.iteration = run_id, int(sequence), int(rec["iteration"])
     msg.formulation, msg.optimizer = str(rec.get("formulation", "")), str(rec.get("optimizer", ""))
-    to_named_array({k: np.array([float(v)]) for k, v in rec["design"].items()}, msg.design)
+    # the design variables, then (IDF) the couplings: the optimiser's variables, as the .msg says
+    to_named_array({k: np.array([float(v)]) for k, v in {**rec["design"], **rec.get("couplings", {})}.items()},
+                   msg.design)
     msg.objective_name, msg.objective = str(rec.get("objective_name", "")), float(rec["objective"])
     to_named_array({k: np.array([float(v)]) for k, v in rec.get("constraints", {}).items()}, msg.constraints)
     msg.max_violation = float(rec.get("max_violation", 0.0))

@@ -1,0 +1,103 @@
+"""An IDF run's records hold its couplings (the optimiser's variables, as IterationRecord.msg says), and a
+start given to IDF begins with couplings consistent there. The records held the design variables only,
+and a given start kept the couplings computed at the config's initial design: a resumed IDF run began
+infeasible at iteration 0 (Sellar: y1, y2 of z = (5, 2), x = 1 at another design) and took 4 iterations
+where MDF took 1."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from bev_mdo.cli import main
+
+SELLAR_IDF = Path(__file__).resolve().parents[2] / "examples" / "sellar" / "sellar_idf.yaml"
+
+
+class Stop(KeyboardInterrupt):
+    """What a Ctrl-C does to the run, raised after a record is written."""
+
+
+def _interrupted_bag(bag: Path, after: int) -> None:
+    """An in-process IDF Sellar run stopped after ``after`` records, as by a signal: no answers stored."""
+    from bev_mdo.api import optimize
+    from bev_mdo.config import RunConfig
+
+    opts = optimize.OptimizeOptions(transport="inprocess", bag=str(bag), quiet=True)
+    seen = []
+
+    def stop(rec):
+        seen.append(rec)
+        if len(seen) == after:
+            raise Stop
+
+    with pytest.raises(Stop):
+        optimize.run(RunConfig.load(SELLAR_IDF), opts, callback=stop)
+
+
+def test_idf_records_hold_the_couplings_and_history_keeps_them_apart(tmp_path):
+    from bev_mdo.bag.history import history, to_csv
+
+    _interrupted_bag(tmp_path / "b", after=3)
+    rows = history(tmp_path / "b")
+    assert len(rows) == 3
+    for r in rows:
+        assert set(r["design"]) == {"z1", "z2", "x"} and set(r["couplings"]) == {"y1", "y2"}
+    assert rows[0]["feasible"]  # the config's start, with the couplings of an MDA there
+    header = to_csv(rows).splitlines()[0].split(",")
+    assert {"design.z1", "coupling.y1", "coupling.y2"} <= set(header) and "design.y1" not in header
+
+
+def test_an_interrupted_idf_run_resumes_at_its_last_record_couplings_included(tmp_path, capsys):
+    from bev_mdo.bag.history import history, last_iterate
+
+    old, new = tmp_path / "old", tmp_path / "new"
+    _interrupted_bag(old, after=3)
+    _, start, k = last_iterate(old)
+    last = history(old)[-1]
+    assert k == last["iteration"] == 2 and not last["feasible"]  # SLSQP's second step: couplings not yet consistent
+    assert start == {**last["design"], **last["couplings"]}
+    assert main(["resume", str(old), "--transport", "inprocess", "--output", str(new), "--quiet"]) == 0
+    capsys.readouterr()
+    first = history(new)[0]
+    assert first["design"] == last["design"] and first["couplings"] == last["couplings"]
+    assert first["objective"] == last["objective"] and first["max_violation"] == last["max_violation"]
+
+
+def test_a_start_given_to_idf_begins_with_consistent_couplings():
+    """x0 of design variables only (a sweep's best design resumed, each of --starts): an MDA there sets the
+    couplings, so IDF's iteration 0 is the point MDF's is, consistent and feasible alike."""
+    from bev_mdo.config import RunConfig
+    from bev_mdo.mdo.driver import run_optimization
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+
+    config = RunConfig.load(SELLAR_IDF)
+    x0 = {"z1": 2.0, "z2": 0.5, "x": 0.5}
+    recs = {}
+    for formulation in ("idf", "mdf"):
+        ev = InProcessEvaluator(config.disciplines)
+        first = []
+        run_optimization(config.settings, ev, formulation=formulation, x0=x0,
+                         callback=lambda rec: first.append(rec) if not first else None)
+        recs[formulation] = first[0]
+    idf, mdf = recs["idf"], recs["mdf"]
+    assert idf["design"] == mdf["design"] == x0
+    assert idf["feasible"] and idf["max_violation"] == pytest.approx(mdf["max_violation"], abs=1e-9)
+    assert idf["objective"] == pytest.approx(mdf["objective"], rel=1e-9)
+    assert "couplings" not in mdf
+
+
+def test_idf_takes_a_start_for_its_couplings_and_names_them_when_refused():
+    from bev_mdo.config import RunConfig
+    from bev_mdo.mdo.driver import run_optimization
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+
+    config = RunConfig.load(SELLAR_IDF)
+    first = []
+    run_optimization(config.settings, InProcessEvaluator(config.disciplines), formulation="idf",
+                     x0={"z1": 2.0, "z2": 0.5, "x": 0.5, "y1": 4.0, "y2": 5.0},
+                     callback=lambda rec: first.append(rec) if not first else None)
+    assert first[0]["couplings"] == {"y1": 4.0, "y2": 5.0} and not first[0]["feasible"]
+    with pytest.raises(ValueError, match=r"x0 names \['y3'\] are not design variables .* or couplings \['y1', 'y2'\]"):
+        run_optimization(config.settings, InProcessEvaluator(config.disciplines), formulation="idf",
+                         x0={"y3": 1.0})
