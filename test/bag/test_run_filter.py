@@ -109,3 +109,22 @@ def test_history_and_resume_of_a_run_the_bag_does_not_hold_name_the_runs_it_hold
     with pytest.raises(BagError, match=r"no record of run mine \(the bag's own\); it holds the iteration records "
                                        r"of run theirs; choose one with --run-id"):
         last_iterate(own)
+
+
+def test_a_key_file_that_cannot_be_read_is_named_by_the_flag_the_user_typed(tmp_path, capsys):
+    """A missing --key-file was reported as "ros.sign_key_file '...'", a config key the user did not write."""
+    from bev_mdo.cli import main
+
+    key_file = new_key_file(tmp_path / "keys")
+    bag = _bag(tmp_path, "signed", "mine", [Signer(read_key(key_file)).sign_iteration(_record("mine", 0, 80.0))],
+               key_file)
+    short = tmp_path / "short.key"
+    short.write_text("0123")
+    for given, why in ((tmp_path / "missing.key", "cannot read (No such file or directory)"),
+                       (short, "key shorter than 16 bytes")):
+        for argv in (["history", str(bag)], ["report", str(bag)],
+                     ["resume", str(bag), "--transport", "inprocess", "--no-record"]):
+            assert main([*argv, "--key-file", str(given)]) == 2
+            err = capsys.readouterr().err
+            assert f"--key-file {str(given)!r}: {why} (give another with --key-file, or --no-verify" in err, err
+            assert "ros.sign_key_file" not in err and err.count("\n") == 1, err
