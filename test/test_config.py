@@ -56,6 +56,8 @@ BAD = [
     (("problem", "constraints", "y1"), {"upper": 1, "scale": float("inf")}, "problem.constraints.y1.scale: inf must be finite"),
     (("problem", "design_variables", "w"), {"lower": 0, "upper": 1}, "problem.design_variables.w: no discipline consumes it"),
     (("problem", "design_variables", "x", "lower"), 20, r"problem.design_variables.x: bounds must be finite with lower < upper \(got lower 20, upper 10\)"),
+    # equal bounds are refused too, as the README says (a variable that cannot move is not a design variable)
+    (("problem", "design_variables", "x", "lower"), 10, r"problem.design_variables.x: bounds must be finite with lower < upper \(got lower 10, upper 10\)"),
     (("problem", "design_variables", "x", "initial"), 11, r"problem.design_variables.x.initial: 11 is outside the bounds \[0, 10\]"),
     (("problem", "design_variables", "x", "step"), 1, r"problem.design_variables.x.step: unknown key; known: "),
     (("problem", "design_variables", "x"), DELETE, r"'sellar1' needs \['x'\]"),
