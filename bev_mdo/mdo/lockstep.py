@@ -1,8 +1,9 @@
 """Several independent jobs over one evaluator, their requests merged into one batch per discipline.
 
-Each job (for example one start of a multi-start optimisation) runs in its own thread and calls a
-:class:`LockstepEvaluator` as it would call the evaluator itself. A request blocks until every job
-still running has made one, or has finished; the calling thread then merges the waiting requests
+Each job (for example one start of a multi-start optimisation) runs on one of at most ``MAX_THREADS``
+threads (a thread takes the next job, in order, when its job ends: 600 starts with a thread each ran
+out of address space) and calls a :class:`LockstepEvaluator` as it would call the evaluator itself.
+A request blocks until every job running has made one, or has finished; the calling thread then merges the waiting requests
 (rows of the same discipline with the same inputs are concatenated; data-flow MDAs of the same
 disciplines are concatenated), sends them to the real evaluator as one wave, and hands each job its
 own rows back. Over ROS this turns N round trips into one; in process, N small batches into one.
@@ -23,6 +24,9 @@ from typing import Any
 import numpy as np
 
 from bev_mdo.mdo.discipline import EvalResult, error_text
+
+# jobs running at once (one thread each, ~8 MB of stack address space apiece); more jobs wait for a thread
+MAX_THREADS = 64
 
 
 class Aborted(Exception):
@@ -57,7 +61,7 @@ class LockstepEvaluator:
     def __init__(self, inner: Any, jobs: int):
         self.inner = inner
         self._cond = threading.Condition()
-        self._live = jobs
+        self._live = jobs  # the threads running jobs (each asks for one request at a time)
         self._pending: list[_Request] = []
         self._records: list[tuple[Callable[[dict], Any], dict]] = []
         self._aborted: BaseException | None = None
@@ -94,7 +98,13 @@ class LockstepEvaluator:
             raise Aborted("the run was stopped") from req.result
         return req.result
 
+    @property
+    def stopped(self) -> bool:
+        """The run was stopped (a signal, the evaluator's error): no job may ask any more."""
+        return self._aborted is not None
+
     def finished(self) -> None:
+        """A thread has no more jobs to run."""
         with self._cond:
             self._live -= 1
             self._cond.notify_all()
@@ -183,24 +193,34 @@ class LockstepEvaluator:
             start += m
 
 
-def run_lockstep(evaluator: Any, jobs: Sequence[Callable[[LockstepEvaluator], Any]]) -> list[Any]:
-    """Run every ``job(lockstep_evaluator)`` in its own thread, their requests merged (module doc);
-    their return values in job order. A job's exception is re-raised here once all have ended; an
-    exception on this thread (a signal) stops every job and is re-raised."""
-    lockstep = LockstepEvaluator(evaluator, len(jobs))
+def run_lockstep(evaluator: Any, jobs: Sequence[Callable[[LockstepEvaluator], Any]],
+                 max_threads: int | None = None) -> list[Any]:
+    """Run every ``job(lockstep_evaluator)``, at most ``max_threads`` (default ``MAX_THREADS``) at once: each
+    thread takes the next job in order when its job ends; their requests merged (module doc); their return
+    values in job order. A job's exception is re-raised here once all have ended; an exception on this
+    thread (a signal) stops every job and is re-raised."""
+    threads_wanted = max(1, min(len(jobs), MAX_THREADS if max_threads is None else max_threads))
+    lockstep = LockstepEvaluator(evaluator, threads_wanted)
     out: list[Any] = [None] * len(jobs)
     errors: list[tuple[int, BaseException]] = []
+    order = iter(range(len(jobs)))
+    taking = threading.Lock()
 
-    def work(i: int, job: Callable) -> None:
+    def work() -> None:
         try:
-            out[i] = job(lockstep)
-        except BaseException as exc:  # noqa: BLE001 - handed to the serving thread
-            errors.append((i, exc))
+            while not lockstep.stopped:
+                with taking:
+                    i = next(order, None)
+                if i is None:
+                    return
+                try:
+                    out[i] = jobs[i](lockstep)
+                except BaseException as exc:  # noqa: BLE001 - handed to the serving thread
+                    errors.append((i, exc))
         finally:
             lockstep.finished()
 
-    threads = [threading.Thread(target=work, args=(i, job), name=f"lockstep-{i}", daemon=True)
-               for i, job in enumerate(jobs)]
+    threads = [threading.Thread(target=work, name=f"lockstep-{k}", daemon=True) for k in range(threads_wanted)]
     for t in threads:
         t.start()
     try:
