@@ -10,7 +10,9 @@ own rows back. Over ROS this turns N round trips into one; in process, N small b
 
 Only the thread that called :func:`run_lockstep` talks to the real evaluator (a ROS node's
 executor, signal handlers and the bag writer stay on it). The jobs' ``callback`` records (their
-iteration records) are queued and emitted on that thread too, in the order the jobs made them.
+iteration records) are queued and emitted on that thread too: at each wave, those made since the last
+one, job by job in job order (each job's in the order it made them), so the stream is the same from run
+to run whatever the threads' timing.
 
 A job's rows are evaluated exactly as they would be alone, so the results depend on the batch only
 through the model's own arithmetic (vectorised models are row-independent).
@@ -63,7 +65,8 @@ class LockstepEvaluator:
         self._cond = threading.Condition()
         self._live = jobs  # the threads running jobs (each asks for one request at a time)
         self._pending: list[_Request] = []
-        self._records: list[tuple[Callable[[dict], Any], dict]] = []
+        self._records: list[tuple[int, Callable[[dict], Any], dict]] = []  # (job, callback, record)
+        self._job = threading.local()  # the job index the calling thread runs (run_lockstep sets it)
         self._aborted: BaseException | None = None
         self.waves = 0  # merged waves sent to the real evaluator
 
@@ -83,7 +86,7 @@ class LockstepEvaluator:
     def emit(self, callback: Callable[[dict], Any], record: dict) -> None:
         """Queue ``callback(record)`` for the serving thread."""
         with self._cond:
-            self._records.append((callback, record))
+            self._records.append((getattr(self._job, "index", 0), callback, record))
 
     def _ask(self, kind: str, payload: tuple) -> Any:
         req = _Request(kind, payload)
@@ -140,10 +143,10 @@ class LockstepEvaluator:
             raise
 
     def drain_records(self) -> None:
-        """Emit the queued records, in the order they were made."""
+        """Emit the queued records, job by job in job order (a stable sort: each job's in the order made)."""
         with self._cond:
             records, self._records = self._records, []
-        for callback, record in records:
+        for _, callback, record in sorted(records, key=lambda r: r[0]):
             callback(record)
 
     def _serve(self, batch: list[_Request]) -> None:
@@ -213,6 +216,7 @@ def run_lockstep(evaluator: Any, jobs: Sequence[Callable[[LockstepEvaluator], An
                     i = next(order, None)
                 if i is None:
                     return
+                lockstep._job.index = i
                 try:
                     out[i] = jobs[i](lockstep)
                 except BaseException as exc:  # noqa: BLE001 - handed to the serving thread

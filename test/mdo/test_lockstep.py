@@ -162,3 +162,18 @@ def test_many_starts_run_on_a_bounded_number_of_threads_with_the_same_results(mo
     assert sum(ev_pool.rows_per_call) == sum(ev_each.rows_per_call)
     assert max(ev_pool.rows_per_call) >= bound  # still batched: the pool's starts share each wave
     assert not [t for t in threading.enumerate() if t.name.startswith("lockstep-")]
+
+
+def test_the_starts_records_come_in_the_same_order_every_run(monkeypatch):
+    """The records of one wave were emitted in the order the threads happened to make them: two runs of the
+    same --starts wrote their bags' iteration records in different orders. Now job by job in job order."""
+    import bev_mdo.mdo.lockstep as lockstep
+
+    config = example_config(EXAMPLES / "sellar_mdf.yaml")
+    monkeypatch.setattr(lockstep, "MAX_THREADS", 8)
+    streams = []
+    for _ in range(3):
+        seen = []
+        run_starts(config, InProcessEvaluator(resolve_disciplines(config)), 40, seed=5, callback=seen.append)
+        streams.append([(r["iteration"], r["objective"], tuple(r["design"].values())) for r in seen])
+    assert len(streams[0]) > 40 and all(s == streams[0] for s in streams[1:])
