@@ -6,11 +6,18 @@ a line in a bare ``except:`` (pymoo does, around a hash and a dtype cast it runs
 swallows the exception when the signal lands there, and the run goes on. So the handler also keeps
 the signal as pending, and the engine's loops call ``check()`` once per batch: a swallowed signal is
 raised again at the next batch.
+
+Once the ``bev-mdo`` process has written its output (``work_done``), there is nothing left to unwind: a
+signal then ends the process at once, during whatever teardown remains (a hung one included), with one
+line saying that the result was written (and what else is complete: ``note_done``), exit status 130 or
+143 as for any other Ctrl-C or SIGTERM.
 """
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
+import sys
 
 
 class Terminated(KeyboardInterrupt):
@@ -19,16 +26,51 @@ class Terminated(KeyboardInterrupt):
 
 _pending: type[BaseException] | None = None
 _deferring = 0  # > 0 inside deferred(): a signal is kept and raised at the block's end
+_done_status: int | None = None  # work_done's exit status: a signal now ends the process (_end_now)
+_done_notes: list[str] = []  # what is complete besides the printed result (note_done)
 
 
 def _handler(exc: type[BaseException]):
     def handle(signum, frame) -> None:
         global _pending
+        if _done_status is not None:
+            _end_now(exc)
         _pending = exc
         if not _deferring:
             raise exc()
 
     return handle
+
+
+def work_done(status: int) -> None:
+    """The ``bev-mdo`` process has written its output (exit status ``status``); what remains is its teardown.
+    From now on SIGINT or SIGTERM end the process at once (``_end_now``). For the process itself only: a
+    library caller of the CLI would be ended with it."""
+    global _done_status
+    _done_status = status
+
+
+def note_done(note: str) -> None:
+    """Something complete besides the printed result (e.g. "the bag B is complete"), said if a signal
+    comes after ``work_done``."""
+    _done_notes.append(note)
+
+
+def _end_now(exc: type[BaseException]) -> None:
+    """A signal after the work: one line on stderr, then the process ends without its teardown (exit status
+    143 for SIGTERM, else 130). Nothing is lost: the output is written and flushed and any bag closed; only
+    the shutdown that remained, which a signal must be able to cut short, is skipped."""
+    terminated = issubclass(exc, Terminated)
+    what = "terminated (SIGTERM)" if terminated else "interrupted"
+    if _done_status in (130, 143):  # the work itself was stopped by a signal, and said so
+        line = f"bev-mdo: {what} again while ending"
+    else:
+        line = "; ".join([f"bev-mdo: {what} after the result was written", *_done_notes])
+    with contextlib.suppress(Exception):  # a closed pipe, or a write the signal cut into
+        sys.stdout.flush()
+    with contextlib.suppress(OSError):
+        os.write(2, (line + "\n").encode())
+    os._exit(143 if terminated else 130)
 
 
 @contextlib.contextmanager
@@ -48,8 +90,9 @@ def deferred():
 def install() -> dict:
     """Handlers for SIGTERM and (unless it is ignored, as in a shell's background job) SIGINT;
     returns the previous handlers for ``restore``. Main thread only."""
-    global _pending
-    _pending = None
+    global _pending, _done_status
+    _pending, _done_status = None, None
+    _done_notes.clear()
     previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, _handler(Terminated))}
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         previous[signal.SIGINT] = signal.signal(signal.SIGINT, _handler(KeyboardInterrupt))

@@ -95,16 +95,11 @@ def defer_teardowns() -> None:
 def _run_deferred() -> None:
     if not _deferred:
         return
-    try:
-        with deadline(TEARDOWN_S):  # a hang prints every stack, as at once; then the rest of the exit is bounded again
-            while _deferred:
-                with contextlib.suppress(Exception):
-                    _deferred.pop(0)()  # in the order they were left: a node before its context
-    except KeyboardInterrupt:  # Ctrl-C during the teardown at exit: the result is out; leave now, as interrupted
-        print("bev-mdo: interrupted", file=sys.stderr, flush=True)
-        with contextlib.suppress(Exception):
-            sys.stdout.flush()
-        os._exit(130)  # an exception here would only be printed by atexit, and the status kept
+    # a Ctrl-C or SIGTERM here ends the process at once with its line (interrupts.work_done): the result is out
+    with deadline(TEARDOWN_S):  # a hang prints every stack, as at once; then the rest of the exit is bounded again
+        while _deferred:
+            with contextlib.suppress(Exception):
+                _deferred.pop(0)()  # in the order they were left: a node before its context
     bound_exit(TEARDOWN_S)
 
 
@@ -116,6 +111,28 @@ def teardown(close) -> None:
         return
     with deadline(), contextlib.suppress(Exception):
         close()
+
+
+def end_process(status: int) -> None:
+    """End the ``bev-mdo`` process, its work done: its exit handlers (atexit: the deferred ROS teardowns,
+    logging, temporary directories), stdout and stderr flushed, then ``os._exit(status)``. Python's own
+    finalization is skipped: CPython resets SIGINT to its default action before it tears the modules down
+    (0.1-0.2 s), so a Ctrl-C there ended the process silently (exit 130, no line), and it has nothing left to
+    release. Returns, leaving the interpreter's exit as usual, while another non-daemon thread runs (the
+    exit waits for it) or an rclpy context is still up (its C++ destructors release the middleware)."""
+    import atexit
+    import threading
+
+    if any(t.is_alive() and not t.daemon for t in threading.enumerate() if t is not threading.main_thread()):
+        return
+    atexit._run_exitfuncs()
+    context = sys.modules.get("rclpy.context")
+    if context is not None and getattr(context, "g_logging_ref_count", 1) > 0:  # a context not shut down
+        return
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(status)
 
 
 def bound_exit(seconds: float = TEARDOWN_S) -> None:

@@ -56,6 +56,8 @@ BAD = [
     (("problem", "constraints", "y1"), {"upper": 1, "scale": float("inf")}, "problem.constraints.y1.scale: inf must be finite"),
     (("problem", "design_variables", "w"), {"lower": 0, "upper": 1}, "problem.design_variables.w: no discipline consumes it"),
     (("problem", "design_variables", "x", "lower"), 20, r"problem.design_variables.x: bounds must be finite with lower < upper \(got lower 20, upper 10\)"),
+    # equal bounds are refused too, as the README says (a variable that cannot move is not a design variable)
+    (("problem", "design_variables", "x", "lower"), 10, r"problem.design_variables.x: bounds must be finite with lower < upper \(got lower 10, upper 10\)"),
     (("problem", "design_variables", "x", "initial"), 11, r"problem.design_variables.x.initial: 11 is outside the bounds \[0, 10\]"),
     (("problem", "design_variables", "x", "step"), 1, r"problem.design_variables.x.step: unknown key; known: "),
     (("problem", "design_variables", "x"), DELETE, r"'sellar1' needs \['x'\]"),
@@ -205,9 +207,9 @@ def test_a_parameter_set_file_is_written_into_the_resolved_config(tmp_path, monk
     still win, and a set's drag/rolling constants are dropped beside a coast-down road load."""
     from bev_mdo.models.params import load_parameter_set, validate_vehicle
 
-    shipped = load_parameter_set("epa2022_chain")
+    shipped = load_parameter_set("epa2022_quasi_static")
     own = {**shipped, "charger_efficiency": 0.9, "drag_area_m2": 0.7}
-    (tmp_path / "mine.yaml").write_text(yaml.safe_dump({"name": "mine", "parameters": own}))
+    (tmp_path / "mine.yaml").write_text(yaml.safe_dump({"name": "mine", "energy_model": "quasi_static", "parameters": own}))
     raw = yaml.safe_load((ROOT.parent / "config" / "leaf_epa_combined.yaml").read_text())
     raw["vehicle"]["parameter_set"] = "mine.yaml"
     raw["vehicle"]["aux_power_w"] = 450.0
@@ -218,7 +220,8 @@ def test_a_parameter_set_file_is_written_into_the_resolved_config(tmp_path, monk
     assert v["charger_efficiency"] == 0.9 and v["aux_power_w"] == 450.0
     assert v["regen_axle_share"] == shipped["regen_axle_share"]
     resolved = validate_vehicle(copy.deepcopy(v))
-    (tmp_path / "mine.yaml").write_text(yaml.safe_dump({"name": "mine", "parameters": {**own, "charger_efficiency": 0.5}}))
+    (tmp_path / "mine.yaml").write_text(yaml.safe_dump({"name": "mine", "energy_model": "quasi_static",
+                                                        "parameters": {**own, "charger_efficiency": 0.5}}))
     again = load_config(copy.deepcopy(cfg))  # what resume does with the bag's config
     assert validate_vehicle(copy.deepcopy(again["vehicle"])) == resolved
     (tmp_path / "mine.yaml").unlink()

@@ -115,6 +115,8 @@ def finish(config: Mapping[str, Any], result: dict, extra: dict) -> None:
         path = Path(extra["bag"]) / ANSWERS_FILE
         path.parent.mkdir(parents=True, exist_ok=True)
         jsontext.write(path, ans)
+    if extra.get("bag") and not extra.get("recorder_failed"):  # said if a signal comes after the result
+        interrupts.note_done(f"the bag {extra['bag']} is complete")
 
 
 def interrupted_note(bag, kind: str = "iteration") -> str:

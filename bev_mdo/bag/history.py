@@ -91,7 +91,8 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
     and stored config disagree); unsigned and forged ones are dropped, and so are records out of
     order (``Sequence``). `no_verify` reads without checking signatures (the note says so).
     `checks`, if given, receives {"run_id", "dropped": {reason: n}, "missing": n, "other_runs": n,
-    "unverified": note or ""} and, for a sweep's bag cut short, "unfinished": note.
+    "other_run_ids": [the runs of those records], "unverified": note or ""} and, for a sweep's bag cut
+    short, "unfinished": note.
     """
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     run = run_id or bag.info.get("run_id") or None  # the run the bag's recorder was started for, if any
@@ -104,12 +105,15 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
     is_design = design_names(read_config(bag))
     check = verifier(bag, key_file, no_verify)
     signer = check.signer
-    info = {"run_id": run, "dropped": {}, "missing": 0, "other_runs": 0, "unverified": check.note}
+    info = {"run_id": run, "dropped": {}, "missing": 0, "other_runs": 0, "other_run_ids": [],
+            "unverified": check.note}
     order = Sequence()
     rows = []
     for msg, rec in decoded:
         if run is not None and not _in_run(rec.run_id, run):
             info["other_runs"] += 1
+            if rec.run_id not in info["other_run_ids"]:
+                info["other_run_ids"].append(rec.run_id)
             continue
         if signer is None and rec.signature and not no_verify:  # signed records in a bag that says it was not signed
             raise BagError(f"{bag.mcap_path}: its records are signed but the bag names no key to verify them "
@@ -259,7 +263,12 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
     design (``headline``; `checks` then gets "sweep": ``sweep_phrase``), its iteration number), for
     resume. BagError when the run was signed but its records cannot be verified."""
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
+    checks = {} if checks is None else checks
     rows = history(bag, run_id, key_file=key_file, checks=checks, no_verify=no_verify)
+    if not rows and checks["other_run_ids"]:
+        own = "" if run_id else " (the bag's own)"
+        raise BagError(f"{bag.mcap_path}: no record of run {checks['run_id']}{own}; "
+                       f"{runs_held(checks['other_run_ids'])}; choose one with --run-id")
     if not rows:
         raise BagError(f"{bag.mcap_path}: no IterationRecord on {ITERATION_TOPIC}; nothing to resume")
     config = read_config(bag)
@@ -270,6 +279,12 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
     if checks is not None and row["formulation"] == "doe":
         checks["sweep"] = sweep_phrase(row, len(rows))
     return config, {**row["design"], **row.get("couplings", {})}, int(row["iteration"])
+
+
+def runs_held(run_ids: list[str], shown: int = 5) -> str:
+    """"it holds the iteration records of run(s) a, b" (the first `shown` of them, in recording order)."""
+    more = f" and {len(run_ids) - shown} more" if len(run_ids) > shown else ""
+    return f"it holds the iteration records of run{'s' if len(run_ids) > 1 else ''} {', '.join(run_ids[:shown])}{more}"
 
 
 def sweep_phrase(row: dict, n: int) -> str:

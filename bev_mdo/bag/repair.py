@@ -6,6 +6,7 @@ attachments are kept; the original file is kept as ``<file>.bak``.
 from __future__ import annotations
 
 import os
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -70,6 +71,25 @@ def _rewrite(bag: Bag, out: Path, info: dict) -> None:
         writer.finish()
 
 
+def _replace_with_rewrite(bag: Bag, path: Path, info: dict) -> Path:
+    """Rewrite the bag beside ``path`` and put it in its place; returns where the original went. An
+    interruption or a failure at any step leaves no ``.repairing`` file, and ``path`` always names a whole
+    file (the original until the rewritten one atomically replaces it): the backup is a second link to
+    the original (a copy where the file system has no hard links), not a rename."""
+    tmp = path.with_name(path.name + ".repairing")
+    try:
+        _rewrite(bag, tmp, info)
+        backup = _backup_path(path)
+        try:
+            os.link(path, backup)
+        except OSError:
+            shutil.copy2(path, backup)
+        os.replace(tmp, path)
+        return backup
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def repair(bag_dir, *, force: bool = False) -> RepairResult:
     """Rebuild summary and metadata.yaml of a (possibly truncated) bag directory or .mcap."""
     bag = open_bag(bag_dir, strict=False, salvage=True)
@@ -80,11 +100,7 @@ def repair(bag_dir, *, force: bool = False) -> RepairResult:
         return RepairResult(bag.bag_dir, path, None, bag.message_count, False, False)
     backup = None
     if bag.truncated or force:
-        tmp = path.with_name(path.name + ".repairing")
-        _rewrite(bag, tmp, info)
-        backup = _backup_path(path)
-        os.replace(path, backup)
-        os.replace(tmp, path)
+        backup = _replace_with_rewrite(bag, path, info)
     meta.write_metadata_yaml(bag.bag_dir, info)
     return RepairResult(bag.bag_dir, path, backup, bag.message_count, bag.truncated,
                         backup is not None, not good_yaml, bag.damage if bag.skipped else "")

@@ -132,6 +132,7 @@ def verifier(bag, key_file: str | None = None, no_verify: bool = False) -> Verif
     if no_verify:
         return Verifier(None, NO_VERIFY_NOTE, bool(record and record.get("signed") == "true"))
     signed = record.get("signed") == "true" if record else bool(stored_key_file)
+    given = bool(key_file)
     key_file, whose = _found_key(bag, key_file)
     if not key_file:
         if record and not signed and stored_key_file:
@@ -151,10 +152,11 @@ def verifier(bag, key_file: str | None = None, no_verify: bool = False) -> Verif
                        f"{stored_key_file!r}, which is not trusted on the bag's word: give the key with --key-file, "
                        "or --no-verify to read it unverified")
     try:
-        key = read_key(key_file)
+        key = read_key(key_file, "--key-file" if given else "the run's key")
     except AuthError as exc:
-        raise BagError(f"{where}: cannot verify the iteration records: {exc} (give the key with --key-file, "
-                       "or --no-verify to read it unverified)") from None
+        hint = "give another with --key-file, or" if given else "give the key with --key-file, or"
+        raise BagError(f"{where}: cannot verify the iteration records: {exc} ({hint} --no-verify to read it "
+                       "unverified)") from None
     if not record:
         if config_yaml:  # a run's bag: its writer stored its signing state beside its config
             raise BagError(f"{where}: the bag has no signing record (was it removed?), though {whose} should "

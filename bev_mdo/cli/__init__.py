@@ -18,7 +18,8 @@ import threading
 from bev_mdo import interrupts
 from bev_mdo.api.errors import InputError
 from bev_mdo.interrupts import Terminated  # SIGTERM as an exception: every finally runs, exit 143
-from bev_mdo.stacks import STARTUP_GAVE_UP_STATUS, StartupGaveUp, bound_exit, defer_teardowns, dump_stacks_on_sigusr1
+from bev_mdo.stacks import (STARTUP_GAVE_UP_STATUS, StartupGaveUp, bound_exit, defer_teardowns, dump_stacks_on_sigusr1,
+                            end_process)
 
 # command -> (module in bev_mdo.cli, help), in the order --help lists them. The module's register()
 # uses the same help (test/cli/test_cli_table.py checks it).
@@ -120,16 +121,28 @@ def main(argv: list[str] | None = None) -> int:
     if process:  # the launcher watchdog's participant goes at exit: a hang there cannot eat the result
         defer_teardowns()
     try:
-        return _main(argv)
+        status = _main(argv, process)
     finally:
-        interrupts.restore(previous)
-        if process and "rclpy" in sys.modules:  # the work is done: its ROS teardown may not hang the exit
+        if not process:  # the process keeps its handlers to its end: after the work, a signal ends it at once
+            interrupts.restore(previous)
+    if process:
+        if "rclpy" in sys.modules:  # the work is done: its ROS teardown may not hang the exit
             bound_exit()
+        end_process(status)  # the exit handlers, then the end (no finalization with SIGINT at its default)
+    return status
 
 
-def _main(argv: list[str]) -> int:
+def _main(argv: list[str], process: bool = False) -> int:
     parser = build_parser(argv)
     args = parser.parse_args(argv)
+    status = _run(args)
+    if process:  # the output is written: from here on a signal ends the process at once, with a line
+        interrupts.work_done(status)
+    return status
+
+
+def _run(args) -> int:
+    """The subcommand, its output flushed; its exit status (a user mistake, a signal, a failure: one line)."""
     try:
         with _notes_to_stderr(args.command):
             status = int(args.func(args) or 0)

@@ -75,13 +75,13 @@ def describe_other_content(bag) -> str:
     if not bag.topics:
         return "it holds no messages at all"
     kinds = sorted({ty for ty in bag.topics.values() if ty != ITERATION_TYPE})
-    if not kinds:  # every message an iteration record, none of the run asked for ('... messages of ' ended it)
-        return f"its {bag.message_count} messages are iteration records of other runs (bev-mdo bag info lists them)"
+    if not kinds:  # every message an iteration record of the run, none kept (the check note says why)
+        return f"its {bag.message_count} messages are iteration records, none of them kept"
     return f"it holds {bag.message_count} messages of {', '.join(kinds)}"
 
 
 def run(args) -> int:
-    from bev_mdo.bag.history import check_note, flat_rows, history, records_phrase, to_csv
+    from bev_mdo.bag.history import check_note, flat_rows, history, records_phrase, runs_held, to_csv
     from bev_mdo.bag.reader import open_bag
     from bev_mdo.bag.report import bag_units
 
@@ -96,8 +96,8 @@ def run(args) -> int:
         print(f"{args.bag}: {check_note(checks)}", file=sys.stderr)
     if not rows:
         what = f" of run {args.run_id}" if args.run_id else ""
-        print(f"bev-mdo history: {args.bag}: no iteration records{what}; {describe_other_content(bag)}",
-              file=sys.stderr)
+        held = runs_held(checks["other_run_ids"]) if checks.get("other_run_ids") else describe_other_content(bag)
+        print(f"bev-mdo history: {args.bag}: no iteration records{what}; {held}", file=sys.stderr)
         return EXIT_NO_ITERATIONS
     if args.csv:
         target = Path(args.csv).resolve()

@@ -13,9 +13,7 @@ from bev_mdo.mdo.discipline import Discipline
 from bev_mdo.models import road_load
 from bev_mdo.models import topology as topo_model
 from bev_mdo.models.cycles import load_cycle, resample
-from bev_mdo.models.params import ROAD_LOAD_REPLACES, validate_cycle, validate_vehicle
-
-ENERGY_MODELS = ("flat", "breakdown", "quasi_static", "chain")
+from bev_mdo.models.params import ENERGY_MODELS, ROAD_LOAD_REPLACES, validate_cycle, validate_vehicle  # noqa: F401 - ENERGY_MODELS re-exported
 
 
 def vehicle_of(config: Mapping[str, Any]) -> dict[str, float]:

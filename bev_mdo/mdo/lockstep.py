@@ -1,15 +1,18 @@
 """Several independent jobs over one evaluator, their requests merged into one batch per discipline.
 
-Each job (for example one start of a multi-start optimisation) runs in its own thread and calls a
-:class:`LockstepEvaluator` as it would call the evaluator itself. A request blocks until every job
-still running has made one, or has finished; the calling thread then merges the waiting requests
+Each job (for example one start of a multi-start optimisation) runs on one of at most ``MAX_THREADS``
+threads (a thread takes the next job, in order, when its job ends: 600 starts with a thread each ran
+out of address space) and calls a :class:`LockstepEvaluator` as it would call the evaluator itself.
+A request blocks until every job running has made one, or has finished; the calling thread then merges the waiting requests
 (rows of the same discipline with the same inputs are concatenated; data-flow MDAs of the same
 disciplines are concatenated), sends them to the real evaluator as one wave, and hands each job its
 own rows back. Over ROS this turns N round trips into one; in process, N small batches into one.
 
 Only the thread that called :func:`run_lockstep` talks to the real evaluator (a ROS node's
 executor, signal handlers and the bag writer stay on it). The jobs' ``callback`` records (their
-iteration records) are queued and emitted on that thread too, in the order the jobs made them.
+iteration records) are queued and emitted on that thread too: at each wave, those made since the last
+one, job by job in job order (each job's in the order it made them), so the stream is the same from run
+to run whatever the threads' timing.
 
 A job's rows are evaluated exactly as they would be alone, so the results depend on the batch only
 through the model's own arithmetic (vectorised models are row-independent).
@@ -23,6 +26,9 @@ from typing import Any
 import numpy as np
 
 from bev_mdo.mdo.discipline import EvalResult, error_text
+
+# jobs running at once (one thread each, ~8 MB of stack address space apiece); more jobs wait for a thread
+MAX_THREADS = 64
 
 
 class Aborted(Exception):
@@ -57,9 +63,10 @@ class LockstepEvaluator:
     def __init__(self, inner: Any, jobs: int):
         self.inner = inner
         self._cond = threading.Condition()
-        self._live = jobs
+        self._live = jobs  # the threads running jobs (each asks for one request at a time)
         self._pending: list[_Request] = []
-        self._records: list[tuple[Callable[[dict], Any], dict]] = []
+        self._records: list[tuple[int, Callable[[dict], Any], dict]] = []  # (job, callback, record)
+        self._job = threading.local()  # the job index the calling thread runs (run_lockstep sets it)
         self._aborted: BaseException | None = None
         self.waves = 0  # merged waves sent to the real evaluator
 
@@ -79,7 +86,7 @@ class LockstepEvaluator:
     def emit(self, callback: Callable[[dict], Any], record: dict) -> None:
         """Queue ``callback(record)`` for the serving thread."""
         with self._cond:
-            self._records.append((callback, record))
+            self._records.append((getattr(self._job, "index", 0), callback, record))
 
     def _ask(self, kind: str, payload: tuple) -> Any:
         req = _Request(kind, payload)
@@ -94,7 +101,13 @@ class LockstepEvaluator:
             raise Aborted("the run was stopped") from req.result
         return req.result
 
+    @property
+    def stopped(self) -> bool:
+        """The run was stopped (a signal, the evaluator's error): no job may ask any more."""
+        return self._aborted is not None
+
     def finished(self) -> None:
+        """A thread has no more jobs to run."""
         with self._cond:
             self._live -= 1
             self._cond.notify_all()
@@ -130,10 +143,10 @@ class LockstepEvaluator:
             raise
 
     def drain_records(self) -> None:
-        """Emit the queued records, in the order they were made."""
+        """Emit the queued records, job by job in job order (a stable sort: each job's in the order made)."""
         with self._cond:
             records, self._records = self._records, []
-        for callback, record in records:
+        for _, callback, record in sorted(records, key=lambda r: r[0]):
             callback(record)
 
     def _serve(self, batch: list[_Request]) -> None:
@@ -183,24 +196,35 @@ class LockstepEvaluator:
             start += m
 
 
-def run_lockstep(evaluator: Any, jobs: Sequence[Callable[[LockstepEvaluator], Any]]) -> list[Any]:
-    """Run every ``job(lockstep_evaluator)`` in its own thread, their requests merged (module doc);
-    their return values in job order. A job's exception is re-raised here once all have ended; an
-    exception on this thread (a signal) stops every job and is re-raised."""
-    lockstep = LockstepEvaluator(evaluator, len(jobs))
+def run_lockstep(evaluator: Any, jobs: Sequence[Callable[[LockstepEvaluator], Any]],
+                 max_threads: int | None = None) -> list[Any]:
+    """Run every ``job(lockstep_evaluator)``, at most ``max_threads`` (default ``MAX_THREADS``) at once: each
+    thread takes the next job in order when its job ends; their requests merged (module doc); their return
+    values in job order. A job's exception is re-raised here once all have ended; an exception on this
+    thread (a signal) stops every job and is re-raised."""
+    threads_wanted = max(1, min(len(jobs), MAX_THREADS if max_threads is None else max_threads))
+    lockstep = LockstepEvaluator(evaluator, threads_wanted)
     out: list[Any] = [None] * len(jobs)
     errors: list[tuple[int, BaseException]] = []
+    order = iter(range(len(jobs)))
+    taking = threading.Lock()
 
-    def work(i: int, job: Callable) -> None:
+    def work() -> None:
         try:
-            out[i] = job(lockstep)
-        except BaseException as exc:  # noqa: BLE001 - handed to the serving thread
-            errors.append((i, exc))
+            while not lockstep.stopped:
+                with taking:
+                    i = next(order, None)
+                if i is None:
+                    return
+                lockstep._job.index = i
+                try:
+                    out[i] = jobs[i](lockstep)
+                except BaseException as exc:  # noqa: BLE001 - handed to the serving thread
+                    errors.append((i, exc))
         finally:
             lockstep.finished()
 
-    threads = [threading.Thread(target=work, args=(i, job), name=f"lockstep-{i}", daemon=True)
-               for i, job in enumerate(jobs)]
+    threads = [threading.Thread(target=work, name=f"lockstep-{k}", daemon=True) for k in range(threads_wanted)]
     for t in threads:
         t.start()
     try:

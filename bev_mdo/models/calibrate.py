@@ -369,6 +369,13 @@ def _to_its_error(value: float, se: float) -> str:
     return f"{value:.{max(0, 1 - int(np.floor(np.log10(se))))}f}"
 
 
+def _cv_mape(label: str, cv: dict) -> str:
+    """'<label> MAPE 4.82 % (median of folds 4.50 %)': a cross-validation's held-out MAPE, all folds' vehicles
+    together and the median of the folds, as the parameter set records them (``_scores``)."""
+    return (f"{label} MAPE {cv['stats']['mean_abs_pct']:.2f} % (median of folds "
+            f"{np.median(cv['fold_mape_pct']):.2f} %)")
+
+
 def run(args) -> int:
     """Fit, cross-validate by model family and by make, print, and write the set if asked (exit 0; 2 on
     bad input, one line on stderr). Progress (one line per fold) goes to stdout as the results do."""
@@ -401,10 +408,9 @@ def run(args) -> int:
     if f["n_residuals"] <= int(f["determined"].sum()):
         print(f"warning: {f['n_residuals']} measured values for {int(f['determined'].sum())} fitted parameters: "
               "the fit passes through the data and its standard errors are unknown", file=sys.stderr)
-    by_family = (f"CV by family (k={cv['k']}) MAPE {cv['stats']['mean_abs_pct']:.2f} %" if cv else
+    by_family = (_cv_mape(f"CV by family (k={cv['k']})", cv) if cv else
                  "no CV by family (one model family: nothing to hold out)")
-    by_make = (f"leave-one-make-out MAPE {cv_make['stats']['mean_abs_pct']:.2f} % (median of folds "
-               f"{np.median(cv_make['fold_mape_pct']):.2f} %)" if cv_make else "no leave-one-make-out CV (one make)")
+    by_make = _cv_mape("leave-one-make-out", cv_make) if cv_make else "no leave-one-make-out CV (one make)"
     print(f"train MAPE {f['mape_pct']:.2f} % over {f['n_residuals']} vehicle-cycles; {by_family}, {by_make}")
     for label, c in (("family", cv), ("make", cv_make)):
         if c:

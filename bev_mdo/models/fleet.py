@@ -60,6 +60,16 @@ TECHNOLOGY = {
     "battery_voltage_class_v": ("400", "800", "unknown"),
 }
 TECHNOLOGY_SOURCES = DATA_DIR / "technology_sources.csv"
+# what the models assume for a technology column the file does not have (Fleet.driven_axles, technology_params,
+# model_line), as the note on reading such a file says it
+ASSUMED_WITHOUT = {
+    "driven_axles": "driven axles from the drive column (A, 4, P: two; else one)",
+    "driven_axle_position": "",  # not a model input
+    "motor_front": "every machine permanent-magnet (no induction or wound-rotor loss)",
+    "motor_rear": "every machine permanent-magnet (no induction or wound-rotor loss)",
+    "gear_count": "one gear (no two-speed loss)",
+    "battery_voltage_class_v": "within-family pairs not split by pack voltage (400 / 800 V)",
+}
 
 
 @dataclass
@@ -235,12 +245,29 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
         row_no.append(r)
     if not row_no:
         raise ValueError(f"{path}: no vehicles (only a header)")
+    _note_missing_technology(path, [name for name in TECHNOLOGY if name not in col])
     arr = {k: np.array(v, float) for k, v in data.items()}
     listed = np.isfinite(arr["axle_ratio"])
     return Fleet(str(path), np.array(row_no), text["make"], text["model"], text["drive"], text["flag"],
                  arr["rated_power_kw"], arr["test_mass_kg"], arr["road_load_a_n"], arr["road_load_b_n_per_m_s"],
                  arr["road_load_c_n_per_m2_s2"], np.full(len(row_no), FLEET_GEAR_RATIO), listed,
                  {c: arr[MEASURED[c]] for c in CYCLES}, {k: text[k] for k in TECHNOLOGY if k in text})
+
+
+def _note_missing_technology(path, missing: list[str]) -> None:
+    """A note (models.cycles.CycleNote; the CLI prints it once on stderr) naming the technology columns a
+    fleet file lacks and what the models assume instead: without it the models fell back silently."""
+    if not missing:
+        return
+    import warnings
+
+    from .cycles import CycleNote
+
+    assumed = list(dict.fromkeys(ASSUMED_WITHOUT[name] for name in missing if ASSUMED_WITHOUT[name]))
+    warnings.warn(f"{path}: no technology column{'s' if len(missing) > 1 else ''} {', '.join(missing)}; assumed: "
+                  f"{'; '.join(assumed) or 'nothing'}"
+                  + (" (driven_axle_position is not a model input)" if "driven_axle_position" in missing else ""),
+                  CycleNote, stacklevel=3)
 
 
 def _check_once(path, r: int, row: list[str], text: dict, seen: dict) -> None:

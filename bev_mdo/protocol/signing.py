@@ -65,15 +65,16 @@ def new_key_file(directory: str | os.PathLike, name: str = "sign.key") -> str:
     return str(path.resolve())
 
 
-def read_key(path: str | os.PathLike) -> bytes:
-    """The shared key: the file's bytes without surrounding whitespace (>= 16 bytes)."""
+def read_key(path: str | os.PathLike, given_as: str = "ros.sign_key_file") -> bytes:
+    """The shared key: the file's bytes without surrounding whitespace (>= 16 bytes). AuthError names the file
+    as the user gave it, ``given_as`` (the config key, or a flag such as ``--key-file``)."""
     p = Path(path)
     try:
         key = p.read_bytes().strip()
     except OSError as exc:
-        raise AuthError(f"ros.sign_key_file {str(p)!r}: cannot read ({exc.strerror})") from None
+        raise AuthError(f"{given_as} {str(p)!r}: cannot read ({exc.strerror})") from None
     if len(key) < MIN_KEY_BYTES:
-        raise AuthError(f"ros.sign_key_file {str(p)!r}: key shorter than {MIN_KEY_BYTES} bytes")
+        raise AuthError(f"{given_as} {str(p)!r}: key shorter than {MIN_KEY_BYTES} bytes")
     return key
 
 

@@ -257,3 +257,40 @@ def test_repair_reads_on_past_a_damaged_chunk(full):
     assert all(k in reference for k in kept)
     with AnyReader([full]) as rosbags_reader:
         assert rosbags_reader.message_count == len(kept)
+
+
+@pytest.mark.parametrize("failure", [KeyboardInterrupt, lambda: OSError(28, "No space left on device")],
+                         ids=["sigint", "disk_full"])
+def test_an_interrupted_or_failed_repair_leaves_no_partial_file(failure, full, monkeypatch):
+    """A SIGINT (or a failure) while `bag repair` wrote the new file left `<file>.repairing` beside the bag.
+    Now it is removed, and the bag file is the original, untouched; a repair run afterwards works."""
+    from bev_mdo.bag import repair as repair_module
+
+    mcap = full / "full_0.mcap"
+    data = mcap.read_bytes()
+    mcap.write_bytes(data[: int(len(data) * 0.6)])
+    truncated = mcap.read_bytes()
+    real_writer = repair_module.mcap_writer
+
+    def writer_that_stops(stream, profile):
+        writer = real_writer(stream, profile)
+        written = []
+
+        def add_message(*args, **kwargs):
+            written.append(args)
+            if len(written) == 5:  # some messages are in the partial file by now
+                raise failure()
+            return type(writer).add_message(writer, *args, **kwargs)
+
+        writer.add_message = add_message
+        return writer
+
+    monkeypatch.setattr(repair_module, "mcap_writer", writer_that_stops)
+    code, out, err = cli("bag", "repair", str(full))
+    assert code == (130 if failure is KeyboardInterrupt else 7), (out, err)  # 7: an unexpected error, one line
+    assert sorted(p.name for p in full.iterdir()) == ["full_0.mcap", "metadata.yaml"]
+    assert mcap.read_bytes() == truncated
+    monkeypatch.setattr(repair_module, "mcap_writer", real_writer)
+    code, out, err = cli("bag", "repair", str(full))
+    assert code == 0 and "repaired" in out and (full / "full_0.mcap.bak").read_bytes() == truncated, (out, err)
+    assert not (full / "full_0.mcap.repairing").exists()

@@ -91,11 +91,40 @@ def test_report_reads_one_run_of_a_standalone_recording(tmp_path):
     assert (tmp_path / "out" / "report.md") in written and checks["other_runs"] == 1
 
 
-def test_history_of_a_run_the_bag_does_not_hold_says_whose_records_it_has(tmp_path, capsys):
-    """The line ended mid-sentence: 'it holds 2 messages of '."""
+def test_history_and_resume_of_a_run_the_bag_does_not_hold_name_the_runs_it_holds(tmp_path, capsys):
+    """history's line ended mid-sentence ('it holds 2 messages of '), then pointed at `bag info`, which does
+    not list runs; resume said 'no IterationRecord on /bev_mdo/iteration', as if the bag held none."""
     from bev_mdo.cli import main
 
-    bag = _bag(tmp_path, "standalone", None, [_record("a", 0, 80.0), _record("b", 0, 90.0)])
+    bag = _bag(tmp_path, "standalone", None, [_record("a", 0, 80.0), _record("b", 0, 90.0), _record("a", 1, 81.0)])
     assert main(["history", str(bag), "--run-id", "deadbeef"]) == 1
-    assert ("no iteration records of run deadbeef; its 2 messages are iteration records of other runs "
-            "(bev-mdo bag info lists them)") in capsys.readouterr().err
+    assert ("no iteration records of run deadbeef; it holds the iteration records of runs a, b"
+            in capsys.readouterr().err)
+    assert main(["resume", str(bag), "--run-id", "deadbeef", "--transport", "inprocess", "--no-record"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("bev-mdo resume: error: "), err
+    assert "no record of run deadbeef; it holds the iteration records of runs a, b; choose one with --run-id" in err
+    # the bag's own run when none is given: said to be the bag's own
+    own = _bag(tmp_path, "own", "mine", [_record("theirs", 0, 80.0)])
+    with pytest.raises(BagError, match=r"no record of run mine \(the bag's own\); it holds the iteration records "
+                                       r"of run theirs; choose one with --run-id"):
+        last_iterate(own)
+
+
+def test_a_key_file_that_cannot_be_read_is_named_by_the_flag_the_user_typed(tmp_path, capsys):
+    """A missing --key-file was reported as "ros.sign_key_file '...'", a config key the user did not write."""
+    from bev_mdo.cli import main
+
+    key_file = new_key_file(tmp_path / "keys")
+    bag = _bag(tmp_path, "signed", "mine", [Signer(read_key(key_file)).sign_iteration(_record("mine", 0, 80.0))],
+               key_file)
+    short = tmp_path / "short.key"
+    short.write_text("0123")
+    for given, why in ((tmp_path / "missing.key", "cannot read (No such file or directory)"),
+                       (short, "key shorter than 16 bytes")):
+        for argv in (["history", str(bag)], ["report", str(bag)],
+                     ["resume", str(bag), "--transport", "inprocess", "--no-record"]):
+            assert main([*argv, "--key-file", str(given)]) == 2
+            err = capsys.readouterr().err
+            assert f"--key-file {str(given)!r}: {why} (give another with --key-file, or --no-verify" in err, err
+            assert "ros.sign_key_file" not in err and err.count("\n") == 1, err

@@ -131,7 +131,7 @@ def test_a_config_names_a_parameter_set_file_of_your_own(capsys, tmp_path):
 
     shipped = load_parameter_set("epa2022_quasi_static")
     own = tmp_path / "mine.yaml"
-    own.write_text(yaml.safe_dump({"parameters": {**shipped, "charger_efficiency": 0.7}}))
+    own.write_text(yaml.safe_dump({"energy_model": "quasi_static", "parameters": {**shipped, "charger_efficiency": 0.7}}))
     text = (ROOT / "config" / "leaf_epa_combined.yaml").read_text()
     assert "parameter_set: epa2022_quasi_static" in text
     cfg = tmp_path / "mine_cfg.yaml"

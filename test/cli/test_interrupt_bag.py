@@ -407,3 +407,47 @@ def test_a_run_stopped_before_its_recorder_started_names_no_bag(tmp_path):
     note = interrupted_note(bag)
     assert note.startswith("no bag was written") and str(bag / "logs") in note
     assert interrupted_note(tmp_path / "never").startswith("no bag was written")
+
+
+@pytest.mark.parametrize("where, sig", [("exit handlers", signal.SIGINT), ("end of main", signal.SIGINT),
+                                        ("exit handlers", signal.SIGTERM)])
+def test_a_signal_after_the_result_is_one_line_and_ends_a_hung_teardown_at_once(tmp_path, where, sig):
+    """A Ctrl-C in the last moments of `optimize`, after the result was printed and the bag closed, ended the
+    process with exit status 130 and nothing on stderr (CPython resets SIGINT to its default before it tears
+    the modules down), or with an atexit traceback. Now one line says the result was written and the bag is
+    complete; the teardown left (here one that would hang for a minute, where the deferred ROS teardown runs,
+    or at the end of main) is cut short at once, and the status is that of a signal (130, 143). The signal
+    is sent from inside the teardown: no timing."""
+    bag = tmp_path / "bag"
+    hang = f"lambda *a: (os.kill(os.getpid(), {int(sig)}), time.sleep(60))"
+    hook = (f"atexit.register({hang})" if where == "exit handlers"  # registered first: the last exit handler
+            else f"cli.end_process = {hang}")
+    code = "\n".join(["import atexit, os, sys, time", "from bev_mdo import cli", hook,
+                      f"sys.argv = ['bev-mdo', 'optimize', {str(CONFIG)!r}, '--transport', 'inprocess', '--bag', "
+                      f"{str(bag)!r}]", "sys.exit(cli.main())"])
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path,
+                       timeout=50, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    what = "interrupted" if sig == signal.SIGINT else "terminated (SIGTERM)"
+    assert p.returncode == EXIT[sig], p.stderr
+    assert p.stderr.splitlines()[-1] == f"bev-mdo: {what} after the result was written; the bag {bag} is complete"
+    assert "Traceback" not in p.stderr and "run time" in p.stdout and "verdict: optimum" in p.stdout
+
+    from bev_mdo.bag.history import history, read_answers
+    from bev_mdo.bag.reader import open_bag
+
+    written = open_bag(bag)
+    assert not written.truncated and read_answers(written) is not None and history(written)
+
+
+def test_a_process_that_ends_by_itself_keeps_its_status_and_output(tmp_path):
+    """The bev-mdo process ends itself after its exit handlers (stacks.end_process): its status, stdout and
+    the exit handlers' output are all there."""
+    code = "\n".join(["import atexit, sys", "from bev_mdo import cli",
+                      "atexit.register(lambda: print('exit handler ran', flush=True))",
+                      f"sys.argv = ['bev-mdo', 'evaluate', {str(CONFIG)!r}, '--set', 'motor_kw=80', '--transport', "
+                      "'inprocess']", "sys.exit(cli.main())"])
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=50,
+                       env={**os.environ, "PYTHONPATH": str(REPO)})
+    assert p.returncode == 0 and p.stderr == "" and p.stdout.rstrip().endswith("exit handler ran")
+    assert "energy_wh_per_km" in p.stdout

@@ -325,3 +325,39 @@ def test_a_parameter_set_fitted_for_another_model_is_one_line_exit_2(capsys):
     assert code == 2 and "fitted for energy model quasi_static, not flat" in err
     code, out, _ = run(capsys, "--energy-model", "flat", "--parameter-set", "thesis", "--json")
     assert code == 0 and json.loads(out)["parameter_set"] == "thesis"
+
+
+def test_a_fleet_without_technology_columns_is_noted_with_what_is_assumed(capsys, tmp_path):
+    """A fleet file without the technology columns was taken without a word while the models fell back to
+    defaults. validate and calibrate now say which columns are missing and what is assumed, once, and the
+    predictions are exactly those of the file with those columns filled with what the note says."""
+    rows = _rows()
+    header = rows[0]
+    tech = [header.index(c) for c in fl.TECHNOLOGY]
+    bare = _write(tmp_path, [[c for j, c in enumerate(r) if j not in tech] for r in rows], "bare.csv")
+    drive = header.index("drive")
+    filled = {"driven_axles": lambda r: "2" if r[drive] in ("A", "4", "P") else "1", "driven_axle_position":
+              lambda r: "unknown", "motor_front": lambda r: "PMSM", "motor_rear": lambda r: "PMSM",
+              "gear_count": lambda r: "1", "battery_voltage_class_v": lambda r: "unknown"}
+    assumed = _write(tmp_path, [header] + [[filled[h](r) if h in filled else c for h, c in zip(header, r)]
+                                            for r in rows[1:]], "assumed.csv")
+    code, out, err = run(capsys, "--data", bare, "--json", "--pairs")
+    assert code == 0 and err.count("\n") == 1, err
+    assert err == (f"bev-mdo validate: note: {bare}: no technology columns driven_axles, driven_axle_position, "
+                   "motor_front, motor_rear, gear_count, battery_voltage_class_v; assumed: driven axles from the "
+                   "drive column (A, 4, P: two; else one); every machine permanent-magnet (no induction or "
+                   "wound-rotor loss); one gear (no two-speed loss); within-family pairs not split by pack voltage "
+                   "(400 / 800 V) (driven_axle_position is not a model input)\n")
+    code, out_assumed, err = run(capsys, "--data", assumed, "--json", "--pairs")
+    assert code == 0 and err == ""
+    got, want = json.loads(out), json.loads(out_assumed)
+    assert [r["udds_predicted_wh_per_km"] for r in got["rows"]] == [r["udds_predicted_wh_per_km"] for r in want["rows"]]
+    assert got["pairs"] == want["pairs"] and got["stats"] == want["stats"]
+    # one column missing: only it is named; calibrate says it too (one model family: the fit alone, fast)
+    gears = header.index("gear_count")
+    no_gears = _write(tmp_path, [[c for j, c in enumerate(r) if j != gears] for r in rows
+                                 if r is header or r[1].startswith("i4")], "no_gears.csv")
+    assert main(["calibrate", "--model", "chain", "--data", str(no_gears)]) == 0
+    err = capsys.readouterr().err
+    assert err == (f"bev-mdo calibrate: note: {no_gears}: no technology column gear_count; assumed: one gear "
+                   "(no two-speed loss)\n"), err

@@ -129,3 +129,51 @@ def test_a_job_asking_after_the_run_was_stopped_is_refused():
     with pytest.raises(Boom):
         run_lockstep(Failing(resolve_disciplines(config)), [job, job])
     assert run_lockstep(ev, [job, job]) == [1, 1]
+
+
+def test_many_starts_run_on_a_bounded_number_of_threads_with_the_same_results(monkeypatch):
+    """--starts 600 started a thread per start and, under a 4 GB address-space limit, failed with "can't
+    start new thread" (exit 7). At most MAX_THREADS starts now run at once, each thread taking the next start
+    when its own ends; every start's result is the one it reaches with a thread of its own."""
+    import bev_mdo.mdo.lockstep as lockstep
+
+    config = example_config(EXAMPLES / "sellar_mdf.yaml")
+
+    class Sampling(Counting):
+        def evaluate(self, calls, partials=False):
+            self.live = max(getattr(self, "live", 0), threading.active_count())
+            self.lockstep_threads = max(getattr(self, "lockstep_threads", 0), sum(
+                t.name.startswith("lockstep-") for t in threading.enumerate()))
+            return super().evaluate(calls, partials)
+
+    starts, bound = 48, 6
+    before = threading.active_count()
+    got = {}
+    for threads in (starts, bound):  # a thread per start (as before), then a pool of 8
+        monkeypatch.setattr(lockstep, "MAX_THREADS", threads)
+        ev, seen = Sampling(resolve_disciplines(config)), []
+        got[threads] = (run_starts(config, ev, starts, seed=3, callback=seen.append), ev, seen)
+    (one_each, ev_each, rec_each), (pooled, ev_pool, rec_pool) = got[starts], got[bound]
+    assert ev_each.lockstep_threads == starts and ev_pool.lockstep_threads == bound
+    assert ev_pool.live <= before + bound
+    assert pooled.multistart["results"] == one_each.multistart["results"]  # every start, exactly
+    assert pooled.design == one_each.design and pooled.objective == one_each.objective
+    assert len(rec_pool) == len(rec_each) and [r["iteration"] for r in rec_pool] == list(range(len(rec_pool)))
+    assert sum(ev_pool.rows_per_call) == sum(ev_each.rows_per_call)
+    assert max(ev_pool.rows_per_call) >= bound  # still batched: the pool's starts share each wave
+    assert not [t for t in threading.enumerate() if t.name.startswith("lockstep-")]
+
+
+def test_the_starts_records_come_in_the_same_order_every_run(monkeypatch):
+    """The records of one wave were emitted in the order the threads happened to make them: two runs of the
+    same --starts wrote their bags' iteration records in different orders. Now job by job in job order."""
+    import bev_mdo.mdo.lockstep as lockstep
+
+    config = example_config(EXAMPLES / "sellar_mdf.yaml")
+    monkeypatch.setattr(lockstep, "MAX_THREADS", 8)
+    streams = []
+    for _ in range(3):
+        seen = []
+        run_starts(config, InProcessEvaluator(resolve_disciplines(config)), 40, seed=5, callback=seen.append)
+        streams.append([(r["iteration"], r["objective"], tuple(r["design"].values())) for r in seen])
+    assert len(streams[0]) > 40 and all(s == streams[0] for s in streams[1:])

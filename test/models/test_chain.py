@@ -107,17 +107,17 @@ def test_a_parameter_set_of_your_own_is_named_by_its_path(tmp_path, monkeypatch)
     """calibrate --write FILE writes a set anywhere; a config could only name the shipped ones
     ('parameter_set must be one of ['epa2022_chain']' for a path), so a user's calibration could not be used."""
     own = tmp_path / "my_fleet.yaml"
-    own.write_text("name: my_fleet\nparameters: {charger_efficiency: 0.9, regen_axle_share: 0.7}\n")
+    own.write_text("name: my_fleet\nenergy_model: chain\nparameters: {charger_efficiency: 0.9, regen_axle_share: 0.7}\n")
     v = validate_vehicle({"parameter_set": str(own), "regen_axle_share": 0.5})
     assert v["charger_efficiency"] == 0.9 and v["regen_axle_share"] == 0.5
     monkeypatch.chdir(tmp_path)  # relative to the working directory, as a drive-cycle CSV
     assert load_parameter_set("my_fleet.yaml")["charger_efficiency"] == 0.9
     with pytest.raises(ValueError, match="'nope.yaml': no such file"):
         load_parameter_set("nope.yaml")
-    (tmp_path / "typo.yml").write_text("parameters: {charger_eficiency: 0.9}\n")
+    (tmp_path / "typo.yml").write_text("energy_model: chain\nparameters: {charger_eficiency: 0.9}\n")
     with pytest.raises(ValueError, match=r"typo.yml: unknown parameter\(s\) \['charger_eficiency'\]"):
         load_parameter_set("typo.yml")
-    (tmp_path / "text.yaml").write_text("parameters: {charger_efficiency: high}\n")
+    (tmp_path / "text.yaml").write_text("energy_model: chain\nparameters: {charger_efficiency: high}\n")
     with pytest.raises(ValueError, match="parameters.charger_efficiency must be a number"):
         load_parameter_set("text.yaml")
     with pytest.raises(ValueError, match="must be one of"):
