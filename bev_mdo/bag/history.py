@@ -22,22 +22,47 @@ def named(block) -> dict[str, float]:
     return {name: float(values[j * n]) for j, name in enumerate(block.names) if j * n < len(values)}
 
 
+def stamp_ns(header) -> int:
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
 def _in_run(run_id: str, run: str) -> bool:
     return run_id == run or run_id.startswith(run + "-")
 
 
+WINDOW_S = 30.0  # as ros.sign_window_s: a record received further than this from its stamp is expired
+
+
+def window_s(config_yaml: str | None) -> float:
+    """The run's ``ros.sign_window_s`` from its stored config (``WINDOW_S`` without one)."""
+    import yaml
+
+    try:
+        value = float(((yaml.safe_load(config_yaml or "") or {}).get("ros") or {}).get("sign_window_s", WINDOW_S))
+    except Exception:  # noqa: BLE001 - a reader never fails on the stored config
+        return WINDOW_S
+    return value if value > 0 else WINDOW_S
+
+
 class Sequence:
     """Per-run order of iteration records: each run numbers its records 1, 2, 3, ... (``sequence``, under
-    the signature). A record whose number was already seen is a ``duplicate``; one below the last is
-    ``from the past`` (a replay of an older record); both are dropped. A jump counts the records
-    ``missing`` in between (kept: nothing newer is lost)."""
+    the signature), and stamps them when it sends them. A record received (recorded) further than
+    ``window_s`` from its stamp is ``expired`` (a record sent again later: ``bev-mdo replay`` of an old
+    bag); one whose number was already seen is a ``duplicate``; one below the last is ``from the past``
+    (a replay of an older record); all are dropped. The stamp is checked first, so a replay that reaches
+    the recorder before the run's own records cannot make them look like the past. A jump counts the
+    records ``missing`` in between (kept: nothing newer is lost)."""
 
-    def __init__(self):
+    def __init__(self, window_s: float = WINDOW_S):
         self.last: dict[str, int] = {}
         self.missing = 0
+        self.window_ns = int(window_s * 1e9)
 
-    def check(self, run_id: str, sequence: int) -> str | None:
-        """None to keep the record, else why it is dropped ("duplicate", "from the past")."""
+    def check(self, run_id: str, sequence: int, stamp_ns: int | None = None,
+              received_ns: int | None = None) -> str | None:
+        """None to keep the record, else why it is dropped ("expired", "duplicate", "from the past")."""
+        if stamp_ns and received_ns is not None and abs(received_ns - stamp_ns) > self.window_ns:
+            return "expired"  # (every bev_mdo sender stamps its records; an unstamped one cannot be checked)
         last = self.last.get(run_id)
         if last is None:  # the run's first record: those before it (numbered from 1) are missing
             self.last[run_id] = sequence
@@ -56,18 +81,18 @@ class RecordOrder:
     """The recorder's check of the iteration records it is sent: of its own run only (when it has one),
     each in order (``Sequence``); ``dropped`` counts the others by reason."""
 
-    def __init__(self, run_id: str = ""):
+    def __init__(self, run_id: str = "", window_s: float = WINDOW_S):
         self.run_id = run_id
-        self.order = Sequence()
+        self.order = Sequence(window_s)
         self.dropped: dict[str, int] = {}
 
-    def keep(self, data) -> bool:
+    def keep(self, data, received_ns: int) -> bool:
         from bev_mdo.protocol import WireError, head
 
         try:
             rec = head(data, "IterationRecord", "sequence")  # the fields up to sequence: no full decode
             why = ("of another run" if self.run_id and not _in_run(rec.run_id, self.run_id)
-                   else self.order.check(rec.run_id, int(rec.sequence)))
+                   else self.order.check(rec.run_id, int(rec.sequence), stamp_ns(rec.header), received_ns))
         except WireError:
             why = "malformed"
         if why is not None:
@@ -102,12 +127,13 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
         if len(runs) > 1:
             raise BagError(f"{bag.mcap_path}: the bag holds the iterations of {len(runs)} runs {runs}; "
                            "choose one with --run-id")
-    is_design = design_names(read_config(bag))
+    config_yaml = read_config(bag)
+    is_design = design_names(config_yaml)
     check = verifier(bag, key_file, no_verify)
     signer = check.signer
     info = {"run_id": run, "dropped": {}, "missing": 0, "other_runs": 0, "other_run_ids": [],
             "unverified": check.note}
-    order = Sequence()
+    order = Sequence(window_s(config_yaml))
     rows = []
     for msg, rec in decoded:
         if run is not None and not _in_run(rec.run_id, run):
@@ -121,7 +147,7 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
                            "--key-file, or --no-verify")
         # dropped: a record that does not verify (the recorded bytes, as they were sent), then one out of order
         why = ((signer.verify_iteration(msg.data) if signer is not None else None)
-               or order.check(rec.run_id, int(rec.sequence)))
+               or order.check(rec.run_id, int(rec.sequence), stamp_ns(rec.header), msg.log_time_ns))
         if why is not None:
             info["dropped"][why] = info["dropped"].get(why, 0) + 1
             continue

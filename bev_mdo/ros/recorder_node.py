@@ -98,9 +98,9 @@ class RecorderNode(Node):
         self._handlers: dict[str, object] = {}
         self.received = 0
         self.run_id = run_id
-        from bev_mdo.bag.history import RecordOrder
+        from bev_mdo.bag.history import RecordOrder, window_s
 
-        self.order = RecordOrder(run_id)  # iteration records: fresh and in order (bag/history.py)
+        self.order = RecordOrder(run_id, window_s(config_yaml))  # iteration records: fresh, in order (bag/history.py)
         from std_msgs.msg import String
 
         self._status_pub = self.create_publisher(String, STATUS_TOPIC, STATUS_QOS)
@@ -193,9 +193,9 @@ class RecorderNode(Node):
                 if run is None or not run_matches(own, run):
                     self.other_run += 1
                     return
-            if order is not None and not order.keep(data):
-                return  # a duplicate or a record from the past (counted)
             received = info.get("received_timestamp") or time.time_ns()
+            if order is not None and not order.keep(data, received):
+                return  # expired, a duplicate or a record from the past (counted)
             published = info.get("source_timestamp") or received
             write(topic, data, received, published, info.get("publication_sequence_number") or 0)
             self.received += 1

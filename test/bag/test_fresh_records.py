@@ -105,6 +105,40 @@ def test_a_replayed_record_is_dropped_and_counted_by_history_report_and_resume(t
     assert checks["dropped"] == {"from the past": 2, "duplicate": 1}
 
 
+def test_an_old_bag_replayed_before_the_runs_own_records_does_not_displace_them(tmp_path, signed, capsys):
+    """A run id used again (by hand) while an old bag of it is replayed: the old records reached the recorder
+    first, so the run's own records 1.. were taken for duplicates and records from the past, and history and
+    resume read the old run. A record received further than ros.sign_window_s from its stamp is expired."""
+    key_file, signer, old = signed  # stamped 1_700_000_001.. s
+    own = []
+    for s in range(1, 4):  # the run of today: stamped 200 s later, the same run id and key
+        rec = _record(RUN, s, 90.0 + s)
+        rec.header.stamp.sec += 200
+        own.append((rec.header.stamp.sec * 10**9, signer.sign_iteration(rec)))
+    bag = tmp_path / "reused"
+    with BagWriter(bag, metadata={"config_yaml": _config(key_file), "run_id": RUN}) as w:
+        w.add_topic(TOPIC, "bev_mdo_msgs/msg/IterationRecord")
+        for k, data in enumerate(old):  # replayed just before the run's own records: received now
+            w.write(TOPIC, data, own[0][0] - 10**9 + k)
+        for t, data in own:
+            w.write(TOPIC, data, t + 10**6)
+    checks: dict = {}
+    rows = history(bag, checks=checks)
+    assert [r["design"]["motor_kw"] for r in rows] == [91.0, 92.0, 93.0]
+    assert checks["dropped"] == {"expired": 4} and checks["missing"] == 0
+    status, _, err = _cli(capsys, "history", str(bag), "--csv", "-")
+    assert status == 0 and "dropped 4 expired iteration record(s)" in err
+
+    from bev_mdo.bag.history import RecordOrder
+    from bev_mdo.cli.resume import resume_point
+
+    _, design, iteration = resume_point(str(bag))
+    assert design["motor_kw"] == 93.0 and iteration == 2
+    order = RecordOrder(RUN, window_s=30.0)  # the recorder's check as they arrive, at the time they arrive
+    assert [order.keep(d, own[0][0]) for d in old] == [False] * 4
+    assert [order.keep(d, t) for t, d in own] == [True] * 3 and order.dropped == {"expired": 4}
+
+
 def test_a_record_of_another_run_and_a_gap_are_counted_by_history_report_and_resume(tmp_path, signed, capsys):
     key_file, signer, recs = signed
     other = signer.sign_iteration(_record("fedcba9876543210", 9, 120.0))  # same key, another run, the latest
@@ -200,7 +234,9 @@ def test_the_recorders_check_keeps_its_own_run_once_and_in_order(signed):
     _, signer, recs = signed
     other = signer.sign_iteration(_record("fedcba9876543210", 5, 120.0))
     order = RecordOrder(RUN)
-    kept = [r for r in [recs[0], recs[2], recs[0], other, recs[2], recs[3], b"\x00\x01\x00\x00junk"] if order.keep(r)]
+    now = (1_700_000_000 + 3) * 10**9  # within the window of every record's stamp
+    kept = [r for r in [recs[0], recs[2], recs[0], other, recs[2], recs[3], b"\x00\x01\x00\x00junk"]
+            if order.keep(r, now)]
     assert kept == [recs[0], recs[2], recs[3]]
     assert order.dropped == {"from the past": 1, "duplicate": 1, "of another run": 1, "malformed": 1}
     assert order.order.missing == 1
