@@ -43,6 +43,8 @@ def run(args) -> int:
         print(jsontext.dumps(rows))
     elif rows:
         print(format_table(rows))
+        for line in shared_names(rows):
+            print(line)
     else:
         print(f"no discipline instance on ROS domain {ros['domain_id']} (listened {args.listen:g} s)")
     return 0
@@ -60,3 +62,15 @@ def format_table(rows: list[dict]) -> str:
                       r["fingerprint"]))
     widths = [max(len(line[j]) for line in lines) for j in range(len(head))]
     return "\n".join("  ".join(c.ljust(w) for c, w in zip(line, widths)).rstrip() for line in lines)
+
+
+def shared_names(rows: list[dict]) -> list[str]:
+    """A warning per instance name that more than one process uses: the coordinator takes one answer per
+    name and drops the other's as duplicates (docs/scaling.md: each instance needs its own node name)."""
+    procs: dict[tuple, set] = {}
+    for r in rows:
+        procs.setdefault((r["discipline"], r["instance"]), set()).add((r["host"], r["pid"]))
+    return [f"warning: {len(p)} processes use the instance name {inst} of {disc} ("
+            + ", ".join(f"pid {pid} on {host}" for host, pid in sorted(p, key=str))
+            + "): their answers count as one instance's; give each its own node name (-r __node:=NAME)"
+            for (disc, inst), p in sorted(procs.items()) if len(p) > 1]

@@ -1,11 +1,9 @@
-"""Live discipline instances on a ROS domain, for `bev-mdo status`.
-
-Listens for a while to the discipline declarations (/bev_mdo/discipline_info, kept for late
-joiners) and the node counters (/bev_mdo/node_stats: host, pid, points answered, compute time),
-and checks the ROS graph for who still reads its request topic. Throughput is points per second
-of compute time since the node started (its capacity) and the points answered while we listened per
-second of the listening window (its current load: 0 for an idle node; the first counters a node sends
-are its latest, kept for late joiners, so they are its count when the window opened).
+"""Live discipline instances on a ROS domain, for `bev-mdo status`. Listens a while to the discipline
+declarations (/bev_mdo/discipline_info, kept for late joiners) and node counters (/bev_mdo/node_stats: host,
+pid, points answered, compute time), and checks the ROS graph for who still reads its request topic.
+Throughput: points per second of compute time since the node started (its capacity), and points answered
+per second of the listening window (its load: 0 when idle; a node's first counters are its latest, kept for
+late joiners, so they are its count when the window opened). Two processes of one node name: a row each.
 """
 from __future__ import annotations
 
@@ -26,15 +24,15 @@ def collect(node, listen_s: float = 2.0) -> list[dict]:
     from bev_mdo_msgs.msg import DisciplineInfo
 
     infos: dict[tuple[str, str], DisciplineInfo] = {}
-    first: dict[str, dict] = {}  # instance -> the first and the last counters it sent while we listened
-    last: dict[str, dict] = {}
+    first: dict[tuple, dict] = {}  # (instance, host, pid) -> the first and the last counters it sent while we
+    last: dict[tuple, dict] = {}  # listened: two processes given one node name stay apart
 
     def on_info(msg):
         infos[(msg.discipline, msg.instance.lstrip("/"))] = msg
 
     def on_stats(msg):
         d = json.loads(msg.data)
-        key = str(d.get("instance", "")).lstrip("/")
+        key = (str(d.get("instance", "")).lstrip("/"), d.get("host"), d.get("pid"))
         first.setdefault(key, d)
         last[key] = d
 
@@ -52,10 +50,11 @@ def collect(node, listen_s: float = 2.0) -> list[dict]:
             readers = node.get_subscriptions_info_by_topic(request_topic(disc))
             graph = {f"{r.node_namespace.rstrip('/')}/{r.node_name}".lstrip("/") for r in readers}
             graph |= {r.node_name for r in readers}
-            names = {i for d, i in infos if d == disc} | {k for k, s in last.items() if s.get("discipline") == disc}
-            for inst in sorted(names):
+            names = {i for d, i in infos if d == disc} | {k[0] for k, s in last.items() if s.get("discipline") == disc}
+            for inst, key in [(i, k) for i in sorted(names) for k in sorted((k for k in last if k[0] == i), key=str)
+                              or [None]]:
                 info = infos.get((disc, inst))
-                s1, s0 = last.get(inst, {}), first.get(inst, {})
+                s1, s0 = last.get(key, {}), first.get(key, {})
                 c1, c0 = s1.get("counts", {}), s0.get("counts", {})
                 points = int(c1.get("points", 0))
                 compute_s = float(s1.get("compute_s", 0.0))
@@ -68,7 +67,7 @@ def collect(node, listen_s: float = 2.0) -> list[dict]:
                     "rejected": int(c1.get("rejected", 0)), "compute_s": compute_s,
                     "capacity_points_per_s": round(points / compute_s, 1) if compute_s > 0 else None,
                     "recent_points_per_s": (round((points - int(c0.get("points", 0))) / listen_s, 1)
-                                            if inst in last else None),  # None: it sent no counters
+                                            if key else None),  # None: it sent no counters
                 })
         return rows
     finally:

@@ -276,6 +276,47 @@ def test_status_load_is_points_in_the_listening_window_per_second_of_it(rclpy_co
     assert sum(r["recent_points_per_s"] for r in busy) == pytest.approx(90 / 4.0, abs=0.2), busy
 
 
+def test_two_processes_of_one_node_name_are_two_rows_and_a_warning(rclpy_context):
+    """Two standalone nodes started with the default name: status showed one row whose pid flipped from call
+    to call and whose load was negative (one process's counters minus the other's)."""
+    import json
+
+    from rclpy.executors import SingleThreadedExecutor
+    from std_msgs.msg import String
+
+    from bev_mdo.cli.status import shared_names
+    from bev_mdo.ros.common import NODE_STATS_QOS, NODE_STATS_READER_QOS, NODE_STATS_TOPIC
+    from bev_mdo.ros.fastwait import until
+    from bev_mdo.ros.status import collect
+
+    node = rclpy.create_node("twin_names", context=rclpy_context)
+    probe = rclpy.create_node("twin_names_probe", context=rclpy_context)
+    got = set()
+    probe.create_subscription(String, NODE_STATS_TOPIC, lambda m: got.add(json.loads(m.data)["pid"]),
+                              NODE_STATS_READER_QOS)
+    try:
+        for pid, points in ((1001, 500), (1002, 20)):  # kept for late joiners, as a node's latest counters
+            pub = node.create_publisher(String, NODE_STATS_TOPIC, NODE_STATS_QOS)
+            pub.publish(String(data=json.dumps({"discipline": "twin", "instance": "twin_node", "host": "h",
+                                                "pid": pid, "counts": {"points": points}, "compute_s": 1.0})))
+        executor = SingleThreadedExecutor(context=rclpy_context)
+        executor.add_node(probe)
+        try:
+            assert until(lambda: {1001, 1002} <= got, 30.0, lambda: executor.spin_once(timeout_sec=0.05))
+        finally:
+            executor.remove_node(probe)
+            executor.shutdown()
+        rows = [r for r in collect(probe, 0.5) if r["discipline"] == "twin"]
+    finally:
+        probe.destroy_node()
+        node.destroy_node()
+    assert sorted((r["pid"], r["points"], r["recent_points_per_s"]) for r in rows) == [(1001, 500, 0.0),
+                                                                                       (1002, 20, 0.0)]
+    assert shared_names(rows) == ["warning: 2 processes use the instance name twin_node of twin (pid 1001 on h, "
+                                  "pid 1002 on h): their answers count as one instance's; give each its own node "
+                                  "name (-r __node:=NAME)"]
+
+
 def test_sigkill_mid_batch_loses_no_design(evaluator, launcher, paths):
     live = evaluator.wait_for_instances("wait", 3, 60.0)
     batch = _batch(600, seed=5)  # 1.2 s of waiting, about 0.4 s per instance
