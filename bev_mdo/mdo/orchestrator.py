@@ -234,6 +234,9 @@ class Orchestrator:
         """Wait for every pending result; re-send what times out; fail what never answers."""
         for attempt in range(self.retries + 1):
             self._take_until(time.monotonic() + self.timeout_s)
+            for key, p in list(self._pending.items()):
+                if p.discipline in self.unresponsive:  # found hung meanwhile (mark_hung): no retry
+                    self._give_up(key, p)
             if not self._pending:
                 break
             if attempt < self.retries:
@@ -249,13 +252,16 @@ class Orchestrator:
         for key, p in unanswered.items():
             self._give_up(key, p)
         for d in retry.hung(unanswered, self._sources_of):
-            if d not in self.unresponsive:
-                # a discipline that let every attempt time out is hung (or gone): say so once, and
-                # fail its later requests at once instead of waiting the whole timeout each time
-                self.unresponsive.add(d)
-                self.log.error(
-                    f"discipline {d!r} did not answer within {self.retries + 1} x {self.timeout_s:g} s: "
-                    "its points fail, and so do its later requests, at once")
+            self.mark_hung(d)
+
+    def mark_hung(self, d: str) -> None:
+        """Discipline `d` let every attempt time out (or, called in this process, overran the same budget:
+        mdo/timed.py): it is hung (or gone). Said once; its later requests fail at once instead of
+        waiting the whole timeout each time."""
+        if d not in self.unresponsive:
+            self.unresponsive.add(d)
+            self.log.error(f"discipline {d!r} did not answer within {self.retries + 1} x {self.timeout_s:g} s: "
+                           "its points fail, and so do its later requests, at once")
 
     def _give_up(self, key: tuple[int, str], p: retry.Sent) -> None:
         """Every attempt of `p` timed out: its points fail, named (a late answer is then dropped as a

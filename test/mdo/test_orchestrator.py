@@ -92,6 +92,22 @@ def test_a_silent_discipline_is_re_sent_then_its_points_fail_named_and_it_is_not
     assert ev.dropped["duplicate"] == 0  # nothing answered late
 
 
+def test_a_discipline_found_hung_during_the_wait_is_not_re_sent():
+    """A discipline called in the coordinator's own process (ros/composed.py) that overran its budget is
+    marked hung while the wave waits (mark_hung): its request fails at once, without a retry (each
+    retry hung again, and blamed every discipline still waiting)."""
+
+    class HungDuringWait(MemoryTransport):
+        def _take_until(self, deadline, once=False):
+            self.mark_hung("side")
+            super()._take_until(deadline, once)
+
+    ev = HungDuringWait([Square(), Side()], silent={"side"}, retries=3)
+    sq, side = ev.evaluate([("square", {"x": X}), ("side", {"x": X})])
+    assert sq.ok.all() and not side.ok.any() and "side: no answer" in side.error
+    assert ev.retried == 0 and ev.sent == 2 and ev.unresponsive == {"side"}
+
+
 def test_a_data_flow_mda_is_one_request_with_the_wave_by_wave_results():
     discs = [Square(), Plus(), Half()]
     ev = MemoryTransport(discs, retries=1)
