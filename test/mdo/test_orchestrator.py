@@ -85,6 +85,7 @@ def test_a_silent_discipline_is_re_sent_then_its_points_fail_named_and_it_is_not
     sq, side = ev.evaluate([("square", {"x": X}), ("side", {"x": X})])
     assert sq.ok.all() and not side.ok.any() and np.isnan(side.outputs["u"]).all()
     assert "side: no answer after 3 attempts" in side.error
+    assert side.point_errors[4].text(4).endswith("at point 4 (x=4)")  # each point named, as a raising one is
     assert ev.retried == 2 and ev.sent == 4 and ev.unresponsive == {"side"}
     sent = ev.sent
     (again,) = ev.evaluate([("side", {"x": X})])
