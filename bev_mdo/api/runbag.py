@@ -88,7 +88,7 @@ class InProcessBag:
 def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
     """The end-of-run answers (``bev_mdo.mdo.active``) for a run result dict, with the same time budget
     per discipline call as the run had (a hung user discipline must not hang the answers)."""
-    from bev_mdo.api.failures import TimedDiscipline
+    from bev_mdo.mdo.timed import TimedDiscipline
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.active import answers_for
     from bev_mdo.mdo.units import run_units

@@ -218,7 +218,8 @@ def _batch_size(batch: Mapping[str, np.ndarray]) -> int:
     return sizes.pop() if sizes else 0
 
 
-def _describe_row(inputs: Mapping[str, np.ndarray], i: int) -> str:
+def describe_row(inputs: Mapping[str, np.ndarray], i: int) -> str:
+    """Row `i` of `inputs` for a message naming a point: ``motor_kw=88, gear_ratio=8``."""
     return ", ".join(f"{k}={float(v[i]):.6g}" for k, v in inputs.items())
 
 
@@ -311,7 +312,7 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False)
             row = {k: v[i:i + 1] for k, v in batch.items()}
             if bad_in[i]:
                 ok[i] = False
-                errors[i] = PointError(f"{name}: non-finite input", _describe_row(shown, i))
+                errors[i] = PointError(f"{name}: non-finite input", describe_row(shown, i))
                 continue
             try:
                 one = _call(disc, row, 1)
@@ -319,7 +320,7 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False)
                 raise
             except Exception as exc:  # the model's own error text is what the user needs
                 ok[i] = False
-                errors[i] = PointError(f"{name}: {type(exc).__name__}: {exc}", _describe_row(shown, i))
+                errors[i] = PointError(f"{name}: {type(exc).__name__}: {exc}", describe_row(shown, i))
                 continue
             for k in disc.outputs:
                 out[k][i] = one[k][0]
@@ -328,7 +329,7 @@ def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False)
         for i in np.flatnonzero(ok & ~finite):
             ok[i] = False
             bad = [k for k in disc.outputs if not np.isfinite(out[k][i])]
-            errors[int(i)] = PointError(f"{name}: non-finite output {bad}", _describe_row(shown, i))
+            errors[int(i)] = PointError(f"{name}: non-finite output {bad}", describe_row(shown, i))
         for k in disc.outputs:
             out[k] = np.where(ok, out[k], np.nan)
     res = EvalResult(out, ok, error_text(errors), time.perf_counter() - t0, point_errors=errors)

@@ -270,7 +270,8 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         # A derivative-free method that says it converged where the first-order conditions do not hold
         # (its models went flat before a direction was resolved): once more from there, models rebuilt.
         if (attempt == RESTARTS or opt_name not in RESTARTABLE or not res.success
-                or fo["verdict"] != first_order.STOPPED or set(options) & BUDGET_OPTIONS):
+                or fo["verdict"] != first_order.STOPPED or set(options) & BUDGET_OPTIONS
+                or fo["unknown_derivatives"]):  # failed points, not flat models: a restart cannot help
             break
         form.x0 = x.copy()
         first_message = str(res.message)
@@ -325,7 +326,8 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
     lo, hi = form.u_bounds
     fo = first_order.check(u, lo, hi, df, g[0], dg, h[0], dh, names=form.var_names,
                            ineq_labels=form.ineq_labels, eq_labels=form.eq_labels, feasibility_tol=tol,
-                           point_ok=ok, moved=not np.array_equal(x, np.asarray(x_start, dtype=float)))
+                           point_ok=ok, moved=not np.array_equal(x, np.asarray(x_start, dtype=float)),
+                           unknown=form.unknown_derivatives(u) if ok else ())
     fo["cost"] = {"points": form.n_points - points, "batches": form.n_batches - batches,
                   "wall_time_s": time.perf_counter() - t0}
     return fo

@@ -13,7 +13,9 @@ The conditions (Nocedal & Wright, Numerical Optimization, 2nd ed., Theorem 12.1)
   largest component, relative to max(1, |grad f|), must be within ``tol``;
 * primal feasibility: the largest violation of g and |h| within the run's feasibility tolerance;
 * complementarity: max |lam_i g_i| and |nu_j (distance to bound j)| within ``tol``
-  (an inequality or bound counts as active within ``active_tol`` of its limit).
+  (an inequality or bound counts as active within ``active_tol`` of its limit);
+* every derivative known: a variable whose finite-difference points failed (``unknown``: the
+  gradient has a 0 there that no model gave) leaves the conditions unverified, whatever the numbers.
 
 Verdicts (in this order): ``infeasible`` (violation above the feasibility tolerance, or the point
 failed), ``optimum`` (the conditions hold), ``no progress from the start point`` (the end point is
@@ -49,11 +51,12 @@ def check(u: np.ndarray, lower: np.ndarray, upper: np.ndarray, grad_f: np.ndarra
           jac_g: np.ndarray, h: np.ndarray, jac_h: np.ndarray, *, names: Sequence[str],
           ineq_labels: Sequence[str], eq_labels: Sequence[str], feasibility_tol: float,
           tol: float = FIRST_ORDER_TOL, active_tol: float = ACTIVE_TOL, point_ok: bool = True,
-          moved: bool = True) -> dict:
+          moved: bool = True, unknown: Sequence[str] = ()) -> dict:
     """The first-order numbers and the verdict at ``u`` (JSON-ready dict; see the module doc).
 
     ``lower``/``upper``: bounds of u (may be infinite); ``g`` (m,), ``jac_g`` (m, n), ``h`` (p,),
-    ``jac_h`` (p, n); ``moved``: False when the end point is the start point."""
+    ``jac_h`` (p, n); ``moved``: False when the end point is the start point; ``unknown``: the
+    variables without a derivative there (their finite-difference points failed)."""
     u, lower, upper, grad_f = (np.asarray(a, dtype=float) for a in (u, lower, upper, grad_f))
     n = len(u)
     g, h = np.asarray(g, dtype=float).reshape(-1), np.asarray(h, dtype=float).reshape(-1)
@@ -83,7 +86,7 @@ def check(u: np.ndarray, lower: np.ndarray, upper: np.ndarray, grad_f: np.ndarra
     gaps = np.concatenate([np.abs(lam * g[act_g]), np.abs(nu[:len(act_lo)] * to_lower[act_lo]),
                            np.abs(nu[len(act_lo):] * to_upper[act_hi])])
     complementarity = float(np.max(gaps, initial=0.0)) / ref
-    holds = bool(stationarity <= tol and complementarity <= tol)
+    holds = bool(stationarity <= tol and complementarity <= tol and not unknown)
     if not point_ok or not violation <= feasibility_tol:
         verdict = INFEASIBLE
     elif holds:
@@ -102,6 +105,7 @@ def check(u: np.ndarray, lower: np.ndarray, upper: np.ndarray, grad_f: np.ndarra
         "feasibility_tolerance": feasibility_tol,
         "active_tolerance": active_tol,
         "gradient_norm": float(np.max(np.abs(grad_f), initial=0.0)),
+        "unknown_derivatives": list(unknown),
         "active_constraints": [{"name": ineq_labels[i], "value": float(g[i]), "multiplier": float(v)}
                                for i, v in zip(act_g, lam)],
         "equalities": [{"name": eq_labels[k], "value": float(h[k]), "multiplier": float(v)}
@@ -122,5 +126,10 @@ def verdict_line(fo: dict) -> str:
     if v == INFEASIBLE:
         return (f"infeasible (largest violation {fo['max_violation']:.3g} > feasibility tolerance "
                 f"{fo['feasibility_tolerance']:g})")
+    unknown = fo.get("unknown_derivatives")
+    if unknown:
+        return (f"{v} (no derivative in {', '.join(unknown)}: {'its' if len(unknown) == 1 else 'their'} "
+                f"finite-difference points failed, "
+                "so the first-order conditions cannot be verified)")
     return (f"{v} (projected gradient of the Lagrangian {fo['stationarity']:.3g}, complementarity "
             f"{fo['complementarity']:.3g}; tolerance {fo['tolerance']:g})")

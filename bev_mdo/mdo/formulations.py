@@ -13,7 +13,8 @@ cached, so scipy's separate fun/jac/constraint calls at one x cost nothing extra
 A failed point (a discipline error, NaN, an unconverged loop) gets objective
 ``FAIL_OBJECTIVE`` and every constraint ``FAIL_CONSTRAINT`` (violated); in a
 stencil, a failed perturbed point of a good base point gives a zero derivative
-in that direction (counted in ``fd_failures``).
+in that direction (counted in ``fd_failures``) for the optimiser; ``unknown_derivatives`` names
+those directions, so the first-order check never takes such a zero for a stationary point.
 
 With ``derivatives: analytic`` the gradient at a point is assembled from the disciplines'
 partials instead (derivatives.py): one analysis of the point asking every discipline for its
@@ -62,6 +63,7 @@ class Formulation:
         self.cache_size = int(cache_size)
         self._cache: dict[bytes, tuple[float, np.ndarray, np.ndarray, bool, str]] = {}
         self._grad: tuple[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        self._unknown: tuple[bytes, list[str]] | None = None  # u -> variables whose derivative failed there
         self.n_points = 0      # rows actually evaluated
         self.n_batches = 0     # evaluate_batch calls that evaluated something
         self.n_gradients = 0
@@ -196,9 +198,12 @@ class Formulation:
         if self._grad is not None and self._grad[0] == key:
             return self._grad[1]
         self.n_gradients += 1
+        failures = self.fd_failures
         if self.derivatives == "analytic":
             out = self._assembled(u)
             self._grad = (key, out)
+            # a discipline's failed finite-difference point: which variables it reaches is not tracked
+            self._unknown = (key, list(self.var_names) if self.fd_failures > failures else [])
             return out
         lo, hi = self.u_bounds
         hstep = self.fd_step
@@ -226,14 +231,22 @@ class Formulation:
         else:
             D = (V[1:] - V[0][None, :]) / denom[:, None]
             good = ok[1:]
+        self._unknown = (key, [])
         if ok[0] and not good.all():
             self.fd_failures += int((~good).sum())
             D[~good] = 0.0
+            self._unknown = (key, [self.var_names[j] for j in np.flatnonzero(~good)])
         D = D.T  # (1 + m + p, n)
         m = g.shape[1]
         out = (D[0], D[1:1 + m], D[1 + m:])
         self._grad = (key, out)
         return out
+
+    def unknown_derivatives(self, u: np.ndarray) -> list[str]:
+        """The variables in which ``gradients(u)`` (taken before) has no derivative: a finite-difference
+        point failed and the optimiser was given 0 there."""
+        key = np.asarray(u, dtype=float).tobytes()
+        return list(self._unknown[1]) if self._unknown is not None and self._unknown[0] == key else []
 
     # ------------------------------------------------------------ assembled derivatives
     @property

@@ -35,7 +35,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from bev_mdo.mdo import flow, pool as pools, retry
-from bev_mdo.mdo.discipline import EvalResult, failed, first_error_line
+from bev_mdo.mdo.discipline import (EvalResult, PointError, describe_row, error_text, failed,
+                                   first_error_line)
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.ledger import Ledger
@@ -156,7 +157,7 @@ class Orchestrator:
                 shared = True
                 self._send_shares(i, name, batch, iteration, 0, n, live)
                 continue
-            p = self.ledger.open(self.ledger.new_id(), name, retry.Sent(i, name, req, n, 0))
+            p = self.ledger.open(self.ledger.new_id(), name, retry.Sent(i, name, req, n, 0, inputs=batch))
             self._send(p)
         if shared:
             self._await_pool(iteration)
@@ -182,7 +183,7 @@ class Orchestrator:
             return self._flow_shares(names, plan, request, n, bool(partials), pooled)
         eid = self.ledger.new_id()
         req = self._request(eid, "", request, self._tag(names), flow=names, partials=partials)
-        sent = [self.ledger.open(eid, name, retry.Sent(i, name, req, n, 0, flow=True)) for i, name in enumerate(names)]
+        sent = [self.ledger.open(eid, name, retry.Sent(i, name, req, n, 0, flow=True, inputs=request)) for i, name in enumerate(names)]
         self._send(sent[0])  # one message for every discipline
         self._await()
         self.flows += 1
@@ -234,6 +235,9 @@ class Orchestrator:
         """Wait for every pending result; re-send what times out; fail what never answers."""
         for attempt in range(self.retries + 1):
             self._take_until(time.monotonic() + self.timeout_s)
+            for key, p in list(self._pending.items()):
+                if p.discipline in self.unresponsive:  # found hung meanwhile (mark_hung): no retry
+                    self._give_up(key, p)
             if not self._pending:
                 break
             if attempt < self.retries:
@@ -241,7 +245,7 @@ class Orchestrator:
                     self.retried += len(late)
                     p.request.attempt = p.tries
                     self.log.warning(
-                        f"no answer from {late} for evaluation {p.request.evaluation_id} "
+                        f"no answer from {late} for evaluation {p.request.evaluation_id}{retry.points(p)} "
                         f"after {self.timeout_s:g} s; retry {attempt + 1}/{self.retries}"
                     )
                     self._send(p)
@@ -249,18 +253,26 @@ class Orchestrator:
         for key, p in unanswered.items():
             self._give_up(key, p)
         for d in retry.hung(unanswered, self._sources_of):
-            if d not in self.unresponsive:
-                # a discipline that let every attempt time out is hung (or gone): say so once, and
-                # fail its later requests at once instead of waiting the whole timeout each time
-                self.unresponsive.add(d)
-                self.log.error(
-                    f"discipline {d!r} did not answer within {self.retries + 1} x {self.timeout_s:g} s: "
-                    "its points fail, and so do its later requests, at once")
+            self.mark_hung(d)
+
+    def mark_hung(self, d: str) -> None:
+        """Discipline `d` let every attempt time out (or, called in this process, overran the same budget:
+        mdo/timed.py): it is hung (or gone). Said once; its later requests fail at once instead of
+        waiting the whole timeout each time."""
+        if d not in self.unresponsive:
+            self.unresponsive.add(d)
+            self.log.error(f"discipline {d!r} did not answer within {self.retries + 1} x {self.timeout_s:g} s: "
+                           "its points fail, and so do its later requests, at once")
 
     def _give_up(self, key: tuple[int, str], p: retry.Sent) -> None:
         """Every attempt of `p` timed out: its points fail, named (a late answer is then dropped as a
         duplicate, never used)."""
         res = self._failed(p, self.policy.no_answer(p.discipline))
+        spec, cols = self.specs.get(p.discipline), p.inputs or {}
+        cols = {k: np.asarray(v) for k, v in cols.items() if spec is None or k in spec.inputs} or cols
+        if cols and p.n:  # each point named with its inputs, as a point that raises is
+            res.point_errors = {i: PointError(res.error, describe_row(cols, i)) for i in range(p.n)}
+            res.error = error_text(res.point_errors)
         self._first_error(p.discipline, res.error)
         self.ledger.close(key)
         self._place(key, p, res)
@@ -287,10 +299,10 @@ class Orchestrator:
         self._batches[index] = (name, batch)
         for inst, a, b in self._pool(name).split(n, live, min_rows=pools.min_rows_of(self.pool_min_rows, name)):
             eid = self.ledger.new_id()
-            req = self._request(eid, name, {k: np.asarray(v)[first + a:first + b] for k, v in batch.items()},
-                                self._tag([name], {name: inst}), iteration=iteration, attempt=tries)
+            rows = {k: np.asarray(v)[first + a:first + b] for k, v in batch.items()}
+            req = self._request(eid, name, rows, self._tag([name], {name: inst}), iteration=iteration, attempt=tries)
             p = self.ledger.open(eid, name, retry.Sent(index, name, req, b - a, 0, target=inst, start=first + a,
-                                                       tries=tries))
+                                                       tries=tries, inputs=rows))
             self._send(p)
 
     def _wait_shares(self, checked: float, check_s: float) -> tuple[int, set[tuple[str, str]], float]:
@@ -332,7 +344,7 @@ class Orchestrator:
                     p.tries += 1
                     p.request.attempt = p.tries
                     self.log.warning(f"no answer from {[p.discipline]} for evaluation "
-                                     f"{p.request.evaluation_id}; retry {p.tries}/{self.retries}")
+                                     f"{p.request.evaluation_id}{retry.points(p)}; retry {p.tries}/{self.retries}")
                     self._send(p)
                     continue
                 self.ledger.reassign(key)
@@ -340,7 +352,7 @@ class Orchestrator:
                 if not live:  # every instance failed: try them all again rather than give up early
                     live = sorted(self._present_instances(p.discipline)[0]) or [p.target]
                 self.log.warning(
-                    f"{p.discipline} instance {p.target!r} {step.why} holding {p.n} design(s); "
+                    f"{p.discipline} instance {p.target!r} {step.why} holding {p.n} design(s){retry.points(p)}; "
                     f"re-sent to {live} (retry {p.tries + 1}/{self.retries})")
                 name, batch = self._batches[p.index]
                 self._send_shares(p.index, name, batch, iteration, p.start, p.n, live, tries=p.tries + 1)
@@ -373,10 +385,11 @@ class Orchestrator:
     def _send_flow_share(self, names: Sequence[str], request: Mapping[str, np.ndarray], a: int, b: int,
                          targets: Mapping[str, str], partials: bool, tries: int) -> None:
         eid = self.ledger.new_id()
-        req = self._request(eid, "", {k: np.asarray(v)[a:b] for k, v in request.items()},
-                            self._tag(names, targets), flow=names, attempt=tries, partials=partials)
+        rows = {k: np.asarray(v)[a:b] for k, v in request.items()}
+        req = self._request(eid, "", rows, self._tag(names, targets), flow=names, attempt=tries, partials=partials)
         sent = [self.ledger.open(eid, name, retry.Sent(i, name, req, b - a, 0, flow=True,
-                                                       target=targets.get(name, ""), start=a, tries=tries))
+                                                       target=targets.get(name, ""), start=a, tries=tries,
+                                                       inputs=rows))
                 for i, name in enumerate(names)]
         self._shares.sent(eid, a, b, tries)
         self._share_targets[eid] = targets
@@ -414,7 +427,8 @@ class Orchestrator:
                     if live:
                         targets[d] = retry.pick(live, step.eid, tries)
                 self.log.warning(
-                    f"data-flow share {step.eid} (rows {a}-{b}): {sorted(f'{d}@{t}' for d, t, _ in step.blame)} "
+                    f"data-flow share {step.eid} (rows {a}-{b}){retry.points(step.items[0][1])}: "
+                    f"{sorted(f'{d}@{t}' for d, t, _ in step.blame)} "
                     f"{step.why}; re-sent to {targets} (retry {tries + 1}/{self.retries})")
                 self._send_flow_share(names, request, a, b, targets, partials, tries + 1)
         return gave_up

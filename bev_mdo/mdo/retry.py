@@ -15,7 +15,7 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from bev_mdo.mdo.discipline import EvalResult, join_errors
+from bev_mdo.mdo.discipline import EvalResult, describe_row, join_errors
 from bev_mdo.mdo.ledger import Key
 
 LEFT = "left the ROS graph"  # why a share is re-sent when its instance is gone from the graph
@@ -34,6 +34,7 @@ class Sent:
     target: str = ""     # a pool's share: the instance it is addressed to
     start: int = -1      # a pool's share: its first row in the batch (-1: the whole batch)
     tries: int = 0       # attempts made before this one
+    inputs: Any = None   # the request's columns ({name: (n,)}), to name its points
 
 
 @dataclass(frozen=True)
@@ -61,6 +62,14 @@ class Policy:
 
     def waited(self) -> str:
         return f"no answer after {self.timeout_s:g} s"
+
+
+def points(sent: Sent) -> str:
+    """The points of `sent` for a message: `` (motor_kw=88, gear_ratio=8)``, or the first of several."""
+    if not sent.inputs or sent.n < 1:
+        return ""
+    first = describe_row({k: np.asarray(v) for k, v in sent.inputs.items()}, 0)
+    return f" ({first})" if sent.n == 1 else f" ({sent.n} points, the first {first})"
 
 
 def resend_round(pending: Mapping[Key, Sent], attempt: int) -> list[tuple[Sent, list[str]]]:

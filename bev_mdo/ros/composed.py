@@ -22,8 +22,10 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rcl_interfaces.msg import ParameterDescriptor
 
+from bev_mdo.config import RunConfig
 from bev_mdo.mdo.discipline import DisciplineError
 from bev_mdo.mdo.evaluator import InProcessEvaluator
+from bev_mdo.mdo.timed import TimedDiscipline
 from bev_mdo.mdo.vectors import ShapeError
 from bev_mdo import protocol
 from bev_mdo.ros.discipline_node import DisciplineNode, serve, valid_run_id
@@ -32,8 +34,6 @@ from bev_mdo.ros.discipline_node import DisciplineNode, serve, valid_run_id
 def make_nodes(config, disciplines: list[str], instance: str = "", run_id: str = "",
                context=None) -> list[DisciplineNode]:
     """One DisciplineNode per discipline, sharing `config` (node names as the launcher gives them)."""
-    from bev_mdo.config import RunConfig
-
     config = RunConfig.of(config)
     nodes = []
     for name in disciplines:
@@ -99,10 +99,14 @@ class Beside:
 
     Not served: the nodes' parameter services (no executor spins them) and requests from another
     process's coordinator while this one is not evaluating (the nodes are served only inside the
-    coordinator's waits)."""
+    coordinator's waits). A call is bounded as in process (mdo/timed.py): a discipline that overran
+    ros.timeout_s x (ros.retries + 1) fails its points, named, and is hung for the coordinator (_served)."""
 
     def __init__(self, config, names: list[str], context, run_id: str = "", instance: str = ""):
         self.nodes = make_nodes(config, list(names), instance, run_id, context=context)
+        ros = RunConfig.of(config).ros  # a call in this thread cannot be waited for, only bounded
+        for node in self.nodes:
+            node.discipline = TimedDiscipline(node.discipline, ros["timeout_s"] * (ros["retries"] + 1), True)
         link_local(self.nodes)
         self._pairs: list = []
         self._evaluator = None
@@ -120,8 +124,8 @@ class Beside:
             # the consumers composed with it (kept in the graph, not read: link_local)
             node.local_readers = {id(node._mda_pub): 1 + len(node.local_consumers), id(node._result_pub): 1}
             node.local_coordinator = evaluator.on_local
-            for sub, handle in node.hot_subscriptions():
-                self._pairs.append((sub, self._with_stats(node, handle)))
+            for sub, handle in node.hot_subscriptions():  # then node stats, a discipline that hung (_served)
+                self._pairs.append((sub, lambda data, info, h=handle: (h(data, info), self._served())))
         evaluator._hot.extend(self._pairs)
         # requests: as rclcpp's intra-process communication, by direct call to the nodes of this
         # process when no reader outside it matched the topic (else published, and taken from DDS)
@@ -142,9 +146,14 @@ class Beside:
             return True
         for _node, handle in local:
             handle(request, local=True)
-        for node in self.nodes:  # the consumers' too (they answered by link_local's direct calls)
-            node.publish_stats()  # rate-limited
+        self._served()
         return True
+
+    def _served(self) -> None:
+        for node in self.nodes:  # the consumers' too (they answered by link_local's direct calls)
+            node.publish_stats()  # rate-limited (node stats, `bev-mdo status`)
+            if node.discipline.hung:  # overran ros.timeout_s x (ros.retries + 1): as a node that never answers
+                self._evaluator.mark_hung(node.discipline_name)
 
     def _flow(self, req) -> bool:
         """A whole data-flow MDA in one call, when every discipline of it is a node here and no
@@ -187,15 +196,8 @@ class Beside:
             node.counts["received"] += 1
             node._answered(res)
             hand(req, node.discipline_name, node.instance, res)
-            node.publish_stats()
+        self._served()
         return True
-
-    @staticmethod
-    def _with_stats(node: DisciplineNode, handle):
-        def served(data, info):
-            handle(data, info)
-            node.publish_stats()  # rate-limited (node stats, `bev-mdo status`)
-        return served
 
     def detach(self) -> None:
         if self._evaluator is not None:
@@ -222,7 +224,6 @@ def serve_many(nodes: list[DisciplineNode], idle_s: float = 0.1, service_every: 
 
 def main(args: list[str] | None = None) -> int:
     """Run the named disciplines in this process until Ctrl-C / SIGTERM."""
-    from bev_mdo.config import RunConfig
     from bev_mdo.ros.paths import default_config
 
     rclpy.init(args=args)

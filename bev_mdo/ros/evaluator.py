@@ -327,16 +327,14 @@ class RosEvaluator(StartupWaits, Orchestrator):
 
     def _take_until(self, deadline: float, once: bool = False) -> None:
         """Take results until nothing is pending or the monotonic `deadline` (s) passed (no re-send);
-        with ``once`` one wait at most. rcl wait sets are level-triggered: what arrived before this
-        wait is ready at once."""
+        with ``once`` one wait at most; past it, what is ready is taken (a node composed here may answer
+        late: Beside). rcl wait sets are level-triggered: what arrived before this wait is ready at once."""
         subs = [s for s, _ in self._hot]
         while self._pending:
             left = deadline - time.monotonic()
-            if left <= 0 and not once:
-                return
             if self._waiter.wait(subs, max(0.0, left)):
                 self._waiter.take_ready(self._hot)
-            if once:
+            if once or left <= 0:
                 return
 
     def spin(self, timeout_s: float) -> None:

@@ -35,6 +35,22 @@ class HangLater:
         return {"late_kw": np.asarray(inputs["motor_kw"], float)}
 
 
+class OnlyAtStart:
+    """Answers at the start design (80 kW, 8:1, 24 kWh) and raises everywhere else: the start point's
+    whole neighbourhood fails, as when a discipline breaks (or hangs) after the start point."""
+
+    name = "only"
+    inputs = ("motor_kw", "gear_ratio", "battery_kwh")
+    outputs = ("only_kw",)
+    units = {"motor_kw": "kW", "gear_ratio": "1", "battery_kwh": "kWh", "only_kw": "kW"}
+
+    def compute(self, inputs):
+        x = [np.asarray(inputs[k], float) for k in self.inputs]
+        if not all(np.all(v == s) for v, s in zip(x, (80.0, 8.0, 24.0))):
+            raise ValueError("only the start design is answered")
+        return {"only_kw": x[0]}
+
+
 class Broken:
     """Raises for every point."""
 

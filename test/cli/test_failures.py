@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 import yaml
 
 from bev_mdo.testing import REPO
@@ -17,12 +18,12 @@ from bev_mdo.testing import REPO
 HERE = Path(__file__).resolve().parent
 
 
-def _run(tmp_path, name: str, cls: str, ros: dict) -> subprocess.CompletedProcess:
+def _run(tmp_path, name: str, cls: str, ros: dict, optimizer: str = "SLSQP") -> subprocess.CompletedProcess:
     raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
     raw["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed",
                           {"name": name, "class": f"bad_disciplines:{cls}"}]
     raw["problem"]["constraints"][f"{name}_kw"] = {"upper": 1.0e9}
-    raw["optimizer"] = {"name": "SLSQP", "options": {"maxiter": 2}}
+    raw["optimizer"] = {"name": optimizer, "options": {"maxiter": 2} if optimizer == "SLSQP" else {}}
     raw["ros"] = ros
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False))
@@ -62,6 +63,19 @@ def test_a_discipline_that_stops_answering_mid_run_is_not_an_optimum(tmp_path):
     assert out["feasible"] and out["unresponsive_disciplines"] == ["late"], out
     warned = [l for l in p.stderr.splitlines() if l.startswith("warning: late stopped answering")]
     assert len(warned) == 1 and "not an optimum" in warned[0], p.stderr[-2000:]
+
+
+@pytest.mark.parametrize("optimizer", ["SLSQP", "COBYLA"])
+def test_a_start_point_whose_neighbourhood_failed_is_not_an_optimum(tmp_path, optimizer):
+    """Every point but the start failed: the finite differences there gave the optimiser zero
+    derivatives, which are no evidence of stationarity. The verdict says the conditions could not be
+    verified (it said 'optimum (first-order conditions hold to 0)'), and the exit status is 5."""
+    p = _run(tmp_path, "only", "OnlyAtStart", {}, optimizer)
+    out = json.loads(p.stdout)
+    assert out["design"] == {"motor_kw": 80.0, "gear_ratio": 8.0, "battery_kwh": 24.0}, out["design"]
+    assert out["verdict"] == "no progress from the start point", out["first_order"]
+    assert out["first_order"]["unknown_derivatives"] == ["motor_kw", "gear_ratio", "battery_kwh"]
+    assert p.returncode == 5, p.stderr[-2000:]
 
 
 def test_one_number_for_a_whole_batch_is_an_error_naming_the_discipline(tmp_path):

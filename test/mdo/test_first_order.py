@@ -103,3 +103,13 @@ def test_a_point_outside_its_bounds_is_infeasible_however_stationary():
     fo = _check([-0.2, 0.5], [1.6, 0.0])
     assert fo["verdict"] == INFEASIBLE and fo["max_violation"] == pytest.approx(0.2)
     assert _check([-1e-6, 0.5], [2.0, 0.0])["verdict"] == OPTIMUM  # within the tolerance: on the bound
+
+
+def test_a_zero_gradient_from_failed_finite_differences_verifies_nothing():
+    # every perturbed point failed: the zeros the optimiser was given are no evidence of stationarity
+    from bev_mdo.mdo.first_order import verdict_line
+
+    fo = _check([0.3, 0.6], [0.0, 0.0], moved=False, unknown=["a", "b"])
+    assert fo["verdict"] == NO_PROGRESS and not fo["conditions_hold"] and fo["unknown_derivatives"] == ["a", "b"]
+    assert verdict_line(fo).startswith("no progress from the start point (no derivative in a, b: their ")
+    assert _check([0.3, 0.6], [0.0, 0.0], unknown=["b"])["verdict"] == STOPPED

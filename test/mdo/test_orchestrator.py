@@ -85,11 +85,28 @@ def test_a_silent_discipline_is_re_sent_then_its_points_fail_named_and_it_is_not
     sq, side = ev.evaluate([("square", {"x": X}), ("side", {"x": X})])
     assert sq.ok.all() and not side.ok.any() and np.isnan(side.outputs["u"]).all()
     assert "side: no answer after 3 attempts" in side.error
+    assert side.point_errors[4].text(4).endswith("at point 4 (x=4)")  # each point named, as a raising one is
     assert ev.retried == 2 and ev.sent == 4 and ev.unresponsive == {"side"}
     sent = ev.sent
     (again,) = ev.evaluate([("side", {"x": X})])
     assert not again.ok.any() and "did not answer earlier requests" in again.error and ev.sent == sent
     assert ev.dropped["duplicate"] == 0  # nothing answered late
+
+
+def test_a_discipline_found_hung_during_the_wait_is_not_re_sent():
+    """A discipline called in the coordinator's own process (ros/composed.py) that overran its budget is
+    marked hung while the wave waits (mark_hung): its request fails at once, without a retry (each
+    retry hung again, and blamed every discipline still waiting)."""
+
+    class HungDuringWait(MemoryTransport):
+        def _take_until(self, deadline, once=False):
+            self.mark_hung("side")
+            super()._take_until(deadline, once)
+
+    ev = HungDuringWait([Square(), Side()], silent={"side"}, retries=3)
+    sq, side = ev.evaluate([("square", {"x": X}), ("side", {"x": X})])
+    assert sq.ok.all() and not side.ok.any() and "side: no answer" in side.error
+    assert ev.retried == 0 and ev.sent == 2 and ev.unresponsive == {"side"}
 
 
 def test_a_data_flow_mda_is_one_request_with_the_wave_by_wave_results():
