@@ -40,12 +40,10 @@ def register(subparsers) -> None:
     p.add_argument("--objectives", default=None, metavar="A,B[,C]",
                    help="outputs to minimise (default: the config's problem.objectives)")
     p.add_argument("--out", default=None, help="output (bag) directory, default bags/<name>_pareto_<time>")
-    p.add_argument("--instances", default=None, metavar="N|NAME=N,...",
-                   help="ROS: run N instances of every discipline, or of the named ones (a pool: they share "
-                        "each population, as for optimize; docs/scaling.md)")
     p.add_argument("--no-plots", action="store_true")
-    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
+    from bev_mdo.cli.flags import add_layout_arguments, add_override_arguments, add_transport_arguments
 
+    add_layout_arguments(p, compose=False)  # a population is one batch
     add_transport_arguments(p, attach=False)
     add_override_arguments(p, single_objective=False)
     p.set_defaults(func=run)
