@@ -58,10 +58,9 @@ def run(args) -> int:
     names = None if args.objectives is None else [o.strip() for o in args.objectives.split(",") if o.strip()]
     if args.topology or args.all_topologies:
         from bev_mdo.api import overrides
-        from bev_mdo.config import RunConfig
-        from bev_mdo.yamlload import read_yaml_file
+        from bev_mdo.config import RunConfig, read_config_file
 
-        raw = read_yaml_file(Path(args.config))  # the overrides go to each topology's problem (_study)
+        raw = read_config_file(args.config)  # the overrides go to each topology's problem (_study)
         return _study(args, raw, RunConfig.load(raw), names, overrides.from_args(args))
     cfg = flags.load_config(args)  # a bad file, key, name, topology, variable or override exits 2 here
     objs = pareto.objectives_of(names, cfg)
