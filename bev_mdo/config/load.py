@@ -97,6 +97,18 @@ class RunConfig(Mapping):
         """The same run with another ``ros:`` section (checked; nothing else is parsed again)."""
         return replace(self, data={**self.data, "ros": dict(section)}, ros=validate_ros(section))
 
+    def with_vehicle(self, values: Mapping[str, float]) -> "RunConfig":
+        """The same run with numeric ``vehicle:`` values replaced (a node's ``-p vehicle.<key>``), checked;
+        itself when none changes."""
+        vehicle = dict(self.data.get("vehicle") or {})
+        if all(vehicle.get(k) == v for k, v in values.items()):
+            return self
+        from bev_mdo.models.params import VEHICLE_CHOICES, validate_vehicle
+
+        vehicle.update(values)  # validate_vehicle returns the numeric parameters; the choices are kept
+        choices = {k: vehicle[k] for k in VEHICLE_CHOICES if k in vehicle}
+        return RunConfig.load({**self.data, "vehicle": {**validate_vehicle(vehicle), **choices}})
+
     def with_sections(self, **sections: Any) -> "RunConfig":
         """Another run config: this one's with whole sections replaced (``formulation="idf"``), loaded."""
         return RunConfig.load({**self.data, **sections})

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -110,6 +111,32 @@ def test_a_node_interrupted_while_loading_ends_with_one_line(ros_domain, tmp_pat
     assert p.returncode == 130 and "Traceback" not in p.stderr, p.stderr[-2000:]
     assert p.stderr.strip().splitlines() == ["recorder_node: starting (loading ROS 2 and the models)",
                                              "recorder_node: interrupted"]
+
+
+@pytest.mark.parametrize("param, words", [
+    ("vehicle.drag_aera_m2:=0.6", "parameter vehicle.drag_aera_m2: energy_node has no such parameter; "
+                                  "did you mean vehicle.drag_area_m2?"),
+    ("cnfig:=x.yaml", "parameter cnfig: energy_node has no such parameter; did you mean config?"),
+    ("vehicle.aux_power_w:=400", "it overrides only the vehicle values its config sets")])
+def test_a_parameter_the_node_does_not_declare_is_one_line_exit_2(ros_domain, param, words):
+    """rclpy keeps an undeclared override without a word: a misspelt vehicle.drag_aera_m2 left the node
+    serving the config's drag area, with the unchanged fingerprint."""
+    p = subprocess.run([sys.executable, "-m", "bev_mdo.ros.run", "energy_node", "--ros-args", "-p",
+                        f"config:={REPO / 'config' / 'leaf_nedc.yaml'}", "-p", param],
+                       env=ros_env(ros_domain), capture_output=True, text=True, timeout=120)
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and "Traceback" not in p.stderr and len(lines) == 2, p.stderr[-3000:]
+    assert lines[-1] == f"energy_node: error: {words}" or lines[-1].endswith(words), lines
+
+
+def test_a_node_without_a_config_says_it_serves_the_default_one(ros_domain):
+    """Every node in docs/ros2-run.md is started with -p config:=FILE; one started without served the
+    shipped config without a word."""
+    lines = _until_serving([sys.executable, "-m", "bev_mdo.ros.run", "cost_node"], ros_domain, "cost")
+    said = [line for line in lines if "no -p config:=FILE given" in line]
+    assert len(said) == 1 and "serving the default run config" in said[0] and said[0].rstrip().endswith(
+        str(Path("config") / "leaf_nedc.yaml")), "".join(lines)[-2000:]
+    assert any("serving 'cost'" in line for line in lines)
 
 
 @pytest.mark.parametrize("instance", ["a b", "a-b", "x/y", "é"])
