@@ -455,12 +455,13 @@ def main(args: list[str] | None = None, discipline: str | None = None, config=No
         node = DisciplineNode(discipline, config=config)
         serve(node)
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        if node is None:  # stopped while loading: its caller says so (ros.run: one line, status 130 or 143)
+            raise
     except Exception as exc:  # an rcl call racing the shutdown of a signalled context is a normal stop
-        if rclpy.ok():  # the node may not exist yet: a SIGTERM during its start-up
-            if isinstance(exc, ValueError):
-                print(f"{discipline or 'discipline'}_node: error: {exc}", file=sys.stderr)  # as its "starting" line
-                return 2
+        if rclpy.ok() and isinstance(exc, ValueError):
+            print(f"{discipline or 'discipline'}_node: error: {exc}", file=sys.stderr)  # as its "starting" line
+            return 2
+        if rclpy.ok() or node is None:  # not a stop, or a signal while loading (the context shut down)
             raise
     finally:  # bounded: an orphan's SIGTERM cannot reach Python while Fast DDS blocks (stacks.deadline)
         with deadline():
