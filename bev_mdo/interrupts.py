@@ -104,6 +104,11 @@ def restore(previous: dict) -> None:
         signal.signal(signum, handler)
 
 
+def pending() -> type[BaseException] | None:
+    """The exception of the signal taken since ``install`` (KeyboardInterrupt, or Terminated), or None."""
+    return _pending
+
+
 def check() -> None:
     """Raise again a signal whose exception was swallowed on the way (a no-op otherwise)."""
     if _pending is not None:

@@ -39,6 +39,24 @@ def discipline_argv(name: str, config_path: str, instance: str = "", run_id: str
     return argv
 
 
+def check_parameters(given, declared, node: str) -> None:
+    """ValueError naming the first parameter given to `node` (``-p``, a parameters file) that it does not
+    declare, with the declared ones closest to it: rclpy keeps such an override without a word, so a
+    misspelt ``vehicle.drag_aera_m2`` left the node serving the config's value."""
+    import difflib
+
+    declared = sorted(str(d) for d in declared)
+    for name in sorted(set(map(str, given)) - set(declared)):
+        pre = "vehicle." if name.startswith("vehicle.") else ""  # compared on the key, not the shared prefix
+        near = [pre + m for m in difflib.get_close_matches(name[len(pre):], [d[len(pre):] for d in declared
+                                                                            if d.startswith(pre)], n=3, cutoff=0.6)]
+        shown = [d for d in declared if not d.startswith("vehicle.")] + (["vehicle.<key>"] if any(
+            d.startswith("vehicle.") for d in declared) else [])
+        hint = (f"did you mean {' or '.join(near)}?" if near else "it overrides only the vehicle values its config "
+                "sets" if name.startswith("vehicle.") else f"it has {', '.join(shown)}")
+        raise ValueError(f"parameter {name}: {node} has no such parameter; {hint}")
+
+
 def node_names_of(argv: Sequence[str]) -> list[str]:
     """The ROS node names a process started with `argv` (discipline_argv, composed_argv) runs."""
     for a in argv:

@@ -286,3 +286,59 @@ def test_a_parameter_set_fitted_for_another_energy_model_is_refused(tmp_path, mo
     assert load_config(copy.deepcopy(raw))["vehicle"]["charger_efficiency"] > 0.8  # the file's, inlined
     raw["vehicle"]["parameter_set"], raw["energy_model"] = "thesis", "quasi_static"
     assert load_config(copy.deepcopy(raw))["energy_model"] == "quasi_static"
+
+
+def test_a_config_files_paths_count_from_its_folder(tmp_path, monkeypatch):
+    """From another folder, `bev-mdo evaluate t5/cyc_ok.yaml` said 'cannot read drive cycle cyc_ok.csv' (the CSV
+    beside the config was looked for in the working directory), though module:Class is looked up beside it.
+    Drive-cycle CSVs, a parameter-set file and ros.sign_key_file of a config file count from its folder; a
+    mapping's, and a command-line override's, from the working directory; the resolved config carries the
+    traces, so a bag's config (a mapping) and a run's log-folder copy (a file elsewhere) load without the CSVs."""
+    from bev_mdo.config import RunConfig
+    from bev_mdo.models.cycles import DATA_DIR
+    from bev_mdo.models.params import load_parameter_set
+
+    proj, elsewhere = tmp_path / "proj", tmp_path / "elsewhere"
+    (proj / "cycles").mkdir(parents=True)
+    elsewhere.mkdir()
+    (proj / "cycles" / "a.csv").write_text((DATA_DIR / "epa_udds.csv").read_text())
+    (proj / "b.csv").write_text((DATA_DIR / "epa_hwfet.csv").read_text())
+    (proj / "mine.yaml").write_text(yaml.safe_dump({"name": "mine", "energy_model": "quasi_static", "parameters": {
+        **load_parameter_set("epa2022_quasi_static"), "charger_efficiency": 0.91}}))
+    (proj / "team.key").write_text("0123456789abcdef0123456789abcdef")
+    raw = yaml.safe_load((ROOT.parent / "config" / "leaf_epa_combined.yaml").read_text())
+    raw["cycle"]["name"] = "cycles/a.csv"
+    raw["disciplines"][1]["options"] = {"cycle_weights": {"cycles/a.csv": 0.55, "b.csv": 0.45}}
+    raw["vehicle"]["parameter_set"] = "mine.yaml"
+    raw["ros"] = {"sign_key_file": "team.key"}
+    (proj / "c.yaml").write_text(yaml.safe_dump(raw))
+    monkeypatch.chdir(elsewhere)
+    cfg = load_config(Path("..") / "proj" / "c.yaml")
+    a, b = str(proj / "cycles" / "a.csv"), str(proj / "b.csv")
+    assert cfg["cycle"]["name"] == a and set(cfg["cycle_traces"]) == {a, b}
+    assert cfg["disciplines"][1]["options"]["cycle_weights"] == {a: 0.55, b: 0.45}
+    assert cfg["vehicle"]["charger_efficiency"] == 0.91
+    assert cfg["ros"]["sign_key_file"] == str(proj / "team.key")
+    # a mapping (the Python API) counts from the working directory, as before
+    with pytest.raises(ValueError, match=r"^<config>: vehicle: parameter_set 'mine.yaml': no such file$"):
+        load_config(copy.deepcopy(raw))
+    with pytest.raises(ValueError, match=r"^<config>: cycle: cannot read drive cycle cycles/a.csv: No such file"):
+        load_config({**copy.deepcopy(raw), "vehicle": {**raw["vehicle"], "parameter_set": "epa2022_quasi_static"}})
+    # an override on the command line counts from where it is typed
+    (elsewhere / "here.csv").write_text((DATA_DIR / "epa_us06.csv").read_text())
+    edited = RunConfig.load(proj / "c.yaml", edit=lambda r: {**r, "cycle": {**r["cycle"], "name": "here.csv"}})
+    assert "here.csv" in edited["cycle_traces"]
+    # the bag's config and the log folder's copy hold the traces: the CSVs are no longer needed
+    stored = yaml.safe_dump(cfg)
+    for f in (proj / "cycles" / "a.csv", proj / "b.csv", proj / "mine.yaml"):
+        f.unlink()
+    (tmp_path / "logs").mkdir()
+    (tmp_path / "logs" / "config.yaml").write_text(stored)
+    for again in (load_config(yaml.safe_load(stored)), load_config(tmp_path / "logs" / "config.yaml")):
+        assert again["cycle_traces"] == cfg["cycle_traces"] and again["vehicle"] == cfg["vehicle"]
+    # a resolved config of before (relative keys in cycle_traces), read as a file elsewhere, keeps its keys
+    old = yaml.safe_load(stored)
+    old["cycle"]["name"], old["cycle_traces"] = "a.csv", {"a.csv": old["cycle_traces"][a], "b.csv": old["cycle_traces"][b]}
+    old["disciplines"][1]["options"]["cycle_weights"] = {"a.csv": 0.55, "b.csv": 0.45}
+    (tmp_path / "logs" / "old.yaml").write_text(yaml.safe_dump(old))
+    assert set(load_config(tmp_path / "logs" / "old.yaml")["cycle_traces"]) == {"a.csv", "b.csv"}

@@ -39,6 +39,20 @@ def add_transport_arguments(parser, attach: bool = True) -> None:
     add_ros_arguments(parser)
 
 
+def add_layout_arguments(parser, compose: bool = True) -> None:
+    """Where a run's discipline nodes run over ROS, for the commands that start their own (optimize,
+    resume; pareto without ``compose``): ``--instances`` (pools) and ``--compose`` (default coordinator)."""
+    parser.add_argument("--instances", default=None, metavar="N|NAME=N,...",
+                        help="ROS: run N instances of every discipline, or of the named ones; they share each "
+                             "batch (ros.pool: share) or all answer it (redundant; docs/scaling.md)")
+    if compose:
+        parser.add_argument("--compose", default="coordinator", metavar="coordinator|none|all|A+B,C+D",
+                            help="ROS: where the discipline nodes run. coordinator (default): in this command's "
+                                 "own process, beside the coordinator (a pool's instances keep a process each); "
+                                 "none: a process per discipline; all: one process for all; groups A+B,C+D "
+                                 "(docs/scaling.md)")
+
+
 def add_override_arguments(parser, single_objective: bool = True) -> None:
     """The problem overrides; ``single_objective=False`` (pareto: its objectives are --objectives, its
     population is sampled over the bounds) leaves out --initial, --objective and --maximize/--minimize."""

@@ -41,15 +41,9 @@ def register(sub) -> None:
     p.add_argument("--fixed-budget", action="store_true",
                    help="the optimiser's limits (e.g. optimizer.options.maxiter) are the budget: a feasible end "
                         "exits 0 even when it is not a verified optimum (the verdict still says what it is)")
-    p.add_argument("--instances", default=None, metavar="N|NAME=N,...",
-                   help="ROS: run N instances of every discipline, or of the named ones; they share each batch "
-                        "(ros.pool: share) or all answer it (redundant)")
-    p.add_argument("--compose", default="coordinator", metavar="coordinator|none|all|A+B,C+D",
-                   help="ROS: where the discipline nodes run. coordinator (default): in this command's own "
-                        "process, beside the coordinator (a pool's instances keep a process each); none: a "
-                        "process per discipline; all: one process for all; groups A+B,C+D (docs/scaling.md)")
-    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
+    from bev_mdo.cli.flags import add_layout_arguments, add_override_arguments, add_transport_arguments
 
+    add_layout_arguments(p)
     add_transport_arguments(p, attach=False)
     add_override_arguments(p)
     p.set_defaults(func=run)

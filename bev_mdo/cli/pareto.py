@@ -40,12 +40,10 @@ def register(subparsers) -> None:
     p.add_argument("--objectives", default=None, metavar="A,B[,C]",
                    help="outputs to minimise (default: the config's problem.objectives)")
     p.add_argument("--out", default=None, help="output (bag) directory, default bags/<name>_pareto_<time>")
-    p.add_argument("--instances", default=None, metavar="N|NAME=N,...",
-                   help="ROS: run N instances of every discipline, or of the named ones (a pool: they share "
-                        "each population, as for optimize; docs/scaling.md)")
     p.add_argument("--no-plots", action="store_true")
-    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
+    from bev_mdo.cli.flags import add_layout_arguments, add_override_arguments, add_transport_arguments
 
+    add_layout_arguments(p, compose=False)  # a population is one batch
     add_transport_arguments(p, attach=False)
     add_override_arguments(p, single_objective=False)
     p.set_defaults(func=run)
@@ -60,10 +58,9 @@ def run(args) -> int:
     names = None if args.objectives is None else [o.strip() for o in args.objectives.split(",") if o.strip()]
     if args.topology or args.all_topologies:
         from bev_mdo.api import overrides
-        from bev_mdo.config import RunConfig
-        from bev_mdo.yamlload import read_yaml_file
+        from bev_mdo.config import RunConfig, read_config_file
 
-        raw = read_yaml_file(Path(args.config))  # the overrides go to each topology's problem (_study)
+        raw = read_config_file(args.config)  # the overrides go to each topology's problem (_study)
         return _study(args, raw, RunConfig.load(raw), names, overrides.from_args(args))
     cfg = flags.load_config(args)  # a bad file, key, name, topology, variable or override exits 2 here
     objs = pareto.objectives_of(names, cfg)

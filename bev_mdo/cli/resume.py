@@ -29,8 +29,9 @@ def register(sub) -> None:
     from bev_mdo.cli.history import add_verify_arguments
 
     add_verify_arguments(p)
-    from bev_mdo.cli.flags import add_transport_arguments
+    from bev_mdo.cli.flags import add_layout_arguments, add_transport_arguments
 
+    add_layout_arguments(p)  # as optimize: by default the nodes in this process (--compose coordinator)
     add_transport_arguments(p, attach=False)
     p.set_defaults(func=run)
 
@@ -103,5 +104,6 @@ def run(args) -> int:
               file=out)
         x0.update(moved)
     opts = argparse.Namespace(**vars(Transport.of(args)), formulation=None, optimizer=None, json=args.json,
-                              bag=args.out_bag, no_record=args.no_record, quiet=args.quiet, compose=None)
+                              bag=args.out_bag, no_record=args.no_record, quiet=args.quiet,
+                              instances=args.instances, compose=args.compose)
     return run_job(config, opts, x0=x0)

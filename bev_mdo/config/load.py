@@ -12,8 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from bev_mdo.config.disciplines import check_against_disciplines, discipline_entries, resolve_disciplines
-from bev_mdo.config.sections import (check_mda_numbers, check_optimizer_options, resolve_problem, search_path,
-                                     engine_section, validate_models, vehicle_topology_into_options)
+from bev_mdo.config.sections import (anchor_paths, check_mda_numbers, check_optimizer_options, resolve_problem,
+                                     search_path, engine_section, validate_models, vehicle_topology_into_options)
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
 from bev_mdo.mdo.vectors import has_partials
@@ -53,30 +53,22 @@ class RunConfig(Mapping):
         """Read and validate a run config: a YAML path, or an already-parsed mapping (a resolved
         one, e.g. read back from a bag, loads to the same config).
 
-        ``search_path`` (where a discipline's ``module:Class`` is looked for, before Python's own
-        path) becomes absolute: the config's own entries (relative ones against its folder), then
-        the config file's folder, then the working directory. A resolved config written elsewhere
-        (a run's log folder, a bag) keeps them, so every process of a run resolves user modules the
-        same way. ``edit(raw) -> raw`` changes the parsed mapping before it is checked
+        A file's relative paths count from its folder (``read_config_file``; a mapping's, from the
+        working directory). ``search_path`` (where a discipline's ``module:Class`` is looked for,
+        before Python's own path) becomes absolute: the config's own entries, then the config file's
+        folder, then the working directory. A resolved config written elsewhere (a run's log folder,
+        a bag) keeps them, so every process of a run resolves files and user modules the same way. ``edit(raw) -> raw`` changes the parsed mapping before it is checked
         (command-line overrides).
         """
-        base: Path | None = None
         if isinstance(source, Mapping):
             where, raw = "<config>", copy.deepcopy(dict(source))
         else:
-            from bev_mdo.yamlload import read_yaml_file
-
-            p = Path(source)
-            where = str(p)
-            if not p.is_file():
-                raise ValueError(f"{where}: no such config file")
-            raw = read_yaml_file(p)  # one-line ValueErrors: binary, too big, too deep, alias bomb, bad YAML
-            base = p.resolve().parent
+            where, raw = str(source), read_config_file(source)
         if edit is not None and isinstance(raw, Mapping):
             raw = edit(raw)
         try:
             if isinstance(raw, Mapping):
-                raw = {**raw, "search_path": search_path(raw.get("search_path"), base)}
+                raw = {**raw, "search_path": search_path(raw.get("search_path"), None)}
             return _resolve(raw)
         except ValueError as exc:
             msg = str(exc).strip().splitlines()[0] if str(exc).strip() else "invalid config"
@@ -105,6 +97,18 @@ class RunConfig(Mapping):
         """The same run with another ``ros:`` section (checked; nothing else is parsed again)."""
         return replace(self, data={**self.data, "ros": dict(section)}, ros=validate_ros(section))
 
+    def with_vehicle(self, values: Mapping[str, float]) -> "RunConfig":
+        """The same run with numeric ``vehicle:`` values replaced (a node's ``-p vehicle.<key>``), checked;
+        itself when none changes."""
+        vehicle = dict(self.data.get("vehicle") or {})
+        if all(vehicle.get(k) == v for k, v in values.items()):
+            return self
+        from bev_mdo.models.params import VEHICLE_CHOICES, validate_vehicle
+
+        vehicle.update(values)  # validate_vehicle returns the numeric parameters; the choices are kept
+        choices = {k: vehicle[k] for k in VEHICLE_CHOICES if k in vehicle}
+        return RunConfig.load({**self.data, "vehicle": {**validate_vehicle(vehicle), **choices}})
+
     def with_sections(self, **sections: Any) -> "RunConfig":
         """Another run config: this one's with whole sections replaced (``formulation="idf"``), loaded."""
         return RunConfig.load({**self.data, **sections})
@@ -132,6 +136,22 @@ class RunConfig(Mapping):
 
     def __repr__(self) -> str:
         return f"RunConfig(name={self.name!r}, disciplines={list(self.names)})"
+
+
+def read_config_file(path: str | Path) -> Any:
+    """The parsed YAML of a config file, its relative paths counted from its folder (``anchor_paths``: a
+    command-line override given after this counts from the working directory). One-line ValueErrors
+    naming the file: missing, binary, too big, too deep, an alias bomb, bad YAML."""
+    from bev_mdo.yamlload import read_yaml_file
+
+    p = Path(path)
+    if not p.is_file():
+        raise ValueError(f"{p}: no such config file")
+    raw = read_yaml_file(p)
+    try:
+        return anchor_paths(raw, p.resolve().parent) if isinstance(raw, Mapping) else raw
+    except ValueError as exc:
+        raise ValueError(f"{p}: {exc}") from None
 
 
 def load_config(path: str | Path | Mapping[str, Any], edit=None) -> dict:

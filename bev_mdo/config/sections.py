@@ -79,6 +79,46 @@ def search_path(given: Any, base: Path | None) -> list[str]:
     return out
 
 
+def anchor_paths(raw: Mapping[str, Any], base: Path) -> dict:
+    """A config file's relative paths made absolute against its folder ``base``, as its reader expects
+    wherever the command runs: drive-cycle CSVs (``cycle.name``, the energy and cycle_range options
+    ``cycle`` and ``cycle_weights``), ``vehicle.parameter_set`` (a .yaml of yours), ``ros.sign_key_file``
+    and ``search_path``. A name ``cycle_traces`` holds stays as it is (a resolved config read again);
+    a config given as a mapping is not anchored (its paths count from the working directory)."""
+    cfg = copy.deepcopy(dict(raw))
+    traces = cfg.get("cycle_traces") if isinstance(cfg.get("cycle_traces"), Mapping) else {}
+
+    def at(name: Any, file_like=lambda p: True) -> Any:
+        if not isinstance(name, str) or not name.strip() or name in traces:
+            return name
+        p = Path(name.strip()).expanduser()
+        return name if p.is_absolute() or not file_like(p) else str(base / p)
+
+    def cycle(name: Any) -> Any:  # a built-in cycle's name, or a word that is no file there, stays
+        return at(name, lambda p: is_csv_cycle(str(p)) and (p.suffix.lower() == ".csv" or (base / p).exists()))
+
+    if isinstance(cfg.get("cycle"), Mapping):
+        cfg["cycle"] = {**cfg["cycle"], "name": cycle(cfg["cycle"].get("name"))}
+    entries = cfg.get("disciplines")
+    for i, e in enumerate(entries if isinstance(entries, list) else []):
+        if not (isinstance(e, Mapping) and e.get("name") in ("energy", "cycle_range") and not e.get("class")
+                and isinstance(e.get("options"), Mapping)):
+            continue
+        opts = dict(e["options"])
+        if "cycle" in opts:
+            opts["cycle"] = cycle(opts["cycle"])
+        if isinstance(opts.get("cycle_weights"), Mapping):
+            opts["cycle_weights"] = {cycle(k): w for k, w in opts["cycle_weights"].items()}
+        entries[i] = {**e, "options": opts}
+    v = cfg.get("vehicle")
+    if isinstance(v, Mapping) and params.is_parameter_set_file(v.get("parameter_set")):
+        cfg["vehicle"] = {**v, "parameter_set": at(v["parameter_set"])}
+    if isinstance(cfg.get("ros"), Mapping) and isinstance(cfg["ros"].get("sign_key_file"), str):
+        cfg["ros"] = {**cfg["ros"], "sign_key_file": at(cfg["ros"]["sign_key_file"])}
+    cfg["search_path"] = search_path(cfg.get("search_path"), base)
+    return cfg
+
+
 def engine_section(value: Any, defaults: Mapping[str, Any], where: str) -> dict:
     if value is None:
         value = {}

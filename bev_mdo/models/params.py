@@ -249,8 +249,8 @@ def is_parameter_set_file(name: Any) -> bool:
 
 def load_parameter_set(name: str) -> dict[str, float]:
     """The ``parameters`` of a parameter set: a shipped one by name (bev_mdo/data/parameter_sets/<name>.yaml),
-    or a file of your own by its path ending in .yaml/.yml (relative to the working directory, as a
-    drive-cycle CSV), e.g. what ``python -m bev_mdo.models.calibrate --data FLEET --write FILE`` wrote."""
+    or a file of your own by its path ending in .yaml/.yml (a config file's relative one counts from its
+    folder, as a drive-cycle CSV: config.sections.anchor_paths), e.g. what ``python -m bev_mdo.models.calibrate --data FLEET --write FILE`` wrote."""
     return _read_parameter_set(name)[0]
 
 

@@ -7,6 +7,7 @@ A NamedArray is column-major: the values of ``names[j]`` for all points are
 from __future__ import annotations
 
 import array
+from collections import OrderedDict
 from typing import Mapping
 
 import numpy as np
@@ -54,6 +55,25 @@ def decode_request(data):
 def decode_result(data):
     """An EvaluationResult from CDR bytes; WireError if they are not one."""
     return decode(data, EvaluationResult)
+
+
+# The last messages decoded in this process, by (decoder, bytes). Several nodes composed in one
+# process (ros/composed.py) read the same sample (every source-less node reads the data-flow request):
+# it is decoded once. Decoding is a pure function of the bytes and nothing changes a decoded message.
+_DECODED: OrderedDict = OrderedDict()
+_DECODED_MAX = 8
+
+
+def decode_once(decode, data: bytes):
+    """``decode(data)``, or the message decoded from the same bytes by the same decoder just before."""
+    key = (decode, data)
+    msg = _DECODED.get(key)
+    if msg is None:
+        msg = decode(data)  # WireError propagates: nothing is kept
+        _DECODED[key] = msg
+        if len(_DECODED) > _DECODED_MAX:
+            _DECODED.popitem(last=False)
+    return msg
 
 
 def batch(columns: Mapping[str, np.ndarray]):

@@ -247,12 +247,13 @@ def main(args: list[str] | None = None) -> int:
         nodes = make_nodes(config, names, p["instance"], p["run_id"])
         serve_many(nodes)
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        if not nodes:  # stopped while loading: ros.run says so (one line, status 130 or 143)
+            raise
     except Exception as exc:  # an rcl call racing the shutdown of a signalled context is a normal stop
-        if rclpy.ok():
-            if isinstance(exc, ValueError):
-                print(f"composed_node: error: {exc}", file=sys.stderr)
-                return 2
+        if rclpy.ok() and isinstance(exc, ValueError):
+            print(f"composed_node: error: {exc}", file=sys.stderr)
+            return 2
+        if rclpy.ok() or not nodes:
             raise
     finally:
         from bev_mdo.stacks import deadline

@@ -17,14 +17,13 @@ vehicle section.
 """
 from __future__ import annotations
 
-import copy
 import functools
 import json
 import os
 import socket
 import sys
 import time
-from collections import Counter, OrderedDict
+from collections import Counter
 from typing import Any
 
 import numpy as np
@@ -37,6 +36,8 @@ from bev_mdo.stacks import deadline
 from bev_mdo.mdo import flow
 from bev_mdo.mdo.discipline import DisciplineError, all_finite, prepare, readable, run_discipline, unknown_inputs
 from bev_mdo.mdo.vectors import ShapeError
+from bev_mdo.processes import check_parameters
+from bev_mdo.protocol.batches import decode_once
 from bev_mdo.protocol.signing import Signer
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RESULT_QOS, NODE_STATS_QOS,
                                 NODE_STATS_TOPIC, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, declare, mda_result_topic,
@@ -51,24 +52,6 @@ _STATUS_ERROR = EvaluationResult.STATUS_ERROR
 _STATUS_REJECTED = EvaluationResult.STATUS_REJECTED
 
 FLOW_CACHE = 64  # data-flow requests and source results kept while they wait for each other
-
-# The last messages decoded in this process, by (decoder, bytes). Several nodes composed in one
-# process (composed.py) read the same sample (every source-less node reads the data-flow request):
-# it is decoded once. Decoding is a pure function of the bytes and nothing changes a decoded message.
-_DECODED: OrderedDict = OrderedDict()
-_DECODED_MAX = 8
-
-
-def _decode_once(decode, data: bytes):
-    key = (decode, data)
-    msg = _DECODED.get(key)
-    if msg is None:
-        msg = decode(data)  # WireError propagates: nothing is kept
-        _DECODED[key] = msg
-        if len(_DECODED) > _DECODED_MAX:
-            _DECODED.popitem(last=False)
-    return msg
-
 
 def _build(config, name: str) -> tuple[Any, dict[str, str]]:
     """(the discipline, prepared: its one-time work done; output -> producing discipline in the RunConfig)."""
@@ -101,8 +84,13 @@ class DisciplineNode(Node):
             raise ValueError("discipline_node needs -p discipline:=<name>")
         from bev_mdo.config import RunConfig
 
-        run_config = RunConfig.of(config if config is not None else p["config"] or default_config())
+        alone = config is None  # started on its own (not composed): every -p of its command line is for it
+        if alone and not p["config"]:  # the docs start every node with -p config:=FILE
+            self.get_logger().warning(f"no -p config:=FILE given: serving the default run config {default_config()}")
+        run_config = RunConfig.of(p["config"] or default_config() if alone else config)
         config = self._apply_overrides(run_config)
+        if alone:  # an override it does not declare (a misspelt vehicle.<key>) is refused, not ignored
+            check_parameters(self._parameter_overrides, self._parameters, self.get_name())
         self.discipline, producer = _build(config, name)
         self.discipline_name = name
         self.bound_run = p["run_id"]
@@ -168,25 +156,11 @@ class DisciplineNode(Node):
         self._stats_sent, self._stats_t = snap, now
 
     def _apply_overrides(self, run_config):
-        """Declare vehicle.<key> parameters; values set on the command line override the YAML: the
-        run's config when none changes a value, else a RunConfig of this node's own."""
-        config = copy.deepcopy(run_config.data)
-        vehicle = config.get("vehicle") or {}
-        changed = False
-        for key, value in vehicle.items():
-            if isinstance(value, (int, float)) and not isinstance(value, bool):
-                given = declare(self, f"vehicle.{key}", float(value))  # a whole number is taken for a DOUBLE
-                changed = changed or given != float(value)
-                vehicle[key] = given
-        if not changed:
-            return run_config
-        if vehicle:
-            from bev_mdo.models.params import VEHICLE_CHOICES, validate_vehicle
-
-            # validate_vehicle returns the numeric parameters; keep the choices (mass_model, topology)
-            choices = {k: vehicle[k] for k in VEHICLE_CHOICES if k in vehicle}
-            config["vehicle"] = {**validate_vehicle(vehicle), **choices}
-        return type(run_config).load(config)
+        """Declare vehicle.<key> parameters (a whole number is taken for a DOUBLE); values set on the
+        command line override the YAML (RunConfig.with_vehicle)."""
+        return run_config.with_vehicle({k: declare(self, f"vehicle.{k}", float(v))
+                                        for k, v in (run_config.data.get("vehicle") or {}).items()
+                                        if isinstance(v, (int, float)) and not isinstance(v, bool)})
 
     def _publish_info(self) -> None:
         d = self.discipline
@@ -212,7 +186,7 @@ class DisciplineNode(Node):
 
         def on_bytes(data: bytes) -> None:
             try:
-                msg = _decode_once(decode, data)
+                msg = decode_once(decode, data)  # decoded once for the nodes of a process
             except protocol.WireError as exc:
                 self.counts["rejected"] += 1
                 self.counts["rejected.undecodable"] += 1
@@ -481,12 +455,13 @@ def main(args: list[str] | None = None, discipline: str | None = None, config=No
         node = DisciplineNode(discipline, config=config)
         serve(node)
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        if node is None:  # stopped while loading: its caller says so (ros.run: one line, status 130 or 143)
+            raise
     except Exception as exc:  # an rcl call racing the shutdown of a signalled context is a normal stop
-        if rclpy.ok():  # the node may not exist yet: a SIGTERM during its start-up
-            if isinstance(exc, ValueError):
-                print(f"{discipline or 'discipline_node'}: error: {exc}", file=sys.stderr)
-                return 2
+        if rclpy.ok() and isinstance(exc, ValueError):
+            print(f"{discipline or 'discipline'}_node: error: {exc}", file=sys.stderr)  # as its "starting" line
+            return 2
+        if rclpy.ok() or node is None:  # not a stop, or a signal while loading (the context shut down)
             raise
     finally:  # bounded: an orphan's SIGTERM cannot reach Python while Fast DDS blocks (stacks.deadline)
         with deadline():

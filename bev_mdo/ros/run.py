@@ -11,21 +11,25 @@ from bev_mdo.processes import DISCIPLINE_EXES, OTHER_EXES
 
 
 def run(exe: str, args: list[str] | None = None) -> int:
-    """Run one node executable by name. A SIGINT that lands while it is still loading (its run stopped
-    during start-up) ends it with one line and status 130, not a traceback through the imports; once
-    loaded, the node's own main handles its signals."""
+    """Run one node executable by name. A SIGINT or SIGTERM that lands while it is still loading (imports,
+    config, models: before it serves; its run stopped during start-up) ends it with one line and status 130
+    (143), not a traceback, a silent 0 or SIGTERM's silent default; once serving, its main handles them."""
+    from bev_mdo import interrupts
     from bev_mdo.stacks import dump_stacks_on_sigusr1
 
     dump_stacks_on_sigusr1()
+    interrupts.install()  # both raise in the main thread (rclpy's handlers, installed later, pass them on)
     try:
         main = _load(exe)
-    except KeyboardInterrupt:
+        if main is None:
+            print(f"unknown executable {exe!r}; known: {', '.join([*DISCIPLINE_EXES, *OTHER_EXES])}", file=sys.stderr)
+            return 2
+        return main(args)
+    except BaseException:
+        if interrupts.pending() is None:
+            raise
         print(f"{exe}: interrupted", file=sys.stderr, flush=True)
-        return 130
-    if main is None:
-        print(f"unknown executable {exe!r}; known: {', '.join([*DISCIPLINE_EXES, *OTHER_EXES])}", file=sys.stderr)
-        return 2
-    return main(args)
+        return 143 if issubclass(interrupts.pending(), interrupts.Terminated) else 130
 
 
 def _load(exe: str):

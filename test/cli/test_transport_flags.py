@@ -139,3 +139,29 @@ def test_ros_only_flags_with_inprocess_are_one_line_exit_2_for_every_evaluating_
     assert main([*argv, "--transport", "inprocess", "--domain-id", "300"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--domain-id cannot be combined with --transport inprocess" in err[0], err
+
+
+def _layout_options(parser) -> dict:
+    return {a.dest: (tuple(a.option_strings), a.default, a.metavar, a.help)
+            for a in parser._actions if a.dest in ("instances", "compose")}
+
+
+def test_resume_lays_its_nodes_out_as_optimize_does(tmp_path, monkeypatch):
+    """resume had no --compose ('unrecognized arguments') and always started a process per discipline
+    (--compose none: 7 processes, about twice optimize's start-up); its --instances and --compose are
+    optimize's, with optimize's default, and reach the run."""
+    import bev_mdo.cli.optimize as optimize
+    import bev_mdo.cli.resume as resume
+    from bev_mdo.config import RunConfig
+
+    subs = _subparsers()
+    assert _layout_options(subs["resume"]) == _layout_options(subs["optimize"])
+    assert _layout_options(subs["optimize"])["compose"][1] == "coordinator"
+    config = RunConfig.load(CONFIG)
+    monkeypatch.setattr(resume, "resume_point", lambda *a, **k: (config, {"motor_kw": 80.0}, 3))
+    seen = []
+    monkeypatch.setattr(optimize, "run_job", lambda cfg, opts, x0=None: seen.append(opts) or 0)
+    bag = str(tmp_path / "bag")
+    assert main(["resume", bag, "--no-record", "--quiet"]) == 0
+    assert main(["resume", bag, "--no-record", "--quiet", "--compose", "none", "--instances", "energy=2"]) == 0
+    assert [(o.compose, o.instances) for o in seen] == [("coordinator", None), ("none", "energy=2")]

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -89,27 +90,64 @@ def test_a_node_whose_teardown_hangs_in_c_ends_at_its_bound(ros_domain):
     assert "Timeout" in rest and "<lambda>" in rest  # the stack of the blocked teardown
 
 
-# A SIGINT to the process itself the moment the recorder's module is imported: the signal lands inside
-# the imports, as when a run is stopped while its nodes are still loading (eight runs on two cores).
-_INTERRUPTED_IMPORT = """
+# A signal to the process itself at a known point of its loading, as when a run is stopped while its nodes
+# still load (eight runs on two cores): "import", the moment the node's module is imported (Python's own
+# SIGTERM default, before: a silent 143); "build", while the node builds its discipline, after rclpy.init
+# installed its handlers (before: a silent 0). Delivered by the process itself, never by a timed kill.
+_INTERRUPTED = """
 import os, signal, sys
+exe, phase, sig = sys.argv[1], sys.argv[2], getattr(signal, sys.argv[3])
 class Hook:
     def find_spec(self, name, path=None, target=None):
-        if name == 'bev_mdo.ros.recorder_node':
-            os.kill(os.getpid(), signal.SIGINT)
+        if phase == 'import' and name == 'bev_mdo.ros.' + ('recorder_node' if exe == 'recorder_node' else 'discipline_node'):
+            os.kill(os.getpid(), sig)
         return None
 sys.meta_path.insert(0, Hook())
+if phase == 'build':
+    import bev_mdo.ros.discipline_node as dn
+    build = dn._build
+    dn._build = lambda config, name: (os.kill(os.getpid(), sig), build(config, name))[1]
 from bev_mdo.ros.run import run
-sys.exit(run('recorder_node', []))
+sys.exit(run(exe, sys.argv[4:]))
 """
 
 
-def test_a_node_interrupted_while_loading_ends_with_one_line(ros_domain, tmp_path):
-    p = subprocess.run([sys.executable, "-c", _INTERRUPTED_IMPORT], env=ros_env(ros_domain), cwd=tmp_path,
-                       capture_output=True, text=True, timeout=120)
-    assert p.returncode == 130 and "Traceback" not in p.stderr, p.stderr[-2000:]
-    assert p.stderr.strip().splitlines() == ["recorder_node: starting (loading ROS 2 and the models)",
-                                             "recorder_node: interrupted"]
+@pytest.mark.parametrize("exe, phase, sig, status", [
+    ("recorder_node", "import", "SIGINT", 130), ("energy_node", "import", "SIGTERM", 143),
+    ("energy_node", "build", "SIGINT", 130), ("energy_node", "build", "SIGTERM", 143)])
+def test_a_node_interrupted_while_loading_ends_with_one_line(exe, phase, sig, status, ros_domain, tmp_path):
+    """docs/recording.md: one '<node>: interrupted' line, status 130 (143 for SIGTERM)."""
+    args = [] if exe == "recorder_node" else ["--ros-args", "-p", f"config:={REPO / 'config' / 'leaf_nedc.yaml'}"]
+    p = subprocess.run([sys.executable, "-c", _INTERRUPTED, exe, phase, sig, *args], env=ros_env(ros_domain),
+                       cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert p.returncode == status and "Traceback" not in p.stderr, (p.returncode, p.stderr[-2000:])
+    assert p.stderr.strip().splitlines() == [f"{exe}: starting (loading ROS 2 and the models)", f"{exe}: interrupted"]
+
+
+@pytest.mark.parametrize("param, words", [
+    ("vehicle.drag_aera_m2:=0.6", "parameter vehicle.drag_aera_m2: energy_node has no such parameter; "
+                                  "did you mean vehicle.drag_area_m2?"),
+    ("cnfig:=x.yaml", "parameter cnfig: energy_node has no such parameter; did you mean config?"),
+    ("vehicle.aux_power_w:=400", "it overrides only the vehicle values its config sets")])
+def test_a_parameter_the_node_does_not_declare_is_one_line_exit_2(ros_domain, param, words):
+    """rclpy keeps an undeclared override without a word: a misspelt vehicle.drag_aera_m2 left the node
+    serving the config's drag area, with the unchanged fingerprint."""
+    p = subprocess.run([sys.executable, "-m", "bev_mdo.ros.run", "energy_node", "--ros-args", "-p",
+                        f"config:={REPO / 'config' / 'leaf_nedc.yaml'}", "-p", param],
+                       env=ros_env(ros_domain), capture_output=True, text=True, timeout=120)
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and "Traceback" not in p.stderr and len(lines) == 2, p.stderr[-3000:]
+    assert lines[-1] == f"energy_node: error: {words}" or lines[-1].endswith(words), lines
+
+
+def test_a_node_without_a_config_says_it_serves_the_default_one(ros_domain):
+    """Every node in docs/ros2-run.md is started with -p config:=FILE; one started without served the
+    shipped config without a word."""
+    lines = _until_serving([sys.executable, "-m", "bev_mdo.ros.run", "cost_node"], ros_domain, "cost")
+    said = [line for line in lines if "no -p config:=FILE given" in line]
+    assert len(said) == 1 and "serving the default run config" in said[0] and said[0].rstrip().endswith(
+        str(Path("config") / "leaf_nedc.yaml")), "".join(lines)[-2000:]
+    assert any("serving 'cost'" in line for line in lines)
 
 
 @pytest.mark.parametrize("instance", ["a b", "a-b", "x/y", "é"])
