@@ -255,6 +255,18 @@ DVS = {"SM-SA": ("motor_kw", "gear_ratio", "battery_kwh"), "IWM-SA": ("motor_kw"
        "IWM-DA": ("motor_kw", "motor_rear_kw", "battery_kwh")}
 
 
+def test_the_chapter_4_study_is_the_thesis_model_without_grip_limit():
+    """config/topologies_artemis.yaml (parameter_set thesis): the fast corner of its bounds, 130 kW at 9.4:1,
+    keeps the thesis' time (5.8 s), which the default tyre grip would slow to 6.3 s."""
+    from bev_mdo.config import load_config, resolve_disciplines
+
+    acc = {d.name: d for d in resolve_disciplines(load_config(_artemis("SM-SA", DVS["SM-SA"])))}["acceleration"]
+    x = {"motor_kw": np.array([130.0]), "gear_ratio": np.array([9.4]), "vehicle_mass_kg": np.array([1616.6])}
+    got = acc.compute(x)["accel_time_0_100_s"][0]
+    thesis = tp.accel_time_s("SM-SA", 1616.6, 130.0, 9.4, params={"tyre_grip_coefficient": 0.0})[0]
+    assert got == pytest.approx(thesis, rel=1e-12) and tp.accel_time_s("SM-SA", 1616.6, 130.0, 9.4)[0] > thesis + 0.4
+
+
 @pytest.mark.parametrize("topo", tp.TOPOLOGIES)
 def test_vehicle_topology_is_used_by_every_topology_discipline(topo):
     from bev_mdo.config import load_config, resolve_disciplines
