@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import road_load as rl
-from .common import check_design
+from .common import check_design, check_lengths
 from .params import get_params
 
 ACCEL_PARAMS = ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2", "rolling_resistance", "wheel_radius_m",
@@ -73,9 +73,10 @@ def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V
     pk = check_design("motor_kw", motor_kw)
     ig = check_design("gear_ratio", gear_ratio)
     m = check_design("vehicle_mass_kg", vehicle_mass_kg)
-    if not pk.shape == ig.shape == m.shape:
-        pk, ig, m = np.broadcast_arrays(pk, ig, m)
     p = {**get_params(params, ACCEL_PARAMS), **rl.checked(params)}
+    if not pk.shape == ig.shape == m.shape or any(type(x) is not float for x in p.values()):
+        n = check_lengths(motor_kw=pk, gear_ratio=ig, vehicle_mass_kg=m, **p)
+        pk, ig, m = (np.broadcast_to(a, (n,)) for a in (pk, ig, m))
     grip = grip_force_n(m, p)
     v_base = (1000.0 / p["motor_torque_per_kw"]) * p["wheel_radius_m"] / ig
     v_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0 * p["wheel_radius_m"] / ig
