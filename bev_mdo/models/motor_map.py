@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .cycles import csv_number
 from .params import VEHICLE_SPECS
 
 REFERENCE_KW = VEHICLE_SPECS["reference_motor_kw"].default  # Fig 2-9 unit motor, 80 kW
@@ -163,12 +164,14 @@ def load_motor_map_csv(path, reference_kw: float = REFERENCE_KW) -> MotorMap:
         raise ValueError(f"{path}: header must be 'speed_rad_s,torque_nm,efficiency'")
     data = []
     for lineno, r in rows[1:]:
-        try:
-            vals = [float(c) for c in r]
-        except ValueError:
-            raise ValueError(f"{path}: line {lineno}: not a number: {','.join(r)}") from None
-        if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
-            raise ValueError(f"{path}: line {lineno}: need 3 finite numbers")
+        if len(r) != 3:
+            raise ValueError(f"{path}: line {lineno}: need 3 numbers speed_rad_s,torque_nm,efficiency, got {len(r)}")
+        vals = []
+        for name, cell in zip(("speed_rad_s", "torque_nm", "efficiency"), r):
+            try:
+                vals.append(csv_number(cell))
+            except ValueError as exc:  # not a number (1_0 was 10), or not finite
+                raise ValueError(f"{path}: line {lineno}, column {name}: {exc}") from None
         if vals[0] < 0 or not (0 < vals[2] <= 1):
             raise ValueError(f"{path}: line {lineno}: speed_rad_s must be >= 0 and efficiency in (0, 1]")
         data.append(vals)
