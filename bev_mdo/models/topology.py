@@ -191,28 +191,6 @@ def in_wheel_map(base: MotorMap | None = None, torque_scale: float = _Q["iwm_tor
     return _in_wheel_map_cached(base or qs.default_map(), float(torque_scale), float(speed_scale))
 
 
-def electrical_power_w(motor_map: MotorMap, torque_nm, speed_rad_s, motor_kw):
-    """Fast bilinear form of ``MotorMap.electrical_power_w`` (same grid, same clipping, same
-    Fig 2-9 scaling), for the large (time, N, split) arrays of the torque split (or a loss model's)."""
-    if isinstance(motor_map, LossModel):
-        return motor_map.electrical_power_w(torque_nm, speed_rad_s, motor_kw)
-    t = np.asarray(torque_nm, float)
-    w = np.asarray(speed_rad_s, float)
-    tu = t * (motor_map.reference_kw / np.asarray(motor_kw, float))
-    if not motor_map.has_regen_rows:
-        tu = np.abs(tu)
-    tg, wg, e = motor_map.torque_nm, motor_map.speed_rad_s, motor_map.efficiency
-    fi = np.interp(np.abs(w), wg, np.arange(len(wg), dtype=float))
-    fj = np.interp(tu, tg, np.arange(len(tg), dtype=float))
-    i0 = np.minimum(fi.astype(np.intp), len(wg) - 2)
-    j0 = np.minimum(fj.astype(np.intp), len(tg) - 2)
-    a, b = fi - i0, fj - j0
-    e00, e01, e10, e11 = e[i0, j0], e[i0, j0 + 1], e[i0 + 1, j0], e[i0 + 1, j0 + 1]
-    eta = np.maximum((1 - a) * ((1 - b) * e00 + b * e01) + a * ((1 - b) * e10 + b * e11), 0.05)
-    pm = t * w
-    return np.where(pm >= 0, pm / eta, pm * eta)
-
-
 # ----------------------------------------------------------------------------- drive model
 
 @dataclass
@@ -257,7 +235,7 @@ def _axle_power(ax: _Axle, tw, w, tmax, driving, allowed):
     tm = np.where(driving, tw / (ax.count * ax.ratio * ax.eta), tw * ax.eta / (ax.count * ax.ratio))  # 2-5
     over = np.where(driving, np.maximum(tm - tmax, 0.0), 0.0)
     tm = np.where(driving, tm, np.where(allowed, np.maximum(tm * ax.regen_share, -tmax), 0.0))  # 2-25, rules 2-3
-    return ax.count * electrical_power_w(ax.motor_map, tm, w, ax.kw), over, tm
+    return ax.count * ax.motor_map.electrical_power_w(tm, w, ax.kw), over, tm
 
 
 def best_split(axles, tw, v, r_w, driving, allowed, steps: int = 11):
