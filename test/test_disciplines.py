@@ -308,3 +308,24 @@ def test_chain_feasibility_outputs_are_the_tightest_margins_over_the_cycles():
     plain = next(d for d in resolve_disciplines(load_config(raw)) if d.name == "energy")
     for k in ("energy_wh_per_km", "energy_wall_wh_per_km"):
         np.testing.assert_allclose(plain.compute(inputs)[k], out[k], rtol=1e-12)
+
+
+def test_a_chain_design_that_cannot_follow_the_cycle_is_infeasible_not_failed():
+    """1 kW at 0.5:1 on the chain: about 2.2e5 Wh/km (the copper loss of a demand far over the motor's peak
+    torque). The range refused any energy over 5000 Wh/km, so the point failed; now its range is a tenth
+    of a kilometre, which the range constraint calls infeasible."""
+    from bev_mdo.models import range as range_model
+
+    cfg = load("leaf_nedc.yaml")
+    cfg["energy_model"] = "chain"
+    x = {"motor_kw": np.array([1.0, 80.0]), "gear_ratio": np.array([0.5, 8.0]), "battery_kwh": np.array([24.0, 24.0])}
+    discs = {d.name: d for d in default_disciplines(cfg)}
+    for name in ("vehicle_mass", "energy", "range"):
+        res = run_discipline(discs[name], x)
+        assert res.ok.all() and not res.point_errors, res.error
+        x.update(res.outputs)
+    assert x["energy_wh_per_km"][0] > 5000
+    assert x["range_km"][0] == pytest.approx(24000.0 / x["energy_wh_per_km"][0], rel=1e-12) and x["range_km"][0] < 0.2
+    for bad in (np.nan, -5.0, np.inf):  # what no physical design gives is still refused
+        with pytest.raises(ValueError, match="^energy_wh_per_km must be in"):
+            range_model.range_km(24.0, bad)

@@ -111,7 +111,7 @@ def grid(vary: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 def read_list(path: str) -> dict[str, np.ndarray]:
     """A header of names, then one row of numbers per design; UsageError naming the row and column."""
-    from bev_mdo.models.cycles import read_csv_rows
+    from bev_mdo.models.cycles import csv_number, read_csv_rows
 
     try:  # the reader of every user CSV (size-bounded, UTF-8 with or without BOM, one-line errors)
         rows = [r for r in read_csv_rows(path, "design list") if any(c.strip() for c in r)]
@@ -129,9 +129,9 @@ def read_list(path: str) -> dict[str, np.ndarray]:
             raise UsageError(f"--list {path}: design {i + 1} has {len(row)} values for {len(names)} names")
         for j, cell in enumerate(row):
             try:
-                values[i, j] = float(cell)
-            except ValueError:
-                raise UsageError(f"--list {path}: design {i + 1}, column {names[j]!r}: {cell.strip()!r} is not a number") from None
+                values[i, j] = csv_number(cell)
+            except ValueError as exc:  # not a number (1_0 was 10), or not finite
+                raise UsageError(f"--list {path}: design {i + 1}, column {names[j]!r}: {exc}") from None
     return {n: values[:, j] for j, n in enumerate(names)}
 
 

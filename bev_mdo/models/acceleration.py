@@ -1,29 +1,58 @@
-"""0-100 km/h time (eqs 7-30 / 2-26) with the scaled motor envelope of Fig 2-9.
+"""0-100 km/h time (eqs 7-30 / 2-26) with the scaled motor envelope of Fig 2-9 and the tyres' grip.
 
 Motor envelope for a motor of P kW: peak torque tau x P (tau = 3.5 N m/kW, 280 N m at 80 kW)
 up to the base speed 1000/tau rad/s (2728 rpm, Appendix A: 2730 rpm), constant power P above
 it, and nothing beyond the speed limit (10 500 rpm for every size, ch.3). At the wheels
-F = T i_g eta_g / r_w - 1/2 rho CdA v^2 - C_r M g, and t = integral_0^v_end M / F dv,
-integrated per envelope segment with Gauss-Legendre quadrature (the integrand is smooth
-within each segment). A design that cannot reach v_end (motor over its speed limit, or no
-surplus force) gets +inf.
+F = min(T i_g eta_g / r_w, F_grip) - 1/2 rho CdA v^2 - C_r M g, and t = integral_0^v_end M / F dv,
+integrated per smooth segment with Gauss-Legendre quadrature. A design that cannot reach v_end
+(motor over its speed limit, or no surplus force) gets +inf.
+
+Grip limit (not in the thesis): the drive force cannot exceed F_grip = mu g M s, with mu the
+``tyre_grip_coefficient`` and s the ``driven_axle_load_share`` (static, no weight transfer; 1 with
+``driven_axles`` 2). Where it binds the force is F_grip - road load from rest up to the corner
+v_grip = P eta_g / F_grip, in the constant-power region, which replaces the base speed as the
+segment edge. ``tyre_grip_coefficient`` 0 switches it off (the ``thesis`` parameter set).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from . import road_load as rl
-from .common import check_design
+from .common import check_design, check_lengths
 from .params import get_params
 
 ACCEL_PARAMS = ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2", "rolling_resistance", "wheel_radius_m",
-                "gear_efficiency", "motor_torque_per_kw", "motor_speed_limit_rpm")
+                "gear_efficiency", "motor_torque_per_kw", "motor_speed_limit_rpm", "tyre_grip_coefficient",
+                "driven_axle_load_share", "driven_axles")
 V_END_M_S = 100.0 / 3.6
 _X, _W = np.polynomial.legendre.leggauss(24)
 
 
-def wheel_force_n(speed_m_s, motor_kw, gear_ratio, vehicle_mass_kg, p):
-    """Net accelerating force at full motor envelope (N); broadcasts speed against designs."""
+def grip_force_n(vehicle_mass_kg, p, two_axles=False):
+    """Largest drive force the driven tyres carry, mu g M s (N); +inf with ``tyre_grip_coefficient`` 0."""
+    mu, axles, share = p["tyre_grip_coefficient"], p.get("driven_axles", 1.0), p["driven_axle_load_share"]
+    if type(mu) is float and type(axles) is float and type(share) is float:  # the usual: no array work
+        return mu * p["gravity_m_s2"] * (1.0 if two_axles or axles == 2.0 else share) * vehicle_mass_kg \
+            if mu > 0 else np.inf
+    share = np.where(two_axles | (np.asarray(axles) == 2.0), 1.0, share)
+    return np.where(mu > 0, mu * p["gravity_m_s2"] * share * vehicle_mass_kg, np.inf)
+
+
+def grip_corner_m_s(lo, hi, torque_force_n, power_w, grip_n, v_end_m_s):
+    """Speed where the envelope F = torque_force_n + power_w / v of a smooth segment [lo, hi] ((S, N)
+    arrays) falls to the grip ``grip_n`` inside the segment, (N,); ``v_end_m_s`` (an edge already) where
+    it does not (the grip binds throughout, nowhere, or up to an edge). There is one at most: F falls
+    through the grip inside a segment only where a motor runs at constant power, and from there on F
+    stays below P eta / v, which only falls (no shift lifts F above it)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cross = power_w / (grip_n - torque_force_n)
+    inside = (grip_n > torque_force_n) & (cross > lo) & (cross < hi)
+    return np.min(np.where(inside, cross, v_end_m_s), axis=0)
+
+
+def wheel_force_n(speed_m_s, motor_kw, gear_ratio, vehicle_mass_kg, p, grip_n=np.inf):
+    """Net accelerating force at full motor envelope within the grip ``grip_n`` (N); broadcasts speed
+    against designs."""
     v = np.asarray(speed_m_s, float)
     omega = gear_ratio * v / p["wheel_radius_m"]
     t_max = p["motor_torque_per_kw"] * motor_kw
@@ -32,7 +61,11 @@ def wheel_force_n(speed_m_s, motor_kw, gear_ratio, vehicle_mass_kg, p):
     torque = np.where(omega <= omega_base, t_max, 1000.0 * motor_kw / np.maximum(omega, 1e-300))
     torque = np.where(omega <= omega_lim * (1 + 1e-12), torque, 0.0)
     road = rl.road_load_n(p, v, vehicle_mass_kg)  # eq 2-3, or the coast-down A + B v + C v^2
-    return torque * gear_ratio * p["gear_efficiency"] / p["wheel_radius_m"] - road
+    f = torque * gear_ratio * p["gear_efficiency"] / p["wheel_radius_m"]
+    if grip_n is not np.inf:
+        np.minimum(f, grip_n, out=f)  # in place: a new (nodes, N) array cost 20 % of the batch's time
+    f -= road
+    return f
 
 
 def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V_END_M_S):
@@ -40,15 +73,23 @@ def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V
     pk = check_design("motor_kw", motor_kw)
     ig = check_design("gear_ratio", gear_ratio)
     m = check_design("vehicle_mass_kg", vehicle_mass_kg)
-    if not pk.shape == ig.shape == m.shape:
-        pk, ig, m = np.broadcast_arrays(pk, ig, m)
     p = {**get_params(params, ACCEL_PARAMS), **rl.checked(params)}
+    if not pk.shape == ig.shape == m.shape or any(type(x) is not float for x in p.values()):
+        n = check_lengths(motor_kw=pk, gear_ratio=ig, vehicle_mass_kg=m, **p)
+        pk, ig, m = (np.broadcast_to(a, (n,)) for a in (pk, ig, m))
+    grip = grip_force_n(m, p)
     v_base = (1000.0 / p["motor_torque_per_kw"]) * p["wheel_radius_m"] / ig
     v_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0 * p["wheel_radius_m"] / ig
-    v1 = np.minimum(v_base, v_end_m_s)
-    # One force evaluation for everything: the 24 Gauss nodes of each envelope segment
-    # (0..v1 and v1..v_end), then v_end and v1 for the feasibility check. (Filled in place:
-    # the same values as stacking the segments, with fewer temporaries on the one-point path.)
+    # the one corner below v_end: the base speed, or where the grip stops binding (P eta / v = F_grip,
+    # beyond the base speed exactly when the grip binds at rest); the force is smooth on either side
+    if grip is np.inf:
+        v1, grip_row = np.minimum(v_base, v_end_m_s), grip
+    else:
+        v_grip = (1000.0 * p["gear_efficiency"]) * pk / grip
+        v1, grip_row = np.minimum(np.maximum(v_base, v_grip), v_end_m_s), grip[None, :]
+    # One force evaluation for everything: the 24 Gauss nodes of each segment (0..v1 and
+    # v1..v_end), then v_end and v1 for the feasibility check. (Filled in place: the same values
+    # as stacking the segments, with fewer temporaries on the one-point path.)
     nodes = len(_X)
     half0, half1 = 0.5 * v1, 0.5 * (v_end_m_s - v1)
     v = np.empty((2 * nodes + 2, v1.size))
@@ -57,7 +98,7 @@ def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V
     v[2 * nodes] = v_end_m_s
     v[2 * nodes + 1] = v1
     pb = {k: (x if type(x) is float or np.ndim(x) == 0 else x[None, :]) for k, x in p.items()}
-    f = wheel_force_n(v, pk[None, :], ig[None, :], m[None, :], pb)
+    f = wheel_force_n(v, pk[None, :], ig[None, :], m[None, :], pb, grip_row)
     mrow = m[None, :]
     with np.errstate(divide="ignore"):
         total = (half0 * np.sum(_W[:, None] * mrow / f[:nodes], axis=0)             # dt = M/F dv

@@ -69,7 +69,7 @@ def energy_breakdown(resampled, params, vehicle_mass_kg, gear_ratio=None, motor_
 
     ``regenerative_recovery`` is negative (it is subtracted in the total, eq 5-21)."""
     m = design_points("vehicle_mass_kg", vehicle_mass_kg)
-    n = batch_size(params, PARAM_SPECS, m)
+    n = batch_size(params, PARAM_SPECS, vehicle_mass_kg=m)
     if m.shape[0] != n:
         m = np.broadcast_to(m, (n,))
     p = resolve_params(params, PARAM_SPECS, n)

@@ -86,8 +86,7 @@ def _col(x):
 
 
 def resolve(params, n: int) -> dict:
-    return {**{k: np.real(v).astype(float) for k, v in resolve_params(params, PARAM_SPECS, n).items()},
-            **rl.checked(params)}
+    return {**resolve_params(params, PARAM_SPECS, n, real=True), **rl.checked(params)}
 
 
 def simulate(resampled: Resampled, params, vehicle_mass_kg, gear_ratio, motor_kw) -> ChainResult:
@@ -96,7 +95,8 @@ def simulate(resampled: Resampled, params, vehicle_mass_kg, gear_ratio, motor_kw
     ig = design_points("gear_ratio", gear_ratio, real=True)
     kw = design_points("motor_kw", motor_kw, real=True)
     extra = {k: params[k] for k in rl.FLAT_KEYS if params and k in params and np.ndim(params[k]) == 1}
-    n = max(batch_size(params, PARAM_SPECS, m, ig, kw), *(np.size(x) for x in extra.values()), 1)
+    n = max(batch_size(params, PARAM_SPECS, vehicle_mass_kg=m, gear_ratio=ig, motor_kw=kw),
+            *(np.size(x) for x in extra.values()), 1)
     m, ig, kw = (np.broadcast_to(a, (n,)) for a in (m, ig, kw))
     p = {k: _col(v) for k, v in resolve(params, n).items()}
     v, a, w, dur, dist, v_lo, v_hi = _steps(resampled)

@@ -6,7 +6,11 @@ Imports nothing from the package (numpy only), so every model module may import 
 * :data:`DESIGN_LIMITS` and :func:`check_design` / :func:`design_points`: the physical ranges of the
   design and coupling variables every model accepts.
 * :func:`resolve_params` / :func:`batch_size`: defaults from a spec table (``params.py``), range
-  checks, and the common batch length N of design arrays and (N,) parameter overrides.
+  checks, and the common batch length N of design arrays and (N,) parameter overrides
+  (:func:`check_lengths`: arrays of other lengths are a one-line error naming each and its shape).
+* A complex value is refused (a ValueError naming it), except by :func:`check_points` and
+  :func:`resolve_params` without ``real``, which keep it for the model differentiated by complex
+  step (breakdown).
 * :func:`check_keys`: a mapping's keys against the known ones; the message names the key path and
   the nearest known key (every config section and option dictionary uses it).
 """
@@ -17,7 +21,10 @@ from typing import Any, Mapping
 
 import numpy as np
 
-# Physical ranges (lower, upper, unit) of the design and coupling variables the models accept.
+# Physical ranges (lower, upper, unit) of the design and coupling variables the models accept. The energy
+# has no upper limit: a design that cannot follow the cycle may cost any finite energy (the chain's copper
+# loss grows with the square of the demand over the motor's peak torque), and its range is then near
+# zero, an infeasible point for the optimiser; at 5000 Wh/km the range refused it and the point failed.
 DESIGN_LIMITS: dict[str, tuple[float, float, str]] = {
     "motor_kw": (1.0, 1000.0, "kW"),
     "motor_rear_kw": (1.0, 1000.0, "kW"),
@@ -25,7 +32,7 @@ DESIGN_LIMITS: dict[str, tuple[float, float, str]] = {
     "gear_ratio_rear": (0.5, 50.0, "-"),
     "battery_kwh": (1.0, 500.0, "kWh"),
     "vehicle_mass_kg": (100.0, 20000.0, "kg"),
-    "energy_wh_per_km": (1.0, 5000.0, "Wh/km"),
+    "energy_wh_per_km": (1.0, math.inf, "Wh/km"),
     "range_target_km": (1.0, 10000.0, "km"),
 }
 
@@ -75,9 +82,8 @@ def check_value(name: str, value: Any, lower: float, upper: float, unit: str = "
 def check_array(name: str, values: Any, lower: float, upper: float, unit: str = "") -> np.ndarray:
     """Vector form of :func:`check_value`: names the first bad element."""
     given = np.asarray(values)
-    if given.dtype.kind not in "iufc":  # float() read True as 1 and "1500" as 1500, and None as nan
-        shown = repr(given.reshape(-1).tolist()[0]) if given.size == 1 else ("an array of " + {"b": "bools", "U": "strings", "S": "bytes"}.get(given.dtype.kind, "objects"))
-        raise ValueError(f"{name} must be a number in [{lower:g}, {upper:g}]{_unit(unit)}, got {shown}")
+    if given.dtype.kind not in "iuf":  # float() read True as 1 and "1500" as 1500, None as nan, 80+1j as 80
+        _refuse(name, given, lower, upper, unit)
     a = np.asarray(values, dtype=float)
     if a.size == 1:  # one design point (an MDA over ROS, a line search): ~0.3 µs instead of ~4.5
         x = a.item()
@@ -88,6 +94,34 @@ def check_array(name: str, values: Any, lower: float, upper: float, unit: str = 
         first = a.reshape(-1)[np.flatnonzero(bad.reshape(-1))[0]]
         raise ValueError(f"{name} must be in [{lower:g}, {upper:g}]{_unit(unit)}, got {first:g}")
     return a
+
+
+def _refuse(name: str, given: np.ndarray, lower: float, upper: float, unit: str) -> None:
+    """The one-line ValueError for a value that is not a real number: a bool, string, object or complex."""
+    kind = given.dtype.kind
+    what = {"b": "bools", "U": "strings", "S": "bytes", "c": "complex numbers"}.get(kind, "objects")
+    shown = repr(given.reshape(-1).tolist()[0]) if given.size == 1 else f"an array of {what}"
+    shown += " (complex)" if kind == "c" and given.size == 1 else ""
+    raise ValueError(f"{name} must be a {'real ' if kind == 'c' else ''}number in [{lower:g}, {upper:g}]{_unit(unit)}, "
+                     f"got {shown}")
+
+
+def check_lengths(**arrays: Any) -> int:
+    """N: the common length of the 1-D arrays given by name (a scalar or a single value goes with any N);
+    when they disagree, a one-line ValueError naming each array and its shape (numpy's broadcast message
+    named neither)."""
+    n = 1
+    for a in arrays.values():  # one design point: floats and (1,) arrays, a few hundred ns
+        if type(a) is float:
+            continue
+        k = a.size if type(a) is np.ndarray and a.ndim == 1 else np.size(a) if np.ndim(a) == 1 else 1
+        if k != 1 and k != n:
+            if n != 1:
+                shapes = ", ".join(f"{name} {np.shape(x)}" for name, x in arrays.items()
+                                   if type(x) is not float and np.ndim(x) == 1 and np.size(x) != 1)
+                raise ValueError(f"arrays of different lengths: {shapes}; give one length N (or a single value)")
+            n = k
+    return n
 
 
 def validate_design(name: str, values: Any, lower: float, upper: float) -> np.ndarray:
@@ -123,15 +157,19 @@ def check_points(name: str, values, lower: float, upper: float, unit: str) -> np
 
 
 def design_points(name: str, values, *, real: bool = False) -> np.ndarray:
-    """:func:`check_points` with the limits of :data:`DESIGN_LIMITS`; ``real`` drops a complex part."""
+    """:func:`check_points` with the limits of :data:`DESIGN_LIMITS`; ``real``: a real model, which refuses
+    a complex value (it dropped the imaginary part without a word)."""
     a = check_points(name, values, *DESIGN_LIMITS[name])
-    return a.real.astype(float) if real else a
+    if real and a.dtype.kind == "c":
+        _refuse(name, a, *DESIGN_LIMITS[name])
+    return a
 
 
-def resolve_params(params: Mapping[str, Any] | None, specs: Mapping[str, Any], n: int) -> dict[str, np.ndarray]:
+def resolve_params(params: Mapping[str, Any] | None, specs: Mapping[str, Any], n: int, *,
+                   real: bool = False) -> dict[str, np.ndarray]:
     """Fill defaults from ``specs`` (name -> ParamSpec) and range-check; values stay scalars or (n,)
-    arrays (complex allowed). Names not in ``specs`` are ignored (a params dict may carry other
-    models' constants)."""
+    arrays (complex allowed, unless ``real``: a real model refuses one). Names not in ``specs`` are
+    ignored (a params dict may carry other models' constants)."""
     params = params or {}
     out = {}
     for name, s in specs.items():
@@ -153,18 +191,15 @@ def resolve_params(params: Mapping[str, Any] | None, specs: Mapping[str, Any], n
         if bad.any():
             x = re.reshape(-1)[np.flatnonzero(bad.reshape(-1))[0]]
             raise ValueError(f"{name} must be {allowed(s.lower, s.upper, s.unit, s.integer)}, got {x:g}")
+        if real and a.dtype.kind == "c":  # the real models dropped the imaginary part without a word
+            _refuse(name, a, s.lower, s.upper, s.unit)
         out[name] = a if a.dtype.kind == "c" else a.astype(float)
     return out
 
 
-def batch_size(params: Mapping[str, Any] | None, specs, *arrays) -> int:
-    """N: the common length of the design arrays and any (N,) parameter overrides."""
-    sizes = {np.size(a) for a in arrays if np.ndim(a) == 1}
-    sizes |= {np.size(params[k]) for k in specs if params and k in params and np.ndim(params[k]) == 1}
-    sizes.discard(1)
-    if len(sizes) > 1:
-        raise ValueError(f"design points and parameter arrays disagree in length: {sorted(sizes)}")
-    return sizes.pop() if sizes else 1
+def batch_size(params: Mapping[str, Any] | None, specs, **arrays) -> int:
+    """N: the common length of the design arrays (by name) and any (N,) parameter overrides (:func:`check_lengths`)."""
+    return check_lengths(**arrays, **{k: params[k] for k in specs if params and k in params and k not in arrays})
 
 
 class LazyModule:

@@ -13,8 +13,8 @@ functions stay as the reference the tests compare with (energy and range to 1e-1
 * Range steps only the battery over the range cycle's precomputed demand, cycle after cycle,
   and stops each design at its own crossing of ``final_soc``; steps with zero demand leave the
   battery as it is (no current, no energy) and are skipped.
-* Motor maps are looked up in the bilinear form of ``topology.electrical_power_w``; numpy's
-  ``interp`` is re-implemented operation for operation (``_interp``), without branches on where
+* Motor maps are looked up as ``motor_map.MotorMap.efficiency_at`` does, bilinear through numpy's
+  ``interp``, re-implemented operation for operation (``_interp``), without branches on where
   x falls (the split's lookups jump from share to share).
 * Designs run in parallel over the host's cores (``prange``); each design's loop is sequential
   and independent of the others, so results do not depend on the thread count. The battery
@@ -144,7 +144,7 @@ def loss_tuple(coefficients=None) -> np.ndarray:
 @_jit(inline="always")
 def _electrical_w(torque, w, fi, scale, mp, loss):
     """Electrical power of one motor at (T, w), eq 2-7 with the Fig 2-9 torque scaling
-    (``topology.electrical_power_w`` for one point); ``fi`` = ``_speed_index(w, mp)``, ``scale`` =
+    (``MotorMap.electrical_power_w`` for one point); ``fi`` = ``_speed_index(w, mp)``, ``scale`` =
     reference kW / motor kW. No torque: T w (0, the map not read). With a loss model (``loss[0]``
     = 1) T w plus its loss while turning (``loss_model.LossModel.electrical_power_w``)."""
     if loss[0] != 0.0:

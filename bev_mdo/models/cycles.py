@@ -16,7 +16,8 @@ Resampling (:func:`resample`) has three methods:
 
 Traces are validated on reading (:func:`check_trace`): strictly increasing time, gaps of at
 most ``MAX_GAP_S``, speeds in [0, ``MAX_SPEED_KMH``], accelerations within ``MAX_ACCEL_M_S2``,
-and a cycle that moves.
+and a cycle that moves. The numbers of every user CSV (drive cycles, fleet files, motor maps, sweep
+lists) are read by :func:`csv_number`: plain decimal numbers only.
 """
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ import hashlib
 import itertools
 import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
@@ -157,6 +159,24 @@ def read_csv_rows(path, what: str) -> list[list[str]]:
         raise ValueError(f"{path}: row {reader.line_num}: not a CSV table: {exc}") from None
 
 
+_CSV_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+
+def csv_number(cell: str) -> float:
+    """A number in a user's CSV: ASCII digits with an optional sign, decimal point and exponent (spaces
+    around it are allowed). ValueError ("not a number: '1_0'" or "must be finite, got nan") for what
+    float() reads besides: 1_0 as 10, nan, inf, 1e999, other scripts' digits; the caller names the file,
+    row and column."""
+    text = cell.strip()
+    if _CSV_NUMBER.fullmatch(text):
+        x = float(text)
+        if math.isfinite(x):
+            return x
+    elif text.lstrip("+-").lower() not in ("nan", "inf", "infinity"):
+        raise ValueError(f"not a number: {text!r}")
+    raise ValueError(f"must be finite, got {text}")
+
+
 def read_cycle_csv(path: str | Path) -> DriveCycle:
     """Read a ``time_s,speed_kmh`` CSV; ValueError naming the file and row on bad data."""
     path = Path(path)
@@ -169,18 +189,19 @@ def read_cycle_csv(path: str | Path) -> DriveCycle:
     end, broken = len(data), ""
     for k, (_, row) in enumerate(data):
         if len(row) != 2:
-            end, broken = k, f"expected 2 columns time_s,speed_kmh, got {len(row)}"
+            end, broken = k, f": expected 2 columns time_s,speed_kmh, got {len(row)}"
             break
     try:
-        tv = np.array([(float(a), float(b)) for _, (a, b) in data[:end]], dtype=float).reshape(-1, 2)
+        tv = np.array([(csv_number(a), csv_number(b)) for _, (a, b) in data[:end]], dtype=float).reshape(-1, 2)
     except ValueError:
         for k, (_, row) in enumerate(data[:end]):
             try:
-                float(row[0]), float(row[1])
-            except ValueError:
-                end, broken = k, f"not a number: {','.join(row)}"
+                for column, cell in zip(("time_s", "speed_kmh"), row):
+                    csv_number(cell)
+            except ValueError as exc:
+                end, broken = k, f", column {column}: {exc}"
                 break
-        tv = np.array([(float(a), float(b)) for _, (a, b) in data[:end]], dtype=float).reshape(-1, 2)
+        tv = np.array([(csv_number(a), csv_number(b)) for _, (a, b) in data[:end]], dtype=float).reshape(-1, 2)
     t, v = tv[:, 0], tv[:, 1]
     # every row check at once; the first row that fails any is reported, checks in this order
     later = np.arange(len(t)) > 0  # the step checks start at the second row
@@ -188,9 +209,8 @@ def read_cycle_csv(path: str | Path) -> DriveCycle:
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         step = t - prev_t
         accel = np.abs(v - np.concatenate([v[:1], v[:-1]])) * KMH / step
-    checks = (
-        (~np.isfinite(t), lambda k: f"time_s must be finite, got {data[k][1][0]}"),
-        (~(np.isfinite(v) & (v >= 0)), lambda k: f"speed_kmh must be finite and >= 0, got {data[k][1][1]}"),
+    checks = (  # (every value is a finite number: csv_number)
+        (~(v >= 0), lambda k: f"speed_kmh must be >= 0, got {data[k][1][1].strip()}"),
         (v > MAX_SPEED_KMH, lambda k: f"speed_kmh {v[k]:g} is not plausible (> {MAX_SPEED_KMH:g} km/h)"),
         (later & ~(step > 0), lambda k: f"time_s must be strictly increasing ({t[k]:g} after {prev_t[k]:g})"),
         (later & (step > MAX_GAP_S), lambda k: f"time gap of {step[k]:g} s after {prev_t[k]:g} s "
@@ -206,7 +226,7 @@ def read_cycle_csv(path: str | Path) -> DriveCycle:
         message = next(say for mask, say in checks if mask[k])
         raise ValueError(f"{path}: row {data[k][0]}: {message(k)}")
     if broken:
-        raise ValueError(f"{path}: row {data[end][0]}: {broken}")
+        raise ValueError(f"{path}: row {data[end][0]}{broken}")
     if len(t) < 2:
         raise ValueError(f"{path}: needs at least 2 data rows, got {len(t)}")
     c = DriveCycle(path.stem, t.copy(), v * KMH)

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import road_load as rl
-from .common import check_design
+from .common import check_design, check_lengths
 from .cycles import Resampled, quadrature
 from .params import VEHICLE_SPECS, get_params
 
@@ -86,6 +86,7 @@ def energy_wh_per_km_direct(resampled: Resampled, params: dict | None, vehicle_m
     p = _params(params)
     m = check_design("vehicle_mass_kg", vehicle_mass_kg)
     ig = check_design("gear_ratio", gear_ratio)
+    check_lengths(vehicle_mass_kg=m, gear_ratio=ig, **p)
     col = {k: (v if np.ndim(v) == 0 else np.asarray(v)[None, :]) for k, v in p.items()}
     qv, qa, qj, qw = quadrature(resampled)
     v = qv[:, None]
@@ -166,6 +167,7 @@ def energy_wh_per_km(resampled: Resampled, params: dict | None, vehicle_mass_kg,
         return energy_wh_per_km_direct(resampled, p, vehicle_mass_kg, gear_ratio)
     m = check_design("vehicle_mass_kg", vehicle_mass_kg)
     ig = check_design("gear_ratio", gear_ratio)
+    check_lengths(vehicle_mass_kg=m, gear_ratio=ig, **p)
     mo = moments(resampled, _road_key(p))
     brk = mo.braking_cum[np.searchsorted(mo.thresholds_kg, m, side="left")]      # (N, 9)
     drv = mo.total - brk

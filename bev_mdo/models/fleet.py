@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cycles import read_csv_rows
+from .cycles import csv_number, read_csv_rows
 from .params import ROAD_LOAD_CHECK_SPEED_M_S, road_load_minimum
 
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "epa_2022_bev"
@@ -204,11 +204,9 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
                 data[name].append(math.nan)
                 continue
             try:
-                x = float(cell)
-            except ValueError:
-                raise ValueError(f"{path}: row {r}, column {name}: not a number: {cell!r}") from None
-            if not math.isfinite(x):
-                raise ValueError(f"{path}: row {r}, column {name}: must be finite, got {cell}")
+                x = csv_number(cell)
+            except ValueError as exc:  # not a number (1_0 was 10), or not finite
+                raise ValueError(f"{path}: row {r}, column {name}: {exc}") from None
             if x < 0 and lo >= 0:
                 raise ValueError(f"{path}: row {r}, column {name}: must not be negative, got {cell}")
             if not lo <= x <= hi:

@@ -1,7 +1,7 @@
 """Vehicle mass from motor power and battery capacity (eqs 7-19..7-21, ch.3 compounding)."""
 from __future__ import annotations
 
-from .common import check_design
+from .common import check_design, check_lengths
 from .params import VEHICLE_SPECS
 
 DEFAULTS = {k: s.default for k, s in VEHICLE_SPECS.items()}  # the defaults of every vehicle parameter
@@ -9,20 +9,26 @@ DEFAULTS = {k: s.default for k, s in VEHICLE_SPECS.items()}  # the defaults of e
 
 def motor_mass_kg(motor_kw, kg_per_kw=DEFAULTS["motor_kg_per_kw"], base_kg=DEFAULTS["motor_base_kg"]):
     """Eq 7-20 / 2-18: M_m = 0.532 P_kW + 21.6."""
-    return kg_per_kw * check_design("motor_kw", motor_kw) + base_kg
+    kw = check_design("motor_kw", motor_kw)
+    check_lengths(motor_kw=kw, motor_kg_per_kw=kg_per_kw, motor_base_kg=base_kg)
+    return kg_per_kw * kw + base_kg
 
 
 def battery_mass_kg(battery_kwh, kg_per_kwh=DEFAULTS["battery_kg_per_kwh"]):
     """Eq 7-21: M_b = 7.8 E_kWh."""
-    return kg_per_kwh * check_design("battery_kwh", battery_kwh)
+    kwh = check_design("battery_kwh", battery_kwh)
+    check_lengths(battery_kwh=kwh, battery_kg_per_kwh=kg_per_kwh)
+    return kg_per_kwh * kwh
 
 
 def vehicle_mass_ch7_kg(motor_kw, battery_kwh, glider_kg=DEFAULTS["glider_kg"], load_kg=DEFAULTS["load_kg"],
                         motor_kg_per_kw=DEFAULTS["motor_kg_per_kw"], motor_base_kg=DEFAULTS["motor_base_kg"],
                         battery_kg_per_kwh=DEFAULTS["battery_kg_per_kwh"]):
     """Eq 7-19: M_v = M_B + M_m + M_b + M_L."""
-    return (glider_kg + load_kg + motor_mass_kg(motor_kw, motor_kg_per_kw, motor_base_kg)
-            + battery_mass_kg(battery_kwh, battery_kg_per_kwh))
+    kw, kwh = check_design("motor_kw", motor_kw), check_design("battery_kwh", battery_kwh)
+    check_lengths(motor_kw=kw, battery_kwh=kwh, glider_kg=glider_kg, load_kg=load_kg, motor_kg_per_kw=motor_kg_per_kw,
+                  motor_base_kg=motor_base_kg, battery_kg_per_kwh=battery_kg_per_kwh)
+    return glider_kg + load_kg + (motor_kg_per_kw * kw + motor_base_kg) + battery_kg_per_kwh * kwh  # 7-20, 7-21
 
 
 def kerb_mass_compounding_kg(motor_kw, battery_kwh, kerb_reference_kg=DEFAULTS["kerb_reference_kg"],
@@ -35,7 +41,11 @@ def kerb_mass_compounding_kg(motor_kw, battery_kwh, kerb_reference_kg=DEFAULTS["
 
     The powertrain mass is eq 2-18 + 2-20 (battery by eq 7-21). Note: Table 3-1's 1689 kg
     multiplies the whole new powertrain by 1.6, not the difference (see README of models)."""
-    pt = motor_mass_kg(motor_kw, motor_kg_per_kw, motor_base_kg) + battery_mass_kg(battery_kwh, battery_kg_per_kwh)
+    kw, kwh = check_design("motor_kw", motor_kw), check_design("battery_kwh", battery_kwh)
+    check_lengths(motor_kw=kw, battery_kwh=kwh, kerb_reference_kg=kerb_reference_kg, reference_motor_kw=reference_motor_kw,
+                  reference_battery_kwh=reference_battery_kwh, mass_compounding=mass_compounding,
+                  motor_kg_per_kw=motor_kg_per_kw, motor_base_kg=motor_base_kg, battery_kg_per_kwh=battery_kg_per_kwh)
+    pt = (motor_kg_per_kw * kw + motor_base_kg) + battery_kg_per_kwh * kwh  # 2-18, 7-21
     pt_ref = (motor_kg_per_kw * reference_motor_kw + motor_base_kg) + battery_kg_per_kwh * reference_battery_kwh
     return kerb_reference_kg + mass_compounding * (pt - pt_ref)
 

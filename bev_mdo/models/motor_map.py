@@ -5,7 +5,11 @@ Thesis eqs 2-7, 2-8 and Fig 2-9 / §3.3.3: the map belongs to a unit motor of
 axis multiplied by P / 80 (efficiency at (T, w) = unit efficiency at (T * 80 / P, w)).
 Speed is limited at 10 500 rpm for every size. Regeneration has the same efficiency as
 traction unless the map has negative-torque rows. Electrical power (2-7, §3.3.3):
-P_el = T w / eta when motoring, T w * eta when regenerating.
+P_el = T w / eta when motoring, T w * eta when regenerating. The efficiency is bilinear on the
+grid, clamped at its edges, read through np.interp's fractional grid positions: the operations
+the compiled loops repeat (compiled._electrical_w), so the numpy and compiled models agree to the
+bit (scipy's RegularGridInterpolator differed by an ulp, which a pack at its power limit amplified
+to 1e-10).
 
 Envelope: 3.5 Nm/kW constant torque up to base speed, constant power above
 it, nothing beyond max speed. The base speed is then 1000 / 3.5 = 285.7 rad/s for all sizes.
@@ -34,11 +38,12 @@ from __future__ import annotations
 
 import csv
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from .cycles import csv_number
 from .params import VEHICLE_SPECS
 
 REFERENCE_KW = VEHICLE_SPECS["reference_motor_kw"].default  # Fig 2-9 unit motor, 80 kW
@@ -86,7 +91,6 @@ class MotorMap:
     efficiency: np.ndarray  # shape (len(speed_rad_s), len(torque_nm))
     reference_kw: float = REFERENCE_KW
     name: str = "map"
-    _interp: object = field(init=False, repr=False)  # scipy's RegularGridInterpolator
 
     def __post_init__(self):
         w = np.asarray(self.speed_rad_s, float)
@@ -100,32 +104,34 @@ class MotorMap:
             raise ValueError(f"motor map {self.name}: efficiency must be in (0, 1] on the full grid")
         if not (math.isfinite(self.reference_kw) and 1.0 <= self.reference_kw <= 1000.0):
             raise ValueError(f"motor map {self.name}: reference_kw must be in [1, 1000] kW")
-        from scipy.interpolate import RegularGridInterpolator  # 0.35 s to import: only for a map
-
-        object.__setattr__(self, "_interp", RegularGridInterpolator((w, t), e, method="linear"))
+        for k, a in (("speed_rad_s", w), ("torque_nm", t), ("efficiency", e)):  # the lookups index arrays
+            object.__setattr__(self, k, a)
 
     @property
     def has_regen_rows(self) -> bool:
         return bool(self.torque_nm[0] < 0)
 
     def efficiency_at(self, torque_nm, speed_rad_s, motor_kw):
-        """Efficiency of a ``motor_kw`` motor at (T, w); arrays broadcast together."""
-        t, w, p = np.broadcast_arrays(np.asarray(torque_nm, float), np.asarray(speed_rad_s, float),
-                                      np.asarray(motor_kw, float))
-        t_unit = t * (self.reference_kw / p)  # Fig 2-9 torque-axis scaling
+        """Efficiency of a ``motor_kw`` motor at (T, w), bilinear on the grid and clamped at its edges
+        (see the module doc); arrays broadcast together."""
+        t, w = np.asarray(torque_nm, float), np.asarray(speed_rad_s, float)
+        tu = t * (self.reference_kw / np.asarray(motor_kw, float))  # Fig 2-9 torque-axis scaling
         if not self.has_regen_rows:
-            t_unit = np.abs(t_unit)
-        t_unit = np.clip(t_unit, self.torque_nm[0], self.torque_nm[-1])
-        w_c = np.clip(np.abs(w), self.speed_rad_s[0], self.speed_rad_s[-1])
-        pts = np.stack([w_c.ravel(), t_unit.ravel()], axis=-1)
-        eta = self._interp(pts).reshape(t.shape)
-        return np.maximum(eta, EFFICIENCY_FLOOR)
+            tu = np.abs(tu)
+        wg, tg, e = self.speed_rad_s, self.torque_nm, self.efficiency
+        fi = np.interp(np.abs(w), wg, np.arange(len(wg), dtype=float))  # fractional grid positions
+        fj = np.interp(tu, tg, np.arange(len(tg), dtype=float))
+        i0 = np.minimum(fi.astype(np.intp), len(wg) - 2)
+        j0 = np.minimum(fj.astype(np.intp), len(tg) - 2)
+        a, b = fi - i0, fj - j0
+        e00, e01, e10, e11 = e[i0, j0], e[i0, j0 + 1], e[i0 + 1, j0], e[i0 + 1, j0 + 1]
+        return np.maximum((1 - a) * ((1 - b) * e00 + b * e01) + a * ((1 - b) * e10 + b * e11), EFFICIENCY_FLOOR)
 
     def electrical_power_w(self, torque_nm, speed_rad_s, motor_kw):
         """Electrical power (W): T w / eta motoring, T w * eta regenerating (2-7, §3.3.3)."""
-        p_mech = np.asarray(torque_nm, float) * np.asarray(speed_rad_s, float)
+        pm = np.asarray(torque_nm, float) * np.asarray(speed_rad_s, float)
         eta = self.efficiency_at(torque_nm, speed_rad_s, motor_kw)
-        return np.where(p_mech >= 0, p_mech / eta, p_mech * eta)
+        return np.where(pm >= 0, pm / eta, pm * eta)
 
 
 def default_motor_map() -> MotorMap:
@@ -163,12 +169,14 @@ def load_motor_map_csv(path, reference_kw: float = REFERENCE_KW) -> MotorMap:
         raise ValueError(f"{path}: header must be 'speed_rad_s,torque_nm,efficiency'")
     data = []
     for lineno, r in rows[1:]:
-        try:
-            vals = [float(c) for c in r]
-        except ValueError:
-            raise ValueError(f"{path}: line {lineno}: not a number: {','.join(r)}") from None
-        if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
-            raise ValueError(f"{path}: line {lineno}: need 3 finite numbers")
+        if len(r) != 3:
+            raise ValueError(f"{path}: line {lineno}: need 3 numbers speed_rad_s,torque_nm,efficiency, got {len(r)}")
+        vals = []
+        for name, cell in zip(("speed_rad_s", "torque_nm", "efficiency"), r):
+            try:
+                vals.append(csv_number(cell))
+            except ValueError as exc:  # not a number (1_0 was 10), or not finite
+                raise ValueError(f"{path}: line {lineno}, column {name}: {exc}") from None
         if vals[0] < 0 or not (0 < vals[2] <= 1):
             raise ValueError(f"{path}: line {lineno}: speed_rad_s must be >= 0 and efficiency in (0, 1]")
         data.append(vals)

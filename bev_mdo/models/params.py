@@ -14,7 +14,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from . import battery as bt
-from .common import check_array, check_keys, check_value
+from .common import allowed, check_array, check_keys, check_value
 from .cycles import DEFAULT_METHOD, KMH, METHODS
 
 
@@ -60,6 +60,11 @@ VEHICLE_SPECS: dict[str, ParamSpec] = {
     "motor_speed_limit_rpm": ParamSpec(10500.0, 1000.0, 30000.0, "rpm", "motor speed limit (ch.3)"),
     "power_to_energy_ratio": ParamSpec(4.0, 0.1, 100.0, "1/h", "battery cell P/E ratio (eq 2-22)"),
     "battery_usable_fraction": ParamSpec(1.0, 0.1, 1.0, "-", "usable share of battery capacity for range"),
+    # 0-100 km/h grip limit (acceleration.py, topology.py): drive force <= mu g M x the driven axles' share
+    "tyre_grip_coefficient": ParamSpec(1.0, 0.0, 2.0, "-", "tyre-road friction coefficient mu of the 0-100 km/h "
+                                       "grip limit (dry asphalt about 1; 0 = no limit, the thesis)"),
+    "driven_axle_load_share": ParamSpec(0.6, 0.2, 0.8, "-", "static share of the weight on the driven axle of a "
+                                        "single-axle drive (front drive about 0.6; two driven axles carry all)"),
 }
 
 # topology (thesis ch.4): one setting for every topology discipline (vehicle_mass, energy,
@@ -123,7 +128,8 @@ BREAKDOWN_SPECS: dict[str, ParamSpec] = {
 QUASI_STATIC_SPECS: dict[str, ParamSpec] = {
     **{k: VEHICLE_SPECS[k] for k in ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2",
                                      "rolling_resistance", "wheel_radius_m", "gear_efficiency",
-                                     "motor_torque_per_kw", "motor_speed_limit_rpm")},
+                                     "motor_torque_per_kw", "motor_speed_limit_rpm", "tyre_grip_coefficient",
+                                     "driven_axle_load_share")},
     "gear_count": ParamSpec(1.0, 1.0, 2.0, "-", "1 = single speed, 2 = two-speed gearbox (eq 2-6)",
                             integer=True),
     "gear_ratio_2": ParamSpec(4.7, 0.5, 50.0, "-", "second (high-speed) gear ratio (Table 3-2: 4.7)"),
@@ -234,6 +240,8 @@ def validate_road_load(section: Any) -> dict[str, float]:
                          f"it is {low:.4g} N at {at:.3g} m/s")
     return out
 
+
+_SPECS = all_specs()  # every model constant by name (get_params)
 
 PARAMETER_SET_DIR = Path(__file__).resolve().parent.parent / "data" / "parameter_sets"
 
@@ -399,11 +407,14 @@ def get_params(params: Mapping[str, Any] | None, names: tuple[str, ...]) -> dict
     params = params or {}
     out = {}
     for k in names:
-        s = VEHICLE_SPECS[k]
+        s = _SPECS[k]
         v = params.get(k, s.default)
-        if type(v) is float and s.lower <= v <= s.upper:
+        if type(v) is float and s.lower <= v <= s.upper and (not s.integer or v == round(v)):
             out[k] = v
             continue
         a = check_array(k, v, s.lower, s.upper, s.unit)
+        if s.integer and np.any(a != np.round(a)):  # a count or a switch
+            bad = a[a != np.round(a)].flat[0]
+            raise ValueError(f"{k} must be {allowed(s.lower, s.upper, s.unit, True)}, got {bad:g}")
         out[k] = float(a) if a.ndim == 0 else a
     return out

@@ -111,9 +111,9 @@ def inputs(params, vehicle_mass_kg, gear_ratio, motor_kw, battery_kwh=DEFAULT_BA
     ig = design_points("gear_ratio", gear_ratio, real=True)
     kw = design_points("motor_kw", motor_kw, real=True)
     kwh = design_points("battery_kwh", battery_kwh, real=True)
-    n = batch_size(params, PARAM_SPECS, m, ig, kw, kwh)
+    n = batch_size(params, PARAM_SPECS, vehicle_mass_kg=m, gear_ratio=ig, motor_kw=kw, battery_kwh=kwh)
     m, ig, kw, kwh = (np.broadcast_to(a, (n,)) for a in (m, ig, kw, kwh))
-    p = {k: np.real(v).astype(float) for k, v in resolve_params(params, PARAM_SPECS, n).items()}
+    p = resolve_params(params, PARAM_SPECS, n, real=True)
     p["battery_kwh"] = kwh
     p.update(rl.checked(params))
     return m, ig, kw, p

@@ -37,7 +37,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from . import mass as mass_model
+from . import acceleration, mass as mass_model
 from . import quasi_static as qs
 from . import road_load as rl
 from .common import design_points
@@ -191,28 +191,6 @@ def in_wheel_map(base: MotorMap | None = None, torque_scale: float = _Q["iwm_tor
     return _in_wheel_map_cached(base or qs.default_map(), float(torque_scale), float(speed_scale))
 
 
-def electrical_power_w(motor_map: MotorMap, torque_nm, speed_rad_s, motor_kw):
-    """Fast bilinear form of ``MotorMap.electrical_power_w`` (same grid, same clipping, same
-    Fig 2-9 scaling), for the large (time, N, split) arrays of the torque split (or a loss model's)."""
-    if isinstance(motor_map, LossModel):
-        return motor_map.electrical_power_w(torque_nm, speed_rad_s, motor_kw)
-    t = np.asarray(torque_nm, float)
-    w = np.asarray(speed_rad_s, float)
-    tu = t * (motor_map.reference_kw / np.asarray(motor_kw, float))
-    if not motor_map.has_regen_rows:
-        tu = np.abs(tu)
-    tg, wg, e = motor_map.torque_nm, motor_map.speed_rad_s, motor_map.efficiency
-    fi = np.interp(np.abs(w), wg, np.arange(len(wg), dtype=float))
-    fj = np.interp(tu, tg, np.arange(len(tg), dtype=float))
-    i0 = np.minimum(fi.astype(np.intp), len(wg) - 2)
-    j0 = np.minimum(fj.astype(np.intp), len(tg) - 2)
-    a, b = fi - i0, fj - j0
-    e00, e01, e10, e11 = e[i0, j0], e[i0, j0 + 1], e[i0 + 1, j0], e[i0 + 1, j0 + 1]
-    eta = np.maximum((1 - a) * ((1 - b) * e00 + b * e01) + a * ((1 - b) * e10 + b * e11), 0.05)
-    pm = t * w
-    return np.where(pm >= 0, pm / eta, pm * eta)
-
-
 # ----------------------------------------------------------------------------- drive model
 
 @dataclass
@@ -257,7 +235,7 @@ def _axle_power(ax: _Axle, tw, w, tmax, driving, allowed):
     tm = np.where(driving, tw / (ax.count * ax.ratio * ax.eta), tw * ax.eta / (ax.count * ax.ratio))  # 2-5
     over = np.where(driving, np.maximum(tm - tmax, 0.0), 0.0)
     tm = np.where(driving, tm, np.where(allowed, np.maximum(tm * ax.regen_share, -tmax), 0.0))  # 2-25, rules 2-3
-    return ax.count * electrical_power_w(ax.motor_map, tm, w, ax.kw), over, tm
+    return ax.count * ax.motor_map.electrical_power_w(tm, w, ax.kw), over, tm
 
 
 def best_split(axles, tw, v, r_w, driving, allowed, steps: int = 11):
@@ -437,61 +415,63 @@ def operating_points(resampled, params, topology, vehicle_mass_kg, motor_kw, bat
 
 def accel_time_s(topology, vehicle_mass_kg, motor_kw, gear_ratio=None, motor_rear_kw=None, gear_ratio_rear=None,
                  params=None, v_end_m_s=V_END_M_S):
-    """0-100 km/h time (eqs 2-26 / 4-5): t = int M / F(v) dv with F the sum of every motor's
-    envelope at the wheels minus road load; Gauss-Legendre per segment between all envelope
-    corners (base speeds, speed limits, the two-speed shift). SM-SA single speed equals
-    ``acceleration.accel_time_0_100_s``. Two-speed uses the eq 2-6 rule (gear 2 at and above
-    the shift speed, efficiency minus the 2-point penalty). A geared motor over its speed
-    limit before ``v_end`` or a non-positive surplus force gives +inf."""
+    """0-100 km/h time (eqs 2-26 / 4-5): t = int M / F(v) dv, F every motor's envelope at the wheels within
+    the tyres' grip (``acceleration.grip_force_n``; two driven axles carry all the weight) minus road load,
+    Gauss-Legendre per segment between the corners (base speeds, the two-speed shift and speed limits, where
+    the grip stops binding). SM-SA single speed equals ``acceleration.accel_time_0_100_s``; two-speed
+    follows eq 2-6 (gear 2 from the shift speed, efficiency less the 2-point penalty). +inf for a geared
+    motor over its speed limit before ``v_end`` or a non-positive surplus force."""
     p = {k: s.default for k, s in QUASI_STATIC_SPECS.items()}
     p.update({k: np.asarray(v, float) for k, v in (params or {}).items()
               if k in QUASI_STATIC_SPECS or k in rl.FLAT_KEYS})
     t, m, ig, kw, p, kw_r, ig_r = _prepare(p, topology, vehicle_mass_kg, motor_kw, qs.DEFAULT_BATTERY_KWH, gear_ratio,
                                            motor_rear_kw, gear_ratio_rear)
-    r_w = p["wheel_radius_m"]
-    two = (p["gear_count"] == 2.0) & (t.name == "SM-SA")
+    r_w, sm_sa = p["wheel_radius_m"], t.name == "SM-SA"
+    two = (p["gear_count"] == 2.0) & sm_sa
     axles = _axles(t, p, kw, kw_r, ig, ig_r, qs.default_map())
-    if t.name == "SM-SA":
+    grip = acceleration.grip_force_n(m, p, t.two_axles)
+    ig2 = v_shift = None
+    if sm_sa:
         eta2 = p["gear_efficiency"] - np.where(two, p["two_speed_efficiency_loss"], 0.0)
         axles[0].eta = np.broadcast_to(eta2, kw.shape)
         ig2 = np.broadcast_to(np.where(two, p["gear_ratio_2"], ig), kw.shape)
         v_shift = np.broadcast_to(np.where(two, p["shift_speed_m_s"], np.inf), kw.shape)
-    def force(v):  # v: (..., N)
-        f = -rl.road_load_n(p, v, m)
-        for a in axles:
-            ratio = np.where(v >= v_shift, ig2, a.ratio) if t.name == "SM-SA" else a.ratio
-            w = v / r_w * ratio
-            f = f + a.count * _t_max(a, w) * ratio * a.eta / r_w
-        return f
 
-    corners = []
+    def envelope(v):  # per axle: ratio and motor torque at the speeds v (..., N)
+        for a in axles:
+            ratio = np.where(v >= v_shift, ig2, a.ratio) if sm_sa else a.ratio
+            yield a, ratio, _t_max(a, v / r_w * ratio)
+
+    def force(v):  # within the grip (the sum in the order it had before the grip limit)
+        road = rl.road_load_n(p, v, m)
+        f = -road
+        for a, ratio, tq in envelope(v):
+            f = f + a.count * tq * ratio * a.eta / r_w
+        return f if no_grip else np.minimum(f, grip - road, out=f)
+
+    # no grip limit where the peak drive force (of the larger gear with two) is within it
+    peak = sum(a.count * a.t_peak * (np.maximum(a.ratio, ig2) if sm_sa else a.ratio) * a.eta / r_w for a in axles)
+    # corners: per axle and gear the base speed, and the speed limit, which no motor may pass before v_end (two
+    # speeds: gear 1 up to the shift); with one speed that is v_end or later, so not an edge below v_end
+    corners, ok, shifts, no_grip = [], np.ones(m.shape, bool), bool(np.any(two)), bool(np.all(peak <= grip))
     for a in axles:
-        w_base = a.t_peak * 0 + a.kw * 1e3 / a.t_peak
-        for ratio in ([a.ratio, ig2] if t.name == "SM-SA" else [a.ratio]):
-            corners += [w_base * r_w / ratio, a.w_lim * r_w / ratio]
-    if t.name == "SM-SA":
-        corners.append(v_shift)
-    c = np.clip(np.sort(np.stack(corners), axis=0), 0.0, v_end_m_s)  # (B, N)
-    edges = np.concatenate([np.zeros((1, c.shape[1])), c, np.full((1, c.shape[1]), v_end_m_s)])
-    lo, hi = edges[:-1], edges[1:]
-    half = 0.5 * (hi - lo)
-    v = (lo + half)[None] + half[None] * _X[:, None, None]  # (24, B+1, N)
+        for ratio, top in ([(a.ratio, np.minimum(v_shift, v_end_m_s)), (ig2, np.where(two, v_end_m_s, 0.0))]
+                           if shifts else [(a.ratio, v_end_m_s)]):
+            v_lim = a.w_lim * r_w / ratio
+            corners += [a.kw * 1e3 / a.t_peak * r_w / ratio, *([v_lim] if shifts else [])]
+            ok &= v_lim >= top * (1 - 1e-12)
+    edges = np.stack([0.0 * m, *corners, *([v_shift] if shifts else []), v_end_m_s + 0.0 * m])
+    edges = np.clip(np.sort(edges, axis=0), 0.0, v_end_m_s)  # (B+2, N)
+    if not no_grip:  # one more corner: where P eta / v (+ the torque-limited axles) = grip
+        parts = list(envelope(0.5 * (edges[:-1] + edges[1:])))  # each segment's torque- and power-limited axles
+        torque_n = sum(np.where(tq == a.t_peak, a.count * tq * ratio * a.eta / r_w, 0.0) for a, ratio, tq in parts)
+        power_w = sum(np.where((tq < a.t_peak) & (tq > 0), a.count * a.kw * 1e3 * a.eta, 0.0) for a, _, tq in parts)
+        v_grip = acceleration.grip_corner_m_s(edges[:-1], edges[1:], torque_n, power_w, grip, v_end_m_s)
+        edges = np.sort(np.concatenate([edges, v_grip[None]]), axis=0)
+    half = 0.5 * (edges[1:] - edges[:-1])
+    v = (edges[:-1] + half)[None] + half[None] * _X[:, None, None]  # (24, B+1, N)
     f = force(v)
     with np.errstate(divide="ignore", invalid="ignore"):
         total = np.sum(half * np.sum(_W[:, None, None] * m / f, axis=0), axis=0)
-    ok = _speed_ok(axles, t, two, ig, ig2 if t.name == "SM-SA" else None, v_shift if t.name == "SM-SA" else None,
-                   r_w, v_end_m_s) & np.all(f > 0, axis=(0, 1)) & (force(np.full(m.shape, v_end_m_s)) > 0)
+    ok &= np.all(f > 0, axis=(0, 1)) & (force(np.full(m.shape, v_end_m_s)) > 0)
     return np.where(ok, total, np.inf)
-
-
-def _speed_ok(axles, t, two, ig, ig2, v_shift, r_w, v_end):
-    """Every geared motor stays within its speed limit up to ``v_end`` (gear 1 up to the shift)."""
-    ok = np.ones(np.shape(axles[0].kw), bool)
-    for a in axles:
-        if t.name == "SM-SA":
-            v1_end = np.where(two, np.minimum(v_shift, v_end), v_end)
-            ok &= a.w_lim * r_w / ig >= v1_end * (1 - 1e-12)
-            ok &= np.where(two, a.w_lim * r_w / ig2 >= v_end * (1 - 1e-12), True)
-        else:
-            ok &= a.w_lim * r_w / a.ratio >= v_end * (1 - 1e-12)
-    return ok

@@ -109,7 +109,9 @@ def test_sweep_from_a_list(tmp_path):
     ("motor_kw,motor_kw\n100,90\n", "the header names 'motor_kw' twice"),  # 90 was swept, 100 dropped
     ("motor_kw,gear_ratio\n100,9,5\n", "design 1 has 3 values for 2 names"),  # "column None ..."
     ("motor_kw,gear_ratio\n100,9\n90\n", "design 2 has 1 values for 2 names"),
-    ("motor_kw,gear_ratio\n100,fast\n", "design 1, column 'gear_ratio': 'fast' is not a number"),
+    ("motor_kw,gear_ratio\n100,fast\n", "design 1, column 'gear_ratio': not a number: 'fast'"),
+    ("motor_kw,gear_ratio\n1_00,9\n", "design 1, column 'motor_kw': not a number: '1_00'"),  # it was 100 kW
+    ("motor_kw,gear_ratio\n100,nan\n", "design 1, column 'gear_ratio': must be finite, got nan"),
     ("motor_kw,\n100,9\n", "the header has an empty name"),
     ("motor_kw,gear_ratio\n", "no designs"),
 ])

@@ -161,6 +161,10 @@ def _append_copy(row, change=None):
     (_set("udds_wh_per_km_ac", "nan", 2), "row 3, column udds_wh_per_km_ac: must be finite"),
     (_set("reported_unit", "mpg", 4), "row 5, column reported_unit: unknown unit 'mpg'"),
     (_set("rated_power_kw", "", 7), "row 8, column rated_power_kw: not a number: ''"),
+    # what float() reads besides: 1_590 as 1590 kg, inf, other scripts' digits
+    (_set("test_mass_kg", "1_590", 2), "row 3, column test_mass_kg: not a number: '1_590'"),
+    (_set("rated_power_kw", " inf", 4), "row 5, column rated_power_kw: must be finite, got inf"),
+    (_set("road_load_c_n_per_m2_s2", "\u0660.4", 6), "row 7, column road_load_c_n_per_m2_s2: not a number: '\u0660.4'"),
     (_set("road_load_b_n_per_m_s", "-40", 7), "row 8, column road_load_b_n_per_m_s: the road load"),
     # a second test_mass_kg column (e.g. pasted in lb) was read instead of the first, without a word
     (_duplicate("test_mass_kg", "5000"), "row 1, column test_mass_kg: given twice (columns 8 and 22)"),

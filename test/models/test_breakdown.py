@@ -153,7 +153,7 @@ def test_bad_parameter_names_range(nedc, name, value):
 def test_bad_mass_and_shape(nedc):
     with pytest.raises(ValueError, match=r"vehicle_mass_kg must be in \["):
         bd.energy_breakdown(nedc, {}, -5.0)
-    with pytest.raises(ValueError, match="disagree in length"):
+    with pytest.raises(ValueError, match=r"arrays of different lengths: vehicle_mass_kg \(2,\), drag_area_m2 \(3,\)"):
         bd.energy_breakdown(nedc, {"drag_area_m2": np.ones(3) * 0.6}, np.ones(2) * 1500)
 
 

@@ -84,11 +84,17 @@ def _csv(tmp_path, rows, name="c.csv"):
     ([(0, 0), (1, 10), (1e9, 10), (1e9 + 1, 0)], r"row 4: time gap of 1e\+09 s"),
     ([(0, 0), (1, 5), (1, 6)], r"row 4: time_s must be strictly increasing"),
     ([(0, 0), (2, 5), (1, 6)], r"row 4: time_s must be strictly increasing"),
-    ([(0, 0), (1, -3), (2, 0)], r"row 3: speed_kmh must be finite and >= 0"),
+    ([(0, 0), (1, -3), (2, 0)], r"row 3: speed_kmh must be >= 0, got -3"),
     ([(0, 0), (1, 100000), (2, 0)], r"row 3: speed_kmh 100000 is not plausible"),
     ([(0, 0), (1, 150), (2, 0)], r"row 3: acceleration 41.6667 m/s\^2 is not plausible"),
     ([(0, 0), (1, 0), (2, 0)], r"does not move"),
-    ([(0, 0), (1, "x")], r"row 3: not a number"),
+    ([(0, 0), (1, "x")], r"row 3, column speed_kmh: not a number: 'x'"),
+    # what float() reads besides: 1_0 as 10 s, inf and nan (a measured value), other scripts' digits
+    ([(0, 0), ("1_0", 5), (11, 0)], r"row 3, column time_s: not a number: '1_0'"),
+    ([(0, 0), (1, " inf"), (2, 0)], r"row 3, column speed_kmh: must be finite, got inf"),
+    ([(0, 0), ("nan", 5), (2, 0)], r"row 3, column time_s: must be finite, got nan"),
+    ([(0, 0), (1, "1e999")], r"row 3, column speed_kmh: must be finite, got 1e999"),
+    ([(0, 0), (1, "\u0665")], r"row 3, column speed_kmh: not a number: '\u0665'"),
 ])
 def test_bad_cycle_csv_one_line_naming_file_and_row(tmp_path, rows, match):
     p = _csv(tmp_path, rows)

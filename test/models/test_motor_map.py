@@ -92,7 +92,10 @@ def test_csv_roundtrip_and_shipped_default(tmp_path):
     ("speed,torque,eta\n0,0,0.5\n", "header"),
     ("speed_rad_s,torque_nm,efficiency\n0,0,0.5\n0,10,0.6\n100,0,0.7\n", "full speed x torque grid"),
     ("speed_rad_s,torque_nm,efficiency\n0,0,0.5\n0,10,1.5\n100,0,0.7\n100,10,0.8\n", "line 3"),
-    ("speed_rad_s,torque_nm,efficiency\n0,0,abc\n", "line 2: not a number"),
+    ("speed_rad_s,torque_nm,efficiency\n0,0,abc\n", "line 2, column efficiency: not a number: 'abc'"),
+    ("speed_rad_s,torque_nm,efficiency\n0,0,0.5\n0,1_0,0.6\n", "line 3, column torque_nm: not a number: '1_0'"),
+    ("speed_rad_s,torque_nm,efficiency\n0,0,nan\n", "line 2, column efficiency: must be finite, got nan"),
+    ("speed_rad_s,torque_nm,efficiency\n0,0\n", "line 2: need 3 numbers"),
 ])
 def test_bad_csv(tmp_path, text, match):
     p = tmp_path / "bad.csv"
