@@ -89,7 +89,7 @@ def test_a_hanging_user_discipline_fails_once_then_at_once(rclpy_context, nodes,
     fail; every later request to it fails at once (no re-send), and the run ends with its result."""
     res, stats = coordinator_node.run(load_config(configs["hangs"]), context=rclpy_context)
     assert not res.feasible
-    assert res.error == "hangs: no answer after 2 attempts of 1 s"
+    assert res.error == "hangs: no answer after 2 attempts of 1 s at point 0 (z1=5, x=1)"  # named as a raising one
     assert stats["retried"] == 1  # one request waited; the others failed without a wait
     assert res.iterations >= 0 and res.history
 
