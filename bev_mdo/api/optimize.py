@@ -36,10 +36,11 @@ class OptimizeOptions(Transport):
     progress_to_stderr: bool = False  # ROS start-up line on stderr (the CLI's --json)
 
 
-def run(config, opts: OptimizeOptions, callback=None, x0: dict | None = None) -> dict:
+def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | None = None) -> dict:
     """The run's JSON document: the result (design, outputs, constraints, first_order, verdict,
     active, ...) with ``baseline``, the transport's figures and ``run_time_s``; ``config``: a
-    ``RunConfig`` (a plain config mapping is loaded first)."""
+    ``RunConfig`` (a plain config mapping is loaded first). ``x0``: the start, or a multi-start's
+    start points."""
     from bev_mdo.config import RunConfig
 
     config = RunConfig.of(config)
@@ -85,7 +86,7 @@ def _run_inprocess(config, opts, show, x0, starts):
     bag, writer, show = in_process_bag(config, opts, show)  # a bag only when one is asked for
     with noting_interrupts(bag):
         try:
-            if starts > 1:
+            if starts != 1:
                 from bev_mdo.mdo.multistart import run_starts
 
                 res = run_starts(config.settings, ev, starts, seed=opts.seed,
@@ -175,13 +176,15 @@ def _where(names, instances: dict, compose: str | None) -> str:
     return f"{len(local) + started} discipline nodes ({'; '.join(parts)})"
 
 
-def _starts(opts, x0) -> int:
+def _starts(opts, x0) -> int | list:
+    """The run's starts: a count (multi-start: a sample of that many) or, for a multi-start resumed from
+    each start's last record, the list of start points ``x0`` is."""
     starts = int(opts.starts)
     if starts < 1:
         raise InputError(f"--starts {starts}: give at least 1")
     if starts > 1 and x0:
         raise InputError("--starts samples its own start points; it cannot be combined with a given start")
-    return starts
+    return list(x0) if isinstance(x0, list) else starts
 
 
 def exit_status(doc: dict, fixed_budget: bool = False) -> int:

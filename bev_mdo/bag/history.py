@@ -8,6 +8,7 @@ import json
 from bev_mdo.bag.errors import BagError
 from bev_mdo.bag.reader import Bag, open_bag, read_config
 from bev_mdo.bag.signing import verifier
+from bev_mdo.protocol import parse_start_tag
 
 ITERATION_TOPIC = "/bev_mdo/iteration"
 ITERATION_TYPE = "bev_mdo_msgs/msg/IterationRecord"
@@ -152,9 +153,11 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
             info["dropped"][why] = info["dropped"].get(why, 0) + 1
             continue
         values = named(rec.design)
+        start = parse_start_tag(rec.header.frame_id)
         rows.append({
             "run_id": rec.run_id,
             "iteration": int(rec.iteration),
+            **({"start": start[0] + 1, "starts": start[1], "seed": start[2]} if start else {}),
             "sequence": int(rec.sequence),
             "formulation": rec.formulation,
             "optimizer": rec.optimizer,
@@ -284,10 +287,11 @@ def headline(rows: list[dict], sign: float = 1.0, answers: dict | None = None) -
 
 
 def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
-                 checks: dict | None = None, no_verify: bool = False) -> tuple[str, dict[str, float], int]:
+                 checks: dict | None = None, no_verify: bool = False) -> tuple[str, dict | list, int]:
     """(config_yaml, design (IDF: and couplings) of the last verified iteration of the bag's own run, or of a sweep's best
     design (``headline``; `checks` then gets "sweep": ``sweep_phrase``), its iteration number), for
-    resume. BagError when the run was signed but its records cannot be verified."""
+    resume; for an interrupted multi-start, a list of each start's design (``each_start``) in its place.
+    BagError when the run was signed but its records cannot be verified."""
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     checks = {} if checks is None else checks
     rows = history(bag, run_id, key_file=key_file, checks=checks, no_verify=no_verify)
@@ -298,13 +302,33 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
     if not rows:
         raise BagError(f"{bag.mcap_path}: no IterationRecord on {ITERATION_TOPIC}; nothing to resume")
     config = read_config(bag)
-    k = headline(rows, -1.0 if maximized(config) else 1.0, read_answers(bag))
+    answers = read_answers(bag)
+    k = headline(rows, -1.0 if maximized(config) else 1.0, answers)
     row = rows[k]
     if checks is not None and k != len(rows) - 1 and row["formulation"] != "doe":
         checks["result"] = f"the run's result (iteration {row['iteration']}, not its last record)"
     if checks is not None and row["formulation"] == "doe":
         checks["sweep"] = sweep_phrase(row, len(rows))
+    if row.get("starts") and not (answers or {}).get("result_design"):  # an interrupted multi-start
+        return config, each_start(rows, row, checks), int(row["iteration"])
     return config, {**row["design"], **row.get("couplings", {})}, int(row["iteration"])
+
+
+def each_start(rows: list[dict], last: dict, checks: dict) -> list[dict | None]:
+    """The design (IDF: and couplings) of each start's last record of an interrupted multi-start whose
+    last record is `last`, in start order; None for a start with no record (`checks` gets "starts":
+    what the resume goes on from, and "seed": the sample's, to draw such a start's point again)."""
+    n = last["starts"]
+    final: dict[int, dict] = {}
+    for r in rows:
+        if r.get("starts") == n and r.get("seed") == last.get("seed"):
+            final[r["start"]] = r
+    checks["seed"] = last.get("seed")
+    checks["starts"] = (f"the last record of each of its {n} starts (iterations "
+                        + ", ".join(str(final[i]["iteration"]) if i in final else "none"
+                                    for i in range(1, n + 1)) + ")")
+    return [{**final[i]["design"], **final[i].get("couplings", {})} if i in final else None
+            for i in range(1, n + 1)]
 
 
 def runs_held(run_ids: list[str], shown: int = 5) -> str:

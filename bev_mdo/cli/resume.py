@@ -85,16 +85,48 @@ def run(args) -> int:
     config = RunConfig.of(config)
     if is_per_run_key(config["ros"].get("sign_key_file")):
         config = config.with_ros({**config["ros"], "sign_key_file": ""})
-    print(f"resuming {config.name} from {checks.get('sweep') or checks.get('result') or f'iteration {iteration}'} at "
-          + ", ".join(f"{k}={v:.6g}" for k, v in design.items()), file=out)
-    # element names ('x_shared[0]', ...) for vector design variables, as the bag records them
     problem = config.problem
+    if isinstance(design, list):  # an interrupted multi-start: every start goes on from its own last record
+        print(f"resuming {config.name} from {checks['starts']}", file=out)
+        x0 = _start_points(problem, design, checks.get("seed"), out)
+        x0 = [_in_bounds(config, problem, x, out) for x in x0]
+    else:
+        print(f"resuming {config.name} from {checks.get('sweep') or checks.get('result') or f'iteration {iteration}'} "
+              "at " + ", ".join(f"{k}={v:.6g}" for k, v in design.items()), file=out)
+        x0 = _in_bounds(config, problem, design, out)
+    opts = argparse.Namespace(**vars(Transport.of(args)), formulation=None, optimizer=None, json=args.json,
+                              bag=args.out_bag, no_record=args.no_record, quiet=args.quiet,
+                              instances=args.instances, compose=args.compose)
+    return run_job(config, opts, x0=x0)
+
+
+def _start_points(problem, designs: list, seed, out) -> list[dict]:
+    """Each start's design; a start with no record gets its point of the sample again (its seed), or is
+    left out when the sample is not known (the run was itself resumed from given points)."""
+    missing = [i for i, d in enumerate(designs) if d is None]
+    if missing and seed is not None:
+        from bev_mdo.mdo.multistart import start_points
+
+        sample = start_points(problem, len(designs), seed)
+        designs = [sample[i] if d is None else d for i, d in enumerate(designs)]
+    elif missing:
+        print("left out start(s) " + ", ".join(str(i + 1) for i in missing) + ": no record of them and no sample "
+              "to draw their points from", file=out)
+    designs = [d for d in designs if d is not None]
+    if not designs:
+        raise ValueError("no start of the multi-start has a record to resume from")
+    return designs
+
+
+def _in_bounds(config, problem, design: dict, out) -> dict:
+    """The design variables (element names such as 'x_shared[0]' for vectors, as the bag records them) of
+    a recorded design and, for IDF, its couplings, within their bounds: an optimiser may end a little
+    outside a bound (COBYLA, trust-constr: within the feasibility tolerance), and the resumed run then
+    starts on the bound instead of refusing its start point."""
     names = problem.names
     x0 = {k: v for k, v in design.items() if k in names}
     if str(config["formulation"]).lower() == "idf":  # IDF goes on from the couplings it held, too
         x0.update({k: v for k, v in design.items() if k not in names})
-    # an optimiser may end a little outside a bound (COBYLA, trust-constr: within the feasibility tolerance);
-    # the resumed run starts on the bound instead of refusing its start point
     lo, hi = (dict(zip(names, problem.array(side))) for side in ("lower", "upper"))
     for k in set(x0) - set(names):
         lo[k], hi[k] = problem.coupling_bound(k)
@@ -103,7 +135,4 @@ def run(args) -> int:
         print("starting on the bound of " + ", ".join(f"{k} ({x0[k]:.6g} -> {v:.6g})" for k, v in moved.items()),
               file=out)
         x0.update(moved)
-    opts = argparse.Namespace(**vars(Transport.of(args)), formulation=None, optimizer=None, json=args.json,
-                              bag=args.out_bag, no_record=args.no_record, quiet=args.quiet,
-                              instances=args.instances, compose=args.compose)
-    return run_job(config, opts, x0=x0)
+    return x0

@@ -42,16 +42,24 @@ def start_points(problem: Problem, starts: int, seed: int = 0) -> list[dict[str,
     return [problem.design_dict(row) for row in qmc.scale(unit, lo, hi)]
 
 
-def run_starts(run: Run, evaluator: Evaluator, starts: int, *, seed: int = 0, formulation: str | None = None,
-               optimizer: str | None = None, callback: Callable[[dict], Any] | None = None,
-               rel_tol: float = REL_TOL, design_tol: float = DESIGN_TOL, batched: bool = True) -> RunResult:
+def run_starts(run: Run, evaluator: Evaluator, starts: int | list[dict[str, float]], *, seed: int = 0,
+               formulation: str | None = None, optimizer: str | None = None,
+               callback: Callable[[dict], Any] | None = None, rel_tol: float = REL_TOL,
+               design_tol: float = DESIGN_TOL, batched: bool = True) -> RunResult:
     """The best of ``starts`` optimisations (RunResult of the best start, with the totals of all of
-    them and ``multistart`` set); one start is ``run_optimization`` as it is."""
+    them and ``multistart`` set); one start is ``run_optimization`` as it is. ``starts``: a count (a
+    Latin hypercube of that many points, ``seed``) or the start points themselves (a multi-start
+    resumed from each start's last record: ``seed`` is then None in the records and the summary)."""
     t0 = time.perf_counter()
     run = RunSettings.of(run, evaluator)
     problem = run.optimisation_problem()
-    if starts == 1:
+    if isinstance(starts, int) and starts == 1:
         return run_optimization(run, evaluator, formulation=formulation, optimizer=optimizer, callback=callback)
+    if isinstance(starts, int):
+        points = start_points(problem, starts, seed)
+    else:
+        points, seed = [dict(x0) for x0 in starts], None
+    starts = len(points)
     count = [0]
 
     def renumbered(rec: dict) -> None:  # on one thread: records in the order they were made
@@ -59,15 +67,19 @@ def run_starts(run: Run, evaluator: Evaluator, starts: int, *, seed: int = 0, fo
             callback({**rec, "iteration": count[0]})
         count[0] += 1
 
-    points = start_points(problem, starts, seed)
+    def tagged(i: int):  # each record names its start (0-based), so a resume can go on from each one's last record
+        return lambda rec: {**rec, "start": (i, starts, seed)}
+
     if batched:
-        def job(x0: dict[str, float]):
+        def job(i: int, x0: dict[str, float]):
+            tag = tagged(i)
             return lambda ev: run_optimization(run, ev, formulation=formulation, optimizer=optimizer, x0=x0,
-                                               callback=lambda rec: ev.emit(renumbered, rec))
-        results = list(zip(points, run_lockstep(evaluator, [job(x0) for x0 in points])))
+                                               callback=lambda rec: ev.emit(renumbered, tag(rec)))
+        results = list(zip(points, run_lockstep(evaluator, [job(i, x0) for i, x0 in enumerate(points)])))
     else:
         results = [(x0, run_optimization(run, evaluator, formulation=formulation, optimizer=optimizer, x0=x0,
-                                         callback=renumbered)) for x0 in points]
+                                         callback=lambda rec, tag=tagged(i): renumbered(tag(rec))))
+                   for i, x0 in enumerate(points)]
     span = problem.array("upper") - problem.array("lower")
     best_i = _best_start([r for _, r in results], -1.0 if problem.maximize else 1.0, span, problem.names, design_tol)
     best = results[best_i][1]
@@ -123,5 +135,5 @@ def summary_line(ms: Mapping[str, Any]) -> str:
     verdicts = Counter(r["verdict"] for r in ms["results"])
     return (f"multi-start: {ms['reached_best']} of {ms['starts']} starts reached the best point (objective within "
             f"{ms['objective_rel_tol']:g} relative, each design variable within {ms['design_tol']:g} of its range; "
-            f"Latin hypercube, seed {ms['seed']}); verdicts: "
+            + ("given start points" if ms["seed"] is None else f"Latin hypercube, seed {ms['seed']}") + "); verdicts: "
             + ", ".join(f"{n} {v}" for v, n in sorted(verdicts.items(), key=lambda kv: -kv[1])))

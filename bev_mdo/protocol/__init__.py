@@ -9,14 +9,14 @@ recorder and the bag readers (``bev_mdo.bag``) all use this one codec.
 """
 from bev_mdo.protocol.batches import (MAX_BATCH, MAX_NAMES, MAX_REASON_LEN, batch, decode_request, decode_result,
                                       encode_request, encode_result, fill_iteration_record, from_named_array,
-                                      partials_batch, partials_of, point_errors_of, put_point_errors, request,
-                                      result, to_named_array)
+                                      parse_start_tag, partials_batch, partials_of, point_errors_of, put_point_errors,
+                                      request, result, to_named_array)
 from bev_mdo.protocol.messages import (DisciplineInfo, EvaluationRequest, EvaluationResult, Header, IterationRecord,
                                        NamedArray, ParetoFront, WireError, decode, encode, head, new, to_protocol)
 
 __all__ = [
     "MAX_BATCH", "MAX_NAMES", "MAX_REASON_LEN", "batch", "decode_request", "decode_result", "encode_request",
-    "encode_result", "fill_iteration_record", "from_named_array", "partials_batch", "partials_of",
+    "encode_result", "fill_iteration_record", "from_named_array", "parse_start_tag", "partials_batch", "partials_of",
     "point_errors_of", "put_point_errors", "request", "result", "to_named_array",
     "DisciplineInfo", "EvaluationRequest", "EvaluationResult", "Header", "IterationRecord", "NamedArray",
     "ParetoFront", "WireError", "decode", "encode", "head", "new", "to_protocol",

@@ -7,6 +7,7 @@ A NamedArray is column-major: the values of ``names[j]`` for all points are
 from __future__ import annotations
 
 import array
+import re
 from collections import OrderedDict
 from typing import Mapping
 
@@ -23,6 +24,7 @@ MAX_NAMES = 1024
 MAX_NAME_LEN = 128
 MAX_REASON_LEN = 1000  # characters of one point error's reason (and of its inputs) sent
 
+_START_TAG = re.compile(r"start (\d+)/(\d+)(?: seed (-?\d+))?")  # start_tag's text
 _F8 = np.dtype("<f8")
 _GOOD_NAMES: set[tuple] = set()  # name lists that passed from_named_array's checks
 _PARTIAL_KEYS: dict[tuple, list] = {}
@@ -179,9 +181,24 @@ def partials_of(block, n: int) -> dict[tuple[str, str], np.ndarray] | None:
     return {k: values[j * n:(j + 1) * n] for j, k in enumerate(keys)}
 
 
+def start_tag(start: int, starts: int, seed: int | None) -> str:
+    """The header frame_id of a multi-start's IterationRecord (the .msg): which start made it, 1-based,
+    and the seed of the sample (none for given start points)."""
+    return f"start {start + 1}/{starts}" + ("" if seed is None else f" seed {seed}")
+
+
+def parse_start_tag(tag: str) -> tuple[int, int, int | None] | None:
+    """(start 0-based, starts, seed or None) of ``start_tag``'s text; None for any other text."""
+    m = _START_TAG.fullmatch(tag)
+    if m is None or not 1 <= int(m[1]) <= int(m[2]):
+        return None
+    return int(m[1]) - 1, int(m[2]), None if m[3] is None else int(m[3])
+
+
 def fill_iteration_record(msg, rec: Mapping, run_id: str, sequence: int):
     """Fill an IterationRecord (header stamped by the caller) from a driver iteration record dict."""
     msg.run_id, msg.sequence, msg.iteration = run_id, int(sequence), int(rec["iteration"])
+    msg.header.frame_id = start_tag(*rec["start"]) if rec.get("start") else ""  # a multi-start's: which start
     msg.formulation, msg.optimizer = str(rec.get("formulation", "")), str(rec.get("optimizer", ""))
     # the design variables, then (IDF) the couplings: the optimiser's variables, as the .msg says
     to_named_array({k: np.array([float(v)]) for k, v in {**rec["design"], **rec.get("couplings", {})}.items()},

@@ -140,7 +140,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         optimizer: str | None = None, x0: Mapping[str, float] | None = None,
         on_iteration: Callable[[dict], None] | None = None, recorder_subscribers: int = 0,
         context=None, signer=None, instances: Mapping[str, int] | None = None,
-        give_up_acks: Callable[[], bool] | None = None, beside=None, starts: int = 1, seed: int = 0,
+        give_up_acks: Callable[[], bool] | None = None, beside=None, starts: int | list = 1, seed: int = 0,
         recorder_binding: str | None = None, starting: Callable[[], tuple] | None = None,
         before: Callable[[RosEvaluator], None] | None = None):
     """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats).
@@ -177,7 +177,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
             if on_iteration is not None:
                 on_iteration(rec)
 
-        if starts > 1:  # --starts: every start through the same nodes, one bag
+        if starts != 1:  # --starts (a count, or a resumed multi-start's points): all through the same nodes, one bag
             from bev_mdo.mdo.multistart import run_starts
 
             result = run_starts(config.settings, node.evaluator, starts, seed=seed, formulation=formulation,
