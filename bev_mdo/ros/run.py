@@ -25,11 +25,11 @@ def run(exe: str, args: list[str] | None = None) -> int:
             print(f"unknown executable {exe!r}; known: {', '.join([*DISCIPLINE_EXES, *OTHER_EXES])}", file=sys.stderr)
             return 2
         return main(args)
-    except BaseException:
-        if interrupts.pending() is None:
+    except BaseException as exc:  # rclpy's own handler shut the context down: a signal Python ignores (a `&` job's SIGINT)
+        if interrupts.pending() is None and type(exc).__name__ != "ExternalShutdownException":
             raise
         print(f"{exe}: interrupted", file=sys.stderr, flush=True)
-        return 143 if issubclass(interrupts.pending(), interrupts.Terminated) else 130
+        return 143 if issubclass(interrupts.pending() or KeyboardInterrupt, interrupts.Terminated) else 130
 
 
 def _load(exe: str):
