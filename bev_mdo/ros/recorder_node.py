@@ -416,6 +416,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    from bev_mdo.ros.run import run
-
-    sys.exit(run("recorder_node", sys.argv[1:]))
+    sys.exit(interrupts.run_main("recorder_node", main))
