@@ -11,6 +11,9 @@ Once the ``bev-mdo`` process has written its output (``work_done``), there is no
 signal then ends the process at once, during whatever teardown remains (a hung one included), with one
 line saying that the result was written (and what else is complete: ``note_done``), exit status 130 or
 143 as for any other Ctrl-C or SIGTERM.
+
+A node executable (ros/run.py) runs its main through ``run_main``: a signal it raises on ends it with one line,
+``<node>: interrupted``, status 130 or 143; the recorder closes its bag inside ``deferred()`` first.
 """
 from __future__ import annotations
 
@@ -113,3 +116,17 @@ def check() -> None:
     """Raise again a signal whose exception was swallowed on the way (a no-op otherwise)."""
     if _pending is not None:
         raise _pending()
+
+
+def run_main(name: str, main, *args) -> int:
+    """``main(*args)``'s exit status, with the handlers installed (both signals raise in the main thread; rclpy's
+    handlers, installed later, pass them on): a SIGINT or SIGTERM it raises on ends it with one line on stderr,
+    ``<name>: interrupted``, and status 130 (143 for SIGTERM). For a node executable (ros/run.py)."""
+    install()
+    try:
+        return main(*args)
+    except BaseException as exc:  # rclpy's own handler shut the context down: a signal Python ignores (a `&` job's SIGINT)
+        if _pending is None and type(exc).__name__ != "ExternalShutdownException":
+            raise
+        print(f"{name}: interrupted", file=sys.stderr, flush=True)
+        return 143 if _pending is not None and issubclass(_pending, Terminated) else 130

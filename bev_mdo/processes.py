@@ -50,10 +50,10 @@ def check_parameters(given, declared, node: str) -> None:
         pre = "vehicle." if name.startswith("vehicle.") else ""  # compared on the key, not the shared prefix
         near = [pre + m for m in difflib.get_close_matches(name[len(pre):], [d[len(pre):] for d in declared
                                                                             if d.startswith(pre)], n=3, cutoff=0.6)]
-        shown = [d for d in declared if not d.startswith("vehicle.")] + (["vehicle.<key>"] if any(
-            d.startswith("vehicle.") for d in declared) else [])
+        vehicle = any(d.startswith("vehicle.") for d in declared)  # a discipline node's overrides
+        shown = [d for d in declared if not d.startswith("vehicle.")] + (["vehicle.<key>"] if vehicle else [])
         hint = (f"did you mean {' or '.join(near)}?" if near else "it overrides only the vehicle values its config "
-                "sets" if name.startswith("vehicle.") else f"it has {', '.join(shown)}")
+                "sets" if pre and vehicle else f"it has {', '.join(shown)}")
         raise ValueError(f"parameter {name}: {node} has no such parameter; {hint}")
 
 

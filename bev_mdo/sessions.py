@@ -277,11 +277,12 @@ def recorder_failure(launcher, bag: Path) -> str | None:
     """None if the recorder lived to the end, or closed its bag and was then killed in its ROS teardown (past
     Launcher.stop's wait); else a one-line warning, after making the bag readable again (summary and metadata rebuilt)."""
     node = launcher.node("recorder")
-    during = node.died is not None  # ended during the run (the supervisor saw it): failed, even SIGTERMed with exit 0
+    during = node.died is not None  # ended during the run (the supervisor saw it): failed, even SIGTERMed (exit 143)
     status = node.died if during else (node.proc.returncode if node.proc is not None else None)
-    if not during and status in (0, None):
+    told = status in (0, 130, 143)  # it took SIGINT or SIGTERM and closed its bag (ros/recorder_node.main)
+    if not during and (told or status is None):
         return None
-    note = (f"the recorder {'died' if status else 'stopped'} (exit status {status}) during the run" if not node.frozen else
+    note = (f"the recorder {'stopped' if told else 'died'} (exit status {status}) during the run" if not node.frozen else
             "the recorder was frozen (its process stopped, e.g. by SIGSTOP) at the end of the run and was killed")
     note += "; the bag holds only what it recorded before"
     try:

@@ -3,6 +3,8 @@ host, SIGTERM after Launcher.stop's wait) did not fail the run; one killed befor
 (sessions.recorder_failure), without processes."""
 from __future__ import annotations
 
+import pytest
+
 from bev_mdo import sessions
 from bev_mdo.launcher import Launcher, NodeProcess
 
@@ -49,14 +51,18 @@ def test_a_recorder_killed_before_it_closed_its_bag_is_one_warning_and_the_bag_i
     assert not repaired.truncated and repaired.message_count == 3
 
 
-def test_a_recorder_that_ended_cleanly_during_the_run_is_one_warning(tmp_path):
-    """SIGTERMed mid-run, a recorder closes its bag and exits 0: the bag is whole, but holds nothing recorded
-    after that, so the run is told (status 3), not silently complete; the bag is left as the recorder closed it."""
+@pytest.mark.parametrize("status", [143, 130, 0])
+def test_a_recorder_that_ended_cleanly_during_the_run_is_one_warning(tmp_path, status):
+    """SIGTERMed mid-run, a recorder closes its bag and exits 143 (130 for SIGINT): the bag is whole, but holds
+    nothing recorded after that, so the run is told (status 3), not silently complete; the bag is left as the
+    recorder closed it."""
     bag = _bag(tmp_path, closed=True)
-    note = sessions.recorder_failure(_launcher(0, during=True), bag)
-    assert note.startswith("the recorder stopped (exit status 0) during the run") and "closed by the recorder" in note
+    note = sessions.recorder_failure(_launcher(status, during=True), bag)
+    assert note.startswith(f"the recorder stopped (exit status {status}) during the run") and "closed by the recorder" in note
     assert not list(bag.glob("*.bak*"))
 
 
-def test_a_recorder_that_exited_0_when_told_to_stop_is_no_failure(tmp_path):
-    assert sessions.recorder_failure(_launcher(0, during=False), _bag(tmp_path, closed=True)) is None
+@pytest.mark.parametrize("status", [130, 143, 0])
+def test_a_recorder_that_exited_as_told_to_stop_is_no_failure(tmp_path, status):
+    """Launcher.stop's SIGINT (then SIGTERM): the recorder closes its bag and exits 130 (143)."""
+    assert sessions.recorder_failure(_launcher(status, during=False), _bag(tmp_path, closed=True)) is None

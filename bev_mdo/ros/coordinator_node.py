@@ -14,10 +14,10 @@ import uuid
 from typing import Any, Callable, Mapping
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from bev_mdo import jsontext, protocol
+from bev_mdo.processes import beside_coordinator, check_parameters
 from bev_mdo.ros.common import (ITERATION_QOS, ITERATION_TOPIC, RESULT_TOPIC, declare, endpoints, mda_result_topic,
                                 stamp, wait_acked)
 from bev_mdo.ros.evaluator import RosEvaluator
@@ -219,13 +219,12 @@ def main(args: list[str] | None = None) -> int:
             ("recorders", 0, "1: before the first evaluation, wait for this run's recorder (recorder_node --run-id RUN)"),
             ("instances", "", "wait for pools before the first evaluation: N or name=N[,name=N] (as --instances)"),
             ("compose", "", "coordinator: serve every discipline (but pools) from nodes in this process (--compose)"))}
+        check_parameters(probe._parameter_overrides, probe._parameters, probe.get_name())  # a misspelt -p: refused
         probe.destroy_node()
         config = RunConfig.load(p["config"] or default_config())
         _check_static(config, p)  # a mistake in them is said at once, not after the discovery wait
         instances = _instances(p["instances"], config)
         run_id = p["run_id"] or uuid.uuid4().hex[:16]
-        from bev_mdo.processes import beside_coordinator
-
         local = beside_coordinator(p["compose"], list(config.names), instances)
         if local:
             from bev_mdo.ros.composed import Beside
@@ -238,9 +237,7 @@ def main(args: list[str] | None = None) -> int:
                                                          f"  max violation {r.get('max_violation', 0):.3g}"))
         print(jsontext.dumps({"result": result.to_dict(), **stats}))  # strict JSON: NaN as null
         return 0
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return 130
-    except ValueError as exc:
+    except ValueError as exc:  # SIGINT, SIGTERM: raised on, ros/run.py says so in one line (exit 130, 143)
         print(f"coordinator_node: error: {exc}", file=sys.stderr)
         return STARTUP_GAVE_UP_STATUS if isinstance(exc, StartupGaveUp) else 2
     finally:

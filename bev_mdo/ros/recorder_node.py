@@ -33,7 +33,6 @@ import argparse
 import importlib
 import json
 import os
-import signal
 import sys
 import time
 from pathlib import Path
@@ -42,9 +41,11 @@ import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from bev_mdo import interrupts
 from bev_mdo.bag.history import ITERATION_TOPIC
 from bev_mdo.bag.writer import BagWriter
 from bev_mdo.binding import config_binding, run_matches
+from bev_mdo.processes import check_parameters
 from bev_mdo.protocol.messages import RUN_TAGGED, run_of
 from bev_mdo.ros.common import DECLARATION_READER_QOS, declare, endpoints, node_of, run_type
 
@@ -84,6 +85,8 @@ class RecorderNode(Node):
         discovery_period_s = float(p("discovery_period_s", 0.5))
         flush_period_s = float(p("flush_period_s", 1.0))
         status_period_s = float(p("status_period_s", 0.05))
+        self.nice = int(p("nice", 10))
+        check_parameters(self._parameter_overrides, self._parameters, self.get_name())  # before the bag exists
         if config_file and not config_yaml:
             config_yaml = Path(config_file).read_text(encoding="utf-8")
         self.binding = config_binding(config_yaml) if config_yaml else ""
@@ -377,34 +380,32 @@ def main(args: list[str] | None = None) -> int:
         overrides.append(Parameter("config_file", Parameter.Type.STRING, ns.config))
     if ns.run_id:
         overrides.append(Parameter("run_id", Parameter.Type.STRING, ns.run_id))
-    stop = []
     rclpy.init(args=["recorder_node", *argv], signal_handler_options=SignalHandlerOptions.NO)
     node = None
-    old = {s: signal.signal(s, lambda *_: stop.append(1)) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        try:
-            node = RecorderNode(parameter_overrides=overrides)
-        except ValueError as exc:
-            print(f"recorder_node: error: {exc}", file=sys.stderr)
-            return 2
-        # The recorder yields the CPU to the run it records (on a 2-core host it otherwise adds
-        # ~10 % to the MDA latency) once the run's first message arrived; through start-up (discovery,
-        # matching, its declaration, which the run waits for) it keeps the priority of the run's other
-        # processes, else a host loaded by many runs starting together starves it. Its subscription
-        # queues are deep, so it catches up in the gaps, and it drains what is queued before it closes the bag.
-        nice = int(node.declare_parameter("nice", 10).value)
-        serve_until(node, lambda: bool(stop), nice=nice)
-        # Drain what already arrived before closing, so a stop does not lose the run's tail.
-        node.drain()
+        # SIGINT and SIGTERM (interrupts: installed by ros/run.py or the CLI) stop the recording; raised once the bag
+        # is closed (a second one too), and ros/run.py says so in one line, exit status 130 (143)
+        with interrupts.deferred():
+            try:
+                node = RecorderNode(parameter_overrides=overrides)
+            except ValueError as exc:
+                print(f"recorder_node: error: {exc}", file=sys.stderr)
+                return 2
+            # The recorder yields the CPU to the run it records (on a 2-core host it otherwise adds
+            # ~10 % to the MDA latency) once the run's first message arrived; through start-up (discovery,
+            # matching, its declaration, which the run waits for) it keeps the priority of the run's other
+            # processes, else a host loaded by many runs starting together starves it. Its subscription
+            # queues are deep, so it catches up in the gaps, and it drains what is queued before it closes the bag.
+            try:
+                serve_until(node, interrupts.pending, nice=node.nice)
+                node.drain()  # what already arrived, so a stop does not lose the run's tail
+            finally:
+                node.close()
+                print(f"recorded {node.writer.message_count} messages to {node.writer.path}"
+                      + (f"; {node.other_run} of other runs not recorded" if node.other_run else "")
+                      + node.order.note(), file=sys.stderr)
         return 0
     finally:
-        if node is not None:  # a second SIGINT/SIGTERM while the bag is closed must not cut it short
-            node.close()
-            print(f"recorded {node.writer.message_count} messages to {node.writer.path}"
-                  + (f"; {node.other_run} of other runs not recorded" if node.other_run else "")
-                  + node.order.note(), file=sys.stderr)
-        for s, handler in old.items():
-            signal.signal(s, handler)
         from bev_mdo.stacks import deadline
 
         with deadline():  # the bag is closed above; a teardown hung in Fast DDS must not outlive the run
@@ -415,4 +416,4 @@ def main(args: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(interrupts.run_main("recorder_node", main))

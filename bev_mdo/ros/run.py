@@ -12,24 +12,22 @@ from bev_mdo.processes import DISCIPLINE_EXES, OTHER_EXES
 
 def run(exe: str, args: list[str] | None = None) -> int:
     """Run one node executable by name. A SIGINT or SIGTERM that lands while it is still loading (imports,
-    config, models: before it serves; its run stopped during start-up) ends it with one line and status 130
-    (143), not a traceback, a silent 0 or SIGTERM's silent default; once serving, its main handles them."""
+    config, models: before it serves; its run stopped during start-up), or that its main raises on (the
+    coordinator; the recorder once its bag is closed), ends it with one line and status 130 (143)
+    (interrupts.run_main), not a traceback, a silent 0 or SIGTERM's silent default."""
     from bev_mdo import interrupts
     from bev_mdo.stacks import dump_stacks_on_sigusr1
 
     dump_stacks_on_sigusr1()
-    interrupts.install()  # both raise in the main thread (rclpy's handlers, installed later, pass them on)
-    try:
+
+    def load_and_run() -> int:
         main = _load(exe)
         if main is None:
             print(f"unknown executable {exe!r}; known: {', '.join([*DISCIPLINE_EXES, *OTHER_EXES])}", file=sys.stderr)
             return 2
         return main(args)
-    except BaseException:
-        if interrupts.pending() is None:
-            raise
-        print(f"{exe}: interrupted", file=sys.stderr, flush=True)
-        return 143 if issubclass(interrupts.pending(), interrupts.Terminated) else 130
+
+    return interrupts.run_main(exe, load_and_run)
 
 
 def _load(exe: str):

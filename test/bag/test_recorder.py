@@ -21,8 +21,9 @@ HERE = Path(__file__).parent
 def _start_recorder(bag: Path, *extra: str) -> subprocess.Popen:
     cmd = [sys.executable, "-m", "bev_mdo.ros.run", "recorder_node", "--output", str(bag), *extra,
            "--ros-args", "-p", "flush_period_s:=0.1", "-p", "discovery_period_s:=0.1"]
-    return subprocess.Popen(cmd, env=ros_env(DOMAIN), cwd=ROOT, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    # SIGINT at its default in the child: a suite started as a shell's background job inherits it ignored
+    return subprocess.Popen(cmd, env=ros_env(DOMAIN), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def _start_publisher(batch: int, n_batches: int) -> subprocess.Popen:
@@ -68,7 +69,10 @@ def _published(n: int):
     return [(i, 1000.0 - i, [50.0 + 0.25 * i, 40.0 + 0.5 * i]) for i in range(n)]
 
 
-def test_recorder_clean_stop_records_everything(tmp_path):
+@pytest.mark.parametrize("sig, status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)], ids=["SIGTERM", "SIGINT"])
+def test_recorder_clean_stop_records_everything(tmp_path, sig, status):
+    """Stopped by SIGINT or SIGTERM, the recorder closes its bag with every message and ends as a signalled node
+    does (docs/recording.md): its closing line, then one `recorder_node: interrupted` line, exit status 130 (143)."""
     from rosbags.highlevel import AnyReader
 
     from bev_mdo.bag.reader import open_bag, read_config
@@ -82,12 +86,18 @@ def test_recorder_clean_stop_records_everything(tmp_path):
         _expect(pub, "ready")
         _send(pub, 250)
         _send(pub, 500)
-        rec.send_signal(signal.SIGTERM)
-        assert rec.wait(timeout=30) == 0
+        rec.send_signal(sig)
+        err = rec.communicate(timeout=60)[1]
     finally:
         for proc in (pub, rec):
             proc.kill()
             proc.wait()
+    lines = err.strip().splitlines()
+    assert rec.returncode == status and "Traceback" not in err, (rec.returncode, err[-2000:])
+    assert lines[-1] == "recorder_node: interrupted" and lines[-2].startswith("recorded 500 messages to "), lines
+    history = subprocess.run([sys.executable, "-m", "bev_mdo", "history", str(bag), "--csv", "-"], cwd=tmp_path,
+                             env=ros_env(DOMAIN), capture_output=True, text=True, timeout=120)
+    assert history.returncode == 0 and len(history.stdout.strip().splitlines()) == 501, history.stderr[-2000:]
     opened = open_bag(bag)
     assert not opened.truncated and (bag / "metadata.yaml").is_file()
     assert _values(opened) == _published(500)

@@ -1,0 +1,74 @@
+"""The coordinator and the recorder started by hand (docs/ros2-run.md) behave as the discipline nodes do: a
+parameter they do not declare is one line and exit 2 (rclpy kept a misspelt ``-p formulaton:=idf`` without a
+word), and SIGINT or SIGTERM ends them with one ``<node>: interrupted`` line, exit status 130 or 143 (the
+coordinator exited 130 on both, silently)."""
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from bev_mdo.testing import ros_env
+
+pytestmark = pytest.mark.ros
+ROS_DOMAIN = 53
+STARTING = "{}: starting (loading ROS 2 and the models)"
+
+
+def _node(exe: str, *args: str, ros_domain: int, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "bev_mdo.ros.run", exe, *args], env=ros_env(ros_domain),
+                          capture_output=True, text=True, timeout=120, **kw)
+
+
+@pytest.mark.parametrize("param, words", [
+    ("confg:=x.yaml", "parameter confg: coordinator_node has no such parameter; did you mean config?"),
+    ("formulaton:=idf", "parameter formulaton: coordinator_node has no such parameter; did you mean formulation?"),
+    ("vehicle.drag_area_m2:=0.6", "parameter vehicle.drag_area_m2: coordinator_node has no such parameter; it has "
+                                  "compose, config, formulation, instances, optimizer, recorders, run_id")])
+def test_a_parameter_the_coordinator_does_not_declare_is_one_line_exit_2(ros_domain, leaf_config, param, words):
+    p = _node("coordinator_node", "--ros-args", "-p", f"config:={leaf_config}", "-p", param, ros_domain=ros_domain)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, (p.returncode, p.stderr[-3000:])
+    lines = p.stderr.strip().splitlines()  # (rclpy's own parameters come last in the list of those it has)
+    assert len(lines) == 2 and lines[0] == STARTING.format("coordinator_node"), lines
+    assert lines[1].startswith(f"coordinator_node: error: {words}"), lines
+
+
+def test_a_parameter_the_recorder_does_not_declare_is_one_line_exit_2_and_no_bag(ros_domain, tmp_path):
+    bag = tmp_path / "bag"
+    p = _node("recorder_node", "--output", str(bag), "--ros-args", "-p", "qos_dept:=5", ros_domain=ros_domain)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, (p.returncode, p.stderr[-3000:])
+    assert p.stderr.strip().splitlines() == [
+        STARTING.format("recorder_node"),
+        "recorder_node: error: parameter qos_dept: recorder_node has no such parameter; did you mean qos_depth?"]
+    assert not bag.exists()
+
+
+@pytest.mark.parametrize("sig, status, sigint", [
+    (signal.SIGINT, 130, signal.SIG_DFL), (signal.SIGTERM, 143, signal.SIG_DFL),
+    (signal.SIGINT, 130, signal.SIG_IGN)], ids=["SIGINT", "SIGTERM", "SIGINT-ignored"])
+def test_a_coordinator_signalled_while_it_waits_ends_with_one_line(ros_domain, leaf_config, sig, status, sigint):
+    """Signalled while it waits for the disciplines (none run on this domain). SIGINT-ignored: started as a
+    shell's background job, Python takes no SIGINT and only rclpy's own handler does (it shuts the context down)."""
+    p = subprocess.Popen([sys.executable, "-m", "bev_mdo.ros.run", "coordinator_node", "--ros-args", "-p",
+                          f"config:={leaf_config}", "-p", "run_id:=by_hand_signalled"], env=ros_env(ros_domain),
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, sigint))
+    lines = []
+    try:
+        for line in p.stderr:  # ends if the coordinator dies; it says once a second what it waits for
+            lines.append(line)
+            if line.startswith("[start-up] waiting for discipline(s)") or len(lines) > 50:
+                break
+        p.send_signal(sig)
+        out, rest = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    err = "".join(lines) + rest
+    assert lines[-1].startswith("[start-up] waiting for discipline(s)"), err[-3000:]
+    assert p.returncode == status and "Traceback" not in err and not out, (p.returncode, err[-3000:])
+    assert err.strip().splitlines()[-1] == "coordinator_node: interrupted", err[-3000:]
+    assert err.count("coordinator_node: interrupted") == 1
