@@ -125,8 +125,16 @@ def run_main(name: str, main, *args) -> int:
     install()
     try:
         return main(*args)
-    except BaseException as exc:  # rclpy's own handler shut the context down: a signal Python ignores (a `&` job's SIGINT)
-        if _pending is None and type(exc).__name__ != "ExternalShutdownException":
+    except BaseException as exc:
+        if _pending is None and not _shut_down_by_rclpy(exc):
             raise
         print(f"{name}: interrupted", file=sys.stderr, flush=True)
         return 143 if _pending is not None and issubclass(_pending, Terminated) else 130
+
+
+def _shut_down_by_rclpy(exc: BaseException) -> bool:
+    """rclpy's own handler shut the context down on a signal Python ignores (a `&` job's SIGINT): the executor
+    raises ExternalShutdownException or, caught while it makes its wait set, RCLError "... rcl_shutdown() was
+    called" (the node shuts its context down only after its main has returned or raised)."""
+    name = type(exc).__name__
+    return name == "ExternalShutdownException" or (name == "RCLError" and "rcl_shutdown() was called" in str(exc))

@@ -383,27 +383,32 @@ def main(args: list[str] | None = None) -> int:
     rclpy.init(args=["recorder_node", *argv], signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
-        # SIGINT and SIGTERM (interrupts: installed by ros/run.py or the CLI) stop the recording; raised once the bag
-        # is closed (a second one too), and ros/run.py says so in one line, exit status 130 (143)
-        with interrupts.deferred():
-            try:
-                node = RecorderNode(parameter_overrides=overrides)
-            except ValueError as exc:
-                print(f"recorder_node: error: {exc}", file=sys.stderr)
-                return 2
-            # The recorder yields the CPU to the run it records (on a 2-core host it otherwise adds
-            # ~10 % to the MDA latency) once the run's first message arrived; through start-up (discovery,
-            # matching, its declaration, which the run waits for) it keeps the priority of the run's other
-            # processes, else a host loaded by many runs starting together starves it. Its subscription
-            # queues are deep, so it catches up in the gaps, and it drains what is queued before it closes the bag.
-            try:
-                serve_until(node, interrupts.pending, nice=node.nice)
-                node.drain()  # what already arrived, so a stop does not lose the run's tail
-            finally:
-                node.close()
-                print(f"recorded {node.writer.message_count} messages to {node.writer.path}"
-                      + (f"; {node.other_run} of other runs not recorded" if node.other_run else "")
-                      + node.order.note(), file=sys.stderr)
+        # SIGINT and SIGTERM (interrupts: installed by ros/run.py or the CLI) end the recording, as Ctrl-C ends
+        # `ros2 bag record`: taken once the bag is closed (a second one too), then status 0; the closing line says
+        # what the bag holds. One that lands while the node is still being made: one line, exit 130 (143), ros/run.py
+        try:
+            with interrupts.deferred():
+                try:
+                    node = RecorderNode(parameter_overrides=overrides)
+                except ValueError as exc:
+                    print(f"recorder_node: error: {exc}", file=sys.stderr)
+                    return 2
+                # The recorder yields the CPU to the run it records (on a 2-core host it otherwise adds
+                # ~10 % to the MDA latency) once the run's first message arrived; through start-up (discovery,
+                # matching, its declaration, which the run waits for) it keeps the priority of the run's other
+                # processes, else a host loaded by many runs starting together starves it. Its subscription
+                # queues are deep, so it catches up in the gaps, and it drains what is queued before it closes the bag.
+                try:
+                    serve_until(node, interrupts.pending, nice=node.nice)
+                    node.drain()  # what already arrived, so a stop does not lose the run's tail
+                finally:
+                    node.close()
+                    print(f"recorded {node.writer.message_count} messages to {node.writer.path}"
+                          + (f"; {node.other_run} of other runs not recorded" if node.other_run else "")
+                          + node.order.note(), file=sys.stderr)
+        except KeyboardInterrupt:  # SIGINT, or SIGTERM (interrupts.Terminated)
+            if node is None:
+                raise
         return 0
     finally:
         from bev_mdo.stacks import deadline

@@ -136,7 +136,7 @@ def _iterations_on_disk(bag: Path) -> int:
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL, signal.SIGSTOP], ids=["SIGTERM", "SIGKILL", "SIGSTOP"])
 def test_a_recorder_stopped_mid_run_is_named_and_its_bag_holds_what_it_wrote(config_path, ros_domain, tmp_path, sig):
-    """The run's recorder is SIGTERMed (it closes its bag and exits 143) or SIGKILLed while the optimiser waits
+    """The run's recorder is SIGTERMed (it closes its bag and exits 0) or SIGKILLed while the optimiser waits
     after its second iteration (test/cli/fault_optimizers.py, waiting-after-2) with three records on disk; the
     optimiser then goes on. The run ends with its result, one warning naming the stopped recorder and exit status
     3; the bag opens in rosbags and mcap as it is (after SIGKILL the run repaired it on the spot), holding the
@@ -187,7 +187,7 @@ def test_a_recorder_stopped_mid_run_is_named_and_its_bag_holds_what_it_wrote(con
             p.wait()
     err = "".join(err_lines) + rest
     assert p.returncode == 3 and "Traceback" not in err, err[-3000:]
-    said = {signal.SIGTERM: "stopped (exit status 143) during the run", signal.SIGKILL: f"(exit status {-signal.SIGKILL}) during the run",
+    said = {signal.SIGTERM: "stopped (exit status 0) during the run", signal.SIGKILL: f"(exit status {-signal.SIGKILL}) during the run",
             signal.SIGSTOP: "the recorder was frozen (its process stopped, e.g. by SIGSTOP) at the end of the run"}[sig]
     assert err.count("warning: the recorder") == 1 and said in err, err[-3000:]
     doc = json.loads(out)
