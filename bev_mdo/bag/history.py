@@ -34,12 +34,26 @@ def _in_run(run_id: str, run: str) -> bool:
 WINDOW_S = 30.0  # as ros.sign_window_s: a record received further than this from its stamp is expired
 
 
-def window_s(config_yaml: str | None) -> float:
-    """The run's ``ros.sign_window_s`` from its stored config (``WINDOW_S`` without one)."""
+def stored_config(config_yaml: str | None) -> dict:
+    """The stored config parsed, once per reader call ({} without one, or when it is not a readable
+    mapping): ``window_s``, ``design_names`` and ``maximized`` read it from there."""
     import yaml
 
     try:
-        value = float(((yaml.safe_load(config_yaml or "") or {}).get("ros") or {}).get("sign_window_s", WINDOW_S))
+        config = yaml.safe_load(config_yaml or "")
+    except Exception:  # noqa: BLE001 - a reader never fails on the stored config
+        return {}
+    return config if isinstance(config, dict) else {}
+
+
+def window_s(config_yaml: str | None) -> float:
+    """The run's ``ros.sign_window_s`` from its stored config (``WINDOW_S`` without one)."""
+    return _window_s(stored_config(config_yaml))
+
+
+def _window_s(config: dict) -> float:
+    try:
+        value = float((config.get("ros") or {}).get("sign_window_s", WINDOW_S))
     except Exception:  # noqa: BLE001 - a reader never fails on the stored config
         return WINDOW_S
     return value if value > 0 else WINDOW_S
@@ -121,6 +135,11 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
     short, "unfinished": note.
     """
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
+    return _history(bag, stored_config(read_config(bag)), run_id, all_runs, key_file, checks, no_verify)
+
+
+def _history(bag: Bag, config: dict, run_id, all_runs, key_file, checks, no_verify) -> list[dict]:
+    """``history`` of an open bag whose stored config (``stored_config``) the caller parsed."""
     run = run_id or bag.info.get("run_id") or None  # the run the bag's recorder was started for, if any
     decoded = list(bag.decoded([t for t, ty in bag.topics.items() if ty == ITERATION_TYPE]))
     if run is None and not all_runs:
@@ -128,13 +147,12 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
         if len(runs) > 1:
             raise BagError(f"{bag.mcap_path}: the bag holds the iterations of {len(runs)} runs {runs}; "
                            "choose one with --run-id")
-    config_yaml = read_config(bag)
-    is_design = design_names(config_yaml)
+    is_design = _design_names(config)
     check = verifier(bag, key_file, no_verify)
     signer = check.signer
     info = {"run_id": run, "dropped": {}, "missing": 0, "other_runs": 0, "other_run_ids": [],
             "unverified": check.note}
-    order = Sequence(window_s(config_yaml))
+    order = Sequence(_window_s(config))
     rows = []
     for msg, rec in decoded:
         if run is not None and not _in_run(rec.run_id, run):
@@ -231,12 +249,14 @@ def to_csv(rows: list[dict]) -> str:
 def design_names(config_yaml: str | None):
     """Whether a recorded variable name is a design variable of the stored config (``x[2]``: of ``x``);
     an IDF record holds its couplings too. Without a readable config, every name is."""
-    import yaml
+    return _design_names(stored_config(config_yaml))
 
+
+def _design_names(config: dict):
     from bev_mdo.config.sections import resolve_problem
 
     try:  # as the run read it: a battery sized for range is a coupling
-        dvs = resolve_problem((yaml.safe_load(config_yaml or "") or {}).get("problem")).get("design_variables")
+        dvs = resolve_problem(config.get("problem")).get("design_variables")
     except Exception:  # noqa: BLE001 - a reader never fails on the stored config
         dvs = None
     if not isinstance(dvs, dict) or not dvs:
@@ -246,10 +266,12 @@ def design_names(config_yaml: str | None):
 
 def maximized(config_yaml: str | None) -> bool:
     """Whether the recorded config maximises its objective (problem.objective: {maximize: true})."""
-    import yaml
+    return _maximized(stored_config(config_yaml))
 
+
+def _maximized(config: dict) -> bool:
     try:
-        obj = (yaml.safe_load(config_yaml or "") or {}).get("problem", {}).get("objective")
+        obj = config.get("problem", {}).get("objective")
     except Exception:  # noqa: BLE001 - a reader never fails on the stored config
         return False
     return isinstance(obj, dict) and obj.get("maximize") is True
@@ -294,24 +316,25 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
     BagError when the run was signed but its records cannot be verified."""
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     checks = {} if checks is None else checks
-    rows = history(bag, run_id, key_file=key_file, checks=checks, no_verify=no_verify)
+    config_yaml = read_config(bag)
+    config = stored_config(config_yaml)
+    rows = _history(bag, config, run_id, False, key_file, checks, no_verify)
     if not rows and checks["other_run_ids"]:
         own = "" if run_id else " (the bag's own)"
         raise BagError(f"{bag.mcap_path}: no record of run {checks['run_id']}{own}; "
                        f"{runs_held(checks['other_run_ids'])}; choose one with --run-id")
     if not rows:
         raise BagError(f"{bag.mcap_path}: no IterationRecord on {ITERATION_TOPIC}; nothing to resume")
-    config = read_config(bag)
     answers = read_answers(bag)
-    k = headline(rows, -1.0 if maximized(config) else 1.0, answers)
+    k = headline(rows, -1.0 if _maximized(config) else 1.0, answers)
     row = rows[k]
     if checks is not None and k != len(rows) - 1 and row["formulation"] != "doe":
         checks["result"] = f"the run's result (iteration {row['iteration']}, not its last record)"
     if checks is not None and row["formulation"] == "doe":
         checks["sweep"] = sweep_phrase(row, len(rows))
     if row.get("starts") and not (answers or {}).get("result_design"):  # an interrupted multi-start
-        return config, each_start(rows, row, checks), int(row["iteration"])
-    return config, {**row["design"], **row.get("couplings", {})}, int(row["iteration"])
+        return config_yaml, each_start(rows, row, checks), int(row["iteration"])
+    return config_yaml, {**row["design"], **row.get("couplings", {})}, int(row["iteration"])
 
 
 def each_start(rows: list[dict], last: dict, checks: dict) -> list[dict | None]:

@@ -75,6 +75,9 @@ def write_metadata_yaml(bag_dir: Path, info: dict) -> None:
     """Write ``<bag_dir>/metadata.yaml`` atomically."""
     path = Path(bag_dir) / "metadata.yaml"
     tmp = path.with_suffix(".yaml.tmp")
-    tmp.write_text(yaml.safe_dump({"rosbag2_bagfile_information": info},
-                                  default_flow_style=False, sort_keys=False), encoding="utf-8")
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(yaml.safe_dump({"rosbag2_bagfile_information": info},
+                                      default_flow_style=False, sort_keys=False), encoding="utf-8")
+        os.replace(tmp, path)
+    finally:  # a failed write (a full disk) leaves no partial file
+        tmp.unlink(missing_ok=True)

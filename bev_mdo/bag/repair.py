@@ -1,7 +1,9 @@
 """Repair a truncated bag: rewrite its readable part with a summary, and a new metadata.yaml.
 
 Schemas (their recorded text), channels (with QoS and type hash), metadata records and
-attachments are kept; the original file is kept as ``<file>.bak``.
+attachments are kept; the original file is kept as ``<file>.bak``. A repair that cannot be written
+(a full disk, a read-only folder) is a BagError naming the file and the reason, and leaves the bag
+as it was, with no partial file.
 """
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ from pathlib import Path
 import yaml
 
 from bev_mdo.bag import metadata as meta
+from bev_mdo.bag.errors import BagError
 from bev_mdo.bag.reader import Bag, open_bag
 from bev_mdo.bag.writer import mcap_writer
 
@@ -77,6 +80,7 @@ def _replace_with_rewrite(bag: Bag, path: Path, info: dict) -> Path:
     file (the original until the rewritten one atomically replaces it): the backup is a second link to
     the original (a copy where the file system has no hard links), not a rename."""
     tmp = path.with_name(path.name + ".repairing")
+    backup = None
     try:
         _rewrite(bag, tmp, info)
         backup = _backup_path(path)
@@ -86,6 +90,10 @@ def _replace_with_rewrite(bag: Bag, path: Path, info: dict) -> Path:
             shutil.copy2(path, backup)
         os.replace(tmp, path)
         return backup
+    except BaseException:
+        if backup is not None and tmp.exists():  # not replaced: the backup (a partial copy on a full disk) goes
+            backup.unlink(missing_ok=True)
+        raise
     finally:
         tmp.unlink(missing_ok=True)
 
@@ -99,9 +107,14 @@ def repair(bag_dir, *, force: bool = False) -> RepairResult:
     if not bag.truncated and good_yaml and not force:
         return RepairResult(bag.bag_dir, path, None, bag.message_count, False, False)
     backup = None
-    if bag.truncated or force:
-        backup = _replace_with_rewrite(bag, path, info)
-    meta.write_metadata_yaml(bag.bag_dir, info)
+    try:
+        if bag.truncated or force:
+            backup = _replace_with_rewrite(bag, path, info)
+        meta.write_metadata_yaml(bag.bag_dir, info)
+    except OSError as exc:  # a full disk, a read-only folder: one line (exit 2), nothing partial left
+        state = (f"the bag is repaired (original kept as {backup}), its metadata.yaml is not" if backup
+                 else "the bag is unchanged")
+        raise BagError(f"{path}: the repair could not be written ({exc.strerror or exc}); {state}") from exc
     return RepairResult(bag.bag_dir, path, backup, bag.message_count, bag.truncated,
                         backup is not None, not good_yaml, bag.damage if bag.skipped else "")
 

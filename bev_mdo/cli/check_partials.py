@@ -99,7 +99,7 @@ def check(config, at: str = "", rtol: float = 1e-4, atol: float = 1e-6, step: fl
         entry["max_abs_error"] = max((r["abs_error"] for r in rows), default=0.0)
         entry["mismatches"] = [r for r in rows if not r["ok"]]
         if failed:
-            entry["error"] = f"{failed} finite-difference points failed"
+            entry["error"] = f"{sum(failed.values())} finite-difference points failed"
     report["ok"] = not any(e["error"] or e["mismatches"] for e in report["disciplines"])
     return report
 

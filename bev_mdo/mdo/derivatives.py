@@ -21,17 +21,18 @@ h = (y_target - F(x, y_target)) / s have dh/d(x, y_target) = (e_target - dF/d(x,
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 Partials = dict[tuple[str, str], np.ndarray]  # (output, input) -> (N,)
+Failed = dict[tuple[str, str], int]  # (output, input) -> points where that finite-difference partial failed
 
 
 def fd_partials(evaluator: Any, specs: Mapping[str, Any], names: Sequence[str], values: Mapping[str, np.ndarray],
                 n: int, step: float = 1e-6, central: bool = False, base_needed: Sequence[str] = (),
-                base_outputs: Mapping[str, np.ndarray] | None = None) -> tuple[dict[str, Partials], int]:
+                base_outputs: Mapping[str, np.ndarray] | None = None) -> tuple[dict[str, Partials], Failed]:
     """Finite-difference partials of the disciplines ``names`` at the N points of ``values`` (every
     input column, (N,) each). One ``evaluator.evaluate`` call (one wave) evaluates every stencil.
 
@@ -40,7 +41,8 @@ def fd_partials(evaluator: Any, specs: Mapping[str, Any], names: Sequence[str], 
     (inside a loop: their last outputs were computed from slightly older inputs), whose base is
     evaluated too. ``base_outputs``: the base outputs where an output's name in ``values`` is another
     discipline's input at another value (IDF: a coupling's target beside what its discipline computed).
-    Returns ({discipline: partials}, perturbed points that failed; their partials are 0)."""
+    Returns ({discipline: partials}, {(output, input): points where that partial failed}); a failed
+    partial is 0."""
     base_outputs = values if base_outputs is None else base_outputs
     calls, plans = [], []
     for name in names:
@@ -68,10 +70,10 @@ def fd_partials(evaluator: Any, specs: Mapping[str, Any], names: Sequence[str], 
         calls.append((name, batch))
         plans.append((name, ins, h, len(blocks), with_base))
     if not calls:
-        return {}, 0
+        return {}, {}
     results = evaluator.evaluate(calls)
     out: dict[str, Partials] = {}
-    failed = 0
+    failed: Failed = {}
     for (name, ins, h, nb, with_base), res in zip(plans, results):
         outs = specs[name].outputs
         Y = {o: np.asarray(res.outputs[o], dtype=float).reshape(nb, n) for o in outs}
@@ -90,7 +92,7 @@ def fd_partials(evaluator: Any, specs: Mapping[str, Any], names: Sequence[str], 
                     d = (Y[o][j] - y0) / h[j]
                     good = OK[j] & ok0
                 if not good.all():
-                    failed += int((~good).sum())
+                    failed[(o, v)] = int((~good).sum())
                     d = np.where(good, d, 0.0)
                 if np.any(d != 0.0):
                     part[(o, v)] = d
@@ -136,6 +138,32 @@ def idf_totals(outputs: Sequence[str], variables: Sequence[str], partials: Mappi
             if o in out and i in xi:
                 out[o][:, xi[i]] += col
     return out
+
+
+def unknown_variables(failed: Iterable[tuple[str, str]], variables: Sequence[str], quantities: Iterable[str],
+                      specs: Mapping[str, Any]) -> list[str]:
+    """The ``variables`` whose totals of the ``quantities`` (objective, constraints, IDF's couplings)
+    use a failed partial d output / d input: its input is the variable or, through the disciplines
+    of ``specs`` (MDF's chain rule and loop solve), an output downstream of it, and its output is a
+    quantity or upstream of one. A failed partial no quantity depends on leaves every total exact.
+    IDF passes no ``specs`` ({}): its totals are the partials themselves."""
+    readers: dict[str, set[str]] = {}  # v -> outputs of the disciplines reading v
+    for spec in specs.values():
+        for v in spec.inputs:
+            readers.setdefault(v, set()).update(spec.outputs)
+
+    def downstream(v: str) -> set[str]:
+        seen, todo = {v}, [v]
+        while todo:
+            for o in readers.get(todo.pop(), ()):
+                if o not in seen:
+                    seen.add(o)
+                    todo.append(o)
+        return seen
+
+    quantities = set(quantities)
+    inputs = {v for o, v in failed if downstream(o) & quantities}
+    return [x for x in variables if downstream(x) & inputs]
 
 
 def constraint_jacobian(problem: Any, totals: Mapping[str, np.ndarray], design: Sequence[str],

@@ -14,7 +14,8 @@ A failed point (a discipline error, NaN, an unconverged loop) gets objective
 ``FAIL_OBJECTIVE`` and every constraint ``FAIL_CONSTRAINT`` (violated); in a
 stencil, a failed perturbed point of a good base point gives a zero derivative
 in that direction (counted in ``fd_failures``) for the optimiser; ``unknown_derivatives`` names
-those directions, so the first-order check never takes such a zero for a stationary point.
+those directions, so the first-order check never takes such a zero for a stationary point. With
+assembled derivatives (below) they are the variables whose totals use a partial that failed.
 
 With ``derivatives: analytic`` the gradient at a point is assembled from the disciplines'
 partials instead (derivatives.py): one analysis of the point asking every discipline for its
@@ -29,7 +30,7 @@ import numpy as np
 
 from bev_mdo import interrupts
 from bev_mdo.mdo import first_order
-from bev_mdo.mdo.derivatives import constraint_jacobian, fd_partials, idf_totals, mdf_totals
+from bev_mdo.mdo.derivatives import constraint_jacobian, fd_partials, idf_totals, mdf_totals, unknown_variables
 from bev_mdo.mdo.evaluator import Evaluator
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.mda import MDA, MDAResult
@@ -64,6 +65,7 @@ class Formulation:
         self._cache: dict[bytes, tuple[float, np.ndarray, np.ndarray, bool, str]] = {}
         self._grad: tuple[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         self._unknown: tuple[bytes, list[str]] | None = None  # u -> variables whose derivative failed there
+        self._failed_partials: set[tuple[str, str]] = set()  # (output, input) that failed in the last assembly
         self.n_points = 0      # rows actually evaluated
         self.n_batches = 0     # evaluate_batch calls that evaluated something
         self.n_gradients = 0
@@ -198,12 +200,12 @@ class Formulation:
         if self._grad is not None and self._grad[0] == key:
             return self._grad[1]
         self.n_gradients += 1
-        failures = self.fd_failures
         if self.derivatives == "analytic":
+            self._failed_partials = set()
             out = self._assembled(u)
             self._grad = (key, out)
-            # a discipline's failed finite-difference point: which variables it reaches is not tracked
-            self._unknown = (key, list(self.var_names) if self.fd_failures > failures else [])
+            # a discipline's failed finite-difference partial: the variables whose totals it enters
+            self._unknown = (key, self._unknown_variables(self._failed_partials))
             return out
         lo, hi = self.u_bounds
         hstep = self.fd_step
@@ -274,8 +276,13 @@ class Formulation:
         missing = [d for d in self.mda.specs if d not in part]
         fdp, failed = fd_partials(self.evaluator, self.mda.specs, missing, values, 1, self.fd_step,
                                   self.fd_scheme == "central", base_needed, base_outputs)
-        self.fd_failures += failed
+        self.fd_failures += sum(failed.values())
+        self._failed_partials.update(failed)
         return {**part, **fdp}
+
+    def _quantities(self) -> list[str]:
+        """The outputs the optimiser sees: the objective and the constrained quantities."""
+        return [self.problem.objective] + [name for name, *_ in self.problem.constraint_rows]
 
 
 class MDF(Formulation):
@@ -311,6 +318,9 @@ class MDF(Formulation):
         df = tot[self.problem.objective][0]
         dg = constraint_jacobian(self.problem, tot, self.var_names, 1)[0]
         return df, dg, np.zeros((0, self.n))
+
+    def _unknown_variables(self, failed) -> list[str]:
+        return unknown_variables(failed, self.var_names, self._quantities(), self.mda.specs)
 
     def analysed(self, x: np.ndarray) -> tuple[dict[str, float], bool, str, int] | None:
         """(every MDA variable, ok, error, loop iterations) of a recently analysed point, or None."""
@@ -400,6 +410,9 @@ class IDF(Formulation):
             self._last = (cols, out, {name: res.extra["partials"] for (name, _), res in zip(calls, results)
                                       if "partials" in res.extra})
         return f, g, h, ok, errors
+
+    def _unknown_variables(self, failed) -> list[str]:
+        return unknown_variables(failed, self.var_names, self._quantities() + self.couplings, {})
 
     def _totals(self):
         cols, out, part = self._last

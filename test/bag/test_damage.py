@@ -1,6 +1,7 @@
 """Truncated, corrupt and foreign bags: complete part readable, repair works, clear errors."""
 from __future__ import annotations
 
+import errno
 import random
 import shutil
 
@@ -287,10 +288,79 @@ def test_an_interrupted_or_failed_repair_leaves_no_partial_file(failure, full, m
 
     monkeypatch.setattr(repair_module, "mcap_writer", writer_that_stops)
     code, out, err = cli("bag", "repair", str(full))
-    assert code == (130 if failure is KeyboardInterrupt else 7), (out, err)  # 7: an unexpected error, one line
+    if failure is KeyboardInterrupt:
+        assert code == 130, (out, err)
+    else:  # a full disk: one line and exit 2, as a read-only folder (PermissionError); it was exit 7
+        assert code == 2 and not out, (out, err)
+        assert err.splitlines() == [f"bev-mdo bag: error: {mcap}: the repair could not be written "
+                                    "(No space left on device); the bag is unchanged"], err
     assert sorted(p.name for p in full.iterdir()) == ["full_0.mcap", "metadata.yaml"]
     assert mcap.read_bytes() == truncated
     monkeypatch.setattr(repair_module, "mcap_writer", real_writer)
     code, out, err = cli("bag", "repair", str(full))
     assert code == 0 and "repaired" in out and (full / "full_0.mcap.bak").read_bytes() == truncated, (out, err)
     assert not (full / "full_0.mcap.repairing").exists()
+
+
+def _cut(full):
+    mcap = full / "full_0.mcap"
+    mcap.write_bytes(mcap.read_bytes()[: int(mcap.stat().st_size * 0.6)])
+    return mcap, mcap.read_bytes(), (full / "metadata.yaml").read_bytes()
+
+
+def test_a_disk_that_fills_while_the_original_is_copied_leaves_no_partial_backup(full, monkeypatch):
+    """Where the file system has no hard links the backup is a copy: a full disk during it left a partial
+    `<file>.bak` beside the bag (and exit 7). Now the bag, its metadata.yaml and the folder are as before."""
+    from bev_mdo.bag import repair as repair_module
+    from bev_mdo.bag.reader import open_bag
+
+    mcap, truncated, yaml_before = _cut(full)
+    readable = open_bag(full).message_count
+
+    def no_link(src, dst):
+        raise OSError(errno.EPERM, "Operation not permitted")
+
+    def copy_that_fills_the_disk(src, dst):
+        with open(src, "rb") as a, open(dst, "wb") as b:
+            b.write(a.read(100))
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(repair_module.os, "link", no_link)
+    monkeypatch.setattr(repair_module.shutil, "copy2", copy_that_fills_the_disk)
+    code, out, err = cli("bag", "repair", str(full))
+    assert code == 2 and not out, (out, err)
+    assert err.splitlines() == [f"bev-mdo bag: error: {mcap}: the repair could not be written "
+                                "(No space left on device); the bag is unchanged"], err
+    assert sorted(p.name for p in full.iterdir()) == ["full_0.mcap", "metadata.yaml"]
+    assert mcap.read_bytes() == truncated and (full / "metadata.yaml").read_bytes() == yaml_before
+    assert open_bag(full).message_count == readable
+
+
+def test_a_metadata_yaml_that_cannot_be_written_is_one_line_and_leaves_no_partial_file(full, monkeypatch):
+    """The bag was rewritten, then the disk filled while metadata.yaml was written: one line saying so
+    (exit 2), no `metadata.yaml.tmp` left, the repaired bag readable; a repair afterwards finishes it."""
+    from pathlib import Path
+
+    from bev_mdo.bag.reader import open_bag
+
+    mcap, truncated, yaml_before = _cut(full)
+    real_write_text = Path.write_text
+
+    def write_that_fills_the_disk(self, data, *args, **kwargs):
+        if self.name.endswith(".yaml.tmp"):
+            real_write_text(self, data[:50], *args, **kwargs)
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_write_text(self, data, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "write_text", write_that_fills_the_disk)
+    code, out, err = cli("bag", "repair", str(full))
+    assert code == 2 and not out, (out, err)
+    assert err.splitlines() == [f"bev-mdo bag: error: {mcap}: the repair could not be written (No space left "
+                                f"on device); the bag is repaired (original kept as {mcap}.bak), its "
+                                "metadata.yaml is not"], err
+    assert sorted(p.name for p in full.iterdir()) == ["full_0.mcap", "full_0.mcap.bak", "metadata.yaml"]
+    assert (full / "metadata.yaml").read_bytes() == yaml_before and (full / "full_0.mcap.bak").read_bytes() == truncated
+    assert not open_bag(full).truncated
+    monkeypatch.setattr(Path, "write_text", real_write_text)
+    code, out, err = cli("bag", "repair", str(full))
+    assert code == 0 and "metadata.yaml written" in out, (out, err)

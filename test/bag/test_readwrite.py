@@ -173,6 +173,27 @@ def test_history_csv_and_last_iterate(synthetic_bag, tmp_path):
     assert set(DESIGN) <= {k.split(".", 1)[1] for k in table[0] if k.startswith("design.")}
 
 
+def test_history_and_last_iterate_parse_the_stored_config_once(synthetic_bag, monkeypatch):
+    """history() parsed the stored config for the design names and again for the record window;
+    last_iterate() a third time for the objective's sense. Once each now, with the same results."""
+    from bev_mdo.bag.history import history, last_iterate
+
+    bag_dir, _ = synthetic_bag
+    expected_rows, expected_last = history(bag_dir), last_iterate(bag_dir)
+    real, parsed = yaml.safe_load, []
+
+    def counting(text, *args, **kwargs):
+        parsed.append(text == CONFIG_YAML)
+        return real(text, *args, **kwargs)
+
+    monkeypatch.setattr(yaml, "safe_load", counting)
+    assert history(bag_dir) == expected_rows
+    assert parsed.count(True) == 1
+    parsed.clear()
+    assert last_iterate(bag_dir) == expected_last
+    assert parsed.count(True) == 1
+
+
 def test_bag_info_cli(synthetic_bag):
     from .conftest import cli
 
