@@ -124,21 +124,22 @@ def check_lengths(**arrays: Any) -> int:
     return n
 
 
-def validate_design(name: str, values: Any, lower: float, upper: float) -> np.ndarray:
-    """Design-variable array check: a number or 1-D batch, finite and within [lower, upper], ValueError naming it."""
+def validate_design(name: str, values: Any, lower: float, upper: float, unit: str = "") -> np.ndarray:
+    """Design-variable array check: a number or 1-D batch, finite and within [lower, upper] ``unit``,
+    ValueError naming it and the unit."""
     if np.ndim(values) > 1:  # a batch is one axis: a (2, 2) battery gave a (2, 2) range
         raise ValueError(f"{name} must be a number or a 1-D array, got shape {np.shape(values)}")
-    return check_array(name, np.atleast_1d(values), lower, upper)
+    return check_array(name, np.atleast_1d(values), lower, upper, unit)
 
 
 def check_design(name: str, values: Any) -> np.ndarray:
     """Check a design or coupling variable against :data:`DESIGN_LIMITS` (a float array, at least 1-D)."""
-    lo, hi, _ = DESIGN_LIMITS[name]
+    lo, hi, unit = DESIGN_LIMITS[name]
     if type(values) is np.ndarray and values.ndim == 1 and values.size == 1 and values.dtype == _F64:
         x = values.item()  # one design point (an MDA over ROS): the same array back, checked
         if math.isfinite(x) and lo <= x <= hi:
             return values
-    return validate_design(name, values, lo, hi)
+    return validate_design(name, values, lo, hi, unit)
 
 
 _F64 = np.dtype(np.float64)
