@@ -1,4 +1,5 @@
-"""The acceleration discipline: a design that cannot reach 100 km/h is an infeasible point, not a failed one."""
+"""Designs the physics cannot serve are infeasible points, not failed ones: one that cannot reach 100 km/h
+(the acceleration discipline), a battery sized above 500 kWh (the mass model)."""
 from pathlib import Path
 
 import numpy as np
@@ -67,3 +68,18 @@ def test_slsqp_started_where_100_km_h_is_out_of_reach_finds_the_optimum():
     cfg = RunConfig.load(raw)
     res = run_optimization(cfg.settings, InProcessEvaluator(cfg.disciplines))
     assert res.feasible and res.outputs["accel_time_0_100_s"] == pytest.approx(10.0, abs=1e-3)
+
+
+def test_a_battery_sized_above_500_kwh_is_an_infeasible_point_not_a_failed_one():
+    """battery_sized_for_range with a 2000 km target sizes 598 kWh: the mass model refused it (500 kWh
+    limit) and the point failed; it is a 6.1 t car, 41 s to 100 km/h: infeasible."""
+    from bev_mdo.api import evaluate
+    from bev_mdo.api.transport import Transport
+
+    raw = _leaf()
+    raw["problem"]["battery_sized_for_range"] = True
+    raw["problem"]["constraints"]["range_km"] = {"lower": 2000.0}
+    report = evaluate.design(RunConfig.load(raw), {}, Transport("inprocess"))
+    assert report["ok"] and not report["feasible"] and report["outputs"]["battery_kwh"] > 500
+    assert report["outputs"]["range_km"] == pytest.approx(2000.0)
+    assert not report["constraints"]["accel_time_0_100_s"]["satisfied"]
