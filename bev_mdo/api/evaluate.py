@@ -38,7 +38,8 @@ def pyplot_and_label(units: dict | None):
 
 def design(config, given: dict[str, float], transport) -> dict:
     """The report of one multidisciplinary analysis (mdo.driver.evaluate_design: design, outputs,
-    objective, constraints with margins, feasible, ok, error). Design variables not given take their
+    objective, constraints with margins, feasible, ok, error; ``notes``, only when a discipline has one
+    about an output's value, e.g. a design that cannot reach 100 km/h). Design variables not given take their
     initial value; a value outside its bounds is evaluated as given, with a note on stderr."""
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import evaluate_design
@@ -53,7 +54,11 @@ def design(config, given: dict[str, float], transport) -> dict:
             print(f"bev-mdo evaluate: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
                   "(evaluated as given)", file=sys.stderr)
     with Evaluating(config, transport) as evaluator:
-        return evaluate_design(config.settings, evaluator, full)
+        report = evaluate_design(config.settings, evaluator, full)
+    notes = [n for d in config.disciplines for n in (getattr(d, "notes", None) or (lambda _: []))(report["outputs"])]
+    if notes:  # what an output's value means where it is not a measurement (e.g. a continuation value)
+        report["notes"] = notes
+    return report
 
 
 def check_names(names, problem, params) -> None:

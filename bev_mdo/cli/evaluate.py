@@ -68,5 +68,7 @@ def print_table(report: dict) -> None:
     console.print(c)
     if not report["ok"]:
         console.print(f"[bold red]evaluation failed:[/] {report['error']}")
+    for note in report.get("notes", ()):
+        console.print(f"note: {note}", markup=False)
     console.print(f"objective {obj} = {_fmt(report['objective']['value'])}; "
                   f"feasible: {'yes' if report['feasible'] else 'NO'}")

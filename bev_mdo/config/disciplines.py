@@ -43,6 +43,13 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
     for c in problem.constraints:
         if c.name not in produced:
             raise ValueError(f"problem.constraints.{c.name}: no discipline produces it; outputs: {sorted(produced)}")
+        # an output whose values from a ceiling up stand for an infeasible design (not a measurement) takes
+        # only upper limits below it, so that such a design is infeasible whatever the limit
+        maker = next((d for d in discs if d.name == graph.producer[c.name]), None)
+        ceiling = (getattr(maker, "upper_limit_below", None) or {}).get(c.name)
+        if ceiling is not None and c.upper is not None and c.upper >= ceiling[0]:
+            raise ValueError(f"problem.constraints.{c.name}.upper {c.upper:g}: must be below {ceiling[0]:g} "
+                             f"({ceiling[1]})")
     for key, names in (("coupling_guesses", problem.coupling_guesses), ("coupling_bounds", problem.coupling_bounds)):
         for k in names:  # a name (or vector) no discipline produces would be ignored: a typo, said here
             if k not in produced and f"{k}[0]" not in produced:

@@ -114,10 +114,16 @@ class Range(Base):
 
 class Acceleration(Base):
     """motor_kw, gear_ratio, vehicle_mass_kg (, rear motor) -> accel_time_0_100_s (eqs 7-30 / 2-26 / 4-5)
-    with every motor of the topology; SM-SA two-speed follows the eq 2-6 shift rule."""
+    with every motor of the topology; SM-SA two-speed follows the eq 2-6 shift rule. A design that cannot
+    reach 100 km/h gets the continuation value (models/acceleration.py: 10 000 s + 100 s per km/h of top
+    speed short), infeasible under any upper limit the config accepts, not a failed point."""
 
     name = "acceleration"
     outputs = ("accel_time_0_100_s",)
+    # from NOT_REACHED_S up the time is the continuation of a design that cannot reach 100 km/h: an upper
+    # limit must lie below it (config/disciplines.py) so that such a design is infeasible whatever the limit
+    upper_limit_below = {"accel_time_0_100_s": (acceleration.NOT_REACHED_S, "from there up the value marks a "
+                                                "design that cannot reach 100 km/h")}
     _TOPO = {"SM-SA": ("gear_count", "gear_ratio_2", "shift_speed_m_s", "two_speed_efficiency_loss"),
              "DM-DA": (), "IWM-SA": ("iwm_speed_scale",), "IWM-DA": ("iwm_speed_scale",)}
 
@@ -142,12 +148,17 @@ class Acceleration(Base):
         if self.topology.name == "SM-SA" and np.all(np.asarray(p.get("gear_count", 1.0)) == 1.0):
             t = acceleration.accel_time_0_100_s(inputs["motor_kw"], inputs["gear_ratio"], inputs["vehicle_mass_kg"],
                                                 {k: p[k] for k in p if k in acceleration.ACCEL_PARAMS
-                                                 or k.startswith("road_load_")})
+                                                 or k.startswith("road_load_")}, continuation=True)
         else:
             t = topo_model.accel_time_s(self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
                                         inputs.get("gear_ratio"), inputs.get("motor_rear_kw"),
-                                        inputs.get("gear_ratio_rear"), p)
+                                        inputs.get("gear_ratio_rear"), p, continuation=True)
         return {"accel_time_0_100_s": t}
+
+    def notes(self, outputs) -> list[str]:
+        """What the time means at a design that cannot reach 100 km/h (the continuation value)."""
+        note = acceleration.not_reached_note(outputs.get("accel_time_0_100_s") or 0.0)
+        return [note] if note else []
 
 
 class MotorSpeed(Base):

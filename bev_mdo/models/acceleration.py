@@ -5,7 +5,19 @@ up to the base speed 1000/tau rad/s (2728 rpm, Appendix A: 2730 rpm), constant p
 it, and nothing beyond the speed limit (10 500 rpm for every size, ch.3). At the wheels
 F = min(T i_g eta_g / r_w, F_grip) - 1/2 rho CdA v^2 - C_r M g, and t = integral_0^v_end M / F dv,
 integrated per smooth segment with Gauss-Legendre quadrature. A design that cannot reach v_end
-(motor over its speed limit, or no surplus force) gets +inf.
+(motor over its speed limit, or no surplus force) has no such time: +inf.
+
+A design that cannot reach 100 km/h is a real design that is merely bad, so the MDO must see it as
+infeasible, not as a failed point (a non-finite output fails a point). With ``continuation=True``
+(what the acceleration discipline asks for) such a design gets the documented continuation value
+``NOT_REACHED_S + NOT_REACHED_S_PER_KM_H x shortfall``: 10 000 s plus 100 s per km/h that its top
+speed (:func:`top_speed_m_s`: the speed limit, or where the drive force falls to the road load) lies
+below v_end. It is finite, far above any real 0-100 km/h time (the time grows only logarithmically as
+the surplus force at v_end falls to zero), and falls as the design moves toward reaching v_end (more
+power, a lower ratio), so a gradient-based optimiser started there has a way out; the config refuses an
+upper limit on the time at or above ``NOT_REACHED_S``, so such a design is infeasible whatever the
+limit, and the evaluate output names it (``not_reached_note``). A time of ``NOT_REACHED_S`` or more is
+never a time: it reads back as the top speed, v_end - (t - NOT_REACHED_S) / NOT_REACHED_S_PER_KM_H.
 
 Grip limit (not in the thesis): the drive force cannot exceed F_grip = mu g M s, with mu the
 ``tyre_grip_coefficient`` and s the ``driven_axle_load_share`` (static, no weight transfer; 1 with
@@ -25,6 +37,8 @@ ACCEL_PARAMS = ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2", "rolling_re
                 "gear_efficiency", "motor_torque_per_kw", "motor_speed_limit_rpm", "tyre_grip_coefficient",
                 "driven_axle_load_share", "driven_axles")
 V_END_M_S = 100.0 / 3.6
+NOT_REACHED_S = 1.0e4           # the continuation's floor: a time at or above it means "does not reach v_end"
+NOT_REACHED_S_PER_KM_H = 100.0  # and its slope, per km/h of top speed short of v_end
 _X, _W = np.polynomial.legendre.leggauss(24)
 
 
@@ -68,8 +82,37 @@ def wheel_force_n(speed_m_s, motor_kw, gear_ratio, vehicle_mass_kg, p, grip_n=np
     return f
 
 
-def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V_END_M_S):
-    """Time from rest to ``v_end_m_s`` (default 100 km/h) in s for N designs (eq 7-30)."""
+def top_speed_m_s(force_n, v_high_m_s):
+    """Highest speed reached from rest at full envelope (m/s), per design: ``v_high_m_s`` (the speed limit,
+    or v_end) where ``force_n`` (net force at speeds (N,), N) is still positive there, else the first speed
+    where it falls to zero, by bisection on [0, v_high] (the force is non-increasing in speed)."""
+    lo, hi = np.zeros_like(v_high_m_s), np.array(v_high_m_s, float)
+    held = force_n(hi) > 0
+    for _ in range(60):  # 2^-60 of the interval: to the last bits
+        mid = 0.5 * (lo + hi)
+        up = force_n(mid) > 0
+        lo, hi = np.where(up, mid, lo), np.where(up, hi, mid)
+    return np.where(held, v_high_m_s, lo)
+
+
+def not_reached_s(top_m_s, v_end_m_s=V_END_M_S):
+    """The continuation value of a design whose top speed ``top_m_s`` is below ``v_end_m_s`` (module doc)."""
+    return NOT_REACHED_S + NOT_REACHED_S_PER_KM_H * 3.6 * np.maximum(v_end_m_s - top_m_s, 0.0)
+
+
+def not_reached_note(time_s, v_end_m_s=V_END_M_S) -> str | None:
+    """One line for the user when ``time_s`` is the continuation value, else None."""
+    if not np.isfinite(time_s) or time_s < NOT_REACHED_S:
+        return None
+    top = 3.6 * v_end_m_s - (time_s - NOT_REACHED_S) / NOT_REACHED_S_PER_KM_H
+    return (f"the design cannot reach {3.6 * v_end_m_s:g} km/h (top speed {top:.1f} km/h): its 0-100 km/h time "
+            f"{time_s:.6g} s is the continuation value {NOT_REACHED_S:g} s + {NOT_REACHED_S_PER_KM_H:g} s per km/h short,"
+            " not a time")
+
+
+def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V_END_M_S, continuation=False):
+    """Time from rest to ``v_end_m_s`` (default 100 km/h) in s for N designs (eq 7-30); a design that cannot
+    reach it: +inf, or with ``continuation`` the continuation value (module doc)."""
     pk = check_design("motor_kw", motor_kw)
     ig = check_design("gear_ratio", gear_ratio)
     m = check_design("vehicle_mass_kg", vehicle_mass_kg)
@@ -105,9 +148,12 @@ def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V
                  + half1 * np.sum(_W[:, None] * mrow / f[nodes:2 * nodes], axis=0))
     f_end, f_base = f[2 * nodes], f[2 * nodes + 1]
     ok = (v_lim >= v_end_m_s) & (f_end > 0) & (f_base > 0)
+    if continuation and not ok.all():
+        top = top_speed_m_s(lambda s: wheel_force_n(s, pk, ig, m, p, grip), np.minimum(v_lim, v_end_m_s))
+        return np.where(ok, total, not_reached_s(top, v_end_m_s)).reshape(pk.shape)
     return np.where(ok, total, np.inf).reshape(pk.shape)
 
 
-def accel_time_0_100_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None):
-    """0-100 km/h time in s (eqs 7-30 / 2-26)."""
-    return accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params, V_END_M_S)
+def accel_time_0_100_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, continuation=False):
+    """0-100 km/h time in s (eqs 7-30 / 2-26); ``continuation``: see :func:`accel_time_s`."""
+    return accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params, V_END_M_S, continuation)

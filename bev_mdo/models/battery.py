@@ -103,8 +103,8 @@ def pack_for_energy(battery_kwh, cells_series=LEAF_CELLS_SERIES, cell: Cell = DE
     """A pack of ``battery_kwh`` with ``cells_series`` in series and a continuous parallel count."""
     kwh = np.asarray(battery_kwh, float)
     ns = np.asarray(cells_series, float)
-    if not np.all(np.isfinite(kwh)) or np.any(kwh < 1.0) or np.any(kwh > 500.0):
-        raise ValueError("battery_kwh must be finite and in [1, 500] kWh")
+    if not np.all(np.isfinite(kwh)) or np.any(kwh < 1.0):  # no upper limit: common.DESIGN_LIMITS says why
+        raise ValueError("battery_kwh must be finite and >= 1 kWh")
     if not np.all(np.isfinite(ns)) or np.any(ns < 1) or np.any(ns > 1000):
         raise ValueError("cells_series must be finite and in [1, 1000]")
     n_par = kwh * 1e3 / (ns * cell.capacity_ah * cell.nominal_v)

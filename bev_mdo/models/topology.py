@@ -414,13 +414,14 @@ def operating_points(resampled, params, topology, vehicle_mass_kg, motor_kw, bat
 # ----------------------------------------------------------------------------- acceleration
 
 def accel_time_s(topology, vehicle_mass_kg, motor_kw, gear_ratio=None, motor_rear_kw=None, gear_ratio_rear=None,
-                 params=None, v_end_m_s=V_END_M_S):
+                 params=None, v_end_m_s=V_END_M_S, continuation=False):
     """0-100 km/h time (eqs 2-26 / 4-5): t = int M / F(v) dv, F every motor's envelope at the wheels within
     the tyres' grip (``acceleration.grip_force_n``; two driven axles carry all the weight) minus road load,
     Gauss-Legendre per segment between the corners (base speeds, the two-speed shift and speed limits, where
     the grip stops binding). SM-SA single speed equals ``acceleration.accel_time_0_100_s``; two-speed
     follows eq 2-6 (gear 2 from the shift speed, efficiency less the 2-point penalty). +inf for a geared
-    motor over its speed limit before ``v_end`` or a non-positive surplus force."""
+    motor over its speed limit before ``v_end`` or a non-positive surplus force; with ``continuation`` the
+    continuation value of its top speed instead (``acceleration`` module doc)."""
     p = {k: s.default for k, s in QUASI_STATIC_SPECS.items()}
     p.update({k: np.asarray(v, float) for k, v in (params or {}).items()
               if k in QUASI_STATIC_SPECS or k in rl.FLAT_KEYS})
@@ -454,12 +455,14 @@ def accel_time_s(topology, vehicle_mass_kg, motor_kw, gear_ratio=None, motor_rea
     # corners: per axle and gear the base speed, and the speed limit, which no motor may pass before v_end (two
     # speeds: gear 1 up to the shift); with one speed that is v_end or later, so not an edge below v_end
     corners, ok, shifts, no_grip = [], np.ones(m.shape, bool), bool(np.any(two)), bool(np.all(peak <= grip))
+    reach = np.full(m.shape, v_end_m_s)  # the first speed limit met before v_end (the continuation's top speed)
     for a in axles:
         for ratio, top in ([(a.ratio, np.minimum(v_shift, v_end_m_s)), (ig2, np.where(two, v_end_m_s, 0.0))]
                            if shifts else [(a.ratio, v_end_m_s)]):
             v_lim = a.w_lim * r_w / ratio
             corners += [a.kw * 1e3 / a.t_peak * r_w / ratio, *([v_lim] if shifts else [])]
             ok &= v_lim >= top * (1 - 1e-12)
+            reach = np.where(v_lim >= top * (1 - 1e-12), reach, np.minimum(reach, v_lim))
     edges = np.stack([0.0 * m, *corners, *([v_shift] if shifts else []), v_end_m_s + 0.0 * m])
     edges = np.clip(np.sort(edges, axis=0), 0.0, v_end_m_s)  # (B+2, N)
     if not no_grip:  # one more corner: where P eta / v (+ the torque-limited axles) = grip
@@ -474,4 +477,7 @@ def accel_time_s(topology, vehicle_mass_kg, motor_kw, gear_ratio=None, motor_rea
     with np.errstate(divide="ignore", invalid="ignore"):
         total = np.sum(half * np.sum(_W[:, None, None] * m / f, axis=0), axis=0)
     ok &= np.all(f > 0, axis=(0, 1)) & (force(np.full(m.shape, v_end_m_s)) > 0)
+    if continuation and not ok.all():
+        top = acceleration.top_speed_m_s(force, reach)
+        return np.where(ok, total, acceleration.not_reached_s(top, v_end_m_s))
     return np.where(ok, total, np.inf)

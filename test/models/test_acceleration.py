@@ -197,3 +197,52 @@ def test_bad_grip_parameters_are_one_line(name, value):
         accel_time_0_100_s(np.array([80.0]), np.array([8.0]), np.array([1590.0]), {name: value})
     with pytest.raises(ValueError, match=f"^{name} must be"):
         tp.accel_time_s("SM-SA", 1590.0, 80.0, 8.0, params={name: value})
+
+
+def test_a_design_that_cannot_reach_100_km_h_gets_the_continuation_value_of_its_top_speed():
+    """Continuation (module doc): 10 000 s + 100 s per km/h of top speed short of 100 km/h; finite, and
+    falling as the design moves toward reaching 100 km/h (more power, a lower ratio)."""
+    from bev_mdo.models.acceleration import NOT_REACHED_S, not_reached_note
+
+    kw, ig = np.array([5.0, 6.0, 80.0, 80.0, 80.0]), np.array([8.0, 8.0, 14.0, 13.0, 8.0])
+    m = np.full(5, 1550.0)
+    t = accel_time_0_100_s(kw, ig, m, continuation=True)
+    plain = accel_time_0_100_s(kw, ig, m)
+    assert np.all(np.isinf(plain[:4])) and np.all(np.isfinite(t)) and np.all(t[:4] >= NOT_REACHED_S)
+    assert t[4] == plain[4]  # a design that reaches 100 km/h: the same time, to the bit
+    assert t[1] < t[0] and t[3] < t[2]  # more power; a lower ratio
+    # over the speed limit at 14:1: the top speed is where the motor reaches 10 500 rpm
+    v_lim_km_h = 10500 * np.pi / 30 * 0.316 / 14 * 3.6
+    assert t[2] == pytest.approx(NOT_REACHED_S + 100.0 * (100.0 - v_lim_km_h), rel=1e-12)
+    assert f"top speed {v_lim_km_h:.1f} km/h" in not_reached_note(t[2])
+    assert not_reached_note(t[4]) is None
+
+
+def test_the_top_speed_of_a_weak_motor_is_where_its_power_meets_the_road_load():
+    from bev_mdo.models.acceleration import NOT_REACHED_S
+    from bev_mdo.models import road_load as rl
+
+    t = accel_time_0_100_s(np.array([5.0]), np.array([8.0]), np.array([1550.0]), continuation=True)[0]
+    top = (100.0 - (t - NOT_REACHED_S) / 100.0) / 3.6
+    from bev_mdo.models.acceleration import ACCEL_PARAMS
+    from bev_mdo.models.params import get_params
+
+    p = {**get_params(None, ACCEL_PARAMS), **rl.checked(None)}
+    drive = 5000.0 * p["gear_efficiency"] / top  # constant power: 8:1 puts the base speed far below
+    assert drive == pytest.approx(rl.road_load_n(p, np.array([top]), 1550.0)[0], rel=1e-9)
+
+
+@pytest.mark.parametrize("topology, args", [
+    ("SM-SA", (np.array([5.0, 80.0, 80.0]), np.array([8.0, 14.0, 8.0]))),
+    ("DM-DA", (np.array([40.0]), np.array([7.9]), np.array([40.0]), np.array([13.0]))),
+    ("IWM-SA", (np.array([5.0]),))])
+def test_the_topology_model_gives_the_same_continuation(topology, args):
+    from bev_mdo.models.acceleration import NOT_REACHED_S
+
+    m = np.full(args[0].shape, 1550.0)
+    t = tp.accel_time_s(topology, m, *args, continuation=True)
+    plain = tp.accel_time_s(topology, m, *args)
+    assert np.all(np.isfinite(t)) and np.array_equal(np.isinf(plain), t >= NOT_REACHED_S)
+    assert np.array_equal(t[np.isfinite(plain)], plain[np.isfinite(plain)])
+    if topology == "SM-SA":
+        np.testing.assert_allclose(t, accel_time_0_100_s(*args, m, continuation=True), rtol=1e-12)

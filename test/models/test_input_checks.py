@@ -82,3 +82,26 @@ def test_breakdown_keeps_complex_values_for_complex_step():
     h = 1e-20
     e = breakdown.energy_wh_per_km(R, {}, np.array([1590.0 + 1j * h]), 8.0, 80.0)
     assert np.iscomplexobj(e) and e.imag[0] != 0.0
+
+
+@pytest.mark.parametrize("call, said", [
+    (lambda: cost.powertrain_cost_usd(-5.0, 24.0), r"^motor_kw must be in \[1, 1000\] kW, got -5$"),
+    (lambda: mass.battery_mass_kg(0.5), r"^battery_kwh must be in \[1, inf\] kWh, got 0.5$"),
+    (lambda: acceleration.accel_time_0_100_s(80.0, 8.0, 50.0), r"^vehicle_mass_kg must be in \[100, 20000\] kg, got 50$"),
+    (lambda: range_model.range_km(24.0, 0.0), r"^energy_wh_per_km must be in \[1, inf\] Wh/km, got 0$")])
+def test_a_design_value_out_of_its_range_is_named_with_its_unit(call, said):
+    with pytest.raises(ValueError, match=said):
+        call()
+
+
+@pytest.mark.parametrize("name, value, said", [
+    ("glider_kg", float("nan"), r"^glider_kg must be in \[200, 5000\] kg, got nan$"),
+    ("glider_kg", np.array([1200.0, -1.0]), r"^glider_kg must be in \[200, 5000\] kg, got -1$"),
+    ("load_kg", float("inf"), r"^load_kg must be in \[0, 1000\] kg, got inf$"),
+    ("battery_kg_per_kwh", -7.8, r"^battery_kg_per_kwh must be in \[0.5, 50\] kg/kWh, got -7.8$")])
+def test_a_mass_parameter_must_be_finite_and_physical(name, value, said):
+    """The mass model checked its parameters for length only: a nan glider mass gave a nan vehicle mass."""
+    with pytest.raises(ValueError, match=said):
+        mass.vehicle_mass_ch7_kg(80.0, 24.0, **{name: value})
+    with pytest.raises(ValueError, match=said):
+        mass.vehicle_mass_kg(80.0, 24.0, {name: value})
