@@ -10,29 +10,14 @@ from pathlib import Path
 import pytest
 
 from bev_mdo.cli import main
+from test.cli.stopped_runs import interrupted_run
 
 SELLAR_IDF = Path(__file__).resolve().parents[2] / "examples" / "sellar" / "sellar_idf.yaml"
 
 
-class Stop(KeyboardInterrupt):
-    """What a Ctrl-C does to the run, raised after a record is written."""
-
-
 def _interrupted_bag(bag: Path, after: int) -> None:
     """An in-process IDF Sellar run stopped after ``after`` records, as by a signal: no answers stored."""
-    from bev_mdo.api import optimize
-    from bev_mdo.config import RunConfig
-
-    opts = optimize.OptimizeOptions(transport="inprocess", bag=str(bag), quiet=True)
-    seen = []
-
-    def stop(rec):
-        seen.append(rec)
-        if len(seen) == after:
-            raise Stop
-
-    with pytest.raises(Stop):
-        optimize.run(RunConfig.load(SELLAR_IDF), opts, callback=stop)
+    interrupted_run(SELLAR_IDF, bag, after)
 
 
 def test_idf_records_hold_the_couplings_and_history_keeps_them_apart(tmp_path):

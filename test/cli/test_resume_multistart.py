@@ -8,29 +8,14 @@ from pathlib import Path
 import pytest
 
 from bev_mdo.cli import main
+from test.cli.stopped_runs import interrupted_run
 
 SELLAR = Path(__file__).resolve().parents[2] / "examples" / "sellar" / "sellar_mdf.yaml"
 
 
-class Stop(KeyboardInterrupt):
-    """What a Ctrl-C does to the run, raised after a record is written."""
-
-
 def _interrupted(bag: Path, starts: int, after: int) -> None:
     """An in-process multi-start of Sellar stopped after ``after`` records, as by a signal: no answers stored."""
-    from bev_mdo.api import optimize
-    from bev_mdo.config import RunConfig
-
-    opts = optimize.OptimizeOptions(transport="inprocess", bag=str(bag), quiet=True, starts=starts, seed=3)
-    seen = []
-
-    def stop(rec):
-        seen.append(rec)
-        if len(seen) == after:
-            raise Stop
-
-    with pytest.raises(Stop):
-        optimize.run(RunConfig.load(SELLAR), opts, callback=stop)
+    interrupted_run(SELLAR, bag, after, starts=starts, seed=3)
 
 
 def _by_start(rows: list[dict]) -> dict[int, list[dict]]:
