@@ -81,7 +81,9 @@ class InProcessBag:
             return
         with interrupts.deferred():
             if answers is not None and not self.writer.closed:
-                self.writer._mcap.add_metadata(ANSWERS_METADATA, {"answers_json": jsontext.dumps(answers, None)})
+                text = jsontext.dumps(answers, None)
+                sig = {"answers_signature": self.signer.sign_answers(text)} if self.signer is not None else {}
+                self.writer._mcap.add_metadata(ANSWERS_METADATA, {"answers_json": text, **sig})
             self.writer.close()
 
 
@@ -111,10 +113,17 @@ def finish(config: Mapping[str, Any], result: dict, extra: dict) -> None:
         inproc.close(ans)
         if inproc.failed:
             extra["recorder_failed"] = inproc.failed
-    elif extra.get("bag"):  # over ROS: answers.json beside the recorder's bag
+    elif extra.get("bag"):  # over ROS: answers.json beside the recorder's bag, signed with the run's key
+        from bev_mdo.bag.signing import run_key_path
+        from bev_mdo.protocol.signing import Signer, read_key
+
         path = Path(extra["bag"]) / ANSWERS_FILE
         path.parent.mkdir(parents=True, exist_ok=True)
-        jsontext.write(path, ans)
+        text = jsontext.dumps(ans) + "\n"
+        path.write_text(text, encoding="utf-8")
+        key = run_key_path(extra["bag"])  # the per-run key, or a link to the configured one (bag.signing)
+        if key.is_file():
+            path.with_name(ANSWERS_FILE + ".sig").write_text(Signer(read_key(key)).sign_answers(text) + "\n")
     if extra.get("bag") and not extra.get("recorder_failed"):  # said if a signal comes after the result
         interrupts.note_done(f"the bag {extra['bag']} is complete")
 

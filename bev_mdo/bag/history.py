@@ -135,11 +135,12 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
     short, "unfinished": note.
     """
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
-    return _history(bag, stored_config(read_config(bag)), run_id, all_runs, key_file, checks, no_verify)
+    return _history(bag, stored_config(read_config(bag)), run_id, all_runs, key_file, checks, no_verify)[0]
 
 
-def _history(bag: Bag, config: dict, run_id, all_runs, key_file, checks, no_verify) -> list[dict]:
-    """``history`` of an open bag whose stored config (``stored_config``) the caller parsed."""
+def _history(bag: Bag, config: dict, run_id, all_runs, key_file, checks, no_verify) -> tuple[list[dict], object]:
+    """(``history`` of an open bag whose stored config (``stored_config``) the caller parsed, the Signer its
+    records were verified with or None)."""
     run = run_id or bag.info.get("run_id") or None  # the run the bag's recorder was started for, if any
     decoded = list(bag.decoded([t for t, ty in bag.topics.items() if ty == ITERATION_TYPE]))
     if run is None and not all_runs:
@@ -199,7 +200,7 @@ def _history(bag: Bag, config: dict, run_id, all_runs, key_file, checks, no_veri
         info["unfinished"] = f"the sweep's bag holds {len(rows)} of its {planned} designs (it was stopped while written)"
     if checks is not None:
         checks.update(info)
-    return rows
+    return rows, signer
 
 
 def check_note(checks: dict) -> str:
@@ -216,6 +217,8 @@ def check_note(checks: dict) -> str:
         parts.append(checks["unverified"])
     if checks.get("unfinished"):
         parts.append(checks["unfinished"])
+    if checks.get("answers"):
+        parts.append(checks["answers"])
     return "; ".join(parts)
 
 
@@ -277,15 +280,28 @@ def _maximized(config: dict) -> bool:
     return isinstance(obj, dict) and obj.get("maximize") is True
 
 
-def read_answers(bag: Bag) -> dict | None:
-    """The end-of-run answers stored with a bag (metadata record or answers.json), or None."""
+def read_answers(bag: Bag, signer=None, checks: dict | None = None) -> dict | None:
+    """The end-of-run answers stored with a bag (metadata record or answers.json), or None. A signed run's
+    (``signer``: its records' Verifier.signer) count only when signed with its key: they name the run's
+    result, which resume goes on from and report describes. Others are left out (None) and `checks` gets
+    "answers": why."""
     rec = bag.metadata.get(ANSWERS_METADATA)
     if rec and "answers_json" in rec:
-        return json.loads(rec["answers_json"])
-    path = bag.bag_dir / ANSWERS_FILE
-    if path.is_file():
-        return json.loads(path.read_text(encoding="utf-8"))
-    return None
+        text, sig = rec["answers_json"], rec.get("answers_signature", "")
+    else:
+        path = bag.bag_dir / ANSWERS_FILE
+        if not path.is_file():
+            return None
+        text = path.read_text(encoding="utf-8")
+        sig_file = path.with_name(ANSWERS_FILE + ".sig")
+        sig = sig_file.read_text(encoding="utf-8").strip() if sig_file.is_file() else ""
+    why = signer.verify_answers(text, sig) if signer is not None else None
+    if why is not None:
+        if checks is not None:
+            checks["answers"] = (f"its stored end-of-run answers are {why} (not signed with the run's key), so they are "
+                                 "left out: the run's result is not taken from them")
+        return None
+    return json.loads(text)
 
 
 def headline(rows: list[dict], sign: float = 1.0, answers: dict | None = None) -> int:
@@ -318,14 +334,14 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
     checks = {} if checks is None else checks
     config_yaml = read_config(bag)
     config = stored_config(config_yaml)
-    rows = _history(bag, config, run_id, False, key_file, checks, no_verify)
+    rows, signer = _history(bag, config, run_id, False, key_file, checks, no_verify)
     if not rows and checks["other_run_ids"]:
         own = "" if run_id else " (the bag's own)"
         raise BagError(f"{bag.mcap_path}: no record of run {checks['run_id']}{own}; "
                        f"{runs_held(checks['other_run_ids'])}; choose one with --run-id")
     if not rows:
         raise BagError(f"{bag.mcap_path}: no IterationRecord on {ITERATION_TOPIC}; nothing to resume")
-    answers = read_answers(bag)
+    answers = read_answers(bag, signer, checks)
     k = headline(rows, -1.0 if _maximized(config) else 1.0, answers)
     row = rows[k]
     if checks is not None and k != len(rows) - 1 and row["formulation"] != "doe":

@@ -405,7 +405,9 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     config, problem = _context(bag)
     final = answers = baseline = None
     units = _units(config)
-    answers = read_answers(bag)
+    from bev_mdo.bag.signing import verifier
+
+    answers = read_answers(bag, verifier(bag, key_file, no_verify).signer, checks)  # a signed run's: signed too
     k = headline(rows, -1.0 if maximized(read_config(bag)) else 1.0, answers)  # the result, a sweep's best, the last
     if rows and config is not None:
         final = _analyse(config, dict(rows[k]["design"]))

@@ -26,6 +26,7 @@ from scipy.stats import qmc
 from bev_mdo.mdo.driver import Run, RunResult, run_optimization
 from bev_mdo.mdo.evaluator import Evaluator
 from bev_mdo.mdo.lockstep import run_lockstep
+from bev_mdo.mdo.optimizers import ONE_AT_A_TIME, canonical_name
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import RunSettings
 
@@ -55,6 +56,8 @@ def run_starts(run: Run, evaluator: Evaluator, starts: int | list[dict[str, floa
     problem = run.optimisation_problem()
     if isinstance(starts, int) and starts == 1:
         return run_optimization(run, evaluator, formulation=formulation, optimizer=optimizer, callback=callback)
+    if batched and canonical_name(optimizer or run.optimizer.name) in ONE_AT_A_TIME:
+        batched = False  # its starts cannot share waves: one after another, each its own batches
     if isinstance(starts, int):
         points = start_points(problem, starts, seed)
     else:

@@ -175,6 +175,9 @@ OPTIMIZERS: dict[str, Callable | str] = {
 
 # Optimisers whose first step needs the gradient at x0 (the driver evaluates x0 with its FD stencil).
 GRADIENT_BASED = frozenset({"SLSQP", "trust-constr"})
+# Optimisers of which one process runs one at a time: scipy holds a module lock (COBYQA_LOCK) through each
+# COBYQA minimisation, so starts in lockstep (multistart.py) waited for each other's wave and the lock forever.
+ONE_AT_A_TIME = frozenset({"COBYQA"})
 
 
 def canonical_name(name: str) -> str:

@@ -181,6 +181,16 @@ class Signer:
         """Signature of a recorder's declaration (its JSON text; recorder_node.OwnRecorder)."""
         return self._mac(b"recorder declaration\0", text.encode())
 
+    def sign_answers(self, text: str) -> str:
+        """Signature of a run's end-of-run answers (their stored JSON text: api/runbag.finish), which name its result."""
+        return self._mac(b"run answers\0", text.encode())
+
+    def verify_answers(self, text: str, signature: str) -> str | None:
+        """None if stored answers are the run's own, else "unsigned" or "forged"."""
+        if not signature:
+            return "unsigned"
+        return None if hmac.compare_digest(str(signature), self.sign_answers(text)) else "forged"
+
     def verify_declaration(self, text: str, signature: str) -> str | None:
         """None if a recorder's declaration is authentic, else "unsigned" or "forged" (MAC only,
         as for a discipline's declaration)."""

@@ -67,3 +67,24 @@ def test_a_start_that_bought_objective_with_violation_does_not_stand_for_the_poi
     infeasible = R(objective=100.0, feasible=False, max_violation=1.0, design={"motor_kw": 100.0, "gear_ratio": 5.0})
     assert _best_start([infeasible, past], 1.0, span, names, 1e-3) == 1
     assert _best_start([infeasible], 1.0, span, names, 1e-3) == 0
+
+
+def test_cobyqa_starts_run_one_after_another_instead_of_waiting_for_each_other():
+    """scipy runs one COBYQA at a time (a module lock held through each minimisation); in lockstep the start
+    holding it waited for the others' requests and they for the lock: --starts 2 with COBYQA hung for good.
+    The run is on a thread here so that a hang fails the test instead of stopping the suite."""
+    import threading
+
+    config = example_config(SELLAR)
+    out = {}
+
+    def run() -> None:
+        out["res"] = run_starts(config, InProcessEvaluator(resolve_disciplines(config)), 3, seed=0, optimizer="COBYQA")
+
+    t = threading.Thread(target=run, daemon=True)
+    t.start()
+    t.join(timeout=300)
+    assert not t.is_alive(), "COBYQA's starts deadlocked"
+    res = out["res"]
+    assert res.multistart["batched"] is False and len(res.multistart["results"]) == 3
+    assert res.objective == pytest.approx(REF_F, rel=1e-5) and res.feasible
