@@ -156,6 +156,10 @@ def _run(args) -> int:
         return 143 if terminated else 130
     except BrokenPipeError:
         return _closed_pipe()
+    except SystemExit as exc:  # rich's Console ends a write into a closed pipe with SystemExit(1)
+        if isinstance(exc.__context__, BrokenPipeError):
+            return _closed_pipe()
+        raise
     except (UsageError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         print(f"bev-mdo {args.command}: error: {msg}", file=sys.stderr)
