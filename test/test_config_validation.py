@@ -202,6 +202,20 @@ def test_a_fixed_parameter_naming_a_disciplines_output_is_refused(tmp_path):
         load_config(p)
 
 
+@pytest.mark.parametrize("parameters, said", [
+    ("{glider_kg: -100}", r"problem.parameters.glider_kg: -100 is outside \[200, 5000\] kg, where discipline "
+                          "'vehicle_mass' accepts it$"),
+    ("{gear_count: 1.5}", "problem.parameters.gear_count: 1.5 is not a whole number, which discipline "
+                          "'vehicle_mass' needs$")])
+def test_a_fixed_parameter_the_models_refuse_is_refused_on_load(tmp_path, parameters, said):
+    """problem.parameters: {glider_kg: -100} loaded, and every evaluation of the run failed in vehicle_mass
+    (the same value in the vehicle section was refused on load)."""
+    p = _write(tmp_path, BASE.replace("  battery_sized_for_range: false\n",
+                                      f"  battery_sized_for_range: false\n  parameters: {parameters}\n"))
+    with pytest.raises(ValueError, match=said):
+        load_config(p)
+
+
 @pytest.mark.parametrize("line, said", [
     ("driven_axles: 1.5", "driven_axles must be 1 or 2, got 1.5"),
     ("gear_count: 2.5", "gear_count must be 1 or 2, got 2.5"),
