@@ -77,6 +77,19 @@ def test_optimizer_options_are_checked_against_the_solver_naming_the_key(tmp_pat
         check_optimizer_options("trust-constr", {"barrier": 1.0})
 
 
+@pytest.mark.parametrize("name, options", [("SLSQP", {"maxiter": -5}), ("trust-constr", {"maxiter": 0}),
+                                           ("COBYLA", {"maxiter": 10.5}), ("COBYQA", {"maxfev": -1}),
+                                           ("COBYQA", {"maxiter": "ten"}),
+                                           ("differential_evolution", {"popsize": 0}),
+                                           ("chebyshev-pairwise", {"maxiter": -2}),
+                                           ("chebyshev-pairwise", {"cheb_n_max": 0})])
+def test_an_optimizer_count_below_one_is_refused(name, options):
+    """maxiter: -5 loaded; the run did no iteration at all and exited 5 (no verified optimum)."""
+    key, value = next(iter(options.items()))
+    with pytest.raises(ValueError, match=rf"^optimizer.options.{key}: {value!r} must be a whole number of at least 1$"):
+        check_optimizer_options(name, options)
+
+
 def _cli(tmp_path, *argv):
     """The CLI of this worktree (PYTHONPATH), localhost only; none of these calls may reach ROS."""
     env = {**ros_env(66), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}

@@ -35,10 +35,20 @@ def check_optimizer_options(name: str, options: Mapping[str, Any]) -> None:
     """ValueError naming the first key of `options` that the optimiser does not accept, with the
     nearest one: the keyword arguments of its scipy solver (scipy itself only warns, after the nodes
     have started), or the ``DEFAULTS`` of a plug-in module (``chebyshev-pairwise``)."""
-    from bev_mdo.mdo.optimizers import OPTIMIZERS
+    from bev_mdo.mdo.optimizers import COUNT_OPTIONS, OPTIMIZERS
 
+    _check_solver_options(name, options, OPTIMIZERS.get(name))
+    if name not in OPTIMIZERS:
+        return
+    for key in COUNT_OPTIONS & set(options):
+        value = options[key]
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ValueError(f"optimizer.options.{key}: {value!r} must be a whole number of at least 1")
+
+
+def _check_solver_options(name: str, options: Mapping[str, Any], plugin) -> None:
+    """The keys of `options` against the solver's own, and a number where its default is one."""
     where = _SCIPY_SOLVERS.get(name)
-    plugin = OPTIMIZERS.get(name)
     if where is None and isinstance(plugin, str):
         try:
             defaults = getattr(importlib.import_module(plugin.partition(":")[0]), "DEFAULTS", None)
