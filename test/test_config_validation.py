@@ -57,12 +57,15 @@ def test_a_section_of_the_wrong_kind_is_one_line_not_a_type_error(tmp_path, bad,
         load_config(p)
 
 
-def test_a_non_numeric_fd_step_exits_2(tmp_path, capsys):
+@pytest.mark.parametrize("step, said", [("small", "optimizer.fd_step 'small' must be in (0, 0.1) (scaled units)\n"),
+                                        ("1e-6", "optimizer.fd_step '1e-6' must be in (0, 0.1) (scaled units) (YAML reads "
+                                                 "1e-6 as text: write 1.0e-6 or 0.000001)\n")])
+def test_a_non_numeric_fd_step_exits_2(tmp_path, capsys, step, said):
     from bev_mdo.cli import main
 
-    p = _write(tmp_path, BASE.replace("fd_step: 1.0e-6", "fd_step: small"))
+    p = _write(tmp_path, BASE.replace("fd_step: 1.0e-6", f"fd_step: {step}"))
     assert main(["check-totals", str(p), "--transport", "inprocess"]) == 2
-    assert "optimizer.fd_step 'small' must be in (0, 0.1)" in capsys.readouterr().err
+    assert said in capsys.readouterr().err
 
 
 def test_optimizer_options_are_checked_against_the_solver_naming_the_key(tmp_path):
@@ -75,6 +78,19 @@ def test_optimizer_options_are_checked_against_the_solver_naming_the_key(tmp_pat
         check_optimizer_options("differential_evolution", {"ftol": 1e-9})
     with pytest.raises(ValueError, match="optimizer.options.barrier: unknown key of trust-constr"):
         check_optimizer_options("trust-constr", {"barrier": 1.0})
+
+
+@pytest.mark.parametrize("name, options", [("SLSQP", {"maxiter": -5}), ("trust-constr", {"maxiter": 0}),
+                                           ("COBYLA", {"maxiter": 10.5}), ("COBYQA", {"maxfev": -1}),
+                                           ("COBYQA", {"maxiter": "ten"}),
+                                           ("differential_evolution", {"popsize": 0}),
+                                           ("chebyshev-pairwise", {"maxiter": -2}),
+                                           ("chebyshev-pairwise", {"cheb_n_max": 0})])
+def test_an_optimizer_count_below_one_is_refused(name, options):
+    """maxiter: -5 loaded; the run did no iteration at all and exited 5 (no verified optimum)."""
+    key, value = next(iter(options.items()))
+    with pytest.raises(ValueError, match=rf"^optimizer.options.{key}: {value!r} must be a whole number of at least 1$"):
+        check_optimizer_options(name, options)
 
 
 def _cli(tmp_path, *argv):
@@ -202,6 +218,20 @@ def test_a_fixed_parameter_naming_a_disciplines_output_is_refused(tmp_path):
         load_config(p)
 
 
+@pytest.mark.parametrize("parameters, said", [
+    ("{glider_kg: -100}", r"problem.parameters.glider_kg: -100 is outside \[200, 5000\] kg, where discipline "
+                          "'vehicle_mass' accepts it$"),
+    ("{gear_count: 1.5}", "problem.parameters.gear_count: 1.5 is not a whole number, which discipline "
+                          "'vehicle_mass' needs$")])
+def test_a_fixed_parameter_the_models_refuse_is_refused_on_load(tmp_path, parameters, said):
+    """problem.parameters: {glider_kg: -100} loaded, and every evaluation of the run failed in vehicle_mass
+    (the same value in the vehicle section was refused on load)."""
+    p = _write(tmp_path, BASE.replace("  battery_sized_for_range: false\n",
+                                      f"  battery_sized_for_range: false\n  parameters: {parameters}\n"))
+    with pytest.raises(ValueError, match=said):
+        load_config(p)
+
+
 @pytest.mark.parametrize("line, said", [
     ("driven_axles: 1.5", "driven_axles must be 1 or 2, got 1.5"),
     ("gear_count: 2.5", "gear_count must be 1 or 2, got 2.5"),
@@ -227,3 +257,35 @@ def test_an_sm_sa_only_setting_on_another_topology_is_refused_on_load(topology, 
     raw["vehicle"].update({"topology": topology, key: 2})
     with pytest.raises(ValueError, match=rf"vehicle.{key}: 2 \({what}\) is SM-SA only, not {topology}"):
         load_config(raw)
+
+
+@pytest.mark.parametrize("old, new, said", [
+    # PyYAML reads YAML 1.1: a float needs a dot and a signed exponent, so 2e2 and 2.0e2 are text
+    ("upper: 120, initial: 80}", "upper: 2e2, initial: 80}",
+     r"problem.design_variables.motor_kw.upper: '2e2' must be a number \(YAML reads 2e2 as text: write 2.0e\+2 or 200\)"),
+    ("upper: 120, initial: 80}", "upper: 2.0e2, initial: 80}", r"'2.0e2' must be a number \(YAML reads 2.0e2 as text: "
+                                                               r"write 2.0e\+2 or 200\)"),
+    ("tolerance: 1.0e-10", "tolerance: 1e-10", r"mda.tolerance '1e-10' must be a number > 0 \(YAML reads 1e-10 as "
+                                                r"text: write 1.0e-10\)"),
+    # the vehicle and cycle sections took text as a number (float()), where a bound refused it
+    ("glider_kg: 1269.64", 'glider_kg: "1134"',
+     r"glider_kg must be a number in \[200, 5000\] kg, got '1134' \(text, not a number: write 1134 without quotes\)"),
+    ("glider_kg: 1269.64", "glider_kg: 1134e0",
+     r"glider_kg must be a number in \[200, 5000\] kg, got '1134e0' \(YAML reads 1134e0 as text: write 1134.0e\+0 "
+     r"or 1134\)"),
+    ("dt_s: 1.0,", 'dt_s: "1",', r"cycle dt_s must be a number .*, got '1' \(text, not a number: write 1 without quotes\)"),
+    ("upper: 120, initial: 80}", 'upper: "120", initial: 80}',
+     r"problem.design_variables.motor_kw.upper: '120' must be a number \(text, not a number: write 120 without quotes\)")])
+def test_text_where_a_number_is_expected_is_refused_saying_what_to_write(tmp_path, old, new, said):
+    assert old in BASE
+    p = _write(tmp_path, BASE.replace(old, new, 1))
+    with pytest.raises(ValueError, match=said):
+        load_config(p)
+
+
+def test_a_yaml_float_with_a_dot_and_a_signed_exponent_is_a_number(tmp_path):
+    p = _write(tmp_path, BASE.replace("upper: 120, initial: 80}", "upper: 1.2e+2, initial: 80}")
+               .replace("glider_kg: 1269.64", "glider_kg: 1.134e+3"))
+    cfg = load_config(p)
+    assert cfg["vehicle"]["glider_kg"] == 1134.0
+    assert cfg["problem"]["design_variables"]["motor_kw"]["upper"] == 120.0

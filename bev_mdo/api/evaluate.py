@@ -40,12 +40,14 @@ def design(config, given: dict[str, float], transport) -> dict:
     """The report of one multidisciplinary analysis (mdo.driver.evaluate_design: design, outputs,
     objective, constraints with margins, feasible, ok, error; ``notes``, only when a discipline has one
     about an output's value, e.g. a design that cannot reach 100 km/h). Design variables not given take their
-    initial value; a value outside its bounds is evaluated as given, with a note on stderr."""
+    initial value; a value outside its bounds is evaluated as given, with a note on stderr, but one the
+    models refuse (outside a physical design limit or a parameter's range) is an InputError."""
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import evaluate_design
 
     finite_values(given)
     config = RunConfig.of(config)
+    refuse_outside_model_limits(config, given)
     problem = config.problem
     full = {**{d.name: d.initial for d in problem.design_variables}, **given}
     for d in problem.design_variables:  # evaluated as given, but a user should know it is off the design space
@@ -59,6 +61,17 @@ def design(config, given: dict[str, float], transport) -> dict:
     if notes:  # what an output's value means where it is not a measurement (e.g. a continuation value)
         report["notes"] = notes
     return report
+
+
+def refuse_outside_model_limits(config, values) -> None:
+    """InputError (one line) for a value no built-in model of the run can evaluate: a motor of -5 kW, a
+    glider of -100 kg (config.disciplines.check_model_limits), which gave a table of NaN and exit 1."""
+    from bev_mdo.config.disciplines import check_model_limits
+
+    try:
+        check_model_limits(config.disciplines, values)
+    except ValueError as exc:
+        raise InputError(f"{exc}; such a design cannot be evaluated") from None
 
 
 def check_names(names, problem, params) -> None:
@@ -84,6 +97,7 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
     with Evaluating(config, transport, announce=True) as evaluator:
         mda = _mda(config.settings, evaluator, problem)
         check_names(designs, problem, {p for s in mda.specs.values() for p in s.parameters})
+        refuse_outside_model_limits(config, designs)
         for d in problem.design_variables:
             if d.name in designs:
                 v = np.asarray(designs[d.name], dtype=float)

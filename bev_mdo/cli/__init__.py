@@ -66,6 +66,43 @@ def figure_format(path) -> str | None:
     return None if p.suffix else "png"
 
 
+def save_figure(fig, path, dpi: int = 110) -> None:
+    """Write the figure of a ``--png FILE`` option to exactly ``path`` and close it; a path that cannot
+    be written is one ValueError naming it and why."""
+    import matplotlib.pyplot as plt
+
+    try:
+        fig.savefig(path, dpi=dpi, format=figure_format(path))
+    except OSError as exc:
+        raise cannot_write(path, exc) from None
+    finally:
+        plt.close(fig)
+
+
+def write_text_file(path, text: str) -> None:
+    """Write an output file the user named (``--csv FILE``, ``--dot FILE``); a path that cannot be
+    written is one ValueError naming it and why (not the raw ``[Errno 2] ...``)."""
+    try:
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(text)
+    except OSError as exc:
+        raise cannot_write(path, exc) from None
+
+
+def cannot_write(path, exc: OSError) -> ValueError:
+    """One line for an output file that could not be written: its name and the reason."""
+    from pathlib import Path
+
+    folder = Path(path).parent
+    if isinstance(exc, FileNotFoundError) and not folder.is_dir():
+        reason = f"the folder {folder} does not exist"
+    elif isinstance(exc, IsADirectoryError):
+        reason = "it is a directory (give a file name)"
+    else:
+        reason = exc.strerror or str(exc)
+    return ValueError(f"cannot write {path}: {reason}")
+
+
 def _chosen(argv: list[str]) -> str | None:
     """The subcommand named in ``argv`` (its first word that is not an option), if it is one."""
     for word in argv:
@@ -156,6 +193,10 @@ def _run(args) -> int:
         return 143 if terminated else 130
     except BrokenPipeError:
         return _closed_pipe()
+    except SystemExit as exc:  # rich's Console ends a write into a closed pipe with SystemExit(1)
+        if isinstance(exc.__context__, BrokenPipeError):
+            return _closed_pipe()
+        raise
     except (UsageError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         print(f"bev-mdo {args.command}: error: {msg}", file=sys.stderr)

@@ -30,7 +30,7 @@ def write_plot(path: str, rep: dict) -> None:
     """Bars of the indices of every output with their confidence intervals; the title names the
     bounds, the fixed values, N and the seed."""
     from bev_mdo.api.evaluate import pyplot_and_label
-    from bev_mdo.cli import figure_format
+    from bev_mdo.cli import save_figure
 
     plt, label = pyplot_and_label(rep.get("units"))
     names, outs = rep["variables"], [k for k, r in rep["outputs"].items() if not r.get("constant")]
@@ -52,5 +52,4 @@ def write_plot(path: str, rep: dict) -> None:
     fixed = ", ".join(f"{k}={v:g}" for k, v in rep["fixed"].items())
     fig.suptitle(f"{rep['method']} indices over the bounds (N = {rep['samples']}, seed {rep['seed']}, "
                  f"{100 * rep['conf_level']:g} % intervals)" + (f"\nfixed at {fixed}" if fixed else ""), fontsize=9)
-    fig.savefig(path, dpi=110, format=figure_format(path))
-    plt.close(fig)
+    save_figure(fig, path)

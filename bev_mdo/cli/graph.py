@@ -129,14 +129,14 @@ def plot_n2(model: dict, path: Path, title: str = ""):
     chars = int(size * 72 / (0.6 * 9))  # the figure's width in characters of the 9 pt title (DejaVu Sans)
     ax.set_title("\n".join(textwrap.fill(line, chars) for line in text.splitlines()), fontsize=9)
     fig.tight_layout()
-    from bev_mdo.cli import figure_format
+    from bev_mdo.cli import save_figure
 
-    fig.savefig(path, dpi=110, format=figure_format(path))
-    plt.close(fig)
+    save_figure(fig, path)
     return fig
 
 
 def run(args) -> int:
+    from bev_mdo.cli import write_text_file
     from bev_mdo.config import RunConfig
 
     config = RunConfig.load(args.config)
@@ -146,7 +146,7 @@ def run(args) -> int:
         plot_n2(model, Path(args.png), title=f"{config.name}: coupling graph")
         print(f"wrote {args.png}", file=sys.stderr)
     if args.dot and args.dot != "-":
-        Path(args.dot).write_text(dot, encoding="utf-8")
+        write_text_file(args.dot, dot)
         print(f"wrote {args.dot}", file=sys.stderr)
     elif args.dot == "-" or not args.png:
         sys.stdout.write(dot)

@@ -12,6 +12,7 @@ import shutil
 import sys
 from pathlib import Path
 
+from bev_mdo.cli import write_text_file
 from bev_mdo.cli.flags import add_bag_argument
 
 # fixed headers (quantity, unit) of the record's own columns
@@ -109,8 +110,7 @@ def run(args) -> int:
         if args.csv == "-":
             sys.stdout.write(text)
         else:
-            with open(args.csv, "w", encoding="utf-8") as f:
-                f.write(text)
+            write_text_file(args.csv, text)
             print(f"wrote {records_phrase(rows)} to {args.csv}")
         return 0
     width = args.width

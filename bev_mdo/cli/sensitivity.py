@@ -188,8 +188,7 @@ def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
             ax.set_title(f"second order (eq 5-5) of {label(k)}", fontsize=9)
         fig.colorbar(im, ax=mat_axes, shrink=0.8, label="S'_ij (–), one scale for all matrices; grey: |S'| ≤ error")
     fig.suptitle(f"Normalised sensitivities {_context_title(s, cfg, design)}", fontsize=10, wrap=True)
-    from bev_mdo.cli import figure_format
+    from bev_mdo.cli import save_figure
 
-    fig.savefig(path, dpi=110, format=figure_format(path))
-    plt.close(fig)
+    save_figure(fig, path)
     return fig

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bev_mdo.cli import figure_format
+from bev_mdo.cli import save_figure
 
 
 def _f(x, nd=1):
@@ -136,13 +136,6 @@ def plot_pair_arrows(report: dict, cycle: str, path) -> None:
 
 def _save(fig, path) -> None:
     """Write a figure (format from the name) and close it; an unwritable path is one ValueError."""
-    import matplotlib.pyplot as plt
-
     fig.tight_layout()
-    try:
-        fig.savefig(path, dpi=110, format=figure_format(path))
-    except OSError as exc:
-        raise ValueError(f"cannot write {path}: {exc.strerror}") from None
-    finally:
-        plt.close(fig)
+    save_figure(fig, path)
 

@@ -70,9 +70,9 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
             if spec.lower < lo or spec.upper > hi:
                 raise ValueError(f"problem.design_variables.{dv}: bounds [{spec.lower:g}, {spec.upper:g}] reach "
                                  f"outside {where}")
-            value = ((cfg["problem"].get("baseline") or {}).get("design") or {}).get(dv, lo)
-            if not lo <= value <= hi:  # it would be shown as a column of NaN beside the result
-                raise ValueError(f"problem.baseline.design.{dv}: {value:g} is outside {where}")
+    # a baseline the models refuse would be shown as a column of NaN beside the result
+    check_model_limits(discs, ((cfg["problem"].get("baseline") or {}).get("design") or {}), "problem.baseline.design.")
+    check_model_limits(discs, problem.parameters, "problem.parameters.")
     for k in problem.parameters:
         if k in produced:  # the flow takes a produced variable from its producer: the value would be ignored
             raise ValueError(f"problem.parameters.{k}: it is produced by discipline {graph.producer[k]!r}, "
@@ -84,6 +84,48 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
                          "(add the battery_sizing discipline)")
     graph.check_inputs(set(problem.names) | set(problem.parameters))
     return params
+
+
+def model_limits(discs, name: str) -> tuple[float, float, str, bool, str] | None:
+    """(lower, upper, unit, integer, discipline): the range in which the run's built-in disciplines accept
+    a value of ``name`` (a design variable's physical design limit, ``DESIGN_LIMITS``, or a model
+    parameter's range, ``models.params``) and the first built-in discipline that reads it; None when no
+    built-in discipline reads it or no range is declared (a discipline of yours checks its own)."""
+    from bev_mdo.models.params import all_specs
+
+    builtin = [d for d in discs if type(d).__module__.startswith("bev_mdo.disciplines")]
+    reader = next((d.name for d in builtin if name in d.inputs), None)
+    if name in DESIGN_LIMITS and reader:
+        return (*DESIGN_LIMITS[name], False, reader)
+    spec = all_specs().get(name)
+    reader = next((d.name for d in builtin if name in (getattr(d, "parameters", {}) or {})), None)
+    if spec is not None and reader:
+        return spec.lower, spec.upper, spec.unit, spec.integer, reader
+    return None
+
+
+def check_model_limits(discs, values: Mapping[str, Any], where: str = "") -> None:
+    """ValueError for the first value (a number or an array of them) of a design variable or parameter that
+    the run's built-in disciplines refuse (:func:`model_limits`): a design they can never evaluate. A value
+    outside a design variable's bounds but inside its physical limit is not checked here. ``where``: the
+    key path of ``values`` (``problem.parameters.``)."""
+    import numpy as np
+
+    for name, value in values.items():
+        limits = model_limits(discs, name)
+        if limits is None or isinstance(value, (bool, str)):  # not a number: refused where it is read
+            continue
+        lo, hi, unit, integer, reader = limits
+        a = np.atleast_1d(np.asarray(value, dtype=float)).reshape(-1)
+        outside = a[~((a >= lo) & (a <= hi))]
+        unit = f" {unit}" if unit and unit != "-" else ""
+        if outside.size:
+            raise ValueError(f"{where}{name}: {outside[0]:g} is outside [{lo:g}, {hi:g}]{unit}, where discipline "
+                             f"{reader!r} accepts it")
+        fractional = a[a != np.round(a)] if integer else a[:0]
+        if fractional.size:
+            raise ValueError(f"{where}{name}: {fractional[0]:g} is not a whole number, which discipline {reader!r} "
+                             "needs")
 
 
 def resolve_disciplines(config: Mapping[str, Any]) -> list:

@@ -17,7 +17,7 @@ from bev_mdo.config.sections import (anchor_paths, check_mda_numbers, check_opti
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
 from bev_mdo.mdo.vectors import has_partials
-from bev_mdo.models.common import check_keys
+from bev_mdo.models.common import check_keys, is_number, text_hint
 from bev_mdo.ros_settings import validate_ros
 
 TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "disciplines", "problem",
@@ -207,9 +207,9 @@ def _resolve(raw: Any) -> RunConfig:
         raise ValueError(f"optimizer.fd_scheme {cfg['optimizer']['fd_scheme']!r} is unknown; allowed: "
                          f"{', '.join(FD_SCHEMES)}")
     tol = cfg["optimizer"]["feasibility_tolerance"]
-    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not 0 <= tol < 1 or math.isnan(tol):
+    if not is_number(tol) or not 0 <= tol < 1 or math.isnan(tol):
         raise ValueError(f"optimizer.feasibility_tolerance {tol!r} must be a number in [0, 1) "
-                         "(on normalised constraints; default 1e-4)")
+                         f"(on normalised constraints; default 1e-4){text_hint(tol)}")
     cfg["optimizer"]["feasibility_tolerance"] = float(tol)
     if cfg["optimizer"]["derivatives"] not in DERIVATIVES:
         raise ValueError(f"optimizer.derivatives {cfg['optimizer']['derivatives']!r} is unknown; allowed: "

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from bev_mdo.models import params
-from bev_mdo.models.common import check_keys
+from bev_mdo.models.common import check_keys, is_number, text_hint
 from bev_mdo.models.cycles import CycleNote, is_csv_cycle, load_cycle, trace_cycle, trace_record, unbalanced_note
 
 SIZED_VARIABLE = "battery_kwh"
@@ -35,10 +35,20 @@ def check_optimizer_options(name: str, options: Mapping[str, Any]) -> None:
     """ValueError naming the first key of `options` that the optimiser does not accept, with the
     nearest one: the keyword arguments of its scipy solver (scipy itself only warns, after the nodes
     have started), or the ``DEFAULTS`` of a plug-in module (``chebyshev-pairwise``)."""
-    from bev_mdo.mdo.optimizers import OPTIMIZERS
+    from bev_mdo.mdo.optimizers import COUNT_OPTIONS, OPTIMIZERS
 
+    _check_solver_options(name, options, OPTIMIZERS.get(name))
+    if name not in OPTIMIZERS:
+        return
+    for key in COUNT_OPTIONS & set(options):
+        value = options[key]
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ValueError(f"optimizer.options.{key}: {value!r} must be a whole number of at least 1{text_hint(value)}")
+
+
+def _check_solver_options(name: str, options: Mapping[str, Any], plugin) -> None:
+    """The keys of `options` against the solver's own, and a number where its default is one."""
     where = _SCIPY_SOLVERS.get(name)
-    plugin = OPTIMIZERS.get(name)
     if where is None and isinstance(plugin, str):
         try:
             defaults = getattr(importlib.import_module(plugin.partition(":")[0]), "DEFAULTS", None)
@@ -58,9 +68,9 @@ def check_optimizer_options(name: str, options: Mapping[str, Any]) -> None:
     check_keys("optimizer.options", options, known, of=name)
     for key, value in options.items():
         default = params[key].default
-        if (isinstance(default, (int, float)) and not isinstance(default, bool)
-                and (isinstance(value, bool) or not isinstance(value, (int, float)))):
-            raise ValueError(f"optimizer.options.{key}: {value!r} is not a number ({name}'s default is {default!r})")
+        if is_number(default) and not is_number(value):
+            raise ValueError(f"optimizer.options.{key}: {value!r} is not a number ({name}'s default is {default!r})"
+                             f"{text_hint(value)}")
 
 
 def search_path(given: Any, base: Path | None) -> list[str]:
@@ -132,12 +142,12 @@ def engine_section(value: Any, defaults: Mapping[str, Any], where: str) -> dict:
 
 def check_mda_numbers(mda: Mapping[str, Any]) -> None:
     tol, it, w = mda["tolerance"], mda["max_iterations"], mda["relaxation"]
-    if not isinstance(tol, (int, float)) or not tol > 0:
-        raise ValueError(f"mda.tolerance {tol!r} must be a number > 0")
+    if not is_number(tol) or not tol > 0:
+        raise ValueError(f"mda.tolerance {tol!r} must be a number > 0{text_hint(tol)}")
     if isinstance(it, bool) or not isinstance(it, int) or it < 1:
         raise ValueError(f"mda.max_iterations {it!r} must be an integer >= 1")
-    if not isinstance(w, (int, float)) or not 0 < w <= 2:
-        raise ValueError(f"mda.relaxation {w!r} must be in (0, 2]")
+    if not is_number(w) or not 0 < w <= 2:
+        raise ValueError(f"mda.relaxation {w!r} must be in (0, 2]{text_hint(w)}")
     if not isinstance(mda["warm_start"], bool) and mda["warm_start"] not in ("auto", "tangent"):
         raise ValueError(f"mda.warm_start {mda['warm_start']!r} must be true, false, auto or tangent")
     if mda["warm_start"] == "tangent" and mda["method"] != "newton":
@@ -267,8 +277,8 @@ def resolve_problem(section: Any) -> dict:
             raise ValueError("problem.baseline.name must be a non-empty label, e.g. 'Nissan Leaf'")
         design = {}
         for k, v in base["design"].items():
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise ValueError(f"problem.baseline.design.{k}: {v!r} must be a finite number")
+            if not is_number(v) or not math.isfinite(v):
+                raise ValueError(f"problem.baseline.design.{k}: {v!r} must be a finite number{text_hint(v)}")
             if not (sized and k == SIZED_VARIABLE):  # sized mode: the battery is sized, not given
                 design[str(k)] = float(v)
         prob["baseline"] = {"name": label.strip(), "design": design}

@@ -35,6 +35,7 @@ from bev_mdo.mdo.evaluator import Evaluator
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.mda import MDA, MDAResult
 from bev_mdo.mdo.problem import Problem
+from bev_mdo.models.common import is_number, text_hint
 
 FAIL_OBJECTIVE = 1.0e10
 FAIL_CONSTRAINT = 1.0
@@ -55,8 +56,8 @@ class Formulation:
             raise ValueError(f"optimizer.derivatives {derivatives!r} is unknown; allowed: {', '.join(DERIVATIVES)}")
         self.derivatives = derivatives
         self._want_partials = False
-        if not isinstance(fd_step, (int, float)) or not 0 < fd_step < 0.1:  # 'x' was a TypeError (exit 7)
-            raise ValueError(f"optimizer.fd_step {fd_step!r} must be in (0, 0.1) (scaled units)")
+        if not is_number(fd_step) or not 0 < fd_step < 0.1:  # 'x' was a TypeError (exit 7)
+            raise ValueError(f"optimizer.fd_step {fd_step!r} must be in (0, 0.1) (scaled units){text_hint(fd_step)}")
         if fd_scheme not in FD_SCHEMES:
             raise ValueError(f"optimizer.fd_scheme {fd_scheme!r} is unknown; allowed: {', '.join(FD_SCHEMES)}")
         self.problem, self.evaluator = problem, evaluator

@@ -172,6 +172,10 @@ OPTIMIZERS: dict[str, Callable | str] = {
     "chebyshev-pairwise": "bev_mdo.mdo.chebyshev_opt:minimize",
 }
 
+# options of the shipped optimisers that count something (iterations, evaluations, population members
+# per variable, Chebyshev terms): a whole number of at least 1 (maxiter: -5 ran no iteration at all)
+COUNT_OPTIONS = frozenset({"maxiter", "maxfev", "popsize", "cheb_n_max"})
+
 
 # Optimisers whose first step needs the gradient at x0 (the driver evaluates x0 with its FD stencil).
 GRADIENT_BASED = frozenset({"SLSQP", "trust-constr"})

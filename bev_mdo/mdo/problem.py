@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from bev_mdo.mdo.vectors import base_name, expand, flat_names
-from bev_mdo.models.common import check_keys
+from bev_mdo.models.common import check_keys, is_number, text_hint
 
 MAX_VECTOR_ELEMENTS = 10_000  # per vector design variable or constraint (docs/vector-variables.md)
 _DV_KEYS = {"lower", "upper", "initial", "scale", "shape"}
@@ -196,8 +196,8 @@ def parse_objective(value: Any, where: str) -> tuple[str, bool]:
 
 
 def _num(v: Any, where: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise ValueError(f"{where}: {v!r} must be a number")
+    if not is_number(v):
+        raise ValueError(f"{where}: {v!r} must be a number{text_hint(v)}")
     if np.isnan(v):
         raise ValueError(f"{where}: must not be NaN")
     return float(v)

@@ -13,10 +13,13 @@ Imports nothing from the package (numpy only), so every model module may import 
   step (breakdown).
 * :func:`check_keys`: a mapping's keys against the known ones; the message names the key path and
   the nearest known key (every config section and option dictionary uses it).
+* :func:`text_hint`: where a config expects a number and finds text that reads as one (``2e2``, a
+  quoted ``"1134"``), why YAML gave text and what to write. Such text is refused everywhere.
 """
 from __future__ import annotations
 
 import math
+import re
 from typing import Any, Mapping
 
 import numpy as np
@@ -57,6 +60,37 @@ def check_keys(where: str, given: Any, known: Any, of: str = "") -> None:
         raise ValueError(f"{where + '.' if where else ''}{key}: unknown key{' of ' + of if of else ''}; {hint}{listed}")
 
 
+_EXPONENT_WITHOUT_DOT_OR_SIGN = re.compile(r"([-+]?[0-9][0-9_]*)(\.[0-9_]*)?[eE]([-+]?)([0-9]+)")
+
+
+def text_hint(value: Any) -> str:
+    """`` (why YAML read it as text: what to write)`` for a config value that is text but reads as a
+    number, else "". PyYAML reads YAML 1.1, whose floats need a dot and a signed exponent: ``2e2`` and
+    ``2.0e2`` are text, ``2.0e+2`` is 200.0; a quoted number is text in any YAML. Text is refused where a
+    number is expected (float() took "1134" in one section and not in another)."""
+    if not isinstance(value, str):
+        return ""
+    text = value.strip()
+    try:
+        x = float(text)
+    except ValueError:
+        return ""
+    if not math.isfinite(x):
+        return " (text; YAML's infinity is .inf)" if "inf" in text.lower() else ""
+    m = _EXPONENT_WITHOUT_DOT_OR_SIGN.fullmatch(text)
+    if m and not (m.group(2) and m.group(3)):  # a dot and a signed exponent: a YAML float, so it was quoted
+        plain = np.format_float_positional(x, trim="-")
+        mantissa = m.group(1) + (m.group(2) if m.group(2) and m.group(2) != "." else ".0")
+        written = f"{mantissa}e{m.group(3) or '+'}{m.group(4)}"
+        return f" (YAML reads {text} as text: write {written}" + (f" or {plain})" if len(plain) <= 10 else ")")
+    return f" (text, not a number: write {text} without quotes)"
+
+
+def is_number(value: Any) -> bool:
+    """A real number as YAML gives one (int or float, numpy's too): not a bool, not text."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
 def _unit(unit: str) -> str:
     return f" {unit}" if unit and unit != "-" else ""
 
@@ -73,10 +107,10 @@ def check_value(name: str, value: Any, lower: float, upper: float, unit: str = "
     count or a switch, whole numbers only)."""
     if isinstance(value, (bool, np.bool_)):  # YAML's true is 1 to float(): glider_kg: true was read as 1 kg
         raise ValueError(f"{name} must be a number {allowed(lower, upper, unit, integer)}, got {str(value).lower()} (a bool)")
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number {allowed(lower, upper, unit, integer)}, got {value!r}") from None
+    if not is_number(value):  # float() took glider_kg: "1134" and 1134e0 (text), which a bound refused
+        raise ValueError(f"{name} must be a number {allowed(lower, upper, unit, integer)}, got {value!r}"
+                         f"{text_hint(value)}")
+    x = float(value)
     if not (math.isfinite(x) and lower <= x <= upper) or (integer and x != round(x)):
         raise ValueError(f"{name} must be {allowed(lower, upper, unit, integer)}, got {x:g}")
     return x

@@ -155,11 +155,15 @@ def test_a_bag_path_under_an_existing_file(tmp_path):
     _one_line_exit_2(p, "afile")
 
 
-def test_maxiter_ten_as_a_word(tmp_path):
+@pytest.mark.parametrize("maxiter, said", [("ten", "'ten' is not a number"),
+                                            # accepted: the run did no iteration and exited 5
+                                            (-5, "-5 must be a whole number of at least 1"),
+                                            (2.5, "2.5 must be a whole number of at least 1")])
+def test_maxiter_that_is_no_count(tmp_path, maxiter, said):
     p = _bev_mdo(tmp_path, "optimize", str(_config(tmp_path, optimizer={"name": "SLSQP",
-                                                                          "options": {"maxiter": "ten"}})),
+                                                                          "options": {"maxiter": maxiter}})),
                  "--transport", "inprocess", "--no-record")
-    _one_line_exit_2(p, "optimizer.options.maxiter", "'ten' is not a number")
+    _one_line_exit_2(p, "optimizer.options.maxiter", said)
 
 
 def test_a_discipline_calling_sys_exit_is_a_named_failure(tmp_path):

@@ -57,6 +57,12 @@ def test_parameter_override_changes_energy(capsys):
     (["--set", "motor_kw=inf"], "--set motor_kw=inf: a design value must be a finite number"),
     (["--set", "motor_kw=1e400"], "--set motor_kw=inf: a design value must be a finite number"),
     (["--set", "drag_area_m2=-inf"], "--set drag_area_m2=-inf: a design value must be a finite number"),
+    # a value no model can evaluate (outside a physical design limit or a parameter's range) printed a
+    # table of NaN and exited 1, "evaluation failed"
+    (["--set", "motor_kw=-5"], "motor_kw: -5 is outside [1, 1000] kW, where discipline 'vehicle_mass' accepts "
+                               "it; such a design cannot be evaluated"),
+    (["--set", "gear_ratio=60"], "gear_ratio: 60 is outside [0.5, 50], where discipline"),
+    (["--set", "glider_kg=-100"], "glider_kg: -100 is outside [200, 5000] kg, where discipline 'vehicle_mass'"),
     # the last one used to win silently
     (["--set", "motor_kw=70,motor_kw=80"], "--set motor_kw: given twice (70 and 80)"),
     (["--set", "motor_kw=70", "gear_ratio=8", "motor_kw=80"], "--set motor_kw: given twice (70 and 80)"),

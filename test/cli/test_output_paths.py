@@ -1,0 +1,48 @@
+"""An output file that cannot be written (its folder missing, a directory given) is one line naming
+the file and the reason, exit status 2 - not a raw ``[Errno 2] No such file or directory: ...``."""
+from __future__ import annotations
+
+import contextlib
+import io
+from pathlib import Path
+
+import pytest
+
+from bev_mdo.cli import main
+
+CONFIG = str(Path(__file__).resolve().parents[2] / "config/leaf_nedc.yaml")
+
+
+def _error_line(capsys, *argv) -> str:
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main(list(argv)) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if ": error: " in line]
+    assert len(err) == 1, err
+    assert "Errno" not in err[0], err[0]
+    return err[0]
+
+
+@pytest.fixture(scope="module")
+def bag(tmp_path_factory):
+    bag = tmp_path_factory.mktemp("history") / "bag"
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main(["optimize", CONFIG, "--transport", "inprocess", "--bag", str(bag), "--quiet"]) == 0
+    return bag
+
+
+def test_history_csv_into_a_missing_folder_names_file_and_folder(bag, tmp_path, capsys):
+    target = tmp_path / "no such folder" / "x.csv"
+    line = _error_line(capsys, "history", str(bag), "--csv", str(target))
+    assert line == f"bev-mdo history: error: cannot write {target}: the folder {target.parent} does not exist"
+
+
+def test_history_csv_onto_a_directory_says_so(bag, tmp_path, capsys):
+    line = _error_line(capsys, "history", str(bag), "--csv", str(tmp_path))
+    assert line.startswith(f"bev-mdo history: error: cannot write {tmp_path}: it is a directory")
+
+
+@pytest.mark.parametrize("flag", ["--dot", "--png"])
+def test_graph_output_into_a_missing_folder_names_file_and_folder(flag, tmp_path, capsys):
+    target = tmp_path / "missing" / ("n2.dot" if flag == "--dot" else "n2.png")
+    line = _error_line(capsys, "graph", CONFIG, flag, str(target))
+    assert line == f"bev-mdo graph: error: cannot write {target}: the folder {target.parent} does not exist"
