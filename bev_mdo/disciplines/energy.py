@@ -17,8 +17,11 @@ from bev_mdo.disciplines.common import (ENERGY_MODELS, Base, flag, overridable, 
 from bev_mdo.models import flat
 from bev_mdo.models import topology as topo_model
 from bev_mdo.models.cycles import DriveCycle, resample
+from bev_mdo.models.params import QUASI_STATIC_SPECS
 
 WALL_MODELS = ("chain", "quasi_static")  # the models that know the charger: energy_wall_wh_per_km
+BATTERY_MARGINS = ("battery_power_margin_kw", "battery_soc_margin")  # quasi_static's, with feasibility_outputs
+FINAL_SOC = QUASI_STATIC_SPECS["final_soc"].default
 
 
 class Energy(Base):
@@ -31,7 +34,13 @@ class Energy(Base):
     SM-SA, at the wheels otherwise) and, with quasi_static, ``motor_speed_margin_rad_s`` (limit minus
     max) or, with chain, ``drive_power_margin_kw`` (rated power minus the largest drive power; over
     every cycle of ``cycle_weights``): constrain them >= 0 so that an optimiser cannot pick a motor
-    that does not follow the cycle (the chain's energy of such a design is the energy of the demand)."""
+    that does not follow the cycle (the chain's energy of such a design is the energy of the demand).
+    With quasi_static (every topology) it also adds the battery's: ``battery_power_margin_kw`` (min over
+    the cycle of the pack's largest power ocv^2/4R minus the drive demand) and ``battery_soc_margin``
+    (the lowest SOC over the cycle minus ``final_soc``, a fraction of capacity), the tightest over the
+    cycles: constrain them >= 0 so that an optimiser cannot pick a pack that does not deliver the cycle
+    (the model caps such a pack's power and lets its SOC fall below 0, so its energy per km leaves
+    out what it did not deliver)."""
 
     name = "energy"
     outputs = ("energy_wh_per_km",)
@@ -41,7 +50,7 @@ class Energy(Base):
         energy_model: str | None = None        # default: the config's energy_model
         cycle: str | None = None               # a cycle name or CSV (default: the config's cycle)
         cycle_weights: Mapping[str, float] | None = None  # {cycle: distance share}, summing to 1
-        feasibility_outputs: bool = False      # add the drive torque / speed / power margins
+        feasibility_outputs: bool = False      # add the drive torque / speed / power and battery margins
         topology: str | None = None
 
     def __init__(self, parameters, resampled, energy_model: str = "flat", extra: Mapping[str, float] | None = None,
@@ -60,8 +69,8 @@ class Energy(Base):
         self.feasibility_outputs = bool(feasibility_outputs)
         self.outputs = ("energy_wh_per_km",) + (("energy_wall_wh_per_km",) if energy_model in WALL_MODELS else ())
         if feasibility_outputs:
-            self.outputs += ("drive_torque_margin_nm",
-                             "motor_speed_margin_rad_s" if energy_model == "quasi_static" else "drive_power_margin_kw")
+            self.outputs += (("drive_torque_margin_nm", "motor_speed_margin_rad_s", *BATTERY_MARGINS)
+                             if energy_model == "quasi_static" else ("drive_torque_margin_nm", "drive_power_margin_kw"))
         if energy_model == "flat":
             self.inputs = ("vehicle_mass_kg", "gear_ratio")
             self._fn = flat.energy_wh_per_km
@@ -121,6 +130,7 @@ class Energy(Base):
                 out["motor_speed_margin_rad_s"] = (np.broadcast_to(p.get("motor_speed_limit_rpm", 10500.0), (len(e),))
                                                    * np.pi / 30.0 * (1.0 if self.topology.geared else p.get("iwm_speed_scale", 210 / 1099.56))
                                                    - np.maximum.reduce([r.motor_speed_max_rad_s for _, r in runs]))
+                out.update(battery_margins([r for _, r in runs], p.get("final_soc", FINAL_SOC)))
             return out
         motor_kw = inputs.get("motor_kw")
         if self.feasibility_outputs:  # chain: energy and the motor's margins, the tightest over the cycles
@@ -138,6 +148,14 @@ class Energy(Base):
         if self.energy_model == "chain":  # the chain's energy is from the wall; the battery gives E_wall x eta_chg
             return {"energy_wh_per_km": e * p["charger_efficiency"], "energy_wall_wh_per_km": e}
         return {"energy_wh_per_km": e}
+
+
+def battery_margins(results, final_soc) -> dict:
+    """The battery's margins over quasi-static results (one per cycle), the tightest of them: power (kW, at
+    most 1e9 for a cycle that never draws) and SOC above ``final_soc``."""
+    power_kw = np.minimum(np.minimum.reduce([r.battery_power_margin_kw for r in results]), 1e9)
+    return {"battery_power_margin_kw": power_kw,
+            "battery_soc_margin": np.minimum.reduce([r.soc_min for r in results]) - np.asarray(final_soc, float)}
 
 
 def _cycle_weights(config, options, model):

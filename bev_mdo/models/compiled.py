@@ -365,8 +365,8 @@ _NS, _NP, _QC, _ICHG, _SOCMAX, _SOC0, _IDIS, _WLOSS, _SOCSTOP = range(9)
 @_jit(inline="always")
 def _step(soc, demand_w, dt, x, cell):
     """One battery step (``quasi_static._Battery.step``) of the design with columns ``x``: terminal
-    power, current, resistance, whether the demand was within ocv^2/4R, and the new SOC (2-9..2-15,
-    rule 4, 2C cap). ``cell``: the cell's SOC grid, OCV, R discharge, R charge, the grid's table and
+    power, current, resistance, ocv^2/4R minus the drive demand (W, < 0: not delivered), and the new
+    SOC (2-9..2-15, rule 4, 2C cap). ``cell``: the cell's SOC grid, OCV, R discharge, R charge, the grid's table and
     1/h, and the three slopes (``cell_tables``)."""
     s_tab = cell[0]
     ns, i_chg = x[_NS], x[_ICHG]
@@ -381,7 +381,7 @@ def _step(soc, demand_w, dt, x, cell):
     power = min(p_drive, p_max) + max(p_regen, p_chg_lim)
     v_bt = 0.5 * (voc + math.sqrt(max(voc * voc - 4.0 * power * r, 0.0)))  # 2-13, 2-14
     i = power / v_bt  # 2-11
-    return power, i, r, p_drive <= p_max, soc - i * dt / x[_QC]  # 2-9, 2-10
+    return power, i, r, p_max - p_drive, soc - i * dt / x[_QC]  # 2-9, 2-10
 
 
 _GROUP = 4  # designs stepped side by side in one loop: the SOC recurrence of one design is a chain
@@ -394,7 +394,8 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
     from ``initial_soc`` (energy), or
     from 100 % SOC repeating the cycle until ``final_soc`` (``to_range``). One kernel for both
     (compile time). Returns energy drawn and returned (J), final SOC, the current and power
-    flags, and the distance (m, inf if not reached). Each design's steps are its own; designs of
+    flags, the lowest SOC, the least ocv^2/4R minus drive demand (W, inf without one), and the
+    distance (m, inf if not reached). Each design's steps are its own; designs of
     a group only share the loop."""
     n_pts, n_steps = demand_w.shape[0], step_pair.shape[0]
     energy = np.zeros(n_pts)
@@ -402,6 +403,8 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
     soc_end = np.empty(n_pts)
     current_ok = np.ones(n_pts, np.bool_)
     power_ok = np.ones(n_pts, np.bool_)
+    soc_low = np.empty(n_pts)
+    power_room = np.full(n_pts, np.inf)
     out = np.full(n_pts, np.inf)
     for first in prange((n_pts + _GROUP - 1) // _GROUP):
         n0 = first * _GROUP
@@ -410,6 +413,7 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
         active = np.zeros(_GROUP, np.bool_)
         for g in range(size):
             soc[g] = 1.0 if to_range else cols[n0 + g, _SOC0]
+            soc_low[n0 + g] = soc[g]
             active[g] = True
         left = size
         travelled = 0.0
@@ -420,15 +424,18 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
                     d = demand_w[n, step_pair[k]]
                     if d != 0.0 and active[g]:  # a step without demand: no current, no energy, SOC unchanged
                         x = cols[n]
-                        power, i, r, within, new = _step(soc[g], d, dt[k], x, cell)
+                        power, i, r, room, new = _step(soc[g], d, dt[k], x, cell)
                         if to_range:
                             if new <= x[_SOCSTOP]:  # the crossing, interpolated inside its step
                                 out[n] = travelled + (soc[g] - x[_SOCSTOP]) / max(soc[g] - new, 1e-300) * step_m[k]
                                 active[g] = False
                                 left -= 1
                         else:
-                            if not within:
-                                power_ok[n] = False
+                            if d > 0.0:  # p_drive <= p_max, as the reference's flag
+                                if not room >= 0.0:
+                                    power_ok[n] = False
+                                power_room[n] = min(power_room[n], room)
+                            soc_low[n] = min(soc_low[n], new)
                             if not i <= x[_IDIS] * (1 + 1e-12):
                                 current_ok[n] = False
                             energy[n] += (power + x[_WLOSS] * i * i * r) * dt[k]  # 2-16, 2-17
@@ -441,20 +448,22 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
                 break
         for g in range(size):
             soc_end[n0 + g] = soc[g]
-    return energy, regen, soc_end, current_ok, power_ok, out
+    return energy, regen, soc_end, current_ok, power_ok, soc_low, power_room, out
+
 
 def battery_energy(demand_w, step_pair, dt, cols, cell) -> tuple:
     """Step each design's battery over its demand from ``initial_soc``
     (``quasi_static.integrate_energy``): energy drawn and returned (J, 2-16, 2-17), final SOC,
-    and the current and power feasibility flags."""
-    return _battery(demand_w, step_pair, dt, np.zeros(dt.shape[0]), 1, cols, cell, False)[:5]
+    the current and power feasibility flags, the lowest SOC over the cycle and the least
+    ocv^2/4R minus drive demand (W, inf if the cycle never draws)."""
+    return _battery(demand_w, step_pair, dt, np.zeros(dt.shape[0]), 1, cols, cell, False)[:7]
 
 
 def battery_range_m(demand_w, step_pair, dt, step_m, max_repeats: int, cols, cell) -> np.ndarray:
     """Distance (m) from 100 % SOC to ``final_soc`` repeating the cycle's demand
     (``quasi_static.integrate_range``), the crossing interpolated inside its step; inf if the
     battery is still above after ``max_repeats`` cycles."""
-    return _battery(demand_w, step_pair, dt, step_m, int(max_repeats), cols, cell, True)[5]
+    return _battery(demand_w, step_pair, dt, step_m, int(max_repeats), cols, cell, True)[7]
 
 def table(names: tuple, n: int, values: dict) -> np.ndarray:
     """The (N, len(names)) float table of the compiled loops: each named column from a scalar or

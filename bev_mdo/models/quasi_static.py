@@ -33,7 +33,10 @@ numpy passes (``demand``, ``integrate_energy``, ``integrate_range``) that the te
 
 Feasibility (§3.5.3) is reported, not enforced: traction torque within the envelope,
 motor speed within the limit, discharge current <= 5C and power within the battery's
-ocv^2/4R. The energy of an infeasible design is still finite (the map is clipped).
+ocv^2/4R. The energy of an infeasible design is still finite (the map is clipped). The SOC has
+no floor: a pack too small for the cycle goes below 0 (its OCV and resistance stay at their 0 %
+values) and a demand over ocv^2/4R is delivered only up to it, so such a pack's energy per km
+leaves out what it did not deliver; ``soc_min`` and ``battery_power_margin_kw`` measure both.
 """
 from __future__ import annotations
 
@@ -86,6 +89,8 @@ class QuasiStaticResult:
     current_ok: np.ndarray
     power_ok: np.ndarray
     regen_wh_per_km: np.ndarray  # energy returned to the battery terminals (>= 0)
+    soc_min: np.ndarray  # lowest SOC over the cycle, the start included (< 0: the pack ran out)
+    battery_power_margin_kw: np.ndarray  # min over the drawing steps of ocv^2/4R - drive demand (inf: none)
 
     @property
     def feasible(self) -> np.ndarray:
@@ -287,12 +292,12 @@ def battery_table(p, n: int) -> tuple:
 
 def fast_energy(d: FastDemand, p, n: int) -> QuasiStaticResult:
     """``integrate_energy`` in the compiled per-design loop (compiled.battery_energy)."""
-    energy, regen, soc, current_ok, power_ok = compiled.battery_energy(d.power_w, d.step_pair, d.dt,
-                                                                          *battery_table(p, n))
+    energy, regen, soc, current_ok, power_ok, soc_min, room_w = compiled.battery_energy(
+        d.power_w, d.step_pair, d.dt, *battery_table(p, n))
     km = d.distance_m / 1e3
     return QuasiStaticResult(energy / 3600.0 / km, d.distance_m, soc, d.speed_max, d.torque_margin,
                              d.torque_margin >= -1e-9, d.speed_max <= d.speed_limit, current_ok, power_ok,
-                             regen / 3600.0 / km)
+                             regen / 3600.0 / km, soc_min, room_w / 1e3)
 
 
 def fast_range(d: FastDemand, p, n: int, step_m: np.ndarray, max_repeats: int = 200) -> np.ndarray:
@@ -323,6 +328,7 @@ class _Battery:
         self.w_loss = p["battery_loss_weight"]
         self.current_ok = np.ones(n, bool)
         self.power_ok = np.ones(n, bool)
+        self.power_room_w = np.full(n, np.inf)  # min of p_max - p_drive over the steps that draw
 
     def step(self, soc, p_drive, p_regen, dt):
         """Terminal power, energy drawn (J) and the new SOC after one step of ``dt`` s."""
@@ -333,6 +339,7 @@ class _Battery:
         p_chg_lim = bt.power_at_current_w(-self.i_chg_max, voc, r)  # 2C charge cap
         p_max = bt.max_discharge_power_w(voc, r)
         self.power_ok &= p_drive <= p_max
+        self.power_room_w = np.minimum(self.power_room_w, np.where(p_drive > 0, p_max - p_drive, np.inf))
         power = np.minimum(p_drive, p_max) + np.maximum(p_regen, p_chg_lim)
         i = bt.terminal_current_a(power, voc, r)  # 2-11..2-14
         self.current_ok &= i <= self.i_dis_max * (1 + 1e-12)
@@ -358,14 +365,16 @@ def integrate_energy(d: Demand, p, n: int) -> QuasiStaticResult:
     soc = np.broadcast_to(p["initial_soc"], (n,)).astype(float)
     energy = np.zeros(n)
     regen = np.zeros(n)
+    soc_min = soc.copy()
     for k in range(d.dt.shape[0]):
         power, e, soc = batt.step(soc, d.p_drive_w[k], d.p_regen_w[k], d.dt[k, 0])
         energy += e
         regen -= np.minimum(power, 0.0) * d.dt[k, 0]
+        soc_min = np.minimum(soc_min, soc)
     km = d.distance_m / 1e3
     return QuasiStaticResult(energy / 3600.0 / km, d.distance_m, soc, d.speed_max, d.torque_margin,
                              d.torque_margin >= -1e-9, d.speed_max <= d.speed_limit,
-                             batt.current_ok, batt.power_ok, regen / 3600.0 / km)
+                             batt.current_ok, batt.power_ok, regen / 3600.0 / km, soc_min, batt.power_room_w / 1e3)
 
 
 def energy_wh_per_km(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, *,

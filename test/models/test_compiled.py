@@ -36,11 +36,13 @@ def designs(topology, n, seed):
 
 
 def assert_same(fast, ref):
-    for name in ("energy_wh_per_km", "regen_wh_per_km", "soc_end", "motor_speed_max_rad_s", "torque_margin_nm"):
+    for name in ("energy_wh_per_km", "regen_wh_per_km", "soc_end", "motor_speed_max_rad_s", "torque_margin_nm",
+                 "soc_min", "battery_power_margin_kw"):
         a, b = getattr(fast, name), getattr(ref, name)
         np.testing.assert_allclose(a, b, rtol=REL, atol=0, err_msg=name)
     for name in ("torque_ok", "speed_ok", "current_ok", "power_ok"):
         np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name), err_msg=name)
+    np.testing.assert_array_equal(fast.power_ok, fast.battery_power_margin_kw >= 0)
 
 
 @pytest.mark.parametrize("topology", tp.TOPOLOGIES)
@@ -103,6 +105,7 @@ def test_the_corners_of_the_design_limits_equal_the_reference(topology, cycles):
             ig[::-1].copy() if t.geared and t.two_axles else None)
     fast, ref = tp.simulate(nedc, {}, topology, *args), tp.simulate(nedc, {}, topology, *args, reference=True)
     assert not ref.power_ok.all()
+    assert np.any(ref.soc_min < 0) and np.any(ref.soc_min > 0.5)  # 1 kWh packs run out
     assert_same(fast, ref)
     rng_fast = tp.range_by_repeated_cycle_km(wltc, {}, topology, *args, max_repeats=20)
     rng_ref = tp.range_by_repeated_cycle_km(wltc, {}, topology, *args, max_repeats=20, reference=True)

@@ -94,6 +94,38 @@ def test_discharge_current_flag_5c(nedc):
     assert list(r.current_ok) == [False, True]
 
 
+def test_battery_margins_of_a_pack_too_small_for_the_nedc(nedc):
+    """A 1 kWh pack cannot deliver the NEDC: asked for more than ocv^2/4R and run below 0 % SOC (the
+    lookups stay at 0 %), its energy per km leaves out what it did not deliver (about 60 Wh/km against
+    106 for 24 kWh); the margins say so, the flag agrees with the power margin's sign."""
+    r = qs.simulate(nedc, {}, np.full(3, 1500.0), 8.0, 80.0, np.array([1.0, 5.0, 24.0]))
+    assert r.battery_power_margin_kw[0] < -30 and r.soc_min[0] < -0.3
+    assert r.battery_power_margin_kw[2] > 100 and r.soc_min[2] > 0.8
+    assert list(r.power_ok) == list(r.battery_power_margin_kw >= 0) == [False, True, True]
+    assert r.soc_min[2] < r.soc_end[2] < 0.9  # the EUDC's regeneration ends above the lowest SOC
+    assert r.energy_wh_per_km[0] < 0.6 * r.energy_wh_per_km[2]  # the understatement the margins flag
+
+
+def test_battery_margins_by_hand():
+    """Two 72 km/h cruise steps from 90 % SOC: the power margin is ocv^2/4R at the SOC of the second
+    step (the lower) minus the demand; the lowest SOC is the end's (2-9..2-14)."""
+    from bev_mdo.models import battery as bt
+
+    c = cyc([20.0, 20.0, 20.0])
+    p_el = qs.operating_points(c, {}, 1590.0, 8.0, 80.0)["motor_power_w"][0, 0]
+    pack = bt.pack_for_energy(24.0)
+    soc, room = 0.9, []
+    for _ in range(2):
+        voc, r = pack.ocv(soc), pack.resistance(soc, False)
+        room.append(bt.max_discharge_power_w(voc, r) - p_el)
+        soc = bt.soc_after(soc, bt.terminal_current_a(p_el, voc, r), 1.0, pack.capacity_c)
+    for reference in (False, True):
+        res = qs.simulate(c, {}, 1590.0, 8.0, 80.0, 24.0, reference=reference)
+        assert res.soc_min[0] == pytest.approx(soc, rel=1e-12) and res.soc_min[0] == res.soc_end[0]
+        assert res.battery_power_margin_kw[0] == pytest.approx(min(room) / 1e3, rel=1e-12)
+        assert room[1] < room[0]
+
+
 def test_torque_and_speed_flags(nedc):
     r = qs.simulate(nedc, {}, np.full(3, 1590.0), np.array([7.94, 7.94, 15.0]), np.array([80.0, 10.0, 80.0]))
     assert list(r.torque_ok) == [True, False, False]  # no torque at all beyond max speed
