@@ -138,6 +138,14 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
     return _history(bag, stored_config(read_config(bag)), run_id, all_runs, key_file, checks, no_verify)[0]
 
 
+def verified_history(bag, run_id: str | None = None, *, key_file: str | None = None, checks: dict | None = None,
+                     no_verify: bool = False) -> tuple[list[dict], object]:
+    """(``history`` of the bag's own run or `run_id`, the Signer its records were verified with or None), for a
+    reader that checks what else the bag stores (its answers: ``read_answers``) with the same key."""
+    bag = bag if isinstance(bag, Bag) else open_bag(bag)
+    return _history(bag, stored_config(read_config(bag)), run_id, False, key_file, checks, no_verify)
+
+
 def _history(bag: Bag, config: dict, run_id, all_runs, key_file, checks, no_verify) -> tuple[list[dict], object]:
     """(``history`` of an open bag whose stored config (``stored_config``) the caller parsed, the Signer its
     records were verified with or None)."""

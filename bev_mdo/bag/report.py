@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from bev_mdo.bag.history import headline, history, maximized, read_answers, records_phrase, sweep_phrase
+from bev_mdo.bag.history import headline, maximized, read_answers, records_phrase, sweep_phrase, verified_history
 from bev_mdo.bag.reader import Bag, open_bag, read_config
 from bev_mdo.mdo.units import label, run_units, unit_of
 
@@ -400,14 +400,12 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     out = Path(out_dir) if out_dir else bag.bag_dir
     out.mkdir(parents=True, exist_ok=True)
-    rows = history(bag, run_id, checks=checks, key_file=key_file, no_verify=no_verify)
+    rows, signer = verified_history(bag, run_id, checks=checks, key_file=key_file, no_verify=no_verify)
     timing = discipline_timing(bag)
     config, problem = _context(bag)
     final = answers = baseline = None
     units = _units(config)
-    from bev_mdo.bag.signing import verifier
-
-    answers = read_answers(bag, verifier(bag, key_file, no_verify).signer, checks)  # a signed run's: signed too
+    answers = read_answers(bag, signer, checks)  # a signed run's count only when signed with its key too
     k = headline(rows, -1.0 if maximized(read_config(bag)) else 1.0, answers)  # the result, a sweep's best, the last
     if rows and config is not None:
         final = _analyse(config, dict(rows[k]["design"]))

@@ -60,6 +60,11 @@ def test_answers_not_signed_with_the_runs_key_are_left_out(tmp_path, how, why):
     _, design, k = last_iterate(bag, checks=checks)
     assert (design, k) == ({"x": 1.5}, 2)  # the last verified record, not the point the answers name
     assert f"end-of-run answers are {why}" in check_note(checks)
+    from bev_mdo.bag.report import report
+
+    checks = {}
+    report(bag, tmp_path / f"report_{how}", checks=checks)  # report leaves them out the same way
+    assert f"end-of-run answers are {why}" in checks["answers"]
 
 
 def test_answers_json_beside_a_ros_bag_is_signed_with_the_run_key(tmp_path, monkeypatch):
