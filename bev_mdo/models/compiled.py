@@ -393,8 +393,8 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
     """The battery stepped over each design's demand (step k's in column ``step_pair[k]``): once
     from ``initial_soc`` (energy), or
     from 100 % SOC repeating the cycle until ``final_soc`` (``to_range``). One kernel for both
-    (compile time). Returns energy drawn and returned (J), final SOC, the current and power
-    flags, the lowest SOC, the least ocv^2/4R minus drive demand (W, inf without one), and the
+    (compile time). Returns energy drawn and returned (J), final SOC, the current flag, the
+    lowest SOC, the least ocv^2/4R minus drive demand (W, inf without one), and the
     distance (m, inf if not reached). Each design's steps are its own; designs of
     a group only share the loop."""
     n_pts, n_steps = demand_w.shape[0], step_pair.shape[0]
@@ -402,7 +402,6 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
     regen = np.zeros(n_pts)
     soc_end = np.empty(n_pts)
     current_ok = np.ones(n_pts, np.bool_)
-    power_ok = np.ones(n_pts, np.bool_)
     soc_low = np.empty(n_pts)
     power_room = np.full(n_pts, np.inf)
     out = np.full(n_pts, np.inf)
@@ -431,9 +430,7 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
                                 active[g] = False
                                 left -= 1
                         else:
-                            if d > 0.0:  # p_drive <= p_max, as the reference's flag
-                                if not room >= 0.0:
-                                    power_ok[n] = False
+                            if d > 0.0:
                                 power_room[n] = min(power_room[n], room)
                             soc_low[n] = min(soc_low[n], new)
                             if not i <= x[_IDIS] * (1 + 1e-12):
@@ -448,22 +445,22 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
                 break
         for g in range(size):
             soc_end[n0 + g] = soc[g]
-    return energy, regen, soc_end, current_ok, power_ok, soc_low, power_room, out
+    return energy, regen, soc_end, current_ok, soc_low, power_room, out
 
 
 def battery_energy(demand_w, step_pair, dt, cols, cell) -> tuple:
     """Step each design's battery over its demand from ``initial_soc``
     (``quasi_static.integrate_energy``): energy drawn and returned (J, 2-16, 2-17), final SOC,
-    the current and power feasibility flags, the lowest SOC over the cycle and the least
-    ocv^2/4R minus drive demand (W, inf if the cycle never draws)."""
-    return _battery(demand_w, step_pair, dt, np.zeros(dt.shape[0]), 1, cols, cell, False)[:7]
+    the current feasibility flag, the lowest SOC over the cycle and the least ocv^2/4R minus
+    drive demand (W, inf if the cycle never draws; the power flag is that margin >= 0)."""
+    return _battery(demand_w, step_pair, dt, np.zeros(dt.shape[0]), 1, cols, cell, False)[:6]
 
 
 def battery_range_m(demand_w, step_pair, dt, step_m, max_repeats: int, cols, cell) -> np.ndarray:
     """Distance (m) from 100 % SOC to ``final_soc`` repeating the cycle's demand
     (``quasi_static.integrate_range``), the crossing interpolated inside its step; inf if the
     battery is still above after ``max_repeats`` cycles."""
-    return _battery(demand_w, step_pair, dt, step_m, int(max_repeats), cols, cell, True)[7]
+    return _battery(demand_w, step_pair, dt, step_m, int(max_repeats), cols, cell, True)[6]
 
 def table(names: tuple, n: int, values: dict) -> np.ndarray:
     """The (N, len(names)) float table of the compiled loops: each named column from a scalar or

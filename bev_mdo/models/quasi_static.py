@@ -87,10 +87,14 @@ class QuasiStaticResult:
     torque_ok: np.ndarray
     speed_ok: np.ndarray
     current_ok: np.ndarray
-    power_ok: np.ndarray
     regen_wh_per_km: np.ndarray  # energy returned to the battery terminals (>= 0)
     soc_min: np.ndarray  # lowest SOC over the cycle, the start included (< 0: the pack ran out)
     battery_power_margin_kw: np.ndarray  # min over the drawing steps of ocv^2/4R - drive demand (inf: none)
+
+    @property
+    def power_ok(self) -> np.ndarray:
+        """The drive demand never above the pack's maximum power ocv^2/4R (2-15)."""
+        return self.battery_power_margin_kw >= 0
 
     @property
     def feasible(self) -> np.ndarray:
@@ -292,11 +296,11 @@ def battery_table(p, n: int) -> tuple:
 
 def fast_energy(d: FastDemand, p, n: int) -> QuasiStaticResult:
     """``integrate_energy`` in the compiled per-design loop (compiled.battery_energy)."""
-    energy, regen, soc, current_ok, power_ok, soc_min, room_w = compiled.battery_energy(
+    energy, regen, soc, current_ok, soc_min, room_w = compiled.battery_energy(
         d.power_w, d.step_pair, d.dt, *battery_table(p, n))
     km = d.distance_m / 1e3
     return QuasiStaticResult(energy / 3600.0 / km, d.distance_m, soc, d.speed_max, d.torque_margin,
-                             d.torque_margin >= -1e-9, d.speed_max <= d.speed_limit, current_ok, power_ok,
+                             d.torque_margin >= -1e-9, d.speed_max <= d.speed_limit, current_ok,
                              regen / 3600.0 / km, soc_min, room_w / 1e3)
 
 
@@ -327,7 +331,6 @@ class _Battery:
         self.soc_max_regen = p["regen_max_soc"]
         self.w_loss = p["battery_loss_weight"]
         self.current_ok = np.ones(n, bool)
-        self.power_ok = np.ones(n, bool)
         self.power_room_w = np.full(n, np.inf)  # min of p_max - p_drive over the steps that draw
 
     def step(self, soc, p_drive, p_regen, dt):
@@ -338,7 +341,6 @@ class _Battery:
         r = self.pack.resistance(soc, charging)
         p_chg_lim = bt.power_at_current_w(-self.i_chg_max, voc, r)  # 2C charge cap
         p_max = bt.max_discharge_power_w(voc, r)
-        self.power_ok &= p_drive <= p_max
         self.power_room_w = np.minimum(self.power_room_w, np.where(p_drive > 0, p_max - p_drive, np.inf))
         power = np.minimum(p_drive, p_max) + np.maximum(p_regen, p_chg_lim)
         i = bt.terminal_current_a(power, voc, r)  # 2-11..2-14
@@ -374,7 +376,7 @@ def integrate_energy(d: Demand, p, n: int) -> QuasiStaticResult:
     km = d.distance_m / 1e3
     return QuasiStaticResult(energy / 3600.0 / km, d.distance_m, soc, d.speed_max, d.torque_margin,
                              d.torque_margin >= -1e-9, d.speed_max <= d.speed_limit,
-                             batt.current_ok, batt.power_ok, regen / 3600.0 / km, soc_min, batt.power_room_w / 1e3)
+                             batt.current_ok, regen / 3600.0 / km, soc_min, batt.power_room_w / 1e3)
 
 
 def energy_wh_per_km(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, *,
