@@ -132,9 +132,11 @@ def nsga2(cfg, evaluator, objectives, pop: int, generations: int, seed: int, on_
     from bev_mdo.mdo.driver import build_formulation
     from bev_mdo.mdo.pareto import run_nsga2
 
-    form = build_formulation(RunConfig.of(cfg).settings, evaluator, "mdf")
+    run = RunConfig.of(cfg)
+    form = build_formulation(run.settings, evaluator, "mdf")
+    ceilings = {o: c[0] for d in run.disciplines for o, c in (getattr(d, "upper_limit_below", None) or {}).items()}
     res = run_nsga2(form, objectives, pop_size=pop, generations=generations, seed=seed,
-                    on_generation=on_generation or (lambda g, n, s: None), on_front=on_front)
+                    on_generation=on_generation or (lambda g, n, s: None), on_front=on_front, ceilings=ceilings)
     if bench is not None:  # the study's benchmark design, through the same formulation
         from bev_mdo.studies import topologies as study
 

@@ -5,8 +5,11 @@ ONE batch through ``formulation.analyse`` (the MDF's batched MDA over any Evalua
 in-process or ROS), so a generation is one wave of requests per discipline. Objectives are
 output names, minimised, or ``(name, maximize)`` pairs (a maximised one is negated for pymoo and
 reported as itself); constraints are the problem's (normalised, feasible where <= 0), handed to
-pymoo as its inequality constraints. A point the disciplines could not evaluate gets objectives
-1e30 and constraint 1e6.
+pymoo as its inequality constraints. An objective with a ceiling (a discipline's
+``upper_limit_below``: from there up its value marks a design the physics cannot serve, such as the
+0-100 km/h time of one that cannot reach 100 km/h) adds the constraint value < ceiling, so that such
+a design is never on a front. A point the disciplines could not evaluate gets objectives 1e30 and
+constraint 1e6.
 
 Every generation's feasible non-dominated set (a :class:`Front`, with every MDA variable at
 its designs, as evaluated) goes to ``on_front(front, final)``; ``bev-mdo pareto`` writes them
@@ -73,12 +76,13 @@ def _pymoo_problem_class():
     class MDAProblem(PymooProblem):
         """Vectorised pymoo problem over a formulation's batched ``analyse`` (one batch per call)."""
 
-        def __init__(self, formulation, objectives):
+        def __init__(self, formulation, objectives, ceilings):
             self.form = formulation
             self.objectives = [name for name, _ in objectives]
             self.signs = np.array([-1.0 if maximize else 1.0 for _, maximize in objectives])
+            self.ceilings = [(j, float(ceilings[o])) for j, o in enumerate(self.objectives) if o in ceilings]
             prob = formulation.problem
-            n_g = len(prob.constraint_rows)
+            n_g = len(prob.constraint_rows) + len(self.ceilings)
             super().__init__(n_var=len(prob.names), n_obj=len(self.objectives), n_ieq_constr=n_g,
                              xl=prob.array("lower"), xu=prob.array("upper"))
             self.batches = 0
@@ -93,8 +97,10 @@ def _pymoo_problem_class():
             self.batches += 1
             self.evaluations += len(X)
             ok = np.asarray(res.ok, bool)
-            F = np.column_stack([np.asarray(res.values[o], float) for o in self.objectives]) * self.signs
-            G = self.form.problem.g(res.values)
+            F = np.column_stack([np.asarray(res.values[o], float) for o in self.objectives])
+            G = np.column_stack([self.form.problem.g(res.values).reshape(len(X), -1)]
+                                + [(F[:, j] - c) / abs(c) for j, c in self.ceilings])  # value < ceiling
+            F = F * self.signs
             bad = ~ok | ~np.all(np.isfinite(F), axis=1) | ~np.all(np.isfinite(G), axis=1)
             F[bad] = FAILED_F
             G[bad] = FAILED_G
@@ -127,8 +133,9 @@ def objective_pairs(objectives) -> list[tuple[str, bool]]:
     return [(o, False) if isinstance(o, str) else (str(o[0]), bool(o[1])) for o in objectives]
 
 
-def make_problem(formulation, objectives):
-    """The pymoo problem of ``formulation`` (an MDF from ``driver.build_formulation``)."""
+def make_problem(formulation, objectives, ceilings=None):
+    """The pymoo problem of ``formulation`` (an MDF from ``driver.build_formulation``); ``ceilings``:
+    {output: value from which up it marks an infeasible design}, a constraint where it is an objective."""
     objectives = objective_pairs(objectives)
     missing = [o for o, _ in objectives if o not in _outputs(formulation)]
     if missing:
@@ -136,7 +143,7 @@ def make_problem(formulation, objectives):
                          f"{', '.join(sorted(_outputs(formulation)))}")
     if not objectives:
         raise ValueError("at least one objective is needed")
-    return _pymoo_problem_class()(formulation, objectives)
+    return _pymoo_problem_class()(formulation, objectives, dict(ceilings or {}))
 
 
 def _outputs(formulation) -> set[str]:
@@ -160,20 +167,20 @@ def _front(problem, pop, generation: int, wall_time_s: float) -> Front:
 
 
 def run_nsga2(formulation, objectives, *, pop_size: int = 100, generations: int = 30, seed: int = 1,
-              on_generation=None, on_front=None) -> ParetoResult:
+              on_generation=None, on_front=None, ceilings=None) -> ParetoResult:
     """NSGA-II (pymoo) for ``generations`` generations of ``pop_size`` designs; deterministic per seed.
 
     ``on_generation(gen, n_evals, seconds)`` is called after every generation;
     ``on_front(front, final)`` with every generation's :class:`Front` (``final`` True on the
     last one, which is the result's front). Whatever stops the run (a signal, an error), every
-    finished generation's front has gone to ``on_front``."""
+    finished generation's front has gone to ``on_front``. ``ceilings``: as ``make_problem``."""
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.callback import Callback
     from pymoo.optimize import minimize
 
     if pop_size < 4 or generations < 1:
         raise ValueError(f"pop_size must be >= 4 and generations >= 1, got {pop_size}, {generations}")
-    problem = make_problem(formulation, objectives)
+    problem = make_problem(formulation, objectives, ceilings)
     times: list[float] = []
     t0 = time.perf_counter()
     pending: list[Front] = []  # a generation's front is sent once the next one shows it was not the last

@@ -100,6 +100,29 @@ def test_on_front_every_generation_final_is_the_result():
     assert disc.calls[:5] == [12] * 5 and len(disc.calls) == 6  # the result needed no extra batch
 
 
+class Reach:
+    """Cheap designs (x < 0.4) cannot do the job: their time is a continuation value from 1e4 up."""
+    name = "reach"
+    inputs = ("x",)
+    outputs = ("cost", "time")
+    parameters = {}
+
+    def compute(self, v):
+        x = v["x"]
+        return {"cost": x, "time": np.where(x < 0.4, 1e4 + 100 * (0.4 - x), 1.0 / x)}
+
+
+def test_objective_ceiling_keeps_designs_that_cannot_do_the_job_off_the_front():
+    ev = InProcessEvaluator([Reach()])
+    prob = Problem.from_config({"objective": "cost", "design_variables": {"x": {"lower": 0, "upper": 1}}})
+    form = MDF(prob, ev, MDA(ev))
+    bare = run_nsga2(form, ["cost", "time"], pop_size=20, generations=5, seed=2)
+    assert (bare.F[:, 1] >= 1e4).any()  # without the ceiling the cheapest such design is on the front
+    r = run_nsga2(form, ["cost", "time"], pop_size=20, generations=5, seed=2, ceilings={"time": 1e4, "other": 0.0})
+    assert len(r.F) and (r.F[:, 1] < 1e4).all() and (r.X[:, 0] >= 0.4).all()
+    assert ((r.archive_F[:, 1] >= 1e4) == (r.archive_cv > 0)).all()  # infeasible exactly there
+
+
 def test_unknown_objective():
     with pytest.raises(ValueError, match="objective 'f9' is not produced"):
         run_nsga2(_zdt_form()[0], ["f1", "f9"], pop_size=8, generations=1)
@@ -198,6 +221,25 @@ def test_cli_writes_front_csv_benchmark_and_plots(tmp_path):
     assert (out / "fig_4_5_energy_accel.png").stat().st_size > 0 and (out / "fig_4_6_energy_cost.png").exists()
     fronts = check_bag_fronts(out, ["IWM-SA"], 2, 8)
     assert "gear_ratio" not in fronts[-1][5] and "motor_kw" in fronts[-1][5]
+
+
+def test_cli_front_holds_no_design_that_cannot_reach_100_kmh(tmp_path):
+    import yaml
+
+    from bev_mdo.models.acceleration import NOT_REACHED_S
+
+    p = _write_cfg(tmp_path, extra_dv={"motor_kw": {"lower": 5, "upper": 20, "initial": 15},
+                                       "gear_ratio": {"lower": 4, "upper": 16, "initial": 8}})
+    raw = yaml.safe_load(p.read_text())
+    raw["problem"]["constraints"] = {}  # nothing else rules out a motor too small for 100 km/h
+    p.write_text(yaml.safe_dump(raw))
+    out = tmp_path / "front"
+    assert _cli(["pareto", str(p), "--objectives", "powertrain_cost_usd,accel_time_0_100_s", "--generations", "3",
+                 "--pop", "20", "--no-plots", "--out", str(out)]) == 0
+    rows = list(csv.DictReader((out / "front.csv").open()))
+    assert rows and all(float(r["accel_time_0_100_s"]) < NOT_REACHED_S for r in rows)
+    first = _bag_fronts(out / "bag")[0][5]["accel_time_0_100_s"]  # every generation's front, not only the last
+    assert len(first) and (first < NOT_REACHED_S).all()
 
 
 def test_cli_all_topologies_one_bag(tmp_path):
