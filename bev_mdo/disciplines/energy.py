@@ -20,7 +20,7 @@ from bev_mdo.models.cycles import DriveCycle, resample
 from bev_mdo.models.params import QUASI_STATIC_SPECS
 
 WALL_MODELS = ("chain", "quasi_static")  # the models that know the charger: energy_wall_wh_per_km
-BATTERY_MARGINS = ("battery_power_margin_kw", "battery_soc_margin")  # quasi_static's, with feasibility_outputs
+BATTERY_MARGINS = ("battery_power_margin_kw", "battery_soc_margin", "battery_current_margin")  # quasi_static's, with feasibility_outputs
 FINAL_SOC = QUASI_STATIC_SPECS["final_soc"].default
 
 
@@ -36,9 +36,10 @@ class Energy(Base):
     every cycle of ``cycle_weights``): constrain them >= 0 so that an optimiser cannot pick a motor
     that does not follow the cycle (the chain's energy of such a design is the energy of the demand).
     With quasi_static (every topology) it also adds the battery's: ``battery_power_margin_kw`` (min over
-    the cycle of the pack's largest power ocv^2/4R minus the drive demand) and ``battery_soc_margin``
-    (the lowest SOC over the cycle minus ``final_soc``, a fraction of capacity), the tightest over the
-    cycles: constrain them >= 0 so that an optimiser cannot pick a pack that does not deliver the cycle
+    the cycle of the pack's largest power ocv^2/4R minus the drive demand), ``battery_soc_margin``
+    (the lowest SOC over the cycle minus ``final_soc``, a fraction of capacity) and
+    ``battery_current_margin`` (min over the cycle of 1 - current / the discharge limit
+    ``discharge_c_max`` x capacity), the tightest over the cycles: constrain them >= 0 so that an optimiser cannot pick a pack that does not deliver the cycle
     (the model caps such a pack's power and lets its SOC fall below 0, so its energy per km leaves
     out what it did not deliver)."""
 
@@ -152,10 +153,12 @@ class Energy(Base):
 
 def battery_margins(results, final_soc) -> dict:
     """The battery's margins over quasi-static results (one per cycle), the tightest of them: power (kW, at
-    most 1e9 for a cycle that never draws) and SOC above ``final_soc``."""
+    most 1e9 for a cycle that never draws), SOC above ``final_soc`` and the discharge current's share of its
+    limit left (at most 1)."""
     power_kw = np.minimum(np.minimum.reduce([r.battery_power_margin_kw for r in results]), 1e9)
     return {"battery_power_margin_kw": power_kw,
-            "battery_soc_margin": np.minimum.reduce([r.soc_min for r in results]) - np.asarray(final_soc, float)}
+            "battery_soc_margin": np.minimum.reduce([r.soc_min for r in results]) - np.asarray(final_soc, float),
+            "battery_current_margin": np.minimum(np.minimum.reduce([r.battery_current_margin for r in results]), 1.0)}
 
 
 def _cycle_weights(config, options, model):

@@ -393,17 +393,17 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
     """The battery stepped over each design's demand (step k's in column ``step_pair[k]``): once
     from ``initial_soc`` (energy), or
     from 100 % SOC repeating the cycle until ``final_soc`` (``to_range``). One kernel for both
-    (compile time). Returns energy drawn and returned (J), final SOC, the current flag, the
-    lowest SOC, the least ocv^2/4R minus drive demand (W, inf without one), and the
-    distance (m, inf if not reached). Each design's steps are its own; designs of
+    (compile time). Returns energy drawn and returned (J), final SOC, the lowest SOC, the least
+    ocv^2/4R minus drive demand (W) and the least 1 - current / discharge limit over the drawing
+    steps (both inf without one), and the distance (m, inf if not reached). Each design's steps are its own; designs of
     a group only share the loop."""
     n_pts, n_steps = demand_w.shape[0], step_pair.shape[0]
     energy = np.zeros(n_pts)
     regen = np.zeros(n_pts)
     soc_end = np.empty(n_pts)
-    current_ok = np.ones(n_pts, np.bool_)
     soc_low = np.empty(n_pts)
     power_room = np.full(n_pts, np.inf)
+    current_room = np.full(n_pts, np.inf)
     out = np.full(n_pts, np.inf)
     for first in prange((n_pts + _GROUP - 1) // _GROUP):
         n0 = first * _GROUP
@@ -432,9 +432,8 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
                         else:
                             if d > 0.0:
                                 power_room[n] = min(power_room[n], room)
+                                current_room[n] = min(current_room[n], 1.0 - i / x[_IDIS])
                             soc_low[n] = min(soc_low[n], new)
-                            if not i <= x[_IDIS] * (1 + 1e-12):
-                                current_ok[n] = False
                             energy[n] += (power + x[_WLOSS] * i * i * r) * dt[k]  # 2-16, 2-17
                             regen[n] -= min(power, 0.0) * dt[k]
                         soc[g] = new
@@ -445,14 +444,14 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
                 break
         for g in range(size):
             soc_end[n0 + g] = soc[g]
-    return energy, regen, soc_end, current_ok, soc_low, power_room, out
+    return energy, regen, soc_end, soc_low, power_room, current_room, out
 
 
 def battery_energy(demand_w, step_pair, dt, cols, cell) -> tuple:
     """Step each design's battery over its demand from ``initial_soc``
     (``quasi_static.integrate_energy``): energy drawn and returned (J, 2-16, 2-17), final SOC,
-    the current feasibility flag, the lowest SOC over the cycle and the least ocv^2/4R minus
-    drive demand (W, inf if the cycle never draws; the power flag is that margin >= 0)."""
+    the lowest SOC over the cycle, the least ocv^2/4R minus drive demand (W) and the least
+    1 - current / discharge limit (both inf if the cycle never draws; the flags are these >= 0)."""
     return _battery(demand_w, step_pair, dt, np.zeros(dt.shape[0]), 1, cols, cell, False)[:6]
 
 

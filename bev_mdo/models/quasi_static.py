@@ -86,10 +86,15 @@ class QuasiStaticResult:
     torque_margin_nm: np.ndarray  # min over the cycle of T_max(w) - T_m when driving
     torque_ok: np.ndarray
     speed_ok: np.ndarray
-    current_ok: np.ndarray
     regen_wh_per_km: np.ndarray  # energy returned to the battery terminals (>= 0)
     soc_min: np.ndarray  # lowest SOC over the cycle, the start included (< 0: the pack ran out)
     battery_power_margin_kw: np.ndarray  # min over the drawing steps of ocv^2/4R - drive demand (inf: none)
+    battery_current_margin: np.ndarray  # min over the drawing steps of 1 - current / discharge limit (inf: none)
+
+    @property
+    def current_ok(self) -> np.ndarray:
+        """The current never above the pack's discharge limit (``discharge_c_max`` x capacity)."""
+        return self.battery_current_margin >= -1e-12
 
     @property
     def power_ok(self) -> np.ndarray:
@@ -296,12 +301,12 @@ def battery_table(p, n: int) -> tuple:
 
 def fast_energy(d: FastDemand, p, n: int) -> QuasiStaticResult:
     """``integrate_energy`` in the compiled per-design loop (compiled.battery_energy)."""
-    energy, regen, soc, current_ok, soc_min, room_w = compiled.battery_energy(
+    energy, regen, soc, soc_min, room_w, room_i = compiled.battery_energy(
         d.power_w, d.step_pair, d.dt, *battery_table(p, n))
     km = d.distance_m / 1e3
     return QuasiStaticResult(energy / 3600.0 / km, d.distance_m, soc, d.speed_max, d.torque_margin,
-                             d.torque_margin >= -1e-9, d.speed_max <= d.speed_limit, current_ok,
-                             regen / 3600.0 / km, soc_min, room_w / 1e3)
+                             d.torque_margin >= -1e-9, d.speed_max <= d.speed_limit,
+                             regen / 3600.0 / km, soc_min, room_w / 1e3, room_i)
 
 
 def fast_range(d: FastDemand, p, n: int, step_m: np.ndarray, max_repeats: int = 200) -> np.ndarray:
@@ -330,8 +335,8 @@ class _Battery:
         self.i_dis_max = p["discharge_c_max"] * cap_ah
         self.soc_max_regen = p["regen_max_soc"]
         self.w_loss = p["battery_loss_weight"]
-        self.current_ok = np.ones(n, bool)
         self.power_room_w = np.full(n, np.inf)  # min of p_max - p_drive over the steps that draw
+        self.current_room = np.full(n, np.inf)  # min of 1 - i / i_dis_max over the steps that draw
 
     def step(self, soc, p_drive, p_regen, dt):
         """Terminal power, energy drawn (J) and the new SOC after one step of ``dt`` s."""
@@ -344,7 +349,7 @@ class _Battery:
         self.power_room_w = np.minimum(self.power_room_w, np.where(p_drive > 0, p_max - p_drive, np.inf))
         power = np.minimum(p_drive, p_max) + np.maximum(p_regen, p_chg_lim)
         i = bt.terminal_current_a(power, voc, r)  # 2-11..2-14
-        self.current_ok &= i <= self.i_dis_max * (1 + 1e-12)
+        self.current_room = np.minimum(self.current_room, np.where(p_drive > 0, 1.0 - i / self.i_dis_max, np.inf))
         e = (power + self.w_loss * i * i * r) * dt  # 2-17 (+ optional internal loss)
         return power, e, bt.soc_after(soc, i, dt, self.q_c)
 
@@ -376,7 +381,7 @@ def integrate_energy(d: Demand, p, n: int) -> QuasiStaticResult:
     km = d.distance_m / 1e3
     return QuasiStaticResult(energy / 3600.0 / km, d.distance_m, soc, d.speed_max, d.torque_margin,
                              d.torque_margin >= -1e-9, d.speed_max <= d.speed_limit,
-                             batt.current_ok, regen / 3600.0 / km, soc_min, batt.power_room_w / 1e3)
+                             regen / 3600.0 / km, soc_min, batt.power_room_w / 1e3, batt.current_room)
 
 
 def energy_wh_per_km(resampled, params, vehicle_mass_kg, gear_ratio, motor_kw, *,

@@ -36,7 +36,7 @@ def _energy(topology, feasibility_outputs=True):
 @pytest.mark.parametrize("topology", tp.TOPOLOGIES)
 def test_the_battery_margins_are_the_tightest_over_the_cycles(topology):
     energy = _energy(topology)
-    assert energy.outputs[-2:] == ("battery_power_margin_kw", "battery_soc_margin")
+    assert energy.outputs[-3:] == ("battery_power_margin_kw", "battery_soc_margin", "battery_current_margin")
     t = tp.get_topology(topology)
     x = {"vehicle_mass_kg": np.array([1500.0, 1500.0]), "motor_kw": np.array([80.0, 80.0]) / t.front_motors,
          "battery_kwh": np.array([1.0, 24.0])}
@@ -53,9 +53,12 @@ def test_the_battery_margins_are_the_tightest_over_the_cycles(topology):
     np.testing.assert_array_equal(out["battery_power_margin_kw"],
                                   np.minimum(runs[0].battery_power_margin_kw, runs[1].battery_power_margin_kw))
     np.testing.assert_array_equal(out["battery_soc_margin"], np.minimum(runs[0].soc_min, runs[1].soc_min) - 0.05)
+    np.testing.assert_array_equal(out["battery_current_margin"],
+                                  np.minimum(runs[0].battery_current_margin, runs[1].battery_current_margin))
     # 1 kWh cannot deliver either cycle: asked for more than it can give and run below empty; 24 kWh can
     assert out["battery_power_margin_kw"][0] < -20 < 20 < out["battery_power_margin_kw"][1]
     assert out["battery_soc_margin"][0] < -0.05 < 0.3 < out["battery_soc_margin"][1]
+    assert out["battery_current_margin"][0] < -1 < 0.5 < out["battery_current_margin"][1] < 1
     plain = _energy(topology, feasibility_outputs=False)  # the default outputs: unchanged, no margins
     assert plain.outputs == ("energy_wh_per_km", "energy_wall_wh_per_km")
     np.testing.assert_array_equal(plain.compute(x)["energy_wh_per_km"], out["energy_wh_per_km"])

@@ -37,7 +37,7 @@ def designs(topology, n, seed):
 
 def assert_same(fast, ref):
     for name in ("energy_wh_per_km", "regen_wh_per_km", "soc_end", "motor_speed_max_rad_s", "torque_margin_nm",
-                 "soc_min", "battery_power_margin_kw"):
+                 "soc_min", "battery_power_margin_kw", "battery_current_margin"):
         a, b = getattr(fast, name), getattr(ref, name)
         np.testing.assert_allclose(a, b, rtol=REL, atol=0, err_msg=name)
     for name in ("torque_ok", "speed_ok", "current_ok", "power_ok"):

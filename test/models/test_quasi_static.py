@@ -94,6 +94,20 @@ def test_discharge_current_flag_5c(nedc):
     assert list(r.current_ok) == [False, True]
 
 
+def test_discharge_current_margin_of_a_pack_that_delivers_the_power(nedc):
+    """A 7 kWh pack delivers the NEDC's power (its power margin is positive) but draws more than its 5C
+    discharge limit: only the current margin says so. The current does not depend on the limit, so at 10C
+    the margin is 1 - (1 - margin at 5C) / 2."""
+    x = (np.full(2, 1500.0), 8.0, 80.0, np.array([7.0, 24.0]))
+    r = qs.simulate(nedc, {}, *x)
+    assert (r.battery_power_margin_kw > 10).all()
+    assert r.battery_current_margin[0] < -0.2 and r.battery_current_margin[1] > 0.5
+    assert list(r.current_ok) == [False, True] and list(r.feasible) == [False, True]
+    r10 = qs.simulate(nedc, {"discharge_c_max": 10.0}, *x)
+    np.testing.assert_allclose(r10.battery_current_margin, 1 - (1 - r.battery_current_margin) / 2, rtol=1e-12)
+    assert r10.current_ok.all()
+
+
 def test_battery_margins_of_a_pack_too_small_for_the_nedc(nedc):
     """A 1 kWh pack cannot deliver the NEDC: asked for more than ocv^2/4R and run below 0 % SOC (the
     lookups stay at 0 %), its energy per km leaves out what it did not deliver (about 60 Wh/km against
