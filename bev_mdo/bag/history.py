@@ -6,8 +6,9 @@ import io
 import json
 
 from bev_mdo.bag.errors import BagError
-from bev_mdo.bag.reader import Bag, open_bag, read_config
+from bev_mdo.bag.reader import Bag, open_bag
 from bev_mdo.bag.signing import verifier
+from bev_mdo.bag.stored import WINDOW_S
 from bev_mdo.protocol import parse_start_tag
 
 ITERATION_TOPIC = "/bev_mdo/iteration"
@@ -29,34 +30,6 @@ def stamp_ns(header) -> int:
 
 def _in_run(run_id: str, run: str) -> bool:
     return run_id == run or run_id.startswith(run + "-")
-
-
-WINDOW_S = 30.0  # as ros.sign_window_s: a record received further than this from its stamp is expired
-
-
-def stored_config(config_yaml: str | None) -> dict:
-    """The stored config parsed, once per reader call ({} without one, or when it is not a readable
-    mapping): ``window_s``, ``design_names`` and ``maximized`` read it from there."""
-    import yaml
-
-    try:
-        config = yaml.safe_load(config_yaml or "")
-    except Exception:  # noqa: BLE001 - a reader never fails on the stored config
-        return {}
-    return config if isinstance(config, dict) else {}
-
-
-def window_s(config_yaml: str | None) -> float:
-    """The run's ``ros.sign_window_s`` from its stored config (``WINDOW_S`` without one)."""
-    return _window_s(stored_config(config_yaml))
-
-
-def _window_s(config: dict) -> float:
-    try:
-        value = float((config.get("ros") or {}).get("sign_window_s", WINDOW_S))
-    except Exception:  # noqa: BLE001 - a reader never fails on the stored config
-        return WINDOW_S
-    return value if value > 0 else WINDOW_S
 
 
 class Sequence:
@@ -134,21 +107,14 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
     "other_run_ids": [the runs of those records], "unverified": note or ""} and, for a sweep's bag cut
     short, "unfinished": note.
     """
+    return verified_history(bag, run_id, all_runs=all_runs, key_file=key_file, checks=checks, no_verify=no_verify)[0]
+
+
+def verified_history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file: str | None = None,
+                     checks: dict | None = None, no_verify: bool = False) -> tuple[list[dict], object]:
+    """(``history``, the Signer its records were verified with or None), for a reader that checks what else
+    the bag stores (its answers: ``read_answers``) with the same key."""
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
-    return _history(bag, stored_config(read_config(bag)), run_id, all_runs, key_file, checks, no_verify)[0]
-
-
-def verified_history(bag, run_id: str | None = None, *, key_file: str | None = None, checks: dict | None = None,
-                     no_verify: bool = False) -> tuple[list[dict], object]:
-    """(``history`` of the bag's own run or `run_id`, the Signer its records were verified with or None), for a
-    reader that checks what else the bag stores (its answers: ``read_answers``) with the same key."""
-    bag = bag if isinstance(bag, Bag) else open_bag(bag)
-    return _history(bag, stored_config(read_config(bag)), run_id, False, key_file, checks, no_verify)
-
-
-def _history(bag: Bag, config: dict, run_id, all_runs, key_file, checks, no_verify) -> tuple[list[dict], object]:
-    """(``history`` of an open bag whose stored config (``stored_config``) the caller parsed, the Signer its
-    records were verified with or None)."""
     run = run_id or bag.info.get("run_id") or None  # the run the bag's recorder was started for, if any
     decoded = list(bag.decoded([t for t, ty in bag.topics.items() if ty == ITERATION_TYPE]))
     if run is None and not all_runs:
@@ -156,12 +122,12 @@ def _history(bag: Bag, config: dict, run_id, all_runs, key_file, checks, no_veri
         if len(runs) > 1:
             raise BagError(f"{bag.mcap_path}: the bag holds the iterations of {len(runs)} runs {runs}; "
                            "choose one with --run-id")
-    is_design = _design_names(config)
+    stored = bag.stored_config
     check = verifier(bag, key_file, no_verify)
     signer = check.signer
     info = {"run_id": run, "dropped": {}, "missing": 0, "other_runs": 0, "other_run_ids": [],
             "unverified": check.note}
-    order = Sequence(_window_s(config))
+    order = Sequence(stored.window_s)
     rows = []
     for msg, rec in decoded:
         if run is not None and not _in_run(rec.run_id, run):
@@ -188,8 +154,8 @@ def _history(bag: Bag, config: dict, run_id, all_runs, key_file, checks, no_veri
             "sequence": int(rec.sequence),
             "formulation": rec.formulation,
             "optimizer": rec.optimizer,
-            "design": {k: v for k, v in values.items() if is_design(k)},
-            **({"couplings": {k: v for k, v in values.items() if not is_design(k)}}
+            "design": {k: v for k, v in values.items() if stored.is_design(k)},
+            **({"couplings": {k: v for k, v in values.items() if not stored.is_design(k)}}
                if rec.formulation == "idf" else {}),
             "objective_name": rec.objective_name,
             "objective": float(rec.objective),
@@ -257,37 +223,6 @@ def to_csv(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
-def design_names(config_yaml: str | None):
-    """Whether a recorded variable name is a design variable of the stored config (``x[2]``: of ``x``);
-    an IDF record holds its couplings too. Without a readable config, every name is."""
-    return _design_names(stored_config(config_yaml))
-
-
-def _design_names(config: dict):
-    from bev_mdo.config.sections import resolve_problem
-
-    try:  # as the run read it: a battery sized for range is a coupling
-        dvs = resolve_problem(config.get("problem")).get("design_variables")
-    except Exception:  # noqa: BLE001 - a reader never fails on the stored config
-        dvs = None
-    if not isinstance(dvs, dict) or not dvs:
-        return lambda name: True
-    return lambda name: name in dvs or name.split("[", 1)[0] in dvs
-
-
-def maximized(config_yaml: str | None) -> bool:
-    """Whether the recorded config maximises its objective (problem.objective: {maximize: true})."""
-    return _maximized(stored_config(config_yaml))
-
-
-def _maximized(config: dict) -> bool:
-    try:
-        obj = config.get("problem", {}).get("objective")
-    except Exception:  # noqa: BLE001 - a reader never fails on the stored config
-        return False
-    return isinstance(obj, dict) and obj.get("maximize") is True
-
-
 def read_answers(bag: Bag, signer=None, checks: dict | None = None) -> dict | None:
     """The end-of-run answers stored with a bag (metadata record or answers.json), or None. A signed run's
     (``signer``: its records' Verifier.signer) count only when signed with its key: they name the run's
@@ -340,9 +275,7 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
     BagError when the run was signed but its records cannot be verified."""
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     checks = {} if checks is None else checks
-    config_yaml = read_config(bag)
-    config = stored_config(config_yaml)
-    rows, signer = _history(bag, config, run_id, False, key_file, checks, no_verify)
+    rows, signer = verified_history(bag, run_id, key_file=key_file, checks=checks, no_verify=no_verify)
     if not rows and checks["other_run_ids"]:
         own = "" if run_id else " (the bag's own)"
         raise BagError(f"{bag.mcap_path}: no record of run {checks['run_id']}{own}; "
@@ -350,15 +283,15 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
     if not rows:
         raise BagError(f"{bag.mcap_path}: no IterationRecord on {ITERATION_TOPIC}; nothing to resume")
     answers = read_answers(bag, signer, checks)
-    k = headline(rows, -1.0 if _maximized(config) else 1.0, answers)
+    k = headline(rows, -1.0 if bag.stored_config.maximized else 1.0, answers)
     row = rows[k]
     if checks is not None and k != len(rows) - 1 and row["formulation"] != "doe":
         checks["result"] = f"the run's result (iteration {row['iteration']}, not its last record)"
     if checks is not None and row["formulation"] == "doe":
         checks["sweep"] = sweep_phrase(row, len(rows))
     if row.get("starts") and not (answers or {}).get("result_design"):  # an interrupted multi-start
-        return config_yaml, each_start(rows, row, checks), int(row["iteration"])
-    return config_yaml, {**row["design"], **row.get("couplings", {})}, int(row["iteration"])
+        return bag.stored_config.text, each_start(rows, row, checks), int(row["iteration"])
+    return bag.stored_config.text, {**row["design"], **row.get("couplings", {})}, int(row["iteration"])
 
 
 def each_start(rows: list[dict], last: dict, checks: dict) -> list[dict | None]:

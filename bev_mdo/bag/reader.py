@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Iterable, Iterator
 
@@ -19,6 +20,7 @@ from mcap.records import Attachment, Channel, DataEnd, Footer, Message, Metadata
 from mcap.stream_reader import StreamReader
 
 from bev_mdo.bag.errors import BagError
+from bev_mdo.bag.stored import StoredConfig
 
 MAGIC = b"\x89MCAP0\r\n"
 PACKAGE = "bev_mdo_msgs"
@@ -228,6 +230,11 @@ class Bag:
     def info(self) -> dict[str, str]:
         """The ``bev_mdo`` metadata record (config_yaml, version, run_id, ...)."""
         return dict(self.metadata.get(METADATA_NAME, {}))
+
+    @cached_property
+    def stored_config(self) -> StoredConfig:
+        """The run's configuration stored in the bag (``read_config``), parsed once for every reader."""
+        return StoredConfig.parse(read_config(self))
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[BagMessage]:
         """Recorded messages in file order (per-topic order is recording order); ``topics`` None

@@ -5,10 +5,9 @@ import json
 from pathlib import Path
 
 import numpy as np
-import yaml
 
-from bev_mdo.bag.history import headline, maximized, read_answers, records_phrase, sweep_phrase, verified_history
-from bev_mdo.bag.reader import Bag, open_bag, read_config
+from bev_mdo.bag.history import headline, read_answers, records_phrase, sweep_phrase, verified_history
+from bev_mdo.bag.reader import Bag, open_bag
 from bev_mdo.mdo.units import label, run_units, unit_of
 
 REQUEST_TYPE = "bev_mdo_msgs/msg/EvaluationRequest"
@@ -264,13 +263,12 @@ def _timing_table(timing) -> list[str]:
 def _context(bag: Bag):
     """(config, problem) from the config stored in the bag; Nones where the bag has no config or it
     no longer loads."""
-    text = read_config(bag)
-    if not text:
+    if not bag.stored_config.text:
         return None, None
     try:
         from bev_mdo.config import RunConfig
 
-        config = RunConfig.load(yaml.safe_load(text))
+        config = RunConfig.load(bag.stored_config.data)
         return config, config.problem
     except (ValueError, KeyError, TypeError):
         return None, None
@@ -367,7 +365,7 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
         if feasible:
             from bev_mdo.mdo.driver import BEST_REL_TOL, pick_result
 
-            sign = -1.0 if maximized(read_config(bag)) else 1.0
+            sign = -1.0 if bag.stored_config.maximized else 1.0
             # the run's result where the bag stores its design (the rule's 'converged' is not recorded)
             at = [r for r in rows if r["feasible"] and r["design"] == (answers or {}).get("result_design")]
             best = at[-1] if at else rows[pick_result(rows, sign, converged=False)]
@@ -384,9 +382,8 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
         lines += ["", "## Discipline evaluation time (warm-up excluded)", "", *_timing_table(timing)]
     lines += _instance_table(instance_work(bag))
     lines += ["", "## Plots", ""] + [f"![{Path(p).stem}]({p})" for p in images]
-    config = read_config(bag)
-    if config:
-        lines += ["", "## Configuration (as recorded)", "", "```yaml", config.rstrip(), "```"]
+    if bag.stored_config.text:
+        lines += ["", "## Configuration (as recorded)", "", "```yaml", bag.stored_config.text.rstrip(), "```"]
     return "\n".join(lines) + "\n"
 
 
@@ -406,7 +403,7 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     final = answers = baseline = None
     units = _units(config)
     answers = read_answers(bag, signer, checks)  # a signed run's count only when signed with its key too
-    k = headline(rows, -1.0 if maximized(read_config(bag)) else 1.0, answers)  # the result, a sweep's best, the last
+    k = headline(rows, -1.0 if bag.stored_config.maximized else 1.0, answers)  # the result, a sweep's best, the last
     if rows and config is not None:
         final = _analyse(config, dict(rows[k]["design"]))
         baseline = _baseline(config, problem)

@@ -24,7 +24,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bev_mdo.bag.errors import BagError
-from bev_mdo.bag.reader import read_config
 from bev_mdo.yamlload import load_yaml
 
 SIGNING_METADATA = "bev_mdo_signing"
@@ -37,11 +36,15 @@ def key_fingerprint(key: bytes) -> str:
 
 
 def config_key_file(config_yaml: str) -> str:
-    """``ros.sign_key_file`` named in a stored configuration ('' when none or unreadable)."""
+    """``ros.sign_key_file`` named in the configuration a bag is written with ('' when none or unreadable)."""
     try:
-        config = load_yaml(config_yaml or "") or {}
+        return named_key_file(load_yaml(config_yaml or ""))
     except ValueError:
         return ""
+
+
+def named_key_file(config) -> str:
+    """``ros.sign_key_file`` named in a parsed configuration (a bag's: ``Bag.stored_config.data``; '' when none)."""
     ros = config.get("ros") if isinstance(config, dict) else None
     value = ros.get("sign_key_file") if isinstance(ros, dict) else None
     return value if isinstance(value, str) else ""
@@ -127,8 +130,8 @@ def verifier(bag, key_file: str | None = None, no_verify: bool = False) -> Verif
 
     where = bag.mcap_path
     record = bag.metadata.get(SIGNING_METADATA)
-    config_yaml = read_config(bag)
-    stored_key_file = config_key_file(config_yaml)
+    config_yaml = bag.stored_config.text
+    stored_key_file = named_key_file(bag.stored_config.data)
     if no_verify:
         return Verifier(None, NO_VERIFY_NOTE, bool(record and record.get("signed") == "true"))
     signed = record.get("signed") == "true" if record else bool(stored_key_file)

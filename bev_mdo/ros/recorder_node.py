@@ -42,7 +42,8 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from bev_mdo import interrupts
-from bev_mdo.bag.history import ITERATION_TOPIC
+from bev_mdo.bag.history import ITERATION_TOPIC, RecordOrder
+from bev_mdo.bag.stored import StoredConfig
 from bev_mdo.bag.writer import BagWriter
 from bev_mdo.binding import config_binding, run_matches
 from bev_mdo.processes import check_parameters
@@ -101,9 +102,7 @@ class RecorderNode(Node):
         self._handlers: dict[str, object] = {}
         self.received = 0
         self.run_id = run_id
-        from bev_mdo.bag.history import RecordOrder, window_s
-
-        self.order = RecordOrder(run_id, window_s(config_yaml))  # iteration records: fresh, in order (bag/history.py)
+        self.order = RecordOrder(run_id, StoredConfig.parse(config_yaml).window_s)  # iteration records: fresh, in order
         from std_msgs.msg import String
 
         self._status_pub = self.create_publisher(String, STATUS_TOPIC, STATUS_QOS)

@@ -17,7 +17,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from bev_mdo.bag.errors import BagError
-from bev_mdo.bag.reader import Bag, BagMessage, read_config
+from bev_mdo.bag.reader import Bag, BagMessage
 from bev_mdo.ros.fastwait import until
 from bev_mdo.ros.recorder_node import message_class
 
@@ -64,10 +64,10 @@ class Replayer:
         unknown = sorted(set(topics or []) - set(bag.topics))
         if unknown:
             raise BagError(f"{bag.mcap_path}: no topic {', '.join(unknown)} in this bag")
-        from bev_mdo.bag.history import ITERATION_TOPIC, RecordOrder, window_s
+        from bev_mdo.bag.history import ITERATION_TOPIC, RecordOrder
 
         # iteration records as every reader takes them: the bag's own run, each once, fresh and in order
-        self.order = RecordOrder(bag.info.get("run_id", ""), window_s(read_config(bag)))
+        self.order = RecordOrder(bag.info.get("run_id", ""), bag.stored_config.window_s)
         self.messages: list[BagMessage] = [m for m in bag.messages(topics) if m.topic != ITERATION_TOPIC
                                            or self.order.keep(m.data, m.log_time_ns)]
         self.publishers = {}

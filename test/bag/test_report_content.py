@@ -96,6 +96,28 @@ def test_report_markdown_names_the_answers_mass_and_cost(infeasible_run, tmp_pat
     assert {p.name for p in paths} >= {"convergence.png", "design.png", "constraints.png", "report.md"}
 
 
+def test_a_report_parses_the_stored_config_once(feasible_run, tmp_path, monkeypatch):
+    """report() parsed the bag's stored config for the records (design names, record window), again
+    for the verifier's key file, for the report's own config and for the objective's sense (twice):
+    once now, every reader taking it from the opened bag (``Bag.stored_config``)."""
+    from bev_mdo.bag.reader import open_bag, read_config
+    from bev_mdo.bag.report import report
+
+    _, bag, _ = feasible_run
+    stored = read_config(open_bag(bag))
+    real, parsed = yaml.SafeLoader.__init__, []
+
+    def counting(self, stream, *args, **kwargs):  # every safe YAML parse: yaml.safe_load and yamlload.load_yaml
+        parsed.append(stream == stored)
+        real(self, stream, *args, **kwargs)
+
+    monkeypatch.setattr(yaml.SafeLoader, "__init__", counting)
+    report(bag, tmp_path)
+    assert stored and parsed.count(True) == 1
+    md = (tmp_path / "report.md").read_text()  # the stored config loaded from that parse: the iterate analysed
+    assert "| vehicle_mass_kg | kg |" in md and "## Configuration (as recorded)" in md
+
+
 def _figures(bag):
     from bev_mdo.bag import report as rep
     from bev_mdo.bag.history import history
