@@ -306,21 +306,6 @@ def _signing(ros: dict, config: RunConfig) -> str:
     return "per-run key" if config.ros.get("sign_key_file") else "off (ros.signing: false)"
 
 
-class _InProcess:
-    """The in-process evaluator of one topology, closed on exit."""
-
-    def __init__(self, cfg):
-        from bev_mdo.mdo.evaluator import InProcessEvaluator
-
-        self.ev = InProcessEvaluator(RunConfig.of(cfg).disciplines)
-
-    def __enter__(self):
-        return self.ev
-
-    def __exit__(self, *exc):
-        self.ev.close()
-
-
 class ParetoInProcessSession:
     """In process: the fronts go straight into ``<out>/bag`` (BagWriter)."""
 
@@ -333,7 +318,10 @@ class ParetoInProcessSession:
         self.stats = {}
 
     def evaluator(self, cfg, topology):
-        return _InProcess(cfg)
+        """The in-process evaluator of one topology, closed on exit."""
+        from bev_mdo.mdo.evaluator import InProcessEvaluator
+
+        return contextlib.closing(InProcessEvaluator(RunConfig.of(cfg).disciplines))
 
     def __enter__(self):
         return self
