@@ -1,8 +1,5 @@
 """Sessions: the "start nodes, recorder, coordinator; run; stop" sequences, out of the CLI.
 
-* ``EvaluateRosSession``: the ROS evaluator of ``bev-mdo evaluate``/``sensitivity``/``sweep`` over ROS: the running
-  nodes of the ros section's domain (``--attach``), or (``launch``) the command's own nodes, signed with a per-run key by default
-  (launcher.OwnSuite); closing it stops them and returns the notes for the user.
 * ``OptimizeRosSession``: one optimisation over ROS (``bev-mdo optimize`` and ``resume``): discipline nodes (pools,
   composed processes) and a recorder started for the run, signed with a per-run key by default (docs/security.md),
   the config's baseline and the run coordinated in this process, every process stopped on exit (the recorder
@@ -74,52 +71,6 @@ def analyse_baseline(config, evaluator=None) -> dict | None:
         return {"name": base["name"], "design": dict(base["design"]), "outputs": {}, "feasible": False,
                 "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
     return {"name": base["name"], **report}
-
-
-class EvaluateRosSession:
-    """The ROS evaluator of ``evaluate``/``sensitivity``/``sweep`` over ROS (``ros``: the validated ros section): the
-    running nodes, or with ``launch`` the command's own (signed by default, launch.OwnSuite). ``close(ok)`` ends both
-    and returns, when the command ended well, the notes for the user: what was dropped and, for unsigned results, that
-    anyone on the domain could have answered them."""
-
-    def __init__(self, config: dict, ros: dict, *, launch: bool = False, node_name: str = "bev_mdo_client"):
-        from bev_mdo.ros.client import make_ros_evaluator
-
-        self.suite = None
-        self.domain = ros["domain_id"]
-        run_id = None
-        if launch:
-            from bev_mdo.launcher import OwnSuite
-
-            self.suite = OwnSuite(config, ros).start()
-            config, run_id = self.suite.config, self.suite.run_id
-        else:
-            config = RunConfig.of(config).with_ros(ros)
-        try:
-            self.evaluator = make_ros_evaluator(config, node_name=node_name, run_id=run_id)
-        except BaseException:
-            if self.suite is not None:
-                self.suite.stop()
-            raise
-
-    def close(self, ok: bool = True) -> list[str]:
-        try:
-            self.evaluator.close()
-        finally:
-            if self.suite is not None:
-                self.suite.stop()
-        if not ok:
-            return []
-        notes = []
-        dropped = {k: v for k, v in self.evaluator.dropped.items() if v}
-        if dropped:
-            notes.append("dropped and counted: " + ", ".join(f"{k} {v}" for k, v in sorted(dropped.items())))
-        if not self.evaluator.signed and self.suite is not None:
-            notes.append("note: the results were not signed (ros.signing: false)")
-        elif not self.evaluator.signed:
-            notes.append(f"note: the results were not signed (no ros.sign_key_file): any process on ROS domain "
-                         f"{self.domain} could have answered; run without --attach, or use a key file (docs/security.md)")
-        return notes
 
 
 class OptimizeRosSession:
