@@ -15,6 +15,7 @@ Transports are interleaved round by round (the host is noisy); median, min and m
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import time
 from pathlib import Path
@@ -74,14 +75,12 @@ def main() -> int:
     local = InProcessEvaluator(resolve_disciplines(config))
     defaults = {k: v for s in local.specs.values() for k, v in s.parameters.items()}
     transports = {"inprocess": (local, None)}
-    session = None
+    stack = contextlib.ExitStack()  # the ROS evaluator's nodes, stopped at the end
     if not args.no_ros:
-        from bev_mdo.api.transport import ros_section
-        from bev_mdo.sessions import EvaluateRosSession
+        from bev_mdo.api.transport import Evaluating
 
         ns = argparse.Namespace(domain_id=args.domain_id, discovery=None, static_peers=None, discovery_server=None)
-        session = EvaluateRosSession(config, ros_section(config, ns), launch=True, node_name="bench_doe")
-        transports["ros"] = (session.evaluator, defaults)
+        transports["ros"] = (stack.enter_context(Evaluating(config, ns, node_name="bench_doe")), defaults)
     runs = {k: {"doe": [], "sobol": [], "sobol_eval": []} for k in transports}
     try:
         for name, (ev, d) in transports.items():  # untimed warm-up: first discovery, imports
@@ -95,8 +94,7 @@ def main() -> int:
                 print(f"round {r + 1} {name}: {runs[name]['doe'][-1]:.0f} designs/s, Sobol' N=1024 "
                       f"{total:.2f} s ({evaluation:.2f} s evaluating)", flush=True)
     finally:
-        if session is not None:
-            session.close(True)
+        stack.close()
     figures = []
     for name in transports:
         where = "in process" if name == "inprocess" else "over ROS (6 discipline nodes, started before timing)"

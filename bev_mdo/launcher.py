@@ -269,6 +269,21 @@ class Launcher:
         self.stop()
 
 
+def prepare_run_dir(config, logs: Path, key_dir: Path) -> tuple:
+    """(config with its ros section signed by a per-run key unless it names its own key or signing is
+    off, the resolved config written to ``logs/config.yaml``): what nodes and recorder read."""
+    import yaml
+
+    from bev_mdo.config import RunConfig, plain
+    from bev_mdo.protocol.signing import with_run_key
+
+    logs.mkdir(parents=True, exist_ok=True)
+    config = config.with_run_key(key_dir) if isinstance(config, RunConfig) else with_run_key(config, key_dir)
+    resolved = logs / "config.yaml"
+    resolved.write_text(yaml.safe_dump(plain(config), sort_keys=False))
+    return config, resolved
+
+
 class OwnSuite:
     """The config's discipline nodes started for one command (``evaluate``, ``sweep``,
     ``sensitivity``, ``check-totals`` over ROS without ``--attach``), as ``optimize`` starts them: bound to a fresh run id and, unless
@@ -292,16 +307,10 @@ class OwnSuite:
         self.launcher: Launcher | None = None
 
     def start(self) -> "OwnSuite":
-        import yaml
-
-        from bev_mdo.config import plain
         from bev_mdo.ros_settings import ros_environment
 
         logs = self.work_dir / "logs"
-        logs.mkdir(parents=True, exist_ok=True)
-        self.config = self.config.with_run_key(self.work_dir / ".keys")
-        resolved = logs / "config.yaml"
-        resolved.write_text(yaml.safe_dump(plain(self.config), sort_keys=False))
+        self.config, resolved = prepare_run_dir(self.config, logs, self.work_dir / ".keys")
         self.launcher = Launcher(ros_environment(self.ros), log_dir=logs)
         try:
             for label, argv in plan_processes(list(self.config.names), str(resolved.resolve()),

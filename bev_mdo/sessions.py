@@ -1,8 +1,5 @@
 """Sessions: the "start nodes, recorder, coordinator; run; stop" sequences, out of the CLI.
 
-* ``EvaluateRosSession``: the ROS evaluator of ``bev-mdo evaluate``/``sensitivity``/``sweep`` over ROS: the running
-  nodes of the ros section's domain (``--attach``), or (``launch``) the command's own nodes, signed with a per-run key by default
-  (launcher.OwnSuite); closing it stops them and returns the notes for the user.
 * ``OptimizeRosSession``: one optimisation over ROS (``bev-mdo optimize`` and ``resume``): discipline nodes (pools,
   composed processes) and a recorder started for the run, signed with a per-run key by default (docs/security.md),
   the config's baseline and the run coordinated in this process, every process stopped on exit (the recorder
@@ -12,8 +9,8 @@
   evaluators and a bag written directly (BagSink), or over ROS a recorder for the whole session and one set of
   discipline nodes and one coordinator per topology.
 
-Both ROS sessions prepare their run directory the same way (``_prepare``: per-run key, the resolved config written
-for the nodes and the recorder) and start the recorder with launcher.start_recorder. ROS is imported only when a
+Both ROS sessions prepare their run directory as launcher.OwnSuite does (launcher.prepare_run_dir: per-run key, the
+resolved config written for the nodes and the recorder) and start the recorder with launcher.start_recorder. ROS is imported only when a
 ROS session starts.
 """
 from __future__ import annotations
@@ -28,20 +25,6 @@ from bev_mdo.ros_settings import participant_lease_s
 from bev_mdo.stacks import teardown
 
 ACK_GRACE_S = 1.0  # a live local recorder acknowledges in milliseconds (in DDS threads, not Python's)
-
-
-def _prepare(config, logs: Path, key_dir: Path) -> tuple:
-    """(config with its ros section signed by a per-run key unless it names its own key or signing is
-    off, the resolved config written to ``logs/config.yaml``): what nodes and recorder read."""
-    import yaml
-
-    from bev_mdo.protocol.signing import with_run_key
-
-    logs.mkdir(parents=True, exist_ok=True)
-    config = config.with_run_key(key_dir) if isinstance(config, RunConfig) else with_run_key(config, key_dir)
-    resolved = logs / "config.yaml"
-    resolved.write_text(yaml.safe_dump(plain(config), sort_keys=False))
-    return config, resolved
 
 
 def key_dir_for(bag: Path) -> Path:
@@ -76,52 +59,6 @@ def analyse_baseline(config, evaluator=None) -> dict | None:
     return {"name": base["name"], **report}
 
 
-class EvaluateRosSession:
-    """The ROS evaluator of ``evaluate``/``sensitivity``/``sweep`` over ROS (``ros``: the validated ros section): the
-    running nodes, or with ``launch`` the command's own (signed by default, launch.OwnSuite). ``close(ok)`` ends both
-    and returns, when the command ended well, the notes for the user: what was dropped and, for unsigned results, that
-    anyone on the domain could have answered them."""
-
-    def __init__(self, config: dict, ros: dict, *, launch: bool = False, node_name: str = "bev_mdo_client"):
-        from bev_mdo.ros.client import make_ros_evaluator
-
-        self.suite = None
-        self.domain = ros["domain_id"]
-        run_id = None
-        if launch:
-            from bev_mdo.launcher import OwnSuite
-
-            self.suite = OwnSuite(config, ros).start()
-            config, run_id = self.suite.config, self.suite.run_id
-        else:
-            config = RunConfig.of(config).with_ros(ros)
-        try:
-            self.evaluator = make_ros_evaluator(config, node_name=node_name, run_id=run_id)
-        except BaseException:
-            if self.suite is not None:
-                self.suite.stop()
-            raise
-
-    def close(self, ok: bool = True) -> list[str]:
-        try:
-            self.evaluator.close()
-        finally:
-            if self.suite is not None:
-                self.suite.stop()
-        if not ok:
-            return []
-        notes = []
-        dropped = {k: v for k, v in self.evaluator.dropped.items() if v}
-        if dropped:
-            notes.append("dropped and counted: " + ", ".join(f"{k} {v}" for k, v in sorted(dropped.items())))
-        if not self.evaluator.signed and self.suite is not None:
-            notes.append("note: the results were not signed (ros.signing: false)")
-        elif not self.evaluator.signed:
-            notes.append(f"note: the results were not signed (no ros.sign_key_file): any process on ROS domain "
-                         f"{self.domain} could have answered; run without --attach, or use a key file (docs/security.md)")
-        return notes
-
-
 class OptimizeRosSession:
     """One optimisation over ROS, as ``bev-mdo optimize`` runs it::
 
@@ -149,7 +86,7 @@ class OptimizeRosSession:
         self.stats: dict = {}
 
     def __enter__(self) -> "OptimizeRosSession":
-        from bev_mdo.launcher import Launcher, start_recorder
+        from bev_mdo.launcher import Launcher, prepare_run_dir, start_recorder
         from bev_mdo.ros.client import apply_ros_environment
         from bev_mdo.binding import config_binding
         from bev_mdo.ros_settings import ros_environment
@@ -159,7 +96,7 @@ class OptimizeRosSession:
         names = list(self.config.names)
         plan = dict(run_id=self.run_id, instance=self.run_id[:8], instances=self.instances, compose=self.compose)
         plan_processes(names, "", **plan)  # a rejected --compose leaves nothing behind: checked before any file
-        self.config, resolved = _prepare(self.config, self.logs, key_dir_for(self.bag))
+        self.config, resolved = prepare_run_dir(self.config, self.logs, key_dir_for(self.bag))
         self.launcher = Launcher(env, log_dir=self.logs)
         try:
             for label, argv in plan_processes(names, str(resolved.resolve()), **plan):
@@ -306,21 +243,6 @@ def _signing(ros: dict, config: RunConfig) -> str:
     return "per-run key" if config.ros.get("sign_key_file") else "off (ros.signing: false)"
 
 
-class _InProcess:
-    """The in-process evaluator of one topology, closed on exit."""
-
-    def __init__(self, cfg):
-        from bev_mdo.mdo.evaluator import InProcessEvaluator
-
-        self.ev = InProcessEvaluator(RunConfig.of(cfg).disciplines)
-
-    def __enter__(self):
-        return self.ev
-
-    def __exit__(self, *exc):
-        self.ev.close()
-
-
 class ParetoInProcessSession:
     """In process: the fronts go straight into ``<out>/bag`` (BagWriter)."""
 
@@ -333,7 +255,10 @@ class ParetoInProcessSession:
         self.stats = {}
 
     def evaluator(self, cfg, topology):
-        return _InProcess(cfg)
+        """The in-process evaluator of one topology, closed on exit."""
+        from bev_mdo.mdo.evaluator import InProcessEvaluator
+
+        return contextlib.closing(InProcessEvaluator(RunConfig.of(cfg).disciplines))
 
     def __enter__(self):
         return self
@@ -362,7 +287,7 @@ class ParetoRosSession:
         from bev_mdo.protocol.signing import Signer
         from bev_mdo.ros.client import apply_ros_environment
         from bev_mdo.ros.coordinator_node import node_name_for
-        from bev_mdo.launcher import Launcher, start_recorder
+        from bev_mdo.launcher import Launcher, prepare_run_dir, start_recorder
         from bev_mdo.ros.pareto_publisher import RosSink
         from bev_mdo.binding import config_binding
         from bev_mdo.ros_settings import ros_environment
@@ -370,7 +295,7 @@ class ParetoRosSession:
         apply_ros_environment(self.ros)
         self.logs = self.out / ".logs"
         # signed by default (docs/security.md); the key stays in the study's own .logs
-        signed, resolved = _prepare({**self.raw, "ros": self.ros}, self.logs, self.logs)
+        signed, resolved = prepare_run_dir({**self.raw, "ros": self.ros}, self.logs, self.logs)
         self.ros = signed["ros"]
         self.launcher = Launcher(ros_environment(self.ros), log_dir=self.logs)
         self._acks_needless = acks_needless(self.launcher)
@@ -390,18 +315,14 @@ class ParetoRosSession:
 
     @contextlib.contextmanager
     def evaluator(self, cfg, topology):
-        import yaml
-
+        from bev_mdo.launcher import prepare_run_dir
         from bev_mdo.ros import coordinator_node
 
         cfg = RunConfig.of(cfg).with_ros(self.ros)
         wait_s = self.ros["discovery_wait_s"]
         names = list(cfg.names)
         self._stop_disciplines(names, wait_s)
-        logs = self.logs / topology
-        logs.mkdir(parents=True, exist_ok=True)
-        resolved = logs / "config.yaml"
-        resolved.write_text(yaml.safe_dump(plain(cfg), sort_keys=False))
+        cfg, resolved = prepare_run_dir(cfg, self.logs / topology, self.logs)  # signed already: the session's key
         sub_run = f"{self.run_id}-{topology}"
         for label, argv in plan_processes(names, str(resolved.resolve()), run_id=sub_run, instances=self.instances):
             self.launcher.add(f"{topology}/{label}", argv)

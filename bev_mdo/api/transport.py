@@ -94,19 +94,23 @@ def ros_section(config: Mapping[str, Any], args) -> dict:
 
 
 class Evaluating:
-    """``with Evaluating(config, transport) as ev:`` the evaluator of ``config`` on the transport
-    (in process, or an EvaluateRosSession's), closed at the end (a ROS session's notes, drops and
-    unsigned results, printed on stderr only when the block ended normally)."""
+    """``with Evaluating(config, transport) as ev:`` the evaluator of ``config`` on the transport: in
+    process, or over ROS (``evaluate``, ``sweep``, ``sensitivity``, ``check-totals``) the nodes already
+    running on the domain (``attach``) or the command's own (launcher.OwnSuite: a fresh run id, signed
+    with a per-run key by default), stopped at the end. A ROS evaluator's notes for the user (what was
+    dropped; results that were not signed, which anyone on the domain could have answered) are printed
+    on stderr only when the block ended normally."""
 
     def __init__(self, config, transport, node_name: str = "bev_mdo_client", announce: bool = False):
+        from bev_mdo.config import RunConfig
+
         how = Transport.of(transport)  # ros_section gets ``transport`` itself: its domain note shows once per command
-        self.ros = how.uses_ros
+        self.ros, self.suite = how.uses_ros, None
         if not self.ros:
             how.refuse_ros_only()  # --domain-id, --discovery, ... would be ignored in process
-            from bev_mdo.config import RunConfig
             from bev_mdo.mdo.evaluator import InProcessEvaluator
 
-            self.session = InProcessEvaluator(RunConfig.of(config).disciplines)
+            self.evaluator = InProcessEvaluator(RunConfig.of(config).disciplines)
             return
         if announce:
             section = ros_section(config, transport)
@@ -121,17 +125,41 @@ class Evaluating:
         except ModuleNotFoundError:
             raise InputError("--transport ros needs the ROS transport (rclpy and bev_mdo_msgs); "
                              "--transport inprocess runs without it") from None
-        from bev_mdo.sessions import EvaluateRosSession
+        from bev_mdo.ros.client import make_ros_evaluator
 
-        self.session = EvaluateRosSession(config, ros_section(config, transport), launch=not how.attach,
-                                          node_name=node_name)
+        section = ros_section(config, transport)
+        self.domain, run_id = section["domain_id"], None
+        if how.attach:
+            config = RunConfig.of(config).with_ros(section)
+        else:
+            from bev_mdo.launcher import OwnSuite
+
+            self.suite = OwnSuite(config, section).start()
+            config, run_id = self.suite.config, self.suite.run_id
+        try:
+            self.evaluator = make_ros_evaluator(config, node_name=node_name, run_id=run_id)
+        except BaseException:
+            if self.suite is not None:
+                self.suite.stop()
+            raise
 
     def __enter__(self):
-        return self.session.evaluator if self.ros else self.session
+        return self.evaluator
 
     def __exit__(self, exc_type, *exc):
-        if not self.ros:
-            self.session.close()
+        try:
+            self.evaluator.close()
+        finally:
+            if self.suite is not None:
+                self.suite.stop()
+        if exc_type is not None or not self.ros:
             return
-        for line in self.session.close(exc_type is None):
-            print(f"bev-mdo: {line}", file=sys.stderr)
+        dropped = {k: v for k, v in self.evaluator.dropped.items() if v}
+        if dropped:
+            print("bev-mdo: dropped and counted: " + ", ".join(f"{k} {v}" for k, v in sorted(dropped.items())),
+                  file=sys.stderr)
+        if not self.evaluator.signed:
+            print("bev-mdo: note: the results were not signed " + (
+                "(ros.signing: false)" if self.suite is not None else
+                f"(no ros.sign_key_file): any process on ROS domain {self.domain} could have answered; "
+                "run without --attach, or use a key file (docs/security.md)"), file=sys.stderr)

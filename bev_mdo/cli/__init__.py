@@ -16,7 +16,6 @@ import sys
 import threading
 
 from bev_mdo import interrupts
-from bev_mdo.api.errors import InputError
 from bev_mdo.interrupts import Terminated  # SIGTERM as an exception: every finally runs, exit 143
 from bev_mdo.stacks import (STARTUP_GAVE_UP_STATUS, StartupGaveUp, bound_exit, defer_teardowns, dump_stacks_on_sigusr1,
                             end_process)
@@ -48,10 +47,6 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "check-totals": ("check_totals", "compare the optimiser's total derivatives with finite differences"),
     "status": ("status", "list the live discipline instances on the ROS domain (host, throughput)"),
 }
-
-
-# A mistake by the user: reported as one line on stderr, exit status 2 (the API's InputError).
-UsageError = InputError
 
 
 def figure_format(path) -> str | None:
@@ -197,7 +192,7 @@ def _run(args) -> int:
         if isinstance(exc.__context__, BrokenPipeError):
             return _closed_pipe()
         raise
-    except (UsageError, ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+    except (ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:  # InputError: a user mistake
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         print(f"bev-mdo {args.command}: error: {msg}", file=sys.stderr)
         return STARTUP_GAVE_UP_STATUS if isinstance(exc, StartupGaveUp) else 2

@@ -4,7 +4,8 @@ from __future__ import annotations
 import os
 import re
 
-from bev_mdo.cli import SUBCOMMANDS, UsageError
+from bev_mdo.api.errors import InputError
+from bev_mdo.cli import SUBCOMMANDS
 
 
 def register(sub) -> None:
@@ -26,13 +27,13 @@ def run(args) -> int:
     from bev_mdo.ros.paths import default_config
 
     if args.instance and not re.fullmatch(r"[A-Za-z0-9_]+", args.instance):  # it becomes part of the node name
-        raise UsageError(f"--instance {args.instance!r}: use only letters, digits and _ "
+        raise InputError(f"--instance {args.instance!r}: use only letters, digits and _ "
                          "(it becomes part of the ROS node name)")
     path = args.config or default_config()
     config = RunConfig.load(path)
     names = list(config.names)
     if args.name not in names:
-        raise UsageError(f"no discipline {args.name!r} in {path}; it has {names}")
+        raise InputError(f"no discipline {args.name!r} in {path}; it has {names}")
     from bev_mdo.api.transport import ros_section
 
     ros = ros_section(config, args)

@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from bev_mdo import jsontext
+from bev_mdo.api.errors import InputError
 from bev_mdo.api.evaluate import batch as evaluate_batch  # one batch of MDAs over the transport args choose
-from bev_mdo.cli import UsageError
 
 
 def register(sub) -> None:
@@ -70,7 +70,7 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
         name, sep, spec = item.partition("=")
         name = name.strip()
         if not sep or not name:
-            raise UsageError(f"--vary {item!r} must be NAME=LO:HI:N or NAME=A,B,C")
+            raise InputError(f"--vary {item!r} must be NAME=LO:HI:N or NAME=A,B,C")
         try:
             if ":" in spec:
                 lo, hi, n = spec.split(":")  # a ValueError unless it has three parts
@@ -78,20 +78,20 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
                 if n < 1:
                     raise ValueError
                 if n == 1 and lo != hi:  # linspace gives LO alone: HI was dropped without a word
-                    raise UsageError(f"--vary {item!r}: one value between {lo:g} and {hi:g}; give N >= 2, or LO:LO:1")
+                    raise InputError(f"--vary {item!r}: one value between {lo:g} and {hi:g}; give N >= 2, or LO:LO:1")
                 if n > MAX_SWEEP_POINTS:
-                    raise UsageError(f"--vary {item!r}: {n} values; a sweep holds at most {MAX_SWEEP_POINTS} designs")
+                    raise InputError(f"--vary {item!r}: {n} values; a sweep holds at most {MAX_SWEEP_POINTS} designs")
                 vals = np.linspace(lo, hi, n)
             else:
                 vals = np.array([float(v) for v in spec.split(",") if v.strip()])
-        except UsageError:
+        except InputError:
             raise
         except ValueError:
-            raise UsageError(f"--vary {item!r}: values must be LO:HI:N (N >= 1 integer) or a list A,B,C") from None
+            raise InputError(f"--vary {item!r}: values must be LO:HI:N (N >= 1 integer) or a list A,B,C") from None
         if not vals.size:
-            raise UsageError(f"--vary {item!r}: no values")
+            raise InputError(f"--vary {item!r}: no values")
         if name in out:  # the last one used to win silently
-            raise UsageError(f"--vary {name}: given twice")
+            raise InputError(f"--vary {name}: given twice")
         out[name] = vals
     return out
 
@@ -104,34 +104,34 @@ def grid(vary: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     names = list(vary)
     total = math.prod(len(vary[n]) for n in names)
     if total > MAX_SWEEP_POINTS:
-        raise UsageError(f"--vary: a grid of {total} designs; a sweep holds at most {MAX_SWEEP_POINTS}")
+        raise InputError(f"--vary: a grid of {total} designs; a sweep holds at most {MAX_SWEEP_POINTS}")
     combos = np.array(list(itertools.product(*[vary[n] for n in names])), dtype=float)
     return {n: combos[:, j] for j, n in enumerate(names)}
 
 
 def read_list(path: str) -> dict[str, np.ndarray]:
-    """A header of names, then one row of numbers per design; UsageError naming the row and column."""
+    """A header of names, then one row of numbers per design; InputError naming the row and column."""
     from bev_mdo.models.cycles import csv_number, read_csv_rows
 
     try:  # the reader of every user CSV (size-bounded, UTF-8 with or without BOM, one-line errors)
         rows = [r for r in read_csv_rows(path, "design list") if any(c.strip() for c in r)]
     except ValueError as exc:
-        raise UsageError(f"--list: {exc}") from None
+        raise InputError(f"--list: {exc}") from None
     if len(rows) < 2:
-        raise UsageError(f"--list {path}: no designs (a header of names, then one row per design)")
+        raise InputError(f"--list {path}: no designs (a header of names, then one row per design)")
     names = [c.strip() for c in rows[0]]
     twice = sorted({n for n in names if names.count(n) > 1})
     if "" in names or twice:  # the last column of a name used to win silently
-        raise UsageError(f"--list {path}: the header " + (f"names {twice[0]!r} twice" if twice else "has an empty name"))
+        raise InputError(f"--list {path}: the header " + (f"names {twice[0]!r} twice" if twice else "has an empty name"))
     values = np.empty((len(rows) - 1, len(names)))
     for i, row in enumerate(rows[1:]):
         if len(row) != len(names):
-            raise UsageError(f"--list {path}: design {i + 1} has {len(row)} values for {len(names)} names")
+            raise InputError(f"--list {path}: design {i + 1} has {len(row)} values for {len(names)} names")
         for j, cell in enumerate(row):
             try:
                 values[i, j] = csv_number(cell)
             except ValueError as exc:  # not a number (1_0 was 10), or not finite
-                raise UsageError(f"--list {path}: design {i + 1}, column {names[j]!r}: {exc}") from None
+                raise InputError(f"--list {path}: design {i + 1}, column {names[j]!r}: {exc}") from None
     return {n: values[:, j] for j, n in enumerate(names)}
 
 
@@ -211,9 +211,9 @@ def designs_of(args, problem) -> tuple[dict[str, np.ndarray], list[str]]:
     from bev_mdo.cli.flags import parse_assignments
 
     if sum(map(bool, (args.doe, args.vary, args.list_csv))) != 1:
-        raise UsageError("give one of --doe METHOD --samples N, --vary NAME=LO:HI:N ... or --list FILE.csv")
+        raise InputError("give one of --doe METHOD --samples N, --vary NAME=LO:HI:N ... or --list FILE.csv")
     if not args.doe and (args.samples, args.seed) != (None, None):  # they were ignored without a word
-        raise UsageError("--samples and --seed go with --doe (--vary and --list evaluate the designs they give)")
+        raise InputError("--samples and --seed go with --doe (--vary and --list evaluate the designs they give)")
     args.samples, args.seed = 64 if args.samples is None else args.samples, 1 if args.seed is None else args.seed
     given = None if args.doe else grid(parse_vary(args.vary)) if args.vary else read_list(args.list_csv)
     fixed = parse_assignments(args.fixed)
@@ -277,7 +277,7 @@ def run_compare(args) -> int:
     from bev_mdo.mdo import units as un
 
     if len(args.design) < 2:
-        raise UsageError("give two or more --design k=v,... to compare")
+        raise InputError("give two or more --design k=v,... to compare")
     config = RunConfig.load(args.config)
     given = [parse_assignments(d, "--design") for d in args.design]
     keys = list(dict.fromkeys(k for g in given for k in g))
@@ -287,7 +287,7 @@ def run_compare(args) -> int:
     check_names(keys, problem, {p for d in config.disciplines for p in (getattr(d, "parameters", None) or {})})
     missing = [k for k, v in designs.items() if np.isnan(v).any()]
     if missing:
-        raise UsageError(f"{missing} must be given in every --design (they are parameters, with no initial value)")
+        raise InputError(f"{missing} must be given in every --design (they are parameters, with no initial value)")
     result = evaluate_batch(config, designs, args)
 
     def unit_of(name):
