@@ -57,10 +57,37 @@ def design(config, given: dict[str, float], transport) -> dict:
                   "(evaluated as given)", file=sys.stderr)
     with Evaluating(config, transport) as evaluator:
         report = evaluate_design(config.settings, evaluator, full)
-    notes = [n for d in config.disciplines for n in (getattr(d, "notes", None) or (lambda _: []))(report["outputs"])]
-    if notes:  # what an output's value means where it is not a measurement (e.g. a continuation value)
+    notes = design_notes(config, report["outputs"])
+    if notes:
         report["notes"] = notes
     return report
+
+
+def design_notes(config, outputs: dict) -> list[str]:
+    """What an output's value at one design means where it is not a measurement, as its discipline
+    says (``notes``): e.g. the 0-100 km/h time of a design that cannot reach 100 km/h."""
+    from bev_mdo.config import RunConfig
+
+    return [n for d in RunConfig.of(config).disciplines for n in (getattr(d, "notes", None) or (lambda _: []))(outputs)]
+
+
+def ceilings(config) -> dict[str, tuple[float, str]]:
+    """{output: (ceiling, what it means)} of the run's disciplines (their ``upper_limit_below``): from the
+    ceiling up the output marks a design the physics cannot serve, not a value of the quantity."""
+    from bev_mdo.config import RunConfig
+
+    return {o: c for d in RunConfig.of(config).disciplines for o, c in (getattr(d, "upper_limit_below", None) or {}).items()}
+
+
+def ceiling_notes(config, outputs: dict, of: str = "designs") -> list[str]:
+    """One line per output of a batch with values at or above its ceiling (``ceilings``): how many."""
+    notes = []
+    for name, (ceiling, meaning) in ceilings(config).items():
+        y = np.atleast_1d(np.asarray(outputs.get(name, []), dtype=float))
+        k = int(np.sum(y >= ceiling))
+        if k:
+            notes.append(f"{name}: {k} of {y.size} {of} at or above {ceiling:g} ({meaning}): not values of the quantity")
+    return notes
 
 
 def refuse_outside_model_limits(config, values) -> None:
@@ -124,4 +151,4 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
             "outputs": outputs, "margins": margins, "violation": violation, "feasible": feasible,
             "ok": np.asarray(res.ok, bool),
             "errors": res.messages, "objective": problem.objective, "problem": problem,
-            "units": declared_units(config)}
+            "units": declared_units(config), "notes": ceiling_notes(config, outputs)}

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from bev_mdo import jsontext
 from bev_mdo.api.errors import InputError
+from bev_mdo.api.evaluate import ceilings as output_ceilings
 from bev_mdo.api.evaluate import declared_units
 from bev_mdo.api.transport import Transport
 
@@ -134,7 +135,7 @@ def nsga2(cfg, evaluator, objectives, pop: int, generations: int, seed: int, on_
 
     run = RunConfig.of(cfg)
     form = build_formulation(run.settings, evaluator, "mdf")
-    ceilings = {o: c[0] for d in run.disciplines for o, c in (getattr(d, "upper_limit_below", None) or {}).items()}
+    ceilings = {o: c for o, (c, _) in output_ceilings(run).items()}
     res = run_nsga2(form, objectives, pop_size=pop, generations=generations, seed=seed,
                     on_generation=on_generation or (lambda g, n, s: None), on_front=on_front, ceilings=ceilings)
     if bench is not None:  # the study's benchmark design, through the same formulation

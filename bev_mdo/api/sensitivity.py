@@ -63,10 +63,10 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
                 raise InputError(f"--at {', '.join(varied)}: varied over the bounds by --global; --at fixes only "
                                  "the variables not in --wrt")
             samples = samples or (1024 if global_method == "sobol" else 64)
-            from bev_mdo.api.evaluate import declared_units
+            from bev_mdo.api.evaluate import ceilings, declared_units
 
             rep = analyse(global_method, fun, point, bounds, wrt, outputs, samples, seed, conf_level,
-                          design=list(problem.names))
+                          design=list(problem.names), ceilings=ceilings(config))
             units = declared_units(config)
             rep["units"] = {k: units[k] for k in (*wrt, *outputs) if k in units}
             return rep
@@ -127,10 +127,13 @@ def build_batch(config, evaluator, param_defaults=None):
 
 def analyse(method: str, fun, point: dict, bounds: dict[str, tuple[float, float]], names: list[str],
             outputs: list[str], samples: int, seed: int, conf_level: float = 0.95,
-            num_resamples: int = 1000, design: list[str] | None = None) -> dict:
+            num_resamples: int = 1000, design: list[str] | None = None, ceilings: dict | None = None) -> dict:
     """The indices of every output (JSON-ready). ``fun(X)`` evaluates rows of every column of
     ``point`` and returns {output: values}; it is called once, with every design. ``design``: the
-    design variables (those not analysed are reported as fixed; default: every name of ``point``)."""
+    design variables (those not analysed are reported as fixed; default: every name of ``point``).
+    ``ceilings`` (api.evaluate.ceilings): an output with samples at or above its ceiling gets
+    ``at_ceiling`` (how many) and a note, for its indices then describe where the designs the physics
+    cannot serve lie more than the quantity."""
     if method not in METHODS:
         raise InputError(f"--global {method!r}: allowed: {', '.join(METHODS)}")
     if not names:
@@ -169,6 +172,12 @@ def analyse(method: str, fun, point: dict, bounds: dict[str, tuple[float, float]
         if not np.isfinite(y).all() or np.ptp(y) == 0.0:
             report["outputs"][out] = {"constant": True}
             continue
+        ceiling, meaning = (ceilings or {}).get(out, (np.inf, ""))
+        at = int(np.sum(y >= ceiling))
+        if at:
+            report.setdefault("notes", []).append(
+                f"{out}: {at} of {y.size} samples at or above {ceiling:g} ({meaning}); its indices describe "
+                "where those designs lie more than the quantity: narrow the bounds (--bound) to designs that have it")
         if method == "sobol":
             from SALib.analyze import sobol
 
@@ -180,6 +189,8 @@ def analyse(method: str, fun, point: dict, bounds: dict[str, tuple[float, float]
 
             r = morris.analyze(spec, X, y, num_resamples=num_resamples, conf_level=conf_level, num_levels=4, seed=seed)
             report["outputs"][out] = {k: np.asarray(r[k], float).tolist() for k in ("mu", "mu_star", "mu_star_conf", "sigma")}
+        if at:
+            report["outputs"][out]["at_ceiling"] = at
     return report
 
 

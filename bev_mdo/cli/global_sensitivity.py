@@ -24,6 +24,8 @@ def print_tables(rep: dict) -> None:
             cells = [f" {v:.4g}" + (f" ±{c:.2g}" if conf else "") for v, c in
                      zip(r[key], r[conf] if conf else [0] * len(names))]
             print(key.ljust(10) + "".join(c.rjust(w) for c in cells))
+    for note in rep.get("notes", ()):
+        print(f"\nnote: {note}")
 
 
 def write_plot(path: str, rep: dict) -> None:

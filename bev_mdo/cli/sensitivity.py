@@ -85,10 +85,15 @@ def run(args) -> int:
         from bev_mdo.api.evaluate import declared_units
 
         write_heatmap(args.png, s, outputs, cfg, {k: point[k] for k in problem.names}, declared_units(cfg))
+    from bev_mdo.api.evaluate import design_notes
+
+    notes = design_notes(cfg, s.values)  # e.g. the 0-100 km/h time of a point that cannot reach 100 km/h
     if args.json:
-        print(jsontext.dumps(sensitivity.to_dict(s, outputs)))
+        print(jsontext.dumps(sensitivity.to_dict(s, outputs) | ({"notes": notes} if notes else {})))
     else:
         print_tables(s, outputs)
+        for note in notes:
+            print(f"note: {note}")
         if args.png:
             print(f"wrote {args.png}")
     return 0

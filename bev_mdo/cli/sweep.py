@@ -265,13 +265,15 @@ def run(args) -> int:
         i = int(np.argmax(np.where(feas, obj, -np.inf)) if maximize else np.argmin(np.where(feas, obj, np.inf)))
         best = ", ".join(f"{k}={result['design'][k][i]:.6g}" for k in result["design"])
         print(f"best feasible {result['objective']} = {obj[i]:.6g} at {best}")
+    for note in result["notes"]:
+        print(f"note: {note}")
     for p in written:
         print(p)
     return 0
 
 
 def run_compare(args) -> int:
-    from bev_mdo.api.evaluate import check_names
+    from bev_mdo.api.evaluate import check_names, design_notes
     from bev_mdo.cli.flags import parse_assignments
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo import units as un
@@ -296,9 +298,11 @@ def run_compare(args) -> int:
     named = {**result["design"], **{k: v for k, v in result["outputs"].items() if k not in result["design"]}}
     rows = [(k, unit_of(k), v) for k, v in named.items()]
     rows += [(f"margin {k}", unit_of(k), v) for k, v in result["margins"].items()]
+    notes = [design_notes(config, {k: v[i] for k, v in result["outputs"].items()}) for i in range(len(given))]
     if args.json:
         print(jsontext.dumps({"designs": [{name: float(v[i]) for name, _, v in rows} | {
-            "feasible": bool(result["feasible"][i]), "ok": bool(result["ok"][i])} for i in range(len(given))]}))
+            "feasible": bool(result["feasible"][i]), "ok": bool(result["ok"][i])} | (
+            {"notes": notes[i]} if notes[i] else {}) for i in range(len(given))]}))
         return 0
     from rich.console import Console
     from rich.table import Table
@@ -326,4 +330,7 @@ def run_compare(args) -> int:
     feas = ["yes" if f else "[bold red]NO[/]" for f in result["feasible"]]
     t.add_row("feasible", "", feas[0], *[c for f in feas[1:] for c in (f, "")])
     Console(file=sys.stdout, width=max(100, 40 + 28 * len(given))).print(t)
+    for i, lines in enumerate(notes):
+        for note in lines:
+            print(f"note: design {i + 1}: {note}")
     return 0

@@ -97,6 +97,22 @@ def test_on_the_bev_problem_gear_ratio_and_motor_power_rank_as_locally(capsys):
         assert s[lg] > s[lm], out
         r = glob["outputs"][out]
         assert r["ST"][g] - r["ST_conf"][g] > r["ST"][m] + r["ST_conf"][m], (out, r)
+    assert "notes" not in glob and "at_ceiling" not in glob["outputs"]["accel_time_0_100_s"]  # every sample reaches 100 km/h
+
+
+def test_samples_that_cannot_reach_100_kmh_are_counted_and_said(capsys):
+    """Over gear ratios up to 16:1 some designs cannot reach 100 km/h: their 0-100 km/h times are the continuation
+    value (10 000 s and up), which swamped the indices (a Bolt config: ST of motor power 3e-6, against 0.77 with
+    the gear ratio kept below 10) with no word said."""
+    cfg = REPO / "config" / "leaf_nedc.yaml"
+    rep = _json(capsys, "sensitivity", cfg, "--global", "sobol", "--samples", 64, "--bound", "gear_ratio=1:16", "--json")
+    at = rep["outputs"]["accel_time_0_100_s"]["at_ceiling"]
+    assert 0 < at < rep["n_evaluations"]
+    assert [n for n in rep["notes"] if n.startswith(f"accel_time_0_100_s: {at} of {rep['n_evaluations']} samples")]
+    assert "at_ceiling" not in rep["outputs"]["energy_wh_per_km"]
+    assert main(["sensitivity", str(cfg), "--global", "morris", "--samples", "8", "--bound", "gear_ratio=1:16",
+                 "--transport", "inprocess"]) == 0
+    assert "note: accel_time_0_100_s: " in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -143,6 +143,37 @@ def test_compare_shows_differences_from_the_first_design(capsys):
     assert rc == 0 and "Δ 2−1" in out and "+10 (+12.5 %)" in out
 
 
+def _wide_gears(tmp_path):
+    """leaf_nedc with gear ratios up to 16:1, where the motor's speed limit comes before 100 km/h."""
+    import yaml
+
+    raw = yaml.safe_load(Path(CONFIG).read_text())
+    raw["problem"]["design_variables"]["gear_ratio"]["upper"] = 16
+    p = tmp_path / "wide.yaml"
+    p.write_text(yaml.safe_dump(raw))
+    return str(p)
+
+
+def test_compare_and_sweep_say_which_times_are_not_times(tmp_path, capsys):
+    """At 15:1 the Leaf cannot reach 100 km/h: its 0-100 km/h time is the continuation value (10 000 s and
+    up), which compare showed as '+10240 (+143004 %)' and sweep as a time, with no word (evaluate had one)."""
+    cfg = _wide_gears(tmp_path)
+    assert main(["compare", cfg, "--design", "gear_ratio=8", "--design", "gear_ratio=15", "--transport", "inprocess"]) == 0
+    notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note:")]
+    assert len(notes) == 1 and notes[0].startswith("note: design 2: the design cannot reach 100 km/h"), notes
+    assert main(["compare", cfg, "--design", "gear_ratio=8", "--design", "gear_ratio=15", "--json",
+                 "--transport", "inprocess"]) == 0
+    d = json.loads(capsys.readouterr().out)["designs"]
+    assert "notes" not in d[0] and "continuation value" in d[1]["notes"][0]
+    assert main(["sweep", cfg, "--vary", "gear_ratio=6:15:4", "--out", str(tmp_path / "s"), "--no-plots",
+                 "--no-record", "--transport", "inprocess"]) == 0
+    rows = list(csv.DictReader(open(tmp_path / "s" / "sweep.csv")))
+    slow = sum(float(r["accel_time_0_100_s"]) >= 10000 for r in rows)
+    notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note:")]
+    assert slow == 1 and notes == [f"note: accel_time_0_100_s: {slow} of 4 designs at or above 10000 (from there up "
+                                   "the value marks a design that cannot reach 100 km/h): not values of the quantity"]
+
+
 def test_compare_percent_has_the_sign_of_the_difference_for_a_negative_quantity(capsys):
     """The aerostructure displacement is negative (-745 at the start): a rise of +8 was shown
     '+7.99663 (-1.1 %)'; the percentage is now of |design 1|, so it has the difference's sign."""
