@@ -166,6 +166,17 @@ def test_bounds_outside_what_the_models_accept_are_refused_on_load(tmp_path, bou
         load_config(p)
 
 
+def test_a_battery_bound_beyond_any_mass_the_models_accept_is_refused_on_load(tmp_path):
+    """battery_kwh had no upper limit: [30, 1e6] loaded, SLSQP (variables scaled to their bounds) stalled at the
+    start of a feasible problem and ended 'infeasible', calling 66 kWh 'on its lower bound' of 30. Above
+    40 000 kWh no battery_kg_per_kwh accepted (>= 0.5) gives a vehicle mass the models accept (<= 20 000 kg)."""
+    text = BASE.replace("battery_kwh: {lower: 20, upper: 30,  initial: 24}", "battery_kwh: {lower: 20, upper: UP, initial: 24}")
+    assert "upper: UP" in text
+    with pytest.raises(ValueError, match=r"battery_kwh: bounds \[20, 1e\+06\] reach outside \[1, 40000\] kWh"):
+        load_config(_write(tmp_path, text.replace("UP", "1.0e+6")))
+    assert load_config(_write(tmp_path, text.replace("UP", "40000")))["problem"]["design_variables"]["battery_kwh"]
+
+
 def test_a_baseline_the_models_cannot_evaluate_is_refused_on_load(tmp_path):
     """A baseline with gear_ratio 70 loaded; the run then printed a baseline column of NaN and three
     discipline errors beside the optimum. A baseline outside the design variables' bounds stays allowed."""

@@ -30,13 +30,16 @@ import numpy as np
 # zero, an infeasible point for the optimiser; at 5000 Wh/km the range refused it and the point failed.
 # Nor has the battery: with ``battery_sized_for_range`` it is a result (eq 7-28 inverted), and a 2000 km
 # target on leaf_nedc.yaml sizes 598 kWh, a 6.1 t car that takes 41 s to 100 km/h: an infeasible point, which
-# a 500 kWh limit here turned into a failed one. The vehicle mass limit bounds it in effect (7.8 kg/kWh).
+# a 500 kWh limit here turned into a failed one. Its limit is the one the vehicle mass limit implies at the
+# lightest battery_kg_per_kwh accepted (20 000 kg / 0.5 kg/kWh): a larger battery never gives a mass the
+# models accept, and a bound far above it left the optimiser (which scales each variable to its bounds)
+# stalled at its start (30-1e6 kWh on a Bolt config: 'infeasible').
 DESIGN_LIMITS: dict[str, tuple[float, float, str]] = {
     "motor_kw": (1.0, 1000.0, "kW"),
     "motor_rear_kw": (1.0, 1000.0, "kW"),
     "gear_ratio": (0.5, 50.0, "-"),
     "gear_ratio_rear": (0.5, 50.0, "-"),
-    "battery_kwh": (1.0, math.inf, "kWh"),
+    "battery_kwh": (1.0, 40000.0, "kWh"),
     "vehicle_mass_kg": (100.0, 20000.0, "kg"),
     "energy_wh_per_km": (1.0, math.inf, "Wh/km"),
     "range_target_km": (1.0, 10000.0, "km"),

@@ -86,7 +86,7 @@ def test_breakdown_keeps_complex_values_for_complex_step():
 
 @pytest.mark.parametrize("call, said", [
     (lambda: cost.powertrain_cost_usd(-5.0, 24.0), r"^motor_kw must be in \[1, 1000\] kW, got -5$"),
-    (lambda: mass.battery_mass_kg(0.5), r"^battery_kwh must be in \[1, inf\] kWh, got 0.5$"),
+    (lambda: mass.battery_mass_kg(0.5), r"^battery_kwh must be in \[1, 40000\] kWh, got 0.5$"),
     (lambda: acceleration.accel_time_0_100_s(80.0, 8.0, 50.0), r"^vehicle_mass_kg must be in \[100, 20000\] kg, got 50$"),
     (lambda: range_model.range_km(24.0, 0.0), r"^energy_wh_per_km must be in \[1, inf\] Wh/km, got 0$")])
 def test_a_design_value_out_of_its_range_is_named_with_its_unit(call, said):
