@@ -14,9 +14,11 @@ The rule (docs/answers.md):
   constraint's unit (limit - value for a lower limit, value - limit for an upper one) and dv/dx its
   derivative, an upper bound blocks when dv/dx < 0 and a lower bound when dv/dx > 0. The reported
   ``rate`` is |dv/dx|: constraint units of violation removed per unit the bound would give.
-* Also at an infeasible end, an active (satisfied) constraint **conflicts** with a violated one when
-  the steepest way to reduce the violation (-grad v, in the optimiser's scaled variables, restricted
-  to the variables free to move that way) would make the active one worse.
+* Also at an infeasible end, active (satisfied) constraints **conflict** with a violated one when no
+  first-order step of the variables (scaled, into the box at a bound) reduces the violation without
+  making one of them, or another violated one, worse (a linear program); those with a non-zero
+  multiplier of that program are named (``conflicts_with``, ``trades_with``). Where such a step exists
+  (a **free way**), nothing holds it: the optimiser stopped short.
 
 Without a Jacobian the infeasible analysis names the violated constraints and the variables on a
 bound but cannot say which bound blocks.
@@ -90,21 +92,45 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
             e["blocked_by"] = [{"variable": n, "bound": on_bound[n], "rate": abs(grad[n]),
                                 "rate_unit": f"{e['unit'] or '1'} per {unit(n) or 'unit'}"} for n in blocking]
             e["blocked_by"].sort(key=lambda b: -b["rate"] * spans[b["variable"]])
-            # steepest descent of the violation in scaled variables, over the variables free to move
-            # (dx = -grad_u v * span, grad_u = grad_x * span)
-            step = {n: -g * spans[n] ** 2 for n, g in grad.items() if n not in blocking}
-            e["conflicts_with"] = []
-            for a in active:
-                sa = 1.0 if a["kind"] == "upper" else -1.0
-                worse = sum(sa * float(jacobian.get(a["name"], {}).get(n, 0.0)) * dx for n, dx in step.items())
-                if worse > 0:
-                    e["conflicts_with"].append(f"{a['name']} {'>=' if a['kind'] == 'lower' else '<='} "
-                                               f"{a['limit']:g}")
+            others = [o for o in violated if o is not e and np.isfinite(o["violation"])]
+            held, e["free_way"] = _held_by(grad, active + others, jacobian, spans, on_bound)
+            e["conflicts_with"] = [_limit(a) for a in held if a in active]  # satisfied limits it would break
+            e["trades_with"] = [_limit(o) for o in held if o in others]  # other violations it would worsen
     feasible = not any(not e["monitor"] for e in violated)
     out = {"feasible": feasible, "rel_tol": rel_tol, "active_constraints": active, "bounds": bounds,
            "violated": violated}
     out["lines"] = summary_lines(out)
     return out
+
+
+def _limit(e) -> str:
+    return f"{e['name']} {'>=' if e['kind'] == 'lower' else '<='} {e['limit']:g}"
+
+
+def _held_by(grad, active, jacobian, spans, on_bound) -> tuple[list[dict], bool]:
+    """(the limits of ``active`` (active ones, and the other violated ones) that hold a violation, whether a
+    first-order way reduces it without worsening any of them): the linear program min grad_u v . du over
+    steps du of the scaled variables in [-1, 1] (into the box where a variable is on a bound) that make
+    none of them worse. A negative optimum is a free way (nothing holds it: the optimiser stopped short);
+    otherwise the limits with a non-zero multiplier of the program hold it."""
+    from scipy.optimize import linprog
+
+    names = list(grad)
+    c = np.array([grad[n] * spans[n] for n in names])
+    rows = np.array([[(1.0 if a["kind"] == "upper" else -1.0) * float(jacobian.get(a["name"], {}).get(n, 0.0))
+                      * spans[n] for n in names] for a in active]).reshape(len(active), len(names))
+    box = [(0.0, 1.0) if on_bound.get(n) == "lower" else (-1.0, 0.0) if on_bound.get(n) == "upper" else (-1.0, 1.0)
+           for n in names]
+    if not names or not (np.isfinite(c).all() and np.isfinite(rows).all()):  # a failed point: no first-order model
+        return [], False
+    res = linprog(c, A_ub=rows if len(active) else None, b_ub=np.zeros(len(active)) if len(active) else None,
+                  bounds=box, method="highs")
+    tol = 1e-9 * (float(np.abs(c).sum()) + float(np.abs(rows).sum()) + 1e-300)
+    if res.status != 0:
+        return [], False
+    if res.fun < -tol:
+        return [], True
+    return [a for a, m in zip(active, res.ineqlin.marginals if len(active) else []) if abs(m) > tol], False
 
 
 def _num(v: float, scale: float | None = None) -> str:
@@ -145,6 +171,11 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
                 lines.append("  no design-variable bound blocks it")
             if e["conflicts_with"]:
                 lines.append("  reducing it would break " + ", ".join(e["conflicts_with"]))
+            if e.get("trades_with"):
+                lines.append("  reducing it would worsen " + ", ".join(e["trades_with"]) + " (violated too)")
+            if e.get("free_way"):
+                lines.append("  a first-order step reduces it without worsening an active limit: the optimiser "
+                             "stopped short")
     for e in ans["active_constraints"]:
         lines.append(f"active: {limit(e)}, margin {_num(e['margin'], e['scale'])}{u(e['unit'])}{monitored(e)}")
     for b in ans["bounds"]:

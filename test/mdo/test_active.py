@@ -72,6 +72,36 @@ def test_infeasible_end_names_violation_and_the_bound_that_blocks():
     assert "blocked by battery_kwh on its upper bound (8 km per kWh)" in text
 
 
+def test_an_active_limit_conflicts_only_when_no_step_spares_it():
+    """The range is short and the top speed active: the steepest way to more range (more battery, less motor)
+    cuts the top speed, which was called a conflict ('reducing it would break top_speed_kmh >= 146'), though
+    more battery alone gives range and leaves the top speed as it is (a user trial on a Bolt config). Only
+    when every step that gives range costs top speed is the top speed named."""
+    problem = Problem.from_config({"objective": "energy_wh_per_km", "design_variables": {
+        "motor_kw": {"lower": 50, "upper": 200}, "battery_kwh": {"lower": 30, "upper": 90}},
+        "constraints": {"range_km": {"lower": 595}, "top_speed_kmh": {"lower": 146}}})
+    point = ({"motor_kw": 148.0, "battery_kwh": 63.0}, {"range_km": 593.9, "top_speed_kmh": 146.0})
+    free = {"range_km": {"motor_kw": -0.5, "battery_kwh": 8.0}, "top_speed_kmh": {"motor_kw": 0.3, "battery_kwh": 0.0}}
+    (v,) = analyse(problem, *point, jacobian=free)["violated"]
+    assert v["conflicts_with"] == [] and v["free_way"]
+    assert "the optimiser stopped short" in "\n".join(analyse(problem, *point, jacobian=free)["lines"])
+    # heavier with more battery, and the motor already on its upper bound: every step to range costs top speed
+    held = {"range_km": {"motor_kw": -0.5, "battery_kwh": 8.0}, "top_speed_kmh": {"motor_kw": 0.3, "battery_kwh": -0.2}}
+    (v,) = analyse(problem, {"motor_kw": 200.0, "battery_kwh": 63.0}, point[1], jacobian=held)["violated"]
+    assert v["conflicts_with"] == ["top_speed_kmh >= 146"] and not v["free_way"]
+    # two violations that trade: more range costs acceleration, faster acceleration costs range
+    both = Problem.from_config({"objective": "energy_wh_per_km", "design_variables": {
+        "motor_kw": {"lower": 50, "upper": 200}, "battery_kwh": {"lower": 30, "upper": 90}},
+        "constraints": {"range_km": {"lower": 595}, "accel_time_0_100_s": {"upper": 4}}})
+    jac = {"range_km": {"motor_kw": -0.5, "battery_kwh": 8.0}, "accel_time_0_100_s": {"motor_kw": -0.01, "battery_kwh": 0.02}}
+    a = analyse(both, {"motor_kw": 200.0, "battery_kwh": 63.0}, {"range_km": 593.9, "accel_time_0_100_s": 5.26},
+                jacobian=jac)
+    rng, acc = a["violated"]
+    assert rng["trades_with"] == ["accel_time_0_100_s <= 4"] and acc["trades_with"] == ["range_km >= 595"]
+    assert not rng["free_way"] and not acc["free_way"] and rng["conflicts_with"] == acc["conflicts_with"] == []
+    assert "reducing it would worsen accel_time_0_100_s <= 4 (violated too)" in "\n".join(a["lines"])
+
+
 def test_a_bound_on_the_wrong_side_does_not_block():
     jac = {"range_km": {"motor_kw": 0.0, "battery_kwh": 8.0}, "accel_time_0_100_s": {}}
     a = analyse(PROBLEM, {"motor_kw": 80.0, "battery_kwh": 20.0}, {"range_km": 248.0, "accel_time_0_100_s": 9.0},
