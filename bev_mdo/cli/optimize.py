@@ -63,7 +63,8 @@ def _progress(quiet: bool, to_stderr: bool):
         # a design whose evaluation failed has no objective value (NaN in its record)
         objective = (f"{rec['objective']:12.6f}" if abs(rec["objective"]) < FAIL_OBJECTIVE  # False for NaN
                      else f"{'not evaluated':>12s}")
-        print(f"iter {rec['iteration']:4d}  {rec['objective_name']} {objective}  "
+        start = f"start {rec['start'][0] + 1}/{rec['start'][1]}  " if rec.get("start") else ""  # a multi-start's
+        print(f"{start}iter {rec['iteration']:4d}  {rec['objective_name']} {objective}  "
               f"max violation {rec['max_violation']:9.3g}  {'feasible  ' if rec['feasible'] else 'infeasible'}"
               f"  {rate:9.0f} {'discipline' if idf else 'MDA'} evals/s", file=out, flush=True)
 
@@ -107,7 +108,9 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
     if result.get("fd_failures"):
         print(f"warning: {result['fd_failures']} finite-difference point(s) failed and gave zero derivatives; "
               "the optimiser may have stopped early (see discipline_errors)", file=out)
-    print(f"iterations {result['iterations']}, MDA evaluations {result['mda_evaluations']}, "
+    ms = result.get("multistart")  # its evaluations are summed over the starts; the iterations are the best start's
+    over = f" (start {ms['best_start'] + 1}'s; {sum(r['iterations'] for r in ms['results'])} over {ms['starts']} starts)" if ms else ""
+    print(f"iterations {result['iterations']}{over}, MDA evaluations {result['mda_evaluations']}, "
           f"evaluations per discipline {result['discipline_evaluations']}", file=out)
     print(f"optimiser wall time {result['wall_time_s']:.3f} s (first evaluation to result)", file=out)
     _verdict(result, out, units)

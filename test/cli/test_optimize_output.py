@@ -130,6 +130,20 @@ def test_starts_reports_how_many_reached_the_best_point(tmp_path):
     assert rc == 2 and "--starts 0" in err.getvalue() and "Traceback" not in err.getvalue()
 
 
+def test_multistart_progress_names_each_start_and_the_iterations_say_whose():
+    """A multi-start's progress lines did not say which start they were of, and 'iterations 8' (the best start's)
+    stood beside MDA evaluations summed over every start, with no word of either."""
+    rc, out = _run("--starts", "3")
+    assert rc == 0
+    progress = [line for line in out.splitlines() if "iter " in line and "MDA evals/s" in line]
+    assert progress and all(line.startswith(("start 1/3  iter", "start 2/3  iter", "start 3/3  iter")) for line in progress)
+    assert {line[:9] for line in progress} == {"start 1/3", "start 2/3", "start 3/3"}
+    (line,) = [line for line in out.splitlines() if line.startswith("iterations ")]
+    best, total = line.split("(start ")[1].split("'s; ")
+    assert int(total.split(" over 3 starts)")[0]) == len(progress) - 3  # each start's first record is its start point
+    assert line.startswith(f"iterations ") and 1 <= int(best) <= 3
+
+
 def _strict_json(text: str):
     """JSON as RFC 8259 has it: a bare NaN or Infinity (which Python writes and jq refuses) fails."""
     def refuse(word):
