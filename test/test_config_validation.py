@@ -57,15 +57,21 @@ def test_a_section_of_the_wrong_kind_is_one_line_not_a_type_error(tmp_path, bad,
         load_config(p)
 
 
-@pytest.mark.parametrize("step, said", [("small", "optimizer.fd_step 'small' must be in (0, 0.1) (scaled units)\n"),
+@pytest.mark.parametrize("step, said", [("small", "optimizer.fd_step 'small' must be in (0, 0.1) (scaled units)"),
                                         ("1e-6", "optimizer.fd_step '1e-6' must be in (0, 0.1) (scaled units) (YAML reads "
-                                                 "1e-6 as text: write 1.0e-6 or 0.000001)\n")])
-def test_a_non_numeric_fd_step_exits_2(tmp_path, capsys, step, said):
+                                                 "1e-6 as text: write 1.0e-6 or 0.000001)"),
+                                        ("1.0e+300", "optimizer.fd_step 1e+300 must be in (0, 0.1) (scaled units)"),
+                                        ("0", "optimizer.fd_step 0 must be in (0, 0.1) (scaled units)"),
+                                        (".nan", "optimizer.fd_step nan must be in (0, 0.1) (scaled units)")])
+def test_a_bad_fd_step_is_refused_at_load_naming_the_file(tmp_path, capsys, step, said):
+    # it was refused only when the formulation was built: the same line without the file (exit 2)
     from bev_mdo.cli import main
 
     p = _write(tmp_path, BASE.replace("fd_step: 1.0e-6", f"fd_step: {step}"))
+    with pytest.raises(ValueError, match=rf"^{p}: optimizer\.fd_step"):
+        load_config(p)
     assert main(["check-totals", str(p), "--transport", "inprocess"]) == 2
-    assert said in capsys.readouterr().err
+    assert capsys.readouterr().err == f"bev-mdo check-totals: error: {p}: {said}\n"
 
 
 def test_optimizer_options_are_checked_against_the_solver_naming_the_key(tmp_path):
