@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 import subprocess
 import sys
 
@@ -97,6 +98,21 @@ def test_an_optimizer_count_below_one_is_refused(name, options):
     key, value = next(iter(options.items()))
     with pytest.raises(ValueError, match=rf"^optimizer.options.{key}: {value!r} must be a whole number of at least 1$"):
         check_optimizer_options(name, options)
+
+
+@pytest.mark.parametrize("options, said", [
+    ({"box": float("nan")}, "optimizer.options.box: nan must be a finite number > 0"),  # the run never ended
+    ({"box": "wide"}, "optimizer.options.box: 'wide' must be a finite number > 0"),     # a float() error at its start
+    ({"xtol": 0}, "optimizer.options.xtol: 0 must be a finite number > 0"),
+    ({"ctol": -1e-8}, "optimizer.options.ctol: -1e-08 must be a finite number >= 0")])
+def test_a_chebyshev_pairwise_tolerance_out_of_range_is_refused_at_load(tmp_path, options, said):
+    import yaml
+
+    raw = yaml.safe_load(BASE)
+    raw["optimizer"] = {"name": "chebyshev-pairwise", "options": options}
+    p = _write(tmp_path, yaml.safe_dump(raw))
+    with pytest.raises(ValueError, match=rf"^{p}: {re.escape(said)} \(chebyshev-pairwise\)$"):
+        load_config(p)
 
 
 def _cli(tmp_path, *argv):
