@@ -115,6 +115,37 @@ def test_a_chebyshev_pairwise_tolerance_out_of_range_is_refused_at_load(tmp_path
         load_config(p)
 
 
+@pytest.mark.parametrize("edit, said", [
+    (lambda r: r.update(formulation="idf", optimizer={"name": "differential_evolution"}),
+     "optimizer differential_evolution needs finite bounds on every optimiser variable: with formulation idf give "
+     "problem.coupling_bounds for ['energy_wh_per_km', 'vehicle_mass_kg']"),
+    (lambda r: (r.update(optimizer={"name": "chebyshev-pairwise"}), r["problem"].pop("baseline"),
+                [r["problem"]["design_variables"].pop(k) for k in ("gear_ratio", "battery_kwh")],
+                r["problem"].update(parameters={"gear_ratio": 8, "battery_kwh": 24})),
+     "optimizer chebyshev-pairwise needs at least 2 optimiser variables (it moves them in pairs); the problem has "
+     "['motor_kw']")])
+def test_what_an_optimiser_needs_of_its_variables_is_checked_at_load(tmp_path, edit, said):
+    # both were refused only when the optimiser started, without the file
+    import yaml
+
+    raw = yaml.safe_load(BASE)
+    edit(raw)
+    p = _write(tmp_path, yaml.safe_dump(raw))
+    with pytest.raises(ValueError) as err:
+        load_config(p)
+    assert str(err.value) == f"{p}: {said}"
+
+
+def test_idf_with_a_sampling_optimiser_loads_when_the_couplings_are_bounded(tmp_path):
+    import yaml
+
+    raw = yaml.safe_load(BASE)
+    raw.update(formulation="idf", optimizer={"name": "differential_evolution"})
+    raw["problem"]["coupling_bounds"] = {"energy_wh_per_km": {"lower": 50, "upper": 300},
+                                     "vehicle_mass_kg": {"lower": 1000, "upper": 2500}}
+    assert load_config(_write(tmp_path, yaml.safe_dump(raw)))["optimizer"]["name"] == "differential_evolution"
+
+
 def _cli(tmp_path, *argv):
     """The CLI of this worktree (PYTHONPATH), localhost only; none of these calls may reach ROS."""
     env = {**ros_env(66), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
