@@ -21,22 +21,26 @@ import numpy as np
 
 
 class TopSpeed:
-    """inputs motor_kw, gear_ratio, vehicle_mass_kg -> top_speed_kmh (batched)."""
+    """inputs motor_kw, gear_ratio, vehicle_mass_kg -> top_speed_kmh (batched).
+
+    The vehicle constants it reads are its ``parameters`` ({name: the run config's value}): a run that
+    overrides one (``--set``, ``--vary``, ``sensitivity --wrt``, ``problem.parameters``) sends it as an
+    input column of that name, which ``compute`` takes in place of the configured value."""
 
     name = "top_speed"
     inputs = ("motor_kw", "gear_ratio", "vehicle_mass_kg")
     outputs = ("top_speed_kmh",)
     units = {"motor_kw": "kW", "gear_ratio": "1", "vehicle_mass_kg": "kg", "top_speed_kmh": "km/h"}
-    parameters = {}
+    VEHICLE_CONSTANTS = ("drag_area_m2", "rolling_resistance", "air_density_kg_m3", "gravity_m_s2",
+                         "gear_efficiency", "wheel_radius_m")
 
     def __init__(self, drag_area_m2=0.6412, rolling_resistance=0.007, air_density_kg_m3=1.25,
                  gravity_m_s2=9.81, gear_efficiency=0.97, wheel_radius_m=0.316, motor_max_speed_rad_s=1100.0):
         if motor_max_speed_rad_s <= 0:
             raise ValueError(f"motor_max_speed_rad_s must be > 0, got {motor_max_speed_rad_s}")
-        self.a = 0.5 * air_density_kg_m3 * drag_area_m2
-        self.cr_g = rolling_resistance * gravity_m_s2
-        self.eta = gear_efficiency
-        self.r_w = wheel_radius_m
+        self.parameters = {"drag_area_m2": drag_area_m2, "rolling_resistance": rolling_resistance,
+                           "air_density_kg_m3": air_density_kg_m3, "gravity_m_s2": gravity_m_s2,
+                           "gear_efficiency": gear_efficiency, "wheel_radius_m": wheel_radius_m}
         self.omega_max = motor_max_speed_rad_s
 
     @dataclass(frozen=True)
@@ -49,15 +53,16 @@ class TopSpeed:
     def from_config(cls, config, options):
         """Take the vehicle constants from the run config, the motor's speed limit from the options."""
         v = config.get("vehicle", {})
-        keys = ("drag_area_m2", "rolling_resistance", "air_density_kg_m3", "gravity_m_s2", "gear_efficiency",
-                "wheel_radius_m")
-        return cls(**{k: v[k] for k in keys if k in v}, motor_max_speed_rad_s=options.motor_max_speed_rad_s)
+        return cls(**{k: v[k] for k in cls.VEHICLE_CONSTANTS if k in v},
+                   motor_max_speed_rad_s=options.motor_max_speed_rad_s)
 
     def compute(self, inputs):
-        p_w = inputs["motor_kw"] * 1e3 * self.eta
-        b = self.cr_g * inputs["vehicle_mass_kg"]
-        v = np.cbrt(p_w / self.a)                      # upper bound: aerodynamic load alone
+        p = {k: inputs.get(k, value) for k, value in self.parameters.items()}  # a per-point override wins
+        a = 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"]
+        b = p["rolling_resistance"] * p["gravity_m_s2"] * inputs["vehicle_mass_kg"]
+        p_w = inputs["motor_kw"] * 1e3 * p["gear_efficiency"]
+        v = np.cbrt(p_w / a)                          # upper bound: aerodynamic load alone
         for _ in range(30):                           # Newton on a v^3 + b v - P = 0 (monotonic)
-            v = v - (self.a * v**3 + b * v - p_w) / (3 * self.a * v**2 + b)
-        v_gear = self.omega_max * self.r_w / inputs["gear_ratio"]
+            v = v - (a * v**3 + b * v - p_w) / (3 * a * v**2 + b)
+        v_gear = self.omega_max * p["wheel_radius_m"] / inputs["gear_ratio"]
         return {"top_speed_kmh": np.minimum(v, v_gear) * 3.6}

@@ -190,3 +190,27 @@ def test_a_class_without_from_config_may_declare_options_too(tmp_path):
     raw["disciplines"][0]["options"] = {"shfit": 1.5}
     with pytest.raises(ValueError, match=r"disciplines\[0\] \(plain\).options.shfit: unknown key; did you mean 'shift'"):
         load_config(raw)
+
+
+@pytest.mark.parametrize("declared, by_constructor, path, value", [
+    ({"gain": float("nan")}, {}, "disciplines[0] (declared).options.gain", "nan"),
+    ({}, {"power": float("inf")}, "disciplines[1] (by_constructor).options.power", "inf"),
+    ({"offset": [1.0, float("-inf")]}, {}, "disciplines[0] (declared).options.offset[1]", "-inf")])
+def test_a_non_finite_number_in_a_user_disciplines_options_exits_2_at_load(tmp_path, capsys, declared,
+                                                                           by_constructor, path, value):
+    # it loaded, and every point then failed with "non-finite output" (exit 1)
+    bad = _user_config(tmp_path, declared, by_constructor)
+    code, out, err = _cli(capsys, "evaluate", bad, "--set", "x=0.1", "--transport", "inprocess")
+    assert code == 2 and out == "", err
+    assert err == f"bev-mdo evaluate: error: {bad}: {path}: {value} must be a finite number\n"
+
+
+def test_the_readme_example_discipline_refuses_a_nan_option_at_load():
+    raw = yaml.safe_load(NEDC.read_text())
+    raw["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost",
+                          {"name": "top_speed", "class": "examples.top_speed:TopSpeed",
+                           "options": {"motor_max_speed_rad_s": float("nan")}}]
+    raw["search_path"] = [str(REPO)]
+    with pytest.raises(ValueError) as err:
+        load_config(raw)
+    assert str(err.value) == "<config>: disciplines[6] (top_speed).options.motor_max_speed_rad_s: nan must be a finite number"

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 import subprocess
 import sys
 
@@ -57,15 +58,21 @@ def test_a_section_of_the_wrong_kind_is_one_line_not_a_type_error(tmp_path, bad,
         load_config(p)
 
 
-@pytest.mark.parametrize("step, said", [("small", "optimizer.fd_step 'small' must be in (0, 0.1) (scaled units)\n"),
+@pytest.mark.parametrize("step, said", [("small", "optimizer.fd_step 'small' must be in (0, 0.1) (scaled units)"),
                                         ("1e-6", "optimizer.fd_step '1e-6' must be in (0, 0.1) (scaled units) (YAML reads "
-                                                 "1e-6 as text: write 1.0e-6 or 0.000001)\n")])
-def test_a_non_numeric_fd_step_exits_2(tmp_path, capsys, step, said):
+                                                 "1e-6 as text: write 1.0e-6 or 0.000001)"),
+                                        ("1.0e+300", "optimizer.fd_step 1e+300 must be in (0, 0.1) (scaled units)"),
+                                        ("0", "optimizer.fd_step 0 must be in (0, 0.1) (scaled units)"),
+                                        (".nan", "optimizer.fd_step nan must be in (0, 0.1) (scaled units)")])
+def test_a_bad_fd_step_is_refused_at_load_naming_the_file(tmp_path, capsys, step, said):
+    # it was refused only when the formulation was built: the same line without the file (exit 2)
     from bev_mdo.cli import main
 
     p = _write(tmp_path, BASE.replace("fd_step: 1.0e-6", f"fd_step: {step}"))
+    with pytest.raises(ValueError, match=rf"^{p}: optimizer\.fd_step"):
+        load_config(p)
     assert main(["check-totals", str(p), "--transport", "inprocess"]) == 2
-    assert said in capsys.readouterr().err
+    assert capsys.readouterr().err == f"bev-mdo check-totals: error: {p}: {said}\n"
 
 
 def test_optimizer_options_are_checked_against_the_solver_naming_the_key(tmp_path):
@@ -91,6 +98,52 @@ def test_an_optimizer_count_below_one_is_refused(name, options):
     key, value = next(iter(options.items()))
     with pytest.raises(ValueError, match=rf"^optimizer.options.{key}: {value!r} must be a whole number of at least 1$"):
         check_optimizer_options(name, options)
+
+
+@pytest.mark.parametrize("options, said", [
+    ({"box": float("nan")}, "optimizer.options.box: nan must be a finite number > 0"),  # the run never ended
+    ({"box": "wide"}, "optimizer.options.box: 'wide' must be a finite number > 0"),     # a float() error at its start
+    ({"xtol": 0}, "optimizer.options.xtol: 0 must be a finite number > 0"),
+    ({"ctol": -1e-8}, "optimizer.options.ctol: -1e-08 must be a finite number >= 0")])
+def test_a_chebyshev_pairwise_tolerance_out_of_range_is_refused_at_load(tmp_path, options, said):
+    import yaml
+
+    raw = yaml.safe_load(BASE)
+    raw["optimizer"] = {"name": "chebyshev-pairwise", "options": options}
+    p = _write(tmp_path, yaml.safe_dump(raw))
+    with pytest.raises(ValueError, match=rf"^{p}: {re.escape(said)} \(chebyshev-pairwise\)$"):
+        load_config(p)
+
+
+@pytest.mark.parametrize("edit, said", [
+    (lambda r: r.update(formulation="idf", optimizer={"name": "differential_evolution"}),
+     "optimizer differential_evolution needs finite bounds on every optimiser variable: with formulation idf give "
+     "problem.coupling_bounds for ['energy_wh_per_km', 'vehicle_mass_kg']"),
+    (lambda r: (r.update(optimizer={"name": "chebyshev-pairwise"}), r["problem"].pop("baseline"),
+                [r["problem"]["design_variables"].pop(k) for k in ("gear_ratio", "battery_kwh")],
+                r["problem"].update(parameters={"gear_ratio": 8, "battery_kwh": 24})),
+     "optimizer chebyshev-pairwise needs at least 2 optimiser variables (it moves them in pairs); the problem has "
+     "['motor_kw']")])
+def test_what_an_optimiser_needs_of_its_variables_is_checked_at_load(tmp_path, edit, said):
+    # both were refused only when the optimiser started, without the file
+    import yaml
+
+    raw = yaml.safe_load(BASE)
+    edit(raw)
+    p = _write(tmp_path, yaml.safe_dump(raw))
+    with pytest.raises(ValueError) as err:
+        load_config(p)
+    assert str(err.value) == f"{p}: {said}"
+
+
+def test_idf_with_a_sampling_optimiser_loads_when_the_couplings_are_bounded(tmp_path):
+    import yaml
+
+    raw = yaml.safe_load(BASE)
+    raw.update(formulation="idf", optimizer={"name": "differential_evolution"})
+    raw["problem"]["coupling_bounds"] = {"energy_wh_per_km": {"lower": 50, "upper": 300},
+                                     "vehicle_mass_kg": {"lower": 1000, "upper": 2500}}
+    assert load_config(_write(tmp_path, yaml.safe_dump(raw)))["optimizer"]["name"] == "differential_evolution"
 
 
 def _cli(tmp_path, *argv):

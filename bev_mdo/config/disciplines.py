@@ -2,6 +2,7 @@
 checked against the problem, named and listed for the nodes that serve them."""
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -79,11 +80,28 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
                              "which a fixed value cannot replace (drop that discipline, or write your own without it)")
         if k not in params and k not in consumed:
             raise ValueError(f"problem.parameters.{k}: no discipline has this parameter; known: {sorted(params)}")
+    check_optimizer_variables(cfg["optimizer"]["name"], problem.names, [c for c in graph.couplings if c not in problem.names]
+                              if cfg["formulation"] == "idf" else [], problem.coupling_bound)
     if cfg["problem"]["battery_sized_for_range"] and SIZED_VARIABLE not in produced:
         raise ValueError("problem.battery_sized_for_range is true but no discipline produces battery_kwh "
                          "(add the battery_sizing discipline)")
     graph.check_inputs(set(problem.names) | set(problem.parameters))
     return params
+
+
+def check_optimizer_variables(optimizer: str, design: list[str], couplings: list[str], coupling_bound) -> None:
+    """What an optimiser needs of its variables (the design variables, and IDF's ``couplings``), checked at
+    load rather than when it starts: finite bounds for one that samples the whole box, two variables for
+    ``chebyshev-pairwise``, which moves them in pairs."""
+    from bev_mdo.mdo.optimizers import FINITE_BOUNDS
+
+    open_ = [c for c in couplings if not all(math.isfinite(b) for b in coupling_bound(c))]
+    if optimizer in FINITE_BOUNDS and open_:
+        raise ValueError(f"optimizer {optimizer} needs finite bounds on every optimiser variable: with formulation "
+                         f"idf give problem.coupling_bounds for {open_}")
+    if optimizer == "chebyshev-pairwise" and len(design) + len(couplings) < 2:
+        raise ValueError(f"optimizer chebyshev-pairwise needs at least 2 optimiser variables (it moves them in "
+                         f"pairs); the problem has {design + couplings}")
 
 
 def model_limits(discs, name: str) -> tuple[float, float, str, bool, str] | None:

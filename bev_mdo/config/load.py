@@ -206,6 +206,10 @@ def _resolve(raw: Any) -> RunConfig:
     if cfg["optimizer"]["fd_scheme"] not in FD_SCHEMES:
         raise ValueError(f"optimizer.fd_scheme {cfg['optimizer']['fd_scheme']!r} is unknown; allowed: "
                          f"{', '.join(FD_SCHEMES)}")
+    step = cfg["optimizer"]["fd_step"]
+    if not is_number(step) or not 0 < step < 0.1:
+        raise ValueError(f"optimizer.fd_step {step!r} must be in (0, 0.1) (scaled units){text_hint(step)}")
+    cfg["optimizer"]["fd_step"] = float(step)
     tol = cfg["optimizer"]["feasibility_tolerance"]
     if not is_number(tol) or not 0 <= tol < 1 or math.isnan(tol):
         raise ValueError(f"optimizer.feasibility_tolerance {tol!r} must be a number in [0, 1) "

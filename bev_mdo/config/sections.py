@@ -34,7 +34,8 @@ _NOT_OPTIONS = {"fun", "func", "x0", "args", "jac", "hess", "hessp", "bounds", "
 def check_optimizer_options(name: str, options: Mapping[str, Any]) -> None:
     """ValueError naming the first key of `options` that the optimiser does not accept, with the
     nearest one: the keyword arguments of its scipy solver (scipy itself only warns, after the nodes
-    have started), or the ``DEFAULTS`` of a plug-in module (``chebyshev-pairwise``)."""
+    have started), or the ``DEFAULTS`` of a plug-in module (``chebyshev-pairwise``) and its
+    ``check_options`` of the values."""
     from bev_mdo.mdo.optimizers import COUNT_OPTIONS, OPTIMIZERS
 
     _check_solver_options(name, options, OPTIMIZERS.get(name))
@@ -51,11 +52,14 @@ def _check_solver_options(name: str, options: Mapping[str, Any], plugin) -> None
     where = _SCIPY_SOLVERS.get(name)
     if where is None and isinstance(plugin, str):
         try:
-            defaults = getattr(importlib.import_module(plugin.partition(":")[0]), "DEFAULTS", None)
+            module = importlib.import_module(plugin.partition(":")[0])
         except ImportError:
-            defaults = None
+            return
+        defaults = getattr(module, "DEFAULTS", None)
         if isinstance(defaults, Mapping):
             check_keys("optimizer.options", options, defaults, of=name)
+        if callable(getattr(module, "check_options", None)):  # the values, as the plug-in would take them
+            module.check_options(options)
         return
     if where is None:
         return

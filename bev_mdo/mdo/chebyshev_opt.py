@@ -21,11 +21,32 @@ from typing import Any, Callable, Mapping
 import numpy as np
 from scipy.optimize import OptimizeResult
 
+from bev_mdo.models.common import is_number, text_hint
+
 from .chebyshev import chebfun1, chebfun2, on_plane
 from .sensitivity import sensitivities
 
 DEFAULTS = {"box": 0.25, "xtol": 1e-7, "ftol": 1e-12, "ctol": 1e-8, "maxiter": 200,
             "cheb_tol": 1e-11, "cheb_n_max": 32, "rel_step": 1e-4}
+# tolerances and sizes that must be finite and > 0 (>= 0: ftol, ctol); a NaN box never fell below xtol
+_POSITIVE = ("box", "xtol", "cheb_tol", "rel_step")
+
+
+def check_options(options: Mapping[str, Any] | None) -> dict:
+    """DEFAULTS with ``options`` over them; ValueError (one line naming ``optimizer.options.<key>``) for a
+    key not in DEFAULTS or a tolerance out of its range (the counts are checked with every optimiser's:
+    config/sections.py). The config check runs it at load."""
+    o = dict(DEFAULTS)
+    for k, v in (options or {}).items():
+        if k not in DEFAULTS:
+            raise ValueError(f"unknown chebyshev-pairwise option {k!r} (known: {', '.join(DEFAULTS)})")
+        o[k] = v
+    for k in ("ftol", "ctol", *_POSITIVE):
+        v = o[k]
+        if not is_number(v) or not np.isfinite(v) or v < 0 or (v == 0 and k in _POSITIVE):
+            raise ValueError(f"optimizer.options.{k}: {v!r} must be a finite number "
+                             f"{'> 0' if k in _POSITIVE else '>= 0'} (chebyshev-pairwise){text_hint(v)}")
+    return o
 
 
 class _Counted:
@@ -143,11 +164,7 @@ def _restore(ev, x, lo, hi, o, max_rounds=10):
 def minimize(batch_fun: Callable, x0, lower, upper, options: Mapping[str, Any] | None = None,
              callback: Callable[[np.ndarray], Any] | None = None) -> OptimizeResult:
     """Sensitivity-guided pairwise Chebyshev minimisation of f s.t. g <= 0 (module docstring)."""
-    o = dict(DEFAULTS)
-    for k, v in (options or {}).items():
-        if k not in DEFAULTS:
-            raise ValueError(f"unknown chebyshev-pairwise option {k!r} (known: {', '.join(DEFAULTS)})")
-        o[k] = v
+    o = check_options(options)
     x, lo, hi = _check(x0, lower, upper)
     ev = _Counted(batch_fun)
     x, f, g = _restore(ev, x, lo, hi, o)

@@ -89,8 +89,12 @@ def read_options(cls: type, options: Mapping[str, Any] | None, where: str) -> An
     * ``cls.Options``, a dataclass: its fields are the keys; returns an instance (defaults filled);
     * no ``from_config`` of its own: the constructor's keyword parameters (any with ``**kwargs``);
       returns the options as a dict;
-    * else the class declares no option, and none may be given."""
+    * else the class declares no option, and none may be given.
+
+    A number that is not finite (``.nan``, ``.inf``), at any depth, is refused the same way: every point
+    would fail at run time."""
     options = dict(options or {})
+    _refuse_non_finite(where, options)
     spec = getattr(cls, "Options", None)
     if spec is not None and dataclasses.is_dataclass(spec):
         check_keys(where, options, [f.name for f in dataclasses.fields(spec) if f.init])
@@ -106,6 +110,18 @@ def read_options(cls: type, options: Mapping[str, Any] | None, where: str) -> An
         return options
     check_keys(where, options, ())
     return options
+
+
+def _refuse_non_finite(where: str, value: Any) -> None:
+    """ValueError naming the key path of the first non-finite number in ``value`` (mappings and lists)."""
+    if isinstance(value, Mapping):
+        for k, v in value.items():
+            _refuse_non_finite(f"{where}.{k}", v)
+    elif isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            _refuse_non_finite(f"{where}[{i}]", v)
+    elif isinstance(value, (float, np.floating)) and not np.isfinite(value):
+        raise ValueError(f"{where}: {float(value)!r} must be a finite number")
 
 
 @dataclass(frozen=True)
