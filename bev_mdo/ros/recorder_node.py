@@ -65,14 +65,9 @@ def message_class(type_name: str):
 
 
 def run_reader(topic: str, type_name: str):
-    """How a run's recorder reads the run of a message on `topic` from its bytes (run id or None), to keep
-    its own run's only: the run id after the header of a RUN_TAGGED type, the ``run_id`` of a node's
-    counters; None for the others (declarations), recorded as they are."""
-    if type_name in RUN_TAGGED:
-        return run_of
-    if topic == NODE_STATS_TOPIC:
-        return stats_run_of
-    return None
+    """How a run's recorder reads the run id of a message on `topic` from its bytes, to keep its own run's only
+    (None: declarations, recorded as they are): after the header of a RUN_TAGGED type, or in a node's counters."""
+    return run_of if type_name in RUN_TAGGED else stats_run_of if topic == NODE_STATS_TOPIC else None
 
 
 def default_bag_path() -> str:
