@@ -68,7 +68,8 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
         result, baseline, extra = _run_inprocess(config, opts, show, x0, starts)
     from bev_mdo.api import runbag  # end-of-run answers: in the result, stored with the bag
 
-    runbag.finish(config, result, extra)
+    with runbag.noting_interrupts(extra.get("bag")):  # a signal while the answers are made: what the bag holds
+        runbag.finish(config, result, extra)
     extra = {k: v for k, v in extra.items() if not k.startswith("_")}
     extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
     return {**result, "baseline": baseline, **extra}

@@ -107,9 +107,14 @@ def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
 def finish(config: Mapping[str, Any], result: dict, extra: dict) -> None:
     """Add ``result["active"]`` and store it with the run's bag (closing an in-process bag; one whose writing
     failed adds ``recorder_failed`` to ``extra``)."""
-    result["active"] = answers(config, result)
-    ans = {**result["active"], "result_design": result.get("design")}  # the report names the run's result by it
     inproc = extra.get("_bag_writer")
+    try:
+        result["active"] = answers(config, result)
+    except BaseException:  # a signal (or a failure) before the answers: an in-process bag is closed without them
+        if inproc is not None:
+            inproc.close()
+        raise
+    ans = {**result["active"], "result_design": result.get("design")}  # the report names the run's result by it
     if inproc is not None:
         inproc.close(ans)
         if inproc.failed:
