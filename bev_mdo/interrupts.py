@@ -59,6 +59,11 @@ def note_done(note: str) -> None:
     _done_notes.append(note)
 
 
+def done_notes() -> list[str]:
+    """What ``note_done`` said is complete so far ([] before the result was stored)."""
+    return list(_done_notes)
+
+
 def _end_now(exc: type[BaseException]) -> None:
     """A signal after the work: one line on stderr, then the process ends without its teardown (exit status
     143 for SIGTERM, else 130). Nothing is lost: the output is written and flushed and any bag closed; only

@@ -144,7 +144,8 @@ class OptimizeRosSession:
                                               recorder_subscribers=self.recorder, context=ctx,
                                               recorder_binding=self.recorder_binding, starting=self.launcher.progress,
                                               instances=self.instances, beside=beside, before=analyse,
-                                              give_up_acks=acks_needless(self.launcher) if self.recorder else None)
+                                              give_up_acks=acks_needless(self.launcher) if self.recorder else None,
+                                              recorder_gone=recorder_gone(self.launcher) if self.recorder else None)
             stats["t_acked"] = time.monotonic()  # the final acknowledgements are in (or given up)
             self.stats = stats
             out = res.to_dict()
@@ -208,6 +209,31 @@ def acks_needless(launcher):
         return now - started[0] >= ACK_GRACE_S and launcher.died_within(lease_s + ACK_GRACE_S)
 
     return needless
+
+
+def recorder_gone(launcher):
+    """For the start-up waits for the run's recorder: None while its process runs, else why it is gone (its exit
+    status and the last error line of its log), so the run stops at once rather than wait for its declaration."""
+    def why() -> str | None:
+        node = launcher.node("recorder")
+        if node.died is None:
+            return None
+        lines = [ln.strip() for ln in _tail(node.log_path).splitlines() if ln.strip()]
+        said = next((ln for ln in reversed(lines) if "error" in ln.lower()), lines[-1] if lines else "")
+        return (f"exited with {node.died} during start-up" + (f": {said}" if said else "")
+                + (f" (its log: {node.log_path})" if node.log_path else ""))
+
+    return why
+
+
+def _tail(path, size: int = 8192) -> str:
+    """The end of a log file ('' if there is none)."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(max(0, f.seek(0, 2) - size))
+            return f.read().decode("utf-8", "replace")
+    except (OSError, TypeError):
+        return ""
 
 
 def recorder_failure(launcher, bag: Path) -> str | None:
@@ -307,7 +333,7 @@ class ParetoRosSession:
             rclpy.init(context=self.ctx)
             self.sink = RosSink(self.ctx, self.run_id, node_name_for(self.run_id, "pareto_publisher"),
                                 Signer.from_ros(self.ros), self.binding)
-            self.sink.wait_for_recorder(self.ros["discovery_wait_s"])
+            self.sink.wait_for_recorder(self.ros["discovery_wait_s"], recorder_gone(self.launcher))
         except BaseException:
             self.__exit__()
             raise
@@ -337,7 +363,7 @@ class ParetoRosSession:
             for name, count in self.instances.items():  # a pool starts with all its instances (pool.py)
                 node.evaluator.wait_for_instances(name, count, wait_s)
             if recorders:  # the study's recorder, by its declaration: it matched every topic of these nodes
-                node.wait_for_recorder(wait_s, self.binding)
+                node.wait_for_recorder(wait_s, self.binding, recorder_gone(self.launcher))
             node.evaluator.warm_up(names)
             yield node.evaluator
             for k, v in node.evaluator.dropped.items():

@@ -8,6 +8,7 @@ end-of-run answers (bev_mdo/mdo/active.py), stored with the bag when there is on
 """
 from __future__ import annotations
 
+import contextlib
 import shutil
 import tempfile
 import time
@@ -28,6 +29,7 @@ class OptimizeOptions(Transport):
     starts: int = 1  # >1: a Latin hypercube of start points (seed), the best end reported
     seed: int = 0
     bag: str | None = None  # bag directory to write (in process: only when given; ROS: a default name)
+    bag_flag: str = "--bag"  # the flag that named it, for the line refusing it (resume: --output)
     no_record: bool = False
     quiet: bool = False
     instances: str | None = None  # ROS: "N" or "NAME=N,..." instances per discipline
@@ -66,7 +68,8 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
         result, baseline, extra = _run_inprocess(config, opts, show, x0, starts)
     from bev_mdo.api import runbag  # end-of-run answers: in the result, stored with the bag
 
-    runbag.finish(config, result, extra)
+    with runbag.noting_interrupts(extra.get("bag")):  # a signal while the answers are made: what the bag holds
+        runbag.finish(config, result, extra)
     extra = {k: v for k, v in extra.items() if not k.startswith("_")}
     extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
     return {**result, "baseline": baseline, **extra}
@@ -129,7 +132,7 @@ def _run_ros(config, opts, show, x0, starts):
     if not opts.no_record:
         from bev_mdo.api.runbag import check_new_bag
 
-        check_new_bag(bag, "--bag")
+        check_new_bag(bag, opts.bag_flag)  # before the flags' checks, as ever; claimed below, before anything is written
     scratch = None
     if opts.no_record and not opts.bag:  # nothing to keep: the logs and the per-run key go in a private temporary
         scratch = Path(tempfile.mkdtemp(prefix="bev_mdo_run_"))  # directory (mode 0700), removed after a run that ended
@@ -139,13 +142,19 @@ def _run_ros(config, opts, show, x0, starts):
     where = _where(names, instances, opts.compose)  # a rejected --compose is refused before this line prints
     session = OptimizeRosSession(config, ros, bag, run_id, record=not opts.no_record, instances=instances,
                                  compose=opts.compose)
-    if not opts.quiet:
-        print(f"starting {where}{'' if opts.no_record else ' and a recorder'}"
-              f" (domain {ros['domain_id']}); waiting while discovery makes progress (gives up after "
-              f"{ros['discovery_wait_s']:g} s without) ...",
-              file=sys.stderr if opts.progress_to_stderr else sys.stdout, flush=True)
-    with noting_interrupts(None if opts.no_record else bag), session:
-        result, baseline = session.run(opts.formulation, opts.optimizer, x0, show, starts=starts, seed=opts.seed)
+    with contextlib.ExitStack() as claimed:
+        if not opts.no_record:  # the bag's directory is this run's (one of two runs given it at once is refused)
+            from bev_mdo.api.runbag import claim_new_bag
+
+            claimed.enter_context(claim_new_bag(bag, opts.bag_flag))
+        if not opts.quiet:
+            print(f"starting {where}{'' if opts.no_record else ' and a recorder'}"
+                  f" (domain {ros['domain_id']}); waiting while discovery makes progress (gives up after "
+                  f"{ros['discovery_wait_s']:g} s without) ...",
+                  file=sys.stderr if opts.progress_to_stderr else sys.stdout, flush=True)
+        with noting_interrupts(None if opts.no_record else bag), session:
+            result, baseline = session.run(opts.formulation, opts.optimizer, x0, show, starts=starts,
+                                           seed=opts.seed)
     extra = session.summary()
     if scratch is not None:  # (left in place, for its logs, when the run raised)
         shutil.rmtree(scratch, ignore_errors=True)

@@ -26,7 +26,7 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
         source: str = "<config>", on_generation=None) -> tuple[dict, object]:
     """(the front.json document, mdo.pareto's result) of one NSGA-II run; ``objectives``: outputs to
     minimise (default: the config's ``problem.objectives``)."""
-    from bev_mdo.api.runbag import noting_interrupts
+    from bev_mdo.api.runbag import claim_new_bag, noting_interrupts
     from bev_mdo.config import RunConfig
 
     cfg = RunConfig.of(cfg)
@@ -36,15 +36,16 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
     check_objectives(objs, cfg, source, 2)
     out, bag = out_dirs(out, cfg.name)
     run_id = uuid.uuid4().hex[:16]
-    sess = session(transport, instances, cfg, out, bag, run_id, [cfg])
-    from bev_mdo.ros.pareto_publisher import front_message  # loaded by the session already
+    with claim_new_bag(bag, "--out"):  # of two runs given the same --out at once, one is refused here
+        sess = session(transport, instances, cfg, out, bag, run_id, [cfg])
+        from bev_mdo.ros.pareto_publisher import front_message  # loaded by the session already
 
-    with noting_interrupts(bag, "front"), sess:
-        def on_front(front, final):
-            sess.sink.publish(front_message(front, run_id=run_id, topology="", final=final))
+        with noting_interrupts(bag, "front"), sess:
+            def on_front(front, final):
+                sess.sink.publish(front_message(front, run_id=run_id, topology="", final=final))
 
-        with sess.evaluator(cfg, "front") as ev:
-            res = nsga2(cfg, ev, objs, pop, generations, seed, on_front, on_generation=on_generation)
+            with sess.evaluator(cfg, "front") as ev:
+                res = nsga2(cfg, ev, objs, pop, generations, seed, on_front, on_generation=on_generation)
     write_front(out / "front.csv", res)
     doc = {"config": source, "transport": transport.transport, "run_id": run_id, "bag": str(bag),
            "objectives": [{"name": n, "maximize": m} for n, m in objs],

@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import contextlib
+import os
 import time
 from pathlib import Path
 from typing import Any, Mapping
@@ -106,9 +107,14 @@ def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
 def finish(config: Mapping[str, Any], result: dict, extra: dict) -> None:
     """Add ``result["active"]`` and store it with the run's bag (closing an in-process bag; one whose writing
     failed adds ``recorder_failed`` to ``extra``)."""
-    result["active"] = answers(config, result)
-    ans = {**result["active"], "result_design": result.get("design")}  # the report names the run's result by it
     inproc = extra.get("_bag_writer")
+    try:
+        result["active"] = answers(config, result)
+    except BaseException:  # a signal (or a failure) before the answers: an in-process bag is closed without them
+        if inproc is not None:
+            inproc.close()
+        raise
+    ans = {**result["active"], "result_design": result.get("design")}  # the report names the run's result by it
     if inproc is not None:
         inproc.close(ans)
         if inproc.failed:
@@ -171,9 +177,9 @@ def in_process_bag(config: Mapping[str, Any], opts, show):
         return None, None, show
     import uuid
 
-    check_new_bag(Path(opts.bag), "--bag")  # as over ROS (the writer refused only a bag in the folder itself)
-
-    writer = InProcessBag(Path(opts.bag), config, uuid.uuid4().hex[:16])
+    # as over ROS (the writer refused only a bag in the folder itself); claimed until the bag's file exists
+    with claim_new_bag(Path(opts.bag), opts.bag_flag):
+        writer = InProcessBag(Path(opts.bag), config, uuid.uuid4().hex[:16])
 
     def callback(rec):
         writer(rec)
@@ -197,3 +203,84 @@ def check_new_bag(bag: Path, what: str) -> None:
     inner = next((d for d in (bag.iterdir() if bag.is_dir() else ()) if d.is_dir() and holds_bag(d)), None)
     if inner is not None:  # a run's output folder (sweep's, pareto's): its readers would take the new bag
         raise InputError(f"{what} {bag}: a run's output folder, its bag in {inner.name}/; choose a new directory")
+
+
+CLAIM_FILE = ".bev_mdo_claim"  # in a bag directory while a run claims it (BagClaim)
+
+
+class BagClaim:
+    """One run's claim of a new bag directory: an exclusive ``flock`` on ``<bag>/.bev_mdo_claim``, taken
+    where the run checks that no bag is there and held until the run has its bag. Of two runs given the same
+    directory at once one claims it; the other is refused before it writes anything (logs, key, nodes),
+    as if the bag were there. The kernel drops the lock of a process that dies, so a run killed before its
+    bag existed does not block a re-run. ``release()`` (idempotent; also on leaving a ``with``) removes the
+    file and the folders the claim made that are still empty."""
+
+    def __init__(self, bag: Path):
+        self.bag = Path(bag)
+        self.path = self.bag / CLAIM_FILE
+        self.made = []  # the folders this claim creates, deepest first
+        d = self.bag
+        while not d.exists() and d != d.parent:
+            self.made.append(d)
+            d = d.parent
+        self._fd = None
+
+    def acquire(self) -> bool:
+        """Take the claim; False if another run holds it. OSError if the folder cannot be made."""
+        self.bag.mkdir(parents=True, exist_ok=True)
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o600)
+            try:
+                import fcntl
+
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                os.close(fd)
+                return False
+            try:
+                current = os.path.samestat(os.fstat(fd), os.stat(self.path))
+            except FileNotFoundError:
+                current = False
+            if current:
+                self._fd = fd
+                return True
+            os.close(fd)  # its holder released (removed) the file we opened: claim the one there now
+
+    def release(self) -> None:
+        fd, self._fd = self._fd, None
+        if fd is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(self.path)  # while still locked: nobody else holds the file it names
+            os.close(fd)
+        for d in self.made:
+            try:
+                d.rmdir()
+            except OSError:  # not empty (the bag, the run's logs), or gone
+                break
+
+    def __enter__(self) -> "BagClaim":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def claim_new_bag(bag: Path, what: str) -> BagClaim:
+    """``check_new_bag``, then the claim of ``bag`` for this run (BagClaim, to release once the run has its bag
+    or ended): InputError (exit 2), with the same line as for a bag already there, if another run claimed it
+    first, or wrote its bag between the check and the claim."""
+    bag = Path(bag)
+    check_new_bag(bag, what)  # refused here, nothing is touched
+    claim = BagClaim(bag)
+    try:
+        if not claim.acquire():
+            raise InputError(f"{what} {bag}: a bag already exists there; choose a new directory")
+        check_new_bag(bag, what)  # claimed: a bag written meanwhile is refused, and none can start now
+    except OSError as exc:
+        claim.release()
+        raise InputError(f"{what} {bag}: cannot create the bag directory ({exc.strerror or exc})") from None
+    except BaseException:
+        claim.release()
+        raise
+    return claim

@@ -182,7 +182,9 @@ def _run(args) -> int:
         return status
     except KeyboardInterrupt as exc:  # SIGINT, or Terminated (SIGTERM); the notes say where the bag is
         terminated = isinstance(exc, Terminated)
-        print("bev-mdo: terminated (SIGTERM)" if terminated else "bev-mdo: interrupted", file=sys.stderr)
+        what = "bev-mdo: terminated (SIGTERM)" if terminated else "bev-mdo: interrupted"
+        done = interrupts.done_notes()  # the result was stored (e.g. with its bag) and was being printed
+        print("; ".join([f"{what} while the result was printed", *done]) if done else what, file=sys.stderr)
         for note in getattr(exc, "__notes__", ()):
             print(f"bev-mdo: {note}", file=sys.stderr)
         return 143 if terminated else 130

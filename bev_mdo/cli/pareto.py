@@ -139,25 +139,28 @@ def _study(args, raw, written, names, ov) -> int:
     out, bag = pareto.out_dirs(args.out, raw.get("name", "run"))
     run_id = uuid.uuid4().hex[:16]
     results, bench, timing = {}, {}, {}
-    session = pareto.session(args, args.instances, raw, out, bag, run_id, list(configs.values()))
-    from bev_mdo.ros.pareto_publisher import front_message  # loaded by the session already
+    from bev_mdo.api.runbag import claim_new_bag
 
-    with session:
-        for t, cfg in configs.items():
-            print(f"{t}: NSGA-II {args.pop} x {args.generations} over {args.transport}", file=sys.stderr)
+    with claim_new_bag(bag, "--out"):  # of two studies given the same --out at once, one is refused here
+        session = pareto.session(args, args.instances, raw, out, bag, run_id, list(configs.values()))
+        from bev_mdo.ros.pareto_publisher import front_message  # loaded by the session already
 
-            def on_front(front, final, t=t):
-                session.sink.publish(front_message(front, run_id=run_id, topology=t, final=final))
+        with session:
+            for t, cfg in configs.items():
+                print(f"{t}: NSGA-II {args.pop} x {args.generations} over {args.transport}", file=sys.stderr)
 
-            with session.evaluator(cfg, t) as ev:
-                res = pareto.nsga2(cfg, ev, objectives, args.pop, args.generations, args.seed, on_front,
-                                   bench=(bench, t), on_generation=_generation)
-            results[t] = res
-            timing[t] = {"wall_time_s": res.wall_time_s, "evaluations": res.evaluations, "batches": res.batches,
-                         "mean_generation_s": float(np.mean(res.generation_times_s)),
-                         "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12),
-                         "design_variables": {d.name: [d.lower, d.upper] for d in cfg.problem.design_variables}}
-            pareto.write_front(out / f"pareto_{t}.csv", res)
+                def on_front(front, final, t=t):
+                    session.sink.publish(front_message(front, run_id=run_id, topology=t, final=final))
+
+                with session.evaluator(cfg, t) as ev:
+                    res = pareto.nsga2(cfg, ev, objectives, args.pop, args.generations, args.seed, on_front,
+                                       bench=(bench, t), on_generation=_generation)
+                results[t] = res
+                timing[t] = {"wall_time_s": res.wall_time_s, "evaluations": res.evaluations, "batches": res.batches,
+                             "mean_generation_s": float(np.mean(res.generation_times_s)),
+                             "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12),
+                             "design_variables": {d.name: [d.lower, d.upper] for d in cfg.problem.design_variables}}
+                pareto.write_front(out / f"pareto_{t}.csv", res)
     study.write_benchmark(out / "benchmark.csv", bench, configs)
     warnings = study.torque_warnings(bench)
     for w in warnings:

@@ -95,7 +95,7 @@ def run(args) -> int:
               "at " + ", ".join(f"{k}={v:.6g}" for k, v in design.items()), file=out)
         x0 = _in_bounds(config, problem, design, out)
     opts = argparse.Namespace(**vars(Transport.of(args)), formulation=None, optimizer=None, json=args.json,
-                              bag=args.out_bag, no_record=args.no_record, quiet=args.quiet,
+                              bag=args.out_bag, bag_flag="--output", no_record=args.no_record, quiet=args.quiet,
                               instances=args.instances, compose=args.compose)
     return run_job(config, opts, x0=x0)
 

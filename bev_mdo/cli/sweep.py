@@ -17,6 +17,7 @@ with every output, constraint margin and the difference of each from the first d
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import itertools
 import math
@@ -229,18 +230,20 @@ def run(args) -> int:
     config = flags.load_config(args)
     out = Path(args.out)
     bag = out / "bag"
-    if not args.no_record:
-        from bev_mdo.api.runbag import check_new_bag
+    claim = contextlib.nullcontext()
+    if not args.no_record:  # held until the bag is written: of two sweeps given the same --out at once one is refused
+        from bev_mdo.api.runbag import claim_new_bag
 
-        check_new_bag(bag, "--out")
-    designs, varied = designs_of(args, config.problem)
-    n = len(next(iter(designs.values())))
-    transport = "ros" if Transport.of(args).uses_ros else "inprocess"
-    result = evaluate_batch(config, designs, args)
-    out.mkdir(parents=True, exist_ok=True)
-    written = [out / "sweep.csv"]
-    if not args.no_record:  # the bag first: whatever stops the command after the batch, the batch is recorded
-        written.append(record(bag, config, result, args.doe or ("grid" if args.vary else "list"), transport))
+        claim = claim_new_bag(bag, "--out")
+    with claim:
+        designs, varied = designs_of(args, config.problem)
+        n = len(next(iter(designs.values())))
+        transport = "ros" if Transport.of(args).uses_ros else "inprocess"
+        result = evaluate_batch(config, designs, args)
+        out.mkdir(parents=True, exist_ok=True)
+        written = [out / "sweep.csv"]
+        if not args.no_record:  # the bag first: whatever stops the command after the batch, the batch is recorded
+            written.append(record(bag, config, result, args.doe or ("grid" if args.vary else "list"), transport))
     write_csv(out / "sweep.csv", result)
     if not args.no_plots:
         from bev_mdo.sessions import analyse_baseline

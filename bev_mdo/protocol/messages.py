@@ -316,6 +316,19 @@ def run_of(data) -> str | None:
         return None
 
 
+def stats_run_of(data) -> str | None:
+    """The ``run_id`` in a node's counters (``/bev_mdo/node_stats``: a std_msgs/String of JSON,
+    ros/discipline_node.publish_stats) from its CDR bytes; None if they name none (a node bound to no run)
+    or are not such JSON."""
+    import json
+
+    try:
+        run = json.loads(decode(data, "std_msgs/msg/String").data).get("run_id")
+    except (WireError, ValueError, AttributeError):  # not a String, not JSON, not a JSON object
+        return None
+    return run if isinstance(run, str) and run else None
+
+
 # -- new messages, every field at its default (rosbags' dataclasses take every field) -------------------
 _DEFAULTS = {"string": "", "bool": False, "float32": 0.0, "float64": 0.0}
 _ARRAY_DTYPES = {"bool": np.bool_, "uint8": np.uint8, "uint32": np.uint32, "uint64": np.uint64,

@@ -100,13 +100,13 @@ class CoordinatorNode(Node):
                        f"{p.get_subscription_count()} of {len(readers)} readers")
         return "; ".join(out)
 
-    def wait_for_recorder(self, wait_s: float, binding: str | None = None) -> OwnRecorder:
+    def wait_for_recorder(self, wait_s: float, binding: str | None = None, gone=None) -> OwnRecorder:
         """Wait until this run's own recorder, known by its declaration (this run id and, when
         given, `binding`; signed with the run's key when the run signs: recorder_node.OwnRecorder),
         reads every topic this run publishes and matched every publisher of it: the iteration and
         request topics (ours) and the result topics (this run's disciplines). Nobody else's
         subscriptions count. Waits while discovery makes progress (fastwait.until); ValueError once
-        nothing changed for `wait_s`."""
+        nothing changed for `wait_s`, or as soon as `gone()` says why the recorder's process ended."""
         own = OwnRecorder(self, self.run_id, self.evaluator.signer, binding)
         ev = self.evaluator
         # who must have been matched on each result topic: every accepted instance of this run (each
@@ -126,8 +126,11 @@ class CoordinatorNode(Node):
             return (json.dumps(own.declaration, sort_keys=True), tuple(sorted(own.dropped.items())),
                     ev.progress())
 
-        if not until(lambda: not missing(), wait_s, lambda: ev.spin(0.05), progress,
-                     lambda: f"this run's recorder on {missing()}"):
+        ready = until(lambda: not missing() or bool(gone and gone()), wait_s, lambda: ev.spin(0.05), progress,
+                      lambda: f"this run's recorder on {missing()}")
+        if gone is not None and missing() and gone():  # no declaration is coming
+            raise StartupGaveUp(f"the run's recorder {gone()}")
+        if not ready:
             what = (f"declared itself but did not match {missing()} ({self._match_counts(own, missing())})" if own.declaration else
                     "did not declare itself" + (f" (dropped: {dict(own.dropped)})" if own.dropped else "")
                     + f" ({own.undeclared()})")
@@ -142,11 +145,12 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         context=None, signer=None, instances: Mapping[str, int] | None = None,
         give_up_acks: Callable[[], bool] | None = None, beside=None, starts: int | list = 1, seed: int = 0,
         recorder_binding: str | None = None, starting: Callable[[], tuple] | None = None,
-        before: Callable[[RosEvaluator], None] | None = None):
+        before: Callable[[RosEvaluator], None] | None = None, recorder_gone: Callable[[], str | None] | None = None):
     """Run one optimisation over ROS in this process (rclpy must be initialised). Returns (result, node stats).
     ``beside``: a composed.Beside (discipline nodes in this process and `context`) to serve.
     ``recorder_subscribers``: 1 to wait for the run's own recorder (by its declaration; with
-    ``recorder_binding``, the binding it must declare: binding.config_binding), 0 not to.
+    ``recorder_binding``, the binding it must declare: binding.config_binding), 0 not to; not once
+    ``recorder_gone()`` says why its process ended (sessions.recorder_gone).
     ``starting``: start-up progress of the run's processes (launch.Launcher.progress), for the waits.
     ``before``: called with the evaluator once every discipline is there, before the recorder wait and
     the optimisation (the baseline, analysed as a sub-run through the same node: sessions.py)."""
@@ -168,7 +172,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         if before is not None:
             before(node.evaluator)
         if recorder_subscribers:
-            node.wait_for_recorder(node.discovery_wait_s, recorder_binding)
+            node.wait_for_recorder(node.discovery_wait_s, recorder_binding, recorder_gone)
         node.evaluator.warm_up(names)
 
         def callback(rec: dict) -> None:

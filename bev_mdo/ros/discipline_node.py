@@ -149,6 +149,7 @@ class DisciplineNode(Node):
             return
         msg = String()
         msg.data = json.dumps({"discipline": self.discipline_name, "instance": self.instance, "counts": snap,
+                               "run_id": self.bound_run,  # "" unbound; a run's recorder keeps its own run's only
                                # for `bev-mdo status`: where it runs and how fast it computes
                                "host": socket.gethostname(), "pid": os.getpid(),
                                "compute_s": round(self.compute_s, 6)}, sort_keys=True)

@@ -94,15 +94,20 @@ class RosSink:
         """Take the recorder's declarations for up to ``timeout_s``."""
         self.executor.spin_once(timeout_sec=timeout_s)
 
-    def wait_for_recorder(self, wait_s: float) -> None:
+    def wait_for_recorder(self, wait_s: float, gone=None) -> None:
         """Wait until the study's own recorder (its declaration) reads the front topic and matched this
-        publisher, so the first front is recorded; ValueError once nothing changed for `wait_s`."""
+        publisher, so the first front is recorded; ValueError once nothing changed for `wait_s`, or as soon
+        as `gone()` says why the recorder's process ended (sessions.recorder_gone)."""
         rec = self.recorder
-        if not until(lambda: rec.records(PARETO_TOPIC, pub=self.pub), wait_s, lambda: self.spin(0.02),
-                     lambda: (json.dumps(rec.declaration, sort_keys=True), tuple(sorted(self.node.get_node_names()))),
-                     f"the study's recorder on {PARETO_TOPIC}"):
-            raise ValueError(f"the study's recorder did not {'match' if rec.declaration else 'declare itself on'} "
-                             f"{PARETO_TOPIC}; nothing changed for {wait_s:g} s")
+        ready = until(lambda: rec.records(PARETO_TOPIC, pub=self.pub) or bool(gone and gone()), wait_s,
+                      lambda: self.spin(0.02),
+                      lambda: (json.dumps(rec.declaration, sort_keys=True), tuple(sorted(self.node.get_node_names()))),
+                      f"the study's recorder on {PARETO_TOPIC}")
+        why = gone() if gone is not None and not rec.records(PARETO_TOPIC, pub=self.pub) else None
+        if why or not ready:  # its process ended, or nothing changed
+            raise ValueError(f"the study's recorder {why}" if why else f"the study's recorder did not "
+                             f"{'match' if rec.declaration else 'declare itself on'} {PARETO_TOPIC}; nothing "
+                             f"changed for {wait_s:g} s")
 
     def publish(self, msg) -> None:
         self.published += 1

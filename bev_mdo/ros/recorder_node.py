@@ -11,8 +11,9 @@ under ``prefix``), ``prefix`` (``/bev_mdo/``), ``config_file`` (its text is stor
 (10: the recorder runs at a lower CPU priority than the nodes and the coordinator).
 
 With a ``run_id`` it records that run only: an EvaluationRequest, EvaluationResult or
-IterationRecord of another run (its ``run_id`` is neither this one nor ``<run>-...``) is dropped
-and counted, so runs sharing a domain each get a bag of their own.
+IterationRecord of another run (its ``run_id`` is neither this one nor ``<run>-...``), or a node's
+counters on ``/bev_mdo/node_stats`` naming another run or none, is dropped and counted, so runs sharing
+a domain each get a bag of their own (``run_reader``).
 
 Declaration: whenever it changes, the recorder declares on ``/bev_mdo_recorder/status``
 (TRANSIENT_LOCAL, not recorded) which run and binding it records and what it matched:
@@ -47,8 +48,8 @@ from bev_mdo.bag.stored import StoredConfig
 from bev_mdo.bag.writer import BagWriter
 from bev_mdo.binding import config_binding, run_matches
 from bev_mdo.processes import check_parameters
-from bev_mdo.protocol.messages import RUN_TAGGED, run_of
-from bev_mdo.ros.common import DECLARATION_READER_QOS, declare, endpoints, node_of, run_type
+from bev_mdo.protocol.messages import RUN_TAGGED, run_of, stats_run_of
+from bev_mdo.ros.common import DECLARATION_READER_QOS, NODE_STATS_TOPIC, declare, endpoints, node_of, run_type
 
 DEFAULT_PREFIX = "/bev_mdo/"
 RECHECK_S = 0.5  # the declared publishers of a topic are read from the graph at least this often
@@ -61,6 +62,12 @@ def message_class(type_name: str):
     """The generated Python class of ``pkg/msg/Type`` (ImportError/AttributeError if absent)."""
     pkg, _, name = type_name.split("/")
     return getattr(importlib.import_module(f"{pkg}.msg"), name)
+
+
+def run_reader(topic: str, type_name: str):
+    """How a run's recorder reads the run id of a message on `topic` from its bytes, to keep its own run's only
+    (None: declarations, recorded as they are): after the header of a RUN_TAGGED type, or in a node's counters."""
+    return run_of if type_name in RUN_TAGGED else stats_run_of if topic == NODE_STATS_TOPIC else None
 
 
 def default_bag_path() -> str:
@@ -186,12 +193,12 @@ class RecorderNode(Node):
     def _callback(self, topic: str, type_name: str):
         write = self.writer.write
         own = self.run_id
-        tagged = bool(own) and type_name in RUN_TAGGED
+        run_in = run_reader(topic, type_name) if own else None
         order = self.order if topic == ITERATION_TOPIC else None
 
         def on_message(data: bytes, info) -> None:
-            if tagged:
-                run = run_of(data)
+            if run_in is not None:
+                run = run_in(data)
                 if run is None or not run_matches(own, run):
                     self.other_run += 1
                     return
