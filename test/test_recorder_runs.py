@@ -59,3 +59,20 @@ def test_a_bound_node_names_its_run_in_its_counters():
                            _stats_pub=SimpleNamespace(publish=sent.append))
     DisciplineNode.publish_stats(node, force=True)
     assert json.loads(sent[0].data)["run_id"] == RUN
+
+
+def test_a_runs_recorder_keeps_only_its_own_runs_pareto_fronts():
+    """A pareto run's bag kept every run's /bev_mdo/pareto_front: another pareto run on the domain added its
+    generations to the bag's (a test saw generations 1, 2, 3 followed by another run's 1, 2, 3)."""
+    from rclpy.serialization import serialize_message
+
+    from bev_mdo.ros.recorder_node import RecorderNode
+    from bev_mdo_msgs.msg import ParetoFront
+
+    written, rec = _recorder(RUN)
+    on_message = RecorderNode._callback(rec, "/bev_mdo/pareto_front", "bev_mdo_msgs/msg/ParetoFront")
+    own = [serialize_message(ParetoFront(run_id=RUN, generation=g)) for g in (1, 2)]
+    other = serialize_message(ParetoFront(run_id="0123456789abcdef", generation=1))
+    for data in (own[0], other, own[1]):
+        on_message(data, {})
+    assert written == own and rec.other_run == 1

@@ -304,7 +304,7 @@ def head(data, name: str, last: str):
 
 # Messages that name their run right after their header (``string run_id``): filtered by run.
 RUN_TAGGED = frozenset({"bev_mdo_msgs/msg/EvaluationRequest", "bev_mdo_msgs/msg/EvaluationResult",
-                        "bev_mdo_msgs/msg/IterationRecord"})
+                        "bev_mdo_msgs/msg/IterationRecord", "bev_mdo_msgs/msg/ParetoFront"})
 
 
 def run_of(data) -> str | None:
