@@ -117,9 +117,11 @@ class Formulation:
                 else:
                     self._cache[k] = (FAIL_OBJECTIVE, np.full(g.shape[1], FAIL_CONSTRAINT),
                                       np.full(h.shape[1], FAIL_CONSTRAINT), False, err[i] or "failed")
-            while len(self._cache) > self.cache_size:
-                self._cache.pop(next(iter(self._cache)))
         got = [self._cache[k] for k in keys]
+        for k in dict.fromkeys(keys):  # least recently used first out: this batch's rows go to the end
+            self._cache[k] = self._cache.pop(k)
+        while len(self._cache) > self.cache_size:  # (after the look-up: a batch larger than the cache is served)
+            self._cache.pop(next(iter(self._cache)))
         f = np.array([c[0] for c in got])
         g = np.array([c[1] for c in got]).reshape(len(keys), len(self.ineq_labels))
         h = np.array([c[2] for c in got]).reshape(len(keys), len(self.eq_labels))

@@ -96,6 +96,24 @@ def test_optimum_beside_a_failing_region_is_still_found():
     np.testing.assert_allclose(res.x, list(SELLAR_OPTIMUM.values()), atol=1e-5)
 
 
+def test_a_batch_is_served_whatever_the_cache_size_and_recent_rows_stay():
+    """The row cache was trimmed first in, first out right after a batch went in, before the batch was read
+    back: a run past 50,000 points (chebyshev-pairwise on Golinski, after iteration 15) lost its own rows
+    (KeyError) and its result. A row used again is now the most recent one, and a batch is read before
+    the cache is trimmed."""
+    form, _ = make(MDF, cache_size=3)
+    X = np.array([[1.0 + i, 2.0, 1.0] for i in range(5)])  # 5 new rows, more than the cache holds
+    f, g, _ = form.evaluate_batch(X)
+    assert len(f) == 5 and np.isfinite(f).all() and form.n_points == 5
+    ref, _, _ = make(MDF)[0].evaluate_batch(X)
+    np.testing.assert_array_equal(f, ref)
+    form.evaluate_batch(X[2:3])  # the oldest kept row, used again
+    form.evaluate_batch(np.array([[9.0, 2.0, 1.0], [8.0, 2.0, 1.0]]))  # two new rows push out the others
+    n = form.n_points
+    form.evaluate_batch(X[2:3])
+    assert form.n_points == n  # served from the cache: it was used most recently
+
+
 def test_batch_rejects_wrong_width():
     form, _ = make(MDF)
     with pytest.raises(ValueError, match="expected 3 columns"):
