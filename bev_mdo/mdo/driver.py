@@ -321,7 +321,8 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
     if ok:
         df, dg, dh = form.gradients(u)
         df = df / form.problem.objective_scale
-    else:  # a failed point has no derivative: its verdict is infeasible
+        ok, _ = form.status(x)  # analytic partials evaluate x again: a discipline may fail there now
+    if not ok:  # a failed point has no derivative: its verdict is infeasible
         df, dg, dh = np.zeros(form.n), np.zeros((g.shape[1], form.n)), np.zeros((h.shape[1], form.n))
     lo, hi = form.u_bounds
     fo = first_order.check(u, lo, hi, df, g[0], dg, h[0], dh, names=form.var_names,

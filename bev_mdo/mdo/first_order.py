@@ -97,6 +97,7 @@ def check(u: np.ndarray, lower: np.ndarray, upper: np.ndarray, grad_f: np.ndarra
         verdict = STOPPED
     return {
         "verdict": verdict,
+        "point_failed": not point_ok,
         "conditions_hold": holds,
         "stationarity": stationarity,
         "complementarity": complementarity,
@@ -123,6 +124,8 @@ def verdict_line(fo: dict) -> str:
     worst = max(fo["stationarity"], fo["complementarity"])
     if v == OPTIMUM:
         return f"optimum (first-order conditions hold to {worst:.2g}; tolerance {fo['tolerance']:g})"
+    if v == INFEASIBLE and fo.get("point_failed"):
+        return "infeasible (the point failed: the disciplines gave no value there)"
     if v == INFEASIBLE:
         return (f"infeasible (largest violation {fo['max_violation']:.3g} > feasibility tolerance "
                 f"{fo['feasibility_tolerance']:g})")

@@ -207,8 +207,10 @@ class Formulation:
             self._failed_partials = set()
             out = self._assembled(u)
             self._grad = (key, out)
-            # a discipline's failed finite-difference partial: the variables whose totals it enters
-            self._unknown = (key, self._unknown_variables(self._failed_partials))
+            # a discipline's failed finite-difference partial: the variables whose totals it enters; the
+            # point itself failed when evaluated again for its partials: every variable
+            self._unknown = (key, self._unknown_variables(self._failed_partials) if self.status(self.to_x(u))[0]
+                             else list(self.var_names))
             return out
         lo, hi = self.u_bounds
         hstep = self.fd_step
@@ -236,7 +238,7 @@ class Formulation:
         else:
             D = (V[1:] - V[0][None, :]) / denom[:, None]
             good = ok[1:]
-        self._unknown = (key, [])
+        self._unknown = (key, [] if ok[0] else list(self.var_names))  # no derivative at all about a failed point
         if ok[0] and not good.all():
             self.fd_failures += int((~good).sum())
             D[~good] = 0.0

@@ -79,3 +79,52 @@ def test_a_failed_coupling_partial_reaches_every_variable_that_drives_the_loop()
     assert unknown_variables({("y2", "z1")}, names, quantities, specs) == ["z1"]
     assert unknown_variables({("spare", "x")}, names, quantities, specs) == []
     assert unknown_variables({("y1", "y2")}, names + ["y1", "y2"], quantities, {}) == ["y2"]
+
+
+class Dying:
+    """Wraps a discipline that stops working for good after ``calls`` calls (a node that died)."""
+
+    def __init__(self, inner, calls):
+        self.inner, self.left = inner, calls
+        self.name, self.inputs, self.outputs = inner.name, inner.inputs, inner.outputs
+        self.units = getattr(inner, "units", {})
+        if hasattr(inner, "compute_partials"):
+            self.compute_partials = lambda inputs: self._call(inner.compute_partials, inputs)
+
+    def _call(self, method, inputs):
+        self.left -= 1
+        if self.left < 0:
+            raise RuntimeError("gone")
+        return method(inputs)
+
+    def compute(self, inputs):
+        return self._call(self.inner.compute, inputs)
+
+
+@pytest.mark.parametrize("derivatives", ["analytic", "fd"])
+def test_a_point_whose_derivatives_fail_when_checked_is_not_verified_not_an_optimum(derivatives):
+    """A discipline that died after the result point was evaluated: the check's derivatives (analytic
+    partials evaluate the point again; a finite-difference stencil around it) failed, gave zeros, and the
+    verdict was 'optimum (first-order conditions hold to 0)' beside 'the result point failed'."""
+    discs = sellar_disciplines()
+    dying = Dying(discs[1], 10**9)
+    ev = InProcessEvaluator([discs[0], dying, discs[2]])
+    form = MDF(Problem.from_config(SELLAR_PROBLEM), ev, MDA(ev, tolerance=1e-13), derivatives=derivatives)
+    x = np.array([SELLAR_OPTIMUM[k] for k in form.var_names])
+    form.evaluate_batch(x[None, :])  # the point, evaluated while the discipline still answered
+    assert form.status(x)[0]
+    dying.left = 0  # from here on the discipline raises
+    fo = end_point_check(form, x, x + 0.1, TOL)
+    # the point stands (evaluated before); its derivatives failed (analytic partials evaluate it again, a
+    # stencil evaluates points around it): no derivative at all, nothing verified
+    assert fo["verdict"] == first_order.STOPPED and fo["unknown_derivatives"] == list(form.var_names)
+    assert "cannot be verified" in first_order.verdict_line(fo)
+
+
+def test_a_result_point_that_failed_is_infeasible_whatever_its_derivatives_say():
+    """The check's verdict at a point the disciplines failed at is infeasible, named as such, not a violation of 0."""
+    fo = first_order.check(np.zeros(2), -np.ones(2), np.ones(2), np.zeros(2), np.zeros(0), np.zeros((0, 2)),
+                           np.zeros(0), np.zeros((0, 2)), names=["a", "b"], ineq_labels=[], eq_labels=[],
+                           feasibility_tol=TOL, point_ok=False)
+    assert fo["verdict"] == first_order.INFEASIBLE and fo["point_failed"]
+    assert first_order.verdict_line(fo) == "infeasible (the point failed: the disciplines gave no value there)"
