@@ -49,6 +49,17 @@ def test_the_best_of_several_starts_and_how_many_reached_it():
     assert res.mda_evaluations >= sum(r["iterations"] for r in ms["results"])
 
 
+def test_starts_that_reached_an_optimum_of_zero_are_counted():
+    """Propane's optimum is 0: three starts ending at -4.4e-12, -6.3e-12 and 3.8e-12 were '1 of 3 reached the
+    best point', the tolerance being relative to the best objective alone (1e-6 x 6e-12)."""
+    config = example_config(Path(__file__).resolve().parents[2] / "examples" / "propane" / "propane_idf.yaml")
+    res = run_starts(config, InProcessEvaluator(resolve_disciplines(config)), 3, seed=0)
+    ms = res.multistart
+    ends = [r["objective"] for r in ms["results"] if r["feasible"]]
+    assert len(ends) == 3 and max(abs(f) for f in ends) < 1e-9  # every start at the optimum 0
+    assert ms["reached_best"] == 3
+
+
 def test_a_start_that_bought_objective_with_violation_does_not_stand_for_the_point_the_others_reached():
     """Model 3 RWD, 8 starts: seven converged to 119.6001708 Wh/km exactly on the acceleration limit; one
     stopped 0.0004 s past it (inside the tolerance) at 119.6000110 and was reported, '1 of 8 reached'."""
