@@ -4,7 +4,7 @@ Runs every vehicle of a fleet file (EPA Test Car List columns, default: the ship
 BEV training fleet) on UDDS and HWFET in one batch per cycle and prints predicted against
 measured wall energy per vehicle, then the mean, median, 90th-percentile and maximum absolute
 percentage error. Vehicles whose rated power cannot follow a cycle are listed as such and
-left out of the statistics; so are rows flagged as outliers in the file.
+left out of the statistics; so are rows flagged as outliers in the file (none left: refused, exit 2).
 ``--pairs`` adds the within-family pairs (bev_mdo/models/pairs.py): each pair's measured and
 predicted percentage difference per cycle, the slope of predicted on measured and the mean
 absolute difference against their targets. Every run puts the model beside two references on the
@@ -87,6 +87,10 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
     err = fl.abs_pct_errors(fleet, pred)
     out_rows = []
     scored = {c: pred[c]["follows"] & ~fleet.outlier for c in fl.CYCLES}
+    if not any(scored[c].any() for c in fl.CYCLES):  # as calibrate's 'no vehicle to fit'
+        follows_none = ~np.logical_or.reduce([pred[c]["follows"] for c in fl.CYCLES])
+        raise ValueError(f"{fleet.path}: no vehicle to score ({int(fleet.outlier.sum())} of {len(fleet)} flagged as "
+                         f"outliers, {int((follows_none & ~fleet.outlier).sum())} cannot follow UDDS or HWFET)")
     for i in range(len(fleet)):
         row = {"row": int(fleet.rows[i]), "make": fleet.make[i], "model": fleet.model[i],
                "test_mass_kg": float(fleet.test_mass_kg[i]), "rated_power_kw": float(fleet.rated_power_kw[i]),

@@ -110,6 +110,17 @@ def test_outlier_rows_are_not_scored(capsys, tmp_path):
     assert doc["rows"][2]["outlier"] is True and doc["stats"]["udds_hwfet"]["n"] == 122
 
 
+
+def test_a_fleet_with_every_row_flagged_is_refused_as_calibrate_refuses_it(capsys, tmp_path):
+    """Every row flagged as outlier: 'n=  0 mean |err| - %' on every line and exit 0 (calibrate: exit 2)."""
+    rows = _rows()[:6]
+    for r in rows[1:]:
+        r[rows[0].index("flag")] = "x"
+    p = _write(tmp_path, rows)
+    code, out, err = run(capsys, "--data", p)
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert f"{p}: no vehicle to score (5 of 5 flagged as outliers, 0 cannot follow UDDS or HWFET)" in err
+
 def _bad(tmp_path, edit):
     rows = _rows()
     edit(rows)
