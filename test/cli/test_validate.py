@@ -167,6 +167,10 @@ def _append_copy(row, change=None):
 @pytest.mark.parametrize("edit,expect", [
     (_drop("test_mass_kg"), "row 1: missing column test_mass_kg"),
     (_rename("test_mass_kg", "test_mass_lb"), "row 1, column test_mass_lb: unknown unit (expected column test_mass_kg)"),
+    # 'missing column udds_wh_per_km_ac' / 'missing column make' did not name the column given instead
+    (_rename("udds_wh_per_km_ac", "udds_wh_per_mi_ac"),
+     "row 1, column udds_wh_per_mi_ac: unknown column (expected column udds_wh_per_km_ac)"),
+    (_rename("make", "Make"), "row 1, column Make: unknown column (expected column make)"),
     (_set("road_load_a_n", "abc", 5), "row 6, column road_load_a_n: not a number: 'abc'"),
     (_set("test_mass_kg", "-2000", 2), "row 3, column test_mass_kg: must not be negative"),
     (_set("udds_wh_per_km_ac", "nan", 2), "row 3, column udds_wh_per_km_ac: must be finite"),
