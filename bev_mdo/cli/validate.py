@@ -224,7 +224,8 @@ def _f(x, nd=1):
 
 def print_table(report: dict) -> None:
     ps = f", parameter set {report['parameter_set']}" if report.get("parameter_set") else ""
-    print(f"{report['data']}: {report['vehicles']} vehicles, energy model {report['energy_model']}{ps}; "
+    n = report["vehicles"]
+    print(f"{report['data']}: {n} vehicle{'' if n == 1 else 's'}, energy model {report['energy_model']}{ps}; "
           f"Wh/km, {report['compared']}")
     print(f"{'row':>4} {'make':10} {'model':34} {'kg':>6} {'kW':>5} | {'UDDS meas':>9} {'pred':>7} {'err%':>6} | "
           f"{'HWFET meas':>10} {'pred':>7} {'err%':>6}")

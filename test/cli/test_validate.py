@@ -380,3 +380,11 @@ def test_a_fleet_without_technology_columns_is_noted_with_what_is_assumed(capsys
     err = capsys.readouterr().err
     assert err == (f"bev-mdo calibrate: note: {no_gears}: no technology column gear_count; assumed: one gear "
                    "(no two-speed loss)\n"), err
+
+
+def test_one_vehicle_is_one_vehicle(capsys, tmp_path):
+    """The table's first line said '1 vehicles'."""
+    code, out, _ = run(capsys, "--data", _write(tmp_path, _rows()[:2]))
+    assert code == 0 and ": 1 vehicle, energy model" in out.splitlines()[0]
+    code, out, _ = run(capsys, "--data", _write(tmp_path, _rows()[:3]))
+    assert code == 0 and ": 2 vehicles, energy model" in out.splitlines()[0]
