@@ -342,3 +342,20 @@ def test_a_config_files_paths_count_from_its_folder(tmp_path, monkeypatch):
     old["disciplines"][1]["options"]["cycle_weights"] = {"a.csv": 0.55, "b.csv": 0.45}
     (tmp_path / "logs" / "old.yaml").write_text(yaml.safe_dump(old))
     assert set(load_config(tmp_path / "logs" / "old.yaml")["cycle_traces"]) == {"a.csv", "b.csv"}
+
+
+def test_a_config_changed_by_the_command_line_names_its_file_in_an_error(capsys):
+    """`optimize FILE --optimizer differential_evolution` said '<config>: optimizer differential_evolution
+    needs finite bounds', where the same optimiser set in the file named the file."""
+    from bev_mdo.cli import main
+    from bev_mdo.config import RunConfig
+
+    path = str(ROOT.parent / "examples" / "sellar" / "sellar_idf.yaml")
+    config = RunConfig.load(path)
+    with pytest.raises(ValueError) as e:
+        config.with_sections(optimizer={**config["optimizer"], "name": "differential_evolution"})
+    assert str(e.value).startswith(f"{path}: optimizer differential_evolution needs finite bounds")
+    code = main(["optimize", path, "--optimizer", "differential_evolution", "--transport", "inprocess",
+                 "--no-record"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and f"error: {path}: optimizer differential_evolution" in err

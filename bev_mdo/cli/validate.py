@@ -4,7 +4,7 @@ Runs every vehicle of a fleet file (EPA Test Car List columns, default: the ship
 BEV training fleet) on UDDS and HWFET in one batch per cycle and prints predicted against
 measured wall energy per vehicle, then the mean, median, 90th-percentile and maximum absolute
 percentage error. Vehicles whose rated power cannot follow a cycle are listed as such and
-left out of the statistics; so are rows flagged as outliers in the file.
+left out of the statistics; so are rows flagged as outliers in the file (none left: refused, exit 2).
 ``--pairs`` adds the within-family pairs (bev_mdo/models/pairs.py): each pair's measured and
 predicted percentage difference per cycle, the slope of predicted on measured and the mean
 absolute difference against their targets. Every run puts the model beside two references on the
@@ -87,6 +87,10 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
     err = fl.abs_pct_errors(fleet, pred)
     out_rows = []
     scored = {c: pred[c]["follows"] & ~fleet.outlier for c in fl.CYCLES}
+    if not any(scored[c].any() for c in fl.CYCLES):  # as calibrate's 'no vehicle to fit'
+        follows_none = ~np.logical_or.reduce([pred[c]["follows"] for c in fl.CYCLES])
+        raise ValueError(f"{fleet.path}: no vehicle to score ({int(fleet.outlier.sum())} of {len(fleet)} flagged as "
+                         f"outliers, {int((follows_none & ~fleet.outlier).sum())} cannot follow UDDS or HWFET)")
     for i in range(len(fleet)):
         row = {"row": int(fleet.rows[i]), "make": fleet.make[i], "model": fleet.model[i],
                "test_mass_kg": float(fleet.test_mass_kg[i]), "rated_power_kw": float(fleet.rated_power_kw[i]),
@@ -220,7 +224,8 @@ def _f(x, nd=1):
 
 def print_table(report: dict) -> None:
     ps = f", parameter set {report['parameter_set']}" if report.get("parameter_set") else ""
-    print(f"{report['data']}: {report['vehicles']} vehicles, energy model {report['energy_model']}{ps}; "
+    n = report["vehicles"]
+    print(f"{report['data']}: {n} vehicle{'' if n == 1 else 's'}, energy model {report['energy_model']}{ps}; "
           f"Wh/km, {report['compared']}")
     print(f"{'row':>4} {'make':10} {'model':34} {'kg':>6} {'kW':>5} | {'UDDS meas':>9} {'pred':>7} {'err%':>6} | "
           f"{'HWFET meas':>10} {'pred':>7} {'err%':>6}")

@@ -47,9 +47,10 @@ class RunConfig(Mapping):
     disciplines: tuple
     ros: dict
     settings: RunSettings
+    source: str = "<config>"  # the file it was read from, which its errors name ('<config>': a mapping)
 
     @classmethod
-    def load(cls, source: str | Path | Mapping[str, Any], edit=None) -> "RunConfig":
+    def load(cls, source: str | Path | Mapping[str, Any], edit=None, where: str | None = None) -> "RunConfig":
         """Read and validate a run config: a YAML path, or an already-parsed mapping (a resolved
         one, e.g. read back from a bag, loads to the same config).
 
@@ -58,10 +59,10 @@ class RunConfig(Mapping):
         before Python's own path) becomes absolute: the config's own entries, then the config file's
         folder, then the working directory. A resolved config written elsewhere (a run's log folder,
         a bag) keeps them, so every process of a run resolves files and user modules the same way. ``edit(raw) -> raw`` changes the parsed mapping before it is checked
-        (command-line overrides).
+        (command-line overrides). ``where``: what its errors name for a mapping (default ``<config>``).
         """
         if isinstance(source, Mapping):
-            where, raw = "<config>", copy.deepcopy(dict(source))
+            where, raw = where or "<config>", copy.deepcopy(dict(source))
         else:
             where, raw = str(source), read_config_file(source)
         if edit is not None and isinstance(raw, Mapping):
@@ -69,7 +70,7 @@ class RunConfig(Mapping):
         try:
             if isinstance(raw, Mapping):
                 raw = {**raw, "search_path": search_path(raw.get("search_path"), None)}
-            return _resolve(raw)
+            return replace(_resolve(raw), source=where)
         except ValueError as exc:
             msg = str(exc).strip().splitlines()[0] if str(exc).strip() else "invalid config"
             raise ValueError(f"{where}: {msg}") from None
@@ -107,11 +108,11 @@ class RunConfig(Mapping):
 
         vehicle.update(values)  # validate_vehicle returns the numeric parameters; the choices are kept
         choices = {k: vehicle[k] for k in VEHICLE_CHOICES if k in vehicle}
-        return RunConfig.load({**self.data, "vehicle": {**validate_vehicle(vehicle), **choices}})
+        return RunConfig.load({**self.data, "vehicle": {**validate_vehicle(vehicle), **choices}}, where=self.source)
 
     def with_sections(self, **sections: Any) -> "RunConfig":
         """Another run config: this one's with whole sections replaced (``formulation="idf"``), loaded."""
-        return RunConfig.load({**self.data, **sections})
+        return RunConfig.load({**self.data, **sections}, where=self.source)
 
     def with_run_key(self, directory: Path) -> "RunConfig":
         """The same run signed with a fresh per-run key (``protocol.signing.with_run_key``), unless its

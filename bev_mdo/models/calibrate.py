@@ -390,6 +390,10 @@ def run(args) -> int:
         cycles = fl.resampled_cycles()
         use = usable(fleet, cycles)
         f = fit(fleet, cycles=cycles, use=use, model=model)
+        if f["n_residuals"] <= int(f["determined"].sum()):  # no residual degree of freedom: no standard errors
+            raise ValueError(f"{fleet.path}: {f['n_residuals']} measured values for {int(f['determined'].sum())} "
+                             "fitted parameters: the fit would pass through the data with unknown standard errors "
+                             "(give more vehicles)")
     except ValueError as exc:
         print(f"bev-mdo calibrate: error: {exc}", file=sys.stderr)
         return 2
@@ -405,9 +409,6 @@ def run(args) -> int:
         print(f"{k:32s} " + (f"{_to_its_error(v, s):>12s} +- {s:.3g}" if d else f"{v:12.6g} " + (
             f"at its {b} bound (the data press it there)" if b else
             "not determined: no vehicle of the data moves it (left at the model's default)")))
-    if f["n_residuals"] <= int(f["determined"].sum()):
-        print(f"warning: {f['n_residuals']} measured values for {int(f['determined'].sum())} fitted parameters: "
-              "the fit passes through the data and its standard errors are unknown", file=sys.stderr)
     by_family = (_cv_mape(f"CV by family (k={cv['k']})", cv) if cv else
                  "no CV by family (one model family: nothing to hold out)")
     by_make = _cv_mape("leave-one-make-out", cv_make) if cv_make else "no leave-one-make-out CV (one make)"

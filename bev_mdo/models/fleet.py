@@ -16,6 +16,7 @@ off by 2x moves a motor's torque and regeneration limits, so a fleet-wide value 
 """
 from __future__ import annotations
 
+import difflib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -185,6 +186,11 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
                      h.split("_")[:-1] == name.split("_")[:-1]]
             if other:
                 raise ValueError(f"{path}: row 1, column {other[0]}: unknown unit (expected column {name})")
+            known = {*NUMERIC, *TEXT, *OPTIONAL_TEXT, *TECHNOLOGY}  # the nearest column no one reads: a typo or
+            unread = [h for h in header if h not in known]  # another case or unit ('Make', 'udds_wh_per_mi_ac')
+            near = [h for h in unread if h.lower() == name] or difflib.get_close_matches(name, unread, n=1, cutoff=0.8)
+            if near:
+                raise ValueError(f"{path}: row 1, column {near[0]}: unknown column (expected column {name})")
             raise ValueError(f"{path}: row 1: missing column {name}")
     data = {k: [] for k in NUMERIC}
     text = {k: [] for k in TEXT + OPTIONAL_TEXT}

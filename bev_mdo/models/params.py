@@ -291,9 +291,14 @@ def _set_model(doc: dict, path: Path, own: bool) -> str:
     return model
 
 
+# the top-level keys of a parameter set (what ``bev-mdo calibrate`` writes; only 'parameters' is applied)
+PARAMETER_SET_KEYS = ("name", "energy_model", "description", "fitted_on", "fit", "fixed_not_fitted", "quality",
+                      "parameters")
+
+
 def _read_parameter_set(name: str) -> tuple[dict[str, float], str]:
     """(the set's parameters, the energy model it is for: ``_set_model``)."""
-    import yaml
+    from bev_mdo.yamlload import read_yaml_file
 
     if not isinstance(name, str) or not name:
         raise ValueError(f"parameter_set must be one of {parameter_set_names()} or a .yaml path, got {name!r}")
@@ -308,18 +313,18 @@ def _read_parameter_set(name: str) -> tuple[dict[str, float], str]:
         if not path.is_file():
             raise ValueError(f"parameter_set {name!r} is unknown; shipped: {parameter_set_names()} "
                              "(or give a .yaml path)")
-    try:
-        doc = yaml.load(path.read_text(encoding="utf-8"),
-                        Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: ~30x faster
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: not a YAML parameter set ({type(exc).__name__})") from None
-    values = doc.get("parameters") if isinstance(doc, dict) else None
-    if not isinstance(values, dict):
-        raise ValueError(f"{path}: no 'parameters' mapping")
-    specs = all_specs()
-    unknown = sorted(str(k) for k in values if k not in specs)
-    if unknown:  # a misspelt name would otherwise do nothing, silently
-        raise ValueError(f"{path}: unknown parameter(s) {unknown}")
+    doc = read_yaml_file(path)  # one-line errors naming the file; a key given twice is refused, not the last kept
+    if not isinstance(doc, dict):
+        raise ValueError(f"{path}: not a YAML parameter set (a mapping with 'parameters')")
+    try:  # a misspelt section or parameter would otherwise do nothing, silently
+        check_keys("", doc, PARAMETER_SET_KEYS)
+        values = doc.get("parameters")
+        if not isinstance(values, dict):
+            raise ValueError("no 'parameters' mapping")
+        specs = all_specs()
+        check_keys("parameters", values, specs)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
     out = {}
     for k, v in values.items():  # each in its range, as a config's vehicle section (validate took 0.1 and 1.9)
         s = specs[k]

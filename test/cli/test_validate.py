@@ -110,6 +110,17 @@ def test_outlier_rows_are_not_scored(capsys, tmp_path):
     assert doc["rows"][2]["outlier"] is True and doc["stats"]["udds_hwfet"]["n"] == 122
 
 
+
+def test_a_fleet_with_every_row_flagged_is_refused_as_calibrate_refuses_it(capsys, tmp_path):
+    """Every row flagged as outlier: 'n=  0 mean |err| - %' on every line and exit 0 (calibrate: exit 2)."""
+    rows = _rows()[:6]
+    for r in rows[1:]:
+        r[rows[0].index("flag")] = "x"
+    p = _write(tmp_path, rows)
+    code, out, err = run(capsys, "--data", p)
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert f"{p}: no vehicle to score (5 of 5 flagged as outliers, 0 cannot follow UDDS or HWFET)" in err
+
 def _bad(tmp_path, edit):
     rows = _rows()
     edit(rows)
@@ -156,6 +167,10 @@ def _append_copy(row, change=None):
 @pytest.mark.parametrize("edit,expect", [
     (_drop("test_mass_kg"), "row 1: missing column test_mass_kg"),
     (_rename("test_mass_kg", "test_mass_lb"), "row 1, column test_mass_lb: unknown unit (expected column test_mass_kg)"),
+    # 'missing column udds_wh_per_km_ac' / 'missing column make' did not name the column given instead
+    (_rename("udds_wh_per_km_ac", "udds_wh_per_mi_ac"),
+     "row 1, column udds_wh_per_mi_ac: unknown column (expected column udds_wh_per_km_ac)"),
+    (_rename("make", "Make"), "row 1, column Make: unknown column (expected column make)"),
     (_set("road_load_a_n", "abc", 5), "row 6, column road_load_a_n: not a number: 'abc'"),
     (_set("test_mass_kg", "-2000", 2), "row 3, column test_mass_kg: must not be negative"),
     (_set("udds_wh_per_km_ac", "nan", 2), "row 3, column udds_wh_per_km_ac: must be finite"),
@@ -365,3 +380,11 @@ def test_a_fleet_without_technology_columns_is_noted_with_what_is_assumed(capsys
     err = capsys.readouterr().err
     assert err == (f"bev-mdo calibrate: note: {no_gears}: no technology column gear_count; assumed: one gear "
                    "(no two-speed loss)\n"), err
+
+
+def test_one_vehicle_is_one_vehicle(capsys, tmp_path):
+    """The table's first line said '1 vehicles'."""
+    code, out, _ = run(capsys, "--data", _write(tmp_path, _rows()[:2]))
+    assert code == 0 and ": 1 vehicle, energy model" in out.splitlines()[0]
+    code, out, _ = run(capsys, "--data", _write(tmp_path, _rows()[:3]))
+    assert code == 0 and ": 2 vehicles, energy model" in out.splitlines()[0]

@@ -171,6 +171,19 @@ def test_bev_mdo_calibrate_fits_the_quasi_static_loss_model_and_writes_its_prove
     assert validate_vehicle({"parameter_set": str(out)})["motor_loss_model"] == 1.0
 
 
+@pytest.mark.parametrize("model", ["quasi_static", "chain"])
+def test_fewer_measured_values_than_fitted_parameters_are_refused_and_nothing_is_written(tmp_path, capsys, model):
+    """One vehicle (2 measured values, 3 fitted quasi_static parameters): a warning, '+- nan' printed,
+    'std_error: .nan' written and exit 0; validate and a config then took the set silently."""
+    one = _fleet(tmp_path, lambda r: r[2] == "FK96502" and r[3] == "0", "one.csv")
+    out = tmp_path / "one.yaml"
+    assert bev_mdo(["calibrate", "--model", model, "--data", str(one), "--write", str(out)]) == 2
+    captured = capsys.readouterr()
+    assert captured.err.count("\n") == 1 and captured.err.startswith("bev-mdo calibrate: error: ")
+    assert "2 measured values for" in captured.err and "standard errors" in captured.err
+    assert "nan" not in captured.out and not out.exists()
+
+
 def test_a_parameter_no_vehicle_moves_is_said_not_determined_and_the_others_keep_their_errors(tmp_path, capsys):
     """A fleet with no two-speed car: the two-speed loss has a zero column in the Jacobian, J^T J was
     singular and every parameter was printed and written '+- nan'."""

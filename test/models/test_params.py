@@ -177,3 +177,26 @@ def test_a_parameter_set_file_must_name_the_energy_model_it_is_for(tmp_path):
         assert doc.get("energy_model") == model and load_parameter_set(name) == doc["parameters"]
         others = [m for m in ("flat", "breakdown", "quasi_static", "chain") if m != model]
         assert all(fitted_for_another_model(name, m) == model for m in others)
+
+
+@pytest.mark.parametrize("text, said", [
+    ("name: mine\nenergy_model: quasi_static\nparameters:\n  charger_efficiency: 0.9\n  charger_efficiency: 0.5\n",
+     "not valid YAML at line 5: duplicate key 'charger_efficiency'"),
+    ("name: mine\nenergy_model: quasi_static\ncolour: red\nparameters:\n  charger_efficiency: 0.9\n",
+     "colour: unknown key; known: description, energy_model, fit, fitted_on, fixed_not_fitted, name, parameters, "
+     "quality"),
+    ("name: mine\nenergy_model: quasi_static\nparameters:\n  charger_efficency: 0.9\n",
+     "parameters.charger_efficency: unknown key; did you mean 'charger_efficiency'? known: "),
+])
+def test_a_parameter_set_file_refuses_a_key_twice_an_unknown_section_and_names_the_nearest_parameter(
+        tmp_path, text, said):
+    """The last of two charger_efficiency values was kept and an unknown top-level key ignored, without a
+    word; a misspelt parameter was 'unknown parameter(s)' with no hint. As a config: refused, one line."""
+    from bev_mdo.models.params import load_parameter_set
+
+    path = tmp_path / "mine.yaml"
+    path.write_text(text)
+    for use in (lambda: load_parameter_set(str(path)), lambda: validate_vehicle({"parameter_set": str(path)})):
+        with pytest.raises(ValueError) as e:
+            use()
+        assert str(e.value).startswith(f"{path}: {said}") and "\n" not in str(e.value)
