@@ -115,7 +115,7 @@ def test_a_parameter_set_of_your_own_is_named_by_its_path(tmp_path, monkeypatch)
     with pytest.raises(ValueError, match="'nope.yaml': no such file"):
         load_parameter_set("nope.yaml")
     (tmp_path / "typo.yml").write_text("energy_model: chain\nparameters: {charger_eficiency: 0.9}\n")
-    with pytest.raises(ValueError, match=r"typo.yml: unknown parameter\(s\) \['charger_eficiency'\]"):
+    with pytest.raises(ValueError, match=r"typo.yml: parameters.charger_eficiency: unknown key; did you mean 'charger_efficiency'\?"):
         load_parameter_set("typo.yml")
     (tmp_path / "text.yaml").write_text("energy_model: chain\nparameters: {charger_efficiency: high}\n")
     with pytest.raises(ValueError, match="parameters.charger_efficiency must be a number"):
