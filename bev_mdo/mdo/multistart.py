@@ -25,6 +25,7 @@ from scipy.stats import qmc
 
 from bev_mdo.mdo.driver import Run, RunResult, run_optimization
 from bev_mdo.mdo.evaluator import Evaluator
+from bev_mdo.mdo.first_order import OPTIMUM
 from bev_mdo.mdo.lockstep import run_lockstep
 from bev_mdo.mdo.optimizers import ONE_AT_A_TIME, canonical_name
 from bev_mdo.mdo.problem import Problem
@@ -114,10 +115,11 @@ def run_starts(run: Run, evaluator: Evaluator, starts: int | list[dict[str, floa
 def _best_start(results: list[RunResult], sign: float, span: np.ndarray, names: list[str],
                 design_tol: float) -> int:
     """The start whose result is the run's: the best feasible objective; where several starts reached that
-    point (each design variable within ``design_tol`` of its range), the least violated of them. One that
-    stopped inside the feasibility tolerance but past an active constraint buys a little objective with its
-    violation and does not stand for the point the others reached exactly (driver.pick_result's rule
-    within one run). With no feasible result, the best objective of all."""
+    point (each design variable within ``design_tol`` of its range), one whose first-order check verified
+    the optimum before one that stopped short of it, then the least violated. One that stopped inside the
+    feasibility tolerance but past an active constraint buys a little objective with its violation and
+    does not stand for the point the others reached exactly (driver.pick_result's rule within one run).
+    With no feasible result, the best objective of all."""
     def objective(i: int) -> tuple[float, int]:  # a failed end (NaN) last
         f = sign * results[i].objective
         return (f if f == f else float("inf")), i
@@ -127,7 +129,7 @@ def _best_start(results: list[RunResult], sign: float, span: np.ndarray, names: 
     if not feasible:
         return best
     same = [i for i in feasible if _same_point(results[i], results[best], names, span, design_tol)]
-    return min(same, key=lambda i: (results[i].max_violation, *objective(i)))
+    return min(same, key=lambda i: (results[i].verdict != OPTIMUM, results[i].max_violation, *objective(i)))
 
 
 def _same_point(a: RunResult, b: RunResult, names: list[str], span: np.ndarray, design_tol: float) -> bool:

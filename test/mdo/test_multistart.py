@@ -68,16 +68,37 @@ def test_a_start_that_bought_objective_with_violation_does_not_stand_for_the_poi
     from bev_mdo.mdo.multistart import _best_start
 
     span, names = np.array([100.0, 7.0]), ["motor_kw", "gear_ratio"]
-    exact = R(objective=119.6001708, feasible=True, max_violation=0.0, design={"motor_kw": 139.921, "gear_ratio": 12.0})
-    past = R(objective=119.6000110, feasible=True, max_violation=6.5e-5,
+    exact = R(objective=119.6001708, feasible=True, max_violation=0.0, verdict="optimum",
+              design={"motor_kw": 139.921, "gear_ratio": 12.0})
+    past = R(objective=119.6000110, feasible=True, max_violation=6.5e-5, verdict="optimum",
              design={"motor_kw": 139.912, "gear_ratio": 12.0})
     assert _best_start([past, exact, exact], 1.0, span, names, 1e-3) == 1
     # a better point elsewhere still wins, violated or not (another local optimum, not the same point)
-    other = R(objective=110.0, feasible=True, max_violation=5e-5, design={"motor_kw": 120.0, "gear_ratio": 9.0})
+    other = R(objective=110.0, feasible=True, max_violation=5e-5, verdict="optimum",
+              design={"motor_kw": 120.0, "gear_ratio": 9.0})
     assert _best_start([past, exact, other], 1.0, span, names, 1e-3) == 2
-    infeasible = R(objective=100.0, feasible=False, max_violation=1.0, design={"motor_kw": 100.0, "gear_ratio": 5.0})
+    infeasible = R(objective=100.0, feasible=False, max_violation=1.0, verdict="infeasible",
+                   design={"motor_kw": 100.0, "gear_ratio": 5.0})
     assert _best_start([infeasible, past], 1.0, span, names, 1e-3) == 1
     assert _best_start([infeasible], 1.0, span, names, 1e-3) == 0
+
+
+def test_of_starts_at_one_point_a_verified_optimum_stands_for_it_before_a_less_violated_one_that_stopped_short():
+    """SSBJ, COBYQA, 4 starts: the reported start had stopped before convergence (its first-order check not
+    met) at 1.6e-6 below the range another start had verified as optimum at the same point."""
+    from types import SimpleNamespace as R
+
+    from bev_mdo.mdo.multistart import _best_start
+
+    span, names = np.array([1.0, 1.0]), ["x", "y"]
+    verified = R(objective=3963.380, feasible=True, max_violation=3e-9, verdict="optimum", design={"x": 0.5, "y": 0.5})
+    short = R(objective=3963.374, feasible=True, max_violation=0.0, verdict="stopped before convergence",
+              design={"x": 0.5001, "y": 0.5})
+    assert _best_start([short, verified], -1.0, span, names, 1e-3) == 1  # maximising range
+    assert _best_start([verified, short], -1.0, span, names, 1e-3) == 0
+    # with no verified start at the point, the least violated as before
+    assert _best_start([short, R(**{**vars(verified), "verdict": "stopped before convergence"})], -1.0, span,
+                       names, 1e-3) == 0
 
 
 def test_cobyqa_starts_run_one_after_another_instead_of_waiting_for_each_other():
