@@ -7,6 +7,8 @@ battery constants and the cycle interpolation names, two leaf modules).
 """
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
@@ -296,6 +298,16 @@ PARAMETER_SET_KEYS = ("name", "energy_model", "description", "fitted_on", "fit",
                       "parameters")
 
 
+def _check_fit(fit: Any) -> None:
+    """A fitted value whose standard error is not a number was not determined by the data (calibrate then
+    kept its start value; it now writes the model's default with ``not_determined``): refused, not applied."""
+    for k, entry in (fit or {}).items() if isinstance(fit, dict) else ():
+        se = entry.get("std_error") if isinstance(entry, dict) else None
+        if se is not None and not (isinstance(se, (int, float)) and math.isfinite(se)):
+            raise ValueError(f"fit.{k}: std_error {se!r}: the data did not determine this value; refit with "
+                             "bev-mdo calibrate (it writes the model's default there) or set it yourself")
+
+
 def _read_parameter_set(name: str) -> tuple[dict[str, float], str]:
     """(the set's parameters, the energy model it is for: ``_set_model``)."""
     from bev_mdo.yamlload import read_yaml_file
@@ -323,6 +335,7 @@ def _read_parameter_set(name: str) -> tuple[dict[str, float], str]:
             raise ValueError("no 'parameters' mapping")
         specs = all_specs()
         check_keys("parameters", values, specs)
+        _check_fit(doc.get("fit"))
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
     out = {}

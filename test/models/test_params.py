@@ -180,6 +180,9 @@ def test_a_parameter_set_file_must_name_the_energy_model_it_is_for(tmp_path):
 
 
 @pytest.mark.parametrize("text, said", [
+    ("name: mine\nenergy_model: quasi_static\nfit:\n  two_speed_efficiency_loss: {value: 0.2, std_error: .nan}\n"
+     "parameters:\n  charger_efficiency: 0.9\n",  # an older calibrate kept an undetermined start value
+     "fit.two_speed_efficiency_loss: std_error nan: the data did not determine this value; refit with bev-mdo calibrate"),
     ("name: mine\nenergy_model: quasi_static\nparameters:\n  charger_efficiency: 0.9\n  charger_efficiency: 0.5\n",
      "not valid YAML at line 5: duplicate key 'charger_efficiency'"),
     ("name: mine\nenergy_model: quasi_static\ncolour: red\nparameters:\n  charger_efficiency: 0.9\n",
