@@ -79,15 +79,21 @@ def ceilings(config) -> dict[str, tuple[float, str]]:
     return {o: c for d in RunConfig.of(config).disciplines for o, c in (getattr(d, "upper_limit_below", None) or {}).items()}
 
 
+def at_ceiling(ceiling_map: dict, outputs: dict) -> dict[str, tuple[int, int, float, str]]:
+    """{output: (values at or above its ceiling, values, ceiling, meaning)} for each output of a batch with
+    any (``ceiling_map``: ``ceilings``)."""
+    counts = {}
+    for name, (ceiling, meaning) in ceiling_map.items():
+        y = np.atleast_1d(np.asarray(outputs.get(name, []), dtype=float))
+        if (k := int(np.sum(y >= ceiling))):
+            counts[name] = (k, y.size, ceiling, meaning)
+    return counts
+
+
 def ceiling_notes(config, outputs: dict, of: str = "designs") -> list[str]:
     """One line per output of a batch with values at or above its ceiling (``ceilings``): how many."""
-    notes = []
-    for name, (ceiling, meaning) in ceilings(config).items():
-        y = np.atleast_1d(np.asarray(outputs.get(name, []), dtype=float))
-        k = int(np.sum(y >= ceiling))
-        if k:
-            notes.append(f"{name}: {k} of {y.size} {of} at or above {ceiling:g} ({meaning}): not values of the quantity")
-    return notes
+    return [f"{name}: {k} of {n} {of} at or above {ceiling:g} ({meaning}): not values of the quantity"
+            for name, (k, n, ceiling, meaning) in at_ceiling(ceilings(config), outputs).items()]
 
 
 def refuse_outside_model_limits(config, values) -> None:

@@ -163,6 +163,9 @@ def analyse(method: str, fun, point: dict, bounds: dict[str, tuple[float, float]
     for j, k in enumerate(names):
         full[:, cols.index(k)] = X[:, j]
     values = fun(full)
+    from bev_mdo.api.evaluate import at_ceiling
+
+    over = at_ceiling(ceilings or {}, values)
     report = {"method": method, "variables": list(names), "bounds": {k: list(bounds[k]) for k in names},
               "fixed": {k: float(point[k]) for k in (design if design is not None else point) if k not in names},
               "samples": samples, "seed": seed,
@@ -172,8 +175,7 @@ def analyse(method: str, fun, point: dict, bounds: dict[str, tuple[float, float]
         if not np.isfinite(y).all() or np.ptp(y) == 0.0:
             report["outputs"][out] = {"constant": True}
             continue
-        ceiling, meaning = (ceilings or {}).get(out, (np.inf, ""))
-        at = int(np.sum(y >= ceiling))
+        at, _, ceiling, meaning = over.get(out, (0, 0, np.inf, ""))
         if at:
             report.setdefault("notes", []).append(
                 f"{out}: {at} of {y.size} samples at or above {ceiling:g} ({meaning}); its indices describe "
