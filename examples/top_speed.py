@@ -3,6 +3,8 @@
 Top speed on a flat road: the speed at which the motor's peak power at the wheels
 equals the road load, capped by the motor's maximum speed through the gear.
     P_max * eta_g = (0.5 * rho * CdA * v^2 + Cr * M * g) * v,   v <= omega_max * r_w / i_g
+With a coast-down in the config (``vehicle.road_load``) the road load is that one, A + B v + C v^2,
+as the built-in models take it (bev_mdo.models.road_load).
 Use it from a config:
     disciplines:
       - vehicle_mass
@@ -18,6 +20,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from bev_mdo.models.params import validate_road_load
+from bev_mdo.models.road_load import coefficients
 
 
 class TopSpeed:
@@ -35,12 +40,14 @@ class TopSpeed:
                          "gear_efficiency", "wheel_radius_m")
 
     def __init__(self, drag_area_m2=0.6412, rolling_resistance=0.007, air_density_kg_m3=1.25,
-                 gravity_m_s2=9.81, gear_efficiency=0.97, wheel_radius_m=0.316, motor_max_speed_rad_s=1100.0):
+                 gravity_m_s2=9.81, gear_efficiency=0.97, wheel_radius_m=0.316, motor_max_speed_rad_s=1100.0,
+                 road_load=None):
         if motor_max_speed_rad_s <= 0:
             raise ValueError(f"motor_max_speed_rad_s must be > 0, got {motor_max_speed_rad_s}")
         self.parameters = {"drag_area_m2": drag_area_m2, "rolling_resistance": rolling_resistance,
                            "air_density_kg_m3": air_density_kg_m3, "gravity_m_s2": gravity_m_s2,
-                           "gear_efficiency": gear_efficiency, "wheel_radius_m": wheel_radius_m}
+                           "gear_efficiency": gear_efficiency, "wheel_radius_m": wheel_radius_m,
+                           **(validate_road_load(road_load) if road_load else {})}  # road_load_a_n, ...
         self.omega_max = motor_max_speed_rad_s
 
     @dataclass(frozen=True)
@@ -53,16 +60,19 @@ class TopSpeed:
     def from_config(cls, config, options):
         """Take the vehicle constants from the run config, the motor's speed limit from the options."""
         v = config.get("vehicle", {})
-        return cls(**{k: v[k] for k in cls.VEHICLE_CONSTANTS if k in v},
+        return cls(**{k: v[k] for k in (*cls.VEHICLE_CONSTANTS, "road_load") if k in v},
                    motor_max_speed_rad_s=options.motor_max_speed_rad_s)
 
     def compute(self, inputs):
         p = {k: inputs.get(k, value) for k, value in self.parameters.items()}  # a per-point override wins
-        a = 0.5 * p["air_density_kg_m3"] * p["drag_area_m2"]
-        b = p["rolling_resistance"] * p["gravity_m_s2"] * inputs["vehicle_mass_kg"]
+        a0, a1, b, c = coefficients(p)                # road load F = a0 + a1 M + b v + c v^2 (N)
+        f0 = a0 + a1 * inputs["vehicle_mass_kg"]
         p_w = inputs["motor_kw"] * 1e3 * p["gear_efficiency"]
-        v = np.cbrt(p_w / a)                          # upper bound: aerodynamic load alone
-        for _ in range(30):                           # Newton on a v^3 + b v - P = 0 (monotonic)
-            v = v - (a * v**3 + b * v - p_w) / (3 * a * v**2 + b)
+        lo, hi = np.zeros_like(p_w), np.cbrt(p_w / c) + np.abs(b) / c + 1.0  # F(hi) hi > P_w
+        for _ in range(60):                           # bisection on F(v) v = P_w
+            v = 0.5 * (lo + hi)
+            above = (f0 + b * v + c * v * v) * v > p_w
+            lo, hi = np.where(above, lo, v), np.where(above, v, hi)
+        v = 0.5 * (lo + hi)
         v_gear = self.omega_max * p["wheel_radius_m"] / inputs["gear_ratio"]
         return {"top_speed_kmh": np.minimum(v, v_gear) * 3.6}

@@ -34,3 +34,22 @@ def test_the_top_speeds_sensitivity_to_the_wheel_radius_is_one_where_the_gear_li
     assert s["wrt"] == ["wheel_radius_m", "drag_area_m2"]
     # normalised (r/v) dv/dr of v = omega_max r / i_g is 1 (the example gave 0); the power balance does not bind
     assert s["first_order"]["top_speed_kmh"]["normalised"] == pytest.approx([1.0, 0.0], abs=1e-6)
+
+
+def test_with_a_coast_down_the_top_speed_balances_that_road_load():
+    """The example ignored `vehicle.road_load` and balanced the power against the thesis' drag and rolling
+    terms, while every built-in model of the run took the coast-down: two road loads in one vehicle."""
+    from scipy.optimize import brentq
+
+    config = yaml.safe_load((REPO / "config" / "leaf_epa_combined.yaml").read_text(encoding="utf-8"))
+    config["disciplines"] += [{"name": "top_speed", "class": "examples.top_speed:TopSpeed",
+                               "options": {"motor_max_speed_rad_s": 5000}}]  # power-limited, not the gear
+    config["search_path"] = [str(REPO)]
+    r = Study(config).sweep(designs={"motor_kw": [40.0, 80.0], "gear_ratio": [2.0, 2.0]}, transport="inprocess")
+    assert r.ok.all()
+    rl = config["vehicle"]["road_load"]
+    for kw, mass, v_kmh in zip([40.0, 80.0], r.outputs["vehicle_mass_kg"], r.outputs["top_speed_kmh"]):
+        force = rl["a_n"] * mass / rl["mass_kg"]  # A scales with the mass (road_load.py)
+        v = brentq(lambda v: (force + rl["b_n_per_m_s"] * v + rl["c_n_per_m2_s2"] * v * v) * v - kw * 1e3 * 0.97,
+                   1.0, 200.0, xtol=1e-12)
+        assert v_kmh == pytest.approx(v * 3.6, rel=1e-9)
