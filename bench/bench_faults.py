@@ -222,6 +222,7 @@ def main() -> int:
         tmp = Path(d)
         key = tmp / "bench.key"
         key.write_text(secrets.token_hex(32))
+        key.chmod(0o600)  # a key file others may read is refused (protocol.signing.read_key)
         (tmp / "logs").mkdir()
         results = {"sign_verify_cpu": bench_sign(args.n), **bench_local(tmp, args.n, key),
                    "cross_namespace": bench_netns(tmp, args.n)}

@@ -306,6 +306,7 @@ def test_a_config_files_paths_count_from_its_folder(tmp_path, monkeypatch):
     (proj / "mine.yaml").write_text(yaml.safe_dump({"name": "mine", "energy_model": "quasi_static", "parameters": {
         **load_parameter_set("epa2022_quasi_static"), "charger_efficiency": 0.91}}))
     (proj / "team.key").write_text("0123456789abcdef0123456789abcdef")
+    (proj / "team.key").chmod(0o600)
     raw = yaml.safe_load((ROOT.parent / "config" / "leaf_epa_combined.yaml").read_text())
     raw["cycle"]["name"] = "cycles/a.csv"
     raw["disciplines"][1]["options"] = {"cycle_weights": {"cycles/a.csv": 0.55, "b.csv": 0.45}}

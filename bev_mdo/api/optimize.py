@@ -197,7 +197,7 @@ def _starts(opts, x0) -> int | list:
 
 
 def exit_status(doc: dict, fixed_budget: bool = False) -> int:
-    """bev-mdo optimize's exit status of a run document: 0 an optimum (or, with ``fixed_budget``,
+    """bev-mdo optimize's exit status of a run document (a hand-started coordinator_node's too): 0 an optimum (or, with ``fixed_budget``,
     any feasible end); 1 infeasible; 3 the recorder failed; 4 a discipline stopped answering;
     5 feasible but not a verified optimum."""
     if doc.get("recorder_failed"):

@@ -63,9 +63,14 @@ class Transport:
     def refuse_attach(self, command: str) -> None:
         """InputError for a command that must start its own nodes (a run bound to its recorder and key)."""
         if self.uses_ros and self.attach:
-            raise InputError(f"{command} --attach: {command} runs its own discipline nodes, bound to its run and "
-                             "recorder; --attach is for evaluate, sweep, compare, sensitivity and check-totals (an "
-                             "optimisation over nodes you started: ros2 run bev_mdo coordinator_node, docs/ros2-run.md)")
+            raise InputError(attach_refused(command))
+
+
+def attach_refused(command: str) -> str:
+    """The line refusing ``--attach`` to a command that starts its own nodes (optimize, resume, pareto)."""
+    return (f"{command} --attach: {command} runs its own discipline nodes, bound to its run and recorder (drop "
+            "--attach); --attach is for evaluate, sweep, compare, sensitivity and check-totals (an optimisation "
+            "over nodes you started: ros2 run bev_mdo coordinator_node, docs/ros2-run.md)")
 
 
 def ros_section(config: Mapping[str, Any], args) -> dict:

@@ -24,8 +24,15 @@ def add_transport_arguments(parser, attach: bool = True) -> None:
     """The transport flags of every command that evaluates designs (optimize, resume, evaluate, sweep,
     compare, sensitivity, check-totals, pareto), with the discovery flags; their meaning and their one
     default: bev_mdo.api.transport.Transport. ``attach=False``: a command that always starts its own
-    nodes (optimize, resume, pareto: bound to their run and recorder) does not offer ``--attach``."""
-    from bev_mdo.api.transport import DEFAULT_TRANSPORT, TRANSPORTS
+    nodes (optimize, resume, pareto: bound to their run and recorder) does not offer ``--attach`` and
+    refuses it at once with one line saying why (not argparse's 'unrecognized arguments')."""
+    import argparse
+
+    from bev_mdo.api.transport import DEFAULT_TRANSPORT, TRANSPORTS, attach_refused
+
+    class RefuseAttach(argparse.Action):
+        def __call__(self, parser, namespace, values, option_string=None):
+            parser.exit(2, f"{parser.prog}: error: {attach_refused(parser.prog.split()[-1])}\n")
 
     g = parser.add_argument_group("transport")
     g.add_argument("--transport", choices=TRANSPORTS, default=DEFAULT_TRANSPORT,
@@ -36,6 +43,9 @@ def add_transport_arguments(parser, attach: bool = True) -> None:
         g.add_argument("--attach", action="store_true",
                        help="ROS: use the discipline nodes already running on the domain (ros2 run, bev-mdo node) "
                             "instead of starting this command's own")
+    else:
+        g.add_argument("--attach", nargs=0, action=RefuseAttach, dest="refused", default=argparse.SUPPRESS,
+                       help=argparse.SUPPRESS)
     add_ros_arguments(parser)
 
 

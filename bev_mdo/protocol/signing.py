@@ -67,12 +67,17 @@ def new_key_file(directory: str | os.PathLike, name: str = "sign.key") -> str:
 
 def read_key(path: str | os.PathLike, given_as: str = "ros.sign_key_file") -> bytes:
     """The shared key: the file's bytes without surrounding whitespace (>= 16 bytes). AuthError names the file
-    as the user gave it, ``given_as`` (the config key, or a flag such as ``--key-file``)."""
+    as the user gave it, ``given_as`` (the config key, or a flag such as ``--key-file``); as ssh does with a
+    private key, a file that group or others may read is refused (with the chmod that fixes it)."""
     p = Path(path)
     try:
-        key = p.read_bytes().strip()
+        with open(p, "rb") as f:
+            mode = os.fstat(f.fileno()).st_mode & 0o777
+            key = f.read().strip()
     except OSError as exc:
         raise AuthError(f"{given_as} {str(p)!r}: cannot read ({exc.strerror})") from None
+    if mode & 0o044:
+        raise AuthError(f"{given_as} {str(p)!r}: mode {mode:04o} lets other users read the key; run: chmod 600 {p}")
     if len(key) < MIN_KEY_BYTES:
         raise AuthError(f"{given_as} {str(p)!r}: key shorter than {MIN_KEY_BYTES} bytes")
     return key

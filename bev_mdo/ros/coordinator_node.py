@@ -189,10 +189,9 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
         else:
             result = run_optimization(config.settings, node.evaluator, formulation=formulation,
                                       optimizer=optimizer, x0=x0, callback=callback)
-        t_optimised = time.monotonic()
         stats = {"run_id": node.run_id, "dropped": dict(node.evaluator.dropped), "retried": node.evaluator.retried,
                  "data_flow_mdas": node.evaluator.flows, "refused_instances": dict(node.evaluator.refused),
-                 "t_optimised": t_optimised, "discipline_errors": dict(node.evaluator.first_errors),
+                 "t_optimised": time.monotonic(), "discipline_errors": dict(node.evaluator.first_errors),
                  "pools": node.evaluator.pool_summary(), "unresponsive": sorted(node.evaluator.unresponsive)}
         stats["all_acked"] = node.wait_for_all_acked(node.discovery_wait_s, give_up=give_up_acks)
         return result, stats
@@ -210,6 +209,7 @@ def main(args: list[str] | None = None) -> int:
     """`ros2 run bev_mdo coordinator_node --ros-args -p config:=... [-p formulation:=idf -p optimizer:=SLSQP]
     [-p recorders:=1 -p run_id:=RUN] [-p compose:=coordinator]` (with a recorder started on its own for
     the same run, ``recorder_node --run-id RUN``, wait for its declaration so the bag misses nothing; with compose:=coordinator the disciplines' nodes run in this process, composed.Beside)."""
+    from bev_mdo.api.optimize import exit_status
     from bev_mdo.config import RunConfig
     from bev_mdo.ros.paths import default_config
 
@@ -240,7 +240,7 @@ def main(args: list[str] | None = None) -> int:
                             on_iteration=lambda r: print(f"iter {r['iteration']:4d}  objective {r['objective']:.6g}"
                                                          f"  max violation {r.get('max_violation', 0):.3g}"))
         print(jsontext.dumps({"result": result.to_dict(), **stats}))  # strict JSON: NaN as null
-        return 0
+        return exit_status({**result.to_dict(), "unresponsive_disciplines": stats["unresponsive"]})  # optimize's
     except ValueError as exc:  # SIGINT, SIGTERM: raised on, ros/run.py says so in one line (exit 130, 143)
         print(f"coordinator_node: error: {exc}", file=sys.stderr)
         return STARTUP_GAVE_UP_STATUS if isinstance(exc, StartupGaveUp) else 2

@@ -20,6 +20,7 @@ def test_a_key_file_the_user_configured_is_kept(tmp_path):
     mine = tmp_path / "keys" / "team.key"
     mine.parent.mkdir()
     mine.write_text("0123456789abcdef0123456789abcdef")
+    mine.chmod(0o600)
     assert not is_per_run_key(str(mine))
     assert not is_per_run_key("")
     assert with_run_key({"ros": {"sign_key_file": str(mine)}}, tmp_path / "x")["ros"]["sign_key_file"] == str(mine)

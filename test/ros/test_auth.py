@@ -115,12 +115,28 @@ def test_result_fields_are_covered():
 def test_key_file_errors_never_show_the_key(tmp_path):
     short = tmp_path / "short.key"
     short.write_text("tooshort")
-    with pytest.raises(AuthError) as exc:
+    short.chmod(0o600)
+    with pytest.raises(AuthError, match="key shorter than") as exc:
         read_key(short)
     assert "tooshort" not in str(exc.value)
     with pytest.raises(AuthError, match="cannot read"):
         read_key(tmp_path / "absent.key")
     assert "KEY" not in repr(Signer(KEY.encode())) and KEY not in repr(Signer(KEY.encode()))
+
+
+@pytest.mark.parametrize("mode", [0o644, 0o640, 0o604])
+def test_a_key_file_others_may_read_is_refused_as_ssh_refuses_a_private_key(tmp_path, mode):
+    """A user trial: a key file of mode 0644 was used without a word; other users could sign as the run."""
+    key = tmp_path / "team.key"
+    key.write_text(KEY)
+    key.chmod(mode)
+    with pytest.raises(AuthError) as exc:
+        read_key(key, "--key-file")
+    assert str(exc.value) == (f"--key-file '{key}': mode {mode:04o} lets other users read the key; "
+                              f"run: chmod 600 {key}")
+    assert KEY not in str(exc.value)
+    key.chmod(0o600)
+    assert read_key(key) == KEY.encode()
 
 
 def test_the_resolved_config_holds_only_the_path(tmp_path, monkeypatch):

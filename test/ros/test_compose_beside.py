@@ -436,6 +436,23 @@ def test_ros2_run_coordinator_node_with_compose_coordinator(ros_domain, config_p
     assert bad.returncode == 2 and "compose must be coordinator" in bad.stderr and "Traceback" not in bad.stderr
 
 
+def test_a_coordinator_node_exits_as_bev_mdo_optimize_for_the_same_result(ros_domain, config_path, tmp_path):
+    """A user trial: the coordinator started by hand exited 0 on an infeasible end, where ``bev-mdo optimize``
+    exits 1 (api.optimize.exit_status, now the node's too)."""
+    from bev_mdo.cli import main
+
+    raw = yaml.safe_load(config_path.read_text())
+    raw["problem"]["constraints"]["range_km"] = {"lower": 2000}  # out of reach: the run ends infeasible
+    cfg = tmp_path / "infeasible.yaml"
+    cfg.write_text(yaml.safe_dump(raw, sort_keys=False))
+    argv = [PYTHON, "-m", "bev_mdo.ros.run", "coordinator_node", "--ros-args", "-p", f"config:={cfg}", "-p",
+            "compose:=coordinator"]
+    out = subprocess.run(argv, env=ros_env(ros_domain), cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert json.loads(out.stdout[out.stdout.index("{"):])["result"]["feasible"] is False, out.stderr[-3000:]
+    optimize = main(["optimize", str(cfg), "--transport", "inprocess", "--no-record", "--quiet"])
+    assert out.returncode == optimize == 1, out.stderr[-3000:]
+
+
 ORDER = ["vehicle_mass", "motor_speed", "cost", "energy", "acceleration", "range"]
 
 
