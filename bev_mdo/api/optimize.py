@@ -194,16 +194,3 @@ def _starts(opts, x0) -> int | list:
     if starts > 1 and x0:
         raise InputError("--starts samples its own start points; it cannot be combined with a given start")
     return list(x0) if isinstance(x0, list) else starts
-
-
-def exit_status(doc: dict, fixed_budget: bool = False) -> int:
-    """bev-mdo optimize's exit status of a run document (a hand-started coordinator_node's too): 0 an optimum (or, with ``fixed_budget``,
-    any feasible end); 1 infeasible; 3 the recorder failed; 4 a discipline stopped answering;
-    5 feasible but not a verified optimum."""
-    if doc.get("recorder_failed"):
-        return 3
-    if not doc["feasible"]:
-        return 1
-    if doc.get("unresponsive_disciplines"):
-        return 4
-    return 0 if doc["verdict"] == "optimum" or fixed_budget else 5

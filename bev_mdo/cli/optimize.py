@@ -192,4 +192,6 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
               "evaluated before that, not an optimum", file=sys.stderr)
     if doc.get("recorder_failed"):
         print(f"warning: {doc['recorder_failed']}", file=sys.stderr)
-    return optimize.exit_status(doc, opts.fixed_budget)
+    from bev_mdo.mdo.driver import exit_status
+
+    return exit_status(doc, opts.fixed_budget)

@@ -332,3 +332,16 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
     fo["cost"] = {"points": form.n_points - points, "batches": form.n_batches - batches,
                   "wall_time_s": time.perf_counter() - t0}
     return fo
+
+
+def exit_status(doc: dict, fixed_budget: bool = False) -> int:
+    """bev-mdo optimize's exit status of a run document (``RunResult.to_dict()`` and what the run adds), a
+    hand-started coordinator_node's too: 0 an optimum (or, with ``fixed_budget``, any feasible end);
+    1 infeasible; 3 the recorder failed; 4 a discipline stopped answering; 5 feasible but not a verified optimum."""
+    if doc.get("recorder_failed"):
+        return 3
+    if not doc["feasible"]:
+        return 1
+    if doc.get("unresponsive_disciplines"):
+        return 4
+    return 0 if doc["verdict"] == first_order.OPTIMUM or fixed_budget else 5

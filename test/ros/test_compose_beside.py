@@ -438,7 +438,7 @@ def test_ros2_run_coordinator_node_with_compose_coordinator(ros_domain, config_p
 
 def test_a_coordinator_node_exits_as_bev_mdo_optimize_for_the_same_result(ros_domain, config_path, tmp_path):
     """A user trial: the coordinator started by hand exited 0 on an infeasible end, where ``bev-mdo optimize``
-    exits 1 (api.optimize.exit_status, now the node's too)."""
+    exits 1 (mdo.driver.exit_status, now the node's too)."""
     from bev_mdo.cli import main
 
     raw = yaml.safe_load(config_path.read_text())
