@@ -102,6 +102,9 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
         print(f"the result point failed: {result['error']}", file=out)
     elif not result.get("optimizer_success", True):  # e.g. SLSQP's iteration limit
         print(f"{result['optimizer']} says: {result['message'].split('; ')[0]}", file=out)
+    for part in result["message"].split("; the result is ")[1:]:
+        if " projected onto the bounds " in part:  # the driver's words: a result just outside its bounds
+            print(f"result: {part}", file=out)
     if not result.get("last_iterate", True):
         print(f"result: iteration {result['result_iteration']}, the best feasible point seen "
               f"(not the optimiser's last iterate, iteration {result['iterations']})", file=out)
@@ -136,13 +139,22 @@ def _verdict(result: dict, out, units: dict) -> None:
     def u(name: str) -> str:  # " kW", or "" for a quantity without a unit
         return f" {unit_of(name, units)}" if unit_of(name, units) else ""
 
-    lines = []
+    lines, held = [], []  # held: [name, label, multiplier]; an equality's two rows (>=, <=) as one, name == value
     for c in fo["active_constraints"]:
         name = c["name"].split(" ")[0]
         con = result["constraints"].get(name, {})
+        if con.get("lower") is not None and con["lower"] == con.get("upper"):
+            if held and held[-1][0] == name:  # its <= row: the equality's multiplier is the net one
+                held[-1][2] = c["multiplier"] - held[-1][2]
+                continue
+            held.append([name, f"{name} == {con['lower']:g}", c["multiplier"]])
+        else:
+            held.append([name, c["name"], c["multiplier"]])
+    for name, label, multiplier in held:
+        con = result["constraints"].get(name, {})
         margin, limit = con.get("margin", float("nan")), con.get("upper", con.get("lower")) or 0.0
         shown = "0" if abs(margin) <= 1e-6 * max(abs(limit), 1.0) else f"{margin:.3g}"  # below the noise: 0
-        lines.append(f"active: {c['name']}{u(name)}, margin {shown}{u(name)}, multiplier {c['multiplier']:.4g}")
+        lines.append(f"active: {label}{u(name)}, margin {shown}{u(name)}, multiplier {multiplier:.4g}")
     for b in fo["active_bounds"]:
         v = result["design"].get(b["name"], float("nan"))
         lines.append(f"on its {b['kind']} bound: {b['name']} = {v:.6g}{u(b['name'])}, multiplier {b['multiplier']:.4g}")

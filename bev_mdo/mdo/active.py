@@ -72,6 +72,15 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
             violated.append({**entry, "violation": v})
         elif abs(v) <= rel_tol * scale:
             active.append(entry)
+    # an equality (lower == upper) is one limit, name == value: its two rows are merged, and the row on
+    # the satisfied side of a violated one is not also an active limit
+    equal = {c.name for c in problem.constraints if c.lower is not None and c.lower == c.upper}
+    off = {e["name"] for e in violated if e["name"] in equal}
+    violated = [e for e in violated if not (e["name"] in equal and e["kind"] == "upper" and np.isinf(e["violation"]))]
+    active = [e for e in active if e["name"] not in off and not (e["name"] in equal and e["kind"] == "upper")]
+    for e in active + violated:
+        if e["name"] in equal:
+            e["kind"], e["margin"] = "equal", -abs(e["margin"])
     bounds = []
     for d in problem.design_variables:
         x = float(design[d.name])
@@ -85,7 +94,7 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
         on_bound = {(b["name"]): b["kind"] for b in bounds}
         spans = {d.name: d.upper - d.lower for d in problem.design_variables}
         for e in violated:
-            sign = 1.0 if e["kind"] == "upper" else -1.0
+            sign = 1.0 if e["kind"] == "upper" or e["kind"] == "equal" and e["value"] > e["limit"] else -1.0
             grad = {n: sign * float(jacobian.get(e["name"], {}).get(n, 0.0)) for n in problem.names}
             blocking = [n for n, g in grad.items()
                         if g < 0 and on_bound.get(n) == "upper" or g > 0 and on_bound.get(n) == "lower"]
@@ -103,8 +112,11 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
     return out
 
 
+OPERATORS = {"lower": ">=", "upper": "<=", "equal": "=="}
+
+
 def _limit(e) -> str:
-    return f"{e['name']} {'>=' if e['kind'] == 'lower' else '<='} {e['limit']:g}"
+    return f"{e['name']} {OPERATORS[e['kind']]} {e['limit']:g}"
 
 
 def _held_by(grad, active, jacobian, spans, on_bound) -> tuple[list[dict], bool]:
@@ -117,8 +129,11 @@ def _held_by(grad, active, jacobian, spans, on_bound) -> tuple[list[dict], bool]
 
     names = list(grad)
     c = np.array([grad[n] * spans[n] for n in names])
-    rows = np.array([[(1.0 if a["kind"] == "upper" else -1.0) * float(jacobian.get(a["name"], {}).get(n, 0.0))
-                      * spans[n] for n in names] for a in active]).reshape(len(active), len(names))
+    sides = [(a, s) for a in active for s in ((1.0, -1.0) if a["kind"] == "equal" else  # neither way
+                                               (1.0,) if a["kind"] == "upper" else (-1.0,))]
+    rows = np.array([[s * float(jacobian.get(a["name"], {}).get(n, 0.0)) * spans[n] for n in names]
+                     for a, s in sides]).reshape(len(sides), len(names))
+    active = [a for a, _ in sides]
     box = [(0.0, 1.0) if on_bound.get(n) == "lower" else (-1.0, 0.0) if on_bound.get(n) == "upper" else (-1.0, 1.0)
            for n in names]
     if not names or not (np.isfinite(c).all() and np.isfinite(rows).all()):  # a failed point: no first-order model
@@ -130,7 +145,8 @@ def _held_by(grad, active, jacobian, spans, on_bound) -> tuple[list[dict], bool]
         return [], False
     if res.fun < -tol:
         return [], True
-    return [a for a, m in zip(active, res.ineqlin.marginals if len(active) else []) if abs(m) > tol], False
+    held = [a for a, m in zip(active, res.ineqlin.marginals if len(active) else []) if abs(m) > tol]
+    return [a for i, a in enumerate(held) if all(a is not b for b in held[:i])], False
 
 
 def _num(v: float, scale: float | None = None) -> str:
@@ -149,7 +165,7 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
         return f" {s}" if s else ""
 
     def limit(e: Mapping[str, Any]) -> str:
-        return f"{e['name']} {'>=' if e['kind'] == 'lower' else '<='} {e['limit']:g}{u(e['unit'])}"
+        return f"{_limit(e)}{u(e['unit'])}"
 
     def monitored(e: Mapping[str, Any]) -> str:
         return " (monitored only)" if e.get("monitor") else ""
@@ -160,7 +176,7 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
             lines.append(f"no value: {limit(e)} (the point failed){monitored(e)}")
             continue
         lines.append(f"violated: {limit(e)} is {e['value']:.6g}{u(e['unit'])}, "
-                     f"{'short' if e['kind'] == 'lower' else 'over'} by {_num(e['violation'])}{u(e['unit'])}"
+                     f"{'short' if e['value'] < e['limit'] else 'over'} by {_num(e['violation'])}{u(e['unit'])}"
                      + monitored(e))
         if "blocked_by" in e:
             if e["blocked_by"]:

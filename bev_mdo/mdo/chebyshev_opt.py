@@ -137,6 +137,18 @@ def _restore_on_segment(ev, x, y, o):
     return None
 
 
+NO_START = "chebyshev-pairwise: could not find a feasible start point"
+
+
+class InfeasibleStart(ValueError):
+    """No feasible start point was found; ``g``: the constraints (g <= 0 feasible) where the search ended,
+    ``constraint``: the index of one that could not be satisfied (the caller names them: run_optimizer)."""
+
+    def __init__(self, message: str, g, constraint: int):
+        super().__init__(message)
+        self.g, self.constraint = np.asarray(g, dtype=float).ravel(), constraint
+
+
 def _restore(ev, x, lo, hi, o, max_rounds=10):
     """Fig 7-22: move an infeasible x onto the feasible side of its most violated constraint."""
     f, g = ev(x[None])
@@ -151,14 +163,14 @@ def _restore(ev, x, lo, hi, o, max_rounds=10):
                             (lo[i], hi[i]), (lo[j], hi[j]), tol=o["cheb_tol"], n_max=o["cheb_n_max"])
             z = prox.zero_contour(41)
             if len(z) == 0:
-                raise ValueError(f"chebyshev-pairwise: constraint {k} cannot be satisfied by moving x{i}, x{j}")
+                raise InfeasibleStart(NO_START, np.where(g[0] > o["ctol"], g[0], 0.0), k)
             r = np.array([hi[i] - lo[i], hi[j] - lo[j]])
             zi = z[np.argmin(np.sum(((z - x[[i, j]]) / r) ** 2, axis=1))]
             y = x.copy()
             y[i], y[j] = zi
         x = y
         f, g = ev(x[None])
-    raise ValueError("chebyshev-pairwise: could not find a feasible start point")
+    raise InfeasibleStart(NO_START, np.where(g[0] > o["ctol"], g[0], 0.0), int(np.argmax(g[0])))
 
 
 def minimize(batch_fun: Callable, x0, lower, upper, options: Mapping[str, Any] | None = None,

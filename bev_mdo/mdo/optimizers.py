@@ -200,14 +200,33 @@ def _load(spec: str) -> Callable:
         raise ValueError(f"optimizer plug-in {spec!r} is not available: {exc}") from None
 
 
+def infeasible_start(message: str, form, g: np.ndarray, worst: int) -> str:
+    """One line for a plug-in that found no feasible start: the constraints of ``batch_fun`` (``g``,
+    normalised, > 0 violated) it could not satisfy, by how much in their units, and what to do."""
+    rows = form.problem.constraint_rows
+    labels = form.ineq_labels + [f"{e} (|residual| <= {form.eq_tolerance:g})" for e in form.eq_labels]
+    order = [worst] + [i for i in np.argsort(-g) if g[i] > 0 and i != worst][:2]
+    parts = []
+    for i in order:
+        by = f"{g[i] * rows[i][3]:.4g}" if i < len(rows) else f"{g[i]:.3g} (normalised)"
+        parts.append(f"{labels[i]} violated by {by}")
+    return (f"{message}: {'; '.join(parts)}; start from a design that satisfies "
+            f"{'it' if len(parts) == 1 else 'them'} (--initial NAME=X) or use another optimizer (SLSQP, COBYLA)")
+
+
 def run_optimizer(name: str, form, options: Mapping[str, Any] | None = None,
                   callback: Callback | None = None) -> OptimizeResult:
     """Run optimiser ``name`` on ``form``; the result's ``x`` is physical."""
     entry = OPTIMIZERS[canonical_name(name)]
     options = dict(options or {})
     if isinstance(entry, str):
-        res = _load(entry)(form.batch_fun, form.x0.copy(), form.lower.copy(), form.upper.copy(),
-                           options, callback)
+        try:
+            res = _load(entry)(form.batch_fun, form.x0.copy(), form.lower.copy(), form.upper.copy(),
+                               options, callback)
+        except ValueError as exc:
+            if getattr(exc, "g", None) is None:
+                raise
+            raise ValueError(infeasible_start(str(exc), form, exc.g, exc.constraint)) from None
         res.x = np.asarray(res.x, dtype=float)
         return res
     res = entry(form, options, callback)

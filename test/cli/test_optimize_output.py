@@ -192,3 +192,29 @@ def test_the_start_up_line_says_what_runs_where_with_pools(monkeypatch, tmp_path
         assert main(["optimize", CONFIG, "--no-record", "--domain-id", "206", "--instances", "energy=2"]) == 2
     assert buf.getvalue().startswith("starting 7 discipline nodes (5 in this process, --compose coordinator; "
                                      "2 in 2 other processes, a process per pool instance: energy x2) (domain 206)")
+
+
+def test_a_result_projected_onto_its_bounds_is_said_so_beside_the_table(monkeypatch):
+    """COBYLA ended Sellar 5e-8 below z2 >= 0; the driver projects it onto the bound, and the terminal says so."""
+    import numpy as np
+
+    from bev_mdo.mdo import driver
+
+    inner = driver.run_optimizer
+
+    def ending_outside(name, form, options, record):
+        res = inner(name, form, options, record)
+        res.x = np.asarray(res.x, float).copy()
+        res.x[1] = -5e-8  # z2, lower bound 0
+        record(res.x)
+        return res
+
+    monkeypatch.setattr(driver, "run_optimizer", ending_outside)
+    sellar = str(Path(CONFIG).parents[1] / "examples/sellar/sellar_mdf.yaml")
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        rc = main(["optimize", sellar, "--transport", "inprocess", "--no-record", "--quiet", "--optimizer", "COBYLA"])
+    out = buf.getvalue()
+    assert rc == 0 and "verdict: optimum" in out
+    line = [ln for ln in out.splitlines() if "projected onto the bounds" in ln]
+    assert len(line) == 1 and line[0].startswith("result: iteration ") and "(it was 5e-09 outside them" in line[0]

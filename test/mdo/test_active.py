@@ -152,3 +152,42 @@ def test_a_failed_point_has_no_value_rather_than_an_infinite_shortfall():
     assert "no value: accel_time_0_100_s <= 10 s (the point failed)" in text
     assert "nan" not in text and "inf" not in text and "blocks it" not in text
     assert "on its lower bound: motor_kw = 40 kW" in text
+
+
+EQUALITY = Problem.from_config({
+    "objective": "energy_wh_per_km",
+    "design_variables": {"motor_kw": {"lower": 40, "upper": 120, "initial": 80}},
+    "constraints": {"range_km": {"lower": 250, "upper": 250}},
+})
+
+
+def test_an_equality_is_one_limit_name_equals_value_not_two_inequalities():
+    """aerostructure's lift: {lower: 0.5, upper: 0.5} was listed as 'lift >= 0.5' and 'lift <= 0.5'."""
+    a = analyse(EQUALITY, {"motor_kw": 75.0}, {"range_km": 250.0 + 1e-9})
+    assert [(e["name"], e["kind"]) for e in a["active_constraints"]] == [("range_km", "equal")]
+    assert a["lines"] == ["active: range_km == 250 km, margin 0 km"]
+    off = analyse(EQUALITY, {"motor_kw": 75.0}, {"range_km": 250.2})  # 8e-4 of 250 over: violated, not also active
+    assert off["active_constraints"] == [] and [(e["kind"], e["violation"]) for e in off["violated"]] == [
+        ("equal", pytest.approx(0.2))]
+    assert off["lines"] == ["violated: range_km == 250 km is 250.2 km, over by 0.2 km"]
+    jac = {"range_km": {"motor_kw": -1.0}}
+    short = analyse(EQUALITY, {"motor_kw": 40.0}, {"range_km": 249.0}, jacobian=jac)  # more range: lower motor_kw
+    assert short["violated"][0]["blocked_by"][0]["variable"] == "motor_kw"
+    assert short["lines"][0] == "violated: range_km == 250 km is 249 km, short by 1 km"
+
+
+def test_the_terminal_shows_an_active_equality_once_with_its_net_multiplier():
+    import io
+
+    from bev_mdo.cli.optimize import _verdict
+
+    fo = {"verdict": "optimum", "stationarity": 1e-9, "complementarity": 0.0, "tolerance": 1e-4,
+          "cost": {"points": 0, "wall_time_s": 0.0}, "active_bounds": [], "equalities": [],
+          "active_constraints": [{"name": "lift >= 0.5", "multiplier": 1.847},
+                                 {"name": "lift <= 0.5", "multiplier": 0.0}]}
+    result = {"first_order": fo, "verdict": "optimum", "design": {},
+              "constraints": {"lift": {"value": 0.5, "lower": 0.5, "upper": 0.5, "margin": 0.0}}}
+    out = io.StringIO()
+    _verdict(result, out, {})
+    assert [ln.strip() for ln in out.getvalue().splitlines() if "lift" in ln] == [
+        "active: lift == 0.5, margin 0, multiplier -1.847"]

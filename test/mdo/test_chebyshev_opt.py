@@ -68,3 +68,22 @@ def test_default_bev_problem_reaches_slsqp_optimum():
     assert abs(cheb.objective - ref.objective) <= 1e-3 * abs(ref.objective)
     for k, v in ref.design.items():
         assert abs(cheb.design[k] - v) <= 1e-3 * abs(v), k
+
+
+def test_no_feasible_start_names_the_constraint_by_how_much_and_what_to_do():
+    """SSBJ with chebyshev-pairwise ended 'could not find a feasible start point' (exit 2) and nothing else.
+    Here Sellar's y1 >= 500 cannot hold (y1 stays below 130 in the box)."""
+    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.mdo import driver
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.testing import example_config
+
+    config = example_config(ROOT / "examples/sellar/sellar_mdf.yaml", **{"problem.constraints.y1.lower": 500.0})
+    with pytest.raises(ValueError) as err:
+        driver.run_optimization(config, InProcessEvaluator(resolve_disciplines(config)),
+                                optimizer="chebyshev-pairwise")
+    line = str(err.value)
+    assert line.startswith("chebyshev-pairwise: could not find a feasible start point: y1 >= 500 violated by ")
+    by = float(line.split("violated by ")[1].split(";")[0])
+    assert 370 < by <= 500  # y1 <= 130 in the box
+    assert line.endswith("(--initial NAME=X) or use another optimizer (SLSQP, COBYLA)") and "\n" not in line
