@@ -52,6 +52,7 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
            "design_variables": list(res.names), "generations": generations, "pop": pop,
            "seed": seed, "evaluations": res.evaluations, "batches": res.batches,
            "wall_time_s": res.wall_time_s, "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12),
+           "hypervolume_by_generation": res.hypervolume,  # mdo.pareto.hypervolumes: 1.0 the last front's
            "front": [{k: float(v[i]) for k, v in res.values.items()} for i in range(len(res.X))],
            **sess.stats, "out": str(out), "published": sess.sink.published,
            "plots": [str(p) for p in plot_front(out, res, declared_units(cfg))] if plots else []}

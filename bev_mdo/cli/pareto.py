@@ -72,9 +72,17 @@ def run(args) -> int:
                           plots=not args.no_plots, source=str(args.config), on_generation=_generation)
     print(f"front: {len(res.X)} non-dominated feasible designs, {res.evaluations} evaluations in "
           f"{res.batches} batches, {res.wall_time_s:.1f} s")
+    _settling(res)
     what = ", ".join(Path(p).name for p in doc["plots"]) if doc["plots"] else "no plots: --no-plots"
     print(f"wrote {doc['out']}/ (front.csv, front.json, {what}, bag/ with {doc['published']} ParetoFront messages)")
     return _failed(doc)
+
+
+def _settling(res, label: str = "") -> None:
+    from bev_mdo.mdo.pareto import settling_line
+
+    if (line := settling_line(res.hypervolume)):
+        print(f"{label}{line}")
 
 
 def _generation(g, n, s) -> None:
@@ -159,6 +167,7 @@ def _study(args, raw, written, names, ov) -> int:
                 timing[t] = {"wall_time_s": res.wall_time_s, "evaluations": res.evaluations, "batches": res.batches,
                              "mean_generation_s": float(np.mean(res.generation_times_s)),
                              "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12),
+                             "hypervolume_by_generation": res.hypervolume,
                              "design_variables": {d.name: [d.lower, d.upper] for d in cfg.problem.design_variables}}
                 pareto.write_front(out / f"pareto_{t}.csv", res)
     study.write_benchmark(out / "benchmark.csv", bench, configs)
@@ -178,6 +187,7 @@ def _study(args, raw, written, names, ov) -> int:
         r = results[t]
         print(f"{t}: {len(r.X)} non-dominated designs, {r.evaluations} evaluations in {r.batches} batches, "
               f"{timing[t]['wall_time_s']:.1f} s")
+        _settling(r, f"{t}: ")
     what = ", ".join(p.name for p in pngs) if pngs else (
         "no plots: --no-plots" if args.no_plots else "no plots: one objective has no trade-off to draw")
     print(f"wrote {out}/ (pareto_*.csv, benchmark.csv, summary.json, {what}, "

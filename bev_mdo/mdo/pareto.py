@@ -68,6 +68,37 @@ class ParetoResult:
     batches: int
     generation_times_s: list[float] = field(default_factory=list)
     wall_time_s: float = 0.0
+    hypervolume: list[float] = field(default_factory=list)  # each generation's front: ``hypervolumes``
+
+
+def hypervolumes(fronts: list[np.ndarray]) -> list[float]:
+    """The hypervolume of each generation's front (objectives as minimised) in the last front's scale
+    (its best value 0 and worst 1 in each objective; reference point 1.1 each, pymoo's HV; at most
+    1.1^m). NaN with no feasible design. A front still gaining several per cent over its last
+    generations has not settled."""
+    from pymoo.indicators.hv import HV
+
+    last = fronts[-1] if fronts else np.zeros((0, 0))
+    if not len(last):
+        return [float("nan")] * len(fronts)
+    lo, span = last.min(axis=0), np.ptp(last, axis=0)
+    span = np.where(span > 0, span, np.maximum(np.abs(lo), 1.0))
+    hv = HV(ref_point=np.full(last.shape[1], 1.1))
+    return [float(hv((F - lo) / span)) if len(F) else float("nan") for F in fronts]
+
+
+def settling_line(hv: list[float], last: int = 5) -> str | None:
+    """One line: how much the front's hypervolume (``hypervolumes``) grew over its last generations."""
+    k = min(last, len(hv) - 1)
+    if k < 1 or not np.isfinite(hv[-1]) or hv[-1] <= 0:
+        return None
+    before = hv[-1 - k]
+    grew = ("from no feasible design" if not np.isfinite(before) else "from 0 (every design outside the last "
+            "front's range)" if before <= 0 else f"{100 * (hv[-1] / before - 1):+.1f} %")
+    unsettled = not np.isfinite(before) or before <= 0 or abs(hv[-1] - before) > 0.01 * before
+    return (f"front hypervolume over the last {k} generations: {grew}"
+            + ("; still moving: more --generations (or a larger --pop) would extend the front" if unsettled
+               else " (settled: within 1 %)"))
 
 
 def _pymoo_problem_class():
@@ -152,14 +183,24 @@ def _outputs(formulation) -> set[str]:
     return {o for s in specs.values() for o in s.outputs}
 
 
-def _front(problem, pop, generation: int, wall_time_s: float) -> Front:
-    """The feasible non-dominated members of a pymoo population, sorted by the first objective."""
+def _feasible_front(problem, pop) -> tuple[np.ndarray, np.ndarray]:
+    """(X, F) of the feasible non-dominated members of a pymoo population (F as minimised)."""
     X, F = pop.get("X"), pop.get("F")
     G = pop.get("G") if problem.n_ieq_constr else np.zeros((len(X), 0))
     feas = np.all(G <= 0, axis=1) & np.all(F < FAILED_F, axis=1)
     X, F = X[feas], F[feas]
     keep = non_dominated(F) if len(F) else np.zeros(0, bool)
-    X, F = X[keep], F[keep] * problem.signs  # as evaluated (a maximised objective is not negated)
+    return X[keep], F[keep]
+
+
+def _front_F(problem, pop) -> np.ndarray:
+    return np.array(_feasible_front(problem, pop)[1], float)
+
+
+def _front(problem, pop, generation: int, wall_time_s: float) -> Front:
+    """The feasible non-dominated members of a pymoo population, sorted by the first objective."""
+    X, F = _feasible_front(problem, pop)
+    F = F * problem.signs  # as evaluated (a maximised objective is not negated)
     order = np.argsort(F[:, 0], kind="stable") if len(F) else np.zeros(0, int)
     X, F = np.array(X[order], float), np.array(F[order], float)
     return Front(generation, list(problem.form.problem.names), list(problem.objectives), X, F,
@@ -184,6 +225,7 @@ def run_nsga2(formulation, objectives, *, pop_size: int = 100, generations: int 
     times: list[float] = []
     t0 = time.perf_counter()
     pending: list[Front] = []  # a generation's front is sent once the next one shows it was not the last
+    fronts: list[np.ndarray] = []  # each generation's front, objectives as minimised (hypervolumes)
 
     class _CB(Callback):
         def __init__(self):
@@ -194,6 +236,7 @@ def run_nsga2(formulation, objectives, *, pop_size: int = 100, generations: int 
             now = time.perf_counter()
             times.append(now - self.t)
             self.t = now
+            fronts.append(_front_F(problem, algorithm.pop))
             if on_front:
                 if pending:
                     on_front(pending.pop(), False)
@@ -218,4 +261,4 @@ def run_nsga2(formulation, objectives, *, pop_size: int = 100, generations: int 
     aC = np.concatenate([a[2] for a in problem.archive]) if problem.archive else np.zeros(0)
     return ParetoResult(list(formulation.problem.names), list(problem.objectives), front.X, front.F,
                         front.values, aX, aF, aC, n_gen,
-                        problem.evaluations, problem.batches, times, wall)
+                        problem.evaluations, problem.batches, times, wall, hypervolumes(fronts))

@@ -69,6 +69,30 @@ def test_nsga2_one_batch_per_generation_and_front_is_non_dominated():
     assert np.median(gap(r.F)) < 0.5 * np.median(gap(r.archive_F[:20]))
 
 
+def test_the_fronts_hypervolume_says_whether_it_has_settled():
+    """A 24 x 15 front was three designs, all dominated by the single-objective optimum, and nothing said the
+    front had not settled. Each generation's hypervolume (in the last front's scale) is kept and a line says
+    how much it grew over the last generations."""
+    from bev_mdo.mdo.pareto import hypervolumes, settling_line
+
+    last = np.array([[0.0, 1.0], [1.0, 0.0], [0.5, 0.5]])  # normalised already: reference point 1.1 each
+    hv = hypervolumes([np.array([[1.0, 1.0]]), np.zeros((0, 2)), last])
+    assert hv[0] == pytest.approx(0.1 * 0.1) and np.isnan(hv[1])
+    assert hv[2] == pytest.approx(0.11 + 0.11 + 0.36 - 0.06 - 0.06 - 0.01 + 0.01)  # inclusion-exclusion
+    assert hypervolumes([2 * last + 3, 2 * last + 3]) == pytest.approx([hv[2], hv[2]])  # scale-free
+    assert settling_line(hv) == ("front hypervolume over the last 2 generations: +4500.0 %; still moving: more "
+                                 "--generations (or a larger --pop) would extend the front")
+    assert settling_line(hv[1:]).startswith("front hypervolume over the last 1 generations: from no feasible design")
+    assert settling_line([0.5, 0.70, 0.703]) == "front hypervolume over the last 2 generations: +40.6 %; still " \
+        "moving: more --generations (or a larger --pop) would extend the front"
+    assert settling_line([0.5, 0.70, 0.703], last=1).endswith("+0.4 % (settled: within 1 %)")
+    assert settling_line([0.0, 0.5]).startswith("front hypervolume over the last 1 generations: from 0 (every design")
+    assert settling_line([0.4]) is None and settling_line([0.3, float("nan")]) is None
+    form, _, _ = _zdt_form()
+    r = run_nsga2(form, ["f1", "f2"], pop_size=20, generations=15, seed=3)
+    assert len(r.hypervolume) == 15 and r.hypervolume[-1] > r.hypervolume[0] > 0
+
+
 def test_nsga2_deterministic_per_seed():
     a = run_nsga2(_zdt_form()[0], ["f1", "f2"], pop_size=12, generations=4, seed=7)
     b = run_nsga2(_zdt_form()[0], ["f1", "f2"], pop_size=12, generations=4, seed=7)
@@ -217,7 +241,7 @@ def test_cli_writes_front_csv_benchmark_and_plots(tmp_path):
     bench = list(csv.DictReader((out / "benchmark.csv").open()))
     assert bench[0]["topology"] == "IWM-SA" and float(bench[0]["kerb_kg"]) == pytest.approx(1521.16)
     s = json.loads((out / "summary.json").read_text())
-    assert s["timing"]["IWM-SA"]["batches"] == 2
+    assert s["timing"]["IWM-SA"]["batches"] == 2 and len(s["timing"]["IWM-SA"]["hypervolume_by_generation"]) == 2
     assert (out / "fig_4_5_energy_accel.png").stat().st_size > 0 and (out / "fig_4_6_energy_cost.png").exists()
     fronts = check_bag_fronts(out, ["IWM-SA"], 2, 8)
     assert "gear_ratio" not in fronts[-1][5] and "motor_kw" in fronts[-1][5]
