@@ -158,3 +158,17 @@ def test_the_readme_configuration_block_is_a_valid_run_config(clone):
     proc = run("bev-mdo evaluate readme_config.yaml --set motor_kw=80 --transport inprocess --json", clone)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "top_speed_kmh" in json.loads(proc.stdout)["outputs"]
+
+
+def test_the_readme_states_the_rule_evaluate_applies_to_satisfied(clone):
+    # the README said "positive = satisfied"; evaluate printed margin -0.000569, satisfied: true
+    raw = (clone / "config" / "leaf_nedc.yaml").read_text(encoding="utf-8")
+    for upper, satisfied in ((9.8557, True), (9.855, False)):  # accel time 9.85627 s; 1e-4 x 9.8557 = 0.00099 s
+        (clone / "accel.yaml").write_text(raw.replace("accel_time_0_100_s:    {upper: 10}",
+                                                      f"accel_time_0_100_s:    {{upper: {upper}}}"), encoding="utf-8")
+        proc = run("bev-mdo evaluate accel.yaml --set motor_kw=80,gear_ratio=8,battery_kwh=24 --json "
+                   "--transport inprocess", clone)
+        c = json.loads(proc.stdout)["constraints"]["accel_time_0_100_s"]
+        assert c["margin"] < 0 and c["satisfied"] is satisfied, c
+    line = next(t for t in README.read_text(encoding="utf-8").splitlines() if t.startswith("`margin` is"))
+    assert "`satisfied`" in line and "−`optimizer.feasibility_tolerance` × the constraint's `scale`" in line, line
