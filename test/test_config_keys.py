@@ -2,6 +2,7 @@
 file, the key path and the nearest declared key (difflib), exit 2 (docs/user-problems.md, Options)."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -214,3 +215,54 @@ def test_the_readme_example_discipline_refuses_a_nan_option_at_load():
     with pytest.raises(ValueError) as err:
         load_config(raw)
     assert str(err.value) == "<config>: disciplines[6] (top_speed).options.motor_max_speed_rad_s: nan must be a finite number"
+
+
+def test_the_readme_example_discipline_refuses_text_for_a_number_option_at_load(tmp_path, capsys):
+    # it loaded, then the constructor failed: "cannot build TopSpeed: TypeError: '<=' not supported ..."
+    raw = yaml.safe_load(NEDC.read_text())
+    raw["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost",
+                          {"name": "top_speed", "class": "examples.top_speed:TopSpeed",
+                           "options": {"motor_max_speed_rad_s": "1675 rad/s"}}]
+    raw["search_path"] = [str(REPO)]
+    bad = _write(tmp_path, yaml.safe_dump(raw, sort_keys=False))
+    code, out, err = _cli(capsys, "evaluate", bad, "--transport", "inprocess")
+    assert code == 2 and out == "", err
+    assert err == (f"bev-mdo evaluate: error: {bad}: disciplines[6] (top_speed).options.motor_max_speed_rad_s: "
+                   "'1675 rad/s' must be a number (float)\n")
+    raw["disciplines"][6]["options"] = {"motor_max_speed_rad_s": 1675}  # an int is a float's value
+    from bev_mdo.config import RunConfig
+
+    assert RunConfig.load(raw).disciplines[6].name == "top_speed"
+
+
+class Typed:
+    """Options annotated as strings (this module has ``from __future__ import annotations``)."""
+
+    @dataclass(frozen=True)
+    class Options:
+        rate: float = 1.0
+        count: int = 1
+        on: bool = False
+        label: str = "a"
+        cap: float | None = None       # Optional: left alone
+        table: dict | None = None      # any other annotation: left alone
+
+
+@pytest.mark.parametrize("key, value, what", [
+    ("rate", "fast", "a number (float)"), ("rate", True, "a number (float)"),
+    ("count", 2.5, "a whole number (int)"), ("count", False, "a whole number (int)"),
+    ("on", 1, "true or false (bool)"), ("on", "yes", "true or false (bool)"),
+    ("label", 3, "text (str)")])
+def test_an_option_of_the_wrong_type_is_refused_naming_its_key_and_type(key, value, what):
+    from bev_mdo.mdo.discipline import read_options
+
+    with pytest.raises(ValueError) as err:
+        read_options(Typed, {key: value}, "disciplines[0] (typed).options")
+    assert str(err.value) == f"disciplines[0] (typed).options.{key}: {value!r} must be {what}"
+
+
+def test_options_of_the_declared_types_and_unchecked_annotations_are_taken():
+    from bev_mdo.mdo.discipline import read_options
+
+    given = {"rate": 2, "count": 3, "on": True, "label": "b", "cap": "anything", "table": [1]}
+    assert read_options(Typed, given, "w") == Typed.Options(**given)

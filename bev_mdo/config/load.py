@@ -142,10 +142,12 @@ class RunConfig(Mapping):
 def read_config_file(path: str | Path) -> Any:
     """The parsed YAML of a config file, its relative paths counted from its folder (``anchor_paths``: a
     command-line override given after this counts from the working directory). One-line ValueErrors
-    naming the file: missing, binary, too big, too deep, an alias bomb, bad YAML."""
+    naming the file: missing, a directory, binary, too big, too deep, an alias bomb, bad YAML."""
     from bev_mdo.yamlload import read_yaml_file
 
     p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{p}: is a directory, not a config file; give the path of a config YAML file")
     if not p.is_file():
         raise ValueError(f"{p}: no such config file")
     raw = read_yaml_file(p)

@@ -27,6 +27,7 @@ import importlib
 import inspect
 import sys
 import time
+import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
@@ -34,7 +35,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from bev_mdo.mdo.vectors import ShapeError, check_outputs, flat_partials, has_partials
-from bev_mdo.models.common import check_keys
+from bev_mdo.models.common import check_keys, is_number, text_hint
 
 Batch = dict[str, np.ndarray]
 
@@ -86,7 +87,9 @@ def read_options(cls: type, options: Mapping[str, Any] | None, where: str) -> An
     """The options of a config entry for discipline class ``cls``, refused (one-line ValueError naming
     ``where.<key>`` and the nearest declared key) when a key is not declared:
 
-    * ``cls.Options``, a dataclass: its fields are the keys; returns an instance (defaults filled);
+    * ``cls.Options``, a dataclass: its fields are the keys, and a value must match its field's
+      annotation when that is ``float``, ``int``, ``bool`` or ``str`` (:func:`_check_option_types`);
+      returns an instance (defaults filled);
     * no ``from_config`` of its own: the constructor's keyword parameters (any with ``**kwargs``);
       returns the options as a dict;
     * else the class declares no option, and none may be given.
@@ -98,6 +101,7 @@ def read_options(cls: type, options: Mapping[str, Any] | None, where: str) -> An
     spec = getattr(cls, "Options", None)
     if spec is not None and dataclasses.is_dataclass(spec):
         check_keys(where, options, [f.name for f in dataclasses.fields(spec) if f.init])
+        _check_option_types(spec, options, where)
         return spec(**options)
     if _builds_from_options(cls):
         try:
@@ -110,6 +114,28 @@ def read_options(cls: type, options: Mapping[str, Any] | None, where: str) -> An
         return options
     check_keys(where, options, ())
     return options
+
+
+_OPTION_TYPES = {  # annotation -> (accepts the value, what it must be); any other annotation is not checked
+    float: (is_number, "a number (float)"),
+    int: (lambda v: isinstance(v, (int, np.integer)) and not isinstance(v, bool), "a whole number (int)"),
+    bool: (lambda v: isinstance(v, (bool, np.bool_)), "true or false (bool)"),
+    str: (lambda v: isinstance(v, str), "text (str)"),
+}
+
+
+def _check_option_types(spec: type, options: Mapping[str, Any], where: str) -> None:
+    """ValueError naming ``where.<key>`` for the first option whose value does not match its field's
+    annotation (``_OPTION_TYPES``: a float takes an int, not a bool or text). Annotations may be strings
+    (``from __future__ import annotations``); ``Optional[...]`` and any other annotation are left alone."""
+    try:
+        hints = typing.get_type_hints(spec)
+    except Exception:  # an annotation that does not resolve (a name imported only for type checking)
+        return
+    for key, value in options.items():
+        accepts, what = _OPTION_TYPES.get(hints.get(key), (None, ""))
+        if accepts is not None and not accepts(value):
+            raise ValueError(f"{where}.{key}: {value!r} must be {what}{text_hint(value)}")
 
 
 def _refuse_non_finite(where: str, value: Any) -> None:

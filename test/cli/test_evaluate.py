@@ -96,6 +96,16 @@ def test_missing_config_exit_2(capsys, tmp_path):
     assert code == 2 and "no such config file" in err
 
 
+@pytest.mark.parametrize("argv", [["evaluate"], ["optimize"], ["sweep"], ["graph"], ["node", "energy", "--config"]])
+def test_a_directory_given_as_the_config_is_said_to_be_one(capsys, tmp_path, argv):
+    # it was "no such config file", though the path exists
+    code = main([*argv, str(tmp_path)])
+    out = capsys.readouterr()
+    assert code == 2 and out.out == ""
+    assert out.err == (f"bev-mdo {argv[0]}: error: {tmp_path}: is a directory, not a config file; give the path of "
+                       "a config YAML file\n")
+
+
 @pytest.mark.parametrize("flags", [["--transport", "ros"], ["--attach"]])
 def test_ros_without_rclpy_is_a_usage_error(capsys, monkeypatch, flags):
     import sys

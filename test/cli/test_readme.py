@@ -1,9 +1,10 @@
 """The README and the tour (docs/tour.md) run as written and print what they show.
 
 Every ```console block of either preceded by ``<!-- readme-check -->`` is executed (its ``$ `` line, in a
-scratch directory holding a copy of config/ and examples/, like a fresh clone) and each line shown
-below it must appear in the output, in order (``...`` stands for any text; runs of spaces match
-any whitespace). ``<!-- readme-check json -->`` blocks compare the JSON shown with the JSON
+scratch directory holding a copy of config/ and examples/, like a fresh clone) and its stdout must be
+the lines shown below it, in order: every line shown is printed and every line printed is shown
+(``...`` in a line stands for any text, e.g. a timing; a line that is only ``...`` for any number of
+printed lines; runs of spaces match any whitespace; blank lines are not compared). ``<!-- readme-check json -->`` blocks compare the JSON shown with the JSON
 printed: the same keys, equal strings and booleans, numbers within 0.1 % (the README rounds).
 Every command of the command table and every ``bev-mdo`` subcommand the README names must exist.
 """
@@ -42,18 +43,24 @@ def line_pattern(line: str) -> re.Pattern:
 
 
 def match_in_order(expected: list[str], actual: list[str]) -> str | None:
-    """None if every expected line matches a later actual line in order, else the first that does not."""
-    k = 0
+    """None if the printed lines ``actual`` are the shown lines ``expected`` in order (a shown line
+    ``...`` stands for any number of printed lines; blank lines are left out), else what differs: a
+    shown line not printed, or a printed line not shown."""
+    expected = [e for e in expected if e.strip()]
+    actual = [a for a in actual if a.strip()]
+    k, gap = 0, False
     for line in expected:
-        if not line.strip():
+        if line.strip() == "...":
+            gap = True
             continue
         pat = line_pattern(line)
-        while k < len(actual) and not pat.fullmatch(actual[k].strip()):
+        while gap and k < len(actual) and not pat.fullmatch(actual[k].strip()):
             k += 1
-        if k == len(actual):
-            return line
-        k += 1
-    return None
+        if k == len(actual) or not pat.fullmatch(actual[k].strip()):
+            return f"shown, not printed: {line}" if gap or k == len(actual) else \
+                f"printed, not shown: {actual[k]}\n(where the block shows: {line})"
+        k, gap = k + 1, False
+    return None if gap or k == len(actual) else f"printed, not shown: {actual[k]}"
 
 
 def close(shown, got, path="") -> list[str]:
@@ -104,14 +111,23 @@ def test_readme_block_runs_as_written(clone, mode, cmd, expected):
         errors = close(json.loads("\n".join(expected)), json.loads(proc.stdout))
         assert not errors, "\n".join(errors)
     else:
-        missing = match_in_order(expected, proc.stdout.splitlines())
-        assert missing is None, f"{cmd}: README line not printed (in order):\n{missing}\n--- output ---\n{proc.stdout}"
+        differs = match_in_order(expected, proc.stdout.splitlines())
+        assert differs is None, f"{cmd}: the block differs from what it prints:\n{differs}\n--- output ---\n{proc.stdout}"
 
 
 def test_the_matcher_can_fail():
     assert match_in_order(["a ... c"], ["a b c"]) is None
-    assert match_in_order(["b", "a"], ["a", "b"]) == "a"  # order matters
-    assert match_in_order(["x 1"], ["x   2"]) == "x 1"
+    assert match_in_order(["b", "a"], ["a", "b"]).startswith("printed, not shown: a")  # order matters
+    assert match_in_order(["x 1"], ["x   2"]).startswith("printed, not shown: x   2")
+    assert match_in_order(["x", "y"], ["x"]) == "shown, not printed: y"
+    # a printed line the block leaves out (the sweep's bag line was)
+    assert match_in_order(["a", "c"], ["a", "b", "c"]).startswith("printed, not shown: b")
+    assert match_in_order(["a"], ["a", "b"]) == "printed, not shown: b"
+    # a line of only '...' stands for any printed lines, none included; blank lines are not compared
+    assert match_in_order(["a", "...", "d"], ["a", "", "b", "c", "d"]) is None
+    assert match_in_order(["a", "...", "d"], ["a", "d"]) is None
+    assert match_in_order(["a", "..."], ["a", "b"]) is None
+    assert match_in_order(["a", "...", "d"], ["a", "b"]) == "shown, not printed: d"
     assert close({"a": 1.0}, {"a": 1.01}) and not close({"a": 1.0}, {"a": 1.0004})
 
 
@@ -142,3 +158,17 @@ def test_the_readme_configuration_block_is_a_valid_run_config(clone):
     proc = run("bev-mdo evaluate readme_config.yaml --set motor_kw=80 --transport inprocess --json", clone)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "top_speed_kmh" in json.loads(proc.stdout)["outputs"]
+
+
+def test_the_readme_states_the_rule_evaluate_applies_to_satisfied(clone):
+    # the README said "positive = satisfied"; evaluate printed margin -0.000569, satisfied: true
+    raw = (clone / "config" / "leaf_nedc.yaml").read_text(encoding="utf-8")
+    for upper, satisfied in ((9.8557, True), (9.855, False)):  # accel time 9.85627 s; 1e-4 x 9.8557 = 0.00099 s
+        (clone / "accel.yaml").write_text(raw.replace("accel_time_0_100_s:    {upper: 10}",
+                                                      f"accel_time_0_100_s:    {{upper: {upper}}}"), encoding="utf-8")
+        proc = run("bev-mdo evaluate accel.yaml --set motor_kw=80,gear_ratio=8,battery_kwh=24 --json "
+                   "--transport inprocess", clone)
+        c = json.loads(proc.stdout)["constraints"]["accel_time_0_100_s"]
+        assert c["margin"] < 0 and c["satisfied"] is satisfied, c
+    line = next(t for t in README.read_text(encoding="utf-8").splitlines() if t.startswith("`margin` is"))
+    assert "`satisfied`" in line and "−`optimizer.feasibility_tolerance` × the constraint's `scale`" in line, line
