@@ -135,9 +135,11 @@ def _constraint_report(problem: Problem, values: Mapping[str, float], tol: float
         margins = [y - c.lower] if c.lower is not None else []
         margins += [c.upper - y] if c.upper is not None else []
         margin = float(min(margins))
+        # each bound by its own scale, as the optimiser's rows (Problem.g): a two-sided limit was judged
+        # on its upper side by the lower bound's scale
+        violation = max((b - y if kind == "lower" else y - b) / s for kind, b, s in c.rows(monitored=True))
         out[c.name] = {"value": y, "lower": c.lower, "upper": c.upper, "margin": margin,
-                       "satisfied": bool(np.isfinite(margin) and margin >= -tol * (c.scale or max(
-                           abs(c.lower if c.lower is not None else c.upper), 1.0)))}
+                       "satisfied": bool(np.isfinite(margin) and violation <= tol)}
     return out
 
 

@@ -193,3 +193,18 @@ def test_a_result_just_outside_a_bound_is_projected_onto_it_and_evaluated_there(
     assert res.max_violation <= 1e-6 and res.feasible and res.verdict == "optimum"
     assert res.objective == pytest.approx(REF_F, rel=1e-6)
     assert f"the result is iteration {outside['iteration']} projected onto the bounds (it was 5e-09 outside" in res.message
+
+
+def test_a_two_sided_limit_is_satisfied_as_the_optimiser_judges_it_each_bound_by_its_own_scale():
+    """evaluate judged `0.5 <= y <= 200` on its upper side with the lower bound's scale (1): y = 200.01 was
+    'satisfied: false' where the optimiser's row, (y - 200) / 200 = 5e-5, is within the 1e-4 tolerance."""
+    import numpy as np
+
+    from bev_mdo.mdo.driver import _constraint_report
+    from bev_mdo.mdo.problem import Constraint, DesignVariable, Problem
+
+    problem = Problem("f", [DesignVariable("x", 0.0, 1.0, 0.5, 1.0)], [Constraint("y", lower=0.5, upper=200.0)])
+    for y, satisfied in ((200.01, True), (200.03, False), (0.49995, True), (0.4998, False)):
+        rep = _constraint_report(problem, {"y": y}, 1e-4)["y"]
+        g = problem.g({"y": np.array([y])})
+        assert rep["satisfied"] is satisfied and bool(g.max() <= 1e-4) is satisfied, (y, rep, g)
