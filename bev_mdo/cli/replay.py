@@ -23,7 +23,7 @@ def register(subparsers) -> None:
                         help="give up waiting for subscribers after S seconds (default 30)")
     from bev_mdo.cli.flags import add_ros_arguments
 
-    add_ros_arguments(parser)
+    add_ros_arguments(parser, config=False)
     parser.set_defaults(func=run)
 
 

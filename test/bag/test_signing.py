@@ -168,3 +168,11 @@ def test_a_standalone_recording_is_verified_with_the_key_given(tmp_path, capsys)
     assert status == 0 and len(out.strip().splitlines()) == 5 and "dropped 1 forged" in err
     status, out, err = _cli(capsys, "history", str(bag), "--run-id", RUN)
     assert status == 2 and "give the key with --key-file" in err
+
+
+def test_replay_help_names_no_config_it_does_not_take(capsys):
+    """replay's discovery help said its default was 'the config's ros: section'; replay takes no config."""
+    with pytest.raises(SystemExit):
+        main(["replay", "--help"])
+    text = capsys.readouterr().out
+    assert "ROS discovery (default: localhost only)" in text and "config" not in text
