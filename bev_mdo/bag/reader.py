@@ -48,12 +48,13 @@ def holds_bag(directory) -> bool:
     return (d / "metadata.yaml").exists() or any(d.glob("*.mcap"))
 
 
-def find_mcap(path) -> Path:
+def find_mcap(path, *, repairing: bool = False) -> Path:
     """The storage file of a bag, the one resolver of every command that reads a bag: the bag's
     directory (the one file its metadata.yaml's ``relative_file_paths`` names, else its one .mcap file),
     its .mcap file itself, or a run's output folder (pareto's or sweep's ``--out``) holding no .mcap
     file but exactly one subfolder that does (``bag/``). A folder of several files, or whose metadata.yaml
-    names a file not there, is refused: one of them would be read and the others ignored without a word."""
+    names a file not there, is refused: one of them would be read and the others ignored without a word
+    (``repairing``: `bag repair`, which rewrites metadata.yaml, takes the folder's one .mcap file then)."""
     path = Path(path)
     if not path.exists():
         raise BagError(f"{path}: no such file or directory")
@@ -62,11 +63,12 @@ def find_mcap(path) -> Path:
     files = sorted(path.glob("*.mcap"))  # (`bag repair`'s backups are .mcap.bak: not counted)
     held = f"{len(files)} .mcap file{'s' if len(files) != 1 else ''} ({', '.join(f.name for f in files)})"
     named = storage_files(path)
-    if named:
-        missing = [n for n in named if Path(n).name != n or not (path / n).is_file()]
-        if missing:
-            raise BagError(f"{path}: its metadata.yaml names {', '.join(missing)}, not in the folder; it holds "
-                           + (f"{held}: give the .mcap file to read" if files else "no .mcap file"))
+    missing = [n for n in named if Path(n).name != n or not (path / n).is_file()]
+    if missing and not repairing:
+        raise BagError(f"{path}: its metadata.yaml names {', '.join(missing)}, not in the folder; it holds "
+                       + (f"{held}: give the .mcap file to read" if files else "no .mcap file")
+                       + (" (or `bev-mdo bag repair` it: that rewrites metadata.yaml)" if len(files) == 1 else ""))
+    if named and not missing:
         if len(named) > 1:
             raise BagError(f"{path}: its metadata.yaml names {len(named)} storage files ({', '.join(named)}; a "
                            "split bag): give the one to read")
@@ -76,7 +78,7 @@ def find_mcap(path) -> Path:
     if not files:
         inside = sorted(d for d in path.iterdir() if d.is_dir() and any(d.glob("*.mcap")))
         if len(inside) == 1:
-            return find_mcap(inside[0])
+            return find_mcap(inside[0], repairing=repairing)
         raise BagError(f"{path}: holds no .mcap file" + (
             f" but {len(inside)} bags ({', '.join(d.name for d in inside)}): name one" if inside else
             " (give a bag directory, its .mcap file or a run's output folder with one bag in it)"))
@@ -101,7 +103,7 @@ class Bag:
         self.path = Path(path)
         self.salvage = salvage  # `bag repair`: a damaged chunk is skipped, not the end of what is read
         self.skipped: list[int] = []  # byte offsets after the chunks skipped
-        self.mcap_path = find_mcap(self.path)
+        self.mcap_path = find_mcap(self.path, repairing=salvage)
         self.bag_dir = self.mcap_path.parent
         self.strict = strict
         self.schemas: dict[int, Schema] = {}

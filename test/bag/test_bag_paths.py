@@ -85,8 +85,11 @@ def test_a_folder_of_two_mcap_files_is_refused_naming_them(cmd, two_bags, tmp_pa
     (d / "metadata.yaml").write_text((two_bags[0].parent / "metadata.yaml").read_text().replace("a_0.mcap", "c_0.mcap"))
     rc, out, err = _run(cmd + [str(d)])
     assert rc == 2 and err.count("\n") == 1, err
-    assert (f"{d}: its metadata.yaml names c_0.mcap, not in the folder; it holds 2 .mcap files (a_0.mcap, b_0.mcap): "
-            "give the .mcap file to read") in err
+    if cmd == ["bag", "repair"]:  # it rewrites metadata.yaml, so it reads the folder's files, not the file named
+        assert f"{d}: holds 2 .mcap files (a_0.mcap, b_0.mcap): give the one to read" in err
+    else:
+        assert (f"{d}: its metadata.yaml names c_0.mcap, not in the folder; it holds 2 .mcap files (a_0.mcap, "
+                "b_0.mcap): give the .mcap file to read") in err
     if cmd in READERS:  # the file itself is read
         rc, out, err = _run(cmd + [str(d / "b_0.mcap")])
         assert rc == 0, err
@@ -112,5 +115,19 @@ def test_repair_backups_are_not_storage_files(two_bags):
         assert _run(["bag", "repair", "--force", str(d)])[0] == 0
     assert sorted(p.name for p in d.iterdir()) == ["a_0.mcap", "a_0.mcap.bak", "a_0.mcap.bak1", "metadata.yaml"]
     (d / "metadata.yaml").unlink()
+    rc, out, err = _run(["history", str(d)])
+    assert rc == 0 and "6 records" in out, err
+
+
+def test_a_metadata_yaml_naming_another_file_is_refused_until_repair_rewrites_it(two_bags):
+    """A bag folder whose metadata.yaml names a file not there was read as its one .mcap without a word;
+    `bag repair` (which rewrites metadata.yaml) still takes that one file."""
+    d = two_bags[0].parent
+    (d / "a_0.mcap").rename(d / "x_0.mcap")
+    rc, out, err = _run(["history", str(d)])
+    assert rc == 2 and err.strip().splitlines() == [
+        f"bev-mdo history: error: {d}: its metadata.yaml names a_0.mcap, not in the folder; it holds 1 .mcap file "
+        "(x_0.mcap): give the .mcap file to read (or `bev-mdo bag repair` it: that rewrites metadata.yaml)"]
+    assert _run(["bag", "repair", str(d)])[0] == 0
     rc, out, err = _run(["history", str(d)])
     assert rc == 0 and "6 records" in out, err
