@@ -63,8 +63,9 @@ def verify(args) -> None:
     history(bag, all_runs=True, key_file=args.key_file, checks=checks, no_verify=args.no_verify)
     failed = {why: n for why, n in checks["dropped"].items() if why in ("forged", "unsigned")}
     if failed:
-        raise BagError(f"{bag.mcap_path}: {', '.join(f'{n} {why}' for why, n in sorted(failed.items()))} iteration "
-                       "record(s) (not signed with the run's key); refusing to replay it (--no-verify replays it as is)")
+        counts = ", ".join(f"{n} {why}" for why, n in sorted(failed.items()))
+        raise BagError(f"{bag.mcap_path}: {counts} iteration record(s) (not signed with the run's key); "
+                       "refusing to replay it (--no-verify replays it as is)")
     if checks["unverified"]:
         print(f"{args.bag}: {checks['unverified']}", file=sys.stderr)
 
