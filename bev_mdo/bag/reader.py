@@ -15,6 +15,7 @@ from functools import cached_property
 from pathlib import Path
 from typing import Iterable, Iterator
 
+import yaml
 from mcap.exceptions import EndOfFile, McapError
 from mcap.records import Attachment, Channel, DataEnd, Footer, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
@@ -47,25 +48,52 @@ def holds_bag(directory) -> bool:
     return (d / "metadata.yaml").exists() or any(d.glob("*.mcap"))
 
 
-def find_mcap(path) -> Path:
+def find_mcap(path, *, repairing: bool = False) -> Path:
     """The storage file of a bag, the one resolver of every command that reads a bag: the bag's
-    directory, its .mcap file itself, or a run's output folder (pareto's or sweep's ``--out``)
-    holding no .mcap file but exactly one subfolder that does (``bag/``)."""
+    directory (the one file its metadata.yaml's ``relative_file_paths`` names, else its one .mcap file),
+    its .mcap file itself, or a run's output folder (pareto's or sweep's ``--out``) holding no .mcap
+    file but exactly one subfolder that does (``bag/``). A folder of several files, or whose metadata.yaml
+    names a file not there, is refused: one of them would be read and the others ignored without a word
+    (``repairing``: `bag repair`, which rewrites metadata.yaml, takes the folder's one .mcap file then)."""
     path = Path(path)
     if not path.exists():
         raise BagError(f"{path}: no such file or directory")
     if not path.is_dir():  # a file, or a device such as /dev/null: its header says whether it is a bag
         return path
-    files = sorted(path.glob("*.mcap"))
+    files = sorted(path.glob("*.mcap"))  # (`bag repair`'s backups are .mcap.bak: not counted)
+    held = f"{len(files)} .mcap file{'s' if len(files) != 1 else ''} ({', '.join(f.name for f in files)})"
+    named = storage_files(path)
+    missing = [n for n in named if Path(n).name != n or not (path / n).is_file()]
+    if missing and not repairing:
+        raise BagError(f"{path}: its metadata.yaml names {', '.join(missing)}, not in the folder; it holds "
+                       + (f"{held}: give the .mcap file to read" if files else "no .mcap file")
+                       + (" (or `bev-mdo bag repair` it: that rewrites metadata.yaml)" if len(files) == 1 else ""))
+    if named and not missing:
+        if len(named) > 1:
+            raise BagError(f"{path}: its metadata.yaml names {len(named)} storage files ({', '.join(named)}; a "
+                           "split bag): give the one to read")
+        return path / named[0]
+    if len(files) > 1:
+        raise BagError(f"{path}: holds {held}: give the one to read")
     if not files:
         inside = sorted(d for d in path.iterdir() if d.is_dir() and any(d.glob("*.mcap")))
         if len(inside) == 1:
-            return find_mcap(inside[0])
+            return find_mcap(inside[0], repairing=repairing)
         raise BagError(f"{path}: holds no .mcap file" + (
             f" but {len(inside)} bags ({', '.join(d.name for d in inside)}): name one" if inside else
             " (give a bag directory, its .mcap file or a run's output folder with one bag in it)"))
-    own = path / f"{path.name}_0.mcap"  # the writer's own file first, when there are several
-    return own if own in files else files[0]
+    return files[0]
+
+
+def storage_files(bag_dir: Path) -> list[str]:
+    """The storage files a bag directory's metadata.yaml names (rosbag2's ``relative_file_paths``, relative to
+    the directory); [] without a readable one (a bag being written has none yet; `bag repair` writes it)."""
+    try:
+        info = yaml.safe_load((bag_dir / "metadata.yaml").read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+        names = info["relative_file_paths"]
+    except (OSError, UnicodeDecodeError, yaml.YAMLError, TypeError, KeyError):
+        return []
+    return [str(n) for n in names] if isinstance(names, list) else []
 
 
 class Bag:
@@ -75,7 +103,7 @@ class Bag:
         self.path = Path(path)
         self.salvage = salvage  # `bag repair`: a damaged chunk is skipped, not the end of what is read
         self.skipped: list[int] = []  # byte offsets after the chunks skipped
-        self.mcap_path = find_mcap(self.path)
+        self.mcap_path = find_mcap(self.path, repairing=salvage)
         self.bag_dir = self.mcap_path.parent
         self.strict = strict
         self.schemas: dict[int, Schema] = {}

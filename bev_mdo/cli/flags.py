@@ -9,11 +9,14 @@ def add_bag_argument(parser) -> None:
     parser.add_argument("bag", help="bag directory, its .mcap file, or a run's output folder holding one bag")
 
 
-def add_ros_arguments(parser) -> None:
-    """The discovery flags shared by commands that join a ROS graph (they override the config's ros: section)."""
-    g = parser.add_argument_group("ROS discovery (default: the config's ros: section; localhost only)")
+def add_ros_arguments(parser, config: bool = True) -> None:
+    """The discovery flags shared by commands that join a ROS graph (they override the config's ros: section;
+    ``config=False``: a command that takes no config, replay)."""
+    section = "the config's ros: section; " if config else ""
+    g = parser.add_argument_group(f"ROS discovery (default: {section}localhost only)")
+    first = "the config's ros.domain_id if it sets one, else " if config else ""
     g.add_argument("--domain-id", type=int, default=None,
-                   help="ROS domain id (default: the config's ros.domain_id if it sets one, else ROS_DOMAIN_ID, else 77)")
+                   help=f"ROS domain id (default: {first}ROS_DOMAIN_ID, else 77)")
     g.add_argument("--discovery", choices=["localhost", "static_peers", "server", "subnet"], default=None,
                    help="how nodes find each other; anything but localhost is an explicit opt-in to other hosts")
     g.add_argument("--static-peers", default=None, metavar="IP[,IP...]", help="with --discovery static_peers")

@@ -1,4 +1,4 @@
-"""``bev-mdo replay BAG [--rate R | --as-fast-as-possible] [--topics ...] [--loop]``."""
+"""``bev-mdo replay BAG [--rate R | --as-fast-as-possible] [--topics ...] [--loop] [--key-file K | --no-verify]``."""
 from __future__ import annotations
 
 import sys
@@ -22,8 +22,10 @@ def register(subparsers) -> None:
     parser.add_argument("--wait-timeout", type=float, default=30.0, metavar="S",
                         help="give up waiting for subscribers after S seconds (default 30)")
     from bev_mdo.cli.flags import add_ros_arguments
+    from bev_mdo.cli.history import add_verify_arguments
 
-    add_ros_arguments(parser)
+    add_verify_arguments(parser)
+    add_ros_arguments(parser, config=False)
     parser.set_defaults(func=run)
 
 
@@ -36,10 +38,8 @@ def run(args) -> int:
     # a replay never goes off-host unasked.
     apply_ros_environment(ros_section({"ros": _env_domain()}, args))
     rate = None if args.as_fast_as_possible else args.rate
+    verify(args)  # a path that is not a bag, or a bag that does not verify, is one error line before anything else
     if args.wait_subscribers:
-        from bev_mdo.bag.reader import open_bag
-
-        open_bag(args.bag)  # a path that is not a bag is one error line, before any word of waiting
         print(f"waiting up to {args.wait_timeout:g} s for {args.wait_subscribers} subscriber(s) on each topic "
               "(--no-wait publishes at once) ...", file=sys.stderr, flush=True)
     stats = replay(args.bag, rate=rate, topics=args.topics, loop=args.loop,
@@ -48,6 +48,26 @@ def run(args) -> int:
     print(f"replayed {stats.messages} messages in {stats.seconds:.3f} s "
           f"({stats.messages_per_s:.0f} msg/s)")
     return 0
+
+
+def verify(args) -> None:
+    """Check the bag as ``history`` does before anything is published: a bag whose signing record, stored
+    config and key disagree, or with iteration records that do not verify with the run's key, is refused
+    (BagError, exit 2; ``--no-verify`` replays it as it is); stderr says when its records are not verified."""
+    from bev_mdo.bag.errors import BagError
+    from bev_mdo.bag.history import history
+    from bev_mdo.bag.reader import open_bag
+
+    bag = open_bag(args.bag)
+    checks: dict = {}
+    history(bag, all_runs=True, key_file=args.key_file, checks=checks, no_verify=args.no_verify)
+    failed = {why: n for why, n in checks["dropped"].items() if why in ("forged", "unsigned")}
+    if failed:
+        counts = ", ".join(f"{n} {why}" for why, n in sorted(failed.items()))
+        raise BagError(f"{bag.mcap_path}: {counts} iteration record(s) (not signed with the run's key); "
+                       "refusing to replay it (--no-verify replays it as is)")
+    if checks["unverified"]:
+        print(f"{args.bag}: {checks['unverified']}", file=sys.stderr)
 
 
 def _env_domain() -> dict:

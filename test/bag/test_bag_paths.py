@@ -61,3 +61,73 @@ def test_a_device_that_is_not_a_bag_is_one_line(cmd):
     """/dev/null (neither a file nor a folder) gave exit 7, 'NotADirectoryError ... (raised at pathlib.py)'."""
     rc, _, err = _run(cmd + ["/dev/null"])
     assert rc == 2 and err.strip().splitlines() == [err.strip()] and "/dev/null: empty file, not an MCAP bag" in err
+
+
+@pytest.fixture
+def two_bags(tmp_path):
+    """Two bags' files: a (6 iterations) and b (3), each in its own folder with its metadata.yaml."""
+    write_synthetic(tmp_path / "a", n_iterations=6)
+    write_synthetic(tmp_path / "b", n_iterations=3)
+    return tmp_path / "a" / "a_0.mcap", tmp_path / "b" / "b_0.mcap"
+
+
+@pytest.mark.parametrize("cmd", EVERY, ids=lambda c: " ".join(c[:2]))
+def test_a_folder_of_two_mcap_files_is_refused_naming_them(cmd, two_bags, tmp_path):
+    """A folder holding a_0.mcap and b_0.mcap (no metadata.yaml) was read as a_0.mcap, b_0.mcap ignored
+    without a word; and so it was beside a metadata.yaml naming a third file."""
+    d = tmp_path / "d"
+    d.mkdir()
+    for f in two_bags:
+        shutil.copy(f, d)
+    rc, out, err = _run(cmd + [str(d)])
+    assert rc == 2 and err.count("\n") == 1, err
+    assert f"{d}: holds 2 .mcap files (a_0.mcap, b_0.mcap): give the one to read" in err
+    (d / "metadata.yaml").write_text((two_bags[0].parent / "metadata.yaml").read_text().replace("a_0.mcap", "c_0.mcap"))
+    rc, out, err = _run(cmd + [str(d)])
+    assert rc == 2 and err.count("\n") == 1, err
+    if cmd == ["bag", "repair"]:  # it rewrites metadata.yaml, so it reads the folder's files, not the file named
+        assert f"{d}: holds 2 .mcap files (a_0.mcap, b_0.mcap): give the one to read" in err
+    else:
+        assert (f"{d}: its metadata.yaml names c_0.mcap, not in the folder; it holds 2 .mcap files (a_0.mcap, "
+                "b_0.mcap): give the .mcap file to read") in err
+    if cmd in READERS:  # the file itself is read
+        rc, out, err = _run(cmd + [str(d / "b_0.mcap")])
+        assert rc == 0, err
+
+
+def test_the_file_metadata_yaml_names_is_read(two_bags, tmp_path):
+    """rosbag2's relative_file_paths names the bag's storage file: that one is read, whatever else lies beside it
+    (a renamed bag folder's a_0.mcap, and a 0_0.mcap that sorts first)."""
+    from bev_mdo.bag.reader import open_bag
+
+    d = tmp_path / "renamed"
+    shutil.copytree(two_bags[0].parent, d)
+    shutil.copy(two_bags[1], d / "0_0.mcap")
+    bag = open_bag(d)
+    assert bag.mcap_path == d / "a_0.mcap" and bag.counts["/bev_mdo/iteration"] == 6
+
+
+def test_repair_backups_are_not_storage_files(two_bags):
+    """`bag repair` keeps the original as a_0.mcap.bak (then .bak1): the folder still reads as one bag, also
+    without its metadata.yaml (a bag being written has none yet)."""
+    d = two_bags[0].parent
+    for _ in range(2):
+        assert _run(["bag", "repair", "--force", str(d)])[0] == 0
+    assert sorted(p.name for p in d.iterdir()) == ["a_0.mcap", "a_0.mcap.bak", "a_0.mcap.bak1", "metadata.yaml"]
+    (d / "metadata.yaml").unlink()
+    rc, out, err = _run(["history", str(d)])
+    assert rc == 0 and "6 records" in out, err
+
+
+def test_a_metadata_yaml_naming_another_file_is_refused_until_repair_rewrites_it(two_bags):
+    """A bag folder whose metadata.yaml names a file not there was read as its one .mcap without a word;
+    `bag repair` (which rewrites metadata.yaml) still takes that one file."""
+    d = two_bags[0].parent
+    (d / "a_0.mcap").rename(d / "x_0.mcap")
+    rc, out, err = _run(["history", str(d)])
+    assert rc == 2 and err.strip().splitlines() == [
+        f"bev-mdo history: error: {d}: its metadata.yaml names a_0.mcap, not in the folder; it holds 1 .mcap file "
+        "(x_0.mcap): give the .mcap file to read (or `bev-mdo bag repair` it: that rewrites metadata.yaml)"]
+    assert _run(["bag", "repair", str(d)])[0] == 0
+    rc, out, err = _run(["history", str(d)])
+    assert rc == 0 and "6 records" in out, err

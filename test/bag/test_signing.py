@@ -68,7 +68,8 @@ def run_bag(tmp_path):
 def _refused_by_every_reader(capsys, tmp_path, bag, *extra) -> list[str]:
     errors = []
     for argv in (["history", str(bag)], ["report", str(bag), "--output-dir", str(tmp_path / "r")],
-                 ["resume", str(bag), "--transport", "inprocess", "--no-record"]):
+                 ["resume", str(bag), "--transport", "inprocess", "--no-record"],
+                 ["replay", str(bag), "--no-wait", "--as-fast-as-possible"]):  # replay published it all, exit 0
         status, out, err = _cli(capsys, *argv, *extra)
         assert status == 2 and len(err.strip().splitlines()) == 1, (argv, status, err)
         assert not out.strip()
@@ -168,3 +169,25 @@ def test_a_standalone_recording_is_verified_with_the_key_given(tmp_path, capsys)
     assert status == 0 and len(out.strip().splitlines()) == 5 and "dropped 1 forged" in err
     status, out, err = _cli(capsys, "history", str(bag), "--run-id", RUN)
     assert status == 2 and "give the key with --key-file" in err
+
+
+def test_replay_refuses_a_run_with_a_forged_record_unless_no_verify(tmp_path, run_bag, capsys, ros_domain):
+    """replay published every record of a bag whose history said 'dropped 1 forged iteration record(s)'."""
+    bag, key_file, recs = run_bag
+    forged = Signer(read_key(new_key_file(tmp_path / "evil"))).sign_iteration(_record(RUN, 5, 120.0))
+    shutil.rmtree(bag)
+    _bag(bag, recs + [forged], _config(key_file))
+    status, out, err = _cli(capsys, "replay", str(bag), "--no-wait", "--as-fast-as-possible")
+    assert status == 2 and not out and err.strip().splitlines() == [
+        f"bev-mdo replay: error: {bag / 'run_0.mcap'}: 1 forged iteration record(s) (not signed with the run's key); "
+        "refusing to replay it (--no-verify replays it as is)"]
+    status, out, err = _cli(capsys, "replay", str(bag), "--no-wait", "--as-fast-as-possible", "--no-verify")
+    assert status == 0 and out.startswith("replayed ") and "verification OFF (--no-verify)" in err
+
+
+def test_replay_help_names_no_config_it_does_not_take(capsys):
+    """replay's discovery help said its default was 'the config's ros: section'; replay takes no config."""
+    with pytest.raises(SystemExit):
+        main(["replay", "--help"])
+    text = capsys.readouterr().out
+    assert "ROS discovery (default: localhost only)" in text and "config" not in text

@@ -25,7 +25,8 @@ def test_replay_waits_by_default_and_says_so_then_gives_up(ros_domain, tmp_path)
     p = _replay(_bag(tmp_path), ros_domain, "--wait-timeout", "0.5")
     assert p.returncode == 2
     err = p.stderr.strip().splitlines()
-    assert err[0].startswith("waiting up to 0.5 s for 1 subscriber(s) on each topic (--no-wait publishes at once)")
+    assert err[0].endswith("bag: records are not signed (its signing record says so); they are read unverified")
+    assert err[1].startswith("waiting up to 0.5 s for 1 subscriber(s) on each topic (--no-wait publishes at once)")
     assert "fewer than 1 subscriber(s) on /bev_mdo/" in err[-1] and "after 0.5 s" in err[-1]  # names the topics
 
 
