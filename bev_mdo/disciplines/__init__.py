@@ -183,23 +183,38 @@ class MotorSpeed(Base):
 
     @classmethod
     def from_config(cls, config, options):
-        return cls({"wheel_radius_m": vehicle_of(config)["wheel_radius_m"]},
-                   float(np.max(resampled_cycle(config).speed_m_s)), run_topology(config, options).name)
+        v = vehicle_of(config)
+        keys = ("wheel_radius_m", "gear_count", "shift_strategy", "gear_ratio_2", "shift_speed_m_s")
+        return cls({k: v[k] for k in keys}, float(np.max(resampled_cycle(config).speed_m_s)),
+                   run_topology(config, options).name)
 
     def _ratio(self, inputs) -> np.ndarray:
         ig = np.asarray(inputs["gear_ratio"], float)
         return np.maximum(ig, inputs["gear_ratio_rear"]) if "gear_ratio_rear" in self.inputs else ig
 
+    @staticmethod
+    def _shifts(p) -> np.ndarray:
+        """Per point: a two-speed gearbox shifting by speed, its second gear above the shift speed (eq 2-6).
+        Choosing the gear per step (shift_strategy 1) may use either: the first gear's speed bounds it."""
+        return (np.asarray(p["gear_count"]) == 2.0) & (np.asarray(p["shift_strategy"]) == 0.0)
+
     def compute(self, inputs):
         p = self._params(inputs)
-        return {"motor_speed_max_rad_s": motor_speed.motor_speed_max_rad_s(
-            self._ratio(inputs), self.max_speed_m_s, p["wheel_radius_m"])}
+        ratio, v, rw = self._ratio(inputs), self.max_speed_m_s, p["wheel_radius_m"]
+        two = motor_speed.motor_speed_max_rad_s(ratio, v, rw, (p["gear_ratio_2"], p["shift_speed_m_s"]))
+        return {"motor_speed_max_rad_s": np.where(self._shifts(p), two, motor_speed.motor_speed_max_rad_s(ratio, v, rw))}
 
     def compute_partials(self, inputs):
-        """Eq 7-29, w = i_g v_max / r_w: dw/di_g = v_max / r_w, for the motor with the larger ratio."""
-        rw = self._params(inputs)["wheel_radius_m"]
+        """Eq 7-29, w = i_g v_max / r_w: dw/di_g = v_max / r_w, for the motor with the larger ratio (two
+        speeds: min(v_max, v_shift) / r_w where the first gear sets it, else 0)."""
+        p = self._params(inputs)
+        rw = p["wheel_radius_m"]
         slope = np.broadcast_to(self.max_speed_m_s / rw, (len(inputs["gear_ratio"]),))
-        if "gear_ratio_rear" not in self.inputs:
+        if "gear_ratio_rear" not in self.inputs:  # two speeds: SM-SA only
+            ig = np.asarray(inputs["gear_ratio"], float)
+            v, shift = self.max_speed_m_s, p["shift_speed_m_s"]
+            first = ig * np.minimum(v, shift) >= np.where(v >= shift, p["gear_ratio_2"] * v, 0.0)
+            slope = np.where(self._shifts(p), np.where(first, np.minimum(v, shift) / rw, 0.0), slope)
             return {("motor_speed_max_rad_s", "gear_ratio"): slope}
         ig, ig_rear = np.asarray(inputs["gear_ratio"], float), np.asarray(inputs["gear_ratio_rear"], float)
         # equal ratios (the topology study's start point) are a kink: half to each, as central differences see it
