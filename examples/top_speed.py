@@ -1,7 +1,7 @@
 """A user's own discipline, served by the generic node with no change to bev_mdo.
 
 Top speed on a flat road: the speed at which the motor's peak power at the wheels
-equals the road load, capped by the motor's maximum speed through the gear.
+equals the road load, capped by the motor's maximum speed through the (longest) gear.
     P_max * eta_g = (0.5 * rho * CdA * v^2 + Cr * M * g) * v,   v <= omega_max * r_w / i_g
 With a coast-down in the config (``vehicle.road_load``) the road load is that one, A + B v + C v^2,
 as the built-in models take it (bev_mdo.models.road_load).
@@ -37,16 +37,17 @@ class TopSpeed:
     outputs = ("top_speed_kmh",)
     units = {"motor_kw": "kW", "gear_ratio": "1", "vehicle_mass_kg": "kg", "top_speed_kmh": "km/h"}
     VEHICLE_CONSTANTS = ("drag_area_m2", "rolling_resistance", "air_density_kg_m3", "gravity_m_s2",
-                         "gear_efficiency", "wheel_radius_m")
+                         "gear_efficiency", "wheel_radius_m", "gear_count", "gear_ratio_2")
 
     def __init__(self, drag_area_m2=0.6412, rolling_resistance=0.007, air_density_kg_m3=1.25,
-                 gravity_m_s2=9.81, gear_efficiency=0.97, wheel_radius_m=0.316, motor_max_speed_rad_s=1100.0,
-                 road_load=None):
+                 gravity_m_s2=9.81, gear_efficiency=0.97, wheel_radius_m=0.316, gear_count=1, gear_ratio_2=4.7,
+                 motor_max_speed_rad_s=1100.0, road_load=None):
         if motor_max_speed_rad_s <= 0:
             raise ValueError(f"motor_max_speed_rad_s must be > 0, got {motor_max_speed_rad_s}")
         self.parameters = {"drag_area_m2": drag_area_m2, "rolling_resistance": rolling_resistance,
                            "air_density_kg_m3": air_density_kg_m3, "gravity_m_s2": gravity_m_s2,
                            "gear_efficiency": gear_efficiency, "wheel_radius_m": wheel_radius_m,
+                           "gear_count": gear_count, "gear_ratio_2": gear_ratio_2,  # a two-speed gearbox
                            **(validate_road_load(road_load) if road_load else {})}  # road_load_a_n, ...
         self.omega_max = motor_max_speed_rad_s
 
@@ -74,5 +75,7 @@ class TopSpeed:
             above = (f0 + b * v + c * v * v) * v > p_w
             lo, hi = np.where(above, lo, v), np.where(above, v, hi)
         v = 0.5 * (lo + hi)
-        v_gear = self.omega_max * p["wheel_radius_m"] / inputs["gear_ratio"]
+        top_gear = np.where(p["gear_count"] == 2, np.minimum(inputs["gear_ratio"], p["gear_ratio_2"]),
+                            inputs["gear_ratio"])         # with two speeds, the longer gear at top speed
+        v_gear = self.omega_max * p["wheel_radius_m"] / top_gear
         return {"top_speed_kmh": np.minimum(v, v_gear) * 3.6}

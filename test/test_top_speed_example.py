@@ -53,3 +53,18 @@ def test_with_a_coast_down_the_top_speed_balances_that_road_load():
         v = brentq(lambda v: (force + rl["b_n_per_m_s"] * v + rl["c_n_per_m2_s2"] * v * v) * v - kw * 1e3 * 0.97,
                    1.0, 200.0, xtol=1e-12)
         assert v_kmh == pytest.approx(v * 3.6, rel=1e-9)
+
+
+def test_with_two_speeds_the_gear_cap_is_the_longer_gears():
+    """The example capped the top speed by the first gear alone: a two-speed van was held at 117 km/h where
+    its second gear reaches 235, and its optimum pinned by a top-speed limit the car meets."""
+    config = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text(encoding="utf-8"))
+    config["vehicle"].update(gear_count=2, gear_ratio_2=4.7)
+    config["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost",
+                             {"name": "top_speed", "class": "examples.top_speed:TopSpeed",
+                              "options": {"motor_max_speed_rad_s": 600}}]
+    config["search_path"] = [str(REPO)]
+    r = Study(config).sweep(designs={"gear_ratio": [11.0, 3.0]}, transport="inprocess")
+    top = r.outputs["top_speed_kmh"]
+    assert top[0] == pytest.approx(600 * 0.316 / 4.7 * 3.6, rel=1e-9)  # the second gear's cap (first: 62 km/h)
+    assert top[1] < 600 * 0.316 / 3.0 * 3.6  # first gear the longer, its cap above what the power reaches
