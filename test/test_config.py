@@ -212,12 +212,12 @@ def test_a_parameter_set_file_is_written_into_the_resolved_config(tmp_path, monk
     (tmp_path / "mine.yaml").write_text(yaml.safe_dump({"name": "mine", "energy_model": "quasi_static", "parameters": own}))
     raw = yaml.safe_load((ROOT.parent / "config" / "leaf_epa_combined.yaml").read_text())
     raw["vehicle"]["parameter_set"] = "mine.yaml"
-    raw["vehicle"]["aux_power_w"] = 450.0
+    raw["vehicle"]["load_kg"] = 120.0
     monkeypatch.chdir(tmp_path)
     cfg = load_config(raw)
     v = cfg["vehicle"]
     assert "parameter_set" not in v and "drag_area_m2" not in v
-    assert v["charger_efficiency"] == 0.9 and v["aux_power_w"] == 450.0
+    assert v["charger_efficiency"] == 0.9 and v["load_kg"] == 120.0
     assert v["regen_axle_share"] == shipped["regen_axle_share"]
     resolved = validate_vehicle(copy.deepcopy(v))
     (tmp_path / "mine.yaml").write_text(yaml.safe_dump({"name": "mine", "energy_model": "quasi_static",

@@ -353,3 +353,21 @@ def test_a_yaml_float_with_a_dot_and_a_signed_exponent_is_a_number(tmp_path):
     cfg = load_config(p)
     assert cfg["vehicle"]["glider_kg"] == 1134.0
     assert cfg["problem"]["design_variables"]["motor_kw"]["upper"] == 120.0
+
+
+def test_a_parameter_only_the_chain_reads_is_refused_on_another_energy_model():
+    """A van's `aux_power_w: 2000` on the quasi-static model gave the same 241.753 Wh/km as without it."""
+    import yaml
+
+    from bev_mdo.config import RunConfig
+    from bev_mdo.testing import REPO
+
+    raw = yaml.safe_load((REPO / "config" / "leaf_epa_combined.yaml").read_text(encoding="utf-8"))
+    raw["vehicle"]["aux_power_w"] = 2000
+    with pytest.raises(ValueError, match=r"vehicle\.aux_power_w: only energy_model chain reads it; this run's "
+                                         r"energy_model quasi_static has no such term"):
+        RunConfig.load(raw)
+    raw["vehicle"]["aux_power_w"] = 0.0  # its default: nothing ignored
+    RunConfig.load(raw)
+    raw = {**raw, "energy_model": "chain", "vehicle": {"aux_power_w": 2000}}
+    assert RunConfig.load(raw)["vehicle"]["aux_power_w"] == 2000

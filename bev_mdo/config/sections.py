@@ -221,7 +221,8 @@ def validate_models(cfg: dict) -> None:
     if "vehicle" in cfg or "cycle" in cfg:
         try:
             _parameter_set(cfg)
-            params.validate_vehicle(cfg.get("vehicle"))
+            vehicle = params.validate_vehicle(cfg.get("vehicle"))
+            _chain_only(vehicle, cfg.get("energy_model"))
         except ValueError as exc:  # a key path (vehicle.x) says where already
             raise ValueError(str(exc) if str(exc).startswith("vehicle.") else f"vehicle: {exc}") from None
         try:
@@ -232,6 +233,17 @@ def validate_models(cfg: dict) -> None:
             resampled_cycle(cfg)  # read and check the trace now: one line naming file and row
         except ValueError as exc:
             raise ValueError(str(exc) if str(exc).startswith("cycle.") else f"cycle: {exc}") from None
+
+
+def _chain_only(vehicle: Mapping[str, float], energy_model: str | None) -> None:
+    """A parameter only the chain model reads, set on another energy model, is refused: a van's 2 kW
+    auxiliary load on the quasi-static model changed nothing, without a word."""
+    if energy_model == "chain":
+        return
+    for k in params.CHAIN_ONLY:
+        if vehicle[k] != params.CHAIN_SPECS[k].default:
+            raise ValueError(f"vehicle.{k}: only energy_model chain reads it; this run's energy_model {energy_model} "
+                             "has no such term (remove it, or use energy_model: chain)")
 
 
 def vehicle_topology_into_options(cfg: dict) -> None:

@@ -215,6 +215,12 @@ CHAIN_SPECS: dict[str, ParamSpec] = {
 }
 
 
+# what only the chain reads (its loss terms, auxiliary load, regeneration cap): set on another energy model,
+# refused (config.sections.validate_models), not ignored; the charger's efficiency gives every model's wall energy
+CHAIN_ONLY = tuple(sorted(set(CHAIN_SPECS) - set(VEHICLE_SPECS) - set(BREAKDOWN_SPECS) - set(QUASI_STATIC_SPECS)
+                          - {"charger_efficiency"}))
+
+
 def all_specs() -> dict[str, ParamSpec]:
     """VEHICLE_SPECS plus the constants of the breakdown, quasi-static and chain models."""
     merged = dict(VEHICLE_SPECS)
