@@ -68,3 +68,20 @@ def test_a_variable_named_twice_in_wrt_is_one_line(capsys, extra):
     code = main(["sensitivity", str(SELLAR), "--transport", "inprocess", "--wrt", "z1,x,z1", *extra])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and err == ["bev-mdo sensitivity: error: --wrt: 'z1' named twice"]
+
+
+def test_a_parameter_at_its_model_limit_gets_a_one_sided_step(capsys):
+    """A van's `--wrt load_kg` at load_kg 1000, its upper model limit, stepped to 1000.1: 'the model failed at
+    2 of the 21 points', exit 7. At a limit the step goes one-sided, as for a design variable on its bound."""
+    import json
+
+    leaf = str(Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml")
+    argv = ["sensitivity", leaf, "--transport", "inprocess", "--order", "1", "--wrt", "load_kg", "--json"]
+    assert main([*argv, "--at", "load_kg=1000"]) == 0
+    at_limit = json.loads(capsys.readouterr().out)
+    assert at_limit["one_sided"] == ["load_kg"]
+    assert main([*argv, "--at", "load_kg=999"]) == 0
+    inside = json.loads(capsys.readouterr().out)
+    for out in ("energy_wh_per_km", "range_km"):  # the one-sided slope is the two-sided one nearby
+        assert at_limit["first_order"][out]["normalised"] == pytest.approx(inside["first_order"][out]["normalised"],
+                                                                           rel=2e-3)
