@@ -50,7 +50,7 @@ VEHICLE_SPECS: dict[str, ParamSpec] = {
     "motor_inductance_h": ParamSpec(5e-4, 0.0, 0.1, "H", "motor inductance L (not given in ch.7; chosen)"),
     "regen_fraction": ParamSpec(0.4, 0.0, 1.0, "-", "share of braking power recovered r (eq 6-34; ch.5 nominal 40 %)"),
     "glider_kg": ParamSpec(_GLIDER_KG, 200.0, 5000.0, "kg", "gliding body mass M_B (eq 7-19)"),
-    "load_kg": ParamSpec(69.0, 0.0, 1000.0, "kg", "load and rotational-inertia mass M_L (eq 7-19)"),
+    "load_kg": ParamSpec(69.0, 0.0, 5000.0, "kg", "load and rotational-inertia mass M_L (eq 7-19; a van's payload)"),
     "motor_kg_per_kw": ParamSpec(0.532, 0.0, 5.0, "kg/kW", "motor specific mass (eq 7-20)"),
     "motor_base_kg": ParamSpec(21.6, 0.0, 500.0, "kg", "motor mass offset (eq 7-20)"),
     "battery_kg_per_kwh": ParamSpec(7.8, 0.5, 50.0, "kg/kWh", "battery specific mass (eq 7-21)"),
