@@ -157,4 +157,13 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
             "outputs": outputs, "margins": margins, "violation": violation, "feasible": feasible,
             "ok": np.asarray(res.ok, bool),
             "errors": res.messages, "objective": problem.objective, "problem": problem,
-            "units": declared_units(config), "notes": ceiling_notes(config, outputs)}
+            "units": {**parameter_units(designs), **declared_units(config)}, "notes": ceiling_notes(config, outputs)}
+
+
+def parameter_units(names) -> dict[str, str]:
+    """{name: unit} of the built-in model parameters among ``names`` (models.params; '' dimensionless): a
+    design's override columns, such as load_kg, which no discipline declares as a variable."""
+    from bev_mdo.models.params import all_specs
+
+    specs = all_specs()
+    return {k: "" if specs[k].unit == "-" else specs[k].unit for k in names if k in specs}

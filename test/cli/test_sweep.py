@@ -143,6 +143,14 @@ def test_compare_shows_differences_from_the_first_design(capsys):
     assert rc == 0 and "Δ 2−1" in out and "+10 (+12.5 %)" in out
 
 
+def test_compare_gives_a_model_parameters_unit(capsys):
+    """load_kg varied between two designs had an empty unit column, every other row a unit."""
+    rc = main(["compare", CONFIG, "--design", "motor_kw=80,load_kg=75", "--design", "motor_kw=80,load_kg=1000",
+               "--transport", "inprocess"])
+    row = next(line for line in capsys.readouterr().out.splitlines() if "load_kg" in line)
+    assert rc == 0 and row.split("│")[2].strip() == "kg", row
+
+
 def _wide_gears(tmp_path):
     """leaf_nedc with gear ratios up to 16:1, where the motor's speed limit comes before 100 km/h."""
     import yaml
