@@ -134,5 +134,9 @@ def verdict_line(fo: dict) -> str:
         return (f"{v} (no derivative in {', '.join(unknown)}: {'its' if len(unknown) == 1 else 'their'} "
                 f"finite-difference points failed, "
                 "so the first-order conditions cannot be verified)")
+    kinks = fo.get("kinks")  # driver.kinks: the objective's one-sided slopes differ there
+    kink = ("; the objective has a kink at the point in " + ", ".join(
+        f"{k['name']} (one-sided slopes {k['left']:.5g} and {k['right']:.5g})" for k in kinks)
+        + ": a nonsmooth model, whose optimum the first-order conditions cannot verify") if kinks else ""
     return (f"{v} (projected gradient of the Lagrangian {fo['stationarity']:.3g}, complementarity "
-            f"{fo['complementarity']:.3g}; tolerance {fo['tolerance']:g})")
+            f"{fo['complementarity']:.3g}; tolerance {fo['tolerance']:g}{kink})")
