@@ -217,6 +217,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     form.feasibility_tolerance = tol
     history: list[dict] = []
     xs: list[np.ndarray] = []  # the optimiser variables of every record (IDF: with the couplings)
+    kept: dict[bytes, tuple] = {}  # MDF: each record's full analysis (record)
 
     def record(x: np.ndarray) -> dict:
         x = np.asarray(x, dtype=float)
@@ -240,6 +241,9 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
             rec["couplings"] = dict(zip(form.var_names[n_dv:], map(float, x[n_dv:])))
         history.append(rec)
         xs.append(x.copy())
+        seen = form.analysed(x, again=True) if ok and hasattr(form, "analysed") else None
+        if seen is not None and seen[1]:  # MDF: every record's full MDA, for the final report (a DE result
+            kept[x.tobytes()] = seen      # can be 180 generations old, long out of the recent rows)
         if callback is not None:
             callback(rec)
         return rec
@@ -294,15 +298,16 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     # point is one more MDA through the same evaluator, counted, so the totals equal what
     # the disciplines actually evaluated (and what a recording holds).
     design = problem.design_dict(x[:n_dv])
-    seen = form.analysed(x) if hasattr(form, "analysed") else None
-    if seen is not None:
+    seen = kept.get(x.tobytes()) or (form.analysed(x) if hasattr(form, "analysed") else None)
+    if seen is not None:  # a DE result recorded 180 iterations before the end, a discipline lost since
         final = design_report(problem, form.mda, design, *seen, tol=tol)
         mda_evals = form.mda_evaluations
+        ok, err = seen[1], seen[2]
     else:
         final = evaluate_design(run, evaluator, design)
         mda_evals = form.mda_evaluations + 1
+        ok, err = form.status(x)
     counts = dict(evaluator.counts)
-    ok, err = form.status(x)
     message = str(res.message) + (f"; final point failed: {err}" if not ok else "")
     if projected:
         message += (f"; the result is iteration {projected[0]} projected onto the bounds (it was "

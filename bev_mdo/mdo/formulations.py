@@ -38,6 +38,7 @@ from bev_mdo.mdo.problem import Problem
 from bev_mdo.models.common import is_number, text_hint
 
 FAIL_OBJECTIVE = 1.0e10
+ANALYSED_ROWS = 4096  # MDF: the full analyses kept of the most recent rows
 FAIL_CONSTRAINT = 1.0
 FD_SCHEMES = ("forward", "central")
 DERIVATIVES = ("auto", "analytic", "fd")
@@ -327,9 +328,13 @@ class MDF(Formulation):
     def _unknown_variables(self, failed) -> list[str]:
         return unknown_variables(failed, self.var_names, self._quantities(), self.mda.specs)
 
-    def analysed(self, x: np.ndarray) -> tuple[dict[str, float], bool, str, int] | None:
-        """(every MDA variable, ok, error, loop iterations) of a recently analysed point, or None."""
-        return self._analysed.get(np.asarray(x, dtype=float).tobytes())
+    def analysed(self, x: np.ndarray, again: bool = False) -> tuple[dict[str, float], bool, str, int] | None:
+        """(every MDA variable, ok, error, loop iterations) of a recently analysed point, or None; ``again``:
+        a point that has left the recent rows (ANALYSED_ROWS) is analysed once more."""
+        x = np.asarray(x, dtype=float)
+        if again and x.tobytes() not in self._analysed:
+            self._evaluate_rows(x[None, :])
+        return self._analysed.get(x.tobytes())
 
     def _evaluate_rows(self, X):
         res = self.analyse(X)
@@ -338,7 +343,7 @@ class MDF(Formulation):
         for i, row in enumerate(X):
             self._analysed[row.tobytes()] = ({k: float(v[i]) for k, v in res.values.items()}, bool(res.ok[i]),
                                              res.messages[i], int(res.iterations[i]))
-        while len(self._analysed) > 4096:
+        while len(self._analysed) > ANALYSED_ROWS:
             self._analysed.pop(next(iter(self._analysed)))
         f = res.values[self.problem.objective]
         g = self.problem.g(res.values)

@@ -208,3 +208,33 @@ def test_a_two_sided_limit_is_satisfied_as_the_optimiser_judges_it_each_bound_by
         rep = _constraint_report(problem, {"y": y}, 1e-4)["y"]
         g = problem.g({"y": np.array([y])})
         assert rep["satisfied"] is satisfied and bool(g.max() <= 1e-4) is satisfied, (y, rep, g)
+
+
+def test_the_result_keeps_its_recorded_values_after_a_discipline_is_lost(monkeypatch):
+    """Differential evolution over ROS, energy lost at iteration 18 of 200: the result was iteration 18's
+    design (recorded feasible), but its full analysis had left the formulation's recent-rows cache and its
+    analysis again failed, so the result read 'feasible False' with every value None, exit 1 (a user trial).
+    Each record's full analysis is kept for the final report."""
+    import math
+
+    from sellar import Failing, SellarDis1, SellarDis2, SellarObjective
+
+    from bev_mdo.mdo import driver, formulations
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.testing import example_config
+    from test_multistart import REF_F, SELLAR
+
+    lost = Failing(SellarDis1(), "x", 20.0)  # the threshold drops to -1 once the optimiser has ended: lost
+    inner = driver.run_optimizer
+
+    def then_lost(name, form, options, record):
+        res = inner(name, form, options, record)
+        lost.threshold = -1.0
+        return res
+
+    monkeypatch.setattr(driver, "run_optimizer", then_lost)
+    monkeypatch.setattr(formulations, "ANALYSED_ROWS", 1)  # the recent-rows cache holds the last row only
+    res = driver.run_optimization(example_config(SELLAR), InProcessEvaluator([lost, SellarDis2(), SellarObjective()]))
+    assert res.feasible and res.objective == pytest.approx(REF_F, rel=1e-6), res.message
+    assert not any(math.isnan(v) for v in res.outputs.values()), res.outputs
+    assert res.constraints["y1"]["satisfied"] and res.error == ""
