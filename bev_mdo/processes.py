@@ -81,11 +81,14 @@ def composed_argv(names: Sequence[str], config_path: str, instance: str = "", ru
     return argv
 
 
-def parse_instances(spec: str | None, names: Sequence[str]) -> dict[str, int]:
-    """``--instances``: ``N`` (every discipline) or ``name=N[,name=N...]`` -> {discipline: instances}."""
+def parse_instances(spec: str | int | Mapping[str, int] | None, names: Sequence[str]) -> dict[str, int]:
+    """``--instances``: ``N`` (every discipline) or ``name=N[,name=N...]`` -> {discipline: instances};
+    the API's ``instances=`` may also be an int or a {name: N} mapping (read as the text they write)."""
     out = dict.fromkeys(names, 1)
     if spec is None:
         return out
+    if isinstance(spec, Mapping):
+        spec = ",".join(f"{k}={v}" for k, v in spec.items())
     spec = str(spec).strip()
     if not spec:
         raise ValueError("--instances '': give N (every discipline) or NAME=N[,NAME=N...]")

@@ -45,7 +45,7 @@ def design(config, given: dict[str, float], transport) -> dict:
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import evaluate_design
 
-    finite_values(given)
+    finite_values(given, one="evaluate takes one design, a number per name; sweep(designs=...) evaluates many")
     config = RunConfig.of(config)
     refuse_outside_model_limits(config, given)
     problem = config.problem

@@ -32,7 +32,7 @@ class OptimizeOptions(Transport):
     bag_flag: str = "--bag"  # the flag that named it, for the line refusing it (resume: --output)
     no_record: bool = False
     quiet: bool = False
-    instances: str | None = None  # ROS: "N" or "NAME=N,..." instances per discipline
+    instances: str | int | dict | None = None  # ROS: "N" or "NAME=N,..." (an int, {NAME: N}) instances per discipline
     compose: str | None = "coordinator"  # ROS: where the discipline nodes run (docs/scaling.md)
     fixed_budget: bool = False  # the verdict of a feasible end that is not a verified optimum is still ok
     progress_to_stderr: bool = False  # ROS start-up line on stderr (the CLI's --json)

@@ -62,18 +62,25 @@ def from_args(args) -> Overrides:
     return ov
 
 
-def finite_values(values: Mapping[str, Any], where: str = "") -> None:
+def finite_values(values: Mapping[str, Any], where: str = "", one: str = "") -> None:
     """InputError naming the first design variable or parameter of ``values`` whose value (a number or
-    an array of numbers) is NaN or infinite: the one check of every design a user gives (--set, --design,
-    --at, --vary, --list; Study.evaluate, sweep, sensitivity). Such a value was evaluated to NaN outputs,
-    or sent in a batch whose rows came back NaN, instead of being refused. ``where``: the flag, if any."""
+    an array of numbers) is NaN or infinite, or None or not a number: the one check of every design a user
+    gives (--set, --design, --at, --vary, --list; Study.evaluate, sweep, sensitivity). Such a value was
+    evaluated to NaN outputs, or sent in a batch whose rows came back NaN, instead of being refused (None
+    was named as nan). ``where``: the flag, if any; ``one``: the values are one design (a number each),
+    and what to say to a list (a list reached float() as a TypeError)."""
     import numpy as np
 
     for name, value in values.items():
+        head = f"{where + ' ' if where else ''}{name}={value!r}"
+        if one and np.ndim(value) != 0:
+            raise InputError(f"{head}: {one}")
         try:
+            if any(v is None for v in np.asarray(value, dtype=object).flat):
+                raise TypeError
             a = np.asarray(value, dtype=float)
         except (TypeError, ValueError):
-            raise InputError(f"{where + ' ' if where else ''}{name}={value!r}: must be a number") from None
+            raise InputError(f"{head}: must be a number") from None
         bad = a[~np.isfinite(a)]
         if bad.size:
             raise InputError(f"{where + ' ' if where else ''}{name}={bad.flat[0]:g}: a design value must be "

@@ -22,7 +22,7 @@ from bev_mdo.api.transport import Transport
 
 
 def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop: int = 100, seed: int = 1,
-        out: str | None = None, transport=None, instances: str | None = None, plots: bool = True,
+        out: str | None = None, transport=None, instances: str | int | dict | None = None, plots: bool = True,
         source: str = "<config>", on_generation=None) -> tuple[dict, object]:
     """(the front.json document, mdo.pareto's result) of one NSGA-II run; ``objectives``: outputs to
     minimise (default: the config's ``problem.objectives``)."""

@@ -33,7 +33,7 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
     from bev_mdo.mdo.sensitivity import sensitivities
 
     config = RunConfig.of(config)
-    finite_values(at or {}, "--at")
+    finite_values(at or {}, "--at", one="the design the sensitivities are taken at, a number per name")
 
     if method == "complex":  # the MDA casts every input to float64 (the discipline interface)
         raise InputError("--method complex: the multidisciplinary analysis passes float64 values between "

@@ -8,7 +8,7 @@ import copy
 import functools
 import math
 import numbers
-from dataclasses import asdict
+from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -150,10 +150,14 @@ class Study:
                  seed: int = 0, x0: Mapping[str, float] | None = None, bag: str | None = None, callback=None,
                  transport=DEFAULT_TRANSPORT, **ros) -> OptimizeResult:
         """Optimise the problem (``bev-mdo optimize``). ``callback(record)`` sees every iteration;
-        ``bag`` writes the run's bag there; ``ros``: OptimizeOptions' ROS settings (instances, compose,
-        no_record)."""
+        ``bag`` writes the run's bag there; ``ros``: OptimizeOptions' ROS settings (instances: N, {name: N}
+        or "name=N,...", compose, no_record) and fixed_budget."""
         from bev_mdo.api import optimize
+        from bev_mdo.models.common import check_keys
 
+        own = {"formulation", "optimizer", "starts", "seed", "x0", "bag", "callback", "transport"}
+        check_keys("", ros, own | {f.name for f in fields(optimize.OptimizeOptions)} - {f.name for f in fields(Transport)}
+                   - {"quiet", "bag_flag", "progress_to_stderr"}, of="optimize()")
         opts = optimize.OptimizeOptions(**asdict(Transport.of(transport)), formulation=formulation, optimizer=optimizer,
                                         starts=starts, seed=seed, bag=bag, quiet=True, **ros)
         return OptimizeResult.of(optimize.run(self.config, opts, callback, dict(x0) if x0 else None))
@@ -168,10 +172,14 @@ class Study:
         import numpy as np
 
         from bev_mdo.api import doe as sampling, evaluate
+        from bev_mdo.api.overrides import finite_values
 
-        fixed = {k: float(v) for k, v in _mapping(fixed, "fixed").items()}
+        fixed = _mapping(fixed, "fixed")
+        finite_values(fixed, "fixed", one="a variable held at one value (vary it in designs=)")
+        fixed = {k: float(v) for k, v in fixed.items()}
         cols = None
         if designs is not None:
+            finite_values(_mapping(designs, "designs"), "designs")  # None named as None, not as nan
             cols = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in _mapping(designs, "designs").items()}
             if len({c.shape for c in cols.values()}) > 1 or any(c.ndim != 1 for c in cols.values()):
                 raise InputError("designs: give every variable's values as one list, all of the same length "
@@ -210,7 +218,7 @@ class Study:
     @_input_errors
     def pareto(self, objectives: list[str] | None = None, generations: int = 30, pop: int = 100, seed: int = 1,
                out: str | None = None, plots: bool = False, transport=DEFAULT_TRANSPORT,
-               instances: str | None = None) -> ParetoResult:
+               instances: str | int | Mapping[str, int] | None = None) -> ParetoResult:
         """The NSGA-II Pareto front of ``objectives`` (minimised; default: the config's
         ``problem.objectives``), written with its bag into ``out`` (default bags/<name>_pareto_<time>)."""
         from bev_mdo.api import pareto

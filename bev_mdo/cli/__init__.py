@@ -74,6 +74,13 @@ def save_figure(fig, path, dpi: int = 110) -> None:
         plt.close(fig)
 
 
+def is_stdout(path) -> bool:
+    """``-`` or a name of descriptor 1 (``/dev/stdout``): the output goes to ``sys.stdout``. Opened by
+    name, /dev/stdout is descriptor 1, which bev-mdo points at stderr while it runs
+    (native_output_to_stderr): ``--csv /dev/stdout`` wrote the CSV to stderr."""
+    return str(path) in ("-", "/dev/stdout", "/dev/fd/1", "/proc/self/fd/1")
+
+
 def write_text_file(path, text: str) -> None:
     """Write an output file the user named (``--csv FILE``, ``--dot FILE``); a path that cannot be
     written is one ValueError naming it and why (not the raw ``[Errno 2] ...``)."""

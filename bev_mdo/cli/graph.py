@@ -21,7 +21,7 @@ def register(sub) -> None:
                                    "DOT text goes to stdout.")
     p.add_argument("config", help="run config YAML")
     p.add_argument("--png", metavar="FILE", help="write the N² chart here")
-    p.add_argument("--dot", metavar="FILE", help="write Graphviz DOT text here ('-' for stdout)")
+    p.add_argument("--dot", metavar="FILE", help="write Graphviz DOT text here ('-' or /dev/stdout for stdout)")
     p.set_defaults(func=run)
 
 
@@ -136,7 +136,7 @@ def plot_n2(model: dict, path: Path, title: str = ""):
 
 
 def run(args) -> int:
-    from bev_mdo.cli import write_text_file
+    from bev_mdo.cli import is_stdout, write_text_file
     from bev_mdo.config import RunConfig
 
     config = RunConfig.load(args.config)
@@ -145,9 +145,9 @@ def run(args) -> int:
     if args.png:
         plot_n2(model, Path(args.png), title=f"{config.name}: coupling graph")
         print(f"wrote {args.png}", file=sys.stderr)
-    if args.dot and args.dot != "-":
+    if args.dot and not is_stdout(args.dot):
         write_text_file(args.dot, dot)
         print(f"wrote {args.dot}", file=sys.stderr)
-    elif args.dot == "-" or not args.png:
+    elif args.dot or not args.png:
         sys.stdout.write(dot)
     return 0

@@ -12,7 +12,7 @@ import shutil
 import sys
 from pathlib import Path
 
-from bev_mdo.cli import write_text_file
+from bev_mdo.cli import is_stdout, write_text_file
 from bev_mdo.cli.flags import add_bag_argument
 
 # fixed headers (quantity, unit) of the record's own columns
@@ -38,7 +38,7 @@ def register(subparsers) -> None:
                     "with --csv). Exit status 1 if the bag holds no iteration records (a pareto bag "
                     "holds fronts instead: the CSV files beside it).")
     add_bag_argument(parser)
-    parser.add_argument("--csv", metavar="FILE", help="write the history as CSV ('-' for stdout)")
+    parser.add_argument("--csv", metavar="FILE", help="write the history as CSV ('-' or /dev/stdout for stdout)")
     parser.add_argument("--run-id", help="this run (default: the bag's own run; needed for a recording of "
                                          "several runs)")
     add_verify_arguments(parser)
@@ -102,12 +102,12 @@ def run(args) -> int:
         return EXIT_NO_ITERATIONS
     if args.csv:
         target = Path(args.csv).resolve()
-        if args.csv != "-" and target.parent == bag.bag_dir.resolve() and (
+        if not is_stdout(args.csv) and target.parent == bag.bag_dir.resolve() and (
                 target.suffix == ".mcap" or target.name == "metadata.yaml"):
             # it replaced the .mcap or metadata.yaml it had just read, and the bag was lost
             raise ValueError(f"--csv {args.csv}: that is the bag's own {target.name}; write the CSV elsewhere")
         text = to_csv(rows)
-        if args.csv == "-":
+        if is_stdout(args.csv):
             sys.stdout.write(text)
         else:
             write_text_file(args.csv, text)

@@ -64,7 +64,8 @@ def _progress(quiet: bool, to_stderr: bool):
         objective = (f"{rec['objective']:12.6f}" if abs(rec["objective"]) < FAIL_OBJECTIVE  # False for NaN
                      else f"{'not evaluated':>12s}")
         start = f"start {rec['start'][0] + 1}/{rec['start'][1]}  " if rec.get("start") else ""  # a multi-start's
-        print(f"{start}iter {rec['iteration']:4d}  {rec['objective_name']} {objective}  "
+        # a multi-start's: the start's own iteration (the record's is the run's count over interleaved starts)
+        print(f"{start}iter {rec.get('start_iteration', rec['iteration']):4d}  {rec['objective_name']} {objective}  "
               f"max violation {rec['max_violation']:9.3g}  {'feasible  ' if rec['feasible'] else 'infeasible'}"
               f"  {rate:9.0f} {'discipline' if idf else 'MDA'} evals/s", file=out, flush=True)
 

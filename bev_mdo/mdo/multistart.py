@@ -67,8 +67,8 @@ def run_starts(run: Run, evaluator: Evaluator, starts: int | list[dict[str, floa
     count = [0]
 
     def renumbered(rec: dict) -> None:  # on one thread: records in the order they were made
-        if callback is not None:
-            callback({**rec, "iteration": count[0]})
+        if callback is not None:  # the run's running number (the bag's); the start's own for its progress line
+            callback({**rec, "iteration": count[0], "start_iteration": rec["iteration"]})
         count[0] += 1
 
     def tagged(i: int):  # each record names its start (0-based), so a resume can go on from each one's last record

@@ -138,6 +138,14 @@ def test_a_bad_config_raises_input_error():
     (lambda s: s.objective(3), "objective: the output must be a name, got 3"),
     (lambda s: s.objective("range_km", maximize="no"), "maximize must be True or False, got 'no'"),
     (lambda s: s.objective("range_km", maximize=2), "maximize must be True or False, got 2"),
+    # a list to evaluate reached float() as a TypeError; None was named nan (a user trial)
+    (lambda s: s.evaluate({"motor_kw": [60, 80]}, transport="inprocess"),
+     r"^motor_kw=\[60, 80\]: evaluate takes one design, a number per name; sweep\(designs=...\) evaluates many$"),
+    (lambda s: s.evaluate({"motor_kw": None}, transport="inprocess"), r"^motor_kw=None: must be a number$"),
+    (lambda s: s.sweep(designs={"motor_kw": [60, None]}, transport="inprocess"), r"motor_kw=\[60, None\]: must be a number"),
+    (lambda s: s.sensitivity(at={"motor_kw": [60, 80]}, transport="inprocess"), r"--at motor_kw=\[60, 80\]: the design"),
+    # a misspelt keyword: TypeError naming OptimizeOptions.__init__
+    (lambda s: s.optimize(transport="inprocess", instance=2), r"instance: unknown key of optimize\(\); did you mean 'instances'"),
 ])
 def test_arguments_of_the_wrong_kind_raise_input_error(run, said):
     from bev_mdo import InputError, Study

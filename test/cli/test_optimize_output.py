@@ -138,6 +138,10 @@ def test_multistart_progress_names_each_start_and_the_iterations_say_whose():
     progress = [line for line in out.splitlines() if "iter " in line and "MDA evals/s" in line]
     assert progress and all(line.startswith(("start 1/3  iter", "start 2/3  iter", "start 3/3  iter")) for line in progress)
     assert {line[:9] for line in progress} == {"start 1/3", "start 2/3", "start 3/3"}
+    # each start's own iterations from 0 (they printed the run's count over the interleaved starts: a user trial)
+    for k in "123":
+        own = [int(line.split("iter")[1].split()[0]) for line in progress if line.startswith(f"start {k}/3")]
+        assert own == list(range(len(own))), (k, own)
     (line,) = [line for line in out.splitlines() if line.startswith("iterations ")]
     best, total = line.split("(start ")[1].split("'s; ")
     assert int(total.split(" over 3 starts)")[0]) == len(progress) - 3  # each start's first record is its start point

@@ -46,3 +46,19 @@ def test_graph_output_into_a_missing_folder_names_file_and_folder(flag, tmp_path
     target = tmp_path / "missing" / ("n2.dot" if flag == "--dot" else "n2.png")
     line = _error_line(capsys, "graph", CONFIG, flag, str(target))
     assert line == f"bev-mdo graph: error: cannot write {target}: the folder {target.parent} does not exist"
+
+
+@pytest.mark.parametrize("argv", [["history", "{bag}", "--csv", "/dev/stdout"], ["graph", CONFIG, "--dot", "/dev/stdout"]])
+def test_dev_stdout_is_stdout_like_a_dash(bag, argv):
+    """bev-mdo points descriptor 1 at stderr while it runs (native_output_to_stderr), so
+    ``history --csv /dev/stdout`` wrote the CSV to stderr (a user trial); it is written like ``-``."""
+    import subprocess
+
+    from bev_mdo.testing import PYTHON, REPO
+
+    argv = [a.replace("{bag}", str(bag)) for a in argv]
+    dash = subprocess.run([PYTHON, "-m", "bev_mdo", *argv[:-1], "-"], cwd=REPO, capture_output=True, text=True, timeout=120)
+    dev = subprocess.run([PYTHON, "-m", "bev_mdo", *argv], cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert dash.returncode == dev.returncode == 0, dev.stderr
+    assert dash.stdout.strip() and dev.stdout == dash.stdout
+    assert dev.stderr == dash.stderr

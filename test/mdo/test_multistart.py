@@ -31,9 +31,10 @@ def test_start_points_are_a_seeded_latin_hypercube_within_the_bounds():
 
 def test_the_best_of_several_starts_and_how_many_reached_it():
     config = example_config(SELLAR)
-    seen = []
+    seen, own = [], {}
     res = run_starts(config, InProcessEvaluator(resolve_disciplines(config)), 4, seed=0,
-                     callback=lambda rec: seen.append(rec["iteration"]))
+                     callback=lambda rec: (seen.append(rec["iteration"]),
+                                           own.setdefault(rec["start"][0], []).append(rec["start_iteration"])))
     ms = res.multistart
     assert ms["starts"] == 4 and len(ms["results"]) == 4
     assert res.objective == pytest.approx(REF_F, rel=1e-7) and res.verdict == "optimum"
@@ -46,6 +47,9 @@ def test_the_best_of_several_starts_and_how_many_reached_it():
     assert ms["results"][ms["best_start"]]["reached_best"]
     # one running iteration number over every start (a bag holds them as one run)
     assert seen == list(range(len(seen)))
+    # and each start's own count (its progress line's), from 0
+    assert sorted(own) == [0, 1, 2, 3] and all(its == list(range(len(its))) for its in own.values())
+    assert [len(own[r["start"]]) for r in ms["results"]] == [r["iterations"] + 1 for r in ms["results"]]
     assert res.mda_evaluations >= sum(r["iterations"] for r in ms["results"])
 
 

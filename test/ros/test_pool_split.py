@@ -128,6 +128,19 @@ def test_pool_min_rows_setting_and_the_split_it_gives():
     assert len(pool.split(100, ["e0", "e1"], min_rows=1)) == 2  # the default: every instance gets a share
 
 
+def test_the_apis_instances_may_be_a_mapping_or_an_int():
+    """Study.optimize(instances={"energy": 2}) was refused: "'{'energy': 2}' is not a whole number"."""
+    from bev_mdo.processes import parse_instances
+
+    names = ["vehicle_mass", "energy", "range", "cost"]
+    assert parse_instances({"energy": 2}, names) == parse_instances("energy=2", names)
+    assert parse_instances(3, names) == dict.fromkeys(names, 3)
+    with pytest.raises(ValueError, match="no discipline 'enrgy'"):
+        parse_instances({"enrgy": 2}, names)
+    with pytest.raises(ValueError, match="'2.5' is not a whole number"):
+        parse_instances({"energy": 2.5}, names)
+
+
 def test_a_discipline_given_twice_or_an_empty_spec_is_refused():
     """``--instances energy=2,energy=3`` used to keep the last, ``--compose ""`` to run as none."""
     from bev_mdo.processes import parse_compose, parse_instances
