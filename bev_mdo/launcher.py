@@ -203,6 +203,16 @@ class Launcher:
             return any(t >= since for n in self.nodes for t in n.restart_times) or any(
                 n.died_at is not None and n.died_at >= since for n in self.nodes)
 
+    def recovering(self, discipline: str) -> bool:
+        """Whether a supervised process serving `discipline` is being restarted: gone from the ROS graph while
+        it runs (the watchdog kills it SILENT_S later), dead and not yet restarted, or restarted and not yet
+        back on the graph (the coordinator's retries wait for it: Orchestrator.recovering)."""
+        with self._lock:
+            return any(n.restart and n.proc is not None
+                       and discipline in n.label.rsplit("/", 1)[-1].split("#")[0].split("+")  # topology/a+b#k
+                       and (n.missing_since is not None or (n.restarts and not n.seen)
+                            or (n.proc.poll() is not None and n.restarts < self.max_restarts)) for n in self.nodes)
+
     def kill(self, label: str, sig: int = signal.SIGKILL, wait: bool = True) -> int:
         """Send a signal to a node process (for fault-injection tests); returns its pid.
 
