@@ -249,7 +249,16 @@ class Launcher:
 
         Nodes labelled in `first` are stopped (and waited for) before the others: a
         recorder drains its queue while the publishers are still alive to deliver it.
+        A second Ctrl-C or SIGTERM meanwhile is taken once every node is stopped (interrupts.held): it
+        cut this short, and a node busy in one long numpy/numba call, deaf to SIGINT and SIGTERM, was left
+        running before its SIGKILL.
         """
+        from bev_mdo import interrupts
+
+        with interrupts.held():
+            self._stop(timeout_s, first)
+
+    def _stop(self, timeout_s: float, first: tuple[str, ...]) -> None:
         self._stopping.set()
         if self._watchdog is not None:
             self._watchdog.stop()
@@ -333,13 +342,15 @@ class OwnSuite:
         return self
 
     def stop(self) -> None:
-        if self.launcher is not None:
-            self.launcher.stop()
-            self.launcher = None
-        if self._own_dir:
-            import shutil
+        import shutil
 
-            shutil.rmtree(self.work_dir, ignore_errors=True)
+        try:
+            if self.launcher is not None:
+                self.launcher.stop()
+                self.launcher = None
+        finally:
+            if self._own_dir:
+                shutil.rmtree(self.work_dir, ignore_errors=True)
 
     def __enter__(self) -> "OwnSuite":
         return self.start()
