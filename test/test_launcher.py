@@ -59,3 +59,24 @@ def test_a_second_ctrl_c_while_the_nodes_stop_still_kills_a_node_deaf_to_signals
             node.proc.kill()
             node.proc.wait()
     assert not left_running, "the node deaf to SIGINT and SIGTERM outlived the interrupted stop"
+
+
+def test_a_node_killed_and_restarted_is_recovering_until_it_is_back_on_the_graph(tmp_path):
+    """What the coordinator's retries wait for past their budget (Orchestrator.recovering)."""
+    launcher = Launcher(dict(os.environ), log_dir=tmp_path)
+    try:
+        node = launcher.add("vehicle_mass+energy", [sys.executable, "-c", "import time; time.sleep(60)"])
+        node.seen = True  # on the graph, as the watchdog marks it
+        assert not launcher.recovering("energy")
+        launcher.supervise()
+        launcher.kill("vehicle_mass+energy")
+        assert launcher.recovering("energy") and launcher.recovering("vehicle_mass")  # dead or restarted
+        assert not launcher.recovering("range")
+        deadline = time.monotonic() + 30
+        while node.restarts == 0 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert node.restarts == 1 and launcher.recovering("energy")  # restarted, not yet seen
+        node.seen = True
+        assert not launcher.recovering("energy")
+    finally:
+        launcher.stop(timeout_s=5.0)

@@ -144,7 +144,7 @@ class Evaluating:
         try:
             self.evaluator = make_ros_evaluator(config, node_name=node_name, run_id=run_id)
             if self.suite is not None:  # retries wait for a node the suite's launcher is restarting
-                self.evaluator.recovering = self.suite.launcher.recovering
+                self.evaluator.inner.recovering = self.suite.launcher.recovering
         except BaseException:
             if self.suite is not None:
                 self.suite.stop()
