@@ -31,6 +31,7 @@ _pending: type[BaseException] | None = None
 _deferring = 0  # > 0 inside deferred(): a signal is kept and raised at the block's end
 _done_status: int | None = None  # work_done's exit status: a signal now ends the process (_end_now)
 _done_notes: list[str] = []  # what is complete besides the printed result (note_done)
+_taken: list[type[BaseException]] = []  # every signal taken since install (held: which came inside its block)
 
 
 def _handler(exc: type[BaseException]):
@@ -39,6 +40,7 @@ def _handler(exc: type[BaseException]):
         if _done_status is not None:
             _end_now(exc)
         _pending = exc
+        _taken.append(exc)
         if not _deferring:
             raise exc()
 
@@ -95,12 +97,29 @@ def deferred():
             raise _pending()
 
 
+@contextlib.contextmanager
+def held():
+    """A teardown that a signal does not cut short (Launcher.stop: a node left before its SIGKILL runs on,
+    orphaned): SIGINT or SIGTERM arriving inside is raised when the block ends; one taken before it (the
+    Ctrl-C that started the teardown) is not raised again."""
+    global _deferring
+    before = len(_taken)
+    _deferring += 1
+    try:
+        yield
+    finally:
+        _deferring -= 1
+        if not _deferring and len(_taken) > before:
+            raise _taken[-1]()
+
+
 def install() -> dict:
     """Handlers for SIGTERM and (unless it is ignored, as in a shell's background job) SIGINT;
     returns the previous handlers for ``restore``. Main thread only."""
     global _pending, _done_status
     _pending, _done_status = None, None
     _done_notes.clear()
+    _taken.clear()
     previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, _handler(Terminated))}
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         previous[signal.SIGINT] = signal.signal(signal.SIGINT, _handler(KeyboardInterrupt))

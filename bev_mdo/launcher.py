@@ -203,6 +203,16 @@ class Launcher:
             return any(t >= since for n in self.nodes for t in n.restart_times) or any(
                 n.died_at is not None and n.died_at >= since for n in self.nodes)
 
+    def recovering(self, discipline: str) -> bool:
+        """Whether a supervised process serving `discipline` is being restarted: gone from the ROS graph while
+        it runs (the watchdog kills it SILENT_S later), dead and not yet restarted, or restarted and not yet
+        back on the graph (the coordinator's retries wait for it: Orchestrator.recovering)."""
+        with self._lock:
+            return any(n.restart and n.proc is not None
+                       and discipline in n.label.rsplit("/", 1)[-1].split("#")[0].split("+")  # topology/a+b#k
+                       and (n.missing_since is not None or (n.restarts and not n.seen)
+                            or (n.proc.poll() is not None and n.restarts < self.max_restarts)) for n in self.nodes)
+
     def kill(self, label: str, sig: int = signal.SIGKILL, wait: bool = True) -> int:
         """Send a signal to a node process (for fault-injection tests); returns its pid.
 
@@ -239,7 +249,16 @@ class Launcher:
 
         Nodes labelled in `first` are stopped (and waited for) before the others: a
         recorder drains its queue while the publishers are still alive to deliver it.
+        A second Ctrl-C or SIGTERM meanwhile is taken once every node is stopped (interrupts.held): it
+        cut this short, and a node busy in one long numpy/numba call, deaf to SIGINT and SIGTERM, was left
+        running before its SIGKILL.
         """
+        from bev_mdo import interrupts
+
+        with interrupts.held():
+            self._stop(timeout_s, first)
+
+    def _stop(self, timeout_s: float, first: tuple[str, ...]) -> None:
         self._stopping.set()
         if self._watchdog is not None:
             self._watchdog.stop()
@@ -323,13 +342,15 @@ class OwnSuite:
         return self
 
     def stop(self) -> None:
-        if self.launcher is not None:
-            self.launcher.stop()
-            self.launcher = None
-        if self._own_dir:
-            import shutil
+        import shutil
 
-            shutil.rmtree(self.work_dir, ignore_errors=True)
+        try:
+            if self.launcher is not None:
+                self.launcher.stop()
+                self.launcher = None
+        finally:
+            if self._own_dir:
+                shutil.rmtree(self.work_dir, ignore_errors=True)
 
     def __enter__(self) -> "OwnSuite":
         return self.start()

@@ -135,6 +135,7 @@ class OptimizeRosSession:
             baseline = {}
 
             def analyse(evaluator) -> None:
+                evaluator.recovering = self.launcher.recovering  # retries wait for a node being restarted
                 with evaluator.sub_run("baseline"):
                     baseline["value"] = analyse_baseline(self.config, evaluator)
 
@@ -356,6 +357,7 @@ class ParetoRosSession:
         node = coordinator_node.CoordinatorNode(cfg, sub_run, context=self.ctx,
                                                 node_name=coordinator_node.node_name_for(sub_run))
         node.evaluator.starting = self.launcher.progress
+        node.evaluator.recovering = self.launcher.recovering  # retries wait for a node being restarted
         # a recorder that died in an earlier topology is not waited for (the study goes on, reported at the end)
         recorders = self.recorder if self.launcher.node("recorder").died is None else 0
         try:

@@ -114,6 +114,38 @@ def check_names(names, problem, params) -> None:
         raise InputError(f"unknown names {unknown}; design variables: {problem.names}, parameters: {sorted(params)}")
 
 
+FIRST_CHUNK_ROWS = 1024  # the first chunk of a batch over ROS; the next ones sized from its measured rate
+
+
+def run_in_chunks(mda, cols: dict[str, np.ndarray], n: int, timeout_s: float | None):
+    """``mda.run(cols)`` for `n` designs; over ROS (`timeout_s`: ros.timeout_s) in consecutive chunks, each sized
+    from the rate measured so far to take about a quarter of ``timeout_s``, so that no request outlasts its
+    timeout and is re-sent to a node still busy with it (docs/doe.md). Each chunk starts from the loop
+    solver's warm start of the whole batch, and no chunk has a single row (FLOW_MIN_ROWS): the results are
+    those of one batch."""
+    if timeout_s is None or n <= FIRST_CHUNK_ROWS:
+        return mda.run(cols)
+    import dataclasses
+    import time
+
+    from bev_mdo import interrupts
+    from bev_mdo.mdo.mda.base import MDAResult
+
+    warm, parts, start, rows = dict(mda.solver.warm), [], 0, FIRST_CHUNK_ROWS
+    while start < n:
+        stop = n if n - (start + rows) < 2 else start + rows
+        mda.solver.warm = dict(warm)
+        t = time.monotonic()
+        parts.append((start, mda.run({k: v[start:stop] for k, v in cols.items()})))
+        rows = max(2, min(65536, int((stop - start) / max(time.monotonic() - t, 1e-3) * timeout_s / 4)))
+        start = stop
+        interrupts.check()  # a Ctrl-C swallowed on the way stops the batch here
+    return MDAResult({k: np.concatenate([r.values[k] for _, r in parts]) for k in parts[0][1].values},
+                     np.concatenate([r.ok for _, r in parts]),
+                     [e if e is None else dataclasses.replace(e, point=e.point + a) for a, r in parts for e in r.errors],
+                     np.concatenate([r.iterations for _, r in parts]))
+
+
 def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
     """One batch of MDAs: {design: {k: array}, outputs: {k: array}, margins: {c: array}, violation: the
     largest normalised violation (inf: failed), feasible: bool array, ok: bool array, errors: [str], objective,
@@ -138,7 +170,7 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
                 if bad.size:
                     raise InputError(f"{d.name}={bad[0]:g} is outside its bounds [{d.lower:g}, {d.upper:g}]")
         cols.update({k: np.asarray(v, dtype=float) for k, v in designs.items()})
-        res = mda.run(cols)
+        res = run_in_chunks(mda, cols, n, getattr(getattr(evaluator, "inner", None), "timeout_s", None))  # ROS only
     outputs = {v: np.asarray(res.values[v], dtype=float) for s in mda.specs.values() for v in s.outputs}
     margins, violation = {}, np.where(res.ok, 0.0, np.inf)
     for c in problem.constraints:

@@ -143,6 +143,8 @@ class Evaluating:
             config, run_id = self.suite.config, self.suite.run_id
         try:
             self.evaluator = make_ros_evaluator(config, node_name=node_name, run_id=run_id)
+            if self.suite is not None:  # retries wait for a node the suite's launcher is restarting
+                self.evaluator.inner.recovering = self.suite.launcher.recovering
         except BaseException:
             if self.suite is not None:
                 self.suite.stop()

@@ -28,9 +28,10 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import itertools
 import time
 from collections import Counter
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -46,6 +47,11 @@ from bev_mdo.mdo.ledger import Ledger
 # contiguous axis is summed pairwise): the acceleration model differs in the last bit between
 # n = 1 and n > 1. Shares of two rows or more keep the joined result bitwise the single-request one.
 FLOW_MIN_ROWS = 2
+
+# How long past its retries a request still waits for a discipline whose node the launcher is restarting
+# (``Orchestrator.recovering``): the watchdog's kill (launcher: 7 s after the 12 s lease) and a restart
+# (a loaded host's energy_node took over 60 s to declare itself). The bound on a node that never comes back.
+RECOVERY_S = 90.0
 
 
 # What a run reports of its own evaluations; a sub-run through the same evaluator leaves it as it was.
@@ -88,6 +94,8 @@ class Orchestrator:
         # others get the whole batch once; docs/scaling.md)
         self.pool_data_flow = pool_data_flow
         self.pool_min_rows = pool_min_rows
+        # discipline -> whether the launcher is restarting a node of it (Launcher.recovering); None: no launcher
+        self.recovering: Callable[[str], bool] | None = None
 
     @contextlib.contextmanager
     def sub_run(self, suffix: str):
@@ -232,28 +240,42 @@ class Orchestrator:
 
     # -- retries -------------------------------------------------------------------
     def _await(self) -> None:
-        """Wait for every pending result; re-send what times out; fail what never answers."""
-        for attempt in range(self.retries + 1):
+        """Wait for every pending result; re-send what times out; fail what never answers. Past the retries, a
+        request whose discipline the launcher is restarting (``recovering``) is re-sent every ``timeout_s`` for up
+        to RECOVERY_S more, and twice after, so the retries reach the new process (docs/security.md)."""
+        budget_end, back = None, 0
+        for attempt in itertools.count():
             self._take_until(time.monotonic() + self.timeout_s)
             for key, p in list(self._pending.items()):
                 if p.discipline in self.unresponsive:  # found hung meanwhile (mark_hung): no retry
                     self._give_up(key, p)
             if not self._pending:
                 break
-            if attempt < self.retries:
-                for p, late in retry.resend_round(self._pending, attempt + 1):
-                    self.retried += len(late)
-                    p.request.attempt = p.tries
-                    self.log.warning(
-                        f"no answer from {late} for evaluation {p.request.evaluation_id}{retry.points(p)} "
-                        f"after {self.timeout_s:g} s; retry {attempt + 1}/{self.retries}"
-                    )
-                    self._send(p)
+            if attempt >= self.retries:
+                budget_end = budget_end or time.monotonic()
+                # two more tries once the node is back on the graph: the first may precede its subscriptions
+                back = 2 if self._recovering(budget_end) else back - 1
+                if back < 0:
+                    break
+            for p, late in retry.resend_round(self._pending, attempt + 1):
+                self.retried += len(late)
+                p.request.attempt = p.tries
+                why = (f"retry {attempt + 1}/{self.retries}" if attempt < self.retries else
+                       f"retry {attempt + 1}: its node is being restarted (up to {RECOVERY_S:g} s more)")
+                self.log.warning(f"no answer from {late} for evaluation {p.request.evaluation_id}{retry.points(p)} "
+                                 f"after {self.timeout_s:g} s; {why}")
+                self._send(p)
         unanswered = dict(self._pending)
         for key, p in unanswered.items():
             self._give_up(key, p)
         for d in retry.hung(unanswered, self._sources_of):
             self.mark_hung(d)
+
+    def _recovering(self, budget_end: float) -> bool:
+        """Whether the launcher restarts (``recovering``) a discipline still pending, within RECOVERY_S
+        of the end of the retry budget (`budget_end`, monotonic s)."""
+        return (self.recovering is not None and time.monotonic() < budget_end + RECOVERY_S
+                and any(self.recovering(p.discipline) for p in self._pending.values()))
 
     def mark_hung(self, d: str) -> None:
         """Discipline `d` let every attempt time out (or, called in this process, overran the same budget:

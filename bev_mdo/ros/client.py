@@ -40,18 +40,18 @@ class _OwnedRosEvaluator:
         rclpy.init(context=self._ctx)
         try:
             self._node = CoordinatorNode(config, run_id, context=self._ctx, node_name=node_name)
-            self._inner = self._node.evaluator
-            self._inner.wait_for_disciplines(list(config.names), ros["discovery_wait_s"])
+            self.inner = self._node.evaluator
+            self.inner.wait_for_disciplines(list(config.names), ros["discovery_wait_s"])
         except BaseException:
             rclpy.shutdown(context=self._ctx)
             raise
-        self.specs = self._inner.specs
-        self.counts = self._inner.counts
-        self.dropped = self._inner.dropped  # results and declarations dropped, by reason
-        self.signed = self._inner.signer is not None
+        self.specs = self.inner.specs
+        self.counts = self.inner.counts
+        self.dropped = self.inner.dropped  # results and declarations dropped, by reason
+        self.signed = self.inner.signer is not None
 
     def evaluate(self, calls, partials: bool = False):
-        return self._inner.evaluate(calls, partials=partials)
+        return self.inner.evaluate(calls, partials=partials)
 
     def close(self) -> None:
         """Bounded, in the CLI at the exit (stacks.teardown): a participant hung in Fast DDS held a sweep."""
@@ -60,7 +60,7 @@ class _OwnedRosEvaluator:
         from bev_mdo.stacks import teardown
 
         if self._ctx.ok() and not self.closed:
-            self.closed, inner, node, ctx = True, self._inner, self._node, self._ctx
+            self.closed, inner, node, ctx = True, self.inner, self._node, self._ctx
             teardown(lambda: (inner.close(), node.destroy_node(), rclpy.shutdown(context=ctx)))
 
 

@@ -253,3 +253,42 @@ def test_a_sweep_stopped_while_its_bag_is_written_is_said_to_be_part_of_it(tmp_p
     res = evaluate_batch(load_config(CONFIG), grid(parse_vary(["motor_kw=70,90"])), "inprocess")
     write_csv(tmp_path / "w.csv", res)
     assert len(list(csv.DictReader(open(tmp_path / "w.csv")))) == 2 and not (tmp_path / "w.csv.part").exists()
+
+
+def test_a_batch_over_ros_is_sent_in_chunks_with_the_results_of_one_batch(monkeypatch):
+    """Over ROS one request of 100,000 designs outlasted ros.timeout_s (5 s): it was re-sent to a node still
+    busy with it, and one longer than the retry budget failed every design (a user trial). The batch now goes
+    in chunks sized to answer well within ros.timeout_s; the results are those of one in-process batch."""
+    import contextlib
+    import types
+
+    import numpy as np
+
+    from bev_mdo.api import evaluate
+    from bev_mdo.api.doe import sample
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+
+    from bev_mdo.config import RunConfig
+
+    cfg = RunConfig.of(load_config(CONFIG))
+    sizes: list[int] = []
+
+    class OverRos:  # what Evaluating yields over ROS: its orchestrator (``inner``) has ros.timeout_s
+        def __init__(self):
+            self._ev = InProcessEvaluator(cfg.disciplines)
+            self.specs, self.inner = self._ev.specs, types.SimpleNamespace(timeout_s=5.0)
+
+        def evaluate(self, calls, partials=False):
+            sizes.extend(len(next(iter(batch.values()))) for _, batch in calls)
+            return self._ev.evaluate(calls, partials=partials)
+
+    n = 20_000
+    bounds = {d.name: (d.lower, d.upper) for d in cfg.problem.design_variables}
+    designs = sample("lhs", bounds, n, seed=3)
+    whole = evaluate.batch(cfg, designs, "inprocess")
+    monkeypatch.setattr(evaluate, "Evaluating", lambda *a, **k: contextlib.nullcontext(OverRos()))
+    chunked = evaluate.batch(cfg, designs, "ros")
+    assert sizes and max(sizes) < n and sum(sizes) == n * len(cfg.names)  # several requests, every design once
+    for k, v in whole["outputs"].items():
+        np.testing.assert_allclose(chunked["outputs"][k], v, rtol=1e-12, equal_nan=True, err_msg=k)
+    assert (chunked["ok"] == whole["ok"]).all() and chunked["errors"] == whole["errors"]

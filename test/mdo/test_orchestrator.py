@@ -93,6 +93,36 @@ def test_a_silent_discipline_is_re_sent_then_its_points_fail_named_and_it_is_not
     assert ev.dropped["duplicate"] == 0  # nothing answered late
 
 
+def test_past_its_retries_a_request_waits_while_the_launcher_restarts_its_node_then_reaches_the_new_one():
+    """With the shipped 4 x 5 s, a frozen node was given up before the watchdog (12 s lease + 7 s) and a
+    restart could bring it back (a user trial). While the launcher reports the discipline's node as being
+    restarted (``recovering``), its request is re-sent past ``retries``; the new node answers it."""
+    ev = MemoryTransport([Square(), Side()], silent={"side"}, retries=1)
+    restart = iter([True, True, False])  # gone, restarting, back on the graph
+
+    def recovering(discipline):
+        if next(restart, False) is False:
+            ev.silent.discard("side")  # the new process answers
+            return False
+        return discipline == "side"
+
+    ev.recovering = recovering
+    sq, side = ev.evaluate([("square", {"x": X}), ("side", {"x": X})])
+    assert sq.ok.all() and side.ok.all() and ev.unresponsive == set()
+    assert ev.retried == 4  # 1 within the retries, 2 while restarting, 1 once it is back
+
+
+def test_a_node_the_launcher_never_brings_back_is_given_up(monkeypatch):
+    """The wait for a restarting node is bounded (RECOVERY_S past the retries): then its points fail."""
+    from bev_mdo.mdo import orchestrator
+
+    monkeypatch.setattr(orchestrator, "RECOVERY_S", 0.0)
+    ev = MemoryTransport([Side()], silent={"side"}, retries=1)
+    ev.recovering = lambda d: True
+    (side,) = ev.evaluate([("side", {"x": X})])
+    assert not side.ok.any() and ev.unresponsive == {"side"}
+
+
 def test_a_discipline_found_hung_during_the_wait_is_not_re_sent():
     """A discipline called in the coordinator's own process (ros/composed.py) that overran its budget is
     marked hung while the wave waits (mark_hung): its request fails at once, without a retry (each

@@ -67,7 +67,7 @@ def _over_ros(cfg, formulation):
     whose data-flow MDAs a graph with a loop does not answer)."""
     ev = make_ros_evaluator(cfg, node_name="vector_test_client")
     try:
-        return run_optimization(run_settings(cfg), ev, formulation=formulation), ev._inner.retried
+        return run_optimization(run_settings(cfg), ev, formulation=formulation), ev.inner.retried
     finally:
         ev.close()
 
