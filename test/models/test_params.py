@@ -157,6 +157,8 @@ def test_a_parameter_set_file_must_name_the_energy_model_it_is_for(tmp_path):
     leaf = yaml.safe_load((ROOT / "config" / "leaf_epa_combined.yaml").read_text())
     assert leaf["energy_model"] == "quasi_static"
     leaf["vehicle"]["parameter_set"] = str(path)
+    from bev_mdo.models.params import CHAIN_ONLY
+
     for model, refused in (("chain", True), ("any", False), ("quasi_static", False)):
         path.write_text(yaml.safe_dump({"name": "mine", "energy_model": model, "parameters": chain}))
         assert load_parameter_set(str(path)) == chain
@@ -164,7 +166,11 @@ def test_a_parameter_set_file_must_name_the_energy_model_it_is_for(tmp_path):
             with pytest.raises(ValueError, match=f"parameter_set '{path}' was fitted for energy_model chain, "
                                                  "not quasi_static"):
                 load_config(yaml.safe_load(yaml.safe_dump(leaf)))
-        else:
+        else:  # the chain's own terms (its 300 W auxiliary load) mean nothing to the quasi-static model: refused
+            with pytest.raises(ValueError, match=r"vehicle\.aux_power_w: only energy_model chain reads it"):
+                load_config(yaml.safe_load(yaml.safe_dump(leaf)))
+            shared = {k: v for k, v in chain.items() if k not in CHAIN_ONLY}
+            path.write_text(yaml.safe_dump({"name": "mine", "energy_model": model, "parameters": shared}))
             assert load_config(yaml.safe_load(yaml.safe_dump(leaf)))["vehicle"]["charger_efficiency"] == \
                 chain["charger_efficiency"]
     path.write_text(yaml.safe_dump({"energy_model": "quasistatic", "parameters": chain}))
