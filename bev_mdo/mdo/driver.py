@@ -350,7 +350,7 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
                            ineq_labels=form.ineq_labels, eq_labels=form.eq_labels, feasibility_tol=tol,
                            point_ok=ok, moved=not np.array_equal(x, np.asarray(x_start, dtype=float)),
                            unknown=form.unknown_derivatives(u) if ok else ())
-    if ok and fo["verdict"] == first_order.STOPPED:  # why: is the objective smooth there?
+    if ok and fo["verdict"] == first_order.STOPPED and not fo["unknown_derivatives"]:  # is it smooth there?
         fo["kinks"] = kinks(form, u, f[0], float(np.max(np.abs(df), initial=0.0)))
     fo["cost"] = {"points": form.n_points - points, "batches": form.n_batches - batches,
                   "wall_time_s": time.perf_counter() - t0}
