@@ -133,6 +133,10 @@ class Formulation:
         c = self._cache.get(np.asarray(x, dtype=float).tobytes())
         return (c[3], c[4]) if c else (False, "not evaluated")
 
+    def failed_rows(self, X: np.ndarray) -> np.ndarray:
+        """(N,) bool: which evaluated physical rows of X failed (a row not evaluated counts as failed)."""
+        return np.array([not self.status(x)[0] for x in np.atleast_2d(np.asarray(X, dtype=float))], dtype=bool)
+
     def batch_fun(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(f, g) with equalities folded in as |h| - eq_tolerance <= 0, for inequality-only optimisers."""
         f, g, h = self.evaluate_batch(X)

@@ -134,6 +134,9 @@ def check_finite_bounds(name: str, form) -> None:
                          "(with IDF give problem.coupling_bounds)")
 
 
+FAIL_VIOLATION = 1e100  # differential evolution: a failed point is worse than any real design
+
+
 def _differential_evolution(form, options, callback):
     check_finite_bounds("differential_evolution", form)
     lo, hi = form.u_bounds
@@ -146,11 +149,19 @@ def _differential_evolution(form, options, callback):
         F, _, _ = form.evaluate_batch(form.to_x(cols(U).T))
         return F / form.problem.objective_scale
 
+    def rows(U, which):
+        # scipy ranks infeasible members by their summed violation: a failed point's FAIL_CONSTRAINT
+        # (1 per row) would rank it above a real design missing every bound by more than 1
+        X = form.to_x(cols(U).T)
+        out = form.evaluate_batch(X)[which]
+        out[form.failed_rows(X)] = FAIL_VIOLATION
+        return out.T
+
     def g(U):
-        return form.evaluate_batch(form.to_x(cols(U).T))[1].T
+        return rows(U, 1)
 
     def h(U):
-        return form.evaluate_batch(form.to_x(cols(U).T))[2].T
+        return rows(U, 2)
 
     cons = []
     if form.ineq_labels:

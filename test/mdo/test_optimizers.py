@@ -86,3 +86,19 @@ def test_missing_plugin_module_is_a_clear_error(monkeypatch):
     monkeypatch.setitem(optimizers.OPTIMIZERS, "ghost", "no_such_module_xyz:minimize")
     with pytest.raises(ValueError, match="plug-in 'no_such_module_xyz:minimize' is not available"):
         run_optimizer("ghost", form())
+
+
+def test_differential_evolution_ranks_a_failed_point_below_every_real_one():
+    # No design meets these bounds (every real point misses each by far more than 1 scaled unit), and the
+    # objective fails where z2 > 9. A failed point's constraints (FAIL_CONSTRAINT each) must not make it look
+    # closer to feasible than a real design: the answer is the least-violated real design, not a failure.
+    from sellar import Failing
+    from sellar_disciplines import SellarDis1, SellarDis2, SellarObjective
+    ev = InProcessEvaluator([SellarDis1(), SellarDis2(), Failing(SellarObjective(), "z2", 9.0)])
+    problem = Problem.from_config({**SELLAR_PROBLEM, "constraints": {"y1": {"lower": 500.0, "scale": 1.0},
+                                                                     "y2": {"upper": -50.0, "scale": 1.0}}})
+    f = MDF(problem, ev, MDA(ev, tolerance=1e-13))
+    res = run_optimizer("differential_evolution", f, {"maxiter": 5, "popsize": 10})
+    F, G, _ = f.evaluate_batch(res.x[None])
+    assert res.x[1] <= 9.0 and F[0] < 1e9
+    assert np.all(G[0] > 1.0)  # really infeasible: the case where the failed point used to win
