@@ -54,8 +54,12 @@ if ! fresh pkg "$h"; then
   log "installing bev_mdo into the venv"
   quiet_pip install -q --no-deps --no-build-isolation --force-reinstall "$ROOT" >/dev/null
   "$VENV/bin/python" -c "import bev_mdo" || { log "bev_mdo did not install"; exit 1; }
-  # the quasi-static model's numba loops, compiled once and cached beside the package (it says so if that is slow)
-  "$VENV/bin/python" -c "from bev_mdo.disciplines.energy import warm_up; warm_up()" \
+  # the quasi-static model's numba loops, compiled once and cached beside each copy of the package (it says so
+  # if that is slow): the installed one, which bev-mdo and the node executables (`ros2 run`) import (-I, from the
+  # venv: from the repository `python -c` imports the source tree, and its cache alone left the first ROS run to
+  # compile for a minute in its energy node), and the source tree (python -m bev_mdo and the tests from here)
+  (cd "$VENV" && "$VENV/bin/python" -I -c "from bev_mdo.disciplines.energy import warm_up; warm_up()") \
+    && (cd "$ROOT" && "$VENV/bin/python" -c "from bev_mdo.disciplines.energy import warm_up; warm_up()") \
     || { log "compiling the quasi-static model failed"; exit 1; }
   rm -rf "$ROOT/build" "$ROOT"/*.egg-info
   stamp pkg "$h"

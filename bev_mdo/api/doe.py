@@ -101,16 +101,19 @@ def plot_scatter(result: dict, output: str, varied: list[str], path: Path, metho
     return fig
 
 
-def record(bag_dir: Path, config, result: dict, method: str, transport: str) -> Path:
+def record(bag_dir: Path, config, result: dict, method: str, transport: str, fixed: dict | None = None) -> Path:
     """The sweep as a bag: one IterationRecord per design (iteration = design index, optimizer =
-    the DOE method), the effective config in the metadata."""
+    the DOE method), the effective config in the metadata, and ``fixed`` (the ``--set`` values) as its
+    ``fixed`` entry (JSON), which ``resume`` keeps fixed."""
+    import json
     import uuid
 
     from bev_mdo.api.runbag import InProcessBag
 
     problem, n = result["problem"], len(result["feasible"])
     # the count it will hold: a bag cut short (a signal while it is written) is said to be part of the sweep
-    bag = InProcessBag(Path(bag_dir), config, uuid.uuid4().hex[:16], transport=transport, designs=str(n))
+    bag = InProcessBag(Path(bag_dir), config, uuid.uuid4().hex[:16], transport=transport, designs=str(n),
+                       **({"fixed": json.dumps(fixed)} if fixed else {}))
     t0 = time.perf_counter()
     try:
         for i in range(n):

@@ -58,9 +58,22 @@ def design(config, given: dict[str, float], transport) -> dict:
     with Evaluating(config, transport) as evaluator:
         report = evaluate_design(config.settings, evaluator, full)
     notes = design_notes(config, report["outputs"])
+    short = cannot_follow(config, {**full, **report["outputs"]})
+    if short:  # not a design the run's energy describes: infeasible whatever the constraints say
+        report["feasible"] = False
+        notes = short + notes
     if notes:
         report["notes"] = notes
     return report
+
+
+def cannot_follow(config, values: dict) -> list[str]:
+    """One line per discipline that says the design in ``values`` cannot follow its drive cycle
+    (``cannot_follow``: the energy discipline's), e.g. a van asked for 0-60 km/h in 1 s."""
+    from bev_mdo.config import RunConfig
+
+    return [n for d in RunConfig.of(config).disciplines
+            if (n := (getattr(d, "cannot_follow", None) or (lambda _: None))(values))]
 
 
 def design_notes(config, outputs: dict) -> list[str]:
@@ -185,11 +198,20 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
             v = ((b - y) if kind == "lower" else (y - b)) / scale
             violation = np.maximum(violation, np.where(np.isfinite(v), v, np.inf))
     feasible = violation <= feasibility_tolerance(config.settings)
+    notes = ceiling_notes(config, outputs)
+    short = np.zeros(n, bool)  # designs whose motor cannot follow the cycle: infeasible, whatever the constraints
+    for d in config.disciplines:
+        for name, _, count, _ in (getattr(d, "cycle_steps_short", None) or (lambda _: None))({**cols, **outputs}) or ():
+            short |= count > 0
+    if short.any():
+        feasible &= ~short
+        notes.append(f"{int(short.sum())} of {n} designs cannot follow the drive cycle (their motor falls short of "
+                     "the drive force or over its speed limit): infeasible")
     return {"design": {k: cols[k] for k in [*problem.names, *[k for k in designs if k not in problem.names]]},
             "outputs": outputs, "margins": margins, "violation": violation, "feasible": feasible,
             "ok": np.asarray(res.ok, bool),
             "errors": res.messages, "objective": problem.objective, "problem": problem,
-            "units": {**parameter_units(designs), **declared_units(config)}, "notes": ceiling_notes(config, outputs)}
+            "units": {**parameter_units(designs), **declared_units(config)}, "notes": notes}
 
 
 def parameter_units(names) -> dict[str, str]:

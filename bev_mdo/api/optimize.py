@@ -66,6 +66,7 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
         result, baseline, extra = _run_ros(config, opts, show, x0, starts)
     else:
         result, baseline, extra = _run_inprocess(config, opts, show, x0, starts)
+    _check_follows(config, result, baseline)
     from bev_mdo.api import runbag  # end-of-run answers: in the result, stored with the bag
 
     with runbag.noting_interrupts(extra.get("bag")):  # a signal while the answers are made: what the bag holds
@@ -73,6 +74,21 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
     extra = {k: v for k, v in extra.items() if not k.startswith("_")}
     extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
     return {**result, "baseline": baseline, **extra}
+
+
+def _check_follows(config, result: dict, baseline: dict | None) -> None:
+    """A result (and baseline) whose motor cannot follow the cycle is infeasible, whatever the constraints say:
+    its energy is that of the cycle's demand (api.evaluate.cannot_follow). The verdict says so."""
+    from bev_mdo.api.evaluate import cannot_follow
+    from bev_mdo.mdo.first_order import INFEASIBLE
+
+    if baseline and baseline.get("outputs") and cannot_follow(config, {**baseline["design"], **baseline["outputs"]}):
+        baseline["feasible"] = False
+
+    if not result.get("design") or not (lines := cannot_follow(config, {**result["design"], **result["outputs"]})):
+        return
+    result.update(feasible=False, success=False, verdict=INFEASIBLE)
+    result["first_order"] = {**result["first_order"], "verdict": INFEASIBLE, "cannot_follow": lines}
 
 
 def _run_inprocess(config, opts, show, x0, starts):

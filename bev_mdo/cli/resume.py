@@ -40,6 +40,7 @@ def resume_point(bag_path: str, run_id: str | None = None, key_file: str | None 
                  checks: dict | None = None, no_verify: bool = False) -> tuple:
     """(the run's RunConfig, last verified design of the bag's own run, its iteration) from a bag;
     BagError (a ValueError) if there is none or it cannot be verified."""
+    import json
     import sys
 
     from bev_mdo.bag.history import last_iterate
@@ -53,7 +54,26 @@ def resume_point(bag_path: str, run_id: str | None = None, key_file: str | None 
     config_yaml, design, iteration = last_iterate(bag, run_id, key_file, checks, no_verify)
     if not config_yaml:
         raise ValueError(f"{bag_path}: the bag holds no configuration; cannot resume")
-    return RunConfig.load(load_yaml(config_yaml)), design, iteration
+    config = RunConfig.load(load_yaml(config_yaml))
+    fixed = json.loads(bag.info.get("fixed") or "{}")  # a sweep's --set values: held in the resumed run
+    if fixed and checks is not None:
+        config = held(config, fixed)
+        checks["fixed"] = "keeping what the sweep fixed with --set: " + ", ".join(f"{k}={v:g}" for k, v in fixed.items())
+    return config, design, iteration
+
+
+def held(config, fixed: dict):
+    """``config`` with the ``fixed`` values held: a design variable among them leaves the optimisation and,
+    as every other name, goes into ``problem.parameters`` (a constant input of every evaluation)."""
+    problem = dict(config["problem"])
+    dvs = {k: v for k, v in problem["design_variables"].items() if k not in fixed}
+    if not dvs:
+        raise ValueError("the sweep fixed every design variable with --set: nothing left to optimise")
+    base = problem.get("baseline")
+    if base and base.get("design"):
+        problem["baseline"] = {**base, "design": {k: v for k, v in base["design"].items() if k not in fixed}}
+    problem.update(design_variables=dvs, parameters={**(problem.get("parameters") or {}), **fixed})
+    return config.with_sections(problem=problem)
 
 
 def is_per_run_key(path) -> bool:
@@ -81,6 +101,8 @@ def run(args) -> int:
     out = sys.stderr if args.json else sys.stdout
     if check_note(checks):
         print(f"{args.bag}: {check_note(checks)}", file=sys.stderr)
+    if checks.get("fixed"):
+        print(checks["fixed"], file=out)
     # the resumed run gets a key of its own (the old path would make the new run share the old key)
     config = RunConfig.of(config)
     if is_per_run_key(config["ros"].get("sign_key_file")):

@@ -243,7 +243,8 @@ def run(args) -> int:
         out.mkdir(parents=True, exist_ok=True)
         written = [out / "sweep.csv"]
         if not args.no_record:  # the bag first: whatever stops the command after the batch, the batch is recorded
-            written.append(record(bag, config, result, args.doe or ("grid" if args.vary else "list"), transport))
+            written.append(record(bag, config, result, args.doe or ("grid" if args.vary else "list"), transport,
+                                  flags.parse_assignments(args.fixed)))
     write_csv(out / "sweep.csv", result)
     if not args.no_plots:
         from bev_mdo.sessions import analyse_baseline

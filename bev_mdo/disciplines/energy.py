@@ -16,7 +16,9 @@ from bev_mdo.disciplines.common import (ENERGY_MODELS, Base, flag, overridable, 
                                         run_topology, topology_inputs, vehicle_of)
 from bev_mdo.models import flat
 from bev_mdo.models import topology as topo_model
+from bev_mdo.models.acceleration import ACCEL_PARAMS
 from bev_mdo.models.cycles import DriveCycle, resample
+from bev_mdo.models.follow import steps_not_followed
 from bev_mdo.models.params import QUASI_STATIC_SPECS
 
 WALL_MODELS = ("chain", "quasi_static")  # the models that know the charger: energy_wall_wh_per_km
@@ -104,7 +106,32 @@ class Energy(Base):
         disc = cls({k: v[k] for k in names}, resampled_cycle(config, options.cycle), model, extra,
                    run_topology(config, options).name, flag("energy", "feasibility_outputs", options.feasibility_outputs))
         disc.weighted = _cycle_weights(config, options, model)
+        disc.envelope = {k: x for k, x in v.items() if k in ACCEL_PARAMS or k.startswith("road_load_") or k == "gear_count"}
         return disc
+
+    def cycle_steps_short(self, values) -> list | None:
+        """[(cycle name, its steps, steps not followed (N,), largest force short N (N,))] of the designs in
+        ``values`` (motor_kw, gear_ratio, vehicle_mass_kg: numbers or (N,) arrays) at full motor envelope
+        (models/follow.py); None where that envelope is not the run's: single-speed SM-SA only."""
+        env = getattr(self, "envelope", None)
+        if (env is None or self.topology.name != "SM-SA" or env.get("gear_count", 1.0) != 1.0
+                or any(values.get(k) is None for k in ("motor_kw", "gear_ratio", "vehicle_mass_kg"))):
+            return None
+        env = {k: x for k, x in env.items() if k != "gear_count"}
+        return [(r.name, len(r.time_s) - 1, *steps_not_followed(r.time_s, r.speed_m_s, env, values["vehicle_mass_kg"],
+                                                                values["gear_ratio"], values["motor_kw"]))
+                for _, r in self._cycles()]
+
+    def cannot_follow(self, values) -> str | None:
+        """One line when the one design in ``values`` cannot follow a cycle of the run (``cycle_steps_short``),
+        else None: its energy per km is that of the cycle's demand, not of a powertrain that follows it."""
+        for name, steps, count, worst in self.cycle_steps_short(values) or ():
+            if count[0]:
+                return (f"the design cannot follow the cycle {name} at {int(count[0])} of {steps} steps (its "
+                        f"{float(values['motor_kw']):.4g} kW motor at {float(values['gear_ratio']):.4g}:1 falls up to "
+                        f"{worst[0] / 1e3:.3g} kN short of the drive force, or over its speed limit): its energy per "
+                        "km is that of the cycle's demand, not of a powertrain that follows it")
+        return None
 
     def prepare(self) -> None:
         """One-time work before the first call, outside any timeout: the quasi-static model's compiled loops."""

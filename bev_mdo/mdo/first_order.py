@@ -124,6 +124,8 @@ def verdict_line(fo: dict) -> str:
     worst = max(fo["stationarity"], fo["complementarity"])
     if v == OPTIMUM:
         return f"optimum (first-order conditions hold to {worst:.2g}; tolerance {fo['tolerance']:g})"
+    if v == INFEASIBLE and fo.get("cannot_follow"):  # api.optimize: the result's motor cannot follow the cycle
+        return f"infeasible ({'; '.join(fo['cannot_follow'])})"
     if v == INFEASIBLE and fo.get("point_failed"):
         return "infeasible (the point failed: the disciplines gave no value there)"
     if v == INFEASIBLE:

@@ -179,7 +179,9 @@ def test_compare_and_sweep_say_which_times_are_not_times(tmp_path, capsys):
     slow = sum(float(r["accel_time_0_100_s"]) >= 10000 for r in rows)
     notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note:")]
     assert slow == 1 and notes == [f"note: accel_time_0_100_s: {slow} of 4 designs at or above 10000 (from there up "
-                                   "the value marks a design that cannot reach 100 km/h): not values of the quantity"]
+                                   "the value marks a design that cannot reach 100 km/h): not values of the quantity",
+                                   "note: 2 of 4 designs cannot follow the drive cycle (their motor falls short of the "
+                                   "drive force or over its speed limit): infeasible"]
 
 
 def test_compare_percent_has_the_sign_of_the_difference_for_a_negative_quantity(capsys):

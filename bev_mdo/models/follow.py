@@ -1,0 +1,35 @@
+"""Can a single-speed motor follow a drive cycle? The steps of a cycle its full envelope cannot drive.
+
+The envelope is the acceleration model's (acceleration.py: peak torque ``motor_torque_per_kw`` x P up to
+the base speed, constant power P above it, nothing beyond ``motor_speed_limit_rpm``, within the tyres'
+grip), so "cannot follow" and the 0-100 km/h time agree. A step of a resampled (piecewise-linear) cycle
+from speed v0 to v1 in h seconds asks for the net force M (v1 - v0) / h throughout; the envelope's net
+force (drive force minus road load) only falls with speed, so the step is followed when it is met at the
+step's higher speed, and the motor turns there within its speed limit. The energy models compute the
+energy of the cycle's demand whether or not the motor delivers it; this is what says that it does not.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import road_load as rl
+from .acceleration import ACCEL_PARAMS, grip_force_n, wheel_force_n
+from .params import get_params
+
+
+def steps_not_followed(time_s, speed_m_s, params, vehicle_mass_kg, gear_ratio, motor_kw):
+    """(count, worst) per design, each (N,): the cycle steps the motor cannot drive, and the largest
+    shortfall of net force over them (N, 0 where none)."""
+    t, v = np.asarray(time_s, float), np.asarray(speed_m_s, float)
+    p = {**get_params(params, ACCEL_PARAMS), **rl.checked(params)}
+    m, ig, kw = (np.atleast_1d(np.asarray(x, float)) for x in (vehicle_mass_kg, gear_ratio, motor_kw))
+    n = max(m.size, ig.size, kw.size)
+    m, ig, kw = (np.broadcast_to(x, (n,)) for x in (m, ig, kw))
+    v_hi = np.maximum(v[1:], v[:-1])[:, None]
+    need = m[None, :] * (np.diff(v) / np.diff(t))[:, None]
+    pb = {k: (x if np.ndim(x) == 0 else np.asarray(x, float)[None, :]) for k, x in p.items()}
+    have = wheel_force_n(v_hi, kw[None, :], ig[None, :], m[None, :], pb, grip_force_n(m[None, :], pb))
+    over_speed = ig[None, :] * v_hi / pb["wheel_radius_m"] > pb["motor_speed_limit_rpm"] * np.pi / 30.0 * (1 + 1e-12)
+    short = need - have
+    bad = (v_hi > 0) & ((short > 1e-9 * (np.abs(need) + np.abs(have) + 1.0)) | over_speed)
+    return bad.sum(axis=0), np.where(bad, np.maximum(short, 0.0), 0.0).max(axis=0, initial=0.0)

@@ -1,0 +1,68 @@
+"""A design whose motor cannot follow the drive cycle is infeasible by default (a user trial: a delivery van's
+cycle going 0 to 60 km/h in 1 s was optimised to 'verdict: optimum', its energy computed as if the motor
+delivered the demand). The energy discipline checks the cycle against the motor's full envelope
+(models/follow.py); optimize's verdict, evaluate and sweep say so."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from bev_mdo.cli import main
+from bev_mdo.models.follow import steps_not_followed
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _van(tmp_path) -> Path:
+    cycle = tmp_path / "van.csv"
+    cycle.write_text("time_s,speed_kmh\n0,0\n5,0\n6,60\n60,60\n75,0\n80,0\n")
+    raw = yaml.safe_load((ROOT / "config" / "leaf_nedc.yaml").read_text())
+    raw.update(name="van", cycle={"name": str(cycle), "dt_s": 1.0, "interpolation": "linear"})
+    path = tmp_path / "van.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    return path
+
+
+def test_the_envelope_follows_a_gentle_step_and_not_a_violent_one():
+    t, v = np.array([0.0, 2.0, 12.0]), np.array([0.0, 30 / 3.6, 30 / 3.6])  # 0-30 km/h in 2 s: 6.7 kN
+    count, worst = steps_not_followed(t, v, {}, 1600.0, 8.0, np.array([40.0, 120.0]))
+    assert list(count) == [1, 0] and worst[0] > 1e3 and worst[1] == 0.0  # 40 kW: 140 N m, 3.4 kN at the wheels
+    count, worst = steps_not_followed([0.0, 1.0], [0.0, 60 / 3.6], {}, 1600.0, 8.0, 1000.0)
+    assert list(count) == [1] and worst[0] > 1e4  # 0-60 km/h in 1 s: beyond the tyres' grip, whatever the motor
+    count, _ = steps_not_followed([0.0, 1.0], [0.0, 60 / 3.6], {"tyre_grip_coefficient": 0.0}, 1600.0, 8.0, 1000.0)
+    assert list(count) == [0]  # the thesis' parameters have no grip limit
+
+
+def test_optimize_does_not_call_a_design_that_cannot_follow_the_cycle_an_optimum(tmp_path, capsys):
+    code = main(["optimize", str(_van(tmp_path)), "--transport", "inprocess", "--no-record", "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 1 and doc["feasible"] is False and doc["verdict"] == "infeasible"
+    assert "cannot follow the cycle van at 1 of 80 steps" in doc["first_order"]["cannot_follow"][0]
+    assert doc["baseline"]["feasible"] is False  # the Leaf cannot either
+
+
+def test_the_verdict_line_says_why(tmp_path, capsys):
+    assert main(["optimize", str(_van(tmp_path)), "--transport", "inprocess", "--no-record", "--quiet"]) == 1
+    verdict = [x for x in capsys.readouterr().out.splitlines() if x.startswith("verdict:")]
+    assert verdict and verdict[0].startswith("verdict: infeasible (the design cannot follow the cycle van at 1 of 80 steps")
+
+
+def test_evaluate_and_sweep_mark_it_infeasible(tmp_path, capsys):
+    van = _van(tmp_path)
+    assert main(["evaluate", str(van), "--set", "motor_kw=80", "--transport", "inprocess", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["feasible"] is False and "cannot follow the cycle van" in doc["notes"][0]
+    assert all(c["satisfied"] for c in doc["constraints"].values())  # the constraints alone would pass it
+    assert main(["sweep", str(van), "--doe", "lhs", "--samples", "8", "--transport", "inprocess",
+                 "--out", str(tmp_path / "sw")]) == 0
+    out = capsys.readouterr().out
+    assert "0 feasible, 8 infeasible" in out and "8 of 8 designs cannot follow the drive cycle" in out
+
+
+def test_the_default_problem_still_ends_at_an_optimum(capsys):
+    code = main(["optimize", str(ROOT / "config" / "leaf_nedc.yaml"), "--transport", "inprocess", "--no-record", "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 0 and doc["verdict"] == "optimum" and "cannot_follow" not in doc["first_order"]
