@@ -25,9 +25,22 @@ def steps_not_followed(time_s, speed_m_s, params, vehicle_mass_kg, gear_ratio, m
     m, ig, kw = (np.atleast_1d(np.asarray(x, float)) for x in (vehicle_mass_kg, gear_ratio, motor_kw))
     n = max(m.size, ig.size, kw.size)
     m, ig, kw = (np.broadcast_to(x, (n,)) for x in (m, ig, kw))
+    p = {k: np.broadcast_to(np.asarray(x, float), (n,)) if np.ndim(x) else x for k, x in p.items()}
+    count, worst = np.zeros(n, np.int64), np.zeros(n)
+    step = max(1, _CELLS // max(len(v), 1))  # designs per block: (steps x designs) arrays stay small at any batch
+    for s in range(0, n, step):
+        b = slice(s, s + step)
+        count[b], worst[b] = _block(t, v, {k: (x[b] if np.ndim(x) else x) for k, x in p.items()}, m[b], ig[b], kw[b])
+    return count, worst
+
+
+_CELLS = 1 << 20  # steps x designs per block (about 8 MB per array)
+
+
+def _block(t, v, p, m, ig, kw):
     v_hi = np.maximum(v[1:], v[:-1])[:, None]
     need = m[None, :] * (np.diff(v) / np.diff(t))[:, None]
-    pb = {k: (x if np.ndim(x) == 0 else np.asarray(x, float)[None, :]) for k, x in p.items()}
+    pb = {k: (x if np.ndim(x) == 0 else x[None, :]) for k, x in p.items()}
     have = wheel_force_n(v_hi, kw[None, :], ig[None, :], m[None, :], pb, grip_force_n(m[None, :], pb))
     over_speed = ig[None, :] * v_hi / pb["wheel_radius_m"] > pb["motor_speed_limit_rpm"] * np.pi / 30.0 * (1 + 1e-12)
     short = need - have
