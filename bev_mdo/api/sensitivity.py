@@ -62,7 +62,7 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
             if varied:
                 raise InputError(f"--at {', '.join(varied)}: varied over the bounds by --global; --at fixes only "
                                  "the variables not in --wrt")
-            samples = samples or (1024 if global_method == "sobol" else 64)
+            samples = (1024 if global_method == "sobol" else 64) if samples is None else samples
             from bev_mdo.api.evaluate import ceilings, declared_units
 
             rep = analyse(global_method, fun, point, bounds, wrt, outputs, samples, seed, conf_level,

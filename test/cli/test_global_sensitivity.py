@@ -117,6 +117,8 @@ def test_samples_that_cannot_reach_100_kmh_are_counted_and_said(capsys):
 
 @pytest.mark.parametrize("argv, message", [
     (["--global", "sobol", "--samples", "1000"], "must be a power of 2"),
+    (["--global", "sobol", "--samples", "0"], "--samples 0: must be >= 2"),  # 0 ran the default 1024
+    (["--global", "morris", "--samples", "0"], "--samples 0: must be >= 2"),
     (["--global", "sobol", "--wrt", "drag_area_m2"], "has no bounds"),
     # a flag of the other kind was ignored without a word
     (["--order", "1", "--seed", "3"], "--seed: needs --global sobol|morris"),
