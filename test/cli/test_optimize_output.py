@@ -200,20 +200,9 @@ def test_the_start_up_line_says_what_runs_where_with_pools(monkeypatch, tmp_path
 
 def test_a_result_projected_onto_its_bounds_is_said_so_beside_the_table(monkeypatch):
     """COBYLA ended Sellar 5e-8 below z2 >= 0; the driver projects it onto the bound, and the terminal says so."""
-    import numpy as np
+    from bev_mdo.testing import end_outside_a_bound
 
-    from bev_mdo.mdo import driver
-
-    inner = driver.run_optimizer
-
-    def ending_outside(name, form, options, record):
-        res = inner(name, form, options, record)
-        res.x = np.asarray(res.x, float).copy()
-        res.x[1] = -5e-8  # z2, lower bound 0
-        record(res.x)
-        return res
-
-    monkeypatch.setattr(driver, "run_optimizer", ending_outside)
+    end_outside_a_bound(monkeypatch, 1, -5e-8)  # z2, lower bound 0
     sellar = str(Path(CONFIG).parents[1] / "examples/sellar/sellar_mdf.yaml")
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
