@@ -181,6 +181,7 @@ def test_a_result_just_outside_a_bound_is_projected_onto_it_and_evaluated_there(
     assert res.design["z2"] == 0.0 and res.history[-1]["design"] == res.design and res.last_iterate
     assert res.max_violation <= 1e-6 and res.feasible and res.verdict == "optimum"
     assert res.objective == pytest.approx(REF_F, rel=1e-6)
+    assert res.projected == {"iteration": outside["iteration"], "bound_violation_scaled": pytest.approx(5e-9, rel=1e-6)}
     assert f"the result is iteration {outside['iteration']} projected onto the bounds (it was 5e-09 outside" in res.message
 
 
