@@ -157,7 +157,9 @@ def evaluate_design(run: Run, evaluator: Evaluator, design: Mapping[str, float])
     inputs = {k: np.array([float(v)]) for k, v in {**problem.parameters, **design}.items()}
     res = mda.run(inputs)
     values = {k: float(v[0]) for k, v in res.values.items()}
-    return design_report(problem, mda, design, values, bool(res.ok[0]), res.messages[0], int(res.iterations[0]),
+    why = res.errors[0]  # one design: the discipline's reason, without 'at point 0' and the inputs shown beside it
+    error = (why.reason or why.message) if why is not None else ""
+    return design_report(problem, mda, design, values, bool(res.ok[0]), error, int(res.iterations[0]),
                          tol=run.optimizer.feasibility_tolerance)
 
 
