@@ -99,3 +99,23 @@ def assert_same_iterates(ros, local) -> None:
             assert a["design"][k] == pytest.approx(b["design"][k], rel=1e-12, abs=1e-12)
         assert a["objective"] == pytest.approx(b["objective"], rel=1e-12, nan_ok=True)  # NaN: a failed point
     assert ros.discipline_evaluations == local.discipline_evaluations
+
+
+def end_outside_a_bound(monkeypatch, index: int, value: float) -> None:
+    """The driver's optimiser (``driver.run_optimizer``, patched through pytest's `monkeypatch`) ends at its
+    own result with optimiser variable `index` set to `value` and recorded as an iteration: what COBYLA did,
+    ending Sellar 5e-8 below z2 >= 0 and SSBJ 6e-5 above x_shared[1] <= 60000 (a result just outside a bound)."""
+    import numpy as np
+
+    from bev_mdo.mdo import driver
+
+    inner = driver.run_optimizer
+
+    def ending_outside(name, form, options, record):
+        res = inner(name, form, options, record)
+        res.x = np.asarray(res.x, float).copy()
+        res.x[index] = value
+        record(res.x)
+        return res
+
+    monkeypatch.setattr(driver, "run_optimizer", ending_outside)

@@ -323,6 +323,41 @@ def test_an_sm_sa_only_setting_on_another_topology_is_refused_on_load(topology, 
         load_config(raw)
 
 
+@pytest.mark.parametrize("vehicle, design_variables, said", [
+    ({"gear_ratio_2": 12.0}, {"gear_ratio": {"lower": 8, "upper": 9.4, "initial": 8.5}},
+     r"gear_ratio_2 12 \(vehicle.gear_ratio_2\) is above gear_ratio 8 \(the lower bound of "
+     r"problem.design_variables.gear_ratio\)"),
+    ({}, {"gear_ratio": {"lower": 4, "upper": 9.4, "initial": 7.9}},  # gear_ratio_2's default, 4.7
+     r"gear_ratio_2 4.7 \(vehicle.gear_ratio_2\) is above gear_ratio 4 \(the lower bound of "
+     r"problem.design_variables.gear_ratio\)"),
+    ({}, {"gear_ratio": {"lower": 6, "upper": 9.4, "initial": 7.9}, "gear_ratio_2": {"lower": 3, "upper": 7, "initial": 4.7}},
+     r"gear_ratio_2 7 \(the upper bound of problem.design_variables.gear_ratio_2\) is above gear_ratio 6 \(the "
+     r"lower bound of problem.design_variables.gear_ratio\)")])
+def test_a_second_gear_shorter_than_the_first_is_refused_on_load(vehicle, design_variables, said):
+    """gear_count: 2 with gear_ratio_2 12 above every gear_ratio loaded and evaluated a 'second gear' shorter
+    than the first; so did bounds that let the optimiser reach one. One line naming both values."""
+    import yaml
+
+    raw = yaml.safe_load((REPO / "config" / "topologies_artemis.yaml").read_text())
+    raw["vehicle"].update(gear_count=2, **vehicle)
+    raw["problem"]["design_variables"].update(design_variables)
+    with pytest.raises(ValueError, match=rf"^<config>: {said}: with gear_count 2 the second gear must not be shorter than "
+                                         r"the first \(gear_ratio_2 <= gear_ratio\)$"):
+        load_config(raw)
+    raw["vehicle"]["gear_count"] = 1  # one gear: gear_ratio_2 is not used
+    load_config(raw)
+
+
+def test_a_two_speed_box_whose_bounds_keep_the_second_gear_the_longer_loads():
+    import yaml
+
+    raw = yaml.safe_load((REPO / "config" / "topologies_artemis.yaml").read_text())
+    raw["vehicle"]["gear_count"] = 2
+    raw["problem"]["design_variables"].update(gear_ratio={"lower": 6, "upper": 9.4, "initial": 7.9},
+                                              gear_ratio_2={"lower": 3, "upper": 6, "initial": 4.7})
+    assert list(load_config(raw)["problem"]["design_variables"]) == ["motor_kw", "gear_ratio", "battery_kwh", "gear_ratio_2"]
+
+
 @pytest.mark.parametrize("old, new, said", [
     # PyYAML reads YAML 1.1: a float needs a dot and a signed exponent, so 2e2 and 2.0e2 are text
     ("upper: 120, initial: 80}", "upper: 2e2, initial: 80}",

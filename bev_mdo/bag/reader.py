@@ -85,14 +85,20 @@ def find_mcap(path, *, repairing: bool = False) -> Path:
     return files[0]
 
 
-def storage_files(bag_dir: Path) -> list[str]:
-    """The storage files a bag directory's metadata.yaml names (rosbag2's ``relative_file_paths``, relative to
-    the directory); [] without a readable one (a bag being written has none yet; `bag repair` writes it)."""
+def bagfile_information(bag_dir: Path) -> dict:
+    """A bag directory's metadata.yaml, its ``rosbag2_bagfile_information`` mapping; {} without a readable one
+    (a bag being written has none yet; `bag repair` writes it)."""
     try:
         info = yaml.safe_load((bag_dir / "metadata.yaml").read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
-        names = info["relative_file_paths"]
     except (OSError, UnicodeDecodeError, yaml.YAMLError, TypeError, KeyError):
-        return []
+        return {}
+    return info if isinstance(info, dict) else {}
+
+
+def storage_files(bag_dir: Path) -> list[str]:
+    """The storage files a bag directory's metadata.yaml names (rosbag2's ``relative_file_paths``, relative to
+    the directory); [] without a readable one or where it is not a list."""
+    names = bagfile_information(bag_dir).get("relative_file_paths")
     return [str(n) for n in names] if isinstance(names, list) else []
 
 

@@ -16,7 +16,7 @@ import yaml
 
 from bev_mdo.bag import metadata as meta
 from bev_mdo.bag.errors import BagError
-from bev_mdo.bag.reader import Bag, open_bag
+from bev_mdo.bag.reader import Bag, bagfile_information, open_bag, storage_files
 from bev_mdo.bag.writer import mcap_writer
 
 
@@ -103,7 +103,7 @@ def repair(bag_dir, *, force: bool = False) -> RepairResult:
     bag = open_bag(bag_dir, strict=False, salvage=True)
     path = bag.mcap_path
     info = meta.bag_info(path.name, _topic_infos(bag), bag.start_ns, bag.end_ns)
-    good_yaml = _describes(bag.bag_dir / "metadata.yaml", path.name, bag.message_count)
+    good_yaml = _describes(bag.bag_dir, path.name, bag.message_count)
     if not bag.truncated and good_yaml and not force:
         return RepairResult(bag.bag_dir, path, None, bag.message_count, False, False)
     backup = None
@@ -119,11 +119,12 @@ def repair(bag_dir, *, force: bool = False) -> RepairResult:
                         backup is not None, not good_yaml, bag.damage if bag.skipped else "")
 
 
-def _describes(path: Path, file_name: str, message_count: int) -> bool:
-    """Whether ``path`` is a metadata.yaml of this bag: it names its file and its message count (a
+def _describes(bag_dir: Path, file_name: str, message_count: int) -> bool:
+    """Whether ``bag_dir``'s metadata.yaml is this bag's: it names its file and its message count (a
     garbage one, or one naming another file, was taken as 'checked' and rosbags could not open the bag)."""
+    if file_name not in storage_files(bag_dir):  # as the reader reads it (a bare string names no file)
+        return False
     try:
-        info = yaml.safe_load(path.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
-        return file_name in info["relative_file_paths"] and int(info["message_count"]) == message_count
-    except (OSError, yaml.YAMLError, TypeError, KeyError, ValueError):
+        return int(bagfile_information(bag_dir).get("message_count")) == message_count
+    except (TypeError, ValueError):
         return False

@@ -52,9 +52,13 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 def figure_format(path) -> str | None:
     """The ``format`` for ``fig.savefig(path)`` of a ``--png FILE`` option, so that exactly ``path`` is
     written (matplotlib would append ``.png`` to a name without an extension): PNG for such a name,
-    else None (the extension's format); ValueError for a directory."""
+    else None (the extension's format); ValueError for a directory or standard output (a binary image
+    among the command's text; /dev/stdout went to stderr: is_stdout). Commands call it on their
+    arguments first, so that such a path is refused before anything is computed."""
     from pathlib import Path
 
+    if is_stdout(path):
+        raise ValueError(f"--png {path}: a PNG is binary, not written to standard output; give a file name, e.g. plot.png")
     p = Path(path)
     if p.is_dir():
         raise ValueError(f"cannot write {path}: it is a directory (give a file name, e.g. {p / 'plot.png'})")

@@ -67,7 +67,9 @@ def print_table(report: dict) -> None:
                   "yes" if r["satisfied"] else "[bold red]NO[/]")
     console.print(c)
     if not report["ok"]:
-        console.print(f"[bold red]evaluation failed:[/] {report['error']}")
+        from rich.markup import escape
+
+        console.print(f"[bold red]evaluation failed:[/] {escape(report['error'])}", soft_wrap=True)  # one line, unwrapped
     for note in report.get("notes", ()):
         console.print(f"note: {note}", markup=False)
     console.print(f"objective {obj} = {_fmt(report['objective']['value'])}; "

@@ -136,9 +136,11 @@ def plot_n2(model: dict, path: Path, title: str = ""):
 
 
 def run(args) -> int:
-    from bev_mdo.cli import is_stdout, write_text_file
+    from bev_mdo.cli import figure_format, is_stdout, write_text_file
     from bev_mdo.config import RunConfig
 
+    if args.png:
+        figure_format(args.png)  # a folder or standard output: refused first
     config = RunConfig.load(args.config)
     model = coupling_model(config)
     dot = to_dot(model, config.name)

@@ -103,9 +103,10 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
         print(f"the result point failed: {result['error']}", file=out)
     elif not result.get("optimizer_success", True):  # e.g. SLSQP's iteration limit
         print(f"{result['optimizer']} says: {result['message'].split('; ')[0]}", file=out)
-    for part in result["message"].split("; the result is ")[1:]:
-        if " projected onto the bounds " in part:  # the driver's words: a result just outside its bounds
-            print(f"result: {part}", file=out)
+    if result.get("projected"):  # a result just outside its bounds, projected onto them
+        from bev_mdo.mdo.driver import projected_line
+
+        print(f"result: {projected_line(result['projected'])}", file=out)
     if not result.get("last_iterate", True):
         print(f"result: iteration {result['result_iteration']}, the best feasible point seen "
               f"(not the optimiser's last iterate, iteration {result['iterations']})", file=out)

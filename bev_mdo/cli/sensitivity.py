@@ -54,8 +54,10 @@ def run(args) -> int:
     from bev_mdo.api import sensitivity
     from bev_mdo.api.transport import Transport
     from bev_mdo.api.errors import InputError
-    from bev_mdo.cli import flags
+    from bev_mdo.cli import figure_format, flags
 
+    if args.png:
+        figure_format(args.png)  # a folder or standard output: refused before any evaluation
     glob = ("samples", "seed", "conf_level")  # a flag of the other kind was ignored without a word
     wrong = [f"--{k.replace('_', '-')}" for k in (("order", "rel_step") if args.global_method else glob)
              if getattr(args, k) is not None]

@@ -12,8 +12,9 @@ from pathlib import Path
 from typing import Any
 
 from bev_mdo.config.disciplines import check_against_disciplines, discipline_entries, resolve_disciplines
-from bev_mdo.config.sections import (anchor_paths, check_mda_numbers, check_optimizer_options, resolve_problem,
-                                     search_path, engine_section, validate_models, vehicle_topology_into_options)
+from bev_mdo.config.sections import (anchor_paths, check_gear_order, check_mda_numbers, check_optimizer_options,
+                                     resolve_problem, search_path, engine_section, validate_models,
+                                     vehicle_topology_into_options)
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
 from bev_mdo.mdo.vectors import has_partials
@@ -193,7 +194,7 @@ def _resolve(raw: Any) -> RunConfig:
     cfg["energy_model"] = cfg.get("energy_model", "flat")
     if cfg["energy_model"] not in ENERGY_MODELS:
         raise ValueError(f"energy_model {cfg['energy_model']!r} is unknown; allowed: {', '.join(ENERGY_MODELS)}")
-    validate_models(cfg)
+    vehicle = validate_models(cfg)
     vehicle_topology_into_options(cfg)
     cfg["formulation"] = str(cfg.get("formulation", "mdf")).lower()
     if cfg["formulation"] not in FORMULATIONS:
@@ -227,6 +228,7 @@ def _resolve(raw: Any) -> RunConfig:
     ros = validate_ros(cfg["ros"])  # checked here so the error names the file; the section is kept as written
     cfg["problem"] = resolve_problem(cfg.get("problem"))
     problem = Problem.from_config(cfg["problem"])
+    check_gear_order(vehicle, problem)
     # numeric checks of the engine sections, by constructing the pieces once
     check_mda_numbers(cfg["mda"])
     discs = tuple(resolve_disciplines(cfg))

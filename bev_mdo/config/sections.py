@@ -216,8 +216,10 @@ def _record_cycle_traces(cfg: dict) -> None:
         cfg.pop("cycle_traces", None)
 
 
-def validate_models(cfg: dict) -> None:
-    """Vehicle and cycle sections are checked by the models' own validators."""
+def validate_models(cfg: dict) -> dict[str, float]:
+    """Vehicle and cycle sections are checked by the models' own validators; the vehicle's numeric
+    parameters, defaults filled, are returned ({} when neither section is given: the defaults)."""
+    vehicle: dict[str, float] = {}
     if "vehicle" in cfg or "cycle" in cfg:
         try:
             _parameter_set(cfg)
@@ -233,6 +235,33 @@ def validate_models(cfg: dict) -> None:
             resampled_cycle(cfg)  # read and check the trace now: one line naming file and row
         except ValueError as exc:
             raise ValueError(str(exc) if str(exc).startswith("cycle.") else f"cycle: {exc}") from None
+    return vehicle
+
+
+def check_gear_order(vehicle: Mapping[str, float], problem) -> None:
+    """With two speeds (``gear_count`` 2) the second, high-speed gear is the longer one: ``gear_ratio_2``
+    (Table 3-2: 4.7) no higher than ``gear_ratio``, the first. One-line ValueError naming both where the
+    fixed values, or a design variable's bounds, allow gear_ratio_2 above gear_ratio: such a box was
+    evaluated (it shifts into a shorter gear at speed) and optimised over. Bounds that cross are refused,
+    not constrained: the box then holds only real two-speed gearboxes and no evaluation is spent on others."""
+    import numpy as np
+
+    def span(name: str, side: int) -> tuple[float, str] | None:  # side 0: lowest value, 1: highest
+        dv = next((d for d in problem.design_variables if d.name == name), None)
+        if dv is not None:
+            return ((dv.lower, f"the lower bound of problem.design_variables.{name}") if side == 0
+                    else (dv.upper, f"the upper bound of problem.design_variables.{name}"))
+        for where, values in (("problem.parameters", problem.parameters), ("vehicle", vehicle)):
+            if name in values:
+                a = np.asarray(values[name], dtype=float)
+                return float(a.max() if side else a.min()), f"{where}.{name}"
+        return None
+
+    count, first, second = span("gear_count", 1), span("gear_ratio", 0), span("gear_ratio_2", 1)
+    if count is None or count[0] < 2 or first is None or second is None or second[0] <= first[0]:
+        return
+    raise ValueError(f"gear_ratio_2 {second[0]:g} ({second[1]}) is above gear_ratio {first[0]:g} ({first[1]}): "
+                     "with gear_count 2 the second gear must not be shorter than the first (gear_ratio_2 <= gear_ratio)")
 
 
 def _chain_only(vehicle: Mapping[str, float], energy_model: str | None) -> None:

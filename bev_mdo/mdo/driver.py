@@ -91,6 +91,8 @@ class RunResult:
     verdict: str = ""                 # first_order's verdict: optimum | stopped before convergence | ...
     optimizer_success: bool = False   # what the optimiser itself said (scipy's success flag)
     multistart: dict = field(default_factory=dict)  # --starts N: multistart.run_starts's summary, else {}
+    projected: dict = field(default_factory=dict)   # result just outside its bounds, projected onto them:
+    # {"iteration": the record it was, "bound_violation_scaled": how far out (first_order.bound_violation)}, else {}
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -155,7 +157,9 @@ def evaluate_design(run: Run, evaluator: Evaluator, design: Mapping[str, float])
     inputs = {k: np.array([float(v)]) for k, v in {**problem.parameters, **design}.items()}
     res = mda.run(inputs)
     values = {k: float(v[0]) for k, v in res.values.items()}
-    return design_report(problem, mda, design, values, bool(res.ok[0]), res.messages[0], int(res.iterations[0]),
+    why = res.errors[0]  # one design: the discipline's reason, without 'at point 0' and the inputs shown beside it
+    error = (why.reason or why.message) if why is not None else ""
+    return design_report(problem, mda, design, values, bool(res.ok[0]), error, int(res.iterations[0]),
                          tol=run.optimizer.feasibility_tolerance)
 
 
@@ -285,9 +289,9 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     # 6e-5 above SSBJ's x_shared[1] <= 60000: 'optimum', feasible) is projected onto them, evaluated, recorded
     # and judged there: a reported design is inside its bounds. A point further out is infeasible (its bound
     # violation counts) and stays as it is.
-    projected = None
+    projected = {}
     if last["feasible"] and not np.array_equal(np.clip(x, form.lower, form.upper), x):
-        projected = (k, form.bound_violation(x))
+        projected = {"iteration": k, "bound_violation_scaled": form.bound_violation(x)}
         record(np.clip(x, form.lower, form.upper))
         k = len(history) - 1
         last, x = history[k], xs[k]
@@ -310,8 +314,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     counts = dict(evaluator.counts)
     message = str(res.message) + (f"; final point failed: {err}" if not ok else "")
     if projected:
-        message += (f"; the result is iteration {projected[0]} projected onto the bounds (it was "
-                    f"{projected[1]:.2g} outside them, scaled: within the feasibility tolerance)")
+        message += f"; the result is {projected_line(projected)}"
     elif k != len(history) - 1:
         message += (f"; the result is iteration {k}, the best feasible point seen "
                     f"(the last iterate, iteration {len(history) - 1}, is "
@@ -327,7 +330,13 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         maximize=problem.maximize, result_iteration=k, last_iterate=k == len(history) - 1,
         feasibility_tolerance=tol, error="" if ok else (err or final.get("error", "")).split("; ")[0],
         fd_failures=form.fd_failures, first_order=fo, verdict=fo["verdict"],
-        optimizer_success=bool(res.success))
+        optimizer_success=bool(res.success), projected=projected)
+
+
+def projected_line(projected: dict) -> str:
+    """What a result projected onto its bounds (``RunResult.projected``) was, for its message and the table."""
+    return (f"iteration {projected['iteration']} projected onto the bounds (it was "
+            f"{projected['bound_violation_scaled']:.2g} outside them, scaled: within the feasibility tolerance)")
 
 
 def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: float) -> dict:

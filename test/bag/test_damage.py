@@ -71,15 +71,20 @@ def test_repair_restores_summary_readable_by_rosbags(full):
     assert code == 0 and "complete" in out
 
 
-@pytest.mark.parametrize("text", ["not: [valid", "rosbag2_bagfile_information: {}", None])
+@pytest.mark.parametrize("text", ["not: [valid", "rosbag2_bagfile_information: {}", None, "bare string"])
 def test_a_metadata_yaml_that_does_not_describe_the_bag_is_written_again(full, text):
     """A garbage metadata.yaml, or one naming another file, got 'complete; metadata.yaml checked' and
-    stayed, and rosbags could not open the bag."""
+    stayed, and rosbags could not open the bag. So did one whose relative_file_paths is the file's name as
+    a bare string, not a list: repair read metadata.yaml itself (a substring match), where the reader
+    (reader.storage_files) finds no file named."""
     from rosbags.highlevel import AnyReader
 
     from bev_mdo.bag.reader import open_bag
 
     good = (full / "metadata.yaml").read_text()
+    if text == "bare string":
+        text = good.replace("relative_file_paths:\n  - full_0.mcap", "relative_file_paths: full_0.mcap")
+        assert text != good
     (full / "metadata.yaml").write_text(good.replace("full_0.mcap", "other_0.mcap") if text is None else text)
     code, out, err = cli("bag", "repair", str(full))
     assert code == 0 and "complete; metadata.yaml written (it was missing or did not describe the bag)" in out, (out, err)

@@ -208,3 +208,21 @@ def test_a_design_outside_the_bounds_is_evaluated_with_a_note(capsys):
     assert err.strip() == "bev-mdo evaluate: note: motor_kw = 200 is outside its bounds [40, 120] (evaluated as given)"
     code, out, err = run(capsys, LEAF, "--set", "motor_kw=120,gear_ratio=8", "--json")
     assert code == 0 and "note:" not in err  # on the bound is inside
+
+
+def test_a_design_past_the_vehicle_mass_limit_keeps_the_outputs_that_do_not_depend_on_mass(capsys):
+    """A 2600 kWh battery makes 21.7 t, past the models' 20 000 kg: every output was NaN, the motor speed and
+    the cost too (they do not depend on mass), and the error line named point 0 and its inputs and wrapped."""
+    _, good, _ = run(capsys, LEAF, "--set", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--json")
+    code, out, err = run(capsys, LEAF, "--set", "motor_kw=80,gear_ratio=8,battery_kwh=2600", "--json")
+    doc, good = json.loads(out), json.loads(good)
+    assert code == 1 and not doc["ok"]
+    why = "energy: ValueError: vehicle_mass_kg must be in [100, 20000] kg, got 21682.8"
+    assert doc["error"] == why
+    outs = doc["outputs"]
+    assert outs["motor_speed_max_rad_s"] == pytest.approx(good["outputs"]["motor_speed_max_rad_s"], rel=1e-12)
+    assert outs["vehicle_mass_kg"] == pytest.approx(21682.8, abs=0.1) and outs["powertrain_cost_usd"] > 0
+    assert outs["energy_wh_per_km"] is None and outs["range_km"] is None  # they depend on the mass
+    assert doc["constraints"]["motor_speed_max_rad_s"]["satisfied"]
+    code, out, _ = run(capsys, LEAF, "--set", "motor_kw=80,gear_ratio=8,battery_kwh=2600")
+    assert code == 1 and f"evaluation failed: {why}\n" in out

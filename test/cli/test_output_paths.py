@@ -62,3 +62,22 @@ def test_dev_stdout_is_stdout_like_a_dash(bag, argv):
     assert dash.returncode == dev.returncode == 0, dev.stderr
     assert dash.stdout.strip() and dev.stdout == dash.stdout
     assert dev.stderr == dash.stderr
+
+
+@pytest.mark.parametrize("argv", [["graph", CONFIG, "--png", "/dev/stdout"],
+                                  ["sensitivity", CONFIG, "--at", "motor_kw=80", "--order", "1", "--transport",
+                                   "inprocess", "--png", "-"]])
+def test_a_png_to_standard_output_is_refused_in_one_line(argv, tmp_path):
+    """``graph --png /dev/stdout`` wrote the PNG to stderr (descriptor 1 points there while bev-mdo runs),
+    exit 0; ``-`` was a file named '-'. A binary image does not go among a command's text: one line, exit 2,
+    before anything is computed."""
+    import subprocess
+
+    from bev_mdo.testing import PYTHON, REPO
+
+    run = subprocess.run([PYTHON, "-m", "bev_mdo", *argv], cwd=tmp_path, capture_output=True, timeout=120,
+                         env={**__import__("os").environ, "PYTHONPATH": str(REPO)})
+    err = run.stderr.decode(errors="replace")
+    assert run.returncode == 2 and run.stdout == b"" and not list(tmp_path.iterdir()), err
+    assert err == (f"bev-mdo {argv[0]}: error: --png {argv[-1]}: a PNG is binary, not written to standard output; "
+                   "give a file name, e.g. plot.png\n")

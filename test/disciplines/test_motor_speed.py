@@ -17,6 +17,8 @@ KMH = 1 / 3.6
 def _motor_speed(**vehicle):
     raw = yaml.safe_load(LEAF.read_text())
     raw["vehicle"].update(vehicle)
+    raw["problem"]["design_variables"]["gear_ratio"]["lower"] = 4.7  # a two-speed box's second gear (4.7) is no
+    # shorter than the first, checked on load; the discipline itself is run below at any ratio, 3 and 4 too
     return next(d for d in RunConfig.load(raw).disciplines if d.name == "motor_speed")
 
 

@@ -167,31 +167,21 @@ def test_an_optimiser_that_needs_a_box_is_refused_before_iteration_0(optimizer):
 def test_a_result_just_outside_a_bound_is_projected_onto_it_and_evaluated_there(monkeypatch):
     """COBYLA ended Sellar at z2 = -5e-8 (bound 0) and SSBJ 6e-5 above x_shared[1] <= 60000: inside the
     feasibility tolerance, so 'optimum' and feasible, with a design outside its bounds and nothing saying so."""
-    import numpy as np
-
     from bev_mdo.config import resolve_disciplines
     from bev_mdo.mdo import driver
     from bev_mdo.mdo.evaluator import InProcessEvaluator
-    from bev_mdo.testing import example_config
+    from bev_mdo.testing import end_outside_a_bound, example_config
     from test_multistart import REF_F, SELLAR
 
     config = example_config(SELLAR)
-    inner = driver.run_optimizer
-
-    def ending_outside(name, form, options, record):
-        res = inner(name, form, options, record)
-        res.x = np.asarray(res.x, float).copy()
-        res.x[1] = -5e-8  # z2, lower bound 0
-        record(res.x)
-        return res
-
-    monkeypatch.setattr(driver, "run_optimizer", ending_outside)
+    end_outside_a_bound(monkeypatch, 1, -5e-8)  # z2, lower bound 0
     res = driver.run_optimization(config, InProcessEvaluator(resolve_disciplines(config)), optimizer="COBYLA")
     outside = res.history[-2]
     assert outside["design"]["z2"] < 0 and outside["feasible"]  # within the tolerance: it was the result
     assert res.design["z2"] == 0.0 and res.history[-1]["design"] == res.design and res.last_iterate
     assert res.max_violation <= 1e-6 and res.feasible and res.verdict == "optimum"
     assert res.objective == pytest.approx(REF_F, rel=1e-6)
+    assert res.projected == {"iteration": outside["iteration"], "bound_violation_scaled": pytest.approx(5e-9, rel=1e-6)}
     assert f"the result is iteration {outside['iteration']} projected onto the bounds (it was 5e-09 outside" in res.message
 
 

@@ -25,7 +25,11 @@ def test_failed_point_is_not_sent_downstream_and_errors_use_batch_indices():
     # side depends on nothing that failed, so it ran all five
     assert ev.counts == {"square": 5, "plus": 4, "half": 3, "side": 5}
     np.testing.assert_array_equal(res.values["v"][[0, 3, 4]], 0.5 * (X["x"] ** 2 + X["z"])[[0, 3, 4]])
-    assert np.isnan(res.values["v"][[1, 2]]).all() and np.isnan(res.values["u"][[1, 2]]).all()
+    assert np.isnan(res.values["v"][[1, 2]]).all() and np.isnan(res.values["w"][[1, 2]]).all()
+    # a failed point keeps what does not depend on the failure: side's u, and square's y at point 2
+    # (plus failed there); they were NaN, as was every output of a 21 t design, its motor speed too
+    np.testing.assert_array_equal(res.values["u"], 2 * X["x"])
+    assert np.isnan(res.values["y"][1]) and res.values["y"][2] == 4.0
 
 
 def test_flow_equals_wave_analysis_on_good_points():

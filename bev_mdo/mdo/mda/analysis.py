@@ -6,8 +6,9 @@ MDA when the evaluator offers it (the ROS nodes pass results from node to node),
 A graph with loops runs wave by wave: one call per wave holds every feed-forward discipline of
 that wave, and each feedback loop is iterated by the loop solver named by ``method``
 (``SOLVERS``: gauss_seidel.py, jacobi.py, newton.py), vectorised over the points still iterating.
-A point whose discipline fails, or whose loop does not converge, gets NaN outputs, ``ok`` False
-and an ``MDAError``; nothing raises.
+A point whose discipline fails, or whose loop does not converge, gets ``ok`` False, an ``MDAError``
+and NaN for every output that depends on the failure (what does not, e.g. a motor speed beside a
+failed energy, is kept); nothing raises.
 """
 from __future__ import annotations
 
@@ -90,9 +91,29 @@ class MDA:
                 for comp in wave:
                     if self.graph.is_cyclic(comp):
                         fused.update(self.solver.solve(comp, b, w))
-        for v in self.graph.producer:
-            values[v][~b.ok] = np.nan
+        self._unsound_to_nan(b)
         return MDAResult(values, b.ok, b.errors, b.iterations, b.partials)
+
+    def _unsound_to_nan(self, b: Batch) -> None:
+        """A failed point keeps the outputs that do not depend on what failed: those of a discipline
+        outside any loop that evaluated the point from sound inputs (a 21 t design kept its motor speed
+        and cost); every other output there is NaN (a loop's unconverged iterates among them)."""
+        bad = np.flatnonzero(~b.ok)
+        if bad.size == 0:
+            return
+        sound: dict[str, np.ndarray] = {}  # produced variable -> sound at the failed points
+        for wave in self.graph.waves:
+            for comp in wave:
+                for name in comp:
+                    ok = np.zeros(bad.size, dtype=bool)
+                    if not self.graph.is_cyclic(comp) and name in b.evaluated:
+                        ok = b.evaluated[name][bad].copy()
+                        for v in self.specs[name].inputs:
+                            if v in sound:  # produced upstream (an earlier wave)
+                                ok &= sound[v]
+                    for v in self.specs[name].outputs:
+                        sound[v] = ok
+                        b.values[v][bad[~ok]] = np.nan
 
     def _flow(self, b: Batch, n: int) -> None:
         """Feed-forward graph: one data-flow evaluation (flow.py); errors in topological order."""

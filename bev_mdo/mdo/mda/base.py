@@ -4,7 +4,7 @@ calls to the evaluator, and the loop-solver interface.
 A loop solver (``LoopSolver``) iterates one feedback loop (a strongly connected component of the
 coupling graph) over the points still good, in place on a ``Batch``: it writes the loop's outputs,
 marks the points that failed and why, and counts each point's iterations. Nothing raises for a
-failed point; a failed point ends with NaN outputs and an ``MDAError``.
+failed point; a failed point ends with an ``MDAError`` and NaN for the outputs that depend on the failure.
 """
 from __future__ import annotations
 
@@ -30,13 +30,15 @@ class MDAError:
     """Why one point of an MDA failed.
 
     ``discipline``: the discipline that failed (kind ``discipline``), else '' and ``loop`` names
-    the loop's disciplines; ``point``: the index in the batch; ``message``: the text for people."""
+    the loop's disciplines; ``point``: the index in the batch; ``message``: the text for people;
+    ``reason``: the discipline's own words, without the point and its inputs (one design's report)."""
 
     discipline: str
     point: int
     kind: str
     message: str
     loop: tuple[str, ...] = ()
+    reason: str = ""
 
     def __str__(self) -> str:
         return self.message
@@ -70,12 +72,16 @@ class Batch:
     iterations: np.ndarray
     given: Mapping[str, np.ndarray]
     partials: dict | None = None  # discipline -> {(out, in): (N,)} when partials are asked for
+    # discipline -> the points its last evaluation succeeded at (a failed point keeps those outputs
+    # that such evaluations made from sound inputs: MDA.run)
+    evaluated: dict[str, np.ndarray] = field(default_factory=dict)
 
-    def fail(self, i: int, kind: str, message: str, discipline: str = "", loop: Sequence[str] = ()) -> None:
+    def fail(self, i: int, kind: str, message: str, discipline: str = "", loop: Sequence[str] = (),
+             reason: str = "") -> None:
         """Mark point ``i`` failed, unless it failed already (the first reason stays)."""
         if self.ok[i]:
             self.ok[i] = False
-            self.errors[i] = MDAError(discipline, int(i), kind, message, tuple(loop))
+            self.errors[i] = MDAError(discipline, int(i), kind, message, tuple(loop), reason)
 
 
 class Calls:
@@ -122,11 +128,14 @@ class Calls:
                 old = b.values[v][rows]
                 new = np.where(np.isfinite(old), old + relaxation * (new - old), new)
             b.values[v][rows] = new
+        b.evaluated.setdefault(name, np.zeros(len(b.ok), dtype=bool))[rows] = good
         if not good.all():
             points = rows if points is None else points
             for j in np.flatnonzero(~good):
                 entry = j if local is None else local[j]
-                b.fail(rows[j], "discipline", res.message(int(entry), int(points[j]), name), name)
+                why = res.point_errors.get(int(entry))
+                b.fail(rows[j], "discipline", res.message(int(entry), int(points[j]), name), name,
+                       reason=why.reason if why is not None else "")
 
 
 def keep_partials(partials: dict, name: str, got: Mapping, rows: np.ndarray, n_all: int,
