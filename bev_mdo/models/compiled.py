@@ -18,8 +18,10 @@ functions stay as the reference the tests compare with (energy and range to 1e-1
   x falls (the split's lookups jump from share to share).
 * Designs run in parallel over the host's cores (``prange``); each design's loop is sequential
   and independent of the others, so results do not depend on the thread count. The battery
-  loop steps a group of designs side by side (``_GROUP``): one design's SOC recurrence is a chain
-  of dependent divisions and a square root that leaves the core waiting.
+  loop steps ``_LANES`` designs side by side without branches: one design's SOC recurrence is a
+  chain of dependent divisions and a square root that leaves the core waiting. Each lane keeps its
+  SOC interval of the cell's tables and looks it up again only when the SOC leaves it. Range runs
+  the designs in the order of their estimated range, so the lanes of a block stop together.
 * Two compiled kernels (``drive_demand`` for every topology, ``_battery`` for
   energy and range); the per-step helpers are inlined into them (numba ``inline="always"``: in
   these parallel loops that is several times faster than calls, and one call site each keeps the
@@ -53,30 +55,15 @@ def _jit(**options):
 
 
 @_jit(inline="always")
-def _locate(x, xp, table, inv_h):
-    """np.interp's interval of x on the increasing grid xp: (j, exact), the value being fp[j] when
-    ``exact`` (x clamped at either end or on a grid point), else slope_j (x - xp[j]) + fp[j].
-    ``table``/``inv_h`` (``grid_table``) find the interval without a search."""
-    n = xp.shape[0]
-    if x > xp[n - 1]:
-        return n - 1, True
-    if x < xp[0]:
-        return 0, True
-    j = table[min(int((x - xp[0]) * inv_h), table.shape[0] - 1)]
-    # The table position is x's to a few ulps and a table cell (h) is half the least spacing, so
-    # x's interval is the table's or one of its neighbours: one step down or up (no search loop)
-    j = j - 1 if (j > 0 and xp[j] > x) else j
-    j = j + 1 if (j < n - 1 and xp[j + 1] <= x) else j  # largest j with xp[j] <= x
-    return j, (j == n - 1 or xp[j] == x)
-
-
-@_jit(inline="always")
 def _locate_map(x, xp, table, inv_h, lo, hi):
-    """``_locate`` for the motor map's lookups, without branches: their x jumps from call to call
-    (the split's shares), so a branch on x's place in its table cell would be mispredicted. The
-    step down or up reads the cell's interval bounds ``lo``/``hi`` (``grid_table``), loaded beside
-    its interval, not after it. The battery's SOC moves slowly and keeps ``_locate``, whose branches
-    are predicted and cheaper there."""
+    """np.interp's interval of x on the increasing grid xp for the motor map's lookups: (j, exact),
+    the value being fp[j] when ``exact`` (x clamped at either end or on a grid point), else
+    slope_j (x - xp[j]) + fp[j]. ``table``/``inv_h`` (``grid_table``) find the interval without a
+    search and without branches: x jumps from call to call (the split's shares), so a branch on x's
+    place in its table cell would be mispredicted. The table position is x's to a few ulps and a
+    table cell (h) is half the least spacing, so x's interval is the cell's or one of its
+    neighbours: the step down or up reads the cell's interval bounds ``lo``/``hi``, loaded beside
+    its interval, not after it."""
     n = xp.shape[0]
     xc = min(max(x, xp[0]), xp[n - 1])  # np.interp clamps: fp[0] below the grid, fp[n-1] above
     m = min(int((xc - xp[0]) * inv_h), table.shape[0] - 1)
@@ -86,7 +73,7 @@ def _locate_map(x, xp, table, inv_h, lo, hi):
 
 @_jit(inline="always")
 def _value(j, exact, x, xp, fp, slopes):
-    """np.interp at x in the interval of ``_locate``, the same operations as numpy's C loop;
+    """np.interp at x in the interval of ``_locate_map``, the same operations as numpy's C loop;
     ``slopes`` holds numpy's (fp[j+1] - fp[j]) / (xp[j+1] - xp[j]). The exact case is a select,
     not a branch."""
     i = min(j, slopes.shape[0] - 1)
@@ -360,44 +347,66 @@ def drive_demand(v, acc, cols, single_motor, two_axles, grid, fine, mp, loss):
 BATTERY_COLUMNS = ("cells_series", "cells_parallel", "capacity_c", "charge_current_max_a", "regen_max_soc",
                    "initial_soc", "discharge_current_max_a", "loss_weight", "final_soc")
 _NS, _NP, _QC, _ICHG, _SOCMAX, _SOC0, _IDIS, _WLOSS, _SOCSTOP = range(9)
+_LANES = 8  # designs stepped side by side, as SIMD lanes: one design's SOC recurrence is a chain of
+# dependent divisions and a square root that leaves the core waiting; eight independent ones fill it
+# (the lane loop has no branches, so the compiler may put them in one vector register)
+# per-lane state of the SOC interval (``_settle``): its ends, its start and the three tables' value
+# there and slope (np.interp: slope (x - xp[j]) + fp[j]; outside the grid slope 0 at the end value)
+_LO, _HI, _X0, _OCV, _S_OCV, _RD, _S_RD, _RC, _S_RC = range(9)
 
 
 @_jit(inline="always")
-def _step(soc, demand_w, dt, x, cell):
-    """One battery step (``quasi_static._Battery.step``) of the design with columns ``x``: terminal
-    power, current, resistance, ocv^2/4R minus the drive demand (W, < 0: not delivered), and the new
-    SOC (2-9..2-15, rule 4, 2C cap). ``cell``: the cell's SOC grid, OCV, R discharge, R charge, the grid's table and
-    1/h, and the three slopes (``cell_tables``)."""
-    s_tab = cell[0]
-    ns, i_chg = x[_NS], x[_ICHG]
-    p_drive = demand_w if demand_w > 0 else 0.0
-    p_regen = demand_w if (demand_w < 0 and not soc > x[_SOCMAX]) else 0.0  # rule 4: SOC > 90 %
-    j, exact = _locate(soc, s_tab, cell[4], cell[5])  # one interval for the OCV and R lookups
-    voc = ns * _value(j, exact, soc, s_tab, cell[1], cell[6])
-    r = ns * (_value(j, exact, soc, s_tab, cell[3], cell[8]) if p_regen < 0
-              else _value(j, exact, soc, s_tab, cell[2], cell[7])) / x[_NP]
+def _settle(soc, lane, st, cell):
+    """Put lane ``lane``'s SOC interval (``st``, rows ``_LO``..) on the one that holds ``soc``, as
+    np.interp finds it: the largest j with xp[j] <= soc, clamped at both ends of the grid."""
+    xp = cell[0]
+    n = xp.shape[0]
+    if soc >= xp[n - 1] or soc < xp[0]:
+        j = n - 1 if soc >= xp[n - 1] else 0
+        st[_LO, lane], st[_HI, lane] = (xp[n - 1], np.inf) if j else (-np.inf, xp[0])
+        for row, fp in ((_OCV, cell[1]), (_RD, cell[2]), (_RC, cell[3])):
+            st[row, lane], st[row + 1, lane] = fp[j], 0.0
+    else:
+        j = 0
+        while j < n - 2 and xp[j + 1] <= soc:
+            j += 1
+        st[_LO, lane], st[_HI, lane] = xp[j], xp[j + 1]
+        for row, fp, slopes in ((_OCV, cell[1], cell[4]), (_RD, cell[2], cell[5]), (_RC, cell[3], cell[6])):
+            st[row, lane], st[row + 1, lane] = fp[j], slopes[j]
+    st[_X0, lane] = xp[j]
+
+
+@_jit(inline="always")
+def _step(soc, demand_w, dt, x, st, g):
+    """One battery step (``quasi_static._Battery.step``) of lane ``g`` (constants ``x``, rows of
+    ``BATTERY_COLUMNS``; SOC interval ``st``): terminal power, current, resistance, ocv^2/4R minus
+    the drive demand (W, < 0: not delivered), and the new SOC (2-9..2-15, rule 4, 2C cap). No
+    branches (selects only). Zero demand leaves SOC and energy exactly as they were."""
+    ns, i_chg = x[_NS, g], x[_ICHG, g]
+    p_drive = max(demand_w, 0.0)
+    p_regen = demand_w if (demand_w < 0) & (soc <= x[_SOCMAX, g]) else 0.0  # rule 4: none above 90 % SOC
+    ds = soc - st[_X0, g]
+    voc = ns * (st[_S_OCV, g] * ds + st[_OCV, g])
+    r_cell = (st[_S_RC, g] * ds + st[_RC, g]) if p_regen < 0 else (st[_S_RD, g] * ds + st[_RD, g])
+    r = ns * r_cell / x[_NP, g]
     p_chg_lim = (voc - (-i_chg) * r) * (-i_chg)  # 2-12 at the 2C charge cap
     p_max = voc * voc / (4.0 * r)
     power = min(p_drive, p_max) + max(p_regen, p_chg_lim)
     v_bt = 0.5 * (voc + math.sqrt(max(voc * voc - 4.0 * power * r, 0.0)))  # 2-13, 2-14
     i = power / v_bt  # 2-11
-    return power, i, r, p_max - p_drive, soc - i * dt / x[_QC]  # 2-9, 2-10
-
-
-_GROUP = 4  # designs stepped side by side in one loop: the SOC recurrence of one design is a chain
-# of dependent divisions and a square root, so one design alone leaves the core waiting
+    return power, i, r, p_max - p_drive, soc - i * dt / x[_QC, g]  # 2-9, 2-10
 
 
 @_jit(parallel=True)
 def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range):
     """The battery stepped over each design's demand (step k's in column ``step_pair[k]``): once
-    from ``initial_soc`` (energy), or
-    from 100 % SOC repeating the cycle until ``final_soc`` (``to_range``). One kernel for both
-    (compile time). Returns energy drawn and returned (J), final SOC, the lowest SOC, the least
-    ocv^2/4R minus drive demand (W) and the least 1 - current / discharge limit over the drawing
-    steps (both inf without one), and the distance (m, inf if not reached). Each design's steps are its own; designs of
-    a group only share the loop."""
-    n_pts, n_steps = demand_w.shape[0], step_pair.shape[0]
+    from ``initial_soc`` (energy), or from 100 % SOC repeating the cycle until ``final_soc``
+    (``to_range``). One kernel for both (compile time). Returns energy drawn and returned (J), final
+    SOC, the lowest SOC, the least ocv^2/4R minus drive demand (W) and the least 1 - current /
+    discharge limit over the drawing steps (both inf without one), and the distance (m, inf if not
+    reached). Designs run ``_LANES`` at a time; each lane's steps are its own design's (a lane
+    past its crossing, or without a design, steps on unread)."""
+    n_pts, n_steps, n_pairs = demand_w.shape[0], step_pair.shape[0], demand_w.shape[1]
     energy = np.zeros(n_pts)
     regen = np.zeros(n_pts)
     soc_end = np.empty(n_pts)
@@ -405,45 +414,68 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
     power_room = np.full(n_pts, np.inf)
     current_room = np.full(n_pts, np.inf)
     out = np.full(n_pts, np.inf)
-    for first in prange((n_pts + _GROUP - 1) // _GROUP):
-        n0 = first * _GROUP
-        size = min(_GROUP, n_pts - n0)
-        soc = np.empty(_GROUP)
-        active = np.zeros(_GROUP, np.bool_)
-        for g in range(size):
-            soc[g] = 1.0 if to_range else cols[n0 + g, _SOC0]
-            soc_low[n0 + g] = soc[g]
-            active[g] = True
+    for block in prange((n_pts + _LANES - 1) // _LANES):
+        n0 = block * _LANES
+        size = min(_LANES, n_pts - n0)
+        d_tab = np.zeros((n_pairs, _LANES))  # the lanes' demand side by side (no design: 0)
+        x = np.empty((cols.shape[1], _LANES))
+        for g in range(_LANES):
+            n = n0 + min(g, size - 1)  # an empty lane copies the last design's constants (stays finite)
+            for c in range(cols.shape[1]):
+                x[c, g] = cols[n, c]
+            if g < size:
+                for u in range(n_pairs):
+                    d_tab[u, g] = demand_w[n, u]
+        st = np.empty((9, _LANES))
+        soc, new = np.empty(_LANES), np.empty(_LANES)
+        e_sum, r_sum, low = np.zeros(_LANES), np.zeros(_LANES), np.empty(_LANES)
+        room_w, room_i = np.full(_LANES, np.inf), np.full(_LANES, np.inf)
+        active = np.zeros(_LANES, np.bool_)
+        for g in range(_LANES):
+            soc[g] = 1.0 if to_range else x[_SOC0, g]
+            low[g] = soc[g]
+            active[g] = g < size
+            _settle(soc[g], g, st, cell)
         left = size
         travelled = 0.0
         for _ in range(max_repeats if to_range else 1):
             for k in range(n_steps):
-                for g in range(size):
-                    n = n0 + g
-                    d = demand_w[n, step_pair[k]]
-                    if d != 0.0 and active[g]:  # a step without demand: no current, no energy, SOC unchanged
-                        x = cols[n]
-                        power, i, r, room, new = _step(soc[g], d, dt[k], x, cell)
-                        if to_range:
-                            if new <= x[_SOCSTOP]:  # the crossing, interpolated inside its step
-                                out[n] = travelled + (soc[g] - x[_SOCSTOP]) / max(soc[g] - new, 1e-300) * step_m[k]
-                                active[g] = False
-                                left -= 1
-                        else:
-                            if d > 0.0:
-                                power_room[n] = min(power_room[n], room)
-                                current_room[n] = min(current_room[n], 1.0 - i / x[_IDIS])
-                            soc_low[n] = min(soc_low[n], new)
-                            energy[n] += (power + x[_WLOSS] * i * i * r) * dt[k]  # 2-16, 2-17
-                            regen[n] -= min(power, 0.0) * dt[k]
-                        soc[g] = new
+                d = d_tab[step_pair[k]]
+                moving = False
+                for g in range(_LANES):
+                    moving |= d[g] != 0.0
+                if moving:  # a step without demand: no current, no energy, SOC unchanged
+                    dtk = dt[k]
+                    if to_range:
+                        for g in range(_LANES):
+                            new[g] = _step(soc[g], d[g], dtk, x, st, g)[4]
+                    else:
+                        for g in range(_LANES):
+                            power, i, r, room, s = _step(soc[g], d[g], dtk, x, st, g)
+                            drawing = d[g] > 0.0
+                            room_w[g] = min(room_w[g], room) if drawing else room_w[g]
+                            room_i[g] = min(room_i[g], 1.0 - i / x[_IDIS, g]) if drawing else room_i[g]
+                            low[g] = min(low[g], s)
+                            e_sum[g] += (power + x[_WLOSS, g] * i * i * r) * dtk  # 2-16, 2-17
+                            r_sum[g] -= min(power, 0.0) * dtk
+                            new[g] = s
+                    for g in range(_LANES):
+                        if to_range and active[g] and new[g] <= x[_SOCSTOP, g]:  # the crossing, inside its step
+                            out[n0 + g] = travelled + (soc[g] - x[_SOCSTOP, g]) / max(soc[g] - new[g], 1e-300) * step_m[k]
+                            active[g] = False
+                            left -= 1
+                        if not (st[_LO, g] <= new[g] < st[_HI, g]):
+                            _settle(new[g], g, st, cell)
+                        soc[g] = new[g]
                 travelled += step_m[k]
                 if left == 0:
                     break
             if left == 0:
                 break
         for g in range(size):
-            soc_end[n0 + g] = soc[g]
+            n = n0 + g
+            soc_end[n], soc_low[n], energy[n], regen[n] = soc[g], low[g], e_sum[g], r_sum[g]
+            power_room[n], current_room[n] = room_w[g], room_i[g]
     return energy, regen, soc_end, soc_low, power_room, current_room, out
 
 
@@ -458,8 +490,15 @@ def battery_energy(demand_w, step_pair, dt, cols, cell) -> tuple:
 def battery_range_m(demand_w, step_pair, dt, step_m, max_repeats: int, cols, cell) -> np.ndarray:
     """Distance (m) from 100 % SOC to ``final_soc`` repeating the cycle's demand
     (``quasi_static.integrate_range``), the crossing interpolated inside its step; inf if the
-    battery is still above after ``max_repeats`` cycles."""
-    return _battery(demand_w, step_pair, dt, step_m, int(max_repeats), cols, cell, True)[6]
+    battery is still above after ``max_repeats`` cycles. The designs run in the order of their
+    charge over net demand per cycle, so that the ``_LANES`` stepped together stop together (in
+    random order a block steps 1.2 times its designs' steps, to its longest range)."""
+    per_cycle = demand_w @ np.bincount(step_pair, weights=dt, minlength=demand_w.shape[1])  # J, net
+    order = np.argsort(cols[:, _QC] * cols[:, _NS] / np.maximum(per_cycle, 1e-300), kind="stable")
+    out = np.empty(cols.shape[0])
+    out[order] = _battery(demand_w[order], step_pair, dt, step_m, int(max_repeats), cols[order], cell, True)[6]
+    return out
+
 
 def table(names: tuple, n: int, values: dict) -> np.ndarray:
     """The (N, len(names)) float table of the compiled loops: each named column from a scalar or
@@ -473,5 +512,4 @@ def table(names: tuple, n: int, values: dict) -> np.ndarray:
 def cell_tables(soc, ocv_v, r_discharge_ohm, r_charge_ohm) -> tuple:
     """A cell's tables as the battery loops take them (``_step``'s ``cell``)."""
     tabs = tuple(np.array(x, dtype=float) for x in (soc, ocv_v, r_discharge_ohm, r_charge_ohm))
-    find, inv_h = grid_table(tabs[0], tabs[1])[:2]
-    return (*tabs, find, inv_h, *(grid_table(tabs[0], y)[2] for y in tabs[1:]))
+    return (*tabs, *(np.diff(y) / np.diff(tabs[0]) for y in tabs[1:]))
