@@ -115,9 +115,13 @@ def map_tuple(wg, tg, eff, ref_kw: float, regen_rows: bool) -> tuple:
 
 
 @_jit(inline="always")
-def _speed_index(w, mp):
-    """Fractional speed-grid position of |w| (the speed half of the bilinear lookup)."""
-    return _interp(abs(w), mp[0], mp[3], mp[5], mp[6], mp[7], mp[8], mp[9])
+def _speed_row(w, mp):
+    """The speed half of the bilinear lookup at |w|, computed once per motor speed: the map row i0
+    below it (a float: numba's array analysis fails on a tuple of tuples of mixed types) and the
+    fraction a of the way to row i0 + 1."""
+    fi = _interp(abs(w), mp[0], mp[3], mp[5], mp[6], mp[7], mp[8], mp[9])
+    i0 = min(int(fi), mp[0].shape[0] - 2)
+    return float(i0), fi - i0
 
 
 def loss_tuple(coefficients=None) -> np.ndarray:
@@ -129,9 +133,9 @@ def loss_tuple(coefficients=None) -> np.ndarray:
 
 
 @_jit(inline="always")
-def _electrical_w(torque, w, fi, scale, mp, loss):
+def _electrical_w(torque, w, row, scale, mp, loss):
     """Electrical power of one motor at (T, w), eq 2-7 with the Fig 2-9 torque scaling
-    (``MotorMap.electrical_power_w`` for one point); ``fi`` = ``_speed_index(w, mp)``, ``scale`` =
+    (``MotorMap.electrical_power_w`` for one point); ``row`` = ``_speed_row(w, mp)``, ``scale`` =
     reference kW / motor kW. No torque: T w (0, the map not read). With a loss model (``loss[0]``
     = 1) T w plus its loss while turning (``loss_model.LossModel.electrical_power_w``)."""
     if loss[0] != 0.0:
@@ -143,14 +147,13 @@ def _electrical_w(torque, w, fi, scale, mp, loss):
         return torque * w + extra
     if torque == 0.0:
         return torque * w  # pm / eta and pm * eta of pm = +-0
-    wg, tg, eff, it = mp[0], mp[1], mp[2], mp[4]
+    tg, eff, it = mp[1], mp[2], mp[4]
     tu = torque * scale
     if not mp[16]:
         tu = abs(tu)
     fj = _interp(tu, tg, it, mp[10], mp[11], mp[12], mp[13], mp[14])
-    i0 = min(int(fi), wg.shape[0] - 2)
+    i0, a = int(row[0]), row[1]
     j0 = min(int(fj), tg.shape[0] - 2)
-    a = fi - i0
     b = fj - j0
     eta = (1 - a) * ((1 - b) * eff[i0, j0] + b * eff[i0, j0 + 1]) + a * ((1 - b) * eff[i0 + 1, j0]
                                                                          + b * eff[i0 + 1, j0 + 1])
@@ -209,9 +212,9 @@ def _single_motor_step(x, v, t_w, driving, allowed, mp, loss):
         tmax = _t_max(w_m, w_lim, t_pk, kw)
         t_regen = max(t_w * eta_g / r * x[_SHARE], -tmax) if allowed else 0.0  # 2-25
         if loss[0] != 0.0:
-            p_el = axles * _electrical_w((t_drive + t_regen) / axles, w_m, 0.0, x[_SCALE], mp, loss)
+            p_el = axles * _electrical_w((t_drive + t_regen) / axles, w_m, (0.0, 0.0), x[_SCALE], mp, loss)
         else:
-            p_el = _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), x[_SCALE], mp, loss)
+            p_el = _electrical_w(t_drive + t_regen, w_m, _speed_row(w_m, mp), x[_SCALE], mp, loss)
         p_el = p_el + (x[_LOAD] if v > 0 else 0.0)  # quasi_static.moving_load_w
         cost = p_el if (w_m <= w_lim and t_drive <= tmax) else np.inf
         if g == 0:
@@ -223,32 +226,34 @@ def _single_motor_step(x, v, t_w, driving, allowed, mp, loss):
 
 
 @_jit(inline="always")
-def _axle(x, o):
-    """An axle's constants (columns from ``o``: 0 front, ``_REAR`` rear) as the split reads them,
-    read once per step: count, count x ratio, count x ratio x eta (2-5), eta, motor scale."""
+def _axle(x, o, w, tmax, mp):
+    """An axle (columns from ``o``: 0 front, ``_REAR`` rear) at one step, as the split reads it,
+    computed once per step: count, count x ratio, count x ratio x eta (2-5), eta, motor scale, motor
+    speed, the speed half of its map lookups (``_speed_row``) and its torque envelope."""
     count, ratio, eta = x[_COUNT + o], x[_RATIO + o], x[_ETA + o]
-    return count, count * ratio, count * ratio * eta, eta, x[_SCALE + o]
+    i0, a = _speed_row(w, mp)
+    return count, count * ratio, count * ratio * eta, eta, x[_SCALE + o], w, i0, a, tmax
 
 
 @_jit(inline="always")
-def _axle_power(ax, share, tw, w, fi, tmax, driving, allowed, mp, loss):
+def _axle_power(ax, share, tw, driving, allowed, mp, loss):
     """Electrical power of an axle (``_axle``) carrying wheel torque ``tw`` and its motoring
     overload (``topology._axle_power`` for one point)."""
-    count, cr, cre, eta, scale = ax
+    count, cr, cre, eta, scale, w, i0, a, tmax = ax
     if driving:
         tm = tw / cre  # 2-5
         over = max(tm - tmax, 0.0)
     else:
         over = 0.0
         tm = max(tw * eta / cr * share, -tmax) if allowed else 0.0  # 2-25, rules 2-3
-    return count * _electrical_w(tm, w, fi, scale, mp, loss), over
+    return count * _electrical_w(tm, w, (i0, a), scale, mp, loss), over
 
 
 @_jit(inline="always")
-def _split_power(axf, axr, share, s, t_w, w, fi, tmax, driving, allowed, mp, loss):
+def _split_power(axf, axr, share, s, t_w, driving, allowed, mp, loss):
     """Power and score of one front share ``s`` (front axle at ``s``, rear at ``1 - s``)."""
-    pp, of = _axle_power(axf, share, t_w * s, w[0], fi[0], tmax[0], driving, allowed, mp, loss)
-    pr, orr = _axle_power(axr, share, t_w * (1.0 - s), w[1], fi[1], tmax[1], driving, allowed, mp, loss)
+    pp, of = _axle_power(axf, share, t_w * s, driving, allowed, mp, loss)
+    pr, orr = _axle_power(axr, share, t_w * (1.0 - s), driving, allowed, mp, loss)
     pp, of = pp + pr, of + orr
     return pp, pp + _PENALTY_W_PER_NM * of  # topology.best_split's selection score
 
@@ -276,15 +281,13 @@ def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power,
     if t_w == 0.0 and (loss[0] == 0.0 or v == 0.0):  # standing (or no wheel torque): no torque at any
         # share, and no idle loss without speed: every share's power is 0
         return 0.0, w_top, cap - t_w
-    fif = _speed_index(wf, mp)
-    axf, share = _axle(x, 0), x[_SHARE]
+    axf, share = _axle(x, 0, wf, tmf, mp), x[_SHARE]
     if not two_axles:
-        return _axle_power(axf, share, t_w, wf, fif, tmf, driving, allowed, mp, loss)[0], w_top, cap - t_w
-    axr = _axle(x, o)
-    w, fi, tmax = (wf, wr), (fif, _speed_index(wr, mp)), (tmf, tmr)
+        return _axle_power(axf, share, t_w, driving, allowed, mp, loss)[0], w_top, cap - t_w
+    axr = _axle(x, o, wr, tmr, mp)
     n_coarse = grid.shape[0]
     for i in range(n_coarse):
-        power[i], score[i] = _split_power(axf, axr, share, grid[i], t_w, w, fi, tmax, driving, allowed, mp, loss)
+        power[i], score[i] = _split_power(axf, axr, share, grid[i], t_w, driving, allowed, mp, loss)
     jc = 0
     for i in range(1, n_coarse):  # the first minimum, as np.argmin
         jc = i if score[i] < score[jc] else jc
@@ -299,8 +302,8 @@ def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power,
         if q >= 0:
             power[n_coarse + i], score[n_coarse + i] = power[q], score[q]
         else:
-            power[n_coarse + i], score[n_coarse + i] = _split_power(axf, axr, share, s, t_w, w, fi, tmax, driving,
-                                                                    allowed, mp, loss)
+            power[n_coarse + i], score[n_coarse + i] = _split_power(axf, axr, share, s, t_w, driving, allowed,
+                                                                    mp, loss)
     jf = n_coarse
     for i in range(n_coarse + 1, n_coarse + n_fine):
         jf = i if score[i] < score[jf] else jf
