@@ -18,8 +18,8 @@ functions stay as the reference the tests compare with (energy and range to 1e-1
   x falls (the split's lookups jump from share to share).
 * Designs run in parallel over the host's cores (``prange``); each design's loop is sequential
   and independent of the others, so results do not depend on the thread count. The battery
-  loop steps ``_LANES`` designs side by side without branches: one design's SOC recurrence is a
-  chain of dependent divisions and a square root that leaves the core waiting. Each lane keeps its
+  loop steps ``_LANES`` designs side by side without branches, in SIMD registers: one design's SOC
+  recurrence is a chain of dependent divisions and a square root that leaves the core waiting. Each lane keeps its
   SOC interval of the cell's tables and looks it up again only when the SOC leaves it. Range runs
   the designs in the order of their estimated range, so the lanes of a block stop together.
 * Two compiled kernels (``drive_demand`` for every topology, ``_battery`` for
@@ -350,12 +350,13 @@ def drive_demand(v, acc, cols, single_motor, two_axles, grid, fine, mp, loss):
 BATTERY_COLUMNS = ("cells_series", "cells_parallel", "capacity_c", "charge_current_max_a", "regen_max_soc",
                    "initial_soc", "discharge_current_max_a", "loss_weight", "final_soc")
 _NS, _NP, _QC, _ICHG, _SOCMAX, _SOC0, _IDIS, _WLOSS, _SOCSTOP = range(9)
-_LANES = 8  # designs stepped side by side, as SIMD lanes: one design's SOC recurrence is a chain of
-# dependent divisions and a square root that leaves the core waiting; eight independent ones fill it
-# (the lane loop has no branches, so the compiler may put them in one vector register)
-# per-lane state of the SOC interval (``_settle``): its ends, its start and the three tables' value
-# there and slope (np.interp: slope (x - xp[j]) + fp[j]; outside the grid slope 0 at the end value)
-_LO, _HI, _X0, _OCV, _S_OCV, _RD, _S_RD, _RC, _S_RC = range(9)
+_LANES = 16  # designs stepped side by side, as SIMD lanes: one design's SOC recurrence is a chain of
+# dependent divisions and a square root that leaves the core waiting. The lane loops have no branches
+# and read and write one state array (``st``), so the compiler puts the lanes in vector registers
+# rows of ``st``: the lane's SOC interval (``_settle``: its ends, its start and the three tables'
+# value there and slope; np.interp is slope (x - xp[j]) + fp[j], outside the grid slope 0 at the end
+# value), its SOC, the new SOC, and the sums and extremes of ``_battery``'s outputs
+_LO, _HI, _X0, _OCV, _S_OCV, _RD, _S_RD, _RC, _S_RC, _SOC, _NEW, _E, _REGEN, _LOW, _ROOM_W, _ROOM_I = range(16)
 
 
 @_jit(inline="always")
@@ -380,18 +381,19 @@ def _settle(soc, lane, st, cell):
 
 
 @_jit(inline="always")
-def _step(soc, demand_w, dt, x, st, g):
+def _step(demand_w, dt, x, st, g):
     """One battery step (``quasi_static._Battery.step``) of lane ``g`` (constants ``x``, rows of
-    ``BATTERY_COLUMNS``; SOC interval ``st``): terminal power, current, resistance, ocv^2/4R minus
-    the drive demand (W, < 0: not delivered), and the new SOC (2-9..2-15, rule 4, 2C cap). No
-    branches (selects only). Zero demand leaves SOC and energy exactly as they were."""
-    ns, i_chg = x[_NS, g], x[_ICHG, g]
+    ``BATTERY_COLUMNS``; SOC and its interval ``st``): terminal power, current, resistance,
+    ocv^2/4R minus the drive demand (W, < 0: not delivered), and the new SOC (2-9..2-15, rule 4,
+    2C cap). No branches: every value is read first, then selected (a read under a condition keeps
+    the compiler from vectorising). Zero demand leaves SOC and energy exactly as they were."""
+    soc, ns, i_chg, soc_max = st[_SOC, g], x[_NS, g], x[_ICHG, g], x[_SOCMAX, g]
     p_drive = max(demand_w, 0.0)
-    p_regen = demand_w if (demand_w < 0) & (soc <= x[_SOCMAX, g]) else 0.0  # rule 4: none above 90 % SOC
+    p_regen = demand_w if (demand_w < 0) & (soc <= soc_max) else 0.0  # rule 4: none above 90 % SOC
     ds = soc - st[_X0, g]
     voc = ns * (st[_S_OCV, g] * ds + st[_OCV, g])
-    r_cell = (st[_S_RC, g] * ds + st[_RC, g]) if p_regen < 0 else (st[_S_RD, g] * ds + st[_RD, g])
-    r = ns * r_cell / x[_NP, g]
+    r_charge, r_discharge = st[_S_RC, g] * ds + st[_RC, g], st[_S_RD, g] * ds + st[_RD, g]
+    r = ns * (r_charge if p_regen < 0 else r_discharge) / x[_NP, g]
     p_chg_lim = (voc - (-i_chg) * r) * (-i_chg)  # 2-12 at the 2C charge cap
     p_max = voc * voc / (4.0 * r)
     power = min(p_drive, p_max) + max(p_regen, p_chg_lim)
@@ -401,14 +403,17 @@ def _step(soc, demand_w, dt, x, st, g):
 
 
 @_jit(parallel=True)
-def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range):
+def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range, lanes):
     """The battery stepped over each design's demand (step k's in column ``step_pair[k]``): once
     from ``initial_soc`` (energy), or from 100 % SOC repeating the cycle until ``final_soc``
     (``to_range``). One kernel for both (compile time). Returns energy drawn and returned (J), final
     SOC, the lowest SOC, the least ocv^2/4R minus drive demand (W) and the least 1 - current /
     discharge limit over the drawing steps (both inf without one), and the distance (m, inf if not
     reached). Designs run ``_LANES`` at a time; each lane's steps are its own design's (a lane
-    past its crossing, or without a design, steps on unread)."""
+    past its crossing, or without a design, steps on unread). ``lanes`` = ``_LANES``: the lane
+    loops that step run to it, a number the compiler does not know, so that it vectorises them
+    instead of unrolling them; the arrays' rows are ``_LANES`` long, a length it knows, so that it
+    sees the rows do not overlap."""
     n_pts, n_steps, n_pairs = demand_w.shape[0], step_pair.shape[0], demand_w.shape[1]
     energy = np.zeros(n_pts)
     regen = np.zeros(n_pts)
@@ -420,8 +425,10 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
     for block in prange((n_pts + _LANES - 1) // _LANES):
         n0 = block * _LANES
         size = min(_LANES, n_pts - n0)
-        d_tab = np.zeros((n_pairs, _LANES))  # the lanes' demand side by side (no design: 0)
+        d_tab = np.zeros((n_pairs, _LANES))  # the _LANES' demand side by side (no design: 0)
         x = np.empty((cols.shape[1], _LANES))
+        st = np.zeros((16, _LANES))
+        active = np.zeros(_LANES, np.bool_)
         for g in range(_LANES):
             n = n0 + min(g, size - 1)  # an empty lane copies the last design's constants (stays finite)
             for c in range(cols.shape[1]):
@@ -429,16 +436,10 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
             if g < size:
                 for u in range(n_pairs):
                     d_tab[u, g] = demand_w[n, u]
-        st = np.empty((9, _LANES))
-        soc, new = np.empty(_LANES), np.empty(_LANES)
-        e_sum, r_sum, low = np.zeros(_LANES), np.zeros(_LANES), np.empty(_LANES)
-        room_w, room_i = np.full(_LANES, np.inf), np.full(_LANES, np.inf)
-        active = np.zeros(_LANES, np.bool_)
-        for g in range(_LANES):
-            soc[g] = 1.0 if to_range else x[_SOC0, g]
-            low[g] = soc[g]
+            st[_SOC, g] = st[_LOW, g] = 1.0 if to_range else x[_SOC0, g]
+            st[_ROOM_W, g] = st[_ROOM_I, g] = np.inf
             active[g] = g < size
-            _settle(soc[g], g, st, cell)
+            _settle(st[_SOC, g], g, st, cell)
         left = size
         travelled = 0.0
         for _ in range(max_repeats if to_range else 1):
@@ -450,26 +451,27 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
                 if moving:  # a step without demand: no current, no energy, SOC unchanged
                     dtk = dt[k]
                     if to_range:
-                        for g in range(_LANES):
-                            new[g] = _step(soc[g], d[g], dtk, x, st, g)[4]
+                        for g in range(lanes):
+                            st[_NEW, g] = _step(d[g], dtk, x, st, g)[4]
                     else:
-                        for g in range(_LANES):
-                            power, i, r, room, s = _step(soc[g], d[g], dtk, x, st, g)
-                            drawing = d[g] > 0.0
-                            room_w[g] = min(room_w[g], room) if drawing else room_w[g]
-                            room_i[g] = min(room_i[g], 1.0 - i / x[_IDIS, g]) if drawing else room_i[g]
-                            low[g] = min(low[g], s)
-                            e_sum[g] += (power + x[_WLOSS, g] * i * i * r) * dtk  # 2-16, 2-17
-                            r_sum[g] -= min(power, 0.0) * dtk
-                            new[g] = s
+                        for g in range(lanes):
+                            power, i, r, room, new = _step(d[g], dtk, x, st, g)
+                            drawing, room_w, room_i, room_now = d[g] > 0.0, st[_ROOM_W, g], st[_ROOM_I, g], 1.0 - i / x[_IDIS, g]
+                            st[_ROOM_W, g] = min(room_w, room) if drawing else room_w
+                            st[_ROOM_I, g] = min(room_i, room_now) if drawing else room_i
+                            st[_LOW, g] = min(st[_LOW, g], new)
+                            st[_E, g] += (power + x[_WLOSS, g] * i * i * r) * dtk  # 2-16, 2-17
+                            st[_REGEN, g] -= min(power, 0.0) * dtk
+                            st[_NEW, g] = new
                     for g in range(_LANES):
-                        if to_range and active[g] and new[g] <= x[_SOCSTOP, g]:  # the crossing, inside its step
-                            out[n0 + g] = travelled + (soc[g] - x[_SOCSTOP, g]) / max(soc[g] - new[g], 1e-300) * step_m[k]
+                        soc, new = st[_SOC, g], st[_NEW, g]
+                        if to_range and active[g] and new <= x[_SOCSTOP, g]:  # the crossing, inside its step
+                            out[n0 + g] = travelled + (soc - x[_SOCSTOP, g]) / max(soc - new, 1e-300) * step_m[k]
                             active[g] = False
                             left -= 1
-                        if not (st[_LO, g] <= new[g] < st[_HI, g]):
-                            _settle(new[g], g, st, cell)
-                        soc[g] = new[g]
+                        if not (st[_LO, g] <= new < st[_HI, g]):
+                            _settle(new, g, st, cell)
+                        st[_SOC, g] = new
                 travelled += step_m[k]
                 if left == 0:
                     break
@@ -477,8 +479,8 @@ def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range)
                 break
         for g in range(size):
             n = n0 + g
-            soc_end[n], soc_low[n], energy[n], regen[n] = soc[g], low[g], e_sum[g], r_sum[g]
-            power_room[n], current_room[n] = room_w[g], room_i[g]
+            soc_end[n], soc_low[n], energy[n], regen[n] = st[_SOC, g], st[_LOW, g], st[_E, g], st[_REGEN, g]
+            power_room[n], current_room[n] = st[_ROOM_W, g], st[_ROOM_I, g]
     return energy, regen, soc_end, soc_low, power_room, current_room, out
 
 
@@ -487,7 +489,7 @@ def battery_energy(demand_w, step_pair, dt, cols, cell) -> tuple:
     (``quasi_static.integrate_energy``): energy drawn and returned (J, 2-16, 2-17), final SOC,
     the lowest SOC over the cycle, the least ocv^2/4R minus drive demand (W) and the least
     1 - current / discharge limit (both inf if the cycle never draws; the flags are these >= 0)."""
-    return _battery(demand_w, step_pair, dt, np.zeros(dt.shape[0]), 1, cols, cell, False)[:6]
+    return _battery(demand_w, step_pair, dt, np.zeros(dt.shape[0]), 1, cols, cell, False, _LANES)[:6]
 
 
 def battery_range_m(demand_w, step_pair, dt, step_m, max_repeats: int, cols, cell) -> np.ndarray:
@@ -499,7 +501,7 @@ def battery_range_m(demand_w, step_pair, dt, step_m, max_repeats: int, cols, cel
     per_cycle = demand_w @ np.bincount(step_pair, weights=dt, minlength=demand_w.shape[1])  # J, net
     order = np.argsort(cols[:, _QC] * cols[:, _NS] / np.maximum(per_cycle, 1e-300), kind="stable")
     out = np.empty(cols.shape[0])
-    out[order] = _battery(demand_w[order], step_pair, dt, step_m, int(max_repeats), cols[order], cell, True)[6]
+    out[order] = _battery(demand_w[order], step_pair, dt, step_m, int(max_repeats), cols[order], cell, True, _LANES)[6]
     return out
 
 
