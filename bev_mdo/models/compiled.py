@@ -49,53 +49,32 @@ def _jit(**options):
 
 
 @_jit(inline="always")
-def _locate_map(x, xp, table, inv_h, lo, hi):
-    """np.interp's interval of x on the increasing grid xp for the motor map's lookups: (j, exact),
-    the value being fp[j] when ``exact`` (x clamped at either end or on a grid point), else
-    slope_j (x - xp[j]) + fp[j]. ``table``/``inv_h`` (``grid_table``) find the interval without a
-    search and without branches: x jumps from call to call (the split's shares), so a branch on x's
-    place in its table cell would be mispredicted. The table position is x's to a few ulps and a
-    table cell (h) is half the least spacing, so x's interval is the cell's or one of its
-    neighbours: the step down or up reads the cell's interval bounds ``lo``/``hi``, loaded beside
-    its interval, not after it."""
+def _interp(x, xp, fp, table, inv_h, slopes, lo, hi):
+    """np.interp for one value, clamped at both ends, with the grid's tables from ``grid_table``:
+    slope_j (x - xp[j]) + fp[j], the operations of numpy's C loop, on the largest j with xp[j] <= x.
+    ``slopes`` holds numpy's (fp[j+1] - fp[j]) / (xp[j+1] - xp[j]) and 0 after the last point, so a
+    clamped x, or one on a grid point, gives fp[j] (slope x 0 + fp[j]) as numpy does.
+    ``table``/``inv_h`` find the interval without a search and without branches: x jumps from call
+    to call (the split's shares), so a branch on x's place in its table cell would be mispredicted.
+    The table position is x's to a few ulps and a table cell (h) is half the least spacing, so x's
+    interval is the cell's or one of its neighbours: the step down or up reads the cell's interval
+    bounds ``lo``/``hi``, loaded beside its interval, not after it."""
     n = xp.shape[0]
     xc = min(max(x, xp[0]), xp[n - 1])  # np.interp clamps: fp[0] below the grid, fp[n-1] above
     m = min(int((xc - xp[0]) * inv_h), table.shape[0] - 1)
     j = table[m] - int(xc < lo[m]) + int(xc >= hi[m])  # largest j with xp[j] <= x
-    return j, (j == n - 1) | (xp[j] == xc)
-
-
-@_jit(inline="always")
-def _value(j, exact, x, xp, fp, slopes):
-    """np.interp at x in the interval of ``_locate_map``, the same operations as numpy's C loop;
-    ``slopes`` holds numpy's (fp[j+1] - fp[j]) / (xp[j+1] - xp[j]). The exact case is a select,
-    not a branch."""
-    i = min(j, slopes.shape[0] - 1)
-    slope = slopes[i]
-    r = slope * (x - xp[i]) + fp[i]
-    if math.isnan(r) and not exact:
-        r = slope * (x - xp[i + 1]) + fp[i + 1]
-        if math.isnan(r) and fp[i] == fp[i + 1]:
-            r = fp[i]
-    return fp[j] if exact else r
-
-
-@_jit(inline="always")
-def _interp(x, xp, fp, table, inv_h, slopes, lo, hi):
-    """np.interp for one value (clamped at both ends); the grid's tables from ``grid_table``."""
-    j, exact = _locate_map(x, xp, table, inv_h, lo, hi)
-    return _value(j, exact, x, xp, fp, slopes)
+    return slopes[j] * (xc - xp[j]) + fp[j]
 
 
 def grid_table(xp, fp) -> tuple:
     """(table, inv_h, slopes, lo, hi) for ``_interp`` of ``fp`` on the increasing grid ``xp``:
     table[m] is the interval that holds xp[0] + m h, with h half the smallest spacing, and lo[m],
-    hi[m] that interval's ends (hi inf for the last grid point)."""
+    hi[m] that interval's ends (hi inf for the last grid point); slopes as ``_interp`` reads them."""
     xp, fp = np.asarray(xp, float), np.asarray(fp, float)
     h = 0.5 * float(np.min(np.diff(xp)))
     m = int(np.ceil((xp[-1] - xp[0]) / h)) + 2
     table = np.clip(np.searchsorted(xp, xp[0] + h * np.arange(m), side="right") - 1, 0, len(xp) - 1).astype(np.int64)
-    return table, 1.0 / h, np.diff(fp) / np.diff(xp), xp[table], np.append(xp, np.inf)[table + 1]
+    return table, 1.0 / h, np.append(np.diff(fp) / np.diff(xp), 0.0), xp[table], np.append(xp, np.inf)[table + 1]
 
 
 def map_tuple(wg, tg, eff, ref_kw: float, regen_rows: bool) -> tuple:
