@@ -1,4 +1,5 @@
-"""Compiled per-design loops (numba) of the quasi-static and topology models.
+"""Compiled per-design loops (numba) of the quasi-static and topology models: the demand here,
+the battery in compiled_battery.py.
 
 The same equations as ``quasi_static.demand`` / ``topology._demand`` (the per-step battery
 demand, eqs 2-1..2-8, 2-25, §2.3.4 rules 1-3, §4.2 torque split) and as the battery loops
@@ -10,18 +11,13 @@ functions stay as the reference the tests compare with (energy and range to 1e-1
   battery), ``< 0`` regenerating (offered to it; the battery applies rule 4 and the 2C cap).
 * A step's demand depends on its (mean speed, acceleration) alone, so it is computed once per
   distinct pair of the cycle (``quasi_static.step_pairs``) and the battery reads each step's.
-* Range steps only the battery over the range cycle's precomputed demand, cycle after cycle,
-  and stops each design at its own crossing of ``final_soc``; steps with zero demand leave the
-  battery as it is (no current, no energy) and are skipped.
 * Motor maps are looked up as ``motor_map.MotorMap.efficiency_at`` does, bilinear through numpy's
   ``interp``, re-implemented operation for operation (``_interp``), without branches on where
   x falls (the split's lookups jump from share to share).
 * Designs run in parallel over the host's cores (``prange``); each design's loop is sequential
-  and independent of the others, so results do not depend on the thread count. The battery
-  loop steps a group of designs side by side (``_GROUP``): one design's SOC recurrence is a chain
-  of dependent divisions and a square root that leaves the core waiting.
-* Two compiled kernels (``drive_demand`` for every topology, ``_battery`` for
-  energy and range); the per-step helpers are inlined into them (numba ``inline="always"``: in
+  and independent of the others, so results do not depend on the thread count.
+* Two compiled kernels (``_drive_demand`` here for every topology, ``compiled_battery._battery``
+  for energy and range); the per-step helpers are inlined into them (numba ``inline="always"``: in
   these parallel loops that is several times faster than calls, and one call site each keeps the
   compile short).
 
@@ -53,68 +49,32 @@ def _jit(**options):
 
 
 @_jit(inline="always")
-def _locate(x, xp, table, inv_h):
-    """np.interp's interval of x on the increasing grid xp: (j, exact), the value being fp[j] when
-    ``exact`` (x clamped at either end or on a grid point), else slope_j (x - xp[j]) + fp[j].
-    ``table``/``inv_h`` (``grid_table``) find the interval without a search."""
-    n = xp.shape[0]
-    if x > xp[n - 1]:
-        return n - 1, True
-    if x < xp[0]:
-        return 0, True
-    j = table[min(int((x - xp[0]) * inv_h), table.shape[0] - 1)]
-    # The table position is x's to a few ulps and a table cell (h) is half the least spacing, so
-    # x's interval is the table's or one of its neighbours: one step down or up (no search loop)
-    j = j - 1 if (j > 0 and xp[j] > x) else j
-    j = j + 1 if (j < n - 1 and xp[j + 1] <= x) else j  # largest j with xp[j] <= x
-    return j, (j == n - 1 or xp[j] == x)
-
-
-@_jit(inline="always")
-def _locate_map(x, xp, table, inv_h, lo, hi):
-    """``_locate`` for the motor map's lookups, without branches: their x jumps from call to call
-    (the split's shares), so a branch on x's place in its table cell would be mispredicted. The
-    step down or up reads the cell's interval bounds ``lo``/``hi`` (``grid_table``), loaded beside
-    its interval, not after it. The battery's SOC moves slowly and keeps ``_locate``, whose branches
-    are predicted and cheaper there."""
+def _interp(x, xp, fp, table, inv_h, slopes, lo, hi):
+    """np.interp for one value, clamped at both ends, with the grid's tables from ``grid_table``:
+    slope_j (x - xp[j]) + fp[j], the operations of numpy's C loop, on the largest j with xp[j] <= x.
+    ``slopes`` holds numpy's (fp[j+1] - fp[j]) / (xp[j+1] - xp[j]) and 0 after the last point, so a
+    clamped x, or one on a grid point, gives fp[j] (slope x 0 + fp[j]) as numpy does.
+    ``table``/``inv_h`` find the interval without a search and without branches: x jumps from call
+    to call (the split's shares), so a branch on x's place in its table cell would be mispredicted.
+    The table position is x's to a few ulps and a table cell (h) is half the least spacing, so x's
+    interval is the cell's or one of its neighbours: the step down or up reads the cell's interval
+    bounds ``lo``/``hi``, loaded beside its interval, not after it."""
     n = xp.shape[0]
     xc = min(max(x, xp[0]), xp[n - 1])  # np.interp clamps: fp[0] below the grid, fp[n-1] above
     m = min(int((xc - xp[0]) * inv_h), table.shape[0] - 1)
     j = table[m] - int(xc < lo[m]) + int(xc >= hi[m])  # largest j with xp[j] <= x
-    return j, (j == n - 1) | (xp[j] == xc)
-
-
-@_jit(inline="always")
-def _value(j, exact, x, xp, fp, slopes):
-    """np.interp at x in the interval of ``_locate``, the same operations as numpy's C loop;
-    ``slopes`` holds numpy's (fp[j+1] - fp[j]) / (xp[j+1] - xp[j]). The exact case is a select,
-    not a branch."""
-    i = min(j, slopes.shape[0] - 1)
-    slope = slopes[i]
-    r = slope * (x - xp[i]) + fp[i]
-    if math.isnan(r) and not exact:
-        r = slope * (x - xp[i + 1]) + fp[i + 1]
-        if math.isnan(r) and fp[i] == fp[i + 1]:
-            r = fp[i]
-    return fp[j] if exact else r
-
-
-@_jit(inline="always")
-def _interp(x, xp, fp, table, inv_h, slopes, lo, hi):
-    """np.interp for one value (clamped at both ends); the grid's tables from ``grid_table``."""
-    j, exact = _locate_map(x, xp, table, inv_h, lo, hi)
-    return _value(j, exact, x, xp, fp, slopes)
+    return slopes[j] * (xc - xp[j]) + fp[j]
 
 
 def grid_table(xp, fp) -> tuple:
     """(table, inv_h, slopes, lo, hi) for ``_interp`` of ``fp`` on the increasing grid ``xp``:
     table[m] is the interval that holds xp[0] + m h, with h half the smallest spacing, and lo[m],
-    hi[m] that interval's ends (hi inf for the last grid point)."""
+    hi[m] that interval's ends (hi inf for the last grid point); slopes as ``_interp`` reads them."""
     xp, fp = np.asarray(xp, float), np.asarray(fp, float)
     h = 0.5 * float(np.min(np.diff(xp)))
     m = int(np.ceil((xp[-1] - xp[0]) / h)) + 2
     table = np.clip(np.searchsorted(xp, xp[0] + h * np.arange(m), side="right") - 1, 0, len(xp) - 1).astype(np.int64)
-    return table, 1.0 / h, np.diff(fp) / np.diff(xp), xp[table], np.append(xp, np.inf)[table + 1]
+    return table, 1.0 / h, np.append(np.diff(fp) / np.diff(xp), 0.0), xp[table], np.append(xp, np.inf)[table + 1]
 
 
 def map_tuple(wg, tg, eff, ref_kw: float, regen_rows: bool) -> tuple:
@@ -128,9 +88,13 @@ def map_tuple(wg, tg, eff, ref_kw: float, regen_rows: bool) -> tuple:
 
 
 @_jit(inline="always")
-def _speed_index(w, mp):
-    """Fractional speed-grid position of |w| (the speed half of the bilinear lookup)."""
-    return _interp(abs(w), mp[0], mp[3], mp[5], mp[6], mp[7], mp[8], mp[9])
+def _speed_row(w, mp):
+    """The speed half of the bilinear lookup at |w|, computed once per motor speed: the map row i0
+    below it (a float: numba's array analysis fails on a tuple of tuples of mixed types) and the
+    fraction a of the way to row i0 + 1."""
+    fi = _interp(abs(w), mp[0], mp[3], mp[5], mp[6], mp[7], mp[8], mp[9])
+    i0 = min(int(fi), mp[0].shape[0] - 2)
+    return float(i0), fi - i0
 
 
 def loss_tuple(coefficients=None) -> np.ndarray:
@@ -142,9 +106,9 @@ def loss_tuple(coefficients=None) -> np.ndarray:
 
 
 @_jit(inline="always")
-def _electrical_w(torque, w, fi, scale, mp, loss):
+def _electrical_w(torque, w, row, scale, mp, loss):
     """Electrical power of one motor at (T, w), eq 2-7 with the Fig 2-9 torque scaling
-    (``MotorMap.electrical_power_w`` for one point); ``fi`` = ``_speed_index(w, mp)``, ``scale`` =
+    (``MotorMap.electrical_power_w`` for one point); ``row`` = ``_speed_row(w, mp)``, ``scale`` =
     reference kW / motor kW. No torque: T w (0, the map not read). With a loss model (``loss[0]``
     = 1) T w plus its loss while turning (``loss_model.LossModel.electrical_power_w``)."""
     if loss[0] != 0.0:
@@ -156,14 +120,13 @@ def _electrical_w(torque, w, fi, scale, mp, loss):
         return torque * w + extra
     if torque == 0.0:
         return torque * w  # pm / eta and pm * eta of pm = +-0
-    wg, tg, eff, it = mp[0], mp[1], mp[2], mp[4]
+    tg, eff, it = mp[1], mp[2], mp[4]
     tu = torque * scale
     if not mp[16]:
         tu = abs(tu)
     fj = _interp(tu, tg, it, mp[10], mp[11], mp[12], mp[13], mp[14])
-    i0 = min(int(fi), wg.shape[0] - 2)
+    i0, a = int(row[0]), row[1]
     j0 = min(int(fj), tg.shape[0] - 2)
-    a = fi - i0
     b = fj - j0
     eta = (1 - a) * ((1 - b) * eff[i0, j0] + b * eff[i0, j0 + 1]) + a * ((1 - b) * eff[i0 + 1, j0]
                                                                          + b * eff[i0 + 1, j0 + 1])
@@ -222,9 +185,9 @@ def _single_motor_step(x, v, t_w, driving, allowed, mp, loss):
         tmax = _t_max(w_m, w_lim, t_pk, kw)
         t_regen = max(t_w * eta_g / r * x[_SHARE], -tmax) if allowed else 0.0  # 2-25
         if loss[0] != 0.0:
-            p_el = axles * _electrical_w((t_drive + t_regen) / axles, w_m, 0.0, x[_SCALE], mp, loss)
+            p_el = axles * _electrical_w((t_drive + t_regen) / axles, w_m, (0.0, 0.0), x[_SCALE], mp, loss)
         else:
-            p_el = _electrical_w(t_drive + t_regen, w_m, _speed_index(w_m, mp), x[_SCALE], mp, loss)
+            p_el = _electrical_w(t_drive + t_regen, w_m, _speed_row(w_m, mp), x[_SCALE], mp, loss)
         p_el = p_el + (x[_LOAD] if v > 0 else 0.0)  # quasi_static.moving_load_w
         cost = p_el if (w_m <= w_lim and t_drive <= tmax) else np.inf
         if g == 0:
@@ -236,32 +199,34 @@ def _single_motor_step(x, v, t_w, driving, allowed, mp, loss):
 
 
 @_jit(inline="always")
-def _axle(x, o):
-    """An axle's constants (columns from ``o``: 0 front, ``_REAR`` rear) as the split reads them,
-    read once per step: count, count x ratio, count x ratio x eta (2-5), eta, motor scale."""
+def _axle(x, o, w, tmax, mp):
+    """An axle (columns from ``o``: 0 front, ``_REAR`` rear) at one step, as the split reads it,
+    computed once per step: count, count x ratio, count x ratio x eta (2-5), eta, motor scale, motor
+    speed, the speed half of its map lookups (``_speed_row``) and its torque envelope."""
     count, ratio, eta = x[_COUNT + o], x[_RATIO + o], x[_ETA + o]
-    return count, count * ratio, count * ratio * eta, eta, x[_SCALE + o]
+    i0, a = _speed_row(w, mp)
+    return count, count * ratio, count * ratio * eta, eta, x[_SCALE + o], w, i0, a, tmax
 
 
 @_jit(inline="always")
-def _axle_power(ax, share, tw, w, fi, tmax, driving, allowed, mp, loss):
+def _axle_power(ax, share, tw, driving, allowed, mp, loss):
     """Electrical power of an axle (``_axle``) carrying wheel torque ``tw`` and its motoring
     overload (``topology._axle_power`` for one point)."""
-    count, cr, cre, eta, scale = ax
+    count, cr, cre, eta, scale, w, i0, a, tmax = ax
     if driving:
         tm = tw / cre  # 2-5
         over = max(tm - tmax, 0.0)
     else:
         over = 0.0
         tm = max(tw * eta / cr * share, -tmax) if allowed else 0.0  # 2-25, rules 2-3
-    return count * _electrical_w(tm, w, fi, scale, mp, loss), over
+    return count * _electrical_w(tm, w, (i0, a), scale, mp, loss), over
 
 
 @_jit(inline="always")
-def _split_power(axf, axr, share, s, t_w, w, fi, tmax, driving, allowed, mp, loss):
+def _split_power(axf, axr, share, s, t_w, driving, allowed, mp, loss):
     """Power and score of one front share ``s`` (front axle at ``s``, rear at ``1 - s``)."""
-    pp, of = _axle_power(axf, share, t_w * s, w[0], fi[0], tmax[0], driving, allowed, mp, loss)
-    pr, orr = _axle_power(axr, share, t_w * (1.0 - s), w[1], fi[1], tmax[1], driving, allowed, mp, loss)
+    pp, of = _axle_power(axf, share, t_w * s, driving, allowed, mp, loss)
+    pr, orr = _axle_power(axr, share, t_w * (1.0 - s), driving, allowed, mp, loss)
     pp, of = pp + pr, of + orr
     return pp, pp + _PENALTY_W_PER_NM * of  # topology.best_split's selection score
 
@@ -289,15 +254,13 @@ def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power,
     if t_w == 0.0 and (loss[0] == 0.0 or v == 0.0):  # standing (or no wheel torque): no torque at any
         # share, and no idle loss without speed: every share's power is 0
         return 0.0, w_top, cap - t_w
-    fif = _speed_index(wf, mp)
-    axf, share = _axle(x, 0), x[_SHARE]
+    axf, share = _axle(x, 0, wf, tmf, mp), x[_SHARE]
     if not two_axles:
-        return _axle_power(axf, share, t_w, wf, fif, tmf, driving, allowed, mp, loss)[0], w_top, cap - t_w
-    axr = _axle(x, o)
-    w, fi, tmax = (wf, wr), (fif, _speed_index(wr, mp)), (tmf, tmr)
+        return _axle_power(axf, share, t_w, driving, allowed, mp, loss)[0], w_top, cap - t_w
+    axr = _axle(x, o, wr, tmr, mp)
     n_coarse = grid.shape[0]
     for i in range(n_coarse):
-        power[i], score[i] = _split_power(axf, axr, share, grid[i], t_w, w, fi, tmax, driving, allowed, mp, loss)
+        power[i], score[i] = _split_power(axf, axr, share, grid[i], t_w, driving, allowed, mp, loss)
     jc = 0
     for i in range(1, n_coarse):  # the first minimum, as np.argmin
         jc = i if score[i] < score[jc] else jc
@@ -312,16 +275,25 @@ def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power,
         if q >= 0:
             power[n_coarse + i], score[n_coarse + i] = power[q], score[q]
         else:
-            power[n_coarse + i], score[n_coarse + i] = _split_power(axf, axr, share, s, t_w, w, fi, tmax, driving,
-                                                                    allowed, mp, loss)
+            power[n_coarse + i], score[n_coarse + i] = _split_power(axf, axr, share, s, t_w, driving, allowed,
+                                                                    mp, loss)
     jf = n_coarse
     for i in range(n_coarse + 1, n_coarse + n_fine):
         jf = i if score[i] < score[jf] else jf
     return power[jf], w_top, cap - t_w
 
 
+def drive_demand(*args):
+    """``_drive_demand``, its designs taken 4 at a time by whichever thread is free (the battery
+    loops take one block of lanes): not in halves fixed up front, so a core that the host takes
+    for a while does not leave the other waiting at the end (set here: numba does not cache a kernel
+    that sets it)."""
+    with numba.parallel_chunksize(4):
+        return _drive_demand(*args)
+
+
 @_jit(parallel=True)
-def drive_demand(v, acc, cols, single_motor, two_axles, grid, fine, mp, loss):
+def _drive_demand(v, acc, cols, single_motor, two_axles, grid, fine, mp, loss):
     """Battery demand of every design (row of ``cols``, see ``COLUMNS``) at each (mean speed ``v``,
     acceleration ``acc``) pair (``quasi_static.step_pairs``): SM-SA (``single_motor``) or one/two
     driven axles. Returns the signed power (N, U), the top motor speed (N,) and the least motoring margin (N,):
@@ -356,111 +328,6 @@ def drive_demand(v, acc, cols, single_motor, two_axles, grid, fine, mp, loss):
     return power, speed_max, margin
 
 
-# columns of the per-design battery table ``cols`` (N, len(BATTERY_COLUMNS)) of the battery loops
-BATTERY_COLUMNS = ("cells_series", "cells_parallel", "capacity_c", "charge_current_max_a", "regen_max_soc",
-                   "initial_soc", "discharge_current_max_a", "loss_weight", "final_soc")
-_NS, _NP, _QC, _ICHG, _SOCMAX, _SOC0, _IDIS, _WLOSS, _SOCSTOP = range(9)
-
-
-@_jit(inline="always")
-def _step(soc, demand_w, dt, x, cell):
-    """One battery step (``quasi_static._Battery.step``) of the design with columns ``x``: terminal
-    power, current, resistance, ocv^2/4R minus the drive demand (W, < 0: not delivered), and the new
-    SOC (2-9..2-15, rule 4, 2C cap). ``cell``: the cell's SOC grid, OCV, R discharge, R charge, the grid's table and
-    1/h, and the three slopes (``cell_tables``)."""
-    s_tab = cell[0]
-    ns, i_chg = x[_NS], x[_ICHG]
-    p_drive = demand_w if demand_w > 0 else 0.0
-    p_regen = demand_w if (demand_w < 0 and not soc > x[_SOCMAX]) else 0.0  # rule 4: SOC > 90 %
-    j, exact = _locate(soc, s_tab, cell[4], cell[5])  # one interval for the OCV and R lookups
-    voc = ns * _value(j, exact, soc, s_tab, cell[1], cell[6])
-    r = ns * (_value(j, exact, soc, s_tab, cell[3], cell[8]) if p_regen < 0
-              else _value(j, exact, soc, s_tab, cell[2], cell[7])) / x[_NP]
-    p_chg_lim = (voc - (-i_chg) * r) * (-i_chg)  # 2-12 at the 2C charge cap
-    p_max = voc * voc / (4.0 * r)
-    power = min(p_drive, p_max) + max(p_regen, p_chg_lim)
-    v_bt = 0.5 * (voc + math.sqrt(max(voc * voc - 4.0 * power * r, 0.0)))  # 2-13, 2-14
-    i = power / v_bt  # 2-11
-    return power, i, r, p_max - p_drive, soc - i * dt / x[_QC]  # 2-9, 2-10
-
-
-_GROUP = 4  # designs stepped side by side in one loop: the SOC recurrence of one design is a chain
-# of dependent divisions and a square root, so one design alone leaves the core waiting
-
-
-@_jit(parallel=True)
-def _battery(demand_w, step_pair, dt, step_m, max_repeats, cols, cell, to_range):
-    """The battery stepped over each design's demand (step k's in column ``step_pair[k]``): once
-    from ``initial_soc`` (energy), or
-    from 100 % SOC repeating the cycle until ``final_soc`` (``to_range``). One kernel for both
-    (compile time). Returns energy drawn and returned (J), final SOC, the lowest SOC, the least
-    ocv^2/4R minus drive demand (W) and the least 1 - current / discharge limit over the drawing
-    steps (both inf without one), and the distance (m, inf if not reached). Each design's steps are its own; designs of
-    a group only share the loop."""
-    n_pts, n_steps = demand_w.shape[0], step_pair.shape[0]
-    energy = np.zeros(n_pts)
-    regen = np.zeros(n_pts)
-    soc_end = np.empty(n_pts)
-    soc_low = np.empty(n_pts)
-    power_room = np.full(n_pts, np.inf)
-    current_room = np.full(n_pts, np.inf)
-    out = np.full(n_pts, np.inf)
-    for first in prange((n_pts + _GROUP - 1) // _GROUP):
-        n0 = first * _GROUP
-        size = min(_GROUP, n_pts - n0)
-        soc = np.empty(_GROUP)
-        active = np.zeros(_GROUP, np.bool_)
-        for g in range(size):
-            soc[g] = 1.0 if to_range else cols[n0 + g, _SOC0]
-            soc_low[n0 + g] = soc[g]
-            active[g] = True
-        left = size
-        travelled = 0.0
-        for _ in range(max_repeats if to_range else 1):
-            for k in range(n_steps):
-                for g in range(size):
-                    n = n0 + g
-                    d = demand_w[n, step_pair[k]]
-                    if d != 0.0 and active[g]:  # a step without demand: no current, no energy, SOC unchanged
-                        x = cols[n]
-                        power, i, r, room, new = _step(soc[g], d, dt[k], x, cell)
-                        if to_range:
-                            if new <= x[_SOCSTOP]:  # the crossing, interpolated inside its step
-                                out[n] = travelled + (soc[g] - x[_SOCSTOP]) / max(soc[g] - new, 1e-300) * step_m[k]
-                                active[g] = False
-                                left -= 1
-                        else:
-                            if d > 0.0:
-                                power_room[n] = min(power_room[n], room)
-                                current_room[n] = min(current_room[n], 1.0 - i / x[_IDIS])
-                            soc_low[n] = min(soc_low[n], new)
-                            energy[n] += (power + x[_WLOSS] * i * i * r) * dt[k]  # 2-16, 2-17
-                            regen[n] -= min(power, 0.0) * dt[k]
-                        soc[g] = new
-                travelled += step_m[k]
-                if left == 0:
-                    break
-            if left == 0:
-                break
-        for g in range(size):
-            soc_end[n0 + g] = soc[g]
-    return energy, regen, soc_end, soc_low, power_room, current_room, out
-
-
-def battery_energy(demand_w, step_pair, dt, cols, cell) -> tuple:
-    """Step each design's battery over its demand from ``initial_soc``
-    (``quasi_static.integrate_energy``): energy drawn and returned (J, 2-16, 2-17), final SOC,
-    the lowest SOC over the cycle, the least ocv^2/4R minus drive demand (W) and the least
-    1 - current / discharge limit (both inf if the cycle never draws; the flags are these >= 0)."""
-    return _battery(demand_w, step_pair, dt, np.zeros(dt.shape[0]), 1, cols, cell, False)[:6]
-
-
-def battery_range_m(demand_w, step_pair, dt, step_m, max_repeats: int, cols, cell) -> np.ndarray:
-    """Distance (m) from 100 % SOC to ``final_soc`` repeating the cycle's demand
-    (``quasi_static.integrate_range``), the crossing interpolated inside its step; inf if the
-    battery is still above after ``max_repeats`` cycles."""
-    return _battery(demand_w, step_pair, dt, step_m, int(max_repeats), cols, cell, True)[6]
-
 def table(names: tuple, n: int, values: dict) -> np.ndarray:
     """The (N, len(names)) float table of the compiled loops: each named column from a scalar or
     an (N,) array, absent columns 0 (one array type, so each loop compiles once)."""
@@ -468,10 +335,3 @@ def table(names: tuple, n: int, values: dict) -> np.ndarray:
     for k, x in values.items():
         out[:, names.index(k)] = x
     return out
-
-
-def cell_tables(soc, ocv_v, r_discharge_ohm, r_charge_ohm) -> tuple:
-    """A cell's tables as the battery loops take them (``_step``'s ``cell``)."""
-    tabs = tuple(np.array(x, dtype=float) for x in (soc, ocv_v, r_discharge_ohm, r_charge_ohm))
-    find, inv_h = grid_table(tabs[0], tabs[1])[:2]
-    return (*tabs, find, inv_h, *(grid_table(tabs[0], y)[2] for y in tabs[1:]))

@@ -28,8 +28,9 @@ lower electrical power that the envelope allows) and applies the thesis penalty:
 (``two_speed_added_mass_kg``; set it to 0 if the mass discipline already adds it).
 
 Speed: ``simulate`` and ``range_by_repeated_cycle_km`` run the compiled per-design loops of
-compiled.py (``fast_demand``, ``fast_energy``, ``fast_range``); ``reference=True`` runs the plain
-numpy passes (``demand``, ``integrate_energy``, ``integrate_range``) that the tests hold them to.
+compiled.py and compiled_battery.py (``fast_demand``, ``fast_energy``, ``fast_range``);
+``reference=True`` runs the plain numpy passes (``demand``, ``integrate_energy``,
+``integrate_range``) that the tests hold them to.
 
 Feasibility (§3.5.3) is reported, not enforced: traction torque within the envelope,
 motor speed within the limit, discharge current <= 5C and power within the battery's
@@ -53,6 +54,7 @@ from .motor_map import DEFAULT_MAP_CSV, MotorMap, load_motor_map_csv
 from .params import QUASI_STATIC_SPECS, VEHICLE_SPECS
 
 compiled = LazyModule(f"{__package__}.compiled")  # numba, loaded when a compiled loop first runs
+battery_loops = LazyModule(f"{__package__}.compiled_battery")
 
 PARAM_SPECS = QUASI_STATIC_SPECS
 DEFAULT_BATTERY_KWH = VEHICLE_SPECS["reference_battery_kwh"].default  # Leaf, 24 kWh
@@ -288,20 +290,20 @@ def fast_demand(cycle, p, m, ig, kw, motor_map: MotorMap) -> FastDemand:
 
 
 def battery_table(p, n: int) -> tuple:
-    """The per-design battery table (compiled.BATTERY_COLUMNS) from the same ``_Battery`` the
+    """The per-design battery table (compiled_battery.BATTERY_COLUMNS) from the same ``_Battery`` the
     reference loop uses, and the cell's tables."""
     b = _Battery(p, n)
     cell = b.pack.cell
-    cols = compiled.table(compiled.BATTERY_COLUMNS, n, dict(
+    cols = compiled.table(battery_loops.BATTERY_COLUMNS, n, dict(
         cells_series=b.pack.cells_series, cells_parallel=b.pack.cells_parallel, capacity_c=b.q_c,
         charge_current_max_a=b.i_chg_max, regen_max_soc=b.soc_max_regen, initial_soc=p["initial_soc"],
         discharge_current_max_a=b.i_dis_max, loss_weight=b.w_loss, final_soc=p["final_soc"]))
-    return cols, compiled.cell_tables(cell.soc, cell.ocv_v, cell.r_discharge_ohm, cell.r_charge_ohm)
+    return cols, battery_loops.cell_tables(cell.soc, cell.ocv_v, cell.r_discharge_ohm, cell.r_charge_ohm)
 
 
 def fast_energy(d: FastDemand, p, n: int) -> QuasiStaticResult:
-    """``integrate_energy`` in the compiled per-design loop (compiled.battery_energy)."""
-    energy, regen, soc, soc_min, room_w, room_i = compiled.battery_energy(
+    """``integrate_energy`` in the compiled per-design loop (compiled_battery.battery_energy)."""
+    energy, regen, soc, soc_min, room_w, room_i = battery_loops.battery_energy(
         d.power_w, d.step_pair, d.dt, *battery_table(p, n))
     km = d.distance_m / 1e3
     return QuasiStaticResult(energy / 3600.0 / km, d.distance_m, soc, d.speed_max, d.torque_margin,
@@ -310,8 +312,8 @@ def fast_energy(d: FastDemand, p, n: int) -> QuasiStaticResult:
 
 
 def fast_range(d: FastDemand, p, n: int, step_m: np.ndarray, max_repeats: int = 200) -> np.ndarray:
-    """``integrate_range`` in the compiled per-design loop (compiled.battery_range_m), km (N,)."""
-    return compiled.battery_range_m(d.power_w, d.step_pair, d.dt, np.array(step_m, dtype=float), int(max_repeats),
+    """``integrate_range`` in the compiled per-design loop (compiled_battery.battery_range_m), km (N,)."""
+    return battery_loops.battery_range_m(d.power_w, d.step_pair, d.dt, np.array(step_m, dtype=float), int(max_repeats),
                                     *battery_table(p, n)) / 1e3
 
 

@@ -132,13 +132,19 @@ def test_without_a_cache_directory_it_compiles_in_memory():
 
 @pytest.mark.parametrize("topology", ["SM-SA", "IWM-DA"])
 def test_a_design_does_not_depend_on_its_batch(topology, cycles):
-    """The battery steps designs in groups and the kernels split batches over threads: a design's
-    energy and range are the same, to the last bit, alone and in any batch."""
+    """The battery steps designs in lanes side by side (range: in the order of their estimated
+    range) and the kernels split batches over threads: a design's energy and range are the same, to
+    the last bit, alone and in any batch, in any order."""
     wltc, nedc = cycles
-    params, args = designs(topology, 11, seed=5)  # 11: groups of 4 with a short last one
+    params, args = designs(topology, 37, seed=5)  # 37: two blocks of 16 lanes and a short one
     batch = tp.simulate(wltc, params, topology, *args)
     rng = tp.range_by_repeated_cycle_km(nedc, params, topology, *args)
-    for i in (0, 5, 10):
+    back = [a if a is None else a[::-1].copy() for a in args]
+    params_back = {k: v[::-1].copy() for k, v in params.items()}
+    np.testing.assert_array_equal(tp.simulate(wltc, params_back, topology, *back).energy_wh_per_km[::-1],
+                                  batch.energy_wh_per_km)
+    np.testing.assert_array_equal(tp.range_by_repeated_cycle_km(nedc, params_back, topology, *back)[::-1], rng)
+    for i in (0, 20, 36):
         p = {k: v[i:i + 1] for k, v in params.items()}
         one = [a if a is None else a[i:i + 1] for a in args]
         alone = tp.simulate(wltc, p, topology, *one)
