@@ -58,7 +58,7 @@ def design(config, given: dict[str, float], transport) -> dict:
     with Evaluating(config, transport) as evaluator:
         report = evaluate_design(config.settings, evaluator, full)
     notes = design_notes(config, report["outputs"])
-    short = cannot_follow(config, {**full, **report["outputs"]})
+    short = cannot_follow(config, {**problem.parameters, **full, **report["outputs"]})
     if short:  # not a design the run's energy describes: infeasible whatever the constraints say
         report["feasible"] = False
         notes = short + notes

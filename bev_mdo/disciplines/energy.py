@@ -26,6 +26,11 @@ BATTERY_MARGINS = ("battery_power_margin_kw", "battery_soc_margin", "battery_cur
 FINAL_SOC = QUASI_STATIC_SPECS["final_soc"].default
 
 
+def _in_envelope(name: str) -> bool:
+    """A constant of the motor envelope and road load that models/follow.py reads (and the gear count)."""
+    return name in ACCEL_PARAMS or name.startswith("road_load_") or name == "gear_count"
+
+
 class Energy(Base):
     """vehicle_mass_kg, gear_ratio (, motor_kw, battery_kwh, rear motor) -> energy_wh_per_km, the energy
     from the battery per km, on the configured cycle (option ``cycle`` overrides it, option ``cycle_weights``
@@ -106,7 +111,7 @@ class Energy(Base):
         disc = cls({k: v[k] for k in names}, resampled_cycle(config, options.cycle), model, extra,
                    run_topology(config, options).name, flag("energy", "feasibility_outputs", options.feasibility_outputs))
         disc.weighted = _cycle_weights(config, options, model)
-        disc.envelope = {k: x for k, x in v.items() if k in ACCEL_PARAMS or k.startswith("road_load_") or k == "gear_count"}
+        disc.envelope = {k: x for k, x in v.items() if _in_envelope(k)}
         return disc
 
     def cycle_steps_short(self, values) -> list | None:
@@ -114,10 +119,11 @@ class Energy(Base):
         ``values`` (motor_kw, gear_ratio, vehicle_mass_kg: numbers or (N,) arrays) at full motor envelope
         (models/follow.py); None where that envelope is not the run's: single-speed SM-SA only."""
         env = getattr(self, "envelope", None)
-        if (env is None or self.topology.name != "SM-SA" or env.get("gear_count", 1.0) != 1.0
-                or any(values.get(k) is None for k in ("motor_kw", "gear_ratio", "vehicle_mass_kg"))):
+        if env is None or any(values.get(k) is None for k in ("motor_kw", "gear_ratio", "vehicle_mass_kg")):
             return None
-        env = {k: x for k, x in env.items() if k != "gear_count"}
+        env = {**env, **{k: x for k, x in values.items() if _in_envelope(k)}}  # a per-point value (--set) wins
+        if self.topology.name != "SM-SA" or np.any(np.asarray(env.pop("gear_count", 1.0)) != 1.0):
+            return None
         return [(r.name, len(r.time_s) - 1, *steps_not_followed(r.time_s, r.speed_m_s, env, values["vehicle_mass_kg"],
                                                                 values["gear_ratio"], values["motor_kw"]))
                 for _, r in self._cycles()]
@@ -129,8 +135,9 @@ class Energy(Base):
             if count[0]:
                 return (f"the design cannot follow the cycle {name} at {int(count[0])} of {steps} steps (its "
                         f"{float(values['motor_kw']):.4g} kW motor at {float(values['gear_ratio']):.4g}:1 falls up to "
-                        f"{worst[0] / 1e3:.3g} kN short of the drive force, or over its speed limit): its energy per "
-                        "km is that of the cycle's demand, not of a powertrain that follows it")
+                        f"{worst[0] / 1e3:.3g} kN short of the drive force, or over its speed limit)"
+                        + ("" if not np.isfinite(values.get("energy_wh_per_km", np.nan)) else  # a failed point has none
+                           ": its energy per km is that of the cycle's demand, not of a powertrain that follows it"))
         return None
 
     def prepare(self) -> None:
