@@ -168,7 +168,9 @@ def _differential_evolution(form, options, callback):
         cons.append(NonlinearConstraint(g, -np.inf, 0.0))
     if form.eq_labels:
         cons.append(NonlinearConstraint(h, -form.eq_tolerance, form.eq_tolerance))
-    opts = {"maxiter": 200, "popsize": 15, "tol": 1e-8, "polish": False, "rng": 0, **options}
+    # a user's own 'seed' (scipy's older name of rng) replaces the default rng: both at once are a TypeError
+    opts = {"maxiter": 200, "popsize": 15, "tol": 1e-8, "polish": False, **({} if "seed" in options else {"rng": 0}),
+            **options}
     opts.update(vectorized=True, updating="deferred")
     return differential_evolution(f, Bounds(lo, hi), constraints=cons, x0=form.to_u(form.x0),
                                   callback=_cb(form, callback), **opts)

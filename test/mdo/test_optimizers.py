@@ -102,3 +102,10 @@ def test_differential_evolution_ranks_a_failed_point_below_every_real_one():
     F, G, _ = f.evaluate_batch(res.x[None])
     assert res.x[1] <= 9.0 and F[0] < 1e9
     assert np.all(G[0] > 1.0)  # really infeasible: the case where the failed point used to win
+
+
+def test_differential_evolution_takes_a_seed_option_as_the_rng():
+    # optimizer.options {seed: 3} was scipy's TypeError (rng and seed both given: exit 7)
+    a = run_optimizer("differential_evolution", form(), {"maxiter": 2, "popsize": 5, "seed": 3})
+    b = run_optimizer("differential_evolution", form(), {"maxiter": 2, "popsize": 5, "seed": 3})
+    assert a.nit == 2 and np.array_equal(a.x, b.x)
