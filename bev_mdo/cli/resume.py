@@ -70,8 +70,10 @@ def held(config, fixed: dict):
     if not dvs:
         raise ValueError("the sweep fixed every design variable with --set: nothing left to optimise")
     base = problem.get("baseline")
-    if base and base.get("design"):
-        problem["baseline"] = {**base, "design": {k: v for k, v in base["design"].items() if k not in fixed}}
+    if base and base.get("design"):  # evaluated with the held values too: its name says so
+        held_text = ", ".join(f"{k}={v:g}" for k, v in fixed.items())
+        problem["baseline"] = {**base, "design": {k: v for k, v in base["design"].items() if k not in fixed},
+                               "name": f"{base.get('name') or 'baseline'} with {held_text} held"}
     problem.update(design_variables=dvs, parameters={**(problem.get("parameters") or {}), **fixed})
     return config.with_sections(problem=problem)
 

@@ -21,6 +21,8 @@ def test_resume_from_a_sweep_holds_its_set_values(tmp_path, capsys):
     doc = json.loads(out.out)
     assert code == 0 and "keeping what the sweep fixed with --set: battery_kwh=24, drag_area_m2=0.7" in out.err
     assert set(doc["design"]) == {"motor_kw", "gear_ratio"}  # battery_kwh held, not optimised to its bound
+    # the baseline is evaluated with the held values: its name says so (it read 'Leaf (80 kW, 7.94:1, 24 kWh)')
+    assert doc["baseline"]["name"].endswith("with battery_kwh=24, drag_area_m2=0.7 held")
     assert main(["evaluate", str(LEAF), "--set", f"motor_kw={doc['design']['motor_kw']!r}",
                  f"gear_ratio={doc['design']['gear_ratio']!r}", "battery_kwh=24", "drag_area_m2=0.7",
                  "--transport", "inprocess", "--json"]) == 0
