@@ -58,10 +58,15 @@ def design(config, given: dict[str, float], transport) -> dict:
     with Evaluating(config, transport) as evaluator:
         report = evaluate_design(config.settings, evaluator, full)
     notes = design_notes(config, report["outputs"])
-    short = cannot_follow(config, {**problem.parameters, **full, **report["outputs"]})
+    values = {**problem.parameters, **full, **report["outputs"]}
+    short = cannot_follow(config, values)
     if short:  # not a design the run's energy describes: infeasible whatever the constraints say
         report["feasible"] = False
         notes = short + notes
+    notes += [f"{d.name}: whether the motor can follow the cycle is not checked for this gearbox or topology (the "
+              "check covers single-speed SM-SA); energy options {feasibility_outputs: true} give the model's margins"
+              for d in config.disciplines if getattr(d, "envelope", None) is not None
+              and d.cycle_steps_short(values) is None]
     if notes:
         report["notes"] = notes
     return report

@@ -86,3 +86,13 @@ def test_a_design_within_the_models_own_margins_is_never_called_short():
     within = (res["outputs"]["drive_torque_margin_nm"] >= 0) & (res["outputs"]["motor_speed_margin_rad_s"] >= 0)
     assert within.sum() > 100 and (~within).sum() > 5  # both kinds are in the sample
     assert np.all(count[within] == 0) and np.all(count[~within] > 0)
+
+
+def test_evaluate_says_where_the_check_does_not_run(tmp_path, capsys):
+    # a user trial: an in-wheel design and a two-speed one were reported with no word that nothing checked them
+    van = _van(tmp_path)
+    assert main(["evaluate", str(van), "--set", "motor_kw=80", "gear_count=2", "--transport", "inprocess", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert any("is not checked for this gearbox or topology" in n for n in doc["notes"])
+    assert main(["evaluate", str(van), "--set", "motor_kw=80", "--transport", "inprocess", "--json"]) == 0
+    assert not any("is not checked" in n for n in json.loads(capsys.readouterr().out)["notes"])
