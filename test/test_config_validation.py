@@ -406,3 +406,19 @@ def test_a_parameter_only_the_chain_reads_is_refused_on_another_energy_model():
     RunConfig.load(raw)
     raw = {**raw, "energy_model": "chain", "vehicle": {"aux_power_w": 2000}}
     assert RunConfig.load(raw)["vehicle"]["aux_power_w"] == 2000
+
+
+@pytest.mark.parametrize("argv", [
+    ["evaluate", "--set", "gear_count=2", "gear_ratio=4"],          # below the config's second gear (4.7)
+    ["evaluate", "--set", "gear_count=2", "gear_ratio=8", "gear_ratio_2=9"],
+    ["sweep", "--vary", "gear_ratio=3:9:3", "--set", "gear_count=2"],  # one design of three crosses
+])
+def test_a_second_gear_shorter_than_the_first_given_per_design_is_refused(argv, capsys, tmp_path):
+    # a user trial: the load check refused such configs, but the same values given per design were evaluated
+    from bev_mdo.cli import main
+
+    cmd, *rest = argv
+    out = ["--out", str(tmp_path / "sw"), "--no-plots"] if cmd == "sweep" else []
+    assert main([cmd, str(REPO / "config" / "leaf_nedc.yaml"), *rest, "--transport", "inprocess", *out]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the second gear must not be shorter than the first" in err[0], err

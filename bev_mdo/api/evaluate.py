@@ -123,6 +123,28 @@ def refuse_outside_model_limits(config, values) -> None:
         check_model_limits(config.disciplines, values)
     except ValueError as exc:
         raise InputError(f"{exc}; such a design cannot be evaluated") from None
+    refuse_gear_order(config, values)
+
+
+def refuse_gear_order(config, values) -> None:
+    """InputError (one line) where a design given per point (``values``: numbers or arrays, over the config's
+    own values) has two speeds and a second gear shorter than the first, as config load refuses for the
+    config's own values and bounds (config.sections.check_gear_order)."""
+    from bev_mdo.models.params import validate_vehicle
+
+    vehicle = validate_vehicle(config.data.get("vehicle"))  # defaults and a named parameter set filled
+    own = {**vehicle, **{d.name: d.initial for d in config.problem.design_variables}, **config.problem.parameters}
+
+    def column(name):
+        return np.atleast_1d(np.asarray(values.get(name, own.get(name, np.nan)), dtype=float))
+
+    count, first, second = np.broadcast_arrays(column("gear_count"), column("gear_ratio"), column("gear_ratio_2"))
+    bad = np.flatnonzero((count >= 2) & (second > first))
+    if bad.size:
+        i = int(bad[0])
+        raise InputError(f"gear_ratio_2 {second[i]:g} is above gear_ratio {first[i]:g}"
+                         f"{f' (design {i + 1})' if count.size > 1 else ''}: with gear_count 2 the second gear "
+                         "must not be shorter than the first (gear_ratio_2 <= gear_ratio)")
 
 
 def check_names(names, problem, params) -> None:
