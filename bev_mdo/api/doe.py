@@ -118,10 +118,16 @@ def record(bag_dir: Path, config, result: dict, method: str, transport: str, fix
     try:
         for i in range(n):
             violation = float(result["violation"][i])  # normalised, as in an optimisation's records (nan: failed)
+            ok = bool(result["ok"][i])  # a failed design has no values in its record (IterationRecord.msg), even
+            # where the MDA kept an output that does not depend on the failure (a 21 t design's cost)
+
+            def value(name):
+                return float(result["outputs"][name][i]) if ok else float("nan")
+
             bag({"iteration": i, "formulation": "doe", "optimizer": method,
                  "design": {k: float(v[i]) for k, v in result["design"].items()},
-                 "objective_name": problem.objective, "objective": float(result["outputs"][problem.objective][i]),
-                 "constraints": {c.name: float(result["outputs"][c.name][i]) for c in problem.constraints},
+                 "objective_name": problem.objective, "objective": value(problem.objective),
+                 "constraints": {c.name: value(c.name) for c in problem.constraints},
                  "max_violation": violation if np.isfinite(violation) else float("nan"),
                  "feasible": bool(result["feasible"][i]), "mda_evaluations": i + 1,
                  "wall_time_s": time.perf_counter() - t0})

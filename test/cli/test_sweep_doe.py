@@ -128,3 +128,21 @@ def test_a_sweeps_headline_is_the_best_feasible_else_the_least_violated_failed_l
     rows = rows[::-1]
     assert headline(rows) == 0
     assert headline([{**r, "formulation": "MDF"} for r in rows]) == 2  # an optimisation: its last record
+
+
+def test_a_failed_design_is_recorded_without_values_even_where_the_mda_kept_one(tmp_path, capsys):
+    # A 2,600 kWh battery makes a 21.7 t car (past the models' 20 t): the MDA keeps its cost and motor speed,
+    # which do not depend on the failed energy, but the bag's record says the point has no values
+    # (IterationRecord.msg: NaN where the point failed); a user trial saw its cost as the objective.
+    out = tmp_path / "failed"
+    assert main(["sweep", str(REPO / "config" / "leaf_nedc.yaml"), "--objective", "powertrain_cost_usd",
+                 "--vary", "battery_kwh=24,2600", "--bound", "battery_kwh=20:3000", "--set", "motor_kw=80", "gear_ratio=8",
+                 "--transport",
+                 "inprocess", "--out", str(out), "--no-plots"]) == 0
+    rows = _rows(out / "sweep.csv")
+    assert [r["ok"] for r in rows] == ["True", "False"] and float(rows[1]["powertrain_cost_usd"]) > 0  # kept
+    capsys.readouterr()
+    assert main(["history", str(out), "--csv", "-"]) == 0
+    records = list(csv.DictReader(capsys.readouterr().out.splitlines()))
+    assert float(records[0]["objective"]) > 0 and records[1]["feasible"] == "False"
+    assert np.isnan(float(records[1]["objective"])) and np.isnan(float(records[1]["max_violation"]))
