@@ -168,11 +168,13 @@ def test_compare_and_sweep_say_which_times_are_not_times(tmp_path, capsys):
     cfg = _wide_gears(tmp_path)
     assert main(["compare", cfg, "--design", "gear_ratio=8", "--design", "gear_ratio=15", "--transport", "inprocess"]) == 0
     notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note:")]
-    assert len(notes) == 1 and notes[0].startswith("note: design 2: the design cannot reach 100 km/h"), notes
+    # design 2 cannot follow the NEDC either (it is infeasible, and says so first)
+    assert len(notes) == 2 and notes[0].startswith("note: design 2: the design cannot follow the cycle nedc"), notes
+    assert notes[1].startswith("note: design 2: the design cannot reach 100 km/h"), notes
     assert main(["compare", cfg, "--design", "gear_ratio=8", "--design", "gear_ratio=15", "--json",
                  "--transport", "inprocess"]) == 0
     d = json.loads(capsys.readouterr().out)["designs"]
-    assert "notes" not in d[0] and "continuation value" in d[1]["notes"][0]
+    assert "notes" not in d[0] and "continuation value" in d[1]["notes"][1]
     assert main(["sweep", cfg, "--vary", "gear_ratio=6:15:4", "--out", str(tmp_path / "s"), "--no-plots",
                  "--no-record", "--transport", "inprocess"]) == 0
     rows = list(csv.DictReader(open(tmp_path / "s" / "sweep.csv")))
