@@ -192,7 +192,9 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
         _table(result, doc["baseline"], out, declared_units(config))
         if not doc["feasible"]:  # a feasible end printed the first-order check's active set instead
             ans = result["active"]
-            print("why the end point is infeasible:", *[f"  {line}" for line in ans["lines"]], sep="\n", file=out)
+            short = (result.get("first_order") or {}).get("cannot_follow") or []  # the motor, not a constraint
+            print("why the end point is infeasible:", *[f"  {line}" for line in [*short, *ans["lines"]]], sep="\n",
+                  file=out)
             if ans.get("jacobian_error"):
                 print(f"  (no blocking analysis: {ans['jacobian_error']})", file=out)
         keys = list(doc)

@@ -46,8 +46,11 @@ def test_optimize_does_not_call_a_design_that_cannot_follow_the_cycle_an_optimum
 
 def test_the_verdict_line_says_why(tmp_path, capsys):
     assert main(["optimize", str(_van(tmp_path)), "--transport", "inprocess", "--no-record", "--quiet"]) == 1
-    verdict = [x for x in capsys.readouterr().out.splitlines() if x.startswith("verdict:")]
+    lines = capsys.readouterr().out.splitlines()
+    verdict = [x for x in lines if x.startswith("verdict:")]
     assert verdict and verdict[0].startswith("verdict: infeasible (the design cannot follow the cycle van at 1 of 80 steps")
+    why = lines.index("why the end point is infeasible:")  # the reason there too, not only satisfied constraints
+    assert lines[why + 1].startswith("  the design cannot follow the cycle van at 1 of 80 steps")
 
 
 def test_evaluate_and_sweep_mark_it_infeasible(tmp_path, capsys):
