@@ -24,6 +24,7 @@ from bev_mdo.models.params import QUASI_STATIC_SPECS
 WALL_MODELS = ("chain", "quasi_static")  # the models that know the charger: energy_wall_wh_per_km
 BATTERY_MARGINS = ("battery_power_margin_kw", "battery_soc_margin", "battery_current_margin")  # quasi_static's, with feasibility_outputs
 FINAL_SOC = QUASI_STATIC_SPECS["final_soc"].default
+FOLLOW_INPUTS = ("vehicle_mass_kg", "gear_ratio", "motor_kw")  # the design's, for models/follow.py
 
 
 def _in_envelope(name: str) -> bool:
@@ -117,22 +118,31 @@ class Energy(Base):
     def cycle_steps_short(self, values) -> list | None:
         """[(cycle name, its steps, steps not followed (N,), largest force short N (N,))] of the designs in
         ``values`` (motor_kw, gear_ratio, vehicle_mass_kg: numbers or (N,) arrays) at full motor envelope
-        (models/follow.py); None where that envelope is not the run's: single-speed SM-SA only."""
+        (models/follow.py); -1 steps not followed where that envelope is not the design's (two speeds); None
+        where it is no design's: the check covers single-speed SM-SA."""
         env = getattr(self, "envelope", None)
-        if env is None or any(values.get(k) is None for k in ("motor_kw", "gear_ratio", "vehicle_mass_kg")):
+        if env is None or self.topology.name != "SM-SA" or any(values.get(k) is None for k in FOLLOW_INPUTS):
             return None
         env = {**env, **{k: x for k, x in values.items() if _in_envelope(k)}}  # a per-point value (--set) wins
-        if self.topology.name != "SM-SA" or np.any(np.asarray(env.pop("gear_count", 1.0)) != 1.0):
+        cols = np.broadcast_arrays(*(np.atleast_1d(np.asarray(values[k], float)) for k in FOLLOW_INPUTS),
+                                   np.atleast_1d(np.asarray(env.pop("gear_count", 1.0), float)))
+        one = np.flatnonzero(cols[-1] == 1.0)
+        if not one.size:
             return None
-        return [(r.name, len(r.time_s) - 1, *steps_not_followed(r.time_s, r.speed_m_s, env, values["vehicle_mass_kg"],
-                                                                values["gear_ratio"], values["motor_kw"]))
-                for _, r in self._cycles()]
+        env = {k: (np.broadcast_to(x, cols[0].shape)[one] if np.ndim(x) else x) for k, x in env.items()}
+        out = []
+        for _, r in self._cycles():
+            count, worst = np.full(cols[0].size, -1, np.int64), np.zeros(cols[0].size)
+            count[one], worst[one] = steps_not_followed(r.time_s, r.speed_m_s, env, *(c[one] for c in cols[:3]))
+            out.append((r.name, len(r.time_s) - 1, count, worst))
+        return out
 
-    def cannot_follow(self, values) -> str | None:
-        """One line when the one design in ``values`` cannot follow a cycle of the run (``cycle_steps_short``),
-        else None: its energy per km is that of the cycle's demand, not of a powertrain that follows it."""
-        for name, steps, count, worst in self.cycle_steps_short(values) or ():
-            if count[0]:
+    def cannot_follow(self, values, rows) -> str | None:
+        """One line when the one design in ``values`` cannot follow a cycle of the run (``rows``: its
+        ``cycle_steps_short``), else None: its energy per km is that of the cycle's demand, not of a
+        powertrain that follows it."""
+        for name, steps, count, worst in rows:
+            if count[0] > 0:
                 return (f"the design cannot follow the cycle {name} at {int(count[0])} of {steps} steps (its "
                         f"{float(values['motor_kw']):.4g} kW motor at {float(values['gear_ratio']):.4g}:1 falls up to "
                         f"{worst[0] / 1e3:.3g} kN short of the drive force, or over its speed limit)"

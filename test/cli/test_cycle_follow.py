@@ -99,3 +99,17 @@ def test_evaluate_says_where_the_check_does_not_run(tmp_path, capsys):
     assert any("is not checked for this gearbox or topology" in n for n in doc["notes"])
     assert main(["evaluate", str(van), "--set", "motor_kw=80", "--transport", "inprocess", "--json"]) == 0
     assert not any("is not checked" in n for n in json.loads(capsys.readouterr().out)["notes"])
+
+
+def test_a_batch_mixing_gearboxes_checks_its_single_speed_designs(tmp_path):
+    # a review: one two-speed design in a batch switched the check off for every design of it
+    from bev_mdo.api.evaluate import batch
+    from bev_mdo.api.transport import Transport
+    from bev_mdo.config import RunConfig
+
+    config = RunConfig.load(_van(tmp_path))
+    res = batch(config, {"motor_kw": np.array([80.0, 95.0, 80.0]), "gear_count": np.array([1.0, 2.0, 1.0])},
+                Transport("inprocess"))
+    assert list(res["feasible"]) == [False, True, False]  # the constraints alone pass all three (95 kW: 0-100 with the two-speed mass)
+    assert "2 of 3 designs cannot follow the drive cycle" in " ".join(res["notes"])
+    assert "1 of 3 designs: whether the motor can follow the cycle is not checked" in " ".join(res["notes"])
