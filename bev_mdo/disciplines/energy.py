@@ -18,7 +18,7 @@ from bev_mdo.models import flat
 from bev_mdo.models import topology as topo_model
 from bev_mdo.models.acceleration import ACCEL_PARAMS
 from bev_mdo.models.cycles import DriveCycle, resample
-from bev_mdo.models.follow import steps_not_followed
+from bev_mdo.models.follow import drive_force_margin_n, steps_not_followed
 from bev_mdo.models.params import QUASI_STATIC_SPECS
 
 WALL_MODELS = ("chain", "quasi_static")  # the models that know the charger: energy_wall_wh_per_km
@@ -41,8 +41,10 @@ class Energy(Base):
     ``drive_torque_margin_nm`` (min over the cycle of envelope minus demand; at the motor for
     SM-SA, at the wheels otherwise) and, with quasi_static, ``motor_speed_margin_rad_s`` (limit minus
     max) or, with chain, ``drive_power_margin_kw`` (rated power minus the largest drive power; over
-    every cycle of ``cycle_weights``): constrain them >= 0 so that an optimiser cannot pick a motor
-    that does not follow the cycle (the chain's energy of such a design is the energy of the demand).
+    every cycle of ``cycle_weights``); with flat, ``drive_force_margin_n`` only (the motor envelope's
+    net force minus the step's need, models/follow.py; it then reads motor_kw): constrain them >= 0 so
+    that an optimiser cannot pick a motor that does not follow the cycle (the energy of such a design is
+    the energy of the demand).
     With quasi_static (every topology) it also adds the battery's: ``battery_power_margin_kw`` (min over
     the cycle of the pack's largest power ocv^2/4R minus the drive demand), ``battery_soc_margin``
     (the lowest SOC over the cycle minus ``final_soc``, a fraction of capacity) and
@@ -73,15 +75,16 @@ class Energy(Base):
         self.topology = topo_model.get_topology(topology)
         if self.topology.name != "SM-SA" and energy_model != "quasi_static":
             raise ValueError(f"topology {self.topology.name} needs energy_model quasi_static, got {energy_model!r}")
-        if feasibility_outputs and energy_model not in ("quasi_static", "chain"):
-            raise ValueError("energy option feasibility_outputs needs energy_model quasi_static or chain")
+        if feasibility_outputs and energy_model == "flat" and {**self.extra, **parameters}.get("gear_count", 1.0) != 1.0:
+            raise ValueError("energy option feasibility_outputs with energy_model flat covers a single-speed gearbox")
         self.feasibility_outputs = bool(feasibility_outputs)
         self.outputs = ("energy_wh_per_km",) + (("energy_wall_wh_per_km",) if energy_model in WALL_MODELS else ())
         if feasibility_outputs:
-            self.outputs += (("drive_torque_margin_nm", "motor_speed_margin_rad_s", *BATTERY_MARGINS)
-                             if energy_model == "quasi_static" else ("drive_torque_margin_nm", "drive_power_margin_kw"))
-        if energy_model == "flat":
-            self.inputs = ("vehicle_mass_kg", "gear_ratio")
+            self.outputs += {"quasi_static": ("drive_torque_margin_nm", "motor_speed_margin_rad_s", *BATTERY_MARGINS),
+                             "chain": ("drive_torque_margin_nm", "drive_power_margin_kw"),
+                             "flat": ("drive_force_margin_n",)}.get(energy_model, ())
+        if energy_model == "flat":  # with feasibility_outputs, the motor's envelope too (models/follow.py)
+            self.inputs = ("vehicle_mass_kg", "gear_ratio") + (("motor_kw",) if feasibility_outputs else ())
             self._fn = flat.energy_wh_per_km
         elif energy_model == "quasi_static":
             # battery_kwh feeds the OCV+R pack (SOC, 2C/5C limits)
@@ -120,10 +123,10 @@ class Energy(Base):
         ``values`` (motor_kw, gear_ratio, vehicle_mass_kg: numbers or (N,) arrays) at full motor envelope
         (models/follow.py); -1 steps not followed where that envelope is not the design's (two speeds); None
         where it is no design's: the check covers single-speed SM-SA."""
-        env = getattr(self, "envelope", None)
-        if env is None or self.topology.name != "SM-SA" or any(values.get(k) is None for k in FOLLOW_INPUTS):
+        if getattr(self, "envelope", None) is None or self.topology.name != "SM-SA" or any(
+                values.get(k) is None for k in FOLLOW_INPUTS):
             return None
-        env = {**env, **{k: x for k, x in values.items() if _in_envelope(k)}}  # a per-point value (--set) wins
+        env = self._envelope(values)
         cols = np.broadcast_arrays(*(np.atleast_1d(np.asarray(values[k], float)) for k in FOLLOW_INPUTS),
                                    np.atleast_1d(np.asarray(env.pop("gear_count", 1.0), float)))
         one = np.flatnonzero(cols[-1] == 1.0)
@@ -136,6 +139,11 @@ class Energy(Base):
             count[one], worst[one] = steps_not_followed(r.time_s, r.speed_m_s, env, *(c[one] for c in cols[:3]))
             out.append((r.name, len(r.time_s) - 1, count, worst))
         return out
+
+    def _envelope(self, values) -> dict:
+        """The motor envelope's and road load's constants (and gear_count) for the designs of ``values``: the
+        vehicle's (set by from_config), a per-point value (--set, an input) winning."""
+        return {**getattr(self, "envelope", {}), **{k: x for k, x in values.items() if _in_envelope(k)}}
 
     def cannot_follow(self, values, rows) -> str | None:
         """One line when the one design in ``values`` cannot follow a cycle of the run (``rows``: its
@@ -178,6 +186,15 @@ class Energy(Base):
                 out.update(battery_margins([r for _, r in runs], p.get("final_soc", FINAL_SOC)))
             return out
         motor_kw = inputs.get("motor_kw")
+        if self.feasibility_outputs and self._fn is flat.energy_wh_per_km:  # eq 6-50, 6-51 at full envelope
+            env = self._envelope(inputs)
+            if np.any(np.asarray(env.pop("gear_count", 1.0)) != 1.0):
+                raise ValueError("energy option feasibility_outputs with energy_model flat covers a single-speed gearbox")
+            return {"energy_wh_per_km": sum(w * self._fn(r, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"])
+                                            for w, r in self._cycles()),
+                    "drive_force_margin_n": np.minimum.reduce([drive_force_margin_n(
+                        r.time_s, r.speed_m_s, env, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
+                        for _, r in self._cycles()])}
         if self.feasibility_outputs:  # chain: energy and the motor's margins, the tightest over the cycles
             from bev_mdo.models import chain
 
