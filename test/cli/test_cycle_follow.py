@@ -162,6 +162,6 @@ def test_the_force_margin_is_refused_for_a_two_speed_box(tmp_path):
     from bev_mdo.config import RunConfig
 
     raw = yaml.safe_load(_mild(tmp_path, True).read_text())
-    raw["vehicle"]["gear_count"] = 2
+    raw["vehicle"].update(gear_count=2, gear_ratio_2=1.0)
     with pytest.raises(ValueError, match=r"feasibility_outputs with energy_model flat covers a single-speed gearbox$"):
         RunConfig.load(raw)
