@@ -2,21 +2,10 @@
 
 Runs every vehicle of a fleet file (EPA Test Car List columns, default: the shipped EPA 2022
 BEV training fleet) on UDDS and HWFET in one batch per cycle and prints predicted against
-measured wall energy per vehicle, then the mean, median, 90th-percentile and maximum absolute
-percentage error. Vehicles whose rated power cannot follow a cycle are listed as such and
-left out of the statistics; so are rows flagged as outliers in the file (none left: refused, exit 2).
-``--pairs`` adds the within-family pairs (bev_mdo/models/pairs.py): each pair's measured and
-predicted percentage difference per cycle, the slope of predicted on measured and the mean
-absolute difference against their targets. Every run puts the model beside two references on the
-same rows (bev_mdo/models/baselines.py): the 3-constant baseline, cross-validated by family, and
-FASTSim 2.1.5 with its defaults (shipped results). ``--plot DIR`` writes the parity and residual
-plot and, with ``--pairs``, the pairs of each cycle as arrows from one variant to the other
-(bev_mdo/cli/validate_plots.py).
-Models: quasi_static (default) and topology_sm_sa (the thesis' model with its motor written as
-losses and calibrated to the fleet, from the wall; with ``--parameter-set thesis`` as published, at
-the battery terminals), chain (wall to wheel with its calibrated parameter set), flat, breakdown
-(the thesis models, which stop at the battery terminals). The default is the model with the lowest
-held-out error (docs/validation.md).
+measured wall energy per vehicle and the error statistics, beside two references on the same rows
+(bev_mdo/models/baselines.py); ``--pairs`` adds the within-family pairs (bev_mdo/models/pairs.py),
+``--plot DIR`` the plots (bev_mdo/cli/validate_plots.py). What is printed, scored and refused, and
+the models: docs/validation.md, "bev-mdo validate".
 """
 from __future__ import annotations
 

@@ -1,27 +1,9 @@
 """What holds a design where it is: active constraints, variables on a bound, blocking bounds.
 
-Pure functions (no ROS, no evaluation of their own unless asked through ``fd_jacobian``).
-
-The rule (docs/answers.md):
-
-* A constraint bound is **active** when its margin (distance to the limit in the constraint's own
-  unit, positive = satisfied) is within ``rel_tol`` of the constraint's scale (``scale`` from the
-  config, default max(|bound|, 1)); it is **violated** when the margin is below -feasibility_tolerance of that scale
-  (the driver's own test, default 1e-4), which takes precedence.
-* A design variable is **on a bound** when it is within ``rel_tol`` of (upper - lower) of it.
-* At an infeasible end, a variable on a bound **blocks** a violated constraint when moving the
-  variable out through that bound would reduce the violation: with v(x) the violation in the
-  constraint's unit (limit - value for a lower limit, value - limit for an upper one) and dv/dx its
-  derivative, an upper bound blocks when dv/dx < 0 and a lower bound when dv/dx > 0. The reported
-  ``rate`` is |dv/dx|: constraint units of violation removed per unit the bound would give.
-* Also at an infeasible end, active (satisfied) constraints **conflict** with a violated one when no
-  first-order step of the variables (scaled, into the box at a bound) reduces the violation without
-  making one of them, or another violated one, worse (a linear program); those with a non-zero
-  multiplier of that program are named (``conflicts_with``, ``trades_with``). Where such a step exists
-  (a **free way**), nothing holds it: the optimiser stopped short.
-
-Without a Jacobian the infeasible analysis names the violated constraints and the variables on a
-bound but cannot say which bound blocks.
+Pure functions (no ROS, no evaluation of their own unless asked through ``fd_jacobian``). The rule
+(active, violated, on a bound, blocks, conflicts, free way) is docs/answers.md, "The rule". Without a
+Jacobian the infeasible analysis names the violated constraints and the variables on a bound but
+cannot say which bound blocks.
 """
 from __future__ import annotations
 

@@ -291,15 +291,3 @@ def on_plane(batch_fun: Callable, x0, i: int, j: int) -> Callable:
         return batch_fun(X)
     return f2
 
-
-def sensitivity_curve(p: Cheb1, n: int = 201):
-    """First-order normalised sensitivity x f'(x) / f(x) over the range (Fig 7-14)."""
-    xs = np.linspace(*p.domain, n)
-    return xs, xs * p.deriv()(xs) / p(xs)
-
-
-def sensitivity_surface(p: Cheb2, n: int = 101):
-    """Second-order cross sensitivity x y f_xy / f over the box (Fig 7-15): (xs, ys, S[ix, iy])."""
-    xs, ys, F = p.grid(n, n)
-    _, _, Fxy = p.deriv(1, 1).grid(n, n)
-    return xs, ys, np.outer(xs, ys) * Fxy / F

@@ -1,23 +1,11 @@
-"""Total derivatives from discipline partials (docs/derivatives.md).
+"""Total derivatives from discipline partials (docs/derivatives.md, "How the engine uses them").
 
-Every discipline d maps its inputs to its outputs, y_d = F_d(x, y). Its partials dF_d/d(input)
-come from its own ``compute_partials`` (analytic) or, for a discipline without one, from finite
-differences of that discipline alone (:func:`fd_partials`: one batch per gradient holding the
-stencils of every such discipline, evaluated in ONE wave through the evaluator, so a
-discipline node over ROS computes them exactly as in process).
-
-MDF (:func:`mdf_totals`), the direct method of the unified derivatives equation: with every
-discipline output y stacked,
-
-    (I - dF/dy) dy/dx = dF/dx
-
-is one linear solve per point with as many right-hand sides as design variables. For a
-feed-forward graph I - dF/dy is unit lower triangular in topological order, so this is exactly
-the chain rule; for a loop it is the linear solve over the coupled block (all couplings at once).
-
-IDF (:func:`idf_totals`): every discipline sees the design variables and the coupling targets
-directly, so the totals of its outputs are its partials, and the consistency constraints
-h = (y_target - F(x, y_target)) / s have dh/d(x, y_target) = (e_target - dF/d(x, y_target)) / s.
+Partials dF_d/d(input) come from a discipline's ``compute_partials`` or, without one, from finite
+differences of that discipline alone (:func:`fd_partials`: every such discipline's stencils in ONE
+wave through the evaluator). MDF (:func:`mdf_totals`): the direct method, one linear solve per point
+of (I - dF/dy) dy/dx = dF/dx over every discipline output y. IDF (:func:`idf_totals`): the totals are
+the partials, and the consistency constraints h = (y_target - F(x, y_target)) / s have
+dh/d(x, y_target) = (e_target - dF/d(x, y_target)) / s.
 """
 from __future__ import annotations
 

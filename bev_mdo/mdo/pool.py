@@ -1,25 +1,10 @@
 """Worker pools: several live instances of one discipline share each batch.
 
 No rclpy import here: the split, the throughput estimate and the per-instance counters are
-plain Python, used by the orchestrator (orchestrator.py) and tested without ROS.
-
-A batch of ``n`` designs sent to a discipline with ``k`` live instances is cut into ``k``
-contiguous row ranges, sized in proportion to each instance's measured throughput (points per
-second of wall time from publishing the share to accepting its answer, an exponentially weighted
-mean). An instance not measured yet counts as the mean of the measured ones (all equal at the
-start). Every instance gets at least one row while ``n >= k``, so each keeps being measured.
-The answers are joined in row order, so the result is the one a single instance would give
-(bitwise, for a discipline that computes each row on its own).
-
-An instance whose share times out, or that leaves the ROS graph while it holds a share, is
-*suspect*: its share goes to the other instances, and it gets no new work until it declares
-itself again (a restarted node publishes a fresh DisciplineInfo).
-
-Modes (``ros.pool``): ``share`` (default) splits batches; ``redundant`` sends every batch to
-every instance and keeps the first valid answer.
-
-``ros.pool_min_rows`` (default 1): no share is cut smaller than this many rows, for a model whose
-cost per call outweighs its cost per row (docs/scaling.md).
+plain Python, used by the orchestrator (orchestrator.py) and tested without ROS. A batch is cut into
+contiguous row ranges in proportion to each instance's measured throughput (points per second, an
+exponentially weighted mean); the answers are joined in row order. The split, suspects, the modes
+(``ros.pool``: ``share`` or ``redundant``) and ``ros.pool_min_rows``: docs/scaling.md, "Worker pools".
 """
 from __future__ import annotations
 

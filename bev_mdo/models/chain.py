@@ -1,57 +1,26 @@
 """Wall-to-wheel energy model ("chain"): every stage from the charging socket to the tyre.
 
-Per step of the resampled cycle (mean speed and acceleration of the step, eqs 6-50/6-51: exact
-for the distance and the kinetic energy of a piecewise-linear trace; halving the default 1 s
-step changes the energy by < 0.1 %, test/models/test_chain.py) and per design point,
-vectorised as (moving steps, N):
+Per step of the resampled cycle (the step's mean speed and acceleration, eqs 6-50/6-51) and per
+design point, vectorised as (moving steps, N):
 
-1. **Road load and inertia** (eq 2-3 / 7-18, or the coast-down A + B v + C v^2 of
-   road_load.py): F = F_road(v) + M (1 + f_rot) a. ``rotating_mass_fraction`` f_rot is the
-   equivalent mass of the rotating parts (motor rotor through the gear, driven wheels).
-2. **Transmission** (eqs 2-4, 2-5): motor speed w = v i_g / r_w; torque T = F r_w / (i_g eta_g)
-   when driving and F r_w eta_g / i_g when braking. ``gear_efficiency`` eta_g is the
-   load-dependent mesh loss only: spin losses are in the coast-down road load.
-3. **Regeneration limits**: the share ``regen_axle_share`` of the braking force acts on the
-   driven axle(s); of it the motor takes at most its peak torque and
-   min(rated power, ``regen_max_power_kw``); none below ``regen_min_speed_m_s`` (for the exact
-   share of each linear step spent below it, so the result converges in the step); friction
-   brakes take the rest. Regeneration stops where the losses would exceed the recovered power.
-4. **Motor + inverter** (a scalable loss model replacing the thesis' map, eqs 2-7/2-8): with
-   the rated power P_r, peak torque T_pk = ``motor_torque_per_kw`` P_r, base speed
-   w_b = 1000 / ``motor_torque_per_kw`` rad/s, tau = |T| / T_pk and s = w / w_b,
+1. road load and inertia, F = F_road(v) + M (1 + f_rot) a (eq 2-3 / 7-18, or the coast-down
+   A + B v + C v^2 of road_load.py);
+2. transmission (eqs 2-4, 2-5): w = v i_g / r_w, T = F r_w / (i_g eta_g) driving, F r_w eta_g / i_g
+   braking;
+3. regeneration limits (axle share, peak torque, power, minimum speed); friction brakes the rest;
+4. motor + inverter, a scalable loss model replacing the thesis' map (eqs 2-7/2-8):
+   P_loss = P_r (c_0 + c_w s + c_cu tau^2) while moving, with tau = |T| / T_pk, s = w / w_b, plus
+   the technology terms (induction machines, two-speed gear, second axle);
+5. battery (eq 5-19/5-20 form): P_batt = P_el + R (P_el / V)^2, plus ``aux_power_w`` for the
+   whole cycle;
+6. charger: E_wall = E_batt / ``charger_efficiency``; ``ChainResult.energy_wh_per_km`` is E_wall
+   per km, the figure EPA measures; range (eq 7-28) uses E_batt.
 
-       P_loss = P_r (c_0 + c_w s + c_cu tau^2)     while the vehicle moves
-
-   c_0 = ``motor_loss_standby_fraction`` (inverter switching and the energised machine at no
-   load), c_w = ``motor_loss_speed_fraction`` (speed-proportional energised losses at the base
-   speed), c_cu = ``motor_loss_copper_fraction`` (copper + conduction loss at peak torque).
-   The loss is homogeneous of degree one in (P_r, T): two motors of P_r/2 sharing the torque
-   lose exactly what one motor of P_r does, so all-wheel-drive cars are one equivalent
-   machine of their combined rated power. A larger motor loses less at a given torque
-   (copper) but more at light load (c_0, c_w): the motor-size trend.
-   Technology (per design point, the fleet file's columns): ``induction_machine_share`` of the
-   machines are induction machines, which lose ``induction_loss_fraction`` of the shaft power more
-   (rotor copper; §2.2.3: 1-2 % less efficient); with ``gear_count`` 2 the gear efficiency drops by
-   ``two_speed_efficiency_loss`` (§3.3.2; the chain does not shift, it only charges the loss); with
-   ``driven_axles`` 2 (all-wheel drive) the second axle's gear and bearing drag ``second_axle_drag_w``
-   is drawn while the car moves, as in the quasi-static model (the machines' losses need no second
-   term: two of P_r/2 lose what one of P_r does).
-5. **Battery** (eq 5-19/5-20 form): P_batt = P_el + R (P_el / V)^2 with
-   ``battery_discharge_resistance_ohm`` / ``battery_charge_resistance_ohm`` and
-   ``battery_voltage_v``, plus the auxiliary load ``aux_power_w`` for the whole cycle
-   (standstill included).
-6. **Charger** (wall to battery, including the battery's charge acceptance):
-   E_wall = E_batt / ``charger_efficiency``. ``ChainResult.energy_wh_per_km`` is E_wall per km, the
-   figure EPA measures (the ``energy`` discipline's ``energy_wall_wh_per_km``; its ``energy_wh_per_km``
-   is E_batt per km); range (eq 7-28) uses E_batt = E_wall x charger_efficiency and
-   ``battery_usable_fraction``.
-
-A design whose motor cannot deliver the cycle's demand (torque above T_pk or power above P_r at
-any sample) still gets its energy (demand clipped to nothing; the loss is counted at the
-demanded torque) and ``follows = False`` in :func:`simulate`.
-
-The shipped calibration (``vehicle.parameter_set: epa2022_chain``) was fitted on the EPA 2022
-fleet (docs/validation.md, bev_mdo/data/parameter_sets/).
+Every parameter of every stage: docs/validation.md, "chain: wall to wheel". A design whose motor
+cannot deliver the cycle's demand (torque above T_pk or power above P_r at any sample) still gets
+its energy (demand clipped to nothing; the loss is counted at the demanded torque) and
+``follows = False`` in :func:`simulate`. The shipped calibration (``vehicle.parameter_set:
+epa2022_chain``) was fitted on the EPA 2022 fleet (docs/validation.md, bev_mdo/data/parameter_sets/).
 """
 from __future__ import annotations
 

@@ -1,32 +1,15 @@
 """Message authentication with a shared key: HMAC-SHA256 from the standard library.
 
-The pip build of Fast DDS has no DDS-Security, so SROS2 cannot be enforced with it.
-With ``ros.sign_key_file`` set, every message bev_mdo signs (EvaluationRequest, EvaluationResult,
-DisciplineInfo, IterationRecord) carries ``signature = hex(HMAC-SHA256(key, the message's CDR
-bytes with the signature field empty))``: the MAC covers exactly the bytes that are sent, every
-field and every padding byte, and there is no second encoding of the message (the layout is the
-.msg files', through the generated codec of messages.py). The sender encodes once with the field
-empty, MACs, and puts the signature in; 64 characters more keep every later field's CDR alignment
-(4 or 8), so nothing else moves. The receiver blanks the field in the bytes it received and MACs
-those. Where the field starts comes from the generated size function of the fields before it
-(``messages.field_offset``). This module keeps the
-key, the Signer, the freshness and replay window and the reasons.
-
-A receiver drops and counts a message that is
-- ``unsigned``: no signature;
-- ``forged``: the signature does not match (wrong key, or any signed field changed);
-- ``expired``: its stamp is further than ``window_s`` from the receiver's clock
-  (either way, so a far-future stamp cannot pre-date a replay);
-- ``replayed``: an identical signed message was already accepted within the window.
-A retry re-sends an evaluation with ``attempt + 1`` and a fresh stamp, so it has a new
-signature and is not a replay. The key itself is only ever read from the file: the
-config, logs and bags hold the path.
-
-Discipline declarations (DisciplineInfo) and iteration records (IterationRecord) are signed
-too and verified by MAC only (``unsigned`` / ``forged``; no freshness window: declarations
-are TRANSIENT_LOCAL and records are verified again offline, from a bag). ``bev-mdo optimize``
-signs by default with a fresh per-run key file (``new_key_file``, mode 0600); see
-docs/security.md for what is and is not protected.
+The pip build of Fast DDS has no DDS-Security, so SROS2 cannot be enforced with it. With
+``ros.sign_key_file`` set, every message bev_mdo signs carries ``signature = hex(HMAC-SHA256(key,
+the message's CDR bytes with the signature field empty))``: the sender encodes once with the field
+empty, MACs and puts the signature in (64 characters, so every later field keeps its alignment);
+the receiver blanks the field in the bytes it received (``messages.field_offset``) and MACs those.
+A request or result is dropped as ``unsigned``, ``forged``, ``expired`` (stamp further than
+``window_s`` from the receiver's clock, either way) or ``replayed`` (a retry has ``attempt + 1`` and
+a fresh stamp, so a new signature); declarations and iteration records are verified by MAC only.
+The key is only ever read from the file. This module keeps the key, the Signer, the freshness and
+replay window and the reasons; docs/security.md has the whole scheme.
 """
 from __future__ import annotations
 

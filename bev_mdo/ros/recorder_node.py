@@ -10,23 +10,13 @@ under ``prefix``), ``prefix`` (``/bev_mdo/``), ``config_file`` (its text is stor
 (10000), ``discovery_period_s`` (0.5), ``flush_period_s`` (1.0), ``status_period_s`` (0.05), ``nice``
 (10: the recorder runs at a lower CPU priority than the nodes and the coordinator).
 
-With a ``run_id`` it records that run only: an EvaluationRequest, EvaluationResult or
-IterationRecord of another run (its ``run_id`` is neither this one nor ``<run>-...``), or a node's
-counters on ``/bev_mdo/node_stats`` naming another run or none, is dropped and counted, so runs sharing
-a domain each get a bag of their own (``run_reader``).
-
-Declaration: whenever it changes, the recorder declares on ``/bev_mdo_recorder/status``
-(TRANSIENT_LOCAL, not recorded) which run and binding it records and what it matched:
-``{"declaration": JSON text, "signature": hex}`` with the text
-``{"run_id", "binding", "recorder", "bag", "matched": {topic: matched publishers},
-"publishers": {topic: [node names it matched]}}``. ``binding`` is ``binding.config_binding`` of the
-config it stores; ``recorder`` its node name. With the run's key (the config's
-``ros.sign_key_file``) the text is signed (auth.Signer.sign_declaration), as disciplines sign
-theirs. A coordinator waits for its own run's recorder by this declaration (OwnRecorder), not
-by counting subscribers, which any process on the domain adds to.
-
-Iteration records are kept once and in order, of the recorder's own run (``bag.history.RecordOrder``):
-duplicates, records from the past and of other runs are dropped and counted in its closing line.
+With a ``run_id`` it records that run and its sub-runs only. Whenever it changes, it declares on
+``/bev_mdo_recorder/status`` (TRANSIENT_LOCAL, not recorded; signed with the run's key when it has
+one) ``{"declaration": JSON text, "signature": hex}``, the text ``{"run_id", "binding", "recorder",
+"bag", "matched": {topic: matched publishers}, "publishers": {topic: [node names it matched]}}``
+(``binding``: ``binding.config_binding`` of the config it stores). Iteration records are kept once and
+in order (``bag.history.RecordOrder``). What is dropped and counted, and how a coordinator waits for
+its recorder: docs/recording.md, "Whose bag: the run's own recorder".
 """
 from __future__ import annotations
 

@@ -1,26 +1,14 @@
 """Restart a launched node whose process lives but whose DDS participant has gone silent.
 
-A node can hang inside the middleware while its process stays alive: Fast DDS 2.14 can deadlock
-a participant (eProsima/Fast-DDS#6502: a receive thread holding the discovery (PDP) mutex waits
-for the event thread, which waits for that mutex, when a remote endpoint is removed while a
-participant-lease check runs). We caught it with gdb on this project's three-concurrent-runs test
-under overload. Such a node never answers again, and stopping it hangs too. The launcher's
-supervisor only sees processes that exit, so it never restarts such a node.
-
-A hung participant stops announcing itself, so every other participant drops it once its lease
-(set in bev_mdo's Fast DDS profile) expires. This watchdog runs beside the supervisor, in the launching
-process, with its own small participant. It reads the ROS graph every `period_s`. If a launched
-node was on the graph and has been missing for `silent_s`, or has not appeared `start_s` after
-its process started and used no CPU for `silent_s` (a node still starting on a loaded host
-does), while its process still runs, the watchdog
-- sends SIGUSR1, so every thread's Python stack lands in the node's log (bev_mdo/stacks.py);
-- SIGKILLs the process;
-- lets the supervisor restart it.
-The coordinator's retries then reach the new process. The node's ``hangs`` counter records it,
-and the run's summary reports it.
-
-A healthy node never leaves the graph, however long it computes. If the watchdog's own
-participant hangs, its graph freezes; it then sees nothing vanish and does nothing.
+A node can hang inside the middleware while its process stays alive (a Fast DDS 2.14 discovery
+deadlock, eProsima/Fast-DDS#6502; docs/security.md, "A node that falls silent"); the launcher's
+supervisor only sees processes that exit. This watchdog runs beside it, in the launching process,
+with its own small participant, and reads the ROS graph every `period_s`. If a launched node was on
+the graph and has been missing for `silent_s` (its lease expired), or has not appeared `start_s`
+after its process started and used no CPU for `silent_s`, while its process still runs, the watchdog
+sends SIGUSR1 (its stacks to its log, bev_mdo/stacks.py), SIGKILLs it and lets the supervisor
+restart it; the node's ``hangs`` counter records it. A healthy node never leaves the graph, however
+long it computes; if the watchdog's own participant hangs, its graph freezes and it does nothing.
 """
 from __future__ import annotations
 

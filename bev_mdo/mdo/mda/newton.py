@@ -1,31 +1,11 @@
 """Newton-Raphson over a loop's couplings (``method: newton``; OpenMDAO's NewtonSolver, GEMSEO's
 MDANewtonRaphson).
 
-It solves R(y) = F(y) - y = 0 over the loop's couplings y (every loop output that a loop
-discipline reads). Each step evaluates ALL loop disciplines at y in ONE ``evaluate`` call (one
-request wave over ROS) asking for their partials, assembles J = dF/dy per point and solves
-(I - J) dy = F(y) - y (batched ``np.linalg.solve`` over the points, vector couplings as their
-element columns), then y <- y + relaxation * dy. A loop discipline without analytic partials gets
-a forward finite-difference Jacobian over its coupling inputs (step ``FD_STEP`` max(|y|, 1)): its
-perturbed points travel in the same call, stacked after its base points (a transport that cannot
-tell beforehand, ROS, learns it from the first answer and sends one extra call then).
-Convergence is the Gauss-Seidel criterion applied to the fixed-point residual,
-max |F(y) - y| / max(|F(y)|, 1) <= tolerance; the loop's values are then the y of that last
-evaluation, so the partials of that call are exactly at the converged values and
-``run(partials=True)`` needs no extra call. Before the first step, loop couplings that are
-neither torn (guessed) nor given are seeded by one sequential call per discipline producing them,
-in loop order.
-
-Warm start (``auto``: on) starts from the couplings the previous MDA converged to, and then needs no
-seeding call. ``tangent`` adds the first-order prediction y_ref + (I - J)^-1 dF/dx (x - x_ref) from
-the Jacobian and partials of that point's last step (tangent.py). Newton's converged couplings are
-the fixed point to far below the tolerance from any start, so results depend on the history only
-at that level; the same sequence of MDAs gives the same values bit for bit.
-
-``fuse_downstream``: the feed-forward disciplines that read the loop's couplings ride in every
-step's call (``downstream``); a point keeps their results of the step at which it converged, which
-are at its reported couplings: one request wave less per MDA. docs/derivatives.md has the reasons
-and the figures.
+It solves R(y) = F(y) - y = 0 over the loop's couplings y: each step evaluates ALL loop disciplines
+at y in ONE ``evaluate`` call with their partials (a discipline without analytic partials: forward
+finite differences, step ``FD_STEP`` max(|y|, 1), its perturbed points in the same call), solves
+(I - J) dy = F(y) - y batched over the points, then y <- y + relaxation * dy. Seeding, convergence,
+failures, warm start (``tangent``) and ``fuse_downstream``: docs/derivatives.md, "Newton MDA".
 """
 from __future__ import annotations
 
