@@ -10,7 +10,7 @@ Use it from a config:
       - vehicle_mass
       - energy
       ...
-      - {name: top_speed, class: "examples.top_speed:TopSpeed", options: {motor_max_speed_rad_s: 1100}}
+      - {name: top_speed, class: "examples.top_speed:TopSpeed"}
     problem:
       constraints:
         top_speed_kmh: {lower: 140}
@@ -37,29 +37,30 @@ class TopSpeed:
     outputs = ("top_speed_kmh",)
     units = {"motor_kw": "kW", "gear_ratio": "1", "vehicle_mass_kg": "kg", "top_speed_kmh": "km/h"}
     VEHICLE_CONSTANTS = ("drag_area_m2", "rolling_resistance", "air_density_kg_m3", "gravity_m_s2",
-                         "gear_efficiency", "wheel_radius_m", "gear_count", "gear_ratio_2")
+                         "gear_efficiency", "wheel_radius_m", "gear_count", "gear_ratio_2", "motor_speed_limit_rpm")
 
     def __init__(self, drag_area_m2=0.6412, rolling_resistance=0.007, air_density_kg_m3=1.25,
                  gravity_m_s2=9.81, gear_efficiency=0.97, wheel_radius_m=0.316, gear_count=1, gear_ratio_2=4.7,
-                 motor_max_speed_rad_s=1100.0, road_load=None):
-        if motor_max_speed_rad_s <= 0:
+                 motor_speed_limit_rpm=10500.0, motor_max_speed_rad_s=None, road_load=None):
+        if motor_max_speed_rad_s is not None and motor_max_speed_rad_s <= 0:
             raise ValueError(f"motor_max_speed_rad_s must be > 0, got {motor_max_speed_rad_s}")
         self.parameters = {"drag_area_m2": drag_area_m2, "rolling_resistance": rolling_resistance,
                            "air_density_kg_m3": air_density_kg_m3, "gravity_m_s2": gravity_m_s2,
                            "gear_efficiency": gear_efficiency, "wheel_radius_m": wheel_radius_m,
                            "gear_count": gear_count, "gear_ratio_2": gear_ratio_2,  # a two-speed gearbox
+                           "motor_speed_limit_rpm": motor_speed_limit_rpm,
                            **(validate_road_load(road_load) if road_load else {})}  # road_load_a_n, ...
-        self.omega_max = motor_max_speed_rad_s
+        self.omega_max = motor_max_speed_rad_s  # None: the vehicle's motor_speed_limit_rpm, as the built-in models
 
     @dataclass(frozen=True)
     class Options:
         """The config entry's options (any other key is refused when the config is loaded)."""
 
-        motor_max_speed_rad_s: float = 1100.0
+        motor_max_speed_rad_s: float | None = None  # default: the vehicle's motor_speed_limit_rpm (one limit, not two)
 
     @classmethod
     def from_config(cls, config, options):
-        """Take the vehicle constants from the run config, the motor's speed limit from the options."""
+        """Take the vehicle constants from the run config; the motor's speed limit too, unless the options give one."""
         v = config.get("vehicle", {})
         return cls(**{k: v[k] for k in (*cls.VEHICLE_CONSTANTS, "road_load") if k in v},
                    motor_max_speed_rad_s=options.motor_max_speed_rad_s)
@@ -77,5 +78,6 @@ class TopSpeed:
         v = 0.5 * (lo + hi)
         top_gear = np.where(p["gear_count"] == 2, np.minimum(inputs["gear_ratio"], p["gear_ratio_2"]),
                             inputs["gear_ratio"])         # with two speeds, the longer gear at top speed
-        v_gear = self.omega_max * p["wheel_radius_m"] / top_gear
+        omega_max = p["motor_speed_limit_rpm"] * np.pi / 30.0 if self.omega_max is None else self.omega_max
+        v_gear = omega_max * p["wheel_radius_m"] / top_gear
         return {"top_speed_kmh": np.minimum(v, v_gear) * 3.6}

@@ -244,7 +244,7 @@ class Typed:
         count: int = 1
         on: bool = False
         label: str = "a"
-        cap: float | None = None       # Optional: left alone
+        cap: float | None = None       # Optional: None or a float
         table: dict | None = None      # any other annotation: left alone
 
 
@@ -252,7 +252,7 @@ class Typed:
     ("rate", "fast", "a number (float)"), ("rate", True, "a number (float)"),
     ("count", 2.5, "a whole number (int)"), ("count", False, "a whole number (int)"),
     ("on", 1, "true or false (bool)"), ("on", "yes", "true or false (bool)"),
-    ("label", 3, "text (str)")])
+    ("label", 3, "text (str)"), ("cap", "anything", "a number (float)")])
 def test_an_option_of_the_wrong_type_is_refused_naming_its_key_and_type(key, value, what):
     from bev_mdo.mdo.discipline import read_options
 
@@ -264,5 +264,6 @@ def test_an_option_of_the_wrong_type_is_refused_naming_its_key_and_type(key, val
 def test_options_of_the_declared_types_and_unchecked_annotations_are_taken():
     from bev_mdo.mdo.discipline import read_options
 
-    given = {"rate": 2, "count": 3, "on": True, "label": "b", "cap": "anything", "table": [1]}
+    given = {"rate": 2, "count": 3, "on": True, "label": "b", "cap": None, "table": [1]}
     assert read_options(Typed, given, "w") == Typed.Options(**given)
+    assert read_options(Typed, {**given, "cap": 2}, "w").cap == 2

@@ -422,3 +422,18 @@ def test_a_second_gear_shorter_than_the_first_given_per_design_is_refused(argv, 
     assert main([cmd, str(REPO / "config" / "leaf_nedc.yaml"), *rest, "--transport", "inprocess", *out]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "the second gear must not be shorter than the first" in err[0], err
+
+
+def test_a_baseline_whose_second_gear_is_shorter_than_the_first_is_refused_on_load():
+    # the load check held fixed values and bounds, per-design values were refused at evaluation: a two-speed
+    # baseline design (problem.baseline) was evaluated with gear_ratio_2 above gear_ratio
+    import yaml
+
+    raw = yaml.safe_load((REPO / "config" / "topologies_artemis.yaml").read_text())
+    raw["problem"]["baseline"] = {"name": "two-speed", "design": {"motor_kw": 80.0, "battery_kwh": 24.0, "gear_count": 2,
+                                                                 "gear_ratio": 7.0, "gear_ratio_2": 5.0}}
+    load_config(raw)  # 5 <= 7: a real two-speed box
+    raw["problem"]["baseline"]["design"]["gear_ratio_2"] = 8.0
+    with pytest.raises(ValueError, match=r"^<config>: problem.baseline.design: gear_ratio_2 8 is above gear_ratio 7: "
+                                         r"with gear_count 2 the second gear must not be shorter than the first"):
+        load_config(raw)

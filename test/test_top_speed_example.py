@@ -68,3 +68,17 @@ def test_with_two_speeds_the_gear_cap_is_the_longer_gears():
     r = Study(config).sweep(designs={"gear_ratio": [11.0, 8.0]}, transport="inprocess")
     # the second gear's cap whatever the first (11: 62 km/h); a first gear longer than the second is refused on load
     assert r.outputs["top_speed_kmh"] == pytest.approx([600 * 0.316 / 4.7 * 3.6] * 2, rel=1e-9)
+
+
+def test_without_the_option_the_speed_limit_is_the_vehicles_one():
+    # a user trial: the option and vehicle.motor_speed_limit_rpm were one limit entered twice, never compared
+    config = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text(encoding="utf-8"))
+    config["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost",
+                             {"name": "top_speed", "class": "examples.top_speed:TopSpeed"}]
+    config["search_path"] = [str(REPO)]
+    config["vehicle"]["motor_speed_limit_rpm"] = 9000.0
+    r = Study(config).sweep(designs={"gear_ratio": [8.0, 8.0], "motor_speed_limit_rpm": [9000.0, 12000.0]},
+                            transport="inprocess")
+    assert r.ok.all()
+    assert r.outputs["top_speed_kmh"] == pytest.approx([w * 3.14159265358979 / 30 * 0.316 / 8 * 3.6
+                                                         for w in (9000.0, 12000.0)], rel=1e-9)

@@ -57,28 +57,55 @@ def design(config, given: dict[str, float], transport) -> dict:
                   "(evaluated as given)", file=sys.stderr)
     with Evaluating(config, transport) as evaluator:
         report = evaluate_design(config.settings, evaluator, full)
-    notes = design_notes(config, report["outputs"])
-    values = {**problem.parameters, **full, **report["outputs"]}
-    short = cannot_follow(config, values)
+    short, notes = notes_of(config, {**problem.parameters, **full}, report["outputs"])
     if short:  # not a design the run's energy describes: infeasible whatever the constraints say
         report["feasible"] = False
-        notes = short + notes
-    notes += [f"{d.name}: whether the motor can follow the cycle is not checked for this gearbox or topology (the "
-              "check covers single-speed SM-SA); energy options {feasibility_outputs: true} give the model's margins"
-              for d in config.disciplines if getattr(d, "envelope", None) is not None
-              and d.cycle_steps_short(values) is None]
     if notes:
         report["notes"] = notes
     return report
 
 
-def cannot_follow(config, values: dict) -> list[str]:
-    """One line per discipline that says the design in ``values`` cannot follow its drive cycle
-    (``cannot_follow``: the energy discipline's), e.g. a van asked for 0-60 km/h in 1 s."""
+def notes_of(config, design: dict, outputs: dict) -> tuple[bool, list[str]]:
+    """(whether the one design cannot follow its drive cycle, its notes: that, what its outputs mean
+    (``design_notes``) and where the follow check does not run)."""
+    short, unchecked = follow_notes(config, {**design, **outputs})
+    return bool(short), short + design_notes(config, outputs) + unchecked
+
+
+def follow_notes(config, values: dict) -> tuple[list[str], list[str]]:
+    """(one line per discipline that says the one design in ``values`` cannot follow its drive cycle, e.g. a
+    van asked for 0-60 km/h in 1 s; one line per discipline that cannot check it for this design): the energy
+    discipline's ``cycle_steps_short``, run once."""
     from bev_mdo.config import RunConfig
 
-    return [n for d in RunConfig.of(config).disciplines
-            if (n := (getattr(d, "cannot_follow", None) or (lambda _: None))(values))]
+    short, unchecked = [], []
+    for d in RunConfig.of(config).disciplines:
+        if getattr(d, "envelope", None) is None:
+            continue
+        rows = d.cycle_steps_short(values)
+        if rows is None or rows[0][2][0] < 0:
+            unchecked.append(f"{d.name}: whether the motor can follow the cycle is not checked for this gearbox or "
+                             "topology (the check covers single-speed SM-SA); energy options {feasibility_outputs: "
+                             "true} give the model's margins")
+        elif line := d.cannot_follow(values, rows):
+            short.append(line)
+    return short, unchecked
+
+
+def follow_counts(config, values: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(cannot follow, not checked) per design of a batch (``values``: (N,) columns): boolean arrays over
+    the run's disciplines and cycles (``cycle_steps_short``)."""
+    from bev_mdo.config import RunConfig
+
+    n = len(next(iter(values.values())))
+    short, unchecked = np.zeros(n, bool), np.zeros(n, bool)
+    for d in RunConfig.of(config).disciplines:
+        if getattr(d, "envelope", None) is None:
+            continue
+        for _, _, count, _ in d.cycle_steps_short(values) or [(None, None, np.full(n, -1), None)]:
+            short |= count > 0
+            unchecked |= count < 0
+    return short, unchecked
 
 
 def design_notes(config, outputs: dict) -> list[str]:
@@ -118,33 +145,16 @@ def refuse_outside_model_limits(config, values) -> None:
     """InputError (one line) for a value no built-in model of the run can evaluate: a motor of -5 kW, a
     glider of -100 kg (config.disciplines.check_model_limits), which gave a table of NaN and exit 1."""
     from bev_mdo.config.disciplines import check_model_limits
+    from bev_mdo.config.sections import check_gear_order_per_design
 
     try:
         check_model_limits(config.disciplines, values)
     except ValueError as exc:
         raise InputError(f"{exc}; such a design cannot be evaluated") from None
-    refuse_gear_order(config, values)
-
-
-def refuse_gear_order(config, values) -> None:
-    """InputError (one line) where a design given per point (``values``: numbers or arrays, over the config's
-    own values) has two speeds and a second gear shorter than the first, as config load refuses for the
-    config's own values and bounds (config.sections.check_gear_order)."""
-    from bev_mdo.models.params import validate_vehicle
-
-    vehicle = validate_vehicle(config.data.get("vehicle"))  # defaults and a named parameter set filled
-    own = {**vehicle, **{d.name: d.initial for d in config.problem.design_variables}, **config.problem.parameters}
-
-    def column(name):
-        return np.atleast_1d(np.asarray(values.get(name, own.get(name, np.nan)), dtype=float))
-
-    count, first, second = np.broadcast_arrays(column("gear_count"), column("gear_ratio"), column("gear_ratio_2"))
-    bad = np.flatnonzero((count >= 2) & (second > first))
-    if bad.size:
-        i = int(bad[0])
-        raise InputError(f"gear_ratio_2 {second[i]:g} is above gear_ratio {first[i]:g}"
-                         f"{f' (design {i + 1})' if count.size > 1 else ''}: with gear_count 2 the second gear "
-                         "must not be shorter than the first (gear_ratio_2 <= gear_ratio)")
+    try:
+        check_gear_order_per_design(config.vehicle, config.problem, values)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
 
 
 def check_names(names, problem, params) -> None:
@@ -226,14 +236,14 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
             violation = np.maximum(violation, np.where(np.isfinite(v), v, np.inf))
     feasible = violation <= feasibility_tolerance(config.settings)
     notes = ceiling_notes(config, outputs)
-    short = np.zeros(n, bool)  # designs whose motor cannot follow the cycle: infeasible, whatever the constraints
-    for d in config.disciplines:
-        for name, _, count, _ in (getattr(d, "cycle_steps_short", None) or (lambda _: None))({**cols, **outputs}) or ():
-            short |= count > 0
+    short, unchecked = follow_counts(config, {**cols, **outputs})  # cannot follow: infeasible, whatever the constraints
     if short.any():
         feasible &= ~short
         notes.append(f"{int(short.sum())} of {n} designs cannot follow the drive cycle (their motor falls short of "
                      "the drive force or over its speed limit): infeasible")
+    if unchecked.any():
+        notes.append(f"{int(unchecked.sum())} of {n} designs: whether the motor can follow the cycle is not checked "
+                     "for their gearbox or topology (the check covers single-speed SM-SA)")
     return {"design": {k: cols[k] for k in [*problem.names, *[k for k in designs if k not in problem.names]]},
             "outputs": outputs, "margins": margins, "violation": violation, "feasible": feasible,
             "ok": np.asarray(res.ok, bool),

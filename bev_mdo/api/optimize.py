@@ -78,18 +78,18 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
 
 def _check_follows(config, result: dict, baseline: dict | None) -> None:
     """A result (and baseline) whose motor cannot follow the cycle is infeasible, whatever the constraints say:
-    its energy is that of the cycle's demand (api.evaluate.cannot_follow). The verdict says so."""
-    from bev_mdo.api.evaluate import cannot_follow
+    its energy is that of the cycle's demand (api.evaluate.follow_notes). The verdict says so."""
+    from bev_mdo.api.evaluate import follow_notes
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.first_order import INFEASIBLE
 
     fixed = RunConfig.of(config).problem.parameters
-    if baseline and baseline.get("outputs") and cannot_follow(config, {**fixed, **baseline["design"],
-                                                                       **baseline["outputs"]}):
+    if baseline and baseline.get("outputs") and follow_notes(config, {**fixed, **baseline["design"],
+                                                                       **baseline["outputs"]})[0]:
         baseline["feasible"] = False
 
-    if not result.get("design") or not (lines := cannot_follow(config, {**fixed, **result["design"],
-                                                                         **result["outputs"]})):
+    if not result.get("design") or not (lines := follow_notes(config, {**fixed, **result["design"],
+                                                                         **result["outputs"]})[0]):
         return
     result.update(feasible=False, success=False, verdict=INFEASIBLE)
     result["first_order"] = {**result["first_order"], "verdict": INFEASIBLE, "cannot_follow": lines}

@@ -95,7 +95,12 @@ def load(source, overrides: Overrides | None = None):
     if not overrides:
         return written
     names = known_names(written)
-    return RunConfig.load(source, edit=lambda raw: apply(raw, overrides, names))
+    try:
+        return RunConfig.load(source, edit=lambda raw: apply(raw, overrides, names))
+    except InputError:
+        raise
+    except ValueError as exc:  # the file as written loads: the command line's values made it invalid
+        raise InputError(f"{exc} (with the command line's --bound, --initial, --constraint or --objective)") from None
 
 
 def known_names(config) -> dict[str, list[str]]:
@@ -152,6 +157,11 @@ def apply(raw: Mapping[str, Any], ov: Overrides, names: Mapping[str, list[str]])
         _check(name, names["design"], "--bound", "design variables")
         entry = dict(dvs.get(name) or {})
         entry.update({k: float(v) for k, v in (("lower", lo), ("upper", hi)) if v is not None})
+        if all(isinstance(entry.get(k), (int, float)) for k in ("lower", "upper")) and entry["lower"] >= entry["upper"]:
+            said = ":".join("" if v is None else f"{v:g}" for v in (lo, hi))
+            other = "" if None not in (lo, hi) else " (the other is the config file's)"
+            raise InputError(f"--bound '{name}={said}': the lower bound {entry['lower']:g} must be below the upper "
+                             f"{entry['upper']:g}{other}")
         dvs[name] = entry
     for name, value in ov.initial.items():
         _check(name, names["design"], "--initial", "design variables")

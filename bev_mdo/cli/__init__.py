@@ -57,12 +57,34 @@ def figure_format(path) -> str | None:
     arguments first, so that such a path is refused before anything is computed."""
     from pathlib import Path
 
-    if is_stdout(path):
-        raise ValueError(f"--png {path}: a PNG is binary, not written to standard output; give a file name, e.g. plot.png")
+    if is_stdout(path) or _terminal(path):
+        raise ValueError(f"--png {path}: a PNG is binary, not written to "
+                         f"{'standard output' if is_stdout(path) else 'standard error or a terminal'}; give a file "
+                         "name, e.g. plot.png")
     p = Path(path)
     if p.is_dir():
         raise ValueError(f"cannot write {path}: it is a directory (give a file name, e.g. {p / 'plot.png'})")
     return None if p.suffix else "png"
+
+
+def _terminal(path) -> bool:
+    """A name of descriptor 2 or a terminal device (/dev/tty, /dev/pts/N): ``--png /dev/stderr`` wrote the
+    image's bytes to the terminal."""
+    import os
+    import stat
+
+    if str(path) in ("/dev/stderr", "/dev/fd/2", "/proc/self/fd/2"):
+        return True
+    try:
+        if not stat.S_ISCHR(os.stat(path).st_mode):
+            return False
+        fd = os.open(path, os.O_WRONLY | os.O_NOCTTY)
+    except OSError:
+        return False
+    try:
+        return os.isatty(fd)
+    finally:
+        os.close(fd)
 
 
 def save_figure(fig, path, dpi: int = 110) -> None:

@@ -9,7 +9,6 @@ Graphviz DOT text (``dot -Tpng graph.dot -o graph.png`` renders it where Graphvi
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 OPT = "optimizer"
 
@@ -80,7 +79,7 @@ def to_dot(model: dict, name: str = "bev_mdo") -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot_n2(model: dict, path: Path, title: str = ""):
+def plot_n2(model: dict, path, title: str = ""):
     """Draw the N² chart; returns the matplotlib figure (closed after saving)."""
     import matplotlib
 
@@ -145,7 +144,7 @@ def run(args) -> int:
     model = coupling_model(config)
     dot = to_dot(model, config.name)
     if args.png:
-        plot_n2(model, Path(args.png), title=f"{config.name}: coupling graph")
+        plot_n2(model, args.png, title=f"{config.name}: coupling graph")
         print(f"wrote {args.png}", file=sys.stderr)
     if args.dot and not is_stdout(args.dot):
         write_text_file(args.dot, dot)

@@ -277,7 +277,7 @@ def run(args) -> int:
 
 
 def run_compare(args) -> int:
-    from bev_mdo.api.evaluate import cannot_follow, check_names, design_notes
+    from bev_mdo.api.evaluate import check_names, notes_of
     from bev_mdo.cli.flags import parse_assignments
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo import units as un
@@ -302,8 +302,8 @@ def run_compare(args) -> int:
     named = {**result["design"], **{k: v for k, v in result["outputs"].items() if k not in result["design"]}}
     rows = [(k, unit_of(k), v) for k, v in named.items()]
     rows += [(f"margin {k}", unit_of(k), v) for k, v in result["margins"].items()]
-    notes = [cannot_follow(config, {**problem.parameters, **{k: v[i] for k, v in named.items()}})  # why 'NO'
-             + design_notes(config, {k: v[i] for k, v in result["outputs"].items()}) for i in range(len(given))]
+    notes = [notes_of(config, {**problem.parameters, **{k: v[i] for k, v in result["design"].items()}},  # why 'NO'
+                      {k: v[i] for k, v in result["outputs"].items()})[1] for i in range(len(given))]
     if args.json:
         print(jsontext.dumps({"designs": [{name: float(v[i]) for name, _, v in rows} | {
             "feasible": bool(result["feasible"][i]), "ok": bool(result["ok"][i])} | (

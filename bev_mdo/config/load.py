@@ -12,9 +12,9 @@ from pathlib import Path
 from typing import Any
 
 from bev_mdo.config.disciplines import check_against_disciplines, discipline_entries, resolve_disciplines
-from bev_mdo.config.sections import (anchor_paths, check_gear_order, check_mda_numbers, check_optimizer_options,
-                                     resolve_problem, search_path, engine_section, validate_models,
-                                     vehicle_topology_into_options)
+from bev_mdo.config.sections import (anchor_paths, check_gear_order, check_gear_order_per_design, check_mda_numbers,
+                                     check_optimizer_options, resolve_problem, search_path, engine_section,
+                                     validate_models, vehicle_topology_into_options)
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
 from bev_mdo.mdo.vectors import has_partials
@@ -38,7 +38,8 @@ class RunConfig(Mapping):
     it as read-only); ``problem``: the ``Problem``; ``disciplines``: the run's discipline objects in
     their order (built once, at load); ``ros``: the ``ros:`` section with its defaults filled in;
     ``settings``: what the engine reads (problem, formulation, ``mda:``, ``optimizer:``, the
-    disciplines by name and whether each has analytic partials). As a read-only mapping it is
+    disciplines by name and whether each has analytic partials); ``vehicle``: the numeric vehicle
+    parameters, validated (defaults and a named parameter set filled). As a read-only mapping it is
     ``data`` (``config["vehicle"]``), for the discipline classes and other code that takes a
     config's sections as written.
     """
@@ -48,6 +49,7 @@ class RunConfig(Mapping):
     disciplines: tuple
     ros: dict
     settings: RunSettings
+    vehicle: Mapping[str, float]  # the vehicle's numeric parameters, defaults and a named parameter set filled
     source: str = "<config>"  # the file it was read from, which its errors name ('<config>': a mapping)
 
     @classmethod
@@ -235,7 +237,8 @@ def _resolve(raw: Any) -> RunConfig:
     params = check_against_disciplines(cfg, problem, discs)
     if cfg["problem"].get("baseline") is not None:
         problem.check_design(cfg["problem"]["baseline"]["design"], params, "problem.baseline.design")
-    return RunConfig(cfg, problem, discs, ros, _settings(cfg, problem, discs))
+        check_gear_order_per_design(vehicle, problem, cfg["problem"]["baseline"]["design"], "problem.baseline.design: ")
+    return RunConfig(cfg, problem, discs, ros, _settings(cfg, problem, discs), vehicle)
 
 
 def _settings(config: dict, problem: Problem, discs) -> RunSettings:

@@ -239,11 +239,11 @@ def validate_models(cfg: dict) -> dict[str, float]:
 
 
 def check_gear_order(vehicle: Mapping[str, float], problem) -> None:
-    """With two speeds (``gear_count`` 2) the second, high-speed gear is the longer one: ``gear_ratio_2``
-    (Table 3-2: 4.7) no higher than ``gear_ratio``, the first. One-line ValueError naming both where the
-    fixed values, or a design variable's bounds, allow gear_ratio_2 above gear_ratio: such a box was
-    evaluated (it shifts into a shorter gear at speed) and optimised over. Bounds that cross are refused,
-    not constrained: the box then holds only real two-speed gearboxes and no evaluation is spent on others."""
+    """With two speeds (``gear_count`` 2) the second, high-speed gear is the longer one
+    (``params.gears_out_of_order``). One-line ValueError naming both where the fixed values, or a design
+    variable's bounds, allow gear_ratio_2 above gear_ratio: such a box was evaluated (it shifts into a
+    shorter gear at speed) and optimised over. Bounds that cross are refused, not constrained: the box
+    then holds only real two-speed gearboxes and no evaluation is spent on others."""
     import numpy as np
 
     def span(name: str, side: int) -> tuple[float, str] | None:  # side 0: lowest value, 1: highest
@@ -258,10 +258,26 @@ def check_gear_order(vehicle: Mapping[str, float], problem) -> None:
         return None
 
     count, first, second = span("gear_count", 1), span("gear_ratio", 0), span("gear_ratio_2", 1)
-    if count is None or count[0] < 2 or first is None or second is None or second[0] <= first[0]:
+    if None in (count, first, second) or not params.gears_out_of_order(count[0], first[0], second[0]):
         return
     raise ValueError(f"gear_ratio_2 {second[0]:g} ({second[1]}) is above gear_ratio {first[0]:g} ({first[1]}): "
-                     "with gear_count 2 the second gear must not be shorter than the first (gear_ratio_2 <= gear_ratio)")
+                     + params.GEAR_ORDER)
+
+
+def check_gear_order_per_design(vehicle: Mapping[str, float], problem, values: Mapping, where: str = "") -> None:
+    """The same rule for designs given per point (``values``: numbers or arrays over the config's own
+    values, e.g. a ``--set``, a sweep's columns or ``problem.baseline``): one-line ValueError naming the
+    first design whose second gear is shorter than its first, after ``where``."""
+    import numpy as np
+
+    own = {**vehicle, **{d.name: d.initial for d in problem.design_variables}, **problem.parameters}
+    count, first, second = np.broadcast_arrays(*(np.atleast_1d(np.asarray(values.get(k, own.get(k, np.nan)), float))
+                                                 for k in ("gear_count", "gear_ratio", "gear_ratio_2")))
+    bad = np.flatnonzero(params.gears_out_of_order(count, first, second))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(f"{where}gear_ratio_2 {second[i]:g} is above gear_ratio {first[i]:g}"
+                         f"{f' (design {i + 1})' if count.size > 1 else ''}: {params.GEAR_ORDER}")
 
 
 def _chain_only(vehicle: Mapping[str, float], energy_model: str | None) -> None:

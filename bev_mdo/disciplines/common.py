@@ -67,6 +67,7 @@ UNITS = {"motor_kw": "kW", "motor_rear_kw": "kW", "battery_kwh": "kWh", "gear_ra
          "vehicle_mass_kg": "kg", "energy_wh_per_km": "Wh/km", "energy_wall_wh_per_km": "Wh/km", "range_km": "km",
          "accel_time_0_100_s": "s", "motor_speed_max_rad_s": "rad/s", "powertrain_cost_usd": "USD",
          "drive_torque_margin_nm": "N*m", "motor_speed_margin_rad_s": "rad/s", "drive_power_margin_kw": "kW",
+         "drive_force_margin_n": "N",
          "battery_power_margin_kw": "kW", "battery_soc_margin": "1",
          "battery_current_margin": "1"}
 

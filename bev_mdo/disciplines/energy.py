@@ -18,12 +18,13 @@ from bev_mdo.models import flat
 from bev_mdo.models import topology as topo_model
 from bev_mdo.models.acceleration import ACCEL_PARAMS
 from bev_mdo.models.cycles import DriveCycle, resample
-from bev_mdo.models.follow import steps_not_followed
+from bev_mdo.models.follow import drive_force_margin_n, steps_not_followed
 from bev_mdo.models.params import QUASI_STATIC_SPECS
 
 WALL_MODELS = ("chain", "quasi_static")  # the models that know the charger: energy_wall_wh_per_km
 BATTERY_MARGINS = ("battery_power_margin_kw", "battery_soc_margin", "battery_current_margin")  # quasi_static's, with feasibility_outputs
 FINAL_SOC = QUASI_STATIC_SPECS["final_soc"].default
+FOLLOW_INPUTS = ("vehicle_mass_kg", "gear_ratio", "motor_kw")  # the design's, for models/follow.py
 
 
 def _in_envelope(name: str) -> bool:
@@ -40,8 +41,10 @@ class Energy(Base):
     ``drive_torque_margin_nm`` (min over the cycle of envelope minus demand; at the motor for
     SM-SA, at the wheels otherwise) and, with quasi_static, ``motor_speed_margin_rad_s`` (limit minus
     max) or, with chain, ``drive_power_margin_kw`` (rated power minus the largest drive power; over
-    every cycle of ``cycle_weights``): constrain them >= 0 so that an optimiser cannot pick a motor
-    that does not follow the cycle (the chain's energy of such a design is the energy of the demand).
+    every cycle of ``cycle_weights``); with flat, ``drive_force_margin_n`` only (the motor envelope's
+    net force minus the step's need, models/follow.py; it then reads motor_kw): constrain them >= 0 so
+    that an optimiser cannot pick a motor that does not follow the cycle (the energy of such a design is
+    the energy of the demand).
     With quasi_static (every topology) it also adds the battery's: ``battery_power_margin_kw`` (min over
     the cycle of the pack's largest power ocv^2/4R minus the drive demand), ``battery_soc_margin``
     (the lowest SOC over the cycle minus ``final_soc``, a fraction of capacity) and
@@ -72,15 +75,16 @@ class Energy(Base):
         self.topology = topo_model.get_topology(topology)
         if self.topology.name != "SM-SA" and energy_model != "quasi_static":
             raise ValueError(f"topology {self.topology.name} needs energy_model quasi_static, got {energy_model!r}")
-        if feasibility_outputs and energy_model not in ("quasi_static", "chain"):
-            raise ValueError("energy option feasibility_outputs needs energy_model quasi_static or chain")
+        if feasibility_outputs and energy_model == "flat" and {**self.extra, **parameters}.get("gear_count", 1.0) != 1.0:
+            raise ValueError("energy option feasibility_outputs with energy_model flat covers a single-speed gearbox")
         self.feasibility_outputs = bool(feasibility_outputs)
         self.outputs = ("energy_wh_per_km",) + (("energy_wall_wh_per_km",) if energy_model in WALL_MODELS else ())
         if feasibility_outputs:
-            self.outputs += (("drive_torque_margin_nm", "motor_speed_margin_rad_s", *BATTERY_MARGINS)
-                             if energy_model == "quasi_static" else ("drive_torque_margin_nm", "drive_power_margin_kw"))
-        if energy_model == "flat":
-            self.inputs = ("vehicle_mass_kg", "gear_ratio")
+            self.outputs += {"quasi_static": ("drive_torque_margin_nm", "motor_speed_margin_rad_s", *BATTERY_MARGINS),
+                             "chain": ("drive_torque_margin_nm", "drive_power_margin_kw"),
+                             "flat": ("drive_force_margin_n",)}.get(energy_model, ())
+        if energy_model == "flat":  # with feasibility_outputs, the motor's envelope too (models/follow.py)
+            self.inputs = ("vehicle_mass_kg", "gear_ratio") + (("motor_kw",) if feasibility_outputs else ())
             self._fn = flat.energy_wh_per_km
         elif energy_model == "quasi_static":
             # battery_kwh feeds the OCV+R pack (SOC, 2C/5C limits)
@@ -117,22 +121,36 @@ class Energy(Base):
     def cycle_steps_short(self, values) -> list | None:
         """[(cycle name, its steps, steps not followed (N,), largest force short N (N,))] of the designs in
         ``values`` (motor_kw, gear_ratio, vehicle_mass_kg: numbers or (N,) arrays) at full motor envelope
-        (models/follow.py); None where that envelope is not the run's: single-speed SM-SA only."""
-        env = getattr(self, "envelope", None)
-        if env is None or any(values.get(k) is None for k in ("motor_kw", "gear_ratio", "vehicle_mass_kg")):
+        (models/follow.py); -1 steps not followed where that envelope is not the design's (two speeds); None
+        where it is no design's: the check covers single-speed SM-SA."""
+        if getattr(self, "envelope", None) is None or self.topology.name != "SM-SA" or any(
+                values.get(k) is None for k in FOLLOW_INPUTS):
             return None
-        env = {**env, **{k: x for k, x in values.items() if _in_envelope(k)}}  # a per-point value (--set) wins
-        if self.topology.name != "SM-SA" or np.any(np.asarray(env.pop("gear_count", 1.0)) != 1.0):
+        env = self._envelope(values)
+        cols = np.broadcast_arrays(*(np.atleast_1d(np.asarray(values[k], float)) for k in FOLLOW_INPUTS),
+                                   np.atleast_1d(np.asarray(env.pop("gear_count", 1.0), float)))
+        one = np.flatnonzero(cols[-1] == 1.0)
+        if not one.size:
             return None
-        return [(r.name, len(r.time_s) - 1, *steps_not_followed(r.time_s, r.speed_m_s, env, values["vehicle_mass_kg"],
-                                                                values["gear_ratio"], values["motor_kw"]))
-                for _, r in self._cycles()]
+        env = {k: (np.broadcast_to(x, cols[0].shape)[one] if np.ndim(x) else x) for k, x in env.items()}
+        out = []
+        for _, r in self._cycles():
+            count, worst = np.full(cols[0].size, -1, np.int64), np.zeros(cols[0].size)
+            count[one], worst[one] = steps_not_followed(r.time_s, r.speed_m_s, env, *(c[one] for c in cols[:3]))
+            out.append((r.name, len(r.time_s) - 1, count, worst))
+        return out
 
-    def cannot_follow(self, values) -> str | None:
-        """One line when the one design in ``values`` cannot follow a cycle of the run (``cycle_steps_short``),
-        else None: its energy per km is that of the cycle's demand, not of a powertrain that follows it."""
-        for name, steps, count, worst in self.cycle_steps_short(values) or ():
-            if count[0]:
+    def _envelope(self, values) -> dict:
+        """The motor envelope's and road load's constants (and gear_count) for the designs of ``values``: the
+        vehicle's (set by from_config), a per-point value (--set, an input) winning."""
+        return {**getattr(self, "envelope", {}), **{k: x for k, x in values.items() if _in_envelope(k)}}
+
+    def cannot_follow(self, values, rows) -> str | None:
+        """One line when the one design in ``values`` cannot follow a cycle of the run (``rows``: its
+        ``cycle_steps_short``), else None: its energy per km is that of the cycle's demand, not of a
+        powertrain that follows it."""
+        for name, steps, count, worst in rows:
+            if count[0] > 0:
                 return (f"the design cannot follow the cycle {name} at {int(count[0])} of {steps} steps (its "
                         f"{float(values['motor_kw']):.4g} kW motor at {float(values['gear_ratio']):.4g}:1 falls up to "
                         f"{worst[0] / 1e3:.3g} kN short of the drive force, or over its speed limit)"
@@ -168,6 +186,15 @@ class Energy(Base):
                 out.update(battery_margins([r for _, r in runs], p.get("final_soc", FINAL_SOC)))
             return out
         motor_kw = inputs.get("motor_kw")
+        if self.feasibility_outputs and self._fn is flat.energy_wh_per_km:  # eq 6-50, 6-51 at full envelope
+            env = self._envelope(inputs)
+            if np.any(np.asarray(env.pop("gear_count", 1.0)) != 1.0):
+                raise ValueError("energy option feasibility_outputs with energy_model flat covers a single-speed gearbox")
+            return {"energy_wh_per_km": sum(w * self._fn(r, p, inputs["vehicle_mass_kg"], inputs["gear_ratio"])
+                                            for w, r in self._cycles()),
+                    "drive_force_margin_n": np.minimum.reduce([drive_force_margin_n(
+                        r.time_s, r.speed_m_s, env, inputs["vehicle_mass_kg"], inputs["gear_ratio"], motor_kw)
+                        for _, r in self._cycles()])}
         if self.feasibility_outputs:  # chain: energy and the motor's margins, the tightest over the cycles
             from bev_mdo.models import chain
 

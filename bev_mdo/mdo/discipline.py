@@ -27,6 +27,7 @@ import importlib
 import inspect
 import sys
 import time
+import types
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -127,13 +128,17 @@ _OPTION_TYPES = {  # annotation -> (accepts the value, what it must be); any oth
 def _check_option_types(spec: type, options: Mapping[str, Any], where: str) -> None:
     """ValueError naming ``where.<key>`` for the first option whose value does not match its field's
     annotation (``_OPTION_TYPES``: a float takes an int, not a bool or text). Annotations may be strings
-    (``from __future__ import annotations``); ``Optional[...]`` and any other annotation are left alone."""
+    (``from __future__ import annotations``); ``X | None`` takes None or what X takes; any other annotation
+    is left alone."""
     try:
         hints = typing.get_type_hints(spec)
     except Exception:  # an annotation that does not resolve (a name imported only for type checking)
         return
     for key, value in options.items():
-        accepts, what = _OPTION_TYPES.get(hints.get(key), (None, ""))
+        hint, args = hints.get(key), typing.get_args(hints.get(key))
+        if len(args) == 2 and type(None) in args and typing.get_origin(hint) in (typing.Union, types.UnionType):
+            hint = None if value is None else next(a for a in args if a is not type(None))
+        accepts, what = _OPTION_TYPES.get(hint, (None, ""))
         if accepts is not None and not accepts(value):
             raise ValueError(f"{where}.{key}: {value!r} must be {what}{text_hint(value)}")
 

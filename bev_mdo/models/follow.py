@@ -21,18 +21,31 @@ from .params import get_params
 def steps_not_followed(time_s, speed_m_s, params, vehicle_mass_kg, gear_ratio, motor_kw):
     """(count, worst) per design, each (N,): the cycle steps the motor cannot drive, and the largest
     shortfall of net force over them (N, 0 where none)."""
+    return _in_blocks(time_s, speed_m_s, params, vehicle_mass_kg, gear_ratio, motor_kw)[:2]
+
+
+def drive_force_margin_n(time_s, speed_m_s, params, vehicle_mass_kg, gear_ratio, motor_kw):
+    """Per design (N,): the least, over the cycle's moving steps, of the envelope's net force minus the
+    force the step needs (N; +inf for a cycle that never moves). A design with a margin >= 0 that turns
+    its motor within its speed limit (``motor_speed_max_rad_s``) follows every step: constrain both so that
+    an optimiser steers clear of one that does not."""
+    return _in_blocks(time_s, speed_m_s, params, vehicle_mass_kg, gear_ratio, motor_kw)[2]
+
+
+def _in_blocks(time_s, speed_m_s, params, vehicle_mass_kg, gear_ratio, motor_kw):
     t, v = np.asarray(time_s, float), np.asarray(speed_m_s, float)
     p = {**get_params(params, ACCEL_PARAMS), **rl.checked(params)}
     m, ig, kw = (np.atleast_1d(np.asarray(x, float)) for x in (vehicle_mass_kg, gear_ratio, motor_kw))
     n = max(m.size, ig.size, kw.size)
     m, ig, kw = (np.broadcast_to(x, (n,)) for x in (m, ig, kw))
     p = {k: np.broadcast_to(np.asarray(x, float), (n,)) if np.ndim(x) else x for k, x in p.items()}
-    count, worst = np.zeros(n, np.int64), np.zeros(n)
+    count, worst, margin = np.zeros(n, np.int64), np.zeros(n), np.zeros(n)
     step = max(1, _CELLS // max(len(v), 1))  # designs per block: (steps x designs) arrays stay small at any batch
     for s in range(0, n, step):
         b = slice(s, s + step)
-        count[b], worst[b] = _block(t, v, {k: (x[b] if np.ndim(x) else x) for k, x in p.items()}, m[b], ig[b], kw[b])
-    return count, worst
+        count[b], worst[b], margin[b] = _block(t, v, {k: (x[b] if np.ndim(x) else x) for k, x in p.items()},
+                                               m[b], ig[b], kw[b])
+    return count, worst, margin
 
 
 _CELLS = 1 << 20  # steps x designs per block (about 8 MB per array)
@@ -45,5 +58,7 @@ def _block(t, v, p, m, ig, kw):
     have = wheel_force_n(v_bar, kw[None, :], ig[None, :], m[None, :], pb, grip_force_n(m[None, :], pb))
     over_speed = ig[None, :] * v_bar / pb["wheel_radius_m"] > pb["motor_speed_limit_rpm"] * np.pi / 30.0 * (1 + 1e-12)
     short = need - have
-    bad = (v_bar > 0) & ((short > 1e-9 * (np.abs(need) + np.abs(have) + 1.0)) | over_speed)
-    return bad.sum(axis=0), np.where(bad, np.maximum(short, 0.0), 0.0).max(axis=0, initial=0.0)
+    moving = v_bar > 0
+    bad = moving & ((short > 1e-9 * (np.abs(need) + np.abs(have) + 1.0)) | over_speed)
+    return (bad.sum(axis=0), np.where(bad, np.maximum(short, 0.0), 0.0).max(axis=0, initial=0.0),
+            np.where(moving, -short, np.inf).min(axis=0, initial=np.inf))

@@ -362,6 +362,15 @@ def topology_name(name: Any) -> str:
     return name.upper()
 
 
+GEAR_ORDER = "with gear_count 2 the second gear must not be shorter than the first (gear_ratio_2 <= gear_ratio)"
+
+
+def gears_out_of_order(gear_count, gear_ratio, gear_ratio_2) -> np.ndarray:
+    """True where a two-speed box (``gear_count`` 2) has its second, high-speed gear shorter than the first:
+    ``gear_ratio_2`` above ``gear_ratio`` (Table 3-2: 4.7 below the first). Numbers or arrays, broadcast."""
+    return (np.asarray(gear_count, float) >= 2) & (np.asarray(gear_ratio_2, float) > np.asarray(gear_ratio, float))
+
+
 def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
     """Fill defaults, reject unknown names, range-check every numeric vehicle parameter.
 

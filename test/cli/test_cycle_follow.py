@@ -99,3 +99,69 @@ def test_evaluate_says_where_the_check_does_not_run(tmp_path, capsys):
     assert any("is not checked for this gearbox or topology" in n for n in doc["notes"])
     assert main(["evaluate", str(van), "--set", "motor_kw=80", "--transport", "inprocess", "--json"]) == 0
     assert not any("is not checked" in n for n in json.loads(capsys.readouterr().out)["notes"])
+
+
+def test_a_batch_mixing_gearboxes_checks_its_single_speed_designs(tmp_path):
+    # a review: one two-speed design in a batch switched the check off for every design of it
+    from bev_mdo.api.evaluate import batch
+    from bev_mdo.api.transport import Transport
+    from bev_mdo.config import RunConfig
+
+    config = RunConfig.load(_van(tmp_path))
+    res = batch(config, {"motor_kw": np.array([80.0, 95.0, 80.0]), "gear_count": np.array([1.0, 2.0, 1.0])},
+                Transport("inprocess"))
+    assert list(res["feasible"]) == [False, True, False]  # the constraints alone pass all three (95 kW: 0-100 with the two-speed mass)
+    assert "2 of 3 designs cannot follow the drive cycle" in " ".join(res["notes"])
+    assert "1 of 3 designs: whether the motor can follow the cycle is not checked" in " ".join(res["notes"])
+
+
+def _mild(tmp_path, margin: bool) -> Path:
+    cycle = tmp_path / "mild.csv"
+    cycle.write_text("time_s,speed_kmh\n0,0\n5,0\n10,60\n60,60\n75,0\n80,0\n")  # 0-60 km/h in 5 s
+    raw = yaml.safe_load((ROOT / "config" / "leaf_nedc.yaml").read_text())
+    raw.update(name="mild", cycle={"name": str(cycle), "dt_s": 1.0, "interpolation": "linear"})
+    if margin:
+        raw["disciplines"] = ["vehicle_mass", {"name": "energy", "options": {"feasibility_outputs": True}}, "range",
+                              "acceleration", "motor_speed", "cost"]
+        raw["problem"]["constraints"]["drive_force_margin_n"] = {"lower": 0.0}
+    path = tmp_path / f"mild_{margin}.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    return path
+
+
+def test_the_flat_models_force_margin_lets_the_optimiser_steer_clear(tmp_path, capsys):
+    # the flat model had no margin to constrain: an optimum that could not follow the cycle was only called so
+    args = ["--transport", "inprocess", "--no-record", "--json"]
+    assert main(["optimize", str(_mild(tmp_path, False)), *args]) == 1
+    blind = json.loads(capsys.readouterr().out)
+    assert blind["verdict"] == "infeasible" and blind["first_order"]["cannot_follow"]
+    assert main(["optimize", str(_mild(tmp_path, True)), *args]) == 0
+    steered = json.loads(capsys.readouterr().out)
+    assert steered["verdict"] == "optimum" and "cannot_follow" not in steered["first_order"]
+    assert steered["design"]["motor_kw"] > blind["design"]["motor_kw"] + 5  # a bigger motor, just enough
+    assert abs(steered["outputs"]["drive_force_margin_n"]) < 1e-3  # the margin is what binds
+
+
+def test_the_force_margin_and_the_step_count_agree():
+    from bev_mdo.models.cycles import load_cycle
+    from bev_mdo.models.follow import drive_force_margin_n
+
+    cyc = load_cycle("epa_us06")
+    rng = np.random.default_rng(5)
+    designs = (rng.uniform(1300, 2000, 400), rng.uniform(4, 8, 400), rng.uniform(30, 200, 400))
+    params = {"motor_speed_limit_rpm": 20000.0}  # no step beyond the speed limit: the margin alone decides
+    count, _ = steps_not_followed(cyc.time_s, cyc.speed_m_s, params, *designs)
+    margin = drive_force_margin_n(cyc.time_s, cyc.speed_m_s, params, *designs)
+    assert 50 < (count > 0).sum() < 350  # both kinds are in the sample
+    assert np.array_equal(count > 0, margin < 0)
+
+
+def test_the_force_margin_is_refused_for_a_two_speed_box(tmp_path):
+    import pytest
+
+    from bev_mdo.config import RunConfig
+
+    raw = yaml.safe_load(_mild(tmp_path, True).read_text())
+    raw["vehicle"].update(gear_count=2, gear_ratio_2=1.0)
+    with pytest.raises(ValueError, match=r"feasibility_outputs with energy_model flat covers a single-speed gearbox$"):
+        RunConfig.load(raw)

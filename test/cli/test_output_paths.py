@@ -81,3 +81,21 @@ def test_a_png_to_standard_output_is_refused_in_one_line(argv, tmp_path):
     assert run.returncode == 2 and run.stdout == b"" and not list(tmp_path.iterdir()), err
     assert err == (f"bev-mdo {argv[0]}: error: --png {argv[-1]}: a PNG is binary, not written to standard output; "
                    "give a file name, e.g. plot.png\n")
+
+
+@pytest.mark.parametrize("png, refused", [("/dev/stderr", True), ("/dev/fd/2", True), ("./-", False)])
+def test_a_png_to_standard_error_is_refused_and_a_file_named_dash_written(png, refused, tmp_path):
+    """``--png /dev/stderr`` wrote the image's bytes among the command's messages (to the terminal), exit 0;
+    ``--png ./-`` (a file named '-', as the shell's way to say so) was refused as standard output."""
+    import subprocess
+
+    from bev_mdo.testing import PYTHON, REPO
+
+    run = subprocess.run([PYTHON, "-m", "bev_mdo", "graph", CONFIG, "--png", png], cwd=tmp_path, capture_output=True,
+                         timeout=120, env={**__import__("os").environ, "PYTHONPATH": str(REPO)})
+    err = run.stderr.decode(errors="replace")
+    if refused:
+        assert run.returncode == 2 and err == (f"bev-mdo graph: error: --png {png}: a PNG is binary, not written to "
+                                               "standard error or a terminal; give a file name, e.g. plot.png\n")
+    else:
+        assert run.returncode == 0 and (tmp_path / "-").read_bytes().startswith(b"\x89PNG"), err

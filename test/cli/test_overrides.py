@@ -82,3 +82,16 @@ def test_every_run_command_takes_the_overrides(command):
                                                "--constraint", "b>=3", "--objective", "b", "--maximize"])
     assert (args.bound, args.initial, args.constraint, args.objective, args.maximize) == \
         (["a=1:2"], ["a=1"], ["b>=3"], "b", True)
+
+
+@pytest.mark.parametrize("flags, said", [
+    (["--bound", "motor_kw=200:80"], "--bound 'motor_kw=200:80': the lower bound 200 must be below the upper 80"),
+    (["--bound", "motor_kw=130:"], "--bound 'motor_kw=130:': the lower bound 130 must be below the upper 120 (the "
+                                   "other is the config file's)"),
+    (["--constraint", "range_km<=100", "--constraint", "range_km>=200"],
+     f"{CONFIG}: problem.constraints.range_km: lower 200 > upper 100 (with the command line's --bound, --initial, "
+     "--constraint or --objective)")])
+def test_a_command_line_value_that_makes_the_config_invalid_is_named_as_such(flags, said, capsys):
+    # a user trial: `--bound motor_kw=200:80` was reported as the config file's own bounds, which say 40-120
+    assert main(["optimize", CONFIG, "--transport", "inprocess", "--no-record", *flags]) == 2
+    assert capsys.readouterr().err == f"bev-mdo optimize: error: {said}\n"
