@@ -7,10 +7,13 @@ swallows the exception when the signal lands there, and the run goes on. So the 
 the signal as pending, and the engine's loops call ``check()`` once per batch: a swallowed signal is
 raised again at the next batch.
 
-Once the ``bev-mdo`` process has written its output (``work_done``), there is nothing left to unwind: a
-signal then ends the process at once, during whatever teardown remains (a hung one included), with one
-line saying that the result was written (and what else is complete: ``note_done``), exit status 130 or
-143 as for any other Ctrl-C or SIGTERM.
+What the CLI says when a signal stops it (``interrupted_lines``) follows what is on disk and on screen, not
+where in the code the signal landed: once a run has its bag (``note_bag``) the line names it and what it
+holds; once the result is stored with it (``note_done``), that the bag is complete and whether the result
+was printed (``printing``). Once the ``bev-mdo`` process has written its output (``work_done``), there is
+nothing left to unwind: a signal then ends the process at once, during whatever teardown remains (a hung
+one included), with one line saying that the result was written and what else is complete, exit status
+130 or 143 as for any other Ctrl-C or SIGTERM.
 
 A node executable (ros/run.py) runs its main through ``run_main``: a signal it raises on ends it with one line,
 ``<node>: interrupted``, status 130 or 143; the recorder closes its bag inside ``deferred()`` first.
@@ -30,7 +33,9 @@ class Terminated(KeyboardInterrupt):
 _pending: type[BaseException] | None = None
 _deferring = 0  # > 0 inside deferred(): a signal is kept and raised at the block's end
 _done_status: int | None = None  # work_done's exit status: a signal now ends the process (_end_now)
+_bag_note = None  # () -> str: what the run's bag holds (note_bag), read when a signal stops the run
 _done_notes: list[str] = []  # what is complete besides the printed result (note_done)
+_printing = False  # the command has begun writing its result (printing)
 _taken: list[type[BaseException]] = []  # every signal taken since install (held: which came inside its block)
 
 
@@ -55,15 +60,32 @@ def work_done(status: int) -> None:
     _done_status = status
 
 
+def note_bag(describe) -> None:
+    """The run has its bag from now on: a signal that stops it before its result is stored ends with
+    ``bev-mdo: interrupted`` and ``bev-mdo: <describe()>``, what the bag holds then (api/runbag.interrupted_note)."""
+    global _bag_note
+    _bag_note = describe
+
+
 def note_done(note: str) -> None:
-    """Something complete besides the printed result (e.g. "the bag B is complete"), said if a signal
-    comes after ``work_done``."""
+    """Something complete besides the printed result (e.g. "the bag B is complete"): from now on a signal's
+    line says it, whether the result was being printed, or not yet, or written already."""
     _done_notes.append(note)
 
 
-def done_notes() -> list[str]:
-    """What ``note_done`` said is complete so far ([] before the result was stored)."""
-    return list(_done_notes)
+def printing() -> None:
+    """The command begins writing its result: a signal from now on came "while the result was printed"
+    (before, after ``note_done``: "before the result was printed")."""
+    global _printing
+    _printing = True
+
+
+def interrupted_lines(exc: BaseException) -> list[str]:
+    """The lines on stderr of a command that a signal stopped (``exc``: KeyboardInterrupt, or Terminated)."""
+    what = "bev-mdo: terminated (SIGTERM)" if isinstance(exc, Terminated) else "bev-mdo: interrupted"
+    if _done_notes:  # the result is stored (e.g. with its bag)
+        return ["; ".join([f"{what} {'while' if _printing else 'before'} the result was printed", *_done_notes])]
+    return [what, *([f"bev-mdo: {_bag_note()}"] if _bag_note is not None else [])]
 
 
 def _end_now(exc: type[BaseException]) -> None:
@@ -116,8 +138,8 @@ def held():
 def install() -> dict:
     """Handlers for SIGTERM and (unless it is ignored, as in a shell's background job) SIGINT;
     returns the previous handlers for ``restore``. Main thread only."""
-    global _pending, _done_status
-    _pending, _done_status = None, None
+    global _pending, _done_status, _bag_note, _printing
+    _pending, _done_status, _bag_note, _printing = None, None, None, False
     _done_notes.clear()
     _taken.clear()
     previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, _handler(Terminated))}

@@ -66,11 +66,15 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
         result, baseline, extra = _run_ros(config, opts, show, x0, starts)
     else:
         result, baseline, extra = _run_inprocess(config, opts, show, x0, starts)
-    _check_follows(config, result, baseline)
     from bev_mdo.api import runbag  # end-of-run answers: in the result, stored with the bag
 
-    with runbag.noting_interrupts(extra.get("bag")):  # a signal while the answers are made: what the bag holds
+    try:
+        _check_follows(config, result, baseline)
         runbag.finish(config, result, extra)
+    except BaseException:  # a signal (or a failure) before the result is stored: an in-process bag is closed without it
+        if extra.get("_bag_writer") is not None:
+            extra["_bag_writer"].close()
+        raise
     extra = {k: v for k, v in extra.items() if not k.startswith("_")}
     extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
     return {**result, "baseline": baseline, **extra}
@@ -97,7 +101,7 @@ def _check_follows(config, result: dict, baseline: dict | None) -> None:
 
 def _run_inprocess(config, opts, show, x0, starts):
     from bev_mdo.api.failures import NamingInProcessEvaluator
-    from bev_mdo.api.runbag import in_process_bag, noting_interrupts
+    from bev_mdo.api.runbag import in_process_bag
     from bev_mdo.mdo.driver import run_optimization
     from bev_mdo.sessions import analyse_baseline
 
@@ -107,24 +111,23 @@ def _run_inprocess(config, opts, show, x0, starts):
     for d in ev.disciplines.values():  # one-time work (numba's compile) before the optimiser's clock, as over ROS
         d.prepare()
     bag, writer, show = in_process_bag(config, opts, show)  # a bag only when one is asked for
-    with noting_interrupts(bag):
-        try:
-            if starts != 1:
-                from bev_mdo.mdo.multistart import run_starts
+    try:
+        if starts != 1:
+            from bev_mdo.mdo.multistart import run_starts
 
-                res = run_starts(config.settings, ev, starts, seed=opts.seed,
-                                 formulation=opts.formulation, optimizer=opts.optimizer, callback=show)
-            else:
-                res = run_optimization(config.settings, ev, formulation=opts.formulation,
-                                       optimizer=opts.optimizer, x0=x0, callback=show)
-        except BaseException:  # SIGINT, SIGTERM, a failure: the bag keeps every finished iteration
-            if writer is not None:
-                writer.close()
-            raise
+            res = run_starts(config.settings, ev, starts, seed=opts.seed,
+                             formulation=opts.formulation, optimizer=opts.optimizer, callback=show)
+        else:
+            res = run_optimization(config.settings, ev, formulation=opts.formulation,
+                                   optimizer=opts.optimizer, x0=x0, callback=show)
+        baseline = analyse_baseline(config, NamingInProcessEvaluator(config.disciplines, timeout_s=budget,
+                                                                     errors=ev.errors))
+    except BaseException:  # SIGINT, SIGTERM, a failure: the bag keeps every finished iteration
+        if writer is not None:
+            writer.close()
+        raise
     out = res.to_dict()
     out.pop("history")
-    baseline = analyse_baseline(config, NamingInProcessEvaluator(config.disciplines, timeout_s=budget,
-                                                                 errors=ev.errors))
     extra = {"transport": "inprocess", **({"bag": bag} if bag else {}), "_bag_writer": writer}
     if ev.errors.first:
         extra["discipline_errors"] = dict(ev.errors.first)
@@ -136,7 +139,7 @@ def _run_inprocess(config, opts, show, x0, starts):
 def _run_ros(config, opts, show, x0, starts):
     import sys
 
-    from bev_mdo.api.runbag import noting_interrupts
+    from bev_mdo import interrupts
     from bev_mdo.api.transport import ros_section
     from bev_mdo.processes import parse_instances
     from bev_mdo.sessions import OptimizeRosSession
@@ -167,12 +170,15 @@ def _run_ros(config, opts, show, x0, starts):
             from bev_mdo.api.runbag import claim_new_bag
 
             claimed.enter_context(claim_new_bag(bag, opts.bag_flag))
+            from bev_mdo.api.runbag import interrupted_note
+
+            interrupts.note_bag(lambda: interrupted_note(bag))  # a signal from now on: what the bag holds
         if not opts.quiet:
             print(f"starting {where}{'' if opts.no_record else ' and a recorder'}"
                   f" (domain {ros['domain_id']}); waiting while discovery makes progress (gives up after "
                   f"{ros['discovery_wait_s']:g} s without) ...",
                   file=sys.stderr if opts.progress_to_stderr else sys.stdout, flush=True)
-        with noting_interrupts(None if opts.no_record else bag), session:
+        with session:
             result, baseline = session.run(opts.formulation, opts.optimizer, x0, show, starts=starts,
                                            seed=opts.seed)
     extra = session.summary()

@@ -26,7 +26,8 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
         source: str = "<config>", on_generation=None) -> tuple[dict, object]:
     """(the front.json document, mdo.pareto's result) of one NSGA-II run; ``objectives``: outputs to
     minimise (default: the config's ``problem.objectives``)."""
-    from bev_mdo.api.runbag import claim_new_bag, noting_interrupts
+    from bev_mdo import interrupts
+    from bev_mdo.api.runbag import claim_new_bag, interrupted_note
     from bev_mdo.config import RunConfig
 
     cfg = RunConfig.of(cfg)
@@ -37,10 +38,11 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
     out, bag = out_dirs(out, cfg.name)
     run_id = uuid.uuid4().hex[:16]
     with claim_new_bag(bag, "--out"):  # of two runs given the same --out at once, one is refused here
+        interrupts.note_bag(lambda: interrupted_note(bag, "front"))  # a signal from now on: what the bag holds
         sess = session(transport, instances, cfg, out, bag, run_id, [cfg])
         from bev_mdo.ros.pareto_publisher import front_message  # loaded by the session already
 
-        with noting_interrupts(bag, "front"), sess:
+        with sess:
             def on_front(front, final):
                 sess.sink.publish(front_message(front, run_id=run_id, topology="", final=final))
 

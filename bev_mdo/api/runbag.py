@@ -108,12 +108,7 @@ def finish(config: Mapping[str, Any], result: dict, extra: dict) -> None:
     """Add ``result["active"]`` and store it with the run's bag (closing an in-process bag; one whose writing
     failed adds ``recorder_failed`` to ``extra``)."""
     inproc = extra.get("_bag_writer")
-    try:
-        result["active"] = answers(config, result)
-    except BaseException:  # a signal (or a failure) before the answers: an in-process bag is closed without them
-        if inproc is not None:
-            inproc.close()
-        raise
+    result["active"] = answers(config, result)  # (a signal or failure here: api/optimize.run closes an in-process bag)
     ans = {**result["active"], "result_design": result.get("design")}  # the report names the run's result by it
     if inproc is not None:
         inproc.close(ans)
@@ -131,7 +126,8 @@ def finish(config: Mapping[str, Any], result: dict, extra: dict) -> None:
         if key.is_file():
             path.with_name(ANSWERS_FILE + ".sig").write_text(Signer(read_key(key)).sign_answers(text) + "\n")
     if extra.get("bag") and not extra.get("recorder_failed"):  # said if a signal comes after the result
-        interrupts.note_done(f"the bag {extra['bag']} is complete")
+        interrupts.note_done(f"the bag {extra['bag']} is complete (bev-mdo report {extra['bag']}; "
+                             f"bev-mdo history {extra['bag']})")
 
 
 def interrupted_note(bag, kind: str = "iteration") -> str:
@@ -159,18 +155,6 @@ def interrupted_note(bag, kind: str = "iteration") -> str:
     return f"bag {bag}: {records} {noun}{'' if records == 1 else 's'}, {holds}"
 
 
-@contextlib.contextmanager
-def noting_interrupts(bag, kind: str = "iteration"):
-    """Around a run and the closing of its bag (outermost: closing can raise the signal again): a SIGINT
-    or SIGTERM leaving it carries ``interrupted_note`` (the CLI prints it under its ``interrupted`` line)."""
-    try:
-        yield
-    except KeyboardInterrupt as exc:
-        if bag is not None:
-            exc.add_note(interrupted_note(bag, kind))
-        raise
-
-
 def in_process_bag(config: Mapping[str, Any], opts, show):
     """(bag path or None, writer or None, iteration callback) for an in-process run: a bag only with --bag."""
     if opts.no_record or not opts.bag:
@@ -180,6 +164,7 @@ def in_process_bag(config: Mapping[str, Any], opts, show):
     # as over ROS (the writer refused only a bag in the folder itself); claimed until the bag's file exists
     with claim_new_bag(Path(opts.bag), opts.bag_flag):
         writer = InProcessBag(Path(opts.bag), config, uuid.uuid4().hex[:16])
+        interrupts.note_bag(lambda: interrupted_note(opts.bag))  # a signal from now on: what the bag holds
 
     def callback(rec):
         writer(rec)

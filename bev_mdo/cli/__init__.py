@@ -200,27 +200,25 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str], process: bool = False) -> int:
     parser = build_parser(argv)
     args = parser.parse_args(argv)
-    status = _run(args)
-    if process:  # the output is written: from here on a signal ends the process at once, with a line
+    status = _run(args, process)
+    if process:  # (after a failure's or a signal's line) from here on a signal ends the process at once, with a line
         interrupts.work_done(status)
     return status
 
 
-def _run(args) -> int:
+def _run(args, process: bool = False) -> int:
     """The subcommand, its output flushed; its exit status (a user mistake, a signal, a failure: one line)."""
     try:
         with _notes_to_stderr(args.command):
             status = int(args.func(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
+        if process:  # the output is written: from here on a signal ends the process at once, with a line (a signal
+            interrupts.work_done(status)  # taken before, up to work_done's first line, is caught just below)
         return status
-    except KeyboardInterrupt as exc:  # SIGINT, or Terminated (SIGTERM); the notes say where the bag is
-        terminated = isinstance(exc, Terminated)
-        what = "bev-mdo: terminated (SIGTERM)" if terminated else "bev-mdo: interrupted"
-        done = interrupts.done_notes()  # the result was stored (e.g. with its bag) and was being printed
-        print("; ".join([f"{what} while the result was printed", *done]) if done else what, file=sys.stderr)
-        for note in getattr(exc, "__notes__", ()):
-            print(f"bev-mdo: {note}", file=sys.stderr)
-        return 143 if terminated else 130
+    except KeyboardInterrupt as exc:  # SIGINT, or Terminated (SIGTERM): what the bag holds, what was printed
+        for line in interrupts.interrupted_lines(exc):
+            print(line, file=sys.stderr)
+        return 143 if isinstance(exc, Terminated) else 130
     except BrokenPipeError:
         return _closed_pipe()
     except SystemExit as exc:  # rich's Console ends a write into a closed pipe with SystemExit(1)

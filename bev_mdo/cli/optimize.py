@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import sys
 
-from bev_mdo import jsontext
+from bev_mdo import interrupts, jsontext
 
 
 def register(sub) -> None:
@@ -168,6 +168,22 @@ def _verdict(result: dict, out, units: dict) -> None:
         print(f"  {line}", file=out)
 
 
+class _Printing:
+    """The stream the result is written to; its first write tells a signal's line that the result is being
+    printed (interrupts.printing): one taken before, e.g. while rich is imported, came before it was printed."""
+
+    def __init__(self, stream):
+        self.stream = stream
+
+    def write(self, text: str) -> int:
+        if text:  # rich writes its buffer, empty, when the signal cut its rendering short
+            interrupts.printing()
+        return self.stream.write(text)
+
+    def __getattr__(self, name: str):  # flush, isatty, fileno, encoding: rich's Console reads them
+        return getattr(self.stream, name)
+
+
 def run(args) -> int:
     from bev_mdo.cli import flags
 
@@ -181,10 +197,10 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
 
     opts = optimize.OptimizeOptions.of(args)
     opts.progress_to_stderr = bool(args.json)
-    out = sys.stderr if args.json else sys.stdout
     doc = optimize.run(config, opts, _progress(args.quiet, args.json), x0)
+    out = _Printing(sys.stderr if args.json else sys.stdout)
     if args.json:
-        print(jsontext.dumps(doc))
+        print(jsontext.dumps(doc), file=_Printing(sys.stdout))
     else:
         from bev_mdo.api.evaluate import declared_units
 

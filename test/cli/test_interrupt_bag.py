@@ -434,7 +434,8 @@ def test_a_signal_after_the_result_is_one_line_and_ends_a_hung_teardown_at_once(
                        timeout=50, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     what = "interrupted" if sig == signal.SIGINT else "terminated (SIGTERM)"
     assert p.returncode == EXIT[sig], p.stderr
-    assert p.stderr.splitlines()[-1] == f"bev-mdo: {what} after the result was written; the bag {bag} is complete"
+    assert p.stderr.splitlines()[-1] == (f"bev-mdo: {what} after the result was written; the bag {bag} is complete "
+                                         f"(bev-mdo report {bag}; bev-mdo history {bag})")
     assert "Traceback" not in p.stderr and "run time" in p.stdout and "verdict: optimum" in p.stdout
 
     from bev_mdo.bag.history import history, read_answers
