@@ -10,15 +10,18 @@ a usable bev_mdo bag raises :class:`BagError`.
 from __future__ import annotations
 
 import struct
+import zlib
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 from typing import Iterable, Iterator
 
 import yaml
-from mcap.exceptions import EndOfFile, McapError
-from mcap.records import Attachment, Channel, DataEnd, Footer, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.exceptions import EndOfFile
+from mcap.opcode import Opcode
+from mcap.data_stream import RecordBuilder
+from mcap.records import Attachment, Channel, DataEnd, Footer, Message, Metadata, Schema, Statistics
+from mcap.stream_reader import CRCValidationError, StreamReader
 
 from bev_mdo.bag.errors import BagError
 from bev_mdo.bag.stored import StoredConfig
@@ -26,6 +29,7 @@ from bev_mdo.bag.stored import StoredConfig
 MAGIC = b"\x89MCAP0\r\n"
 PACKAGE = "bev_mdo_msgs"
 METADATA_NAME = "bev_mdo"
+KINDS = {Opcode.CHUNK: "chunk", Opcode.METADATA: "metadata record", Opcode.ATTACHMENT: "attachment"}  # named in errors
 
 
 @dataclass(frozen=True)
@@ -108,7 +112,7 @@ class Bag:
     def __init__(self, path, *, strict: bool = True, salvage: bool = False):
         self.path = Path(path)
         self.salvage = salvage  # `bag repair`: a damaged chunk is skipped, not the end of what is read
-        self.skipped: list[int] = []  # byte offsets after the chunks skipped
+        self.skipped: list[tuple[int, int, bool]] = []  # (start, end, a chunk) of each record left out
         self.mcap_path = find_mcap(self.path, repairing=salvage)
         self.bag_dir = self.mcap_path.parent
         self.strict = strict
@@ -117,8 +121,12 @@ class Bag:
         self.metadata: dict[str, dict[str, str]] = {}
         self.attachments: dict[str, bytes] = {}
         self.counts: dict[str, int] = {}
-        self.truncated = False
-        self.damage = ""  # what is wrong with the end of a file whose records are all there
+        self.truncated = False  # read in part, or damaged: `bag repair` rewrites it (``damage`` says what)
+        self.end_damage = ""  # what is wrong with the end of a file whose records are all there
+        self.damaged_attachments: list[str] = []
+        self.data_crc_failed = False
+        self.summary_ok = False  # a summary that passed its CRC check (its channels fill in a damaged chunk's)
+        self._written_count: int | None = None  # the summary's Statistics message count
         self.recovered_bytes = 0
         self.start_ns = 0
         self.end_ns = 0
@@ -154,33 +162,50 @@ class Bag:
                 except (EndOfFile, struct.error):  # a short read: the file ends early (or a summary length is damaged)
                     self.truncated = True
                     if data_ended:
-                        self.damage = "truncated or damaged in the summary after the messages"
+                        self.end_damage = "truncated or damaged in the summary after the messages"
                 except Exception as exc:  # noqa: BLE001 - zstd / struct / decode errors from damaged bytes
-                    if not data_ended and self.salvage and f.tell() > max(self.recovered_bytes, at or 0):
-                        at = f.tell()  # past the damaged record (a chunk is read whole before it is checked)
-                        skipped.append(at)
+                    if isinstance(exc, CRCValidationError) and isinstance(exc.record, DataEnd):
+                        # every chunk passed its own check: a record between them (metadata, attachment) is damaged
+                        self.truncated = self.data_crc_failed = True
+                        at = self.recovered_bytes = f.tell()
+                        data_ended = True
+                        yield exc.record
+                        continue  # on to the summary, read as before
+                    start, end = max(self.recovered_bytes, at or 0), f.tell()
+                    kind = KINDS.get(self._opcode(start)) if end > start else None
+                    if not data_ended and self.salvage and end > start:
+                        at = end  # past the damaged record (a chunk is read whole before it is checked)
+                        skipped.append((start, at, kind == "chunk"))
                         self.truncated, self.skipped = True, skipped
-                        self.damage = (f"{len(skipped)} damaged record(s) skipped (ending at byte(s) "
-                                       f"{', '.join(map(str, skipped))})")
                         continue  # the records after it, each checked as before
                     if not data_ended:
-                        detail = f": {exc}" if isinstance(exc, (McapError, ValueError, OSError, EOFError, KeyError,
-                                                                IndexError)) else ""
-                        raise BagError(f"{self.mcap_path}: corrupt MCAP data after byte "
-                                       f"{self.recovered_bytes} ({type(exc).__name__}{detail})") from exc
+                        what = (f"the {kind} at bytes {start}-{end} is damaged ("
+                                + ("its CRC check fails)" if isinstance(exc, CRCValidationError) else "it cannot be read)")
+                                if kind else f"the record after byte {start} cannot be read")
+                        raise BagError(f"{self.mcap_path}: corrupt MCAP data: {what}; run `bev-mdo bag repair` to keep "
+                                       "the records before and after it") from exc
                     self.truncated = True  # every message was read: noted, and `bag repair` rewrites the summary
-                    self.damage = f"damaged in the summary after the messages ({type(exc).__name__})"
+                    self.end_damage = "damaged in the summary after the messages (a record cannot be read)"
                 break
+
+    def _opcode(self, at: int) -> int:
+        with open(self.mcap_path, "rb") as f:
+            f.seek(at)
+            return f.read(1)[0]
 
     def _scan(self) -> None:
         self._check_magic()
         saw_header = summary = False
+        per_channel: dict[int, int] = {}
+        copies: dict[type, dict[int, object]] = {Schema: {}, Channel: {}}  # the summary's
         for record in self._records():
             saw_header = True
             if isinstance(record, DataEnd):
                 summary = True  # its schemas and channels repeat the data section's: those are the ones read
             elif summary and isinstance(record, (Schema, Channel)):
-                continue
+                copies[type(record)][record.id] = record
+            elif summary and isinstance(record, Statistics):
+                self._written_count = record.message_count
             elif isinstance(record, Schema):
                 if record.encoding != "ros2msg":
                     raise BagError(f"{self.mcap_path}: schema {record.name!r} has encoding "
@@ -191,19 +216,32 @@ class Bag:
             elif isinstance(record, Metadata):
                 self.metadata[record.name] = dict(record.metadata)
             elif isinstance(record, Attachment):
-                self.attachments[record.name] = bytes(record.data)
+                if self._intact(record, self.recovered_bytes):
+                    self.attachments[record.name] = bytes(record.data)
+                else:
+                    self.damaged_attachments.append(record.name)
+                    self.truncated = True
             elif isinstance(record, Message):
-                topic = self._channel(record.channel_id).topic
-                self.start_ns = min(self.start_ns, record.log_time) if self.counts else record.log_time
+                self.start_ns = min(self.start_ns, record.log_time) if per_channel else record.log_time
+                per_channel[record.channel_id] = per_channel.get(record.channel_id, 0) + 1
                 self.end_ns = max(self.end_ns, record.log_time)
-                self.counts[topic] = self.counts.get(topic, 0) + 1
             elif isinstance(record, Footer):
                 self._check_end(self.recovered_bytes)
+                self._check_summary(record, self.recovered_bytes)
                 break
         if not saw_header:
             raise BagError(f"{self.mcap_path}: truncated MCAP header")
         if self.truncated and not self.channels and not self.metadata:
             raise BagError(f"{self.mcap_path}: truncated, no complete record after the header")
+        if self.summary_ok:  # a channel (or schema) whose record was in a damaged chunk: the summary's copy
+            for kind, known in ((Schema, self.schemas), (Channel, self.channels)):
+                for rid, record in copies[kind].items():
+                    known.setdefault(rid, record)
+        else:
+            self._written_count = None
+        for channel_id, n in per_channel.items():
+            topic = self._channel(channel_id).topic
+            self.counts[topic] = self.counts.get(topic, 0) + n
         # A bev_mdo recording holds our schemas; other packages' topics may be recorded beside
         # them (the recorder takes any topic it is given), but a bag of only foreign types is not ours.
         foreign = [s.name for s in self.schemas.values() if not s.name.startswith(PACKAGE + "/")]
@@ -228,12 +266,60 @@ class Bag:
             return
         if len(tail) > len(MAGIC) and tail[:len(MAGIC)] == MAGIC:
             extra = self.file_size - footer_end - len(MAGIC)
-            self.damage = f"{extra} byte(s) after the end of the MCAP data"
+            self.end_damage = f"{extra} byte(s) after the end of the MCAP data"
         elif len(tail) < len(MAGIC) and MAGIC.startswith(tail):
-            self.damage = f"truncated: the closing magic bytes are cut short ({len(tail)} of {len(MAGIC)})"
+            self.end_damage = f"truncated: the closing magic bytes are cut short ({len(tail)} of {len(MAGIC)})"
         else:
-            self.damage = "the closing magic bytes after the footer are invalid"
+            self.end_damage = "the closing magic bytes after the footer are invalid"
         self.truncated = True
+
+    def _check_summary(self, footer: Footer, footer_end: int) -> None:
+        """The summary section's CRC (the footer's ``summary_crc``, over the summary and the footer up to it):
+        the mcap library does not check it, and its schemas, channels and indexes are what other readers use."""
+        if not footer.summary_start or not footer.summary_crc:
+            self.summary_ok = bool(footer.summary_start)  # a summary written without its CRC: taken as it is
+            return
+        with open(self.mcap_path, "rb") as f:
+            f.seek(footer.summary_start)
+            self.summary_ok = zlib.crc32(f.read(footer_end - 4 - footer.summary_start)) == footer.summary_crc
+        if not self.summary_ok:
+            self.truncated = True
+            self.end_damage = self.end_damage or "damaged in the summary after the messages (its CRC check fails)"
+
+    def _intact(self, attachment: Attachment, end: int) -> bool:
+        """Whether an attachment (ending at byte ``end``) passes its CRC check, which the mcap library skips: its
+        record as the library writes it again, CRC included, against the file's bytes (a stored CRC 0: unchecked)."""
+        builder = RecordBuilder()
+        attachment.write(builder)
+        record = bytes(builder.end())
+        with open(self.mcap_path, "rb") as f:
+            f.seek(max(0, end - len(record)))
+            stored = f.read(len(record))
+        return stored[:-4] != record[:-4] or stored[-4:] in (record[-4:], bytes(4))  # (padded: cannot tell)
+
+    @property
+    def damage(self) -> str:
+        """What is wrong with a file whose messages were read (chunks left out, a damaged attachment, summary or
+        end), '' when nothing is or the file is merely cut short."""
+        parts = []
+        if self.skipped:
+            chunks = all(chunk for _a, _b, chunk in self.skipped)
+            parts.append(f"{len(self.skipped)} damaged {'chunk' if chunks else 'record'}(s) left out (bytes "
+                         + ", ".join(f"{a}-{b}" for a, b, _chunk in self.skipped) + ")")
+        if self.damaged_attachments:
+            parts.append(f"attachment {', '.join(self.damaged_attachments)} damaged (its CRC check fails; left out)")
+        elif self.data_crc_failed:
+            parts.append("a metadata record between the chunks is damaged (the data section's CRC check fails)")
+        return "; ".join(parts + [self.end_damage] if self.end_damage else parts)
+
+    @property
+    def written_count(self) -> int | None:
+        """How many messages the bag was written with, where its intact summary or the metadata.yaml that names
+        it says so and that is not fewer than were read (None otherwise)."""
+        count = self._written_count
+        if count is None and self.mcap_path.name in storage_files(self.bag_dir):
+            count = bagfile_information(self.bag_dir).get("message_count")
+        return count if isinstance(count, int) and count >= self.message_count else None
 
     def _channel(self, channel_id: int) -> Channel:
         try:
@@ -326,8 +412,14 @@ class Bag:
         """One line saying how much of a truncated file was read ('' when complete)."""
         if not self.truncated:
             return ""
-        return (f"{self.mcap_path}: {self.damage or 'truncated'}; read {self.message_count} messages from the first "
+        return (f"{self.mcap_path}: {self.damage or 'truncated'}; read {self.count_phrase} from the first "
                 f"{self.recovered_bytes} of {self.file_size} bytes (run `bev-mdo bag repair`)")
+
+    @property
+    def count_phrase(self) -> str:
+        """'206 of 232 messages' where the number written is known, else '206 messages'."""
+        total = self.written_count
+        return f"{self.message_count}{f' of {total}' if total is not None else ''} messages"
 
 
 def open_bag(path, *, strict: bool = True, salvage: bool = False) -> Bag:

@@ -31,7 +31,8 @@ class RepairResult:
     was_truncated: bool
     rewritten: bool
     metadata_written: bool = False  # metadata.yaml was missing or did not describe the bag
-    skipped: str = ""  # the damaged records left out, when there were some
+    damage: str = ""  # what was damaged (the records left out), when the reader could say
+    written_count: int | None = None  # how many messages the bag was written with, where known
 
 
 def _topic_infos(bag: Bag) -> list[meta.TopicInfo]:
@@ -104,6 +105,7 @@ def repair(bag_dir, *, force: bool = False) -> RepairResult:
     path = bag.mcap_path
     info = meta.bag_info(path.name, _topic_infos(bag), bag.start_ns, bag.end_ns)
     good_yaml = _describes(bag.bag_dir, path.name, bag.message_count)
+    written = bag.written_count  # (before metadata.yaml is written again)
     if not bag.truncated and good_yaml and not force:
         return RepairResult(bag.bag_dir, path, None, bag.message_count, False, False)
     backup = None
@@ -116,7 +118,7 @@ def repair(bag_dir, *, force: bool = False) -> RepairResult:
                  else "the bag is unchanged")
         raise BagError(f"{path}: the repair could not be written ({exc.strerror or exc}); {state}") from exc
     return RepairResult(bag.bag_dir, path, backup, bag.message_count, bag.truncated,
-                        backup is not None, not good_yaml, bag.damage if bag.skipped else "")
+                        backup is not None, not good_yaml, bag.damage, written)
 
 
 def _describes(bag_dir: Path, file_name: str, message_count: int) -> bool:

@@ -133,8 +133,9 @@ class BagWriter:
 
 
 def mcap_writer(stream, library: str, chunk_size_bytes: int = CHUNK_SIZE_BYTES) -> Writer:
-    """A started MCAP writer of bev_mdo's bags: ros2 profile, zstd-compressed chunks."""
-    writer = Writer(stream, chunk_size=chunk_size_bytes, compression=CompressionType.ZSTD)
+    """A started MCAP writer of bev_mdo's bags: ros2 profile, zstd-compressed chunks, the data section's CRC."""
+    writer = Writer(stream, chunk_size=chunk_size_bytes, compression=CompressionType.ZSTD,
+                    enable_data_crcs=True)  # so a damaged metadata record or attachment is found
     writer.start(profile=PROFILE, library=library)
     return writer
 

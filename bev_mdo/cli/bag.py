@@ -28,8 +28,9 @@ def run(args) -> int:
             done = "written (it was missing or did not describe the bag)" if result.metadata_written else "checked"
             print(f"{result.mcap_path}: complete; metadata.yaml {done} ({result.message_count} messages)")
         else:
-            print(f"{result.mcap_path}: repaired, {result.message_count} messages kept; "
-                  f"{result.skipped + '; ' if result.skipped else ''}original kept as {result.backup_path}")
+            total = f" of {result.written_count}" if result.written_count is not None else ""
+            print(f"{result.mcap_path}: repaired, {result.message_count}{total} messages kept; "
+                  f"{result.damage + '; ' if result.damage else ''}original kept as {result.backup_path}")
         return 0
     from bev_mdo.bag.reader import open_bag
 
