@@ -311,7 +311,12 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         final = evaluate_design(run, evaluator, design)
         mda_evals = form.mda_evaluations + 1
         ok, err = form.status(x)
+        if ok and not final.get("ok", True):  # IDF: its point consistent, the MDA through it failed
+            ok, err = False, final.get("error", "")
     counts = dict(evaluator.counts)
+    if not ok and fo["verdict"] != first_order.INFEASIBLE:  # e.g. IDF's consistent point whose MDA failed
+        fo = {**fo, "verdict": first_order.INFEASIBLE, "point_failed": True,
+              "failure": (err or final.get("error", "")).split("; ")[0]}
     message = str(res.message) + (f"; final point failed: {err}" if not ok else "")
     if projected:
         message += f"; the result is {projected_line(projected)}"

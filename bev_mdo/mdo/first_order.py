@@ -126,8 +126,8 @@ def verdict_line(fo: dict) -> str:
         return f"optimum (first-order conditions hold to {worst:.2g}; tolerance {fo['tolerance']:g})"
     if v == INFEASIBLE and fo.get("cannot_follow"):  # api.optimize: the result's motor cannot follow the cycle
         return f"infeasible ({'; '.join(fo['cannot_follow'])})"
-    if v == INFEASIBLE and fo.get("point_failed"):
-        return "infeasible (the point failed: the disciplines gave no value there)"
+    if v == INFEASIBLE and fo.get("point_failed"):  # failure: the driver's, when the final analysis failed
+        return f"infeasible (the point failed: {fo.get('failure') or 'the disciplines gave no value there'})"
     if v == INFEASIBLE:
         return (f"infeasible (largest violation {fo['max_violation']:.3g} > feasibility tolerance "
                 f"{fo['feasibility_tolerance']:g})")
