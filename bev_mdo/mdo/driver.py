@@ -362,7 +362,8 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
     lo, hi = form.u_bounds
     fo = first_order.check(u, lo, hi, df, g[0], dg, h[0], dh, names=form.var_names,
                            ineq_labels=form.ineq_labels, eq_labels=form.eq_labels, feasibility_tol=tol,
-                           point_ok=ok, moved=not np.array_equal(x, np.asarray(x_start, dtype=float)),
+                           point_ok=ok, moved=not np.allclose(x, np.asarray(x_start, dtype=float), rtol=1e-12,
+                                                              atol=1e-12),  # a rounding away is no move
                            unknown=form.unknown_derivatives(u) if ok else ())
     if ok and fo["verdict"] == first_order.STOPPED and not fo["unknown_derivatives"]:  # is it smooth there?
         fo["kinks"] = kinks(form, u, f[0], float(np.max(np.abs(df), initial=0.0)))
