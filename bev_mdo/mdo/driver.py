@@ -311,7 +311,12 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         final = evaluate_design(run, evaluator, design)
         mda_evals = form.mda_evaluations + 1
         ok, err = form.status(x)
+        if ok and not final.get("ok", True):  # IDF: its point consistent, the MDA through it failed
+            ok, err = False, final.get("error", "")
     counts = dict(evaluator.counts)
+    if not ok and fo["verdict"] != first_order.INFEASIBLE:  # e.g. IDF's consistent point whose MDA failed
+        fo = {**fo, "verdict": first_order.INFEASIBLE, "point_failed": True,
+              "failure": (err or final.get("error", "")).split("; ")[0]}
     message = str(res.message) + (f"; final point failed: {err}" if not ok else "")
     if projected:
         message += f"; the result is {projected_line(projected)}"
@@ -357,7 +362,8 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
     lo, hi = form.u_bounds
     fo = first_order.check(u, lo, hi, df, g[0], dg, h[0], dh, names=form.var_names,
                            ineq_labels=form.ineq_labels, eq_labels=form.eq_labels, feasibility_tol=tol,
-                           point_ok=ok, moved=not np.array_equal(x, np.asarray(x_start, dtype=float)),
+                           point_ok=ok, moved=not np.allclose(x, np.asarray(x_start, dtype=float), rtol=1e-12,
+                                                              atol=1e-12),  # a rounding away is no move
                            unknown=form.unknown_derivatives(u) if ok else ())
     if ok and fo["verdict"] == first_order.STOPPED and not fo["unknown_derivatives"]:  # is it smooth there?
         fo["kinks"] = kinks(form, u, f[0], float(np.max(np.abs(df), initial=0.0)))

@@ -98,6 +98,7 @@ def check(u: np.ndarray, lower: np.ndarray, upper: np.ndarray, grad_f: np.ndarra
     return {
         "verdict": verdict,
         "point_failed": not point_ok,
+        "moved": bool(moved),
         "conditions_hold": holds,
         "stationarity": stationarity,
         "complementarity": complementarity,
@@ -123,11 +124,14 @@ def verdict_line(fo: dict) -> str:
     v = fo["verdict"]
     worst = max(fo["stationarity"], fo["complementarity"])
     if v == OPTIMUM:
-        return f"optimum (first-order conditions hold to {worst:.2g}; tolerance {fo['tolerance']:g})"
+        still = ("; the start point, where the gradient is about zero: a saddle or a flat region passes this "
+                 "check too, try --starts N" if not fo.get("moved", True) and fo["gradient_norm"] <= fo["tolerance"]
+                 and not fo["active_constraints"] and not fo["active_bounds"] and not fo["equalities"] else "")
+        return f"optimum (first-order conditions hold to {worst:.2g}; tolerance {fo['tolerance']:g}{still})"
     if v == INFEASIBLE and fo.get("cannot_follow"):  # api.optimize: the result's motor cannot follow the cycle
         return f"infeasible ({'; '.join(fo['cannot_follow'])})"
-    if v == INFEASIBLE and fo.get("point_failed"):
-        return "infeasible (the point failed: the disciplines gave no value there)"
+    if v == INFEASIBLE and fo.get("point_failed"):  # failure: the driver's, when the final analysis failed
+        return f"infeasible (the point failed: {fo.get('failure') or 'the disciplines gave no value there'})"
     if v == INFEASIBLE:
         return (f"infeasible (largest violation {fo['max_violation']:.3g} > feasibility tolerance "
                 f"{fo['feasibility_tolerance']:g})")

@@ -113,3 +113,38 @@ def test_a_zero_gradient_from_failed_finite_differences_verifies_nothing():
     assert fo["verdict"] == NO_PROGRESS and not fo["conditions_hold"] and fo["unknown_derivatives"] == ["a", "b"]
     assert verdict_line(fo).startswith("no progress from the start point (no derivative in a, b: their ")
     assert _check([0.3, 0.6], [0.0, 0.0], unknown=["b"])["verdict"] == STOPPED
+
+
+def test_a_start_point_with_a_zero_gradient_is_an_optimum_that_says_so():
+    # a user trial: f = p^2 - q^2 started at its saddle (0, 0) and f = -max(p - 0.5, 0)^2 started in its flat
+    # part ended "verdict: optimum" (the conditions hold there) without a word that better points exist
+    from bev_mdo.mdo.first_order import verdict_line
+
+    stuck = _check([0.5, 0.5], [0.0, 0.0], moved=False)
+    assert stuck["verdict"] == OPTIMUM and "a saddle or a flat region passes this check too" in verdict_line(stuck)
+    assert "saddle" not in verdict_line(_check([0.5, 0.5], [0.0, 0.0], moved=True))  # the optimiser got there
+    on_bound = _check([0.0, 0.5], [2.0, 0.0], moved=False)  # a start point held by a bound: a real optimum
+    assert on_bound["verdict"] == OPTIMUM and "saddle" not in verdict_line(on_bound)
+
+
+def test_an_end_point_a_rounding_away_from_the_start_has_not_moved(tmp_path, capsys):
+    # SLSQP returned p = 0.19999999999999996 for a start at 0.2: the check took it for a move
+    import json
+
+    import yaml
+
+    from bev_mdo.cli import main
+
+    (tmp_path / "flat_start.py").write_text(
+        "import numpy as np\n\n\nclass Flat:\n    name, inputs, outputs = 'flat', ('p', 'q'), ('ff',)\n"
+        "    units = {'p': '1', 'q': '1', 'ff': '1'}\n\n    def compute(self, i):\n"
+        "        return {'ff': -np.maximum(i['p'] - 0.5, 0.0) ** 2 + 0 * i['q']}\n")
+    raw = {"name": "flat_start", "disciplines": [{"name": "flat", "class": "flat_start:Flat"}],
+           "problem": {"objective": "ff", "design_variables": {"p": {"lower": -1, "upper": 1, "initial": 0.2},
+                                                               "q": {"lower": -1, "upper": 1, "initial": 0.2}}},
+           "optimizer": {"name": "SLSQP"}}
+    path = tmp_path / "flat_start.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    assert main(["optimize", str(path), "--transport", "inprocess", "--no-record", "--json"]) == 0
+    fo = json.loads(capsys.readouterr().out)["first_order"]
+    assert fo["verdict"] == OPTIMUM and fo["moved"] is False

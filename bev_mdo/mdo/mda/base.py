@@ -75,6 +75,7 @@ class Batch:
     # discipline -> the points its last evaluation succeeded at (a failed point keeps those outputs
     # that such evaluations made from sound inputs: MDA.run)
     evaluated: dict[str, np.ndarray] = field(default_factory=dict)
+    changes: np.ndarray | None = None  # (2 L, N): per point, a loop's last changes, oldest first (LoopSolver.check)
 
     def fail(self, i: int, kind: str, message: str, discipline: str = "", loop: Sequence[str] = (),
              reason: str = "") -> None:
@@ -207,18 +208,38 @@ class LoopSolver:
     def check(self, b: Batch, active: np.ndarray, new: np.ndarray, old: np.ndarray, it: int,
               converged: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """After iteration ``it``: (relative change max |new - old| / max(|new|, 1) per point, inf if
-        not finite; the points still good; those converged, also appended to ``converged``)."""
-        with np.errstate(invalid="ignore"):
-            rel = np.abs(new - old) / np.maximum(np.abs(new), 1.0)
+        not finite; the points still good; those converged, also appended to ``converged``). A point
+        converges when its relative change is within the tolerance and, once 2 L iterations are known
+        (L: the loop's outputs, the longest cycle its changes can go round), so is the distance still to go
+        that the change implies, change x r / (1 - r), r the contraction per iteration measured over the
+        last 2 L: a slow loop's small step is not yet its answer, and iterates running off to infinity by
+        steady steps (a loop without a fixed point: r about 1, a user trial) shrink the relative change,
+        not the change."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            change = np.abs(new - old)
+            rel = change / np.maximum(np.abs(new), 1.0)
             err = np.max(rel, axis=0) if len(new) else np.zeros(active.size)
+            loop = max(len(new), 2)
+            if b.changes is None or b.changes.shape[0] != 2 * loop:
+                b.changes = np.full((2 * loop, b.ok.size), np.nan)
+            if it == 1:
+                b.changes[:, active] = np.nan
+            b.changes[:, active] = np.vstack([b.changes[1:, active], np.max(change, axis=0, initial=0.0)])
+            recent, before = np.max(b.changes[loop:, active], axis=0), np.max(b.changes[:loop, active], axis=0)
+            r = np.where(before > 0, (recent / before) ** (1.0 / loop), np.where(recent > 0, np.inf, 0.0))
+            to_go = np.where(r < 1.0, err * r / (1.0 - r), np.inf)
         err = np.where(np.isfinite(err), err, np.inf)
+        settling = (it < 2 * loop) | (to_go <= self.tolerance)
         b.iterations[active] = it
         alive = b.ok[active]
-        done = alive & (err <= self.tolerance)
+        done = alive & (err <= self.tolerance) & settling
         converged.extend(active[done].tolist())
         return err, alive, done
 
     def not_converged(self, comp: Sequence[str], b: Batch, active: np.ndarray, err: np.ndarray) -> None:
         for i, e in zip(active, err):
+            why = (f"relative change {e:.3g} > tolerance {self.tolerance:g}" if e > self.tolerance else
+                   f"relative change {e:.3g} within the tolerance, but the changes do not shrink fast enough for the "
+                   "distance still to go to be: a loop without a fixed point, or one that needs more iterations")
             b.fail(i, "not_converged", f"MDA loop {list(comp)} did not converge in {self.max_iterations} "
-                   f"{self.name} iterations (relative change {e:.3g} > tolerance {self.tolerance:g})", loop=comp)
+                   f"{self.name} iterations ({why})", loop=comp)

@@ -2,7 +2,8 @@
 loop output is within the tolerance, per point, over the points still iterating.
 
 A subclass says what one sweep is (``sweep``) and how a cold start is seeded (``seed``).
-Convergence: max over the loop outputs of |new - old| / max(|new|, 1) <= tolerance.
+Convergence: max over the loop outputs of |new - old| / max(|new|, 1) <= tolerance, the changes shrinking
+(LoopSolver.check).
 """
 from __future__ import annotations
 
