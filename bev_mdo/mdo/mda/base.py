@@ -215,24 +215,25 @@ class LoopSolver:
         last 2 L: a slow loop's small step is not yet its answer, and iterates running off to infinity by
         steady steps (a loop without a fixed point: r about 1, a user trial) shrink the relative change,
         not the change."""
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with np.errstate(invalid="ignore"):
             change = np.abs(new - old)
-            rel = change / np.maximum(np.abs(new), 1.0)
-            err = np.max(rel, axis=0) if len(new) else np.zeros(active.size)
-            loop = max(len(new), 2)
-            if b.changes is None or b.changes.shape[0] != 2 * loop:
-                b.changes = np.full((2 * loop, b.ok.size), np.nan)
-            if it == 1:
-                b.changes[:, active] = np.nan
-            b.changes[:, active] = np.vstack([b.changes[1:, active], np.max(change, axis=0, initial=0.0)])
-            recent, before = np.max(b.changes[loop:, active], axis=0), np.max(b.changes[:loop, active], axis=0)
-            r = np.where(before > 0, (recent / before) ** (1.0 / loop), np.where(recent > 0, np.inf, 0.0))
-            to_go = np.where(r < 1.0, err * r / (1.0 - r), np.inf)
+            err = np.max(change / np.maximum(np.abs(new), 1.0), axis=0, initial=0.0)
         err = np.where(np.isfinite(err), err, np.inf)
-        settling = (it < 2 * loop) | (to_go <= self.tolerance)
+        loop = max(len(new), 2)
+        if b.changes is None or b.changes.shape[0] != 2 * loop:
+            b.changes = np.zeros((2 * loop, b.ok.size))
+        b.changes[it % (2 * loop), active] = np.max(change, axis=0, initial=0.0)  # a ring of the last 2 L
         b.iterations[active] = it
         alive = b.ok[active]
-        done = alive & (err <= self.tolerance) & settling
+        done = alive & (err <= self.tolerance)
+        if it >= 2 * loop and done.any():  # the distance still to go, where the step alone would do
+            j = np.flatnonzero(done)
+            ring = b.changes[:, active[j]]
+            recent = np.max(ring[[(it - k) % (2 * loop) for k in range(loop)]], axis=0)
+            before = np.max(ring[[(it - loop - k) % (2 * loop) for k in range(loop)]], axis=0)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                r = np.where(before > 0, (recent / before) ** (1.0 / loop), np.where(recent > 0, np.inf, 0.0))
+                done[j] = (r < 1.0) & (err[j] * r / (1.0 - r) <= self.tolerance)
         converged.extend(active[done].tolist())
         return err, alive, done
 
