@@ -228,12 +228,11 @@ class LoopSolver:
         done = alive & (err <= self.tolerance)
         if it >= 2 * loop and done.any():  # the distance still to go, where the step alone would do
             j = np.flatnonzero(done)
-            ring = b.changes[:, active[j]]
-            recent = np.max(ring[[(it - k) % (2 * loop) for k in range(loop)]], axis=0)
-            before = np.max(ring[[(it - loop - k) % (2 * loop) for k in range(loop)]], axis=0)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                r = np.where(before > 0, (recent / before) ** (1.0 / loop), np.where(recent > 0, np.inf, 0.0))
-                done[j] = (r < 1.0) & (err[j] * r / (1.0 - r) <= self.tolerance)
+            ring = b.changes[(it - np.arange(2 * loop)) % (2 * loop)][:, active[j]]  # newest first
+            recent, before = ring[:loop].max(axis=0), ring[loop:].max(axis=0)
+            # r = (recent / before)^(1/L) per iteration; to go: err r / (1 - r) <= tolerance
+            r = np.divide(recent, before, out=np.where(recent > 0, np.inf, 0.0), where=before > 0) ** (1.0 / loop)
+            done[j] = (r < 1.0) & (err[j] * r <= self.tolerance * (1.0 - r))
         converged.extend(active[done].tolist())
         return err, alive, done
 
