@@ -140,7 +140,8 @@ def _context_title(s, cfg, design=None) -> str:
     model = (cfg or {}).get("energy_model", "")
     shown = {**(design or {}), **{k: s.point[k] for k in s.names}}
     point = ", ".join(f"{k}={v:g}" for k, v in shown.items())
-    return f"at {point}" + (f"; cycle {cyc}" if cyc else "") + (f", {model} model" if model else "")
+    # the energy model defaults to flat in every config: named only beside a cycle (not for Ishigami)
+    return f"at {point}" + (f"; cycle {cyc}" + (f", {model} model" if model else "") if cyc else "")
 
 
 def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):

@@ -52,3 +52,13 @@ def test_the_title_names_the_design_point_when_only_a_parameter_is_analysed(tmp_
     fig = write_heatmap(str(tmp_path / "p.png"), s, outputs, cfg, {k: point[k] for k in problem.names})
     title = fig._suptitle.get_text()
     assert "motor_kw=70, gear_ratio=8, battery_kwh=24" in title and f"{param}=" in title
+
+
+def test_a_problem_without_a_vehicle_names_no_energy_model(tmp_path):
+    """Ishigami's figure was titled '..., flat model': the config's default energy model, of no discipline."""
+    from bev_mdo.cli.sensitivity import _context_title
+
+    class S:
+        names, point = ("x1",), {"x1": 0.0}
+    assert _context_title(S, {"energy_model": "flat"}) == "at x1=0"
+    assert _context_title(S, {"energy_model": "flat", "cycle": {"name": "nedc"}}) == "at x1=0; cycle nedc, flat model"
