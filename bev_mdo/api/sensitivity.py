@@ -71,7 +71,7 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
             rep["units"] = {k: units[k] for k in (*wrt, *outputs) if k in units}
             return rep
         s = sensitivities(fun, point, wrt=wrt, order=order, bounds={**_model_limits(point, problem.names), **bounds},
-                          rel_step=rel_step, method=method, objective=problem.objective)
+                          rel_step=rel_step, method=method)
     return s, outputs, point, problem
 
 

@@ -139,7 +139,7 @@ def _verdict(result: dict, out, units: dict) -> None:
         return  # the answers below say what is violated and what blocks it
 
     def u(name: str) -> str:  # " kW", or "" for a quantity without a unit
-        return f" {unit_of(name, units)}" if unit_of(name, units) else ""
+        return f" {unit_of(name, units, inline=True)}" if unit_of(name, units, inline=True) else ""
 
     lines, held = [], []  # held: [name, label, multiplier]; an equality's two rows (>=, <=) as one, name == value
     for c in fo["active_constraints"]:

@@ -101,16 +101,20 @@ def run(args) -> int:
     return 0
 
 
-def print_tables(s, outputs, out=sys.stdout) -> None:
+def print_tables(s, outputs, out=None) -> None:
+    out = out or sys.stdout  # the stream of the call (a default of sys.stdout kept the one at import)
     w = max(12, *(len(n) for n in s.names)) + 2
     ow = max(len(k) for k in outputs) + 2
     print(f"point: {', '.join(f'{k}={s.point[k]:g}' for k in s.names)}   "
           f"({s.n_evaluations} evaluations in {s.n_batches} batch(es), method {s.method})", file=out)
     print("\nFirst-order normalised sensitivity S_i = (x_i/f) df/dx_i  (eq 5-4)", file=out)
     print("output".ljust(ow) + "".join(n.rjust(w) for n in s.names), file=out)
+    zero = [k for k in outputs if s.values[k] == 0]  # S undefined: the plain derivatives are shown
     for k in outputs:
         # a leading space keeps a cell wider than the column (|S| >= 1e8 near a zero of f) apart from the last
-        print(k.ljust(ow) + "".join(f" {v:.4f}".rjust(w) for v in s.first[k]), file=out)
+        cells = s.gradient[k] if k in zero else s.first[k]
+        print(k.ljust(ow) + "".join((f" {v:.4g}" if k in zero else f" {v:.4f}").rjust(w) for v in cells)
+              + ("   df/dx_i (f = 0: S undefined)" if k in zero else ""), file=out)
     print("step".ljust(ow) + "".join(f"{v:{w}.3g}" for v in s.step), file=out)
     if s.second is None:
         return
@@ -118,10 +122,14 @@ def print_tables(s, outputs, out=sys.stdout) -> None:
     print("labels: NC |S'|<0.05, MC <0.5, SC <0.8, VSC >=0.8 (no/medium/strong/very strong coupling)", file=out)
     for k in outputs:
         m, lab, err = s.second[k], s.labels(k), s.second_error[k]
-        print(f"\n{k}  (max Richardson error {np.nanmax(err):.1e})", file=out)
+        if k in zero:
+            m = s.hessian[k]
+        print(f"\n{k}  " + ("(f = 0: S' undefined; d2f/dx_i dx_j shown)" if k in zero
+                             else f"(max Richardson error {np.nanmax(err):.1e})"), file=out)
         print("".ljust(w) + "".join(n.rjust(w) for n in s.names), file=out)
         for i, n in enumerate(s.names):
-            cells = [f" {m[i, j]:.4f} {lab[i, j]}".rjust(w) if j >= i else "".rjust(w) for j in range(len(s.names))]
+            cells = [(f" {m[i, j]:.4g}" if k in zero else f" {m[i, j]:.4f} {lab[i, j]}").rjust(w) if j >= i
+                     else "".rjust(w) for j in range(len(s.names))]
             print(n.ljust(w) + "".join(cells), file=out)
 
 
@@ -132,7 +140,8 @@ def _context_title(s, cfg, design=None) -> str:
     model = (cfg or {}).get("energy_model", "")
     shown = {**(design or {}), **{k: s.point[k] for k in s.names}}
     point = ", ".join(f"{k}={v:g}" for k, v in shown.items())
-    return f"at {point}" + (f"; cycle {cyc}" if cyc else "") + (f", {model} model" if model else "")
+    # the energy model defaults to flat in every config: named only beside a cycle (not for Ishigami)
+    return f"at {point}" + (f"; cycle {cyc}" + (f", {model} model" if model else "") if cyc else "")
 
 
 def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
@@ -158,7 +167,7 @@ def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
     for k, out in enumerate(outputs):
         vals, err = np.asarray(s.first[out], float), np.asarray(s.first_error[out], float)
         ax.bar(xs + (k - (n - 1) / 2) * width, vals, width, yerr=np.where(np.isfinite(err), err, 0),
-               label=label(out), capsize=2)
+               label=label(out) + (" (0 at the point: S undefined)" if s.values[out] == 0 else ""), capsize=2)
     ax.axhline(0, color="k", lw=0.8)
     ax.set_xticks(xs, [label(v) for v in s.names], fontsize=8)
     ax.set_ylabel("S = (x/f) df/dx (–)")
@@ -185,7 +194,8 @@ def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
             for i in range(m.shape[0]):
                 for j in range(m.shape[1]):
                     if masked[i, j]:
-                        ax.text(j, i, "≤ err", ha="center", va="center", fontsize=7, color="0.35")
+                        ax.text(j, i, "f = 0" if s.values[k] == 0 else "≤ err", ha="center", va="center",
+                                fontsize=7, color="0.35")
                         continue
                     dark = abs(norm(m[i, j]) - 0.5) > 0.3
                     ax.text(j, i, f"{m[i, j]:.3g}\n{lab[i, j]}", ha="center", va="center", fontsize=8,

@@ -40,7 +40,7 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
     from bev_mdo.mdo.units import unit_of
 
     def unit(name: str) -> str:
-        return unit_of(name, units or {})
+        return unit_of(name, units or {}, inline=True)
     active, violated = [], []
     for name, kind, limit, scale in _limits(problem):
         y = float(values.get(name, np.nan))

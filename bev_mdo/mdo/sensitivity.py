@@ -32,6 +32,8 @@ _ONE_SIDED = np.array([0.0, 1.0, 2.0, 3.0])
 def coupling_label(value: float) -> str:
     """NC / MC / SC / VSC for a normalised second-order value (module docstring)."""
     a = abs(float(value))
+    if not np.isfinite(a):  # undefined (an output that is 0 at the point)
+        return ""
     for label, bound in COUPLING_THRESHOLDS:
         if a < bound:
             return label
@@ -131,23 +133,20 @@ def _prepare(point, wrt, bounds, rel_step):
     return all_names, x0, wrt, idx, h, direction
 
 
-def _normalise(f0: float, name: str, raise_zero: bool, ref: float) -> float:
-    if f0 == 0 or not np.isfinite(f0) or abs(f0) <= 1e-13 * ref:
-        if raise_zero:
-            raise ValueError(f"output {name!r} is zero at the point: normalised sensitivity undefined")
-        return np.nan
-    return f0
+def _normalise(f0: float) -> float:
+    """f0, or NaN where the normalised sensitivity (x/f) df/dx is undefined (f = 0; the
+    derivatives stay in ``gradient`` and ``hessian``)."""
+    return f0 if f0 != 0 and np.isfinite(f0) else np.nan
 
 
 def sensitivities(fun: BatchFun, point: Mapping[str, float], wrt: Sequence[str] | None = None,
                   order: int = 1, bounds: Mapping[str, tuple[float, float]] | None = None,
-                  rel_step: float | None = None, method: str = "central",
-                  objective: str | None = None) -> Sensitivities:
+                  rel_step: float | None = None, method: str = "central") -> Sensitivities:
     """Normalised sensitivities of every output of ``fun`` at ``point`` w.r.t. ``wrt``.
 
     ``method``: "central" (real FD), "complex" (complex step, first order; ``fun``
     must accept complex X) or "auto" (complex if ``fun`` supports it, else central).
-    ``objective``: output whose zero value raises ValueError (others give NaN).
+    An output that is 0 at the point has NaN normalised values and its plain derivatives.
     Order 2 evaluates the whole stencil (h and 2h) in one batch.
     """
     if order not in (1, 2):
@@ -173,12 +172,10 @@ def sensitivities(fun: BatchFun, point: Mapping[str, float], wrt: Sequence[str] 
         f0, H, H_err = f0c, None, None
     if grad_c is not None:  # the complex-step gradient is exact to rounding
         g, g_err = grad_c, {k: np.zeros(len(idx)) for k in grad_c}
-    if objective is not None:
-        _known(objective, list(f0), "output")
     xw = x0[idx]
     first, first_err, second, second_err = {}, {}, {}, {}
     for k in f0:
-        fn = _normalise(f0[k], k, k == objective, 1e-300)
+        fn = _normalise(f0[k])
         first[k] = g[k] * xw / fn
         first_err[k] = np.abs(g_err[k] * xw / fn)
         if H is not None:

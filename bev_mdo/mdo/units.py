@@ -172,10 +172,11 @@ def shown(unit: str) -> str:
     return "–" if unit.strip() in DIMENSIONLESS else unit.strip()
 
 
-def unit_of(name: str, units: Mapping[str, str]) -> str:
-    """The declared unit of a variable as printed ('' when it is not a variable of the run)."""
+def unit_of(name: str, units: Mapping[str, str], inline: bool = False) -> str:
+    """The declared unit of a variable as printed ('' when it is not a variable of the run). ``inline``:
+    after a number in a sentence, where a dimensionless quantity has none ('–' read as a minus sign)."""
     u = units.get(name)
-    return "" if u is None else shown(u)
+    return "" if u is None or (inline and u.strip() in DIMENSIONLESS) else shown(u)
 
 
 def label(name: str, units: Mapping[str, str]) -> str:

@@ -85,3 +85,16 @@ def test_a_parameter_at_its_model_limit_gets_a_one_sided_step(capsys):
     for out in ("energy_wh_per_km", "range_km"):  # the one-sided slope is the two-sided one nearby
         assert at_limit["first_order"][out]["normalised"] == pytest.approx(inside["first_order"][out]["normalised"],
                                                                            rel=2e-3)
+
+
+def test_an_objective_that_is_zero_at_the_point_gives_its_derivatives(capsys):
+    """Ishigami at its initial point (0, 0, 0) is 0: exit 2 'output 'f' is zero at the point'. Now
+    the table shows df/dx (1, 0, 0) and d2f/dx2^2 = 14 cos(2 x2) = 14 in place of the undefined S."""
+    ishigami = SELLAR.parents[1] / "sensitivity" / "ishigami.yaml"
+    code = main(["sensitivity", str(ishigami), "--transport", "inprocess", "--order", "2"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    row = next(line for line in out.splitlines() if line.startswith("f ") and "df/dx_i" in line)
+    assert [float(v) for v in row.split()[1:4]] == pytest.approx([1.0, 0.0, 0.0], abs=1e-6)
+    x2 = next(line for line in out.splitlines() if line.startswith("x2 "))
+    assert float(x2.split()[1]) == pytest.approx(14.0, rel=1e-4)

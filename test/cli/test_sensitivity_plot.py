@@ -19,7 +19,7 @@ def test_sensitivity_figure(tmp_path):
     cfg = load_config(str(ROOT / "config/leaf_nedc.yaml"))
     fun, point, bounds, outputs, problem = build_batch(cfg, InProcessEvaluator(resolve_disciplines(cfg)))
     point.update(motor_kw=80.0, gear_ratio=8.0, battery_kwh=24.0)
-    s = sensitivities(fun, point, wrt=list(problem.names), order=2, bounds=bounds, objective=problem.objective)
+    s = sensitivities(fun, point, wrt=list(problem.names), order=2, bounds=bounds)
     fig = write_heatmap(str(tmp_path / "s.png"), s, outputs, cfg)
     title = fig._suptitle.get_text()
     assert "motor_kw=80" in title and "cycle nedc" in title
@@ -48,7 +48,17 @@ def test_the_title_names_the_design_point_when_only_a_parameter_is_analysed(tmp_
     fun, point, bounds, outputs, problem = build_batch(cfg, InProcessEvaluator(resolve_disciplines(cfg)))
     param = next(k for k in point if k not in problem.names)
     point.update(motor_kw=70.0)
-    s = sensitivities(fun, point, wrt=[param], order=1, bounds=bounds, objective=problem.objective)
+    s = sensitivities(fun, point, wrt=[param], order=1, bounds=bounds)
     fig = write_heatmap(str(tmp_path / "p.png"), s, outputs, cfg, {k: point[k] for k in problem.names})
     title = fig._suptitle.get_text()
     assert "motor_kw=70, gear_ratio=8, battery_kwh=24" in title and f"{param}=" in title
+
+
+def test_a_problem_without_a_vehicle_names_no_energy_model(tmp_path):
+    """Ishigami's figure was titled '..., flat model': the config's default energy model, of no discipline."""
+    from bev_mdo.cli.sensitivity import _context_title
+
+    class S:
+        names, point = ("x1",), {"x1": 0.0}
+    assert _context_title(S, {"energy_model": "flat"}) == "at x1=0"
+    assert _context_title(S, {"energy_model": "flat", "cycle": {"name": "nedc"}}) == "at x1=0; cycle nedc, flat model"

@@ -191,3 +191,15 @@ def test_the_terminal_shows_an_active_equality_once_with_its_net_multiplier():
     _verdict(result, out, {})
     assert [ln.strip() for ln in out.getvalue().splitlines() if "lift" in ln] == [
         "active: lift == 0.5, margin 0, multiplier -1.847"]
+
+
+def test_a_dimensionless_quantity_has_no_unit_after_its_number():
+    """'g <= -1 – is 9.58e-13 –': the en dash printed for a dimensionless unit read as a minus sign."""
+    problem = Problem.from_config({"objective": "f", "design_variables": {"x": {"lower": 0, "upper": 1}},
+                                   "constraints": {"g": {"upper": -1}}})
+    units = {"f": "1", "g": "-", "x": ""}
+    a = active.analyse(problem, {"x": 0.0}, {"g": 0.5}, units=units)
+    assert a["lines"][0].startswith("violated: g <= -1 is 0.5, over by 1.5"), a["lines"]
+    assert not any("–" in line for line in a["lines"]), a["lines"]
+    a = active.analyse(problem, {"x": 0.0}, {"g": -1.0}, units=units)
+    assert "active: g <= -1, margin 0" in a["lines"] and "on its lower bound: x = 0 (bound 0, margin 0)" in a["lines"]

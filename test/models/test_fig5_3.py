@@ -52,7 +52,7 @@ def _batch(resampled):
     ("nedc", FIG_5_3A_NEDC), ("artemis_combined", FIG_5_3B_ARTEMIS)])
 def test_fig_5_3_matrix_and_labels(cycle, expected):
     r = cycles.resample(cycles.load_cycle(cycle))
-    s = sensitivities(_batch(r), dict(zip(NAMES, NOMINAL)), order=2, objective="energy_wh_per_km")
+    s = sensitivities(_batch(r), dict(zip(NAMES, NOMINAL)), order=2)
     m = s.second["energy_wh_per_km"]
     np.testing.assert_allclose(m, m.T, atol=1e-12)
     np.testing.assert_allclose(m, np.array(expected), atol=0.05)
