@@ -5,6 +5,9 @@ equals the road load, capped by the motor's maximum speed through the (longest) 
     P_max * eta_g = (0.5 * rho * CdA * v^2 + Cr * M * g) * v,   v <= omega_max * r_w / i_g
 With a coast-down in the config (``vehicle.road_load``) the road load is that one, A + B v + C v^2,
 as the built-in models take it (bev_mdo.models.road_load).
+One motor and its gear (SM-SA): with a second motor (DM-DA) it sees only `motor_kw` and `gear_ratio`, so
+the rear motor's power and its speed limit through `gear_ratio_rear` are not counted (a rear axle that
+cannot disconnect caps the top speed at its own limit: add that as a constraint of your own).
 Use it from a config:
     disciplines:
       - vehicle_mass

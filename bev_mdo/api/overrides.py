@@ -17,7 +17,7 @@ from typing import Any, Mapping
 
 from bev_mdo.api.errors import InputError
 
-_CONSTRAINT = re.compile(r"^\s*([A-Za-z_][\w\[\]\.]*)\s*(>=|<=)\s*(\S+)\s*$")
+_CONSTRAINT = re.compile(r"^\s*([A-Za-z_][\w\[\]\.]*)\s*(>=|<=)\s*(\S.*?)\s*$")
 
 
 @dataclass

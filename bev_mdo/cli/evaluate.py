@@ -54,6 +54,8 @@ def print_table(report: dict) -> None:
     t.add_column("role")
     for k, v in report["design"].items():
         t.add_row(k, _fmt(v), "design")
+    for k, v in report.get("parameters", {}).items():
+        t.add_row(k, _fmt(v), "parameter")
     obj = report["objective"]["name"]
     role = "objective (max)" if report["objective"].get("maximize") else "objective (min)"
     for k, v in report["outputs"].items():

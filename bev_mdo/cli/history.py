@@ -126,10 +126,16 @@ def _header(col: str, units: dict | None = None) -> tuple[str, str]:
         return _FIXED[col]
     name = col.split(".", 1)[1] if "." in col else col
     if col.startswith("evaluations."):
-        return name[:10], "evals"
+        return _cut(name, 10), "evals"
     from bev_mdo.mdo.units import unit_of
 
-    return _SHORT.get(name, name)[:12], unit_of(name, units or {})
+    return _cut(_SHORT.get(name, name), 12), unit_of(name, units or {})
+
+
+def _cut(name: str, width: int) -> str:
+    """``name`` in ``width`` characters, a cut one ending in '…' ('top_speed_km' over 'km/h' read as a
+    name with its unit, cut from top_speed_kmh)."""
+    return name if len(name) <= width else name[:width - 1] + "…"
 
 
 def _priority(col: str) -> int:

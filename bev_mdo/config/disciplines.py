@@ -36,14 +36,14 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
                              f"{graph.producer[name + '[0]']!r}); {what}")
     if problem.objective not in produced:
         raise ValueError(f"problem.objective {problem.objective!r} is not produced by any discipline; "
-                         f"outputs: {sorted(produced)}")
+                         + _outputs_hint(problem.objective, produced))
     for i, (name, _) in enumerate(problem.objectives):
         if name not in produced:
             raise ValueError(f"problem.objectives[{i}] {name!r} is not produced by any discipline; "
-                             f"outputs: {sorted(produced)}")
+                             + _outputs_hint(name, produced))
     for c in problem.constraints:
         if c.name not in produced:
-            raise ValueError(f"problem.constraints.{c.name}: no discipline produces it; outputs: {sorted(produced)}")
+            raise ValueError(f"problem.constraints.{c.name}: no discipline produces it; " + _outputs_hint(c.name, produced))
         # an output whose values from a ceiling up stand for an infeasible design (not a measurement) takes
         # only upper limits below it, so that such a design is infeasible whatever the limit
         maker = next((d for d in discs if d.name == graph.producer[c.name]), None)
@@ -54,7 +54,7 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
     for key, names in (("coupling_guesses", problem.coupling_guesses), ("coupling_bounds", problem.coupling_bounds)):
         for k in names:  # a name (or vector) no discipline produces would be ignored: a typo, said here
             if k not in produced and f"{k}[0]" not in produced:
-                raise ValueError(f"problem.{key}.{k}: no discipline produces it; outputs: {sorted(produced)}")
+                raise ValueError(f"problem.{key}.{k}: no discipline produces it; " + _outputs_hint(k, produced))
     for dv in problem.names:
         if dv in produced:
             hint = " (set problem.battery_sized_for_range: false, or drop the sizing discipline)" \
@@ -238,3 +238,11 @@ def discipline_names(config: Mapping[str, Any]) -> list[str]:
 
         return default_names(config)
     return [e if isinstance(e, str) else e["name"] for e in entries]
+
+
+def _outputs_hint(name: str, produced) -> str:
+    """``did you mean 'range_km'? outputs: [...]`` (the nearest output by difflib, as --constraint says)."""
+    import difflib
+
+    near = difflib.get_close_matches(name, sorted(produced), n=1, cutoff=0.6)
+    return (f"did you mean {near[0]!r}? " if near else "") + f"outputs: {sorted(produced)}"

@@ -168,8 +168,11 @@ def design_report(problem: Problem, mda: MDA, design: Mapping[str, float], value
     """The report of one analysed design (``values``: every MDA variable of the point)."""
     outputs = {v: float(values[v]) for s in mda.specs.values() for v in s.outputs}
     cons = _constraint_report(problem, outputs, tol)
+    given = {k: float(v) for k, v in design.items()}
+    params = {k: v for k, v in given.items() if k not in problem.names}  # --set overrides: not design variables
     return {
-        "design": {k: float(v) for k, v in design.items()},
+        "design": {k: v for k, v in given.items() if k in problem.names},
+        **({"parameters": params} if params else {}),
         "outputs": outputs,
         "objective": {"name": problem.objective, "value": outputs.get(problem.objective, float("nan")),
                       **({"maximize": True} if problem.maximize else {})},

@@ -86,3 +86,13 @@ def test_a_usage_mistake_is_one_line_naming_help(argv, capsys):
         cli.main(argv)
     err = capsys.readouterr().err
     assert exc.value.code == 2 and err.count("\n") == 1 and "error: " in err and "--help)" in err, err
+
+
+def test_a_history_header_cut_to_its_width_says_so():
+    """A user output top_speed_kmh was headed 'top_speed_km' over 'km/h': a whole name with its unit, read wrong."""
+    from bev_mdo.cli.history import _header
+
+    assert _header("constraint.top_speed_kmh", {"top_speed_kmh": "km/h"}) == ("top_speed_k…", "km/h")
+    assert _header("evaluations.motor_speed", {}) == ("motor_spe…", "evals")
+    assert _header("constraint.range_km", {"range_km": "km"}) == ("range", "km")
+    assert _header("design.x_short", {}) == ("x_short", "")

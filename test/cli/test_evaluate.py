@@ -226,3 +226,13 @@ def test_a_design_past_the_vehicle_mass_limit_keeps_the_outputs_that_do_not_depe
     assert doc["constraints"]["motor_speed_max_rad_s"]["satisfied"]
     code, out, _ = run(capsys, LEAF, "--set", "motor_kw=80,gear_ratio=8,battery_kwh=2600")
     assert code == 1 and f"evaluation failed: {why}\n" in out
+
+
+def test_a_set_parameter_is_shown_as_a_parameter_not_a_design_variable(capsys):
+    code, out, _ = run(capsys, LEAF, "--set", "load_kg=130", "--json")
+    doc = json.loads(out)
+    assert code == 0 and doc["design"] == {"motor_kw": 80.0, "gear_ratio": 8.0, "battery_kwh": 24.0}
+    assert doc["parameters"] == {"load_kg": 130.0}
+    code, out, _ = run(capsys, LEAF, "--set", "load_kg=130")
+    row = next(line for line in out.splitlines() if "load_kg" in line)
+    assert "parameter" in row and "design" not in row, row

@@ -53,6 +53,24 @@ def test_a_malformed_constraint_exits_2(capsys, value):
     assert len(err) == 1 and "--constraint" in err[0], err
 
 
+def test_a_limit_with_a_unit_is_told_it_is_not_a_number(capsys):
+    """'range_km>=400km' and 'range_km>=400 km' are the same mistake; the second was told the form was wrong."""
+    for value in ("range_km>=400km", "range_km>=400 km", "range_km >= 400 km/h "):
+        assert main(["evaluate", CONFIG, "--transport", "inprocess", "--constraint", value]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "is not a number" in err[0], err
+
+
+def test_a_misspelt_output_in_the_config_gets_the_nearest_one(tmp_path, capsys):
+    cfg = yaml.safe_load(open(CONFIG))
+    cfg["problem"]["constraints"]["range_kn"] = cfg["problem"]["constraints"].pop("range_km")
+    path = tmp_path / "typo.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    assert main(["evaluate", str(path), "--transport", "inprocess"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "problem.constraints.range_kn" in err[0] and "did you mean 'range_km'?" in err[0], err
+
+
 @pytest.mark.parametrize("flag, value", [("--constraint", "range_km>=inf"), ("--constraint", "range_km<=-inf"),
                                          ("--constraint", "range_km>=1e400"), ("--bound", "motor_kw=50:inf"),
                                          ("--initial", "motor_kw=nan")])
