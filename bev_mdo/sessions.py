@@ -52,7 +52,7 @@ def analyse_baseline(config, evaluator=None) -> dict | None:
     if not base:
         return None
     try:
-        report = evaluate_design(config.settings, evaluator or InProcessEvaluator(config.disciplines), base["design"])
+        report = evaluate_design(config.settings, evaluator or InProcessEvaluator(config.timed_disciplines()), base["design"])
     except Exception as exc:  # noqa: BLE001 - reported beside the result
         return {"name": base["name"], "design": dict(base["design"]), "outputs": {}, "feasible": False,
                 "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
@@ -285,7 +285,7 @@ class ParetoInProcessSession:
         """The in-process evaluator of one topology, closed on exit."""
         from bev_mdo.mdo.evaluator import InProcessEvaluator
 
-        return contextlib.closing(InProcessEvaluator(RunConfig.of(cfg).disciplines))
+        return contextlib.closing(InProcessEvaluator(RunConfig.of(cfg).timed_disciplines()))
 
     def __enter__(self):
         return self

@@ -1,8 +1,8 @@
 """Failures named where the user looks, for the in-process transport.
 
 - ``FirstErrors``: the first error of each failing discipline, printed once to the console.
-- ``NamingInProcessEvaluator``: the in-process evaluator reporting first errors, each discipline call
-  bounded by the budget a ROS run gives it (mdo/timed.py: ``TimedDiscipline``).
+- ``NamingInProcessEvaluator``: the in-process evaluator reporting first errors (of the run's
+  ``RunConfig.timed_disciplines``: each call bounded, mdo/timed.py).
 """
 from __future__ import annotations
 
@@ -10,7 +10,6 @@ import sys
 
 from bev_mdo.mdo.discipline import first_error_line
 from bev_mdo.mdo.evaluator import InProcessEvaluator
-from bev_mdo.mdo.timed import TimedDiscipline
 
 
 class FirstErrors:
@@ -28,13 +27,10 @@ class FirstErrors:
 
 
 class NamingInProcessEvaluator(InProcessEvaluator):
-    """In-process evaluator with a timeout per discipline call and first errors named on the console."""
+    """In-process evaluator (of ``RunConfig.timed_disciplines``) with first errors named on the console."""
 
-    def __init__(self, disciplines, timeout_s: float | None = None, errors: FirstErrors | None = None):
-        discs = list(disciplines)
-        if timeout_s:
-            discs = [TimedDiscipline(d, timeout_s) for d in discs]
-        super().__init__(discs)
+    def __init__(self, disciplines, errors: FirstErrors | None = None):
+        super().__init__(disciplines)
         self.errors = errors or FirstErrors()
 
     @property

@@ -105,11 +105,7 @@ def _run_inprocess(config, opts, show, x0, starts):
     from bev_mdo.mdo.driver import run_optimization
     from bev_mdo.sessions import analyse_baseline
 
-    ros = config.ros
-    budget = ros["timeout_s"] * (ros["retries"] + 1)  # what a ROS run gives a discipline before its points fail
-    ev = NamingInProcessEvaluator(config.disciplines, timeout_s=budget)
-    for d in ev.disciplines.values():  # one-time work (numba's compile) before the optimiser's clock, as over ROS
-        d.prepare()
+    ev = NamingInProcessEvaluator(config.timed_disciplines())  # prepared before the optimiser's clock, as over ROS
     bag, writer, show = in_process_bag(config, opts, show)  # a bag only when one is asked for
     try:
         if starts != 1:
@@ -120,8 +116,7 @@ def _run_inprocess(config, opts, show, x0, starts):
         else:
             res = run_optimization(config.settings, ev, formulation=opts.formulation,
                                    optimizer=opts.optimizer, x0=x0, callback=show)
-        baseline = analyse_baseline(config, NamingInProcessEvaluator(config.disciplines, timeout_s=budget,
-                                                                     errors=ev.errors))
+        baseline = analyse_baseline(config, NamingInProcessEvaluator(config.timed_disciplines(), errors=ev.errors))
     except BaseException:  # SIGINT, SIGTERM, a failure: the bag keeps every finished iteration
         if writer is not None:
             writer.close()

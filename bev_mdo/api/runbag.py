@@ -91,7 +91,6 @@ class InProcessBag:
 def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
     """The end-of-run answers (``bev_mdo.mdo.active``) for a run result dict, with the same time budget
     per discipline call as the run had (a hung user discipline must not hang the answers)."""
-    from bev_mdo.mdo.timed import TimedDiscipline
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.active import answers_for
     from bev_mdo.mdo.units import run_units
@@ -99,8 +98,7 @@ def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
     values = {k: c["value"] for k, c in result.get("constraints", {}).items()}
     values.update({k: v for k, v in result.get("outputs", {}).items() if k not in values})
     config = RunConfig.of(config)
-    budget = config.ros["timeout_s"] * (config.ros["retries"] + 1)
-    discs = [TimedDiscipline(d, budget) for d in config.disciplines]
+    discs = config.timed_disciplines()
     return answers_for(config.settings, result["design"], values, disciplines=discs, units=run_units(discs))
 
 

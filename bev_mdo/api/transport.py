@@ -115,7 +115,7 @@ class Evaluating:
             how.refuse_ros_only()  # --domain-id, --discovery, ... would be ignored in process
             from bev_mdo.mdo.evaluator import InProcessEvaluator
 
-            self.evaluator = InProcessEvaluator(RunConfig.of(config).disciplines)
+            self.evaluator = InProcessEvaluator(RunConfig.of(config).timed_disciplines())
             return
         if announce:
             section = ros_section(config, transport)

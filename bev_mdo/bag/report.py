@@ -295,7 +295,7 @@ def _analyse(config, design: dict) -> dict | None:
         from bev_mdo.mdo.driver import evaluate_design
         from bev_mdo.mdo.evaluator import InProcessEvaluator
 
-        return evaluate_design(config.settings, InProcessEvaluator(config.disciplines), design)
+        return evaluate_design(config.settings, InProcessEvaluator(config.timed_disciplines()), design)
     except Exception:  # noqa: BLE001 - a report is written even if the model no longer runs
         return None
 

@@ -57,7 +57,7 @@ def check(config, at: str = "", rtol: float = 1e-4, atol: float = 1e-6, step: fl
     if not (rtol >= 0 and atol >= 0 and 0 < step < 0.1):
         raise ValueError("--rtol and --atol must be >= 0 and --step in (0, 0.1)")
     config = RunConfig.of(config)
-    discs = {d.name: d for d in config.disciplines}
+    discs = {d.name: d for d in config.timed_disciplines()}
     unknown = [n for n in (only or []) if n not in discs]
     if unknown:
         raise ValueError(f"--discipline names {unknown}; the config has {sorted(discs)}")

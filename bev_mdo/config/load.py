@@ -125,6 +125,22 @@ class RunConfig(Mapping):
         keyed = with_run_key(self.data, directory)
         return self if keyed is self.data else self.with_ros(keyed["ros"])
 
+    def timed_disciplines(self) -> list:
+        """The disciplines as this process calls them, in every command: each ``prepare()`` run now, before
+        any clock (one that raises is one line, as a constructor that raises), each call bounded by
+        ``ros.timeout_s`` x (``ros.retries`` + 1), the budget a ROS run gives it (mdo/timed.py)."""
+        from bev_mdo.mdo.discipline import first_error_line
+        from bev_mdo.mdo.timed import TimedDiscipline
+
+        discs = [TimedDiscipline(d, self.ros["timeout_s"] * (self.ros["retries"] + 1)) for d in self.disciplines]
+        for d in discs:
+            try:
+                d.prepare()
+            except Exception as exc:  # noqa: BLE001 - the user's code: named, one line
+                raise ValueError(f"discipline {d.name!r}: prepare() failed: "
+                                 f"{first_error_line(f'{type(exc).__name__}: {exc}')}") from None
+        return discs
+
     def entries(self) -> list[dict]:
         """``{name, class, options}`` of every discipline (what a node needs to build one)."""
         return discipline_entries(self.data, self.disciplines)

@@ -9,10 +9,14 @@ call is not bounded) and the discipline counts as hung for the rest of the run: 
 once with an error naming it and the point, as a ROS node that never answers fails every request.
 A discipline's ``prepare()``, its one-time work such as compiling a model, runs before the first
 call, untimed. A SIGINT during a hung call still interrupts it (KeyboardInterrupt is not caught).
+What a discipline prints in the main thread goes to stderr, as a node's goes to its log: stdout is the
+command's output (a ``print`` in a user's compute came before the JSON of ``evaluate --json``).
 """
 from __future__ import annotations
 
+import contextlib
 import signal
+import sys
 import threading
 from typing import Any
 
@@ -45,14 +49,18 @@ class TimedDiscipline:
         """One-time work (e.g. compiling a model), once: not a hang, done before the clock starts."""
         if not self._prepared:
             self._prepared = True
-            prepare(self._disc)
+            if threading.current_thread() is threading.main_thread():
+                with contextlib.redirect_stdout(sys.stderr):
+                    prepare(self._disc)
+            else:
+                prepare(self._disc)
 
     def compute(self, inputs):
         if self._hung:
             raise DisciplineTimeout(self._hung)
         self.prepare()
         if threading.current_thread() is not threading.main_thread():
-            return self._disc.compute(inputs)
+            return self._disc.compute(inputs)  # (sys.stdout is the process's: not redirected beside other threads)
 
         def alarm(*_):
             raise DisciplineTimeout(f"no answer within {self._timeout_s:g} s (ros.timeout_s x (ros.retries + 1), "
@@ -61,7 +69,8 @@ class TimedDiscipline:
         old = signal.signal(signal.SIGALRM, alarm)
         signal.setitimer(signal.ITIMER_REAL, self._timeout_s)
         try:
-            return self._disc.compute(inputs)
+            with contextlib.redirect_stdout(sys.stderr):
+                return self._disc.compute(inputs)
         except DisciplineTimeout as exc:
             self._hung = str(exc)
             raise

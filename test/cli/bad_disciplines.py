@@ -123,3 +123,40 @@ class SlowStart:
         if not self.ready:
             self.prepare()
         return {"slow_start_kw": np.asarray(inputs["motor_kw"])}
+
+
+class NeedsPrepare:
+    """Reads in compute what its prepare() sets (a model loaded once)."""
+
+    name = "needs_prepare"
+    inputs = ("motor_kw",)
+    outputs = ("needs_prepare_kw",)
+    units = dict.fromkeys(inputs + outputs, "kW")
+
+    def prepare(self):
+        self.k = 2.0
+
+    def compute(self, inputs):
+        return {"needs_prepare_kw": np.asarray(inputs["motor_kw"], float) * self.k}
+
+
+class PrepareFails(NeedsPrepare):
+    name = "prepare_fails"
+    outputs = ("prepare_fails_kw",)
+    units = dict.fromkeys(NeedsPrepare.inputs + outputs, "kW")
+
+    def prepare(self):
+        raise FileNotFoundError("table.csv is missing")
+
+
+class Talks:
+    """Prints in compute, as a user's debugging line does."""
+
+    name = "talks"
+    inputs = ("motor_kw",)
+    outputs = ("talks_kw",)
+    units = dict.fromkeys(inputs + outputs, "kW")
+
+    def compute(self, inputs):
+        print("computing talks_kw")
+        return {"talks_kw": np.asarray(inputs["motor_kw"], float)}

@@ -18,7 +18,8 @@ from bev_mdo.testing import REPO
 HERE = Path(__file__).resolve().parent
 
 
-def _run(tmp_path, name: str, cls: str, ros: dict, optimizer: str = "SLSQP") -> subprocess.CompletedProcess:
+def _run(tmp_path, name: str, cls: str, ros: dict, optimizer: str = "SLSQP",
+         command: tuple = ("optimize",)) -> subprocess.CompletedProcess:
     raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
     raw["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed",
                           {"name": name, "class": f"bad_disciplines:{cls}"}]
@@ -28,8 +29,8 @@ def _run(tmp_path, name: str, cls: str, ros: dict, optimizer: str = "SLSQP") -> 
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False))
     env = {**os.environ, "PYTHONPATH": f"{HERE}{os.pathsep}{REPO}"}
-    return subprocess.run([sys.executable, "-m", "bev_mdo", "optimize", str(path), "--transport", "inprocess",
-                           "--json"], capture_output=True, text=True, env=env, timeout=120, cwd=tmp_path)
+    return subprocess.run([sys.executable, "-m", "bev_mdo", command[0], str(path), *command[1:], "--transport",
+                           "inprocess", "--json"], capture_output=True, text=True, env=env, timeout=120, cwd=tmp_path)
 
 
 def test_a_failing_discipline_is_named_and_no_penalty_is_shown_as_objective(tmp_path):
@@ -138,3 +139,27 @@ def test_a_global_sensitivity_whose_model_fails_says_where_not_a_stencil(tmp_pat
     err = p.stderr.strip().splitlines()
     assert p.returncode == 7 and len(err) == 1, p.stderr[-2000:]
     assert "the model failed at 16 of the 16 points evaluated, first: broken:" in err[0] and "stencil" not in err[0]
+
+
+@pytest.mark.parametrize("command", [("evaluate",), ("sensitivity", "--order", "1")])
+def test_every_command_prepares_bounds_and_quiets_the_disciplines(tmp_path, command):
+    """Only optimize prepared a discipline and bounded its calls: evaluate, sweep, sensitivity, check-totals
+    (and check-partials, compare, report) never ran prepare() (every point failed: no attribute 'k'; one that
+    raised was ignored), a hung compute hung evaluate for ever, and a print in compute came before --json's JSON."""
+    p = _run(tmp_path, "needs_prepare", "NeedsPrepare", {}, command=command)
+    assert p.returncode == 0, p.stderr[-2000:]
+    json.loads(p.stdout)
+    p = _run(tmp_path, "prepare_fails", "PrepareFails", {}, command=command)
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and len(lines) == 1, p.stderr[-2000:]
+    assert "discipline 'prepare_fails': prepare() failed: FileNotFoundError: table.csv is missing" in lines[0]
+    p = _run(tmp_path, "talks", "Talks", {}, command=command)
+    assert p.returncode == 0 and "computing talks_kw" in p.stderr, p.stderr[-2000:]
+    json.loads(p.stdout)  # the JSON alone on stdout
+
+
+def test_a_discipline_that_never_returns_fails_evaluate_after_the_budget(tmp_path):
+    p = _run(tmp_path, "hang", "Hang", {"timeout_s": 3.0, "retries": 1}, command=("evaluate",))
+    assert p.returncode == 1, p.stderr[-2000:]
+    out = json.loads(p.stdout)
+    assert not out["ok"] and "no answer within 6 s" in out["error"], out
