@@ -31,6 +31,24 @@ def test_a_duplicate_key_is_an_error_naming_file_line_and_key(tmp_path):
         load_config(p)
 
 
+@pytest.mark.parametrize("key, said", [
+    # under vehicle: AttributeError 'int' object has no attribute 'startswith' (params.py), exit 7
+    ("5", r"vehicle: key 5 at line \d+ is read as an integer, not a name: quote it \('5'\)"),
+    ("true", r"vehicle: key true at line \d+ is read as a boolean, not a name"),
+    ("yes", r"vehicle: key yes at line \d+ is read as a boolean \(YAML 1.1 reads yes/no/on/off so\)"),
+    ("~", r"vehicle: key ~ at line \d+ is read as null"),
+    # TypeError: unhashable type (yamlload.py), exit 7
+    ("[a, b]", r"vehicle: key \[a, b\] at line \d+ is a list; a key must be a name"),
+])
+def test_a_key_that_is_not_a_string_is_refused_naming_where_and_what_it_was_read_as(tmp_path, key, said):
+    p = _write(tmp_path, BASE.replace("  drag_area_m2: 0.6412", f"  {key}: 1\n  drag_area_m2: 0.6412"))
+    with pytest.raises(ValueError, match=rf"^{re.escape(str(p))}: {said}"):
+        load_config(p)
+    p = _write(tmp_path, BASE.replace("    motor_kw:", f"    {key}: {{lower: 1, upper: 2}}\n    motor_kw:"))
+    with pytest.raises(ValueError, match=rf"^{re.escape(str(p))}: problem.design_variables: key "):
+        load_config(p)
+
+
 def test_an_error_in_the_ros_section_names_the_file(tmp_path):
     for bad, key in (("ros: {domain_idd: 3}", "domain_idd"), ("ros: {timeout_s: -1}", "ros.timeout_s"),
                      ("ros: {signing: maybe}", "ros.signing")):
