@@ -49,6 +49,17 @@ def test_a_key_that_is_not_a_string_is_refused_naming_where_and_what_it_was_read
         load_config(p)
 
 
+@pytest.mark.parametrize("name, said", [
+    ("12345", "name 12345 is read by YAML as an integer, not text: quote it (name: '12345')"),  # was: "letters, digits ... allowed"
+    ("1.5", "name 1.5 is read by YAML as a number, not text: quote it (name: '1.5')"),
+    ("yes", "name True is read by YAML as a boolean (yes/no/on/off too), not text: quote it")])
+def test_a_run_name_yaml_reads_as_a_number_is_refused_saying_so(tmp_path, name, said):
+    p = _write(tmp_path, BASE.replace("name: leaf_nedc", f"name: {name}", 1))
+    with pytest.raises(ValueError, match=rf"^{re.escape(str(p))}: {re.escape(said)}$"):
+        load_config(p)
+    load_config(_write(tmp_path, BASE.replace("name: leaf_nedc", f"name: '{name}'", 1)))
+
+
 def test_an_error_in_the_ros_section_names_the_file(tmp_path):
     for bad, key in (("ros: {domain_idd: 3}", "domain_idd"), ("ros: {timeout_s: -1}", "ros.timeout_s"),
                      ("ros: {signing: maybe}", "ros.signing"),
