@@ -320,7 +320,7 @@ def run_compare(args) -> int:
         t.add_column(f"design {i + 1}", justify="right")
         t.add_column(f"Δ {i + 1}−1", justify="right")
     for name, unit, v in rows:
-        big = max(float(np.nanmax(np.abs(v))), 1.0)
+        big = float(np.max(np.abs(v[np.isfinite(v)]), initial=1.0))  # (nanmax warned of a row failed in every design)
 
         def num(x, sign=""):  # round-off (below 1e-9 of the row's largest value) shows as 0
             return "0" if abs(x) < 1e-9 * big else f"{x:{sign}.6g}"
