@@ -9,8 +9,8 @@ Like ``yaml.safe_load``, but
 - every mapping key is a string: ``5:``, ``yes:`` (YAML 1.1 reads yes/no/on/off as booleans), ``~:``,
   ``? [a, b]`` are refused naming where the key is and what YAML read it as (code that reads a key as
   a name failed on them with an AttributeError or TypeError, or printed them as ``True: unknown key``).
-Every violation is a ValueError of one line (the CLI prints it and exits 2); docs/configuration.md
-lists the limits.
+Every violation is a ValueError of one line (the CLI prints it and exits 2); docs/security.md
+("Input limits") lists the limits.
 """
 from __future__ import annotations
 
