@@ -79,7 +79,7 @@ def validate_ros(section: Mapping[str, Any] | None) -> dict[str, Any]:
         raise ValueError("ros.discovery server needs ros.discovery_server: 'ip:port'")
     for key in ("timeout_s", "discovery_wait_s", "sign_window_s"):
         v = out[key]
-        if not isinstance(v, (int, float)) or not 0 < float(v) < 1e6:
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not 0 < float(v) < 1e6:
             raise ValueError(f"ros.{key} must be a positive number of seconds, got {v!r}")
         out[key] = float(v)
     key_file = out["sign_key_file"]
@@ -96,7 +96,7 @@ def validate_ros(section: Mapping[str, Any] | None) -> dict[str, Any]:
     out["pool_min_rows"] = validate_min_rows(out["pool_min_rows"])
     if out["pool"] not in ("share", "redundant"):
         raise ValueError(f"ros.pool must be one of ['share', 'redundant'], got {out['pool']!r}")
-    if not isinstance(out["retries"], int) or not 0 <= out["retries"] <= 100:
+    if not isinstance(out["retries"], int) or isinstance(out["retries"], bool) or not 0 <= out["retries"] <= 100:
         raise ValueError(f"ros.retries must be an integer in [0, 100], got {out['retries']!r}")
     return out
 

@@ -5,9 +5,12 @@ Like ``yaml.safe_load``, but
 - the text is at most ``MAX_YAML_BYTES`` long, nested at most ``MAX_DEPTH`` collections deep,
   holds at most ``MAX_ALIASES`` aliases (``*name``) and at most ``MAX_NODES`` values once every
   alias is expanded (an "alias bomb" of a few lines expands to billions);
-- a sequence holds at most ``MAX_SEQUENCE`` items, an integer fits in 64 bits.
-Every violation is a ValueError of one line (the CLI prints it and exits 2); docs/configuration.md
-lists the limits.
+- a sequence holds at most ``MAX_SEQUENCE`` items, an integer fits in 64 bits;
+- every mapping key is a string: ``5:``, ``yes:`` (YAML 1.1 reads yes/no/on/off as booleans), ``~:``,
+  ``? [a, b]`` are refused naming where the key is and what YAML read it as (code that reads a key as
+  a name failed on them with an AttributeError or TypeError, or printed them as ``True: unknown key``).
+Every violation is a ValueError of one line (the CLI prints it and exits 2); docs/security.md
+("Input limits") lists the limits.
 """
 from __future__ import annotations
 
@@ -24,7 +27,7 @@ MAX_INT_DIGITS = 40  # with separators ('1_000'); the value itself must fit in 6
 
 
 class YamlLimitError(ValueError):
-    """The YAML text exceeds one of this module's limits."""
+    """The YAML text exceeds one of this module's limits, or has a key that is not a string."""
 
 
 class _Loader(yaml.SafeLoader):
@@ -54,8 +57,8 @@ class _Loader(yaml.SafeLoader):
     def construct_mapping(self, node, deep=False):
         seen = set()
         for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=True)
-            if isinstance(key, (str, int, float, bool)) and key in seen:
+            key = self.construct_object(key_node, deep=True)  # a string: _check_keys
+            if key in seen:
                 raise yaml.constructor.ConstructorError(None, None, f"duplicate key {key!r}", key_node.start_mark)
             seen.add(key)
         return super().construct_mapping(node, deep)
@@ -111,6 +114,42 @@ def _expanded_size(root) -> int:
     return sizes.get(id(root), 0)
 
 
+_READ_AS = {"int": "an integer", "float": "a number", "bool": "a boolean", "null": "null",
+            "timestamp": "a date", "binary": "binary data"}
+
+
+def _check_keys(root) -> None:
+    """YamlLimitError naming the first key (in document order) that is not a string: where it is
+    (``vehicle``, ``disciplines[2].options``), its text, line and what YAML read it as."""
+    stack, seen = [(root, "")], set()
+    while stack:
+        node, where = stack.pop()
+        if id(node) in seen:  # a node shared by aliases is checked once
+            continue
+        seen.add(id(node))
+        if isinstance(node, yaml.SequenceNode):
+            stack.extend(reversed([(c, f"{where}[{i}]") for i, c in enumerate(node.value)]))
+        elif isinstance(node, yaml.MappingNode):
+            for key, _ in node.value:
+                if isinstance(key, yaml.ScalarNode) and key.tag == "tag:yaml.org,2002:str":
+                    continue
+                text = " ".join(key.start_mark.buffer[key.start_mark.index:key.end_mark.index].split())
+                text = text if len(text) <= 40 else text[:37] + "..."
+                at = f"{where}: " if where else ""
+                line = key.start_mark.line + 1
+                if key.tag == "tag:yaml.org,2002:merge":
+                    raise YamlLimitError(f"{at}merge key << at line {line}: not supported, write the keys out")
+                if not isinstance(key, yaml.ScalarNode):
+                    kind = "a list" if isinstance(key, yaml.SequenceNode) else "a mapping"
+                    raise YamlLimitError(f"{at}key {text} at line {line} is {kind}; a key must be a name")
+                kind = _READ_AS.get(key.tag.rsplit(":", 1)[-1], f"tag {key.tag}")
+                if kind == "a boolean" and key.value.lower() not in ("true", "false"):
+                    kind += " (YAML 1.1 reads yes/no/on/off so)"
+                raise YamlLimitError(f"{at}key {text} at line {line} is read as {kind}, not a name: "
+                                     f"quote it ('{key.value}')")
+            stack.extend(reversed([(v, f"{where}.{k.value}" if where else k.value) for k, v in node.value]))
+
+
 def load_yaml(text: str) -> Any:
     """Parse one YAML document within the limits above (ValueError of one line otherwise; yaml.YAMLError
     for text that is not YAML)."""
@@ -122,6 +161,7 @@ def load_yaml(text: str) -> Any:
         if node is None:
             return None
         _expanded_size(node)
+        _check_keys(node)
         return loader.construct_document(node)
     finally:
         loader.dispose()

@@ -31,9 +31,41 @@ def test_a_duplicate_key_is_an_error_naming_file_line_and_key(tmp_path):
         load_config(p)
 
 
+@pytest.mark.parametrize("key, said", [
+    # under vehicle: AttributeError 'int' object has no attribute 'startswith' (params.py), exit 7
+    ("5", r"vehicle: key 5 at line \d+ is read as an integer, not a name: quote it \('5'\)"),
+    ("true", r"vehicle: key true at line \d+ is read as a boolean, not a name"),
+    ("yes", r"vehicle: key yes at line \d+ is read as a boolean \(YAML 1.1 reads yes/no/on/off so\)"),
+    ("~", r"vehicle: key ~ at line \d+ is read as null"),
+    # TypeError: unhashable type (yamlload.py), exit 7
+    ("[a, b]", r"vehicle: key \[a, b\] at line \d+ is a list; a key must be a name"),
+])
+def test_a_key_that_is_not_a_string_is_refused_naming_where_and_what_it_was_read_as(tmp_path, key, said):
+    p = _write(tmp_path, BASE.replace("  drag_area_m2: 0.6412", f"  {key}: 1\n  drag_area_m2: 0.6412"))
+    with pytest.raises(ValueError, match=rf"^{re.escape(str(p))}: {said}"):
+        load_config(p)
+    p = _write(tmp_path, BASE.replace("    motor_kw:", f"    {key}: {{lower: 1, upper: 2}}\n    motor_kw:"))
+    with pytest.raises(ValueError, match=rf"^{re.escape(str(p))}: problem.design_variables: key "):
+        load_config(p)
+
+
+@pytest.mark.parametrize("name, said", [
+    ("12345", "name 12345 is read by YAML as an integer, not text: quote it (name: '12345')"),  # was: "letters, digits ... allowed"
+    ("1.5", "name 1.5 is read by YAML as a number, not text: quote it (name: '1.5')"),
+    ("yes", "name True is read by YAML as a boolean (yes/no/on/off too), not text: quote it")])
+def test_a_run_name_yaml_reads_as_a_number_is_refused_saying_so(tmp_path, name, said):
+    p = _write(tmp_path, BASE.replace("name: leaf_nedc", f"name: {name}", 1))
+    with pytest.raises(ValueError, match=rf"^{re.escape(str(p))}: {re.escape(said)}$"):
+        load_config(p)
+    load_config(_write(tmp_path, BASE.replace("name: leaf_nedc", f"name: '{name}'", 1)))
+
+
 def test_an_error_in_the_ros_section_names_the_file(tmp_path):
     for bad, key in (("ros: {domain_idd: 3}", "domain_idd"), ("ros: {timeout_s: -1}", "ros.timeout_s"),
-                     ("ros: {signing: maybe}", "ros.signing")):
+                     ("ros: {signing: maybe}", "ros.signing"),
+                     # true was taken as 1 (isinstance(True, int)), as domain_id and every other number is not
+                     ("ros: {timeout_s: true}", "ros.timeout_s"), ("ros: {discovery_wait_s: true}", "ros.discovery_wait_s"),
+                     ("ros: {sign_window_s: true}", "ros.sign_window_s"), ("ros: {retries: true}", "ros.retries")):
         p = _write(tmp_path, BASE + "\n" + bad + "\n")
         with pytest.raises(ValueError, match=rf"^{p}: .*{key}"):
             load_config(p)
@@ -85,6 +117,24 @@ def test_optimizer_options_are_checked_against_the_solver_naming_the_key(tmp_pat
         check_optimizer_options("differential_evolution", {"ftol": 1e-9})
     with pytest.raises(ValueError, match="optimizer.options.barrier: unknown key of trust-constr"):
         check_optimizer_options("trust-constr", {"barrier": 1.0})
+
+
+@pytest.mark.parametrize("name, options, said", [
+    # they loaded: ftol .nan ended at once (exit 0), .inf and -1 as "no progress" (exit 5)
+    ("SLSQP", {"ftol": float("nan")}, "ftol: nan must be a finite number"),
+    ("SLSQP", {"ftol": float("inf")}, "ftol: inf must be a finite number"),
+    ("SLSQP", {"eps": float("nan")}, "eps: nan must be a finite number"),
+    ("SLSQP", {"ftol": -1.0}, "ftol: -1.0 is a tolerance, it must be >= 0"),
+    ("trust-constr", {"gtol": -1e-8}, "gtol: -1e-08 is a tolerance, it must be >= 0"),
+    ("COBYLA", {"catol": float("-inf")}, "catol: -inf must be a finite number"),
+    ("differential_evolution", {"tol": -0.1}, "tol: -0.1 is a tolerance, it must be >= 0")])
+def test_a_non_finite_option_or_a_negative_tolerance_is_refused(name, options, said):
+    with pytest.raises(ValueError, match=rf"^optimizer\.options\.{re.escape(said)}$"):
+        check_optimizer_options(name, options)
+
+
+def test_an_infinite_option_whose_default_is_infinite_loads():
+    check_optimizer_options("COBYQA", {"f_target": float("-inf"), "final_tr_radius": 1e-8})
 
 
 @pytest.mark.parametrize("name, options", [("SLSQP", {"maxiter": -5}), ("trust-constr", {"maxiter": 0}),

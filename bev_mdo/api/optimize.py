@@ -209,9 +209,13 @@ def _where(names, instances: dict, compose: str | None) -> str:
 def _starts(opts, x0) -> int | list:
     """The run's starts: a count (multi-start: a sample of that many) or, for a multi-start resumed from
     each start's last record, the list of start points ``x0`` is."""
+    from bev_mdo.mdo.multistart import check_starts
+
     starts = int(opts.starts)
-    if starts < 1:
-        raise InputError(f"--starts {starts}: give at least 1")
+    try:
+        check_starts(starts)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
     if starts > 1 and x0:
         raise InputError("--starts samples its own start points; it cannot be combined with a given start")
     return list(x0) if isinstance(x0, list) else starts

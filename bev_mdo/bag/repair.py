@@ -108,15 +108,16 @@ def repair(bag_dir, *, force: bool = False) -> RepairResult:
     written = bag.written_count  # (before metadata.yaml is written again)
     if not bag.truncated and good_yaml and not force:
         return RepairResult(bag.bag_dir, path, None, bag.message_count, False, False)
-    backup = None
+    backup, writing = None, path
     try:
         if bag.truncated or force:
             backup = _replace_with_rewrite(bag, path, info)
+        writing = Path(bag.bag_dir) / "metadata.yaml"  # (a folder of that name was blamed on the .mcap)
         meta.write_metadata_yaml(bag.bag_dir, info)
     except OSError as exc:  # a full disk, a read-only folder: one line (exit 2), nothing partial left
         state = (f"the bag is repaired (original kept as {backup}), its metadata.yaml is not" if backup
                  else "the bag is unchanged")
-        raise BagError(f"{path}: the repair could not be written ({exc.strerror or exc}); {state}") from exc
+        raise BagError(f"{writing}: the repair could not be written ({exc.strerror or exc}); {state}") from exc
     return RepairResult(bag.bag_dir, path, backup, bag.message_count, bag.truncated,
                         backup is not None, not good_yaml, bag.damage, written)
 

@@ -3,6 +3,20 @@ bev_mdo.api.transport) and the problem overrides (bev_mdo.api.overrides)."""
 from __future__ import annotations
 
 
+def seed(text: str) -> int:
+    """The type of every ``--seed``: a whole number >= 0 (numpy's generators refuse a negative seed with
+    "expected non-negative integer", which named no flag)."""
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value}: give a whole number >= 0")
+    return value
+
+
 def add_bag_argument(parser) -> None:
     """The BAG of every command that reads one (bag info/repair, history, report, replay, resume); what it
     may name is bev_mdo.bag.reader.find_mcap's."""

@@ -73,7 +73,7 @@ def describe_other_content(bag) -> str:
         return (f"it is a Pareto bag: {len(fronts)} ParetoFront messages on {', '.join(pareto)} "
                 f"({where}up to generation {gens}); the final fronts are in the {files}, every generation's "
                 "in the bag (not shown by bev-mdo report)")
-    if not bag.topics:
+    if not bag.message_count:  # its topics may be declared (the recorder's), with nothing recorded on them
         return "it holds no messages at all"
     kinds = sorted({ty for ty in bag.topics.values() if ty != ITERATION_TYPE})
     if not kinds:  # every message an iteration record of the run, none kept (the check note says why)

@@ -21,6 +21,8 @@ from bev_mdo import interrupts, jsontext
 
 
 def register(sub) -> None:
+    from bev_mdo.cli.flags import seed
+
     p = sub.add_parser("optimize", help="run the distributed MDF/IDF optimisation (the main job)",
                        description="Optimise the config's problem. Over ROS every discipline runs as its own "
                                    "node (localhost discovery, the config's domain id), by default in this "
@@ -37,7 +39,7 @@ def register(sub) -> None:
     p.add_argument("--starts", type=int, default=1, metavar="N",
                    help="optimise from N start points (a Latin hypercube over the bounds, --seed) and report the "
                         "best and how many starts reached it (default 1: the config's initial design)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the --starts sample (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the --starts sample (default 0)")
     p.add_argument("--fixed-budget", action="store_true",
                    help="the optimiser's limits (e.g. optimizer.options.maxiter) are the budget: a feasible end "
                         "exits 0 even when it is not a verified optimum (the verdict still says what it is)")

@@ -28,6 +28,7 @@ OBJECTIVES = study.OBJECTIVES  # the study's default (energy, 0-100 km/h time, c
 
 def register(subparsers) -> None:
     from bev_mdo.cli import SUBCOMMANDS
+    from bev_mdo.cli.flags import seed
 
     p = subparsers.add_parser("pareto", help=SUBCOMMANDS["pareto"][1])
     p.add_argument("config", help="run config YAML (e.g. examples/pareto/srn.yaml, config/topologies_artemis.yaml)")
@@ -36,7 +37,7 @@ def register(subparsers) -> None:
     g.add_argument("--all-topologies", action="store_true", help="topology study: all four topologies")
     p.add_argument("--generations", type=int, default=30)
     p.add_argument("--pop", type=int, default=100, help="population size (one batch per generation)")
-    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--seed", type=seed, default=1)
     p.add_argument("--objectives", default=None, metavar="A,B[,C]",
                    help="outputs to minimise (default: the config's problem.objectives)")
     p.add_argument("--out", default=None, help="output (bag) directory, default bags/<name>_pareto_<time>")

@@ -19,7 +19,7 @@ from bev_mdo import jsontext
 def register(subparsers) -> None:
     from bev_mdo.api.sensitivity import METHODS
     from bev_mdo.cli import SUBCOMMANDS
-    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
+    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments, seed
 
     p = subparsers.add_parser("sensitivity", help=SUBCOMMANDS["sensitivity"][1])
     p.add_argument("config", help="run config YAML")
@@ -40,7 +40,7 @@ def register(subparsers) -> None:
     g.add_argument("--samples", type=int, default=None,
                    help="sobol: base sample N, a power of 2, N (D + 2) designs (default 1024); "
                         "morris: trajectories, N (D + 1) designs (default 64)")
-    g.add_argument("--seed", type=int, default=None, help="random seed of the sampling and the bootstrap (default 1)")
+    g.add_argument("--seed", type=seed, default=None, help="random seed of the sampling and the bootstrap (default 1)")
     g.add_argument("--conf-level", type=float, default=None, help="confidence level of the intervals (default 0.95)")
     p.add_argument("--json", action="store_true", help="print JSON instead of tables")
     p.add_argument("--png", metavar="FILE", help="write a PNG: first-order bars and (order 2) the second-order "

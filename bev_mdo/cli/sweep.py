@@ -34,7 +34,7 @@ from bev_mdo.api.evaluate import batch as evaluate_batch  # one batch of MDAs ov
 
 def register(sub) -> None:
     from bev_mdo.api.doe import METHODS
-    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
+    from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments, seed
 
     p = sub.add_parser("sweep", help="a design of experiments, grid or list of designs as one batch: CSV, PNG, bag",
                        description=__doc__.split("\n\n")[1])
@@ -43,7 +43,7 @@ def register(sub) -> None:
                    help="sample the design variables' bounds: Latin hypercube, Sobol', Halton or full factorial")
     p.add_argument("--samples", type=int, default=None,
                    help="--doe: number of designs (full: levels per variable; default 64)")
-    p.add_argument("--seed", type=int, default=None, help="--doe: random seed (lhs, sobol, halton; default 1)")
+    p.add_argument("--seed", type=seed, default=None, help="--doe: random seed (lhs, sobol, halton; default 1)")
     p.add_argument("--vary", nargs="+", default=[], metavar="NAME=LO:HI:N",
                    help="a grid: a design variable (or model parameter) and its values: lo:hi:n or a,b,c")
     p.add_argument("--list", dest="list_csv", metavar="FILE.csv", help="evaluate the designs listed in this CSV")
@@ -320,7 +320,7 @@ def run_compare(args) -> int:
         t.add_column(f"design {i + 1}", justify="right")
         t.add_column(f"Δ {i + 1}−1", justify="right")
     for name, unit, v in rows:
-        big = max(float(np.nanmax(np.abs(v))), 1.0)
+        big = float(np.max(np.abs(v[np.isfinite(v)]), initial=1.0))  # (nanmax warned of a row failed in every design)
 
         def num(x, sign=""):  # round-off (below 1e-9 of the row's largest value) shows as 0
             return "0" if abs(x) < 1e-9 * big else f"{x:{sign}.6g}"

@@ -184,6 +184,11 @@ def load_config(path: str | Path | Mapping[str, Any], edit=None) -> dict:
 def check_run_name(name: Any) -> None:
     """A run's ``name`` becomes part of its bag and log folder names: ValueError unless it is a plain
     name (no path separator, not '.' or '..', no control character, at most 100 characters)."""
+    if isinstance(name, bool):
+        raise ValueError(f"name {name!r} is read by YAML as a boolean (yes/no/on/off too), not text: quote it")
+    if isinstance(name, (int, float)):  # 12345 was told it may be "letters, digits, ..."
+        kind = "an integer" if isinstance(name, int) else "a number"
+        raise ValueError(f"name {name!r} is read by YAML as {kind}, not text: quote it (name: '{name}')")
     bad = (not isinstance(name, str) or not name.strip() or "/" in name or "\\" in name or name in (".", "..")
            or ".." in name or len(name) > 100 or any(ord(c) < 32 for c in name))
     if bad:

@@ -75,6 +75,13 @@ def _check_solver_options(name: str, options: Mapping[str, Any], plugin) -> None
         if is_number(default) and not is_number(value):
             raise ValueError(f"optimizer.options.{key}: {value!r} is not a number ({name}'s default is {default!r})"
                              f"{text_hint(value)}")
+        # scipy takes nan and inf (and a negative tolerance) and runs on: ftol .nan ended at once as a
+        # success, .inf or -1 as "no progress"; an infinite value is kept only where the default is one
+        if is_number(value) and (math.isnan(value) or math.isinf(value) and not (
+                is_number(default) and math.isinf(default))):
+            raise ValueError(f"optimizer.options.{key}: {value!r} must be a finite number")
+        if "tol" in key and is_number(value) and value < 0:
+            raise ValueError(f"optimizer.options.{key}: {value!r} is a tolerance, it must be >= 0")
 
 
 def search_path(given: Any, base: Path | None) -> list[str]:

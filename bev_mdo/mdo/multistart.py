@@ -33,12 +33,24 @@ from bev_mdo.mdo.settings import RunSettings
 
 REL_TOL = 1e-6     # objective, relative to the best
 DESIGN_TOL = 1e-3  # each design variable, as a share of its range
+# Every finished start keeps its result and iteration records until the best is chosen (about 40 KB a
+# start on leaf_nedc, more with more iterations or variables: 0.4 GB at this bound); --starts 100000000
+# asked for a 2.4 GB sample at once and ended in a MemoryError.
+MAX_STARTS = 10_000
+
+
+def check_starts(starts: int) -> None:
+    """A one-line ValueError for a start count outside [1, MAX_STARTS]."""
+    if starts < 1:
+        raise ValueError(f"--starts {starts}: give at least 1")
+    if starts > MAX_STARTS:
+        raise ValueError(f"--starts {starts}: at most {MAX_STARTS:,} (each finished start's result and iteration "
+                         "records are kept until the best is chosen)")
 
 
 def start_points(problem: Problem, starts: int, seed: int = 0) -> list[dict[str, float]]:
     """``starts`` Latin-hypercube points over the design variables' bounds."""
-    if starts < 1:
-        raise ValueError(f"--starts {starts}: give at least 1")
+    check_starts(starts)
     lo, hi = problem.array("lower"), problem.array("upper")
     unit = qmc.LatinHypercube(d=len(lo), seed=seed).random(starts)
     return [problem.design_dict(row) for row in qmc.scale(unit, lo, hi)]

@@ -158,6 +158,8 @@ def check_outputs(disc_name: str, raw: Any, outputs: Sequence[str], sizes: Mappi
     for k in outputs:
         if k not in raw:
             raise ShapeError(f"discipline {disc_name!r}: compute() did not return output {k!r}")
+        if np.iscomplexobj(raw[k]):  # float() would drop the imaginary part, with only a ComplexWarning
+            raise ValueError(f"output {k!r} is complex, e.g. {np.ravel(raw[k])[0]}: return real numbers")
         v = np.asarray(raw[k], dtype=float)
         size = sizes.get(k)
         want = (n,) if size is None else (n, size)

@@ -138,25 +138,40 @@ def concatenate(cycles: list[DriveCycle], name: str) -> DriveCycle:
 def read_csv_rows(path, what: str) -> list[list[str]]:
     """Every row of a user's CSV: drive cycles here, fleet files in fleet.py (``what``: "drive cycle",
     "fleet file", for the message). Read as utf-8-sig: a BOM (Excel's "CSV UTF-8") is not data.
-    One-line ValueError naming the file when it cannot be read, is not UTF-8, or is not a CSV table
-    (e.g. a field beyond csv's 128 KiB limit)."""
+    One-line ValueError naming the file (and row) when it cannot be read, is not UTF-8, or is not a CSV
+    table: a field beyond csv's 128 KiB limit, a quote closed inside a field (``"a"b``), a quote left
+    open, or a field that holds a line break (a quote left open took the rows after it into one field
+    and the file still parsed: a vehicle fewer, another's values under its name). So a row is one line
+    of the file, and row N is line N."""
     try:
         size = os.stat(path).st_size
         if size > MAX_CSV_BYTES:
             raise ValueError(f"{path}: {size:,} bytes, more than a {what} may be ({MAX_CSV_BYTES:,} bytes, "
                              f"{MAX_CSV_ROWS:,} rows)")
+        rows: list[list[str]] = []
         with open(path, newline="", encoding="utf-8-sig") as f:
-            reader = csv.reader(f)
-            rows = list(itertools.islice(reader, MAX_CSV_ROWS + 1))  # memory bounded before any check
-        if len(rows) > MAX_CSV_ROWS:
-            raise ValueError(f"{path}: more than {MAX_CSV_ROWS:,} rows, more than a {what} may have")
+            reader = csv.reader(f, strict=True)
+            for row in reader:  # memory bounded before any check
+                if reader.line_num != len(rows) + 1:
+                    raise csv.Error("a line break in a field")
+                rows.append(row)
+                if len(rows) > MAX_CSV_ROWS:
+                    raise ValueError(f"{path}: more than {MAX_CSV_ROWS:,} rows, more than a {what} may have")
         return rows
     except OSError as exc:
         raise ValueError(f"cannot read {what} {path}: {exc.strerror}") from None
     except UnicodeDecodeError:
         raise ValueError(f"{path}: not a UTF-8 text CSV") from None
     except csv.Error as exc:
-        raise ValueError(f"{path}: row {reader.line_num}: not a CSV table: {exc}") from None
+        row = len(rows) + 1
+        if reader.line_num > row:
+            why = f"a field runs over a line break into row {reader.line_num} (a quote left open?)"
+        elif "end of data" in str(exc):
+            why = "a quote left open (the file ends inside its field)"
+        else:
+            why = f"not a CSV table: {exc}" + (' (a quote inside a quoted field is written twice: "")'
+                                               if "expected after" in str(exc) else "")
+        raise ValueError(f"{path}: row {row}: {why}") from None
 
 
 _CSV_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")

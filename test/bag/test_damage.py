@@ -360,8 +360,8 @@ def test_a_metadata_yaml_that_cannot_be_written_is_one_line_and_leaves_no_partia
     monkeypatch.setattr(Path, "write_text", write_that_fills_the_disk)
     code, out, err = cli("bag", "repair", str(full))
     assert code == 2 and not out, (out, err)
-    assert err.splitlines() == [f"bev-mdo bag: error: {mcap}: the repair could not be written (No space left "
-                                f"on device); the bag is repaired (original kept as {mcap}.bak), its "
+    assert err.splitlines() == [f"bev-mdo bag: error: {full / 'metadata.yaml'}: the repair could not be written (No "
+                                f"space left on device); the bag is repaired (original kept as {mcap}.bak), its "
                                 "metadata.yaml is not"], err
     assert sorted(p.name for p in full.iterdir()) == ["full_0.mcap", "full_0.mcap.bak", "metadata.yaml"]
     assert (full / "metadata.yaml").read_bytes() == yaml_before and (full / "full_0.mcap.bak").read_bytes() == truncated
@@ -369,3 +369,16 @@ def test_a_metadata_yaml_that_cannot_be_written_is_one_line_and_leaves_no_partia
     monkeypatch.setattr(Path, "write_text", real_write_text)
     code, out, err = cli("bag", "repair", str(full))
     assert code == 0 and "metadata.yaml written" in out, (out, err)
+
+
+def test_a_metadata_yaml_that_is_a_folder_is_named_as_what_could_not_be_written(full, capsys):
+    """The line blamed full_0.mcap, which the repair had not touched."""
+    (full / "metadata.yaml").unlink()
+    (full / "metadata.yaml").mkdir()
+    before = (full / "full_0.mcap").read_bytes()
+    code, out, err = cli("bag", "repair", str(full))
+    assert code == 2 and not out and err.splitlines() == [
+        f"bev-mdo bag: error: {full / 'metadata.yaml'}: the repair could not be written (Is a directory); "
+        "the bag is unchanged"], err
+    assert (full / "full_0.mcap").read_bytes() == before and sorted(p.name for p in full.iterdir()) == [
+        "full_0.mcap", "metadata.yaml"]

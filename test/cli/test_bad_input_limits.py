@@ -148,6 +148,23 @@ def test_a_sweep_of_a_billion_points(tmp_path):
     _one_line_exit_2(p, "at most")
 
 
+def test_a_multistart_of_a_billion_starts(tmp_path):
+    """--starts 100000000 ran 9 s, then a MemoryError (exit 7): the sample alone was 2.4 GB."""
+    p = _bev_mdo(tmp_path, "optimize", str(REPO / "config" / "leaf_nedc.yaml"), "--starts", "1000000000",
+                 "--transport", "inprocess", "--no-record")
+    _one_line_exit_2(p, "--starts 1000000000: at most 10,000")
+
+
+@pytest.mark.parametrize("command", [["optimize", "--starts", "3"], ["sweep", "--doe", "lhs", "--no-plots"],
+                                     ["pareto", "--pop", "4", "--generations", "1"],
+                                     ["sensitivity", "--global", "morris"]])
+def test_a_negative_seed_is_refused_naming_the_flag(tmp_path, command):
+    """numpy's "expected non-negative integer" named no flag (and came after the nodes had started)."""
+    p = _bev_mdo(tmp_path, command[0], str(REPO / "config" / "leaf_nedc.yaml"), *command[1:], "--seed", "-1",
+                 "--transport", "inprocess")
+    _one_line_exit_2(p, "argument --seed: -1: give a whole number >= 0")
+
+
 def test_a_bag_path_under_an_existing_file(tmp_path):
     (tmp_path / "afile").write_text("x")
     p = _bev_mdo(tmp_path, "optimize", str(REPO / "config" / "leaf_nedc.yaml"), "--transport", "inprocess",

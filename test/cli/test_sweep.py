@@ -143,6 +143,24 @@ def test_compare_shows_differences_from_the_first_design(capsys):
     assert rc == 0 and "Δ 2−1" in out and "+10 (+12.5 %)" in out
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_compare_of_designs_that_all_fail_warns_of_nothing(capsys, tmp_path):
+    """np.nanmax of a row failed in every design put "RuntimeWarning: All-NaN slice encountered" on stderr."""
+    import yaml
+
+    sellar = ROOT / "examples" / "sellar"
+    raw = yaml.safe_load((sellar / "sellar_mdf.yaml").read_text())
+    raw["search_path"] = [str(sellar), str(ROOT / "test" / "data" / "user_modules")]
+    raw["disciplines"].append({"name": "raises", "class": "bad_disciplines:Raises"})
+    cfg = tmp_path / "sellar.yaml"
+    cfg.write_text(yaml.safe_dump(raw))
+    rc = main(["compare", str(cfg), "--design", "x=1", "--design", "x=2", "--transport", "inprocess"])
+    out, err = capsys.readouterr()
+    assert rc == 0 and err == "", err
+    row = next(line for line in out.splitlines() if line.startswith("│ w "))
+    assert row.split("│")[3].strip() == "nan", row
+
+
 def test_compare_gives_a_model_parameters_unit(capsys):
     """load_kg varied between two designs had an empty unit column, every other row a unit."""
     rc = main(["compare", CONFIG, "--design", "motor_kw=80,load_kg=75", "--design", "motor_kw=80,load_kg=1000",

@@ -232,6 +232,13 @@ def test_plot_into_a_file_is_one_line_exit_2(capsys, tmp_path):
     (lambda raw: raw.replace(b"BMW", b"B" * 200_000, 1), "row 2: not a CSV table: field larger than field limit"),
     # UTF-16 without a BOM decodes as UTF-8 with NULs: it said "row 1: missing column rated_power_kw"
     (lambda raw: raw.decode().encode("utf-16-le"), "not a UTF-8 text CSV (NUL bytes"),
+    # a quote left open merged row 2 with row 3 (61 of 62 vehicles, row 3's values under row 2's name): exit 0
+    (lambda raw: raw.replace(b'(18"" Wheels)"', b'(18 Wheels)', 1),
+     "row 2: a field runs over a line break into row 3 (a quote left open?)"),
+    (lambda raw: raw.replace(b'(18"" Wheels)', b'(18""\nWheels)', 1), "row 2: a field runs over a line break into row 3"),
+    (lambda raw: raw + b'BMW,"i4', "row 64: a quote left open (the file ends inside its field)"),
+    # a quote closed inside a field was kept as a character, the rest of the field glued on
+    (lambda raw: raw.replace(b'(18"" Wheels)', b'(18" Wheels)', 1), "row 2: not a CSV table: ',' expected after"),
 ])
 def test_a_file_that_is_not_a_csv_table_is_one_line(capsys, tmp_path, content, expect):
     p = tmp_path / "odd.csv"

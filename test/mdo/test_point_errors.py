@@ -4,7 +4,7 @@ back: a failing point among several is named by its index in the caller's batch 
 import numpy as np
 import pytest
 
-from bev_mdo.mdo.discipline import EvalResult, PointError, join_errors, run_discipline
+from bev_mdo.mdo.discipline import Discipline, EvalResult, PointError, join_errors, run_discipline
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 from bev_mdo.mdo.mda import MDA
 from flow_toys import LOOP_X, Square, chain, loop  # test/mdo is on sys.path (conftest.py)
@@ -19,6 +19,21 @@ def test_one_call_names_each_failed_point_by_its_index():
                                 3: PointError("square: ValueError: x must be >= 0", "x=-4")}
     assert res.error == ("square: ValueError: x must be >= 0 at point 1 (x=-2); "
                          "square: ValueError: x must be >= 0 at point 3 (x=-4)")
+
+
+def test_a_complex_output_fails_its_points_with_one_line_not_a_warning(recwarn):
+    """It was cast to float with a numpy ComplexWarning on stderr: the imaginary part dropped, the point kept."""
+    class Root(Discipline):
+        name, inputs, outputs = "root", ("x",), ("y",)
+
+        def compute(self, inputs):
+            return {"y": np.sqrt(inputs["x"] + 0j)}
+
+    res = run_discipline(Root(), {"x": np.array([-4.0, 9.0])})
+    assert res.ok.tolist() == [False, False] and np.isnan(res.outputs["y"]).all()
+    assert res.point_errors[0] == PointError("root: ValueError: output 'y' is complex, e.g. 2j: return real numbers",
+                                             "x=-4")
+    assert not [w for w in recwarn if issubclass(w.category, np.exceptions.ComplexWarning)]
 
 
 def test_a_renumbered_result_moves_its_point_errors_and_text():

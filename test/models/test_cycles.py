@@ -1,3 +1,5 @@
+import re
+
 import numpy as np
 import pytest
 
@@ -70,6 +72,18 @@ def test_csv_errors_name_file_and_row(tmp_path, body, row):
         read_cycle_csv(p)
     said = str(e.value)
     assert "bad_cycle.csv" in said and (f"row {row}:" in said or f"row {row}, column " in said if row else "at least 2" in said)
+
+
+@pytest.mark.parametrize("body,expect", [
+    # the quoted field took the line break and the next row, csv_number stripped it: read as 0,0 1,2 3,4
+    ('time_s,speed_kmh\n0,0\n1,"2\n"\n3,4\n', "row 3: a field runs over a line break into row 4"),
+    ('time_s,speed_kmh\n0,0\n1,"2', "row 3: a quote left open (the file ends inside its field)"),
+])
+def test_a_field_over_a_line_break_or_a_quote_left_open_is_refused(tmp_path, body, expect):
+    p = tmp_path / "quoted.csv"
+    p.write_text(body)
+    with pytest.raises(ValueError, match=f"quoted\\.csv: {re.escape(expect)}"):
+        read_cycle_csv(p)
 
 
 def test_csv_roundtrip(tmp_path):
