@@ -150,7 +150,19 @@ def install() -> dict:
     previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, _handler(Terminated))}
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         previous[signal.SIGINT] = signal.signal(signal.SIGINT, _handler(KeyboardInterrupt))
+    previous["unraisablehook"], sys.unraisablehook = sys.unraisablehook, _quiet_when_pending(sys.unraisablehook)
     return previous
+
+
+def _quiet_when_pending(hook):
+    """``sys.unraisablehook`` without the traceback of a signal's exception that a callback swallowed ("Exception
+    ignored on calling ctypes callback function": numba's compiler, through llvmlite): the signal is pending, and
+    its one line ends the command. Anything else goes to ``hook``."""
+    def unraisable(u) -> None:
+        if not (isinstance(u.exc_value, KeyboardInterrupt) and _pending is not None):
+            hook(u)
+
+    return unraisable
 
 
 def restore(previous: dict) -> None:
@@ -158,7 +170,10 @@ def restore(previous: dict) -> None:
     without handlers, would raise it again at its first ``check``)."""
     global _pending
     for signum, handler in previous.items():
-        signal.signal(signum, handler)
+        if signum == "unraisablehook":
+            sys.unraisablehook = handler
+        else:
+            signal.signal(signum, handler)
     _pending = None
     _taken.clear()
 

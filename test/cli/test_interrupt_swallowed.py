@@ -10,6 +10,7 @@ SIGTERM). Here the signal's handler is called at the step named, as the signal w
 """
 from __future__ import annotations
 
+import ctypes
 import signal
 
 import pytest
@@ -35,11 +36,9 @@ def _signal(sig) -> None:
 
 
 def _swallowed(sig) -> None:
-    """The signal, taken where a callback swallows what its handler raises (a ctypes callback, a bare except)."""
-    try:
-        _signal(sig)
-    except KeyboardInterrupt:
-        pass
+    """The signal, taken in a ctypes callback, which swallows what its handler raises (Python prints "Exception
+    ignored on calling ctypes callback function"), as numba's compiler calls llvmlite's."""
+    ctypes.CFUNCTYPE(None)(lambda: _signal(sig))()
 
 
 def _main(argv) -> int:
@@ -119,3 +118,22 @@ def test_a_command_whose_end_is_a_signal_keeps_its_status(monkeypatch, capsys):
     monkeypatch.setattr(recorder_node, "main", recording)
     monkeypatch.setattr("bev_mdo.cli.record._join_domain", lambda args: None)
     assert _main(["record"]) == 0
+
+
+def test_a_signal_a_callback_swallowed_prints_no_traceback_but_other_errors_do(monkeypatch):
+    """Python prints "Exception ignored on calling ctypes callback function ... KeyboardInterrupt" with a traceback
+    (sys.unraisablehook) before the command's own line: not for a signal, which is pending and ends the command."""
+    import sys
+
+    from bev_mdo import interrupts
+
+    seen = []
+    monkeypatch.setattr(sys, "unraisablehook", lambda u: seen.append(type(u.exc_value).__name__))
+    previous = interrupts.install()
+    try:
+        ctypes.CFUNCTYPE(None)(lambda: 1 / 0)()  # not a signal: as before
+        _swallowed(signal.SIGINT)
+        assert interrupts.pending() is KeyboardInterrupt
+    finally:
+        interrupts.restore(previous)
+    assert seen == ["ZeroDivisionError"]
