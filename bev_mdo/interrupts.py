@@ -155,11 +155,12 @@ def install() -> dict:
 
 
 def _quiet_when_pending(hook):
-    """``sys.unraisablehook`` without the traceback of a signal's exception that a callback swallowed ("Exception
-    ignored on calling ctypes callback function": numba's compiler, through llvmlite): the signal is pending, and
-    its one line ends the command. Anything else goes to ``hook``."""
+    """``sys.unraisablehook`` silent once a signal fired: the signal's exception that a callback swallowed
+    ("Exception ignored on calling ctypes callback function": numba's compiler, through llvmlite), and what objects
+    the signal left half-made say as they are collected (llvmlite's ``ObjectRef.__del__``: "AttributeError: ... no
+    attribute '_as_parameter_'"), are no traceback: the signal's one line ends the command. Before, ``hook``."""
     def unraisable(u) -> None:
-        if not (isinstance(u.exc_value, KeyboardInterrupt) and _pending is not None):
+        if _pending is None:
             hook(u)
 
     return unraisable

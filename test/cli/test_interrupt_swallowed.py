@@ -120,9 +120,11 @@ def test_a_command_whose_end_is_a_signal_keeps_its_status(monkeypatch, capsys):
     assert _main(["record"]) == 0
 
 
-def test_a_signal_a_callback_swallowed_prints_no_traceback_but_other_errors_do(monkeypatch):
-    """Python prints "Exception ignored on calling ctypes callback function ... KeyboardInterrupt" with a traceback
-    (sys.unraisablehook) before the command's own line: not for a signal, which is pending and ends the command."""
+def test_a_signal_a_callback_swallowed_prints_no_traceback(monkeypatch):
+    """Python printed "Exception ignored on calling ctypes callback function ... KeyboardInterrupt" with a traceback
+    (sys.unraisablehook) before the command's own line, and after it what objects the signal left half-made said
+    as they were collected (llvmlite: "Exception ignored in: <function ObjectRef.__del__ ...> AttributeError").
+    Once a signal fired it ends the command with its one line; before, such an error is printed as ever."""
     import sys
 
     from bev_mdo import interrupts
@@ -134,6 +136,7 @@ def test_a_signal_a_callback_swallowed_prints_no_traceback_but_other_errors_do(m
         ctypes.CFUNCTYPE(None)(lambda: 1 / 0)()  # not a signal: as before
         _swallowed(signal.SIGINT)
         assert interrupts.pending() is KeyboardInterrupt
+        ctypes.CFUNCTYPE(None)(lambda: 1 / 0)()  # (a finaliser of something the signal cut short)
     finally:
         interrupts.restore(previous)
     assert seen == ["ZeroDivisionError"]
