@@ -3,9 +3,14 @@
 The CLI turns both signals into exceptions raised in the main thread (KeyboardInterrupt, and
 ``Terminated`` for SIGTERM), so every ``finally`` runs and a run's bag is closed. A library that wraps
 a line in a bare ``except:`` (pymoo does, around a hash and a dtype cast it runs per individual)
-swallows the exception when the signal lands there, and the run goes on. So the handler also keeps
-the signal as pending, and the engine's loops call ``check()`` once per batch: a swallowed signal is
-raised again at the next batch.
+swallows the exception when the signal lands there, and the run goes on; so does a ctypes callback (numba's
+compiler, through llvmlite: "Exception ignored on calling ctypes callback"). So the handler also keeps
+the signal as pending, and the engine's loops (and calibrate's fit) call ``check()`` once per batch: a
+swallowed signal is raised again at the next batch, and at the latest when the command returns, which then
+ends as interrupted (the CLI; a command whose normal end is a signal, ``record`` and ``node``, calls ``clear``).
+Whatever exception surfaces once a signal fired (compiled code's "SystemError: ... returned a result with an
+exception set", an import cut short: "ImportError: initialization failed") is the signal's: the CLI ends with
+its ``interrupted`` line, not with an error.
 
 What the CLI says when a signal stops it (``interrupted_lines``) follows what is on disk and on screen, not
 where in the code the signal landed: once a run has its bag (``note_bag``) the line names it and what it
@@ -145,12 +150,40 @@ def install() -> dict:
     previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, _handler(Terminated))}
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         previous[signal.SIGINT] = signal.signal(signal.SIGINT, _handler(KeyboardInterrupt))
+    previous["unraisablehook"], sys.unraisablehook = sys.unraisablehook, _quiet_when_pending(sys.unraisablehook)
     return previous
 
 
+def _quiet_when_pending(hook):
+    """``sys.unraisablehook`` silent once a signal fired: the signal's exception that a callback swallowed
+    ("Exception ignored on calling ctypes callback function": numba's compiler, through llvmlite), and what objects
+    the signal left half-made say as they are collected (llvmlite's ``ObjectRef.__del__``: "AttributeError: ... no
+    attribute '_as_parameter_'"), are no traceback: the signal's one line ends the command. Before, ``hook``."""
+    def unraisable(u) -> None:
+        if _pending is None:
+            hook(u)
+
+    return unraisable
+
+
 def restore(previous: dict) -> None:
+    """The handlers ``install`` replaced, back; a signal they took is forgotten (a later run in this process,
+    without handlers, would raise it again at its first ``check``)."""
+    global _pending
     for signum, handler in previous.items():
-        signal.signal(signum, handler)
+        if signum == "unraisablehook":
+            sys.unraisablehook = handler
+        else:
+            signal.signal(signum, handler)
+    _pending = None
+    _taken.clear()
+
+
+def clear() -> None:
+    """The signal taken was the command's normal end (``record``: the end of the recording, ``node``: of the
+    node's service, both exit 0), not an interruption to raise again."""
+    global _pending
+    _pending = None
 
 
 def pending() -> type[BaseException] | None:

@@ -62,19 +62,17 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
     starts = _starts(opts, x0)  # a bad start count is refused before anything starts or is written
     t_start = time.perf_counter()
     show = callback or (lambda rec: None)
-    if opts.uses_ros:
-        result, baseline, extra = _run_ros(config, opts, show, x0, starts)
-    else:
-        result, baseline, extra = _run_inprocess(config, opts, show, x0, starts)
     from bev_mdo.api import runbag  # end-of-run answers: in the result, stored with the bag
 
-    try:
+    # an in-process bag is closed however the run ends: by runbag.finish with the answers, or on the way out of a
+    # signal or failure at any step before (without them), from the moment it is opened (in_process_bag)
+    with contextlib.ExitStack() as closing:
+        if opts.uses_ros:
+            result, baseline, extra = _run_ros(config, opts, show, x0, starts)
+        else:
+            result, baseline, extra = _run_inprocess(config, opts, show, x0, starts, closing)
         _check_follows(config, result, baseline)
         runbag.finish(config, result, extra)
-    except BaseException:  # a signal (or a failure) before the result is stored: an in-process bag is closed without it
-        if extra.get("_bag_writer") is not None:
-            extra["_bag_writer"].close()
-        raise
     extra = {k: v for k, v in extra.items() if not k.startswith("_")}
     extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
     return {**result, "baseline": baseline, **extra}
@@ -99,28 +97,23 @@ def _check_follows(config, result: dict, baseline: dict | None) -> None:
     result["first_order"] = {**result["first_order"], "verdict": INFEASIBLE, "cannot_follow": lines}
 
 
-def _run_inprocess(config, opts, show, x0, starts):
+def _run_inprocess(config, opts, show, x0, starts, closing: contextlib.ExitStack):
     from bev_mdo.api.failures import NamingInProcessEvaluator
     from bev_mdo.api.runbag import in_process_bag
     from bev_mdo.mdo.driver import run_optimization
     from bev_mdo.sessions import analyse_baseline
 
     ev = NamingInProcessEvaluator(config.timed_disciplines())  # prepared before the optimiser's clock, as over ROS
-    bag, writer, show = in_process_bag(config, opts, show)  # a bag only when one is asked for
-    try:
-        if starts != 1:
-            from bev_mdo.mdo.multistart import run_starts
+    bag, writer, show = in_process_bag(config, opts, show, closing)  # a bag only when one is asked for
+    if starts != 1:
+        from bev_mdo.mdo.multistart import run_starts
 
-            res = run_starts(config.settings, ev, starts, seed=opts.seed,
-                             formulation=opts.formulation, optimizer=opts.optimizer, callback=show)
-        else:
-            res = run_optimization(config.settings, ev, formulation=opts.formulation,
-                                   optimizer=opts.optimizer, x0=x0, callback=show)
-        baseline = analyse_baseline(config, NamingInProcessEvaluator(config.timed_disciplines(), errors=ev.errors))
-    except BaseException:  # SIGINT, SIGTERM, a failure: the bag keeps every finished iteration
-        if writer is not None:
-            writer.close()
-        raise
+        res = run_starts(config.settings, ev, starts, seed=opts.seed,
+                         formulation=opts.formulation, optimizer=opts.optimizer, callback=show)
+    else:
+        res = run_optimization(config.settings, ev, formulation=opts.formulation,
+                               optimizer=opts.optimizer, x0=x0, callback=show)
+    baseline = analyse_baseline(config, NamingInProcessEvaluator(config.timed_disciplines(), errors=ev.errors))
     out = res.to_dict()
     out.pop("history")
     extra = {"transport": "inprocess", **({"bag": bag} if bag else {}), "_bag_writer": writer}

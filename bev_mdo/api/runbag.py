@@ -153,15 +153,17 @@ def interrupted_note(bag, kind: str = "iteration") -> str:
     return f"bag {bag}: {records} {noun}{'' if records == 1 else 's'}, {holds}"
 
 
-def in_process_bag(config: Mapping[str, Any], opts, show):
-    """(bag path or None, writer or None, iteration callback) for an in-process run: a bag only with --bag."""
+def in_process_bag(config: Mapping[str, Any], opts, show, closing: contextlib.ExitStack):
+    """(bag path or None, writer or None, iteration callback) for an in-process run: a bag only with --bag. The
+    writer is closed as ``closing`` ends (the run's, whatever ends it), from the moment it exists."""
     if opts.no_record or not opts.bag:
         return None, None, show
     import uuid
 
     # as over ROS (the writer refused only a bag in the folder itself); claimed until the bag's file exists
-    with claim_new_bag(Path(opts.bag), opts.bag_flag):
+    with claim_new_bag(Path(opts.bag), opts.bag_flag), interrupts.deferred():  # no signal between open and closing
         writer = InProcessBag(Path(opts.bag), config, uuid.uuid4().hex[:16])
+        closing.callback(writer.close)
         interrupts.note_bag(lambda: interrupted_note(opts.bag))  # a signal from now on: what the bag holds
 
     def callback(rec):

@@ -187,9 +187,14 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str], process: bool = False) -> int:
-    parser = build_parser(argv)
-    args = parser.parse_args(argv)
-    status = _run(args, process)
+    try:
+        args = build_parser(argv).parse_args(argv)  # imports the subcommand's module: numpy, scipy, ... (0.1-0.6 s)
+    except (KeyboardInterrupt, Exception) as exc:  # a signal during the imports: its line, not a traceback
+        if not isinstance(exc, KeyboardInterrupt) and interrupts.pending() is None:
+            raise  # a subcommand module that fails to import raises
+        status = _interrupted(exc)
+    else:
+        status = _run(args, process)
     if process:  # (after a failure's or a signal's line) from here on a signal ends the process at once, with a line
         interrupts.work_done(status)
     return status
@@ -200,27 +205,39 @@ def _run(args, process: bool = False) -> int:
     try:
         with _notes_to_stderr(args.command):
             status = int(args.func(args) or 0)
+        interrupts.check()  # a signal that code on the way swallowed (a ctypes callback, a bare except) is not lost
         sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
         if process:  # the output is written: from here on a signal ends the process at once, with a line (a signal
             interrupts.work_done(status)  # taken before, up to work_done's first line, is caught just below)
         return status
     except KeyboardInterrupt as exc:  # SIGINT, or Terminated (SIGTERM): what the bag holds, what was printed
-        for line in interrupts.interrupted_lines(exc):
-            print(line, file=sys.stderr)
-        return 143 if isinstance(exc, Terminated) else 130
-    except BrokenPipeError:
-        return _closed_pipe()
+        return _interrupted(exc)
     except SystemExit as exc:  # rich's Console ends a write into a closed pipe with SystemExit(1)
         if isinstance(exc.__context__, BrokenPipeError):
             return _closed_pipe()
         raise
-    except (ValueError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:  # InputError: a user mistake
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        print(f"bev-mdo {args.command}: error: {msg}", file=sys.stderr)
-        return STARTUP_GAVE_UP_STATUS if isinstance(exc, StartupGaveUp) else 2
-    except Exception as exc:  # noqa: BLE001 - the run itself failed (e.g. its optimiser raised): one line, named
-        print(f"bev-mdo {args.command}: error: {_named(exc)}", file=sys.stderr)
+    except Exception as exc:  # noqa: BLE001 - a user mistake, or a failure: one line
+        if interrupts.pending() is not None:  # what a signal left behind (compiled code's SystemError, a cut import)
+            return _interrupted(exc)
+        if isinstance(exc, BrokenPipeError):
+            return _closed_pipe()
+        if isinstance(exc, (ValueError, FileNotFoundError, IsADirectoryError, PermissionError)):  # a user mistake
+            msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            print(f"bev-mdo {args.command}: error: {msg}", file=sys.stderr)
+            return STARTUP_GAVE_UP_STATUS if isinstance(exc, StartupGaveUp) else 2
+        print(f"bev-mdo {args.command}: error: {_named(exc)}", file=sys.stderr)  # the run failed (its optimiser raised)
         return RUN_FAILED_STATUS
+
+
+def _interrupted(exc: BaseException) -> int:
+    """The end of a command a signal stopped: its lines on stderr (what the bag holds, what was printed), exit status
+    130, or 143 for SIGTERM. ``exc``: the signal's exception, or whatever surfaced after the signal fired (a
+    SystemError of compiled code whose callback it cut, an ImportError of a module whose initialisation it cut)."""
+    if not isinstance(exc, KeyboardInterrupt):
+        exc = interrupts.pending()()
+    for line in interrupts.interrupted_lines(exc):
+        print(line, file=sys.stderr)
+    return 143 if isinstance(exc, Terminated) else 130
 
 
 RUN_FAILED_STATUS = 7  # an unexpected error stopped the command (a bag is closed with every finished iteration)

@@ -45,4 +45,8 @@ def run(args) -> int:
     node_name = f"{args.name}_node" + (f"_{args.instance}" if args.instance else "")
     ros_args = ["--ros-args", "-p", f"config:={os.path.abspath(path)}", "-p", f"discipline:={args.name}",
                 "-r", f"__node:={node_name}"]
-    return main(ros_args, discipline=args.name, config=config)
+    status = main(ros_args, discipline=args.name, config=config)
+    from bev_mdo import interrupts
+
+    interrupts.clear()  # Ctrl-C or SIGTERM is how a node's service ends (exit 0), not an interruption
+    return status

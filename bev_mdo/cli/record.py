@@ -35,7 +35,11 @@ def run(args) -> int:
     if args.run_id:
         argv += ["--run-id", args.run_id]
     _join_domain(args)
-    return main(argv)
+    status = main(argv)
+    from bev_mdo import interrupts
+
+    interrupts.clear()  # Ctrl-C or SIGTERM is how a recording ends (exit 0, as for `ros2 bag record`)
+    return status
 
 
 def _join_domain(args) -> None:

@@ -22,6 +22,8 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import OptimizeResult, least_squares
 
+from bev_mdo import interrupts
+
 from . import fleet as fl
 from .fleet import group_folds  # noqa: F401 - the fold rule, also used by models/baselines.py and scripts
 from .params import CHAIN_SPECS, PARAMETER_SET_DIR, QUASI_STATIC_SPECS, all_specs, is_parameter_set_file
@@ -106,6 +108,7 @@ def _spec(model: str):
 
 
 def residuals(x: np.ndarray, names, fleet: fl.Fleet, mask: np.ndarray, cycles: dict, model: str) -> np.ndarray:
+    interrupts.check()  # a Ctrl-C or SIGTERM that numba's compiler swallowed (a ctypes callback) stops the fit here
     energy_model, fixed, _, _ = _spec(model)
     pred = fl.predict(fleet, energy_model, {**fixed, **dict(zip(names, x))}, cycles)
     return np.concatenate([pred[c]["energy_wh_per_km"][mask] / fleet.measured[c][mask] - 1.0 for c in fl.CYCLES])
@@ -420,6 +423,7 @@ def run(args) -> int:
                 f"{k.replace('epa_', '')} n={s['n']} slope {s['slope_through_origin']:.2f}, mean |diff| "
                 f"{s['mean_abs_diff_points']:.2f} points" for k, s in pairs.items() if s["n"]))
     if args.write:
+        interrupts.check()  # a signal swallowed since the last fit: no set written as if the run had ended
         try:
             print("wrote", write_parameter_set(f, cv, cv_make, fleet, path, model=model))
         except OSError as exc:

@@ -4,7 +4,9 @@ Once the run has its bag, a signal before the result is stored ends with `bev-md
 bag holds; once the result is stored with it, with one line saying the bag is complete and whether the result
 was printed. It once depended on where in the code the signal landed: a bare `bev-mdo: interrupted` in the
 steps between the run and the answers (the baseline in process, the cycle check, over ROS the run's
-summary), though the bag held every iteration, and `... while the result was printed` before a line of it
+summary), though the bag held every iteration; in process, one between the run's own steps and the answers' (the
+result turned into its document) left the bag unclosed, no metadata.yaml, though the line said it held them;
+and `... while the result was printed` before a line of it
 was (a signal while rich was imported, or while it rendered the table). The signal is raised here, in process, from the step named.
 """
 from __future__ import annotations
@@ -46,7 +48,8 @@ def _bag_holds(bag, records):
                                                       ("rich.table.Table", "__rich_console__", _result_not_printed),
                                                       ("bev_mdo.api.runbag", "answers", _bag_holds),
                                                       ("bev_mdo.api.optimize", "_check_follows", _bag_holds),
-                                                      ("bev_mdo.sessions", "analyse_baseline", _bag_holds)])
+                                                      ("bev_mdo.sessions", "analyse_baseline", _bag_holds),
+                                                      ("bev_mdo.mdo.driver.RunResult", "to_dict", _bag_holds)])
 def test_a_signal_at_the_end_of_a_run_closes_the_bag_and_names_it(tmp_path, monkeypatch, capsys, module, step,
                                                                   last_lines):
     def ctrl_c(*a, **k):
