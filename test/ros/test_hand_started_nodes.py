@@ -88,3 +88,4 @@ def test_the_recorder_reads_a_relative_key_from_the_configs_folder(tmp_path, mon
     signer = _signer_of("ros: {sign_key_file: sign.key}\n", tmp_path / "run")
     assert isinstance(signer, Signer)
     assert _signer_of("ros: {}\n", tmp_path / "run") is None
+
