@@ -407,11 +407,13 @@ def kinks(form: Formulation, u: np.ndarray, f0: float, grad_max: float) -> list[
 def exit_status(doc: dict, fixed_budget: bool = False) -> int:
     """bev-mdo optimize's exit status of a run document (``RunResult.to_dict()`` and what the run adds), a
     hand-started coordinator_node's too: 0 an optimum (or, with ``fixed_budget``, any feasible end);
-    1 infeasible; 3 the recorder failed; 4 a discipline stopped answering; 5 feasible but not a verified optimum."""
+    1 infeasible; 3 the recorder failed; 4 a discipline stopped answering (before 1: a node killed while the start
+    point was evaluated left every point failed, and a script keyed on the status read it as an infeasible design);
+    5 feasible but not a verified optimum."""
     if doc.get("recorder_failed"):
         return 3
-    if not doc["feasible"]:
-        return 1
     if doc.get("unresponsive_disciplines"):
         return 4
+    if not doc["feasible"]:
+        return 1
     return 0 if doc["verdict"] == first_order.OPTIMUM or fixed_budget else 5

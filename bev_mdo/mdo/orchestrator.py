@@ -29,6 +29,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import itertools
+import secrets
 import time
 from collections import Counter
 from typing import Callable, Mapping, Sequence
@@ -71,7 +72,10 @@ class Orchestrator:
         self.first_errors: dict[str, str] = {}     # discipline -> its first error (shown once)
         self.accepted: list[tuple[int, str, str, int]] = []  # (evaluation id, discipline, instance, attempt)
         # ids, outstanding/answered/reassigned requests and why answers were dropped (ledger.py)
-        self.ledger: Ledger[retry.Sent] = Ledger(lambda p: p.request.header.frame_id)
+        # ids from a random start (below 2**52: exact as a float): two coordinators given one run id (by hand,
+        # -p run_id:= typed twice) each took the other's answers to its own ids 1, 2, ... (wrong results)
+        self.ledger: Ledger[retry.Sent] = Ledger(lambda p: p.request.header.frame_id,
+                                                 first_id=secrets.randbelow(2**52) + 1)
         self.dropped: Counter[str] = self.ledger.dropped  # other_run / stale / duplicate / malformed / ...
         self._pending = self.ledger.pending   # (evaluation id, discipline) -> outstanding retry.Sent
         self.retried = 0

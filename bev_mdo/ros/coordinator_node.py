@@ -166,6 +166,10 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
     try:
         names = list(config.names)
         node.evaluator.wait_for_disciplines(names, node.discovery_wait_s)
+        twins = [n for n, _ in node.get_node_names_and_namespaces() if n == node.get_name()]
+        if len(twins) > 1:  # by hand, -p run_id:= typed twice: each took the other's results (wrong answers)
+            raise ValueError(f"another coordinator runs run id {run_id!r} on this ROS domain (node {node.get_name()}): "
+                             "two runs of one run id take each other's results; give each its own -p run_id:=")
         for name, count in (instances or {}).items():  # a pool starts with all its instances (pool.py)
             if count > 1:
                 node.evaluator.wait_for_instances(name, count, node.discovery_wait_s)

@@ -91,6 +91,9 @@ class DisciplineNode(Node):
         config = self._apply_overrides(run_config)
         if alone:  # an override it does not declare (a misspelt vehicle.<key>) is refused, not ignored
             check_parameters(self._parameter_overrides, self._parameters, self.get_name())
+            if p["instance"] and p["instance"].lstrip("/") != self.get_name():  # the graph knows nodes by name
+                raise ValueError(f"-p instance:={p['instance']} does not rename the node (the coordinator looks for "
+                                 f"its name): start it with -r __node:={p['instance']} or bev-mdo node {name} --instance")
         self.discipline, producer = _build(config, name)
         self.discipline_name = name
         self.bound_run = p["run_id"]

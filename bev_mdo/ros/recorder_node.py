@@ -88,7 +88,7 @@ class RecorderNode(Node):
         if config_file and not config_yaml:
             config_yaml = Path(config_file).read_text(encoding="utf-8")
         self.binding = config_binding(config_yaml) if config_yaml else ""
-        self.signer = _signer_of(config_yaml)
+        self.signer = _signer_of(config_yaml, Path(config_file).parent if config_file else Path.cwd())
         self.other_run = 0  # messages of other runs, not recorded
         self._confirmed: dict[str, tuple] = {}  # topic -> (counts seen, publisher names matched, when)
         meta = {"run_id": run_id, "recorder": self.get_fully_qualified_name()}
@@ -330,8 +330,9 @@ def serve_until(node: "RecorderNode", stopped, idle_s: float = 0.05, timers_ever
         executor.shutdown()
 
 
-def _signer_of(config_yaml: str):
-    """The run's Signer from the stored config's ``ros.sign_key_file`` (None: not signing)."""
+def _signer_of(config_yaml: str, base: Path):
+    """The run's Signer from the stored config's ``ros.sign_key_file`` (None: not signing); a relative path
+    from ``base``, the config file's folder, as every node reads it (it was read from the working directory)."""
     if not config_yaml:
         return None
     import yaml
@@ -339,7 +340,8 @@ def _signer_of(config_yaml: str):
     from bev_mdo.protocol.signing import Signer
 
     ros = (yaml.safe_load(config_yaml) or {}).get("ros") or {}
-    return Signer.from_ros(ros) if ros.get("sign_key_file") else None
+    key = ros.get("sign_key_file")
+    return Signer.from_ros({**ros, "sign_key_file": str(base / Path(key).expanduser())}) if key else None
 
 
 def _hash_of(pubs) -> str | None:

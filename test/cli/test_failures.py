@@ -48,7 +48,7 @@ def test_a_discipline_that_never_returns_fails_after_the_ros_timeout_budget(tmp_
     # the budget applies to every discipline: 6 s, not a fraction of one, so that the built-in ones, slow on a
     # loaded host (a whole-suite run once saw energy pass 0.4 s), are never taken for hung ones
     p = _run(tmp_path, "hang", "Hang", {"timeout_s": 3.0, "retries": 1})
-    assert p.returncode == 1, p.stderr[-2000:]
+    assert p.returncode == 4, p.stderr[-2000:]  # a discipline stopped answering (every point failed: infeasible too)
     assert "discipline 'hang' failed:" in p.stderr and "no answer within 6 s" in p.stderr, p.stderr[-2000:]
     out = json.loads(p.stdout)
     assert "treated as hung" in out["discipline_errors"]["hang"]

@@ -228,3 +228,14 @@ def test_the_result_keeps_its_recorded_values_after_a_discipline_is_lost(monkeyp
     assert res.feasible and res.objective == pytest.approx(REF_F, rel=1e-6), res.message
     assert not any(math.isnan(v) for v in res.outputs.values()), res.outputs
     assert res.constraints["y1"]["satisfied"] and res.error == ""
+
+
+def test_a_discipline_that_stopped_answering_is_exit_4_even_when_the_end_is_infeasible():
+    """A node killed while the start point was evaluated: every point failed, the run infeasible. Exit 1 read
+    as an infeasible design to a script keyed on the status; the JSON said the node was unresponsive."""
+    from bev_mdo.mdo.driver import exit_status
+
+    doc = {"feasible": False, "verdict": "infeasible", "unresponsive_disciplines": ["thermal"]}
+    assert exit_status(doc) == 4
+    assert exit_status({**doc, "unresponsive_disciplines": []}) == 1
+    assert exit_status({**doc, "recorder_failed": "disk full"}) == 3

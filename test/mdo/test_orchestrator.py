@@ -211,3 +211,28 @@ def test_a_sub_run_ended_by_an_exception_restores_the_run():
             ev.evaluate([("square", {"x": X})])
             raise KeyboardInterrupt
     assert ev.run_id == "run" and not ev.counts and not ev.accepted
+
+
+def test_two_coordinators_of_one_run_id_take_only_their_own_answers():
+    """Two coordinators started by hand with one run id (-p run_id:=by_hand twice) on one domain: every answer
+    reaches both, and each took the other's answer to its own evaluation 1 (a start point reported at 103.027
+    Wh/km where it is 100.540). Their ids now start at random: the other's answers are stale, not taken."""
+    bus: list = []
+
+    class Shared(MemoryTransport):  # one bus, as a ROS topic: each sees every request answered
+        def _send(self, p):
+            self.sent += 1
+            bus.append((p.request, p.target))
+
+        def _take_until(self, deadline, once=False):
+            for req, _ in list(bus):
+                p = self.ledger.match(req.evaluation_id, req.discipline, req.header.frame_id)
+                if p is not None:
+                    res = self.engine.evaluate([(req.discipline, req.batch)])[0]
+                    self._accept((req.evaluation_id, req.discipline), p, res, f"{req.discipline}_node")
+
+    a, b = Shared([Square()], retries=0), Shared([Square()], retries=0)
+    a._send(SimpleNamespace(request=a._request(a.ledger.new_id(), "square", {"x": X}, a._tag(["square"])),
+                            target=None))  # A's request is on the bus, unanswered
+    (got,) = b.evaluate([("square", {"x": 2 * X})])
+    assert np.array_equal(got.outputs["y"], (2 * X) ** 2), got.outputs

@@ -72,3 +72,20 @@ def test_a_coordinator_signalled_while_it_waits_ends_with_one_line(ros_domain, l
     assert p.returncode == status and "Traceback" not in err and not out, (p.returncode, err[-3000:])
     assert err.strip().splitlines()[-1] == "coordinator_node: interrupted", err[-3000:]
     assert err.count("coordinator_node: interrupted") == 1
+
+
+def test_the_recorder_reads_a_relative_key_from_the_configs_folder(tmp_path, monkeypatch):
+    """README: relative paths count from the config's folder, and the discipline nodes and the coordinator
+    read the key so; the recorder read it from its working directory ('cannot read', exit 2, and the
+    coordinator gave up after 30 s: 'the run's recorder did not declare itself')."""
+    from bev_mdo.protocol.signing import Signer
+    from bev_mdo.ros.recorder_node import _signer_of
+
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "sign.key").write_bytes(b"k" * 32)
+    (tmp_path / "run" / "sign.key").chmod(0o600)
+    monkeypatch.chdir(tmp_path)  # not the config's folder
+    signer = _signer_of("ros: {sign_key_file: sign.key}\n", tmp_path / "run")
+    assert isinstance(signer, Signer)
+    assert _signer_of("ros: {}\n", tmp_path / "run") is None
+

@@ -128,7 +128,11 @@ def test_a_node_interrupted_while_loading_ends_with_one_line(exe, phase, sig, st
     ("vehicle.drag_aera_m2:=0.6", "parameter vehicle.drag_aera_m2: energy_node has no such parameter; "
                                   "did you mean vehicle.drag_area_m2?"),
     ("cnfig:=x.yaml", "parameter cnfig: energy_node has no such parameter; did you mean config?"),
-    ("vehicle.aux_power_w:=400", "it overrides only the vehicle values its config sets")])
+    ("vehicle.aux_power_w:=400", "it overrides only the vehicle values its config sets"),
+    # docs/ros2-run.md offered -p instance:= for a second instance; the coordinator, which finds instances by
+    # node name, then said "7 of 7 declared" and "not found on ROS domain" (exit 6)
+    ("instance:=energy_b", "does not rename the node (the coordinator looks for its name): start it with "
+                           "-r __node:=energy_b or bev-mdo node energy --instance")])
 def test_a_parameter_the_node_does_not_declare_is_one_line_exit_2(ros_domain, param, words):
     """rclpy keeps an undeclared override without a word: a misspelt vehicle.drag_aera_m2 left the node
     serving the config's drag area, with the unchanged fingerprint."""
