@@ -72,16 +72,9 @@ def test_bad_input_is_one_line_exit_2(capsys, argv, msg):
     assert code == 2 and msg in err and err.count("\n") == 1
 
 
-def test_json_of_a_failed_evaluation_is_strict_with_null(capsys, tmp_path):
+def test_json_of_a_failed_evaluation_is_strict_with_null(capsys, sellar_raising):
     """allow_nan=True wrote a failed evaluation's outputs as bare NaN, which is not JSON."""
-    import yaml
-
-    sellar = ROOT / "examples" / "sellar"
-    raw = yaml.safe_load((sellar / "sellar_mdf.yaml").read_text())
-    raw["search_path"] = [str(sellar), str(ROOT / "test" / "data" / "user_modules")]
-    raw["disciplines"].append({"name": "raises", "class": "bad_disciplines:Raises"})
-    cfg = tmp_path / "sellar.yaml"
-    cfg.write_text(yaml.safe_dump(raw))
+    cfg = sellar_raising
     code, out, _ = run(capsys, cfg, "--json")
 
     def refuse(word):

@@ -144,16 +144,9 @@ def test_compare_shows_differences_from_the_first_design(capsys):
 
 
 @pytest.mark.filterwarnings("error::RuntimeWarning")
-def test_compare_of_designs_that_all_fail_warns_of_nothing(capsys, tmp_path):
+def test_compare_of_designs_that_all_fail_warns_of_nothing(capsys, sellar_raising):
     """np.nanmax of a row failed in every design put "RuntimeWarning: All-NaN slice encountered" on stderr."""
-    import yaml
-
-    sellar = ROOT / "examples" / "sellar"
-    raw = yaml.safe_load((sellar / "sellar_mdf.yaml").read_text())
-    raw["search_path"] = [str(sellar), str(ROOT / "test" / "data" / "user_modules")]
-    raw["disciplines"].append({"name": "raises", "class": "bad_disciplines:Raises"})
-    cfg = tmp_path / "sellar.yaml"
-    cfg.write_text(yaml.safe_dump(raw))
+    cfg = sellar_raising
     rc = main(["compare", str(cfg), "--design", "x=1", "--design", "x=2", "--transport", "inprocess"])
     out, err = capsys.readouterr()
     assert rc == 0 and err == "", err
