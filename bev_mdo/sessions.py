@@ -89,6 +89,7 @@ class OptimizeRosSession:
         from bev_mdo.launcher import Launcher, prepare_run_dir, start_recorder
         from bev_mdo.ros.client import apply_ros_environment
         from bev_mdo.binding import config_binding
+        from bev_mdo.config.load import recorded_text
         from bev_mdo.ros_settings import ros_environment
 
         env = ros_environment(self.ros)
@@ -103,7 +104,7 @@ class OptimizeRosSession:
                 self.launcher.add(label, argv)
             if self.record:
                 self.recorder = start_recorder(self.launcher, self.bag, resolved, self.run_id)
-                self.recorder_binding = config_binding(resolved.read_text(encoding="utf-8"))
+                self.recorder_binding = config_binding(recorded_text(resolved))
             self.launcher.supervise(watch_hangs=True)
         except BaseException:
             self.launcher.stop(first=("recorder",))
@@ -317,6 +318,7 @@ class ParetoRosSession:
         from bev_mdo.launcher import Launcher, prepare_run_dir, start_recorder
         from bev_mdo.ros.pareto_publisher import RosSink
         from bev_mdo.binding import config_binding
+        from bev_mdo.config.load import recorded_text
         from bev_mdo.ros_settings import ros_environment
 
         apply_ros_environment(self.ros)
@@ -328,7 +330,7 @@ class ParetoRosSession:
         self._acks_needless = acks_needless(self.launcher)
         try:
             self.recorder = start_recorder(self.launcher, self.bag, resolved, self.run_id)
-            self.binding = config_binding(resolved.read_text(encoding="utf-8"))
+            self.binding = config_binding(recorded_text(resolved))
             self.launcher.supervise(watch_hangs=True)
             self.ctx = rclpy.context.Context()
             rclpy.init(context=self.ctx)

@@ -49,6 +49,16 @@ def _number(value, what: str) -> float:
     return float(value)
 
 
+def _seed(value) -> int:
+    """A seed as ``--seed`` takes it (models.common.check_seed); InputError naming it otherwise."""
+    from bev_mdo.models.common import check_seed
+
+    try:
+        return check_seed(value)
+    except ValueError as exc:
+        raise InputError(f"seed {exc}") from None
+
+
 def _name(value, what: str) -> str:
     if not isinstance(value, str):
         raise InputError(f"{what} must be a name, got {value!r}")
@@ -159,7 +169,7 @@ class Study:
         check_keys("", ros, own | {f.name for f in fields(optimize.OptimizeOptions)} - {f.name for f in fields(Transport)}
                    - {"quiet", "bag_flag", "progress_to_stderr"}, of="optimize()")
         opts = optimize.OptimizeOptions(**asdict(Transport.of(transport)), formulation=formulation, optimizer=optimizer,
-                                        starts=starts, seed=seed, bag=bag, quiet=True, **ros)
+                                        starts=starts, seed=_seed(seed), bag=bag, quiet=True, **ros)
         return OptimizeResult.of(optimize.run(self.config, opts, callback, dict(x0) if x0 else None))
 
     @_input_errors
@@ -184,7 +194,7 @@ class Study:
             if len({c.shape for c in cols.values()}) > 1 or any(c.ndim != 1 for c in cols.values()):
                 raise InputError("designs: give every variable's values as one list, all of the same length "
                                  f"(got {', '.join(f'{k}: {c.shape[0] if c.ndim == 1 else c.shape}' for k, c in cols.items())})")
-        cols = sampling.batch(self.config.problem, doe, samples, seed, cols, fixed)
+        cols = sampling.batch(self.config.problem, doe, samples, _seed(seed), cols, fixed)
         r = evaluate.batch(self.config, cols, Transport.of(transport))
         return SweepResult(r["design"], r["outputs"], r["margins"], r["feasible"], r["ok"], list(r["errors"]),
                            r["objective"], bool(getattr(r["problem"], "maximize", False)))
@@ -212,7 +222,7 @@ class Study:
         if method not in sensitivity.METHODS:
             raise InputError(f"--global {method!r}: allowed: {', '.join(sensitivity.METHODS)}")
         rep = sensitivity.run(self.config, _mapping(at, "at"), _names(wrt, "wrt"), Transport.of(transport), global_method=method,
-                              samples=samples, seed=seed, conf_level=conf_level)
+                              samples=samples, seed=_seed(seed), conf_level=conf_level)
         return GlobalSensitivityResult.of(rep)
 
     @_input_errors
@@ -223,6 +233,6 @@ class Study:
         ``problem.objectives``), written with its bag into ``out`` (default bags/<name>_pareto_<time>)."""
         from bev_mdo.api import pareto
 
-        doc, _ = pareto.run(self.config, _names(objectives, "objectives"), generations=generations, pop=pop, seed=seed, out=out,
+        doc, _ = pareto.run(self.config, _names(objectives, "objectives"), generations=generations, pop=pop, seed=_seed(seed), out=out,
                             transport=Transport.of(transport), instances=instances, plots=plots, source=self.source)
         return ParetoResult.of(doc)

@@ -4,6 +4,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 
 from bev_mdo.bag.errors import BagError
 from bev_mdo.bag.reader import Bag, open_bag
@@ -196,12 +197,24 @@ def check_note(checks: dict) -> str:
     return "; ".join(parts)
 
 
+def status(row: dict) -> str:
+    """"ok", or "failed" when the record's point has no value: its objective or a constraint is NaN (a
+    discipline raised or gave a non-finite output; the record keeps no reason)."""
+    values = [row["objective"], *row["constraints"].values()]
+    return "ok" if all(math.isfinite(v) for v in values) else "failed"
+
+
 def flat_rows(rows: list[dict]) -> list[dict]:
-    """Flatten nested design/constraints/evaluation counts into prefixed columns."""
+    """Flatten nested design/constraints/evaluation counts into prefixed columns; ``status`` after
+    ``feasible``."""
     flat = []
     for row in rows:
-        out = {k: v for k, v in row.items()
-               if k not in ("design", "couplings", "constraints", "discipline_evaluations", "log_time_ns")}
+        out = {}
+        for k, v in row.items():
+            if k not in ("design", "couplings", "constraints", "discipline_evaluations", "log_time_ns"):
+                out[k] = v
+            if k == "feasible":
+                out["status"] = status(row)
         out.update({f"design.{k}": v for k, v in row["design"].items()})
         out.update({f"coupling.{k}": v for k, v in row.get("couplings", {}).items()})
         out.update({f"constraint.{k}": v for k, v in row["constraints"].items()})

@@ -4,17 +4,19 @@ from __future__ import annotations
 
 
 def seed(text: str) -> int:
-    """The type of every ``--seed``: a whole number >= 0 (numpy's generators refuse a negative seed with
-    "expected non-negative integer", which named no flag)."""
+    """The type of every ``--seed``: a whole number >= 0 (models.common.check_seed, as the Python API's)."""
     import argparse
+
+    from bev_mdo.models.common import check_seed
 
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{value}: give a whole number >= 0")
-    return value
+    try:
+        return check_seed(value)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def add_bag_argument(parser) -> None:

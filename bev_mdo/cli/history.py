@@ -1,7 +1,7 @@
 """``bev-mdo history BAG [--csv FILE]``: the optimisation history of a recorded run.
 
 The table fits the terminal: columns are chosen by priority (iteration, objective, violation,
-feasibility, design variables, constraints, evaluation counts) and their headers abbreviated
+feasibility, status: ok or failed, design variables, constraints, evaluation counts) and their headers abbreviated
 (quantity over unit); the caption names what did not fit. ``--csv`` has every column.
 A bag without iteration records says so (and what it holds instead) on stderr and exits 1.
 """
@@ -18,7 +18,7 @@ from bev_mdo.cli.flags import add_bag_argument
 # fixed headers (quantity, unit) of the record's own columns
 _FIXED = {
     "iteration": ("iter", ""), "objective": ("objective", ""), "max_violation": ("max", "violation"),
-    "feasible": ("feasible", ""), "mda_evaluations": ("MDA", "evals"), "formulation": ("form.", ""),
+    "feasible": ("feasible", ""), "status": ("status", ""), "mda_evaluations": ("MDA", "evals"), "formulation": ("form.", ""),
     "optimizer": ("optimizer", ""),
 }
 # short quantity names of built-in variables (their units come from the disciplines' declarations)
@@ -139,7 +139,7 @@ def _cut(name: str, width: int) -> str:
 
 
 def _priority(col: str) -> int:
-    order = ("iteration", "objective", "max_violation", "feasible", "design.", "constraint.",
+    order = ("iteration", "objective", "max_violation", "feasible", "status", "design.", "constraint.",
              "mda_evaluations", "evaluations.", "formulation", "optimizer")
     for i, p in enumerate(order):
         if col == p or (p.endswith(".") and col.startswith(p)):
@@ -187,10 +187,13 @@ def print_table(rows: list[dict], width: int | None = None, file=None, units: di
             title += f", {first[k]}"
     if first.get("objective_name"):
         title += f"; objective = {first['objective_name']}"
-    caption = None
+    notes = []
+    if "status" in shown and any(r.get("status") == "failed" for r in rows):
+        notes.append("failed: no value (a discipline raised or gave NaN; the bag keeps no reason)")
     if left:
-        caption = (f"{len(left)} more column{'s' if len(left) > 1 else ''} "
-                   f"({', '.join(left)}): --csv FILE has all")
+        notes.append(f"{len(left)} more column{'s' if len(left) > 1 else ''} "
+                     f"({', '.join(left)}): --csv FILE has all")
+    caption = "\n".join(notes) or None
     table = Table(title=title, caption=caption)
     for col in shown:
         q, u = _header(col, units)

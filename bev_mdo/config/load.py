@@ -176,6 +176,27 @@ def read_config_file(path: str | Path) -> Any:
         raise ValueError(f"{p}: {exc}") from None
 
 
+def recorded_text(path: str | Path) -> str:
+    """The text of config file `path` that a recorder started with it stores in its bag: as written when every
+    path in it is already absolute (a run's resolved config), else ``read_config_file``'s (its relative paths,
+    ``search_path`` among them, made absolute as the nodes read them), so a reader of the bag run from another
+    folder finds the user's modules and files."""
+    import yaml
+
+    from bev_mdo.yamlload import load_yaml
+
+    raw = read_config_file(path)  # (one-line errors naming the file)
+    text = Path(path).read_text(encoding="utf-8")
+    if not isinstance(raw, Mapping):
+        return text
+    given = load_yaml(text)
+    absolute = isinstance(given.get("search_path"), list) and all(
+        isinstance(d, str) and Path(d).is_absolute() for d in given["search_path"])
+    if absolute and raw == {**given, "search_path": raw["search_path"]}:
+        return text
+    return yaml.safe_dump(plain(raw), sort_keys=False)
+
+
 def load_config(path: str | Path | Mapping[str, Any], edit=None) -> dict:
     """The resolved config of ``RunConfig.load(path, edit)`` as a plain dict (``.data``)."""
     return RunConfig.load(path, edit).data

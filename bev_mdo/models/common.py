@@ -94,6 +94,16 @@ def is_number(value: Any) -> bool:
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
 
 
+def check_seed(value: Any) -> int:
+    """A random seed: a whole number >= 0 (numpy refuses a negative one with "expected non-negative integer",
+    which names nothing, and takes True as 1); ValueError otherwise. ``--seed`` and the Python API's seed."""
+    if not isinstance(value, (int, np.integer)) or isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{value!r} is not a whole number")
+    if value < 0:
+        raise ValueError(f"{value}: give a whole number >= 0")
+    return int(value)
+
+
 def _unit(unit: str) -> str:
     return f" {unit}" if unit and unit != "-" else ""
 

@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cycles import csv_number
+from .cycles import csv_number, read_csv_rows
 from .params import VEHICLE_SPECS
 
 REFERENCE_KW = VEHICLE_SPECS["reference_motor_kw"].default  # Fig 2-9 unit motor, 80 kW
@@ -157,28 +157,25 @@ def write_motor_map_csv(motor_map: MotorMap, path) -> None:
 
 
 def load_motor_map_csv(path, reference_kw: float = REFERENCE_KW) -> MotorMap:
-    """Read a long-form ``speed_rad_s,torque_nm,efficiency`` CSV (see module docstring)."""
+    """Read a long-form ``speed_rad_s,torque_nm,efficiency`` CSV (see module docstring) through the
+    strict reader of every user CSV (cycles.read_csv_rows); ValueError '<file>: row R: ...' on bad data."""
     path = Path(path)
-    try:
-        lines = path.read_text().splitlines()
-    except OSError as exc:
-        raise ValueError(f"cannot read motor map {path}: {exc.strerror}") from None
-    rows = [(i + 1, r) for i, r in enumerate(csv.reader(lines))
+    rows = [(i, r) for i, r in enumerate(read_csv_rows(path, "motor map"), start=1)
             if r and not r[0].lstrip().startswith("#") and any(c.strip() for c in r)]
     if not rows or [c.strip() for c in rows[0][1]] != ["speed_rad_s", "torque_nm", "efficiency"]:
-        raise ValueError(f"{path}: header must be 'speed_rad_s,torque_nm,efficiency'")
+        raise ValueError(f"{path}: row {rows[0][0] if rows else 1}: header must be 'speed_rad_s,torque_nm,efficiency'")
     data = []
-    for lineno, r in rows[1:]:
+    for row_no, r in rows[1:]:
         if len(r) != 3:
-            raise ValueError(f"{path}: line {lineno}: need 3 numbers speed_rad_s,torque_nm,efficiency, got {len(r)}")
+            raise ValueError(f"{path}: row {row_no}: need 3 numbers speed_rad_s,torque_nm,efficiency, got {len(r)}")
         vals = []
         for name, cell in zip(("speed_rad_s", "torque_nm", "efficiency"), r):
             try:
                 vals.append(csv_number(cell))
             except ValueError as exc:  # not a number (1_0 was 10), or not finite
-                raise ValueError(f"{path}: line {lineno}, column {name}: {exc}") from None
+                raise ValueError(f"{path}: row {row_no}, column {name}: {exc}") from None
         if vals[0] < 0 or not (0 < vals[2] <= 1):
-            raise ValueError(f"{path}: line {lineno}: speed_rad_s must be >= 0 and efficiency in (0, 1]")
+            raise ValueError(f"{path}: row {row_no}: speed_rad_s must be >= 0 and efficiency in (0, 1]")
         data.append(vals)
     a = np.array(data, float).reshape(-1, 3)
     w, t = np.unique(a[:, 0]), np.unique(a[:, 1])

@@ -5,8 +5,8 @@ so it can record any running suite. SIGINT/SIGTERM close the bag cleanly; after 
 holds every chunk closed (after each iteration record, and every ``flush_period_s``): ``bag repair``.
 
 Parameters: ``bag_path`` (default ``bags/<time>_record``), ``topics`` (string[]; empty: all
-under ``prefix``), ``prefix`` (``/bev_mdo/``), ``config_file`` (its text is stored as
-``config_yaml``), ``config_yaml`` (text, instead of a file), ``run_id``, ``qos_depth``
+under ``prefix``), ``prefix`` (``/bev_mdo/``), ``config_file`` (stored as ``config_yaml``, its relative
+paths made absolute: config.load.recorded_text), ``config_yaml`` (text, instead of a file), ``run_id``, ``qos_depth``
 (10000), ``discovery_period_s`` (0.5), ``flush_period_s`` (1.0), ``status_period_s`` (0.05), ``nice``
 (10: the recorder runs at a lower CPU priority than the nodes and the coordinator).
 
@@ -37,6 +37,7 @@ from bev_mdo.bag.history import ITERATION_TOPIC, RecordOrder
 from bev_mdo.bag.stored import StoredConfig
 from bev_mdo.bag.writer import BagWriter
 from bev_mdo.binding import config_binding, run_matches
+from bev_mdo.config.load import recorded_text
 from bev_mdo.processes import check_parameters
 from bev_mdo.protocol.messages import RUN_TAGGED, run_of, stats_run_of
 from bev_mdo.ros.common import DECLARATION_READER_QOS, NODE_STATS_TOPIC, declare, endpoints, node_of, run_type
@@ -85,8 +86,8 @@ class RecorderNode(Node):
         status_period_s = float(p("status_period_s", 0.05))
         self.nice = int(p("nice", 10))
         check_parameters(self._parameter_overrides, self._parameters, self.get_name())  # before the bag exists
-        if config_file and not config_yaml:
-            config_yaml = Path(config_file).read_text(encoding="utf-8")
+        if config_file and not config_yaml:  # its relative paths made absolute, as the nodes read them
+            config_yaml = recorded_text(config_file)
         self.binding = config_binding(config_yaml) if config_yaml else ""
         self.signer = _signer_of(config_yaml, Path(config_file).parent if config_file else Path.cwd())
         self.other_run = 0  # messages of other runs, not recorded
@@ -333,13 +334,11 @@ def serve_until(node: "RecorderNode", stopped, idle_s: float = 0.05, timers_ever
 def _signer_of(config_yaml: str, base: Path):
     """The run's Signer from the stored config's ``ros.sign_key_file`` (None: not signing); a relative path
     from ``base``, the config file's folder, as every node reads it (it was read from the working directory)."""
-    if not config_yaml:
-        return None
     import yaml
 
     from bev_mdo.protocol.signing import Signer
 
-    ros = (yaml.safe_load(config_yaml) or {}).get("ros") or {}
+    ros = (yaml.safe_load(config_yaml or "{}") or {}).get("ros") or {}
     key = ros.get("sign_key_file")
     return Signer.from_ros({**ros, "sign_key_file": str(base / Path(key).expanduser())}) if key else None
 

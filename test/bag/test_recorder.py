@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 import pytest
+import yaml
 
 from bev_mdo.testing import ros_env
 
@@ -101,10 +102,38 @@ def test_recorder_clean_stop_records_everything(tmp_path, sig):
     opened = open_bag(bag)
     assert not opened.truncated and (bag / "metadata.yaml").is_file()
     assert _values(opened) == _published(500)
-    assert read_config(opened) == "optimizer: SLSQP\n" and opened.info["run_id"] == "rec-test"
+    # stored with its folder (and the recorder's) as search_path, as the nodes read it (recorded_text)
+    assert yaml.safe_load(read_config(opened)) == {"optimizer": "SLSQP", "search_path": [str(tmp_path.resolve()),
+                                                                                          str(ROOT.resolve())]}
+    assert opened.info["run_id"] == "rec-test"
     with AnyReader([bag]) as reader:
         assert reader.message_count == 500
         assert [c.topic for c in reader.connections] == ["/bev_mdo/iteration"]
+
+
+def test_recorder_stores_a_relative_config_resolved(tmp_path, monkeypatch):
+    """A recorder started by hand with a config named relative to its folder stored the file's text: a config
+    without search_path (its modules beside it, found by the nodes), so `bev-mdo report` run from another folder
+    could not load its disciplines and gave a report without units or answers, silently."""
+    from bev_mdo.bag.reader import open_bag, read_config
+    from bev_mdo.config import RunConfig
+
+    bag = tmp_path / "by_hand"
+    rec = _start_recorder(bag, "--config", "examples/sellar/sellar_mdf.yaml", "--run-id", "by_hand")  # cwd: ROOT
+    try:
+        deadline = time.monotonic() + 60
+        while not any(bag.glob("*.mcap")) and rec.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)  # the bag is made once the config is read
+        rec.send_signal(signal.SIGINT)
+        err = rec.communicate(timeout=60)[1]
+    finally:
+        rec.kill()
+        rec.wait()
+    assert rec.returncode == 0, err[-2000:]
+    stored = yaml.safe_load(read_config(open_bag(bag)))
+    assert str(ROOT / "examples" / "sellar") in stored["search_path"]
+    monkeypatch.chdir(tmp_path)  # a reader elsewhere loads its disciplines (sellar_disciplines.py) from there
+    assert RunConfig.load(stored).names == ("sellar1", "sellar2", "sellar_obj")
 
 
 def test_sigkill_leaves_readable_prefix_and_repair_restores(tmp_path):

@@ -109,6 +109,26 @@ def test_a_design_value_that_is_not_finite_raises_input_error(run):
         run(Study(ROOT / "config" / "leaf_nedc.yaml"))
 
 
+@pytest.mark.parametrize("seed,said", [(-1, "seed -1: give a whole number >= 0"), (True, "seed True is not a whole number"),
+                                       (1.5, "seed 1.5 is not a whole number")])
+@pytest.mark.parametrize("run", [
+    lambda s, seed: s.optimize(starts=2, seed=seed, transport="inprocess"),
+    lambda s, seed: s.sweep("lhs", samples=2, seed=seed, transport="inprocess"),
+    lambda s, seed: s.global_sensitivity(samples=8, seed=seed, transport="inprocess"),
+    lambda s, seed: s.pareto(["obj", "y1"], generations=1, pop=4, seed=seed, transport="inprocess"),
+])
+def test_a_seed_is_checked_as_the_cli_checks_it(run, seed, said):
+    """seed=-1 raised numpy's "expected non-negative integer" (naming nothing), seed=True ran as seed 1."""
+    from bev_mdo import InputError, Study
+
+    with pytest.raises(InputError) as err:
+        run(Study(ROOT / "examples" / "sellar" / "sellar_mdf.yaml"), seed)
+    assert str(err.value) == said
+    if seed == -1:  # the CLI's line says the same
+        proc = cli("optimize", "examples/sellar/sellar_mdf.yaml", "--seed", "-1", "--transport", "inprocess", "--no-record")
+        assert proc.returncode == 2 and said.removeprefix("seed ") in proc.stderr
+
+
 def test_a_bad_config_raises_input_error():
     from bev_mdo import InputError, Study
 

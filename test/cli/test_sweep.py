@@ -154,6 +154,26 @@ def test_compare_of_designs_that_all_fail_warns_of_nothing(capsys, sellar_raisin
     assert row.split("│")[3].strip() == "nan", row
 
 
+def test_history_of_a_sweep_says_which_designs_failed(tmp_path, capsys, sellar_raising):
+    """A failed design (a discipline's NaN) looked like a good one in `history`: nothing said ok or failed."""
+    import yaml
+
+    raw = yaml.safe_load(sellar_raising.read_text())
+    raw["disciplines"][-1] = {"name": "returns_nan", "class": "bad_disciplines:ReturnsNaN", "options": {"above": 5}}
+    sellar_raising.write_text(yaml.safe_dump(raw))
+    assert main(["sweep", str(sellar_raising), "--vary", "x=1,9,2", "--out", str(tmp_path / "s"), "--no-plots",
+                 "--transport", "inprocess"]) == 0
+    capsys.readouterr()
+    assert main(["history", str(tmp_path / "s" / "bag"), "--csv", "-"]) == 0
+    rows = list(csv.DictReader(capsys.readouterr().out.splitlines()))
+    assert [(float(r["design.x"]), r["status"]) for r in rows] == [(1, "ok"), (9, "failed"), (2, "ok")]
+    assert main(["history", str(tmp_path / "s" / "bag"), "--width", "80"]) == 0
+    table = capsys.readouterr().out
+    cells = [[c.strip() for c in line.split("│")] for line in table.splitlines() if line.startswith("│")]
+    assert [c[5] for c in cells] == ["ok", "failed", "ok"], table  # iter, objective, violation, feasible, status
+    assert "failed: no value (a discipline raised or gave NaN" in table
+
+
 def test_compare_gives_a_model_parameters_unit(capsys):
     """load_kg varied between two designs had an empty unit column, every other row a unit."""
     rc = main(["compare", CONFIG, "--design", "motor_kw=80,load_kg=75", "--design", "motor_kw=80,load_kg=1000",

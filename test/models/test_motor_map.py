@@ -1,5 +1,6 @@
 """Motor map: interpolation, Fig 2-9 scaling, regeneration, envelope, CSV format."""
 import math
+import re
 
 import numpy as np
 import pytest
@@ -88,17 +89,28 @@ def test_csv_roundtrip_and_shipped_default(tmp_path):
     assert back.reference_kw == 10.0
 
 
+_H = "speed_rad_s,torque_nm,efficiency\n"
+
+
 @pytest.mark.parametrize("text,match", [
-    ("speed,torque,eta\n0,0,0.5\n", "header"),
-    ("speed_rad_s,torque_nm,efficiency\n0,0,0.5\n0,10,0.6\n100,0,0.7\n", "full speed x torque grid"),
-    ("speed_rad_s,torque_nm,efficiency\n0,0,0.5\n0,10,1.5\n100,0,0.7\n100,10,0.8\n", "line 3"),
-    ("speed_rad_s,torque_nm,efficiency\n0,0,abc\n", "line 2, column efficiency: not a number: 'abc'"),
-    ("speed_rad_s,torque_nm,efficiency\n0,0,0.5\n0,1_0,0.6\n", "line 3, column torque_nm: not a number: '1_0'"),
-    ("speed_rad_s,torque_nm,efficiency\n0,0,nan\n", "line 2, column efficiency: must be finite, got nan"),
-    ("speed_rad_s,torque_nm,efficiency\n0,0\n", "line 2: need 3 numbers"),
+    ("speed,torque,eta\n0,0,0.5\n", "row 1: header"),
+    ("# a comment\nspeed,torque,eta\n0,0,0.5\n", "row 2: header"),
+    (_H + "0,0,0.5\n0,10,0.6\n100,0,0.7\n", "full speed x torque grid"),
+    (_H + "0,0,0.5\n0,10,1.5\n100,0,0.7\n100,10,0.8\n", "row 3: speed_rad_s must be >= 0"),
+    (_H + "0,0,abc\n", "row 2, column efficiency: not a number: 'abc'"),
+    (_H + "0,0,0.5\n0,1_0,0.6\n", "row 3, column torque_nm: not a number: '1_0'"),
+    (_H + "0,0,nan\n", "row 2, column efficiency: must be finite, got nan"),
+    (_H + "0,0\n", "row 2: need 3 numbers"),
+    ("# a comment\n" + _H + "0,0,0.5\n0,10,x\n", "row 4, column efficiency: not a number: 'x'"),
+    # the strict reader of every user CSV (cycles.read_csv_rows): a quote left open, a field over a
+    # line break (the old reader took '"0.\n6"' as 0.6 and loaded the map), a quote inside a field
+    (_H + '0,0,0.5\n0,10,"0.6\n100,0,0.7\n100,10,0.8\n', "row 3: a field runs over a line break into row 5"),
+    (_H + '0,0,0.5\n0,10,"0.\n6"\n100,0,0.7\n100,10,0.8\n', "row 3: a field runs over a line break into row 4"),
+    (_H + '0,0,0.5\n0,10,"0.6"x\n100,0,0.7\n100,10,0.8\n', "row 3: not a CSV table"),
 ])
 def test_bad_csv(tmp_path, text, match):
     p = tmp_path / "bad.csv"
     p.write_text(text)
-    with pytest.raises(ValueError, match=match):
+    with pytest.raises(ValueError, match=re.escape(match)) as err:
         mm.load_motor_map_csv(p)
+    assert str(err.value).startswith(f"{p}: ") and "\n" not in str(err.value)

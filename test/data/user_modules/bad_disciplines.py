@@ -42,8 +42,12 @@ class ReturnsNaN:
     outputs = ("w",)
     units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
 
+    def __init__(self, above=None):
+        self.above = above  # NaN only where x > above (None: everywhere)
+
     def compute(self, inputs):
-        return {"w": np.full(inputs["z1"].shape, np.nan)}
+        bad = np.ones(inputs["z1"].shape, bool) if self.above is None else inputs["x"] > self.above
+        return {"w": np.where(bad, np.nan, inputs["z1"])}
 
 
 class Hangs:
