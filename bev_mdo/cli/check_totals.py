@@ -60,12 +60,12 @@ def check(form, x: np.ndarray, step: float = 1e-6, rtol: float = 1e-4, atol: flo
     f, g, h = form.evaluate_batch(rows_x)
     bad = [form.status(r)[1] for r in rows_x if not form.status(r)[0]]
     n = form.n
-    # physical functions: objective, constraint outputs (g = (bound - y)/s or (y - bound)/s), consistencies
-    rows = form.problem.constraint_rows
-    gsign = np.array([(-s if kind == "lower" else s) for _, kind, _, s in rows]) if rows else np.zeros(0)
+    # physical functions: objective, constraint outputs y (g = sign (y - bound) / scale), consistencies;
+    # differences of y itself (g rounds y to eps |bound|: a bound far from y would cost digits)
+    _, gsign, gscale = form.problem.g_terms()
     names = [form.problem.objective] + [lab for lab in form.ineq_labels] + list(form.eq_labels)
-    totals = np.vstack([sign * df[None, :], gsign[:, None] * dg, dh]) / form.scale[None, :]
-    vals = np.column_stack([sign * f, g * gsign[None, :], h])
+    totals = np.vstack([sign * df[None, :], (gsign * gscale)[:, None] * dg, dh]) / form.scale[None, :]
+    vals = np.column_stack([sign * f, form.constraint_outputs(rows_x), h])
     fd = ((vals[:n] - vals[n:]) / denom[:, None]).T
     report = {"formulation": form.name, "derivatives": form.derivatives, "point": dict(zip(form.var_names, x.tolist())),
               "step": step, "rtol": rtol, "atol": atol, "rows": [], "ok": not bad,

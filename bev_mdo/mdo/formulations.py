@@ -64,7 +64,7 @@ class Formulation:
         self.problem, self.evaluator = problem, evaluator
         self.fd_step, self.fd_scheme, self.eq_tolerance = float(fd_step), fd_scheme, float(eq_tolerance)
         self.cache_size = int(cache_size)
-        self._cache: dict[bytes, tuple[float, np.ndarray, np.ndarray, bool, str]] = {}
+        self._cache: dict[bytes, tuple[float, np.ndarray, np.ndarray, bool, str, np.ndarray]] = {}  # f g h ok error y
         self._grad: tuple[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         self._unknown: tuple[bytes, list[str]] | None = None  # u -> variables whose derivative failed there
         self._failed_partials: set[tuple[str, str]] = set()  # (output, input) that failed in the last assembly
@@ -94,10 +94,19 @@ class Formulation:
 
     # ------------------------------------------------------------ batches
     def _evaluate_rows(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[str]]:
+        """(f (N,), constraint outputs y (N, m), h (N, p), ok (N,), errors) of physical rows X."""
         raise NotImplementedError
 
     def evaluate_batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(f (N,), g (N, m), h (N, p)) at physical rows X (N, n); cached rows are not re-evaluated."""
+        return self._batch(X)[:3]
+
+    def constraint_outputs(self, X: np.ndarray) -> np.ndarray:
+        """The constrained outputs y (N, m) in their own units at physical rows X (g = sign (y - bound) /
+        scale). Differences of y keep digits that differences of g lose when a bound is far from y."""
+        return self._batch(X)[3]
+
+    def _batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         X = np.atleast_2d(np.asarray(X, dtype=float))
         if X.shape[1] != self.n:
             raise ValueError(f"design batch has {X.shape[1]} columns, expected {self.n} columns ({self.var_names})")
@@ -106,27 +115,32 @@ class Formulation:
         interrupts.check()  # a SIGINT or SIGTERM that code below swallowed stops the run here (every optimiser)
         if todo:
             rows = np.array([np.frombuffer(k) for k in todo])
-            f, g, h, ok, err = self._evaluate_rows(rows)
+            f, y, h, ok, err = self._evaluate_rows(rows)
+            g = self.problem.normalised(y)
             if self.problem.maximize:  # the optimisers minimise: -f (the driver reports f itself)
                 f = -np.asarray(f, dtype=float)
             ok = ok & np.isfinite(f) & np.isfinite(g).all(axis=1) & np.isfinite(h).all(axis=1)
             self.n_points += len(todo)
             self.n_batches += 1
+            bound, sign, scale = self.problem.g_terms()
+            y_failed = bound + sign * scale * FAIL_CONSTRAINT  # the y whose g is FAIL_CONSTRAINT
             for i, k in enumerate(todo):
                 if ok[i]:
-                    self._cache[k] = (float(f[i]), g[i].copy(), h[i].copy(), True, "")
+                    self._cache[k] = (float(f[i]), g[i].copy(), h[i].copy(), True, "", y[i].copy())
                 else:
                     self._cache[k] = (FAIL_OBJECTIVE, np.full(g.shape[1], FAIL_CONSTRAINT),
-                                      np.full(h.shape[1], FAIL_CONSTRAINT), False, err[i] or "failed")
+                                      np.full(h.shape[1], FAIL_CONSTRAINT), False, err[i] or "failed", y_failed)
         got = [self._cache[k] for k in keys]
         for k in dict.fromkeys(keys):  # least recently used first out: this batch's rows go to the end
             self._cache[k] = self._cache.pop(k)
         while len(self._cache) > self.cache_size:  # (after the look-up: a batch larger than the cache is served)
             self._cache.pop(next(iter(self._cache)))
+        m = len(self.ineq_labels)
         f = np.array([c[0] for c in got])
-        g = np.array([c[1] for c in got]).reshape(len(keys), len(self.ineq_labels))
+        g = np.array([c[1] for c in got]).reshape(len(keys), m)
         h = np.array([c[2] for c in got]).reshape(len(keys), len(self.eq_labels))
-        return f, g, h
+        y = np.array([c[5] for c in got]).reshape(len(keys), m)
+        return f, g, h, y
 
     def status(self, x: np.ndarray) -> tuple[bool, str]:
         """(ok, error text) of an evaluated physical point."""
@@ -231,10 +245,12 @@ class Formulation:
             plus = u + eye * fwd[:, None]
             U = np.vstack([u[None, :], plus])
             denom = fwd
-        f, g, h = self.evaluate_batch(self.to_x(U))
+        f, _, h, y = self._batch(self.to_x(U))
         ok = np.array([self.status(x)[0] for x in self.to_x(U)])
         n = self.n
-        V = np.column_stack([f, g, h])  # (rows, 1 + m + p)
+        # Differences of the constrained outputs y, not of g = sign (y - bound) / scale: g rounds y to
+        # eps |bound|, which is most of a difference when the bound is far from y (w <= 1e9, w ~ 80).
+        V = np.column_stack([f, y, h])  # (rows, 1 + m + p)
         if self.fd_scheme == "central":
             lower_rows = np.where(both[:, None], V[1 + n:], V[0][None, :])
             lower_ok = np.where(both, ok[1 + n:], ok[0])
@@ -249,8 +265,9 @@ class Formulation:
             D[~good] = 0.0
             self._unknown = (key, [self.var_names[j] for j in np.flatnonzero(~good)])
         D = D.T  # (1 + m + p, n)
-        m = g.shape[1]
-        out = (D[0], D[1:1 + m], D[1 + m:])
+        m = y.shape[1]
+        _, sign, scale = self.problem.g_terms()
+        out = (D[0], D[1:1 + m] * (sign / scale)[:, None], D[1 + m:])
         self._grad = (key, out)
         return out
 
@@ -350,8 +367,7 @@ class MDF(Formulation):
         while len(self._analysed) > ANALYSED_ROWS:
             self._analysed.pop(next(iter(self._analysed)))
         f = res.values[self.problem.objective]
-        g = self.problem.g(res.values)
-        return f, g, np.zeros((len(X), 0)), res.ok, res.messages
+        return f, self.problem.constraint_outputs(res.values), np.zeros((len(X), 0)), res.ok, res.messages
 
 
 class IDF(Formulation):
@@ -416,14 +432,14 @@ class IDF(Formulation):
                 if ok[i]:
                     ok[i], errors[i] = False, res.message(int(i), int(i), name)
         f = out[self.problem.objective]
-        g = self.problem.g(out)
+        y = self.problem.constraint_outputs(out)
         n_dv = len(self.problem.names)
         h = np.column_stack([(X[:, n_dv + k] - out[c]) / self.coupling_scale[k]
                              for k, c in enumerate(self.couplings)]) if self.couplings else np.zeros((N, 0))
         if self._want_partials:
             self._last = (cols, out, {name: res.extra["partials"] for (name, _), res in zip(calls, results)
                                       if "partials" in res.extra})
-        return f, g, h, ok, errors
+        return f, y, h, ok, errors
 
     def _unknown_variables(self, failed) -> list[str]:
         return unknown_variables(failed, self.var_names, self._quantities() + self.couplings, {})

@@ -95,14 +95,27 @@ class Problem:
     def constraint_labels(self) -> list[str]:
         return [f"{n} {'>=' if k == 'lower' else '<='} {b:g}" for n, k, b, _ in self.constraint_rows]
 
-    def g(self, values: Mapping[str, np.ndarray]) -> np.ndarray:
-        """Normalised constraints (N, m), feasible where <= 0."""
-        cols = []
-        for name, kind, bound, scale in self.constraint_rows:
-            y = np.asarray(values[name], dtype=float)
-            cols.append((bound - y) / scale if kind == "lower" else (y - bound) / scale)
+    def constraint_outputs(self, values: Mapping[str, np.ndarray]) -> np.ndarray:
+        """The constrained outputs (N, m) in their own units, one column per bound (constraint_rows' order)."""
+        cols = [np.asarray(values[name], dtype=float) for name, *_ in self.constraint_rows]
         n = len(np.atleast_1d(next(iter(values.values())))) if values else 0
         return np.column_stack(cols) if cols else np.zeros((n, 0))
+
+    def g_terms(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(bound, sign, scale) per bound: g = sign (y - bound) / scale, sign -1 for a lower bound."""
+        rows = self.constraint_rows
+        return (np.array([b for _, _, b, _ in rows], dtype=float),
+                np.array([-1.0 if k == "lower" else 1.0 for _, k, _, _ in rows]),
+                np.array([s for *_, s in rows], dtype=float))
+
+    def normalised(self, y: np.ndarray) -> np.ndarray:
+        """Normalised constraints g (N, m) of constraint outputs y (N, m), feasible where <= 0."""
+        bound, sign, scale = self.g_terms()
+        return sign * (np.asarray(y, dtype=float) - bound) / scale
+
+    def g(self, values: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Normalised constraints (N, m), feasible where <= 0."""
+        return self.normalised(self.constraint_outputs(values))
 
     def design_dict(self, x: np.ndarray) -> dict[str, float]:
         return {n: float(v) for n, v in zip(self.names, np.asarray(x, dtype=float))}

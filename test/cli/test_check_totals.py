@@ -104,3 +104,16 @@ def test_idf_with_bounded_couplings_is_checked_at_the_point_its_gradient_evaluat
     point up in the cache and stopped with 'the analysis of the design failed: not evaluated' (exit 2)."""
     rep = _report(capsys, REPO / "examples" / "propane" / "propane_idf.yaml")
     assert rep["formulation"] == "idf" and rep["ok"] and not rep["error"], rep["error"]
+
+
+def test_a_constraint_bound_far_from_its_value_keeps_its_digits(capsys, tmp_path):
+    # y2 <= 1e9 with y2 ~ 10: the differences of g = (y2 - 1e9) / 1e9 lost all but 3-4 digits in both
+    # the optimiser's gradient and the command's own differences, and the command said DISAGREE.
+    text = (SELLAR / "sellar_mdf.yaml").read_text().replace("y2: {upper: 24}", "y2: {upper: 1000000000}")
+    (tmp_path / "far.yaml").write_text(text.replace("name: sellar_mdf", f"search_path: [{SELLAR}]\nname: far"))
+    rep = _report(capsys, tmp_path / "far.yaml")
+    assert rep["ok"], [r for r in rep["rows"] if not r["ok"]]
+    want = _mdf_analytic(*(rep["point"][v] for v in VARS))
+    got = _totals(rep)
+    for v in VARS:
+        assert got[("y2 <= 1e+09", v)] == pytest.approx(want[("y2 <= 24", v)], rel=1e-6, abs=1e-12), v
