@@ -12,10 +12,9 @@ from bev_mdo.processes import DISCIPLINE_EXES, OTHER_EXES
 
 
 def run(exe: str, args: list[str] | None = None) -> int:
-    """Run one node executable by name. A SIGINT or SIGTERM that lands while it is still loading (imports,
-    config, models: before it serves; its run stopped during start-up), or that its main raises on (the
-    coordinator; the recorder once its bag is closed), ends it with one line and status 130 (143)
-    (interrupts.run_main), not a traceback, a silent 0 or SIGTERM's silent default."""
+    """Run one node executable by name. A SIGINT or SIGTERM that lands while it is still loading (imports, config,
+    models: before it serves; its run stopped during start-up), or that its main raises on (the coordinator; the
+    recorder once its bag is closed), ends it with one line and status 130 (143) (interrupts.run_main)."""
     from bev_mdo import interrupts
     from bev_mdo.stacks import dump_stacks_on_sigusr1
 
