@@ -101,9 +101,13 @@ def validate_ros(section: Mapping[str, Any] | None) -> dict[str, Any]:
     return out
 
 
+LAUNCHED = "BEV_MDO_ROS_ENVIRONMENT"  # set in the environment of the processes bev-mdo starts
+
+
 def ros_environment(ros: Mapping[str, Any], base: Mapping[str, str] | None = None) -> dict[str, str]:
     """The environment a bev_mdo process runs with, from a validated `ros:` section."""
     env = dict(os.environ if base is None else base)
+    env[LAUNCHED] = "1"  # a node executable started with it keeps it (ros/run.py does not apply its config's)
     env.pop("ROS_LOCALHOST_ONLY", None)  # deprecated; it would override the range settings
     env["ROS_DOMAIN_ID"] = str(ros["domain_id"])
     env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")

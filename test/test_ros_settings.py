@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
+import pytest
+
 from bev_mdo.ros_settings import DDS_PROFILE, FASTDDS_DEFAULT_LEASE_S, participant_lease_s
 
 NS = "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"
@@ -41,3 +43,52 @@ def test_fast_dds_default_when_the_profile_sets_none_or_cannot_be_read(tmp_path)
         assert participant_lease_s(env) == FASTDDS_DEFAULT_LEASE_S
     (tmp_path / "broken.xml").write_text("<profiles")
     assert participant_lease_s({"FASTRTPS_DEFAULT_PROFILES_FILE": str(tmp_path / "broken.xml")}) == FASTDDS_DEFAULT_LEASE_S
+
+
+_ROS_KEYS = ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "ROS_DISCOVERY_SERVER",
+             "FASTRTPS_DEFAULT_PROFILES_FILE", "BEV_MDO_ROS_ENVIRONMENT")
+
+
+@pytest.mark.parametrize("launched", [False, True])
+def test_a_node_executable_started_by_hand_joins_the_discovery_its_config_states(tmp_path, monkeypatch, launched):
+    # `ros2 run bev_mdo coordinator_node --ros-args -p config:=shared.yaml` ignored the config's ros: section
+    # (docs/across-machines.md: "Discovery is set in the config's ros: section"): it never found nodes behind
+    # a discovery server. A process bev-mdo starts keeps the environment the launcher gave it.
+    import os
+
+    from bev_mdo.ros.run import _config_ros_environment
+    from bev_mdo.ros_settings import ros_environment, validate_ros
+
+    for key in _ROS_KEYS:
+        monkeypatch.delenv(key, raising=False)
+    monkeypatch.setenv("ROS_DOMAIN_ID", "196")
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    if launched:
+        monkeypatch.setenv("BEV_MDO_ROS_ENVIRONMENT", "1")
+    assert ros_environment(validate_ros({}))["BEV_MDO_ROS_ENVIRONMENT"] == "1"  # what the launcher passes on
+    server = tmp_path / "server.yaml"
+    server.write_text('ros: {discovery: server, discovery_server: "10.231.7.1:11811", domain_id: 197}\n')
+    _config_ros_environment(["--ros-args", "-p", f"config:={server}", "-p", "run_id:=x"])
+    if launched:
+        assert os.environ["ROS_DOMAIN_ID"] == "196" and "ROS_DISCOVERY_SERVER" not in os.environ
+    else:
+        assert os.environ["ROS_DISCOVERY_SERVER"] == "10.231.7.1:11811" and os.environ["ROS_DOMAIN_ID"] == "197"
+
+
+def test_a_config_that_states_no_discovery_leaves_the_environments(tmp_path, monkeypatch):
+    import os
+
+    from bev_mdo.ros.run import _config_ros_environment
+
+    for key in _ROS_KEYS:
+        monkeypatch.delenv(key, raising=False)
+    monkeypatch.setenv("ROS_DOMAIN_ID", "196")
+    monkeypatch.setenv("ROS_STATIC_PEERS", "10.231.7.2")
+    plain = tmp_path / "plain.yaml"
+    plain.write_text("ros: {timeout_s: 5}\n")
+    _config_ros_environment(["--ros-args", "-p", f"config:={plain}"])
+    assert os.environ["ROS_STATIC_PEERS"] == "10.231.7.2" and os.environ["ROS_DOMAIN_ID"] == "196"
+    only_domain = tmp_path / "domain.yaml"
+    only_domain.write_text("ros: {domain_id: 198}\n")
+    _config_ros_environment(["--ros-args", "-p", f"config:={only_domain}"])
+    assert os.environ["ROS_STATIC_PEERS"] == "10.231.7.2" and os.environ["ROS_DOMAIN_ID"] == "198"

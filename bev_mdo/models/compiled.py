@@ -234,10 +234,10 @@ def _split_power(axf, axr, share, s, t_w, driving, allowed, mp, loss):
 @_jit(inline="always")
 def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power, mp, loss):
     """One or two driven axles at one step (``topology._demand``): with two, the front share of
-    wheel torque of least electrical power (coarse ``grid``, then ``fine`` around its argmin, the
-    first minimum as np.argmin; a fine share equal to a coarse one reuses its value); one axle
-    carries it all (share 1). ``score`` and ``power``: scratch of the grid's plus ``fine``'s
-    length. (power, top motor speed, wheel-torque margin)."""
+    wheel torque of least electrical power (coarse ``grid`` and the two envelope shares, then ``fine``
+    around their argmin, the first minimum as np.argmin; a fine share equal to a coarse one reuses its
+    value); one axle carries it all (share 1). ``score`` and ``power``: scratch of the grid's length
+    plus 2 plus ``fine``'s. (power, top motor speed, wheel-torque margin)."""
     o = _REAR
     wf = v / x[_RW] * x[_RATIO]
     tmf = _t_max(wf, x[_WLIM], x[_TPK], x[_KW])
@@ -261,24 +261,33 @@ def _axle_step(x, v, t_w, driving, allowed, two_axles, grid, fine, score, power,
     n_coarse = grid.shape[0]
     for i in range(n_coarse):
         power[i], score[i] = _split_power(axf, axr, share, grid[i], t_w, driving, allowed, mp, loss)
+    # the shares at which the front, then the rear, motor reaches its envelope (topology._envelope_shares)
+    env_f, env_r = 1.0, 0.0
+    if driving and t_w > 0:
+        env_f = min(max(tmf * axf[2] / t_w, 0.0), 1.0)
+        env_r = min(max(1.0 - tmr * axr[2] / t_w, 0.0), 1.0)
+    power[n_coarse], score[n_coarse] = _split_power(axf, axr, share, env_f, t_w, driving, allowed, mp, loss)
+    power[n_coarse + 1], score[n_coarse + 1] = _split_power(axf, axr, share, env_r, t_w, driving, allowed, mp, loss)
+    n_cand = n_coarse + 2
     jc = 0
-    for i in range(1, n_coarse):  # the first minimum, as np.argmin
+    for i in range(1, n_cand):  # the first minimum, as np.argmin
         jc = i if score[i] < score[jc] else jc
-    s0 = grid[jc]
+    s0 = grid[jc] if jc < n_coarse else (env_f if jc == n_coarse else env_r)
     n_fine = fine.shape[0]
     for i in range(n_fine):
         s = min(max(s0 + fine[i], 0.0), 1.0)
-        q = -1
-        for c in range(max(jc - 1, 0), min(jc + 2, n_coarse)):  # a fine share equal to a coarse one
-            if grid[c] == s:
-                q = c
+        q = jc if s == s0 else -1
+        if jc < n_coarse:
+            for c in range(max(jc - 1, 0), min(jc + 2, n_coarse)):  # a fine share equal to a coarse one
+                if grid[c] == s:
+                    q = c
         if q >= 0:
-            power[n_coarse + i], score[n_coarse + i] = power[q], score[q]
+            power[n_cand + i], score[n_cand + i] = power[q], score[q]
         else:
-            power[n_coarse + i], score[n_coarse + i] = _split_power(axf, axr, share, s, t_w, driving, allowed,
-                                                                    mp, loss)
-    jf = n_coarse
-    for i in range(n_coarse + 1, n_coarse + n_fine):
+            power[n_cand + i], score[n_cand + i] = _split_power(axf, axr, share, s, t_w, driving, allowed,
+                                                                mp, loss)
+    jf = n_cand
+    for i in range(n_cand + 1, n_cand + n_fine):
         jf = i if score[i] < score[jf] else jf
     return power[jf], w_top, cap - t_w
 
@@ -305,8 +314,8 @@ def _drive_demand(v, acc, cols, single_motor, two_axles, grid, fine, mp, loss):
     margin = np.empty(n_pts)
     for n in prange(n_pts):
         x = cols[n]
-        score = np.empty(grid.shape[0] + fine.shape[0])
-        scratch = np.empty(grid.shape[0] + fine.shape[0])
+        score = np.empty(grid.shape[0] + 2 + fine.shape[0])
+        scratch = np.empty(grid.shape[0] + 2 + fine.shape[0])
         w_top = -np.inf
         least = np.inf
         for k in range(n_steps):

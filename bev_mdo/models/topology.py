@@ -24,8 +24,9 @@ IWM-DA     2 + 2 in-wheel               direct drive, eta = 1        + motor_rea
   Nm) and the speed axis x ``iwm_speed_scale`` (210 / 1100: base speed 54.6 rad/s vs the thesis' 53;
   unit power 38.2 kW vs 38.5 kW); then Fig 2-9 scaling by motor size as for the base map.
 * torque split (§4.2.1, §4.2.3): with two driven axles the wheel torque is shared at every time step
-  to minimise the electrical power: ``torque_split_steps`` front fractions in [0, 1] (odd: 50/50 is one),
-  the argmin, then 9 points around it (never worse than any grid point). Motoring torque over a
+  to minimise the electrical power: ``torque_split_steps`` front fractions in [0, 1] (odd: 50/50 is one)
+  and the two shares at which a motor reaches its envelope while motoring, the argmin, then 9 points
+  around it (never worse than any candidate). Motoring torque over a
   motor's envelope is penalised; braking torque beyond it goes to the friction brake (2-25). Left/right
   motors of an in-wheel axle share their axle's torque equally. The loads while moving are the
   quasi-static model's (``qs.moving_load_w``): DM-DA's second axle drag, the wound-rotor machines' field.
@@ -265,9 +266,14 @@ def best_split(axles, tw, v, r_w, driving, allowed, steps: int = 11):
             pr, orr, _ = _axle_power(_bcast(rr), twk * (1.0 - s), wr, tmr, dk, ak)
             return pf + pr, of + orr
 
-        p, o = cost(grid[None, None, :])
+        # candidates: the grid, then the shares at which the front and the rear motor reach their
+        # envelope while motoring (the optimum often sits there; without them the best share jumped
+        # from one end to the other as an envelope crossed the demand, and the energy with it)
+        envelope = _envelope_shares(_bcast(fr), _bcast(rr), twk, tmf, tmr, dk)
+        cand = np.concatenate([np.broadcast_to(grid, twk.shape[:2] + grid.shape), envelope], axis=2)
+        p, o = cost(cand)
         j = np.argmin(p + _PENALTY_W_PER_NM * o, axis=2)
-        s0 = grid[j]
+        s0 = np.take_along_axis(cand, j[..., None], 2)[..., 0]
         s2 = np.clip(s0[..., None] + fine, 0.0, 1.0)  # fine[4] == 0: the coarse argmin stays a candidate
         p2, o2 = cost(s2)
         j2 = np.argmin(p2 + _PENALTY_W_PER_NM * o2, axis=2)[..., None]
@@ -275,6 +281,17 @@ def best_split(axles, tw, v, r_w, driving, allowed, steps: int = 11):
         power[sl] = np.take_along_axis(p2, j2, 2)[..., 0]
         over[sl] = np.take_along_axis(o2, j2, 2)[..., 0]
     return share, power, over
+
+
+def _envelope_shares(fr: _Axle, rr: _Axle, twk, tmf, tmr, driving) -> np.ndarray:
+    """(..., 2): the front shares at which the front motor, then the rear one, carries its envelope
+    torque (2-5) of positive wheel torque ``twk``, within [0, 1]; 1 and 0 (grid ends) otherwise.
+    ``fr``, ``rr`` as ``_bcast`` shapes them."""
+    pos = driving & (twk > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        front = np.where(pos, np.minimum(np.maximum(tmf * (fr.count * fr.ratio * fr.eta) / twk, 0.0), 1.0), 1.0)
+        rear = np.where(pos, np.minimum(np.maximum(1.0 - tmr * (rr.count * rr.ratio * rr.eta) / twk, 0.0), 1.0), 0.0)
+    return np.concatenate([front, rear], axis=-1)
 
 
 def _bcast(ax: _Axle) -> _Axle:

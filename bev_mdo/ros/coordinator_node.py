@@ -241,8 +241,8 @@ def main(args: list[str] | None = None) -> int:
         result, stats = run(config, run_id=run_id, formulation=p["formulation"] or None,
                             optimizer=p["optimizer"] or None, recorder_subscribers=int(p["recorders"]),
                             instances=instances, beside=beside,
-                            on_iteration=lambda r: print(f"iter {r['iteration']:4d}  objective {r['objective']:.6g}"
-                                                         f"  max violation {r.get('max_violation', 0):.3g}"))
+                            on_iteration=lambda r: print(f"iter {r['iteration']:4d}  objective {r['objective']:.6g}  max "
+                                                         f"violation {r.get('max_violation', 0):.3g}", file=sys.stderr))
         print(jsontext.dumps({"result": result.to_dict(), **stats}))  # strict JSON: NaN as null
         return exit_status({**result.to_dict(), "unresponsive_disciplines": stats["unresponsive"]})  # optimize's
     except ValueError as exc:  # SIGINT, SIGTERM: raised on, ros/run.py says so in one line (exit 130, 143)

@@ -132,7 +132,8 @@ class RosEvaluator(StartupWaits, Orchestrator):
             why = self.signer.verify_info(data)
             if why is not None:
                 self.dropped[f"info_{why}"] += 1
-                return self._refuse(msg, f"{why} declaration")
+                return self._refuse(msg, f"{why} declaration ({'no key' if why == 'unsigned' else 'another key'}: "
+                                         "ros.sign_key_file must name the same key for the run and its nodes)")
         if binding.fingerprint_of_json(msg.effective_config) != msg.fingerprint:
             return self._refuse(msg, "fingerprint does not match its effective configuration")
         want = self._expect(msg.discipline)

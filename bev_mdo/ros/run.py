@@ -5,16 +5,16 @@
 """
 from __future__ import annotations
 
+import os
 import sys
 
 from bev_mdo.processes import DISCIPLINE_EXES, OTHER_EXES
 
 
 def run(exe: str, args: list[str] | None = None) -> int:
-    """Run one node executable by name. A SIGINT or SIGTERM that lands while it is still loading (imports,
-    config, models: before it serves; its run stopped during start-up), or that its main raises on (the
-    coordinator; the recorder once its bag is closed), ends it with one line and status 130 (143)
-    (interrupts.run_main), not a traceback, a silent 0 or SIGTERM's silent default."""
+    """Run one node executable by name. A SIGINT or SIGTERM that lands while it is still loading (imports, config,
+    models: before it serves; its run stopped during start-up), or that its main raises on (the coordinator; the
+    recorder once its bag is closed), ends it with one line and status 130 (143) (interrupts.run_main)."""
     from bev_mdo import interrupts
     from bev_mdo.stacks import dump_stacks_on_sigusr1
 
@@ -25,9 +25,27 @@ def run(exe: str, args: list[str] | None = None) -> int:
         if main is None:
             print(f"unknown executable {exe!r}; known: {', '.join([*DISCIPLINE_EXES, *OTHER_EXES])}", file=sys.stderr)
             return 2
+        _config_ros_environment(args or [])
         return main(args)
 
     return interrupts.run_main(exe, load_and_run)
+
+
+def _config_ros_environment(args: list[str]) -> None:
+    """Started by hand, not by bev-mdo: the domain and discovery that ``-p config:=FILE``'s ``ros:`` states, if any."""
+    from bev_mdo.config.load import read_config_file
+    from bev_mdo.ros.client import apply_ros_environment
+    from bev_mdo.ros_settings import LAUNCHED, choose_domain, validate_ros
+
+    files = [a.split(":=", 1)[1] for a in args if a.startswith("config:=")]
+    try:
+        stated = {} if os.environ.get(LAUNCHED) or not files else dict(read_config_file(files[-1]).get("ros") or {})
+        if "discovery" in stated:
+            apply_ros_environment({**validate_ros(stated), "domain_id": choose_domain(stated)[0]})
+        elif "domain_id" in stated:
+            os.environ["ROS_DOMAIN_ID"] = str(validate_ros(stated)["domain_id"])
+    except (ValueError, AttributeError, TypeError):
+        pass
 
 
 def _load(exe: str):

@@ -116,8 +116,7 @@ class StartupWaits:
         The graph counts above are what THIS process sees: our reader knowing a node's result
         writer does not mean that writer knows our reader yet (each side matches the other on
         its own discovery traffic), and a VOLATILE result published before the writer matched us
-        is lost, not late (the lost first request seen as ``no answer from ['cost'] for evaluation
-        1 after 5 s; retry 1/3`` on a loaded host). So every discipline answers one request of no
+        is lost, not late (seen on a loaded host as a first retry). So every discipline answers one request of no
         point (hub and spoke) and, when the MDA uses data flow, one empty data-flow MDA, re-sent
         with a fresh evaluation id every 0.1-1 s until answered: a round trip shows both ends of
         every topic matched. Nothing is evaluated or counted; a late answer to an earlier probe is
@@ -158,8 +157,9 @@ class StartupWaits:
                     state, last = s, now
                 if now - last >= wait_s or now - start > STARTUP_CAP * wait_s:  # as fastwait.until
                     why = f"nothing changed for {wait_s:g} s" if now - last >= wait_s else f"{now - start:.0f} s in all"
+                    hint = "; nodes with a ros.sign_key_file drop unsigned requests: give this run the same key"
                     raise DisciplineMissing(f"discipline(s) {late} are matched but did not answer a probe "
-                                            f"({'data flow' if kind == 'flow' else 'request'}); {why}")
+                                            f"({kind.replace('flow', 'data flow')}); {why}" + hint * (self.signer is None))
                 if now - shown >= 2.0:
                     shown = now
                     print(f"[start-up] waiting for {late} to answer a probe; gives up in "

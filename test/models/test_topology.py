@@ -134,6 +134,26 @@ def test_split_never_worse_than_50_50(kw_f, kw_r, ig_f, ig_r, topo, seed):
     assert np.all((share >= 0) & (share <= 1))
 
 
+def test_split_power_is_continuous_as_a_motor_envelope_crosses_the_demand():
+    # A Kia EV6-like DM-DA near its optimum (40 kW front, 167.5 kW rear): at 10.85 m/s and 745 N m at the
+    # wheels the front motor's envelope crosses the demand as its gear ratio passes about 7.5906. The
+    # best split was on the grid only: below the crossing the front could not carry all of it and the
+    # argmin went to the other end (all rear), 455 W more; the cycle energy jumped 0.0054 Wh/km there and
+    # `sensitivity` printed a wrong-sign gear sensitivity. The envelope shares are candidates now.
+    p = {**{k: np.asarray(v) for k, v in P.items()}, "motor_torque_per_kw": np.asarray(2.531),
+         "wheel_radius_m": np.asarray(0.3706), "gear_efficiency": np.asarray(0.97)}
+    n = 601
+    ig_f = np.linspace(7.5900, 7.5912, n)
+    ax = tp._axles(tp.get_topology("DM-DA"), p, np.full(n, 40.0), np.full(n, 167.51423), ig_f, np.full(n, 9.675368),
+                   qs.default_map())
+    tw, v = np.full((1, n), 745.4), np.array([[10.847]])
+    share, power, over = tp.best_split(ax, tw, v, 0.3706, tw >= 0, tw < 0, 11)
+    assert np.all(over <= 1e-9)
+    cap = tp._t_max(ax[0], v / 0.3706 * ig_f) * ig_f * 0.97
+    assert cap.min() < 745.4 < cap.max()  # the crossing is inside the sweep
+    assert np.abs(np.diff(power[0])).max() < 1.0  # W per 2e-6 of gear ratio (it was 455 W at the crossing)
+
+
 def test_split_goes_to_the_only_motor_that_can_spin():
     # rear gear so high that the rear motor is beyond its speed limit: all torque to the front
     ax = _axles(60.0, 60.0, 7.0, 40.0)

@@ -251,3 +251,25 @@ def test_coordinator_drops_unsigned_forged_expired_and_replayed_results(rclpy_co
     finally:
         ev.close()
         node.destroy_node()
+
+
+@pytest.mark.parametrize("key", ["none", "another"])
+def test_a_run_without_the_nodes_key_says_so(rclpy_context, signed, tmp_path, key):
+    # Trial across two hosts: a coordinator without the nodes' key ended after its wait with "did not answer
+    # a probe (request)", and one with another key with "forged declaration", neither saying what to fix.
+    raw = yaml.safe_load(open(signed["config"]))
+    raw["ros"] = {**raw["ros"], "discovery_wait_s": 3.0}
+    if key == "none":
+        del raw["ros"]["sign_key_file"]
+    else:
+        other = tmp_path / "other.key"
+        other.write_text(secrets.token_hex(32) + "\n")
+        other.chmod(0o600)
+        raw["ros"]["sign_key_file"] = str(other)
+    with pytest.raises(ValueError) as exc:
+        coordinator_node.run(load_config(raw), context=rclpy_context)
+    text = str(exc.value)
+    if key == "none":
+        assert "did not answer a probe" in text and "give this run the same key" in text, text
+    else:
+        assert "forged declaration (another key: ros.sign_key_file must name the same key" in text, text
