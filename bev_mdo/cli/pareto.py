@@ -71,12 +71,20 @@ def run(args) -> int:
     doc, res = pareto.run(cfg, names, generations=args.generations, pop=args.pop, seed=args.seed, out=args.out,
                           transport=Transport.of(args), instances=args.instances,
                           plots=not args.no_plots, source=str(args.config), on_generation=_generation)
-    print(f"front: {len(res.X)} non-dominated feasible designs, {res.evaluations} evaluations in "
-          f"{res.batches} batches, {res.wall_time_s:.1f} s")
+    print(f"front: {_front(res)}, {res.evaluations} evaluations in {res.batches} batches, {res.wall_time_s:.1f} s")
     _settling(res)
     what = ", ".join(Path(p).name for p in doc["plots"]) if doc["plots"] else "no plots: --no-plots"
     print(f"wrote {doc['out']}/ (front.csv, front.json, {what}, bag/ with {doc['published']} ParetoFront messages)")
     return _failed(doc)
+
+
+def _front(res) -> str:
+    """'N non-dominated feasible designs', or 'no feasible design' with the least violation evaluated."""
+    if len(res.X):
+        return f"{len(res.X)} non-dominated feasible designs"
+    cv = np.asarray(res.archive_cv, float)
+    return "no feasible design" + (f" (least normalised constraint violation {np.nanmin(cv):.3g})"
+                                   if np.isfinite(cv).any() else "")
 
 
 def _settling(res, label: str = "") -> None:
@@ -186,7 +194,7 @@ def _study(args, raw, written, names, ov) -> int:
         pngs = study.plots(out, results, bench, names, cyc.get("name", "") if isinstance(cyc, dict) else "")
     for t in topologies:
         r = results[t]
-        print(f"{t}: {len(r.X)} non-dominated designs, {r.evaluations} evaluations in {r.batches} batches, "
+        print(f"{t}: {_front(r)}, {r.evaluations} evaluations in {r.batches} batches, "
               f"{timing[t]['wall_time_s']:.1f} s")
         _settling(r, f"{t}: ")
     what = ", ".join(p.name for p in pngs) if pngs else (

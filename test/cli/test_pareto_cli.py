@@ -246,3 +246,16 @@ def test_benchmark_csv_compares_with_table_4_5_only_for_the_thesis_vehicle(chang
     if thesis:
         assert float(rows[1]["thesis_kerb_kg"]) == THESIS_4_5["DM-DA"][0]
         assert float(rows[1]["thesis_accel_s"]) == THESIS_4_5["DM-DA"][1]
+
+
+def test_a_front_with_no_feasible_design_says_so(tmp_path, capsys):
+    # A two-motor trial: a topology that could not meet a 0-100 km/h constraint was reported as
+    # "SM-SA: 0 non-dominated designs", as if the study had found an empty trade-off.
+    raw = _raw("SM-SA")
+    raw["problem"]["constraints"]["range_nedc_km"] = {"lower": 1.0e+6}  # no battery in the bounds goes that far
+    code = main(["pareto", str(_write(tmp_path, raw)), "--generations", "1", "--pop", "4", "--no-plots",
+                 "--out", str(tmp_path / "o"), "--transport", "inprocess"])
+    out = capsys.readouterr().out
+    assert code == 0
+    line = next(l for l in out.splitlines() if l.startswith("front: "))
+    assert line.startswith("front: no feasible design (least normalised constraint violation "), line
