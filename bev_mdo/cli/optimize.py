@@ -208,7 +208,8 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
 
         result = {k: v for k, v in doc.items() if k != "baseline"}
         _table(result, doc["baseline"], out, declared_units(config))
-        if not doc["feasible"]:  # a feasible end printed the first-order check's active set instead
+        failed = (result.get("first_order") or {}).get("point_failed")  # the verdict line says why: no value
+        if not doc["feasible"] and not failed:  # a feasible end printed the first-order check's active set instead
             ans = result["active"]
             short = (result.get("first_order") or {}).get("cannot_follow") or []  # the motor, not a constraint
             print("why the end point is infeasible:", *[f"  {line}" for line in [*short, *ans["lines"]]], sep="\n",
