@@ -136,7 +136,9 @@ def _verdict(result: dict, out, units: dict) -> None:
 
         print(summary_line(result["multistart"]), file=out)
     print(f"first-order check: {cost['points']} extra point{'' if cost['points'] == 1 else 's'} in {cost['wall_time_s']:.3f} s"
-          + (" (the optimiser's last gradient reused)" if cost["points"] == 0 else ""), file=out)
+          + (" (the optimiser's last gradient reused)" if cost["points"] == 0 else
+             " (central differences confirmed the analytic derivatives)" if fo.get("derivatives_confirmed") else ""),
+          file=out)
     if fo["verdict"] == "infeasible":
         return  # the answers below say what is violated and what blocks it
 

@@ -373,6 +373,7 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
         # (df/dz 3z for 2z) ended "optimum" 3.4e-4 above the optimum. Central differences at steps h and 2h
         # (two batches) must agree with it, where the conditions are judged, beyond their own difference.
         wrong = derivatives_disagree(form, u, g[0], (df, dg, dh))
+        fo["derivatives_confirmed"] = not wrong
         if wrong:
             fo.update(verdict=first_order.STOPPED, conditions_hold=False, derivatives_disagree=wrong)
     if ok and fo["verdict"] == first_order.STOPPED and not fo["unknown_derivatives"]:  # is it smooth there?
