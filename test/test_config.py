@@ -59,6 +59,11 @@ BAD = [
     # equal bounds are refused too, as the README says (a variable that cannot move is not a design variable)
     (("problem", "design_variables", "x", "lower"), 10, r"problem.design_variables.x: bounds must be finite with lower < upper \(got lower 10, upper 10\)"),
     (("problem", "design_variables", "x", "initial"), 11, r"problem.design_variables.x.initial: 11 is outside the bounds \[0, 10\]"),
+    # bounds so wide that the optimiser's scaled variable rounds the initial value away (-1e20..1e20 made 1 a 0,
+    # and "verdict: optimum" judged x = 0 while the result said x = 1)
+    (("problem", "design_variables", "x"), {"lower": -1.0e20, "upper": 1.0e20, "initial": 1.0},
+     r"problem.design_variables.x.initial: 1 is lost to rounding in the optimiser's scaled variable \(x \+ 1e\+20\) / "
+     r"2e\+20, where it reads 0: give bounds nearer the values the variable takes"),
     (("problem", "design_variables", "x", "step"), 1, r"problem.design_variables.x.step: unknown key; known: "),
     (("problem", "design_variables", "x"), DELETE, r"'sellar1' needs \['x'\]"),
     (("problem", "design_variables", "y1"), {"lower": 0, "upper": 1}, "problem.design_variables.y1: it is also produced by discipline 'sellar1'"),

@@ -50,6 +50,10 @@ def check(form, x: np.ndarray, step: float = 1e-6, rtol: float = 1e-4, atol: flo
     negated when maximised), each constraint output (physical units), each IDF consistency."""
     if not (0 < step < 0.1 and rtol >= 0 and atol >= 0):
         raise ValueError("--step must be in (0, 0.1), --rtol and --atol >= 0")
+    from bev_mdo.mdo.problem import check_resolved
+
+    for j, name in enumerate(form.var_names):  # a point the scaled variables cannot hold was checked elsewhere
+        check_resolved(name, float(x[j]), float(form.offset[j]), float(form.scale[j]))
     u = form.to_u(np.asarray(x, dtype=float))
     x = form.to_x(u)  # the point the gradient evaluates (scaling's round trip may move a coupling by an ulp)
     sign = -1.0 if form.problem.maximize else 1.0

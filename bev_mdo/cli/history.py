@@ -157,6 +157,8 @@ def choose_columns(rows: list[dict], width: int | None, units: dict | None = Non
     # constant text columns go into the title instead
     columns = [c for c in columns if not (c in ("formulation", "optimizer")
                                           and len({str(r.get(c)) for r in rows}) == 1)]
+    if width is not None and all(r.get("status") == "ok" for r in rows):  # the table shows it where one failed
+        columns = [c for c in columns if c != "status"]
     cells = {c: [_fmt(r.get(c, "")) for r in rows] for c in columns}
     need = {}
     for c in columns:

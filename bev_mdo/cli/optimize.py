@@ -136,7 +136,9 @@ def _verdict(result: dict, out, units: dict) -> None:
 
         print(summary_line(result["multistart"]), file=out)
     print(f"first-order check: {cost['points']} extra point{'' if cost['points'] == 1 else 's'} in {cost['wall_time_s']:.3f} s"
-          + (" (the optimiser's last gradient reused)" if cost["points"] == 0 else ""), file=out)
+          + (" (the optimiser's last gradient reused)" if cost["points"] == 0 else
+             " (central differences confirmed the analytic derivatives)" if fo.get("derivatives_confirmed") else ""),
+          file=out)
     if fo["verdict"] == "infeasible":
         return  # the answers below say what is violated and what blocks it
 
@@ -208,7 +210,8 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
 
         result = {k: v for k, v in doc.items() if k != "baseline"}
         _table(result, doc["baseline"], out, declared_units(config))
-        if not doc["feasible"]:  # a feasible end printed the first-order check's active set instead
+        failed = (result.get("first_order") or {}).get("point_failed")  # the verdict line says why: no value
+        if not doc["feasible"] and not failed:  # a feasible end printed the first-order check's active set instead
             ans = result["active"]
             short = (result.get("first_order") or {}).get("cannot_follow") or []  # the motor, not a constraint
             print("why the end point is infeasible:", *[f"  {line}" for line in [*short, *ans["lines"]]], sep="\n",

@@ -15,6 +15,8 @@ import numpy as np
 
 from bev_mdo import jsontext
 
+ROUGH = 0.01  # a first-order value is marked "~" when its Richardson error estimate is over 1 % of it
+
 
 def register(subparsers) -> None:
     from bev_mdo.api.sensitivity import METHODS
@@ -110,12 +112,21 @@ def print_tables(s, outputs, out=None) -> None:
     print("\nFirst-order normalised sensitivity S_i = (x_i/f) df/dx_i  (eq 5-4)", file=out)
     print("output".ljust(ow) + "".join(n.rjust(w) for n in s.names), file=out)
     zero = [k for k in outputs if s.values[k] == 0]  # S undefined: the plain derivatives are shown
+    rough = False
     for k in outputs:
         # a leading space keeps a cell wider than the column (|S| >= 1e8 near a zero of f) apart from the last
         cells = s.gradient[k] if k in zero else s.first[k]
-        print(k.ljust(ow) + "".join((f" {v:.4g}" if k in zero else f" {v:.4f}").rjust(w) for v in cells)
+        # "~": steps h and 2h disagree by over ROUGH of the value (JSON "error"): a kink or noise at the point
+        err = np.zeros(len(cells)) if k in zero else np.nan_to_num(np.asarray(s.first_error[k], float))
+        marks = ["~" if e > ROUGH * abs(v) and e > 1e-12 else "" for v, e in zip(cells, err)]
+        rough = rough or any(marks)
+        print(k.ljust(ow) + "".join(((f" {v:.4g}" if k in zero else f" {v:.4f}") + m).rjust(w)
+                                    for v, m in zip(cells, marks))
               + ("   df/dx_i (f = 0: S undefined)" if k in zero else ""), file=out)
     print("step".ljust(ow) + "".join(f"{v:{w}.3g}" for v in s.step), file=out)
+    if rough:
+        print(f"~ the estimates with steps h and 2h differ by over {ROUGH:.0%} of the value: the model has a kink or "
+              "noise near the point (try another --rel-step; check-totals)", file=out)
     if s.second is None:
         return
     print("\nSecond-order normalised sensitivity S'_ij = (x_i x_j/f) d2f/dx_i dx_j  (eq 5-5)", file=out)

@@ -135,6 +135,10 @@ def verdict_line(fo: dict) -> str:
     if v == INFEASIBLE:
         return (f"infeasible (largest violation {fo['max_violation']:.3g} > feasibility tolerance "
                 f"{fo['feasibility_tolerance']:g})")
+    if (d := fo.get("derivatives_disagree")):  # driver.end_point_check: analytic partials against finite differences
+        return (f"{v} (the first-order conditions hold with the disciplines' analytic derivatives but not with finite "
+                f"differences: d {d['of']} / d {d['wrt']} is {d['analytic']:.5g} analytic, {d['fd']:.5g} by finite "
+                "differences (scaled units); bev-mdo check-partials names the partial)")
     unknown = fo.get("unknown_derivatives")
     if unknown:
         return (f"{v} (no derivative in {', '.join(unknown)}: {'its' if len(unknown) == 1 else 'their'} "

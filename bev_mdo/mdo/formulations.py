@@ -271,6 +271,18 @@ class Formulation:
         self._grad = (key, out)
         return out
 
+    def fd_gradients(self, u: np.ndarray, step: float) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], list[str]]:
+        """(``gradients(u)`` by central differences of scaled step ``step`` whatever ``derivatives`` says (one
+        batch), the variables without one): what an optimum reached on the disciplines' analytic partials is
+        checked against. The run's own settings, counts and derivatives are left as they were."""
+        kept = (self.derivatives, self.fd_scheme, self.fd_step, self._unknown, self.fd_failures, self.n_gradients)
+        self.derivatives, self.fd_scheme, self.fd_step, self._grad = "fd", "central", step, None
+        try:
+            return self.gradients(u), self.unknown_derivatives(u)
+        finally:
+            (self.derivatives, self.fd_scheme, self.fd_step, self._unknown, self.fd_failures, self.n_gradients) = kept
+            self._grad = None
+
     def unknown_derivatives(self, u: np.ndarray) -> list[str]:
         """The variables in which ``gradients(u)`` (taken before) has no derivative: a finite-difference
         point failed and the optimiser was given 0 there."""

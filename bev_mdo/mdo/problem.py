@@ -269,7 +269,18 @@ def _design_variable(name: str, spec: Any, where: str) -> DesignVariable:
     scale = _finite(spec.get("scale", hi - lo), f"{where}.scale")
     if scale <= 0:
         raise ValueError(f"{where}.scale: {scale:g} must be > 0")
+    check_resolved(f"{where}.initial", x0, lo, scale)
     return DesignVariable(str(name), lo, hi, x0, scale)
+
+
+def check_resolved(where: str, x: float, lower: float, scale: float, rtol: float = 1e-6) -> None:
+    """ValueError when the optimiser's variable u = (x - lower) / scale cannot hold ``x``: far wide bounds
+    round it away (bounds +-1e20 turn an initial 1 into 0, and the end point was then checked at 0)."""
+    back = lower + scale * ((x - lower) / scale)
+    if abs(back - x) > rtol * abs(x):
+        shifted = f"x - {lower:g}" if lower >= 0 else f"x + {-lower:g}"
+        raise ValueError(f"{where}: {x:g} is lost to rounding in the optimiser's scaled variable ({shifted}) / "
+                         f"{scale:g}, where it reads {back:g}: give bounds nearer the values the variable takes")
 
 
 def _constraint(name: str, spec: Any, where: str) -> Constraint:

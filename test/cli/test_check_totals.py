@@ -117,3 +117,13 @@ def test_a_constraint_bound_far_from_its_value_keeps_its_digits(capsys, tmp_path
     got = _totals(rep)
     for v in VARS:
         assert got[("y2 <= 1e+09", v)] == pytest.approx(want[("y2 <= 24", v)], rel=1e-6, abs=1e-12), v
+
+
+def test_a_point_the_scaled_variables_cannot_hold_is_refused(capsys, tmp_path):
+    # bounds +-1e20: the optimiser's variable (x + 1e20) / 2e20 rounds x = 1 to 0, and the table said "at x=0"
+    text = (SELLAR / "sellar_mdf.yaml").read_text().replace("x: {lower: 0, upper: 10, initial: 1}",
+                                                            "x: {lower: -1.0e+20, upper: 1.0e+20, initial: 0}")
+    (tmp_path / "wide.yaml").write_text(text.replace("name: sellar_mdf", f"search_path: [{SELLAR}]\nname: wide"))
+    code = main(["check-totals", str(tmp_path / "wide.yaml"), "--transport", "inprocess", "--at", "x=1"])
+    err = capsys.readouterr().err
+    assert code == 2 and "x: 1 is lost to rounding in the optimiser's scaled variable" in err, err

@@ -229,3 +229,4 @@ def test_a_set_parameter_is_shown_as_a_parameter_not_a_design_variable(capsys):
     code, out, _ = run(capsys, LEAF, "--set", "load_kg=130")
     row = next(line for line in out.splitlines() if "load_kg" in line)
     assert "parameter" in row and "design" not in row, row
+

@@ -101,7 +101,8 @@ def test_a_verified_optimum_carries_its_multipliers(tmp_path):
     assert [c["name"] for c in fo["active_constraints"]] == ["y1 >= 3.16"]
     assert fo["active_constraints"][0]["multiplier"] > 0
     assert {(b["name"], b["kind"]) for b in fo["active_bounds"]} == {("z2", "lower"), ("x", "lower")}
-    assert fo["cost"]["points"] == 0  # SLSQP's last gradient is reused
+    # SLSQP's last gradient is reused; its analytic totals are confirmed by central differences (two batches)
+    assert fo["derivatives_confirmed"] and fo["cost"]["batches"] == 2
 
 
 def test_an_optimiser_that_did_not_converge_is_said_so_beside_the_table(tmp_path):
@@ -217,3 +218,14 @@ def test_a_result_projected_onto_its_bounds_is_said_so_beside_the_table(monkeypa
     assert rc == 0 and "verdict: optimum" in out
     line = [ln for ln in out.splitlines() if "projected onto the bounds" in ln]
     assert len(line) == 1 and line[0].startswith("result: iteration ") and "(it was 5e-09 outside them" in line[0]
+
+
+def test_optimize_of_a_design_that_fails_does_not_explain_it_by_constraints(capsys, sellar_raising):
+    # An OpenMDAO user's trial: a point whose analysis failed printed "why the end point is infeasible: no
+    # constraint is active and no design variable is on a bound", which explains nothing; the verdict line
+    # and "the result point failed: ..." say why.
+    from bev_mdo.cli import main
+
+    assert main(["optimize", str(sellar_raising), "--transport", "inprocess", "--no-record"]) == 1
+    out = capsys.readouterr().out
+    assert "verdict: infeasible (the point failed" in out and "why the end point is infeasible" not in out, out

@@ -98,3 +98,27 @@ def test_an_objective_that_is_zero_at_the_point_gives_its_derivatives(capsys):
     assert [float(v) for v in row.split()[1:4]] == pytest.approx([1.0, 0.0, 0.0], abs=1e-6)
     x2 = next(line for line in out.splitlines() if line.startswith("x2 "))
     assert float(x2.split()[1]) == pytest.approx(14.0, rel=1e-4)
+
+
+def test_a_value_the_two_steps_disagree_on_is_marked(capsys):
+    # A two-motor trial: energy with a jump between the steps h and 2h printed a wrong-sign sensitivity with
+    # nothing in the table to say so (only the JSON's "error"). A value whose Richardson error estimate is
+    # over 1 % of it is marked "~", with a line saying why; a smooth one is not.
+    import io
+
+    from bev_mdo.cli.sensitivity import print_tables
+    from bev_mdo.mdo.sensitivity import sensitivities
+
+    def fun(X):
+        x, y = X[:, 0], X[:, 1]
+        return {"f": 10.0 + x + 0.5 * y + 0.01 * (x > 1.0 + 1.5e-4)}  # a jump between h and 2h of x only
+    s = sensitivities(fun, {"x": 1.0, "y": 1.0})
+    out = io.StringIO()
+    print_tables(s, ["f"], out=out)
+    row = next(line for line in out.getvalue().splitlines() if line.startswith("f "))
+    x_cell, y_cell = row.split()[1:3]
+    assert x_cell.endswith("~") and not y_cell.endswith("~"), row
+    assert "differ by over 1% of the value" in out.getvalue()
+    smooth = io.StringIO()
+    print_tables(sensitivities(lambda X: {"f": 10.0 + X[:, 0] + 0.5 * X[:, 1]}, {"x": 1.0, "y": 1.0}), ["f"], out=smooth)
+    assert "~" not in smooth.getvalue()

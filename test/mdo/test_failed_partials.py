@@ -128,3 +128,42 @@ def test_a_result_point_that_failed_is_infeasible_whatever_its_derivatives_say()
                            feasibility_tol=TOL, point_ok=False)
     assert fo["verdict"] == first_order.INFEASIBLE and fo["point_failed"]
     assert first_order.verdict_line(fo) == "infeasible (the point failed: the disciplines gave no value there)"
+
+
+class Bowl:
+    """f = (x - 1)^2 + (y - 2)^2 with analytic partials; ``slip`` adds 0.5 to df/dx (a user's wrong partial)."""
+
+    name, inputs, outputs = "bowl", ("x", "y"), ("f",)
+    units = {"x": "1", "y": "1", "f": "1"}
+
+    def __init__(self, slip: bool):
+        self.slip = slip
+
+    def compute(self, inputs):
+        return {"f": (inputs["x"] - 1.0) ** 2 + (inputs["y"] - 2.0) ** 2}
+
+    def compute_partials(self, inputs):
+        return {("f", "x"): 2.0 * (inputs["x"] - 1.0) + 0.5 * self.slip, ("f", "y"): 2.0 * (inputs["y"] - 2.0)}
+
+
+@pytest.mark.parametrize("wrong", [True, False])
+def test_an_optimum_on_a_wrong_analytic_partial_is_not_verified(wrong):
+    # An OpenMDAO user's trial: with df/dz 3z for 2z, SLSQP stopped where the wrong gradient is stationary
+    # and the check, fed the same gradient, said "optimum", exit 0, 3.4e-4 above the optimum. Here the wrong
+    # gradient is 0 at x = 0.75 (the optimum is x = 1): the check there must not say "optimum".
+    from bev_mdo.mdo.optimizers import run_optimizer
+
+    ev = InProcessEvaluator([Bowl(wrong)])
+    problem = Problem.from_config({"objective": "f", "design_variables": {
+        "x": {"lower": -5, "upper": 5, "initial": 3}, "y": {"lower": -5, "upper": 5, "initial": 0}}})
+    form = MDF(problem, ev, MDA(ev, tolerance=1e-13), derivatives="analytic")
+    x = np.array([0.75, 2.0]) if wrong else run_optimizer("SLSQP", form).x
+    form.evaluate_batch(x[None])
+    fo = end_point_check(form, x, form.x0, TOL)
+    if wrong:
+        assert fo["stationarity"] < 1e-12  # by the analytic gradient, the conditions hold
+        assert fo["verdict"] == first_order.STOPPED and fo["derivatives_disagree"]["wrt"] == "x", fo
+        assert "not with finite differences" in first_order.verdict_line(fo)
+    else:
+        assert x[0] == pytest.approx(1.0, abs=1e-6)
+        assert fo["verdict"] == first_order.OPTIMUM and "derivatives_disagree" not in fo
