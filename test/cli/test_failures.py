@@ -163,3 +163,20 @@ def test_a_discipline_that_never_returns_fails_evaluate_after_the_budget(tmp_pat
     assert p.returncode == 1, p.stderr[-2000:]
     out = json.loads(p.stdout)
     assert not out["ok"] and "no answer within 6 s" in out["error"], out
+
+
+def test_a_discipline_that_stops_answering_stops_the_optimiser(tmp_path):
+    """Differential evolution, a discipline hung in its third generation: DE ran on to maxiter 200 with every point
+    failing, and the JSON said "Maximum number of iterations has been exceeded", result_iteration 200 and
+    last_iterate true for a point found in generation 1. The run stops the optimiser once the discipline is
+    declared unresponsive, and says so; the result is the iteration where its point was found."""
+    p = _run(tmp_path, "gen", "HangInGeneration", {"timeout_s": 3.0, "retries": 1}, "differential_evolution")
+    assert p.returncode == 4, p.stderr[-2000:]
+    out = json.loads(p.stdout)
+    assert out["unresponsive_disciplines"] == ["gen"] and out["iterations"] < 10, out["iterations"]
+    assert out["message"].startswith(f"stopped after iteration {out['iterations']}: discipline 'gen' stopped "
+                                     "answering"), out["message"]
+    assert out["stopped"] and not out["optimizer_success"] and out["feasible"], out
+    record = out["result_iteration"]  # DE's best point, recorded once per generation from where it was found
+    assert not out["last_iterate"] and record < out["iterations"], (record, out["iterations"])
+    assert f"the result is iteration {record}, the best feasible point seen" in out["message"]
