@@ -33,11 +33,6 @@ class NamingInProcessEvaluator(InProcessEvaluator):
         super().__init__(disciplines)
         self.errors = errors or FirstErrors()
 
-    @property
-    def hung(self) -> list[str]:
-        """The disciplines that timed out and are treated as hung for the rest of the run."""
-        return sorted(d.name for d in self.disciplines.values() if getattr(d, "hung", False))
-
     def evaluate(self, calls, **kw):  # kw: partials=... as InProcessEvaluator.evaluate takes it
         results = super().evaluate(calls, **kw)
         for (name, _), res in zip(calls, results):

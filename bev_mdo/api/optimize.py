@@ -119,8 +119,8 @@ def _run_inprocess(config, opts, show, x0, starts, closing: contextlib.ExitStack
     extra = {"transport": "inprocess", **({"bag": bag} if bag else {}), "_bag_writer": writer}
     if ev.errors.first:
         extra["discipline_errors"] = dict(ev.errors.first)
-    if ev.hung:
-        extra["unresponsive_disciplines"] = ev.hung
+    if ev.unresponsive:
+        extra["unresponsive_disciplines"] = ev.unresponsive
     return out, baseline, extra
 
 

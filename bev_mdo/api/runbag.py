@@ -108,6 +108,8 @@ def finish(config: Mapping[str, Any], result: dict, extra: dict) -> None:
     inproc = extra.get("_bag_writer")
     result["active"] = answers(config, result)  # (a signal or failure here: api/optimize.run closes an in-process bag)
     ans = {**result["active"], "result_design": result.get("design")}  # the report names the run's result by it
+    if extra.get("unresponsive_disciplines"):  # how the run ended, for the report (bag/history.run_ending)
+        ans.update(unresponsive_disciplines=list(extra["unresponsive_disciplines"]), stopped=result.get("stopped", ""))
     if inproc is not None:
         inproc.close(ans)
         if inproc.failed:

@@ -260,6 +260,27 @@ def read_answers(bag: Bag, signer=None, checks: dict | None = None) -> dict | No
     return json.loads(text)
 
 
+def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | None = None) -> tuple[bool, str] | None:
+    """(finished, one line) on how the bag's optimisation ended, from its end-of-run record (``read_answers``: stored
+    by api/runbag.finish when the run ends, with the disciplines that stopped answering); None for a sweep."""
+    if rows and rows[-1].get("formulation") == "doe":
+        return None
+    if answers is None:
+        if (checks or {}).get("answers"):
+            return False, "how the run ended is not known: its end-of-run record is left out (not signed with its key)"
+        if bag.info.get("transport") == "inprocess" or (bag.bag_dir / "logs").is_dir():  # written by bev-mdo optimize
+            return False, ("**the run did not finish**: the bag holds no end-of-run record (a signal, SIGINT or "
+                           "SIGTERM, or an error stopped it); what follows is its last recorded iterate, not a result")
+        return False, ("**no end-of-run record**: the run did not finish, or its coordinator was started by hand "
+                       "(coordinator_node stores none); what follows is its last recorded iterate")
+    lost = answers.get("unresponsive_disciplines")
+    if lost:
+        why = answers.get("stopped") or f"{', '.join(lost)} stopped answering"
+        return True, (f"**the run ended early (exit status 4)**: {why}; its result is the best point evaluated before "
+                      "that, not an optimum")
+    return True, "the run finished: the bag holds its end-of-run record (its result and the answers below)"
+
+
 def headline(rows: list[dict], sign: float = 1.0, answers: dict | None = None) -> int:
     """The record that stands for the run: a finished optimisation's result (the last feasible record at
     the ``result_design`` its stored ``answers`` name: with ``--starts``, or an earlier best point, it is
@@ -268,8 +289,8 @@ def headline(rows: list[dict], sign: float = 1.0, answers: dict | None = None) -
     last). ``sign``: +1 minimise, -1 maximise."""
     result = (answers or {}).get("result_design")
     at = [i for i, r in enumerate(rows) if result and r["feasible"] and r["design"] == result]
-    if at:
-        return at[-1]
+    if at:  # a run stopped by a discipline that stopped answering: where its result was found (mdo.driver)
+        return at[0] if (answers or {}).get("unresponsive_disciplines") else at[-1]
     if not rows or rows[-1].get("formulation") != "doe":
         return len(rows) - 1
 

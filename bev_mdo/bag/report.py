@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bev_mdo.bag.history import headline, read_answers, records_phrase, sweep_phrase, verified_history
+from bev_mdo.bag.history import headline, read_answers, records_phrase, run_ending, sweep_phrase, verified_history
 from bev_mdo.bag.reader import Bag, open_bag
 from bev_mdo.mdo.units import label, run_units, unit_of
 
@@ -315,7 +315,8 @@ def _baseline(config, problem) -> dict | None:
 def _answers_section(answers: dict | None, point: str = "the end point") -> list[str]:
     if not answers:
         return []
-    head = "What holds the design" if answers.get("feasible") else f"Why {point} is infeasible"
+    held = "the design" if point != "the last recorded iterate" else point
+    head = f"What holds {held}" if answers.get("feasible") else f"Why {point} is infeasible"
     out = ["", f"## {head}", ""]
     out += [f"- {line.strip()}" if not line.startswith("  ") else f"  - {line.strip()}" for line in answers["lines"]]
     return out
@@ -323,9 +324,11 @@ def _answers_section(answers: dict | None, point: str = "the end point") -> list
 
 def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = None,
               answers: dict | None = None, baseline: dict | None = None, units: dict | None = None,
-              k: int = -1) -> str:
+              k: int = -1, ending: tuple[bool, str] | None = None) -> str:
+    """``ending``: (finished, how the run ended: history.run_ending), said first; None for a sweep."""
     info = bag.info
-    lines = [f"# Run report: {bag.bag_dir.name}", "",
+    finished = ending is None or ending[0]
+    lines = [f"# Run report: {bag.bag_dir.name}", "", *([f"- {ending[1]}"] if ending else []),
              f"- bag file: `{bag.mcap_path.name}` ({bag.file_size} bytes, {bag.message_count} messages, "
              f"{bag.duration_ns / 1e9:.3f} s recorded)",
              f"- run id: `{info.get('run_id', '?')}`, bev_mdo version `{info.get('version', '?')}`"]
@@ -338,8 +341,9 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
                   f"`{last['optimizer']}`, {rows[-1]['mda_evaluations']} multidisciplinary evaluations", ""]
         result = not sweep and k % len(rows) != len(rows) - 1  # the stored result is not the last record
         point = (sweep_phrase(last, len(rows)) if sweep else f"the run's result (iteration {last['iteration']})"
-                 if result else "the end point")
-        lines += [f"## The {point[4:]}" if sweep or result else "## Final iterate", ""]
+                 if result else "the end point" if finished else "the last recorded iterate")
+        lines += [f"## The {point[4:]}" if sweep or result else "## Final iterate" if finished else
+                  "## Last recorded iterate (the run did not finish)", ""]
         base = baseline or {}
         bcol = f" {base['label']} |" if base else ""
         lines += [f"| quantity | unit | value |{bcol}", "|---|---|---:|" + ("---:|" if base else "")]
@@ -360,7 +364,7 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
                   f"| feasible | | {last['feasible']} |" + (" |" if base else "")]
         if final is not None:
             lines += ["", "Outputs other than the objective and constraints (mass, cost, ...) are "
-                          f"{'the final iterate' if not sweep else 'this design'} analysed again in process "
+                          f"{'this iterate' if not sweep else 'this design'} analysed again in process "
                           "from the configuration stored in the bag."]
         if feasible:
             from bev_mdo.mdo.driver import BEST_REL_TOL, pick_result
@@ -403,6 +407,7 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     final = answers = baseline = None
     units = _units(config)
     answers = read_answers(bag, signer, checks)  # a signed run's count only when signed with its key too
+    ending = run_ending(bag, rows, answers, checks)  # before the report makes answers of its own
     k = headline(rows, -1.0 if bag.stored_config.maximized else 1.0, answers)  # the result, a sweep's best, the last
     if rows and config is not None:
         final = _analyse(config, dict(rows[k]["design"]))
@@ -428,6 +433,6 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
         _plot_timing(timing, out / "discipline_time.png")
         written.append(out / "discipline_time.png")
     md = out / "report.md"
-    md.write_text(_markdown(bag, rows, timing, [p.name for p in written], final, answers, baseline, units, k),
+    md.write_text(_markdown(bag, rows, timing, [p.name for p in written], final, answers, baseline, units, k, ending),
                   encoding="utf-8")
     return written + [md]

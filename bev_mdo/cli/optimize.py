@@ -103,6 +103,8 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
         print(f"baseline {baseline['name']}: {baseline['error']}", file=out)
     if result.get("error"):
         print(f"the result point failed: {result['error']}", file=out)
+    elif result.get("stopped"):  # a discipline stopped answering: the run stopped the optimiser
+        print(f"the run {result['stopped']}", file=out)
     elif not result.get("optimizer_success", True):  # e.g. SLSQP's iteration limit
         print(f"{result['optimizer']} says: {result['message'].split('; ')[0]}", file=out)
     if result.get("projected"):  # a result just outside its bounds, projected onto them
@@ -223,10 +225,10 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
             print(f"{k}: {doc[k]}" if k != "run_time_s" else f"run time {doc[k]:.3f} s (config loaded to this line: "
                   "start-up, optimisation, baseline, answers, shut-down)", file=out)
     lost = doc.get("unresponsive_disciplines")
-    if lost:  # its later evaluations all failed: the optimiser ran blind from then on
+    if lost:  # its later evaluations would all fail: the run stopped the optimiser (driver.run_until_lost)
         print(f"warning: {', '.join(lost)} stopped answering during the run (no answer within ros.timeout_s x "
-              "(ros.retries + 1)); every later evaluation of it failed, so the result is the best point "
-              "evaluated before that, not an optimum", file=sys.stderr)
+              "(ros.retries + 1)); the optimiser was stopped there (every later evaluation of it would fail), so the "
+              "result is the best point evaluated before that, not an optimum", file=sys.stderr)
     if doc.get("recorder_failed"):
         print(f"warning: {doc['recorder_failed']}", file=sys.stderr)
     from bev_mdo.mdo.driver import exit_status

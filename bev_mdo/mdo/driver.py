@@ -11,9 +11,10 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.optimize import OptimizeResult
 
 from bev_mdo.mdo import first_order
-from bev_mdo.mdo.evaluator import Evaluator
+from bev_mdo.mdo.evaluator import DisciplinesLost, Evaluator
 from bev_mdo.mdo.formulations import FAIL_OBJECTIVE, FORMULATIONS, Formulation
 from bev_mdo.mdo.mda import MDA
 from bev_mdo.mdo.optimizers import (GRADIENT_BASED, NOISE_VIOLATION, canonical_name, check_finite_bounds,
@@ -93,6 +94,7 @@ class RunResult:
     multistart: dict = field(default_factory=dict)  # --starts N: multistart.run_starts's summary, else {}
     projected: dict = field(default_factory=dict)   # result just outside its bounds, projected onto them:
     # {"iteration": the record it was, "bound_violation_scaled": how far out (first_order.bound_violation)}, else {}
+    stopped: str = ""                 # why the run stopped the optimiser (a discipline stopped answering), else ''
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -262,14 +264,16 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     record(form.x0.copy())
     start = form.x0.copy()
     for attempt in range(RESTARTS + 1):
-        res = run_optimizer(opt_name, form, options, record)
+        res = run_until_lost(opt_name, form, options, record, xs)
         x = np.asarray(res.x, dtype=float)
         if not history or history[-1]["design"] != problem.design_dict(x[:n_dv]):
             record(x)
         k = pick_result(history, sign, bool(res.success), tol)
+        if res.get("stopped"):  # a record may repeat the optimiser's best so far (DE's, each generation): the
+            k = next(i for i, xi in enumerate(xs) if np.array_equal(xi, xs[k]))  # result is where it was found
         checked_from = form.n_points, form.n_batches, time.perf_counter()
         fo = end_point_check(form, xs[k], start, tol)
-        if k != len(history) - 1 and history[-1]["feasible"]:
+        if k != len(history) - 1 and history[-1]["feasible"] and not res.get("stopped"):
             # an optimiser that did not say it converged (SLSQP's last line search failed) at a point
             # the first-order check verifies has converged: as then, an earlier point more violated
             # than it does not displace it with the objective its violation buys
@@ -323,6 +327,9 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     message = str(res.message) + (f"; final point failed: {err}" if not ok else "")
     if projected:
         message += f"; the result is {projected_line(projected)}"
+    elif k != len(history) - 1 and res.get("stopped"):
+        message += (f"; the result is iteration {k}, the best feasible point seen" if last["feasible"] else
+                    f"; no feasible point was seen: the result is iteration {k}")
     elif k != len(history) - 1:
         message += (f"; the result is iteration {k}, the best feasible point seen "
                     f"(the last iterate, iteration {len(history) - 1}, is "
@@ -338,7 +345,25 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         maximize=problem.maximize, result_iteration=k, last_iterate=k == len(history) - 1,
         feasibility_tolerance=tol, error="" if ok else (err or final.get("error", "")).split("; ")[0],
         fd_failures=form.fd_failures, first_order=fo, verdict=fo["verdict"],
-        optimizer_success=bool(res.success), projected=projected)
+        optimizer_success=bool(res.success), projected=projected, stopped=res.get("stopped", ""))
+
+
+def run_until_lost(name: str, form: Formulation, options, callback, xs: list[np.ndarray]) -> OptimizeResult:
+    """``run_optimizer``, stopped as soon as a discipline is declared unresponsive (every attempt of a request timed
+    out and nothing restarted it; in process, a call overran its budget: mdo/timed.py): every later point of it would
+    fail at once, and a differential evolution ran 160 more generations of failed points to its maxiter. The stop is
+    the formulation's (``stop_on_lost``: its next batch raises DisciplinesLost), so it reaches every optimiser. The
+    result is then the last record (``xs[-1]``, physical), ``success`` False, and ``stopped``/``message`` say why."""
+    form.stop_on_lost = True
+    try:
+        return run_optimizer(name, form, options, callback)
+    except DisciplinesLost as exc:
+        lost = ", ".join(repr(n) for n in exc.names)
+        why = (f"stopped after iteration {len(xs) - 1}: discipline{'s' if len(exc.names) > 1 else ''} {lost} stopped "
+               "answering (no answer within ros.timeout_s x (ros.retries + 1)); every later point would fail")
+        return OptimizeResult(x=xs[-1].copy(), success=False, status=-1, nit=len(xs) - 1, message=why, stopped=why)
+    finally:
+        form.stop_on_lost = False
 
 
 def projected_line(projected: dict) -> str:

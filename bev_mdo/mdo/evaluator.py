@@ -72,6 +72,22 @@ class Evaluator(Protocol):
         ...
 
 
+class DisciplinesLost(Exception):
+    """Disciplines were declared unresponsive (``unresponsive``): raised into a running optimiser
+    (Formulation.stop_on_lost) to stop it, as every later point of theirs would fail at once."""
+
+    def __init__(self, names: Sequence[str]):
+        self.names = list(names)
+        super().__init__(", ".join(self.names))
+
+
+def unresponsive(evaluator: Any) -> list[str]:
+    """The disciplines ``evaluator`` declared unresponsive for the rest of the run (the ROS orchestrator: every
+    attempt of a request timed out and no restart came back; in process: a call overran its budget, mdo/timed.py);
+    [] for a transport that never declares one."""
+    return sorted(getattr(evaluator, "unresponsive", ()) or ())
+
+
 class InProcessEvaluator:
     """Evaluator that calls the discipline objects directly, one after the other."""
 
@@ -117,6 +133,11 @@ class InProcessEvaluator:
         if waves is None:
             return None
         return flow_by_waves(self, {m: self.specs[m] for m in names}, waves, request, n, partials)
+
+    @property
+    def unresponsive(self) -> list[str]:
+        """The disciplines that overran their time budget (mdo/timed.py): hung for the rest of the run."""
+        return sorted(n for n, d in self.disciplines.items() if getattr(d, "hung", False))
 
     def close(self) -> None:
         pass

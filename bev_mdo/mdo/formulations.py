@@ -31,7 +31,7 @@ import numpy as np
 from bev_mdo import interrupts
 from bev_mdo.mdo import first_order
 from bev_mdo.mdo.derivatives import constraint_jacobian, fd_partials, idf_totals, mdf_totals, unknown_variables
-from bev_mdo.mdo.evaluator import Evaluator
+from bev_mdo.mdo.evaluator import DisciplinesLost, Evaluator, unresponsive
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.mda import MDA, MDAResult
 from bev_mdo.mdo.problem import Problem
@@ -49,6 +49,7 @@ class Formulation:
 
     name = ""
     speculative_gradients = False  # set by gradient-based optimisers: evaluate a new point with its stencil
+    stop_on_lost = False  # set while an optimiser runs (driver): a discipline declared unresponsive stops it
 
     def __init__(self, problem: Problem, evaluator: Evaluator, *, fd_step: float = 1e-6,
                  fd_scheme: str = "forward", eq_tolerance: float = 1e-6, cache_size: int = 50_000,
@@ -113,6 +114,8 @@ class Formulation:
         keys = [row.tobytes() for row in X]
         todo = list(dict.fromkeys(k for k in keys if k not in self._cache))
         interrupts.check()  # a SIGINT or SIGTERM that code below swallowed stops the run here (every optimiser)
+        if self.stop_on_lost and (lost := unresponsive(self.evaluator)):
+            raise DisciplinesLost(lost)  # so does a discipline that stopped answering (driver.run_until_lost)
         if todo:
             rows = np.array([np.frombuffer(k) for k in todo])
             f, y, h, ok, err = self._evaluate_rows(rows)

@@ -222,3 +222,12 @@ def test_report_names_the_runs_result(tmp_path):
     report(tmp_path / "bag", tmp_path)
     md = (tmp_path / "report.md").read_text()
     assert f"Best feasible objective {out['objective']:.6g} at iteration {out['result_iteration']} (" in md
+
+
+def test_the_report_of_a_finished_run_says_it_finished(feasible_run, tmp_path):
+    """The first line of a report says how the run ended: here from the end-of-run record the bag holds."""
+    from bev_mdo.bag.report import report
+
+    report(feasible_run[1], tmp_path)
+    first = (tmp_path / "report.md").read_text().splitlines()[2]
+    assert first == "- the run finished: the bag holds its end-of-run record (its result and the answers below)"

@@ -160,3 +160,20 @@ class Talks:
     def compute(self, inputs):
         print("computing talks_kw")
         return {"talks_kw": np.asarray(inputs["motor_kw"], float)}
+
+
+class HangInGeneration:
+    """Answers its first 4 calls (the start point, differential evolution's first population and two
+    generations), then never returns."""
+
+    name = "gen"
+    inputs = ("motor_kw",)
+    outputs = ("gen_kw",)
+    units = dict.fromkeys(inputs + outputs, "kW")
+    calls = 0
+
+    def compute(self, inputs):
+        HangInGeneration.calls += 1
+        if HangInGeneration.calls > 4:
+            time.sleep(3600)
+        return {"gen_kw": np.asarray(inputs["motor_kw"], float)}

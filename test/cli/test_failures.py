@@ -163,3 +163,45 @@ def test_a_discipline_that_never_returns_fails_evaluate_after_the_budget(tmp_pat
     assert p.returncode == 1, p.stderr[-2000:]
     out = json.loads(p.stdout)
     assert not out["ok"] and "no answer within 6 s" in out["error"], out
+
+
+
+@pytest.fixture(scope="module")
+def stopped_run(tmp_path_factory) -> tuple[subprocess.CompletedProcess, Path]:
+    """Differential evolution with a discipline that hangs in its third generation, its bag in ``b``."""
+    tmp = tmp_path_factory.mktemp("stopped")
+    return _run(tmp, "gen", "HangInGeneration", {"timeout_s": 3.0, "retries": 1}, "differential_evolution",
+                command=("optimize", "--bag", "b")), tmp / "b"
+
+
+def test_a_discipline_that_stops_answering_stops_the_optimiser(stopped_run):
+    """DE ran on to maxiter 200 with every point failing, and the JSON said "Maximum number of iterations has been
+    exceeded", result_iteration 200 and last_iterate true for a point found in generation 1. The run stops the
+    optimiser once the discipline is declared unresponsive, and says so; the result is the iteration where its
+    point was found."""
+    p, _ = stopped_run
+    assert p.returncode == 4, p.stderr[-2000:]
+    out = json.loads(p.stdout)
+    assert out["unresponsive_disciplines"] == ["gen"] and out["iterations"] < 10, out["iterations"]
+    assert out["message"].startswith(f"stopped after iteration {out['iterations']}: discipline 'gen' stopped "
+                                     "answering"), out["message"]
+    assert out["stopped"] and not out["optimizer_success"] and out["feasible"], out
+    record = out["result_iteration"]  # DE's best point, recorded once per generation from where it was found
+    assert not out["last_iterate"] and record < out["iterations"], (record, out["iterations"])
+    assert f"the result is iteration {record}, the best feasible point seen" in out["message"]
+
+
+def test_the_report_of_a_run_a_discipline_stopped_says_so_first(stopped_run, tmp_path):
+    """`bev-mdo report` of a run that ended with exit 4 read like a finished run ("Final iterate", "What holds
+    the design"): its first line now says which discipline stopped answering."""
+    from bev_mdo.bag.report import report
+
+    p, bag = stopped_run
+    assert p.returncode == 4, p.stderr[-2000:]
+    report(bag, tmp_path)
+    md = (tmp_path / "report.md").read_text()
+    first = md.splitlines()[2]
+    assert first.startswith("- **the run ended early (exit status 4)**: stopped after iteration ") and \
+        "discipline 'gen' stopped answering" in first, first
+    result = json.loads(p.stdout)["result_iteration"]  # where the result was found, as the JSON says
+    assert f"## The run's result (iteration {result})" in md and "## Final iterate" not in md, md[:1500]

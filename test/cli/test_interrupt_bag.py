@@ -456,3 +456,18 @@ def test_a_process_that_ends_by_itself_keeps_its_status_and_output(tmp_path):
                        env={**os.environ, "PYTHONPATH": str(REPO)})
     assert p.returncode == 0 and p.stderr == "" and p.stdout.rstrip().endswith("exit handler ran")
     assert "energy_wh_per_km" in p.stdout
+
+
+def test_the_report_of_an_interrupted_run_says_it_did_not_finish(tmp_path):
+    """`bev-mdo report` of a run stopped by SIGINT read like a finished run ("Final iterate", "What holds the
+    design"): its first line now says that the bag holds no end-of-run record, and the iterate is the last recorded."""
+    from bev_mdo.bag.report import report
+
+    p = _start(tmp_path, "optimize", str(CONFIG), "--transport", "inprocess", "--optimizer", "differential_evolution",
+               "--bag", "b")
+    status, _, err = _stop_after_progress(p, signal.SIGINT, 3)
+    assert status == 130, err[-2000:]
+    report(tmp_path / "b", tmp_path)
+    md = (tmp_path / "report.md").read_text()
+    assert md.splitlines()[2].startswith("- **the run did not finish**: the bag holds no end-of-run record"), md[:600]
+    assert "## Last recorded iterate (the run did not finish)" in md and "## Final iterate" not in md

@@ -239,3 +239,47 @@ def test_a_discipline_that_stopped_answering_is_exit_4_even_when_the_end_is_infe
     assert exit_status(doc) == 4
     assert exit_status({**doc, "unresponsive_disciplines": []}) == 1
     assert exit_status({**doc, "recorder_failed": "disk full"}) == 3
+
+
+class _GoesQuiet:
+    """Sellar's first discipline, declared hung (as mdo/timed.py declares one that overran its budget) at its
+    ``after``-th call, which fails, as does every later one."""
+
+    def __init__(self, inner, after: int):
+        self.inner, self.after, self.calls, self.hung = inner, after, 0, False
+        self.name, self.inputs, self.outputs = inner.name, inner.inputs, inner.outputs
+        self.units = getattr(inner, "units", {})
+
+    def compute(self, inputs):
+        self.calls += 1
+        if self.calls >= self.after:
+            self.hung = True
+            raise RuntimeError("no answer: treated as hung")
+        return self.inner.compute(inputs)
+
+
+@pytest.mark.parametrize("optimizer", ["SLSQP", "trust-constr", "COBYQA", "COBYLA", "differential_evolution",
+                                       "chebyshev-pairwise"])
+def test_a_discipline_declared_unresponsive_stops_every_optimiser(optimizer):
+    """Once a discipline is declared unresponsive its every later point fails at once; the optimiser ran on
+    to its own end regardless (differential evolution: 160 generations of failed points, reported as
+    "Maximum number of iterations has been exceeded"). Every optimiser is stopped at its next batch (no
+    iteration is recorded after the loss), the message says why, and the result is the best record before."""
+    from sellar import SellarDis1, SellarDis2, SellarObjective
+
+    from bev_mdo.mdo import driver
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.testing import example_config
+    from test_multistart import SELLAR
+
+    quiet = _GoesQuiet(SellarDis1(), after=60)
+    ev = InProcessEvaluator([quiet, SellarDis2(), SellarObjective()])
+    after = []  # the iteration records made once the discipline was lost
+    res = driver.run_optimization(example_config(SELLAR), ev, optimizer=optimizer,
+                                  callback=lambda rec: after.append(rec["iteration"]) if quiet.hung else None)
+    assert quiet.hung and not after, after
+    assert res.stopped and res.message.startswith(f"stopped after iteration {res.iterations}: discipline "
+                                                  "'sellar1' stopped answering"), res.message
+    assert not res.optimizer_success and ev.unresponsive == ["sellar1"]
+    best = res.history[res.result_iteration]
+    assert best["feasible"] and res.objective == pytest.approx(best["objective"], rel=1e-12)
