@@ -194,6 +194,8 @@ def check_note(checks: dict) -> str:
         parts.append(checks["unfinished"])
     if checks.get("answers"):
         parts.append(checks["answers"])
+    if checks.get("config"):  # bag/report: the stored config does not load here
+        parts.append(checks["config"])
     return "; ".join(parts)
 
 

@@ -260,17 +260,21 @@ def _timing_table(timing) -> list[str]:
     return lines
 
 
-def _context(bag: Bag):
+def _context(bag: Bag, checks: dict | None = None):
     """(config, problem) from the config stored in the bag; Nones where the bag has no config or it
-    no longer loads."""
+    no longer loads here (then ``checks["config"]`` says why: the report has no units, analysis or answers)."""
     if not bag.stored_config.text:
         return None, None
     try:
         from bev_mdo.config import RunConfig
 
         config = RunConfig.load(bag.stored_config.data)
+        config.disciplines  # noqa: B018 - the user's classes: loaded here, or said why not
         return config, config.problem
-    except (ValueError, KeyError, TypeError):
+    except Exception as exc:  # noqa: BLE001 - a report is written even if the model no longer loads
+        if checks is not None:  # e.g. a user module on a search path relative to where the run was
+            checks["config"] = (f"the config stored in the bag does not load here ({str(exc).splitlines()[0]}): "
+                                "the report has no units, final analysis or answers")
         return None, None
 
 
@@ -324,14 +328,15 @@ def _answers_section(answers: dict | None, point: str = "the end point") -> list
 
 def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = None,
               answers: dict | None = None, baseline: dict | None = None, units: dict | None = None,
-              k: int = -1, ending: tuple[bool, str] | None = None) -> str:
+              k: int = -1, ending: tuple[bool, str] | None = None, config_note: str = "") -> str:
     """``ending``: (finished, how the run ended: history.run_ending), said first; None for a sweep."""
     info = bag.info
     finished = ending is None or ending[0]
     lines = [f"# Run report: {bag.bag_dir.name}", "", *([f"- {ending[1]}"] if ending else []),
              f"- bag file: `{bag.mcap_path.name}` ({bag.file_size} bytes, {bag.message_count} messages, "
              f"{bag.duration_ns / 1e9:.3f} s recorded)",
-             f"- run id: `{info.get('run_id', '?')}`, bev_mdo version `{info.get('version', '?')}`"]
+             f"- run id: `{info.get('run_id', '?')}`, bev_mdo version `{info.get('version', '?')}`",
+             *([f"- **{config_note}**"] if config_note else [])]
     if bag.truncated:
         lines.append(f"- **truncated**: {bag.recovery_note()}")
     if rows:
@@ -403,7 +408,8 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     out.mkdir(parents=True, exist_ok=True)
     rows, signer = verified_history(bag, run_id, checks=checks, key_file=key_file, no_verify=no_verify)
     timing = discipline_timing(bag)
-    config, problem = _context(bag)
+    checks = {} if checks is None else checks
+    config, problem = _context(bag, checks)
     final = answers = baseline = None
     units = _units(config)
     answers = read_answers(bag, signer, checks)  # a signed run's count only when signed with its key too
@@ -433,6 +439,6 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
         _plot_timing(timing, out / "discipline_time.png")
         written.append(out / "discipline_time.png")
     md = out / "report.md"
-    md.write_text(_markdown(bag, rows, timing, [p.name for p in written], final, answers, baseline, units, k, ending),
-                  encoding="utf-8")
+    md.write_text(_markdown(bag, rows, timing, [p.name for p in written], final, answers, baseline, units, k, ending,
+                            checks.get("config", "")), encoding="utf-8")
     return written + [md]

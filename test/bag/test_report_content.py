@@ -231,3 +231,27 @@ def test_the_report_of_a_finished_run_says_it_finished(feasible_run, tmp_path):
     report(feasible_run[1], tmp_path)
     first = (tmp_path / "report.md").read_text().splitlines()[2]
     assert first == "- the run finished: the bag holds its end-of-run record (its result and the answers below)"
+
+
+def test_a_report_whose_stored_config_no_longer_loads_says_so(tmp_path):
+    # A bag read where the run's user modules are not (moved, or a hand-recorded bag's relative search path):
+    # the report left out units, the final analysis and the answers without a word.
+    import shutil
+
+    mods = tmp_path / "mods"
+    shutil.copytree(ROOT / "examples" / "sellar", mods)
+    raw = yaml.safe_load((mods / "sellar_mdf.yaml").read_text())
+    raw["search_path"] = [str(mods)]
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(raw))
+    rc, bag, _ = _run(tmp_path, tmp_path / "s.yaml", "bag")
+    assert rc == 0
+    shutil.rmtree(mods)  # the user's modules are gone (a fresh process: this one has imported them)
+    import subprocess
+    import sys
+
+    p = subprocess.run([sys.executable, "-m", "bev_mdo", "report", str(bag), "--output-dir", str(tmp_path / "out")],
+                       capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    err = p.stderr
+    assert "the config stored in the bag does not load here (" in err, err
+    assert "**the config stored in the bag does not load here" in (tmp_path / "out" / "report.md").read_text()

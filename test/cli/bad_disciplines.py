@@ -20,19 +20,20 @@ class Hang:
 
 
 class HangLater:
-    """Answers its first two calls (the start point: its MDA and the baseline), then never returns."""
+    """Answers its first ``after`` calls (2: the start point, its MDA and the baseline), then never returns."""
 
     name = "late"
     inputs = ("motor_kw",)
     outputs = ("late_kw",)
     units = dict.fromkeys(inputs + outputs, "kW")
-    calls = 0
+    after = 2
+    calls = 0  # per class (each subclass counts its own)
 
     def compute(self, inputs):
-        HangLater.calls += 1
-        if HangLater.calls > 2:
+        type(self).calls += 1
+        if type(self).calls > self.after:
             time.sleep(3600)
-        return {"late_kw": np.asarray(inputs["motor_kw"], float)}
+        return {self.outputs[0]: np.asarray(inputs["motor_kw"], float)}
 
 
 class OnlyAtStart:
@@ -162,18 +163,12 @@ class Talks:
         return {"talks_kw": np.asarray(inputs["motor_kw"], float)}
 
 
-class HangInGeneration:
+class HangInGeneration(HangLater):
     """Answers its first 4 calls (the start point, differential evolution's first population and two
     generations), then never returns."""
 
     name = "gen"
-    inputs = ("motor_kw",)
     outputs = ("gen_kw",)
-    units = dict.fromkeys(inputs + outputs, "kW")
+    units = dict.fromkeys(HangLater.inputs + outputs, "kW")
+    after = 4
     calls = 0
-
-    def compute(self, inputs):
-        HangInGeneration.calls += 1
-        if HangInGeneration.calls > 4:
-            time.sleep(3600)
-        return {"gen_kw": np.asarray(inputs["motor_kw"], float)}
