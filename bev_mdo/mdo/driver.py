@@ -372,6 +372,9 @@ def projected_line(projected: dict) -> str:
             f"{projected['bound_violation_scaled']:.2g} outside them, scaled: within the feasibility tolerance)")
 
 
+OBJECTIVE_SCALE_HINT = 1e3  # an objective the optimiser sees this large, with no progress: problem.objective_scale
+
+
 def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: float) -> dict:
     """``first_order.check`` at the physical point ``x`` of ``form``, with what it cost: the gradient is
     the optimiser's last one when it was taken there (gradient-based runs), else one batched stencil
@@ -403,6 +406,9 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
             fo.update(verdict=first_order.STOPPED, conditions_hold=False, derivatives_disagree=wrong)
     if ok and fo["verdict"] == first_order.STOPPED and not fo["unknown_derivatives"]:  # is it smooth there?
         fo["kinks"] = kinks(form, u, f[0], float(np.max(np.abs(df), initial=0.0)))
+    seen = abs(float(f[0])) / form.problem.objective_scale  # the objective as the optimiser sees it
+    if ok and fo["verdict"] == first_order.NO_PROGRESS and seen >= OBJECTIVE_SCALE_HINT:
+        fo["objective_seen"] = seen  # an objective of 1e6 stopped SLSQP at its first point, with no hint
     fo["cost"] = {"points": form.n_points - points, "batches": form.n_batches - batches,
                   "wall_time_s": time.perf_counter() - t0}
     return fo

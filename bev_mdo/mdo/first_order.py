@@ -148,5 +148,7 @@ def verdict_line(fo: dict) -> str:
     kink = ("; the objective has a kink at the point in " + ", ".join(
         f"{k['name']} (one-sided slopes {k['left']:.5g} and {k['right']:.5g})" for k in kinks)
         + ": a nonsmooth model, whose optimum the first-order conditions cannot verify") if kinks else ""
+    scale = (f"; the optimiser sees an objective of {fo['objective_seen']:.1e}: give problem.objective_scale about "
+             f"{fo['objective_seen']:.0e} so that it is of order one") if fo.get("objective_seen") else ""
     return (f"{v} (projected gradient of the Lagrangian {fo['stationarity']:.3g}, complementarity "
-            f"{fo['complementarity']:.3g}; tolerance {fo['tolerance']:g}{kink})")
+            f"{fo['complementarity']:.3g}; tolerance {fo['tolerance']:g}{kink}{scale})")

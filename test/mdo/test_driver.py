@@ -283,3 +283,37 @@ def test_a_discipline_declared_unresponsive_stops_every_optimiser(optimizer):
     assert not res.optimizer_success and ev.unresponsive == ["sellar1"]
     best = res.history[res.result_iteration]
     assert best["feasible"] and res.objective == pytest.approx(best["objective"], rel=1e-12)
+
+
+class _Big:
+    """f = 1e6 (1 + (x - 1)^2): an objective of order 1e6 in its own units."""
+
+    name, inputs, outputs = "big", ("x",), ("f",)
+    units = {"x": "1", "f": "1"}
+
+    def compute(self, inputs):
+        return {"f": 1e6 * (1.0 + (inputs["x"] - 1.0) ** 2)}
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e6])
+def test_no_progress_on_a_large_objective_names_objective_scale(scale):
+    # An OpenMDAO user's trial: an objective of order 1e6 with no objective_scale stopped SLSQP at its first
+    # point ("no progress from the start point") with no hint of the scale.
+    from bev_mdo.mdo.driver import end_point_check
+    from bev_mdo.mdo.evaluator import InProcessEvaluator
+    from bev_mdo.mdo.first_order import NO_PROGRESS, verdict_line
+    from bev_mdo.mdo.formulations import MDF
+    from bev_mdo.mdo.mda import MDA
+    from bev_mdo.mdo.problem import Problem
+
+    ev = InProcessEvaluator([_Big()])
+    problem = Problem.from_config({"objective": "f", "objective_scale": scale,
+                                   "design_variables": {"x": {"lower": -5, "upper": 5, "initial": 3}}})
+    form = MDF(problem, ev, MDA(ev))
+    fo = end_point_check(form, form.x0, form.x0, 1e-6)
+    assert fo["verdict"] == NO_PROGRESS
+    line = verdict_line(fo)
+    if scale == 1.0:
+        assert "the optimiser sees an objective of 5.0e+06: give problem.objective_scale about 5e+06" in line, line
+    else:
+        assert "objective_scale" not in line, line
