@@ -124,7 +124,7 @@ def print_tables(s, outputs, out=None) -> None:
                                     for v, m in zip(cells, marks))
               + ("   df/dx_i (f = 0: S undefined)" if k in zero else ""), file=out)
     print("step".ljust(ow) + "".join(f"{v:{w}.3g}" for v in s.step), file=out)
-    if rough:
+    if rough and s.second is None:
         print(f"~ the estimates with steps h and 2h differ by over {ROUGH:.0%} of the value: the model has a kink or "
               "noise near the point (try another --rel-step; check-totals)", file=out)
     if s.second is None:
@@ -138,10 +138,18 @@ def print_tables(s, outputs, out=None) -> None:
         print(f"\n{k}  " + ("(f = 0: S' undefined; d2f/dx_i dx_j shown)" if k in zero
                              else f"(max Richardson error {np.nanmax(err):.1e})"), file=out)
         print("".ljust(w) + "".join(n.rjust(w) for n in s.names), file=out)
+        # "~" as in the first-order table: an entry of -0.0002 whose error was 1.6e-3 had the wrong sign, unmarked;
+        # an error below half the last digit shown (5e-5) is not marked
+        rough_2 = (np.nan_to_num(np.asarray(err, float)) > np.maximum(ROUGH * np.abs(m), 5e-5)) & (k not in zero)
+        rough = rough or bool(np.triu(rough_2).any())
         for i, n in enumerate(s.names):
-            cells = [(f" {m[i, j]:.4g}" if k in zero else f" {m[i, j]:.4f} {lab[i, j]}").rjust(w) if j >= i
-                     else "".rjust(w) for j in range(len(s.names))]
+            cells = [((f" {m[i, j]:.4g}" if k in zero else f" {m[i, j]:.4f} {lab[i, j]}") + ("~" if rough_2[i, j] else "")).rjust(w)
+                     if j >= i else "".rjust(w) for j in range(len(s.names))]
             print(n.ljust(w) + "".join(cells), file=out)
+    if rough:
+        print(f"\n~ the estimates with steps h and 2h differ by over {ROUGH:.0%} of the value (S': its Richardson "
+              "error): the model has a kink or noise near the point, and an entry whose error exceeds it has no sure "
+              "sign (try another --rel-step; check-totals)", file=out)
 
 
 def _context_title(s, cfg, design=None) -> str:

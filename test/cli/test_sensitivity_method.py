@@ -122,3 +122,25 @@ def test_a_value_the_two_steps_disagree_on_is_marked(capsys):
     smooth = io.StringIO()
     print_tables(sensitivities(lambda X: {"f": 10.0 + X[:, 0] + 0.5 * X[:, 1]}, {"x": 1.0, "y": 1.0}), ["f"], out=smooth)
     assert "~" not in smooth.getvalue()
+
+
+def test_a_second_order_entry_without_a_sure_sign_is_marked():
+    # A Model 3 trial: energy's battery x battery S' printed -0.0002 where central differences give +0.0014;
+    # its Richardson error (1.6e-3, in the JSON only) was larger than the value, and the table said nothing.
+    # An entry whose error is over 1 % of it (and over half the last digit shown) is marked "~".
+    import io
+
+    from bev_mdo.cli.sensitivity import print_tables
+    from bev_mdo.mdo.sensitivity import sensitivities
+
+    def fun(X):
+        x, y = X[:, 0], X[:, 1]
+        return {"f": 10.0 + x + 0.5 * y + 0.2 * y * y + 0.01 * (x > 1.0 + 1.5e-4)}  # a jump between h and 2h of x
+    s = sensitivities(fun, {"x": 1.0, "y": 1.0}, order=2)
+    out = io.StringIO()
+    print_tables(s, ["f"], out=out)
+    second = out.getvalue().split("Second-order")[1].splitlines()
+    xx = next(line for line in second if line.startswith("x "))
+    yy = next(line for line in second if line.startswith("y "))
+    assert xx.split()[2].endswith("~") and not yy.rstrip().endswith("~"), out.getvalue()
+    assert "no sure sign" in out.getvalue()
