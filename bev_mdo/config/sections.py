@@ -16,7 +16,8 @@ from typing import Any
 
 from bev_mdo.models import params
 from bev_mdo.models.common import check_keys, is_number, text_hint
-from bev_mdo.models.cycles import CycleNote, is_csv_cycle, load_cycle, trace_cycle, trace_record, unbalanced_note
+from bev_mdo.models.cycles import (CycleNote, is_csv_cycle, load_cycle, trace_cycle, trace_record, trace_yaml_chars,
+                                   unbalanced_note)
 
 SIZED_VARIABLE = "battery_kwh"
 SIZED_CONSTRAINT = "range_km"
@@ -218,9 +219,34 @@ def _record_cycle_traces(cfg: dict) -> None:
         if note:
             warnings.warn(note, CycleNote, stacklevel=2)
     if out:
+        _check_traces_fit({k: v for k, v in cfg.items() if k != "cycle_traces"}, out)
         cfg["cycle_traces"] = out
     else:
         cfg.pop("cycle_traces", None)
+
+
+def _check_traces_fit(rest: dict, traces: dict) -> None:
+    """ValueError (one line naming the CSV, its samples and the limit) when the resolved config, its traces in
+    ``cycle_traces``, would be YAML past ``yamlload.MAX_YAML_BYTES``: the run would go, but its bag could not
+    be resumed or reported, nor its config read by a node (the YAML limits bound what untrusted text costs to
+    parse, docs/security.md). 64 KiB are kept for what is added later (defaults, the run's key path)."""
+    import yaml
+
+    from bev_mdo.yamlload import MAX_YAML_BYTES
+
+    try:
+        used = len(yaml.safe_dump(rest, sort_keys=False)) + 64 * 1024
+    except yaml.YAMLError:  # a value YAML cannot write is refused by its own check
+        used = 64 * 1024
+    for name, record in traces.items():
+        chars = trace_yaml_chars(record)
+        used += chars
+        if used > MAX_YAML_BYTES:
+            n = len(record["time_s"])
+            fits = max(0, int(n * (MAX_YAML_BYTES - (used - chars)) / chars))
+            raise ValueError(f"{name}: {n:,} samples take {chars / 2**20:.1f} MiB in the run's resolved config (its "
+                             f"cycle_traces), past the {MAX_YAML_BYTES / 2**20:g} MiB of YAML that its bag and nodes "
+                             f"read back; at most about {fits:,} samples of this trace fit (resample it coarser)")
 
 
 def validate_models(cfg: dict) -> dict[str, float]:
