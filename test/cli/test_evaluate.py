@@ -51,6 +51,13 @@ def test_parameter_override_changes_energy(capsys):
 @pytest.mark.parametrize("argv,msg", [
     (["--set", "motor_kw"], "--set 'motor_kw' must be NAME=VALUE"),
     (["--set", "motor_kw=fast"], "value must be a number"),
+    # a list for a two-speed gearbox: "'[9.04': value must be a number" and "'4.7' must be NAME=VALUE"
+    (["--set", "gear_ratio=[9.04,4.7]"], "--set gear_ratio=[9.04,4.7]: --set takes one number per name (NAME=VALUE) "
+                                         "(a two-speed gearbox is gear_count=2 with gear_ratio_2 for its second "
+                                         "gear: --set gear_count=2,gear_ratio=9.04,gear_ratio_2=4.7)"),
+    (["--set", "gear_ratio=9.04,4.7"], "--set gear_ratio=9.04,4.7: --set takes one number per name (NAME=VALUE) (a "
+                                       "two-speed gearbox is gear_count=2 with gear_ratio_2"),
+    (["--set", "motor_kw=80,90"], "--set motor_kw=80,90: --set takes one number per name (NAME=VALUE)\n"),
     (["--set", "warp=1"], "unknown design names ['warp']"),
     # a value that is not finite was evaluated "as given" (a note that it is outside its bounds, exit 1)
     (["--set", "motor_kw=nan"], "--set motor_kw=nan: a design value must be a finite number"),
