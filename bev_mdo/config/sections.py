@@ -191,6 +191,20 @@ def _parameter_set(cfg: dict) -> None:
     cfg["vehicle"] = {**{k: x for k, x in values.items() if k not in section and k not in replaced}, **section}
 
 
+def cycle_names(cfg: Mapping) -> list[str]:
+    """The drive cycles a config names, each once: ``cycle.name``, the energy and cycle_range options ``cycle``
+    and ``cycle_weights``."""
+    names = [cfg["cycle"]["name"]]
+    for e in cfg.get("disciplines") or []:
+        if isinstance(e, Mapping) and e.get("name") in ("energy", "cycle_range") and not e.get("class"):
+            opts = e.get("options") if isinstance(e.get("options"), Mapping) else {}  # else refused later
+            if isinstance(opts.get("cycle"), str):
+                names.append(opts["cycle"])
+            if isinstance(opts.get("cycle_weights"), Mapping):
+                names += [str(k) for k in opts["cycle_weights"]]
+    return list(dict.fromkeys(names))
+
+
 def _record_cycle_traces(cfg: dict) -> None:
     """Every drive-cycle CSV the run names (``cycle.name``, the energy and cycle_range options ``cycle``
     and ``cycle_weights``) is read once, here, into the resolved config's ``cycle_traces`` (path ->
@@ -200,16 +214,8 @@ def _record_cycle_traces(cfg: dict) -> None:
     traces = cfg.get("cycle_traces") or {}
     if not isinstance(traces, Mapping):
         raise ValueError("cycle_traces must map CSV paths to {time_s: [...], speed_m_s: [...]}")
-    names = [cfg["cycle"]["name"]]
-    for e in cfg.get("disciplines") or []:
-        if isinstance(e, Mapping) and e.get("name") in ("energy", "cycle_range") and not e.get("class"):
-            opts = e.get("options") if isinstance(e.get("options"), Mapping) else {}  # else refused later
-            if isinstance(opts.get("cycle"), str):
-                names.append(opts["cycle"])
-            if isinstance(opts.get("cycle_weights"), Mapping):
-                names += [str(k) for k in opts["cycle_weights"]]
     out = {}
-    for name in dict.fromkeys(n for n in names if is_csv_cycle(n)):
+    for name in (n for n in cycle_names(cfg) if is_csv_cycle(n)):
         if name in traces:  # a resolved config read again: check what it holds
             cycle, out[name] = trace_cycle(name, traces[name]), traces[name]
         else:  # read (and checked) from the file
