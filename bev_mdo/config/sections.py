@@ -241,7 +241,7 @@ def _check_traces_fit(rest: dict, traces: dict) -> None:
     from bev_mdo.yamlload import MAX_YAML_BYTES
 
     try:
-        used = len(yaml.safe_dump(rest, sort_keys=False)) + 64 * 1024
+        used = len(yaml.safe_dump(rest, sort_keys=False).encode("utf-8")) + 64 * 1024  # a file's limit is in bytes
     except yaml.YAMLError:  # a value YAML cannot write is refused by its own check
         used = 64 * 1024
     for name, record in traces.items():
