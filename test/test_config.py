@@ -365,3 +365,35 @@ def test_a_config_changed_by_the_command_line_names_its_file_in_an_error(capsys)
                  "--no-record"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and f"error: {path}: optimizer differential_evolution" in err
+
+
+def test_a_cycle_whose_trace_would_not_fit_the_stored_config_is_refused_when_read(tmp_path, monkeypatch):
+    """A cycle CSV within the CSV limits went into the resolved config's cycle_traces past the YAML limit: the
+    run went, but its bag could not be resumed ('YAML text of 11286174 characters; at most 8388608', naming
+    neither bag nor cycle). Refused when read, in one line naming the CSV, its samples and what fits; a trace
+    that is taken is one the stored config reads back within the limit."""
+    import re
+
+    import numpy as np
+
+    from bev_mdo import yamlload
+    from bev_mdo.config import plain
+
+    monkeypatch.setattr(yamlload, "MAX_YAML_BYTES", 256 * 1024)  # the 8 MiB limit, scaled down
+
+    def config_of(rows):
+        t = np.arange(rows) * 0.1
+        v = 45 * (1 - np.cos(2 * np.pi * t / t[-1]))  # a car from rest to rest, 10 Hz
+        (tmp_path / "log.csv").write_text("time_s,speed_kmh\n" + "".join(f"{a:.1f},{b:.3f}\n" for a, b in zip(t, v)))
+        raw = yaml.safe_load(LEAF.read_text())
+        raw["cycle"] = {"name": str(tmp_path / "log.csv")}
+        return load_config(raw)
+
+    with pytest.raises(ValueError, match=r"log\.csv: 20,000 samples take 0\.\d MiB in the run's resolved config "
+                                         r"\(its cycle_traces\), past the 0.25 MiB") as info:
+        config_of(20_000)
+    fits = int(re.search(r"at most about ([\d,]+) samples", str(info.value)).group(1).replace(",", ""))
+    assert 3_000 < fits < 20_000
+    cfg = config_of(int(fits * 0.95))
+    text = yaml.safe_dump(plain(cfg), sort_keys=False)  # as the bag and the nodes' config file hold it
+    assert yamlload.load_yaml(text)["cycle_traces"] == cfg["cycle_traces"]

@@ -16,7 +16,8 @@ from typing import Any
 
 from bev_mdo.models import params
 from bev_mdo.models.common import check_keys, is_number, text_hint
-from bev_mdo.models.cycles import CycleNote, is_csv_cycle, load_cycle, trace_cycle, trace_record, unbalanced_note
+from bev_mdo.models.cycles import (CycleNote, is_csv_cycle, load_cycle, trace_cycle, trace_record, trace_yaml_chars,
+                                   unbalanced_note)
 
 SIZED_VARIABLE = "battery_kwh"
 SIZED_CONSTRAINT = "range_km"
@@ -190,6 +191,20 @@ def _parameter_set(cfg: dict) -> None:
     cfg["vehicle"] = {**{k: x for k, x in values.items() if k not in section and k not in replaced}, **section}
 
 
+def cycle_names(cfg: Mapping) -> list[str]:
+    """The drive cycles a config names, each once: ``cycle.name``, the energy and cycle_range options ``cycle``
+    and ``cycle_weights``."""
+    names = [cfg["cycle"]["name"]]
+    for e in cfg.get("disciplines") or []:
+        if isinstance(e, Mapping) and e.get("name") in ("energy", "cycle_range") and not e.get("class"):
+            opts = e.get("options") if isinstance(e.get("options"), Mapping) else {}  # else refused later
+            if isinstance(opts.get("cycle"), str):
+                names.append(opts["cycle"])
+            if isinstance(opts.get("cycle_weights"), Mapping):
+                names += [str(k) for k in opts["cycle_weights"]]
+    return list(dict.fromkeys(names))
+
+
 def _record_cycle_traces(cfg: dict) -> None:
     """Every drive-cycle CSV the run names (``cycle.name``, the energy and cycle_range options ``cycle``
     and ``cycle_weights``) is read once, here, into the resolved config's ``cycle_traces`` (path ->
@@ -199,16 +214,8 @@ def _record_cycle_traces(cfg: dict) -> None:
     traces = cfg.get("cycle_traces") or {}
     if not isinstance(traces, Mapping):
         raise ValueError("cycle_traces must map CSV paths to {time_s: [...], speed_m_s: [...]}")
-    names = [cfg["cycle"]["name"]]
-    for e in cfg.get("disciplines") or []:
-        if isinstance(e, Mapping) and e.get("name") in ("energy", "cycle_range") and not e.get("class"):
-            opts = e.get("options") if isinstance(e.get("options"), Mapping) else {}  # else refused later
-            if isinstance(opts.get("cycle"), str):
-                names.append(opts["cycle"])
-            if isinstance(opts.get("cycle_weights"), Mapping):
-                names += [str(k) for k in opts["cycle_weights"]]
     out = {}
-    for name in dict.fromkeys(n for n in names if is_csv_cycle(n)):
+    for name in (n for n in cycle_names(cfg) if is_csv_cycle(n)):
         if name in traces:  # a resolved config read again: check what it holds
             cycle, out[name] = trace_cycle(name, traces[name]), traces[name]
         else:  # read (and checked) from the file
@@ -218,9 +225,34 @@ def _record_cycle_traces(cfg: dict) -> None:
         if note:
             warnings.warn(note, CycleNote, stacklevel=2)
     if out:
+        _check_traces_fit({k: v for k, v in cfg.items() if k != "cycle_traces"}, out)
         cfg["cycle_traces"] = out
     else:
         cfg.pop("cycle_traces", None)
+
+
+def _check_traces_fit(rest: dict, traces: dict) -> None:
+    """ValueError (one line naming the CSV, its samples and the limit) when the resolved config, its traces in
+    ``cycle_traces``, would be YAML past ``yamlload.MAX_YAML_BYTES``: the run would go, but its bag could not
+    be resumed or reported, nor its config read by a node (the YAML limits bound what untrusted text costs to
+    parse, docs/security.md). 64 KiB are kept for what is added later (defaults, the run's key path)."""
+    import yaml
+
+    from bev_mdo.yamlload import MAX_YAML_BYTES
+
+    try:
+        used = len(yaml.safe_dump(rest, sort_keys=False).encode("utf-8")) + 64 * 1024  # a file's limit is in bytes
+    except yaml.YAMLError:  # a value YAML cannot write is refused by its own check
+        used = 64 * 1024
+    for name, record in traces.items():
+        chars = trace_yaml_chars(record)
+        used += chars
+        if used > MAX_YAML_BYTES:
+            n = len(record["time_s"])
+            fits = max(0, int(n * (MAX_YAML_BYTES - (used - chars)) / chars))
+            raise ValueError(f"{name}: {n:,} samples take {chars / 2**20:.1f} MiB in the run's resolved config (its "
+                             f"cycle_traces), past the {MAX_YAML_BYTES / 2**20:g} MiB of YAML that its bag and nodes "
+                             f"read back; at most about {fits:,} samples of this trace fit (resample it coarser)")
 
 
 def validate_models(cfg: dict) -> dict[str, float]:

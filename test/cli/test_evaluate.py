@@ -51,6 +51,13 @@ def test_parameter_override_changes_energy(capsys):
 @pytest.mark.parametrize("argv,msg", [
     (["--set", "motor_kw"], "--set 'motor_kw' must be NAME=VALUE"),
     (["--set", "motor_kw=fast"], "value must be a number"),
+    # a list for a two-speed gearbox: "'[9.04': value must be a number" and "'4.7' must be NAME=VALUE"
+    (["--set", "gear_ratio=[9.04,4.7]"], "--set gear_ratio=[9.04,4.7]: --set takes one number per name (NAME=VALUE) "
+                                         "(a two-speed gearbox is gear_count=2 with gear_ratio_2 for its second "
+                                         "gear: --set gear_count=2,gear_ratio=9.04,gear_ratio_2=4.7)"),
+    (["--set", "gear_ratio=9.04,4.7"], "--set gear_ratio=9.04,4.7: --set takes one number per name (NAME=VALUE) (a "
+                                       "two-speed gearbox is gear_count=2 with gear_ratio_2"),
+    (["--set", "motor_kw=80,90"], "--set motor_kw=80,90: --set takes one number per name (NAME=VALUE)\n"),
     (["--set", "warp=1"], "unknown design names ['warp']"),
     # a value that is not finite was evaluated "as given" (a note that it is outside its bounds, exit 1)
     (["--set", "motor_kw=nan"], "--set motor_kw=nan: a design value must be a finite number"),
@@ -230,3 +237,20 @@ def test_a_set_parameter_is_shown_as_a_parameter_not_a_design_variable(capsys):
     row = next(line for line in out.splitlines() if "load_kg" in line)
     assert "parameter" in row and "design" not in row, row
 
+
+
+def test_the_table_says_the_cycles_duration_distance_and_top_speed(capsys, tmp_path):
+    """A cycle in m/s under the km/h header (a 50 km/h cruise written 13.89) was evaluated with nothing of the
+    cycle shown: its 13.9 km/h top speed is now the first line."""
+    t = range(0, 601, 10)
+    (tmp_path / "cruise.csv").write_text("time_s,speed_kmh\n" + "".join(
+        f"{s},{0 if s in (0, 600) else 13.89}\n" for s in t))
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(LEAF.read_text().replace("cycle: {name: nedc", "cycle: {name: cruise.csv"))
+    code, out, _ = run(capsys, cfg)
+    assert code in (0, 1) and out.splitlines()[0] == "cycle: cruise 600 s, 2.28 km, top 13.9 km/h"
+    code, out, _ = run(capsys, ROOT / "config" / "leaf_epa_combined.yaml")
+    assert out.splitlines()[0] == ("cycles: epa_us06 600 s, 12.89 km, top 129.2 km/h; epa_udds 1369 s, 11.99 km, "
+                                   "top 91.3 km/h; epa_hwfet 765 s, 16.51 km, top 96.4 km/h")
+    code, out, _ = run(capsys, LEAF, "--json")
+    assert json.loads(out)["design"]  # JSON as it was
