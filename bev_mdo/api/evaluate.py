@@ -36,12 +36,13 @@ def pyplot_and_label(units: dict | None):
     return plt, label
 
 
-def design(config, given: dict[str, float], transport) -> dict:
+def design(config, given: dict[str, float], transport, caller: str = "bev-mdo evaluate") -> dict:
     """The report of one multidisciplinary analysis (mdo.driver.evaluate_design: design, outputs,
     objective, constraints with margins, feasible, ok, error; ``notes``, only when a discipline has one
     about an output's value, e.g. a design that cannot reach 100 km/h). Design variables not given take their
-    initial value; a value outside its bounds is evaluated as given, with a note on stderr, but one the
-    models refuse (outside a physical design limit or a parameter's range) is an InputError."""
+    initial value; a value outside its bounds is evaluated as given, with a note on stderr (``caller``: its
+    prefix, the command or the API's method), but one the models refuse (outside a physical design limit or
+    a parameter's range) is an InputError."""
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import evaluate_design
 
@@ -52,8 +53,8 @@ def design(config, given: dict[str, float], transport) -> dict:
     full = {**{d.name: d.initial for d in problem.design_variables}, **given}
     for d in problem.design_variables:  # evaluated as given, but a user should know it is off the design space
         v = given.get(d.name)
-        if isinstance(v, (int, float)) and not d.lower <= v <= d.upper:
-            print(f"bev-mdo evaluate: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
+        if v is not None and not d.lower <= v <= d.upper:  # (a number: finite_values)
+            print(f"{caller}: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
                   "(evaluated as given)", file=sys.stderr)
     with Evaluating(config, transport) as evaluator:
         report = evaluate_design(config.settings, evaluator, full)
