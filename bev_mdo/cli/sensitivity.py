@@ -15,7 +15,7 @@ import numpy as np
 
 from bev_mdo import jsontext
 
-ROUGH = 0.01  # a first-order value is marked "~" when its Richardson error estimate is over 1 % of it
+ROUGH = 0.01  # a value is marked "~" when its error estimate (Richardson's, or half a kink's jump) is over 1 % of it
 
 
 def register(subparsers) -> None:
@@ -125,8 +125,8 @@ def print_tables(s, outputs, out=None) -> None:
               + ("   df/dx_i (f = 0: S undefined)" if k in zero else ""), file=out)
     print("step".ljust(ow) + "".join(f"{v:{w}.3g}" for v in s.step), file=out)
     if rough and s.second is None:
-        print(f"~ the estimates with steps h and 2h differ by over {ROUGH:.0%} of the value: the model has a kink or "
-              "noise near the point (try another --rel-step; check-totals)", file=out)
+        print(f"~ uncertain by over {ROUGH:.0%} of the value: the estimates with steps h and 2h, or the slopes either "
+              "side of the point, differ (a kink or noise near the point; try another --rel-step; check-totals)", file=out)
     if s.second is None:
         return
     print("\nSecond-order normalised sensitivity S'_ij = (x_i x_j/f) d2f/dx_i dx_j  (eq 5-5)", file=out)
@@ -147,9 +147,9 @@ def print_tables(s, outputs, out=None) -> None:
                      if j >= i else "".rjust(w) for j in range(len(s.names))]
             print(n.ljust(w) + "".join(cells), file=out)
     if rough:
-        print(f"\n~ the estimates with steps h and 2h differ by over {ROUGH:.0%} of the value (S': its Richardson "
-              "error): the model has a kink or noise near the point, and an entry whose error exceeds it has no sure "
-              "sign (try another --rel-step; check-totals)", file=out)
+        print(f"\n~ uncertain by over {ROUGH:.0%} of the value: the estimates with steps h and 2h, or the slopes either "
+              "side of the point, differ (a kink or noise near the point); an S' entry whose error exceeds it has no "
+              "sure sign (try another --rel-step; check-totals)", file=out)
 
 
 def _context_title(s, cfg, design=None) -> str:
