@@ -130,7 +130,8 @@ def print_tables(s, outputs, out=None) -> None:
     if s.second is None:
         return
     print("\nSecond-order normalised sensitivity S'_ij = (x_i x_j/f) d2f/dx_i dx_j  (eq 5-5)", file=out)
-    print("labels: NC |S'|<0.05, MC <0.5, SC <0.8, VSC >=0.8 (no/medium/strong/very strong coupling)", file=out)
+    print("labels: NC |S'|<0.05, MC <0.5, SC <0.8, VSC >=0.8 (no/medium/strong/very strong coupling of two "
+          "variables; a diagonal entry, one variable's own curvature, has none)", file=out)
     for k in outputs:
         m, lab, err = s.second[k], s.labels(k), s.second_error[k]
         if k in zero:
@@ -143,7 +144,9 @@ def print_tables(s, outputs, out=None) -> None:
         rough_2 = (np.nan_to_num(np.asarray(err, float)) > np.maximum(ROUGH * np.abs(m), 5e-5)) & (k not in zero)
         rough = rough or bool(np.triu(rough_2).any())
         for i, n in enumerate(s.names):
-            cells = [((f" {m[i, j]:.4g}" if k in zero else f" {m[i, j]:.4f} {lab[i, j]}") + ("~" if rough_2[i, j] else "")).rjust(w)
+            # a label is a coupling's (two variables, Fig 5-3); a diagonal entry is one variable's own curvature
+            cells = [((f" {m[i, j]:.4g}" if k in zero else f" {m[i, j]:.4f}" + (f" {lab[i, j]}" if i != j else ""))
+                      + ("~" if rough_2[i, j] else "")).rjust(w)
                      if j >= i else "".rjust(w) for j in range(len(s.names))]
             print(n.ljust(w) + "".join(cells), file=out)
     if rough:
@@ -217,7 +220,7 @@ def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
                                 fontsize=7, color="0.35")
                         continue
                     dark = abs(norm(m[i, j]) - 0.5) > 0.3
-                    ax.text(j, i, f"{m[i, j]:.3g}\n{lab[i, j]}", ha="center", va="center", fontsize=8,
+                    ax.text(j, i, f"{m[i, j]:.3g}" + (f"\n{lab[i, j]}" if i != j else ""), ha="center", va="center", fontsize=8,
                             color="white" if dark else "black")
             ax.set_xticks(range(len(s.names)), ticks, rotation=20, ha="right", fontsize=7)
             ax.set_yticks(range(len(s.names)), ticks if idx % ncols == 0 else [], fontsize=7)
