@@ -14,7 +14,7 @@ from typing import Any
 from bev_mdo.config.disciplines import check_against_disciplines, discipline_entries, resolve_disciplines
 from bev_mdo.config.sections import (anchor_paths, check_gear_order, check_gear_order_per_design, check_mda_numbers,
                                      check_optimizer_options, resolve_problem, search_path, engine_section,
-                                     validate_models, vehicle_topology_into_options)
+                                     validate_models, vehicle_topology_into_options, check_traces_fit)
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
 from bev_mdo.mdo.vectors import has_partials
@@ -280,6 +280,8 @@ def _resolve(raw: Any) -> RunConfig:
     if cfg["problem"].get("baseline") is not None:
         problem.check_design(cfg["problem"]["baseline"]["design"], params, "problem.baseline.design")
         check_gear_order_per_design(vehicle, problem, cfg["problem"]["baseline"]["design"], "problem.baseline.design: ")
+    recorded = raw.get("cycle_traces") if isinstance(raw.get("cycle_traces"), Mapping) else {}
+    check_traces_fit(cfg, [n for n in cfg.get("cycle_traces") or () if n not in recorded])  # the whole config, filled
     return RunConfig(cfg, problem, discs, ros, _settings(cfg, problem, discs), vehicle)
 
 

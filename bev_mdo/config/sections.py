@@ -210,7 +210,8 @@ def _record_cycle_traces(cfg: dict) -> None:
     and ``cycle_weights``) is read once, here, into the resolved config's ``cycle_traces`` (path ->
     {time_s, speed_m_s}); the models take it from there, so a bag's ``resume`` and nodes started in
     another folder or on another host run on the same trace without the file. A trace already there
-    (a resolved config read again) is checked, not re-read."""
+    (a resolved config read again) is checked, not re-read: whether the config fits is ``check_traces_fit``'s
+    question for the traces read from a file."""
     traces = cfg.get("cycle_traces") or {}
     if not isinstance(traces, Mapping):
         raise ValueError("cycle_traces must map CSV paths to {time_s: [...], speed_m_s: [...]}")
@@ -225,34 +226,45 @@ def _record_cycle_traces(cfg: dict) -> None:
         if note:
             warnings.warn(note, CycleNote, stacklevel=2)
     if out:
-        _check_traces_fit({k: v for k, v in cfg.items() if k != "cycle_traces"}, out)
         cfg["cycle_traces"] = out
     else:
         cfg.pop("cycle_traces", None)
 
 
-def _check_traces_fit(rest: dict, traces: dict) -> None:
-    """ValueError (one line naming the CSV, its samples and the limit) when the resolved config, its traces in
-    ``cycle_traces``, would be YAML past ``yamlload.MAX_YAML_BYTES``: the run would go, but its bag could not
-    be resumed or reported, nor its config read by a node (the YAML limits bound what untrusted text costs to
-    parse, docs/security.md). 64 KiB are kept for what is added later (defaults, the run's key path)."""
+TRACE_RESERVE_BYTES = 64 * 1024  # of the YAML limit, for what a run adds to its resolved config (its key path)
+
+
+def check_traces_fit(resolved: dict, read: Any) -> None:
+    """ValueError (one line naming the CSV, its samples, what the whole config takes and the limit) when the
+    ``resolved`` config (defaults filled), its traces in ``cycle_traces``, would be YAML past
+    ``yamlload.MAX_YAML_BYTES`` less ``TRACE_RESERVE_BYTES``: the run would go, but its bag could not be resumed
+    or reported, nor its config read by a node (the YAML limits bound what untrusted text costs to parse,
+    docs/security.md). Only traces ``read`` from a CSV by this load are checked: one a resolved config holds
+    was checked when it was read, and the YAML limit bounds the config it came in (a run's resume)."""
     import yaml
 
+    from bev_mdo.config.load import plain
     from bev_mdo.yamlload import MAX_YAML_BYTES
 
-    try:
-        used = len(yaml.safe_dump(rest, sort_keys=False).encode("utf-8")) + 64 * 1024  # a file's limit is in bytes
-    except yaml.YAMLError:  # a value YAML cannot write is refused by its own check
-        used = 64 * 1024
-    for name, record in traces.items():
-        chars = trace_yaml_chars(record)
-        used += chars
-        if used > MAX_YAML_BYTES:
-            n = len(record["time_s"])
-            fits = max(0, int(n * (MAX_YAML_BYTES - (used - chars)) / chars))
-            raise ValueError(f"{name}: {n:,} samples take {chars / 2**20:.1f} MiB in the run's resolved config (its "
-                             f"cycle_traces), past the {MAX_YAML_BYTES / 2**20:g} MiB of YAML that its bag and nodes "
-                             f"read back; at most about {fits:,} samples of this trace fit (resample it coarser)")
+    traces = resolved.get("cycle_traces") or {}
+    read = [n for n in traces if n in read]
+    if not read:
+        return
+    rest = plain({k: v for k, v in resolved.items() if k != "cycle_traces"})  # as a bag and a node's file hold it
+    rest_bytes = len(yaml.safe_dump(rest, sort_keys=False).encode("utf-8"))  # a file's limit is in bytes
+    chars = {n: trace_yaml_chars(r) + len(n) + 30 for n, r in traces.items()}  # with its key lines
+    total = rest_bytes + sum(chars.values()) + TRACE_RESERVE_BYTES
+    if total <= MAX_YAML_BYTES:
+        return
+    big = max(read, key=chars.get)
+    n = len(traces[big]["time_s"])
+    fits = max(0, int(n * (MAX_YAML_BYTES - (total - chars[big])) / chars[big]))
+    said = "; ".join(f"{k} {len(traces[k]['time_s']):,} samples in {chars[k]:,} bytes" for k in traces)
+    raise ValueError(f"{big}: with its {n:,} samples the run's resolved config would take {total:,} bytes of YAML "
+                     f"(cycle_traces: {said}; the rest of the config {rest_bytes:,} bytes; {TRACE_RESERVE_BYTES // 1024} KiB "
+                     f"kept for what a run adds), past the {MAX_YAML_BYTES:,} ({MAX_YAML_BYTES / 2**20:g} MiB) that its "
+                     f"bag and nodes read back; at most about {fits:,} samples of this trace fit with the rest as it "
+                     "is (resample it coarser)")
 
 
 def validate_models(cfg: dict) -> dict[str, float]:
