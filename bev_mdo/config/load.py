@@ -14,7 +14,8 @@ from typing import Any
 from bev_mdo.config.disciplines import check_against_disciplines, discipline_entries, resolve_disciplines
 from bev_mdo.config.sections import (anchor_paths, check_gear_order, check_gear_order_per_design, check_mda_numbers,
                                      check_optimizer_options, resolve_problem, search_path, engine_section,
-                                     validate_models, vehicle_topology_into_options, check_traces_fit)
+                                     two_speed_notes, validate_models, vehicle_topology_into_options,
+                                     check_traces_fit)
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
 from bev_mdo.mdo.vectors import has_partials
@@ -273,6 +274,7 @@ def _resolve(raw: Any) -> RunConfig:
     cfg["problem"] = resolve_problem(cfg.get("problem"))
     problem = Problem.from_config(cfg["problem"])
     check_gear_order(vehicle, problem)
+    two_speed_notes(cfg, vehicle, problem)
     # numeric checks of the engine sections, by constructing the pieces once
     check_mda_numbers(cfg["mda"])
     discs = tuple(resolve_disciplines(cfg))

@@ -315,6 +315,46 @@ def check_gear_order(vehicle: Mapping[str, float], problem) -> None:
                      + params.GEAR_ORDER)
 
 
+TWO_SPEED_KEYS = ("gear_ratio_2", "shift_speed_m_s", "shift_strategy", "two_speed_added_mass_kg",
+                  "two_speed_efficiency_loss")
+
+
+def two_speed_notes(cfg: Mapping[str, Any], vehicle: Mapping[str, float], problem) -> None:
+    """A note (``CycleNote``, one line) where the two-speed gearbox keys the vehicle section states change nothing:
+    on a topology other than SM-SA (gear_count 2 is SM-SA only), or with gear_count 1 and no design variable or
+    problem parameter setting it (a DM-DA config with gear_ratio_2, shift_speed_m_s, shift_strategy and
+    two_speed_added_mass_kg ran as if they were not there). A note, not an error: a sweep or --set may set
+    gear_count 2. And where a two-speed box shifts by speed (shift_strategy 0) at a speed above the top speed of
+    every cycle the run uses (80 'm/s' meant as km/h): the energy model never uses its second gear there."""
+    import numpy as np
+
+    section = cfg.get("vehicle") if isinstance(cfg.get("vehicle"), Mapping) else {}
+    topology = params.vehicle_choice(section, "topology")
+    values = {**vehicle, **problem.parameters}
+    two = "gear_count" in problem.names or bool(np.any(np.asarray(values.get("gear_count", 1.0)) == 2.0))
+    specs = params.all_specs()
+    stated = [k for k in TWO_SPEED_KEYS if k in section and vehicle.get(k) != specs[k].default]
+    if stated and (topology != "SM-SA" or not two):
+        why = (f"a {topology} powertrain has no two-speed gearbox (gear_count 2 is SM-SA only)" if topology != "SM-SA"
+               else "vehicle.gear_count is 1 (single speed)")
+        warnings.warn(f"{', '.join('vehicle.' + k for k in stated)}: two-speed gearbox key{'s' if len(stated) > 1 else ''}"
+                      f", but {why}: {'they change' if len(stated) > 1 else 'it changes'} nothing"
+                      + (" unless a design sets gear_count 2" if topology == "SM-SA" else ""), CycleNote, stacklevel=2)
+    if (topology != "SM-SA" or not two or cfg.get("energy_model") != "quasi_static" or values.get("shift_strategy")
+            or not isinstance(cfg.get("cycle"), Mapping)):
+        return
+    dv = next((d for d in problem.design_variables if d.name == "shift_speed_m_s"), None)
+    shift, where = ((dv.lower, "the lower bound of problem.design_variables.shift_speed_m_s") if dv is not None else
+                    (float(np.min(values.get("shift_speed_m_s", 68.1 / 3.6))), "problem.parameters.shift_speed_m_s"
+                     if "shift_speed_m_s" in problem.parameters else "vehicle.shift_speed_m_s"))
+    cycles = [load_cycle(n, cfg.get("cycle_traces")) for n in cycle_names(cfg)]
+    if all(shift > float(np.max(c.speed_m_s)) for c in cycles):
+        tops = ", ".join(f"{c.name} {c.max_speed_kmh:.1f} km/h" for c in cycles)
+        warnings.warn(f"{where} {shift:g} m/s ({shift * 3.6:.0f} km/h) is above the top speed of every cycle the run "
+                      f"uses ({tops}): the two-speed gearbox never shifts into its second gear on them (a speed in "
+                      "km/h? this key is in m/s)", CycleNote, stacklevel=2)
+
+
 def check_gear_order_per_design(vehicle: Mapping[str, float], problem, values: Mapping, where: str = "") -> None:
     """The same rule for designs given per point (``values``: numbers or arrays over the config's own
     values, e.g. a ``--set``, a sweep's columns or ``problem.baseline``): one-line ValueError naming the
