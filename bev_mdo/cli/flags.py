@@ -115,7 +115,7 @@ def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, 
     out: dict[str, float] = {}
     for item in [items] if isinstance(items, str) else items:
         last, parts = "", [s.strip() for s in item.split(",")]
-        if item.strip() and not all(parts):  # motor_kw=200,,battery_kwh=50 was taken as if the empty item were not
+        if "" in parts[:-1]:  # motor_kw=200,,battery_kwh=50 was taken as if the empty item were not (a last comma is)
             raise InputError(f"{flag} {item.strip()!r}: an empty item between commas; give NAME=VALUE,NAME=VALUE")
         for part in filter(None, parts):
             name, sep, value = part.partition("=")

@@ -75,7 +75,7 @@ def test_parameter_override_changes_energy(capsys):
     (["--set", "motor_kw=70", "gear_ratio=8", "motor_kw=80"], "--set motor_kw: given twice (70 and 80)"),
     # an empty item was skipped without a word; a bare nan after a value was "'nan' must be NAME=VALUE"
     (["--set", "motor_kw=100,,battery_kwh=25"], "--set 'motor_kw=100,,battery_kwh=25': an empty item between commas"),
-    (["--set", "motor_kw=100,"], "--set 'motor_kw=100,': an empty item between commas"),
+    (["--set", ",motor_kw=100"], "--set ',motor_kw=100': an empty item between commas"),
     (["--set", "motor_kw=100,nan"], "--set motor_kw=100,nan: --set takes one number per name (NAME=VALUE)\n"),
     (["--set", "motor_kw=100,-inf"], "--set motor_kw=100,-inf: --set takes one number per name (NAME=VALUE)\n"),
 ])
