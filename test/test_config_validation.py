@@ -394,8 +394,14 @@ def test_a_second_gear_shorter_than_the_first_is_refused_on_load(vehicle, design
     with pytest.raises(ValueError, match=rf"^<config>: {said}: with gear_count 2 the second gear must not be shorter than "
                                          r"the first \(gear_ratio_2 <= gear_ratio\)$"):
         load_config(raw)
-    raw["vehicle"]["gear_count"] = 1  # one gear: gear_ratio_2 is not used
-    load_config(raw)
+    raw["vehicle"]["gear_count"] = 1  # one gear: gear_ratio_2 is not used (a note says so when it is stated)
+    if vehicle:
+        from bev_mdo.models.cycles import CycleNote
+
+        with pytest.warns(CycleNote, match=r"^vehicle.gear_ratio_2: two-speed gearbox key, but vehicle.gear_count is 1"):
+            load_config(raw)
+    else:
+        load_config(raw)
 
 
 def _artemis_notes(topology="SM-SA", **vehicle):

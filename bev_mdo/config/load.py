@@ -283,7 +283,9 @@ def _resolve(raw: Any) -> RunConfig:
         problem.check_design(cfg["problem"]["baseline"]["design"], params, "problem.baseline.design")
         check_gear_order_per_design(vehicle, problem, cfg["problem"]["baseline"]["design"], "problem.baseline.design: ")
     recorded = raw.get("cycle_traces") if isinstance(raw.get("cycle_traces"), Mapping) else {}
-    check_traces_fit(cfg, [n for n in cfg.get("cycle_traces") or () if n not in recorded])  # the whole config, filled
+    read = [n for n in cfg.get("cycle_traces") or () if n not in recorded]
+    if read:  # the whole config, defaults filled, as a bag and a node's file hold it
+        check_traces_fit(plain({k: v for k, v in cfg.items() if k != "cycle_traces"}), cfg["cycle_traces"], read)
     return RunConfig(cfg, problem, discs, ros, _settings(cfg, problem, discs), vehicle)
 
 

@@ -234,23 +234,21 @@ def _record_cycle_traces(cfg: dict) -> None:
 TRACE_RESERVE_BYTES = 64 * 1024  # of the YAML limit, for what a run adds to its resolved config (its key path)
 
 
-def check_traces_fit(resolved: dict, read: Any) -> None:
+def check_traces_fit(rest: dict, traces: Mapping[str, Any], read: Any) -> None:
     """ValueError (one line naming the CSV, its samples, what the whole config takes and the limit) when the
-    ``resolved`` config (defaults filled), its traces in ``cycle_traces``, would be YAML past
+    resolved config (defaults filled), ``rest`` (plain, as a bag holds it) with ``traces`` as its ``cycle_traces``,
+    would be YAML past
     ``yamlload.MAX_YAML_BYTES`` less ``TRACE_RESERVE_BYTES``: the run would go, but its bag could not be resumed
     or reported, nor its config read by a node (the YAML limits bound what untrusted text costs to parse,
     docs/security.md). Only traces ``read`` from a CSV by this load are checked: one a resolved config holds
     was checked when it was read, and the YAML limit bounds the config it came in (a run's resume)."""
     import yaml
 
-    from bev_mdo.config.load import plain
     from bev_mdo.yamlload import MAX_YAML_BYTES
 
-    traces = resolved.get("cycle_traces") or {}
     read = [n for n in traces if n in read]
     if not read:
         return
-    rest = plain({k: v for k, v in resolved.items() if k != "cycle_traces"})  # as a bag and a node's file hold it
     rest_bytes = len(yaml.safe_dump(rest, sort_keys=False).encode("utf-8"))  # a file's limit is in bytes
     chars = {n: trace_yaml_chars(r) + len(n) + 30 for n, r in traces.items()}  # with its key lines
     total = rest_bytes + sum(chars.values()) + TRACE_RESERVE_BYTES
@@ -315,8 +313,9 @@ def check_gear_order(vehicle: Mapping[str, float], problem) -> None:
                      + params.GEAR_ORDER)
 
 
-TWO_SPEED_KEYS = ("gear_ratio_2", "shift_speed_m_s", "shift_strategy", "two_speed_added_mass_kg",
-                  "two_speed_efficiency_loss")
+# two_speed_efficiency_loss is left out: a fitted parameter set holds it (its fleet's two-speed cars), and a set
+# file's values go into the vehicle section, where they would read as stated
+TWO_SPEED_KEYS = ("gear_ratio_2", "shift_speed_m_s", "shift_strategy", "two_speed_added_mass_kg")
 
 
 def two_speed_notes(cfg: Mapping[str, Any], vehicle: Mapping[str, float], problem) -> None:
