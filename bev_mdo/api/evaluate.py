@@ -41,25 +41,31 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
     objective, constraints with margins, feasible, ok, error; ``notes``, only when a discipline has one
     about an output's value, e.g. a design that cannot reach 100 km/h). Design variables not given take their
     initial value; a value outside its bounds is evaluated as given, with a note on stderr (``caller``: its
-    prefix, the command or the API's method), but one the models refuse (outside a physical design limit or
-    a parameter's range) is an InputError."""
+    prefix, the command or the API's method), and is infeasible whatever its constraints say (as optimize's
+    answers call such a point, docs/answers.md; ``notes`` says why), but one the models refuse (outside a
+    physical design limit or a parameter's range) is an InputError."""
     from bev_mdo.config import RunConfig
-    from bev_mdo.mdo.driver import evaluate_design
+    from bev_mdo.mdo.driver import evaluate_design, feasibility_tolerance
 
     finite_values(given, one="evaluate takes one design, a number per name; sweep(designs=...) evaluates many")
     config = RunConfig.of(config)
     refuse_outside_model_limits(config, given)
     problem = config.problem
     full = {**{d.name: d.initial for d in problem.design_variables}, **given}
+    outside = []
     for d in problem.design_variables:  # evaluated as given, but a user should know it is off the design space
         v = given.get(d.name)
         if v is not None and not d.lower <= v <= d.upper:  # (a number: finite_values)
             print(f"{caller}: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
                   "(evaluated as given)", file=sys.stderr)
+            if max(d.lower - v, v - d.upper) > feasibility_tolerance(config.settings) * (d.upper - d.lower):
+                outside.append(f"{d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}]: infeasible "
+                               "whatever the constraints say (evaluated as given)")
     with Evaluating(config, transport) as evaluator:
         report = evaluate_design(config.settings, evaluator, full)
     short, notes = notes_of(config, {**problem.parameters, **full}, report["outputs"])
-    if short:  # not a design the run's energy describes: infeasible whatever the constraints say
+    notes = outside + notes
+    if short or outside:  # not a design the run's energy describes, or off the design space: infeasible
         report["feasible"] = False
     if notes:
         report["notes"] = notes

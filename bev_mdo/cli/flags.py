@@ -114,10 +114,13 @@ def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, 
 
     out: dict[str, float] = {}
     for item in [items] if isinstance(items, str) else items:
-        last = ""
-        for part in filter(None, (s.strip() for s in item.split(","))):
+        last, parts = "", [s.strip() for s in item.split(",")]
+        if "" in parts[:-1]:  # motor_kw=200,,battery_kwh=50 was taken as if the empty item were not (a last comma is)
+            raise InputError(f"{flag} {item.strip()!r}: an empty item between commas; give NAME=VALUE,NAME=VALUE")
+        for part in filter(None, parts):
             name, sep, value = part.partition("=")
-            if not sep and last and re.fullmatch(r"[-+.\d\s\]\)eE]+", part):  # gear_ratio=9.04,4.7
+            bare = re.fullmatch(r"[-+.\d\s\]\)eE]+|[-+]?(nan|inf|infinity)[\s\]\)]*", part, re.IGNORECASE)
+            if not sep and last and bare:  # gear_ratio=9.04,4.7 (or 200,nan)
                 raise one_number(last, f"{out[last]:g},{part}")
             if not sep or not name.strip():
                 raise InputError(f"{flag} {part!r} must be NAME=VALUE, e.g. motor_kw=80")

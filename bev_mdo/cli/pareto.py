@@ -62,7 +62,7 @@ def run(args) -> int:
         from bev_mdo.config import RunConfig, read_config_file
 
         raw = read_config_file(args.config)  # the overrides go to each topology's problem (_study)
-        return _study(args, raw, RunConfig.load(raw), names, overrides.from_args(args))
+        return _study(args, raw, RunConfig.load(raw, where=str(args.config)), names, overrides.from_args(args))
     cfg = flags.load_config(args)  # a bad file, key, name, topology, variable or override exits 2 here
     objs = pareto.objectives_of(names, cfg)
     pareto.check_objectives(objs, cfg, str(args.config), 2)

@@ -264,6 +264,18 @@ def test_a_transport_refuses_a_domain_id_that_is_no_ros_domain_when_made(domain_
     assert Transport(domain_id=232).domain_id == 232
 
 
+def test_a_transport_takes_a_numpy_integer_domain_id_as_counts_and_seeds_do():
+    """Transport(domain_id=np.int64(5)) was refused, 'got np.int64(5)', while counts and seeds take numpy integers."""
+    import numpy as np
+
+    from bev_mdo import InputError, Transport
+
+    got = Transport(domain_id=np.int64(5)).domain_id
+    assert got == 5 and type(got) is int
+    with pytest.raises(InputError, match=r"domain_id must be an integer in \[0, 232\], got 300"):
+        Transport(domain_id=np.int16(300))
+
+
 def test_ctrl_c_during_a_run_raises_on_with_what_its_bag_holds(tmp_path):
     """KeyboardInterrupt came out bare; it carries the lines the CLI prints (what the bag holds, how to resume),
     and a later run without a bag does not name the earlier run's."""

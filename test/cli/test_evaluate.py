@@ -73,6 +73,11 @@ def test_parameter_override_changes_energy(capsys):
     # the last one used to win silently
     (["--set", "motor_kw=70,motor_kw=80"], "--set motor_kw: given twice (70 and 80)"),
     (["--set", "motor_kw=70", "gear_ratio=8", "motor_kw=80"], "--set motor_kw: given twice (70 and 80)"),
+    # an empty item was skipped without a word; a bare nan after a value was "'nan' must be NAME=VALUE"
+    (["--set", "motor_kw=100,,battery_kwh=25"], "--set 'motor_kw=100,,battery_kwh=25': an empty item between commas"),
+    (["--set", ",motor_kw=100"], "--set ',motor_kw=100': an empty item between commas"),
+    (["--set", "motor_kw=100,nan"], "--set motor_kw=100,nan: --set takes one number per name (NAME=VALUE)\n"),
+    (["--set", "motor_kw=100,-inf"], "--set motor_kw=100,-inf: --set takes one number per name (NAME=VALUE)\n"),
 ])
 def test_bad_input_is_one_line_exit_2(capsys, argv, msg):
     code, _, err = run(capsys, LEAF, *argv)
@@ -202,12 +207,20 @@ def test_table_names_a_maximised_objective_as_max(capsys):
     assert "objective (min)" in next(line for line in out.splitlines() if "energy_wh_per_km" in line)
 
 
-def test_a_design_outside_the_bounds_is_evaluated_with_a_note(capsys):
+def test_a_design_outside_the_bounds_is_evaluated_with_a_note_and_is_infeasible(capsys):
+    """It was reported 'feasible: yes' (JSON true) while optimize's answers call a point outside its bounds
+    infeasible whatever its constraints say (docs/answers.md) and compare refuses it."""
     code, out, err = run(capsys, LEAF, "--set", "motor_kw=200,gear_ratio=8", "--json")
-    assert code == 0 and json.loads(out)["design"]["motor_kw"] == 200
+    report = json.loads(out)
+    assert code == 0 and report["design"]["motor_kw"] == 200
     assert err.strip() == "bev-mdo evaluate: note: motor_kw = 200 is outside its bounds [40, 120] (evaluated as given)"
+    assert report["feasible"] is False and all(c["satisfied"] for c in report["constraints"].values())
+    assert report["notes"][0] == ("motor_kw = 200 is outside its bounds [40, 120]: infeasible whatever the "
+                                  "constraints say (evaluated as given)")
+    code, out, err = run(capsys, LEAF, "--set", "motor_kw=200,gear_ratio=8")
+    assert out.rstrip().endswith("feasible: NO")
     code, out, err = run(capsys, LEAF, "--set", "motor_kw=120,gear_ratio=8", "--json")
-    assert code == 0 and "note:" not in err  # on the bound is inside
+    assert code == 0 and "note:" not in err and json.loads(out)["feasible"] is True  # on the bound is inside
 
 
 def test_a_design_past_the_vehicle_mass_limit_keeps_the_outputs_that_do_not_depend_on_mass(capsys):

@@ -59,6 +59,19 @@ def test_unknown_vehicle_topology_exit_2(tmp_path, capsys):
                "got 'WHEEL-9'" in err
 
 
+@pytest.mark.parametrize("flag", [("--all-topologies",), ("--topology", "DM-DA")])
+def test_a_topology_study_of_a_bad_config_names_the_file(tmp_path, capsys, flag):
+    """'error: <config>: problem.constraints.top_speed_kmh: no discipline produces it' with --all-topologies; the
+    same config named its file everywhere else."""
+    raw = _raw()
+    raw["problem"]["constraints"]["top_speed_kmh"] = {"lower": 250}
+    cfg = _write(tmp_path, raw)
+    code, err = _run(capsys, "pareto", cfg, *flag, "--out", tmp_path / "o", "--generations", "1", "--pop", "4",
+                     "--transport", "inprocess")
+    assert code == 2 and err.count("\n") == 1
+    assert f"bev-mdo pareto: error: {cfg}: problem.constraints.top_speed_kmh: no discipline produces it" in err
+
+
 def test_unknown_topology_flag_exit_2(tmp_path, capsys):
     code, err = _run(capsys, "pareto", _write(tmp_path, _raw()), "--topology", "WHEEL-9", "--out", tmp_path / "o",
                      "--transport", "inprocess")
