@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from bev_mdo.mdo.kinks import one_sided_descent
 from bev_mdo.mdo.settings import FEASIBILITY_TOL  # the run's default tolerance on normalised constraints
 
 REL_TOL = 1e-3
@@ -146,36 +147,6 @@ def _held_by(grad, active, jacobian, spans, on_bound) -> tuple[list[dict], bool]
         return [], True
     held = [a for a, m in zip(active, res.ineqlin.marginals if len(active) else []) if abs(m) > tol]
     return [a for i, a in enumerate(held) if all(a is not b for b in held[:i])], False
-
-
-def one_sided_descent(c: np.ndarray, rows: np.ndarray, box: list[tuple[float, float]],
-                      slack: np.ndarray | None = None):
-    """The linear program of a first-order step at a point where slopes may differ by side: min c . (p, q)
-    over p, q (each in its ``box`` entry: (0, 1), or (0, 0) for a side that is closed, a variable on its bound)
-    with ``rows`` (p, q) <= ``slack`` x sum(p + q) (each row a limit that must not get worse, allowed to worsen
-    by its ``slack`` per unit step; none by default). The step is du = p - q: p moves each variable on its
-    right-hand slope, q on its left-hand one (``c`` and ``rows`` are (right slopes, -left slopes)). A variable
-    with p and q both > 0 is no step (a left slope above the right one would pay for it): it keeps the side
-    it moved further to and the program is solved again. scipy's result (``fun``; ``ineqlin.marginals``), or
-    None when the program fails."""
-    from scipy.optimize import linprog
-
-    n, box = len(c) // 2, list(box)
-    rows = np.asarray(rows, dtype=float).reshape(-1, 2 * n)
-    if slack is not None:
-        rows = rows - np.asarray(slack, dtype=float)[:, None]
-    res = None
-    for _ in range(n + 1):
-        res = linprog(c, A_ub=rows if len(rows) else None, b_ub=np.zeros(len(rows)) if len(rows) else None,
-                      bounds=box, method="highs")
-        if res.status != 0:
-            return None
-        both = [j for j in range(n) if min(res.x[j], res.x[n + j]) > 1e-9]
-        for j in both:
-            box[n + j if res.x[j] >= res.x[n + j] else j] = (0.0, 0.0)
-        if not both:
-            break
-    return res
 
 
 def _num(v: float, scale: float | None = None) -> str:

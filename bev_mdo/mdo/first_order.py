@@ -125,7 +125,7 @@ def verdict_line(fo: dict) -> str:
     worst = max(fo["stationarity"], fo["complementarity"])
     if v == OPTIMUM and fo.get("at_kink"):  # mdo/kinks.py: no gradient meets the conditions there
         c = fo["kink_check"]
-        return (f"optimum at a kink of {_kinks(fo['kinks'], '{} in ', ' and of ')}: no feasible descent direction on "
+        return (f"optimum at a kink of {_kinks(fo['kinks'], '{0} in ', ' and of ')}: no feasible descent direction on "
                 f"either side (one-sided slopes at steps {c['steps'][0]:g} and {c['steps'][1]:g}, scaled, within "
                 f"which the kink lies; least directional derivative {min(c['descent']):.2g}, tolerance "
                 f"{c['tolerance']:.2g}; the first-order conditions cannot hold at a kink)")
@@ -161,13 +161,17 @@ def verdict_line(fo: dict) -> str:
             f"{fo['complementarity']:.3g}; tolerance {fo['tolerance']:g}{kink}{scale})")
 
 
-
-def _kinks(kinks: Sequence[dict], lead: str = "{} has a kink at the point in ", joint: str = "; ") -> str:
+def _kinks(kinks: Sequence[dict], lead: str = "{0} has a kink {1} in ", joint: str = "; ") -> str:
     """mdo/kinks.py's kinks by what they are in (the objective, or a constraint; a kink found before they named
     it is in the objective), each with its variables and their one-sided slopes, e.g. 'the objective has a kink
-    at the point in x (one-sided slopes 4 and 6)'."""
+    at the point in x (one-sided slopes 4 and 6)' (found with the longer steps: 'within 0.0002 (scaled) of the
+    point'). ``lead``: {0} what it is in, {1} where."""
     by: dict[str, list[dict]] = {}
     for k in kinks:
         by.setdefault(k.get("in", "objective"), []).append(k)
-    return joint.join(lead.format("the objective" if what == "objective" else what) + ", ".join(
-        f"{k['name']} (one-sided slopes {k['left']:.5g} and {k['right']:.5g})" for k in ks) for what, ks in by.items())
+    parts = []
+    for what, ks in by.items():
+        where = f"within {ks[0]['near_step']:g} (scaled) of the point" if ks[0].get("near_step") else "at the point"
+        parts.append(lead.format("the objective" if what == "objective" else what, where) + ", ".join(
+            f"{k['name']} (one-sided slopes {k['left']:.5g} and {k['right']:.5g})" for k in ks))
+    return joint.join(parts)

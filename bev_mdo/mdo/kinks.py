@@ -5,16 +5,16 @@ A kink (one-sided slopes that differ) in the objective or in an active constrain
 free of it), ends an equality ``top_speed_kmh == 348.821`` at the gear where the two meet, the constrained
 optimum, and the check said "stopped before convergence". ``end_point_kinks`` steps each variable ``fd_step``
 and 4 x ``fd_step`` either way (one batch), names the kinks (in the objective, or in an active constraint or
-equality) and, when there are some, solves active.one_sided_descent: no step of the scaled variables (p to the
-right, q to the left, none beyond a bound a variable is on) that lowers the objective on the slopes of the side
-it goes to without worsening an active constraint, at step h and at 4h, is an optimum at a kink.
+equality) and, when there are some, solves ``one_sided_descent`` (active.py's answers solve it too): no step
+of the scaled variables (p to the right, q to the left, none beyond a bound a variable is on) that lowers the
+objective on the slopes of the side it goes to without worsening an active constraint, at step h and at 4h,
+is an optimum at a kink.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from bev_mdo.mdo import first_order
-from bev_mdo.mdo.active import one_sided_descent
 from bev_mdo.mdo.formulations import FAIL_OBJECTIVE, Formulation
 
 
@@ -55,7 +55,7 @@ def end_point_kinks(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray,
     if (check is None or check["descends"]) and NEAR_STEP > 4 * form.fd_step:
         near, near_check = _at_steps(form, u, f0, g0, h0, grad_max, NEAR_STEP)
         if near_check and not near_check["descends"] or near and not out:
-            return near, near_check
+            return [{**k, "near_step": NEAR_STEP} for k in near], near_check  # not at the point: within the step
     return out, check
 
 
@@ -85,7 +85,7 @@ def _at_steps(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: n
     Q = np.column_stack([f / form.problem.objective_scale, y[:, rows], hh])
     q0 = np.concatenate([[f0 / form.problem.objective_scale], y0[rows], h0])
     what = ["objective", *labels, *form.eq_labels]
-    bound, sign, scale = form.problem.g_terms()
+    _, sign, scale = form.problem.g_terms()
     to_g = np.concatenate([[1.0], sign[rows] / scale[rows], np.ones(len(h0))])  # per unit of g (normalised)
     # slopes[k, side, r, j]: step k (h, 4h), side (0 right, 1 left), quantity r, variable j; NaN where closed
     slopes = np.full((2, 2, len(q0), n), np.nan)
@@ -121,12 +121,38 @@ def descent(slopes: np.ndarray, m: int, right: np.ndarray, left: np.ndarray) -> 
     """The least first-order change of the objective (``slopes[side, 0]``; side 0 right, 1 left) over steps
     p - q (p, q in [0, 1] per variable, each on its side's slopes; a closed side none) that worsen none of the
     ``m`` active rows (``slopes[side, 1:1 + m]``, normalised: must not rise) and the equalities after them (must
-    not move) beyond first_order.FIRST_ORDER_TOL x max(1, the row's largest slope) per unit step:
-    0 when no direction descends. None: the program failed."""
-    right_s, left_s = np.nan_to_num(slopes[0]), np.nan_to_num(slopes[1])
-    split = np.hstack([right_s, -left_s])  # (quantities, 2n) over (p, q)
+    not move): 0 when no direction descends. A row's slope within first_order.FIRST_ORDER_TOL x max(1, the
+    row's largest) is 0 (a jump that small is no kink either): finite-difference noise on a flat side (1e-9 for
+    0) does not block a step. None: the program failed."""
+    split = np.hstack([np.nan_to_num(slopes[0]), -np.nan_to_num(slopes[1])])  # (quantities, 2n) over (p, q)
     rows = np.vstack([split[1:1 + m], split[1 + m:], -split[1 + m:]])
-    slack = first_order.FIRST_ORDER_TOL * np.maximum(1.0, np.abs(rows).max(axis=1, initial=0.0))
+    flat = np.abs(rows) <= first_order.FIRST_ORDER_TOL * np.maximum(1.0, np.abs(rows).max(axis=1, initial=0.0))[:, None]
     box = [(0.0, 1.0 if s else 0.0) for s in np.concatenate([right, left])]
-    res = one_sided_descent(split[0], rows, box, slack)
+    res = one_sided_descent(split[0], np.where(flat, 0.0, rows), box)
     return None if res is None else float(res.fun)
+
+
+def one_sided_descent(c: np.ndarray, rows: np.ndarray, box: list[tuple[float, float]]):
+    """The linear program of a first-order step at a point where slopes may differ by side: min c . (p, q)
+    over p, q (each in its ``box`` entry: (0, 1), or (0, 0) for a side that is closed, a variable on its bound)
+    with ``rows`` (p, q) <= 0 (each row a limit that must not get worse). The step is du = p - q: p moves each
+    variable on its right-hand slope, q on its left-hand one (``c`` and ``rows`` are (right slopes, -left
+    slopes)). A variable with p and q both > 0 is no step (a left slope above the right one would pay for it):
+    it keeps the side it moved further to and the program is solved again. scipy's result (``fun``; ``ineqlin.marginals``), or
+    None when the program fails."""
+    from scipy.optimize import linprog
+
+    n, box = len(c) // 2, list(box)
+    rows = np.asarray(rows, dtype=float).reshape(-1, 2 * n)
+    res = None
+    for _ in range(n + 1):
+        res = linprog(c, A_ub=rows if len(rows) else None, b_ub=np.zeros(len(rows)) if len(rows) else None,
+                      bounds=box, method="highs")
+        if res.status != 0:
+            return None
+        both = [j for j in range(n) if min(res.x[j], res.x[n + j]) > 1e-9]
+        for j in both:
+            box[n + j if res.x[j] >= res.x[n + j] else j] = (0.0, 0.0)
+        if not both:
+            break
+    return res

@@ -61,12 +61,13 @@ def test_a_smooth_objective_curved_or_noisy_has_no_kink(disc):
 
 class Top:
     """top = min(cap / gear, power) (a motor-speed cap falling with the gear, a power limit free of it), energy =
-    power - gear (lower with a longer gear, higher with more power), and noise x a number drawn per point (the
-    same at every call): with ``top >= 1.0`` or ``top == 1.0`` the optimum is where the two meet, gear = cap,
-    power = 1, a kink of the constraint in both variables: no gradient meets the first-order conditions there."""
+    power - gear + (mass - 1)^2 (lower with a longer gear, higher with more power; mass smooth, at its best at 1),
+    and noise x a number drawn per point (the same at every call): with ``top >= 1.0`` or ``top == 1.0`` the
+    optimum is where the two meet, gear = cap, power = 1, mass = 1, a kink of the constraint in gear and power: no
+    gradient meets the first-order conditions there."""
 
     name = "top"
-    inputs = ("gear", "power")
+    inputs = ("gear", "power", "mass")
     outputs = ("top", "energy")
 
     def __init__(self, cap=1.2, energy_gear=-1.0, noise=0.0):
@@ -77,13 +78,17 @@ class Top:
         drawn = np.array([np.random.default_rng(abs(hash((float(a), float(b))))).uniform(-1, 1)
                           for a, b in zip(gear, power)])
         return {"top": np.minimum(self.cap / gear, power) + self.noise * drawn,
-                "energy": power + self.energy_gear * gear}
+                "energy": power + self.energy_gear * gear + (inputs["mass"] - 1.0) ** 2}
+
+
+START = np.array([0.8, 1.5, 1.5])
 
 
 def _top_form(disc, top):
     ev = InProcessEvaluator([disc])
     problem = Problem.from_config({"objective": "energy", "design_variables": {
-        "gear": {"lower": 0.5, "upper": 2.0, "initial": 0.8}, "power": {"lower": 0.5, "upper": 2.0, "initial": 1.5}},
+        "gear": {"lower": 0.5, "upper": 2.0, "initial": 0.8}, "power": {"lower": 0.5, "upper": 2.0, "initial": 1.5},
+        "mass": {"lower": 0.5, "upper": 2.0, "initial": 1.5}},
         "constraints": {"top": top}})
     return MDF(problem, ev, MDA(ev))
 
@@ -95,7 +100,7 @@ def test_an_end_point_at_a_kink_of_an_active_constraint_with_no_feasible_descent
     optimum) and a Taycan-like DM-DA where its top speed >= 250 did: "stopped before convergence", kinks: [] (only
     the objective's were looked for). Both sides of every variable raise the objective or lower the top speed."""
     form = _top_form(Top(noise=noise), top)
-    fo = end_point_check(form, np.array([1.2, 1.0]), np.array([0.8, 1.5]), 1e-6)
+    fo = end_point_check(form, np.array([1.2, 1.0, 1.0]), START, 1e-6)
     what = "top == 1" if "upper" in top else "top >= 1"
     assert fo["verdict"] == first_order.OPTIMUM and fo["at_kink"] and not fo["conditions_hold"]
     assert [(k["in"], k["name"]) for k in fo["kinks"]] == [(what, "gear"), (what, "power")]
@@ -111,10 +116,10 @@ def test_an_end_point_just_short_of_a_kink_within_the_active_tolerance_is_at_it(
     is flat in the gear at steps 1e-6 and 4e-6, and a step to the kink lowers the energy (by 2e-6 of it). A kink
     within first_order.ACTIVE_TOL counts as at the point, as a bound that near is active."""
     form = _top_form(Top(), {"lower": 1.0, "upper": 1.0})
-    fo = end_point_check(form, np.array([1.2 - 3e-5 * 1.5, 1.0]), np.array([0.8, 1.5]), 1e-6)
+    fo = end_point_check(form, np.array([1.2 - 3e-5 * 1.5, 1.0, 1.0]), START, 1e-6)
     assert fo["verdict"] == first_order.OPTIMUM and fo["at_kink"]
     assert fo["kink_check"]["steps"] == [pytest.approx(2e-4), pytest.approx(8e-4)]
-    far = end_point_check(form, np.array([1.2 - 2e-3 * 1.5, 1.0]), np.array([0.8, 1.5]), 1e-6)
+    far = end_point_check(form, np.array([1.2 - 2e-3 * 1.5, 1.0, 1.0]), START, 1e-6)
     assert far["verdict"] == first_order.STOPPED and not far.get("at_kink")  # 2e-3 short: stopped short
 
 
@@ -122,7 +127,7 @@ def test_a_kink_of_an_active_constraint_with_a_feasible_descent_keeps_stopped():
     """energy = power + gear: a shorter gear keeps the top speed on its power limit and lowers the energy, so the
     kink is no optimum: the verdict stays "stopped before convergence" and names the kinks and the descent."""
     form = _top_form(Top(energy_gear=1.0), {"lower": 1.0})
-    fo = end_point_check(form, np.array([1.2, 1.0]), np.array([0.8, 1.5]), 1e-6)
+    fo = end_point_check(form, np.array([1.2, 1.0, 1.0]), START, 1e-6)
     assert fo["verdict"] == first_order.STOPPED and not fo.get("at_kink") and fo["kink_check"]["descends"]
     assert [(k["in"], k["name"]) for k in fo["kinks"]] == [("top >= 1", "gear"), ("top >= 1", "power")]
     line = first_order.verdict_line(fo)
