@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from bev_mdo.mdo.kinks import one_sided_descent
 from bev_mdo.mdo.settings import FEASIBILITY_TOL  # the run's default tolerance on normalised constraints
 
 REL_TOL = 1e-3
@@ -123,8 +124,6 @@ def _held_by(grad, active, jacobian, spans, on_bound) -> tuple[list[dict], bool]
     (left, right)}): at a kink (a speed cap meeting a power limit, the cap's slope one side, 0 the other) the
     slope of the side stepped to counts. A negative optimum is a free way (nothing holds it: the optimiser
     stopped short); otherwise the limits with a non-zero multiplier of the program hold it."""
-    from scipy.optimize import linprog
-
     names = list(grad)
     n, span = len(names), np.array([spans[k] for k in names])
 
@@ -141,18 +140,9 @@ def _held_by(grad, active, jacobian, spans, on_bound) -> tuple[list[dict], bool]
     if not names or not (np.isfinite(c).all() and np.isfinite(rows).all()):  # a failed point: no first-order model
         return [], False
     tol = 1e-9 * (float(np.abs(c).sum()) + float(np.abs(rows).sum()) + 1e-300)
-    for _ in range(n + 1):
-        res = linprog(c, A_ub=rows if len(active) else None, b_ub=np.zeros(len(active)) if len(active) else None,
-                      bounds=box, method="highs")
-        if res.status != 0:
-            return [], False
-        # p and q > 0 at once is no step (a left slope above the right one would pay for it): such a
-        # variable keeps the side it moved further to, and the program is solved again
-        both = [j for j in range(n) if min(res.x[j], res.x[n + j]) > 1e-9]
-        for j in both:
-            box[n + j if res.x[j] >= res.x[n + j] else j] = (0.0, 0.0)
-        if not both:
-            break
+    res = one_sided_descent(c, rows, box)
+    if res is None:
+        return [], False
     if res.fun < -tol:
         return [], True
     held = [a for a, m in zip(active, res.ineqlin.marginals if len(active) else []) if abs(m) > tol]

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from bev_mdo.mdo import first_order
-from bev_mdo.mdo.driver import end_point_check, kinks
+from bev_mdo.mdo.driver import end_point_check
+from bev_mdo.mdo.kinks import end_point_kinks
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 from bev_mdo.mdo.formulations import MDF
 from bev_mdo.mdo.mda import MDA
@@ -55,4 +56,102 @@ def test_a_smooth_objective_curved_or_noisy_has_no_kink(disc):
     form = _form(disc)
     u = form.to_u(np.array([0.3, 0.2]))
     f0 = form.evaluate_batch(form.to_x(u)[None, :])[0][0]
-    assert kinks(form, u, f0, 5.0) == []
+    assert end_point_kinks(form, u, f0, np.zeros(0), np.zeros(0), 5.0) == ([], None)
+
+
+class Top:
+    """top = min(cap / gear, power) (a motor-speed cap falling with the gear, a power limit free of it), energy =
+    power - gear + (mass - 1)^2 (lower with a longer gear, higher with more power; mass smooth, at its best at 1),
+    and noise x a number drawn per point (the same at every call): with ``top >= 1.0`` or ``top == 1.0`` the
+    optimum is where the two meet, gear = cap, power = 1, mass = 1, a kink of the constraint in gear and power: no
+    gradient meets the first-order conditions there."""
+
+    name = "top"
+    inputs = ("gear", "power", "mass")
+    outputs = ("top", "energy")
+
+    def __init__(self, cap=1.2, energy_gear=-1.0, noise=0.0):
+        self.cap, self.energy_gear, self.noise = cap, energy_gear, noise
+
+    def compute(self, inputs):
+        gear, power = inputs["gear"], inputs["power"]
+        drawn = np.array([np.random.default_rng(abs(hash((float(a), float(b))))).uniform(-1, 1)
+                          for a, b in zip(gear, power)])
+        return {"top": np.minimum(self.cap / gear, power) + self.noise * drawn,
+                "energy": power + self.energy_gear * gear + (inputs["mass"] - 1.0) ** 2}
+
+
+START = np.array([0.8, 1.5, 1.5])
+
+
+def _top_form(disc, top):
+    ev = InProcessEvaluator([disc])
+    problem = Problem.from_config({"objective": "energy", "design_variables": {
+        "gear": {"lower": 0.5, "upper": 2.0, "initial": 0.8}, "power": {"lower": 0.5, "upper": 2.0, "initial": 1.5},
+        "mass": {"lower": 0.5, "upper": 2.0, "initial": 1.5}},
+        "constraints": {"top": top}})
+    return MDF(problem, ev, MDA(ev))
+
+
+@pytest.mark.parametrize("top", [{"lower": 1.0}, {"lower": 1.0, "upper": 1.0}])
+@pytest.mark.parametrize("noise", [0.0, 1e-10])
+def test_an_end_point_at_a_kink_of_an_active_constraint_with_no_feasible_descent_is_an_optimum(top, noise):
+    """A Model 3 with an equality top speed ended where its motor-speed cap meets its power limit (the constrained
+    optimum) and a Taycan-like DM-DA where its top speed >= 250 did: "stopped before convergence", kinks: [] (only
+    the objective's were looked for). Both sides of every variable raise the objective or lower the top speed."""
+    form = _top_form(Top(noise=noise), top)
+    fo = end_point_check(form, np.array([1.2, 1.0, 1.0]), START, 1e-6)
+    what = "top == 1" if "upper" in top else "top >= 1"
+    assert fo["verdict"] == first_order.OPTIMUM and fo["at_kink"] and not fo["conditions_hold"]
+    assert [(k["in"], k["name"]) for k in fo["kinks"]] == [(what, "gear"), (what, "power")]
+    assert fo["kinks"][1]["left"] == pytest.approx(1.5, rel=1e-3) and abs(fo["kinks"][1]["right"]) < 1e-3
+    assert fo["kink_check"]["descent"] == [pytest.approx(0.0, abs=1e-12)] * 2
+    line = first_order.verdict_line(fo)
+    assert line.startswith(f"optimum at a kink of {what} in gear (one-sided slopes ") and "power" in line
+    assert "no feasible descent direction on either side" in line and "conditions hold" not in line
+
+
+def test_an_end_point_just_short_of_a_kink_within_the_active_tolerance_is_at_it():
+    """SLSQP ended the Model 3's gear 2.4e-5 (scaled) short of where the cap meets the power limit: the top speed
+    is flat in the gear at steps 1e-6 and 4e-6, and a step to the kink lowers the energy (by 2e-6 of it). A kink
+    within first_order.ACTIVE_TOL counts as at the point, as a bound that near is active."""
+    form = _top_form(Top(), {"lower": 1.0, "upper": 1.0})
+    fo = end_point_check(form, np.array([1.2 - 3e-5 * 1.5, 1.0, 1.0]), START, 1e-6)
+    assert fo["verdict"] == first_order.OPTIMUM and fo["at_kink"]
+    assert fo["kink_check"]["steps"] == [pytest.approx(2e-4), pytest.approx(8e-4)]
+    far = end_point_check(form, np.array([1.2 - 2e-3 * 1.5, 1.0, 1.0]), START, 1e-6)
+    assert far["verdict"] == first_order.STOPPED and not far.get("at_kink")  # 2e-3 short: stopped short
+
+
+def test_a_kink_of_an_active_constraint_with_a_feasible_descent_keeps_stopped():
+    """energy = power + gear: a shorter gear keeps the top speed on its power limit and lowers the energy, so the
+    kink is no optimum: the verdict stays "stopped before convergence" and names the kinks and the descent."""
+    form = _top_form(Top(energy_gear=1.0), {"lower": 1.0})
+    fo = end_point_check(form, np.array([1.2, 1.0, 1.0]), START, 1e-6)
+    assert fo["verdict"] == first_order.STOPPED and not fo.get("at_kink") and fo["kink_check"]["descends"]
+    assert [(k["in"], k["name"]) for k in fo["kinks"]] == [("top >= 1", "gear"), ("top >= 1", "power")]
+    line = first_order.verdict_line(fo)
+    assert "top >= 1 has a kink at the point in gear (one-sided slopes" in line
+    assert "a first-order step on the one-sided slopes descends" in line
+
+
+def test_a_run_that_ends_where_a_top_speed_equality_meets_its_motor_speed_cap_is_an_optimum_at_the_kink():
+    """End to end (SLSQP, in process): a Leaf whose top speed must equal 160 km/h, its acceleration left free,
+    ends where the motor-speed cap through the gear meets the power limit (energy falls with the gear and rises
+    with the motor): exit 5 "stopped before convergence (projected gradient of the Lagrangian 0.19 ...)"."""
+    import yaml
+
+    from bev_mdo import Study
+    from bev_mdo.mdo.driver import exit_status
+    from bev_mdo.testing import REPO
+
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
+    raw["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed",
+                          {"name": "top_speed", "class": "examples.top_speed:TopSpeed"}]
+    raw["search_path"] = [str(REPO)]
+    raw["problem"]["constraints"].update(top_speed_kmh={"lower": 160, "upper": 160}, accel_time_0_100_s={"upper": 30})
+    r = Study(raw).optimize(transport="inprocess")
+    fo = r.first_order
+    assert r.verdict == first_order.OPTIMUM and fo["at_kink"] and exit_status(r.data) == 0
+    assert {(k["in"], k["name"]) for k in fo["kinks"]} >= {("top_speed_kmh == 160", "gear_ratio")}
+    assert first_order.verdict_line(fo).startswith("optimum at a kink of top_speed_kmh == 160 in ")
