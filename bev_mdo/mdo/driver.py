@@ -406,11 +406,7 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
         if wrong:
             fo.update(verdict=first_order.STOPPED, conditions_hold=False, derivatives_disagree=wrong)
     if ok and fo["verdict"] == first_order.STOPPED and not fo["unknown_derivatives"]:  # is it smooth there?
-        fo["kinks"], kink_check = end_point_kinks(form, u, f[0], g[0], h[0], float(np.max(np.abs(df), initial=0.0)))
-        if kink_check:
-            fo["kink_check"] = kink_check
-        if kink_check and not kink_check["descends"]:  # no feasible first-order descent on either side of the
-            fo.update(verdict=first_order.OPTIMUM, at_kink=True)  # kinks: the constrained optimum
+        fo["kinks"] = end_point_kinks(form, u, f[0], g[0], h[0], float(np.max(np.abs(df), initial=0.0)))
     seen = abs(float(f[0])) / form.problem.objective_scale  # the objective as the optimiser sees it
     if ok and fo["verdict"] == first_order.NO_PROGRESS and seen >= OBJECTIVE_SCALE_HINT:
         fo["objective_seen"] = seen  # an objective of 1e6 stopped SLSQP at its first point, with no hint

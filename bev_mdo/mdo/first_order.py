@@ -123,12 +123,6 @@ def verdict_line(fo: dict) -> str:
     """One line for the terminal, e.g. 'optimum (first-order conditions hold to 3.1e-09)'."""
     v = fo["verdict"]
     worst = max(fo["stationarity"], fo["complementarity"])
-    if v == OPTIMUM and fo.get("at_kink"):  # mdo/kinks.py: no gradient meets the conditions there
-        c = fo["kink_check"]
-        return (f"optimum at a kink of {_kinks(fo['kinks'], '{0} in ', ' and of ')}: no feasible descent direction on "
-                f"either side (one-sided slopes at steps {c['steps'][0]:g} and {c['steps'][1]:g}, scaled, within "
-                f"which the kink lies; least directional derivative {min(c['descent']):.2g}, tolerance "
-                f"{c['tolerance']:.2g}; the first-order conditions cannot hold at a kink)")
     if v == OPTIMUM:
         still = ("; the start point, where the gradient is about zero: a saddle or a flat region passes this "
                  "check too, try --starts N" if not fo.get("moved", True) and fo["gradient_norm"] <= fo["tolerance"]
@@ -151,27 +145,23 @@ def verdict_line(fo: dict) -> str:
                 f"finite-difference points failed, "
                 "so the first-order conditions cannot be verified)")
     kinks = fo.get("kinks")  # mdo/kinks.py: one-sided slopes of the objective or an active constraint differ
-    descends = (", and a first-order step on the one-sided slopes descends without worsening an active constraint"
-                if fo.get("kink_check", {}).get("descends") else "")
-    kink = (f"; {_kinks(kinks)}: a nonsmooth model, whose optimum the first-order conditions cannot verify"
-            f"{descends}") if kinks else ""
+    kink = f"; {_kinks(kinks)}: a nonsmooth model, whose optimum the first-order conditions cannot verify" if kinks else ""
     scale = (f"; the optimiser sees an objective of {fo['objective_seen']:.1e}: give problem.objective_scale about "
              f"{fo['objective_seen']:.0e} so that it is of order one") if fo.get("objective_seen") else ""
     return (f"{v} (projected gradient of the Lagrangian {fo['stationarity']:.3g}, complementarity "
             f"{fo['complementarity']:.3g}; tolerance {fo['tolerance']:g}{kink}{scale})")
 
 
-def _kinks(kinks: Sequence[dict], lead: str = "{0} has a kink {1} in ", joint: str = "; ") -> str:
-    """mdo/kinks.py's kinks by what they are in (the objective, or a constraint; a kink found before they named
-    it is in the objective), each with its variables and their one-sided slopes, e.g. 'the objective has a kink
-    at the point in x (one-sided slopes 4 and 6)' (found with the longer steps: 'within 0.0002 (scaled) of the
-    point'). ``lead``: {0} what it is in, {1} where."""
+def _kinks(kinks: Sequence[dict]) -> str:
+    """mdo/kinks.py's kinks by what they are in (the objective, or a constraint), each with its variables and
+    their one-sided slopes, e.g. 'the objective has a kink at the point in x (one-sided slopes 4 and 6)' (found
+    with the longer steps: 'within 0.0002 (scaled) of the point')."""
     by: dict[str, list[dict]] = {}
     for k in kinks:
         by.setdefault(k.get("in", "objective"), []).append(k)
     parts = []
     for what, ks in by.items():
         where = f"within {ks[0]['near_step']:g} (scaled) of the point" if ks[0].get("near_step") else "at the point"
-        parts.append(lead.format("the objective" if what == "objective" else what, where) + ", ".join(
+        parts.append(f"{'the objective' if what == 'objective' else what} has a kink {where} in " + ", ".join(
             f"{k['name']} (one-sided slopes {k['left']:.5g} and {k['right']:.5g})" for k in ks))
-    return joint.join(parts)
+    return "; ".join(parts)

@@ -1,14 +1,14 @@
-"""Kinks at an end point, and whether an end point at a kink is an optimum all the same.
+"""Kinks at an end point: where the objective or an active constraint has one-sided slopes that differ.
 
-A kink (one-sided slopes that differ) in the objective or in an active constraint leaves the first-order
-(KKT) conditions unmet by any gradient: a top speed, min(motor-speed cap falling with the gear, power limit
-free of it), ends an equality ``top_speed_kmh == 348.821`` at the gear where the two meet, the constrained
-optimum, and the check said "stopped before convergence". ``end_point_kinks`` steps each variable ``fd_step``
-and 4 x ``fd_step`` either way (one batch), names the kinks (in the objective, or in an active constraint or
-equality) and, when there are some, solves ``one_sided_descent`` (active.py's answers solve it too): no step
-of the scaled variables (p to the right, q to the left, none beyond a bound a variable is on) that lowers the
-objective on the slopes of the side it goes to without worsening an active constraint, at step h and at 4h,
-is an optimum at a kink.
+No gradient meets the first-order (KKT) conditions at a kink, so an end point there is "stopped before
+convergence" with the kinks named: a top speed, min(motor-speed cap falling with the gear, power limit free of
+it), ends an equality ``top_speed_kmh == 348.821`` where the two meet. Whether such a point is an optimum is not
+claimed: one-sided slopes along each variable do not bound the slope along a kink that runs across the
+variables (f = 10 |x - y| + (x + y - 4)^2 at x = y = 1.32: each variable alone raises f at 72.7, the valley x = y
+lowers it at 5.5 per unit), and a check built on them said "optimum" there (a user trial).
+``end_point_kinks`` steps each variable ``fd_step`` and 4 x ``fd_step`` either way (one batch) and, where none is
+found, 2e-4 and 8e-4 (scaled). ``one_sided_descent`` is the answers' program of a first-order step on one-sided
+slopes (active.py), which explains an infeasible end; it proves nothing.
 """
 from __future__ import annotations
 
@@ -37,42 +37,34 @@ NEAR_STEP = 2 * first_order.ACTIVE_TOL  # scaled: the second pair of steps, whic
 
 
 def end_point_kinks(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: np.ndarray,
-                    grad_max: float) -> tuple[list[dict], dict | None]:
-    """(the kinks at ``u``, the directional check at them: {"descent": the least directional derivative of the
-    objective at the two steps, "tolerance", "descends": below -tolerance at either, "steps"}, None when not made
-    (no kink, or a point of the stencil failed)).
-
-    A kink: a variable in which the minimised objective, an active inequality or an equality has one-sided
-    slopes that differ by more than first_order.FIRST_ORDER_TOL x max(1, its largest slope) (the objective's:
-    x max(1, |grad f|), ``grad_max``), by the same jump at steps h and 4h (noise shrinks the jump 4-fold at the
-    longer step, curvature grows it 4-fold). Each is {"in": "objective" or the constraint, "name": the variable,
-    "left", "right"}, slopes per scaled unit (the objective's per objective_scale, as the check's gradient; a
-    constraint's in its own unit). The steps are ``fd_step`` and 4 x that; where they find no kink that holds
-    the point, NEAR_STEP and 4 x that (a second batch): a kink within about first_order.ACTIVE_TOL (scaled) of
-    the point is at it, as a bound or a constraint that near is active (SLSQP stopped 2.4e-5 short of where a
-    top speed's motor-speed cap meets its power limit, an equality's optimum)."""
-    out, check = _at_steps(form, u, f0, g0, h0, grad_max, form.fd_step)
-    if (check is None or check["descends"]) and NEAR_STEP > 4 * form.fd_step:
-        near, near_check = _at_steps(form, u, f0, g0, h0, grad_max, NEAR_STEP)
-        if near_check and not near_check["descends"] or near and not out:
-            return [{**k, "near_step": NEAR_STEP} for k in near], near_check  # not at the point: within the step
-    return out, check
+                    grad_max: float) -> list[dict]:
+    """The kinks at ``u``: variables in which the minimised objective, an active inequality or an equality has
+    one-sided slopes that differ by more than first_order.FIRST_ORDER_TOL x max(1, its largest slope) (the
+    objective's: x max(1, |grad f|), ``grad_max``), by the same jump at steps h and 4h (noise shrinks the jump
+    4-fold at the longer step, curvature grows it 4-fold). Each is {"in": "objective" or the constraint, "name":
+    the variable, "left", "right"}, slopes per scaled unit (the objective's per objective_scale, as the check's
+    gradient; a constraint's in its own unit). The steps are ``fd_step`` and 4 x that; where they find none,
+    NEAR_STEP and 4 x that (a second batch), and a kink found so has "near_step": SLSQP stopped 2.4e-5 (scaled)
+    short of where a top speed's motor-speed cap meets its power limit."""
+    out = _at_steps(form, u, f0, g0, h0, grad_max, form.fd_step)
+    if not out and NEAR_STEP > 4 * form.fd_step:
+        return [{**k, "near_step": NEAR_STEP} for k in _at_steps(form, u, f0, g0, h0, grad_max, NEAR_STEP)]
+    return out
 
 
 def _at_steps(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: np.ndarray, grad_max: float,
-              h: float) -> tuple[list[dict], dict | None]:
+              h: float) -> list[dict]:
     """``end_point_kinks`` with the steps ``h`` and 4 ``h`` (one batch)."""
     lo, hi = form.u_bounds
     n = form.n
     x0 = form.to_x(u)
     # a side is open where a variable is off its bound (as first_order.check's active bounds)
     right, left = ~_on(hi - u, hi), ~_on(u - lo, lo)
-    short = (right & (u + 4 * h > hi)) | (left & (u - 4 * h < lo))  # open, but the steps leave the box: no
-    right, left = right & (u + 4 * h <= hi), left & (u - 4 * h >= lo)  # slope there, and no directional check
+    right, left = right & (u + 4 * h <= hi), left & (u - 4 * h >= lo)  # the steps stay in the box
     steps = [(j, s) for j in range(n) for s, side in ((h, right), (4 * h, right), (-h, left), (-4 * h, left))
              if side[j]]
     if not steps:
-        return [], None
+        return []
     U = np.repeat(u[None, :], len(steps), axis=0)
     for i, (j, s) in enumerate(steps):
         U[i, j] += s
@@ -107,29 +99,7 @@ def _at_steps(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: n
                 seen.add((label, j))  # an equality's two rows: one kink
                 out.append({"in": label, "name": form.var_names[j], "left": float(slopes[0, 1, r, j]) + 0.0,
                             "right": float(slopes[0, 0, r, j]) + 0.0})  # + 0.0: no -0
-    if not out or failed.any() or short.any():
-        return out, None
-    # the directional check on the normalised rows: g must not rise, an equality must not move either way
-    fun = [descent(g_slopes[k], len(rows), right, left) for k in (0, 1)]
-    tol = first_order.FIRST_ORDER_TOL * max(1.0, float(np.nanmax(np.abs(slopes[:, :, 0]), initial=0.0)))
-    if any(v is None for v in fun):
-        return out, None
-    return out, {"descent": fun, "tolerance": tol, "descends": min(fun) < -tol, "steps": [h, 4 * h]}
-
-
-def descent(slopes: np.ndarray, m: int, right: np.ndarray, left: np.ndarray) -> float | None:
-    """The least first-order change of the objective (``slopes[side, 0]``; side 0 right, 1 left) over steps
-    p - q (p, q in [0, 1] per variable, each on its side's slopes; a closed side none) that worsen none of the
-    ``m`` active rows (``slopes[side, 1:1 + m]``, normalised: must not rise) and the equalities after them (must
-    not move): 0 when no direction descends. A row's slope within first_order.FIRST_ORDER_TOL x max(1, the
-    row's largest) is 0 (a jump that small is no kink either): finite-difference noise on a flat side (1e-9 for
-    0) does not block a step. None: the program failed."""
-    split = np.hstack([np.nan_to_num(slopes[0]), -np.nan_to_num(slopes[1])])  # (quantities, 2n) over (p, q)
-    rows = np.vstack([split[1:1 + m], split[1 + m:], -split[1 + m:]])
-    flat = np.abs(rows) <= first_order.FIRST_ORDER_TOL * np.maximum(1.0, np.abs(rows).max(axis=1, initial=0.0))[:, None]
-    box = [(0.0, 1.0 if s else 0.0) for s in np.concatenate([right, left])]
-    res = one_sided_descent(split[0], np.where(flat, 0.0, rows), box)
-    return None if res is None else float(res.fun)
+    return out
 
 
 def one_sided_descent(c: np.ndarray, rows: np.ndarray, box: list[tuple[float, float]]):
