@@ -57,6 +57,14 @@ def _handler(exc: type[BaseException]):
     return handle
 
 
+def new_run() -> None:
+    """A run begins (a command: ``install``; a Python API run): what an earlier run in this process noted of its
+    bag and its result (note_bag, note_done, printing) is not this one's."""
+    global _bag_note, _printing
+    _bag_note, _printing = None, False
+    _done_notes.clear()
+
+
 def work_done(status: int) -> None:
     """The ``bev-mdo`` process has written its output (exit status ``status``); what remains is its teardown.
     From now on SIGINT or SIGTERM end the process at once (``_end_now``). For the process itself only: a
@@ -143,9 +151,9 @@ def held():
 def install() -> dict:
     """Handlers for SIGTERM and (unless it is ignored, as in a shell's background job) SIGINT;
     returns the previous handlers for ``restore``. Main thread only."""
-    global _pending, _done_status, _bag_note, _printing
-    _pending, _done_status, _bag_note, _printing = None, None, None, False
-    _done_notes.clear()
+    global _pending, _done_status
+    _pending, _done_status = None, None
+    new_run()
     _taken.clear()
     previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, _handler(Terminated))}
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:

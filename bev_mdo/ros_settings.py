@@ -59,14 +59,20 @@ def choose_domain(section: Mapping[str, Any] | None, flag: int | None = None,
     return DEFAULTS["domain_id"], None
 
 
+def check_domain_id(d: Any, name: str = "ros.domain_id") -> int:
+    """A ROS domain id: an integer in [0, 232]; ValueError naming ``name`` otherwise (the config's
+    ros.domain_id, a Transport's domain_id)."""
+    if not isinstance(d, int) or isinstance(d, bool) or not 0 <= d <= 232:
+        raise ValueError(f"{name} must be an integer in [0, 232], got {d!r}")
+    return d
+
+
 def validate_ros(section: Mapping[str, Any] | None) -> dict[str, Any]:
     """Fill defaults and check the `ros:` section; one-line ValueError on a mistake."""
     section = dict(section or {})
     check_keys("ros", section, DEFAULTS)
     out = {**DEFAULTS, **section}
-    d = out["domain_id"]
-    if not isinstance(d, int) or isinstance(d, bool) or not 0 <= d <= 232:
-        raise ValueError(f"ros.domain_id must be an integer in [0, 232], got {d!r}")
+    check_domain_id(out["domain_id"])
     if out["discovery"] not in DISCOVERY_MODES:
         raise ValueError(f"ros.discovery must be one of {list(DISCOVERY_MODES)}, got {out['discovery']!r}")
     peers = out["static_peers"]

@@ -1,4 +1,5 @@
 import copy
+import re
 import sys
 from pathlib import Path
 
@@ -365,3 +366,85 @@ def test_a_config_changed_by_the_command_line_names_its_file_in_an_error(capsys)
                  "--no-record"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and f"error: {path}: optimizer differential_evolution" in err
+
+
+def test_a_cycle_whose_trace_would_not_fit_the_stored_config_is_refused_when_read(tmp_path, monkeypatch):
+    """A cycle CSV within the CSV limits went into the resolved config's cycle_traces past the YAML limit: the
+    run went, but its bag could not be resumed ('YAML text of 11286174 characters; at most 8388608', naming
+    neither bag nor cycle). Refused when read, in one line naming the CSV, its samples and what fits; a trace
+    that is taken is one the stored config reads back within the limit."""
+    import re
+
+    import numpy as np
+
+    from bev_mdo import yamlload
+    from bev_mdo.config import plain
+
+    monkeypatch.setattr(yamlload, "MAX_YAML_BYTES", 256 * 1024)  # the 8 MiB limit, scaled down
+
+    def config_of(rows):
+        t = np.arange(rows) * 0.1
+        v = 45 * (1 - np.cos(2 * np.pi * t / t[-1]))  # a car from rest to rest, 10 Hz
+        (tmp_path / "log.csv").write_text("time_s,speed_kmh\n" + "".join(f"{a:.1f},{b:.3f}\n" for a, b in zip(t, v)))
+        raw = yaml.safe_load(LEAF.read_text())
+        raw["cycle"] = {"name": str(tmp_path / "log.csv")}
+        return load_config(raw)
+
+    with pytest.raises(ValueError, match=r"log\.csv: with its 20,000 samples the run's resolved config would take "
+                                         r"[\d,]+ bytes of YAML \(cycle_traces: .*log\.csv 20,000 samples in [\d,]+ "
+                                         r"bytes; the rest of the config [\d,]+ bytes; 64 KiB kept for what a run "
+                                         r"adds\), past the 262,144 \(0.25 MiB\)") as info:
+        config_of(20_000)
+    fits = int(re.search(r"at most about ([\d,]+) samples", str(info.value)).group(1).replace(",", ""))
+    assert 3_000 < fits < 20_000
+    cfg = config_of(int(fits * 0.95))
+    text = yaml.safe_dump(plain(cfg), sort_keys=False)  # as the bag and the nodes' config file hold it
+    assert yamlload.load_yaml(text)["cycle_traces"] == cfg["cycle_traces"]
+
+
+def test_a_trace_taken_at_load_loads_again_from_the_resolved_config(tmp_path, monkeypatch):
+    """A trace a few samples under the limit was taken when the run started, but its bag's resume refused it: the
+    check ran again on the stored resolved config, a few hundred bytes bigger (its defaults filled) than what the
+    run had measured. The largest trace taken loads again from its resolved config as a bag stores it. With two
+    traces over the limit the line said the second took 0.3 MiB 'past the 0.5 MiB': it says what the whole config
+    would take, each trace's share in it."""
+    import numpy as np
+
+    from bev_mdo import yamlload
+    from bev_mdo.config import RunConfig, plain
+
+    monkeypatch.setattr(yamlload, "MAX_YAML_BYTES", 256 * 1024)  # the 8 MiB limit, scaled down
+
+    def csv(name, rows):
+        t = np.arange(rows) * 0.1
+        v = 45 * (1 - np.cos(2 * np.pi * t / t[-1]))  # a car from rest to rest, 10 Hz
+        (tmp_path / name).write_text("time_s,speed_kmh\n" + "".join(f"{a:.1f},{b:.3f}\n" for a, b in zip(t, v)))
+        return str(tmp_path / name)
+
+    def config_of(rows):
+        raw = yaml.safe_load(LEAF.read_text())
+        raw["cycle"] = {"name": csv("log.csv", rows)}
+        return load_config(raw)
+
+    taken, refused = 2_000, 12_000  # bisected to the largest trace taken
+    while refused - taken > 1:
+        mid = (taken + refused) // 2
+        try:
+            config_of(mid)
+            taken = mid
+        except ValueError:
+            refused = mid
+    cfg = config_of(taken)
+    stored = yamlload.load_yaml(yaml.safe_dump(plain(cfg), sort_keys=False))  # as resume reads it from the bag
+    assert RunConfig.load(stored)["cycle_traces"] == cfg["cycle_traces"]
+
+    raw = yaml.safe_load((ROOT.parent / "config" / "leaf_epa_combined.yaml").read_text())
+    a, b = csv("a.csv", 4_000), csv("b.csv", 3_000)
+    raw["cycle"]["name"] = a
+    raw["disciplines"][1] = {"name": "energy", "options": {"cycle_weights": {a: 0.5, b: 0.5}}}
+    with pytest.raises(ValueError) as info:
+        load_config(raw)
+    said = str(info.value)
+    assert "\n" not in said and "a.csv 4,000 samples in" in said and "b.csv 3,000 samples in" in said
+    total = int(re.search(r"would take ([\d,]+) bytes of YAML", said).group(1).replace(",", ""))
+    assert total > 256 * 1024 and "past the 262,144 (0.25 MiB)" in said

@@ -394,8 +394,58 @@ def test_a_second_gear_shorter_than_the_first_is_refused_on_load(vehicle, design
     with pytest.raises(ValueError, match=rf"^<config>: {said}: with gear_count 2 the second gear must not be shorter than "
                                          r"the first \(gear_ratio_2 <= gear_ratio\)$"):
         load_config(raw)
-    raw["vehicle"]["gear_count"] = 1  # one gear: gear_ratio_2 is not used
-    load_config(raw)
+    raw["vehicle"]["gear_count"] = 1  # one gear: gear_ratio_2 is not used (a note says so when it is stated)
+    if vehicle:
+        from bev_mdo.models.cycles import CycleNote
+
+        with pytest.warns(CycleNote, match=r"^vehicle.gear_ratio_2: two-speed gearbox key, but vehicle.gear_count is 1"):
+            load_config(raw)
+    else:
+        load_config(raw)
+
+
+def _artemis_notes(topology="SM-SA", **vehicle):
+    """The two-speed notes (CycleNote) of config/topologies_artemis.yaml for ``topology`` with ``vehicle`` set."""
+    import warnings
+
+    import yaml
+
+    from bev_mdo.models.cycles import CycleNote
+    from bev_mdo.studies.topologies import config_for_topology
+
+    raw = config_for_topology(yaml.safe_load((REPO / "config" / "topologies_artemis.yaml").read_text()), topology)
+    raw["vehicle"].update(vehicle)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        load_config(raw)
+    return [str(w.message) for w in caught if issubclass(w.category, CycleNote) and "two-speed" in str(w.message)]
+
+
+def test_two_speed_keys_that_cannot_take_effect_are_a_note():
+    """DM-DA with gear_ratio_2, shift_speed_m_s, shift_strategy and two_speed_added_mass_kg (and no gear_count) ran
+    exactly as without them, without a word, while gear_count 2 there is refused. A note, one line, not a refusal:
+    with gear_count 1 on SM-SA a sweep or --set may still make them count (a test above loads such a config)."""
+    keys = dict(gear_ratio_2=3.5, shift_speed_m_s=22.22, shift_strategy=1, two_speed_added_mass_kg=40)
+    assert _artemis_notes("DM-DA", **keys) == [
+        "vehicle.gear_ratio_2, vehicle.shift_speed_m_s, vehicle.shift_strategy, vehicle.two_speed_added_mass_kg: "
+        "two-speed gearbox keys, but a DM-DA powertrain has no two-speed gearbox (gear_count 2 is SM-SA only): they "
+        "change nothing"]
+    assert _artemis_notes("SM-SA", gear_ratio_2=3.5) == [
+        "vehicle.gear_ratio_2: two-speed gearbox key, but vehicle.gear_count is 1 (single speed): it changes nothing "
+        "unless a design sets gear_count 2"]
+    assert _artemis_notes("SM-SA", gear_count=2, **keys) == []  # used
+    assert _artemis_notes("DM-DA", shift_strategy=0) == []  # the default stated: nothing set
+
+
+def test_a_shift_speed_above_every_cycles_top_speed_is_a_note():
+    """shift_speed_m_s: 80 (288 km/h typed as km/h) passed the 0-100 m/s range with no word, and the energy model
+    never left first gear. The run's cycles here: Artemis combined (150 km/h) and NEDC (120 km/h, cycle_range)."""
+    (said,) = _artemis_notes("SM-SA", gear_count=2, gear_ratio_2=3.5, shift_speed_m_s=80)
+    assert said.startswith("vehicle.shift_speed_m_s 80 m/s (288 km/h) is above the top speed of every cycle the run "
+                           "uses (artemis_combined ")
+    assert "nedc 120.0 km/h): the two-speed gearbox never shifts into its second gear on them" in said
+    assert _artemis_notes("SM-SA", gear_count=2, gear_ratio_2=3.5, shift_speed_m_s=35) == []  # above NEDC's only
+    assert _artemis_notes("SM-SA", gear_count=2, gear_ratio_2=3.5, shift_speed_m_s=80, shift_strategy=1) == []
 
 
 def test_a_two_speed_box_whose_bounds_keep_the_second_gear_the_longer_loads():

@@ -36,29 +36,36 @@ def pyplot_and_label(units: dict | None):
     return plt, label
 
 
-def design(config, given: dict[str, float], transport) -> dict:
+def design(config, given: dict[str, float], transport, caller: str = "bev-mdo evaluate") -> dict:
     """The report of one multidisciplinary analysis (mdo.driver.evaluate_design: design, outputs,
     objective, constraints with margins, feasible, ok, error; ``notes``, only when a discipline has one
     about an output's value, e.g. a design that cannot reach 100 km/h). Design variables not given take their
-    initial value; a value outside its bounds is evaluated as given, with a note on stderr, but one the
-    models refuse (outside a physical design limit or a parameter's range) is an InputError."""
+    initial value; a value outside its bounds is evaluated as given, with a note on stderr (``caller``: its
+    prefix, the command or the API's method), and is infeasible whatever its constraints say (as optimize's
+    answers call such a point, docs/answers.md; ``notes`` says why), but one the models refuse (outside a
+    physical design limit or a parameter's range) is an InputError."""
     from bev_mdo.config import RunConfig
-    from bev_mdo.mdo.driver import evaluate_design
+    from bev_mdo.mdo.driver import evaluate_design, feasibility_tolerance
 
     finite_values(given, one="evaluate takes one design, a number per name; sweep(designs=...) evaluates many")
     config = RunConfig.of(config)
     refuse_outside_model_limits(config, given)
     problem = config.problem
     full = {**{d.name: d.initial for d in problem.design_variables}, **given}
+    outside = []
     for d in problem.design_variables:  # evaluated as given, but a user should know it is off the design space
         v = given.get(d.name)
-        if isinstance(v, (int, float)) and not d.lower <= v <= d.upper:
-            print(f"bev-mdo evaluate: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
+        if v is not None and not d.lower <= v <= d.upper:  # (a number: finite_values)
+            print(f"{caller}: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
                   "(evaluated as given)", file=sys.stderr)
+            if max(d.lower - v, v - d.upper) > feasibility_tolerance(config.settings) * (d.upper - d.lower):
+                outside.append(f"{d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}]: infeasible "
+                               "whatever the constraints say (evaluated as given)")
     with Evaluating(config, transport) as evaluator:
         report = evaluate_design(config.settings, evaluator, full)
     short, notes = notes_of(config, {**problem.parameters, **full}, report["outputs"])
-    if short:  # not a design the run's energy describes: infeasible whatever the constraints say
+    notes = outside + notes
+    if short or outside:  # not a design the run's energy describes, or off the design space: infeasible
         report["feasible"] = False
     if notes:
         report["notes"] = notes
@@ -83,7 +90,13 @@ def follow_notes(config, values: dict) -> tuple[list[str], list[str]]:
         if getattr(d, "envelope", None) is None:
             continue
         rows = d.cycle_steps_short(values)
-        if rows is None or rows[0][2][0] < 0:
+        margins = _follow_margins(d, values)
+        if (rows is None or rows[0][2][0] < 0) and margins:  # the model's own margins say it
+            if below := {k: float(np.ravel(v)[0]) for k, v in margins.items() if np.ravel(v)[0] < 0}:
+                short.append(f"{d.name}: the design cannot follow its cycle (" + ", ".join(
+                    f"{k} {v:.4g}" for k, v in below.items()) + "): its energy per km is that of the cycle's demand, "
+                    "not of a powertrain that follows it")
+        elif rows is None or rows[0][2][0] < 0:
             unchecked.append(f"{d.name}: whether the motor can follow the cycle is not checked for this gearbox or "
                              "topology (the check covers single-speed SM-SA); energy options {feasibility_outputs: "
                              "true} give the model's margins")
@@ -102,10 +115,26 @@ def follow_counts(config, values: dict) -> tuple[np.ndarray, np.ndarray]:
     for d in RunConfig.of(config).disciplines:
         if getattr(d, "envelope", None) is None:
             continue
+        margins = _follow_margins(d, values)
+        below = np.logical_or.reduce([np.asarray(v) < 0 for v in margins.values()]) if margins else None
         for _, _, count, _ in d.cycle_steps_short(values) or [(None, None, np.full(n, -1), None)]:
             short |= count > 0
-            unchecked |= count < 0
+            if below is not None:  # where the steps are not checked, the model's margins are
+                short |= (count < 0) & below
+            else:
+                unchecked |= count < 0
     return short, unchecked
+
+
+# An energy model's margins over its cycle (option feasibility_outputs): one below 0 is a design that does not
+# follow the cycle. A Taycan-like DM-DA optimum turned its rear motor 156 rad/s past its limit on a motorway
+# cycle (motor_speed_margin_rad_s -155.8) while the note said only that the steps are not checked.
+FOLLOW_MARGINS = ("drive_torque_margin_nm", "motor_speed_margin_rad_s", "drive_power_margin_kw", "drive_force_margin_n")
+
+
+def _follow_margins(d, values: dict) -> dict:
+    """{margin: value(s)} of ``FOLLOW_MARGINS`` that discipline ``d`` gives and ``values`` holds."""
+    return {k: values[k] for k in FOLLOW_MARGINS if k in getattr(d, "outputs", ()) and values.get(k) is not None}
 
 
 def design_notes(config, outputs: dict) -> list[str]:

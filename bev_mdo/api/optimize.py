@@ -27,7 +27,7 @@ class OptimizeOptions(Transport):
     formulation: str | None = None  # mdf | idf (default: the config's)
     optimizer: str | None = None  # SLSQP, trust-constr, COBYQA, ... (default: the config's)
     starts: int = 1  # >1: a Latin hypercube of start points (seed), the best end reported
-    seed: int = 0
+    seed: int = 0  # of the start points, and of an optimiser that draws random numbers (_seeded)
     bag: str | None = None  # bag directory to write (in process: only when given; ROS: a default name)
     bag_flag: str = "--bag"  # the flag that named it, for the line refusing it (resume: --output)
     no_record: bool = False
@@ -57,6 +57,7 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
         if opts.optimizer:
             engine["optimizer"] = {**config["optimizer"], "name": opts.optimizer}
         config = config.with_sections(**engine)
+    config = _seeded(config, opts.seed)
     opts.refuse_attach("optimize")
     _refuse_ros_only(opts)
     starts = _starts(opts, x0)  # a bad start count is refused before anything starts or is written
@@ -76,6 +77,19 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
     extra = {k: v for k, v in extra.items() if not k.startswith("_")}
     extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
     return {**result, "baseline": baseline, **extra}
+
+
+def _seeded(config, seed: int):
+    """The config whose optimiser draws from ``seed`` (the run's seed, as for the --starts sample) when it draws
+    random numbers (optimizers.SEEDED) and its options give no seed or rng: the config a run records (resume
+    goes on with the same). Seed 0, the default, is the optimiser's default rng already: the config as it is."""
+    from bev_mdo.mdo.optimizers import SEEDED, canonical_name
+
+    section = config["optimizer"]
+    options = dict(section.get("options") or {})
+    if not seed or canonical_name(section["name"]) not in SEEDED or {"seed", "rng"} & set(options):
+        return config
+    return config.with_sections(optimizer={**section, "options": {**options, "seed": seed}})
 
 
 def _check_follows(config, result: dict, baseline: dict | None) -> None:

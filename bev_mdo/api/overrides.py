@@ -11,6 +11,7 @@ from __future__ import annotations
 import copy
 import difflib
 import math
+import numbers
 import re
 from dataclasses import dataclass, field
 from typing import Any, Mapping
@@ -62,13 +63,20 @@ def from_args(args) -> Overrides:
     return ov
 
 
+def real_number(value) -> bool:
+    """Whether ``value`` is a number (numpy's too) and not a bool (True is not 1), a string ("4" is not 4), None
+    or a list: the one rule for a number a user gives in code (Study's limits, design values, start points)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
 def finite_values(values: Mapping[str, Any], where: str = "", one: str = "") -> None:
     """InputError naming the first design variable or parameter of ``values`` whose value (a number or
-    an array of numbers) is NaN or infinite, or None or not a number: the one check of every design a user
-    gives (--set, --design, --at, --vary, --list; Study.evaluate, sweep, sensitivity). Such a value was
-    evaluated to NaN outputs, or sent in a batch whose rows came back NaN, instead of being refused (None
-    was named as nan). ``where``: the flag, if any; ``one``: the values are one design (a number each),
-    and what to say to a list (a list reached float() as a TypeError)."""
+    an array of numbers) is NaN or infinite, or not a number (real_number: None, "3", True): the one check of
+    every design a user gives (--set, --design, --at, --vary, --list; Study.evaluate, optimize's x0, sweep,
+    sensitivity). Such a value was evaluated to NaN outputs, or sent in a batch whose rows came back NaN,
+    instead of being refused (None was named as nan; "3" and True were taken as 3 and 1). ``where``: the flag,
+    if any; ``one``: the values are one design (a number each), and what to say to a list (a list reached
+    float() as a TypeError)."""
     import numpy as np
 
     for name, value in values.items():
@@ -76,7 +84,8 @@ def finite_values(values: Mapping[str, Any], where: str = "", one: str = "") -> 
         if one and np.ndim(value) != 0:
             raise InputError(f"{head}: {one}")
         try:
-            if any(v is None for v in np.asarray(value, dtype=object).flat):
+            numeric = isinstance(value, np.ndarray) and value.dtype.kind in "fiu"  # a large DOE's columns
+            if not numeric and not all(map(real_number, np.asarray(value, dtype=object).flat)):
                 raise TypeError
             a = np.asarray(value, dtype=float)
         except (TypeError, ValueError):

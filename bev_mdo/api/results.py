@@ -57,9 +57,10 @@ class EvaluateResult(_Result):
 
 @dataclass
 class OptimizeResult(_Result):
-    """One optimisation (``bev-mdo optimize --json``): ``x`` the design found, ``verdict`` of the
-    first-order check (optimum, not_converged, ... ; ``first_order`` holds the check), ``active`` the
-    end-of-run answers."""
+    """One optimisation (``bev-mdo optimize --json``): ``x`` the design found, ``verdict`` that of the
+    first-order check of it (bev_mdo/mdo/first_order.py: "optimum", "stopped before convergence", "no progress
+    from the start point" or "infeasible"), ``first_order`` the check itself (active set, multipliers);
+    ``to_dict()["active"]`` holds the end-of-run answers (bev_mdo/mdo/active.py)."""
 
     x: dict[str, float]
     objective_name: str

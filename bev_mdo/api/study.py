@@ -7,16 +7,15 @@ from __future__ import annotations
 import copy
 import functools
 import math
-import numbers
 from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any, Mapping
 
 from bev_mdo.api.errors import InputError
-from bev_mdo.api.overrides import Overrides
+from bev_mdo.api.overrides import Overrides, real_number
 from bev_mdo.api.results import (EvaluateResult, GlobalSensitivityResult, OptimizeResult, ParetoResult,
                                  SensitivityResult, SweepResult)
-from bev_mdo.api.transport import DEFAULT_TRANSPORT, Transport
+from bev_mdo.api.transport import DEFAULT_TRANSPORT, TRANSPORTS, Transport
 
 
 def _input_errors(method):
@@ -33,6 +32,23 @@ def _input_errors(method):
     return call
 
 
+def _bag_notes(method):
+    """A run that Ctrl-C stops raises its KeyboardInterrupt on (a library's caller decides), noted with the lines
+    the CLI prints then (interrupts.interrupted_lines): what the run's bag holds and how to go on from it."""
+    @functools.wraps(method)
+    def call(*args, **kwargs):
+        from bev_mdo import interrupts
+
+        interrupts.new_run()  # not what an earlier run noted of its bag
+        try:
+            return method(*args, **kwargs)
+        except KeyboardInterrupt as exc:
+            for line in interrupts.interrupted_lines(exc):
+                exc.add_note(line)
+            raise
+    return call
+
+
 def _mapping(value, what: str) -> dict:
     """A {name: value} argument as a dict; InputError for anything else (a list of values, a number)."""
     if value is None:
@@ -44,9 +60,28 @@ def _mapping(value, what: str) -> dict:
 
 def _number(value, what: str) -> float:
     """A finite number (not a bool, a string or a list); InputError naming ``what`` otherwise."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+    if not real_number(value) or not math.isfinite(value):
         raise InputError(f"{what} must be a finite number, got {value!r}")
     return float(value)
+
+
+def _whole(value, what: str) -> int:
+    """A count (starts, samples, generations, pop, order) as a whole number (models.common.check_whole: 2.9
+    ran 2 starts, "3" ran 3, True ran 1); InputError naming ``what`` otherwise."""
+    from bev_mdo.models.common import check_whole
+
+    try:
+        return check_whole(value)
+    except ValueError as exc:
+        raise InputError(f"{what} {exc}") from None
+
+
+def _transport(value) -> Transport:
+    """A run's ``transport=``: a name or a ``Transport``. Anything else (a dict, None, 5) was read for the
+    attributes it lacks and ran over ROS, the default; InputError naming it now."""
+    if isinstance(value, (str, Transport)):
+        return Transport.of(value)  # a Transport's own fields (an OptimizeOptions given holds more)
+    raise InputError(f"transport must be a name ({' or '.join(map(repr, TRANSPORTS))}) or a Transport, got {value!r}")
 
 
 def _seed(value) -> int:
@@ -79,8 +114,8 @@ def _names(value, what: str) -> list[str] | None:
 class Study:
     """A run config and the changes made to its problem.
 
-    ``Study("config/leaf_nedc.yaml")`` or ``Study({...})`` (the same keys as the YAML file); the
-    config is checked at once. ``bound``, ``initial``, ``constrain`` and ``objective`` change the
+    ``Study("config/leaf_nedc.yaml")`` or ``Study({...})`` (the same keys as the YAML file, copied as they
+    are then); the config is checked at once. ``bound``, ``initial``, ``constrain`` and ``objective`` change the
     problem (like ``--bound``, ``--initial``, ``--constraint``, ``--objective``/``--maximize``) and
     return the study, so they chain. ``config`` is the effective, checked config a run records.
     Runs take ``transport="ros"`` (the default of every run and every ``bev-mdo`` command: the config's
@@ -95,7 +130,8 @@ class Study:
         if not isinstance(config, (str, Path, Mapping)):
             raise InputError(f"a study's config is a YAML file or a mapping, got {type(config).__name__}")
         self.source = str(config) if isinstance(config, (str, Path)) else "<config>"
-        self._raw = config if isinstance(config, (str, Path)) else dict(config)
+        # the mapping as it is now: a later edit of the caller's dict (or of a nested part) is not this study's
+        self._raw = config if isinstance(config, (str, Path)) else copy.deepcopy(dict(config))
         self.overrides = Overrides()
         self._config = RunConfig.load(self._raw)  # the config as written must be valid
 
@@ -153,24 +189,30 @@ class Study:
         """One design through every discipline; variables not given take their initial value."""
         from bev_mdo.api import evaluate
 
-        return EvaluateResult.of(evaluate.design(self.config, _mapping(design, "design"), Transport.of(transport)))
+        return EvaluateResult.of(evaluate.design(self.config, _mapping(design, "design"), _transport(transport),
+                                                 caller="bev_mdo Study.evaluate"))
 
     @_input_errors
+    @_bag_notes
     def optimize(self, formulation: str | None = None, optimizer: str | None = None, *, starts: int = 1,
                  seed: int = 0, x0: Mapping[str, float] | None = None, bag: str | None = None, callback=None,
                  transport=DEFAULT_TRANSPORT, **ros) -> OptimizeResult:
-        """Optimise the problem (``bev-mdo optimize``). ``callback(record)`` sees every iteration;
-        ``bag`` writes the run's bag there; ``ros``: OptimizeOptions' ROS settings (instances: N, {name: N}
-        or "name=N,...", compose, no_record) and fixed_budget."""
+        """Optimise the problem (``bev-mdo optimize``). ``starts`` > 1: from a Latin hypercube of start points
+        drawn with ``seed``, which also seeds differential_evolution when its options give no seed;
+        ``callback(record)`` sees every iteration; ``bag`` writes the run's bag there; ``ros``: OptimizeOptions'
+        ROS settings (instances: N, {name: N} or "name=N,...", compose, no_record) and fixed_budget."""
         from bev_mdo.api import optimize
+        from bev_mdo.api.overrides import finite_values
         from bev_mdo.models.common import check_keys
 
         own = {"formulation", "optimizer", "starts", "seed", "x0", "bag", "callback", "transport"}
         check_keys("", ros, own | {f.name for f in fields(optimize.OptimizeOptions)} - {f.name for f in fields(Transport)}
                    - {"quiet", "bag_flag", "progress_to_stderr"}, of="optimize()")
-        opts = optimize.OptimizeOptions(**asdict(Transport.of(transport)), formulation=formulation, optimizer=optimizer,
-                                        starts=starts, seed=_seed(seed), bag=bag, quiet=True, **ros)
-        return OptimizeResult.of(optimize.run(self.config, opts, callback, dict(x0) if x0 else None))
+        opts = optimize.OptimizeOptions(**asdict(_transport(transport)), formulation=formulation, optimizer=optimizer,
+                                        starts=_whole(starts, "starts"), seed=_seed(seed), bag=bag, quiet=True, **ros)
+        x0 = _mapping(x0, "x0")
+        finite_values(x0, "x0", one="the start point, a number per name")
+        return OptimizeResult.of(optimize.run(self.config, opts, callback, x0 or None))
 
     @_input_errors
     def sweep(self, doe: str | None = "lhs", samples: int = 64, seed: int = 1, *,
@@ -184,6 +226,7 @@ class Study:
         from bev_mdo.api import doe as sampling, evaluate
         from bev_mdo.api.overrides import finite_values
 
+        how = _transport(transport)
         fixed = _mapping(fixed, "fixed")
         finite_values(fixed, "fixed", one="a variable held at one value (vary it in designs=)")
         fixed = {k: float(v) for k, v in fixed.items()}
@@ -194,8 +237,8 @@ class Study:
             if len({c.shape for c in cols.values()}) > 1 or any(c.ndim != 1 for c in cols.values()):
                 raise InputError("designs: give every variable's values as one list, all of the same length "
                                  f"(got {', '.join(f'{k}: {c.shape[0] if c.ndim == 1 else c.shape}' for k, c in cols.items())})")
-        cols = sampling.batch(self.config.problem, doe, samples, _seed(seed), cols, fixed)
-        r = evaluate.batch(self.config, cols, Transport.of(transport))
+        cols = sampling.batch(self.config.problem, doe, _whole(samples, "samples"), _seed(seed), cols, fixed)
+        r = evaluate.batch(self.config, cols, how)
         return SweepResult(r["design"], r["outputs"], r["margins"], r["feasible"], r["ok"], list(r["errors"]),
                            r["objective"], bool(getattr(r["problem"], "maximize", False)))
 
@@ -206,8 +249,8 @@ class Study:
         with respect to ``wrt`` (design variables and model parameters; default: the design variables)."""
         from bev_mdo.api import sensitivity
 
-        s, outputs, _, _ = sensitivity.run(self.config, _mapping(at, "at"), _names(wrt, "wrt"), Transport.of(transport), order=order,
-                                           rel_step=rel_step)
+        s, outputs, _, _ = sensitivity.run(self.config, _mapping(at, "at"), _names(wrt, "wrt"), _transport(transport),
+                                           order=_whole(order, "order"), rel_step=rel_step)
         return SensitivityResult.of(sensitivity.to_dict(s, outputs))
 
     @_input_errors
@@ -221,11 +264,13 @@ class Study:
 
         if method not in sensitivity.METHODS:
             raise InputError(f"--global {method!r}: allowed: {', '.join(sensitivity.METHODS)}")
-        rep = sensitivity.run(self.config, _mapping(at, "at"), _names(wrt, "wrt"), Transport.of(transport), global_method=method,
-                              samples=samples, seed=_seed(seed), conf_level=conf_level)
+        rep = sensitivity.run(self.config, _mapping(at, "at"), _names(wrt, "wrt"), _transport(transport),
+                              global_method=method, samples=None if samples is None else _whole(samples, "samples"),
+                              seed=_seed(seed), conf_level=conf_level)
         return GlobalSensitivityResult.of(rep)
 
     @_input_errors
+    @_bag_notes
     def pareto(self, objectives: list[str] | None = None, generations: int = 30, pop: int = 100, seed: int = 1,
                out: str | None = None, plots: bool = False, transport=DEFAULT_TRANSPORT,
                instances: str | int | Mapping[str, int] | None = None) -> ParetoResult:
@@ -233,6 +278,8 @@ class Study:
         ``problem.objectives``), written with its bag into ``out`` (default bags/<name>_pareto_<time>)."""
         from bev_mdo.api import pareto
 
-        doc, _ = pareto.run(self.config, _names(objectives, "objectives"), generations=generations, pop=pop, seed=_seed(seed), out=out,
-                            transport=Transport.of(transport), instances=instances, plots=plots, source=self.source)
+        doc, _ = pareto.run(self.config, _names(objectives, "objectives"),
+                            generations=_whole(generations, "generations"), pop=_whole(pop, "pop"), seed=_seed(seed),
+                            out=out, transport=_transport(transport), instances=instances, plots=plots,
+                            source=self.source)
         return ParetoResult.of(doc)

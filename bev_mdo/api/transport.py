@@ -33,6 +33,21 @@ class Transport:
     static_peers: str | None = None  # "IP[,IP...]"
     discovery_server: str | None = None  # "IP:PORT"
 
+    def __post_init__(self):
+        """A domain id that is no ROS domain (300, "x") is refused here, not at the run (in process, any
+        domain id given is refused as a whole: refuse_ros_only)."""
+        if self.domain_id is not None and self.transport != "inprocess":
+            import numpy as np
+
+            from bev_mdo.ros_settings import check_domain_id
+
+            if isinstance(self.domain_id, np.integer):  # as the API's counts and seeds (models.common.check_whole)
+                self.domain_id = int(self.domain_id)
+            try:
+                check_domain_id(self.domain_id, "domain_id")
+            except ValueError as exc:
+                raise InputError(str(exc)) from None
+
     @classmethod
     def of(cls, obj) -> "Transport":
         """The transport settings of a parsed command line (or any object with these attributes)."""

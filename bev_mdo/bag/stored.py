@@ -17,10 +17,12 @@ class StoredConfig:
 
     @classmethod
     def parse(cls, text: str | None) -> StoredConfig:
-        import yaml
+        """Within the limits of a user's YAML (yamlload): a bag may come from anyone, and its config's alias
+        bomb (a few lines, billions of values once expanded) was parsed whole for every reader."""
+        from bev_mdo.yamlload import load_yaml
 
         try:
-            data = yaml.safe_load(text or "")
+            data = load_yaml(text or "")
         except Exception:  # noqa: BLE001 - a reader never fails on the stored config
             data = None
         return cls(text or "", data if isinstance(data, dict) else {})

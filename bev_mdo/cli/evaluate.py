@@ -30,12 +30,31 @@ def run(args) -> int:
     from bev_mdo.api.transport import Transport
     from bev_mdo.cli import flags
 
-    report = evaluate.design(flags.load_config(args), flags.parse_assignments(args.assignments), Transport.of(args))
+    config = flags.load_config(args)
+    report = evaluate.design(config, flags.parse_assignments(args.assignments), Transport.of(args))
     if args.json:
         print(jsontext.dumps(report))
     else:
+        line = cycles_line(config.data)
+        if line:
+            print(line)
         print_table(report)
     return 0 if report["ok"] else 1
+
+
+def cycles_line(cfg) -> str:
+    """The drive cycles the run names, each with its duration, distance and top speed (a trace in m/s under a
+    km/h header shows as a 14 km/h top speed), or '' for a problem without a cycle."""
+    from bev_mdo.config.sections import cycle_names
+    from bev_mdo.models.cycles import load_cycle
+
+    if not isinstance(cfg.get("cycle"), dict):
+        return ""
+    said = []
+    for name in cycle_names(cfg):
+        c = load_cycle(name, cfg.get("cycle_traces"))
+        said.append(f"{c.name} {c.duration_s:.0f} s, {c.distance_m / 1e3:.2f} km, top {c.max_speed_kmh:.1f} km/h")
+    return f"cycle{'s' if len(said) > 1 else ''}: " + "; ".join(said)
 
 
 def _fmt(v) -> str:

@@ -102,21 +102,37 @@ def add_override_arguments(parser, single_objective: bool = True) -> None:
 def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, float]:
     """``["a=1,b=2", "c=3"]`` (or one such string) -> {a: 1.0, b: 2.0, c: 3.0}: the NAME=VALUE lists of
     --set, --design and --at; an InputError naming `flag` on a malformed item."""
+    import re
+
     from bev_mdo.api.errors import InputError
     from bev_mdo.api.overrides import finite_values
 
+    def one_number(name: str, given: str):  # a list given to a name: [9.04,4.7] or 9.04,4.7
+        two = (" (a two-speed gearbox is gear_count=2 with gear_ratio_2 for its second gear: "
+               f"{flag} gear_count=2,gear_ratio=9.04,gear_ratio_2=4.7)" if name.startswith("gear_ratio") else "")
+        return InputError(f"{flag} {name}={given}: {flag} takes one number per name (NAME=VALUE){two}")
+
     out: dict[str, float] = {}
     for item in [items] if isinstance(items, str) else items:
-        for part in filter(None, (s.strip() for s in item.split(","))):
+        last, parts = "", [s.strip() for s in item.split(",")]
+        if "" in parts[:-1]:  # motor_kw=200,,battery_kwh=50 was taken as if the empty item were not (a last comma is)
+            raise InputError(f"{flag} {item.strip()!r}: an empty item between commas; give NAME=VALUE,NAME=VALUE")
+        for part in filter(None, parts):
             name, sep, value = part.partition("=")
+            bare = re.fullmatch(r"[-+.\d\s\]\)eE]+|[-+]?(nan|inf|infinity)[\s\]\)]*", part, re.IGNORECASE)
+            if not sep and last and bare:  # gear_ratio=9.04,4.7 (or 200,nan)
+                raise one_number(last, f"{out[last]:g},{part}")
             if not sep or not name.strip():
                 raise InputError(f"{flag} {part!r} must be NAME=VALUE, e.g. motor_kw=80")
             if name.strip() in out:  # the last one used to win silently
                 raise InputError(f"{flag} {name.strip()}: given twice ({out[name.strip()]:g} and {value.strip()})")
+            if value.strip()[:1] in ("[", "("):  # gear_ratio=[9.04,4.7]
+                raise one_number(name.strip(), item[item.index(part) + len(name) + 1:].strip())  # the rest of it
             try:
                 out[name.strip()] = float(value)
             except ValueError:
                 raise InputError(f"{flag} {name.strip()}={value!r}: value must be a number") from None
+            last = name.strip()
     finite_values(out, flag)
     return out
 

@@ -39,7 +39,8 @@ def register(sub) -> None:
     p.add_argument("--starts", type=int, default=1, metavar="N",
                    help="optimise from N start points (a Latin hypercube over the bounds, --seed) and report the "
                         "best and how many starts reached it (default 1: the config's initial design)")
-    p.add_argument("--seed", type=seed, default=0, help="seed of the --starts sample (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the --starts sample and of differential_evolution "
+                   "when optimizer.options give it no seed (default 0)")
     p.add_argument("--fixed-budget", action="store_true",
                    help="the optimiser's limits (e.g. optimizer.options.maxiter) are the budget: a feasible end "
                         "exits 0 even when it is not a verified optimum (the verdict still says what it is)")

@@ -15,7 +15,7 @@ import numpy as np
 
 from bev_mdo import jsontext
 
-ROUGH = 0.01  # a first-order value is marked "~" when its Richardson error estimate is over 1 % of it
+ROUGH = 0.01  # a value is marked "~" when its error estimate (Richardson's, or half a kink's jump) is over 1 % of it
 
 
 def register(subparsers) -> None:
@@ -124,13 +124,14 @@ def print_tables(s, outputs, out=None) -> None:
                                     for v, m in zip(cells, marks))
               + ("   df/dx_i (f = 0: S undefined)" if k in zero else ""), file=out)
     print("step".ljust(ow) + "".join(f"{v:{w}.3g}" for v in s.step), file=out)
-    if rough:
-        print(f"~ the estimates with steps h and 2h differ by over {ROUGH:.0%} of the value: the model has a kink or "
-              "noise near the point (try another --rel-step; check-totals)", file=out)
+    if rough and s.second is None:
+        print(f"~ uncertain by over {ROUGH:.0%} of the value: the estimates with steps h and 2h, or the slopes either "
+              "side of the point, differ (a kink or noise near the point; try another --rel-step; check-totals)", file=out)
     if s.second is None:
         return
     print("\nSecond-order normalised sensitivity S'_ij = (x_i x_j/f) d2f/dx_i dx_j  (eq 5-5)", file=out)
-    print("labels: NC |S'|<0.05, MC <0.5, SC <0.8, VSC >=0.8 (no/medium/strong/very strong coupling)", file=out)
+    print("labels: NC |S'|<0.05, MC <0.5, SC <0.8, VSC >=0.8 (no/medium/strong/very strong coupling of two "
+          "variables; a diagonal entry, one variable's own curvature, has none)", file=out)
     for k in outputs:
         m, lab, err = s.second[k], s.labels(k), s.second_error[k]
         if k in zero:
@@ -138,10 +139,20 @@ def print_tables(s, outputs, out=None) -> None:
         print(f"\n{k}  " + ("(f = 0: S' undefined; d2f/dx_i dx_j shown)" if k in zero
                              else f"(max Richardson error {np.nanmax(err):.1e})"), file=out)
         print("".ljust(w) + "".join(n.rjust(w) for n in s.names), file=out)
+        # "~" as in the first-order table: an entry of -0.0002 whose error was 1.6e-3 had the wrong sign, unmarked;
+        # an error below half the last digit shown (5e-5) is not marked
+        rough_2 = (np.nan_to_num(np.asarray(err, float)) > np.maximum(ROUGH * np.abs(m), 5e-5)) & (k not in zero)
+        rough = rough or bool(np.triu(rough_2).any())
         for i, n in enumerate(s.names):
-            cells = [(f" {m[i, j]:.4g}" if k in zero else f" {m[i, j]:.4f} {lab[i, j]}").rjust(w) if j >= i
-                     else "".rjust(w) for j in range(len(s.names))]
+            # a label is a coupling's (two variables, Fig 5-3); a diagonal entry is one variable's own curvature
+            cells = [((f" {m[i, j]:.4g}" if k in zero else f" {m[i, j]:.4f}" + (f" {lab[i, j]}" if i != j else ""))
+                      + ("~" if rough_2[i, j] else "")).rjust(w)
+                     if j >= i else "".rjust(w) for j in range(len(s.names))]
             print(n.ljust(w) + "".join(cells), file=out)
+    if rough:
+        print(f"\n~ uncertain by over {ROUGH:.0%} of the value: the estimates with steps h and 2h, or the slopes either "
+              "side of the point, differ (a kink or noise near the point); an S' entry whose error exceeds it has no "
+              "sure sign (try another --rel-step; check-totals)", file=out)
 
 
 def _context_title(s, cfg, design=None) -> str:
@@ -209,7 +220,7 @@ def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
                                 fontsize=7, color="0.35")
                         continue
                     dark = abs(norm(m[i, j]) - 0.5) > 0.3
-                    ax.text(j, i, f"{m[i, j]:.3g}\n{lab[i, j]}", ha="center", va="center", fontsize=8,
+                    ax.text(j, i, f"{m[i, j]:.3g}" + (f"\n{lab[i, j]}" if i != j else ""), ha="center", va="center", fontsize=8,
                             color="white" if dark else "black")
             ax.set_xticks(range(len(s.names)), ticks, rotation=20, ha="right", fontsize=7)
             ax.set_yticks(range(len(s.names)), ticks if idx % ncols == 0 else [], fontsize=7)

@@ -107,7 +107,7 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
 
 
 REFERENCE = {"baseline3": "3-constant baseline a + b mass + c road-load work per cycle, each family predicted by "
-                          "constants fitted on the other folds (5-fold by family)",
+                          "constants fitted on the other folds ({k}-fold by family)",
              "fastsim": "FASTSim 2.1.5 with its defaults (bev_mdo/data/epa_2022_bev/fastsim_2.1.5.csv, "
                         "scripts/fastsim_baseline.py)"}
 
@@ -137,8 +137,10 @@ def _reference(fleet, energy_model: str, pred: dict, scored: dict, out_rows: lis
             for name in ("baseline3", "fastsim"):
                 v = columns[name][c][i] if name in columns else math.nan
                 r[f"{short}_{name}_wh_per_km"] = float(v) if math.isfinite(v) else None
-    out = {"columns": {energy_model: compared(energy_model), **REFERENCE}, "fastsim": status,
-           "same_rows": bl.reference_table(fleet, columns)}
+    folds = int(bl.family_folds(fleet, use).max()) + 1  # as many as the families, up to baselines.FOLDS
+    out = {"columns": {energy_model: compared(energy_model), **REFERENCE,
+                       "baseline3": REFERENCE["baseline3"].format(k=folds)},
+           "fastsim": status, "same_rows": bl.reference_table(fleet, columns), "baseline3_folds": folds}
     if pairs is not None:
         index = {int(row): i for i, row in enumerate(fleet.rows)}
         out["pairs"] = {}
@@ -281,5 +283,5 @@ def print_reference(report: dict) -> None:
               f"{c:>6}: no row that every column predicts (baseline3 is held out by family: a row needs rows "
               "of other families that fix its 3 constants)")
     print(f"  ({report['energy_model']}: as above, not refitted (a parameter set fitted on these rows is in-sample); "
-          "baseline3: held out, 5 folds by family; fastsim: its defaults, nothing fitted; held-out figures of "
+          f"baseline3: held out, {ref['baseline3_folds']} folds by family; fastsim: its defaults, nothing fitted; held-out figures of "
           "every model: bench/bench_validate.py, docs/validation.md)")

@@ -14,7 +14,8 @@ from typing import Any
 from bev_mdo.config.disciplines import check_against_disciplines, discipline_entries, resolve_disciplines
 from bev_mdo.config.sections import (anchor_paths, check_gear_order, check_gear_order_per_design, check_mda_numbers,
                                      check_optimizer_options, resolve_problem, search_path, engine_section,
-                                     validate_models, vehicle_topology_into_options)
+                                     two_speed_notes, validate_models, vehicle_topology_into_options,
+                                     check_traces_fit)
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
 from bev_mdo.mdo.vectors import has_partials
@@ -273,6 +274,7 @@ def _resolve(raw: Any) -> RunConfig:
     cfg["problem"] = resolve_problem(cfg.get("problem"))
     problem = Problem.from_config(cfg["problem"])
     check_gear_order(vehicle, problem)
+    two_speed_notes(cfg, vehicle, problem)
     # numeric checks of the engine sections, by constructing the pieces once
     check_mda_numbers(cfg["mda"])
     discs = tuple(resolve_disciplines(cfg))
@@ -280,6 +282,10 @@ def _resolve(raw: Any) -> RunConfig:
     if cfg["problem"].get("baseline") is not None:
         problem.check_design(cfg["problem"]["baseline"]["design"], params, "problem.baseline.design")
         check_gear_order_per_design(vehicle, problem, cfg["problem"]["baseline"]["design"], "problem.baseline.design: ")
+    recorded = raw.get("cycle_traces") if isinstance(raw.get("cycle_traces"), Mapping) else {}
+    read = [n for n in cfg.get("cycle_traces") or () if n not in recorded]
+    if read:  # the whole config, defaults filled, as a bag and a node's file hold it
+        check_traces_fit(plain({k: v for k, v in cfg.items() if k != "cycle_traces"}), cfg["cycle_traces"], read)
     return RunConfig(cfg, problem, discs, ros, _settings(cfg, problem, discs), vehicle)
 
 

@@ -16,7 +16,8 @@ from typing import Any
 
 from bev_mdo.models import params
 from bev_mdo.models.common import check_keys, is_number, text_hint
-from bev_mdo.models.cycles import CycleNote, is_csv_cycle, load_cycle, trace_cycle, trace_record, unbalanced_note
+from bev_mdo.models.cycles import (CycleNote, is_csv_cycle, load_cycle, trace_cycle, trace_record, trace_yaml_chars,
+                                   unbalanced_note)
 
 SIZED_VARIABLE = "battery_kwh"
 SIZED_CONSTRAINT = "range_km"
@@ -190,15 +191,9 @@ def _parameter_set(cfg: dict) -> None:
     cfg["vehicle"] = {**{k: x for k, x in values.items() if k not in section and k not in replaced}, **section}
 
 
-def _record_cycle_traces(cfg: dict) -> None:
-    """Every drive-cycle CSV the run names (``cycle.name``, the energy and cycle_range options ``cycle``
-    and ``cycle_weights``) is read once, here, into the resolved config's ``cycle_traces`` (path ->
-    {time_s, speed_m_s}); the models take it from there, so a bag's ``resume`` and nodes started in
-    another folder or on another host run on the same trace without the file. A trace already there
-    (a resolved config read again) is checked, not re-read."""
-    traces = cfg.get("cycle_traces") or {}
-    if not isinstance(traces, Mapping):
-        raise ValueError("cycle_traces must map CSV paths to {time_s: [...], speed_m_s: [...]}")
+def cycle_names(cfg: Mapping) -> list[str]:
+    """The drive cycles a config names, each once: ``cycle.name``, the energy and cycle_range options ``cycle``
+    and ``cycle_weights``."""
     names = [cfg["cycle"]["name"]]
     for e in cfg.get("disciplines") or []:
         if isinstance(e, Mapping) and e.get("name") in ("energy", "cycle_range") and not e.get("class"):
@@ -207,8 +202,21 @@ def _record_cycle_traces(cfg: dict) -> None:
                 names.append(opts["cycle"])
             if isinstance(opts.get("cycle_weights"), Mapping):
                 names += [str(k) for k in opts["cycle_weights"]]
+    return list(dict.fromkeys(names))
+
+
+def _record_cycle_traces(cfg: dict) -> None:
+    """Every drive-cycle CSV the run names (``cycle.name``, the energy and cycle_range options ``cycle``
+    and ``cycle_weights``) is read once, here, into the resolved config's ``cycle_traces`` (path ->
+    {time_s, speed_m_s}); the models take it from there, so a bag's ``resume`` and nodes started in
+    another folder or on another host run on the same trace without the file. A trace already there
+    (a resolved config read again) is checked, not re-read: whether the config fits is ``check_traces_fit``'s
+    question for the traces read from a file."""
+    traces = cfg.get("cycle_traces") or {}
+    if not isinstance(traces, Mapping):
+        raise ValueError("cycle_traces must map CSV paths to {time_s: [...], speed_m_s: [...]}")
     out = {}
-    for name in dict.fromkeys(n for n in names if is_csv_cycle(n)):
+    for name in (n for n in cycle_names(cfg) if is_csv_cycle(n)):
         if name in traces:  # a resolved config read again: check what it holds
             cycle, out[name] = trace_cycle(name, traces[name]), traces[name]
         else:  # read (and checked) from the file
@@ -221,6 +229,40 @@ def _record_cycle_traces(cfg: dict) -> None:
         cfg["cycle_traces"] = out
     else:
         cfg.pop("cycle_traces", None)
+
+
+TRACE_RESERVE_BYTES = 64 * 1024  # of the YAML limit, for what a run adds to its resolved config (its key path)
+
+
+def check_traces_fit(rest: dict, traces: Mapping[str, Any], read: Any) -> None:
+    """ValueError (one line naming the CSV, its samples, what the whole config takes and the limit) when the
+    resolved config (defaults filled), ``rest`` (plain, as a bag holds it) with ``traces`` as its ``cycle_traces``,
+    would be YAML past
+    ``yamlload.MAX_YAML_BYTES`` less ``TRACE_RESERVE_BYTES``: the run would go, but its bag could not be resumed
+    or reported, nor its config read by a node (the YAML limits bound what untrusted text costs to parse,
+    docs/security.md). Only traces ``read`` from a CSV by this load are checked: one a resolved config holds
+    was checked when it was read, and the YAML limit bounds the config it came in (a run's resume)."""
+    import yaml
+
+    from bev_mdo.yamlload import MAX_YAML_BYTES
+
+    read = [n for n in traces if n in read]
+    if not read:
+        return
+    rest_bytes = len(yaml.safe_dump(rest, sort_keys=False).encode("utf-8"))  # a file's limit is in bytes
+    chars = {n: trace_yaml_chars(r) + len(n) + 30 for n, r in traces.items()}  # with its key lines
+    total = rest_bytes + sum(chars.values()) + TRACE_RESERVE_BYTES
+    if total <= MAX_YAML_BYTES:
+        return
+    big = max(read, key=chars.get)
+    n = len(traces[big]["time_s"])
+    fits = max(0, int(n * (MAX_YAML_BYTES - (total - chars[big])) / chars[big]))
+    said = "; ".join(f"{k} {len(traces[k]['time_s']):,} samples in {chars[k]:,} bytes" for k in traces)
+    raise ValueError(f"{big}: with its {n:,} samples the run's resolved config would take {total:,} bytes of YAML "
+                     f"(cycle_traces: {said}; the rest of the config {rest_bytes:,} bytes; {TRACE_RESERVE_BYTES // 1024} KiB "
+                     f"kept for what a run adds), past the {MAX_YAML_BYTES:,} ({MAX_YAML_BYTES / 2**20:g} MiB) that its "
+                     f"bag and nodes read back; at most about {fits:,} samples of this trace fit with the rest as it "
+                     "is (resample it coarser)")
 
 
 def validate_models(cfg: dict) -> dict[str, float]:
@@ -269,6 +311,47 @@ def check_gear_order(vehicle: Mapping[str, float], problem) -> None:
         return
     raise ValueError(f"gear_ratio_2 {second[0]:g} ({second[1]}) is above gear_ratio {first[0]:g} ({first[1]}): "
                      + params.GEAR_ORDER)
+
+
+# two_speed_efficiency_loss is left out: a fitted parameter set holds it (its fleet's two-speed cars), and a set
+# file's values go into the vehicle section, where they would read as stated
+TWO_SPEED_KEYS = ("gear_ratio_2", "shift_speed_m_s", "shift_strategy", "two_speed_added_mass_kg")
+
+
+def two_speed_notes(cfg: Mapping[str, Any], vehicle: Mapping[str, float], problem) -> None:
+    """A note (``CycleNote``, one line) where the two-speed gearbox keys the vehicle section states change nothing:
+    on a topology other than SM-SA (gear_count 2 is SM-SA only), or with gear_count 1 and no design variable or
+    problem parameter setting it (a DM-DA config with gear_ratio_2, shift_speed_m_s, shift_strategy and
+    two_speed_added_mass_kg ran as if they were not there). A note, not an error: a sweep or --set may set
+    gear_count 2. And where a two-speed box shifts by speed (shift_strategy 0) at a speed above the top speed of
+    every cycle the run uses (80 'm/s' meant as km/h): the energy model never uses its second gear there."""
+    import numpy as np
+
+    section = cfg.get("vehicle") if isinstance(cfg.get("vehicle"), Mapping) else {}
+    topology = params.vehicle_choice(section, "topology")
+    values = {**vehicle, **problem.parameters}
+    two = "gear_count" in problem.names or bool(np.any(np.asarray(values.get("gear_count", 1.0)) == 2.0))
+    specs = params.all_specs()
+    stated = [k for k in TWO_SPEED_KEYS if k in section and vehicle.get(k) != specs[k].default]
+    if stated and (topology != "SM-SA" or not two):
+        why = (f"a {topology} powertrain has no two-speed gearbox (gear_count 2 is SM-SA only)" if topology != "SM-SA"
+               else "vehicle.gear_count is 1 (single speed)")
+        warnings.warn(f"{', '.join('vehicle.' + k for k in stated)}: two-speed gearbox key{'s' if len(stated) > 1 else ''}"
+                      f", but {why}: {'they change' if len(stated) > 1 else 'it changes'} nothing"
+                      + (" unless a design sets gear_count 2" if topology == "SM-SA" else ""), CycleNote, stacklevel=2)
+    if (topology != "SM-SA" or not two or cfg.get("energy_model") != "quasi_static" or values.get("shift_strategy")
+            or not isinstance(cfg.get("cycle"), Mapping)):
+        return
+    dv = next((d for d in problem.design_variables if d.name == "shift_speed_m_s"), None)
+    shift, where = ((dv.lower, "the lower bound of problem.design_variables.shift_speed_m_s") if dv is not None else
+                    (float(np.min(values.get("shift_speed_m_s", 68.1 / 3.6))), "problem.parameters.shift_speed_m_s"
+                     if "shift_speed_m_s" in problem.parameters else "vehicle.shift_speed_m_s"))
+    cycles = [load_cycle(n, cfg.get("cycle_traces")) for n in cycle_names(cfg)]
+    if all(shift > float(np.max(c.speed_m_s)) for c in cycles):
+        tops = ", ".join(f"{c.name} {c.max_speed_kmh:.1f} km/h" for c in cycles)
+        warnings.warn(f"{where} {shift:g} m/s ({shift * 3.6:.0f} km/h) is above the top speed of every cycle the run "
+                      f"uses ({tops}): the two-speed gearbox never shifts into its second gear on them (a speed in "
+                      "km/h? this key is in m/s)", CycleNote, stacklevel=2)
 
 
 def check_gear_order_per_design(vehicle: Mapping[str, float], problem, values: Mapping, where: str = "") -> None:

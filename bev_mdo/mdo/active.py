@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from bev_mdo.mdo.kinks import one_sided_descent
 from bev_mdo.mdo.settings import FEASIBILITY_TOL  # the run's default tolerance on normalised constraints
 
 REL_TOL = 1e-3
@@ -30,12 +31,14 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
 
     ``problem``: a ``bev_mdo.mdo.problem.Problem``; ``design``: its design variables; ``values``: the
     constraint outputs at the point (extra keys are ignored); ``jacobian[output][variable]``: d output /
-    d variable in physical units (only needed for the blocking analysis of an infeasible end);
+    d variable in physical units, one slope or (left, right) one-sided slopes (``fd_jacobian``'s: a kink's two
+    sides differ), only needed for the blocking analysis of an infeasible end;
     ``units``: {variable: unit} as the disciplines declare them (mdo/units.py ``run_units``);
     ``feas_tol``: the run's feasibility tolerance (a normalised violation up to it is not "violated").
     Returns a JSON-ready dict: ``feasible``, ``active_constraints``, ``bounds`` (variables on a
-    bound), ``violated`` (each with ``blocked_by`` and ``conflicts_with`` when a Jacobian is given)
-    and ``lines`` (the same as short sentences for the terminal).
+    bound), ``outside_bounds`` (variables beyond a bound: such a point is infeasible), ``violated`` (each
+    with ``blocked_by`` and ``conflicts_with`` when a Jacobian is given) and ``lines`` (the same as short
+    sentences for the terminal).
     """
     from bev_mdo.mdo.units import unit_of
 
@@ -63,7 +66,7 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
     for e in active + violated:
         if e["name"] in equal:
             e["kind"], e["margin"] = "equal", -abs(e["margin"])
-    bounds = []
+    bounds, outside = [], []
     for d in problem.design_variables:
         x = float(design[d.name])
         span = d.upper - d.lower
@@ -72,24 +75,31 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
                 bounds.append({"name": d.name, "kind": kind, "bound": float(b), "value": x,
                                "margin": float(x - b if kind == "lower" else b - x), "unit": unit(d.name),
                                "scale": float(span)})
+        # COBYLA ended 6.5 % above a motor's upper bound: the violated constraints looked nearer than any
+        # design inside the bounds can bring them, and nothing named the bound
+        for kind, b, by in (("lower", d.lower, d.lower - x), ("upper", d.upper, x - d.upper)):
+            if by > feas_tol * span:
+                outside.append({"name": d.name, "kind": kind, "bound": float(b), "value": x, "by": float(by),
+                                "unit": unit(d.name)})
     if jacobian is not None:
-        on_bound = {(b["name"]): b["kind"] for b in bounds}
+        on_bound = {**{b["name"]: b["kind"] for b in bounds}, **{b["name"]: b["kind"] for b in outside}}
         spans = {d.name: d.upper - d.lower for d in problem.design_variables}
         for e in violated:
             sign = 1.0 if e["kind"] == "upper" or e["kind"] == "equal" and e["value"] > e["limit"] else -1.0
-            grad = {n: sign * float(jacobian.get(e["name"], {}).get(n, 0.0)) for n in problem.names}
-            blocking = [n for n, g in grad.items()
-                        if g < 0 and on_bound.get(n) == "upper" or g > 0 and on_bound.get(n) == "lower"]
-            e["blocked_by"] = [{"variable": n, "bound": on_bound[n], "rate": abs(grad[n]),
+            grad = {n: tuple(sign * v for v in _sides(jacobian.get(e["name"], {}).get(n, 0.0))) for n in problem.names}
+            # a bound blocks when the step beyond it would reduce the violation: its side's slope
+            rate = {n: -g[1] if on_bound.get(n) == "upper" else g[0] for n, g in grad.items() if n in on_bound}
+            blocking = [n for n, r in rate.items() if r > 0]
+            e["blocked_by"] = [{"variable": n, "bound": on_bound[n], "rate": rate[n],
                                 "rate_unit": f"{e['unit'] or '1'} per {unit(n) or 'unit'}"} for n in blocking]
             e["blocked_by"].sort(key=lambda b: -b["rate"] * spans[b["variable"]])
             others = [o for o in violated if o is not e and np.isfinite(o["violation"])]
             held, e["free_way"] = _held_by(grad, active + others, jacobian, spans, on_bound)
             e["conflicts_with"] = [_limit(a) for a in held if a in active]  # satisfied limits it would break
             e["trades_with"] = [_limit(o) for o in held if o in others]  # other violations it would worsen
-    feasible = not any(not e["monitor"] for e in violated)
+    feasible = not any(not e["monitor"] for e in violated) and not outside
     out = {"feasible": feasible, "rel_tol": rel_tol, "active_constraints": active, "bounds": bounds,
-           "violated": violated}
+           "outside_bounds": outside, "violated": violated}
     out["lines"] = summary_lines(out)
     return out
 
@@ -101,29 +111,37 @@ def _limit(e) -> str:
     return f"{e['name']} {OPERATORS[e['kind']]} {e['limit']:g}"
 
 
+def _sides(v) -> tuple[float, float]:
+    """(left, right) slopes of a Jacobian entry: one slope is both."""
+    return (float(v), float(v)) if np.ndim(v) == 0 else (float(v[0]), float(v[1]))
+
+
 def _held_by(grad, active, jacobian, spans, on_bound) -> tuple[list[dict], bool]:
     """(the limits of ``active`` (active ones, and the other violated ones) that hold a violation, whether a
     first-order way reduces it without worsening any of them): the linear program min grad_u v . du over
-    steps du of the scaled variables in [-1, 1] (into the box where a variable is on a bound) that make
-    none of them worse. A negative optimum is a free way (nothing holds it: the optimiser stopped short);
-    otherwise the limits with a non-zero multiplier of the program hold it."""
-    from scipy.optimize import linprog
-
+    steps du = p - q of the scaled variables, p and q in [0, 1] (none beyond a bound a variable is on), that
+    make none of them worse. p moves on the right-hand slope, q on the left-hand one (``grad``: {variable:
+    (left, right)}): at a kink (a speed cap meeting a power limit, the cap's slope one side, 0 the other) the
+    slope of the side stepped to counts. A negative optimum is a free way (nothing holds it: the optimiser
+    stopped short); otherwise the limits with a non-zero multiplier of the program hold it."""
     names = list(grad)
-    c = np.array([grad[n] * spans[n] for n in names])
+    n, span = len(names), np.array([spans[k] for k in names])
+
+    def split(g) -> np.ndarray:  # {variable: (left, right)} -> the row over (p, q)
+        return np.concatenate([span * [g[k][1] for k in names], -span * [g[k][0] for k in names]])
+    c = split(grad)
     sides = [(a, s) for a in active for s in ((1.0, -1.0) if a["kind"] == "equal" else  # neither way
                                                (1.0,) if a["kind"] == "upper" else (-1.0,))]
-    rows = np.array([[s * float(jacobian.get(a["name"], {}).get(n, 0.0)) * spans[n] for n in names]
-                     for a, s in sides]).reshape(len(sides), len(names))
+    rows = np.array([s * split({k: _sides(jacobian.get(a["name"], {}).get(k, 0.0)) for k in names})
+                     for a, s in sides]).reshape(len(sides), 2 * n)
     active = [a for a, _ in sides]
-    box = [(0.0, 1.0) if on_bound.get(n) == "lower" else (-1.0, 0.0) if on_bound.get(n) == "upper" else (-1.0, 1.0)
-           for n in names]
+    box = ([(0.0, 0.0) if on_bound.get(k) == "upper" else (0.0, 1.0) for k in names]
+           + [(0.0, 0.0) if on_bound.get(k) == "lower" else (0.0, 1.0) for k in names])
     if not names or not (np.isfinite(c).all() and np.isfinite(rows).all()):  # a failed point: no first-order model
         return [], False
-    res = linprog(c, A_ub=rows if len(active) else None, b_ub=np.zeros(len(active)) if len(active) else None,
-                  bounds=box, method="highs")
     tol = 1e-9 * (float(np.abs(c).sum()) + float(np.abs(rows).sum()) + 1e-300)
-    if res.status != 0:
+    res = one_sided_descent(c, rows, box)
+    if res is None:
         return [], False
     if res.fun < -tol:
         return [], True
@@ -152,6 +170,10 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
     def monitored(e: Mapping[str, Any]) -> str:
         return " (monitored only)" if e.get("monitor") else ""
 
+    for b in ans.get("outside_bounds", ()):
+        lines.append(f"outside its bounds: {b['name']} = {b['value']:.6g}{u(b['unit'])}, "
+                     f"{'below its lower' if b['kind'] == 'lower' else 'above its upper'} bound {b['bound']:g}"
+                     f"{u(b['unit'])} by {_num(b['by'])}{u(b['unit'])} (the constraints below are valued there)")
     for e in ans["violated"]:
         if not np.isfinite(e["value"]):  # a failed point: no value to be short of the limit by, and its
             # Jacobian is NaN, so "no bound blocks it" would be a guess
@@ -185,9 +207,10 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
 
 
 def fd_jacobian(config: Any, design: Mapping[str, float], disciplines: Disciplines,
-                names: list[str] | None = None, rel_step: float = 1e-6) -> dict[str, dict[str, float]]:
-    """d output / d design variable at ``design`` by one-sided finite differences, evaluated in
-    process as ONE batch (the point and its stencil); each step points into the box. ``config``: the
+                names: list[str] | None = None, rel_step: float = 1e-6) -> dict[str, dict[str, tuple[float, float]]]:
+    """(left, right) one-sided slopes d output / d design variable at ``design`` by finite differences,
+    evaluated in process as ONE batch (the point and its stencil); a side whose step leaves the box takes
+    the other side's slope. ``config``: the
     run's ``RunSettings``, or a resolved config.
     ``disciplines``: the run's discipline objects (a caller may wrap them, e.g. with a timeout), or a
     function building them (the engine does not read the application config)."""
@@ -201,13 +224,14 @@ def fd_jacobian(config: Any, design: Mapping[str, float], disciplines: Disciplin
         problem = run.optimisation_problem()
         mda = _mda(run, ev, problem)
         x = np.array([float(design[n]) for n in problem.names])
-        steps = []
-        for d, xi in zip(problem.design_variables, x):
+        steps = []  # (variable, step): each side that stays in the box, else the one into it
+        for j, (d, xi) in enumerate(zip(problem.design_variables, x)):
             h = rel_step * (d.upper - d.lower)
-            steps.append(-h if xi + h > d.upper else h)
-        pts = np.repeat(x[None, :], len(x) + 1, axis=0)
-        for j, h in enumerate(steps):
-            pts[j + 1, j] += h
+            inside = [s for s in (-h, h) if d.lower <= xi + s <= d.upper]
+            steps += [(j, s) for s in inside or [-h if xi + h > d.upper else h]]
+        pts = np.repeat(x[None, :], len(steps) + 1, axis=0)
+        for i, (j, h) in enumerate(steps):
+            pts[i + 1, j] += h
         inputs = {k: np.full(len(pts), float(v)) for k, v in problem.parameters.items()}
         inputs.update({n: pts[:, j] for j, n in enumerate(problem.names)})
         res = mda.run(inputs)
@@ -215,7 +239,11 @@ def fd_jacobian(config: Any, design: Mapping[str, float], disciplines: Disciplin
         jac = {}
         for o in outs:
             col = np.asarray(res.values[o], dtype=float)
-            jac[o] = {n: float((col[j + 1] - col[0]) / steps[j]) for j, n in enumerate(problem.names)}
+            slopes = {}
+            for i, (j, h) in enumerate(steps):
+                slopes.setdefault(j, {})[h > 0] = float((col[i + 1] - col[0]) / h)
+            jac[o] = {n: (slopes[j].get(False, slopes[j].get(True)), slopes[j].get(True, slopes[j].get(False)))
+                      for j, n in enumerate(problem.names)}
         return jac
     finally:
         ev.close()

@@ -15,7 +15,8 @@ from scipy.optimize import OptimizeResult
 
 from bev_mdo.mdo import first_order
 from bev_mdo.mdo.evaluator import DisciplinesLost, Evaluator
-from bev_mdo.mdo.formulations import FAIL_OBJECTIVE, FORMULATIONS, Formulation
+from bev_mdo.mdo.formulations import FORMULATIONS, Formulation
+from bev_mdo.mdo.kinks import end_point_kinks
 from bev_mdo.mdo.mda import MDA
 from bev_mdo.mdo.optimizers import (GRADIENT_BASED, NOISE_VIOLATION, canonical_name, check_finite_bounds,
                                     run_optimizer)
@@ -405,7 +406,7 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
         if wrong:
             fo.update(verdict=first_order.STOPPED, conditions_hold=False, derivatives_disagree=wrong)
     if ok and fo["verdict"] == first_order.STOPPED and not fo["unknown_derivatives"]:  # is it smooth there?
-        fo["kinks"] = kinks(form, u, f[0], float(np.max(np.abs(df), initial=0.0)))
+        fo["kinks"] = end_point_kinks(form, u, f[0], g[0], h[0], float(np.max(np.abs(df), initial=0.0)))
     seen = abs(float(f[0])) / form.problem.objective_scale  # the objective as the optimiser sees it
     if ok and fo["verdict"] == first_order.NO_PROGRESS and seen >= OBJECTIVE_SCALE_HINT:
         fo["objective_seen"] = seen  # an objective of 1e6 stopped SLSQP at its first point, with no hint
@@ -434,35 +435,6 @@ def derivatives_disagree(form: Formulation, u: np.ndarray, g: np.ndarray, analyt
     i, j = np.unravel_index(int(np.argmax(gap)), gap.shape)
     names = [form.problem.objective, *form.ineq_labels, *form.eq_labels]
     return {"of": names[rows[i]], "wrt": form.var_names[j], "analytic": float(a[i, j]), "fd": float(b[i, j])}
-
-
-def kinks(form: Formulation, u: np.ndarray, f0: float, grad_max: float) -> list[dict]:
-    """The optimiser's variables in which the minimised objective has a kink at ``u``: its one-sided slopes
-    differ by more than first_order.FIRST_ORDER_TOL x max(1, |grad f|), by the same jump at steps of ``fd_step``
-    and 4 x ``fd_step`` either way (one batch; noise shrinks the jump 4-fold at the longer step, curvature
-    grows it 4-fold). A van's efficiency map: gear_ratio 20.33 left, 20.84 right, where no gradient can
-    satisfy the first-order conditions. Slopes per scaled unit, as the check's gradient."""
-    lo, hi = form.u_bounds
-    h, n = form.fd_step, form.n
-    steps = (h, -h, 4 * h, -4 * h)
-    free = [j for j in range(n) if lo[j] <= u[j] - 4 * h and u[j] + 4 * h <= hi[j]]
-    if not free:
-        return []
-    U = np.repeat(u[None, :], len(steps) * len(free), axis=0)
-    for k, j in enumerate(free):
-        U[len(steps) * k:len(steps) * (k + 1), j] += steps
-    f, _, _ = form.evaluate_batch(form.to_x(U))
-    f = f.reshape(len(free), len(steps))
-    scale, tol = form.problem.objective_scale, first_order.FIRST_ORDER_TOL * max(1.0, grad_max)
-    out = []
-    for k, j in enumerate(free):
-        if not np.all(np.abs(f[k]) < FAIL_OBJECTIVE):
-            continue
-        right, left = (f[k, [0, 2]] - f0) / np.array([h, 4 * h]) / scale, (f0 - f[k, [1, 3]]) / np.array([h, 4 * h]) / scale
-        jump = right - left
-        if abs(jump[0]) > tol and 0.5 <= jump[1] / jump[0] <= 2.0:
-            out.append({"name": form.var_names[j], "left": float(left[0]), "right": float(right[0])})
-    return out
 
 
 def exit_status(doc: dict, fixed_budget: bool = False) -> int:

@@ -144,11 +144,24 @@ def verdict_line(fo: dict) -> str:
         return (f"{v} (no derivative in {', '.join(unknown)}: {'its' if len(unknown) == 1 else 'their'} "
                 f"finite-difference points failed, "
                 "so the first-order conditions cannot be verified)")
-    kinks = fo.get("kinks")  # driver.kinks: the objective's one-sided slopes differ there
-    kink = ("; the objective has a kink at the point in " + ", ".join(
-        f"{k['name']} (one-sided slopes {k['left']:.5g} and {k['right']:.5g})" for k in kinks)
-        + ": a nonsmooth model, whose optimum the first-order conditions cannot verify") if kinks else ""
+    kinks = fo.get("kinks")  # mdo/kinks.py: one-sided slopes of the objective or an active constraint differ
+    kink = f"; {_kinks(kinks)}: a nonsmooth model, whose optimum the first-order conditions cannot verify" if kinks else ""
     scale = (f"; the optimiser sees an objective of {fo['objective_seen']:.1e}: give problem.objective_scale about "
              f"{fo['objective_seen']:.0e} so that it is of order one") if fo.get("objective_seen") else ""
     return (f"{v} (projected gradient of the Lagrangian {fo['stationarity']:.3g}, complementarity "
             f"{fo['complementarity']:.3g}; tolerance {fo['tolerance']:g}{kink}{scale})")
+
+
+def _kinks(kinks: Sequence[dict]) -> str:
+    """mdo/kinks.py's kinks by what they are in (the objective, or a constraint), each with its variables and
+    their one-sided slopes, e.g. 'the objective has a kink at the point in x (one-sided slopes 4 and 6)' (found
+    with the longer steps: 'within 0.0002 (scaled) of the point')."""
+    by: dict[str, list[dict]] = {}
+    for k in kinks:
+        by.setdefault(k.get("in", "objective"), []).append(k)
+    parts = []
+    for what, ks in by.items():
+        where = f"within {ks[0]['near_step']:g} (scaled) of the point" if ks[0].get("near_step") else "at the point"
+        parts.append(f"{'the objective' if what == 'objective' else what} has a kink {where} in " + ", ".join(
+            f"{k['name']} (one-sided slopes {k['left']:.5g} and {k['right']:.5g})" for k in ks))
+    return "; ".join(parts)

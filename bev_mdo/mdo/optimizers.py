@@ -190,6 +190,10 @@ OPTIMIZERS: dict[str, Callable | str] = {
 COUNT_OPTIONS = frozenset({"maxiter", "maxfev", "popsize", "cheb_n_max"})
 
 
+# Optimisers that draw random numbers: a run's seed (optimize --seed, Study.optimize's seed) seeds one whose
+# options give no seed (or rng) of their own; 0, the run's default, is their default rng here too.
+SEEDED = frozenset({"differential_evolution"})
+
 # Optimisers whose first step needs the gradient at x0 (the driver evaluates x0 with its FD stencil).
 GRADIENT_BASED = frozenset({"SLSQP", "trust-constr"})
 # Optimisers of which one process runs one at a time: scipy holds a module lock (COBYQA_LOCK) through each

@@ -182,16 +182,19 @@ def fit(fleet: fl.Fleet, mask: np.ndarray | None = None, names=None, cycles: dic
     # error, and the others' errors come from the determined columns alone (the full J^T J is singular;
     # its column is zero, as may be a column too small to count). One the fit presses against a
     # bound is at that bound, held there like a fixed value, without a standard error (whether the data
-    # move it is asked of the residuals one step inside the bound: TRF may zero an active bound's column)
+    # move it is asked of the residuals one step inside the bound: TRF may zero an active bound's column).
+    # Only a parameter of the solve is asked, and every one at the solution (res.fun's point) before any is
+    # put on its bound: one left out (its default on a bound: no wound rotor, no field loss) was asked after
+    # another moved onto its bound, and that move (1e-7 W of drag) counted as its own
     norms = np.linalg.norm(res.jac * scale, axis=0)
     determined = norms > 1e-9 * max(float(norms.max(initial=0.0)), 1e-300)
     at_bound = [None] * len(names)
     sides = bound_side(res.x)
-    for j in np.flatnonzero(sides):
-        determined[j] = False
-        if moves(res.x, res.fun, j):  # one step inside the bound
-            at_bound[j] = "lower" if sides[j] < 0 else "upper"
-            res.x[j] = lo[j] if sides[j] < 0 else hi[j]
+    on_bound = np.flatnonzero((sides != 0) & free)
+    determined[on_bound] = False
+    for j in [j for j in on_bound if moves(res.x, res.fun, j)]:  # one step inside the bound
+        at_bound[j] = "lower" if sides[j] < 0 else "upper"
+        res.x[j] = lo[j] if sides[j] < 0 else hi[j]
     n, p = res.fun.size, int(determined.sum())
     s2 = float(res.fun @ res.fun) / (n - p) if n > p else np.nan  # no residual degree of freedom: unknown
     se = np.full(len(names), np.nan)

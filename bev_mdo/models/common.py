@@ -94,11 +94,18 @@ def is_number(value: Any) -> bool:
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
 
 
+def check_whole(value: Any) -> int:
+    """A whole number (an int or a numpy integer; not a bool, which Python counts as 1, nor 2.9 or "3", which
+    int() would take); ValueError otherwise. Every count and seed of the Python API."""
+    if not isinstance(value, (int, np.integer)) or isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{value!r} is not a whole number")
+    return int(value)
+
+
 def check_seed(value: Any) -> int:
     """A random seed: a whole number >= 0 (numpy refuses a negative one with "expected non-negative integer",
     which names nothing, and takes True as 1); ValueError otherwise. ``--seed`` and the Python API's seed."""
-    if not isinstance(value, (int, np.integer)) or isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{value!r} is not a whole number")
+    check_whole(value)
     if value < 0:
         raise ValueError(f"{value}: give a whole number >= 0")
     return int(value)

@@ -308,6 +308,18 @@ def trace_record(cycle: DriveCycle) -> dict[str, list[float]]:
     return {"time_s": [float(t) for t in cycle.time_s], "speed_m_s": [float(v) for v in cycle.speed_m_s]}
 
 
+def trace_yaml_chars(record: Mapping[str, list[float]]) -> int:
+    """The characters a ``cycle_traces`` entry takes in a resolved config's YAML (``yaml.safe_dump``, block
+    style: a line ``    - VALUE`` per sample value, VALUE ``repr`` of the float with ``.0`` put before a bare
+    exponent), its two keys left out. A run's resolved config is what its bag stores and its nodes read, as YAML
+    of at most ``yamlload.MAX_YAML_BYTES``: a trace is refused when it is read if it could not be read back."""
+    chars = 0
+    for values in record.values():
+        text = [repr(x) for x in values]
+        chars += sum(map(len, text)) + 7 * len(text) + 2 * sum("e" in t and "." not in t for t in text)
+    return chars
+
+
 def trace_cycle(key: str, record: Any) -> DriveCycle:
     """The cycle of a ``cycle_traces`` entry, checked as a CSV is (ValueError naming it)."""
     where = f"cycle_traces[{key!r}]"

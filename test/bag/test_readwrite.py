@@ -180,13 +180,15 @@ def test_history_and_last_iterate_parse_the_stored_config_once(synthetic_bag, mo
 
     bag_dir, _ = synthetic_bag
     expected_rows, expected_last = history(bag_dir), last_iterate(bag_dir)
-    real, parsed = yaml.safe_load, []
+    from bev_mdo import yamlload
+
+    real, parsed = yamlload.load_yaml, []
 
     def counting(text, *args, **kwargs):
         parsed.append(text == CONFIG_YAML)
         return real(text, *args, **kwargs)
 
-    monkeypatch.setattr(yaml, "safe_load", counting)
+    monkeypatch.setattr(yamlload, "load_yaml", counting)
     assert history(bag_dir) == expected_rows
     assert parsed.count(True) == 1
     parsed.clear()
@@ -236,3 +238,26 @@ def test_history_does_not_write_its_csv_over_the_bag_it_read(synthetic_bag, name
     assert code == 2 and f"that is the bag's own {target.name}; write the CSV elsewhere" in err
     assert target.read_bytes() == before
     assert cli("history", str(bag_dir), "--csv", str(bag_dir / "history.csv"))[0] == 0  # beside it, as report's files
+
+
+def test_a_stored_config_is_parsed_within_the_yaml_limits():
+    """A bag may come from anyone: its stored config was parsed with plain yaml.safe_load, so an alias bomb
+    (a few lines, 10^9 values once expanded) reached every reader as a config. It is read as no config now,
+    as any other unreadable one, and a resume says which bag and why."""
+    from bev_mdo.bag.stored import StoredConfig
+
+    bomb = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
+        f"{c}: &{c} [{', '.join(['*' + p] * 10)}]\n" for p, c in zip("abcdefgh", "bcdefghi"))
+    assert len(yaml.safe_load(bomb)["i"]) == 10  # plain YAML takes it (len: its repr would expand it)
+    assert len(StoredConfig.parse(bomb).data) == 0
+    assert StoredConfig.parse(CONFIG_YAML).data == yaml.safe_load(CONFIG_YAML)
+
+
+def test_resume_names_the_bag_whose_config_cannot_be_read_back(synthetic_bag, monkeypatch):
+    from bev_mdo import yamlload
+    from bev_mdo.cli.resume import resume_point
+
+    bag_dir, _ = synthetic_bag
+    monkeypatch.setattr(yamlload, "MAX_YAML_BYTES", 16)  # as a cycle trace recorded whole past 8 MiB was
+    with pytest.raises(ValueError, match=f"{bag_dir}: the bag's configuration cannot be read back .*YAML text"):
+        resume_point(str(bag_dir))

@@ -166,6 +166,31 @@ def test_a_bad_config_raises_input_error():
     (lambda s: s.sensitivity(at={"motor_kw": [60, 80]}, transport="inprocess"), r"--at motor_kw=\[60, 80\]: the design"),
     # a misspelt keyword: TypeError naming OptimizeOptions.__init__
     (lambda s: s.optimize(transport="inprocess", instance=2), r"instance: unknown key of optimize\(\); did you mean 'instances'"),
+    # a count that is not a whole number: starts=2.9 ran 2 starts, "3" ran 3, True ran 1; samples=2.5 a bare TypeError
+    (lambda s: s.optimize(starts=2.9, transport="inprocess"), r"^starts 2.9 is not a whole number$"),
+    (lambda s: s.optimize(starts="3", transport="inprocess"), r"^starts '3' is not a whole number$"),
+    (lambda s: s.optimize(starts=True, transport="inprocess"), r"^starts True is not a whole number$"),
+    (lambda s: s.sweep("lhs", samples=2.5, transport="inprocess"), r"^samples 2.5 is not a whole number$"),
+    (lambda s: s.global_sensitivity("morris", samples=4.0, transport="inprocess"), r"^samples 4.0 is not a whole number$"),
+    (lambda s: s.sensitivity(order=1.0, transport="inprocess"), r"^order 1.0 is not a whole number$"),
+    (lambda s: s.pareto(["energy_wh_per_km", "range_km"], generations=1.5, pop=4, transport="inprocess"),
+     r"^generations 1.5 is not a whole number$"),
+    (lambda s: s.pareto(["energy_wh_per_km", "range_km"], generations=1, pop="4", transport="inprocess"),
+     r"^pop '4' is not a whole number$"),
+    # a design value as text or a bool: "80" was read as 80, True as 1 (a bound refused them)
+    (lambda s: s.evaluate({"motor_kw": "80"}, transport="inprocess"), r"^motor_kw='80': must be a number$"),
+    (lambda s: s.evaluate({"motor_kw": True}, transport="inprocess"), r"^motor_kw=True: must be a number$"),
+    (lambda s: s.sweep(designs={"motor_kw": ["60", "80"]}, transport="inprocess"), r"^designs motor_kw=\['60', '80'\]: must be a number$"),
+    (lambda s: s.sweep(designs={"motor_kw": [60]}, fixed={"battery_kwh": "30"}, transport="inprocess"),
+     r"^fixed battery_kwh='30': must be a number$"),
+    (lambda s: s.sensitivity(at={"motor_kw": "80"}, order=1, transport="inprocess"), r"^--at motor_kw='80': must be a number$"),
+    (lambda s: s.optimize(x0={"motor_kw": "80"}, transport="inprocess"), r"^x0 motor_kw='80': must be a number$"),
+    (lambda s: s.optimize(x0=[80, 8, 24], transport="inprocess"), r"^x0 must be a mapping of names to values, got list$"),
+    # transport= anything but a name or a Transport ran over ROS (the default), checked before the rest
+    (lambda s: s.optimize(starts=0, transport={"transport": "inprocess"}),
+     r"^transport must be a name \('ros' or 'inprocess'\) or a Transport, got \{'transport': 'inprocess'\}$"),
+    (lambda s: s.evaluate({"motor_kw": float("nan")}, transport=None), r"^transport must be a name .* got None$"),
+    (lambda s: s.sweep("lhs", samples=0, transport=5), r"^transport must be a name .* got 5$"),
 ])
 def test_arguments_of_the_wrong_kind_raise_input_error(run, said):
     from bev_mdo import InputError, Study
@@ -206,3 +231,105 @@ def test_results_as_tables(monkeypatch):
     grid = study.sweep(designs={"motor_kw": [40, 80]}, transport="inprocess")
     assert [r["feasible"] for r in grid.rows()] == [False, True]  # 40 kW misses the 0-100 km/h limit
     assert grid.best()["motor_kw"] == 80
+
+
+def _sellar_mapping(**edits) -> dict:
+    import yaml
+
+    raw = yaml.safe_load((ROOT / "examples" / "sellar" / "sellar_mdf.yaml").read_text(encoding="utf-8"))
+    return {**raw, "search_path": [str(ROOT / "examples" / "sellar")], **edits}
+
+
+def test_a_study_keeps_its_mapping_as_it_was_built():
+    """A shallow copy: a later edit of the caller's nested dict reached the study at its next change."""
+    from bev_mdo import Study
+
+    raw = _sellar_mapping()
+    study = Study(raw)
+    raw["problem"]["design_variables"]["z1"]["upper"] = 3.0  # building a variant from the same dict
+    raw["problem"]["constraints"]["y2"]["upper"] = 1.0
+    study.constrain("y1", lower=3.16)
+    assert study.config["problem"]["design_variables"]["z1"]["upper"] == 10
+    assert study.config["problem"]["constraints"]["y2"]["upper"] == 24
+
+
+@pytest.mark.parametrize("domain_id", ["x", 300, -1, True])
+def test_a_transport_refuses_a_domain_id_that_is_no_ros_domain_when_made(domain_id):
+    """It was accepted and refused only at the run, as the config's ros.domain_id."""
+    from bev_mdo import InputError, Transport
+
+    with pytest.raises(InputError) as err:
+        Transport(domain_id=domain_id)
+    assert str(err.value) == f"domain_id must be an integer in [0, 232], got {domain_id!r}"
+    assert Transport(domain_id=232).domain_id == 232
+
+
+def test_a_transport_takes_a_numpy_integer_domain_id_as_counts_and_seeds_do():
+    """Transport(domain_id=np.int64(5)) was refused, 'got np.int64(5)', while counts and seeds take numpy integers."""
+    import numpy as np
+
+    from bev_mdo import InputError, Transport
+
+    got = Transport(domain_id=np.int64(5)).domain_id
+    assert got == 5 and type(got) is int
+    with pytest.raises(InputError, match=r"domain_id must be an integer in \[0, 232\], got 300"):
+        Transport(domain_id=np.int16(300))
+
+
+def test_ctrl_c_during_a_run_raises_on_with_what_its_bag_holds(tmp_path):
+    """KeyboardInterrupt came out bare; it carries the lines the CLI prints (what the bag holds, how to resume),
+    and a later run without a bag does not name the earlier run's."""
+    from bev_mdo import Study
+
+    calls = []
+
+    def stop_at_third(record):
+        calls.append(record)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+
+    bag = tmp_path / "b"
+    study = Study(ROOT / "config" / "leaf_nedc.yaml")
+    with pytest.raises(KeyboardInterrupt) as stopped:
+        study.optimize(transport="inprocess", bag=str(bag), callback=stop_at_third)
+    assert stopped.value.__notes__ == [
+        "bev-mdo: interrupted",
+        f"bev-mdo: bag {bag}: 3 iteration records, every finished iteration (bev-mdo history {bag}; "
+        f"bev-mdo resume {bag} goes on from the last)"]
+    calls.clear()
+    with pytest.raises(KeyboardInterrupt) as again:
+        study.optimize(transport="inprocess", callback=stop_at_third)
+    assert again.value.__notes__ == ["bev-mdo: interrupted"]
+
+
+def test_the_optimize_result_says_the_verdicts_a_run_gives():
+    """It listed 'not_converged' and an ``active`` attribute; neither exists."""
+    from bev_mdo import OptimizeResult
+    from bev_mdo.mdo import first_order
+
+    doc = " ".join(OptimizeResult.__doc__.split())
+    for verdict in (first_order.OPTIMUM, first_order.STOPPED, first_order.NO_PROGRESS, first_order.INFEASIBLE):
+        assert f'"{verdict}"' in doc
+    assert "not_converged" not in doc and "``active`` the" not in doc
+
+
+def test_a_note_of_study_evaluate_names_the_api_not_the_command(capsys):
+    from bev_mdo import Study
+
+    Study(ROOT / "config" / "leaf_nedc.yaml").evaluate({"motor_kw": 200}, transport="inprocess")
+    assert capsys.readouterr().err.strip() == (
+        "bev_mdo Study.evaluate: note: motor_kw = 200 is outside its bounds [40, 120] (evaluated as given)")
+
+
+def test_the_seed_seeds_differential_evolution_when_its_options_give_none():
+    """optimize(seed=7) left differential_evolution at its rng 0 (the same x as seed 0)."""
+    from bev_mdo import Study
+
+    def de(run_seed, **options):
+        engine = {"name": "differential_evolution", "options": {"maxiter": 2, "popsize": 5, **options}}
+        return Study(_sellar_mapping(optimizer=engine)).optimize(seed=run_seed, transport="inprocess")
+
+    zero, seven, own = de(0), de(7), de(0, seed=7)
+    assert zero.x != seven.x
+    assert seven.x == own.x and seven.objective == own.objective  # the same draws as the option's seed 7
+    assert de(3, seed=7).x == own.x  # the options' own seed wins

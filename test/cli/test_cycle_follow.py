@@ -165,3 +165,30 @@ def test_the_force_margin_is_refused_for_a_two_speed_box(tmp_path):
     raw["vehicle"].update(gear_count=2, gear_ratio_2=1.0)
     with pytest.raises(ValueError, match=r"feasibility_outputs with energy_model flat covers a single-speed gearbox$"):
         RunConfig.load(raw)
+
+
+def test_where_the_steps_are_not_checked_the_models_own_margins_say_it(tmp_path, capsys):
+    """A Taycan-like DM-DA design turned its rear motor 156 rad/s past its limit on a motorway cycle: its
+    energy was reported, feasible as far as the cycle went, with a note that the steps are not checked, while
+    the energy model's own margin (feasibility_outputs) said motor_speed_margin_rad_s -155.8. A margin below 0
+    is a design that cannot follow its cycle, in evaluate and in a sweep; margins at or above 0 leave no note."""
+    raw = yaml.safe_load((ROOT / "config" / "topologies_artemis.yaml").read_text())
+    raw["vehicle"]["topology"] = "DM-DA"
+    raw["problem"]["design_variables"].update(motor_rear_kw={"lower": 20, "upper": 130, "initial": 60},
+                                              gear_ratio_rear={"lower": 4, "upper": 20, "initial": 7.9})
+    raw["problem"]["constraints"] = {"range_nedc_km": {"lower": 175}}  # the margins are outputs only
+    path = tmp_path / "dmda.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    # 10500 rpm = 1100 rad/s; Artemis' motorway top 36.2 m/s at a 0.316 m wheel: 114.5 rad/s per unit of gear
+    assert main(["evaluate", str(path), "--transport", "inprocess", "--json", "--set", "gear_ratio_rear=16"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["outputs"]["motor_speed_margin_rad_s"] < 0 and not doc["feasible"]
+    assert "energy: the design cannot follow its cycle (motor_speed_margin_rad_s -" in doc["notes"][0]
+    assert main(["evaluate", str(path), "--transport", "inprocess", "--json", "--set", "gear_ratio_rear=7.9"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["outputs"]["motor_speed_margin_rad_s"] > 0 and doc["feasible"]
+    assert not [n for n in doc.get("notes", []) if n.startswith("energy:")]  # (cycle_range has no margins: noted)
+    assert main(["sweep", str(path), "--transport", "inprocess", "--no-record", "--vary", "gear_ratio_rear=7.9,16",
+                 "--out", str(tmp_path / "sw")]) == 0
+    out = capsys.readouterr().out
+    assert "1 of 2 designs cannot follow the drive cycle" in out

@@ -51,6 +51,13 @@ def test_parameter_override_changes_energy(capsys):
 @pytest.mark.parametrize("argv,msg", [
     (["--set", "motor_kw"], "--set 'motor_kw' must be NAME=VALUE"),
     (["--set", "motor_kw=fast"], "value must be a number"),
+    # a list for a two-speed gearbox: "'[9.04': value must be a number" and "'4.7' must be NAME=VALUE"
+    (["--set", "gear_ratio=[9.04,4.7]"], "--set gear_ratio=[9.04,4.7]: --set takes one number per name (NAME=VALUE) "
+                                         "(a two-speed gearbox is gear_count=2 with gear_ratio_2 for its second "
+                                         "gear: --set gear_count=2,gear_ratio=9.04,gear_ratio_2=4.7)"),
+    (["--set", "gear_ratio=9.04,4.7"], "--set gear_ratio=9.04,4.7: --set takes one number per name (NAME=VALUE) (a "
+                                       "two-speed gearbox is gear_count=2 with gear_ratio_2"),
+    (["--set", "motor_kw=80,90"], "--set motor_kw=80,90: --set takes one number per name (NAME=VALUE)\n"),
     (["--set", "warp=1"], "unknown design names ['warp']"),
     # a value that is not finite was evaluated "as given" (a note that it is outside its bounds, exit 1)
     (["--set", "motor_kw=nan"], "--set motor_kw=nan: a design value must be a finite number"),
@@ -66,6 +73,11 @@ def test_parameter_override_changes_energy(capsys):
     # the last one used to win silently
     (["--set", "motor_kw=70,motor_kw=80"], "--set motor_kw: given twice (70 and 80)"),
     (["--set", "motor_kw=70", "gear_ratio=8", "motor_kw=80"], "--set motor_kw: given twice (70 and 80)"),
+    # an empty item was skipped without a word; a bare nan after a value was "'nan' must be NAME=VALUE"
+    (["--set", "motor_kw=100,,battery_kwh=25"], "--set 'motor_kw=100,,battery_kwh=25': an empty item between commas"),
+    (["--set", ",motor_kw=100"], "--set ',motor_kw=100': an empty item between commas"),
+    (["--set", "motor_kw=100,nan"], "--set motor_kw=100,nan: --set takes one number per name (NAME=VALUE)\n"),
+    (["--set", "motor_kw=100,-inf"], "--set motor_kw=100,-inf: --set takes one number per name (NAME=VALUE)\n"),
 ])
 def test_bad_input_is_one_line_exit_2(capsys, argv, msg):
     code, _, err = run(capsys, LEAF, *argv)
@@ -195,12 +207,20 @@ def test_table_names_a_maximised_objective_as_max(capsys):
     assert "objective (min)" in next(line for line in out.splitlines() if "energy_wh_per_km" in line)
 
 
-def test_a_design_outside_the_bounds_is_evaluated_with_a_note(capsys):
+def test_a_design_outside_the_bounds_is_evaluated_with_a_note_and_is_infeasible(capsys):
+    """It was reported 'feasible: yes' (JSON true) while optimize's answers call a point outside its bounds
+    infeasible whatever its constraints say (docs/answers.md) and compare refuses it."""
     code, out, err = run(capsys, LEAF, "--set", "motor_kw=200,gear_ratio=8", "--json")
-    assert code == 0 and json.loads(out)["design"]["motor_kw"] == 200
+    report = json.loads(out)
+    assert code == 0 and report["design"]["motor_kw"] == 200
     assert err.strip() == "bev-mdo evaluate: note: motor_kw = 200 is outside its bounds [40, 120] (evaluated as given)"
+    assert report["feasible"] is False and all(c["satisfied"] for c in report["constraints"].values())
+    assert report["notes"][0] == ("motor_kw = 200 is outside its bounds [40, 120]: infeasible whatever the "
+                                  "constraints say (evaluated as given)")
+    code, out, err = run(capsys, LEAF, "--set", "motor_kw=200,gear_ratio=8")
+    assert out.rstrip().endswith("feasible: NO")
     code, out, err = run(capsys, LEAF, "--set", "motor_kw=120,gear_ratio=8", "--json")
-    assert code == 0 and "note:" not in err  # on the bound is inside
+    assert code == 0 and "note:" not in err and json.loads(out)["feasible"] is True  # on the bound is inside
 
 
 def test_a_design_past_the_vehicle_mass_limit_keeps_the_outputs_that_do_not_depend_on_mass(capsys):
@@ -230,3 +250,20 @@ def test_a_set_parameter_is_shown_as_a_parameter_not_a_design_variable(capsys):
     row = next(line for line in out.splitlines() if "load_kg" in line)
     assert "parameter" in row and "design" not in row, row
 
+
+
+def test_the_table_says_the_cycles_duration_distance_and_top_speed(capsys, tmp_path):
+    """A cycle in m/s under the km/h header (a 50 km/h cruise written 13.89) was evaluated with nothing of the
+    cycle shown: its 13.9 km/h top speed is now the first line."""
+    t = range(0, 601, 10)
+    (tmp_path / "cruise.csv").write_text("time_s,speed_kmh\n" + "".join(
+        f"{s},{0 if s in (0, 600) else 13.89}\n" for s in t))
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(LEAF.read_text().replace("cycle: {name: nedc", "cycle: {name: cruise.csv"))
+    code, out, _ = run(capsys, cfg)
+    assert code in (0, 1) and out.splitlines()[0] == "cycle: cruise 600 s, 2.28 km, top 13.9 km/h"
+    code, out, _ = run(capsys, ROOT / "config" / "leaf_epa_combined.yaml")
+    assert out.splitlines()[0] == ("cycles: epa_us06 600 s, 12.89 km, top 129.2 km/h; epa_udds 1369 s, 11.99 km, "
+                                   "top 91.3 km/h; epa_hwfet 765 s, 16.51 km, top 96.4 km/h")
+    code, out, _ = run(capsys, LEAF, "--json")
+    assert json.loads(out)["design"]  # JSON as it was

@@ -59,6 +59,19 @@ def test_unknown_vehicle_topology_exit_2(tmp_path, capsys):
                "got 'WHEEL-9'" in err
 
 
+@pytest.mark.parametrize("flag", [("--all-topologies",), ("--topology", "DM-DA")])
+def test_a_topology_study_of_a_bad_config_names_the_file(tmp_path, capsys, flag):
+    """'error: <config>: problem.constraints.top_speed_kmh: no discipline produces it' with --all-topologies; the
+    same config named its file everywhere else."""
+    raw = _raw()
+    raw["problem"]["constraints"]["top_speed_kmh"] = {"lower": 250}
+    cfg = _write(tmp_path, raw)
+    code, err = _run(capsys, "pareto", cfg, *flag, "--out", tmp_path / "o", "--generations", "1", "--pop", "4",
+                     "--transport", "inprocess")
+    assert code == 2 and err.count("\n") == 1
+    assert f"bev-mdo pareto: error: {cfg}: problem.constraints.top_speed_kmh: no discipline produces it" in err
+
+
 def test_unknown_topology_flag_exit_2(tmp_path, capsys):
     code, err = _run(capsys, "pareto", _write(tmp_path, _raw()), "--topology", "WHEEL-9", "--out", tmp_path / "o",
                      "--transport", "inprocess")
@@ -175,6 +188,8 @@ def test_the_topology_study_labels_each_topology_and_keeps_the_users_bounds(tmp_
                      "--pop", "4", "--no-plots", "--out", out, "--transport", "inprocess")
     assert code == 0, err
     assert "DM-DA: NSGA-II 4 x 1" in err and "SM-SA" not in err
+    # each topology's motor power per motor and in total (an in-wheel motor_kw is per motor: like for like?)
+    assert "motor power motor_kw [50, 110] kW, motor_rear_kw [20, 90] kW: 70-200 kW in total" in err
     timing = json.loads((out / "summary.json").read_text())["timing"]
     assert list(timing) == ["DM-DA"]
     dvs = timing["DM-DA"]["design_variables"]
@@ -206,6 +221,8 @@ def test_the_command_lines_bounds_go_to_each_studied_topology(tmp_path, capsys):
     timing = json.loads((tmp_path / "all" / "summary.json").read_text())["timing"]
     assert [timing[t]["design_variables"].get("gear_ratio") for t in ("SM-SA", "DM-DA", "IWM-SA", "IWM-DA")] == [
         [5, 6], [5, 6], None, None]
+    assert "IWM-DA: NSGA-II 4 x 1 over inprocess; motor power motor_kw [40, 130] kW x 2 motors, motor_rear_kw " \
+           "[10, 70] kW x 2 motors: 100-400 kW in total" in err
     code, err = _run(capsys, "pareto", cfg, "--all-topologies", "--bound", "motr_kw=5:6", "--out", tmp_path / "x", *study)
     assert code == 2 and "--bound 'motr_kw': not a design variable of any studied topology" in err
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from bev_mdo.cli import main
@@ -49,10 +50,11 @@ def test_large_sensitivities_stay_separate_columns():
         assert len(first.split()) == 3, first  # the name and one number per variable
         assert abs(float(first.split()[1])) > 1e7
         if order == 2:
-            row = next(line for line in lines if line.startswith("y ") and ("NC" in line or "C" in line))
-            assert len(row.split()) == 3, row  # the name, then value and label of the diagonal cell
-            row = next(line for line in lines if line.startswith("x ") and "C" in line)
-            assert len(row.split()) == 5, row  # the name, then value and label of each cell
+            second = buf.getvalue().split("Second-order")[1].splitlines()
+            row = next(line for line in second if line.startswith("y "))
+            assert len(row.split()) == 2, row  # the name, then the diagonal cell's value (no coupling label)
+            row = next(line for line in second if line.startswith("x ") and "C" in line)
+            assert len(row.split()) == 4, row  # the name, the diagonal value, the coupling's value and label
 
 
 def test_a_point_that_is_not_finite_is_one_line_naming_it(capsys):
@@ -118,7 +120,66 @@ def test_a_value_the_two_steps_disagree_on_is_marked(capsys):
     row = next(line for line in out.getvalue().splitlines() if line.startswith("f "))
     x_cell, y_cell = row.split()[1:3]
     assert x_cell.endswith("~") and not y_cell.endswith("~"), row
-    assert "differ by over 1% of the value" in out.getvalue()
+    assert "uncertain by over 1% of the value" in out.getvalue()
     smooth = io.StringIO()
     print_tables(sensitivities(lambda X: {"f": 10.0 + X[:, 0] + 0.5 * X[:, 1]}, {"x": 1.0, "y": 1.0}), ["f"], out=smooth)
     assert "~" not in smooth.getvalue()
+
+
+def test_a_second_order_entry_without_a_sure_sign_is_marked():
+    # A Model 3 trial: energy's battery x battery S' printed -0.0002 where central differences give +0.0014;
+    # its Richardson error (1.6e-3, in the JSON only) was larger than the value, and the table said nothing.
+    # An entry whose error is over 1 % of it (and over half the last digit shown) is marked "~".
+    import io
+
+    from bev_mdo.cli.sensitivity import print_tables
+    from bev_mdo.mdo.sensitivity import sensitivities
+
+    def fun(X):
+        x, y = X[:, 0], X[:, 1]
+        return {"f": 10.0 + x + 0.5 * y + 0.2 * y * y + 0.01 * (x > 1.0 + 1.5e-4)}  # a jump between h and 2h of x
+    s = sensitivities(fun, {"x": 1.0, "y": 1.0}, order=2)
+    out = io.StringIO()
+    print_tables(s, ["f"], out=out)
+    second = out.getvalue().split("Second-order")[1].splitlines()
+    xx = next(line for line in second if line.startswith("x "))
+    yy = next(line for line in second if line.startswith("y "))
+    assert xx.split()[1].endswith("~") and not yy.rstrip().endswith("~"), out.getvalue()
+    assert "no sure sign" in out.getvalue()
+
+
+def test_a_kink_at_the_point_itself_is_marked_though_the_two_steps_agree():
+    # A Taycan-like trial: top speed = min(a cap falling with the gear, a power limit), the design on the kink.
+    # Central differences at h and 2h agree on the mean of the two slopes (0.188 printed; 0.376 one side, 0 the
+    # other), so the Richardson error was 0 and nothing was marked. Half the jump between the one-sided slopes
+    # (the same at h and 2h) is the error now; curvature (whose jump doubles at 2h) is not taken for a kink.
+    import io
+
+    from bev_mdo.cli.sensitivity import print_tables
+    from bev_mdo.mdo.sensitivity import sensitivities
+
+    s = sensitivities(lambda X: {"v": np.minimum(2.0 * X[:, 0], 3.0 + X[:, 1] ** 2)}, {"x": 1.5, "y": 0.0})
+    assert s.first["v"][0] == pytest.approx(0.5) and s.first_error["v"][0] == pytest.approx(0.5)  # slopes 1 and 0
+    out = io.StringIO()
+    print_tables(s, ["v"], out=out)
+    row = next(line for line in out.getvalue().splitlines() if line.startswith("v "))
+    assert row.split()[1].endswith("~"), row
+    curved = sensitivities(lambda X: {"v": 1.0 + X[:, 0] ** 2 + X[:, 1]}, {"x": 1.0, "y": 1.0})
+    assert curved.first_error["v"][0] < 1e-6
+
+
+def test_a_diagonal_entry_gets_no_coupling_label():
+    # A thesis reader: NC/MC/SC/VSC say how strongly two variables are coupled (Fig 5-3); the 0-100 km/h time's
+    # motor_kw x motor_kw entry printed "2.2447 VSC", a variable's own curvature called a very strong coupling.
+    import io
+
+    from bev_mdo.cli.sensitivity import print_tables
+    from bev_mdo.mdo.sensitivity import sensitivities
+
+    s = sensitivities(lambda X: {"f": 1.0 + X[:, 0] ** 2 + X[:, 0] * X[:, 1]}, {"x": 1.0, "y": 1.0}, order=2)
+    out = io.StringIO()
+    print_tables(s, ["f"], out=out)
+    second = out.getvalue().split("Second-order")[1].splitlines()
+    x_row, y_row = (next(line for line in second if line.startswith(n + " ")) for n in ("x", "y"))
+    assert x_row.split()[1:] == [f"{s.second['f'][0, 0]:.4f}", f"{s.second['f'][0, 1]:.4f}", "MC"], x_row
+    assert y_row.split()[1:] == [f"{s.second['f'][1, 1]:.4f}"], y_row

@@ -395,3 +395,17 @@ def test_one_vehicle_is_one_vehicle(capsys, tmp_path):
     assert code == 0 and ": 1 vehicle, energy model" in out.splitlines()[0]
     code, out, _ = run(capsys, "--data", _write(tmp_path, _rows()[:3]))
     assert code == 0 and ": 2 vehicles, energy model" in out.splitlines()[0]
+
+
+def test_the_baselines_label_says_the_folds_it_used(capsys, tmp_path):
+    """A fleet of 4 families printed 'baseline3: held out, 5 folds by family' while calibrate on it said k=4:
+    there are at most as many folds as families."""
+    rows = _rows()
+    data = _write(tmp_path, [rows[0], *(r for r in rows[1:] if r[0] in ("Ford", "KIA"))])
+    families = len(set(fl.read_fleet(data).family()))
+    assert 2 <= families < 5
+    code, out, _ = run(capsys, "--data", data)
+    assert code == 0 and f"baseline3: held out, {families} folds by family;" in out
+    code, out, _ = run(capsys, "--data", data, "--json")
+    doc = json.loads(out)["reference"]
+    assert doc["baseline3_folds"] == families and f"({families}-fold by family)" in doc["columns"]["baseline3"]

@@ -45,9 +45,10 @@ def test_evaluate_reports_the_design_infeasible_with_a_finite_violation_and_says
     acc = report["constraints"]["accel_time_0_100_s"]
     assert report["ok"] and not report["feasible"] and not acc["satisfied"]
     assert np.isfinite(acc["margin"]) and acc["margin"] < -1000
-    # it cannot follow the NEDC's 120 km/h either (models/follow.py), which comes first
-    assert len(report["notes"]) == 2 and "cannot follow the cycle nedc" in report["notes"][0]
-    assert "cannot reach 100 km/h" in report["notes"][1]
+    # it is outside its bounds (first: what the constraints are valued at), and cannot follow the NEDC's 120 km/h
+    # either (models/follow.py)
+    assert len(report["notes"]) == 3 and "is outside its bounds" in report["notes"][0]
+    assert "cannot follow the cycle nedc" in report["notes"][1] and "cannot reach 100 km/h" in report["notes"][2]
 
 
 def test_a_sweep_lists_such_designs_as_infeasible_points_not_failures():

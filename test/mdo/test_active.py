@@ -203,3 +203,46 @@ def test_a_dimensionless_quantity_has_no_unit_after_its_number():
     assert not any("–" in line for line in a["lines"]), a["lines"]
     a = active.analyse(problem, {"x": 0.0}, {"g": -1.0}, units=units)
     assert "active: g <= -1, margin 0" in a["lines"] and "on its lower bound: x = 0 (bound 0, margin 0)" in a["lines"]
+
+
+def test_a_design_outside_its_bounds_is_named_and_is_not_feasible():
+    """COBYLA ended 6.5 % above a motor's upper bound and 8.5 % below a battery's lower one; the answers named
+    the violated constraints only, valued there, nearer their limits than any design inside the bounds."""
+    a = analyse(PROBLEM, {"motor_kw": 127.8, "battery_kwh": 18.3}, {"range_km": 300.0, "accel_time_0_100_s": 9.0})
+    assert not a["feasible"] and a["violated"] == []
+    assert [(b["name"], b["kind"], b["by"]) for b in a["outside_bounds"]] == [
+        ("motor_kw", "upper", pytest.approx(7.8)), ("battery_kwh", "lower", pytest.approx(1.7))]
+    assert a["lines"][0].startswith("outside its bounds: motor_kw = 127.8 kW, above its upper bound 120 kW by 7.8 kW")
+    inside = analyse(PROBLEM, {"motor_kw": 120.0 + 1e-9, "battery_kwh": 25.0}, {"range_km": 300.0, "accel_time_0_100_s": 9.0})
+    assert inside["feasible"] and inside["outside_bounds"] == []  # within the run's tolerance
+
+
+def test_a_kink_is_no_free_way_out_of_an_unreachable_limit():
+    """A top speed of 400 km/h, out of reach within the bounds, ended where the motor-speed cap (falling with
+    the gear) meets the power limit (free of it): the gear's one-sided slope into the cap said "a first-order step
+    reduces it: the optimiser stopped short". Both sides counted, the motor's upper bound blocks it."""
+    import yaml
+
+    from bev_mdo import Study
+    from bev_mdo.config import resolve_disciplines
+    from bev_mdo.mdo.active import answers_for
+    from bev_mdo.testing import REPO
+
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
+    raw["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed",
+                          {"name": "top_speed", "class": "examples.top_speed:TopSpeed"}]
+    raw["search_path"] = [str(REPO)]
+    raw["problem"]["constraints"]["top_speed_kmh"] = {"lower": 400}
+    study = Study(raw)
+
+    def point(gear):
+        design = {"motor_kw": 120.0, "gear_ratio": gear, "battery_kwh": 20.0}  # the most power, the least mass
+        return design, study.evaluate(design, transport="inprocess").outputs
+    power_limited = point(1.0)[1]["top_speed_kmh"]
+    capped = point(11.0)[1]["top_speed_kmh"]  # cap x gear is the same for every gear
+    design, values = point(11.0 * capped / power_limited)  # where the two meet
+    ans = answers_for(study.config.settings, design, values, lambda: resolve_disciplines(study.config), units=UNITS)
+    (v,) = ans["violated"]
+    assert v["name"] == "top_speed_kmh" and not v["free_way"]
+    assert [b["variable"] for b in v["blocked_by"]][0] == "motor_kw"
+    assert not any("stopped short" in line for line in ans["lines"])

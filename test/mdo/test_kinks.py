@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from bev_mdo.mdo import first_order
-from bev_mdo.mdo.driver import end_point_check, kinks
+from bev_mdo.mdo.driver import end_point_check
+from bev_mdo.mdo.kinks import end_point_kinks
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 from bev_mdo.mdo.formulations import MDF
 from bev_mdo.mdo.mda import MDA
@@ -55,4 +56,108 @@ def test_a_smooth_objective_curved_or_noisy_has_no_kink(disc):
     form = _form(disc)
     u = form.to_u(np.array([0.3, 0.2]))
     f0 = form.evaluate_batch(form.to_x(u)[None, :])[0][0]
-    assert kinks(form, u, f0, 5.0) == []
+    assert end_point_kinks(form, u, f0, np.zeros(0), np.zeros(0), 5.0) == []
+
+
+class Top:
+    """top = min(cap / gear, power) (a motor-speed cap falling with the gear, a power limit free of it), energy =
+    power - gear + (mass - 1)^2 (lower with a longer gear, higher with more power; mass smooth, at its best at 1),
+    and noise x a number drawn per point (the same at every call): with ``top >= 1.0`` or ``top == 1.0`` the
+    optimum is where the two meet, gear = cap, power = 1, mass = 1, a kink of the constraint in gear and power: no
+    gradient meets the first-order conditions there."""
+
+    name = "top"
+    inputs = ("gear", "power", "mass")
+    outputs = ("top", "energy")
+
+    def __init__(self, cap=1.2, energy_gear=-1.0, noise=0.0):
+        self.cap, self.energy_gear, self.noise = cap, energy_gear, noise
+
+    def compute(self, inputs):
+        gear, power = inputs["gear"], inputs["power"]
+        drawn = np.array([np.random.default_rng(abs(hash((float(a), float(b))))).uniform(-1, 1)
+                          for a, b in zip(gear, power)])
+        return {"top": np.minimum(self.cap / gear, power) + self.noise * drawn,
+                "energy": power + self.energy_gear * gear + (inputs["mass"] - 1.0) ** 2}
+
+
+START = np.array([0.8, 1.5, 1.5])
+
+
+def _top_form(disc, top):
+    ev = InProcessEvaluator([disc])
+    problem = Problem.from_config({"objective": "energy", "design_variables": {
+        "gear": {"lower": 0.5, "upper": 2.0, "initial": 0.8}, "power": {"lower": 0.5, "upper": 2.0, "initial": 1.5},
+        "mass": {"lower": 0.5, "upper": 2.0, "initial": 1.5}},
+        "constraints": {"top": top}})
+    return MDF(problem, ev, MDA(ev))
+
+
+@pytest.mark.parametrize("top", [{"lower": 1.0}, {"lower": 1.0, "upper": 1.0}])
+@pytest.mark.parametrize("noise", [0.0, 1e-10])
+def test_an_end_point_at_a_kink_of_an_active_constraint_names_it(top, noise):
+    """A Model 3 with an equality top speed ended where its motor-speed cap meets its power limit and a Taycan-like
+    DM-DA where its top speed >= 250 did: "stopped before convergence", kinks: [] (only the objective's were looked
+    for). The constraint's kink is named, with its one-sided slopes; no optimum is claimed (next test)."""
+    form = _top_form(Top(noise=noise), top)
+    fo = end_point_check(form, np.array([1.2, 1.0, 1.0]), START, 1e-6)
+    what = "top == 1" if "upper" in top else "top >= 1"
+    assert fo["verdict"] == first_order.STOPPED and not fo["conditions_hold"]
+    assert [(k["in"], k["name"]) for k in fo["kinks"]] == [(what, "gear"), (what, "power")]
+    assert fo["kinks"][1]["left"] == pytest.approx(1.5, rel=1e-3) and abs(fo["kinks"][1]["right"]) < 1e-3
+    line = first_order.verdict_line(fo)
+    assert f"{what} has a kink at the point in gear (one-sided slopes " in line and "power" in line
+    assert "a nonsmooth model, whose optimum the first-order conditions cannot verify" in line
+
+
+def test_a_kink_across_the_variables_is_never_called_an_optimum():
+    """A nonsmooth-optimisation reviewer: f = 10 |x - y| + (x + y - 4)^2 ended by COBYLA at x = y = 1.3176 was
+    called "optimum at a kink" (exit 0) by a check that added each variable's one-sided slopes (72.7 + 72.7 > 0
+    along x = y), while the valley descends at 5.5 per unit toward (2, 2). The kink is named; the verdict stays."""
+
+    class Valley:
+        name, inputs, outputs = "valley", ("x", "y"), ("f",)
+
+        def compute(self, inputs):
+            x, y = inputs["x"], inputs["y"]
+            return {"f": 10.0 * np.abs(x - y) + (x + y - 4.0) ** 2}
+
+    ev = InProcessEvaluator([Valley()])
+    problem = Problem.from_config({"objective": "f", "design_variables": {
+        "x": {"lower": -5, "upper": 5, "initial": -3}, "y": {"lower": -5, "upper": 5, "initial": 2}}})
+    fo = end_point_check(MDF(problem, ev, MDA(ev)), np.array([1.3176, 1.3176]), np.array([-3.0, 2.0]), 1e-4)
+    assert fo["verdict"] == first_order.STOPPED
+    assert [(k["in"], k["name"]) for k in fo["kinks"]] == [("objective", "x"), ("objective", "y")]
+
+
+def test_an_end_point_just_short_of_a_kink_names_it_within_the_longer_steps():
+    """SLSQP ended the Model 3's gear 2.4e-5 (scaled) short of where the cap meets the power limit: the top speed
+    is flat in the gear at steps 1e-6 and 4e-6. Steps 2e-4 and 8e-4 find the kink, said to be within them."""
+    form = _top_form(Top(), {"lower": 1.0, "upper": 1.0})
+    fo = end_point_check(form, np.array([1.2 - 3e-5 * 1.5, 1.0, 1.0]), START, 1e-6)
+    assert fo["verdict"] == first_order.STOPPED and fo["kinks"] and all(k["near_step"] == 2e-4 for k in fo["kinks"])
+    assert "has a kink within 0.0002 (scaled) of the point in gear" in first_order.verdict_line(fo)
+    far = end_point_check(form, np.array([1.2 - 2e-3 * 1.5, 1.0, 1.0]), START, 1e-6)
+    assert far["verdict"] == first_order.STOPPED and not far["kinks"]  # 2e-3 short: no kink within the steps
+
+
+def test_a_run_that_ends_where_a_top_speed_equality_meets_its_motor_speed_cap_names_the_kink():
+    """End to end (SLSQP, in process): a Leaf whose top speed must equal 160 km/h, its acceleration left free,
+    ends where the motor-speed cap through the gear meets the power limit (energy falls with the gear and rises
+    with the motor): "stopped before convergence (projected gradient of the Lagrangian 0.19 ...)" named no kink."""
+    import yaml
+
+    from bev_mdo import Study
+    from bev_mdo.mdo.driver import exit_status
+    from bev_mdo.testing import REPO
+
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
+    raw["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed",
+                          {"name": "top_speed", "class": "examples.top_speed:TopSpeed"}]
+    raw["search_path"] = [str(REPO)]
+    raw["problem"]["constraints"].update(top_speed_kmh={"lower": 160, "upper": 160}, accel_time_0_100_s={"upper": 30})
+    r = Study(raw).optimize(transport="inprocess")
+    fo = r.first_order
+    assert r.verdict == first_order.STOPPED and exit_status(r.data) == 5
+    assert {(k["in"], k["name"]) for k in fo["kinks"]} >= {("top_speed_kmh == 160", "gear_ratio")}
+    assert "top_speed_kmh == 160 has a kink" in first_order.verdict_line(fo)

@@ -276,3 +276,27 @@ def test_a_vehicle_listed_twice_is_refused_not_fitted_twice(tmp_path, capsys):
     assert bev_mdo(["calibrate", "--model", "chain", "--data", str(p)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"row {len(rows) + 1}: repeats row 4" in err[0], err
+
+
+def test_a_parameter_no_vehicle_moves_is_not_said_at_its_bound_beside_one_the_fit_puts_there(tmp_path, monkeypatch):
+    """On a fleet without a wound-rotor machine, calibrate said the field loss was 'at its lower bound (the data
+    press it there)': the fit had put the second axle's drag from just inside its bound (1e-7 W) onto it, and the
+    field loss, left out of the solve at its default 0, was asked whether the data move it against residuals of
+    the point before that move. The drag's solution is put 1e-3 W inside its bound here (a twentieth of the
+    step that counts as on it), as a solver may leave it."""
+    fleet = fl.read_fleet(_fleet(tmp_path, lambda r: r[0] in ("Ford", "KIA")))
+    assert (fleet.driven_axles == 2).any() and not fleet.technology_params()["wound_rotor_machine_share"].any()
+    solver = calibrate.least_squares
+
+    def just_inside(fun, x0, bounds, args=(), **kw):  # the drag (third of the solve) 1e-3 W above its lower bound
+        r = solver(fun, x0, bounds=bounds, args=args, **kw)
+        r.x[2] = bounds[0][2] + 1e-3
+        r.fun = fun(r.x, *args)
+        return r
+
+    monkeypatch.setattr(calibrate, "least_squares", just_inside)
+    got = calibrate.fit(fleet, model="quasi_static")
+    names = got["names"]
+    assert names[2] == "second_axle_drag_w" and got["at_bound"][2] == "lower" and got["x"][2] == 0.0
+    i = names.index("excitation_loss_w_per_kw")
+    assert got["at_bound"][i] is None and not got["determined"][i] and got["x"][i] == 0.0
