@@ -45,6 +45,7 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
     answers call such a point, docs/answers.md; ``notes`` says why), but one the models refuse (outside a
     physical design limit or a parameter's range) is an InputError."""
     from bev_mdo.config import RunConfig
+    from bev_mdo.mdo.active import outside_bounds
     from bev_mdo.mdo.driver import evaluate_design, feasibility_tolerance
 
     finite_values(given, one="evaluate takes one design, a number per name; sweep(designs=...) evaluates many")
@@ -58,7 +59,7 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
         if v is not None and not d.lower <= v <= d.upper:  # (a number: finite_values)
             print(f"{caller}: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
                   "(evaluated as given)", file=sys.stderr)
-            if max(d.lower - v, v - d.upper) > feasibility_tolerance(config.settings) * (d.upper - d.lower):
+            if outside_bounds(d, v, feasibility_tolerance(config.settings)):
                 outside.append(f"{d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}]: infeasible "
                                "whatever the constraints say (evaluated as given)")
     with Evaluating(config, transport) as evaluator:

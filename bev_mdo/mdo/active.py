@@ -75,12 +75,7 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
                 bounds.append({"name": d.name, "kind": kind, "bound": float(b), "value": x,
                                "margin": float(x - b if kind == "lower" else b - x), "unit": unit(d.name),
                                "scale": float(span)})
-        # COBYLA ended 6.5 % above a motor's upper bound: the violated constraints looked nearer than any
-        # design inside the bounds can bring them, and nothing named the bound
-        for kind, b, by in (("lower", d.lower, d.lower - x), ("upper", d.upper, x - d.upper)):
-            if by > feas_tol * span:
-                outside.append({"name": d.name, "kind": kind, "bound": float(b), "value": x, "by": float(by),
-                                "unit": unit(d.name)})
+        outside += [{**b, "unit": unit(d.name)} for b in outside_bounds(d, x, feas_tol)]
     if jacobian is not None:
         on_bound = {**{b["name"]: b["kind"] for b in bounds}, **{b["name"]: b["kind"] for b in outside}}
         spans = {d.name: d.upper - d.lower for d in problem.design_variables}
@@ -102,6 +97,17 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
            "outside_bounds": outside, "violated": violated}
     out["lines"] = summary_lines(out)
     return out
+
+
+def outside_bounds(d, x: float, feas_tol: float) -> list[dict]:
+    """The bound of design variable ``d`` (a problem's DesignVariable) that ``x`` lies beyond by more than
+    ``feas_tol`` x (upper - lower), as {"name", "kind", "bound", "value", "by"}; [] inside. Such a point is
+    infeasible whatever its constraints say (the answers, evaluate): COBYLA ended 6.5 % above a motor's upper
+    bound, its violated constraints nearer their limits than any design inside the bounds can bring them."""
+    span = d.upper - d.lower
+    return [{"name": d.name, "kind": kind, "bound": float(b), "value": float(x), "by": float(by)}
+            for kind, b, by in (("lower", d.lower, d.lower - x), ("upper", d.upper, x - d.upper))
+            if by > feas_tol * span]
 
 
 OPERATORS = {"lower": ">=", "upper": "<=", "equal": "=="}
