@@ -146,6 +146,8 @@ def verdict_line(fo: dict) -> str:
                 "so the first-order conditions cannot be verified)")
     kinks = fo.get("kinks")  # mdo/kinks.py: one-sided slopes of the objective or an active constraint differ
     kink = f"; {_kinks(kinks)}: a nonsmooth model, whose optimum the first-order conditions cannot verify" if kinks else ""
+    if fo.get("kink_averaged"):  # driver.end_point_check: central differences met the conditions across a kink
+        kink += "; they hold only with central differences, which average the one-sided slopes"
     scale = (f"; the optimiser sees an objective of {fo['objective_seen']:.1e}: give problem.objective_scale about "
              f"{fo['objective_seen']:.0e} so that it is of order one") if fo.get("objective_seen") else ""
     return (f"{v} (projected gradient of the Lagrangian {fo['stationarity']:.3g}, complementarity "

@@ -37,7 +37,7 @@ NEAR_STEP = 2 * first_order.ACTIVE_TOL  # scaled: the second pair of steps, whic
 
 
 def end_point_kinks(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: np.ndarray,
-                    grad_max: float) -> list[dict]:
+                    grad_max: float, near: bool = True) -> list[dict]:
     """The kinks at ``u``: variables in which the minimised objective, an active inequality or an equality has
     one-sided slopes that differ by more than first_order.FIRST_ORDER_TOL x max(1, its largest slope) (the
     objective's: x max(1, |grad f|), ``grad_max``), by the same jump at steps h and 4h (noise shrinks the jump
@@ -45,9 +45,10 @@ def end_point_kinks(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray,
     the variable, "left", "right"}, slopes per scaled unit (the objective's per objective_scale, as the check's
     gradient; a constraint's in its own unit). The steps are ``fd_step`` and 4 x that; where they find none,
     NEAR_STEP and 4 x that (a second batch), and a kink found so has "near_step": SLSQP stopped 2.4e-5 (scaled)
-    short of where a top speed's motor-speed cap meets its power limit."""
+    short of where a top speed's motor-speed cap meets its power limit. ``near=False`` (a point where the
+    conditions hold: on a smooth piece a kink nearby does not undo them) looks only at the point."""
     out = _at_steps(form, u, f0, g0, h0, grad_max, form.fd_step)
-    if not out and NEAR_STEP > 4 * form.fd_step:
+    if near and not out and NEAR_STEP > 4 * form.fd_step:
         return [{**k, "near_step": NEAR_STEP} for k in _at_steps(form, u, f0, g0, h0, grad_max, NEAR_STEP)]
     return out
 

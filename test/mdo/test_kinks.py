@@ -161,3 +161,49 @@ def test_a_run_that_ends_where_a_top_speed_equality_meets_its_motor_speed_cap_na
     assert r.verdict == first_order.STOPPED and exit_status(r.data) == 5
     assert {(k["in"], k["name"]) for k in fo["kinks"]} >= {("top_speed_kmh == 160", "gear_ratio")}
     assert "top_speed_kmh == 160 has a kink" in first_order.verdict_line(fo)
+
+
+class Corner:
+    """f = x + y, h = max(x, y): with h == 1 the feasible set is an L whose lowest points are (1, 0) and (0, 1)
+    (f = 1), and its corner (1, 1) (f = 2) is no optimum. Central differences at the corner give h the gradient
+    (0.5, 0.5), the mean of its one-sided slopes, and with it f's gradient (1, 1) meets the conditions exactly."""
+
+    name, inputs, outputs = "corner", ("x", "y"), ("f", "h")
+
+    def compute(self, inputs):
+        return {"f": inputs["x"] + inputs["y"], "h": np.maximum(inputs["x"], inputs["y"])}
+
+
+def test_conditions_met_by_slopes_averaged_across_a_kink_are_no_optimum():
+    """A reviewer: the corner was "optimum (first-order conditions hold to 0)", exit 0. The kink is looked for
+    where the conditions hold too; found at the point, the verdict is stopped, with the kink named."""
+    ev = InProcessEvaluator([Corner()])
+    problem = Problem.from_config({"objective": "f", "design_variables": {
+        "x": {"lower": 0, "upper": 2, "initial": 0.5}, "y": {"lower": 0, "upper": 2, "initial": 1.5}},
+        "constraints": {"h": {"lower": 1, "upper": 1}}})
+    form = MDF(problem, ev, MDA(ev))
+    fo = end_point_check(form, np.array([1.0, 1.0]), np.array([0.5, 1.5]), 1e-6)
+    assert fo["verdict"] == first_order.STOPPED and not fo["conditions_hold"] and fo["kink_averaged"]
+    assert [(k["in"], k["name"]) for k in fo["kinks"]] == [("h == 1", "x"), ("h == 1", "y")]
+    assert "they hold only with central differences, which average the one-sided slopes" in first_order.verdict_line(fo)
+    smooth = end_point_check(form, np.array([1.0, 0.0]), np.array([0.5, 1.5]), 1e-6)  # y on its bound: one side
+    assert smooth["verdict"] == first_order.OPTIMUM and smooth["kinks"] == []
+
+
+def test_a_kink_near_an_optimum_of_a_smooth_piece_leaves_it_an_optimum():
+    """Where the conditions hold on a smooth piece, a kink 1e-4 away (inside the longer steps, 2e-4 and 8e-4, that
+    look near a stopped point) does not undo them: only the point itself is looked at. f = (x - 0.3)^2 +
+    max(0, x - 0.3001) + (y - 0.5)^2 has its minimum at (0.3, 0.5), on the smooth piece left of the kink."""
+
+    class Near:
+        name, inputs, outputs = "near", ("x", "y"), ("f",)
+
+        def compute(self, inputs):
+            x, y = inputs["x"], inputs["y"]
+            return {"f": (x - 0.3) ** 2 + np.maximum(0.0, x - 0.3001) + (y - 0.5) ** 2}
+
+    form = _form(Near())
+    fo = end_point_check(form, np.array([0.3, 0.5]), np.array([0.5, 0.2]), 1e-6)
+    assert fo["verdict"] == first_order.OPTIMUM and fo["kinks"] == []
+    u = form.to_u(np.array([0.3, 0.5]))  # the kink is there, seen by the longer steps
+    assert [k["near_step"] for k in end_point_kinks(form, u, 0.0, np.zeros(0), np.zeros(0), 0.0)] == [2e-4]
