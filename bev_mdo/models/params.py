@@ -99,6 +99,7 @@ ROAD_LOAD_SPECS: dict[str, tuple[str, ParamSpec]] = {
 }
 ROAD_LOAD_CHECK_SPEED_M_S = 70.0  # the force must stay positive from 0 to 252 km/h
 ROAD_LOAD_REPLACES = ("drag_area_m2", "rolling_resistance")  # the thesis terms a coast-down replaces
+ROAD_LOAD_UNUSED = (*ROAD_LOAD_REPLACES, "air_density_kg_m3")  # what no model reads beside a coast-down
 
 
 def road_load_minimum(a, b, c) -> tuple[np.ndarray, np.ndarray]:
