@@ -70,6 +70,7 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
         report["feasible"] = False
     if notes:
         report["notes"] = notes
+    report["units"] = {**parameter_units(report.get("parameters", {})), **declared_units(config)}
     return report
 
 

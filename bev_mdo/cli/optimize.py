@@ -138,10 +138,12 @@ def _verdict(result: dict, out, units: dict) -> None:
         from bev_mdo.mdo.multistart import summary_line
 
         print(summary_line(result["multistart"]), file=out)
-    print(f"first-order check: {cost['points']} extra point{'' if cost['points'] == 1 else 's'} in {cost['wall_time_s']:.3f} s"
-          + (" (the optimiser's last gradient reused)" if cost["points"] == 0 else
-             " (central differences confirmed the analytic derivatives)" if fo.get("derivatives_confirmed") else ""),
-          file=out)
+    kink = fo.get("kink_points", 0)  # driver.end_point_check: its steps either side of the point, for a kink
+    why = (["the optimiser's last gradient reused"] if cost["points"] == kink else
+           ["central differences confirmed the analytic derivatives"] if fo.get("derivatives_confirmed") else
+           [f"{cost['points'] - kink} for the gradient"]) + ([f"{kink} to look for a kink"] if kink else [])
+    print(f"first-order check: {cost['points']} extra point{'' if cost['points'] == 1 else 's'} in "
+          f"{cost['wall_time_s']:.3f} s ({'; '.join(why)})", file=out)
     if fo["verdict"] == "infeasible":
         return  # the answers below say what is violated and what blocks it
 

@@ -408,9 +408,10 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
     if ok and fo["verdict"] != first_order.INFEASIBLE and not fo["unknown_derivatives"]:  # is it smooth there?
         # an optimum too: central differences across a kink average its one-sided slopes, and the average can meet
         # the conditions by chance (x + y with max(x, y) == 1 at (1, 1): "optimum", while (1, 0) is lower)
-        optimum = fo["verdict"] == first_order.OPTIMUM
+        optimum, before = fo["verdict"] == first_order.OPTIMUM, form.n_points
         fo["kinks"] = end_point_kinks(form, u, f[0], g[0], h[0], float(np.max(np.abs(df), initial=0.0)),
                                       near=not optimum)
+        fo["kink_points"] = form.n_points - before  # of the check's cost: the steps either side
         if optimum and fo["kinks"]:
             fo.update(verdict=first_order.STOPPED, conditions_hold=False, kink_averaged=True)
     seen = abs(float(f[0])) / form.problem.objective_scale  # the objective as the optimiser sees it
