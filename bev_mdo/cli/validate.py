@@ -283,5 +283,5 @@ def print_reference(report: dict) -> None:
               f"{c:>6}: no row that every column predicts (baseline3 is held out by family: a row needs rows "
               "of other families that fix its 3 constants)")
     print(f"  ({report['energy_model']}: as above, not refitted (a parameter set fitted on these rows is in-sample); "
-          f"baseline3: held out, {ref['baseline3_folds']} folds by family; fastsim: its defaults, nothing fitted; held-out figures of "
+          f"baseline3: held out, {ref['baseline3_folds']} fold{'' if ref['baseline3_folds'] == 1 else 's'} by family; fastsim: its defaults, nothing fitted; held-out figures of "
           "every model: bench/bench_validate.py, docs/validation.md)")
