@@ -247,9 +247,10 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
         for d in problem.design_variables:
             if d.name in designs:
                 v = np.asarray(designs[d.name], dtype=float)
-                bad = v[(v < d.lower) | (v > d.upper)]
-                if bad.size:
-                    raise InputError(f"{d.name}={bad[0]:g} is outside its bounds [{d.lower:g}, {d.upper:g}]")
+                bad = np.flatnonzero((v < d.lower) | (v > d.upper))
+                if bad.size:  # which design of the batch: the row of a --list file, a --design flag
+                    raise InputError(f"{d.name}={v[bad[0]]:g} (design {bad[0] + 1} of {n}) is outside its bounds "
+                                     f"[{d.lower:g}, {d.upper:g}]")
         cols.update({k: np.asarray(v, dtype=float) for k, v in designs.items()})
         res = run_in_chunks(mda, cols, n, getattr(getattr(evaluator, "inner", None), "timeout_s", None))  # ROS only
     outputs = {v: np.asarray(res.values[v], dtype=float) for s in mda.specs.values() for v in s.outputs}
