@@ -100,8 +100,9 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
             row(k, v, bo.get(k, float("nan")))
     t.add_row("feasible", str(result["feasible"]), *([str(baseline["feasible"])] if baseline is not None else []))
     Console(file=out).print(t)
-    if baseline is not None and baseline.get("error"):
-        print(f"baseline {baseline['name']}: {baseline['error']}", file=out)
+    if baseline is not None:  # its failure, and what its column does not show (outside its bounds, a parameter set)
+        for line in ([baseline["error"]] if baseline.get("error") else []) + list(baseline.get("notes", ())):
+            print(f"baseline {baseline['name']}: {line}", file=out)
     if result.get("error"):
         print(f"the result point failed: {result['error']}", file=out)
     elif result.get("stopped"):  # a discipline stopped answering: the run stopped the optimiser
