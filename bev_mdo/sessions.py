@@ -67,7 +67,7 @@ def analyse_baseline(config, evaluator=None) -> dict | None:
 
 def baseline_notes(config: RunConfig, design: dict) -> tuple[bool, list[str]]:
     """(whether ``design`` lies outside its bounds, the notes of ``analyse_baseline``)."""
-    from bev_mdo.mdo.active import outside_bounds
+    from bev_mdo.mdo.active import outside_bounds, outside_note
     from bev_mdo.mdo.driver import feasibility_tolerance
 
     tol, outside, notes = feasibility_tolerance(config.settings), False, []
@@ -75,8 +75,7 @@ def baseline_notes(config: RunConfig, design: dict) -> tuple[bool, list[str]]:
         v = design.get(d.name)
         if v is not None and outside_bounds(d, v, tol):  # the sentence evaluate writes for such a design
             outside = True
-            notes.append(f"{d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}]: infeasible "
-                         "whatever the constraints say (evaluated as given)")
+            notes.append(outside_note(d, v))
     run = {k: v for disc in config.disciplines for k, v in (getattr(disc, "parameters", None) or {}).items()}
     run.update(config.problem.parameters)  # the problem's own overrides are the run's values
     for k, v in design.items():  # a parameter the baseline sets changes its numbers: the table has no row for it

@@ -45,7 +45,7 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
     answers call such a point, docs/answers.md; ``notes`` says why), but one the models refuse (outside a
     physical design limit or a parameter's range) is an InputError."""
     from bev_mdo.config import RunConfig
-    from bev_mdo.mdo.active import outside_bounds
+    from bev_mdo.mdo.active import outside_bounds, outside_note
     from bev_mdo.mdo.driver import evaluate_design, feasibility_tolerance
 
     finite_values(given, one="evaluate takes one design, a number per name; sweep(designs=...) evaluates many")
@@ -60,8 +60,7 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
             print(f"{caller}: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
                   "(evaluated as given)", file=sys.stderr)
             if outside_bounds(d, v, feasibility_tolerance(config.settings)):
-                outside.append(f"{d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}]: infeasible "
-                               "whatever the constraints say (evaluated as given)")
+                outside.append(outside_note(d, v))
     with Evaluating(config, transport) as evaluator:
         report = evaluate_design(config.settings, evaluator, full)
     short, notes = notes_of(config, {**problem.parameters, **full}, report["outputs"])
