@@ -127,7 +127,9 @@ def verdict_line(fo: dict) -> str:
         still = ("; the start point, where the gradient is about zero: a saddle or a flat region passes this "
                  "check too, try --starts N" if not fo.get("moved", True) and fo["gradient_norm"] <= fo["tolerance"]
                  and not fo["active_constraints"] and not fo["active_bounds"] and not fo["equalities"] else "")
-        return f"optimum (first-order conditions hold to {worst:.2g}; tolerance {fo['tolerance']:g}{still})"
+        either = (f"; {_kinks(fo['kinks'])}: the conditions hold with the slopes on either side"
+                  if fo.get("kinks") else "")  # driver.end_point_check: a kink that does not matter there
+        return f"optimum (first-order conditions hold to {worst:.2g}; tolerance {fo['tolerance']:g}{still}{either})"
     if v == INFEASIBLE and fo.get("cannot_follow"):  # api.optimize: the result's motor cannot follow the cycle
         return f"infeasible ({'; '.join(fo['cannot_follow'])})"
     if v == INFEASIBLE and fo.get("point_failed"):  # failure: the driver's, when the final analysis failed
@@ -146,8 +148,8 @@ def verdict_line(fo: dict) -> str:
                 "so the first-order conditions cannot be verified)")
     kinks = fo.get("kinks")  # mdo/kinks.py: one-sided slopes of the objective or an active constraint differ
     kink = f"; {_kinks(kinks)}: a nonsmooth model, whose optimum the first-order conditions cannot verify" if kinks else ""
-    if fo.get("kink_averaged"):  # driver.end_point_check: central differences met the conditions across a kink
-        kink += "; they hold only with central differences, which average the one-sided slopes"
+    if fo.get("kink_side"):  # driver.end_point_check: the gradient met the conditions, the kink's one side does not
+        kink += f"; the gradient taken across the kink meets them, the slopes on its {fo['kink_side']} side do not"
     scale = (f"; the optimiser sees an objective of {fo['objective_seen']:.1e}: give problem.objective_scale about "
              f"{fo['objective_seen']:.0e} so that it is of order one") if fo.get("objective_seen") else ""
     return (f"{v} (projected gradient of the Lagrangian {fo['stationarity']:.3g}, complementarity "

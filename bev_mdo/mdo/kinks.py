@@ -37,7 +37,7 @@ NEAR_STEP = 2 * first_order.ACTIVE_TOL  # scaled: the second pair of steps, whic
 
 
 def end_point_kinks(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: np.ndarray,
-                    grad_max: float, near: bool = True) -> list[dict]:
+                    grad_max: float, near: bool = True, sides: list | None = None) -> list[dict]:
     """The kinks at ``u``: variables in which the minimised objective, an active inequality or an equality has
     one-sided slopes that differ by more than first_order.FIRST_ORDER_TOL x max(1, its largest slope) (the
     objective's: x max(1, |grad f|), ``grad_max``), by the same jump at steps h and 4h (noise shrinks the jump
@@ -46,16 +46,30 @@ def end_point_kinks(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray,
     gradient; a constraint's in its own unit). The steps are ``fd_step`` and 4 x that; where they find none,
     NEAR_STEP and 4 x that (a second batch), and a kink found so has "near_step": SLSQP stopped 2.4e-5 (scaled)
     short of where a top speed's motor-speed cap meets its power limit. ``near=False`` (a point where the
-    conditions hold: on a smooth piece a kink nearby does not undo them) looks only at the point."""
-    out = _at_steps(form, u, f0, g0, h0, grad_max, form.fd_step)
+    conditions hold: on a smooth piece a kink nearby does not undo them) looks only at the point. ``sides``, a
+    list, gets each kinked entry of the check's gradients at the steps 4h: (what, row, variable, left, right), what
+    "f" (df per objective_scale), "g" (a row of g) or "h", for ``one_sided``."""
+    sides = [] if sides is None else sides
+    out = _at_steps(form, u, f0, g0, h0, grad_max, form.fd_step, sides)
     if near and not out and NEAR_STEP > 4 * form.fd_step:
-        return [{**k, "near_step": NEAR_STEP} for k in _at_steps(form, u, f0, g0, h0, grad_max, NEAR_STEP)]
+        return [{**k, "near_step": NEAR_STEP} for k in _at_steps(form, u, f0, g0, h0, grad_max, NEAR_STEP, sides)]
     return out
 
 
+def one_sided(sides: list, df: np.ndarray, dg: np.ndarray, dh: np.ndarray, right: bool):
+    """(df, dg, dh) with each kinked entry of ``sides`` (``end_point_kinks``) taken on one side: its right-hand
+    slopes (``right``) or its left-hand ones. Conditions that hold on both sides' slopes are not an accident of
+    the gradient's stencil (MDA noise of 1e-10 read as a kink, a kinked constraint with multiplier 0); at a corner
+    where only the central mean meets them (x + y with max(x, y) == 1 at (1, 1)), one side fails."""
+    out = {"f": np.array(df, dtype=float)[None, :], "g": np.array(dg, dtype=float), "h": np.array(dh, dtype=float)}
+    for what, row, j, left, rgt in sides:
+        out[what][row, j] = rgt if right else left
+    return out["f"][0], out["g"], out["h"]
+
+
 def _at_steps(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: np.ndarray, grad_max: float,
-              h: float) -> list[dict]:
-    """``end_point_kinks`` with the steps ``h`` and 4 ``h`` (one batch)."""
+              h: float, sides: list) -> list[dict]:
+    """``end_point_kinks`` with the steps ``h`` and 4 ``h`` (one batch); ``sides`` gets the kinked entries."""
     lo, hi = form.u_bounds
     n = form.n
     x0 = form.to_x(u)
@@ -93,10 +107,16 @@ def _at_steps(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: n
     out, seen = [], set()
     for r, label in enumerate(what):
         for j in range(n):
-            if failed[j] or not (right[j] and left[j]) or (label, j) in seen:
+            if failed[j] or not (right[j] and left[j]):
                 continue
             jump = g_slopes[:, 0, r, j] - g_slopes[:, 1, r, j]
             if abs(jump[0]) > first_order.FIRST_ORDER_TOL * refs[r] and 0.5 <= jump[1] / jump[0] <= 2.0:
+                what, row = ("f", 0) if r == 0 else ("g", int(rows[r - 1])) if r <= len(rows) else ("h", r - 1 - len(rows))
+                # at the longer steps: noise weighs a quarter there (a smooth objective with MDA noise of 1e-10 has
+                # one-sided slopes of 2e-4 at 1e-6, past the tolerance), and a kink's jump is the same
+                sides.append((what, row, j, float(g_slopes[1, 1, r, j]), float(g_slopes[1, 0, r, j])))
+                if (label, j) in seen:
+                    continue
                 seen.add((label, j))  # an equality's two rows: one kink
                 out.append({"in": label, "name": form.var_names[j], "left": float(slopes[0, 1, r, j]) + 0.0,
                             "right": float(slopes[0, 0, r, j]) + 0.0})  # + 0.0: no -0
