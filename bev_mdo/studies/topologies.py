@@ -237,7 +237,7 @@ def violations(bench, configs) -> dict[str, list[dict]]:
     """Per topology, the run's constraints (the config's and the command line's ``--constraint``; not the
     monitored ones) that its benchmark design breaks, judged as NSGA-II judges a design (normalised
     constraint > 0): ``{"constraint": "accel_time_0_100_s <= 9", "output", "value", "limit", "unit"}``."""
-    from bev_mdo.api.evaluate import declared_units
+    from bev_mdo.mdo.units import run_units
 
     out = {}
     for t, b in bench.items():
@@ -245,7 +245,7 @@ def violations(bench, configs) -> dict[str, list[dict]]:
         rows = prob.constraint_rows
         if not rows:
             continue
-        units = {k: u for k, u in declared_units(configs[t]).items() if u != "1"}
+        units = {k: u for k, u in run_units(configs[t].disciplines).items() if u != "1"}
         g = prob.g({n: np.array([b.get(n, np.nan)], float) for n, *_ in rows})[0]
         bad = [{"constraint": lab, "output": n, "value": float(b.get(n, np.nan)), "limit": float(bound),
                 "unit": units.get(n, "")}
