@@ -70,6 +70,8 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
     if notes:
         report["notes"] = notes
     report["units"] = {**parameter_units(report.get("parameters", {})), **declared_units(config)}
+    if config.parameter_set:  # which set the vehicle's values came from
+        report["parameter_set"] = config.parameter_set
     return report
 
 

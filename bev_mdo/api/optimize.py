@@ -77,7 +77,8 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
         runbag.finish(config, result, extra, show)
     extra = {k: v for k, v in extra.items() if not k.startswith("_")}
     extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
-    return {**result, "baseline": baseline, **extra}
+    named = {"parameter_set": config.parameter_set} if config.parameter_set else {}  # which set the vehicle's came from
+    return {**result, **named, "baseline": baseline, **extra}
 
 
 def _seeded(config, seed: int):

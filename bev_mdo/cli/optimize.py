@@ -75,6 +75,14 @@ def _progress(quiet: bool, to_stderr: bool):
     return show
 
 
+def set_line(source: dict) -> str:
+    """A parameter set as a run names it: 'epa2022_quasi_static', or 'mine (/x/mine.yaml, sha256 1a2b..., fitted
+    2026-12-07)' for one given as a file."""
+    more = [source[k] for k in ("file",) if source.get(k)] + [f"{k} {source[k]}" for k in ("sha256", "fitted")
+                                                                if source.get(k)]
+    return source["name"] + (f" ({', '.join(more)})" if more else "")
+
+
 def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
     from rich.console import Console
     from rich.table import Table
@@ -216,6 +224,8 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
 
         result = {k: v for k, v in doc.items() if k != "baseline"}
         _table(result, doc["baseline"], out, declared_units(config))
+        if doc.get("parameter_set"):
+            print(f"parameter set: {set_line(doc['parameter_set'])}", file=out)
         failed = (result.get("first_order") or {}).get("point_failed")  # the verdict line says why: no value
         if not doc["feasible"] and not failed:  # a feasible end printed the first-order check's active set instead
             ans = result["active"]

@@ -174,8 +174,9 @@ def _parameter_set(cfg: dict) -> None:
     quasi-static model). A set named by its file (``mine.yaml``) is read once, here, and its values
     go into the vehicle section as defaults (keys given there still win), so the resolved config
     reproduces the run alone: a bag's ``resume``, a node started in another folder or on another
-    host, the same run after the file moved or was rewritten. A shipped set stays named (it comes
-    with the package, whose version the bag records)."""
+    host, the same run after the file moved or was rewritten; ``parameter_set_source`` records which set
+    that was (:func:`params.parameter_set_source`). A shipped set stays named (it comes with the package,
+    whose version the bag records)."""
     v = cfg.get("vehicle")
     name = v.get("parameter_set") if isinstance(v, Mapping) else None
     fitted = params.fitted_for_another_model(name, cfg.get("energy_model")) if name is not None else None
@@ -188,7 +189,9 @@ def _parameter_set(cfg: dict) -> None:
     replaced = params.ROAD_LOAD_REPLACES if "road_load" in v or any(
         k.startswith("road_load_") for k in v) else ()  # unused beside a road load, and refused there
     section = {k: x for k, x in v.items() if k != "parameter_set"}
-    cfg["vehicle"] = {**{k: x for k, x in values.items() if k not in section and k not in replaced}, **section}
+    source = {k: x for k, x in params.parameter_set_source(name).items() if k in params.SOURCE_KEYS}
+    cfg["vehicle"] = {**{k: x for k, x in values.items() if k not in section and k not in replaced}, **section,
+                      "parameter_set_source": source}  # which set: its name, file, SHA-256 and fit date
 
 
 def cycle_names(cfg: Mapping) -> list[str]:
