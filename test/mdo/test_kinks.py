@@ -48,7 +48,7 @@ def test_an_end_point_at_a_kink_names_it_with_its_one_sided_slopes():
     assert fo["verdict"] == first_order.STOPPED  # the forward difference sees the right slope, 6, not 0
     assert [k["name"] for k in fo["kinks"]] == ["x"]
     assert fo["kinks"][0]["left"] == pytest.approx(4.0, rel=1e-4) and fo["kinks"][0]["right"] == pytest.approx(6.0, rel=1e-4)
-    assert "kink at the point in x (one-sided slopes 4 and 6)" in first_order.verdict_line(fo)
+    assert "kink at the point in x (slope 4 on its left, 6 on its right, per scaled unit)" in first_order.verdict_line(fo)
 
 
 @pytest.mark.parametrize("disc", [Cost(jump=0.0, curvature=1e3), Cost(jump=0.0, noise=1e-8)])
@@ -106,7 +106,7 @@ def test_an_end_point_at_a_kink_of_an_active_constraint_names_it(top, noise):
     assert [(k["in"], k["name"]) for k in fo["kinks"]] == [(what, "gear"), (what, "power")]
     assert fo["kinks"][1]["left"] == pytest.approx(1.5, rel=1e-3) and abs(fo["kinks"][1]["right"]) < 1e-3
     line = first_order.verdict_line(fo)
-    assert f"{what} has a kink at the point in gear (one-sided slopes " in line and "power" in line
+    assert f"{what} has a kink at the point in gear (slope " in line and "power" in line
     assert "a nonsmooth model, whose optimum the first-order conditions cannot verify" in line
 
 
@@ -183,10 +183,9 @@ def test_conditions_met_by_slopes_averaged_across_a_kink_are_no_optimum():
         "constraints": {"h": {"lower": 1, "upper": 1}}})
     form = MDF(problem, ev, MDA(ev))
     fo = end_point_check(form, np.array([1.0, 1.0]), np.array([0.5, 1.5]), 1e-6)
-    assert fo["verdict"] == first_order.STOPPED and not fo["conditions_hold"]
+    assert fo["verdict"] == first_order.STOPPED and not fo["conditions_hold"] and fo["kink_at_optimum"]
     assert [(k["in"], k["name"]) for k in fo["kinks"]] == [("h == 1", "x"), ("h == 1", "y")]
-    assert fo["kink_side"] == "left"  # h's left-hand slopes are 0: nothing balances f's gradient (1, 1)
-    assert "the gradient taken across the kink meets them, the slopes on its left side do not" in \
+    assert "the numbers above hold on a gradient taken across the kink, which does not verify it" in \
         first_order.verdict_line(fo)
     smooth = end_point_check(form, np.array([1.0, 0.0]), np.array([0.5, 1.5]), 1e-6)  # y on its bound: one side
     assert smooth["verdict"] == first_order.OPTIMUM and smooth["kinks"] == []
@@ -211,10 +210,11 @@ def test_a_kink_near_an_optimum_of_a_smooth_piece_leaves_it_an_optimum():
     assert [k["near_step"] for k in end_point_kinks(form, u, 0.0, np.zeros(0), np.zeros(0), 0.0)] == [2e-4]
 
 
-def test_a_kink_that_does_not_matter_at_an_optimum_leaves_it_an_optimum():
-    """A reviewer: f = (x - 1)^2 + (y - 1)^2 with y + |x - 1| <= 1 is at its unconstrained minimum (1, 1), the
-    kinked constraint active with multiplier 0; the kink made it "stopped" (exit 5). The conditions hold with
-    the kinked slopes taken on either side: an optimum, its kink named."""
+def test_a_kink_at_a_true_optimum_is_named_and_the_optimum_left_unverified():
+    """f = (x - 1)^2 + (y - 1)^2 with y + |x - 1| <= 1 is at its unconstrained minimum (1, 1), the kinked
+    constraint active with multiplier 0. A rule that kept the optimum where the conditions held on either side's
+    slopes passed corners that are none (next test), so a kink at an optimum leaves it unverified: stopped,
+    exit 5, the kink named (documented: named, not judged)."""
 
     class Bowl:
         name, inputs, outputs = "bowl", ("x", "y"), ("f", "g")
@@ -228,15 +228,36 @@ def test_a_kink_that_does_not_matter_at_an_optimum_leaves_it_an_optimum():
         "x": {"lower": 0, "upper": 3, "initial": 2.5}, "y": {"lower": 0, "upper": 3, "initial": 0.2}},
         "constraints": {"g": {"upper": 1}}})
     fo = end_point_check(MDF(problem, ev, MDA(ev)), np.array([1.0, 1.0]), np.array([2.5, 0.2]), 1e-6)
-    assert fo["verdict"] == first_order.OPTIMUM and fo["kinks_either_side"]
+    assert fo["verdict"] == first_order.STOPPED and fo["kink_at_optimum"]
     assert [(k["in"], k["name"]) for k in fo["kinks"]] == [("g <= 1", "x")]
-    assert "g <= 1 has a kink at the point in x" in first_order.verdict_line(fo)
-    assert "the conditions hold with the slopes on either side" in first_order.verdict_line(fo)
+
+
+def test_a_corner_whose_sides_each_meet_the_conditions_is_no_optimum():
+    """A reviewer: f = min(-x, -2x) + min(-y, -2y) with x + y <= 0 at (0, 0). The conditions hold with every
+    kinked slope on its right (-2, -2) and with every one on its left (-1, -1), yet along (t, -t) the constraint
+    stays 0 and f = -t falls: a rule that kept an optimum where both sides held said "optimum", exit 0."""
+
+    class Orthants:
+        name, inputs, outputs = "orthants", ("x", "y"), ("f", "c")
+
+        def compute(self, inputs):
+            x, y = inputs["x"], inputs["y"]
+            return {"f": np.minimum(-x, -2 * x) + np.minimum(-y, -2 * y), "c": x + y}
+
+    ev = InProcessEvaluator([Orthants()])
+    problem = Problem.from_config({"objective": "f", "design_variables": {
+        "x": {"lower": -1, "upper": 1, "initial": -0.3}, "y": {"lower": -1, "upper": 1, "initial": -0.3}},
+        "constraints": {"c": {"upper": 0}}})
+    form = MDF(problem, ev, MDA(ev), fd_scheme="central")
+    fo = end_point_check(form, np.array([0.0, 0.0]), np.array([-0.3, -0.3]), 1e-6)
+    assert fo["verdict"] == first_order.STOPPED and fo["kink_at_optimum"]
+    assert {(k["in"], k["name"]) for k in fo["kinks"]} >= {("objective", "x"), ("objective", "y")}
 
 
 def test_noise_read_as_a_kink_at_an_optimum_leaves_it_an_optimum():
     """A reviewer: with noise of 1e-10 on a smooth objective (an MDA converged to a tolerance), 6 of 60 true
-    optima became "stopped" with a kink whose one-sided slopes (-7.8e-5, 2.6e-5) each met the tolerance."""
+    optima became "stopped" with a kink whose one-sided slopes (-7.8e-5, 2.6e-5) each met the tolerance. At an
+    optimum a kink must be clear (over 1e-3 of the largest slope) and the same at h, 4h and 16h."""
 
     class Noisy:
         name, inputs, outputs = "noisy", ("x", "y"), ("f",)
@@ -249,13 +270,10 @@ def test_noise_read_as_a_kink_at_an_optimum_leaves_it_an_optimum():
             drawn = [np.random.default_rng(abs(hash((float(p), float(q))))).uniform(-1, 1) for p, q in zip(x, y)]
             return {"f": 5 * (x - self.a) ** 2 + (y - 0.5) ** 2 + 1e-10 * np.array(drawn)}
 
-    read_as_kinks = 0
     for a in np.linspace(0.3, 0.7, 60):
         ev = InProcessEvaluator([Noisy(a)])
         problem = Problem.from_config({"objective": "f", "design_variables": {
             "x": {"lower": 0.0, "upper": 1.0, "initial": 0.5}, "y": {"lower": 0.0, "upper": 1.0, "initial": 0.2}}})
         form = MDF(problem, ev, MDA(ev), fd_scheme="central")  # forward differences read this noise as 1e-4
         fo = end_point_check(form, np.array([a, 0.5]), np.array([0.5, 0.2]), 1e-6)
-        assert fo["verdict"] == first_order.OPTIMUM, (a, first_order.verdict_line(fo))
-        read_as_kinks += bool(fo["kinks"])
-    assert read_as_kinks, "no noisy point was read as a kink: the test does not reach the one-sided check"
+        assert fo["verdict"] == first_order.OPTIMUM and fo["kinks"] == [], (a, first_order.verdict_line(fo))
