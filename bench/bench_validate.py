@@ -130,7 +130,9 @@ def accuracy_table(models=tuple(fleet.ENERGY_MODELS)) -> dict:
             cell = t[c][name]
             row += [_num(cell["mape_pct"]), _num(cell["pair_slope"]), _num(cell["pair_mad_points"])]
         rows.append(row)
-    title = (f"Held-out accuracy on {f.path.rsplit('/', 1)[-1]}: same {t['udds']['rows']} rows (UDDS) / "
+    title = (f"Held-out accuracy on {f.path.rsplit('/', 1)[-1]}, 5-fold CV by model family (a platform sibling can "
+             "sit in the fit; by make and with the two-speed platform held out: docs/validation.md, Limits): same "
+             f"{t['udds']['rows']} rows (UDDS) / "
              f"{t['hwfet']['rows']} (HWFET), {t['udds']['pairs']} / {t['hwfet']['pairs']} within-family pairs; "
              "pair targets: slope 0.85-1.15, mean abs diff <= 2.5 points")
     return {"title": title, "columns": head, "rows": rows, "by_cycle": t}

@@ -43,7 +43,10 @@ def key_dir_for(bag: Path) -> Path:
 def analyse_baseline(config, evaluator=None) -> dict | None:
     """The config's ``problem.baseline`` analysed through ``evaluator`` (default: in process): {name, design,
     outputs, feasible, ...}; None when the config names no baseline. A failed analysis is reported in ``error``
-    (with no outputs), never raised: the run's own result must not be lost to its baseline."""
+    (with no outputs), never raised: the run's own result must not be lost to its baseline. ``notes`` (one line
+    each) says what a table of its numbers does not: a design variable outside its bounds (infeasible whatever
+    its constraints say, by the rule evaluate applies: mdo.active.outside_bounds) and a model parameter the
+    baseline sets to other than the run's value."""
     from bev_mdo.mdo.driver import evaluate_design
     from bev_mdo.mdo.evaluator import InProcessEvaluator
 
@@ -51,12 +54,38 @@ def analyse_baseline(config, evaluator=None) -> dict | None:
     base = config.baseline
     if not base:
         return None
+    outside, notes = baseline_notes(config, base["design"])
     try:
         report = evaluate_design(config.settings, evaluator or InProcessEvaluator(config.timed_disciplines()), base["design"])
     except Exception as exc:  # noqa: BLE001 - reported beside the result
-        return {"name": base["name"], "design": dict(base["design"]), "outputs": {}, "feasible": False,
-                "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
-    return {"name": base["name"], **report}
+        report = {"design": dict(base["design"]), "outputs": {}, "feasible": False,
+                  "ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0]}
+    if outside:
+        report["feasible"] = False
+    return {"name": base["name"], **report, **({"notes": notes} if notes else {})}
+
+
+def baseline_notes(config: RunConfig, design: dict) -> tuple[bool, list[str]]:
+    """(whether ``design`` lies outside its bounds, the notes of ``analyse_baseline``)."""
+    from bev_mdo.mdo.active import outside_bounds, outside_note
+    from bev_mdo.mdo.driver import feasibility_tolerance
+
+    tol, outside, notes = feasibility_tolerance(config.settings), False, []
+    for d in config.problem.design_variables:
+        v = design.get(d.name)
+        if v is not None and outside_bounds(d, v, tol):  # the sentence evaluate writes for such a design
+            outside = True
+            notes.append(outside_note(d, v))
+    run = {k: v for disc in config.disciplines for k, v in (getattr(disc, "parameters", None) or {}).items()}
+    run.update(config.problem.parameters)  # the problem's own overrides are the run's values
+    for k, v in design.items():  # a parameter the baseline sets changes its numbers: the table has no row for it
+        if k not in config.problem.names:
+            given = run.get(k)
+            if isinstance(given, (int, float)) and float(given) != v:
+                notes.append(f"{k} = {v:g} (the run's {float(given):g})")
+            elif not isinstance(given, (int, float)):
+                notes.append(f"{k} = {v:g} (set by the baseline)")
+    return outside, notes
 
 
 class OptimizeRosSession:

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bev_mdo.models.params import validate_road_load
+from bev_mdo.models.params import ROAD_LOAD_UNUSED, validate_road_load
 from bev_mdo.models.road_load import coefficients
 
 
@@ -53,6 +53,8 @@ class TopSpeed:
                            "gear_count": gear_count, "gear_ratio_2": gear_ratio_2,  # a two-speed gearbox
                            "motor_speed_limit_rpm": motor_speed_limit_rpm,
                            **(validate_road_load(road_load) if road_load else {})}  # road_load_a_n, ...
+        if road_load:  # a coast-down replaces these: a parameter no formula reads must not be offered for overrides
+            self.parameters = {k: x for k, x in self.parameters.items() if k not in ROAD_LOAD_UNUSED}
         self.omega_max = motor_max_speed_rad_s  # None: the vehicle's motor_speed_limit_rpm, as the built-in models
 
     @dataclass(frozen=True)

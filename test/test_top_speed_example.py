@@ -55,6 +55,23 @@ def test_with_a_coast_down_the_top_speed_balances_that_road_load():
         assert v_kmh == pytest.approx(v * 3.6, rel=1e-9)
 
 
+@pytest.mark.parametrize("name", ["drag_area_m2", "rolling_resistance", "air_density_kg_m3"])
+@pytest.mark.parametrize("with_example", [True, False])
+def test_with_a_coast_down_a_constant_it_leaves_unused_is_not_overridable(name, with_example):
+    """A Kona-like run with a coast-down and the example beside it took --set drag_area_m2=1.5 as a parameter
+    and gave the same energy, a sensitivity of 0 and a sweep of identical rows (the example offered the thesis'
+    terms the coast-down replaces; the built-in models offered the air density): refused, one line."""
+    config = yaml.safe_load((REPO / "config" / "leaf_epa_combined.yaml").read_text(encoding="utf-8"))
+    if with_example:
+        config["disciplines"] += [{"name": "top_speed", "class": "examples.top_speed:TopSpeed"}]
+        config["search_path"] = [str(REPO)]
+    study = Study(config)
+    with pytest.raises(ValueError, match=f"{name}: neither a design variable nor a discipline parameter"):
+        study.evaluate({name: 1.0}, transport="inprocess")
+    with pytest.raises(ValueError, match=name):
+        study.sensitivity(wrt=[name], order=1, transport="inprocess")
+
+
 def test_with_two_speeds_the_gear_cap_is_the_longer_gears():
     """The example capped the top speed by the first gear alone: a two-speed van was held at 117 km/h where
     its second gear reaches 235, and its optimum pinned by a top-speed limit the car meets."""

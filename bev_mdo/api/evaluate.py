@@ -45,7 +45,7 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
     answers call such a point, docs/answers.md; ``notes`` says why), but one the models refuse (outside a
     physical design limit or a parameter's range) is an InputError."""
     from bev_mdo.config import RunConfig
-    from bev_mdo.mdo.active import outside_bounds
+    from bev_mdo.mdo.active import outside_bounds, outside_note
     from bev_mdo.mdo.driver import evaluate_design, feasibility_tolerance
 
     finite_values(given, one="evaluate takes one design, a number per name; sweep(designs=...) evaluates many")
@@ -60,8 +60,7 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
             print(f"{caller}: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
                   "(evaluated as given)", file=sys.stderr)
             if outside_bounds(d, v, feasibility_tolerance(config.settings)):
-                outside.append(f"{d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}]: infeasible "
-                               "whatever the constraints say (evaluated as given)")
+                outside.append(outside_note(d, v))
     with Evaluating(config, transport) as evaluator:
         report = evaluate_design(config.settings, evaluator, full)
     short, notes = notes_of(config, {**problem.parameters, **full}, report["outputs"])
@@ -70,6 +69,9 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
         report["feasible"] = False
     if notes:
         report["notes"] = notes
+    report["units"] = {**parameter_units(report.get("parameters", {})), **declared_units(config)}
+    if config.parameter_set:  # which set the vehicle's values came from
+        report["parameter_set"] = config.parameter_set
     return report
 
 
@@ -246,9 +248,10 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
         for d in problem.design_variables:
             if d.name in designs:
                 v = np.asarray(designs[d.name], dtype=float)
-                bad = v[(v < d.lower) | (v > d.upper)]
-                if bad.size:
-                    raise InputError(f"{d.name}={bad[0]:g} is outside its bounds [{d.lower:g}, {d.upper:g}]")
+                bad = np.flatnonzero((v < d.lower) | (v > d.upper))
+                if bad.size:  # which design of the batch: the row of a --list file, a --design flag
+                    raise InputError(f"{d.name}={v[bad[0]]:g} (design {bad[0] + 1} of {n}) is outside its bounds "
+                                     f"[{d.lower:g}, {d.upper:g}]")
         cols.update({k: np.asarray(v, dtype=float) for k, v in designs.items()})
         res = run_in_chunks(mda, cols, n, getattr(getattr(evaluator, "inner", None), "timeout_s", None))  # ROS only
     outputs = {v: np.asarray(res.values[v], dtype=float) for s in mda.specs.values() for v in s.outputs}

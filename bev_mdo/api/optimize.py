@@ -62,8 +62,9 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
     _refuse_ros_only(opts)
     starts = _starts(opts, x0)  # a bad start count is refused before anything starts or is written
     t_start = time.perf_counter()
-    show = callback or (lambda rec: None)
     from bev_mdo.api import runbag  # end-of-run answers: in the result, stored with the bag
+
+    show = runbag.RecordTally(callback or (lambda rec: None))  # what the run sends to its bag, for the answers
 
     # an in-process bag is closed however the run ends: by runbag.finish with the answers, or on the way out of a
     # signal or failure at any step before (without them), from the moment it is opened (in_process_bag)
@@ -73,10 +74,11 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
         else:
             result, baseline, extra = _run_inprocess(config, opts, show, x0, starts, closing)
         _check_follows(config, result, baseline)
-        runbag.finish(config, result, extra)
+        runbag.finish(config, result, extra, show)
     extra = {k: v for k, v in extra.items() if not k.startswith("_")}
     extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
-    return {**result, "baseline": baseline, **extra}
+    named = {"parameter_set": config.parameter_set} if config.parameter_set else {}  # which set the vehicle's came from
+    return {**result, **named, "baseline": baseline, **extra}
 
 
 def _seeded(config, seed: int):

@@ -29,6 +29,7 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
     from bev_mdo import interrupts
     from bev_mdo.api.runbag import claim_new_bag, interrupted_note
     from bev_mdo.config import RunConfig
+    from bev_mdo.mdo.pareto import hypervolume_reference
 
     cfg = RunConfig.of(cfg)
     transport = Transport.of(transport)
@@ -54,7 +55,8 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
            "design_variables": list(res.names), "generations": generations, "pop": pop,
            "seed": seed, "evaluations": res.evaluations, "batches": res.batches,
            "wall_time_s": res.wall_time_s, "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12),
-           "hypervolume_by_generation": res.hypervolume,  # mdo.pareto.hypervolumes: 1.0 the last front's
+           "hypervolume_by_generation": res.hypervolume, "front_size_by_generation": res.front_sizes,
+           "hypervolume_reference": hypervolume_reference([n for n, _ in objs]),  # mdo.pareto.hypervolumes
            "front": [{k: float(v[i]) for k, v in res.values.items()} for i in range(len(res.X))],
            **sess.stats, "out": str(out), "published": sess.sink.published,
            "plots": [str(p) for p in plot_front(out, res, declared_units(cfg))] if plots else []}

@@ -102,12 +102,44 @@ def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
     return answers_for(config.settings, result["design"], values, disciplines=discs, units=run_units(discs))
 
 
-def finish(config: Mapping[str, Any], result: dict, extra: dict) -> None:
+class RecordTally:
+    """The run's iteration callback, counting what the run sent to its bag: the records, the last one's
+    number and where each design was recorded (first and last), so the end-of-run record can say how
+    many records the bag should hold and which one is the result (``finish``); a bag whose recorder
+    died holds fewer (bag/history.missing_tail)."""
+
+    def __init__(self, show):
+        self.show = show
+        self.records = 0
+        self.last_iteration: int | None = None
+        self.at: dict[tuple, list[int]] = {}  # design -> [first, last] iteration recorded there
+
+    def __call__(self, rec: Mapping[str, Any]) -> None:
+        self.records += 1
+        k = int(rec["iteration"])
+        self.last_iteration = k
+        self.at.setdefault(tuple(sorted(rec["design"].items())), [k, k])[1] = k
+        self.show(rec)
+
+    def run_record(self, result: Mapping[str, Any], stopped_early: bool = False) -> dict:
+        """What the answers store of the run beside its ``result_design``: its record count, last and
+        result iteration (the first record at the result for a run stopped early, as the driver picks it,
+        else the last), the result's objective, violation and feasibility, and the run's MDA total."""
+        seen = self.at.get(tuple(sorted((result.get("design") or {}).items())))
+        return {"records": self.records, "last_iteration": self.last_iteration,
+                "result_iteration": None if seen is None else seen[0 if stopped_early else 1],
+                "result_objective": result.get("objective"), "result_max_violation": result.get("max_violation"),
+                "result_feasible": result.get("feasible"), "mda_evaluations": result.get("mda_evaluations")}
+
+
+def finish(config: Mapping[str, Any], result: dict, extra: dict, tally: RecordTally | None = None) -> None:
     """Add ``result["active"]`` and store it with the run's bag (closing an in-process bag; one whose writing
-    failed adds ``recorder_failed`` to ``extra``)."""
+    failed adds ``recorder_failed`` to ``extra``), with what ``tally`` counted of the run's records."""
     inproc = extra.get("_bag_writer")
     result["active"] = answers(config, result)  # (a signal or failure here: api/optimize.run closes an in-process bag)
     ans = {**result["active"], "result_design": result.get("design")}  # the report names the run's result by it
+    if tally is not None:  # what the bag should hold: a dead recorder's bag holds less (bag/history.missing_tail)
+        ans.update(tally.run_record(result, bool(extra.get("unresponsive_disciplines"))))
     if extra.get("unresponsive_disciplines"):  # how the run ended, for the report (bag/history.run_ending)
         ans.update(unresponsive_disciplines=list(extra["unresponsive_disciplines"]), stopped=result.get("stopped", ""))
     if inproc is not None:

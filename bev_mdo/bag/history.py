@@ -173,6 +173,10 @@ def verified_history(bag, run_id: str | None = None, *, all_runs: bool = False, 
     planned = int(bag.info.get("designs") or 0)  # a sweep's bag names its count of designs
     if rows and rows[-1]["formulation"] == "doe" and len(rows) < planned:
         info["unfinished"] = f"the sweep's bag holds {len(rows)} of its {planned} designs (it was stopped while written)"
+    if rows and (run_id is None or run_id == bag.info.get("run_id")):  # the bag's own run: its end-of-run record
+        tail = missing_tail(rows, read_answers(bag, signer))               # counts what it should hold
+        if tail:
+            info["tail"] = f"{tail}; the run's result is in its end-of-run record (report and resume take it from there)"
     if checks is not None:
         checks.update(info)
     return rows, signer
@@ -192,6 +196,8 @@ def check_note(checks: dict) -> str:
         parts.append(checks["unverified"])
     if checks.get("unfinished"):
         parts.append(checks["unfinished"])
+    if checks.get("tail"):
+        parts.append(checks["tail"])
     if checks.get("answers"):
         parts.append(checks["answers"])
     if checks.get("config"):  # bag/report: the stored config does not load here
@@ -280,7 +286,62 @@ def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | 
         why = answers.get("stopped") or f"{', '.join(lost)} stopped answering"
         return True, (f"**the run ended early (exit status 4)**: {why}; its result is the best point evaluated before "
                       "that, not an optimum")
+    if missing_tail(rows, answers):
+        return True, (f"the run finished, but **{missing_tail(rows, answers)}**; the result and the answers below "
+                      "are its end-of-run record's")
     return True, "the run finished: the bag holds its end-of-run record (its result and the answers below)"
+
+
+def missing_tail(rows: list[dict], answers: dict | None) -> str:
+    """'' or how the bag's iteration records end before the run did: its end-of-run record (api/runbag.finish)
+    counts records past the bag's last (a recorder that died during the run), or, stored before it counted
+    them, names a result no record holds."""
+    if not rows or not answers or rows[-1].get("formulation") == "doe":
+        return ""
+    last, end = rows[-1]["iteration"], answers.get("last_iteration")
+    if end is not None and end > last:
+        return (f"the bag's iteration records stop at iteration {last} of the run's {end} ({end - last} missing at the "
+                "end: its recorder stopped during the run)")
+    result = answers.get("result_design")
+    if end is None and result and not any(r["design"] == result for r in rows):
+        return (f"the bag's iteration records stop at iteration {last}, before the run's result (no record holds the "
+                "design its end-of-run record names: its recorder stopped during the run)")
+    return ""
+
+
+def answered_result(rows: list[dict], answers: dict | None) -> dict | None:
+    """The run's result as its end-of-run record names it, as a history row marked ``from_answers``, when the
+    bag's records end before the run's result (``missing_tail``; an earlier record at its design is not it);
+    else None. Its iteration, objective and violation are None where the record predates them (``report``
+    analyses the design again for the objective)."""
+    result = (answers or {}).get("result_design")
+    if not result or not missing_tail(rows, answers):
+        return None
+    at = answers.get("result_iteration")
+    if (at <= rows[-1]["iteration"]) if at is not None else any(r["design"] == result for r in rows):
+        return None  # the bag holds the result's record
+    last = rows[-1]
+    return {**{k: last[k] for k in ("run_id", "formulation", "optimizer", "objective_name")},
+            "iteration": answers.get("result_iteration"), "design": dict(result),
+            "objective": answers.get("result_objective"), "constraints": {},
+            "max_violation": answers.get("result_max_violation"),
+            "feasible": bool(answers.get("result_feasible", answers.get("feasible"))),
+            "mda_evaluations": answers.get("mda_evaluations"), "from_answers": True}
+
+
+def mda_total(rows: list[dict], answers: dict | None = None) -> str:
+    """"N multidisciplinary evaluations": the run's total as its end-of-run record counts it, else summed over
+    the starts of a multi-start (each start counts its own: the last record of each), else the last record's."""
+    if (answers or {}).get("mda_evaluations") is not None:
+        return f"{answers['mda_evaluations']} multidisciplinary evaluations (the run's total)"
+    if rows[-1].get("formulation") == "doe":  # a sweep's: its designs
+        return f"{rows[-1]['mda_evaluations']} multidisciplinary evaluations"
+    if not rows[-1].get("starts"):
+        return f"{rows[-1]['mda_evaluations']} multidisciplinary evaluations (to the last record)"
+    last: dict = {}
+    for r in rows:
+        last[r.get("start")] = max(last.get(r.get("start"), 0), r["mda_evaluations"])
+    return f"{sum(last.values())} multidisciplinary evaluations (to the last record of each of its {len(last)} starts)"
 
 
 def headline(rows: list[dict], sign: float = 1.0, answers: dict | None = None) -> int:
@@ -319,15 +380,21 @@ def last_iterate(bag, run_id: str | None = None, key_file: str | None = None,
     if not rows:
         raise BagError(f"{bag.mcap_path}: no IterationRecord on {ITERATION_TOPIC}; nothing to resume")
     answers = read_answers(bag, signer, checks)
+    told = answered_result(rows, answers)  # the bag lost the records after the result: the record's word
     k = headline(rows, -1.0 if bag.stored_config.maximized else 1.0, answers)
-    row = rows[k]
-    if checks is not None and k != len(rows) - 1 and row["formulation"] != "doe":
+    row = told or rows[k]
+    if told is not None:
+        at = f"iteration {told['iteration']}, " if told["iteration"] is not None else ""
+        checks["result"] = (f"the run's result ({at}from its end-of-run record: the bag's iteration records stop at "
+                            f"iteration {rows[-1]['iteration']})")
+    elif k != len(rows) - 1 and row["formulation"] != "doe":
         checks["result"] = f"the run's result (iteration {row['iteration']}, not its last record)"
     if checks is not None and row["formulation"] == "doe":
         checks["sweep"] = sweep_phrase(row, len(rows))
     if row.get("starts") and not (answers or {}).get("result_design"):  # an interrupted multi-start
         return bag.stored_config.text, each_start(rows, row, checks), int(row["iteration"])
-    return bag.stored_config.text, {**row["design"], **row.get("couplings", {})}, int(row["iteration"])
+    return (bag.stored_config.text, {**row["design"], **row.get("couplings", {})},
+            int(rows[-1]["iteration"] if row["iteration"] is None else row["iteration"]))
 
 
 def each_start(rows: list[dict], last: dict, checks: dict) -> list[dict | None]:
@@ -340,11 +407,25 @@ def each_start(rows: list[dict], last: dict, checks: dict) -> list[dict | None]:
         if r.get("starts") == n and r.get("seed") == last.get("seed"):
             final[r["start"]] = r
     checks["seed"] = last.get("seed")
-    checks["starts"] = (f"the last record of each of its {n} starts (iterations "
-                        + ", ".join(str(final[i]["iteration"]) if i in final else "none"
-                                    for i in range(1, n + 1)) + ")")
+    if n <= 10:
+        checks["starts"] = (f"the last record of each of its {n} starts (iterations "
+                            + ", ".join(str(final[i]["iteration"]) if i in final else "none"
+                                        for i in range(1, n + 1)) + ")")
+    else:  # 800 starts: counts and a few of each, not 800 numbers on one line
+        have = [i for i in range(1, n + 1) if i in final]
+        none = [i for i in range(1, n + 1) if i not in final]
+        at = [f"start {i} at iteration {final[i]['iteration']}" for i in have]
+        parts = [f"{len(have)} with a record ({few(at)})"]
+        parts += [f"{len(none)} with none (starts {few(none)})"] if none else []
+        checks["starts"] = f"the last record of each of its {n} starts: {', '.join(parts)}"
     return [{**final[i]["design"], **final[i].get("couplings", {})} if i in final else None
             for i in range(1, n + 1)]
+
+
+def few(items: list, shown: int = 3) -> str:
+    """"a, b, c and 517 more": the first ``shown`` of ``items``, and how many more."""
+    more = f" and {len(items) - shown} more" if len(items) > shown else ""
+    return ", ".join(str(i) for i in items[:shown]) + more
 
 
 def runs_held(run_ids: list[str], shown: int = 5) -> str:

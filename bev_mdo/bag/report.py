@@ -6,7 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bev_mdo.bag.history import headline, read_answers, records_phrase, run_ending, sweep_phrase, verified_history
+from bev_mdo.bag.history import (answered_result, headline, mda_total, read_answers, records_phrase, run_ending,
+                                  sweep_phrase, verified_history)
 from bev_mdo.bag.reader import Bag, open_bag
 from bev_mdo.mdo.units import label, run_units, unit_of
 
@@ -341,11 +342,14 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
         lines.append(f"- **truncated**: {bag.recovery_note()}")
     if rows:
         last, sweep = rows[k], rows[-1]["formulation"] == "doe"
+        recorded = [r for r in rows if not r.get("from_answers")]  # the result the bag lacks is the answers' word
         feasible = [r for r in rows if r["feasible"]] if not sweep else []  # a sweep's headline is its best
-        lines += [f"- {records_phrase(rows)}, formulation `{last['formulation']}`, optimizer "
-                  f"`{last['optimizer']}`, {rows[-1]['mda_evaluations']} multidisciplinary evaluations", ""]
-        result = not sweep and k % len(rows) != len(rows) - 1  # the stored result is not the last record
-        point = (sweep_phrase(last, len(rows)) if sweep else f"the run's result (iteration {last['iteration']})"
+        lines += [f"- {records_phrase(recorded)}, formulation `{last['formulation']}`, optimizer "
+                  f"`{last['optimizer']}`, {mda_total(recorded, answers)}", ""]
+        result = not sweep and (k % len(rows) != len(rows) - 1 or last.get("from_answers"))  # not the last record
+        where = "iteration not recorded" if last["iteration"] is None else f"iteration {last['iteration']}"
+        point = (sweep_phrase(last, len(rows)) if sweep else f"the run's result ({where}, from its end-of-run record)"
+                 if last.get("from_answers") else f"the run's result ({where})"
                  if result else "the end point" if finished else "the last recorded iterate")
         lines += [f"## The {point[4:]}" if sweep or result else "## Final iterate" if finished else
                   "## Last recorded iterate (the run did not finish)", ""]
@@ -365,11 +369,13 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
             lines += [row(k, v, base.get("outputs", {}).get(k)) for k, v in final["outputs"].items() if k not in shown]
         else:
             lines += [row(k, v, base.get("outputs", {}).get(k)) for k, v in last["constraints"].items()]
-        lines += [f"| max violation (normalised) | – | {last['max_violation']:.3g} |" + (" |" if base else ""),
+        viol = "not recorded" if last.get("from_answers") and last["max_violation"] != last["max_violation"] else \
+            f"{last['max_violation']:.3g}"  # the answers predate it
+        lines += [f"| max violation (normalised) | – | {viol} |" + (" |" if base else ""),
                   f"| feasible | | {last['feasible']} |" + (" |" if base else "")]
         if final is not None:
             lines += ["", "Outputs other than the objective and constraints (mass, cost, ...) are "
-                          f"{'this iterate' if not sweep else 'this design'} analysed again in process "
+                          f"{'this design' if sweep or last.get('from_answers') else 'this iterate'} analysed again in process "
                           "from the configuration stored in the bag."]
         if feasible:
             from bev_mdo.mdo.driver import BEST_REL_TOL, pick_result
@@ -378,7 +384,9 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
             # the run's result where the bag stores its design (the rule's 'converged' is not recorded)
             at = [r for r in rows if r["feasible"] and r["design"] == (answers or {}).get("result_design")]
             best = at[-1] if at else rows[pick_result(rows, sign, converged=False)]
-            lines += ["", f"Best feasible objective {best['objective']:.6g} at iteration {best['iteration']}"
+            spot = (f"iteration {best['iteration']}" if best["iteration"] is not None else
+                    "the run's result, from its end-of-run record")
+            lines += ["", f"Best feasible objective {best['objective']:.6g} at {spot}"
                           f"{' (maximised)' if sign < 0 else ''} (" + ("the run's result)." if at else
                           f"an earlier iterate counts only if better by more than {BEST_REL_TOL:g} relative, "
                           "as for the run's result).")]
@@ -414,20 +422,27 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     units = _units(config)
     answers = read_answers(bag, signer, checks)  # a signed run's count only when signed with its key too
     ending = run_ending(bag, rows, answers, checks)  # before the report makes answers of its own
-    k = headline(rows, -1.0 if bag.stored_config.maximized else 1.0, answers)  # the result, a sweep's best, the last
+    told = answered_result(rows, answers)  # the result's record is not in the bag (its recorder died): the answers'
+    shown = rows + [told] if told else rows
+    k = headline(shown, -1.0 if bag.stored_config.maximized else 1.0, answers)  # the result, a sweep's best, the last
     if rows and config is not None:
-        final = _analyse(config, dict(rows[k]["design"]))
+        final = _analyse(config, dict(shown[k]["design"]))
         baseline = _baseline(config, problem)
         if answers is None:
             from bev_mdo.mdo.active import answers_for
 
             values = dict(final["outputs"]) if final else {}
-            values.update(rows[k]["constraints"])
+            values.update(shown[k]["constraints"])
             try:
-                answers = answers_for(config.settings, dict(rows[k]["design"]), values,
+                answers = answers_for(config.settings, dict(shown[k]["design"]), values,
                                       config.disciplines, units=units)
             except Exception:  # noqa: BLE001
                 answers = None
+    if told is not None:  # answers stored before they held the result's objective: the analysis gives it
+        outputs = (final or {}).get("outputs", {})
+        told["objective"] = outputs.get(told["objective_name"], float("nan")) if told["objective"] is None \
+            else told["objective"]
+        told["max_violation"] = float("nan") if told["max_violation"] is None else told["max_violation"]
     written: list[Path] = []
     if rows:
         _plot_convergence(rows, out / "convergence.png", baseline, units)
@@ -439,6 +454,6 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
         _plot_timing(timing, out / "discipline_time.png")
         written.append(out / "discipline_time.png")
     md = out / "report.md"
-    md.write_text(_markdown(bag, rows, timing, [p.name for p in written], final, answers, baseline, units, k, ending,
+    md.write_text(_markdown(bag, shown, timing, [p.name for p in written], final, answers, baseline, units, k, ending,
                             checks.get("config", "")), encoding="utf-8")
     return written + [md]

@@ -66,25 +66,27 @@ def print_table(report: dict) -> None:
     from rich.console import Console
     from rich.table import Table
 
+    from bev_mdo.mdo.units import unit_of
+
+    units = report.get("units", {})
     console = Console(file=sys.stdout, width=100)
     t = Table(title="design and outputs", show_header=True)
-    t.add_column("variable")
-    t.add_column("value", justify="right")
-    t.add_column("role")
+    for col in ("variable", "value", "unit", "role"):
+        t.add_column(col, justify="right" if col == "value" else "left")
     for k, v in report["design"].items():
-        t.add_row(k, _fmt(v), "design")
+        t.add_row(k, _fmt(v), unit_of(k, units), "design")
     for k, v in report.get("parameters", {}).items():
-        t.add_row(k, _fmt(v), "parameter")
+        t.add_row(k, _fmt(v), unit_of(k, units), "parameter")
     obj = report["objective"]["name"]
     role = "objective (max)" if report["objective"].get("maximize") else "objective (min)"
     for k, v in report["outputs"].items():
-        t.add_row(k, _fmt(v), role if k == obj else "output")
+        t.add_row(k, _fmt(v), unit_of(k, units), role if k == obj else "output")
     console.print(t)
     c = Table(title="constraints", show_header=True)
-    for col in ("constraint", "value", "lower", "upper", "margin", "ok"):
-        c.add_column(col, justify="left" if col == "constraint" else "right")
+    for col in ("constraint", "value", "lower", "upper", "margin", "unit", "ok"):
+        c.add_column(col, justify="left" if col in ("constraint", "unit") else "right")
     for k, r in report["constraints"].items():
-        c.add_row(k, _fmt(r["value"]), _fmt(r["lower"]), _fmt(r["upper"]), _fmt(r["margin"]),
+        c.add_row(k, _fmt(r["value"]), _fmt(r["lower"]), _fmt(r["upper"]), _fmt(r["margin"]), unit_of(k, units),
                   "yes" if r["satisfied"] else "[bold red]NO[/]")
     console.print(c)
     if not report["ok"]:

@@ -75,6 +75,14 @@ def _progress(quiet: bool, to_stderr: bool):
     return show
 
 
+def set_line(source: dict) -> str:
+    """A parameter set as a run names it: 'epa2022_quasi_static', or 'mine (/x/mine.yaml, sha256 1a2b..., fitted
+    2026-12-07)' for one given as a file."""
+    more = [source[k] for k in ("file",) if source.get(k)] + [f"{k} {source[k]}" for k in ("sha256", "fitted")
+                                                                if source.get(k)]
+    return source["name"] + (f" ({', '.join(more)})" if more else "")
+
+
 def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
     from rich.console import Console
     from rich.table import Table
@@ -100,8 +108,9 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
             row(k, v, bo.get(k, float("nan")))
     t.add_row("feasible", str(result["feasible"]), *([str(baseline["feasible"])] if baseline is not None else []))
     Console(file=out).print(t)
-    if baseline is not None and baseline.get("error"):
-        print(f"baseline {baseline['name']}: {baseline['error']}", file=out)
+    if baseline is not None:  # its failure, and what its column does not show (outside its bounds, a parameter set)
+        for line in ([baseline["error"]] if baseline.get("error") else []) + list(baseline.get("notes", ())):
+            print(f"baseline {baseline['name']}: {line}", file=out)
     if result.get("error"):
         print(f"the result point failed: {result['error']}", file=out)
     elif result.get("stopped"):  # a discipline stopped answering: the run stopped the optimiser
@@ -138,10 +147,12 @@ def _verdict(result: dict, out, units: dict) -> None:
         from bev_mdo.mdo.multistart import summary_line
 
         print(summary_line(result["multistart"]), file=out)
-    print(f"first-order check: {cost['points']} extra point{'' if cost['points'] == 1 else 's'} in {cost['wall_time_s']:.3f} s"
-          + (" (the optimiser's last gradient reused)" if cost["points"] == 0 else
-             " (central differences confirmed the analytic derivatives)" if fo.get("derivatives_confirmed") else ""),
-          file=out)
+    kink = fo.get("kink_points", 0)  # driver.end_point_check: its steps either side of the point, for a kink
+    why = (["the optimiser's last gradient reused"] if cost["points"] == kink else
+           ["central differences confirmed the analytic derivatives"] if fo.get("derivatives_confirmed") else
+           [f"{cost['points'] - kink} for the gradient"]) + ([f"{kink} to look for a kink"] if kink else [])
+    print(f"first-order check: {cost['points']} extra point{'' if cost['points'] == 1 else 's'} in "
+          f"{cost['wall_time_s']:.3f} s ({'; '.join(why)})", file=out)
     if fo["verdict"] == "infeasible":
         return  # the answers below say what is violated and what blocks it
 
@@ -213,6 +224,8 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
 
         result = {k: v for k, v in doc.items() if k != "baseline"}
         _table(result, doc["baseline"], out, declared_units(config))
+        if doc.get("parameter_set"):
+            print(f"parameter set: {set_line(doc['parameter_set'])}", file=out)
         failed = (result.get("first_order") or {}).get("point_failed")  # the verdict line says why: no value
         if not doc["feasible"] and not failed:  # a feasible end printed the first-order check's active set instead
             ans = result["active"]

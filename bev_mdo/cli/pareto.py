@@ -90,7 +90,7 @@ def _front(res) -> str:
 def _settling(res, label: str = "") -> None:
     from bev_mdo.mdo.pareto import settling_line
 
-    if (line := settling_line(res.hypervolume)):
+    if (line := settling_line(res.hypervolume, sizes=res.front_sizes)):
         print(f"{label}{line}")
 
 
@@ -169,6 +169,9 @@ def _study(args, raw, written, names, ov) -> int:
     out, bag = pareto.out_dirs(args.out, raw.get("name", "run"))
     run_id = uuid.uuid4().hex[:16]
     results, bench, timing = {}, {}, {}
+    from bev_mdo.mdo.pareto import hypervolume_reference
+
+    hv_ref = hypervolume_reference([n for n, _ in objectives])
     from bev_mdo.api.runbag import claim_new_bag
 
     with claim_new_bag(bag, "--out"):  # of two studies given the same --out at once, one is refused here
@@ -190,22 +193,25 @@ def _study(args, raw, written, names, ov) -> int:
                 timing[t] = {"wall_time_s": res.wall_time_s, "evaluations": res.evaluations, "batches": res.batches,
                              "mean_generation_s": float(np.mean(res.generation_times_s)),
                              "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12),
-                             "hypervolume_by_generation": res.hypervolume,
+                             "hypervolume_by_generation": res.hypervolume, "hypervolume_reference": hv_ref,
+                             "front_size_by_generation": res.front_sizes,
                              "design_variables": {d.name: [d.lower, d.upper] for d in cfg.problem.design_variables}}
                 pareto.write_front(out / f"pareto_{t}.csv", res)
     study.write_benchmark(out / "benchmark.csv", bench, configs)
-    warnings = study.torque_warnings(bench)
-    for w in warnings:
-        print(w, file=sys.stderr)
+    broken = study.violations(bench, configs)  # the run's constraints each benchmark design breaks
+    warnings = study.benchmark_warnings(bench, broken)
+    for w in warnings:  # they qualify the results: on stdout with them
+        print(w)
     names = [n for n, _ in objectives]
     summary = {"config": str(args.config), "transport": args.transport, "run_id": run_id, "bag": str(bag),
                "objectives": names, "generations": args.generations, "pop": args.pop, "seed": args.seed,
-               "timing": timing, "benchmark": bench, "picks": study.picks(results, bench), "out": str(out),
+               "timing": timing, "benchmark": bench, "benchmark_violations": broken,
+               "picks": study.picks(results, bench), "out": str(out),
                "warnings": warnings, **session.stats}
     pngs = []
     if not args.no_plots:
         cyc = first.get("cycle") or {}
-        pngs = study.plots(out, results, bench, names, cyc.get("name", "") if isinstance(cyc, dict) else "")
+        pngs = study.plots(out, results, bench, names, cyc.get("name", "") if isinstance(cyc, dict) else "", broken)
     for t in topologies:
         r = results[t]
         print(f"{t}: {_front(r)}, {r.evaluations} evaluations in {r.batches} batches, "

@@ -138,8 +138,10 @@ def _start_points(problem, designs: list, seed, out) -> list[dict]:
         sample = start_points(problem, len(designs), seed)
         designs = [sample[i] if d is None else d for i, d in enumerate(designs)]
     elif missing:
-        print("left out start(s) " + ", ".join(str(i + 1) for i in missing) + ": no record of them and no sample "
-              "to draw their points from", file=out)
+        from bev_mdo.bag.history import few
+
+        print(f"left out {len(missing)} start(s) ({few([i + 1 for i in missing], 10)}): no record of them and no "
+              "sample to draw their points from", file=out)
     designs = [d for d in designs if d is not None]
     if not designs:
         raise ValueError("no start of the multi-start has a record to resume from")

@@ -95,7 +95,7 @@ def run(args) -> int:
     if args.json:
         print(jsontext.dumps(sensitivity.to_dict(s, outputs) | ({"notes": notes} if notes else {})))
     else:
-        print_tables(s, outputs)
+        print_tables(s, outputs, shown=problem.names)
         for note in notes:
             print(f"note: {note}")
         if args.png:
@@ -103,11 +103,13 @@ def run(args) -> int:
     return 0
 
 
-def print_tables(s, outputs, out=None) -> None:
+def print_tables(s, outputs, out=None, shown=()) -> None:
+    """The tables of a local sensitivity ``s``; its point line names the ``shown`` variables (the design) and
+    every ``wrt`` one (a parameter's line left out the design it was taken at)."""
     out = out or sys.stdout  # the stream of the call (a default of sys.stdout kept the one at import)
     w = max(12, *(len(n) for n in s.names)) + 2
     ow = max(len(k) for k in outputs) + 2
-    print(f"point: {', '.join(f'{k}={s.point[k]:g}' for k in s.names)}   "
+    print(f"point: {', '.join(f'{k}={s.point[k]:g}' for k in dict.fromkeys([*shown, *s.names]))}   "
           f"({s.n_evaluations} evaluations in {s.n_batches} batch(es), method {s.method})", file=out)
     print("\nFirst-order normalised sensitivity S_i = (x_i/f) df/dx_i  (eq 5-4)", file=out)
     print("output".ljust(ow) + "".join(n.rjust(w) for n in s.names), file=out)

@@ -94,6 +94,7 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
     both = np.concatenate([err[c][scored[c]] for c in fl.CYCLES])
     report = {"data": fleet.path, "energy_model": energy_model, "compared": compared(energy_model, base),
               "parameter_set": parameter_set,
+              "parameter_set_fitted_on": fitted_on_these_rows(parameter_set, fleet.path),
               "vehicles": len(fleet), "rows": out_rows,
             "not_following": [{"row": int(fleet.rows[i]), "cycle": c} for c in fl.CYCLES
                               for i in np.flatnonzero(~pred[c]["follows"])],
@@ -102,8 +103,52 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
               "by_make": _by_make(fleet, err, scored)}
     if pairs:
         report["pairs"] = _pairs(fleet, pred, scored)
-    report["reference"] = _reference(fleet, energy_model, pred, scored, out_rows, report.get("pairs"), cycles)
+    report["reference"] = _reference(fleet, energy_model, pred, scored, out_rows, report.get("pairs"), cycles,
+                                     report["compared"])
     return report
+
+
+def fitted_on_these_rows(parameter_set: str | None, data) -> str:
+    """Whether the model's figures are in-sample, as far as the set's provenance (its ``fitted_on``: the
+    fleet file, its absolute path and SHA-256) tells: no set; fitted on this file; fitted on another file
+    that holds none, some or all of these rows (compared cell by cell where that file is at hand and its
+    SHA-256 matches); or unknown."""
+    import hashlib
+    from pathlib import Path
+
+    from bev_mdo.models.cycles import read_csv_rows
+    from bev_mdo.models.params import PARAMETER_SET_DIR, is_parameter_set_file, parameter_set_source
+
+    if not parameter_set or parameter_set == "none":
+        return "no parameter set: the model's own constants, nothing fitted to these rows"
+    on = parameter_set_source(parameter_set)["fitted_on"]
+    if not on.get("sha256"):
+        return (f"parameter set {parameter_set} records no fleet file it was fitted on: whether these rows were in its "
+                "fit is unknown") if is_parameter_set_file(parameter_set) else (
+                f"parameter set {parameter_set}: constants not fitted to a fleet")
+    if on["sha256"] == hashlib.sha256(Path(data).read_bytes()).hexdigest():
+        return f"parameter set {parameter_set} was fitted on this file: in-sample"
+    said = f"parameter set {parameter_set} was fitted on {on.get('path') or on.get('file')} (not this file)"
+    where = [Path(str(w)) for w in (on.get("path"), on.get("file")) if w]
+    where += [PARAMETER_SET_DIR.parents[2] / w for w in where if not w.is_absolute()]  # a shipped set's, in the tree
+    if is_parameter_set_file(parameter_set):
+        where += [Path(parameter_set).parent / w for w in where if not w.is_absolute()]
+    fit_file = next((w for w in where if w.is_file() and hashlib.sha256(w.read_bytes()).hexdigest() == on["sha256"]),
+                    None)
+    if fit_file is None:
+        return f"{said}, which is not at hand: whether these rows were in its fit is unknown"
+
+    def rows(path):  # each data row as its cells by column name
+        head, *body = read_csv_rows(path, "fleet file")
+        return [dict(zip((h.strip() for h in head), (c.strip() for c in r))) for r in body if any(c.strip() for c in r)]
+
+    ours, theirs = rows(data), rows(fit_file)
+    common = sorted(set(ours[0] if ours else ()) & set(theirs[0] if theirs else ()))
+    fitted = {tuple(r.get(k) for k in common) for r in theirs}
+    both = sum(tuple(r.get(k) for k in common) in fitted for r in ours)
+    if not both:
+        return f"{said}, which has none of these rows: held out"
+    return f"{said}; {both} of these {len(ours)} rows are in it: in-sample for those"
 
 
 REFERENCE = {"baseline3": "3-constant baseline a + b mass + c road-load work per cycle, each family predicted by "
@@ -113,14 +158,18 @@ REFERENCE = {"baseline3": "3-constant baseline a + b mass + c road-load work per
 
 
 def _reference(fleet, energy_model: str, pred: dict, scored: dict, out_rows: list, pairs: dict | None,
-               cycles: dict) -> dict:
+               cycles: dict, compared_text: str) -> dict:
     """The model beside the 3-constant baseline and FASTSim on the same rows (models/baselines.py);
-    adds each row's baseline and FASTSim prediction to ``out_rows`` (None where there is none)."""
+    adds each row's baseline and FASTSim prediction to ``out_rows`` (None where there is none).
+    ``compared_text``: what the model's column compares (:func:`compared` with the run's parameter set)."""
     from bev_mdo.models import baselines as bl, fleet as fl, pairs as pr
 
     use = ~fleet.outlier & np.logical_and.reduce([scored[c] for c in fl.CYCLES])
     columns = {energy_model: {c: np.where(scored[c], pred[c]["energy_wh_per_km"], np.nan) for c in fl.CYCLES},
                "baseline3": bl.three_constant_cv(fleet, use, cycles)}
+    three = columns["baseline3"]
+    baseline3 = "available" if any(np.isfinite(three[c]).any() for c in fl.CYCLES) else (
+        "none: its 3 constants per cycle need rows of other model families (one family, or too few rows)")
     fastsim = bl.read_fastsim(fleet)
     if fastsim is None:
         status = f"unavailable: {bl.FASTSIM_CSV} is missing"
@@ -137,10 +186,13 @@ def _reference(fleet, energy_model: str, pred: dict, scored: dict, out_rows: lis
             for name in ("baseline3", "fastsim"):
                 v = columns[name][c][i] if name in columns else math.nan
                 r[f"{short}_{name}_wh_per_km"] = float(v) if math.isfinite(v) else None
+    if baseline3 != "available":  # no figure at all: the others are scored on their own rows, not on none
+        del columns["baseline3"]
     folds = int(bl.family_folds(fleet, use).max()) + 1  # as many as the families, up to baselines.FOLDS
-    out = {"columns": {energy_model: compared(energy_model), **REFERENCE,
+    out = {"columns": {energy_model: compared_text, **REFERENCE,
                        "baseline3": REFERENCE["baseline3"].format(k=folds)},
-           "fastsim": status, "same_rows": bl.reference_table(fleet, columns), "baseline3_folds": folds}
+           "fastsim": status, "baseline3": baseline3, "same_rows": bl.reference_table(fleet, columns),
+           "baseline3_folds": folds}
     if pairs is not None:
         index = {int(row): i for i, row in enumerate(fleet.rows)}
         out["pairs"] = {}
@@ -273,8 +325,9 @@ def print_reference(report: dict) -> None:
     """The model beside the 3-constant baseline and FASTSim, per cycle, on the rows every column scores."""
     ref = report["reference"]
     names = [n for n in ref["same_rows"]["udds"] if n not in ("rows", "pairs")]
-    print(f"beside the references, same rows (FASTSim: {ref['fastsim']}); MAPE %, pair slope, pair mean |diff| "
-          "points:")
+    three = "" if ref.get("baseline3", "available") == "available" else f"; baseline3: {ref['baseline3']}"
+    print(f"beside the references, same rows (FASTSim: {ref['fastsim']}{three}); MAPE %, pair slope, pair mean "
+          "|diff| points:")
     for c in ("udds", "hwfet"):
         t = ref["same_rows"][c]
         cells = "; ".join(f"{n} {_f(t[n]['mape_pct'], 2)} / {_f(t[n]['pair_slope'], 2)} / "
@@ -282,6 +335,9 @@ def print_reference(report: dict) -> None:
         print(f"{c:>6} ({t['rows']} rows, {t['pairs']} pairs): {cells}" if t["rows"] else
               f"{c:>6}: no row that every column predicts (baseline3 is held out by family: a row needs rows "
               "of other families that fix its 3 constants)")
-    print(f"  ({report['energy_model']}: as above, not refitted (a parameter set fitted on these rows is in-sample); "
-          f"baseline3: held out, {ref['baseline3_folds']} folds by family; fastsim: its defaults, nothing fitted; held-out figures of "
-          "every model: bench/bench_validate.py, docs/validation.md)")
+    folds = ref["baseline3_folds"]
+    three = (f"held out, {folds} fold{'' if folds == 1 else 's'} by family"
+             if ref.get("baseline3", "available") == "available" else "none")
+    print(f"  ({report['energy_model']}: as above, not refitted: {report['parameter_set_fitted_on']}; baseline3: "
+          f"{three}; fastsim: its defaults, nothing fitted; held-out figures of every model: bench/bench_validate.py, "
+          "docs/validation.md)")

@@ -68,7 +68,8 @@ def plot(report: dict, path: str) -> None:
     ax[0].plot(x, x, "k-", lw=1)
     ax[0].fill_between(x, 0.95 * x, 1.05 * x, color="grey", alpha=0.2, label="+-5 %")
     ax[0].set(xlabel="measured wall energy (Wh/km)", title="parity",
-              ylabel=f"predicted {'wall' if report['energy_model'] == 'chain' else 'battery'} energy (Wh/km)")
+              ylabel=f"predicted {'wall' if 'predicted wall energy' in report['compared'] else 'battery'} energy "
+                     "(Wh/km)")
     s = report["stats"]["udds_hwfet"]
     ax[0].text(0.02, 0.98, f"mean |err| {_f(s['mean_abs_pct'], 2)} %\nP90 {_f(s['p90_abs_pct'], 2)} %",
                transform=ax[0].transAxes, va="top")

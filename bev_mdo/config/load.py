@@ -94,6 +94,15 @@ class RunConfig(Mapping):
         return self.data["problem"].get("baseline")
 
     @property
+    def parameter_set(self) -> dict | None:
+        """The vehicle's parameter set: ``{"name"}`` of a shipped one, or what ``vehicle.parameter_set_source``
+        records of one given as a file (name, file, sha256, fitted: its values are in the section); None."""
+        v = self.data.get("vehicle") or {}
+        if isinstance(v.get("parameter_set_source"), Mapping):
+            return dict(v["parameter_set_source"])
+        return {"name": v["parameter_set"]} if isinstance(v.get("parameter_set"), str) else None
+
+    @property
     def names(self) -> tuple[str, ...]:
         """The run's disciplines by name, in their order."""
         return self.settings.disciplines
@@ -110,8 +119,8 @@ class RunConfig(Mapping):
             return self
         from bev_mdo.models.params import VEHICLE_CHOICES, validate_vehicle
 
-        vehicle.update(values)  # validate_vehicle returns the numeric parameters; the choices are kept
-        choices = {k: vehicle[k] for k in VEHICLE_CHOICES if k in vehicle}
+        vehicle.update(values)  # validate_vehicle returns the numeric parameters; choices and the set's record are kept
+        choices = {k: vehicle[k] for k in (*VEHICLE_CHOICES, "parameter_set_source") if k in vehicle}
         return RunConfig.load({**self.data, "vehicle": {**validate_vehicle(vehicle), **choices}}, where=self.source)
 
     def with_sections(self, **sections: Any) -> "RunConfig":

@@ -13,7 +13,7 @@ from bev_mdo.mdo.discipline import Discipline
 from bev_mdo.models import road_load
 from bev_mdo.models import topology as topo_model
 from bev_mdo.models.cycles import load_cycle, resample
-from bev_mdo.models.params import ENERGY_MODELS, ROAD_LOAD_REPLACES, validate_cycle, validate_vehicle  # noqa: F401 - ENERGY_MODELS re-exported
+from bev_mdo.models.params import ENERGY_MODELS, ROAD_LOAD_UNUSED, validate_cycle, validate_vehicle  # noqa: F401 - ENERGY_MODELS re-exported
 
 
 def vehicle_of(config: Mapping[str, Any]) -> dict[str, float]:
@@ -57,8 +57,9 @@ def topology_inputs(t: topo_model.Topology) -> tuple[str, ...]:
 
 def overridable(v: Mapping[str, float], names) -> list[str]:
     """``names`` and the coast-down road load's constants (models/road_load.py), less the constants a
-    road load replaces: no model reads those then, so they are not overridable per point."""
-    replaced = ROAD_LOAD_REPLACES if road_load.uses_road_load(v) else ()
+    road load leaves unused (the air density too): no model reads those then, so they are not overridable per
+    point (a sensitivity to them was 0, a sweep over them gave identical rows)."""
+    replaced = ROAD_LOAD_UNUSED if road_load.uses_road_load(v) else ()
     return [k for k in [*names, *(k for k in v if k.startswith("road_load_"))] if k not in replaced]
 
 

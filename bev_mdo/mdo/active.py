@@ -110,6 +110,12 @@ def outside_bounds(d, x: float, feas_tol: float) -> list[dict]:
             if by > feas_tol * span]
 
 
+def outside_note(d, x: float) -> str:
+    """The one line evaluate and a baseline give a design value ``x`` of ``d`` that ``outside_bounds`` finds."""
+    return (f"{d.name} = {x:g} is outside its bounds [{d.lower:g}, {d.upper:g}]: infeasible whatever the "
+            "constraints say (evaluated as given)")
+
+
 OPERATORS = {"lower": ">=", "upper": "<=", "equal": "=="}
 
 

@@ -146,6 +146,8 @@ def verdict_line(fo: dict) -> str:
                 "so the first-order conditions cannot be verified)")
     kinks = fo.get("kinks")  # mdo/kinks.py: one-sided slopes of the objective or an active constraint differ
     kink = f"; {_kinks(kinks)}: a nonsmooth model, whose optimum the first-order conditions cannot verify" if kinks else ""
+    if fo.get("kink_at_optimum"):  # driver.end_point_check: the conditions held on a gradient across a kink
+        kink += "; the numbers above hold on a gradient taken across the kink, which does not verify it"
     scale = (f"; the optimiser sees an objective of {fo['objective_seen']:.1e}: give problem.objective_scale about "
              f"{fo['objective_seen']:.0e} so that it is of order one") if fo.get("objective_seen") else ""
     return (f"{v} (projected gradient of the Lagrangian {fo['stationarity']:.3g}, complementarity "
@@ -154,7 +156,7 @@ def verdict_line(fo: dict) -> str:
 
 def _kinks(kinks: Sequence[dict]) -> str:
     """mdo/kinks.py's kinks by what they are in (the objective, or a constraint), each with its variables and
-    their one-sided slopes, e.g. 'the objective has a kink at the point in x (one-sided slopes 4 and 6)' (found
+    their one-sided slopes, e.g. 'the objective has a kink at the point in x (slope 4 on its left, 6 on its right, per scaled unit)' (found
     with the longer steps: 'within 0.0002 (scaled) of the point')."""
     by: dict[str, list[dict]] = {}
     for k in kinks:
@@ -163,5 +165,6 @@ def _kinks(kinks: Sequence[dict]) -> str:
     for what, ks in by.items():
         where = f"within {ks[0]['near_step']:g} (scaled) of the point" if ks[0].get("near_step") else "at the point"
         parts.append(f"{'the objective' if what == 'objective' else what} has a kink {where} in " + ", ".join(
-            f"{k['name']} (one-sided slopes {k['left']:.5g} and {k['right']:.5g})" for k in ks))
+            f"{k['name']} (slope {k['left']:.5g} on its left, {k['right']:.5g} on its right, per scaled unit)"
+            for k in ks))
     return "; ".join(parts)

@@ -243,6 +243,17 @@ def cross_validate(fleet: fl.Fleet, k: int = 5, names=None, cycles: dict | None 
             "fold_params": np.array(xs), "fold_mape_pct": np.array(fold_mape)}
 
 
+PLATFORM = "two-speed platform"
+
+
+def platform_groups(fleet: fl.Fleet, groups: list[str]) -> list[str]:
+    """``groups`` with every two-speed row (``gear_count`` 2) moved into one group of its own, PLATFORM: in the
+    shipped fleet these are one platform (Porsche Taycan, Audi e-tron GT), the only rows of the two-speed term,
+    which a family or make split otherwise fits on one sibling and scores on the other."""
+    two = fleet.technology.get("gear_count", ["unknown"] * len(fleet))
+    return [PLATFORM if t == "2" else g for g, t in zip(groups, two)]
+
+
 def cv_pairs(fleet: fl.Fleet, cv: dict, use: np.ndarray) -> dict:
     """Within-family pairs (models/pairs.py) of the cross-validated predictions, per cycle: every
     pair lies in one model line, hence in one family and fold, so both of its vehicles are
@@ -279,10 +290,11 @@ def _scores(cv: dict, fleet: fl.Fleet, use: np.ndarray) -> dict:
 
 
 def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet, path=None, *,
-                        model: str) -> str:
+                        model: str, platform: bool = False) -> str:
     """Write the parameter set: the shipped one (``path`` None) or a file whose stem is its name, with
-    the fleet file it was fitted on (and its SHA-256), the date, the cross-validation figures and the
-    command that regenerates it."""
+    the fleet file it was fitted on (as given, its absolute path and its SHA-256), the date, the
+    cross-validation figures (``platform``: their groups were :func:`platform_groups`) and the command
+    that regenerates it."""
     import hashlib
 
     import yaml
@@ -297,6 +309,8 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
         what, args = "the EPA 2022 BEV fleet (bev_mdo/data/epa_2022_bev/train.csv)", ""
     else:
         what, args = f"the fleet file {data}", f" --data {data}"
+    own_fleet = bool(args)
+    args += " --block-platform" if platform else ""
     if model == "chain":
         description = (f"Wall-to-wheel chain (energy_model: chain) calibrated on {what}, UDDS + HWFET, least "
                        "squares on relative error. Regenerate with: python -m bev_mdo.models.calibrate --model chain"
@@ -308,11 +322,13 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
                        f"Regenerate with: bev-mdo calibrate --model {model}{args} --write "
                        f"{'shipped' if shipped else path}")
     use = usable(fleet)
+    blocked, few = ("_two_speed_platform_blocked" if platform else ""), few_values(f)
     doc = {
         "name": set_name if shipped else path.stem,
         "energy_model": model,  # what it was fitted for: bev-mdo validate refuses it on another model
         "description": description,
-        "fitted_on": {"file": data, "sha256": hashlib.sha256(Path(fleet.path).read_bytes()).hexdigest(),
+        "fitted_on": {"file": data, **({"path": str(Path(fleet.path).resolve())} if own_fleet else {}),
+                      "sha256": hashlib.sha256(Path(fleet.path).read_bytes()).hexdigest(),
                       "vehicles": int(use.sum()),
                       "cycles": list(fl.CYCLES), "date": datetime.date.today().isoformat(),
                       "fleet_wheel_radius_m": fl.FLEET_WHEEL_RADIUS_M, "fleet_gear_ratio": fl.FLEET_GEAR_RATIO},
@@ -325,9 +341,10 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
         "fixed_not_fitted": sorted(k for k in fixed if k not in ("air_density_kg_m3", "drag_area_m2",
                                                                    "rolling_resistance")),
         "quality": {"train_mape_pct": round(f["mape_pct"], 3),
-                    **({f"cv_{cv['k']}fold_by_family": _scores(cv, fleet, use)}
-                       if cv else {"cv_by_family": "not possible: one model family"}),
-                    **({"cv_leave_one_make_out": _scores(cv_make, fleet, use)} if cv_make else {})},
+                    **({f"cv_{cv['k']}fold_by_family{blocked}": _scores(cv, fleet, use)}
+                       if cv else {f"cv_by_family{blocked}": "not possible: one model family"}),
+                    **({f"cv_leave_one_make_out{blocked}": _scores(cv_make, fleet, use)} if cv_make else {}),
+                    **({"note": few} if few else {})},
         "parameters": {**{k: float(v) for k, v in fixed.items()
                           if k not in ("air_density_kg_m3", "drag_area_m2", "rolling_resistance")},
                        **{k: float(round(v, 6)) for k, v in zip(f["names"], f["x"])}},
@@ -341,6 +358,29 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
     return str(path)
 
 
+def few_values(f: dict) -> str:
+    """A note when the fit had fewer than two measured values per determined parameter: its standard
+    errors rest on so few residual degrees of freedom that they are rough ('' otherwise)."""
+    n, p = f.get("n_residuals", np.inf), int(np.sum(f.get("determined", np.ones(len(f["x"]), bool))))
+    return (f"{n} measured values for {p} fitted parameters (fewer than 2 per parameter): the standard errors "
+            f"rest on {n - p} residual degree(s) of freedom and are rough") if n < 2 * p else ""
+
+
+def _writable(path: Path) -> None:
+    """Before the fit: the set's folder (created if missing) takes a new file; OSError naming ``path`` otherwise."""
+    import tempfile
+
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=path.parent).close()
+    except OSError as exc:
+        raise OSError(exc.errno, f"its folder {path.parent} does not take a new file ({exc.strerror})", str(path))
+
+
+DESCRIPTION = ("Fit a model's fleet-wide parameters to measured cars (least squares on UDDS and HWFET), "
+               "cross-validate them by model family and by make, and write the parameter set if asked.")
+
+
 def add_arguments(ap) -> None:
     """The options of ``bev-mdo calibrate`` (and ``python -m bev_mdo.models.calibrate``)."""
     ap.add_argument("--model", default="quasi_static", choices=list(MODELS),
@@ -349,13 +389,16 @@ def add_arguments(ap) -> None:
     ap.add_argument("--data", default=None, help="fleet CSV (default: the shipped EPA 2022 training file)")
     ap.add_argument("--write", metavar="YAML", default=None,
                     help="write the parameter set there ('shipped' = bev_mdo/data/parameter_sets/<model's set>.yaml)")
+    ap.add_argument("--block-platform", action="store_true",
+                    help="in both cross-validations hold the two-speed rows (gear_count 2; in the shipped fleet one "
+                         "platform: Porsche Taycan, Audi e-tron GT) out together as one group, so the two-speed term "
+                         "is never fitted on one of them and scored on the other")
 
 
 def main(argv=None) -> int:
     import argparse
 
-    ap = argparse.ArgumentParser(prog="python -m bev_mdo.models.calibrate",
-                                 description="Fit a model's fleet-wide parameters and cross-validate them.")
+    ap = argparse.ArgumentParser(prog="python -m bev_mdo.models.calibrate", description=DESCRIPTION)
     add_arguments(ap)
     return run(ap.parse_args(argv))
 
@@ -392,9 +435,12 @@ def run(args) -> int:
             raise ValueError(f"--write {args.write}: give a .yaml file (a config names it as vehicle.parameter_set)")
         if path is not None and path.is_dir():
             raise ValueError(f"--write {args.write}: is a directory (give a .yaml file)")
+        if path is not None:
+            _writable(path)  # an unwritable place is said now, not after the whole fit
         fleet = fl.read_fleet(args.data)
         cycles = fl.resampled_cycles()
         use = usable(fleet, cycles)
+        print(f"fitting {model} on {int(use.sum())} vehicles of {fleet.path}", flush=True)
         f = fit(fleet, cycles=cycles, use=use, model=model)
         if f["n_residuals"] <= int(f["determined"].sum()):  # no residual degree of freedom: no standard errors
             raise ValueError(f"{fleet.path}: {f['n_residuals']} measured values for {int(f['determined'].sum())} "
@@ -403,14 +449,22 @@ def run(args) -> int:
     except ValueError as exc:
         print(f"bev-mdo calibrate: error: {exc}", file=sys.stderr)
         return 2
-    print(f"fitted {model} on {int(use.sum())} vehicles of {fleet.path}; cross-validating", flush=True)
+    except OSError as exc:
+        print(f"bev-mdo calibrate: error: cannot write {exc.filename}: {exc.strerror}", file=sys.stderr)
+        return 2
+    if few_values(f):
+        print(f"note: {few_values(f)}")
+    blocked = " (the two-speed platform held out as one group)" if args.block_platform else ""
+    print(f"fitted; cross-validating{blocked}", flush=True)
     left_out = np.flatnonzero(~use & ~fleet.outlier)
     if left_out.size:
         print(f"{left_out.size} vehicle(s) left out: the rated power cannot follow UDDS or HWFET (rows "
               f"{', '.join(str(r) for r in fleet.rows[left_out])})")
-    cv = cross_validate(fleet, 5, cycles=cycles, use=use, model=model, progress=_progress("family"))
-    cv_make = cross_validate(fleet, 99, cycles=cycles, groups=[m.lower() for m in fleet.make], use=use, model=model,
-                             progress=_progress("make"))
+    group = (lambda g: platform_groups(fleet, g)) if args.block_platform else (lambda g: g)
+    cv = cross_validate(fleet, 5, cycles=cycles, groups=group(fleet.family()), use=use, model=model,
+                        progress=_progress("family"))
+    cv_make = cross_validate(fleet, 99, cycles=cycles, groups=group([m.lower() for m in fleet.make]), use=use,
+                             model=model, progress=_progress("make"))
     for k, v, s, d, b in zip(f["names"], f["x"], f["se"], f["determined"], f["at_bound"]):
         print(f"{k:32s} " + (f"{_to_its_error(v, s):>12s} +- {s:.3g}" if d else f"{v:12.6g} " + (
             f"at its {b} bound (the data press it there)" if b else
@@ -428,7 +482,8 @@ def run(args) -> int:
     if args.write:
         interrupts.check()  # a signal swallowed since the last fit: no set written as if the run had ended
         try:
-            print("wrote", write_parameter_set(f, cv, cv_make, fleet, path, model=model))
+            print("wrote", write_parameter_set(f, cv, cv_make, fleet, path, model=model,
+                                               platform=args.block_platform))
         except OSError as exc:
             print(f"bev-mdo calibrate: error: cannot write {exc.filename or args.write}: {exc.strerror}", file=sys.stderr)
             return 2

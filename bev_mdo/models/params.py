@@ -99,6 +99,7 @@ ROAD_LOAD_SPECS: dict[str, tuple[str, ParamSpec]] = {
 }
 ROAD_LOAD_CHECK_SPEED_M_S = 70.0  # the force must stay positive from 0 to 252 km/h
 ROAD_LOAD_REPLACES = ("drag_area_m2", "rolling_resistance")  # the thesis terms a coast-down replaces
+ROAD_LOAD_UNUSED = (*ROAD_LOAD_REPLACES, "air_density_kg_m3")  # what no model reads beside a coast-down
 
 
 def road_load_minimum(a, b, c) -> tuple[np.ndarray, np.ndarray]:
@@ -314,8 +315,28 @@ def _check_fit(fit: Any) -> None:
                              "bev-mdo calibrate (it writes the model's default there) or set it yourself")
 
 
-def _read_parameter_set(name: str) -> tuple[dict[str, float], str]:
-    """(the set's parameters, the energy model it is for: ``_set_model``)."""
+# what a run records of a set given as a file (vehicle.parameter_set_source): its values are in the config
+SOURCE_KEYS = ("name", "file", "sha256", "fitted")
+
+
+def parameter_set_source(name: str) -> dict[str, str]:
+    """Which set ``name`` is: its ``name``, for a file its absolute ``file`` and ``sha256``, and ``fitted``
+    (the date its fit ran, from its ``fitted_on``) where it says; ``fitted_on``: the fleet it was fitted on,
+    as the set records it ({} when it does not). ValueError as :func:`load_parameter_set`."""
+    import hashlib
+
+    path, doc = _set_document(name)
+    fitted_on = doc.get("fitted_on") if isinstance(doc.get("fitted_on"), dict) else {}
+    out = {"name": str(doc.get("name") or path.stem)}
+    if is_parameter_set_file(name):
+        out.update(file=str(path.resolve()), sha256=hashlib.sha256(path.read_bytes()).hexdigest())
+    if fitted_on.get("date"):
+        out["fitted"] = str(fitted_on["date"])
+    return {**out, "fitted_on": {str(k): v for k, v in fitted_on.items()}}
+
+
+def _set_document(name: str) -> tuple[Path, dict]:
+    """The file of set ``name`` and its YAML mapping, read and checked as :func:`_read_parameter_set` says."""
     from bev_mdo.yamlload import read_yaml_file
 
     if not isinstance(name, str) or not name:
@@ -344,6 +365,13 @@ def _read_parameter_set(name: str) -> tuple[dict[str, float], str]:
         _check_fit(doc.get("fit"))
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
+    return path, doc
+
+
+def _read_parameter_set(name: str) -> tuple[dict[str, float], str]:
+    """(the set's parameters, the energy model it is for: ``_set_model``)."""
+    path, doc = _set_document(name)
+    values, specs = doc["parameters"], all_specs()
     out = {}
     for k, v in values.items():  # each in its range, as a config's vehicle section (validate took 0.1 and 1.9)
         s = specs[k]
@@ -387,7 +415,11 @@ def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
         check_keys("vehicle", flat_road, names)
         road = {names[k]: v for k, v in flat_road.items() if not (k == "road_load_mass_kg" and v == 0)}
     chain = section.pop("parameter_set", None)
-    check_keys("vehicle", section, [*specs, *VEHICLE_CHOICES, "parameter_set", "road_load"])
+    source = section.pop("parameter_set_source", None)  # which file set's values the section holds (a run's record)
+    if source is not None and not (isinstance(source, Mapping) and all(isinstance(v, str) for v in source.values())):
+        raise ValueError(f"vehicle.parameter_set_source must be a mapping of {', '.join(SOURCE_KEYS)} to text")
+    check_keys("vehicle.parameter_set_source", source or {}, SOURCE_KEYS)
+    check_keys("vehicle", section, [*specs, *VEHICLE_CHOICES, "parameter_set", "parameter_set_source", "road_load"])
     for k in VEHICLE_CHOICES:
         vehicle_choice(section, k)
     extra: dict[str, float] = {}

@@ -143,9 +143,13 @@ def thesis_vehicle(config, topology: str) -> bool:
         return False
 
 
+PICKS_REFERENCE = "SM-SA benchmark design (Table 4-4)"  # every topology's picks are measured against it
+
+
 def picks(results, bench):
     """Table 4-6: least energy with 0-100 no slower than the SM-SA benchmark; Table 4-7: least cost
-    with energy no more than the SM-SA benchmark's."""
+    with energy no more than the SM-SA benchmark's. Every topology's ``change_pct`` is against the SM-SA
+    benchmark (as the thesis' tables), named in ``reference`` with its value in the column's unit."""
     ref = bench.get("SM-SA")
     out = {}
     for t, r in results.items():
@@ -161,7 +165,8 @@ def picks(results, bench):
             if ok.any():
                 i = int(np.flatnonzero(ok)[np.argmin(y[ok])])
                 d[key] = {**{n: float(v[n][i]) for n in r.names}, column: float(y[i] / per),
-                          "change_pct": float(100 * (y[i] / base - 1))}
+                          "change_pct": float(100 * (y[i] / base - 1)), "reference": PICKS_REFERENCE,
+                          f"reference_{column}": float(base / per)}
         out[t] = d
     return out
 
@@ -179,9 +184,11 @@ def _axis(name: str):
     return 1.0, label(name, UNITS)
 
 
-def plot_pair(results, bench, xk: str, yk: str, path: Path, cycle: str = ""):
+def plot_pair(results, bench, xk: str, yk: str, path: Path, cycle: str = "", violated=()):
     """One Pareto projection: every topology's front and its 80 kW benchmark design (Table 4-4),
-    same marker, black edge, larger. Returns the figure (closed)."""
+    same marker, black edge, larger; hollow where it is not a feasible design of the run (a topology in
+    ``violated``, whose benchmark breaks a run constraint, or a negative torque margin). Returns the figure
+    (closed)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -198,9 +205,10 @@ def plot_pair(results, bench, xk: str, yk: str, path: Path, cycle: str = ""):
         b = bench.get(t)
         if b and xk in b and yk in b:
             short = b.get("drive_torque_margin_nm", 0.0) < 0  # cannot deliver the cycle's torque
+            why = ", violates a constraint" if t in violated else ", torque margin < 0" if short else ""
             ax.scatter([b[xk] * fx], [b[yk] * fy], s=110, marker=_MARKS.get(t, "o"),
-                       facecolor="white" if short else colour, edgecolor=colour if short else "k", linewidth=2,
-                       zorder=5, label=f"{t} benchmark (Table 4-4)" + (", torque margin < 0" if short else ""))
+                       facecolor="white" if why else colour, edgecolor=colour if why else "k", linewidth=2,
+                       zorder=5, label=f"{t} benchmark (Table 4-4){why}")
     ax.set_xlabel(xl)
     ax.set_ylabel(yl)
     ax.set_title(f"Pareto front projection{': ' + cycle if cycle else ''}", fontsize=10)
@@ -212,26 +220,56 @@ def plot_pair(results, bench, xk: str, yk: str, path: Path, cycle: str = ""):
     return fig
 
 
-def plots(out: Path, results, bench, objectives, cycle: str = "") -> list[Path]:
+def plots(out: Path, results, bench, objectives, cycle: str = "", violated=()) -> list[Path]:
     """A projection for every pair of objectives (the thesis' Figs 4-5 and 4-6 keep their names);
-    none for a single objective. Returns the written files."""
+    none for a single objective; ``violated``: as ``plot_pair``. Returns the written files."""
     written = []
     for i, xk in enumerate(objectives):
         for yk in objectives[i + 1:]:
             x, y = (yk, xk) if (yk, xk) in _FIGURE_NAMES else (xk, yk)  # the thesis' axes
             name = _FIGURE_NAMES.get((x, y), f"pareto_{y}_vs_{x}.png")
-            plot_pair(results, bench, x, y, out / name, cycle)
+            plot_pair(results, bench, x, y, out / name, cycle, violated)
             written.append(out / name)
     return written
 
 
-def torque_warnings(bench) -> list[str]:
-    """One line per benchmark design whose drive-torque margin is negative (it cannot deliver the
-    cycle's peak torque, so its energy and 0-100 time are not those of a feasible design)."""
+def violations(bench, configs) -> dict[str, list[dict]]:
+    """Per topology, the run's constraints (the config's and the command line's ``--constraint``; not the
+    monitored ones) that its benchmark design breaks, judged as NSGA-II judges a design (normalised
+    constraint > 0): ``{"constraint": "accel_time_0_100_s <= 9", "output", "value", "limit", "unit"}``."""
+    from bev_mdo.mdo.units import run_units
+
+    out = {}
+    for t, b in bench.items():
+        prob = configs[t].problem
+        rows = prob.constraint_rows
+        if not rows:
+            continue
+        units = {k: u for k, u in run_units(configs[t].disciplines).items() if u != "1"}
+        g = prob.g({n: np.array([b.get(n, np.nan)], float) for n, *_ in rows})[0]
+        bad = [{"constraint": lab, "output": n, "value": float(b.get(n, np.nan)), "limit": float(bound),
+                "unit": units.get(n, "")}
+               for (n, _, bound, _), lab, gi in zip(rows, prob.constraint_labels, g) if gi > 0]
+        if bad:
+            out[t] = bad
+    return out
+
+
+def benchmark_warnings(bench, broken) -> list[str]:
+    """One line per run constraint a benchmark design breaks (``broken``: ``violations``), and one for a
+    negative drive-torque margin no constraint names (it cannot deliver the cycle's peak torque, so its
+    energy and 0-100 time are not those of a feasible design)."""
     out = []
     for t, b in bench.items():
+        named = set()
+        for v in broken.get(t, []):
+            named.add(v["output"])
+            torque = " (it cannot deliver the cycle's peak torque)" if v["output"] == "drive_torque_margin_nm" else ""
+            out.append(f"warning: the {t} benchmark design (Table 4-4) violates the run's constraint {v['constraint']}: "
+                       f"its {v['output']} is {v['value']:.6g}{' ' + v['unit'] if v['unit'] else ''}{torque}; "
+                       "benchmark.csv lists it and the figures draw it hollow, but it is not a feasible design of this run")
         m = b.get("drive_torque_margin_nm", float("nan"))
-        if np.isfinite(m) and m < 0:
+        if np.isfinite(m) and m < 0 and "drive_torque_margin_nm" not in named:
             out.append(f"warning: the {t} benchmark design (Table 4-4) has a negative drive-torque margin "
                        f"({m:.1f} N·m): it cannot deliver the cycle's peak torque; benchmark.csv lists it as "
                        "the thesis does, but it is not a feasible design here")

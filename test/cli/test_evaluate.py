@@ -42,6 +42,20 @@ def test_table_shows_outputs_margins_and_feasibility(capsys):
     assert "motor_speed_max_rad_s" in out and "margin" in out and "feasible: NO" in out
 
 
+def test_every_value_says_its_unit_in_the_table_and_the_json(capsys):
+    """A Kona trial: evaluate printed energies, masses and speeds with no unit, in the table or the JSON, while
+    compare and report.md had a unit column."""
+    code, out, _ = run(capsys, LEAF, "--set", "motor_kw=80,gear_ratio=8,battery_kwh=24,load_kg=150")
+    rows = {line.split("│")[1].strip(): [c.strip() for c in line.split("│")[2:-1]] for line in out.splitlines()
+            if line.startswith("│")}
+    assert code == 0 and rows["motor_kw"] == ["80", "kW", "design"] and rows["load_kg"] == ["150", "kg", "parameter"]
+    assert rows["energy_wh_per_km"][1:] == ["Wh/km", "objective (min)"] and rows["gear_ratio"][1] == "–"
+    assert rows["range_km"][-2:] == ["km", "yes"] and rows["accel_time_0_100_s"][-2] == "s"  # the constraints' rows
+    code, out, _ = run(capsys, LEAF, "--set", "motor_kw=80,gear_ratio=8,battery_kwh=24,load_kg=150", "--json")
+    units = json.loads(out)["units"]
+    assert units["energy_wh_per_km"] == "Wh/km" and units["load_kg"] == "kg" and units["vehicle_mass_kg"] == "kg"
+
+
 def test_parameter_override_changes_energy(capsys):
     _, base, _ = run(capsys, LEAF, "--json")
     _, more, _ = run(capsys, LEAF, "--set", "drag_area_m2=0.8", "--json")

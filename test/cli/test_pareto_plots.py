@@ -1,5 +1,6 @@
 """Pareto plots for any number of objectives with every topology's benchmark design, the
-summary naming exactly the PNGs written, and the negative-torque-margin warning."""
+summary naming exactly the PNGs written, and the warnings for a benchmark design that is not feasible
+(a run constraint it breaks, a negative torque margin)."""
 from __future__ import annotations
 
 import re
@@ -8,7 +9,6 @@ from pathlib import Path
 import yaml
 
 from bev_mdo.cli import main
-from bev_mdo.studies.topologies import torque_warnings
 
 ARTEMIS = Path(__file__).resolve().parents[2] / "config" / "topologies_artemis.yaml"
 
@@ -45,8 +45,8 @@ def test_three_objectives_every_pair_and_all_benchmarks(tmp_path, capsys):
     seen = []
     orig = par.plot_pair
 
-    def spy(results, bench, xk, yk, path, cycle=""):
-        fig = orig(results, bench, xk, yk, path, cycle)
+    def spy(results, bench, xk, yk, path, cycle="", violated=()):
+        fig = orig(results, bench, xk, yk, path, cycle, violated)
         seen.append((fig, xk, yk, set(results)))
         return fig
 
@@ -66,6 +66,70 @@ def test_three_objectives_every_pair_and_all_benchmarks(tmp_path, capsys):
 
 
 def test_negative_torque_margin_warns():
-    w = torque_warnings({"SM-SA": {"drive_torque_margin_nm": 12.0}, "IWM-SA": {"drive_torque_margin_nm": -35.5}})
+    from bev_mdo.studies.topologies import benchmark_warnings
+
+    w = benchmark_warnings({"SM-SA": {"drive_torque_margin_nm": 12.0}, "IWM-SA": {"drive_torque_margin_nm": -35.5}}, {})
     assert len(w) == 1 and "IWM-SA" in w[0] and "-35.5" in w[0]
-    assert torque_warnings({"SM-SA": {}}) == []
+    assert benchmark_warnings({"SM-SA": {}}, {}) == []
+
+
+def test_a_benchmark_that_breaks_a_run_constraint_is_warned_and_drawn_hollow(tmp_path, capsys):
+    """``--constraint "accel_time_0_100_s<=9"``: the Table 4-4 benchmarks (9.89-11.56 s) all broke it, yet the
+    summary's warnings were [] and the figures drew them as ordinary benchmarks. Now one line each (the
+    constraint, the value, the limit) on stdout and in summary.json, and a hollow marker labelled so."""
+    import json
+
+    from bev_mdo.studies import topologies as par
+
+    out, seen, orig = tmp_path / "o", [], par.plot_pair
+
+    def spy(*args, **kwargs):
+        fig = orig(*args, **kwargs)
+        seen.append(fig)
+        return fig
+
+    par.plot_pair = spy
+    try:
+        rc = main(["pareto", str(_cfg(tmp_path)), "--out", str(out), "--generations", "1", "--pop", "8",
+                   "--objectives", "energy_wh_per_km,accel_time_0_100_s", "--topology", "SM-SA",
+                   "--constraint", "accel_time_0_100_s<=9", "--transport", "inprocess"])
+    finally:
+        par.plot_pair = orig
+    assert rc == 0
+    said = capsys.readouterr().out.splitlines()
+    s = json.loads((out / "summary.json").read_text())
+    line = [w for w in said if w.startswith("warning: the SM-SA benchmark")]
+    assert len(line) == 1 and s["warnings"] == line
+    assert "constraint accel_time_0_100_s <= 9: its accel_time_0_100_s is 9.89" in line[0] and " s;" in line[0]
+    (v,) = s["benchmark_violations"]["SM-SA"]
+    assert v["constraint"] == "accel_time_0_100_s <= 9" and v["limit"] == 9.0 and abs(v["value"] - 9.891) < 0.01
+    labels = [t.get_text() for t in seen[0].axes[0].get_legend().get_texts()]
+    assert "SM-SA benchmark (Table 4-4), violates a constraint" in labels
+    bench = [c for c in seen[0].axes[0].collections if c.get_label().startswith("SM-SA benchmark")][0]
+    assert tuple(bench.get_facecolor()[0]) == (1.0, 1.0, 1.0, 1.0)  # hollow
+    # the hypervolumes' reference point beside them (it was only in the docs)
+    ref = s["timing"]["SM-SA"]["hypervolume_reference"]
+    assert ref["point"] == [1.1, 1.1] and ref["objectives"] == ["energy_wh_per_km", "accel_time_0_100_s"]
+    assert "last generation's front" in ref["scale"] and len(s["timing"]["SM-SA"]["front_size_by_generation"]) == 1
+
+
+def test_the_picks_name_the_sm_sa_benchmark_they_are_measured_against():
+    """IWM-DA's cost "+2.25 %" was 9232 / 9029, the SM-SA benchmark's cost, which nothing in summary.json said."""
+    import numpy as np
+
+    from bev_mdo.studies.topologies import picks
+
+    front = type("R", (), {"X": np.zeros((2, 2)), "names": ["motor_kw", "battery_kwh"],
+                           "values": {"motor_kw": np.array([20.0, 30.0]), "battery_kwh": np.array([18.0, 20.0]),
+                                      "energy_wh_per_km": np.array([120.0, 110.0]),
+                                      "accel_time_0_100_s": np.array([9.5, 12.0]),
+                                      "powertrain_cost_usd": np.array([9232.0, 9500.0])}})()
+    bench = {"SM-SA": {"energy_wh_per_km": 133.2, "accel_time_0_100_s": 9.89, "powertrain_cost_usd": 9029.0},
+             "IWM-DA": {"energy_wh_per_km": 116.7, "accel_time_0_100_s": 11.56, "powertrain_cost_usd": 10184.0}}
+    p = picks({"IWM-DA": front}, bench)["IWM-DA"]
+    cost = p["table_4_7"]
+    assert cost["cost_usd"] == 9232.0 and abs(cost["change_pct"] - 2.25) < 0.01
+    assert cost["reference"] == "SM-SA benchmark design (Table 4-4)" and cost["reference_cost_usd"] == 9029.0
+    energy = p["table_4_6"]  # the one design no slower than the SM-SA benchmark's 9.89 s
+    assert energy["energy_kwh_100km"] == 12.0 and abs(energy["reference_energy_kwh_100km"] - 13.32) < 1e-9
+    assert energy["reference"] == cost["reference"]

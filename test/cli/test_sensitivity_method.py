@@ -183,3 +183,13 @@ def test_a_diagonal_entry_gets_no_coupling_label():
     x_row, y_row = (next(line for line in second if line.startswith(n + " ")) for n in ("x", "y"))
     assert x_row.split()[1:] == [f"{s.second['f'][0, 0]:.4f}", f"{s.second['f'][0, 1]:.4f}", "MC"], x_row
     assert y_row.split()[1:] == [f"{s.second['f'][1, 1]:.4f}"], y_row
+
+
+def test_the_point_line_names_the_design_beside_a_parameter(capsys):
+    """A Kona trial: with --wrt naming a parameter, the point line gave only that parameter, not the design
+    (--at) the sensitivity was taken at."""
+    leaf = Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml"
+    code = main(["sensitivity", str(leaf), "--transport", "inprocess", "--order", "1", "--wrt", "drag_area_m2",
+                 "--at", "motor_kw=70,gear_ratio=9,battery_kwh=22"])
+    first = capsys.readouterr().out.splitlines()[0]
+    assert code == 0 and first.startswith("point: motor_kw=70, gear_ratio=9, battery_kwh=22, drag_area_m2=0.6412 ")

@@ -124,6 +124,17 @@ def test_a_malformed_list_is_one_line_naming_the_design_and_column(tmp_path, cap
     assert len(err) == 1 and f"--list {lst}: {said}" in err[0], err
 
 
+def test_a_listed_design_outside_its_bounds_is_named_by_its_place(tmp_path, capsys):
+    """A malformed-input trial: 'motor_kw=800 is outside its bounds [40, 120]' named neither the file's row nor
+    the design."""
+    lst = tmp_path / "designs.csv"
+    lst.write_text("motor_kw,gear_ratio\n80,9\n800,9\n")
+    assert main(["sweep", CONFIG, "--list", str(lst), "--out", str(tmp_path / "o"), "--no-plots", "--no-record",
+                 "--transport", "inprocess"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "motor_kw=800 (design 2 of 2) is outside its bounds [40, 120]" in err[0], err
+
+
 def test_a_name_mistyped_in_one_compare_design_is_said_unknown(capsys):
     """It was called a parameter with no initial value that must be given in every --design."""
     assert main(["compare", CONFIG, "--design", "motor_kw=100", "--design", "motr_kw=90", "--transport", "inprocess"]) == 2

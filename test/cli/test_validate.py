@@ -328,7 +328,9 @@ def test_the_model_is_beside_the_baseline_and_fastsim_on_the_same_rows(capsys, t
     ford = [r[:1] + [f"Renamed {r[1]}"] + r[2:] for r in rows[1:] if r[0] == "Ford"]  # vehicles FASTSim never ran
     doc = json.loads(run(capsys, "--data", _write(tmp_path, [rows[0]] + ford), "--json")[1])
     assert doc["reference"]["fastsim"].startswith("unavailable: FASTSim was not run on this fleet file")
-    assert set(doc["reference"]["same_rows"]["udds"]) == {"rows", "pairs", "quasi_static", "baseline3"}
+    # one model family: no baseline3 figure either, so the model is scored alone on its rows
+    assert doc["reference"]["baseline3"].startswith("none") and doc["reference"]["same_rows"]["udds"]["rows"] > 0
+    assert set(doc["reference"]["same_rows"]["udds"]) == {"rows", "pairs", "quasi_static"}
     rows = _rows()
     rows[4][rows[0].index("road_load_c_n_per_m2_s2")] = "0.2"  # an edited copy: FASTSim ran the original row
     doc = json.loads(run(capsys, "--data", _write(tmp_path, rows), "--json")[1])
@@ -409,3 +411,64 @@ def test_the_baselines_label_says_the_folds_it_used(capsys, tmp_path):
     code, out, _ = run(capsys, "--data", data, "--json")
     doc = json.loads(out)["reference"]
     assert doc["baseline3_folds"] == families and f"({families}-fold by family)" in doc["columns"]["baseline3"]
+
+
+def test_what_the_model_column_compares_is_said_alike_in_json_and_on_the_plot(capsys, tmp_path, monkeypatch):
+    """With epa2022_quasi_static the predictions are wall energy (battery / charger_efficiency): the JSON's
+    top-level 'compared' said so, but reference.columns.quasi_static said 'battery energy ... no charger loss',
+    and parity.png's y axis read 'predicted battery energy' (only the chain was called 'wall')."""
+    from bev_mdo.cli import validate_plots
+
+    labels = {}
+    monkeypatch.setattr(validate_plots, "_save", lambda fig, path: labels.update({path.parent.name: fig.axes[0]
+                                                                                  .get_ylabel()}))
+    data = _write(tmp_path, _rows()[:4])
+    for ps, where in (("epa2022_quasi_static", "wall"), ("none", "battery")):
+        code, out, _ = run(capsys, "--data", data, "--parameter-set", ps, "--json", "--plot", tmp_path / ps)
+        doc = json.loads(out)
+        assert code == 0 and doc["reference"]["columns"]["quasi_static"] == doc["compared"]
+        assert f"predicted {where} energy" in doc["compared"]
+        assert labels[ps] == f"predicted {where} energy (Wh/km)"
+
+
+def test_the_footnote_says_what_the_parameter_set_was_fitted_on_and_the_model_keeps_its_figures(capsys, tmp_path):
+    """The footnote said 'a parameter set fitted on these rows is in-sample' whatever ran: flat (no set) and a
+    set fitted on other rows alike. And a fleet of one family, where the 3-constant baseline has no figure,
+    printed no figure of the model or FASTSim either."""
+    import hashlib
+
+    import yaml
+
+    from bev_mdo.models.params import PARAMETER_SET_DIR
+
+    rows = _rows()
+    bmw = _write(tmp_path, [rows[0], *(r for r in rows[1:] if r[0] == "BMW")], "bmw.csv")
+    kia = _write(tmp_path, [rows[0], *(r for r in rows[1:] if r[0] == "KIA")], "kia.csv")
+    both = _write(tmp_path, [rows[0], *(r for r in rows[1:] if r[0] in ("BMW", "KIA"))], "both.csv")
+    doc = yaml.safe_load((PARAMETER_SET_DIR / "epa2022_quasi_static.yaml").read_text())
+    doc["fitted_on"] = {"file": "bmw.csv", "path": str(bmw), "sha256": hashlib.sha256(bmw.read_bytes()).hexdigest()}
+    mine = tmp_path / "on_bmw.yaml"
+    mine.write_text(yaml.safe_dump(doc))
+
+    def footnote(*argv):
+        code, out, _ = run(capsys, *argv)
+        assert code == 0
+        return out.splitlines()[-1]
+
+    assert "not refitted: no parameter set: the model's own constants" in footnote("--data", kia, "--energy-model",
+                                                                                    "flat")
+    assert f"parameter set {mine} was fitted on this file: in-sample" in footnote("--data", bmw,
+                                                                                  "--parameter-set", mine)
+    assert f"was fitted on {bmw} (not this file), which has none of these rows: held out" in footnote(
+        "--data", kia, "--parameter-set", mine)
+    n_bmw = len(fl.read_fleet(bmw))
+    assert f"{n_bmw} of these {len(fl.read_fleet(both))} rows are in it: in-sample for those" in footnote(
+        "--data", both, "--parameter-set", mine)
+    assert "parameter set thesis: constants not fitted to a fleet" in footnote("--data", kia, "--parameter-set",
+                                                                              "thesis")
+    code, out, _ = run(capsys, "--data", kia, "--parameter-set", mine)  # one family: no baseline3
+    lines = out.splitlines()
+    assert "baseline3: none" in lines[-4] and "; baseline3: none;" in lines[-1]
+    assert lines[-3].startswith("  udds (4 rows") and "quasi_static " in lines[-3] and "fastsim " in lines[-3]
+    ref = json.loads(run(capsys, "--data", kia, "--parameter-set", mine, "--json")[1])["reference"]
+    assert ref["baseline3"].startswith("none") and ref["same_rows"]["hwfet"]["rows"] == 4

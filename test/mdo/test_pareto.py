@@ -80,7 +80,8 @@ def test_the_fronts_hypervolume_says_whether_it_has_settled():
     assert hv[0] == pytest.approx(0.1 * 0.1) and np.isnan(hv[1])
     assert hv[2] == pytest.approx(0.11 + 0.11 + 0.36 - 0.06 - 0.06 - 0.01 + 0.01)  # inclusion-exclusion
     assert hypervolumes([2 * last + 3, 2 * last + 3]) == pytest.approx([hv[2], hv[2]])  # scale-free
-    assert settling_line(hv) == ("front hypervolume over the last 2 generations: +4500.0 %; still moving: more "
+    assert settling_line(hv) == ("front hypervolume over the last 2 generations: from almost nothing (0.01 -> 0.46 "
+                                 "in the last front's scale, no per cent); the front was still forming: more "
                                  "--generations (or a larger --pop) would extend the front")
     assert settling_line(hv[1:]).startswith("front hypervolume over the last 1 generations: from no feasible design")
     assert settling_line([0.5, 0.70, 0.703]) == "front hypervolume over the last 2 generations: +40.6 %; still " \
@@ -91,6 +92,23 @@ def test_the_fronts_hypervolume_says_whether_it_has_settled():
     form, _, _ = _zdt_form()
     r = run_nsga2(form, ["f1", "f2"], pop_size=20, generations=15, seed=3)
     assert len(r.hypervolume) == 15 and r.hypervolume[-1] > r.hypervolume[0] > 0
+    assert len(r.front_sizes) == 15 and r.front_sizes[-1] == len(r.X)
+
+
+def test_no_growth_in_per_cent_from_almost_nothing_or_on_a_tiny_front():
+    """A trial's fronts of 1 to 13 designs read "+650.8 %" and "+4646.9 %": meaningless percentages."""
+    from bev_mdo.mdo.pareto import settling_line
+
+    hv = [0.0, 0.0, 0.0935, 0.3037, 0.3047, 0.4488, 0.4488, 0.7018]
+    line = settling_line(hv)  # from 0.0935 (13 % of the last): almost nothing
+    assert "%" not in line.split(";")[0] and "from almost nothing (0.0935 -> 0.702" in line
+    tiny = settling_line([0.6, 0.65, 0.7, 0.71, 0.72, 0.7018], sizes=[1, 2, 3, 5, 8, 13])
+    assert tiny.startswith("front hypervolume over the last 5 generations: 0.6 -> 0.702 on fronts of 1 and 13 "
+                           "designs, too few for a growth in per cent")
+    big = settling_line([0.6, 0.65, 0.7, 0.71, 0.72, 0.7018], sizes=[40] * 6)
+    assert big.startswith("front hypervolume over the last 5 generations: +17.0 %; still moving")
+    assert settling_line([float("nan"), 0.5], sizes=[0, 3]).endswith("from no feasible design; still moving: more "
+                                                                     "--generations (or a larger --pop) would extend the front")
 
 
 def test_nsga2_deterministic_per_seed():
@@ -264,6 +282,9 @@ def test_cli_front_holds_no_design_that_cannot_reach_100_kmh(tmp_path):
     assert rows and all(float(r["accel_time_0_100_s"]) < NOT_REACHED_S for r in rows)
     first = _bag_fronts(out / "bag")[0][5]["accel_time_0_100_s"]  # every generation's front, not only the last
     assert len(first) and (first < NOT_REACHED_S).all()
+    doc = json.loads((out / "front.json").read_text())  # the hypervolumes' reference point beside them
+    assert doc["hypervolume_reference"]["point"] == [1.1, 1.1] and len(doc["hypervolume_by_generation"]) == 3
+    assert doc["front_size_by_generation"][-1] == len(rows)
 
 
 def test_cli_all_topologies_one_bag(tmp_path):

@@ -61,7 +61,7 @@ def test_the_shipped_set_keeps_its_name_and_file(tmp_path, monkeypatch):
     path = calibrate.write_parameter_set(f, cv, None, fleet, None, model="chain")
     doc = yaml.safe_load(Path(path).read_text())
     assert Path(path).name == "epa2022_chain.yaml" and doc["name"] == "epa2022_chain"
-    assert doc["fitted_on"]["file"] == "bev_mdo/data/epa_2022_bev/train.csv"
+    assert doc["fitted_on"]["file"] == "bev_mdo/data/epa_2022_bev/train.csv" and "path" not in doc["fitted_on"]
     assert doc["description"].endswith("python -m bev_mdo.models.calibrate --model chain --write shipped")
     assert doc["fitted_on"]["sha256"] == hashlib.sha256(fl.DEFAULT_FLEET.read_bytes()).hexdigest()
     assert doc["quality"]["cv_5fold_by_family"]["fold_median_mape_pct"] == 7.0
@@ -300,3 +300,62 @@ def test_a_parameter_no_vehicle_moves_is_not_said_at_its_bound_beside_one_the_fi
     assert names[2] == "second_axle_drag_w" and got["at_bound"][2] == "lower" and got["x"][2] == 0.0
     i = names.index("excitation_loss_w_per_kw")
     assert got["at_bound"][i] is None and not got["determined"][i] and got["x"][i] == 0.0
+
+
+def test_block_platform_holds_the_two_speed_rows_out_together(tmp_path, capsys):
+    """The Taycan and e-tron GT (the only gear_count 2 rows, one platform) sat in two families and two makes, so
+    the 'held-out' CV fitted the two-speed term on one and scored it on the other. --block-platform moves
+    them into one group in both CVs; the set it writes says so in its quality keys and command."""
+    fleet = fl.read_fleet()
+    two = np.array([g == "2" for g in fleet.technology["gear_count"]])
+    fam = calibrate.platform_groups(fleet, fleet.family())
+    assert two.sum() == 12 and {g for g, t in zip(fam, two) if t} == {calibrate.PLATFORM}
+    assert "porsche taycan" not in fam and "audi e-tron" in fam  # the e-tron SUVs stay their family
+    make = calibrate.platform_groups(fleet, [m.lower() for m in fleet.make])
+    assert "porsche" not in make and make.count(calibrate.PLATFORM) == 12
+    data = _fleet(tmp_path, lambda r: r[0] in ("Porsche", "KIA"), "two.csv")
+    out = tmp_path / "blocked.yaml"
+    assert bev_mdo(["calibrate", "--model", "chain", "--data", str(data), "--block-platform", "--write", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "the two-speed platform held out as one group" in said and "without two-speed platform" in said
+    doc = yaml.safe_load(out.read_text())
+    assert "cv_leave_one_make_out_two_speed_platform_blocked" in doc["quality"]
+    assert doc["description"].endswith(f"--data {data} --block-platform --write {out}")
+
+
+def test_an_unwritable_target_is_said_before_the_fit(tmp_path, capsys, monkeypatch):
+    """--write /proc/x.yaml fitted and cross-validated the whole fleet, then failed naming a temporary file."""
+    def no_fit(*a, **k):
+        raise AssertionError("fitted before the target was checked")
+
+    monkeypatch.setattr(calibrate, "fit", no_fit)
+    data = _fleet(tmp_path, _i4, "i4.csv")
+    assert bev_mdo(["calibrate", "--model", "chain", "--data", str(data), "--write", "/proc/x.yaml"]) == 2
+    got = capsys.readouterr()
+    assert got.err.count("\n") == 1 and got.err.startswith("bev-mdo calibrate: error: cannot write /proc/x.yaml: ")
+    assert ".tmp" not in got.err and "/proc" in got.err
+
+
+def test_help_start_line_absolute_fleet_path_and_few_values_note(tmp_path, capsys, monkeypatch):
+    """calibrate --help had no description; nothing was printed before the first fit; fitted_on recorded the
+    fleet file only as typed; 4 values for 3 parameters wrote standard errors without a word."""
+    with pytest.raises(SystemExit):
+        bev_mdo(["calibrate", "--help"])
+    assert calibrate.DESCRIPTION.split(" (")[0] in " ".join(capsys.readouterr().out.split())
+    rows = {2, 5}  # BMW i4 eDrive40 (RWD) and M50 (AWD): 4 measured values; charger, regeneration, AWD drag
+    with fl.DEFAULT_FLEET.open(newline="") as f:
+        lines = list(csv.reader(f))
+    data = tmp_path / "two.csv"
+    with data.open("w", newline="") as f:
+        csv.writer(f).writerows([lines[0], *(lines[r - 1] for r in sorted(rows))])
+    monkeypatch.chdir(tmp_path)
+    out = tmp_path / "two.yaml"
+    assert bev_mdo(["calibrate", "--model", "chain", "--data", "two.csv", "--write", str(out)]) == 0
+    said = capsys.readouterr().out.splitlines()
+    assert said[0] == "fitting chain on 2 vehicles of two.csv"
+    assert any(s.startswith("note: 4 measured values for 3 fitted parameters (fewer than 2 per parameter)")
+               for s in said), said
+    doc = yaml.safe_load(out.read_text())
+    assert doc["fitted_on"]["file"] == "two.csv" and doc["fitted_on"]["path"] == str(data.resolve())
+    assert doc["quality"]["note"].startswith("4 measured values for 3 fitted parameters")
+    assert calibrate.few_values({"n_residuals": 124, "x": np.zeros(5), "determined": np.ones(5, bool)}) == ""

@@ -122,11 +122,12 @@ def family_cv_quasi_static():
 def test_quasi_static_loss_model_held_out_by_family(family_cv_quasi_static):
     """The default model (``epa2022_quasi_static``: the motor as losses, the two-speed cars shifting, the
     wound-rotor machines' field), 5-fold CV by family as ``bev-mdo calibrate`` runs it. Measured
-    (docs/validation.md): MAPE 5.58 % (target <= 6 %); pairs UDDS slope 0.869, 3.55 points; HWFET slope
+    (docs/validation.md): MAPE 5.58 % (pinned at <= 6 %; the 6 % target is set by make, 6.70 %: missed);
+    pairs UDDS slope 0.869, 3.55 points; HWFET slope
     0.995, 2.65 points. Both slopes meet 0.85-1.15 (UDDS at 0.835 without the field's loss); the
     differences do not (2.5) and are pinned near today's level: a regression fails."""
     cv, s = family_cv_quasi_static
-    assert cv["stats"]["mean_abs_pct"] <= 6.0                              # 5.58
+    assert cv["stats"]["mean_abs_pct"] <= 6.0                              # 5.58 (a regression fails)
     udds, hwfet = s["epa_udds"], s["epa_hwfet"]
     assert udds["n"] == hwfet["n"] == 105
     assert udds["slope_met"] is True and hwfet["slope_met"] is True        # 0.869, 0.995

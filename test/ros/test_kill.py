@@ -203,3 +203,16 @@ def test_a_recorder_stopped_mid_run_is_named_and_its_bag_holds_what_it_wrote(con
     assert len(recs) == 3
     assert [int(r.sequence) for r in recs] == list(range(1, len(recs) + 1))
     assert [float(r.objective) for r in recs] == pytest.approx(printed[:len(recs)], abs=1e-6)
+    # what the bag's readers tell agrees with the run's end-of-run record (answers.json, written beside the bag by
+    # the run, not by the dead recorder): the records stop at iteration 2 of 4, the result is the run's
+    from bev_mdo.bag.history import check_note, history, last_iterate
+    from bev_mdo.bag.report import report
+
+    checks: dict = {}
+    assert len(history(bag, checks=checks)) == 3
+    assert "the bag's iteration records stop at iteration 2 of the run's 4 (2 missing at the end" in check_note(checks)
+    assert last_iterate(bag)[1:] == (doc["design"], 4)
+    report(bag, tmp_path / "report")
+    md = (tmp_path / "report" / "report.md").read_text()
+    assert "## The run's result (iteration 4, from its end-of-run record)" in md
+    assert f"{doc['mda_evaluations']} multidisciplinary evaluations (the run's total)" in md

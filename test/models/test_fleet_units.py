@@ -1,0 +1,69 @@
+"""A fleet file whose column medians lie far from measured BEVs' (a unit mix-up: Wh/mi, lb, lbf) is read with a
+note naming the column, its median and the likely unit; the shipped fleet gives none."""
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import warnings
+
+import numpy as np
+import pytest
+
+from bev_mdo.cli import main
+from bev_mdo.models import fleet as fl
+from bev_mdo.models.cycles import CycleNote
+
+
+def _notes(path) -> list[str]:
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", CycleNote)
+        fl.read_fleet(path)
+    return [str(w.message) for w in caught if issubclass(w.category, CycleNote)]
+
+
+def _scaled(tmp_path, **factors) -> str:
+    rows = list(csv.reader(fl.DEFAULT_FLEET.open(newline="", encoding="utf-8")))
+    at = {h: i for i, h in enumerate(rows[0])}
+    for row in rows[1:]:
+        for name, k in factors.items():
+            row[at[name]] = f"{float(row[at[name]]) * k:.6g}"
+    path = tmp_path / "fleet.csv"
+    with path.open("w", newline="", encoding="utf-8") as f:
+        csv.writer(f).writerows(rows)
+    return str(path)
+
+
+def test_the_shipped_fleet_gives_no_note_and_sets_the_bands():
+    assert _notes(None) == []
+    f = fl.read_fleet()
+    shipped = {"udds_wh_per_km_ac": f.measured["epa_udds"], "hwfet_wh_per_km_ac": f.measured["epa_hwfet"],
+               "test_mass_kg": f.test_mass_kg, "road_load_c_n_per_m2_s2": f.road_load_c_n_per_m2_s2,
+               "road_load_a_n / (test_mass_kg x g)": f.road_load_a_n / (f.test_mass_kg * fl.G_M_S2)}
+    for name, (typical, *_) in fl.PLAUSIBLE_MEDIANS.items():
+        assert typical == pytest.approx(float(np.median(shipped[name])), rel=1e-3), name
+
+
+@pytest.mark.parametrize("factors,column,hint", [
+    ({"udds_wh_per_km_ac": 1.609344}, "udds_wh_per_km_ac", "Wh per mile"),
+    ({"hwfet_wh_per_km_ac": 0.1}, "hwfet_wh_per_km_ac", "kWh/100 km"),
+    ({"road_load_a_n": 1 / 4.448}, "road_load_a_n / (test_mass_kg x g)", "road_load_a_n in lbf"),
+    ({"road_load_c_n_per_m2_s2": 1 / 22.26}, "road_load_c_n_per_m2_s2", "lbf/mph^2"),
+])
+def test_a_column_in_another_unit_is_named(tmp_path, factors, column, hint):
+    notes = _notes(_scaled(tmp_path, **factors))
+    assert len(notes) == 1 and f"column {column}: fleet median " in notes[0] and hint in notes[0]
+
+
+def test_masses_in_pounds_name_the_mass_and_the_road_load_per_weight(tmp_path):
+    notes = _notes(_scaled(tmp_path, test_mass_kg=2.20462))
+    assert len(notes) == 2 and "column test_mass_kg: fleet median 5250" in notes[0] and "pounds" in notes[0]
+    assert "test_mass_kg in pounds" in notes[1]
+
+
+def test_validate_prints_the_note_and_still_runs(tmp_path):
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = main(["validate", "--data", _scaled(tmp_path, udds_wh_per_km_ac=1.609344), "--energy-model", "chain",
+                   "--parameter-set", "epa2022_chain"])
+    assert rc == 0 and "note: " in err.getvalue() and "Wh per mile (1.61 x Wh/km)?" in err.getvalue()
