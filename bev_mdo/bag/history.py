@@ -286,9 +286,9 @@ def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | 
         why = answers.get("stopped") or f"{', '.join(lost)} stopped answering"
         return True, (f"**the run ended early (exit status 4)**: {why}; its result is the best point evaluated before "
                       "that, not an optimum")
-    if missing_tail(rows, answers):
-        return True, (f"the run finished, but **{missing_tail(rows, answers)}**; the result and the answers below "
-                      "are its end-of-run record's")
+    if tail := missing_tail(rows, answers):
+        return True, (f"the run finished, but **{tail}**; the result and the answers below are its end-of-run "
+                      "record's")
     return True, "the run finished: the bag holds its end-of-run record (its result and the answers below)"
 
 
@@ -430,8 +430,7 @@ def few(items: list, shown: int = 3) -> str:
 
 def runs_held(run_ids: list[str], shown: int = 5) -> str:
     """"it holds the iteration records of run(s) a, b" (the first `shown` of them, in recording order)."""
-    more = f" and {len(run_ids) - shown} more" if len(run_ids) > shown else ""
-    return f"it holds the iteration records of run{'s' if len(run_ids) > 1 else ''} {', '.join(run_ids[:shown])}{more}"
+    return f"it holds the iteration records of run{'s' if len(run_ids) > 1 else ''} {few(run_ids, shown)}"
 
 
 def sweep_phrase(row: dict, n: int) -> str:
