@@ -206,7 +206,8 @@ def _study(args, raw, written, names, ov) -> int:
     summary = {"config": str(args.config), "transport": args.transport, "run_id": run_id, "bag": str(bag),
                "objectives": names, "generations": args.generations, "pop": args.pop, "seed": args.seed,
                "timing": timing, "benchmark": bench, "benchmark_violations": broken,
-               "picks": study.picks(results, bench), "out": str(out),
+               "picks": study.picks(results, bench), "ranking": study.ranking(results, objectives),
+               "caveats": study.caveats(results, configs), "out": str(out),
                "warnings": warnings, **session.stats}
     pngs = []
     if not args.no_plots:
@@ -217,6 +218,11 @@ def _study(args, raw, written, names, ov) -> int:
         print(f"{t}: {_front(r)}, {r.evaluations} evaluations in {r.batches} batches, "
               f"{timing[t]['wall_time_s']:.1f} s")
         _settling(r, f"{t}: ")
+    if len(topologies) > 1:
+        for line in study.ranking_lines(summary["ranking"]):
+            print(line)
+    for line in summary["caveats"]:
+        print(line)
     what = ", ".join(p.name for p in pngs) if pngs else (
         "no plots: --no-plots" if args.no_plots else "no plots: one objective has no trade-off to draw")
     print(f"wrote {out}/ (pareto_*.csv, benchmark.csv, summary.json, {what}, "

@@ -1,0 +1,56 @@
+"""The topology study's ranking and its caveats (studies.topologies.ranking / caveats): a topology
+ranking printed from fronts must say what it rests on, a 0-100 km/h time the tyres cannot carry and a
+parameter set not calibrated to measured cars."""
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import yaml
+
+from bev_mdo.config import RunConfig
+from bev_mdo.studies.topologies import caveats, config_for_topology, ranking, ranking_lines
+
+ARTEMIS = Path(__file__).resolve().parents[2] / "config" / "topologies_artemis.yaml"
+
+
+def _front(energy, accel):
+    return SimpleNamespace(X=np.ones((len(energy), 1)), values={"energy_wh_per_km": np.array(energy),
+                                                                "accel_time_0_100_s": np.array(accel)})
+
+
+def _configs(parameter_set):
+    raw = yaml.safe_load(ARTEMIS.read_text())
+    raw["vehicle"]["parameter_set"] = parameter_set
+    return {t: RunConfig.load(config_for_topology(raw, t)) for t in ("SM-SA", "IWM-SA", "IWM-DA")}
+
+
+def test_ranking_orders_each_objective_by_its_fronts_best_and_leaves_out_an_empty_front():
+    results = {"SM-SA": _front([125.0, 130.0], [6.0, 5.9]), "IWM-DA": _front([115.0, 120.0], [2.4, 2.3]),
+               "IWM-SA": SimpleNamespace(X=np.ones((0, 1)), values={})}
+    ranked = ranking(results, [("energy_wh_per_km", False), ("accel_time_0_100_s", False)])
+    assert [r["topology"] for r in ranked["energy_wh_per_km"]] == ["IWM-DA", "SM-SA"]
+    assert ranked["energy_wh_per_km"][1]["change_pct"] == pytest.approx(100 * (125 / 115 - 1))
+    assert ranked["accel_time_0_100_s"][0] == {"topology": "IWM-DA", "best": 2.3, "unit": "s", "change_pct": 0.0}
+    lines = ranking_lines(ranked)
+    assert lines[0] == "ranking by each front's best energy_wh_per_km (Wh/km): IWM-DA 115, SM-SA 125 (+8.7 %)"
+    maxed = ranking(results, [("energy_wh_per_km", True)])["energy_wh_per_km"]
+    assert [r["topology"] for r in maxed] == ["SM-SA", "IWM-DA"] and maxed[0]["best"] == 130.0
+
+
+def test_a_time_faster_than_the_grip_allows_and_the_thesis_set_are_caveats():
+    """With tyre_grip_coefficient 0 (the thesis set) IWM-DA's front reached 2.36 s 0-100 km/h, under the
+    2.83 s mu = 1 allows on four driven wheels (100/3.6 / 9.81), and nothing said so; IWM-SA (one driven
+    axle, 60 % of the weight) cannot beat 4.72 s. SM-SA's 5.9 s is within its grip."""
+    results = {"SM-SA": _front([125.0], [5.9]), "IWM-SA": _front([121.0], [3.6]), "IWM-DA": _front([115.0], [2.36])}
+    lines = caveats(results, _configs("thesis"))
+    assert len(lines) == 2
+    assert "IWM-SA 3.60 s (at least 4.72 s with 60 % of the weight on the driven axle)" in lines[0]
+    assert "IWM-DA 2.36 s (at least 2.83 s with every wheel)" in lines[0] and "SM-SA" not in lines[0]
+    assert lines[1].startswith("caveat: SM-SA, IWM-SA, IWM-DA ran on parameter_set thesis")
+    assert caveats({"SM-SA": _front([125.0], [5.9])}, _configs("thesis"))[0].startswith("caveat: SM-SA ran on")
+
+
+def test_a_calibrated_set_with_the_grip_on_has_no_caveat():
+    results = {"SM-SA": _front([125.0], [5.9]), "IWM-DA": _front([115.0], [2.36])}
+    assert caveats(results, _configs("epa2022_quasi_static")) == []
