@@ -304,15 +304,16 @@ def ranking_lines(ranked) -> list[str]:
 
 
 def _plain(v: float) -> str:
-    """A value with four or five significant digits, never in exponent form."""
-    return f"{v:.0f}" if abs(v) >= 1000 else f"{v:.4g}"
+    """A value as a table shows it, never in exponent form: 10055, 116.0, 2.448."""
+    return f"{v:.0f}" if abs(v) >= 1000 else f"{v:.1f}" if abs(v) >= 100 else f"{v:.3f}"
 
 
 def caveats(results, configs) -> list[str]:
     """What qualifies a ranking of this study's fronts, one line each: a 0-100 km/h time faster than the
     tyres' grip allows where the run's parameters switch the grip off (``acceleration.grip_force_n``:
-    mu g on the driven axles, at the default mu and axle load share), and the thesis' parameter set, which
-    is not calibrated to measured cars (docs/validation.md)."""
+    mu g on the driven axles, at the default mu and axle load share), motors rated above what the battery
+    gives at its discharge limit (the 0-100 km/h model has no battery limit), and the thesis' parameter
+    set, which is not calibrated to measured cars (docs/validation.md)."""
     from bev_mdo.models import acceleration
     from bev_mdo.models.params import all_specs, validate_vehicle
 
@@ -330,6 +331,23 @@ def caveats(results, configs) -> list[str]:
     if fast:
         out.append(f"caveat: the parameters switch the tyres' grip limit off (tyre_grip_coefficient 0), and some "
                    f"fronts reach 0-100 km/h faster than grip mu {mu:g} allows: {'; '.join(fast)}")
+    over = []  # front designs rated above the battery's discharge limit (C x kWh = kW)
+    for t, r in results.items():
+        c_max, topo = validate_vehicle(configs[t].data.get("vehicle"))["discharge_c_max"], get_topology(t)
+        col = {n: r.X[:, i] for i, n in enumerate(r.names)}
+        if not len(r.X) or "motor_kw" not in col or "battery_kwh" not in col or c_max <= 0:
+            continue
+        motors_kw = topo.front_motors * col["motor_kw"] + topo.rear_motors * col.get("motor_rear_kw", 0.0)
+        battery_kw = c_max * col["battery_kwh"]
+        bad = np.flatnonzero(motors_kw > battery_kw)
+        if len(bad):
+            i = bad[np.argmax((motors_kw / battery_kw)[bad])]
+            over.append(f"{t} {len(bad)} of {len(r.X)} (up to {motors_kw[i]:.0f} kW of motors on "
+                        f"{col['battery_kwh'][i]:.1f} kWh, which gives {battery_kw[i]:.0f} kW at {c_max:g} C)")
+    if over:
+        out.append("caveat: the 0-100 km/h time takes the motors' rated power whatever the battery gives; front designs "
+                   "rated above the battery's discharge limit (discharge_c_max) reach their times on power it cannot "
+                   f"give: {'; '.join(over)}")
     thesis = list(t for t in results if (configs[t].parameter_set or {}).get("name") == "thesis")
     if thesis:
         out.append(f"caveat: {', '.join(thesis)} ran on parameter_set thesis, the thesis' model, not calibrated to "
