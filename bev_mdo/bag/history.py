@@ -281,9 +281,11 @@ def read_answers(bag: Bag, signer=None, checks: dict | None = None) -> dict | No
     return json.loads(text)
 
 
-def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | None = None) -> tuple[bool, str] | None:
+def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | None = None,
+               then: str = "what follows is") -> tuple[bool, str] | None:
     """(finished, one line) on how the bag's optimisation ended, from its end-of-run record (``read_answers``: stored
-    by api/runbag.finish when the run ends, with the disciplines that stopped answering); None for a sweep."""
+    by api/runbag.finish when the run ends, with the disciplines that stopped answering); None for a sweep. ``then``
+    leads the words on the last record of a run that did not finish (report: the iterate shown after the line)."""
     if rows and rows[-1].get("formulation") == "doe":
         return None
     if answers is None:
@@ -291,9 +293,9 @@ def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | 
             return False, "how the run ended is not known: its end-of-run record is left out (not signed with its key)"
         if bag.info.get("transport") == "inprocess" or (bag.bag_dir / "logs").is_dir():  # written by bev-mdo optimize
             return False, ("**the run did not finish**: the bag holds no end-of-run record (a signal, SIGINT or "
-                           "SIGTERM, or an error stopped it); what follows is its last recorded iterate, not a result")
+                           f"SIGTERM, or an error stopped it); {then} its last recorded iterate, not a result")
         return False, ("**no end-of-run record**: the run did not finish, or its coordinator was started by hand "
-                       "(coordinator_node stores none); what follows is its last recorded iterate")
+                       f"(coordinator_node stores none); {then} its last recorded iterate")
     lost = answers.get("unresponsive_disciplines")
     if lost:
         why = answers.get("stopped") or f"{', '.join(lost)} stopped answering"
