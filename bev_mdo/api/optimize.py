@@ -170,7 +170,7 @@ def _run_ros(config, opts, show, x0, starts):
     session = OptimizeRosSession(config, ros, bag, run_id, record=not opts.no_record, instances=instances,
                                  compose=opts.compose)
     with contextlib.ExitStack() as claimed:
-        if not opts.no_record or opts.bag:  # the bag's directory is this run's (one of two runs given it at once is refused)
+        if not opts.no_record or opts.bag:  # the directory is this run's (of two runs given it at once, one is refused)
             from bev_mdo.api.runbag import claim_new_bag, interrupted_note
 
             claimed.enter_context(claim_new_bag(bag, opts.bag_flag))

@@ -220,7 +220,8 @@ def check_new_bag(bag: Path, what: str) -> None:
 
     if holds_bag(bag):
         raise InputError(f"{what} {bag}: a bag already exists there; choose a new directory")
-    left = [n for n in ("logs/", ANSWERS_FILE) if (bag / n).is_file() or (bag / n).is_dir() and any((bag / n).iterdir())]
+    left = [n for n in ("logs/", ANSWERS_FILE)
+            if (bag / n).is_file() or (bag / n).is_dir() and any((bag / n).iterdir())]
     if left:  # a run that wrote no bag (stopped before its recorder started, or --no-record) left them
         raise InputError(f"{what} {bag}: holds another run's {' and '.join(left)}; choose a new directory")
     inner = next((d for d in (bag.iterdir() if bag.is_dir() else ()) if d.is_dir() and holds_bag(d)), None)

@@ -291,7 +291,7 @@ def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | 
     if answers is None:
         if (checks or {}).get("answers"):
             return False, "how the run ended is not known: its end-of-run record is left out (not signed with its key)"
-        if bag.info.get("transport") == "inprocess" or (bag.bag_dir / "logs").is_dir():  # written by bev-mdo optimize
+        if by_optimize(bag):
             return False, ("**the run did not finish**: the bag holds no end-of-run record (a signal, SIGINT or "
                            f"SIGTERM, or an error stopped it); {then} its last recorded iterate, not a result")
         return False, ("**no end-of-run record**: the run did not finish, or its coordinator was started by hand "
@@ -305,6 +305,12 @@ def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | 
         return True, (f"the run finished, but **{tail}**; the result and the answers below are its end-of-run "
                       "record's")
     return True, "the run finished: the bag holds its end-of-run record (its result and the answers below)"
+
+
+def by_optimize(bag: Bag) -> bool:
+    """Whether `bag` was written by ``bev-mdo optimize`` (which stores an end-of-run record when the run ends), not
+    by a recorder and coordinator started by hand: in process, or over ROS with the run's logs/ beside it."""
+    return bag.info.get("transport") == "inprocess" or (bag.bag_dir / "logs").is_dir()
 
 
 def missing_tail(rows: list[dict], answers: dict | None) -> str:

@@ -8,13 +8,15 @@ import pytest
 pytest.importorskip("rclpy")
 
 
-def _bag(tmp_path, answers: dict | None):
+def _bag(tmp_path, answers: dict | None, config: dict | None = None, unsigned_answers: bool = False):
     from bev_mdo.api.runbag import InProcessBag
 
-    bag = InProcessBag(tmp_path / "b", {"name": "t"}, "run1")
+    bag = InProcessBag(tmp_path / "b", config or {"name": "t"}, "run1")
     for i, x in enumerate((3.0, 1.0, 1.5)):
         bag({"iteration": i, "design": {"x": x}, "objective": (x - 1.0) ** 2, "constraints": {}, "feasible": True,
              "max_violation": 0.0})
+    if unsigned_answers:
+        bag.signer = None
     bag.close(answers)  # without answers: as the run's closing does on a signal or an error
     return tmp_path / "b"
 
@@ -37,5 +39,17 @@ def test_history_of_a_finished_run_says_nothing_of_its_ending(tmp_path, capsys):
     from bev_mdo.cli import main
 
     bag = _bag(tmp_path, {"feasible": True, "lines": [], "result_design": {"x": 1.0}})
+    assert main(["history", str(bag), "--csv", "-"]) == 0
+    assert "did not finish" not in capsys.readouterr().err
+
+
+def test_history_of_a_run_whose_answers_are_left_out_does_not_call_it_unfinished(tmp_path, capsys):
+    """A signed run's end-of-run record not signed with its key is left out: how the run ended is not known."""
+    from bev_mdo.cli import main
+    from bev_mdo.protocol.signing import new_key_file
+
+    key = new_key_file(tmp_path / "keys")
+    bag = _bag(tmp_path, {"feasible": True, "lines": [], "result_design": {"x": 1.0}},
+               {"name": "t", "ros": {"sign_key_file": key}}, unsigned_answers=True)
     assert main(["history", str(bag), "--csv", "-"]) == 0
     assert "did not finish" not in capsys.readouterr().err
