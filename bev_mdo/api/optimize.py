@@ -156,7 +156,7 @@ def _run_ros(config, opts, show, x0, starts):
     run_id = uuid.uuid4().hex[:16]
     stamp_ = time.strftime("%Y%m%d_%H%M%S")
     bag = Path(opts.bag) if opts.bag else Path("bags") / f"{config.name}_{stamp_}_{run_id[:6]}"
-    if not opts.no_record:
+    if not opts.no_record or opts.bag:  # (--no-record --bag DIR: logs/ in DIR, beside no other run's)
         from bev_mdo.api.runbag import check_new_bag
 
         check_new_bag(bag, opts.bag_flag)  # before the flags' checks, as ever; claimed below, before anything is written
@@ -170,12 +170,11 @@ def _run_ros(config, opts, show, x0, starts):
     session = OptimizeRosSession(config, ros, bag, run_id, record=not opts.no_record, instances=instances,
                                  compose=opts.compose)
     with contextlib.ExitStack() as claimed:
-        if not opts.no_record:  # the bag's directory is this run's (one of two runs given it at once is refused)
-            from bev_mdo.api.runbag import claim_new_bag
+        if not opts.no_record or opts.bag:  # the directory is this run's (of two runs given it at once, one is refused)
+            from bev_mdo.api.runbag import claim_new_bag, interrupted_note
 
             claimed.enter_context(claim_new_bag(bag, opts.bag_flag))
-            from bev_mdo.api.runbag import interrupted_note
-
+        if not opts.no_record:
             interrupts.note_bag(lambda: interrupted_note(bag))  # a signal from now on: what the bag holds
         if not opts.quiet:
             print(f"starting {where}{'' if opts.no_record else ' and a recorder'}"

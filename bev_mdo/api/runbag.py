@@ -208,7 +208,8 @@ def in_process_bag(config: Mapping[str, Any], opts, show, closing: contextlib.Ex
 
 
 def check_new_bag(bag: Path, what: str) -> None:
-    """A bag may be written to `bag`: InputError (exit 2) naming it if a bag or a file is there."""
+    """A bag may be written to `bag`: InputError (exit 2) naming it if a bag, a file or another run's logs or
+    end-of-run record are there (kept beside the new run's, they would be read as its own)."""
     bag = Path(bag)
     if bag.exists() and not bag.is_dir():
         raise InputError(f"{what} {bag}: is a file, not a bag directory")
@@ -219,6 +220,10 @@ def check_new_bag(bag: Path, what: str) -> None:
 
     if holds_bag(bag):
         raise InputError(f"{what} {bag}: a bag already exists there; choose a new directory")
+    left = [n for n in ("logs/", ANSWERS_FILE)
+            if (bag / n).is_file() or (bag / n).is_dir() and any((bag / n).iterdir())]
+    if left:  # a run that wrote no bag (stopped before its recorder started, or --no-record) left them
+        raise InputError(f"{what} {bag}: holds another run's {' and '.join(left)}; choose a new directory")
     inner = next((d for d in (bag.iterdir() if bag.is_dir() else ()) if d.is_dir() and holds_bag(d)), None)
     if inner is not None:  # a run's output folder (sweep's, pareto's): its readers would take the new bag
         raise InputError(f"{what} {bag}: a run's output folder, its bag in {inner.name}/; choose a new directory")

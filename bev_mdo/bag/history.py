@@ -37,32 +37,36 @@ class Sequence:
     """Per-run order of iteration records: each run numbers its records 1, 2, 3, ... (``sequence``, under
     the signature), and stamps them when it sends them. A record received (recorded) further than
     ``window_s`` from its stamp is ``expired`` (a record sent again later: ``bev-mdo replay`` of an old
-    bag); one whose number was already seen is a ``duplicate``; one below the last is ``from the past``
-    (a replay of an older record); all are dropped. The stamp is checked first, so a replay that reaches
-    the recorder before the run's own records cannot make them look like the past. A jump counts the
-    records ``missing`` in between (kept: nothing newer is lost)."""
+    bag); one whose number was already seen is a ``duplicate`` (of the last) or ``from the past`` (a replay
+    of an older record); all are dropped. The stamp is checked first, so a replay that reaches the recorder
+    before the run's own records cannot make them look like the past. A number not seen yet is kept, below
+    the last too (``late``: recorded after a later record, it fills its gap); ``missing`` counts the numbers
+    up to each run's last that were never seen."""
 
     def __init__(self, window_s: float = WINDOW_S):
+        self.seen: dict[str, set[int]] = {}
         self.last: dict[str, int] = {}
-        self.missing = 0
+        self.late = 0
         self.window_ns = int(window_s * 1e9)
+
+    @property
+    def missing(self) -> int:
+        return sum(self.last[run] - len(numbers - {0}) for run, numbers in self.seen.items())  # (numbered from 1)
 
     def check(self, run_id: str, sequence: int, stamp_ns: int | None = None,
               received_ns: int | None = None) -> str | None:
         """None to keep the record, else why it is dropped ("expired", "duplicate", "from the past")."""
         if stamp_ns and received_ns is not None and abs(received_ns - stamp_ns) > self.window_ns:
             return "expired"  # (every bev_mdo sender stamps its records; an unstamped one cannot be checked)
-        last = self.last.get(run_id)
-        if last is None:  # the run's first record: those before it (numbered from 1) are missing
-            self.last[run_id] = sequence
-            self.missing += max(0, sequence - 1)
-            return None
-        if sequence == last:
-            return "duplicate"
+        seen = self.seen.setdefault(run_id, set())
+        last = self.last.get(run_id, 0)
+        if sequence in seen:
+            return "duplicate" if sequence == last else "from the past"
+        seen.add(sequence)
         if sequence < last:
-            return "from the past"
-        self.missing += sequence - last - 1
-        self.last[run_id] = sequence
+            self.late += 1
+        else:
+            self.last[run_id] = sequence
         return None
 
 
@@ -102,9 +106,10 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
     The run is `run_id`, else the bag's own (the run its recorder was started for); a standalone
     recording of several runs needs `run_id` (BagError naming them), unless `all_runs`. Records of
     a signed run are verified with its key (see ``bag.signing``; BagError when the bag's signing record
-    and stored config disagree); unsigned and forged ones are dropped, and so are records out of
-    order (``Sequence``). `no_verify` reads without checking signatures (the note says so).
-    `checks`, if given, receives {"run_id", "dropped": {reason: n}, "missing": n, "other_runs": n,
+    and stored config disagree); unsigned and forged ones are dropped, and so are records seen before
+    (``Sequence``); one recorded after a later record of its run is put back in its place (``late``).
+    `no_verify` reads without checking signatures (the note says so).
+    `checks`, if given, receives {"run_id", "dropped": {reason: n}, "missing": n, "late": n, "other_runs": n,
     "other_run_ids": [the runs of those records], "unverified": note or ""} and, for a sweep's bag cut
     short, "unfinished": note.
     """
@@ -129,7 +134,7 @@ def verified_history(bag, run_id: str | None = None, *, all_runs: bool = False, 
     info = {"run_id": run, "dropped": {}, "missing": 0, "other_runs": 0, "other_run_ids": [],
             "unverified": check.note}
     order = Sequence(stored.window_s)
-    rows = []
+    rows, late = [], 0
     for msg, rec in decoded:
         if run is not None and not _in_run(rec.run_id, run):
             info["other_runs"] += 1
@@ -148,7 +153,7 @@ def verified_history(bag, run_id: str | None = None, *, all_runs: bool = False, 
             continue
         values = named(rec.design)
         start = parse_start_tag(rec.header.frame_id)
-        rows.append({
+        row = {
             "run_id": rec.run_id,
             "iteration": int(rec.iteration),
             **({"start": start[0] + 1, "starts": start[1], "seed": start[2]} if start else {}),
@@ -168,8 +173,14 @@ def verified_history(bag, run_id: str | None = None, *, all_runs: bool = False, 
                                        zip(rec.discipline_names, rec.discipline_evaluations)},
             "wall_time_s": float(rec.wall_time_s),
             "log_time_ns": msg.log_time_ns,
-        })
-    info["missing"] = order.missing
+        }
+        if order.late > late:  # recorded after a later record of its run: put back in its place
+            late = order.late
+            after = (i for i, r in enumerate(rows) if r["run_id"] == rec.run_id and r["sequence"] > row["sequence"])
+            rows.insert(next(after), row)
+        else:
+            rows.append(row)
+    info["missing"], info["late"] = order.missing, order.late
     planned = int(bag.info.get("designs") or 0)  # a sweep's bag names its count of designs
     if rows and rows[-1]["formulation"] == "doe" and len(rows) < planned:
         info["unfinished"] = f"the sweep's bag holds {len(rows)} of its {planned} designs (it was stopped while written)"
@@ -190,6 +201,8 @@ def check_note(checks: dict) -> str:
                      + " iteration record(s)")
     if checks.get("missing"):
         parts.append(f"{checks['missing']} iteration record(s) missing (gaps in the run's sequence numbers)")
+    if checks.get("late"):
+        parts.append(f"{checks['late']} iteration record(s) recorded after a later one (read in sequence order)")
     if checks.get("other_runs"):
         parts.append(f"skipped {checks['other_runs']} record(s) of other runs")
     if checks.get("unverified"):
@@ -268,19 +281,21 @@ def read_answers(bag: Bag, signer=None, checks: dict | None = None) -> dict | No
     return json.loads(text)
 
 
-def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | None = None) -> tuple[bool, str] | None:
+def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | None = None,
+               then: str = "what follows is") -> tuple[bool, str] | None:
     """(finished, one line) on how the bag's optimisation ended, from its end-of-run record (``read_answers``: stored
-    by api/runbag.finish when the run ends, with the disciplines that stopped answering); None for a sweep."""
+    by api/runbag.finish when the run ends, with the disciplines that stopped answering); None for a sweep. ``then``
+    leads the words on the last record of a run that did not finish (report: the iterate shown after the line)."""
     if rows and rows[-1].get("formulation") == "doe":
         return None
     if answers is None:
         if (checks or {}).get("answers"):
             return False, "how the run ended is not known: its end-of-run record is left out (not signed with its key)"
-        if bag.info.get("transport") == "inprocess" or (bag.bag_dir / "logs").is_dir():  # written by bev-mdo optimize
+        if by_optimize(bag):
             return False, ("**the run did not finish**: the bag holds no end-of-run record (a signal, SIGINT or "
-                           "SIGTERM, or an error stopped it); what follows is its last recorded iterate, not a result")
+                           f"SIGTERM, or an error stopped it); {then} its last recorded iterate, not a result")
         return False, ("**no end-of-run record**: the run did not finish, or its coordinator was started by hand "
-                       "(coordinator_node stores none); what follows is its last recorded iterate")
+                       f"(coordinator_node stores none); {then} its last recorded iterate")
     lost = answers.get("unresponsive_disciplines")
     if lost:
         why = answers.get("stopped") or f"{', '.join(lost)} stopped answering"
@@ -290,6 +305,12 @@ def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | 
         return True, (f"the run finished, but **{tail}**; the result and the answers below are its end-of-run "
                       "record's")
     return True, "the run finished: the bag holds its end-of-run record (its result and the answers below)"
+
+
+def by_optimize(bag: Bag) -> bool:
+    """Whether `bag` was written by ``bev-mdo optimize`` (which stores an end-of-run record when the run ends), not
+    by a recorder and coordinator started by hand: in process, or over ROS with the run's logs/ beside it."""
+    return bag.info.get("transport") == "inprocess" or (bag.bag_dir / "logs").is_dir()
 
 
 def missing_tail(rows: list[dict], answers: dict | None) -> str:

@@ -241,3 +241,26 @@ def test_the_recorders_check_keeps_its_own_run_once_and_in_order(signed):
     assert order.dropped == {"from the past": 1, "duplicate": 1, "of another run": 1, "malformed": 1}
     assert order.order.missing == 1
     assert "1 iteration record(s) missing" in order.note()
+
+
+def test_two_records_recorded_in_each_others_place_are_all_read_in_order(tmp_path, signed, capsys):
+    """Record 3 written before record 2 (their bytes, signatures and numbers as sent): history read record 2 as
+    one 'from the past', dropped it and counted one missing. Every number is there: all are read, in sequence
+    order, and one line says one was recorded after a later one; a record seen before is still dropped."""
+    key_file, _, recs = signed
+    bag = _bag(tmp_path / "swapped", [recs[0], recs[2], recs[1], recs[3], recs[1]], _config(key_file))
+    checks: dict = {}
+    rows = history(bag, checks=checks)
+    assert [r["sequence"] for r in rows] == [1, 2, 3, 4]
+    assert [r["design"]["motor_kw"] for r in rows] == [80.0, 81.0, 82.0, 83.0]
+    assert checks["missing"] == 0 and checks["dropped"] == {"from the past": 1} and checks["late"] == 1
+    status, out, err = _cli(capsys, "history", str(bag), "--csv", "-")
+    assert status == 0 and len(out.strip().splitlines()) == 1 + 4
+    assert "1 iteration record(s) recorded after a later one (read in sequence order)" in err
+    assert "missing" not in err
+
+    from bev_mdo.bag.history import RecordOrder
+
+    order = RecordOrder(RUN)  # the recorder keeps such a record too (history puts it back in its place)
+    assert [order.keep(r, (1_700_000_000 + 3) * 10**9) for r in (recs[0], recs[2], recs[1])] == [True] * 3
+    assert order.order.missing == 0 and order.note() == ""

@@ -471,3 +471,8 @@ def test_the_report_of_an_interrupted_run_says_it_did_not_finish(tmp_path):
     md = (tmp_path / "report.md").read_text()
     assert md.splitlines()[2].startswith("- **the run did not finish**: the bag holds no end-of-run record"), md[:600]
     assert "## Last recorded iterate (the run did not finish)" in md and "## Final iterate" not in md
+    history = subprocess.run([sys.executable, "-m", "bev_mdo", "history", "b", "--csv", "-"], capture_output=True,
+                             text=True, cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(REPO)}, timeout=120)
+    last = history.stdout.strip().splitlines()[-1].split(",")[1]  # its last record's iteration
+    assert history.returncode == 0 and "b: the run did not finish: the bag holds no end-of-run record" in history.stderr
+    assert f"iteration {last} is its last recorded iterate, not a result" in history.stderr, history.stderr
