@@ -41,32 +41,49 @@ class Sequence:
     of an older record); all are dropped. The stamp is checked first, so a replay that reaches the recorder
     before the run's own records cannot make them look like the past. A number not seen yet is kept, below
     the last too (``late``: recorded after a later record, it fills its gap); ``missing`` counts the numbers
-    up to each run's last that were never seen."""
+    up to each run's last that were never seen. Memory is bounded: past ``HELD`` scattered numbers the
+    lower half's gaps are given up (still missing; a record in one of them later is "from the past")."""
+
+    HELD = 4096  # numbers held above a run's floor at most: the live recorder checks order before signatures
 
     def __init__(self, window_s: float = WINDOW_S):
-        self.seen: dict[str, set[int]] = {}
+        # per run: every number up to ``floor`` is seen (or given up), ``above`` holds those seen above it
+        self.floor: dict[str, int] = {}
+        self.above: dict[str, set[int]] = {}
         self.last: dict[str, int] = {}
+        self.given_up = 0  # numbers under a floor raised past them unseen (the memory bound): still missing
         self.late = 0
         self.window_ns = int(window_s * 1e9)
 
     @property
     def missing(self) -> int:
-        return sum(self.last[run] - len(numbers - {0}) for run, numbers in self.seen.items())  # (numbered from 1)
+        return self.given_up + sum(self.last[r] - self.floor[r] - len(self.above[r]) for r in self.last)
 
     def check(self, run_id: str, sequence: int, stamp_ns: int | None = None,
               received_ns: int | None = None) -> str | None:
         """None to keep the record, else why it is dropped ("expired", "duplicate", "from the past")."""
         if stamp_ns and received_ns is not None and abs(received_ns - stamp_ns) > self.window_ns:
             return "expired"  # (every bev_mdo sender stamps its records; an unstamped one cannot be checked)
-        seen = self.seen.setdefault(run_id, set())
-        last = self.last.get(run_id, 0)
-        if sequence in seen:
+        # numbered from 1 (a synthetic or foreign bag may start at 0)
+        floor, above = self.floor.setdefault(run_id, -1 if sequence == 0 else 0), self.above.setdefault(run_id, set())
+        last = self.last.setdefault(run_id, 0)
+        if sequence <= floor or sequence in above:
             return "duplicate" if sequence == last else "from the past"
-        seen.add(sequence)
+        above.add(sequence)
         if sequence < last:
             self.late += 1
         else:
             self.last[run_id] = sequence
+        while floor + 1 in above:  # in order, the set stays empty
+            floor += 1
+            above.discard(floor)
+        if len(above) > self.HELD:  # a flood of scattered numbers: give up the lower half's gaps
+            cut = sorted(above)[len(above) // 2]
+            kept = {n for n in above if n > cut}
+            self.given_up += cut - floor - (len(above) - len(kept))
+            floor, above = cut, kept
+            self.above[run_id] = above
+        self.floor[run_id] = floor
         return None
 
 
