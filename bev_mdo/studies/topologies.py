@@ -327,7 +327,8 @@ def caveats(results, configs) -> list[str]:
         floor = acceleration.V_END_M_S / (mu * p["gravity_m_s2"] * share)  # road load only adds to it
         best = float(np.min(r.values["accel_time_0_100_s"]))
         if best < floor:
-            fast.append(f"{t} {best:.2f} s (at least {floor:.2f} s with {'every wheel' if share == 1 else f'{100 * share:.0f} % of the weight on the driven axle'})")
+            wheels = "every wheel" if share == 1 else f"{100 * share:.0f} % of the weight on the driven axle"
+            fast.append(f"{t} {best:.2f} s (at least {floor:.2f} s with {wheels})")
     if fast:
         out.append(f"caveat: the parameters switch the tyres' grip limit off (tyre_grip_coefficient 0), and some "
                    f"fronts reach 0-100 km/h faster than grip mu {mu:g} allows: {'; '.join(fast)}")
