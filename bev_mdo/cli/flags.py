@@ -39,19 +39,34 @@ def add_ros_arguments(parser, config: bool = True) -> None:
     g.add_argument("--discovery-server", default=None, metavar="IP:PORT", help="with --discovery server")
 
 
-def add_transport_arguments(parser, attach: bool = True) -> None:
+def add_transport_arguments(parser, attach: bool = True, record: str | None = "") -> None:
     """The transport flags of every command that evaluates designs (optimize, resume, evaluate, sweep,
     compare, sensitivity, check-totals, pareto), with the discovery flags; their meaning and their one
     default: bev_mdo.api.transport.Transport. ``attach=False``: a command that always starts its own
     nodes (optimize, resume, pareto: bound to their run and recorder) does not offer ``--attach`` and
-    refuses it at once with one line saying why (not argparse's 'unrecognized arguments')."""
+    refuses it at once with one line saying why (not argparse's 'unrecognized arguments').
+
+    ``--no-record``, the same on every one of them: ``record`` is its help where the command writes a bag
+    it can leave out (optimize, resume, sweep); "" (a command that never records: evaluate, compare,
+    sensitivity, check-totals) takes it and does nothing, as asked, without offering it in its help;
+    None (pareto, whose front is its bag) refuses it in one line saying why."""
     import argparse
 
     from bev_mdo.api.transport import DEFAULT_TRANSPORT, TRANSPORTS, attach_refused
 
-    class RefuseAttach(argparse.Action):
+    class Refuse(argparse.Action):
         def __call__(self, parser, namespace, values, option_string=None):
-            parser.exit(2, f"{parser.prog}: error: {attach_refused(parser.prog.split()[-1])}\n")
+            command = parser.prog.split()[-1]
+            why = attach_refused(command) if option_string == "--attach" else (
+                f"{command} --no-record: {command} always records its fronts, one per generation, in its bag "
+                "(OUT/bag); drop --no-record")
+            parser.exit(2, f"{parser.prog}: error: {why}\n")
+
+    if record is None:
+        parser.add_argument("--no-record", nargs=0, action=Refuse, dest="refused", default=argparse.SUPPRESS,
+                            help=argparse.SUPPRESS)
+    else:
+        parser.add_argument("--no-record", action="store_true", help=record or argparse.SUPPRESS)
 
     g = parser.add_argument_group("transport")
     g.add_argument("--transport", choices=TRANSPORTS, default=DEFAULT_TRANSPORT,
@@ -63,7 +78,7 @@ def add_transport_arguments(parser, attach: bool = True) -> None:
                        help="ROS: use the discipline nodes already running on the domain (ros2 run, bev-mdo node) "
                             "instead of starting this command's own")
     else:
-        g.add_argument("--attach", nargs=0, action=RefuseAttach, dest="refused", default=argparse.SUPPRESS,
+        g.add_argument("--attach", nargs=0, action=Refuse, dest="refused", default=argparse.SUPPRESS,
                        help=argparse.SUPPRESS)
     add_ros_arguments(parser)
 

@@ -50,9 +50,8 @@ def register(sub) -> None:
     p.add_argument("--set", dest="fixed", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
                    help="fixed values for variables not varied (default: their initial value)")
     p.add_argument("--out", default="sweep", help="output directory (default ./sweep)")
-    p.add_argument("--no-record", action="store_true", help="do not write the bag (OUT/bag)")
     p.add_argument("--no-plots", action="store_true")
-    add_transport_arguments(p)
+    add_transport_arguments(p, record="do not write the bag (OUT/bag)")
     add_override_arguments(p)
     p.set_defaults(func=run)
     c = sub.add_parser("compare", help="two or more designs side by side with their differences",
