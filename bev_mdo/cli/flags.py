@@ -117,10 +117,11 @@ def add_override_arguments(parser, single_objective: bool = True) -> None:
 def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, float]:
     """``["a=1,b=2", "c=3"]`` (or one such string) -> {a: 1.0, b: 2.0, c: 3.0}: the NAME=VALUE lists of
     --set, --design and --at; an InputError naming `flag` on a malformed item."""
+    import math
     import re
 
     from bev_mdo.api.errors import InputError
-    from bev_mdo.api.overrides import finite_values
+    from bev_mdo.api.overrides import no_underscore
 
     def one_number(name: str, given: str):  # a list given to a name: [9.04,4.7] or 9.04,4.7
         two = (" (a two-speed gearbox is gear_count=2 with gear_ratio_2 for its second gear: "
@@ -143,12 +144,14 @@ def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, 
                 raise InputError(f"{flag} {name.strip()}: given twice ({out[name.strip()]:g} and {value.strip()})")
             if value.strip()[:1] in ("[", "("):  # gear_ratio=[9.04,4.7]
                 raise one_number(name.strip(), item[item.index(part) + len(name) + 1:].strip())  # the rest of it
+            no_underscore(value, f"{flag} {name.strip()}={value.strip()}")
             try:
-                out[name.strip()] = float(value)
+                out[name.strip()] = number = float(value)
             except ValueError:
                 raise InputError(f"{flag} {name.strip()}={value!r}: value must be a number") from None
+            if not math.isfinite(number):  # named as typed: 1e400 was said as inf
+                raise InputError(f"{flag} {name.strip()}={value.strip()}: a design value must be a finite number")
             last = name.strip()
-    finite_values(out, flag)
     return out
 
 

@@ -65,12 +65,15 @@ def register(sub) -> None:
 
 
 def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
+    from bev_mdo.api.overrides import no_underscore
+
     out = {}
     for item in items:
         name, sep, spec = item.partition("=")
         name = name.strip()
         if not sep or not name:
             raise InputError(f"--vary {item!r} must be NAME=LO:HI:N or NAME=A,B,C")
+        no_underscore(spec, f"--vary {item!r}")  # float() and int() read 1_00 as 100
         try:
             if ":" in spec:
                 lo, hi, n = spec.split(":")  # a ValueError unless it has three parts
