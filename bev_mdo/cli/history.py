@@ -93,6 +93,8 @@ def run(args) -> int:
     bag = open_bag(args.bag)
     if bag.truncated:
         print(bag.recovery_note(), file=sys.stderr)
+    if bag.metadata_note:
+        print(bag.metadata_note, file=sys.stderr)
     checks: dict = {}
     rows, signer = verified_history(bag, run_id=args.run_id, key_file=args.key_file, checks=checks,
                                     no_verify=args.no_verify)

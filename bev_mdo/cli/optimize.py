@@ -33,8 +33,6 @@ def register(sub) -> None:
                    help="SLSQP | trust-constr | COBYQA | COBYLA | differential_evolution | chebyshev-pairwise")
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     p.add_argument("--bag", default=None, help="bag directory to write (default: bags/<config name>_<time>)")
-    p.add_argument("--no-record", action="store_true", help="do not record the run (over ROS the node logs and the per-run "
-                   "key go in a temporary directory, removed after; with --bag, logs/ is kept there)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--starts", type=int, default=1, metavar="N",
                    help="optimise from N start points (a Latin hypercube over the bounds, --seed) and report the "
@@ -47,7 +45,8 @@ def register(sub) -> None:
     from bev_mdo.cli.flags import add_layout_arguments, add_override_arguments, add_transport_arguments
 
     add_layout_arguments(p)
-    add_transport_arguments(p, attach=False)
+    add_transport_arguments(p, attach=False, record="do not record the run (over ROS the node logs and the per-run "
+                            "key go in a temporary directory, removed after; with --bag, logs/ is kept there)")
     add_override_arguments(p)
     p.set_defaults(func=run)
 

@@ -45,7 +45,7 @@ def register(subparsers) -> None:
     from bev_mdo.cli.flags import add_layout_arguments, add_override_arguments, add_transport_arguments
 
     add_layout_arguments(p, compose=False)  # a population is one batch
-    add_transport_arguments(p, attach=False)
+    add_transport_arguments(p, attach=False, record=None)
     add_override_arguments(p, single_objective=False)
     p.set_defaults(func=run)
 
