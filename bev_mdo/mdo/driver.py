@@ -162,13 +162,21 @@ def evaluate_design(run: Run, evaluator: Evaluator, design: Mapping[str, float])
     values = {k: float(v[0]) for k, v in res.values.items()}
     why = res.errors[0]  # one design: the discipline's reason, without 'at point 0' and the inputs shown beside it
     error = (why.reason or why.message) if why is not None else ""
+    short = design_check(run, problem, {**design, **values}) if res.ok[0] else []
     return design_report(problem, mda, design, values, bool(res.ok[0]), error, int(res.iterations[0]),
-                         tol=run.optimizer.feasibility_tolerance)
+                         tol=run.optimizer.feasibility_tolerance, short=short)
+
+
+def design_check(run: RunSettings, problem: Problem, values: Mapping[str, float]) -> list[str]:
+    """``run.design_check``'s lines at one analysed point (``values``: its variables; the problem's parameters
+    added): why the design is infeasible beyond its constraints (its motor cannot follow the cycle), [] if not."""
+    return list(run.design_check({**problem.parameters, **values})) if run.design_check is not None else []
 
 
 def design_report(problem: Problem, mda: MDA, design: Mapping[str, float], values: Mapping[str, float],
-                  ok: bool, error: str, mda_iterations: int, tol: float = FEASIBILITY_TOL) -> dict:
-    """The report of one analysed design (``values``: every MDA variable of the point)."""
+                  ok: bool, error: str, mda_iterations: int, tol: float = FEASIBILITY_TOL, short=()) -> dict:
+    """The report of one analysed design (``values``: every MDA variable of the point; ``short``: its
+    ``design_check`` lines, each making it infeasible)."""
     outputs = {v: float(values[v]) for s in mda.specs.values() for v in s.outputs}
     cons = _constraint_report(problem, outputs, tol)
     given = {k: float(v) for k, v in design.items()}
@@ -180,7 +188,7 @@ def design_report(problem: Problem, mda: MDA, design: Mapping[str, float], value
         "objective": {"name": problem.objective, "value": outputs.get(problem.objective, float("nan")),
                       **({"maximize": True} if problem.maximize else {})},
         "constraints": cons,
-        "feasible": ok and all(c["satisfied"] for c in cons.values()),
+        "feasible": ok and all(c["satisfied"] for c in cons.values()) and not short,
         "ok": ok,
         "error": error,
         "mda_iterations": mda_iterations,
@@ -239,11 +247,16 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         if not ok:  # the optimiser saw its penalty; the record says the point has no values (not 1e10, 720 K),
             # and no violation (NaN, as a sweep's failed design)
             cons = dict.fromkeys(cons, float("nan"))
+        seen = form.analysed(x, again=True) if ok and hasattr(form, "analysed") else None
+        # the final verdict's judgement (design_check) at every record: multi-start picked a start whose motor
+        # could not follow the cycle, its records and verdict 'feasible' where the final check said not
+        known = seen[0] if seen is not None and seen[1] else {**dict(zip(form.var_names, map(float, x))), **cons}
+        short = ok and bool(design_check(run, problem, known))
         rec = {
             "iteration": len(history), "formulation": form.name, "optimizer": opt_name,
             "design": problem.design_dict(x[:n_dv]), "objective_name": problem.objective,
             "objective": sign * float(f[0]) if ok else float("nan"), "constraints": cons,
-            "max_violation": viol if ok else float("nan"), "feasible": bool(ok and viol <= tol),
+            "max_violation": viol if ok else float("nan"), "feasible": bool(ok and viol <= tol and not short),
             "mda_evaluations": form.mda_evaluations, "discipline_evaluations": dict(evaluator.counts),
             "wall_time_s": time.perf_counter() - t0,
         }
@@ -251,7 +264,6 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
             rec["couplings"] = dict(zip(form.var_names[n_dv:], map(float, x[n_dv:])))
         history.append(rec)
         xs.append(x.copy())
-        seen = form.analysed(x, again=True) if ok and hasattr(form, "analysed") else None
         if seen is not None and seen[1]:  # MDF: every record's full MDA, for the final report (a DE result
             kept[x.tobytes()] = seen      # can be 180 generations old, long out of the recent rows)
         if callback is not None:
@@ -312,11 +324,13 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     design = problem.design_dict(x[:n_dv])
     seen = kept.get(x.tobytes()) or (form.analysed(x) if hasattr(form, "analysed") else None)
     if seen is not None:  # a DE result recorded 180 iterations before the end, a discipline lost since
-        final = design_report(problem, form.mda, design, *seen, tol=tol)
+        short = design_check(run, problem, seen[0]) if seen[1] else []
+        final = design_report(problem, form.mda, design, *seen, tol=tol, short=short)
         mda_evals = form.mda_evaluations
         ok, err = seen[1], seen[2]
     else:
         final = evaluate_design(run, evaluator, design)
+        short = design_check(run, problem, {**design, **final["outputs"]}) if final.get("ok", True) else []
         mda_evals = form.mda_evaluations + 1
         ok, err = form.status(x)
         if ok and not final.get("ok", True):  # IDF: its point consistent, the MDA through it failed
@@ -325,6 +339,8 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     if not ok and fo["verdict"] != first_order.INFEASIBLE:  # e.g. IDF's consistent point whose MDA failed
         fo = {**fo, "verdict": first_order.INFEASIBLE, "point_failed": True,
               "failure": (err or final.get("error", "")).split("; ")[0]}
+    elif ok and short:  # infeasible whatever the constraints say: e.g. its energy is that of the cycle's demand
+        fo = {**fo, "verdict": first_order.INFEASIBLE, "cannot_follow": short}
     message = str(res.message) + (f"; final point failed: {err}" if not ok else "")
     if projected:
         message += f"; the result is {projected_line(projected)}"

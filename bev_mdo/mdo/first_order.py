@@ -128,7 +128,7 @@ def verdict_line(fo: dict) -> str:
                  "check too, try --starts N" if not fo.get("moved", True) and fo["gradient_norm"] <= fo["tolerance"]
                  and not fo["active_constraints"] and not fo["active_bounds"] and not fo["equalities"] else "")
         return f"optimum (first-order conditions hold to {worst:.2g}; tolerance {fo['tolerance']:g}{still})"
-    if v == INFEASIBLE and fo.get("cannot_follow"):  # api.optimize: the result's motor cannot follow the cycle
+    if v == INFEASIBLE and fo.get("cannot_follow"):  # driver: RunSettings.design_check (its motor cannot follow the cycle)
         return f"infeasible ({'; '.join(fo['cannot_follow'])})"
     if v == INFEASIBLE and fo.get("point_failed"):  # failure: the driver's, when the final analysis failed
         return f"infeasible (the point failed: {fo.get('failure') or 'the disciplines gave no value there'})"
