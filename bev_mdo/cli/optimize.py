@@ -137,20 +137,24 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
 
 def _verdict(result: dict, out, units: dict) -> None:
     """The first-order verdict and the active set with its multipliers (physical margins beside)."""
-    from bev_mdo.mdo.first_order import verdict_line
+    from bev_mdo.mdo.first_order import note_lines, verdict_line
     from bev_mdo.mdo.units import unit_of
 
     fo = result["first_order"]
     cost = fo["cost"]
     print(f"verdict: {verdict_line(fo)}", file=out)
+    for line in note_lines(fo):
+        print(f"note: {line}", file=out)
     if result.get("multistart"):
         from bev_mdo.mdo.multistart import summary_line
 
         print(summary_line(result["multistart"]), file=out)
     kink = fo.get("kink_points", 0)  # driver.end_point_check: its steps either side of the point, for a kink
-    why = (["the optimiser's last gradient reused"] if cost["points"] == kink else
+    free = fo.get("free_points", 0)  # and along a variable whose gradient is zero, for one nothing holds
+    why = (["the optimiser's last gradient reused"] if cost["points"] == kink + free else
            ["central differences confirmed the analytic derivatives"] if fo.get("derivatives_confirmed") else
-           [f"{cost['points'] - kink} for the gradient"]) + ([f"{kink} to look for a kink"] if kink else [])
+           [f"{cost['points'] - kink - free} for the gradient"]) + ([f"{kink} to look for a kink"] if kink else []) + (
+        [f"{free} along a variable with a zero gradient"] if free else [])
     print(f"first-order check: {cost['points']} extra point{'' if cost['points'] == 1 else 's'} in "
           f"{cost['wall_time_s']:.3f} s ({'; '.join(why)})", file=out)
     if fo["verdict"] == "infeasible":

@@ -16,6 +16,7 @@ from scipy.optimize import OptimizeResult
 from bev_mdo.mdo import first_order
 from bev_mdo.mdo.evaluator import DisciplinesLost, Evaluator
 from bev_mdo.mdo.formulations import FORMULATIONS, Formulation
+from bev_mdo.mdo.free_variables import free_variables
 from bev_mdo.mdo.kinks import end_point_kinks
 from bev_mdo.mdo.mda import MDA
 from bev_mdo.mdo.optimizers import (GRADIENT_BASED, NOISE_VIOLATION, canonical_name, check_finite_bounds,
@@ -237,6 +238,14 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     xs: list[np.ndarray] = []  # the optimiser variables of every record (IDF: with the couplings)
     kept: dict[bytes, tuple] = {}  # MDF: each record's full analysis (record)
 
+    def follows(x: np.ndarray) -> bool:  # run.design_check at an evaluated point (under MDF its full analysis)
+        if run.design_check is None:
+            return True
+        seen = form.analysed(x, again=True) if hasattr(form, "analysed") else None
+        cons = _physical_constraints(problem, form.evaluate_batch(x[None, :])[1][0])
+        return not design_check(run, problem, seen[0] if seen is not None and seen[1] else
+                                {**dict(zip(form.var_names, map(float, x))), **cons})
+
     def record(x: np.ndarray) -> dict:
         x = np.asarray(x, dtype=float)
         f, g, h = form.evaluate_batch(x[None, :])
@@ -247,11 +256,9 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         if not ok:  # the optimiser saw its penalty; the record says the point has no values (not 1e10, 720 K),
             # and no violation (NaN, as a sweep's failed design)
             cons = dict.fromkeys(cons, float("nan"))
-        seen = form.analysed(x, again=True) if ok and hasattr(form, "analysed") else None
         # the final verdict's judgement (design_check) at every record: multi-start picked a start whose motor
         # could not follow the cycle, its records and verdict 'feasible' where the final check said not
-        known = seen[0] if seen is not None and seen[1] else {**dict(zip(form.var_names, map(float, x))), **cons}
-        short = ok and bool(design_check(run, problem, known))
+        short = ok and not follows(x)
         rec = {
             "iteration": len(history), "formulation": form.name, "optimizer": opt_name,
             "design": problem.design_dict(x[:n_dv]), "objective_name": problem.objective,
@@ -264,6 +271,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
             rec["couplings"] = dict(zip(form.var_names[n_dv:], map(float, x[n_dv:])))
         history.append(rec)
         xs.append(x.copy())
+        seen = form.analysed(x, again=True) if ok and hasattr(form, "analysed") else None
         if seen is not None and seen[1]:  # MDF: every record's full MDA, for the final report (a DE result
             kept[x.tobytes()] = seen      # can be 180 generations old, long out of the recent rows)
         if callback is not None:
@@ -285,15 +293,15 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         if res.get("stopped"):  # a record may repeat the optimiser's best so far (DE's, each generation): the
             k = next(i for i, xi in enumerate(xs) if np.array_equal(xi, xs[k]))  # result is where it was found
         checked_from = form.n_points, form.n_batches, time.perf_counter()
-        fo = end_point_check(form, xs[k], start, tol)
+        fo = end_point_check(form, xs[k], start, tol, follows)
         if k != len(history) - 1 and history[-1]["feasible"] and not res.get("stopped"):
             # an optimiser that did not say it converged (SLSQP's last line search failed) at a point
             # the first-order check verifies has converged: as then, an earlier point more violated
             # than it does not displace it with the objective its violation buys
-            fo_last = end_point_check(form, xs[-1], start, tol)
+            fo_last = end_point_check(form, xs[-1], start, tol, follows)
             if fo_last["verdict"] == first_order.OPTIMUM:
                 k = pick_result(history, sign, True, tol)
-                fo = fo_last if k == len(history) - 1 else end_point_check(form, xs[k], start, tol)
+                fo = fo_last if k == len(history) - 1 else end_point_check(form, xs[k], start, tol, follows)
             fo["cost"] = {"points": form.n_points - checked_from[0], "batches": form.n_batches - checked_from[1],
                           "wall_time_s": time.perf_counter() - checked_from[2]}  # both checks
         last, x = history[k], xs[k]
@@ -315,7 +323,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         record(np.clip(x, form.lower, form.upper))
         k = len(history) - 1
         last, x = history[k], xs[k]
-        fo = end_point_check(form, x, start, tol)
+        fo = end_point_check(form, x, start, tol, follows)
     if attempt:
         res.message = f"{res.message} (restarted once after: {first_message}; first-order check failed)"
     # The final report: MDF analysed the point already (its full MDA is kept); IDF's
@@ -392,10 +400,11 @@ def projected_line(projected: dict) -> str:
 OBJECTIVE_SCALE_HINT = 1e3  # an objective the optimiser sees this large, with no progress: problem.objective_scale
 
 
-def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: float) -> dict:
+def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: float, follows=None) -> dict:
     """``first_order.check`` at the physical point ``x`` of ``form``, with what it cost: the gradient is
     the optimiser's last one when it was taken there (gradient-based runs), else one batched stencil
-    (derivative-free runs). ``cost`` counts the points the check evaluated and its wall time."""
+    (derivative-free runs). ``cost`` counts the points the check evaluated and its wall time. ``follows(x)``:
+    the run's design_check at an evaluated point (for free_variables' steps)."""
     t0, points, batches = time.perf_counter(), form.n_points, form.n_batches
     x = np.asarray(x, dtype=float)
     u = form.u_of(x)
@@ -436,6 +445,12 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
         fo["kink_points"] = form.n_points - before  # of the check's cost: the steps either side
         if optimum and fo["kinks"]:
             fo.update(verdict=first_order.STOPPED, conditions_hold=False, kink_at_optimum=True)
+    if ok and fo["verdict"] == first_order.OPTIMUM:  # a variable nothing holds: the optimum is not unique in it
+        before = form.n_points
+        if free := free_variables(form, u, float(f[0]), g[0], h[0], (df, dg, dh), fo, tol, follows):
+            fo["free_variables"] = free
+        if form.n_points > before:
+            fo["free_points"] = form.n_points - before  # of the check's cost: the steps along them
     seen = abs(float(f[0])) / form.problem.objective_scale  # the objective as the optimiser sees it
     if ok and fo["verdict"] == first_order.NO_PROGRESS and seen >= OBJECTIVE_SCALE_HINT:
         fo["objective_seen"] = seen  # an objective of 1e6 stopped SLSQP at its first point, with no hint

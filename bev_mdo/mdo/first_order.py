@@ -168,3 +168,11 @@ def _kinks(kinks: Sequence[dict]) -> str:
             f"{k['name']} (slope {k['left']:.5g} on its left, {k['right']:.5g} on its right, per scaled unit)"
             for k in ks))
     return "; ".join(parts)
+
+
+def note_lines(fo: dict) -> list[str]:
+    """What the verdict line does not say, a line each: the design variables an optimum does not pin
+    (driver.end_point_check's ``free_variables``)."""
+    from bev_mdo.mdo.free_variables import free_line
+
+    return [free_line(fo["free_variables"])] if fo.get("free_variables") else []
