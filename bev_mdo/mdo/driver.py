@@ -425,7 +425,7 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
                                                                     atol=1e-12),  # a rounding away is no move
                                  unknown=form.unknown_derivatives(u) if ok else ())
 
-    fo = judge(df, dg, dh)
+    fo = {**judge(df, dg, dh), "derivatives": form.derivatives}  # what the numbers are computed on: analytic | fd
     if ok and fo["verdict"] == first_order.OPTIMUM and form.derivatives == "analytic":
         # the gradient came from the disciplines' partials, which its own check cannot doubt: a wrong partial
         # (df/dz 3z for 2z) ended "optimum" 3.4e-4 above the optimum. Central differences at steps h and 2h

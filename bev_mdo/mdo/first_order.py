@@ -170,9 +170,19 @@ def _kinks(kinks: Sequence[dict]) -> str:
     return "; ".join(parts)
 
 
-def note_lines(fo: dict) -> list[str]:
+def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = False) -> list[str]:
     """What the verdict line does not say, a line each: the design variables an optimum does not pin
-    (driver.end_point_check's ``free_variables``)."""
+    (driver.end_point_check's ``free_variables``), and where ``optimizer`` said it ``converged`` but the conditions
+    do not hold (no kink, no unknown or disagreeing derivative to explain it), what to check."""
     from bev_mdo.mdo.free_variables import free_line
 
-    return [free_line(fo["free_variables"])] if fo.get("free_variables") else []
+    lines = [free_line(fo["free_variables"])] if fo.get("free_variables") else []
+    if converged and fo["verdict"] == STOPPED and not (fo.get("kinks") or fo.get("unknown_derivatives")
+                                                       or fo.get("derivatives_disagree")):
+        on = ("the gradient assembled from the disciplines' analytic partials, the optimiser's own, so a wrong "
+              "partial misleads both" if fo.get("derivatives") == "analytic" else
+              "finite differences of the whole analysis (optimizer.fd_step), as the optimiser's")
+        lines.append(f"{optimizer} says it converged, but the first-order conditions do not hold at its end point "
+                     f"(judged on {on}): a wrong derivative is a common cause; bev-mdo check-partials CONFIG compares "
+                     "each discipline's partials with finite differences, bev-mdo check-totals CONFIG the totals")
+    return lines

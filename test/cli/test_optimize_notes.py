@@ -1,6 +1,8 @@
-"""A design variable nothing depends on at the optimum (a user trial: y = x1 + 0 x2 ended 'verdict: optimum' with x2
-at its start, no word that any x2 is as good), and multi-start's count of the starts reaching the best objective
-wherever their designs are ('1 of 4 starts reached the best point' when all four had)."""
+"""The notes under optimize's verdict, from user trials: a design variable nothing depends on at the optimum
+(y = x1 + 0 x2 ended 'verdict: optimum' with x2 at its start, no word that any x2 is as good); an optimiser that
+says it converged where the first-order check does not agree (a partial 20 % wrong: no hint of the cause); and
+multi-start's count of the starts reaching the best objective wherever their designs are ('1 of 4 starts reached
+the best point' when all four had)."""
 from __future__ import annotations
 
 import json
@@ -10,6 +12,8 @@ import pytest
 from bev_mdo.cli import main
 
 MODULE = '''
+import numpy as np
+
 class Flat:
     name = "toy"
     inputs = ("x1", "x2")
@@ -24,6 +28,21 @@ class Flat:
 
 class Curved(Flat):
     curved = True
+
+
+class ConWrong:
+    """f = x1 + x2, g = x1 x2; its partial dg/dx1 is 1.2 x2 (20 % wrong)."""
+    name = "conwrong"
+    inputs = ("x1", "x2")
+    outputs = ("f", "g")
+    units = {"x1": "1", "x2": "1", "f": "1", "g": "1"}
+
+    def compute(self, inputs):
+        return {"f": inputs["x1"] + inputs["x2"], "g": inputs["x1"] * inputs["x2"]}
+
+    def compute_partials(self, inputs):
+        one = np.ones(len(inputs["x1"]))
+        return {("f", "x1"): one, ("f", "x2"): one, ("g", "x1"): 1.2 * inputs["x2"], ("g", "x2"): inputs["x1"]}
 '''
 
 
@@ -69,3 +88,32 @@ def test_multistart_counts_the_starts_reaching_the_best_objective_at_other_desig
     assert line.startswith("multi-start: 4 of 4 starts reached the best objective")
     assert "3 of them at another design" in line and "the optimum is not unique" in line
     assert "4 of 4 ended feasible; verdicts: 4 optimum" in line
+
+
+def test_a_converged_claim_the_check_does_not_share_points_at_the_derivatives(tmp_path, capsys):
+    (tmp_path / "toys.py").write_text(MODULE)
+    path = tmp_path / "conwrong.yaml"
+    path.write_text(f"""name: conwrong
+search_path: [{tmp_path}]
+disciplines:
+  - {{name: conwrong, class: "toys:ConWrong"}}
+problem:
+  objective: f
+  design_variables:
+    x1: {{lower: 0.1, upper: 5, initial: 3}}
+    x2: {{lower: 0.1, upper: 5, initial: 3}}
+  constraints:
+    g: {{lower: 1}}
+optimizer: {{name: SLSQP, derivatives: analytic}}
+""")
+    assert _optimize(str(path)) == 5
+    out = capsys.readouterr().out
+    assert "verdict: stopped before convergence" in out
+    notes = [line for line in out.splitlines() if line.startswith("note: ")]
+    assert len(notes) == 1 and notes[0].startswith("note: SLSQP says it converged, but the first-order conditions do "
+                                                   "not hold at its end point (judged on the gradient assembled from "
+                                                   "the disciplines' analytic partials")
+    assert "bev-mdo check-partials CONFIG" in notes[0] and "bev-mdo check-totals CONFIG" in notes[0]
+    assert _optimize(str(path), "--json") == 5
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["optimizer_success"] and doc["first_order"]["derivatives"] == "analytic"
