@@ -83,6 +83,18 @@ def set_line(source: dict) -> str:
     return source["name"] + (f" ({', '.join(more)})" if more else "")
 
 
+def own_message(message: str) -> str:
+    """The optimiser's own message: ``message`` up to the first '; ' that the driver appends (the result's
+    iteration, a failed final point), not one inside its parentheses (SLSQP's restarts, '(restart 1 after: ...;
+    restart 2 after: ...)')."""
+    depth = 0
+    for i, c in enumerate(message):
+        depth += (c == "(") - (c == ")")
+        if depth == 0 and message.startswith("; ", i):
+            return message[:i]
+    return message
+
+
 def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
     from rich.console import Console
     from rich.table import Table
@@ -116,7 +128,7 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
     elif result.get("stopped"):  # a discipline stopped answering: the run stopped the optimiser
         print(f"the run {result['stopped']}", file=out)
     elif not result.get("optimizer_success", True):  # e.g. SLSQP's iteration limit
-        print(f"{result['optimizer']} says: {result['message'].split('; ')[0]}", file=out)
+        print(f"{result['optimizer']} says: {own_message(result['message'])}", file=out)
     if result.get("projected"):  # a result just outside its bounds, projected onto them
         from bev_mdo.mdo.driver import projected_line
 
