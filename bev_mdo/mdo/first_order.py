@@ -30,6 +30,7 @@ from scipy.optimize import lsq_linear
 
 FIRST_ORDER_TOL = 1e-4   # relative stationarity and complementarity that count as "the conditions hold"
 ACTIVE_TOL = 1e-4        # an inequality (normalised) or a bound (scaled units) this close to its limit is active
+FREE_STEP = 0.01         # free_variables.py's steps, of a variable's range (else of one scaled unit)
 
 OPTIMUM = "optimum"
 STOPPED = "stopped before convergence"
@@ -174,9 +175,7 @@ def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = Fal
     """What the verdict line does not say, a line each: the design variables an optimum does not pin
     (driver.end_point_check's ``free_variables``), and where ``optimizer`` said it ``converged`` but the conditions
     do not hold (no kink, no unknown or disagreeing derivative to explain it), what to check."""
-    from bev_mdo.mdo.free_variables import free_line
-
-    lines = [free_line(fo["free_variables"])] if fo.get("free_variables") else []
+    lines = [_free_line(fo["free_variables"])] if fo.get("free_variables") else []
     if converged and fo["verdict"] == STOPPED and not (fo.get("kinks") or fo.get("unknown_derivatives")
                                                        or fo.get("derivatives_disagree")):
         on = ("the gradient assembled from the disciplines' analytic partials, the optimiser's own, so a wrong "
@@ -186,3 +185,14 @@ def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = Fal
                      f"(judged on {on}): a wrong derivative is a common cause; bev-mdo check-partials CONFIG compares "
                      "each discipline's partials with finite differences, bev-mdo check-totals CONFIG the totals")
     return lines
+
+
+def _free_line(free: list[dict]) -> str:
+    """The note of ``free_variables``' variables, one line."""
+    names = ", ".join(f"{v['name']} = {v['value']:.6g}" for v in free)
+    one = len(free) == 1
+    return (f"the objective's gradient is zero in {names} at the optimum, and {'it is' if one else 'they are'} "
+            f"neither on a bound nor in an active constraint (a step of {FREE_STEP:g} of {'its' if one else 'each'} "
+            "range either way changes neither the objective nor an active limit, and stays feasible): the optimum is "
+            f"not unique in {'it' if one else 'them'} ({'its value is' if one else 'their values are'} arbitrary "
+            "where the design stays feasible)")

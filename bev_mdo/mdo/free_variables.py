@@ -5,7 +5,8 @@ no bound and in no active constraint (their gradients in it zero too) may be hel
 minimum) or by nothing (y = x1 + 0 x2: any x2 is as good). The two are told apart by one batch of steps of
 FREE_STEP of its range either way: where neither the objective nor any active limit moves (beyond 1e-9 of its
 size: MDA noise) and the stepped points stay feasible (the run's design_check too), the optimum is not unique in
-that variable, and its value is one of many. ``driver.end_point_check`` records them as ``first_order["free_variables"]``.
+that variable, and its value is one of many. ``driver.end_point_check`` records them as
+``first_order["free_variables"]``.
 """
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import numpy as np
 from bev_mdo.mdo import first_order
 from bev_mdo.mdo.formulations import Formulation
 
-FREE_STEP = 0.01  # of the variable's range (scaled units, where it is finite; else of one scaled unit)
+FREE_STEP = first_order.FREE_STEP  # of the variable's range (scaled units, where it is finite; else of one scaled unit)
 SAME = 1e-9       # relative change of the objective or an active limit below which it did not move
 
 
@@ -60,14 +61,3 @@ def free_variables(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, 
             out.append({"name": form.var_names[j], "value": float(x[j]),
                         "step": float(max(abs(steps[i][1]) for i in mine) * form.scale[j])})
     return out
-
-
-def free_line(free: list[dict]) -> str:
-    """The note of ``free_variables``' variables, one line."""
-    names = ", ".join(f"{v['name']} = {v['value']:.6g}" for v in free)
-    one = len(free) == 1
-    return (f"the objective's gradient is zero in {names} at the optimum, and {'it is' if one else 'they are'} "
-            f"neither on a bound nor in an active constraint (a step of {FREE_STEP:g} of {'its' if one else 'each'} "
-            "range either way changes neither the objective nor an active limit, and stays feasible): the optimum is "
-            f"not unique in {'it' if one else 'them'} ({'its value is' if one else 'their values are'} arbitrary "
-            "where the design stays feasible)")
