@@ -155,7 +155,7 @@ def _verdict(result: dict, out, units: dict) -> None:
     fo = result["first_order"]
     cost = fo["cost"]
     print(f"verdict: {verdict_line(fo)}", file=out)
-    for line in note_lines(fo, result["optimizer"], bool(result.get("optimizer_success"))):
+    for line in note_lines(fo, result.get("optimizer", "the optimiser"), bool(result.get("optimizer_success"))):
         print(f"note: {line}", file=out)
     if result.get("multistart"):
         from bev_mdo.mdo.multistart import summary_line
