@@ -311,9 +311,10 @@ def _plain(v: float) -> str:
 def caveats(results, configs) -> list[str]:
     """What qualifies a ranking of this study's fronts, one line each: a 0-100 km/h time faster than the
     tyres' grip allows where the run's parameters switch the grip off (``acceleration.grip_force_n``:
-    mu g on the driven axles, at the default mu and axle load share), motors rated above what the battery
-    gives at its discharge limit (the 0-100 km/h model has no battery limit), and the thesis' parameter
-    set, which is not calibrated to measured cars (docs/validation.md)."""
+    mu g on the driven axles, at the default mu and axle load share), motors rated above what the pack
+    gives at its discharge limit where the run switches that limit off (``acceleration.battery_shaft_power_w``
+    at the default efficiency), and the thesis' parameter set, which is not calibrated to measured cars
+    (docs/validation.md)."""
     from bev_mdo.models import acceleration
     from bev_mdo.models.params import all_specs, validate_vehicle
 
@@ -332,23 +333,24 @@ def caveats(results, configs) -> list[str]:
     if fast:
         out.append(f"caveat: the parameters switch the tyres' grip limit off (tyre_grip_coefficient 0), and some "
                    f"fronts reach 0-100 km/h faster than grip mu {mu:g} allows: {'; '.join(fast)}")
-    over = []  # front designs rated above the battery's discharge limit (C x kWh = kW)
+    over = []  # with the battery limit off: front designs whose motors the pack cannot feed at the default limit
+    eta = spec["battery_to_shaft_efficiency"].default
     for t, r in results.items():
-        c_max, topo = validate_vehicle(configs[t].data.get("vehicle"))["discharge_c_max"], get_topology(t)
+        p, topo = validate_vehicle(configs[t].data.get("vehicle")), get_topology(t)
         col = {n: r.X[:, i] for i, n in enumerate(r.names)}
-        if not len(r.X) or "motor_kw" not in col or "battery_kwh" not in col or c_max <= 0:
+        if p["battery_to_shaft_efficiency"] > 0 or not len(r.X) or "motor_kw" not in col or "battery_kwh" not in col:
             continue
         motors_kw = topo.front_motors * col["motor_kw"] + topo.rear_motors * col.get("motor_rear_kw", 0.0)
-        battery_kw = c_max * col["battery_kwh"]
-        bad = np.flatnonzero(motors_kw > battery_kw)
+        shaft_kw = acceleration.battery_shaft_power_w(col["battery_kwh"], {**p, "battery_to_shaft_efficiency": eta}) / 1e3
+        bad = np.flatnonzero(motors_kw > shaft_kw)
         if len(bad):
-            i = bad[np.argmax((motors_kw / battery_kw)[bad])]
+            i = bad[np.argmax((motors_kw / shaft_kw)[bad])]
             over.append(f"{t} {len(bad)} of {len(r.X)} (up to {motors_kw[i]:.0f} kW of motors on "
-                        f"{col['battery_kwh'][i]:.1f} kWh, which gives {battery_kw[i]:.0f} kW at {c_max:g} C)")
+                        f"{col['battery_kwh'][i]:.1f} kWh, which gives {shaft_kw[i]:.0f} kW)")
     if over:
-        out.append("caveat: the 0-100 km/h time takes the motors' rated power whatever the battery gives; front designs "
-                   "rated above the battery's discharge limit (discharge_c_max) reach their times on power it cannot "
-                   f"give: {'; '.join(over)}")
+        out.append(f"caveat: the parameters switch the battery's limit on the 0-100 km/h time off "
+                   f"(battery_to_shaft_efficiency 0); at {p['discharge_c_max']:g} C and shaft efficiency {eta:g}, these "
+                   f"front designs have more motor than their pack gives: {'; '.join(over)}")
     thesis = list(t for t in results if (configs[t].parameter_set or {}).get("name") == "thesis")
     if thesis:
         out.append(f"caveat: {', '.join(thesis)} ran on parameter_set thesis, the thesis' model, not calibrated to "
