@@ -8,8 +8,8 @@ import math
 
 from bev_mdo.bag.errors import BagError
 from bev_mdo.bag.reader import Bag, open_bag
+from bev_mdo.bag.order import RecordOrder, Sequence, in_run, stamp_ns  # noqa: F401 - RecordOrder: read from here
 from bev_mdo.bag.signing import verifier
-from bev_mdo.bag.stored import WINDOW_S
 from bev_mdo.protocol import parse_start_tag
 
 ITERATION_TOPIC = "/bev_mdo/iteration"
@@ -23,97 +23,6 @@ def named(block) -> dict[str, float]:
     n = int(block.batch_size) or 1
     values = list(block.values)
     return {name: float(values[j * n]) for j, name in enumerate(block.names) if j * n < len(values)}
-
-
-def stamp_ns(header) -> int:
-    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
-
-
-def _in_run(run_id: str, run: str) -> bool:
-    return run_id == run or run_id.startswith(run + "-")
-
-
-class Sequence:
-    """Per-run order of iteration records: each run numbers its records 1, 2, 3, ... (``sequence``, under
-    the signature), and stamps them when it sends them. A record received (recorded) further than
-    ``window_s`` from its stamp is ``expired`` (a record sent again later: ``bev-mdo replay`` of an old
-    bag); one whose number was already seen is a ``duplicate`` (of the last) or ``from the past`` (a replay
-    of an older record); all are dropped. The stamp is checked first, so a replay that reaches the recorder
-    before the run's own records cannot make them look like the past. A number not seen yet is kept, below
-    the last too (``late``: recorded after a later record, it fills its gap); ``missing`` counts the numbers
-    up to each run's last that were never seen. Memory is bounded: past ``HELD`` scattered numbers the
-    lower half's gaps are given up (still missing; a record in one of them later is "from the past")."""
-
-    HELD = 4096  # numbers held above a run's floor at most: the live recorder checks order before signatures
-
-    def __init__(self, window_s: float = WINDOW_S):
-        # per run: every number up to ``floor`` is seen (or given up), ``above`` holds those seen above it
-        self.floor: dict[str, int] = {}
-        self.above: dict[str, set[int]] = {}
-        self.last: dict[str, int] = {}
-        self.given_up = 0  # numbers under a floor raised past them unseen (the memory bound): still missing
-        self.late = 0
-        self.window_ns = int(window_s * 1e9)
-
-    @property
-    def missing(self) -> int:
-        return self.given_up + sum(self.last[r] - self.floor[r] - len(self.above[r]) for r in self.last)
-
-    def check(self, run_id: str, sequence: int, stamp_ns: int | None = None,
-              received_ns: int | None = None) -> str | None:
-        """None to keep the record, else why it is dropped ("expired", "duplicate", "from the past")."""
-        if stamp_ns and received_ns is not None and abs(received_ns - stamp_ns) > self.window_ns:
-            return "expired"  # (every bev_mdo sender stamps its records; an unstamped one cannot be checked)
-        # numbered from 1 (a synthetic or foreign bag may start at 0)
-        floor, above = self.floor.setdefault(run_id, -1 if sequence == 0 else 0), self.above.setdefault(run_id, set())
-        last = self.last.setdefault(run_id, 0)
-        if sequence <= floor or sequence in above:
-            return "duplicate" if sequence == last else "from the past"
-        above.add(sequence)
-        if sequence < last:
-            self.late += 1
-        else:
-            self.last[run_id] = sequence
-        while floor + 1 in above:  # in order, the set stays empty
-            floor += 1
-            above.discard(floor)
-        if len(above) > self.HELD:  # a flood of scattered numbers: give up the lower half's gaps
-            cut = sorted(above)[len(above) // 2]
-            kept = {n for n in above if n > cut}
-            self.given_up += cut - floor - (len(above) - len(kept))
-            floor, above = cut, kept
-            self.above[run_id] = above
-        self.floor[run_id] = floor
-        return None
-
-
-class RecordOrder:
-    """The recorder's check of the iteration records it is sent: of its own run only (when it has one),
-    each in order (``Sequence``); ``dropped`` counts the others by reason."""
-
-    def __init__(self, run_id: str = "", window_s: float = WINDOW_S):
-        self.run_id = run_id
-        self.order = Sequence(window_s)
-        self.dropped: dict[str, int] = {}
-
-    def keep(self, data, received_ns: int) -> bool:
-        from bev_mdo.protocol import WireError, head
-
-        try:
-            rec = head(data, "IterationRecord", "sequence")  # the fields up to sequence: no full decode
-            why = ("of another run" if self.run_id and not _in_run(rec.run_id, self.run_id)
-                   else self.order.check(rec.run_id, int(rec.sequence), stamp_ns(rec.header), received_ns))
-        except WireError:
-            why = "malformed"
-        if why is not None:
-            self.dropped[why] = self.dropped.get(why, 0) + 1
-        return why is None
-
-    def note(self) -> str:
-        """'' or '; dropped N duplicate, ... iteration record(s), M missing'."""
-        parts = [f"{n} {k}" for k, n in sorted(self.dropped.items())]
-        text = f"; dropped {', '.join(parts)} iteration record(s)" if parts else ""
-        return text + (f"; {self.order.missing} iteration record(s) missing" if self.order.missing else "")
 
 
 def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file: str | None = None,
@@ -151,9 +60,9 @@ def verified_history(bag, run_id: str | None = None, *, all_runs: bool = False, 
     info = {"run_id": run, "dropped": {}, "missing": 0, "other_runs": 0, "other_run_ids": [],
             "unverified": check.note}
     order = Sequence(stored.window_s)
-    rows, late = [], 0
+    rows = []
     for msg, rec in decoded:
-        if run is not None and not _in_run(rec.run_id, run):
+        if run is not None and not in_run(rec.run_id, run):
             info["other_runs"] += 1
             if rec.run_id not in info["other_run_ids"]:
                 info["other_run_ids"].append(rec.run_id)
@@ -191,12 +100,14 @@ def verified_history(bag, run_id: str | None = None, *, all_runs: bool = False, 
             "wall_time_s": float(rec.wall_time_s),
             "log_time_ns": msg.log_time_ns,
         }
-        if order.late > late:  # recorded after a later record of its run: put back in its place
-            late = order.late
-            after = (i for i, r in enumerate(rows) if r["run_id"] == rec.run_id and r["sequence"] > row["sequence"])
-            rows.insert(next(after), row)
-        else:
-            rows.append(row)
+        rows.append(row)
+    if order.late:  # records recorded after a later record of their run: each run's, in its places, in sequence order
+        places: dict[str, list[int]] = {}
+        for i, r in enumerate(rows):
+            places.setdefault(r["run_id"], []).append(i)
+        for at in places.values():
+            for i, r in zip(at, sorted((rows[i] for i in at), key=lambda r: r["sequence"])):
+                rows[i] = r
     info["missing"], info["late"] = order.missing, order.late
     planned = int(bag.info.get("designs") or 0)  # a sweep's bag names its count of designs
     if rows and rows[-1]["formulation"] == "doe" and len(rows) < planned:

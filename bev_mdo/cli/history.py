@@ -100,12 +100,12 @@ def run(args) -> int:
                                     no_verify=args.no_verify)
     if check_note(checks):
         print(f"{args.bag}: {check_note(checks)}", file=sys.stderr)
-    # the bag's own run, written by `optimize`, with no end-of-run record (a signed one left out is not its absence):
-    # as report's first line, the run did not finish and its last record is not a result
+    # the bag's own run, written by `optimize`, with no end-of-run record: as report's first line, the run did not
+    # finish and its last record is not a result; one left out (not signed with the run's key): how it ended is not known
     told: dict = {}
-    if rows and args.run_id in (None, bag.info.get("run_id")) and by_optimize(bag) \
-            and read_answers(bag, signer, told) is None and not told:
-        ending = run_ending(bag, rows, None, then=f"iteration {rows[-1]['iteration']} is")
+    if rows and args.run_id in (None, bag.info.get("run_id")) and read_answers(bag, signer, told) is None \
+            and (told or by_optimize(bag)):
+        ending = run_ending(bag, rows, None, told, then=f"iteration {rows[-1]['iteration']} is")
         if ending:  # (None: a sweep's)
             print(f"{args.bag}: {ending[1].replace('**', '')}", file=sys.stderr)
     if not rows:

@@ -66,6 +66,7 @@ def run(args) -> int:
     cfg = flags.load_config(args)  # a bad file, key, name, topology, variable or override exits 2 here
     objs = pareto.objectives_of(names, cfg)
     pareto.check_objectives(objs, cfg, str(args.config), 2)
+    pareto.out_dirs(args.out, cfg.name)  # an --out in use is refused before the run's first line
     print(f"NSGA-II {args.pop} x {args.generations} over {args.transport}: "
           f"{', '.join(n + (' (max)' if m else '') for n, m in objs)}", file=sys.stderr)
     doc, res = pareto.run(cfg, names, generations=args.generations, pop=args.pop, seed=args.seed, out=args.out,
@@ -174,7 +175,7 @@ def _study(args, raw, written, names, ov) -> int:
     hv_ref = hypervolume_reference([n for n, _ in objectives])
     from bev_mdo.api.runbag import claim_new_bag
 
-    with claim_new_bag(bag, "--out"):  # of two studies given the same --out at once, one is refused here
+    with claim_new_bag(bag, "--out", out):  # of two studies given the same --out at once, one is refused here
         session = pareto.session(args, args.instances, raw, out, bag, run_id, list(configs.values()))
         from bev_mdo.ros.pareto_publisher import front_message  # loaded by the session already
 

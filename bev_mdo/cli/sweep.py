@@ -242,7 +242,7 @@ def run(args) -> int:
     if not args.no_record:  # held until the bag is written: of two sweeps given the same --out at once one is refused
         from bev_mdo.api.runbag import claim_new_bag
 
-        claim = claim_new_bag(bag, "--out")
+        claim = claim_new_bag(bag, "--out", out)
     with claim:
         designs, varied = designs_of(args, config)
         n = len(next(iter(designs.values())))

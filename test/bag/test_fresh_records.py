@@ -1,4 +1,4 @@
-"""Every record is fresh and in order, and a bag's signing state is its own: a captured record
+"""Every record is fresh and read in its run's order, and a bag's signing state is its own: a captured record
 replayed, a record of another run, and a bag whose stored sign_key_file was blanked are each
 dropped and counted, or refused, by history, report and resume."""
 from __future__ import annotations
@@ -264,16 +264,17 @@ def test_two_records_recorded_in_each_others_place_are_all_read_in_order(tmp_pat
 
     order = RecordOrder(RUN)  # the recorder keeps such a record too (history puts it back in its place)
     assert [order.keep(r, (1_700_000_000 + 3) * 10**9) for r in (recs[0], recs[2], recs[1])] == [True] * 3
-    assert order.order.missing == 0 and order.note() == ""
+    assert order.order.missing == 0 and order.note() == "; 1 iteration record(s) recorded after a later one (kept)"
 
 
 def test_the_order_check_holds_a_bounded_set_under_a_flood_of_scattered_numbers():
-    """The live recorder checks order before any signature: a flood of scattered sequence numbers for
-    its run must not grow the numbers it holds without bound (a set of every number seen did). What is
-    given up is still counted missing, and a number under the raised floor is dropped as from the past."""
+    """The live recorder's check (of an unsigned run: a signed run's forged records are dropped before it):
+    a flood of scattered sequence numbers for its run must not grow the numbers it holds without bound (a set
+    of every number seen did). What is given up is still counted missing, and a number under the raised floor
+    is dropped as from the past."""
     from bev_mdo.bag.history import Sequence
 
-    order, rng = Sequence(), np.random.default_rng(1)
+    order, rng = Sequence(held=Sequence.HELD, runs=Sequence.RUNS), np.random.default_rng(1)
     numbers = rng.permutation(np.arange(1, 200_001))[:40_000]
     kept = sum(order.check("run", int(n)) is None for n in numbers)
     assert len(order.above["run"]) <= Sequence.HELD

@@ -42,3 +42,55 @@ def test_an_empty_folder_is_taken(tmp_path, capsys):
     (bag / "logs").mkdir(parents=True)  # made by hand, empty
     assert main(["optimize", LEAF, "--bag", str(bag), "--quiet", "--transport", "inprocess"]) == 0
     assert (bag / "b_0.mcap").is_file()
+
+
+def test_a_plain_file_named_logs_is_refused_as_what_it_is(tmp_path, capsys):
+    bag = tmp_path / "b"
+    bag.mkdir()
+    (bag / "logs").write_text("my notes\n")
+    assert main(["optimize", LEAF, "--bag", str(bag), "--quiet", "--transport", "inprocess"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"bev-mdo optimize: error: --bag {bag}: holds a file named logs (a run writes its logs/ there); "
+                   "choose a new directory"]
+
+
+def _holding(out: Path, what: str) -> dict:
+    """`out` as an earlier run left it: its bag in the folder itself (optimize --bag OUT), or its logs/."""
+    from bev_mdo.bag.writer import BagWriter
+
+    if what == "bag":
+        BagWriter(out, metadata={"run_id": "first"}).close()
+        return {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    return _left(out, what)
+
+
+@pytest.mark.parametrize("held, said", [("bag", "a bag already exists there"), ("logs", "holds another run's logs/"),
+                                        ("answers.json", "holds another run's answers.json")])
+@pytest.mark.parametrize("command", [
+    ["sweep", LEAF, "--vary", "motor_kw=70,90", "--no-plots", "--transport", "inprocess"],
+    ["pareto", LEAF, "--objectives", "energy_wh_per_km,accel_time_0_100_s", "--generations", "1", "--pop", "4",
+     "--transport", "inprocess"]], ids=["sweep", "pareto"])
+def test_an_out_folder_holding_another_runs_bag_or_files_is_refused(tmp_path, capsys, command, held, said):
+    """Only OUT/bag was checked: `sweep --out OUT` (`pareto --out OUT`) into an optimize run's bag folder was taken,
+    and `resume OUT` then resumed the old optimize run. The line names the folder as given, not OUT/bag."""
+    out = tmp_path / "out"
+    before = _holding(out, held)
+    assert main([*command, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"bev-mdo {command[0]}: error: --out {out}: {said}; choose a new directory"]
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+
+
+@pytest.mark.parametrize("command", [
+    ["sweep", LEAF, "--vary", "motor_kw=70,90", "--no-plots", "--transport", "inprocess"],
+    ["pareto", LEAF, "--objectives", "energy_wh_per_km,accel_time_0_100_s", "--generations", "1", "--pop", "4",
+     "--transport", "inprocess"]], ids=["sweep", "pareto"])
+def test_an_out_folder_of_a_finished_run_is_named_as_given(tmp_path, capsys, command):
+    out = tmp_path / "out"
+    from bev_mdo.bag.writer import BagWriter
+
+    BagWriter(out / "bag", metadata={"run_id": "first"}).close()
+    assert main([*command, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"bev-mdo {command[0]}: error: --out {out}: a run's output folder, its bag in bag/; choose a new "
+                   "directory"]
