@@ -178,12 +178,17 @@ def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = Fal
     lines = [_free_line(fo["free_variables"])] if fo.get("free_variables") else []
     if converged and fo["verdict"] == STOPPED and not (fo.get("kinks") or fo.get("unknown_derivatives")
                                                        or fo.get("derivatives_disagree")):
-        on = ("the gradient assembled from the disciplines' analytic partials, the optimiser's own, so a wrong "
-              "partial misleads both" if fo.get("derivatives") == "analytic" else
-              "finite differences of the whole analysis (optimizer.fd_step), as the optimiser's")
-        lines.append(f"{optimizer} says it converged, but the first-order conditions do not hold at its end point "
-                     f"(judged on {on}): a wrong derivative is a common cause; bev-mdo check-partials CONFIG compares "
-                     "each discipline's partials with finite differences, bev-mdo check-totals CONFIG the totals")
+        if fo.get("derivatives") == "analytic":
+            lines.append(f"{optimizer} says it converged, but the first-order conditions do not hold at its end point "
+                         "(judged on the gradient assembled from the disciplines' analytic partials, the optimiser's "
+                         "own, so a wrong partial misleads both): a wrong derivative is a common cause; bev-mdo "
+                         "check-partials CONFIG compares each discipline's partials with finite differences, bev-mdo "
+                         "check-totals CONFIG the totals")
+        else:  # no analytic partial in the run: its own stopping rule, or the finite differences' step
+            lines.append(f"{optimizer} says it converged, but the first-order conditions do not hold at its end point "
+                         "(judged on finite differences of the whole analysis, optimizer.fd_step, as the optimiser's): "
+                         "its stopping tolerance (optimizer.options, e.g. ftol) may be too loose for the problem, or "
+                         "the step too coarse for it")
     return lines
 
 

@@ -313,8 +313,8 @@ def caveats(results, configs) -> list[str]:
     tyres' grip allows where the run's parameters switch the grip off (``acceleration.grip_force_n``:
     mu g on the driven axles, at the default mu and axle load share), motors rated above what the pack
     gives at its discharge limit where the run switches that limit off (``acceleration.battery_shaft_power_w``
-    at the default efficiency), and the thesis' parameter set, which is not calibrated to measured cars
-    (docs/validation.md)."""
+    at the default efficiency), and the thesis' efficiency map (``motor_loss_model`` 0, the thesis set or
+    none), which is not calibrated to measured cars (docs/validation.md)."""
     from bev_mdo.models import acceleration
     from bev_mdo.models.params import all_specs, validate_vehicle
 
@@ -345,15 +345,16 @@ def caveats(results, configs) -> list[str]:
         bad = np.flatnonzero(motors_kw > shaft_kw)
         if len(bad):
             i = bad[np.argmax((motors_kw / shaft_kw)[bad])]
-            over.append(f"{t} {len(bad)} of {len(r.X)} (up to {motors_kw[i]:.0f} kW of motors on "
+            over.append(f"{t} {len(bad)} of {len(r.X)} (the most over its pack: {motors_kw[i]:.0f} kW of motors on "
                         f"{col['battery_kwh'][i]:.1f} kWh, which gives {shaft_kw[i]:.0f} kW)")
     if over:
         out.append(f"caveat: the parameters switch the battery's limit on the 0-100 km/h time off "
                    f"(battery_to_shaft_efficiency 0); at {p['discharge_c_max']:g} C and shaft efficiency {eta:g}, these "
                    f"front designs have more motor than their pack gives: {'; '.join(over)}")
-    thesis = list(t for t in results if (configs[t].parameter_set or {}).get("name") == "thesis")
-    if thesis:
-        out.append(f"caveat: {', '.join(thesis)} ran on parameter_set thesis, the thesis' model, not calibrated to "
-                   "measured cars: it over-predicts the energy differences between variants of one car "
-                   "(docs/validation.md, pairs), so this energy ranking is the thesis model's, not a measured car's")
+    thesis = [t for t in results if validate_vehicle(configs[t].data.get("vehicle"))["motor_loss_model"] == 0]
+    if thesis:  # the study's energy is the topology model's: with the map (loss model 0) it is the thesis' own
+        out.append(f"caveat: {', '.join(thesis)} ran on the thesis' efficiency map (motor_loss_model 0: the thesis set "
+                   "or no set), not calibrated to measured cars: it over-predicts the energy differences between "
+                   "variants of one car (docs/validation.md, pairs), so this energy ranking is the thesis model's, "
+                   "not a measured car's")
     return out

@@ -6,8 +6,10 @@ the best point' when all four had)."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
+import yaml
 
 from bev_mdo.cli import main
 
@@ -117,3 +119,16 @@ optimizer: {{name: SLSQP, derivatives: analytic}}
     assert _optimize(str(path), "--json") == 5
     doc = json.loads(capsys.readouterr().out)
     assert doc["optimizer_success"] and doc["first_order"]["derivatives"] == "analytic"
+
+
+def test_a_converged_claim_on_finite_differences_points_to_the_stopping_rule_not_the_partials(tmp_path, capsys):
+    """SLSQP with ftol 1e-2 on the Leaf (every derivative by finite differences) stopped short and the note
+    blamed 'a wrong derivative' and sent the user to check-partials, which has nothing to check there."""
+    raw = yaml.safe_load((Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml").read_text())
+    raw["optimizer"]["options"] = {"ftol": 1e-2}
+    path = tmp_path / "loose.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    assert _optimize(str(path), "--constraint", "accel_time_0_100_s<=8") == 5
+    notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note: ")]
+    assert len(notes) == 1 and "judged on finite differences" in notes[0]
+    assert "ftol" in notes[0] and "check-partials" not in notes[0]

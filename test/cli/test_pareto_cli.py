@@ -291,4 +291,4 @@ def test_the_topology_study_prints_its_ranking_with_its_caveats(tmp_path, capsys
     assert sorted(r["topology"] for r in ranked) == ["DM-DA", "IWM-DA", "IWM-SA", "SM-SA"]
     assert [r["best"] for r in ranked] == sorted(r["best"] for r in ranked)
     assert f"ranking by each front's best energy_wh_per_km (Wh/km): {ranked[0]['topology']} " in stdout
-    assert "ran on parameter_set thesis" in summary["caveats"][-1] and summary["caveats"][-1] in stdout
+    assert "ran on the thesis' efficiency map" in summary["caveats"][-1] and summary["caveats"][-1] in stdout
