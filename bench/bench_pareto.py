@@ -75,7 +75,7 @@ def two_speed_study() -> None:
     from bev_mdo.models.acceleration import accel_time_0_100_s
     from bev_mdo.models.cycles import load_cycle, resample
     from bev_mdo.models.params import validate_vehicle
-    from bev_mdo.models.topology import accel_time_s
+    from bev_mdo.models.topology_accel import accel_time_s
 
     p0 = validate_vehicle({"parameter_set": "thesis"})  # the thesis' model: no tyre-grip limit on 0-100 km/h
     art = resample(load_cycle("artemis_combined"), 1.0)

@@ -55,6 +55,7 @@ class NodeProcess:
     cpu_ticks: int = -1             # its CPU time when last read (clock ticks; cpu_ticks())
     cpu_changed_at: float = 0.0     # when that last changed (time.monotonic())
     frozen: bool = False            # found stopped (SIGSTOP, state T) when the launcher stopped it: killed at once
+    killed: bool = False            # SIGKILLed by the watchdog, its successor not yet spawned (Launcher.recovering)
 
     def busy(self, now: float, within_s: float) -> bool:
         """Whether its process used CPU in the last `within_s` seconds (a node still importing and
@@ -147,7 +148,7 @@ class Launcher:
             out = open(node.log_path, "ab")
         else:
             out = subprocess.DEVNULL
-        node.spawned_at, node.seen, node.missing_since = time.monotonic(), False, None
+        node.spawned_at, node.seen, node.missing_since, node.killed = time.monotonic(), False, None, False
         # Own process group, so a Ctrl-C in the terminal reaches only us and we stop the children in
         # order; but our session, so the kernel's CPU scheduler (autogroups, one per session) weighs a
         # run's nodes with its command: a session per node gave each node the share of a whole run, and
@@ -205,13 +206,15 @@ class Launcher:
 
     def recovering(self, discipline: str) -> bool:
         """Whether a supervised process serving `discipline` is being restarted: gone from the ROS graph while
-        it runs (the watchdog kills it SILENT_S later), dead and not yet restarted, or restarted and not yet
-        back on the graph (the coordinator's retries wait for it: Orchestrator.recovering)."""
+        it runs (the watchdog kills it SILENT_S later), killed by the watchdog (even before the kernel has
+        ended it: poll() still None), dead and not yet restarted, or restarted and not yet back on the graph
+        (the coordinator's retries wait for it: Orchestrator.recovering)."""
         with self._lock:
             return any(n.restart and n.proc is not None
                        and discipline in n.label.rsplit("/", 1)[-1].split("#")[0].split("+")  # topology/a+b#k
                        and (n.missing_since is not None or (n.restarts and not n.seen)
-                            or (n.proc.poll() is not None and n.restarts < self.max_restarts)) for n in self.nodes)
+                            or ((n.killed or n.proc.poll() is not None) and n.restarts < self.max_restarts))
+                       for n in self.nodes)
 
     def kill(self, label: str, sig: int = signal.SIGKILL, wait: bool = True) -> int:
         """Send a signal to a node process (for fault-injection tests); returns its pid.

@@ -267,3 +267,47 @@ def test_options_of_the_declared_types_and_unchecked_annotations_are_taken():
     given = {"rate": 2, "count": 3, "on": True, "label": "b", "cap": None, "table": [1]}
     assert read_options(Typed, given, "w") == Typed.Options(**given)
     assert read_options(Typed, {**given, "cap": 2}, "w").cap == 2
+
+
+def test_text_for_a_constructor_option_with_a_number_default_exits_2_at_load_naming_it(tmp_path, capsys):
+    # power=2.0 given '2 %' loaded, then every point failed with "TypeError: unsupported operand type(s) for ** ..."
+    bad = _user_config(tmp_path, {}, {"power": "2 %"})
+    code, out, err = _cli(capsys, "evaluate", bad, "--set", "x=0.1", "--transport", "inprocess")
+    assert code == 2 and out == "", err
+    assert err == (f"bev-mdo evaluate: error: {bad}: disciplines[1] (by_constructor).options.power: '2 %' must be "
+                   "a number, as its default is\n")
+
+
+class Built:
+    """Options by constructor: checked by annotation, else (a number default) text and bools refused."""
+
+    def __init__(self, loss=0.02, count: int = 1, table=None, mode="fast", cap: float | None = None):
+        self.loss = loss
+
+
+@pytest.mark.parametrize("key, value, what", [
+    ("loss", "2 %", "a number, as its default is"), ("loss", True, "a number, as its default is"),
+    ("count", 2.5, "a whole number (int)"), ("cap", "high", "a number (float)")])
+def test_a_constructor_option_of_the_wrong_type_is_refused_naming_it(key, value, what):
+    from bev_mdo.mdo.discipline import read_options
+
+    with pytest.raises(ValueError) as err:
+        read_options(Built, {key: value}, "w")
+    assert str(err.value) == f"w.{key}: {value!r} must be {what}"
+    given = {"loss": [0.01, 0.02], "count": 3, "table": "any", "mode": 5, "cap": None}  # what the class may take
+    assert read_options(Built, given, "w") == given
+
+
+def test_a_search_path_folder_that_does_not_exist_is_a_note_or_named_in_the_import_error(tmp_path, capsys):
+    """It was said nowhere; a class not found named the folder among those looked in, as if it were there."""
+    good = _user_config(tmp_path, {}, {})
+    raw = yaml.safe_load(good.read_text())
+    raw["search_path"] = ["no_such_folder"]
+    cfg = _write(tmp_path, yaml.safe_dump(raw, sort_keys=False), "sp.yaml")
+    code, out, err = _cli(capsys, "evaluate", cfg, "--set", "x=0.1", "--transport", "inprocess")
+    assert code == 0 and err == f"bev-mdo evaluate: note: search_path: {tmp_path / 'no_such_folder'} does not exist\n"
+    raw["disciplines"][0]["class"] = "elsewhere:Declared"
+    cfg = _write(tmp_path, yaml.safe_dump(raw, sort_keys=False), "sp.yaml")
+    code, out, err = _cli(capsys, "evaluate", cfg, "--set", "x=0.1", "--transport", "inprocess")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"; search_path folder {tmp_path / 'no_such_folder'} does not exist)" in err

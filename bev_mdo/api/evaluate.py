@@ -78,66 +78,11 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
 def notes_of(config, design: dict, outputs: dict) -> tuple[bool, list[str]]:
     """(whether the one design cannot follow its drive cycle, its notes: that, what its outputs mean
     (``design_notes``) and where the follow check does not run)."""
-    short, unchecked = follow_notes(config, {**design, **outputs})
+    from bev_mdo.config import RunConfig
+    from bev_mdo.disciplines.energy import follow_notes
+
+    short, unchecked = follow_notes(RunConfig.of(config).disciplines, {**design, **outputs})
     return bool(short), short + design_notes(config, outputs) + unchecked
-
-
-def follow_notes(config, values: dict) -> tuple[list[str], list[str]]:
-    """(one line per discipline that says the one design in ``values`` cannot follow its drive cycle, e.g. a
-    van asked for 0-60 km/h in 1 s; one line per discipline that cannot check it for this design): the energy
-    discipline's ``cycle_steps_short``, run once."""
-    from bev_mdo.config import RunConfig
-
-    short, unchecked = [], []
-    for d in RunConfig.of(config).disciplines:
-        if getattr(d, "envelope", None) is None:
-            continue
-        rows = d.cycle_steps_short(values)
-        margins = _follow_margins(d, values)
-        if (rows is None or rows[0][2][0] < 0) and margins:  # the model's own margins say it
-            if below := {k: float(np.ravel(v)[0]) for k, v in margins.items() if np.ravel(v)[0] < 0}:
-                short.append(f"{d.name}: the design cannot follow its cycle (" + ", ".join(
-                    f"{k} {v:.4g}" for k, v in below.items()) + "): its energy per km is that of the cycle's demand, "
-                    "not of a powertrain that follows it")
-        elif rows is None or rows[0][2][0] < 0:
-            unchecked.append(f"{d.name}: whether the motor can follow the cycle is not checked for this gearbox or "
-                             "topology (the check covers single-speed SM-SA); energy options {feasibility_outputs: "
-                             "true} give the model's margins")
-        elif line := d.cannot_follow(values, rows):
-            short.append(line)
-    return short, unchecked
-
-
-def follow_counts(config, values: dict) -> tuple[np.ndarray, np.ndarray]:
-    """(cannot follow, not checked) per design of a batch (``values``: (N,) columns): boolean arrays over
-    the run's disciplines and cycles (``cycle_steps_short``)."""
-    from bev_mdo.config import RunConfig
-
-    n = len(next(iter(values.values())))
-    short, unchecked = np.zeros(n, bool), np.zeros(n, bool)
-    for d in RunConfig.of(config).disciplines:
-        if getattr(d, "envelope", None) is None:
-            continue
-        margins = _follow_margins(d, values)
-        below = np.logical_or.reduce([np.asarray(v) < 0 for v in margins.values()]) if margins else None
-        for _, _, count, _ in d.cycle_steps_short(values) or [(None, None, np.full(n, -1), None)]:
-            short |= count > 0
-            if below is not None:  # where the steps are not checked, the model's margins are
-                short |= (count < 0) & below
-            else:
-                unchecked |= count < 0
-    return short, unchecked
-
-
-# An energy model's margins over its cycle (option feasibility_outputs): one below 0 is a design that does not
-# follow the cycle. A Taycan-like DM-DA optimum turned its rear motor 156 rad/s past its limit on a motorway
-# cycle (motor_speed_margin_rad_s -155.8) while the note said only that the steps are not checked.
-FOLLOW_MARGINS = ("drive_torque_margin_nm", "motor_speed_margin_rad_s", "drive_power_margin_kw", "drive_force_margin_n")
-
-
-def _follow_margins(d, values: dict) -> dict:
-    """{margin: value(s)} of ``FOLLOW_MARGINS`` that discipline ``d`` gives and ``values`` holds."""
-    return {k: values[k] for k in FOLLOW_MARGINS if k in getattr(d, "outputs", ()) and values.get(k) is not None}
 
 
 def design_notes(config, outputs: dict) -> list[str]:
@@ -269,7 +214,9 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
             violation = np.maximum(violation, np.where(np.isfinite(v), v, np.inf))
     feasible = violation <= feasibility_tolerance(config.settings)
     notes = ceiling_notes(config, outputs)
-    short, unchecked = follow_counts(config, {**cols, **outputs})  # cannot follow: infeasible, whatever the constraints
+    from bev_mdo.disciplines.energy import follow_counts
+
+    short, unchecked = follow_counts(config.disciplines, {**cols, **outputs})  # cannot follow: infeasible, whatever the constraints
     if short.any():
         feasible &= ~short
         notes.append(f"{int(short.sum())} of {n} designs cannot follow the drive cycle (their motor falls short of "

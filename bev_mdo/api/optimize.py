@@ -73,7 +73,6 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
             result, baseline, extra = _run_ros(config, opts, show, x0, starts)
         else:
             result, baseline, extra = _run_inprocess(config, opts, show, x0, starts, closing)
-        _check_follows(config, result, baseline)
         runbag.finish(config, result, extra, show)
     extra = {k: v for k, v in extra.items() if not k.startswith("_")}
     extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
@@ -92,25 +91,6 @@ def _seeded(config, seed: int):
     if not seed or canonical_name(section["name"]) not in SEEDED or {"seed", "rng"} & set(options):
         return config
     return config.with_sections(optimizer={**section, "options": {**options, "seed": seed}})
-
-
-def _check_follows(config, result: dict, baseline: dict | None) -> None:
-    """A result (and baseline) whose motor cannot follow the cycle is infeasible, whatever the constraints say:
-    its energy is that of the cycle's demand (api.evaluate.follow_notes). The verdict says so."""
-    from bev_mdo.api.evaluate import follow_notes
-    from bev_mdo.config import RunConfig
-    from bev_mdo.mdo.first_order import INFEASIBLE
-
-    fixed = RunConfig.of(config).problem.parameters
-    if baseline and baseline.get("outputs") and follow_notes(config, {**fixed, **baseline["design"],
-                                                                       **baseline["outputs"]})[0]:
-        baseline["feasible"] = False
-
-    if not result.get("design") or not (lines := follow_notes(config, {**fixed, **result["design"],
-                                                                         **result["outputs"]})[0]):
-        return
-    result.update(feasible=False, success=False, verdict=INFEASIBLE)
-    result["first_order"] = {**result["first_order"], "verdict": INFEASIBLE, "cannot_follow": lines}
 
 
 def _run_inprocess(config, opts, show, x0, starts, closing: contextlib.ExitStack):
@@ -156,7 +136,7 @@ def _run_ros(config, opts, show, x0, starts):
     run_id = uuid.uuid4().hex[:16]
     stamp_ = time.strftime("%Y%m%d_%H%M%S")
     bag = Path(opts.bag) if opts.bag else Path("bags") / f"{config.name}_{stamp_}_{run_id[:6]}"
-    if not opts.no_record:
+    if not opts.no_record or opts.bag:  # (--no-record --bag DIR: logs/ in DIR, beside no other run's)
         from bev_mdo.api.runbag import check_new_bag
 
         check_new_bag(bag, opts.bag_flag)  # before the flags' checks, as ever; claimed below, before anything is written
@@ -170,12 +150,11 @@ def _run_ros(config, opts, show, x0, starts):
     session = OptimizeRosSession(config, ros, bag, run_id, record=not opts.no_record, instances=instances,
                                  compose=opts.compose)
     with contextlib.ExitStack() as claimed:
-        if not opts.no_record:  # the bag's directory is this run's (one of two runs given it at once is refused)
-            from bev_mdo.api.runbag import claim_new_bag
+        if not opts.no_record or opts.bag:  # the directory is this run's (of two runs given it at once, one is refused)
+            from bev_mdo.api.runbag import claim_new_bag, interrupted_note
 
             claimed.enter_context(claim_new_bag(bag, opts.bag_flag))
-            from bev_mdo.api.runbag import interrupted_note
-
+        if not opts.no_record:
             interrupts.note_bag(lambda: interrupted_note(bag))  # a signal from now on: what the bag holds
         if not opts.quiet:
             print(f"starting {where}{'' if opts.no_record else ' and a recorder'}"

@@ -130,7 +130,16 @@ def _check(name: str, valid: list[str], flag: str, what: str) -> None:
     raise InputError(f"{flag} {name!r}: not {'an' if one[0] in 'aeiou' else 'a'} {one}{hint}")
 
 
+def no_underscore(text: str, where: str) -> str:
+    """``text``, a number typed on the command line, unless it holds an underscore: float() reads 1_00 as 100,
+    a typo far more often than a grouping (InputError after ``where``: the flag and what was given)."""
+    if "_" in text:
+        raise InputError(f"{where}: an underscore in a number is taken for a typo; write the number without it")
+    return text
+
+
 def _number(text: str, flag: str, item: str) -> float:
+    no_underscore(text, f"{flag} {item!r}")
     try:
         x = float(text)
     except ValueError:

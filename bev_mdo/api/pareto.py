@@ -38,7 +38,7 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
     check_objectives(objs, cfg, source, 2)
     out, bag = out_dirs(out, cfg.name)
     run_id = uuid.uuid4().hex[:16]
-    with claim_new_bag(bag, "--out"):  # of two runs given the same --out at once, one is refused here
+    with claim_new_bag(bag, "--out", out):  # of two runs given the same --out at once, one is refused here
         interrupts.note_bag(lambda: interrupted_note(bag, "front"))  # a signal from now on: what the bag holds
         sess = session(transport, instances, cfg, out, bag, run_id, [cfg])
         from bev_mdo.ros.pareto_publisher import front_message  # loaded by the session already
@@ -111,8 +111,9 @@ def out_dirs(out: str | None, name: str) -> tuple[Path, Path]:
     stamp = time.strftime("%Y%m%d_%H%M%S")
     out = Path(out) if out else Path("bags") / f"{name}_pareto_{stamp}"
     bag = out / "bag"
-    if bag.exists():
-        raise InputError(f"{bag} already exists; choose another --out")
+    from bev_mdo.api.runbag import check_new_bag
+
+    check_new_bag(bag, "--out", out)  # early, before the study is set up; claimed when it starts
     return out, bag
 
 

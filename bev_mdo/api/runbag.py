@@ -207,21 +207,44 @@ def in_process_bag(config: Mapping[str, Any], opts, show, closing: contextlib.Ex
     return str(opts.bag), writer, callback
 
 
-def check_new_bag(bag: Path, what: str) -> None:
-    """A bag may be written to `bag`: InputError (exit 2) naming it if a bag or a file is there."""
+def check_new_bag(bag: Path, what: str, out: Path | None = None) -> None:
+    """A bag may be written to `bag`: InputError (exit 2) naming it if a bag, a file or another run's logs or
+    end-of-run record are there (kept beside the new run's, they would be read as its own). ``out``: the output
+    folder the user named (sweep's, pareto's --out), whose bag/ `bag` is: checked first (its readers take a bag
+    or a run's files in it), and the folder the line names."""
     bag = Path(bag)
-    if bag.exists() and not bag.is_dir():
-        raise InputError(f"{what} {bag}: is a file, not a bag directory")
-    blocking = next((p for p in bag.parents if p.exists() and not p.is_dir()), None)
+    inner = in_use(bag)
+    why = inner if out is None else in_use(Path(out), "folder") or (inner and f"its {bag.name}/ {inner}")
+    if why:
+        raise InputError(f"{what} {bag if out is None else out}: {why}")
+
+
+def in_use(folder: Path, kind: str = "bag directory") -> str:
+    """'' if a run may write into `folder` (a ``kind``), else why not (one phrase)."""
+    if folder.exists() and not folder.is_dir():
+        return f"is a file, not a {kind}"
+    blocking = next((p for p in folder.parents if p.exists() and not p.is_dir()), None)
     if blocking is not None:
-        raise InputError(f"{what} {bag}: {blocking} is a file, not a folder")
+        return f"{blocking} is a file, not a folder"
     from bev_mdo.bag.reader import holds_bag
 
-    if holds_bag(bag):
-        raise InputError(f"{what} {bag}: a bag already exists there; choose a new directory")
-    inner = next((d for d in (bag.iterdir() if bag.is_dir() else ()) if d.is_dir() and holds_bag(d)), None)
+    if holds_bag(folder):
+        return "a bag already exists there; choose a new directory"
+    left, odd = [], []
+    for name, is_dir in (("logs", True), (ANSWERS_FILE, False)):  # what a run writes there: a folder, a file
+        p = folder / name
+        if p.exists() and p.is_dir() != is_dir:  # not a run's: this run could not write its own there
+            odd.append(f"a {'file' if is_dir else 'folder'} named {name} (a run writes its {name}{'/' * is_dir} there)")
+        elif p.is_file() or p.is_dir() and any(p.iterdir()):
+            left.append(name + "/" * is_dir)
+    if left:  # a run that wrote no bag (stopped before its recorder started, or --no-record) left them
+        return f"holds another run's {' and '.join(left)}; choose a new directory"
+    if odd:
+        return f"holds {' and '.join(odd)}; choose a new directory"
+    inner = next((d for d in (folder.iterdir() if folder.is_dir() else ()) if d.is_dir() and holds_bag(d)), None)
     if inner is not None:  # a run's output folder (sweep's, pareto's): its readers would take the new bag
-        raise InputError(f"{what} {bag}: a run's output folder, its bag in {inner.name}/; choose a new directory")
+        return f"a run's output folder, its bag in {inner.name}/; choose a new directory"
+    return ""
 
 
 CLAIM_FILE = ".bev_mdo_claim"  # in a bag directory while a run claims it (BagClaim)
@@ -285,20 +308,22 @@ class BagClaim:
         self.release()
 
 
-def claim_new_bag(bag: Path, what: str) -> BagClaim:
-    """``check_new_bag``, then the claim of ``bag`` for this run (BagClaim, to release once the run has its bag
-    or ended): InputError (exit 2), with the same line as for a bag already there, if another run claimed it
-    first, or wrote its bag between the check and the claim."""
+def claim_new_bag(bag: Path, what: str, out: Path | None = None) -> BagClaim:
+    """``check_new_bag`` (of ``out`` too, when given), then the claim of ``bag`` for this run (BagClaim, to release
+    once the run has its bag or ended): InputError (exit 2) if another run claimed it first (it is being written),
+    or wrote its bag between the check and the claim."""
     bag = Path(bag)
-    check_new_bag(bag, what)  # refused here, nothing is touched
+    check_new_bag(bag, what, out)  # refused here, nothing is touched
     claim = BagClaim(bag)
     try:
         if not claim.acquire():
-            raise InputError(f"{what} {bag}: a bag already exists there; choose a new directory")
-        check_new_bag(bag, what)  # claimed: a bag written meanwhile is refused, and none can start now
+            raise InputError(f"{what} {bag if out is None else out}: is being written by another run; choose a new "
+                             "directory")
+        check_new_bag(bag, what, out)  # claimed: a bag written meanwhile is refused, and none can start now
     except OSError as exc:
         claim.release()
-        raise InputError(f"{what} {bag}: cannot create the bag directory ({exc.strerror or exc})") from None
+        raise InputError(f"{what} {bag if out is None else out}: cannot create the bag directory "
+                         f"({exc.strerror or exc})") from None
     except BaseException:
         claim.release()
         raise

@@ -63,12 +63,11 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
                 raise InputError(f"--at {', '.join(varied)}: varied over the bounds by --global; --at fixes only "
                                  "the variables not in --wrt")
             samples = (1024 if global_method == "sobol" else 64) if samples is None else samples
-            from bev_mdo.api.evaluate import ceilings, declared_units
+            from bev_mdo.api.evaluate import ceilings
 
             rep = analyse(global_method, fun, point, bounds, wrt, outputs, samples, seed, conf_level,
                           design=list(problem.names), ceilings=ceilings(config))
-            units = declared_units(config)
-            rep["units"] = {k: units[k] for k in (*wrt, *outputs) if k in units}
+            rep["units"] = units_of(config, [*wrt, *outputs])
             return rep
         s = sensitivities(fun, point, wrt=wrt, order=order, bounds={**_model_limits(point, problem.names), **bounds},
                           rel_step=rel_step, method=method)
@@ -85,7 +84,18 @@ def _model_limits(point: dict, design: list[str]) -> dict[str, tuple[float, floa
             if k not in design and k in specs and specs[k].lower <= v <= specs[k].upper}
 
 
-def to_dict(s, outputs) -> dict:
+def units_of(config, names) -> dict[str, str]:
+    """{name: unit} of ``names`` as the run's disciplines declare them, a built-in model parameter's (``--wrt
+    load_kg``) from models.params; a name with neither is left out."""
+    from bev_mdo.api.evaluate import declared_units, parameter_units
+
+    units = {**parameter_units(names), **declared_units(config)}
+    return {k: units[k] for k in names if k in units}
+
+
+def to_dict(s, outputs, units: dict | None = None) -> dict:
+    """The JSON of a local sensitivity ``s``; ``units`` (``units_of``): each wrt variable's and output's unit, those
+    of ``step`` and of ``first_order.*.derivative`` (the output's per the variable's)."""
     d = {"wrt": list(s.names), "point": s.point, "method": s.method, "step": s.step.tolist(),
          "n_evaluations": s.n_evaluations, "n_batches": s.n_batches, "one_sided": list(s.one_sided),
          "values": s.values, "first_order": {}, "second_order": {}}
@@ -95,7 +105,7 @@ def to_dict(s, outputs) -> dict:
         if s.second is not None:
             d["second_order"][k] = {"normalised": s.second[k].tolist(), "error": s.second_error[k].tolist(),
                                     "labels": s.labels(k).tolist()}
-    return d
+    return d if units is None else {**d, "units": units}
 
 
 def build_batch(config, evaluator, param_defaults=None):

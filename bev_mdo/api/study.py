@@ -251,7 +251,8 @@ class Study:
 
         s, outputs, _, _ = sensitivity.run(self.config, _mapping(at, "at"), _names(wrt, "wrt"), _transport(transport),
                                            order=_whole(order, "order"), rel_step=rel_step)
-        return SensitivityResult.of(sensitivity.to_dict(s, outputs))
+        units = sensitivity.units_of(self.config, [*s.names, *outputs])
+        return SensitivityResult.of(sensitivity.to_dict(s, outputs, units))
 
     @_input_errors
     def global_sensitivity(self, method: str = "sobol", samples: int | None = None, seed: int = 1,

@@ -8,8 +8,8 @@ import math
 
 from bev_mdo.bag.errors import BagError
 from bev_mdo.bag.reader import Bag, open_bag
+from bev_mdo.bag.order import RecordOrder, Sequence, in_run, stamp_ns  # noqa: F401 - RecordOrder: read from here
 from bev_mdo.bag.signing import verifier
-from bev_mdo.bag.stored import WINDOW_S
 from bev_mdo.protocol import parse_start_tag
 
 ITERATION_TOPIC = "/bev_mdo/iteration"
@@ -25,76 +25,6 @@ def named(block) -> dict[str, float]:
     return {name: float(values[j * n]) for j, name in enumerate(block.names) if j * n < len(values)}
 
 
-def stamp_ns(header) -> int:
-    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
-
-
-def _in_run(run_id: str, run: str) -> bool:
-    return run_id == run or run_id.startswith(run + "-")
-
-
-class Sequence:
-    """Per-run order of iteration records: each run numbers its records 1, 2, 3, ... (``sequence``, under
-    the signature), and stamps them when it sends them. A record received (recorded) further than
-    ``window_s`` from its stamp is ``expired`` (a record sent again later: ``bev-mdo replay`` of an old
-    bag); one whose number was already seen is a ``duplicate``; one below the last is ``from the past``
-    (a replay of an older record); all are dropped. The stamp is checked first, so a replay that reaches
-    the recorder before the run's own records cannot make them look like the past. A jump counts the
-    records ``missing`` in between (kept: nothing newer is lost)."""
-
-    def __init__(self, window_s: float = WINDOW_S):
-        self.last: dict[str, int] = {}
-        self.missing = 0
-        self.window_ns = int(window_s * 1e9)
-
-    def check(self, run_id: str, sequence: int, stamp_ns: int | None = None,
-              received_ns: int | None = None) -> str | None:
-        """None to keep the record, else why it is dropped ("expired", "duplicate", "from the past")."""
-        if stamp_ns and received_ns is not None and abs(received_ns - stamp_ns) > self.window_ns:
-            return "expired"  # (every bev_mdo sender stamps its records; an unstamped one cannot be checked)
-        last = self.last.get(run_id)
-        if last is None:  # the run's first record: those before it (numbered from 1) are missing
-            self.last[run_id] = sequence
-            self.missing += max(0, sequence - 1)
-            return None
-        if sequence == last:
-            return "duplicate"
-        if sequence < last:
-            return "from the past"
-        self.missing += sequence - last - 1
-        self.last[run_id] = sequence
-        return None
-
-
-class RecordOrder:
-    """The recorder's check of the iteration records it is sent: of its own run only (when it has one),
-    each in order (``Sequence``); ``dropped`` counts the others by reason."""
-
-    def __init__(self, run_id: str = "", window_s: float = WINDOW_S):
-        self.run_id = run_id
-        self.order = Sequence(window_s)
-        self.dropped: dict[str, int] = {}
-
-    def keep(self, data, received_ns: int) -> bool:
-        from bev_mdo.protocol import WireError, head
-
-        try:
-            rec = head(data, "IterationRecord", "sequence")  # the fields up to sequence: no full decode
-            why = ("of another run" if self.run_id and not _in_run(rec.run_id, self.run_id)
-                   else self.order.check(rec.run_id, int(rec.sequence), stamp_ns(rec.header), received_ns))
-        except WireError:
-            why = "malformed"
-        if why is not None:
-            self.dropped[why] = self.dropped.get(why, 0) + 1
-        return why is None
-
-    def note(self) -> str:
-        """'' or '; dropped N duplicate, ... iteration record(s), M missing'."""
-        parts = [f"{n} {k}" for k, n in sorted(self.dropped.items())]
-        text = f"; dropped {', '.join(parts)} iteration record(s)" if parts else ""
-        return text + (f"; {self.order.missing} iteration record(s) missing" if self.order.missing else "")
-
-
 def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file: str | None = None,
             checks: dict | None = None, no_verify: bool = False) -> list[dict]:
     """One dict per recorded iteration of ONE run, in recording order, verified when it was signed.
@@ -102,9 +32,10 @@ def history(bag, run_id: str | None = None, *, all_runs: bool = False, key_file:
     The run is `run_id`, else the bag's own (the run its recorder was started for); a standalone
     recording of several runs needs `run_id` (BagError naming them), unless `all_runs`. Records of
     a signed run are verified with its key (see ``bag.signing``; BagError when the bag's signing record
-    and stored config disagree); unsigned and forged ones are dropped, and so are records out of
-    order (``Sequence``). `no_verify` reads without checking signatures (the note says so).
-    `checks`, if given, receives {"run_id", "dropped": {reason: n}, "missing": n, "other_runs": n,
+    and stored config disagree); unsigned and forged ones are dropped, and so are records seen before
+    (``Sequence``); one recorded after a later record of its run is put back in its place (``late``).
+    `no_verify` reads without checking signatures (the note says so).
+    `checks`, if given, receives {"run_id", "dropped": {reason: n}, "missing": n, "late": n, "other_runs": n,
     "other_run_ids": [the runs of those records], "unverified": note or ""} and, for a sweep's bag cut
     short, "unfinished": note.
     """
@@ -131,7 +62,7 @@ def verified_history(bag, run_id: str | None = None, *, all_runs: bool = False, 
     order = Sequence(stored.window_s)
     rows = []
     for msg, rec in decoded:
-        if run is not None and not _in_run(rec.run_id, run):
+        if run is not None and not in_run(rec.run_id, run):
             info["other_runs"] += 1
             if rec.run_id not in info["other_run_ids"]:
                 info["other_run_ids"].append(rec.run_id)
@@ -148,7 +79,7 @@ def verified_history(bag, run_id: str | None = None, *, all_runs: bool = False, 
             continue
         values = named(rec.design)
         start = parse_start_tag(rec.header.frame_id)
-        rows.append({
+        row = {
             "run_id": rec.run_id,
             "iteration": int(rec.iteration),
             **({"start": start[0] + 1, "starts": start[1], "seed": start[2]} if start else {}),
@@ -168,8 +99,16 @@ def verified_history(bag, run_id: str | None = None, *, all_runs: bool = False, 
                                        zip(rec.discipline_names, rec.discipline_evaluations)},
             "wall_time_s": float(rec.wall_time_s),
             "log_time_ns": msg.log_time_ns,
-        })
-    info["missing"] = order.missing
+        }
+        rows.append(row)
+    if order.late:  # records recorded after a later record of their run: each run's, in its places, in sequence order
+        places: dict[str, list[int]] = {}
+        for i, r in enumerate(rows):
+            places.setdefault(r["run_id"], []).append(i)
+        for at in places.values():
+            for i, r in zip(at, sorted((rows[i] for i in at), key=lambda r: r["sequence"])):
+                rows[i] = r
+    info["missing"], info["late"] = order.missing, order.late
     planned = int(bag.info.get("designs") or 0)  # a sweep's bag names its count of designs
     if rows and rows[-1]["formulation"] == "doe" and len(rows) < planned:
         info["unfinished"] = f"the sweep's bag holds {len(rows)} of its {planned} designs (it was stopped while written)"
@@ -190,6 +129,8 @@ def check_note(checks: dict) -> str:
                      + " iteration record(s)")
     if checks.get("missing"):
         parts.append(f"{checks['missing']} iteration record(s) missing (gaps in the run's sequence numbers)")
+    if checks.get("late"):
+        parts.append(f"{checks['late']} iteration record(s) recorded after a later one (read in sequence order)")
     if checks.get("other_runs"):
         parts.append(f"skipped {checks['other_runs']} record(s) of other runs")
     if checks.get("unverified"):
@@ -268,19 +209,21 @@ def read_answers(bag: Bag, signer=None, checks: dict | None = None) -> dict | No
     return json.loads(text)
 
 
-def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | None = None) -> tuple[bool, str] | None:
+def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | None = None,
+               then: str = "what follows is") -> tuple[bool, str] | None:
     """(finished, one line) on how the bag's optimisation ended, from its end-of-run record (``read_answers``: stored
-    by api/runbag.finish when the run ends, with the disciplines that stopped answering); None for a sweep."""
+    by api/runbag.finish when the run ends, with the disciplines that stopped answering); None for a sweep. ``then``
+    leads the words on the last record of a run that did not finish (report: the iterate shown after the line)."""
     if rows and rows[-1].get("formulation") == "doe":
         return None
     if answers is None:
         if (checks or {}).get("answers"):
             return False, "how the run ended is not known: its end-of-run record is left out (not signed with its key)"
-        if bag.info.get("transport") == "inprocess" or (bag.bag_dir / "logs").is_dir():  # written by bev-mdo optimize
+        if by_optimize(bag):
             return False, ("**the run did not finish**: the bag holds no end-of-run record (a signal, SIGINT or "
-                           "SIGTERM, or an error stopped it); what follows is its last recorded iterate, not a result")
+                           f"SIGTERM, or an error stopped it); {then} its last recorded iterate, not a result")
         return False, ("**no end-of-run record**: the run did not finish, or its coordinator was started by hand "
-                       "(coordinator_node stores none); what follows is its last recorded iterate")
+                       f"(coordinator_node stores none); {then} its last recorded iterate")
     lost = answers.get("unresponsive_disciplines")
     if lost:
         why = answers.get("stopped") or f"{', '.join(lost)} stopped answering"
@@ -290,6 +233,12 @@ def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | 
         return True, (f"the run finished, but **{tail}**; the result and the answers below are its end-of-run "
                       "record's")
     return True, "the run finished: the bag holds its end-of-run record (its result and the answers below)"
+
+
+def by_optimize(bag: Bag) -> bool:
+    """Whether `bag` was written by ``bev-mdo optimize`` (which stores an end-of-run record when the run ends), not
+    by a recorder and coordinator started by hand: in process, or over ROS with the run's logs/ beside it."""
+    return bag.info.get("transport") == "inprocess" or (bag.bag_dir / "logs").is_dir()
 
 
 def missing_tail(rows: list[dict], answers: dict | None) -> str:

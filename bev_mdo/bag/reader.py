@@ -92,11 +92,24 @@ def find_mcap(path, *, repairing: bool = False) -> Path:
 def bagfile_information(bag_dir: Path) -> dict:
     """A bag directory's metadata.yaml, its ``rosbag2_bagfile_information`` mapping; {} without a readable one
     (a bag being written has none yet; `bag repair` writes it)."""
+    return _bagfile_information(bag_dir)[0]
+
+
+def _bagfile_information(bag_dir: Path) -> tuple[dict, str]:
+    """(:func:`bagfile_information`, why a metadata.yaml there is of no use: '' when it is, or there is none)."""
+    path = Path(bag_dir) / "metadata.yaml"
+    if not path.exists():
+        return {}, ""
     try:
-        info = yaml.safe_load((bag_dir / "metadata.yaml").read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
-    except (OSError, UnicodeDecodeError, yaml.YAMLError, TypeError, KeyError):
-        return {}
-    return info if isinstance(info, dict) else {}
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        return {}, f"cannot be read ({getattr(exc, 'strerror', None) or type(exc).__name__})"
+    except yaml.YAMLError:
+        return {}, "is not valid YAML"
+    info = doc.get("rosbag2_bagfile_information") if isinstance(doc, dict) else None
+    if not isinstance(info, dict):
+        return {}, "holds no rosbag2_bagfile_information mapping"
+    return info, "" if isinstance(info.get("relative_file_paths"), list) else "names no storage file"
 
 
 def storage_files(bag_dir: Path) -> list[str]:
@@ -244,10 +257,11 @@ class Bag:
             self.counts[topic] = self.counts.get(topic, 0) + n
         # A bev_mdo recording holds our schemas; other packages' topics may be recorded beside
         # them (the recorder takes any topic it is given), but a bag of only foreign types is not ours.
+        # A file of no schema is ours only with bev_mdo's run record (a run that recorded no message yet).
         foreign = [s.name for s in self.schemas.values() if not s.name.startswith(PACKAGE + "/")]
-        if self.strict and foreign and len(foreign) == len(self.schemas):
-            raise BagError(f"{self.mcap_path}: schema {foreign[0]} is not a {PACKAGE} type "
-                           "(not a bev_mdo recording)")
+        if self.strict and len(foreign) == len(self.schemas) and (foreign or METADATA_NAME not in self.metadata):
+            raise BagError(f"{self.mcap_path}: " + (f"schema {foreign[0]} is not a {PACKAGE} type (not a bev_mdo "
+                           "recording)" if foreign else f"holds no bev_mdo run (no {PACKAGE} topic, no run record)"))
         for channel in self.channels.values():
             self.counts.setdefault(channel.topic, 0)
             if channel.message_encoding != "cdr":
@@ -407,6 +421,14 @@ class Bag:
         """(message, decoded object) pairs in file order."""
         for message in self.messages(topics):
             yield message, self.decode(message)
+
+    @property
+    def metadata_note(self) -> str:
+        """One line when the bag's folder holds a metadata.yaml of no use ('' otherwise): it is ignored, and said
+        so, for the bag is read from its .mcap file."""
+        why = _bagfile_information(self.bag_dir)[1]
+        return (f"{self.bag_dir / 'metadata.yaml'} {why}: ignored, the bag is read from {self.mcap_path.name} "
+                "(`bev-mdo bag repair` writes it again)") if why else ""
 
     def recovery_note(self) -> str:
         """One line saying how much of a truncated file was read ('' when complete)."""

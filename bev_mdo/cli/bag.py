@@ -43,4 +43,6 @@ def run(args) -> int:
         print(f"  {topic:<{width}}  {bag.counts.get(topic, 0):>8}  {type_name}")
     if bag.truncated:
         print(bag.recovery_note(), file=sys.stderr)
+    if bag.metadata_note:
+        print(bag.metadata_note, file=sys.stderr)
     return 0

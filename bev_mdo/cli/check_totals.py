@@ -128,6 +128,14 @@ def print_table(rep: dict) -> None:
               f"{r['rel_error']:>10.3g}  {'ok' if r['ok'] else 'DISAGREE'}")
     if rep["error"]:
         print(rep["error"])
-    worst = max(rep["rows"], key=lambda r: r["rel_error"])
-    print(f"largest relative error {worst['rel_error']:.3g} (d {worst['of']} / d {worst['wrt']}); "
-          + ("all totals agree with finite differences" if rep["ok"] else "some totals disagree"))
+    print(summary(rep))
+
+
+def summary(rep: dict) -> str:
+    """The last line: the largest relative error among the differences above ``atol`` (between two values
+    within atol of zero, 0 against 8e-11, a relative error of 1 says nothing), and the verdict."""
+    beyond = [r for r in rep["rows"] if r["abs_error"] > rep["atol"]]
+    worst = max(beyond, key=lambda r: r["rel_error"]) if beyond else None
+    return ((f"largest relative error {worst['rel_error']:.3g} (d {worst['of']} / d {worst['wrt']}) among the "
+             f"differences above atol {rep['atol']:g}; " if worst else f"every difference is within atol {rep['atol']:g}; ")
+            + ("all totals agree with finite differences" if rep["ok"] else "some totals disagree"))

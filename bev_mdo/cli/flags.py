@@ -39,19 +39,34 @@ def add_ros_arguments(parser, config: bool = True) -> None:
     g.add_argument("--discovery-server", default=None, metavar="IP:PORT", help="with --discovery server")
 
 
-def add_transport_arguments(parser, attach: bool = True) -> None:
+def add_transport_arguments(parser, attach: bool = True, record: str | None = "") -> None:
     """The transport flags of every command that evaluates designs (optimize, resume, evaluate, sweep,
     compare, sensitivity, check-totals, pareto), with the discovery flags; their meaning and their one
     default: bev_mdo.api.transport.Transport. ``attach=False``: a command that always starts its own
     nodes (optimize, resume, pareto: bound to their run and recorder) does not offer ``--attach`` and
-    refuses it at once with one line saying why (not argparse's 'unrecognized arguments')."""
+    refuses it at once with one line saying why (not argparse's 'unrecognized arguments').
+
+    ``--no-record``, the same on every one of them: ``record`` is its help where the command writes a bag
+    it can leave out (optimize, resume, sweep); "" (a command that never records: evaluate, compare,
+    sensitivity, check-totals) takes it and does nothing, as asked, without offering it in its help;
+    None (pareto, whose front is its bag) refuses it in one line saying why."""
     import argparse
 
     from bev_mdo.api.transport import DEFAULT_TRANSPORT, TRANSPORTS, attach_refused
 
-    class RefuseAttach(argparse.Action):
+    class Refuse(argparse.Action):
         def __call__(self, parser, namespace, values, option_string=None):
-            parser.exit(2, f"{parser.prog}: error: {attach_refused(parser.prog.split()[-1])}\n")
+            command = parser.prog.split()[-1]
+            why = attach_refused(command) if option_string == "--attach" else (
+                f"{command} --no-record: {command} always records its fronts, one per generation, in its bag "
+                "(OUT/bag); drop --no-record")
+            parser.exit(2, f"{parser.prog}: error: {why}\n")
+
+    if record is None:
+        parser.add_argument("--no-record", nargs=0, action=Refuse, dest="refused", default=argparse.SUPPRESS,
+                            help=argparse.SUPPRESS)
+    else:
+        parser.add_argument("--no-record", action="store_true", help=record or argparse.SUPPRESS)
 
     g = parser.add_argument_group("transport")
     g.add_argument("--transport", choices=TRANSPORTS, default=DEFAULT_TRANSPORT,
@@ -63,7 +78,7 @@ def add_transport_arguments(parser, attach: bool = True) -> None:
                        help="ROS: use the discipline nodes already running on the domain (ros2 run, bev-mdo node) "
                             "instead of starting this command's own")
     else:
-        g.add_argument("--attach", nargs=0, action=RefuseAttach, dest="refused", default=argparse.SUPPRESS,
+        g.add_argument("--attach", nargs=0, action=Refuse, dest="refused", default=argparse.SUPPRESS,
                        help=argparse.SUPPRESS)
     add_ros_arguments(parser)
 
@@ -102,10 +117,11 @@ def add_override_arguments(parser, single_objective: bool = True) -> None:
 def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, float]:
     """``["a=1,b=2", "c=3"]`` (or one such string) -> {a: 1.0, b: 2.0, c: 3.0}: the NAME=VALUE lists of
     --set, --design and --at; an InputError naming `flag` on a malformed item."""
+    import math
     import re
 
     from bev_mdo.api.errors import InputError
-    from bev_mdo.api.overrides import finite_values
+    from bev_mdo.api.overrides import no_underscore
 
     def one_number(name: str, given: str):  # a list given to a name: [9.04,4.7] or 9.04,4.7
         two = (" (a two-speed gearbox is gear_count=2 with gear_ratio_2 for its second gear: "
@@ -128,12 +144,14 @@ def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, 
                 raise InputError(f"{flag} {name.strip()}: given twice ({out[name.strip()]:g} and {value.strip()})")
             if value.strip()[:1] in ("[", "("):  # gear_ratio=[9.04,4.7]
                 raise one_number(name.strip(), item[item.index(part) + len(name) + 1:].strip())  # the rest of it
+            no_underscore(value, f"{flag} {name.strip()}={value.strip()}")
             try:
-                out[name.strip()] = float(value)
+                out[name.strip()] = number = float(value)
             except ValueError:
                 raise InputError(f"{flag} {name.strip()}={value!r}: value must be a number") from None
+            if not math.isfinite(number):  # named as typed: 1e400 was said as inf
+                raise InputError(f"{flag} {name.strip()}={value.strip()}: a design value must be a finite number")
             last = name.strip()
-    finite_values(out, flag)
     return out
 
 

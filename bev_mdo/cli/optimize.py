@@ -33,8 +33,6 @@ def register(sub) -> None:
                    help="SLSQP | trust-constr | COBYQA | COBYLA | differential_evolution | chebyshev-pairwise")
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     p.add_argument("--bag", default=None, help="bag directory to write (default: bags/<config name>_<time>)")
-    p.add_argument("--no-record", action="store_true", help="do not record the run (over ROS the node logs and the per-run "
-                   "key go in a temporary directory, removed after; with --bag, logs/ is kept there)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--starts", type=int, default=1, metavar="N",
                    help="optimise from N start points (a Latin hypercube over the bounds, --seed) and report the "
@@ -47,7 +45,8 @@ def register(sub) -> None:
     from bev_mdo.cli.flags import add_layout_arguments, add_override_arguments, add_transport_arguments
 
     add_layout_arguments(p)
-    add_transport_arguments(p, attach=False)
+    add_transport_arguments(p, attach=False, record="do not record the run (over ROS the node logs and the per-run "
+                            "key go in a temporary directory, removed after; with --bag, logs/ is kept there)")
     add_override_arguments(p)
     p.set_defaults(func=run)
 
@@ -83,6 +82,18 @@ def set_line(source: dict) -> str:
     return source["name"] + (f" ({', '.join(more)})" if more else "")
 
 
+def own_message(message: str) -> str:
+    """The optimiser's own message: ``message`` up to the first '; ' that the driver appends (the result's
+    iteration, a failed final point), not one inside its parentheses (SLSQP's restarts, '(restart 1 after: ...;
+    restart 2 after: ...)')."""
+    depth = 0
+    for i, c in enumerate(message):
+        depth += (c == "(") - (c == ")")
+        if depth == 0 and message.startswith("; ", i):
+            return message[:i]
+    return message
+
+
 def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
     from rich.console import Console
     from rich.table import Table
@@ -116,7 +127,7 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
     elif result.get("stopped"):  # a discipline stopped answering: the run stopped the optimiser
         print(f"the run {result['stopped']}", file=out)
     elif not result.get("optimizer_success", True):  # e.g. SLSQP's iteration limit
-        print(f"{result['optimizer']} says: {result['message'].split('; ')[0]}", file=out)
+        print(f"{result['optimizer']} says: {own_message(result['message'])}", file=out)
     if result.get("projected"):  # a result just outside its bounds, projected onto them
         from bev_mdo.mdo.driver import projected_line
 
@@ -137,20 +148,24 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
 
 def _verdict(result: dict, out, units: dict) -> None:
     """The first-order verdict and the active set with its multipliers (physical margins beside)."""
-    from bev_mdo.mdo.first_order import verdict_line
+    from bev_mdo.mdo.first_order import note_lines, verdict_line
     from bev_mdo.mdo.units import unit_of
 
     fo = result["first_order"]
     cost = fo["cost"]
     print(f"verdict: {verdict_line(fo)}", file=out)
+    for line in note_lines(fo, result.get("optimizer", "the optimiser"), bool(result.get("optimizer_success"))):
+        print(f"note: {line}", file=out)
     if result.get("multistart"):
         from bev_mdo.mdo.multistart import summary_line
 
         print(summary_line(result["multistart"]), file=out)
     kink = fo.get("kink_points", 0)  # driver.end_point_check: its steps either side of the point, for a kink
-    why = (["the optimiser's last gradient reused"] if cost["points"] == kink else
+    free = fo.get("free_points", 0)  # and along a variable whose gradient is zero, for one nothing holds
+    why = (["the optimiser's last gradient reused"] if cost["points"] == kink + free else
            ["central differences confirmed the analytic derivatives"] if fo.get("derivatives_confirmed") else
-           [f"{cost['points'] - kink} for the gradient"]) + ([f"{kink} to look for a kink"] if kink else [])
+           [f"{cost['points'] - kink - free} for the gradient"]) + ([f"{kink} to look for a kink"] if kink else []) + (
+        [f"{free} along a variable with a zero gradient"] if free else [])
     print(f"first-order check: {cost['points']} extra point{'' if cost['points'] == 1 else 's'} in "
           f"{cost['wall_time_s']:.3f} s ({'; '.join(why)})", file=out)
     if fo["verdict"] == "infeasible":

@@ -45,7 +45,7 @@ def register(subparsers) -> None:
     from bev_mdo.cli.flags import add_layout_arguments, add_override_arguments, add_transport_arguments
 
     add_layout_arguments(p, compose=False)  # a population is one batch
-    add_transport_arguments(p, attach=False)
+    add_transport_arguments(p, attach=False, record=None)
     add_override_arguments(p, single_objective=False)
     p.set_defaults(func=run)
 
@@ -66,6 +66,7 @@ def run(args) -> int:
     cfg = flags.load_config(args)  # a bad file, key, name, topology, variable or override exits 2 here
     objs = pareto.objectives_of(names, cfg)
     pareto.check_objectives(objs, cfg, str(args.config), 2)
+    pareto.out_dirs(args.out, cfg.name)  # an --out in use is refused before the run's first line
     print(f"NSGA-II {args.pop} x {args.generations} over {args.transport}: "
           f"{', '.join(n + (' (max)' if m else '') for n, m in objs)}", file=sys.stderr)
     doc, res = pareto.run(cfg, names, generations=args.generations, pop=args.pop, seed=args.seed, out=args.out,
@@ -174,7 +175,7 @@ def _study(args, raw, written, names, ov) -> int:
     hv_ref = hypervolume_reference([n for n, _ in objectives])
     from bev_mdo.api.runbag import claim_new_bag
 
-    with claim_new_bag(bag, "--out"):  # of two studies given the same --out at once, one is refused here
+    with claim_new_bag(bag, "--out", out):  # of two studies given the same --out at once, one is refused here
         session = pareto.session(args, args.instances, raw, out, bag, run_id, list(configs.values()))
         from bev_mdo.ros.pareto_publisher import front_message  # loaded by the session already
 
@@ -206,7 +207,8 @@ def _study(args, raw, written, names, ov) -> int:
     summary = {"config": str(args.config), "transport": args.transport, "run_id": run_id, "bag": str(bag),
                "objectives": names, "generations": args.generations, "pop": args.pop, "seed": args.seed,
                "timing": timing, "benchmark": bench, "benchmark_violations": broken,
-               "picks": study.picks(results, bench), "out": str(out),
+               "picks": study.picks(results, bench), "ranking": study.ranking(results, objectives),
+               "caveats": study.caveats(results, configs), "out": str(out),
                "warnings": warnings, **session.stats}
     pngs = []
     if not args.no_plots:
@@ -217,6 +219,11 @@ def _study(args, raw, written, names, ov) -> int:
         print(f"{t}: {_front(r)}, {r.evaluations} evaluations in {r.batches} batches, "
               f"{timing[t]['wall_time_s']:.1f} s")
         _settling(r, f"{t}: ")
+    if len(topologies) > 1:
+        for line in study.ranking_lines(summary["ranking"]):
+            print(line)
+    for line in summary["caveats"]:
+        print(line)
     what = ", ".join(p.name for p in pngs) if pngs else (
         "no plots: --no-plots" if args.no_plots else "no plots: one objective has no trade-off to draw")
     print(f"wrote {out}/ (pareto_*.csv, benchmark.csv, summary.json, {what}, "

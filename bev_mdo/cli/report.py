@@ -25,6 +25,8 @@ def run(args) -> int:
     bag = open_bag(args.bag)
     if bag.truncated:
         print(bag.recovery_note(), file=sys.stderr)
+    if bag.metadata_note:
+        print(bag.metadata_note, file=sys.stderr)
     checks: dict = {}
     paths = report(bag, args.output_dir, run_id=args.run_id, checks=checks, key_file=args.key_file,
                    no_verify=args.no_verify)

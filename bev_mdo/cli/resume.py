@@ -22,7 +22,6 @@ def register(sub) -> None:
     add_bag_argument(p)
     p.add_argument("--json", action="store_true")
     p.add_argument("--output", dest="out_bag", default=None, help="bag to write (default: bags/<config name>_<time>_<run>, as optimize)")
-    p.add_argument("--no-record", action="store_true")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--run-id", default=None,
                    help="the run to resume (default: the bag's own; needed for a recording of several runs)")
@@ -32,7 +31,7 @@ def register(sub) -> None:
     from bev_mdo.cli.flags import add_layout_arguments, add_transport_arguments
 
     add_layout_arguments(p)  # as optimize: by default the nodes in this process (--compose coordinator)
-    add_transport_arguments(p, attach=False)
+    add_transport_arguments(p, attach=False, record="do not record the resumed run (as optimize --no-record)")
     p.set_defaults(func=run)
 
 

@@ -92,10 +92,11 @@ def run(args) -> int:
     from bev_mdo.api.evaluate import design_notes
 
     notes = design_notes(cfg, s.values)  # e.g. the 0-100 km/h time of a point that cannot reach 100 km/h
+    units = sensitivity.units_of(cfg, [*s.names, *outputs])
     if args.json:
-        print(jsontext.dumps(sensitivity.to_dict(s, outputs) | ({"notes": notes} if notes else {})))
+        print(jsontext.dumps(sensitivity.to_dict(s, outputs, units) | ({"notes": notes} if notes else {})))
     else:
-        print_tables(s, outputs, shown=problem.names)
+        print_tables(s, outputs, shown=problem.names, units=units)
         for note in notes:
             print(f"note: {note}")
         if args.png:
@@ -103,9 +104,12 @@ def run(args) -> int:
     return 0
 
 
-def print_tables(s, outputs, out=None, shown=()) -> None:
+def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
     """The tables of a local sensitivity ``s``; its point line names the ``shown`` variables (the design) and
-    every ``wrt`` one (a parameter's line left out the design it was taken at)."""
+    every ``wrt`` one (a parameter's line left out the design it was taken at); ``units`` ({name: unit}): each
+    step's."""
+    from bev_mdo.mdo.units import unit_of
+
     out = out or sys.stdout  # the stream of the call (a default of sys.stdout kept the one at import)
     w = max(12, *(len(n) for n in s.names)) + 2
     ow = max(len(k) for k in outputs) + 2
@@ -125,7 +129,8 @@ def print_tables(s, outputs, out=None, shown=()) -> None:
         print(k.ljust(ow) + "".join(((f" {v:.4g}" if k in zero else f" {v:.4f}") + m).rjust(w)
                                     for v, m in zip(cells, marks))
               + ("   df/dx_i (f = 0: S undefined)" if k in zero else ""), file=out)
-    print("step".ljust(ow) + "".join(f"{v:{w}.3g}" for v in s.step), file=out)
+    print("step".ljust(ow) + "".join(f" {v:.3g} {unit_of(n, units or {}, inline=True)}".rstrip().rjust(w)
+                                     for n, v in zip(s.names, s.step)), file=out)
     if rough and s.second is None:
         print(f"~ uncertain by over {ROUGH:.0%} of the value: the estimates with steps h and 2h, or the slopes either "
               "side of the point, differ (a kink or noise near the point; try another --rel-step; check-totals)", file=out)

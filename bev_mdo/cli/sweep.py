@@ -50,9 +50,8 @@ def register(sub) -> None:
     p.add_argument("--set", dest="fixed", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
                    help="fixed values for variables not varied (default: their initial value)")
     p.add_argument("--out", default="sweep", help="output directory (default ./sweep)")
-    p.add_argument("--no-record", action="store_true", help="do not write the bag (OUT/bag)")
     p.add_argument("--no-plots", action="store_true")
-    add_transport_arguments(p)
+    add_transport_arguments(p, record="do not write the bag (OUT/bag)")
     add_override_arguments(p)
     p.set_defaults(func=run)
     c = sub.add_parser("compare", help="two or more designs side by side with their differences",
@@ -66,12 +65,15 @@ def register(sub) -> None:
 
 
 def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
+    from bev_mdo.api.overrides import no_underscore
+
     out = {}
     for item in items:
         name, sep, spec = item.partition("=")
         name = name.strip()
         if not sep or not name:
             raise InputError(f"--vary {item!r} must be NAME=LO:HI:N or NAME=A,B,C")
+        no_underscore(spec, f"--vary {item!r}")  # float() and int() read 1_00 as 100
         try:
             if ":" in spec:
                 lo, hi, n = spec.split(":")  # a ValueError unless it has three parts
@@ -110,8 +112,9 @@ def grid(vary: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return {n: combos[:, j] for j, n in enumerate(names)}
 
 
-def read_list(path: str) -> dict[str, np.ndarray]:
-    """A header of names, then one row of numbers per design; InputError naming the row and column."""
+def read_list(path: str, config) -> dict[str, np.ndarray]:
+    """A header of names, each a design variable or parameter of the run (``config``), then one row of numbers
+    per design; InputError naming the row and column."""
     from bev_mdo.models.cycles import csv_number, read_csv_rows
 
     try:  # the reader of every user CSV (size-bounded, UTF-8 with or without BOM, one-line errors)
@@ -124,6 +127,11 @@ def read_list(path: str) -> dict[str, np.ndarray]:
     twice = sorted({n for n in names if names.count(n) > 1})
     if "" in names or twice:  # the last column of a name used to win silently
         raise InputError(f"--list {path}: the header " + (f"names {twice[0]!r} twice" if twice else "has an empty name"))
+    params = sorted({p for d in config.disciplines for p in getattr(d, "parameters", None) or ()})
+    unknown = [n for n in names if n not in config.problem.names and n not in params]
+    if unknown:  # said before its cells: a column of labels was 'not a number'
+        raise InputError(f"--list {path}: column {unknown[0]!r} is not a design variable or parameter; design "
+                         f"variables: {config.problem.names}, parameters: {params}")
     values = np.empty((len(rows) - 1, len(names)))
     for i, row in enumerate(rows[1:]):
         if len(row) != len(names):
@@ -205,7 +213,7 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
     return fig, ax
 
 
-def designs_of(args, problem) -> tuple[dict[str, np.ndarray], list[str]]:
+def designs_of(args, config) -> tuple[dict[str, np.ndarray], list[str]]:
     """(the designs the command line asks for, the names varied): a DOE over the bounds of the design
     variables not fixed with --set, a grid (--vary) or a list (--list), with the --set values as columns."""
     from bev_mdo.api.doe import batch
@@ -216,9 +224,9 @@ def designs_of(args, problem) -> tuple[dict[str, np.ndarray], list[str]]:
     if not args.doe and (args.samples, args.seed) != (None, None):  # they were ignored without a word
         raise InputError("--samples and --seed go with --doe (--vary and --list evaluate the designs they give)")
     args.samples, args.seed = 64 if args.samples is None else args.samples, 1 if args.seed is None else args.seed
-    given = None if args.doe else grid(parse_vary(args.vary)) if args.vary else read_list(args.list_csv)
+    given = None if args.doe else grid(parse_vary(args.vary)) if args.vary else read_list(args.list_csv, config)
     fixed = parse_assignments(args.fixed)
-    designs = batch(problem, args.doe, args.samples, args.seed, given, fixed, "--set")
+    designs = batch(config.problem, args.doe, args.samples, args.seed, given, fixed, "--set")
     return designs, [k for k in designs if k not in fixed]
 
 
@@ -234,9 +242,9 @@ def run(args) -> int:
     if not args.no_record:  # held until the bag is written: of two sweeps given the same --out at once one is refused
         from bev_mdo.api.runbag import claim_new_bag
 
-        claim = claim_new_bag(bag, "--out")
+        claim = claim_new_bag(bag, "--out", out)
     with claim:
-        designs, varied = designs_of(args, config.problem)
+        designs, varied = designs_of(args, config)
         n = len(next(iter(designs.values())))
         transport = "ros" if Transport.of(args).uses_ros else "inprocess"
         result = evaluate_batch(config, designs, args)

@@ -15,7 +15,7 @@ from bev_mdo.config.disciplines import check_against_disciplines, discipline_ent
 from bev_mdo.config.sections import (anchor_paths, check_gear_order, check_gear_order_per_design, check_mda_numbers,
                                      check_optimizer_options, resolve_problem, search_path, engine_section,
                                      two_speed_notes, validate_models, vehicle_topology_into_options,
-                                     check_traces_fit)
+                                     check_traces_fit, note_missing_folders)
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
 from bev_mdo.mdo.vectors import has_partials
@@ -287,6 +287,7 @@ def _resolve(raw: Any) -> RunConfig:
     # numeric checks of the engine sections, by constructing the pieces once
     check_mda_numbers(cfg["mda"])
     discs = tuple(resolve_disciplines(cfg))
+    note_missing_folders(cfg.get("search_path"))
     params = check_against_disciplines(cfg, problem, discs)
     if cfg["problem"].get("baseline") is not None:
         problem.check_design(cfg["problem"]["baseline"]["design"], params, "problem.baseline.design")
@@ -300,11 +301,15 @@ def _resolve(raw: Any) -> RunConfig:
 
 def _settings(config: dict, problem: Problem, discs) -> RunSettings:
     """The engine's typed settings: problem, formulation, the ``mda:``/``optimizer:`` sections, the
-    disciplines by name and whether each provides analytic partials (the driver imports nothing
-    above the engine)."""
+    disciplines by name and whether each provides analytic partials, and the disciplines' judgement of a
+    design beyond its constraints (whether its motor follows the cycle; the driver imports nothing above
+    the engine)."""
+    from bev_mdo.disciplines.energy import follow_check
+
     return RunSettings(config["problem"], str(config["formulation"]), MDASettings.of(config["mda"]),
                        OptimizerSettings.of(config["optimizer"]), tuple(d.name for d in discs),
-                       {d.name: bool(has_partials(d)) for d in discs}, parsed_problem=problem)
+                       {d.name: bool(has_partials(d)) for d in discs}, parsed_problem=problem,
+                       design_check=follow_check(discs))
 
 
 def run_settings(config: RunConfig | Mapping[str, Any]) -> RunSettings:

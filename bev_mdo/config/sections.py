@@ -101,6 +101,15 @@ def search_path(given: Any, base: Path | None) -> list[str]:
     return out
 
 
+def note_missing_folders(folders: Any) -> None:
+    """A note (``CycleNote``, one line) per ``search_path`` folder that does not exist, once the run's classes
+    were found without it (a class not found names it in load_class's error): a typo in the config, most likely."""
+    for d in folders if isinstance(folders, list) else ():
+        if not Path(d).is_dir():
+            warnings.warn(f"search_path: {d} {'is not a folder' if Path(d).exists() else 'does not exist'}",
+                          CycleNote, stacklevel=2)
+
+
 def anchor_paths(raw: Mapping[str, Any], base: Path) -> dict:
     """A config file's relative paths made absolute against its folder ``base``, as its reader expects
     wherever the command runs: drive-cycle CSVs (``cycle.name``, the energy and cycle_range options

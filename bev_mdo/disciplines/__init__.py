@@ -28,6 +28,7 @@ from bev_mdo.disciplines.common import (ENERGY_MODELS, TOPOLOGY_DISCIPLINES, Bas
 from bev_mdo.disciplines.energy import CycleRange, Energy
 from bev_mdo.models import acceleration, cost, motor_speed, range as range_model
 from bev_mdo.models import topology as topo_model
+from bev_mdo.models import topology_accel
 from bev_mdo.models.params import vehicle_choice
 
 __all__ = ["ENERGY_MODELS", "TOPOLOGY_DISCIPLINES", "BUILTIN", "VehicleMass", "Energy", "CycleRange", "Range",
@@ -113,10 +114,12 @@ class Range(Base):
 
 
 class Acceleration(Base):
-    """motor_kw, gear_ratio, vehicle_mass_kg (, rear motor) -> accel_time_0_100_s (eqs 7-30 / 2-26 / 4-5)
-    with every motor of the topology; SM-SA two-speed follows the eq 2-6 shift rule. A design that cannot
-    reach 100 km/h gets the continuation value (models/acceleration.py: 10 000 s + 100 s per km/h of top
-    speed short), infeasible under any upper limit the config accepts, not a failed point."""
+    """motor_kw, gear_ratio, battery_kwh, vehicle_mass_kg (, rear motor) -> accel_time_0_100_s (eqs 7-30 /
+    2-26 / 4-5) with every motor of the topology, within the tyres' grip and the pack's power at its
+    discharge limit (§3.5.3: 5C; ``battery_to_shaft_efficiency`` 0: no battery limit); SM-SA two-speed
+    follows the eq 2-6 shift rule. A design that cannot reach 100 km/h gets the continuation value
+    (models/acceleration.py: 10 000 s + 100 s per km/h of top speed short), infeasible under any upper limit
+    the config accepts, not a failed point."""
 
     name = "acceleration"
     outputs = ("accel_time_0_100_s",)
@@ -134,13 +137,14 @@ class Acceleration(Base):
     def __init__(self, parameters, topology: str = "SM-SA"):
         super().__init__(parameters)
         self.topology = topo_model.get_topology(topology)
-        self.inputs = (*topology_inputs(self.topology), "vehicle_mass_kg")
+        self.inputs = (*topology_inputs(self.topology), "battery_kwh", "vehicle_mass_kg")
 
     @classmethod
     def from_config(cls, config, options):
         v = vehicle_of(config)
         t = run_topology(config, options)
-        names = acceleration.ACCEL_PARAMS + tuple(k for k in cls._TOPO[t.name] if k in v)
+        names = acceleration.ACCEL_PARAMS + acceleration.BATTERY_LIMIT_PARAMS + tuple(k for k in cls._TOPO[t.name]
+                                                                                     if k in v)
         return cls({k: v[k] for k in overridable(v, names)}, t.name)
 
     def compute(self, inputs):
@@ -148,11 +152,14 @@ class Acceleration(Base):
         if self.topology.name == "SM-SA" and np.all(np.asarray(p.get("gear_count", 1.0)) == 1.0):
             t = acceleration.accel_time_0_100_s(inputs["motor_kw"], inputs["gear_ratio"], inputs["vehicle_mass_kg"],
                                                 {k: p[k] for k in p if k in acceleration.ACCEL_PARAMS
-                                                 or k.startswith("road_load_")}, continuation=True)
+                                                 or k in acceleration.BATTERY_LIMIT_PARAMS
+                                                 or k.startswith("road_load_")}, continuation=True,
+                                                battery_kwh=inputs["battery_kwh"])
         else:
-            t = topo_model.accel_time_s(self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
-                                        inputs.get("gear_ratio"), inputs.get("motor_rear_kw"),
-                                        inputs.get("gear_ratio_rear"), p, continuation=True)
+            t = topology_accel.accel_time_s(self.topology, inputs["vehicle_mass_kg"], inputs["motor_kw"],
+                                            inputs.get("gear_ratio"), inputs.get("motor_rear_kw"),
+                                            inputs.get("gear_ratio_rear"), p, continuation=True,
+                                            battery_kwh=inputs["battery_kwh"])
         return {"accel_time_0_100_s": t}
 
     def notes(self, outputs) -> list[str]:

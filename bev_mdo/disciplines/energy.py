@@ -212,6 +212,68 @@ class Energy(Base):
         return {"energy_wh_per_km": e}
 
 
+# An energy model's margins over its cycle (option feasibility_outputs): one below 0 is a design that does not
+# follow the cycle. A Taycan-like DM-DA optimum turned its rear motor 156 rad/s past its limit on a motorway
+# cycle (motor_speed_margin_rad_s -155.8) while the note said only that the steps are not checked.
+FOLLOW_MARGINS = ("drive_torque_margin_nm", "motor_speed_margin_rad_s", "drive_power_margin_kw", "drive_force_margin_n")
+
+
+def _follow_margins(d, values: Mapping) -> dict:
+    """{margin: value(s)} of ``FOLLOW_MARGINS`` that discipline ``d`` gives and ``values`` holds."""
+    return {k: values[k] for k in FOLLOW_MARGINS if k in getattr(d, "outputs", ()) and values.get(k) is not None}
+
+
+def follow_notes(disciplines, values: Mapping) -> tuple[list[str], list[str]]:
+    """(one line per discipline of ``disciplines`` (a run's) that says the one design in ``values`` cannot follow
+    its drive cycle, e.g. a van asked for 0-60 km/h in 1 s; one line per discipline that cannot check it for this
+    design): the energy discipline's ``cycle_steps_short``, run once."""
+    short, unchecked = [], []
+    for d in disciplines:
+        if getattr(d, "envelope", None) is None:
+            continue
+        rows = d.cycle_steps_short(values)
+        margins = _follow_margins(d, values)
+        if (rows is None or rows[0][2][0] < 0) and margins:  # the model's own margins say it
+            if below := {k: float(np.ravel(v)[0]) for k, v in margins.items() if np.ravel(v)[0] < 0}:
+                short.append(f"{d.name}: the design cannot follow its cycle (" + ", ".join(
+                    f"{k} {v:.4g}" for k, v in below.items()) + "): its energy per km is that of the cycle's demand, "
+                    "not of a powertrain that follows it")
+        elif rows is None or rows[0][2][0] < 0:
+            unchecked.append(f"{d.name}: whether the motor can follow the cycle is not checked for this gearbox or "
+                             "topology (the check covers single-speed SM-SA); energy options {feasibility_outputs: "
+                             "true} give the model's margins")
+        elif line := d.cannot_follow(values, rows):
+            short.append(line)
+    return short, unchecked
+
+
+def follow_counts(disciplines, values: Mapping) -> tuple[np.ndarray, np.ndarray]:
+    """(cannot follow, not checked) per design of a batch (``values``: (N,) columns): boolean arrays over
+    the run's disciplines and cycles (``cycle_steps_short``)."""
+    n = len(next(iter(values.values())))
+    short, unchecked = np.zeros(n, bool), np.zeros(n, bool)
+    for d in disciplines:
+        if getattr(d, "envelope", None) is None:
+            continue
+        margins = _follow_margins(d, values)
+        below = np.logical_or.reduce([np.asarray(v) < 0 for v in margins.values()]) if margins else None
+        for _, _, count, _ in d.cycle_steps_short(values) or [(None, None, np.full(n, -1), None)]:
+            short |= count > 0
+            if below is not None:  # where the steps are not checked, the model's margins are
+                short |= (count < 0) & below
+            else:
+                unchecked |= count < 0
+    return short, unchecked
+
+
+def follow_check(disciplines):
+    """The run's judgement of a design beyond its constraints (RunSettings.design_check): ``check(values)`` ->
+    ``follow_notes``' lines that the one design in ``values`` cannot follow its cycle ([] when it can); None when
+    no discipline of ``disciplines`` checks it."""
+    discs = tuple(d for d in disciplines if getattr(d, "envelope", None) is not None)
+    return (lambda values: follow_notes(discs, values)[0]) if discs else None
+
+
 def battery_margins(results, final_soc) -> dict:
     """The battery's margins over quasi-static results (one per cycle), the tightest of them: power (kW, at
     most 1e9 for a cycle that never draws), SOC above ``final_soc`` and the discharge current's share of its

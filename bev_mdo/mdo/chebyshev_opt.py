@@ -211,6 +211,8 @@ def minimize(batch_fun: Callable, x0, lower, upper, options: Mapping[str, Any] |
                 break
         if not improved:
             delta *= 0.5
-    return OptimizeResult(x=x, fun=float(f), constr=g, success=bool(g.size == 0 or g.max() <= o["ctol"]),
-                          status=0, message=message, nit=nit, nfev=ev.nfev, nbatch=ev.nbatch,
+    converged = message == "trust box below xtol"  # the iteration limit is no convergence (as scipy's status 9)
+    feasible = g.size == 0 or g.max() <= o["ctol"]
+    return OptimizeResult(x=x, fun=float(f), constr=g, success=bool(converged and feasible),
+                          status=0 if converged else 9, message=message, nit=nit, nfev=ev.nfev, nbatch=ev.nbatch,
                           pairs_tried=pairs_tried, trust_box=delta)

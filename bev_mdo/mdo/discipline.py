@@ -91,7 +91,9 @@ def read_options(cls: type, options: Mapping[str, Any] | None, where: str) -> An
     * ``cls.Options``, a dataclass: its fields are the keys, and a value must match its field's
       annotation when that is ``float``, ``int``, ``bool`` or ``str`` (:func:`_check_option_types`);
       returns an instance (defaults filled);
-    * no ``from_config`` of its own: the constructor's keyword parameters (any with ``**kwargs``);
+    * no ``from_config`` of its own: the constructor's keyword parameters (any with ``**kwargs``), a
+      value checked the same way against the parameter's annotation, or, without one, not text or a bool
+      where its default is a number (``loss=0.02`` given '2 %' failed every point, the option unnamed);
       returns the options as a dict;
     * else the class declares no option, and none may be given.
 
@@ -102,22 +104,30 @@ def read_options(cls: type, options: Mapping[str, Any] | None, where: str) -> An
     spec = getattr(cls, "Options", None)
     if spec is not None and dataclasses.is_dataclass(spec):
         check_keys(where, options, [f.name for f in dataclasses.fields(spec) if f.init])
-        _check_option_types(spec, options, where)
+        _check_option_types(_type_hints(spec), options, where)
         return spec(**options)
     if _builds_from_options(cls):
         try:
             params = inspect.signature(cls).parameters
         except (TypeError, ValueError):
             return options
-        if any(p.kind is p.VAR_KEYWORD for p in params.values()):
-            return options
-        check_keys(where, options, [k for k, p in params.items() if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)])
+        if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
+            check_keys(where, options, [k for k, p in params.items() if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)])
+        hints = _type_hints(cls.__init__)
+        numeric = {k: _NumberDefault for k, p in params.items() if is_number(p.default) and p.annotation is p.empty}
+        _check_option_types({**numeric, **hints}, options, where)
         return options
     check_keys(where, options, ())
     return options
 
 
+class _NumberDefault:
+    """The 'annotation' of a constructor parameter without one whose default is a number: text or a bool
+    there is refused (anything else, None or a list, may be what the class takes too)."""
+
+
 _OPTION_TYPES = {  # annotation -> (accepts the value, what it must be); any other annotation is not checked
+    _NumberDefault: (lambda v: not isinstance(v, (str, bool, np.bool_)), "a number, as its default is"),
     float: (is_number, "a number (float)"),
     int: (lambda v: isinstance(v, (int, np.integer)) and not isinstance(v, bool), "a whole number (int)"),
     bool: (lambda v: isinstance(v, (bool, np.bool_)), "true or false (bool)"),
@@ -125,15 +135,19 @@ _OPTION_TYPES = {  # annotation -> (accepts the value, what it must be); any oth
 }
 
 
-def _check_option_types(spec: type, options: Mapping[str, Any], where: str) -> None:
-    """ValueError naming ``where.<key>`` for the first option whose value does not match its field's
-    annotation (``_OPTION_TYPES``: a float takes an int, not a bool or text). Annotations may be strings
-    (``from __future__ import annotations``); ``X | None`` takes None or what X takes; any other annotation
-    is left alone."""
+def _type_hints(obj: Any) -> dict:
+    """The resolved annotations of a class or function (strings too: ``from __future__ import annotations``);
+    {} when one does not resolve (a name imported only for type checking)."""
     try:
-        hints = typing.get_type_hints(spec)
-    except Exception:  # an annotation that does not resolve (a name imported only for type checking)
-        return
+        return typing.get_type_hints(obj)
+    except Exception:
+        return {}
+
+
+def _check_option_types(hints: Mapping[str, Any], options: Mapping[str, Any], where: str) -> None:
+    """ValueError naming ``where.<key>`` for the first option whose value does not match its annotation in
+    ``hints`` (``_OPTION_TYPES``: a float takes an int, not a bool or text); ``X | None`` takes None or what
+    X takes; any other annotation is left alone."""
     for key, value in options.items():
         hint, args = hints.get(key), typing.get_args(hints.get(key))
         if len(args) == 2 and type(None) in args and typing.get_origin(hint) in (typing.Union, types.UnionType):
@@ -247,7 +261,9 @@ def load_class(spec: str, search_path: Sequence[str] = ()) -> type:
     try:
         module = importlib.import_module(mod_name)
     except ImportError as exc:
-        where = f" (looked in {', '.join(map(str, search_path))} and the Python path)" if search_path else ""
+        gone = [str(f) for f in search_path if not Path(f).is_dir()]  # a typo in search_path, most likely
+        where = (f" (looked in {', '.join(map(str, search_path))} and the Python path"
+                 + (f"; search_path folder {gone[0]} does not exist" if gone else "") + ")") if search_path else ""
         raise ValueError(f"cannot import module {mod_name!r} for class {spec!r}{where}: {exc}") from None
     except Exception as exc:  # the user's module raised while importing
         raise ValueError(f"module {mod_name!r} for class {spec!r} fails on import: "

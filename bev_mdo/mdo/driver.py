@@ -16,6 +16,7 @@ from scipy.optimize import OptimizeResult
 from bev_mdo.mdo import first_order
 from bev_mdo.mdo.evaluator import DisciplinesLost, Evaluator
 from bev_mdo.mdo.formulations import FORMULATIONS, Formulation
+from bev_mdo.mdo.free_variables import free_variables
 from bev_mdo.mdo.kinks import end_point_kinks
 from bev_mdo.mdo.mda import MDA
 from bev_mdo.mdo.optimizers import (GRADIENT_BASED, NOISE_VIOLATION, canonical_name, check_finite_bounds,
@@ -162,13 +163,21 @@ def evaluate_design(run: Run, evaluator: Evaluator, design: Mapping[str, float])
     values = {k: float(v[0]) for k, v in res.values.items()}
     why = res.errors[0]  # one design: the discipline's reason, without 'at point 0' and the inputs shown beside it
     error = (why.reason or why.message) if why is not None else ""
+    short = design_check(run, problem, {**design, **values}) if res.ok[0] else []
     return design_report(problem, mda, design, values, bool(res.ok[0]), error, int(res.iterations[0]),
-                         tol=run.optimizer.feasibility_tolerance)
+                         tol=run.optimizer.feasibility_tolerance, short=short)
+
+
+def design_check(run: RunSettings, problem: Problem, values: Mapping[str, float]) -> list[str]:
+    """``run.design_check``'s lines at one analysed point (``values``: its variables; the problem's parameters
+    added): why the design is infeasible beyond its constraints (its motor cannot follow the cycle), [] if not."""
+    return list(run.design_check({**problem.parameters, **values})) if run.design_check is not None else []
 
 
 def design_report(problem: Problem, mda: MDA, design: Mapping[str, float], values: Mapping[str, float],
-                  ok: bool, error: str, mda_iterations: int, tol: float = FEASIBILITY_TOL) -> dict:
-    """The report of one analysed design (``values``: every MDA variable of the point)."""
+                  ok: bool, error: str, mda_iterations: int, tol: float = FEASIBILITY_TOL, short=()) -> dict:
+    """The report of one analysed design (``values``: every MDA variable of the point; ``short``: its
+    ``design_check`` lines, each making it infeasible)."""
     outputs = {v: float(values[v]) for s in mda.specs.values() for v in s.outputs}
     cons = _constraint_report(problem, outputs, tol)
     given = {k: float(v) for k, v in design.items()}
@@ -180,7 +189,7 @@ def design_report(problem: Problem, mda: MDA, design: Mapping[str, float], value
         "objective": {"name": problem.objective, "value": outputs.get(problem.objective, float("nan")),
                       **({"maximize": True} if problem.maximize else {})},
         "constraints": cons,
-        "feasible": ok and all(c["satisfied"] for c in cons.values()),
+        "feasible": ok and all(c["satisfied"] for c in cons.values()) and not short,
         "ok": ok,
         "error": error,
         "mda_iterations": mda_iterations,
@@ -229,6 +238,14 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     xs: list[np.ndarray] = []  # the optimiser variables of every record (IDF: with the couplings)
     kept: dict[bytes, tuple] = {}  # MDF: each record's full analysis (record)
 
+    def follows(x: np.ndarray) -> bool:  # run.design_check at an evaluated point (under MDF its full analysis)
+        if run.design_check is None:
+            return True
+        seen = form.analysed(x, again=True) if hasattr(form, "analysed") else None
+        cons = _physical_constraints(problem, form.evaluate_batch(x[None, :])[1][0])
+        return not design_check(run, problem, seen[0] if seen is not None and seen[1] else
+                                {**dict(zip(form.var_names, map(float, x))), **cons})
+
     def record(x: np.ndarray) -> dict:
         x = np.asarray(x, dtype=float)
         f, g, h = form.evaluate_batch(x[None, :])
@@ -239,11 +256,14 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         if not ok:  # the optimiser saw its penalty; the record says the point has no values (not 1e10, 720 K),
             # and no violation (NaN, as a sweep's failed design)
             cons = dict.fromkeys(cons, float("nan"))
+        # the final verdict's judgement (design_check) at every record: multi-start picked a start whose motor
+        # could not follow the cycle, its records and verdict 'feasible' where the final check said not
+        short = ok and not follows(x)
         rec = {
             "iteration": len(history), "formulation": form.name, "optimizer": opt_name,
             "design": problem.design_dict(x[:n_dv]), "objective_name": problem.objective,
             "objective": sign * float(f[0]) if ok else float("nan"), "constraints": cons,
-            "max_violation": viol if ok else float("nan"), "feasible": bool(ok and viol <= tol),
+            "max_violation": viol if ok else float("nan"), "feasible": bool(ok and viol <= tol and not short),
             "mda_evaluations": form.mda_evaluations, "discipline_evaluations": dict(evaluator.counts),
             "wall_time_s": time.perf_counter() - t0,
         }
@@ -273,15 +293,15 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         if res.get("stopped"):  # a record may repeat the optimiser's best so far (DE's, each generation): the
             k = next(i for i, xi in enumerate(xs) if np.array_equal(xi, xs[k]))  # result is where it was found
         checked_from = form.n_points, form.n_batches, time.perf_counter()
-        fo = end_point_check(form, xs[k], start, tol)
+        fo = end_point_check(form, xs[k], start, tol, follows)
         if k != len(history) - 1 and history[-1]["feasible"] and not res.get("stopped"):
             # an optimiser that did not say it converged (SLSQP's last line search failed) at a point
             # the first-order check verifies has converged: as then, an earlier point more violated
             # than it does not displace it with the objective its violation buys
-            fo_last = end_point_check(form, xs[-1], start, tol)
+            fo_last = end_point_check(form, xs[-1], start, tol, follows)
             if fo_last["verdict"] == first_order.OPTIMUM:
                 k = pick_result(history, sign, True, tol)
-                fo = fo_last if k == len(history) - 1 else end_point_check(form, xs[k], start, tol)
+                fo = fo_last if k == len(history) - 1 else end_point_check(form, xs[k], start, tol, follows)
             fo["cost"] = {"points": form.n_points - checked_from[0], "batches": form.n_batches - checked_from[1],
                           "wall_time_s": time.perf_counter() - checked_from[2]}  # both checks
         last, x = history[k], xs[k]
@@ -303,7 +323,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         record(np.clip(x, form.lower, form.upper))
         k = len(history) - 1
         last, x = history[k], xs[k]
-        fo = end_point_check(form, x, start, tol)
+        fo = end_point_check(form, x, start, tol, follows)
     if attempt:
         res.message = f"{res.message} (restarted once after: {first_message}; first-order check failed)"
     # The final report: MDF analysed the point already (its full MDA is kept); IDF's
@@ -312,11 +332,13 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     design = problem.design_dict(x[:n_dv])
     seen = kept.get(x.tobytes()) or (form.analysed(x) if hasattr(form, "analysed") else None)
     if seen is not None:  # a DE result recorded 180 iterations before the end, a discipline lost since
-        final = design_report(problem, form.mda, design, *seen, tol=tol)
+        short = design_check(run, problem, seen[0]) if seen[1] else []
+        final = design_report(problem, form.mda, design, *seen, tol=tol, short=short)
         mda_evals = form.mda_evaluations
         ok, err = seen[1], seen[2]
     else:
         final = evaluate_design(run, evaluator, design)
+        short = design_check(run, problem, {**design, **final["outputs"]}) if final.get("ok", True) else []
         mda_evals = form.mda_evaluations + 1
         ok, err = form.status(x)
         if ok and not final.get("ok", True):  # IDF: its point consistent, the MDA through it failed
@@ -325,6 +347,8 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     if not ok and fo["verdict"] != first_order.INFEASIBLE:  # e.g. IDF's consistent point whose MDA failed
         fo = {**fo, "verdict": first_order.INFEASIBLE, "point_failed": True,
               "failure": (err or final.get("error", "")).split("; ")[0]}
+    elif ok and short:  # infeasible whatever the constraints say: e.g. its energy is that of the cycle's demand
+        fo = {**fo, "verdict": first_order.INFEASIBLE, "cannot_follow": short}
     message = str(res.message) + (f"; final point failed: {err}" if not ok else "")
     if projected:
         message += f"; the result is {projected_line(projected)}"
@@ -376,10 +400,11 @@ def projected_line(projected: dict) -> str:
 OBJECTIVE_SCALE_HINT = 1e3  # an objective the optimiser sees this large, with no progress: problem.objective_scale
 
 
-def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: float) -> dict:
+def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: float, follows=None) -> dict:
     """``first_order.check`` at the physical point ``x`` of ``form``, with what it cost: the gradient is
     the optimiser's last one when it was taken there (gradient-based runs), else one batched stencil
-    (derivative-free runs). ``cost`` counts the points the check evaluated and its wall time."""
+    (derivative-free runs). ``cost`` counts the points the check evaluated and its wall time. ``follows(x)``:
+    the run's design_check at an evaluated point (for free_variables' steps)."""
     t0, points, batches = time.perf_counter(), form.n_points, form.n_batches
     x = np.asarray(x, dtype=float)
     u = form.u_of(x)
@@ -400,7 +425,7 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
                                                                     atol=1e-12),  # a rounding away is no move
                                  unknown=form.unknown_derivatives(u) if ok else ())
 
-    fo = judge(df, dg, dh)
+    fo = {**judge(df, dg, dh), "derivatives": form.derivatives}  # what the numbers are computed on: analytic | fd
     if ok and fo["verdict"] == first_order.OPTIMUM and form.derivatives == "analytic":
         # the gradient came from the disciplines' partials, which its own check cannot doubt: a wrong partial
         # (df/dz 3z for 2z) ended "optimum" 3.4e-4 above the optimum. Central differences at steps h and 2h
@@ -420,6 +445,12 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
         fo["kink_points"] = form.n_points - before  # of the check's cost: the steps either side
         if optimum and fo["kinks"]:
             fo.update(verdict=first_order.STOPPED, conditions_hold=False, kink_at_optimum=True)
+    if ok and fo["verdict"] == first_order.OPTIMUM:  # a variable nothing holds: the optimum is not unique in it
+        before = form.n_points
+        if free := free_variables(form, u, float(f[0]), g[0], h[0], (df, dg, dh), fo, tol, follows):
+            fo["free_variables"] = free
+        if form.n_points > before:
+            fo["free_points"] = form.n_points - before  # of the check's cost: the steps along them
     seen = abs(float(f[0])) / form.problem.objective_scale  # the objective as the optimiser sees it
     if ok and fo["verdict"] == first_order.NO_PROGRESS and seen >= OBJECTIVE_SCALE_HINT:
         fo["objective_seen"] = seen  # an objective of 1e6 stopped SLSQP at its first point, with no hint

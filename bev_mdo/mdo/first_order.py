@@ -30,6 +30,7 @@ from scipy.optimize import lsq_linear
 
 FIRST_ORDER_TOL = 1e-4   # relative stationarity and complementarity that count as "the conditions hold"
 ACTIVE_TOL = 1e-4        # an inequality (normalised) or a bound (scaled units) this close to its limit is active
+FREE_STEP = 0.01         # free_variables.py's steps, of a variable's range (else of one scaled unit)
 
 OPTIMUM = "optimum"
 STOPPED = "stopped before convergence"
@@ -128,7 +129,7 @@ def verdict_line(fo: dict) -> str:
                  "check too, try --starts N" if not fo.get("moved", True) and fo["gradient_norm"] <= fo["tolerance"]
                  and not fo["active_constraints"] and not fo["active_bounds"] and not fo["equalities"] else "")
         return f"optimum (first-order conditions hold to {worst:.2g}; tolerance {fo['tolerance']:g}{still})"
-    if v == INFEASIBLE and fo.get("cannot_follow"):  # api.optimize: the result's motor cannot follow the cycle
+    if v == INFEASIBLE and fo.get("cannot_follow"):  # driver: RunSettings.design_check (its motor cannot follow the cycle)
         return f"infeasible ({'; '.join(fo['cannot_follow'])})"
     if v == INFEASIBLE and fo.get("point_failed"):  # failure: the driver's, when the final analysis failed
         return f"infeasible (the point failed: {fo.get('failure') or 'the disciplines gave no value there'})"
@@ -168,3 +169,35 @@ def _kinks(kinks: Sequence[dict]) -> str:
             f"{k['name']} (slope {k['left']:.5g} on its left, {k['right']:.5g} on its right, per scaled unit)"
             for k in ks))
     return "; ".join(parts)
+
+
+def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = False) -> list[str]:
+    """What the verdict line does not say, a line each: the design variables an optimum does not pin
+    (driver.end_point_check's ``free_variables``), and where ``optimizer`` said it ``converged`` but the conditions
+    do not hold (no kink, no unknown or disagreeing derivative to explain it), what to check."""
+    lines = [_free_line(fo["free_variables"])] if fo.get("free_variables") else []
+    if converged and fo["verdict"] == STOPPED and not (fo.get("kinks") or fo.get("unknown_derivatives")
+                                                       or fo.get("derivatives_disagree")):
+        if fo.get("derivatives") == "analytic":
+            lines.append(f"{optimizer} says it converged, but the first-order conditions do not hold at its end point "
+                         "(judged on the gradient assembled from the disciplines' analytic partials, the optimiser's "
+                         "own, so a wrong partial misleads both): a wrong derivative is a common cause; bev-mdo "
+                         "check-partials CONFIG compares each discipline's partials with finite differences, bev-mdo "
+                         "check-totals CONFIG the totals")
+        else:  # no analytic partial in the run: its own stopping rule, or the finite differences' step
+            lines.append(f"{optimizer} says it converged, but the first-order conditions do not hold at its end point "
+                         "(judged on finite differences of the whole analysis, optimizer.fd_step, as the optimiser's): "
+                         "its stopping tolerance (optimizer.options, e.g. ftol) may be too loose for the problem, or "
+                         "the step too coarse for it")
+    return lines
+
+
+def _free_line(free: list[dict]) -> str:
+    """The note of ``free_variables``' variables, one line."""
+    names = ", ".join(f"{v['name']} = {v['value']:.6g}" for v in free)
+    one = len(free) == 1
+    return (f"the objective's gradient is zero in {names} at the optimum, and {'it is' if one else 'they are'} "
+            f"neither on a bound nor in an active constraint (a step of {FREE_STEP:g} of {'its' if one else 'each'} "
+            "range either way changes neither the objective nor an active limit, and stays feasible): the optimum is "
+            f"not unique in {'it' if one else 'them'} ({'its value is' if one else 'their values are'} arbitrary "
+            "where the design stays feasible)")

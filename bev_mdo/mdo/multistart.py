@@ -9,9 +9,12 @@ result is the one it reaches run by itself (``batched=False`` runs them one afte
 comparison). Every start's iteration records go to the callback with one running iteration number,
 so a bag holds them as one run.
 
-A start **reached the best point** when its result is feasible, its objective is within ``rel_tol``
-of the best feasible objective (relative to it, or to ``problem.objective_scale`` where it is smaller:
-an optimum of 0), and every design variable is within ``design_tol`` of its range from the best design.
+A start **reached the best objective** when its result is feasible (by the run's whole judgement: its
+constraints and ``RunSettings.design_check``, a motor that follows the cycle) and its objective is within
+``rel_tol`` of the best feasible objective (relative to it, or to ``problem.objective_scale`` where it is
+smaller: an optimum of 0), wherever its design is: an objective that does not depend on a variable is met
+at many designs. Those of them more than ``design_tol`` of a variable's range from the result's design are
+counted apart (``other_designs``): the optimum is not unique.
 """
 from __future__ import annotations
 
@@ -97,24 +100,24 @@ def run_starts(run: Run, evaluator: Evaluator, starts: int | list[dict[str, floa
                                          callback=lambda rec, tag=tagged(i): renumbered(tag(rec))))
                    for i, x0 in enumerate(points)]
     span = problem.array("upper") - problem.array("lower")
-    best_i = _best_start([r for _, r in results], -1.0 if problem.maximize else 1.0, span, problem.names, design_tol)
+    close = _close(rel_tol, problem.objective_scale)
+    best_i = _best_start([r for _, r in results], -1.0 if problem.maximize else 1.0, span, problem.names, design_tol,
+                         close)
     best = results[best_i][1]
 
-    def reached(r: RunResult) -> bool:
-        if not r.feasible or not best.feasible:
-            return False
-        # relative to the objective, or to its scale (problem.objective_scale, 1 by default) where the
-        # optimum is 0: three starts at -4e-12, -6e-12 and 4e-12 of propane's 0 all reached it
-        close_f = abs(r.objective - best.objective) <= rel_tol * max(abs(best.objective), problem.objective_scale)
-        return close_f and _same_point(r, best, problem.names, span, design_tol)
+    def reached(r: RunResult) -> bool:  # the best objective, at the result's design or another one
+        return bool(r.feasible and best.feasible and close(r.objective, best.objective))
 
     wall = time.perf_counter() - t0
     best.multistart = {
-        "starts": starts, "seed": seed, "batched": batched, "best_start": best_i, "reached_best": sum(reached(r) for _, r in results),
-        "objective_rel_tol": rel_tol, "design_tol": design_tol,
+        "starts": starts, "seed": seed, "batched": batched, "best_start": best_i,
+        "reached_best": sum(reached(r) for _, r in results),
+        "other_designs": sum(reached(r) and not _same_point(r, best, problem.names, span, design_tol)
+                             for _, r in results),
+        "feasible": sum(bool(r.feasible) for _, r in results), "objective_rel_tol": rel_tol, "design_tol": design_tol,
         "designs_per_s": sum(r.points_evaluated for _, r in results) / max(wall, 1e-12),
-        "results": [{"start": i, "x0": x0, "objective": r.objective, "feasible": r.feasible, "verdict": r.verdict,
-                     "iterations": r.iterations, "reached_best": reached(r)}
+        "results": [{"start": i, "x0": x0, "design": r.design, "objective": r.objective, "feasible": r.feasible,
+                     "verdict": r.verdict, "iterations": r.iterations, "reached_best": reached(r)}
                     for i, (x0, r) in enumerate(results)],
     }
     for name in ("mda_evaluations", "points_evaluated", "batches", "gradients", "fd_failures"):
@@ -124,10 +127,17 @@ def run_starts(run: Run, evaluator: Evaluator, starts: int | list[dict[str, floa
     return best
 
 
+def _close(rel_tol: float, objective_scale: float):
+    """``close(f, best)``: ``f`` within ``rel_tol`` of ``best``, relative to it or to ``objective_scale`` where
+    that is larger (an optimum of 0: three starts at -4e-12, -6e-12 and 4e-12 of propane's 0 all reached it)."""
+    return lambda f, best: abs(f - best) <= rel_tol * max(abs(best), objective_scale)
+
+
 def _best_start(results: list[RunResult], sign: float, span: np.ndarray, names: list[str],
-                design_tol: float) -> int:
-    """The start whose result is the run's: the best feasible objective; where several starts reached that
-    point (each design variable within ``design_tol`` of its range), one whose first-order check verified
+                design_tol: float, close=None) -> int:
+    """The start whose result is the run's: the best feasible objective (feasible by the run's whole judgement,
+    driver.design_check included); where several starts reached that point (each design variable within
+    ``design_tol`` of its range) or its objective (``close(f, best)``), one whose first-order check verified
     the optimum before one that stopped short of it, then the least violated. One that stopped inside the
     feasibility tolerance but past an active constraint buys a little objective with its violation and
     does not stand for the point the others reached exactly (driver.pick_result's rule within one run).
@@ -140,7 +150,8 @@ def _best_start(results: list[RunResult], sign: float, span: np.ndarray, names: 
     best = min(feasible or range(len(results)), key=objective)
     if not feasible:
         return best
-    same = [i for i in feasible if _same_point(results[i], results[best], names, span, design_tol)]
+    same = [i for i in feasible if _same_point(results[i], results[best], names, span, design_tol)
+            or close is not None and close(results[i].objective, results[best].objective)]
     return min(same, key=lambda i: (results[i].verdict != OPTIMUM, results[i].max_violation, *objective(i)))
 
 
@@ -150,9 +161,15 @@ def _same_point(a: RunResult, b: RunResult, names: list[str], span: np.ndarray, 
 
 
 def summary_line(ms: Mapping[str, Any]) -> str:
-    """How many starts reached the best point, for the terminal."""
+    """How many starts reached the best objective (and at other designs), how many ended feasible, for the
+    terminal."""
     verdicts = Counter(r["verdict"] for r in ms["results"])
-    return (f"multi-start: {ms['reached_best']} of {ms['starts']} starts reached the best point (objective within "
-            f"{ms['objective_rel_tol']:g} relative, each design variable within {ms['design_tol']:g} of its range; "
-            + ("given start points" if ms["seed"] is None else f"Latin hypercube, seed {ms['seed']}") + "); verdicts: "
+    other = ms.get("other_designs", 0)
+    feasible = ms.get("feasible", sum(bool(r["feasible"]) for r in ms["results"]))
+    return (f"multi-start: {ms['reached_best']} of {ms['starts']} starts reached the best objective (within "
+            f"{ms['objective_rel_tol']:g} relative"
+            + (f"; {other} of them at another design, more than {ms['design_tol']:g} of a variable's range from the "
+               "result's: the optimum is not unique" if other else "")
+            + "; " + ("given start points" if ms["seed"] is None else f"Latin hypercube, seed {ms['seed']}")
+            + f"); {feasible} of {ms['starts']} ended feasible; verdicts: "
             + ", ".join(f"{n} {v}" for v, n in sorted(verdicts.items(), key=lambda kv: -kv[1])))

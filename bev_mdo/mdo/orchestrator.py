@@ -244,10 +244,10 @@ class Orchestrator:
 
     # -- retries -------------------------------------------------------------------
     def _await(self) -> None:
-        """Wait for every pending result; re-send what times out; fail what never answers. Past the retries, a
-        request whose discipline the launcher is restarting (``recovering``) is re-sent every ``timeout_s`` for up
-        to RECOVERY_S more, and twice after, so the retries reach the new process (docs/security.md)."""
-        budget_end, back = None, 0
+        """Wait for every pending result; re-send what times out; fail what never answers. A discipline the launcher
+        reports restarting (``recovering``, read after every timeout) is waited for until it answers: past the retries
+        its request is re-sent every ``timeout_s`` for up to RECOVERY_S more, and twice after (docs/security.md)."""
+        budget_end, back, restarted = None, 0, set()
         for attempt in itertools.count():
             self._take_until(time.monotonic() + self.timeout_s)
             for key, p in list(self._pending.items()):
@@ -255,10 +255,15 @@ class Orchestrator:
                     self._give_up(key, p)
             if not self._pending:
                 break
+            # Once seen restarting, a discipline stays so until it answers: the launcher's flag is off in moments
+            # of a restart (a look at the end of the budget missed it), and is off again once the new node is back
+            # on the graph, before its subscriptions match and its first answer (numba compiles) comes.
+            restarted |= self._restarting()
             if attempt >= self.retries:
                 budget_end = budget_end or time.monotonic()
-                # two more tries once the node is back on the graph: the first may precede its subscriptions
-                back = 2 if self._recovering(budget_end) else back - 1
+                waiting = time.monotonic() < budget_end + RECOVERY_S and any(
+                    p.discipline in restarted for p in self._pending.values())
+                back = 2 if waiting else back - 1
                 if back < 0:
                     break
             for p, late in retry.resend_round(self._pending, attempt + 1):
@@ -275,11 +280,10 @@ class Orchestrator:
         for d in retry.hung(unanswered, self._sources_of):
             self.mark_hung(d)
 
-    def _recovering(self, budget_end: float) -> bool:
-        """Whether the launcher restarts (``recovering``) a discipline still pending, within RECOVERY_S
-        of the end of the retry budget (`budget_end`, monotonic s)."""
-        return (self.recovering is not None and time.monotonic() < budget_end + RECOVERY_S
-                and any(self.recovering(p.discipline) for p in self._pending.values()))
+    def _restarting(self) -> set[str]:
+        """The pending disciplines whose node the launcher is restarting now (``recovering``)."""
+        pending = {p.discipline for p in self._pending.values()}
+        return {d for d in pending if self.recovering(d)} if self.recovering is not None else set()
 
     def mark_hung(self, d: str) -> None:
         """Discipline `d` let every attempt time out (or, called in this process, overran the same budget:

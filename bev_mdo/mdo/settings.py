@@ -8,7 +8,7 @@ one too many) raises instead of being guessed at.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
@@ -85,6 +85,10 @@ class RunSettings:
     disciplines: tuple[str, ...]
     partials: Mapping[str, bool]
     parsed_problem: Any = field(default=None, compare=False, repr=False)  # the Problem of ``problem``, if built
+    # the disciplines' judgement of an analysed design beyond its constraints (config: a motor that cannot follow
+    # the cycle): ``design_check({variable: value})`` -> one line per reason the design is infeasible, [] for none.
+    # Every feasibility the engine states (iteration records, the result, its verdict, multi-start) applies it.
+    design_check: Callable[[Mapping[str, float]], list[str]] | None = field(default=None, compare=False, repr=False)
 
     def optimisation_problem(self):
         """The ``Problem`` of ``problem``: the one the config built at load, else built here."""

@@ -160,7 +160,13 @@ def check_outputs(disc_name: str, raw: Any, outputs: Sequence[str], sizes: Mappi
             raise ShapeError(f"discipline {disc_name!r}: compute() did not return output {k!r}")
         if np.iscomplexobj(raw[k]):  # float() would drop the imaginary part, with only a ComplexWarning
             raise ValueError(f"output {k!r} is complex, e.g. {np.ravel(raw[k])[0]}: return real numbers")
-        v = np.asarray(raw[k], dtype=float)
+        v = np.asarray(raw[k])
+        if v.dtype.kind in "USO":  # float() reads '3.5' as 3.5: text is a discipline's bug, never a value
+            text = next((x for x in v.flat if isinstance(x, (str, bytes, np.str_, np.bytes_))), None)
+            if text is not None:
+                raise ShapeError(f"discipline {disc_name!r}: output {k!r} is text ({str(text)!r}), not a number: "
+                                 "return numbers")
+        v = np.asarray(v, dtype=float)
         size = sizes.get(k)
         want = (n,) if size is None else (n, size)
         if v.shape != want:

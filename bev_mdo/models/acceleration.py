@@ -24,11 +24,21 @@ Grip limit (not in the thesis): the drive force cannot exceed F_grip = mu g M s,
 ``driven_axles`` 2). Where it binds the force is F_grip - road load from rest up to the corner
 v_grip = P eta_g / F_grip, in the constant-power region, which replaces the base speed as the
 segment edge. ``tyre_grip_coefficient`` 0 switches it off (the ``thesis`` parameter set).
+
+Battery limit (the thesis' 5C discharge limit, §3.5.3, applied to the run): the motors' shaft power is at
+most P_batt eta_bs, P_batt the pack's terminal power at its discharge current limit ``discharge_c_max`` x
+capacity (Ah) at ``initial_soc`` (battery.py: eqs 2-12, 2-15; never above ocv^2 / 4R) and eta_bs the
+``battery_to_shaft_efficiency`` (0.90, an assumption: motor + inverter at full load). Where it binds the
+motor runs at the constant power P_batt eta_bs from the corner v_batt = v_base P_batt eta_bs / P, which
+replaces the base speed as the segment edge (F = P_batt eta_bs eta_g / v above it). Given with
+``battery_kwh`` (the acceleration discipline always gives it; none: no limit); ``battery_to_shaft_efficiency``
+0 switches it off (the ``thesis`` parameter set).
 """
 from __future__ import annotations
 
 import numpy as np
 
+from . import battery as bt
 from . import road_load as rl
 from .common import check_design, check_lengths
 from .params import get_params
@@ -36,6 +46,8 @@ from .params import get_params
 ACCEL_PARAMS = ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2", "rolling_resistance", "wheel_radius_m",
                 "gear_efficiency", "motor_torque_per_kw", "motor_speed_limit_rpm", "tyre_grip_coefficient",
                 "driven_axle_load_share", "driven_axles")
+# the pack's limit on the run (battery_shaft_power_w)
+BATTERY_LIMIT_PARAMS = ("battery_to_shaft_efficiency", "discharge_c_max", "cells_series", "initial_soc")
 V_END_M_S = 100.0 / 3.6
 NOT_REACHED_S = 1.0e4           # the continuation's floor: a time at or above it means "does not reach v_end"
 NOT_REACHED_S_PER_KM_H = 100.0  # and its slope, per km/h of top speed short of v_end
@@ -52,6 +64,21 @@ def grip_force_n(vehicle_mass_kg, p, two_axles=False):
     return np.where(mu > 0, mu * p["gravity_m_s2"] * share * vehicle_mass_kg, np.inf)
 
 
+def battery_shaft_power_w(battery_kwh, p):
+    """The most shaft power the pack lets the motors give together in the 0-100 km/h run (W), (N,) or a
+    float: P_batt eta_bs (module doc), P_batt = (ocv - I R) I (eq 2-12) at I = ``discharge_c_max`` x capacity
+    (§3.5.3: 5C), or at ocv / 2R where that is less (the pack's largest power ocv^2 / 4R: more current gives
+    less); +inf where ``battery_to_shaft_efficiency`` is 0 or ``battery_kwh`` is None (no limit)."""
+    eta_bs = p["battery_to_shaft_efficiency"]
+    if battery_kwh is None or not np.any(np.asarray(eta_bs) > 0):
+        return np.inf
+    pack = bt.pack_for_energy(battery_kwh, p["cells_series"])
+    ocv_v, r_ohm = pack.ocv(p["initial_soc"]), pack.resistance(p["initial_soc"], False)  # eq 2-15, discharging
+    current_a = np.minimum(p["discharge_c_max"] * pack.capacity_ah, ocv_v / (2.0 * r_ohm))
+    p_batt_w = np.minimum(bt.power_at_current_w(current_a, ocv_v, r_ohm), bt.max_discharge_power_w(ocv_v, r_ohm))
+    return np.where(np.asarray(eta_bs) > 0, p_batt_w * eta_bs, np.inf)
+
+
 def grip_corner_m_s(lo, hi, torque_force_n, power_w, grip_n, v_end_m_s):
     """Speed where the envelope F = torque_force_n + power_w / v of a smooth segment [lo, hi] ((S, N)
     arrays) falls to the grip ``grip_n`` inside the segment, (N,); ``v_end_m_s`` (an edge already) where
@@ -64,15 +91,18 @@ def grip_corner_m_s(lo, hi, torque_force_n, power_w, grip_n, v_end_m_s):
     return np.min(np.where(inside, cross, v_end_m_s), axis=0)
 
 
-def wheel_force_n(speed_m_s, motor_kw, gear_ratio, vehicle_mass_kg, p, grip_n=np.inf):
-    """Net accelerating force at full motor envelope within the grip ``grip_n`` (N); broadcasts speed
-    against designs."""
+def wheel_force_n(speed_m_s, motor_kw, gear_ratio, vehicle_mass_kg, p, grip_n=np.inf, battery_kw=None):
+    """Net accelerating force at full motor envelope within the grip ``grip_n`` (N), the motor's power at most
+    ``battery_kw`` (the battery limit where it binds, +inf elsewhere; None: none); broadcasts speed against
+    designs."""
     v = np.asarray(speed_m_s, float)
     omega = gear_ratio * v / p["wheel_radius_m"]
     t_max = p["motor_torque_per_kw"] * motor_kw
     omega_base = 1000.0 / p["motor_torque_per_kw"]
     omega_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0
     torque = np.where(omega <= omega_base, t_max, 1000.0 * motor_kw / np.maximum(omega, 1e-300))
+    if battery_kw is not None:  # the battery's constant power: F = P_batt eta_bs eta_g / v at the wheels
+        torque = np.minimum(torque, 1000.0 * battery_kw / np.maximum(omega, 1e-300))
     torque = np.where(omega <= omega_lim * (1 + 1e-12), torque, 0.0)
     road = rl.road_load_n(p, v, vehicle_mass_kg)  # eq 2-3, or the coast-down A + B v + C v^2
     f = torque * gear_ratio * p["gear_efficiency"] / p["wheel_radius_m"]
@@ -110,25 +140,40 @@ def not_reached_note(time_s, v_end_m_s=V_END_M_S) -> str | None:
             " not a time")
 
 
-def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V_END_M_S, continuation=False):
+def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V_END_M_S, continuation=False,
+                 battery_kwh=None):
     """Time from rest to ``v_end_m_s`` (default 100 km/h) in s for N designs (eq 7-30); a design that cannot
-    reach it: +inf, or with ``continuation`` the continuation value (module doc)."""
+    reach it: +inf, or with ``continuation`` the continuation value; within the battery limit of a pack of
+    ``battery_kwh`` (None: no limit) (module doc)."""
     pk = check_design("motor_kw", motor_kw)
     ig = check_design("gear_ratio", gear_ratio)
     m = check_design("vehicle_mass_kg", vehicle_mass_kg)
-    p = {**get_params(params, ACCEL_PARAMS), **rl.checked(params)}
-    if not pk.shape == ig.shape == m.shape or any(type(x) is not float for x in p.values()):
-        n = check_lengths(motor_kw=pk, gear_ratio=ig, vehicle_mass_kg=m, **p)
+    kwh = None if battery_kwh is None else check_design("battery_kwh", battery_kwh)
+    p = {**get_params(params, ACCEL_PARAMS + BATTERY_LIMIT_PARAMS), **rl.checked(params)}
+    if not pk.shape == ig.shape == m.shape == (pk.shape if kwh is None else kwh.shape) \
+            or any(type(x) is not float for x in p.values()):
+        n = check_lengths(motor_kw=pk, gear_ratio=ig, vehicle_mass_kg=m, **({} if kwh is None else
+                                                                           {"battery_kwh": kwh}), **p)
         pk, ig, m = (np.broadcast_to(a, (n,)) for a in (pk, ig, m))
+        kwh = None if kwh is None else np.broadcast_to(kwh, (n,))
     grip = grip_force_n(m, p)
     v_base = (1000.0 / p["motor_torque_per_kw"]) * p["wheel_radius_m"] / ig
     v_lim = p["motor_speed_limit_rpm"] * np.pi / 30.0 * p["wheel_radius_m"] / ig
-    # the one corner below v_end: the base speed, or where the grip stops binding (P eta / v = F_grip,
-    # beyond the base speed exactly when the grip binds at rest); the force is smooth on either side
+    # the battery limit: the motor at the constant power P_batt eta_bs from v_batt = v_base P_batt eta_bs / P
+    # (below the base speed) where that is less than its own P; nothing changes where it is not
+    shaft_kw = battery_shaft_power_w(kwh, p) / 1000.0
+    binds = shaft_kw < pk
+    power_kw, battery_kw = (pk, None) if not np.any(binds) else (np.where(binds, shaft_kw, pk),
+                                                                 np.where(binds, shaft_kw, np.inf)[None, :])
+    if battery_kw is not None:
+        v_base = np.where(binds, v_base * shaft_kw / pk, v_base)
+    # the one corner below v_end: the base speed (or battery corner), or where the grip stops binding
+    # (P eta / v = F_grip, beyond that corner exactly when the grip binds at rest); the force is smooth on
+    # either side
     if grip is np.inf:
         v1, grip_row = np.minimum(v_base, v_end_m_s), grip
     else:
-        v_grip = (1000.0 * p["gear_efficiency"]) * pk / grip
+        v_grip = (1000.0 * p["gear_efficiency"]) * power_kw / grip
         v1, grip_row = np.minimum(np.maximum(v_base, v_grip), v_end_m_s), grip[None, :]
     # One force evaluation for everything: the 24 Gauss nodes of each segment (0..v1 and
     # v1..v_end), then v_end and v1 for the feasibility check. (Filled in place: the same values
@@ -141,7 +186,7 @@ def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V
     v[2 * nodes] = v_end_m_s
     v[2 * nodes + 1] = v1
     pb = {k: (x if type(x) is float or np.ndim(x) == 0 else x[None, :]) for k, x in p.items()}
-    f = wheel_force_n(v, pk[None, :], ig[None, :], m[None, :], pb, grip_row)
+    f = wheel_force_n(v, pk[None, :], ig[None, :], m[None, :], pb, grip_row, battery_kw)
     mrow = m[None, :]
     with np.errstate(divide="ignore"):
         total = (half0 * np.sum(_W[:, None] * mrow / f[:nodes], axis=0)             # dt = M/F dv
@@ -149,11 +194,12 @@ def accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, v_end_m_s=V
     f_end, f_base = f[2 * nodes], f[2 * nodes + 1]
     ok = (v_lim >= v_end_m_s) & (f_end > 0) & (f_base > 0)
     if continuation and not ok.all():
-        top = top_speed_m_s(lambda s: wheel_force_n(s, pk, ig, m, p, grip), np.minimum(v_lim, v_end_m_s))
+        cap = None if battery_kw is None else battery_kw[0]
+        top = top_speed_m_s(lambda s: wheel_force_n(s, pk, ig, m, p, grip, cap), np.minimum(v_lim, v_end_m_s))
         return np.where(ok, total, not_reached_s(top, v_end_m_s)).reshape(pk.shape)
     return np.where(ok, total, np.inf).reshape(pk.shape)
 
 
-def accel_time_0_100_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, continuation=False):
-    """0-100 km/h time in s (eqs 7-30 / 2-26); ``continuation``: see :func:`accel_time_s`."""
-    return accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params, V_END_M_S, continuation)
+def accel_time_0_100_s(motor_kw, gear_ratio, vehicle_mass_kg, params=None, continuation=False, battery_kwh=None):
+    """0-100 km/h time in s (eqs 7-30 / 2-26); ``continuation``, ``battery_kwh``: see :func:`accel_time_s`."""
+    return accel_time_s(motor_kw, gear_ratio, vehicle_mass_kg, params, V_END_M_S, continuation, battery_kwh)

@@ -67,6 +67,11 @@ VEHICLE_SPECS: dict[str, ParamSpec] = {
                                        "grip limit (dry asphalt about 1; 0 = no limit, the thesis)"),
     "driven_axle_load_share": ParamSpec(0.6, 0.2, 0.8, "-", "static share of the weight on the driven axle of a "
                                         "single-axle drive (front drive about 0.6; two driven axles carry all)"),
+    # 0-100 km/h battery limit (acceleration.py, topology_accel.py): motors' shaft power <= pack power x this
+    "battery_to_shaft_efficiency": ParamSpec(0.90, 0.0, 1.0, "-", "motor + inverter efficiency at full load "
+                                             "from the pack's terminals to the motors' shafts in the 0-100 km/h "
+                                             "run (an assumption, not from the thesis; 0 = no battery limit, "
+                                             "the thesis)"),
 }
 
 # topology (thesis ch.4): one setting for every topology discipline (vehicle_mass, energy,
@@ -132,7 +137,7 @@ QUASI_STATIC_SPECS: dict[str, ParamSpec] = {
     **{k: VEHICLE_SPECS[k] for k in ("air_density_kg_m3", "gravity_m_s2", "drag_area_m2",
                                      "rolling_resistance", "wheel_radius_m", "gear_efficiency",
                                      "motor_torque_per_kw", "motor_speed_limit_rpm", "tyre_grip_coefficient",
-                                     "driven_axle_load_share")},
+                                     "driven_axle_load_share", "battery_to_shaft_efficiency")},
     "gear_count": ParamSpec(1.0, 1.0, 2.0, "-", "1 = single speed, 2 = two-speed gearbox (eq 2-6)",
                             integer=True),
     "gear_ratio_2": ParamSpec(4.7, 0.5, 50.0, "-", "second (high-speed) gear ratio (Table 3-2: 4.7)"),

@@ -30,6 +30,8 @@ IWM-DA     2 + 2 in-wheel               direct drive, eta = 1        + motor_rea
   motor's envelope is penalised; braking torque beyond it goes to the friction brake (2-25). Left/right
   motors of an in-wheel axle share their axle's torque equally. The loads while moving are the
   quasi-static model's (``qs.moving_load_w``): DM-DA's second axle drag, the wound-rotor machines' field.
+
+The 0-100 km/h time of every topology is in topology_accel.py.
 """
 from __future__ import annotations
 
@@ -38,7 +40,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from . import acceleration, mass as mass_model
+from . import mass as mass_model
 from . import quasi_static as qs
 from . import road_load as rl
 from .common import design_points
@@ -52,10 +54,8 @@ TOPOLOGIES = VEHICLE_CHOICES["topology"]
 # design variables that only some topologies have (checked by check_design_variables)
 TOPOLOGY_VARIABLES = ("gear_ratio", "motor_rear_kw", "gear_ratio_rear", "gear_ratio_2", "shift_speed_m_s",
                       "gear_count")
-V_END_M_S = 100.0 / 3.6
 _PENALTY_W_PER_NM = 1e6  # selection penalty for motoring torque over the envelope
 _CHUNK = 20000  # (time x design) rows per split-grid block, bounds memory
-_X, _W = np.polynomial.legendre.leggauss(24)
 
 
 @dataclass(frozen=True)
@@ -426,75 +426,3 @@ def operating_points(resampled, params, topology, vehicle_mass_kg, motor_kw, bat
     t, m, ig, kw, p, kw_r, ig_r = _prepare(params, topology, vehicle_mass_kg, motor_kw, battery_kwh, gear_ratio,
                                            motor_rear_kw, gear_ratio_rear)
     return _demand(resampled, t, p, m, ig, kw, kw_r, ig_r, qs.drive_model(p, motor_map)).steps
-
-
-# ----------------------------------------------------------------------------- acceleration
-
-def accel_time_s(topology, vehicle_mass_kg, motor_kw, gear_ratio=None, motor_rear_kw=None, gear_ratio_rear=None,
-                 params=None, v_end_m_s=V_END_M_S, continuation=False):
-    """0-100 km/h time (eqs 2-26 / 4-5): t = int M / F(v) dv, F every motor's envelope at the wheels within
-    the tyres' grip (``acceleration.grip_force_n``; two driven axles carry all the weight) minus road load,
-    Gauss-Legendre per segment between the corners (base speeds, the two-speed shift and speed limits, where
-    the grip stops binding). SM-SA single speed equals ``acceleration.accel_time_0_100_s``; two-speed
-    follows eq 2-6 (gear 2 from the shift speed, efficiency less the 2-point penalty). +inf for a geared
-    motor over its speed limit before ``v_end`` or a non-positive surplus force; with ``continuation`` the
-    continuation value of its top speed instead (``acceleration`` module doc)."""
-    p = {k: s.default for k, s in QUASI_STATIC_SPECS.items()}
-    p.update({k: np.asarray(v, float) for k, v in (params or {}).items()
-              if k in QUASI_STATIC_SPECS or k in rl.FLAT_KEYS})
-    t, m, ig, kw, p, kw_r, ig_r = _prepare(p, topology, vehicle_mass_kg, motor_kw, qs.DEFAULT_BATTERY_KWH, gear_ratio,
-                                           motor_rear_kw, gear_ratio_rear)
-    r_w, sm_sa = p["wheel_radius_m"], t.name == "SM-SA"
-    two = (p["gear_count"] == 2.0) & sm_sa
-    axles = _axles(t, p, kw, kw_r, ig, ig_r, qs.default_map())
-    grip = acceleration.grip_force_n(m, p, t.two_axles)
-    ig2 = v_shift = None
-    if sm_sa:
-        eta2 = p["gear_efficiency"] - np.where(two, p["two_speed_efficiency_loss"], 0.0)
-        axles[0].eta = np.broadcast_to(eta2, kw.shape)
-        ig2 = np.broadcast_to(np.where(two, p["gear_ratio_2"], ig), kw.shape)
-        v_shift = np.broadcast_to(np.where(two, p["shift_speed_m_s"], np.inf), kw.shape)
-
-    def envelope(v):  # per axle: ratio and motor torque at the speeds v (..., N)
-        for a in axles:
-            ratio = np.where(v >= v_shift, ig2, a.ratio) if sm_sa else a.ratio
-            yield a, ratio, _t_max(a, v / r_w * ratio)
-
-    def force(v):  # within the grip (the sum in the order it had before the grip limit)
-        road = rl.road_load_n(p, v, m)
-        f = -road
-        for a, ratio, tq in envelope(v):
-            f = f + a.count * tq * ratio * a.eta / r_w
-        return f if no_grip else np.minimum(f, grip - road, out=f)
-
-    # no grip limit where the peak drive force (of the larger gear with two) is within it
-    peak = sum(a.count * a.t_peak * (np.maximum(a.ratio, ig2) if sm_sa else a.ratio) * a.eta / r_w for a in axles)
-    # corners: per axle and gear the base speed, and the speed limit, which no motor may pass before v_end (two
-    # speeds: gear 1 up to the shift); with one speed that is v_end or later, so not an edge below v_end
-    corners, ok, shifts, no_grip = [], np.ones(m.shape, bool), bool(np.any(two)), bool(np.all(peak <= grip))
-    reach = np.full(m.shape, v_end_m_s)  # the first speed limit met before v_end (the continuation's top speed)
-    for a in axles:
-        for ratio, top in ([(a.ratio, np.minimum(v_shift, v_end_m_s)), (ig2, np.where(two, v_end_m_s, 0.0))]
-                           if shifts else [(a.ratio, v_end_m_s)]):
-            v_lim = a.w_lim * r_w / ratio
-            corners += [a.kw * 1e3 / a.t_peak * r_w / ratio, *([v_lim] if shifts else [])]
-            ok &= v_lim >= top * (1 - 1e-12)
-            reach = np.where(v_lim >= top * (1 - 1e-12), reach, np.minimum(reach, v_lim))
-    edges = np.stack([0.0 * m, *corners, *([v_shift] if shifts else []), v_end_m_s + 0.0 * m])
-    edges = np.clip(np.sort(edges, axis=0), 0.0, v_end_m_s)  # (B+2, N)
-    if not no_grip:  # one more corner: where P eta / v (+ the torque-limited axles) = grip
-        parts = list(envelope(0.5 * (edges[:-1] + edges[1:])))  # each segment's torque- and power-limited axles
-        torque_n = sum(np.where(tq == a.t_peak, a.count * tq * ratio * a.eta / r_w, 0.0) for a, ratio, tq in parts)
-        power_w = sum(np.where((tq < a.t_peak) & (tq > 0), a.count * a.kw * 1e3 * a.eta, 0.0) for a, _, tq in parts)
-        v_grip = acceleration.grip_corner_m_s(edges[:-1], edges[1:], torque_n, power_w, grip, v_end_m_s)
-        edges = np.sort(np.concatenate([edges, v_grip[None]]), axis=0)
-    half = 0.5 * (edges[1:] - edges[:-1])
-    v = (edges[:-1] + half)[None] + half[None] * _X[:, None, None]  # (24, B+1, N)
-    f = force(v)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        total = np.sum(half * np.sum(_W[:, None, None] * m / f, axis=0), axis=0)
-    ok &= np.all(f > 0, axis=(0, 1)) & (force(np.full(m.shape, v_end_m_s)) > 0)
-    if continuation and not ok.all():
-        top = acceleration.top_speed_m_s(force, reach)
-        return np.where(ok, total, acceleration.not_reached_s(top, v_end_m_s))
-    return np.where(ok, total, np.inf)

@@ -17,6 +17,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from bev_mdo.bag.errors import BagError
+from bev_mdo.bag.history import ITERATION_TOPIC, RecordOrder
 from bev_mdo.bag.reader import Bag, BagMessage
 from bev_mdo.ros.fastwait import until
 from bev_mdo.ros.recorder_node import message_class
@@ -64,10 +65,8 @@ class Replayer:
         unknown = sorted(set(topics or []) - set(bag.topics))
         if unknown:
             raise BagError(f"{bag.mcap_path}: no topic {', '.join(unknown)} in this bag")
-        from bev_mdo.bag.history import ITERATION_TOPIC, RecordOrder
-
-        # iteration records as every reader takes them: the bag's own run, each once, fresh and in order
-        self.order = RecordOrder(bag.info.get("run_id", ""), bag.stored_config.window_s)
+        # iteration records as every reader takes them: the bag's own run, each once, fresh and in order (all of
+        self.order = RecordOrder(bag.info.get("run_id", ""), bag.stored_config.window_s, bounded=False)  # them held)
         self.messages: list[BagMessage] = [m for m in bag.messages(topics) if m.topic != ITERATION_TOPIC
                                            or self.order.keep(m.data, m.log_time_ns)]
         self.publishers = {}
@@ -124,7 +123,7 @@ def replay(path, *, rate: float | None = 1.0, topics: list[str] | None = None, l
     try:
         player = Replayer(node, bag, topics)
         if player.order.note():
-            log(f"{bag.mcap_path}: not replayed{player.order.note()}")
+            log(f"{bag.mcap_path}: {player.order.note('not replaying')[2:]}")
         if wait_subscribers and not player.wait_subscribers(wait_subscribers, wait_timeout_s):
             short = [t for t, p in player.publishers.items() if p.get_subscription_count() < wait_subscribers]
             raise BagError(f"{bag.mcap_path}: fewer than {wait_subscribers} subscriber(s) on {', '.join(short)} after "

@@ -95,7 +95,7 @@ class HangWatchdog:
             if self._stop.is_set() or self.launcher._stopping.is_set():
                 return hung
             for n in self.launcher.nodes:
-                if not n.ros_names or n.proc is None or n.proc.poll() is not None:
+                if not n.ros_names or n.proc is None or n.killed or n.proc.poll() is not None:  # killed: once
                     continue
                 if all(name in names for name in n.ros_names):
                     n.seen, n.missing_since = True, None
@@ -121,6 +121,6 @@ class HangWatchdog:
                     time.sleep(0.3)  # the stack dump is written by the node's Python thread
                     n.proc.kill()
                 n.hangs += 1
-                n.seen, n.missing_since = False, None
+                n.seen, n.missing_since, n.killed = False, None, True  # recovering until its successor is spawned
                 hung.append(n.label)
         return hung

@@ -274,3 +274,87 @@ def benchmark_warnings(bench, broken) -> list[str]:
                        f"({m:.1f} N·m): it cannot deliver the cycle's peak torque; benchmark.csv lists it as "
                        "the thesis does, but it is not a feasible design here")
     return out
+
+
+def ranking(results, objectives) -> dict[str, list[dict]]:
+    """Per objective (``(name, maximised)``), the topologies ordered by their front's best value of it alone
+    (each bought with the other objectives), ``{"topology", "best", "unit", "change_pct"}`` against the first.
+    A topology without a feasible design is left out."""
+    out = {}
+    for name, maximised in objectives:
+        rows = [(t, float((np.max if maximised else np.min)(r.values[name])))
+                for t, r in results.items() if len(r.X) and name in r.values]
+        rows.sort(key=lambda tv: -tv[1] if maximised else tv[1])
+        if rows:
+            first = rows[0][1]
+            out[name] = [{"topology": t, "best": v, "unit": UNITS.get(name, ""),
+                          "change_pct": float(100 * (v / first - 1)) if first else float("nan")} for t, v in rows]
+    return out
+
+
+def ranking_lines(ranked) -> list[str]:
+    """``ranking`` as one line per objective: 'IWM-DA 115.17, DM-DA 118.88 (+3.2 %), ...'."""
+    lines = []
+    for name, rows in ranked.items():
+        unit = f" ({rows[0]['unit']})" if rows[0]["unit"] not in ("", "1") else ""
+        cells = [f"{r['topology']} {_plain(r['best'])}" + (f" ({r['change_pct']:+.1f} %)" if i else "")
+                 for i, r in enumerate(rows)]
+        lines.append(f"ranking by each front's best {name}{unit}: {', '.join(cells)}")
+    return lines
+
+
+def _plain(v: float) -> str:
+    """A value as a table shows it, never in exponent form: 10055, 116.0, 2.448."""
+    return f"{v:.0f}" if abs(v) >= 1000 else f"{v:.1f}" if abs(v) >= 100 else f"{v:.3f}"
+
+
+def caveats(results, configs) -> list[str]:
+    """What qualifies a ranking of this study's fronts, one line each: a 0-100 km/h time faster than the
+    tyres' grip allows where the run's parameters switch the grip off (``acceleration.grip_force_n``:
+    mu g on the driven axles, at the default mu and axle load share), motors rated above what the pack
+    gives at its discharge limit where the run switches that limit off (``acceleration.battery_shaft_power_w``
+    at the default efficiency), and the thesis' efficiency map (``motor_loss_model`` 0, the thesis set or
+    none), which is not calibrated to measured cars (docs/validation.md)."""
+    from bev_mdo.models import acceleration
+    from bev_mdo.models.params import all_specs, validate_vehicle
+
+    spec, out, fast = all_specs(), [], []
+    mu = spec["tyre_grip_coefficient"].default
+    for t, r in results.items():
+        p = validate_vehicle(configs[t].data.get("vehicle"))
+        if p["tyre_grip_coefficient"] > 0 or not len(r.X) or "accel_time_0_100_s" not in r.values:
+            continue
+        share = 1.0 if get_topology(t).two_axles else p["driven_axle_load_share"]
+        floor = acceleration.V_END_M_S / (mu * p["gravity_m_s2"] * share)  # road load only adds to it
+        best = float(np.min(r.values["accel_time_0_100_s"]))
+        if best < floor:
+            wheels = "every wheel" if share == 1 else f"{100 * share:.0f} % of the weight on the driven axle"
+            fast.append(f"{t} {best:.2f} s (at least {floor:.2f} s with {wheels})")
+    if fast:
+        out.append(f"caveat: the parameters switch the tyres' grip limit off (tyre_grip_coefficient 0), and some "
+                   f"fronts reach 0-100 km/h faster than grip mu {mu:g} allows: {'; '.join(fast)}")
+    over = []  # with the battery limit off: front designs whose motors the pack cannot feed at the default limit
+    eta = spec["battery_to_shaft_efficiency"].default
+    for t, r in results.items():
+        p, topo = validate_vehicle(configs[t].data.get("vehicle")), get_topology(t)
+        col = {n: r.X[:, i] for i, n in enumerate(r.names)}
+        if p["battery_to_shaft_efficiency"] > 0 or not len(r.X) or "motor_kw" not in col or "battery_kwh" not in col:
+            continue
+        motors_kw = topo.front_motors * col["motor_kw"] + topo.rear_motors * col.get("motor_rear_kw", 0.0)
+        shaft_kw = acceleration.battery_shaft_power_w(col["battery_kwh"], {**p, "battery_to_shaft_efficiency": eta}) / 1e3
+        bad = np.flatnonzero(motors_kw > shaft_kw)
+        if len(bad):
+            i = bad[np.argmax((motors_kw / shaft_kw)[bad])]
+            over.append(f"{t} {len(bad)} of {len(r.X)} (the most over its pack: {motors_kw[i]:.0f} kW of motors on "
+                        f"{col['battery_kwh'][i]:.1f} kWh, which gives {shaft_kw[i]:.0f} kW)")
+    if over:
+        out.append(f"caveat: the parameters switch the battery's limit on the 0-100 km/h time off "
+                   f"(battery_to_shaft_efficiency 0); at {p['discharge_c_max']:g} C and shaft efficiency {eta:g}, these "
+                   f"front designs have more motor than their pack gives: {'; '.join(over)}")
+    thesis = [t for t in results if validate_vehicle(configs[t].data.get("vehicle"))["motor_loss_model"] == 0]
+    if thesis:  # the study's energy is the topology model's: with the map (loss model 0) it is the thesis' own
+        out.append(f"caveat: {', '.join(thesis)} ran on the thesis' efficiency map (motor_loss_model 0: the thesis set "
+                   "or no set), not calibrated to measured cars: it over-predicts the energy differences between "
+                   "variants of one car (docs/validation.md, pairs), so this energy ranking is the thesis model's, "
+                   "not a measured car's")
+    return out

@@ -131,3 +131,36 @@ def test_a_metadata_yaml_naming_another_file_is_refused_until_repair_rewrites_it
     assert _run(["bag", "repair", str(d)])[0] == 0
     rc, out, err = _run(["history", str(d)])
     assert rc == 0 and "6 records" in out, err
+
+
+@pytest.mark.parametrize("cmd", [["bag", "info"], ["history"], ["report"]], ids=" ".join)
+@pytest.mark.parametrize("text, why", [("rosbag2_bagfile_information: [unclosed\n", "is not valid YAML"),
+                                       ("just text\n", "holds no rosbag2_bagfile_information mapping")])
+def test_a_metadata_yaml_of_no_use_beside_a_good_mcap_is_said_to_be_ignored(cmd, text, why, tmp_path):
+    """It was ignored without a word (the bag is read from its .mcap file all the same)."""
+    bag = tmp_path / "run"
+    write_synthetic(bag, n_iterations=3)
+    (bag / "metadata.yaml").write_text(text)
+    rc, out, err = _run([*cmd, str(bag)])
+    assert rc == 0 and out, err
+    said = [line for line in err.splitlines() if "metadata.yaml" in line]
+    assert said == [f"{bag / 'metadata.yaml'} {why}: ignored, the bag is read from run_0.mcap (`bev-mdo bag "
+                    "repair` writes it again)"], err
+
+
+@pytest.mark.parametrize("cmd", [["history"], ["report"]], ids=" ".join)
+@pytest.mark.parametrize("metadata", [None, "other_tool"])
+def test_a_valid_mcap_without_a_bev_mdo_run_exits_2_saying_so(cmd, metadata, tmp_path):
+    """report wrote a report of nothing and exited 0; history said 'no iteration records', exit 1."""
+    from mcap.writer import Writer
+
+    path = tmp_path / "other.mcap"
+    with open(path, "wb") as f:
+        writer = Writer(f)
+        writer.start(profile="ros2", library="another tool")
+        if metadata:
+            writer.add_metadata(metadata, {"a": "b"})
+        writer.finish()
+    rc, out, err = _run([*cmd, str(path)])
+    assert rc == 2 and out == "" and list(tmp_path.iterdir()) == [path]
+    assert err == f"bev-mdo {cmd[0]}: error: {path}: holds no bev_mdo run (no bev_mdo_msgs topic, no run record)\n"

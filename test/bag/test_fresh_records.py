@@ -1,9 +1,10 @@
-"""Every record is fresh and in order, and a bag's signing state is its own: a captured record
+"""Every record is fresh and read in its run's order, and a bag's signing state is its own: a captured record
 replayed, a record of another run, and a bag whose stored sign_key_file was blanked are each
 dropped and counted, or refused, by history, report and resume."""
 from __future__ import annotations
 
 import yaml
+import numpy as np
 import pytest
 
 from bev_mdo.bag.errors import BagError
@@ -241,3 +242,43 @@ def test_the_recorders_check_keeps_its_own_run_once_and_in_order(signed):
     assert order.dropped == {"from the past": 1, "duplicate": 1, "of another run": 1, "malformed": 1}
     assert order.order.missing == 1
     assert "1 iteration record(s) missing" in order.note()
+
+
+def test_two_records_recorded_in_each_others_place_are_all_read_in_order(tmp_path, signed, capsys):
+    """Record 3 written before record 2 (their bytes, signatures and numbers as sent): history read record 2 as
+    one 'from the past', dropped it and counted one missing. Every number is there: all are read, in sequence
+    order, and one line says one was recorded after a later one; a record seen before is still dropped."""
+    key_file, _, recs = signed
+    bag = _bag(tmp_path / "swapped", [recs[0], recs[2], recs[1], recs[3], recs[1]], _config(key_file))
+    checks: dict = {}
+    rows = history(bag, checks=checks)
+    assert [r["sequence"] for r in rows] == [1, 2, 3, 4]
+    assert [r["design"]["motor_kw"] for r in rows] == [80.0, 81.0, 82.0, 83.0]
+    assert checks["missing"] == 0 and checks["dropped"] == {"from the past": 1} and checks["late"] == 1
+    status, out, err = _cli(capsys, "history", str(bag), "--csv", "-")
+    assert status == 0 and len(out.strip().splitlines()) == 1 + 4
+    assert "1 iteration record(s) recorded after a later one (read in sequence order)" in err
+    assert "missing" not in err
+
+    from bev_mdo.bag.history import RecordOrder
+
+    order = RecordOrder(RUN)  # the recorder keeps such a record too (history puts it back in its place)
+    assert [order.keep(r, (1_700_000_000 + 3) * 10**9) for r in (recs[0], recs[2], recs[1])] == [True] * 3
+    assert order.order.missing == 0 and order.note() == "; 1 iteration record(s) recorded after a later one (kept)"
+
+
+def test_the_order_check_holds_a_bounded_set_under_a_flood_of_scattered_numbers():
+    """The live recorder's check (of an unsigned run: a signed run's forged records are dropped before it):
+    a flood of scattered sequence numbers for its run must not grow the numbers it holds without bound (a set
+    of every number seen did). What is given up is still counted missing, and a number under the raised floor
+    is dropped as from the past."""
+    from bev_mdo.bag.history import Sequence
+
+    order, rng = Sequence(held=Sequence.HELD, runs=Sequence.RUNS), np.random.default_rng(1)
+    numbers = rng.permutation(np.arange(1, 200_001))[:40_000]
+    kept = sum(order.check("run", int(n)) is None for n in numbers)
+    assert len(order.above["run"]) <= Sequence.HELD
+    assert order.missing == int(numbers.max()) - kept  # every number up to the last that is not kept
+    in_order = Sequence()
+    assert all(in_order.check("r", n) is None for n in (1, 2, 4, 3, 5)) and in_order.missing == 0
+    assert in_order.above["r"] == set() and in_order.late == 1

@@ -96,3 +96,31 @@ def _without_metadata_answers(bag):
     opened = open_bag(bag)
     opened.metadata.pop(ANSWERS_METADATA, None)
     return opened
+
+
+
+@pytest.mark.parametrize("where", ["metadata", "answers.json"])
+def test_history_says_how_the_run_ended_is_not_known_when_its_answers_are_forged(tmp_path, capsys, where):
+    """End-of-run answers not signed with the run's key (in the bag's metadata, or answers.json beside a recorder's
+    bag): report said how the run ended is not known, history said nothing."""
+    from bev_mdo.bag.history import ANSWERS_FILE
+    from bev_mdo.bag.writer import BagWriter
+    from bev_mdo.cli import main
+
+    bag, key = _bag(tmp_path, "forged", answers_signer="other")
+    if where == "answers.json":  # the same records in a bag of their own, the forged answers beside it
+        from bev_mdo.bag.reader import open_bag
+
+        old = open_bag(bag)
+        ros = tmp_path / "ros"
+        with BagWriter(ros, metadata={"config_yaml": old.stored_config.text, "run_id": "run1"}) as w:
+            w.add_topic("/bev_mdo/iteration", "bev_mdo_msgs/msg/IterationRecord")
+            for m in old.messages():
+                w.write(m.topic, m.data, m.log_time_ns)
+        text = old.metadata["bev_mdo_answers"]["answers_json"]
+        (ros / ANSWERS_FILE).write_text(text)
+        (ros / (ANSWERS_FILE + ".sig")).write_text(old.metadata["bev_mdo_answers"]["answers_signature"])
+        bag = ros
+    assert main(["history", str(bag), "--csv", "-", "--key-file", key]) == 0
+    err = capsys.readouterr().err
+    assert "how the run ended is not known: its end-of-run record is left out (not signed with its key)" in err, err

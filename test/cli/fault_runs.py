@@ -4,9 +4,9 @@ stops a run (test_interrupt_bag.py): ``python fault_runs.py POINT COMMAND ...`` 
 * ``fail-after-generation-3``: ``pareto`` raises in the coordinator once its third generation is done;
 * ``fail-after-batch``: ``sweep`` raises in the coordinator once its batch is done (writing the CSV);
 * ``pause-in-batch``: ``sweep`` prints ``paused`` on stdout as its batch starts (the discipline nodes are up)
-  and waits for a line on stdin;
+  and waits for a line on stdin or a signal;
 * ``pause-after-3-records``: ``sweep`` prints ``paused`` on stdout once three designs are in its bag and
-  waits for a line on stdin.
+  waits for a line on stdin or a signal.
 
 A paused run waits where the test wants to stop it (with a signal): no sleeps, no racing the run."""
 from __future__ import annotations
@@ -17,8 +17,26 @@ FAILURE = "the coordinator fails on purpose"
 
 
 def _pause() -> None:
-    print("paused", flush=True)
-    sys.stdin.readline()
+    """Say ``paused`` and wait for a line on stdin or a signal. Not a read of stdin alone: a signal that lands after the
+    interpreter's last look at its signals and before the read (a loaded host preempts the run there), or in another
+    thread, does not interrupt the read, and the run waited for good. The signal's wakeup fd (written by its C handler,
+    whenever and wherever it runs) ends the wait; the handler then raises in this thread as the call returns."""
+    import os
+    import select
+    import signal
+
+    wake, woken = os.pipe()
+    os.set_blocking(woken, False)
+    previous = signal.set_wakeup_fd(woken)
+    try:
+        print("paused", flush=True)
+        ready, _, _ = select.select([sys.stdin, wake], [], [])
+    finally:
+        signal.set_wakeup_fd(previous)
+        os.close(wake)
+        os.close(woken)
+    if sys.stdin in ready:
+        sys.stdin.readline()
 
 
 def fail_after_generation_3() -> None:

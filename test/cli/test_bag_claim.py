@@ -2,8 +2,9 @@
 the bag (check, then create), so both passed it. Over ROS the second then shared the first's key and logs
 and its recorder failed on the first's bag, hidden in its log, while the run waited 60 s for it (exit 6).
 The bag directory is now claimed where it is checked (api/runbag.claim_new_bag): the second run is
-refused at once with the line of a bag already there, exit 2, and writes nothing. No ROS: the second run
-is started from inside the first, at the point where the first holds its claim and nothing else."""
+refused at once (the directory is being written by another run, not "a bag already exists there"), exit 2, and
+writes nothing; a sweep's or pareto's --out is named as given, not its bag/. No ROS: the second run is started
+from inside the first, at the point where the first holds its claim and nothing else."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -22,7 +23,7 @@ def test_a_claimed_bag_directory_is_refused_to_a_second_claim_until_released(tmp
 
     bag = tmp_path / "same" / "x"
     first = claim_new_bag(bag, "--bag")
-    with pytest.raises(InputError, match=rf"^--bag {bag}: a bag already exists there; choose a new directory$"):
+    with pytest.raises(InputError, match=rf"^--bag {bag}: is being written by another run; choose a new directory$"):
         claim_new_bag(bag, "--bag")
     assert (bag / CLAIM_FILE).is_file()  # the refused claim left the holder's file alone
     first.release()
@@ -74,7 +75,8 @@ def test_the_second_of_two_ros_runs_on_one_bag_is_refused_before_it_writes_anyth
     main(argv)  # the first: claims the bag, then (patched) starts nothing
     err = capsys.readouterr().err
     assert seen["status"] == 2, err
-    assert f"bev-mdo optimize: error: --bag {bag}: a bag already exists there; choose a new directory" == err.splitlines()[0], err
+    assert f"bev-mdo optimize: error: --bag {bag}: is being written by another run; choose a new directory" == \
+        err.splitlines()[0], err
     assert "the second run got as far as the first" not in err
     assert not (tmp_path / "same" / ".keys").exists()  # neither the key nor the logs of the refused run
     assert not (bag / "logs").exists()
@@ -88,7 +90,7 @@ def test_the_second_of_two_in_process_runs_on_one_bag_is_refused(monkeypatch, tm
     seen = _second_run_inside_the_first(monkeypatch, tmp_path, InProcessBag, "__init__", argv)
     main(argv)
     err = capsys.readouterr().err
-    assert seen["status"] == 2 and f"--bag {bag}: a bag already exists there; choose a new directory" in err, err
+    assert seen["status"] == 2 and f"--bag {bag}: is being written by another run; choose a new directory" in err, err
 
 
 def test_the_second_of_two_sweeps_into_one_out_folder_is_refused(monkeypatch, tmp_path, capsys):
@@ -99,7 +101,7 @@ def test_the_second_of_two_sweeps_into_one_out_folder_is_refused(monkeypatch, tm
     seen = _second_run_inside_the_first(monkeypatch, tmp_path, sweep, "evaluate_batch", argv)
     main(argv)
     err = capsys.readouterr().err
-    assert seen["status"] == 2 and f"--out {out / 'bag'}: a bag already exists there" in err, err
+    assert seen["status"] == 2 and f"--out {out}: is being written by another run; choose a new directory" in err, err
     assert not out.exists()  # the first stopped before its bag: its claim's folders are gone too
 
 
@@ -112,4 +114,5 @@ def test_the_second_of_two_pareto_runs_into_one_out_folder_is_refused(monkeypatc
     seen = _second_run_inside_the_first(monkeypatch, tmp_path, sessions.ParetoInProcessSession, "__init__", argv)
     main(argv)
     err = capsys.readouterr().err
-    assert seen["status"] == 2 and f"error: {out / 'bag'} already exists; choose another --out" in err, err
+    assert seen["status"] == 2 and f"error: --out {out}: is being written by another run; choose a new directory" \
+        in err, err

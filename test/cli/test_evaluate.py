@@ -76,7 +76,10 @@ def test_parameter_override_changes_energy(capsys):
     # a value that is not finite was evaluated "as given" (a note that it is outside its bounds, exit 1)
     (["--set", "motor_kw=nan"], "--set motor_kw=nan: a design value must be a finite number"),
     (["--set", "motor_kw=inf"], "--set motor_kw=inf: a design value must be a finite number"),
-    (["--set", "motor_kw=1e400"], "--set motor_kw=inf: a design value must be a finite number"),
+    (["--set", "motor_kw=1e400"], "--set motor_kw=1e400: a design value must be a finite number"),  # it said inf
+    # float() reads 1_00 as 100
+    (["--set", "motor_kw=1_00"], "--set motor_kw=1_00: an underscore in a number is taken for a typo; write the "
+                                 "number without it"),
     (["--set", "drag_area_m2=-inf"], "--set drag_area_m2=-inf: a design value must be a finite number"),
     # a value no model can evaluate (outside a physical design limit or a parameter's range) printed a
     # table of NaN and exited 1, "evaluation failed"

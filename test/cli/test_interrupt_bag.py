@@ -252,6 +252,51 @@ def _signal_when_paused(p: subprocess.Popen, sig: int) -> tuple[int, str, dict[i
     return p.returncode, err, children
 
 
+# A signal the interpreter has taken (its C handler ran) but not yet acted on when the paused run's main thread
+# is asleep in its wait: the state a SIGTERM leaves when it lands after the main thread's last look at its signals
+# and before its blocking read of stdin (a loaded host preempted the run there), here made certain by sending
+# the signal to another thread once the main thread sleeps in the kernel (not waiting for the GIL).
+LOST_WAKEUP = """
+import signal, threading
+from pathlib import Path
+from bev_mdo import interrupts
+from bev_mdo.testing import wait_until
+from fault_runs import _pause
+
+task = Path(f"/proc/self/task/{threading.get_native_id()}")
+
+def asleep():
+    state = (task / "stat").read_text().rsplit(")", 1)[1].split()[0]
+    return state == "S" and "futex" not in (task / "wchan").read_text()
+
+def signal_another_thread():
+    assert wait_until(asleep, 60)
+    signal.pthread_kill(threading.get_ident(), signal.SIGTERM)
+
+interrupts.install()
+threading.Thread(target=signal_another_thread, daemon=True).start()
+try:
+    _pause()
+except interrupts.Terminated:
+    print("terminated in the pause")
+"""
+
+
+def test_a_paused_run_takes_a_signal_that_lands_just_before_its_wait(tmp_path):
+    """The pause of fault_runs.py ends with a SIGTERM whenever it lands: its wait was a read of stdin, which a
+    signal taken just before the read (or by another thread) does not interrupt, and the test sends no line; a
+    sweep paused after three records outlived its SIGTERM by 180 s once, under load, in a clean-clone CI."""
+    env = {**os.environ, "PYTHONPATH": f"{Path(__file__).resolve().parent}{os.pathsep}{REPO}"}
+    line, send = os.pipe()  # its stdin, kept open and silent (as _fault_run's): the pause gets no line
+    try:
+        p = subprocess.run([sys.executable, "-c", LOST_WAKEUP], stdin=line, capture_output=True, text=True, env=env,
+                           cwd=tmp_path, timeout=60)
+    finally:
+        os.close(line)
+        os.close(send)
+    assert p.stdout.splitlines() == ["paused", "terminated in the pause"], p.stderr[-2000:]
+
+
 @pytest.mark.parametrize("transport", TRANSPORTS)
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_a_sweep_interrupted_while_it_records_keeps_a_readable_bag(tmp_path, sig, transport, request):
@@ -471,3 +516,8 @@ def test_the_report_of_an_interrupted_run_says_it_did_not_finish(tmp_path):
     md = (tmp_path / "report.md").read_text()
     assert md.splitlines()[2].startswith("- **the run did not finish**: the bag holds no end-of-run record"), md[:600]
     assert "## Last recorded iterate (the run did not finish)" in md and "## Final iterate" not in md
+    history = subprocess.run([sys.executable, "-m", "bev_mdo", "history", "b", "--csv", "-"], capture_output=True,
+                             text=True, cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(REPO)}, timeout=120)
+    last = history.stdout.strip().splitlines()[-1].split(",")[1]  # its last record's iteration
+    assert history.returncode == 0 and "b: the run did not finish: the bag holds no end-of-run record" in history.stderr
+    assert f"iteration {last} is its last recorded iterate, not a result" in history.stderr, history.stderr

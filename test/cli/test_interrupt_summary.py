@@ -47,7 +47,6 @@ def _bag_holds(bag, records):
                                                       ("bev_mdo.cli.optimize", "_table", _result_not_printed),
                                                       ("rich.table.Table", "__rich_console__", _result_not_printed),
                                                       ("bev_mdo.api.runbag", "answers", _bag_holds),
-                                                      ("bev_mdo.api.optimize", "_check_follows", _bag_holds),
                                                       ("bev_mdo.sessions", "analyse_baseline", _bag_holds),
                                                       ("bev_mdo.mdo.driver.RunResult", "to_dict", _bag_holds)])
 def test_a_signal_at_the_end_of_a_run_closes_the_bag_and_names_it(tmp_path, monkeypatch, capsys, module, step,

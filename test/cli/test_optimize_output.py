@@ -230,3 +230,19 @@ def test_optimize_of_a_design_that_fails_does_not_explain_it_by_constraints(caps
     assert main(["optimize", str(sellar_raising), "--transport", "inprocess", "--no-record"]) == 1
     out = capsys.readouterr().out
     assert "verdict: infeasible (the point failed" in out and "why the end point is infeasible" not in out, out
+
+
+def test_the_optimisers_own_message_is_printed_whole_restarts_and_all(capsys):
+    """'SLSQP says: ... (restart 1 after: Positive directional derivative for linesearch' was cut at the first ';'
+    of its own restarts (the JSON message had them all); only what the driver appends after it is left out."""
+    from bev_mdo.cli import optimize
+
+    assert main(["optimize", CONFIG, "--transport", "inprocess", "--no-record", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    own = ("Positive directional derivative for linesearch (restart 1 after: Positive directional derivative for "
+           "linesearch; restart 2 after: Positive directional derivative for linesearch)")
+    doc.update(optimizer_success=False, message=own + "; the result is iteration 3, the best feasible point seen")
+    buf = io.StringIO()
+    optimize._table({k: v for k, v in doc.items() if k != "baseline"}, doc["baseline"], buf, {})
+    said = [line for line in buf.getvalue().splitlines() if line.startswith("SLSQP says: ")]
+    assert said == [f"SLSQP says: {own}"]

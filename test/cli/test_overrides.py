@@ -81,6 +81,19 @@ def test_a_limit_that_is_not_finite_exits_2(capsys, flag, value):
     assert len(err) == 1 and flag in err[0] and "must be finite" in err[0], err
 
 
+@pytest.mark.parametrize("command, flag, value", [
+    ("evaluate", "--bound", "motor_kw=4_0:100"), ("evaluate", "--initial", "motor_kw=8_0"),
+    ("evaluate", "--constraint", "range_km>=1_70"), ("compare", "--design", "motor_kw=1_00"),
+    ("sweep", "--vary", "motor_kw=6_0:80:3")])
+def test_a_number_with_an_underscore_is_refused_as_a_typo(capsys, tmp_path, command, flag, value):
+    # float() reads 4_0 as 40: it was taken without a word
+    extra = ["--design", "motor_kw=80"] if command == "compare" else ["--out", str(tmp_path), "--no-record"] \
+        if command == "sweep" else []
+    assert main([command, CONFIG, "--transport", "inprocess", flag, value, *extra]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and flag in err[0] and "an underscore in a number is taken for a typo" in err[0], err
+
+
 def test_objective_maximize_bound_and_initial_reach_the_evaluation(capsys):
     assert main(["evaluate", CONFIG, "--transport", "inprocess", "--json", "--objective", "range_km", "--maximize", "--bound", "motor_kw=50:90",
                  "--initial", "motor_kw=60", "--constraint", "accel_time_0_100_s<=12"]) == 0

@@ -276,3 +276,19 @@ def test_a_front_with_no_feasible_design_says_so(tmp_path, capsys):
     assert code == 0
     line = next(l for l in out.splitlines() if l.startswith("front: "))
     assert line.startswith("front: no feasible design (least normalised constraint violation "), line
+
+
+def test_the_topology_study_prints_its_ranking_with_its_caveats(tmp_path, capsys):
+    """The study printed each topology's front and nothing to compare them by, nor that its 0-100 km/h
+    times have no grip limit and its energies come from the uncalibrated thesis model."""
+    out = tmp_path / "o"
+    code = main([str(a) for a in ("pareto", _write(tmp_path, _raw("SM-SA")), "--all-topologies", "--generations",
+                                  "1", "--pop", "4", "--no-plots", "--out", out, "--transport", "inprocess")])
+    stdout = capsys.readouterr().out
+    assert code == 0
+    summary = json.loads((out / "summary.json").read_text())
+    ranked = summary["ranking"]["energy_wh_per_km"]
+    assert sorted(r["topology"] for r in ranked) == ["DM-DA", "IWM-DA", "IWM-SA", "SM-SA"]
+    assert [r["best"] for r in ranked] == sorted(r["best"] for r in ranked)
+    assert f"ranking by each front's best energy_wh_per_km (Wh/km): {ranked[0]['topology']} " in stdout
+    assert "ran on the thesis' efficiency map" in summary["caveats"][-1] and summary["caveats"][-1] in stdout

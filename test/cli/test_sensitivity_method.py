@@ -193,3 +193,19 @@ def test_the_point_line_names_the_design_beside_a_parameter(capsys):
                  "--at", "motor_kw=70,gear_ratio=9,battery_kwh=22"])
     first = capsys.readouterr().out.splitlines()[0]
     assert code == 0 and first.startswith("point: motor_kw=70, gear_ratio=9, battery_kwh=22, drag_area_m2=0.6412 ")
+
+
+def test_the_json_names_the_units_and_the_table_its_steps(capsys):
+    """A user trial: `first_order.*.derivative` is in Wh/km per kW, yet the JSON had no units, and the table's `step`
+    row no unit (a design variable's, and a model parameter's from --wrt)."""
+    import json
+
+    leaf = str(Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml")
+    args = ["sensitivity", leaf, "--transport", "inprocess", "--order", "1", "--wrt", "motor_kw,gear_ratio,load_kg"]
+    assert main([*args, "--json"]) == 0
+    units = json.loads(capsys.readouterr().out)["units"]
+    assert units == {"motor_kw": "kW", "gear_ratio": "1", "load_kg": "kg", "energy_wh_per_km": "Wh/km",
+                     "range_km": "km", "motor_speed_max_rad_s": "rad/s", "accel_time_0_100_s": "s"}
+    assert main(args) == 0
+    step = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("step "))
+    assert step.split()[1:] == ["0.008", "kW", "0.0008", "0.0069", "kg"]  # a ratio has no unit to print

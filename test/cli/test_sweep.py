@@ -113,6 +113,9 @@ def test_sweep_from_a_list(tmp_path):
     ("motor_kw,gear_ratio\n1_00,9\n", "design 1, column 'motor_kw': not a number: '1_00'"),  # it was 100 kW
     ("motor_kw,gear_ratio\n100,nan\n", "design 1, column 'gear_ratio': must be finite, got nan"),
     ("motor_kw,\n100,9\n", "the header has an empty name"),
+    # a column of labels was "design 1, column 'label': not a number: 'leaf'"
+    ("label,motor_kw\nleaf,80\n", "column 'label' is not a design variable or parameter; design variables: "
+                                   "['motor_kw', 'gear_ratio', 'battery_kwh'], parameters: ['air_density_kg_m3', "),
     ("motor_kw,gear_ratio\n", "no designs"),
 ])
 def test_a_malformed_list_is_one_line_naming_the_design_and_column(tmp_path, capsys, text, said):

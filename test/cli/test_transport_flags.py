@@ -173,3 +173,23 @@ def test_resume_lays_its_nodes_out_as_optimize_does(tmp_path, monkeypatch):
     assert main(["resume", bag, "--no-record", "--quiet"]) == 0
     assert main(["resume", bag, "--no-record", "--quiet", "--compose", "none", "--instances", "energy=2"]) == 0
     assert [(o.compose, o.instances) for o in seen] == [("coordinator", None), ("none", "energy=2")]
+
+
+@pytest.mark.parametrize("command", sorted(EVALUATING - {"pareto"}))
+def test_every_command_that_evaluates_designs_takes_no_record(command):
+    """evaluate --no-record was 'unrecognized arguments' while optimize, resume and sweep took it: a command that
+    never records takes it and does nothing, as asked, without offering it in its help."""
+    args = build_parser([command]).parse_args([command, *_required(command), "--no-record"])
+    assert args.no_record is True
+
+
+def test_evaluate_no_record_runs_and_pareto_says_why_it_cannot(capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["evaluate", CONFIG, "--set", "motor_kw=80", "--transport", "inprocess", "--no-record"]) == 0
+    assert capsys.readouterr().err == "" and list(tmp_path.iterdir()) == []
+    with pytest.raises(SystemExit) as exc:
+        main(["pareto", CONFIG, "--no-record"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["bev-mdo pareto: error: pareto --no-record: pareto always records its fronts, one per generation, "
+                   "in its bag (OUT/bag); drop --no-record"]

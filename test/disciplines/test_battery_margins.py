@@ -68,12 +68,14 @@ def test_an_optimiser_minimising_energy_does_not_end_at_a_pack_that_cannot_deliv
     """leaf_nedc on the quasi-static model without its range constraint, the battery from 1 kWh: a smaller pack
     is lighter, and below about 4.6 kWh it delivers less than the NEDC asks, so the energy per km falls
     further. SLSQP ends at 1 kWh (58 Wh/km, 31 kW short, SOC down to -0.31); with the battery margins
-    constrained >= 0 it ends at a pack that delivers the cycle."""
+    constrained >= 0 it ends at a pack that delivers the cycle. (The 0-100 km/h time's battery limit is off
+    here: with it, the 10 s constraint alone keeps the pack at 21.7 kWh.)"""
     from bev_mdo.mdo.driver import run_optimization
     from bev_mdo.mdo.evaluator import InProcessEvaluator
 
     raw = yaml.safe_load((ROOT / "config" / "leaf_nedc.yaml").read_text())
     raw["energy_model"] = "quasi_static"
+    raw["vehicle"]["battery_to_shaft_efficiency"] = 0.0
     raw["disciplines"] = ["vehicle_mass", {"name": "energy", "options": {"feasibility_outputs": True}}, "range",
                           "acceleration", "motor_speed", "cost"]
     raw["problem"]["design_variables"]["battery_kwh"].update(lower=1.0)

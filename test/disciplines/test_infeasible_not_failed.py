@@ -21,7 +21,8 @@ def test_a_design_over_its_speed_limit_or_short_of_power_is_evaluated_not_failed
     cfg = RunConfig.load(_leaf())
     acc = next(d for d in cfg.disciplines if d.name == "acceleration")
     res = run_discipline(acc, {"motor_kw": np.array([5.0, 80.0, 80.0]), "gear_ratio": np.array([8.0, 14.0, 8.0]),
-                               "vehicle_mass_kg": np.array([1550.0, 1590.0, 1590.0])})
+                               "vehicle_mass_kg": np.array([1550.0, 1590.0, 1590.0]),
+                               "battery_kwh": np.full(3, 24.0)})
     t = res.outputs["accel_time_0_100_s"]
     assert res.ok.all() and not res.point_errors
     assert t[0] >= NOT_REACHED_S and t[1] >= NOT_REACHED_S and 5 < t[2] < 15

@@ -87,3 +87,13 @@ def test_no_feasible_start_names_the_constraint_by_how_much_and_what_to_do():
     by = float(line.split("violated by ")[1].split(";")[0])
     assert 370 < by <= 500  # y1 <= 130 in the box
     assert line.endswith("(--initial NAME=X) or use another optimizer (SLSQP, COBYLA)") and "\n" not in line
+
+
+def test_the_iteration_limit_is_not_convergence():
+    """chebyshev-pairwise stopped by maxiter reported success (it was feasible), so a run cut short was said
+    to have converged ('chebyshev-pairwise says it converged, but the first-order conditions do not hold')
+    and the reason it stopped was never printed."""
+    cut = minimize(product_problem, [4, 4, 4], [0.5] * 3, [5] * 3, {"maxiter": 1})
+    assert not cut.success and cut.message == "maximum number of iterations reached" and cut.nit == 1
+    done = minimize(product_problem, [4, 4, 4], [0.5] * 3, [5] * 3, {})
+    assert done.success and done.message == "trust box below xtol"

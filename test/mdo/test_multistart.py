@@ -124,3 +124,44 @@ def test_cobyqa_starts_run_one_after_another_instead_of_waiting_for_each_other()
     res = out["res"]
     assert res.multistart["batched"] is False and len(res.multistart["results"]) == 3
     assert res.objective == pytest.approx(REF_F, rel=1e-5) and res.feasible
+
+
+def _leaf_mass():
+    """leaf_nedc minimising the vehicle's mass, without the range and 0-100 limits: nothing pins the gear ratio,
+    and at 40 kW a low gear cannot follow the NEDC (a user trial)."""
+    import yaml
+
+    from bev_mdo.config import RunConfig
+
+    raw = yaml.safe_load((Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml").read_text())
+    raw["problem"].update(objective="vehicle_mass_kg", constraints={"motor_speed_max_rad_s": {"upper": 1000}})
+    return RunConfig.load(raw)
+
+
+def test_a_start_whose_motor_cannot_follow_the_cycle_is_judged_so_in_its_records_verdict_and_the_choice():
+    """--starts 3 --seed 1 returned a start ending at 40 kW, 3.29:1, its verdict 'optimum' and its records
+    feasible, and only the final check said it cannot follow the cycle: the run's answer was infeasible while two
+    starts reached the same mass at gears that follow it. Records, verdicts and the choice judge as the final
+    verdict does."""
+    from bev_mdo.api.evaluate import notes_of
+    from bev_mdo.mdo.driver import evaluate_design
+
+    config = _leaf_mass()
+    ev = InProcessEvaluator(config.timed_disciplines())
+    records = []
+    res = run_starts(config.settings, ev, 3, seed=1, callback=records.append)
+
+    def follows(design: dict) -> bool:  # the check itself, on a fresh analysis of the design
+        rep = evaluate_design(config.settings, ev, design)
+        return not notes_of(config, design, rep["outputs"])[0]
+
+    assert res.feasible and res.verdict == "optimum" and follows(res.design)
+    assert res.objective == pytest.approx(1537.52, rel=1e-6)
+    ms = res.multistart
+    for r in ms["results"]:  # each start's verdict as the run's own would be
+        assert r["feasible"] == follows(r["design"]) and (r["verdict"] == "infeasible") == (not r["feasible"])
+    shorts = [rec for rec in records if rec["max_violation"] == 0 and not follows(rec["design"])]
+    assert shorts and not any(rec["feasible"] for rec in shorts)  # within the limits, but judged as the verdict is
+    assert all(follows(rec["design"]) for rec in records if rec["feasible"])
+    assert ms["feasible"] == sum(r["feasible"] for r in ms["results"]) < 3
+    assert ms["reached_best"] == ms["feasible"]  # every feasible start reached the same mass, at its own gear

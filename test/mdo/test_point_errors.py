@@ -7,6 +7,7 @@ import pytest
 from bev_mdo.mdo.discipline import Discipline, EvalResult, PointError, join_errors, run_discipline
 from bev_mdo.mdo.evaluator import InProcessEvaluator
 from bev_mdo.mdo.mda import MDA
+from bev_mdo.mdo.vectors import ShapeError
 from flow_toys import LOOP_X, Square, chain, loop  # test/mdo is on sys.path (conftest.py)
 
 X = {"x": np.array([1.0, -1.0, 2.0, 3.0, 4.0]), "z": np.array([0.0, 0.0, 9.0, 1.0, 2.0])}
@@ -34,6 +35,20 @@ def test_a_complex_output_fails_its_points_with_one_line_not_a_warning(recwarn):
     assert res.point_errors[0] == PointError("root: ValueError: output 'y' is complex, e.g. 2j: return real numbers",
                                              "x=-4")
     assert not [w for w in recwarn if issubclass(w.category, np.exceptions.ComplexWarning)]
+
+
+@pytest.mark.parametrize("text", [np.array(["3.5", "4"]), ["3.5", 4.0], "3.5"])
+def test_text_for_an_output_is_refused_naming_the_discipline_and_output(text):
+    """It was converted without a word ('3.5' became 3.5)."""
+    class Texty(Discipline):
+        name, inputs, outputs, broadcast_outputs = "texty", ("x",), ("y",), ("y",)
+
+        def compute(self, inputs):
+            return {"y": text}
+
+    with pytest.raises(ShapeError) as err:
+        run_discipline(Texty(), {"x": np.array([1.0, 2.0])})
+    assert str(err.value) == "discipline 'texty': output 'y' is text ('3.5'), not a number: return numbers"
 
 
 def test_a_renumbered_result_moves_its_point_errors_and_text():

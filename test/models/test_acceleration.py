@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, strategies as st
 from scipy.integrate import quad
 
-from bev_mdo.models import topology as tp
+from bev_mdo.models import topology as tp, topology_accel as ta
 from bev_mdo.models.acceleration import accel_time_0_100_s, accel_time_s
 from bev_mdo.models.params import VEHICLE_SPECS, load_parameter_set
 
@@ -90,9 +90,9 @@ def test_1000_kw_in_1500_kg_is_grip_bound():
 def test_every_topology_is_grip_bound_with_its_driven_axles(topology, share, rear):
     t = tp.get_topology(topology)
     gears = {"gear_ratio": 8.0, **({"gear_ratio_rear": 8.0} if t.two_axles else {})} if t.geared else {}
-    got = tp.accel_time_s(topology, 1500.0, 1000.0, **gears, **rear)[0]
+    got = ta.accel_time_s(topology, 1500.0, 1000.0, **gears, **rear)[0]
     assert got == pytest.approx(grip_bound_time(1500.0, share), rel=1e-12)
-    mu = tp.accel_time_s(topology, 1500.0, 1000.0, **gears, **rear, params={"tyre_grip_coefficient": 0.8,
+    mu = ta.accel_time_s(topology, 1500.0, 1000.0, **gears, **rear, params={"tyre_grip_coefficient": 0.8,
                                                                             "driven_axle_load_share": 0.5})[0]
     assert mu == pytest.approx(grip_bound_time(1500.0, share if share == 1.0 else 0.5, mu=0.8), rel=1e-12)
 
@@ -105,7 +105,7 @@ def test_grip_binding_part_of_the_way_is_integrated_exactly():
     v_grip = kw * 1e3 * eta / grip
     ref = fine_time(lambda v: min(grip, kw * 1e3 * eta / max(v, 1e-9)) - road(v, m), m, [v_grip])
     assert accel_time_0_100_s(np.array([kw]), np.array([ig]), np.array([m]))[0] == pytest.approx(ref, rel=1e-12)
-    assert tp.accel_time_s("SM-SA", m, kw, ig)[0] == pytest.approx(ref, rel=1e-12)
+    assert ta.accel_time_s("SM-SA", m, kw, ig)[0] == pytest.approx(ref, rel=1e-12)
 
 
 def test_two_speed_grip_binding_only_in_second_gear_is_integrated_exactly():
@@ -121,7 +121,7 @@ def test_two_speed_grip_binding_only_in_second_gear_is_integrated_exactly():
     assert drive(1.0) < grip < drive(p["shift_speed_m_s"])
     corners = [p["shift_speed_m_s"], 1000 / 3.5 * r / 3.0, kw * 1e3 * eta / grip]
     ref = fine_time(lambda v: min(drive(v), grip) - road(v, m), m, corners)
-    assert tp.accel_time_s("SM-SA", m, kw, 3.0, params=p)[0] == pytest.approx(ref, rel=1e-12)
+    assert ta.accel_time_s("SM-SA", m, kw, 3.0, params=p)[0] == pytest.approx(ref, rel=1e-12)
 
 
 def test_dm_da_with_unequal_axles_is_integrated_exactly():
@@ -137,7 +137,7 @@ def test_dm_da_with_unequal_axles_is_integrated_exactly():
     bases = [1000 / 3.5 * r / 12.0, 1000 / 3.5 * r / 5.0]
     assert bases[0] < v_grip < bases[1] and drive(v_grip) == pytest.approx(grip, rel=1e-12)
     ref = fine_time(lambda v: min(drive(v), grip) - road(v, m), m, [*bases, v_grip])
-    assert tp.accel_time_s("DM-DA", m, 120.0, 12.0, 150.0, 5.0)[0] == pytest.approx(ref, rel=1e-12)
+    assert ta.accel_time_s("DM-DA", m, 120.0, 12.0, 150.0, 5.0)[0] == pytest.approx(ref, rel=1e-12)
 
 
 def test_the_time_has_the_right_derivative_where_the_grip_binds():
@@ -150,7 +150,7 @@ def test_the_time_has_the_right_derivative_where_the_grip_binds():
                   epsabs=0, epsrel=1e-12)[0]
     h = 1e-3
     for f in (lambda p: accel_time_0_100_s(np.array([p]), np.array([ig]), np.array([m]))[0],
-              lambda p: tp.accel_time_s("SM-SA", m, p, ig)[0]):
+              lambda p: ta.accel_time_s("SM-SA", m, p, ig)[0]):
         assert (f(kw + h) - f(kw - h)) / (2 * h) == pytest.approx(exact, rel=1e-6)
 
 
@@ -170,24 +170,30 @@ CASES = {"SM-SA": SM_SA, "SM-SA two-speed": SM_SA, "DM-DA": tuple(RANGES), "IWM-
 
 @pytest.mark.parametrize("case", ["flat SM-SA", *CASES])
 def test_the_thesis_parameter_set_gives_the_model_without_grip(case):
-    """parameter_set thesis (tyre_grip_coefficient 0) reproduces the times before the grip limit on 200
-    designs up to 1000 kW (most of which the default grip limit slows down)."""
+    """parameter_set thesis (tyre_grip_coefficient 0, battery_to_shaft_efficiency 0) reproduces the times
+    before the grip and battery limits on 200 designs up to 1000 kW on an 18 kWh pack (most of which the
+    default grip limit slows down, and the default battery limit more)."""
     want = np.array([np.inf if x is None else x for x in json.loads(REFERENCE.read_text())[case]])
     th = load_parameter_set("thesis")
     names = CASES.get(case, CASES["SM-SA"])
     d = designs(200, {k: RANGES[k] for k in names})
+    kwh = np.full(200, 18.0)
     if case == "flat SM-SA":
-        got = accel_time_0_100_s(d["motor_kw"], d["gear_ratio"], d["vehicle_mass_kg"], th)
-        default = accel_time_0_100_s(d["motor_kw"], d["gear_ratio"], d["vehicle_mass_kg"])
+        args = (d["motor_kw"], d["gear_ratio"], d["vehicle_mass_kg"])
+        got = accel_time_0_100_s(*args, th, battery_kwh=kwh)
+        default = accel_time_0_100_s(*args)
+        battery = accel_time_0_100_s(*args, battery_kwh=kwh)
     else:
         extra = {"gear_count": 2.0} if "two-speed" in case else {}
         args = (case.split()[0], d["vehicle_mass_kg"], d["motor_kw"], d.get("gear_ratio"), d.get("motor_rear_kw"),
                 d.get("gear_ratio_rear"))
-        got = tp.accel_time_s(*args, params={**th, **extra})
-        default = tp.accel_time_s(*args, params=extra)
+        got = ta.accel_time_s(*args, params={**th, **extra}, battery_kwh=kwh)
+        default = ta.accel_time_s(*args, params=extra)
+        battery = ta.accel_time_s(*args, params=extra, battery_kwh=kwh)
     np.testing.assert_array_equal(np.isinf(got), np.isinf(want))
     np.testing.assert_allclose(got[np.isfinite(want)], want[np.isfinite(want)], rtol=1e-12)
-    assert np.sum(default > want * (1 + 1e-9)) > 100  # the set does switch the limit off
+    assert np.sum(default > want * (1 + 1e-9)) > 100  # the set does switch the grip limit off
+    assert np.sum(battery > default * (1 + 1e-9)) > 100  # and the battery limit
 
 
 @pytest.mark.parametrize("name, value", [("tyre_grip_coefficient", -0.1), ("tyre_grip_coefficient", 2.5),
@@ -196,7 +202,7 @@ def test_bad_grip_parameters_are_one_line(name, value):
     with pytest.raises(ValueError, match=f"^{name} must be"):
         accel_time_0_100_s(np.array([80.0]), np.array([8.0]), np.array([1590.0]), {name: value})
     with pytest.raises(ValueError, match=f"^{name} must be"):
-        tp.accel_time_s("SM-SA", 1590.0, 80.0, 8.0, params={name: value})
+        ta.accel_time_s("SM-SA", 1590.0, 80.0, 8.0, params={name: value})
 
 
 def test_a_design_that_cannot_reach_100_km_h_gets_the_continuation_value_of_its_top_speed():
@@ -240,8 +246,8 @@ def test_the_topology_model_gives_the_same_continuation(topology, args):
     from bev_mdo.models.acceleration import NOT_REACHED_S
 
     m = np.full(args[0].shape, 1550.0)
-    t = tp.accel_time_s(topology, m, *args, continuation=True)
-    plain = tp.accel_time_s(topology, m, *args)
+    t = ta.accel_time_s(topology, m, *args, continuation=True)
+    plain = ta.accel_time_s(topology, m, *args)
     assert np.all(np.isfinite(t)) and np.array_equal(np.isinf(plain), t >= NOT_REACHED_S)
     assert np.array_equal(t[np.isfinite(plain)], plain[np.isfinite(plain)])
     if topology == "SM-SA":

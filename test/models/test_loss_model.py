@@ -65,9 +65,11 @@ def test_in_wheel_scaling_is_the_maps():
 
 def test_the_thesis_parameter_set_is_the_thesis_model():
     """The named set 'thesis' resolves to the defaults the thesis' tables are reproduced with, but for the
-    tyre-grip limit of the 0-100 km/h time, which the thesis has not (on by default, off in the set)."""
+    tyre-grip and battery limits of the 0-100 km/h time, which the thesis has not (on by default, off in the
+    set)."""
     thesis, default = validate_vehicle({"parameter_set": "thesis"}), validate_vehicle({})
-    assert {k: v for k, v in thesis.items() if v != default[k]} == {"tyre_grip_coefficient": 0.0}
+    assert {k: v for k, v in thesis.items() if v != default[k]} == {"tyre_grip_coefficient": 0.0,
+                                                                    "battery_to_shaft_efficiency": 0.0}
     assert validate_vehicle({"parameter_set": "thesis"})["motor_loss_model"] == 0.0
 
 

@@ -119,13 +119,13 @@ def test_documented_gaps_to_table_4_5_are_the_computed_ones(gap):
 
 def test_documented_benchmark_times_beside_table_4_4():
     """The docs said `parameter_set: thesis` gave the thesis' times exactly; only SM-SA's matches."""
-    from bev_mdo.models import topology as tp
+    from bev_mdo.models import topology_accel as ta
     from bev_mdo.studies.topologies import BENCHMARK, THESIS_4_5
 
     text = DOC.replace("\n", " ")
     for t in t4.TOPOLOGIES:
         d = BENCHMARK[t]
-        ours = float(tp.accel_time_s(t, t4.benchmark_mass_kg(t), d["motor_kw"], d.get("gear_ratio"), d.get("motor_rear_kw"),
+        ours = float(ta.accel_time_s(t, t4.benchmark_mass_kg(t), d["motor_kw"], d.get("gear_ratio"), d.get("motor_rear_kw"),
                                      d.get("gear_ratio_rear"), params={**t4.BASE_PARAMS, "tyre_grip_coefficient": 0.0})[0])
         thesis = THESIS_4_5[t][1]
         assert f"| {ours:.2f} / {thesis:g} |" in DOC, t

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from bev_mdo.models import acceleration, motor_map as mm, quasi_static as qs, topology as tp
+from bev_mdo.models import acceleration, motor_map as mm, quasi_static as qs, topology as tp, topology_accel as ta
 from bev_mdo.models.cycles import load_cycle, resample
 from bev_mdo.models.motor_map import MAX_SPEED_RAD_S
 from bev_mdo.models.params import validate_vehicle
@@ -167,7 +167,7 @@ def test_sm_sa_is_the_quasi_static_model(nedc):
     a = tp.simulate(nedc, P, "SM-SA", [1590.0, 1650.0], [80.0, 100.0], 24.0, [7.9, 6.0])
     b = qs.simulate(nedc, P, [1590.0, 1650.0], [7.9, 6.0], [80.0, 100.0], 24.0)
     np.testing.assert_array_equal(a.energy_wh_per_km, b.energy_wh_per_km)
-    t1 = tp.accel_time_s("SM-SA", [1590.0, 1700.0], [80.0, 60.0], [7.9, 9.0], params=P)
+    t1 = ta.accel_time_s("SM-SA", [1590.0, 1700.0], [80.0, 60.0], [7.9, 9.0], params=P)
     t2 = acceleration.accel_time_0_100_s(np.array([80.0, 60.0]), np.array([7.9, 9.0]), np.array([1590.0, 1700.0]), P)
     np.testing.assert_allclose(t1, t2, rtol=1e-12)
 
@@ -211,7 +211,7 @@ def test_acceleration_in_wheel_by_hand():
     v = np.linspace(0, 100 / 3.6, 200001)
     y = m / f(v)
     ref = float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(v)))
-    assert float(tp.accel_time_s("IWM-SA", m, 40.0, params=P)[0]) == pytest.approx(ref, rel=1e-5)
+    assert float(ta.accel_time_s("IWM-SA", m, 40.0, params=P)[0]) == pytest.approx(ref, rel=1e-5)
 
 
 def test_two_axle_energy_runs_and_regen_returns(nedc):
@@ -287,10 +287,37 @@ def test_the_chapter_4_study_is_the_thesis_model_without_grip_limit():
     from bev_mdo.config import load_config, resolve_disciplines
 
     acc = {d.name: d for d in resolve_disciplines(load_config(_artemis("SM-SA", DVS["SM-SA"])))}["acceleration"]
-    x = {"motor_kw": np.array([130.0]), "gear_ratio": np.array([9.4]), "vehicle_mass_kg": np.array([1616.6])}
+    x = {"motor_kw": np.array([130.0]), "gear_ratio": np.array([9.4]), "vehicle_mass_kg": np.array([1616.6]),
+         "battery_kwh": np.array([18.0])}
     got = acc.compute(x)["accel_time_0_100_s"][0]
-    thesis = tp.accel_time_s("SM-SA", 1616.6, 130.0, 9.4, params={"tyre_grip_coefficient": 0.0})[0]
-    assert got == pytest.approx(thesis, rel=1e-12) and tp.accel_time_s("SM-SA", 1616.6, 130.0, 9.4)[0] > thesis + 0.4
+    thesis = ta.accel_time_s("SM-SA", 1616.6, 130.0, 9.4, params={"tyre_grip_coefficient": 0.0})[0]
+    assert got == pytest.approx(thesis, rel=1e-12) and ta.accel_time_s("SM-SA", 1616.6, 130.0, 9.4)[0] > thesis + 0.4
+
+
+@pytest.mark.parametrize("topo, design", [
+    ("SM-SA", {"motor_kw": 126.0, "gear_ratio": 7.9}),
+    ("DM-DA", {"motor_kw": 63.0, "gear_ratio": 7.9, "motor_rear_kw": 63.0, "gear_ratio_rear": 7.9}),
+    ("IWM-SA", {"motor_kw": 63.0}), ("IWM-DA", {"motor_kw": 92.0, "motor_rear_kw": 92.0})])
+def test_the_acceleration_discipline_holds_the_motors_to_the_pack_power(topo, design):
+    """The discipline reads battery_kwh: on the chapter-4 study without the thesis set, more motor than the pack
+    gives at 5C is held to the pack's power (the time of the model with that pack); with the set, as before."""
+    from bev_mdo.config import load_config, resolve_disciplines
+
+    raw = _artemis(topo, DVS[topo])
+    acc = {d.name: d for d in resolve_disciplines(load_config(raw))}["acceleration"]
+    raw["vehicle"].pop("parameter_set")
+    held = {d.name: d for d in resolve_disciplines(load_config(raw))}["acceleration"]
+    assert "battery_kwh" in acc.inputs and "battery_kwh" in held.inputs
+    x = {**{k: np.array([v]) for k, v in design.items()}, "vehicle_mass_kg": np.array([1650.0]),
+         "battery_kwh": np.array([21.6])}
+    args = (topo, 1650.0, design["motor_kw"], design.get("gear_ratio"), design.get("motor_rear_kw"),
+            design.get("gear_ratio_rear"))
+    p = {"wheel_radius_m": 0.316, "gear_efficiency": 0.97, "initial_soc": 0.9}
+    thesis = ta.accel_time_s(*args, params={**p, "tyre_grip_coefficient": 0.0, "battery_to_shaft_efficiency": 0.0})[0]
+    assert acc.compute(x)["accel_time_0_100_s"][0] == pytest.approx(thesis, rel=1e-12)
+    limited = ta.accel_time_s(*args, params=p, battery_kwh=21.6)[0]
+    assert held.compute(x)["accel_time_0_100_s"][0] == pytest.approx(limited, rel=1e-12)
+    assert limited > ta.accel_time_s(*args, params=p)[0] + 1.0
 
 
 @pytest.mark.parametrize("topo", tp.TOPOLOGIES)

@@ -3,9 +3,11 @@ the ROS graph, or never reached it, is killed while it runs and restarted by the
 node on the graph is never touched, however long; nothing is done once the launcher stops."""
 from __future__ import annotations
 
+import signal
+
 import pytest
 
-from bev_mdo.launcher import Launcher, cpu_ticks
+from bev_mdo.launcher import Launcher, NodeProcess, cpu_ticks
 from bev_mdo.processes import composed_argv, discipline_argv, node_names_of
 from bev_mdo.ros.watchdog import HangWatchdog
 from bev_mdo.testing import PYTHON, wait_until
@@ -43,6 +45,43 @@ def test_a_node_that_leaves_the_graph_is_killed_and_restarted(launcher):
     assert node.hangs == 1
     assert wait_until(lambda: node.restarts == 1 and node.proc.pid != first)  # the supervisor restarted it
     assert not node.seen and node.missing_since is None  # watched afresh from its restart
+
+
+class Dying:
+    """A process SIGKILLed that the kernel has not yet ended (poll() None): on a loaded host, the
+    moment after the watchdog's kill, which a look by the coordinator blocked on the launcher's lock
+    (during the watchdog's 0.3 s wait for the stack dump) meets."""
+
+    pid, returncode = 2**22 + 1, None  # no such process: no CPU time
+
+    def __init__(self):
+        self.signals = []
+
+    def poll(self):
+        return self.returncode
+
+    def send_signal(self, sig):
+        self.signals.append(sig)
+
+    def kill(self):
+        self.signals.append(signal.SIGKILL)
+
+    def wait(self, timeout=None):
+        self.returncode = -9
+        return self.returncode
+
+
+def test_a_node_killed_as_hung_is_recovering_before_the_kernel_ended_it_and_is_killed_once(launcher):
+    node = NodeProcess("vehicle_mass", [], proc=Dying(), ros_names=("vehicle_mass_node_x",), seen=True)
+    launcher.nodes.append(node)
+    dog = HangWatchdog(launcher, 0, silent_s=7.0, start_s=45.0)
+    assert dog.check(set(), 100.0) == [] and launcher.recovering("vehicle_mass")  # gone from the graph
+    assert dog.check(set(), 107.5) == ["vehicle_mass"] and node.proc.poll() is None
+    assert launcher.recovering("vehicle_mass")  # killed, still ending: a coordinator's look must see the restart
+    assert dog.check(set(), 1000.0) == [] and node.hangs == 1  # not killed (nor counted) twice
+    assert node.proc.signals.count(signal.SIGKILL) == 1
+    node.proc.wait()
+    assert launcher.recovering("vehicle_mass")  # dead, not yet restarted
 
 
 def test_a_node_that_never_appears_is_killed_after_start_s_once_it_uses_no_cpu(launcher, tmp_path):

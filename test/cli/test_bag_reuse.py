@@ -1,0 +1,96 @@
+"""A --bag folder that another run wrote into without leaving a bag (stopped before its recorder started, or
+`--no-record --bag DIR` over ROS) holds that run's logs/: a second run into it was taken, and its node logs went
+beside the first run's (appended to files of the same name), read as its own. A bag there is refused; so are
+another run's logs and end-of-run record now, with the same one line, before anything is written."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from bev_mdo.cli import main
+
+LEAF = str(Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml")
+
+
+def _left(folder: Path, name: str) -> dict:
+    if name == "logs":  # as a run over ROS stopped before its recorder started leaves them
+        (folder / "logs" / "ros").mkdir(parents=True)
+        (folder / "logs" / "config.yaml").write_text("name: first\n")
+        (folder / "logs" / "ros" / "python_1_1.log").write_text("[INFO] first run\n")
+    else:
+        folder.mkdir(parents=True)
+        (folder / name).write_text("{}\n")
+    return {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+
+
+@pytest.mark.parametrize("left", ["logs", "answers.json"])
+@pytest.mark.parametrize("argv", [["--transport", "inprocess"], ["--transport", "ros", "--no-record"]],
+                         ids=["inprocess", "ros-no-record"])
+def test_a_bag_folder_holding_another_runs_files_is_refused_in_one_line(tmp_path, capsys, left, argv):
+    bag = tmp_path / "b"
+    before = _left(bag, left)
+    assert main(["optimize", LEAF, "--bag", str(bag), "--quiet", *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    said = "logs/" if left == "logs" else left
+    assert err == [f"bev-mdo optimize: error: --bag {bag}: holds another run's {said}; choose a new directory"]
+    assert {p: p.read_bytes() for p in bag.rglob("*") if p.is_file()} == before  # nothing written, nothing removed
+
+
+def test_an_empty_folder_is_taken(tmp_path, capsys):
+    bag = tmp_path / "b"
+    (bag / "logs").mkdir(parents=True)  # made by hand, empty
+    assert main(["optimize", LEAF, "--bag", str(bag), "--quiet", "--transport", "inprocess"]) == 0
+    assert (bag / "b_0.mcap").is_file()
+
+
+def test_a_plain_file_named_logs_is_refused_as_what_it_is(tmp_path, capsys):
+    bag = tmp_path / "b"
+    bag.mkdir()
+    (bag / "logs").write_text("my notes\n")
+    assert main(["optimize", LEAF, "--bag", str(bag), "--quiet", "--transport", "inprocess"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"bev-mdo optimize: error: --bag {bag}: holds a file named logs (a run writes its logs/ there); "
+                   "choose a new directory"]
+
+
+def _holding(out: Path, what: str) -> dict:
+    """`out` as an earlier run left it: its bag in the folder itself (optimize --bag OUT), or its logs/."""
+    from bev_mdo.bag.writer import BagWriter
+
+    if what == "bag":
+        BagWriter(out, metadata={"run_id": "first"}).close()
+        return {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    return _left(out, what)
+
+
+@pytest.mark.parametrize("held, said", [("bag", "a bag already exists there"), ("logs", "holds another run's logs/"),
+                                        ("answers.json", "holds another run's answers.json")])
+@pytest.mark.parametrize("command", [
+    ["sweep", LEAF, "--vary", "motor_kw=70,90", "--no-plots", "--transport", "inprocess"],
+    ["pareto", LEAF, "--objectives", "energy_wh_per_km,accel_time_0_100_s", "--generations", "1", "--pop", "4",
+     "--transport", "inprocess"]], ids=["sweep", "pareto"])
+def test_an_out_folder_holding_another_runs_bag_or_files_is_refused(tmp_path, capsys, command, held, said):
+    """Only OUT/bag was checked: `sweep --out OUT` (`pareto --out OUT`) into an optimize run's bag folder was taken,
+    and `resume OUT` then resumed the old optimize run. The line names the folder as given, not OUT/bag."""
+    out = tmp_path / "out"
+    before = _holding(out, held)
+    assert main([*command, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"bev-mdo {command[0]}: error: --out {out}: {said}; choose a new directory"]
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+
+
+@pytest.mark.parametrize("command", [
+    ["sweep", LEAF, "--vary", "motor_kw=70,90", "--no-plots", "--transport", "inprocess"],
+    ["pareto", LEAF, "--objectives", "energy_wh_per_km,accel_time_0_100_s", "--generations", "1", "--pop", "4",
+     "--transport", "inprocess"]], ids=["sweep", "pareto"])
+def test_an_out_folder_of_a_finished_run_is_named_as_given(tmp_path, capsys, command):
+    out = tmp_path / "out"
+    from bev_mdo.bag.writer import BagWriter
+
+    BagWriter(out / "bag", metadata={"run_id": "first"}).close()
+    assert main([*command, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"bev-mdo {command[0]}: error: --out {out}: a run's output folder, its bag in bag/; choose a new "
+                   "directory"]

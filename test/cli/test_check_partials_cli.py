@@ -1,0 +1,28 @@
+"""bev-mdo check-partials says what it checked."""
+from pathlib import Path
+
+from bev_mdo.cli import main
+
+LEAF = Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml"
+
+
+def test_nothing_to_check_is_not_called_agreement(capsys):
+    """The acceleration discipline has no analytic partials: the check printed 'all analytic partials agree
+    with finite differences' although it compared nothing."""
+    assert main(["check-partials", str(LEAF), "--discipline", "acceleration"]) == 0
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert last.startswith("nothing checked: no discipline checked here declares analytic partials")
+    assert main(["check-partials", str(LEAF), "--discipline", "range"]) == 0  # eq 7-28's partials
+    assert capsys.readouterr().out.strip().splitlines()[-1] == "all analytic partials agree with finite differences"
+
+
+def test_check_totals_does_not_call_noise_about_zero_its_largest_relative_error():
+    """A total of 0 against finite differences of 8e-11 (both within atol) was the 'largest relative error 1'."""
+    from bev_mdo.cli.check_totals import summary
+
+    row = lambda of, a, b: {"of": of, "wrt": "x", "total": a, "fd": b, "abs_error": abs(a - b),
+                            "rel_error": abs(a - b) / max(abs(a), abs(b)) if max(abs(a), abs(b)) else 0.0}
+    rep = {"atol": 1e-6, "ok": True, "rows": [row("g", 0.0, 8e-11), row("f", 2.0, 2.000004)]}
+    assert summary(rep).startswith("largest relative error 2e-06 (d f / d x) among the differences above atol 1e-06")
+    rep["rows"] = rep["rows"][:1]
+    assert summary(rep) == "every difference is within atol 1e-06; all totals agree with finite differences"

@@ -1,0 +1,134 @@
+"""The notes under optimize's verdict, from user trials: a design variable nothing depends on at the optimum
+(y = x1 + 0 x2 ended 'verdict: optimum' with x2 at its start, no word that any x2 is as good); an optimiser that
+says it converged where the first-order check does not agree (a partial 20 % wrong: no hint of the cause); and
+multi-start's count of the starts reaching the best objective wherever their designs are ('1 of 4 starts reached
+the best point' when all four had)."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from bev_mdo.cli import main
+
+MODULE = '''
+import numpy as np
+
+class Flat:
+    name = "toy"
+    inputs = ("x1", "x2")
+    outputs = ("y", "q")
+    units = {"x1": "1", "x2": "1", "y": "1", "q": "1"}
+    curved = False
+
+    def compute(self, inputs):
+        x1, x2 = inputs["x1"], inputs["x2"]
+        return {"y": x1 + ((x2 - 0.3) ** 2 if self.curved else 0.0 * x2), "q": x1 ** 2 + 0.0 * x2}
+
+
+class Curved(Flat):
+    curved = True
+
+
+class ConWrong:
+    """f = x1 + x2, g = x1 x2; its partial dg/dx1 is 1.2 x2 (20 % wrong)."""
+    name = "conwrong"
+    inputs = ("x1", "x2")
+    outputs = ("f", "g")
+    units = {"x1": "1", "x2": "1", "f": "1", "g": "1"}
+
+    def compute(self, inputs):
+        return {"f": inputs["x1"] + inputs["x2"], "g": inputs["x1"] * inputs["x2"]}
+
+    def compute_partials(self, inputs):
+        one = np.ones(len(inputs["x1"]))
+        return {("f", "x1"): one, ("f", "x2"): one, ("g", "x1"): 1.2 * inputs["x2"], ("g", "x2"): inputs["x1"]}
+'''
+
+
+def _config(tmp_path, kind: str) -> str:
+    (tmp_path / "toys.py").write_text(MODULE)
+    path = tmp_path / f"{kind}.yaml"
+    path.write_text(f"""name: {kind}
+search_path: [{tmp_path}]
+disciplines:
+  - {{name: toy, class: "toys:{kind.title()}"}}
+problem:
+  objective: y
+  design_variables:
+    x1: {{lower: 0, upper: 1, initial: 0.5}}
+    x2: {{lower: 0, upper: 1, initial: 0.5}}
+  constraints:
+    q: {{upper: 10}}
+""")
+    return str(path)
+
+
+def _optimize(path, *argv):
+    return main(["optimize", path, "--transport", "inprocess", "--no-record", "--quiet", *argv])
+
+
+def test_a_variable_nothing_depends_on_gets_a_note_and_one_held_by_curvature_does_not(tmp_path, capsys):
+    assert _optimize(_config(tmp_path, "flat")) == 0
+    notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note: ")]
+    assert len(notes) == 1 and "zero in x2 = 0.5 at the optimum" in notes[0] and "x1" not in notes[0]
+    assert "neither on a bound nor in an active constraint" in notes[0] and "the optimum is not unique in it" in notes[0]
+    assert _optimize(_config(tmp_path, "flat"), "--json") == 0
+    fo = json.loads(capsys.readouterr().out)["first_order"]
+    assert [v["name"] for v in fo["free_variables"]] == ["x2"] and fo["verdict"] == "optimum"
+    # (x2 - 0.3)^2: its gradient is zero at the optimum too, but the optimum is unique in it
+    assert _optimize(_config(tmp_path, "curved"), "--json") == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["design"]["x2"] == pytest.approx(0.3, abs=1e-3) and "free_variables" not in doc["first_order"]
+
+
+def test_multistart_counts_the_starts_reaching_the_best_objective_at_other_designs(tmp_path, capsys):
+    assert _optimize(_config(tmp_path, "flat"), "--starts", "4") == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("multi-start:"))
+    assert line.startswith("multi-start: 4 of 4 starts reached the best objective")
+    assert "3 of them at another design" in line and "the optimum is not unique" in line
+    assert "4 of 4 ended feasible; verdicts: 4 optimum" in line
+
+
+def test_a_converged_claim_the_check_does_not_share_points_at_the_derivatives(tmp_path, capsys):
+    (tmp_path / "toys.py").write_text(MODULE)
+    path = tmp_path / "conwrong.yaml"
+    path.write_text(f"""name: conwrong
+search_path: [{tmp_path}]
+disciplines:
+  - {{name: conwrong, class: "toys:ConWrong"}}
+problem:
+  objective: f
+  design_variables:
+    x1: {{lower: 0.1, upper: 5, initial: 3}}
+    x2: {{lower: 0.1, upper: 5, initial: 3}}
+  constraints:
+    g: {{lower: 1}}
+optimizer: {{name: SLSQP, derivatives: analytic}}
+""")
+    assert _optimize(str(path)) == 5
+    out = capsys.readouterr().out
+    assert "verdict: stopped before convergence" in out
+    notes = [line for line in out.splitlines() if line.startswith("note: ")]
+    assert len(notes) == 1 and notes[0].startswith("note: SLSQP says it converged, but the first-order conditions do "
+                                                   "not hold at its end point (judged on the gradient assembled from "
+                                                   "the disciplines' analytic partials")
+    assert "bev-mdo check-partials CONFIG" in notes[0] and "bev-mdo check-totals CONFIG" in notes[0]
+    assert _optimize(str(path), "--json") == 5
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["optimizer_success"] and doc["first_order"]["derivatives"] == "analytic"
+
+
+def test_a_converged_claim_on_finite_differences_points_to_the_stopping_rule_not_the_partials(tmp_path, capsys):
+    """SLSQP with ftol 1e-2 on the Leaf (every derivative by finite differences) stopped short and the note
+    blamed 'a wrong derivative' and sent the user to check-partials, which has nothing to check there."""
+    raw = yaml.safe_load((Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml").read_text())
+    raw["optimizer"]["options"] = {"ftol": 1e-2}
+    path = tmp_path / "loose.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    assert _optimize(str(path), "--constraint", "accel_time_0_100_s<=8") == 5
+    notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note: ")]
+    assert len(notes) == 1 and "judged on finite differences" in notes[0]
+    assert "ftol" in notes[0] and "check-partials" not in notes[0]
