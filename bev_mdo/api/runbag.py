@@ -241,9 +241,11 @@ def in_use(folder: Path, kind: str = "bag directory") -> str:
         return f"holds another run's {' and '.join(left)}; choose a new directory"
     if odd:
         return f"holds {' and '.join(odd)}; choose a new directory"
-    inner = next((d for d in (folder.iterdir() if folder.is_dir() else ()) if d.is_dir() and holds_bag(d)), None)
-    if inner is not None:  # a run's output folder (sweep's, pareto's): its readers would take the new bag
-        return f"a run's output folder, its bag in {inner.name}/; choose a new directory"
+    inner = sorted(d.name + "/" for d in (folder.iterdir() if folder.is_dir() else ()) if d.is_dir() and holds_bag(d))
+    if len(inner) == 1:  # a run's output folder (sweep's, pareto's): its readers would take the new bag
+        return f"a run's output folder, its bag in {inner[0]}; choose a new directory"
+    if inner:  # a folder of runs (bags/): a bag beside theirs would make it one run's output folder
+        return f"holds {len(inner)} runs' bags ({', '.join(inner[:3])}{', ...' * (len(inner) > 3)}); choose a new directory"
     return ""
 
 

@@ -94,3 +94,15 @@ def test_an_out_folder_of_a_finished_run_is_named_as_given(tmp_path, capsys, com
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"bev-mdo {command[0]}: error: --out {out}: a run's output folder, its bag in bag/; choose a new "
                    "directory"]
+
+
+def test_a_folder_of_several_runs_bags_is_not_called_a_runs_output_folder(tmp_path, capsys):
+    """--bag bags/ (the folder every run's bag goes into) was refused as 'a run's output folder, its bag in
+    <one of them>/', naming one run of many."""
+    from bev_mdo.bag.writer import BagWriter
+
+    for name in ("run_b", "run_a", "run_c", "run_d"):
+        BagWriter(tmp_path / "bags" / name, metadata={"run_id": name}).close()
+    assert main(["optimize", LEAF, "--transport", "inprocess", "--bag", str(tmp_path / "bags"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"--bag {tmp_path / 'bags'}: holds 4 runs' bags (run_a/, run_b/, run_c/, ...); choose a new directory" in err, err
