@@ -220,8 +220,11 @@ def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | 
         if (checks or {}).get("answers"):
             return False, "how the run ended is not known: its end-of-run record is left out (not signed with its key)"
         if by_optimize(bag):
+            last = rows[-1] if rows else {}
+            whose = (f"the last recorded iterate of its start {last['start']} of {last['starts']} (resume goes on "
+                     "from each start's own last record)" if last.get("starts") else "its last recorded iterate")
             return False, ("**the run did not finish**: the bag holds no end-of-run record (a signal, SIGINT or "
-                           f"SIGTERM, or an error stopped it); {then} its last recorded iterate, not a result")
+                           f"SIGTERM, or an error stopped it); {then} {whose}, not a result")
         return False, ("**no end-of-run record**: the run did not finish, or its coordinator was started by hand "
                        f"(coordinator_node stores none); {then} its last recorded iterate")
     lost = answers.get("unresponsive_disciplines")
