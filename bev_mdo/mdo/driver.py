@@ -265,7 +265,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
             "objective": sign * float(f[0]) if ok else float("nan"), "constraints": cons,
             "max_violation": viol if ok else float("nan"), "feasible": bool(ok and viol <= tol and not short),
             "mda_evaluations": form.mda_evaluations, "discipline_evaluations": dict(evaluator.counts),
-            "wall_time_s": time.perf_counter() - t0,
+            "wall_time_s": time.perf_counter() - t0, **({"cannot_follow": True} if short else {}),  # why infeasible
         }
         if len(form.var_names) > n_dv:  # IDF: the couplings the optimiser holds (a resume starts from them)
             rec["couplings"] = dict(zip(form.var_names[n_dv:], map(float, x[n_dv:])))
