@@ -447,7 +447,7 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
             fo.update(verdict=first_order.STOPPED, conditions_hold=False, kink_at_optimum=True)
     if ok and fo["verdict"] == first_order.OPTIMUM:  # a variable nothing holds: the optimum is not unique in it
         before = form.n_points
-        if free := free_variables(form, u, float(f[0]), g[0], h[0], (df, dg, dh), fo, tol, follows):
+        if free := free_variables(form, u, float(f[0]), g[0], (df, dg, dh), fo, tol, follows):
             fo["free_variables"] = free
         if form.n_points > before:
             fo["free_points"] = form.n_points - before  # of the check's cost: the steps along them

@@ -84,6 +84,17 @@ def test_a_variable_nothing_depends_on_gets_a_note_and_one_held_by_curvature_doe
     assert doc["design"]["x2"] == pytest.approx(0.3, abs=1e-3) and "free_variables" not in doc["first_order"]
 
 
+@pytest.mark.parametrize("formulation", ["mdf", "idf"])
+def test_a_variable_only_idfs_consistency_depends_on_is_named_as_in_mdf(capsys, formulation):
+    """The Leaf minimising its mass: the gear ratio moves only the energy per km, which nothing constrains. MDF
+    named it; IDF did not, its energy consistency equality depending on it (met again at the steps)."""
+    leaf = str(Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml")
+    assert _optimize(leaf, "--formulation", formulation, "--objective", "vehicle_mass_kg", "--constraint",
+                     "range_km>=0", "--constraint", "accel_time_0_100_s<=1000", "--json") == 0
+    fo = json.loads(capsys.readouterr().out)["first_order"]
+    assert fo["verdict"] == "optimum" and [v["name"] for v in fo.get("free_variables", [])] == ["gear_ratio"]
+
+
 def test_multistart_counts_the_starts_reaching_the_best_objective_at_other_designs(tmp_path, capsys):
     assert _optimize(_config(tmp_path, "flat"), "--starts", "4") == 0
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("multi-start:"))
