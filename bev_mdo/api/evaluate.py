@@ -65,6 +65,10 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
         report = evaluate_design(config.settings, evaluator, full)
     short, notes = notes_of(config, {**problem.parameters, **full}, report["outputs"])
     notes = outside + notes
+    values = {**problem.parameters, **full, **report["outputs"]}  # the pack's power against the motors' (0-100 km/h)
+    for lim in filter(None, (getattr(d, "battery_limit_kw", lambda _: None)(values) for d in config.disciplines)):
+        report["accel_battery_limit"] = {"pack_shaft_power_kw": lim[0], "motors_rated_power_kw": lim[1],
+                                         "limits": lim[0] < lim[1]}
     if short or outside:  # not a design the run's energy describes, or off the design space: infeasible
         report["feasible"] = False
     if notes:
@@ -82,15 +86,16 @@ def notes_of(config, design: dict, outputs: dict) -> tuple[bool, list[str]]:
     from bev_mdo.disciplines.energy import follow_notes
 
     short, unchecked = follow_notes(RunConfig.of(config).disciplines, {**design, **outputs})
-    return bool(short), short + design_notes(config, outputs) + unchecked
+    return bool(short), short + design_notes(config, {**design, **outputs}) + unchecked
 
 
-def design_notes(config, outputs: dict) -> list[str]:
-    """What an output's value at one design means where it is not a measurement, as its discipline
-    says (``notes``): e.g. the 0-100 km/h time of a design that cannot reach 100 km/h."""
+def design_notes(config, values: dict) -> list[str]:
+    """What an output's value at one design (``values``: its inputs and outputs) means where it is not a
+    measurement, as its discipline says (``notes``): e.g. the 0-100 km/h time of a design that cannot reach
+    100 km/h, or one the pack's power limits."""
     from bev_mdo.config import RunConfig
 
-    return [n for d in RunConfig.of(config).disciplines for n in (getattr(d, "notes", None) or (lambda _: []))(outputs)]
+    return [n for d in RunConfig.of(config).disciplines for n in (getattr(d, "notes", None) or (lambda _: []))(values)]
 
 
 def ceilings(config) -> dict[str, tuple[float, str]]:

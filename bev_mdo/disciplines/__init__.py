@@ -162,10 +162,23 @@ class Acceleration(Base):
                                             battery_kwh=inputs["battery_kwh"])
         return {"accel_time_0_100_s": t}
 
-    def notes(self, outputs) -> list[str]:
-        """What the time means at a design that cannot reach 100 km/h (the continuation value)."""
-        note = acceleration.not_reached_note(outputs.get("accel_time_0_100_s") or 0.0)
-        return [note] if note else []
+    def battery_limit_kw(self, values) -> tuple[float, float] | None:
+        """(the pack's shaft power at its discharge limit, the motors' rated power together) in kW at one design
+        (``values``: its inputs), None without a battery limit (``battery_to_shaft_efficiency`` 0) or inputs."""
+        if "battery_kwh" not in values or "motor_kw" not in values:
+            return None
+        shaft_w = acceleration.battery_shaft_power_w(float(values["battery_kwh"]), self._params(values))
+        rated_kw = self.topology.front_motors * float(values["motor_kw"]) \
+            + self.topology.rear_motors * float(values.get("motor_rear_kw", 0.0))
+        return (float(shaft_w) / 1e3, rated_kw) if np.isfinite(shaft_w) else None
+
+    def notes(self, values) -> list[str]:
+        """What the time means at a design (``values``: inputs and outputs) that cannot reach 100 km/h (the
+        continuation value), and that the pack's power limits it where it does."""
+        lim = self.battery_limit_kw(values)
+        return [n for n in (acceleration.not_reached_note(values.get("accel_time_0_100_s") or 0.0),
+                            lim and lim[0] < lim[1] and f"the pack limits the 0-100 km/h time: {lim[0]:.1f} kW at the "
+                            f"shaft, below the motors' rated {lim[1]:.1f} kW") if n]
 
 
 class MotorSpeed(Base):

@@ -265,7 +265,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
             "objective": sign * float(f[0]) if ok else float("nan"), "constraints": cons,
             "max_violation": viol if ok else float("nan"), "feasible": bool(ok and viol <= tol and not short),
             "mda_evaluations": form.mda_evaluations, "discipline_evaluations": dict(evaluator.counts),
-            "wall_time_s": time.perf_counter() - t0,
+            "wall_time_s": time.perf_counter() - t0, **({"cannot_follow": True} if short else {}),  # why infeasible
         }
         if len(form.var_names) > n_dv:  # IDF: the couplings the optimiser holds (a resume starts from them)
             rec["couplings"] = dict(zip(form.var_names[n_dv:], map(float, x[n_dv:])))
@@ -447,7 +447,7 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
             fo.update(verdict=first_order.STOPPED, conditions_hold=False, kink_at_optimum=True)
     if ok and fo["verdict"] == first_order.OPTIMUM:  # a variable nothing holds: the optimum is not unique in it
         before = form.n_points
-        if free := free_variables(form, u, float(f[0]), g[0], h[0], (df, dg, dh), fo, tol, follows):
+        if free := free_variables(form, u, float(f[0]), g[0], (df, dg, dh), fo, tol, follows):
             fo["free_variables"] = free
         if form.n_points > before:
             fo["free_points"] = form.n_points - before  # of the check's cost: the steps along them

@@ -5,8 +5,9 @@ no bound and in no active constraint (their gradients in it zero too) may be hel
 minimum) or by nothing (y = x1 + 0 x2: any x2 is as good). The two are told apart by one batch of steps of
 FREE_STEP of its range either way: where neither the objective nor any active limit moves (beyond 1e-9 of its
 size: MDA noise) and the stepped points stay feasible (the run's design_check too), the optimum is not unique in
-that variable, and its value is one of many. ``driver.end_point_check`` records them as
-``first_order["free_variables"]``.
+that variable, and its value is one of many. IDF's consistency equalities hold no variable by themselves (as
+MDF's analysis, they follow it): the steps take the couplings the disciplines compute there (a sweep per
+coupling) and must keep them met. ``driver.end_point_check`` records them as ``first_order["free_variables"]``.
 """
 from __future__ import annotations
 
@@ -19,16 +20,16 @@ FREE_STEP = first_order.FREE_STEP  # of the variable's range (scaled units, wher
 SAME = 1e-9       # relative change of the objective or an active limit below which it did not move
 
 
-def free_variables(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: np.ndarray,
+def free_variables(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray,
                    grads: tuple[np.ndarray, np.ndarray, np.ndarray], fo: dict, tol: float, follows=None) -> list[dict]:
     """The design variables at the optimum ``u`` (``grads``: the check's df per objective_scale, dg, dh; ``fo``: its
     result) whose steps of FREE_STEP either way change neither the objective nor an active limit and stay feasible
     (``follows(x)``, the run's design_check, too): [{"name", "value", "step"}] (``step``: the largest, in the
     variable's unit)."""
-    df, dg, dh = grads
+    df, dg = grads[:2]  # (dh, IDF's consistency, holds no design variable: the steps keep it met)
     lo, hi = form.u_bounds
     rows = np.flatnonzero(np.asarray(g0) >= -first_order.ACTIVE_TOL)
-    held = [dg[i] for i in rows] + list(dh)  # the active limits' gradients, each to its own size
+    held = [dg[i] for i in rows]  # the active limits' gradients, each to its own size
     bound = {b["name"] for b in fo["active_bounds"]}
     flat = first_order.FIRST_ORDER_TOL
 
@@ -48,10 +49,12 @@ def free_variables(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, 
         U[i, j] += s
     X = form.to_x(U)
     f, g, h = form.evaluate_batch(X)
+    for _ in range(h.shape[1]):  # IDF: the couplings as the disciplines compute them at the steps
+        X[:, len(form.problem.names):] -= h * form.coupling_scale
+        f, g, h = form.evaluate_batch(X)
     bad = form.failed_rows(X) | ~np.array([follows is None or follows(x) for x in X], dtype=bool)
     moved = ((np.abs(f - f0) > SAME * max(abs(f0), form.problem.objective_scale))
              | (np.abs(g[:, rows] - g0[rows]) > SAME * np.maximum(1.0, np.abs(g0[rows]))).any(axis=1)
-             | (np.abs(h - h0) > SAME * np.maximum(1.0, np.abs(h0))).any(axis=1)
              | (np.max(g, axis=1, initial=0.0) > tol) | (np.max(np.abs(h), axis=1, initial=0.0) > tol) | bad)
     x = form.to_x(u)
     out = []

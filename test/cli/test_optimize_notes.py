@@ -48,21 +48,23 @@ class ConWrong:
 '''
 
 
-def _config(tmp_path, kind: str) -> str:
+def _config(tmp_path, cls: str, name="toy", objective="y", box="lower: 0, upper: 1, initial: 0.5",
+            constraint="q: {upper: 10}", more="") -> str:
+    """A config of one toy discipline (class ``cls`` of MODULE, named ``name``) over x1 and x2, each in ``box``."""
     (tmp_path / "toys.py").write_text(MODULE)
-    path = tmp_path / f"{kind}.yaml"
-    path.write_text(f"""name: {kind}
+    path = tmp_path / f"{cls.lower()}.yaml"
+    path.write_text(f"""name: {cls.lower()}
 search_path: [{tmp_path}]
 disciplines:
-  - {{name: toy, class: "toys:{kind.title()}"}}
+  - {{name: {name}, class: "toys:{cls}"}}
 problem:
-  objective: y
+  objective: {objective}
   design_variables:
-    x1: {{lower: 0, upper: 1, initial: 0.5}}
-    x2: {{lower: 0, upper: 1, initial: 0.5}}
+    x1: {{{box}}}
+    x2: {{{box}}}
   constraints:
-    q: {{upper: 10}}
-""")
+    {constraint}
+{more}""")
     return str(path)
 
 
@@ -71,21 +73,32 @@ def _optimize(path, *argv):
 
 
 def test_a_variable_nothing_depends_on_gets_a_note_and_one_held_by_curvature_does_not(tmp_path, capsys):
-    assert _optimize(_config(tmp_path, "flat")) == 0
+    assert _optimize(_config(tmp_path, "Flat")) == 0
     notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note: ")]
     assert len(notes) == 1 and "zero in x2 = 0.5 at the optimum" in notes[0] and "x1" not in notes[0]
     assert "neither on a bound nor in an active constraint" in notes[0] and "the optimum is not unique in it" in notes[0]
-    assert _optimize(_config(tmp_path, "flat"), "--json") == 0
+    assert _optimize(_config(tmp_path, "Flat"), "--json") == 0
     fo = json.loads(capsys.readouterr().out)["first_order"]
     assert [v["name"] for v in fo["free_variables"]] == ["x2"] and fo["verdict"] == "optimum"
     # (x2 - 0.3)^2: its gradient is zero at the optimum too, but the optimum is unique in it
-    assert _optimize(_config(tmp_path, "curved"), "--json") == 0
+    assert _optimize(_config(tmp_path, "Curved"), "--json") == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["design"]["x2"] == pytest.approx(0.3, abs=1e-3) and "free_variables" not in doc["first_order"]
 
 
+@pytest.mark.parametrize("formulation", ["mdf", "idf"])
+def test_a_variable_only_idfs_consistency_depends_on_is_named_as_in_mdf(capsys, formulation):
+    """The Leaf minimising its mass: the gear ratio moves only the energy per km, which nothing constrains. MDF
+    named it; IDF did not, its energy consistency equality depending on it (met again at the steps)."""
+    leaf = str(Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml")
+    assert _optimize(leaf, "--formulation", formulation, "--objective", "vehicle_mass_kg", "--constraint",
+                     "range_km>=0", "--constraint", "accel_time_0_100_s<=1000", "--json") == 0
+    fo = json.loads(capsys.readouterr().out)["first_order"]
+    assert fo["verdict"] == "optimum" and [v["name"] for v in fo.get("free_variables", [])] == ["gear_ratio"]
+
+
 def test_multistart_counts_the_starts_reaching_the_best_objective_at_other_designs(tmp_path, capsys):
-    assert _optimize(_config(tmp_path, "flat"), "--starts", "4") == 0
+    assert _optimize(_config(tmp_path, "Flat"), "--starts", "4") == 0
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("multi-start:"))
     assert line.startswith("multi-start: 4 of 4 starts reached the best objective")
     assert "3 of them at another design" in line and "the optimum is not unique" in line
@@ -93,22 +106,9 @@ def test_multistart_counts_the_starts_reaching_the_best_objective_at_other_desig
 
 
 def test_a_converged_claim_the_check_does_not_share_points_at_the_derivatives(tmp_path, capsys):
-    (tmp_path / "toys.py").write_text(MODULE)
-    path = tmp_path / "conwrong.yaml"
-    path.write_text(f"""name: conwrong
-search_path: [{tmp_path}]
-disciplines:
-  - {{name: conwrong, class: "toys:ConWrong"}}
-problem:
-  objective: f
-  design_variables:
-    x1: {{lower: 0.1, upper: 5, initial: 3}}
-    x2: {{lower: 0.1, upper: 5, initial: 3}}
-  constraints:
-    g: {{lower: 1}}
-optimizer: {{name: SLSQP, derivatives: analytic}}
-""")
-    assert _optimize(str(path)) == 5
+    path = _config(tmp_path, "ConWrong", "conwrong", "f", "lower: 0.1, upper: 5, initial: 3", "g: {lower: 1}",
+                   "optimizer: {name: SLSQP, derivatives: analytic}\n")
+    assert _optimize(path) == 5
     out = capsys.readouterr().out
     assert "verdict: stopped before convergence" in out
     notes = [line for line in out.splitlines() if line.startswith("note: ")]
@@ -116,7 +116,7 @@ optimizer: {{name: SLSQP, derivatives: analytic}}
                                                    "not hold at its end point (judged on the gradient assembled from "
                                                    "the disciplines' analytic partials")
     assert "bev-mdo check-partials CONFIG" in notes[0] and "bev-mdo check-totals CONFIG" in notes[0]
-    assert _optimize(str(path), "--json") == 5
+    assert _optimize(path, "--json") == 5
     doc = json.loads(capsys.readouterr().out)
     assert doc["optimizer_success"] and doc["first_order"]["derivatives"] == "analytic"
 

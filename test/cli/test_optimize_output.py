@@ -33,6 +33,15 @@ def test_progress_rate_fits_the_formulation(formulation, rate):
     assert "on its lower bound: battery_kwh = 20 kWh, multiplier" in out
 
 
+def test_a_progress_line_says_why_a_design_within_its_constraints_is_infeasible():
+    """A 40 kW motor at 2:1 cannot follow the NEDC (the run's design_check): its progress lines said 'max violation
+    0  infeasible' and no reason."""
+    rc, out = _run("--objective", "vehicle_mass_kg", "--constraint", "range_km>=0", "--constraint",
+                   "accel_time_0_100_s<=1000", "--initial", "gear_ratio=2", "--no-record")
+    progress = [line for line in out.splitlines() if line.startswith("iter ")]
+    assert progress and all(" 0  infeasible: cannot follow the cycle " in line for line in progress), progress
+
+
 def test_bag_in_process_is_readable_by_history(tmp_path, capsys):
     rc, out = _run("--bag", str(tmp_path / "b"), "--quiet")
     assert rc == 0 and f"bag: {tmp_path / 'b'}" in out
