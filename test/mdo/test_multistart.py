@@ -87,6 +87,26 @@ def test_a_start_that_bought_objective_with_violation_does_not_stand_for_the_poi
     assert _best_start([infeasible], 1.0, span, names, 1e-3) == 0
 
 
+def test_with_no_feasible_start_the_least_violated_is_the_result():
+    """Model 3 RWD with range >= 900 km, 4 starts: the result was the start of lowest energy (violation
+    0.662, 100 kW) where a single start ended at 0.128; the infeasible answers then described the worse one."""
+    from types import SimpleNamespace as R
+
+    from bev_mdo.mdo.multistart import _best_start
+
+    span, names = np.array([100.0, 7.0]), ["motor_kw", "gear_ratio"]
+
+    def end(f, v, **fo):
+        return R(objective=f, feasible=False, max_violation=v, verdict="infeasible", first_order=fo,
+                 design={"motor_kw": f, "gear_ratio": 9.0})
+
+    assert _best_start([end(110.0, 0.662), end(118.0, 0.326), end(125.0, 0.128)], 1.0, span, names, 1e-3) == 2
+    assert _best_start([end(110.0, 0.1), end(118.0, 0.1)], 1.0, span, names, 1e-3) == 0  # a tie: the objective
+    assert _best_start([end(110.0, float("nan")), end(150.0, 0.3)], 1.0, span, names, 1e-3) == 1  # failed last
+    # within its constraints but unable to follow its cycle: after one that follows it, however violated
+    assert _best_start([end(110.0, 0.0, cannot_follow=["short"]), end(150.0, 0.3)], 1.0, span, names, 1e-3) == 1
+
+
 def test_of_starts_at_one_point_a_verified_optimum_stands_for_it_before_a_less_violated_one_that_stopped_short():
     """SSBJ, COBYQA, 4 starts: the reported start had stopped before convergence (its first-order check not
     met) at 1.6e-6 below the range another start had verified as optimum at the same point."""
