@@ -117,7 +117,7 @@ def run_starts(run: Run, evaluator: Evaluator, starts: int | list[dict[str, floa
         "feasible": sum(bool(r.feasible) for _, r in results), "objective_rel_tol": rel_tol, "design_tol": design_tol,
         "designs_per_s": sum(r.points_evaluated for _, r in results) / max(wall, 1e-12),
         "results": [{"start": i, "x0": x0, "design": r.design, "objective": r.objective, "feasible": r.feasible,
-                     "verdict": r.verdict, "iterations": r.iterations, "reached_best": reached(r)}
+                     "max_violation": r.max_violation, "verdict": r.verdict, "iterations": r.iterations, "reached_best": reached(r)}
                     for i, (x0, r) in enumerate(results)],
     }
     for name in ("mda_evaluations", "points_evaluated", "batches", "gradients", "fd_failures"):

@@ -45,6 +45,8 @@ def test_the_best_of_several_starts_and_how_many_reached_it():
     others = [r for r in ms["results"] if not r["reached_best"]]
     assert others and all(r["objective"] == pytest.approx(4.130759, rel=1e-5) for r in others)
     assert ms["results"][ms["best_start"]]["reached_best"]
+    # each start's largest violation, by which one is chosen where none is feasible
+    assert ms["results"][ms["best_start"]]["max_violation"] == res.max_violation
     # one running iteration number over every start (a bag holds them as one run)
     assert seen == list(range(len(seen)))
     # and each start's own count (its progress line's), from 0
