@@ -344,7 +344,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         if ok and not final.get("ok", True):  # IDF: its point consistent, the MDA through it failed
             ok, err = False, final.get("error", "")
     counts = dict(evaluator.counts)
-    if not ok and fo["verdict"] != first_order.INFEASIBLE:  # e.g. IDF's consistent point whose MDA failed
+    if not ok and not fo.get("failure"):  # e.g. IDF's consistent point whose MDA failed, an MDA not converged
         fo = {**fo, "verdict": first_order.INFEASIBLE, "point_failed": True,
               "failure": (err or final.get("error", "")).split("; ")[0]}
     elif ok and short:  # infeasible whatever the constraints say: e.g. its energy is that of the cycle's demand

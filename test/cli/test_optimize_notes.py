@@ -195,3 +195,15 @@ def test_a_converged_claim_on_finite_differences_points_to_the_stopping_rule_not
     notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note: ")]
     assert len(notes) == 1 and "judged on finite differences" in notes[0]
     assert "ftol" in notes[0] and "check-partials" not in notes[0]
+
+
+def test_an_mda_that_does_not_converge_is_named_in_the_verdict(tmp_path, capsys):
+    """Sellar with a Newton MDA of 2 iterations: the verdict said 'the point failed: the disciplines gave no value
+    there', the line above it the true cause."""
+    sellar = Path(__file__).resolve().parents[2] / "examples" / "sellar"
+    doc = yaml.safe_load((sellar / "sellar_mdf.yaml").read_text())
+    doc.update(search_path=[str(sellar)], mda={"method": "newton", "tolerance": 1e-12, "max_iterations": 2})
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(doc))
+    assert _optimize(str(tmp_path / "s.yaml")) == 1
+    verdict = [line for line in capsys.readouterr().out.splitlines() if line.startswith("verdict: ")]
+    assert len(verdict) == 1 and "did not converge in 2 newton iterations" in verdict[0], verdict
