@@ -67,8 +67,9 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
     notes = outside + notes
     values = {**problem.parameters, **full, **report["outputs"]}  # the pack's power against the motors' (0-100 km/h)
     for lim in filter(None, (getattr(d, "battery_limit_kw", lambda _: None)(values) for d in config.disciplines)):
+        t = values.get("accel_time_0_100_s", float("nan"))
         report["accel_battery_limit"] = {"pack_shaft_power_kw": lim[0], "motors_rated_power_kw": lim[1],
-                                         "limits": lim[0] < lim[1]}
+                                         "time_without_limit_s": lim[2], "limits": bool(t > lim[2] * (1 + 1e-9))}
     if short or outside:  # not a design the run's energy describes, or off the design space: infeasible
         report["feasible"] = False
     if notes:
