@@ -459,11 +459,17 @@ def test_the_footnote_says_what_the_parameter_set_was_fitted_on_and_the_model_ke
                                                                                     "flat")
     assert f"parameter set {mine} was fitted on this file: in-sample" in footnote("--data", bmw,
                                                                                   "--parameter-set", mine)
-    assert f"was fitted on {bmw} (not this file), which has none of these rows: held out" in footnote(
+    assert f"was fitted on {bmw} (not this file), which has none of these cars: held out" in footnote(
         "--data", kia, "--parameter-set", mine)
     n_bmw = len(fl.read_fleet(bmw))
-    assert f"{n_bmw} of these {len(fl.read_fleet(both))} rows are in it: in-sample for those" in footnote(
+    assert f"{n_bmw} of these {len(fl.read_fleet(both))} rows are cars in it" in footnote(
         "--data", both, "--parameter-set", mine)
+    # the same cars with their measured energies in Wh/mi (x 1.609): in the fit, not 'held out'
+    whmi = [rows[0], *([*r[:11], *(f"{float(x) * 1.609:.2f}" for x in r[11:13]), *r[13:]] for r in rows[1:]
+                       if r[0] == "BMW")]
+    assert rows[0][11:13] == ["udds_wh_per_km_ac", "hwfet_wh_per_km_ac"]
+    assert f"{n_bmw} of these {n_bmw} rows are cars in it (the same identity and model inputs" in footnote(
+        "--data", _write(tmp_path, whmi, "bmw_whmi.csv"), "--parameter-set", mine)
     assert "parameter set thesis: constants not fitted to a fleet" in footnote("--data", kia, "--parameter-set",
                                                                               "thesis")
     code, out, _ = run(capsys, "--data", kia, "--parameter-set", mine)  # one family: no baseline3
