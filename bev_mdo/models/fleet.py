@@ -92,6 +92,7 @@ class Fleet:
     gear_listed: np.ndarray              # axle_ratio given
     measured: dict = field(default_factory=dict)   # cycle -> (N,) Wh/km from the wall
     technology: dict = field(default_factory=dict)  # column -> list of str, the TECHNOLOGY columns given
+    notes: list = field(default_factory=list)       # what reading it noted (CycleNote): a set fitted on it keeps them
 
     @property
     def driven_axles(self) -> np.ndarray:
@@ -161,7 +162,23 @@ class Fleet:
 
 
 def read_fleet(path: str | Path | None = None) -> Fleet:
-    """Read and validate a fleet CSV; ValueError '<file>: row R, column C: ...' on bad input."""
+    """Read and validate a fleet CSV; ValueError '<file>: row R, column C: ...' on bad input. Its notes
+    (models.cycles.CycleNote: a unit mix-up, a row far off, technology columns missing) are warned as read and
+    kept in ``Fleet.notes`` (bev-mdo calibrate writes them into the set's quality)."""
+    import warnings
+
+    from .cycles import CycleNote
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", CycleNote)
+        fleet = _read_fleet(path)
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    fleet.notes = [str(w.message) for w in caught if issubclass(w.category, CycleNote)]
+    return fleet
+
+
+def _read_fleet(path: str | Path | None) -> Fleet:
     path = Path(path) if path is not None else DEFAULT_FLEET
     rows = read_csv_rows(path, "fleet file")
     if any("\x00" in c for row in rows[:1] for c in row):
