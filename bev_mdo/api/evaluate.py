@@ -96,7 +96,23 @@ def design_notes(config, values: dict) -> list[str]:
     100 km/h, or one the pack's power limits."""
     from bev_mdo.config import RunConfig
 
-    return [n for d in RunConfig.of(config).disciplines for n in (getattr(d, "notes", None) or (lambda _: []))(values)]
+    return [n for d in RunConfig.of(config).disciplines for n in (getattr(d, "notes", None) or (lambda _: []))(values)
+            ] + platform_notes(config, values)
+
+
+def platform_notes(config, values: dict) -> list[str]:
+    """The note of a fitted set's two-speed loss (disciplines.common.platform_loss_note) where ``values`` (one
+    design's or a batch's) set gear_count 2 that the config alone does not (its load gave the note then) and
+    not the loss itself."""
+    from bev_mdo.config import RunConfig
+    from bev_mdo.disciplines.common import platform_loss_note
+
+    config = RunConfig.of(config)
+    p = config.problem
+    own = "gear_count" in p.names or np.any(np.asarray({**config.vehicle, **p.parameters}.get("gear_count", 1.0)) == 2)
+    if own or "two_speed_efficiency_loss" in values or not np.any(np.asarray(values.get("gear_count", 1.0)) == 2):
+        return []
+    return [n for n in [platform_loss_note(config.data.get("vehicle"))] if n]
 
 
 def ceilings(config) -> dict[str, tuple[float, str]]:
@@ -219,7 +235,7 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
             v = ((b - y) if kind == "lower" else (y - b)) / scale
             violation = np.maximum(violation, np.where(np.isfinite(v), v, np.inf))
     feasible = violation <= feasibility_tolerance(config.settings)
-    notes = ceiling_notes(config, outputs)
+    notes = ceiling_notes(config, outputs) + platform_notes(config, designs)
     from bev_mdo.disciplines.energy import follow_counts
 
     short, unchecked = follow_counts(config.disciplines, {**cols, **outputs})  # cannot follow: infeasible, whatever the constraints

@@ -23,8 +23,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from bev_mdo.disciplines.common import (ENERGY_MODELS, TOPOLOGY_DISCIPLINES, Base, overridable,
-                                        resampled_cycle, run_topology, topology_inputs, vehicle_of)
+from bev_mdo.disciplines.common import (ENERGY_MODELS, GEARBOX_TWO_SPEED_LOSS, TOPOLOGY_DISCIPLINES, Base, overridable,
+                                        platform_two_speed_loss, resampled_cycle, run_topology, topology_inputs,
+                                        vehicle_of)
 from bev_mdo.disciplines.energy import CycleRange, Energy
 from bev_mdo.models import acceleration, cost, motor_speed, range as range_model
 from bev_mdo.models import topology as topo_model
@@ -117,7 +118,8 @@ class Acceleration(Base):
     """motor_kw, gear_ratio, battery_kwh, vehicle_mass_kg (, rear motor) -> accel_time_0_100_s (eqs 7-30 /
     2-26 / 4-5) with every motor of the topology, within the tyres' grip and the pack's power at its
     discharge limit (§3.5.3: 5C; ``battery_to_shaft_efficiency`` 0: no battery limit); SM-SA two-speed
-    follows the eq 2-6 shift rule. A design that cannot reach 100 km/h gets the continuation value
+    follows the eq 2-6 shift rule, its gearbox losing ``two_speed_efficiency_loss`` (a fitted set's figure, which
+    stands for a platform's energy, is replaced by the thesis' gearbox loss: common.platform_two_speed_loss). A design that cannot reach 100 km/h gets the continuation value
     (models/acceleration.py: 10 000 s + 100 s per km/h of top speed short), infeasible under any upper limit
     the config accepts, not a failed point."""
 
@@ -145,7 +147,10 @@ class Acceleration(Base):
         t = run_topology(config, options)
         names = acceleration.ACCEL_PARAMS + acceleration.BATTERY_LIMIT_PARAMS + tuple(k for k in cls._TOPO[t.name]
                                                                                      if k in v)
-        return cls({k: v[k] for k in overridable(v, names)}, t.name)
+        p = {k: v[k] for k in overridable(v, names)}
+        if "two_speed_efficiency_loss" in p and platform_two_speed_loss(config.get("vehicle")):
+            p["two_speed_efficiency_loss"] = GEARBOX_TWO_SPEED_LOSS  # a fitted energy figure, not the box's traction loss
+        return cls(p, t.name)
 
     def compute(self, inputs):
         p = self._params(inputs)
