@@ -299,9 +299,11 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
             # the first-order check verifies has converged: as then, an earlier point more violated
             # than it does not displace it with the objective its violation buys
             fo_last = end_point_check(form, xs[-1], start, tol, follows)
-            if fo_last["verdict"] == first_order.OPTIMUM:
-                k = pick_result(history, sign, True, tol)
-                fo = fo_last if k == len(history) - 1 else end_point_check(form, xs[k], start, tol, follows)
+            if fo_last["verdict"] == first_order.OPTIMUM:  # nor one the check does not verify (a small limit's
+                j = pick_result(history, sign, True, tol)  # scale of 1 lets 1e-7 of it buy 1e-5 of objective)
+                fo_j = fo_last if j == len(history) - 1 else fo if j == k else end_point_check(form, xs[j], start,
+                                                                                                tol, follows)
+                k, fo = (j, fo_j) if fo_j["verdict"] == first_order.OPTIMUM else (len(history) - 1, fo_last)
             fo["cost"] = {"points": form.n_points - checked_from[0], "batches": form.n_batches - checked_from[1],
                           "wall_time_s": time.perf_counter() - checked_from[2]}  # both checks
         last, x = history[k], xs[k]

@@ -40,6 +40,15 @@ class Sixth(Flat):
         return {"y": 100.0 + (x2 - 0.3) ** 6 + (x1 - 0.5) ** 2, "q": x1 ** 2 + 0.0 * x2}
 
 
+class Steep(Flat):
+    """y = -1e4 x1 + 1e4 (x2 - 0.003)^2 under q = x1 <= 0.004: a limit below 1 keeps a scale of 1, so 5e-8 of it
+    (inside the tolerance) buys 5e-4 of objective."""
+
+    def compute(self, inputs):
+        x1, x2 = inputs["x1"], inputs["x2"]
+        return {"y": -1e4 * x1 + 1e4 * (x2 - 0.003) ** 2, "q": x1 + 0.0 * x2}
+
+
 class LoopA:
     """a = x1 + x2 + 0.5 b, with LoopB's b = a - x2: b = 2 x1 whatever x2."""
     name = "loopa"
@@ -207,3 +216,28 @@ def test_an_mda_that_does_not_converge_is_named_in_the_verdict(tmp_path, capsys)
     assert _optimize(str(tmp_path / "s.yaml")) == 1
     verdict = [line for line in capsys.readouterr().out.splitlines() if line.startswith("verdict: ")]
     assert len(verdict) == 1 and "did not converge in 2 newton iterations" in verdict[0], verdict
+
+
+def test_a_verified_optimum_is_not_displaced_by_an_earlier_point_the_check_does_not_verify(tmp_path, capsys,
+                                                                                          monkeypatch):
+    """A user's wing with theta[2] <= 0.004: SLSQP converged at iteration 17 (violation 8e-16, verified), but the
+    result was iteration 13, 5.6e-8 rad over the limit (inside the tolerance, the limit's scale being 1) with 4e-6
+    less mass: 'stopped before convergence', exit 5, and a hint at wrong derivatives."""
+    import numpy as np
+    from scipy.optimize import OptimizeResult
+
+    from bev_mdo.mdo import driver
+
+    def past_the_limit_first(name, form, options, record):  # an optimiser's path, its end converged
+        for x12 in ([0.004 + 5e-8, 0.0031], [0.004, 0.003]):  # 5e-8 over (inside the tolerance), 4e-4 better
+            x = form.x0.copy()                                # and not stationary in x2; the optimum
+            x[:2] = x12
+            record(x)
+        return OptimizeResult(x=x, success=True, message="Optimization terminated successfully", nit=2)
+
+    monkeypatch.setattr(driver, "run_optimizer", past_the_limit_first)
+    path = _config(tmp_path, "Steep", box="lower: 0, upper: 0.01, initial: 0.001", constraint="q: {upper: 0.004}")
+    assert _optimize(path, "--json") == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["verdict"] == "optimum" and doc["design"]["x1"] == pytest.approx(0.004, abs=1e-12), doc["message"]
+    assert np.isclose(doc["max_violation"], 0.0, atol=1e-12)
