@@ -35,7 +35,7 @@ from bev_mdo import __version__, binding, protocol
 from bev_mdo.stacks import deadline
 from bev_mdo.mdo import flow
 from bev_mdo.mdo.discipline import DisciplineError, all_finite, prepare, readable, run_discipline, unknown_inputs
-from bev_mdo.mdo.vectors import ShapeError
+from bev_mdo.mdo.vectors import ShapeError, rejection
 from bev_mdo.processes import check_parameters
 from bev_mdo.protocol.batches import decode_once
 from bev_mdo.protocol.signing import Signer
@@ -213,7 +213,7 @@ class DisciplineNode(Node):
             f"rejected request (run {req.run_id[:40]!r}, eval {req.evaluation_id}): {why[:200]} "
             f"[{self.counts['rejected']} rejected so far; this log is rate-limited]", throttle_duration_sec=2.0
         )
-        self._reply(req, None, f"{self.discipline_name}: rejected: {why}"[:1000], pub)
+        self._reply(req, None, rejection(self.discipline_name, why, category)[:1000], pub)
 
     def _direct(self, writer) -> bool:
         """True when composed beside the coordinator (composed.Beside) and no reader outside this

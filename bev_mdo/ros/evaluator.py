@@ -208,7 +208,7 @@ class RosEvaluator(StartupWaits, Orchestrator):
         if p is None:
             return
         if msg.status == _STATUS_REJECTED:
-            res = self._failed(p, msg.error or f"{p.discipline}: request rejected")
+            res = self._rejected(p, msg.error)
         else:
             try:
                 res = self._result_of(msg, p)
@@ -251,7 +251,7 @@ class RosEvaluator(StartupWaits, Orchestrator):
         if p is None:
             return
         if res is None:
-            res = self._failed(p, error or f"{discipline}: request rejected")
+            res = self._rejected(p, error)
         elif np.shape(res.ok) != (p.n,):  # a node's answer to other rows than the ledger's (a bug)
             self.dropped["malformed"] += 1
             return
