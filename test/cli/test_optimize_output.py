@@ -255,3 +255,11 @@ def test_the_optimisers_own_message_is_printed_whole_restarts_and_all(capsys):
     optimize._table({k: v for k, v in doc.items() if k != "baseline"}, doc["baseline"], buf, {})
     said = [line for line in buf.getvalue().splitlines() if line.startswith("SLSQP says: ")]
     assert said == [f"SLSQP says: {own}"]
+
+
+def test_the_json_names_each_design_variables_and_outputs_unit(capsys):
+    """evaluate's and sensitivity's JSON named units; optimize's (and Study.optimize's to_dict()) did not."""
+    assert main(["optimize", CONFIG, "--transport", "inprocess", "--no-record", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert set(doc["units"]) == set(doc["design"]) | set(doc["outputs"])
+    assert doc["units"]["motor_kw"] == "kW" and doc["units"]["energy_wh_per_km"] == "Wh/km"
