@@ -171,6 +171,7 @@ def test_a_bad_config_raises_input_error():
     (lambda s: s.optimize(starts="3", transport="inprocess"), r"^starts '3' is not a whole number$"),
     (lambda s: s.optimize(starts=True, transport="inprocess"), r"^starts True is not a whole number$"),
     (lambda s: s.sweep("lhs", samples=2.5, transport="inprocess"), r"^samples 2.5 is not a whole number$"),
+    (lambda s: s.sweep("lhs", samples=16.0, transport="inprocess"), r"^samples 16.0 is a float: give it as an int \(16\)$"),
     (lambda s: s.global_sensitivity("morris", samples=4.0, transport="inprocess"), r"^samples 4.0 is not a whole number$"),
     (lambda s: s.sensitivity(order=1.0, transport="inprocess"), r"^order 1.0 is not a whole number$"),
     (lambda s: s.pareto(["energy_wh_per_km", "range_km"], generations=1.5, pop=4, transport="inprocess"),
