@@ -91,12 +91,15 @@ def _holding(out: Path, what: str) -> dict:
     return _left(out, what)
 
 
-@pytest.mark.parametrize("held, said", [("bag", "a bag already exists there"),
-                                        ("answers.json", "holds another run's answers.json")])
-@pytest.mark.parametrize("command", [
+OUT_COMMANDS = pytest.mark.parametrize("command", [  # the commands with an --out folder
     ["sweep", LEAF, "--vary", "motor_kw=70,90", "--no-plots", "--transport", "inprocess"],
     ["pareto", LEAF, "--objectives", "energy_wh_per_km,accel_time_0_100_s", "--generations", "1", "--pop", "4",
      "--transport", "inprocess"]], ids=["sweep", "pareto"])
+
+
+@OUT_COMMANDS
+@pytest.mark.parametrize("held, said", [("bag", "a bag already exists there"),
+                                        ("answers.json", "holds another run's answers.json")])
 def test_an_out_folder_holding_another_runs_bag_or_files_is_refused(tmp_path, capsys, command, held, said):
     """Only OUT/bag was checked: `sweep --out OUT` (`pareto --out OUT`) into an optimize run's bag folder was taken,
     and `resume OUT` then resumed the old optimize run. The line names the folder as given, not OUT/bag."""
@@ -108,10 +111,7 @@ def test_an_out_folder_holding_another_runs_bag_or_files_is_refused(tmp_path, ca
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
 
 
-@pytest.mark.parametrize("command", [
-    ["sweep", LEAF, "--vary", "motor_kw=70,90", "--no-plots", "--transport", "inprocess"],
-    ["pareto", LEAF, "--objectives", "energy_wh_per_km,accel_time_0_100_s", "--generations", "1", "--pop", "4",
-     "--transport", "inprocess"]], ids=["sweep", "pareto"])
+@OUT_COMMANDS
 def test_an_out_folder_holding_only_a_stopped_runs_logs_is_reused(tmp_path, capsys, command):
     out = tmp_path / "out"
     before = _left(out, "logs")
@@ -123,10 +123,7 @@ def test_an_out_folder_holding_only_a_stopped_runs_logs_is_reused(tmp_path, caps
     assert any((out / "bag").glob("*.mcap"))
 
 
-@pytest.mark.parametrize("command", [
-    ["sweep", LEAF, "--vary", "motor_kw=70,90", "--no-plots", "--transport", "inprocess"],
-    ["pareto", LEAF, "--objectives", "energy_wh_per_km,accel_time_0_100_s", "--generations", "1", "--pop", "4",
-     "--transport", "inprocess"]], ids=["sweep", "pareto"])
+@OUT_COMMANDS
 def test_an_out_folder_of_a_finished_run_is_named_as_given(tmp_path, capsys, command):
     out = tmp_path / "out"
     from bev_mdo.bag.writer import BagWriter
