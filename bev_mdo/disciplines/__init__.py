@@ -119,9 +119,9 @@ class Acceleration(Base):
     2-26 / 4-5) with every motor of the topology, within the tyres' grip and the pack's power at its
     discharge limit (§3.5.3: 5C; ``battery_to_shaft_efficiency`` 0: no battery limit); SM-SA two-speed
     follows the eq 2-6 shift rule, its gearbox losing ``two_speed_efficiency_loss`` (a fitted set's figure, which
-    stands for a platform's energy, is replaced by the thesis' gearbox loss: common.platform_two_speed_loss). A design that cannot reach 100 km/h gets the continuation value
-    (models/acceleration.py: 10 000 s + 100 s per km/h of top speed short), infeasible under any upper limit
-    the config accepts, not a failed point."""
+    stands for a platform's energy, is replaced by the thesis' gearbox loss: common.platform_two_speed_loss). A
+    design that cannot reach 100 km/h gets the continuation value (models/acceleration.py: 10 000 s + 100 s per
+    km/h of top speed short), infeasible under any upper limit the config accepts, not a failed point."""
 
     name = "acceleration"
     outputs = ("accel_time_0_100_s",)
