@@ -129,3 +129,33 @@ def test_status_shows_each_process_of_one_node_name_its_own_fingerprint(ros_doma
             node.destroy_node()
     assert {r["pid"]: r["fingerprint"] for r in rows} == {pid: fps[label] for pid, label in pids.items()}, rows
     assert {r["instance"] for r in rows} == {"acceleration_node"} and {r["run_id"] for r in rows} == {"standalone"}
+
+
+def test_a_coordinator_names_the_node_that_serves_another_run(ros_domain, leaf_config, tmp_path, rclpy_context):
+    """An energy node started with -p run_id:=otherrun: the start-up of run r3 gave up with "discipline(s)
+    ['energy'] not found on ROS domain" and asked whether the node was running, which it was."""
+    import rclpy
+
+    from bev_mdo.config import load_config
+    from bev_mdo.launcher import Launcher
+    from bev_mdo.processes import discipline_argv
+    from bev_mdo.ros.evaluator import DisciplineMissing, RosEvaluator
+    from bev_mdo.ros.status import NodeStatsListener
+
+    node = rclpy.create_node("r3_coordinator", context=rclpy_context)
+    with Launcher(ros_env(ros_domain), log_dir=tmp_path / "logs") as launcher:
+        launcher.add("energy", discipline_argv("energy", str(leaf_config), run_id="otherrun"), restart=False)
+        stats = NodeStatsListener(node)
+        try:  # the node is up (its counters come after its declaration)
+            assert stats.wait(lambda s: s.seen("energy"), 120.0)
+        finally:
+            stats.close()
+        ev = RosEvaluator(node, run_id="r3", config=load_config(leaf_config))
+        try:
+            with pytest.raises(DisciplineMissing) as err:
+                ev.wait_for_disciplines(["energy"], wait_s=5.0)
+        finally:
+            ev.close()
+            node.destroy_node()
+    assert "['energy'] not found on ROS domain" in str(err.value)
+    assert "'energy' serves run(s) ['otherrun'] only, not run 'r3' (a node started with -p run_id:=R" in str(err.value)
