@@ -88,7 +88,8 @@ class DisciplineNode(Node):
         run_config = RunConfig.of(p["config"] or default_config() if alone else config)
         config = self._apply_overrides(run_config)
         if alone:  # an override it does not declare (a misspelt vehicle.<key>) is refused, not ignored
-            check_parameters(self._parameter_overrides, self._parameters, self.get_name())
+            own = [k for k in self._parameters if not (discipline and k == "discipline")]  # energy_node: none
+            check_parameters(self._parameter_overrides, own, self.get_name())
             if p["instance"] and p["instance"].lstrip("/") != self.get_name():  # the graph knows nodes by name
                 raise ValueError(f"-p instance:={p['instance']} does not rename the node (the coordinator looks for "
                                  f"its name): start it with -r __node:={p['instance']} or bev-mdo node {name} --instance")

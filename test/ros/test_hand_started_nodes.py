@@ -159,3 +159,14 @@ def test_a_coordinator_names_the_node_that_serves_another_run(ros_domain, leaf_c
             node.destroy_node()
     assert "['energy'] not found on ROS domain" in str(err.value)
     assert "'energy' serves run(s) ['otherrun'] only, not run 'r3' (a node started with -p run_id:=R" in str(err.value)
+
+
+@pytest.mark.parametrize("param, owner", [("discipline:=range", "discipline_node"),
+                                          ("disciplines:=range,cost", "composed_node")])
+def test_a_discipline_executable_refuses_another_nodes_parameter(ros_domain, leaf_config, param, owner):
+    """energy_node -p discipline:=range started and served 'range': the discipline parameter is discipline_node's."""
+    p = _node("energy_node", "--ros-args", "-p", f"config:={leaf_config}", "-p", param, ros_domain=ros_domain)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, (p.returncode, p.stderr[-3000:])
+    assert p.stderr.strip().splitlines() == [
+        STARTING.format("energy_node"),
+        f"energy_node: error: parameter {param.split(':=')[0]}: energy_node has no such parameter; it is {owner}'s"]
