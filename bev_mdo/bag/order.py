@@ -103,7 +103,7 @@ class RecordOrder:
     once and fresh (``Sequence``); ``dropped`` counts the others by reason. ``bounded``: the live recorder's
     memory bounds (``Sequence.HELD``, ``Sequence.RUNS``); a replay reads a whole bag, with none.
 
-    ``ordered`` False: a recorder without the run's key (``bev-mdo record`` with no config, an unsigned run) keeps
+    ``ordered`` False: a recorder without the run's key and config (``bev-mdo record`` with no config) keeps
     every fresh record of its run, duplicates and numbers seen before too (``kept``), and holds no number: ordering
     records it cannot verify let a forger who sent a run's numbers first have the genuine records dropped "from
     the past" and choose the count of "missing" ones. The readers verify with the key and keep each run's records
