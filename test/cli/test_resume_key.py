@@ -52,15 +52,14 @@ def test_a_stored_config_that_no_longer_loads_is_named_as_the_bags(tmp_path, cap
     from bev_mdo.cli import main
 
     sellar = Path(__file__).resolve().parents[2] / "examples" / "sellar"
-    for name in ("sellar_mdf.yaml", "sellar_disciplines.py"):
-        shutil.copy(sellar / name, tmp_path / name)
+    shutil.copy(sellar / "sellar_disciplines.py", tmp_path / "moved_away_sellar.py")  # a module no other test imports
+    config = (sellar / "sellar_mdf.yaml").read_text().replace("sellar_disciplines:", "moved_away_sellar:")
+    (tmp_path / "sellar_mdf.yaml").write_text(config)
     bag = tmp_path / "bag"
     assert main(["optimize", str(tmp_path / "sellar_mdf.yaml"), "--transport", "inprocess", "--bag", str(bag),
                  "--quiet"]) == 0
-    (tmp_path / "sellar_disciplines.py").unlink()
-    for name, module in list(sys.modules.items()):  # as a new process finds it: not imported yet
-        if str(getattr(module, "__file__", "") or "").startswith(str(tmp_path)):
-            del sys.modules[name]
+    (tmp_path / "moved_away_sellar.py").unlink()
+    sys.modules.pop("moved_away_sellar", None)  # as a new process finds it: not imported yet
     capsys.readouterr()
     assert main(["resume", str(bag), "--transport", "inprocess", "--output", str(tmp_path / "new"), "--quiet"]) == 2
     err = capsys.readouterr().err
