@@ -109,6 +109,14 @@ def run_matches(bound_run: str, run_id: str) -> bool:
     return not bound_run or run_id == bound_run or run_id.startswith(bound_run + "-")
 
 
+def bound_elsewhere(missing, other_runs: Mapping[str, set], run_id: str) -> str:
+    """'' or the sentence naming, of the `missing` disciplines, those whose nodes declared themselves bound to
+    other runs only (``other_runs``: discipline -> the run ids they named), for a start-up that gave up."""
+    named = [f"{d!r} serves run(s) {sorted(other_runs[d])} only" for d in missing if other_runs.get(d)]
+    return (f"; on the domain {', '.join(named)}, not run {run_id!r} (a node started with -p run_id:=R serves "
+            "run R and its R-... sub-runs only: start one for this run, or one without run_id)") if named else ""
+
+
 def difference(expected_json: str, got_json: str, limit: int = 3) -> str:
     """One line naming the keys in which two effective configurations differ."""
     try:

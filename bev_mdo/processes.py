@@ -39,6 +39,9 @@ def discipline_argv(name: str, config_path: str, instance: str = "", run_id: str
     return argv
 
 
+MEANT_FOR = {"discipline": "discipline_node", "disciplines": "composed_node"}  # given to another node: named
+
+
 def check_parameters(given, declared, node: str) -> None:
     """ValueError naming the first parameter given to `node` (``-p``, a parameters file) that it does not
     declare, with the declared ones closest to it: rclpy keeps such an override without a word, so a
@@ -52,8 +55,9 @@ def check_parameters(given, declared, node: str) -> None:
                                                                             if d.startswith(pre)], n=3, cutoff=0.6)]
         vehicle = any(d.startswith("vehicle.") for d in declared)  # a discipline node's overrides
         shown = [d for d in declared if not d.startswith("vehicle.")] + (["vehicle.<key>"] if vehicle else [])
-        hint = (f"did you mean {' or '.join(near)}?" if near else "it overrides only the vehicle values its config "
-                "sets" if pre and vehicle else f"it has {', '.join(shown)}")
+        hint = (f"it is {MEANT_FOR[name]}'s" if name in MEANT_FOR
+                else f"did you mean {' or '.join(near)}?" if near else "it overrides only the vehicle values its "
+                "config sets" if pre and vehicle else f"it has {', '.join(shown)}")
         raise ValueError(f"parameter {name}: {node} has no such parameter; {hint}")
 
 

@@ -56,9 +56,10 @@ def test_a_bound_node_names_its_run_in_its_counters():
     sent = []
     node = SimpleNamespace(counts={"requests": 2}, _stats_t=0.0, _stats_sent=None, discipline_name="vehicle_mass",
                            instance="vehicle_mass_node_f3f8b78c", compute_s=0.5, bound_run=RUN,
-                           _stats_pub=SimpleNamespace(publish=sent.append))
+                           fingerprint="0123456789abcdef", _stats_pub=SimpleNamespace(publish=sent.append))
     DisciplineNode.publish_stats(node, force=True)
-    assert json.loads(sent[0].data)["run_id"] == RUN
+    sent_stats = json.loads(sent[0].data)
+    assert (sent_stats["run_id"], sent_stats["fingerprint"]) == (RUN, "0123456789abcdef")  # status shows its own
 
 
 def test_a_runs_recorder_keeps_only_its_own_runs_pareto_fronts():

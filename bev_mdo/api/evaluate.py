@@ -65,6 +65,11 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
         report = evaluate_design(config.settings, evaluator, full)
     short, notes = notes_of(config, {**problem.parameters, **full}, report["outputs"])
     notes = outside + notes
+    values = {**problem.parameters, **full, **report["outputs"]}  # the pack's power against the motors' (0-100 km/h)
+    for lim in filter(None, (getattr(d, "battery_limit_kw", lambda _: None)(values) for d in config.disciplines)):
+        t = values.get("accel_time_0_100_s", float("nan"))
+        report["accel_battery_limit"] = {"pack_shaft_power_kw": lim[0], "motors_rated_power_kw": lim[1],
+                                         "time_without_limit_s": lim[2], "limits": bool(t > lim[2] * (1 + 1e-9))}
     if short or outside:  # not a design the run's energy describes, or off the design space: infeasible
         report["feasible"] = False
     if notes:
@@ -82,15 +87,32 @@ def notes_of(config, design: dict, outputs: dict) -> tuple[bool, list[str]]:
     from bev_mdo.disciplines.energy import follow_notes
 
     short, unchecked = follow_notes(RunConfig.of(config).disciplines, {**design, **outputs})
-    return bool(short), short + design_notes(config, outputs) + unchecked
+    return bool(short), short + design_notes(config, {**design, **outputs}) + unchecked
 
 
-def design_notes(config, outputs: dict) -> list[str]:
-    """What an output's value at one design means where it is not a measurement, as its discipline
-    says (``notes``): e.g. the 0-100 km/h time of a design that cannot reach 100 km/h."""
+def design_notes(config, values: dict) -> list[str]:
+    """What an output's value at one design (``values``: its inputs and outputs) means where it is not a
+    measurement, as its discipline says (``notes``): e.g. the 0-100 km/h time of a design that cannot reach
+    100 km/h, or one the pack's power limits."""
     from bev_mdo.config import RunConfig
 
-    return [n for d in RunConfig.of(config).disciplines for n in (getattr(d, "notes", None) or (lambda _: []))(outputs)]
+    return [n for d in RunConfig.of(config).disciplines for n in (getattr(d, "notes", None) or (lambda _: []))(values)
+            ] + platform_notes(config, values)
+
+
+def platform_notes(config, values: dict) -> list[str]:
+    """The note of a fitted set's two-speed loss (disciplines.common.platform_loss_note) where ``values`` (one
+    design's or a batch's) set gear_count 2 that the config alone does not (its load gave the note then) and
+    not the loss itself."""
+    from bev_mdo.config import RunConfig
+    from bev_mdo.disciplines.common import platform_loss_note
+
+    config = RunConfig.of(config)
+    p = config.problem
+    own = "gear_count" in p.names or np.any(np.asarray({**config.vehicle, **p.parameters}.get("gear_count", 1.0)) == 2)
+    if own or "two_speed_efficiency_loss" in values or not np.any(np.asarray(values.get("gear_count", 1.0)) == 2):
+        return []
+    return [n for n in [platform_loss_note(config.data.get("vehicle"))] if n]
 
 
 def ceilings(config) -> dict[str, tuple[float, str]]:
@@ -213,7 +235,7 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
             v = ((b - y) if kind == "lower" else (y - b)) / scale
             violation = np.maximum(violation, np.where(np.isfinite(v), v, np.inf))
     feasible = violation <= feasibility_tolerance(config.settings)
-    notes = ceiling_notes(config, outputs)
+    notes = ceiling_notes(config, outputs) + platform_notes(config, designs)
     from bev_mdo.disciplines.energy import follow_counts
 
     short, unchecked = follow_counts(config.disciplines, {**cols, **outputs})  # cannot follow: infeasible, whatever the constraints

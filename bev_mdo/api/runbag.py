@@ -208,8 +208,8 @@ def in_process_bag(config: Mapping[str, Any], opts, show, closing: contextlib.Ex
 
 
 def check_new_bag(bag: Path, what: str, out: Path | None = None) -> None:
-    """A bag may be written to `bag`: InputError (exit 2) naming it if a bag, a file or another run's logs or
-    end-of-run record are there (kept beside the new run's, they would be read as its own). ``out``: the output
+    """A bag may be written to `bag`: InputError (exit 2) naming it if a bag, a file or another run's end-of-run
+    record are there (kept beside the new run's, they would be read as its own). ``out``: the output
     folder the user named (sweep's, pareto's --out), whose bag/ `bag` is: checked first (its readers take a bag
     or a run's files in it), and the folder the line names."""
     bag = Path(bag)
@@ -220,7 +220,9 @@ def check_new_bag(bag: Path, what: str, out: Path | None = None) -> None:
 
 
 def in_use(folder: Path, kind: str = "bag directory") -> str:
-    """'' if a run may write into `folder` (a ``kind``), else why not (one phrase)."""
+    """'' if a run may write into `folder` (a ``kind``), else why not (one phrase). A folder whose only run's file is
+    the logs/ of a run that wrote no bag (stopped before its recorder started, or --no-record) may: the claim moves
+    them aside first (set_aside_logs)."""
     if folder.exists() and not folder.is_dir():
         return f"is a file, not a {kind}"
     blocking = next((p for p in folder.parents if p.exists() and not p.is_dir()), None)
@@ -237,13 +239,15 @@ def in_use(folder: Path, kind: str = "bag directory") -> str:
             odd.append(f"a {'file' if is_dir else 'folder'} named {name} (a run writes its {name}{'/' * is_dir} there)")
         elif p.is_file() or p.is_dir() and any(p.iterdir()):
             left.append(name + "/" * is_dir)
-    if left:  # a run that wrote no bag (stopped before its recorder started, or --no-record) left them
+    if left and left != ["logs/"]:  # a run's end-of-run record: its bag is gone or elsewhere, it would be read as ours
         return f"holds another run's {' and '.join(left)}; choose a new directory"
     if odd:
         return f"holds {' and '.join(odd)}; choose a new directory"
-    inner = next((d for d in (folder.iterdir() if folder.is_dir() else ()) if d.is_dir() and holds_bag(d)), None)
-    if inner is not None:  # a run's output folder (sweep's, pareto's): its readers would take the new bag
-        return f"a run's output folder, its bag in {inner.name}/; choose a new directory"
+    inner = sorted(d.name + "/" for d in (folder.iterdir() if folder.is_dir() else ()) if d.is_dir() and holds_bag(d))
+    if len(inner) == 1:  # a run's output folder (sweep's, pareto's): its readers would take the new bag
+        return f"a run's output folder, its bag in {inner[0]}; choose a new directory"
+    if inner:  # a folder of runs (bags/): a bag beside theirs would make it one run's output folder
+        return f"holds {len(inner)} runs' bags ({', '.join(inner[:3])}{', ...' * (len(inner) > 3)}); choose a new directory"
     return ""
 
 
@@ -320,6 +324,8 @@ def claim_new_bag(bag: Path, what: str, out: Path | None = None) -> BagClaim:
             raise InputError(f"{what} {bag if out is None else out}: is being written by another run; choose a new "
                              "directory")
         check_new_bag(bag, what, out)  # claimed: a bag written meanwhile is refused, and none can start now
+        for folder in dict.fromkeys([bag] if out is None else [Path(out), bag]):
+            set_aside_logs(folder, what)
     except OSError as exc:
         claim.release()
         raise InputError(f"{what} {bag if out is None else out}: cannot create the bag directory "
@@ -328,3 +334,18 @@ def claim_new_bag(bag: Path, what: str, out: Path | None = None) -> BagClaim:
         claim.release()
         raise
     return claim
+
+
+def set_aside_logs(folder: Path, what: str) -> None:
+    """Move the logs/ that a run which wrote no bag left in `folder` (in_use lets such a folder be reused) to the
+    first free ``logs.N/``, said in one line on stderr: the new run's logs/ holds its own alone (they were
+    appended to the old run's files of the same name). Called under the claim: no live run writes there."""
+    import sys
+
+    logs = folder / "logs"
+    if not logs.is_dir() or not any(logs.iterdir()):
+        return
+    n = next(i for i in range(1, 10**6) if not (folder / f"logs.{i}").exists())
+    logs.rename(folder / f"logs.{n}")
+    print(f"{what} {folder}: the logs/ of an earlier run that wrote no bag moved to logs.{n}/", file=sys.stderr,
+          flush=True)

@@ -138,9 +138,13 @@ def build_batch(config, evaluator, param_defaults=None):
                 if not (k in own and k not in problem.parameters and np.all(X[:, j] == own[k]))}
         res = mda.run(cols)
         if not np.all(res.ok):  # the run failed, not the user's input (a global sample has no stencil)
-            bad = next(e for e in res.errors if e is not None)
-            raise RuntimeError(f"the model failed at {int((~np.asarray(res.ok)).sum())} of the {len(X)} points "
-                               f"evaluated, first: {bad.message.splitlines()[0]}")
+            from bev_mdo.api.errors import ModelFailed
+
+            i = int(np.flatnonzero(~np.asarray(res.ok))[0])
+            at = ", ".join(f"{k}={X[i, j]:.6g}" for j, k in enumerate(names) if k in problem.names)
+            raise ModelFailed(f"the model failed at {int((~np.asarray(res.ok)).sum())} of the {len(X)} sampled points "
+                              f"(the indices need a value at every one: narrow the bounds to where it answers); first "
+                              f"at {at}: {res.errors[i].message.splitlines()[0] if res.errors[i] else 'no value'}")
         return {k: res.values[k] for k in outputs}
     return fun, point, bounds, outputs, problem
 

@@ -215,11 +215,11 @@ class Study:
         return OptimizeResult.of(optimize.run(self.config, opts, callback, x0 or None))
 
     @_input_errors
-    def sweep(self, doe: str | None = "lhs", samples: int = 64, seed: int = 1, *,
+    def sweep(self, doe: str | None = None, samples: int = 64, seed: int = 1, *,
               designs: Mapping[str, Any] | None = None, fixed: Mapping[str, float] | None = None,
               transport=DEFAULT_TRANSPORT) -> SweepResult:
-        """A batch of designs: a DOE over the bounds (``doe`` lhs, sobol, halton or full; ``samples``
-        designs, full: levels per variable), or the given ``designs`` {name: values}; ``fixed``
+        """A batch of designs: a DOE over the bounds (``doe`` lhs (the default), sobol, halton or full; ``samples``
+        designs, full: levels per variable), or the given ``designs`` {name: values} (not both); ``fixed``
         values for variables not varied (others keep their initial value)."""
         import numpy as np
 
@@ -231,13 +231,16 @@ class Study:
         finite_values(fixed, "fixed", one="a variable held at one value (vary it in designs=)")
         fixed = {k: float(v) for k, v in fixed.items()}
         cols = None
+        if designs is not None and doe is not None:  # a DOE asked for beside given designs was ignored
+            raise InputError(f"sweep: doe={doe!r} and designs= given: a DOE draws its designs, designs= are evaluated "
+                             "as given; give one")
         if designs is not None:
             finite_values(_mapping(designs, "designs"), "designs")  # None named as None, not as nan
             cols = {k: np.atleast_1d(np.asarray(v, dtype=float)) for k, v in _mapping(designs, "designs").items()}
             if len({c.shape for c in cols.values()}) > 1 or any(c.ndim != 1 for c in cols.values()):
                 raise InputError("designs: give every variable's values as one list, all of the same length "
                                  f"(got {', '.join(f'{k}: {c.shape[0] if c.ndim == 1 else c.shape}' for k, c in cols.items())})")
-        cols = sampling.batch(self.config.problem, doe, _whole(samples, "samples"), _seed(seed), cols, fixed)
+        cols = sampling.batch(self.config.problem, doe or "lhs", _whole(samples, "samples"), _seed(seed), cols, fixed)
         r = evaluate.batch(self.config, cols, how)
         return SweepResult(r["design"], r["outputs"], r["margins"], r["feasible"], r["ok"], list(r["errors"]),
                            r["objective"], bool(getattr(r["problem"], "maximize", False)))

@@ -219,11 +219,15 @@ def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | 
     if answers is None:
         if (checks or {}).get("answers"):
             return False, "how the run ended is not known: its end-of-run record is left out (not signed with its key)"
+        last = rows[-1] if rows else {}
+        whose = (f"; {then} the last recorded iterate of its start {last['start']} of {last['starts']} (resume goes "
+                 "on from each start's own last record), not a result" if last.get("starts") else
+                 f"; {then} its last recorded iterate, not a result" if rows else ", and no iteration record either")
         if by_optimize(bag):
             return False, ("**the run did not finish**: the bag holds no end-of-run record (a signal, SIGINT or "
-                           f"SIGTERM, or an error stopped it); {then} its last recorded iterate, not a result")
+                           f"SIGTERM, or an error stopped it){whose}")
         return False, ("**no end-of-run record**: the run did not finish, or its coordinator was started by hand "
-                       f"(coordinator_node stores none); {then} its last recorded iterate")
+                       f"(coordinator_node stores none){whose.replace(', not a result', '')}")
     lost = answers.get("unresponsive_disciplines")
     if lost:
         why = answers.get("stopped") or f"{', '.join(lost)} stopped answering"

@@ -1,5 +1,6 @@
 """The order of a run's iteration records as they were sent (``Sequence``: every reader of a bag), and the live
-recorder's check of each record it is sent (``RecordOrder``: verified first for a signed run, then in order)."""
+recorder's check of each record it is sent (``RecordOrder``: verified first for a signed run, then in order; a
+recorder that cannot verify keeps every fresh record of its run and leaves their order to the readers)."""
 from __future__ import annotations
 
 from bev_mdo.bag.stored import WINDOW_S
@@ -51,8 +52,8 @@ class Sequence:
     def check(self, run_id: str, sequence: int, stamp_ns: int | None = None,
               received_ns: int | None = None) -> str | None:
         """None to keep the record, else why it is dropped ("expired", "duplicate", "from the past")."""
-        if stamp_ns and received_ns is not None and abs(received_ns - stamp_ns) > self.window_ns:
-            return "expired"  # (every bev_mdo sender stamps its records; an unstamped one cannot be checked)
+        if self.expired(stamp_ns, received_ns):
+            return "expired"
         if run_id not in self.last:
             if self.runs is not None and len(self.last) >= self.runs:
                 self.untracked += 1
@@ -80,6 +81,11 @@ class Sequence:
             self._give_up(max(self.above, key=lambda r: len(self.above[r])))
         return None
 
+    def expired(self, stamp_ns: int | None, received_ns: int | None) -> bool:
+        """Whether a record stamped `stamp_ns` was received further than the window from it (every bev_mdo
+        sender stamps its records; an unstamped one cannot be checked)."""
+        return bool(stamp_ns) and received_ns is not None and abs(received_ns - stamp_ns) > self.window_ns
+
     def _give_up(self, run_id: str) -> None:
         """A flood of scattered numbers: the lower half of `run_id`'s gaps are given up (still missing)."""
         floor, above = self.floor[run_id], self.above[run_id]
@@ -95,11 +101,20 @@ class RecordOrder:
     (ros/replay): of its own run only (when it has one), authentic for a signed run (``verify``: the run's
     ``Signer.verify_iteration``; checked before the order, so a forged record never takes a number), each
     once and fresh (``Sequence``); ``dropped`` counts the others by reason. ``bounded``: the live recorder's
-    memory bounds (``Sequence.HELD``, ``Sequence.RUNS``); a replay reads a whole bag, with none."""
+    memory bounds (``Sequence.HELD``, ``Sequence.RUNS``); a replay reads a whole bag, with none.
 
-    def __init__(self, run_id: str = "", window_s: float = WINDOW_S, verify=None, bounded: bool = True):
+    ``ordered`` False: a recorder without the run's key and config (``bev-mdo record`` with no config) keeps
+    every fresh record of its run, duplicates and numbers seen before too (``kept``), and holds no number: ordering
+    records it cannot verify let a forger who sent a run's numbers first have the genuine records dropped "from
+    the past" and choose the count of "missing" ones. The readers verify with the key and keep each run's records
+    once and in order (bag/history.py)."""
+
+    def __init__(self, run_id: str = "", window_s: float = WINDOW_S, verify=None, bounded: bool = True,
+                 ordered: bool = True):
         self.run_id = run_id
         self.verify = verify
+        self.ordered = ordered
+        self.kept = 0  # records kept unordered (``ordered`` False)
         self.order = Sequence(window_s, *((Sequence.HELD, Sequence.RUNS) if bounded else ()))
         self.dropped: dict[str, int] = {}
 
@@ -108,9 +123,14 @@ class RecordOrder:
 
         try:
             rec = head(data, "IterationRecord", "sequence")  # the fields up to sequence: no full decode
-            why = ("of another run" if self.run_id and not in_run(rec.run_id, self.run_id)
-                   else (self.verify(data) if self.verify is not None else None)
-                   or self.order.check(rec.run_id, int(rec.sequence), stamp_ns(rec.header), received_ns))
+            if self.run_id and not in_run(rec.run_id, self.run_id):
+                why = "of another run"
+            elif not self.ordered:
+                why = "expired" if self.order.expired(stamp_ns(rec.header), received_ns) else None
+                self.kept += why is None
+            else:
+                why = ((self.verify(data) if self.verify is not None else None)
+                       or self.order.check(rec.run_id, int(rec.sequence), stamp_ns(rec.header), received_ns))
         except WireError:
             why = "malformed"
         if why is not None:
@@ -125,6 +145,8 @@ class RecordOrder:
         order = self.order
         parts += [f"{order.missing} iteration record(s) missing"] if order.missing else []
         parts += [f"{order.late} iteration record(s) recorded after a later one (kept)"] if order.late else []
+        parts += [f"{self.kept} iteration record(s) kept as received (no key to verify them: the readers verify and "
+                  "order them)"] if self.kept else []
         parts += [f"{order.untracked} iteration record(s) of runs beyond the first {order.runs} kept unchecked "
                   "(the recorder's bound)"] if order.untracked else []
         return "".join(f"; {p}" for p in parts)

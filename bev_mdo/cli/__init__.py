@@ -225,6 +225,11 @@ def _run(args, process: bool = False) -> int:
             msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
             print(f"bev-mdo {args.command}: error: {msg}", file=sys.stderr)
             return STARTUP_GAVE_UP_STATUS if isinstance(exc, StartupGaveUp) else 2
+        from bev_mdo.api.errors import ModelFailed
+
+        if isinstance(exc, ModelFailed):  # the model gave no value where the method needs one: as a failed point
+            print(f"bev-mdo {args.command}: error: {exc}", file=sys.stderr)
+            return 1
         print(f"bev-mdo {args.command}: error: {_named(exc)}", file=sys.stderr)  # the run failed (its optimiser raised)
         return RUN_FAILED_STATUS
 

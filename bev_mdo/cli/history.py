@@ -152,7 +152,7 @@ def _cut(name: str, width: int) -> str:
 
 
 def _priority(col: str) -> int:
-    order = ("iteration", "objective", "max_violation", "feasible", "status", "design.", "constraint.",
+    order = ("iteration", "start", "objective", "max_violation", "feasible", "status", "design.", "constraint.",
              "mda_evaluations", "evaluations.", "formulation", "optimizer")
     for i, p in enumerate(order):
         if col == p or (p.endswith(".") and col.startswith(p)):
@@ -168,7 +168,7 @@ def choose_columns(rows: list[dict], width: int | None, units: dict | None = Non
     for row in rows:
         columns += [k for k in row if k not in columns and k not in skip]
     # constant text columns go into the title instead
-    columns = [c for c in columns if not (c in ("formulation", "optimizer")
+    columns = [c for c in columns if not (c in ("formulation", "optimizer", "starts", "seed")
                                           and len({str(r.get(c)) for r in rows}) == 1)]
     if width is not None and all(r.get("status") == "ok" for r in rows):  # the table shows it where one failed
         columns = [c for c in columns if c != "status"]
@@ -200,6 +200,7 @@ def print_table(rows: list[dict], width: int | None = None, file=None, units: di
     for k in ("formulation", "optimizer"):
         if k not in shown and first.get(k):
             title += f", {first[k]}"
+    title += "".join(f", {k} {first[k]}" for k in ("starts", "seed") if k not in shown and first.get(k) is not None)
     if first.get("objective_name"):
         title += f"; objective = {first['objective_name']}"
     notes = []

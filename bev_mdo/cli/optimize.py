@@ -69,6 +69,7 @@ def _progress(quiet: bool, to_stderr: bool):
         # a multi-start's: the start's own iteration (the record's is the run's count over interleaved starts)
         print(f"{start}iter {rec.get('start_iteration', rec['iteration']):4d}  {rec['objective_name']} {objective}  "
               f"max violation {rec['max_violation']:9.3g}  {'feasible  ' if rec['feasible'] else 'infeasible'}"
+              f"{': cannot follow the cycle' if rec.get('cannot_follow') else ''}"  # the run's design_check
               f"  {rate:9.0f} {'discipline' if idf else 'MDA'} evals/s", file=out, flush=True)
 
     return show

@@ -57,7 +57,7 @@ def resume_point(bag_path: str, run_id: str | None = None, key_file: str | None 
         stored = load_yaml(config_yaml)
     except ValueError as exc:  # e.g. a cycle trace recorded whole past the YAML limit, before that was refused
         raise ValueError(f"{bag_path}: the bag's configuration cannot be read back ({exc}); cannot resume") from None
-    config = RunConfig.load(stored)
+    config = RunConfig.load(stored, where=f"{bag_path} (its stored config)")
     fixed = json.loads(bag.info.get("fixed") or "{}")  # a sweep's --set values: held in the resumed run
     if fixed and checks is not None:
         config = held(config, fixed)

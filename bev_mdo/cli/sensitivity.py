@@ -91,7 +91,7 @@ def run(args) -> int:
         write_heatmap(args.png, s, outputs, cfg, {k: point[k] for k in problem.names}, declared_units(cfg))
     from bev_mdo.api.evaluate import design_notes
 
-    notes = design_notes(cfg, s.values)  # e.g. the 0-100 km/h time of a point that cannot reach 100 km/h
+    notes = design_notes(cfg, {**s.point, **s.values})  # e.g. the 0-100 km/h time of a point that cannot reach 100 km/h
     units = sensitivity.units_of(cfg, [*s.names, *outputs])
     if args.json:
         print(jsontext.dumps(sensitivity.to_dict(s, outputs, units) | ({"notes": notes} if notes else {})))

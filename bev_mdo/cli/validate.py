@@ -111,12 +111,13 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
 def fitted_on_these_rows(parameter_set: str | None, data) -> str:
     """Whether the model's figures are in-sample, as far as the set's provenance (its ``fitted_on``: the
     fleet file, its absolute path and SHA-256) tells: no set; fitted on this file; fitted on another file
-    that holds none, some or all of these rows (compared cell by cell where that file is at hand and its
-    SHA-256 matches); or unknown."""
+    that holds none, some or all of these cars (a row's cells but its measured energies, its reported unit
+    and flag, compared where that file is at hand and its SHA-256 matches); or unknown."""
     import hashlib
     from pathlib import Path
 
     from bev_mdo.models.cycles import read_csv_rows
+    from bev_mdo.models.fleet import MEASURED
     from bev_mdo.models.params import PARAMETER_SET_DIR, is_parameter_set_file, parameter_set_source
 
     if not parameter_set or parameter_set == "none":
@@ -143,12 +144,15 @@ def fitted_on_these_rows(parameter_set: str | None, data) -> str:
         return [dict(zip((h.strip() for h in head), (c.strip() for c in r))) for r in body if any(c.strip() for c in r)]
 
     ours, theirs = rows(data), rows(fit_file)
-    common = sorted(set(ours[0] if ours else ()) & set(theirs[0] if theirs else ()))
+    # a car is its identity and the model's inputs, not its measured energies (a copy in Wh/mi is the same car)
+    common = sorted(set(ours[0] if ours else ()) & set(theirs[0] if theirs else ()) - set(MEASURED.values())
+                    - {"reported_unit", "flag"})
     fitted = {tuple(r.get(k) for k in common) for r in theirs}
     both = sum(tuple(r.get(k) for k in common) in fitted for r in ours)
     if not both:
-        return f"{said}, which has none of these rows: held out"
-    return f"{said}; {both} of these {len(ours)} rows are in it: in-sample for those"
+        return f"{said}, which has none of these cars: held out"
+    return (f"{said}; {both} of these {len(ours)} rows are cars in it (the same identity and model inputs, "
+            f"whatever their measured energies): in-sample for those")
 
 
 REFERENCE = {"baseline3": "3-constant baseline a + b mass + c road-load work per cycle, each family predicted by "

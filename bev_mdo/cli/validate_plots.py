@@ -45,7 +45,7 @@ def plot(report: dict, path: str) -> None:
     import matplotlib.pyplot as plt
 
     rows = report["rows"]
-    fig, ax = plt.subplots(1, 3, figsize=(15, 4.8))
+    fig, ax = plt.subplots(1, 3, figsize=(15, 5.4))
     marks = {"udds": ("o", "UDDS"), "hwfet": ("s", "HWFET")}
     lo, hi = math.inf, 0.0
     for c, (mk, label) in marks.items():
@@ -77,8 +77,8 @@ def plot(report: dict, path: str) -> None:
         a.axhspan(-5, 5, color="grey", alpha=0.2)
         a.axhline(0, color="k", lw=1)
         a.set(xlabel=xl, ylabel="error %", title=f"residual vs {xl.split(' (')[0]}")
-    for a in ax:
-        a.legend(loc="lower right", fontsize=8)
+    for a in ax:  # under the axes: inside, one covered the worst points (an Audi e-tron S at 2948 kg)
+        a.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=4, fontsize=8, frameon=False)
         a.grid(alpha=0.3)
     fig.suptitle(f"{report['energy_model']} on {report['data'].rsplit('/', 1)[-1]}")
     _save(fig, path)

@@ -383,6 +383,11 @@ def two_speed_notes(cfg: Mapping[str, Any], vehicle: Mapping[str, float], proble
         warnings.warn(f"{', '.join('vehicle.' + k for k in stated)}: two-speed gearbox key{'s' if len(stated) > 1 else ''}"
                       f", but {why}: {'they change' if len(stated) > 1 else 'it changes'} nothing"
                       + (" unless a design sets gear_count 2" if topology == "SM-SA" else ""), CycleNote, stacklevel=2)
+    if topology == "SM-SA" and two and "two_speed_efficiency_loss" not in (*problem.names, *problem.parameters):
+        from bev_mdo.disciplines.common import platform_loss_note
+
+        if (note := platform_loss_note(section)):
+            warnings.warn(note, CycleNote, stacklevel=2)
     if (topology != "SM-SA" or not two or cfg.get("energy_model") != "quasi_static" or values.get("shift_strategy")
             or not isinstance(cfg.get("cycle"), Mapping)):
         return

@@ -23,8 +23,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from bev_mdo.disciplines.common import (ENERGY_MODELS, TOPOLOGY_DISCIPLINES, Base, overridable,
-                                        resampled_cycle, run_topology, topology_inputs, vehicle_of)
+from bev_mdo.disciplines.common import (ENERGY_MODELS, GEARBOX_TWO_SPEED_LOSS, TOPOLOGY_DISCIPLINES, Base, overridable,
+                                        platform_two_speed_loss, resampled_cycle, run_topology, topology_inputs,
+                                        vehicle_of)
 from bev_mdo.disciplines.energy import CycleRange, Energy
 from bev_mdo.models import acceleration, cost, motor_speed, range as range_model
 from bev_mdo.models import topology as topo_model
@@ -117,9 +118,10 @@ class Acceleration(Base):
     """motor_kw, gear_ratio, battery_kwh, vehicle_mass_kg (, rear motor) -> accel_time_0_100_s (eqs 7-30 /
     2-26 / 4-5) with every motor of the topology, within the tyres' grip and the pack's power at its
     discharge limit (§3.5.3: 5C; ``battery_to_shaft_efficiency`` 0: no battery limit); SM-SA two-speed
-    follows the eq 2-6 shift rule. A design that cannot reach 100 km/h gets the continuation value
-    (models/acceleration.py: 10 000 s + 100 s per km/h of top speed short), infeasible under any upper limit
-    the config accepts, not a failed point."""
+    follows the eq 2-6 shift rule, its gearbox losing ``two_speed_efficiency_loss`` (a fitted set's figure, which
+    stands for a platform's energy, is replaced by the thesis' gearbox loss: common.platform_two_speed_loss). A
+    design that cannot reach 100 km/h gets the continuation value (models/acceleration.py: 10 000 s + 100 s per
+    km/h of top speed short), infeasible under any upper limit the config accepts, not a failed point."""
 
     name = "acceleration"
     outputs = ("accel_time_0_100_s",)
@@ -145,7 +147,10 @@ class Acceleration(Base):
         t = run_topology(config, options)
         names = acceleration.ACCEL_PARAMS + acceleration.BATTERY_LIMIT_PARAMS + tuple(k for k in cls._TOPO[t.name]
                                                                                      if k in v)
-        return cls({k: v[k] for k in overridable(v, names)}, t.name)
+        p = {k: v[k] for k in overridable(v, names)}
+        if "two_speed_efficiency_loss" in p and platform_two_speed_loss(config.get("vehicle")):
+            p["two_speed_efficiency_loss"] = GEARBOX_TWO_SPEED_LOSS  # a fitted energy figure, not the box's traction loss
+        return cls(p, t.name)
 
     def compute(self, inputs):
         p = self._params(inputs)
@@ -162,10 +167,30 @@ class Acceleration(Base):
                                             battery_kwh=inputs["battery_kwh"])
         return {"accel_time_0_100_s": t}
 
-    def notes(self, outputs) -> list[str]:
-        """What the time means at a design that cannot reach 100 km/h (the continuation value)."""
-        note = acceleration.not_reached_note(outputs.get("accel_time_0_100_s") or 0.0)
-        return [note] if note else []
+    def battery_limit_kw(self, values) -> tuple[float, float, float] | None:
+        """(the pack's shaft power at its discharge limit and the motors' rated power together, in kW; the 0-100
+        km/h time without the pack's limit, s) at one design (``values``: its inputs), None without a battery limit
+        (``battery_to_shaft_efficiency`` 0) or inputs. The pack limits the time where it is below the time with it:
+        below base speed a motor does not use its rated power (a short gear), and a pack under it need not bind."""
+        if any(k not in values for k in (*self.inputs, "accel_time_0_100_s")) or not np.isfinite(
+                values["accel_time_0_100_s"]):  # (a failed point: no time to compare)
+            return None
+        shaft_w = acceleration.battery_shaft_power_w(float(values["battery_kwh"]), self._params(values))
+        if not np.isfinite(shaft_w):
+            return None
+        rated_kw = self.topology.front_motors * float(values["motor_kw"]) \
+            + self.topology.rear_motors * float(values.get("motor_rear_kw", 0.0))
+        free = {k: np.atleast_1d(float(values[k])) for k in (*self.inputs, *self.parameters) if k in values}
+        t_free = self.compute({**free, "battery_to_shaft_efficiency": np.zeros(1)})["accel_time_0_100_s"]
+        return float(shaft_w) / 1e3, rated_kw, float(np.ravel(t_free)[0])
+
+    def notes(self, values) -> list[str]:
+        """What the time means at a design (``values``: inputs and outputs) that cannot reach 100 km/h (the
+        continuation value), and that the pack's power limits it where it does."""
+        lim, t = self.battery_limit_kw(values), values.get("accel_time_0_100_s")
+        return [n for n in (acceleration.not_reached_note(t or 0.0), lim and t is not None and t > lim[2] * (1 + 1e-9)
+                            and f"the pack limits the 0-100 km/h time: {lim[0]:.1f} kW at the shaft, below the motors' "
+                            f"rated {lim[1]:.1f} kW ({t:.3g} s; {lim[2]:.3g} s without the pack's limit)") if n]
 
 
 class MotorSpeed(Base):

@@ -13,7 +13,41 @@ from bev_mdo.mdo.discipline import Discipline
 from bev_mdo.models import road_load
 from bev_mdo.models import topology as topo_model
 from bev_mdo.models.cycles import load_cycle, resample
-from bev_mdo.models.params import ENERGY_MODELS, ROAD_LOAD_UNUSED, validate_cycle, validate_vehicle  # noqa: F401 - ENERGY_MODELS re-exported
+from bev_mdo.models.params import (ENERGY_MODELS, QUASI_STATIC_SPECS, ROAD_LOAD_UNUSED, fitted_values,  # noqa: F401
+                                   validate_cycle, validate_vehicle)  # (ENERGY_MODELS re-exported)
+
+GEARBOX_TWO_SPEED_LOSS = QUASI_STATIC_SPECS["two_speed_efficiency_loss"].default  # the thesis' gearbox (§3.3.2)
+
+
+def platform_two_speed_loss(section: Mapping[str, Any] | None) -> tuple[float, str] | None:
+    """(value, set) where the vehicle section's ``two_speed_efficiency_loss`` is a parameter set's fitted figure,
+    not one the section states: a shipped set's, or a file set's (its values are in the resolved section; the
+    set's own value marks them; None when the file is gone). The EPA fit's figure stands for the fleet's one
+    two-speed platform (docs/validation.md), not a gearbox's own loss: the energy charges it (energy is what
+    was fitted), the 0-100 km/h time takes the thesis' gearbox loss instead."""
+    v = section if isinstance(section, Mapping) else {}
+    src = v.get("parameter_set_source") if isinstance(v.get("parameter_set_source"), Mapping) else {}
+    name = src.get("file") or v.get("parameter_set")
+    try:
+        fitted = fitted_values(name).get("two_speed_efficiency_loss") if isinstance(name, str) else None
+    except ValueError:
+        return None
+    stated = v.get("two_speed_efficiency_loss")
+    if fitted is None or (stated is not None and not (src and stated == fitted)):
+        return None
+    return float(fitted), str(src.get("name") or name)
+
+
+def platform_loss_note(section: Mapping[str, Any] | None) -> str | None:
+    """One line where a two-speed design's gear efficiency loss is a fitted set's platform figure
+    (:func:`platform_two_speed_loss`): its value, what it stands for, how to set a gearbox's own."""
+    found = platform_two_speed_loss(section)
+    return found and (
+        f"gear_count 2: two_speed_efficiency_loss {found[0]:.3f} is parameter set {found[1]}'s fitted figure for "
+        "the fleet's one two-speed platform (Porsche Taycan / Audi e-tron GT: all it uses beyond the fleet), not "
+        f"a gearbox's own loss (about 0.01-0.02): the energy charges it, the 0-100 km/h time takes "
+        f"{GEARBOX_TWO_SPEED_LOSS:g}; for a gearbox study set vehicle.two_speed_efficiency_loss (the thesis: "
+        f"{GEARBOX_TWO_SPEED_LOSS:g}, §3.3.2)")
 
 
 def vehicle_of(config: Mapping[str, Any]) -> dict[str, float]:

@@ -35,7 +35,7 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from bev_mdo.mdo.vectors import ShapeError, check_outputs, flat_partials, has_partials
+from bev_mdo.mdo.vectors import ShapeError, check_outputs, flat_partials, has_partials, rejection
 from bev_mdo.models.common import check_keys, is_number, text_hint
 
 Batch = dict[str, np.ndarray]
@@ -317,7 +317,7 @@ def failed(outputs: Sequence[str], n: int, error: str = "") -> EvalResult:
 
 def rejected(name: str, outputs: Sequence[str], n: int, why: str) -> EvalResult:
     """The result of a request a discipline refused: every point failed, the reason named."""
-    return failed(outputs, n, f"{name}: rejected: {why}")
+    return failed(outputs, n, rejection(name, why))
 
 
 def run_discipline(disc: Any, inputs: Mapping[str, Any], partials: bool = False) -> EvalResult:

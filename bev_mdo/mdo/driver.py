@@ -265,7 +265,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
             "objective": sign * float(f[0]) if ok else float("nan"), "constraints": cons,
             "max_violation": viol if ok else float("nan"), "feasible": bool(ok and viol <= tol and not short),
             "mda_evaluations": form.mda_evaluations, "discipline_evaluations": dict(evaluator.counts),
-            "wall_time_s": time.perf_counter() - t0,
+            "wall_time_s": time.perf_counter() - t0, **({"cannot_follow": True} if short else {}),  # why infeasible
         }
         if len(form.var_names) > n_dv:  # IDF: the couplings the optimiser holds (a resume starts from them)
             rec["couplings"] = dict(zip(form.var_names[n_dv:], map(float, x[n_dv:])))
@@ -299,9 +299,11 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
             # the first-order check verifies has converged: as then, an earlier point more violated
             # than it does not displace it with the objective its violation buys
             fo_last = end_point_check(form, xs[-1], start, tol, follows)
-            if fo_last["verdict"] == first_order.OPTIMUM:
-                k = pick_result(history, sign, True, tol)
-                fo = fo_last if k == len(history) - 1 else end_point_check(form, xs[k], start, tol, follows)
+            if fo_last["verdict"] == first_order.OPTIMUM:  # nor one the check does not verify (a small limit's
+                j = pick_result(history, sign, True, tol)  # scale of 1 lets 1e-7 of it buy 1e-5 of objective)
+                fo_j = fo_last if j == len(history) - 1 else fo if j == k else end_point_check(form, xs[j], start,
+                                                                                                tol, follows)
+                k, fo = (j, fo_j) if fo_j["verdict"] == first_order.OPTIMUM else (len(history) - 1, fo_last)
             fo["cost"] = {"points": form.n_points - checked_from[0], "batches": form.n_batches - checked_from[1],
                           "wall_time_s": time.perf_counter() - checked_from[2]}  # both checks
         last, x = history[k], xs[k]
@@ -344,7 +346,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         if ok and not final.get("ok", True):  # IDF: its point consistent, the MDA through it failed
             ok, err = False, final.get("error", "")
     counts = dict(evaluator.counts)
-    if not ok and fo["verdict"] != first_order.INFEASIBLE:  # e.g. IDF's consistent point whose MDA failed
+    if not ok and not fo.get("failure"):  # e.g. IDF's consistent point whose MDA failed, an MDA not converged
         fo = {**fo, "verdict": first_order.INFEASIBLE, "point_failed": True,
               "failure": (err or final.get("error", "")).split("; ")[0]}
     elif ok and short:  # infeasible whatever the constraints say: e.g. its energy is that of the cycle's demand
@@ -447,7 +449,7 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
             fo.update(verdict=first_order.STOPPED, conditions_hold=False, kink_at_optimum=True)
     if ok and fo["verdict"] == first_order.OPTIMUM:  # a variable nothing holds: the optimum is not unique in it
         before = form.n_points
-        if free := free_variables(form, u, float(f[0]), g[0], h[0], (df, dg, dh), fo, tol, follows):
+        if free := free_variables(form, u, float(f[0]), g[0], (df, dg, dh), fo, tol, follows):
             fo["free_variables"] = free
         if form.n_points > before:
             fo["free_points"] = form.n_points - before  # of the check's cost: the steps along them

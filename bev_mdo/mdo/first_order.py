@@ -198,6 +198,7 @@ def _free_line(free: list[dict]) -> str:
     one = len(free) == 1
     return (f"the objective's gradient is zero in {names} at the optimum, and {'it is' if one else 'they are'} "
             f"neither on a bound nor in an active constraint (a step of {FREE_STEP:g} of {'its' if one else 'each'} "
-            "range either way changes neither the objective nor an active limit, and stays feasible): the optimum is "
+            "range either way changes neither the objective nor an active limit, and stays feasible; nor do steps ten "
+            "times as long where they stay feasible): the optimum is "
             f"not unique in {'it' if one else 'them'} ({'its value is' if one else 'their values are'} arbitrary "
             "where the design stays feasible)")

@@ -117,7 +117,7 @@ def run_starts(run: Run, evaluator: Evaluator, starts: int | list[dict[str, floa
         "feasible": sum(bool(r.feasible) for _, r in results), "objective_rel_tol": rel_tol, "design_tol": design_tol,
         "designs_per_s": sum(r.points_evaluated for _, r in results) / max(wall, 1e-12),
         "results": [{"start": i, "x0": x0, "design": r.design, "objective": r.objective, "feasible": r.feasible,
-                     "verdict": r.verdict, "iterations": r.iterations, "reached_best": reached(r)}
+                     "max_violation": r.max_violation, "verdict": r.verdict, "iterations": r.iterations, "reached_best": reached(r)}
                     for i, (x0, r) in enumerate(results)],
     }
     for name in ("mda_evaluations", "points_evaluated", "batches", "gradients", "fd_failures"):
@@ -141,15 +141,19 @@ def _best_start(results: list[RunResult], sign: float, span: np.ndarray, names: 
     the optimum before one that stopped short of it, then the least violated. One that stopped inside the
     feasibility tolerance but past an active constraint buys a little objective with its violation and
     does not stand for the point the others reached exactly (driver.pick_result's rule within one run).
-    With no feasible result, the best objective of all."""
+    With no feasible result, the least violated (one that cannot follow its cycle after those that can, a failed
+    end last; ties by objective), as a sweep's best design: the one the infeasible answers then describe."""
     def objective(i: int) -> tuple[float, int]:  # a failed end (NaN) last
         f = sign * results[i].objective
         return (f if f == f else float("inf")), i
 
     feasible = [i for i, r in enumerate(results) if r.feasible]
-    best = min(feasible or range(len(results)), key=objective)
     if not feasible:
-        return best
+        def violation(i: int) -> tuple:
+            v, r = results[i].max_violation, results[i]
+            return bool((getattr(r, "first_order", None) or {}).get("cannot_follow")), v if v == v else float("inf")
+        return min(range(len(results)), key=lambda i: (*violation(i), *objective(i)))
+    best = min(feasible, key=objective)
     same = [i for i in feasible if _same_point(results[i], results[best], names, span, design_tol)
             or close is not None and close(results[i].objective, results[best].objective)]
     return min(same, key=lambda i: (results[i].verdict != OPTIMUM, results[i].max_violation, *objective(i)))

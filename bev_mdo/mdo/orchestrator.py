@@ -42,6 +42,7 @@ from bev_mdo.mdo.discipline import (EvalResult, PointError, describe_row, error_
 from bev_mdo.mdo.evaluator import DisciplineSpec
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.ledger import Ledger
+from bev_mdo.mdo.vectors import ShapeError, broken_contract
 
 # A data-flow share has at least this many rows. Every discipline of the MDA computes each share
 # on its own, and numpy reduces a batch of ONE row in another order than a batch of several (a
@@ -84,6 +85,7 @@ class Orchestrator:
         self.iteration = 0
         self.unresponsive: set[str] = set()  # disciplines that let every attempt of a request time out
         self._results: dict[int, EvalResult] = {}
+        self._contract = ""  # a discipline's broken contract answered in this wave (raised at its end: _checked)
         self.coupling_sources: dict[str, dict[str, str]] = {}  # discipline -> {coupling input: source}
         self.flows = 0  # MDAs served by data flow (one request each)
         self._flow_plans: dict[tuple, dict | None] = {}
@@ -177,7 +179,7 @@ class Orchestrator:
                 self._results[i] = self._join(i, calls[i][0])
         else:
             self._await()
-        return [self._results[i] for i in range(len(calls))]
+        return self._checked([self._results[i] for i in range(len(calls))])
 
     def evaluate_flow(self, names: Sequence[str], request: Mapping[str, np.ndarray], n: int,
                       partials: bool = False) -> dict | None:
@@ -192,7 +194,7 @@ class Orchestrator:
         if pooled:
             if not self.pool_data_flow:
                 return None
-            return self._flow_shares(names, plan, request, n, bool(partials), pooled)
+            return self._checked(self._flow_shares(names, plan, request, n, bool(partials), pooled))
         eid = self.ledger.new_id()
         req = self._request(eid, "", request, self._tag(names), flow=names, partials=partials)
         sent = [self.ledger.open(eid, name, retry.Sent(i, name, req, n, 0, flow=True, inputs=request)) for i, name in enumerate(names)]
@@ -202,14 +204,14 @@ class Orchestrator:
         out = {name: self._results[i] for i, name in enumerate(names)}
         answered = {d for e, d, _, _ in self.accepted[-len(names):] if e == eid}
         self.counts.update(flow.rows_per_discipline(plan, out, n, [d for d in names if d in answered]))
-        return out
+        return self._checked(out)
 
     def _flow_topics(self, names: Sequence[str]) -> None:
         """Make ready what a data-flow MDA of `names` is sent and answered on (the transport's)."""
 
     def _accept(self, key: tuple[int, str], p: retry.Sent, res: EvalResult, instance: str) -> None:
         """Take `res` as the answer of the ledger entry `p` (`key`): counted, logged in `accepted`."""
-        if res.error:
+        if res.error and not self._contract:  # (the run stops on a broken contract with its own line)
             self._first_error(p.discipline, res.error)
         if not p.flow:  # a data-flow MDA counts the rows each discipline evaluated at the end
             self.counts[p.discipline] += p.n
@@ -236,6 +238,21 @@ class Orchestrator:
     def _failed(self, p: retry.Sent, error: str) -> EvalResult:
         spec = self.specs.get(p.discipline)
         return failed(spec.outputs if spec else (), p.n, error)
+
+    def _rejected(self, p: retry.Sent, error: str) -> EvalResult:
+        """The answer to `p` when its discipline refused the request (``error``: why): its points fail, named. A
+        refusal for the discipline's own mistake (an output of the wrong shape, one left out: a user's class
+        breaking its contract) is kept, and raised once the wave is answered (_checked), as in process."""
+        self._contract = self._contract or broken_contract(p.discipline, error) or ""
+        return self._failed(p, error or f"{p.discipline}: request rejected")
+
+    def _checked(self, out):
+        """`out`, the results of a wave (or data-flow MDA) every answer of which is in, unless a discipline broke
+        its contract there: then the ShapeError an in-process run stops with, its one line (exit 2 in the CLI)."""
+        why, self._contract = self._contract, ""
+        if why:
+            raise ShapeError(why)
+        return out
 
     def _join(self, index: int, name: str) -> EvalResult:
         """The answered shares of call `index` (discipline `name`) joined in row order."""

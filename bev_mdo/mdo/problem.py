@@ -164,8 +164,8 @@ class Problem:
         cons_raw = section.get("constraints") or {}
         if not isinstance(cons_raw, Mapping):
             raise ValueError("problem.constraints: must map output names to {lower and/or upper}")
-        cons = [c for n, spec in cons_raw.items() for c in _elements(n, spec, _constraint, shapes,
-                                                                     "problem.constraints")]
+        cons = _merged([c for n, spec in cons_raw.items() for c in _elements(n, spec, _constraint, shapes,
+                                                                             "problem.constraints")])
         oscale = _finite(section.get("objective_scale", 1.0), "problem.objective_scale")
         if oscale <= 0:
             raise ValueError(f"problem.objective_scale: {oscale} must be > 0")
@@ -281,6 +281,22 @@ def check_resolved(where: str, x: float, lower: float, scale: float, rtol: float
         shifted = f"x - {lower:g}" if lower >= 0 else f"x + {-lower:g}"
         raise ValueError(f"{where}: {x:g} is lost to rounding in the optimiser's scaled variable ({shifted}) / "
                          f"{scale:g}, where it reads {back:g}: give bounds nearer the values the variable takes")
+
+
+def _merged(cons: list[Constraint]) -> list[Constraint]:
+    """One constraint per name: an element's own entry after its vector's (``sigma[0]: {upper: 300}`` beside
+    ``sigma: {shape: 3, upper: 200}``, or ``--constraint "sigma[0]<=300"``) replaces the sides it gives (two
+    entries kept both limits in force while reports showed one)."""
+    out: dict[str, Constraint] = {}
+    for c in cons:
+        old = out.get(c.name)
+        if old is not None:
+            lo, hi = (c.lower if c.lower is not None else old.lower), (c.upper if c.upper is not None else old.upper)
+            if lo is not None and hi is not None and lo > hi:
+                raise ValueError(f"problem.constraints.{c.name}: lower {lo:g} > upper {hi:g} (with its vector's limit)")
+            c = Constraint(c.name, lo, hi, c.scale if c.scale is not None else old.scale, c.monitor)
+        out[c.name] = c
+    return list(out.values())
 
 
 def _constraint(name: str, spec: Any, where: str) -> Constraint:

@@ -32,6 +32,22 @@ class ShapeError(ValueError):
     """A discipline returned an output or a partial of the wrong shape (a wiring mistake, not a bad point)."""
 
 
+CONTRACT = "bad_discipline_output"  # the kind of a node's rejection for a discipline's own mistake (a ShapeError)
+
+
+def rejection(name: str, why: str, kind: str = "") -> str:
+    """The error of a request discipline `name` refused (every transport's): one of the ``CONTRACT`` kind is
+    marked, so the coordinator reads it back (``broken_contract``) and stops the run as in process."""
+    return f"{name}: rejected{' (broke its contract)' * (kind == CONTRACT)}: {why}"
+
+
+def broken_contract(name: str, error: str) -> str | None:
+    """The discipline's own one line (the ShapeError in-process runs stop with) of a ``rejection`` of the
+    ``CONTRACT`` kind by `name`; None for any other error."""
+    head = rejection(name, "", CONTRACT)
+    return error[len(head):] if error.startswith(head) else None
+
+
 def flat_names(name: str, size: int | None) -> list[str]:
     """The scalar columns of a variable: [name] for a scalar, name[0]..name[size-1] for a vector."""
     return [name] if size is None else [f"{name}[{i}]" for i in range(int(size))]

@@ -344,7 +344,7 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
                     **({f"cv_{cv['k']}fold_by_family{blocked}": _scores(cv, fleet, use)}
                        if cv else {f"cv_by_family{blocked}": "not possible: one model family"}),
                     **({f"cv_leave_one_make_out{blocked}": _scores(cv_make, fleet, use)} if cv_make else {}),
-                    **({"note": few} if few else {})},
+                    **({"notes": notes} if (notes := [*filter(None, [few]), *fleet.notes, *bound_notes(f)]) else {})},
         "parameters": {**{k: float(v) for k, v in fixed.items()
                           if k not in ("air_density_kg_m3", "drag_area_m2", "rolling_resistance")},
                        **{k: float(round(v, 6)) for k, v in zip(f["names"], f["x"])}},
@@ -356,6 +356,12 @@ def write_parameter_set(f: dict, cv: dict, cv_make: dict | None, fleet: fl.Fleet
     tmp.write_text(text)
     os.replace(tmp, path)
     return str(path)
+
+
+def bound_notes(f: dict) -> list[str]:
+    """One line per fitted parameter the data press onto a bound of its range (no standard error there)."""
+    return [f"{k} {v:g} is at its {b} bound: the data press it there (a fleet in other units?), the other "
+            "parameters take up the rest" for k, v, b in zip(f["names"], f["x"], f.get("at_bound", ())) if b]
 
 
 def few_values(f: dict) -> str:

@@ -98,6 +98,8 @@ def check_whole(value: Any) -> int:
     """A whole number (an int or a numpy integer; not a bool, which Python counts as 1, nor 2.9 or "3", which
     int() would take); ValueError otherwise. Every count and seed of the Python API."""
     if not isinstance(value, (int, np.integer)) or isinstance(value, (bool, np.bool_)):
+        if isinstance(value, (float, np.floating)) and float(value).is_integer():  # 16.0 'not a whole number'
+            raise ValueError(f"{value!r} is a float: give it as an int ({int(value)})")
         raise ValueError(f"{value!r} is not a whole number")
     return int(value)
 

@@ -92,6 +92,7 @@ class Fleet:
     gear_listed: np.ndarray              # axle_ratio given
     measured: dict = field(default_factory=dict)   # cycle -> (N,) Wh/km from the wall
     technology: dict = field(default_factory=dict)  # column -> list of str, the TECHNOLOGY columns given
+    notes: list = field(default_factory=list)       # what reading it noted (CycleNote): a set fitted on it keeps them
 
     @property
     def driven_axles(self) -> np.ndarray:
@@ -161,7 +162,23 @@ class Fleet:
 
 
 def read_fleet(path: str | Path | None = None) -> Fleet:
-    """Read and validate a fleet CSV; ValueError '<file>: row R, column C: ...' on bad input."""
+    """Read and validate a fleet CSV; ValueError '<file>: row R, column C: ...' on bad input. Its notes
+    (models.cycles.CycleNote: a unit mix-up, a row far off, technology columns missing) are warned as read and
+    kept in ``Fleet.notes`` (bev-mdo calibrate writes them into the set's quality)."""
+    import warnings
+
+    from .cycles import CycleNote
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", CycleNote)
+        fleet = _read_fleet(path)
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    fleet.notes = [str(w.message) for w in caught if issubclass(w.category, CycleNote)]
+    return fleet
+
+
+def _read_fleet(path: str | Path | None) -> Fleet:
     path = Path(path) if path is not None else DEFAULT_FLEET
     rows = read_csv_rows(path, "fleet file")
     if any("\x00" in c for row in rows[:1] for c in row):
@@ -251,7 +268,8 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
         raise ValueError(f"{path}: no vehicles (only a header)")
     _note_missing_technology(path, [name for name in TECHNOLOGY if name not in col])
     arr = {k: np.array(v, float) for k, v in data.items()}
-    _note_implausible_medians(path, arr)
+    if not _note_implausible_medians(path, arr) & set(MEASURED.values()):  # (else every row would say it again)
+        _note_implausible_rows(path, row_no, text, arr)
     listed = np.isfinite(arr["axle_ratio"])
     return Fleet(str(path), np.array(row_no), text["make"], text["model"], text["drive"], text["flag"],
                  arr["rated_power_kw"], arr["test_mass_kg"], arr["road_load_a_n"], arr["road_load_b_n_per_m_s"],
@@ -293,14 +311,15 @@ PLAUSIBLE_MEDIANS = {
 }
 
 
-def _note_implausible_medians(path, arr: dict) -> None:
+def _note_implausible_medians(path, arr: dict) -> set[str]:
     """A note (models.cycles.CycleNote) per column whose fleet-wide median lies outside ``PLAUSIBLE_MEDIANS``:
     a fleet in Wh/mi, lb and lbf was fitted and written with no word. A note, not a refusal: a fleet of
-    unusual cars may be meant."""
+    unusual cars may be meant. The columns noted."""
     import warnings
 
     from .cycles import CycleNote
 
+    noted = set()
     values = {**arr, "road_load_a_n / (test_mass_kg x g)": arr["road_load_a_n"] / (arr["test_mass_kg"] * G_M_S2)}
     for name, (typical, factor, above, below) in PLAUSIBLE_MEDIANS.items():
         median = float(np.median(values[name]))
@@ -309,6 +328,31 @@ def _note_implausible_medians(path, arr: dict) -> None:
                           f"{typical * factor:.4g}] where measured BEVs lie (the shipped fleet's median {typical:g}); "
                           f"likely a unit mix-up: {above if median > typical else below} (read as given)",
                           CycleNote, stacklevel=3)
+            noted.add(name)
+    return noted
+
+
+# one car's UDDS and HWFET energies lie within this factor of each other: the road-load work at the wheels alone
+# (A + B v + C v^2 and m a over each trace, regeneration from none to all) puts UDDS / HWFET at 0.51-1.62 for
+# every shipped car, and their measured ratios span 0.74-1.12; a cell 10 x off (or in kWh/100 km) lies outside
+PLAUSIBLE_CYCLE_RATIO = 2.0
+
+
+def _note_implausible_rows(path, rows, text: dict, arr: dict) -> None:
+    """A note (models.cycles.CycleNote) per row whose UDDS and HWFET energies are more than
+    ``PLAUSIBLE_CYCLE_RATIO`` apart: one car's cell 10 x off scored with no word (a typo, or one cell's unit)."""
+    import warnings
+
+    from .cycles import CycleNote
+
+    u, h = arr[MEASURED["epa_udds"]], arr[MEASURED["epa_hwfet"]]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = u / h
+    for i in np.flatnonzero((ratio > PLAUSIBLE_CYCLE_RATIO) | (ratio < 1 / PLAUSIBLE_CYCLE_RATIO)):
+        warnings.warn(f"{path}: row {rows[i]} ({text['make'][i]} {text['model'][i]}): udds_wh_per_km_ac "
+                      f"{u[i]:.4g} is {ratio[i]:.3g} x hwfet_wh_per_km_ac {h[i]:.4g}; one car's two cycles lie "
+                      f"within a factor {PLAUSIBLE_CYCLE_RATIO:g} of each other (its road load alone allows about "
+                      "0.5-1.6): a typo or one cell's unit? (read as given)", CycleNote, stacklevel=3)
 
 
 def _check_once(path, r: int, row: list[str], text: dict, seen: dict) -> None:

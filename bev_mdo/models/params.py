@@ -276,6 +276,12 @@ def load_parameter_set(name: str) -> dict[str, float]:
     return _read_parameter_set(name)[0]
 
 
+def fitted_values(name: str) -> dict[str, float]:
+    """The parameters set ``name`` fitted (its ``fit``), with the values it applies. ValueError as above."""
+    fit = _set_document(name)[1].get("fit")
+    return {k: v for k, v in load_parameter_set(name).items() if isinstance(fit, dict) and k in fit}
+
+
 # the energy models of a config (``energy_model``); a parameter set names one of them, or ANY_MODEL
 ENERGY_MODELS = ("flat", "breakdown", "quasi_static", "chain")
 ANY_MODEL = "any"

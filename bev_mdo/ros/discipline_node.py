@@ -18,9 +18,6 @@ vehicle section.
 from __future__ import annotations
 
 import functools
-import json
-import os
-import socket
 import sys
 import time
 from collections import Counter
@@ -35,8 +32,9 @@ from bev_mdo import __version__, binding, protocol
 from bev_mdo.stacks import deadline
 from bev_mdo.mdo import flow
 from bev_mdo.mdo.discipline import DisciplineError, all_finite, prepare, readable, run_discipline, unknown_inputs
-from bev_mdo.mdo.vectors import ShapeError
+from bev_mdo.mdo.vectors import ShapeError, rejection
 from bev_mdo.processes import check_parameters
+from bev_mdo.protocol import node_stats
 from bev_mdo.protocol.batches import decode_once
 from bev_mdo.protocol.signing import Signer
 from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, MDA_REQUEST_TOPIC, MDA_RESULT_QOS, NODE_STATS_QOS,
@@ -90,7 +88,8 @@ class DisciplineNode(Node):
         run_config = RunConfig.of(p["config"] or default_config() if alone else config)
         config = self._apply_overrides(run_config)
         if alone:  # an override it does not declare (a misspelt vehicle.<key>) is refused, not ignored
-            check_parameters(self._parameter_overrides, self._parameters, self.get_name())
+            own = [k for k in self._parameters if not (discipline and k == "discipline")]  # energy_node: none
+            check_parameters(self._parameter_overrides, own, self.get_name())
             if p["instance"] and p["instance"].lstrip("/") != self.get_name():  # the graph knows nodes by name
                 raise ValueError(f"-p instance:={p['instance']} does not rename the node (the coordinator looks for "
                                  f"its name): start it with -r __node:={p['instance']} or bev-mdo node {name} --instance")
@@ -151,11 +150,8 @@ class DisciplineNode(Node):
         if not force and snap == self._stats_sent:
             return
         msg = String()
-        msg.data = json.dumps({"discipline": self.discipline_name, "instance": self.instance, "counts": snap,
-                               "run_id": self.bound_run,  # "" unbound; a run's recorder keeps its own run's only
-                               # for `bev-mdo status`: where it runs and how fast it computes
-                               "host": socket.gethostname(), "pid": os.getpid(),
-                               "compute_s": round(self.compute_s, 6)}, sort_keys=True)
+        msg.data = node_stats.payload(self.discipline_name, self.instance, snap, self.bound_run, self.fingerprint,
+                                      self.compute_s)
         self._stats_pub.publish(msg)
         self._stats_sent, self._stats_t = snap, now
 
@@ -213,7 +209,7 @@ class DisciplineNode(Node):
             f"rejected request (run {req.run_id[:40]!r}, eval {req.evaluation_id}): {why[:200]} "
             f"[{self.counts['rejected']} rejected so far; this log is rate-limited]", throttle_duration_sec=2.0
         )
-        self._reply(req, None, f"{self.discipline_name}: rejected: {why}"[:1000], pub)
+        self._reply(req, None, rejection(self.discipline_name, why, category)[:1000], pub)
 
     def _direct(self, writer) -> bool:
         """True when composed beside the coordinator (composed.Beside) and no reader outside this

@@ -76,6 +76,7 @@ class RosEvaluator(StartupWaits, Orchestrator):
         self._tags: dict[tuple, str] = {}                # names -> their request frame_id (_tag)
         self.instances: dict[str, set[str]] = {}         # discipline -> accepted instance names
         self.refused: dict[str, str] = {}                # "discipline instance" -> why it was refused
+        self.other_runs: dict[str, set] = {}  # discipline -> run ids its nodes bound to other runs declared
         self._seq = 0
         self._publishers = {}
         self._flow_pub = None
@@ -127,6 +128,9 @@ class RosEvaluator(StartupWaits, Orchestrator):
             # a node launched for another run (another job on this domain, signed with that run's key):
             # not ours, and not a forgery either; ignoring it needs no trust in its claim
             self.dropped["info_other_run"] += 1
+            runs = self.other_runs.setdefault(msg.discipline, set()) if msg.discipline in self._publishers else set()
+            if len(runs) < 4:  # named by start-up's error (a hint): of the run's disciplines, bounded
+                runs.add(msg.run_id[:64])
             return None
         if self.signer is not None:
             why = self.signer.verify_info(data)
@@ -208,7 +212,7 @@ class RosEvaluator(StartupWaits, Orchestrator):
         if p is None:
             return
         if msg.status == _STATUS_REJECTED:
-            res = self._failed(p, msg.error or f"{p.discipline}: request rejected")
+            res = self._rejected(p, msg.error)
         else:
             try:
                 res = self._result_of(msg, p)
@@ -251,7 +255,7 @@ class RosEvaluator(StartupWaits, Orchestrator):
         if p is None:
             return
         if res is None:
-            res = self._failed(p, error or f"{discipline}: request rejected")
+            res = self._rejected(p, error)
         elif np.shape(res.ok) != (p.n,):  # a node's answer to other rows than the ledger's (a bug)
             self.dropped["malformed"] += 1
             return

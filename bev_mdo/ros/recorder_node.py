@@ -14,9 +14,10 @@ With a ``run_id`` it records that run and its sub-runs only. Whenever it changes
 ``/bev_mdo_recorder/status`` (TRANSIENT_LOCAL, not recorded; signed with the run's key when it has
 one) ``{"declaration": JSON text, "signature": hex}``, the text ``{"run_id", "binding", "recorder",
 "bag", "matched": {topic: matched publishers}, "publishers": {topic: [node names it matched]}}``
-(``binding``: ``binding.config_binding`` of the config it stores). Iteration records are kept verified (a
-signed run's), once and in order (``bag.order.RecordOrder``). What is dropped and counted, and how a coordinator
-waits for its recorder: docs/recording.md, "Whose bag: the run's own recorder".
+(``binding``: ``binding.config_binding`` of the config it stores). Iteration records: verified with the run's key,
+once and in order (an unsigned run's too); with no config, so no key, as received, left to the readers
+(``bag.order.RecordOrder``). What is dropped
+and counted, how a coordinator waits for its recorder: docs/recording.md, "Whose bag: the run's own recorder".
 """
 from __future__ import annotations
 
@@ -100,8 +101,9 @@ class RecorderNode(Node):
         self._handlers: dict[str, object] = {}
         self.received = 0
         self.run_id = run_id
-        self.order = RecordOrder(run_id, StoredConfig.parse(config_yaml).window_s,  # iteration records: verified
-                                 self.signer.verify_iteration if self.signer is not None else None)  # first, in order
+        verify = self.signer.verify_iteration if self.signer is not None else None  # no config, so no key (records
+        self.order = RecordOrder(run_id, StoredConfig.parse(config_yaml).window_s, verify,  # perhaps signed): kept
+                                 ordered=bool(verify or config_yaml))  # as received; an unsigned run's: in order
         from std_msgs.msg import String
 
         self._status_pub = self.create_publisher(String, STATUS_TOPIC, STATUS_QOS)

@@ -16,6 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
+from bev_mdo import binding
 from bev_mdo.mdo import retry
 from bev_mdo.ros.common import MDA_REQUEST_TOPIC, RESULT_TOPIC, endpoints, mda_result_topic, node_of, request_topic
 from bev_mdo.ros.fastwait import STARTUP_CAP, until
@@ -77,12 +78,12 @@ class StartupWaits:
                 if refused:
                     raise DisciplineMissing(f"discipline(s) {gone}: no instance of this run's configuration "
                                             f"(nothing changed for {wait_s:g} s); refused " + " | ".join(refused))
+                elsewhere = binding.bound_elsewhere(gone, self.other_runs, self.run_id)
                 raise DisciplineMissing(
-                    f"discipline(s) {gone} not found on ROS domain: discovery made no progress for {wait_s:g} s "
-                    "(is each node running, with the same ROS_DOMAIN_ID and discovery settings? see its log in "
-                    "the run's logs folder; the limits of one domain are in docs/scaling.md; "
-                    "ros.discovery_wait_s sets this bound)"
-                )
+                    f"discipline(s) {gone} not found on ROS domain: discovery made no progress for {wait_s:g} s"
+                    + (elsewhere or " (is each node running, with the same ROS_DOMAIN_ID and discovery settings? see "
+                       "its log in the run's logs folder; the limits of one domain are in docs/scaling.md; "
+                       "ros.discovery_wait_s sets this bound)"))
         # Our result subscription must be matched to every discipline's publisher too.
         if not until(lambda: self._result_sub.get_publisher_count() >= len(set(names)), wait_s, spin, progress,
                      "the result topic to match every discipline"):

@@ -3,7 +3,8 @@ declarations (/bev_mdo/discipline_info, kept for late joiners) and node counters
 pid, points answered, compute time), and checks the ROS graph for who still reads its request topic.
 Throughput: points per second of compute time since the node started (its capacity), and points answered
 per second of the listening window (its load: 0 when idle; a node's first counters are its latest, kept for
-late joiners, so they are its count when the window opened). Two processes of one node name: a row each.
+late joiners, so they are its count when the window opened). Two processes of one node name: a row each, with
+its own run and fingerprint (protocol/node_stats.status_row).
 """
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from collections import Counter
 
 from bev_mdo.ros.common import (DECLARATION_READER_QOS, INFO_TOPIC, NODE_STATS_READER_QOS, NODE_STATS_TOPIC,
                                 request_topic)
+from bev_mdo.protocol.node_stats import status_row
 from bev_mdo.ros.fastwait import until
 
 
@@ -53,22 +55,8 @@ def collect(node, listen_s: float = 2.0) -> list[dict]:
             names = {i for d, i in infos if d == disc} | {k[0] for k, s in last.items() if s.get("discipline") == disc}
             for inst, key in [(i, k) for i in sorted(names) for k in sorted((k for k in last if k[0] == i), key=str)
                               or [None]]:
-                info = infos.get((disc, inst))
-                s1, s0 = last.get(key, {}), first.get(key, {})
-                c1, c0 = s1.get("counts", {}), s0.get("counts", {})
-                points = int(c1.get("points", 0))
-                compute_s = float(s1.get("compute_s", 0.0))
-                rows.append({
-                    "discipline": disc, "instance": inst, "live": inst in graph,
-                    "host": s1.get("host", "?"), "pid": s1.get("pid"),
-                    "run_id": (info.run_id or "standalone") if info else "?",
-                    "fingerprint": info.fingerprint if info else "?",
-                    "points": points, "answered": int(c1.get("answered", 0)),
-                    "rejected": int(c1.get("rejected", 0)), "compute_s": compute_s,
-                    "capacity_points_per_s": round(points / compute_s, 1) if compute_s > 0 else None,
-                    "recent_points_per_s": (round((points - int(c0.get("points", 0))) / listen_s, 1)
-                                            if key else None),  # None: it sent no counters
-                })
+                rows.append(status_row(disc, inst, inst in graph, infos.get((disc, inst)), first.get(key),
+                                       last.get(key), listen_s))
         return rows
     finally:
         executor.remove_node(node)

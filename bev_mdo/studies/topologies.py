@@ -320,8 +320,9 @@ def caveats(results, configs) -> list[str]:
 
     spec, out, fast = all_specs(), [], []
     mu = spec["tyre_grip_coefficient"].default
+    vehicles = {t: validate_vehicle(configs[t].data.get("vehicle")) for t in results}  # once per topology
     for t, r in results.items():
-        p = validate_vehicle(configs[t].data.get("vehicle"))
+        p = vehicles[t]
         if p["tyre_grip_coefficient"] > 0 or not len(r.X) or "accel_time_0_100_s" not in r.values:
             continue
         share = 1.0 if get_topology(t).two_axles else p["driven_axle_load_share"]
@@ -336,7 +337,7 @@ def caveats(results, configs) -> list[str]:
     over = []  # with the battery limit off: front designs whose motors the pack cannot feed at the default limit
     eta = spec["battery_to_shaft_efficiency"].default
     for t, r in results.items():
-        p, topo = validate_vehicle(configs[t].data.get("vehicle")), get_topology(t)
+        p, topo = vehicles[t], get_topology(t)
         col = {n: r.X[:, i] for i, n in enumerate(r.names)}
         if p["battery_to_shaft_efficiency"] > 0 or not len(r.X) or "motor_kw" not in col or "battery_kwh" not in col:
             continue
@@ -351,7 +352,7 @@ def caveats(results, configs) -> list[str]:
         out.append(f"caveat: the parameters switch the battery's limit on the 0-100 km/h time off "
                    f"(battery_to_shaft_efficiency 0); at {p['discharge_c_max']:g} C and shaft efficiency {eta:g}, these "
                    f"front designs have more motor than their pack gives: {'; '.join(over)}")
-    thesis = [t for t in results if validate_vehicle(configs[t].data.get("vehicle"))["motor_loss_model"] == 0]
+    thesis = [t for t in results if vehicles[t]["motor_loss_model"] == 0]
     if thesis:  # the study's energy is the topology model's: with the map (loss model 0) it is the thesis' own
         out.append(f"caveat: {', '.join(thesis)} ran on the thesis' efficiency map (motor_loss_model 0: the thesis set "
                    "or no set), not calibrated to measured cars: it over-predicts the energy differences between "

@@ -53,3 +53,17 @@ def test_history_of_a_run_whose_answers_are_left_out_does_not_call_it_unfinished
                {"name": "t", "ros": {"sign_key_file": key}}, unsigned_answers=True)
     assert main(["history", str(bag), "--csv", "-"]) == 0
     assert "did not finish" not in capsys.readouterr().err
+
+
+def test_report_of_a_run_stopped_before_its_first_record_does_not_promise_an_iterate(tmp_path):
+    """A run stopped in start-up left a bag without records: report's first line said 'what follows is its last
+    recorded iterate', then 'No iteration records in this bag.'"""
+    from bev_mdo.api.runbag import InProcessBag
+    from bev_mdo.bag.report import report
+
+    InProcessBag(tmp_path / "b", {"name": "t"}, "run1").close(None)
+    report(tmp_path / "b", tmp_path / "out")
+    text = (tmp_path / "out" / "report.md").read_text()
+    assert "the bag holds no end-of-run record (a signal, SIGINT or SIGTERM, or an error stopped it), and no " \
+           "iteration record either" in " ".join(text.split()), text
+    assert "last recorded iterate" not in text

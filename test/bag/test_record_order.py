@@ -139,3 +139,37 @@ def test_replay_of_a_bag_with_a_gap_says_what_it_left_out(tmp_path, ros_domain):
     assert said == [f"{bag / 'gap_0.mcap'}: not replaying 1 duplicate iteration record(s); 1 iteration record(s) "
                     "missing"]
 
+
+
+def test_a_recorder_without_the_key_keeps_the_genuine_records_a_forger_numbered_first(keys, rclpy_context, tmp_path):
+    """`bev-mdo record` with no config (no key) ordered records it cannot verify: a forger who sent the run's
+    numbers first had a genuine record dropped "from the past" (history --key-file read 5 of 6 and said nothing
+    of it) and chose the count of "missing" in its closing line (99953). It keeps every fresh record of the run
+    and holds no number; history verifies with the key and reads the run's records once and in order."""
+    from rclpy.parameter import Parameter
+
+    from bev_mdo.ros.recorder_node import RecorderNode
+
+    key_file, signer, other = keys
+    own = [signer.sign_iteration(_record(s, motor_kw=80.0 + s)) for s in range(1, 7)]
+    forged = [other.sign_iteration(_record(s)) for s in (2, 5)] + [_plain(100000)]
+    bag = tmp_path / "standalone"
+    recorder = RecorderNode(context=rclpy_context, node_name="keyless_recorder", parameter_overrides=[
+        Parameter("bag_path", value=str(bag)), Parameter("discovery_period_s", value=3600.0)])
+    try:
+        recorder.writer.add_topic(TOPIC, "bev_mdo_msgs/msg/IterationRecord")
+        on_message = recorder._callback(TOPIC, "bev_mdo_msgs/msg/IterationRecord")
+        for data in (own[0], *forged, *own[1:], own[3]):  # the genuine record 4 arrives twice
+            on_message(data, {"received_timestamp": NOW_NS})
+        assert recorder.received == 10 and recorder.order.dropped == {} and recorder.order.order.missing == 0
+        assert recorder.order.note() == ("; 10 iteration record(s) kept as received (no key to verify them: the "
+                                          "readers verify and order them)")
+        stale = [d for d in own[:1] if not recorder.order.keep(d, NOW_NS + 3600 * 10**9)]
+        assert stale == own[:1] and recorder.order.dropped == {"expired": 1}  # a record sent again long after
+    finally:
+        recorder.writer.close()
+        recorder.destroy_node()
+    checks: dict = {}
+    rows = history(bag, RUN, key_file=str(key_file), checks=checks)
+    assert [(r["sequence"], r["design"]["motor_kw"]) for r in rows] == [(s, 80.0 + s) for s in range(1, 7)], rows
+    assert checks["missing"] == 0 and checks["dropped"] == {"forged": 2, "from the past": 1, "unsigned": 1}, checks

@@ -255,3 +255,20 @@ def test_a_report_whose_stored_config_no_longer_loads_says_so(tmp_path):
     err = p.stderr
     assert "the config stored in the bag does not load here (" in err, err
     assert "**the config stored in the bag does not load here" in (tmp_path / "out" / "report.md").read_text()
+
+
+def test_history_table_of_a_multi_start_shows_each_records_start_and_its_seed_in_the_title():
+    """With --width 150 a multi-start's table showed `seed` (the same in every record) and left out `start`,
+    so its interleaved records could not be told apart."""
+    import io
+
+    from bev_mdo.cli.history import choose_columns, print_table
+
+    rows = [{"iteration": i, "objective": 100.0 + i, "max_violation": 0.0, "feasible": True, "status": "ok",
+             **{f"design.x{k}": 1.0 + k for k in range(8)}, "mda_evaluations": 3 * i, "start": 1 + i % 3,
+             "starts": 3, "seed": 0} for i in range(6)]
+    shown, left, _, _ = choose_columns(rows, 100)
+    assert "start" in shown and "seed" not in shown + left and "starts" not in shown + left, (shown, left)
+    buf = io.StringIO()
+    print_table(rows, width=100, file=buf)
+    assert "starts 3, seed 0" in buf.getvalue()

@@ -171,8 +171,8 @@ def test_a_bad_config_raises_input_error():
     (lambda s: s.optimize(starts="3", transport="inprocess"), r"^starts '3' is not a whole number$"),
     (lambda s: s.optimize(starts=True, transport="inprocess"), r"^starts True is not a whole number$"),
     (lambda s: s.sweep("lhs", samples=2.5, transport="inprocess"), r"^samples 2.5 is not a whole number$"),
-    (lambda s: s.global_sensitivity("morris", samples=4.0, transport="inprocess"), r"^samples 4.0 is not a whole number$"),
-    (lambda s: s.sensitivity(order=1.0, transport="inprocess"), r"^order 1.0 is not a whole number$"),
+    (lambda s: s.global_sensitivity("morris", samples=4.0, transport="inprocess"), r"^samples 4.0 is a float: give it as an int \(4\)$"),
+    (lambda s: s.sensitivity(order=1.0, transport="inprocess"), r"^order 1.0 is a float: give it as an int \(1\)$"),
     (lambda s: s.pareto(["energy_wh_per_km", "range_km"], generations=1.5, pop=4, transport="inprocess"),
      r"^generations 1.5 is not a whole number$"),
     (lambda s: s.pareto(["energy_wh_per_km", "range_km"], generations=1, pop="4", transport="inprocess"),
@@ -333,3 +333,13 @@ def test_the_seed_seeds_differential_evolution_when_its_options_give_none():
     assert zero.x != seven.x
     assert seven.x == own.x and seven.objective == own.objective  # the same draws as the option's seed 7
     assert de(3, seed=7).x == own.x  # the options' own seed wins
+
+
+def test_a_doe_beside_given_designs_is_refused_not_ignored():
+    """sweep("sobol", samples=32, designs=...) evaluated the 3 given designs, with no word of the DOE asked for."""
+    from bev_mdo import InputError, Study
+
+    study = Study(ROOT / "config" / "leaf_nedc.yaml")
+    with pytest.raises(InputError, match=r"^sweep: doe='sobol' and designs= given: .*give one$"):
+        study.sweep("sobol", samples=32, designs={"motor_kw": [60.0, 80.0, 100.0]}, transport="inprocess")
+    assert len(study.sweep(samples=4, transport="inprocess").rows()) == 4  # no doe, no designs: lhs

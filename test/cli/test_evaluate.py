@@ -240,6 +240,28 @@ def test_a_design_outside_the_bounds_is_evaluated_with_a_note_and_is_infeasible(
     assert code == 0 and "note:" not in err and json.loads(out)["feasible"] is True  # on the bound is inside
 
 
+def test_evaluate_says_when_the_packs_power_limits_the_0_100_time(capsys):
+    """The 0-100 km/h time within the pack's 5C power (x 0.9 to the shaft) gave no sign of it: 20 kWh give
+    80.3 kW at the shaft, below a 120 kW motor; 24 kWh (96.3 kW) do not limit an 80 kW one."""
+    code, out, _ = run(capsys, LEAF, "--set", "motor_kw=120,battery_kwh=20", "--json")
+    lim = json.loads(out)["accel_battery_limit"]
+    assert code == 0 and lim["limits"] is True and lim["motors_rated_power_kw"] == 120.0
+    assert lim["pack_shaft_power_kw"] == pytest.approx(80.266, abs=1e-2)
+    code, out, _ = run(capsys, LEAF, "--set", "motor_kw=120,battery_kwh=20")
+    assert ("note: the pack limits the 0-100 km/h time: 80.3 kW at the shaft, below the motors' rated 120.0 kW "
+            "(9.16 s; 6.58 s without the pack's limit)") in " ".join(out.split()), out  # (the note may wrap)
+    code, out, _ = run(capsys, LEAF, "--set", "motor_kw=80,battery_kwh=24", "--json")
+    assert json.loads(out)["accel_battery_limit"]["limits"] is False and "notes" not in json.loads(out)
+    # a short gear: below 100 km/h the motor stays under its base speed and uses about 69 of its 90 kW, so the
+    # pack's 80.3 kW bind nothing (the note said the pack limited the time, which was the same without the limit)
+    code, out, _ = run(capsys, LEAF, "--set", "motor_kw=90,gear_ratio=2.5,battery_kwh=20", "--json")
+    doc = json.loads(out)
+    assert doc["accel_battery_limit"]["limits"] is False and "pack limits" not in " ".join(doc.get("notes", []))
+    assert doc["accel_battery_limit"]["time_without_limit_s"] == doc["outputs"]["accel_time_0_100_s"]
+    code, out, _ = run(capsys, LEAF, "--set", "motor_kw=120,battery_kwh=20,battery_to_shaft_efficiency=0", "--json")
+    assert "accel_battery_limit" not in json.loads(out) and "notes" not in json.loads(out)  # no limit (thesis set)
+
+
 def test_a_design_past_the_vehicle_mass_limit_keeps_the_outputs_that_do_not_depend_on_mass(capsys):
     """A 2600 kWh battery makes 21.7 t, past the models' 20 000 kg: every output was NaN, the motor speed and
     the cost too (they do not depend on mass), and the error line named point 0 and its inputs and wrapped."""

@@ -128,7 +128,8 @@ def test_in_process_optimize_prepares_the_disciplines_before_the_optimiser_start
 
 def test_a_global_sensitivity_whose_model_fails_says_where_not_a_stencil(tmp_path):
     """It said 'the model failed on the FD stencil' (a Sobol' sample has none) and exit 2, the status of
-    a user's mistake."""
+    a user's mistake; then exit 7 with 'RuntimeError: ... (raised at sensitivity.py:142)', read as a crash, and
+    no design named. A model that fails at sampled points is exit 1, as a result point that failed."""
     raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())
     raw["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed",
                           {"name": "broken", "class": "bad_disciplines:Broken"}]
@@ -139,8 +140,10 @@ def test_a_global_sensitivity_whose_model_fails_says_where_not_a_stencil(tmp_pat
     p = subprocess.run([sys.executable, "-m", "bev_mdo", "sensitivity", str(path), "--global", "morris", "--samples", "4",
                         "--transport", "inprocess"], capture_output=True, text=True, env=env, timeout=120, cwd=tmp_path)
     err = p.stderr.strip().splitlines()
-    assert p.returncode == 7 and len(err) == 1, p.stderr[-2000:]
-    assert "the model failed at 16 of the 16 points evaluated, first: broken:" in err[0] and "stencil" not in err[0]
+    assert p.returncode == 1 and len(err) == 1, p.stderr[-2000:]
+    assert "error: the model failed at 16 of the 16 sampled points (the indices need a value at every one: narrow " \
+           "the bounds to where it answers); first at motor_kw=" in err[0] and "stencil" not in err[0], err[0]
+    assert ": broken:" in err[0] and "RuntimeError" not in err[0] and "raised at" not in err[0]
 
 
 @pytest.mark.parametrize("command", [("evaluate",), ("sensitivity", "--order", "1")])

@@ -32,6 +32,54 @@ class Curved(Flat):
     curved = True
 
 
+class Sixth(Flat):
+    """y = 100 + (x2 - 0.3)^6 + (x1 - 0.5)^2: unique in x2, though flat to 1e-9 over 1 % of its range."""
+
+    def compute(self, inputs):
+        x1, x2 = inputs["x1"], inputs["x2"]
+        return {"y": 100.0 + (x2 - 0.3) ** 6 + (x1 - 0.5) ** 2, "q": x1 ** 2 + 0.0 * x2}
+
+
+class Steep(Flat):
+    """y = -1e4 x1 + 1e4 (x2 - 0.003)^2 under q = x1 <= 0.004: a limit below 1 keeps a scale of 1, so 5e-8 of it
+    (inside the tolerance) buys 5e-4 of objective."""
+
+    def compute(self, inputs):
+        x1, x2 = inputs["x1"], inputs["x2"]
+        return {"y": -1e4 * x1 + 1e4 * (x2 - 0.003) ** 2, "q": x1 + 0.0 * x2}
+
+
+class LoopA:
+    """a = x1 + x2 + 0.5 b, with LoopB's b = a - x2: b = 2 x1 whatever x2."""
+    name = "loopa"
+    inputs = ("x1", "x2", "b")
+    outputs = ("a",)
+    units = {"x1": "1", "x2": "1", "b": "1", "a": "1"}
+
+    def compute(self, inputs):
+        return {"a": inputs["x1"] + inputs["x2"] + 0.5 * inputs["b"]}
+
+
+class LoopB:
+    name = "loopb"
+    inputs = ("a", "x2")
+    outputs = ("b",)
+    units = {"a": "1", "x2": "1", "b": "1"}
+
+    def compute(self, inputs):
+        return {"b": inputs["a"] - inputs["x2"]}
+
+
+class LoopObj:
+    name = "loopobj"
+    inputs = ("b", "x1")
+    outputs = ("y", "q")
+    units = {"b": "1", "x1": "1", "y": "1", "q": "1"}
+
+    def compute(self, inputs):
+        return {"y": (inputs["b"] - 1.0) ** 2 + inputs["x1"] ** 2, "q": inputs["x1"] ** 2}
+
+
 class ConWrong:
     """f = x1 + x2, g = x1 x2; its partial dg/dx1 is 1.2 x2 (20 % wrong)."""
     name = "conwrong"
@@ -48,21 +96,23 @@ class ConWrong:
 '''
 
 
-def _config(tmp_path, kind: str) -> str:
+def _config(tmp_path, cls: str, name="toy", objective="y", box="lower: 0, upper: 1, initial: 0.5",
+            constraint="q: {upper: 10}", more="") -> str:
+    """A config of one toy discipline (class ``cls`` of MODULE, named ``name``) over x1 and x2, each in ``box``."""
     (tmp_path / "toys.py").write_text(MODULE)
-    path = tmp_path / f"{kind}.yaml"
-    path.write_text(f"""name: {kind}
+    path = tmp_path / f"{cls.lower()}.yaml"
+    path.write_text(f"""name: {cls.lower()}
 search_path: [{tmp_path}]
 disciplines:
-  - {{name: toy, class: "toys:{kind.title()}"}}
+  - {{name: {name}, class: "toys:{cls}"}}
 problem:
-  objective: y
+  objective: {objective}
   design_variables:
-    x1: {{lower: 0, upper: 1, initial: 0.5}}
-    x2: {{lower: 0, upper: 1, initial: 0.5}}
+    x1: {{{box}}}
+    x2: {{{box}}}
   constraints:
-    q: {{upper: 10}}
-""")
+    {constraint}
+{more}""")
     return str(path)
 
 
@@ -71,21 +121,56 @@ def _optimize(path, *argv):
 
 
 def test_a_variable_nothing_depends_on_gets_a_note_and_one_held_by_curvature_does_not(tmp_path, capsys):
-    assert _optimize(_config(tmp_path, "flat")) == 0
+    assert _optimize(_config(tmp_path, "Flat")) == 0
     notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note: ")]
     assert len(notes) == 1 and "zero in x2 = 0.5 at the optimum" in notes[0] and "x1" not in notes[0]
     assert "neither on a bound nor in an active constraint" in notes[0] and "the optimum is not unique in it" in notes[0]
-    assert _optimize(_config(tmp_path, "flat"), "--json") == 0
+    assert _optimize(_config(tmp_path, "Flat"), "--json") == 0
     fo = json.loads(capsys.readouterr().out)["first_order"]
     assert [v["name"] for v in fo["free_variables"]] == ["x2"] and fo["verdict"] == "optimum"
     # (x2 - 0.3)^2: its gradient is zero at the optimum too, but the optimum is unique in it
-    assert _optimize(_config(tmp_path, "curved"), "--json") == 0
+    assert _optimize(_config(tmp_path, "Curved"), "--json") == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["design"]["x2"] == pytest.approx(0.3, abs=1e-3) and "free_variables" not in doc["first_order"]
 
 
+@pytest.mark.parametrize("formulation", ["mdf", "idf"])
+def test_a_variable_only_idfs_consistency_depends_on_is_named_as_in_mdf(capsys, formulation):
+    """The Leaf minimising its mass: the gear ratio moves only the energy per km, which nothing constrains. MDF
+    named it; IDF did not, its energy consistency equality depending on it (met again at the steps)."""
+    leaf = str(Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml")
+    assert _optimize(leaf, "--formulation", formulation, "--objective", "vehicle_mass_kg", "--constraint",
+                     "range_km>=0", "--constraint", "accel_time_0_100_s<=1000", "--json") == 0
+    fo = json.loads(capsys.readouterr().out)["first_order"]
+    assert fo["verdict"] == "optimum" and [v["name"] for v in fo.get("free_variables", [])] == ["gear_ratio"]
+
+
+def test_a_minimum_of_high_order_is_not_called_not_unique(tmp_path, capsys):
+    """100 + (x2 - 0.3)^6 moves by less than 1e-9 of 100 over a step of 1 % of x2's range: the note said the
+    optimum was not unique in x2. Steps ten times as long move it."""
+    assert _optimize(_config(tmp_path, "Sixth"), "--json") == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["first_order"]["verdict"] == "optimum" and "free_variables" not in doc["first_order"], doc["first_order"]
+
+
+@pytest.mark.parametrize("formulation", ["mdf", "idf"])
+def test_a_variable_free_through_a_coupling_loop_is_named_in_idf_as_in_mdf(tmp_path, capsys, formulation):
+    """a = x1 + x2 + 0.5 b, b = a - x2: b = 2 x1 whatever x2. MDF named x2; IDF did not: one Jacobi sweep per
+    coupling left the loop half a step off consistent, so each step counted as moved."""
+    path = _config(tmp_path, "Flat")
+    doc = yaml.safe_load(Path(path).read_text())
+    doc["disciplines"] = [{"name": n, "class": f"toys:{c}"} for n, c in
+                          (("loopa", "LoopA"), ("loopb", "LoopB"), ("loopobj", "LoopObj"))]
+    doc.update(formulation=formulation, mda={"tolerance": 1e-12, "max_iterations": 200})
+    Path(path).write_text(yaml.safe_dump(doc))
+    assert _optimize(path, "--json") == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["design"]["x1"] == pytest.approx(0.4, abs=1e-4)
+    assert [v["name"] for v in out["first_order"].get("free_variables", [])] == ["x2"], out["first_order"]
+
+
 def test_multistart_counts_the_starts_reaching_the_best_objective_at_other_designs(tmp_path, capsys):
-    assert _optimize(_config(tmp_path, "flat"), "--starts", "4") == 0
+    assert _optimize(_config(tmp_path, "Flat"), "--starts", "4") == 0
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("multi-start:"))
     assert line.startswith("multi-start: 4 of 4 starts reached the best objective")
     assert "3 of them at another design" in line and "the optimum is not unique" in line
@@ -93,22 +178,9 @@ def test_multistart_counts_the_starts_reaching_the_best_objective_at_other_desig
 
 
 def test_a_converged_claim_the_check_does_not_share_points_at_the_derivatives(tmp_path, capsys):
-    (tmp_path / "toys.py").write_text(MODULE)
-    path = tmp_path / "conwrong.yaml"
-    path.write_text(f"""name: conwrong
-search_path: [{tmp_path}]
-disciplines:
-  - {{name: conwrong, class: "toys:ConWrong"}}
-problem:
-  objective: f
-  design_variables:
-    x1: {{lower: 0.1, upper: 5, initial: 3}}
-    x2: {{lower: 0.1, upper: 5, initial: 3}}
-  constraints:
-    g: {{lower: 1}}
-optimizer: {{name: SLSQP, derivatives: analytic}}
-""")
-    assert _optimize(str(path)) == 5
+    path = _config(tmp_path, "ConWrong", "conwrong", "f", "lower: 0.1, upper: 5, initial: 3", "g: {lower: 1}",
+                   "optimizer: {name: SLSQP, derivatives: analytic}\n")
+    assert _optimize(path) == 5
     out = capsys.readouterr().out
     assert "verdict: stopped before convergence" in out
     notes = [line for line in out.splitlines() if line.startswith("note: ")]
@@ -116,7 +188,7 @@ optimizer: {{name: SLSQP, derivatives: analytic}}
                                                    "not hold at its end point (judged on the gradient assembled from "
                                                    "the disciplines' analytic partials")
     assert "bev-mdo check-partials CONFIG" in notes[0] and "bev-mdo check-totals CONFIG" in notes[0]
-    assert _optimize(str(path), "--json") == 5
+    assert _optimize(path, "--json") == 5
     doc = json.loads(capsys.readouterr().out)
     assert doc["optimizer_success"] and doc["first_order"]["derivatives"] == "analytic"
 
@@ -132,3 +204,40 @@ def test_a_converged_claim_on_finite_differences_points_to_the_stopping_rule_not
     notes = [line for line in capsys.readouterr().out.splitlines() if line.startswith("note: ")]
     assert len(notes) == 1 and "judged on finite differences" in notes[0]
     assert "ftol" in notes[0] and "check-partials" not in notes[0]
+
+
+def test_an_mda_that_does_not_converge_is_named_in_the_verdict(tmp_path, capsys):
+    """Sellar with a Newton MDA of 2 iterations: the verdict said 'the point failed: the disciplines gave no value
+    there', the line above it the true cause."""
+    sellar = Path(__file__).resolve().parents[2] / "examples" / "sellar"
+    doc = yaml.safe_load((sellar / "sellar_mdf.yaml").read_text())
+    doc.update(search_path=[str(sellar)], mda={"method": "newton", "tolerance": 1e-12, "max_iterations": 2})
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump(doc))
+    assert _optimize(str(tmp_path / "s.yaml")) == 1
+    verdict = [line for line in capsys.readouterr().out.splitlines() if line.startswith("verdict: ")]
+    assert len(verdict) == 1 and "did not converge in 2 newton iterations" in verdict[0], verdict
+
+
+def test_a_verified_optimum_is_not_displaced_by_an_earlier_point_the_check_does_not_verify(tmp_path, capsys,
+                                                                                          monkeypatch):
+    """A user's wing with theta[2] <= 0.004: SLSQP converged at iteration 17 (violation 8e-16, verified), but the
+    result was iteration 13, 5.6e-8 rad over the limit (inside the tolerance, the limit's scale being 1) with 4e-6
+    less mass: 'stopped before convergence', exit 5, and a hint at wrong derivatives."""
+    import numpy as np
+    from scipy.optimize import OptimizeResult
+
+    from bev_mdo.mdo import driver
+
+    def past_the_limit_first(name, form, options, record):  # an optimiser's path, its end converged
+        for x12 in ([0.004 + 5e-8, 0.0031], [0.004, 0.003]):  # 5e-8 over (inside the tolerance), 4e-4 better
+            x = form.x0.copy()                                # and not stationary in x2; the optimum
+            x[:2] = x12
+            record(x)
+        return OptimizeResult(x=x, success=True, message="Optimization terminated successfully", nit=2)
+
+    monkeypatch.setattr(driver, "run_optimizer", past_the_limit_first)
+    path = _config(tmp_path, "Steep", box="lower: 0, upper: 0.01, initial: 0.001", constraint="q: {upper: 0.004}")
+    assert _optimize(path, "--json") == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["verdict"] == "optimum" and doc["design"]["x1"] == pytest.approx(0.004, abs=1e-12), doc["message"]
+    assert np.isclose(doc["max_violation"], 0.0, atol=1e-12)

@@ -33,6 +33,15 @@ def test_progress_rate_fits_the_formulation(formulation, rate):
     assert "on its lower bound: battery_kwh = 20 kWh, multiplier" in out
 
 
+def test_a_progress_line_says_why_a_design_within_its_constraints_is_infeasible():
+    """A 40 kW motor at 2:1 cannot follow the NEDC (the run's design_check): its progress lines said 'max violation
+    0  infeasible' and no reason."""
+    rc, out = _run("--objective", "vehicle_mass_kg", "--constraint", "range_km>=0", "--constraint",
+                   "accel_time_0_100_s<=1000", "--initial", "gear_ratio=2", "--no-record")
+    progress = [line for line in out.splitlines() if line.startswith("iter ")]
+    assert progress and all(" 0  infeasible: cannot follow the cycle " in line for line in progress), progress
+
+
 def test_bag_in_process_is_readable_by_history(tmp_path, capsys):
     rc, out = _run("--bag", str(tmp_path / "b"), "--quiet")
     assert rc == 0 and f"bag: {tmp_path / 'b'}" in out
@@ -246,3 +255,11 @@ def test_the_optimisers_own_message_is_printed_whole_restarts_and_all(capsys):
     optimize._table({k: v for k, v in doc.items() if k != "baseline"}, doc["baseline"], buf, {})
     said = [line for line in buf.getvalue().splitlines() if line.startswith("SLSQP says: ")]
     assert said == [f"SLSQP says: {own}"]
+
+
+def test_the_json_names_each_design_variables_and_outputs_unit(capsys):
+    """evaluate's and sensitivity's JSON named units; optimize's (and Study.optimize's to_dict()) did not."""
+    assert main(["optimize", CONFIG, "--transport", "inprocess", "--no-record", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert set(doc["units"]) == set(doc["design"]) | set(doc["outputs"])
+    assert doc["units"]["motor_kw"] == "kW" and doc["units"]["energy_wh_per_km"] == "Wh/km"

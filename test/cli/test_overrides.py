@@ -126,3 +126,20 @@ def test_a_command_line_value_that_makes_the_config_invalid_is_named_as_such(fla
     # a user trial: `--bound motor_kw=200:80` was reported as the config file's own bounds, which say 40-120
     assert main(["optimize", CONFIG, "--transport", "inprocess", "--no-record", *flags]) == 2
     assert capsys.readouterr().err == f"bev-mdo optimize: error: {said}\n"
+
+
+def test_a_limit_given_to_one_element_of_a_vector_constraint_replaces_that_elements(capsys):
+    """A user's wing: --constraint "sigma[0]<=300" (and Study.constrain) added a second entry beside the config's
+    sigma <= 200, both in force: the optimum held sigma[0] at 200 and was called 'optimum', while evaluate read
+    only the new limit. Here sellar_vector's con[0] <= 0 (y1 >= 3.16) relaxed to 1 moves Sellar's optimum."""
+    vector = str(REPO / "examples" / "sellar_vector.yaml")
+    assert main(["optimize", vector, "--constraint", "con[0]<=1", "--transport", "inprocess", "--no-record",
+                 "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["verdict"] == "optimum" and doc["objective"] < 3.0, doc["objective"]  # 3.18339 with con[0] <= 0
+    assert doc["constraints"]["con[0]"]["upper"] == 1.0 and doc["constraints"]["con[0]"]["value"] == pytest.approx(1.0)
+    assert doc["constraints"]["con[1]"]["upper"] == 0.0 and set(doc["constraints"]) == {"con[0]", "con[1]"}
+    # a side the vector has not is the element's own entry, beside it
+    assert main(["evaluate", vector, "--constraint", "con[1]>=-30", "--transport", "inprocess", "--json"]) == 0
+    cons = json.loads(capsys.readouterr().out)["constraints"]
+    assert cons["con[1]"]["lower"] == -30.0 and cons["con[1]"]["upper"] == 0.0, cons

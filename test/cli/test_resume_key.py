@@ -41,3 +41,26 @@ def test_resume_does_not_sign_the_new_run_with_the_old_runs_key(tmp_path, monkey
     assert main(["resume", str(old_bag), "--no-record", "--quiet"]) == 0
     assert seen["x0"] == {"motor_kw": 80.0}
     assert seen["cfg"]["ros"].get("sign_key_file", "") != old_key  # a fresh key is made for the new run
+
+
+def test_a_stored_config_that_no_longer_loads_is_named_as_the_bags(tmp_path, capsys):
+    """The user module of a run's discipline moved away: resume's error named '<config>', not the bag."""
+    import shutil
+    import sys
+    from pathlib import Path
+
+    from bev_mdo.cli import main
+
+    sellar = Path(__file__).resolve().parents[2] / "examples" / "sellar"
+    shutil.copy(sellar / "sellar_disciplines.py", tmp_path / "moved_away_sellar.py")  # a module no other test imports
+    config = (sellar / "sellar_mdf.yaml").read_text().replace("sellar_disciplines:", "moved_away_sellar:")
+    (tmp_path / "sellar_mdf.yaml").write_text(config)
+    bag = tmp_path / "bag"
+    assert main(["optimize", str(tmp_path / "sellar_mdf.yaml"), "--transport", "inprocess", "--bag", str(bag),
+                 "--quiet"]) == 0
+    (tmp_path / "moved_away_sellar.py").unlink()
+    sys.modules.pop("moved_away_sellar", None)  # as a new process finds it: not imported yet
+    capsys.readouterr()
+    assert main(["resume", str(bag), "--transport", "inprocess", "--output", str(tmp_path / "new"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"{bag} (its stored config): disciplines" in err and "<config>" not in err, err

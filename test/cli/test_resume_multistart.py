@@ -59,3 +59,18 @@ def test_a_start_without_a_record_begins_at_its_point_of_the_sample_again(tmp_pa
     sample = start_points(RunConfig.load(SELLAR).settings.optimisation_problem(), 3, seed=3)
     firsts = {s: recs[0]["design"] for s, recs in _by_start(history(new)).items()}
     assert firsts[2] == pytest.approx(sample[1], rel=0, abs=0) and firsts[3] == pytest.approx(sample[2], rel=0, abs=0)
+
+
+def test_history_of_an_interrupted_multi_start_names_the_start_of_its_last_iterate(tmp_path, capsys):
+    """history said 'iteration N is its last recorded iterate' as of a single run, while resume goes on from
+    each start's own last record."""
+    from bev_mdo.bag.history import history
+
+    old = tmp_path / "old"
+    _interrupted(old, starts=3, after=7)
+    last = history(old)[-1]
+    assert main(["history", str(old), "--csv", "-"]) == 0
+    said = [line for line in capsys.readouterr().err.splitlines() if "did not finish" in line]
+    assert said == [f"{old}: the run did not finish: the bag holds no end-of-run record (a signal, SIGINT or SIGTERM, "
+                    f"or an error stopped it); iteration {last['iteration']} is the last recorded iterate of its start "
+                    f"{last['start']} of 3 (resume goes on from each start's own last record), not a result"], said

@@ -459,11 +459,17 @@ def test_the_footnote_says_what_the_parameter_set_was_fitted_on_and_the_model_ke
                                                                                     "flat")
     assert f"parameter set {mine} was fitted on this file: in-sample" in footnote("--data", bmw,
                                                                                   "--parameter-set", mine)
-    assert f"was fitted on {bmw} (not this file), which has none of these rows: held out" in footnote(
+    assert f"was fitted on {bmw} (not this file), which has none of these cars: held out" in footnote(
         "--data", kia, "--parameter-set", mine)
     n_bmw = len(fl.read_fleet(bmw))
-    assert f"{n_bmw} of these {len(fl.read_fleet(both))} rows are in it: in-sample for those" in footnote(
+    assert f"{n_bmw} of these {len(fl.read_fleet(both))} rows are cars in it" in footnote(
         "--data", both, "--parameter-set", mine)
+    # the same cars with their measured energies in Wh/mi (x 1.609): in the fit, not 'held out'
+    whmi = [rows[0], *([*r[:11], *(f"{float(x) * 1.609:.2f}" for x in r[11:13]), *r[13:]] for r in rows[1:]
+                       if r[0] == "BMW")]
+    assert rows[0][11:13] == ["udds_wh_per_km_ac", "hwfet_wh_per_km_ac"]
+    assert f"{n_bmw} of these {n_bmw} rows are cars in it (the same identity and model inputs" in footnote(
+        "--data", _write(tmp_path, whmi, "bmw_whmi.csv"), "--parameter-set", mine)
     assert "parameter set thesis: constants not fitted to a fleet" in footnote("--data", kia, "--parameter-set",
                                                                               "thesis")
     code, out, _ = run(capsys, "--data", kia, "--parameter-set", mine)  # one family: no baseline3
@@ -472,3 +478,22 @@ def test_the_footnote_says_what_the_parameter_set_was_fitted_on_and_the_model_ke
     assert lines[-3].startswith("  udds (4 rows") and "quasi_static " in lines[-3] and "fastsim " in lines[-3]
     ref = json.loads(run(capsys, "--data", kia, "--parameter-set", mine, "--json")[1])["reference"]
     assert ref["baseline3"].startswith("none") and ref["same_rows"]["hwfet"]["rows"] == 4
+
+
+def test_the_parity_plots_legends_cover_no_point(capsys, tmp_path, monkeypatch):
+    """parity.png's legends sat in the lower right of each panel: on the residual-vs-mass panel one covered the
+    worst points (the Audi e-tron S at 2948 kg, -17 %). No legend may lie over a point of any panel."""
+    from bev_mdo.cli import validate_plots
+
+    figs = []
+    monkeypatch.setattr(validate_plots, "_save", lambda fig, path: (fig.tight_layout(), figs.append(fig)))
+    assert run(capsys, "--plot", tmp_path)[0] == 0
+    (fig,) = [f for f in figs if len(f.axes) == 3 and f.axes[1].get_title() == "residual vs test mass"]
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        box = ax.get_legend().get_window_extent(renderer)
+        points = np.concatenate([c.get_offset_transform().transform(c.get_offsets()) for c in ax.collections
+                                 if len(c.get_offsets())])
+        inside = (points[:, 0] >= box.x0) & (points[:, 0] <= box.x1) & (points[:, 1] >= box.y0) & (points[:, 1] <= box.y1)
+        assert not inside.any(), (ax.get_title(), points[inside])

@@ -45,6 +45,8 @@ def test_the_best_of_several_starts_and_how_many_reached_it():
     others = [r for r in ms["results"] if not r["reached_best"]]
     assert others and all(r["objective"] == pytest.approx(4.130759, rel=1e-5) for r in others)
     assert ms["results"][ms["best_start"]]["reached_best"]
+    # each start's largest violation, by which one is chosen where none is feasible
+    assert ms["results"][ms["best_start"]]["max_violation"] == res.max_violation
     # one running iteration number over every start (a bag holds them as one run)
     assert seen == list(range(len(seen)))
     # and each start's own count (its progress line's), from 0
@@ -85,6 +87,26 @@ def test_a_start_that_bought_objective_with_violation_does_not_stand_for_the_poi
                    design={"motor_kw": 100.0, "gear_ratio": 5.0})
     assert _best_start([infeasible, past], 1.0, span, names, 1e-3) == 1
     assert _best_start([infeasible], 1.0, span, names, 1e-3) == 0
+
+
+def test_with_no_feasible_start_the_least_violated_is_the_result():
+    """Model 3 RWD with range >= 900 km, 4 starts: the result was the start of lowest energy (violation
+    0.662, 100 kW) where a single start ended at 0.128; the infeasible answers then described the worse one."""
+    from types import SimpleNamespace as R
+
+    from bev_mdo.mdo.multistart import _best_start
+
+    span, names = np.array([100.0, 7.0]), ["motor_kw", "gear_ratio"]
+
+    def end(f, v, **fo):
+        return R(objective=f, feasible=False, max_violation=v, verdict="infeasible", first_order=fo,
+                 design={"motor_kw": f, "gear_ratio": 9.0})
+
+    assert _best_start([end(110.0, 0.662), end(118.0, 0.326), end(125.0, 0.128)], 1.0, span, names, 1e-3) == 2
+    assert _best_start([end(110.0, 0.1), end(118.0, 0.1)], 1.0, span, names, 1e-3) == 0  # a tie: the objective
+    assert _best_start([end(110.0, float("nan")), end(150.0, 0.3)], 1.0, span, names, 1e-3) == 1  # failed last
+    # within its constraints but unable to follow its cycle: after one that follows it, however violated
+    assert _best_start([end(110.0, 0.0, cannot_follow=["short"]), end(150.0, 0.3)], 1.0, span, names, 1e-3) == 1
 
 
 def test_of_starts_at_one_point_a_verified_optimum_stands_for_it_before_a_less_violated_one_that_stopped_short():

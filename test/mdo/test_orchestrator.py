@@ -271,3 +271,55 @@ def test_two_coordinators_of_one_run_id_take_only_their_own_answers():
                             target=None))  # A's request is on the bus, unanswered
     (got,) = b.evaluate([("square", {"x": 2 * X})])
     assert np.array_equal(got.outputs["y"], (2 * X) ** 2), got.outputs
+
+
+class _Wide(Side):
+    """Returns one value too many: a user's class breaking its contract (a ShapeError in process)."""
+    name, outputs = "wide", ("u",)
+
+    def compute(self, inputs):
+        return {"u": np.ones(len(inputs["x"]) + 1)}
+
+
+class Rejecting(MemoryTransport):
+    """As a node answers: a request its discipline raises for is rejected, its kind named (the node's category)."""
+
+    def _take_until(self, deadline, once=False):
+        from bev_mdo.mdo.discipline import DisciplineError
+        from bev_mdo.mdo.vectors import CONTRACT, ShapeError, rejection
+
+        outbox, self.outbox = self.outbox, []
+        for req, _ in outbox:
+            name = req.discipline
+            p = self.ledger.match(req.evaluation_id, name, req.header.frame_id)
+            try:
+                res = self.engine.evaluate([(name, req.batch)])[0]
+            except ShapeError as exc:
+                res = self._rejected(p, rejection(name, str(exc), CONTRACT))
+            except DisciplineError as exc:  # (side: asked without its input below) a refusal of another kind
+                res = self._rejected(p, rejection(name, str(exc), "missing_inputs"))
+            self._accept((req.evaluation_id, name), p, res, f"{name}_node")
+
+
+def test_a_discipline_breaking_its_contract_stops_the_wave_with_the_in_process_line():
+    """Over ROS a user's discipline returning an output of the wrong shape was a failed point (exit 1, the run's
+    table, 'verdict: infeasible'), in process the one line of its ShapeError (exit 2). The node's rejection says
+    its kind: the coordinator raises that line once every answer of the wave is in, the ledger left clean."""
+    from bev_mdo.mdo.vectors import ShapeError
+
+    with pytest.raises(ShapeError) as local:
+        InProcessEvaluator([_Wide()]).evaluate([("wide", {"x": X})])
+    ev = Rejecting([_Wide(), Square()], retries=1)
+    with pytest.raises(ShapeError) as remote:
+        ev.evaluate([("square", {"x": X}), ("wide", {"x": X})])
+    assert str(remote.value) == str(local.value) and "output 'u' has shape (7,), expected (6,)" in str(local.value)
+    assert not ev._pending and ev.retried == 0 and not ev.first_errors  # no 'discipline failed' line beside it
+    (sq,) = ev.evaluate([("square", {"x": X})])  # the next wave is as ever
+    assert sq.ok.all() and ev.sent == 3
+
+
+def test_a_rejection_of_another_kind_fails_its_points_named():
+    ev = Rejecting([Side()], retries=1)
+    (side,) = ev.evaluate([("side", {"z": X})])
+    assert not side.ok.any() and side.error.startswith("side: rejected: "), side.error
+    assert ev.first_errors == {"side": side.error}

@@ -357,5 +357,27 @@ def test_help_start_line_absolute_fleet_path_and_few_values_note(tmp_path, capsy
                for s in said), said
     doc = yaml.safe_load(out.read_text())
     assert doc["fitted_on"]["file"] == "two.csv" and doc["fitted_on"]["path"] == str(data.resolve())
-    assert doc["quality"]["note"].startswith("4 measured values for 3 fitted parameters")
+    assert doc["quality"]["notes"][0].startswith("4 measured values for 3 fitted parameters")
     assert calibrate.few_values({"n_residuals": 124, "x": np.zeros(5), "determined": np.ones(5, bool)}) == ""
+
+
+def test_a_set_fitted_on_a_fleet_with_notes_keeps_them_and_its_parameters_at_a_bound(tmp_path, capsys):
+    """The training cars in Wh/mi: the fleet's unit note went to stderr only, and the written set had no
+    quality note although it held charger_efficiency at its 0.7 bound. The set keeps both (stderr still says)."""
+    with fl.DEFAULT_FLEET.open(newline="") as f:
+        lines = list(csv.reader(f))
+    at = [lines[0].index(c) for c in ("udds_wh_per_km_ac", "hwfet_wh_per_km_ac")]
+    rows = [r for r in lines[1:] if r[0] in ("BMW", "Ford")]
+    for r in rows:
+        for i in at:
+            r[i] = f"{float(r[i]) * 1.609:.2f}"
+    data, out = tmp_path / "whmi.csv", tmp_path / "whmi.yaml"
+    with data.open("w", newline="") as f:
+        csv.writer(f).writerows([lines[0], *rows])
+    assert bev_mdo(["calibrate", "--model", "chain", "--data", str(data), "--write", str(out)]) == 0
+    notes = yaml.safe_load(out.read_text())["quality"]["notes"]
+    assert sum("likely a unit mix-up: Wh per mile" in n for n in notes) == 2
+    assert notes[0] in capsys.readouterr().err
+    assert [n for n in notes if "bound" in n] == ["charger_efficiency 0.7 is at its lower bound: the data press it "
+                                                  "there (a fleet in other units?), the other parameters take up "
+                                                  "the rest"]

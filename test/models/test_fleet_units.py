@@ -67,3 +67,19 @@ def test_validate_prints_the_note_and_still_runs(tmp_path):
         rc = main(["validate", "--data", _scaled(tmp_path, udds_wh_per_km_ac=1.609344), "--energy-model", "chain",
                    "--parameter-set", "epa2022_chain"])
     assert rc == 0 and "note: " in err.getvalue() and "Wh per mile (1.61 x Wh/km)?" in err.getvalue()
+
+
+def test_one_cars_cycle_energies_far_apart_are_a_note_naming_the_row(tmp_path):
+    """One BMW i4 with UDDS 1340 Wh/km (10 x its 162) was scored with no word (max error 88 %, the UDDS pair slope
+    0.87 -> 0.21); the fleet's medians stayed plausible. One line names the row; the shipped fleet gives none."""
+    rows = list(csv.reader(fl.DEFAULT_FLEET.open(newline="", encoding="utf-8")))
+    at = rows[0].index("udds_wh_per_km_ac")
+    rows[4][at] = f"{float(rows[4][at]) * 10:.6g}"
+    rows[7][at] = f"{float(rows[7][at]) / 10:.6g}"  # (kWh/100 km in one cell)
+    path = tmp_path / "fleet.csv"
+    with path.open("w", newline="", encoding="utf-8") as f:
+        csv.writer(f).writerows(rows)
+    said = _notes(path)
+    assert len(said) == 2 and all("a typo or one cell's unit?" in n for n in said)
+    assert said[0].startswith(f"{path}: row 5 (BMW i4 M50 Gran Coupe (19\" Wheels)): udds_wh_per_km_ac 162")
+    assert "is 10.4 x hwfet_wh_per_km_ac 156.5;" in said[0] and ": row 8 (" in said[1]

@@ -89,3 +89,84 @@ def test_the_recorder_reads_a_relative_key_from_the_configs_folder(tmp_path, mon
     assert isinstance(signer, Signer)
     assert _signer_of("ros: {}\n", tmp_path / "run") is None
 
+
+
+def test_status_shows_each_process_of_one_node_name_its_own_fingerprint(ros_domain, leaf_config, tmp_path,
+                                                                         rclpy_context):
+    """Two acceleration_node processes (one node name) of two configs: status showed the fingerprint of the
+    declaration last received under the name on both rows (one declaration slot per instance name)."""
+    import rclpy
+    import yaml
+
+    from bev_mdo import binding
+    from bev_mdo.config import RunConfig
+    from bev_mdo.launcher import Launcher
+    from bev_mdo.processes import discipline_argv
+    from bev_mdo.ros.fastwait import until
+    from bev_mdo.ros.status import collect
+    from bev_mdo.testing import REPO
+
+    raw = yaml.safe_load((REPO / "config" / "leaf_epa_combined.yaml").read_text())
+    raw["ros"] = {"domain_id": ros_domain}
+    epa = tmp_path / "epa.yaml"
+    epa.write_text(yaml.safe_dump(raw, sort_keys=False))
+    fps = {label: binding.fingerprint(RunConfig.load(str(path)), "acceleration")[0]
+           for label, path in (("nedc", leaf_config), ("epa", epa))}
+    assert fps["nedc"] != fps["epa"]
+    node = rclpy.create_node("status_fingerprints", context=rclpy_context)
+    rows: list[dict] = []
+    with Launcher(ros_env(ros_domain), log_dir=tmp_path / "logs") as launcher:
+        for label, path in (("nedc", leaf_config), ("epa", epa)):
+            launcher.add(label, discipline_argv("acceleration", str(path)), restart=False)
+        pids = {launcher.node(label).proc.pid: label for label in fps}
+
+        def both() -> bool:
+            rows[:] = [r for r in collect(node, 0.5) if r["discipline"] == "acceleration" and r["pid"] in pids]
+            return len(rows) == 2
+        try:
+            assert until(both, 120.0, lambda: None), rows
+        finally:
+            node.destroy_node()
+    assert {r["pid"]: r["fingerprint"] for r in rows} == {pid: fps[label] for pid, label in pids.items()}, rows
+    assert {r["instance"] for r in rows} == {"acceleration_node"} and {r["run_id"] for r in rows} == {"standalone"}
+
+
+def test_a_coordinator_names_the_node_that_serves_another_run(ros_domain, leaf_config, tmp_path, rclpy_context):
+    """An energy node started with -p run_id:=otherrun: the start-up of run r3 gave up with "discipline(s)
+    ['energy'] not found on ROS domain" and asked whether the node was running, which it was."""
+    import rclpy
+
+    from bev_mdo.config import load_config
+    from bev_mdo.launcher import Launcher
+    from bev_mdo.processes import discipline_argv
+    from bev_mdo.ros.evaluator import DisciplineMissing, RosEvaluator
+    from bev_mdo.ros.status import NodeStatsListener
+
+    node = rclpy.create_node("r3_coordinator", context=rclpy_context)
+    with Launcher(ros_env(ros_domain), log_dir=tmp_path / "logs") as launcher:
+        launcher.add("energy", discipline_argv("energy", str(leaf_config), run_id="otherrun"), restart=False)
+        stats = NodeStatsListener(node)
+        try:  # the node is up (its counters come after its declaration)
+            assert stats.wait(lambda s: s.seen("energy"), 120.0)
+        finally:
+            stats.close()
+        ev = RosEvaluator(node, run_id="r3", config=load_config(leaf_config))
+        try:
+            with pytest.raises(DisciplineMissing) as err:
+                ev.wait_for_disciplines(["energy"], wait_s=5.0)
+        finally:
+            ev.close()
+            node.destroy_node()
+    assert "['energy'] not found on ROS domain" in str(err.value)
+    assert "'energy' serves run(s) ['otherrun'] only, not run 'r3' (a node started with -p run_id:=R" in str(err.value)
+
+
+@pytest.mark.parametrize("param, owner", [("discipline:=range", "discipline_node"),
+                                          ("disciplines:=range,cost", "composed_node")])
+def test_a_discipline_executable_refuses_another_nodes_parameter(ros_domain, leaf_config, param, owner):
+    """energy_node -p discipline:=range started and served 'range': the discipline parameter is discipline_node's."""
+    p = _node("energy_node", "--ros-args", "-p", f"config:={leaf_config}", "-p", param, ros_domain=ros_domain)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, (p.returncode, p.stderr[-3000:])
+    assert p.stderr.strip().splitlines() == [
+        STARTING.format("energy_node"),
+        f"energy_node: error: parameter {param.split(':=')[0]}: energy_node has no such parameter; it is {owner}'s"]

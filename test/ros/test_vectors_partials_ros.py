@@ -12,6 +12,7 @@ import yaml
 from bev_mdo.config import load_config, resolve_disciplines, run_settings  # noqa: E402
 from bev_mdo.mdo.driver import run_optimization  # noqa: E402
 from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
+from bev_mdo.mdo.vectors import ShapeError  # noqa: E402
 from bev_mdo.ros.client import make_ros_evaluator  # noqa: E402
 from bev_mdo.launcher import Launcher  # noqa: E402
 from bev_mdo.processes import discipline_argv  # noqa: E402
@@ -107,8 +108,7 @@ def test_a_scalar_for_a_whole_batch_is_named_in_one_line_over_ros(ros_domain, no
     try:
         for name in NAMES:
             launcher.add(name, discipline_argv(name, configs["bad"]))
-        res, _ = _over_ros(load_config(configs["bad"]), "mdf")
-        assert not res.feasible
-        assert "discipline 'sellar_dis1': output 'y1' has shape (), expected (" in res.message
+        with pytest.raises(ShapeError, match=r"^discipline 'sellar_dis1': output 'y1' has shape \(\), expected \("):
+            _over_ros(load_config(configs["bad"]), "mdf")  # the in-process line (it was a failed point over ROS)
     finally:
         launcher.stop()
