@@ -10,6 +10,7 @@ import numpy as np
 from bev_mdo.api.errors import InputError
 from bev_mdo.api.overrides import finite_values
 from bev_mdo.api.transport import Evaluating
+from bev_mdo.mdo.vectors import did_you_mean
 
 
 def declared_units(config) -> dict[str, str]:
@@ -160,7 +161,8 @@ def check_names(names, problem, params) -> None:
     """InputError unless every name is a design variable or one of the disciplines' ``params``."""
     unknown = [k for k in names if k not in problem.names and k not in params]
     if unknown:
-        raise InputError(f"unknown names {unknown}; design variables: {problem.names}, parameters: {sorted(params)}")
+        raise InputError(f"unknown names {unknown}; {did_you_mean(unknown[0], [*problem.names, *params])}"
+                         f"design variables: {problem.names}, parameters: {sorted(params)}")
 
 
 FIRST_CHUNK_ROWS = 1024  # the first chunk of a batch over ROS; the next ones sized from its measured rate

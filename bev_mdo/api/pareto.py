@@ -19,6 +19,7 @@ from bev_mdo.api.errors import InputError
 from bev_mdo.api.evaluate import ceilings as output_ceilings
 from bev_mdo.api.evaluate import declared_units
 from bev_mdo.api.transport import Transport
+from bev_mdo.mdo.vectors import did_you_mean
 
 
 def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop: int = 100, seed: int = 1,
@@ -96,7 +97,7 @@ def check_objectives(objectives, cfg, where: str, least: int) -> None:
     for name, _ in objectives:
         if name not in produced:
             raise InputError(f"{where}: objective {name!r} is not produced by any discipline; "
-                             f"outputs: {', '.join(sorted(produced))}")
+                             f"{did_you_mean(name, produced)}outputs: {', '.join(sorted(produced))}")
 
 
 def finish(path: Path, doc: dict, sess, skip=()) -> None:

@@ -19,6 +19,7 @@ import numpy as np
 from bev_mdo.api.errors import InputError
 from bev_mdo.api.overrides import finite_values
 from bev_mdo.api.transport import Evaluating, Transport
+from bev_mdo.mdo.vectors import did_you_mean
 
 METHODS = ("sobol", "morris")
 
@@ -48,13 +49,15 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
         fun, point, bounds, outputs, problem = build_batch(config, ev, defaults)
         for k, v in (at or {}).items():
             if k not in point:
-                raise InputError(f"--at: unknown name {k!r}; design variables: {', '.join(problem.names)}; "
+                raise InputError(f"--at: unknown name {k!r}; {did_you_mean(k, point)}"
+                                 f"design variables: {', '.join(problem.names)}; "
                                  f"parameters: {', '.join(n for n in point if n not in problem.names)}")
             point[k] = float(v)
         wrt = list(wrt or []) or list(problem.names)
         for i, k in enumerate(wrt):
             if k not in point:
-                raise InputError(f"--wrt: unknown variable or parameter {k!r}; known: {', '.join(point)}")
+                raise InputError(f"--wrt: unknown variable or parameter {k!r}; {did_you_mean(k, point)}"
+                                 f"known: {', '.join(point)}")
             if k in wrt[:i]:  # its rows and columns were printed twice
                 raise InputError(f"--wrt: {k!r} named twice")
         if global_method:

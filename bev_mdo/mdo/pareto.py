@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bev_mdo import interrupts
+from bev_mdo.mdo.vectors import did_you_mean
 
 FAILED_F = 1e30
 FAILED_G = 1e6
@@ -193,7 +194,8 @@ def make_problem(formulation, objectives, ceilings=None):
     objectives = objective_pairs(objectives)
     missing = [o for o, _ in objectives if o not in _outputs(formulation)]
     if missing:
-        raise ValueError(f"objective {missing[0]!r} is not produced by any discipline; outputs: "
+        raise ValueError(f"objective {missing[0]!r} is not produced by any discipline; "
+                         f"{did_you_mean(missing[0], _outputs(formulation))}outputs: "
                          f"{', '.join(sorted(_outputs(formulation)))}")
     if not objectives:
         raise ValueError("at least one objective is needed")

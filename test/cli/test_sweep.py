@@ -142,7 +142,7 @@ def test_a_name_mistyped_in_one_compare_design_is_said_unknown(capsys):
     """It was called a parameter with no initial value that must be given in every --design."""
     assert main(["compare", CONFIG, "--design", "motor_kw=100", "--design", "motr_kw=90", "--transport", "inprocess"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "unknown names ['motr_kw']; design variables: ['motor_kw'," in err[0], err
+    assert len(err) == 1 and "unknown names ['motr_kw']; did you mean 'motor_kw'? design variables: ['motor_kw'," in err[0], err
 
 
 def test_compare_shows_differences_from_the_first_design(capsys):
