@@ -189,6 +189,9 @@ def apply(raw: Mapping[str, Any], ov: Overrides, names: Mapping[str, list[str]])
     for name, limits in ov.constraints.items():
         _check(name, names["outputs"], "--constraint", "outputs")
         cons[name] = {**dict(cons.get(name) or {}), **{k: float(v) for k, v in limits.items()}}
+        size = sum(1 for v in names["outputs"] if v.startswith(f"{name}["))
+        if size:  # a whole vector output: its limit holds for every element ("con<=0": con[0..k-1] <= 0)
+            cons[name].setdefault("shape", size)
     if ov.objective is not None or ov.maximize is not None:
         current = prob.get("objective")
         old_name = current.get("name") if isinstance(current, Mapping) else current

@@ -143,3 +143,22 @@ def test_a_limit_given_to_one_element_of_a_vector_constraint_replaces_that_eleme
     assert main(["evaluate", vector, "--constraint", "con[1]>=-30", "--transport", "inprocess", "--json"]) == 0
     cons = json.loads(capsys.readouterr().out)["constraints"]
     assert cons["con[1]"]["lower"] == -30.0 and cons["con[1]"]["upper"] == 0.0, cons
+
+
+def test_a_limit_on_a_whole_vector_output_holds_for_each_element(capsys, tmp_path):
+    """--constraint "con<=0" (and Study.constrain("con", upper=0)) on a vector output the config does not constrain
+    was refused with "add shape: 2", which a command line cannot do. It now limits every element: the same
+    optimum as the config's own ``con: {shape: 2, upper: 0}``."""
+    raw = yaml.safe_load((REPO / "examples" / "sellar_vector.yaml").read_text())
+    del raw["problem"]["constraints"]["con"]
+    cfg = tmp_path / "unconstrained.yaml"
+    cfg.write_text(yaml.safe_dump(raw))
+    assert main(["optimize", str(cfg), "--constraint", "con<=0", "--transport", "inprocess", "--no-record",
+                 "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["verdict"] == "optimum" and doc["objective"] == pytest.approx(3.18339, abs=1e-4)
+    assert {k: v["upper"] for k, v in doc["constraints"].items()} == {"con[0]": 0.0, "con[1]": 0.0}
+    from bev_mdo import Study
+
+    result = Study(cfg).constrain("con", upper=0).optimize(transport="inprocess")
+    assert result.objective == pytest.approx(doc["objective"], abs=1e-9) and set(result.constraints) == {"con[0]", "con[1]"}
