@@ -277,4 +277,4 @@ def _instances(spec: str, config) -> dict[str, int] | None:
         return None
     from bev_mdo.processes import parse_instances
 
-    return parse_instances(spec, discipline_names(config))
+    return parse_instances(spec, discipline_names(config), flag="-p instances")
