@@ -1,0 +1,32 @@
+"""The multipliers in physical units (first_order.limit_rates): how the optimum's objective moves per unit a
+limit or bound is raised. A trial loosened Golinski's g_shaft1[1] <= 0 (objective_scale 1000) by 0.01 and saved
+2.82, where the printed multiplier, 0.2846 per unit of the scaled objective, read as 0.0028. Each rate is checked
+against re-optimising with the limit moved (a first-order prediction: within 10 % of the change)."""
+from __future__ import annotations
+
+import pytest
+
+from bev_mdo import Study
+from bev_mdo.testing import REPO
+
+
+def _rates(study: Study) -> tuple[float, dict]:
+    r = study.optimize(transport="inprocess")
+    assert r.verdict == "optimum"
+    rows = r.first_order["active_constraints"] + r.first_order["active_bounds"]
+    return r.objective, {c["name"] if "kind" not in c else f"{c['name']} {c['kind']}": c["d_objective_d_limit"]
+                         for c in rows}
+
+
+@pytest.mark.parametrize("config, moved, key, step", [
+    ("examples/golinski.yaml", lambda s: s.constrain("g_shaft1[1]", upper=0.01), "g_shaft1[1] <= 0", 0.01),
+    ("config/leaf_nedc.yaml", lambda s: s.constrain("accel_time_0_100_s", upper=10.1),
+     "accel_time_0_100_s <= 10", 0.1),
+    ("config/leaf_nedc.yaml", lambda s: s.bound("battery_kwh", lower=20.1), "battery_kwh lower", 0.1),
+    ("examples/ssbj/ssbj_mdf.yaml", lambda s: s.constrain("g_2", upper=0.001), "g_2 <= 0", 0.001),  # maximised
+], ids=["objective_scale", "upper_limit", "lower_bound", "maximised"])
+def test_a_limits_rate_predicts_the_optimums_move(config, moved, key, step):
+    before, rates = _rates(Study(REPO / config))
+    after, _ = _rates(moved(Study(REPO / config)))
+    predicted = rates[key] * step
+    assert after - before == pytest.approx(predicted, rel=0.1), (after - before, predicted)
