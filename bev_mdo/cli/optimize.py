@@ -123,6 +123,8 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
     if baseline is not None:  # its failure, and what its column does not show (outside its bounds, a parameter set)
         for line in ([baseline["error"]] if baseline.get("error") else []) + list(baseline.get("notes", ())):
             print(f"baseline {baseline['name']}: {line}", file=out)
+    for line in result.get("notes", ()):
+        print(f"result: note: {line}", file=out)
     if result.get("error"):
         print(f"the result point failed: {result['error']}", file=out)
     elif result.get("stopped"):  # a discipline stopped answering: the run stopped the optimiser

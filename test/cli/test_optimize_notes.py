@@ -241,3 +241,17 @@ def test_a_verified_optimum_is_not_displaced_by_an_earlier_point_the_check_does_
     doc = json.loads(capsys.readouterr().out)
     assert doc["verdict"] == "optimum" and doc["design"]["x1"] == pytest.approx(0.004, abs=1e-12), doc["message"]
     assert np.isclose(doc["max_violation"], 0.0, atol=1e-12)
+
+
+def test_the_result_says_what_its_values_mean_as_evaluate_does(capsys):
+    """A docs trial: at an infeasible end the pack's power limited the 0-100 km/h time, which evaluate says in a
+    note and optimize did not (its answers suggested the optimiser stopped short)."""
+    leaf = str(Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml")
+    argv = ["optimize", leaf, "--transport", "inprocess", "--no-record", "--bound", "battery_kwh=8:10", "--bound",
+            "motor_kw=100:120", "--constraint", "range_km>=50"]
+    assert main(argv) == 1
+    out = capsys.readouterr().out
+    assert "result: note: the pack limits the 0-100 km/h time: 40.1 kW at the shaft" in out, out
+    assert main([*argv, "--json"]) == 1
+    (note,) = json.loads(capsys.readouterr().out)["notes"]
+    assert note.startswith("the pack limits the 0-100 km/h time")
