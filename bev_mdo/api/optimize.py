@@ -118,8 +118,7 @@ def _run_inprocess(config, opts, show, x0, starts, closing: contextlib.ExitStack
         res = run_optimization(config.settings, ev, formulation=opts.formulation,
                                optimizer=opts.optimizer, x0=x0, callback=show)
     baseline = analyse_baseline(config, NamingInProcessEvaluator(config.timed_disciplines(), errors=ev.errors))
-    out = res.to_dict()
-    out.pop("history")
+    out = res.summary()
     extra = {"transport": "inprocess", **({"bag": bag} if bag else {}), "_bag_writer": writer}
     if ev.errors.first:
         extra["discipline_errors"] = dict(ev.errors.first)

@@ -157,7 +157,8 @@ def _verdict(result: dict, out, units: dict) -> None:
     fo = result["first_order"]
     cost = fo["cost"]
     print(f"verdict: {verdict_line(fo)}", file=out)
-    for line in note_lines(fo, result.get("optimizer", "the optimiser"), bool(result.get("optimizer_success"))):
+    for line in note_lines(fo, result.get("optimizer", "the optimiser"), bool(result.get("optimizer_success")),
+                           result.get("ended")):
         print(f"note: {line}", file=out)
     if result.get("multistart"):
         from bev_mdo.mdo.multistart import summary_line
@@ -272,6 +273,6 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
               "result is the best point evaluated before that, not an optimum", file=sys.stderr)
     if doc.get("recorder_failed"):
         print(f"warning: {doc['recorder_failed']}", file=sys.stderr)
-    from bev_mdo.mdo.driver import exit_status
+    from bev_mdo.mdo.first_order import exit_status
 
     return exit_status(doc, opts.fixed_budget)

@@ -101,6 +101,11 @@ class RunResult:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    def summary(self) -> dict:
+        """``to_dict()`` without the history; ``ended``: the optimiser's last record where the result is another."""
+        return {**{k: v for k, v in self.to_dict().items() if k != "history"},
+                "ended": None if self.last_iterate or not self.history else self.history[-1]}
+
 
 def _mda(run: RunSettings, evaluator: Evaluator, problem: Problem) -> MDA:
     return MDA(evaluator, **run.mda.as_dict(), guesses=problem.coupling_guesses, disciplines=list(run.disciplines))
@@ -482,18 +487,3 @@ def derivatives_disagree(form: Formulation, u: np.ndarray, g: np.ndarray, analyt
     i, j = np.unravel_index(int(np.argmax(gap)), gap.shape)
     names = [form.problem.objective, *form.ineq_labels, *form.eq_labels]
     return {"of": names[rows[i]], "wrt": form.var_names[j], "analytic": float(a[i, j]), "fd": float(b[i, j])}
-
-
-def exit_status(doc: dict, fixed_budget: bool = False) -> int:
-    """bev-mdo optimize's exit status of a run document (``RunResult.to_dict()`` and what the run adds), a
-    hand-started coordinator_node's too: 0 an optimum (or, with ``fixed_budget``, any feasible end);
-    1 infeasible; 3 the recorder failed; 4 a discipline stopped answering (before 1: a node killed while the start
-    point was evaluated left every point failed, and a script keyed on the status read it as an infeasible design);
-    5 feasible but not a verified optimum."""
-    if doc.get("recorder_failed"):
-        return 3
-    if doc.get("unresponsive_disciplines"):
-        return 4
-    if not doc["feasible"]:
-        return 1
-    return 0 if doc["verdict"] == first_order.OPTIMUM or fixed_budget else 5

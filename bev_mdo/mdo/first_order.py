@@ -171,13 +171,22 @@ def _kinks(kinks: Sequence[dict]) -> str:
     return "; ".join(parts)
 
 
-def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = False) -> list[str]:
+def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = False, ended: dict | None = None
+               ) -> list[str]:
     """What the verdict line does not say, a line each: the design variables an optimum does not pin
     (driver.end_point_check's ``free_variables``), and where ``optimizer`` said it ``converged`` but the conditions
-    do not hold (no kink, no unknown or disagreeing derivative to explain it), what to check."""
+    do not hold (no kink, no unknown or disagreeing derivative to explain it), what to check; ``ended``: the
+    record of the optimiser's last iterate where the result is an earlier one (then the reason is there)."""
     lines = [_free_line(fo["free_variables"])] if fo.get("free_variables") else []
-    if converged and fo["verdict"] == STOPPED and not (fo.get("kinks") or fo.get("unknown_derivatives")
-                                                       or fo.get("derivatives_disagree")):
+    if converged and ended is not None and fo["verdict"] != OPTIMUM:  # its end point is not what was judged
+        why = ("cannot follow the drive cycle, a check the optimiser does not see (constrain the energy "
+               "discipline's margins so that it does: options {feasibility_outputs: true}, e.g. drive_force_margin_n "
+               ">= 0; docs/user-problems.md)" if ended.get("cannot_follow")
+               else "is infeasible" if not ended.get("feasible") else "is worse")
+        lines.append(f"{optimizer} says it converged, at iteration {ended.get('iteration')}, which {why}: the result "
+                     "is an earlier point, where the first-order conditions need not hold")
+    elif converged and fo["verdict"] == STOPPED and not (fo.get("kinks") or fo.get("unknown_derivatives")
+                                                         or fo.get("derivatives_disagree")):
         if fo.get("derivatives") == "analytic":
             lines.append(f"{optimizer} says it converged, but the first-order conditions do not hold at its end point "
                          "(judged on the gradient assembled from the disciplines' analytic partials, the optimiser's "
@@ -219,3 +228,18 @@ def limit_rates(fo: dict, problem, var_names: Sequence[str], var_scale: Sequence
     for b in fo["active_bounds"]:
         if b["name"] in where:
             b["d_objective_d_limit"] = sense * b["multiplier"] * (1.0 if b["kind"] == "lower" else -1.0) / where[b["name"]]
+
+
+def exit_status(doc: dict, fixed_budget: bool = False) -> int:
+    """bev-mdo optimize's exit status of a run document (``RunResult.to_dict()`` and what the run adds), a
+    hand-started coordinator_node's too: 0 an optimum (or, with ``fixed_budget``, any feasible end);
+    1 infeasible; 3 the recorder failed; 4 a discipline stopped answering (before 1: a node killed while the start
+    point was evaluated left every point failed, and a script keyed on the status read it as an infeasible design);
+    5 feasible but not a verified optimum."""
+    if doc.get("recorder_failed"):
+        return 3
+    if doc.get("unresponsive_disciplines"):
+        return 4
+    if not doc["feasible"]:
+        return 1
+    return 0 if doc["verdict"] == OPTIMUM or fixed_budget else 5

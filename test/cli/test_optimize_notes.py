@@ -255,3 +255,14 @@ def test_the_result_says_what_its_values_mean_as_evaluate_does(capsys):
     assert main([*argv, "--json"]) == 1
     (note,) = json.loads(capsys.readouterr().out)["notes"]
     assert note.startswith("the pack limits the 0-100 km/h time")
+
+
+def test_an_end_point_the_cycle_check_rejects_is_named_not_blamed_on_the_stopping_rule(capsys):
+    """A docs trial: SLSQP converged at iteration 11, whose motor cannot follow the NEDC (a check the optimiser does
+    not see); the result was iteration 2, and the note said SLSQP's "stopping tolerance (ftol) may be too loose"."""
+    leaf = str(Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml")
+    assert main(["optimize", leaf, "--transport", "inprocess", "--no-record", "--bound", "motor_kw=10:120",
+                 "--constraint", "accel_time_0_100_s<=100"]) == 5
+    out = capsys.readouterr().out
+    assert "note: SLSQP says it converged, at iteration 11, which cannot follow the drive cycle" in out, out
+    assert "drive_force_margin_n >= 0" in out and "ftol" not in out
