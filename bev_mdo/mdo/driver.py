@@ -433,7 +433,7 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
                                  unknown=form.unknown_derivatives(u) if ok else ())
 
     fo = {**judge(df, dg, dh), "derivatives": form.derivatives}  # what the numbers are computed on: analytic | fd
-    first_order.limit_rates(fo, form.problem, form.var_names, form.scale)  # the multipliers in physical units
+    first_order.limit_rates(fo, form.problem, form.var_names, form.scale, (form.lower, form.upper))  # physical
     if ok and fo["verdict"] == first_order.OPTIMUM and form.derivatives == "analytic":
         # the gradient came from the disciplines' partials, which its own check cannot doubt: a wrong partial
         # (df/dz 3z for 2z) ended "optimum" 3.4e-4 above the optimum. Central differences at steps h and 2h

@@ -213,11 +213,13 @@ def _free_line(free: list[dict]) -> str:
             "where the design stays feasible)")
 
 
-def limit_rates(fo: dict, problem, var_names: Sequence[str], var_scale: Sequence[float]) -> None:
+def limit_rates(fo: dict, problem, var_names: Sequence[str], var_scale: Sequence[float],
+                bounds: tuple[Sequence[float], Sequence[float]] | None = None) -> None:
     """Each active constraint row and bound of ``fo`` gets ``d_objective_d_limit``: how the optimum's objective
     moves, in its own unit, per unit its limit (or bound) is raised, from the multiplier (envelope theorem,
     Nocedal & Wright eq 12.84): the multipliers are per unit of the scaled objective (f / objective_scale, -f to
-    maximise) and of the normalised constraint g = sign (y - b) / scale or scaled variable (x - lower) / scale."""
+    maximise) and of the normalised constraint g = sign (y - b) / scale or scaled variable (x - lower) / scale.
+    A bound also gets its ``bound`` (physical; ``bounds``: the variables' (lower, upper))."""
     _, sign, scale = problem.g_terms()
     row = {label: i for i, label in enumerate(problem.constraint_labels)}
     sense = (-1.0 if problem.maximize else 1.0) * problem.objective_scale
@@ -225,7 +227,10 @@ def limit_rates(fo: dict, problem, var_names: Sequence[str], var_scale: Sequence
         if (i := row.get(c["name"])) is not None:
             c["d_objective_d_limit"] = -sense * c["multiplier"] * sign[i] / scale[i]
     where = dict(zip(var_names, np.asarray(var_scale, dtype=float)))
+    limits = {k: dict(zip(var_names, map(float, v))) for k, v in zip(("lower", "upper"), bounds or ((), ()))}
     for b in fo["active_bounds"]:
+        if b["name"] in limits.get(b["kind"], {}):
+            b["bound"] = limits[b["kind"]][b["name"]]
         if b["name"] in where:
             b["d_objective_d_limit"] = sense * b["multiplier"] * (1.0 if b["kind"] == "lower" else -1.0) / where[b["name"]]
 

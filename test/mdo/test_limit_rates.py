@@ -30,3 +30,13 @@ def test_a_limits_rate_predicts_the_optimums_move(config, moved, key, step):
     after, _ = _rates(moved(Study(REPO / config)))
     predicted = rates[key] * step
     assert after - before == pytest.approx(predicted, rel=0.1), (after - before, predicted)
+
+
+def test_a_variable_on_its_bound_is_shown_at_the_bound(capsys):
+    """Sellar's z2 ended 4.56e-13 above its lower bound 0 and was shown as 'z2 = 4.56397e-13' on that bound."""
+    from bev_mdo.cli import main
+
+    assert main(["optimize", str(REPO / "examples" / "sellar" / "sellar_mdf.yaml"), "--transport", "inprocess",
+                 "--no-record"]) == 0
+    out = capsys.readouterr().out
+    assert "  on its lower bound: z2 = 0, multiplier 9.816 (0.9816 per unit raised)" in out, out
