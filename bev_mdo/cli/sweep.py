@@ -336,8 +336,9 @@ def run_compare(args) -> int:
         cells = [num(v[0])]
         for i in range(1, len(given)):
             d = v[i] - v[0]
-            # of |design 1|: a negative quantity that rises must not read as a fall ('+8 (-1.1 %)')
-            pct = f" ({100 * d / abs(v[0]):+.1f} %)" if v[0] not in (0.0,) and np.isfinite(v[0]) and not name.startswith("margin") else ""
+            # of |design 1|: a negative quantity that rises must not read as a fall ('+8 (-1.1 %)'); none of a margin
+            # (a constraint's, or an output such as drive_torque_margin_nm), whose zero is no reference: +13327 %
+            pct = f" ({100 * d / abs(v[0]):+.1f} %)" if v[0] != 0.0 and np.isfinite(v[0]) and "margin" not in name else ""
             cells += [num(v[i]), f"{num(d, '+')}{pct}" if num(d) != "0" else "0"]
         t.add_row(name, unit, *cells)
     feas = ["yes" if f else "[bold red]NO[/]" for f in result["feasible"]]

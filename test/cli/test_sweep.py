@@ -341,3 +341,15 @@ def test_a_batch_over_ros_is_sent_in_chunks_with_the_results_of_one_batch(monkey
     for k, v in whole["outputs"].items():
         np.testing.assert_allclose(chunked["outputs"][k], v, rtol=1e-12, equal_nan=True, err_msg=k)
     assert (chunked["ok"] == whole["ok"]).all() and chunked["errors"] == whole["errors"]
+
+
+def test_compare_gives_no_percentage_of_a_margin_output(capsys):
+    """A pareto trial: compare showed the topology model's drive_torque_margin_nm change as '+13327.1 %' (of a
+    margin near zero); a margin, a constraint's or an output's, gets its difference alone."""
+    topo = Path(__file__).resolve().parents[2] / "config" / "topologies_artemis.yaml"
+    rc = main(["compare", str(topo), "--design", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--design",
+               "motor_kw=120,gear_ratio=8,battery_kwh=24", "--transport", "inprocess"])
+    out = capsys.readouterr().out
+    row = next(line for line in out.splitlines() if line.startswith("│ drive_torque_margin_nm"))
+    assert rc == 0 and "%" not in row, row
+    assert "%" in next(line for line in out.splitlines() if line.startswith("│ vehicle_mass_kg"))
