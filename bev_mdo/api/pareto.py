@@ -164,9 +164,12 @@ def nsga2(cfg, evaluator, objectives, pop: int, generations: int, seed: int, on_
     # the check optimize and evaluate apply (a motor that cannot follow the cycle): an infeasible design here too
     check = None if run.settings.design_check is None else (
         lambda values: design_check(run.settings, form.problem, values))
+    params = form.problem.parameters  # beside a batch's columns, which win (as design_check adds them)
+    batch = None if run.settings.designs_check is None else (
+        lambda values: run.settings.designs_check({**values, **{k: v for k, v in params.items() if k not in values}}))
     res = run_nsga2(form, objectives, pop_size=pop, generations=generations, seed=seed,
                     on_generation=on_generation or (lambda g, n, s: None), on_front=on_front, ceilings=ceilings,
-                    design_check=check)
+                    design_check=check, batch_check=batch)
     if bench is not None:  # the study's benchmark design, through the same formulation
         from bev_mdo.studies import topologies as study
 

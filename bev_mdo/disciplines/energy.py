@@ -271,6 +271,13 @@ def follow_counts(disciplines, values: Mapping) -> tuple[np.ndarray, np.ndarray]
     return short, unchecked
 
 
+def follow_batch(disciplines):
+    """``follow_check`` of a batch: ``check(values)`` -> (N,) bool, True where a design cannot follow its cycle
+    (``follow_counts``, one call for the batch); None when no discipline of ``disciplines`` checks it."""
+    discs = tuple(d for d in disciplines if getattr(d, "envelope", None) is not None)
+    return (lambda values: follow_counts(discs, values)[0]) if discs else None
+
+
 def follow_check(disciplines):
     """The run's judgement of a design beyond its constraints (RunSettings.design_check): ``check(values)`` ->
     ``follow_notes``' lines that the one design in ``values`` cannot follow its cycle ([] when it can); None when

@@ -146,12 +146,12 @@ def _pymoo_problem_class():
     class MDAProblem(PymooProblem):
         """Vectorised pymoo problem over a formulation's batched ``analyse`` (one batch per call)."""
 
-        def __init__(self, formulation, objectives, ceilings, design_check=None):
+        def __init__(self, formulation, objectives, ceilings, design_check=None, batch_check=None):
             self.form = formulation
             self.objectives = [name for name, _ in objectives]
             self.signs = np.array([-1.0 if maximize else 1.0 for _, maximize in objectives])
             self.ceilings = [(j, float(ceilings[o])) for j, o in enumerate(self.objectives) if o in ceilings]
-            self.design_check = design_check
+            self.design_check, self.batch_check = design_check, batch_check
             prob = formulation.problem
             n_g = len(prob.constraint_rows) + len(self.ceilings) + (design_check is not None)
             super().__init__(n_var=len(prob.names), n_obj=len(self.objectives), n_ieq_constr=n_g,
@@ -175,8 +175,10 @@ def _pymoo_problem_class():
             F = F * self.signs
             bad = ~ok | ~np.all(np.isfinite(F), axis=1) | ~np.all(np.isfinite(G), axis=1)
             if self.design_check is not None:  # the run's check beyond the constraints, at each analysed design
-                short = np.array([not bad[i] and bool(self.design_check({k: float(v[i]) for k, v in res.values.items()}))
-                                  for i in range(len(X))], dtype=bool)
+                short = (~bad & np.asarray(self.batch_check(res.values), bool) if self.batch_check is not None else
+                         np.array([not bad[i] and bool(self.design_check({k: float(v[i]) for k, v in
+                                                                          res.values.items()})) for i in range(len(X))],
+                                  dtype=bool))
                 G = np.column_stack([G, np.where(short, CANNOT_FOLLOW_G, 0.0)])
                 self.cannot_follow += int(short.sum())
             F[bad] = FAILED_F
@@ -222,11 +224,12 @@ def objective_pairs(objectives) -> list[tuple[str, bool]]:
     return [(o, False) if isinstance(o, str) else (str(o[0]), bool(o[1])) for o in objectives]
 
 
-def make_problem(formulation, objectives, ceilings=None, design_check=None):
+def make_problem(formulation, objectives, ceilings=None, design_check=None, batch_check=None):
     """The pymoo problem of ``formulation`` (an MDF from ``driver.build_formulation``); ``ceilings``:
     {output: value from which up it marks an infeasible design}, a constraint where it is an objective;
     ``design_check({variable: value})``: the lines why one analysed design is infeasible beyond its
-    constraints ([] if it is not), one more constraint."""
+    constraints ([] if it is not), one more constraint; ``batch_check({variable: (N,) values})``: the same
+    judgement of a whole batch, (N,) bool (one call a generation instead of one a design)."""
     objectives = objective_pairs(objectives)
     missing = [o for o, _ in objectives if o not in _outputs(formulation)]
     if missing:
@@ -235,7 +238,7 @@ def make_problem(formulation, objectives, ceilings=None, design_check=None):
                          f"{', '.join(sorted(_outputs(formulation)))}")
     if not objectives:
         raise ValueError("at least one objective is needed")
-    return _pymoo_problem_class()(formulation, objectives, dict(ceilings or {}), design_check)
+    return _pymoo_problem_class()(formulation, objectives, dict(ceilings or {}), design_check, batch_check)
 
 
 def _outputs(formulation) -> set[str]:
@@ -288,20 +291,22 @@ def least_violated(problem, X, cv) -> dict | None:
 
 
 def run_nsga2(formulation, objectives, *, pop_size: int = 100, generations: int = 30, seed: int = 1,
-              on_generation=None, on_front=None, ceilings=None, design_check=None) -> ParetoResult:
+              on_generation=None, on_front=None, ceilings=None, design_check=None, batch_check=None
+              ) -> ParetoResult:
     """NSGA-II (pymoo) for ``generations`` generations of ``pop_size`` designs; deterministic per seed.
 
     ``on_generation(gen, n_evals, seconds)`` is called after every generation;
     ``on_front(front, final)`` with every generation's :class:`Front` (``final`` True on the
     last one, which is the result's front). Whatever stops the run (a signal, an error), every
-    finished generation's front has gone to ``on_front``. ``ceilings``, ``design_check``: as ``make_problem``."""
+    finished generation's front has gone to ``on_front``. ``ceilings``, ``design_check``, ``batch_check``: as
+    ``make_problem``."""
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.callback import Callback
     from pymoo.optimize import minimize
 
     if pop_size < 4 or generations < 1:
         raise ValueError(f"pop_size must be >= 4 and generations >= 1, got {pop_size}, {generations}")
-    problem = make_problem(formulation, objectives, ceilings, design_check)
+    problem = make_problem(formulation, objectives, ceilings, design_check, batch_check)
     times: list[float] = []
     t0 = time.perf_counter()
     pending: list[Front] = []  # a generation's front is sent once the next one shows it was not the last
