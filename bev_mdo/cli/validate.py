@@ -308,8 +308,9 @@ def print_pairs(report: dict) -> None:
         print(f"pairs: none in {report['data']} (no two rows of one model family differ in drive, "
               f"rated power or test mass)")
         return
-    print(f"within-family pairs ({pairs['pairs']} pairs in {pairs['families']} families; B over A, %; "
-          f"slope by least squares through the origin):")
+    print(f"within-family pairs ({pairs['pairs']} pairs in {pairs['families']} families; meas% and pred%: "
+          "200 (E_B - E_A) / (E_A + E_B), B minus A in percent of the pair's mean; diff = pred% - meas%, points; "
+          "slope by least squares through the origin):")
     print(f"{'cycle':6} {'A row':>5} {'B row':>5} {'A model':30} {'B model':30} {'meas%':>7} {'pred%':>7} "
           f"{'diff':>6}")
     for c in ("udds", "hwfet"):

@@ -287,6 +287,8 @@ def test_pairs_json_table_and_png(capsys, tmp_path):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     code, out, _ = run(capsys, "--pairs")
     assert code == 0 and "within-family pairs" in out and "Mach-E RWD" in out
+    # the header says what is printed: percent of the pair's mean (it said 'B over A, %')
+    assert "meas% and pred%: 200 (E_B - E_A) / (E_A + E_B)" in out and "B over A" not in out
     assert "pairs  udds: n=" in out and "pairs hwfet: n=" in out and "slope" in out and "points" in out
     assert ("(target 0.85-1.15: met)" in out) or ("(target 0.85-1.15: NOT met)" in out)
     assert "pairs" not in json.loads(run(capsys, "--json")[1])  # only when asked
