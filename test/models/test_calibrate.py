@@ -381,3 +381,17 @@ def test_a_set_fitted_on_a_fleet_with_notes_keeps_them_and_its_parameters_at_a_b
     assert [n for n in notes if "bound" in n] == ["charger_efficiency 0.7 is at its lower bound: the data press it "
                                                   "there (a fleet in other units?), the other parameters take up "
                                                   "the rest"]
+
+
+def test_a_missing_folder_of_write_is_made_only_when_the_set_is_written(tmp_path, capsys, monkeypatch):
+    """--write /nonexistent_dir/x.yaml created the folder before the fit, and kept it when the run stopped."""
+    def stopped(*a, **k):
+        raise ValueError("stopped before the set was written")
+
+    data = _fleet(tmp_path, _i4, "i4.csv")
+    with monkeypatch.context() as m:
+        m.setattr(calibrate, "fit", stopped)
+        assert bev_mdo(["calibrate", "--model", "chain", "--data", str(data), "--write",
+                        str(tmp_path / "new" / "sub" / "x.yaml")]) == 2
+    assert "stopped before" in capsys.readouterr().err and not (tmp_path / "new").exists()
+
