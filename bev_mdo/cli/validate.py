@@ -60,7 +60,7 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
              pairs: bool = False) -> dict:
     """The whole validation as a dict (what --json prints)."""
     from bev_mdo.models import fleet as fl
-    from bev_mdo.models.params import fitted_for_another_model, load_parameter_set
+    from bev_mdo.models.params import fitted_for_another_model, fitted_values, load_parameter_set
 
     fleet = fl.read_fleet(data)
     base = {}
@@ -80,6 +80,8 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
         follows_none = ~np.logical_or.reduce([pred[c]["follows"] for c in fl.CYCLES])
         raise ValueError(f"{fleet.path}: no vehicle to score ({int(fleet.outlier.sum())} of {len(fleet)} flagged as "
                          f"outliers, {int((follows_none & ~fleet.outlier).sum())} cannot follow UDDS or HWFET)")
+    if base and fitted_values(parameter_set):  # a calibrated set off by 1.609 on every car: a fleet in Wh/mi?
+        fl.note_energy_unit(fleet, pred, scored, energy_model)
     for i in range(len(fleet)):
         row = {"row": int(fleet.rows[i]), "make": fleet.make[i], "model": fleet.model[i],
                "test_mass_kg": float(fleet.test_mass_kg[i]), "rated_power_kw": float(fleet.rated_power_kw[i]),

@@ -26,7 +26,7 @@ from bev_mdo import interrupts
 
 from . import fleet as fl
 from .fleet import group_folds  # noqa: F401 - the fold rule, also used by models/baselines.py and scripts
-from .params import CHAIN_SPECS, PARAMETER_SET_DIR, QUASI_STATIC_SPECS, all_specs, is_parameter_set_file
+from .params import CHAIN_SPECS, PARAMETER_SET_DIR, QUASI_STATIC_SPECS, all_specs, is_parameter_set_file, load_parameter_set
 
 # fixed assumptions (not fitted): physical values for a 2022 BEV on a two-wheel dynamometer
 FIXED = {
@@ -444,6 +444,8 @@ def run(args) -> int:
         fleet = fl.read_fleet(args.data)
         cycles = fl.resampled_cycles()
         use = usable(fleet, cycles)
+        shipped = fl.predict(fleet, MODELS[model][0], load_parameter_set(MODELS[model][3]), cycles)  # in Wh/mi?
+        fl.note_energy_unit(fleet, shipped, dict.fromkeys(fl.CYCLES, use), f"{model} with {MODELS[model][3]}")
         print(f"fitting {model} on {int(use.sum())} vehicles of {fleet.path}", flush=True)
         f = fit(fleet, cycles=cycles, use=use, model=model)
         if f["n_residuals"] <= int(f["determined"].sum()):  # no residual degree of freedom: no standard errors
