@@ -19,8 +19,8 @@ Choices (documented deviations):
   decelerations (where drag exceeds inertia) as driving power. Eq 6-34 as printed,
   P - P 1[a<0] r/100, would keep braking power at r = 0 and drop it at r = 100, the reverse of
   eqs 6-32/6-33: the weight r is that equations' reading.
-* eq 7-23 as printed (rho CdA v + M dv/dt) is not the derivative of eq 7-18's force; dI uses it
-  (rho CdA |v| a + M j, the jerk j = da/dt), an inductive term under 0.2 % of the energy.
+* eq 7-23 as printed (rho CdA v + M dv/dt) is not the derivative of eq 7-18's force; dI uses that
+  derivative (rho CdA |v| a + M j, the jerk j = da/dt), an inductive term under 0.2 % of the energy.
 * rolling resistance acts only while moving (sgn(v)); eq 7-18 has it also at standstill,
   where it would give a small copper loss at idle.
 
