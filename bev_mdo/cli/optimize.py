@@ -158,7 +158,7 @@ def _verdict(result: dict, out, units: dict) -> None:
     cost = fo["cost"]
     print(f"verdict: {verdict_line(fo)}", file=out)
     for line in note_lines(fo, result.get("optimizer", "the optimiser"), bool(result.get("optimizer_success")),
-                           result.get("ended")):
+                           result.get("ended"), bool(result.get("discipline_errors"))):
         print(f"note: {line}", file=out)
     if result.get("multistart"):
         from bev_mdo.mdo.multistart import summary_line

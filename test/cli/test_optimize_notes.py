@@ -80,6 +80,22 @@ class LoopObj:
         return {"y": (inputs["b"] - 1.0) ** 2 + inputs["x1"] ** 2, "q": inputs["x1"] ** 2}
 
 
+class Edge(Flat):
+    """y = (x1 - 0.2)^2 + (x2 - 0.5)^2 with analytic partials, which raises below x1 = 0.4: its minimum lies where
+    no value is given."""
+
+    def compute(self, inputs):
+        x1, x2 = inputs["x1"], inputs["x2"]
+        if np.any(x1 < 0.4):
+            raise ValueError("the model is not valid below x1 = 0.4")
+        return {"y": (x1 - 0.2) ** 2 + (x2 - 0.5) ** 2, "q": x1 ** 2 + 0.0 * x2}
+
+    def compute_partials(self, inputs):
+        x1, x2 = inputs["x1"], inputs["x2"]
+        return {("y", "x1"): 2 * (x1 - 0.2), ("y", "x2"): 2 * (x2 - 0.5), ("q", "x1"): 2 * x1,
+                ("q", "x2"): 0.0 * x2}
+
+
 class ConWrong:
     """f = x1 + x2, g = x1 x2; its partial dg/dx1 is 1.2 x2 (20 % wrong)."""
     name = "conwrong"
@@ -266,3 +282,12 @@ def test_an_end_point_the_cycle_check_rejects_is_named_not_blamed_on_the_stoppin
     out = capsys.readouterr().out
     assert "note: SLSQP says it converged, at iteration 11, which cannot follow the drive cycle" in out, out
     assert "drive_force_margin_n >= 0" in out and "ftol" not in out
+
+
+def test_an_end_at_the_edge_of_failing_points_is_not_blamed_on_a_derivative(tmp_path, capsys):
+    """A user trial: a model that raises below h = 15 ended at its edge, 'stopped before convergence', with the note
+    'a wrong derivative is a common cause; run check-partials' (the partials were right, check-partials passed)."""
+    assert _optimize(_config(tmp_path, "Edge")) == 5
+    out = capsys.readouterr().out
+    assert "points of the run failed (discipline_errors): the end point may lie at the edge of the region" in out, out
+    assert "wrong derivative" not in out and "ftol" not in out
