@@ -121,6 +121,39 @@ def known_names(config) -> dict[str, list[str]]:
     return {"design": list((config["problem"].get("design_variables") or {})), "outputs": outputs}
 
 
+_ELEMENT = re.compile(r"^(.+)\[(\d+)\]$")
+
+
+def _element(name: str, dvs: Mapping, names: Mapping[str, list[str]], flag: str) -> tuple[str, int | None]:
+    """(the design variable, the element's index or None) that ``name`` gives: ``motor_kw``, or ``h[1]`` of a
+    vector ``h`` (``shape: 2`` in the config); InputError naming the nearest variable, or the vector's size."""
+    m = _ELEMENT.match(name)
+    if m is None or m.group(1) not in names["design"]:
+        _check(name, names["design"], flag, "design variables")
+        return name, None
+    base, i = m.group(1), int(m.group(2))
+    size = (dvs.get(base) or {}).get("shape") if isinstance(dvs.get(base), Mapping) else None
+    if not isinstance(size, int) or not 0 <= i < size:
+        raise InputError(f"{flag} {name!r}: {base} is {'a scalar' if size is None else f'a vector of {size}'}"
+                         f"{'' if size is None else f' (elements {base}[0] .. {base}[{size - 1}])'}")
+    return base, i
+
+
+def _edited(entry, i: int | None, values: Mapping[str, float]) -> dict:
+    """A copy of a design variable's config entry with ``values`` set: the whole variable, or element ``i`` of a
+    vector (one number for every element becomes a list of ``shape`` numbers)."""
+    entry = dict(entry or {})
+    for k, v in values.items():
+        if i is None:
+            entry[k] = v
+        else:
+            old = entry.get(k)
+            row = list(old) if isinstance(old, (list, tuple)) else [old] * int(entry["shape"])
+            row[i] = v
+            entry[k] = row
+    return entry
+
+
 def _check(name: str, valid: list[str], flag: str, what: str) -> None:
     if name in valid:
         return
@@ -172,18 +205,19 @@ def apply(raw: Mapping[str, Any], ov: Overrides, names: Mapping[str, list[str]])
         return raw  # the config's own check reports it
     dvs = prob.setdefault("design_variables", {})
     for name, (lo, hi) in ov.bounds.items():
-        _check(name, names["design"], "--bound", "design variables")
-        entry = dict(dvs.get(name) or {})
-        entry.update({k: float(v) for k, v in (("lower", lo), ("upper", hi)) if v is not None})
-        if all(isinstance(entry.get(k), (int, float)) for k in ("lower", "upper")) and entry["lower"] >= entry["upper"]:
+        base, i = _element(name, dvs, names, "--bound")
+        entry = _edited(dvs.get(base), i, {k: float(v) for k, v in (("lower", lo), ("upper", hi)) if v is not None})
+        low, up = (entry.get(k) if i is None or not isinstance(entry.get(k), list) else entry[k][i]
+                   for k in ("lower", "upper"))
+        if all(isinstance(v, (int, float)) for v in (low, up)) and low >= up:
             said = ":".join("" if v is None else f"{v:g}" for v in (lo, hi))
             other = "" if None not in (lo, hi) else " (the other is the config file's)"
-            raise InputError(f"--bound '{name}={said}': the lower bound {entry['lower']:g} must be below the upper "
-                             f"{entry['upper']:g}{other}")
-        dvs[name] = entry
+            raise InputError(f"--bound '{name}={said}': the lower bound {low:g} must be below the upper "
+                             f"{up:g}{other}")
+        dvs[base] = entry
     for name, value in ov.initial.items():
-        _check(name, names["design"], "--initial", "design variables")
-        dvs[name] = {**dict(dvs.get(name) or {}), "initial": float(value)}
+        base, i = _element(name, dvs, names, "--initial")
+        dvs[base] = _edited(dvs.get(base), i, {"initial": float(value)})
     _clip_initials(dvs, set(ov.bounds) - set(ov.initial))
     prob["constraints"] = cons = dict(prob.get("constraints") or {})
     for name, limits in ov.constraints.items():

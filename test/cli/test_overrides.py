@@ -162,3 +162,19 @@ def test_a_limit_on_a_whole_vector_output_holds_for_each_element(capsys, tmp_pat
 
     result = Study(cfg).constrain("con", upper=0).optimize(transport="inprocess")
     assert result.objective == pytest.approx(doc["objective"], abs=1e-9) and set(result.constraints) == {"con[0]", "con[1]"}
+
+
+def test_a_bound_or_start_on_one_element_of_a_vector_design_variable(capsys):
+    """A user trial: --bound and --initial refused 'h[0]' ('design variables: h'), while --set took only elements:
+    one element's bound or start could not be set from the command line."""
+    vector = str(REPO / "examples" / "sellar_vector.yaml")
+    assert main(["optimize", vector, "--bound", "z[1]=1:", "--initial", "z[0]=3", "--transport", "inprocess",
+                 "--no-record", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["design"]["z[1]"] == pytest.approx(1.0) and doc["objective"] > 3.5  # 3.18339 with z[1] >= 0
+    assert any(b["name"] == "z[1]" and b["kind"] == "lower" for b in doc["first_order"]["active_bounds"])
+    for argv, said in ((["--bound", "z[2]=0:1"], "--bound 'z[2]': z is a vector of 2 (elements z[0] .. z[1])"),
+                       (["--initial", "x[0]=1"], "--initial 'x[0]': x is a scalar"),
+                       (["--bound", "z[1]=20:"], "the lower bound 20 must be below the upper 10")):
+        assert main(["evaluate", vector, *argv, "--transport", "inprocess"]) == 2
+        assert said in capsys.readouterr().err
