@@ -163,21 +163,24 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
 
 
 def _context_title(s, cfg, design=None) -> str:
-    """'at <every design variable and analysed parameter>; cycle ..., ... model'."""
-    cyc = (cfg or {}).get("cycle", {})
-    cyc = cyc.get("name", "") if isinstance(cyc, dict) else str(cyc)
+    """'at <every design variable and analysed parameter>; cycle ..., ... model': the cycle (or cycle mix) the
+    energy is computed on (cli.energy_cycle_label), not the config's cycle when that only sets the top speed."""
+    from bev_mdo.cli import energy_cycle_label
+
+    cyc = energy_cycle_label(cfg)
     model = (cfg or {}).get("energy_model", "")
     shown = {**(design or {}), **{k: s.point[k] for k in s.names}}
     point = ", ".join(f"{k}={v:g}" for k, v in shown.items())
     # the energy model defaults to flat in every config: named only beside a cycle (not for Ishigami)
-    return f"at {point}" + (f"; cycle {cyc}" + (f", {model} model" if model else "") if cyc else "")
+    return f"at {point}" + (f"; {cyc}" + (f", {model} model" if model else "") if cyc else "")
 
 
 def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
     """The sensitivity figure: a first-order bar chart (eq 5-4) and, with second order, one
     matrix per output (eq 5-5) on ONE symmetric colour scale shared by the whole figure. Entries
-    whose magnitude is not above their Richardson error estimate are masked (grey, "≤ err"): they
-    are noise, not signal. Text is white on dark cells. The title names the point and the cycle.
+    whose magnitude is not above their error estimate (Richardson's, at least the rounding of the stencil's
+    values) are masked (grey, "≤ err"), every cell by the same rule: they are noise, not signal. Text is
+    white on dark cells. The title names the point and the cycle (or cycle mix) the energy is computed on.
     Returns the figure (closed)."""
     from matplotlib.colors import Normalize
 

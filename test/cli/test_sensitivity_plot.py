@@ -62,3 +62,25 @@ def test_a_problem_without_a_vehicle_names_no_energy_model(tmp_path):
         names, point = ("x1",), {"x1": 0.0}
     assert _context_title(S, {"energy_model": "flat"}) == "at x1=0"
     assert _context_title(S, {"energy_model": "flat", "cycle": {"name": "nedc"}}) == "at x1=0; cycle nedc, flat model"
+
+
+def test_the_title_names_the_cycle_mix_the_energy_is_computed_on(tmp_path):
+    """leaf_epa_combined's energy is the 55/45 UDDS/HWFET mix (the energy's cycle_weights); its cycle, US06,
+    only sets the top speed. The figure was titled 'cycle epa_us06'."""
+    cfg = load_config(str(ROOT / "config/leaf_epa_combined.yaml"))
+    fun, point, bounds, outputs, problem = build_batch(cfg, InProcessEvaluator(resolve_disciplines(cfg)))
+    s = sensitivities(fun, point, wrt=list(problem.names), order=1, bounds=bounds)
+    title = write_heatmap(str(tmp_path / "m.png"), s, outputs, cfg)._suptitle.get_text()
+    assert "; cycle mix 55 % epa_udds + 45 % epa_hwfet, quasi_static model" in title and "us06" not in title
+
+
+def test_the_cycle_a_result_is_named_by():
+    from bev_mdo.cli import energy_cycle_label
+
+    us06 = {"cycle": {"name": "epa_us06"}}
+    assert energy_cycle_label(us06) == "cycle epa_us06"  # the default disciplines: the energy on the config's cycle
+    assert energy_cycle_label({**us06, "disciplines": ["vehicle_mass", "energy"]}) == "cycle epa_us06"
+    own = {**us06, "disciplines": [{"name": "energy", "options": {"cycle": "/data/runs/trace.csv"}}]}
+    assert energy_cycle_label(own) == "cycle trace.csv"  # the energy's option cycle, a CSV by its file name
+    assert energy_cycle_label({}) == ""
+
