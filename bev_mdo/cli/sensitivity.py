@@ -66,6 +66,10 @@ def run(args) -> int:
     if wrong:
         raise InputError(f"{', '.join(wrong)}: " + ("local sensitivities only (without --global)"
                                                     if args.global_method else "needs --global sobol|morris"))
+    from bev_mdo.mdo.sensitivity import REL_STEP_MAX
+
+    if args.rel_step is not None and not 0 < args.rel_step < REL_STEP_MAX:  # the core names it rel_step (the API's)
+        raise InputError(f"--rel-step {args.rel_step:g}: must be in (0, {REL_STEP_MAX:g})")
     cfg = flags.load_config(args)
     wrt = [s.strip() for s in args.wrt.split(",") if s.strip()]
     got = sensitivity.run(cfg, flags.parse_assignments(args.at, "--at"), wrt, Transport.of(args), global_method=args.global_method,

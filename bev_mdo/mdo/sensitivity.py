@@ -24,6 +24,7 @@ BatchFun = Callable[[np.ndarray], "Mapping[str, np.ndarray] | np.ndarray"]
 COUPLING_THRESHOLDS = (("NC", 0.05), ("MC", 0.5), ("SC", 0.8))  # label if |s| < bound
 REL_STEP_FIRST = 1e-4
 REL_STEP_SECOND = 1e-3
+REL_STEP_MAX = 0.5  # rel_step is in (0, REL_STEP_MAX)
 COMPLEX_STEP = 1e-20
 _CENTRAL = np.array([-1.0, 0.0, 1.0])
 _ONE_SIDED = np.array([0.0, 1.0, 2.0, 3.0])
@@ -155,8 +156,8 @@ def sensitivities(fun: BatchFun, point: Mapping[str, float], wrt: Sequence[str] 
         raise ValueError(f"method must be 'central', 'complex' or 'auto', got {method!r}")
     if rel_step is None:
         rel_step = REL_STEP_SECOND if order == 2 else REL_STEP_FIRST
-    if not (0 < rel_step < 0.5):
-        raise ValueError(f"rel_step must be in (0, 0.5), got {rel_step!r}")
+    if not (0 < rel_step < REL_STEP_MAX):
+        raise ValueError(f"rel_step must be in (0, {REL_STEP_MAX:g}), got {rel_step!r}")
     all_names, x0, wrt, idx, h, direction = _prepare(point, wrt, bounds, rel_step)
     n_eval = n_batch = 0
     grad_c = used = None

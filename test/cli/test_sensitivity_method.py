@@ -209,3 +209,11 @@ def test_the_json_names_the_units_and_the_table_its_steps(capsys):
     assert main(args) == 0
     step = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("step "))
     assert step.split()[1:] == ["0.008", "kW", "0.0008", "0.0069", "kg"]  # a ratio has no unit to print
+
+
+@pytest.mark.parametrize("value", ["0", "0.5", "nan"])
+def test_a_rel_step_out_of_range_names_the_flag_as_typed(capsys, value):
+    """It was 'rel_step must be in (0, 0.5), got 0.0': the API's name, not the flag's."""
+    code = main(["sensitivity", str(SELLAR), "--transport", "inprocess", "--order", "1", f"--rel-step={value}"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err == [f"bev-mdo sensitivity: error: --rel-step {float(value):g}: must be in (0, 0.5)"]
