@@ -119,6 +119,9 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
     ow = max(len(k) for k in outputs) + 2
     print(f"point: {', '.join(f'{k}={s.point[k]:g}' for k in dict.fromkeys([*shown, *s.names]))}   "
           f"({s.n_evaluations} evaluations in {s.n_batches} batch(es), method {s.method})", file=out)
+    if s.one_sided:  # the header's method is the others'
+        print(f"one-sided differences for {', '.join(s.one_sided)}: on or within two steps of a bound (or a "
+              "parameter's model limit), so that every step stays inside it", file=out)
     print("\nFirst-order normalised sensitivity S_i = (x_i/f) df/dx_i  (eq 5-4)", file=out)
     print("output".ljust(ow) + "".join(n.rjust(w) for n in s.names), file=out)
     zero = [k for k in outputs if s.values[k] == 0]  # S undefined: the plain derivatives are shown
@@ -142,7 +145,7 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
         return
     print("\nSecond-order normalised sensitivity S'_ij = (x_i x_j/f) d2f/dx_i dx_j  (eq 5-5)", file=out)
     print("labels: NC |S'|<0.05, MC <0.5, SC <0.8, VSC >=0.8 (no/medium/strong/very strong coupling of two "
-          "variables; a diagonal entry, one variable's own curvature, has none)", file=out)
+          "variables; a diagonal entry, one variable's own curvature, has none: null in --json)", file=out)
     for k in outputs:
         m, lab, err = s.second[k], s.labels(k), s.second_error[k]
         if k in zero:
