@@ -151,7 +151,7 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
         if k in zero:
             m = s.hessian[k]
         print(f"\n{k}  " + ("(f = 0: S' undefined; d2f/dx_i dx_j shown)" if k in zero
-                             else f"(max Richardson error {np.nanmax(err):.1e})"), file=out)
+                             else f"(max error estimate {np.nanmax(err):.1e})"), file=out)
         print("".ljust(w) + "".join(n.rjust(w) for n in s.names), file=out)
         # "~" as in the first-order table: an entry of -0.0002 whose error was 1.6e-3 had the wrong sign, unmarked;
         # an error below half the last digit shown (5e-5) is not marked

@@ -84,3 +84,22 @@ def test_the_cycle_a_result_is_named_by():
     assert energy_cycle_label(own) == "cycle trace.csv"  # the energy's option cycle, a CSV by its file name
     assert energy_cycle_label({}) == ""
 
+
+def test_every_second_order_cell_is_greyed_by_one_noise_rule(tmp_path):
+    """A cross term of 0 computed as -5.17e-11 with a Richardson error of 1.29e-11 (steps h and 2h agreed to
+    the last bit) was coloured and labelled NC beside greyed neighbours of 0. The error estimate is now at
+    least the rounding of the stencil's values, and every such cell is greyed '≤ err'."""
+    def fun(X):  # separable: every cross term is 0, its finite difference rounding noise
+        sep = 1e3 + 0.5 * np.exp(X[:, 0] / 7) + 3 * np.log(X[:, 1]) + 0.2 * X[:, 2] ** 3 + np.sqrt(X[:, 3])
+        return {"big": 1e6 * sep, "lin": 2.0 * X[:, 0] + 5.0 * X[:, 1] - X[:, 2] + 0.1 * X[:, 3] + 17.0}
+
+    off = ~np.eye(4, dtype=bool)
+    for pt in ([3.0, 2.0, 1.5, 9.0], [10.0, 0.3, 4.0, 1.1], [0.7, 5.0, 2.2, 30.0]):
+        s = sensitivities(fun, dict(zip("abcd", pt)), order=2)
+        fig = write_heatmap(str(tmp_path / "n.png"), s, ["big", "lin"])
+        for k, ax in zip(("big", "lin"), [a for a in fig.axes if a.images]):
+            assert (np.abs(s.second[k]) <= s.second_error[k])[off].all(), (pt, k)
+            mask = np.ma.getmaskarray(ax.images[0].get_array())
+            assert mask[off].all(), (pt, k)
+            texts = {(round(t.get_position()[1]), round(t.get_position()[0])): t.get_text() for t in ax.texts}
+            assert all(texts[(i, j)] == "≤ err" for i in range(4) for j in range(4) if i != j), (pt, k, texts)
