@@ -54,14 +54,8 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
     refuse_outside_model_limits(config, given)
     problem = config.problem
     full = {**{d.name: d.initial for d in problem.design_variables}, **given}
-    outside = []
-    for d in problem.design_variables:  # evaluated as given, but a user should know it is off the design space
-        v = given.get(d.name)
-        if v is not None and not d.lower <= v <= d.upper:  # (a number: finite_values)
-            print(f"{caller}: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
-                  "(evaluated as given)", file=sys.stderr)
-            if outside_bounds(d, v, feasibility_tolerance(config.settings)):
-                outside.append(outside_note(d, v))
+    outside = [outside_note(d, v) for d, v in note_outside_bounds(problem, given, caller)
+               if outside_bounds(d, v, feasibility_tolerance(config.settings))]
     with Evaluating(config, transport) as evaluator:
         report = evaluate_design(config.settings, evaluator, full)
     short, notes = notes_of(config, {**problem.parameters, **full}, report["outputs"])
@@ -79,6 +73,20 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
     if config.parameter_set:  # which set the vehicle's values came from
         report["parameter_set"] = config.parameter_set
     return report
+
+
+def note_outside_bounds(problem, given: dict[str, float], caller: str) -> list[tuple]:
+    """Says on stderr, one note each prefixed with ``caller``, the values of ``given`` outside their design
+    variable's bounds: evaluated as given (evaluate, check-totals, check-partials), but a user should know the
+    point is off the design space. Returns those (DesignVariable, value)."""
+    out = []
+    for d in problem.design_variables:
+        v = given.get(d.name)
+        if v is not None and not d.lower <= v <= d.upper:  # (a number: finite_values)
+            print(f"{caller}: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
+                  "(evaluated as given)", file=sys.stderr)
+            out.append((d, v))
+    return out
 
 
 def notes_of(config, design: dict, outputs: dict) -> tuple[bool, list[str]]:

@@ -98,7 +98,9 @@ def units_of(config, names) -> dict[str, str]:
 
 def to_dict(s, outputs, units: dict | None = None) -> dict:
     """The JSON of a local sensitivity ``s``; ``units`` (``units_of``): each wrt variable's and output's unit, those
-    of ``step`` and of ``first_order.*.derivative`` (the output's per the variable's)."""
+    of ``step`` and of ``first_order.*.derivative`` (the output's per the variable's). ``second_order.*.labels``:
+    the coupling label (NC/MC/SC/VSC) of each pair of variables, null on the diagonal (one variable's own
+    curvature is no coupling, as the printed legend says), "" where S' is undefined (the output is 0)."""
     d = {"wrt": list(s.names), "point": s.point, "method": s.method, "step": s.step.tolist(),
          "n_evaluations": s.n_evaluations, "n_batches": s.n_batches, "one_sided": list(s.one_sided),
          "values": s.values, "first_order": {}, "second_order": {}}
@@ -106,8 +108,10 @@ def to_dict(s, outputs, units: dict | None = None) -> dict:
         d["first_order"][k] = {"normalised": s.first[k].tolist(), "error": s.first_error[k].tolist(),
                                "derivative": s.gradient[k].tolist()}
         if s.second is not None:
+            labels = s.labels(k)
+            np.fill_diagonal(labels, None)  # a label is a coupling's, of two variables
             d["second_order"][k] = {"normalised": s.second[k].tolist(), "error": s.second_error[k].tolist(),
-                                    "labels": s.labels(k).tolist()}
+                                    "labels": labels.tolist()}
     return d if units is None else {**d, "units": units}
 
 

@@ -48,10 +48,10 @@ def check(form, x: np.ndarray, step: float = 1e-6, rtol: float = 1e-4, atol: flo
     """The report (JSON-ready): one row per (function, variable) with the formulation's total, the
     finite difference and their errors. Functions: the objective (as the problem states it, not
     negated when maximised), each constraint output (physical units), each IDF consistency."""
-    if not (0 < step < 0.1 and rtol >= 0 and atol >= 0):
-        raise ValueError("--step must be in (0, 0.1), --rtol and --atol >= 0")
+    from bev_mdo.cli.check_partials import check_tolerances
     from bev_mdo.mdo.problem import check_resolved
 
+    check_tolerances(step, rtol, atol)
     for j, name in enumerate(form.var_names):  # a point the scaled variables cannot hold was checked elsewhere
         check_resolved(name, float(x[j]), float(form.offset[j]), float(form.scale[j]))
     u = form.to_u(np.asarray(x, dtype=float))
@@ -101,14 +101,19 @@ def _point(form, problem, text: str) -> np.ndarray:
 
 
 def run(args) -> int:
+    from bev_mdo.api.evaluate import note_outside_bounds
     from bev_mdo.api.transport import Evaluating
     from bev_mdo.cli import flags
+    from bev_mdo.cli.check_partials import check_tolerances
     from bev_mdo.mdo.driver import build_formulation
 
     config = flags.load_config(args)
+    check_tolerances(args.step, args.rtol, args.atol)  # before any node starts
     with Evaluating(config, args, node_name="bev_mdo_check_totals") as ev:
         form = build_formulation(config.settings, ev, args.formulation)
-        rep = check(form, _point(form, form.problem, args.at), args.step, args.rtol, args.atol)
+        x = _point(form, form.problem, args.at)
+        note_outside_bounds(form.problem, dict(zip(form.problem.names, x.tolist())), "bev-mdo check-totals")
+        rep = check(form, x, args.step, args.rtol, args.atol)
     if args.json:
         print(jsontext.dumps(rep))
     else:

@@ -244,8 +244,9 @@ def _study(args, raw, written, names, ov) -> int:
                "warnings": warnings, **session.stats}
     pngs = []
     if not args.no_plots:
-        cyc = first.get("cycle") or {}
-        pngs = study.plots(out, results, bench, names, cyc.get("name", "") if isinstance(cyc, dict) else "", broken)
+        from bev_mdo.cli import energy_cycle_label
+
+        pngs = study.plots(out, results, bench, names, energy_cycle_label(first), broken)  # what the energy is on
     for t in topologies:
         r = results[t]
         print(f"{t}: {_front(r, outcome[t].get('least_violated'))}, {r.evaluations} evaluations in {r.batches} "

@@ -76,6 +76,39 @@ def test_sweep_plot_shows_the_configs_baseline(tmp_path):
     assert analyse_baseline(no_base) is None
 
 
+def test_sweep_plot_spans_the_swept_values_and_its_legend_hides_no_data(tmp_path):
+    """`--vary motor_kw=195:212:18` (bounds 150-350) was drawn on 150-350 kW, the data a narrow band, under a
+    legend of 24 entries inside the axes; the baseline's star, off the swept range, stretched the y-axis too."""
+    import numpy as np
+
+    cfg = load_config(CONFIG)
+    base = analyse_baseline(cfg)  # 80 kW: outside 60-70
+    res = evaluate_batch(cfg, grid(parse_vary(["motor_kw=60:70:6", "battery_kwh=20:30:21"])), "inprocess")
+    fig, ax = plot_output(res, "energy_wh_per_km", ["motor_kw", "battery_kwh"], tmp_path / "e.png", base)
+    lo, hi = ax.get_xlim()
+    assert 58.0 < lo < 60.0 and 70.0 < hi < 72.0, (lo, hi)
+    y = res["outputs"]["energy_wh_per_km"]
+    ylo, yhi = ax.get_ylim()
+    assert yhi - ylo < 2 * (y.max() - y.min()), "the y-axis is the data's"
+    star = [line for line in ax.get_lines() if line.get_label().startswith("baseline")]
+    assert len(star) == 1 and len(star[0].get_xdata()) == 0 and "outside the swept range" in star[0].get_label()
+    fig.canvas.draw()
+    legend, axes = ax.get_legend().get_window_extent(), ax.get_window_extent()
+    assert legend.x0 >= axes.x1, "the legend is beside the axes, over no data"
+    assert fig.get_window_extent().x1 >= legend.x1, "and within the figure"
+    inside = np.array([[xs, ys] for line in ax.get_lines() for xs, ys in line.get_xydata()])
+    shown = ax.transData.transform(inside)
+    assert not ((shown[:, 0] >= legend.x0) & (shown[:, 0] <= legend.x1) & (shown[:, 1] >= legend.y0)
+                & (shown[:, 1] <= legend.y1)).any()
+
+
+def test_two_vary_flags_both_count(tmp_path, capsys):
+    """`--vary motor_kw=... --vary battery_kwh=...`: the second flag replaced the first without a word."""
+    assert main(["sweep", CONFIG, "--vary", "motor_kw=60,70", "--vary", "battery_kwh=20,24,28", "--out",
+                 str(tmp_path), "--transport", "inprocess", "--no-record", "--no-plots"]) == 0
+    assert "6 designs in one batch" in capsys.readouterr().out
+
+
 def test_sweep_outside_bounds_and_unknown_names_are_user_errors(tmp_path, capsys):
     assert main(["sweep", CONFIG, "--vary", "motor_kw=10:20:2", "--out", str(tmp_path), "--transport", "inprocess"]) == 2
     assert "outside its bounds" in capsys.readouterr().err
