@@ -277,7 +277,7 @@ def run(args) -> int:
                 plot_output(result, o, varied, p, baseline)
             written.append(p)
     feas = result["feasible"]
-    print(f"{n} designs in one batch ({transport}): {int(feas.sum())} feasible, {int((~feas).sum())} infeasible, "
+    print(f"{n} design{'s' if n != 1 else ''} in one batch ({transport}): {int(feas.sum())} feasible, {int((~feas).sum())} infeasible, "
           f"{int((~result['ok']).sum())} failed")
     if feas.any():
         obj = result["outputs"][result["objective"]]

@@ -386,3 +386,9 @@ def test_compare_gives_no_percentage_of_a_margin_output(capsys):
     row = next(line for line in out.splitlines() if line.startswith("│ drive_torque_margin_nm"))
     assert rc == 0 and "%" not in row, row
     assert "%" in next(line for line in out.splitlines() if line.startswith("│ vehicle_mass_kg"))
+
+
+def test_one_design_is_said_in_the_singular(tmp_path, capsys):
+    assert main(["sweep", CONFIG, "--vary", "motor_kw=80:80:1", "--transport", "inprocess", "--no-record",
+                 "--out", str(tmp_path / "o"), "--no-plots"]) == 0
+    assert "1 design in one batch (inprocess)" in capsys.readouterr().out
