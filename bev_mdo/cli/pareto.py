@@ -18,12 +18,14 @@ one is named) or every evaluated design failed (the first error is named); 2 a u
 """
 from __future__ import annotations
 
+import argparse
 import sys
 import uuid
 from pathlib import Path
 
 import numpy as np
 
+from bev_mdo.api.errors import InputError
 from bev_mdo.studies import topologies as study
 
 OBJECTIVES = study.OBJECTIVES  # the study's default (energy, 0-100 km/h time, cost)
@@ -36,7 +38,8 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("pareto", help=SUBCOMMANDS["pareto"][1])
     p.add_argument("config", help="run config YAML (e.g. examples/pareto/srn.yaml, config/topologies_artemis.yaml)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--topology", default=None, help="topology study: SM-SA, DM-DA, IWM-SA or IWM-DA (BEV problem)")
+    g.add_argument("--topology", default=None, action=_Once,
+                   help="topology study: SM-SA, DM-DA, IWM-SA or IWM-DA (BEV problem)")
     g.add_argument("--all-topologies", action="store_true", help="topology study: all four topologies")
     p.add_argument("--generations", type=int, default=30)
     p.add_argument("--pop", type=int, default=100, help="population size (one batch per generation)")
@@ -53,13 +56,25 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+class _Once(argparse.Action):
+    """A flag given once: a second --topology silently replaced the first."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if getattr(namespace, self.dest) is not None:
+            parser.error(f"{option_string} given twice ({getattr(namespace, self.dest)} and {values}): one "
+                         "topology, or --all-topologies")
+        setattr(namespace, self.dest, values)
+
+
 def run(args) -> int:
     from bev_mdo.api import pareto
     from bev_mdo.api.transport import Transport
     from bev_mdo.cli import flags
 
     pareto.check_sizes(args.generations, args.pop, args.instances, args)
-    names = None if args.objectives is None else [o.strip() for o in args.objectives.split(",") if o.strip()]
+    names = None if args.objectives is None else [o.strip() for o in args.objectives.split(",")]
+    if names is not None and not all(names):  # "f1,,f2" or "f1,": a name left out is a typo, not a list
+        raise InputError(f"--objectives {args.objectives!r}: an empty name; give A,B[,C]")
     if args.topology or args.all_topologies:
         from bev_mdo.api import overrides
         from bev_mdo.config import RunConfig, read_config_file
