@@ -182,19 +182,35 @@ def _number(text: str, flag: str, item: str) -> float:
     return x
 
 
-def _clip_initials(dvs: dict, bounded: set[str]) -> None:
-    """A variable given new bounds (and no --initial) that its initial value is outside of starts at
-    the nearest bound; one note on stderr says so."""
+def _clip_initials(dvs: dict, bounded: set[str], given: set[str]) -> None:
+    """A variable (or a vector's element) given new bounds and no --initial (``bounded``, ``given``: the names as
+    given, a vector's elements too) whose initial value is outside them starts at the nearest bound; one note on
+    stderr says so."""
     import sys
 
-    for name in sorted(bounded):
+    for name in sorted({_ELEMENT.sub(r"\1", b) for b in bounded}):
         e = dvs.get(name) or {}
-        x, lo, hi = e.get("initial"), e.get("lower"), e.get("upper")
-        if not all(isinstance(v, (int, float)) for v in (x, lo, hi)) or lo > hi or lo <= x <= hi:
+        size = e.get("shape") if isinstance(e.get("shape"), int) else None
+        x, lo, hi = (_row(e.get(k), size) for k in ("initial", "lower", "upper"))
+        if x is None or lo is None or hi is None or any(a > b for a, b in zip(lo, hi)):
             continue
-        e["initial"] = min(max(x, lo), hi)
-        print(f"bev-mdo: note: {name} starts at {e['initial']:g}: its initial value {x:g} is outside "
-              f"--bound {lo:g}:{hi:g} (give --initial to choose)", file=sys.stderr)
+        keep = {i for i in range(len(x)) if name in given or f"{name}[{i}]" in given}  # its own --initial
+        moved = [v if i in keep else min(max(v, a), b) for i, (v, a, b) in enumerate(zip(x, lo, hi))]
+        if moved == x:
+            continue
+        e["initial"] = moved if size is not None else moved[0]
+        for i, (v, m, a, b) in enumerate(zip(x, moved, lo, hi)):
+            if v != m:
+                label = f"{name}[{i}]" if size is not None else name
+                print(f"bev-mdo: note: {label} starts at {m:g}: its initial value {v:g} is outside "
+                      f"--bound {a:g}:{b:g} (give --initial to choose)", file=sys.stderr)
+
+
+def _row(value, size: int | None) -> list[float] | None:
+    """A config entry's value as a list of ``size`` numbers (one number for every element), None if not numbers."""
+    items = list(value) if isinstance(value, (list, tuple)) else [value] * (size or 1)
+    ok = len(items) == (size or 1) and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in items)
+    return [float(v) for v in items] if ok else None
 
 
 def apply(raw: Mapping[str, Any], ov: Overrides, names: Mapping[str, list[str]]) -> dict:
@@ -218,7 +234,7 @@ def apply(raw: Mapping[str, Any], ov: Overrides, names: Mapping[str, list[str]])
     for name, value in ov.initial.items():
         base, i = _element(name, dvs, names, "--initial")
         dvs[base] = _edited(dvs.get(base), i, {"initial": float(value)})
-    _clip_initials(dvs, set(ov.bounds) - set(ov.initial))
+    _clip_initials(dvs, set(ov.bounds), set(ov.initial))
     prob["constraints"] = cons = dict(prob.get("constraints") or {})
     for name, limits in ov.constraints.items():
         _check(name, names["outputs"], "--constraint", "outputs")

@@ -158,7 +158,7 @@ def _verdict(result: dict, out, units: dict) -> None:
     cost = fo["cost"]
     print(f"verdict: {verdict_line(fo)}", file=out)
     for line in note_lines(fo, result.get("optimizer", "the optimiser"), bool(result.get("optimizer_success")),
-                           result.get("ended"), bool(result.get("discipline_errors"))):
+                           result.get("ended")):
         print(f"note: {line}", file=out)
     if result.get("multistart"):
         from bev_mdo.mdo.multistart import summary_line
@@ -180,8 +180,11 @@ def _verdict(result: dict, out, units: dict) -> None:
 
     obj = result.get("objective_name") or ""
 
+    optimum = fo["verdict"] == "optimum"  # elsewhere the multipliers are a least-squares fit, no rate of an optimum
+
     def rate(name: str, d: float | None) -> str:  # " (-0.1492 Wh/km per s raised)": the multiplier's meaning
-        return "" if d is None else f" ({d:.4g}{u(obj)} per {unit_of(name, units, inline=True) or 'unit'} raised)"
+        return "" if d is None or not optimum else \
+            f" ({d:.4g}{u(obj)} per {unit_of(name, units, inline=True) or 'unit'} raised)"
 
     lines, held = [], []  # held: [name, label, multiplier, rate]; an equality's two rows (>=, <=) as one, name == value
     for c in fo["active_constraints"]:
@@ -208,8 +211,9 @@ def _verdict(result: dict, out, units: dict) -> None:
                      f"{b['multiplier']:.4g}{rate(b['name'], b.get('d_objective_d_limit'))}")
     for e in fo["equalities"]:
         lines.append(f"consistency: {e['name']}, residual {e['value']:.3g}, multiplier {e['multiplier']:.4g}")
-    print(f"what holds the result (multipliers per unit of the scaled variables and normalised constraints; in "
-          f"brackets, the change of the optimum's {obj} per unit the limit or bound is raised):"
+    print(f"what holds the result (multipliers per unit of the scaled variables and normalised constraints"
+          + (f"; in brackets, the change of the optimum's {obj} per unit the limit or bound is raised):" if optimum
+             else "):")
           if lines else "no constraint is active and no variable is on a bound", file=out)
     for line in lines:
         print(f"  {line}", file=out)

@@ -218,7 +218,8 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
             elif e.get("free_way"):  # a descent that the slopes say ends short of the limit: no retry's promise
                 lines.append(f"  a first-order step within the bounds reduces it by at most "
                              f"{_num(e['free_way_reduction'])}{u(e['unit'])} without worsening an active limit, not to "
-                             "its limit: no feasible design is within first-order reach")
+                             "its limit: the end is near a least violation; other start points (--starts N) may "
+                             "still reach a feasible design")
     for e in ans["active_constraints"]:
         lines.append(f"active: {limit(e)}, margin {_num(e['margin'], e['scale'])}{u(e['unit'])}{monitored(e)}")
     for b in ans["bounds"]:

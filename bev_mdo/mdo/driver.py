@@ -449,7 +449,7 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
         # (t, -t), and failed true optima with curvature): the optimum is not verified, the kink named
         optimum, before = fo["verdict"] == first_order.OPTIMUM, form.n_points
         fo["kinks"] = end_point_kinks(form, u, f[0], g[0], h[0], float(np.max(np.abs(df), initial=0.0)),
-                                      at_optimum=optimum)
+                                      at_optimum=optimum, failed=fo.setdefault("failed_steps", []))
         fo["kink_points"] = form.n_points - before  # of the check's cost: the steps either side
         if optimum and fo["kinks"]:
             fo.update(verdict=first_order.STOPPED, conditions_hold=False, kink_at_optimum=True)

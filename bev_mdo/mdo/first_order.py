@@ -171,13 +171,13 @@ def _kinks(kinks: Sequence[dict]) -> str:
     return "; ".join(parts)
 
 
-def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = False, ended: dict | None = None,
-               failed: bool = False) -> list[str]:
+def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = False, ended: dict | None = None
+               ) -> list[str]:
     """What the verdict line does not say, a line each: the design variables an optimum does not pin
     (driver.end_point_check's ``free_variables``), and where ``optimizer`` said it ``converged`` but the conditions
     do not hold (no kink, no unknown or disagreeing derivative to explain it), what to check; ``ended``: the
-    record of the optimiser's last iterate where the result is an earlier one (then the reason is there);
-    ``failed``: points of the run failed (a discipline raised or gave NaN), the likelier cause."""
+    record of the optimiser's last iterate where the result is an earlier one (then the reason is there). A step
+    from the end point that failed (driver.end_point_check's ``failed_steps``) is the likelier cause."""
     lines = [_free_line(fo["free_variables"])] if fo.get("free_variables") else []
     if converged and ended is not None and fo["verdict"] != OPTIMUM:  # its end point is not what was judged
         why = ("cannot follow the drive cycle, a check the optimiser does not see (constrain the energy "
@@ -186,11 +186,11 @@ def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = Fal
                else "is infeasible" if not ended.get("feasible") else "is worse")
         lines.append(f"{optimizer} says it converged, at iteration {ended.get('iteration')}, which {why}: the result "
                      "is an earlier point, where the first-order conditions need not hold")
-    elif converged and fo["verdict"] == STOPPED and failed and not fo.get("derivatives_disagree"):
+    elif converged and fo["verdict"] == STOPPED and fo.get("failed_steps") and not fo.get("derivatives_disagree"):
         lines.append(f"{optimizer} says it converged, but the first-order conditions do not hold at its end point, and "
-                     "points of the run failed (discipline_errors): the end point may lie at the edge of the region "
-                     "where the disciplines give values, which the optimiser cannot step past; bounds inside that "
-                     "region would make it a limit the check can judge")
+                     f"a small step from it in {', '.join(fo['failed_steps'])} fails (discipline_errors): it lies at the "
+                     "edge of the region where the disciplines give values, which the optimiser cannot step past; "
+                     "bounds inside that region would make it a limit the check can judge")
     elif converged and fo["verdict"] == STOPPED and not (fo.get("kinks") or fo.get("unknown_derivatives")
                                                          or fo.get("derivatives_disagree")):
         if fo.get("derivatives") == "analytic":

@@ -96,6 +96,16 @@ class Edge(Flat):
                 ("q", "x2"): 0.0 * x2}
 
 
+class FarFail(Flat):
+    """f = (x1 - 3)^2 + 0.1 (x1 - 3)^4 + (x2 - 1)^4, NaN below x1 = 0.5: SLSQP's first line search (from x1 = 9)
+    fails there, and with ftol 1e-2 it stops short at (2.97, 1.36), far from those points."""
+
+    def compute(self, inputs):
+        x1, x2 = inputs["x1"], inputs["x2"]
+        y = (x1 - 3) ** 2 + 0.1 * (x1 - 3) ** 4 + (x2 - 1) ** 4
+        return {"y": np.where(x1 < 0.5, np.nan, y), "q": x1 + x2}
+
+
 class ConWrong:
     """f = x1 + x2, g = x1 x2; its partial dg/dx1 is 1.2 x2 (20 % wrong)."""
     name = "conwrong"
@@ -289,5 +299,15 @@ def test_an_end_at_the_edge_of_failing_points_is_not_blamed_on_a_derivative(tmp_
     'a wrong derivative is a common cause; run check-partials' (the partials were right, check-partials passed)."""
     assert _optimize(_config(tmp_path, "Edge")) == 5
     out = capsys.readouterr().out
-    assert "points of the run failed (discipline_errors): the end point may lie at the edge of the region" in out, out
+    assert "a small step from it in x1 fails (discipline_errors): it lies at the edge of the region" in out, out
     assert "wrong derivative" not in out and "ftol" not in out
+
+
+def test_failed_points_far_from_the_end_leave_the_stopping_rule_named(tmp_path, capsys):
+    """A review: three points failed in the first line search, far from SLSQP's end; the note then said the end
+    'may lie at the edge of the region where the disciplines give values'. Only a failed step from the end does."""
+    path = _config(tmp_path, "FarFail", box="lower: 0, upper: 10, initial: 9", constraint="q: {upper: 20}",
+                   more="optimizer: {name: SLSQP, options: {ftol: 1.0e-02}}\n")
+    assert _optimize(path) == 5
+    out = capsys.readouterr().out
+    assert "its stopping tolerance (optimizer.options, e.g. ftol) may be too loose" in out and "edge" not in out, out

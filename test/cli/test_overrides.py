@@ -178,3 +178,17 @@ def test_a_bound_or_start_on_one_element_of_a_vector_design_variable(capsys):
                        (["--bound", "z[1]=20:"], "the lower bound 20 must be below the upper 10")):
         assert main(["evaluate", vector, *argv, "--transport", "inprocess"]) == 2
         assert said in capsys.readouterr().err
+
+
+def test_a_vectors_initial_value_outside_new_bounds_starts_at_the_nearest_bound(capsys, tmp_path):
+    """A review: --bound "z[1]=0.5:1" (and --bound z=3:) left z's initial 2 outside and was refused; pareto has no
+    --initial, so such a bound could not be run. A scalar was moved to its bound with a note; a vector is too."""
+    vector = str(REPO / "examples" / "sellar_vector.yaml")
+    assert main(["pareto", vector, "--objectives", "obj,y1", "--bound", "z[1]=0.5:1", "--pop", "8", "--generations",
+                 "1", "--transport", "inprocess", "--out", str(tmp_path / "p"), "--no-plots"]) == 0
+    assert "note: z[1] starts at 1: its initial value 2 is outside --bound 0.5:1" in capsys.readouterr().err
+    assert main(["evaluate", vector, "--bound", "z=3:", "--initial", "z[0]=5", "--transport", "inprocess",
+                 "--json"]) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["design"] == {"z[0]": 5.0, "z[1]": 3.0, "x": 1.0}
+    assert "z[1] starts at 3" in captured.err and "z[0] starts" not in captured.err

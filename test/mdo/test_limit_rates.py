@@ -40,3 +40,15 @@ def test_a_variable_on_its_bound_is_shown_at_the_bound(capsys):
                  "--no-record"]) == 0
     out = capsys.readouterr().out
     assert "  on its lower bound: z2 = 0, multiplier 9.816 (0.9816 per unit raised)" in out, out
+
+
+def test_no_rate_is_printed_where_the_conditions_do_not_hold(capsys):
+    """A review: at 'stopped before convergence' the least-squares multipliers were printed as 'the change of the
+    optimum's energy_wh_per_km per unit the limit is raised', of a point that is no optimum."""
+    from bev_mdo.cli import main
+
+    assert main(["optimize", str(REPO / "config" / "leaf_nedc.yaml"), "--transport", "inprocess", "--no-record",
+                 "--bound", "motor_kw=10:120", "--constraint", "accel_time_0_100_s<=100"]) == 5
+    out = capsys.readouterr().out
+    assert "what holds the result (multipliers per unit of the scaled variables and normalised constraints):" in out
+    assert "raised)" not in out and "change of the optimum" not in out

@@ -154,3 +154,6 @@ def test_a_temperature_difference_in_delta_degc_is_converted_by_scale_alone():
     assert conversions([_Heat("K"), _Cost("delta_degC")]) == {}
     assert conversions([_Heat("K"), _Cost("delta_degF")]) == {"econ": {"dT": (pytest.approx(1.8), 0.0)}}
     assert conversions([_Heat("degC"), _Cost("degC")]) == {}  # the same unit at both ends: nothing to convert
+    # a difference read as a temperature: one line naming both ends (it was pint's DimensionalityError, raw)
+    with pytest.raises(UnitError, match=r"thermal.dT \[delta_degC\] -> econ.dT \[degC\] \(delta_degC does not convert"):
+        conversions([_Heat("delta_degC"), _Cost("degC")])
