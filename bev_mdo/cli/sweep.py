@@ -192,8 +192,11 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
     pad = 0.04 * (hi - lo) if hi > lo else 0.05 * max(abs(lo), 1.0)
     if baseline and varied[0] in baseline["design"] and output in baseline["outputs"]:
         bx = baseline["design"][varied[0]]
+        # with lines per value of a second variable, the star is at the baseline's own value of it: said
+        own = "".join(f"\n{k}={baseline['design'][k]:g}" for k in varied[1:] if k in baseline["design"])
         if lo - pad <= bx <= hi + pad:
-            ax.plot([bx], [baseline["outputs"][output]], "*", color="k", ms=12, label=f"baseline ({baseline['name']})")
+            ax.plot([bx], [baseline["outputs"][output]], "*", color="k", ms=12,
+                    label=f"baseline ({baseline['name']}){own}")
         else:  # drawn, it would stretch the y-axis to a point off the x-axis
             ax.plot([], [], "*", color="k", ms=12,
                     label=f"baseline ({baseline['name']}):\n{varied[0]}={bx:g}, outside the swept range")
