@@ -85,9 +85,11 @@ def composed_argv(names: Sequence[str], config_path: str, instance: str = "", ru
     return argv
 
 
-def parse_instances(spec: str | int | Mapping[str, int] | None, names: Sequence[str]) -> dict[str, int]:
+def parse_instances(spec: str | int | Mapping[str, int] | None, names: Sequence[str],
+                    flag: str = "--instances") -> dict[str, int]:
     """``--instances``: ``N`` (every discipline) or ``name=N[,name=N...]`` -> {discipline: instances};
-    the API's ``instances=`` may also be an int or a {name: N} mapping (read as the text they write)."""
+    the API's ``instances=`` may also be an int or a {name: N} mapping (read as the text they write). ``flag``:
+    how the errors name what was given (the coordinator node's ``-p instances:=``)."""
     out = dict.fromkeys(names, 1)
     if spec is None:
         return out
@@ -95,25 +97,25 @@ def parse_instances(spec: str | int | Mapping[str, int] | None, names: Sequence[
         spec = ",".join(f"{k}={v}" for k, v in spec.items())
     spec = str(spec).strip()
     if not spec:
-        raise ValueError("--instances '': give N (every discipline) or NAME=N[,NAME=N...]")
+        raise ValueError(f"{flag} '': give N (every discipline) or NAME=N[,NAME=N...]")
     items = [(None, spec)] if "=" not in spec else [tuple(s.split("=", 1)) for s in spec.split(",") if s.strip()]
     seen: dict[str, str] = {}
     for item in items:
         if len(item) != 2:
-            raise ValueError(f"--instances {spec!r}: give N (every discipline) or NAME=N[,NAME=N...], not both")
+            raise ValueError(f"{flag} {spec!r}: give N (every discipline) or NAME=N[,NAME=N...], not both")
         name, count = item
         if name is not None and name.strip() not in out:
-            raise ValueError(f"--instances: no discipline {name.strip()!r} in the config; it has {list(names)}")
+            raise ValueError(f"{flag}: no discipline {name.strip()!r} in the config; it has {list(names)}")
         if name is not None and name.strip() in seen:  # the last one used to win silently
-            raise ValueError(f"--instances {name.strip()}: given twice ({seen[name.strip()]} and {count.strip()})")
+            raise ValueError(f"{flag} {name.strip()}: given twice ({seen[name.strip()]} and {count.strip()})")
         if name is not None:
             seen[name.strip()] = count.strip()
         try:
             k = int(count)
         except ValueError:
-            raise ValueError(f"--instances: {count!r} is not a whole number") from None
+            raise ValueError(f"{flag}: {count!r} is not a whole number") from None
         if not 1 <= k <= 64:
-            raise ValueError(f"--instances: {k} is outside 1..64")
+            raise ValueError(f"{flag}: {k} is outside 1..64")
         for n in ([name.strip()] if name is not None else names):
             out[n] = k
     return out

@@ -179,8 +179,7 @@ class OptimizeRosSession:
                                               recorder_gone=recorder_gone(self.launcher) if self.recorder else None)
             stats["t_acked"] = time.monotonic()  # the final acknowledgements are in (or given up)
             self.stats = stats
-            out = res.to_dict()
-            out.pop("history")
+            out = res.summary()
             return out, baseline.get("value")
         finally:
             def close():

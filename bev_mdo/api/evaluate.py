@@ -10,6 +10,7 @@ import numpy as np
 from bev_mdo.api.errors import InputError
 from bev_mdo.api.overrides import finite_values
 from bev_mdo.api.transport import Evaluating
+from bev_mdo.mdo.vectors import did_you_mean
 
 
 def declared_units(config) -> dict[str, str]:
@@ -53,14 +54,8 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
     refuse_outside_model_limits(config, given)
     problem = config.problem
     full = {**{d.name: d.initial for d in problem.design_variables}, **given}
-    outside = []
-    for d in problem.design_variables:  # evaluated as given, but a user should know it is off the design space
-        v = given.get(d.name)
-        if v is not None and not d.lower <= v <= d.upper:  # (a number: finite_values)
-            print(f"{caller}: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
-                  "(evaluated as given)", file=sys.stderr)
-            if outside_bounds(d, v, feasibility_tolerance(config.settings)):
-                outside.append(outside_note(d, v))
+    outside = [outside_note(d, v) for d, v in note_outside_bounds(problem, given, caller)
+               if outside_bounds(d, v, feasibility_tolerance(config.settings))]
     with Evaluating(config, transport) as evaluator:
         report = evaluate_design(config.settings, evaluator, full)
     short, notes = notes_of(config, {**problem.parameters, **full}, report["outputs"])
@@ -78,6 +73,20 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
     if config.parameter_set:  # which set the vehicle's values came from
         report["parameter_set"] = config.parameter_set
     return report
+
+
+def note_outside_bounds(problem, given: dict[str, float], caller: str) -> list[tuple]:
+    """Says on stderr, one note each prefixed with ``caller``, the values of ``given`` outside their design
+    variable's bounds: evaluated as given (evaluate, check-totals, check-partials), but a user should know the
+    point is off the design space. Returns those (DesignVariable, value)."""
+    out = []
+    for d in problem.design_variables:
+        v = given.get(d.name)
+        if v is not None and not d.lower <= v <= d.upper:  # (a number: finite_values)
+            print(f"{caller}: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
+                  "(evaluated as given)", file=sys.stderr)
+            out.append((d, v))
+    return out
 
 
 def notes_of(config, design: dict, outputs: dict) -> tuple[bool, list[str]]:
@@ -160,7 +169,8 @@ def check_names(names, problem, params) -> None:
     """InputError unless every name is a design variable or one of the disciplines' ``params``."""
     unknown = [k for k in names if k not in problem.names and k not in params]
     if unknown:
-        raise InputError(f"unknown names {unknown}; design variables: {problem.names}, parameters: {sorted(params)}")
+        raise InputError(f"unknown names {unknown}; {did_you_mean(unknown[0], [*problem.names, *params])}"
+                         f"design variables: {problem.names}, parameters: {sorted(params)}")
 
 
 FIRST_CHUNK_ROWS = 1024  # the first chunk of a batch over ROS; the next ones sized from its measured rate

@@ -77,8 +77,12 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
     extra = {k: v for k, v in extra.items() if not k.startswith("_")}
     extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
     named = {"parameter_set": config.parameter_set} if config.parameter_set else {}  # which set the vehicle's came from
-    from bev_mdo.api.evaluate import declared_units
+    from bev_mdo.api.evaluate import declared_units, design_notes
 
+    if result.get("outputs"):  # what a value at the result means, as evaluate says it (the pack's power limit)
+        values = {**config.problem.parameters, **result.get("design", {}), **result["outputs"]}
+        if notes := design_notes(config, values):
+            named["notes"] = notes
     units = declared_units(config)  # each design variable's and output's, as evaluate's JSON gives them
     named["units"] = {k: units[k] for k in (*result.get("design", {}), *result.get("outputs", {})) if k in units}
     return {**result, **named, "baseline": baseline, **extra}
@@ -114,8 +118,7 @@ def _run_inprocess(config, opts, show, x0, starts, closing: contextlib.ExitStack
         res = run_optimization(config.settings, ev, formulation=opts.formulation,
                                optimizer=opts.optimizer, x0=x0, callback=show)
     baseline = analyse_baseline(config, NamingInProcessEvaluator(config.timed_disciplines(), errors=ev.errors))
-    out = res.to_dict()
-    out.pop("history")
+    out = res.summary()
     extra = {"transport": "inprocess", **({"bag": bag} if bag else {}), "_bag_writer": writer}
     if ev.errors.first:
         extra["discipline_errors"] = dict(ev.errors.first)

@@ -121,6 +121,39 @@ def known_names(config) -> dict[str, list[str]]:
     return {"design": list((config["problem"].get("design_variables") or {})), "outputs": outputs}
 
 
+_ELEMENT = re.compile(r"^(.+)\[(\d+)\]$")
+
+
+def _element(name: str, dvs: Mapping, names: Mapping[str, list[str]], flag: str) -> tuple[str, int | None]:
+    """(the design variable, the element's index or None) that ``name`` gives: ``motor_kw``, or ``h[1]`` of a
+    vector ``h`` (``shape: 2`` in the config); InputError naming the nearest variable, or the vector's size."""
+    m = _ELEMENT.match(name)
+    if m is None or m.group(1) not in names["design"]:
+        _check(name, names["design"], flag, "design variables")
+        return name, None
+    base, i = m.group(1), int(m.group(2))
+    size = (dvs.get(base) or {}).get("shape") if isinstance(dvs.get(base), Mapping) else None
+    if not isinstance(size, int) or not 0 <= i < size:
+        raise InputError(f"{flag} {name!r}: {base} is {'a scalar' if size is None else f'a vector of {size}'}"
+                         f"{'' if size is None else f' (elements {base}[0] .. {base}[{size - 1}])'}")
+    return base, i
+
+
+def _edited(entry, i: int | None, values: Mapping[str, float]) -> dict:
+    """A copy of a design variable's config entry with ``values`` set: the whole variable, or element ``i`` of a
+    vector (one number for every element becomes a list of ``shape`` numbers)."""
+    entry = dict(entry or {})
+    for k, v in values.items():
+        if i is None:
+            entry[k] = v
+        else:
+            old = entry.get(k)
+            row = list(old) if isinstance(old, (list, tuple)) else [old] * int(entry["shape"])
+            row[i] = v
+            entry[k] = row
+    return entry
+
+
 def _check(name: str, valid: list[str], flag: str, what: str) -> None:
     if name in valid:
         return
@@ -149,19 +182,35 @@ def _number(text: str, flag: str, item: str) -> float:
     return x
 
 
-def _clip_initials(dvs: dict, bounded: set[str]) -> None:
-    """A variable given new bounds (and no --initial) that its initial value is outside of starts at
-    the nearest bound; one note on stderr says so."""
+def _clip_initials(dvs: dict, bounded: set[str], given: set[str]) -> None:
+    """A variable (or a vector's element) given new bounds and no --initial (``bounded``, ``given``: the names as
+    given, a vector's elements too) whose initial value is outside them starts at the nearest bound; one note on
+    stderr says so."""
     import sys
 
-    for name in sorted(bounded):
+    for name in sorted({_ELEMENT.sub(r"\1", b) for b in bounded}):
         e = dvs.get(name) or {}
-        x, lo, hi = e.get("initial"), e.get("lower"), e.get("upper")
-        if not all(isinstance(v, (int, float)) for v in (x, lo, hi)) or lo > hi or lo <= x <= hi:
+        size = e.get("shape") if isinstance(e.get("shape"), int) else None
+        x, lo, hi = (_row(e.get(k), size) for k in ("initial", "lower", "upper"))
+        if x is None or lo is None or hi is None or any(a > b for a, b in zip(lo, hi)):
             continue
-        e["initial"] = min(max(x, lo), hi)
-        print(f"bev-mdo: note: {name} starts at {e['initial']:g}: its initial value {x:g} is outside "
-              f"--bound {lo:g}:{hi:g} (give --initial to choose)", file=sys.stderr)
+        keep = {i for i in range(len(x)) if name in given or f"{name}[{i}]" in given}  # its own --initial
+        moved = [v if i in keep else min(max(v, a), b) for i, (v, a, b) in enumerate(zip(x, lo, hi))]
+        if moved == x:
+            continue
+        e["initial"] = moved if size is not None else moved[0]
+        for i, (v, m, a, b) in enumerate(zip(x, moved, lo, hi)):
+            if v != m:
+                label = f"{name}[{i}]" if size is not None else name
+                print(f"bev-mdo: note: {label} starts at {m:g}: its initial value {v:g} is outside "
+                      f"--bound {a:g}:{b:g} (give --initial to choose)", file=sys.stderr)
+
+
+def _row(value, size: int | None) -> list[float] | None:
+    """A config entry's value as a list of ``size`` numbers (one number for every element), None if not numbers."""
+    items = list(value) if isinstance(value, (list, tuple)) else [value] * (size or 1)
+    ok = len(items) == (size or 1) and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in items)
+    return [float(v) for v in items] if ok else None
 
 
 def apply(raw: Mapping[str, Any], ov: Overrides, names: Mapping[str, list[str]]) -> dict:
@@ -172,23 +221,27 @@ def apply(raw: Mapping[str, Any], ov: Overrides, names: Mapping[str, list[str]])
         return raw  # the config's own check reports it
     dvs = prob.setdefault("design_variables", {})
     for name, (lo, hi) in ov.bounds.items():
-        _check(name, names["design"], "--bound", "design variables")
-        entry = dict(dvs.get(name) or {})
-        entry.update({k: float(v) for k, v in (("lower", lo), ("upper", hi)) if v is not None})
-        if all(isinstance(entry.get(k), (int, float)) for k in ("lower", "upper")) and entry["lower"] >= entry["upper"]:
+        base, i = _element(name, dvs, names, "--bound")
+        entry = _edited(dvs.get(base), i, {k: float(v) for k, v in (("lower", lo), ("upper", hi)) if v is not None})
+        low, up = (entry.get(k) if i is None or not isinstance(entry.get(k), list) else entry[k][i]
+                   for k in ("lower", "upper"))
+        if all(isinstance(v, (int, float)) for v in (low, up)) and low >= up:
             said = ":".join("" if v is None else f"{v:g}" for v in (lo, hi))
             other = "" if None not in (lo, hi) else " (the other is the config file's)"
-            raise InputError(f"--bound '{name}={said}': the lower bound {entry['lower']:g} must be below the upper "
-                             f"{entry['upper']:g}{other}")
-        dvs[name] = entry
+            raise InputError(f"--bound '{name}={said}': the lower bound {low:g} must be below the upper "
+                             f"{up:g}{other}")
+        dvs[base] = entry
     for name, value in ov.initial.items():
-        _check(name, names["design"], "--initial", "design variables")
-        dvs[name] = {**dict(dvs.get(name) or {}), "initial": float(value)}
-    _clip_initials(dvs, set(ov.bounds) - set(ov.initial))
+        base, i = _element(name, dvs, names, "--initial")
+        dvs[base] = _edited(dvs.get(base), i, {"initial": float(value)})
+    _clip_initials(dvs, set(ov.bounds), set(ov.initial))
     prob["constraints"] = cons = dict(prob.get("constraints") or {})
     for name, limits in ov.constraints.items():
         _check(name, names["outputs"], "--constraint", "outputs")
         cons[name] = {**dict(cons.get(name) or {}), **{k: float(v) for k, v in limits.items()}}
+        size = sum(1 for v in names["outputs"] if v.startswith(f"{name}["))
+        if size:  # a whole vector output: its limit holds for every element ("con<=0": con[0..k-1] <= 0)
+            cons[name].setdefault("shape", size)
     if ov.objective is not None or ov.maximize is not None:
         current = prob.get("objective")
         old_name = current.get("name") if isinstance(current, Mapping) else current

@@ -4,8 +4,9 @@ of ``Study.pareto`` and ``bev-mdo pareto``.
 Every generation is ONE batch of the whole population through the evaluator the other commands use.
 A run writes into its folder ``out``: ``bag/`` (one ParetoFront per generation; over ROS the
 recorder node's bag, with every request and result), ``front.csv`` (the feasible non-dominated
-designs, every MDA variable), ``front.json`` (the same, the objectives and the run's figures) and,
-unless ``plots=False``, one ``front_<b>_vs_<a>.png`` per pair of objectives.
+designs, every MDA variable), ``front.json`` (the same, the objectives, the columns' declared units, the
+run's figures, its failed evaluations and, with no feasible design, the least violated one) and, unless
+``plots=False``, one ``front_<b>_vs_<a>.png`` per pair of objectives.
 """
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from bev_mdo.api.errors import InputError
 from bev_mdo.api.evaluate import ceilings as output_ceilings
 from bev_mdo.api.evaluate import declared_units
 from bev_mdo.api.transport import Transport
+from bev_mdo.mdo.vectors import did_you_mean
 
 
 def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop: int = 100, seed: int = 1,
@@ -50,6 +52,7 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
             with sess.evaluator(cfg, "front") as ev:
                 res = nsga2(cfg, ev, objs, pop, generations, seed, on_front, on_generation=on_generation)
     write_front(out / "front.csv", res)
+    units = declared_units(cfg)
     doc = {"config": source, "transport": transport.transport, "run_id": run_id, "bag": str(bag),
            "objectives": [{"name": n, "maximize": m} for n, m in objs],
            "design_variables": list(res.names), "generations": generations, "pop": pop,
@@ -57,11 +60,26 @@ def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop:
            "wall_time_s": res.wall_time_s, "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12),
            "hypervolume_by_generation": res.hypervolume, "front_size_by_generation": res.front_sizes,
            "hypervolume_reference": hypervolume_reference([n for n, _ in objs]),  # mdo.pareto.hypervolumes
+           **outcome(res, units),
            "front": [{k: float(v[i]) for k, v in res.values.items()} for i in range(len(res.X))],
+           "units": {k: units[k] for k in front_columns(res) if k in units},
            **sess.stats, "out": str(out), "published": sess.sink.published,
-           "plots": [str(p) for p in plot_front(out, res, declared_units(cfg))] if plots else []}
+           "plots": [str(p) for p in plot_front(out, res, units)] if plots else []}
     finish(out / "front.json", doc, sess, skip=("out", "published", "plots"))
     return doc, res
+
+
+def outcome(res, units: dict) -> dict:
+    """What front.json / summary.json say of a run beside its front: its failed evaluations (with the first
+    error), those its design check ruled out (a motor that cannot follow the cycle) and, with no feasible
+    design, the least violated one (each broken constraint with its output's declared unit)."""
+    doc = {"failed_evaluations": res.failed, "first_error": res.first_error,
+           "cannot_follow_evaluations": res.cannot_follow}
+    if res.least_violated is not None:
+        least = res.least_violated
+        doc["least_violated"] = {**least, "constraints": [{**c, "unit": units.get(c["output"], "")}
+                                                          for c in least["constraints"]]}
+    return doc
 
 
 def check_sizes(generations: int, pop: int, instances, transport) -> None:
@@ -96,7 +114,7 @@ def check_objectives(objectives, cfg, where: str, least: int) -> None:
     for name, _ in objectives:
         if name not in produced:
             raise InputError(f"{where}: objective {name!r} is not produced by any discipline; "
-                             f"outputs: {', '.join(sorted(produced))}")
+                             f"{did_you_mean(name, produced)}outputs: {', '.join(sorted(produced))}")
 
 
 def finish(path: Path, doc: dict, sess, skip=()) -> None:
@@ -137,14 +155,21 @@ def nsga2(cfg, evaluator, objectives, pop: int, generations: int, seed: int, on_
     """mdo.pareto.run_nsga2 over the MDF formulation of ``cfg``; ``bench=(table, topology)`` adds the
     topology study's benchmark design to ``table``."""
     from bev_mdo.config import RunConfig
-    from bev_mdo.mdo.driver import build_formulation
+    from bev_mdo.mdo.driver import build_formulation, design_check
     from bev_mdo.mdo.pareto import run_nsga2
 
     run = RunConfig.of(cfg)
     form = build_formulation(run.settings, evaluator, "mdf")
     ceilings = {o: c for o, (c, _) in output_ceilings(run).items()}
+    # the check optimize and evaluate apply (a motor that cannot follow the cycle): an infeasible design here too
+    check = None if run.settings.design_check is None else (
+        lambda values: design_check(run.settings, form.problem, values))
+    params = form.problem.parameters  # beside a batch's columns, which win (as design_check adds them)
+    batch = None if run.settings.designs_check is None else (
+        lambda values: run.settings.designs_check({**values, **{k: v for k, v in params.items() if k not in values}}))
     res = run_nsga2(form, objectives, pop_size=pop, generations=generations, seed=seed,
-                    on_generation=on_generation or (lambda g, n, s: None), on_front=on_front, ceilings=ceilings)
+                    on_generation=on_generation or (lambda g, n, s: None), on_front=on_front, ceilings=ceilings,
+                    design_check=check, batch_check=batch)
     if bench is not None:  # the study's benchmark design, through the same formulation
         from bev_mdo.studies import topologies as study
 
@@ -153,10 +178,15 @@ def nsga2(cfg, evaluator, objectives, pop: int, generations: int, seed: int, on_
     return res
 
 
-def write_front(path: Path, res) -> None:
-    """The front's designs as CSV: design variables, objectives, then every other MDA variable."""
+def front_columns(res) -> list[str]:
+    """The columns of front.csv: design variables, objectives, then every other MDA variable."""
     cols = list(res.names) + [o for o in res.objectives if o not in res.names]
-    cols += sorted(k for k in res.values if k not in cols)
+    return cols + sorted(k for k in res.values if k not in cols)
+
+
+def write_front(path: Path, res) -> None:
+    """The front's designs as CSV (``front_columns``; their units: front.json's or summary.json's ``units``)."""
+    cols = front_columns(res)
     with path.open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(cols)

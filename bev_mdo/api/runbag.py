@@ -346,6 +346,10 @@ def set_aside_logs(folder: Path, what: str) -> None:
     if not logs.is_dir() or not any(logs.iterdir()):
         return
     n = next(i for i in range(1, 10**6) if not (folder / f"logs.{i}").exists())
-    logs.rename(folder / f"logs.{n}")
+    try:
+        logs.rename(folder / f"logs.{n}")
+    except OSError as exc:  # said as what failed, not as the bag directory (claim_new_bag's fallback)
+        raise InputError(f"{what} {folder}: cannot move the logs/ of an earlier run that wrote no bag to "
+                         f"logs.{n}/ ({exc.strerror or exc}); move or remove it") from None
     print(f"{what} {folder}: the logs/ of an earlier run that wrote no bag moved to logs.{n}/", file=sys.stderr,
           flush=True)

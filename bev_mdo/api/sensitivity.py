@@ -19,6 +19,7 @@ import numpy as np
 from bev_mdo.api.errors import InputError
 from bev_mdo.api.overrides import finite_values
 from bev_mdo.api.transport import Evaluating, Transport
+from bev_mdo.mdo.vectors import did_you_mean
 
 METHODS = ("sobol", "morris")
 
@@ -48,13 +49,15 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
         fun, point, bounds, outputs, problem = build_batch(config, ev, defaults)
         for k, v in (at or {}).items():
             if k not in point:
-                raise InputError(f"--at: unknown name {k!r}; design variables: {', '.join(problem.names)}; "
+                raise InputError(f"--at: unknown name {k!r}; {did_you_mean(k, point)}"
+                                 f"design variables: {', '.join(problem.names)}; "
                                  f"parameters: {', '.join(n for n in point if n not in problem.names)}")
             point[k] = float(v)
         wrt = list(wrt or []) or list(problem.names)
         for i, k in enumerate(wrt):
             if k not in point:
-                raise InputError(f"--wrt: unknown variable or parameter {k!r}; known: {', '.join(point)}")
+                raise InputError(f"--wrt: unknown variable or parameter {k!r}; {did_you_mean(k, point)}"
+                                 f"known: {', '.join(point)}")
             if k in wrt[:i]:  # its rows and columns were printed twice
                 raise InputError(f"--wrt: {k!r} named twice")
         if global_method:
@@ -95,7 +98,9 @@ def units_of(config, names) -> dict[str, str]:
 
 def to_dict(s, outputs, units: dict | None = None) -> dict:
     """The JSON of a local sensitivity ``s``; ``units`` (``units_of``): each wrt variable's and output's unit, those
-    of ``step`` and of ``first_order.*.derivative`` (the output's per the variable's)."""
+    of ``step`` and of ``first_order.*.derivative`` (the output's per the variable's). ``second_order.*.labels``:
+    the coupling label (NC/MC/SC/VSC) of each pair of variables, null on the diagonal (one variable's own
+    curvature is no coupling, as the printed legend says), "" where S' is undefined (the output is 0)."""
     d = {"wrt": list(s.names), "point": s.point, "method": s.method, "step": s.step.tolist(),
          "n_evaluations": s.n_evaluations, "n_batches": s.n_batches, "one_sided": list(s.one_sided),
          "values": s.values, "first_order": {}, "second_order": {}}
@@ -103,8 +108,10 @@ def to_dict(s, outputs, units: dict | None = None) -> dict:
         d["first_order"][k] = {"normalised": s.first[k].tolist(), "error": s.first_error[k].tolist(),
                                "derivative": s.gradient[k].tolist()}
         if s.second is not None:
+            labels = s.labels(k)
+            np.fill_diagonal(labels, None)  # a label is a coupling's, of two variables
             d["second_order"][k] = {"normalised": s.second[k].tolist(), "error": s.second_error[k].tolist(),
-                                    "labels": s.labels(k).tolist()}
+                                    "labels": labels.tolist()}
     return d if units is None else {**d, "units": units}
 
 

@@ -68,9 +68,11 @@ def verified_history(bag, run_id: str | None = None, *, all_runs: bool = False, 
                 info["other_run_ids"].append(rec.run_id)
             continue
         if signer is None and rec.signature and not no_verify:  # signed records in a bag that says it was not signed
+            why = ("it holds no config (a recorder started without one)" if not stored.text.strip()
+                   else "was its config edited?")
             raise BagError(f"{bag.mcap_path}: its records are signed but the bag names no key to verify them "
-                           "and none was given or found beside it (was its config edited?); give the key with "
-                           "--key-file, or --no-verify")
+                           f"and none was given or found beside it ({why}); give the key with --key-file, or "
+                           "--no-verify")
         # dropped: a record that does not verify (the recorded bytes, as they were sent), then one out of order
         why = ((signer.verify_iteration(msg.data) if signer is not None else None)
                or order.check(rec.run_id, int(rec.sequence), stamp_ns(rec.header), msg.log_time_ns))

@@ -67,6 +67,30 @@ def figure_format(path) -> str | None:
     return None if p.suffix else "png"
 
 
+def energy_cycle_label(cfg) -> str:
+    """What a figure or table names as the cycle of a result: the one the energy discipline's energy per km is
+    computed on ('cycle nedc'; its option ``cycle`` before the config's), or the distance-weighted mix of its
+    option ``cycle_weights`` ('cycle mix 55 % epa_udds + 45 % epa_hwfet'), not the config's cycle when that only
+    sets the top speed; the config's cycle without an energy discipline; '' without a cycle."""
+    from collections.abc import Mapping
+    from pathlib import Path
+
+    from bev_mdo.models.cycles import is_csv_cycle
+
+    def shown(name) -> str:  # a CSV trace by its file name, not the absolute path the config resolves it to
+        return Path(name).name if isinstance(name, str) and is_csv_cycle(name) else str(name)
+
+    cyc = (cfg or {}).get("cycle")
+    name = cyc.get("name", "") if isinstance(cyc, Mapping) else str(cyc or "")
+    for e in (cfg or {}).get("disciplines") or []:
+        opts = e.get("options") if isinstance(e, Mapping) and e.get("name") == "energy" and not e.get("class") else None
+        if isinstance(opts, Mapping) and isinstance(opts.get("cycle_weights"), Mapping) and opts["cycle_weights"]:
+            return "cycle mix " + " + ".join(f"{100 * float(w):.3g} % {shown(k)}" for k, w in opts["cycle_weights"].items())
+        if isinstance(opts, Mapping) and opts.get("cycle"):
+            name = opts["cycle"]
+    return f"cycle {shown(name)}" if name else ""
+
+
 def _terminal(path) -> bool:
     """A name of descriptor 2 or of a terminal (/dev/tty, /dev/pts/N, /dev/console), by its name only (a
     device is not opened to ask): ``--png /dev/stderr`` wrote the image's bytes to the terminal."""

@@ -44,6 +44,15 @@ def _point(problem, text: str) -> dict[str, float]:
     return point
 
 
+def check_tolerances(step: float, rtol: float, atol: float) -> None:
+    """ValueError naming the first of ``--step`` (in (0, 0.1)), ``--rtol`` and ``--atol`` (>= 0) that is out of
+    its range, with its value (check-partials, check-totals)."""
+    for flag, v, ok, allowed in (("--step", step, 0 < step < 0.1, "in (0, 0.1)"), ("--rtol", rtol, rtol >= 0, ">= 0"),
+                                 ("--atol", atol, atol >= 0, ">= 0")):
+        if not ok:  # NaN too
+            raise ValueError(f"{flag} {v:g}: must be {allowed}")
+
+
 def check(config, at: str = "", rtol: float = 1e-4, atol: float = 1e-6, step: float = 1e-6,
           only: list[str] | None = None) -> dict:
     """The report of ``bev-mdo check-partials`` (JSON-ready)."""
@@ -54,8 +63,7 @@ def check(config, at: str = "", rtol: float = 1e-4, atol: float = 1e-6, step: fl
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.vectors import ShapeError, has_partials
 
-    if not (rtol >= 0 and atol >= 0 and 0 < step < 0.1):
-        raise ValueError("--rtol and --atol must be >= 0 and --step in (0, 0.1)")
+    check_tolerances(step, rtol, atol)
     config = RunConfig.of(config)
     discs = {d.name: d for d in config.timed_disciplines()}
     unknown = [n for n in (only or []) if n not in discs]
@@ -105,10 +113,13 @@ def check(config, at: str = "", rtol: float = 1e-4, atol: float = 1e-6, step: fl
 
 
 def run(args) -> int:
+    from bev_mdo.api.evaluate import note_outside_bounds
     from bev_mdo.config import RunConfig
 
     config = RunConfig.load(args.config)
     only = [s.strip() for s in args.discipline.split(",") if s.strip()] or None
+    check_tolerances(args.step, args.rtol, args.atol)  # before the note on the point
+    note_outside_bounds(config.problem, _point(config.problem, args.at), "bev-mdo check-partials")
     rep = check(config, args.at, args.rtol, args.atol, args.step, only)
     if args.json:
         print(jsontext.dumps(rep))

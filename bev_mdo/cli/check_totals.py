@@ -48,10 +48,10 @@ def check(form, x: np.ndarray, step: float = 1e-6, rtol: float = 1e-4, atol: flo
     """The report (JSON-ready): one row per (function, variable) with the formulation's total, the
     finite difference and their errors. Functions: the objective (as the problem states it, not
     negated when maximised), each constraint output (physical units), each IDF consistency."""
-    if not (0 < step < 0.1 and rtol >= 0 and atol >= 0):
-        raise ValueError("--step must be in (0, 0.1), --rtol and --atol >= 0")
+    from bev_mdo.cli.check_partials import check_tolerances
     from bev_mdo.mdo.problem import check_resolved
 
+    check_tolerances(step, rtol, atol)
     for j, name in enumerate(form.var_names):  # a point the scaled variables cannot hold was checked elsewhere
         check_resolved(name, float(x[j]), float(form.offset[j]), float(form.scale[j]))
     u = form.to_u(np.asarray(x, dtype=float))
@@ -61,6 +61,8 @@ def check(form, x: np.ndarray, step: float = 1e-6, rtol: float = 1e-4, atol: flo
     if not form.status(x)[0]:
         raise ValueError(f"the analysis of the design failed: {form.status(x)[1].splitlines()[0]}")
     rows_x, denom = fd_stencil(x, form.lower, form.upper, step)
+    h = step * np.maximum(np.abs(x), 1.0)
+    one_sided = [v for v, d, hj in zip(form.var_names, denom, h) if d < 2.0 * hj]  # a bound within a step
     f, g, h = form.evaluate_batch(rows_x)
     bad = [form.status(r)[1] for r in rows_x if not form.status(r)[0]]
     n = form.n
@@ -72,7 +74,7 @@ def check(form, x: np.ndarray, step: float = 1e-6, rtol: float = 1e-4, atol: flo
     vals = np.column_stack([sign * f, form.constraint_outputs(rows_x), h])
     fd = ((vals[:n] - vals[n:]) / denom[:, None]).T
     report = {"formulation": form.name, "derivatives": form.derivatives, "point": dict(zip(form.var_names, x.tolist())),
-              "step": step, "rtol": rtol, "atol": atol, "rows": [], "ok": not bad,
+              "step": step, "rtol": rtol, "atol": atol, "one_sided": one_sided, "rows": [], "ok": not bad,
               "error": f"{len(bad)} finite-difference points failed: {bad[0].splitlines()[0]}" if bad else ""}
     for i, fn in enumerate(names):
         for j, v in enumerate(form.var_names):
@@ -101,14 +103,19 @@ def _point(form, problem, text: str) -> np.ndarray:
 
 
 def run(args) -> int:
+    from bev_mdo.api.evaluate import note_outside_bounds
     from bev_mdo.api.transport import Evaluating
     from bev_mdo.cli import flags
+    from bev_mdo.cli.check_partials import check_tolerances
     from bev_mdo.mdo.driver import build_formulation
 
     config = flags.load_config(args)
+    check_tolerances(args.step, args.rtol, args.atol)  # before any node starts
     with Evaluating(config, args, node_name="bev_mdo_check_totals") as ev:
         form = build_formulation(config.settings, ev, args.formulation)
-        rep = check(form, _point(form, form.problem, args.at), args.step, args.rtol, args.atol)
+        x = _point(form, form.problem, args.at)
+        note_outside_bounds(form.problem, dict(zip(form.problem.names, x.tolist())), "bev-mdo check-totals")
+        rep = check(form, x, args.step, args.rtol, args.atol)
     if args.json:
         print(jsontext.dumps(rep))
     else:
@@ -119,13 +126,15 @@ def run(args) -> int:
 def print_table(rep: dict) -> None:
     print(f"total derivatives ({rep['formulation'].upper()}, {rep['derivatives']}) at "
           f"{', '.join(f'{k}={v:g}' for k, v in rep['point'].items())}")
-    print(f"against central differences (step {rep['step']:g}; rtol {rep['rtol']:g}, atol {rep['atol']:g})")
+    print(f"against central differences (step {rep['step']:g}; rtol {rep['rtol']:g}, atol {rep['atol']:g})"
+          + (f"; one-sided for {', '.join(rep['one_sided'])}: a bound within a step" if rep.get("one_sided") else ""))
     wf = max(10, *(len(r["of"]) for r in rep["rows"])) + 1
     wv = max(8, *(len(r["wrt"]) for r in rep["rows"])) + 1
     print(f" {'of':<{wf}} {'wrt':<{wv}} {'total':>14} {'fd':>14} {'abs err':>10} {'rel err':>10}  status")
     for r in rep["rows"]:
+        tiny = max(abs(r["total"]), abs(r["fd"])) <= rep["atol"]  # both within atol of 0: no relative error to speak of
         print(f" {r['of']:<{wf}} {r['wrt']:<{wv}} {r['total']:>14.8g} {r['fd']:>14.8g} {r['abs_error']:>10.3g} "
-              f"{r['rel_error']:>10.3g}  {'ok' if r['ok'] else 'DISAGREE'}")
+              f"{'-' if tiny else format(r['rel_error'], '.3g'):>10}  {'ok' if r['ok'] else 'DISAGREE'}")
     if rep["error"]:
         print(rep["error"])
     print(summary(rep))

@@ -95,5 +95,6 @@ def print_table(report: dict) -> None:
         console.print(f"[bold red]evaluation failed:[/] {escape(report['error'])}", soft_wrap=True)  # one line, unwrapped
     for note in report.get("notes", ()):
         console.print(f"note: {note}", markup=False)
-    console.print(f"objective {obj} = {_fmt(report['objective']['value'])}; "
+    unit = unit_of(obj, units)
+    console.print(f"objective {obj} = {_fmt(report['objective']['value'])}{'' if unit == '–' else ' ' + unit}; "
                   f"feasible: {'yes' if report['feasible'] else 'NO'}")

@@ -205,7 +205,8 @@ def print_table(rows: list[dict], width: int | None = None, file=None, units: di
         title += f"; objective = {first['objective_name']}"
     notes = []
     if "status" in shown and any(r.get("status") == "failed" for r in rows):
-        notes.append("failed: no value (a discipline raised or gave NaN; the bag keeps no reason)")
+        notes.append("failed: no value (a discipline raised or gave NaN, or the MDA did not converge; the bag keeps "
+                     "no reason)")
     if left:
         notes.append(f"{len(left)} more column{'s' if len(left) > 1 else ''} "
                      f"({', '.join(left)}): --csv FILE has all")

@@ -123,6 +123,8 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
     if baseline is not None:  # its failure, and what its column does not show (outside its bounds, a parameter set)
         for line in ([baseline["error"]] if baseline.get("error") else []) + list(baseline.get("notes", ())):
             print(f"baseline {baseline['name']}: {line}", file=out)
+    for line in result.get("notes", ()):
+        print(f"result: note: {line}", file=out)
     if result.get("error"):
         print(f"the result point failed: {result['error']}", file=out)
     elif result.get("stopped"):  # a discipline stopped answering: the run stopped the optimiser
@@ -155,7 +157,8 @@ def _verdict(result: dict, out, units: dict) -> None:
     fo = result["first_order"]
     cost = fo["cost"]
     print(f"verdict: {verdict_line(fo)}", file=out)
-    for line in note_lines(fo, result.get("optimizer", "the optimiser"), bool(result.get("optimizer_success"))):
+    for line in note_lines(fo, result.get("optimizer", "the optimiser"), bool(result.get("optimizer_success")),
+                           result.get("ended")):
         print(f"note: {line}", file=out)
     if result.get("multistart"):
         from bev_mdo.mdo.multistart import summary_line
@@ -175,28 +178,42 @@ def _verdict(result: dict, out, units: dict) -> None:
     def u(name: str) -> str:  # " kW", or "" for a quantity without a unit
         return f" {unit_of(name, units, inline=True)}" if unit_of(name, units, inline=True) else ""
 
-    lines, held = [], []  # held: [name, label, multiplier]; an equality's two rows (>=, <=) as one, name == value
+    obj = result.get("objective_name") or ""
+
+    optimum = fo["verdict"] == "optimum"  # elsewhere the multipliers are a least-squares fit, no rate of an optimum
+
+    def rate(name: str, d: float | None) -> str:  # " (-0.1492 Wh/km per s raised)": the multiplier's meaning
+        return "" if d is None or not optimum else \
+            f" ({d:.4g}{u(obj)} per {unit_of(name, units, inline=True) or 'unit'} raised)"
+
+    lines, held = [], []  # held: [name, label, multiplier, rate]; an equality's two rows (>=, <=) as one, name == value
     for c in fo["active_constraints"]:
         name = c["name"].split(" ")[0]
         con = result["constraints"].get(name, {})
+        d = c.get("d_objective_d_limit")
         if con.get("lower") is not None and con["lower"] == con.get("upper"):
             if held and held[-1][0] == name:  # its <= row: the equality's multiplier is the net one
                 held[-1][2] = c["multiplier"] - held[-1][2]
+                held[-1][3] = None if d is None or held[-1][3] is None else held[-1][3] + d  # both rows' limit moves
                 continue
-            held.append([name, f"{name} == {con['lower']:g}", c["multiplier"]])
+            held.append([name, f"{name} == {con['lower']:g}", c["multiplier"], d])
         else:
-            held.append([name, c["name"], c["multiplier"]])
-    for name, label, multiplier in held:
+            held.append([name, c["name"], c["multiplier"], d])
+    for name, label, multiplier, d in held:
         con = result["constraints"].get(name, {})
         margin, limit = con.get("margin", float("nan")), con.get("upper", con.get("lower")) or 0.0
         shown = "0" if abs(margin) <= 1e-6 * max(abs(limit), 1.0) else f"{margin:.3g}"  # below the noise: 0
-        lines.append(f"active: {label}{u(name)}, margin {shown}{u(name)}, multiplier {multiplier:.4g}")
+        lines.append(f"active: {label}{u(name)}, margin {shown}{u(name)}, multiplier {multiplier:.4g}{rate(name, d)}")
     for b in fo["active_bounds"]:
         v = result["design"].get(b["name"], float("nan"))
-        lines.append(f"on its {b['kind']} bound: {b['name']} = {v:.6g}{u(b['name'])}, multiplier {b['multiplier']:.4g}")
+        v = b.get("bound", v) if abs(v - b.get("bound", v)) <= 1e-9 * max(1.0, abs(v)) else v  # 4.6e-13 on 0: 0
+        lines.append(f"on its {b['kind']} bound: {b['name']} = {v:.6g}{u(b['name'])}, multiplier "
+                     f"{b['multiplier']:.4g}{rate(b['name'], b.get('d_objective_d_limit'))}")
     for e in fo["equalities"]:
         lines.append(f"consistency: {e['name']}, residual {e['value']:.3g}, multiplier {e['multiplier']:.4g}")
-    print("what holds the result (multipliers per unit of the scaled variables and normalised constraints):"
+    print(f"what holds the result (multipliers per unit of the scaled variables and normalised constraints"
+          + (f"; in brackets, the change of the optimum's {obj} per unit the limit or bound is raised):" if optimum
+             else "):")
           if lines else "no constraint is active and no variable is on a bound", file=out)
     for line in lines:
         print(f"  {line}", file=out)
@@ -261,6 +278,6 @@ def run_job(config: dict, args, x0: dict | None = None) -> int:
               "result is the best point evaluated before that, not an optimum", file=sys.stderr)
     if doc.get("recorder_failed"):
         print(f"warning: {doc['recorder_failed']}", file=sys.stderr)
-    from bev_mdo.mdo.driver import exit_status
+    from bev_mdo.mdo.first_order import exit_status
 
     return exit_status(doc, opts.fixed_budget)

@@ -12,15 +12,20 @@ generation on /bev_mdo/pareto_front, ``final`` on the last), ``front.csv``, ``fr
 (§4.4; bev_mdo.studies.topologies), per topology: ``pareto_<T>.csv``, ``benchmark.csv`` (Table 4-4
 design, beside Table 4-5 for the thesis vehicle), ``fig_4_5_energy_accel.png``, ``fig_4_6_energy_cost.png``,
 ``summary.json``.
+
+Exit status: 0 a front of feasible designs (every studied topology's); 1 no feasible design (the least violated
+one is named) or every evaluated design failed (the first error is named); 2 a user mistake; 3 the recorder failed.
 """
 from __future__ import annotations
 
+import argparse
 import sys
 import uuid
 from pathlib import Path
 
 import numpy as np
 
+from bev_mdo.api.errors import InputError
 from bev_mdo.studies import topologies as study
 
 OBJECTIVES = study.OBJECTIVES  # the study's default (energy, 0-100 km/h time, cost)
@@ -33,7 +38,8 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("pareto", help=SUBCOMMANDS["pareto"][1])
     p.add_argument("config", help="run config YAML (e.g. examples/pareto/srn.yaml, config/topologies_artemis.yaml)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--topology", default=None, help="topology study: SM-SA, DM-DA, IWM-SA or IWM-DA (BEV problem)")
+    g.add_argument("--topology", default=None, action=_Once,
+                   help="topology study: SM-SA, DM-DA, IWM-SA or IWM-DA (BEV problem)")
     g.add_argument("--all-topologies", action="store_true", help="topology study: all four topologies")
     p.add_argument("--generations", type=int, default=30)
     p.add_argument("--pop", type=int, default=100, help="population size (one batch per generation)")
@@ -50,13 +56,25 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+class _Once(argparse.Action):
+    """A flag given once: a second --topology silently replaced the first."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if getattr(namespace, self.dest) is not None:
+            parser.error(f"{option_string} given twice ({getattr(namespace, self.dest)} and {values}): one "
+                         "topology, or --all-topologies")
+        setattr(namespace, self.dest, values)
+
+
 def run(args) -> int:
     from bev_mdo.api import pareto
     from bev_mdo.api.transport import Transport
     from bev_mdo.cli import flags
 
     pareto.check_sizes(args.generations, args.pop, args.instances, args)
-    names = None if args.objectives is None else [o.strip() for o in args.objectives.split(",") if o.strip()]
+    names = None if args.objectives is None else [o.strip() for o in args.objectives.split(",")]
+    if names is not None and not all(names):  # "f1,,f2" or "f1,": a name left out is a typo, not a list
+        raise InputError(f"--objectives {args.objectives!r}: an empty name; give A,B[,C]")
     if args.topology or args.all_topologies:
         from bev_mdo.api import overrides
         from bev_mdo.config import RunConfig, read_config_file
@@ -72,20 +90,43 @@ def run(args) -> int:
     doc, res = pareto.run(cfg, names, generations=args.generations, pop=args.pop, seed=args.seed, out=args.out,
                           transport=Transport.of(args), instances=args.instances,
                           plots=not args.no_plots, source=str(args.config), on_generation=_generation)
-    print(f"front: {_front(res)}, {res.evaluations} evaluations in {res.batches} batches, {res.wall_time_s:.1f} s")
+    print(f"front: {_front(res, doc.get('least_violated'))}, {res.evaluations} evaluations in {res.batches} batches, "
+          f"{res.wall_time_s:.1f} s")
+    _notes(res)
     _settling(res)
     what = ", ".join(Path(p).name for p in doc["plots"]) if doc["plots"] else "no plots: --no-plots"
     print(f"wrote {doc['out']}/ (front.csv, front.json, {what}, bag/ with {doc['published']} ParetoFront messages)")
-    return _failed(doc)
+    return _status(doc, [res])
 
 
-def _front(res) -> str:
-    """'N non-dominated feasible designs', or 'no feasible design' with the least violation evaluated."""
+def _front(res, least: dict | None = None) -> str:
+    """'N non-dominated feasible designs', or why there is none: every evaluated design failed (the first
+    error), or none is feasible (``least``: api.pareto.outcome's least violated design, its broken constraints
+    in their units); the failed evaluations counted."""
+    failed = f"{res.failed} of {res.evaluations} evaluated designs failed (first: {res.first_error})"
+    if res.evaluations and res.failed == res.evaluations:
+        return f"no design: every one of the {res.evaluations} evaluated designs failed (first: {res.first_error})"
     if len(res.X):
-        return f"{len(res.X)} non-dominated feasible designs"
-    cv = np.asarray(res.archive_cv, float)
-    return "no feasible design" + (f" (least normalised constraint violation {np.nanmin(cv):.3g})"
-                                   if np.isfinite(cv).any() else "")
+        plural = "s" if len(res.X) > 1 else ""
+        return f"{len(res.X)} non-dominated feasible design{plural}" + (f"; {failed}" if res.failed else "")
+    return "no feasible design" + (f" ({_least(least)})" if least else "") + (f"; {failed}" if res.failed else "")
+
+
+def _least(least: dict) -> str:
+    """'least violated: x1=5, x2=0 breaks c1 <= -1: its c1 is 0 m**2; ...' (and why it cannot follow its cycle)."""
+    def unit(c):
+        return f" {c['unit']}" if c.get("unit") not in (None, "", "1") else ""
+
+    why = [f"breaks {c['constraint']}{unit(c)}: its {c['output']} is {c['value']:.6g}{unit(c)}"
+           for c in least["constraints"]] + list(least["cannot_follow"])
+    design = ", ".join(f"{k}={v:.6g}" for k, v in least["design"].items())
+    return f"least violated: {design} " + "; ".join(why)
+
+
+def _notes(res, label: str = "") -> None:
+    if res.cannot_follow:  # as sweep says it: infeasible, whatever the constraints
+        print(f"{label}note: {res.cannot_follow} of {res.evaluations} evaluated designs cannot follow the drive cycle "
+              "(their motor falls short of the drive force or over its speed limit): infeasible, not on the front")
 
 
 def _settling(res, label: str = "") -> None:
@@ -112,11 +153,12 @@ def _generation(g, n, s) -> None:
     print(f"  gen {g}: {n} evaluations, {s:.2f} s", file=sys.stderr)
 
 
-def _failed(doc: dict) -> int:
+def _status(doc: dict, results) -> int:
+    """The exit status (the module's docstring): 3 the recorder failed, 1 a run without a feasible design."""
     if doc.get("recorder_failed"):
         print(f"warning: {doc['recorder_failed']}", file=sys.stderr)
         return 3
-    return 0
+    return 0 if all(len(r.X) for r in results) else 1
 
 
 def _only(ov, variables: set[str]):
@@ -165,11 +207,13 @@ def _study(args, raw, written, names, ov) -> int:
                              f"they have {sorted(set().union(*own.values()))}")
     first = next(iter(configs.values()))
     objectives = pareto.objectives_of(names, first) or [(o, False) for o in OBJECTIVES]
+    pareto.check_objectives(objectives, first, str(args.config), 2)  # one objective: refused for every topology
     for t, cfg in configs.items():
-        pareto.check_objectives(objectives, cfg, f"{args.config} ({t})", 1)
+        pareto.check_objectives(objectives, cfg, f"{args.config} ({t})", 2)
     out, bag = pareto.out_dirs(args.out, raw.get("name", "run"))
     run_id = uuid.uuid4().hex[:16]
-    results, bench, timing = {}, {}, {}
+    results, bench, timing, outcome = {}, {}, {}, {}
+    from bev_mdo.api.evaluate import declared_units
     from bev_mdo.mdo.pareto import hypervolume_reference
 
     hv_ref = hypervolume_reference([n for n, _ in objectives])
@@ -191,6 +235,7 @@ def _study(args, raw, written, names, ov) -> int:
                     res = pareto.nsga2(cfg, ev, objectives, args.pop, args.generations, args.seed, on_front,
                                        bench=(bench, t), on_generation=_generation)
                 results[t] = res
+                outcome[t] = pareto.outcome(res, declared_units(cfg))
                 timing[t] = {"wall_time_s": res.wall_time_s, "evaluations": res.evaluations, "batches": res.batches,
                              "mean_generation_s": float(np.mean(res.generation_times_s)),
                              "evaluations_per_s": res.evaluations / max(res.wall_time_s, 1e-12),
@@ -206,28 +251,31 @@ def _study(args, raw, written, names, ov) -> int:
     names = [n for n, _ in objectives]
     summary = {"config": str(args.config), "transport": args.transport, "run_id": run_id, "bag": str(bag),
                "objectives": names, "generations": args.generations, "pop": args.pop, "seed": args.seed,
-               "timing": timing, "benchmark": bench, "benchmark_violations": broken,
+               "timing": timing, "outcome": outcome,
+               "units": {k: u for cfg in configs.values() for k, u in declared_units(cfg).items()},
+               "benchmark": bench, "benchmark_violations": broken,
                "picks": study.picks(results, bench), "ranking": study.ranking(results, objectives),
                "caveats": study.caveats(results, configs), "out": str(out),
                "warnings": warnings, **session.stats}
     pngs = []
     if not args.no_plots:
-        cyc = first.get("cycle") or {}
-        pngs = study.plots(out, results, bench, names, cyc.get("name", "") if isinstance(cyc, dict) else "", broken)
+        from bev_mdo.cli import energy_cycle_label
+
+        pngs = study.plots(out, results, bench, names, energy_cycle_label(first), broken)  # what the energy is on
     for t in topologies:
         r = results[t]
-        print(f"{t}: {_front(r)}, {r.evaluations} evaluations in {r.batches} batches, "
-              f"{timing[t]['wall_time_s']:.1f} s")
+        print(f"{t}: {_front(r, outcome[t].get('least_violated'))}, {r.evaluations} evaluations in {r.batches} "
+              f"batches, {timing[t]['wall_time_s']:.1f} s")
+        _notes(r, f"{t}: ")
         _settling(r, f"{t}: ")
     if len(topologies) > 1:
         for line in study.ranking_lines(summary["ranking"]):
             print(line)
     for line in summary["caveats"]:
         print(line)
-    what = ", ".join(p.name for p in pngs) if pngs else (
-        "no plots: --no-plots" if args.no_plots else "no plots: one objective has no trade-off to draw")
+    what = ", ".join(p.name for p in pngs) if pngs else "no plots: --no-plots"
     print(f"wrote {out}/ (pareto_*.csv, benchmark.csv, summary.json, {what}, "
           f"bag/ with {session.sink.published} ParetoFront messages)")
     pareto.finish(out / "summary.json", summary, session)
-    return _failed(summary)
+    return _status(summary, results.values())
 

@@ -66,6 +66,10 @@ def run(args) -> int:
     if wrong:
         raise InputError(f"{', '.join(wrong)}: " + ("local sensitivities only (without --global)"
                                                     if args.global_method else "needs --global sobol|morris"))
+    from bev_mdo.mdo.sensitivity import REL_STEP_MAX
+
+    if args.rel_step is not None and not 0 < args.rel_step < REL_STEP_MAX:  # the core names it rel_step (the API's)
+        raise InputError(f"--rel-step {args.rel_step:g}: must be in (0, {REL_STEP_MAX:g})")
     cfg = flags.load_config(args)
     wrt = [s.strip() for s in args.wrt.split(",") if s.strip()]
     got = sensitivity.run(cfg, flags.parse_assignments(args.at, "--at"), wrt, Transport.of(args), global_method=args.global_method,
@@ -115,6 +119,9 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
     ow = max(len(k) for k in outputs) + 2
     print(f"point: {', '.join(f'{k}={s.point[k]:g}' for k in dict.fromkeys([*shown, *s.names]))}   "
           f"({s.n_evaluations} evaluations in {s.n_batches} batch(es), method {s.method})", file=out)
+    if s.one_sided:  # the header's method is the others'
+        print(f"one-sided differences for {', '.join(s.one_sided)}: on or within two steps of a bound (or a "
+              "parameter's model limit), so that every step stays inside it", file=out)
     print("\nFirst-order normalised sensitivity S_i = (x_i/f) df/dx_i  (eq 5-4)", file=out)
     print("output".ljust(ow) + "".join(n.rjust(w) for n in s.names), file=out)
     zero = [k for k in outputs if s.values[k] == 0]  # S undefined: the plain derivatives are shown
@@ -138,13 +145,13 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
         return
     print("\nSecond-order normalised sensitivity S'_ij = (x_i x_j/f) d2f/dx_i dx_j  (eq 5-5)", file=out)
     print("labels: NC |S'|<0.05, MC <0.5, SC <0.8, VSC >=0.8 (no/medium/strong/very strong coupling of two "
-          "variables; a diagonal entry, one variable's own curvature, has none)", file=out)
+          "variables; a diagonal entry, one variable's own curvature, has none: null in --json)", file=out)
     for k in outputs:
         m, lab, err = s.second[k], s.labels(k), s.second_error[k]
         if k in zero:
             m = s.hessian[k]
         print(f"\n{k}  " + ("(f = 0: S' undefined; d2f/dx_i dx_j shown)" if k in zero
-                             else f"(max Richardson error {np.nanmax(err):.1e})"), file=out)
+                             else f"(max error estimate {np.nanmax(err):.1e})"), file=out)
         print("".ljust(w) + "".join(n.rjust(w) for n in s.names), file=out)
         # "~" as in the first-order table: an entry of -0.0002 whose error was 1.6e-3 had the wrong sign, unmarked;
         # an error below half the last digit shown (5e-5) is not marked
@@ -163,21 +170,24 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
 
 
 def _context_title(s, cfg, design=None) -> str:
-    """'at <every design variable and analysed parameter>; cycle ..., ... model'."""
-    cyc = (cfg or {}).get("cycle", {})
-    cyc = cyc.get("name", "") if isinstance(cyc, dict) else str(cyc)
+    """'at <every design variable and analysed parameter>; cycle ..., ... model': the cycle (or cycle mix) the
+    energy is computed on (cli.energy_cycle_label), not the config's cycle when that only sets the top speed."""
+    from bev_mdo.cli import energy_cycle_label
+
+    cyc = energy_cycle_label(cfg)
     model = (cfg or {}).get("energy_model", "")
     shown = {**(design or {}), **{k: s.point[k] for k in s.names}}
     point = ", ".join(f"{k}={v:g}" for k, v in shown.items())
     # the energy model defaults to flat in every config: named only beside a cycle (not for Ishigami)
-    return f"at {point}" + (f"; cycle {cyc}" + (f", {model} model" if model else "") if cyc else "")
+    return f"at {point}" + (f"; {cyc}" + (f", {model} model" if model else "") if cyc else "")
 
 
 def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
     """The sensitivity figure: a first-order bar chart (eq 5-4) and, with second order, one
     matrix per output (eq 5-5) on ONE symmetric colour scale shared by the whole figure. Entries
-    whose magnitude is not above their Richardson error estimate are masked (grey, "≤ err"): they
-    are noise, not signal. Text is white on dark cells. The title names the point and the cycle.
+    whose magnitude is not above their error estimate (Richardson's, at least the rounding of the stencil's
+    values) are masked (grey, "≤ err"), every cell by the same rule: they are noise, not signal. Text is
+    white on dark cells. The title names the point and the cycle (or cycle mix) the energy is computed on.
     Returns the figure (closed)."""
     from matplotlib.colors import Normalize
 

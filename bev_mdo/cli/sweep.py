@@ -44,7 +44,7 @@ def register(sub) -> None:
     p.add_argument("--samples", type=int, default=None,
                    help="--doe: number of designs (full: levels per variable; default 64)")
     p.add_argument("--seed", type=seed, default=None, help="--doe: random seed (lhs, sobol, halton; default 1)")
-    p.add_argument("--vary", nargs="+", default=[], metavar="NAME=LO:HI:N",
+    p.add_argument("--vary", nargs="+", action="extend", default=[], metavar="NAME=LO:HI:N",
                    help="a grid: a design variable (or model parameter) and its values: lo:hi:n or a,b,c")
     p.add_argument("--list", dest="list_csv", metavar="FILE.csv", help="evaluate the designs listed in this CSV")
     p.add_argument("--set", dest="fixed", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
@@ -164,7 +164,8 @@ def write_csv(path: Path, result: dict) -> None:
 def plot_output(result: dict, output: str, varied: list[str], path: Path, baseline: dict | None = None):
     """One PNG: ``output`` against the first varied variable, one line per value of the second
     (if any; further varied variables: one panel per value of the third is too much, they are
-    overlaid); feasible points filled, infeasible hollow red x; constraint limits dashed."""
+    overlaid); feasible points filled, infeasible hollow red x; constraint limits dashed. The x-axis spans the
+    swept values (the bounds dotted where the sweep reaches them), the legend beside the axes."""
     from bev_mdo.api.evaluate import pyplot_and_label
 
     plt, label = pyplot_and_label(result.get("units"))
@@ -172,11 +173,12 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
     x = result["design"][varied[0]]
     y = result["outputs"][output]
     feas = result["feasible"]
-    fig, ax = plt.subplots(figsize=(7, 4.6))
     groups = [(None, np.ones(len(x), bool))]
     if len(varied) > 1:
         second = result["design"][varied[1]]
         groups = [(v, np.isclose(second, v)) for v in np.unique(second)]
+    ncol = 1 + (len(groups) + 5) // 28  # the legend's columns, beside the axes: up to ~28 entries each
+    fig, ax = plt.subplots(figsize=(7 + 2.6 * ncol, 4.6), layout="constrained")
     cmap = plt.get_cmap("viridis")
     for k, (v, sel) in enumerate(groups):
         colour = cmap(k / max(len(groups) - 1, 1)) if v is not None else "C0"
@@ -186,9 +188,18 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
         ax.plot(xs, ys, "-", color=colour, lw=1, alpha=0.7, label=lab)
         ax.plot(xs[fs], ys[fs], "o", color=colour, ms=5)
         ax.plot(xs[~fs], ys[~fs], "x", color="C3", ms=7, mew=1.5)
+    lo, hi = float(np.min(x)), float(np.max(x))  # the axis spans the swept values, not the bounds
+    pad = 0.04 * (hi - lo) if hi > lo else 0.05 * max(abs(lo), 1.0)
     if baseline and varied[0] in baseline["design"] and output in baseline["outputs"]:
-        ax.plot([baseline["design"][varied[0]]], [baseline["outputs"][output]], "*", color="k", ms=12,
-                label=f"baseline ({baseline['name']})")
+        bx = baseline["design"][varied[0]]
+        # with lines per value of a second variable, the star is at the baseline's own value of it: said
+        own = "".join(f"\n{k}={baseline['design'][k]:g}" for k in varied[1:] if k in baseline["design"])
+        if lo - pad <= bx <= hi + pad:
+            ax.plot([bx], [baseline["outputs"][output]], "*", color="k", ms=12,
+                    label=f"baseline ({baseline['name']}){own}")
+        else:  # drawn, it would stretch the y-axis to a point off the x-axis
+            ax.plot([], [], "*", color="k", ms=12,
+                    label=f"baseline ({baseline['name']}):\n{varied[0]}={bx:g}, outside the swept range")
     ax.plot([], [], "o", color="0.4", label="feasible")
     ax.plot([], [], "x", color="C3", label="infeasible")
     for c in problem.constraints:
@@ -198,16 +209,16 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
                     ax.axhline(b, color="C3", ls="--", lw=1.2, label=f"constraint {'≥' if kind == 'lower' else '≤'} {b:g}")
     for d in problem.design_variables:
         if d.name == varied[0]:
-            ax.set_xlim(min(d.lower, x.min()) - 0.02 * (d.upper - d.lower), max(d.upper, x.max()) + 0.02 * (d.upper - d.lower))
             for b in (d.lower, d.upper):
-                ax.axvline(b, color="0.3", ls=":", lw=1)
+                if lo - pad <= b <= hi + pad:  # a bound the sweep reaches
+                    ax.axvline(b, color="0.3", ls=":", lw=1)
+    ax.set_xlim(lo - pad, hi + pad)
     ax.set_xlabel(label(varied[0]))
     ax.set_ylabel(label(output))
     fixed = ", ".join(f"{k}={result['design'][k][0]:g}" for k in result["design"] if k not in varied)
     ax.set_title(f"{label(output)} vs {label(varied[0])}" + (f"\n(fixed: {fixed})" if fixed else ""), fontsize=10)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, ncol=2 if len(groups) > 6 else 1, loc="best")
-    fig.tight_layout()
+    ax.legend(fontsize=7, ncol=ncol, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)  # hides no data
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return fig, ax
@@ -269,7 +280,7 @@ def run(args) -> int:
                 plot_output(result, o, varied, p, baseline)
             written.append(p)
     feas = result["feasible"]
-    print(f"{n} designs in one batch ({transport}): {int(feas.sum())} feasible, {int((~feas).sum())} infeasible, "
+    print(f"{n} design{'s' if n != 1 else ''} in one batch ({transport}): {int(feas.sum())} feasible, {int((~feas).sum())} infeasible, "
           f"{int((~result['ok']).sum())} failed")
     if feas.any():
         obj = result["outputs"][result["objective"]]
@@ -336,8 +347,9 @@ def run_compare(args) -> int:
         cells = [num(v[0])]
         for i in range(1, len(given)):
             d = v[i] - v[0]
-            # of |design 1|: a negative quantity that rises must not read as a fall ('+8 (-1.1 %)')
-            pct = f" ({100 * d / abs(v[0]):+.1f} %)" if v[0] not in (0.0,) and np.isfinite(v[0]) and not name.startswith("margin") else ""
+            # of |design 1|: a negative quantity that rises must not read as a fall ('+8 (-1.1 %)'); none of a margin
+            # (a constraint's, or an output such as drive_torque_margin_nm), whose zero is no reference: +13327 %
+            pct = f" ({100 * d / abs(v[0]):+.1f} %)" if v[0] != 0.0 and np.isfinite(v[0]) and "margin" not in name else ""
             cells += [num(v[i]), f"{num(d, '+')}{pct}" if num(d) != "0" else "0"]
         t.add_row(name, unit, *cells)
     feas = ["yes" if f else "[bold red]NO[/]" for f in result["feasible"]]

@@ -60,7 +60,7 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
              pairs: bool = False) -> dict:
     """The whole validation as a dict (what --json prints)."""
     from bev_mdo.models import fleet as fl
-    from bev_mdo.models.params import fitted_for_another_model, load_parameter_set
+    from bev_mdo.models.params import fitted_for_another_model, fitted_values, load_parameter_set
 
     fleet = fl.read_fleet(data)
     base = {}
@@ -80,6 +80,8 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
         follows_none = ~np.logical_or.reduce([pred[c]["follows"] for c in fl.CYCLES])
         raise ValueError(f"{fleet.path}: no vehicle to score ({int(fleet.outlier.sum())} of {len(fleet)} flagged as "
                          f"outliers, {int((follows_none & ~fleet.outlier).sum())} cannot follow UDDS or HWFET)")
+    if base and fitted_values(parameter_set):  # a calibrated set off by 1.609 on every car: a fleet in Wh/mi?
+        fl.note_energy_unit(fleet, pred, scored, energy_model)
     for i in range(len(fleet)):
         row = {"row": int(fleet.rows[i]), "make": fleet.make[i], "model": fleet.model[i],
                "test_mass_kg": float(fleet.test_mass_kg[i]), "rated_power_kw": float(fleet.rated_power_kw[i]),
@@ -111,13 +113,12 @@ def evaluate(data=None, energy_model: str = DEFAULT_MODEL, parameter_set: str | 
 def fitted_on_these_rows(parameter_set: str | None, data) -> str:
     """Whether the model's figures are in-sample, as far as the set's provenance (its ``fitted_on``: the
     fleet file, its absolute path and SHA-256) tells: no set; fitted on this file; fitted on another file
-    that holds none, some or all of these cars (a row's cells but its measured energies, its reported unit
-    and flag, compared where that file is at hand and its SHA-256 matches); or unknown."""
+    that holds none, some or all of these cars (:func:`training_cars`, where that file is at hand and its
+    SHA-256 matches); or unknown."""
     import hashlib
     from pathlib import Path
 
     from bev_mdo.models.cycles import read_csv_rows
-    from bev_mdo.models.fleet import MEASURED
     from bev_mdo.models.params import PARAMETER_SET_DIR, is_parameter_set_file, parameter_set_source
 
     if not parameter_set or parameter_set == "none":
@@ -143,16 +144,58 @@ def fitted_on_these_rows(parameter_set: str | None, data) -> str:
         head, *body = read_csv_rows(path, "fleet file")
         return [dict(zip((h.strip() for h in head), (c.strip() for c in r))) for r in body if any(c.strip() for c in r)]
 
-    ours, theirs = rows(data), rows(fit_file)
-    # a car is its identity and the model's inputs, not its measured energies (a copy in Wh/mi is the same car)
-    common = sorted(set(ours[0] if ours else ()) & set(theirs[0] if theirs else ()) - set(MEASURED.values())
-                    - {"reported_unit", "flag"})
-    fitted = {tuple(r.get(k) for k in common) for r in theirs}
-    both = sum(tuple(r.get(k) for k in common) in fitted for r in ours)
-    if not both:
+    ours = rows(data)
+    by_cells, by_energy = training_cars(ours, rows(fit_file))
+    if not (by_cells | by_energy).any():
         return f"{said}, which has none of these cars: held out"
-    return (f"{said}; {both} of these {len(ours)} rows are cars in it (the same identity and model inputs, "
-            f"whatever their measured energies): in-sample for those")
+    how = [f"{n} by {what}" for n, what in (
+        (int(by_cells.sum()), "make, model and model inputs, whatever their measured energies and test labels"),
+        (int((by_energy & ~by_cells).sum()), f"their measured UDDS and HWFET energies alone, within "
+                                             f"{100 * SAME_CAR_REL:g} %")) if n]
+    return (f"{said}; {int((by_cells | by_energy).sum())} of these {len(ours)} rows are cars in it "
+            f"({'; '.join(how)}): in-sample for those")
+
+
+# Two rows are one car within this relative difference of a number: re-typed cells (A rounded to 0.1 N, a test
+# mass 1 kg off, energies typed to 0.1 Wh/km) differ by less; two distinct cars of the shipped fleet lie at least
+# 0.5 % apart on UDDS or HWFET energy
+SAME_CAR_REL = 1e-3
+
+
+def training_cars(ours: list[dict], theirs: list[dict]) -> tuple[np.ndarray, np.ndarray]:
+    """Which of the rows ``ours`` (cells by column name) are cars of the rows ``theirs``: per row of ``ours``,
+    (its make, model and model inputs, every common cell but the measured energies, reported_unit, flag and the
+    test's labels test_vehicle_id and config, match one row of ``theirs``: text blind to case, spaces and
+    punctuation, numbers within ``SAME_CAR_REL``, so a copy in Wh/mi or a retest is the same car; its measured
+    UDDS and HWFET energies both lie within ``SAME_CAR_REL`` of one row's, so a copy with a renamed test or a
+    re-typed input is too). One numpy comparison of every pair of rows."""
+    from bev_mdo.models.fleet import MEASURED
+
+    energy = list(MEASURED.values())
+    cols = sorted(set(ours[0] if ours else ()) & set(theirs[0] if theirs else ()) - set(energy)
+                  - {"reported_unit", "flag", "test_vehicle_id", "config"})
+
+    def table(rows, names):  # (numbers, nan where a cell is not one; text normalised, '' where it is a number)
+        num = np.full((len(rows), len(names)), np.nan)
+        text = np.full((len(rows), len(names)), "", object)
+        for i, r in enumerate(rows):
+            for j, k in enumerate(names):
+                try:
+                    num[i, j] = float(r.get(k) or "")
+                except ValueError:
+                    text[i, j] = "".join(ch for ch in (r.get(k) or "").casefold() if ch.isalnum())
+        return num, text
+
+    def close(a, b, blank_same):  # (n, m): every column of row i of a within SAME_CAR_REL of row j of b
+        a, b = a[:, None, :], b[None, :, :]
+        with np.errstate(invalid="ignore"):
+            near = np.abs(a - b) <= SAME_CAR_REL * np.maximum(np.abs(a), np.abs(b))
+        return (near | (blank_same & np.isnan(a) & np.isnan(b))).all(axis=2)
+
+    (num_o, text_o), (num_t, text_t) = table(ours, cols), table(theirs, cols)
+    by_cells = (close(num_o, num_t, True) & (text_o[:, None, :] == text_t[None, :, :]).all(axis=2)).any(axis=1)
+    by_energy = close(table(ours, energy)[0], table(theirs, energy)[0], False).any(axis=1)
+    return by_cells, by_energy
 
 
 REFERENCE = {"baseline3": "3-constant baseline a + b mass + c road-load work per cycle, each family predicted by "
@@ -308,8 +351,9 @@ def print_pairs(report: dict) -> None:
         print(f"pairs: none in {report['data']} (no two rows of one model family differ in drive, "
               f"rated power or test mass)")
         return
-    print(f"within-family pairs ({pairs['pairs']} pairs in {pairs['families']} families; B over A, %; "
-          f"slope by least squares through the origin):")
+    print(f"within-family pairs ({pairs['pairs']} pairs in {pairs['families']} families; meas% and pred%: "
+          "200 (E_B - E_A) / (E_A + E_B), B minus A in percent of the pair's mean; diff = pred% - meas%, points; "
+          "slope by least squares through the origin):")
     print(f"{'cycle':6} {'A row':>5} {'B row':>5} {'A model':30} {'B model':30} {'meas%':>7} {'pred%':>7} "
           f"{'diff':>6}")
     for c in ("udds", "hwfet"):

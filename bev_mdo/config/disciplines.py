@@ -242,7 +242,6 @@ def discipline_names(config: Mapping[str, Any]) -> list[str]:
 
 def _outputs_hint(name: str, produced) -> str:
     """``did you mean 'range_km'? outputs: [...]`` (the nearest output by difflib, as --constraint says)."""
-    import difflib
+    from bev_mdo.mdo.vectors import did_you_mean
 
-    near = difflib.get_close_matches(name, sorted(produced), n=1, cutoff=0.6)
-    return (f"did you mean {near[0]!r}? " if near else "") + f"outputs: {sorted(produced)}"
+    return did_you_mean(name, produced) + f"outputs: {sorted(produced)}"

@@ -304,12 +304,12 @@ def _settings(config: dict, problem: Problem, discs) -> RunSettings:
     disciplines by name and whether each provides analytic partials, and the disciplines' judgement of a
     design beyond its constraints (whether its motor follows the cycle; the driver imports nothing above
     the engine)."""
-    from bev_mdo.disciplines.energy import follow_check
+    from bev_mdo.disciplines.energy import follow_batch, follow_check
 
     return RunSettings(config["problem"], str(config["formulation"]), MDASettings.of(config["mda"]),
                        OptimizerSettings.of(config["optimizer"]), tuple(d.name for d in discs),
                        {d.name: bool(has_partials(d)) for d in discs}, parsed_problem=problem,
-                       design_check=follow_check(discs))
+                       design_check=follow_check(discs), designs_check=follow_batch(discs))
 
 
 def run_settings(config: RunConfig | Mapping[str, Any]) -> RunSettings:

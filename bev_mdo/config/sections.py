@@ -192,6 +192,8 @@ def _parameter_set(cfg: dict) -> None:
     if fitted:
         raise ValueError(f"vehicle.parameter_set {name!r} was fitted for energy_model {fitted}, "
                          f"not {cfg.get('energy_model')}")
+    for note in params.parameter_set_source(name)["notes"] if name is not None else ():  # said once per command
+        warnings.warn(f"vehicle.parameter_set {name}: its fit noted: {note}", CycleNote, stacklevel=2)
     if not params.is_parameter_set_file(name):
         return
     values = params.load_parameter_set(name)

@@ -119,7 +119,8 @@ class Energy(Base):
         return disc
 
     def cycle_steps_short(self, values) -> list | None:
-        """[(cycle name, its steps, steps not followed (N,), largest force short N (N,))] of the designs in
+        """[(cycle name, its steps, steps not followed (N,), largest force short N (N,), steps of them over the
+        motor's speed limit (N,))] of the designs in
         ``values`` (motor_kw, gear_ratio, vehicle_mass_kg: numbers or (N,) arrays) at full motor envelope
         (models/follow.py); -1 steps not followed where that envelope is not the design's (two speeds); None
         where it is no design's: the check covers single-speed SM-SA."""
@@ -135,9 +136,10 @@ class Energy(Base):
         env = {k: (np.broadcast_to(x, cols[0].shape)[one] if np.ndim(x) else x) for k, x in env.items()}
         out = []
         for _, r in self._cycles():
-            count, worst = np.full(cols[0].size, -1, np.int64), np.zeros(cols[0].size)
-            count[one], worst[one] = steps_not_followed(r.time_s, r.speed_m_s, env, *(c[one] for c in cols[:3]))
-            out.append((r.name, len(r.time_s) - 1, count, worst))
+            count, worst, over = np.full(cols[0].size, -1, np.int64), np.zeros(cols[0].size), np.zeros(cols[0].size)
+            count[one], worst[one], over[one] = steps_not_followed(r.time_s, r.speed_m_s, env,
+                                                                   *(c[one] for c in cols[:3]))
+            out.append((r.name, len(r.time_s) - 1, count, worst, over))
         return out
 
     def _envelope(self, values) -> dict:
@@ -149,11 +151,14 @@ class Energy(Base):
         """One line when the one design in ``values`` cannot follow a cycle of the run (``rows``: its
         ``cycle_steps_short``), else None: its energy per km is that of the cycle's demand, not of a
         powertrain that follows it."""
-        for name, steps, count, worst in rows:
+        for name, steps, count, worst, over in rows:
             if count[0] > 0:
+                why = [] if over[0] >= count[0] else [f"falls up to {worst[0] / 1e3:.3g} kN short of the drive force"]
+                why += [f"turns over its speed limit at {'all of them' if over[0] >= count[0] else f'{int(over[0])} of them'}"
+                        ] if over[0] > 0 else []
                 return (f"the design cannot follow the cycle {name} at {int(count[0])} of {steps} steps (its "
-                        f"{float(values['motor_kw']):.4g} kW motor at {float(values['gear_ratio']):.4g}:1 falls up to "
-                        f"{worst[0] / 1e3:.3g} kN short of the drive force, or over its speed limit)"
+                        f"{float(values['motor_kw']):.4g} kW motor at {float(values['gear_ratio']):.4g}:1 "
+                        f"{' and '.join(why)})"
                         + ("" if not np.isfinite(values.get("energy_wh_per_km", np.nan)) else  # a failed point has none
                            ": its energy per km is that of the cycle's demand, not of a powertrain that follows it"))
         return None
@@ -257,13 +262,20 @@ def follow_counts(disciplines, values: Mapping) -> tuple[np.ndarray, np.ndarray]
             continue
         margins = _follow_margins(d, values)
         below = np.logical_or.reduce([np.asarray(v) < 0 for v in margins.values()]) if margins else None
-        for _, _, count, _ in d.cycle_steps_short(values) or [(None, None, np.full(n, -1), None)]:
+        for _, _, count, *_ in d.cycle_steps_short(values) or [(None, None, np.full(n, -1), None)]:
             short |= count > 0
             if below is not None:  # where the steps are not checked, the model's margins are
                 short |= (count < 0) & below
             else:
                 unchecked |= count < 0
     return short, unchecked
+
+
+def follow_batch(disciplines):
+    """``follow_check`` of a batch: ``check(values)`` -> (N,) bool, True where a design cannot follow its cycle
+    (``follow_counts``, one call for the batch); None when no discipline of ``disciplines`` checks it."""
+    discs = tuple(d for d in disciplines if getattr(d, "envelope", None) is not None)
+    return (lambda values: follow_counts(discs, values)[0]) if discs else None
 
 
 def follow_check(disciplines):

@@ -79,6 +79,9 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
     if jacobian is not None:
         on_bound = {**{b["name"]: b["kind"] for b in bounds}, **{b["name"]: b["kind"] for b in outside}}
         spans = {d.name: d.upper - d.lower for d in problem.design_variables}
+        room = {d.name: tuple(min(max(r / (d.upper - d.lower), 0.0), 1.0) for r in  # (down, up) to the bounds
+                              (float(design[d.name]) - d.lower, d.upper - float(design[d.name])))
+                for d in problem.design_variables}
         for e in violated:
             sign = 1.0 if e["kind"] == "upper" or e["kind"] == "equal" and e["value"] > e["limit"] else -1.0
             grad = {n: tuple(sign * v for v in _sides(jacobian.get(e["name"], {}).get(n, 0.0))) for n in problem.names}
@@ -89,7 +92,8 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
                                 "rate_unit": f"{e['unit'] or '1'} per {unit(n) or 'unit'}"} for n in blocking]
             e["blocked_by"].sort(key=lambda b: -b["rate"] * spans[b["variable"]])
             others = [o for o in violated if o is not e and np.isfinite(o["violation"])]
-            held, e["free_way"] = _held_by(grad, active + others, jacobian, spans, on_bound)
+            held, reduction = _held_by(grad, active + others, jacobian, spans, on_bound, room)
+            e["free_way"], e["free_way_reduction"] = reduction > 0.0, reduction  # in the constraint's unit
             e["conflicts_with"] = [_limit(a) for a in held if a in active]  # satisfied limits it would break
             e["trades_with"] = [_limit(o) for o in held if o in others]  # other violations it would worsen
     feasible = not any(not e["monitor"] for e in violated) and not outside
@@ -128,14 +132,16 @@ def _sides(v) -> tuple[float, float]:
     return (float(v), float(v)) if np.ndim(v) == 0 else (float(v[0]), float(v[1]))
 
 
-def _held_by(grad, active, jacobian, spans, on_bound) -> tuple[list[dict], bool]:
-    """(the limits of ``active`` (active ones, and the other violated ones) that hold a violation, whether a
-    first-order way reduces it without worsening any of them): the linear program min grad_u v . du over
-    steps du = p - q of the scaled variables, p and q in [0, 1] (none beyond a bound a variable is on), that
-    make none of them worse. p moves on the right-hand slope, q on the left-hand one (``grad``: {variable:
-    (left, right)}): at a kink (a speed cap meeting a power limit, the cap's slope one side, 0 the other) the
-    slope of the side stepped to counts. A negative optimum is a free way (nothing holds it: the optimiser
-    stopped short); otherwise the limits with a non-zero multiplier of the program hold it."""
+def _held_by(grad, active, jacobian, spans, on_bound, room=None) -> tuple[list[dict], float]:
+    """(the limits of ``active`` (active ones, and the other violated ones) that hold a violation, how much a
+    first-order way reduces it within the bounds without worsening any of them, 0 for none): the linear program
+    min grad_u v . du over steps du = p - q of the scaled variables, p and q in [0, room] (``room``: {variable:
+    (down, up)}, the fractions of its range to its bounds, 0 on a bound: a variable 0.2 % below its upper bound
+    reduces little by stepping up), that make none of them worse. p moves on the right-hand slope, q on the
+    left-hand one (``grad``: {variable: (left, right)}): at a kink (a speed cap meeting a power limit, the cap's
+    slope one side, 0 the other) the slope of the side stepped to counts. A negative optimum is a free way
+    (nothing holds it: the optimiser stopped short); otherwise the limits with a non-zero multiplier of the
+    program hold it."""
     names = list(grad)
     n, span = len(names), np.array([spans[k] for k in names])
 
@@ -147,18 +153,19 @@ def _held_by(grad, active, jacobian, spans, on_bound) -> tuple[list[dict], bool]
     rows = np.array([s * split({k: _sides(jacobian.get(a["name"], {}).get(k, 0.0)) for k in names})
                      for a, s in sides]).reshape(len(sides), 2 * n)
     active = [a for a, _ in sides]
-    box = ([(0.0, 0.0) if on_bound.get(k) == "upper" else (0.0, 1.0) for k in names]
-           + [(0.0, 0.0) if on_bound.get(k) == "lower" else (0.0, 1.0) for k in names])
+    room = room or {}
+    box = ([(0.0, 0.0) if on_bound.get(k) == "upper" else (0.0, room.get(k, (1.0, 1.0))[1]) for k in names]
+           + [(0.0, 0.0) if on_bound.get(k) == "lower" else (0.0, room.get(k, (1.0, 1.0))[0]) for k in names])
     if not names or not (np.isfinite(c).all() and np.isfinite(rows).all()):  # a failed point: no first-order model
-        return [], False
+        return [], 0.0
     tol = 1e-9 * (float(np.abs(c).sum()) + float(np.abs(rows).sum()) + 1e-300)
     res = one_sided_descent(c, rows, box)
     if res is None:
-        return [], False
+        return [], 0.0
     if res.fun < -tol:
-        return [], True
+        return [], float(-res.fun)
     held = [a for a, m in zip(active, res.ineqlin.marginals if len(active) else []) if abs(m) > tol]
-    return [a for i, a in enumerate(held) if all(a is not b for b in held[:i])], False
+    return [a for i, a in enumerate(held) if all(a is not b for b in held[:i])], 0.0
 
 
 def _num(v: float, scale: float | None = None) -> str:
@@ -205,9 +212,14 @@ def summary_lines(ans: Mapping[str, Any]) -> list[str]:
                 lines.append("  reducing it would break " + ", ".join(e["conflicts_with"]))
             if e.get("trades_with"):
                 lines.append("  reducing it would worsen " + ", ".join(e["trades_with"]) + " (violated too)")
-            if e.get("free_way"):
-                lines.append("  a first-order step reduces it without worsening an active limit: the optimiser "
-                             "stopped short")
+            if e.get("free_way") and e.get("free_way_reduction", np.inf) >= e["violation"]:
+                lines.append("  a first-order step within the bounds removes it without worsening an active limit: "
+                             "the optimiser stopped short")
+            elif e.get("free_way"):  # a descent that the slopes say ends short of the limit: no retry's promise
+                lines.append(f"  a first-order step within the bounds reduces it by at most "
+                             f"{_num(e['free_way_reduction'])}{u(e['unit'])} without worsening an active limit, not to "
+                             "its limit: the end is near a least violation; other start points (--starts N) may "
+                             "still reach a feasible design")
     for e in ans["active_constraints"]:
         lines.append(f"active: {limit(e)}, margin {_num(e['margin'], e['scale'])}{u(e['unit'])}{monitored(e)}")
     for b in ans["bounds"]:

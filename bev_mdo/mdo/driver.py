@@ -101,6 +101,11 @@ class RunResult:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    def summary(self) -> dict:
+        """``to_dict()`` without the history; ``ended``: the optimiser's last record where the result is another."""
+        return {**{k: v for k, v in self.to_dict().items() if k != "history"},
+                "ended": None if self.last_iterate or not self.history else self.history[-1]}
+
 
 def _mda(run: RunSettings, evaluator: Evaluator, problem: Problem) -> MDA:
     return MDA(evaluator, **run.mda.as_dict(), guesses=problem.coupling_guesses, disciplines=list(run.disciplines))
@@ -428,6 +433,7 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
                                  unknown=form.unknown_derivatives(u) if ok else ())
 
     fo = {**judge(df, dg, dh), "derivatives": form.derivatives}  # what the numbers are computed on: analytic | fd
+    first_order.limit_rates(fo, form.problem, form.var_names, form.scale, (form.lower, form.upper))  # physical
     if ok and fo["verdict"] == first_order.OPTIMUM and form.derivatives == "analytic":
         # the gradient came from the disciplines' partials, which its own check cannot doubt: a wrong partial
         # (df/dz 3z for 2z) ended "optimum" 3.4e-4 above the optimum. Central differences at steps h and 2h
@@ -443,7 +449,7 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
         # (t, -t), and failed true optima with curvature): the optimum is not verified, the kink named
         optimum, before = fo["verdict"] == first_order.OPTIMUM, form.n_points
         fo["kinks"] = end_point_kinks(form, u, f[0], g[0], h[0], float(np.max(np.abs(df), initial=0.0)),
-                                      at_optimum=optimum)
+                                      at_optimum=optimum, failed=fo.setdefault("failed_steps", []))
         fo["kink_points"] = form.n_points - before  # of the check's cost: the steps either side
         if optimum and fo["kinks"]:
             fo.update(verdict=first_order.STOPPED, conditions_hold=False, kink_at_optimum=True)
@@ -481,18 +487,3 @@ def derivatives_disagree(form: Formulation, u: np.ndarray, g: np.ndarray, analyt
     i, j = np.unravel_index(int(np.argmax(gap)), gap.shape)
     names = [form.problem.objective, *form.ineq_labels, *form.eq_labels]
     return {"of": names[rows[i]], "wrt": form.var_names[j], "analytic": float(a[i, j]), "fd": float(b[i, j])}
-
-
-def exit_status(doc: dict, fixed_budget: bool = False) -> int:
-    """bev-mdo optimize's exit status of a run document (``RunResult.to_dict()`` and what the run adds), a
-    hand-started coordinator_node's too: 0 an optimum (or, with ``fixed_budget``, any feasible end);
-    1 infeasible; 3 the recorder failed; 4 a discipline stopped answering (before 1: a node killed while the start
-    point was evaluated left every point failed, and a script keyed on the status read it as an infeasible design);
-    5 feasible but not a verified optimum."""
-    if doc.get("recorder_failed"):
-        return 3
-    if doc.get("unresponsive_disciplines"):
-        return 4
-    if not doc["feasible"]:
-        return 1
-    return 0 if doc["verdict"] == first_order.OPTIMUM or fixed_budget else 5

@@ -171,13 +171,28 @@ def _kinks(kinks: Sequence[dict]) -> str:
     return "; ".join(parts)
 
 
-def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = False) -> list[str]:
+def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = False, ended: dict | None = None
+               ) -> list[str]:
     """What the verdict line does not say, a line each: the design variables an optimum does not pin
     (driver.end_point_check's ``free_variables``), and where ``optimizer`` said it ``converged`` but the conditions
-    do not hold (no kink, no unknown or disagreeing derivative to explain it), what to check."""
+    do not hold (no kink, no unknown or disagreeing derivative to explain it), what to check; ``ended``: the
+    record of the optimiser's last iterate where the result is an earlier one (then the reason is there). A step
+    from the end point that failed (driver.end_point_check's ``failed_steps``) is the likelier cause."""
     lines = [_free_line(fo["free_variables"])] if fo.get("free_variables") else []
-    if converged and fo["verdict"] == STOPPED and not (fo.get("kinks") or fo.get("unknown_derivatives")
-                                                       or fo.get("derivatives_disagree")):
+    if converged and ended is not None and fo["verdict"] != OPTIMUM:  # its end point is not what was judged
+        why = ("cannot follow the drive cycle, a check the optimiser does not see (constrain the energy "
+               "discipline's margins so that it does: options {feasibility_outputs: true}, e.g. drive_force_margin_n "
+               ">= 0; docs/user-problems.md)" if ended.get("cannot_follow")
+               else "is infeasible" if not ended.get("feasible") else "is worse")
+        lines.append(f"{optimizer} says it converged, at iteration {ended.get('iteration')}, which {why}: the result "
+                     "is an earlier point, where the first-order conditions need not hold")
+    elif converged and fo["verdict"] == STOPPED and fo.get("failed_steps") and not fo.get("derivatives_disagree"):
+        lines.append(f"{optimizer} says it converged, but the first-order conditions do not hold at its end point, and "
+                     f"a small step from it in {', '.join(fo['failed_steps'])} fails (discipline_errors): it lies at the "
+                     "edge of the region where the disciplines give values, which the optimiser cannot step past; "
+                     "bounds inside that region would make it a limit the check can judge")
+    elif converged and fo["verdict"] == STOPPED and not (fo.get("kinks") or fo.get("unknown_derivatives")
+                                                         or fo.get("derivatives_disagree")):
         if fo.get("derivatives") == "analytic":
             lines.append(f"{optimizer} says it converged, but the first-order conditions do not hold at its end point "
                          "(judged on the gradient assembled from the disciplines' analytic partials, the optimiser's "
@@ -202,3 +217,40 @@ def _free_line(free: list[dict]) -> str:
             "times as long where they stay feasible): the optimum is "
             f"not unique in {'it' if one else 'them'} ({'its value is' if one else 'their values are'} arbitrary "
             "where the design stays feasible)")
+
+
+def limit_rates(fo: dict, problem, var_names: Sequence[str], var_scale: Sequence[float],
+                bounds: tuple[Sequence[float], Sequence[float]] | None = None) -> None:
+    """Each active constraint row and bound of ``fo`` gets ``d_objective_d_limit``: how the optimum's objective
+    moves, in its own unit, per unit its limit (or bound) is raised, from the multiplier (envelope theorem,
+    Nocedal & Wright eq 12.84): the multipliers are per unit of the scaled objective (f / objective_scale, -f to
+    maximise) and of the normalised constraint g = sign (y - b) / scale or scaled variable (x - lower) / scale.
+    A bound also gets its ``bound`` (physical; ``bounds``: the variables' (lower, upper))."""
+    _, sign, scale = problem.g_terms()
+    row = {label: i for i, label in enumerate(problem.constraint_labels)}
+    sense = (-1.0 if problem.maximize else 1.0) * problem.objective_scale
+    for c in fo["active_constraints"]:
+        if (i := row.get(c["name"])) is not None:
+            c["d_objective_d_limit"] = -sense * c["multiplier"] * sign[i] / scale[i]
+    where = dict(zip(var_names, np.asarray(var_scale, dtype=float)))
+    limits = {k: dict(zip(var_names, map(float, v))) for k, v in zip(("lower", "upper"), bounds or ((), ()))}
+    for b in fo["active_bounds"]:
+        if b["name"] in limits.get(b["kind"], {}):
+            b["bound"] = limits[b["kind"]][b["name"]]
+        if b["name"] in where:
+            b["d_objective_d_limit"] = sense * b["multiplier"] * (1.0 if b["kind"] == "lower" else -1.0) / where[b["name"]]
+
+
+def exit_status(doc: dict, fixed_budget: bool = False) -> int:
+    """bev-mdo optimize's exit status of a run document (``RunResult.to_dict()`` and what the run adds), a
+    hand-started coordinator_node's too: 0 an optimum (or, with ``fixed_budget``, any feasible end);
+    1 infeasible; 3 the recorder failed; 4 a discipline stopped answering (before 1: a node killed while the start
+    point was evaluated left every point failed, and a script keyed on the status read it as an infeasible design);
+    5 feasible but not a verified optimum."""
+    if doc.get("recorder_failed"):
+        return 3
+    if doc.get("unresponsive_disciplines"):
+        return 4
+    if not doc["feasible"]:
+        return 1
+    return 0 if doc["verdict"] == OPTIMUM or fixed_budget else 5

@@ -13,6 +13,8 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
+from bev_mdo.mdo.vectors import base_name, did_you_mean
+
 Spec = tuple[str, Sequence[str], Sequence[str]]
 
 
@@ -95,9 +97,15 @@ class CouplingGraph:
         for name in self.names:
             missing = [v for v in self.inputs[name] if v not in self.producer and v not in avail]
             if missing:
+                known = {base_name(v) for v in [*self.producer, *avail]}
+                hints = [f"{v!r} is a vector of {k} elements (discipline {self.producer[f'{v}[0]']!r}): add "
+                         f"shapes = {{{v!r}: {k}}} to {name!r}" if (k := sum(1 for p in self.producer
+                                                                            if p.startswith(f"{v}[")))
+                         else did_you_mean(v, known).strip() for v in dict.fromkeys(map(base_name, missing))]
+                hint = "; ".join(h for h in hints if h)
                 raise ValueError(
                     f"discipline {name!r} needs {missing}, which no discipline produces and which are not "
-                    "design variables or parameters")
+                    "design variables or parameters" + (f" ({hint})" if hint else ""))
 
     def torn_inputs(self, component: Sequence[str]) -> list[str]:
         """Coupling variables a Gauss-Seidel sweep of ``component`` (in its order) reads before they are computed."""

@@ -37,7 +37,7 @@ NEAR_STEP = 2 * first_order.ACTIVE_TOL  # scaled: the second pair of steps, whic
 
 
 def end_point_kinks(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: np.ndarray,
-                    grad_max: float, at_optimum: bool = False) -> list[dict]:
+                    grad_max: float, at_optimum: bool = False, failed: list | None = None) -> list[dict]:
     """The kinks at ``u``: variables in which the minimised objective, an active inequality or an equality has
     one-sided slopes that differ by more than first_order.FIRST_ORDER_TOL x max(1, its largest slope) (the
     objective's: x max(1, |grad f|), ``grad_max``), by the same jump at steps h and 4h (noise shrinks the jump
@@ -48,15 +48,16 @@ def end_point_kinks(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray,
     short of where a top speed's motor-speed cap meets its power limit. ``at_optimum`` (a point where the
     conditions hold) looks only at the point, and asks the same jump at 16h too and a clear one (over 1e-3 x the
     largest slope): MDA noise of 1e-10 met the test at h and 4h by chance at 6 of 60 smooth optima, and a kink
-    there makes the optimum unverified."""
-    out = _at_steps(form, u, f0, g0, h0, grad_max, form.fd_step, (1, 4, 16) if at_optimum else (1, 4))
+    there makes the optimum unverified. ``failed``: gets the variables a step of which failed (a discipline gave
+    no value a step away: the point lies at the edge of the region where the disciplines give values)."""
+    out = _at_steps(form, u, f0, g0, h0, grad_max, form.fd_step, (1, 4, 16) if at_optimum else (1, 4), failed)
     if not at_optimum and not out and NEAR_STEP > 4 * form.fd_step:
         return [{**k, "near_step": NEAR_STEP} for k in _at_steps(form, u, f0, g0, h0, grad_max, NEAR_STEP, (1, 4))]
     return out
 
 
 def _at_steps(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: np.ndarray, grad_max: float,
-              h: float, multiples: tuple[int, ...]) -> list[dict]:
+              h: float, multiples: tuple[int, ...], failed_out: list | None = None) -> list[dict]:
     """``end_point_kinks`` with the steps ``multiples`` x ``h`` either way (one batch)."""
     lo, hi = form.u_bounds
     n = form.n
@@ -90,6 +91,8 @@ def _at_steps(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: n
     for i, (j, s, k) in enumerate(steps):
         failed[j] |= bool(bad[i])
         slopes[k, int(s < 0), :, j] = (Q[i] - q0) / s
+    if failed_out is not None:
+        failed_out += [form.var_names[j] for j in np.flatnonzero(failed)]
     g_slopes = slopes * to_g[None, None, :, None]
     refs = [max(1.0, grad_max)] + [max(1.0, float(np.nanmax(np.abs(g_slopes[0, :, r]), initial=0.0)))
                                    for r in range(1, len(q0))]

@@ -8,8 +8,11 @@ reported as itself); constraints are the problem's (normalised, feasible where <
 pymoo as its inequality constraints. An objective with a ceiling (a discipline's
 ``upper_limit_below``: from there up its value marks a design the physics cannot serve, such as the
 0-100 km/h time of one that cannot reach 100 km/h) adds the constraint value < ceiling, so that such
-a design is never on a front. A point the disciplines could not evaluate gets objectives 1e30 and
-constraint 1e6.
+a design is never on a front. The run's judgement of a design beyond its constraints (``design_check``,
+RunSettings.design_check: a motor that cannot follow the drive cycle, as ``optimize``, ``evaluate`` and ``sweep``
+judge it) adds one more constraint, ``CANNOT_FOLLOW_G`` where it rules the design out, else 0. A point the
+disciplines could not evaluate gets objectives 1e30 and constraint 1e6 (pymoo's only); it is counted as failed
+(``ParetoResult.failed``, the first error kept), never reported as a constraint violation.
 
 Every generation's feasible non-dominated set (a :class:`Front`, with every MDA variable at
 its designs, as evaluated) goes to ``on_front(front, final)``; ``bev-mdo pareto`` writes them
@@ -23,9 +26,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bev_mdo import interrupts
+from bev_mdo.mdo.vectors import did_you_mean
 
 FAILED_F = 1e30
 FAILED_G = 1e6
+CANNOT_FOLLOW_G = 1.0  # the constraint value of a design ``design_check`` rules out: one scale past a limit
 
 
 def non_dominated(F: np.ndarray) -> np.ndarray:
@@ -62,7 +67,7 @@ class ParetoResult:
     values: dict[str, np.ndarray]    # every MDA variable at the front's designs
     archive_X: np.ndarray            # every evaluated design (E, n)
     archive_F: np.ndarray            # in pymoo's sense: a maximised objective negated, 1e30 where failed
-    archive_cv: np.ndarray           # max normalised violation (<= 0 feasible)
+    archive_cv: np.ndarray           # max normalised violation (<= 0 feasible), NaN where the point failed
     generations: int
     evaluations: int
     batches: int
@@ -70,6 +75,10 @@ class ParetoResult:
     wall_time_s: float = 0.0
     hypervolume: list[float] = field(default_factory=list)  # each generation's front: ``hypervolumes``
     front_sizes: list[int] = field(default_factory=list)  # each generation's front: its designs
+    failed: int = 0                  # evaluated designs the disciplines could not evaluate
+    first_error: str = ""            # the first of their errors
+    cannot_follow: int = 0           # evaluated designs ``design_check`` ruled out (infeasible)
+    least_violated: dict | None = None  # with no feasible design: the archive's (``least_violated``)
 
 
 HV_REFERENCE = 1.1  # the hypervolume's reference point, each objective, in the last front's scale
@@ -103,25 +112,32 @@ def settling_line(hv: list[float], last: int = 5, sizes: list[int] | None = None
     """One line: how much the front's hypervolume (``hypervolumes``) grew over its last generations;
     ``sizes``: each generation's front size. No percentage where it would mean nothing: from an earlier
     hypervolume of almost nothing (below ``FROM_LITTLE`` of the last) or on a front of fewer than
-    ``TINY_FRONT`` designs (a trial read "+4646.9 %" on fronts of 1 to 13 designs)."""
+    ``TINY_FRONT`` designs (a trial read "+4646.9 %" on fronts of 1 to 13 designs). The advice of more
+    generations only where the front grew: not on a front of one design (objectives that fall together) nor
+    on one whose hypervolume fell."""
     k = min(last, len(hv) - 1)
     if k < 1 or not np.isfinite(hv[-1]) or hv[-1] <= 0:
         return None
     before, head = hv[-1 - k], f"front hypervolume over the last {k} generations: "
     more = "more --generations (or a larger --pop) would extend the front"
     n = (sizes[-1 - k], sizes[-1]) if sizes is not None and len(sizes) == len(hv) else None
+    if n and n[1] == 1:
+        return ("the front is one design: the objectives do not trade off over the designs found (it is the best "
+                "in every one), so there is no front to extend")
     if not np.isfinite(before):
         return head + f"from no feasible design; still moving: {more}"
+    grew, fell = hv[-1] > 1.01 * before, hv[-1] < 0.99 * before
+    lost = "; it fell: NSGA-II's population lost part of the front it held (no archive keeps every design found)"
     if n and min(n) < TINY_FRONT:
         return (head + f"{before:.3g} -> {hv[-1]:.3g} on fronts of {n[0]} and {n[1]} designs, too few for a "
-                f"growth in per cent to say whether the front has settled; {more}")
+                "growth in per cent to say whether the front has settled" + (f"; {more}" if grew else lost if fell
+                                                                             else ""))
     if before < FROM_LITTLE * hv[-1]:
         what = "0 (every design outside the last front's range)" if before <= 0 else \
             f"almost nothing ({before:.3g} -> {hv[-1]:.3g} in the last front's scale, no per cent)"
         return head + f"from {what}; the front was still forming: {more}"
-    unsettled = abs(hv[-1] - before) > 0.01 * before
     return (head + f"{100 * (hv[-1] / before - 1):+.1f} %"
-            + (f"; still moving: {more}" if unsettled else " (settled: within 1 %)"))
+            + (f"; still moving: {more}" if grew else f"; not settled{lost}" if fell else " (settled: within 1 %)"))
 
 
 def _pymoo_problem_class():
@@ -130,13 +146,14 @@ def _pymoo_problem_class():
     class MDAProblem(PymooProblem):
         """Vectorised pymoo problem over a formulation's batched ``analyse`` (one batch per call)."""
 
-        def __init__(self, formulation, objectives, ceilings):
+        def __init__(self, formulation, objectives, ceilings, design_check=None, batch_check=None):
             self.form = formulation
             self.objectives = [name for name, _ in objectives]
             self.signs = np.array([-1.0 if maximize else 1.0 for _, maximize in objectives])
             self.ceilings = [(j, float(ceilings[o])) for j, o in enumerate(self.objectives) if o in ceilings]
+            self.design_check, self.batch_check = design_check, batch_check
             prob = formulation.problem
-            n_g = len(prob.constraint_rows) + len(self.ceilings)
+            n_g = len(prob.constraint_rows) + len(self.ceilings) + (design_check is not None)
             super().__init__(n_var=len(prob.names), n_obj=len(self.objectives), n_ieq_constr=n_g,
                              xl=prob.array("lower"), xu=prob.array("upper"))
             self.batches = 0
@@ -144,6 +161,7 @@ def _pymoo_problem_class():
             self.archive: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
             self.batch_values: list[dict[str, np.ndarray]] = []
             self._where: dict[bytes, tuple[int, int]] = {}  # design row bytes -> (batch, row)
+            self.failed, self.first_error, self.cannot_follow = 0, "", 0
 
         def _evaluate(self, X, out, *args, **kwargs):
             interrupts.check()  # a signal pymoo's bare excepts swallowed stops the run here
@@ -156,17 +174,36 @@ def _pymoo_problem_class():
                                 + [(F[:, j] - c) / abs(c) for j, c in self.ceilings])  # value < ceiling
             F = F * self.signs
             bad = ~ok | ~np.all(np.isfinite(F), axis=1) | ~np.all(np.isfinite(G), axis=1)
+            if self.design_check is not None:  # the run's check beyond the constraints, at each analysed design
+                short = (~bad & np.asarray(self.batch_check(res.values), bool) if self.batch_check is not None else
+                         np.array([not bad[i] and bool(self.design_check({k: float(v[i]) for k, v in
+                                                                          res.values.items()})) for i in range(len(X))],
+                                  dtype=bool))
+                G = np.column_stack([G, np.where(short, CANNOT_FOLLOW_G, 0.0)])
+                self.cannot_follow += int(short.sum())
             F[bad] = FAILED_F
             G[bad] = FAILED_G
             out["F"] = F
             if G.shape[1]:
                 out["G"] = G
             cv = G.max(axis=1) if G.shape[1] else np.zeros(len(X))
+            cv[bad] = np.nan  # a failed point has no violation: it is counted as failed
+            self._count_failed(bad, ok, res.messages, X)
             self.archive.append((np.array(X, float), F.copy(), cv))
             self.batch_values.append({k: np.asarray(v) for k, v in res.values.items()})
             b = len(self.batch_values) - 1
             for i, row in enumerate(np.asarray(X, float)):
                 self._where[row.tobytes()] = (b, i)
+
+        def _count_failed(self, bad, ok, messages, X) -> None:
+            if not bad.any():
+                return
+            self.failed += int(bad.sum())
+            if not self.first_error:
+                i = int(np.flatnonzero(bad)[0])
+                design = ", ".join(f"{n}={v:.6g}" for n, v in zip(self.form.problem.names, X[i]))
+                self.first_error = (messages[i] if not ok[i] and messages[i] else
+                                    f"a non-finite objective or constraint value at {design}")
 
         def values_at(self, X) -> dict[str, np.ndarray]:
             """Every MDA variable at already evaluated designs ``X`` (as evaluated; no new batch)."""
@@ -187,17 +224,21 @@ def objective_pairs(objectives) -> list[tuple[str, bool]]:
     return [(o, False) if isinstance(o, str) else (str(o[0]), bool(o[1])) for o in objectives]
 
 
-def make_problem(formulation, objectives, ceilings=None):
+def make_problem(formulation, objectives, ceilings=None, design_check=None, batch_check=None):
     """The pymoo problem of ``formulation`` (an MDF from ``driver.build_formulation``); ``ceilings``:
-    {output: value from which up it marks an infeasible design}, a constraint where it is an objective."""
+    {output: value from which up it marks an infeasible design}, a constraint where it is an objective;
+    ``design_check({variable: value})``: the lines why one analysed design is infeasible beyond its
+    constraints ([] if it is not), one more constraint; ``batch_check({variable: (N,) values})``: the same
+    judgement of a whole batch, (N,) bool (one call a generation instead of one a design)."""
     objectives = objective_pairs(objectives)
     missing = [o for o, _ in objectives if o not in _outputs(formulation)]
     if missing:
-        raise ValueError(f"objective {missing[0]!r} is not produced by any discipline; outputs: "
+        raise ValueError(f"objective {missing[0]!r} is not produced by any discipline; "
+                         f"{did_you_mean(missing[0], _outputs(formulation))}outputs: "
                          f"{', '.join(sorted(_outputs(formulation)))}")
     if not objectives:
         raise ValueError("at least one objective is needed")
-    return _pymoo_problem_class()(formulation, objectives, dict(ceilings or {}))
+    return _pymoo_problem_class()(formulation, objectives, dict(ceilings or {}), design_check, batch_check)
 
 
 def _outputs(formulation) -> set[str]:
@@ -230,21 +271,42 @@ def _front(problem, pop, generation: int, wall_time_s: float) -> Front:
                  problem.values_at(X), problem.evaluations, wall_time_s)
 
 
+def least_violated(problem, X, cv) -> dict | None:
+    """The evaluated design of least violation among ``X`` (``cv``: their normalised violations, NaN where
+    failed) of ``problem`` (``make_problem``'s): ``{"design", "violation" (normalised), "constraints": [{"constraint",
+    "output", "value", "limit"}] each it breaks, in the output's own units, "cannot_follow": design_check's
+    lines}``; None if every design failed."""
+    cv = np.asarray(cv, float)
+    if not np.isfinite(cv).any():
+        return None
+    i = int(np.nanargmin(cv))
+    v = {k: float(a[0]) for k, a in problem.values_at(X[i]).items()}
+    rows = [(n, ">=" if k == "lower" else "<=", b, (b - v[n]) if k == "lower" else (v[n] - b))
+            for n, k, b, _ in problem.form.problem.constraint_rows]
+    rows += [(problem.objectives[j], "<", c, v[problem.objectives[j]] - c) for j, c in problem.ceilings]
+    return {"design": problem.form.problem.design_dict(X[i]), "violation": float(cv[i]),
+            "constraints": [{"constraint": f"{n} {op} {b:g}", "output": n, "value": v[n], "limit": float(b)}
+                            for n, op, b, by in rows if by > 0],
+            "cannot_follow": list(dict.fromkeys(problem.design_check(v))) if problem.design_check is not None else []}
+
+
 def run_nsga2(formulation, objectives, *, pop_size: int = 100, generations: int = 30, seed: int = 1,
-              on_generation=None, on_front=None, ceilings=None) -> ParetoResult:
+              on_generation=None, on_front=None, ceilings=None, design_check=None, batch_check=None
+              ) -> ParetoResult:
     """NSGA-II (pymoo) for ``generations`` generations of ``pop_size`` designs; deterministic per seed.
 
     ``on_generation(gen, n_evals, seconds)`` is called after every generation;
     ``on_front(front, final)`` with every generation's :class:`Front` (``final`` True on the
     last one, which is the result's front). Whatever stops the run (a signal, an error), every
-    finished generation's front has gone to ``on_front``. ``ceilings``: as ``make_problem``."""
+    finished generation's front has gone to ``on_front``. ``ceilings``, ``design_check``, ``batch_check``: as
+    ``make_problem``."""
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.callback import Callback
     from pymoo.optimize import minimize
 
     if pop_size < 4 or generations < 1:
         raise ValueError(f"pop_size must be >= 4 and generations >= 1, got {pop_size}, {generations}")
-    problem = make_problem(formulation, objectives, ceilings)
+    problem = make_problem(formulation, objectives, ceilings, design_check, batch_check)
     times: list[float] = []
     t0 = time.perf_counter()
     pending: list[Front] = []  # a generation's front is sent once the next one shows it was not the last
@@ -285,4 +347,5 @@ def run_nsga2(formulation, objectives, *, pop_size: int = 100, generations: int 
     return ParetoResult(list(formulation.problem.names), list(problem.objectives), front.X, front.F,
                         front.values, aX, aF, aC, n_gen,
                         problem.evaluations, problem.batches, times, wall, hypervolumes(fronts),
-                        [len(F) for F in fronts])
+                        [len(F) for F in fronts], problem.failed, problem.first_error, problem.cannot_follow,
+                        None if len(front.X) else least_violated(problem, aX, aC))

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from bev_mdo.mdo.vectors import base_name, expand, flat_names
+from bev_mdo.mdo.vectors import base_name, did_you_mean, expand, flat_names
 from bev_mdo.models.common import check_keys, is_number, text_hint
 
 MAX_VECTOR_ELEMENTS = 10_000  # per vector design variable or constraint (docs/vector-variables.md)
@@ -131,7 +131,8 @@ class Problem:
             raise ValueError(f"{where} misses design variables {missing}; give every one of {self.names}")
         unknown = [k for k in design if k not in self.names and k not in params]
         if unknown:
-            raise ValueError(f"{where}.{unknown[0]}: neither a design variable nor a discipline parameter "
+            raise ValueError(f"{where}.{unknown[0]}: neither a design variable nor a discipline parameter; "
+                             f"{did_you_mean(unknown[0], [*self.names, *params])}"
                              f"(unknown design names {unknown}; design variables: {self.names}, "
                              f"parameters: {sorted(params)})")
 

@@ -24,6 +24,7 @@ BatchFun = Callable[[np.ndarray], "Mapping[str, np.ndarray] | np.ndarray"]
 COUPLING_THRESHOLDS = (("NC", 0.05), ("MC", 0.5), ("SC", 0.8))  # label if |s| < bound
 REL_STEP_FIRST = 1e-4
 REL_STEP_SECOND = 1e-3
+REL_STEP_MAX = 0.5  # rel_step is in (0, REL_STEP_MAX)
 COMPLEX_STEP = 1e-20
 _CENTRAL = np.array([-1.0, 0.0, 1.0])
 _ONE_SIDED = np.array([0.0, 1.0, 2.0, 3.0])
@@ -54,7 +55,7 @@ class Sensitivities:
     method: str                                 # "central" / "complex" (first order)
     hessian: dict[str, np.ndarray] | None = None      # raw, (n, n)
     second: dict[str, np.ndarray] | None = None       # normalised eq 5-5, (n, n)
-    second_error: dict[str, np.ndarray] | None = None
+    second_error: dict[str, np.ndarray] | None = None  # Richardson's, at least the rounding of the stencil's values
     n_evaluations: int = 0
     n_batches: int = 0
     one_sided: tuple[str, ...] = field(default_factory=tuple)  # variables on a bound
@@ -155,8 +156,8 @@ def sensitivities(fun: BatchFun, point: Mapping[str, float], wrt: Sequence[str] 
         raise ValueError(f"method must be 'central', 'complex' or 'auto', got {method!r}")
     if rel_step is None:
         rel_step = REL_STEP_SECOND if order == 2 else REL_STEP_FIRST
-    if not (0 < rel_step < 0.5):
-        raise ValueError(f"rel_step must be in (0, 0.5), got {rel_step!r}")
+    if not (0 < rel_step < REL_STEP_MAX):
+        raise ValueError(f"rel_step must be in (0, {REL_STEP_MAX:g}), got {rel_step!r}")
     all_names, x0, wrt, idx, h, direction = _prepare(point, wrt, bounds, rel_step)
     n_eval = n_batch = 0
     grad_c = used = None
@@ -262,22 +263,28 @@ def _real_stencil(fun, x0, idx, h, direction, order):
     out = {k: np.asarray(v, dtype=float) for k, v in _call(fun, X).items()}
     f0 = {k: float(v[0]) for k, v in out.items()}
     g, g_err, H, H_err = {}, {}, {}, {}
+    eps = np.finfo(float).eps
     for k, v in out.items():
-        est = {}
+        est, ulp = {}, {}
         for kind, a, b, s, rows in terms:
             denom = (s * h[a]) * (s * h[b]) if kind == "H" else s * h[a]
             est[(kind, a, b, s)] = sum(w * v[r] for r, w in rows) / denom
+            # the rounding of the values, a few ulps each (the model's own and the sum's)
+            ulp[(kind, a, b, s)] = 4.0 * eps * sum(abs(w * v[r]) for r, w in rows) / abs(denom)
         gh = np.array([est[("g", a, a, 1.0)] for a in range(n)])
         g2 = np.array([est[("g", a, a, 2.0)] for a in range(n)])
         g[k], g_err[k] = gh + (gh - g2) / 3.0, np.abs(gh - g2) / 3.0
         g_err[k] = np.maximum(g_err[k], _kink_error(v, points, direction, h))
         if order == 2:
-            Hh, H2 = np.zeros((n, n)), np.zeros((n, n))
+            Hh, H2, floor = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
             for a in range(n):
                 for b in range(a, n):
                     Hh[a, b] = Hh[b, a] = est[("H", a, b, 1.0)]
                     H2[a, b] = H2[b, a] = est[("H", a, b, 2.0)]
-            H[k], H_err[k] = Hh + (Hh - H2) / 3.0, np.abs(Hh - H2) / 3.0
+                    # the rounding of the values in (4 Hh - H2) / 3: steps h and 2h can agree to the last bit
+                    # on a cross term that is 0 (a Richardson error of 1e-11 beside an entry of 5e-11)
+                    floor[a, b] = floor[b, a] = (4.0 * ulp[("H", a, b, 1.0)] + ulp[("H", a, b, 2.0)]) / 3.0
+            H[k], H_err[k] = Hh + (Hh - H2) / 3.0, np.maximum(np.abs(Hh - H2) / 3.0, floor)
     if order == 1:
         H = H_err = None
     return f0, g, g_err, H, H_err, X.shape[0]

@@ -89,6 +89,8 @@ class RunSettings:
     # the cycle): ``design_check({variable: value})`` -> one line per reason the design is infeasible, [] for none.
     # Every feasibility the engine states (iteration records, the result, its verdict, multi-start) applies it.
     design_check: Callable[[Mapping[str, float]], list[str]] | None = field(default=None, compare=False, repr=False)
+    # the same of a batch ({variable: (N,) values}) -> (N,) bool, True where it rules the design out (pareto)
+    designs_check: Callable[[Mapping[str, Any]], Any] | None = field(default=None, compare=False, repr=False)
 
     def optimisation_problem(self):
         """The ``Problem`` of ``problem``: the one the config built at load, else built here."""

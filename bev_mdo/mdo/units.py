@@ -9,8 +9,9 @@ A variable's unit in the run (tables, plots, constraint bounds) is its producer'
 discipline produces (a design variable) has the unit of its first consumer in the disciplines'
 order. A consumer that declares another unit of the same dimension gets the value converted on
 entry (:func:`conversions`, applied by ``discipline.run_discipline`` on every transport); a unit
-of another dimension is an error at load naming both ends. pint is used here, once, at load: the
-hot path multiplies numpy arrays by a float (and adds an offset for temperatures).
+of another dimension is an error at load naming both ends, and so is a connection that would need an
+offset (K to degC): a temperature difference declared in degC would be shifted by 273.15. pint is used
+here, once, at load: the hot path multiplies numpy arrays by a float.
 """
 from __future__ import annotations
 
@@ -124,8 +125,14 @@ def factor(source: str, target: str) -> tuple[float, float]:
         return 1.0, 0.0
     if a.dimensionality != b.dimensionality:
         raise UnitError(f"{source.strip() or '1'} and {target.strip() or '1'} have different dimensions")
+    import pint
+
     q = _registry().Quantity
-    zero, one = q(0.0, a).to(b).magnitude, q(1.0, a).to(b).magnitude
+    try:
+        zero, one = q(0.0, a).to(b).magnitude, q(1.0, a).to(b).magnitude
+    except pint.errors.PintError as exc:  # delta_degC -> degC: a difference is no temperature
+        raise UnitError(f"{source.strip()} does not convert to {target.strip()} ({type(exc).__name__}: a temperature "
+                        "difference and an absolute temperature)") from None
     return float(one - zero), float(zero)
 
 
@@ -146,8 +153,14 @@ def conversions(disciplines: Iterable[Any]) -> dict[str, dict[str, tuple[float, 
                 scale, offset = factor(run[v], mine[v])
             except UnitError as exc:
                 first = source.get(v) or next(c.name for c in discs if v in c.inputs)
-                raise UnitError(f"units do not match: {first}.{v} [{run[v]}] -> {d.name}.{v} [{mine[v]}] "
-                                f"({exc})") from None
+                raise UnitError(f"units do not match: {first}.{base_name(v)} [{run[v]}] -> {d.name}.{base_name(v)} "
+                                f"[{mine[v]}] ({exc})") from None
+            if offset != 0.0:  # K -> degC takes 273.15 off an absolute temperature, and a rise is no temperature
+                first = source.get(v) or next(c.name for c in discs if v in c.inputs)
+                raise UnitError(f"units do not match: {first}.{base_name(v)} [{run[v]}] -> {d.name}.{base_name(v)} "
+                                f"[{mine[v]}] (an offset unit: it would convert as an absolute temperature, shifted "
+                                f"by {abs(offset):g}; declare the same unit at both ends, or delta_degC / delta_degF "
+                                "for a temperature difference)")
             if (scale, offset) != (1.0, 0.0):
                 out.setdefault(d.name, {})[v] = (scale, offset)
     return out

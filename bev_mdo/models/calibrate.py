@@ -26,7 +26,7 @@ from bev_mdo import interrupts
 
 from . import fleet as fl
 from .fleet import group_folds  # noqa: F401 - the fold rule, also used by models/baselines.py and scripts
-from .params import CHAIN_SPECS, PARAMETER_SET_DIR, QUASI_STATIC_SPECS, all_specs, is_parameter_set_file
+from .params import CHAIN_SPECS, PARAMETER_SET_DIR, QUASI_STATIC_SPECS, all_specs, is_parameter_set_file, load_parameter_set
 
 # fixed assumptions (not fitted): physical values for a 2022 BEV on a two-wheel dynamometer
 FIXED = {
@@ -270,8 +270,6 @@ def cv_pairs(fleet: fl.Fleet, cv: dict, use: np.ndarray) -> dict:
 
 def _fleet_name(fleet: fl.Fleet) -> str:
     """The fleet file as the parameter set records it: the shipped one by its place in the repository."""
-    from pathlib import Path
-
     p = Path(fleet.path)
     return "bev_mdo/data/epa_2022_bev/train.csv" if p.resolve() == fl.DEFAULT_FLEET.resolve() else str(p)
 
@@ -373,14 +371,14 @@ def few_values(f: dict) -> str:
 
 
 def _writable(path: Path) -> None:
-    """Before the fit: the set's folder (created if missing) takes a new file; OSError naming ``path`` otherwise."""
+    """Before the fit, leaving nothing (missing folders are made on writing): its nearest folder takes a new file."""
     import tempfile
 
+    folder = next(p for p in path.absolute().parents if p.exists())
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tempfile.TemporaryFile(dir=path.parent).close()
+        tempfile.TemporaryFile(dir=folder).close()
     except OSError as exc:
-        raise OSError(exc.errno, f"its folder {path.parent} does not take a new file ({exc.strerror})", str(path))
+        raise OSError(exc.errno, f"the folder {folder} does not take a new file ({exc.strerror})", str(path))
 
 
 DESCRIPTION = ("Fit a model's fleet-wide parameters to measured cars (least squares on UDDS and HWFET), "
@@ -446,6 +444,8 @@ def run(args) -> int:
         fleet = fl.read_fleet(args.data)
         cycles = fl.resampled_cycles()
         use = usable(fleet, cycles)
+        shipped = fl.predict(fleet, MODELS[model][0], load_parameter_set(MODELS[model][3]), cycles)  # in Wh/mi?
+        fl.note_energy_unit(fleet, shipped, dict.fromkeys(fl.CYCLES, use), f"{model} with {MODELS[model][3]}")
         print(f"fitting {model} on {int(use.sum())} vehicles of {fleet.path}", flush=True)
         f = fit(fleet, cycles=cycles, use=use, model=model)
         if f["n_residuals"] <= int(f["determined"].sum()):  # no residual degree of freedom: no standard errors

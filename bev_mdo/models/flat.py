@@ -16,7 +16,11 @@ Choices (documented deviations):
 * regeneration (eq 6-34): braking samples are those with negative traction force (negative
   wheel power); their electrical power is weighted by r, driving samples by 1. The thesis
   writes the indicator as "acceleration < 0"; using the force sign keeps coasting
-  decelerations (where drag exceeds inertia) as driving power.
+  decelerations (where drag exceeds inertia) as driving power. Eq 6-34 as printed,
+  P - P 1[a<0] r/100, would keep braking power at r = 0 and drop it at r = 100, the reverse of
+  eqs 6-32/6-33: the weight r is that equations' reading.
+* eq 7-23 as printed (rho CdA v + M dv/dt) is not the derivative of eq 7-18's force; dI uses that
+  derivative (rho CdA |v| a + M j, the jerk j = da/dt), an inductive term under 0.2 % of the energy.
 * rolling resistance acts only while moving (sgn(v)); eq 7-18 has it also at standstill,
   where it would give a small copper loss at idle.
 

@@ -19,9 +19,10 @@ from .params import get_params
 
 
 def steps_not_followed(time_s, speed_m_s, params, vehicle_mass_kg, gear_ratio, motor_kw):
-    """(count, worst) per design, each (N,): the cycle steps the motor cannot drive, and the largest
-    shortfall of net force over them (N, 0 where none)."""
-    return _in_blocks(time_s, speed_m_s, params, vehicle_mass_kg, gear_ratio, motor_kw)[:2]
+    """(count, worst, over_speed) per design, each (N,): the cycle steps the motor cannot drive, the largest
+    shortfall of net force over them (N, 0 where none), and how many of them turn it over its speed limit."""
+    count, worst, _, over = _in_blocks(time_s, speed_m_s, params, vehicle_mass_kg, gear_ratio, motor_kw)
+    return count, worst, over
 
 
 def drive_force_margin_n(time_s, speed_m_s, params, vehicle_mass_kg, gear_ratio, motor_kw):
@@ -39,13 +40,13 @@ def _in_blocks(time_s, speed_m_s, params, vehicle_mass_kg, gear_ratio, motor_kw)
     n = max(m.size, ig.size, kw.size)
     m, ig, kw = (np.broadcast_to(x, (n,)) for x in (m, ig, kw))
     p = {k: np.broadcast_to(np.asarray(x, float), (n,)) if np.ndim(x) else x for k, x in p.items()}
-    count, worst, margin = np.zeros(n, np.int64), np.zeros(n), np.zeros(n)
+    count, worst, margin, over = np.zeros(n, np.int64), np.zeros(n), np.zeros(n), np.zeros(n, np.int64)
     step = max(1, _CELLS // max(len(v), 1))  # designs per block: (steps x designs) arrays stay small at any batch
     for s in range(0, n, step):
         b = slice(s, s + step)
-        count[b], worst[b], margin[b] = _block(t, v, {k: (x[b] if np.ndim(x) else x) for k, x in p.items()},
+        count[b], worst[b], margin[b], over[b] = _block(t, v, {k: (x[b] if np.ndim(x) else x) for k, x in p.items()},
                                                m[b], ig[b], kw[b])
-    return count, worst, margin
+    return count, worst, margin, over
 
 
 _CELLS = 1 << 20  # steps x designs per block (about 8 MB per array)
@@ -61,4 +62,4 @@ def _block(t, v, p, m, ig, kw):
     moving = v_bar > 0
     bad = moving & ((short > 1e-9 * (np.abs(need) + np.abs(have) + 1.0)) | over_speed)
     return (bad.sum(axis=0), np.where(bad, np.maximum(short, 0.0), 0.0).max(axis=0, initial=0.0),
-            np.where(moving, -short, np.inf).min(axis=0, initial=np.inf))
+            np.where(moving, -short, np.inf).min(axis=0, initial=np.inf), (moving & over_speed).sum(axis=0))

@@ -56,7 +56,7 @@ def kerb_mass_compounding_kg(motor_kw, battery_kwh, kerb_reference_kg=DEFAULTS["
     """Ch.3 rule: kerb = 1521 kg + 1.6 x (powertrain mass - powertrain mass at 80 kW / 24 kWh).
 
     The powertrain mass is eq 2-18 + 2-20 (battery by eq 7-21). Note: Table 3-1's 1689 kg
-    multiplies the whole new powertrain by 1.6, not the difference (see README of models)."""
+    multiplies the whole new powertrain by 1.6, not the difference (docs/thesis.md, the compounding rule)."""
     kw, kwh = check_design("motor_kw", motor_kw), check_design("battery_kwh", battery_kwh)
     _checked(kerb_reference_kg=kerb_reference_kg, reference_motor_kw=reference_motor_kw,
              reference_battery_kwh=reference_battery_kwh, mass_compounding=mass_compounding,

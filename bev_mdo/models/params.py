@@ -333,7 +333,8 @@ SOURCE_KEYS = ("name", "file", "sha256", "fitted")
 def parameter_set_source(name: str) -> dict[str, str]:
     """Which set ``name`` is: its ``name``, for a file its absolute ``file`` and ``sha256``, and ``fitted``
     (the date its fit ran, from its ``fitted_on``) where it says; ``fitted_on``: the fleet it was fitted on,
-    as the set records it ({} when it does not). ValueError as :func:`load_parameter_set`."""
+    as the set records it ({} when it does not); ``notes``: its ``quality.notes`` (what calibrate noted of the
+    fit: a fleet in other units, a parameter at a bound). ValueError as :func:`load_parameter_set`."""
     import hashlib
 
     path, doc = _set_document(name)
@@ -343,7 +344,9 @@ def parameter_set_source(name: str) -> dict[str, str]:
         out.update(file=str(path.resolve()), sha256=hashlib.sha256(path.read_bytes()).hexdigest())
     if fitted_on.get("date"):
         out["fitted"] = str(fitted_on["date"])
-    return {**out, "fitted_on": {str(k): v for k, v in fitted_on.items()}}
+    notes = doc["quality"].get("notes") if isinstance(doc.get("quality"), dict) else None
+    return {**out, "fitted_on": {str(k): v for k, v in fitted_on.items()},
+            "notes": [str(n) for n in notes] if isinstance(notes, list) else []}
 
 
 def _set_document(name: str) -> tuple[Path, dict]:

@@ -213,7 +213,7 @@ def main(args: list[str] | None = None) -> int:
     """`ros2 run bev_mdo coordinator_node --ros-args -p config:=... [-p formulation:=idf -p optimizer:=SLSQP]
     [-p recorders:=1 -p run_id:=RUN] [-p compose:=coordinator]` (with a recorder started on its own for
     the same run, ``recorder_node --run-id RUN``, wait for its declaration so the bag misses nothing; with compose:=coordinator the disciplines' nodes run in this process, composed.Beside)."""
-    from bev_mdo.mdo.driver import exit_status
+    from bev_mdo.mdo.first_order import exit_status
     from bev_mdo.config import RunConfig
     from bev_mdo.ros.paths import default_config
 
@@ -277,4 +277,4 @@ def _instances(spec: str, config) -> dict[str, int] | None:
         return None
     from bev_mdo.processes import parse_instances
 
-    return parse_instances(spec, discipline_names(config))
+    return parse_instances(spec, discipline_names(config), flag="-p instances")

@@ -167,7 +167,8 @@ class Structure:
     name = "structure"
     inputs = ("x_shared", "x_1", "y_21", "y_31")
     outputs = ("y_12", "y_14", "g_1")
-    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
+    # one unit a variable: x_shared (t/c, ft, Mach, AR, deg, ft^2) and y_12 (lb, twist) mix units, so "1"
+    units = {**dict.fromkeys(inputs + outputs, "1"), "y_21": "lb", "y_31": "lb", "y_14": "lb"}
     shapes = {"x_shared": 6, "x_1": 2, "y_12": 2, "y_14": 2, "g_1": 7}
 
     def compute(self, inputs):
@@ -255,7 +256,7 @@ class Aerodynamics:
     name = "aerodynamics"
     inputs = ("x_shared", "x_2", "y_12", "y_32")
     outputs = ("y_21", "y_23", "y_24", "g_2")
-    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
+    units = {**dict.fromkeys(inputs + outputs, "1"), "y_21": "lb", "y_23": "lb"}
     shapes = {"x_shared": 6, "y_12": 2}
 
     def compute(self, inputs):
@@ -346,7 +347,7 @@ class Propulsion:
     name = "propulsion"
     inputs = ("x_shared", "x_3", "y_23")
     outputs = ("y_31", "y_32", "y_34", "g_3")
-    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
+    units = {**dict.fromkeys(inputs + outputs, "1"), "y_23": "lb", "y_31": "lb", "y_34": "1/h"}
     shapes = {"x_shared": 6, "g_3": 4}
 
     def compute(self, inputs):
@@ -403,7 +404,7 @@ class Mission:
     name = "mission"
     inputs = ("x_shared", "y_14", "y_24", "y_34")
     outputs = ("y_4",)
-    units = dict.fromkeys(inputs + outputs, "1")  # dimensionless
+    units = {**dict.fromkeys(inputs + outputs, "1"), "y_14": "lb", "y_34": "1/h", "y_4": "nmi"}
     shapes = {"x_shared": 6, "y_14": 2}
 
     def compute(self, inputs):

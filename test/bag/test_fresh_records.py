@@ -190,7 +190,16 @@ def test_a_bag_said_unsigned_whose_records_are_signed_is_refused(tmp_path, signe
     key_file, _, recs = signed
     bag = _bag(tmp_path / "stripped", recs, _config(""))  # no key named: the writer records "not signed"
     assert open_bag(bag).metadata["bev_mdo_signing"]["signed"] == "false"
-    with pytest.raises(BagError, match="records are signed but the bag names no key"):
+    with pytest.raises(BagError, match=r"records are signed but the bag names no key.*\(was its config edited\?\)"):
+        history(bag)
+
+
+def test_a_bag_with_no_config_whose_records_are_signed_says_so(tmp_path, signed):
+    """A recorder started without the run's config (bev-mdo record) keeps signed records it cannot verify: the
+    refusal asked "(was its config edited?)" of a bag that never had one."""
+    _, _, recs = signed
+    bag = _bag(tmp_path / "keyless", recs, "")
+    with pytest.raises(BagError, match=r"names no key .*\(it holds no config \(a recorder started without one\)\)"):
         history(bag)
 
 

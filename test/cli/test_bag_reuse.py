@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from bev_mdo.api.runbag import CLAIM_FILE
 from bev_mdo.cli import main
 
 LEAF = str(Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml")
@@ -156,3 +157,19 @@ def test_over_ros_the_rerun_keeps_its_node_logs_apart_from_the_stopped_runs(tmp_
     assert _files(bag / "logs.1") == {bag / "logs.1" / p.relative_to(bag / "logs"): b for p, b in before.items()}
     assert (bag / "logs" / "config.yaml").read_text() != "name: first\n" and any(bag.glob("*.mcap"))
     assert not any(b"first run" in b for b in _files(bag / "logs").values())
+
+
+def test_old_logs_that_cannot_be_moved_are_said_as_such(tmp_path, capsys, monkeypatch):
+    """An OS error while moving the stopped run's logs/ aside was reported as 'cannot create the bag directory'."""
+    bag = tmp_path / "b"
+    before = _left(bag, "logs")
+
+    def refuse(self, target):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(Path, "rename", refuse)
+    assert main(["optimize", LEAF, "--transport", "inprocess", "--bag", str(bag), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"bev-mdo optimize: error: --bag {bag}: cannot move the logs/ of an earlier run that wrote no bag "
+                   "to logs.1/ (Permission denied); move or remove it"], err
+    assert _files(bag / "logs") == before and not (bag / CLAIM_FILE).exists() and not any(bag.glob("*.mcap"))

@@ -127,3 +127,16 @@ def test_a_point_the_scaled_variables_cannot_hold_is_refused(capsys, tmp_path):
     code = main(["check-totals", str(tmp_path / "wide.yaml"), "--transport", "inprocess", "--at", "x=1"])
     err = capsys.readouterr().err
     assert code == 2 and "x: 1 is lost to rounding in the optimiser's scaled variable" in err, err
+
+
+def test_one_sided_differences_and_zero_rows_are_said(capsys):
+    """A sensitivity trial: at a bound the header said 'against central differences' while the variable was
+    differenced one-sided; a total of 3.8e-17 beside an FD of 0 printed 'rel err 1' next to 'ok'."""
+    leaf = REPO / "config" / "leaf_nedc.yaml"
+    assert main(["check-totals", str(leaf), "--at", "battery_kwh=20", "--transport", "inprocess"]) == 0
+    out = capsys.readouterr().out
+    assert "; one-sided for battery_kwh: a bound within a step" in out, out
+    row = next(line for line in out.splitlines() if "motor_speed_max_rad_s" in line and "battery_kwh" in line)
+    assert row.split()[-2:] == ["-", "ok"], row
+    assert main(["check-totals", str(leaf), "--transport", "inprocess", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["one_sided"] == []

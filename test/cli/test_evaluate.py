@@ -56,6 +56,20 @@ def test_every_value_says_its_unit_in_the_table_and_the_json(capsys):
     assert units["energy_wh_per_km"] == "Wh/km" and units["load_kg"] == "kg" and units["vehicle_mass_kg"] == "kg"
 
 
+def test_the_objective_line_and_the_ssbj_range_say_their_units(capsys):
+    """The last line gave the objective with no unit, and the SSBJ example declared its range (nmi) and weights
+    (lb) as dimensionless."""
+    code, out, _ = run(capsys, LEAF)
+    assert code == 0 and out.rstrip().splitlines()[-1].startswith("objective energy_wh_per_km = 100.") \
+        and " Wh/km; feasible" in out
+    code, out, _ = run(capsys, ROOT / "examples" / "ssbj" / "ssbj_mdf.yaml", "--json")
+    units = json.loads(out)["units"]
+    assert (units["y_4"], units["y_14[1]"], units["y_23"], units["y_34"]) == ("nmi", "lb", "lb", "1/h")
+    assert units["x_shared[1]"] == "1"  # t/c, ft, Mach, AR, deg and ft^2: one unit a variable
+    code, out, _ = run(capsys, ROOT / "examples" / "ssbj" / "ssbj_mdf.yaml")
+    assert out.rstrip().splitlines()[-1].startswith("objective y_4 = ") and " nmi; feasible" in out
+
+
 def test_parameter_override_changes_energy(capsys):
     _, base, _ = run(capsys, LEAF, "--json")
     _, more, _ = run(capsys, LEAF, "--set", "drag_area_m2=0.8", "--json")

@@ -80,6 +80,32 @@ class LoopObj:
         return {"y": (inputs["b"] - 1.0) ** 2 + inputs["x1"] ** 2, "q": inputs["x1"] ** 2}
 
 
+class Edge(Flat):
+    """y = (x1 - 0.2)^2 + (x2 - 0.5)^2 with analytic partials, which raises below x1 = 0.4: its minimum lies where
+    no value is given."""
+
+    def compute(self, inputs):
+        x1, x2 = inputs["x1"], inputs["x2"]
+        if np.any(x1 < 0.4):
+            raise ValueError("the model is not valid below x1 = 0.4")
+        return {"y": (x1 - 0.2) ** 2 + (x2 - 0.5) ** 2, "q": x1 ** 2 + 0.0 * x2}
+
+    def compute_partials(self, inputs):
+        x1, x2 = inputs["x1"], inputs["x2"]
+        return {("y", "x1"): 2 * (x1 - 0.2), ("y", "x2"): 2 * (x2 - 0.5), ("q", "x1"): 2 * x1,
+                ("q", "x2"): 0.0 * x2}
+
+
+class FarFail(Flat):
+    """f = (x1 - 3)^2 + 0.1 (x1 - 3)^4 + (x2 - 1)^4, NaN below x1 = 0.5: SLSQP's first line search (from x1 = 9)
+    fails there, and with ftol 1e-2 it stops short at (2.97, 1.36), far from those points."""
+
+    def compute(self, inputs):
+        x1, x2 = inputs["x1"], inputs["x2"]
+        y = (x1 - 3) ** 2 + 0.1 * (x1 - 3) ** 4 + (x2 - 1) ** 4
+        return {"y": np.where(x1 < 0.5, np.nan, y), "q": x1 + x2}
+
+
 class ConWrong:
     """f = x1 + x2, g = x1 x2; its partial dg/dx1 is 1.2 x2 (20 % wrong)."""
     name = "conwrong"
@@ -241,3 +267,47 @@ def test_a_verified_optimum_is_not_displaced_by_an_earlier_point_the_check_does_
     doc = json.loads(capsys.readouterr().out)
     assert doc["verdict"] == "optimum" and doc["design"]["x1"] == pytest.approx(0.004, abs=1e-12), doc["message"]
     assert np.isclose(doc["max_violation"], 0.0, atol=1e-12)
+
+
+def test_the_result_says_what_its_values_mean_as_evaluate_does(capsys):
+    """A docs trial: at an infeasible end the pack's power limited the 0-100 km/h time, which evaluate says in a
+    note and optimize did not (its answers suggested the optimiser stopped short)."""
+    leaf = str(Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml")
+    argv = ["optimize", leaf, "--transport", "inprocess", "--no-record", "--bound", "battery_kwh=8:10", "--bound",
+            "motor_kw=100:120", "--constraint", "range_km>=50"]
+    assert main(argv) == 1
+    out = capsys.readouterr().out
+    assert "result: note: the pack limits the 0-100 km/h time: 40.1 kW at the shaft" in out, out
+    assert main([*argv, "--json"]) == 1
+    (note,) = json.loads(capsys.readouterr().out)["notes"]
+    assert note.startswith("the pack limits the 0-100 km/h time")
+
+
+def test_an_end_point_the_cycle_check_rejects_is_named_not_blamed_on_the_stopping_rule(capsys):
+    """A docs trial: SLSQP converged at iteration 11, whose motor cannot follow the NEDC (a check the optimiser does
+    not see); the result was iteration 2, and the note said SLSQP's "stopping tolerance (ftol) may be too loose"."""
+    leaf = str(Path(__file__).resolve().parents[2] / "config" / "leaf_nedc.yaml")
+    assert main(["optimize", leaf, "--transport", "inprocess", "--no-record", "--bound", "motor_kw=10:120",
+                 "--constraint", "accel_time_0_100_s<=100"]) == 5
+    out = capsys.readouterr().out
+    assert "note: SLSQP says it converged, at iteration 11, which cannot follow the drive cycle" in out, out
+    assert "drive_force_margin_n >= 0" in out and "ftol" not in out
+
+
+def test_an_end_at_the_edge_of_failing_points_is_not_blamed_on_a_derivative(tmp_path, capsys):
+    """A user trial: a model that raises below h = 15 ended at its edge, 'stopped before convergence', with the note
+    'a wrong derivative is a common cause; run check-partials' (the partials were right, check-partials passed)."""
+    assert _optimize(_config(tmp_path, "Edge")) == 5
+    out = capsys.readouterr().out
+    assert "a small step from it in x1 fails (discipline_errors): it lies at the edge of the region" in out, out
+    assert "wrong derivative" not in out and "ftol" not in out
+
+
+def test_failed_points_far_from_the_end_leave_the_stopping_rule_named(tmp_path, capsys):
+    """A review: three points failed in the first line search, far from SLSQP's end; the note then said the end
+    'may lie at the edge of the region where the disciplines give values'. Only a failed step from the end does."""
+    path = _config(tmp_path, "FarFail", box="lower: 0, upper: 10, initial: 9", constraint="q: {upper: 20}",
+                   more="optimizer: {name: SLSQP, options: {ftol: 1.0e-02}}\n")
+    assert _optimize(path) == 5
+    out = capsys.readouterr().out
+    assert "its stopping tolerance (optimizer.options, e.g. ftol) may be too loose" in out and "edge" not in out, out

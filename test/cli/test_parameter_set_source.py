@@ -44,3 +44,22 @@ def test_evaluate_and_optimize_name_the_set(tmp_path, capsys):
     assert main(["optimize", str(cfg), "--transport", "inprocess", "--no-record"]) == 0
     assert (f"parameter set: mine ({want['file']}, sha256 {want['sha256']}, fitted {want['fitted']})"
             in capsys.readouterr().out.splitlines())
+
+
+def test_a_set_whose_fit_left_notes_says_them_once_when_a_config_loads_it(tmp_path, capsys):
+    """A set calibrate wrote with quality.notes (a fleet in other units, a parameter at its bound) was applied by
+    a config with no word; a set without notes says nothing."""
+    cfg, want = _config(tmp_path)
+    assert main(["evaluate", str(cfg), "--json", "--transport", "inprocess"]) == 0
+    assert "note:" not in capsys.readouterr().err
+    mine = tmp_path / "mine.yaml"
+    doc = yaml.safe_load(mine.read_text())
+    notes = ["whmi.csv: column udds_wh_per_km_ac: fleet median 258.3 (read as given)",
+             "charger_efficiency 0.7 is at its lower bound: the data press it there"]
+    doc["quality"]["notes"] = notes
+    mine.write_text(yaml.safe_dump(doc, sort_keys=False))
+    assert main(["evaluate", str(cfg), "--json", "--transport", "inprocess"]) == 0
+    err = capsys.readouterr().err
+    for n in notes:
+        assert err.count(f"bev-mdo evaluate: note: vehicle.parameter_set {mine}: its fit noted: {n}\n") == 1, err
+    assert err.count("note:") == 2

@@ -273,9 +273,10 @@ def test_a_front_with_no_feasible_design_says_so(tmp_path, capsys):
     code = main(["pareto", str(_write(tmp_path, raw)), "--generations", "1", "--pop", "4", "--no-plots",
                  "--out", str(tmp_path / "o"), "--transport", "inprocess"])
     out = capsys.readouterr().out
-    assert code == 0
+    assert code == 1  # as optimize's infeasible end
     line = next(l for l in out.splitlines() if l.startswith("front: "))
-    assert line.startswith("front: no feasible design (least normalised constraint violation "), line
+    assert line.startswith("front: no feasible design (least violated: "), line
+    assert " breaks range_nedc_km >= 1e+06 km: its range_nedc_km is " in line
 
 
 def test_the_topology_study_prints_its_ranking_with_its_caveats(tmp_path, capsys):
@@ -292,3 +293,19 @@ def test_the_topology_study_prints_its_ranking_with_its_caveats(tmp_path, capsys
     assert [r["best"] for r in ranked] == sorted(r["best"] for r in ranked)
     assert f"ranking by each front's best energy_wh_per_km (Wh/km): {ranked[0]['topology']} " in stdout
     assert "ran on the thesis' efficiency map" in summary["caveats"][-1] and summary["caveats"][-1] in stdout
+
+
+@pytest.mark.parametrize("argv, said", [
+    (["--objectives", "f1,,f2"], "--objectives 'f1,,f2': an empty name; give A,B[,C]"),
+    (["--objectives", "f1,"], "--objectives 'f1,': an empty name"),
+    (["--topology", "SM-SA", "--topology", "DM-DA"], "--topology given twice (SM-SA and DM-DA)"),
+])
+def test_a_name_left_out_or_a_topology_given_twice_is_refused(argv, said, capsys, tmp_path):
+    """A pareto trial: 'f1,,f2' was read as f1,f2 and a second --topology silently replaced the first."""
+    srn = Path(__file__).resolve().parents[2] / "examples" / "pareto" / "srn.yaml"
+    try:
+        status = main(["pareto", str(ARTEMIS if "--topology" in argv else srn), *argv, "--transport", "inprocess",
+                       "--out", str(tmp_path / "o")])
+    except SystemExit as exc:  # argparse's error, as for any flag it refuses
+        status = exc.code
+    assert status == 2 and said in capsys.readouterr().err and not (tmp_path / "o").exists()

@@ -133,3 +133,31 @@ def test_the_picks_name_the_sm_sa_benchmark_they_are_measured_against():
     energy = p["table_4_6"]  # the one design no slower than the SM-SA benchmark's 9.89 s
     assert energy["energy_kwh_100km"] == 12.0 and abs(energy["reference_energy_kwh_100km"] - 13.32) < 1e-9
     assert energy["reference"] == cost["reference"]
+
+
+def test_the_title_names_the_cycle_mix_the_energy_is_computed_on(tmp_path, capsys):
+    """An energy on a cycle mix (option cycle_weights) was titled with the config's cycle, which then only sets
+    the top speed."""
+    from bev_mdo.studies import topologies as par
+
+    raw = yaml.safe_load(_cfg(tmp_path).read_text())
+    for e in raw["disciplines"]:
+        if isinstance(e, dict) and e.get("name") == "energy":
+            e["options"] = {**e.get("options", {}), "cycle_weights": {"nedc": 0.6, "epa_hwfet": 0.4}}
+    cfg = tmp_path / "mix.yaml"
+    cfg.write_text(yaml.safe_dump(raw, sort_keys=False))
+    titles, orig = [], par.plot_pair
+
+    def spy(*args, **kwargs):
+        fig = orig(*args, **kwargs)
+        titles.append(fig.axes[0].get_title())
+        return fig
+
+    par.plot_pair = spy
+    try:
+        assert main(["pareto", str(cfg), "--out", str(tmp_path / "o"), "--generations", "1", "--pop", "8",
+                     "--objectives", "energy_wh_per_km,powertrain_cost_usd", "--topology", "SM-SA",
+                     "--transport", "inprocess"]) == 0
+    finally:
+        par.plot_pair = orig
+    assert titles == ["Pareto front projection: cycle mix 60 % nedc + 40 % epa_hwfet"]

@@ -209,3 +209,37 @@ def test_the_json_names_the_units_and_the_table_its_steps(capsys):
     assert main(args) == 0
     step = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("step "))
     assert step.split()[1:] == ["0.008", "kW", "0.0008", "0.0069", "kg"]  # a ratio has no unit to print
+
+
+def test_a_one_sided_variable_is_said_beside_the_method(capsys):
+    """The header said 'method central' of a point with gear_ratio on its upper bound, differenced one-sided
+    (only the JSON's one_sided said so): one line names such variables and why."""
+    argv = ["sensitivity", str(SELLAR), "--transport", "inprocess", "--order", "2"]
+    assert main([*argv, "--at", "x=10"]) == 0  # on its upper bound
+    lines = capsys.readouterr().out.splitlines()
+    assert "method central" in lines[0]
+    assert lines[1].startswith("one-sided differences for x: on or within two steps of a bound")
+    assert main([*argv, "--at", "x=5"]) == 0
+    assert "one-sided" not in capsys.readouterr().out
+
+
+def test_the_json_labels_agree_with_the_legend_on_the_diagonal(capsys):
+    """The legend says a diagonal entry (one variable's own curvature) has no coupling label; the JSON gave
+    each one (NC, MC ...). Now null there, a label on every pair of variables."""
+    import json
+
+    code = main(["sensitivity", str(SELLAR), "--transport", "inprocess", "--order", "2", "--json"])
+    rep = json.loads(capsys.readouterr().out)
+    assert code == 0
+    for out, sec in rep["second_order"].items():
+        for i, row in enumerate(sec["labels"]):
+            for j, lab in enumerate(row):
+                assert (lab is None) if i == j else lab in ("NC", "MC", "SC", "VSC"), (out, i, j, lab)
+
+
+@pytest.mark.parametrize("value", ["0", "0.5", "nan"])
+def test_a_rel_step_out_of_range_names_the_flag_as_typed(capsys, value):
+    """It was 'rel_step must be in (0, 0.5), got 0.0': the API's name, not the flag's."""
+    code = main(["sensitivity", str(SELLAR), "--transport", "inprocess", "--order", "1", f"--rel-step={value}"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err == [f"bev-mdo sensitivity: error: --rel-step {float(value):g}: must be in (0, 0.5)"]

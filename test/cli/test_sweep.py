@@ -69,11 +69,45 @@ def test_sweep_plot_shows_the_configs_baseline(tmp_path):
     assert base["name"] == cfg["problem"]["baseline"]["name"]
     res = evaluate_batch(cfg, grid(parse_vary(["motor_kw=40:120:5", "gear_ratio=6,8"])), "inprocess")
     fig, ax = plot_output(res, "energy_wh_per_km", ["motor_kw", "gear_ratio"], tmp_path / "e.png", base)
-    star = [l for l in ax.get_lines() if l.get_label() == f"baseline ({base['name']})"]
+    # a review: with lines per gear ratio, the star (at its own 7.94:1) read as on a line; its label says its ratio
+    star = [l for l in ax.get_lines() if l.get_label() == f"baseline ({base['name']})\ngear_ratio=7.94"]
     assert star and star[0].get_xdata()[0] == 80.0
     assert star[0].get_ydata()[0] == pytest.approx(base["outputs"]["energy_wh_per_km"])
     no_base = dict(cfg, problem={k: v for k, v in cfg["problem"].items() if k != "baseline"})
     assert analyse_baseline(no_base) is None
+
+
+def test_sweep_plot_spans_the_swept_values_and_its_legend_hides_no_data(tmp_path):
+    """`--vary motor_kw=195:212:18` (bounds 150-350) was drawn on 150-350 kW, the data a narrow band, under a
+    legend of 24 entries inside the axes; the baseline's star, off the swept range, stretched the y-axis too."""
+    import numpy as np
+
+    cfg = load_config(CONFIG)
+    base = analyse_baseline(cfg)  # 80 kW: outside 60-70
+    res = evaluate_batch(cfg, grid(parse_vary(["motor_kw=60:70:6", "battery_kwh=20:30:21"])), "inprocess")
+    fig, ax = plot_output(res, "energy_wh_per_km", ["motor_kw", "battery_kwh"], tmp_path / "e.png", base)
+    lo, hi = ax.get_xlim()
+    assert 58.0 < lo < 60.0 and 70.0 < hi < 72.0, (lo, hi)
+    y = res["outputs"]["energy_wh_per_km"]
+    ylo, yhi = ax.get_ylim()
+    assert yhi - ylo < 2 * (y.max() - y.min()), "the y-axis is the data's"
+    star = [line for line in ax.get_lines() if line.get_label().startswith("baseline")]
+    assert len(star) == 1 and len(star[0].get_xdata()) == 0 and "outside the swept range" in star[0].get_label()
+    fig.canvas.draw()
+    legend, axes = ax.get_legend().get_window_extent(), ax.get_window_extent()
+    assert legend.x0 >= axes.x1, "the legend is beside the axes, over no data"
+    assert fig.get_window_extent().x1 >= legend.x1, "and within the figure"
+    inside = np.array([[xs, ys] for line in ax.get_lines() for xs, ys in line.get_xydata()])
+    shown = ax.transData.transform(inside)
+    assert not ((shown[:, 0] >= legend.x0) & (shown[:, 0] <= legend.x1) & (shown[:, 1] >= legend.y0)
+                & (shown[:, 1] <= legend.y1)).any()
+
+
+def test_two_vary_flags_both_count(tmp_path, capsys):
+    """`--vary motor_kw=... --vary battery_kwh=...`: the second flag replaced the first without a word."""
+    assert main(["sweep", CONFIG, "--vary", "motor_kw=60,70", "--vary", "battery_kwh=20,24,28", "--out",
+                 str(tmp_path), "--transport", "inprocess", "--no-record", "--no-plots"]) == 0
+    assert "6 designs in one batch" in capsys.readouterr().out
 
 
 def test_sweep_outside_bounds_and_unknown_names_are_user_errors(tmp_path, capsys):
@@ -142,7 +176,7 @@ def test_a_name_mistyped_in_one_compare_design_is_said_unknown(capsys):
     """It was called a parameter with no initial value that must be given in every --design."""
     assert main(["compare", CONFIG, "--design", "motor_kw=100", "--design", "motr_kw=90", "--transport", "inprocess"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "unknown names ['motr_kw']; design variables: ['motor_kw'," in err[0], err
+    assert len(err) == 1 and "unknown names ['motr_kw']; did you mean 'motor_kw'? design variables: ['motor_kw'," in err[0], err
 
 
 def test_compare_shows_differences_from_the_first_design(capsys):
@@ -341,3 +375,21 @@ def test_a_batch_over_ros_is_sent_in_chunks_with_the_results_of_one_batch(monkey
     for k, v in whole["outputs"].items():
         np.testing.assert_allclose(chunked["outputs"][k], v, rtol=1e-12, equal_nan=True, err_msg=k)
     assert (chunked["ok"] == whole["ok"]).all() and chunked["errors"] == whole["errors"]
+
+
+def test_compare_gives_no_percentage_of_a_margin_output(capsys):
+    """A pareto trial: compare showed the topology model's drive_torque_margin_nm change as '+13327.1 %' (of a
+    margin near zero); a margin, a constraint's or an output's, gets its difference alone."""
+    topo = Path(__file__).resolve().parents[2] / "config" / "topologies_artemis.yaml"
+    rc = main(["compare", str(topo), "--design", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--design",
+               "motor_kw=120,gear_ratio=8,battery_kwh=24", "--transport", "inprocess"])
+    out = capsys.readouterr().out
+    row = next(line for line in out.splitlines() if line.startswith("│ drive_torque_margin_nm"))
+    assert rc == 0 and "%" not in row, row
+    assert "%" in next(line for line in out.splitlines() if line.startswith("│ vehicle_mass_kg"))
+
+
+def test_one_design_is_said_in_the_singular(tmp_path, capsys):
+    assert main(["sweep", CONFIG, "--vary", "motor_kw=80:80:1", "--transport", "inprocess", "--no-record",
+                 "--out", str(tmp_path / "o"), "--no-plots"]) == 0
+    assert "1 design in one batch (inprocess)" in capsys.readouterr().out

@@ -287,6 +287,8 @@ def test_pairs_json_table_and_png(capsys, tmp_path):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     code, out, _ = run(capsys, "--pairs")
     assert code == 0 and "within-family pairs" in out and "Mach-E RWD" in out
+    # the header says what is printed: percent of the pair's mean (it said 'B over A, %')
+    assert "meas% and pred%: 200 (E_B - E_A) / (E_A + E_B)" in out and "B over A" not in out
     assert "pairs  udds: n=" in out and "pairs hwfet: n=" in out and "slope" in out and "points" in out
     assert ("(target 0.85-1.15: met)" in out) or ("(target 0.85-1.15: NOT met)" in out)
     assert "pairs" not in json.loads(run(capsys, "--json")[1])  # only when asked
@@ -468,7 +470,7 @@ def test_the_footnote_says_what_the_parameter_set_was_fitted_on_and_the_model_ke
     whmi = [rows[0], *([*r[:11], *(f"{float(x) * 1.609:.2f}" for x in r[11:13]), *r[13:]] for r in rows[1:]
                        if r[0] == "BMW")]
     assert rows[0][11:13] == ["udds_wh_per_km_ac", "hwfet_wh_per_km_ac"]
-    assert f"{n_bmw} of these {n_bmw} rows are cars in it (the same identity and model inputs" in footnote(
+    assert f"{n_bmw} of these {n_bmw} rows are cars in it ({n_bmw} by make, model and model inputs" in footnote(
         "--data", _write(tmp_path, whmi, "bmw_whmi.csv"), "--parameter-set", mine)
     assert "parameter set thesis: constants not fitted to a fleet" in footnote("--data", kia, "--parameter-set",
                                                                               "thesis")
@@ -497,3 +499,59 @@ def test_the_parity_plots_legends_cover_no_point(capsys, tmp_path, monkeypatch):
                                  if len(c.get_offsets())])
         inside = (points[:, 0] >= box.x0) & (points[:, 0] <= box.x1) & (points[:, 1] >= box.y0) & (points[:, 1] <= box.y1)
         assert not inside.any(), (ax.get_title(), points[inside])
+
+
+def _edited(tmp_path, name, pick, **edit):
+    """The training rows ``pick`` takes, each cell named in ``edit`` replaced by edit[name](cell)."""
+    rows = _rows()
+    at = {h: i for i, h in enumerate(rows[0])}
+    out = [list(r) for r in rows[1:] if pick(r)]
+    for r in out:
+        for col, f in edit.items():
+            r[at[col]] = f(r[at[col]])
+    return _write(tmp_path, [rows[0], *out], name)
+
+
+def test_training_cars_re_typed_are_in_sample_and_another_car_is_held_out(capsys, tmp_path):
+    """The shipped set's own cars with A rounded to 0.1 N, the test id prefixed 'X' or the test mass + 1 kg
+    were said 'fitted on train.csv, which has none of these cars: held out' beside an in-sample MAPE."""
+    def fitted_on(path):
+        code, out, _ = run(capsys, "--data", path, "--json")
+        assert code == 0
+        return json.loads(out)["parameter_set_fitted_on"]
+
+    bmw = lambda r: r[0] == "BMW"  # noqa: E731
+    n = sum(map(bmw, _rows()[1:]))
+    plus = lambda k: (lambda c: f"{float(c) + k:g}")  # noqa: E731
+    retyped = _edited(tmp_path, "retyped.csv", bmw, road_load_a_n=lambda c: f"{float(c):.1f}",
+                      test_vehicle_id=lambda c: "X" + c, test_mass_kg=plus(1), make=str.lower)
+    said = fitted_on(retyped)
+    assert f"(not this file); {n} of these {n} rows are cars in it ({n} by make, model and model inputs" in said
+    # another mass (40 kg) under a renamed test, the same measured energies: the same car, by its energies
+    heavier = _edited(tmp_path, "heavier.csv", bmw, test_vehicle_id=lambda c: "X" + c, test_mass_kg=plus(40))
+    assert f"{n} of these {n} rows are cars in it ({n} by their measured UDDS and HWFET energies alone, within " \
+           "0.1 %)" in fitted_on(heavier)
+    # a near-duplicate that is another car: 40 kg heavier and 2 % more energy on both cycles
+    other = _edited(tmp_path, "other.csv", bmw, test_vehicle_id=lambda c: "X" + c, test_mass_kg=plus(40),
+                    udds_wh_per_km_ac=lambda c: f"{float(c) * 1.02:.2f}",
+                    hwfet_wh_per_km_ac=lambda c: f"{float(c) * 1.02:.2f}")
+    assert fitted_on(other).endswith("which has none of these cars: held out")
+    half = _write(tmp_path, [*_rows()[:1], *list(csv.reader(retyped.open()))[1:4], *list(csv.reader(other.open()))[4:]],
+                  "half.csv")
+    assert "; 3 of these " in fitted_on(half)
+
+
+def test_a_fleet_in_wh_per_mile_is_noted_once_by_the_calibrated_models(capsys, tmp_path):
+    """Efficient cars in Wh/mi (their medians within the plausible band) read -34 to -40 % on every make with
+    no note; the same cars in Wh/km, and the thesis constants (not fitted), give none."""
+    efficient = lambda r: float(r[11]) < 160 and float(r[12]) < 160  # noqa: E731
+    whmi = _edited(tmp_path, "whmi.csv", efficient, udds_wh_per_km_ac=lambda c: f"{float(c) * 1.609:.2f}",
+                   hwfet_wh_per_km_ac=lambda c: f"{float(c) * 1.609:.2f}")
+    for model in ("quasi_static", "chain"):
+        code, _, err = run(capsys, "--data", whmi, "--energy-model", model)
+        assert code == 0 and err.count("note:") == 1, err
+        assert f"whmi.csv: {model} predicts 0.6" in err
+        assert "likely a unit mix-up, measured energies in Wh per mile (1.609 x Wh/km)?" in err
+    assert "note:" not in run(capsys, "--data", whmi, "--parameter-set", "thesis")[2]
+    wh_km = _edited(tmp_path, "whkm.csv", efficient)
+    assert "note:" not in run(capsys, "--data", wh_km)[2]

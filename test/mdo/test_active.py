@@ -246,3 +246,23 @@ def test_a_kink_is_no_free_way_out_of_an_unreachable_limit():
     assert v["name"] == "top_speed_kmh" and not v["free_way"]
     assert [b["variable"] for b in v["blocked_by"]][0] == "motor_kw"
     assert not any("stopped short" in line for line in ans["lines"])
+
+
+def test_a_step_the_bounds_cut_short_is_no_promise_of_feasibility():
+    """A battery sized for its range (a docs trial): the pack limited the 0-100 km/h time at 10.56 s, a grid of
+    2,501 designs had none feasible, yet the answers said "a first-order step reduces it ...: the optimiser stopped
+    short". The step ran over the motor's whole range from 0.2 % below its upper bound. Now a step stops at the
+    bounds, and one that does not reach the limit says so."""
+    point = {"motor_kw": 119.835, "battery_kwh": 25.0}
+    jac = {"accel_time_0_100_s": {"motor_kw": -0.005, "battery_kwh": 0.0}, "range_km": {"motor_kw": 0.0,
+                                                                                       "battery_kwh": 8.0}}
+    (v,) = analyse(PROBLEM, point, {"range_km": 260.0, "accel_time_0_100_s": 10.56}, jacobian=jac)["violated"]
+    assert v["free_way"] and v["free_way_reduction"] == pytest.approx(0.005 * 0.165)  # to 120 kW, not 40 kW more
+    text = "\n".join(summary_lines(analyse(PROBLEM, point, {"range_km": 260.0, "accel_time_0_100_s": 10.56},
+                                           jacobian=jac)))
+    assert "reduces it by at most 0.000825 s" in text and "the end is near a least violation; other start points" in text
+    assert "stopped short" not in text
+    # room enough: the step removes it, and the optimiser stopped short
+    (v,) = analyse(PROBLEM, {"motor_kw": 100.0, "battery_kwh": 25.0}, {"range_km": 260.0, "accel_time_0_100_s": 10.05},
+                   jacobian=jac)["violated"]
+    assert v["free_way_reduction"] == pytest.approx(0.1) and v["free_way_reduction"] >= v["violation"]

@@ -233,7 +233,7 @@ def test_the_result_keeps_its_recorded_values_after_a_discipline_is_lost(monkeyp
 def test_a_discipline_that_stopped_answering_is_exit_4_even_when_the_end_is_infeasible():
     """A node killed while the start point was evaluated: every point failed, the run infeasible. Exit 1 read
     as an infeasible design to a script keyed on the status; the JSON said the node was unresponsive."""
-    from bev_mdo.mdo.driver import exit_status
+    from bev_mdo.mdo.first_order import exit_status
 
     doc = {"feasible": False, "verdict": "infeasible", "unresponsive_disciplines": ["thermal"]}
     assert exit_status(doc) == 4

@@ -48,6 +48,18 @@ def test_unproduced_input_is_named():
         g.check_inputs({"x"})
 
 
+def test_an_unproduced_input_says_what_it_nearly_is():
+    """A user trial: a consumer that read a 2-element vector as a scalar was told 'needs ['P_loss'], which no
+    discipline produces' (its producer does, as P_loss[0], P_loss[1]); a misspelt input got no hint."""
+    g = CouplingGraph([("elec", ("h",), ("P_loss[0]", "P_loss[1]")), ("econ", ("P_loss",), ("cost",))])
+    with pytest.raises(ValueError, match=r"\('P_loss' is a vector of 2 elements \(discipline 'elec'\): add shapes = "
+                                         r"\{'P_loss': 2\} to 'econ'\)"):
+        g.check_inputs({"h"})
+    g = CouplingGraph([("elec", ("h",), ("P_loss[0]", "P_loss[1]")), ("econ", ("P_los[0]", "P_los[1]"), ("cost",))])
+    with pytest.raises(ValueError, match=r"needs \['P_los\[0\]', 'P_los\[1\]'\], .* \(did you mean 'P_loss'\?\)$"):
+        g.check_inputs({"h"})
+
+
 def test_duplicate_discipline_names_rejected():
     with pytest.raises(ValueError, match="used twice"):
         CouplingGraph([("a", ("x",), ("y",)), ("a", ("x",), ("z",))])

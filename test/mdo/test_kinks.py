@@ -148,7 +148,7 @@ def test_a_run_that_ends_where_a_top_speed_equality_meets_its_motor_speed_cap_na
     import yaml
 
     from bev_mdo import Study
-    from bev_mdo.mdo.driver import exit_status
+    from bev_mdo.mdo.first_order import exit_status
     from bev_mdo.testing import REPO
 
     raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text())

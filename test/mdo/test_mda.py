@@ -53,6 +53,7 @@ def test_unconverged_points_fail_with_a_message_and_nan():
     assert not res.ok.any()
     assert np.isnan(res.values["obj"]).all()
     assert "did not converge in 2 gauss_seidel iterations" in res.messages[0]
+    assert "mda.method: newton may converge" in res.messages[0]  # a user trial: GS failed where Newton converged
 
 
 def test_failed_point_is_reported_not_raised_and_others_survive():

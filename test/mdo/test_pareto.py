@@ -111,6 +111,50 @@ def test_no_growth_in_per_cent_from_almost_nothing_or_on_a_tiny_front():
                                                                      "--generations (or a larger --pop) would extend the front")
 
 
+def test_more_generations_are_advised_only_where_the_front_grew():
+    """'more --generations would extend the front' was said of a front of one design (leaf_nedc's energy and
+    cost fall together) and of a front whose hypervolume fell."""
+    from bev_mdo.mdo.pareto import settling_line
+
+    more = "more --generations (or a larger --pop) would extend the front"
+    one = settling_line([1.2077, 1.2090, 1.2095, 1.2095, 1.2095, 1.21], sizes=[1, 2, 4, 3, 4, 1])
+    assert one.startswith("the front is one design: the objectives do not trade off") and more not in one
+    fell = settling_line([0.70, 0.70, 0.69, 0.68, 0.67, 0.65], sizes=[40] * 6)
+    assert fell.startswith("front hypervolume over the last 5 generations: -7.1 %; not settled") and more not in fell
+    tiny_fell = settling_line([0.70, 0.65], sizes=[6, 5])
+    assert "too few for a growth in per cent" in tiny_fell and "it fell" in tiny_fell and more not in tiny_fell
+    assert settling_line([0.65, 0.70], sizes=[5, 6]).endswith(more)  # it grew: the advice stands
+    assert settling_line([0.5, 0.70, 0.703]).endswith(more)
+
+
+def test_failed_points_are_counted_and_have_no_violation():
+    """A failed point's constraint value was pymoo's penalty 1e6, reported as 'least normalised constraint
+    violation 1e+06'."""
+    class HalfFails(Zdt1):
+        def compute(self, x):
+            out = super().compute(x)
+            return {**out, "f2": np.where(x["x1"] > 0.5, np.nan, out["f2"])}
+
+    ev = InProcessEvaluator([HalfFails()])
+    prob = Problem.from_config({"objective": "f1", "design_variables": {"x1": {"lower": 0, "upper": 1},
+                                                                        "x2": {"lower": 0, "upper": 1}}})
+    r = run_nsga2(MDF(prob, ev, MDA(ev)), ["f1", "f2"], pop_size=12, generations=2, seed=1)
+    failed = ~np.isfinite(r.archive_cv)
+    assert r.failed == failed.sum() > 0 and (r.archive_X[failed, 0] > 0.5).all()
+    assert "non-finite output ['f2']" in r.first_error and len(r.X) and r.least_violated is None
+
+
+def test_a_design_the_run_rules_out_is_infeasible_and_named():
+    """``design_check`` (the run's judgement beyond its constraints, such as a motor that cannot follow the
+    cycle) is one more constraint: such a design is never on the front, nor named as feasible."""
+    form, _, _ = _zdt_form()
+    r = run_nsga2(form, ["f1", "f2"], pop_size=12, generations=3, seed=1,
+                  design_check=lambda v: ["cannot follow"] if v["x1"] < 0.5 else [])
+    assert len(r.X) and (r.X[:, 0] >= 0.5).all() and r.cannot_follow > 0
+    nothing = run_nsga2(form, ["f1", "f2"], pop_size=12, generations=2, seed=1, design_check=lambda v: ["no"])
+    assert not len(nothing.X) and nothing.least_violated["cannot_follow"] == ["no"]
+
+
 def test_nsga2_deterministic_per_seed():
     a = run_nsga2(_zdt_form()[0], ["f1", "f2"], pop_size=12, generations=4, seed=7)
     b = run_nsga2(_zdt_form()[0], ["f1", "f2"], pop_size=12, generations=4, seed=7)
@@ -270,10 +314,14 @@ def test_cli_front_holds_no_design_that_cannot_reach_100_kmh(tmp_path):
 
     from bev_mdo.models.acceleration import NOT_REACHED_S
 
-    p = _write_cfg(tmp_path, extra_dv={"motor_kw": {"lower": 5, "upper": 20, "initial": 15},
-                                       "gear_ratio": {"lower": 4, "upper": 16, "initial": 8}})
+    # in-wheel motors without the energy model's margins: whether they follow the cycle is not checked, so
+    # nothing else rules out a motor too small for 100 km/h (the cycle-follow check would: the NEDC reaches 120)
+    p = _write_cfg(tmp_path, topology="IWM-SA", drop=("gear_ratio",),
+                   extra_dv={"motor_kw": {"lower": 2, "upper": 10, "initial": 8}})
     raw = yaml.safe_load(p.read_text())
-    raw["problem"]["constraints"] = {}  # nothing else rules out a motor too small for 100 km/h
+    raw["problem"]["constraints"] = {}
+    raw["disciplines"] = [d if not (isinstance(d, dict) and d.get("name") == "energy") else "energy"
+                          for d in raw["disciplines"]]
     p.write_text(yaml.safe_dump(raw))
     out = tmp_path / "front"
     assert _cli(["pareto", str(p), "--objectives", "powertrain_cost_usd,accel_time_0_100_s", "--generations", "3",

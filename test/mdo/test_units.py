@@ -126,3 +126,34 @@ def test_factor_and_its_errors():
         factor("s", "km")
     with pytest.raises(UnitError, match="not a unit pint knows"):
         factor("furlongs_per_fortnight_x", "m")
+
+
+class _Heat:
+    name, inputs, outputs = "thermal", ("h",), ("dT",)
+
+    def __init__(self, unit):
+        self.units = {"h": "W/K", "dT": unit}
+
+
+class _Cost:
+    name, inputs, outputs = "econ", ("dT",), ("cost",)
+
+    def __init__(self, unit):
+        self.units = {"dT": unit, "cost": "USD"}
+
+
+@pytest.mark.parametrize("made, read", [("K", "degC"), ("degC", "K"), ("degF", "degC")])
+def test_a_connection_that_needs_an_offset_is_refused(made, read):
+    """A user trial: a temperature rise produced in K and read in degC was shifted by 273.15 (cost -1000.03 for
+    92.57, 'feasible', 'optimum'): an offset unit converts as an absolute temperature, which a rise is not."""
+    with pytest.raises(UnitError, match=rf"thermal.dT \[{made}\] -> econ.dT \[{read}\] \(an offset unit.*delta_degC"):
+        conversions([_Heat(made), _Cost(read)])
+
+
+def test_a_temperature_difference_in_delta_degc_is_converted_by_scale_alone():
+    assert conversions([_Heat("K"), _Cost("delta_degC")]) == {}
+    assert conversions([_Heat("K"), _Cost("delta_degF")]) == {"econ": {"dT": (pytest.approx(1.8), 0.0)}}
+    assert conversions([_Heat("degC"), _Cost("degC")]) == {}  # the same unit at both ends: nothing to convert
+    # a difference read as a temperature: one line naming both ends (it was pint's DimensionalityError, raw)
+    with pytest.raises(UnitError, match=r"thermal.dT \[delta_degC\] -> econ.dT \[degC\] \(delta_degC does not convert"):
+        conversions([_Heat("delta_degC"), _Cost("degC")])

@@ -381,3 +381,46 @@ def test_a_set_fitted_on_a_fleet_with_notes_keeps_them_and_its_parameters_at_a_b
     assert [n for n in notes if "bound" in n] == ["charger_efficiency 0.7 is at its lower bound: the data press it "
                                                   "there (a fleet in other units?), the other parameters take up "
                                                   "the rest"]
+
+
+def test_a_missing_folder_of_write_is_made_only_when_the_set_is_written(tmp_path, capsys, monkeypatch):
+    """--write /nonexistent_dir/x.yaml created the folder before the fit, and kept it when the run stopped."""
+    def stopped(*a, **k):
+        raise ValueError("stopped before the set was written")
+
+    data = _fleet(tmp_path, _i4, "i4.csv")
+    with monkeypatch.context() as m:
+        m.setattr(calibrate, "fit", stopped)
+        assert bev_mdo(["calibrate", "--model", "chain", "--data", str(data), "--write",
+                        str(tmp_path / "new" / "sub" / "x.yaml")]) == 2
+    assert "stopped before" in capsys.readouterr().err and not (tmp_path / "new").exists()
+
+
+def test_a_fleet_in_wh_per_mile_is_noted_by_calibrate_kept_in_the_set_and_said_by_a_config_using_it(tmp_path, capsys):
+    """Efficient cars in Wh/mi (medians within the plausible band): calibrate noted only 'charger_efficiency 0.7
+    at its lower bound' in the set, and a config loading the set said nothing."""
+    with fl.DEFAULT_FLEET.open(newline="") as f:
+        lines = list(csv.reader(f))
+    at = [lines[0].index(c) for c in ("udds_wh_per_km_ac", "hwfet_wh_per_km_ac")]
+    rows = [r for r in lines[1:] if all(float(r[i]) < 160 for i in at)]
+    for r in rows:
+        for i in at:
+            r[i] = f"{float(r[i]) * 1.609:.2f}"
+    data, out = tmp_path / "whmi.csv", tmp_path / "sets" / "whmi.yaml"  # its folder is made when it is written
+    with data.open("w", newline="") as f:
+        csv.writer(f).writerows([lines[0], *rows])
+    assert bev_mdo(["calibrate", "--model", "chain", "--data", str(data), "--write", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert err.count("note:") == 1 and "whmi.csv: chain with epa2022_chain predicts 0.6" in err
+    assert "likely a unit mix-up, measured energies in Wh per mile (1.609 x Wh/km)?" in err
+    notes = yaml.safe_load(out.read_text())["quality"]["notes"]
+    assert len(notes) == 2 and notes[0] in err and notes[1].startswith("charger_efficiency 0.7 is at its lower bound")
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text((ROOT / "config" / "leaf_epa_combined.yaml").read_text()
+                   .replace("parameter_set: epa2022_quasi_static", f"parameter_set: {out}")
+                   .replace("energy_model: quasi_static", "energy_model: chain"))
+    assert bev_mdo(["evaluate", str(cfg), "--set", "motor_kw=80,gear_ratio=8,battery_kwh=24", "--json",
+                    "--transport", "inprocess"]) == 0
+    err = capsys.readouterr().err
+    for n in notes:  # each once
+        assert err.count(f"bev-mdo evaluate: note: vehicle.parameter_set {out}: its fit noted: {n}\n") == 1, err

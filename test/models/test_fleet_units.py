@@ -83,3 +83,21 @@ def test_one_cars_cycle_energies_far_apart_are_a_note_naming_the_row(tmp_path):
     assert len(said) == 2 and all("a typo or one cell's unit?" in n for n in said)
     assert said[0].startswith(f"{path}: row 5 (BMW i4 M50 Gran Coupe (19\" Wheels)): udds_wh_per_km_ac 162")
     assert "is 10.4 x hwfet_wh_per_km_ac 156.5;" in said[0] and ": row 8 (" in said[1]
+
+
+def test_predictions_off_by_the_wh_per_mile_factor_either_way_are_noted_once_and_kept():
+    """fleet.note_energy_unit: a calibrated model 1.609 x off on every car is a note naming the unit, kept in the
+    fleet's notes (a set fitted on it keeps them); the thesis constants' 1.38 x and a fleet already noted are not."""
+    scored = dict.fromkeys(fl.CYCLES, np.ones(len(fl.read_fleet()), bool))
+    for k, said in ((1 / 1.609, "in Wh per mile (1.609 x Wh/km)?"), (1.609, "divided by 1.609"), (1.0, None),
+                    (1.38, None), (0.81, None), (1.609 * 1.08, "divided by 1.609"), (1.609 / 1.12, None)):
+        f = fl.read_fleet()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", CycleNote)
+            fl.note_energy_unit(f, {c: {"energy_wh_per_km": f.measured[c] * k} for c in fl.CYCLES}, scored, "m")
+        assert [str(w.message) for w in caught] == f.notes and len(f.notes) == (said is not None), k
+        assert said is None or said in f.notes[0]
+    f = fl.read_fleet()
+    f.energy_unit_noted = True
+    fl.note_energy_unit(f, {c: {"energy_wh_per_km": f.measured[c] / 1.609} for c in fl.CYCLES}, scored, "m")
+    assert f.notes == []

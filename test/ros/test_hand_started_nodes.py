@@ -26,8 +26,10 @@ def _node(exe: str, *args: str, ros_domain: int, **kw) -> subprocess.CompletedPr
     ("confg:=x.yaml", "parameter confg: coordinator_node has no such parameter; did you mean config?"),
     ("formulaton:=idf", "parameter formulaton: coordinator_node has no such parameter; did you mean formulation?"),
     ("vehicle.drag_area_m2:=0.6", "parameter vehicle.drag_area_m2: coordinator_node has no such parameter; it has "
-                                  "compose, config, formulation, instances, optimizer, recorders, run_id")])
-def test_a_parameter_the_coordinator_does_not_declare_is_one_line_exit_2(ros_domain, leaf_config, param, words):
+                                  "compose, config, formulation, instances, optimizer, recorders, run_id"),
+    ("instances:=enrgy=2", "-p instances: no discipline 'enrgy' in the config"),  # it named --instances
+    ("instances:=0", "-p instances: 0 is outside 1..64")])
+def test_a_parameter_the_coordinator_does_not_declare_or_a_bad_value_is_one_line_exit_2(ros_domain, leaf_config, param, words):
     p = _node("coordinator_node", "--ros-args", "-p", f"config:={leaf_config}", "-p", param, ros_domain=ros_domain)
     assert p.returncode == 2 and "Traceback" not in p.stderr, (p.returncode, p.stderr[-3000:])
     lines = p.stderr.strip().splitlines()  # (rclpy's own parameters come last in the list of those it has)

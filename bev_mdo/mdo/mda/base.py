@@ -237,8 +237,9 @@ class LoopSolver:
         return err, alive, done
 
     def not_converged(self, comp: Sequence[str], b: Batch, active: np.ndarray, err: np.ndarray) -> None:
+        other = "" if self.name == "newton" else "; mda.method: newton may converge where a fixed-point sweep does not"
         for i, e in zip(active, err):
-            why = (f"relative change {e:.3g} > tolerance {self.tolerance:g}" if e > self.tolerance else
+            why = (f"relative change {e:.3g} > tolerance {self.tolerance:g}{other}" if e > self.tolerance else
                    f"relative change {e:.3g} within the tolerance, but the changes do not shrink fast enough for the "
                    "distance still to go to be: a loop without a fixed point, or one that needs more iterations")
             b.fail(i, "not_converged", f"MDA loop {list(comp)} did not converge in {self.max_iterations} "
