@@ -82,9 +82,16 @@ def outcome(res, units: dict) -> dict:
     return doc
 
 
+MAX_POP = 5_000  # 5,000^2 x 8 bytes: 0.2 GB for one of the sort's matrices (0.8 GB for the merged population's)
+
+
 def check_sizes(generations: int, pop: int, instances, transport) -> None:
     if generations < 1 or pop < 4:
         raise InputError(f"--generations must be >= 1 and --pop >= 4, got {generations}, {pop}")
+    if pop > MAX_POP:  # pymoo's non-dominated sort allocates pop x pop numbers and more: 7.28 TiB at a million
+        raise InputError(f"--pop {pop}: at most {MAX_POP:,} (NSGA-II's non-dominated sort holds pop x pop matrices "
+                         f"and larger: {8 * pop ** 2 / 2 ** 30:,.0f} GiB at least here); more --generations explore "
+                         "further")
     transport = Transport.of(transport)
     transport.refuse_attach("pareto")
     if instances and transport.transport != "ros":

@@ -14,16 +14,21 @@ def print_tables(rep: dict) -> None:
     if fixed:
         print("fixed at " + ", ".join(f"{k}={v:g}" for k, v in fixed.items()))
     keys = (("S1", "S1_conf"), ("ST", "ST_conf")) if rep["method"] == "sobol" else (("mu_star", "mu_star_conf"), ("sigma", None))
+    units = rep.get("units") or {}
     for out_name, r in rep["outputs"].items():
-        print(f"\n{out_name}")
+        unit = units.get(out_name, "").strip()
+        # Morris' mu* and sigma are in the output's unit (per the variable's whole range); Sobol' indices are shares
+        print(f"\n{out_name}" + (f" (mu* and sigma in {unit})" if rep["method"] == "morris" and unit not in
+                                  ("", "1", "-") else ""))
         if r.get("constant"):
             print("  constant over these bounds (or not finite): no indices")
             continue
-        print("".ljust(10) + "".join(n.rjust(w) for n in names))
-        for key, conf in keys:
-            cells = [f" {v:.4g}" + (f" ±{c:.2g}" if conf else "") for v, c in
-                     zip(r[key], r[conf] if conf else [0] * len(names))]
-            print(key.ljust(10) + "".join(c.rjust(w) for c in cells))
+        rows = [(key, [f" {v:.4g}" + (f" ±{c:.2g}" if conf else "") for v, c in
+                       zip(r[key], r[conf] if conf else [0] * len(names))]) for key, conf in keys]
+        width = max(w, *(len(c) + 2 for _, cells in rows for c in cells))  # a column as wide as its widest cell
+        print("".ljust(10) + "".join(n.rjust(width) for n in names))
+        for key, cells in rows:
+            print(key.ljust(10) + "".join(c.rjust(width) for c in cells))
     for note in rep.get("notes", ()):
         print(f"\nnote: {note}")
 

@@ -139,3 +139,15 @@ def test_the_plot_names_the_bounds_and_fixed_values(tmp_path, capsys):
     assert png.stat().st_size > 1000
     out = capsys.readouterr().out
     assert "fixed at battery_kwh=24" in out
+
+
+@pytest.mark.parametrize("method, samples", [("morris", "8"), ("sobol", "64")])
+def test_the_tables_say_morris_units_and_keep_their_columns(capsys, method, samples):
+    """A docs trial: the Morris table gave mu* with no unit (doe.md: in the output's unit), and the Sobol' table's
+    columns ran out of line where a cell with its interval was wider than the column."""
+    assert main(["sensitivity", str(REPO / "config" / "leaf_nedc.yaml"), "--global", method, "--samples", samples,
+                 "--transport", "inprocess"]) == 0
+    out = capsys.readouterr().out
+    assert ("energy_wh_per_km (mu* and sigma in Wh/km)" in out) == (method == "morris"), out
+    blocks = [b.splitlines()[1:] for b in out.split("\n\n")[1:] if "motor_kw" in b]
+    assert blocks and all(len({len(line) for line in b}) == 1 for b in blocks), blocks

@@ -309,3 +309,12 @@ def test_a_name_left_out_or_a_topology_given_twice_is_refused(argv, said, capsys
     except SystemExit as exc:  # argparse's error, as for any flag it refuses
         status = exc.code
     assert status == 2 and said in capsys.readouterr().err and not (tmp_path / "o").exists()
+
+
+def test_a_population_too_large_for_memory_is_refused_before_anything_runs(capsys, tmp_path):
+    """A pareto trial: --pop 1000000 ended in 'MemoryError: Unable to allocate 7.28 TiB', exit 7."""
+    srn = Path(__file__).resolve().parents[2] / "examples" / "pareto" / "srn.yaml"
+    assert main(["pareto", str(srn), "--pop", "1000000", "--generations", "1", "--transport", "inprocess",
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "--pop 1000000: at most 5,000" in err and not (tmp_path / "o").exists()
