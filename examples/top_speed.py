@@ -1,8 +1,10 @@
 """A user's own discipline, served by the generic node with no change to bev_mdo.
 
-Top speed on a flat road: the speed at which the motor's peak power at the wheels
-equals the road load, capped by the motor's maximum speed through the (longest) gear.
-    P_max * eta_g = (0.5 * rho * CdA * v^2 + Cr * M * g) * v,   v <= omega_max * r_w / i_g
+Top speed on a flat road: the speed at which the motor's peak force at the wheels equals the road load,
+capped by the motor's maximum speed through the gear. The force is the motor's envelope, as the acceleration
+model takes it: its peak torque tau * P_max up to the base speed, its peak power above (Fig 2-9):
+    min(tau P_max i_g eta_g / r_w, P_max eta_g / v) = 0.5 * rho * CdA * v^2 + Cr * M * g,   v <= omega_max * r_w / i_g
+With two speeds the faster of the two gears.
 With a coast-down in the config (``vehicle.road_load``) the road load is that one, A + B v + C v^2,
 as the built-in models take it (bev_mdo.models.road_load).
 One motor and its gear (SM-SA): with a second motor (DM-DA) it sees only `motor_kw` and `gear_ratio`, so
@@ -40,18 +42,19 @@ class TopSpeed:
     outputs = ("top_speed_kmh",)
     units = {"motor_kw": "kW", "gear_ratio": "1", "vehicle_mass_kg": "kg", "top_speed_kmh": "km/h"}
     VEHICLE_CONSTANTS = ("drag_area_m2", "rolling_resistance", "air_density_kg_m3", "gravity_m_s2",
-                         "gear_efficiency", "wheel_radius_m", "gear_count", "gear_ratio_2", "motor_speed_limit_rpm")
+                         "gear_efficiency", "wheel_radius_m", "gear_count", "gear_ratio_2", "motor_speed_limit_rpm",
+                         "motor_torque_per_kw")
 
     def __init__(self, drag_area_m2=0.6412, rolling_resistance=0.007, air_density_kg_m3=1.25,
                  gravity_m_s2=9.81, gear_efficiency=0.97, wheel_radius_m=0.316, gear_count=1, gear_ratio_2=4.7,
-                 motor_speed_limit_rpm=10500.0, motor_max_speed_rad_s=None, road_load=None):
+                 motor_speed_limit_rpm=10500.0, motor_torque_per_kw=3.5, motor_max_speed_rad_s=None, road_load=None):
         if motor_max_speed_rad_s is not None and motor_max_speed_rad_s <= 0:
             raise ValueError(f"motor_max_speed_rad_s must be > 0, got {motor_max_speed_rad_s}")
         self.parameters = {"drag_area_m2": drag_area_m2, "rolling_resistance": rolling_resistance,
                            "air_density_kg_m3": air_density_kg_m3, "gravity_m_s2": gravity_m_s2,
                            "gear_efficiency": gear_efficiency, "wheel_radius_m": wheel_radius_m,
                            "gear_count": gear_count, "gear_ratio_2": gear_ratio_2,  # a two-speed gearbox
-                           "motor_speed_limit_rpm": motor_speed_limit_rpm,
+                           "motor_speed_limit_rpm": motor_speed_limit_rpm, "motor_torque_per_kw": motor_torque_per_kw,
                            **(validate_road_load(road_load) if road_load else {})}  # road_load_a_n, ...
         if road_load:  # a coast-down replaces these: a parameter no formula reads must not be offered for overrides
             self.parameters = {k: x for k, x in self.parameters.items() if k not in ROAD_LOAD_UNUSED}
@@ -75,14 +78,20 @@ class TopSpeed:
         a0, a1, b, c = coefficients(p)                # road load F = a0 + a1 M + b v + c v^2 (N)
         f0 = a0 + a1 * inputs["vehicle_mass_kg"]
         p_w = inputs["motor_kw"] * 1e3 * p["gear_efficiency"]
-        lo, hi = np.zeros_like(p_w), np.cbrt(p_w / c) + np.abs(b) / c + 1.0  # F(hi) hi > P_w
-        for _ in range(60):                           # bisection on F(v) v = P_w
-            v = 0.5 * (lo + hi)
-            above = (f0 + b * v + c * v * v) * v > p_w
-            lo, hi = np.where(above, lo, v), np.where(above, v, hi)
-        v = 0.5 * (lo + hi)
-        top_gear = np.where(p["gear_count"] == 2, np.minimum(inputs["gear_ratio"], p["gear_ratio_2"]),
-                            inputs["gear_ratio"])         # with two speeds, the longer gear at top speed
         omega_max = p["motor_speed_limit_rpm"] * np.pi / 30.0 if self.omega_max is None else self.omega_max
-        v_gear = omega_max * p["wheel_radius_m"] / top_gear
-        return {"top_speed_kmh": np.minimum(v, v_gear) * 3.6}
+        first = inputs["gear_ratio"]
+        second = np.where(p["gear_count"] == 2, p["gear_ratio_2"], first)
+        return {"top_speed_kmh": np.maximum(self._in_gear(first, f0, b, c, p_w, omega_max, p),
+                                            self._in_gear(second, f0, b, c, p_w, omega_max, p)) * 3.6}
+
+    @staticmethod
+    def _in_gear(gear_ratio, f0, b, c, p_w, omega_max, p):
+        """Top speed (m/s) in one gear: where the road load meets the motor's force envelope, at most the gear's
+        speed cap. The load rises with v and the envelope does not, so bisection finds the one crossing."""
+        torque_force_n = p["motor_torque_per_kw"] * p_w / 1e3 * gear_ratio / p["wheel_radius_m"]  # tau P i_g eta_g / r_w
+        lo, hi = np.zeros_like(p_w), np.cbrt(p_w / c) + np.abs(b) / c + 1.0  # F(hi) hi > P_w
+        for _ in range(60):
+            v = 0.5 * (lo + hi)
+            above = f0 + b * v + c * v * v > np.minimum(torque_force_n, p_w / np.maximum(v, 1e-300))
+            lo, hi = np.where(above, lo, v), np.where(above, v, hi)
+        return np.minimum(0.5 * (lo + hi), omega_max * p["wheel_radius_m"] / gear_ratio)
