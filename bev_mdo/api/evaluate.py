@@ -58,13 +58,8 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
                if outside_bounds(d, v, feasibility_tolerance(config.settings))]
     with Evaluating(config, transport) as evaluator:
         report = evaluate_design(config.settings, evaluator, full)
-    short, notes = notes_of(config, {**problem.parameters, **full}, report["outputs"])
+    short, notes = notes_of(config, {**problem.parameters, **full}, report["outputs"], found=report)
     notes = outside + notes
-    values = {**problem.parameters, **full, **report["outputs"]}  # the pack's power against the motors' (0-100 km/h)
-    for lim in filter(None, (getattr(d, "battery_limit_kw", lambda _: None)(values) for d in config.disciplines)):
-        t = values.get("accel_time_0_100_s", float("nan"))
-        report["accel_battery_limit"] = {"pack_shaft_power_kw": lim[0], "motors_rated_power_kw": lim[1],
-                                         "time_without_limit_s": lim[2], "limits": bool(t > lim[2] * (1 + 1e-9))}
     if short or outside:  # not a design the run's energy describes, or off the design space: infeasible
         report["feasible"] = False
     if notes:
@@ -89,24 +84,30 @@ def note_outside_bounds(problem, given: dict[str, float], caller: str) -> list[t
     return out
 
 
-def notes_of(config, design: dict, outputs: dict) -> tuple[bool, list[str]]:
+def notes_of(config, design: dict, outputs: dict, found: dict | None = None) -> tuple[bool, list[str]]:
     """(whether the one design cannot follow its drive cycle, its notes: that, what its outputs mean
-    (``design_notes``) and where the follow check does not run)."""
+    (``design_notes``; ``found``: as there) and where the follow check does not run)."""
     from bev_mdo.config import RunConfig
     from bev_mdo.disciplines.energy import follow_notes
 
     short, unchecked = follow_notes(RunConfig.of(config).disciplines, {**design, **outputs})
-    return bool(short), short + design_notes(config, {**design, **outputs}) + unchecked
+    return bool(short), short + design_notes(config, {**design, **outputs}, found) + unchecked
 
 
-def design_notes(config, values: dict) -> list[str]:
+def design_notes(config, values: dict, found: dict | None = None) -> list[str]:
     """What an output's value at one design (``values``: its inputs and outputs) means where it is not a
     measurement, as its discipline says (``notes``): e.g. the 0-100 km/h time of a design that cannot reach
-    100 km/h, or one the pack's power limits."""
+    100 km/h, or one the pack's power limits (its ``battery_limit``, evaluated once for both: the note, and
+    ``found["accel_battery_limit"]`` when ``found``, evaluate's report, is given)."""
     from bev_mdo.config import RunConfig
 
-    return [n for d in RunConfig.of(config).disciplines for n in (getattr(d, "notes", None) or (lambda _: []))(values)
-            ] + platform_notes(config, values)
+    notes = []
+    for d in RunConfig.of(config).disciplines:
+        limit = getattr(d, "battery_limit", lambda _: None)(values) or {}
+        notes += [*(getattr(d, "notes", None) or (lambda _: []))(values), *filter(None, [limit.pop("note", None)])]
+        if limit and found is not None:
+            found["accel_battery_limit"] = limit
+    return notes + platform_notes(config, values)
 
 
 def platform_notes(config, values: dict) -> list[str]:
