@@ -233,18 +233,11 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
         cols.update({k: np.asarray(v, dtype=float) for k, v in designs.items()})
         res = run_in_chunks(mda, cols, n, getattr(getattr(evaluator, "inner", None), "timeout_s", None))  # ROS only
     outputs = {v: np.asarray(res.values[v], dtype=float) for s in mda.specs.values() for v in s.outputs}
-    margins, violation = {}, np.where(res.ok, 0.0, np.inf)
-    for c in problem.constraints:
-        y = outputs[c.name]
-        m = np.full(n, np.inf)
-        if c.lower is not None:
-            m = np.minimum(m, y - c.lower)
-        if c.upper is not None:
-            m = np.minimum(m, c.upper - y)
-        margins[c.name] = m
-        for kind, b, scale in c.rows():  # normalised as the optimiser's constraints (and its feasibility rule)
-            v = ((b - y) if kind == "lower" else (y - b)) / scale
-            violation = np.maximum(violation, np.where(np.isfinite(v), v, np.inf))
+    margins = {c.name: np.min([np.full(n, np.inf), *((outputs[c.name] - b) * (1.0 if kind == "lower" else -1.0)
+                                                     for kind, b, _ in c.rows(monitored=True))], axis=0)
+               for c in problem.constraints}
+    g = problem.g(outputs)  # normalised as the optimiser's constraints (and its feasibility rule); NaN: violated
+    violation = np.maximum(np.where(res.ok, 0.0, np.inf), np.where(np.isfinite(g), g, np.inf).max(axis=1, initial=0.0))
     feasible = violation <= feasibility_tolerance(config.settings)
     notes = ceiling_notes(config, outputs) + platform_notes(config, designs)
     from bev_mdo.disciplines.energy import follow_counts
