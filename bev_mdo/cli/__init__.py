@@ -14,6 +14,10 @@ import importlib
 import os
 import sys
 import threading
+import traceback
+import warnings
+from collections.abc import Mapping
+from pathlib import Path
 
 from bev_mdo import interrupts
 from bev_mdo.interrupts import Terminated  # SIGTERM as an exception: every finally runs, exit 143
@@ -55,8 +59,6 @@ def figure_format(path) -> str | None:
     else None (the extension's format); ValueError for a directory or standard output (a binary image
     among the command's text; /dev/stdout went to stderr: is_stdout). Commands call it on their
     arguments first, so that such a path is refused before anything is computed."""
-    from pathlib import Path
-
     if is_stdout(path) or _terminal(path):
         raise ValueError(f"--png {path}: a PNG is binary, not written to "
                          f"{'standard output' if is_stdout(path) else 'standard error or a terminal'}; give a file "
@@ -72,9 +74,6 @@ def energy_cycle_label(cfg) -> str:
     computed on ('cycle nedc'; its option ``cycle`` before the config's), or the distance-weighted mix of its
     option ``cycle_weights`` ('cycle mix 55 % epa_udds + 45 % epa_hwfet'), not the config's cycle when that only
     sets the top speed; the config's cycle without an energy discipline; '' without a cycle."""
-    from collections.abc import Mapping
-    from pathlib import Path
-
     from bev_mdo.models.cycles import is_csv_cycle
 
     def shown(name) -> str:  # a CSV trace by its file name, not the absolute path the config resolves it to
@@ -94,8 +93,6 @@ def energy_cycle_label(cfg) -> str:
 def _terminal(path) -> bool:
     """A name of descriptor 2 or of a terminal (/dev/tty, /dev/pts/N, /dev/console), by its name only (a
     device is not opened to ask): ``--png /dev/stderr`` wrote the image's bytes to the terminal."""
-    import os
-
     return str(path) in ("/dev/stderr", "/dev/fd/2", "/proc/self/fd/2") or os.path.realpath(path).startswith(
         ("/dev/tty", "/dev/pts/", "/dev/console"))
 
@@ -132,8 +129,6 @@ def write_text_file(path, text: str) -> None:
 
 def cannot_write(path, exc: OSError) -> ValueError:
     """One line for an output file that could not be written: its name and the reason."""
-    from pathlib import Path
-
     folder = Path(path).parent
     if isinstance(exc, FileNotFoundError) and not folder.is_dir():
         reason = f"the folder {folder} does not exist"
@@ -245,17 +240,16 @@ def _run(args, process: bool = False) -> int:
             return _interrupted(exc)
         if isinstance(exc, BrokenPipeError):
             return _closed_pipe()
-        if isinstance(exc, (ValueError, FileNotFoundError, IsADirectoryError, PermissionError)):  # a user mistake
-            msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            print(f"bev-mdo {args.command}: error: {msg}", file=sys.stderr)
-            return STARTUP_GAVE_UP_STATUS if isinstance(exc, StartupGaveUp) else 2
         from bev_mdo.api.errors import ModelFailed
 
-        if isinstance(exc, ModelFailed):  # the model gave no value where the method needs one: as a failed point
-            print(f"bev-mdo {args.command}: error: {exc}", file=sys.stderr)
-            return 1
-        print(f"bev-mdo {args.command}: error: {_named(exc)}", file=sys.stderr)  # the run failed (its optimiser raised)
-        return RUN_FAILED_STATUS
+        if isinstance(exc, (ValueError, FileNotFoundError, IsADirectoryError, PermissionError)):  # a user mistake
+            status, line = STARTUP_GAVE_UP_STATUS if isinstance(exc, StartupGaveUp) else 2, _named(exc, where=False)
+        elif isinstance(exc, ModelFailed):  # the model gave no value where the method needs one: as a failed point
+            status, line = 1, str(exc)
+        else:  # the run failed (its optimiser raised)
+            status, line = RUN_FAILED_STATUS, _named(exc)
+        print(f"bev-mdo {args.command}: error: {line}", file=sys.stderr)
+        return status
 
 
 def _interrupted(exc: BaseException) -> int:
@@ -272,11 +266,12 @@ def _interrupted(exc: BaseException) -> int:
 RUN_FAILED_STATUS = 7  # an unexpected error stopped the command (a bag is closed with every finished iteration)
 
 
-def _named(exc: BaseException) -> str:
-    """One line for an unexpected error: its type, the first line of its message and where it was raised."""
-    import traceback
-
+def _named(exc: BaseException, where: bool = True) -> str:
+    """One line for an unexpected error: its type, the first line of its message and where it was raised;
+    without ``where``, a user mistake's: the first line of its message alone (its type when it has none)."""
     msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    if not where:
+        return msg or type(exc).__name__
     frames = traceback.extract_tb(exc.__traceback__)
     where = f" (raised at {os.path.basename(frames[-1].filename)}:{frames[-1].lineno})" if frames else ""
     return f"{type(exc).__name__}{': ' + msg if msg else ''}{where}"
@@ -286,8 +281,6 @@ def _named(exc: BaseException) -> str:
 def _notes_to_stderr(command: str):
     """Notes the models raise as warnings (e.g. models.cycles.CycleNote) are printed once each as
     ``bev-mdo <command>: note: ...`` on stderr (stdout stays the command's output)."""
-    import warnings
-
     from bev_mdo.models.cycles import CycleNote
 
     with warnings.catch_warnings():
