@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import shutil
+import sys
 import tempfile
 import time
 import uuid
@@ -58,8 +59,9 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
             engine["optimizer"] = {**config["optimizer"], "name": opts.optimizer}
         config = config.with_sections(**engine)
     config = _seeded(config, opts.seed)
-    opts.refuse_attach("optimize")
-    _refuse_ros_only(opts)
+    opts.refuse_attach("optimize")  # and optimize's own ROS flags in process (--compose counts unless the default)
+    opts.refuse_ros_only((("--compose", None if opts.compose == "coordinator" else opts.compose),
+                          ("--instances", opts.instances)))
     starts = _starts(opts, x0)  # a bad start count is refused before anything starts or is written
     t_start = time.perf_counter()
     from bev_mdo.api import runbag  # end-of-run answers: in the result, stored with the bag
@@ -128,8 +130,6 @@ def _run_inprocess(config, opts, show, x0, starts, closing: contextlib.ExitStack
 
 
 def _run_ros(config, opts, show, x0, starts):
-    import sys
-
     from bev_mdo import interrupts
     from bev_mdo.api.transport import ros_section
     from bev_mdo.processes import parse_instances
@@ -176,12 +176,6 @@ def _run_ros(config, opts, show, x0, starts):
         shutil.rmtree(scratch, ignore_errors=True)
         del extra["logs"]
     return result, baseline, extra
-
-
-def _refuse_ros_only(opts) -> None:
-    """Transport.refuse_ros_only with optimize's own ROS flags; ``compose`` counts as given when it is not the default."""
-    opts.refuse_ros_only((("--compose", None if opts.compose == "coordinator" else opts.compose),
-                          ("--instances", opts.instances)))
 
 
 def _where(names, instances: dict, compose: str | None) -> str:
