@@ -24,8 +24,8 @@ from bev_mdo.interrupts import Terminated  # SIGTERM as an exception: every fina
 from bev_mdo.stacks import (STARTUP_GAVE_UP_STATUS, StartupGaveUp, bound_exit, defer_teardowns, dump_stacks_on_sigusr1,
                             end_process)
 
-# command -> (module in bev_mdo.cli, help), in the order --help lists them. The module's register()
-# uses the same help (test/cli/test_cli_table.py checks it).
+# command -> (module in bev_mdo.cli, help), in the order --help lists them. The module's register() adds
+# the command's parser, which gets this help (_Commands; test/cli/test_cli_table.py checks it).
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "optimize": ("optimize", "run the distributed MDF/IDF optimisation (the main job)"),
     "evaluate": ("evaluate", "evaluate one design through all disciplines"),
@@ -149,6 +149,13 @@ def _chosen(argv: list[str]) -> str | None:
     return None
 
 
+class _Commands(argparse._SubParsersAction):  # argparse's class for add_subparsers(action=...)
+    """bev-mdo's subcommands: each one's help is its line of SUBCOMMANDS, written there alone."""
+
+    def add_parser(self, name, **kwargs):
+        return super().add_parser(name, **{"help": SUBCOMMANDS[name][1], **kwargs})
+
+
 class _Parser(argparse.ArgumentParser):
     """A usage mistake is one line on stderr, as every other user mistake (exit 2), naming --help."""
 
@@ -167,7 +174,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
         description="Distributed MDO of battery-electric-vehicle powertrains over ROS 2.",
     )
     parser.add_argument("--version", action="version", version=f"bev-mdo {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", action=_Commands)
     sub.required = True
     chosen = _chosen(argv) if argv is not None else None
     for command, (module, help_text) in SUBCOMMANDS.items():

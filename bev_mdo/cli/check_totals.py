@@ -19,8 +19,7 @@ from bev_mdo import jsontext
 def register(subparsers) -> None:
     from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
 
-    p = subparsers.add_parser("check-totals", help="compare the optimiser's total derivatives with finite differences",
-                              description=__doc__.split("\n\n")[1])
+    p = subparsers.add_parser("check-totals", description=__doc__.split("\n\n")[1])
     p.add_argument("config", help="run config YAML")
     p.add_argument("--formulation", choices=("mdf", "idf"), default=None, help="default: the config's")
     p.add_argument("--at", default="", metavar="K=V,...", help="design point (default: the initial values)")

@@ -12,8 +12,7 @@ from bev_mdo import jsontext
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("evaluate", help="evaluate one design through all disciplines",
-                              description=__doc__.splitlines()[0])
+    p = subparsers.add_parser("evaluate", description=__doc__.splitlines()[0])
     p.add_argument("config", help="run config YAML, e.g. config/leaf_nedc.yaml")
     p.add_argument("--set", dest="assignments", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
                    help="design values (or model-parameter overrides); also comma-separated a=1,b=2")

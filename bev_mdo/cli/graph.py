@@ -14,10 +14,9 @@ OPT = "optimizer"
 
 
 def register(sub) -> None:
-    p = sub.add_parser("graph", help="the coupling graph as an N² chart (PNG) and Graphviz DOT text",
-                       description="Disciplines, their couplings, feedback loops and what the optimiser "
-                                   "drives, from the run config (no ROS needed). Without --png/--dot the "
-                                   "DOT text goes to stdout.")
+    p = sub.add_parser("graph", description="Disciplines, their couplings, feedback loops and what the optimiser "
+                                            "drives, from the run config (no ROS needed). Without --png/--dot the DOT "
+                                            "text goes to stdout.")
     p.add_argument("config", help="run config YAML")
     p.add_argument("--png", metavar="FILE", help="write the N² chart here")
     p.add_argument("--dot", metavar="FILE", help="write Graphviz DOT text here ('-' or /dev/stdout for stdout)")

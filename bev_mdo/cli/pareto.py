@@ -32,10 +32,9 @@ OBJECTIVES = study.OBJECTIVES  # the study's default (energy, 0-100 km/h time, c
 
 
 def register(subparsers) -> None:
-    from bev_mdo.cli import SUBCOMMANDS
     from bev_mdo.cli.flags import seed
 
-    p = subparsers.add_parser("pareto", help=SUBCOMMANDS["pareto"][1])
+    p = subparsers.add_parser("pareto")
     p.add_argument("config", help="run config YAML (e.g. examples/pareto/srn.yaml, config/topologies_artemis.yaml)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--topology", default=None, action=_Once,

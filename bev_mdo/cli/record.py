@@ -5,7 +5,7 @@ from pathlib import Path
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser("record", help="record bev_mdo topics to a rosbag2 MCAP bag")
+    parser = subparsers.add_parser("record")
     parser.add_argument("--topics", nargs="+", help="topics to record (default: all under /bev_mdo/)")
     parser.add_argument("--output", "-o", help="bag directory (default bags/<time>_record)")
     parser.add_argument("--config", help="configuration file to store in the bag")

@@ -7,7 +7,7 @@ from bev_mdo.cli.flags import add_bag_argument
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser("replay", help="publish the messages of a recorded bag again")
+    parser = subparsers.add_parser("replay")
     add_bag_argument(parser)
     speed = parser.add_mutually_exclusive_group()
     speed.add_argument("--rate", type=float, default=1.0,

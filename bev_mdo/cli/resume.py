@@ -14,8 +14,7 @@ from bev_mdo.cli.flags import add_bag_argument
 
 
 def register(sub) -> None:
-    p = sub.add_parser("resume", help="restart an optimisation from the last iterate recorded in a bag",
-                       description="Read the run's configuration and its last IterationRecord from BAG and "
+    p = sub.add_parser("resume", description="Read the run's configuration and its last IterationRecord from BAG and "
                                    "optimise again from that design (a truncated bag works too); from a "
                                    "finished run's bag, from its result; from a sweep's bag, from its best "
                                    "design (feasible, else least violated).")

@@ -20,10 +20,9 @@ ROUGH = 0.01  # a value is marked "~" when its error estimate (Richardson's, or 
 
 def register(subparsers) -> None:
     from bev_mdo.api.sensitivity import METHODS
-    from bev_mdo.cli import SUBCOMMANDS
     from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments, seed
 
-    p = subparsers.add_parser("sensitivity", help=SUBCOMMANDS["sensitivity"][1])
+    p = subparsers.add_parser("sensitivity")
     p.add_argument("config", help="run config YAML")
     p.add_argument("--at", default="", metavar="K=V,...",
                    help="design point (design variables default to their initial values); with --global, the "
