@@ -33,6 +33,8 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.sensitivity import sensitivities
 
+    if global_method is not None and global_method not in METHODS:  # before anything starts
+        raise InputError(f"--global {global_method!r}: allowed: {', '.join(METHODS)}")
     config = RunConfig.of(config)
     finite_values(at or {}, "--at", one="the design the sensitivities are taken at, a number per name")
 
@@ -165,8 +167,6 @@ def analyse(method: str, fun, point: dict, bounds: dict[str, tuple[float, float]
     ``ceilings`` (api.evaluate.ceilings): an output with samples at or above its ceiling gets
     ``at_ceiling`` (how many) and a note, for its indices then describe where the designs the physics
     cannot serve lie more than the quantity."""
-    if method not in METHODS:
-        raise InputError(f"--global {method!r}: allowed: {', '.join(METHODS)}")
     if not names:
         raise InputError("--global: no design variable to analyse")
     missing = [k for k in names if k not in bounds]

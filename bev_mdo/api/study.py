@@ -258,8 +258,6 @@ class Study:
         of 2, default 1024: N (D + 2) designs), morris' trajectories (default 64)."""
         from bev_mdo.api import sensitivity
 
-        if method not in sensitivity.METHODS:
-            raise InputError(f"--global {method!r}: allowed: {', '.join(sensitivity.METHODS)}")
         rep = sensitivity.run(self.config, _mapping(at, "at"), _names(wrt, "wrt"), _transport(transport),
                               global_method=method, samples=None if samples is None else _whole(samples, "samples"),
                               seed=_whole(seed, "seed"), conf_level=conf_level)
