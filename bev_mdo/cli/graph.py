@@ -9,6 +9,7 @@ Graphviz DOT text (``dot -Tpng graph.dot -o graph.png`` renders it where Graphvi
 from __future__ import annotations
 
 import sys
+import textwrap
 
 OPT = "optimizer"
 
@@ -122,8 +123,6 @@ def plot_n2(model: dict, path, title: str = ""):
     text = ((title + "\n" if title else "") + "N² chart: row passes to column; first row: what the optimiser "
             "drives, first column: what it reads;\nbetween disciplines, above the diagonal feed-forward, "
             "below it feedback (red)" + loops)
-    import textwrap
-
     chars = int(size * 72 / (0.6 * 9))  # the figure's width in characters of the 9 pt title (DejaVu Sans)
     ax.set_title("\n".join(textwrap.fill(line, chars) for line in text.splitlines()), fontsize=9)
     fig.tight_layout()

@@ -19,6 +19,7 @@ one is named) or every evaluated design failed (the first error is named); 2 a u
 from __future__ import annotations
 
 import argparse
+import copy
 import sys
 import uuid
 from pathlib import Path
@@ -162,8 +163,6 @@ def _status(doc: dict, results) -> int:
 
 def _only(ov, variables: set[str]):
     """The overrides with the bounds and initial values of ``variables`` only (one topology's)."""
-    import copy
-
     kept = copy.deepcopy(ov)
     kept.bounds = {k: v for k, v in ov.bounds.items() if k in variables}
     kept.initial = {k: v for k, v in ov.initial.items() if k in variables}

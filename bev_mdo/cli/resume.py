@@ -8,6 +8,8 @@ all that is needed. The resumed run is recorded to a new bag.
 from __future__ import annotations
 
 import argparse
+import json
+import sys
 from pathlib import Path
 
 from bev_mdo.cli.flags import add_bag_argument
@@ -38,9 +40,6 @@ def resume_point(bag_path: str, run_id: str | None = None, key_file: str | None 
                  checks: dict | None = None, no_verify: bool = False) -> tuple:
     """(the run's RunConfig, last verified design of the bag's own run, its iteration) from a bag;
     BagError (a ValueError) if there is none or it cannot be verified."""
-    import json
-    import sys
-
     from bev_mdo.bag.history import last_iterate
     from bev_mdo.bag.reader import open_bag
     from bev_mdo.config import RunConfig
@@ -83,14 +82,10 @@ def held(config, fixed: dict):
 def is_per_run_key(path) -> bool:
     """Whether `path` is a per-run key bev-mdo created for a run (``<bag's parent>/.keys/<bag name>/sign.key``,
     auth.with_run_key), not a key file the user configured."""
-    from pathlib import Path
-
     return bool(path) and Path(str(path)).name == "sign.key" and Path(str(path)).parent.parent.name == ".keys"
 
 
 def run(args) -> int:
-    import sys
-
     from bev_mdo.api.transport import Transport
     from bev_mdo.bag.history import check_note
     from bev_mdo.cli.optimize import run_job
