@@ -13,12 +13,24 @@ from bev_mdo.api.transport import Evaluating
 from bev_mdo.mdo.vectors import did_you_mean
 
 
-def declared_units(config) -> dict[str, str]:
-    """{variable: unit} as the run's disciplines declare them (mdo/units.py): what tables and plots print."""
+def declared_units(config, parameters=()) -> dict[str, str]:
+    """{variable: unit} as the run's disciplines declare them (mdo/units.py): what tables and plots print; beside
+    them the built-in model parameters among ``parameters`` (models.params; '' dimensionless): a design's override
+    columns, such as load_kg, which no discipline declares as a variable."""
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.units import run_units
+    from bev_mdo.models.params import all_specs
 
-    return run_units(RunConfig.of(config).disciplines)
+    specs = all_specs()
+    return {**{k: "" if specs[k].unit == "-" else specs[k].unit for k in parameters if k in specs},
+            **run_units(RunConfig.of(config).disciplines)}
+
+
+def units_of(config, names) -> dict[str, str]:
+    """{name: unit} of ``names`` alone (``declared_units``; a name with no unit is left out): a result's variables,
+    a sensitivity's (``--wrt load_kg`` too)."""
+    units = declared_units(config, names)
+    return {k: units[k] for k in names if k in units}
 
 
 def pyplot_and_label(units: dict | None):
@@ -64,7 +76,7 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
         report["feasible"] = False
     if notes:
         report["notes"] = notes
-    report["units"] = {**parameter_units(report.get("parameters", {})), **declared_units(config)}
+    report["units"] = declared_units(config, report.get("parameters", {}))
     if config.parameter_set:  # which set the vehicle's values came from
         report["parameter_set"] = config.parameter_set
     return report
@@ -254,13 +266,4 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
             "outputs": outputs, "margins": margins, "violation": violation, "feasible": feasible,
             "ok": np.asarray(res.ok, bool),
             "errors": res.messages, "objective": problem.objective, "problem": problem,
-            "units": {**parameter_units(designs), **declared_units(config)}, "notes": notes}
-
-
-def parameter_units(names) -> dict[str, str]:
-    """{name: unit} of the built-in model parameters among ``names`` (models.params; '' dimensionless): a
-    design's override columns, such as load_kg, which no discipline declares as a variable."""
-    from bev_mdo.models.params import all_specs
-
-    specs = all_specs()
-    return {k: "" if specs[k].unit == "-" else specs[k].unit for k in names if k in specs}
+            "units": declared_units(config, designs), "notes": notes}

@@ -79,14 +79,13 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
     extra = {k: v for k, v in extra.items() if not k.startswith("_")}
     extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
     named = {"parameter_set": config.parameter_set} if config.parameter_set else {}  # which set the vehicle's came from
-    from bev_mdo.api.evaluate import declared_units, design_notes
+    from bev_mdo.api.evaluate import design_notes, units_of
 
     if result.get("outputs"):  # what a value at the result means, as evaluate says it (the pack's power limit)
         values = {**config.problem.parameters, **result.get("design", {}), **result["outputs"]}
         if notes := design_notes(config, values):
             named["notes"] = notes
-    units = declared_units(config)  # each design variable's and output's, as evaluate's JSON gives them
-    named["units"] = {k: units[k] for k in (*result.get("design", {}), *result.get("outputs", {})) if k in units}
+    named["units"] = units_of(config, [*result.get("design", {}), *result.get("outputs", {})])  # as evaluate's JSON
     return {**result, **named, "baseline": baseline, **extra}
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from bev_mdo.api.errors import InputError
+from bev_mdo.api.evaluate import units_of  # (Study's and the CLI's too)
 from bev_mdo.api.overrides import finite_values
 from bev_mdo.api.transport import Evaluating, Transport
 from bev_mdo.mdo.vectors import did_you_mean
@@ -87,15 +88,6 @@ def _model_limits(point: dict, design: list[str]) -> dict[str, tuple[float, floa
     specs = all_specs()
     return {k: (specs[k].lower, specs[k].upper) for k, v in point.items()
             if k not in design and k in specs and specs[k].lower <= v <= specs[k].upper}
-
-
-def units_of(config, names) -> dict[str, str]:
-    """{name: unit} of ``names`` as the run's disciplines declare them, a built-in model parameter's (``--wrt
-    load_kg``) from models.params; a name with neither is left out."""
-    from bev_mdo.api.evaluate import declared_units, parameter_units
-
-    units = {**parameter_units(names), **declared_units(config)}
-    return {k: units[k] for k in names if k in units}
 
 
 def to_dict(s, outputs, units: dict | None = None) -> dict:
