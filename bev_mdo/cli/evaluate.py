@@ -34,8 +34,7 @@ def run(args) -> int:
     if args.json:
         print(jsontext.dumps(report))
     else:
-        line = cycles_line(config.data)
-        if line:
+        if line := cycles_line(config.data):
             print(line)
         print_table(report)
     return 0 if report["ok"] else 1
