@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from bev_mdo.api.errors import InputError
+from bev_mdo.api.evaluate import units_of  # (Study's and the CLI's too)
 from bev_mdo.api.overrides import finite_values
 from bev_mdo.api.transport import Evaluating, Transport
 from bev_mdo.mdo.vectors import did_you_mean
@@ -33,6 +34,8 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.sensitivity import sensitivities
 
+    if global_method is not None and global_method not in METHODS:  # before anything starts
+        raise InputError(f"--global {global_method!r}: allowed: {', '.join(METHODS)}")
     config = RunConfig.of(config)
     finite_values(at or {}, "--at", one="the design the sensitivities are taken at, a number per name")
 
@@ -85,15 +88,6 @@ def _model_limits(point: dict, design: list[str]) -> dict[str, tuple[float, floa
     specs = all_specs()
     return {k: (specs[k].lower, specs[k].upper) for k, v in point.items()
             if k not in design and k in specs and specs[k].lower <= v <= specs[k].upper}
-
-
-def units_of(config, names) -> dict[str, str]:
-    """{name: unit} of ``names`` as the run's disciplines declare them, a built-in model parameter's (``--wrt
-    load_kg``) from models.params; a name with neither is left out."""
-    from bev_mdo.api.evaluate import declared_units, parameter_units
-
-    units = {**parameter_units(names), **declared_units(config)}
-    return {k: units[k] for k in names if k in units}
 
 
 def to_dict(s, outputs, units: dict | None = None) -> dict:
@@ -165,8 +159,6 @@ def analyse(method: str, fun, point: dict, bounds: dict[str, tuple[float, float]
     ``ceilings`` (api.evaluate.ceilings): an output with samples at or above its ceiling gets
     ``at_ceiling`` (how many) and a note, for its indices then describe where the designs the physics
     cannot serve lie more than the quantity."""
-    if method not in METHODS:
-        raise InputError(f"--global {method!r}: allowed: {', '.join(METHODS)}")
     if not names:
         raise InputError("--global: no design variable to analyse")
     missing = [k for k in names if k not in bounds]

@@ -23,8 +23,7 @@ from bev_mdo import interrupts, jsontext
 def register(sub) -> None:
     from bev_mdo.cli.flags import seed
 
-    p = sub.add_parser("optimize", help="run the distributed MDF/IDF optimisation (the main job)",
-                       description="Optimise the config's problem. Over ROS every discipline runs as its own "
+    p = sub.add_parser("optimize", description="Optimise the config's problem. Over ROS every discipline runs as its own "
                                    "node (localhost discovery, the config's domain id), by default in this "
                                    "command's process (--compose none: a process each).")
     p.add_argument("config", help="run config YAML, e.g. config/leaf_nedc.yaml")
