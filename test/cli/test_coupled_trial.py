@@ -1,0 +1,43 @@
+"""A user trial's three-discipline coupled problem (test/data/user_modules/therm.py: a heater producing p in W
+read in kW, a cooler producing q in m read in km; f = (x0-3)^2 + (x1-2)^2 + 2 (d-1)^2 under ptot <= 5 kW) through
+`bev-mdo optimize`: what the lines under the verdict say of its coupling bounds and of an end at failing points."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from bev_mdo.cli import main
+
+MODULES = Path(__file__).resolve().parents[1] / "data" / "user_modules"
+
+
+def _config(tmp_path, formulation="idf", heater=None, q_upper=1250.0, optimizer="SLSQP") -> str:
+    raw = {"name": "therm", "search_path": [str(MODULES)],
+           "disciplines": [{"name": "heater", "class": "therm:Heater", **({"options": heater} if heater else {})},
+                           {"name": "cooler", "class": "therm:Cooler"}, {"name": "cost", "class": "therm:Cost"}],
+           "problem": {"objective": "f",
+                       "design_variables": {"x": {"shape": 2, "lower": 0, "upper": 5, "initial": [1, 1]},
+                                            "d": {"lower": 0, "upper": 2, "initial": 0.5}},
+                       "constraints": {"ptot": {"upper": 5}}, "coupling_guesses": {"q": 0.0},
+                       "coupling_bounds": {"q": {"lower": 0, "upper": q_upper}, "p": {"lower": 0, "upper": 20000}}},
+           "formulation": formulation, "mda": {"method": "newton", "tolerance": 1e-12, "max_iterations": 200},
+           "optimizer": {"name": optimizer}}
+    path = tmp_path / "therm.yaml"
+    path.write_text(yaml.safe_dump(raw, sort_keys=False))
+    return str(path)
+
+
+def _optimize(path, *argv):
+    return main(["optimize", path, "--transport", "inprocess", "--no-record", "--quiet", *argv])
+
+
+def test_an_idf_coupling_on_its_bound_prints_its_value(tmp_path, capsys):
+    """'on its upper bound: q[0] = nan m' while the table showed 1250: the value was looked up among the design
+    variables only."""
+    assert _optimize(_config(tmp_path)) == 0
+    out = capsys.readouterr().out
+    assert "  on its upper bound: q[0] = 1250 m, multiplier 0.3597 (-0.0002878 USD per m raised)" in out, out
+    assert "nan" not in out
