@@ -193,17 +193,30 @@ def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = Fal
                      "bounds inside that region would make it a limit the check can judge")
     elif converged and fo["verdict"] == STOPPED and not (fo.get("kinks") or fo.get("unknown_derivatives")
                                                          or fo.get("derivatives_disagree")):
-        if fo.get("derivatives") == "analytic":
-            lines.append(f"{optimizer} says it converged, but the first-order conditions do not hold at its end point "
-                         "(judged on the gradient assembled from the disciplines' analytic partials, the optimiser's "
-                         "own, so a wrong partial misleads both): a wrong derivative is a common cause; bev-mdo "
-                         "check-partials CONFIG compares each discipline's partials with finite differences, bev-mdo "
-                         "check-totals CONFIG the totals")
-        else:  # no analytic partial in the run: its own stopping rule, or the finite differences' step
-            lines.append(f"{optimizer} says it converged, but the first-order conditions do not hold at its end point "
-                         "(judged on finite differences of the whole analysis, optimizer.fd_step, as the optimiser's): "
-                         "its stopping tolerance (optimizer.options, e.g. ftol) may be too loose for the problem, or "
-                         "the step too coarse for it")
+        from bev_mdo.mdo.optimizers import GRADIENT_BASED
+
+        head = f"{optimizer} says it converged, but the first-order conditions do not hold at its end point "
+        if optimizer in GRADIENT_BASED or optimizer == "the optimiser":
+            lines.append(head + ("(judged on the gradient assembled from the disciplines' analytic partials, the "
+                                 "optimiser's own, so a wrong partial misleads both): a wrong derivative is a common "
+                                 "cause; bev-mdo check-partials CONFIG compares each discipline's partials with finite "
+                                 "differences, bev-mdo check-totals CONFIG the totals"
+                                 if fo.get("derivatives") == "analytic" else
+                                 # no analytic partial in the run: its own stopping rule, or the differences' step
+                                 "(judged on finite differences of the whole analysis, optimizer.fd_step, as the "
+                                 "optimiser's): its stopping tolerance (optimizer.options, e.g. ftol) may be too loose "
+                                 "for the problem, or the step too coarse for it"))
+        else:  # a derivative-free optimiser: the check's gradient is not its own; a wrong partial misleads the check
+            analytic = fo.get("derivatives") == "analytic"
+            on = ("the gradient assembled from the disciplines' analytic partials" if analytic
+                  else "finite differences of the whole analysis (optimizer.fd_step)")
+            idf = ("; under IDF its every step must also keep the consistency equalities met, which a search on values "
+                   "alone does poorly (--formulation mdf meets them by the MDA)" if fo.get("equalities") else "")
+            lines.append(head + f"(judged on {on}, which {optimizer}, derivative-free, does not use): its own stopping "
+                         f"rule (optimizer.options) ended it where that gradient still descends{idf}; a gradient-based "
+                         "optimiser (--optimizer SLSQP) can go on from there"
+                         + (" (a wrong partial would mislead the check alone: bev-mdo check-partials CONFIG rules it "
+                            "out)" if analytic else ""))
     return lines
 
 

@@ -41,3 +41,16 @@ def test_an_idf_coupling_on_its_bound_prints_its_value(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "  on its upper bound: q[0] = 1250 m, multiplier 0.3597 (-0.0002878 USD per m raised)" in out, out
     assert "nan" not in out
+
+
+def test_a_derivative_free_end_next_to_failing_points_says_so(tmp_path, capsys):
+    """COBYQA (MDF) ended 7e-5 inside the region where the heater raises (x[0] > 2.2); the note blamed the analytic
+    partials, 'the optimiser's own' gradient, while SLSQP's said the end lies at the edge of the region where the
+    disciplines give values. The end-point check's first steps (1e-7) did not reach the edge; its second do."""
+    assert _optimize(_config(tmp_path, "mdf", heater={"raise_above": 2.2}, q_upper=10000.0), "--optimizer",
+                     "COBYQA") == 5
+    out = capsys.readouterr().out
+    (note,) = [line for line in out.splitlines() if line.startswith("note: ")]
+    assert note.startswith("note: COBYQA says it converged") and "a small step from it in x[0] fails" in note, out
+    assert "edge of the region where the disciplines give values" in note
+    assert "optimiser's own" not in note and "wrong derivative" not in note
