@@ -54,3 +54,17 @@ def test_a_derivative_free_end_next_to_failing_points_says_so(tmp_path, capsys):
     assert note.startswith("note: COBYQA says it converged") and "a small step from it in x[0] fails" in note, out
     assert "edge of the region where the disciplines give values" in note
     assert "optimiser's own" not in note and "wrong derivative" not in note
+
+
+@pytest.mark.parametrize("at, why", [
+    ("x[0]=3", "the design itself fails: move it (--at) to where the model answers"),
+    ("x[0]=2.1999", "a step from the design fails: move it (--at) away from where the model gives none"),
+])
+def test_a_local_sensitivity_that_fails_gets_local_advice(tmp_path, capsys, at, why):
+    """`sensitivity --order 2` at a design where the heater raises said 'narrow the bounds to where it answers', the
+    advice of the global methods, whose samples span the bounds; a local stencil spans the design's neighbourhood."""
+    path = _config(tmp_path, "mdf", heater={"raise_above": 2.2}, q_upper=10000.0)
+    assert main(["sensitivity", path, "--transport", "inprocess", "--order", "2", "--at", at]) != 0
+    err = capsys.readouterr().err
+    assert f"points of the local stencil ({why}" in err and "narrow the bounds" not in err, err
+    assert "heater melts" in err  # the failed discipline's error
