@@ -152,7 +152,8 @@ def build_batch(config, evaluator, param_defaults=None, local=False):
             at = ", ".join(f"{k}={X[i, j]:.6g}" for j, k in enumerate(names) if k in problem.names)
             why = ("the indices need a value at every one: narrow the bounds to where it answers" if not local else
                    "the design itself fails: move it (--at) to where the model answers" if i == 0 else
-                   "a step from the design fails: move it (--at) away from where the model gives none, or shorten the steps (--rel-step)")
+                   "a step from the design fails: move it (--at) away from where the model gives none, or shorten "
+                   "the steps (--rel-step)")
             raise ModelFailed(f"the model failed at {int((~np.asarray(res.ok)).sum())} of the {len(X)} "
                               f"{'points of the local stencil' if local else 'sampled points'} ({why}); first "
                               f"at {at}: {res.errors[i].message.splitlines()[0] if res.errors[i] else 'no value'}")

@@ -7,9 +7,10 @@ claimed: one-sided slopes along each variable do not bound the slope along a kin
 variables (f = 10 |x - y| + (x + y - 4)^2 at x = y = 1.32: each variable alone raises f at 72.7, the valley x = y
 lowers it at 5.5 per unit), and a check built on them said "optimum" there (a user trial).
 ``end_point_kinks`` steps each variable ``fd_step`` and 4 x ``fd_step`` either way (one batch) and, where none is
-found, 2e-4 and 8e-4 (scaled); away from an optimum, where neither finds a kink or a failed point, ``failing_steps``
-steps 1 % of each range for points where the disciplines give no value. ``one_sided_descent`` is the answers' program of a first-order step on one-sided
-slopes (active.py), which explains an infeasible end; it proves nothing.
+found, 2e-4 and 8e-4 (scaled); away from an optimum, where neither finds a kink or a failed point,
+``failing_steps`` steps 1 % of each range for points where the disciplines give no value. ``one_sided_descent``
+is the answers' program of a first-order step on one-sided slopes (active.py), which explains an infeasible end;
+it proves nothing.
 """
 from __future__ import annotations
 
