@@ -179,6 +179,8 @@ def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = Fal
     record of the optimiser's last iterate where the result is an earlier one (then the reason is there). A step
     from the end point that failed (driver.end_point_check's ``failed_steps``) is the likelier cause."""
     lines = [_free_line(fo["free_variables"])] if fo.get("free_variables") else []
+    if fo.get("outside_coupling_bounds"):  # driver: an MDF result beyond problem.coupling_bounds
+        lines.append(_coupling_bounds_line(fo["outside_coupling_bounds"]))
     if converged and ended is not None and fo["verdict"] != OPTIMUM:  # its end point is not what was judged
         why = ("cannot follow the drive cycle, a check the optimiser does not see (constrain the energy "
                "discipline's margins so that it does: options {feasibility_outputs: true}, e.g. drive_force_margin_n "
@@ -218,6 +220,17 @@ def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = Fal
                          + (" (a wrong partial would mislead the check alone: bev-mdo check-partials CONFIG rules it "
                             "out)" if analytic else ""))
     return lines
+
+
+def _coupling_bounds_line(outside: list[dict]) -> str:
+    """The note of an MDF result's couplings beyond ``problem.coupling_bounds``, one line."""
+    first = outside[0]
+    side = {"lower": "below its lower", "upper": "above its upper"}
+    names = ", ".join(f"{b['name']} = {b['value']:.6g} is {side[b['kind']]} bound {b['bound']:g}" for b in outside)
+    op = ">=" if first["kind"] == "lower" else "<="
+    return (f"{names} of problem.coupling_bounds: those bounds hold IDF's coupling variables; MDF, whose MDA sets the "
+            f"couplings, does not apply them, so the two formulations solve different problems here; a limit both "
+            f"keep is a constraint (problem.constraints, or --constraint \"{first['name']}{op}{first['bound']:g}\")")
 
 
 def _free_line(free: list[dict]) -> str:

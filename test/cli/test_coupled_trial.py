@@ -68,3 +68,25 @@ def test_a_local_sensitivity_that_fails_gets_local_advice(tmp_path, capsys, at, 
     err = capsys.readouterr().err
     assert f"points of the local stencil ({why}" in err and "narrow the bounds" not in err, err
     assert "heater melts" in err  # the failed discipline's error
+
+
+def test_mdf_says_its_result_lies_beyond_a_coupling_bound_it_does_not_apply(tmp_path, capsys):
+    """IDF held q[0] at its coupling bound 1250 m (f = 0.9088); MDF ended at q[0] = 1311 m, 'optimum', with no word
+    that the bound, IDF's bound on its coupling variable, was not applied. A constraint holds it under both."""
+    assert _optimize(_config(tmp_path, "mdf")) == 0
+    out = capsys.readouterr().out
+    (note,) = [line for line in out.splitlines() if line.startswith("note: ")]
+    assert note.startswith("note: q[0] = 1311.11 is above its upper bound 1250 of problem.coupling_bounds:"), out
+    assert "MDF, whose MDA sets the couplings, does not apply them" in note and '--constraint "q[0]<=1250"' in note
+    assert _optimize(_config(tmp_path, "mdf"), "--json") == 0
+    (b,) = json.loads(capsys.readouterr().out)["first_order"]["outside_coupling_bounds"]
+    assert (b["name"], b["kind"], b["bound"]) == ("q[0]", "upper", 1250.0) and b["value"] == pytest.approx(1311.11)
+    for formulation, q_upper in (("idf", 1250.0), ("mdf", 10000.0)):  # IDF applies it; MDF inside it: no note
+        assert _optimize(_config(tmp_path, formulation, q_upper=q_upper)) == 0
+        assert "coupling_bounds" not in capsys.readouterr().out
+    # the constraint the note gives: both formulations end at IDF's f, q[0] on its limit
+    for formulation in ("mdf", "idf"):
+        assert _optimize(_config(tmp_path, formulation), "--constraint", "q[0]<=1250", "--json") == 0
+        doc = json.loads(capsys.readouterr().out)
+        assert doc["objective"] == pytest.approx(0.908794, rel=1e-5) and doc["verdict"] == "optimum"
+        assert "outside_coupling_bounds" not in doc["first_order"]
