@@ -49,7 +49,7 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
         defaults = {k: v for spec in local.specs.values() for k, v in spec.parameters.items()}
         local.close()
     with Evaluating(config, transport, node_name="bev_mdo_sensitivity") as ev:
-        fun, point, bounds, outputs, problem = build_batch(config, ev, defaults)
+        fun, point, bounds, outputs, problem = build_batch(config, ev, defaults, local=not global_method)
         for k, v in (at or {}).items():
             if k not in point:
                 raise InputError(f"--at: unknown name {k!r}; {did_you_mean(k, point)}"
@@ -109,10 +109,11 @@ def to_dict(s, outputs, units: dict | None = None) -> dict:
     return d if units is None else {**d, "units": units}
 
 
-def build_batch(config, evaluator, param_defaults=None):
+def build_batch(config, evaluator, param_defaults=None, local=False):
     """(fun, nominal point, bounds, outputs, problem) for the MDA of ``config`` over ``evaluator``.
     ``fun(X)`` takes columns in the order of the returned point (design variables, then every
-    overridable model parameter) and returns the objective and constrained outputs."""
+    overridable model parameter) and returns the objective and constrained outputs; ``local``: its batches are a
+    local stencil (row 0 the design), which a failure's advice fits."""
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import build_formulation
 
@@ -143,8 +144,12 @@ def build_batch(config, evaluator, param_defaults=None):
 
             i = int(np.flatnonzero(~np.asarray(res.ok))[0])
             at = ", ".join(f"{k}={X[i, j]:.6g}" for j, k in enumerate(names) if k in problem.names)
-            raise ModelFailed(f"the model failed at {int((~np.asarray(res.ok)).sum())} of the {len(X)} sampled points "
-                              f"(the indices need a value at every one: narrow the bounds to where it answers); first "
+            why = ("the indices need a value at every one: narrow the bounds to where it answers" if not local else
+                   "the design itself fails: move it (--at) to where the model answers" if i == 0 else
+                   "a step from the design fails: move it (--at) away from where the model gives none, or shorten "
+                   "the steps (--rel-step)")
+            raise ModelFailed(f"the model failed at {int((~np.asarray(res.ok)).sum())} of the {len(X)} "
+                              f"{'points of the local stencil' if local else 'sampled points'} ({why}); first "
                               f"at {at}: {res.errors[i].message.splitlines()[0] if res.errors[i] else 'no value'}")
         return {k: res.values[k] for k in outputs}
     return fun, point, bounds, outputs, problem

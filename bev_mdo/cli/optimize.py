@@ -204,7 +204,7 @@ def _verdict(result: dict, out, units: dict) -> None:
         shown = "0" if abs(margin) <= 1e-6 * max(abs(limit), 1.0) else f"{margin:.3g}"  # below the noise: 0
         lines.append(f"active: {label}{u(name)}, margin {shown}{u(name)}, multiplier {multiplier:.4g}{rate(name, d)}")
     for b in fo["active_bounds"]:
-        v = result["design"].get(b["name"], float("nan"))
+        v = {**result.get("outputs", {}), **result["design"]}.get(b["name"], float("nan"))  # IDF's couplings too
         v = b.get("bound", v) if abs(v - b.get("bound", v)) <= 1e-9 * max(1.0, abs(v)) else v  # 4.6e-13 on 0: 0
         lines.append(f"on its {b['kind']} bound: {b['name']} = {v:.6g}{u(b['name'])}, multiplier "
                      f"{b['multiplier']:.4g}{rate(b['name'], b.get('d_objective_d_limit'))}")
