@@ -75,8 +75,12 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
                           design=list(problem.names), ceilings=ceilings(config))
             rep["units"] = units_of(config, [*wrt, *outputs])
             return rep
-        s = sensitivities(fun, point, wrt=wrt, order=order, bounds={**_model_limits(point, problem.names), **bounds},
-                          rel_step=rel_step, method=method)
+        from bev_mdo.api.evaluate import note_outside_bounds  # taken where given, as evaluate does, and said
+
+        outside = {d.name for d, _ in note_outside_bounds(problem, point, "bev-mdo sensitivity")}
+        s = sensitivities(fun, point, wrt=wrt, order=order, rel_step=rel_step, method=method,
+                          bounds={**_model_limits(point, problem.names),
+                                  **{k: b for k, b in bounds.items() if k not in outside}})
     return s, outputs, point, problem
 
 
