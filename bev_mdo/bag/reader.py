@@ -173,11 +173,11 @@ class Bag:
                         self.recovered_bytes = done = f.tell()
                         data_ended = data_ended or isinstance(record, DataEnd)
                         yield record
-                except Exception as exc:  # noqa: BLE001 - a short read; zstd / struct / decode errors from damaged bytes
+                except Exception as exc:  # noqa: BLE001 - a short read; zstd, struct, decode errors of damaged bytes
                     start = max(done, at or 0)  # where the record that failed begins
                     declared = self._declared_end(start)  # where its own length says it ends (None: past the file)
                     short = isinstance(exc, (EndOfFile, struct.error))
-                    if short and (data_ended or declared is None):  # the file ends early (or a summary length is damaged)
+                    if short and (data_ended or declared is None):  # the file ends early (or a summary length is bad)
                         self.truncated = True
                         if data_ended:
                             self.end_damage = "truncated or damaged in the summary after the messages"
