@@ -50,7 +50,8 @@ def run(args) -> int:
 def verify(args) -> None:
     """Check the bag as ``history`` does before anything is published: a bag whose signing record, stored
     config and key disagree, or with iteration records that do not verify with the run's key, is refused
-    (BagError, exit 2; ``--no-verify`` replays it as it is); stderr says when its records are not verified."""
+    (BagError, exit 2; ``--no-verify`` replays it as it is); stderr says when its records are not verified, and
+    when they stop before the run's end (its end-of-run record counts more)."""
     from bev_mdo.bag.errors import BagError
     from bev_mdo.bag.history import history
     from bev_mdo.bag.reader import open_bag
@@ -65,3 +66,5 @@ def verify(args) -> None:
                        "refusing to replay it (--no-verify replays it as is)")
     if checks["unverified"]:
         print(f"{args.bag}: {checks['unverified']}", file=sys.stderr)
+    if checks.get("tail"):  # its end-of-run record counts records past the bag's last: said as history says it
+        print(f"{args.bag}: {checks['tail']}", file=sys.stderr)
