@@ -14,7 +14,10 @@ import numpy as np
 
 from bev_mdo.api.evaluate import pyplot_and_label
 from bev_mdo.cli import save_figure
-from bev_mdo.cli.validate import _f
+
+
+def _f(x, nd=1) -> str:  # as validate's table (not imported: validate imports this module)
+    return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{nd}f}"
 
 
 def write_all(report: dict, directory) -> list[Path]:
