@@ -141,27 +141,20 @@ def one_sided_descent(c: np.ndarray, rows: np.ndarray, box: list[tuple[float, fl
     over p, q (each in its ``box`` entry: (0, 1), or (0, 0) for a side that is closed, a variable on its bound)
     with ``rows`` (p, q) <= 0 (each row a limit that must not get worse). The step is du = p - q: p moves each
     variable on its right-hand slope, q on its left-hand one (``c`` and ``rows`` are (right slopes, -left
-    slopes)). A variable with p and q both > 0 is no step where its left slope is above its right one (of the
-    objective or a row, by more than first_order.FIRST_ORDER_TOL of them: the pair would pay for itself): it keeps
-    the side it moved further to and the program is solved again. Where its slopes agree (a smooth variable, the
-    two sides' difference noise) the pair is the step p - q and stays: a degenerate solution moved a linear one
-    both ways to its box's ends, 4e-9 further down than up, and closing its up side lost the limit that held the
-    violation (MDF said nothing of ptot, which IDF, 1e-10 elsewhere, named). scipy's result (``fun``;
-    ``ineqlin.marginals``), or None when the program fails."""
+    slopes)). A variable with p and q both > 0 is no step (a left slope above the right one would pay for it):
+    it keeps the side it moved further to and the program is solved again. scipy's result (``fun``; ``ineqlin.marginals``), or
+    None when the program fails."""
     from scipy.optimize import linprog
 
     n, box = len(c) // 2, list(box)
     rows = np.asarray(rows, dtype=float).reshape(-1, 2 * n)
-    both_sides = np.vstack([c[None, :], rows])  # a kink whose two sides would pay: a negative sum beyond noise
-    pays = ((both_sides[:, :n] + both_sides[:, n:]) < -first_order.FIRST_ORDER_TOL * np.maximum(
-        np.abs(both_sides[:, :n]), np.abs(both_sides[:, n:]))).any(axis=0)
     res = None
     for _ in range(n + 1):
         res = linprog(c, A_ub=rows if len(rows) else None, b_ub=np.zeros(len(rows)) if len(rows) else None,
                       bounds=box, method="highs")
         if res.status != 0:
             return None
-        both = [j for j in range(n) if min(res.x[j], res.x[n + j]) > 1e-9 and pays[j]]
+        both = [j for j in range(n) if min(res.x[j], res.x[n + j]) > 1e-9]
         for j in both:
             box[n + j if res.x[j] >= res.x[n + j] else j] = (0.0, 0.0)
         if not both:

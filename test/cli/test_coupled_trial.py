@@ -90,13 +90,3 @@ def test_mdf_says_its_result_lies_beyond_a_coupling_bound_it_does_not_apply(tmp_
         doc = json.loads(capsys.readouterr().out)
         assert doc["objective"] == pytest.approx(0.908794, rel=1e-5) and doc["verdict"] == "optimum"
         assert "outside_coupling_bounds" not in doc["first_order"]
-
-
-@pytest.mark.parametrize("formulation", ["mdf", "idf"])
-def test_an_unreachable_limit_names_what_holds_it_under_both_formulations(tmp_path, capsys, formulation):
-    """q[0] >= 3000 m is out of reach (d on its upper bound, ptot <= 5 active): IDF said 'reducing it would break
-    ptot <= 5', MDF, at the same end point, nothing beyond the bound on d."""
-    assert _optimize(_config(tmp_path, formulation, q_upper=10000.0), "--constraint", "q[0]>=3000") == 1
-    out = capsys.readouterr().out
-    assert "  violated: q[0] >= 3000 m is 2777.78 m, short by 222.2 m" in out, out
-    assert "    blocked by d on its upper bound" in out and "    reducing it would break ptot <= 5\n" in out

@@ -277,18 +277,3 @@ def test_noise_read_as_a_kink_at_an_optimum_leaves_it_an_optimum():
         form = MDF(problem, ev, MDA(ev), fd_scheme="central")  # forward differences read this noise as 1e-4
         fo = end_point_check(form, np.array([a, 0.5]), np.array([0.5, 0.2]), 1e-6)
         assert fo["verdict"] == first_order.OPTIMUM and fo["kinks"] == [], (a, first_order.verdict_line(fo))
-
-
-def test_a_smooth_variable_moved_both_ways_keeps_both_sides_open():
-    """A user trial's infeasible end (q[0] >= 3000 short, d on its upper bound, ptot <= 5 active): the answers' program
-    moved x[0], linear, both ways to its box's ends (a degenerate solution, 4e-9 further down than up); its up side
-    was closed as a kink's would be, and the re-solved program lost ptot, the limit that holds the violation: MDF's
-    answers named no conflict where IDF's (1e-10 elsewhere) said 'reducing it would break ptot <= 5'."""
-    from bev_mdo.mdo.kinks import one_sided_descent
-
-    c = np.array([-2222.222221462289, -1111.111111185892, -0.0, 2222.222221462289, 1111.1111102763973, 0.0])
-    rows = np.array([[2.2222222222367805, 5.555555555147862, 5.555555555147862, -2.2222222222367805,
-                      -5.5555555542596835, -5.555555555147862]])  # (d, x[0], x[1]) right, then left
-    box = [(0.0, 0.0), (0.0, 0.4999999980028912), (0.0, 1.0), (0.0, 1.0), (0.0, 0.5000000019971088), (0.0, 0.0)]
-    res = one_sided_descent(c, rows, box)
-    assert res.fun > -1e-5 and abs(res.ineqlin.marginals[0]) == pytest.approx(200.0, rel=1e-3), res
