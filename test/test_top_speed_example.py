@@ -122,3 +122,27 @@ def test_without_the_option_the_speed_limit_is_the_vehicles_one():
     assert r.ok.all()
     assert r.outputs["top_speed_kmh"] == pytest.approx([w * 3.14159265358979 / 30 * 0.316 / 8 * 3.6
                                                          for w in (9000.0, 12000.0)], rel=1e-9)
+
+
+def test_where_the_pack_gives_less_than_the_motor_the_top_speed_is_the_packs():
+    """A review trial: at 120 kW, 3:1 and 20 kWh the example gave 233.5 km/h from the motor's 120 kW beside the note
+    that the pack gives 80.3 kW at the shaft; the pack's limit (as the acceleration model takes it) holds here too."""
+    from scipy.optimize import brentq
+
+    from bev_mdo.models.acceleration import battery_shaft_power_w
+    from bev_mdo.models.params import validate_vehicle
+
+    config = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text(encoding="utf-8"))
+    config["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost",
+                             {"name": "top_speed", "class": "examples.top_speed:TopSpeed"}]
+    config["search_path"] = [str(REPO)]
+    r = Study(config).evaluate({"motor_kw": 120.0, "gear_ratio": 3.0, "battery_kwh": 20.0}, transport="inprocess")
+    v = config["vehicle"]
+    shaft_w = battery_shaft_power_w(20.0, validate_vehicle(v))
+    assert 80e3 < shaft_w < 81e3
+    mass = r.outputs["vehicle_mass_kg"]
+    load = lambda s: (0.5 * v["air_density_kg_m3"] * v["drag_area_m2"] * s * s
+                      + v["rolling_resistance"] * mass * v["gravity_m_s2"]) * s
+    expected = brentq(lambda s: load(s) - shaft_w * v["gear_efficiency"], 1.0, 100.0, xtol=1e-12) * 3.6
+    assert r.outputs["top_speed_kmh"] == pytest.approx(expected, rel=1e-9)
+    assert r.outputs["top_speed_kmh"] < 210.0  # not 233.5
