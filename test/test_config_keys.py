@@ -328,7 +328,7 @@ def test_a_car_left_to_the_leafs_mass_wheel_or_road_load_is_said(tmp_path, capsy
     cfg = _write(tmp_path, yaml.safe_dump(raw, sort_keys=False))
     code, out, err = _cli(capsys, "evaluate", cfg, "--transport", "inprocess", "--no-record")
     assert code == 0
-    assert (f"bev-mdo evaluate: note: vehicle: {named}: not in the config, the thesis' Nissan Leaf's values are used"
+    assert (f"bev-mdo evaluate: note: vehicle: {named}: not in the config: the thesis' Nissan Leaf's values, where a run does not set them"
             in err.splitlines()), err
     code, out, err = _cli(capsys, "evaluate", REPO / "config" / "leaf_epa_combined.yaml", "--transport", "inprocess",
                           "--no-record")
