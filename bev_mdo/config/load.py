@@ -317,8 +317,8 @@ def leaf_defaults_note(cfg: Mapping[str, Any], problem, read: set[str]) -> None:
     specs = all_specs()
     left = [f"{k} {specs[k].default:g} {specs[k].unit}".replace(" -", "") for k in keys if k in read and k not in given]
     if left:
-        warnings.warn(f"vehicle: {', '.join(left)}: not in the config: the thesis' Nissan Leaf's values, where a run does not set them",
-                      CycleNote, stacklevel=2)
+        warnings.warn(f"vehicle: {', '.join(left)}: not in the config: the thesis' Nissan Leaf's values, where a run "
+                      "does not set them", CycleNote, stacklevel=2)
 
 
 def _settings(config: dict, problem: Problem, discs) -> RunSettings:
