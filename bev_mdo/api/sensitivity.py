@@ -75,11 +75,14 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
                           design=list(problem.names), ceilings=ceilings(config))
             rep["units"] = units_of(config, [*wrt, *outputs])
             return rep
-        from bev_mdo.api.evaluate import note_outside_bounds  # taken where given, as evaluate does, and said
+        from bev_mdo.api.evaluate import note_outside_bounds, refuse_outside_model_limits
+        from bev_mdo.config.disciplines import model_limits
 
-        outside = {d.name for d, _ in note_outside_bounds(problem, point, "bev-mdo sensitivity")}
+        refuse_outside_model_limits(config, at or {})  # a design no model evaluates: one line, as evaluate's
+        outside = {d.name for d, _ in note_outside_bounds(problem, point, "bev-mdo sensitivity")}  # taken as given
+        room = {k: model_limits(config.disciplines, k) for k in outside}  # there the models' limits bound the steps
         s = sensitivities(fun, point, wrt=wrt, order=order, rel_step=rel_step, method=method,
-                          bounds={**_model_limits(point, problem.names),
+                          bounds={**_model_limits(point, problem.names), **{k: r[:2] for k, r in room.items() if r},
                                   **{k: b for k, b in bounds.items() if k not in outside}})
     return s, outputs, point, problem
 
