@@ -143,7 +143,7 @@ def print_table(rep: dict) -> None:
         tiny = max(abs(r["total"]), abs(r["fd"])) <= rep["atol"]  # both within atol of 0: no relative error to speak of
         print(f" {r['of']:<{wf}} {r['wrt']:<{wv}} {r['total']:>14.8g} {r['fd']:>14.8g} {r['abs_error']:>10.3g} "
               f"{'-' if tiny else format(r['rel_error'], '.3g'):>10}  "
-              f"{'ok' if r['ok'] else 'DISAGREE' if r['fd'] == r['fd'] else 'no fd: both sides failed'}")
+              f"{'ok' if r['ok'] else 'DISAGREE' if r['fd'] == r['fd'] else 'no fd: no side left'}")
     if rep["error"]:
         print(rep["error"])
     print(summary(rep))
@@ -154,6 +154,11 @@ def summary(rep: dict) -> str:
     within atol of zero, 0 against 8e-11, a relative error of 1 says nothing), and the verdict."""
     beyond = [r for r in rep["rows"] if r["abs_error"] > rep["atol"]]
     worst = max(beyond, key=lambda r: r["rel_error"]) if beyond else None
+    missing = sum(r["fd"] != r["fd"] for r in rep["rows"])  # NaN: its two sides failed, or one failed at a bound
     return ((f"largest relative error {worst['rel_error']:.3g} (d {worst['of']} / d {worst['wrt']}) among the "
              f"differences above atol {rep['atol']:g}; " if worst else f"every difference is within atol {rep['atol']:g}; ")
-            + ("all totals agree with finite differences" if rep["ok"] else "some totals disagree"))
+            + (f"{missing} total{'s have' if missing > 1 else ' has'} no finite difference (a failed point on one side, "
+               "a failed point or a bound on the other); " if missing else "")
+            + ("all totals agree with finite differences" if rep["ok"] else
+               "some totals disagree" if any(not r["ok"] and r["fd"] == r["fd"] for r in rep["rows"]) else
+               "none disagrees"))
