@@ -145,8 +145,10 @@ def _check_keys(root) -> None:
                 before = node.value[i - 1][1] if i else None  # {initial: 7,981}: 7 then a key 981 with no value
                 if (key.tag == "tag:yaml.org,2002:int" and value.tag == "tag:yaml.org,2002:null" and not value.value
                         and isinstance(before, yaml.ScalarNode) and before.tag == "tag:yaml.org,2002:int"):
-                    raise YamlLimitError(f"{at}{before.value},{key.value} at line {line}: a decimal comma? "
-                                         f"write {before.value}.{key.value} (a comma separates entries)")
+                    from bev_mdo.models.common import comma_hint
+
+                    raise YamlLimitError(f"{at}{before.value},{key.value} at line {line}: a comma separates entries"
+                                         + comma_hint(f"{before.value},{key.value}"))
                 kind = _READ_AS.get(key.tag.rsplit(":", 1)[-1], f"tag {key.tag}")
                 if kind == "a boolean" and key.value.lower() not in ("true", "false"):
                     kind += " (YAML 1.1 reads yes/no/on/off so)"
