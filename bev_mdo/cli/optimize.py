@@ -137,9 +137,13 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
     if not result.get("last_iterate", True):
         print(f"result: iteration {result['result_iteration']}, the best feasible point seen "
               f"(not the optimiser's last iterate, iteration {result['iterations']})", file=out)
-    if result.get("fd_failures"):
-        print(f"warning: {result['fd_failures']} finite-difference point(s) failed and gave zero derivatives; "
-              "the optimiser may have stopped early (see discipline_errors)", file=out)
+    if result.get("fd_failures"):  # a derivative-free optimiser's are the first-order check's, not its own
+        from bev_mdo.mdo.optimizers import GRADIENT_BASED
+
+        own = result["optimizer"] in GRADIENT_BASED
+        print(f"warning: {result['fd_failures']} finite-difference point(s) failed and gave zero derivatives"
+              + ("; the optimiser may have stopped early" if own else " to the first-order check (not to "
+                 f"{result['optimizer']}, which uses none)") + " (see discipline_errors)", file=out)
     ms = result.get("multistart")  # its evaluations are summed over the starts; the iterations are the best start's
     over = f" (start {ms['best_start'] + 1}'s; {sum(r['iterations'] for r in ms['results'])} over {ms['starts']} starts)" if ms else ""
     print(f"iterations {result['iterations']}{over}, MDA evaluations {result['mda_evaluations']}, "

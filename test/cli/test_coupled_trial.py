@@ -90,3 +90,22 @@ def test_mdf_says_its_result_lies_beyond_a_coupling_bound_it_does_not_apply(tmp_
         doc = json.loads(capsys.readouterr().out)
         assert doc["objective"] == pytest.approx(0.908794, rel=1e-5) and doc["verdict"] == "optimum"
         assert "outside_coupling_bounds" not in doc["first_order"]
+
+
+def test_a_derivative_free_optimisers_failed_differences_are_the_checks(tmp_path, capsys):
+    """A review: COBYLA ending at x = 2 where y is NaN beyond printed 'finite-difference point(s) failed and gave
+    zero derivatives; the optimiser may have stopped early': COBYLA uses none; they are the first-order check's."""
+    (tmp_path / "edge3.py").write_text(
+        "import numpy as np\n\n\nclass D1:\n    name = 'd1'\n    inputs = ('x', 'z')\n    outputs = ('y1',)\n"
+        "    units = {'x': '1', 'z': '1', 'y1': '1'}\n\n    def compute(self, inputs):\n"
+        "        x, z = inputs['x'], inputs['z']\n        return {'y1': np.where(x > 2.0, np.nan, (z - 3.0) ** 2 - x)}\n")
+    path = tmp_path / "edge3.yaml"
+    path.write_text(yaml.safe_dump({"name": "edge3", "search_path": [str(tmp_path)],
+                                    "disciplines": [{"name": "d1", "class": "edge3:D1"}],
+                                    "problem": {"objective": "y1", "design_variables": {
+                                        "x": {"lower": 0, "upper": 10, "initial": 1},
+                                        "z": {"lower": 0, "upper": 10, "initial": 2}}}}, sort_keys=False))
+    _optimize(str(path), "--optimizer", "COBYLA")
+    (line,) = [s for s in capsys.readouterr().out.splitlines() if s.startswith("warning: ")]
+    assert line.endswith("failed and gave zero derivatives to the first-order check (not to COBYLA, which uses none) "
+                         "(see discipline_errors)"), line
