@@ -25,7 +25,11 @@ FIRST_STOP_S = 30.0  # how long Launcher.stop gives the nodes stopped first (the
 
 
 def _die_with_parent() -> None:
-    """In the child: get SIGTERM if the launcher dies (even by SIGKILL), so no node is orphaned (Linux)."""
+    """In the child: SIGINT and SIGTERM at their defaults (a job a shell started with ``&`` inherits SIGINT ignored, so
+    Launcher.stop's SIGINT reached no node: 30 s later SIGUSR1, a stack dump in its log, and SIGTERM), and SIGTERM
+    if the launcher dies (even by SIGKILL), so no node is orphaned (Linux)."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_DFL)
     try:
         import ctypes
 

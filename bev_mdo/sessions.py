@@ -113,6 +113,7 @@ class OptimizeRosSession:
         self.recorder = 0
         self.recorder_binding = None
         self.stats: dict = {}
+        self.published = 0  # iteration records the run sent (recorder_failure: the bag must hold them all)
 
     def __enter__(self) -> "OptimizeRosSession":
         from bev_mdo.launcher import Launcher, prepare_run_dir, start_recorder
@@ -150,6 +151,10 @@ class OptimizeRosSession:
         ctx = rclpy.context.Context()
         rclpy.init(context=ctx)
         beside = None
+
+        def sent(rec: dict) -> None:  # called once the coordinator published the record
+            self.published += 1
+            return on_iteration(rec) if on_iteration is not None else None
         try:
             from bev_mdo.ros.composed import Beside
 
@@ -170,7 +175,7 @@ class OptimizeRosSession:
                     baseline["value"] = analyse_baseline(self.config, evaluator)
 
             res, stats = coordinator_node.run(self.config, run_id=self.run_id, formulation=formulation,
-                                              optimizer=optimizer, x0=x0, on_iteration=on_iteration,
+                                              optimizer=optimizer, x0=x0, on_iteration=sent,
                                               starts=starts, seed=seed,
                                               recorder_subscribers=self.recorder, context=ctx,
                                               recorder_binding=self.recorder_binding, starting=self.launcher.progress,
@@ -202,7 +207,8 @@ class OptimizeRosSession:
         tail_s = self.t_end - stats["t_optimised"]  # after the optimiser: final acknowledgements, shutdown
         tail = {"acks_s": stats["t_acked"] - stats["t_optimised"], "shutdown_s": self.t_end - stats["t_acked"]}
         restarts = {n.label: n.restarts for n in self.launcher.nodes if n.restarts}
-        recorder_failed = recorder_failure(self.launcher, self.bag) if self.recorder else None
+        sent = {"/bev_mdo/iteration": self.published}
+        recorder_failed = recorder_failure(self.launcher, self.bag, sent) if self.recorder else None
         extra = {"transport": "ros", "run_id": self.run_id, "domain_id": self.ros["domain_id"],
                  "bag": str(self.bag) if self.record else None, "logs": str(self.logs),
                  "dropped_messages": stats["dropped"], "retried_requests": stats["retried"],
@@ -266,14 +272,21 @@ def _tail(path, size: int = 8192) -> str:
         return ""
 
 
-def recorder_failure(launcher, bag: Path) -> str | None:
+SENT_NOUNS = {"/bev_mdo/iteration": "iteration records", "/bev_mdo/pareto_front": "Pareto fronts"}
+
+
+def recorder_failure(launcher, bag: Path, sent: dict | None = None) -> str | None:
     """None if the recorder lived to the end, or closed its bag and was then killed in its ROS teardown (past
-    Launcher.stop's wait); else a one-line warning, after making the bag readable again (summary and metadata rebuilt)."""
+    Launcher.stop's wait), and the bag holds all the run ``sent`` ({topic: messages the run published}); else a
+    one-line warning, after making the bag readable again (summary and metadata rebuilt). What the bag holds
+    decides, not when the supervisor saw the recorder end: one stopped during the run (a SIGTERM) that was still
+    draining, closing its bag or in its teardown when the run ended was never seen to end during the run, and
+    exited 0 to Launcher.stop's SIGINT as if it had recorded everything."""
     node = launcher.node("recorder")
     during = node.died is not None  # ended during the run (the supervisor saw it): failed, even SIGTERMed (exit 143)
     status = node.died if during else (node.proc.returncode if node.proc is not None else None)
     told = status in (0, 130, 143)  # it took SIGINT or SIGTERM and closed its bag (ros/recorder_node.main)
-    if not during and (told or status is None):
+    if not during and (told or status is None) and not short_of(bag, sent):
         return None
     note = (f"the recorder {'stopped' if told else 'died'} (exit status {status}) during the run" if not node.frozen else
             "the recorder was frozen (its process stopped, e.g. by SIGSTOP) at the end of the run and was killed")
@@ -284,12 +297,31 @@ def recorder_failure(launcher, bag: Path) -> str | None:
         closed = (find_mcap(bag).parent / "metadata.yaml").is_file()  # written last by the recorder's close
         res = repair(bag)
         whole = closed and not res.was_truncated
-        if whole and not during:  # the bag holds everything: nothing failed
+        short = short_of(bag, sent)  # as the recorder's (or the repair's) metadata.yaml counts them
+        if whole and not during and not short:  # the bag holds everything: nothing failed
             return None
+        if short and not during and not node.frozen:  # never seen to end during the run: its bag says it did
+            note = f"the recorder stopped recording before the run ended (exit status {status}); the bag holds {short}"
+        elif short:
+            note += f": {short}"
         note += f" ({res.message_count} messages, {'closed by the recorder' if whole else 'summary and metadata rebuilt'})"
     except (ValueError, OSError) as exc:
         note += f"; the bag could not be repaired: {exc}"
     return note
+
+
+def short_of(bag: Path, sent: dict | None) -> str:
+    """'' or what the bag lacks of what the run ``sent`` ({topic: messages published}), as the metadata.yaml that
+    describes it counts them ('265 of the 852 iteration records the run published'; '' without one)."""
+    from bev_mdo.bag.reader import bagfile_information, find_mcap
+
+    try:
+        topics = bagfile_information(find_mcap(bag).parent).get("topics_with_message_count") or []
+        held = {t["topic_metadata"]["name"]: int(t["message_count"]) for t in topics}
+    except (ValueError, OSError, TypeError, KeyError):
+        return ""
+    return "; ".join(f"{held.get(t, 0)} of the {n} {SENT_NOUNS.get(t, 'messages on ' + t)} the run published"
+                     for t, n in (sent or {}).items() if held and held.get(t, 0) < n)
 
 
 def _signing(ros: dict, config: RunConfig) -> str:
@@ -438,7 +470,8 @@ class ParetoRosSession:
         finally:
             if self.launcher is not None:
                 self.launcher.stop(first=("recorder",))
-                failed = recorder_failure(self.launcher, self.bag) if self.recorder else None
+                sent = {"/bev_mdo/pareto_front": self.sink.published} if self.sink is not None else None
+                failed = recorder_failure(self.launcher, self.bag, sent) if self.recorder else None
                 if failed:  # the CLI warns and exits 3, as optimize does
                     self.stats["recorder_failed"] = failed
                 self.stats["node_restarts"] = {n.label: n.restarts for n in self.launcher.nodes if n.restarts}

@@ -130,7 +130,7 @@ def _check_keys(root) -> None:
         if isinstance(node, yaml.SequenceNode):
             stack.extend(reversed([(c, f"{where}[{i}]") for i, c in enumerate(node.value)]))
         elif isinstance(node, yaml.MappingNode):
-            for key, _ in node.value:
+            for i, (key, value) in enumerate(node.value):
                 if isinstance(key, yaml.ScalarNode) and key.tag == "tag:yaml.org,2002:str":
                     continue
                 text = " ".join(key.start_mark.buffer[key.start_mark.index:key.end_mark.index].split())
@@ -142,6 +142,13 @@ def _check_keys(root) -> None:
                 if not isinstance(key, yaml.ScalarNode):
                     kind = "a list" if isinstance(key, yaml.SequenceNode) else "a mapping"
                     raise YamlLimitError(f"{at}key {text} at line {line} is {kind}; a key must be a name")
+                before = node.value[i - 1][1] if i else None  # {initial: 7,981}: 7 then a key 981 with no value
+                if (key.tag == "tag:yaml.org,2002:int" and value.tag == "tag:yaml.org,2002:null" and not value.value
+                        and isinstance(before, yaml.ScalarNode) and before.tag == "tag:yaml.org,2002:int"):
+                    from bev_mdo.models.common import comma_hint
+
+                    raise YamlLimitError(f"{at}{before.value},{key.value} at line {line}: a comma separates entries"
+                                         + comma_hint(f"{before.value},{key.value}"))
                 kind = _READ_AS.get(key.tag.rsplit(":", 1)[-1], f"tag {key.tag}")
                 if kind == "a boolean" and key.value.lower() not in ("true", "false"):
                     kind += " (YAML 1.1 reads yes/no/on/off so)"

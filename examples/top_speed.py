@@ -1,8 +1,11 @@
 """A user's own discipline, served by the generic node with no change to bev_mdo.
 
-Top speed on a flat road: the speed at which the motor's peak power at the wheels
-equals the road load, capped by the motor's maximum speed through the (longest) gear.
-    P_max * eta_g = (0.5 * rho * CdA * v^2 + Cr * M * g) * v,   v <= omega_max * r_w / i_g
+Top speed on a flat road: the speed at which the motor's peak force at the wheels equals the road load,
+capped by the motor's maximum speed through the gear. The force is the motor's envelope, as the acceleration
+model takes it: its peak torque tau * P_max up to the base speed, its peak power above (Fig 2-9):
+    min(tau P_max i_g eta_g / r_w, P eta_g / v) = 0.5 * rho * CdA * v^2 + Cr * M * g,   v <= omega_max * r_w / i_g
+where P is the motor's peak power, or the pack's power at the shaft where that is less (as the acceleration model
+takes it: models.acceleration.battery_shaft_power_w). With two speeds the faster of the two gears.
 With a coast-down in the config (``vehicle.road_load``) the road load is that one, A + B v + C v^2,
 as the built-in models take it (bev_mdo.models.road_load).
 One motor and its gear (SM-SA): with a second motor (DM-DA) it sees only `motor_kw` and `gear_ratio`, so
@@ -24,34 +27,40 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bev_mdo.models.params import ROAD_LOAD_UNUSED, validate_road_load
+from bev_mdo.models.acceleration import battery_shaft_power_w
+from bev_mdo.models.params import ROAD_LOAD_UNUSED, validate_road_load, validate_vehicle
+
+PACK = {"battery_to_shaft_efficiency": 0.9, "cells_series": 96.0, "initial_soc": 0.9, "discharge_c_max": 5.0}
 from bev_mdo.models.road_load import coefficients
 
 
 class TopSpeed:
-    """inputs motor_kw, gear_ratio, vehicle_mass_kg -> top_speed_kmh (batched).
+    """inputs motor_kw, gear_ratio, vehicle_mass_kg, battery_kwh -> top_speed_kmh (batched).
 
     The vehicle constants it reads are its ``parameters`` ({name: the run config's value}): a run that
     overrides one (``--set``, ``--vary``, ``sensitivity --wrt``, ``problem.parameters``) sends it as an
     input column of that name, which ``compute`` takes in place of the configured value."""
 
     name = "top_speed"
-    inputs = ("motor_kw", "gear_ratio", "vehicle_mass_kg")
+    inputs = ("motor_kw", "gear_ratio", "vehicle_mass_kg", "battery_kwh")
     outputs = ("top_speed_kmh",)
-    units = {"motor_kw": "kW", "gear_ratio": "1", "vehicle_mass_kg": "kg", "top_speed_kmh": "km/h"}
+    units = {"motor_kw": "kW", "gear_ratio": "1", "vehicle_mass_kg": "kg", "battery_kwh": "kWh", "top_speed_kmh": "km/h"}
     VEHICLE_CONSTANTS = ("drag_area_m2", "rolling_resistance", "air_density_kg_m3", "gravity_m_s2",
-                         "gear_efficiency", "wheel_radius_m", "gear_count", "gear_ratio_2", "motor_speed_limit_rpm")
+                         "gear_efficiency", "wheel_radius_m", "gear_count", "gear_ratio_2", "motor_speed_limit_rpm",
+                         "motor_torque_per_kw", *PACK)
 
     def __init__(self, drag_area_m2=0.6412, rolling_resistance=0.007, air_density_kg_m3=1.25,
                  gravity_m_s2=9.81, gear_efficiency=0.97, wheel_radius_m=0.316, gear_count=1, gear_ratio_2=4.7,
-                 motor_speed_limit_rpm=10500.0, motor_max_speed_rad_s=None, road_load=None):
+                 motor_speed_limit_rpm=10500.0, motor_torque_per_kw=3.5, motor_max_speed_rad_s=None, road_load=None,
+                 **pack):
         if motor_max_speed_rad_s is not None and motor_max_speed_rad_s <= 0:
             raise ValueError(f"motor_max_speed_rad_s must be > 0, got {motor_max_speed_rad_s}")
         self.parameters = {"drag_area_m2": drag_area_m2, "rolling_resistance": rolling_resistance,
                            "air_density_kg_m3": air_density_kg_m3, "gravity_m_s2": gravity_m_s2,
                            "gear_efficiency": gear_efficiency, "wheel_radius_m": wheel_radius_m,
                            "gear_count": gear_count, "gear_ratio_2": gear_ratio_2,  # a two-speed gearbox
-                           "motor_speed_limit_rpm": motor_speed_limit_rpm,
+                           "motor_speed_limit_rpm": motor_speed_limit_rpm, "motor_torque_per_kw": motor_torque_per_kw,
+                           **{k: pack.get(k, PACK[k]) for k in PACK},  # the pack's power limit
                            **(validate_road_load(road_load) if road_load else {})}  # road_load_a_n, ...
         if road_load:  # a coast-down replaces these: a parameter no formula reads must not be offered for overrides
             self.parameters = {k: x for k, x in self.parameters.items() if k not in ROAD_LOAD_UNUSED}
@@ -65,24 +74,32 @@ class TopSpeed:
 
     @classmethod
     def from_config(cls, config, options):
-        """Take the vehicle constants from the run config; the motor's speed limit too, unless the options give one."""
-        v = config.get("vehicle", {})
-        return cls(**{k: v[k] for k in (*cls.VEHICLE_CONSTANTS, "road_load") if k in v},
-                   motor_max_speed_rad_s=options.motor_max_speed_rad_s)
+        """Take the vehicle constants from the run config, a named parameter set's and the defaults as the built-in
+        models take them; the motor's speed limit too, unless the options give one."""
+        v = validate_vehicle(config.get("vehicle"))
+        return cls(**{k: v[k] for k in cls.VEHICLE_CONSTANTS if k in v}, road_load=config.get("vehicle", {}).get(
+            "road_load"), motor_max_speed_rad_s=options.motor_max_speed_rad_s)
 
     def compute(self, inputs):
         p = {k: inputs.get(k, value) for k, value in self.parameters.items()}  # a per-point override wins
         a0, a1, b, c = coefficients(p)                # road load F = a0 + a1 M + b v + c v^2 (N)
         f0 = a0 + a1 * inputs["vehicle_mass_kg"]
-        p_w = inputs["motor_kw"] * 1e3 * p["gear_efficiency"]
-        lo, hi = np.zeros_like(p_w), np.cbrt(p_w / c) + np.abs(b) / c + 1.0  # F(hi) hi > P_w
-        for _ in range(60):                           # bisection on F(v) v = P_w
-            v = 0.5 * (lo + hi)
-            above = (f0 + b * v + c * v * v) * v > p_w
-            lo, hi = np.where(above, lo, v), np.where(above, v, hi)
-        v = 0.5 * (lo + hi)
-        top_gear = np.where(p["gear_count"] == 2, np.minimum(inputs["gear_ratio"], p["gear_ratio_2"]),
-                            inputs["gear_ratio"])         # with two speeds, the longer gear at top speed
+        p_w = np.minimum(inputs["motor_kw"] * 1e3, battery_shaft_power_w(inputs["battery_kwh"], p)) * p["gear_efficiency"]
         omega_max = p["motor_speed_limit_rpm"] * np.pi / 30.0 if self.omega_max is None else self.omega_max
-        v_gear = omega_max * p["wheel_radius_m"] / top_gear
-        return {"top_speed_kmh": np.minimum(v, v_gear) * 3.6}
+        first = inputs["gear_ratio"]
+        second = np.where(p["gear_count"] == 2, p["gear_ratio_2"], first)
+        torque_nm = p["motor_torque_per_kw"] * inputs["motor_kw"]  # the motor's peak torque (N m)
+        return {"top_speed_kmh": np.maximum(self._in_gear(first, f0, b, c, p_w, torque_nm, omega_max, p),
+                                            self._in_gear(second, f0, b, c, p_w, torque_nm, omega_max, p)) * 3.6}
+
+    @staticmethod
+    def _in_gear(gear_ratio, f0, b, c, p_w, torque_nm, omega_max, p):
+        """Top speed (m/s) in one gear: where the road load meets the motor's force envelope, at most the gear's
+        speed cap. The load rises with v and the envelope does not, so bisection finds the one crossing."""
+        torque_force_n = torque_nm * gear_ratio * p["gear_efficiency"] / p["wheel_radius_m"]
+        lo, hi = np.zeros_like(p_w), np.cbrt(p_w / c) + np.abs(b) / c + 1.0  # F(hi) hi > P_w
+        for _ in range(60):
+            v = 0.5 * (lo + hi)
+            above = f0 + b * v + c * v * v > np.minimum(torque_force_n, p_w / np.maximum(v, 1e-300))
+            lo, hi = np.where(above, lo, v), np.where(above, v, hi)
+        return np.minimum(0.5 * (lo + hi), omega_max * p["wheel_radius_m"] / gear_ratio)

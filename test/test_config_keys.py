@@ -311,3 +311,25 @@ def test_a_search_path_folder_that_does_not_exist_is_a_note_or_named_in_the_impo
     code, out, err = _cli(capsys, "evaluate", cfg, "--set", "x=0.1", "--transport", "inprocess")
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert f"; search_path folder {tmp_path / 'no_such_folder'} does not exist)" in err
+
+
+@pytest.mark.parametrize("drop, named", [
+    ("road_load", "drag_area_m2 0.6412 m^2, rolling_resistance 0.007"),
+    ("glider_kg", "glider_kg 1269.64 kg"),
+    ("vehicle", "glider_kg 1269.64 kg, wheel_radius_m 0.316 m, drag_area_m2 0.6412 m^2, rolling_resistance 0.007")])
+def test_a_car_left_to_the_leafs_mass_wheel_or_road_load_is_said(tmp_path, capsys, drop, named):
+    """A Kona trial: a config without `road_load` ran on the Leaf's drag (117 Wh/km, not 134), without
+    `glider_kg` on the Leaf's 1269.64 kg, without a vehicle section as a Leaf, with exit 0 and no word."""
+    raw = yaml.safe_load((REPO / "config" / "leaf_epa_combined.yaml").read_text(encoding="utf-8"))
+    if drop == "vehicle":
+        del raw["vehicle"]
+    else:
+        del raw["vehicle"][drop]
+    cfg = _write(tmp_path, yaml.safe_dump(raw, sort_keys=False))
+    code, out, err = _cli(capsys, "evaluate", cfg, "--transport", "inprocess", "--no-record")
+    assert code == 0
+    assert (f"bev-mdo evaluate: note: vehicle: {named}: not in the config: the thesis' Nissan Leaf's values, where a run does not set them"
+            in err.splitlines()), err
+    code, out, err = _cli(capsys, "evaluate", REPO / "config" / "leaf_epa_combined.yaml", "--transport", "inprocess",
+                          "--no-record")
+    assert code == 0 and "Leaf's values" not in err  # a config that states them: no note

@@ -49,6 +49,20 @@ def test_a_key_that_is_not_a_string_is_refused_naming_where_and_what_it_was_read
         load_config(p)
 
 
+def test_a_decimal_comma_in_a_flow_mapping_is_said_as_one(tmp_path):
+    """A Kona trial: `{lower: 5, upper: 12, initial: 7,981}` was refused as `key 981 ... is read as an
+    integer, not a name: quote it ('981')`, advice that fixes nothing: 7,981 is a decimal comma."""
+    p = _write(tmp_path, BASE.replace("{lower: 1,  upper: 11,  initial: 8}", "{lower: 1,  upper: 11,  initial: 7,981}"))
+    with pytest.raises(ValueError) as err:
+        load_config(p)
+    assert str(err.value) == (f"{p}: problem.design_variables.gear_ratio: 7,981 at line 27: a comma separates "
+                              "entries (a decimal comma? write 7.981; or 7981 if it groups thousands)")
+    # block style: YAML reads 7,94 as text (a review: "'7,94' must be a number", no word of the comma)
+    p = _write(tmp_path, BASE.replace("  drag_area_m2: 0.6412", "  drag_area_m2: 0,6412"))
+    with pytest.raises(ValueError, match=r"0,6412.* \(a decimal comma\? write 0.6412\)$"):
+        load_config(p)
+
+
 @pytest.mark.parametrize("name, said", [
     ("12345", "name 12345 is read by YAML as an integer, not text: quote it (name: '12345')"),  # was: "letters, digits ... allowed"
     ("1.5", "name 1.5 is read by YAML as a number, not text: quote it (name: '1.5')"),

@@ -80,3 +80,29 @@ def test_a_node_killed_and_restarted_is_recovering_until_it_is_back_on_the_graph
         assert not launcher.recovering("energy")
     finally:
         launcher.stop(timeout_s=5.0)
+
+
+def _ignored(pid: int) -> int:
+    """The signals process `pid` ignores (the SigIgn mask of /proc/PID/status)."""
+    line = next(ln for ln in open(f"/proc/{pid}/status") if ln.startswith("SigIgn:"))
+    return int(line.split()[1], 16)
+
+
+def test_a_node_of_a_launcher_that_ignores_sigint_takes_the_first_signal(tmp_path):
+    """A shell's background job (`bev-mdo optimize ... &` in a script) inherits SIGINT ignored: so did its nodes, and
+    Launcher.stop's SIGINT reached none of them (SIGUSR1 and SIGTERM after 30 s, a stack dump in the recorder's log).
+    The nodes start with SIGINT and SIGTERM at their defaults, and stop at the first SIGINT."""
+    ignored = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, signal.SIG_IGN) for s in ignored}  # as the command inherited them
+    launcher = Launcher(dict(os.environ), log_dir=tmp_path)
+    try:
+        node = launcher.add("sleeper", [sys.executable, "-c", "import time; time.sleep(600)"], restart=False)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    try:
+        assert _ignored(node.proc.pid) & sum(1 << (s - 1) for s in ignored) == 0  # (Python keeps an inherited SIG_IGN)
+    finally:
+        launcher.stop(timeout_s=5.0)
+    assert node.proc.returncode == -signal.SIGINT  # the first signal, not SIGUSR1 (then SIGTERM) after the wait
+    assert "most recent call first" not in (tmp_path / "sleeper.log").read_text()

@@ -82,3 +82,16 @@ def test_bad_cycle_weights_one_line(weights, match):
     raw["disciplines"][1] = {"name": "energy", "options": {"cycle_weights": weights}}
     with pytest.raises(ValueError, match=match):
         load_config(raw)
+
+
+@pytest.mark.parametrize("options, key", [({"cycle_weights": {"udds": 0.55, "epa_hwfet": 0.45}}, "cycle_weights"),
+                                          ({"cycle": "udds"}, "cycle")])
+def test_an_unknown_cycle_in_the_energy_options_is_named_there(options, key):
+    """A Kona trial: both were refused as `cycle: unknown drive cycle 'udds'`, while the config's `cycle:`
+    held epa_us06; the user looked in the wrong place. The key that names it, and the near name."""
+    raw = yaml.safe_load(CFG.read_text())
+    raw["disciplines"][1] = {"name": "energy", "options": options}
+    with pytest.raises(ValueError) as err:
+        load_config(raw)
+    assert str(err.value).startswith(f"<config>: disciplines[1].options.{key}: unknown drive cycle 'udds': "
+                                     "did you mean 'epa_udds'? use one of nedc, ")

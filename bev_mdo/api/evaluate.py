@@ -13,12 +13,24 @@ from bev_mdo.api.transport import Evaluating
 from bev_mdo.mdo.vectors import did_you_mean
 
 
-def declared_units(config) -> dict[str, str]:
-    """{variable: unit} as the run's disciplines declare them (mdo/units.py): what tables and plots print."""
+def declared_units(config, parameters=()) -> dict[str, str]:
+    """{variable: unit} as the run's disciplines declare them (mdo/units.py): what tables and plots print; beside
+    them the built-in model parameters among ``parameters`` (models.params; '' dimensionless): a design's override
+    columns, such as load_kg, which no discipline declares as a variable."""
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.units import run_units
+    from bev_mdo.models.params import all_specs
 
-    return run_units(RunConfig.of(config).disciplines)
+    specs = all_specs()
+    return {**{k: "" if specs[k].unit == "-" else specs[k].unit for k in parameters if k in specs},
+            **run_units(RunConfig.of(config).disciplines)}
+
+
+def units_of(config, names) -> dict[str, str]:
+    """{name: unit} of ``names`` alone (``declared_units``; a name with no unit is left out): a result's variables,
+    a sensitivity's (``--wrt load_kg`` too)."""
+    units = declared_units(config, names)
+    return {k: units[k] for k in names if k in units}
 
 
 def pyplot_and_label(units: dict | None):
@@ -58,18 +70,13 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
                if outside_bounds(d, v, feasibility_tolerance(config.settings))]
     with Evaluating(config, transport) as evaluator:
         report = evaluate_design(config.settings, evaluator, full)
-    short, notes = notes_of(config, {**problem.parameters, **full}, report["outputs"])
+    short, notes = notes_of(config, {**problem.parameters, **full}, report["outputs"], found=report)
     notes = outside + notes
-    values = {**problem.parameters, **full, **report["outputs"]}  # the pack's power against the motors' (0-100 km/h)
-    for lim in filter(None, (getattr(d, "battery_limit_kw", lambda _: None)(values) for d in config.disciplines)):
-        t = values.get("accel_time_0_100_s", float("nan"))
-        report["accel_battery_limit"] = {"pack_shaft_power_kw": lim[0], "motors_rated_power_kw": lim[1],
-                                         "time_without_limit_s": lim[2], "limits": bool(t > lim[2] * (1 + 1e-9))}
     if short or outside:  # not a design the run's energy describes, or off the design space: infeasible
         report["feasible"] = False
     if notes:
         report["notes"] = notes
-    report["units"] = {**parameter_units(report.get("parameters", {})), **declared_units(config)}
+    report["units"] = declared_units(config, report.get("parameters", {}))
     if config.parameter_set:  # which set the vehicle's values came from
         report["parameter_set"] = config.parameter_set
     return report
@@ -89,24 +96,30 @@ def note_outside_bounds(problem, given: dict[str, float], caller: str) -> list[t
     return out
 
 
-def notes_of(config, design: dict, outputs: dict) -> tuple[bool, list[str]]:
+def notes_of(config, design: dict, outputs: dict, found: dict | None = None) -> tuple[bool, list[str]]:
     """(whether the one design cannot follow its drive cycle, its notes: that, what its outputs mean
-    (``design_notes``) and where the follow check does not run)."""
+    (``design_notes``; ``found``: as there) and where the follow check does not run)."""
     from bev_mdo.config import RunConfig
     from bev_mdo.disciplines.energy import follow_notes
 
     short, unchecked = follow_notes(RunConfig.of(config).disciplines, {**design, **outputs})
-    return bool(short), short + design_notes(config, {**design, **outputs}) + unchecked
+    return bool(short), short + design_notes(config, {**design, **outputs}, found) + unchecked
 
 
-def design_notes(config, values: dict) -> list[str]:
+def design_notes(config, values: dict, found: dict | None = None) -> list[str]:
     """What an output's value at one design (``values``: its inputs and outputs) means where it is not a
     measurement, as its discipline says (``notes``): e.g. the 0-100 km/h time of a design that cannot reach
-    100 km/h, or one the pack's power limits."""
+    100 km/h, or one the pack's power limits (its ``battery_limit``, evaluated once for both: the note, and
+    ``found["accel_battery_limit"]`` when ``found``, evaluate's report, is given)."""
     from bev_mdo.config import RunConfig
 
-    return [n for d in RunConfig.of(config).disciplines for n in (getattr(d, "notes", None) or (lambda _: []))(values)
-            ] + platform_notes(config, values)
+    notes = []
+    for d in RunConfig.of(config).disciplines:
+        limit = getattr(d, "battery_limit", lambda _: None)(values) or {}
+        notes += [*(getattr(d, "notes", None) or (lambda _: []))(values), *filter(None, [limit.pop("note", None)])]
+        if limit and found is not None:
+            found["accel_battery_limit"] = limit
+    return notes + platform_notes(config, values)
 
 
 def platform_notes(config, values: dict) -> list[str]:
@@ -232,18 +245,11 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
         cols.update({k: np.asarray(v, dtype=float) for k, v in designs.items()})
         res = run_in_chunks(mda, cols, n, getattr(getattr(evaluator, "inner", None), "timeout_s", None))  # ROS only
     outputs = {v: np.asarray(res.values[v], dtype=float) for s in mda.specs.values() for v in s.outputs}
-    margins, violation = {}, np.where(res.ok, 0.0, np.inf)
-    for c in problem.constraints:
-        y = outputs[c.name]
-        m = np.full(n, np.inf)
-        if c.lower is not None:
-            m = np.minimum(m, y - c.lower)
-        if c.upper is not None:
-            m = np.minimum(m, c.upper - y)
-        margins[c.name] = m
-        for kind, b, scale in c.rows():  # normalised as the optimiser's constraints (and its feasibility rule)
-            v = ((b - y) if kind == "lower" else (y - b)) / scale
-            violation = np.maximum(violation, np.where(np.isfinite(v), v, np.inf))
+    margins = {c.name: np.min([np.full(n, np.inf), *((outputs[c.name] - b) * (1.0 if kind == "lower" else -1.0)
+                                                     for kind, b, _ in c.rows(monitored=True))], axis=0)
+               for c in problem.constraints}
+    g = problem.g(outputs)  # normalised as the optimiser's constraints (and its feasibility rule); NaN: violated
+    violation = np.maximum(np.where(res.ok, 0.0, np.inf), np.where(np.isfinite(g), g, np.inf).max(axis=1, initial=0.0))
     feasible = violation <= feasibility_tolerance(config.settings)
     notes = ceiling_notes(config, outputs) + platform_notes(config, designs)
     from bev_mdo.disciplines.energy import follow_counts
@@ -260,13 +266,4 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
             "outputs": outputs, "margins": margins, "violation": violation, "feasible": feasible,
             "ok": np.asarray(res.ok, bool),
             "errors": res.messages, "objective": problem.objective, "problem": problem,
-            "units": {**parameter_units(designs), **declared_units(config)}, "notes": notes}
-
-
-def parameter_units(names) -> dict[str, str]:
-    """{name: unit} of the built-in model parameters among ``names`` (models.params; '' dimensionless): a
-    design's override columns, such as load_kg, which no discipline declares as a variable."""
-    from bev_mdo.models.params import all_specs
-
-    specs = all_specs()
-    return {k: "" if specs[k].unit == "-" else specs[k].unit for k in names if k in specs}
+            "units": declared_units(config, designs), "notes": notes}

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import shutil
+import sys
 import tempfile
 import time
 import uuid
@@ -58,8 +59,9 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
             engine["optimizer"] = {**config["optimizer"], "name": opts.optimizer}
         config = config.with_sections(**engine)
     config = _seeded(config, opts.seed)
-    opts.refuse_attach("optimize")
-    _refuse_ros_only(opts)
+    opts.refuse_attach("optimize")  # and optimize's own ROS flags in process (--compose counts unless the default)
+    opts.refuse_ros_only((("--compose", None if opts.compose == "coordinator" else opts.compose),
+                          ("--instances", opts.instances)))
     starts = _starts(opts, x0)  # a bad start count is refused before anything starts or is written
     t_start = time.perf_counter()
     from bev_mdo.api import runbag  # end-of-run answers: in the result, stored with the bag
@@ -77,14 +79,13 @@ def run(config, opts: OptimizeOptions, callback=None, x0: dict | list[dict] | No
     extra = {k: v for k, v in extra.items() if not k.startswith("_")}
     extra["run_time_s"] = round(time.perf_counter() - t_start, 3)
     named = {"parameter_set": config.parameter_set} if config.parameter_set else {}  # which set the vehicle's came from
-    from bev_mdo.api.evaluate import declared_units, design_notes
+    from bev_mdo.api.evaluate import design_notes, units_of
 
     if result.get("outputs"):  # what a value at the result means, as evaluate says it (the pack's power limit)
         values = {**config.problem.parameters, **result.get("design", {}), **result["outputs"]}
         if notes := design_notes(config, values):
             named["notes"] = notes
-    units = declared_units(config)  # each design variable's and output's, as evaluate's JSON gives them
-    named["units"] = {k: units[k] for k in (*result.get("design", {}), *result.get("outputs", {})) if k in units}
+    named["units"] = units_of(config, [*result.get("design", {}), *result.get("outputs", {})])  # as evaluate's JSON
     return {**result, **named, "baseline": baseline, **extra}
 
 
@@ -128,8 +129,6 @@ def _run_inprocess(config, opts, show, x0, starts, closing: contextlib.ExitStack
 
 
 def _run_ros(config, opts, show, x0, starts):
-    import sys
-
     from bev_mdo import interrupts
     from bev_mdo.api.transport import ros_section
     from bev_mdo.processes import parse_instances
@@ -176,12 +175,6 @@ def _run_ros(config, opts, show, x0, starts):
         shutil.rmtree(scratch, ignore_errors=True)
         del extra["logs"]
     return result, baseline, extra
-
-
-def _refuse_ros_only(opts) -> None:
-    """Transport.refuse_ros_only with optimize's own ROS flags; ``compose`` counts as given when it is not the default."""
-    opts.refuse_ros_only((("--compose", None if opts.compose == "coordinator" else opts.compose),
-                          ("--instances", opts.instances)))
 
 
 def _where(names, instances: dict, compose: str | None) -> str:

@@ -13,6 +13,7 @@ import difflib
 import math
 import numbers
 import re
+import sys
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
@@ -121,17 +122,16 @@ def known_names(config) -> dict[str, list[str]]:
     return {"design": list((config["problem"].get("design_variables") or {})), "outputs": outputs}
 
 
-_ELEMENT = re.compile(r"^(.+)\[(\d+)\]$")
-
-
 def _element(name: str, dvs: Mapping, names: Mapping[str, list[str]], flag: str) -> tuple[str, int | None]:
     """(the design variable, the element's index or None) that ``name`` gives: ``motor_kw``, or ``h[1]`` of a
     vector ``h`` (``shape: 2`` in the config); InputError naming the nearest variable, or the vector's size."""
-    m = _ELEMENT.match(name)
-    if m is None or m.group(1) not in names["design"]:
+    from bev_mdo.mdo.vectors import base_name  # (numpy: loaded on first use)
+
+    base = base_name(name)
+    if base == name or base not in names["design"]:
         _check(name, names["design"], flag, "design variables")
         return name, None
-    base, i = m.group(1), int(m.group(2))
+    i = int(name[len(base) + 1:-1])  # base[i]
     size = (dvs.get(base) or {}).get("shape") if isinstance(dvs.get(base), Mapping) else None
     if not isinstance(size, int) or not 0 <= i < size:
         raise InputError(f"{flag} {name!r}: {base} is {'a scalar' if size is None else f'a vector of {size}'}"
@@ -142,15 +142,12 @@ def _element(name: str, dvs: Mapping, names: Mapping[str, list[str]], flag: str)
 def _edited(entry, i: int | None, values: Mapping[str, float]) -> dict:
     """A copy of a design variable's config entry with ``values`` set: the whole variable, or element ``i`` of a
     vector (one number for every element becomes a list of ``shape`` numbers)."""
+    from bev_mdo.mdo.vectors import expand
+
     entry = dict(entry or {})
-    for k, v in values.items():
-        if i is None:
-            entry[k] = v
-        else:
-            old = entry.get(k)
-            row = list(old) if isinstance(old, (list, tuple)) else [old] * int(entry["shape"])
-            row[i] = v
-            entry[k] = row
+    for k, v in values.items():  # (the config as written is valid: a list holds ``shape`` values)
+        entry[k] = v if i is None else [v if j == i else old for j, old in
+                                        enumerate(expand(entry.get(k), int(entry["shape"]), k))]
     return entry
 
 
@@ -186,13 +183,17 @@ def _clip_initials(dvs: dict, bounded: set[str], given: set[str]) -> None:
     """A variable (or a vector's element) given new bounds and no --initial (``bounded``, ``given``: the names as
     given, a vector's elements too) whose initial value is outside them starts at the nearest bound; one note on
     stderr says so."""
-    import sys
+    from bev_mdo.mdo.vectors import base_name, expand
 
-    for name in sorted({_ELEMENT.sub(r"\1", b) for b in bounded}):
+    for name in sorted(set(map(base_name, bounded))):
         e = dvs.get(name) or {}
         size = e.get("shape") if isinstance(e.get("shape"), int) else None
-        x, lo, hi = (_row(e.get(k), size) for k in ("initial", "lower", "upper"))
-        if x is None or lo is None or hi is None or any(a > b for a, b in zip(lo, hi)):
+        try:  # each entry as a list of numbers (one number for every element); skipped where one is not a number
+            x, lo, hi = ([float(v) if real_number(v) else None for v in expand(e.get(k), size or 1, "")]
+                         for k in ("initial", "lower", "upper"))
+        except ValueError:
+            continue
+        if None in (*x, *lo, *hi) or any(a > b for a, b in zip(lo, hi)):
             continue
         keep = {i for i in range(len(x)) if name in given or f"{name}[{i}]" in given}  # its own --initial
         moved = [v if i in keep else min(max(v, a), b) for i, (v, a, b) in enumerate(zip(x, lo, hi))]
@@ -204,13 +205,6 @@ def _clip_initials(dvs: dict, bounded: set[str], given: set[str]) -> None:
                 label = f"{name}[{i}]" if size is not None else name
                 print(f"bev-mdo: note: {label} starts at {m:g}: its initial value {v:g} is outside "
                       f"--bound {a:g}:{b:g} (give --initial to choose)", file=sys.stderr)
-
-
-def _row(value, size: int | None) -> list[float] | None:
-    """A config entry's value as a list of ``size`` numbers (one number for every element), None if not numbers."""
-    items = list(value) if isinstance(value, (list, tuple)) else [value] * (size or 1)
-    ok = len(items) == (size or 1) and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in items)
-    return [float(v) for v in items] if ok else None
 
 
 def apply(raw: Mapping[str, Any], ov: Overrides, names: Mapping[str, list[str]]) -> dict:

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 import time
+import uuid
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -192,8 +194,6 @@ def in_process_bag(config: Mapping[str, Any], opts, show, closing: contextlib.Ex
     writer is closed as ``closing`` ends (the run's, whatever ends it), from the moment it exists."""
     if opts.no_record or not opts.bag:
         return None, None, show
-    import uuid
-
     # as over ROS (the writer refused only a bag in the folder itself); claimed until the bag's file exists
     with claim_new_bag(Path(opts.bag), opts.bag_flag), interrupts.deferred():  # no signal between open and closing
         writer = InProcessBag(Path(opts.bag), config, uuid.uuid4().hex[:16])
@@ -340,8 +340,6 @@ def set_aside_logs(folder: Path, what: str) -> None:
     """Move the logs/ that a run which wrote no bag left in `folder` (in_use lets such a folder be reused) to the
     first free ``logs.N/``, said in one line on stderr: the new run's logs/ holds its own alone (they were
     appended to the old run's files of the same name). Called under the claim: no live run writes there."""
-    import sys
-
     logs = folder / "logs"
     if not logs.is_dir() or not any(logs.iterdir()):
         return

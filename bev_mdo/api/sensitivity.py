@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from bev_mdo.api.errors import InputError
+from bev_mdo.api.evaluate import units_of  # (Study's and the CLI's too)
 from bev_mdo.api.overrides import finite_values
 from bev_mdo.api.transport import Evaluating, Transport
 from bev_mdo.mdo.vectors import did_you_mean
@@ -33,6 +34,8 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
     from bev_mdo.mdo.evaluator import InProcessEvaluator
     from bev_mdo.mdo.sensitivity import sensitivities
 
+    if global_method is not None and global_method not in METHODS:  # before anything starts
+        raise InputError(f"--global {global_method!r}: allowed: {', '.join(METHODS)}")
     config = RunConfig.of(config)
     finite_values(at or {}, "--at", one="the design the sensitivities are taken at, a number per name")
 
@@ -46,7 +49,7 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
         defaults = {k: v for spec in local.specs.values() for k, v in spec.parameters.items()}
         local.close()
     with Evaluating(config, transport, node_name="bev_mdo_sensitivity") as ev:
-        fun, point, bounds, outputs, problem = build_batch(config, ev, defaults)
+        fun, point, bounds, outputs, problem = build_batch(config, ev, defaults, local=not global_method)
         for k, v in (at or {}).items():
             if k not in point:
                 raise InputError(f"--at: unknown name {k!r}; {did_you_mean(k, point)}"
@@ -72,8 +75,15 @@ def run(config, at: dict | None = None, wrt: list[str] | None = None, transport=
                           design=list(problem.names), ceilings=ceilings(config))
             rep["units"] = units_of(config, [*wrt, *outputs])
             return rep
-        s = sensitivities(fun, point, wrt=wrt, order=order, bounds={**_model_limits(point, problem.names), **bounds},
-                          rel_step=rel_step, method=method)
+        from bev_mdo.api.evaluate import note_outside_bounds, refuse_outside_model_limits
+        from bev_mdo.config.disciplines import model_limits
+
+        refuse_outside_model_limits(config, at or {})  # a design no model evaluates: one line, as evaluate's
+        outside = {d.name for d, _ in note_outside_bounds(problem, point, "bev-mdo sensitivity")}  # taken as given
+        room = {k: model_limits(config.disciplines, k) for k in outside}  # there the models' limits bound the steps
+        s = sensitivities(fun, point, wrt=wrt, order=order, rel_step=rel_step, method=method,
+                          bounds={**_model_limits(point, problem.names), **{k: r[:2] for k, r in room.items() if r},
+                                  **{k: b for k, b in bounds.items() if k not in outside}})
     return s, outputs, point, problem
 
 
@@ -85,15 +95,6 @@ def _model_limits(point: dict, design: list[str]) -> dict[str, tuple[float, floa
     specs = all_specs()
     return {k: (specs[k].lower, specs[k].upper) for k, v in point.items()
             if k not in design and k in specs and specs[k].lower <= v <= specs[k].upper}
-
-
-def units_of(config, names) -> dict[str, str]:
-    """{name: unit} of ``names`` as the run's disciplines declare them, a built-in model parameter's (``--wrt
-    load_kg``) from models.params; a name with neither is left out."""
-    from bev_mdo.api.evaluate import declared_units, parameter_units
-
-    units = {**parameter_units(names), **declared_units(config)}
-    return {k: units[k] for k in names if k in units}
 
 
 def to_dict(s, outputs, units: dict | None = None) -> dict:
@@ -115,10 +116,11 @@ def to_dict(s, outputs, units: dict | None = None) -> dict:
     return d if units is None else {**d, "units": units}
 
 
-def build_batch(config, evaluator, param_defaults=None):
+def build_batch(config, evaluator, param_defaults=None, local=False):
     """(fun, nominal point, bounds, outputs, problem) for the MDA of ``config`` over ``evaluator``.
     ``fun(X)`` takes columns in the order of the returned point (design variables, then every
-    overridable model parameter) and returns the objective and constrained outputs."""
+    overridable model parameter) and returns the objective and constrained outputs; ``local``: its batches are a
+    local stencil (row 0 the design), which a failure's advice fits."""
     from bev_mdo.config import RunConfig
     from bev_mdo.mdo.driver import build_formulation
 
@@ -149,8 +151,12 @@ def build_batch(config, evaluator, param_defaults=None):
 
             i = int(np.flatnonzero(~np.asarray(res.ok))[0])
             at = ", ".join(f"{k}={X[i, j]:.6g}" for j, k in enumerate(names) if k in problem.names)
-            raise ModelFailed(f"the model failed at {int((~np.asarray(res.ok)).sum())} of the {len(X)} sampled points "
-                              f"(the indices need a value at every one: narrow the bounds to where it answers); first "
+            why = ("the indices need a value at every one: narrow the bounds to where it answers" if not local else
+                   "the design itself fails: move it (--at) to where the model answers" if i == 0 else
+                   "a step from the design fails: move it (--at) away from where the model gives none, or shorten "
+                   "the steps (--rel-step)")
+            raise ModelFailed(f"the model failed at {int((~np.asarray(res.ok)).sum())} of the {len(X)} "
+                              f"{'points of the local stencil' if local else 'sampled points'} ({why}); first "
                               f"at {at}: {res.errors[i].message.splitlines()[0] if res.errors[i] else 'no value'}")
         return {k: res.values[k] for k in outputs}
     return fun, point, bounds, outputs, problem
@@ -165,8 +171,6 @@ def analyse(method: str, fun, point: dict, bounds: dict[str, tuple[float, float]
     ``ceilings`` (api.evaluate.ceilings): an output with samples at or above its ceiling gets
     ``at_ceiling`` (how many) and a note, for its indices then describe where the designs the physics
     cannot serve lie more than the quantity."""
-    if method not in METHODS:
-        raise InputError(f"--global {method!r}: allowed: {', '.join(METHODS)}")
     if not names:
         raise InputError("--global: no design variable to analyse")
     missing = [k for k in names if k not in bounds]

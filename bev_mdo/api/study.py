@@ -67,11 +67,12 @@ def _number(value, what: str) -> float:
 
 def _whole(value, what: str) -> int:
     """A count (starts, samples, generations, pop, order) as a whole number (models.common.check_whole: 2.9
-    ran 2 starts, "3" ran 3, True ran 1); InputError naming ``what`` otherwise."""
-    from bev_mdo.models.common import check_whole
+    ran 2 starts, "3" ran 3, True ran 1), or with ``what`` "seed" a seed as ``--seed`` takes it (check_seed);
+    InputError naming ``what`` otherwise."""
+    from bev_mdo.models.common import check_seed, check_whole
 
     try:
-        return check_whole(value)
+        return (check_seed if what == "seed" else check_whole)(value)
     except ValueError as exc:
         raise InputError(f"{what} {exc}") from None
 
@@ -82,16 +83,6 @@ def _transport(value) -> Transport:
     if isinstance(value, (str, Transport)):
         return Transport.of(value)  # a Transport's own fields (an OptimizeOptions given holds more)
     raise InputError(f"transport must be a name ({' or '.join(map(repr, TRANSPORTS))}) or a Transport, got {value!r}")
-
-
-def _seed(value) -> int:
-    """A seed as ``--seed`` takes it (models.common.check_seed); InputError naming it otherwise."""
-    from bev_mdo.models.common import check_seed
-
-    try:
-        return check_seed(value)
-    except ValueError as exc:
-        raise InputError(f"seed {exc}") from None
 
 
 def _name(value, what: str) -> str:
@@ -209,7 +200,7 @@ class Study:
         check_keys("", ros, own | {f.name for f in fields(optimize.OptimizeOptions)} - {f.name for f in fields(Transport)}
                    - {"quiet", "bag_flag", "progress_to_stderr"}, of="optimize()")
         opts = optimize.OptimizeOptions(**asdict(_transport(transport)), formulation=formulation, optimizer=optimizer,
-                                        starts=_whole(starts, "starts"), seed=_seed(seed), bag=bag, quiet=True, **ros)
+                                        starts=_whole(starts, "starts"), seed=_whole(seed, "seed"), bag=bag, quiet=True, **ros)
         x0 = _mapping(x0, "x0")
         finite_values(x0, "x0", one="the start point, a number per name")
         return OptimizeResult.of(optimize.run(self.config, opts, callback, x0 or None))
@@ -240,7 +231,8 @@ class Study:
             if len({c.shape for c in cols.values()}) > 1 or any(c.ndim != 1 for c in cols.values()):
                 raise InputError("designs: give every variable's values as one list, all of the same length "
                                  f"(got {', '.join(f'{k}: {c.shape[0] if c.ndim == 1 else c.shape}' for k, c in cols.items())})")
-        cols = sampling.batch(self.config.problem, doe or "lhs", _whole(samples, "samples"), _seed(seed), cols, fixed)
+        cols = sampling.batch(self.config.problem, doe or "lhs", _whole(samples, "samples"), _whole(seed, "seed"), cols,
+                              fixed)
         r = evaluate.batch(self.config, cols, how)
         return SweepResult(r["design"], r["outputs"], r["margins"], r["feasible"], r["ok"], list(r["errors"]),
                            r["objective"], bool(getattr(r["problem"], "maximize", False)))
@@ -266,11 +258,9 @@ class Study:
         of 2, default 1024: N (D + 2) designs), morris' trajectories (default 64)."""
         from bev_mdo.api import sensitivity
 
-        if method not in sensitivity.METHODS:
-            raise InputError(f"--global {method!r}: allowed: {', '.join(sensitivity.METHODS)}")
         rep = sensitivity.run(self.config, _mapping(at, "at"), _names(wrt, "wrt"), _transport(transport),
                               global_method=method, samples=None if samples is None else _whole(samples, "samples"),
-                              seed=_seed(seed), conf_level=conf_level)
+                              seed=_whole(seed, "seed"), conf_level=conf_level)
         return GlobalSensitivityResult.of(rep)
 
     @_input_errors
@@ -283,7 +273,7 @@ class Study:
         from bev_mdo.api import pareto
 
         doc, _ = pareto.run(self.config, _names(objectives, "objectives"),
-                            generations=_whole(generations, "generations"), pop=_whole(pop, "pop"), seed=_seed(seed),
+                            generations=_whole(generations, "generations"), pop=_whole(pop, "pop"), seed=_whole(seed, "seed"),
                             out=out, transport=_transport(transport), instances=instances, plots=plots,
                             source=self.source)
         return ParetoResult.of(doc)

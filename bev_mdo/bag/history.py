@@ -214,13 +214,14 @@ def read_answers(bag: Bag, signer=None, checks: dict | None = None) -> dict | No
 def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | None = None,
                then: str = "what follows is") -> tuple[bool, str] | None:
     """(finished, one line) on how the bag's optimisation ended, from its end-of-run record (``read_answers``: stored
-    by api/runbag.finish when the run ends, with the disciplines that stopped answering); None for a sweep. ``then``
+    by api/runbag.finish when the run ends, with the disciplines that stopped answering); None for a sweep. finished
+    is None where that is not known (the record left out, or nothing in the bag shows the run it tells of). ``then``
     leads the words on the last record of a run that did not finish (report: the iterate shown after the line)."""
     if rows and rows[-1].get("formulation") == "doe":
         return None
     if answers is None:
         if (checks or {}).get("answers"):
-            return False, "how the run ended is not known: its end-of-run record is left out (not signed with its key)"
+            return None, "how the run ended is not known: its end-of-run record is left out (not signed with its key)"
         last = rows[-1] if rows else {}
         whose = (f"; {then} the last recorded iterate of its start {last['start']} of {last['starts']} (resume goes "
                  "on from each start's own last record), not a result" if last.get("starts") else
@@ -235,6 +236,12 @@ def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | 
         why = answers.get("stopped") or f"{', '.join(lost)} stopped answering"
         return True, (f"**the run ended early (exit status 4)**: {why}; its result is the best point evaluated before "
                       "that, not an optimum")
+    if not rows:  # a bag cut short before its first record: only the record (answers.json beside it) tells of the run
+        n = answers.get("records")
+        held = f"none of the run's {n} iteration records" if n else "no iteration record"
+        where = "stored in the bag" if ANSWERS_METADATA in bag.metadata else f"{ANSWERS_FILE} beside the bag"
+        return None, (f"how the run ended is not known from the bag: **it holds {held}**; its end-of-run record "
+                      f"({where}) says the run finished")
     if tail := missing_tail(rows, answers):
         return True, (f"the run finished, but **{tail}**; the result and the answers below are its end-of-run "
                       "record's")
@@ -247,6 +254,9 @@ def by_optimize(bag: Bag) -> bool:
     return bag.info.get("transport") == "inprocess" or (bag.bag_dir / "logs").is_dir()
 
 
+STOPPED = "its recorder stopped before the run ended, or records were removed from the bag"  # what a short bag tells
+
+
 def missing_tail(rows: list[dict], answers: dict | None) -> str:
     """'' or how the bag's iteration records end before the run did: its end-of-run record (api/runbag.finish)
     counts records past the bag's last (a recorder that died during the run), or, stored before it counted
@@ -256,11 +266,11 @@ def missing_tail(rows: list[dict], answers: dict | None) -> str:
     last, end = rows[-1]["iteration"], answers.get("last_iteration")
     if end is not None and end > last:
         return (f"the bag's iteration records stop at iteration {last} of the run's {end} ({end - last} missing at the "
-                "end: its recorder stopped during the run)")
+                f"end: {STOPPED})")
     result = answers.get("result_design")
     if end is None and result and not any(r["design"] == result for r in rows):
         return (f"the bag's iteration records stop at iteration {last}, before the run's result (no record holds the "
-                "design its end-of-run record names: its recorder stopped during the run)")
+                f"design its end-of-run record names: {STOPPED})")
     return ""
 
 

@@ -140,8 +140,11 @@ class RecordOrder:
     def note(self, left_out: str = "dropped") -> str:
         """'' or '; dropped N duplicate, ... iteration record(s); M iteration record(s) missing; ...' (``left_out``:
         the word for what was dropped)."""
-        parts = [f"{left_out} {', '.join(f'{n} {k}' for k, n in sorted(self.dropped.items()))} iteration record(s)"
-                 ] if self.dropped else []
+        kinds = sorted(self.dropped.items())
+        before = [f"{n} {k}" for k, n in kinds if not k.startswith("of ")]  # 'duplicate', 'from the past', ...
+        said = [f"{', '.join(before)} iteration record(s)"] if before else []
+        said += [f"{n} iteration record(s) {k}" for k, n in kinds if k.startswith("of ")]  # 'of another run'
+        parts = [f"{left_out} {' and '.join(said)}"] if said else []
         order = self.order
         parts += [f"{order.missing} iteration record(s) missing"] if order.missing else []
         parts += [f"{order.late} iteration record(s) recorded after a later one (kept)"] if order.late else []

@@ -29,7 +29,8 @@ from bev_mdo.bag.stored import StoredConfig
 MAGIC = b"\x89MCAP0\r\n"
 PACKAGE = "bev_mdo_msgs"
 METADATA_NAME = "bev_mdo"
-KINDS = {Opcode.CHUNK: "chunk", Opcode.METADATA: "metadata record", Opcode.ATTACHMENT: "attachment"}  # named in errors
+KINDS = {Opcode.HEADER: "header", Opcode.CHUNK: "chunk", Opcode.METADATA: "metadata record",
+         Opcode.ATTACHMENT: "attachment"}  # named in errors
 
 
 @dataclass(frozen=True)
@@ -125,7 +126,7 @@ class Bag:
     def __init__(self, path, *, strict: bool = True, salvage: bool = False):
         self.path = Path(path)
         self.salvage = salvage  # `bag repair`: a damaged chunk is skipped, not the end of what is read
-        self.skipped: list[tuple[int, int, bool]] = []  # (start, end, a chunk) of each record left out
+        self.skipped: list[tuple[int, int, str | None]] = []  # (start, end, KINDS name) of each record left out
         self.mcap_path = find_mcap(self.path, repairing=salvage)
         self.bag_dir = self.mcap_path.parent
         self.strict = strict
@@ -164,42 +165,58 @@ class Bag:
         """All records in file order; sets ``truncated`` when the file ends early."""
         with open(self.mcap_path, "rb") as f:
             data_ended = False  # past DataEnd: only the summary (copies and indexes) is left
-            skipped, at = [], None
+            skipped, at, done = [], None, len(MAGIC)  # done: where the last record read ends (in this pass)
             while True:
                 reader = StreamReader(f, skip_magic=at is not None, validate_crcs=True)
                 try:
                     for record in reader.records:
-                        self.recovered_bytes = f.tell()
+                        self.recovered_bytes = done = f.tell()
                         data_ended = data_ended or isinstance(record, DataEnd)
                         yield record
-                except (EndOfFile, struct.error):  # a short read: the file ends early (or a summary length is damaged)
-                    self.truncated = True
-                    if data_ended:
-                        self.end_damage = "truncated or damaged in the summary after the messages"
-                except Exception as exc:  # noqa: BLE001 - zstd / struct / decode errors from damaged bytes
+                except Exception as exc:  # noqa: BLE001 - a short read; zstd, struct, decode errors of damaged bytes
+                    start = max(done, at or 0)  # where the record that failed begins
+                    declared = self._declared_end(start)  # where its own length says it ends (None: past the file)
+                    short = isinstance(exc, (EndOfFile, struct.error))
+                    if short and (data_ended or declared is None):  # the file ends early (or a summary length is bad)
+                        self.truncated = True
+                        if data_ended:
+                            self.end_damage = "truncated or damaged in the summary after the messages"
+                        break
                     if isinstance(exc, CRCValidationError) and isinstance(exc.record, DataEnd):
                         # every chunk passed its own check: a record between them (metadata, attachment) is damaged
                         self.truncated = self.data_crc_failed = True
-                        at = self.recovered_bytes = f.tell()
+                        at = self.recovered_bytes = done = f.tell()
                         data_ended = True
                         yield exc.record
                         continue  # on to the summary, read as before
-                    start, end = max(self.recovered_bytes, at or 0), f.tell()
+                    # read past its own end: a length inside the record (a string's, in the header) is damaged
+                    past = declared is not None and (short or f.tell() > declared)
+                    end = declared if declared is not None else f.tell()
                     kind = KINDS.get(self._opcode(start)) if end > start else None
                     if not data_ended and self.salvage and end > start:
                         at = end  # past the damaged record (a chunk is read whole before it is checked)
-                        skipped.append((start, at, kind == "chunk"))
+                        f.seek(at)
+                        skipped.append((start, at, kind))
                         self.truncated, self.skipped = True, skipped
                         continue  # the records after it, each checked as before
                     if not data_ended:
-                        what = (f"the {kind} at bytes {start}-{end} is damaged ("
-                                + ("its CRC check fails)" if isinstance(exc, CRCValidationError) else "it cannot be read)")
-                                if kind else f"the record after byte {start} cannot be read")
+                        why = ("its CRC check fails" if isinstance(exc, CRCValidationError) else
+                               "a length field inside it points past the record" if past else "it cannot be read")
+                        what = f"the {kind} at bytes {start}-{end} is damaged ({why})" if kind else \
+                            f"the record after byte {start} cannot be read"
                         raise BagError(f"{self.mcap_path}: corrupt MCAP data: {what}; run `bev-mdo bag repair` to keep "
-                                       "the records before and after it") from exc
+                                       f"the records {'before and ' * (start > len(MAGIC))}after it") from exc
                     self.truncated = True  # every message was read: noted, and `bag repair` rewrites the summary
                     self.end_damage = "damaged in the summary after the messages (a record cannot be read)"
                 break
+
+    def _declared_end(self, start: int) -> int | None:
+        """Where the record at byte `start` ends by its own length field (opcode, uint64 length), None past the file."""
+        with open(self.mcap_path, "rb") as f:
+            f.seek(start)
+            head = f.read(9)
+        end = start + 9 + struct.unpack("<Q", head[1:])[0] if len(head) == 9 else None
+        return end if end is not None and end <= self.file_size else None
 
     def _opcode(self, at: int) -> int:
         with open(self.mcap_path, "rb") as f:
@@ -317,9 +334,10 @@ class Bag:
         end), '' when nothing is or the file is merely cut short."""
         parts = []
         if self.skipped:
-            chunks = all(chunk for _a, _b, chunk in self.skipped)
+            chunks = all(kind == "chunk" for _a, _b, kind in self.skipped)
             parts.append(f"{len(self.skipped)} damaged {'chunk' if chunks else 'record'}(s) left out (bytes "
-                         + ", ".join(f"{a}-{b}" for a, b, _chunk in self.skipped) + ")")
+                         + ", ".join(f"{a}-{b}" + (f": the {kind}" if not chunks and kind else "")
+                                     for a, b, kind in self.skipped) + ")")
         if self.damaged_attachments:
             parts.append(f"attachment {', '.join(self.damaged_attachments)} damaged (its CRC check fails; left out)")
         elif self.data_crc_failed:

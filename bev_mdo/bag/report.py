@@ -352,7 +352,8 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
                  if last.get("from_answers") else f"the run's result ({where})"
                  if result else "the end point" if finished else "the last recorded iterate")
         lines += [f"## The {point[4:]}" if sweep or result else "## Final iterate" if finished else
-                  "## Last recorded iterate (the run did not finish)", ""]
+                  "## Last recorded iterate (" + ("how the run ended is not known)" if ending and ending[0] is None
+                                                  else "the run did not finish)"), ""]
         base = baseline or {}
         bcol = f" {base['label']} |" if base else ""
         lines += [f"| quantity | unit | value |{bcol}", "|---|---|---:|" + ("---:|" if base else "")]

@@ -20,6 +20,7 @@ import hashlib
 import hmac
 import json
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -80,6 +81,19 @@ def keep_run_key(bag_dir, config_yaml: str) -> None:
         os.replace(tmp, place)
     except OSError:
         pass
+
+
+def _damaged_fingerprint(record: dict, key: bytes, whose: str) -> str:
+    """'' or why a signing record whose ``key_fingerprint`` is not `key`'s is damaged, not of another key: the rest
+    of it verifies with `key` (one byte of the fingerprint changed), or the fingerprint is no fingerprint at all."""
+    said = record.get("key_fingerprint")
+    mended = {**record, "key_fingerprint": key_fingerprint(key)}
+    if hmac.compare_digest(str(record.get("signature", "")), _body_mac(key, mended)):
+        return f"its key_fingerprint reads {said!r}, though the rest of it verifies with {whose}"
+    if not (isinstance(said, str) and re.fullmatch(r"[0-9a-f]{32}", said)):
+        return (f"its key_fingerprint {said!r} is not a key fingerprint (32 hex digits), so no key can be checked "
+                "against it")
+    return ""
 
 
 def _body_mac(key: bytes, body: dict) -> str:
@@ -169,6 +183,9 @@ def verifier(bag, key_file: str | None = None, no_verify: bool = False) -> Verif
         raise BagError(f"{where}: the bag's signing record says the run was not signed, though {whose} should "
                        "verify it (was the bag edited?); refusing it (--no-verify reads it unverified)")
     if record.get("key_fingerprint") != key_fingerprint(key):
+        if damaged := _damaged_fingerprint(record, key, whose):
+            raise BagError(f"{where}: the bag's signing record is damaged: {damaged}; refusing it (--no-verify reads "
+                           "it unverified)")
         raise BagError(f"{where}: {whose} is not the key this run was signed with (fingerprint "
                        f"{key_fingerprint(key)}, the bag's signing record says {record.get('key_fingerprint')})")
     if not hmac.compare_digest(record.get("signature", ""), _body_mac(key, record)):

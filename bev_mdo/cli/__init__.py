@@ -14,14 +14,18 @@ import importlib
 import os
 import sys
 import threading
+import traceback
+import warnings
+from collections.abc import Mapping
+from pathlib import Path
 
 from bev_mdo import interrupts
 from bev_mdo.interrupts import Terminated  # SIGTERM as an exception: every finally runs, exit 143
 from bev_mdo.stacks import (STARTUP_GAVE_UP_STATUS, StartupGaveUp, bound_exit, defer_teardowns, dump_stacks_on_sigusr1,
                             end_process)
 
-# command -> (module in bev_mdo.cli, help), in the order --help lists them. The module's register()
-# uses the same help (test/cli/test_cli_table.py checks it).
+# command -> (module in bev_mdo.cli, help), in the order --help lists them. The module's register() adds
+# the command's parser, which gets this help (_Commands; test/cli/test_cli_table.py checks it).
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "optimize": ("optimize", "run the distributed MDF/IDF optimisation (the main job)"),
     "evaluate": ("evaluate", "evaluate one design through all disciplines"),
@@ -55,8 +59,6 @@ def figure_format(path) -> str | None:
     else None (the extension's format); ValueError for a directory or standard output (a binary image
     among the command's text; /dev/stdout went to stderr: is_stdout). Commands call it on their
     arguments first, so that such a path is refused before anything is computed."""
-    from pathlib import Path
-
     if is_stdout(path) or _terminal(path):
         raise ValueError(f"--png {path}: a PNG is binary, not written to "
                          f"{'standard output' if is_stdout(path) else 'standard error or a terminal'}; give a file "
@@ -72,9 +74,6 @@ def energy_cycle_label(cfg) -> str:
     computed on ('cycle nedc'; its option ``cycle`` before the config's), or the distance-weighted mix of its
     option ``cycle_weights`` ('cycle mix 55 % epa_udds + 45 % epa_hwfet'), not the config's cycle when that only
     sets the top speed; the config's cycle without an energy discipline; '' without a cycle."""
-    from collections.abc import Mapping
-    from pathlib import Path
-
     from bev_mdo.models.cycles import is_csv_cycle
 
     def shown(name) -> str:  # a CSV trace by its file name, not the absolute path the config resolves it to
@@ -94,8 +93,6 @@ def energy_cycle_label(cfg) -> str:
 def _terminal(path) -> bool:
     """A name of descriptor 2 or of a terminal (/dev/tty, /dev/pts/N, /dev/console), by its name only (a
     device is not opened to ask): ``--png /dev/stderr`` wrote the image's bytes to the terminal."""
-    import os
-
     return str(path) in ("/dev/stderr", "/dev/fd/2", "/proc/self/fd/2") or os.path.realpath(path).startswith(
         ("/dev/tty", "/dev/pts/", "/dev/console"))
 
@@ -132,8 +129,6 @@ def write_text_file(path, text: str) -> None:
 
 def cannot_write(path, exc: OSError) -> ValueError:
     """One line for an output file that could not be written: its name and the reason."""
-    from pathlib import Path
-
     folder = Path(path).parent
     if isinstance(exc, FileNotFoundError) and not folder.is_dir():
         reason = f"the folder {folder} does not exist"
@@ -154,6 +149,13 @@ def _chosen(argv: list[str]) -> str | None:
     return None
 
 
+class _Commands(argparse._SubParsersAction):  # argparse's class for add_subparsers(action=...)
+    """bev-mdo's subcommands: each one's help is its line of SUBCOMMANDS, written there alone."""
+
+    def add_parser(self, name, **kwargs):
+        return super().add_parser(name, **{"help": SUBCOMMANDS[name][1], **kwargs})
+
+
 class _Parser(argparse.ArgumentParser):
     """A usage mistake is one line on stderr, as every other user mistake (exit 2), naming --help."""
 
@@ -172,7 +174,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
         description="Distributed MDO of battery-electric-vehicle powertrains over ROS 2.",
     )
     parser.add_argument("--version", action="version", version=f"bev-mdo {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", action=_Commands)
     sub.required = True
     chosen = _chosen(argv) if argv is not None else None
     for command, (module, help_text) in SUBCOMMANDS.items():
@@ -245,17 +247,16 @@ def _run(args, process: bool = False) -> int:
             return _interrupted(exc)
         if isinstance(exc, BrokenPipeError):
             return _closed_pipe()
-        if isinstance(exc, (ValueError, FileNotFoundError, IsADirectoryError, PermissionError)):  # a user mistake
-            msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            print(f"bev-mdo {args.command}: error: {msg}", file=sys.stderr)
-            return STARTUP_GAVE_UP_STATUS if isinstance(exc, StartupGaveUp) else 2
         from bev_mdo.api.errors import ModelFailed
 
-        if isinstance(exc, ModelFailed):  # the model gave no value where the method needs one: as a failed point
-            print(f"bev-mdo {args.command}: error: {exc}", file=sys.stderr)
-            return 1
-        print(f"bev-mdo {args.command}: error: {_named(exc)}", file=sys.stderr)  # the run failed (its optimiser raised)
-        return RUN_FAILED_STATUS
+        if isinstance(exc, (ValueError, FileNotFoundError, IsADirectoryError, PermissionError)):  # a user mistake
+            status, line = STARTUP_GAVE_UP_STATUS if isinstance(exc, StartupGaveUp) else 2, _named(exc, where=False)
+        elif isinstance(exc, ModelFailed):  # the model gave no value where the method needs one: as a failed point
+            status, line = 1, str(exc)
+        else:  # the run failed (its optimiser raised)
+            status, line = RUN_FAILED_STATUS, _named(exc)
+        print(f"bev-mdo {args.command}: error: {line}", file=sys.stderr)
+        return status
 
 
 def _interrupted(exc: BaseException) -> int:
@@ -272,11 +273,12 @@ def _interrupted(exc: BaseException) -> int:
 RUN_FAILED_STATUS = 7  # an unexpected error stopped the command (a bag is closed with every finished iteration)
 
 
-def _named(exc: BaseException) -> str:
-    """One line for an unexpected error: its type, the first line of its message and where it was raised."""
-    import traceback
-
+def _named(exc: BaseException, where: bool = True) -> str:
+    """One line for an unexpected error: its type, the first line of its message and where it was raised;
+    without ``where``, a user mistake's: the first line of its message alone (its type when it has none)."""
     msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    if not where:
+        return msg or type(exc).__name__
     frames = traceback.extract_tb(exc.__traceback__)
     where = f" (raised at {os.path.basename(frames[-1].filename)}:{frames[-1].lineno})" if frames else ""
     return f"{type(exc).__name__}{': ' + msg if msg else ''}{where}"
@@ -286,8 +288,6 @@ def _named(exc: BaseException) -> str:
 def _notes_to_stderr(command: str):
     """Notes the models raise as warnings (e.g. models.cycles.CycleNote) are printed once each as
     ``bev-mdo <command>: note: ...`` on stderr (stdout stays the command's output)."""
-    import warnings
-
     from bev_mdo.models.cycles import CycleNote
 
     with warnings.catch_warnings():

@@ -7,7 +7,7 @@ from bev_mdo.cli.flags import add_bag_argument
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser("bag", help="inspect or repair a recorded bag")
+    parser = subparsers.add_parser("bag")
     sub = parser.add_subparsers(dest="bag_command", metavar="ACTION")
     sub.required = True
     info = sub.add_parser("info", help="topics, message counts and duration of a bag")

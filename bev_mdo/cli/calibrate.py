@@ -3,9 +3,8 @@ from __future__ import annotations
 
 
 def register(subparsers) -> None:
-    from bev_mdo.cli import SUBCOMMANDS
     from bev_mdo.models.calibrate import DESCRIPTION, add_arguments, run
 
-    parser = subparsers.add_parser("calibrate", help=SUBCOMMANDS["calibrate"][1], description=DESCRIPTION)
+    parser = subparsers.add_parser("calibrate", description=DESCRIPTION)
     add_arguments(parser)
     parser.set_defaults(func=run)

@@ -16,7 +16,7 @@ from bev_mdo import jsontext
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("check-partials", help="compare analytic partial derivatives with finite differences")
+    p = subparsers.add_parser("check-partials")
     p.add_argument("config", help="run config YAML")
     p.add_argument("--at", default="", metavar="K=V,...",
                    help="design point (design variables default to their initial values; z[0]=1 or z=1 for a vector)")

@@ -6,8 +6,8 @@ the disciplines' partials, or its own finite differences, as ``optimizer.derivat
 central finite differences of the whole formulation at one design, all finite-difference points
 in ONE batch, in process or over ROS. The design variables default to their initial values;
 under IDF the coupling variables start where one MDA of that design puts them. A total disagrees
-when |total - fd| > atol + rtol * max(|total|, |fd|). Exit status: 0 all agree, 1 some disagree or
-the point failed, 2 a user mistake.
+when |total - fd| > atol + rtol * max(|total|, |fd|); a side whose point fails is left out (one-sided).
+Exit status: 0 all agree, 1 some disagree, lack a difference or the point failed, 2 a user mistake.
 """
 from __future__ import annotations
 
@@ -19,8 +19,7 @@ from bev_mdo import jsontext
 def register(subparsers) -> None:
     from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments
 
-    p = subparsers.add_parser("check-totals", help="compare the optimiser's total derivatives with finite differences",
-                              description=__doc__.split("\n\n")[1])
+    p = subparsers.add_parser("check-totals", description=__doc__.split("\n\n")[1])
     p.add_argument("config", help="run config YAML")
     p.add_argument("--formulation", choices=("mdf", "idf"), default=None, help="default: the config's")
     p.add_argument("--at", default="", metavar="K=V,...", help="design point (default: the initial values)")
@@ -34,14 +33,14 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def fd_stencil(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
-    """(rows (2n, n): x + h e_i then x - h e_i, denominators (n,)); one-sided at a bound."""
-    n = len(x)
+def fd_stencil(x: np.ndarray, lower: np.ndarray, upper: np.ndarray, step: float) -> tuple[np.ndarray, ...]:
+    """(rows (2n, n): x + h e_i then x - h e_i, denominators (n,), one-sided (n,): True where a bound within a
+    step leaves one side out)."""
     h = step * np.maximum(np.abs(x), 1.0)
     up = np.where(x + h <= upper, h, 0.0)
     down = np.where(x - h >= lower, h, 0.0)
-    eye = np.eye(n)
-    return np.vstack([x + eye * up[:, None], x - eye * down[:, None]]), up + down
+    eye = np.eye(len(x))
+    return np.vstack([x + eye * up[:, None], x - eye * down[:, None]]), up + down, (up == 0.0) | (down == 0.0)
 
 
 def check(form, x: np.ndarray, step: float = 1e-6, rtol: float = 1e-4, atol: float = 1e-6) -> dict:
@@ -58,13 +57,15 @@ def check(form, x: np.ndarray, step: float = 1e-6, rtol: float = 1e-4, atol: flo
     x = form.to_x(u)  # the point the gradient evaluates (scaling's round trip may move a coupling by an ulp)
     sign = -1.0 if form.problem.maximize else 1.0
     df, dg, dh = form.gradients(u)  # d/du, u = (x - offset) / scale
-    if not form.status(x)[0]:
-        raise ValueError(f"the analysis of the design failed: {form.status(x)[1].splitlines()[0]}")
-    rows_x, denom = fd_stencil(x, form.lower, form.upper, step)
-    h = step * np.maximum(np.abs(x), 1.0)
-    one_sided = [v for v, d, hj in zip(form.var_names, denom, h) if d < 2.0 * hj]  # a bound within a step
+    if not form.status(x)[0]:  # a failed point, not a user mistake: exit 1 (ModelFailed)
+        from bev_mdo.api.errors import ModelFailed
+
+        raise ModelFailed(f"the analysis of the design failed: {form.status(x)[1].splitlines()[0]}")
+    rows_x, denom, sided = fd_stencil(x, form.lower, form.upper, step)
+    rows_x = np.vstack([rows_x, x])  # the point itself last: the other side of a difference whose one side failed
     f, g, h = form.evaluate_batch(rows_x)
-    bad = [form.status(r)[1] for r in rows_x if not form.status(r)[0]]
+    failed = np.array([not form.status(r)[0] for r in rows_x[:-1]])
+    bad = [form.status(r)[1] for r, no in zip(rows_x, failed) if no]
     n = form.n
     # physical functions: objective, constraint outputs y (g = sign (y - bound) / scale), consistencies;
     # differences of y itself (g rounds y to eps |bound|: a bound far from y would cost digits)
@@ -72,16 +73,22 @@ def check(form, x: np.ndarray, step: float = 1e-6, rtol: float = 1e-4, atol: flo
     names = [form.problem.objective] + [lab for lab in form.ineq_labels] + list(form.eq_labels)
     totals = np.vstack([sign * df[None, :], (gsign * gscale)[:, None] * dg, dh]) / form.scale[None, :]
     vals = np.column_stack([sign * f, form.constraint_outputs(rows_x), h])
-    fd = ((vals[:n] - vals[n:]) / denom[:, None]).T
+    # a failed side is left out (its values are the failure's penalty, not the function's): one-sided from the point
+    up, down = np.diag(rows_x[:n]) - x, x - np.diag(rows_x[n:2 * n])
+    plus, minus = np.where(failed[:n, None], vals[-1], vals[:n]), np.where(failed[n:, None], vals[-1], vals[n:2 * n])
+    denom = np.where(failed[:n], 0.0, up) + np.where(failed[n:], 0.0, down)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fd = np.where(denom[:, None] > 0, (plus - minus) / np.where(denom > 0, denom, 1.0)[:, None], np.nan).T
+    one_sided = [v for v, s, a, b in zip(form.var_names, sided, failed[:n], failed[n:]) if s or a != b]
     report = {"formulation": form.name, "derivatives": form.derivatives, "point": dict(zip(form.var_names, x.tolist())),
-              "step": step, "rtol": rtol, "atol": atol, "one_sided": one_sided, "rows": [], "ok": not bad,
-              "error": f"{len(bad)} finite-difference points failed: {bad[0].splitlines()[0]}" if bad else ""}
+              "step": step, "rtol": rtol, "atol": atol, "one_sided": one_sided, "rows": [], "ok": True,
+              "error": f"{len(bad)} finite-difference points failed (left out): {bad[0].splitlines()[0]}" if bad else ""}
     for i, fn in enumerate(names):
         for j, v in enumerate(form.var_names):
-            a, b = float(totals[i, j]) + 0.0, float(fd[i, j]) + 0.0  # no -0 in the table
+            a, b = float(totals[i, j]) + 0.0, float(fd[i, j]) + 0.0  # no -0 in the table; NaN: both sides failed
             err = abs(a - b)
             rel = err / max(abs(a), abs(b)) if max(abs(a), abs(b)) > 0 else 0.0
-            ok = err <= atol + rtol * max(abs(a), abs(b))
+            ok = bool(err <= atol + rtol * max(abs(a), abs(b)))
             report["rows"].append({"of": fn, "wrt": v, "total": a, "fd": b, "abs_error": err, "rel_error": rel, "ok": ok})
             report["ok"] &= ok
     return report
@@ -127,14 +134,16 @@ def print_table(rep: dict) -> None:
     print(f"total derivatives ({rep['formulation'].upper()}, {rep['derivatives']}) at "
           f"{', '.join(f'{k}={v:g}' for k, v in rep['point'].items())}")
     print(f"against central differences (step {rep['step']:g}; rtol {rep['rtol']:g}, atol {rep['atol']:g})"
-          + (f"; one-sided for {', '.join(rep['one_sided'])}: a bound within a step" if rep.get("one_sided") else ""))
+          + (f"; one-sided for {', '.join(rep['one_sided'])}: a bound or a failed point within a step"
+             if rep.get("one_sided") else ""))
     wf = max(10, *(len(r["of"]) for r in rep["rows"])) + 1
     wv = max(8, *(len(r["wrt"]) for r in rep["rows"])) + 1
     print(f" {'of':<{wf}} {'wrt':<{wv}} {'total':>14} {'fd':>14} {'abs err':>10} {'rel err':>10}  status")
     for r in rep["rows"]:
         tiny = max(abs(r["total"]), abs(r["fd"])) <= rep["atol"]  # both within atol of 0: no relative error to speak of
         print(f" {r['of']:<{wf}} {r['wrt']:<{wv}} {r['total']:>14.8g} {r['fd']:>14.8g} {r['abs_error']:>10.3g} "
-              f"{'-' if tiny else format(r['rel_error'], '.3g'):>10}  {'ok' if r['ok'] else 'DISAGREE'}")
+              f"{'-' if tiny else format(r['rel_error'], '.3g'):>10}  "
+              f"{'ok' if r['ok'] else 'DISAGREE' if r['fd'] == r['fd'] else 'no fd: no side left'}")
     if rep["error"]:
         print(rep["error"])
     print(summary(rep))
@@ -145,6 +154,11 @@ def summary(rep: dict) -> str:
     within atol of zero, 0 against 8e-11, a relative error of 1 says nothing), and the verdict."""
     beyond = [r for r in rep["rows"] if r["abs_error"] > rep["atol"]]
     worst = max(beyond, key=lambda r: r["rel_error"]) if beyond else None
+    missing = sum(r["fd"] != r["fd"] for r in rep["rows"])  # NaN: its two sides failed, or one failed at a bound
     return ((f"largest relative error {worst['rel_error']:.3g} (d {worst['of']} / d {worst['wrt']}) among the "
              f"differences above atol {rep['atol']:g}; " if worst else f"every difference is within atol {rep['atol']:g}; ")
-            + ("all totals agree with finite differences" if rep["ok"] else "some totals disagree"))
+            + (f"{missing} total{'s have' if missing > 1 else ' has'} no finite difference (a failed point on one side, "
+               "a failed point or a bound on the other); " if missing else "")
+            + ("all totals agree with finite differences" if rep["ok"] else
+               "some totals disagree" if any(not r["ok"] and r["fd"] == r["fd"] for r in rep["rows"]) else
+               "none disagrees"))

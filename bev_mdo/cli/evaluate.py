@@ -12,8 +12,7 @@ from bev_mdo import jsontext
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("evaluate", help="evaluate one design through all disciplines",
-                              description=__doc__.splitlines()[0])
+    p = subparsers.add_parser("evaluate", description=__doc__.splitlines()[0])
     p.add_argument("config", help="run config YAML, e.g. config/leaf_nedc.yaml")
     p.add_argument("--set", dest="assignments", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
                    help="design values (or model-parameter overrides); also comma-separated a=1,b=2")
@@ -35,8 +34,7 @@ def run(args) -> int:
     if args.json:
         print(jsontext.dumps(report))
     else:
-        line = cycles_line(config.data)
-        if line:
+        if line := cycles_line(config.data):
             print(line)
         print_table(report)
     return 0 if report["ok"] else 1

@@ -2,11 +2,13 @@
 bev_mdo.api.transport) and the problem overrides (bev_mdo.api.overrides)."""
 from __future__ import annotations
 
+import argparse
+import math
+import re
+
 
 def seed(text: str) -> int:
     """The type of every ``--seed``: a whole number >= 0 (models.common.check_seed, as the Python API's)."""
-    import argparse
-
     from bev_mdo.models.common import check_seed
 
     try:
@@ -50,8 +52,6 @@ def add_transport_arguments(parser, attach: bool = True, record: str | None = ""
     it can leave out (optimize, resume, sweep); "" (a command that never records: evaluate, compare,
     sensitivity, check-totals) takes it and does nothing, as asked, without offering it in its help;
     None (pareto, whose front is its bag) refuses it in one line saying why."""
-    import argparse
-
     from bev_mdo.api.transport import DEFAULT_TRANSPORT, TRANSPORTS, attach_refused
 
     class Refuse(argparse.Action):
@@ -117,9 +117,6 @@ def add_override_arguments(parser, single_objective: bool = True) -> None:
 def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, float]:
     """``["a=1,b=2", "c=3"]`` (or one such string) -> {a: 1.0, b: 2.0, c: 3.0}: the NAME=VALUE lists of
     --set, --design and --at; an InputError naming `flag` on a malformed item."""
-    import math
-    import re
-
     from bev_mdo.api.errors import InputError
     from bev_mdo.api.overrides import no_underscore
 

@@ -9,15 +9,15 @@ Graphviz DOT text (``dot -Tpng graph.dot -o graph.png`` renders it where Graphvi
 from __future__ import annotations
 
 import sys
+import textwrap
 
 OPT = "optimizer"
 
 
 def register(sub) -> None:
-    p = sub.add_parser("graph", help="the coupling graph as an N² chart (PNG) and Graphviz DOT text",
-                       description="Disciplines, their couplings, feedback loops and what the optimiser "
-                                   "drives, from the run config (no ROS needed). Without --png/--dot the "
-                                   "DOT text goes to stdout.")
+    p = sub.add_parser("graph", description="Disciplines, their couplings, feedback loops and what the optimiser "
+                                            "drives, from the run config (no ROS needed). Without --png/--dot the DOT "
+                                            "text goes to stdout.")
     p.add_argument("config", help="run config YAML")
     p.add_argument("--png", metavar="FILE", help="write the N² chart here")
     p.add_argument("--dot", metavar="FILE", help="write Graphviz DOT text here ('-' or /dev/stdout for stdout)")
@@ -123,8 +123,6 @@ def plot_n2(model: dict, path, title: str = ""):
     text = ((title + "\n" if title else "") + "N² chart: row passes to column; first row: what the optimiser "
             "drives, first column: what it reads;\nbetween disciplines, above the diagonal feed-forward, "
             "below it feedback (red)" + loops)
-    import textwrap
-
     chars = int(size * 72 / (0.6 * 9))  # the figure's width in characters of the 9 pt title (DejaVu Sans)
     ax.set_title("\n".join(textwrap.fill(line, chars) for line in text.splitlines()), fontsize=9)
     fig.tight_layout()

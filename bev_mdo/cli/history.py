@@ -34,8 +34,7 @@ EXIT_NO_ITERATIONS = 1
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
-        "history", help="print the optimisation history of a bag",
-        description="The IterationRecords of a bag as a table fitted to the terminal width (every column "
+        "history", description="The IterationRecords of a bag as a table fitted to the terminal width (every column "
                     "with --csv). Exit status 1 if the bag holds no iteration records (a pareto bag "
                     "holds fronts instead: the CSV files beside it).")
     add_bag_argument(parser)

@@ -5,12 +5,10 @@ import os
 import re
 
 from bev_mdo.api.errors import InputError
-from bev_mdo.cli import SUBCOMMANDS
 
 
 def register(sub) -> None:
-    p = sub.add_parser("node", help=SUBCOMMANDS["node"][1],
-                       description="Run one discipline as a ROS 2 node until Ctrl-C. Discovery stays on this host "
+    p = sub.add_parser("node", description="Run one discipline as a ROS 2 node until Ctrl-C. Discovery stays on this host "
                                    "unless the config's ros: section opts in to more.")
     p.add_argument("name", help="discipline name, e.g. energy")
     p.add_argument("--config", default=None, help="run config YAML (default: config/leaf_nedc.yaml)")

@@ -23,8 +23,7 @@ from bev_mdo import interrupts, jsontext
 def register(sub) -> None:
     from bev_mdo.cli.flags import seed
 
-    p = sub.add_parser("optimize", help="run the distributed MDF/IDF optimisation (the main job)",
-                       description="Optimise the config's problem. Over ROS every discipline runs as its own "
+    p = sub.add_parser("optimize", description="Optimise the config's problem. Over ROS every discipline runs as its own "
                                    "node (localhost discovery, the config's domain id), by default in this "
                                    "command's process (--compose none: a process each).")
     p.add_argument("config", help="run config YAML, e.g. config/leaf_nedc.yaml")
@@ -138,9 +137,13 @@ def _table(result: dict, baseline: dict | None, out, units: dict) -> None:
     if not result.get("last_iterate", True):
         print(f"result: iteration {result['result_iteration']}, the best feasible point seen "
               f"(not the optimiser's last iterate, iteration {result['iterations']})", file=out)
-    if result.get("fd_failures"):
-        print(f"warning: {result['fd_failures']} finite-difference point(s) failed and gave zero derivatives; "
-              "the optimiser may have stopped early (see discipline_errors)", file=out)
+    if result.get("fd_failures"):  # a derivative-free optimiser's are the first-order check's, not its own
+        from bev_mdo.mdo.optimizers import GRADIENT_BASED
+
+        own = result["optimizer"] in GRADIENT_BASED
+        print(f"warning: {result['fd_failures']} finite-difference point(s) failed and gave zero derivatives"
+              + ("; the optimiser may have stopped early" if own else " to the first-order check (not to "
+                 f"{result['optimizer']}, which uses none)") + " (see discipline_errors)", file=out)
     ms = result.get("multistart")  # its evaluations are summed over the starts; the iterations are the best start's
     over = f" (start {ms['best_start'] + 1}'s; {sum(r['iterations'] for r in ms['results'])} over {ms['starts']} starts)" if ms else ""
     print(f"iterations {result['iterations']}{over}, MDA evaluations {result['mda_evaluations']}, "
@@ -205,7 +208,7 @@ def _verdict(result: dict, out, units: dict) -> None:
         shown = "0" if abs(margin) <= 1e-6 * max(abs(limit), 1.0) else f"{margin:.3g}"  # below the noise: 0
         lines.append(f"active: {label}{u(name)}, margin {shown}{u(name)}, multiplier {multiplier:.4g}{rate(name, d)}")
     for b in fo["active_bounds"]:
-        v = result["design"].get(b["name"], float("nan"))
+        v = {**result.get("outputs", {}), **result["design"]}.get(b["name"], float("nan"))  # IDF's couplings too
         v = b.get("bound", v) if abs(v - b.get("bound", v)) <= 1e-9 * max(1.0, abs(v)) else v  # 4.6e-13 on 0: 0
         lines.append(f"on its {b['kind']} bound: {b['name']} = {v:.6g}{u(b['name'])}, multiplier "
                      f"{b['multiplier']:.4g}{rate(b['name'], b.get('d_objective_d_limit'))}")

@@ -19,6 +19,7 @@ one is named) or every evaluated design failed (the first error is named); 2 a u
 from __future__ import annotations
 
 import argparse
+import copy
 import sys
 import uuid
 from pathlib import Path
@@ -32,10 +33,9 @@ OBJECTIVES = study.OBJECTIVES  # the study's default (energy, 0-100 km/h time, c
 
 
 def register(subparsers) -> None:
-    from bev_mdo.cli import SUBCOMMANDS
     from bev_mdo.cli.flags import seed
 
-    p = subparsers.add_parser("pareto", help=SUBCOMMANDS["pareto"][1])
+    p = subparsers.add_parser("pareto")
     p.add_argument("config", help="run config YAML (e.g. examples/pareto/srn.yaml, config/topologies_artemis.yaml)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--topology", default=None, action=_Once,
@@ -163,8 +163,6 @@ def _status(doc: dict, results) -> int:
 
 def _only(ov, variables: set[str]):
     """The overrides with the bounds and initial values of ``variables`` only (one topology's)."""
-    import copy
-
     kept = copy.deepcopy(ov)
     kept.bounds = {k: v for k, v in ov.bounds.items() if k in variables}
     kept.initial = {k: v for k, v in ov.initial.items() if k in variables}

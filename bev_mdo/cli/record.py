@@ -1,11 +1,12 @@
 """``bev-mdo record [--topics ...] [--output BAG] [--config CONFIG]``: run the recorder node."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser("record", help="record bev_mdo topics to a rosbag2 MCAP bag")
+    parser = subparsers.add_parser("record")
     parser.add_argument("--topics", nargs="+", help="topics to record (default: all under /bev_mdo/)")
     parser.add_argument("--output", "-o", help="bag directory (default bags/<time>_record)")
     parser.add_argument("--config", help="configuration file to store in the bag")
@@ -42,13 +43,15 @@ def run(args) -> int:
     return status
 
 
-def _join_domain(args) -> None:
-    """Domain and discovery: the flags, over the --config file's ros: section (localhost by default)."""
+def _join_domain(args, where: str | None = "record") -> None:
+    """Domain and discovery of a recording or a replay: the flags, over the --config file's ros: section (record's),
+    else a valid ROS_DOMAIN_ID of the environment (localhost by default: never off-host unasked). A bad value is
+    said after the file's name, or ``where`` (None: as it is)."""
     from bev_mdo.api.transport import ros_section
     from bev_mdo.ros.client import apply_ros_environment
 
-    ros = {}
-    if args.config:
+    ros, env = {}, os.environ.get("ROS_DOMAIN_ID", "")
+    if getattr(args, "config", None):
         from bev_mdo.yamlload import load_yaml
 
         try:
@@ -56,11 +59,11 @@ def _join_domain(args) -> None:
         except Exception as exc:  # yaml.YAMLError and friends: one line naming the file
             raise ValueError(f"{args.config}: not valid YAML: {str(exc).splitlines()[0]}") from None
         ros = (raw.get("ros") or {}) if isinstance(raw, dict) else {}
-    if "domain_id" not in ros:
-        from bev_mdo.cli.replay import _env_domain
-
-        ros = {**_env_domain(), **ros}
+    if "domain_id" not in ros and env.isdigit():
+        ros = {"domain_id": int(env), **ros}
     try:
         apply_ros_environment(ros_section({"ros": ros}, args))
     except ValueError as exc:
-        raise ValueError(f"{args.config or 'record'}: {exc}") from None
+        if not (getattr(args, "config", None) or where):
+            raise
+        raise ValueError(f"{getattr(args, 'config', None) or where}: {exc}") from None

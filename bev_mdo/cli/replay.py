@@ -7,7 +7,7 @@ from bev_mdo.cli.flags import add_bag_argument
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser("replay", help="publish the messages of a recorded bag again")
+    parser = subparsers.add_parser("replay")
     add_bag_argument(parser)
     speed = parser.add_mutually_exclusive_group()
     speed.add_argument("--rate", type=float, default=1.0,
@@ -30,13 +30,10 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from bev_mdo.api.transport import ros_section
-    from bev_mdo.ros.client import apply_ros_environment
+    from bev_mdo.cli.record import _join_domain
     from bev_mdo.ros.replay import replay
 
-    # Domain and discovery from the flags (else the environment's ROS_DOMAIN_ID; localhost by default):
-    # a replay never goes off-host unasked.
-    apply_ros_environment(ros_section({"ros": _env_domain()}, args))
+    _join_domain(args, where=None)  # the flags, else the environment's ROS_DOMAIN_ID; localhost by default
     rate = None if args.as_fast_as_possible else args.rate
     verify(args)  # a path that is not a bag, or a bag that does not verify, is one error line before anything else
     if args.wait_subscribers:
@@ -53,7 +50,8 @@ def run(args) -> int:
 def verify(args) -> None:
     """Check the bag as ``history`` does before anything is published: a bag whose signing record, stored
     config and key disagree, or with iteration records that do not verify with the run's key, is refused
-    (BagError, exit 2; ``--no-verify`` replays it as it is); stderr says when its records are not verified."""
+    (BagError, exit 2; ``--no-verify`` replays it as it is); stderr says when its records are not verified, and
+    when they stop before the run's end (its end-of-run record counts more)."""
     from bev_mdo.bag.errors import BagError
     from bev_mdo.bag.history import history
     from bev_mdo.bag.reader import open_bag
@@ -68,11 +66,5 @@ def verify(args) -> None:
                        "refusing to replay it (--no-verify replays it as is)")
     if checks["unverified"]:
         print(f"{args.bag}: {checks['unverified']}", file=sys.stderr)
-
-
-def _env_domain() -> dict:
-    """{"domain_id": N} from a valid ROS_DOMAIN_ID in the environment, else {} (the default domain)."""
-    import os
-
-    value = os.environ.get("ROS_DOMAIN_ID", "")
-    return {"domain_id": int(value)} if value.isdigit() else {}
+    if checks.get("tail"):  # its end-of-run record counts records past the bag's last: said as history says it
+        print(f"{args.bag}: {checks['tail']}", file=sys.stderr)

@@ -7,7 +7,7 @@ from bev_mdo.cli.flags import add_bag_argument
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser("report", help="plots and a markdown summary of a recorded run")
+    parser = subparsers.add_parser("report")
     add_bag_argument(parser)
     parser.add_argument("--output-dir", help="write here instead of the bag directory")
     parser.add_argument("--run-id", help="this run (default: the bag's own; needed for a recording of several runs)")

@@ -8,14 +8,15 @@ all that is needed. The resumed run is recorded to a new bag.
 from __future__ import annotations
 
 import argparse
+import json
+import sys
 from pathlib import Path
 
 from bev_mdo.cli.flags import add_bag_argument
 
 
 def register(sub) -> None:
-    p = sub.add_parser("resume", help="restart an optimisation from the last iterate recorded in a bag",
-                       description="Read the run's configuration and its last IterationRecord from BAG and "
+    p = sub.add_parser("resume", description="Read the run's configuration and its last IterationRecord from BAG and "
                                    "optimise again from that design (a truncated bag works too); from a "
                                    "finished run's bag, from its result; from a sweep's bag, from its best "
                                    "design (feasible, else least violated).")
@@ -39,9 +40,6 @@ def resume_point(bag_path: str, run_id: str | None = None, key_file: str | None 
                  checks: dict | None = None, no_verify: bool = False) -> tuple:
     """(the run's RunConfig, last verified design of the bag's own run, its iteration) from a bag;
     BagError (a ValueError) if there is none or it cannot be verified."""
-    import json
-    import sys
-
     from bev_mdo.bag.history import last_iterate
     from bev_mdo.bag.reader import open_bag
     from bev_mdo.config import RunConfig
@@ -84,14 +82,10 @@ def held(config, fixed: dict):
 def is_per_run_key(path) -> bool:
     """Whether `path` is a per-run key bev-mdo created for a run (``<bag's parent>/.keys/<bag name>/sign.key``,
     auth.with_run_key), not a key file the user configured."""
-    from pathlib import Path
-
     return bool(path) and Path(str(path)).name == "sign.key" and Path(str(path)).parent.parent.name == ".keys"
 
 
 def run(args) -> int:
-    import sys
-
     from bev_mdo.api.transport import Transport
     from bev_mdo.bag.history import check_note
     from bev_mdo.cli.optimize import run_job

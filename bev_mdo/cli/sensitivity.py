@@ -16,14 +16,15 @@ import numpy as np
 from bev_mdo import jsontext
 
 ROUGH = 0.01  # a value is marked "~" when its error estimate (Richardson's, or half a kink's jump) is over 1 % of it
+_ROUGH_LINE = (f"~ uncertain by over {ROUGH:.0%} of the value: the estimates with steps h and 2h, or the slopes either "
+               "side of the point, differ (a kink or noise near the point{}try another --rel-step; check-totals)")
 
 
 def register(subparsers) -> None:
     from bev_mdo.api.sensitivity import METHODS
-    from bev_mdo.cli import SUBCOMMANDS
     from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments, seed
 
-    p = subparsers.add_parser("sensitivity", help=SUBCOMMANDS["sensitivity"][1])
+    p = subparsers.add_parser("sensitivity")
     p.add_argument("config", help="run config YAML")
     p.add_argument("--at", default="", metavar="K=V,...",
                    help="design point (design variables default to their initial values); with --global, the "
@@ -139,8 +140,7 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
     print("step".ljust(ow) + "".join(f" {v:.3g} {unit_of(n, units or {}, inline=True)}".rstrip().rjust(w)
                                      for n, v in zip(s.names, s.step)), file=out)
     if rough and s.second is None:
-        print(f"~ uncertain by over {ROUGH:.0%} of the value: the estimates with steps h and 2h, or the slopes either "
-              "side of the point, differ (a kink or noise near the point; try another --rel-step; check-totals)", file=out)
+        print(_ROUGH_LINE.format("; "), file=out)
     if s.second is None:
         return
     print("\nSecond-order normalised sensitivity S'_ij = (x_i x_j/f) d2f/dx_i dx_j  (eq 5-5)", file=out)
@@ -164,9 +164,7 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
                      if j >= i else "".rjust(w) for j in range(len(s.names))]
             print(n.ljust(w) + "".join(cells), file=out)
     if rough:
-        print(f"\n~ uncertain by over {ROUGH:.0%} of the value: the estimates with steps h and 2h, or the slopes either "
-              "side of the point, differ (a kink or noise near the point); an S' entry whose error exceeds it has no "
-              "sure sign (try another --rel-step; check-totals)", file=out)
+        print("\n" + _ROUGH_LINE.format("); an S' entry whose error exceeds it has no sure sign ("), file=out)
 
 
 def _context_title(s, cfg, design=None) -> str:

@@ -7,7 +7,7 @@ from bev_mdo import jsontext
 def register(sub) -> None:
     from bev_mdo.cli.flags import add_ros_arguments
 
-    p = sub.add_parser("status", help="list the live discipline instances on the ROS domain (host, throughput)")
+    p = sub.add_parser("status")
     p.add_argument("config", nargs="?", default=None, help="run config YAML whose ros: section to use (optional)")
     p.add_argument("--listen", type=float, default=2.0, metavar="S", help="seconds to listen (default 2)")
     p.add_argument("--json", action="store_true", help="print the rows as JSON")

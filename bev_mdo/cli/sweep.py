@@ -36,8 +36,7 @@ def register(sub) -> None:
     from bev_mdo.api.doe import METHODS
     from bev_mdo.cli.flags import add_override_arguments, add_transport_arguments, seed
 
-    p = sub.add_parser("sweep", help="a design of experiments, grid or list of designs as one batch: CSV, PNG, bag",
-                       description=__doc__.split("\n\n")[1])
+    p = sub.add_parser("sweep", description=__doc__.split("\n\n")[1])
     p.add_argument("config", help="run config YAML")
     p.add_argument("--doe", choices=METHODS, default=None,
                    help="sample the design variables' bounds: Latin hypercube, Sobol', Halton or full factorial")
@@ -54,8 +53,7 @@ def register(sub) -> None:
     add_transport_arguments(p, record="do not write the bag (OUT/bag)")
     add_override_arguments(p)
     p.set_defaults(func=run)
-    c = sub.add_parser("compare", help="two or more designs side by side with their differences",
-                       description=__doc__.split("\n\n")[2])
+    c = sub.add_parser("compare", description=__doc__.split("\n\n")[2])
     c.add_argument("config", help="run config YAML")
     c.add_argument("--design", action="append", default=[], metavar="k=v,...", required=True,
                    help="one design (repeat); variables not given take their initial value")

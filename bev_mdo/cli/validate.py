@@ -37,8 +37,7 @@ def compared(energy_model: str, base: dict | None = None) -> str:
 def register(subparsers) -> None:
     from bev_mdo.models.fleet import ENERGY_MODELS
 
-    p = subparsers.add_parser("validate", help="predicted vs measured energy over a fleet of tested vehicles",
-                              description=__doc__.splitlines()[0])
+    p = subparsers.add_parser("validate", description=__doc__.splitlines()[0])
     p.add_argument("--data", metavar="CSV", default=None,
                    help="fleet file (default: bev_mdo/data/epa_2022_bev/train.csv)")
     p.add_argument("--energy-model", default=DEFAULT_MODEL, choices=ENERGY_MODELS,

@@ -12,10 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
+from bev_mdo.api.evaluate import pyplot_and_label
 from bev_mdo.cli import save_figure
 
 
-def _f(x, nd=1):
+def _f(x, nd=1) -> str:  # as validate's table (not imported: validate imports this module)
     return "-" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{nd}f}"
 
 
@@ -39,11 +40,7 @@ def write_all(report: dict, directory) -> list[Path]:
 
 def plot(report: dict, path: str) -> None:
     """Parity plot with the +-5 % band, residuals against test mass and rated power."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt, _ = pyplot_and_label(None)
     rows = report["rows"]
     fig, ax = plt.subplots(1, 3, figsize=(15, 5.4))
     marks = {"udds": ("o", "UDDS"), "hwfet": ("s", "HWFET")}
@@ -88,11 +85,7 @@ def plot_pair_arrows(report: dict, cycle: str, path) -> None:
     """One panel per model column: every pair of the cycle as an arrow from (measured A, predicted A)
     to (measured B, predicted B), Wh/km, with y = x; the title gives the pair slope and mean
     absolute difference of that column."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt, _ = pyplot_and_label(None)
     by_row = {r["row"]: r for r in report["rows"]}
     pairs = report["pairs"][cycle]["rows"]
     columns = [(report["energy_model"], "predicted", report["pairs"][cycle])]

@@ -205,18 +205,18 @@ def _parameter_set(cfg: dict) -> None:
                       "parameter_set_source": source}  # which set: its name, file, SHA-256 and fit date
 
 
-def cycle_names(cfg: Mapping) -> list[str]:
-    """The drive cycles a config names, each once: ``cycle.name``, the energy and cycle_range options ``cycle``
-    and ``cycle_weights``."""
-    names = [cfg["cycle"]["name"]]
-    for e in cfg.get("disciplines") or []:
+def cycle_names(cfg: Mapping) -> dict[str, str]:
+    """Each drive cycle a config names (``cycle.name``, the energy and cycle_range options ``cycle`` and
+    ``cycle_weights``) -> the first key naming it (``disciplines[1].options.cycle_weights``)."""
+    names = {cfg["cycle"]["name"]: "cycle.name"}
+    for i, e in enumerate(cfg.get("disciplines") or []):
         if isinstance(e, Mapping) and e.get("name") in ("energy", "cycle_range") and not e.get("class"):
             opts = e.get("options") if isinstance(e.get("options"), Mapping) else {}  # else refused later
-            if isinstance(opts.get("cycle"), str):
-                names.append(opts["cycle"])
-            if isinstance(opts.get("cycle_weights"), Mapping):
-                names += [str(k) for k in opts["cycle_weights"]]
-    return list(dict.fromkeys(names))
+            one, weights = opts.get("cycle"), opts.get("cycle_weights")
+            for name, key in [*([(one, "cycle")] if isinstance(one, str) else []),
+                              *((str(k), "cycle_weights") for k in (weights if isinstance(weights, Mapping) else ()))]:
+                names.setdefault(name, f"disciplines[{i}].options.{key}")
+    return names
 
 
 def _record_cycle_traces(cfg: dict) -> None:
@@ -230,13 +230,16 @@ def _record_cycle_traces(cfg: dict) -> None:
     if not isinstance(traces, Mapping):
         raise ValueError("cycle_traces must map CSV paths to {time_s: [...], speed_m_s: [...]}")
     out = {}
-    for name in (n for n in cycle_names(cfg) if is_csv_cycle(n)):
+    for name, where in ((n, w) for n, w in cycle_names(cfg).items() if is_csv_cycle(n)):
         if name in traces:  # a resolved config read again: check what it holds
             cycle, out[name] = trace_cycle(name, traces[name]), traces[name]
             if stale := _stored_trace_note(name, cycle):
                 warnings.warn(stale, CycleNote, stacklevel=2)
         else:  # read (and checked) from the file
-            cycle = load_cycle(name)
+            try:
+                cycle = load_cycle(name)
+            except ValueError as exc:  # the key that names it: an options cycle is not `cycle:`
+                raise ValueError(f"{where}: {exc}" if where != "cycle.name" else str(exc)) from None
             out[name] = trace_record(cycle)
         note = unbalanced_note(cycle, name)
         if note:
@@ -329,7 +332,7 @@ def validate_models(cfg: dict) -> dict[str, float]:
             _record_cycle_traces(cfg)
             resampled_cycle(cfg)  # read and check the trace now: one line naming file and row
         except ValueError as exc:
-            raise ValueError(str(exc) if str(exc).startswith("cycle.") else f"cycle: {exc}") from None
+            raise ValueError(str(exc) if str(exc).startswith(("cycle.", "disciplines[")) else f"cycle: {exc}") from None
     return vehicle
 
 

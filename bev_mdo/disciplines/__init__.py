@@ -167,11 +167,12 @@ class Acceleration(Base):
                                             battery_kwh=inputs["battery_kwh"])
         return {"accel_time_0_100_s": t}
 
-    def battery_limit_kw(self, values) -> tuple[float, float, float] | None:
-        """(the pack's shaft power at its discharge limit and the motors' rated power together, in kW; the 0-100
-        km/h time without the pack's limit, s) at one design (``values``: its inputs), None without a battery limit
-        (``battery_to_shaft_efficiency`` 0) or inputs. The pack limits the time where it is below the time with it:
-        below base speed a motor does not use its rated power (a short gear), and a pack under it need not bind."""
+    def battery_limit(self, values) -> dict | None:
+        """The pack's limit on the 0-100 km/h time at one design (``values``: its inputs and outputs), as evaluate's
+        JSON gives it: the pack's shaft power at its discharge limit and the motors' rated power together, kW; the
+        time without the pack's limit, s; whether the pack limits the time (below base speed a motor does not use
+        its rated power (a short gear), and a pack under it need not bind); ``note``, the line that says so where
+        it does. None without a battery limit (``battery_to_shaft_efficiency`` 0) or inputs."""
         if any(k not in values for k in (*self.inputs, "accel_time_0_100_s")) or not np.isfinite(
                 values["accel_time_0_100_s"]):  # (a failed point: no time to compare)
             return None
@@ -182,15 +183,16 @@ class Acceleration(Base):
             + self.topology.rear_motors * float(values.get("motor_rear_kw", 0.0))
         free = {k: np.atleast_1d(float(values[k])) for k in (*self.inputs, *self.parameters) if k in values}
         t_free = self.compute({**free, "battery_to_shaft_efficiency": np.zeros(1)})["accel_time_0_100_s"]
-        return float(shaft_w) / 1e3, rated_kw, float(np.ravel(t_free)[0])
+        t, t_free, shaft_kw = float(values["accel_time_0_100_s"]), float(np.ravel(t_free)[0]), float(shaft_w) / 1e3
+        limits = bool(t > t_free * (1 + 1e-9))
+        return {"pack_shaft_power_kw": shaft_kw, "motors_rated_power_kw": rated_kw, "time_without_limit_s": t_free,
+                "limits": limits, "note": limits and f"the pack limits the 0-100 km/h time: {shaft_kw:.1f} kW at the "
+                f"shaft, below the motors' rated {rated_kw:.1f} kW ({t:.3g} s; {t_free:.3g} s without the pack's limit)"}
 
     def notes(self, values) -> list[str]:
         """What the time means at a design (``values``: inputs and outputs) that cannot reach 100 km/h (the
-        continuation value), and that the pack's power limits it where it does."""
-        lim, t = self.battery_limit_kw(values), values.get("accel_time_0_100_s")
-        return [n for n in (acceleration.not_reached_note(t or 0.0), lim and t is not None and t > lim[2] * (1 + 1e-9)
-                            and f"the pack limits the 0-100 km/h time: {lim[0]:.1f} kW at the shaft, below the motors' "
-                            f"rated {lim[1]:.1f} kW ({t:.3g} s; {lim[2]:.3g} s without the pack's limit)") if n]
+        continuation value); that the pack's power limits it: ``battery_limit``."""
+        return [n for n in [acceleration.not_reached_note(values.get("accel_time_0_100_s") or 0.0)] if n]
 
 
 class MotorSpeed(Base):

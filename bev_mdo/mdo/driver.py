@@ -351,6 +351,8 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         if ok and not final.get("ok", True):  # IDF: its point consistent, the MDA through it failed
             ok, err = False, final.get("error", "")
     counts = dict(evaluator.counts)
+    if form.name == "mdf" and (outside := problem.outside_coupling_bounds(final["outputs"])):
+        fo = {**fo, "outside_coupling_bounds": outside}  # IDF's bounds, not MDF's: said under the verdict
     if not ok and not fo.get("failure"):  # e.g. IDF's consistent point whose MDA failed, an MDA not converged
         fo = {**fo, "verdict": first_order.INFEASIBLE, "point_failed": True,
               "failure": (err or final.get("error", "")).split("; ")[0]}

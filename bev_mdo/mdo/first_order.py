@@ -179,6 +179,8 @@ def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = Fal
     record of the optimiser's last iterate where the result is an earlier one (then the reason is there). A step
     from the end point that failed (driver.end_point_check's ``failed_steps``) is the likelier cause."""
     lines = [_free_line(fo["free_variables"])] if fo.get("free_variables") else []
+    if fo.get("outside_coupling_bounds"):  # driver: an MDF result beyond problem.coupling_bounds
+        lines.append(_coupling_bounds_line(fo["outside_coupling_bounds"]))
     if converged and ended is not None and fo["verdict"] != OPTIMUM:  # its end point is not what was judged
         why = ("cannot follow the drive cycle, a check the optimiser does not see (constrain the energy "
                "discipline's margins so that it does: options {feasibility_outputs: true}, e.g. drive_force_margin_n "
@@ -193,18 +195,42 @@ def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = Fal
                      "bounds inside that region would make it a limit the check can judge")
     elif converged and fo["verdict"] == STOPPED and not (fo.get("kinks") or fo.get("unknown_derivatives")
                                                          or fo.get("derivatives_disagree")):
-        if fo.get("derivatives") == "analytic":
-            lines.append(f"{optimizer} says it converged, but the first-order conditions do not hold at its end point "
-                         "(judged on the gradient assembled from the disciplines' analytic partials, the optimiser's "
-                         "own, so a wrong partial misleads both): a wrong derivative is a common cause; bev-mdo "
-                         "check-partials CONFIG compares each discipline's partials with finite differences, bev-mdo "
-                         "check-totals CONFIG the totals")
-        else:  # no analytic partial in the run: its own stopping rule, or the finite differences' step
-            lines.append(f"{optimizer} says it converged, but the first-order conditions do not hold at its end point "
-                         "(judged on finite differences of the whole analysis, optimizer.fd_step, as the optimiser's): "
-                         "its stopping tolerance (optimizer.options, e.g. ftol) may be too loose for the problem, or "
-                         "the step too coarse for it")
+        from bev_mdo.mdo.optimizers import GRADIENT_BASED
+
+        head = f"{optimizer} says it converged, but the first-order conditions do not hold at its end point "
+        if optimizer in GRADIENT_BASED or optimizer == "the optimiser":
+            lines.append(head + ("(judged on the gradient assembled from the disciplines' analytic partials, the "
+                                 "optimiser's own, so a wrong partial misleads both): a wrong derivative is a common "
+                                 "cause; bev-mdo check-partials CONFIG compares each discipline's partials with finite "
+                                 "differences, bev-mdo check-totals CONFIG the totals"
+                                 if fo.get("derivatives") == "analytic" else
+                                 # no analytic partial in the run: its own stopping rule, or the differences' step
+                                 "(judged on finite differences of the whole analysis, optimizer.fd_step, as the "
+                                 "optimiser's): its stopping tolerance (optimizer.options, e.g. ftol) may be too loose "
+                                 "for the problem, or the step too coarse for it"))
+        else:  # a derivative-free optimiser: the check's gradient is not its own; a wrong partial misleads the check
+            analytic = fo.get("derivatives") == "analytic"
+            on = ("the gradient assembled from the disciplines' analytic partials" if analytic
+                  else "finite differences of the whole analysis (optimizer.fd_step)")
+            idf = ("; under IDF its every step must also keep the consistency equalities met, which a search on values "
+                   "alone does poorly (--formulation mdf meets them by the MDA)" if fo.get("equalities") else "")
+            lines.append(head + f"(judged on {on}, which {optimizer}, derivative-free, does not use): its own stopping "
+                         f"rule (optimizer.options) ended it where that gradient still descends{idf}; a gradient-based "
+                         "optimiser (--optimizer SLSQP) can go on from there"
+                         + (" (a wrong partial would mislead the check alone: bev-mdo check-partials CONFIG rules it "
+                            "out)" if analytic else ""))
     return lines
+
+
+def _coupling_bounds_line(outside: list[dict]) -> str:
+    """The note of an MDF result's couplings beyond ``problem.coupling_bounds``, one line."""
+    first = outside[0]
+    side = {"lower": "below its lower", "upper": "above its upper"}
+    names = ", ".join(f"{b['name']} = {b['value']:.6g} is {side[b['kind']]} bound {b['bound']:g}" for b in outside)
+    op = ">=" if first["kind"] == "lower" else "<="
+    return (f"{names} of problem.coupling_bounds: those bounds hold IDF's coupling variables; MDF, whose MDA sets the "
+            f"couplings, does not apply them, so the two formulations solve different problems here; a limit both "
+            f"keep is a constraint (problem.constraints, or --constraint \"{first['name']}{op}{first['bound']:g}\")")
 
 
 def _free_line(free: list[dict]) -> str:
@@ -231,14 +257,15 @@ def limit_rates(fo: dict, problem, var_names: Sequence[str], var_scale: Sequence
     sense = (-1.0 if problem.maximize else 1.0) * problem.objective_scale
     for c in fo["active_constraints"]:
         if (i := row.get(c["name"])) is not None:
-            c["d_objective_d_limit"] = -sense * c["multiplier"] * sign[i] / scale[i]
+            c["d_objective_d_limit"] = -sense * c["multiplier"] * sign[i] / scale[i] + 0.0  # + 0.0: no -0
     where = dict(zip(var_names, np.asarray(var_scale, dtype=float)))
     limits = {k: dict(zip(var_names, map(float, v))) for k, v in zip(("lower", "upper"), bounds or ((), ()))}
     for b in fo["active_bounds"]:
         if b["name"] in limits.get(b["kind"], {}):
             b["bound"] = limits[b["kind"]][b["name"]]
         if b["name"] in where:
-            b["d_objective_d_limit"] = sense * b["multiplier"] * (1.0 if b["kind"] == "lower" else -1.0) / where[b["name"]]
+            b["d_objective_d_limit"] = sense * b["multiplier"] * (1.0 if b["kind"] == "lower" else -1.0) / where[
+                b["name"]] + 0.0
 
 
 def exit_status(doc: dict, fixed_budget: bool = False) -> int:

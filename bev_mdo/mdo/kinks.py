@@ -7,8 +7,10 @@ claimed: one-sided slopes along each variable do not bound the slope along a kin
 variables (f = 10 |x - y| + (x + y - 4)^2 at x = y = 1.32: each variable alone raises f at 72.7, the valley x = y
 lowers it at 5.5 per unit), and a check built on them said "optimum" there (a user trial).
 ``end_point_kinks`` steps each variable ``fd_step`` and 4 x ``fd_step`` either way (one batch) and, where none is
-found, 2e-4 and 8e-4 (scaled). ``one_sided_descent`` is the answers' program of a first-order step on one-sided
-slopes (active.py), which explains an infeasible end; it proves nothing.
+found, 2e-4 and 8e-4 (scaled); away from an optimum, where neither finds a kink or a failed point,
+``failing_steps`` steps 1 % of each range for points where the disciplines give no value. ``one_sided_descent``
+is the answers' program of a first-order step on one-sided slopes (active.py), which explains an infeasible end;
+it proves nothing.
 """
 from __future__ import annotations
 
@@ -49,11 +51,33 @@ def end_point_kinks(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray,
     conditions hold) looks only at the point, and asks the same jump at 16h too and a clear one (over 1e-3 x the
     largest slope): MDA noise of 1e-10 met the test at h and 4h by chance at 6 of 60 smooth optima, and a kink
     there makes the optimum unverified. ``failed``: gets the variables a step of which failed (a discipline gave
-    no value a step away: the point lies at the edge of the region where the disciplines give values)."""
+    no value a step away: the point lies at the edge of the region where the disciplines give values); away from an
+    optimum, where neither pair of steps found a kink nor a failure, ``failed`` gets those of ``failing_steps`` too
+    (COBYQA ended 0.0126 inside the edge, 2.5e-3 scaled, its trust region shrunk by the failed points beyond)."""
     out = _at_steps(form, u, f0, g0, h0, grad_max, form.fd_step, (1, 4, 16) if at_optimum else (1, 4), failed)
     if not at_optimum and not out and NEAR_STEP > 4 * form.fd_step:
-        return [{**k, "near_step": NEAR_STEP} for k in _at_steps(form, u, f0, g0, h0, grad_max, NEAR_STEP, (1, 4))]
+        out = [{**k, "near_step": NEAR_STEP} for k in _at_steps(form, u, f0, g0, h0, grad_max, NEAR_STEP, (1, 4),
+                                                                failed)]
+    if not at_optimum and not out and failed is not None and not failed:
+        failed += failing_steps(form, u)
     return out
+
+
+def failing_steps(form: Formulation, u: np.ndarray, step: float = first_order.FREE_STEP) -> list[str]:
+    """The variables a step of ``step`` x its range (scaled; of one scaled unit where it has none) from ``u``, either
+    way within the bounds, fails in (one batch): the end lies next to a region where the disciplines give no value."""
+    lo, hi = form.u_bounds
+    span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+    steps = [(j, s) for j in range(form.n) for s in (step * span[j], -step * span[j]) if lo[j] <= u[j] + s <= hi[j]]
+    if not steps:
+        return []
+    U = np.repeat(u[None, :], len(steps), axis=0)
+    for i, (j, s) in enumerate(steps):
+        U[i, j] += s
+    X = form.to_x(U)
+    f, _, _ = form.evaluate_batch(X)
+    bad = form.failed_rows(X) | ~(np.abs(f) < FAIL_OBJECTIVE)
+    return list(dict.fromkeys(form.var_names[j] for (j, _), b in zip(steps, bad) if b))
 
 
 def _at_steps(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: np.ndarray, grad_max: float,
@@ -92,7 +116,7 @@ def _at_steps(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: n
         failed[j] |= bool(bad[i])
         slopes[k, int(s < 0), :, j] = (Q[i] - q0) / s
     if failed_out is not None:
-        failed_out += [form.var_names[j] for j in np.flatnonzero(failed)]
+        failed_out += [form.var_names[j] for j in np.flatnonzero(failed) if form.var_names[j] not in failed_out]
     g_slopes = slopes * to_g[None, None, :, None]
     refs = [max(1.0, grad_max)] + [max(1.0, float(np.nanmax(np.abs(g_slopes[0, :, r]), initial=0.0)))
                                    for r in range(1, len(q0))]

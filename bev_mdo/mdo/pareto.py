@@ -8,8 +8,8 @@ reported as itself); constraints are the problem's (normalised, feasible where <
 pymoo as its inequality constraints. An objective with a ceiling (a discipline's
 ``upper_limit_below``: from there up its value marks a design the physics cannot serve, such as the
 0-100 km/h time of one that cannot reach 100 km/h) adds the constraint value < ceiling, so that such
-a design is never on a front. The run's judgement of a design beyond its constraints (``design_check``,
-RunSettings.design_check: a motor that cannot follow the drive cycle, as ``optimize``, ``evaluate`` and ``sweep``
+a design is never on a front. The run's judgement of a design beyond its constraints (``batch_check``,
+RunSettings.designs_check: a motor that cannot follow the drive cycle, as ``optimize``, ``evaluate`` and ``sweep``
 judge it) adds one more constraint, ``CANNOT_FOLLOW_G`` where it rules the design out, else 0. A point the
 disciplines could not evaluate gets objectives 1e30 and constraint 1e6 (pymoo's only); it is counted as failed
 (``ParetoResult.failed``, the first error kept), never reported as a constraint violation.
@@ -153,7 +153,7 @@ def _pymoo_problem_class():
             self.ceilings = [(j, float(ceilings[o])) for j, o in enumerate(self.objectives) if o in ceilings]
             self.design_check, self.batch_check = design_check, batch_check
             prob = formulation.problem
-            n_g = len(prob.constraint_rows) + len(self.ceilings) + (design_check is not None)
+            n_g = len(prob.constraint_rows) + len(self.ceilings) + (batch_check is not None)
             super().__init__(n_var=len(prob.names), n_obj=len(self.objectives), n_ieq_constr=n_g,
                              xl=prob.array("lower"), xu=prob.array("upper"))
             self.batches = 0
@@ -174,11 +174,8 @@ def _pymoo_problem_class():
                                 + [(F[:, j] - c) / abs(c) for j, c in self.ceilings])  # value < ceiling
             F = F * self.signs
             bad = ~ok | ~np.all(np.isfinite(F), axis=1) | ~np.all(np.isfinite(G), axis=1)
-            if self.design_check is not None:  # the run's check beyond the constraints, at each analysed design
-                short = (~bad & np.asarray(self.batch_check(res.values), bool) if self.batch_check is not None else
-                         np.array([not bad[i] and bool(self.design_check({k: float(v[i]) for k, v in
-                                                                          res.values.items()})) for i in range(len(X))],
-                                  dtype=bool))
+            if self.batch_check is not None:  # the run's check beyond the constraints, at each analysed design
+                short = ~bad & np.asarray(self.batch_check(res.values), bool)
                 G = np.column_stack([G, np.where(short, CANNOT_FOLLOW_G, 0.0)])
                 self.cannot_follow += int(short.sum())
             F[bad] = FAILED_F
@@ -227,9 +224,9 @@ def objective_pairs(objectives) -> list[tuple[str, bool]]:
 def make_problem(formulation, objectives, ceilings=None, design_check=None, batch_check=None):
     """The pymoo problem of ``formulation`` (an MDF from ``driver.build_formulation``); ``ceilings``:
     {output: value from which up it marks an infeasible design}, a constraint where it is an objective;
-    ``design_check({variable: value})``: the lines why one analysed design is infeasible beyond its
-    constraints ([] if it is not), one more constraint; ``batch_check({variable: (N,) values})``: the same
-    judgement of a whole batch, (N,) bool (one call a generation instead of one a design)."""
+    ``batch_check({variable: (N,) values})``: (N,) bool, True where an analysed design is infeasible beyond its
+    constraints (one call a generation), one more constraint; ``design_check({variable: value})``: the same
+    judgement of one design as the lines why ([] if it is not), for the least violated design."""
     objectives = objective_pairs(objectives)
     missing = [o for o, _ in objectives if o not in _outputs(formulation)]
     if missing:

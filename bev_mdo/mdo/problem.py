@@ -83,6 +83,18 @@ class Problem:
     def coupling_bound(self, var: str) -> tuple[float, float]:
         return self.coupling_bounds.get(var, self.coupling_bounds.get(base_name(var), (-np.inf, np.inf)))
 
+    def outside_coupling_bounds(self, values: Mapping[str, float]) -> list[dict]:
+        """The variables of ``values`` (an MDF result's outputs) beyond their ``coupling_bounds`` by more than 1e-6
+        of the bound (at least 1e-6), as {"name", "kind", "bound", "value"}: those bound IDF's coupling variables,
+        and MDF, whose couplings the MDA sets, does not apply them (its result says so)."""
+        out = []
+        for name, v in values.items():
+            lo, hi = self.coupling_bound(name) if self.coupling_bounds else (-np.inf, np.inf)
+            for kind, b, by in (("lower", lo, lo - v), ("upper", hi, v - hi)):
+                if np.isfinite(b) and by > 1e-6 * max(1.0, abs(b)):
+                    out.append({"name": name, "kind": kind, "bound": float(b), "value": float(v)})
+        return out
+
     def array(self, attr: str) -> np.ndarray:
         return np.array([getattr(d, attr) for d in self.design_variables], dtype=float)
 

@@ -77,7 +77,7 @@ def text_hint(value: Any) -> str:
     try:
         x = float(text)
     except ValueError:
-        return ""
+        return comma_hint(text)
     if not math.isfinite(x):
         return " (text; YAML's infinity is .inf)" if "inf" in text.lower() else ""
     m = _EXPONENT_WITHOUT_DOT_OR_SIGN.fullmatch(text)
@@ -87,6 +87,16 @@ def text_hint(value: Any) -> str:
         written = f"{mantissa}e{m.group(3) or '+'}{m.group(4)}"
         return f" (YAML reads {text} as text: write {written}" + (f" or {plain})" if len(plain) <= 10 else ")")
     return f" (text, not a number: write {text} without quotes)"
+
+
+def comma_hint(text: str) -> str:
+    """`` (a decimal comma? write 7.94)`` for text that is a number with one comma for its point, else ""; where
+    three digits follow the comma, it may group thousands too (``1,269``: 1.269 or 1269)."""
+    head, _, tail = text.partition(",")
+    if not (head.lstrip("+-").isdigit() and tail.isdigit()):
+        return ""
+    return f" (a decimal comma? write {head}.{tail}" + (f"; or {head}{tail} if it groups thousands)" if len(tail) == 3
+                                                         else ")")
 
 
 def is_number(value: Any) -> bool:

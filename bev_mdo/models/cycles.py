@@ -362,7 +362,11 @@ def load_cycle(name_or_path: str, traces: Mapping[str, Any] | None = None) -> Dr
     p = Path(key)
     if p.suffix.lower() == ".csv" or p.exists():
         return read_cycle_csv(p)
-    raise ValueError(f"unknown drive cycle {key!r}: use one of {', '.join(CYCLE_NAMES)} or a CSV path")
+    import difflib
+
+    near = difflib.get_close_matches(key.lower(), CYCLE_NAMES, n=1, cutoff=0.6)
+    raise ValueError(f"unknown drive cycle {key!r}: {f'did you mean {near[0]!r}? ' if near else ''}"
+                     f"use one of {', '.join(CYCLE_NAMES)} or a CSV path")
 
 
 @dataclass(frozen=True, eq=False)

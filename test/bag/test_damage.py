@@ -382,3 +382,32 @@ def test_a_metadata_yaml_that_is_a_folder_is_named_as_what_could_not_be_written(
         "the bag is unchanged"], err
     assert (full / "full_0.mcap").read_bytes() == before and sorted(p.name for p in full.iterdir()) == [
         "full_0.mcap", "metadata.yaml"]
+
+
+def test_a_damaged_length_inside_the_header_is_named_and_repaired(full):
+    """One flipped byte in the header's profile length (a string's length field, so the record reads past its own
+    end): `history` said "the record after byte 0 cannot be read", and `bag repair` "truncated MCAP header", keeping
+    nothing, though the mcap library reads every message. The readers name the header and what is wrong with it;
+    the repair leaves the header out (it writes its own) and keeps every message."""
+    from mcap.reader import make_reader
+
+    from bev_mdo.bag.reader import open_bag
+
+    mcap = full / "full_0.mcap"
+    total = open_bag(full).message_count
+    data = bytearray(mcap.read_bytes())
+    data[20] ^= 0x01  # the high byte of the profile's length (bytes 17-20, after the opcode and record length)
+    mcap.write_bytes(bytes(data))
+    with open(mcap, "rb") as f:
+        assert sum(1 for _ in make_reader(f).iter_messages()) == total
+    end = 17 + int.from_bytes(data[9:17], "little")
+    for argv in (["history", str(full)], ["bag", "info", str(full)]):
+        code, _out, err = cli(*argv)
+        assert code == 2 and err.count("\n") == 1, err
+        assert (f"corrupt MCAP data: the header at bytes 8-{end} is damaged (a length field inside it points past the "
+                "record); run `bev-mdo bag repair` to keep the records after it") in err, err
+    code, out, err = cli("bag", "repair", str(full))
+    assert code == 0 and (f"repaired, {total} of {total} messages kept; 1 damaged record(s) left out (bytes 8-{end}: "
+                          "the header)") in out, (out, err)
+    repaired = open_bag(full)
+    assert not repaired.truncated and repaired.message_count == total

@@ -67,3 +67,39 @@ def test_report_of_a_run_stopped_before_its_first_record_does_not_promise_an_ite
     assert "the bag holds no end-of-run record (a signal, SIGINT or SIGTERM, or an error stopped it), and no " \
            "iteration record either" in " ".join(text.split()), text
     assert "last recorded iterate" not in text
+
+
+def test_report_of_a_run_whose_answers_are_left_out_heads_its_iterate_as_not_known(tmp_path):
+    """With its end-of-run record left out (forged or unsigned), report said "how the run ended is not known", then
+    headed the iterate "Last recorded iterate (the run did not finish)"."""
+    from bev_mdo.bag.report import report
+    from bev_mdo.protocol.signing import new_key_file
+
+    key = new_key_file(tmp_path / "keys")
+    bag = _bag(tmp_path, {"feasible": True, "lines": [], "result_design": {"x": 1.0}},
+               {"name": "t", "ros": {"sign_key_file": key}}, unsigned_answers=True)
+    report(bag, tmp_path / "out", key_file=key)
+    text = (tmp_path / "out" / "report.md").read_text()
+    assert text.splitlines()[2].startswith("- how the run ended is not known"), text
+    assert "## Last recorded iterate (how the run ended is not known)" in text and "did not finish" not in text
+
+
+def test_report_of_a_bag_cut_before_its_records_does_not_say_the_run_finished(tmp_path):
+    """A bag cut short before its first message, its run's answers.json beside it: report said "the run finished:
+    the bag holds its end-of-run record (its result and the answers below)", then "No iteration records". What the
+    bag shows is not known; the record beside it says the run finished."""
+    from bev_mdo.bag.history import ANSWERS_FILE
+    from bev_mdo.bag.report import report
+    from bev_mdo.bag.writer import BagWriter
+
+    bag = tmp_path / "ros"
+    with BagWriter(bag, metadata={"config_yaml": "name: t\n", "run_id": "run1"}) as w:
+        w.add_topic("/bev_mdo/iteration", "bev_mdo_msgs/msg/IterationRecord")
+    (bag / ANSWERS_FILE).write_text('{"feasible": true, "lines": [], "result_design": {"x": 1.0}, "records": 3, '
+                                    '"last_iteration": 2}\n')
+    report(bag, tmp_path / "out")
+    text = (tmp_path / "out" / "report.md").read_text()
+    assert text.splitlines()[2] == ("- how the run ended is not known from the bag: **it holds none of the run's 3 "
+                                    "iteration records**; its end-of-run record (answers.json beside the bag) says the "
+                                    "run finished"), text
+    assert "the run finished:" not in text and "No iteration records in this bag." in text

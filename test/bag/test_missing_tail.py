@@ -62,8 +62,9 @@ def test_a_bag_whose_records_stop_early_names_the_runs_result(tmp_path, monkeypa
     assert end > 2 and doc["result_iteration"] == end
     checks: dict = {}
     assert len(history(bag, checks=checks)) == 3
-    assert f"the bag's iteration records stop at iteration 2 of the run's {end} ({end - 2} missing at the end" \
-        in check_note(checks)
+    # what is known: the records stop before the run's end; why (a recorder stopped, records removed) is not
+    assert (f"the bag's iteration records stop at iteration 2 of the run's {end} ({end - 2} missing at the end: its "
+            "recorder stopped before the run ended, or records were removed from the bag)") in check_note(checks)
     md = _report(bag, tmp_path / "r")
     assert md.splitlines()[2].startswith("- the run finished, but **the bag's iteration records stop at iteration 2 "
                                          f"of the run's {end}")
@@ -133,3 +134,20 @@ def test_the_resume_of_many_starts_says_it_in_counts(tmp_path):
                            "iteration ")
     assert said.endswith(f"and 2 more), 7 with none (starts {none[0]}, {none[1]}, {none[2]} and 4 more)")
     assert said.count("start ") == 3  # three examples of the five
+
+
+def test_replay_of_a_bag_whose_records_stop_early_says_so(tmp_path, monkeypatch, capsys):
+    """`replay` of a bag whose last records were removed published 29 of its run's 31 iterations without a word;
+    it says the bag lacks records, in history's line, before it publishes anything (its check of the bag)."""
+    from argparse import Namespace
+
+    from bev_mdo.cli.replay import verify
+
+    _bag_stops_after(monkeypatch, 3)
+    bag = tmp_path / "bag"
+    end = _optimize(bag)["iterations"]
+    capsys.readouterr()
+    verify(Namespace(bag=str(bag), key_file=None, no_verify=False))
+    said = [line for line in capsys.readouterr().err.splitlines() if "stop at iteration" in line]
+    assert len(said) == 1 and said[0].startswith(f"{bag}: the bag's iteration records stop at iteration 2 of the run's "
+                                                 f"{end} ({end - 2} missing at the end"), said

@@ -173,3 +173,16 @@ def test_a_recorder_without_the_key_keeps_the_genuine_records_a_forger_numbered_
     rows = history(bag, RUN, key_file=str(key_file), checks=checks)
     assert [(r["sequence"], r["design"]["motor_kw"]) for r in rows] == [(s, 80.0 + s) for s in range(1, 7)], rows
     assert checks["missing"] == 0 and checks["dropped"] == {"forged": 2, "from the past": 1, "unsigned": 1}, checks
+
+
+@pytest.mark.parametrize("dropped,said", [
+    ({"of another run": 1}, "; not replaying 1 iteration record(s) of another run"),
+    ({"duplicate": 2, "from the past": 1}, "; not replaying 2 duplicate, 1 from the past iteration record(s)"),
+    ({"of another run": 3, "duplicate": 1},
+     "; not replaying 1 duplicate iteration record(s) and 3 iteration record(s) of another run"),
+])
+def test_what_is_left_out_reads_as_a_sentence(dropped, said):
+    """`replay` said "not replaying 1 of another run iteration record(s)"."""
+    order = RecordOrder(RUN)
+    order.dropped = dict(dropped)
+    assert order.note("not replaying") == said

@@ -191,3 +191,24 @@ def test_replay_help_names_no_config_it_does_not_take(capsys):
         main(["replay", "--help"])
     text = capsys.readouterr().out
     assert "ROS discovery (default: localhost only)" in text and "config" not in text
+
+
+@pytest.mark.parametrize("damage,said", [
+    (lambda r: {**r, "key_fingerprint": r["key_fingerprint"][:7] + "g" + r["key_fingerprint"][8:]},  # 'f' -> 'g'
+     "though the rest of it verifies with key file"),
+    (lambda r: {**r, "key_fingerprint": "not a fingerprint", "signature": "0" * 64},  # its signature damaged as well
+     "is not a key fingerprint (32 hex digits)"),
+], ids=["one_byte_flipped", "not_hex"])
+def test_a_damaged_fingerprint_in_the_signing_record_is_said_to_be_damage(tmp_path, run_bag, capsys, damage, said):
+    """One flipped byte in the signing record's key_fingerprint ('9ae1f59g...', no longer hex) blamed the run's key
+    ("is not the key this run was signed with"): the record is damaged, and the readers say so."""
+    bag, key_file, recs = run_bag
+    config_yaml = _config(key_file)
+    signing = state(config_yaml, RUN)
+    shutil.rmtree(bag)
+    _forged(bag, config_yaml, recs, damage(signing))
+    with pytest.raises(BagError, match="the bag's signing record is damaged: its key_fingerprint") as info:
+        history(bag)
+    assert said in str(info.value) and "is not the key this run was signed with" not in str(info.value)
+    for err in _refused_by_every_reader(capsys, tmp_path, bag):
+        assert "signing record is damaged" in err and said in err

@@ -135,8 +135,56 @@ def test_one_sided_differences_and_zero_rows_are_said(capsys):
     leaf = REPO / "config" / "leaf_nedc.yaml"
     assert main(["check-totals", str(leaf), "--at", "battery_kwh=20", "--transport", "inprocess"]) == 0
     out = capsys.readouterr().out
-    assert "; one-sided for battery_kwh: a bound within a step" in out, out
+    assert "; one-sided for battery_kwh: a bound or a failed point within a step" in out, out
     row = next(line for line in out.splitlines() if "motor_speed_max_rad_s" in line and "battery_kwh" in line)
     assert row.split()[-2:] == ["-", "ok"], row
     assert main(["check-totals", str(leaf), "--transport", "inprocess", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["one_sided"] == []
+
+
+EDGE = """
+import numpy as np
+
+
+class Edge:
+    name = "edge"
+    inputs = ("a", "b")
+    outputs = ("y",)
+    units = {"a": "1", "b": "1", "y": "1"}
+
+    def compute(self, inputs):
+        a, b = np.asarray(inputs["a"], float), np.asarray(inputs["b"], float)
+        if np.any(a > 1.0):
+            raise RuntimeError("melts above a = 1")
+        if np.any((b != 0.5) & (np.abs(b - 0.5) < 1e-3)):
+            raise RuntimeError("b next to 0.5 but not 0.5")
+        return {"y": a * a + 3.0 * b}
+
+    def compute_partials(self, inputs):
+        a = np.asarray(inputs["a"], float)
+        return {("y", "a"): 2.0 * a, ("y", "b"): np.full(a.shape, 3.0)}
+"""
+
+
+def test_a_failed_side_is_left_out_not_differenced_as_its_penalty(capsys, tmp_path):
+    """A formulation trial: at a = 1 where the + side fails, the fd column showed 2.27e+15 (the failure's penalty
+    over h) against the right total, 'DISAGREE'. The failed side is left out (one-sided from the point); a total
+    whose two sides both fail has no fd and is not 'ok'; a design that itself fails exits 1, as the docs say."""
+    (tmp_path / "edge.py").write_text(EDGE, encoding="utf-8")
+    cfg = tmp_path / "edge.yaml"
+    cfg.write_text("name: edge\ndisciplines: [{name: edge, class: 'edge:Edge'}]\nproblem:\n  objective: y\n"
+                   "  design_variables:\n    a: {lower: 0, upper: 2, initial: 1}\n    b: {lower: 0, upper: 1, initial: 0.25}\n",
+                   encoding="utf-8")
+    rep = _report(capsys, cfg, "--at", "a=1,b=0.25")
+    assert rep["ok"] and rep["one_sided"] == ["a"] and "1 finite-difference points failed (left out)" in rep["error"]
+    assert _totals(rep)[("y", "a")] == pytest.approx(2.0, rel=1e-12)
+    assert {(r["of"], r["wrt"]): r["fd"] for r in rep["rows"]}[("y", "a")] == pytest.approx(2.0, rel=1e-5)
+    rep = _report(capsys, cfg, "--at", "a=0.5,b=0.5")  # both sides of b fail: no difference, exit 1
+    row = next(r for r in rep["rows"] if r["wrt"] == "b")
+    assert not rep["ok"] and not row["ok"] and row["fd"] is None and row["total"] == pytest.approx(3.0)  # NaN: null
+    assert main(["check-totals", str(cfg), "--at", "a=0.5,b=0.5", "--transport", "inprocess"]) == 1
+    out = capsys.readouterr().out
+    assert "no fd: no side left" in out and "1 total has no finite difference (a failed point on one side" in out
+    assert out.rstrip().endswith("; none disagrees")
+    assert main(["check-totals", str(cfg), "--at", "a=1.5,b=0.25", "--transport", "inprocess"]) == 1
+    assert "the analysis of the design failed" in capsys.readouterr().err

@@ -236,9 +236,9 @@ def test_a_kink_is_no_free_way_out_of_an_unreachable_limit():
     study = Study(raw)
 
     def point(gear):
-        design = {"motor_kw": 120.0, "gear_ratio": gear, "battery_kwh": 20.0}  # the most power, the least mass
+        design = {"motor_kw": 120.0, "gear_ratio": gear, "battery_kwh": 30.0}  # the most power (the pack's: 120.4 kW)
         return design, study.evaluate(design, transport="inprocess").outputs
-    power_limited = point(1.0)[1]["top_speed_kmh"]
+    power_limited = point(3.0)[1]["top_speed_kmh"]  # above the torque's reach (base speed) and below the cap
     capped = point(11.0)[1]["top_speed_kmh"]  # cap x gear is the same for every gear
     design, values = point(11.0 * capped / power_limited)  # where the two meet
     ans = answers_for(study.config.settings, design, values, lambda: resolve_disciplines(study.config), units=UNITS)

@@ -148,3 +148,21 @@ def test_an_end_point_a_rounding_away_from_the_start_has_not_moved(tmp_path, cap
     assert main(["optimize", str(path), "--transport", "inprocess", "--no-record", "--json"]) == 0
     fo = json.loads(capsys.readouterr().out)["first_order"]
     assert fo["verdict"] == OPTIMUM and fo["moved"] is False
+
+
+@pytest.mark.parametrize("optimizer, derivatives, idf", [("chebyshev-pairwise", "analytic", True),
+                                                         ("COBYQA", "analytic", False), ("COBYLA", "fd", False)])
+def test_a_derivative_free_optimisers_claim_is_not_blamed_on_its_own_gradient(optimizer, derivatives, idf):
+    """A user trial: chebyshev-pairwise under IDF (its partials passing check-partials) and COBYQA got 'judged on the
+    gradient assembled from the disciplines' analytic partials, the optimiser's own ... a wrong derivative is a common
+    cause': a derivative-free optimiser has no gradient of its own, and its stopping rule is the likelier cause."""
+    from bev_mdo.mdo.first_order import note_lines
+
+    fo = {"verdict": STOPPED, "derivatives": derivatives, "equalities": [{"name": "q[0] consistency"}] if idf else []}
+    (line,) = note_lines(fo, optimizer, converged=True)
+    assert line.startswith(f"{optimizer} says it converged") and f"which {optimizer}, derivative-free, does not use" in line
+    assert "the optimiser's own" not in line and "as the optimiser's" not in line and "common cause" not in line
+    assert "its own stopping rule (optimizer.options)" in line and ("under IDF" in line) == idf
+    assert ("check-partials" in line) == (derivatives == "analytic")  # the check's own gradient may be wrong
+    (slsqp,) = note_lines(fo, "SLSQP", converged=True)  # a gradient-based one's gradient is the check's
+    assert ("the optimiser's own" if derivatives == "analytic" else "as the optimiser's") in slsqp

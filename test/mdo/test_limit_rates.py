@@ -52,3 +52,19 @@ def test_no_rate_is_printed_where_the_conditions_do_not_hold(capsys):
     out = capsys.readouterr().out
     assert "what holds the result (multipliers per unit of the scaled variables and normalised constraints):" in out
     assert "raised)" not in out and "change of the optimum" not in out
+
+
+def test_a_zero_multipliers_rate_has_no_sign():
+    """A user trial: a bound with multiplier 0 printed its rate as '(-0 USD per unit raised)' (0 x -1 is -0)."""
+    import math
+
+    from bev_mdo.mdo import first_order
+    from bev_mdo.mdo.problem import Problem
+
+    problem = Problem.from_config({"objective": "f", "design_variables": {"x": {"lower": 0, "upper": 5, "initial": 1}},
+                                   "constraints": {"g": {"upper": 5}}})
+    fo = {"active_constraints": [{"name": "g <= 5", "multiplier": 0.0}],
+          "active_bounds": [{"name": "x", "kind": "upper", "multiplier": 0.0}]}
+    first_order.limit_rates(fo, problem, ["x"], [5.0], ([0.0], [5.0]))
+    rates = [r["d_objective_d_limit"] for r in fo["active_constraints"] + fo["active_bounds"]]
+    assert rates == [0.0, 0.0] and all(math.copysign(1.0, r) == 1.0 for r in rates), rates

@@ -145,13 +145,15 @@ def test_failed_points_are_counted_and_have_no_violation():
 
 
 def test_a_design_the_run_rules_out_is_infeasible_and_named():
-    """``design_check`` (the run's judgement beyond its constraints, such as a motor that cannot follow the
+    """``batch_check`` (the run's judgement beyond its constraints, such as a motor that cannot follow the
     cycle) is one more constraint: such a design is never on the front, nor named as feasible."""
     form, _, _ = _zdt_form()
     r = run_nsga2(form, ["f1", "f2"], pop_size=12, generations=3, seed=1,
-                  design_check=lambda v: ["cannot follow"] if v["x1"] < 0.5 else [])
+                  design_check=lambda v: ["cannot follow"] if v["x1"] < 0.5 else [],
+                  batch_check=lambda v: np.asarray(v["x1"]) < 0.5)
     assert len(r.X) and (r.X[:, 0] >= 0.5).all() and r.cannot_follow > 0
-    nothing = run_nsga2(form, ["f1", "f2"], pop_size=12, generations=2, seed=1, design_check=lambda v: ["no"])
+    nothing = run_nsga2(form, ["f1", "f2"], pop_size=12, generations=2, seed=1, design_check=lambda v: ["no"],
+                        batch_check=lambda v: np.ones(len(v["x1"]), bool))
     assert not len(nothing.X) and nothing.least_violated["cannot_follow"] == ["no"]
 
 

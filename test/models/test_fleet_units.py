@@ -101,3 +101,17 @@ def test_predictions_off_by_the_wh_per_mile_factor_either_way_are_noted_once_and
     f.energy_unit_noted = True
     fl.note_energy_unit(f, {c: {"energy_wh_per_km": f.measured[c] / 1.609} for c in fl.CYCLES}, scored, "m")
     assert f.notes == []
+
+
+def test_a_fleet_of_compact_cars_with_masses_in_pounds_is_noted(tmp_path):
+    """A Kona trial: a Kona and a Bolt with test masses in lb (4015 and 3862 "kg") were scored at +42 % with no
+    word: both masses lie inside the fleet band, and A/(m g) at 0.0037 inside the old x/÷ 2 band (the shipped
+    cars span 0.0050-0.0115). The note names the road load per weight."""
+    head = ("make,model,test_vehicle_id,config,drive,rated_power_kw,axle_ratio,test_mass_kg,road_load_a_n,"
+            "road_load_b_n_per_m_s,road_load_c_n_per_m2_s2,udds_wh_per_km_ac,hwfet_wh_per_km_ac,reported_unit,flag\n")
+    path = tmp_path / "lb.csv"
+    path.write_text(head + "Hyundai,Kona Electric 64 kWh,KONA1,0,F,150.0,7.981,4015,145.0,1.5,0.413,111.06,135.74,MPGe,\n"
+                    "Chevrolet,Bolt EV,BOLT1,0,F,150.0,7.05,3862,140.3,1.5,0.454,114.53,133.28,MPGe,\n", encoding="utf-8")
+    notes = [n for n in _notes(path) if "no technology columns" not in n]
+    assert len(notes) == 1 and "column road_load_a_n / (test_mass_kg x g): fleet median 0.00" in notes[0]
+    assert "test_mass_kg in pounds?" in notes[0]
