@@ -9,6 +9,7 @@ a usable bev_mdo bag raises :class:`BagError`.
 """
 from __future__ import annotations
 
+import io
 import struct
 import zlib
 from dataclasses import dataclass
@@ -19,7 +20,7 @@ from typing import Iterable, Iterator
 import yaml
 from mcap.exceptions import EndOfFile
 from mcap.opcode import Opcode
-from mcap.data_stream import RecordBuilder
+from mcap.data_stream import ReadDataStream, RecordBuilder
 from mcap.records import Attachment, Channel, DataEnd, Footer, Message, Metadata, Schema, Statistics
 from mcap.stream_reader import CRCValidationError, StreamReader
 
@@ -215,7 +216,7 @@ class Bag:
         with open(self.mcap_path, "rb") as f:
             f.seek(start)
             head = f.read(9)
-        end = start + 9 + struct.unpack("<Q", head[1:])[0] if len(head) == 9 else None
+        end = start + 9 + ReadDataStream(io.BytesIO(head[1:])).read8() if len(head) == 9 else None  # MCAP framing
         return end if end is not None and end <= self.file_size else None
 
     def _opcode(self, at: int) -> int:
