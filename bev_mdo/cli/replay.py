@@ -30,10 +30,10 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from bev_mdo.cli.record import _join_domain
+    from bev_mdo.cli.flags import join_domain
     from bev_mdo.ros.replay import replay
 
-    _join_domain(args, where=None)  # the flags, else the environment's ROS_DOMAIN_ID; localhost by default
+    join_domain(args, where=None)  # the flags, else the environment's ROS_DOMAIN_ID; localhost by default
     rate = None if args.as_fast_as_possible else args.rate
     verify(args)  # a path that is not a bag, or a bag that does not verify, is one error line before anything else
     if args.wait_subscribers:
