@@ -36,6 +36,10 @@ def test_two_objectives_write_one_plot_and_say_so(tmp_path, capsys):
     assert "no iteration records" in err and "Pareto bag" in err and "ParetoFront" in err
     # it named `bev-mdo report` for every generation's front, which report does not show
     assert "(bev-mdo report)" not in err and "not shown by bev-mdo report" in err
+    # report of it: it wrote a report.md without a run in it and exited 0; now it says so as history, exit 1
+    assert main(["report", str(out / "bag"), "--output-dir", str(tmp_path / "r")]) == 1
+    err = capsys.readouterr().err
+    assert "bev-mdo report:" in err and "no iteration records" in err and "Pareto bag" in err
 
 
 def test_three_objectives_every_pair_and_all_benchmarks(tmp_path, capsys):
