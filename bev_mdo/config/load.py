@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import copy
 import math
+import warnings
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -20,6 +21,8 @@ from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
 from bev_mdo.mdo.vectors import has_partials
 from bev_mdo.models.common import check_keys, is_number, text_hint
+from bev_mdo.models.cycles import CycleNote
+from bev_mdo.models.road_load import implausible_note
 from bev_mdo.ros_settings import validate_ros
 
 TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "disciplines", "problem",
@@ -290,6 +293,8 @@ def _resolve(raw: Any) -> RunConfig:
     note_missing_folders(cfg.get("search_path"))
     params = check_against_disciplines(cfg, problem, discs)
     leaf_defaults_note(cfg, problem, params)
+    if (note := implausible_note(vehicle)):
+        warnings.warn(f"vehicle.road_load: {note}", CycleNote, stacklevel=2)
     if cfg["problem"].get("baseline") is not None:
         problem.check_design(cfg["problem"]["baseline"]["design"], params, "problem.baseline.design")
         check_gear_order_per_design(vehicle, problem, cfg["problem"]["baseline"]["design"], "problem.baseline.design: ")
