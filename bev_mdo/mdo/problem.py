@@ -144,7 +144,8 @@ class Problem:
         unknown = [k for k in design if k not in self.names and k not in params]
         if unknown:
             raise ValueError(f"{where}.{unknown[0]}: neither a design variable nor a discipline parameter; "
-                             f"{did_you_mean(unknown[0], [*self.names, *params])}"
+                             # a design variable first, nearer than the rest need be (gear for gear_ratio)
+                             f"{did_you_mean(unknown[0], self.names, 0.5) or did_you_mean(unknown[0], params)}"
                              f"(unknown design names {unknown}; design variables: {self.names}, "
                              f"parameters: {sorted(params)})")
 

@@ -325,3 +325,10 @@ def test_the_table_says_the_cycles_duration_distance_and_top_speed(capsys, tmp_p
     assert rows["energy_wall_wh_per_km"] == "objective (min), from the wall"
     code, out, _ = run(capsys, LEAF, "--json")
     assert json.loads(out)["design"]  # JSON as it was
+
+
+def test_a_name_near_a_design_variable_gets_it_as_the_nearest(capsys):
+    """An EPA-data trial: `--set gear=9.03` listed some 50 names with no nearest one (`gear` is 0.57 like
+    `gear_ratio` by difflib, below the 0.6 its parameters need)."""
+    code, _, err = run(capsys, LEAF, "--set", "gear=9.03")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "did you mean 'gear_ratio'?" in err, err
