@@ -19,7 +19,7 @@ from bev_mdo.mdo.formulations import FORMULATIONS, Formulation
 from bev_mdo.mdo.free_variables import free_variables
 from bev_mdo.mdo.kinks import end_point_kinks
 from bev_mdo.mdo.mda import MDA
-from bev_mdo.mdo.optimizers import (GRADIENT_BASED, NOISE_VIOLATION, canonical_name, check_finite_bounds,
+from bev_mdo.mdo.optimizers import (GRADIENT_BASED, NOISE_VIOLATION, canonical_name, check_fit,
                                     run_optimizer)
 from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import FEASIBILITY_TOL, RunSettings
@@ -221,7 +221,7 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
     opt_name = canonical_name(optimizer or opt_cfg.name)
     # the config's options belong to the config's optimiser: another one chosen here starts from none
     options = dict(opt_cfg.options) if not optimizer or canonical_name(opt_cfg.name) == opt_name else {}
-    check_finite_bounds(opt_name, form)  # before the start point is evaluated and printed as iteration 0
+    check_fit(opt_name, form)  # before the start point is evaluated and printed as iteration 0
     n_dv = len(problem.names)
     if x0:  # design variables; with IDF also its couplings (a resumed record's), else consistent ones
         unknown = [k for k in x0 if k not in form.var_names]
