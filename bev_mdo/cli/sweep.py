@@ -290,7 +290,12 @@ def run(args) -> int:
         print(f"note: {note}")
     for p in written:
         print(p)
-    return 0
+    ok = np.asarray(result["ok"], dtype=bool)
+    if not ok.all():  # the reason was in sweep.csv alone; a batch with no value at all exits 1, as evaluate's failure
+        first = str(next(e for e, good in zip(result["errors"], ok) if not good)).splitlines()[0]
+        print(f"bev-mdo sweep: {'every design' if not ok.any() else f'{int((~ok).sum())} of {n} designs'} failed; the "
+              f"first: {first} (sweep.csv: error)", file=sys.stderr)
+    return 0 if ok.any() else 1
 
 
 def run_compare(args) -> int:
