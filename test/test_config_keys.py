@@ -352,3 +352,18 @@ def test_a_road_load_in_another_unit_is_said(tmp_path, capsys, road_load, named)
     code, out, err = _cli(capsys, "evaluate", REPO / "config" / "leaf_epa_combined.yaml", "--transport", "inprocess",
                           "--no-record")
     assert code == 0 and "vehicle.road_load" not in err  # the Leaf's own coast-down: no note
+
+
+@pytest.mark.parametrize("cycle", ["cycle:\n", "cycle: {}\n", "cycle: {dt_s: 1.0}\n"])
+def test_a_cycle_section_without_a_name_runs_the_nedc_and_says_so(tmp_path, capsys, cycle):
+    """A malformed-files trial: `cycle:` left empty ran the NEDC with no word, and `cycle: {}` was refused
+    ("cycle name must be a cycle name or CSV path, got None")."""
+    text = (REPO / "config" / "leaf_nedc.yaml").read_text(encoding="utf-8")
+    start = text.index("\ncycle:") + 1
+    cfg = _write(tmp_path, text[:start] + cycle + text[text.index("\n", start) + 1:])
+    code, out, err = _cli(capsys, "evaluate", cfg, "--transport", "inprocess", "--no-record")
+    assert code == 0 and out.startswith("cycle: nedc 1180 s")
+    assert "bev-mdo evaluate: note: cycle.name: not in the config: the NEDC, the thesis' cycle" in err.splitlines()
+    code, out, err = _cli(capsys, "evaluate", REPO / "config" / "leaf_nedc.yaml", "--transport", "inprocess",
+                          "--no-record")
+    assert code == 0 and "cycle.name" not in err

@@ -128,8 +128,8 @@ def anchor_paths(raw: Mapping[str, Any], base: Path) -> dict:
     def cycle(name: Any) -> Any:  # a built-in cycle's name, or a word that is no file there, stays
         return at(name, lambda p: is_csv_cycle(str(p)) and (p.suffix.lower() == ".csv" or (base / p).exists()))
 
-    if isinstance(cfg.get("cycle"), Mapping):
-        cfg["cycle"] = {**cfg["cycle"], "name": cycle(cfg["cycle"].get("name"))}
+    if isinstance(cfg.get("cycle"), Mapping) and "name" in cfg["cycle"]:  # (none: the default's, NEDC)
+        cfg["cycle"] = {**cfg["cycle"], "name": cycle(cfg["cycle"]["name"])}
     entries = cfg.get("disciplines")
     for i, e in enumerate(entries if isinstance(entries, list) else []):
         if not (isinstance(e, Mapping) and e.get("name") in ("energy", "cycle_range") and not e.get("class")
@@ -326,6 +326,8 @@ def validate_models(cfg: dict) -> dict[str, float]:
         except ValueError as exc:  # a key path (vehicle.x) says where already
             raise ValueError(str(exc) if str(exc).startswith("vehicle.") else f"vehicle: {exc}") from None
         try:
+            if not (isinstance(cfg.get("cycle"), Mapping) and "name" in cfg["cycle"]):  # `cycle:` left empty, say
+                warnings.warn("cycle.name: not in the config: the NEDC, the thesis' cycle", CycleNote, stacklevel=2)
             cfg["cycle"] = params.validate_cycle(cfg.get("cycle"))
             from bev_mdo.disciplines.common import resampled_cycle
 
