@@ -367,3 +367,13 @@ def test_a_cycle_section_without_a_name_runs_the_nedc_and_says_so(tmp_path, caps
     code, out, err = _cli(capsys, "evaluate", REPO / "config" / "leaf_nedc.yaml", "--transport", "inprocess",
                           "--no-record")
     assert code == 0 and "cycle.name" not in err
+
+
+def test_an_enormous_value_in_an_error_is_shortened_to_its_ends(tmp_path, capsys):
+    """A malformed-files trial: a 900,000-item list where a number goes was echoed whole, a 4.5 MB error line."""
+    text = (REPO / "config" / "leaf_nedc.yaml").read_text(encoding="utf-8")
+    cfg = _write(tmp_path, text.replace("drag_area_m2: 0.6412", "drag_area_m2: [" + ", ".join(["0.6"] * 200_000) + "]"))
+    code, out, err = _cli(capsys, "evaluate", cfg, "--transport", "inprocess", "--no-record")
+    assert code == 2 and err.count("\n") == 1 and len(err) < 1200, len(err)
+    assert "drag_area_m2 must be a number in [0.05, 3] m^2, got [0.6, 0.6" in err
+    assert "characters left out) ... " in err and err.endswith("0.6, 0.6]\n")
