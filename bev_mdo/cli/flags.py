@@ -170,6 +170,8 @@ def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, 
                 raise InputError(f"{flag} {name.strip()}: given twice ({out[name.strip()]:g} and {value.strip()})")
             if value.strip()[:1] in ("[", "("):  # gear_ratio=[9.04,4.7]
                 raise one_number(name.strip(), item[item.index(part) + len(name) + 1:].strip())  # the rest of it
+            if "=" in value:  # motor_kw=80;gear_ratio=8 was "an underscore in a number is taken for a typo"
+                raise InputError(f"{flag} {part!r}: two NAME=VALUE in one item; separate them by commas")
             no_underscore(value, f"{flag} {name.strip()}={value.strip()}")
             try:
                 out[name.strip()] = number = float(value)

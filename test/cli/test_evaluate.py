@@ -109,6 +109,8 @@ def test_parameter_override_changes_energy(capsys):
     (["--set", ",motor_kw=100"], "--set ',motor_kw=100': an empty item between commas"),
     (["--set", "motor_kw=100,nan"], "--set motor_kw=100,nan: --set takes one number per name (NAME=VALUE)\n"),
     (["--set", "motor_kw=100,-inf"], "--set motor_kw=100,-inf: --set takes one number per name (NAME=VALUE)\n"),
+    # a malformed-files trial: "an underscore in a number is taken for a typo"
+    (["--set", "motor_kw=80;gear_ratio=8"], "--set 'motor_kw=80;gear_ratio=8': two NAME=VALUE in one item; separate"),
 ])
 def test_bad_input_is_one_line_exit_2(capsys, argv, msg):
     code, _, err = run(capsys, LEAF, *argv)
