@@ -10,6 +10,8 @@ mistake. Disciplines without partials are listed as "finite differences" (nothin
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from bev_mdo import jsontext
@@ -47,8 +49,9 @@ def _point(problem, text: str) -> dict[str, float]:
 def check_tolerances(step: float, rtol: float, atol: float) -> None:
     """ValueError naming the first of ``--step`` (in (0, 0.1)), ``--rtol`` and ``--atol`` (>= 0) that is out of
     its range, with its value (check-partials, check-totals)."""
-    for flag, v, ok, allowed in (("--step", step, 0 < step < 0.1, "in (0, 0.1)"), ("--rtol", rtol, rtol >= 0, ">= 0"),
-                                 ("--atol", atol, atol >= 0, ">= 0")):
+    for flag, v, ok, allowed in (("--step", step, 0 < step < 0.1, "in (0, 0.1)"),  # (inf passed every check)
+                                 ("--rtol", rtol, 0 <= rtol < math.inf, ">= 0, finite"),
+                                 ("--atol", atol, 0 <= atol < math.inf, ">= 0, finite")):
         if not ok:  # NaN too
             raise ValueError(f"{flag} {v:g}: must be {allowed}")
 

@@ -76,6 +76,8 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
             if ":" in spec:
                 lo, hi, n = spec.split(":")  # a ValueError unless it has three parts
                 lo, hi, n = float(lo), float(hi), int(n)
+                if not math.isfinite(lo + hi):  # linspace warned and made nan of 1e400
+                    raise InputError(f"--vary {item!r}: a design value must be a finite number")
                 if n < 1:
                     raise ValueError
                 if n == 1 and lo != hi:  # linspace gives LO alone: HI was dropped without a word
@@ -85,6 +87,8 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
                 vals = np.linspace(lo, hi, n)
             else:
                 vals = np.array([float(v) for v in spec.split(",") if v.strip()])
+            if not np.isfinite(vals).all():
+                raise InputError(f"--vary {item!r}: a design value must be a finite number")
         except InputError:
             raise
         except ValueError:
