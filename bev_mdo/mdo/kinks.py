@@ -134,7 +134,8 @@ def _at_steps(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: n
                 out.append({"in": label, "name": form.var_names[j], "left": float(slopes[0, 1, r, j]) + 0.0,
                             "right": float(slopes[0, 0, r, j]) + 0.0})  # + 0.0: no -0
     if len(multiples) == 2:  # away from an optimum: a step in the model itself (1 J for x > 0.4) was named nowhere
-        out += _jumps(what, form, slopes * np.asarray(multiples, float)[:, None, None, None] * h, q0, failed, seen)
+        change = slopes * (np.asarray(multiples, float)[:, None] * np.array([h, -h]))[:, :, None, None]  # Q - q0
+        out += _jumps(what, form, change, q0, failed, seen)
     return out
 
 

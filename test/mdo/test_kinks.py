@@ -328,3 +328,10 @@ def test_a_step_in_the_objective_is_named_as_a_jump_not_as_a_gradient_to_follow(
     assert first_order.note_lines(fo, "chebyshev-pairwise", converged=True) == []  # no "go on with SLSQP"
     smooth = end_point_check(_form(Step()), np.array([0.3, 0.45]), np.array([0.5, 0.2]), 1e-6)  # off the step
     assert smooth["verdict"] == first_order.STOPPED and not smooth["kinks"]
+
+    class Left(Step):  # a step of 3 to the left: the change a step that way makes, with its sign
+        def compute(self, inputs):
+            return {"f": super().compute(inputs)["f"] - (inputs["x"] > 0.4) + 3.0 * (inputs["x"] < 0.4)}
+
+    fo = end_point_check(_form(Left()), np.array([0.4, 0.5]), np.array([0.5, 0.2]), 1e-6)
+    assert fo["kinks"] == [{"in": "objective", "name": "x", "jump": pytest.approx(3.0, rel=1e-3), "side": "left"}]
