@@ -377,3 +377,14 @@ def test_an_enormous_value_in_an_error_is_shortened_to_its_ends(tmp_path, capsys
     assert code == 2 and err.count("\n") == 1 and len(err) < 1200, len(err)
     assert "drag_area_m2 must be a number in [0.05, 3] m^2, got [0.6, 0.6" in err
     assert "characters left out) ... " in err and err.endswith("0.6, 0.6]\n")
+
+
+def test_a_problem_whose_disciplines_read_no_cycle_gets_no_cycle_note(tmp_path, capsys):
+    """The note of a config without a cycle name is for the disciplines that read it (energy, motor_speed)."""
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text(encoding="utf-8"))
+    del raw["cycle"]
+    raw["disciplines"] = ["vehicle_mass", "acceleration", "cost"]
+    raw["problem"]["objective"], raw["problem"]["constraints"] = "powertrain_cost_usd", {"accel_time_0_100_s": {"upper": 10}}
+    cfg = _write(tmp_path, yaml.safe_dump(raw, sort_keys=False))
+    code, out, err = _cli(capsys, "evaluate", cfg, "--transport", "inprocess", "--no-record")
+    assert code == 0 and "cycle.name" not in err, err

@@ -251,6 +251,9 @@ def _resolve(raw: Any) -> RunConfig:
     cfg["energy_model"] = cfg.get("energy_model", "flat")
     if cfg["energy_model"] not in ENERGY_MODELS:
         raise ValueError(f"energy_model {cfg['energy_model']!r} is unknown; allowed: {', '.join(ENERGY_MODELS)}")
+    if "vehicle" in cfg or "cycle" in cfg:
+        if not (isinstance(cfg.get("cycle"), Mapping) and "name" in cfg["cycle"]) and _reads_cycle(cfg):
+            warnings.warn("cycle.name: not in the config: the NEDC, the thesis' cycle", CycleNote, stacklevel=2)
     vehicle = validate_models(cfg)
     vehicle_topology_into_options(cfg)
     cfg["formulation"] = str(cfg.get("formulation", "mdf")).lower()
@@ -303,6 +306,16 @@ def _resolve(raw: Any) -> RunConfig:
     if read:  # the whole config, defaults filled, as a bag and a node's file hold it
         check_traces_fit(plain({k: v for k, v in cfg.items() if k != "cycle_traces"}), cfg["cycle_traces"], read)
     return RunConfig(cfg, problem, discs, ros, _settings(cfg, problem, discs), vehicle)
+
+
+def _reads_cycle(cfg: Mapping) -> bool:
+    """Whether a built-in discipline of ``cfg`` reads ``cycle.name`` (energy or cycle_range without a cycle option of
+    its own, motor_speed; no disciplines: the default set): `cycle:` left empty ran the NEDC with no word."""
+    entries = cfg.get("disciplines") if isinstance(cfg.get("disciplines"), list) else ["motor_speed"]
+    named = [(e, {}) if isinstance(e, str) else (e.get("name"), e.get("options") or {}) for e in entries
+             if isinstance(e, str) or isinstance(e, Mapping) and not e.get("class")]
+    return any(n == "motor_speed" or n in ("energy", "cycle_range") and isinstance(o, Mapping)
+               and not ({"cycle", "cycle_weights"} & set(o)) for n, o in named)
 
 
 def leaf_defaults_note(cfg: Mapping[str, Any], problem, read: set[str]) -> None:

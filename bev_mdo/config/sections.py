@@ -326,8 +326,6 @@ def validate_models(cfg: dict) -> dict[str, float]:
         except ValueError as exc:  # a key path (vehicle.x) says where already
             raise ValueError(str(exc) if str(exc).startswith("vehicle.") else f"vehicle: {exc}") from None
         try:
-            if not (isinstance(cfg.get("cycle"), Mapping) and "name" in cfg["cycle"]):  # `cycle:` left empty, say
-                warnings.warn("cycle.name: not in the config: the NEDC, the thesis' cycle", CycleNote, stacklevel=2)
             cfg["cycle"] = params.validate_cycle(cfg.get("cycle"))
             from bev_mdo.disciplines.common import resampled_cycle
 
