@@ -323,8 +323,8 @@ def native_output_to_stderr() -> None:
         os.dup2(2, 1)
     except (OSError, ValueError, AttributeError):  # no real descriptors (embedded, closed): leave as is
         return
-    sys.stdout = os.fdopen(real, "w", buffering=1 if os.isatty(real) else -1,
-                           encoding=sys.stdout.encoding, errors=sys.stdout.errors)
+    # line-buffered into a file or a pipe too: an optimisation's progress lines came at its end (block-buffered)
+    sys.stdout = os.fdopen(real, "w", buffering=1, encoding=sys.stdout.encoding, errors=sys.stdout.errors)
 
 
 def _closed_pipe() -> int:
