@@ -128,8 +128,9 @@ class Study:
 
     @property
     def config(self):
-        """The effective config (``RunConfig``: typed parts; as a mapping, the resolved dict)."""
-        return self._config
+        """The effective config (``RunConfig``: typed parts; as a mapping, the resolved dict): a copy, so that an
+        edit of it (which a run would not see) changes nothing; bound(), constrain(), ... change the study."""
+        return copy.deepcopy(self._config)
 
     def _change(self, edit) -> "Study":
         from bev_mdo.api import overrides
@@ -180,7 +181,7 @@ class Study:
         """One design through every discipline; variables not given take their initial value."""
         from bev_mdo.api import evaluate
 
-        return EvaluateResult.of(evaluate.design(self.config, _mapping(design, "design"), _transport(transport),
+        return EvaluateResult.of(evaluate.design(self._config, _mapping(design, "design"), _transport(transport),
                                                  caller="bev_mdo Study.evaluate"))
 
     @_input_errors
@@ -203,7 +204,7 @@ class Study:
                                         starts=_whole(starts, "starts"), seed=_whole(seed, "seed"), bag=bag, quiet=True, **ros)
         x0 = _mapping(x0, "x0")
         finite_values(x0, "x0", one="the start point, a number per name")
-        return OptimizeResult.of(optimize.run(self.config, opts, callback, x0 or None))
+        return OptimizeResult.of(optimize.run(self._config, opts, callback, x0 or None))
 
     @_input_errors
     def sweep(self, doe: str | None = None, samples: int = 64, seed: int = 1, *,
@@ -231,9 +232,9 @@ class Study:
             if len({c.shape for c in cols.values()}) > 1 or any(c.ndim != 1 for c in cols.values()):
                 raise InputError("designs: give every variable's values as one list, all of the same length "
                                  f"(got {', '.join(f'{k}: {c.shape[0] if c.ndim == 1 else c.shape}' for k, c in cols.items())})")
-        cols = sampling.batch(self.config.problem, doe or "lhs", _whole(samples, "samples"), _whole(seed, "seed"), cols,
+        cols = sampling.batch(self._config.problem, doe or "lhs", _whole(samples, "samples"), _whole(seed, "seed"), cols,
                               fixed)
-        r = evaluate.batch(self.config, cols, how)
+        r = evaluate.batch(self._config, cols, how)
         return SweepResult(r["design"], r["outputs"], r["margins"], r["feasible"], r["ok"], list(r["errors"]),
                            r["objective"], bool(getattr(r["problem"], "maximize", False)))
 
@@ -244,9 +245,9 @@ class Study:
         with respect to ``wrt`` (design variables and model parameters; default: the design variables)."""
         from bev_mdo.api import sensitivity
 
-        s, outputs, _, _ = sensitivity.run(self.config, _mapping(at, "at"), _names(wrt, "wrt"), _transport(transport),
+        s, outputs, _, _ = sensitivity.run(self._config, _mapping(at, "at"), _names(wrt, "wrt"), _transport(transport),
                                            order=_whole(order, "order"), rel_step=rel_step)
-        units = sensitivity.units_of(self.config, [*s.names, *outputs])
+        units = sensitivity.units_of(self._config, [*s.names, *outputs])
         return SensitivityResult.of(sensitivity.to_dict(s, outputs, units))
 
     @_input_errors
@@ -258,7 +259,7 @@ class Study:
         of 2, default 1024: N (D + 2) designs), morris' trajectories (default 64)."""
         from bev_mdo.api import sensitivity
 
-        rep = sensitivity.run(self.config, _mapping(at, "at"), _names(wrt, "wrt"), _transport(transport),
+        rep = sensitivity.run(self._config, _mapping(at, "at"), _names(wrt, "wrt"), _transport(transport),
                               global_method=method, samples=None if samples is None else _whole(samples, "samples"),
                               seed=_whole(seed, "seed"), conf_level=conf_level)
         return GlobalSensitivityResult.of(rep)
@@ -272,7 +273,7 @@ class Study:
         ``problem.objectives``), written with its bag into ``out`` (default bags/<name>_pareto_<time>)."""
         from bev_mdo.api import pareto
 
-        doc, _ = pareto.run(self.config, _names(objectives, "objectives"),
+        doc, _ = pareto.run(self._config, _names(objectives, "objectives"),
                             generations=_whole(generations, "generations"), pop=_whole(pop, "pop"), seed=_whole(seed, "seed"),
                             out=out, transport=_transport(transport), instances=instances, plots=plots,
                             source=self.source)

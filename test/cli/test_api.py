@@ -343,3 +343,17 @@ def test_a_doe_beside_given_designs_is_refused_not_ignored():
     with pytest.raises(InputError, match=r"^sweep: doe='sobol' and designs= given: .*give one$"):
         study.sweep("sobol", samples=32, designs={"motor_kw": [60.0, 80.0, 100.0]}, transport="inprocess")
     assert len(study.sweep(samples=4, transport="inprocess").rows()) == 4  # no doe, no designs: lhs
+
+
+def test_a_result_and_a_study_are_not_changed_through_what_they_hand_out():
+    """A library-user trial: editing `to_dict()` changed the result (`o.x`, its verdict), and editing `study.config`
+    showed a config its runs did not use."""
+    from bev_mdo import Study
+
+    study = Study(_sellar_mapping())
+    r = study.evaluate({"z1": 5.0, "z2": 2.0, "x": 1.0}, transport="inprocess")
+    d = r.to_dict()
+    d["design"]["z1"], d["constraints"]["y1"]["value"] = -1.0, 0.0
+    assert r.design["z1"] == 5.0 and r.to_dict()["constraints"]["y1"]["value"] == r.constraints["y1"]["value"] != 0
+    study.config["problem"]["objective"] = "y1"  # a copy: the study's own is as built
+    assert study.config["problem"]["objective"] == "obj" and study.config.problem.objective == "obj"
