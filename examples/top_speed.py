@@ -23,12 +23,14 @@ Use it from a config:
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from bev_mdo.models.acceleration import battery_shaft_power_w
-from bev_mdo.models.params import ROAD_LOAD_UNUSED, all_specs, validate_road_load, validate_vehicle
+from bev_mdo.models.cycles import CycleNote
+from bev_mdo.models.params import ROAD_LOAD_UNUSED, all_specs, validate_road_load, validate_vehicle, vehicle_choice
 from bev_mdo.models.road_load import coefficients
 
 
@@ -73,6 +75,9 @@ class TopSpeed:
         """Take the vehicle constants from the run config, a named parameter set's and the defaults as the built-in
         models take them; the motor's speed limit too, unless the options give one."""
         v = validate_vehicle(config.get("vehicle"))
+        if (topology := vehicle_choice(config.get("vehicle"), "topology")) != "SM-SA":  # a two-motor EV6: 179 km/h,
+            warnings.warn(f"top_speed (examples/top_speed.py) counts one motor and its gear: of a {topology} vehicle "
+                          "the front motor alone (motor_kw, gear_ratio)", CycleNote, stacklevel=2)  # its front's, unsaid
         return cls(**{k: v[k] for k in cls.VEHICLE_CONSTANTS if k in v}, road_load=config.get("vehicle", {}).get(
             "road_load"), motor_max_speed_rad_s=options.motor_max_speed_rad_s)
 
