@@ -75,9 +75,9 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
         try:
             if ":" in spec:
                 lo, hi, n = spec.split(":")  # a ValueError unless it has three parts
-                lo, hi, n = float(lo), float(hi), int(n)
-                if not math.isfinite(lo + hi):  # linspace warned and made nan of 1e400
-                    raise InputError(f"--vary {item!r}: a design value must be a finite number")
+                if (bad := next((t for t in (lo, hi) if not math.isfinite(float(t))), None)) is not None:
+                    raise InputError(f"{name}={bad.strip()}: a design value must be a finite number")  # (linspace:
+                lo, hi, n = float(lo), float(hi), int(n)  # a RuntimeWarning, and 1e400 said as nan)
                 if n < 1:
                     raise ValueError
                 if n == 1 and lo != hi:  # linspace gives LO alone: HI was dropped without a word
@@ -87,8 +87,9 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
                 vals = np.linspace(lo, hi, n)
             else:
                 vals = np.array([float(v) for v in spec.split(",") if v.strip()])
-            if not np.isfinite(vals).all():
-                raise InputError(f"--vary {item!r}: a design value must be a finite number")
+            if not np.isfinite(vals).all():  # named as typed: 1e400 was said as inf
+                bad = next(t for t in spec.split(",") if t.strip() and not math.isfinite(float(t)))
+                raise InputError(f"{name}={bad.strip()}: a design value must be a finite number")
         except InputError:
             raise
         except ValueError:
