@@ -174,6 +174,12 @@ def refuse_outside_model_limits(config, values) -> None:
         raise InputError(f"{exc}; such a design cannot be evaluated") from None
     try:
         check_gear_order_per_design(config.vehicle, config.problem, values)
+        if isinstance(config.data.get("vehicle"), dict):  # motor_rear_kw on SM-SA: "did you mean 'motor_kg_per_kw'?"
+            from bev_mdo.models.params import vehicle_choice
+            from bev_mdo.models.topology import check_design_variables
+
+            check_design_variables(vehicle_choice(config.data["vehicle"], "topology"),
+                                   [k for k in values if k not in config.problem.names])
     except ValueError as exc:
         raise InputError(str(exc)) from None
 

@@ -111,6 +111,8 @@ def test_parameter_override_changes_energy(capsys):
     (["--set", "motor_kw=100,-inf"], "--set motor_kw=100,-inf: --set takes one number per name (NAME=VALUE)\n"),
     # a malformed-files trial: "an underscore in a number is taken for a typo"
     (["--set", "motor_kw=80;gear_ratio=8"], "--set 'motor_kw=80;gear_ratio=8': two NAME=VALUE in one item; separate"),
+    # an AWD trial: "did you mean 'motor_kg_per_kw'?" and 50 names, where the config's own says this
+    (["--set", "motor_rear_kw=165"], "design variable 'motor_rear_kw' does not exist in topology SM-SA (single axle)"),
 ])
 def test_bad_input_is_one_line_exit_2(capsys, argv, msg):
     code, _, err = run(capsys, LEAF, *argv)
