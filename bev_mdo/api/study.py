@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import inspect
 import math
 from dataclasses import asdict, fields
 from pathlib import Path
@@ -19,9 +20,18 @@ from bev_mdo.api.transport import DEFAULT_TRANSPORT, TRANSPORTS, Transport
 
 
 def _input_errors(method):
-    """A user's mistake (ValueError, a missing file) leaves as InputError with the CLI's one line."""
+    """A user's mistake (ValueError, a missing file) leaves as InputError with the CLI's one line; so does an
+    argument the method does not have (a TypeError with no hint, where optimize's said 'did you mean')."""
+    params = [p for p in inspect.signature(method).parameters.values() if p.name != "self"]
+    known = [p.name for p in params if p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)]
+
     @functools.wraps(method)
     def call(*args, **kwargs):
+        if not any(p.kind is p.VAR_KEYWORD for p in params) and (wrong := [k for k in kwargs if k not in known]):
+            from bev_mdo.mdo.vectors import did_you_mean
+
+            raise InputError(f"{method.__name__}() has no argument {wrong[0]!r}; {did_you_mean(wrong[0], known)}"
+                             f"its arguments: {', '.join(known)}")
         try:
             return method(*args, **kwargs)
         except InputError:
@@ -141,6 +151,7 @@ class Study:
         self.overrides = new
         return self
 
+    @_input_errors
     def bound(self, name: str, lower: float | None = None, upper: float | None = None) -> "Study":
         """New bounds of a design variable (a side left None keeps its value)."""
         new = {k: _number(v, f"bound {_name(name, 'bound: the design variable')!r}: {k}")
@@ -151,11 +162,13 @@ class Study:
             ov.bounds[name] = (new.get("lower", lo), new.get("upper", hi))
         return self._change(edit)
 
+    @_input_errors
     def initial(self, name: str, value: float) -> "Study":
         """The initial value of a design variable."""
         x = _number(value, f"initial {_name(name, 'initial: the design variable')!r}")
         return self._change(lambda ov: ov.initial.__setitem__(name, x))
 
+    @_input_errors
     def constrain(self, name: str, lower: float | None = None, upper: float | None = None) -> "Study":
         """Add or change a constraint on an output: ``lower <= name <= upper``."""
         if lower is None and upper is None:
@@ -164,6 +177,7 @@ class Study:
                   for k, v in (("lower", lower), ("upper", upper)) if v is not None}
         return self._change(lambda ov: ov.constraints.setdefault(name, {}).update(limits))
 
+    @_input_errors
     def objective(self, name: str | None = None, maximize: bool | None = None) -> "Study":
         """The output to optimise and whether it is maximised (None keeps the config's)."""
         if name is not None:

@@ -357,3 +357,19 @@ def test_a_result_and_a_study_are_not_changed_through_what_they_hand_out():
     assert r.design["z1"] == 5.0 and r.to_dict()["constraints"]["y1"]["value"] == r.constraints["y1"]["value"] != 0
     study.config["problem"]["objective"] = "y1"  # a copy: the study's own is as built
     assert study.config["problem"]["objective"] == "obj" and study.config.problem.objective == "obj"
+
+
+def test_a_misspelt_argument_is_an_input_error_with_the_nearest_one():
+    """A library-user trial: optimize(formulaton=...) said 'did you mean'; evaluate, sweep, bound, ... raised a plain
+    TypeError with no hint."""
+    from bev_mdo import Study
+    from bev_mdo.api import InputError
+
+    study = Study(_sellar_mapping())
+    for call, said in ((lambda: study.evaluate(desing={}), "evaluate() has no argument 'desing'; did you mean 'design'?"),
+                       (lambda: study.bound("x", lowr=1), "bound() has no argument 'lowr'; did you mean 'lower'?"),
+                       (lambda: study.sweep(sample=3), "sweep() has no argument 'sample'; did you mean 'samples'?"),
+                       (lambda: study.sensitivity(order=1, wrt=["x"], rel_stp=1e-4), "did you mean 'rel_step'?")):
+        with pytest.raises(InputError) as e:
+            call()
+        assert said in str(e.value) and "\n" not in str(e.value)
