@@ -373,3 +373,18 @@ def test_a_misspelt_argument_is_an_input_error_with_the_nearest_one():
         with pytest.raises(InputError) as e:
             call()
         assert said in str(e.value) and "\n" not in str(e.value)
+
+
+def test_a_vector_design_variable_given_whole_or_bare_says_how_to_give_it():
+    """A library-user trial: evaluate({"t": [1, 2, 0.5]}) pointed at sweep(designs=...), which would take the list as
+    three designs; evaluate({"t": 1}) said 'neither a design variable nor a discipline parameter; (unknown ...'."""
+    from bev_mdo import Study
+    from bev_mdo.api import InputError
+
+    study = Study(ROOT / "examples" / "sellar_vector.yaml")
+    for design, said in (({"z": [1.0, 2.0]}, "z=[1.0, 2.0]: a vector of 2 elements: give each, z[0] .. z[1]"),
+                         ({"z": 1.0}, "design.z: a vector of 2 elements: give each, z[0] .. z[1]"),
+                         ({"zz": 1.0}, "design.zz: neither a design variable nor a discipline parameter; unknown ")):
+        with pytest.raises(InputError) as e:
+            study.evaluate(design, transport="inprocess")
+        assert str(e.value).startswith(said), str(e.value)
