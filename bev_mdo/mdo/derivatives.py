@@ -182,33 +182,3 @@ def compare_partials(analytic: Partials, fd: Partials, rtol: float = 1e-4, atol:
                      "rel_error": rel, "ok": bool(err <= atol + rtol * max(abs(a), abs(f)))})
     rows.sort(key=lambda r: (r["ok"], -r["rel_error"]))
     return rows
-
-
-def other_side(form, u: np.ndarray, U: np.ndarray, V: np.ndarray, ok: np.ndarray, D: np.ndarray, good: np.ndarray,
-               step: np.ndarray, both: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """Where the finite-difference stencil of ``Formulation.gradients`` at ``u`` failed on one side of a variable,
-    the other side's one-sided difference: at the edge of the region where the disciplines give values, a forward
-    step that failed gave SLSQP a zero derivative. ``U``/``V``/``ok``: the stencil's rows (the point first), their
-    values (f, y, h) and status; ``D`` (n, q) and ``good`` (n,): its differences; ``step``: each variable's signed
-    step (forward); ``both`` (central): the variables with a row either side. Central: from the rows it has.
-    Forward: one more batch, stepping back where the bounds allow. Returns (D, good), mended where the side answers."""
-    n, D, good = form.n, D.copy(), good.copy()
-    lo, hi = form.u_bounds
-    if both is not None:
-        up, down = ok[1:1 + n], ok[1 + n:]
-        h = np.abs(step) / 2.0  # (a central step's denominator is 2 h)
-        for j in np.flatnonzero(~good & both & (up | down)):
-            D[j] = (V[1 + j] - V[0]) / h[j] if up[j] else (V[0] - V[1 + n + j]) / h[j]
-            good[j] = True
-        return D, good
-    back = [j for j in np.flatnonzero(~good) if lo[j] <= u[j] - step[j] <= hi[j]]
-    if not back:
-        return D, good
-    B = np.repeat(u[None, :], len(back), axis=0)
-    B[np.arange(len(back)), back] -= step[back]
-    f, _, h, y = form._batch(form.to_x(B))
-    for i, j in enumerate(back):
-        if form.status(form.to_x(B[i]))[0]:
-            D[j] = (V[0] - np.concatenate([[f[i]], y[i], h[i]])) / step[j]
-            good[j] = True
-    return D, good

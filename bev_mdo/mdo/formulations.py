@@ -30,8 +30,7 @@ import numpy as np
 
 from bev_mdo import interrupts
 from bev_mdo.mdo import first_order
-from bev_mdo.mdo.derivatives import (constraint_jacobian, fd_partials, idf_totals, mdf_totals, other_side,
-                                     unknown_variables)
+from bev_mdo.mdo.derivatives import constraint_jacobian, fd_partials, idf_totals, mdf_totals, unknown_variables
 from bev_mdo.mdo.evaluator import DisciplinesLost, Evaluator, unresponsive
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.mda import MDA, MDAResult
@@ -264,8 +263,6 @@ class Formulation:
             D = (V[1:] - V[0][None, :]) / denom[:, None]
             good = ok[1:]
         self._unknown = (key, [] if ok[0] else list(self.var_names))  # no derivative at all about a failed point
-        if ok[0] and not good.all():  # a step failed: the other side's one-sided difference where it answers
-            D, good = other_side(self, u, U, V, ok, D, good, denom, both if self.fd_scheme == "central" else None)
         if ok[0] and not good.all():
             self.fd_failures += int((~good).sum())
             D[~good] = 0.0

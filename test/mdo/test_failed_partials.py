@@ -167,21 +167,3 @@ def test_an_optimum_on_a_wrong_analytic_partial_is_not_verified(wrong):
     else:
         assert x[0] == pytest.approx(1.0, abs=1e-6)
         assert fo["verdict"] == first_order.OPTIMUM and "derivatives_disagree" not in fo
-
-
-@pytest.mark.parametrize("scheme", ["forward", "central"])
-def test_a_step_that_fails_takes_the_other_sides_difference(scheme):
-    """The optimiser's own finite differences at the edge of the region where a discipline answers (sellar1 fails
-    for x > 1, the point at x = 1): the failed step gave SLSQP a zero derivative in x; the other side gives one."""
-    discs = sellar_disciplines()
-    ev = InProcessEvaluator([Failing(discs[0], "x", 1.0), discs[1], discs[2]])
-    form = MDF(Problem.from_config(SELLAR_PROBLEM), ev, MDA(ev, tolerance=1e-13), fd_scheme=scheme)
-    ref_ev = InProcessEvaluator(sellar_disciplines())
-    ref = MDF(Problem.from_config(SELLAR_PROBLEM), ref_ev, MDA(ref_ev, tolerance=1e-13), fd_scheme="central")
-    u = form.u_of(np.array([5.0, 2.0, 1.0]))
-    df, dg, _ = form.gradients(u)
-    rdf, rdg, _ = ref.gradients(u)
-    assert form.unknown_derivatives(u) == [] and form.fd_failures == 0
-    j = form.var_names.index("x")
-    assert df[j] != 0.0 and df[j] == pytest.approx(rdf[j], rel=1e-4)  # one-sided: O(h) from the central one
-    np.testing.assert_allclose(dg[:, j], rdg[:, j], rtol=1e-4, atol=1e-9)
