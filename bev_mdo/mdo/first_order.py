@@ -165,14 +165,9 @@ def _kinks(kinks: Sequence[dict]) -> str:
     parts = []
     for what, ks in by.items():
         where = f"within {ks[0]['near_step']:g} (scaled) of the point" if ks[0].get("near_step") else "at the point"
-        named = "the objective" if what == "objective" else what
-        if slopes := [k for k in ks if "jump" not in k]:
-            parts.append(f"{named} has a kink {where} in " + ", ".join(
-                f"{k['name']} (slope {k['left']:.5g} on its left, {k['right']:.5g} on its right, per scaled unit)"
-                for k in slopes))
-        if jumps := [k for k in ks if "jump" in k]:  # a discontinuity: the change does not shrink with the step
-            parts.append(f"{named} jumps {where} in " + ", ".join(
-                f"{k['name']} (by {k['jump']:.5g} a step to its {k['side']}, whatever the step)" for k in jumps))
+        parts.append(f"{'the objective' if what == 'objective' else what} has a kink {where} in " + ", ".join(
+            f"{k['name']} (slope {k['left']:.5g} on its left, {k['right']:.5g} on its right, per scaled unit)"
+            for k in ks))
     return "; ".join(parts)
 
 

@@ -133,28 +133,6 @@ def _at_steps(form: Formulation, u: np.ndarray, f0: float, g0: np.ndarray, h0: n
                 seen.add((label, j))  # an equality's two rows: one kink
                 out.append({"in": label, "name": form.var_names[j], "left": float(slopes[0, 1, r, j]) + 0.0,
                             "right": float(slopes[0, 0, r, j]) + 0.0})  # + 0.0: no -0
-    if len(multiples) == 2:  # away from an optimum: a step in the model itself (1 J for x > 0.4) was named nowhere
-        change = slopes * (np.asarray(multiples, float)[:, None] * np.array([h, -h]))[:, :, None, None]  # Q - q0
-        out += _jumps(what, form, change, q0, failed, seen)
-    return out
-
-
-def _jumps(what: list[str], form: Formulation, diffs: np.ndarray, q0: np.ndarray, failed, seen) -> list[dict]:
-    """Jumps: a change of a quantity over a step, one way, that is the same (within 2 x, same sign) at steps h and 4h
-    and over first_order.FIRST_ORDER_TOL x max(1, |value|): a discontinuity (a kink's change grows 4-fold with the
-    step, a slope's too). ``diffs[k, side, r, j]``: the change at step k (the objective's per objective_scale).
-    Each is {"in", "name", "jump" (the objective's in its own unit), "side": "right" | "left"}."""
-    out = []
-    for r, label in enumerate(what):
-        unit = form.problem.objective_scale if r == 0 else 1.0
-        for j in range(form.n):
-            for side, name in ((0, "right"), (1, "left")):
-                d0, d1 = diffs[0, side, r, j], diffs[1, side, r, j]
-                if failed[j] or (label, j) in seen or not np.isfinite(d0 * d1) or \
-                        abs(d0) <= first_order.FIRST_ORDER_TOL * max(1.0, abs(q0[r])) or not 0.5 <= d1 / d0 <= 2.0:
-                    continue
-                seen.add((label, j))
-                out.append({"in": label, "name": form.var_names[j], "jump": float(d0 * unit), "side": name})
     return out
 
 

@@ -304,34 +304,3 @@ def test_the_true_minimum_of_a_narrow_well_is_an_optimum_on_central_differences(
     assert fo["stationarity"] < 1e-4 and not fo.get("kinks")
     off = end_point_check(_form(Well()), best + np.array([1e-4, 0.0]), np.array([0.5, 0.2]), 1e-6)  # 0.8 of slope
     assert off["verdict"] == first_order.STOPPED and off["stationarity"] == pytest.approx(0.8, rel=0.05)
-
-
-class Step:
-    """f = 1 + (x - 0.5)^2 + (y - 0.5)^2 + [x > 0.4]: a step of 1 J in x at 0.4 (the infimum is at x = 0.4)."""
-
-    name = "step"
-    inputs = ("x", "y")
-    outputs = ("f",)
-
-    def compute(self, inputs):
-        x, y = inputs["x"], inputs["y"]
-        return {"f": 1 + (x - 0.5) ** 2 + (y - 0.5) ** 2 + (x > 0.4)}
-
-
-def test_a_step_in_the_objective_is_named_as_a_jump_not_as_a_gradient_to_follow():
-    """A derivatives trial: at (0.4, 0.5) under a step of 1 the verdict was "stopped before convergence, projected
-    gradient 1" with no kink named and advice to go on with SLSQP."""
-    fo = end_point_check(_form(Step()), np.array([0.4, 0.5]), np.array([0.5, 0.2]), 1e-6)
-    assert fo["verdict"] == first_order.STOPPED
-    assert fo["kinks"] == [{"in": "objective", "name": "x", "jump": pytest.approx(1.0, rel=1e-3), "side": "right"}]
-    assert "the objective jumps at the point in x (by 1 a step to its right" in first_order.verdict_line(fo)
-    assert first_order.note_lines(fo, "chebyshev-pairwise", converged=True) == []  # no "go on with SLSQP"
-    smooth = end_point_check(_form(Step()), np.array([0.3, 0.45]), np.array([0.5, 0.2]), 1e-6)  # off the step
-    assert smooth["verdict"] == first_order.STOPPED and not smooth["kinks"]
-
-    class Left(Step):  # a step of 3 to the left: the change a step that way makes, with its sign
-        def compute(self, inputs):
-            return {"f": super().compute(inputs)["f"] - (inputs["x"] > 0.4) + 3.0 * (inputs["x"] < 0.4)}
-
-    fo = end_point_check(_form(Left()), np.array([0.4, 0.5]), np.array([0.5, 0.2]), 1e-6)
-    assert fo["kinks"] == [{"in": "objective", "name": "x", "jump": pytest.approx(3.0, rel=1e-3), "side": "left"}]
