@@ -435,15 +435,14 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
                                  unknown=form.unknown_derivatives(u) if ok else ())
 
     fo = {**judge(df, dg, dh), "derivatives": form.derivatives}  # what the numbers are computed on: analytic | fd
-    if ok and fo["verdict"] == first_order.STOPPED and form.derivatives == "fd" and form.fd_scheme == "forward" \
-            and not fo["unknown_derivatives"]:
-        # a forward difference errs by h f''/2: at the true minimum of a narrow well (f'' 8000, h 1e-6) it read a
-        # gradient of 0.004 and called it "stopped", advising SLSQP, which did not move. Central differences judge
-        # (a kink, where they average the two slopes, is looked for below).
+    if ok and fo["verdict"] in (first_order.STOPPED, first_order.NO_PROGRESS) and form.derivatives == "fd" \
+            and form.fd_scheme == "forward" and not fo["unknown_derivatives"]:
+        # forward errs by h f''/2 (a narrow well's true minimum read 0.004, "stopped"): an optimum on central ones is
+        # taken, its kinks looked for as at a point that is not one (they average a concave kink's slopes to 0)
         (cf, cg, ch), unknown = form.fd_gradients(u, form.fd_step)
-        if not unknown:
-            df, dg, dh = cf / form.problem.objective_scale, cg, ch
-            fo = {**judge(df, dg, dh), "derivatives": form.derivatives, "fd_scheme_checked": "central"}
+        if not unknown and (again := judge(cf / form.problem.objective_scale, cg, ch))["verdict"] == first_order.OPTIMUM:
+            fo, df, dg, dh = ({**again, "derivatives": "fd", "fd_scheme_checked": "central"},
+                              cf / form.problem.objective_scale, cg, ch)
     first_order.limit_rates(fo, form.problem, form.var_names, form.scale, (form.lower, form.upper))  # physical
     if ok and fo["verdict"] == first_order.OPTIMUM and form.derivatives == "analytic":
         # the gradient came from the disciplines' partials, which its own check cannot doubt: a wrong partial
@@ -460,7 +459,8 @@ def end_point_check(form: Formulation, x: np.ndarray, x_start: np.ndarray, tol: 
         # (t, -t), and failed true optima with curvature): the optimum is not verified, the kink named
         optimum, before = fo["verdict"] == first_order.OPTIMUM, form.n_points
         fo["kinks"] = end_point_kinks(form, u, f[0], g[0], h[0], float(np.max(np.abs(df), initial=0.0)),
-                                      at_optimum=optimum, failed=fo.setdefault("failed_steps", []))
+                                      at_optimum=optimum and "fd_scheme_checked" not in fo,
+                                      failed=fo.setdefault("failed_steps", []))
         fo["kink_points"] = form.n_points - before  # of the check's cost: the steps either side
         if optimum and fo["kinks"]:
             fo.update(verdict=first_order.STOPPED, conditions_hold=False, kink_at_optimum=True)
