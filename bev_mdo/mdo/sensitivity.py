@@ -139,7 +139,8 @@ def _prepare(point, wrt, bounds, rel_step):
     return all_names, x0, wrt, idx, h, direction
 
 
-ZERO_TO_ROUNDING = 1e-8  # |f| below this of max_i |x_i df/dx_i|: f is 0 but for rounding, |S| would exceed 1e8
+# |f| below this of max_i |x_i df/dx_i| (terms of that size cancel to it): f is 0 but for rounding, |S| above 4.5e13
+ZERO_TO_ROUNDING = 100.0 * float(np.finfo(float).eps)
 
 
 def _normalise(f0: float, change: float) -> float:

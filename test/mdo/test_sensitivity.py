@@ -202,3 +202,6 @@ def test_an_output_zero_but_for_rounding_has_no_normalised_sensitivity():
     np.testing.assert_allclose(s.first["product"], [1.0, 1.0], rtol=1e-6)
     small = sensitivities(lambda X: {"g": X[:, 0] * 1e-12}, {"x": 2.0})  # small but no residue: S = 1
     assert small.undefined == [] and small.first["g"][0] == pytest.approx(1.0)
+    # a review: a margin of 0.001 of terms of 1e6 is no rounding (1e6 eps is 2e-10): its S_q = 1 stays
+    margin = sensitivities(lambda X: {"m": 1e6 * (X[:, 0] - 1.0) + 1e-3 * X[:, 1]}, {"p": 1.0, "q": 1.0})
+    assert margin.undefined == [] and margin.first["m"][1] == pytest.approx(1.0, rel=1e-3)
