@@ -371,6 +371,11 @@ def test_a_cycle_section_without_a_name_runs_the_nedc_and_says_so(tmp_path, caps
     code, out, err = _cli(capsys, "evaluate", REPO / "config" / "leaf_nedc.yaml", "--transport", "inprocess",
                           "--no-record")
     assert code == 0 and "cycle.name" not in err
+    raw = yaml.safe_load(text)  # a review: no cycle and no vehicle section at all ran the NEDC with no word
+    del raw["cycle"], raw["vehicle"]
+    code, out, err = _cli(capsys, "evaluate", _write(tmp_path, yaml.safe_dump(raw), "bare.yaml"), "--transport",
+                          "inprocess", "--no-record")
+    assert code == 0 and "bev-mdo evaluate: note: cycle.name: not in the config: the NEDC" in err, err
 
 
 def test_an_enormous_value_in_an_error_is_shortened_to_its_ends(tmp_path, capsys):

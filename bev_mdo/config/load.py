@@ -251,9 +251,8 @@ def _resolve(raw: Any) -> RunConfig:
     cfg["energy_model"] = cfg.get("energy_model", "flat")
     if cfg["energy_model"] not in ENERGY_MODELS:
         raise ValueError(f"energy_model {cfg['energy_model']!r} is unknown; allowed: {', '.join(ENERGY_MODELS)}")
-    if "vehicle" in cfg or "cycle" in cfg:
-        if not (isinstance(cfg.get("cycle"), Mapping) and "name" in cfg["cycle"]) and _reads_cycle(cfg):
-            warnings.warn("cycle.name: not in the config: the NEDC, the thesis' cycle", CycleNote, stacklevel=2)
+    if not (isinstance(cfg.get("cycle"), Mapping) and "name" in cfg["cycle"]) and _reads_cycle(cfg):
+        warnings.warn("cycle.name: not in the config: the NEDC, the thesis' cycle", CycleNote, stacklevel=2)
     vehicle = validate_models(cfg)
     vehicle_topology_into_options(cfg)
     cfg["formulation"] = str(cfg.get("formulation", "mdf")).lower()
