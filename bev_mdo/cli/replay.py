@@ -44,7 +44,7 @@ def run(args) -> int:
                    log=lambda line: print(line, file=sys.stderr))
     print(f"replayed {stats.messages} messages in {stats.seconds:.3f} s "
           f"({stats.messages_per_s:.0f} msg/s)")
-    if not stats.messages:  # a bag cut before its first chunk, or --topics that match nothing: as history, exit 1
+    if not stats.messages:  # a bag cut before its first chunk (or topics that hold none): as history, exit 1
         print(f"bev-mdo replay: {args.bag}: nothing to replay" + (f" on {', '.join(args.topics)}" if args.topics else ""),
               file=sys.stderr)
         return 1
