@@ -23,14 +23,14 @@ Use it from a config:
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from bev_mdo.models.acceleration import battery_shaft_power_w
-from bev_mdo.models.params import ROAD_LOAD_UNUSED, validate_road_load, validate_vehicle
-
-PACK = {"battery_to_shaft_efficiency": 0.9, "cells_series": 96.0, "initial_soc": 0.9, "discharge_c_max": 5.0}
+from bev_mdo.models.cycles import CycleNote
+from bev_mdo.models.params import ROAD_LOAD_UNUSED, all_specs, validate_road_load, validate_vehicle, vehicle_choice
 from bev_mdo.models.road_load import coefficients
 
 
@@ -47,20 +47,18 @@ class TopSpeed:
     units = {"motor_kw": "kW", "gear_ratio": "1", "vehicle_mass_kg": "kg", "battery_kwh": "kWh", "top_speed_kmh": "km/h"}
     VEHICLE_CONSTANTS = ("drag_area_m2", "rolling_resistance", "air_density_kg_m3", "gravity_m_s2",
                          "gear_efficiency", "wheel_radius_m", "gear_count", "gear_ratio_2", "motor_speed_limit_rpm",
-                         "motor_torque_per_kw", *PACK)
+                         "motor_torque_per_kw",  # gear_count, gear_ratio_2: a two-speed gearbox
+                         "battery_to_shaft_efficiency", "cells_series", "initial_soc", "discharge_c_max")  # the pack
 
-    def __init__(self, drag_area_m2=0.6412, rolling_resistance=0.007, air_density_kg_m3=1.25,
-                 gravity_m_s2=9.81, gear_efficiency=0.97, wheel_radius_m=0.316, gear_count=1, gear_ratio_2=4.7,
-                 motor_speed_limit_rpm=10500.0, motor_torque_per_kw=3.5, motor_max_speed_rad_s=None, road_load=None,
-                 **pack):
+    def __init__(self, motor_max_speed_rad_s=None, road_load=None, **constants):
+        """``constants``: any of VEHICLE_CONSTANTS; the others take bev_mdo's defaults (models.params)."""
         if motor_max_speed_rad_s is not None and motor_max_speed_rad_s <= 0:
             raise ValueError(f"motor_max_speed_rad_s must be > 0, got {motor_max_speed_rad_s}")
-        self.parameters = {"drag_area_m2": drag_area_m2, "rolling_resistance": rolling_resistance,
-                           "air_density_kg_m3": air_density_kg_m3, "gravity_m_s2": gravity_m_s2,
-                           "gear_efficiency": gear_efficiency, "wheel_radius_m": wheel_radius_m,
-                           "gear_count": gear_count, "gear_ratio_2": gear_ratio_2,  # a two-speed gearbox
-                           "motor_speed_limit_rpm": motor_speed_limit_rpm, "motor_torque_per_kw": motor_torque_per_kw,
-                           **{k: pack.get(k, PACK[k]) for k in PACK},  # the pack's power limit
+        unknown = sorted(set(constants) - set(self.VEHICLE_CONSTANTS))
+        if unknown:
+            raise TypeError(f"TopSpeed does not read {', '.join(unknown)}")
+        defaults = all_specs()
+        self.parameters = {**{k: constants.get(k, defaults[k].default) for k in self.VEHICLE_CONSTANTS},
                            **(validate_road_load(road_load) if road_load else {})}  # road_load_a_n, ...
         if road_load:  # a coast-down replaces these: a parameter no formula reads must not be offered for overrides
             self.parameters = {k: x for k, x in self.parameters.items() if k not in ROAD_LOAD_UNUSED}
@@ -77,6 +75,9 @@ class TopSpeed:
         """Take the vehicle constants from the run config, a named parameter set's and the defaults as the built-in
         models take them; the motor's speed limit too, unless the options give one."""
         v = validate_vehicle(config.get("vehicle"))
+        if (topology := vehicle_choice(config.get("vehicle"), "topology")) != "SM-SA":  # a two-motor EV6: 179 km/h,
+            warnings.warn(f"top_speed (examples/top_speed.py) counts one motor and its gear: of a {topology} vehicle "
+                          "the front motor alone (motor_kw, gear_ratio)", CycleNote, stacklevel=2)  # its front's, unsaid
         return cls(**{k: v[k] for k in cls.VEHICLE_CONSTANTS if k in v}, road_load=config.get("vehicle", {}).get(
             "road_load"), motor_max_speed_rad_s=options.motor_max_speed_rad_s)
 

@@ -333,3 +333,67 @@ def test_a_car_left_to_the_leafs_mass_wheel_or_road_load_is_said(tmp_path, capsy
     code, out, err = _cli(capsys, "evaluate", REPO / "config" / "leaf_epa_combined.yaml", "--transport", "inprocess",
                           "--no-record")
     assert code == 0 and "Leaf's values" not in err  # a config that states them: no note
+
+
+@pytest.mark.parametrize("road_load, named", [
+    ({"a_n": 37.17, "b_n_per_m_s": 0.047, "c_n_per_m2_s2": 0.0144}, "c_n_per_m2_s2 0.0144 is outside"),
+    ({"a_n": 37.17, "b_n_per_m_s": 0.047, "c_n_per_m2_s2": 0.0144, "mass_kg": 4250}, "a_n / (mass_kg g) 0.000892"),
+    ({"a_n": 140.0, "b_n_per_m_s": 1.5, "c_n_per_m2_s2": 0.31, "mass_kg": 4250}, "a_n / (mass_kg g) 0.00336")])
+def test_a_road_load_in_another_unit_is_said(tmp_path, capsys, road_load, named):
+    """An EPA-data trial: a Model 3's coast-down pasted as EPA publishes it (lbf, lbf/mph, lbf/mph^2; test mass
+    in lb) ran as a car using a third of its energy (41 Wh/km, 1709 km), every constraint ok and no word."""
+    raw = yaml.safe_load((REPO / "config" / "leaf_epa_combined.yaml").read_text(encoding="utf-8"))
+    raw["vehicle"]["road_load"] = road_load
+    cfg = _write(tmp_path, yaml.safe_dump(raw, sort_keys=False))
+    code, out, err = _cli(capsys, "evaluate", cfg, "--transport", "inprocess", "--no-record")
+    assert code == 0  # a note, not a refusal: an unusual vehicle may be meant
+    said = [line for line in err.splitlines() if line.startswith("bev-mdo evaluate: note: vehicle.road_load: ")]
+    assert len(said) == 1 and named in said[0] and said[0].endswith("a unit mix-up? (read as given)"), err
+    code, out, err = _cli(capsys, "evaluate", REPO / "config" / "leaf_epa_combined.yaml", "--transport", "inprocess",
+                          "--no-record")
+    assert code == 0 and "vehicle.road_load" not in err  # the Leaf's own coast-down: no note
+    raw["vehicle"]["road_load"] = {"a_n": 99.6, "b_n_per_m_s": 0.0, "c_n_per_m2_s2": 0.3, "mass_kg": 2288.0}
+    cfg = _write(tmp_path, yaml.safe_dump(raw, sort_keys=False))  # a review: the Ioniq 5's 0.00444, a real car
+    code, out, err = _cli(capsys, "evaluate", cfg, "--transport", "inprocess", "--no-record")
+    assert code == 0 and "vehicle.road_load" not in err, err
+
+
+@pytest.mark.parametrize("cycle", ["cycle:\n", "cycle: {}\n", "cycle: {dt_s: 1.0}\n"])
+def test_a_cycle_section_without_a_name_runs_the_nedc_and_says_so(tmp_path, capsys, cycle):
+    """A malformed-files trial: `cycle:` left empty ran the NEDC with no word, and `cycle: {}` was refused
+    ("cycle name must be a cycle name or CSV path, got None")."""
+    text = (REPO / "config" / "leaf_nedc.yaml").read_text(encoding="utf-8")
+    start = text.index("\ncycle:") + 1
+    cfg = _write(tmp_path, text[:start] + cycle + text[text.index("\n", start) + 1:])
+    code, out, err = _cli(capsys, "evaluate", cfg, "--transport", "inprocess", "--no-record")
+    assert code == 0 and out.startswith("cycle: nedc 1180 s")
+    assert "bev-mdo evaluate: note: cycle.name: not in the config: the NEDC, the thesis' cycle" in err.splitlines()
+    code, out, err = _cli(capsys, "evaluate", REPO / "config" / "leaf_nedc.yaml", "--transport", "inprocess",
+                          "--no-record")
+    assert code == 0 and "cycle.name" not in err
+    raw = yaml.safe_load(text)  # a review: no cycle and no vehicle section at all ran the NEDC with no word
+    del raw["cycle"], raw["vehicle"]
+    code, out, err = _cli(capsys, "evaluate", _write(tmp_path, yaml.safe_dump(raw), "bare.yaml"), "--transport",
+                          "inprocess", "--no-record")
+    assert code == 0 and "bev-mdo evaluate: note: cycle.name: not in the config: the NEDC" in err, err
+
+
+def test_an_enormous_value_in_an_error_is_shortened_to_its_ends(tmp_path, capsys):
+    """A malformed-files trial: a 900,000-item list where a number goes was echoed whole, a 4.5 MB error line."""
+    text = (REPO / "config" / "leaf_nedc.yaml").read_text(encoding="utf-8")
+    cfg = _write(tmp_path, text.replace("drag_area_m2: 0.6412", "drag_area_m2: [" + ", ".join(["0.6"] * 200_000) + "]"))
+    code, out, err = _cli(capsys, "evaluate", cfg, "--transport", "inprocess", "--no-record")
+    assert code == 2 and err.count("\n") == 1 and len(err) < 1200, len(err)
+    assert "drag_area_m2 must be a number in [0.05, 3] m^2, got [0.6, 0.6" in err
+    assert "characters left out) ... " in err and err.endswith("0.6, 0.6]\n")
+
+
+def test_a_problem_whose_disciplines_read_no_cycle_gets_no_cycle_note(tmp_path, capsys):
+    """The note of a config without a cycle name is for the disciplines that read it (energy, motor_speed)."""
+    raw = yaml.safe_load((REPO / "config" / "leaf_nedc.yaml").read_text(encoding="utf-8"))
+    del raw["cycle"]
+    raw["disciplines"] = ["vehicle_mass", "acceleration", "cost"]
+    raw["problem"]["objective"], raw["problem"]["constraints"] = "powertrain_cost_usd", {"accel_time_0_100_s": {"upper": 10}}
+    cfg = _write(tmp_path, yaml.safe_dump(raw, sort_keys=False))
+    code, out, err = _cli(capsys, "evaluate", cfg, "--transport", "inprocess", "--no-record")
+    assert code == 0 and "cycle.name" not in err, err

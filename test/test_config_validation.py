@@ -245,19 +245,19 @@ def test_a_directory_holding_a_truncated_bag_is_refused_not_mislabelled(tmp_path
 
 
 def test_record_and_replay_join_the_given_domain_and_stay_on_this_host(monkeypatch, tmp_path):
-    from bev_mdo.cli import record
+    from bev_mdo.cli.flags import join_domain
 
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET")  # restored after the test, as is:
     monkeypatch.setenv("ROS_DOMAIN_ID", "0")
     cfg = _write(tmp_path, BASE + "\nros: {domain_id: 61}\n")
     args = argparse.Namespace(config=str(cfg), domain_id=None, discovery=None, static_peers=None,
                               discovery_server=None)
-    record._join_domain(args)
+    join_domain(args)
     import os
 
     assert os.environ["ROS_DOMAIN_ID"] == "61" and os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
     args.domain_id = 62
-    record._join_domain(args)
+    join_domain(args)
     assert os.environ["ROS_DOMAIN_ID"] == "62"
     p = _cli(tmp_path, "replay", str(tmp_path / "nothing"), "--domain-id", "999")
     assert p.returncode == 2 and "ros.domain_id" in p.stderr

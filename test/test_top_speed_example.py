@@ -146,3 +146,19 @@ def test_where_the_pack_gives_less_than_the_motor_the_top_speed_is_the_packs():
     expected = brentq(lambda s: load(s) - shaft_w * v["gear_efficiency"], 1.0, 100.0, xtol=1e-12) * 3.6
     assert r.outputs["top_speed_kmh"] == pytest.approx(expected, rel=1e-9)
     assert r.outputs["top_speed_kmh"] < 210.0  # not 233.5
+
+
+def test_a_two_motor_vehicle_is_told_that_only_its_front_motor_counts():
+    """An AWD trial: a Kia EV6 (74 + 165 kW, DM-DA) read 178.9 km/h, its front motor's alone, with no word."""
+    import warnings
+
+    from bev_mdo.models.cycles import CycleNote
+    from examples.top_speed import TopSpeed
+
+    options = TopSpeed.Options()
+    with pytest.warns(CycleNote, match=r"^top_speed \(examples/top_speed.py\) counts one motor and its gear: of a "
+                                       r"DM-DA vehicle the front motor alone \(motor_kw, gear_ratio\)$"):
+        TopSpeed.from_config({"vehicle": {"topology": "DM-DA"}}, options)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        TopSpeed.from_config({"vehicle": {"topology": "SM-SA"}}, options)

@@ -61,8 +61,11 @@ def design(config, given: dict[str, float], transport, caller: str = "bev-mdo ev
     from bev_mdo.mdo.active import outside_bounds, outside_note
     from bev_mdo.mdo.driver import evaluate_design, feasibility_tolerance
 
-    finite_values(given, one="evaluate takes one design, a number per name; sweep(designs=...) evaluates many")
     config = RunConfig.of(config)
+    for name, value in given.items():  # t: [1, 2, 0.5] for the vector t was told to use sweep(designs=...)
+        if np.ndim(value) and (size := sum(n.startswith(f"{name}[") for n in config.problem.names)):
+            raise InputError(f"{name}={value!r}: a vector of {size} elements: give each, {name}[0] .. {name}[{size - 1}]")
+    finite_values(given, one="evaluate takes one design, a number per name; sweep(designs=...) evaluates many")
     refuse_outside_model_limits(config, given)
     problem = config.problem
     full = {**{d.name: d.initial for d in problem.design_variables}, **given}
@@ -174,6 +177,12 @@ def refuse_outside_model_limits(config, values) -> None:
         raise InputError(f"{exc}; such a design cannot be evaluated") from None
     try:
         check_gear_order_per_design(config.vehicle, config.problem, values)
+        if isinstance(config.data.get("vehicle"), dict):  # motor_rear_kw on SM-SA: "did you mean 'motor_kg_per_kw'?"
+            from bev_mdo.models.params import vehicle_choice
+            from bev_mdo.models.topology import check_design_variables
+
+            check_design_variables(vehicle_choice(config.data["vehicle"], "topology"),
+                                   [k for k in values if k not in config.problem.names])
     except ValueError as exc:
         raise InputError(str(exc)) from None
 

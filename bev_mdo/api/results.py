@@ -2,6 +2,7 @@
 ready) and a table view (``rows()``, ``to_dataframe()``; pandas is imported only there)."""
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -10,8 +11,8 @@ class _Result:
     data: dict
 
     def to_dict(self) -> dict:
-        """The result as the CLI's JSON holds it."""
-        return self.data
+        """The result as the CLI's JSON holds it: a copy (an edit of it changed the result's own fields)."""
+        return copy.deepcopy(self.data)
 
     def rows(self) -> list[dict]:  # pragma: no cover - every result defines its table
         raise NotImplementedError

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import inspect
 import math
 from dataclasses import asdict, fields
 from pathlib import Path
@@ -19,9 +20,18 @@ from bev_mdo.api.transport import DEFAULT_TRANSPORT, TRANSPORTS, Transport
 
 
 def _input_errors(method):
-    """A user's mistake (ValueError, a missing file) leaves as InputError with the CLI's one line."""
+    """A user's mistake (ValueError, a missing file) leaves as InputError with the CLI's one line; so does an
+    argument the method does not have (a TypeError with no hint, where optimize's said 'did you mean')."""
+    params = [p for p in inspect.signature(method).parameters.values() if p.name != "self"]
+    known = [p.name for p in params if p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)]
+
     @functools.wraps(method)
     def call(*args, **kwargs):
+        if not any(p.kind is p.VAR_KEYWORD for p in params) and (wrong := [k for k in kwargs if k not in known]):
+            from bev_mdo.mdo.vectors import did_you_mean
+
+            raise InputError(f"{method.__name__}() has no argument {wrong[0]!r}; {did_you_mean(wrong[0], known)}"
+                             f"its arguments: {', '.join(known)}")
         try:
             return method(*args, **kwargs)
         except InputError:
@@ -128,8 +138,9 @@ class Study:
 
     @property
     def config(self):
-        """The effective config (``RunConfig``: typed parts; as a mapping, the resolved dict)."""
-        return self._config
+        """The effective config (``RunConfig``: typed parts; as a mapping, the resolved dict): a copy, so that an
+        edit of it (which a run would not see) changes nothing; bound(), constrain(), ... change the study."""
+        return copy.deepcopy(self._config)
 
     def _change(self, edit) -> "Study":
         from bev_mdo.api import overrides
@@ -140,6 +151,7 @@ class Study:
         self.overrides = new
         return self
 
+    @_input_errors
     def bound(self, name: str, lower: float | None = None, upper: float | None = None) -> "Study":
         """New bounds of a design variable (a side left None keeps its value)."""
         new = {k: _number(v, f"bound {_name(name, 'bound: the design variable')!r}: {k}")
@@ -150,11 +162,13 @@ class Study:
             ov.bounds[name] = (new.get("lower", lo), new.get("upper", hi))
         return self._change(edit)
 
+    @_input_errors
     def initial(self, name: str, value: float) -> "Study":
         """The initial value of a design variable."""
         x = _number(value, f"initial {_name(name, 'initial: the design variable')!r}")
         return self._change(lambda ov: ov.initial.__setitem__(name, x))
 
+    @_input_errors
     def constrain(self, name: str, lower: float | None = None, upper: float | None = None) -> "Study":
         """Add or change a constraint on an output: ``lower <= name <= upper``."""
         if lower is None and upper is None:
@@ -163,6 +177,7 @@ class Study:
                   for k, v in (("lower", lower), ("upper", upper)) if v is not None}
         return self._change(lambda ov: ov.constraints.setdefault(name, {}).update(limits))
 
+    @_input_errors
     def objective(self, name: str | None = None, maximize: bool | None = None) -> "Study":
         """The output to optimise and whether it is maximised (None keeps the config's)."""
         if name is not None:
@@ -180,7 +195,7 @@ class Study:
         """One design through every discipline; variables not given take their initial value."""
         from bev_mdo.api import evaluate
 
-        return EvaluateResult.of(evaluate.design(self.config, _mapping(design, "design"), _transport(transport),
+        return EvaluateResult.of(evaluate.design(self._config, _mapping(design, "design"), _transport(transport),
                                                  caller="bev_mdo Study.evaluate"))
 
     @_input_errors
@@ -203,7 +218,7 @@ class Study:
                                         starts=_whole(starts, "starts"), seed=_whole(seed, "seed"), bag=bag, quiet=True, **ros)
         x0 = _mapping(x0, "x0")
         finite_values(x0, "x0", one="the start point, a number per name")
-        return OptimizeResult.of(optimize.run(self.config, opts, callback, x0 or None))
+        return OptimizeResult.of(optimize.run(self._config, opts, callback, x0 or None))
 
     @_input_errors
     def sweep(self, doe: str | None = None, samples: int = 64, seed: int = 1, *,
@@ -231,9 +246,9 @@ class Study:
             if len({c.shape for c in cols.values()}) > 1 or any(c.ndim != 1 for c in cols.values()):
                 raise InputError("designs: give every variable's values as one list, all of the same length "
                                  f"(got {', '.join(f'{k}: {c.shape[0] if c.ndim == 1 else c.shape}' for k, c in cols.items())})")
-        cols = sampling.batch(self.config.problem, doe or "lhs", _whole(samples, "samples"), _whole(seed, "seed"), cols,
+        cols = sampling.batch(self._config.problem, doe or "lhs", _whole(samples, "samples"), _whole(seed, "seed"), cols,
                               fixed)
-        r = evaluate.batch(self.config, cols, how)
+        r = evaluate.batch(self._config, cols, how)
         return SweepResult(r["design"], r["outputs"], r["margins"], r["feasible"], r["ok"], list(r["errors"]),
                            r["objective"], bool(getattr(r["problem"], "maximize", False)))
 
@@ -244,9 +259,9 @@ class Study:
         with respect to ``wrt`` (design variables and model parameters; default: the design variables)."""
         from bev_mdo.api import sensitivity
 
-        s, outputs, _, _ = sensitivity.run(self.config, _mapping(at, "at"), _names(wrt, "wrt"), _transport(transport),
+        s, outputs, _, _ = sensitivity.run(self._config, _mapping(at, "at"), _names(wrt, "wrt"), _transport(transport),
                                            order=_whole(order, "order"), rel_step=rel_step)
-        units = sensitivity.units_of(self.config, [*s.names, *outputs])
+        units = sensitivity.units_of(self._config, [*s.names, *outputs])
         return SensitivityResult.of(sensitivity.to_dict(s, outputs, units))
 
     @_input_errors
@@ -258,7 +273,7 @@ class Study:
         of 2, default 1024: N (D + 2) designs), morris' trajectories (default 64)."""
         from bev_mdo.api import sensitivity
 
-        rep = sensitivity.run(self.config, _mapping(at, "at"), _names(wrt, "wrt"), _transport(transport),
+        rep = sensitivity.run(self._config, _mapping(at, "at"), _names(wrt, "wrt"), _transport(transport),
                               global_method=method, samples=None if samples is None else _whole(samples, "samples"),
                               seed=_whole(seed, "seed"), conf_level=conf_level)
         return GlobalSensitivityResult.of(rep)
@@ -272,7 +287,7 @@ class Study:
         ``problem.objectives``), written with its bag into ``out`` (default bags/<name>_pareto_<time>)."""
         from bev_mdo.api import pareto
 
-        doc, _ = pareto.run(self.config, _names(objectives, "objectives"),
+        doc, _ = pareto.run(self._config, _names(objectives, "objectives"),
                             generations=_whole(generations, "generations"), pop=_whole(pop, "pop"), seed=_whole(seed, "seed"),
                             out=out, transport=_transport(transport), instances=instances, plots=plots,
                             source=self.source)

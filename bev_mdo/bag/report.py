@@ -418,6 +418,7 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     rows, signer = verified_history(bag, run_id, checks=checks, key_file=key_file, no_verify=no_verify)
     timing = discipline_timing(bag)
     checks = {} if checks is None else checks
+    checks["iterations"] = len(rows)
     config, problem = _context(bag, checks)
     final = answers = baseline = None
     units = _units(config)

@@ -270,6 +270,7 @@ def _interrupted(exc: BaseException) -> int:
     return 143 if isinstance(exc, Terminated) else 130
 
 
+LONGEST_ERROR = 1000  # characters of an error line; the rest of a longer one is left out, its ends kept
 RUN_FAILED_STATUS = 7  # an unexpected error stopped the command (a bag is closed with every finished iteration)
 
 
@@ -277,6 +278,8 @@ def _named(exc: BaseException, where: bool = True) -> str:
     """One line for an unexpected error: its type, the first line of its message and where it was raised;
     without ``where``, a user mistake's: the first line of its message alone (its type when it has none)."""
     msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    if len(msg) > LONGEST_ERROR:  # a 900,000-item list where a number goes was echoed whole: 4.5 MB on one line
+        msg = f"{msg[:LONGEST_ERROR - 200]} ... ({len(msg) - LONGEST_ERROR} characters left out) ... {msg[-200:]}"
     if not where:
         return msg or type(exc).__name__
     frames = traceback.extract_tb(exc.__traceback__)
@@ -320,8 +323,8 @@ def native_output_to_stderr() -> None:
         os.dup2(2, 1)
     except (OSError, ValueError, AttributeError):  # no real descriptors (embedded, closed): leave as is
         return
-    sys.stdout = os.fdopen(real, "w", buffering=1 if os.isatty(real) else -1,
-                           encoding=sys.stdout.encoding, errors=sys.stdout.errors)
+    # line-buffered into a file or a pipe too: an optimisation's progress lines came at its end (block-buffered)
+    sys.stdout = os.fdopen(real, "w", buffering=1, encoding=sys.stdout.encoding, errors=sys.stdout.errors)
 
 
 def _closed_pipe() -> int:

@@ -45,4 +45,7 @@ def run(args) -> int:
         print(bag.recovery_note(), file=sys.stderr)
     if bag.metadata_note:
         print(bag.metadata_note, file=sys.stderr)
+    if not any(t.startswith("bev_mdo_msgs/") for t in bag.topics.values()):  # listed as it is, as ros2 bag info
+        print(f"{bag.mcap_path}: no bev_mdo_msgs schema: not a bev_mdo recording (history, report, resume and replay "
+              "refuse it)", file=sys.stderr)
     return 0

@@ -10,6 +10,8 @@ mistake. Disciplines without partials are listed as "finite differences" (nothin
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from bev_mdo import jsontext
@@ -47,8 +49,9 @@ def _point(problem, text: str) -> dict[str, float]:
 def check_tolerances(step: float, rtol: float, atol: float) -> None:
     """ValueError naming the first of ``--step`` (in (0, 0.1)), ``--rtol`` and ``--atol`` (>= 0) that is out of
     its range, with its value (check-partials, check-totals)."""
-    for flag, v, ok, allowed in (("--step", step, 0 < step < 0.1, "in (0, 0.1)"), ("--rtol", rtol, rtol >= 0, ">= 0"),
-                                 ("--atol", atol, atol >= 0, ">= 0")):
+    for flag, v, ok, allowed in (("--step", step, 0 < step < 0.1, "in (0, 0.1)"),  # (inf passed every check)
+                                 ("--rtol", rtol, 0 <= rtol < math.inf, ">= 0, finite"),
+                                 ("--atol", atol, 0 <= atol < math.inf, ">= 0, finite")):
         if not ok:  # NaN too
             raise ValueError(f"{flag} {v:g}: must be {allowed}")
 
@@ -121,6 +124,9 @@ def run(args) -> int:
     check_tolerances(args.step, args.rtol, args.atol)  # before the note on the point
     note_outside_bounds(config.problem, _point(config.problem, args.at), "bev-mdo check-partials")
     rep = check(config, args.at, args.rtol, args.atol, args.step, only)
+    from bev_mdo.api.evaluate import declared_units
+
+    units = declared_units(config)
     if args.json:
         print(jsontext.dumps(rep))
         return 0 if rep["ok"] else 1
@@ -137,12 +143,23 @@ def run(args) -> int:
     for e in rep["disciplines"]:
         if e["error"]:
             print(f"{e['discipline']}: {e['error']}")
-        for r in e["mismatches"]:
+        for r in e["mismatches"]:  # in the run's units, which a partial given per another unit was converted to
+            per = _per(units, r["output"], r["input"])
             print(f"{e['discipline']}: d{r['output']}/d{r['input']} analytic {r['analytic']:.8g} but finite "
-                  f"differences {r['fd']:.8g} (rel error {r['rel_error']:.3g})")
+                  f"differences {r['fd']:.8g}{per} (rel error {r['rel_error']:.3g})")
     checked = [e["discipline"] for e in rep["disciplines"] if e["partials"] == "analytic"]
+    if any(e["mismatches"] for e in rep["disciplines"]):
+        print("(each partial in the run's units, per unit of the input as its producer declares it)")
     print("some analytic partials disagree with finite differences" if not rep["ok"] else
           "all analytic partials agree with finite differences" if checked else
           "nothing checked: no discipline checked here declares analytic partials (their derivatives are finite "
           "differences of the whole analysis)")
     return 0 if rep["ok"] else 1
+
+
+def _per(units: dict, output: str, inp: str) -> str:
+    """' kN per m' for d output / d input in their declared units ('' where neither has one)."""
+    from bev_mdo.mdo.units import unit_of
+
+    top, bottom = (unit_of(n, units, inline=True) for n in (output, inp))
+    return f" {top or '1'} per {bottom}" if bottom else (f" {top}" if top else "")

@@ -57,15 +57,17 @@ def check(form, x: np.ndarray, step: float = 1e-6, rtol: float = 1e-4, atol: flo
     x = form.to_x(u)  # the point the gradient evaluates (scaling's round trip may move a coupling by an ulp)
     sign = -1.0 if form.problem.maximize else 1.0
     df, dg, dh = form.gradients(u)  # d/du, u = (x - offset) / scale
-    if not form.status(x)[0]:  # a failed point, not a user mistake: exit 1 (ModelFailed)
+    ok, why = form.status(x)
+    if not ok:  # a failed point, not a user mistake: exit 1 (ModelFailed)
         from bev_mdo.api.errors import ModelFailed
 
-        raise ModelFailed(f"the analysis of the design failed: {form.status(x)[1].splitlines()[0]}")
+        raise ModelFailed(f"the analysis of the design failed: {why.splitlines()[0]}")
     rows_x, denom, sided = fd_stencil(x, form.lower, form.upper, step)
     rows_x = np.vstack([rows_x, x])  # the point itself last: the other side of a difference whose one side failed
     f, g, h = form.evaluate_batch(rows_x)
-    failed = np.array([not form.status(r)[0] for r in rows_x[:-1]])
-    bad = [form.status(r)[1] for r, no in zip(rows_x, failed) if no]
+    status = [form.status(r) for r in rows_x[:-1]]
+    failed = np.array([not ok for ok, _ in status])
+    bad = [why for ok, why in status if not ok]
     n = form.n
     # physical functions: objective, constraint outputs y (g = sign (y - bound) / scale), consistencies;
     # differences of y itself (g rounds y to eps |bound|: a bound far from y would cost digits)

@@ -36,7 +36,10 @@ def run(args) -> int:
     else:
         if line := cycles_line(config.data):
             print(line)
-        print_table(report)
+        from bev_mdo.config.sections import cycle_names
+
+        print_table(report, epa=any(str(n).startswith("epa_") for n in cycle_names(config.data))
+                    if isinstance(config.data.get("cycle"), dict) else False)
     return 0 if report["ok"] else 1
 
 
@@ -48,18 +51,28 @@ def cycles_line(cfg) -> str:
 
     if not isinstance(cfg.get("cycle"), dict):
         return ""
-    said = []
-    for name in cycle_names(cfg):
+    said, named = [], cycle_names(cfg)
+    own = {cfg["disciplines"][int(k.split("[")[1].split("]")[0])]["name"] for k in named.values() if k != "cycle.name"}
+    for name, key in named.items():  # where the config names it says what it is for
         c = load_cycle(name, cfg.get("cycle_traces"))
-        said.append(f"{c.name} {c.duration_s:.0f} s, {c.distance_m / 1e3:.2f} km, top {c.max_speed_kmh:.1f} km/h")
+        use = f"cycle.name: not the {' or '.join(sorted(own))} discipline's" if own else ""
+        if key != "cycle.name":
+            entry = cfg["disciplines"][int(key.split("[")[1].split("]")[0])]
+            weights = entry["options"].get("cycle_weights") or {}
+            use = (f"{entry['name']}: {weights[name]:g} of the distance" if name in weights else f"{entry['name']}'s")
+        said.append(f"{c.name} {c.duration_s:.0f} s, {c.distance_m / 1e3:.2f} km, top {c.max_speed_kmh:.1f} km/h" + (f" ({use})" if use else ""))
     return f"cycle{'s' if len(said) > 1 else ''}: " + "; ".join(said)
+
+
+BASIS = {"energy_wh_per_km": "from the battery", "energy_wall_wh_per_km": "from the wall",
+         "range_km": "unadjusted"}  # on an EPA cycle also: an EPA label's ~0.7x (docs/validation.md: the range)
 
 
 def _fmt(v) -> str:
     return "-" if v is None else f"{v:.6g}"
 
 
-def print_table(report: dict) -> None:
+def print_table(report: dict, epa: bool = False) -> None:
     """Readable tables of design, outputs and constraints."""
     from rich.console import Console
     from rich.table import Table
@@ -78,7 +91,9 @@ def print_table(report: dict) -> None:
     obj = report["objective"]["name"]
     role = "objective (max)" if report["objective"].get("maximize") else "objective (min)"
     for k, v in report["outputs"].items():
-        t.add_row(k, _fmt(v), unit_of(k, units), role if k == obj else "output")
+        what = role if k == obj else "output"
+        basis = BASIS.get(k, "") + (": an EPA label's ~0.7x" if epa and k == "range_km" else "")
+        t.add_row(k, _fmt(v), unit_of(k, units), f"{what}, {basis}" if basis else what)
     console.print(t)
     c = Table(title="constraints", show_header=True)
     for col in ("constraint", "value", "lower", "upper", "margin", "unit", "ok"):

@@ -41,6 +41,35 @@ def add_ros_arguments(parser, config: bool = True) -> None:
     g.add_argument("--discovery-server", default=None, metavar="IP:PORT", help="with --discovery server")
 
 
+def join_domain(args, where: str | None = "record") -> None:
+    """Domain and discovery of a recording or a replay: the flags, over the --config file's ros: section (record's),
+    else a valid ROS_DOMAIN_ID of the environment (localhost by default: never off-host unasked). A bad value is
+    said after the file's name, or ``where`` (None: as it is)."""
+    import os
+    from pathlib import Path
+
+    from bev_mdo.api.transport import ros_section
+    from bev_mdo.ros.client import apply_ros_environment
+
+    ros, env = {}, os.environ.get("ROS_DOMAIN_ID", "")
+    if getattr(args, "config", None):
+        from bev_mdo.yamlload import load_yaml
+
+        try:
+            raw = load_yaml(Path(args.config).read_text(encoding="utf-8"))
+        except Exception as exc:  # yaml.YAMLError and friends: one line naming the file
+            raise ValueError(f"{args.config}: not valid YAML: {str(exc).splitlines()[0]}") from None
+        ros = (raw.get("ros") or {}) if isinstance(raw, dict) else {}
+    if "domain_id" not in ros and env.isdigit():
+        ros = {"domain_id": int(env), **ros}
+    try:
+        apply_ros_environment(ros_section({"ros": ros}, args))
+    except ValueError as exc:
+        if not (getattr(args, "config", None) or where):
+            raise
+        raise ValueError(f"{getattr(args, 'config', None) or where}: {exc}") from None
+
+
 def add_transport_arguments(parser, attach: bool = True, record: str | None = "") -> None:
     """The transport flags of every command that evaluates designs (optimize, resume, evaluate, sweep,
     compare, sensitivity, check-totals, pareto), with the discovery flags; their meaning and their one
@@ -141,6 +170,8 @@ def parse_assignments(items: str | list[str], flag: str = "--set") -> dict[str, 
                 raise InputError(f"{flag} {name.strip()}: given twice ({out[name.strip()]:g} and {value.strip()})")
             if value.strip()[:1] in ("[", "("):  # gear_ratio=[9.04,4.7]
                 raise one_number(name.strip(), item[item.index(part) + len(name) + 1:].strip())  # the rest of it
+            if "=" in value:  # motor_kw=80;gear_ratio=8 was "an underscore in a number is taken for a typo"
+                raise InputError(f"{flag} {part!r}: two NAME=VALUE in one item; separate them by commas")
             no_underscore(value, f"{flag} {name.strip()}={value.strip()}")
             try:
                 out[name.strip()] = number = float(value)

@@ -57,6 +57,15 @@ def add_verify_arguments(parser) -> None:
                              "(the output says that verification is off)")
 
 
+def no_iterations(args, bag, checks: dict) -> str:
+    """The line of a bag (or its run ``args.run_id``) without iteration records: what it holds instead."""
+    from bev_mdo.bag.history import runs_held
+
+    what = f" of run {args.run_id}" if args.run_id else ""
+    held = runs_held(checks["other_run_ids"]) if checks.get("other_run_ids") else describe_other_content(bag)
+    return f"{args.bag}: no iteration records{what}; {held}"
+
+
 def describe_other_content(bag) -> str:
     """What a bag without iteration records holds, in one sentence."""
     from bev_mdo.bag.history import ITERATION_TYPE
@@ -108,9 +117,7 @@ def run(args) -> int:
         if ending:  # (None: a sweep's)
             print(f"{args.bag}: {ending[1].replace('**', '')}", file=sys.stderr)
     if not rows:
-        what = f" of run {args.run_id}" if args.run_id else ""
-        held = runs_held(checks["other_run_ids"]) if checks.get("other_run_ids") else describe_other_content(bag)
-        print(f"bev-mdo history: {args.bag}: no iteration records{what}; {held}", file=sys.stderr)
+        print(f"bev-mdo history: {no_iterations(args, bag, checks)}", file=sys.stderr)
         return EXIT_NO_ITERATIONS
     if args.csv:
         target = Path(args.csv).resolve()

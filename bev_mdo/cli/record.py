@@ -1,7 +1,6 @@
 """``bev-mdo record [--topics ...] [--output BAG] [--config CONFIG]``: run the recorder node."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 
@@ -18,6 +17,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    from bev_mdo.cli.flags import join_domain
     from bev_mdo.ros.recorder_node import main
 
     argv = []
@@ -35,35 +35,10 @@ def run(args) -> int:
         argv += ["--config", args.config]
     if args.run_id:
         argv += ["--run-id", args.run_id]
-    _join_domain(args)
+    join_domain(args)
     status = main(argv)
     from bev_mdo import interrupts
 
     interrupts.clear()  # Ctrl-C or SIGTERM is how a recording ends (exit 0, as for `ros2 bag record`)
     return status
 
-
-def _join_domain(args, where: str | None = "record") -> None:
-    """Domain and discovery of a recording or a replay: the flags, over the --config file's ros: section (record's),
-    else a valid ROS_DOMAIN_ID of the environment (localhost by default: never off-host unasked). A bad value is
-    said after the file's name, or ``where`` (None: as it is)."""
-    from bev_mdo.api.transport import ros_section
-    from bev_mdo.ros.client import apply_ros_environment
-
-    ros, env = {}, os.environ.get("ROS_DOMAIN_ID", "")
-    if getattr(args, "config", None):
-        from bev_mdo.yamlload import load_yaml
-
-        try:
-            raw = load_yaml(Path(args.config).read_text(encoding="utf-8"))
-        except Exception as exc:  # yaml.YAMLError and friends: one line naming the file
-            raise ValueError(f"{args.config}: not valid YAML: {str(exc).splitlines()[0]}") from None
-        ros = (raw.get("ros") or {}) if isinstance(raw, dict) else {}
-    if "domain_id" not in ros and env.isdigit():
-        ros = {"domain_id": int(env), **ros}
-    try:
-        apply_ros_environment(ros_section({"ros": ros}, args))
-    except ValueError as exc:
-        if not (getattr(args, "config", None) or where):
-            raise
-        raise ValueError(f"{getattr(args, 'config', None) or where}: {exc}") from None

@@ -30,10 +30,10 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from bev_mdo.cli.record import _join_domain
+    from bev_mdo.cli.flags import join_domain
     from bev_mdo.ros.replay import replay
 
-    _join_domain(args, where=None)  # the flags, else the environment's ROS_DOMAIN_ID; localhost by default
+    join_domain(args, where=None)  # the flags, else the environment's ROS_DOMAIN_ID; localhost by default
     rate = None if args.as_fast_as_possible else args.rate
     verify(args)  # a path that is not a bag, or a bag that does not verify, is one error line before anything else
     if args.wait_subscribers:
@@ -44,6 +44,10 @@ def run(args) -> int:
                    log=lambda line: print(line, file=sys.stderr))
     print(f"replayed {stats.messages} messages in {stats.seconds:.3f} s "
           f"({stats.messages_per_s:.0f} msg/s)")
+    if not stats.messages:  # a bag cut before its first chunk (or topics that hold none): as history, exit 1
+        print(f"bev-mdo replay: {args.bag}: nothing to replay" + (f" on {', '.join(args.topics)}" if args.topics else ""),
+              file=sys.stderr)
+        return 1
     return 0
 
 

@@ -1,4 +1,7 @@
-"""``bev-mdo report BAG``: PNG plots and report.md written into the bag directory."""
+"""``bev-mdo report BAG``: PNG plots and report.md written into the bag directory.
+
+A bag (or --run-id) without iteration records: stderr says what it holds; exit 1 if no plot could be made of it.
+"""
 from __future__ import annotations
 
 import sys
@@ -34,4 +37,10 @@ def run(args) -> int:
         print(path)
     if check_note(checks):
         print(f"{args.bag}: {check_note(checks)}", file=sys.stderr)
+    if not checks["iterations"]:  # what it could write is written (a pool's work, say)
+        from bev_mdo.cli.history import EXIT_NO_ITERATIONS, no_iterations
+
+        print(f"bev-mdo report: {no_iterations(args, bag, checks)}", file=sys.stderr)
+        if len(paths) == 1:  # report.md alone, with nothing of a run in it: as history, exit 1
+            return EXIT_NO_ITERATIONS
     return 0

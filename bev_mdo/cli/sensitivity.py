@@ -125,7 +125,8 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
               "parameter's model limit), so that every step stays inside it", file=out)
     print("\nFirst-order normalised sensitivity S_i = (x_i/f) df/dx_i  (eq 5-4)", file=out)
     print("output".ljust(ow) + "".join(n.rjust(w) for n in s.names), file=out)
-    zero = [k for k in outputs if s.values[k] == 0]  # S undefined: the plain derivatives are shown
+    zero = s.undefined  # f = 0, or 0 but for rounding: S undefined, the plain derivatives are shown
+    why = {k: "f = 0" if s.values[k] == 0 else f"f = {s.values[k]:.3g}, 0 but for rounding" for k in zero}
     rough = False
     for k in outputs:
         # a leading space keeps a cell wider than the column (|S| >= 1e8 near a zero of f) apart from the last
@@ -134,9 +135,9 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
         err = np.zeros(len(cells)) if k in zero else np.nan_to_num(np.asarray(s.first_error[k], float))
         marks = ["~" if e > ROUGH * abs(v) and e > 1e-12 else "" for v, e in zip(cells, err)]
         rough = rough or any(marks)
-        print(k.ljust(ow) + "".join(((f" {v:.4g}" if k in zero else f" {v:.4f}") + m).rjust(w)
+        print(k.ljust(ow) + "".join(((f" {v:.4g}" if k in zero else f" {_fixed(v)}") + m).rjust(w)
                                     for v, m in zip(cells, marks))
-              + ("   df/dx_i (f = 0: S undefined)" if k in zero else ""), file=out)
+              + (f"   df/dx_i ({why[k]}: S undefined)" if k in zero else ""), file=out)
     print("step".ljust(ow) + "".join(f" {v:.3g} {unit_of(n, units or {}, inline=True)}".rstrip().rjust(w)
                                      for n, v in zip(s.names, s.step)), file=out)
     if rough and s.second is None:
@@ -150,7 +151,7 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
         m, lab, err = s.second[k], s.labels(k), s.second_error[k]
         if k in zero:
             m = s.hessian[k]
-        print(f"\n{k}  " + ("(f = 0: S' undefined; d2f/dx_i dx_j shown)" if k in zero
+        print(f"\n{k}  " + (f"({why[k]}: S' undefined; d2f/dx_i dx_j shown)" if k in zero
                              else f"(max error estimate {np.nanmax(err):.1e})"), file=out)
         print("".ljust(w) + "".join(n.rjust(w) for n in s.names), file=out)
         # "~" as in the first-order table: an entry of -0.0002 whose error was 1.6e-3 had the wrong sign, unmarked;
@@ -159,12 +160,18 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
         rough = rough or bool(np.triu(rough_2).any())
         for i, n in enumerate(s.names):
             # a label is a coupling's (two variables, Fig 5-3); a diagonal entry is one variable's own curvature
-            cells = [((f" {m[i, j]:.4g}" if k in zero else f" {m[i, j]:.4f}" + (f" {lab[i, j]}" if i != j else ""))
+            cells = [((f" {m[i, j]:.4g}" if k in zero else f" {_fixed(m[i, j])}" + (f" {lab[i, j]}" if i != j else ""))
                       + ("~" if rough_2[i, j] else "")).rjust(w)
                      if j >= i else "".rjust(w) for j in range(len(s.names))]
             print(n.ljust(w) + "".join(cells), file=out)
     if rough:
         print("\n" + _ROUGH_LINE.format("); an S' entry whose error exceeds it has no sure sign ("), file=out)
+
+
+def _fixed(v: float) -> str:
+    """v to 4 decimals, with no sign on a value that rounds to 0 (-0.0000 read as a sign)."""
+    text = f"{v:.4f}"
+    return text[1:] if text == "-0.0000" else text
 
 
 def _context_title(s, cfg, design=None) -> str:
@@ -204,7 +211,7 @@ def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
     for k, out in enumerate(outputs):
         vals, err = np.asarray(s.first[out], float), np.asarray(s.first_error[out], float)
         ax.bar(xs + (k - (n - 1) / 2) * width, vals, width, yerr=np.where(np.isfinite(err), err, 0),
-               label=label(out) + (" (0 at the point: S undefined)" if s.values[out] == 0 else ""), capsize=2)
+               label=label(out) + (" (0 at the point: S undefined)" if out in s.undefined else ""), capsize=2)
     ax.axhline(0, color="k", lw=0.8)
     ax.set_xticks(xs, [label(v) for v in s.names], fontsize=8)
     ax.set_ylabel("S = (x/f) df/dx (–)")

@@ -75,7 +75,9 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
         try:
             if ":" in spec:
                 lo, hi, n = spec.split(":")  # a ValueError unless it has three parts
-                lo, hi, n = float(lo), float(hi), int(n)
+                if (bad := next((t for t in (lo, hi) if not math.isfinite(float(t))), None)) is not None:
+                    raise InputError(f"{name}={bad.strip()}: a design value must be a finite number")  # (linspace:
+                lo, hi, n = float(lo), float(hi), int(n)  # a RuntimeWarning, and 1e400 said as nan)
                 if n < 1:
                     raise ValueError
                 if n == 1 and lo != hi:  # linspace gives LO alone: HI was dropped without a word
@@ -85,6 +87,9 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
                 vals = np.linspace(lo, hi, n)
             else:
                 vals = np.array([float(v) for v in spec.split(",") if v.strip()])
+            if not np.isfinite(vals).all():  # named as typed: 1e400 was said as inf
+                bad = next(t for t in spec.split(",") if t.strip() and not math.isfinite(float(t)))
+                raise InputError(f"{name}={bad.strip()}: a design value must be a finite number")
         except InputError:
             raise
         except ValueError:
@@ -290,7 +295,12 @@ def run(args) -> int:
         print(f"note: {note}")
     for p in written:
         print(p)
-    return 0
+    ok = np.asarray(result["ok"], dtype=bool)
+    if not ok.all():  # the reason was in sweep.csv alone; a batch with no value at all exits 1, as evaluate's failure
+        first = str(next(e for e, good in zip(result["errors"], ok) if not good)).splitlines()[0]
+        print(f"bev-mdo sweep: {'every design' if not ok.any() else f'{int((~ok).sum())} of {n} designs'} failed; the "
+              f"first: {first} (sweep.csv: error)", file=sys.stderr)
+    return 0 if ok.any() else 1
 
 
 def run_compare(args) -> int:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import copy
 import math
+import warnings
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -20,6 +21,8 @@ from bev_mdo.mdo.problem import Problem
 from bev_mdo.mdo.settings import MDASettings, OptimizerSettings, RunSettings
 from bev_mdo.mdo.vectors import has_partials
 from bev_mdo.models.common import check_keys, is_number, text_hint
+from bev_mdo.models.cycles import CycleNote
+from bev_mdo.models.road_load import implausible_note
 from bev_mdo.ros_settings import validate_ros
 
 TOP_KEYS = ("name", "description", "vehicle", "cycle", "energy_model", "disciplines", "problem",
@@ -248,6 +251,8 @@ def _resolve(raw: Any) -> RunConfig:
     cfg["energy_model"] = cfg.get("energy_model", "flat")
     if cfg["energy_model"] not in ENERGY_MODELS:
         raise ValueError(f"energy_model {cfg['energy_model']!r} is unknown; allowed: {', '.join(ENERGY_MODELS)}")
+    if not (isinstance(cfg.get("cycle"), Mapping) and "name" in cfg["cycle"]) and _reads_cycle(cfg):
+        warnings.warn("cycle.name: not in the config: the NEDC, the thesis' cycle", CycleNote, stacklevel=2)
     vehicle = validate_models(cfg)
     vehicle_topology_into_options(cfg)
     cfg["formulation"] = str(cfg.get("formulation", "mdf")).lower()
@@ -290,6 +295,8 @@ def _resolve(raw: Any) -> RunConfig:
     note_missing_folders(cfg.get("search_path"))
     params = check_against_disciplines(cfg, problem, discs)
     leaf_defaults_note(cfg, problem, params)
+    if (note := implausible_note(vehicle)):
+        warnings.warn(f"vehicle.road_load: {note}", CycleNote, stacklevel=2)
     if cfg["problem"].get("baseline") is not None:
         problem.check_design(cfg["problem"]["baseline"]["design"], params, "problem.baseline.design")
         check_gear_order_per_design(vehicle, problem, cfg["problem"]["baseline"]["design"], "problem.baseline.design: ")
@@ -298,6 +305,16 @@ def _resolve(raw: Any) -> RunConfig:
     if read:  # the whole config, defaults filled, as a bag and a node's file hold it
         check_traces_fit(plain({k: v for k, v in cfg.items() if k != "cycle_traces"}), cfg["cycle_traces"], read)
     return RunConfig(cfg, problem, discs, ros, _settings(cfg, problem, discs), vehicle)
+
+
+def _reads_cycle(cfg: Mapping) -> bool:
+    """Whether a built-in discipline of ``cfg`` reads ``cycle.name`` (energy or cycle_range without a cycle option of
+    its own, motor_speed; no disciplines: the default set): `cycle:` left empty ran the NEDC with no word."""
+    entries = cfg.get("disciplines") if isinstance(cfg.get("disciplines"), list) else ["motor_speed"]
+    named = [(e, {}) if isinstance(e, str) else (e.get("name"), e.get("options") or {}) for e in entries
+             if isinstance(e, str) or isinstance(e, Mapping) and not e.get("class")]
+    return any(n == "motor_speed" or n in ("energy", "cycle_range") and isinstance(o, Mapping)
+               and not ({"cycle", "cycle_weights"} & set(o)) for n, o in named)
 
 
 def leaf_defaults_note(cfg: Mapping[str, Any], problem, read: set[str]) -> None:

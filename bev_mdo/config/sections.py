@@ -128,8 +128,8 @@ def anchor_paths(raw: Mapping[str, Any], base: Path) -> dict:
     def cycle(name: Any) -> Any:  # a built-in cycle's name, or a word that is no file there, stays
         return at(name, lambda p: is_csv_cycle(str(p)) and (p.suffix.lower() == ".csv" or (base / p).exists()))
 
-    if isinstance(cfg.get("cycle"), Mapping):
-        cfg["cycle"] = {**cfg["cycle"], "name": cycle(cfg["cycle"].get("name"))}
+    if isinstance(cfg.get("cycle"), Mapping) and "name" in cfg["cycle"]:  # (none: the default's, NEDC)
+        cfg["cycle"] = {**cfg["cycle"], "name": cycle(cfg["cycle"]["name"])}
     entries = cfg.get("disciplines")
     for i, e in enumerate(entries if isinstance(entries, list) else []):
         if not (isinstance(e, Mapping) and e.get("name") in ("energy", "cycle_range") and not e.get("class")

@@ -48,7 +48,7 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
     for name, kind, limit, scale in _limits(problem):
         y = float(values.get(name, np.nan))
         v = limit - y if kind == "lower" else y - limit  # in the constraint's unit: > 0 violated
-        entry = {"name": name, "kind": kind, "limit": limit, "value": y, "margin": -v, "unit": unit(name),
+        entry = {"name": name, "kind": kind, "limit": limit, "value": y, "margin": -v + 0.0, "unit": unit(name),  # no -0
                  "scale": scale,
                  "monitor": any(c.monitor for c in problem.constraints if c.name == name)}
         if not np.isfinite(v):
@@ -65,7 +65,7 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
     active = [e for e in active if e["name"] not in off and not (e["name"] in equal and e["kind"] == "upper")]
     for e in active + violated:
         if e["name"] in equal:
-            e["kind"], e["margin"] = "equal", -abs(e["margin"])
+            e["kind"], e["margin"] = "equal", -abs(e["margin"]) + 0.0
     bounds, outside = [], []
     for d in problem.design_variables:
         x = float(design[d.name])

@@ -257,15 +257,15 @@ def limit_rates(fo: dict, problem, var_names: Sequence[str], var_scale: Sequence
     sense = (-1.0 if problem.maximize else 1.0) * problem.objective_scale
     for c in fo["active_constraints"]:
         if (i := row.get(c["name"])) is not None:
-            c["d_objective_d_limit"] = -sense * c["multiplier"] * sign[i] / scale[i] + 0.0  # + 0.0: no -0
+            c["d_objective_d_limit"] = float(-sense * c["multiplier"] * sign[i] / scale[i]) + 0.0  # + 0.0: no -0
     where = dict(zip(var_names, np.asarray(var_scale, dtype=float)))
     limits = {k: dict(zip(var_names, map(float, v))) for k, v in zip(("lower", "upper"), bounds or ((), ()))}
     for b in fo["active_bounds"]:
         if b["name"] in limits.get(b["kind"], {}):
             b["bound"] = limits[b["kind"]][b["name"]]
         if b["name"] in where:
-            b["d_objective_d_limit"] = sense * b["multiplier"] * (1.0 if b["kind"] == "lower" else -1.0) / where[
-                b["name"]] + 0.0
+            b["d_objective_d_limit"] = float(sense * b["multiplier"] * (1.0 if b["kind"] == "lower" else -1.0)
+                                             / where[b["name"]]) + 0.0
 
 
 def exit_status(doc: dict, fixed_budget: bool = False) -> int:

@@ -125,6 +125,20 @@ def _derivative_free(method: str):
 FINITE_BOUNDS = frozenset({"differential_evolution", "chebyshev-pairwise"})
 
 
+def check_fit(name: str, form) -> None:
+    """What optimiser ``name`` needs of ``form``: finite bounds (``check_finite_bounds``); and a note (CycleNote)
+    where IDF's consistency equalities meet an optimiser of SEARCH_ON_VALUES."""
+    check_finite_bounds(name, form)
+    if form.eq_labels and name in SEARCH_ON_VALUES:
+        import warnings
+
+        from bev_mdo.models.cycles import CycleNote
+
+        warnings.warn(f"{name} under IDF: its {len(form.eq_labels)} consistency equalities hold only where a point it "
+                      "tries happens to meet them, so it may end where it started (--formulation mdf meets them by the "
+                      "MDA)", CycleNote, stacklevel=3)
+
+
 def check_finite_bounds(name: str, form) -> None:
     """ValueError, before anything is evaluated, when optimiser ``name`` samples the box and a variable of
     ``form`` has no finite bound (IDF's coupling variables without ``problem.coupling_bounds``)."""
@@ -194,6 +208,9 @@ COUNT_OPTIONS = frozenset({"maxiter", "maxfev", "popsize", "cheb_n_max"})
 # options give no seed (or rng) of their own; 0, the run's default, is their default rng here too.
 SEEDED = frozenset({"differential_evolution"})
 
+# Optimisers with no model of the constraints (a population, a proxy of the objective): IDF's consistency equalities
+# hold only where a point happens to meet them (chebyshev-pairwise ran 200 iterations, 206 s, and did not move)
+SEARCH_ON_VALUES = frozenset({"differential_evolution", "chebyshev-pairwise"})
 # Optimisers whose first step needs the gradient at x0 (the driver evaluates x0 with its FD stencil).
 GRADIENT_BASED = frozenset({"SLSQP", "trust-constr"})
 # Optimisers of which one process runs one at a time: scipy holds a module lock (COBYQA_LOCK) through each

@@ -143,10 +143,14 @@ class Problem:
             raise ValueError(f"{where} misses design variables {missing}; give every one of {self.names}")
         unknown = [k for k in design if k not in self.names and k not in params]
         if unknown:
-            raise ValueError(f"{where}.{unknown[0]}: neither a design variable nor a discipline parameter; "
-                             f"{did_you_mean(unknown[0], [*self.names, *params])}"
-                             f"(unknown design names {unknown}; design variables: {self.names}, "
-                             f"parameters: {sorted(params)})")
+            if (size := sum(n.startswith(f"{unknown[0]}[") for n in self.names)):  # t for the vector t[0] .. t[2]
+                raise ValueError(f"{where}.{unknown[0]}: a vector of {size} elements: give each, {unknown[0]}[0] .. "
+                                 f"{unknown[0]}[{size - 1}]")
+            # a design variable first, nearer than the rest need be (gear for gear_ratio)
+            hint = did_you_mean(unknown[0], self.names, 0.5) or did_you_mean(unknown[0], params)
+            raise ValueError(f"{where}.{unknown[0]}: neither a design variable nor a discipline parameter; {hint}"
+                             f"unknown design names {unknown}; design variables: {self.names}, "
+                             f"parameters: {sorted(params)}")
 
     @classmethod
     def from_config(cls, section: Mapping[str, Any]) -> "Problem":

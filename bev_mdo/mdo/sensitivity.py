@@ -60,6 +60,11 @@ class Sensitivities:
     n_batches: int = 0
     one_sided: tuple[str, ...] = field(default_factory=tuple)  # variables on a bound
 
+    @property
+    def undefined(self) -> list[str]:
+        """The outputs whose S is undefined (f = 0 at the point, or 0 but for rounding): NaN in ``first``."""
+        return [k for k, v in self.first.items() if np.isnan(v).all() and np.isfinite(self.gradient[k]).all()]
+
     def labels(self, output: str) -> np.ndarray:
         """Coupling labels (object array (n, n)) of the second-order matrix of ``output``."""
         if self.second is None:
@@ -134,10 +139,15 @@ def _prepare(point, wrt, bounds, rel_step):
     return all_names, x0, wrt, idx, h, direction
 
 
-def _normalise(f0: float) -> float:
-    """f0, or NaN where the normalised sensitivity (x/f) df/dx is undefined (f = 0; the
-    derivatives stay in ``gradient`` and ``hessian``)."""
-    return f0 if f0 != 0 and np.isfinite(f0) else np.nan
+# |f| below this of max_i |x_i df/dx_i| (terms of that size cancel to it): f is 0 but for rounding, |S| above 4.5e13
+ZERO_TO_ROUNDING = 100.0 * float(np.finfo(float).eps)
+
+
+def _normalise(f0: float, change: float) -> float:
+    """f0, or NaN where the normalised sensitivity (x/f) df/dx is undefined: f = 0, or 0 but for rounding against
+    ``change`` (max_i |x_i df/dx_i|: 1.15e-14 left of a cancellation printed S = -4.5e14, unmarked). The
+    derivatives stay in ``gradient`` and ``hessian``."""
+    return f0 if f0 != 0 and np.isfinite(f0) and not abs(f0) < ZERO_TO_ROUNDING * change else np.nan
 
 
 def sensitivities(fun: BatchFun, point: Mapping[str, float], wrt: Sequence[str] | None = None,
@@ -147,7 +157,7 @@ def sensitivities(fun: BatchFun, point: Mapping[str, float], wrt: Sequence[str] 
 
     ``method``: "central" (real FD), "complex" (complex step, first order; ``fun``
     must accept complex X) or "auto" (complex if ``fun`` supports it, else central).
-    An output that is 0 at the point has NaN normalised values and its plain derivatives.
+    An output that is 0 at the point (or but for rounding) has NaN normalised values and its plain derivatives.
     Order 2 evaluates the whole stencil (h and 2h) in one batch.
     """
     if order not in (1, 2):
@@ -176,7 +186,7 @@ def sensitivities(fun: BatchFun, point: Mapping[str, float], wrt: Sequence[str] 
     xw = x0[idx]
     first, first_err, second, second_err = {}, {}, {}, {}
     for k in f0:
-        fn = _normalise(f0[k])
+        fn = _normalise(f0[k], float(np.nanmax(np.abs(g[k] * xw), initial=0.0)))
         first[k] = g[k] * xw / fn
         first_err[k] = np.abs(g_err[k] * xw / fn)
         if H is not None:

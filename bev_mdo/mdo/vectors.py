@@ -185,7 +185,8 @@ def check_outputs(disc_name: str, raw: Any, outputs: Sequence[str], sizes: Mappi
             raise ShapeError(f"discipline {disc_name!r}: compute() did not return output {k!r}")
         if np.iscomplexobj(raw[k]):  # float() would drop the imaginary part, with only a ComplexWarning
             raise ValueError(f"output {k!r} is complex, e.g. {np.ravel(raw[k])[0]}: return real numbers")
-        v = np.asarray(raw[k])
+        # a masked value has no value: NaN, the point fails (np.asarray took the data under the mask as a value)
+        v = np.ma.filled(np.ma.asarray(raw[k], dtype=float), np.nan) if np.ma.isMaskedArray(raw[k]) else np.asarray(raw[k])
         if v.dtype.kind in "USO":  # float() reads '3.5' as 3.5: text is a discipline's bug, never a value
             text = next((x for x in v.flat if isinstance(x, (str, bytes, np.str_, np.bytes_))), None)
             if text is not None:

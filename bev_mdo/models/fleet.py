@@ -25,6 +25,7 @@ import numpy as np
 
 from .cycles import csv_number, read_csv_rows
 from .params import ROAD_LOAD_CHECK_SPEED_M_S, road_load_minimum
+from .road_load import G_M_S2, TYPICAL_A_OVER_MG, TYPICAL_C_N_PER_M2_S2
 
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "epa_2022_bev"
 DEFAULT_FLEET = DATA_DIR / "train.csv"
@@ -298,17 +299,16 @@ def _note_missing_technology(path, missing: list[str]) -> None:
 # Fleet-wide medians of measured BEVs: (the shipped training fleet's median, bev_mdo/data/epa_2022_bev/train.csv,
 # 62 vehicles; factor). A fleet whose median lies beyond median x/÷ factor is not of such cars as the column's unit
 # says: most likely a unit mix-up (a fit on it runs, and writes constants that mean nothing). The factors are
-# generous (the shipped vehicles' own values span 106-254 Wh/km on UDDS, 1588-3175 kg, A/(m g) 0.0050-0.0115 (in
-# its 1.6; compact cars in lb, 3,900 "kg", are not), C 0.22-0.52) yet below the mix-ups' ratios: Wh/mi is 1.61 x
-# Wh/km, lb 2.2 x kg, lbf 1/4.45 x N, lbf/mph^2 1/22.3 x N/(m/s)^2. Rated power (kW or hp: 1.34 x) and B are not.
-G_M_S2 = 9.81
+# generous (the shipped vehicles span 106-254 Wh/km on UDDS, 1588-3175 kg; road load: models.road_load) yet below
+# the mix-ups' ratios: Wh/mi is 1.61 x Wh/km, lb 2.2 x kg. Rated power (kW or hp: 1.34 x) and B are not checked.
 PLAUSIBLE_MEDIANS = {
     "udds_wh_per_km_ac": (160.5, 1.5, "Wh per mile (1.61 x Wh/km)?", "kWh/100 km (Wh/km / 10)?"),
     "hwfet_wh_per_km_ac": (169.3, 1.5, "Wh per mile (1.61 x Wh/km)?", "kWh/100 km (Wh/km / 10)?"),
     "test_mass_kg": (2381.0, 1.8, "pounds (2.2 x kg)?", "tonnes?"),
-    "road_load_a_n / (test_mass_kg x g)": (0.00725, 1.6, "road_load_a_n in another unit, or test_mass_kg in tonnes?",
+    "road_load_a_n / (test_mass_kg x g)": (*TYPICAL_A_OVER_MG,
+                                           "road_load_a_n in another unit, or test_mass_kg in tonnes?",
                                            "road_load_a_n in lbf (N / 4.45), or test_mass_kg in pounds?"),
-    "road_load_c_n_per_m2_s2": (0.374, 3.0, "another unit?",
+    "road_load_c_n_per_m2_s2": (*TYPICAL_C_N_PER_M2_S2, "another unit?",
                                 "lbf/mph^2 (N/(m/s)^2 / 22.3) or N/(km/h)^2 (N/(m/s)^2 / 13)?"),
 }
 

@@ -16,7 +16,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from . import battery as bt
-from .common import allowed, check_array, check_keys, check_value
+from .common import allowed, check_array, check_keys, check_value, is_number
 from .cycles import DEFAULT_METHOD, KMH, METHODS
 
 
@@ -231,8 +231,7 @@ def all_specs() -> dict[str, ParamSpec]:
     """VEHICLE_SPECS plus the constants of the breakdown, quasi-static and chain models."""
     merged = dict(VEHICLE_SPECS)
     for specs in (BREAKDOWN_SPECS, QUASI_STATIC_SPECS, CHAIN_SPECS):
-        for k, s in specs.items():
-            merged.setdefault(k, s)
+        merged.update({k: s for k, s in specs.items() if k not in merged})
     return merged
 
 
@@ -241,8 +240,7 @@ def validate_road_load(section: Any) -> dict[str, float]:
     if not isinstance(section, Mapping):
         raise ValueError("road_load must be a mapping {a_n, b_n_per_m_s, c_n_per_m2_s2[, mass_kg]}")
     check_keys("vehicle.road_load", section, ROAD_LOAD_SPECS)
-    missing = [k for k in ("a_n", "b_n_per_m_s", "c_n_per_m2_s2") if k not in section]
-    if missing:
+    if missing := [k for k in ("a_n", "b_n_per_m_s", "c_n_per_m2_s2") if k not in section]:
         raise ValueError(f"road_load: missing {missing} (all of a_n, b_n_per_m_s, c_n_per_m2_s2 are needed)")
     out = {"road_load_mass_kg": 0.0}
     for k, (flat_name, s) in ROAD_LOAD_SPECS.items():
@@ -270,9 +268,8 @@ def is_parameter_set_file(name: Any) -> bool:
 
 
 def load_parameter_set(name: str) -> dict[str, float]:
-    """The ``parameters`` of a parameter set: a shipped one by name (bev_mdo/data/parameter_sets/<name>.yaml),
-    or a file of your own by its path ending in .yaml/.yml (a config file's relative one counts from its
-    folder, as a drive-cycle CSV: config.sections.anchor_paths), e.g. what ``python -m bev_mdo.models.calibrate --data FLEET --write FILE`` wrote."""
+    """The ``parameters`` of a parameter set: a shipped one by name (bev_mdo/data/parameter_sets/<name>.yaml), or a
+    file of yours by its .yaml/.yml path (relative: to the config's folder, config.sections.anchor_paths)."""
     return _read_parameter_set(name)[0]
 
 
@@ -316,14 +313,23 @@ PARAMETER_SET_KEYS = ("name", "energy_model", "description", "fitted_on", "fit",
                       "parameters")
 
 
-def _check_fit(fit: Any) -> None:
-    """A fitted value whose standard error is not a number was not determined by the data (calibrate then
-    kept its start value; it now writes the model's default with ``not_determined``): refused, not applied."""
-    for k, entry in (fit or {}).items() if isinstance(fit, dict) else ():
-        se = entry.get("std_error") if isinstance(entry, dict) else None
+def _check_fit(doc: dict) -> None:
+    """Refused, not applied: a fitted value whose standard error is not a number (the data did not determine it), and
+    ``parameters`` that lack or differ from what the set's ``fit`` and ``fixed_not_fitted`` say (a set cut short or
+    edited ran 17 % off the fleet, still called the fit's: its quality figures are not its own)."""
+    fit, values = doc.get("fit") if isinstance(doc.get("fit"), dict) else {}, doc["parameters"]
+    for k, entry in fit.items():
+        se, value = (entry.get("std_error"), entry.get("value")) if isinstance(entry, dict) else (None, None)
         if se is not None and not (isinstance(se, (int, float)) and math.isfinite(se)):
             raise ValueError(f"fit.{k}: std_error {se!r}: the data did not determine this value; refit with "
                              "bev-mdo calibrate (it writes the model's default there) or set it yourself")
+        if k not in values or is_number(value) and is_number(values[k]) and not math.isclose(  # (6 decimals written)
+                values[k], value, rel_tol=1e-5, abs_tol=1e-6):
+            raise ValueError(f"parameters.{k}: {values.get(k, 'missing')}, but fit.{k} is {value}: a set edited or cut "
+                             "after its fit; refit, or drop fit, fixed_not_fitted and quality to make it your own")
+    if (missing := [str(k) for k in doc.get("fixed_not_fitted") or () if k not in values]):
+        raise ValueError(f"parameters: {', '.join(missing)} missing, which fixed_not_fitted lists: a set cut after its "
+                         "fit; refit, or drop fit, fixed_not_fitted and quality to make it your own")
 
 
 # what a run records of a set given as a file (vehicle.parameter_set_source): its values are in the config
@@ -353,30 +359,23 @@ def _set_document(name: str) -> tuple[Path, dict]:
     """The file of set ``name`` and its YAML mapping, read and checked as :func:`_read_parameter_set` says."""
     from bev_mdo.yamlload import read_yaml_file
 
-    if not isinstance(name, str) or not name:
+    if not isinstance(name, str) or not name or not is_parameter_set_file(name) and ("/" in name or name[0] == "."):
         raise ValueError(f"parameter_set must be one of {parameter_set_names()} or a .yaml path, got {name!r}")
     if is_parameter_set_file(name):
         path = Path(name).expanduser()
         if not path.is_file():
             raise ValueError(f"parameter_set {name!r}: no such file")
-    else:
-        if "/" in name or name.startswith("."):
-            raise ValueError(f"parameter_set must be one of {parameter_set_names()} or a .yaml path, got {name!r}")
-        path = PARAMETER_SET_DIR / f"{name}.yaml"
-        if not path.is_file():
-            raise ValueError(f"parameter_set {name!r} is unknown; shipped: {parameter_set_names()} "
-                             "(or give a .yaml path)")
+    elif not (path := PARAMETER_SET_DIR / f"{name}.yaml").is_file():
+        raise ValueError(f"parameter_set {name!r} is unknown; shipped: {parameter_set_names()} (or give a .yaml path)")
     doc = read_yaml_file(path)  # one-line errors naming the file; a key given twice is refused, not the last kept
     if not isinstance(doc, dict):
         raise ValueError(f"{path}: not a YAML parameter set (a mapping with 'parameters')")
     try:  # a misspelt section or parameter would otherwise do nothing, silently
         check_keys("", doc, PARAMETER_SET_KEYS)
-        values = doc.get("parameters")
-        if not isinstance(values, dict):
+        if not isinstance(values := doc.get("parameters"), dict):
             raise ValueError("no 'parameters' mapping")
-        specs = all_specs()
-        check_keys("parameters", values, specs)
-        _check_fit(doc.get("fit"))
+        check_keys("parameters", values, all_specs())
+        _check_fit(doc)
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
     return path, doc
@@ -436,9 +435,8 @@ def validate_vehicle(section: Mapping[str, Any] | None) -> dict[str, float]:
     check_keys("vehicle", section, [*specs, *VEHICLE_CHOICES, "parameter_set", "parameter_set_source", "road_load"])
     for k in VEHICLE_CHOICES:
         vehicle_choice(section, k)
-    extra: dict[str, float] = {}
-    if chain is not None:  # a shipped calibration: its values are defaults the section may override
-        extra = {k: v for k, v in load_parameter_set(chain).items() if k not in section}
+    # a calibration: its values are defaults the section may override
+    extra = {} if chain is None else {k: v for k, v in load_parameter_set(chain).items() if k not in section}
     out = {k: check_value(k, section.get(k, extra.get(k, s.default)), s.lower, s.upper, s.unit, s.integer)
            for k, s in specs.items()}
     topology = vehicle_choice(section, "topology")
@@ -475,9 +473,8 @@ def validate_cycle(section: Mapping[str, Any] | None) -> dict:
     method = section.get("interpolation", DEFAULT_METHOD)
     if method not in METHODS:
         raise ValueError(f"cycle interpolation must be one of {list(METHODS)}, got {method!r}")
-    smoothing = section.get("smoothing")
-    if smoothing is not None:
-        smoothing = check_value("cycle smoothing", smoothing, 0.0, 1e12)
+    smoothing = None if section.get("smoothing") is None else check_value("cycle smoothing", section["smoothing"],
+                                                                            0.0, 1e12)
     return {"name": name, "dt_s": dt, "interpolation": method, "smoothing": smoothing}
 
 

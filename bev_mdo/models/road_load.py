@@ -34,6 +34,35 @@ from .params import ROAD_LOAD_SPECS
 FLAT_KEYS = tuple(k for k, _ in ROAD_LOAD_SPECS.values())
 
 
+# Where measured BEVs lie (the shipped training fleet, bev_mdo/data/epa_2022_bev/train.csv: median, factor): generous
+# (its 62 cars span A/(m g) 0.0050-0.0115 and C 0.22-0.52) yet inside the unit mix-ups' ratios: EPA's own lbf is
+# 1/4.45 x N, lbf/mph^2 1/22.3 x N/(m/s)^2, N/(km/h)^2 1/13 x, lb 2.2 x kg. models.fleet checks a fleet's medians by them.
+TYPICAL_A_OVER_MG = (0.00725, 1.6)
+TYPICAL_C_N_PER_M2_S2 = (0.374, 3.0)
+G_M_S2 = 9.81
+
+
+def implausible_note(params: Mapping[str, Any]) -> str | None:
+    """One line where a coast-down's C (or A against its test mass, when given) lies outside where measured cars do:
+    EPA's published coefficients pasted in lbf, lbf/mph and lbf/mph^2 ran as a car using a third of its energy
+    with no word. A note, not a refusal (an unusual vehicle may be meant); None when plausible or no coast-down."""
+    if not uses_road_load(params):
+        return None
+    out = []
+    c, (c_typ, c_fac) = float(params["road_load_c_n_per_m2_s2"]), TYPICAL_C_N_PER_M2_S2
+    if not c_typ / c_fac <= c <= c_typ * c_fac:
+        out.append(f"c_n_per_m2_s2 {c:g} is outside [{c_typ / c_fac:.3g}, {c_typ * c_fac:.3g}] where measured cars lie "
+                   f"(lbf/mph^2 is 1/22.3 of N/(m/s)^2, N/(km/h)^2 1/13)")
+    mass = float(params.get("road_load_mass_kg", 0.0))
+    if mass > 0.0:
+        # one car: 2 x, not the fleet median's 1.6 (EPA's 2022 BEVs span 0.0044 (Ioniq 5) - 0.0115)
+        ratio, (typ, fac) = float(params["road_load_a_n"]) / (mass * G_M_S2), (TYPICAL_A_OVER_MG[0], 2.0)
+        if not typ / fac <= ratio <= typ * fac:
+            out.append(f"a_n / (mass_kg g) {ratio:.3g} is outside [{typ / fac:.3g}, {typ * fac:.3g}] (a_n in lbf is "
+                       "1/4.45 of N; mass_kg in lb 2.2 x kg)")
+    return "; ".join(out) + ": a unit mix-up? (read as given)" if out else None
+
+
 def uses_road_load(params: Mapping[str, Any] | None) -> bool:
     """True when ``params`` carry coast-down coefficients (they then replace C_dA and C_r)."""
     return bool(params) and "road_load_c_n_per_m2_s2" in params

@@ -17,6 +17,7 @@ def run(exe: str, args: list[str] | None = None) -> int:
     recorder once its bag is closed), ends it with one line and status 130 (143) (interrupts.run_main)."""
     from bev_mdo import interrupts
     from bev_mdo.stacks import dump_stacks_on_sigusr1
+    from bev_mdo.yamlload import read_yaml_file
 
     dump_stacks_on_sigusr1()
 
@@ -26,6 +27,12 @@ def run(exe: str, args: list[str] | None = None) -> int:
             print(f"unknown executable {exe!r}; known: {', '.join([*DISCIPLINE_EXES, *OTHER_EXES])}", file=sys.stderr)
             return 2
         _config_ros_environment(args or [])
+        for path in (b for a, b in zip(args or [], (args or [])[1:]) if a == "--params-file"):
+            try:  # one line (not YAML, a key twice, an alias bomb), not rcl's traceback or its last key kept
+                read_yaml_file(path)
+            except ValueError as exc:
+                print(f"{exe}: error: --params-file {exc}", file=sys.stderr)
+                return 2
         return main(args)
 
     return interrupts.run_main(exe, load_and_run)

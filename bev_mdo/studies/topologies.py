@@ -112,7 +112,7 @@ def write_benchmark(path: Path, bench, configs) -> None:
 
     thesis = all(thesis_vehicle(configs[t], t) for t in bench)
     cols = [("kerb_kg", "thesis_kerb_kg"), ("accel_0_100_s", "thesis_accel_s"), ("cost_usd", "thesis_cost_usd"),
-            ("energy_kwh_100km", "thesis_energy_kwh_100km")]
+            ("battery_energy_kwh_100km", "thesis_battery_energy_kwh_100km")]
     with path.open("w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["topology", *[c for pair in cols for c in (pair if thesis else pair[:1])],
@@ -160,7 +160,7 @@ def picks(results, bench):
         d = {}
         # (table, the designs allowed, the quantity minimised, its column and divisor, its benchmark value)
         for key, ok, y, column, per, base in (
-                ("table_4_6", a <= ref["accel_time_0_100_s"], e, "energy_kwh_100km", 10, ref["energy_wh_per_km"]),
+                ("table_4_6", a <= ref["accel_time_0_100_s"], e, "battery_energy_kwh_100km", 10, ref["energy_wh_per_km"]),
                 ("table_4_7", e <= ref["energy_wh_per_km"], c, "cost_usd", 1, ref["powertrain_cost_usd"])):
             if ok.any():
                 i = int(np.flatnonzero(ok)[np.argmin(y[ok])])

@@ -343,3 +343,48 @@ def test_a_doe_beside_given_designs_is_refused_not_ignored():
     with pytest.raises(InputError, match=r"^sweep: doe='sobol' and designs= given: .*give one$"):
         study.sweep("sobol", samples=32, designs={"motor_kw": [60.0, 80.0, 100.0]}, transport="inprocess")
     assert len(study.sweep(samples=4, transport="inprocess").rows()) == 4  # no doe, no designs: lhs
+
+
+def test_a_result_and_a_study_are_not_changed_through_what_they_hand_out():
+    """A library-user trial: editing `to_dict()` changed the result (`o.x`, its verdict), and editing `study.config`
+    showed a config its runs did not use."""
+    from bev_mdo import Study
+
+    study = Study(_sellar_mapping())
+    r = study.evaluate({"z1": 5.0, "z2": 2.0, "x": 1.0}, transport="inprocess")
+    d = r.to_dict()
+    d["design"]["z1"], d["constraints"]["y1"]["value"] = -1.0, 0.0
+    assert r.design["z1"] == 5.0 and r.to_dict()["constraints"]["y1"]["value"] == r.constraints["y1"]["value"] != 0
+    study.config["problem"]["objective"] = "y1"  # a copy: the study's own is as built
+    assert study.config["problem"]["objective"] == "obj" and study.config.problem.objective == "obj"
+
+
+def test_a_misspelt_argument_is_an_input_error_with_the_nearest_one():
+    """A library-user trial: optimize(formulaton=...) said 'did you mean'; evaluate, sweep, bound, ... raised a plain
+    TypeError with no hint."""
+    from bev_mdo import Study
+    from bev_mdo.api import InputError
+
+    study = Study(_sellar_mapping())
+    for call, said in ((lambda: study.evaluate(desing={}), "evaluate() has no argument 'desing'; did you mean 'design'?"),
+                       (lambda: study.bound("x", lowr=1), "bound() has no argument 'lowr'; did you mean 'lower'?"),
+                       (lambda: study.sweep(sample=3), "sweep() has no argument 'sample'; did you mean 'samples'?"),
+                       (lambda: study.sensitivity(order=1, wrt=["x"], rel_stp=1e-4), "did you mean 'rel_step'?")):
+        with pytest.raises(InputError) as e:
+            call()
+        assert said in str(e.value) and "\n" not in str(e.value)
+
+
+def test_a_vector_design_variable_given_whole_or_bare_says_how_to_give_it():
+    """A library-user trial: evaluate({"t": [1, 2, 0.5]}) pointed at sweep(designs=...), which would take the list as
+    three designs; evaluate({"t": 1}) said 'neither a design variable nor a discipline parameter; (unknown ...'."""
+    from bev_mdo import Study
+    from bev_mdo.api import InputError
+
+    study = Study(ROOT / "examples" / "sellar_vector.yaml")
+    for design, said in (({"z": [1.0, 2.0]}, "z=[1.0, 2.0]: a vector of 2 elements: give each, z[0] .. z[1]"),
+                         ({"z": 1.0}, "design.z: a vector of 2 elements: give each, z[0] .. z[1]"),
+                         ({"zz": 1.0}, "design.zz: neither a design variable nor a discipline parameter; unknown ")):
+        with pytest.raises(InputError) as e:
+            study.evaluate(design, transport="inprocess")
+        assert str(e.value).startswith(said), str(e.value)

@@ -50,8 +50,9 @@ def test_a_tolerance_out_of_range_is_named_with_its_value(capsys):
     """`--step 0` said '--step must be in (0, 0.1), --rtol and --atol >= 0': which one, and at what value?"""
     for cmd, extra in (("check-totals", ["--transport", "inprocess"]), ("check-partials", [])):
         for flag, value, said in (("--step", "0", "--step 0: must be in (0, 0.1)"),
-                                  ("--rtol", "-1e-3", "--rtol -0.001: must be >= 0"),
-                                  ("--atol", "nan", "--atol nan: must be >= 0")):
+                                  ("--rtol", "-1e-3", "--rtol -0.001: must be >= 0, finite"),
+                                  ("--atol", "nan", "--atol nan: must be >= 0, finite"),
+                                  ("--rtol", "1e400", "--rtol inf: must be >= 0, finite")):  # every check passed
             assert main([cmd, str(LEAF), f"{flag}={value}", *extra]) == 2
             err = capsys.readouterr().err.strip().splitlines()
             assert err == [f"bev-mdo {cmd}: error: {said}"]

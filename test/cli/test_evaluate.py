@@ -49,7 +49,7 @@ def test_every_value_says_its_unit_in_the_table_and_the_json(capsys):
     rows = {line.split("│")[1].strip(): [c.strip() for c in line.split("│")[2:-1]] for line in out.splitlines()
             if line.startswith("│")}
     assert code == 0 and rows["motor_kw"] == ["80", "kW", "design"] and rows["load_kg"] == ["150", "kg", "parameter"]
-    assert rows["energy_wh_per_km"][1:] == ["Wh/km", "objective (min)"] and rows["gear_ratio"][1] == "–"
+    assert rows["energy_wh_per_km"][1:] == ["Wh/km", "objective (min), from the battery"] and rows["gear_ratio"][1] == "–"
     assert rows["range_km"][-2:] == ["km", "yes"] and rows["accel_time_0_100_s"][-2] == "s"  # the constraints' rows
     code, out, _ = run(capsys, LEAF, "--set", "motor_kw=80,gear_ratio=8,battery_kwh=24,load_kg=150", "--json")
     units = json.loads(out)["units"]
@@ -109,6 +109,10 @@ def test_parameter_override_changes_energy(capsys):
     (["--set", ",motor_kw=100"], "--set ',motor_kw=100': an empty item between commas"),
     (["--set", "motor_kw=100,nan"], "--set motor_kw=100,nan: --set takes one number per name (NAME=VALUE)\n"),
     (["--set", "motor_kw=100,-inf"], "--set motor_kw=100,-inf: --set takes one number per name (NAME=VALUE)\n"),
+    # a malformed-files trial: "an underscore in a number is taken for a typo"
+    (["--set", "motor_kw=80;gear_ratio=8"], "--set 'motor_kw=80;gear_ratio=8': two NAME=VALUE in one item; separate"),
+    # an AWD trial: "did you mean 'motor_kg_per_kw'?" and 50 names, where the config's own says this
+    (["--set", "motor_rear_kw=165"], "design variable 'motor_rear_kw' does not exist in topology SM-SA (single axle)"),
 ])
 def test_bad_input_is_one_line_exit_2(capsys, argv, msg):
     code, _, err = run(capsys, LEAF, *argv)
@@ -316,7 +320,22 @@ def test_the_table_says_the_cycles_duration_distance_and_top_speed(capsys, tmp_p
     code, out, _ = run(capsys, cfg)
     assert code in (0, 1) and out.splitlines()[0] == "cycle: cruise 600 s, 2.28 km, top 13.9 km/h"
     code, out, _ = run(capsys, ROOT / "config" / "leaf_epa_combined.yaml")
-    assert out.splitlines()[0] == ("cycles: epa_us06 600 s, 12.89 km, top 129.2 km/h; epa_udds 1369 s, 11.99 km, "
-                                   "top 91.3 km/h; epa_hwfet 765 s, 16.51 km, top 96.4 km/h")
+    # and what each is for (an EPA-data trial: US06 read as if the energy were on it)
+    assert out.splitlines()[0] == ("cycles: epa_us06 600 s, 12.89 km, top 129.2 km/h (cycle.name: not the energy "
+                                   "discipline's); epa_udds 1369 s, 11.99 km, top 91.3 km/h (energy: 0.55 of the "
+                                   "distance); epa_hwfet 765 s, 16.51 km, top 96.4 km/h (energy: 0.45 of the distance)")
+    rows = {r.split("│")[1].strip(): r.split("│")[4].strip() for r in out.splitlines() if r.count("│") == 5}
+    assert rows["range_km"] == "output, unadjusted: an EPA label's ~0.7x"  # a window sticker's range is not this
+    assert rows["energy_wall_wh_per_km"] == "objective (min), from the wall"
+    code, out, _ = run(capsys, LEAF)  # a review: on the NEDC no EPA label is meant
+    rows = {r.split("│")[1].strip(): r.split("│")[4].strip() for r in out.splitlines() if r.count("│") == 5}
+    assert rows["range_km"] == "output, unadjusted"
     code, out, _ = run(capsys, LEAF, "--json")
     assert json.loads(out)["design"]  # JSON as it was
+
+
+def test_a_name_near_a_design_variable_gets_it_as_the_nearest(capsys):
+    """An EPA-data trial: `--set gear=9.03` listed some 50 names with no nearest one (`gear` is 0.57 like
+    `gear_ratio` by difflib, below the 0.6 its parameters need)."""
+    code, _, err = run(capsys, LEAF, "--set", "gear=9.03")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "did you mean 'gear_ratio'?" in err, err

@@ -116,7 +116,7 @@ def test_a_command_whose_end_is_a_signal_keeps_its_status(monkeypatch, capsys):
         return 0
 
     monkeypatch.setattr(recorder_node, "main", recording)
-    monkeypatch.setattr("bev_mdo.cli.record._join_domain", lambda args: None)
+    monkeypatch.setattr("bev_mdo.cli.flags.join_domain", lambda args: None)
     assert _main(["record"]) == 0
 
 

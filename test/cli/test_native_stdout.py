@@ -27,6 +27,26 @@ def test_native_writes_to_descriptor_1_go_to_stderr_and_print_to_stdout():
     assert "native puts" in p.stderr and "native write" in p.stderr
 
 
+def test_stdout_into_a_pipe_is_written_line_by_line():
+    """Progress lines came at the end of an optimisation whose stdout went to a file or a pipe (block-buffered):
+    the first line is read while the process still waits to write its second."""
+    snippet = ("import sys\nfrom bev_mdo.cli import native_output_to_stderr\nnative_output_to_stderr()\n"
+               "print('iteration 1')\nsys.stdin.readline()\nprint('iteration 2')\n")
+    p = subprocess.Popen([PYTHON, "-c", snippet], cwd=REPO, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        import select
+
+        # buffered, nothing comes until the process ends, and it waits for our line: a bound, not a timing
+        assert select.select([p.stdout], [], [], 120)[0], "the first line did not come before the process's end"
+        assert p.stdout.readline() == "iteration 1\n"
+        p.stdin.write("go\n")
+        p.stdin.flush()
+        assert p.stdout.readline() == "iteration 2\n"
+    finally:
+        p.kill()
+        p.wait(timeout=60)
+
+
 def test_fast_dds_errors_do_not_corrupt_json(ros_domain, tmp_path):
     """A profile file Fast DDS cannot parse makes it print two XMLPARSER errors on std::cout in
     every process; `evaluate --json` over ROS (its own nodes) still prints one JSON document on stdout."""

@@ -135,3 +135,17 @@ def test_a_parameter_of_the_wrong_type_is_one_line_exit_2(ros_domain, tmp_path, 
     params = tmp_path / "params.yaml"
     params.write_text(f"coordinator_node:\n  ros__parameters:\n    {text}\n")
     _said_once(_coordinator(ros_domain, "--params-file", str(params), cwd=tmp_path), *words)
+
+
+@pytest.mark.parametrize("text, words", [
+    (b"\xe2\x00garbage\x07", ["--params-file", "not a YAML text file"]),
+    (b"/**:\n  ros__parameters:\n    config: a.yaml\n    config: b.yaml\n", ["duplicate key 'config'"]),
+    (b"a: &a [1, 2, 3, 4, 5, 6, 7, 8, 9]\n" + b"".join(b"%c: &%c [*%c, *%c, *%c, *%c, *%c, *%c, *%c, *%c, *%c]\n"
+                                                     % ((98 + i,) * 2 + (97 + i,) * 9) for i in range(8)),
+     ["an alias bomb?"])])
+def test_a_malformed_parameters_file_is_one_line_exit_2(ros_domain, tmp_path, text, words):
+    """A malformed-files trial: rcl's "Couldn't parse params file" came as a traceback, exit 1; a key given twice
+    served the second value with no word."""
+    params = tmp_path / "params.yaml"
+    params.write_bytes(text)
+    _said_once(_coordinator(ros_domain, "--params-file", str(params), cwd=tmp_path), *words)

@@ -36,6 +36,10 @@ def test_two_objectives_write_one_plot_and_say_so(tmp_path, capsys):
     assert "no iteration records" in err and "Pareto bag" in err and "ParetoFront" in err
     # it named `bev-mdo report` for every generation's front, which report does not show
     assert "(bev-mdo report)" not in err and "not shown by bev-mdo report" in err
+    # report of it: it wrote a report.md without a run in it and exited 0; now it says so as history, exit 1
+    assert main(["report", str(out / "bag"), "--output-dir", str(tmp_path / "r")]) == 1
+    err = capsys.readouterr().err
+    assert "bev-mdo report:" in err and "no iteration records" in err and "Pareto bag" in err
 
 
 def test_three_objectives_every_pair_and_all_benchmarks(tmp_path, capsys):
@@ -131,7 +135,7 @@ def test_the_picks_name_the_sm_sa_benchmark_they_are_measured_against():
     assert cost["cost_usd"] == 9232.0 and abs(cost["change_pct"] - 2.25) < 0.01
     assert cost["reference"] == "SM-SA benchmark design (Table 4-4)" and cost["reference_cost_usd"] == 9029.0
     energy = p["table_4_6"]  # the one design no slower than the SM-SA benchmark's 9.89 s
-    assert energy["energy_kwh_100km"] == 12.0 and abs(energy["reference_energy_kwh_100km"] - 13.32) < 1e-9
+    assert energy["battery_energy_kwh_100km"] == 12.0 and abs(energy["reference_battery_energy_kwh_100km"] - 13.32) < 1e-9
     assert energy["reference"] == cost["reference"]
 
 

@@ -34,3 +34,26 @@ def test_no_wait_publishes_at_once(ros_domain, tmp_path):
     p = _replay(_bag(tmp_path), ros_domain, "--no-wait")
     assert p.returncode == 0, p.stderr
     assert "waiting" not in p.stderr and p.stdout.startswith("replayed 3 messages")
+
+
+def test_nothing_to_replay_is_said_and_exits_1(ros_domain, tmp_path):
+    """A malformed-files trial: a bag cut before its first chunk ended "replayed 0 messages", exit 0."""
+    from bev_mdo.bag.errors import BagError
+    from bev_mdo.bag.reader import open_bag
+
+    bag = _bag(tmp_path)
+    mcap = next(bag.glob("*.mcap"))
+    data, cut = mcap.read_bytes(), tmp_path / "cut"
+    cut.mkdir()
+    for k in range(1, 50):  # the first cut that still opens (its header whole) with no message in it
+        (cut / mcap.name).write_bytes(data[:len(data) * k // 50])
+        try:
+            if open_bag(cut).message_count == 0:
+                break
+        except BagError:
+            continue
+    else:
+        raise AssertionError("no cut of the bag opens with no message")
+    p = _replay(cut, ros_domain, "--no-wait")
+    assert p.returncode == 1 and p.stdout.startswith("replayed 0 messages"), p.stderr
+    assert p.stderr.strip().splitlines()[-1] == f"bev-mdo replay: {cut}: nothing to replay"

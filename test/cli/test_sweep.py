@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import csv
+import warnings
 import json
 from pathlib import Path
 
@@ -29,6 +30,11 @@ def test_parse_vary_and_full_factorial():
     with pytest.raises(Exception, match="one value between 60 and 150; give N >= 2"):  # 150 was dropped
         parse_vary(["motor_kw=60:150:1"])
     assert parse_vary(["motor_kw=60:60:1"])["motor_kw"].tolist() == [60]
+    for spec, typed in (("40:1e400:3", "1e400"), ("40,1e400", "1e400"), ("nan:50:2", "nan")):  # numpy warned,
+        with warnings.catch_warnings():  # then the error said motor_kw=nan
+            warnings.simplefilter("error")
+            with pytest.raises(Exception, match=rf"^motor_kw={typed}: a design value must be a finite number$"):
+                parse_vary([f"motor_kw={spec}"])
 
 
 def test_sweep_writes_csv_and_plots_and_matches_single_evaluations(tmp_path, capsys):
@@ -393,3 +399,14 @@ def test_one_design_is_said_in_the_singular(tmp_path, capsys):
     assert main(["sweep", CONFIG, "--vary", "motor_kw=80:80:1", "--transport", "inprocess", "--no-record",
                  "--out", str(tmp_path / "o"), "--no-plots"]) == 0
     assert "1 design in one batch (inprocess)" in capsys.readouterr().out
+
+
+def test_a_sweep_whose_every_design_fails_exits_1_and_says_the_first_reason(tmp_path, capsys, sellar_raising):
+    """A malformed-files trial: 8 designs, 8 failed (a discipline raised), exit 0, the reason in sweep.csv alone."""
+    rc = main(["sweep", str(sellar_raising), "--vary", "x=1,2", "--out", str(tmp_path / "s"), "--no-plots",
+               "--no-record", "--transport", "inprocess"])
+    out, err = capsys.readouterr()
+    assert rc == 1 and "0 feasible, 2 infeasible, 2 failed" in out
+    assert err.startswith("bev-mdo sweep: every design failed; the first: raises: ") and err.endswith(
+        "(sweep.csv: error)\n") and err.count("\n") == 1, err
+    assert (tmp_path / "s" / "sweep.csv").is_file()  # what was done is written

@@ -266,3 +266,12 @@ def test_a_step_the_bounds_cut_short_is_no_promise_of_feasibility():
     (v,) = analyse(PROBLEM, {"motor_kw": 100.0, "battery_kwh": 25.0}, {"range_km": 260.0, "accel_time_0_100_s": 10.05},
                    jacobian=jac)["violated"]
     assert v["free_way_reduction"] == pytest.approx(0.1) and v["free_way_reduction"] >= v["violation"]
+
+
+def test_a_margin_of_zero_has_no_sign():
+    """golinski's optimize --json had "margin": -0.0 where a constraint's value met its upper limit exactly."""
+    import math
+
+    a = analyse(PROBLEM, {"motor_kw": 75.0, "battery_kwh": 25.0}, {"range_km": 300.0, "accel_time_0_100_s": 10.0})
+    (e,) = a["active_constraints"]
+    assert e["margin"] == 0.0 and math.copysign(1.0, e["margin"]) == 1.0

@@ -157,6 +157,10 @@ def test_check_partials_cli_exit_status_and_one_line_per_mismatch(tmp_path, caps
     assert main(["check-partials", str(cfg), "--at", "z[0]=1,x=2"]) == 1
     out = capsys.readouterr().out
     assert "sellar_dis1: dy1/dz[0] analytic 4 but finite differences 2" in out
+    assert "(each partial in the run's units, per unit of the input as its producer declares it)" in out
+    from bev_mdo.cli.check_partials import _per  # a derivatives trial: 500 against 0.5, no unit said (kN per m)
+
+    assert (_per({"u": "kN", "v[0]": "m"}, "u", "v[0]"), _per({"y1": "1", "z[0]": "1"}, "y1", "z[0]")) == (" kN per m", "")
     assert main(["check-partials", str(SELLAR), "--at", "w=1"]) == 2
     assert "w" in capsys.readouterr().err
     assert main(["check-partials", str(LEAF)]) == 0  # the built-in BEV partials

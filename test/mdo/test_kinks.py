@@ -277,3 +277,58 @@ def test_noise_read_as_a_kink_at_an_optimum_leaves_it_an_optimum():
         form = MDF(problem, ev, MDA(ev), fd_scheme="central")  # forward differences read this noise as 1e-4
         fo = end_point_check(form, np.array([a, 0.5]), np.array([0.5, 0.2]), 1e-6)
         assert fo["verdict"] == first_order.OPTIMUM and fo["kinks"] == [], (a, first_order.verdict_line(fo))
+
+
+class Well:
+    """f = 0.5 + (x - 0.3)^2 + (y - 0.3)^2 - 2 exp(-|p - (0.95, 0.95)|^2 / 0.0005): a narrow well (f'' ~ 8000)."""
+
+    name = "well"
+    inputs = ("x", "y")
+    outputs = ("f",)
+
+    def compute(self, inputs):
+        x, y = inputs["x"], inputs["y"]
+        return {"f": 0.5 + (x - 0.3) ** 2 + (y - 0.3) ** 2 - 2 * np.exp(-((x - 0.95) ** 2 + (y - 0.95) ** 2) / 0.0005)}
+
+
+def test_the_true_minimum_of_a_narrow_well_is_an_optimum_on_central_differences():
+    """A derivatives trial: at the well's minimum (0.949838, 0.949838) the forward difference's error h f''/2 read a
+    gradient of 0.004, "stopped before convergence", with advice to run SLSQP, which did not move from there."""
+    from scipy.optimize import minimize
+
+    form = _form(Well())
+    best = minimize(lambda p: Well().compute({"x": p[:1], "y": p[1:]})["f"][0], [0.95, 0.95], method="Nelder-Mead",
+                    options={"xatol": 1e-12, "fatol": 1e-16}).x
+    fo = end_point_check(form, best, np.array([0.5, 0.2]), 1e-6)
+    assert fo["verdict"] == first_order.OPTIMUM and fo["fd_scheme_checked"] == "central"
+    assert fo["stationarity"] < 1e-4 and not fo.get("kinks")
+    off = end_point_check(_form(Well()), best + np.array([1e-4, 0.0]), np.array([0.5, 0.2]), 1e-6)  # 0.8 of slope
+    assert off["verdict"] == first_order.STOPPED and off["stationarity"] == pytest.approx(0.8, rel=0.05)
+
+
+class Ridge:
+    """f = 1000 y - 0.4 |x - 0.5|: y held on its bound by a large slope, x at a concave kink (lower either way)."""
+
+    name = "ridge"
+    inputs = ("x", "y")
+    outputs = ("f",)
+
+    def compute(self, inputs):
+        return {"f": 1000.0 * inputs["y"] - 0.4 * np.abs(inputs["x"] - 0.5)}
+
+
+def test_central_differences_across_a_concave_kink_do_not_make_an_optimum():
+    """A review: central differences averaged the kink's slopes (0.4, -0.4) to 0 and the check said "optimum"; the
+    kink test at an optimum, its threshold lifted by y's gradient of 1000, missed the slope jump of 0.8."""
+    fo = end_point_check(_form(Ridge()), np.array([0.5, 0.0]), np.array([0.5, 0.5]), 1e-6)
+    assert fo["verdict"] == first_order.STOPPED and [k["name"] for k in fo["kinks"]] == ["x"]
+
+
+def test_the_true_minimum_of_a_narrow_well_as_the_start_is_an_optimum_too():
+    """A review: a run that never left the well's minimum (its start) read "no progress" on the forward difference."""
+    from scipy.optimize import minimize
+
+    best = minimize(lambda p: Well().compute({"x": p[:1], "y": p[1:]})["f"][0], [0.95, 0.95], method="Nelder-Mead",
+                    options={"xatol": 1e-12, "fatol": 1e-16}).x
+    fo = end_point_check(_form(Well()), best, best, 1e-6)
+    assert fo["verdict"] == first_order.OPTIMUM and fo["fd_scheme_checked"] == "central"

@@ -1,3 +1,5 @@
+import warnings
+
 import numpy as np
 import pytest
 from sellar import SELLAR_OBJECTIVE, SELLAR_OPTIMUM, SELLAR_PROBLEM, sellar_disciplines
@@ -109,3 +111,18 @@ def test_differential_evolution_takes_a_seed_option_as_the_rng():
     a = run_optimizer("differential_evolution", form(), {"maxiter": 2, "popsize": 5, "seed": 3})
     b = run_optimizer("differential_evolution", form(), {"maxiter": 2, "popsize": 5, "seed": 3})
     assert a.nit == 2 and np.array_equal(a.x, b.x)
+
+
+@pytest.mark.parametrize("name", ["differential_evolution", "chebyshev-pairwise"])
+def test_an_optimiser_on_values_alone_under_idf_is_told_its_equalities_are_met_by_chance(name):
+    """A derivatives trial: chebyshev-pairwise under IDF ran 200 iterations (206 s) and ended at its start."""
+    from bev_mdo.mdo.optimizers import check_fit
+    from bev_mdo.models.cycles import CycleNote
+
+    bounded = form(IDF, coupling_bounds={"y1": {"lower": 1.0, "upper": 30.0}, "y2": {"lower": 1.0, "upper": 30.0}})
+    with pytest.warns(CycleNote, match=rf"^{name} under IDF: its 2 consistency equalities hold only where"):
+        check_fit(name, bounded)
+    for quiet in (form(MDF), form(IDF)):  # MDF has none; COBYLA models them (as the test above)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            check_fit(name if quiet.eq_labels == [] else "COBYLA", quiet)

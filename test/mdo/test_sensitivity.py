@@ -187,3 +187,21 @@ def test_cli_bad_input_exit_2(argv, match, capsys):
     assert _cli(argv) == 2
     err = capsys.readouterr().err.strip()
     assert match in err and "\n" not in err
+
+
+def test_an_output_zero_but_for_rounding_has_no_normalised_sensitivity():
+    """A derivatives trial: v = 0.4 u + x1 x2 - ... left 1.15e-14 of a cancellation, and the table printed
+    S = -448536643050042.75, unmarked. Here x y - 0.3 at (3, 0.1) is 5.6e-17 in floating point."""
+    def f(X):
+        return {"zero": X[:, 0] * X[:, 1] - 0.3, "product": X[:, 0] * X[:, 1]}
+
+    s = sensitivities(f, {"x": 3.0, "y": 0.1}, order=2)
+    assert 0 < abs(s.values["zero"]) < 1e-15 and s.undefined == ["zero"]
+    assert np.isnan(s.first["zero"]).all() and np.isnan(s.second["zero"]).all()
+    np.testing.assert_allclose(s.gradient["zero"], [0.1, 3.0], rtol=1e-6)  # the derivatives stay
+    np.testing.assert_allclose(s.first["product"], [1.0, 1.0], rtol=1e-6)
+    small = sensitivities(lambda X: {"g": X[:, 0] * 1e-12}, {"x": 2.0})  # small but no residue: S = 1
+    assert small.undefined == [] and small.first["g"][0] == pytest.approx(1.0)
+    # a review: a margin of 0.001 of terms of 1e6 is no rounding (1e6 eps is 2e-10): its S_q = 1 stays
+    margin = sensitivities(lambda X: {"m": 1e6 * (X[:, 0] - 1.0) + 1e-3 * X[:, 1]}, {"p": 1.0, "q": 1.0})
+    assert margin.undefined == [] and margin.first["m"][1] == pytest.approx(1.0, rel=1e-3)

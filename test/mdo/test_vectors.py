@@ -162,3 +162,19 @@ def test_golinski_with_trust_constr_reaches_it_through_points_outside_the_bounds
     assert res.feasible and res.verdict == "optimum"
     assert res.objective == pytest.approx(REFERENCE["weight"], abs=0.01)
     assert any(outside)
+
+
+def test_a_masked_output_value_is_no_value():
+    """A malformed-files trial: a discipline returning a fully masked array had its mask ignored and the data under
+    it taken as values. A masked point has no value: it fails, the others stand."""
+    import numpy as np
+
+    class Masked:
+        name, inputs, outputs = "masked", ("x",), ("y",)
+
+        def compute(self, inputs):
+            return {"y": np.ma.masked_array(2.0 * inputs["x"], mask=inputs["x"] > 1.5)}
+
+    res = run_discipline(Masked(), {"x": [1.0, 2.0, 3.0]})
+    assert res.ok.tolist() == [True, False, False] and res.outputs["y"][0] == 2.0
+    assert "masked: non-finite output ['y']" in res.error

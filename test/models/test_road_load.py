@@ -158,3 +158,22 @@ def test_the_smallest_road_load_is_exact():
     low, at = road_load_minimum([100.0, 100.0, 100.0], [-4.0, 1.0, -1.0], [0.04, 0.4, 0.0])
     np.testing.assert_allclose(low, [0.0, 100.0, 30.0], atol=1e-12)
     np.testing.assert_allclose(at, [50.0, 0.0, 70.0])
+
+
+def test_no_measured_car_of_the_shipped_fleet_reads_as_a_unit_mix_up():
+    """The plausibility note of a config's coast-down must not fire on real cars: none of the 62 training rows."""
+    import csv
+    from pathlib import Path
+
+    from bev_mdo.models.road_load import implausible_note
+
+    path = Path(__file__).resolve().parents[2] / "bev_mdo" / "data" / "epa_2022_bev" / "train.csv"
+    rows = list(csv.DictReader(path.open(encoding="utf-8")))
+    assert len(rows) == 62
+    for r in rows:
+        flat = {"road_load_a_n": float(r["road_load_a_n"]), "road_load_b_n_per_m_s": float(r["road_load_b_n_per_m_s"]),
+                "road_load_c_n_per_m2_s2": float(r["road_load_c_n_per_m2_s2"]), "road_load_mass_kg": float(r["test_mass_kg"])}
+        assert implausible_note(flat) is None, (r["make"], r["model"])
+        lbf = {**flat, "road_load_a_n": flat["road_load_a_n"] / 4.448, "road_load_c_n_per_m2_s2":
+               flat["road_load_c_n_per_m2_s2"] / 22.3}  # as EPA publishes them: lbf, lbf/mph^2
+        assert implausible_note(lbf) is not None, (r["make"], r["model"])
