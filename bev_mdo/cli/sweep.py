@@ -295,11 +295,18 @@ def run(args) -> int:
         print(f"note: {note}")
     for p in written:
         print(p)
+    return failures_said(result, "sweep", " (sweep.csv: error)")
+
+
+def failures_said(result: dict, command: str, where: str = "") -> int:
+    """stderr counts the batch's failed designs with the first one's reason (sweep's was in sweep.csv alone); the
+    status: 1 when every design failed, as evaluate's failure, else 0."""
     ok = np.asarray(result["ok"], dtype=bool)
-    if not ok.all():  # the reason was in sweep.csv alone; a batch with no value at all exits 1, as evaluate's failure
-        first = str(next(e for e, good in zip(result["errors"], ok) if not good)).splitlines()[0]
-        print(f"bev-mdo sweep: {'every design' if not ok.any() else f'{int((~ok).sum())} of {n} designs'} failed; the "
-              f"first: {first} (sweep.csv: error)", file=sys.stderr)
+    if not ok.all():
+        i = int(np.flatnonzero(~ok)[0])
+        first = str(result["errors"][i]).splitlines()[0]
+        print(f"bev-mdo {command}: {'every design' if not ok.any() else f'{int((~ok).sum())} of {ok.size} designs'} "
+              f"failed; the first (design {i + 1}): {first}{where}", file=sys.stderr)
     return 0 if ok.any() else 1
 
 
@@ -335,7 +342,7 @@ def run_compare(args) -> int:
         print(jsontext.dumps({"designs": [{name: float(v[i]) for name, _, v in rows} | {
             "feasible": bool(result["feasible"][i]), "ok": bool(result["ok"][i])} | (
             {"notes": notes[i]} if notes[i] else {}) for i in range(len(given))]}))
-        return 0
+        return failures_said(result, "compare")
     from rich.console import Console
     from rich.table import Table
 
@@ -366,4 +373,4 @@ def run_compare(args) -> int:
     for i, lines in enumerate(notes):
         for note in lines:
             print(f"note: design {i + 1}: {note}")
-    return 0
+    return failures_said(result, "compare")
