@@ -51,16 +51,19 @@ def cycles_line(cfg) -> str:
 
     if not isinstance(cfg.get("cycle"), dict):
         return ""
-    said, named = [], cycle_names(cfg)
-    own = {cfg["disciplines"][int(k.split("[")[1].split("]")[0])]["name"] for k in named.values() if k != "cycle.name"}
-    for name, key in named.items():  # where the config names it says what it is for
+    # the discipline entry each cycle's key names (disciplines[1].options.cycle_weights), None for cycle.name
+    entries = {name: None if key == "cycle.name" else cfg["disciplines"][int(key.split("[")[1].split("]")[0])]
+               for name, key in cycle_names(cfg).items()}
+    own = {e["name"] for e in entries.values() if e is not None}
+    said = []
+    for name, entry in entries.items():  # where the config names it says what it is for
         c = load_cycle(name, cfg.get("cycle_traces"))
         use = f"cycle.name: not the {' or '.join(sorted(own))} discipline's" if own else ""
-        if key != "cycle.name":
-            entry = cfg["disciplines"][int(key.split("[")[1].split("]")[0])]
+        if entry is not None:
             weights = entry["options"].get("cycle_weights") or {}
             use = (f"{entry['name']}: {weights[name]:g} of the distance" if name in weights else f"{entry['name']}'s")
-        said.append(f"{c.name} {c.duration_s:.0f} s, {c.distance_m / 1e3:.2f} km, top {c.max_speed_kmh:.1f} km/h" + (f" ({use})" if use else ""))
+        said.append(f"{c.name} {c.duration_s:.0f} s, {c.distance_m / 1e3:.2f} km, top {c.max_speed_kmh:.1f} km/h"
+                    + (f" ({use})" if use else ""))
     return f"cycle{'s' if len(said) > 1 else ''}: " + "; ".join(said)
 
 

@@ -39,6 +39,7 @@ FLAT_KEYS = tuple(k for k, _ in ROAD_LOAD_SPECS.values())
 # 1/4.45 x N, lbf/mph^2 1/22.3 x N/(m/s)^2, N/(km/h)^2 1/13 x, lb 2.2 x kg. models.fleet checks a fleet's medians by them.
 TYPICAL_A_OVER_MG = (0.00725, 1.6)
 TYPICAL_C_N_PER_M2_S2 = (0.374, 3.0)
+ONE_CAR_A_FACTOR = 2.0  # one car's A/(m g), not a fleet's median: EPA's 2022 BEVs span 0.0044 (Ioniq 5) - 0.0115
 G_M_S2 = 9.81
 
 
@@ -55,8 +56,7 @@ def implausible_note(params: Mapping[str, Any]) -> str | None:
                    f"(lbf/mph^2 is 1/22.3 of N/(m/s)^2, N/(km/h)^2 1/13)")
     mass = float(params.get("road_load_mass_kg", 0.0))
     if mass > 0.0:
-        # one car: 2 x, not the fleet median's 1.6 (EPA's 2022 BEVs span 0.0044 (Ioniq 5) - 0.0115)
-        ratio, (typ, fac) = float(params["road_load_a_n"]) / (mass * G_M_S2), (TYPICAL_A_OVER_MG[0], 2.0)
+        ratio, (typ, fac) = float(params["road_load_a_n"]) / (mass * G_M_S2), (TYPICAL_A_OVER_MG[0], ONE_CAR_A_FACTOR)
         if not typ / fac <= ratio <= typ * fac:
             out.append(f"a_n / (mass_kg g) {ratio:.3g} is outside [{typ / fac:.3g}, {typ * fac:.3g}] (a_n in lbf is "
                        "1/4.45 of N; mass_kg in lb 2.2 x kg)")
