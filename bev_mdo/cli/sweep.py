@@ -336,8 +336,9 @@ def run_compare(args) -> int:
     named = {**result["design"], **{k: v for k, v in result["outputs"].items() if k not in result["design"]}}
     rows = [(k, unit_of(k), v) for k, v in named.items()]
     rows += [(f"margin {k}", unit_of(k), v) for k, v in result["margins"].items()]
-    notes = [notes_of(config, {**problem.parameters, **{k: v[i] for k, v in result["design"].items()}},  # why 'NO'
-                      {k: v[i] for k, v in result["outputs"].items()})[1] for i in range(len(given))]
+    notes = [result["outside"][i] + notes_of(config, {**problem.parameters, **{k: v[i] for k, v in result["design"].items()}},
+                                             {k: v[i] for k, v in result["outputs"].items()})[1]  # why 'NO'
+             for i in range(len(given))]
     if args.json:
         print(jsontext.dumps({"designs": [{name: float(v[i]) for name, _, v in rows} | {
             "feasible": bool(result["feasible"][i]), "ok": bool(result["ok"][i])} | (
