@@ -191,6 +191,20 @@ def test_a_listed_design_outside_its_bounds_is_evaluated_infeasible_and_named(tm
     assert report["outputs"]["energy_wh_per_km"] == pytest.approx(designs[1]["energy_wh_per_km"], rel=1e-9)
 
 
+def test_a_sweep_csv_read_back_as_a_list_gives_the_same_rows(tmp_path, capsys):
+    """A user filters sweep.csv (or a Pareto front.csv) and evaluates those rows again: every output column was
+    refused as 'not a design variable or parameter'."""
+    assert main(["sweep", CONFIG, "--vary", "motor_kw=60:100:3", "--out", str(tmp_path / "a"), "--no-plots",
+                 "--no-record", "--transport", "inprocess"]) == 0
+    capsys.readouterr()
+    assert main(["sweep", CONFIG, "--list", str(tmp_path / "a" / "sweep.csv"), "--out", str(tmp_path / "b"),
+                 "--no-plots", "--no-record", "--transport", "inprocess"]) == 0
+    err = capsys.readouterr().err
+    assert "columns vehicle_mass_kg, energy_wh_per_km," in err and "feasible, ok, error are what a run computes" in err
+    first, again = (list(csv.DictReader(open(tmp_path / d / "sweep.csv"))) for d in "ab")
+    assert len(again) == 3 and [r["energy_wh_per_km"] for r in again] == [r["energy_wh_per_km"] for r in first]
+
+
 def test_a_name_mistyped_in_one_compare_design_is_said_unknown(capsys):
     """It was called a parameter with no initial value that must be given in every --design."""
     assert main(["compare", CONFIG, "--design", "motor_kw=100", "--design", "motr_kw=90", "--transport", "inprocess"]) == 2
