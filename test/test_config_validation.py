@@ -291,7 +291,21 @@ def test_a_battery_bound_beyond_any_mass_the_models_accept_is_refused_on_load(tm
     assert "upper: UP" in text
     with pytest.raises(ValueError, match=r"battery_kwh: bounds \[20, 1e\+06\] reach outside \[1, 40000\] kWh"):
         load_config(_write(tmp_path, text.replace("UP", "1.0e+6")))
-    assert load_config(_write(tmp_path, text.replace("UP", "40000")))["problem"]["design_variables"]["battery_kwh"]
+    light = text.replace("  load_kg:", "  battery_kg_per_kwh: 0.5\n  load_kg:", 1)
+    assert "battery_kg_per_kwh: 0.5" in light
+    assert load_config(_write(tmp_path, light.replace("UP", "40000")))["problem"]["design_variables"]["battery_kwh"]
+
+
+def test_a_battery_bound_that_outweighs_the_vehicle_is_refused_naming_the_battery(tmp_path):
+    """A van trial typed the pack in Wh (bounds [20000, 40000]): it loaded, and every design then failed with
+    'vehicle_mass_kg must be in [100, 20000] kg, got 292077', which did not name the battery."""
+    text = BASE.replace("battery_kwh: {lower: 20, upper: 30,  initial: 24}",
+                        "battery_kwh: {lower: 20000, upper: 40000, initial: 24000}")
+    with pytest.raises(ValueError, match=r"battery_kwh: upper bound 40000 kWh is 312,000 kg of battery at "
+                                         r"battery_kg_per_kwh 7.8, above the 20,000 kg vehicle discipline "
+                                         r"'vehicle_mass' accepts \(a pack in Wh\?\)"):
+        load_config(_write(tmp_path, text.replace("design: {motor_kw: 80, gear_ratio: 7.94, battery_kwh: 24}",
+                                                  "design: {motor_kw: 80, gear_ratio: 7.94, battery_kwh: 24000}")))
 
 
 def test_a_baseline_the_models_cannot_evaluate_is_refused_on_load(tmp_path):
@@ -551,3 +565,13 @@ def test_a_baseline_whose_second_gear_is_shorter_than_the_first_is_refused_on_lo
     with pytest.raises(ValueError, match=r"^<config>: problem.baseline.design: gear_ratio_2 8 is above gear_ratio 7: "
                                          r"with gear_count 2 the second gear must not be shorter than the first"):
         load_config(raw)
+
+
+@pytest.mark.parametrize("key", ["frontal_area_m2", "drag_coefficient", "Cd"])
+def test_a_data_sheets_factor_of_the_drag_area_asks_for_the_product(tmp_path, key):
+    """A van trial's frontal_area_m2 was told "did you mean 'drag_area_m2'?"; following it, a 500e with its
+    2.1 m^2 frontal area as Cd A used 2.2x its energy with no word."""
+    text = BASE.replace("  load_kg:", f"  {key}: 2.1\n  load_kg:", 1)
+    with pytest.raises(ValueError, match=rf"vehicle.{key}: unknown key; 'drag_area_m2' is Cd x frontal area, m\^2 "
+                                         r"\(e.g. 0.29 x 2.27 m\^2 = 0.658\): give the product; known: "):
+        load_config(_write(tmp_path, text))

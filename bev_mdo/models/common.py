@@ -46,6 +46,12 @@ DESIGN_LIMITS: dict[str, tuple[float, float, str]] = {
 }
 
 
+# keys a user brings from a data sheet that stand for a factor of one of ours: the product is wanted, not the name
+# (frontal_area_m2 was told "did you mean 'drag_area_m2'?", and a 500e with 2.1 m^2 as Cd A used 2.2x its energy)
+_DRAG_AREA = ("drag_area_m2", "Cd x frontal area, m^2 (e.g. 0.29 x 2.27 m^2 = 0.658)")
+PRODUCT_KEYS = {k: _DRAG_AREA for k in ("frontal_area_m2", "frontal_area", "drag_coefficient", "cd", "cx")}
+
+
 def check_keys(where: str, given: Any, known: Any, of: str = "") -> None:
     """One-line ValueError for the first key of ``given`` not in ``known``: ``<where>.<key>: unknown
     key; did you mean '<nearest>'? known: ...`` (nearest by difflib). ``where`` is the key path of
@@ -58,7 +64,9 @@ def check_keys(where: str, given: Any, known: Any, of: str = "") -> None:
         if key in known:
             continue
         near = difflib.get_close_matches(str(key), names, n=1, cutoff=0.6)
-        hint = f"did you mean {near[0]!r}? " if near else ""
+        product = next((k for k in PRODUCT_KEYS.get(str(key).lower(), ()) if k in known), None)
+        hint = (f"{product!r} is {PRODUCT_KEYS[str(key).lower()][1]}: give the product; " if product else
+                f"did you mean {near[0]!r}? " if near else "")
         listed = f"known: {', '.join(names)}" if names else "none is declared"
         raise ValueError(f"{where + '.' if where else ''}{key}: unknown key{' of ' + of if of else ''}; {hint}{listed}")
 
