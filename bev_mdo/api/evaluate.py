@@ -39,6 +39,7 @@ def pyplot_and_label(units: dict | None):
     import matplotlib
 
     matplotlib.use("Agg")
+    matplotlib.rcParams["axes.formatter.useoffset"] = False  # values on the axis, not "0.1 .. 0.5 +3.209e2"
     import matplotlib.pyplot as plt
 
     from bev_mdo.mdo import units as un

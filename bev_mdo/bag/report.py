@@ -412,6 +412,7 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     import matplotlib
 
     matplotlib.use("Agg")
+    matplotlib.rcParams["axes.formatter.useoffset"] = False  # values on the axis, not "0.1 .. 0.5 +3.209e2"
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     out = Path(out_dir) if out_dir else bag.bag_dir
     out.mkdir(parents=True, exist_ok=True)
