@@ -174,7 +174,7 @@ def test_axes_show_values_not_an_offset(tmp_path):
 
     plt, _ = pyplot_and_label({})
     fig, ax = plt.subplots()
-    ax.plot([0.0, 1.0], [320.9, 321.4])
+    ax.plot([0.0, 1.0], [320.9012, 320.9051])
     fig.savefig(tmp_path / "a.png")
-    assert ax.yaxis.get_offset_text().get_text() == "" and "321" in "".join(t.get_text() for t in ax.get_yticklabels())
+    assert ax.yaxis.get_offset_text().get_text() == "" and "320.90" in "".join(t.get_text() for t in ax.get_yticklabels())
     plt.close(fig)
