@@ -306,6 +306,19 @@ def test_a_battery_bound_that_outweighs_the_vehicle_is_refused_naming_the_batter
                                          r"'vehicle_mass' accepts \(a pack in Wh\?\)"):
         load_config(_write(tmp_path, text.replace("design: {motor_kw: 80, gear_ratio: 7.94, battery_kwh: 24}",
                                                   "design: {motor_kw: 80, gear_ratio: 7.94, battery_kwh: 24000}")))
+    # the run's battery_kg_per_kwh, not the vehicle's: a problem parameter (3 kg/kWh: 2600 kWh is 7.8 t, it loads;
+    # 9 kg/kWh: 2400 kWh is 21.6 t, refused), or the lower bound of a design variable
+    wide = BASE.replace("battery_kwh: {lower: 20, upper: 30,  initial: 24}", "battery_kwh: {lower: 20, upper: UP, initial: 24}")
+    for up, kg, ok in (("2600", "  parameters: {battery_kg_per_kwh: 3}\n  design_variables:\n", True),
+                       ("2400", "  parameters: {battery_kg_per_kwh: 9}\n  design_variables:\n", False),
+                       ("2600", "  design_variables:\n    battery_kg_per_kwh: {lower: 2, upper: 4, initial: 3}\n", True)):
+        text = wide.replace("UP", up).replace("  design_variables:\n", kg, 1).replace(
+            "battery_kwh: 24}", "battery_kwh: 24, battery_kg_per_kwh: 3}" if "lower: 2" in kg else "battery_kwh: 24}")
+        if ok:
+            assert load_config(_write(tmp_path, text))
+        else:
+            with pytest.raises(ValueError, match=r"upper bound 2400 kWh is 21,600 kg of battery at battery_kg_per_kwh 9,"):
+                load_config(_write(tmp_path, text))
 
 
 def test_a_baseline_the_models_cannot_evaluate_is_refused_on_load(tmp_path):
@@ -567,7 +580,7 @@ def test_a_baseline_whose_second_gear_is_shorter_than_the_first_is_refused_on_lo
         load_config(raw)
 
 
-@pytest.mark.parametrize("key", ["frontal_area_m2", "drag_coefficient", "Cd"])
+@pytest.mark.parametrize("key", ["frontal_area_m2", "drag_coefficient", "Cd", "CdA"])
 def test_a_data_sheets_factor_of_the_drag_area_asks_for_the_product(tmp_path, key):
     """A van trial's frontal_area_m2 was told "did you mean 'drag_area_m2'?"; following it, a 500e with its
     2.1 m^2 frontal area as Cd A used 2.2x its energy with no word."""
@@ -575,3 +588,15 @@ def test_a_data_sheets_factor_of_the_drag_area_asks_for_the_product(tmp_path, ke
     with pytest.raises(ValueError, match=rf"vehicle.{key}: unknown key; 'drag_area_m2' is Cd x frontal area, m\^2 "
                                          r"\(e.g. 0.29 x 2.27 m\^2 = 0.658\): give the product; known: "):
         load_config(_write(tmp_path, text))
+
+
+def test_a_drag_area_factor_given_on_the_command_line_asks_for_the_product(capsys):
+    """The review: a config key got the product hint, but --set frontal_area_m2 and --wrt still said "did you
+    mean 'drag_area_m2'?"."""
+    from bev_mdo.cli import main
+
+    for argv in (["evaluate", str(REPO / "config" / "leaf_nedc.yaml"), "--set", "frontal_area_m2=2.27"],
+                 ["sensitivity", str(REPO / "config" / "leaf_nedc.yaml"), "--wrt", "frontal_area_m2"]):
+        assert main([*argv, "--transport", "inprocess"]) == 2
+        err = capsys.readouterr().err
+        assert "frontal_area_m2" in err and "'drag_area_m2' is Cd x frontal area, m^2" in err and "did you mean" not in err

@@ -258,15 +258,19 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
     feasible = violation <= feasibility_tolerance(config.settings)
     # off the design space (a --list row, a --design, a --vary range past a bound): evaluated as given, as evaluate
     # does, and infeasible whatever the constraints say; each design's lines under "outside"
-    outside = [[outside_note(d, cols[d.name][i]) for d in problem.design_variables
-                if outside_bounds(d, cols[d.name][i], feasibility_tolerance(config.settings))] for i in range(n)]
-    off = np.array([bool(o) for o in outside], dtype=bool)
-    feasible &= ~off
+    tol = feasibility_tolerance(config.settings)
+    beyond = [[d for d in problem.design_variables if outside_bounds(d, cols[d.name][i], tol)] for i in range(n)]
+    outside = [[outside_note(d, cols[d.name][i]) if d in far else  # within the tolerance: feasible, as evaluate says
+                f"{d.name} = {cols[d.name][i]:g} is outside its bounds [{d.lower:g}, {d.upper:g}] (evaluated as given)"
+                for d in problem.design_variables if not d.lower <= cols[d.name][i] <= d.upper]
+               for i, far in enumerate(beyond)]
+    feasible &= ~np.array([bool(far) for far in beyond], dtype=bool)
     notes = ceiling_notes(config, outputs) + platform_notes(config, designs)
-    if off.any():
-        i = int(np.flatnonzero(off)[0])
-        more = f" (and {int(off.sum()) - 1} more)" if off.sum() > 1 else ""
-        notes.append(f"design {i + 1}{more}: {outside[i][0]}")
+    for group in ([i for i in range(n) if beyond[i]], [i for i in range(n) if outside[i] and not beyond[i]]):
+        if group:  # the first design of each: infeasible (beyond the tolerance), then within it
+            i, more = group[0], f" (and {len(group) - 1} more)" if len(group) > 1 else ""
+            notes.append(f"design {i + 1}{more}: " + (outside_note(beyond[i][0], cols[beyond[i][0].name][i])
+                                                      if beyond[i] else outside[i][0]))
     from bev_mdo.disciplines.energy import follow_counts
 
     short, unchecked = follow_counts(config.disciplines, {**cols, **outputs})  # cannot follow: infeasible, whatever the constraints

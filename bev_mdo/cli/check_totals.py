@@ -125,7 +125,7 @@ def run(args) -> int:
         x = _point(form, form.problem, args.at)
         note_outside_bounds(form.problem, dict(zip(form.problem.names, x.tolist())), "bev-mdo check-totals")
         rep = check(form, x, args.step, args.rtol, args.atol)
-    units = declared_units(config)
+    units = declared_units(config, form.var_names)  # a model parameter as a design variable: its unit too
     for r in rep["rows"]:  # an IDF consistency is normalised by its coupling's scale: 1 per unit of the variable
         r["unit"] = _per(units, "" if r["of"].endswith(" consistency") else r["of"].split()[0], r["wrt"]).strip() or "1"
     if args.json:

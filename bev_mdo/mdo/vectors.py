@@ -64,8 +64,10 @@ def did_you_mean(name: str, names, cutoff: float = 0.6) -> str:
     unknown name a user gives (a design, a fixed value, an objective, --at, --wrt)."""
     import difflib
 
+    from bev_mdo.models.common import product_hint
+
     near = difflib.get_close_matches(str(name), sorted(map(str, names)), n=1, cutoff=cutoff)
-    return f"did you mean {near[0]!r}? " if near else ""
+    return product_hint(name, names) or (f"did you mean {near[0]!r}? " if near else "")
 
 
 def is_variable_name(name: str) -> bool:

@@ -49,7 +49,15 @@ DESIGN_LIMITS: dict[str, tuple[float, float, str]] = {
 # keys a user brings from a data sheet that stand for a factor of one of ours: the product is wanted, not the name
 # (frontal_area_m2 was told "did you mean 'drag_area_m2'?", and a 500e with 2.1 m^2 as Cd A used 2.2x its energy)
 _DRAG_AREA = ("drag_area_m2", "Cd x frontal area, m^2 (e.g. 0.29 x 2.27 m^2 = 0.658)")
-PRODUCT_KEYS = {k: _DRAG_AREA for k in ("frontal_area_m2", "frontal_area", "drag_coefficient", "cd", "cx")}
+PRODUCT_KEYS = {k: _DRAG_AREA for k in ("frontal_area_m2", "frontal_area", "drag_coefficient", "cd", "cx", "cw",
+                                         "cda", "cd_a")}
+
+
+def product_hint(name: Any, known) -> str:
+    """``'drag_area_m2' is Cd x frontal area, ...: give the product; `` where ``name`` is a factor of one of ``known``
+    (``PRODUCT_KEYS``), else "": the hint before any nearest name, which would be the product's."""
+    want = PRODUCT_KEYS.get(str(name).lower())
+    return f"{want[0]!r} is {want[1]}: give the product; " if want and want[0] in set(map(str, known)) else ""
 
 
 def check_keys(where: str, given: Any, known: Any, of: str = "") -> None:
@@ -64,9 +72,7 @@ def check_keys(where: str, given: Any, known: Any, of: str = "") -> None:
         if key in known:
             continue
         near = difflib.get_close_matches(str(key), names, n=1, cutoff=0.6)
-        product = next((k for k in PRODUCT_KEYS.get(str(key).lower(), ()) if k in known), None)
-        hint = (f"{product!r} is {PRODUCT_KEYS[str(key).lower()][1]}: give the product; " if product else
-                f"did you mean {near[0]!r}? " if near else "")
+        hint = product_hint(key, names) or (f"did you mean {near[0]!r}? " if near else "")
         listed = f"known: {', '.join(names)}" if names else "none is declared"
         raise ValueError(f"{where + '.' if where else ''}{key}: unknown key{' of ' + of if of else ''}; {hint}{listed}")
 

@@ -185,6 +185,13 @@ def test_a_listed_design_outside_its_bounds_is_evaluated_infeasible_and_named(tm
                  "--transport", "inprocess"]) == 0
     designs = json.loads(capsys.readouterr().out)["designs"]
     assert designs[1]["feasible"] is False and designs[1]["notes"][0].startswith("motor_kw = 800 is outside its bounds")
+    # within the feasibility tolerance (1e-4 of the span): feasible, as evaluate says, but said all the same
+    lst.write_text("battery_kwh\n19.9991\n19.5\n")
+    assert main(["sweep", CONFIG, "--list", str(lst), "--out", str(tmp_path / "t"), "--no-plots", "--no-record",
+                 "--transport", "inprocess"]) == 0
+    out = capsys.readouterr().out
+    assert "1 feasible, 1 infeasible" in out and ("note: design 1: battery_kwh = 19.9991 is outside its bounds [20, 30] "
+                                                   "(evaluated as given)\n") in out, out
     assert main(["evaluate", CONFIG, "--set", "motor_kw=800", "--json", "--transport", "inprocess"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["feasible"] is False and report["notes"][0] == designs[1]["notes"][0]
