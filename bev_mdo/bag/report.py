@@ -7,8 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from bev_mdo.bag.history import (answered_result, check_note, headline, mda_total, read_answers, records_phrase,
-                                  run_ending,
-                                  sweep_phrase, verified_history)
+                                  run_ending, sweep_phrase, verified_history)
 from bev_mdo.bag.reader import Bag, open_bag
 from bev_mdo.mdo.units import label, run_units, unit_of
 

@@ -182,8 +182,8 @@ class Energy(Base):
                           "motor_loss", "total", "battery_discharge_loss", "battery_charge_loss")}
         parts = ", ".join(f"{k.replace('_', ' ')} {v:.3f}" for k, v in rows.items())
         w = float(np.ravel(p["battery_loss_weight"])[0])
-        return [f"energy by Table 5-1's rows, kWh/100 km: {parts} ("
-                + (f"the total holds the battery rows x battery_loss_weight {w:g})" if w else "the battery rows are not in the total)")]
+        battery = f"the total holds the battery rows x battery_loss_weight {w:g}" if w else "the battery rows are not in the total"
+        return [f"energy by Table 5-1's rows, kWh/100 km: {parts} ({battery})"]
 
     def prepare(self) -> None:
         """One-time work before the first call, outside any timeout: the quasi-static model's compiled loops."""
