@@ -580,7 +580,7 @@ def test_a_baseline_whose_second_gear_is_shorter_than_the_first_is_refused_on_lo
         load_config(raw)
 
 
-@pytest.mark.parametrize("key", ["frontal_area_m2", "drag_coefficient", "Cd", "CdA"])
+@pytest.mark.parametrize("key", ["frontal_area_m2", "drag_coefficient", "Cd", "cw"])
 def test_a_data_sheets_factor_of_the_drag_area_asks_for_the_product(tmp_path, key):
     """A van trial's frontal_area_m2 was told "did you mean 'drag_area_m2'?"; following it, a 500e with its
     2.1 m^2 frontal area as Cd A used 2.2x its energy with no word."""
@@ -600,3 +600,14 @@ def test_a_drag_area_factor_given_on_the_command_line_asks_for_the_product(capsy
         assert main([*argv, "--transport", "inprocess"]) == 2
         err = capsys.readouterr().err
         assert "frontal_area_m2" in err and "'drag_area_m2' is Cd x frontal area, m^2" in err and "did you mean" not in err
+
+
+def test_a_users_own_parameter_nearer_than_the_product_is_the_hint():
+    """The second review: with a user discipline's own cd and frontal_area_m2, --set frontal_area and Cd were sent
+    to the built-in drag_area_m2."""
+    from bev_mdo.models.common import name_hint
+
+    own = ["cd", "drag_area_m2", "frontal_area_m2", "motor_kw"]
+    assert name_hint("frontal_area", own) == "did you mean 'frontal_area_m2'? "
+    assert name_hint("Cd", own) == "did you mean 'cd'? "
+    assert name_hint("frontal_area_m2", ["drag_area_m2", "motor_kw"]).startswith("'drag_area_m2' is Cd x frontal area")

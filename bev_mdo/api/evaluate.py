@@ -94,7 +94,7 @@ def note_outside_bounds(problem, given: dict[str, float], caller: str) -> list[t
     for d in problem.design_variables:
         v = given.get(d.name)
         if v is not None and not d.lower <= v <= d.upper:  # (a number: finite_values)
-            print(f"{caller}: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
+            print(f"{caller}: note: {d.name} = {v:.12g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
                   "(evaluated as given)", file=sys.stderr)
             out.append((d, v))
     return out
@@ -260,8 +260,8 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
     # does, and infeasible whatever the constraints say; each design's lines under "outside"
     tol = feasibility_tolerance(config.settings)
     beyond = [[d for d in problem.design_variables if outside_bounds(d, cols[d.name][i], tol)] for i in range(n)]
-    outside = [[outside_note(d, cols[d.name][i]) if d in far else  # within the tolerance: feasible, as evaluate says
-                f"{d.name} = {cols[d.name][i]:g} is outside its bounds [{d.lower:g}, {d.upper:g}] (evaluated as given)"
+    outside = [[outside_note(d, cols[d.name][i]) if d in far else  # within the tolerance: feasible, as in evaluate
+                f"{d.name} = {cols[d.name][i]:.12g} is outside its bounds [{d.lower:g}, {d.upper:g}] (evaluated as given)"
                 for d in problem.design_variables if not d.lower <= cols[d.name][i] <= d.upper]
                for i, far in enumerate(beyond)]
     feasible &= ~np.array([bool(far) for far in beyond], dtype=bool)

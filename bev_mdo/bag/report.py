@@ -460,7 +460,9 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     md = out / "report.md"
     # what was left out or could not be verified, as stderr says it (a forged record dropped, a stored config that
     # does not load): report.md said "the run finished" and nothing of it
-    said = "; ".join(filter(None, [check_note({c: v for c, v in checks.items() if c != "config"}), bag.metadata_note]))
+    # (an unsigned run, in process or a sweep without a key, is read unverified as docs/security.md says: no warning)
+    said = "; ".join(filter(None, [check_note({c: v for c, v in checks.items() if c not in ("config", "unverified")}),
+                                   bag.metadata_note]))
     md.write_text(_markdown(bag, shown, timing, [p.name for p in written], final, answers, baseline, units, k, ending,
                             checks.get("config", ""), said), encoding="utf-8")
     return written + [md]

@@ -192,6 +192,10 @@ def test_a_listed_design_outside_its_bounds_is_evaluated_infeasible_and_named(tm
     out = capsys.readouterr().out
     assert "1 feasible, 1 infeasible" in out and ("note: design 1: battery_kwh = 19.9991 is outside its bounds [20, 30] "
                                                    "(evaluated as given)\n") in out, out
+    # a value that :g rounds onto its bound read "motor_kw = 120 is outside its bounds [40, 120]" (the second review)
+    assert main(["compare", CONFIG, "--design", "motor_kw=120.00001", "--design", "motor_kw=90", "--transport",
+                 "inprocess"]) == 0
+    assert "note: design 1: motor_kw = 120.00001 is outside its bounds [40, 120]" in capsys.readouterr().out
     assert main(["evaluate", CONFIG, "--set", "motor_kw=800", "--json", "--transport", "inprocess"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["feasible"] is False and report["notes"][0] == designs[1]["notes"][0]
