@@ -148,15 +148,15 @@ def held():
             raise _taken[-1]()
 
 
-def install() -> dict:
-    """Handlers for SIGTERM and (unless it is ignored, as in a shell's background job) SIGINT;
-    returns the previous handlers for ``restore``. Main thread only."""
+def install(sigint_ignored_too: bool = False) -> dict:
+    """Handlers for SIGTERM and (unless it is ignored, as in a shell's background job, and not
+    ``sigint_ignored_too``) SIGINT; returns the previous handlers for ``restore``. Main thread only."""
     global _pending, _done_status
     _pending, _done_status = None, None
     new_run()
     _taken.clear()
     previous = {signal.SIGTERM: signal.signal(signal.SIGTERM, _handler(Terminated))}
-    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+    if sigint_ignored_too or signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         previous[signal.SIGINT] = signal.signal(signal.SIGINT, _handler(KeyboardInterrupt))
     previous["unraisablehook"], sys.unraisablehook = sys.unraisablehook, _quiet_when_pending(sys.unraisablehook)
     return previous
@@ -208,8 +208,10 @@ def check() -> None:
 def run_main(name: str, main, *args) -> int:
     """``main(*args)``'s exit status, with the handlers installed (both signals raise in the main thread; rclpy's
     handlers, installed later, pass them on): a SIGINT or SIGTERM it raises on ends it with one line on stderr,
-    ``<name>: interrupted``, and status 130 (143 for SIGTERM). For a node executable (ros/run.py)."""
-    install()
+    ``<name>: interrupted``, and status 130 (143 for SIGTERM). For a node executable (ros/run.py), which a script
+    starts as a `&` job with SIGINT ignored: `kill -INT` ends it all the same, as it ends any rclpy node (the
+    recorder went on recording, and the coordinator, stopped by rclpy's handler alone, raised from its publisher)."""
+    install(sigint_ignored_too=True)
     try:
         return main(*args)
     except BaseException as exc:
@@ -224,4 +226,5 @@ def _shut_down_by_rclpy(exc: BaseException) -> bool:
     raises ExternalShutdownException or, caught while it makes its wait set, RCLError "... rcl_shutdown() was
     called" (the node shuts its context down only after its main has returned or raised)."""
     name = type(exc).__name__
-    return name == "ExternalShutdownException" or (name == "RCLError" and "rcl_shutdown() was called" in str(exc))
+    return name == "ExternalShutdownException" or (name == "RCLError" and any(
+        said in str(exc) for said in ("rcl_shutdown() was called", "context is invalid")))

@@ -291,7 +291,34 @@ def test_a_battery_bound_beyond_any_mass_the_models_accept_is_refused_on_load(tm
     assert "upper: UP" in text
     with pytest.raises(ValueError, match=r"battery_kwh: bounds \[20, 1e\+06\] reach outside \[1, 40000\] kWh"):
         load_config(_write(tmp_path, text.replace("UP", "1.0e+6")))
-    assert load_config(_write(tmp_path, text.replace("UP", "40000")))["problem"]["design_variables"]["battery_kwh"]
+    light = text.replace("  load_kg:", "  battery_kg_per_kwh: 0.5\n  load_kg:", 1)
+    assert "battery_kg_per_kwh: 0.5" in light
+    assert load_config(_write(tmp_path, light.replace("UP", "40000")))["problem"]["design_variables"]["battery_kwh"]
+
+
+def test_a_battery_bound_that_outweighs_the_vehicle_is_refused_naming_the_battery(tmp_path):
+    """A van trial typed the pack in Wh (bounds [20000, 40000]): it loaded, and every design then failed with
+    'vehicle_mass_kg must be in [100, 20000] kg, got 292077', which did not name the battery."""
+    text = BASE.replace("battery_kwh: {lower: 20, upper: 30,  initial: 24}",
+                        "battery_kwh: {lower: 20000, upper: 40000, initial: 24000}")
+    with pytest.raises(ValueError, match=r"battery_kwh: upper bound 40000 kWh is 312,000 kg of battery at "
+                                         r"battery_kg_per_kwh 7.8, above the 20,000 kg vehicle discipline "
+                                         r"'vehicle_mass' accepts \(a pack in Wh\?\)"):
+        load_config(_write(tmp_path, text.replace("design: {motor_kw: 80, gear_ratio: 7.94, battery_kwh: 24}",
+                                                  "design: {motor_kw: 80, gear_ratio: 7.94, battery_kwh: 24000}")))
+    # the run's battery_kg_per_kwh, not the vehicle's: a problem parameter (3 kg/kWh: 2600 kWh is 7.8 t, it loads;
+    # 9 kg/kWh: 2400 kWh is 21.6 t, refused), or the lower bound of a design variable
+    wide = BASE.replace("battery_kwh: {lower: 20, upper: 30,  initial: 24}", "battery_kwh: {lower: 20, upper: UP, initial: 24}")
+    for up, kg, ok in (("2600", "  parameters: {battery_kg_per_kwh: 3}\n  design_variables:\n", True),
+                       ("2400", "  parameters: {battery_kg_per_kwh: 9}\n  design_variables:\n", False),
+                       ("2600", "  design_variables:\n    battery_kg_per_kwh: {lower: 2, upper: 4, initial: 3}\n", True)):
+        text = wide.replace("UP", up).replace("  design_variables:\n", kg, 1).replace(
+            "battery_kwh: 24}", "battery_kwh: 24, battery_kg_per_kwh: 3}" if "lower: 2" in kg else "battery_kwh: 24}")
+        if ok:
+            assert load_config(_write(tmp_path, text))
+        else:
+            with pytest.raises(ValueError, match=r"upper bound 2400 kWh is 21,600 kg of battery at battery_kg_per_kwh 9,"):
+                load_config(_write(tmp_path, text))
 
 
 def test_a_baseline_the_models_cannot_evaluate_is_refused_on_load(tmp_path):
@@ -551,3 +578,36 @@ def test_a_baseline_whose_second_gear_is_shorter_than_the_first_is_refused_on_lo
     with pytest.raises(ValueError, match=r"^<config>: problem.baseline.design: gear_ratio_2 8 is above gear_ratio 7: "
                                          r"with gear_count 2 the second gear must not be shorter than the first"):
         load_config(raw)
+
+
+@pytest.mark.parametrize("key", ["frontal_area_m2", "drag_coefficient", "Cd", "cw"])
+def test_a_data_sheets_factor_of_the_drag_area_asks_for_the_product(tmp_path, key):
+    """A van trial's frontal_area_m2 was told "did you mean 'drag_area_m2'?"; following it, a 500e with its
+    2.1 m^2 frontal area as Cd A used 2.2x its energy with no word."""
+    text = BASE.replace("  load_kg:", f"  {key}: 2.1\n  load_kg:", 1)
+    with pytest.raises(ValueError, match=rf"vehicle.{key}: unknown key; 'drag_area_m2' is Cd x frontal area, m\^2 "
+                                         r"\(e.g. 0.29 x 2.27 m\^2 = 0.658\): give the product; known: "):
+        load_config(_write(tmp_path, text))
+
+
+def test_a_drag_area_factor_given_on_the_command_line_asks_for_the_product(capsys):
+    """The review: a config key got the product hint, but --set frontal_area_m2 and --wrt still said "did you
+    mean 'drag_area_m2'?"."""
+    from bev_mdo.cli import main
+
+    for argv in (["evaluate", str(REPO / "config" / "leaf_nedc.yaml"), "--set", "frontal_area_m2=2.27"],
+                 ["sensitivity", str(REPO / "config" / "leaf_nedc.yaml"), "--wrt", "frontal_area_m2"]):
+        assert main([*argv, "--transport", "inprocess"]) == 2
+        err = capsys.readouterr().err
+        assert "frontal_area_m2" in err and "'drag_area_m2' is Cd x frontal area, m^2" in err and "did you mean" not in err
+
+
+def test_a_users_own_parameter_nearer_than_the_product_is_the_hint():
+    """The second review: with a user discipline's own cd and frontal_area_m2, --set frontal_area and Cd were sent
+    to the built-in drag_area_m2."""
+    from bev_mdo.models.common import name_hint
+
+    own = ["cd", "drag_area_m2", "frontal_area_m2", "motor_kw"]
+    assert name_hint("frontal_area", own) == "did you mean 'frontal_area_m2'? "
+    assert name_hint("Cd", own) == "did you mean 'cd'? "
+    assert name_hint("frontal_area_m2", ["drag_area_m2", "motor_kw"]).startswith("'drag_area_m2' is Cd x frontal area")

@@ -39,6 +39,7 @@ def pyplot_and_label(units: dict | None):
     import matplotlib
 
     matplotlib.use("Agg")
+    matplotlib.rcParams["axes.formatter.useoffset"] = False  # values on the axis, not "0.1 .. 0.5 +3.209e2"
     import matplotlib.pyplot as plt
 
     from bev_mdo.mdo import units as un
@@ -93,7 +94,7 @@ def note_outside_bounds(problem, given: dict[str, float], caller: str) -> list[t
     for d in problem.design_variables:
         v = given.get(d.name)
         if v is not None and not d.lower <= v <= d.upper:  # (a number: finite_values)
-            print(f"{caller}: note: {d.name} = {v:g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
+            print(f"{caller}: note: {d.name} = {v:.12g} is outside its bounds [{d.lower:g}, {d.upper:g}] "
                   "(evaluated as given)", file=sys.stderr)
             out.append((d, v))
     return out
@@ -229,9 +230,11 @@ def run_in_chunks(mda, cols: dict[str, np.ndarray], n: int, timeout_s: float | N
 
 def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
     """One batch of MDAs: {design: {k: array}, outputs: {k: array}, margins: {c: array}, violation: the
-    largest normalised violation (inf: failed), feasible: bool array, ok: bool array, errors: [str], objective,
-    problem, units} (``designs`` may set model parameters too; variables not given keep their initial value)."""
+    largest normalised violation (inf: failed), feasible: bool array, ok: bool array, outside: each design's notes
+    of values outside their bounds (evaluated as given, infeasible), errors: [str], objective, problem, units}
+    (``designs`` may set model parameters too; variables not given keep their initial value)."""
     from bev_mdo.config import RunConfig
+    from bev_mdo.mdo.active import outside_bounds, outside_note
     from bev_mdo.mdo.driver import _mda, feasibility_tolerance
 
     finite_values(designs)
@@ -244,13 +247,6 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
         mda = _mda(config.settings, evaluator, problem)
         check_names(designs, problem, {p for s in mda.specs.values() for p in s.parameters})
         refuse_outside_model_limits(config, designs)
-        for d in problem.design_variables:
-            if d.name in designs:
-                v = np.asarray(designs[d.name], dtype=float)
-                bad = np.flatnonzero((v < d.lower) | (v > d.upper))
-                if bad.size:  # which design of the batch: the row of a --list file, a --design flag
-                    raise InputError(f"{d.name}={v[bad[0]]:g} (design {bad[0] + 1} of {n}) is outside its bounds "
-                                     f"[{d.lower:g}, {d.upper:g}]")
         cols.update({k: np.asarray(v, dtype=float) for k, v in designs.items()})
         res = run_in_chunks(mda, cols, n, getattr(getattr(evaluator, "inner", None), "timeout_s", None))  # ROS only
     outputs = {v: np.asarray(res.values[v], dtype=float) for s in mda.specs.values() for v in s.outputs}
@@ -260,7 +256,21 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
     g = problem.g(outputs)  # normalised as the optimiser's constraints (and its feasibility rule); NaN: violated
     violation = np.maximum(np.where(res.ok, 0.0, np.inf), np.where(np.isfinite(g), g, np.inf).max(axis=1, initial=0.0))
     feasible = violation <= feasibility_tolerance(config.settings)
+    # off the design space (a --list row, a --design, a --vary range past a bound): evaluated as given, as evaluate
+    # does, and infeasible whatever the constraints say; each design's lines under "outside"
+    tol = feasibility_tolerance(config.settings)
+    beyond = [[d for d in problem.design_variables if outside_bounds(d, cols[d.name][i], tol)] for i in range(n)]
+    outside = [[outside_note(d, cols[d.name][i]) if d in far else  # within the tolerance: feasible, as in evaluate
+                f"{d.name} = {cols[d.name][i]:.12g} is outside its bounds [{d.lower:g}, {d.upper:g}] (evaluated as given)"
+                for d in problem.design_variables if not d.lower <= cols[d.name][i] <= d.upper]
+               for i, far in enumerate(beyond)]
+    feasible &= ~np.array([bool(far) for far in beyond], dtype=bool)
     notes = ceiling_notes(config, outputs) + platform_notes(config, designs)
+    for group in ([i for i in range(n) if beyond[i]], [i for i in range(n) if outside[i] and not beyond[i]]):
+        if group:  # the first design of each: infeasible (beyond the tolerance), then within it
+            i, more = group[0], f" (and {len(group) - 1} more)" if len(group) > 1 else ""
+            notes.append(f"design {i + 1}{more}: " + (outside_note(beyond[i][0], cols[beyond[i][0].name][i])
+                                                      if beyond[i] else outside[i][0]))
     from bev_mdo.disciplines.energy import follow_counts
 
     short, unchecked = follow_counts(config.disciplines, {**cols, **outputs})  # cannot follow: infeasible, whatever the constraints
@@ -273,6 +283,6 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
                      "for their gearbox or topology (the check covers single-speed SM-SA)")
     return {"design": {k: cols[k] for k in [*problem.names, *[k for k in designs if k not in problem.names]]},
             "outputs": outputs, "margins": margins, "violation": violation, "feasible": feasible,
-            "ok": np.asarray(res.ok, bool),
+            "ok": np.asarray(res.ok, bool), "outside": outside,
             "errors": res.messages, "objective": problem.objective, "problem": problem,
             "units": declared_units(config, designs), "notes": notes}

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bev_mdo.bag.history import (answered_result, headline, mda_total, read_answers, records_phrase, run_ending,
-                                  sweep_phrase, verified_history)
+from bev_mdo.bag.history import (answered_result, check_note, headline, mda_total, read_answers, records_phrase,
+                                  run_ending, sweep_phrase, verified_history)
 from bev_mdo.bag.reader import Bag, open_bag
 from bev_mdo.mdo.units import label, run_units, unit_of
 
@@ -329,15 +329,16 @@ def _answers_section(answers: dict | None, point: str = "the end point") -> list
 
 def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = None,
               answers: dict | None = None, baseline: dict | None = None, units: dict | None = None,
-              k: int = -1, ending: tuple[bool, str] | None = None, config_note: str = "") -> str:
-    """``ending``: (finished, how the run ended: history.run_ending), said first; None for a sweep."""
+              k: int = -1, ending: tuple[bool, str] | None = None, config_note: str = "", said: str = "") -> str:
+    """``ending``: (finished, how the run ended: history.run_ending), said first; None for a sweep. ``said``: what
+    the reading left out or could not verify (history.check_note)."""
     info = bag.info
     finished = ending is None or ending[0]
     lines = [f"# Run report: {bag.bag_dir.name}", "", *([f"- {ending[1]}"] if ending else []),
              f"- bag file: `{bag.mcap_path.name}` ({bag.file_size} bytes, {bag.message_count} messages, "
              f"{bag.duration_ns / 1e9:.3f} s recorded)",
              f"- run id: `{info.get('run_id', '?')}`, bev_mdo version `{info.get('version', '?')}`",
-             *([f"- **{config_note}**"] if config_note else [])]
+             *([f"- **{config_note}**"] if config_note else []), *([f"- **{said}**"] if said else [])]
     if bag.truncated:
         lines.append(f"- **truncated**: {bag.recovery_note()}")
     if rows:
@@ -412,6 +413,7 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     import matplotlib
 
     matplotlib.use("Agg")
+    matplotlib.rcParams["axes.formatter.useoffset"] = False  # values on the axis, not "0.1 .. 0.5 +3.209e2"
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     out = Path(out_dir) if out_dir else bag.bag_dir
     out.mkdir(parents=True, exist_ok=True)
@@ -456,6 +458,11 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
         _plot_timing(timing, out / "discipline_time.png")
         written.append(out / "discipline_time.png")
     md = out / "report.md"
+    # what was left out or could not be verified, as stderr says it (a forged record dropped, a stored config that
+    # does not load): report.md said "the run finished" and nothing of it
+    # (an unsigned run, in process or a sweep without a key, is read unverified as docs/security.md says: no warning)
+    said = "; ".join(filter(None, [check_note({c: v for c, v in checks.items() if c not in ("config", "unverified")}),
+                                   bag.metadata_note]))
     md.write_text(_markdown(bag, shown, timing, [p.name for p in written], final, answers, baseline, units, k, ending,
-                            checks.get("config", "")), encoding="utf-8")
+                            checks.get("config", ""), said), encoding="utf-8")
     return written + [md]

@@ -112,10 +112,10 @@ def _point(form, problem, text: str) -> np.ndarray:
 
 
 def run(args) -> int:
-    from bev_mdo.api.evaluate import note_outside_bounds
+    from bev_mdo.api.evaluate import declared_units, note_outside_bounds
     from bev_mdo.api.transport import Evaluating
     from bev_mdo.cli import flags
-    from bev_mdo.cli.check_partials import check_tolerances
+    from bev_mdo.cli.check_partials import _per, check_tolerances
     from bev_mdo.mdo.driver import build_formulation
 
     config = flags.load_config(args)
@@ -125,6 +125,9 @@ def run(args) -> int:
         x = _point(form, form.problem, args.at)
         note_outside_bounds(form.problem, dict(zip(form.problem.names, x.tolist())), "bev-mdo check-totals")
         rep = check(form, x, args.step, args.rtol, args.atol)
+    units = declared_units(config, form.var_names)  # a model parameter as a design variable: its unit too
+    for r in rep["rows"]:  # an IDF consistency is normalised by its coupling's scale: 1 per unit of the variable
+        r["unit"] = _per(units, "" if r["of"].endswith(" consistency") else r["of"].split()[0], r["wrt"]).strip() or "1"
     if args.json:
         print(jsontext.dumps(rep))
     else:
@@ -140,10 +143,12 @@ def print_table(rep: dict) -> None:
              if rep.get("one_sided") else ""))
     wf = max(10, *(len(r["of"]) for r in rep["rows"])) + 1
     wv = max(8, *(len(r["wrt"]) for r in rep["rows"])) + 1
-    print(f" {'of':<{wf}} {'wrt':<{wv}} {'total':>14} {'fd':>14} {'abs err':>10} {'rel err':>10}  status")
+    wu = max(4, *(len(r.get("unit", "")) for r in rep["rows"])) + 1
+    print(f" {'of':<{wf}} {'wrt':<{wv}} {'unit':<{wu}} {'total':>14} {'fd':>14} {'abs err':>10} {'rel err':>10}  status")
     for r in rep["rows"]:
         tiny = max(abs(r["total"]), abs(r["fd"])) <= rep["atol"]  # both within atol of 0: no relative error to speak of
-        print(f" {r['of']:<{wf}} {r['wrt']:<{wv}} {r['total']:>14.8g} {r['fd']:>14.8g} {r['abs_error']:>10.3g} "
+        print(f" {r['of']:<{wf}} {r['wrt']:<{wv}} {r.get('unit', ''):<{wu}} {r['total']:>14.8g} {r['fd']:>14.8g} "
+              f"{r['abs_error']:>10.3g} "
               f"{'-' if tiny else format(r['rel_error'], '.3g'):>10}  "
               f"{'ok' if r['ok'] else 'DISAGREE' if r['fd'] == r['fd'] else 'no fd: no side left'}")
     if rep["error"]:

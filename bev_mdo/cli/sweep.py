@@ -116,8 +116,9 @@ def grid(vary: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 
 def read_list(path: str, config) -> dict[str, np.ndarray]:
-    """A header of names, each a design variable or parameter of the run (``config``), then one row of numbers
-    per design; InputError naming the row and column."""
+    """A header of names, each a design variable or parameter of the run (``config``), or a column the run
+    computes (an output, ``margin.*``, feasible, ok, error: a sweep.csv or a Pareto front read back; left out, with
+    a note), then one row of numbers per design; InputError naming the row and column."""
     from bev_mdo.models.cycles import csv_number, read_csv_rows
 
     try:  # the reader of every user CSV (size-bounded, UTF-8 with or without BOM, one-line errors)
@@ -131,20 +132,28 @@ def read_list(path: str, config) -> dict[str, np.ndarray]:
     if "" in names or twice:  # the last column of a name used to win silently
         raise InputError(f"--list {path}: the header " + (f"names {twice[0]!r} twice" if twice else "has an empty name"))
     params = sorted({p for d in config.disciplines for p in getattr(d, "parameters", None) or ()})
-    unknown = [n for n in names if n not in config.problem.names and n not in params]
+    # what a run writes beside its designs (sweep.csv, pareto front.csv): recomputed, not read
+    outputs = {o for d in config.disciplines for o in d.outputs} | {"feasible", "ok", "error"}
+    computed = [n for n in names if n in outputs or n.startswith("margin.")]
+    unknown = [n for n in names if n not in config.problem.names and n not in params and n not in computed]
     if unknown:  # said before its cells: a column of labels was 'not a number'
         raise InputError(f"--list {path}: column {unknown[0]!r} is not a design variable or parameter; design "
                          f"variables: {config.problem.names}, parameters: {params}")
+    if computed:
+        print(f"bev-mdo sweep: note: --list {path}: columns {', '.join(computed)} are what a run computes: "
+              "computed again, not read", file=sys.stderr)
     values = np.empty((len(rows) - 1, len(names)))
     for i, row in enumerate(rows[1:]):
         if len(row) != len(names):
             raise InputError(f"--list {path}: design {i + 1} has {len(row)} values for {len(names)} names")
         for j, cell in enumerate(row):
+            if names[j] in computed:
+                continue
             try:
                 values[i, j] = csv_number(cell)
             except ValueError as exc:  # not a number (1_0 was 10), or not finite
                 raise InputError(f"--list {path}: design {i + 1}, column {names[j]!r}: {exc}") from None
-    return {n: values[:, j] for j, n in enumerate(names)}
+    return {n: values[:, j] for j, n in enumerate(names) if n not in computed}
 
 
 def write_csv(path: Path, result: dict) -> None:
@@ -336,8 +345,9 @@ def run_compare(args) -> int:
     named = {**result["design"], **{k: v for k, v in result["outputs"].items() if k not in result["design"]}}
     rows = [(k, unit_of(k), v) for k, v in named.items()]
     rows += [(f"margin {k}", unit_of(k), v) for k, v in result["margins"].items()]
-    notes = [notes_of(config, {**problem.parameters, **{k: v[i] for k, v in result["design"].items()}},  # why 'NO'
-                      {k: v[i] for k, v in result["outputs"].items()})[1] for i in range(len(given))]
+    notes = [result["outside"][i] + notes_of(config, {**problem.parameters, **{k: v[i] for k, v in result["design"].items()}},
+                                             {k: v[i] for k, v in result["outputs"].items()})[1]  # why 'NO'
+             for i in range(len(given))]
     if args.json:
         print(jsontext.dumps({"designs": [{name: float(v[i]) for name, _, v in rows} | {
             "feasible": bool(result["feasible"][i]), "ok": bool(result["ok"][i])} | (

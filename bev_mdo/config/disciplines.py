@@ -71,6 +71,7 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
             if spec.lower < lo or spec.upper > hi:
                 raise ValueError(f"problem.design_variables.{dv}: bounds [{spec.lower:g}, {spec.upper:g}] reach "
                                  f"outside {where}")
+            _check_battery_mass(dv, spec.upper, discs, problem)
     # a baseline the models refuse would be shown as a column of NaN beside the result
     check_model_limits(discs, ((cfg["problem"].get("baseline") or {}).get("design") or {}), "problem.baseline.design.")
     check_model_limits(discs, problem.parameters, "problem.parameters.")
@@ -87,6 +88,24 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
                          "(add the battery_sizing discipline)")
     graph.check_inputs(set(problem.names) | set(problem.parameters))
     return params
+
+
+def _check_battery_mass(dv: str, upper: float, discs, problem) -> None:
+    """A battery_kwh bound whose battery alone outweighs the heaviest vehicle the models accept (a pack typed
+    in Wh): every design near it failed, each naming only the vehicle's mass. battery_kg_per_kwh as the run
+    takes it: a problem parameter, the lower bound of a design variable, else the vehicle's."""
+    mass = next((d for d in discs if dv == "battery_kwh" and dv in d.inputs
+                 and "battery_kg_per_kwh" in (getattr(d, "parameters", None) or {})), None)
+    if mass is None:
+        return
+    lightest = {d.name: d.lower for d in problem.design_variables}.get("battery_kg_per_kwh")
+    kg_per_kwh = float(problem.parameters.get("battery_kg_per_kwh", lightest if lightest is not None
+                                              else mass.parameters["battery_kg_per_kwh"]))
+    heaviest = DESIGN_LIMITS["vehicle_mass_kg"][1]
+    if upper * kg_per_kwh > heaviest:
+        raise ValueError(f"problem.design_variables.battery_kwh: upper bound {upper:g} kWh is {upper * kg_per_kwh:,.0f} kg "
+                         f"of battery at battery_kg_per_kwh {kg_per_kwh:g}, above the {heaviest:,.0f} kg vehicle "
+                         f"discipline {mass.name!r} accepts (a pack in Wh?)")
 
 
 def check_optimizer_variables(optimizer: str, design: list[str], couplings: list[str], coupling_bound) -> None:

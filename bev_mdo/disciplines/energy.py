@@ -163,6 +163,28 @@ class Energy(Base):
                            ": its energy per km is that of the cycle's demand, not of a powertrain that follows it"))
         return None
 
+    def notes(self, values) -> list[str]:
+        """The breakdown model's energy at one design (``values``: inputs and outputs) row by row, as Table 5-1
+        gives it (kWh/100 km; the battery rows are left out of the total, eq 5-21): what the energy is made of."""
+        one = {k: np.atleast_1d(np.asarray(values[k], float)) for k in (*self.inputs, *self.parameters) if k in values}
+        if self.energy_model != "breakdown" or not all(k in one and np.isfinite(one[k]).all() for k in self.inputs):
+            return []  # (sensitivity's point holds no coupling; a failed design's are NaN: its failure says why)
+        from bev_mdo.models.breakdown import energy_breakdown
+
+        p = {**self.extra, **self._params(one)}
+        try:  # a design the model refuses failed already, and says why
+            runs = [(w, energy_breakdown(r, p, one["vehicle_mass_kg"], one.get("gear_ratio"), one.get("motor_kw")))
+                    for w, r in self._cycles()]
+        except ValueError:
+            return []
+        rows = {k: sum(w * float(b[k][0]) for w, b in runs)
+                for k in ("aerodynamic", "rolling_resistance", "inertia", "regenerative_recovery", "transmission_loss",
+                          "motor_loss", "total", "battery_discharge_loss", "battery_charge_loss")}
+        parts = ", ".join(f"{k.replace('_', ' ')} {v:.3f}" for k, v in rows.items())
+        w = float(np.ravel(p["battery_loss_weight"])[0])
+        battery = f"the total holds the battery rows x battery_loss_weight {w:g}" if w else "the battery rows are not in the total"
+        return [f"energy by Table 5-1's rows, kWh/100 km: {parts} ({battery})"]
+
     def prepare(self) -> None:
         """One-time work before the first call, outside any timeout: the quasi-static model's compiled loops."""
         if self.energy_model == "quasi_static":

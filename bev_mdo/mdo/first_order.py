@@ -183,9 +183,9 @@ def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = Fal
         lines.append(_coupling_bounds_line(fo["outside_coupling_bounds"]))
     if converged and ended is not None and fo["verdict"] != OPTIMUM:  # its end point is not what was judged
         why = ("cannot follow the drive cycle, a check the optimiser does not see (constrain the energy "
-               "discipline's margins so that it does: options {feasibility_outputs: true}, e.g. drive_force_margin_n "
-               ">= 0; docs/user-problems.md)" if ended.get("cannot_follow")
-               else "is infeasible" if not ended.get("feasible") else "is worse")
+               "discipline's margins so that it does: options {feasibility_outputs: true}, and its margins >= 0: "
+               "drive_force_margin_n (flat), drive_torque_margin_nm (chain, quasi_static); docs/user-problems.md)"
+               if ended.get("cannot_follow") else "is infeasible" if not ended.get("feasible") else "is worse")
         lines.append(f"{optimizer} says it converged, at iteration {ended.get('iteration')}, which {why}: the result "
                      "is an earlier point, where the first-order conditions need not hold")
     elif converged and fo["verdict"] == STOPPED and fo.get("failed_steps") and not fo.get("derivatives_disagree"):

@@ -62,10 +62,9 @@ def base_name(flat: str) -> str:
 def did_you_mean(name: str, names, cutoff: float = 0.6) -> str:
     """``did you mean 'range_km'? `` (the nearest of ``names`` by difflib), or "": the one hint of every
     unknown name a user gives (a design, a fixed value, an objective, --at, --wrt)."""
-    import difflib
+    from bev_mdo.models.common import name_hint
 
-    near = difflib.get_close_matches(str(name), sorted(map(str, names)), n=1, cutoff=cutoff)
-    return f"did you mean {near[0]!r}? " if near else ""
+    return name_hint(name, names, cutoff)
 
 
 def is_variable_name(name: str) -> bool:

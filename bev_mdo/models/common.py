@@ -46,19 +46,38 @@ DESIGN_LIMITS: dict[str, tuple[float, float, str]] = {
 }
 
 
+# keys a user brings from a data sheet that stand for a factor of one of ours: the product is wanted, not the name
+# (frontal_area_m2 was told "did you mean 'drag_area_m2'?", and a 500e with 2.1 m^2 as Cd A used 2.2x its energy)
+_DRAG_AREA = ("drag_area_m2", "Cd x frontal area, m^2 (e.g. 0.29 x 2.27 m^2 = 0.658)")
+PRODUCT_KEYS = {k: _DRAG_AREA for k in ("frontal_area_m2", "frontal_area", "drag_coefficient", "cd", "cx", "cw")}
+
+
+def name_hint(name: Any, known, cutoff: float = 0.6) -> str:
+    """The hint after an unknown ``name``: ``did you mean 'x'? `` for a known name in another case or the nearest
+    by difflib; where ``name`` is a factor of a known product (``PRODUCT_KEYS``) and no other known name is nearer,
+    ``'drag_area_m2' is Cd x frontal area, ...: give the product; ``; else ""."""
+    import difflib
+
+    names, typed = sorted(map(str, known)), str(name).lower()
+    # the same name in another case, or with a unit: a user's own Cd or frontal_area_m2, nearer than any product
+    same = [k for k in names if k.lower() == typed or k.lower().startswith(typed + "_")]
+    want = PRODUCT_KEYS.get(typed)
+    if want and want[0] in names and not same:
+        return f"{want[0]!r} is {want[1]}: give the product; "
+    near = same or difflib.get_close_matches(str(name), names, n=1, cutoff=cutoff)
+    return f"did you mean {near[0]!r}? " if near else ""
+
+
 def check_keys(where: str, given: Any, known: Any, of: str = "") -> None:
     """One-line ValueError for the first key of ``given`` not in ``known``: ``<where>.<key>: unknown
     key; did you mean '<nearest>'? known: ...`` (nearest by difflib). ``where`` is the key path of
     the mapping, e.g. ``disciplines[1] (energy).options`` ("" for the top level); ``of`` names whose
     keys they are (``unknown key of SLSQP``)."""
-    import difflib
-
     names = sorted(str(k) for k in known)
     for key in given:
         if key in known:
             continue
-        near = difflib.get_close_matches(str(key), names, n=1, cutoff=0.6)
-        hint = f"did you mean {near[0]!r}? " if near else ""
+        hint = name_hint(key, names)
         listed = f"known: {', '.join(names)}" if names else "none is declared"
         raise ValueError(f"{where + '.' if where else ''}{key}: unknown key{' of ' + of if of else ''}; {hint}{listed}")
 

@@ -64,6 +64,8 @@ STEPS = (
     ("drag_appendix_a", "drag area 0.29 x 2.27 m^2 (Appendix A)",
      {"params": {"drag_area_m2": APPENDIX_A_DRAG_AREA_M2}}),
     ("mass_plus_5", "mass +5 % (a rotating-mass factor)", {"mass_factor": 1.05}),
+    ("idle_loss", "the map written out as losses: an unloaded, spinning motor keeps its no-load loss",
+     {"params": {"motor_loss_model": 1.0}}),
     ("ch5_40", "ch.5 nominal: flat 85 % + 40 % regen + equal split", {**CH5, "regen_share": 0.4}),
     ("ch5_30", "as ch5_40 with the 30 % ch.5's Artemis column uses", {**CH5, "regen_share": 0.3}),
 )
@@ -105,7 +107,7 @@ def energy_kwh_per_100km(topology: str, *, params=None, flat_efficiency=None, eq
     if equal_split and tp.get_topology(topology).two_axles:  # see the module docstring
         topology = {"DM-DA": "SM-SA", "IWM-DA": "IWM-SA"}[topology]
         design = BENCHMARK[topology]
-    motor_map = flat_map(flat_efficiency) if flat_efficiency else qs.default_map()
+    motor_map = flat_map(flat_efficiency) if flat_efficiency else None  # None: the map, or the loss model p asks for
     if regen_share == 1.0:
         r = tp.simulate(cycle(cycle_name), p, topology, mass, design["motor_kw"], BATTERY_KWH, design.get("gear_ratio"),
                         design.get("motor_rear_kw"), design.get("gear_ratio_rear"), motor_map=motor_map, reference=True)
@@ -114,7 +116,7 @@ def energy_kwh_per_100km(topology: str, *, params=None, flat_efficiency=None, eq
     t, m, ig, kw, pp, kw_r, ig_r = tp._prepare(p, topology, mass, design["motor_kw"], BATTERY_KWH,
                                                design.get("gear_ratio"), design.get("motor_rear_kw"),
                                                design.get("gear_ratio_rear"))
-    d = tp._demand(cycle(cycle_name), t, pp, m, ig, kw, kw_r, ig_r, motor_map)
+    d = tp._demand(cycle(cycle_name), t, pp, m, ig, kw, kw_r, ig_r, qs.drive_model(pp, motor_map))
     d.p_regen_w = regen_share * d.p_regen_w
     return float(qs.integrate_energy(d, pp, m.shape[0]).energy_wh_per_km[0]) / 10.0
 

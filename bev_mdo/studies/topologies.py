@@ -192,6 +192,7 @@ def plot_pair(results, bench, xk: str, yk: str, path: Path, cycle: str = "", vio
     import matplotlib
 
     matplotlib.use("Agg")
+    matplotlib.rcParams["axes.formatter.useoffset"] = False  # values on the axis, not "0.1 .. 0.5 +3.209e2"
     import matplotlib.pyplot as plt
 
     fx, xl = _axis(xk)

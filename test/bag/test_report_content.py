@@ -7,6 +7,8 @@ WLTC problem with a 250 km range (infeasible; the battery on its upper bound blo
 """
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 from pathlib import Path
 
@@ -231,6 +233,23 @@ def test_the_report_of_a_finished_run_says_it_finished(feasible_run, tmp_path):
     report(feasible_run[1], tmp_path)
     first = (tmp_path / "report.md").read_text().splitlines()[2]
     assert first == "- the run finished: the bag holds its end-of-run record (its result and the answers below)"
+
+
+def test_an_untampered_unsigned_run_gets_no_warning_in_its_report(tmp_path):
+    """report.md carries what the reading left out (a forged record dropped); an in-process run without a key
+    is read unverified, as docs/security.md says, and that is no warning (the review saw it bold in every one)."""
+    from bev_mdo.bag.report import report
+    from bev_mdo.cli import main
+
+    bag = tmp_path / "bag"
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main(["optimize", str(ROOT / "config" / "leaf_nedc.yaml"), "--transport", "inprocess", "--bag", str(bag),
+                     "--quiet"]) == 0
+    checks: dict = {}
+    report(bag, tmp_path / "r", checks=checks)
+    assert "not signed" in checks.get("unverified", "")
+    lines = (tmp_path / "r" / "report.md").read_text().splitlines()
+    assert not [line for line in lines if line.startswith("- **")], lines[:8]
 
 
 def test_a_report_whose_stored_config_no_longer_loads_says_so(tmp_path):

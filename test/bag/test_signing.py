@@ -212,3 +212,15 @@ def test_a_damaged_fingerprint_in_the_signing_record_is_said_to_be_damage(tmp_pa
     assert said in str(info.value) and "is not the key this run was signed with" not in str(info.value)
     for err in _refused_by_every_reader(capsys, tmp_path, bag):
         assert "signing record is damaged" in err and said in err
+
+
+def test_report_md_says_a_forged_record_was_dropped(tmp_path, run_bag, capsys):
+    """A ROS trial: report's stderr said 'dropped 1 forged iteration record(s)', and the report.md it wrote
+    opened with 'the run finished' and said nothing of it."""
+    bag, key_file, recs = run_bag
+    forged = Signer(read_key(new_key_file(tmp_path / "evil"))).sign_iteration(_record(RUN, 5, 120.0))
+    shutil.rmtree(bag)
+    _bag(bag, recs + [forged], _config(key_file))
+    status, out, err = _cli(capsys, "report", str(bag), "--output-dir", str(tmp_path / "r"))
+    assert status == 0 and "dropped 1 forged iteration record(s)" in err, err
+    assert "- **dropped 1 forged iteration record(s)" in (tmp_path / "r" / "report.md").read_text()

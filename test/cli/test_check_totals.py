@@ -142,6 +142,27 @@ def test_one_sided_differences_and_zero_rows_are_said(capsys):
     assert json.loads(capsys.readouterr().out)["one_sided"] == []
 
 
+
+def test_each_total_is_given_in_its_units(capsys, tmp_path):
+    """The rows named what was differentiated but not in which units (check-partials says ' Wh/km per kW')."""
+    leaf = REPO / "config" / "leaf_nedc.yaml"
+    idf = {(r["of"], r["wrt"]): r["unit"] for r in _report(capsys, leaf, "--formulation", "idf")["rows"]}
+    assert idf[("energy_wh_per_km", "motor_kw")] == "Wh/km per kW"
+    assert idf[("range_km >= 170", "battery_kwh")] == "km per kWh"
+    assert idf[("energy_wh_per_km", "gear_ratio")] == "Wh/km"  # per a ratio
+    assert idf[("vehicle_mass_kg consistency", "motor_kw")] == "1 per kW"  # normalised by its coupling's scale
+    assert idf[("vehicle_mass_kg consistency", "gear_ratio")] == "1"
+    assert main(["check-totals", str(leaf), "--transport", "inprocess"]) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines() if line.split()[:2] == ["energy_wh_per_km", "motor_kw"])
+    assert row.split()[2:5] == ["Wh/km", "per", "kW"], row
+    # a model parameter made a design variable: its unit from the parameter's spec (it read 'Wh/km')
+    text = leaf.read_text().replace("  design_variables:\n", "  design_variables:\n    drag_area_m2: {lower: 0.5, upper: 0.8, initial: 0.6412}\n", 1)
+    cfg = tmp_path / "cda.yaml"
+    cfg.write_text(text.replace("battery_kwh: 24}", "battery_kwh: 24, drag_area_m2: 0.6412}"))
+    units = {(r["of"], r["wrt"]): r["unit"] for r in _report(capsys, cfg)["rows"]}
+    assert units[("energy_wh_per_km", "drag_area_m2")] == "Wh/km per m^2"
+
+
 EDGE = """
 import numpy as np
 

@@ -291,7 +291,7 @@ def test_an_end_point_the_cycle_check_rejects_is_named_not_blamed_on_the_stoppin
                  "--constraint", "accel_time_0_100_s<=100"]) == 5
     out = capsys.readouterr().out
     assert "note: SLSQP says it converged, at iteration 11, which cannot follow the drive cycle" in out, out
-    assert "drive_force_margin_n >= 0" in out and "ftol" not in out
+    assert "its margins >= 0: drive_force_margin_n (flat), drive_torque_margin_nm (chain, quasi_static)" in out and "ftol" not in out
 
 
 def test_an_end_at_the_edge_of_failing_points_is_not_blamed_on_a_derivative(tmp_path, capsys):

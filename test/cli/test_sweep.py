@@ -116,9 +116,11 @@ def test_two_vary_flags_both_count(tmp_path, capsys):
     assert "6 designs in one batch" in capsys.readouterr().out
 
 
-def test_sweep_outside_bounds_and_unknown_names_are_user_errors(tmp_path, capsys):
-    assert main(["sweep", CONFIG, "--vary", "motor_kw=10:20:2", "--out", str(tmp_path), "--transport", "inprocess"]) == 2
-    assert "outside its bounds" in capsys.readouterr().err
+def test_sweep_outside_bounds_is_infeasible_and_unknown_names_are_user_errors(tmp_path, capsys):
+    assert main(["sweep", CONFIG, "--vary", "motor_kw=10:20:2", "--out", str(tmp_path), "--no-plots",
+                 "--transport", "inprocess"]) == 0
+    out = capsys.readouterr().out
+    assert "0 feasible, 2 infeasible, 0 failed" in out and "note: design 1 (and 1 more): motor_kw = 10 is outside" in out
     assert main(["sweep", CONFIG, "--vary", "wheels=1:2:2", "--out", str(tmp_path), "--transport", "inprocess"]) == 2
 
 
@@ -167,15 +169,51 @@ def test_a_malformed_list_is_one_line_naming_the_design_and_column(tmp_path, cap
     assert len(err) == 1 and f"--list {lst}: {said}" in err[0], err
 
 
-def test_a_listed_design_outside_its_bounds_is_named_by_its_place(tmp_path, capsys):
-    """A malformed-input trial: 'motor_kw=800 is outside its bounds [40, 120]' named neither the file's row nor
-    the design."""
+def test_a_listed_design_outside_its_bounds_is_evaluated_infeasible_and_named(tmp_path, capsys):
+    """A design outside its bounds was refused by sweep and compare while evaluate took it as given (infeasible,
+    with a note): the same design is now the same answer in all three."""
     lst = tmp_path / "designs.csv"
     lst.write_text("motor_kw,gear_ratio\n80,9\n800,9\n")
     assert main(["sweep", CONFIG, "--list", str(lst), "--out", str(tmp_path / "o"), "--no-plots", "--no-record",
-                 "--transport", "inprocess"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "motor_kw=800 (design 2 of 2) is outside its bounds [40, 120]" in err[0], err
+                 "--transport", "inprocess"]) == 0
+    out = capsys.readouterr().out
+    assert ("note: design 2: motor_kw = 800 is outside its bounds [40, 120]: infeasible whatever the constraints "
+            "say (evaluated as given)") in out, out
+    rows = list(csv.DictReader(open(tmp_path / "o" / "sweep.csv")))
+    assert [r["feasible"] for r in rows][1] == "False" and float(rows[1]["motor_kw"]) == 800.0
+    assert main(["compare", CONFIG, "--design", "motor_kw=80", "--design", "motor_kw=800", "--json",
+                 "--transport", "inprocess"]) == 0
+    designs = json.loads(capsys.readouterr().out)["designs"]
+    assert designs[1]["feasible"] is False and designs[1]["notes"][0].startswith("motor_kw = 800 is outside its bounds")
+    # within the feasibility tolerance (1e-4 of the span): feasible, as evaluate says, but said all the same
+    lst.write_text("battery_kwh\n19.9991\n19.5\n")
+    assert main(["sweep", CONFIG, "--list", str(lst), "--out", str(tmp_path / "t"), "--no-plots", "--no-record",
+                 "--transport", "inprocess"]) == 0
+    out = capsys.readouterr().out
+    assert "1 feasible, 1 infeasible" in out and ("note: design 1: battery_kwh = 19.9991 is outside its bounds [20, 30] "
+                                                   "(evaluated as given)\n") in out, out
+    # a value that :g rounds onto its bound read "motor_kw = 120 is outside its bounds [40, 120]" (the second review)
+    assert main(["compare", CONFIG, "--design", "motor_kw=120.00001", "--design", "motor_kw=90", "--transport",
+                 "inprocess"]) == 0
+    assert "note: design 1: motor_kw = 120.00001 is outside its bounds [40, 120]" in capsys.readouterr().out
+    assert main(["evaluate", CONFIG, "--set", "motor_kw=800", "--json", "--transport", "inprocess"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["feasible"] is False and report["notes"][0] == designs[1]["notes"][0]
+    assert report["outputs"]["energy_wh_per_km"] == pytest.approx(designs[1]["energy_wh_per_km"], rel=1e-9)
+
+
+def test_a_sweep_csv_read_back_as_a_list_gives_the_same_rows(tmp_path, capsys):
+    """A user filters sweep.csv (or a Pareto front.csv) and evaluates those rows again: every output column was
+    refused as 'not a design variable or parameter'."""
+    assert main(["sweep", CONFIG, "--vary", "motor_kw=60:100:3", "--out", str(tmp_path / "a"), "--no-plots",
+                 "--no-record", "--transport", "inprocess"]) == 0
+    capsys.readouterr()
+    assert main(["sweep", CONFIG, "--list", str(tmp_path / "a" / "sweep.csv"), "--out", str(tmp_path / "b"),
+                 "--no-plots", "--no-record", "--transport", "inprocess"]) == 0
+    err = capsys.readouterr().err
+    assert "columns vehicle_mass_kg, energy_wh_per_km," in err and "feasible, ok, error are what a run computes" in err
+    first, again = (list(csv.DictReader(open(tmp_path / d / "sweep.csv"))) for d in "ab")
+    assert len(again) == 3 and [r["energy_wh_per_km"] for r in again] == [r["energy_wh_per_km"] for r in first]
 
 
 def test_a_name_mistyped_in_one_compare_design_is_said_unknown(capsys):

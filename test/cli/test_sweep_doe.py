@@ -136,7 +136,7 @@ def test_a_failed_design_is_recorded_without_values_even_where_the_mda_kept_one(
     # (IterationRecord.msg: NaN where the point failed); a user trial saw its cost as the objective.
     out = tmp_path / "failed"
     assert main(["sweep", str(REPO / "config" / "leaf_nedc.yaml"), "--objective", "powertrain_cost_usd",
-                 "--vary", "battery_kwh=24,2600", "--bound", "battery_kwh=20:3000", "--set", "motor_kw=80", "gear_ratio=8",
+                 "--vary", "battery_kwh=24,2600", "--set", "motor_kw=80", "gear_ratio=8",
                  "--transport",
                  "inprocess", "--out", str(out), "--no-plots"]) == 0
     rows = _rows(out / "sweep.csv")

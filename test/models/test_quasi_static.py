@@ -230,3 +230,13 @@ def test_bad_inputs_name_the_parameter(nedc, kw, match):
     with pytest.raises(ValueError, match=match):
         qs.energy_wh_per_km(nedc, kw.get("params", {}), kw.get("mass", 1590.0), kw.get("ratio", 8.0),
                             kw.get("motor", 80.0))
+
+
+def test_the_cycle_range_jumps_where_the_soc_first_reaches_its_floor(nedc):
+    """docs/thesis.md: the chapter-3 range stops the first time the SOC reaches 5 %; just before the EUDC's last
+    braking (whose regeneration lifts the SOC again) a little more battery drives on to the next crossing."""
+    b = np.array([23.98, 23.99, 24.0])
+    m = 1269.64 + 69 + 0.532 * 80 + 21.6 + 7.8 * b
+    rng = qs.range_by_repeated_cycle_km(nedc, {}, m, np.full(3, 8.0), np.full(3, 80.0), b)
+    assert rng[0] == pytest.approx(197.53, abs=0.01) and rng[2] == pytest.approx(199.74, abs=0.01)
+    assert min(abs(rng[1] - rng[0]), abs(rng[1] - rng[2])) < 0.1  # a jump, not a slope

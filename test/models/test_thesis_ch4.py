@@ -60,6 +60,9 @@ def test_shipped_models_differ_from_table_4_5_as_documented(gap):
     # a power-minimising split is never above the equal split, which is the mass effect only
     assert base["DM-DA"] <= gap["equal_split"]["DM-DA"] and base["IWM-DA"] <= gap["equal_split"]["IWM-DA"]
     assert gap["equal_split"]["DM-DA"] / gap["equal_split"]["SM-SA"] - 1 == pytest.approx(0.011, abs=0.002)
+    # the split's saving is the map's free idle machine: charged its no-load loss, DM-DA is above SM-SA again
+    idle = gap["idle_loss"]
+    assert idle["DM-DA"] / idle["SM-SA"] - 1 == pytest.approx(0.011, abs=0.002) and idle["IWM-DA"] > idle["IWM-SA"]
 
 
 @pytest.mark.parametrize("topology", ["DM-DA", "IWM-DA"])

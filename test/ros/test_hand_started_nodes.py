@@ -76,6 +76,31 @@ def test_a_coordinator_signalled_while_it_waits_ends_with_one_line(ros_domain, l
     assert err.count("coordinator_node: interrupted") == 1
 
 
+def test_a_recorder_started_as_a_background_job_ends_its_recording_on_sigint(ros_domain, tmp_path):
+    """docs/ros2-run.md: SIGINT ends a serving recorder's recording. Started by a script as a `&` job (SIGINT
+    ignored), it went on recording; `kill -INT` to the coordinator of the same script raised from its publisher
+    ("publisher's context is invalid"), exit 1. A node executable now takes SIGINT whoever ignored it."""
+    bag = tmp_path / "bag"
+    p = subprocess.Popen([sys.executable, "-m", "bev_mdo.ros.run", "recorder_node", "--output", str(bag)],
+                         env=ros_env(ros_domain), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    lines = []
+    try:
+        for line in p.stderr:
+            lines.append(line)
+            if "recording to" in line or len(lines) > 50:
+                break
+        p.send_signal(signal.SIGINT)
+        _, rest = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    err = "".join(lines) + rest
+    assert p.returncode == 0 and "Traceback" not in err, (p.returncode, err[-3000:])
+    assert err.strip().splitlines()[-1] == f"recorded 0 messages to {bag / 'bag_0.mcap'}", err[-3000:]
+
+
 def test_the_recorder_reads_a_relative_key_from_the_configs_folder(tmp_path, monkeypatch):
     """README: relative paths count from the config's folder, and the discipline nodes and the coordinator
     read the key so; the recorder read it from its working directory ('cannot read', exit 2, and the
