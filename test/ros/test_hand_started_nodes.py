@@ -47,21 +47,17 @@ def test_a_parameter_the_recorder_does_not_declare_is_one_line_exit_2_and_no_bag
     assert not bag.exists()
 
 
-@pytest.mark.parametrize("sig, status, sigint", [
-    (signal.SIGINT, 130, signal.SIG_DFL), (signal.SIGTERM, 143, signal.SIG_DFL),
-    (signal.SIGINT, 130, signal.SIG_IGN)], ids=["SIGINT", "SIGTERM", "SIGINT-ignored"])
-def test_a_coordinator_signalled_while_it_waits_ends_with_one_line(ros_domain, leaf_config, sig, status, sigint):
-    """Signalled while it waits for the disciplines (none run on this domain). SIGINT-ignored: started as a
-    shell's background job, Python takes no SIGINT and only rclpy's own handler does (it shuts the context down)."""
-    p = subprocess.Popen([sys.executable, "-m", "bev_mdo.ros.run", "coordinator_node", "--ros-args", "-p",
-                          f"config:={leaf_config}", "-p", "run_id:=by_hand_signalled"], env=ros_env(ros_domain),
+def _signalled(argv: list[str], ros_domain: int, sigint, ready, sig):
+    """A node executable started with SIGINT at ``sigint`` (SIG_IGN: a shell's background job), sent ``sig`` once a
+    line of its stderr is ``ready`` (or after 50 lines): (process, the lines read before, stdout, all of stderr)."""
+    p = subprocess.Popen([sys.executable, "-m", "bev_mdo.ros.run", *argv], env=ros_env(ros_domain),
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                          preexec_fn=lambda: signal.signal(signal.SIGINT, sigint))
     lines = []
     try:
-        for line in p.stderr:  # ends if the coordinator dies; it says once a second what it waits for
+        for line in p.stderr:
             lines.append(line)
-            if line.startswith("[start-up] waiting for discipline(s)") or len(lines) > 50:
+            if ready(line) or len(lines) > 50:
                 break
         p.send_signal(sig)
         out, rest = p.communicate(timeout=60)
@@ -69,7 +65,19 @@ def test_a_coordinator_signalled_while_it_waits_ends_with_one_line(ros_domain, l
         if p.poll() is None:
             p.kill()
             p.wait()
-    err = "".join(lines) + rest
+    return p, lines, out, "".join(lines) + rest
+
+
+@pytest.mark.parametrize("sig, status, sigint", [
+    (signal.SIGINT, 130, signal.SIG_DFL), (signal.SIGTERM, 143, signal.SIG_DFL),
+    (signal.SIGINT, 130, signal.SIG_IGN)], ids=["SIGINT", "SIGTERM", "SIGINT-ignored"])
+def test_a_coordinator_signalled_while_it_waits_ends_with_one_line(ros_domain, leaf_config, sig, status, sigint):
+    """Signalled while it waits for the disciplines (none run on this domain). SIGINT-ignored: started as a
+    shell's background job, Python takes no SIGINT and only rclpy's own handler does (it shuts the context down)."""
+    # its stderr ends if the coordinator dies; it says once a second what it waits for
+    p, lines, out, err = _signalled(["coordinator_node", "--ros-args", "-p", f"config:={leaf_config}", "-p",
+                                     "run_id:=by_hand_signalled"], ros_domain, sigint,
+                                    lambda line: line.startswith("[start-up] waiting for discipline(s)"), sig)
     assert lines[-1].startswith("[start-up] waiting for discipline(s)"), err[-3000:]
     assert p.returncode == status and "Traceback" not in err and not out, (p.returncode, err[-3000:])
     assert err.strip().splitlines()[-1] == "coordinator_node: interrupted", err[-3000:]
@@ -81,22 +89,8 @@ def test_a_recorder_started_as_a_background_job_ends_its_recording_on_sigint(ros
     ignored), it went on recording; `kill -INT` to the coordinator of the same script raised from its publisher
     ("publisher's context is invalid"), exit 1. A node executable now takes SIGINT whoever ignored it."""
     bag = tmp_path / "bag"
-    p = subprocess.Popen([sys.executable, "-m", "bev_mdo.ros.run", "recorder_node", "--output", str(bag)],
-                         env=ros_env(ros_domain), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
-    lines = []
-    try:
-        for line in p.stderr:
-            lines.append(line)
-            if "recording to" in line or len(lines) > 50:
-                break
-        p.send_signal(signal.SIGINT)
-        _, rest = p.communicate(timeout=60)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    err = "".join(lines) + rest
+    p, _, _, err = _signalled(["recorder_node", "--output", str(bag)], ros_domain, signal.SIG_IGN,
+                              lambda line: "recording to" in line, signal.SIGINT)
     assert p.returncode == 0 and "Traceback" not in err, (p.returncode, err[-3000:])
     assert err.strip().splitlines()[-1] == f"recorded 0 messages to {bag / 'bag_0.mcap'}", err[-3000:]
 
