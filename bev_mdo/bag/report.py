@@ -329,15 +329,16 @@ def _answers_section(answers: dict | None, point: str = "the end point") -> list
 
 def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = None,
               answers: dict | None = None, baseline: dict | None = None, units: dict | None = None,
-              k: int = -1, ending: tuple[bool, str] | None = None, config_note: str = "", said: str = "") -> str:
+              k: int = -1, ending: tuple[bool, str] | None = None, config_note: str = "", said: str = "",
+              run_id: str | None = None) -> str:
     """``ending``: (finished, how the run ended: history.run_ending), said first; None for a sweep. ``said``: what
-    the reading left out or could not verify (history.check_note)."""
+    the reading left out or could not verify (history.check_note). ``run_id``: the run read (--run-id), else the bag's."""
     info = bag.info
     finished = ending is None or ending[0]
     lines = [f"# Run report: {bag.bag_dir.name}", "", *([f"- {ending[1]}"] if ending else []),
              f"- bag file: `{bag.mcap_path.name}` ({bag.file_size} bytes, {bag.message_count} messages, "
              f"{bag.duration_ns / 1e9:.3f} s recorded)",
-             f"- run id: `{info.get('run_id', '?')}`, bev_mdo version `{info.get('version', '?')}`",
+             f"- run id: `{run_id or info.get('run_id') or '?'}`, bev_mdo version `{info.get('version', '?')}`",
              *([f"- **{config_note}**"] if config_note else []), *([f"- **{said}**"] if said else [])]
     if bag.truncated:
         lines.append(f"- **truncated**: {bag.recovery_note()}")
@@ -464,5 +465,5 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     said = "; ".join(filter(None, [check_note({c: v for c, v in checks.items() if c not in ("config", "unverified")}),
                                    bag.metadata_note]))
     md.write_text(_markdown(bag, shown, timing, [p.name for p in written], final, answers, baseline, units, k, ending,
-                            checks.get("config", ""), said), encoding="utf-8")
+                            checks.get("config", ""), said, run_id), encoding="utf-8")
     return written + [md]
