@@ -399,9 +399,10 @@ def runs_held(run_ids: list[str], shown: int = 5) -> str:
 
 
 def sweep_phrase(row: dict, n: int) -> str:
-    """"the sweep's best design (design 3 of 8)", or its least violated one."""
+    """"the sweep's best design (design 3 of 8, iteration 2 in history)", or its least violated one: counted from 1
+    as sweep's notes and sweep.csv's rows count them, with the record's iteration (from 0)."""
     return (f"the sweep's {'best' if row['feasible'] else 'least violated'} design "
-            f"(design {row['iteration']} of {n})")
+            f"(design {row['iteration'] + 1} of {n}, iteration {row['iteration']} in history)")
 
 
 def records_phrase(rows: list[dict]) -> str:
