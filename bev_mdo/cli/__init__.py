@@ -160,6 +160,12 @@ class _Parser(argparse.ArgumentParser):
     """A usage mistake is one line on stderr, as every other user mistake (exit 2), naming --help."""
 
     def error(self, message: str):
+        missing = message.partition("the following arguments are required: ")[2].split(", ")
+        positional = [m for m in missing if m and not m.startswith("-")]
+        if positional and any(a.nargs in ("+", "*") and a.option_strings for a in self._actions):
+            # `evaluate --set motor_kw=90 CONFIG`: --set took CONFIG as one of its values
+            message += (f" (an option of several values, such as --set, takes every word after it: put "
+                        f"{positional[0].upper()} before it)")
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 

@@ -96,3 +96,15 @@ def test_a_history_header_cut_to_its_width_says_so():
     assert _header("evaluations.motor_speed", {}) == ("motor_spe…", "evals")
     assert _header("constraint.range_km", {"range_km": "km"}) == ("range", "km")
     assert _header("design.x_short", {}) == ("x_short", "")
+
+
+def test_a_config_taken_by_set_is_named_as_the_cause(capsys):
+    """`evaluate --set motor_kw=90 CONFIG` said only 'the following arguments are required: config'."""
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["evaluate", "--set", "motor_kw=90", "config/leaf_nedc.yaml"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1, err
+    assert "such as --set, takes every word after it: put CONFIG before it" in err, err
+    with pytest.raises(SystemExit):
+        cli.main(["history"])  # no option of several values: no such words
+    assert "takes every word" not in capsys.readouterr().err
