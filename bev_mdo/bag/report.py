@@ -377,9 +377,10 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
         lines += [f"| max violation (normalised) | – | {viol} |" + (" |" if base else ""),
                   f"| feasible | | {last['feasible']} |" + (" |" if base else "")]
         if final is not None:
-            lines += ["", "Outputs other than the objective and constraints (mass, cost, ...) are "
+            lines += ["", "The objective is the recorded one; the other outputs (constraints, mass, cost, ...) are "
                           f"{'this design' if sweep or last.get('from_answers') else 'this iterate'} analysed again in process "
-                          "from the configuration stored in the bag."]
+                          "from the configuration stored in the bag (an IDF iterate away from consistency differs from "
+                          "its record there: `history` shows the recorded values)."]
         if feasible:
             from bev_mdo.mdo.driver import BEST_REL_TOL, pick_result
 
