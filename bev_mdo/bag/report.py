@@ -411,13 +411,16 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
 def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = None, key_file: str | None = None,
            no_verify: bool = False) -> list[Path]:
     """Write plots and ``report.md`` of the bag's own run (or `run_id`; its iteration records
-    verified, see ``history``); returns the written paths."""
+    verified, see ``history``) into ``out_dir`` (default: the bag's folder; for another run than the bag's own,
+    its ``report_<run_id>`` folder); returns the written paths."""
     import matplotlib
 
     matplotlib.use("Agg")
     matplotlib.rcParams["axes.formatter.useoffset"] = False  # values on the axis, not "0.1 .. 0.5 +3.209e2"
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
-    out = Path(out_dir) if out_dir else bag.bag_dir
+    # one run of a recording of several: its own folder, so that reporting another run does not overwrite it
+    own = not run_id or run_id == bag.info.get("run_id")
+    out = Path(out_dir) if out_dir else bag.bag_dir if own else bag.bag_dir / f"report_{run_id}"
     out.mkdir(parents=True, exist_ok=True)
     rows, signer = verified_history(bag, run_id, checks=checks, key_file=key_file, no_verify=no_verify)
     timing = discipline_timing(bag)
@@ -444,6 +447,14 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
                                       config.disciplines, units=units)
             except Exception:  # noqa: BLE001
                 answers = None
+            if answers and answers["feasible"] and not shown[k]["feasible"] and shown[k]["formulation"] == "idf" \
+                    and shown[k]["max_violation"] > float(config.settings.optimizer.feasibility_tolerance):
+                # its constraints and bounds hold, its record says infeasible: "What holds the design" followed
+                answers["feasible"] = False
+                answers["lines"] = [f"not consistent: the record's largest violation {shown[k]['max_violation']:.3g} "
+                                    "is in none of its constraints or bounds, so it is an IDF consistency residual (the "
+                                    "optimiser's coupling values are not what their disciplines compute there)",
+                                    *answers["lines"]]
     if told is not None:  # answers stored before they held the result's objective: the analysis gives it
         outputs = (final or {}).get("outputs", {})
         told["objective"] = outputs.get(told["objective_name"], float("nan")) if told["objective"] is None \

@@ -90,6 +90,10 @@ def test_report_reads_one_run_of_a_standalone_recording(tmp_path):
     written = report(bag, tmp_path / "out", run_id="b", checks=checks)
     assert (tmp_path / "out" / "report.md") in written and checks["other_runs"] == 1
     assert "- run id: `b`," in (tmp_path / "out" / "report.md").read_text()  # was: "run id: ``"
+    # without --output-dir, each run's report in its own folder: the second no longer overwrote the first
+    for run in ("a", "b"):
+        assert bag / f"report_{run}" / "report.md" in report(bag, run_id=run)
+        assert f"- run id: `{run}`," in (bag / f"report_{run}" / "report.md").read_text()
 
 
 def test_history_and_resume_of_a_run_the_bag_does_not_hold_name_the_runs_it_holds(tmp_path, capsys):
