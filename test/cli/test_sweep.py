@@ -159,6 +159,9 @@ def test_sweep_from_a_list(tmp_path):
     ("label,motor_kw\nleaf,80\n", "column 'label' is not a design variable or parameter; design variables: "
                                    "['motor_kw', 'gear_ratio', 'battery_kwh'], parameters: ['air_density_kg_m3', "),
     ("motor_kw,gear_ratio\n", "no designs"),
+    # a misspelt column named no nearest name, as --vary, compare and evaluate --set do
+    ("motor_kw,gear_ratoi\n80,8\n", "column 'gear_ratoi' is not a design variable or parameter; did you mean "
+                                    "'gear_ratio'? design variables: "),
 ])
 def test_a_malformed_list_is_one_line_naming_the_design_and_column(tmp_path, capsys, text, said):
     lst = tmp_path / "designs.csv"
