@@ -193,3 +193,17 @@ def test_a_whole_number_for_a_vehicle_value_is_that_number(ros_domain):
                             f"config:={REPO / 'config' / 'leaf_nedc.yaml'}", "-p", "vehicle.drag_area_m2:=1"],
                            ros_domain, "energy")
     assert any("serving 'energy'" in line for line in lines), "".join(lines)[-2000:]
+
+
+@pytest.mark.parametrize("extra, name", [([], "cost_node"), (["-r", "__node:=mine"], "mine")])
+def test_the_generic_node_is_named_after_its_discipline(ros_domain, extra, name):
+    """Two user disciplines under discipline_node, started as docs/ros2-run.md writes it, were both named
+    discipline_node: `status` listed each process under both disciplines and warned of one instance."""
+    code = "\n".join([
+        "import sys", "import bev_mdo.ros.discipline_node as dn",
+        "dn.serve = lambda node: print('named', node.get_name(), node.instance, file=sys.stderr, flush=True)",
+        "sys.exit(dn.main(sys.argv[1:]))"])
+    p = subprocess.run([sys.executable, "-c", code, "--ros-args", "-p", f"config:={REPO / 'config' / 'leaf_nedc.yaml'}",
+                        "-p", "discipline:=cost", *extra], cwd=REPO, env=ros_env(ros_domain), capture_output=True,
+                       text=True, timeout=120)
+    assert p.returncode == 0 and f"named {name} /{name}\n" in p.stderr, p.stderr[-2000:]
