@@ -215,10 +215,24 @@ def run_main(name: str, main, *args) -> int:
     try:
         return main(*args)
     except BaseException as exc:
+        if _pending is None and (said := _refused_ros_args(exc)):  # a usage mistake: one line, status 2
+            print(f"{name}: error: {said}", file=sys.stderr, flush=True)
+            return 2
         if _pending is None and not _shut_down_by_rclpy(exc):
             raise
         print(f"{name}: interrupted", file=sys.stderr, flush=True)
         return 143 if _pending is not None and issubclass(_pending, Terminated) else 130
+
+
+def _refused_ros_args(exc: BaseException) -> str:
+    """rcl's refusal of a malformed ``--ros-args`` (``-p config=x.yaml``, ``-p instance:=``), said in one line without
+    its source location; '' for anything else (it was a traceback and status 1)."""
+    text = str(exc)
+    if type(exc).__name__ != "RCLError" or not text.startswith("failed to initialize rcl: Couldn't parse"):
+        return ""
+    rule = text.removeprefix("failed to initialize rcl: ").split(". Error:")[0].split(", at /")[0].rstrip(".")
+    return (f"--ros-args: {rule} (a parameter is -p name:=value, e.g. -p config:=my.yaml; an empty text is "
+            "-p \"name:=''\"; a node name -r __node:=NAME)")
 
 
 def _shut_down_by_rclpy(exc: BaseException) -> bool:

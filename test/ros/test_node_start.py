@@ -207,3 +207,18 @@ def test_the_generic_node_is_named_after_its_discipline(ros_domain, extra, name)
                         "-p", "discipline:=cost", *extra], cwd=REPO, env=ros_env(ros_domain), capture_output=True,
                        text=True, timeout=120)
     assert p.returncode == 0 and f"named {name} /{name}\n" in p.stderr, p.stderr[-2000:]
+
+
+@pytest.mark.parametrize("exe, bad, rule", [
+    ("energy_node", ["-p", "config=config/leaf_nedc.yaml"], "Couldn't parse parameter override rule: "
+                                                            "'-p config=config/leaf_nedc.yaml'"),
+    ("energy_node", ["-p", "instance:="], "Couldn't parse parameter override rule: '-p instance:='"),
+    ("coordinator_node", ["-p"], "Couldn't parse trailing -p flag. No parameter override rule found")])
+def test_ros_args_rcl_cannot_parse_are_one_line_and_status_2(ros_domain, exe, bad, rule):
+    """docs/ros2-run.md's `-p instance:=`, or `-p config=FILE` for config:=, was rcl's traceback and status 1."""
+    p = subprocess.run([sys.executable, "-m", "bev_mdo.ros.run", exe, "--ros-args", *bad], cwd=REPO,
+                       env=ros_env(ros_domain), capture_output=True, text=True, timeout=120)
+    ours = [line for line in p.stderr.splitlines() if not line.startswith("[ERROR]")]  # rcl's own log line
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr[-2000:]
+    assert ours[-1] == (f"{exe}: error: --ros-args: {rule} (a parameter is -p name:=value, e.g. -p config:=my.yaml; "
+                        "an empty text is -p \"name:=''\"; a node name -r __node:=NAME)"), ours
