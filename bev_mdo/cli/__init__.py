@@ -182,6 +182,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"bev-mdo {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", action=_Commands)
     sub.required = True
+    parser.commands = sub
     chosen = _chosen(argv) if argv is not None else None
     for command, (module, help_text) in SUBCOMMANDS.items():
         if command in sub.choices:
@@ -220,7 +221,10 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv: list[str], process: bool = False) -> int:
     try:
-        args = build_parser(argv).parse_args(argv)  # imports the subcommand's module: numpy, scipy, ... (0.1-0.6 s)
+        parser = build_parser(argv)  # imports the subcommand's module: numpy, scipy, ... (0.1-0.6 s)
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # said by the subcommand's parser, naming it and its --help (the top one named 'bev-mdo')
+            parser.commands.choices.get(args.command, parser).error(f"unrecognized arguments: {' '.join(extra)}")
     except (KeyboardInterrupt, Exception) as exc:  # a signal during the imports: its line, not a traceback
         if not isinstance(exc, KeyboardInterrupt) and interrupts.pending() is None:
             raise  # a subcommand module that fails to import raises

@@ -108,3 +108,12 @@ def test_a_config_taken_by_set_is_named_as_the_cause(capsys):
     with pytest.raises(SystemExit):
         cli.main(["history"])  # no option of several values: no such words
     assert "takes every word" not in capsys.readouterr().err
+
+
+def test_an_unknown_option_is_said_by_its_subcommand(capsys):
+    """`sweep ... --compose none` said 'bev-mdo: error: unrecognized arguments' and pointed at the top help."""
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["sweep", "config/leaf_nedc.yaml", "--compose", "none"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err == ("bev-mdo sweep: error: unrecognized arguments: --compose none "
+                                           "(see bev-mdo sweep --help)\n"), err
