@@ -91,7 +91,7 @@ def describe_other_content(bag) -> str:
 
 
 def run(args) -> int:
-    from bev_mdo.bag.history import (check_note, flat_rows, read_answers, records_phrase, run_ending,
+    from bev_mdo.bag.history import (by_optimize, check_note, flat_rows, read_answers, records_phrase, run_ending,
                                      runs_held, to_csv, verified_history)
     from bev_mdo.bag.reader import open_bag
     from bev_mdo.bag.report import bag_units
@@ -108,12 +108,11 @@ def run(args) -> int:
                                     no_verify=args.no_verify)
     if check_note(checks):
         print(f"{args.bag}: {check_note(checks)}", file=sys.stderr)
-    # the run read, with no end-of-run record: as report's first line, the run did not finish (or, not written by
-    # `optimize`, its coordinator was started by hand) and its last record is not a result; one left out (not signed
-    # with the run's key): how it ended is not known
+    # the bag's own run, written by `optimize`, with no end-of-run record: as report's first line, the run did not
+    # finish and its last record is not a result; one left out (not signed with the run's key): how it ended is not known
     told: dict = {}
-    own = bag.info.get("run_id")
-    if rows and (args.run_id in (None, own) or not own) and read_answers(bag, signer, told) is None:
+    if rows and args.run_id in (None, bag.info.get("run_id")) and read_answers(bag, signer, told) is None \
+            and (told or by_optimize(bag)):
         ending = run_ending(bag, rows, None, told, then=f"iteration {rows[-1]['iteration']} is")
         if ending:  # (None: a sweep's)
             print(f"{args.bag}: {ending[1].replace('**', '')}", file=sys.stderr)

@@ -8,10 +8,10 @@ import pytest
 pytest.importorskip("rclpy")
 
 
-def _bag(tmp_path, answers: dict | None, config: dict | None = None, unsigned_answers: bool = False, **info):
+def _bag(tmp_path, answers: dict | None, config: dict | None = None, unsigned_answers: bool = False):
     from bev_mdo.api.runbag import InProcessBag
 
-    bag = InProcessBag(tmp_path / "b", config or {"name": "t"}, "run1", **info)
+    bag = InProcessBag(tmp_path / "b", config or {"name": "t"}, "run1")
     for i, x in enumerate((3.0, 1.0, 1.5)):
         bag({"iteration": i, "design": {"x": x}, "objective": (x - 1.0) ** 2, "constraints": {}, "feasible": True,
              "max_violation": 0.0})
@@ -33,18 +33,6 @@ def test_history_of_an_interrupted_run_says_it_did_not_finish_at_its_last_iterat
                     "or an error stopped it); iteration 2 is its last recorded iterate, not a result"], err
     assert main(["history", str(bag), "--run-id", "another"]) == 1  # another run's records: not this bag's ending
     assert "did not finish" not in capsys.readouterr().err
-
-
-def test_history_of_a_bag_not_known_to_be_by_optimize_says_what_report_says(tmp_path, capsys):
-    """An over-ROS run's bag copied without its logs/ (or a hand-started coordinator's): report said "no end-of-run
-    record: the run did not finish, or its coordinator was started by hand", history nothing."""
-    from bev_mdo.cli import main
-
-    bag = _bag(tmp_path, None, transport="ros")  # and no logs/ beside it
-    assert main(["history", str(bag), "--csv", "-"]) == 0
-    err = capsys.readouterr().err
-    assert (f"{bag}: no end-of-run record: the run did not finish, or its coordinator was started by hand "
-            "(coordinator_node stores none); iteration 2 is its last recorded iterate") in err, err
 
 
 def test_history_of_a_finished_run_says_nothing_of_its_ending(tmp_path, capsys):
