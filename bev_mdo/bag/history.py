@@ -229,8 +229,9 @@ def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | 
         if by_optimize(bag):
             return False, ("**the run did not finish**: the bag holds no end-of-run record (a signal, SIGINT or "
                            f"SIGTERM, or an error stopped it){whose}")
-        return False, ("**no end-of-run record**: the run did not finish, or its coordinator was started by hand "
-                       f"(coordinator_node stores none){whose.replace(', not a result', '')}")
+        return None, ("**no end-of-run record**: the run did not finish, or its coordinator was started by hand "
+                      "(coordinator_node stores none), or the bag was recorded apart from it (`bev-mdo record`) or "
+                      f"copied without its {ANSWERS_FILE}{whose.replace(', not a result', '')}")
     lost = answers.get("unresponsive_disciplines")
     if lost:
         why = answers.get("stopped") or f"{', '.join(lost)} stopped answering"

@@ -89,7 +89,13 @@ def test_report_reads_one_run_of_a_standalone_recording(tmp_path):
     checks: dict = {}
     written = report(bag, tmp_path / "out", run_id="b", checks=checks)
     assert (tmp_path / "out" / "report.md") in written and checks["other_runs"] == 1
-    assert "- run id: `b`," in (tmp_path / "out" / "report.md").read_text()  # was: "run id: ``"
+    md = (tmp_path / "out" / "report.md").read_text()
+    assert "- run id: `b`," in md  # was: "run id: ``"
+    # a recording apart from the run (bev-mdo record) holds no end-of-run record: how the run ended is not known
+    # from it (it said "the run did not finish" of a run that had, and headed its iterate so)
+    assert ("or the bag was recorded apart from it (`bev-mdo record`) or copied without its answers.json; what follows "
+            "is its last recorded iterate") in md, md
+    assert "## Last recorded iterate (how the run ended is not known)" in md
     # without --output-dir, each run's report in its own folder: the second no longer overwrote the first
     for run in ("a", "b"):
         assert bag / f"report_{run}" / "report.md" in report(bag, run_id=run)
