@@ -94,16 +94,15 @@ class CouplingGraph:
     def check_inputs(self, available: Iterable[str]) -> None:
         """Raise ValueError naming inputs that nobody produces and that are not in ``available``: the first
         discipline's, with every other discipline's (a topology's motor_rear_kw and gear_ratio_rear came one
-        error at a time). A nearest name is suggested only among the names no discipline reads (a misspelt
-        one): 'motor_rear_kw' got "did you mean 'motor_kw'?", which is another input, not a misspelling."""
+        error at a time). A nearest name is suggested among the names the discipline does not read already:
+        'motor_rear_kw' got "did you mean 'motor_kw'?", another of its inputs, not a misspelling."""
         avail = set(available)
         lacking = {name: miss for name in self.names
                    if (miss := [v for v in self.inputs[name] if v not in self.producer and v not in avail])}
         if not lacking:
             return
-        read = {v for name in self.names for v in self.inputs[name]}
-        known = {base_name(v) for v in [*self.producer, *avail] if v not in read}
         (name, missing), *others = lacking.items()
+        known = {base_name(v) for v in [*self.producer, *avail]} - {base_name(v) for v in self.inputs[name]}
         hints = [f"{v!r} is a vector of {k} elements (discipline {self.producer[f'{v}[0]']!r}): add "
                  f"shapes = {{{v!r}: {k}}} to {name!r}" if (k := sum(1 for p in self.producer if p.startswith(f"{v}[")))
                  else did_you_mean(v, known).strip() for v in dict.fromkeys(map(base_name, missing))]

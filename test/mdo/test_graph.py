@@ -70,6 +70,10 @@ def test_inputs_no_one_gives_are_named_for_every_discipline_without_a_misleading
                             "design variables or parameters; also 'acc' needs ['motor_rear_kw', 'g_rear']")
     with pytest.raises(ValueError, match=r"\(did you mean 'motor_kws'\?\)"):  # a given name no one reads: misspelt
         g.check_inputs({"motor_kws", "motor_rear_kw", "g_rear"})
+    # the review: a misspelt coupling another discipline reads ('y_1' for y1) kept its hint
+    g = CouplingGraph([("d1", ("x",), ("y1",)), ("d2", ("y1",), ("y2",)), ("typo", ("y_1", "y2"), ("t",))])
+    with pytest.raises(ValueError, match=r"'typo' needs \['y_1'\], .* \(did you mean 'y1'\?\)$"):
+        g.check_inputs({"x"})
 
 
 def test_duplicate_discipline_names_rejected():
