@@ -225,14 +225,19 @@ def run_main(name: str, main, *args) -> int:
 
 
 def _refused_ros_args(exc: BaseException) -> str:
-    """rcl's refusal of a malformed ``--ros-args`` (``-p config=x.yaml``, ``-p instance:=``), said in one line without
-    its source location; '' for anything else (it was a traceback and status 1)."""
+    """rcl's refusal of malformed ``--ros-args`` (``-p config=x.yaml``, ``-p instance:=``, a params file that is not
+    a mapping, ``--log-level bogus``), said in one line with rcl's reason and without its source locations; ''
+    for anything else (it was a traceback and status 1)."""
+    import re
+
     text = str(exc)
-    if type(exc).__name__ != "RCLError" or not text.startswith("failed to initialize rcl: Couldn't parse"):
+    if type(exc).__name__ != "RCLError" or not text.startswith("failed to initialize rcl: "):
         return ""
-    rule = text.removeprefix("failed to initialize rcl: ").split(". Error:")[0].split(", at /")[0].rstrip(".")
-    return (f"--ros-args: {rule} (a parameter is -p name:=value, e.g. -p config:=my.yaml; an empty text is "
-            "-p \"name:=''\"; a node name -r __node:=NAME)")
+    said = re.sub(r"(, at /\S+)+$", "", text.removeprefix("failed to initialize rcl: ")).replace(". Error: error not set", "")
+    hint = (" (a parameter is -p name:=value, e.g. -p config:=my.yaml; an empty text is -p \"name:=''\")"
+            if "parameter override" in said or "-p flag" in said else " (a node name is -r __node:=NAME)"
+            if "remap rule" in said else "")
+    return f"--ros-args: {said}{hint}"
 
 
 def _shut_down_by_rclpy(exc: BaseException) -> bool:
