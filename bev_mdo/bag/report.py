@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -420,7 +421,8 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     # one run of a recording of several: its own folder, so that reporting another run does not overwrite it
     own = not run_id or run_id == bag.info.get("run_id")
-    out = Path(out_dir) if out_dir else bag.bag_dir if own else bag.bag_dir / f"report_{run_id}"
+    out = Path(out_dir) if out_dir else bag.bag_dir if own else \
+        bag.bag_dir / ("report_" + re.sub(r"[^A-Za-z0-9_.-]", "_", run_id).lstrip("."))  # '../x' stays inside
     out.mkdir(parents=True, exist_ok=True)
     rows, signer = verified_history(bag, run_id, checks=checks, key_file=key_file, no_verify=no_verify)
     timing = discipline_timing(bag)

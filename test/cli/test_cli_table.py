@@ -104,10 +104,11 @@ def test_a_config_taken_by_set_is_named_as_the_cause(capsys):
         cli.main(["evaluate", "--set", "motor_kw=90", "config/leaf_nedc.yaml"])
     err = capsys.readouterr().err
     assert exc.value.code == 2 and err.count("\n") == 1, err
-    assert "such as --set, takes every word after it: put CONFIG before it" in err, err
-    with pytest.raises(SystemExit):
-        cli.main(["history"])  # no option of several values: no such words
-    assert "takes every word" not in capsys.readouterr().err
+    assert "required: config (--set takes every word after it: put CONFIG before it)" in err, err
+    for argv in (["history"], ["evaluate"]):  # no option of several values given: no such words (the review)
+        with pytest.raises(SystemExit):
+            cli.main(argv)
+        assert "takes every word" not in capsys.readouterr().err
 
 
 def test_an_unknown_option_is_said_by_its_subcommand(capsys):
@@ -117,3 +118,6 @@ def test_an_unknown_option_is_said_by_its_subcommand(capsys):
     err = capsys.readouterr().err
     assert exc.value.code == 2 and err == ("bev-mdo sweep: error: unrecognized arguments: --compose none "
                                            "(see bev-mdo sweep --help)\n"), err
+    with pytest.raises(SystemExit):  # given before the subcommand: the top parser's (the review)
+        cli.main(["--bogus", "sweep", "config/leaf_nedc.yaml"])
+    assert capsys.readouterr().err.startswith("bev-mdo: error: unrecognized arguments: --bogus")
