@@ -140,10 +140,12 @@ class RecordOrder:
         return why is None
 
     def none_note(self) -> str:
-        """'' or, for a recorder that kept no iteration record, the likeliest cause (it ended with "recorded 231
-        messages" and nothing else, and history then found no iteration record)."""
-        return "" if self.accepted else ("; no iteration record (a coordinator started without -p recorders:=1 may "
-                                         "have sent its records before this recorder matched its topics)")
+        """'' or, for a recorder to which no iteration record came, what may cause it (it ended with "recorded 231
+        messages" and nothing else, and history then found no iteration record). Records that came and were
+        dropped are ``note``'s."""
+        return "" if self.accepted or self.dropped else (
+            "; no iteration record came (a pareto run sends none; a coordinator started without -p recorders:=1 may "
+            "have sent its records before this recorder matched its topics)")
 
     def note(self, left_out: str = "dropped") -> str:
         """'' or '; dropped N duplicate, ... iteration record(s); M iteration record(s) missing; ...' (``left_out``:
