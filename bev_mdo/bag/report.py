@@ -409,6 +409,18 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
     return "\n".join(lines) + "\n"
 
 
+def _inconsistent(row: dict, final: dict | None, tol: float) -> list[str]:
+    """An infeasible IDF record's couplings that are not what its disciplines give at its design (``final``: the
+    design analysed through), beyond ``tol`` relative: one line each (its constraints and objective were taken
+    at the optimiser's values; the record's largest violation was such a residual, named nowhere)."""
+    outputs = (final or {}).get("outputs", {})
+    if row["feasible"] or row.get("formulation") != "idf":
+        return []
+    return [f"not consistent: {c} is {v:.6g} in the optimiser's variables, {outputs[c]:.6g} from its disciplines at "
+            "this design" for c, v in (row.get("couplings") or {}).items()
+            if c in outputs and abs(v - outputs[c]) > tol * max(1.0, abs(outputs[c]))]
+
+
 def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = None, key_file: str | None = None,
            no_verify: bool = False) -> list[Path]:
     """Write plots and ``report.md`` of the bag's own run (or `run_id`; its iteration records
@@ -449,14 +461,9 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
                                       config.disciplines, units=units)
             except Exception:  # noqa: BLE001
                 answers = None
-            if answers and answers["feasible"] and not shown[k]["feasible"] and shown[k]["formulation"] == "idf" \
-                    and shown[k]["max_violation"] > float(config.settings.optimizer.feasibility_tolerance):
-                # its constraints and bounds hold, its record says infeasible: "What holds the design" followed
-                answers["feasible"] = False
-                answers["lines"] = [f"not consistent: the record's largest violation {shown[k]['max_violation']:.3g} "
-                                    "is in none of its constraints or bounds, so it is an IDF consistency residual (the "
-                                    "optimiser's coupling values are not what their disciplines compute there)",
-                                    *answers["lines"]]
+            off = _inconsistent(shown[k], final, float(config.settings.optimizer.feasibility_tolerance))
+            if answers and off:  # its constraints may hold at the optimiser's couplings: "What holds" followed
+                answers["feasible"], answers["lines"] = False, [*off, *answers["lines"]]
     if told is not None:  # answers stored before they held the result's objective: the analysis gives it
         outputs = (final or {}).get("outputs", {})
         told["objective"] = outputs.get(told["objective_name"], float("nan")) if told["objective"] is None \
