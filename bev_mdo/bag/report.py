@@ -435,11 +435,13 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     own = not run_id or run_id == bag.info.get("run_id")
     out = Path(out_dir) if out_dir else bag.bag_dir if own else \
         bag.bag_dir / ("report_" + re.sub(r"[^A-Za-z0-9_.-]", "_", run_id).lstrip("."))  # '../x' stays inside
-    out.mkdir(parents=True, exist_ok=True)
     rows, signer = verified_history(bag, run_id, checks=checks, key_file=key_file, no_verify=no_verify)
-    timing = discipline_timing(bag)
     checks = {} if checks is None else checks
     checks["iterations"] = len(rows)
+    if not rows and not own:  # a run the bag does not hold: nothing of it to write (a report_<typo> folder said
+        return []             # "the run did not finish" of a run nothing is known of, with the bag's timings)
+    out.mkdir(parents=True, exist_ok=True)
+    timing = discipline_timing(bag)
     config, problem = _context(bag, checks)
     final = answers = baseline = None
     units = _units(config)
@@ -461,7 +463,12 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
                                       config.disciplines, units=units)
             except Exception:  # noqa: BLE001
                 answers = None
-            off = _inconsistent(shown[k], final, float(config.settings.optimizer.feasibility_tolerance))
+            tol = float(config.settings.optimizer.feasibility_tolerance)
+            off = _inconsistent(shown[k], final, tol)
+            if answers and answers["feasible"] and not off and not shown[k]["feasible"] and \
+                    shown[k]["formulation"] == "idf" and shown[k]["max_violation"] > tol:  # scaled otherwise than here
+                off = [f"not consistent: the record's largest violation {shown[k]['max_violation']:.3g} is in none of "
+                       "its constraints or bounds, so it is an IDF consistency residual"]
             if answers and off:  # its constraints may hold at the optimiser's couplings: "What holds" followed
                 answers["feasible"], answers["lines"] = False, [*off, *answers["lines"]]
     if told is not None:  # answers stored before they held the result's objective: the analysis gives it

@@ -165,7 +165,13 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str):
         missing = message.partition("the following arguments are required: ")[2].split(", ")
         positional = [m for m in missing if m and not m.startswith("-")]
-        used = [o for a in self._actions if a.nargs in ("+", "*") for o in a.option_strings if o in _GIVEN]
+        def took_it(a, o: str) -> bool:  # a word it took is no value of its (NAME=VALUE has a '='): the positional
+            after = _GIVEN[_GIVEN.index(o) + 1:]
+            taken = after[:next((i for i, w in enumerate(after) if w.startswith("-")), len(after))]
+            return bool(taken) and ("=" not in taken[-1] or "=" not in str(a.metavar or ""))
+
+        used = [o for a in self._actions if a.nargs in ("+", "*") for o in a.option_strings
+                if o in _GIVEN and took_it(a, o)]
         if positional and used:  # `evaluate --set motor_kw=90 CONFIG`: --set took CONFIG as one of its values
             message += f" ({used[0]} takes every word after it: put {positional[0].upper()} before it)"
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")

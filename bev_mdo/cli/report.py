@@ -43,6 +43,6 @@ def run(args) -> int:
         from bev_mdo.cli.history import EXIT_NO_ITERATIONS, no_iterations
 
         print(f"bev-mdo report: {no_iterations(args, bag, checks)}", file=sys.stderr)
-        if len(paths) == 1:  # report.md alone, with nothing of a run in it: as history, exit 1
+        if len(paths) <= 1:  # report.md alone, with nothing of a run in it, or nothing (another run): as history
             return EXIT_NO_ITERATIONS
     return 0

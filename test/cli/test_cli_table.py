@@ -105,7 +105,8 @@ def test_a_config_taken_by_set_is_named_as_the_cause(capsys):
     err = capsys.readouterr().err
     assert exc.value.code == 2 and err.count("\n") == 1, err
     assert "required: config (--set takes every word after it: put CONFIG before it)" in err, err
-    for argv in (["history"], ["evaluate"]):  # no option of several values given: no such words (the review)
+    # no option of several values given, or none that took a word that is no value of its: no such words (reviews)
+    for argv in (["history"], ["evaluate"], ["evaluate", "--set", "motor_kw=90"]):
         with pytest.raises(SystemExit):
             cli.main(argv)
         assert "takes every word" not in capsys.readouterr().err

@@ -102,3 +102,18 @@ def test_the_report_of_an_inconsistent_idf_iterate_says_why_it_is_infeasible(tmp
     assert "## Why the last recorded iterate is infeasible" in md and "## What holds" not in md
     for c, v in last["couplings"].items():  # each coupling off its disciplines' value, both values named
         assert f"- not consistent: {c} is {v:.6g} in the optimiser's variables, " in md, md
+
+
+def test_an_inconsistent_idf_iterate_below_the_reports_own_threshold_is_still_named(tmp_path, monkeypatch):
+    """The record's residual is scaled by each coupling's scale, the report's comparison by its value: where only
+    the record's exceeds the tolerance, its largest violation is named as a consistency residual (a review)."""
+    from bev_mdo.bag import report as rep
+    from bev_mdo.bag.history import history
+
+    _interrupted_bag(tmp_path / "b", after=3)
+    last = history(tmp_path / "b")[-1]
+    monkeypatch.setattr(rep, "_inconsistent", lambda row, final, tol: [])
+    rep.report(tmp_path / "b")
+    md = (tmp_path / "b" / "report.md").read_text()
+    assert (f"- not consistent: the record's largest violation {last['max_violation']:.3g} is in none of its "
+            "constraints or bounds, so it is an IDF consistency residual") in md, md
