@@ -215,10 +215,29 @@ def run_main(name: str, main, *args) -> int:
     try:
         return main(*args)
     except BaseException as exc:
+        if _pending is None and (said := _refused_ros_args(exc)):  # a usage mistake: one line, status 2
+            print(f"{name}: error: {said}", file=sys.stderr, flush=True)
+            return 2
         if _pending is None and not _shut_down_by_rclpy(exc):
             raise
         print(f"{name}: interrupted", file=sys.stderr, flush=True)
         return 143 if _pending is not None and issubclass(_pending, Terminated) else 130
+
+
+def _refused_ros_args(exc: BaseException) -> str:
+    """rcl's refusal of malformed ``--ros-args`` (``-p config=x.yaml``, ``-p instance:=``, a params file that is not
+    a mapping, ``--log-level bogus``), said in one line with rcl's reason and without its source locations; ''
+    for anything else (it was a traceback and status 1)."""
+    import re
+
+    text = str(exc)
+    if type(exc).__name__ != "RCLError" or not text.startswith("failed to initialize rcl: "):
+        return ""
+    said = re.sub(r"(, at /\S+)+$", "", text.removeprefix("failed to initialize rcl: ")).replace(". Error: error not set", "")
+    hint = (" (a parameter is -p name:=value, e.g. -p config:=my.yaml; an empty text is -p \"name:=''\")"
+            if "parameter override" in said or "-p flag" in said else " (a node name is -r __node:=NAME)"
+            if "remap rule" in said else "")
+    return f"--ros-args: {said}{hint}"
 
 
 def _shut_down_by_rclpy(exc: BaseException) -> bool:

@@ -22,7 +22,8 @@ references).
 
 Reference optimum (Kodiyalam 1998; also Ray 2003, "Golinski's speed reducer problem revisited",
 AIAA J. 41(3)): W = 2994.47 at x = (3.5, 0.7, 17, 7.3, 7.71532, 3.35021, 5.28665), with the
-m and z lower bounds, l1's lower bound and the shaft stress and shaft-2 ratio constraints active.
+m and z lower bounds, l1's lower bound, the gear's face-width ratio (g_gear[3]: b = 5 m) and the shaft
+stress and shaft-2 ratio constraints active.
 
 The three disciplines are coupled only through the shared variables and the weight sum (no
 feedback loop), so this problem exercises vector design variables, vector constraint outputs and

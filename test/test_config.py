@@ -128,6 +128,21 @@ class TestLeaf:
         assert cfg["problem"]["constraints"]["range_km"]["monitor"] is True
         assert "battery_sizing" in [d.name for d in resolve_disciplines(cfg)]
 
+    def test_battery_sized_mode_says_what_it_does_to_the_battery_variable(self):
+        """Its bounds were dropped without a word (a 16.7 kWh pack under a lower bound of 20); a list of
+        disciplines without battery_sizing said 'problem.coupling_guesses.battery_kwh: no discipline produces
+        it', a key the user never wrote."""
+        raw = yaml.safe_load(LEAF.read_text())
+        raw["problem"]["battery_sized_for_range"] = True
+        with pytest.warns(UserWarning, match=r"battery_kwh is sized for the range target \(the battery_sizing "
+                          r"discipline\), not a design variable: its lower 20, upper 30 do not apply \(to bound it, "
+                          r"constrain battery_kwh as an output"):
+            load_config(raw)
+        raw["disciplines"] = ["vehicle_mass", "energy", "range", "acceleration", "motor_speed", "cost"]
+        with pytest.raises(ValueError, match=r"^<config>: problem.battery_sized_for_range is true but no discipline produces "
+                           r"battery_kwh \(add battery_sizing to disciplines:\)$"):
+            load_config(raw)
+
     def test_builtin_listed_by_name_with_options(self):
         raw = yaml.safe_load(LEAF.read_text())
         raw["problem"]["battery_sized_for_range"] = True

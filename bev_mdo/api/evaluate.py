@@ -255,16 +255,20 @@ def batch(config, designs: dict[str, np.ndarray], transport) -> dict:
                for c in problem.constraints}
     g = problem.g(outputs)  # normalised as the optimiser's constraints (and its feasibility rule); NaN: violated
     violation = np.maximum(np.where(res.ok, 0.0, np.inf), np.where(np.isfinite(g), g, np.inf).max(axis=1, initial=0.0))
-    feasible = violation <= feasibility_tolerance(config.settings)
     # off the design space (a --list row, a --design, a --vary range past a bound): evaluated as given, as evaluate
-    # does, and infeasible whatever the constraints say; each design's lines under "outside"
+    # does, and infeasible whatever the constraints say; each design's lines under "outside". Its distance past the
+    # bound, over the bounds' span (active.outside_bounds' measure), counts in its violation: a sweep record of such
+    # a design said max violation 0 and infeasible, without a reason
     tol = feasibility_tolerance(config.settings)
+    for d in problem.design_variables:
+        past = np.maximum(d.lower - cols[d.name], cols[d.name] - d.upper) / (d.upper - d.lower)
+        violation = np.maximum(violation, np.where(np.isnan(past), np.inf, past))
+    feasible = violation <= tol
     beyond = [[d for d in problem.design_variables if outside_bounds(d, cols[d.name][i], tol)] for i in range(n)]
     outside = [[outside_note(d, cols[d.name][i]) if d in far else  # within the tolerance: feasible, as in evaluate
                 f"{d.name} = {cols[d.name][i]:.12g} is outside its bounds [{d.lower:g}, {d.upper:g}] (evaluated as given)"
                 for d in problem.design_variables if not d.lower <= cols[d.name][i] <= d.upper]
                for i, far in enumerate(beyond)]
-    feasible &= ~np.array([bool(far) for far in beyond], dtype=bool)
     notes = ceiling_notes(config, outputs) + platform_notes(config, designs)
     for group in ([i for i in range(n) if beyond[i]], [i for i in range(n) if outside[i] and not beyond[i]]):
         if group:  # the first design of each: infeasible (beyond the tolerance), then within it

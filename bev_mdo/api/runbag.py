@@ -101,7 +101,29 @@ def answers(config: Mapping[str, Any], result: Mapping[str, Any]) -> dict:
     values.update({k: v for k, v in result.get("outputs", {}).items() if k not in values})
     config = RunConfig.of(config)
     discs = config.timed_disciplines()
-    return answers_for(config.settings, result["design"], values, disciplines=discs, units=run_units(discs))
+    ans = answers_for(config.settings, result["design"], values, disciplines=discs, units=run_units(discs))
+    lines = inconsistent_lines(result)
+    if lines:  # IDF ended where its couplings are not what their disciplines give: say so first
+        ans["feasible"], ans["lines"] = False, [*lines, *ans["lines"]]
+    return ans
+
+
+def inconsistent_lines(result: Mapping[str, Any]) -> list[str]:
+    """IDF's consistency equalities that the result breaks beyond the feasibility tolerance, one line each, and
+    what that means for its numbers: the run's objective and largest violation are at the optimiser's coupling
+    values, the outputs shown are the design analysed through (an MDA). [] when consistent, or not IDF."""
+    tol = float(result.get("feasibility_tolerance") or 0.0)
+    broken = [e for e in (result.get("first_order") or {}).get("equalities", []) if abs(e["value"]) > tol]
+    if not broken:
+        return []
+    obj, analysed = result.get("objective_name"), (result.get("outputs") or {}).get(result.get("objective_name"))
+    lines = [f"not consistent: {e['name'].removesuffix(' consistency')}: the optimiser's coupling value is not what "
+             f"its discipline computes there (residual {abs(e['value']):.3g}, normalised)" for e in broken]
+    held, analysed = (f"{v:.6g}" if v is not None else "nan" for v in (result.get("objective"), analysed))
+    if held != analysed:  # the run's objective is not the outputs' (else the lines above say it all)
+        lines.append(f"  so the run's {obj} {held} and its largest violation are at the optimiser's coupling values; "
+                     f"the design analysed through (the outputs shown) gives {obj} {analysed}")
+    return lines
 
 
 class RecordTally:

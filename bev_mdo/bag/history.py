@@ -229,8 +229,9 @@ def run_ending(bag: Bag, rows: list[dict], answers: dict | None, checks: dict | 
         if by_optimize(bag):
             return False, ("**the run did not finish**: the bag holds no end-of-run record (a signal, SIGINT or "
                            f"SIGTERM, or an error stopped it){whose}")
-        return False, ("**no end-of-run record**: the run did not finish, or its coordinator was started by hand "
-                       f"(coordinator_node stores none){whose.replace(', not a result', '')}")
+        return None, ("**no end-of-run record**: the run did not finish, or its coordinator was started by hand "
+                      "(coordinator_node stores none), or the bag was recorded apart from it (`bev-mdo record`) or "
+                      f"copied without its {ANSWERS_FILE}{whose.replace(', not a result', '')}")
     lost = answers.get("unresponsive_disciplines")
     if lost:
         why = answers.get("stopped") or f"{', '.join(lost)} stopped answering"
@@ -399,9 +400,10 @@ def runs_held(run_ids: list[str], shown: int = 5) -> str:
 
 
 def sweep_phrase(row: dict, n: int) -> str:
-    """"the sweep's best design (design 3 of 8)", or its least violated one."""
+    """"the sweep's best design (design 3 of 8, iteration 2 in history)", or its least violated one: counted from 1
+    as sweep's notes and sweep.csv's rows count them, with the record's iteration (from 0)."""
     return (f"the sweep's {'best' if row['feasible'] else 'least violated'} design "
-            f"(design {row['iteration']} of {n})")
+            f"(design {row['iteration'] + 1} of {n}, iteration {row['iteration']} in history)")
 
 
 def records_phrase(rows: list[dict]) -> str:

@@ -115,6 +115,7 @@ class RecordOrder:
         self.verify = verify
         self.ordered = ordered
         self.kept = 0  # records kept unordered (``ordered`` False)
+        self.accepted = 0  # records kept, ordered or not
         self.order = Sequence(window_s, *((Sequence.HELD, Sequence.RUNS) if bounded else ()))
         self.dropped: dict[str, int] = {}
 
@@ -135,7 +136,16 @@ class RecordOrder:
             why = "malformed"
         if why is not None:
             self.dropped[why] = self.dropped.get(why, 0) + 1
+        self.accepted += why is None
         return why is None
+
+    def none_note(self) -> str:
+        """'' or, for a recorder to which no iteration record came, what may cause it (it ended with "recorded 231
+        messages" and nothing else, and history then found no iteration record). Records that came and were
+        dropped are ``note``'s."""
+        return "" if self.accepted or self.dropped else (
+            "; no iteration record came (a pareto run sends none; a coordinator started without -p recorders:=1 may "
+            "have sent its records before this recorder matched its topics)")
 
     def note(self, left_out: str = "dropped") -> str:
         """'' or '; dropped N duplicate, ... iteration record(s); M iteration record(s) missing; ...' (``left_out``:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -329,15 +330,16 @@ def _answers_section(answers: dict | None, point: str = "the end point") -> list
 
 def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = None,
               answers: dict | None = None, baseline: dict | None = None, units: dict | None = None,
-              k: int = -1, ending: tuple[bool, str] | None = None, config_note: str = "", said: str = "") -> str:
+              k: int = -1, ending: tuple[bool, str] | None = None, config_note: str = "", said: str = "",
+              run_id: str | None = None) -> str:
     """``ending``: (finished, how the run ended: history.run_ending), said first; None for a sweep. ``said``: what
-    the reading left out or could not verify (history.check_note)."""
+    the reading left out or could not verify (history.check_note). ``run_id``: the run read (--run-id), else the bag's."""
     info = bag.info
     finished = ending is None or ending[0]
     lines = [f"# Run report: {bag.bag_dir.name}", "", *([f"- {ending[1]}"] if ending else []),
              f"- bag file: `{bag.mcap_path.name}` ({bag.file_size} bytes, {bag.message_count} messages, "
              f"{bag.duration_ns / 1e9:.3f} s recorded)",
-             f"- run id: `{info.get('run_id', '?')}`, bev_mdo version `{info.get('version', '?')}`",
+             f"- run id: `{run_id or info.get('run_id') or '?'}`, bev_mdo version `{info.get('version', '?')}`",
              *([f"- **{config_note}**"] if config_note else []), *([f"- **{said}**"] if said else [])]
     if bag.truncated:
         lines.append(f"- **truncated**: {bag.recovery_note()}")
@@ -376,9 +378,10 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
         lines += [f"| max violation (normalised) | – | {viol} |" + (" |" if base else ""),
                   f"| feasible | | {last['feasible']} |" + (" |" if base else "")]
         if final is not None:
-            lines += ["", "Outputs other than the objective and constraints (mass, cost, ...) are "
+            lines += ["", "The objective is the recorded one; the other outputs (constraints, mass, cost, ...) are "
                           f"{'this design' if sweep or last.get('from_answers') else 'this iterate'} analysed again in process "
-                          "from the configuration stored in the bag."]
+                          "from the configuration stored in the bag (an IDF iterate away from consistency differs from "
+                          "its record there: `history` shows the recorded values)."]
         if feasible:
             from bev_mdo.mdo.driver import BEST_REL_TOL, pick_result
 
@@ -406,21 +409,39 @@ def _markdown(bag: Bag, rows, timing, images: list[str], final: dict | None = No
     return "\n".join(lines) + "\n"
 
 
+def _inconsistent(row: dict, final: dict | None, tol: float) -> list[str]:
+    """An infeasible IDF record's couplings that are not what its disciplines give at its design (``final``: the
+    design analysed through), beyond ``tol`` relative: one line each (its constraints and objective were taken
+    at the optimiser's values; the record's largest violation was such a residual, named nowhere)."""
+    outputs = (final or {}).get("outputs", {})
+    if row["feasible"] or row.get("formulation") != "idf":
+        return []
+    return [f"not consistent: {c} is {v:.6g} in the optimiser's variables, {outputs[c]:.6g} from its disciplines at "
+            "this design" for c, v in (row.get("couplings") or {}).items()
+            if c in outputs and abs(v - outputs[c]) > tol * max(1.0, abs(outputs[c]))]
+
+
 def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = None, key_file: str | None = None,
            no_verify: bool = False) -> list[Path]:
     """Write plots and ``report.md`` of the bag's own run (or `run_id`; its iteration records
-    verified, see ``history``); returns the written paths."""
+    verified, see ``history``) into ``out_dir`` (default: the bag's folder; for another run than the bag's own,
+    its ``report_<run_id>`` folder); returns the written paths."""
     import matplotlib
 
     matplotlib.use("Agg")
     matplotlib.rcParams["axes.formatter.useoffset"] = False  # values on the axis, not "0.1 .. 0.5 +3.209e2"
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
-    out = Path(out_dir) if out_dir else bag.bag_dir
-    out.mkdir(parents=True, exist_ok=True)
+    # one run of a recording of several: its own folder, so that reporting another run does not overwrite it
+    own = not run_id or run_id == bag.info.get("run_id")
+    out = Path(out_dir) if out_dir else bag.bag_dir if own else \
+        bag.bag_dir / ("report_" + re.sub(r"[^A-Za-z0-9_.-]", "_", run_id).lstrip("."))  # '../x' stays inside
     rows, signer = verified_history(bag, run_id, checks=checks, key_file=key_file, no_verify=no_verify)
-    timing = discipline_timing(bag)
     checks = {} if checks is None else checks
     checks["iterations"] = len(rows)
+    if not rows and not own:  # a run the bag does not hold: nothing of it to write (a report_<typo> folder said
+        return []             # "the run did not finish" of a run nothing is known of, with the bag's timings)
+    out.mkdir(parents=True, exist_ok=True)
+    timing = discipline_timing(bag)
     config, problem = _context(bag, checks)
     final = answers = baseline = None
     units = _units(config)
@@ -442,6 +463,14 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
                                       config.disciplines, units=units)
             except Exception:  # noqa: BLE001
                 answers = None
+            tol = float(config.settings.optimizer.feasibility_tolerance)
+            off = _inconsistent(shown[k], final, tol)
+            if answers and answers["feasible"] and not off and not shown[k]["feasible"] and \
+                    shown[k]["formulation"] == "idf" and shown[k]["max_violation"] > tol:  # scaled otherwise than here
+                off = [f"not consistent: the record's largest violation {shown[k]['max_violation']:.3g} is in none of "
+                       "its constraints or bounds, so it is an IDF consistency residual"]
+            if answers and off:  # its constraints may hold at the optimiser's couplings: "What holds" followed
+                answers["feasible"], answers["lines"] = False, [*off, *answers["lines"]]
     if told is not None:  # answers stored before they held the result's objective: the analysis gives it
         outputs = (final or {}).get("outputs", {})
         told["objective"] = outputs.get(told["objective_name"], float("nan")) if told["objective"] is None \
@@ -464,5 +493,5 @@ def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = N
     said = "; ".join(filter(None, [check_note({c: v for c, v in checks.items() if c not in ("config", "unverified")}),
                                    bag.metadata_note]))
     md.write_text(_markdown(bag, shown, timing, [p.name for p in written], final, answers, baseline, units, k, ending,
-                            checks.get("config", ""), said), encoding="utf-8")
+                            checks.get("config", ""), said, run_id), encoding="utf-8")
     return written + [md]

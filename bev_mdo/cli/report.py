@@ -1,4 +1,5 @@
-"""``bev-mdo report BAG``: PNG plots and report.md written into the bag directory.
+"""``bev-mdo report BAG``: PNG plots and report.md written into the bag directory (``--run-id`` of a recording of
+several runs: its ``report_<run_id>`` folder there).
 
 A bag (or --run-id) without iteration records: stderr says what it holds; exit 1 if no plot could be made of it.
 """
@@ -13,7 +14,8 @@ def register(subparsers) -> None:
     parser = subparsers.add_parser("report")
     add_bag_argument(parser)
     parser.add_argument("--output-dir", help="write here instead of the bag directory")
-    parser.add_argument("--run-id", help="this run (default: the bag's own; needed for a recording of several runs)")
+    parser.add_argument("--run-id", help="this run (default: the bag's own; needed for a recording of several runs, "
+                                         "whose run's report goes to BAG/report_<run_id>/ unless --output-dir)")
     from bev_mdo.cli.history import add_verify_arguments
 
     add_verify_arguments(parser)
@@ -41,6 +43,6 @@ def run(args) -> int:
         from bev_mdo.cli.history import EXIT_NO_ITERATIONS, no_iterations
 
         print(f"bev-mdo report: {no_iterations(args, bag, checks)}", file=sys.stderr)
-        if len(paths) == 1:  # report.md alone, with nothing of a run in it: as history, exit 1
+        if len(paths) <= 1:  # report.md alone, with nothing of a run in it, or nothing (another run): as history
             return EXIT_NO_ITERATIONS
     return 0

@@ -155,7 +155,8 @@ def _in_bounds(config, problem, design: dict, out) -> dict:
         lo[k], hi[k] = problem.coupling_bound(k)
     moved = {k: min(max(v, lo[k]), hi[k]) for k, v in x0.items() if not lo[k] <= v <= hi[k]}
     if moved:
-        print("starting on the bound of " + ", ".join(f"{k} ({x0[k]:.6g} -> {v:.6g})" for k, v in moved.items()),
-              file=out)
+        print("starting on the bound of " + ", ".join(  # "(20 -> 20)" was 19.9999999997 put on its bound 20
+            f"{k} (recorded {x0[k]:.12g}, {abs(x0[k] - v):.3g} {'below its lower' if x0[k] < v else 'above its upper'} "
+            f"bound {v:.12g})" for k, v in moved.items()), file=out)
         x0.update(moved)
     return x0

@@ -137,7 +137,10 @@ def read_list(path: str, config) -> dict[str, np.ndarray]:
     computed = [n for n in names if n in outputs or n.startswith("margin.")]
     unknown = [n for n in names if n not in config.problem.names and n not in params and n not in computed]
     if unknown:  # said before its cells: a column of labels was 'not a number'
-        raise InputError(f"--list {path}: column {unknown[0]!r} is not a design variable or parameter; design "
+        from bev_mdo.mdo.vectors import did_you_mean
+
+        raise InputError(f"--list {path}: column {unknown[0]!r} is not a design variable or parameter; "
+                         f"{did_you_mean(unknown[0], [*config.problem.names, *params])}design "
                          f"variables: {config.problem.names}, parameters: {params}")
     if computed:
         print(f"bev-mdo sweep: note: --list {path}: columns {', '.join(computed)} are what a run computes: "

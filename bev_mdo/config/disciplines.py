@@ -51,6 +51,9 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
         if ceiling is not None and c.upper is not None and c.upper >= ceiling[0]:
             raise ValueError(f"problem.constraints.{c.name}.upper {c.upper:g}: must be below {ceiling[0]:g} "
                              f"({ceiling[1]})")
+    if cfg["problem"]["battery_sized_for_range"] and SIZED_VARIABLE not in produced:
+        raise ValueError("problem.battery_sized_for_range is true but no discipline produces battery_kwh "
+                         "(add battery_sizing to disciplines:)")  # before its coupling guess, which it set
     for key, names in (("coupling_guesses", problem.coupling_guesses), ("coupling_bounds", problem.coupling_bounds)):
         for k in names:  # a name (or vector) no discipline produces would be ignored: a typo, said here
             if k not in produced and f"{k}[0]" not in produced:
@@ -83,9 +86,6 @@ def check_against_disciplines(cfg: dict, problem, discs) -> set[str]:
             raise ValueError(f"problem.parameters.{k}: no discipline has this parameter; known: {sorted(params)}")
     check_optimizer_variables(cfg["optimizer"]["name"], problem.names, [c for c in graph.couplings if c not in problem.names]
                               if cfg["formulation"] == "idf" else [], problem.coupling_bound)
-    if cfg["problem"]["battery_sized_for_range"] and SIZED_VARIABLE not in produced:
-        raise ValueError("problem.battery_sized_for_range is true but no discipline produces battery_kwh "
-                         "(add the battery_sizing discipline)")
     graph.check_inputs(set(problem.names) | set(problem.parameters))
     return params
 

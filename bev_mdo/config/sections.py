@@ -473,6 +473,11 @@ def resolve_problem(section: Any) -> dict:
         prob["design_variables"] = dvs
         if isinstance(spec, Mapping) and "initial" in spec:
             prob.setdefault("coupling_guesses", {}).setdefault(SIZED_VARIABLE, spec["initial"])
+        if isinstance(spec, Mapping) and {"lower", "upper"} & set(spec):  # its bounds were dropped without a word
+            bounds = ", ".join(f"{k} {spec[k]}" for k in ("lower", "upper") if k in spec)
+            warnings.warn(f"problem.battery_sized_for_range: {SIZED_VARIABLE} is sized for the range target (the "
+                          f"battery_sizing discipline), not a design variable: its {bounds} do not apply (to bound it, "
+                          f"constrain {SIZED_VARIABLE} as an output under problem.constraints)", CycleNote, stacklevel=2)
     base = prob.get("baseline")
     if base is not None:
         if not isinstance(base, Mapping) or set(base) - {"name", "design"} or not isinstance(base.get("design"), Mapping):

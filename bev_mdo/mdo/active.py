@@ -89,7 +89,7 @@ def analyse(problem, design: Mapping[str, float], values: Mapping[str, float], *
             rate = {n: -g[1] if on_bound.get(n) == "upper" else g[0] for n, g in grad.items() if n in on_bound}
             blocking = [n for n, r in rate.items() if r > 0]
             e["blocked_by"] = [{"variable": n, "bound": on_bound[n], "rate": rate[n],
-                                "rate_unit": f"{e['unit'] or '1'} per {unit(n) or 'unit'}"} for n in blocking]
+                                "rate_unit": f"{e['unit'] + ' ' if e['unit'] else ''}per {unit(n) or 'unit'}"} for n in blocking]
             e["blocked_by"].sort(key=lambda b: -b["rate"] * spans[b["variable"]])
             others = [o for o in violated if o is not e and np.isfinite(o["violation"])]
             held, reduction = _held_by(grad, active + others, jacobian, spans, on_bound, room)

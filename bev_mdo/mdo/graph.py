@@ -92,20 +92,25 @@ class CouplingGraph:
         return [c for c in self.components if self.is_cyclic(c)]
 
     def check_inputs(self, available: Iterable[str]) -> None:
-        """Raise ValueError naming inputs that nobody produces and that are not in ``available``."""
+        """Raise ValueError naming inputs that nobody produces and that are not in ``available``: the first
+        discipline's, with every other discipline's (a topology's motor_rear_kw and gear_ratio_rear came one
+        error at a time). A nearest name is suggested among the names the discipline does not read already:
+        'motor_rear_kw' got "did you mean 'motor_kw'?", another of its inputs, not a misspelling."""
         avail = set(available)
-        for name in self.names:
-            missing = [v for v in self.inputs[name] if v not in self.producer and v not in avail]
-            if missing:
-                known = {base_name(v) for v in [*self.producer, *avail]}
-                hints = [f"{v!r} is a vector of {k} elements (discipline {self.producer[f'{v}[0]']!r}): add "
-                         f"shapes = {{{v!r}: {k}}} to {name!r}" if (k := sum(1 for p in self.producer
-                                                                            if p.startswith(f"{v}[")))
-                         else did_you_mean(v, known).strip() for v in dict.fromkeys(map(base_name, missing))]
-                hint = "; ".join(h for h in hints if h)
-                raise ValueError(
-                    f"discipline {name!r} needs {missing}, which no discipline produces and which are not "
-                    "design variables or parameters" + (f" ({hint})" if hint else ""))
+        lacking = {name: miss for name in self.names
+                   if (miss := [v for v in self.inputs[name] if v not in self.producer and v not in avail])}
+        if not lacking:
+            return
+        (name, missing), *others = lacking.items()
+        known = {base_name(v) for v in [*self.producer, *avail]} - {base_name(v) for v in self.inputs[name]}
+        hints = [f"{v!r} is a vector of {k} elements (discipline {self.producer[f'{v}[0]']!r}): add "
+                 f"shapes = {{{v!r}: {k}}} to {name!r}" if (k := sum(1 for p in self.producer if p.startswith(f"{v}[")))
+                 else did_you_mean(v, known).strip() for v in dict.fromkeys(map(base_name, missing))]
+        hint = "; ".join(h for h in hints if h)
+        also = "; ".join(f"{n!r} needs {m}" for n, m in others)
+        raise ValueError(f"discipline {name!r} needs {missing}, which no discipline produces and which are not "
+                         "design variables or parameters" + (f" ({hint})" if hint else "")
+                         + (f"; also {also}" if also else ""))
 
     def torn_inputs(self, component: Sequence[str]) -> list[str]:
         """Coupling variables a Gauss-Seidel sweep of ``component`` (in its order) reads before they are computed."""

@@ -170,6 +170,11 @@ def summary_line(ms: Mapping[str, Any]) -> str:
     verdicts = Counter(r["verdict"] for r in ms["results"])
     other = ms.get("other_designs", 0)
     feasible = ms.get("feasible", sum(bool(r["feasible"]) for r in ms["results"]))
+    if not feasible:  # "0 of 4 starts reached the best objective", and the result was start 0's
+        return (f"multi-start: none of {ms['starts']} starts ended feasible ("
+                + ("given start points" if ms["seed"] is None else f"Latin hypercube, seed {ms['seed']}")
+                + f"); the result is start {ms['best_start'] + 1}'s, the least violated; verdicts: "
+                + ", ".join(f"{n} {v}" for v, n in sorted(verdicts.items(), key=lambda kv: -kv[1])))
     return (f"multi-start: {ms['reached_best']} of {ms['starts']} starts reached the best objective (within "
             f"{ms['objective_rel_tol']:g} relative"
             + (f"; {other} of them at another design, more than {ms['design_tol']:g} of a variable's range from the "

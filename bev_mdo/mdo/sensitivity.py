@@ -139,8 +139,9 @@ def _prepare(point, wrt, bounds, rel_step):
     return all_names, x0, wrt, idx, h, direction
 
 
-# |f| below this of max_i |x_i df/dx_i| (terms of that size cancel to it): f is 0 but for rounding, |S| above 4.5e13
-ZERO_TO_ROUNDING = 100.0 * float(np.finfo(float).eps)
+# |f| below this of max_i |x_i df/dx_i|: f is 0 but for rounding, |S| above 1e12 (SSBJ's active g_2 at its optimum,
+# -2.1e-14 where x df/dx is 0.24, printed S = -1.1e13: rounding in terms larger than x df/dx, up to 1e4 times it)
+ZERO_TO_ROUNDING = 1e-12
 
 
 def _normalise(f0: float, change: float) -> float:

@@ -192,12 +192,19 @@ def csv_number(cell: str) -> float:
     raise ValueError(f"must be finite, got {text}")
 
 
+def header_text(row: list[str]) -> str:
+    """A CSV's header row as an error quotes it: 'time_s,speed_mph', cut at 60 characters; 'nothing' if empty."""
+    text = ",".join(c.strip() for c in row)
+    return repr(text[:60] + ("..." if len(text) > 60 else "")) if text else "nothing"
+
+
 def read_cycle_csv(path: str | Path) -> DriveCycle:
     """Read a ``time_s,speed_kmh`` CSV; ValueError naming the file and row on bad data."""
     path = Path(path)
     rows = read_csv_rows(path, "drive cycle")
     if not rows or [h.strip() for h in rows[0]] != ["time_s", "speed_kmh"]:
-        raise ValueError(f"{path}: row 1: header must be 'time_s,speed_kmh'")
+        raise ValueError(f"{path}: row 1: header must be 'time_s,speed_kmh', got {header_text(rows[0] if rows else [])}"
+                         " (time in s, speed in km/h: convert mph x 1.609344, m/s x 3.6)")
     data = [(i, row) for i, row in enumerate(rows[1:], start=2) if row and any(c.strip() for c in row)]
     # rows up to the first that is not two numbers are checked below at once; that row's own error
     # is reported only if no earlier row fails a check (the first bad row is named, as a loop would)

@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cycles import csv_number, read_csv_rows
+from .cycles import csv_number, header_text, read_csv_rows
 from .params import VEHICLE_SPECS
 
 REFERENCE_KW = VEHICLE_SPECS["reference_motor_kw"].default  # Fig 2-9 unit motor, 80 kW
@@ -163,7 +163,8 @@ def load_motor_map_csv(path, reference_kw: float = REFERENCE_KW) -> MotorMap:
     rows = [(i, r) for i, r in enumerate(read_csv_rows(path, "motor map"), start=1)
             if r and not r[0].lstrip().startswith("#") and any(c.strip() for c in r)]
     if not rows or [c.strip() for c in rows[0][1]] != ["speed_rad_s", "torque_nm", "efficiency"]:
-        raise ValueError(f"{path}: row {rows[0][0] if rows else 1}: header must be 'speed_rad_s,torque_nm,efficiency'")
+        raise ValueError(f"{path}: row {rows[0][0] if rows else 1}: header must be 'speed_rad_s,torque_nm,efficiency', "
+                         f"got {header_text(rows[0][1] if rows else [])}")
     data = []
     for row_no, r in rows[1:]:
         if len(r) != 3:

@@ -450,9 +450,10 @@ def main(args: list[str] | None = None, discipline: str | None = None, config=No
     """Run a discipline node until Ctrl-C / SIGTERM (``config``: the run's RunConfig, else the
     ``config`` parameter's file is loaded)."""
     rclpy.init(args=args)
-    node = None
-    try:
-        node = DisciplineNode(discipline, config=config)
+    node, named = None, next((a[12:] for a in (args or sys.argv) if a.startswith("discipline:=")), "")  # its name
+    try:  # discipline_node -p discipline:=top_speed: top_speed_node, as composed and `optimize` name it
+        node = DisciplineNode(discipline, config=config, **({} if discipline or not named.isidentifier() else
+                                                            {"node_name": f"{named}_node"}))
         serve(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         if node is None:  # stopped while loading: its caller says so (ros.run: one line, status 130 or 143)

@@ -405,7 +405,7 @@ def main(args: list[str] | None = None) -> int:
                     node.close()
                     print(f"recorded {node.writer.message_count} messages to {node.writer.path}"
                           + (f"; {node.other_run} of other runs not recorded" if node.other_run else "")
-                          + node.order.note(), file=sys.stderr)
+                          + node.order.note() + node.order.none_note(), file=sys.stderr)
         except KeyboardInterrupt:  # SIGINT, or SIGTERM (interrupts.Terminated)
             if node is None:
                 raise

@@ -186,3 +186,14 @@ def test_what_is_left_out_reads_as_a_sentence(dropped, said):
     order = RecordOrder(RUN)
     order.dropped = dict(dropped)
     assert order.note("not replaying") == said
+
+
+def test_a_recorder_says_no_iteration_record_came_only_when_none_came():
+    """The review: a replay whose records were all dropped as expired was told 'no iteration record' with a
+    cause that did not apply; dropped records are note()'s to say."""
+    order = RecordOrder(RUN)
+    assert "no iteration record came" in order.none_note()
+    assert order.keep(_plain(1), NOW_NS) and order.none_note() == ""
+    expired = RecordOrder(RUN)
+    assert not expired.keep(_plain(1), NOW_NS + 10**15) and expired.none_note() == ""
+    assert "expired" in expired.note()

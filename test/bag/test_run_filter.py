@@ -89,6 +89,20 @@ def test_report_reads_one_run_of_a_standalone_recording(tmp_path):
     checks: dict = {}
     written = report(bag, tmp_path / "out", run_id="b", checks=checks)
     assert (tmp_path / "out" / "report.md") in written and checks["other_runs"] == 1
+    md = (tmp_path / "out" / "report.md").read_text()
+    assert "- run id: `b`," in md  # was: "run id: ``"
+    # a recording apart from the run (bev-mdo record) holds no end-of-run record: how the run ended is not known
+    # from it (it said "the run did not finish" of a run that had, and headed its iterate so)
+    assert ("or the bag was recorded apart from it (`bev-mdo record`) or copied without its answers.json; what follows "
+            "is its last recorded iterate") in md, md
+    assert "## Last recorded iterate (how the run ended is not known)" in md
+    # without --output-dir, each run's report in its own folder: the second no longer overwrote the first
+    for run in ("a", "b"):
+        assert bag / f"report_{run}" / "report.md" in report(bag, run_id=run)
+        assert f"- run id: `{run}`," in (bag / f"report_{run}" / "report.md").read_text()
+    # the review: '../../escape' wrote standalone/escape/report.md; a run the bag does not hold: nothing written
+    assert report(bag, run_id="../../escape") == [] and sorted(p.name for p in bag.iterdir()) == [
+        "metadata.yaml", "report_a", "report_b", "standalone_0.mcap"]
 
 
 def test_history_and_resume_of_a_run_the_bag_does_not_hold_name_the_runs_it_holds(tmp_path, capsys):

@@ -96,3 +96,29 @@ def test_a_history_header_cut_to_its_width_says_so():
     assert _header("evaluations.motor_speed", {}) == ("motor_spe…", "evals")
     assert _header("constraint.range_km", {"range_km": "km"}) == ("range", "km")
     assert _header("design.x_short", {}) == ("x_short", "")
+
+
+def test_a_config_taken_by_set_is_named_as_the_cause(capsys):
+    """`evaluate --set motor_kw=90 CONFIG` said only 'the following arguments are required: config'."""
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["evaluate", "--set", "motor_kw=90", "config/leaf_nedc.yaml"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1, err
+    assert "required: config (--set takes every word after it: put CONFIG before it)" in err, err
+    # no option of several values given, or none that took a word that is no value of its: no such words (reviews)
+    for argv in (["history"], ["evaluate"], ["evaluate", "--set", "motor_kw=90"]):
+        with pytest.raises(SystemExit):
+            cli.main(argv)
+        assert "takes every word" not in capsys.readouterr().err
+
+
+def test_an_unknown_option_is_said_by_its_subcommand(capsys):
+    """`sweep ... --compose none` said 'bev-mdo: error: unrecognized arguments' and pointed at the top help."""
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["sweep", "config/leaf_nedc.yaml", "--compose", "none"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err == ("bev-mdo sweep: error: unrecognized arguments: --compose none "
+                                           "(see bev-mdo sweep --help)\n"), err
+    with pytest.raises(SystemExit):  # given before the subcommand: the top parser's (the review)
+        cli.main(["--bogus", "sweep", "config/leaf_nedc.yaml"])
+    assert capsys.readouterr().err.startswith("bev-mdo: error: unrecognized arguments: --bogus")

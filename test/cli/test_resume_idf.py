@@ -86,3 +86,34 @@ def test_idf_takes_a_start_for_its_couplings_and_names_them_when_refused():
     with pytest.raises(ValueError, match=r"x0 names \['y3'\] are not design variables .* or couplings \['y1', 'y2'\]"):
         run_optimization(config.settings, InProcessEvaluator(config.disciplines), formulation="idf",
                          x0={"y3": 1.0})
+
+
+def test_the_report_of_an_inconsistent_idf_iterate_says_why_it_is_infeasible(tmp_path):
+    """Its record infeasible by a consistency residual alone: report.md said "What holds the design" (its
+    constraints and bounds hold) beside "feasible False"."""
+    from bev_mdo.bag.history import history
+    from bev_mdo.bag.report import report
+
+    _interrupted_bag(tmp_path / "b", after=3)
+    last = history(tmp_path / "b")[-1]
+    assert not last["feasible"] and last["max_violation"] > 1e-4
+    report(tmp_path / "b")
+    md = (tmp_path / "b" / "report.md").read_text()
+    assert "## Why the last recorded iterate is infeasible" in md and "## What holds" not in md
+    for c, v in last["couplings"].items():  # each coupling off its disciplines' value, both values named
+        assert f"- not consistent: {c} is {v:.6g} in the optimiser's variables, " in md, md
+
+
+def test_an_inconsistent_idf_iterate_below_the_reports_own_threshold_is_still_named(tmp_path, monkeypatch):
+    """The record's residual is scaled by each coupling's scale, the report's comparison by its value: where only
+    the record's exceeds the tolerance, its largest violation is named as a consistency residual (a review)."""
+    from bev_mdo.bag import report as rep
+    from bev_mdo.bag.history import history
+
+    _interrupted_bag(tmp_path / "b", after=3)
+    last = history(tmp_path / "b")[-1]
+    monkeypatch.setattr(rep, "_inconsistent", lambda row, final, tol: [])
+    rep.report(tmp_path / "b")
+    md = (tmp_path / "b" / "report.md").read_text()
+    assert (f"- not consistent: the record's largest violation {last['max_violation']:.3g} is in none of its "
+            "constraints or bounds, so it is an IDF consistency residual") in md, md

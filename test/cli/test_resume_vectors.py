@@ -90,5 +90,22 @@ def test_resume_from_an_iterate_just_outside_a_bound_starts_on_the_bound(tmp_pat
         pytest.skip("COBYLA ended inside the bounds on this host")
     capsys.readouterr()
     assert main(["resume", str(old), "--transport", "inprocess", "--output", str(new), "--quiet"]) != 2
-    assert "starting on the bound of z2" in capsys.readouterr().out
+    z2 = history(old)[-1]["design"]["z2"]
+    assert f"starting on the bound of z2 (recorded {z2:.12g}, {-z2:.3g} below its lower bound 0)" \
+        in capsys.readouterr().out  # it read "z2 (-5e-08 -> 0)", and "(20 -> 20)" 3e-10 below a bound of 20
     assert history(new)[0]["design"]["z2"] == 0.0
+
+
+def test_a_start_put_on_its_bound_says_how_far_outside_it_was():
+    """A multi-start's record 3e-10 below battery_kwh's bound 20 read "starting on the bound of battery_kwh
+    (20 -> 20)"."""
+    import io
+
+    from bev_mdo.cli.resume import _in_bounds
+    from bev_mdo.config import RunConfig, load_config
+
+    config = load_config(str(SSBJ.parents[1] / "config" / "leaf_nedc.yaml"))
+    out = io.StringIO()
+    x0 = _in_bounds(config, RunConfig.of(config).problem, {"motor_kw": 80.0, "gear_ratio": 8.0, "battery_kwh": 20 - 3e-10}, out)
+    assert x0["battery_kwh"] == 20.0 and out.getvalue() == (
+        "starting on the bound of battery_kwh (recorded 19.9999999997, 3e-10 below its lower bound 20)\n")

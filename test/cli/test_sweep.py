@@ -159,6 +159,9 @@ def test_sweep_from_a_list(tmp_path):
     ("label,motor_kw\nleaf,80\n", "column 'label' is not a design variable or parameter; design variables: "
                                    "['motor_kw', 'gear_ratio', 'battery_kwh'], parameters: ['air_density_kg_m3', "),
     ("motor_kw,gear_ratio\n", "no designs"),
+    # a misspelt column named no nearest name, as --vary, compare and evaluate --set do
+    ("motor_kw,gear_ratoi\n80,8\n", "column 'gear_ratoi' is not a design variable or parameter; did you mean "
+                                    "'gear_ratio'? design variables: "),
 ])
 def test_a_malformed_list_is_one_line_naming_the_design_and_column(tmp_path, capsys, text, said):
     lst = tmp_path / "designs.csv"
@@ -200,6 +203,21 @@ def test_a_listed_design_outside_its_bounds_is_evaluated_infeasible_and_named(tm
     report = json.loads(capsys.readouterr().out)
     assert report["feasible"] is False and report["notes"][0] == designs[1]["notes"][0]
     assert report["outputs"]["energy_wh_per_km"] == pytest.approx(designs[1]["energy_wh_per_km"], rel=1e-9)
+
+
+def test_a_recorded_design_outside_its_bounds_has_its_distance_past_the_bound_as_violation(tmp_path, capsys):
+    """Its record said max violation 0 and infeasible, with no reason; the distance past the bound over the
+    bounds' span is its violation (within the feasibility tolerance: feasible, as evaluate says)."""
+    from bev_mdo.bag.history import history
+
+    lst = tmp_path / "designs.csv"
+    lst.write_text("motor_kw,gear_ratio\n80,9\n800,9\n120.001,9\n")
+    assert main(["sweep", CONFIG, "--list", str(lst), "--out", str(tmp_path / "o"), "--no-plots",
+                 "--transport", "inprocess"]) == 0
+    rows = history(tmp_path / "o" / "bag")
+    assert [r["feasible"] for r in rows] == [True, False, True]
+    assert rows[0]["max_violation"] == 0.0 and rows[1]["max_violation"] == pytest.approx((800 - 120) / (120 - 40))
+    assert rows[2]["max_violation"] == pytest.approx(0.001 / 80)
 
 
 def test_a_sweep_csv_read_back_as_a_list_gives_the_same_rows(tmp_path, capsys):

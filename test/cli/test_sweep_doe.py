@@ -107,11 +107,11 @@ def test_report_and_resume_of_a_sweep_start_from_its_best_design_not_its_last(tm
     checks: dict = {}
     _, design, iteration = resume_point(str(out / "bag"), checks=checks)
     assert (iteration, design["battery_kwh"]) == (1, 20.0)
-    assert checks["sweep"] == "the sweep's best design (design 1 of 4)"
+    assert checks["sweep"] == "the sweep's best design (design 2 of 4, iteration 1 in history)"
     capsys.readouterr()
     assert main(["report", str(out)]) == 0
     md = (out / "bag" / "report.md").read_text()
-    assert "## The sweep's best design (design 1 of 4)" in md and "## Final iterate" not in md
+    assert "## The sweep's best design (design 2 of 4, iteration 1 in history)" in md and "## Final iterate" not in md
     assert "| battery_kwh | kWh | 20 |" in md
 
 

@@ -70,6 +70,11 @@ def test_infeasible_end_names_violation_and_the_bound_that_blocks():
     text = "\n".join(a["lines"])
     assert "violated: range_km >= 250 km is 248 km, short by 2 km" in text
     assert "blocked by battery_kwh on its upper bound (8 km per kWh)" in text
+    # without units (Sellar's obj over z2): "(1.73 1 per unit)"
+    units = {"range_km": "", "battery_kwh": ""}
+    bare = active.analyse(PROBLEM, {"motor_kw": 80.0, "battery_kwh": 30.0}, {"range_km": 248.0, "accel_time_0_100_s": 10.0},
+                          jacobian=jac, units=units)
+    assert "blocked by battery_kwh on its upper bound (8 per unit)" in "\n".join(bare["lines"])
 
 
 def test_an_active_limit_conflicts_only_when_no_step_spares_it():

@@ -60,6 +60,22 @@ def test_an_unproduced_input_says_what_it_nearly_is():
         g.check_inputs({"h"})
 
 
+def test_inputs_no_one_gives_are_named_for_every_discipline_without_a_misleading_hint():
+    """A two-axle topology without motor_rear_kw: one discipline's error at a time, with "did you mean
+    'motor_kw'?", another input rather than a misspelling of it."""
+    g = CouplingGraph([("mass", ("motor_kw", "motor_rear_kw"), ("m",)), ("acc", ("m", "motor_rear_kw", "g_rear"), ("t",))])
+    with pytest.raises(ValueError) as e:
+        g.check_inputs({"motor_kw"})
+    assert str(e.value) == ("discipline 'mass' needs ['motor_rear_kw'], which no discipline produces and which are not "
+                            "design variables or parameters; also 'acc' needs ['motor_rear_kw', 'g_rear']")
+    with pytest.raises(ValueError, match=r"\(did you mean 'motor_kws'\?\)"):  # a given name no one reads: misspelt
+        g.check_inputs({"motor_kws", "motor_rear_kw", "g_rear"})
+    # the review: a misspelt coupling another discipline reads ('y_1' for y1) kept its hint
+    g = CouplingGraph([("d1", ("x",), ("y1",)), ("d2", ("y1",), ("y2",)), ("typo", ("y_1", "y2"), ("t",))])
+    with pytest.raises(ValueError, match=r"'typo' needs \['y_1'\], .* \(did you mean 'y1'\?\)$"):
+        g.check_inputs({"x"})
+
+
 def test_duplicate_discipline_names_rejected():
     with pytest.raises(ValueError, match="used twice"):
         CouplingGraph([("a", ("x",), ("y",)), ("a", ("x",), ("z",))])

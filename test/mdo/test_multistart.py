@@ -187,3 +187,15 @@ def test_a_start_whose_motor_cannot_follow_the_cycle_is_judged_so_in_its_records
     assert all(follows(rec["design"]) for rec in records if rec["feasible"])
     assert ms["feasible"] == sum(r["feasible"] for r in ms["results"]) < 3
     assert ms["reached_best"] == ms["feasible"]  # every feasible start reached the same mass, at its own gear
+
+
+def test_the_summary_of_starts_none_of_which_ended_feasible_names_the_least_violated():
+    """A bench trial: Golinski with weight <= 2900 and --starts 4 said '0 of 4 starts reached the best objective',
+    while the result was start 1's (the least violated)."""
+    from bev_mdo.mdo.multistart import summary_line
+
+    ms = {"starts": 4, "seed": 0, "best_start": 2, "reached_best": 0, "other_designs": 0, "feasible": 0,
+          "objective_rel_tol": 1e-6, "design_tol": 1e-3,
+          "results": [{"verdict": "infeasible", "feasible": False}] * 4}
+    assert summary_line(ms) == ("multi-start: none of 4 starts ended feasible (Latin hypercube, seed 0); the result is "
+                                "start 3's, the least violated; verdicts: 4 infeasible")

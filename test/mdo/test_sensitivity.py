@@ -205,3 +205,7 @@ def test_an_output_zero_but_for_rounding_has_no_normalised_sensitivity():
     # a review: a margin of 0.001 of terms of 1e6 is no rounding (1e6 eps is 2e-10): its S_q = 1 stays
     margin = sensitivities(lambda X: {"m": 1e6 * (X[:, 0] - 1.0) + 1e-3 * X[:, 1]}, {"p": 1.0, "q": 1.0})
     assert margin.undefined == [] and margin.first["m"][1] == pytest.approx(1.0, rel=1e-3)
+    # rounding in terms larger than x df/dx: SSBJ's active g_2 at its optimum was -2.1e-14 where x df/dx is 0.24,
+    # and printed S = -1.1e13 (9e-14 of it); here 1e-13 of terms of 1e3 times x df/dx
+    big = sensitivities(lambda X: {"g": (1e3 + X[:, 0]) - (1e3 + 0.25) + 2e-14 * X[:, 1]}, {"x": 0.25, "y": 1.0})
+    assert big.undefined == ["g"] and np.isnan(big.first["g"]).all()

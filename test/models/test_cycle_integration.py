@@ -103,6 +103,17 @@ def test_bad_cycle_csv_one_line_naming_file_and_row(tmp_path, rows, match):
     assert str(p) in str(e.value) and "\n" not in str(e.value)
 
 
+@pytest.mark.parametrize("header,got", [("time_s,speed_mph", "'time_s,speed_mph'"), ("time;speed", "'time;speed'"),
+                                        ("", "nothing")])
+def test_a_wrong_cycle_header_is_quoted_with_the_units_asked(tmp_path, header, got):
+    """It said only "header must be 'time_s,speed_kmh'": a trace in mph, or with ';', did not say what was read."""
+    p = tmp_path / "c.csv"
+    p.write_text(header + "\n" if header else "")
+    with pytest.raises(ValueError) as e:
+        read_cycle_csv(p)
+    assert f"row 1: header must be 'time_s,speed_kmh', got {got} (time in s, speed in km/h: convert mph" in str(e.value)
+
+
 def test_too_many_samples_refused_before_allocating():
     c = DriveCycle("long", np.array([0.0, 3600.0, 7200.0, 1e6]), np.array([0.0, 10.0, 10.0, 0.0]))
     with pytest.raises(ValueError, match="samples"):

@@ -92,7 +92,10 @@ def test_a_recorder_started_as_a_background_job_ends_its_recording_on_sigint(ros
     p, _, _, err = _signalled(["recorder_node", "--output", str(bag)], ros_domain, signal.SIG_IGN,
                               lambda line: "recording to" in line, signal.SIGINT)
     assert p.returncode == 0 and "Traceback" not in err, (p.returncode, err[-3000:])
-    assert err.strip().splitlines()[-1] == f"recorded 0 messages to {bag / 'bag_0.mcap'}", err[-3000:]
+    assert err.strip().splitlines()[-1] == (f"recorded 0 messages to {bag / 'bag_0.mcap'}; no iteration record came "
+                                            "(a pareto run sends none; a coordinator started without -p recorders:=1 "
+                                            "may have sent its records before this recorder matched its topics)"), \
+        err[-3000:]
 
 
 def test_the_recorder_reads_a_relative_key_from_the_configs_folder(tmp_path, monkeypatch):
