@@ -132,7 +132,8 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
         # a leading space keeps a cell wider than the column (|S| >= 1e8 near a zero of f) apart from the last
         cells = s.gradient[k] if k in zero else s.first[k]
         # "~": steps h and 2h disagree by over ROUGH of the value (JSON "error"): a kink or noise at the point
-        err = np.zeros(len(cells)) if k in zero else np.nan_to_num(np.asarray(s.first_error[k], float))
+        err = np.nan_to_num(np.asarray((s.gradient_error or {}).get(k, np.zeros(len(cells))) if k in zero
+                                       else s.first_error[k], float))
         marks = ["~" if e > ROUGH * abs(v) and e > 1e-12 else "" for v, e in zip(cells, err)]
         rough = rough or any(marks)
         print(k.ljust(ow) + "".join(((f" {v:.4g}" if k in zero else f" {_fixed(v)}") + m).rjust(w)
@@ -149,14 +150,14 @@ def print_tables(s, outputs, out=None, shown=(), units=None) -> None:
           "variables; a diagonal entry, one variable's own curvature, has none: null in --json)", file=out)
     for k in outputs:
         m, lab, err = s.second[k], s.labels(k), s.second_error[k]
-        if k in zero:
-            m = s.hessian[k]
+        if k in zero:  # the raw d2f and its error (a second review: -1.568e15, unmarked, where S' had been -123~)
+            m, err = s.hessian[k], (s.hessian_error or {}).get(k, np.zeros_like(s.hessian[k]))
         print(f"\n{k}  " + (f"({why[k]}: S' undefined; d2f/dx_i dx_j shown)" if k in zero
                              else f"(max error estimate {np.nanmax(err):.1e})"), file=out)
         print("".ljust(w) + "".join(n.rjust(w) for n in s.names), file=out)
         # "~" as in the first-order table: an entry of -0.0002 whose error was 1.6e-3 had the wrong sign, unmarked;
         # an error below half the last digit shown (5e-5) is not marked
-        rough_2 = (np.nan_to_num(np.asarray(err, float)) > np.maximum(ROUGH * np.abs(m), 5e-5)) & (k not in zero)
+        rough_2 = np.nan_to_num(np.asarray(err, float)) > np.maximum(ROUGH * np.abs(m), 1e-12 if k in zero else 5e-5)
         rough = rough or bool(np.triu(rough_2).any())
         for i, n in enumerate(s.names):
             # a label is a coupling's (two variables, Fig 5-3); a diagonal entry is one variable's own curvature

@@ -59,6 +59,8 @@ class Sensitivities:
     n_evaluations: int = 0
     n_batches: int = 0
     one_sided: tuple[str, ...] = field(default_factory=tuple)  # variables on a bound
+    gradient_error: dict[str, np.ndarray] | None = None  # error estimates of the raw ``gradient`` and ``hessian``:
+    hessian_error: dict[str, np.ndarray] | None = None   # what marks an output's rows where its S is undefined
 
     @property
     def undefined(self) -> list[str]:
@@ -200,7 +202,8 @@ def sensitivities(fun: BatchFun, point: Mapping[str, float], wrt: Sequence[str] 
         hessian=H, second=second if H is not None else None,
         second_error=second_err if H is not None else None,
         n_evaluations=n_eval, n_batches=n_batch,
-        one_sided=tuple(w for w, d in zip(wrt, direction) if d != 0))
+        one_sided=tuple(w for w, d in zip(wrt, direction) if d != 0),
+        gradient_error=dict(g_err), hessian_error=dict(H_err) if H is not None else None)
 
 
 def _complex_step(fun, x0, idx, strict):

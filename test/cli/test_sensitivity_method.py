@@ -243,3 +243,20 @@ def test_a_rel_step_out_of_range_names_the_flag_as_typed(capsys, value):
     code = main(["sensitivity", str(SELLAR), "--transport", "inprocess", "--order", "1", f"--rel-step={value}"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and err == [f"bev-mdo sensitivity: error: --rel-step {float(value):g}: must be in (0, 0.5)"]
+
+
+def test_the_raw_derivatives_of_an_output_zero_but_for_rounding_carry_their_marks():
+    """Its rows show df/dx and d2f/dx2 in place of S and S'; those were never marked, so a d2f of -1.568e15 from
+    steps that disagree (sellar_vector's con[0] at its optimum) stood unflagged where S' had read -123~."""
+    import io
+
+    from bev_mdo.cli.sensitivity import ROUGH, print_tables
+    from bev_mdo.mdo.sensitivity import sensitivities
+
+    s = sensitivities(lambda X: {"zero": X[:, 0] * X[:, 1] - 0.3 + 1e3 * np.abs(X[:, 0] - 3.0)}, {"x": 3.0, "y": 0.1},
+                      order=2)
+    assert s.undefined == ["zero"] and s.hessian_error["zero"][0, 0] > ROUGH * abs(s.hessian["zero"][0, 0])
+    out = io.StringIO()
+    print_tables(s, ["zero"], out=out)
+    row = next(line for line in out.getvalue().splitlines()[::-1] if line.startswith("x "))
+    assert row.split()[1].endswith("~"), out.getvalue()  # its own curvature through the kink
