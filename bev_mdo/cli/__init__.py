@@ -98,16 +98,12 @@ def _terminal(path) -> bool:
 
 
 def save_figure(fig, path, dpi: int = 110) -> None:
-    """Write the figure of a ``--png FILE`` option to exactly ``path`` and close it; a path that cannot
-    be written is one ValueError naming it and why."""
-    import matplotlib.pyplot as plt
-
+    """Write the figure of a ``--png FILE`` option to exactly ``path``; a path that cannot be written is
+    one ValueError naming it and why."""
     try:
         fig.savefig(path, dpi=dpi, format=figure_format(path))
     except OSError as exc:
         raise cannot_write(path, exc) from None
-    finally:
-        plt.close(fig)
 
 
 def is_stdout(path) -> bool:
