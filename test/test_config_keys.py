@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+import sys
 
 import pytest
 import yaml
@@ -397,3 +398,22 @@ def test_a_problem_whose_disciplines_read_no_cycle_gets_no_cycle_note(tmp_path, 
     cfg = _write(tmp_path, yaml.safe_dump(raw, sort_keys=False))
     code, out, err = _cli(capsys, "evaluate", cfg, "--transport", "inprocess", "--no-record")
     assert code == 0 and "cycle.name" not in err, err
+
+
+def test_two_projects_with_a_module_of_the_same_name_each_get_their_own_class(tmp_path, monkeypatch):
+    """An API trial: two projects, each with its own disc.py defining Extra, studied in one session: the second
+    config got the first one's class (the module Python had loaded), its outputs and numbers."""
+    from bev_mdo.mdo import discipline
+
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    monkeypatch.setattr(discipline, "_PLACED", set(), raising=False)
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "disc_same_name.py").write_text(f"class Extra:\n    output = 'extra_{name}'\n")
+    try:
+        first = discipline.load_class("disc_same_name:Extra", [str(tmp_path / "a")])
+        second = discipline.load_class("disc_same_name:Extra", [str(tmp_path / "b")])
+        again = discipline.load_class("disc_same_name:Extra", [str(tmp_path / "b")])
+    finally:
+        sys.modules.pop("disc_same_name", None)
+    assert (first.output, second.output) == ("extra_a", "extra_b") and again is second

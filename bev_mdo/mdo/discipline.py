@@ -236,6 +236,9 @@ def join_errors(parts: Iterable[tuple[int, EvalResult]]) -> tuple[str, PointErro
     return "; ".join(dict.fromkeys(texts)), joined
 
 
+_PLACED: set[str] = set()  # the folders load_class put on sys.path
+
+
 def load_class(spec: str, search_path: Sequence[str] = ()) -> type:
     """Import ``module:Class`` (or ``module.Class``) and return the class.
 
@@ -243,7 +246,9 @@ def load_class(spec: str, search_path: Sequence[str] = ()) -> type:
     entries, the config file's folder, the working directory; config.py), in that order, then on
     Python's own path. A folder is put at the front of ``sys.path`` only when it holds the module's
     top-level package or file, so the same config resolves the same class in every process (the CLI
-    in process, and each discipline node over ROS), whatever their PYTHONPATH.
+    in process, and each discipline node over ROS), whatever their PYTHONPATH. A module of that name
+    loaded before from another config's search_path folder (another project in the same session) is
+    loaded again from this one: a config never gets another project's class.
     """
     if ":" in spec:
         mod_name, _, cls_name = spec.partition(":")
@@ -255,8 +260,17 @@ def load_class(spec: str, search_path: Sequence[str] = ()) -> type:
     for folder in search_path:
         base = Path(folder)
         if (base / f"{top}.py").is_file() or (base / top).is_dir():
+            loaded = sys.modules.get(top)
+            if loaded is not None and not _loaded_from(loaded, base / top) and \
+                    any(_loaded_from(loaded, Path(f) / top) for f in _PLACED):  # by another config's search_path
+                for name in [m for m in sys.modules if m == top or m.startswith(top + ".")]:
+                    del sys.modules[name]
+                importlib.invalidate_caches()
+                if str(base) in sys.path:
+                    sys.path.remove(str(base))
             if str(base) not in sys.path:
                 sys.path.insert(0, str(base))
+                _PLACED.add(str(base))
             break
     try:
         module = importlib.import_module(mod_name)
@@ -272,6 +286,14 @@ def load_class(spec: str, search_path: Sequence[str] = ()) -> type:
         return getattr(module, cls_name)
     except AttributeError:
         raise ValueError(f"module {mod_name!r} has no class {cls_name!r}") from None
+
+
+def _loaded_from(module, place: Path) -> bool:
+    """Whether a top-level ``module`` was loaded from ``place`` (its package folder) or ``place``.py."""
+    files = [getattr(module, "__file__", None), *getattr(module, "__path__", [])]
+    here, package = place.with_suffix(".py").resolve(), place.resolve()
+    return any(f and (Path(f).resolve() == here or package in Path(f).resolve().parents or
+                      Path(f).resolve() == package) for f in files)
 
 
 def _batch_size(batch: Mapping[str, np.ndarray]) -> int:
