@@ -191,6 +191,9 @@ def test_a_bad_config_raises_input_error():
      r"^transport must be a name \('ros' or 'inprocess'\) or a Transport, got \{'transport': 'inprocess'\}$"),
     (lambda s: s.evaluate({"motor_kw": float("nan")}, transport=None), r"^transport must be a name .* got None$"),
     (lambda s: s.sweep("lhs", samples=0, transport=5), r"^transport must be a name .* got 5$"),
+    (lambda s: s.sensitivity(rel_step="big", transport="inprocess"), r"^rel_step must be a finite number, got 'big'$"),
+    (lambda s: s.optimize(callback=5, transport="inprocess"),
+     r"^callback must be a function of one iteration record, got 5$"),
 ])
 def test_arguments_of_the_wrong_kind_raise_input_error(run, said):
     from bev_mdo import InputError, Study
@@ -210,7 +213,7 @@ def test_one_name_is_taken_where_a_list_of_names_is_asked():
 
 
 def test_importing_bev_mdo_and_naming_the_api_loads_no_numpy_and_no_ros():
-    code = ("import sys, bev_mdo; bev_mdo.Study; bev_mdo.OptimizeResult; "
+    code = ("import sys, bev_mdo; bev_mdo.Study; bev_mdo.OptimizeResult; bev_mdo.ModelFailed; "
             "print(sorted(m for m in ('numpy', 'scipy', 'rclpy', 'bev_mdo.cli') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=60)
     assert out.returncode == 0 and out.stdout.strip() == "[]", out.stdout + out.stderr
