@@ -365,9 +365,9 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         message += (f"; the result is iteration {k}, the best feasible point seen" if last["feasible"] else
                     f"; no feasible point was seen: the result is iteration {k}")
     elif k != len(history) - 1:
-        message += (f"; the result is iteration {k}, the best feasible point seen "
-                    f"(the last iterate, iteration {len(history) - 1}, is "
-                    f"{'worse' if history[-1]['feasible'] else 'infeasible'})")
+        message += (f"; the result is iteration {k}, the best feasible point seen (the last iterate, iteration "
+                    f"{len(history) - 1}, {'is worse' if history[-1]['feasible'] else 'is infeasible'}"
+                    f"{': it cannot follow the drive cycle' if history[-1].get('cannot_follow') else ''})")
     return RunResult(
         formulation=form.name, optimizer=opt_name, success=fo["verdict"] == first_order.OPTIMUM and ok,
         message=message, design=design, objective_name=problem.objective,
