@@ -5,8 +5,9 @@ The budget a ROS run gives a discipline before its points fail is ``ros.timeout_
 api/failures.py; discipline nodes composed into the coordinator's process, ros/composed.py: Beside)
 cannot wait for an answer while it computes one, so ``TimedDiscipline`` gives each compute() that
 budget: one that does not return within it is interrupted (SIGALRM, main thread only, and only while
-the caller has no ITIMER_REAL of its own running, which is left as it is; otherwise the call is not bounded) and the discipline counts as hung for the rest of the run: its points fail at
-once with an error naming it and the point, as a ROS node that never answers fails every request.
+the caller has no ITIMER_REAL of its own running, which is left as it is; otherwise the call is not
+bounded) and the discipline counts as hung for the rest of the run: its points fail at once with an
+error naming it and the point, as a ROS node that never answers fails every request.
 A discipline's ``prepare()``, its one-time work such as compiling a model, runs before the first
 call, untimed. A SIGINT during a hung call still interrupts it (KeyboardInterrupt is not caught).
 What a discipline prints in the main thread goes to stderr, as a node's goes to its log: stdout is the
