@@ -31,7 +31,7 @@ def register(sub) -> None:
     p.add_argument("--optimizer", default=None,
                    help="SLSQP | trust-constr | COBYQA | COBYLA | differential_evolution | chebyshev-pairwise")
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
-    p.add_argument("--bag", default=None, help="bag directory to write (default: bags/<config name>_<time>)")
+    p.add_argument("--bag", default=None, help="bag directory to write (default: bags/<config name>_<time>_<run>)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--starts", type=int, default=1, metavar="N",
                    help="optimise from N start points (a Latin hypercube over the bounds, --seed) and report the "

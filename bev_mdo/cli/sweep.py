@@ -103,7 +103,7 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
     return out
 
 
-MAX_SWEEP_POINTS = 1_000_000  # designs in one sweep (one batch); docs/configuration.md
+MAX_SWEEP_POINTS = 1_000_000  # designs in one sweep (one batch); docs/security.md
 
 
 def grid(vary: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
