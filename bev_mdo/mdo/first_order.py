@@ -179,6 +179,8 @@ def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = Fal
     record of the optimiser's last iterate where the result is an earlier one (then the reason is there). A step
     from the end point that failed (driver.end_point_check's ``failed_steps``) is the likelier cause."""
     lines = [_free_line(fo["free_variables"])] if fo.get("free_variables") else []
+    if fo.get("failed_points"):  # driver: points of the run that gave no value (the optimiser's, the check's)
+        lines.append(f"{fo['failed_points']} point(s) of the run gave no value; the first: {fo['first_failure']}")
     if fo.get("outside_coupling_bounds"):  # driver: an MDF result beyond problem.coupling_bounds
         lines.append(_coupling_bounds_line(fo["outside_coupling_bounds"]))
     if converged and ended is not None and fo["verdict"] != OPTIMUM:  # its end point is not what was judged
