@@ -406,7 +406,7 @@ def test_two_projects_with_a_module_of_the_same_name_each_get_their_own_class(tm
     from bev_mdo.mdo import user_class
 
     monkeypatch.setattr(sys, "path", list(sys.path))
-    monkeypatch.setattr(user_class, "_PLACED", set())
+    monkeypatch.setattr(user_class, "_OURS", set())
     for name in ("a", "b"):
         (tmp_path / name).mkdir()
         (tmp_path / name / "disc_same_name.py").write_text(f"class Extra:\n    output = 'extra_{name}'\n")
@@ -417,3 +417,14 @@ def test_two_projects_with_a_module_of_the_same_name_each_get_their_own_class(tm
     finally:
         sys.modules.pop("disc_same_name", None)
     assert (first.output, second.output) == ("extra_a", "extra_b") and again is second
+    # a module load_class did not import is never dropped (the review: in a REPL started in the repository, a
+    # config's class found in the working directory put it on sys.path, and a copy of bev_mdo on a later config's
+    # search path dropped every bev_mdo module, loaded again from the copy)
+    sys.path[:] = [p for p in sys.path if p not in ("", ".", str(REPO))]
+    user_class.load_class("examples.sellar_vector:SellarDis1", [str(REPO)])
+    (tmp_path / "c" / "bev_mdo" / "mdo").mkdir(parents=True)
+    (tmp_path / "c" / "bev_mdo" / "__init__.py").write_text("")
+    (tmp_path / "c" / "bev_mdo" / "mdo" / "discipline.py").write_text("class Discipline:\n    pass\n")
+    from bev_mdo.mdo.discipline import Discipline
+
+    assert user_class.load_class("bev_mdo.mdo.discipline:Discipline", [str(tmp_path / "c")]) is Discipline

@@ -160,11 +160,14 @@ class _Parser(argparse.ArgumentParser):
         self.given = list(sys.argv[1:] if args is None else args)
         return super().parse_known_args(args, namespace)
 
-    def chosen(self, args) -> "_Parser":
-        """The parser of the innermost subcommand ``args`` chose (`bev-mdo bag info`: bag info's)."""
+    def chosen(self, args, extra: list[str], words: list[str]) -> "_Parser":
+        """The parser the ``extra`` words were given to: that of the innermost subcommand ``args`` chose (`bev-mdo
+        bag info BAG --bogus`: bag info's) unless one of them came before its name (`bev-mdo bag --bogus info`)."""
         act = next((a for a in self._actions if isinstance(a, argparse._SubParsersAction)), None)
         name = getattr(args, act.dest, None) if act else None
-        return act.choices[name].chosen(args) if name in getattr(act, "choices", {}) else self
+        if name not in getattr(act, "choices", {}) or name not in words or set(extra) & set(words[:words.index(name)]):
+            return self
+        return act.choices[name].chosen(args, extra, words[words.index(name) + 1:])
 
     def error(self, message: str):
         missing = message.partition("the following arguments are required: ")[2].split(", ")
@@ -234,10 +237,8 @@ def _main(argv: list[str], process: bool = False) -> int:
     try:
         parser = build_parser(argv)  # imports the subcommand's module: numpy, scipy, ... (0.1-0.6 s)
         args, extra = parser.parse_known_args(argv)
-        if extra:  # said by the subcommand's parser, naming it and its --help (the top one named 'bev-mdo'), unless
-            before = argv[:argv.index(args.command)] if args.command in argv else argv  # given before the subcommand
-            said = parser if any(e in before for e in extra) else parser.chosen(args)
-            said.error(f"unrecognized arguments: {' '.join(extra)}")
+        if extra:  # said by the (sub)command's parser they were given to, naming it and its --help
+            parser.chosen(args, extra, argv).error(f"unrecognized arguments: {' '.join(extra)}")
     except (KeyboardInterrupt, Exception) as exc:  # a signal during the imports: its line, not a traceback
         if not isinstance(exc, KeyboardInterrupt) and interrupts.pending() is None:
             raise  # a subcommand module that fails to import raises

@@ -109,7 +109,7 @@ def _refuse_non_finite(where: str, value: Any) -> None:
         raise ValueError(f"{where}: {float(value)!r} must be a finite number")
 
 
-_PLACED: set[str] = set()  # the folders load_class put on sys.path
+_OURS: set[str] = set()  # the top-level modules load_class imported (not loaded before it looked for them)
 
 
 def load_class(spec: str, search_path: Sequence[str] = ()) -> type:
@@ -120,8 +120,9 @@ def load_class(spec: str, search_path: Sequence[str] = ()) -> type:
     Python's own path. A folder is put at the front of ``sys.path`` only when it holds the module's
     top-level package or file, so the same config resolves the same class in every process (the CLI
     in process, and each discipline node over ROS), whatever their PYTHONPATH. A module of that name
-    loaded before from another config's search_path folder (another project in the same session) is
-    loaded again from this one: a config never gets another project's class.
+    that load_class imported before from another folder (another project's config in the same session) is
+    loaded again from this one: a config never gets another project's class. A module loaded otherwise (bev_mdo,
+    a package the caller imported) is never dropped.
     """
     if ":" in spec:
         mod_name, _, cls_name = spec.partition(":")
@@ -134,8 +135,7 @@ def load_class(spec: str, search_path: Sequence[str] = ()) -> type:
         base = Path(folder)
         if (base / f"{top}.py").is_file() or (base / top).is_dir():
             loaded = sys.modules.get(top)
-            if loaded is not None and not _loaded_from(loaded, base / top) and \
-                    any(_loaded_from(loaded, Path(f) / top) for f in _PLACED):  # by another config's search_path
+            if top in _OURS and loaded is not None and not _loaded_from(loaded, base / top):  # another config's
                 for name in [m for m in sys.modules if m == top or m.startswith(top + ".")]:
                     del sys.modules[name]
                 importlib.invalidate_caches()
@@ -143,8 +143,8 @@ def load_class(spec: str, search_path: Sequence[str] = ()) -> type:
                     sys.path.remove(str(base))
             if str(base) not in sys.path:
                 sys.path.insert(0, str(base))
-                _PLACED.add(str(base))
             break
+    fresh = top not in sys.modules  # (bev_mdo, or a package the caller imported: never dropped above)
     try:
         module = importlib.import_module(mod_name)
     except ImportError as exc:
@@ -155,6 +155,8 @@ def load_class(spec: str, search_path: Sequence[str] = ()) -> type:
     except Exception as exc:  # the user's module raised while importing
         raise ValueError(f"module {mod_name!r} for class {spec!r} fails on import: "
                          f"{type(exc).__name__}: {exc}") from None
+    if fresh:
+        _OURS.add(top)
     try:
         return getattr(module, cls_name)
     except AttributeError:

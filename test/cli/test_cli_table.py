@@ -126,3 +126,6 @@ def test_an_unknown_option_is_said_by_its_subcommand(capsys):
         cli.main(["bag", "info", "bags/none", "--bogus"])
     assert capsys.readouterr().err == ("bev-mdo bag info: error: unrecognized arguments: --bogus "
                                        "(see bev-mdo bag info --help)\n")
+    with pytest.raises(SystemExit):  # given to `bag`, before its action: bag's (the review)
+        cli.main(["bag", "--bogus", "info", "bags/none"])
+    assert capsys.readouterr().err.startswith("bev-mdo bag: error: unrecognized arguments: --bogus (see bev-mdo bag --help)")
