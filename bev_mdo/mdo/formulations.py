@@ -133,7 +133,8 @@ class Formulation:
                 if ok[i]:
                     self._cache[k] = (float(f[i]), g[i].copy(), h[i].copy(), True, "", y[i].copy())
                 else:
-                    self.failures, self.first_failure = self.failures + 1, self.first_failure or first_error_line(err[i] or "failed")
+                    self.failures += 1
+                    self.first_failure = self.first_failure or first_error_line(err[i] or "failed")
                     self._cache[k] = (FAIL_OBJECTIVE, np.full(g.shape[1], FAIL_CONSTRAINT),
                                       np.full(h.shape[1], FAIL_CONSTRAINT), False, err[i] or "failed", y_failed)
         got = [self._cache[k] for k in keys]

@@ -363,7 +363,7 @@ def _note_implausible_rows(path, rows, text: dict, arr: dict, noted: set) -> Non
             off = np.abs(np.log(values[name] / typical)) > np.log(factor)
         for i in [] if name in noted else np.flatnonzero(off):
             warnings.warn(f"{path}: row {rows[i]} ({text['make'][i]} {text['model'][i]}): {name} {values[name][i]:.4g}, "
-                          f"outside [{typical / factor:.4g}, {typical * factor:.4g}] where one measured BEV's lies; "
+                          f"outside [{typical / factor:.4g}, {typical * factor:.4g}] where one measured BEV's value lies; "
                           f"likely a unit mix-up: {above if values[name][i] > typical else below} (read as given)",
                           CycleNote, stacklevel=3)
     u, h = arr[MEASURED["epa_udds"]], arr[MEASURED["epa_hwfet"]]
