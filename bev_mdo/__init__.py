@@ -6,7 +6,7 @@ so ``import bev_mdo`` stays cheap and imports no ROS.
 
 __version__ = "0.1.0"
 
-_API = ("Study", "InputError", "Overrides", "Transport", "EvaluateResult", "OptimizeResult", "SweepResult",
+_API = ("Study", "InputError", "ModelFailed", "Overrides", "Transport", "EvaluateResult", "OptimizeResult", "SweepResult",
         "SensitivityResult", "GlobalSensitivityResult", "ParetoResult")
 __all__ = ["__version__", *_API]
 

@@ -124,11 +124,13 @@ class Launcher:
         self.env["PYTHONPATH"] = repo + os.pathsep + self.env.get("PYTHONPATH", "")
         self.env["PYTHONUNBUFFERED"] = "1"
         self.log_dir = Path(log_dir) if log_dir else None
+        self._set_log_dir = False
         if self.log_dir is not None:
             # The nodes' ROS logs go with theirs, in the run's folder, not to ~/.ros/log; so does this
             # process's (its coordinator, the watchdog) unless ROS_LOG_DIR says otherwise: rcl reads it
             # once, at the process's first rclpy.init, which comes after this.
             self.env["ROS_LOG_DIR"] = str(self.log_dir.resolve() / "ros")
+            self._set_log_dir = "ROS_LOG_DIR" not in os.environ  # (stop: taken back, as a library run should)
             os.environ.setdefault("ROS_LOG_DIR", self.env["ROS_LOG_DIR"])
         self.max_restarts = max_restarts
         self.nodes: list[NodeProcess] = []
@@ -287,6 +289,8 @@ class Launcher:
         # a node SIGTERMed or SIGKILLed above (a recorder still in its ROS teardown 30 s after SIGINT, seen
         # stuck destroying a publisher on a crowded host) leaves its Fast DDS files: removed now, not at the next start
         remove_orphans()
+        if self._set_log_dir and os.environ.get("ROS_LOG_DIR") == self.env["ROS_LOG_DIR"]:
+            del os.environ["ROS_LOG_DIR"]  # the next run of a Python caller logs into its own folder, not this one
 
     def __enter__(self) -> "Launcher":
         return self

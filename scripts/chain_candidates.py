@@ -144,7 +144,7 @@ class Candidate:
         return names, out.x, se, at_bound
 
     def cv(self, fleet, cycles, groups, k):
-        folds, k = cal.group_folds(groups, k)  # the folds calibrate.cross_validate uses
+        folds, k = fl.group_folds(groups, k)  # the folds calibrate.cross_validate uses
         err = {c: np.full(len(fleet), np.nan) for c in fl.CYCLES}
         for i in range(k):
             test = folds == i

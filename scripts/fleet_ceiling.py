@@ -121,7 +121,7 @@ def main(argv=None) -> int:
     keep = ~fleet.outlier
     cycles = fl.resampled_cycles()
     n = len(fleet)
-    folds, _ = cal.group_folds(fleet.family(), 5)
+    folds, _ = fl.group_folds(fleet.family(), 5)
     lower = [m.lower() for m in fleet.make]
     makes = np.unique(lower, return_inverse=True)[1]
     fam_ids = np.unique(fleet.family(), return_inverse=True)[1]

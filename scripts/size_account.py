@@ -10,7 +10,7 @@ feature too but is counted here to keep the account conservative); every other c
 added a feature or a fix.
 Lines of commits with fewer than --small lines each are counted apart and, to keep the account
 conservative, with the simplification. Blame uses -w -M -C, so moved or copied lines keep their
-first commit. Takes about a minute.
+first commit. Takes a few seconds.
 """
 from __future__ import annotations
 

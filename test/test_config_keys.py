@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+import sys
 
 import pytest
 import yaml
@@ -254,7 +255,7 @@ class Typed:
     ("on", 1, "true or false (bool)"), ("on", "yes", "true or false (bool)"),
     ("label", 3, "text (str)"), ("cap", "anything", "a number (float)")])
 def test_an_option_of_the_wrong_type_is_refused_naming_its_key_and_type(key, value, what):
-    from bev_mdo.mdo.discipline import read_options
+    from bev_mdo.mdo.user_class import read_options
 
     with pytest.raises(ValueError) as err:
         read_options(Typed, {key: value}, "disciplines[0] (typed).options")
@@ -262,7 +263,7 @@ def test_an_option_of_the_wrong_type_is_refused_naming_its_key_and_type(key, val
 
 
 def test_options_of_the_declared_types_and_unchecked_annotations_are_taken():
-    from bev_mdo.mdo.discipline import read_options
+    from bev_mdo.mdo.user_class import read_options
 
     given = {"rate": 2, "count": 3, "on": True, "label": "b", "cap": None, "table": [1]}
     assert read_options(Typed, given, "w") == Typed.Options(**given)
@@ -289,7 +290,7 @@ class Built:
     ("loss", "2 %", "a number, as its default is"), ("loss", True, "a number, as its default is"),
     ("count", 2.5, "a whole number (int)"), ("cap", "high", "a number (float)")])
 def test_a_constructor_option_of_the_wrong_type_is_refused_naming_it(key, value, what):
-    from bev_mdo.mdo.discipline import read_options
+    from bev_mdo.mdo.user_class import read_options
 
     with pytest.raises(ValueError) as err:
         read_options(Built, {key: value}, "w")
@@ -397,3 +398,33 @@ def test_a_problem_whose_disciplines_read_no_cycle_gets_no_cycle_note(tmp_path, 
     cfg = _write(tmp_path, yaml.safe_dump(raw, sort_keys=False))
     code, out, err = _cli(capsys, "evaluate", cfg, "--transport", "inprocess", "--no-record")
     assert code == 0 and "cycle.name" not in err, err
+
+
+def test_two_projects_with_a_module_of_the_same_name_each_get_their_own_class(tmp_path, monkeypatch):
+    """An API trial: two projects, each with its own disc.py defining Extra, studied in one session: the second
+    config got the first one's class (the module Python had loaded), its outputs and numbers."""
+    from bev_mdo.mdo import user_class
+
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    monkeypatch.setattr(user_class, "_OURS", set())
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "disc_same_name.py").write_text(f"class Extra:\n    output = 'extra_{name}'\n")
+    try:
+        first = user_class.load_class("disc_same_name:Extra", [str(tmp_path / "a")])
+        second = user_class.load_class("disc_same_name:Extra", [str(tmp_path / "b")])
+        again = user_class.load_class("disc_same_name:Extra", [str(tmp_path / "b")])
+    finally:
+        sys.modules.pop("disc_same_name", None)
+    assert (first.output, second.output) == ("extra_a", "extra_b") and again is second
+    # a module load_class did not import is never dropped (the review: in a REPL started in the repository, a
+    # config's class found in the working directory put it on sys.path, and a copy of bev_mdo on a later config's
+    # search path dropped every bev_mdo module, loaded again from the copy)
+    sys.path[:] = [p for p in sys.path if p not in ("", ".", str(REPO))]
+    user_class.load_class("examples.sellar_vector:SellarDis1", [str(REPO)])
+    (tmp_path / "c" / "bev_mdo" / "mdo").mkdir(parents=True)
+    (tmp_path / "c" / "bev_mdo" / "__init__.py").write_text("")
+    (tmp_path / "c" / "bev_mdo" / "mdo" / "discipline.py").write_text("class Discipline:\n    pass\n")
+    from bev_mdo.mdo.discipline import Discipline
+
+    assert user_class.load_class("bev_mdo.mdo.discipline:Discipline", [str(tmp_path / "c")]) is Discipline

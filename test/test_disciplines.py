@@ -6,7 +6,8 @@ import pytest
 import yaml
 
 from bev_mdo.disciplines import BUILTIN, BatterySizing, Energy, default_disciplines
-from bev_mdo.mdo.discipline import read_options, run_discipline
+from bev_mdo.mdo.discipline import run_discipline
+from bev_mdo.mdo.user_class import read_options
 from bev_mdo.models.acceleration import NOT_REACHED_S, accel_time_0_100_s
 from bev_mdo.models.cycles import nedc, resample
 from bev_mdo.models.flat import energy_wh_per_km

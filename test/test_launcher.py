@@ -106,3 +106,16 @@ def test_a_node_of_a_launcher_that_ignores_sigint_takes_the_first_signal(tmp_pat
         launcher.stop(timeout_s=5.0)
     assert node.proc.returncode == -signal.SIGINT  # the first signal, not SIGUSR1 (then SIGTERM) after the wait
     assert "most recent call first" not in (tmp_path / "sleeper.log").read_text()
+
+
+def test_the_log_folder_a_run_gave_this_process_is_taken_back_when_it_stops(tmp_path, monkeypatch):
+    """An API trial: after one ROS run, os.environ kept ROS_LOG_DIR=<first run's bag>/logs/ros, so a later run of
+    the same Python session logged into the first one's folder. One the caller set stays as it was."""
+    monkeypatch.delenv("ROS_LOG_DIR", raising=False)
+    with Launcher(dict(os.environ), log_dir=tmp_path / "run1" / "logs"):
+        assert os.environ["ROS_LOG_DIR"] == str((tmp_path / "run1" / "logs" / "ros").resolve())
+    assert "ROS_LOG_DIR" not in os.environ
+    monkeypatch.setenv("ROS_LOG_DIR", str(tmp_path / "mine"))
+    with Launcher(dict(os.environ), log_dir=tmp_path / "run2" / "logs"):
+        pass
+    assert os.environ["ROS_LOG_DIR"] == str(tmp_path / "mine")

@@ -13,7 +13,7 @@ from __future__ import annotations
 import importlib
 
 _PARTS = {
-    "Study": "study", "InputError": "errors", "Overrides": "overrides", "Transport": "transport",
+    "Study": "study", "InputError": "errors", "ModelFailed": "errors", "Overrides": "overrides", "Transport": "transport",
     "EvaluateResult": "results", "OptimizeResult": "results", "SweepResult": "results",
     "SensitivityResult": "results", "GlobalSensitivityResult": "results", "ParetoResult": "results",
 }

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from bev_mdo.api.errors import InputError
+from bev_mdo.figures import styled, subplots
 
 METHODS = ("lhs", "sobol", "halton", "full")
 
@@ -68,16 +69,17 @@ def batch(problem, doe: str | None, samples: int, seed: int | None, given: dict 
     return {**given, **{k: np.full(n, v) for k, v in fixed.items()}}
 
 
+@styled
 def plot_scatter(result: dict, output: str, varied: list[str], path: Path, method: str):
     """One PNG: ``output`` against each varied variable (one panel each), feasible points filled,
     infeasible red x, constraint limits dashed."""
-    from bev_mdo.api.evaluate import pyplot_and_label
+    from bev_mdo.api.evaluate import axis_label
 
-    plt, label = pyplot_and_label(result.get("units"))
+    label = axis_label(result.get("units"))
     problem, y, feas = result["problem"], result["outputs"][output], result["feasible"]
     ncols = min(len(varied), 3)
     nrows = -(-len(varied) // ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(3.6 * ncols + 0.6, 3.2 * nrows + 0.6), squeeze=False,
+    fig, axes = subplots(nrows, ncols, figsize=(3.6 * ncols + 0.6, 3.2 * nrows + 0.6), squeeze=False,
                              sharey=True, layout="constrained")
     for ax, name in zip(axes.flat, varied):
         x = result["design"][name]
@@ -97,7 +99,6 @@ def plot_scatter(result: dict, output: str, varied: list[str], path: Path, metho
     axes.flat[0].legend(fontsize=7, loc="best")
     fig.suptitle(f"{label(output)}: {len(y)} designs ({method})", fontsize=10)
     fig.savefig(path, dpi=100)
-    plt.close(fig)
     return fig
 
 

@@ -33,21 +33,15 @@ def units_of(config, names) -> dict[str, str]:
     return {k: units[k] for k in names if k in units}
 
 
-def pyplot_and_label(units: dict | None):
-    """(matplotlib.pyplot on the file-only Agg backend, ``label(name)``: a variable's axis label with
-    its unit as ``units`` declares it) for the plots of the runs."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    matplotlib.rcParams["axes.formatter.useoffset"] = False  # values on the axis, not "0.1 .. 0.5 +3.209e2"
-    import matplotlib.pyplot as plt
-
+def axis_label(units: dict | None):
+    """``label(name)``: a variable's axis label with its unit as ``units`` declares it, for the plots of
+    the runs (drawn with bev_mdo.figures)."""
     from bev_mdo.mdo import units as un
 
     def label(name: str) -> str:
         return un.label(name, units or {})
 
-    return plt, label
+    return label
 
 
 def design(config, given: dict[str, float], transport, caller: str = "bev-mdo evaluate") -> dict:

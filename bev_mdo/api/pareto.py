@@ -21,6 +21,7 @@ from bev_mdo.api.evaluate import ceilings as output_ceilings
 from bev_mdo.api.evaluate import declared_units
 from bev_mdo.api.transport import Transport
 from bev_mdo.mdo.vectors import did_you_mean
+from bev_mdo.figures import styled, subplots
 
 
 def run(cfg, objectives: list[str] | None = None, *, generations: int = 30, pop: int = 100, seed: int = 1,
@@ -201,15 +202,16 @@ def write_front(path: Path, res) -> None:
             w.writerow([f"{float(res.values[c][i]):.10g}" if c in res.values else "" for c in cols])
 
 
+@styled
 def plot_front(out: Path, res, units: dict | None = None) -> list[Path]:
     """One scatter plot per pair of objectives, ``front_<b>_vs_<a>.png``. Returns the files written."""
-    from bev_mdo.api.evaluate import pyplot_and_label
+    from bev_mdo.api.evaluate import axis_label
 
-    plt, label = pyplot_and_label(units)
+    label = axis_label(units)
     written = []
     for i, xk in enumerate(res.objectives):
         for yk in res.objectives[i + 1:]:
-            fig, ax = plt.subplots(figsize=(6.0, 4.5))
+            fig, ax = subplots(figsize=(6.0, 4.5))
             ax.scatter(res.values[xk], res.values[yk], s=14, color="C0",
                        label=f"non-dominated feasible designs ({len(res.X)})")
             ax.set_xlabel(label(xk))
@@ -220,6 +222,5 @@ def plot_front(out: Path, res, units: dict | None = None) -> list[Path]:
             fig.tight_layout()
             path = out / f"front_{yk}_vs_{xk}.png"
             fig.savefig(path, dpi=120)
-            plt.close(fig)
             written.append(path)
     return written

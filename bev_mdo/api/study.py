@@ -218,6 +218,8 @@ class Study:
                                         starts=_whole(starts, "starts"), seed=_whole(seed, "seed"), bag=bag, quiet=True, **ros)
         x0 = _mapping(x0, "x0")
         finite_values(x0, "x0", one="the start point, a number per name")
+        if callback is not None and not callable(callback):
+            raise InputError(f"callback must be a function of one iteration record, got {callback!r}")
         return OptimizeResult.of(optimize.run(self._config, opts, callback, x0 or None))
 
     @_input_errors
@@ -260,7 +262,8 @@ class Study:
         from bev_mdo.api import sensitivity
 
         s, outputs, _, _ = sensitivity.run(self._config, _mapping(at, "at"), _names(wrt, "wrt"), _transport(transport),
-                                           order=_whole(order, "order"), rel_step=rel_step)
+                                           order=_whole(order, "order"),
+                                           rel_step=None if rel_step is None else _number(rel_step, "rel_step"))
         units = sensitivity.units_of(self._config, [*s.names, *outputs])
         return SensitivityResult.of(sensitivity.to_dict(s, outputs, units))
 

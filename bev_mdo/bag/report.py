@@ -11,6 +11,7 @@ from bev_mdo.bag.history import (answered_result, check_note, headline, mda_tota
                                   run_ending, sweep_phrase, verified_history)
 from bev_mdo.bag.reader import Bag, open_bag
 from bev_mdo.mdo.units import label, run_units, unit_of
+from bev_mdo.figures import styled, subplots
 
 REQUEST_TYPE = "bev_mdo_msgs/msg/EvaluationRequest"
 RESULT_TYPE = "bev_mdo_msgs/msg/EvaluationResult"
@@ -134,12 +135,10 @@ def _iterate_markers(ax, it, y, feasible) -> None:
 
 
 def _plot_convergence(rows, path: Path, baseline: dict | None = None, units: dict | None = None):
-    import matplotlib.pyplot as plt
-
     it = [r["iteration"] for r in rows]
     feas = [r["feasible"] for r in rows]
     name = rows[0]["objective_name"] or "objective"
-    fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
+    fig, (ax1, ax2) = subplots(2, 1, sharex=True, figsize=(7, 6))
     _iterate_markers(ax1, it, [r["objective"] for r in rows], feas)
     if baseline and name in baseline.get("outputs", {}):
         ax1.axhline(baseline["outputs"][name], color="0.3", ls="-.", lw=1.2, label=f"baseline ({baseline['label']})")
@@ -204,9 +203,7 @@ def _plot_constraints(rows, path: Path, problem=None, baseline: dict | None = No
 def _stacked(rows, key: str, names, draw_limits, baseline, units, path: Path, title: str):
     """One panel per name: the iterates of ``row[key][name]``, what `draw_limits(ax, name)` draws, and the
     baseline's value (its design for "design", its outputs otherwise)."""
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(7, 1.9 * len(names) + 1), squeeze=False)
+    fig, axes = subplots(len(names), 1, sharex=True, figsize=(7, 1.9 * len(names) + 1), squeeze=False)
     it = [r["iteration"] for r in rows]
     feas = [r["feasible"] for r in rows]
     base = (baseline or {}).get("design" if key == "design" else "outputs", {})
@@ -224,19 +221,14 @@ def _stacked(rows, key: str, names, draw_limits, baseline, units, path: Path, ti
 
 
 def _saved(fig, path: Path):
-    import matplotlib.pyplot as plt
-
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
     return fig
 
 
 def _plot_timing(timing, path: Path):
-    import matplotlib.pyplot as plt
-
     names = sorted(timing)
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    fig, (ax1, ax2) = subplots(1, 2, figsize=(10, 4))
     ax1.boxplot([np.array(timing[n]["compute_time_s"]) * 1e3 for n in names], tick_labels=names)
     ax1.set_ylabel("compute time per batch (ms)")
     ax1.set_title("Discipline compute time (warm-up excluded)")
@@ -421,15 +413,12 @@ def _inconsistent(row: dict, final: dict | None, tol: float) -> list[str]:
             if c in outputs and abs(v - outputs[c]) > tol * max(1.0, abs(outputs[c]))]
 
 
+@styled
 def report(bag, out_dir=None, run_id: str | None = None, checks: dict | None = None, key_file: str | None = None,
            no_verify: bool = False) -> list[Path]:
     """Write plots and ``report.md`` of the bag's own run (or `run_id`; its iteration records
     verified, see ``history``) into ``out_dir`` (default: the bag's folder; for another run than the bag's own,
     its ``report_<run_id>`` folder); returns the written paths."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    matplotlib.rcParams["axes.formatter.useoffset"] = False  # values on the axis, not "0.1 .. 0.5 +3.209e2"
     bag = bag if isinstance(bag, Bag) else open_bag(bag)
     # one run of a recording of several: its own folder, so that reporting another run does not overwrite it
     own = not run_id or run_id == bag.info.get("run_id")

@@ -98,16 +98,12 @@ def _terminal(path) -> bool:
 
 
 def save_figure(fig, path, dpi: int = 110) -> None:
-    """Write the figure of a ``--png FILE`` option to exactly ``path`` and close it; a path that cannot
-    be written is one ValueError naming it and why."""
-    import matplotlib.pyplot as plt
-
+    """Write the figure of a ``--png FILE`` option to exactly ``path``; a path that cannot be written is
+    one ValueError naming it and why."""
     try:
         fig.savefig(path, dpi=dpi, format=figure_format(path))
     except OSError as exc:
         raise cannot_write(path, exc) from None
-    finally:
-        plt.close(fig)
 
 
 def is_stdout(path) -> bool:
@@ -156,22 +152,33 @@ class _Commands(argparse._SubParsersAction):  # argparse's class for add_subpars
         return super().add_parser(name, **{"help": SUBCOMMANDS[name][1], **kwargs})
 
 
-_GIVEN: list[str] = []  # the command line being parsed (_Parser.error: which options it used)
-
-
 class _Parser(argparse.ArgumentParser):
     """A usage mistake is one line on stderr, as every other user mistake (exit 2), naming --help."""
+    given: list[str] = []  # the words this parser was given (error: which options they used)
+
+    def parse_known_args(self, args=None, namespace=None):
+        self.given = list(sys.argv[1:] if args is None else args)
+        return super().parse_known_args(args, namespace)
+
+    def chosen(self, args, extra: list[str], words: list[str]) -> "_Parser":
+        """The parser the ``extra`` words were given to: that of the innermost subcommand ``args`` chose (`bev-mdo
+        bag info BAG --bogus`: bag info's) unless one of them came before its name (`bev-mdo bag --bogus info`)."""
+        act = next((a for a in self._actions if isinstance(a, argparse._SubParsersAction)), None)
+        name = getattr(args, act.dest, None) if act else None
+        if name not in getattr(act, "choices", {}) or name not in words or set(extra) & set(words[:words.index(name)]):
+            return self
+        return act.choices[name].chosen(args, extra, words[words.index(name) + 1:])
 
     def error(self, message: str):
         missing = message.partition("the following arguments are required: ")[2].split(", ")
         positional = [m for m in missing if m and not m.startswith("-")]
         def took_it(a, o: str) -> bool:  # a word it took is no value of its (NAME=VALUE has a '='): the positional
-            after = _GIVEN[_GIVEN.index(o) + 1:]
+            after = self.given[self.given.index(o) + 1:]
             taken = after[:next((i for i, w in enumerate(after) if w.startswith("-")), len(after))]
             return bool(taken) and ("=" not in taken[-1] or "=" not in str(a.metavar or ""))
 
         used = [o for a in self._actions if a.nargs in ("+", "*") for o in a.option_strings
-                if o in _GIVEN and took_it(a, o)]
+                if o in self.given and took_it(a, o)]
         if positional and used:  # `evaluate --set motor_kw=90 CONFIG`: --set took CONFIG as one of its values
             message += f" ({used[0]} takes every word after it: put {positional[0].upper()} before it)"
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
@@ -190,7 +197,6 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"bev-mdo {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", action=_Commands)
     sub.required = True
-    parser.commands = sub
     chosen = _chosen(argv) if argv is not None else None
     for command, (module, help_text) in SUBCOMMANDS.items():
         if command in sub.choices:
@@ -229,13 +235,10 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv: list[str], process: bool = False) -> int:
     try:
-        _GIVEN[:] = argv
         parser = build_parser(argv)  # imports the subcommand's module: numpy, scipy, ... (0.1-0.6 s)
         args, extra = parser.parse_known_args(argv)
-        if extra:  # said by the subcommand's parser, naming it and its --help (the top one named 'bev-mdo'), unless
-            before = argv[:argv.index(args.command)] if args.command in argv else argv  # given before the subcommand
-            said = parser if any(e in before for e in extra) else parser.commands.choices.get(args.command, parser)
-            said.error(f"unrecognized arguments: {' '.join(extra)}")
+        if extra:  # said by the (sub)command's parser they were given to, naming it and its --help
+            parser.chosen(args, extra, argv).error(f"unrecognized arguments: {' '.join(extra)}")
     except (KeyboardInterrupt, Exception) as exc:  # a signal during the imports: its line, not a traceback
         if not isinstance(exc, KeyboardInterrupt) and interrupts.pending() is None:
             raise  # a subcommand module that fails to import raises

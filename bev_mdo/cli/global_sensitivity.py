@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+from bev_mdo.figures import styled, subplots
 
 
 def print_tables(rep: dict) -> None:
@@ -33,17 +34,18 @@ def print_tables(rep: dict) -> None:
         print(f"\nnote: {note}")
 
 
+@styled
 def write_plot(path: str, rep: dict) -> None:
     """Bars of the indices of every output with their confidence intervals; the title names the
     bounds, the fixed values, N and the seed."""
-    from bev_mdo.api.evaluate import pyplot_and_label
+    from bev_mdo.api.evaluate import axis_label
     from bev_mdo.cli import save_figure
 
-    plt, label = pyplot_and_label(rep.get("units"))
+    label = axis_label(rep.get("units"))
     names, outs = rep["variables"], [k for k, r in rep["outputs"].items() if not r.get("constant")]
     keys = (("S1", "S1_conf", "first order S1"), ("ST", "ST_conf", "total ST")) if rep["method"] == "sobol" \
         else (("mu_star", "mu_star_conf", "mu* (output unit)"), ("sigma", None, "sigma (output unit)"))
-    fig, axes = plt.subplots(1, max(len(outs), 1), figsize=(3.2 + 2.6 * max(len(outs), 1), 4.2),
+    fig, axes = subplots(1, max(len(outs), 1), figsize=(3.2 + 2.6 * max(len(outs), 1), 4.2),
                              squeeze=False, layout="constrained")
     xs = np.arange(len(names))
     for ax, out in zip(axes[0], outs):

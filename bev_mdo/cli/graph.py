@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import sys
 import textwrap
+from bev_mdo.figures import subplots
 
 OPT = "optimizer"
 
@@ -80,18 +81,14 @@ def to_dot(model: dict, name: str = "bev_mdo") -> str:
 
 
 def plot_n2(model: dict, path, title: str = ""):
-    """Draw the N² chart; returns the matplotlib figure (closed after saving)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """Draw the N² chart; returns the matplotlib figure."""
     from matplotlib.patches import Rectangle
 
     order = model["order"]
     n = len(order)
     pos = {k: i for i, k in enumerate(order)}
     size = max(6.0, 1.9 * n)
-    fig, ax = plt.subplots(figsize=(size, size * 0.85))
+    fig, ax = subplots(figsize=(size, size * 0.85))
     for i, k in enumerate(order):
         colour = "#f7e3c6" if k == OPT else "#c9d9f0"
         ax.add_patch(Rectangle((i, i), 1, 1, facecolor=colour, edgecolor="k"))

@@ -31,7 +31,7 @@ def register(sub) -> None:
     p.add_argument("--optimizer", default=None,
                    help="SLSQP | trust-constr | COBYQA | COBYLA | differential_evolution | chebyshev-pairwise")
     p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
-    p.add_argument("--bag", default=None, help="bag directory to write (default: bags/<config name>_<time>)")
+    p.add_argument("--bag", default=None, help="bag directory to write (default: bags/<config name>_<time>_<run>)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--starts", type=int, default=1, metavar="N",
                    help="optimise from N start points (a Latin hypercube over the bounds, --seed) and report the "
@@ -206,14 +206,14 @@ def _verdict(result: dict, out, units: dict) -> None:
         con = result["constraints"].get(name, {})
         margin, limit = con.get("margin", float("nan")), con.get("upper", con.get("lower")) or 0.0
         shown = "0" if abs(margin) <= 1e-6 * max(abs(limit), 1.0) else f"{margin:.3g}"  # below the noise: 0
-        lines.append(f"active: {label}{u(name)}, margin {shown}{u(name)}, multiplier {multiplier:.4g}{rate(name, d)}")
+        lines.append(f"active: {label}{u(name)}, margin {shown}{u(name)}, multiplier {multiplier + 0.0:.4g}{rate(name, d)}")
     for b in fo["active_bounds"]:
         v = {**result.get("outputs", {}), **result["design"]}.get(b["name"], float("nan"))  # IDF's couplings too
         v = b.get("bound", v) if abs(v - b.get("bound", v)) <= 1e-9 * max(1.0, abs(v)) else v  # 4.6e-13 on 0: 0
         lines.append(f"on its {b['kind']} bound: {b['name']} = {v:.6g}{u(b['name'])}, multiplier "
-                     f"{b['multiplier']:.4g}{rate(b['name'], b.get('d_objective_d_limit'))}")
+                     f"{b['multiplier'] + 0.0:.4g}{rate(b['name'], b.get('d_objective_d_limit'))}")
     for e in fo["equalities"]:
-        lines.append(f"consistency: {e['name']}, residual {e['value']:.3g}, multiplier {e['multiplier']:.4g}")
+        lines.append(f"consistency: {e['name']}, residual {e['value']:.3g}, multiplier {e['multiplier'] + 0.0:.4g}")  # (-0.0 + 0.0 is 0.0)
     print(f"what holds the result (multipliers per unit of the scaled variables and normalised constraints"
           + (f"; in brackets, the change of the optimum's {obj} per unit the limit or bound is raised):" if optimum
              else "):")

@@ -14,6 +14,7 @@ import sys
 import numpy as np
 
 from bev_mdo import jsontext
+from bev_mdo.figures import colormap, figure, styled
 
 ROUGH = 0.01  # a value is marked "~" when its error estimate (Richardson's, or half a kink's jump) is over 1 % of it
 _ROUGH_LINE = (f"~ uncertain by over {ROUGH:.0%} of the value: the estimates with steps h and 2h, or the slopes either "
@@ -188,23 +189,24 @@ def _context_title(s, cfg, design=None) -> str:
     return f"at {point}" + (f"; {cyc}" + (f", {model} model" if model else "") if cyc else "")
 
 
+@styled
 def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
     """The sensitivity figure: a first-order bar chart (eq 5-4) and, with second order, one
     matrix per output (eq 5-5) on ONE symmetric colour scale shared by the whole figure. Entries
     whose magnitude is not above their error estimate (Richardson's, at least the rounding of the stencil's
     values) are masked (grey, "≤ err"), every cell by the same rule: they are noise, not signal. Text is
     white on dark cells. The title names the point and the cycle (or cycle mix) the energy is computed on.
-    Returns the figure (closed)."""
+    Returns the figure."""
     from matplotlib.colors import Normalize
 
-    from bev_mdo.api.evaluate import pyplot_and_label
+    from bev_mdo.api.evaluate import axis_label
 
-    plt, label = pyplot_and_label(units)
+    label = axis_label(units)
     second = s.second is not None
     n = len(outputs)
     ncols = 2 if second and n > 1 else 1
     nrows = 1 + (-(-n // ncols) if second else 0)
-    fig = plt.figure(figsize=(5.2 * ncols + 1.5, 4.2 + 4.0 * (nrows - 1)), layout="constrained")
+    fig = figure(figsize=(5.2 * ncols + 1.5, 4.2 + 4.0 * (nrows - 1)), layout="constrained")
     gs = fig.add_gridspec(nrows, ncols)
     ax = fig.add_subplot(gs[0, :])
     width = 0.8 / max(n, 1)
@@ -226,7 +228,7 @@ def write_heatmap(path: str, s, outputs, cfg=None, design=None, units=None):
                   ((mats[k], errs[k]) for k in outputs)]
         lim = max([float(np.max(v)) for v in signal if v.size] + [1e-3])
         norm = Normalize(vmin=-lim, vmax=lim)
-        cmap = plt.get_cmap("RdBu_r").with_extremes(bad="0.85")
+        cmap = colormap("RdBu_r").with_extremes(bad="0.85")
         im, mat_axes = None, []
         ticks = [label(v) for v in s.names]
         for idx, k in enumerate(outputs):

@@ -30,6 +30,7 @@ import numpy as np
 from bev_mdo import jsontext
 from bev_mdo.api.errors import InputError
 from bev_mdo.api.evaluate import batch as evaluate_batch  # one batch of MDAs over the transport args choose
+from bev_mdo.figures import colormap, styled, subplots
 
 
 def register(sub) -> None:
@@ -102,7 +103,7 @@ def parse_vary(items: list[str]) -> dict[str, np.ndarray]:
     return out
 
 
-MAX_SWEEP_POINTS = 1_000_000  # designs in one sweep (one batch); docs/configuration.md
+MAX_SWEEP_POINTS = 1_000_000  # designs in one sweep (one batch); docs/security.md
 
 
 def grid(vary: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -176,14 +177,15 @@ def write_csv(path: Path, result: dict) -> None:
     os.replace(part, path)
 
 
+@styled
 def plot_output(result: dict, output: str, varied: list[str], path: Path, baseline: dict | None = None):
     """One PNG: ``output`` against the first varied variable, one line per value of the second
     (if any; further varied variables: one panel per value of the third is too much, they are
     overlaid); feasible points filled, infeasible hollow red x; constraint limits dashed. The x-axis spans the
     swept values (the bounds dotted where the sweep reaches them), the legend beside the axes."""
-    from bev_mdo.api.evaluate import pyplot_and_label
+    from bev_mdo.api.evaluate import axis_label
 
-    plt, label = pyplot_and_label(result.get("units"))
+    label = axis_label(result.get("units"))
     problem = result["problem"]
     x = result["design"][varied[0]]
     y = result["outputs"][output]
@@ -193,8 +195,8 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
         second = result["design"][varied[1]]
         groups = [(v, np.isclose(second, v)) for v in np.unique(second)]
     ncol = 1 + (len(groups) + 5) // 28  # the legend's columns, beside the axes: up to ~28 entries each
-    fig, ax = plt.subplots(figsize=(7 + 2.6 * ncol, 4.6), layout="constrained")
-    cmap = plt.get_cmap("viridis")
+    fig, ax = subplots(figsize=(7 + 2.6 * ncol, 4.6), layout="constrained")
+    cmap = colormap("viridis")
     for k, (v, sel) in enumerate(groups):
         colour = cmap(k / max(len(groups) - 1, 1)) if v is not None else "C0"
         order = np.argsort(x[sel], kind="stable")
@@ -235,7 +237,6 @@ def plot_output(result: dict, output: str, varied: list[str], path: Path, baseli
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, ncol=ncol, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)  # hides no data
     fig.savefig(path, dpi=100)
-    plt.close(fig)
     return fig, ax
 
 

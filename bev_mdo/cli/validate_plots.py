@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bev_mdo.api.evaluate import pyplot_and_label
 from bev_mdo.cli import save_figure
+from bev_mdo.figures import colormap, styled, subplots
 
 
 def _f(x, nd=1) -> str:  # as validate's table (not imported: validate imports this module)
@@ -38,11 +38,11 @@ def write_all(report: dict, directory) -> list[Path]:
     return written
 
 
+@styled
 def plot(report: dict, path: str) -> None:
     """Parity plot with the +-5 % band, residuals against test mass and rated power."""
-    plt, _ = pyplot_and_label(None)
     rows = report["rows"]
-    fig, ax = plt.subplots(1, 3, figsize=(15, 5.4))
+    fig, ax = subplots(1, 3, figsize=(15, 5.4))
     marks = {"udds": ("o", "UDDS"), "hwfet": ("s", "HWFET")}
     lo, hi = math.inf, 0.0
     for c, (mk, label) in marks.items():
@@ -81,11 +81,11 @@ def plot(report: dict, path: str) -> None:
     _save(fig, path)
 
 
+@styled
 def plot_pair_arrows(report: dict, cycle: str, path) -> None:
     """One panel per model column: every pair of the cycle as an arrow from (measured A, predicted A)
     to (measured B, predicted B), Wh/km, with y = x; the title gives the pair slope and mean
     absolute difference of that column."""
-    plt, _ = pyplot_and_label(None)
     by_row = {r["row"]: r for r in report["rows"]}
     pairs = report["pairs"][cycle]["rows"]
     columns = [(report["energy_model"], "predicted", report["pairs"][cycle])]
@@ -93,9 +93,9 @@ def plot_pair_arrows(report: dict, cycle: str, path) -> None:
         ref = report["reference"]["pairs"].get(name, {}).get(cycle)
         if ref is not None:
             columns.append((label, name, ref))
-    fig, axes = plt.subplots(1, len(columns), figsize=(5.2 * len(columns), 5.0), squeeze=False)
+    fig, axes = subplots(1, len(columns), figsize=(5.2 * len(columns), 5.0), squeeze=False)
     families = list(dict.fromkeys(p["family"] for p in pairs))
-    colour = {f: plt.get_cmap("tab20")(i % 20) for i, f in enumerate(families)}
+    colour = {f: colormap("tab20")(i % 20) for i, f in enumerate(families)}
     lo, hi = math.inf, 0.0
     for ax, (label, key, stats) in zip(axes[0], columns):
         n = 0

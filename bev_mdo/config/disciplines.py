@@ -7,7 +7,8 @@ from collections.abc import Mapping
 from typing import Any
 
 from bev_mdo.config.sections import SIZED_VARIABLE
-from bev_mdo.mdo.discipline import load_class, options_dict, read_options
+from bev_mdo.mdo.discipline import options_dict
+from bev_mdo.mdo.user_class import load_class, read_options
 from bev_mdo.mdo.units import attach_units
 from bev_mdo.mdo.vectors import wrap
 from bev_mdo.models.common import DESIGN_LIMITS, check_keys

@@ -468,9 +468,8 @@ def resolve_problem(section: Any) -> dict:
     prob["battery_sized_for_range"] = sized
     dvs = prob.get("design_variables")
     if sized and isinstance(dvs, Mapping) and SIZED_VARIABLE in dvs:
-        dvs = dict(dvs)
+        prob["design_variables"] = dvs = dict(dvs)
         spec = dvs.pop(SIZED_VARIABLE)
-        prob["design_variables"] = dvs
         if isinstance(spec, Mapping) and "initial" in spec:
             prob.setdefault("coupling_guesses", {}).setdefault(SIZED_VARIABLE, spec["initial"])
         if isinstance(spec, Mapping) and {"lower", "upper"} & set(spec):  # its bounds were dropped without a word

@@ -4,7 +4,7 @@ Each reads ``config["vehicle"]`` (validated by models.params), ``config["cycle"]
 ``config["energy_model"]``. ``parameters`` maps the model constants a caller may override
 per point (by sending an input column of the same name) to their configured values.
 
-Each declares its options once, in a dataclass ``Options`` (mdo/discipline.py ``read_options``: a key
+Each declares its options once, in a dataclass ``Options`` (mdo/user_class.py ``read_options``: a key
 it does not declare is refused when the config is loaded); ``from_config`` gets an instance.
 
 Topology (thesis ch.4, models/topology.py): the option ``topology`` (SM-SA | DM-DA | IWM-SA |

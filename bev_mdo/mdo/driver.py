@@ -320,10 +320,9 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
             break
         form.x0 = x.copy()
         first_message = str(res.message)
-    # A result outside the bounds within the feasibility tolerance (COBYLA ended 5e-8 below Sellar's z2 >= 0,
-    # 6e-5 above SSBJ's x_shared[1] <= 60000: 'optimum', feasible) is projected onto them, evaluated, recorded
-    # and judged there: a reported design is inside its bounds. A point further out is infeasible (its bound
-    # violation counts) and stays as it is.
+    # A result outside the bounds within the feasibility tolerance (COBYLA ended 5e-8 below Sellar's z2 >= 0, 6e-5
+    # above SSBJ's x_shared[1] <= 60000: 'optimum', feasible) is projected onto them, evaluated, recorded and judged
+    # there: a reported design is inside its bounds. A point further out is infeasible (its bound violation counts).
     projected = {}
     if last["feasible"] and not np.array_equal(np.clip(x, form.lower, form.upper), x):
         projected = {"iteration": k, "bound_violation_scaled": form.bound_violation(x)}
@@ -333,9 +332,8 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         fo = end_point_check(form, x, start, tol, follows)
     if attempt:
         res.message = f"{res.message} (restarted once after: {first_message}; first-order check failed)"
-    # The final report: MDF analysed the point already (its full MDA is kept); IDF's
-    # point is one more MDA through the same evaluator, counted, so the totals equal what
-    # the disciplines actually evaluated (and what a recording holds).
+    # The final report: MDF analysed the point already (its full MDA is kept); IDF's point is one more MDA through
+    # the same evaluator, counted, so the totals equal what the disciplines evaluated (and what a recording holds).
     design = problem.design_dict(x[:n_dv])
     seen = kept.get(x.tobytes()) or (form.analysed(x) if hasattr(form, "analysed") else None)
     if seen is not None:  # a DE result recorded 180 iterations before the end, a discipline lost since
@@ -351,6 +349,8 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         if ok and not final.get("ok", True):  # IDF: its point consistent, the MDA through it failed
             ok, err = False, final.get("error", "")
     counts = dict(evaluator.counts)
+    if form.failures:  # points with no value, the optimiser's and the check's: how many, and the first one's cause
+        fo = {**fo, "failed_points": form.failures, "first_failure": form.first_failure}
     if form.name == "mdf" and (outside := problem.outside_coupling_bounds(final["outputs"])):
         fo = {**fo, "outside_coupling_bounds": outside}  # IDF's bounds, not MDF's: said under the verdict
     if not ok and not fo.get("failure"):  # e.g. IDF's consistent point whose MDA failed, an MDA not converged
@@ -365,9 +365,9 @@ def run_optimization(run: Run, evaluator: Evaluator, *, formulation: str | None 
         message += (f"; the result is iteration {k}, the best feasible point seen" if last["feasible"] else
                     f"; no feasible point was seen: the result is iteration {k}")
     elif k != len(history) - 1:
-        message += (f"; the result is iteration {k}, the best feasible point seen "
-                    f"(the last iterate, iteration {len(history) - 1}, is "
-                    f"{'worse' if history[-1]['feasible'] else 'infeasible'})")
+        message += (f"; the result is iteration {k}, the best feasible point seen (the last iterate, iteration "
+                    f"{len(history) - 1}, {'is worse' if history[-1]['feasible'] else 'is infeasible'}"
+                    f"{': it cannot follow the drive cycle' if history[-1].get('cannot_follow') else ''})")
     return RunResult(
         formulation=form.name, optimizer=opt_name, success=fo["verdict"] == first_order.OPTIMUM and ok,
         message=message, design=design, objective_name=problem.objective,

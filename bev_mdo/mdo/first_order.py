@@ -72,8 +72,13 @@ def check(u: np.ndarray, lower: np.ndarray, upper: np.ndarray, grad_f: np.ndarra
     cols = ([jac_g[i] for i in act_g] + [jac_h[k] for k in range(len(h))]
             + [-np.eye(n)[j] for j in act_lo] + [np.eye(n)[j] for j in act_hi])
     nonneg = [True] * len(act_g) + [False] * len(h) + [True] * (len(act_lo) + len(act_hi))
+    dependent = False  # the active gradients linearly dependent: the multipliers are one split of many
     if cols:
         A = np.column_stack(cols)
+        tol_a = 1e-8 * max(1.0, float(np.max(np.abs(A))))  # an equality's two rows (<= and >=) count once
+        single = [i for i in range(A.shape[1]) if not any(np.allclose(A[:, i], -A[:, j], rtol=1e-8, atol=tol_a)
+                                                          for j in range(i))]
+        dependent = bool(np.linalg.matrix_rank(A[:, single], tol=tol_a) < len(single))
         lb = np.where(nonneg, 0.0, -np.inf)
         sol = lsq_linear(A, -grad_f, bounds=(lb, np.full(len(cols), np.inf)), method="bvls").x
         residual = grad_f + A @ sol
@@ -109,6 +114,7 @@ def check(u: np.ndarray, lower: np.ndarray, upper: np.ndarray, grad_f: np.ndarra
         "active_tolerance": active_tol,
         "gradient_norm": float(np.max(np.abs(grad_f), initial=0.0)),
         "unknown_derivatives": list(unknown),
+        **({"dependent_active": True} if dependent else {}),
         "active_constraints": [{"name": ineq_labels[i], "value": float(g[i]), "multiplier": float(v)}
                                for i, v in zip(act_g, lam)],
         "equalities": [{"name": eq_labels[k], "value": float(h[k]), "multiplier": float(v)}
@@ -179,6 +185,11 @@ def note_lines(fo: dict, optimizer: str = "the optimiser", converged: bool = Fal
     record of the optimiser's last iterate where the result is an earlier one (then the reason is there). A step
     from the end point that failed (driver.end_point_check's ``failed_steps``) is the likelier cause."""
     lines = [_free_line(fo["free_variables"])] if fo.get("free_variables") else []
+    if fo.get("dependent_active"):  # e.g. a constraint and its copy: raising one limit alone may change nothing
+        lines.append("the gradients of the active constraints and bounds are linearly dependent: their multipliers "
+                     "are not unique (those below are one split of many), nor is the change per limit raised alone")
+    if fo.get("failed_points"):  # driver: points of the run that gave no value (the optimiser's, the check's)
+        lines.append(f"{fo['failed_points']} point(s) of the run gave no value; the first: {fo['first_failure']}")
     if fo.get("outside_coupling_bounds"):  # driver: an MDF result beyond problem.coupling_bounds
         lines.append(_coupling_bounds_line(fo["outside_coupling_bounds"]))
     if converged and ended is not None and fo["verdict"] != OPTIMUM:  # its end point is not what was judged

@@ -31,6 +31,7 @@ import numpy as np
 from bev_mdo import interrupts
 from bev_mdo.mdo import first_order
 from bev_mdo.mdo.derivatives import constraint_jacobian, fd_partials, idf_totals, mdf_totals, unknown_variables
+from bev_mdo.mdo.discipline import first_error_line
 from bev_mdo.mdo.evaluator import DisciplinesLost, Evaluator, unresponsive
 from bev_mdo.mdo.graph import CouplingGraph
 from bev_mdo.mdo.mda import MDA, MDAResult
@@ -73,6 +74,7 @@ class Formulation:
         self.n_batches = 0     # evaluate_batch calls that evaluated something
         self.n_gradients = 0
         self.fd_failures = 0
+        self.failures, self.first_failure = 0, ""  # points that gave no value, the first one's error line
         self.ineq_labels = problem.constraint_labels
         self.eq_labels: list[str] = []
         self._u_seen: dict[bytes, np.ndarray] = {}  # physical row -> the scaled u the optimiser asked for
@@ -131,6 +133,8 @@ class Formulation:
                 if ok[i]:
                     self._cache[k] = (float(f[i]), g[i].copy(), h[i].copy(), True, "", y[i].copy())
                 else:
+                    self.failures += 1
+                    self.first_failure = self.first_failure or first_error_line(err[i] or "failed")
                     self._cache[k] = (FAIL_OBJECTIVE, np.full(g.shape[1], FAIL_CONSTRAINT),
                                       np.full(h.shape[1], FAIL_CONSTRAINT), False, err[i] or "failed", y_failed)
         got = [self._cache[k] for k in keys]

@@ -4,9 +4,10 @@ The budget a ROS run gives a discipline before its points fail is ``ros.timeout_
 (``ros.retries`` + 1). A transport that calls the discipline itself (the in-process evaluator,
 api/failures.py; discipline nodes composed into the coordinator's process, ros/composed.py: Beside)
 cannot wait for an answer while it computes one, so ``TimedDiscipline`` gives each compute() that
-budget: one that does not return within it is interrupted (SIGALRM, main thread only; elsewhere the
-call is not bounded) and the discipline counts as hung for the rest of the run: its points fail at
-once with an error naming it and the point, as a ROS node that never answers fails every request.
+budget: one that does not return within it is interrupted (SIGALRM, main thread only, and only while
+the caller has no ITIMER_REAL of its own running, which is left as it is; otherwise the call is not
+bounded) and the discipline counts as hung for the rest of the run: its points fail at once with an
+error naming it and the point, as a ROS node that never answers fails every request.
 A discipline's ``prepare()``, its one-time work such as compiling a model, runs before the first
 call, untimed. A SIGINT during a hung call still interrupts it (KeyboardInterrupt is not caught).
 What a discipline prints in the main thread goes to stderr, as a node's goes to its log: stdout is the
@@ -61,6 +62,9 @@ class TimedDiscipline:
         self.prepare()
         if threading.current_thread() is not threading.main_thread():
             return self._disc.compute(inputs)  # (sys.stdout is the process's: not redirected beside other threads)
+        if signal.getitimer(signal.ITIMER_REAL)[0] > 0:  # the caller's own timer runs: its alarm, not ours
+            with contextlib.redirect_stdout(sys.stderr):
+                return self._disc.compute(inputs)
 
         def alarm(*_):
             raise DisciplineTimeout(f"no answer within {self._timeout_s:g} s (ros.timeout_s x (ros.retries + 1), "

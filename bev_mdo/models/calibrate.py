@@ -25,7 +25,6 @@ from scipy.optimize import OptimizeResult, least_squares
 from bev_mdo import interrupts
 
 from . import fleet as fl
-from .fleet import group_folds  # noqa: F401 - the fold rule, also used by models/baselines.py and scripts
 from .params import CHAIN_SPECS, PARAMETER_SET_DIR, QUASI_STATIC_SPECS, all_specs, is_parameter_set_file, load_parameter_set
 
 # fixed assumptions (not fitted): physical values for a 2022 BEV on a two-wheel dynamometer
@@ -223,7 +222,7 @@ def cross_validate(fleet: fl.Fleet, k: int = 5, names=None, cycles: dict | None 
     if len({groups[i] for i in idx}) < 2:
         return None
     folds = np.full(len(fleet), -1)
-    folds[idx], k = group_folds([groups[i] for i in idx], k)
+    folds[idx], k = fl.group_folds([groups[i] for i in idx], k)
     err = {c: np.full(len(fleet), np.nan) for c in fl.CYCLES}
     xs = []
     fold_mape = []
@@ -435,12 +434,14 @@ def run(args) -> int:
     path = None if args.write in (None, "shipped") else Path(args.write)
     model = args.model
     try:
-        if path is not None and not is_parameter_set_file(args.write):  # checked before the fit
-            raise ValueError(f"--write {args.write}: give a .yaml file (a config names it as vehicle.parameter_set)")
-        if path is not None and path.is_dir():
-            raise ValueError(f"--write {args.write}: is a directory (give a .yaml file)")
+        if path is not None and (path.is_dir() or not is_parameter_set_file(args.write)):  # checked before the fit
+            raise ValueError(f"--write {args.write}: " + ("is a directory (give a .yaml file)" if path.is_dir() else
+                                                          "give a .yaml file (a config names it as vehicle.parameter_set)"))
         if path is not None:
             _writable(path)  # an unwritable place is said now, not after the whole fit
+        if args.write == "shipped" and args.data and Path(args.data).resolve() != fl.DEFAULT_FLEET.resolve():
+            raise ValueError(f"--write shipped: {MODELS[model][3]} is fitted on the shipped fleet, not {args.data}: "
+                             "write yours to a file (--write FILE.yaml)")
         fleet = fl.read_fleet(args.data)
         cycles = fl.resampled_cycles()
         use = usable(fleet, cycles)
@@ -452,11 +453,9 @@ def run(args) -> int:
             raise ValueError(f"{fleet.path}: {f['n_residuals']} measured values for {int(f['determined'].sum())} "
                              "fitted parameters: the fit would pass through the data with unknown standard errors "
                              "(give more vehicles)")
-    except ValueError as exc:
-        print(f"bev-mdo calibrate: error: {exc}", file=sys.stderr)
-        return 2
-    except OSError as exc:
-        print(f"bev-mdo calibrate: error: cannot write {exc.filename}: {exc.strerror}", file=sys.stderr)
+    except (ValueError, OSError) as exc:  # (an OSError: the place --write names, _writable)
+        why = f"cannot write {exc.filename}: {exc.strerror}" if isinstance(exc, OSError) else exc
+        print(f"bev-mdo calibrate: error: {why}", file=sys.stderr)
         return 2
     if few_values(f):
         print(f"note: {few_values(f)}")
@@ -482,9 +481,9 @@ def run(args) -> int:
     for label, c in (("family", cv), ("make", cv_make)):
         if c:
             pairs = cv_pairs(fleet, c, use)
-            print(f"pairs of the CV by {label}: " + "; ".join(
+            print(f"pairs of the CV by {label}: " + ("; ".join(
                 f"{k.replace('epa_', '')} n={s['n']} slope {s['slope_through_origin']:.2f}, mean |diff| "
-                f"{s['mean_abs_diff_points']:.2f} points" for k, s in pairs.items() if s["n"]))
+                f"{s['mean_abs_diff_points']:.2f} points" for k, s in pairs.items() if s["n"]) or "not possible"))
     if args.write:
         interrupts.check()  # a signal swallowed since the last fit: no set written as if the run had ended
         try:

@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import difflib
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .cycles import csv_number, read_csv_rows
+from .cycles import CycleNote, csv_number, read_csv_rows
 from .params import ROAD_LOAD_CHECK_SPEED_M_S, road_load_minimum
 from .road_load import G_M_S2, TYPICAL_A_OVER_MG, TYPICAL_C_N_PER_M2_S2
 
@@ -167,10 +168,6 @@ def read_fleet(path: str | Path | None = None) -> Fleet:
     """Read and validate a fleet CSV; ValueError '<file>: row R, column C: ...' on bad input. Its notes
     (models.cycles.CycleNote: a unit mix-up, a row far off, technology columns missing) are warned as read and
     kept in ``Fleet.notes`` (bev-mdo calibrate writes them into the set's quality)."""
-    import warnings
-
-    from .cycles import CycleNote
-
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", CycleNote)
         fleet = _read_fleet(path)
@@ -264,14 +261,15 @@ def _read_fleet(path: str | Path | None) -> Fleet:
         if low <= 0:
             raise ValueError(f"{path}: row {r}, column road_load_b_n_per_m_s: the road load A + B v + C v^2 "
                              f"is {low:.4g} N at {at:.3g} m/s (it must stay > 0 up to {ROAD_LOAD_CHECK_SPEED_M_S:g} m/s)")
-        _check_once(path, r, row, text, seen)
+        _check_once(path, r, data, text, seen)
         row_no.append(r)
     if not row_no:
         raise ValueError(f"{path}: no vehicles (only a header)")
     _note_missing_technology(path, [name for name in TECHNOLOGY if name not in col])
     arr = {k: np.array(v, float) for k, v in data.items()}
-    if not (energy_noted := bool(_note_implausible_medians(path, arr) & set(MEASURED.values()))):  # (else: each row)
-        _note_implausible_rows(path, row_no, text, arr)
+    noted = _note_implausible_medians(path, arr)
+    _note_implausible_rows(path, row_no, text, arr, noted)
+    energy_noted = bool(noted & set(MEASURED.values()))
     listed = np.isfinite(arr["axle_ratio"])
     return Fleet(str(path), np.array(row_no), text["make"], text["model"], text["drive"], text["flag"],
                  arr["rated_power_kw"], arr["test_mass_kg"], arr["road_load_a_n"], arr["road_load_b_n_per_m_s"],
@@ -285,10 +283,6 @@ def _note_missing_technology(path, missing: list[str]) -> None:
     fleet file lacks and what the models assume instead: without it the models fell back silently."""
     if not missing:
         return
-    import warnings
-
-    from .cycles import CycleNote
-
     assumed = list(dict.fromkeys(ASSUMED_WITHOUT[name] for name in missing if ASSUMED_WITHOUT[name]))
     warnings.warn(f"{path}: no technology column{'s' if len(missing) > 1 else ''} {', '.join(missing)}; assumed: "
                   f"{'; '.join(assumed) or 'nothing'}"
@@ -317,10 +311,6 @@ def _note_implausible_medians(path, arr: dict) -> set[str]:
     """A note (models.cycles.CycleNote) per column whose fleet-wide median lies outside ``PLAUSIBLE_MEDIANS``:
     a fleet in Wh/mi, lb and lbf was fitted and written with no word. A note, not a refusal: a fleet of
     unusual cars may be meant. The columns noted."""
-    import warnings
-
-    from .cycles import CycleNote
-
     noted = set()
     values = {**arr, "road_load_a_n / (test_mass_kg x g)": arr["road_load_a_n"] / (arr["test_mass_kg"] * G_M_S2)}
     for name, (typical, factor, above, below) in PLAUSIBLE_MEDIANS.items():
@@ -341,10 +331,6 @@ def note_energy_unit(fleet: Fleet, pred: dict, scored: dict, model: str) -> None
     """A note (CycleNote, kept in ``fleet.notes``) when a calibrated model's ``pred`` over the ``scored`` vehicle-cycles
     is off one way by the Wh/mi factor: median predicted / measured within 10 % of 1/1.609 (or 1.609), 9 in 10 on that
     side of 1 (shipped sets: 1.00-1.02 over train.csv, 0.82-1.08 per make); unless an energy median was noted."""
-    import warnings
-
-    from .cycles import CycleNote
-
     ratio = np.concatenate([pred[c]["energy_wh_per_km"][scored[c]] / fleet.measured[c][scored[c]] for c in CYCLES])
     for factor, likely in ((1 / WH_PER_MI_OVER_WH_PER_KM, "in Wh per mile (1.609 x Wh/km)"),
                            (WH_PER_MI_OVER_WH_PER_KM, "divided by 1.609 (Wh/km converted as if Wh/mi)")):
@@ -360,30 +346,42 @@ def note_energy_unit(fleet: Fleet, pred: dict, scored: dict, model: str) -> None
 # (A + B v + C v^2 and m a over each trace, regeneration from none to all) puts UDDS / HWFET at 0.51-1.62 for
 # every shipped car, and their measured ratios span 0.74-1.12; a cell 10 x off (or in kWh/100 km) lies outside
 PLAUSIBLE_CYCLE_RATIO = 2.0
+# one car's road load lies within these factors of PLAUSIBLE_MEDIANS' typical values (the shipped rows: A / (m g)
+# 0.69-1.59 x, C 0.60-1.39 x); one row in lbf (A / 4.45, C / 22.3) or with its mass in pounds (A / (m g) / 2.2) does not
+PLAUSIBLE_ROW_FACTORS = {"road_load_a_n / (test_mass_kg x g)": 2.0, "road_load_c_n_per_m2_s2": 3.0}
 
 
-def _note_implausible_rows(path, rows, text: dict, arr: dict) -> None:
+def _note_implausible_rows(path, rows, text: dict, arr: dict, noted: set) -> None:
     """A note (models.cycles.CycleNote) per row whose UDDS and HWFET energies are more than
-    ``PLAUSIBLE_CYCLE_RATIO`` apart: one car's cell 10 x off scored with no word (a typo, or one cell's unit)."""
-    import warnings
-
-    from .cycles import CycleNote
-
+    ``PLAUSIBLE_CYCLE_RATIO`` apart (one car's cell 10 x off scored with no word: a typo, or one cell's unit), and
+    per row whose road load lies beyond ``PLAUSIBLE_ROW_FACTORS`` (unless the fleet's median was ``noted``)."""
+    values = {"road_load_a_n / (test_mass_kg x g)": arr["road_load_a_n"] / (arr["test_mass_kg"] * G_M_S2),
+              "road_load_c_n_per_m2_s2": arr["road_load_c_n_per_m2_s2"]}
+    for name, factor in PLAUSIBLE_ROW_FACTORS.items():
+        typical, _, above, below = PLAUSIBLE_MEDIANS[name]
+        with np.errstate(divide="ignore"):  # A = 0: log 0 = -inf, beyond
+            off = np.abs(np.log(values[name] / typical)) > np.log(factor)
+        for i in [] if name in noted else np.flatnonzero(off):
+            warnings.warn(f"{path}: row {rows[i]} ({text['make'][i]} {text['model'][i]}): {name} {values[name][i]:.4g}, "
+                          f"outside [{typical / factor:.4g}, {typical * factor:.4g}] where one measured BEV's value lies; "
+                          f"likely a unit mix-up: {above if values[name][i] > typical else below} (read as given)",
+                          CycleNote, stacklevel=3)
     u, h = arr[MEASURED["epa_udds"]], arr[MEASURED["epa_hwfet"]]
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = u / h
-    for i in np.flatnonzero((ratio > PLAUSIBLE_CYCLE_RATIO) | (ratio < 1 / PLAUSIBLE_CYCLE_RATIO)):
+    for i in [] if noted & set(MEASURED.values()) else \
+            np.flatnonzero((ratio > PLAUSIBLE_CYCLE_RATIO) | (ratio < 1 / PLAUSIBLE_CYCLE_RATIO)):
         warnings.warn(f"{path}: row {rows[i]} ({text['make'][i]} {text['model'][i]}): udds_wh_per_km_ac "
                       f"{u[i]:.4g} is {ratio[i]:.3g} x hwfet_wh_per_km_ac {h[i]:.4g}; one car's two cycles lie "
                       f"within a factor {PLAUSIBLE_CYCLE_RATIO:g} of each other (its road load alone allows about "
                       "0.5-1.6): a typo or one cell's unit? (read as given)", CycleNote, stacklevel=3)
 
 
-def _check_once(path, r: int, row: list[str], text: dict, seen: dict) -> None:
-    """ValueError if row ``r`` repeats an earlier row (every cell the same: it was counted twice, weighted
-    twice in a fit and paired with itself); a note if it repeats an earlier row's test_vehicle_id and
-    config with other values."""
-    cells = tuple(c.strip() for c in row)
+def _check_once(path, r: int, data: dict, text: dict, seen: dict) -> None:
+    """ValueError if row ``r`` repeats an earlier row (every value read the same, numbers as numbers and text
+    in any case, 2041.20 as 2041.2: it was counted twice, weighted twice in a fit and paired with itself); a
+    note if it repeats an earlier row's test_vehicle_id and config with other values."""
+    cells = (*(v[-1] for v in data.values()), *(v[-1].lower() for v in text.values()))  # (NaN: one object)
     if cells in seen:
         raise ValueError(f"{path}: row {r}: repeats row {seen[cells]} (the same vehicle listed twice); "
                          "remove one of them")
@@ -392,10 +390,6 @@ def _check_once(path, r: int, row: list[str], text: dict, seen: dict) -> None:
     if vid:
         key = ("test", vid, cfg)
         if key in seen:  # a note, not a refusal: EPA may list one tested vehicle under two model names
-            import warnings
-
-            from .cycles import CycleNote
-
             warnings.warn(f"{path}: row {r}: test_vehicle_id {vid} with config {cfg or '(empty)'} is also row "
                           f"{seen[key]}, with other values; both are used (remove one if it is the same test)",
                           CycleNote, stacklevel=3)

@@ -1,4 +1,4 @@
-"""The ROS 2 layer: nodes, messages on the wire, recorder and launcher (it only moves data).
+"""The ROS 2 layer: nodes, the ROS transport, recorder and replay (it only moves data).
 
 Importing it points Fast DDS at bev_mdo's profile (``bev_mdo/data/fastdds_profile.xml``:
 reliable writers without a heartbeat piggybacked on every sample) unless the process

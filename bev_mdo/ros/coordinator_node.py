@@ -151,7 +151,7 @@ def run(config: Mapping[str, Any], *, run_id: str | None = None, formulation: st
     ``recorder_subscribers``: 1 to wait for the run's own recorder (by its declaration; with
     ``recorder_binding``, the binding it must declare: binding.config_binding), 0 not to; not once
     ``recorder_gone()`` says why its process ended (sessions.recorder_gone).
-    ``starting``: start-up progress of the run's processes (launch.Launcher.progress), for the waits.
+    ``starting``: start-up progress of the run's processes (launcher.Launcher.progress), for the waits.
     ``before``: called with the evaluator once every discipline is there, before the recorder wait and
     the optimisation (the baseline, analysed as a sub-run through the same node: sessions.py)."""
     from bev_mdo.config import RunConfig

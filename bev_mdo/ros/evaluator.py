@@ -93,7 +93,7 @@ class RosEvaluator(StartupWaits, Orchestrator):
         self._waiter = MultiWaiter(node.context)
         self._hot = [(self._result_sub, lambda data, _i: self._on_bytes(data))]
         self.local_requests = None  # composed.Beside: (publisher, request) -> True if delivered in process
-        self.starting = None  # start-up progress of the run's own processes (launch.Launcher.progress)
+        self.starting = None  # start-up progress of the run's own processes (launcher.Launcher.progress)
 
     @property
     def request_publishers(self) -> list:

@@ -34,7 +34,7 @@ class StartupWaits:
     def progress(self, names: Sequence[str] = ()) -> tuple:
         """What start-up progress is measured by (fastwait.until): the nodes on the graph, the
         declarations taken, the matches of our request and result topics and, with ``starting``
-        (launch.Launcher.progress), the CPU time of the run's processes not yet on the graph."""
+        (launcher.Launcher.progress), the CPU time of the run's processes not yet on the graph."""
         pubs = self._publishers
         return (self.starting() if self.starting is not None else (), tuple(sorted(self.node.get_node_names())), tuple(sorted(self.specs)), len(self.refused),
                 sum(len(v) for v in self.instances.values()), self._result_sub.get_publisher_count(),

@@ -15,6 +15,7 @@ from bev_mdo.disciplines import TOPOLOGY_DISCIPLINES
 from bev_mdo.disciplines.common import UNITS
 from bev_mdo.mdo.units import factor, label
 from bev_mdo.models.topology import get_topology
+from bev_mdo.figures import styled, subplots
 
 # the study's objectives unless the config (problem.objectives) or --objectives names others
 OBJECTIVES = ("energy_wh_per_km", "accel_time_0_100_s", "powertrain_cost_usd")
@@ -184,20 +185,14 @@ def _axis(name: str):
     return 1.0, label(name, UNITS)
 
 
+@styled
 def plot_pair(results, bench, xk: str, yk: str, path: Path, cycle: str = "", violated=()):
     """One Pareto projection: every topology's front and its 80 kW benchmark design (Table 4-4),
     same marker, black edge, larger; hollow where it is not a feasible design of the run (a topology in
-    ``violated``, whose benchmark breaks a run constraint, or a negative torque margin). Returns the figure
-    (closed)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    matplotlib.rcParams["axes.formatter.useoffset"] = False  # values on the axis, not "0.1 .. 0.5 +3.209e2"
-    import matplotlib.pyplot as plt
-
+    ``violated``, whose benchmark breaks a run constraint, or a negative torque margin). Returns the figure."""
     fx, xl = _axis(xk)
     fy, yl = _axis(yk)
-    fig, ax = plt.subplots(figsize=(6.6, 4.8))
+    fig, ax = subplots(figsize=(6.6, 4.8))
     for k, (t, r) in enumerate(results.items()):
         colour = f"C{k}"
         if len(r.X):
@@ -217,7 +212,6 @@ def plot_pair(results, bench, xk: str, yk: str, path: Path, cycle: str = "", vio
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
     return fig
 
 

@@ -191,6 +191,9 @@ def test_a_bad_config_raises_input_error():
      r"^transport must be a name \('ros' or 'inprocess'\) or a Transport, got \{'transport': 'inprocess'\}$"),
     (lambda s: s.evaluate({"motor_kw": float("nan")}, transport=None), r"^transport must be a name .* got None$"),
     (lambda s: s.sweep("lhs", samples=0, transport=5), r"^transport must be a name .* got 5$"),
+    (lambda s: s.sensitivity(rel_step="big", transport="inprocess"), r"^rel_step must be a finite number, got 'big'$"),
+    (lambda s: s.optimize(callback=5, transport="inprocess"),
+     r"^callback must be a function of one iteration record, got 5$"),
 ])
 def test_arguments_of_the_wrong_kind_raise_input_error(run, said):
     from bev_mdo import InputError, Study
@@ -210,7 +213,7 @@ def test_one_name_is_taken_where_a_list_of_names_is_asked():
 
 
 def test_importing_bev_mdo_and_naming_the_api_loads_no_numpy_and_no_ros():
-    code = ("import sys, bev_mdo; bev_mdo.Study; bev_mdo.OptimizeResult; "
+    code = ("import sys, bev_mdo; bev_mdo.Study; bev_mdo.OptimizeResult; bev_mdo.ModelFailed; "
             "print(sorted(m for m in ('numpy', 'scipy', 'rclpy', 'bev_mdo.cli') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=60)
     assert out.returncode == 0 and out.stdout.strip() == "[]", out.stdout + out.stderr
@@ -388,3 +391,28 @@ def test_a_vector_design_variable_given_whole_or_bare_says_how_to_give_it():
         with pytest.raises(InputError) as e:
             study.evaluate(design, transport="inprocess")
         assert str(e.value).startswith(said), str(e.value)
+
+
+def test_plots_leave_the_callers_matplotlib_as_they_found_it(tmp_path):
+    """A library call that draws (a Pareto front's plots, a bag's report) chose the Agg backend and turned the
+    axis offset off for the rest of the caller's session, and left its figures registered with pyplot."""
+    code = f"""
+import sys, matplotlib
+matplotlib.use("svg")
+matplotlib.rcParams["axes.formatter.useoffset"] = True
+from bev_mdo import Study
+from bev_mdo.bag.report import report
+study = Study({str(ROOT / "config" / "leaf_nedc.yaml")!r})
+study.optimize(bag={str(tmp_path / "bag")!r}, transport="inprocess")
+written = report({str(tmp_path / "bag")!r})
+study.pareto(objectives=["energy_wh_per_km", "accel_time_0_100_s"], generations=2, pop=8,
+             out={str(tmp_path / "front")!r}, plots=True, transport="inprocess")
+print(sum(str(p).endswith(".png") for p in written), matplotlib.get_backend(),
+      matplotlib.rcParams["axes.formatter.useoffset"], "matplotlib.pyplot" in sys.modules)
+"""
+    out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=ENV, capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    pngs, backend, offset, pyplot = out.stdout.split()[-4:]
+    assert int(pngs) >= 2 and (backend, offset, pyplot) == ("svg", "True", "False"), out.stdout
+    assert list((tmp_path / "front").glob("front_*.png"))

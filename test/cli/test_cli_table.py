@@ -122,3 +122,10 @@ def test_an_unknown_option_is_said_by_its_subcommand(capsys):
     with pytest.raises(SystemExit):  # given before the subcommand: the top parser's (the review)
         cli.main(["--bogus", "sweep", "config/leaf_nedc.yaml"])
     assert capsys.readouterr().err.startswith("bev-mdo: error: unrecognized arguments: --bogus")
+    with pytest.raises(SystemExit):  # a subcommand's action names itself: `bag info`, not `bag`
+        cli.main(["bag", "info", "bags/none", "--bogus"])
+    assert capsys.readouterr().err == ("bev-mdo bag info: error: unrecognized arguments: --bogus "
+                                       "(see bev-mdo bag info --help)\n")
+    with pytest.raises(SystemExit):  # given to `bag`, before its action: bag's (the review)
+        cli.main(["bag", "--bogus", "info", "bags/none"])
+    assert capsys.readouterr().err.startswith("bev-mdo bag: error: unrecognized arguments: --bogus (see bev-mdo bag --help)")

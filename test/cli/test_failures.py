@@ -210,3 +210,68 @@ def test_the_report_of_a_run_a_discipline_stopped_says_so_first(stopped_run, tmp
         "discipline 'gen' stopped answering" in first, first
     result = json.loads(p.stdout)["result_iteration"]  # where the result was found, as the JSON says
     assert f"## The run's result (iteration {result})" in md and "## Final iterate" not in md, md[:1500]
+
+
+LOOP = '''
+import numpy as np
+
+A = np.array([[1.0, 0.5], [0.5, 1.0]])  # its eigenvalues 1.5 and 0.5: Gauss-Seidel diverges but at its fixed point
+
+
+class D1:
+    name, inputs, outputs, shapes = "d1", ("x", "y2"), ("y1",), {"x": 2, "y2": 2, "y1": 2}
+    units = dict.fromkeys(("x", "y2", "y1"), "1")
+
+    def compute(self, inputs):
+        return {"y1": inputs["x"] - inputs["y2"] @ A.T}
+
+
+class D2:
+    name, inputs, outputs, shapes = "d2", ("y1", "z"), ("y2",), {"y1": 2, "y2": 2}
+    units = dict.fromkeys(("y1", "z", "y2"), "1")
+
+    def compute(self, inputs):
+        return {"y2": inputs["y1"] + inputs["z"][:, None]}
+
+
+class D3:
+    name, inputs, outputs, shapes = "d3", ("y1", "y2"), ("f",), {"y1": 2, "y2": 2}
+    units = dict.fromkeys(("y1", "y2", "f"), "1")
+
+    def compute(self, inputs):
+        return {"f": np.sum((inputs["y1"] - [1.0, 2.0]) ** 2, axis=1) + np.sum((inputs["y2"] - 3.0) ** 2, axis=1)}
+'''
+
+
+def test_an_mda_that_diverges_during_the_run_is_said_with_its_cause(tmp_path):
+    """An MDO trial: a two-discipline loop that Gauss-Seidel converges only at the start point (its fixed point)
+    ended 'no progress from the start point', exit 5, and 'did not converge' was said nowhere: not in the output,
+    the notes nor the JSON. The run now says how many points gave no value and the first one's cause."""
+    p = _loop_run(tmp_path, "mdf", "optimize", "loop2.yaml", "--transport", "inprocess")
+    said = [line for line in p.stdout.splitlines() if "point(s) of the run gave no value" in line]
+    assert len(said) == 1 and "the first: MDA loop ['d1', 'd2'] did not converge" in said[0], p.stdout[-2000:]
+    assert "mda.method: newton may converge" in said[0]
+
+
+def test_idf_check_totals_at_a_design_whose_mda_fails_says_where_the_couplings_are(tmp_path):
+    """An MDO trial: check-totals --at under IDF put the couplings where one MDA of the design puts them, and
+    where that MDA diverged it checked them at the run's start values with no word (exit 0)."""
+    p = _loop_run(tmp_path, "idf", "check-totals", "loop2.yaml", "--at", "x[0]=5.5,x[1]=6,z=1.3333333333",
+                  "--transport", "inprocess")
+    assert p.stderr.count("note: the MDA of this design failed (MDA loop ['d1', 'd2'] did not converge") == 1, p.stderr
+    assert "the couplings keep the values a run starts from (shown in the header)" in p.stderr
+
+
+def _loop_run(tmp_path, formulation: str, *argv) -> subprocess.CompletedProcess:
+    """``bev-mdo argv`` on the LOOP problem (its constrained optimum x = (5.5, 6), z = 4/3, f = 1/3)."""
+    (tmp_path / "loop2.py").write_text(LOOP)
+    cfg = {"name": "loop2", "disciplines": [{"name": f"d{k}", "class": f"loop2:D{k}"} for k in (1, 2, 3)],
+           "problem": {"objective": "f", "design_variables": {
+               "x": {"shape": 2, "lower": -10, "upper": 10, "initial": [0, 0]},
+               "z": {"lower": -5, "upper": 5, "initial": 0}},
+               "constraints": {"y2[1]": {"upper": 3}}, "coupling_guesses": {"y2": 0.0}},
+           "formulation": formulation, "mda": {"method": "gauss_seidel", "tolerance": 1e-12, "max_iterations": 100},
+           "optimizer": {"name": "SLSQP"}}
+    (tmp_path / "loop2.yaml").write_text(yaml.safe_dump(cfg))
+    return subprocess.run([sys.executable, "-m", "bev_mdo", *argv], capture_output=True, text=True, env=os.environ,
+                          timeout=120, cwd=tmp_path)

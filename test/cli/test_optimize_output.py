@@ -263,3 +263,26 @@ def test_the_json_names_each_design_variables_and_outputs_unit(capsys):
     doc = json.loads(capsys.readouterr().out)
     assert set(doc["units"]) == set(doc["design"]) | set(doc["outputs"])
     assert doc["units"]["motor_kw"] == "kW" and doc["units"]["energy_wh_per_km"] == "Wh/km"
+
+
+def test_the_result_message_says_why_the_last_iterate_was_set_aside():
+    """An API trial (a Model 3 RWD-class car on the NEDC, motor speed allowed to 1900 rad/s): SLSQP converged at a
+    design within every constraint that cannot follow the cycle; the result's message said 'the last iterate,
+    iteration 7, is infeasible' beside its max violation 0, and only the CLI's note said why."""
+    import yaml
+
+    from bev_mdo import Study
+
+    raw = yaml.safe_load(Path(CONFIG).read_text())
+    raw["vehicle"].update(drag_area_m2=0.511, rolling_resistance=0.0075, air_density_kg_m3=1.2, wheel_radius_m=0.334,
+                          regen_fraction=0.6, glider_kg=1149.0, load_kg=75.0)
+    raw["problem"]["design_variables"] = {"motor_kw": {"lower": 100, "upper": 250, "initial": 208},
+                                          "gear_ratio": {"lower": 6, "upper": 12, "initial": 9.04},
+                                          "battery_kwh": {"lower": 40, "upper": 80, "initial": 57.5}}
+    raw["problem"]["constraints"] = {"range_km": {"lower": 400}, "motor_speed_max_rad_s": {"upper": 1900},
+                                     "accel_time_0_100_s": {"upper": 7}}
+    raw["problem"].pop("baseline", None)
+    d = Study(raw).optimize(transport="inprocess").to_dict()
+    assert d["ended"]["cannot_follow"] and d["ended"]["max_violation"] == 0 and not d["last_iterate"], d["ended"]
+    assert d["message"].endswith(f"(the last iterate, iteration {d['ended']['iteration']}, is infeasible: it cannot "
+                                 "follow the drive cycle)"), d["message"]

@@ -170,11 +170,14 @@ def test_the_title_names_the_cycle_mix_the_energy_is_computed_on(tmp_path, capsy
 def test_axes_show_values_not_an_offset(tmp_path):
     """A van trial's Pareto plot labelled its axis 0.1 .. 0.5 and '+3.209e2' beside it: the plots of the runs
     (fronts, sweeps, reports) give the values themselves."""
-    from bev_mdo.api.evaluate import pyplot_and_label
+    from bev_mdo.figures import styled, subplots
 
-    plt, _ = pyplot_and_label({})
-    fig, ax = plt.subplots()
-    ax.plot([0.0, 1.0], [320.9012, 320.9051])
-    fig.savefig(tmp_path / "a.png")
+    @styled
+    def draw():
+        fig, ax = subplots()
+        ax.plot([0.0, 1.0], [320.9012, 320.9051])
+        fig.savefig(tmp_path / "a.png")
+        return ax
+
+    ax = draw()
     assert ax.yaxis.get_offset_text().get_text() == "" and "320.90" in "".join(t.get_text() for t in ax.get_yticklabels())
-    plt.close(fig)

@@ -159,7 +159,8 @@ def _append_copy(row, change=None):
     def f(rows):
         copy = list(rows[row])
         if change:
-            copy[rows[0].index(change[0])] = change[1]
+            at = rows[0].index(change[0])
+            copy[at] = change[1](copy[at]) if callable(change[1]) else change[1]
         rows.append(copy)
     return f
 
@@ -185,6 +186,9 @@ def _append_copy(row, change=None):
     (_duplicate("test_mass_kg", "5000"), "row 1, column test_mass_kg: given twice (columns 8 and 22)"),
     # a row listed twice was counted twice, weighted twice by calibrate and paired with its copy
     (_append_copy(4), "row 64: repeats row 5 (the same vehicle listed twice)"),
+    # ... and so was one typed otherwise (a calibration trial: 2041.20 for 2041.2, the model in capitals)
+    (_append_copy(4, ("test_mass_kg", lambda c: f"{float(c):.3f}")), "row 64: repeats row 5 (the same vehicle"),
+    (_append_copy(4, ("model", str.upper)), "row 64: repeats row 5 (the same vehicle listed twice)"),
 ])
 def test_bad_fleet_file_one_line_exit_2(capsys, tmp_path, edit, expect):
     p = _bad(tmp_path, edit)

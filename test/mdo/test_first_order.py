@@ -166,3 +166,20 @@ def test_a_derivative_free_optimisers_claim_is_not_blamed_on_its_own_gradient(op
     assert ("check-partials" in line) == (derivatives == "analytic")  # the check's own gradient may be wrong
     (slsqp,) = note_lines(fo, "SLSQP", converged=True)  # a gradient-based one's gradient is the check's
     assert ("the optimiser's own" if derivatives == "analytic" else "as the optimiser's") in slsqp
+
+
+@pytest.mark.parametrize("jac_g, dependent", [
+    ([[0.0, 1.0], [0.0, 1.0]], True),    # a constraint and its copy: the multiplier split between them is arbitrary
+    ([[0.0, 1.0], [0.0, -1.0]], False),  # an equality's two rows (<= and >=): one constraint
+    ([[0.0, 1.0], [1.0, 0.0]], False),
+])
+def test_dependent_active_gradients_are_said(jac_g, dependent):
+    """An MDO trial: y2[1] <= 3 and its copy g <= 3 printed multipliers 0 and 2 (-0.6667 per unit raised for g),
+    while raising g's limit alone changed nothing: the split between dependent constraints is one of many."""
+    from bev_mdo.mdo.first_order import note_lines
+
+    fo = check(np.zeros(2), np.full(2, -np.inf), np.full(2, np.inf), np.array([0.0, -2.0]), np.zeros(2),
+               np.array(jac_g), np.zeros(0), np.zeros((0, 2)), names=["a", "b"], ineq_labels=["y", "g"], eq_labels=[],
+               feasibility_tol=1e-6)
+    assert fo.get("dependent_active", False) is dependent
+    assert any("linearly dependent" in line for line in note_lines(fo)) is dependent

@@ -17,7 +17,7 @@ def test_folds_are_the_calibration_split(fleet):
     """The baseline is held out on the same family folds as the chain's cross-validation."""
     use = ~fleet.outlier
     folds = bl.family_folds(fleet, use)
-    assert (folds == cal.group_folds(fleet.family(), bl.FOLDS)[0]).all()
+    assert (folds == fl.group_folds(fleet.family(), bl.FOLDS)[0]).all()
     fam = np.array(fleet.family())
     for g in set(fam):  # a family never split
         assert len(set(folds[fam == g])) == 1

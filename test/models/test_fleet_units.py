@@ -115,3 +115,26 @@ def test_a_fleet_of_compact_cars_with_masses_in_pounds_is_noted(tmp_path):
     notes = [n for n in _notes(path) if "no technology columns" not in n]
     assert len(notes) == 1 and "column road_load_a_n / (test_mass_kg x g): fleet median 0.00" in notes[0]
     assert "test_mass_kg in pounds?" in notes[0]
+
+
+@pytest.mark.parametrize("factors,named", [
+    ({"road_load_a_n": 1 / 4.448, "road_load_b_n_per_m_s": 1 / 9.95, "road_load_c_n_per_m2_s2": 1 / 22.26},
+     ["road_load_a_n / (test_mass_kg x g)", "road_load_c_n_per_m2_s2"]),
+    ({"test_mass_kg": 2.20462}, ["road_load_a_n / (test_mass_kg x g)"]),
+])
+def test_one_row_in_other_units_is_a_note_naming_the_row(tmp_path, factors, named):
+    """A calibration trial: one Leaf typed in lbf, lbf/mph, lbf/mph^2 was scored -79.9 % on HWFET with no word and
+    pushed charger_efficiency to its bound; one in pounds only said CANNOT FOLLOW. The medians stayed plausible."""
+    rows = list(csv.reader(fl.DEFAULT_FLEET.open(newline="", encoding="utf-8")))
+    f = fl.read_fleet()  # the car of the median road load per weight (one far above it in pounds is not told)
+    per_weight = f.road_load_a_n / f.test_mass_kg
+    i = int(np.argsort(per_weight)[len(f) // 2]) + 1
+    for name, k in factors.items():
+        at = rows[0].index(name)
+        rows[i][at] = f"{float(rows[i][at]) * k:.6g}"
+    path = tmp_path / "fleet.csv"
+    with path.open("w", newline="", encoding="utf-8") as out:
+        csv.writer(out).writerows(rows)
+    notes = _notes(path)
+    assert [n.split(": ")[2].split(" ")[0] for n in notes] == [n.split(" ")[0] for n in named], notes
+    assert all(n.startswith(f"{path}: row {i + 1} (") and "likely a unit mix-up" in n for n in notes), notes

@@ -15,28 +15,25 @@ from __future__ import annotations
 import json
 import re
 import subprocess
-import threading
+import sys
+from pathlib import Path
+from types import SimpleNamespace
 
-import numpy as np
 import pytest
 import yaml
 
-import rclpy
+from bev_mdo.bag.history import history
+from bev_mdo.cli.resume import resume_point
+from bev_mdo.config import load_config, resolve_disciplines
+from bev_mdo.mdo.driver import run_optimization
+from bev_mdo.mdo.evaluator import InProcessEvaluator
+from bev_mdo.testing import PYTHON, REPO, ros_env
 
-from bev_mdo.bag.history import history  # noqa: E402
-from bev_mdo.cli.resume import resume_point  # noqa: E402
-from bev_mdo.config import load_config, resolve_disciplines  # noqa: E402
-from bev_mdo.mdo.driver import run_optimization  # noqa: E402
-from bev_mdo.mdo.evaluator import InProcessEvaluator  # noqa: E402
-from bev_mdo import protocol  # noqa: E402
-from bev_mdo import binding  # noqa: E402
-from bev_mdo.ros.common import (INFO_QOS, INFO_TOPIC, ITERATION_QOS, ITERATION_TOPIC, MDA_REQUEST_TOPIC,  # noqa: E402
-                                MDA_RESULT_QOS, REQUEST_QOS, RESULT_QOS, RESULT_TOPIC, mda_result_topic, stamp)
-from bev_mdo.testing import PYTHON, REPO, ros_env  # noqa: E402
-from bev_mdo_msgs.msg import DisciplineInfo, EvaluationRequest, EvaluationResult, IterationRecord  # noqa: E402
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from attacker import FORGED_DESIGN  # noqa: E402
 
 NAMES = ["vehicle_mass", "energy", "range"]
-FORGED_DESIGN = {"motor_kw": 120.0, "gear_ratio": 1.0, "battery_kwh": 30.0}
 
 
 @pytest.fixture(scope="module")
@@ -55,80 +52,26 @@ def config_path(tmp_path_factory):
     return str(p)
 
 
-class Attacker:
-    """Forges declarations, results and iteration records; counts what it sent."""
-
-    def __init__(self, ctx, config):
-        self.node = rclpy.create_node("attacker", context=ctx)
-        self.sent = {"results": 0, "records": 0, "other_run_records": 0}
-        self.run_ids: set[str] = set()
-        self._info = self.node.create_publisher(DisciplineInfo, INFO_TOPIC, INFO_QOS)
-        self._res = self.node.create_publisher(EvaluationResult, RESULT_TOPIC, RESULT_QOS)
-        self._mda = self.node.create_publisher(EvaluationResult, mda_result_topic("energy"), MDA_RESULT_QOS)
-        self._iter = self.node.create_publisher(IterationRecord, ITERATION_TOPIC, ITERATION_QOS)
-        self._sub = self.node.create_subscription(EvaluationRequest, MDA_REQUEST_TOPIC, self._on_request,
-                                                  REQUEST_QOS, raw=True)
-        fp, effective = binding.fingerprint(config, "energy")
-        energy = [d for d in resolve_disciplines(config) if d.name == "energy"][0]
-        for k, sig in enumerate(("", "0" * 64)):  # unsigned, then with a made-up signature
-            info = DisciplineInfo()
-            stamp(info.header)
-            info.discipline, info.instance = "energy", f"energy_node_attacker{k}"
-            info.inputs, info.outputs = list(energy.inputs), list(energy.outputs)
-            info.fingerprint, info.effective_config, info.signature = fp, effective, sig
-            self._info.publish(info)
-
-    def _on_request(self, data) -> None:
-        req = protocol.decode_request(data)
-        if "energy" not in req.flow or not req.run_id or req.run_id.endswith("-baseline"):
-            return
-        self.run_ids.add(req.run_id)
-        n = int(req.inputs.batch_size)
-        out = protocol.result()
-        stamp(out.header)
-        out.header.frame_id = req.header.frame_id
-        out.run_id, out.evaluation_id, out.discipline, out.instance = req.run_id, req.evaluation_id, "energy", "x"
-        out.point_ok = np.ones(n, bool)
-        out.outputs = protocol.batch({"energy_wh_per_km": np.full(n, 80.0), **protocol.from_named_array(req.inputs)})
-        out.flow = list(req.flow)
-        data_out = protocol.encode_result(out)
-        self._mda.publish(data_out)
-        self._res.publish(data_out)
-        self.sent["results"] += 1
-        if self.sent["records"] < 40:
-            for run_id, key in ((req.run_id, "records"), ("someone-else", "other_run_records")):
-                rec = IterationRecord()
-                stamp(rec.header)
-                rec.run_id, rec.iteration, rec.objective_name, rec.objective = run_id, 999, "energy_wh_per_km", 80.0
-                protocol.to_named_array({k: np.array([v]) for k, v in FORGED_DESIGN.items()}, rec.design)
-                rec.feasible = True
-                rec.signature = "0" * 64 if self.sent[key] % 2 else ""
-                self._iter.publish(rec)
-                self.sent[key] += 1
-
-
-def _run_beside_attacker(config, argv, domain, cwd):
-    """Run a `bev-mdo` command while an Attacker on the same domain forges; (completed process, attacker)."""
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx)
-    from rclpy.executors import SingleThreadedExecutor
-
-    attacker = Attacker(ctx, config)
-    executor = SingleThreadedExecutor(context=ctx)
-    executor.add_node(attacker.node)
-    stop = threading.Event()
-    spinner = threading.Thread(target=lambda: [executor.spin_once(timeout_sec=0.05) for _ in iter(stop.is_set, True)])
-    spinner.start()
+def _run_beside_attacker(config_path, argv, domain, cwd):
+    """Run a `bev-mdo` command while a fresh attacker process (attacker.py) on the same domain forges;
+    (completed process, what the attacker sent and saw)."""
+    env = ros_env(domain)
+    log = Path(cwd) / "attacker.log"
+    with log.open("w") as err:
+        attacker = subprocess.Popen([PYTHON, str(HERE / "attacker.py"), config_path], env=env, cwd=cwd, text=True,
+                                    stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=err)
     try:
+        assert attacker.stdout.readline().strip() == "ready", log.read_text()[-3000:]
         p = subprocess.run([PYTHON, "-m", "bev_mdo", *argv, "--domain-id", str(domain)], cwd=cwd,
-                           env=ros_env(domain), capture_output=True, text=True, timeout=300)
+                           env=env, capture_output=True, text=True, timeout=300)
+        out, _ = attacker.communicate(timeout=60)  # closes its stdin: it stops and says what it did
     finally:
-        stop.set()
-        spinner.join()
-        executor.shutdown()
-        attacker.node.destroy_node()
-        rclpy.shutdown(context=ctx)
-    return p, attacker
+        if attacker.poll() is None:
+            attacker.kill()
+            attacker.wait()
+    assert attacker.returncode == 0, log.read_text()[-3000:]
+    said = json.loads(out.strip().splitlines()[-1])
+    return p, SimpleNamespace(sent=said["sent"], run_ids=set(said["run_ids"]))
 
 
 def test_forged_results_declarations_and_records_are_dropped_and_counted(ros_domain, config_path, tmp_path):
@@ -137,14 +80,15 @@ def test_forged_results_declarations_and_records_are_dropped_and_counted(ros_dom
     # Every attempt must give the run's own optimum. The attack claims need an attempt in which the
     # attacker saw the run's requests and the run's recorder heard the attacker: nothing makes the run
     # wait for a foreign reader or writer, and a participant can miss another one for a whole short run
-    # (once in CI the attacker saw none; here the recorder missed all the attacker's messages in about
-    # 1 run of 10: a Fast DDS discovery hang can silence a participant that stays alive). The recorder
+    # (once in CI an attacker in the test process saw none in all 3 attempts, so each attempt starts a
+    # fresh attacker process; here the recorder missed all the attacker's messages in about 1 run of 10:
+    # a Fast DDS discovery hang can silence a participant that stays alive). The recorder
     # heard it when it counted the attacker's records of another run; the coordinator, when it counted a
     # forged declaration (once in CI it took none: they arrived after its last look, or never). At most 3
     # attempts.
     for attempt in range(3):
         bag = tmp_path / "bags" / f"trusted{attempt}"
-        p, attacker = _run_beside_attacker(config, ["optimize", config_path, "--bag", str(bag), "--json", "--quiet"],
+        p, attacker = _run_beside_attacker(config_path, ["optimize", config_path, "--bag", str(bag), "--json", "--quiet"],
                                            ros_domain, tmp_path)
         assert p.returncode == 0, p.stderr[-3000:]
         out = json.loads(p.stdout)
@@ -210,7 +154,7 @@ def test_commands_that_launch_nodes_sign_by_default(ros_domain, config_path, tmp
     # attack claims need an attempt in which the attacker saw a request (at most 3 attempts).
     attacked = 0
     for _ in range(3):
-        p, attacker = _run_beside_attacker(load_config(config_path), argv, ros_domain, tmp_path)
+        p, attacker = _run_beside_attacker(config_path, argv, ros_domain, tmp_path)
         assert p.returncode == 0, p.stderr[-3000:]
         assert json.loads(p.stdout) == json.loads(local.stdout)
         note = [line for line in p.stderr.splitlines() if "dropped and counted" in line]

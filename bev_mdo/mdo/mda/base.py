@@ -237,7 +237,7 @@ class LoopSolver:
         return err, alive, done
 
     def not_converged(self, comp: Sequence[str], b: Batch, active: np.ndarray, err: np.ndarray) -> None:
-        other = "" if self.name == "newton" else "; mda.method: newton may converge where a fixed-point sweep does not"
+        other = "" if self.name == "newton" else ": mda.method: newton may converge where a fixed-point sweep does not"
         for i, e in zip(active, err):
             why = (f"relative change {e:.3g} > tolerance {self.tolerance:g}{other}" if e > self.tolerance else
                    f"relative change {e:.3g} within the tolerance, but the changes do not shrink fast enough for the "
