@@ -267,8 +267,9 @@ def _read_fleet(path: str | Path | None) -> Fleet:
         raise ValueError(f"{path}: no vehicles (only a header)")
     _note_missing_technology(path, [name for name in TECHNOLOGY if name not in col])
     arr = {k: np.array(v, float) for k, v in data.items()}
-    noted = _note_implausible_medians(path, arr)
-    _note_implausible_rows(path, row_no, text, arr, noted)
+    values = {**arr, "road_load_a_n / (test_mass_kg x g)": arr["road_load_a_n"] / (arr["test_mass_kg"] * G_M_S2)}
+    noted = _note_implausible_medians(path, values)
+    _note_implausible_rows(path, row_no, text, values, noted)
     energy_noted = bool(noted & set(MEASURED.values()))
     listed = np.isfinite(arr["axle_ratio"])
     return Fleet(str(path), np.array(row_no), text["make"], text["model"], text["drive"], text["flag"],
@@ -307,12 +308,11 @@ PLAUSIBLE_MEDIANS = {
 }
 
 
-def _note_implausible_medians(path, arr: dict) -> set[str]:
-    """A note (models.cycles.CycleNote) per column whose fleet-wide median lies outside ``PLAUSIBLE_MEDIANS``:
-    a fleet in Wh/mi, lb and lbf was fitted and written with no word. A note, not a refusal: a fleet of
-    unusual cars may be meant. The columns noted."""
+def _note_implausible_medians(path, values: dict) -> set[str]:
+    """A note (models.cycles.CycleNote) per column of ``values`` (the fleet's columns and A / (m g)) whose
+    fleet-wide median lies outside ``PLAUSIBLE_MEDIANS``: a fleet in Wh/mi, lb and lbf was fitted and written with
+    no word. A note, not a refusal: a fleet of unusual cars may be meant. The columns noted."""
     noted = set()
-    values = {**arr, "road_load_a_n / (test_mass_kg x g)": arr["road_load_a_n"] / (arr["test_mass_kg"] * G_M_S2)}
     for name, (typical, factor, above, below) in PLAUSIBLE_MEDIANS.items():
         median = float(np.median(values[name]))
         if not typical / factor <= median <= typical * factor:
@@ -351,12 +351,11 @@ PLAUSIBLE_CYCLE_RATIO = 2.0
 PLAUSIBLE_ROW_FACTORS = {"road_load_a_n / (test_mass_kg x g)": 2.0, "road_load_c_n_per_m2_s2": 3.0}
 
 
-def _note_implausible_rows(path, rows, text: dict, arr: dict, noted: set) -> None:
+def _note_implausible_rows(path, rows, text: dict, values: dict, noted: set) -> None:
     """A note (models.cycles.CycleNote) per row whose UDDS and HWFET energies are more than
     ``PLAUSIBLE_CYCLE_RATIO`` apart (one car's cell 10 x off scored with no word: a typo, or one cell's unit), and
-    per row whose road load lies beyond ``PLAUSIBLE_ROW_FACTORS`` (unless the fleet's median was ``noted``)."""
-    values = {"road_load_a_n / (test_mass_kg x g)": arr["road_load_a_n"] / (arr["test_mass_kg"] * G_M_S2),
-              "road_load_c_n_per_m2_s2": arr["road_load_c_n_per_m2_s2"]}
+    per row whose road load lies beyond ``PLAUSIBLE_ROW_FACTORS`` (unless the fleet's median was ``noted``);
+    ``values``: as _note_implausible_medians takes them."""
     for name, factor in PLAUSIBLE_ROW_FACTORS.items():
         typical, _, above, below = PLAUSIBLE_MEDIANS[name]
         with np.errstate(divide="ignore"):  # A = 0: log 0 = -inf, beyond
@@ -366,7 +365,7 @@ def _note_implausible_rows(path, rows, text: dict, arr: dict, noted: set) -> Non
                           f"outside [{typical / factor:.4g}, {typical * factor:.4g}] where one measured BEV's value lies; "
                           f"likely a unit mix-up: {above if values[name][i] > typical else below} (read as given)",
                           CycleNote, stacklevel=3)
-    u, h = arr[MEASURED["epa_udds"]], arr[MEASURED["epa_hwfet"]]
+    u, h = values[MEASURED["epa_udds"]], values[MEASURED["epa_hwfet"]]
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = u / h
     for i in [] if noted & set(MEASURED.values()) else \
